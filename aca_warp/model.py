@@ -1,0 +1,181 @@
+"""Static HF model of a batch of pads: per-patch and per-pad Warp arrays, CSR neighbours, normal forces.
+
+Flat layout: the patches of all pads are concatenated; ``patch_pad`` (n,) gives each patch's pad and
+``pad_patch_start`` (pads + 1,) the offsets. Per-pad parameters are arrays of length ``pad_count``.
+Array dtype is the model's precision T (float32 or float64) unless noted. Built once per patch set by
+:func:`build_model`; growth (varying-area study) updates the area-dependent arrays in place on the device.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import warp as wp
+
+from aca_warp.contact import ContactSolution, solve_scene_contact
+from aca_warp.errors import SceneError
+from aca_warp.kernels.neighbours import build_neighbours
+from aca_warp.scene import Scene
+
+PRECISIONS = {"fp32": wp.float32, "fp64": wp.float64}
+
+
+@dataclass
+class PadModel:
+    """Device arrays of the HF model; shapes: n = patch_count, P = pad_count, E = nnz of the CSR.
+
+    Per patch (n,): ``area`` [m²], ``sqrt_area`` [m], ``height`` [m], ``radius`` (friction radius) [m],
+    ``inv_mass`` [1/kg], ``k_t`` and ``k_n`` [N/m], ``damping`` [N s/m], ``normal_force`` [N],
+    ``patch_pad`` (int32). CSR: ``nbr_start`` (n+1,) int32, ``nbr_index`` (E,) int32, ``nbr_inv_dist``
+    (E,) [1/m], ``nbr_stiffness`` k_ij (E,) [N/m]. Per pad (P,): ``pad_kc`` (K_C) [N/m²], ``pad_omega`` [rad/s], ``pad_mu_scale`` (M/π),
+    ``pad_slope`` and ``pad_decay`` [s/m], ``pad_mu_pad``, ``pad_load`` (F_N) [N], ``pad_matrix_force`` [N],
+    ``pad_matrix_radius`` [m]; for growth also ``pad_growth`` [m per event], ``pad_k_t``/``pad_k_n`` (K_T,
+    K_N) [N/m²], ``pad_mass_per_area`` [kg/m²], ``pad_zeta``, and float64 ``pad_area`` [m²], ``pad_moment``
+    [m³], ``pad_k_m`` [N/m³], ``pad_gap`` [m].
+    """
+
+    scenes: list[Scene]
+    device: wp.Device
+    dtype: Any
+    pad_patch_start_host: np.ndarray
+    contacts: list[ContactSolution]
+    arrays: dict[str, wp.array] = field(default_factory=dict)
+
+    def __getattr__(self, name: str) -> wp.array:
+        try:
+            return self.__dict__["arrays"][name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    @property
+    def pad_count(self) -> int:
+        """Number of pads in the batch."""
+        return len(self.scenes)
+
+    @property
+    def patch_count(self) -> int:
+        """Total number of patches."""
+        return int(self.pad_patch_start_host[-1])
+
+    @property
+    def nnz(self) -> int:
+        """Number of directed neighbour links."""
+        return int(self.arrays["nbr_index"].shape[0]) if self.arrays["nbr_start"].shape[0] > 1 else 0
+
+    @property
+    def has_coupling(self) -> bool:
+        """Whether any patch has a neighbour (else no coupling stage runs)."""
+        return self.nnz > 0
+
+    @property
+    def precision(self) -> str:
+        """``"fp32"`` or ``"fp64"``."""
+        return "fp64" if self.dtype == wp.float64 else "fp32"
+
+    def host(self, name: str) -> np.ndarray:
+        """A copy of a model array on the host."""
+        return self.arrays[name].numpy()
+
+
+def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precision: str = "fp64") -> PadModel:
+    """Build the device model of a batch of scenes (one pad each): contact solve, neighbours, arrays."""
+    if not scenes:
+        raise SceneError("a batch needs at least one scene")
+    if precision not in PRECISIONS:
+        raise SceneError(f"precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
+    try:
+        dev = wp.get_device(device)
+    except (ValueError, RuntimeError) as e:
+        raise SceneError(f"device {device!r} is not available: {e}") from None
+    T = PRECISIONS[precision]
+    npT = np.float32 if T == wp.float32 else np.float64
+    counts = np.array([s.patches.count for s in scenes])
+    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+    pad_of = np.repeat(np.arange(len(scenes), dtype=np.int32), counts)
+    cat = lambda f: np.concatenate([f(s) for s in scenes])  # noqa: E731
+    x, y = cat(lambda s: s.patches.x), cat(lambda s: s.patches.y)
+    area = cat(lambda s: s.patches.area)
+    mat = {k: np.repeat([getattr(s.material, k) for s in scenes], counts) for k in ("K_T", "K_N", "mass_per_area",
+                                                                                       "damping_ratio")}
+    sq = np.sqrt(area)
+    mass = mat["mass_per_area"] * area
+    k_t = mat["K_T"] * sq
+    contacts = [solve_scene_contact(s) for s in scenes]
+    growth = [s.growth for s in scenes]
+    nbr_start, nbr_index, nbr_inv = build_neighbours(
+        x, y, pad_of, np.array([s.material.coupling_radius for s in scenes]), dev
+    )
+
+    def dev_arr(a: np.ndarray, dtype: Any = T) -> wp.array:
+        np_dtype = {wp.int32: np.int32, wp.float64: np.float64}.get(dtype, npT)
+        return wp.array(np.ascontiguousarray(a, dtype=np_dtype), dtype=dtype, device=dev)
+
+    per_pad = lambda f: np.array([f(s) for s in scenes], dtype=np.float64)  # noqa: E731
+    arrays = {
+        "patch_pad": dev_arr(pad_of, wp.int32),
+        "pad_patch_start": dev_arr(start, wp.int32),
+        "area": dev_arr(area),
+        "sqrt_area": dev_arr(sq),
+        "height": dev_arr(cat(lambda s: s.patches.height)),
+        "radius": dev_arr(np.hypot(x, y)),
+        "inv_mass": dev_arr(1.0 / mass),
+        "k_t": dev_arr(k_t),
+        "k_n": dev_arr(mat["K_N"] * sq),
+        "damping": dev_arr(2.0 * mat["damping_ratio"] * np.sqrt(k_t * mass)),
+        "normal_force": dev_arr(np.concatenate([c.patch_force for c in contacts])),
+        "nbr_start": dev_arr(nbr_start, wp.int32),
+        "nbr_index": dev_arr(nbr_index if len(nbr_index) else np.zeros(1), wp.int32),
+        "nbr_inv_dist": dev_arr(nbr_inv if len(nbr_inv) else np.zeros(1)),
+        "nbr_stiffness": dev_arr(_edge_stiffness(scenes, sq, pad_of, nbr_start, nbr_index, nbr_inv)),
+        "pad_kc": dev_arr(per_pad(lambda s: s.material.K_C)),
+        "pad_omega": dev_arr(per_pad(lambda s: s.angular_velocity)),
+        "pad_mu_scale": dev_arr(per_pad(lambda s: s.friction.M / np.pi)),
+        "pad_slope": dev_arr(per_pad(lambda s: s.friction.slope)),
+        "pad_decay": dev_arr(per_pad(lambda s: s.friction.decay)),
+        "pad_mu_pad": dev_arr(per_pad(lambda s: s.friction.mu_pad)),
+        "pad_load": dev_arr(per_pad(lambda s: s.normal_force)),
+        "pad_matrix_force": dev_arr(np.array([c.matrix_force.sum() for c in contacts])),
+        "pad_matrix_radius": dev_arr(np.array([_matrix_radius(s, c) for s, c in zip(scenes, contacts)])),
+    }
+    if any(g is not None for g in growth):
+        arrays.update(
+            {
+                "pad_growth": dev_arr(np.array([g.increment if g else 0.0 for g in growth])),
+                "pad_k_t": dev_arr(per_pad(lambda s: s.material.K_T)),
+                "pad_k_n": dev_arr(per_pad(lambda s: s.material.K_N)),
+                "pad_mass_per_area": dev_arr(per_pad(lambda s: s.material.mass_per_area)),
+                "pad_zeta": dev_arr(per_pad(lambda s: s.material.damping_ratio)),
+                "pad_area": dev_arr(per_pad(lambda s: s.pad.area), wp.float64),
+                "pad_moment": dev_arr(per_pad(lambda s: s.pad.first_moment), wp.float64),
+                "pad_k_m": dev_arr(per_pad(lambda s: s.material.matrix_stiffness), wp.float64),
+                "pad_gap": dev_arr(np.array([c.gap if np.isfinite(c.gap) else 0.0 for c in contacts]), wp.float64),
+            }
+        )
+    return PadModel(scenes=list(scenes), device=dev, dtype=T, pad_patch_start_host=start, contacts=contacts,
+                    arrays=arrays)
+
+
+def _edge_stiffness(scenes: list[Scene], sq: np.ndarray, pad_of: np.ndarray, start: np.ndarray, index: np.ndarray,
+                    inv_d: np.ndarray) -> np.ndarray:
+    """k_ij = K_C √A_i √A_j / D0_ij per CSR link [N/m] (paper Eq. 3); one dummy entry when there are none."""
+    if len(index) == 0:
+        return np.zeros(1)
+    rows = np.repeat(np.arange(len(sq)), np.diff(start))
+    kc = np.array([s.material.K_C for s in scenes])[pad_of[rows]]
+    return kc * sq[rows] * sq[index] * inv_d
+
+
+def _matrix_radius(scene: Scene, contact: ContactSolution) -> float:
+    """Radius of the centroid of the matrix normal (hence Coulomb friction) forces [m]."""
+    f = contact.matrix_force
+    if f.sum() > 0:
+        return float(np.sum(f * scene.matrix.radius) / f.sum())
+    return float(np.sum(scene.matrix.area * scene.matrix.radius) / scene.matrix.area.sum())
+
+
+def coupling_matrix(model: PadModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Host CSR (start, index, k_ij [N/m]) of the coupling springs at the model's current areas."""
+    start = model.host("nbr_start")
+    return start, model.host("nbr_index")[: model.nnz], model.host("nbr_stiffness")[: model.nnz].astype(np.float64)

@@ -1,0 +1,615 @@
+"""Scenes: pad geometry, patch coverage state, material constants, loads, friction law, initial state, recording.
+
+A scene holds everything one HF run of one pad needs (paper §2.1.2, §3.1; ``docs/model.md`` §1–2).
+Scenes come from Python objects, from TOML files (:func:`load_scene`) or from the built-in presets
+``hf1``…``hf4`` and ``varying_area`` (:func:`preset`, files in ``aca_warp/data``). Everything is
+validated here, before any simulation starts; errors are :class:`~aca_warp.errors.SceneError` with a
+one-line message. All quantities are SI (m, m², kg, N, s, rad).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from aca_warp.errors import SceneError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+PRESETS = ("hf1", "hf2", "hf3", "hf4", "varying_area")
+INITIAL_STATES = ("rest", "equilibrium")
+PATCH_VARIABLES = ("velocity", "displacement")
+
+
+def _finite(name: str, value: Any, *, low: float | None = None, strict: bool = False) -> float:
+    """Return ``value`` as float after checking it is a finite number (and ≥ / > ``low``)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise SceneError(f"{name} must be a number, got {value!r}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise SceneError(f"{name} must be finite, got {v}")
+    if low is not None and (v <= low if strict else v < low):
+        raise SceneError(f"{name} must be {'>' if strict else '>='} {low:g}, got {v:g}")
+    return v
+
+
+@dataclass(frozen=True)
+class Material:
+    """Constants of the HF model (model.md §2); each overridable in a scene's ``[material]`` table.
+
+    Attributes:
+        K_N: Normal stiffness constant, k_N = K_N √A [N m⁻²] (paper Eq. 1).
+        K_T: Tangential stiffness constant, k_T = K_T √A [N m⁻²] (paper Eq. 2).
+        K_C: Coupling constant, k_ij = K_C √(A_i A_j) / D0_ij [N m⁻²] (paper Eq. 3).
+        coupling_radius: Patches closer than this (centre distance) are coupled [m].
+        damping_ratio: Damping ratio ζ of each patch, c = 2ζ√(k_T m) [1].
+        mass_per_area: Effective mass per patch area, m = ρ_A A [kg m⁻²].
+        matrix_stiffness: Winkler stiffness of the pad matrix per area, E_m/H_m [N m⁻³].
+    """
+
+    K_N: float = 2.39e9
+    K_T: float = 1.87e9
+    K_C: float = 7.96e8
+    coupling_radius: float = 5.0e-3
+    damping_ratio: float = 1.0e-6
+    mass_per_area: float = 37.5
+    matrix_stiffness: float = 1.85e11
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            nonneg = f.name in ("damping_ratio", "coupling_radius")
+            _finite(f"material.{f.name}", getattr(self, f.name), low=0.0, strict=not nonneg)
+
+
+@dataclass(frozen=True)
+class Friction:
+    """Friction laws (paper Eq. 4 on patches, Coulomb on the matrix).
+
+    f(v) = (M/π) atan(slope·v) (1/(decay·|v| + 1) + 1), signed in the sliding velocity v; μ_p = |f|.
+
+    Attributes:
+        M: Multiplicative factor of Eq. 4 [1].
+        mu_pad: Coulomb coefficient of the pad matrix [1].
+        slope: Regularisation slope of Eq. 4 (200 in the paper) [s m⁻¹].
+        decay: Velocity decay constant of Eq. 4 (0.25 in the paper) [s m⁻¹].
+    """
+
+    M: float = 0.8
+    mu_pad: float = 0.3
+    slope: float = 200.0
+    decay: float = 0.25
+
+    def __post_init__(self) -> None:
+        _finite("friction.M", self.M, low=0.0)
+        _finite("friction.mu_pad", self.mu_pad, low=0.0)
+        _finite("friction.slope", self.slope, low=0.0, strict=True)
+        _finite("friction.decay", self.decay, low=0.0)
+
+    def coefficient(self, v: np.ndarray | float) -> np.ndarray:
+        """Signed friction coefficient f(v) of Eq. 4 for sliding velocity ``v`` [m/s]."""
+        v = np.asarray(v, dtype=np.float64)
+        return self.M / np.pi * np.arctan(self.slope * v) * (1.0 / (self.decay * np.abs(v) + 1.0) + 1.0)
+
+    def max_slope(self) -> float:
+        """Largest |df/dv|, reached at v = 0: 2·slope·M/π [s m⁻¹]."""
+        return 2.0 * self.slope * self.M / np.pi
+
+
+@dataclass(frozen=True)
+class Pad:
+    """Pad outline: an annular sector centred on +y, disc axis at the origin.
+
+    Attributes:
+        r_inner: Inner radius [m].
+        r_outer: Outer radius [m].
+        span_deg: Angular span of the sector, centred on +y [deg].
+    """
+
+    r_inner: float = 0.100
+    r_outer: float = 0.160
+    span_deg: float = 81.5
+
+    def __post_init__(self) -> None:
+        _finite("pad.r_inner", self.r_inner, low=0.0)
+        _finite("pad.r_outer", self.r_outer, low=0.0, strict=True)
+        _finite("pad.span_deg", self.span_deg, low=0.0, strict=True)
+        if self.r_outer <= self.r_inner:
+            raise SceneError(f"pad.r_outer ({self.r_outer:g} m) must exceed pad.r_inner ({self.r_inner:g} m)")
+        if self.span_deg > 360.0:
+            raise SceneError(f"pad.span_deg must be <= 360, got {self.span_deg:g}")
+
+    @property
+    def half_span(self) -> float:
+        """Half the angular span [rad]."""
+        return math.radians(self.span_deg) / 2.0
+
+    @property
+    def area(self) -> float:
+        """Pad area [m²]."""
+        return self.half_span * (self.r_outer**2 - self.r_inner**2)
+
+    @property
+    def mean_radius(self) -> float:
+        """Mean radius (r_inner + r_outer)/2, where ``sliding_speed`` is measured [m]."""
+        return 0.5 * (self.r_inner + self.r_outer)
+
+    @property
+    def first_moment(self) -> float:
+        """∫ r dA over the pad [m³]."""
+        return self.half_span * 2.0 / 3.0 * (self.r_outer**3 - self.r_inner**3)
+
+    def contains_disc(self, x: np.ndarray, y: np.ndarray, radius: np.ndarray) -> np.ndarray:
+        """True where the disc of ``radius`` [m] centred at (x, y) [m] lies inside the pad (shape of x)."""
+        r = np.hypot(x, y)
+        ang = np.abs(np.arctan2(x, y))  # angle from +y
+        inside_r = (r - radius >= self.r_inner * (1 - 1e-12)) & (r + radius <= self.r_outer * (1 + 1e-12))
+        if self.span_deg >= 360.0:
+            return inside_r
+        # distance from the centre to the nearest straight edge, measured perpendicular to it
+        edge = r * np.sin(np.clip(self.half_span - ang, -np.pi / 2, np.pi / 2))
+        return inside_r & (edge >= radius * (1 - 1e-12))
+
+
+@dataclass(frozen=True)
+class Patches:
+    """A patch coverage state: one rigid disc per patch.
+
+    Attributes:
+        x: Patch centre x [m], shape (n,).
+        y: Patch centre y [m], shape (n,).
+        area: Contact area [m²], shape (n,).
+        height: Free height of the patch top above the unloaded matrix surface [m], shape (n,).
+        source: Where the patches came from (file path or generator description).
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    area: np.ndarray
+    height: np.ndarray
+    source: str = "python"
+
+    def __post_init__(self) -> None:
+        arrays = {}
+        for name in ("x", "y", "area", "height"):
+            a = np.asarray(getattr(self, name), dtype=np.float64)
+            if a.ndim != 1:
+                raise SceneError(f"patches.{name} must be one-dimensional, got shape {a.shape}")
+            if not np.all(np.isfinite(a)):
+                bad = int(np.flatnonzero(~np.isfinite(a))[0])
+                raise SceneError(f"patches.{name} has a non-finite value at patch {bad}")
+            arrays[name] = a
+            object.__setattr__(self, name, a)
+        n = {len(a) for a in arrays.values()}
+        if len(n) != 1:
+            raise SceneError(f"patch arrays x, y, area, height must have equal lengths, got {sorted(n)}")
+        if len(self.x) == 0:
+            raise SceneError("a scene needs at least one patch")
+        if np.any(self.area <= 0.0):
+            raise SceneError(f"patch areas must be > 0 m² (patch {int(np.flatnonzero(self.area <= 0)[0])})")
+        if np.any(self.height < 0.0):
+            raise SceneError(f"patch heights must be >= 0 m (patch {int(np.flatnonzero(self.height < 0)[0])})")
+
+    @property
+    def count(self) -> int:
+        """Number of patches."""
+        return len(self.x)
+
+    @property
+    def radius(self) -> np.ndarray:
+        """Radius of the patch disc √(A/π) [m], shape (n,)."""
+        return np.sqrt(self.area / np.pi)
+
+    @property
+    def friction_radius(self) -> np.ndarray:
+        """Distance from the disc axis [m], shape (n,)."""
+        return np.hypot(self.x, self.y)
+
+
+@dataclass(frozen=True)
+class PatchGenerator:
+    """Seeded generator of non-overlapping patches, uniform over the pad (model.md, presets).
+
+    Attributes:
+        count: Number of patches.
+        area_min: Smallest area [m²]; areas are uniform in [area_min, area_max].
+        area_max: Largest area [m²].
+        height: Free height of every patch above the matrix [m].
+        seed: Seed of the generator (NumPy PCG64).
+    """
+
+    count: int = 1758
+    area_min: float = 2.0e-8
+    area_max: float = 8.0e-8
+    height: float = 3.0e-6
+    seed: int = 1
+
+    def __post_init__(self) -> None:
+        if isinstance(self.count, bool) or not isinstance(self.count, int) or self.count < 1:
+            raise SceneError(f"patches.count must be a positive integer, got {self.count!r}")
+        _finite("patches.area_min", self.area_min, low=0.0, strict=True)
+        _finite("patches.area_max", self.area_max, low=0.0, strict=True)
+        _finite("patches.height", self.height, low=0.0)
+        if self.area_max < self.area_min:
+            raise SceneError(f"patches.area_max ({self.area_max:g}) must be >= patches.area_min ({self.area_min:g})")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise SceneError(f"patches.seed must be a non-negative integer, got {self.seed!r}")
+
+    def generate(self, pad: Pad, *, max_tries: int = 200) -> Patches:
+        """Place the patches by random sequential addition; sorted row-major by coupling-size cells."""
+        rng = np.random.default_rng(self.seed)
+        area = rng.uniform(self.area_min, self.area_max, self.count)
+        rad = np.sqrt(area / np.pi)
+        cell = max(2.0 * rad.max(), 1e-4)
+        grid: dict[tuple[int, int], list[int]] = {}
+        xy = np.zeros((self.count, 2))
+        lo2, hi2 = pad.r_inner**2, pad.r_outer**2
+        for i in range(self.count):
+            for _ in range(max_tries * 10):
+                r = math.sqrt(rng.uniform(lo2, hi2))
+                th = math.pi / 2 + rng.uniform(-pad.half_span, pad.half_span)
+                p = (r * math.cos(th), r * math.sin(th))
+                if not pad.contains_disc(np.array(p[0]), np.array(p[1]), np.array(rad[i])):
+                    continue
+                cx, cy = int(math.floor(p[0] / cell)), int(math.floor(p[1] / cell))
+                ok = True
+                for gx in (cx - 1, cx, cx + 1):
+                    for gy in (cy - 1, cy, cy + 1):
+                        for j in grid.get((gx, gy), ()):
+                            if math.hypot(p[0] - xy[j, 0], p[1] - xy[j, 1]) < rad[i] + rad[j]:
+                                ok = False
+                                break
+                        if not ok:
+                            break
+                    if not ok:
+                        break
+                if ok:
+                    xy[i] = p
+                    grid.setdefault((cx, cy), []).append(i)
+                    break
+            else:
+                raise SceneError(
+                    f"could not place {self.count} non-overlapping patches of {self.area_min:g}-{self.area_max:g} m² "
+                    f"on the pad (placed {i}); use fewer or smaller patches"
+                )
+        order = _spatial_order(xy[:, 0], xy[:, 1], 5.0e-3)
+        desc = (
+            f"generator(count={self.count}, area=[{self.area_min:g}, {self.area_max:g}] m2, "
+            f"height={self.height:g} m, seed={self.seed})"
+        )
+        return Patches(xy[order, 0], xy[order, 1], area[order], np.full(self.count, self.height), source=desc)
+
+
+def _spatial_order(x: np.ndarray, y: np.ndarray, cell: float) -> np.ndarray:
+    """Row-major order of square cells of width ``cell`` [m], then x: neighbours end up close in memory."""
+    cx = np.floor((x - x.min()) / cell).astype(np.int64)
+    cy = np.floor((y - y.min()) / cell).astype(np.int64)
+    return np.lexsort((x, cx, cy))
+
+
+def read_patch_file(path: str | Path) -> Patches:
+    """Read patches from an HDF5 file with 1-D datasets ``x``, ``y``, ``area``, ``height`` (SI units)."""
+    import h5py
+
+    p = Path(path)
+    if not p.is_file():
+        raise SceneError(f"patch file not found: {p}")
+    try:
+        with h5py.File(p, "r") as f:
+            missing = [k for k in ("x", "y", "area", "height") if k not in f]
+            if missing:
+                raise SceneError(f"patch file {p} lacks dataset(s) {', '.join(missing)}")
+            data = {k: np.asarray(f[k][()], dtype=np.float64) for k in ("x", "y", "area", "height")}
+    except OSError as e:
+        raise SceneError(f"cannot read patch file {p}: {e}") from None
+    return Patches(**data, source=str(p))
+
+
+def write_patch_file(path: str | Path, patches: Patches) -> None:
+    """Write patches to an HDF5 file readable by :func:`read_patch_file`, with ``unit`` attributes."""
+    import h5py
+
+    with h5py.File(path, "w") as f:
+        for name, unit in (("x", "m"), ("y", "m"), ("area", "m2"), ("height", "m")):
+            f.create_dataset(name, data=getattr(patches, name)).attrs["unit"] = unit
+
+
+@dataclass(frozen=True)
+class Initial:
+    """Initial state of the HF run.
+
+    Attributes:
+        state: ``"rest"`` (u = u̇ = 0) or ``"equilibrium"`` (static balance of springs and friction, u̇ = 0).
+        perturbation: Standard deviation of random initial patch velocities added to the state [m/s].
+        seed: Seed of the perturbation.
+    """
+
+    state: str = "rest"
+    perturbation: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.state not in INITIAL_STATES:
+            raise SceneError(f"initial.state must be one of {', '.join(INITIAL_STATES)}, got {self.state!r}")
+        _finite("initial.perturbation", self.perturbation, low=0.0)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise SceneError(f"initial.seed must be a non-negative integer, got {self.seed!r}")
+
+
+@dataclass(frozen=True)
+class Growth:
+    """Patch growth of the varying-area study (paper Eq. 10, model.md presets).
+
+    Every ``interval`` of simulated time each area grows by ΔA = increment·√A. Eq. 10 (A in mm²,
+    +1e-6·√A every 202 steps of ~1 ns) is increment = 1e-9 m and interval = 2.02e-7 s.
+
+    Attributes:
+        increment: Growth constant [m] (ΔA [m²] = increment · √(A [m²])).
+        interval: Simulated time between growth events [s].
+    """
+
+    increment: float = 1.0e-9
+    interval: float = 2.02e-7
+
+    def __post_init__(self) -> None:
+        _finite("growth.increment", self.increment, low=0.0)
+        _finite("growth.interval", self.interval, low=0.0, strict=True)
+
+
+@dataclass(frozen=True)
+class Record:
+    """What to record (model.md "Global outputs"): nothing else is computed or stored.
+
+    Attributes:
+        sample_dt: Interval between samples of the global outputs [s].
+        patches: Per-patch histories to record: any of ``"velocity"``, ``"displacement"``.
+        window: Time window (start, end) of the per-patch histories [s].
+        decimation: Record per-patch histories every ``decimation``-th global sample.
+    """
+
+    sample_dt: float = 1.0e-6
+    patches: tuple[str, ...] = ()
+    window: tuple[float, float] = (0.0, math.inf)
+    decimation: int = 1
+
+    def __post_init__(self) -> None:
+        _finite("record.sample_dt", self.sample_dt, low=0.0, strict=True)
+        object.__setattr__(self, "patches", tuple(self.patches))
+        for v in self.patches:
+            if v not in PATCH_VARIABLES:
+                raise SceneError(f"record.patches: unknown variable {v!r}; choose from {', '.join(PATCH_VARIABLES)}")
+        if len(self.window) != 2:
+            raise SceneError(f"record.window must be [start, end] in seconds, got {self.window!r}")
+        t0 = _finite("record.window start", self.window[0], low=0.0)
+        t1 = float(self.window[1])
+        if math.isnan(t1) or t1 <= t0:
+            raise SceneError(f"record.window end must exceed its start, got {self.window!r}")
+        object.__setattr__(self, "window", (t0, t1))
+        if isinstance(self.decimation, bool) or not isinstance(self.decimation, int) or self.decimation < 1:
+            raise SceneError(f"record.decimation must be a positive integer, got {self.decimation!r}")
+
+
+@dataclass(frozen=True)
+class Matrix:
+    """Pad matrix contact elements (Winkler cells), model.md "Normal force distribution".
+
+    Attributes:
+        area: Uncovered area of each cell [m²], shape (c,).
+        radius: Friction radius of each cell's centroid [m], shape (c,).
+        height: Surface elevation z_e of each cell (0 when new) [m], shape (c,).
+    """
+
+    area: np.ndarray
+    radius: np.ndarray
+    height: np.ndarray
+
+    @property
+    def is_flat(self) -> bool:
+        """True when the matrix is one cell (a fresh pad): the contact can be re-solved on the device."""
+        return len(self.area) == 1
+
+    @staticmethod
+    def fresh(pad: Pad, patches: Patches) -> Matrix:
+        """One flat cell: the pad area not covered by patches, at elevation 0, at its centroid radius."""
+        free = pad.area - patches.area.sum()
+        if free <= 0.0:
+            raise SceneError(f"patches cover {patches.area.sum():g} m² of a {pad.area:g} m² pad: no matrix left")
+        moment = pad.first_moment - np.sum(patches.area * patches.friction_radius)
+        return Matrix(np.array([free]), np.array([moment / free]), np.zeros(1))
+
+
+@dataclass(frozen=True)
+class Scene:
+    """One pad's HF problem. Build from Python or with :func:`load_scene` / :func:`preset`.
+
+    Attributes:
+        name: Label written into run files.
+        pad: Pad outline.
+        patches: Patch coverage state.
+        material: HF model constants.
+        friction: Friction laws.
+        normal_force: Clamp force F_N [N].
+        angular_velocity: Disc angular velocity ω [rad/s]; v_d = ω r at each patch.
+        initial: Initial state.
+        record: What to record.
+        duration: Default simulated duration of a run [s].
+        growth: Patch growth (varying-area study), or None.
+        matrix: Matrix contact cells; None means a fresh flat matrix (:meth:`Matrix.fresh`).
+        origin: The table-of-tables this scene was read from (for run files), or None.
+    """
+
+    name: str
+    pad: Pad
+    patches: Patches
+    material: Material = field(default_factory=Material)
+    friction: Friction = field(default_factory=Friction)
+    normal_force: float = 487.2
+    angular_velocity: float = 10.0 / 0.13
+    initial: Initial = field(default_factory=Initial)
+    record: Record = field(default_factory=Record)
+    duration: float = 1.0e-3
+    growth: Growth | None = None
+    matrix: Matrix | None = None
+    origin: dict | None = None
+
+    def __post_init__(self) -> None:
+        _finite("load.normal_force", self.normal_force, low=0.0)
+        _finite("disc.angular_velocity", self.angular_velocity)
+        _finite("run.duration", self.duration, low=0.0, strict=True)
+        if self.record.sample_dt > self.duration:
+            raise SceneError(
+                f"record.sample_dt ({self.record.sample_dt:g} s) exceeds the duration ({self.duration:g} s)"
+            )
+        if self.matrix is None:
+            object.__setattr__(self, "matrix", Matrix.fresh(self.pad, self.patches))
+        if self.growth is not None and not self.matrix.is_flat:
+            raise SceneError("patch growth needs a flat (fresh) matrix; this scene's matrix has several cells")
+        self._check_geometry()
+
+    def _check_geometry(self) -> None:
+        p = self.patches
+        inside = self.pad.contains_disc(p.x, p.y, p.radius)
+        if not np.all(inside):
+            bad = np.flatnonzero(~inside)
+            raise SceneError(
+                f"{len(bad)} patch(es) lie (partly) outside the pad, first is patch {int(bad[0])} at "
+                f"({p.x[bad[0]]:.6g}, {p.y[bad[0]]:.6g}) m"
+            )
+        pairs = overlapping_pairs(p)
+        if len(pairs):
+            i, j = pairs[0]
+            d = math.hypot(p.x[i] - p.x[j], p.y[i] - p.y[j])
+            raise SceneError(
+                f"{len(pairs)} pair(s) of patches overlap, first patches {i} and {j}: centre distance {d:.4g} m "
+                f"< sum of radii {p.radius[i] + p.radius[j]:.4g} m"
+            )
+
+    @property
+    def sliding_speed(self) -> float:
+        """Disc surface speed at the pad's mean radius [m/s]."""
+        return self.angular_velocity * self.pad.mean_radius
+
+    def replace(self, **changes: Any) -> Scene:
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+
+def overlapping_pairs(p: Patches) -> np.ndarray:
+    """Index pairs (i < j) of patches whose discs overlap, shape (k, 2), sorted."""
+    from scipy.spatial import cKDTree
+
+    pts = np.column_stack([p.x, p.y])
+    rad = p.radius
+    tree = cKDTree(pts)
+    cand = tree.query_pairs(2.0 * rad.max(), output_type="ndarray")
+    if len(cand) == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    d = np.hypot(*(pts[cand[:, 0]] - pts[cand[:, 1]]).T)
+    hit = cand[d < rad[cand[:, 0]] + rad[cand[:, 1]]]
+    hit = np.sort(hit, axis=1)
+    return hit[np.lexsort((hit[:, 1], hit[:, 0]))]
+
+
+# ----------------------------------------------------------------------------------------------- TOML
+
+_TABLES: dict[str, tuple[str, ...]] = {
+    "scene": ("name",),
+    "pad": tuple(f.name for f in dataclasses.fields(Pad)),
+    "load": ("normal_force",),
+    "disc": ("sliding_speed", "angular_velocity"),
+    "friction": tuple(f.name for f in dataclasses.fields(Friction)),
+    "patches": ("file", "count", "area_min", "area_max", "height", "seed"),
+    "material": tuple(f.name for f in dataclasses.fields(Material)),
+    "initial": tuple(f.name for f in dataclasses.fields(Initial)),
+    "growth": tuple(f.name for f in dataclasses.fields(Growth)),
+    "record": ("sample_dt", "patches", "window", "decimation"),
+    "run": ("duration",),
+}
+
+
+def scene_from_dict(doc: dict, *, base_dir: Path | None = None, name: str = "scene") -> Scene:
+    """Build and validate a scene from a TOML-shaped dict (see ``docs/scenes.md`` for every key)."""
+    for table, value in doc.items():
+        if table not in _TABLES:
+            raise SceneError(f"unknown table [{table}]; allowed: {', '.join('[' + t + ']' for t in _TABLES)}")
+        if not isinstance(value, dict):
+            raise SceneError(f"[{table}] must be a table")
+        for key in value:
+            if key not in _TABLES[table]:
+                raise SceneError(f"unknown key {key!r} in [{table}]; allowed: {', '.join(_TABLES[table])}")
+    t = {k: dict(doc.get(k, {})) for k in _TABLES}
+    pad = Pad(**t["pad"])
+    pt = t["patches"]
+    if "file" in pt:
+        extra = sorted(set(pt) - {"file"})
+        if extra:
+            raise SceneError(f"[patches] file = ... cannot be combined with generator keys {', '.join(extra)}")
+        f = Path(pt["file"])
+        if not f.is_absolute() and base_dir is not None:
+            f = base_dir / f
+        patches = read_patch_file(f)
+    else:
+        patches = PatchGenerator(**pt).generate(pad)
+    disc = t["disc"]
+    if "sliding_speed" in disc and "angular_velocity" in disc:
+        raise SceneError("[disc] takes sliding_speed or angular_velocity, not both")
+    if "angular_velocity" in disc:
+        omega = _finite("disc.angular_velocity", disc["angular_velocity"])
+    else:
+        omega = _finite("disc.sliding_speed", disc.get("sliding_speed", 10.0)) / pad.mean_radius
+    rec = t["record"]
+    if "window" in rec:
+        rec["window"] = tuple(rec["window"])
+    if "patches" in rec:
+        if isinstance(rec["patches"], str) or not isinstance(rec["patches"], list):
+            raise SceneError("record.patches must be a list such as [\"velocity\"]")
+        rec["patches"] = tuple(rec["patches"])
+    try:
+        return Scene(
+            name=str(t["scene"].get("name", name)),
+            pad=pad,
+            patches=patches,
+            material=Material(**t["material"]),
+            friction=Friction(**t["friction"]),
+            normal_force=t["load"].get("normal_force", 487.2),
+            angular_velocity=omega,
+            initial=Initial(**t["initial"]),
+            record=Record(**rec),
+            duration=t["run"].get("duration", 1.0e-3),
+            growth=Growth(**t["growth"]) if "growth" in doc else None,
+            origin=doc,
+        )
+    except TypeError as e:  # a wrongly typed value that slipped through, e.g. a table for a number
+        raise SceneError(f"invalid scene value: {e}") from None
+
+
+def load_scene(spec: str | Path) -> Scene:
+    """A preset name (``hf1``…``hf4``, ``varying_area``) or the path of a TOML scene file."""
+    s = str(spec)
+    if s in PRESETS:
+        return preset(s)
+    p = Path(s)
+    if not p.is_file():
+        raise SceneError(f"scene {s!r} is neither a preset ({', '.join(PRESETS)}) nor an existing TOML file")
+    try:
+        doc = tomllib.loads(p.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise SceneError(f"cannot parse {p}: {e}") from None
+    return scene_from_dict(doc, base_dir=p.parent, name=p.stem)
+
+
+def preset(name: str) -> Scene:
+    """The built-in scene ``name`` (files ``aca_warp/data/<name>.toml``; model.md presets table)."""
+    if name not in PRESETS:
+        raise SceneError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
+    text = resources.files("aca_warp.data").joinpath(f"{name}.toml").read_text()
+    return scene_from_dict(tomllib.loads(text), name=name)

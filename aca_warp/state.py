@@ -1,0 +1,71 @@
+"""Time-varying HF state: patch displacements u [m], velocities u̇ [m/s] and the cached spring force [N]."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+import warp as wp
+
+from aca_warp.model import PadModel, coupling_matrix
+
+
+@dataclass
+class HFState:
+    """State arrays in the model's precision, shape (patch_count,).
+
+    Attributes:
+        u: Tangential displacement of each patch along the local disc direction, relative to the pad [m].
+        v: Patch velocity u̇ in the pad frame [m/s].
+        force: Elastic force F_s(u) = −k_T u − Σ k_ij (u_i − u_j) at the current u [N] (Strang cache).
+    """
+
+    u: wp.array
+    v: wp.array
+    force: wp.array
+
+    def numpy(self) -> tuple[np.ndarray, np.ndarray]:
+        """(u, v) on the host."""
+        return self.u.numpy(), self.v.numpy()
+
+
+def initial_state(model: PadModel) -> HFState:
+    """Initial state of every pad from its scene's ``[initial]`` table (model.md §2, "Initial state").
+
+    ``rest``: u = u̇ = 0. ``equilibrium``: (diag k_T + L) u = F_N f(ω r), u̇ = 0, L the coupling Laplacian.
+    ``perturbation`` adds N(0, σ²) velocities [m/s] from the scene's seed.
+    """
+    n = model.patch_count
+    u = np.zeros(n)
+    v = np.zeros(n)
+    if any(s.initial.state == "equilibrium" for s in model.scenes):
+        u_eq = _equilibrium(model)
+        for p, s in enumerate(model.scenes):
+            if s.initial.state == "equilibrium":
+                a, b = model.pad_patch_start_host[p : p + 2]
+                u[a:b] = u_eq[a:b]
+    for p, s in enumerate(model.scenes):
+        if s.initial.perturbation > 0:
+            a, b = model.pad_patch_start_host[p : p + 2]
+            v[a:b] += np.random.default_rng(s.initial.seed).normal(0.0, s.initial.perturbation, b - a)
+    np_t = np.float32 if model.dtype == wp.float32 else np.float64
+    mk = lambda a: wp.array(a.astype(np_t), dtype=model.dtype, device=model.device)  # noqa: E731
+    return HFState(u=mk(u), v=mk(v), force=mk(np.zeros(n)))
+
+
+def _equilibrium(model: PadModel) -> np.ndarray:
+    """Static displacement with u̇ = 0: sparse solve of (diag k_T + L) u = F_N f(ω r)."""
+    start, index, kij = coupling_matrix(model)
+    n = model.patch_count
+    rows = np.repeat(np.arange(n), np.diff(start))
+    lap = sp.csr_matrix((-kij, (rows, index)), shape=(n, n))
+    diag = model.host("k_t").astype(np.float64) + np.bincount(rows, kij, minlength=n)
+    a = (lap + sp.diags(diag)).tocsc()
+    pad = model.host("patch_pad")
+    fric = np.zeros(n)
+    for p, s in enumerate(model.scenes):
+        m = pad == p
+        fric[m] = s.friction.coefficient(s.angular_velocity * model.host("radius")[m].astype(np.float64))
+    return spla.spsolve(a, model.host("normal_force").astype(np.float64) * fric)

@@ -1,0 +1,803 @@
+"""HF kernels: patch forces, integrator stages, recording, growth and the device contact solve.
+
+Equation of motion of patch i (paper §2.1.2, model.md §2), u along the local disc direction:
+
+    m_i ü_i + c_i u̇_i + k_T,i u_i + Σ_j k_ij (u_i − u_j) = F_N,i f(ω r_i − u̇_i),
+    k_ij = K_C √A_i √A_j / D0_ij,   f(v) = (M/π) atan(a v) (1/(b|v| + 1) + 1)   (Eq. 4, signed).
+
+All kernels are generic in the state precision T (float32 or float64; overloads at the bottom). Batched
+pads are flat arrays: ``patch_pad`` gives each patch's pad, ``pad_patch_start`` (pads+1) the offsets, and
+``pad_*`` arrays hold per-pad parameters. Recorded sums are accumulated in float64 whatever T is.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False})
+
+# counters[] slots shared by the recording kernels (int32 array of length 4)
+SAMPLE_INDEX = 0  # absolute index of the next global sample
+GLOBAL_ROWS = 1  # rows written to the global buffer since the last flush
+PATCH_ROWS = 2  # rows written to the per-patch buffer since the last flush
+RECORD_FLAG = 3  # adaptive stepping: 1 when the last accepted step landed on a sample time
+
+N_GLOBAL = 5  # mu, torque, friction radius, Σ u̇, Σ|u̇|
+
+
+# ---------------------------------------------------------------------------------------------- physics
+
+
+@wp.func
+def friction_coefficient(vp: Any, mu_scale: Any, slope: Any, decay: Any):
+    """Signed Eq. 4: f(vp) = mu_scale atan(slope vp)(1/(decay|vp| + 1) + 1), mu_scale = M/π."""
+    one = type(vp)(1.0)
+    return mu_scale * wp.atan(slope * vp) * (one / (decay * wp.abs(vp) + one) + one)
+
+
+@wp.func
+def friction_pair(vp: Any, mu_scale: Any, slope: Any, decay: Any):
+    """(f(vp), df/dvp) of :func:`friction_coefficient`, sharing one atan [1, s/m]."""
+    one = type(vp)(1.0)
+    at = wp.atan(slope * vp)
+    rq = one / (decay * wp.abs(vp) + one)
+    da = slope / (one + slope * slope * vp * vp)
+    return mu_scale * at * (rq + one), mu_scale * (da * (rq + one) - at * decay * wp.sign(vp) * rq * rq)
+
+
+@wp.func
+def spring_force(
+    i: int,
+    u: wp.array[Any],
+    k_t: wp.array[Any],
+    nbr_start: wp.array[wp.int32],
+    nbr_index: wp.array[wp.int32],
+    nbr_stiffness: wp.array[Any],
+):
+    """Elastic force on patch i: −k_T,i u_i + Σ_j k_ij (u_j − u_i) [N]."""
+    ui = u[i]
+    f = -k_t[i] * ui
+    for e in range(nbr_start[i], nbr_start[i + 1]):
+        f += nbr_stiffness[e] * (u[nbr_index[e]] - ui)
+    return f
+
+
+@wp.func
+def solve_velocity(
+    a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any
+):
+    """Solve a·v − hfn·f(vd − v) = b for v (a > 0, hfn ≥ 0): per-patch implicit friction.
+
+    |f| ≤ 2 mu_scale π/2 brackets the root in [(b − hfn f_max)/a, (b + hfn f_max)/a]; safeguarded Newton
+    (bisection whenever a Newton step leaves the bracket) converges for any step size.
+    """
+    one = type(a)(1.0)
+    fmax = mu_scale * type(a)(3.141592653589793)
+    lo = (b - hfn * fmax) / a
+    hi = (b + hfn * fmax) / a
+    scale = tol * (wp.abs(b) + hfn * fmax + a * (lo - lo + one))
+    v = wp.clamp(guess, lo, hi)
+    for _it in range(60):
+        f, df = friction_pair(vd - v, mu_scale, slope, decay)
+        g = a * v - hfn * f - b
+        if wp.abs(g) <= scale:
+            break
+        if g > a - a:
+            hi = v
+        else:
+            lo = v
+        dg = a + hfn * df
+        vn = v - g / dg
+        if dg <= a - a or vn <= lo or vn >= hi:
+            vn = type(a)(0.5) * (lo + hi)
+        if hi - lo <= tol * (wp.abs(vn) + one):
+            v = vn
+            break
+        v = vn
+    return v
+
+
+@wp.func
+def trapezoid_friction(
+    v: Any, dt: Any, m: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any
+):
+    """Trapezoidal step of m v̇ = F_N f(vd − v) − c v over dt (second order, A-stable)."""
+    half = type(v)(0.5)
+    g0 = fn * friction_coefficient(vd - v, mu_scale, slope, decay) - c * v
+    a = m + half * dt * c
+    b = m * v + half * dt * g0
+    return solve_velocity(a, b, half * dt * fn, vd, v, mu_scale, slope, decay, tol)
+
+
+# ---------------------------------------------------------------------------------------------- stepping
+
+
+@wp.kernel
+def euler_velocity(
+    # Model:
+    patch_pad: wp.array[wp.int32],
+    inv_mass: wp.array[Any],
+    k_t: wp.array[Any],
+    damping: wp.array[Any],
+    normal_force: wp.array[Any],
+    radius: wp.array[Any],
+    nbr_start: wp.array[wp.int32],
+    nbr_index: wp.array[wp.int32],
+    nbr_stiffness: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+    dt: Any,
+    # State in:
+    u_in: wp.array[Any],
+    # State in/out:
+    v_io: wp.array[Any],
+):
+    """Symplectic Euler, velocity half: v ← v + dt/m (F_s(u) + F_N f(ωr − v) − c v) (explicit friction)."""
+    i = wp.tid()
+    p = patch_pad[i]
+    v = v_io[i]
+    fs = spring_force(i, u_in, k_t, nbr_start, nbr_index, nbr_stiffness)
+    vp = pad_omega[p] * radius[i] - v
+    ff = normal_force[i] * friction_coefficient(vp, pad_mu_scale[p], pad_slope[p], pad_decay[p])
+    v_io[i] = v + dt * inv_mass[i] * (fs + ff - damping[i] * v)
+
+
+@wp.kernel
+def implicit_velocity(
+    # Model:
+    patch_pad: wp.array[wp.int32],
+    inv_mass: wp.array[Any],
+    k_t: wp.array[Any],
+    damping: wp.array[Any],
+    normal_force: wp.array[Any],
+    radius: wp.array[Any],
+    nbr_start: wp.array[wp.int32],
+    nbr_index: wp.array[wp.int32],
+    nbr_stiffness: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+    dt: Any,
+    tol: Any,
+    # State in:
+    u_in: wp.array[Any],
+    # State in/out:
+    v_io: wp.array[Any],
+):
+    """IMEX Euler, velocity half: m(v⁺ − v) = dt (F_s(u) + F_N f(ωr − v⁺) − c v⁺), Newton per patch."""
+    i = wp.tid()
+    p = patch_pad[i]
+    v = v_io[i]
+    m = type(v)(1.0) / inv_mass[i]
+    fs = spring_force(i, u_in, k_t, nbr_start, nbr_index, nbr_stiffness)
+    a = m + dt * damping[i]
+    b = m * v + dt * fs
+    vd = pad_omega[p] * radius[i]
+    v_io[i] = solve_velocity(
+        a, b, dt * normal_force[i], vd, v, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol
+    )
+
+
+@wp.kernel
+def drift(
+    dt: Any,
+    # State in:
+    v_in: wp.array[Any],
+    # State in/out:
+    u_io: wp.array[Any],
+):
+    """Position update u ← u + dt v (second half of both Euler schemes)."""
+    i = wp.tid()
+    u_io[i] = u_io[i] + dt * v_in[i]
+
+
+@wp.kernel
+def spring_forces(
+    # Model:
+    k_t: wp.array[Any],
+    nbr_start: wp.array[wp.int32],
+    nbr_index: wp.array[wp.int32],
+    nbr_stiffness: wp.array[Any],
+    # State in:
+    u_in: wp.array[Any],
+    # State out:
+    force_out: wp.array[Any],
+):
+    """Elastic force F_s(u) on every patch [N] (first-same-as-last cache of the Strang scheme)."""
+    i = wp.tid()
+    force_out[i] = spring_force(i, u_in, k_t, nbr_start, nbr_index, nbr_stiffness)
+
+
+@wp.kernel
+def coupling_stiffness(
+    # Model:
+    patch_pad: wp.array[wp.int32],
+    sqrt_area: wp.array[Any],
+    nbr_start: wp.array[wp.int32],
+    nbr_index: wp.array[wp.int32],
+    nbr_inv_dist: wp.array[Any],
+    pad_kc: wp.array[Any],
+    # Model out:
+    nbr_stiffness_out: wp.array[Any],
+):
+    """k_ij = K_C √A_i √A_j / D0_ij for every link of patch i [N/m] (paper Eq. 3), after areas changed."""
+    i = wp.tid()
+    ki = pad_kc[patch_pad[i]] * sqrt_area[i]
+    for e in range(nbr_start[i], nbr_start[i + 1]):
+        nbr_stiffness_out[e] = ki * sqrt_area[nbr_index[e]] * nbr_inv_dist[e]
+
+
+@wp.kernel
+def strang_open(
+    # Model:
+    patch_pad: wp.array[wp.int32],
+    inv_mass: wp.array[Any],
+    damping: wp.array[Any],
+    normal_force: wp.array[Any],
+    radius: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+    dt: Any,
+    tol: Any,
+    # State in:
+    force_in: wp.array[Any],
+    # State in/out:
+    u_io: wp.array[Any],
+    v_io: wp.array[Any],
+):
+    """Strang step, first half: friction/damping trapezoid over dt/2, half kick with F_s(uₙ), drift."""
+    i = wp.tid()
+    p = patch_pad[i]
+    half = dt * type(dt)(0.5)
+    im = inv_mass[i]
+    m = type(dt)(1.0) / im
+    vd = pad_omega[p] * radius[i]
+    v = trapezoid_friction(
+        v_io[i], half, m, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol
+    )
+    v = v + half * im * force_in[i]
+    v_io[i] = v
+    u_io[i] = u_io[i] + dt * v
+
+
+@wp.kernel
+def strang_close(
+    # Model:
+    patch_pad: wp.array[wp.int32],
+    inv_mass: wp.array[Any],
+    k_t: wp.array[Any],
+    damping: wp.array[Any],
+    normal_force: wp.array[Any],
+    radius: wp.array[Any],
+    nbr_start: wp.array[wp.int32],
+    nbr_index: wp.array[wp.int32],
+    nbr_stiffness: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+    dt: Any,
+    tol: Any,
+    # State in:
+    u_in: wp.array[Any],
+    # State in/out:
+    v_io: wp.array[Any],
+    # State out:
+    force_out: wp.array[Any],
+):
+    """Strang step, second half: F_s(uₙ₊₁) (cached), half kick, friction/damping trapezoid over dt/2."""
+    i = wp.tid()
+    p = patch_pad[i]
+    half = dt * type(dt)(0.5)
+    im = inv_mass[i]
+    fs = spring_force(i, u_in, k_t, nbr_start, nbr_index, nbr_stiffness)
+    force_out[i] = fs
+    v = v_io[i] + half * im * fs
+    vd = pad_omega[p] * radius[i]
+    v_io[i] = trapezoid_friction(
+        v, half, type(dt)(1.0) / im, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol
+    )
+
+
+# ---------------------------------------------------------------------------------------------- adaptive
+
+
+@wp.kernel
+def adaptive_trial_open(
+    # Model:
+    patch_pad: wp.array[wp.int32],
+    inv_mass: wp.array[Any],
+    damping: wp.array[Any],
+    normal_force: wp.array[Any],
+    radius: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+    tol: Any,
+    # Control:
+    clock: wp.array[wp.float64],
+    flags: wp.array[wp.int32],
+    # State in:
+    u_in: wp.array[Any],
+    v_in: wp.array[Any],
+    force_in: wp.array[Any],
+    # Trial out:
+    u_trial: wp.array[Any],
+    v_trial: wp.array[Any],
+    u_euler: wp.array[Any],
+    v_euler: wp.array[Any],
+):
+    """Adaptive step, first half: Strang opening half into the trial state, and the embedded IMEX-Euler step."""
+    i = wp.tid()
+    if flags[1] != 0:
+        return
+    u = u_in[i]
+    v = v_in[i]
+    dt = type(u)(clock[1])
+    p = patch_pad[i]
+    half = dt * type(u)(0.5)
+    im = inv_mass[i]
+    m = type(u)(1.0) / im
+    vd = pad_omega[p] * radius[i]
+    fs = force_in[i]
+    ve = solve_velocity(
+        m + dt * damping[i], m * v + dt * fs, dt * normal_force[i], vd, v, pad_mu_scale[p], pad_slope[p],
+        pad_decay[p], tol,
+    )
+    v_euler[i] = ve
+    u_euler[i] = u + dt * ve
+    vs = trapezoid_friction(v, half, m, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol)
+    vs = vs + half * im * fs
+    v_trial[i] = vs
+    u_trial[i] = u + dt * vs
+
+
+@wp.kernel
+def adaptive_trial_close(
+    # Model:
+    patch_pad: wp.array[wp.int32],
+    inv_mass: wp.array[Any],
+    k_t: wp.array[Any],
+    damping: wp.array[Any],
+    normal_force: wp.array[Any],
+    radius: wp.array[Any],
+    nbr_start: wp.array[wp.int32],
+    nbr_index: wp.array[wp.int32],
+    nbr_stiffness: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+    tol: Any,
+    rtol: Any,
+    # Control:
+    clock: wp.array[wp.float64],
+    flags: wp.array[wp.int32],
+    # Trial in/out:
+    u_trial: wp.array[Any],
+    v_trial: wp.array[Any],
+    u_euler: wp.array[Any],
+    v_euler: wp.array[Any],
+    force_trial: wp.array[Any],
+    error_out: wp.array[wp.float64],
+):
+    """Adaptive step, second half: close the Strang trial, compare with IMEX Euler, reduce the error norm.
+
+    err_i = max(|Δu| / (rtol (u_ref + |u|)), |Δv| / (rtol (v_ref + |v|))) with u_ref = F_N/k_T and
+    v_ref = u_ref √(k_T/m), the patch's static deflection and the velocity scale of its oscillation.
+    """
+    i = wp.tid()
+    if flags[1] != 0:
+        return
+    p = patch_pad[i]
+    dt = type(rtol)(clock[1])
+    half = dt * type(rtol)(0.5)
+    im = inv_mass[i]
+    fs = spring_force(i, u_trial, k_t, nbr_start, nbr_index, nbr_stiffness)
+    force_trial[i] = fs
+    v = v_trial[i] + half * im * fs
+    vd = pad_omega[p] * radius[i]
+    fn = normal_force[i]
+    v = trapezoid_friction(v, half, type(dt)(1.0) / im, damping[i], fn, vd, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol)
+    v_trial[i] = v
+    u = u_trial[i]
+    u_ref = fn / k_t[i]
+    v_ref = u_ref * wp.sqrt(k_t[i] * im)
+    tiny = type(dt)(1.0e-30)
+    eu = wp.abs(u - u_euler[i]) / (rtol * (u_ref + wp.abs(u)) + tiny)
+    ev = wp.abs(v - v_euler[i]) / (rtol * (v_ref + wp.abs(v)) + tiny)
+    e = wp.float64(wp.max(eu, ev))
+    if not wp.isfinite(e):
+        e = wp.float64(1.0e300)
+    wp.atomic_max(error_out, 0, e)
+
+
+@wp.kernel
+def adaptive_control(
+    sample_dt: wp.float64,
+    t_end: wp.float64,
+    dt_min: wp.float64,
+    dt_max: wp.float64,
+    # Control in/out:
+    clock: wp.array[wp.float64],
+    flags: wp.array[wp.int32],
+    steps: wp.array[wp.int64],
+    error_io: wp.array[wp.float64],
+    counters: wp.array[wp.int32],
+):
+    """Accept or reject the trial, choose the next step, land exactly on sample times (one thread).
+
+    clock = [t, dt of this trial, desired dt, next sample time] [s]; flags = [accepted, done, step underflow];
+    steps = [accepted, rejected].
+    """
+    counters[3] = 0
+    if flags[1] != 0:
+        flags[0] = 0
+        return
+    err = error_io[0]
+    error_io[0] = wp.float64(0.0)
+    t = clock[0]
+    h = clock[1]
+    want = clock[2]
+    fac = wp.float64(5.0)
+    if err > wp.float64(0.0):
+        fac = wp.clamp(wp.float64(0.9) / wp.sqrt(err), wp.float64(0.2), wp.float64(5.0))
+    if err <= wp.float64(1.0):
+        flags[0] = 1
+        steps[0] = steps[0] + wp.int64(1)
+        t = t + h
+        if t >= clock[3] * (wp.float64(1.0) - wp.float64(1.0e-12)):
+            t = clock[3]
+            clock[3] = clock[3] + sample_dt
+            counters[3] = 1
+        if h >= want:
+            want = h * fac
+        else:  # a step shortened to land on a sample says nothing against the desired step
+            want = wp.max(want, h * fac)
+    else:
+        flags[0] = 0
+        steps[1] = steps[1] + wp.int64(1)
+        want = h * fac
+    want = wp.clamp(want, dt_min, dt_max)
+    if want <= dt_min and err > wp.float64(1.0):
+        flags[2] = 1
+        flags[1] = 1
+    clock[0] = t
+    clock[2] = want
+    nxt = wp.min(want, clock[3] - t)
+    if clock[3] - t - want < wp.float64(0.01) * want:  # avoid a sliver step before the sample
+        nxt = clock[3] - t
+    clock[1] = nxt
+    if t >= t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
+        flags[1] = 1
+
+
+@wp.kernel
+def adaptive_commit(
+    flags: wp.array[wp.int32],
+    # Trial in:
+    u_trial: wp.array[Any],
+    v_trial: wp.array[Any],
+    force_trial: wp.array[Any],
+    # State out:
+    u_out: wp.array[Any],
+    v_out: wp.array[Any],
+    force_out: wp.array[Any],
+):
+    """Copy the trial into the state when the controller accepted it."""
+    i = wp.tid()
+    if flags[0] == 0:
+        return
+    u_out[i] = u_trial[i]
+    v_out[i] = v_trial[i]
+    force_out[i] = force_trial[i]
+
+
+# ---------------------------------------------------------------------------------------------- recording
+
+
+@wp.func
+def patch_sample_due(k: int, first: int, last: int, every: int) -> bool:
+    """Whether global sample k also records per-patch histories (window [first, last], every n-th)."""
+    return k >= first and k <= last and (k - first) % every == 0
+
+
+@wp.kernel
+def record_globals(
+    # Model:
+    pad_patch_start: wp.array[wp.int32],
+    normal_force: wp.array[Any],
+    radius: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+    pad_mu_pad: wp.array[Any],
+    pad_load: wp.array[Any],
+    pad_matrix_force: wp.array[Any],
+    pad_matrix_radius: wp.array[Any],
+    conditional: int,
+    # State in:
+    u_in: wp.array[Any],
+    v_in: wp.array[Any],
+    # Recorder:
+    counters: wp.array[wp.int32],
+    globals_out: wp.array3d[wp.float64],
+    fault_out: wp.array2d[wp.int32],
+):
+    """Per pad: μ, torque [N m], friction radius [m], Σu̇ [m/s], Σ|u̇| [m/s]; flags the first non-finite patch.
+
+    μ = (Σ F_N,i f(ωr_i − u̇_i) + μ_pad F_matrix sign ω)/F_N (0 without load); T = Σ r_i F_i + r_m μ_pad F_m;
+    r_eff = T / total friction force.
+    """
+    pad = wp.tid()
+    if conditional != 0 and counters[3] == 0:
+        return
+    row = counters[1]
+    fsum = wp.float64(0.0)
+    tsum = wp.float64(0.0)
+    vsum = wp.float64(0.0)
+    vabs = wp.float64(0.0)
+    usum = wp.float64(0.0)
+    omega = pad_omega[pad]
+    for i in range(pad_patch_start[pad], pad_patch_start[pad + 1]):
+        v = v_in[i]
+        f = normal_force[i] * friction_coefficient(omega * radius[i] - v, pad_mu_scale[pad], pad_slope[pad], pad_decay[pad])
+        fsum += wp.float64(f)
+        tsum += wp.float64(f * radius[i])
+        vsum += wp.float64(v)
+        vabs += wp.float64(wp.abs(v))
+        usum += wp.float64(u_in[i])
+    fm = wp.float64(pad_mu_pad[pad] * pad_matrix_force[pad] * wp.sign(omega))
+    ftot = fsum + fm
+    ttot = tsum + fm * wp.float64(pad_matrix_radius[pad])
+    load = wp.float64(pad_load[pad])
+    mu = wp.float64(0.0)
+    reff = wp.float64(0.0)
+    if load > wp.float64(0.0):
+        mu = ftot / load
+    if ftot != wp.float64(0.0):
+        reff = ttot / ftot
+    globals_out[row, pad, 0] = mu
+    globals_out[row, pad, 1] = ttot
+    globals_out[row, pad, 2] = reff
+    globals_out[row, pad, 3] = vsum
+    globals_out[row, pad, 4] = vabs
+    if not (wp.isfinite(vabs) and wp.isfinite(usum)) and fault_out[pad, 0] < 0:
+        first = int(-1)
+        for i in range(pad_patch_start[pad], pad_patch_start[pad + 1]):
+            if first < 0 and not (wp.isfinite(v_in[i]) and wp.isfinite(u_in[i])):
+                first = i - pad_patch_start[pad]
+        fault_out[pad, 0] = first
+        fault_out[pad, 1] = counters[0]
+
+
+@wp.kernel
+def record_patches(
+    first: int,
+    last: int,
+    every: int,
+    conditional: int,
+    # State in:
+    u_in: wp.array[Any],
+    v_in: wp.array[Any],
+    # Recorder:
+    counters: wp.array[wp.int32],
+    velocity_out: wp.array2d[Any],
+    displacement_out: wp.array2d[Any],
+):
+    """Copy u̇ (and u, when its buffer has rows) of every patch into the per-patch buffers when due."""
+    i = wp.tid()
+    if conditional != 0 and counters[3] == 0:
+        return
+    if not patch_sample_due(counters[0], first, last, every):
+        return
+    row = counters[2]
+    velocity_out[row, i] = v_in[i]
+    if displacement_out.shape[0] > 0:
+        displacement_out[row, i] = u_in[i]
+
+
+@wp.kernel
+def advance_counters(first: int, last: int, every: int, conditional: int, counters: wp.array[wp.int32]):
+    """After a sample: next sample index and buffer rows (one thread)."""
+    if conditional != 0 and counters[3] == 0:
+        return
+    k = counters[0]
+    if patch_sample_due(k, first, last, every):
+        counters[2] = counters[2] + 1
+    counters[0] = k + 1
+    counters[1] = counters[1] + 1
+
+
+# ---------------------------------------------------------------------------------------------- growth
+
+
+@wp.func
+def growth_due(step: wp.array[wp.int64], every: int) -> bool:
+    """Whether the step just taken (``step[0]`` counts completed steps before it) ends a growth interval."""
+    return (step[0] + wp.int64(1)) % wp.int64(every) == wp.int64(0)
+
+
+@wp.kernel
+def tick(step: wp.array[wp.int64]):
+    """Count a completed step (one thread); growth kernels read the count to fire every n-th step."""
+    step[0] = step[0] + wp.int64(1)
+
+
+@wp.kernel
+def grow_patches(
+    step: wp.array[wp.int64],
+    every: int,
+    # Model:
+    patch_pad: wp.array[wp.int32],
+    pad_growth: wp.array[Any],
+    pad_k_t: wp.array[Any],
+    pad_k_n: wp.array[Any],
+    pad_mass_per_area: wp.array[Any],
+    pad_zeta: wp.array[Any],
+    # Model in/out:
+    area_io: wp.array[Any],
+    sqrt_area_out: wp.array[Any],
+    inv_mass_out: wp.array[Any],
+    k_t_out: wp.array[Any],
+    k_n_out: wp.array[Any],
+    damping_out: wp.array[Any],
+):
+    """One growth event (paper Eq. 10): A ← A + g √A, then m, k_T, k_N, c follow the new area."""
+    i = wp.tid()
+    if not growth_due(step, every):
+        return
+    p = patch_pad[i]
+    a = area_io[i]
+    a = a + pad_growth[p] * wp.sqrt(a)
+    s = wp.sqrt(a)
+    m = pad_mass_per_area[p] * a
+    kt = pad_k_t[p] * s
+    area_io[i] = a
+    sqrt_area_out[i] = s
+    inv_mass_out[i] = type(a)(1.0) / m
+    k_t_out[i] = kt
+    k_n_out[i] = pad_k_n[p] * s
+    damping_out[i] = type(a)(2.0) * pad_zeta[p] * wp.sqrt(kt * m)
+
+
+@wp.kernel
+def contact_flat(
+    step: wp.array[wp.int64],
+    every: int,
+    # Model:
+    pad_patch_start: wp.array[wp.int32],
+    k_n: wp.array[Any],
+    height: wp.array[Any],
+    area: wp.array[Any],
+    radius: wp.array[Any],
+    pad_area: wp.array[wp.float64],
+    pad_moment: wp.array[wp.float64],
+    pad_k_m: wp.array[wp.float64],
+    pad_load: wp.array[Any],
+    # Contact in/out:
+    pad_gap: wp.array[wp.float64],
+    normal_force_out: wp.array[Any],
+    pad_matrix_force_out: wp.array[Any],
+    pad_matrix_radius_out: wp.array[Any],
+):
+    """Re-solve the normal forces of one pad on a flat matrix at elevation 0 (one thread per pad).
+
+    Σ_i k_N,i max(h_i − g, 0) + k_m a_free max(−g, 0) = F_N by Newton from the left of the root (monotone
+    and exact on a piecewise-linear convex function), warm-started from the previous gap.
+    """
+    pad = wp.tid()
+    if not growth_due(step, every):
+        return
+    s = pad_patch_start[pad]
+    e = pad_patch_start[pad + 1]
+    load = wp.float64(pad_load[pad])
+    covered = wp.float64(0.0)
+    moment = wp.float64(0.0)
+    hmin = wp.float64(0.0)
+    ktot = wp.float64(0.0)
+    for i in range(s, e):
+        covered += wp.float64(area[i])
+        moment += wp.float64(area[i] * radius[i])
+        hmin = wp.min(hmin, wp.float64(height[i]))
+        ktot += wp.float64(k_n[i])
+    free = wp.max(pad_area[pad] - covered, wp.float64(0.0))
+    km = pad_k_m[pad] * free
+    ktot += km
+    if free > wp.float64(0.0):
+        pad_matrix_radius_out[pad] = type(pad_load[pad])((pad_moment[pad] - moment) / free)
+    if load <= wp.float64(0.0):
+        for i in range(s, e):
+            normal_force_out[i] = type(pad_load[pad])(0.0)
+        pad_matrix_force_out[pad] = type(pad_load[pad])(0.0)
+        return
+    g = pad_gap[pad]
+    for it in range(200):
+        f = km * wp.max(-g, wp.float64(0.0))
+        kact = wp.float64(0.0)
+        if g < wp.float64(0.0):
+            kact = km
+        for i in range(s, e):
+            d = wp.float64(height[i]) - g
+            if d > wp.float64(0.0):
+                f += wp.float64(k_n[i]) * d
+                kact += wp.float64(k_n[i])
+        if it == 0 and f < load:
+            g = hmin - load / ktot  # restart left of the root, where every element is compressed
+            continue
+        if kact <= wp.float64(0.0):
+            break
+        dg = (f - load) / kact
+        g = g + dg
+        if wp.abs(dg) <= wp.float64(1.0e-15) * (wp.abs(g) + wp.float64(1.0e-9)):
+            break
+    pad_gap[pad] = g
+    for i in range(s, e):
+        normal_force_out[i] = type(pad_load[pad])(wp.float64(k_n[i]) * wp.max(wp.float64(height[i]) - g, wp.float64(0.0)))
+    pad_matrix_force_out[pad] = type(pad_load[pad])(km * wp.max(-g, wp.float64(0.0)))
+
+
+# ---------------------------------------------------------------------------------------------- overloads
+
+
+def _arr(t: Any) -> Any:
+    return wp.array(dtype=t)
+
+
+def _declare_overloads() -> None:
+    i32 = _arr(wp.int32)
+    for T in (wp.float32, wp.float64):
+        a = _arr(T)
+        model = {
+            "patch_pad": i32, "inv_mass": a, "k_t": a, "damping": a, "normal_force": a, "radius": a,
+            "nbr_start": i32, "nbr_index": i32, "nbr_stiffness": a,
+            "pad_omega": a, "pad_mu_scale": a, "pad_slope": a, "pad_decay": a,
+        }
+        wp.overload(euler_velocity, {**model, "dt": T, "u_in": a, "v_io": a})
+        wp.overload(implicit_velocity, {**model, "dt": T, "tol": T, "u_in": a, "v_io": a})
+        wp.overload(drift, {"dt": T, "v_in": a, "u_io": a})
+        wp.overload(spring_forces, {k: model[k] for k in ("k_t", "nbr_start", "nbr_index", "nbr_stiffness")}
+                    | {"u_in": a, "force_out": a})
+        wp.overload(coupling_stiffness, {"patch_pad": i32, "sqrt_area": a, "nbr_start": i32, "nbr_index": i32,
+                                         "nbr_inv_dist": a, "pad_kc": a, "nbr_stiffness_out": a})
+        local = {k: model[k] for k in ("patch_pad", "inv_mass", "damping", "normal_force", "radius", "pad_omega",
+                                        "pad_mu_scale", "pad_slope", "pad_decay")}
+        wp.overload(strang_open, {**local, "dt": T, "tol": T, "force_in": a, "u_io": a, "v_io": a})
+        wp.overload(strang_close, {**model, "dt": T, "tol": T, "u_in": a, "v_io": a, "force_out": a})
+        ctl = {"clock": _arr(wp.float64), "flags": i32}
+        wp.overload(adaptive_trial_open, {**local, "tol": T, **ctl, "u_in": a, "v_in": a, "force_in": a,
+                                          "u_trial": a, "v_trial": a, "u_euler": a, "v_euler": a})
+        wp.overload(adaptive_trial_close, {**model, "tol": T, "rtol": T, **ctl, "u_trial": a, "v_trial": a,
+                                           "u_euler": a, "v_euler": a, "force_trial": a,
+                                           "error_out": _arr(wp.float64)})
+        wp.overload(adaptive_commit, {"flags": i32, "u_trial": a, "v_trial": a, "force_trial": a,
+                                      "u_out": a, "v_out": a, "force_out": a})
+        wp.overload(record_globals, {
+            "pad_patch_start": i32, "normal_force": a, "radius": a, "pad_omega": a, "pad_mu_scale": a,
+            "pad_slope": a, "pad_decay": a, "pad_mu_pad": a, "pad_load": a, "pad_matrix_force": a,
+            "pad_matrix_radius": a, "conditional": int, "u_in": a, "v_in": a, "counters": i32,
+            "globals_out": wp.array3d(dtype=wp.float64), "fault_out": wp.array2d(dtype=wp.int32),
+        })
+        wp.overload(record_patches, {"first": int, "last": int, "every": int, "conditional": int, "u_in": a,
+                                     "v_in": a, "counters": i32, "velocity_out": wp.array2d(dtype=T),
+                                     "displacement_out": wp.array2d(dtype=T)})
+        wp.overload(grow_patches, {"step": _arr(wp.int64), "every": int, "patch_pad": i32, "pad_growth": a, "pad_k_t": a, "pad_k_n": a,
+                                   "pad_mass_per_area": a, "pad_zeta": a, "area_io": a, "sqrt_area_out": a,
+                                   "inv_mass_out": a, "k_t_out": a, "k_n_out": a, "damping_out": a})
+        f64 = _arr(wp.float64)
+        wp.overload(contact_flat, {"step": _arr(wp.int64), "every": int, "pad_patch_start": i32, "k_n": a, "height": a, "area": a, "radius": a,
+                                   "pad_area": f64, "pad_moment": f64, "pad_k_m": f64, "pad_load": a,
+                                   "pad_gap": f64, "normal_force_out": a, "pad_matrix_force_out": a,
+                                   "pad_matrix_radius_out": a})
+
+
+_declare_overloads()
