@@ -242,7 +242,7 @@ class _Recorder:
         c = self.counters.numpy()
         rows, prows = int(c[1]), int(c[2])
         k = np.arange(self.sample_index, self.sample_index + rows)
-        due = (k >= self.first) & (k <= self.last) & ((k - self.first) % self.every == 0)
+        due = (k >= self.first) & (k <= self.last) & ((k - self.first) % self.every == 0) & self.patch_stage
         assert int(due.sum()) == prows, "per-patch rows out of step with the sample counter"
         chunk = Chunk(
             time=k * self.sample_dt,

@@ -613,3 +613,34 @@ def preset(name: str) -> Scene:
         raise SceneError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
     text = resources.files("aca_warp.data").joinpath(f"{name}.toml").read_text()
     return scene_from_dict(tomllib.loads(text), name=name)
+
+
+def scene_to_dict(scene: Scene) -> dict:
+    """The scene as a TOML-shaped dict with every value explicit (patch data excepted: see ``patches.source``).
+
+    Run files store it (JSON) so a run can be repeated; ``scene_from_dict`` reads it back when the
+    patches come from a generator or a file that still exists.
+    """
+    origin = scene.origin or {}
+    patches = dict(origin.get("patches", {})) or {"source": scene.patches.source}
+    doc = {
+        "scene": {"name": scene.name},
+        "pad": dataclasses.asdict(scene.pad),
+        "load": {"normal_force": scene.normal_force},
+        "disc": {"angular_velocity": scene.angular_velocity},
+        "friction": dataclasses.asdict(scene.friction),
+        "patches": patches,
+        "material": dataclasses.asdict(scene.material),
+        "initial": dataclasses.asdict(scene.initial),
+        "record": {
+            "sample_dt": scene.record.sample_dt,
+            "patches": list(scene.record.patches),
+            "window": [scene.record.window[0], scene.record.window[1] if math.isfinite(scene.record.window[1])
+                       else 1e300],
+            "decimation": scene.record.decimation,
+        },
+        "run": {"duration": scene.duration},
+    }
+    if scene.growth is not None:
+        doc["growth"] = dataclasses.asdict(scene.growth)
+    return doc

@@ -1,0 +1,159 @@
+"""HDF5 run files: one file per run, SI ``unit`` attribute on every dataset, provenance as attributes.
+
+Layout (issue "run files")::
+
+    /global/time, mu, torque, friction_radius, sum_velocity, sum_abs_velocity     (samples,)
+    /patches/x, y, area, height, mass, normal_force                               (patches,)
+    /patches/time, velocity[, displacement]     per-patch histories, (rows,) and (rows, patches), if recorded
+    /patches/final/area, normal_force           after growth, if the scene grows
+
+Root attributes: ``scene`` (JSON), ``integrator``, ``step_policy`` (JSON), ``precision``, ``device``,
+``versions`` (JSON), ``stages`` (JSON list), ``stable_step`` (JSON), ``complete`` (bool), ``status``, and for
+a stopped run ``fault``. The file is written as ``NAME.partial`` and renamed to ``NAME`` when the run ends,
+completed or not (then ``complete = False`` and ``status`` says why): the final name never holds a file
+that is half written. A killed process leaves only the ``.partial`` file behind.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from aca_warp.errors import SceneError
+from aca_warp.hf import GLOBAL_NAMES, GLOBAL_UNITS, Chunk
+from aca_warp.model import PadModel
+from aca_warp.scene import Scene, scene_to_dict
+
+
+def versions() -> dict[str, str]:
+    """Versions of Python and of the packages a run depends on."""
+    import importlib.metadata as md
+
+    out = {"python": platform.python_version()}
+    for pkg in ("aca-warp", "warp-lang", "numpy", "scipy", "h5py"):
+        try:
+            out[pkg] = md.version(pkg)
+        except md.PackageNotFoundError:
+            out[pkg] = "not installed"
+    return out
+
+
+def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
+    """Refuse to clobber an existing file unless ``overwrite``; the folder must exist."""
+    p = Path(path)
+    if p.exists() and not overwrite:
+        raise SceneError(f"output file {p} exists; pass --overwrite to replace it")
+    if not p.parent.exists():
+        raise SceneError(f"output folder {p.parent} does not exist")
+    return p
+
+
+class RunWriter:
+    """Streams one pad's recorded samples into an HDF5 run file (``pad`` selects it from a batch)."""
+
+    def __init__(self, path: str | Path, model: PadModel, *, pad: int = 0, overwrite: bool = False,
+                 attrs: dict[str, Any] | None = None) -> None:
+        self.path = check_output_path(path, overwrite=overwrite)
+        self.partial = self.path.with_name(self.path.name + ".partial")
+        self.pad = pad
+        self.model = model
+        a, b = (int(x) for x in model.pad_patch_start_host[pad : pad + 2])
+        self.slice = slice(a, b)
+        self.f = h5py.File(self.partial, "w")
+        f = self.f
+        scene: Scene = model.scenes[pad]
+        f.attrs["scene"] = json.dumps(scene_to_dict(scene))
+        f.attrs["scene_name"] = scene.name
+        f.attrs["versions"] = json.dumps(versions())
+        f.attrs["complete"] = False
+        f.attrs["status"] = "running"
+        for k, v in (attrs or {}).items():
+            f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
+        g = f.create_group("global")
+        for name, unit in (("time", "s"), *zip(GLOBAL_NAMES, GLOBAL_UNITS)):
+            d = g.create_dataset(name, shape=(0,), maxshape=(None,), dtype="f8", chunks=(4096,))
+            d.attrs["unit"] = unit
+        p = f.create_group("patches")
+        mass = scene.material.mass_per_area * scene.patches.area
+        for name, data, unit in (("x", scene.patches.x, "m"), ("y", scene.patches.y, "m"),
+                                 ("area", scene.patches.area, "m2"), ("height", scene.patches.height, "m"),
+                                 ("mass", mass, "kg"),
+                                 ("normal_force", model.contacts[pad].patch_force, "N")):
+            p.create_dataset(name, data=np.asarray(data, dtype=np.float64)).attrs["unit"] = unit
+        self._patch_ds: dict[str, h5py.Dataset] = {}
+
+    def _patch_dataset(self, name: str, unit: str, width: int, dtype: Any) -> h5py.Dataset:
+        if name not in self._patch_ds:
+            shape = (0,) if width == 0 else (0, width)
+            chunks = (1024,) if width == 0 else (max(1, min(256, 2**20 // max(width, 1))), width)
+            d = self.f["patches"].create_dataset(name, shape=shape, maxshape=(None, *shape[1:]), dtype=dtype,
+                                                 chunks=chunks)
+            d.attrs["unit"] = unit
+            self._patch_ds[name] = d
+        return self._patch_ds[name]
+
+    @staticmethod
+    def _append(d: h5py.Dataset, data: np.ndarray) -> None:
+        n = d.shape[0]
+        d.resize(n + len(data), axis=0)
+        d[n:] = data
+
+    def write(self, chunk: Chunk) -> None:
+        """Append one chunk of samples (the run loop's sink) and flush the file."""
+        g = self.f["global"]
+        self._append(g["time"], chunk.time)
+        for k, name in enumerate(GLOBAL_NAMES):
+            self._append(g[name], chunk.globals[:, self.pad, k])
+        if len(chunk.patch_time):
+            width = self.slice.stop - self.slice.start
+            self._append(self._patch_dataset("time", "s", 0, "f8"), chunk.patch_time)
+            for name, data, unit in (("velocity", chunk.velocity, "m s-1"), ("displacement", chunk.displacement, "m")):
+                if data is not None:
+                    self._append(self._patch_dataset(name, unit, width, data.dtype), data[:, self.slice])
+        self.f.flush()
+
+    def close(self, *, complete: bool, status: str, attrs: dict[str, Any] | None = None) -> Path:
+        """Write the closing attributes, close, and move the file to its final name."""
+        f = self.f
+        f.attrs["complete"] = complete
+        f.attrs["status"] = status
+        for k, v in (attrs or {}).items():
+            f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
+        if self.model.scenes[self.pad].growth is not None:
+            fin = f["patches"].create_group("final")
+            fin.create_dataset("area", data=self.model.host("area")[self.slice].astype(np.float64)).attrs["unit"] = "m2"
+            fin.create_dataset("normal_force", data=self.model.host("normal_force")[self.slice].astype(np.float64)
+                               ).attrs["unit"] = "N"
+        f.close()
+        os.replace(self.partial, self.path)
+        return self.path
+
+
+def read_run(path: str | Path) -> dict[str, Any]:
+    """Load a run file into a dict of NumPy arrays and decoded attributes (small runs; tests, plots)."""
+    p = Path(path)
+    if not p.is_file():
+        raise SceneError(f"run file not found: {p}")
+    out: dict[str, Any] = {}
+    with h5py.File(p, "r") as f:
+        def visit(name: str, obj: Any) -> None:
+            if isinstance(obj, h5py.Dataset):
+                out[name] = obj[()]
+
+        f.visititems(visit)
+        attrs = {}
+        for k, v in f.attrs.items():
+            if isinstance(v, str) and v[:1] in "[{":
+                try:
+                    v = json.loads(v)
+                except json.JSONDecodeError:
+                    pass
+            attrs[k] = v
+        out["attrs"] = attrs
+    return out
