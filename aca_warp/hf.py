@@ -6,8 +6,9 @@ Integrators (``--integrator``):
   bounded by the spring network *and* the friction slope at zero sliding speed (:func:`stable_step`).
 * ``implicit-friction``: IMEX Euler; the friction and damping act on the new velocity, solved per patch by
   safeguarded Newton (no global solve); only the spring network bounds the step.
-* ``strang``: second order; friction/damping trapezoid over dt/2, velocity Verlet for the springs, friction
-  trapezoid over dt/2 (Strang splitting, one spring evaluation per step).
+* ``strang``: second order; Strang splitting of friction/damping (implicit midpoint, per patch) and the
+  springs (velocity Verlet). Consecutive friction half steps are merged, so a step costs one spring
+  evaluation and one implicit solve; between steps the velocity is staggered and synchronised for output.
 * ``adaptive``: ``strang`` with the embedded IMEX-Euler step as error estimate; the controller (accept,
   reject, next step, landing on sample times) runs on the device, in the captured graph.
 
@@ -169,17 +170,23 @@ class HFSolver:
                             m.nbr_index, m.nbr_stiffness, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay]
         self._local_args = [m.patch_pad, m.inv_mass, m.damping, m.normal_force, m.radius, m.pad_omega,
                             m.pad_mu_scale, m.pad_slope, m.pad_decay]
+        self._v_sync: wp.array | None = None
 
     def _launch(self, kernel: Any, inputs: list, dim: int | None = None) -> None:
         wp.launch(kernel, dim=self.model.patch_count if dim is None else dim, inputs=inputs, device=self.model.device)
 
     def prepare(self, state: HFState) -> None:
-        """Fill the spring-force cache of a fresh state (Strang and adaptive schemes)."""
+        """Fill the spring-force cache F_s(u) of a state (Strang and adaptive schemes)."""
         m = self.model
         self._launch(K.spring_forces, [m.k_t, m.nbr_start, m.nbr_index, m.nbr_stiffness, state.u, state.force])
 
-    def step(self, state: HFState, dt: float) -> None:
-        """One fixed step of every pad (graph-capturable: two launches, no host reads)."""
+    def step(self, state: HFState, dt: float, *, first: bool = False) -> None:
+        """One fixed step of every pad (graph-capturable: two launches, no host reads).
+
+        ``strang`` keeps a staggered velocity between steps: ``first`` opens from the synchronous state
+        (friction dt/2, kick, drift), later steps are merged (kick, friction dt, kick, drift), and
+        :meth:`finish` closes back to the synchronous velocity; :meth:`velocity` gives it at any step.
+        """
         h = self.T(dt)
         if self.integrator == "symplectic-euler":
             self._launch(K.euler_velocity, [*self._model_args, h, state.u, state.v])
@@ -188,10 +195,27 @@ class HFSolver:
             self._launch(K.implicit_velocity, [*self._model_args, h, self.newton_tol, state.u, state.v])
             self._launch(K.drift, [h, state.v, state.u])
         elif self.integrator == "strang":
-            self._launch(K.strang_open, [*self._local_args, h, self.newton_tol, state.force, state.u, state.v])
-            self._launch(K.strang_close, [*self._model_args, h, self.newton_tol, state.u, state.v, state.force])
+            kernel = K.strang_open if first else K.strang_step
+            self._launch(kernel, [*self._local_args, h, self.newton_tol, state.force, state.u, state.v])
+            self.prepare(state)
         else:
             raise SceneError("the adaptive integrator has no fixed step; use run_hf")
+
+    def velocity(self, state: HFState, dt: float) -> wp.array:
+        """The synchronous patch velocities [m/s] (for strang computed from the staggered state)."""
+        if self.integrator != "strang":
+            return state.v
+        if self._v_sync is None:
+            self._v_sync = wp.zeros_like(state.v)
+        self._launch(K.strang_close, [*self._local_args, self.T(dt), self.newton_tol, state.force, state.v,
+                                      self._v_sync])
+        return self._v_sync
+
+    def finish(self, state: HFState, dt: float) -> None:
+        """Bring a staggered strang state back to synchronous velocities (no-op for other schemes)."""
+        if self.integrator == "strang":
+            self._launch(K.strang_close, [*self._local_args, self.T(dt), self.newton_tol, state.force, state.v,
+                                          state.v])
 
 
 class _Recorder:
@@ -209,6 +233,8 @@ class _Recorder:
         self.every = record.decimation
         self.want_v = "velocity" in record.patches and self.first <= self.last
         self.want_u = "displacement" in record.patches and self.first <= self.last
+        if not (self.want_v or self.want_u):
+            self.first, self.last = 0, -1  # no sample is due
         prow = rows if (self.want_v or self.want_u) else 0
         n = model.patch_count if prow else 0
         self.counters = wp.zeros(4, dtype=wp.int32, device=dev)
@@ -223,16 +249,16 @@ class _Recorder:
         """Whether per-patch histories are recorded at all."""
         return self.want_v or self.want_u
 
-    def launch(self, state: HFState, conditional: bool) -> None:
-        """Record one sample (conditional: only when the adaptive controller landed on a sample time)."""
+    def launch(self, u: wp.array, v: wp.array, conditional: bool) -> None:
+        """Record one sample of (u, u̇) (conditional: only when the adaptive controller landed on a sample)."""
         m, c = self.model, int(conditional)
         wp.launch(K.record_globals, dim=m.pad_count, device=m.device, inputs=[
             m.pad_patch_start, m.normal_force, m.radius, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay,
-            m.pad_mu_pad, m.pad_load, m.pad_matrix_force, m.pad_matrix_radius, c, state.u, state.v,
+            m.pad_mu_pad, m.pad_load, m.pad_matrix_force, m.pad_matrix_radius, c, u, v,
             self.counters, self.globals, self.fault])
         if self.patch_stage:
             wp.launch(K.record_patches, dim=m.patch_count, device=m.device, inputs=[
-                self.first, self.last, self.every, c, state.u, state.v, self.counters, self.velocity,
+                self.first, self.last, self.every, c, u, v, self.counters, self.velocity,
                 self.displacement])
         wp.launch(K.advance_counters, dim=1, device=m.device,
                   inputs=[self.first, self.last, self.every, c, self.counters])
@@ -242,7 +268,7 @@ class _Recorder:
         c = self.counters.numpy()
         rows, prows = int(c[1]), int(c[2])
         k = np.arange(self.sample_index, self.sample_index + rows)
-        due = (k >= self.first) & (k <= self.last) & ((k - self.first) % self.every == 0) & self.patch_stage
+        due = (k >= self.first) & (k <= self.last) & ((k - self.first) % self.every == 0)
         assert int(due.sum()) == prows, "per-patch rows out of step with the sample counter"
         chunk = Chunk(
             time=k * self.sample_dt,
@@ -320,6 +346,7 @@ def run_hf(
 
     if integrator in ("strang", "adaptive"):
         solver.prepare(state)
+    started = False
     growth_every, step_counter = 0, None
     if growth:
         stages.append("growth")
@@ -370,16 +397,18 @@ def run_hf(
                 clock, flags, steps_arr, err, rec.counters])
             wp.launch(K.adaptive_commit, dim=n, device=dev, inputs=[
                 flags, trial["u"], trial["v"], trial["f"], state.u, state.v, state.force])
-            rec.launch(state, conditional=True)
+            rec.launch(state.u, state.v, conditional=True)
             del m
     else:
 
         def body() -> None:
+            nonlocal started
             for _ in range(sps):
-                solver.step(state, h)
+                solver.step(state, h, first=not started)
+                started = True
                 if growth:
                     grow()
-            rec.launch(state, conditional=False)
+            rec.launch(state.u, solver.velocity(state, h), conditional=False)
 
     graphs: dict[int, Any] = {}
 
@@ -388,6 +417,11 @@ def run_hf(
             for _ in range(reps):
                 body()
             return
+        if not started:  # the opening step differs from the rest: run the first block eagerly
+            body()
+            reps -= 1
+            if reps == 0:
+                return
         if reps not in graphs:
             with wp.ScopedCapture(device=dev, force_module_load=True) as cap:
                 for _ in range(reps):
@@ -395,7 +429,7 @@ def run_hf(
             graphs[reps] = cap.graph
         wp.capture_launch(graphs[reps])
 
-    rec.launch(state, conditional=False)  # sample 0: the initial state
+    rec.launch(state.u, state.v, conditional=False)  # sample 0: the initial state
     wp.load_module(K, device=dev)
     compile_time = time.perf_counter() - t_compile
     bar = None
@@ -446,6 +480,8 @@ def run_hf(
     finally:
         if bar is not None:
             bar.close()
+        if not adaptive and started:
+            solver.finish(state, h)
     wall = time.perf_counter() - t0
     wp.synchronize_device(dev)
     return RunResult(

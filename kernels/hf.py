@@ -100,15 +100,16 @@ def solve_velocity(
 
 
 @wp.func
-def trapezoid_friction(
+def midpoint_friction(
     v: Any, dt: Any, m: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any
 ):
-    """Trapezoidal step of m v̇ = F_N f(vd − v) − c v over dt (second order, A-stable)."""
-    half = type(v)(0.5)
-    g0 = fn * friction_coefficient(vd - v, mu_scale, slope, decay) - c * v
-    a = m + half * dt * c
-    b = m * v + half * dt * g0
-    return solve_velocity(a, b, half * dt * fn, vd, v, mu_scale, slope, decay, tol)
+    """Implicit-midpoint step of m v̇ = F_N f(vd − v) − c v over dt (second order, A-stable).
+
+    Solves m (v_m − v) = dt/2 (F_N f(vd − v_m) − c v_m) for the midpoint velocity, returns 2 v_m − v.
+    """
+    half = type(v)(0.5) * dt
+    vm = solve_velocity(m + half * c, m * v, half * fn, vd, v, mu_scale, slope, decay, tol)
+    return type(v)(2.0) * vm - v
 
 
 # ---------------------------------------------------------------------------------------------- stepping
@@ -252,17 +253,59 @@ def strang_open(
     u_io: wp.array[Any],
     v_io: wp.array[Any],
 ):
-    """Strang step, first half: friction/damping trapezoid over dt/2, half kick with F_s(uₙ), drift."""
+    """Strang, first half step from a synchronous state: friction over dt/2, half kick, drift.
+
+    Afterwards ``v_io`` holds the staggered velocity w (the velocity just before the next half kick).
+    """
     i = wp.tid()
     p = patch_pad[i]
     half = dt * type(dt)(0.5)
     im = inv_mass[i]
-    m = type(dt)(1.0) / im
     vd = pad_omega[p] * radius[i]
-    v = trapezoid_friction(
-        v_io[i], half, m, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol
+    v = midpoint_friction(
+        v_io[i], half, type(dt)(1.0) / im, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p],
+        pad_decay[p], tol,
     )
     v = v + half * im * force_in[i]
+    v_io[i] = v
+    u_io[i] = u_io[i] + dt * v
+
+
+@wp.kernel
+def strang_step(
+    # Model:
+    patch_pad: wp.array[wp.int32],
+    inv_mass: wp.array[Any],
+    damping: wp.array[Any],
+    normal_force: wp.array[Any],
+    radius: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+    dt: Any,
+    tol: Any,
+    # State in:
+    force_in: wp.array[Any],
+    # State in/out:
+    u_io: wp.array[Any],
+    v_io: wp.array[Any],
+):
+    """One merged Strang step on the staggered velocity w: kick dt/2, friction dt, kick dt/2, drift.
+
+    The closing friction half of step n and the opening half of step n+1 are one implicit-midpoint solve
+    over dt; both kicks use the cached F_s(uₙ). Follow with :func:`spring_forces` at the new u.
+    """
+    i = wp.tid()
+    p = patch_pad[i]
+    half = dt * type(dt)(0.5)
+    im = inv_mass[i]
+    kick = half * im * force_in[i]
+    vd = pad_omega[p] * radius[i]
+    v = midpoint_friction(
+        v_io[i] + kick, dt, type(dt)(1.0) / im, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p],
+        pad_decay[p], tol,
+    ) + kick
     v_io[i] = v
     u_io[i] = u_io[i] + dt * v
 
@@ -272,13 +315,9 @@ def strang_close(
     # Model:
     patch_pad: wp.array[wp.int32],
     inv_mass: wp.array[Any],
-    k_t: wp.array[Any],
     damping: wp.array[Any],
     normal_force: wp.array[Any],
     radius: wp.array[Any],
-    nbr_start: wp.array[wp.int32],
-    nbr_index: wp.array[wp.int32],
-    nbr_stiffness: wp.array[Any],
     pad_omega: wp.array[Any],
     pad_mu_scale: wp.array[Any],
     pad_slope: wp.array[Any],
@@ -286,23 +325,20 @@ def strang_close(
     dt: Any,
     tol: Any,
     # State in:
-    u_in: wp.array[Any],
-    # State in/out:
-    v_io: wp.array[Any],
-    # State out:
-    force_out: wp.array[Any],
+    force_in: wp.array[Any],
+    v_in: wp.array[Any],
+    # Out:
+    v_out: wp.array[Any],
 ):
-    """Strang step, second half: F_s(uₙ₊₁) (cached), half kick, friction/damping trapezoid over dt/2."""
+    """Synchronous velocity from the staggered w and F_s(uₙ): half kick, friction over dt/2 (may be in place)."""
     i = wp.tid()
     p = patch_pad[i]
     half = dt * type(dt)(0.5)
     im = inv_mass[i]
-    fs = spring_force(i, u_in, k_t, nbr_start, nbr_index, nbr_stiffness)
-    force_out[i] = fs
-    v = v_io[i] + half * im * fs
     vd = pad_omega[p] * radius[i]
-    v_io[i] = trapezoid_friction(
-        v, half, type(dt)(1.0) / im, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol
+    v_out[i] = midpoint_friction(
+        v_in[i] + half * im * force_in[i], half, type(dt)(1.0) / im, damping[i], normal_force[i], vd,
+        pad_mu_scale[p], pad_slope[p], pad_decay[p], tol,
     )
 
 
@@ -354,7 +390,7 @@ def adaptive_trial_open(
     )
     v_euler[i] = ve
     u_euler[i] = u + dt * ve
-    vs = trapezoid_friction(v, half, m, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol)
+    vs = midpoint_friction(v, half, m, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol)
     vs = vs + half * im * fs
     v_trial[i] = vs
     u_trial[i] = u + dt * vs
@@ -406,7 +442,7 @@ def adaptive_trial_close(
     v = v_trial[i] + half * im * fs
     vd = pad_omega[p] * radius[i]
     fn = normal_force[i]
-    v = trapezoid_friction(v, half, type(dt)(1.0) / im, damping[i], fn, vd, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol)
+    v = midpoint_friction(v, half, type(dt)(1.0) / im, damping[i], fn, vd, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol)
     v_trial[i] = v
     u = u_trial[i]
     u_ref = fn / k_t[i]
@@ -772,7 +808,8 @@ def _declare_overloads() -> None:
         local = {k: model[k] for k in ("patch_pad", "inv_mass", "damping", "normal_force", "radius", "pad_omega",
                                         "pad_mu_scale", "pad_slope", "pad_decay")}
         wp.overload(strang_open, {**local, "dt": T, "tol": T, "force_in": a, "u_io": a, "v_io": a})
-        wp.overload(strang_close, {**model, "dt": T, "tol": T, "u_in": a, "v_io": a, "force_out": a})
+        wp.overload(strang_step, {**local, "dt": T, "tol": T, "force_in": a, "u_io": a, "v_io": a})
+        wp.overload(strang_close, {**local, "dt": T, "tol": T, "force_in": a, "v_in": a, "v_out": a})
         ctl = {"clock": _arr(wp.float64), "flags": i32}
         wp.overload(adaptive_trial_open, {**local, "tol": T, **ctl, "u_in": a, "v_in": a, "force_in": a,
                                           "u_trial": a, "v_trial": a, "u_euler": a, "v_euler": a})
