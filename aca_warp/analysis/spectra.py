@@ -2,7 +2,7 @@
 
 Scaling convention (shared by every function here): the signal is multiplied by a periodic Hann
 window w of its own length N and transformed with a real FFT; the result is divided by the
-window's coherent gain Σw = N/2 and the bins 0 < f < f_Nyquist are doubled. A sinusoid
+window sum Σw = N/2 (coherent-gain correction) and the bins 0 < f < f_Nyquist are doubled. A sinusoid
 a·sin(2πft) whose frequency falls on a bin then shows |X(f)| = a, and a constant c shows
 X(0) = c. Phases are referenced to the first sample of the record.
 """
@@ -19,8 +19,11 @@ DEFAULT_FLOOR_HZ = 10.0
 """Frequencies below this are dropped from plots (paper Fig. 10: "truncated below 10 Hz")."""
 
 
-def _windowed_rfft(x: np.ndarray, axis: int, workers: int | None) -> np.ndarray:
-    """Coherent-gain-corrected one-sided FFT of ``x`` along ``axis`` (see module docstring)."""
+def _windowed_rfft(x: np.ndarray, axis: int, workers: int | None, bins: slice = slice(None)) -> np.ndarray:
+    """Coherent-gain-corrected one-sided FFT of ``x`` along ``axis`` (see module docstring).
+
+    Only the rfft bins ``bins`` are scaled and returned (a view into the full transform).
+    """
     n = x.shape[axis]
     if n < 2:
         raise ValueError(f"need at least 2 samples along axis {axis}, got {n}")
@@ -29,13 +32,13 @@ def _windowed_rfft(x: np.ndarray, axis: int, workers: int | None) -> np.ndarray:
     shape = [1] * x.ndim
     shape[axis] = n
     spec = scipy.fft.rfft(x * w.reshape(shape), axis=axis, workers=workers)
-    spec *= real(2.0 / w.sum(dtype=np.float64))
-    dc = [slice(None)] * x.ndim
-    dc[axis] = 0
-    spec[tuple(dc)] *= real(0.5)
-    if n % 2 == 0:
-        dc[axis] = -1
-        spec[tuple(dc)] *= real(0.5)
+    index = np.arange(n // 2 + 1)[bins]
+    gain = np.where((index == 0) | (2 * index == n), 1.0, 2.0) / w.sum(dtype=np.float64)
+    shape[axis] = index.size
+    sel = [slice(None)] * x.ndim
+    sel[axis] = bins
+    spec = spec[tuple(sel)]
+    spec *= gain.astype(real).reshape(shape)
     return spec
 
 
@@ -111,16 +114,13 @@ def complex_spectrum(
         x = x.astype(np.float64, copy=False)
     axis = axis % x.ndim
     freq = scipy.fft.rfftfreq(x.shape[axis], dt)
-    spec = _windowed_rfft(x, axis, workers)
-    if freq_range is not None:
-        keep = np.flatnonzero((freq >= freq_range[0]) & (freq <= freq_range[1]))
-        if keep.size == 0:
-            raise ValueError(f"no frequency bin inside freq_range={freq_range} Hz")
-        freq = freq[keep[0] : keep[-1] + 1]
-        sel = [slice(None)] * x.ndim
-        sel[axis] = slice(keep[0], keep[-1] + 1)
-        spec = spec[tuple(sel)].copy()
-    return freq, spec
+    if freq_range is None:
+        return freq, _windowed_rfft(x, axis, workers)
+    keep = np.flatnonzero((freq >= freq_range[0]) & (freq <= freq_range[1]))
+    if keep.size == 0:
+        raise ValueError(f"no frequency bin inside freq_range={freq_range} Hz")
+    bins = slice(keep[0], keep[-1] + 1)
+    return freq[bins], _windowed_rfft(x, axis, workers, bins).copy()
 
 
 def drop_low_frequencies(
@@ -141,9 +141,7 @@ def drop_low_frequencies(
     return np.asarray(freq)[keep], np.compress(keep, values, axis=axis)
 
 
-def peak(
-    freq: np.ndarray, amp: np.ndarray, *, fmin: float = -np.inf, fmax: float = np.inf
-) -> tuple[float, float]:
+def peak(freq: np.ndarray, amp: np.ndarray, *, fmin: float = -np.inf, fmax: float = np.inf) -> tuple[float, float]:
     """Largest peak of an amplitude spectrum in a band, with sub-bin accuracy.
 
     The largest bin in ``[fmin, fmax]`` is refined by fitting a parabola through the log

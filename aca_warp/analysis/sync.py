@@ -206,8 +206,8 @@ def _row_blocks(X: np.ndarray | Iterable[np.ndarray], rows: int) -> Iterator[np.
         if chunk.ndim != 2:
             raise ValueError(f"spectra must be 2-D (frequencies x patches), got shape {chunk.shape}")
         for i in range(0, chunk.shape[0], rows):
-            yield chunk[i : i + rows]
-        del chunk  # free a streamed chunk before the next one is produced
+            yield chunk[i : i + rows].copy()
+        del chunk  # no view of it is left: a streamed chunk is freed before the next one is made
 
 
 def sync_index(
@@ -295,12 +295,68 @@ def sync_index(
     return SyncResult(freq=freq, S_null=s_null, rule=rule, params=params, **out)
 
 
+_FFT_COLUMNS = 32
+"""Patch columns per FFT call: bounds the FFT temporaries to about 16·N·32 bytes."""
+
+_READ_BYTES = 64 << 20
+"""Size of one row-block read from a file-backed array [bytes]."""
+
+
+def _patch_groups(v: Any, group: int) -> Iterator[tuple[int, np.ndarray]]:
+    """Yield ``(first column, block of shape (N, <= group))`` covering every patch column of ``v``.
+
+    NumPy arrays are sliced directly. Other array-likes (h5py Datasets) are read in row blocks
+    of whole HDF5 chunks into one reused float32 buffer, so a file chunked along time (all
+    patches per chunk) is read once per group rather than once per column.
+    """
+    n_samples, n_patches = v.shape
+    if isinstance(v, np.ndarray):
+        for g0 in range(0, n_patches, group):
+            yield g0, v[:, g0 : g0 + group]
+        return
+    buf = np.empty((n_samples, min(group, n_patches)), dtype=np.float32)
+    rows = max(1, _READ_BYTES // (4 * buf.shape[1]))
+    hdf5_chunks = getattr(v, "chunks", None)
+    if hdf5_chunks:
+        rows = max(1, rows // hdf5_chunks[0]) * hdf5_chunks[0]
+    for g0 in range(0, n_patches, group):
+        g1 = min(g0 + group, n_patches)
+        for r0 in range(0, n_samples, rows):
+            buf[r0 : r0 + rows, : g1 - g0] = v[r0 : r0 + rows, g0:g1]
+        yield g0, buf[:, : g1 - g0]
+
+
+def _band_spectra(
+    v: Any,
+    dt: float,
+    band: tuple[float, float],
+    rows: slice,
+    group: int,
+    workers: int | None,
+    floor: np.ndarray | None = None,
+) -> np.ndarray:
+    """Rows ``rows`` of the in-band complex64 spectra of all patches, shape (rows, n_patches).
+
+    If ``floor`` is given, it receives each patch's median |X| over the whole band.
+    """
+    out = np.empty((rows.stop - rows.start, v.shape[1]), dtype=np.complex64)
+    for g0, block in _patch_groups(v, group):
+        for c0 in range(0, block.shape[1], _FFT_COLUMNS):
+            x = np.asarray(block[:, c0 : c0 + _FFT_COLUMNS], dtype=np.float32)
+            _, spec = complex_spectrum(x, dt, axis=0, freq_range=band, workers=workers)
+            cols = slice(g0 + c0, g0 + c0 + spec.shape[1])
+            out[:, cols] = spec[rows]
+            if floor is not None:
+                floor[cols] = np.median(np.abs(spec), axis=0)
+    return out
+
+
 def sync_index_from_signals(
     v: Any,
     dt: float,
     *,
     freq_range: tuple[float, float] | None = None,
-    chunk_patches: int = 32,
+    chunk_patches: int | None = None,
     max_bytes: int = 1 << 30,
     workers: int | None = -1,
     rule: Literal["relative", "snr"] = "relative",
@@ -308,22 +364,24 @@ def sync_index_from_signals(
 ) -> SyncResult:
     """Synchronization Index straight from per-patch time histories.
 
-    Hann-windowed spectra (``complex_spectrum`` scaling, complex64) are computed per chunk
-    of patch columns, keeping only the bins inside ``freq_range``; the band (at most
-    ``max_bytes`` at a time; a wider band is done in several passes over the data, one per
-    sub-band) then goes to ``sync_index``.
+    Patch columns are read in groups; their Hann-windowed spectra (``complex_spectrum``
+    scaling, float32 in, complex64 out) are computed 32 columns at a time, keeping only the
+    bins inside ``freq_range``. The band array then goes to ``sync_index``; if it would exceed
+    ``max_bytes`` the band is split into sub-bands, one pass over the data each. Peak memory
+    is about 2·max_bytes plus the FFT temporaries (≈ 16·N·32 bytes) and the sync temporaries.
 
     Args:
-        v: Velocities [m/s] of shape (N samples, n_patches): a NumPy array or an h5py Dataset
-            (read in column chunks, aligned to its HDF5 chunk width).
+        v: Velocities [m/s] of shape (N samples, n_patches): a NumPy array or an h5py Dataset.
+            A Dataset is read in row blocks of whole chunks, one patch group at a time.
         dt: Sampling interval [s].
         freq_range: Inclusive band ``(fmin, fmax)`` [Hz]; None = every bin above 0 Hz.
-        chunk_patches: Patch columns transformed at once (peak memory ≈ 12·N·chunk bytes).
-        max_bytes: Largest band array held at once [bytes].
+        chunk_patches: Patch columns per read group; default: as many as fit a float32
+            buffer of ``max_bytes`` (rounded to the HDF5 chunk width when that is narrower).
+        max_bytes: Budget for the read buffer and for the band array, each [bytes].
         workers: Threads for ``scipy.fft`` (-1: all CPUs).
         rule: Φ rule, see ``sync_index``.
-        **options: Further keyword arguments of ``sync_index`` (eta, snr, n_bins, tau_ab,
-            tau_bc, w, smooth, null_trials, seed, rows_per_block).
+        **options: Further keyword arguments of ``sync_index`` (eta, snr, noise_floor, n_bins,
+            tau_ab, tau_bc, w, smooth, null_trials, seed, rows_per_block).
 
     Returns:
         The ``SyncResult`` of ``sync_index``, with ``freq`` set.
@@ -335,26 +393,17 @@ def sync_index_from_signals(
     if keep.size == 0:
         raise ValueError(f"no frequency bin inside freq_range={freq_range} Hz")
     freq = freq_all[keep[0] : keep[-1] + 1]
+    group = chunk_patches or max(1, max_bytes // (4 * n_samples))
     hdf5_chunks = getattr(v, "chunks", None)
-    if hdf5_chunks:
-        chunk_patches = max(chunk_patches // hdf5_chunks[1], 1) * hdf5_chunks[1]
+    if hdf5_chunks and hdf5_chunks[1] < n_patches:
+        group = max(1, group // hdf5_chunks[1]) * hdf5_chunks[1]
     step = max(1, max_bytes // (8 * n_patches))
     passes = [slice(i, min(i + step, freq.size)) for i in range(0, freq.size, step)]
-
-    def band_pass(rows: slice, floor: np.ndarray | None = None) -> np.ndarray:
-        out = np.empty((rows.stop - rows.start, n_patches), dtype=np.complex64)
-        for j0 in range(0, n_patches, chunk_patches):
-            j1 = min(j0 + chunk_patches, n_patches)
-            x = np.asarray(v[:, j0:j1], dtype=np.float32)
-            _, spec = complex_spectrum(x, dt, axis=0, freq_range=band, workers=workers)
-            out[:, j0:j1] = spec[rows]
-            if floor is not None:
-                floor[j0:j1] = np.median(np.abs(spec), axis=0)
-        return out
-
+    args = (v, dt, band)
     if len(passes) == 1:
-        return sync_index(band_pass(passes[0]), freq=freq, rule=rule, **options)
+        return sync_index(_band_spectra(*args, passes[0], group, workers), freq=freq, rule=rule, **options)
     if rule == "snr" and options.get("noise_floor") is None:
         options["noise_floor"] = np.empty(n_patches)
-        band_pass(slice(0, 0), options["noise_floor"])
-    return sync_index((band_pass(rows) for rows in passes), freq=freq, rule=rule, **options)
+        _band_spectra(*args, slice(0, 0), group, workers, options["noise_floor"])
+    spectra = (_band_spectra(*args, rows, group, workers) for rows in passes)
+    return sync_index(spectra, freq=freq, rule=rule, **options)
