@@ -65,7 +65,7 @@ class RunWriter:
         self.model = model
         a, b = (int(x) for x in model.pad_patch_start_host[pad : pad + 2])
         self.slice = slice(a, b)
-        self.f = h5py.File(self.partial, "w")
+        self.f = h5py.File(self.partial, "w", rdcc_nbytes=64 * 2**20)
         f = self.f
         scene: Scene = model.scenes[pad]
         f.attrs["scene"] = json.dumps(scene_to_dict(scene))
@@ -91,7 +91,8 @@ class RunWriter:
     def _patch_dataset(self, name: str, unit: str, width: int, dtype: Any) -> h5py.Dataset:
         if name not in self._patch_ds:
             shape = (0,) if width == 0 else (0, width)
-            chunks = (1024,) if width == 0 else (max(1, min(256, 2**20 // max(width, 1))), width)
+            # narrow in patches, long in time: an analysis reads column blocks of patches in one pass
+            chunks = (4096,) if width == 0 else (1024, min(width, 64))
             d = self.f["patches"].create_dataset(name, shape=shape, maxshape=(None, *shape[1:]), dtype=dtype,
                                                  chunks=chunks)
             d.attrs["unit"] = unit

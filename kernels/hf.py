@@ -71,19 +71,18 @@ def solve_velocity(
     """Solve a·v − hfn·f(vd − v) = b for v (a > 0, hfn ≥ 0): per-patch implicit friction.
 
     |f| ≤ 2 mu_scale π/2 brackets the root in [(b − hfn f_max)/a, (b + hfn f_max)/a]; safeguarded Newton
-    (bisection whenever a Newton step leaves the bracket) converges for any step size.
+    (bisection whenever a Newton step leaves the bracket) converges for any step size. It stops when the
+    Newton step is below ``tol`` times the velocity scale |vd| + (|b| + hfn f_max)/a, so a smooth patch
+    costs two friction evaluations per solve.
     """
-    one = type(a)(1.0)
     fmax = mu_scale * type(a)(3.141592653589793)
     lo = (b - hfn * fmax) / a
     hi = (b + hfn * fmax) / a
-    scale = tol * (wp.abs(b) + hfn * fmax + a * (lo - lo + one))
+    vtol = tol * (wp.abs(vd) + (wp.abs(b) + hfn * fmax) / a)
     v = wp.clamp(guess, lo, hi)
     for _it in range(60):
         f, df = friction_pair(vd - v, mu_scale, slope, decay)
         g = a * v - hfn * f - b
-        if wp.abs(g) <= scale:
-            break
         if g > a - a:
             hi = v
         else:
@@ -92,10 +91,10 @@ def solve_velocity(
         vn = v - g / dg
         if dg <= a - a or vn <= lo or vn >= hi:
             vn = type(a)(0.5) * (lo + hi)
-        if hi - lo <= tol * (wp.abs(vn) + one):
-            v = vn
-            break
+        converged = wp.abs(vn - v) <= vtol or hi - lo <= vtol
         v = vn
+        if converged:
+            break
     return v
 
 
