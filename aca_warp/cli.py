@@ -50,34 +50,60 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``aca-warp``."""
     from aca_warp.hf import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
 
-    p = argparse.ArgumentParser(prog="aca-warp", description="Abstract Cellular Automaton of the brake pad-disc "
-                                "boundary layer (Merlis & Ostermeyer 2019) in NVIDIA Warp.",
-                                formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG)
+    p = argparse.ArgumentParser(
+        prog="aca-warp",
+        description="Abstract Cellular Automaton of the brake pad-disc "
+        "boundary layer (Merlis & Ostermeyer 2019) in NVIDIA Warp.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=EPILOG,
+    )
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    hf = sub.add_parser("hf", help="simulate the high-frequency patch vibrations of one pad into a run file",
-                        description="Simulate the HF vibrations of every patch of one pad (paper §2.1.2, §3.1) and "
-                        "write global mu, torque, friction radius and velocity sums (and per-patch histories "
-                        "when asked) to an HDF5 run file.",
-                        formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG)
+    hf = sub.add_parser(
+        "hf",
+        help="simulate the high-frequency patch vibrations of one pad into a run file",
+        description="Simulate the HF vibrations of every patch of one pad (paper §2.1.2, §3.1) and "
+        "write global mu, torque, friction radius and velocity sums (and per-patch histories "
+        "when asked) to an HDF5 run file.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=EPILOG,
+    )
     hf.add_argument("scene", metavar="SCENE", help="preset name or TOML scene file")
     hf.add_argument("-o", "--output", required=True, metavar="RUN.h5", help="run file to write")
     hf.add_argument("--duration", type=_positive, metavar="S", help="simulated time [s] (default: the scene's)")
     hf.add_argument("--device", default="cpu", help="Warp device: cpu (default) or cuda:0, cuda:1, ...")
-    hf.add_argument("--integrator", choices=INTEGRATORS, default=DEFAULT_INTEGRATOR,
-                    help=f"time integrator (default {DEFAULT_INTEGRATOR}); see docs/numerics.md")
-    hf.add_argument("--dt", type=_positive, metavar="S",
-                    help=f"fixed step [s] (default {DEFAULT_DT:g}; shortened to fit the sample interval); "
-                    "initial step of 'adaptive'")
-    hf.add_argument("--tolerance", type=_positive, default=DEFAULT_TOLERANCE, metavar="X",
-                    help=f"relative error tolerance of 'adaptive' (default {DEFAULT_TOLERANCE:g})")
+    hf.add_argument(
+        "--integrator",
+        choices=INTEGRATORS,
+        default=DEFAULT_INTEGRATOR,
+        help=f"time integrator (default {DEFAULT_INTEGRATOR}); see docs/numerics.md",
+    )
+    hf.add_argument(
+        "--dt",
+        type=_positive,
+        metavar="S",
+        help=f"fixed step [s] (default {DEFAULT_DT:g}; shortened to fit the sample interval); "
+        "initial step of 'adaptive'",
+    )
+    hf.add_argument(
+        "--tolerance",
+        type=_positive,
+        default=DEFAULT_TOLERANCE,
+        metavar="X",
+        help=f"relative error tolerance of 'adaptive' (default {DEFAULT_TOLERANCE:g})",
+    )
     hf.add_argument("--precision", choices=("fp32", "fp64"), default="fp64", help="state precision (default fp64)")
     hf.add_argument("--sample-dt", type=_positive, metavar="S", help="interval of the recorded samples [s]")
-    hf.add_argument("--record-patches", metavar="VARS",
-                    help="record per-patch histories: velocity, displacement or velocity,displacement")
-    hf.add_argument("--patch-window", type=_nonneg, nargs=2, metavar=("T0", "T1"),
-                    help="time window of the per-patch histories [s]")
-    hf.add_argument("--patch-decimation", type=_posint, metavar="N",
-                    help="record per-patch histories every N-th sample")
+    hf.add_argument(
+        "--record-patches",
+        metavar="VARS",
+        help="record per-patch histories: velocity, displacement or velocity,displacement",
+    )
+    hf.add_argument(
+        "--patch-window", type=_nonneg, nargs=2, metavar=("T0", "T1"), help="time window of the per-patch histories [s]"
+    )
+    hf.add_argument(
+        "--patch-decimation", type=_posint, metavar="N", help="record per-patch histories every N-th sample"
+    )
     hf.add_argument("--force", action="store_true", help="run explicit steps beyond the stable-step estimate")
     hf.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     hf.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -106,23 +132,36 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         changes["window"] = tuple(args.patch_window)
     if args.patch_decimation is not None:
         changes["decimation"] = args.patch_decimation
-    if changes:
-        scene = scene.replace(record=Record(**{**dataclasses.asdict(rec), **changes}))
     duration = args.duration if args.duration is not None else scene.duration
-    if scene.record.sample_dt > duration:
-        raise SceneError(f"sample interval {scene.record.sample_dt:g} s exceeds the duration {duration:g} s")
-    result = run_scene(scene, args.output, duration=duration, device=args.device, integrator=args.integrator,
-                       dt=args.dt, tolerance=args.tolerance, precision=args.precision, force=args.force,
-                       overwrite=args.overwrite, progress=not args.no_progress)
+    if changes.get("sample_dt", rec.sample_dt) > duration:
+        raise SceneError(
+            f"sample interval {changes.get('sample_dt', rec.sample_dt):g} s exceeds the duration {duration:g} s"
+        )
+    scene = scene.replace(duration=duration, record=Record(**{**dataclasses.asdict(rec), **changes}))
+    result = run_scene(
+        scene,
+        args.output,
+        duration=duration,
+        device=args.device,
+        integrator=args.integrator,
+        dt=args.dt,
+        tolerance=args.tolerance,
+        precision=args.precision,
+        force=args.force,
+        overwrite=args.overwrite,
+        progress=not args.no_progress,
+    )
     import h5py
 
     with h5py.File(args.output, "r") as f:
         mu = f["global/mu"][()]
     n = scene.patches.count
     rate = n * result.steps / max(result.wall_time, 1e-12)
-    line = (f"{args.output}: {len(mu)} samples over {result.sim_time:.4g} s, {result.steps} steps "
-            f"({result.dt:.3g} s, {args.integrator}, {args.precision}), mean mu {np.mean(mu):.4f}, "
-            f"{rate:.3g} patch-steps/s")
+    line = (
+        f"{args.output}: {len(mu)} samples over {result.sim_time:.4g} s, {result.steps} steps "
+        f"({result.dt:.3g} s, {args.integrator}, {args.precision}), mean mu {np.mean(mu):.4f}, "
+        f"{rate:.3g} patch-steps/s"
+    )
     if result.fault is not None:
         print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
         print(line + " (incomplete)")

@@ -73,8 +73,9 @@ def stable_step(model: PadModel) -> StepEstimate:
     gamma = (model.host("damping").astype(np.float64) + model.host("normal_force").astype(np.float64) * slope) / m
     h_explicit = (-gamma + np.sqrt(gamma**2 + 4.0 * w2)) / w2
     friction = 2.0 / gamma.max() if gamma.max() > 0 else math.inf
-    return StepEstimate(spring=float(2.0 / np.sqrt(w2.max())), friction=float(friction),
-                        explicit=float(h_explicit.min()))
+    return StepEstimate(
+        spring=float(2.0 / np.sqrt(w2.max())), friction=float(friction), explicit=float(h_explicit.min())
+    )
 
 
 @dataclass
@@ -140,8 +141,15 @@ class RunResult:
 class HFSolver:
     """Launch wrappers of one integrator for a model; ``step`` advances all pads by one fixed step."""
 
-    def __init__(self, model: PadModel, integrator: str, dt: float | None, *, force: bool = False,
-                 tolerance: float = DEFAULT_TOLERANCE) -> None:
+    def __init__(
+        self,
+        model: PadModel,
+        integrator: str,
+        dt: float | None,
+        *,
+        force: bool = False,
+        tolerance: float = DEFAULT_TOLERANCE,
+    ) -> None:
         if integrator not in INTEGRATORS:
             raise SceneError(f"unknown integrator {integrator!r}; choose from {', '.join(INTEGRATORS)}")
         self.model = model
@@ -166,10 +174,32 @@ class HFSolver:
                     "choose a smaller --dt, an implicit integrator, or --force"
                 )
         m = model
-        self._model_args = [m.patch_pad, m.inv_mass, m.k_t, m.damping, m.normal_force, m.radius, m.nbr_start,
-                            m.nbr_index, m.nbr_stiffness, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay]
-        self._local_args = [m.patch_pad, m.inv_mass, m.damping, m.normal_force, m.radius, m.pad_omega,
-                            m.pad_mu_scale, m.pad_slope, m.pad_decay]
+        self._model_args = [
+            m.patch_pad,
+            m.inv_mass,
+            m.k_t,
+            m.damping,
+            m.normal_force,
+            m.radius,
+            m.nbr_start,
+            m.nbr_index,
+            m.nbr_stiffness,
+            m.pad_omega,
+            m.pad_mu_scale,
+            m.pad_slope,
+            m.pad_decay,
+        ]
+        self._local_args = [
+            m.patch_pad,
+            m.inv_mass,
+            m.damping,
+            m.normal_force,
+            m.radius,
+            m.pad_omega,
+            m.pad_mu_scale,
+            m.pad_slope,
+            m.pad_decay,
+        ]
         self._v_sync: wp.array | None = None
 
     def _launch(self, kernel: Any, inputs: list, dim: int | None = None) -> None:
@@ -207,15 +237,17 @@ class HFSolver:
             return state.v
         if self._v_sync is None:
             self._v_sync = wp.zeros_like(state.v)
-        self._launch(K.strang_close, [*self._local_args, self.T(dt), self.newton_tol, state.force, state.v,
-                                      self._v_sync])
+        self._launch(
+            K.strang_close, [*self._local_args, self.T(dt), self.newton_tol, state.force, state.v, self._v_sync]
+        )
         return self._v_sync
 
     def finish(self, state: HFState, dt: float) -> None:
         """Bring a staggered strang state back to synchronous velocities (no-op for other schemes)."""
         if self.integrator == "strang":
-            self._launch(K.strang_close, [*self._local_args, self.T(dt), self.newton_tol, state.force, state.v,
-                                          state.v])
+            self._launch(
+                K.strang_close, [*self._local_args, self.T(dt), self.newton_tol, state.force, state.v, state.v]
+            )
 
 
 class _Recorder:
@@ -252,16 +284,40 @@ class _Recorder:
     def launch(self, u: wp.array, v: wp.array, conditional: bool) -> None:
         """Record one sample of (u, u̇) (conditional: only when the adaptive controller landed on a sample)."""
         m, c = self.model, int(conditional)
-        wp.launch(K.record_globals, dim=m.pad_count, device=m.device, inputs=[
-            m.pad_patch_start, m.normal_force, m.radius, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay,
-            m.pad_mu_pad, m.pad_load, m.pad_matrix_force, m.pad_matrix_radius, c, u, v,
-            self.counters, self.globals, self.fault])
+        wp.launch(
+            K.record_globals,
+            dim=m.pad_count,
+            device=m.device,
+            inputs=[
+                m.pad_patch_start,
+                m.normal_force,
+                m.radius,
+                m.pad_omega,
+                m.pad_mu_scale,
+                m.pad_slope,
+                m.pad_decay,
+                m.pad_mu_pad,
+                m.pad_load,
+                m.pad_matrix_force,
+                m.pad_matrix_radius,
+                c,
+                u,
+                v,
+                self.counters,
+                self.globals,
+                self.fault,
+            ],
+        )
         if self.patch_stage:
-            wp.launch(K.record_patches, dim=m.patch_count, device=m.device, inputs=[
-                self.first, self.last, self.every, c, u, v, self.counters, self.velocity,
-                self.displacement])
-        wp.launch(K.advance_counters, dim=1, device=m.device,
-                  inputs=[self.first, self.last, self.every, c, self.counters])
+            wp.launch(
+                K.record_patches,
+                dim=m.patch_count,
+                device=m.device,
+                inputs=[self.first, self.last, self.every, c, u, v, self.counters, self.velocity, self.displacement],
+            )
+        wp.launch(
+            K.advance_counters, dim=1, device=m.device, inputs=[self.first, self.last, self.every, c, self.counters]
+        )
 
     def flush(self) -> tuple[Chunk, np.ndarray]:
         """Copy the recorded rows to the host and reset the buffers; returns the chunk and the fault table."""
@@ -293,7 +349,10 @@ def _fault_from(table: np.ndarray, model: PadModel, sample_dt: float, cause: str
     return SimulationFault(
         f"non-finite state at t <= {t:.6g} s (sample {k}, between {max(t - sample_dt, 0):.6g} and {t:.6g} s), "
         f"pad {pad}, patch {patch}; likely cause: {cause}",
-        time=t, pad=pad, patch=patch, cause=cause,
+        time=t,
+        pad=pad,
+        patch=patch,
+        cause=cause,
     )
 
 
@@ -337,12 +396,19 @@ def run_hf(
     rows = 256 if adaptive else block
     rec = _Recorder(model, record, rows + 1, n_samples)
     dev = model.device
-    stages = ["contact", "neighbours" if model.has_coupling else "no-coupling", f"step:{integrator}",
-              "record:globals"] + (["record:patches"] if rec.patch_stage else [])
+    stages = [
+        "contact",
+        "neighbours" if model.has_coupling else "no-coupling",
+        f"step:{integrator}",
+        "record:globals",
+    ] + (["record:patches"] if rec.patch_stage else [])
     out: list[Chunk] = []
     emit = sink or out.append
-    cause = (f"step {h:.3g} s beyond the stable estimate {solver.estimate.limit(integrator):.3g} s"
-             if h > solver.estimate.limit(integrator) else "extreme scene parameters (check loads, areas, speeds)")
+    cause = (
+        f"step {h:.3g} s beyond the stable estimate {solver.estimate.limit(integrator):.3g} s"
+        if h > solver.estimate.limit(integrator)
+        else "extreme scene parameters (check loads, areas, speeds)"
+    )
 
     if integrator in ("strang", "adaptive"):
         solver.prepare(state)
@@ -361,15 +427,55 @@ def run_hf(
 
     def grow() -> None:
         m = model
-        wp.launch(K.grow_patches, dim=m.patch_count, device=dev, inputs=[
-            step_counter, growth_every, m.patch_pad, growth_per_event, m.pad_k_t, m.pad_k_n, m.pad_mass_per_area,
-            m.pad_zeta, m.area, m.sqrt_area, m.inv_mass, m.k_t, m.k_n, m.damping])
-        wp.launch(K.coupling_stiffness, dim=m.patch_count, device=dev, inputs=[
-            m.patch_pad, m.sqrt_area, m.nbr_start, m.nbr_index, m.nbr_inv_dist, m.pad_kc, m.nbr_stiffness])
-        wp.launch(K.contact_flat, dim=m.pad_count, device=dev, inputs=[
-            step_counter, growth_every, m.pad_patch_start, m.k_n, m.height, m.area, m.radius, m.pad_area,
-            m.pad_moment, m.pad_k_m, m.pad_load, m.pad_gap, m.normal_force, m.pad_matrix_force,
-            m.pad_matrix_radius])
+        wp.launch(
+            K.grow_patches,
+            dim=m.patch_count,
+            device=dev,
+            inputs=[
+                step_counter,
+                growth_every,
+                m.patch_pad,
+                growth_per_event,
+                m.pad_k_t,
+                m.pad_k_n,
+                m.pad_mass_per_area,
+                m.pad_zeta,
+                m.area,
+                m.sqrt_area,
+                m.inv_mass,
+                m.k_t,
+                m.k_n,
+                m.damping,
+            ],
+        )
+        wp.launch(
+            K.coupling_stiffness,
+            dim=m.patch_count,
+            device=dev,
+            inputs=[m.patch_pad, m.sqrt_area, m.nbr_start, m.nbr_index, m.nbr_inv_dist, m.pad_kc, m.nbr_stiffness],
+        )
+        wp.launch(
+            K.contact_flat,
+            dim=m.pad_count,
+            device=dev,
+            inputs=[
+                step_counter,
+                growth_every,
+                m.pad_patch_start,
+                m.k_n,
+                m.height,
+                m.area,
+                m.radius,
+                m.pad_area,
+                m.pad_moment,
+                m.pad_k_m,
+                m.pad_load,
+                m.pad_gap,
+                m.normal_force,
+                m.pad_matrix_force,
+                m.pad_matrix_radius,
+            ],
+        )
         wp.launch(K.tick, dim=1, device=dev, inputs=[step_counter])
 
     if adaptive:
@@ -386,17 +492,64 @@ def run_hf(
         def body() -> None:
             m = model
             rt = T(solver.tolerance)
-            wp.launch(K.adaptive_trial_open, dim=n, device=dev, inputs=[
-                *solver._local_args, solver.newton_tol, clock, flags, state.u, state.v, state.force,
-                trial["u"], trial["v"], trial["ue"], trial["ve"]])
-            wp.launch(K.adaptive_trial_close, dim=n, device=dev, inputs=[
-                *solver._model_args, solver.newton_tol, rt, clock, flags, trial["u"], trial["v"], trial["ue"],
-                trial["ve"], trial["f"], err])
-            wp.launch(K.adaptive_control, dim=1, device=dev, inputs=[
-                wp.float64(record.sample_dt), wp.float64(t_end), wp.float64(1.0e-15), wp.float64(dt_max),
-                clock, flags, steps_arr, err, rec.counters])
-            wp.launch(K.adaptive_commit, dim=n, device=dev, inputs=[
-                flags, trial["u"], trial["v"], trial["f"], state.u, state.v, state.force])
+            wp.launch(
+                K.adaptive_trial_open,
+                dim=n,
+                device=dev,
+                inputs=[
+                    *solver._local_args,
+                    solver.newton_tol,
+                    clock,
+                    flags,
+                    state.u,
+                    state.v,
+                    state.force,
+                    trial["u"],
+                    trial["v"],
+                    trial["ue"],
+                    trial["ve"],
+                ],
+            )
+            wp.launch(
+                K.adaptive_trial_close,
+                dim=n,
+                device=dev,
+                inputs=[
+                    *solver._model_args,
+                    solver.newton_tol,
+                    rt,
+                    clock,
+                    flags,
+                    trial["u"],
+                    trial["v"],
+                    trial["ue"],
+                    trial["ve"],
+                    trial["f"],
+                    err,
+                ],
+            )
+            wp.launch(
+                K.adaptive_control,
+                dim=1,
+                device=dev,
+                inputs=[
+                    wp.float64(record.sample_dt),
+                    wp.float64(t_end),
+                    wp.float64(1.0e-15),
+                    wp.float64(dt_max),
+                    clock,
+                    flags,
+                    steps_arr,
+                    err,
+                    rec.counters,
+                ],
+            )
+            wp.launch(
+                K.adaptive_commit,
+                dim=n,
+                device=dev,
+                inputs=[flags, trial["u"], trial["v"], trial["f"], state.u, state.v, state.force],
+            )
             rec.launch(state.u, state.v, conditional=True)
             del m
     else:
@@ -440,8 +593,13 @@ def run_hf(
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=n_samples * record.sample_dt, unit="s", unit_scale=True, dynamic_ncols=True,
-                   bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s simulated [{elapsed}<{remaining}{postfix}]")
+        bar = tqdm(
+            total=n_samples * record.sample_dt,
+            unit="s",
+            unit_scale=True,
+            dynamic_ncols=True,
+            bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s simulated [{elapsed}<{remaining}{postfix}]",
+        )
     t0 = time.perf_counter()
     fault: SimulationFault | None = None
     done_samples, steps, rejected, sim_t = 0, 0, 0, 0.0
@@ -467,13 +625,21 @@ def run_hf(
             if adaptive and fault is None and fl[2]:
                 fault = SimulationFault(
                     f"adaptive step fell below 1e-15 s at t = {sim_t:.6g} s; likely cause: {cause}",
-                    time=sim_t, pad=-1, patch=-1, cause="step-size underflow")
+                    time=sim_t,
+                    pad=-1,
+                    patch=-1,
+                    cause="step-size underflow",
+                )
             if fault is not None:
                 keep = chunk.time < fault.time - 0.5 * record.sample_dt
                 pkeep = chunk.patch_time < fault.time - 0.5 * record.sample_dt
-                chunk = Chunk(chunk.time[keep], chunk.globals[keep], chunk.patch_time[pkeep],
-                              None if chunk.velocity is None else chunk.velocity[pkeep],
-                              None if chunk.displacement is None else chunk.displacement[pkeep])
+                chunk = Chunk(
+                    chunk.time[keep],
+                    chunk.globals[keep],
+                    chunk.patch_time[pkeep],
+                    None if chunk.velocity is None else chunk.velocity[pkeep],
+                    None if chunk.displacement is None else chunk.displacement[pkeep],
+                )
             emit(chunk)
             if bar is not None:
                 bar.update(sim_t - bar.n)
@@ -489,7 +655,15 @@ def run_hf(
     wp.synchronize_device(dev)
     wall = time.perf_counter() - t0 - capture_time
     return RunResult(
-        complete=fault is None, fault=fault, steps=steps, rejected=rejected, sim_time=sim_t, wall_time=wall,
-        compile_time=compile_time + capture_time, dt=float(clock.numpy()[2]) if adaptive else h, estimate=solver.estimate,
-        stages=stages, chunks=out,
+        complete=fault is None,
+        fault=fault,
+        steps=steps,
+        rejected=rejected,
+        sim_time=sim_t,
+        wall_time=wall,
+        compile_time=compile_time + capture_time,
+        dt=float(clock.numpy()[2]) if adaptive else h,
+        estimate=solver.estimate,
+        stages=stages,
+        chunks=out,
     )

@@ -57,8 +57,15 @@ def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
 class RunWriter:
     """Streams one pad's recorded samples into an HDF5 run file (``pad`` selects it from a batch)."""
 
-    def __init__(self, path: str | Path, model: PadModel, *, pad: int = 0, overwrite: bool = False,
-                 attrs: dict[str, Any] | None = None) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        model: PadModel,
+        *,
+        pad: int = 0,
+        overwrite: bool = False,
+        attrs: dict[str, Any] | None = None,
+    ) -> None:
         self.path = check_output_path(path, overwrite=overwrite)
         self.partial = self.path.with_name(self.path.name + ".partial")
         self.pad = pad
@@ -76,15 +83,19 @@ class RunWriter:
         for k, v in (attrs or {}).items():
             f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
         g = f.create_group("global")
-        for name, unit in (("time", "s"), *zip(GLOBAL_NAMES, GLOBAL_UNITS)):
+        for name, unit in (("time", "s"), *zip(GLOBAL_NAMES, GLOBAL_UNITS, strict=True)):
             d = g.create_dataset(name, shape=(0,), maxshape=(None,), dtype="f8", chunks=(4096,))
             d.attrs["unit"] = unit
         p = f.create_group("patches")
         mass = scene.material.mass_per_area * scene.patches.area
-        for name, data, unit in (("x", scene.patches.x, "m"), ("y", scene.patches.y, "m"),
-                                 ("area", scene.patches.area, "m2"), ("height", scene.patches.height, "m"),
-                                 ("mass", mass, "kg"),
-                                 ("normal_force", model.contacts[pad].patch_force, "N")):
+        for name, data, unit in (
+            ("x", scene.patches.x, "m"),
+            ("y", scene.patches.y, "m"),
+            ("area", scene.patches.area, "m2"),
+            ("height", scene.patches.height, "m"),
+            ("mass", mass, "kg"),
+            ("normal_force", model.contacts[pad].patch_force, "N"),
+        ):
             p.create_dataset(name, data=np.asarray(data, dtype=np.float64)).attrs["unit"] = unit
         self._patch_ds: dict[str, h5py.Dataset] = {}
 
@@ -93,8 +104,9 @@ class RunWriter:
             shape = (0,) if width == 0 else (0, width)
             # narrow in patches, long in time: an analysis reads column blocks of patches in one pass
             chunks = (4096,) if width == 0 else (1024, min(width, 64))
-            d = self.f["patches"].create_dataset(name, shape=shape, maxshape=(None, *shape[1:]), dtype=dtype,
-                                                 chunks=chunks)
+            d = self.f["patches"].create_dataset(
+                name, shape=shape, maxshape=(None, *shape[1:]), dtype=dtype, chunks=chunks
+            )
             d.attrs["unit"] = unit
             self._patch_ds[name] = d
         return self._patch_ds[name]
@@ -129,8 +141,9 @@ class RunWriter:
         if self.model.scenes[self.pad].growth is not None:
             fin = f["patches"].create_group("final")
             fin.create_dataset("area", data=self.model.host("area")[self.slice].astype(np.float64)).attrs["unit"] = "m2"
-            fin.create_dataset("normal_force", data=self.model.host("normal_force")[self.slice].astype(np.float64)
-                               ).attrs["unit"] = "N"
+            fin.create_dataset(
+                "normal_force", data=self.model.host("normal_force")[self.slice].astype(np.float64)
+            ).attrs["unit"] = "N"
         f.close()
         os.replace(self.partial, self.path)
         return self.path
@@ -143,6 +156,7 @@ def read_run(path: str | Path) -> dict[str, Any]:
         raise SceneError(f"run file not found: {p}")
     out: dict[str, Any] = {}
     with h5py.File(p, "r") as f:
+
         def visit(name: str, obj: Any) -> None:
             if isinstance(obj, h5py.Dataset):
                 out[name] = obj[()]

@@ -28,12 +28,16 @@ class PadModel:
 
     Per patch (n,): ``area`` [m²], ``sqrt_area`` [m], ``height`` [m], ``radius`` (friction radius) [m],
     ``inv_mass`` [1/kg], ``k_t`` and ``k_n`` [N/m], ``damping`` [N s/m], ``normal_force`` [N],
-    ``patch_pad`` (int32). CSR: ``nbr_start`` (n+1,) int32, ``nbr_index`` (E,) int32, ``nbr_inv_dist``
-    (E,) [1/m], ``nbr_stiffness`` k_ij (E,) [N/m]. Per pad (P,): ``pad_kc`` (K_C) [N/m²], ``pad_omega`` [rad/s], ``pad_mu_scale`` (M/π),
-    ``pad_slope`` and ``pad_decay`` [s/m], ``pad_mu_pad``, ``pad_load`` (F_N) [N], ``pad_matrix_force`` [N],
-    ``pad_matrix_radius`` [m]; for growth also ``pad_growth`` [m per event], ``pad_k_t``/``pad_k_n`` (K_T,
-    K_N) [N/m²], ``pad_mass_per_area`` [kg/m²], ``pad_zeta``, and float64 ``pad_area`` [m²], ``pad_moment``
-    [m³], ``pad_k_m`` [N/m³], ``pad_gap`` [m].
+    ``patch_pad`` (int32).
+
+    CSR: ``nbr_start`` (n+1,) int32, ``nbr_index`` (E,) int32, ``nbr_inv_dist`` (E,) [1/m],
+    ``nbr_stiffness`` k_ij (E,) [N/m].
+
+    Per pad (P,): ``pad_kc`` (K_C) [N/m²], ``pad_omega`` [rad/s], ``pad_mu_scale`` (M/π), ``pad_slope``
+    and ``pad_decay`` [s/m], ``pad_mu_pad``, ``pad_load`` (F_N) [N], ``pad_matrix_force`` [N],
+    ``pad_matrix_radius`` [m]; for growth also ``pad_growth`` [m per event], ``pad_k_t``/``pad_k_n``
+    (K_T, K_N) [N/m²], ``pad_mass_per_area`` [kg/m²], ``pad_zeta``, and float64 ``pad_area`` [m²],
+    ``pad_moment`` [m³], ``pad_k_m`` [N/m³], ``pad_gap`` [m].
     """
 
     scenes: list[Scene]
@@ -97,8 +101,10 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
     cat = lambda f: np.concatenate([f(s) for s in scenes])  # noqa: E731
     x, y = cat(lambda s: s.patches.x), cat(lambda s: s.patches.y)
     area = cat(lambda s: s.patches.area)
-    mat = {k: np.repeat([getattr(s.material, k) for s in scenes], counts) for k in ("K_T", "K_N", "mass_per_area",
-                                                                                       "damping_ratio")}
+    mat = {
+        k: np.repeat([getattr(s.material, k) for s in scenes], counts)
+        for k in ("K_T", "K_N", "mass_per_area", "damping_ratio")
+    }
     sq = np.sqrt(area)
     mass = mat["mass_per_area"] * area
     k_t = mat["K_T"] * sq
@@ -137,7 +143,7 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
         "pad_mu_pad": dev_arr(per_pad(lambda s: s.friction.mu_pad)),
         "pad_load": dev_arr(per_pad(lambda s: s.normal_force)),
         "pad_matrix_force": dev_arr(np.array([c.matrix_force.sum() for c in contacts])),
-        "pad_matrix_radius": dev_arr(np.array([_matrix_radius(s, c) for s, c in zip(scenes, contacts)])),
+        "pad_matrix_radius": dev_arr(np.array([_matrix_radius(s, c) for s, c in zip(scenes, contacts, strict=True)])),
     }
     if any(g is not None for g in growth):
         arrays.update(
@@ -153,12 +159,14 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
                 "pad_gap": dev_arr(np.array([c.gap if np.isfinite(c.gap) else 0.0 for c in contacts]), wp.float64),
             }
         )
-    return PadModel(scenes=list(scenes), device=dev, dtype=T, pad_patch_start_host=start, contacts=contacts,
-                    arrays=arrays)
+    return PadModel(
+        scenes=list(scenes), device=dev, dtype=T, pad_patch_start_host=start, contacts=contacts, arrays=arrays
+    )
 
 
-def _edge_stiffness(scenes: list[Scene], sq: np.ndarray, pad_of: np.ndarray, start: np.ndarray, index: np.ndarray,
-                    inv_d: np.ndarray) -> np.ndarray:
+def _edge_stiffness(
+    scenes: list[Scene], sq: np.ndarray, pad_of: np.ndarray, start: np.ndarray, index: np.ndarray, inv_d: np.ndarray
+) -> np.ndarray:
     """k_ij = K_C √A_i √A_j / D0_ij per CSR link [N/m] (paper Eq. 3); one dummy entry when there are none."""
     if len(index) == 0:
         return np.zeros(1)

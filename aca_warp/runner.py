@@ -39,19 +39,43 @@ def run_scene(
         raise SceneError(f"duration must be > 0 s, got {duration}")
     model = build_model([scene], device=device, precision=precision)
     state = initial_state(model)
-    policy = {"integrator": integrator, "dt": dt, "tolerance": tolerance, "sample_dt": scene.record.sample_dt,
-              "force": force, "duration": duration}
+    policy = {
+        "integrator": integrator,
+        "dt": dt,
+        "tolerance": tolerance,
+        "sample_dt": scene.record.sample_dt,
+        "force": force,
+        "duration": duration,
+    }
     writer = None
     try:
         # refuse bad step choices before a file is created
         from aca_warp.hf import HFSolver
 
         HFSolver(model, integrator, dt, force=force, tolerance=tolerance)
-        writer = RunWriter(output, model, overwrite=overwrite, attrs={
-            "integrator": integrator, "precision": precision, "device": str(model.device),
-            "device_name": model.device.name, "step_policy": policy})
-        result = run_hf(model, state, duration=duration, integrator=integrator, dt=dt, tolerance=tolerance,
-                        force=force, sink=writer.write, progress=progress)
+        writer = RunWriter(
+            output,
+            model,
+            overwrite=overwrite,
+            attrs={
+                "integrator": integrator,
+                "precision": precision,
+                "device": str(model.device),
+                "device_name": model.device.name,
+                "step_policy": policy,
+            },
+        )
+        result = run_hf(
+            model,
+            state,
+            duration=duration,
+            integrator=integrator,
+            dt=dt,
+            tolerance=tolerance,
+            force=force,
+            sink=writer.write,
+            progress=progress,
+        )
     except KeyboardInterrupt:
         if writer is not None:
             writer.close(complete=False, status="interrupted by the user")
@@ -61,11 +85,24 @@ def run_scene(
             writer.close(complete=False, status="failed")
         raise
     status = "complete" if result.complete else f"stopped: {result.fault}"
-    writer.close(complete=result.complete, status=status, attrs={
-        "stages": result.stages, "steps": result.steps, "rejected_steps": result.rejected,
-        "sim_time": result.sim_time, "wall_time": result.wall_time, "compile_time": result.compile_time,
-        "dt": result.dt, "stable_step": {"spring": result.estimate.spring, "friction": result.estimate.friction,
-                                         "explicit": result.estimate.explicit},
-        "fault": "" if result.fault is None else str(result.fault)})
+    writer.close(
+        complete=result.complete,
+        status=status,
+        attrs={
+            "stages": result.stages,
+            "steps": result.steps,
+            "rejected_steps": result.rejected,
+            "sim_time": result.sim_time,
+            "wall_time": result.wall_time,
+            "compile_time": result.compile_time,
+            "dt": result.dt,
+            "stable_step": {
+                "spring": result.estimate.spring,
+                "friction": result.estimate.friction,
+                "explicit": result.estimate.explicit,
+            },
+            "fault": "" if result.fault is None else str(result.fault),
+        },
+    )
     wp.synchronize_device(model.device)
     return result

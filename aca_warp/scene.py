@@ -571,7 +571,7 @@ def scene_from_dict(doc: dict, *, base_dir: Path | None = None, name: str = "sce
         rec["window"] = tuple(rec["window"])
     if "patches" in rec:
         if isinstance(rec["patches"], str) or not isinstance(rec["patches"], list):
-            raise SceneError("record.patches must be a list such as [\"velocity\"]")
+            raise SceneError('record.patches must be a list such as ["velocity"]')
         rec["patches"] = tuple(rec["patches"])
     try:
         return Scene(
@@ -635,8 +635,10 @@ def scene_to_dict(scene: Scene) -> dict:
         "record": {
             "sample_dt": scene.record.sample_dt,
             "patches": list(scene.record.patches),
-            "window": [scene.record.window[0], scene.record.window[1] if math.isfinite(scene.record.window[1])
-                       else 1e300],
+            "window": [
+                scene.record.window[0],
+                scene.record.window[1] if math.isfinite(scene.record.window[1]) else 1e300,
+            ],
             "decimation": scene.record.decimation,
         },
         "run": {"duration": scene.duration},

@@ -65,9 +65,7 @@ def spring_force(
 
 
 @wp.func
-def solve_velocity(
-    a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any
-):
+def solve_velocity(a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any):
     """Solve a·v − hfn·f(vd − v) = b for v (a > 0, hfn ≥ 0): per-patch implicit friction.
 
     |f| ≤ 2 mu_scale π/2 brackets the root in [(b − hfn f_max)/a, (b + hfn f_max)/a]; safeguarded Newton
@@ -178,9 +176,7 @@ def implicit_velocity(
     a = m + dt * damping[i]
     b = m * v + dt * fs
     vd = pad_omega[p] * radius[i]
-    v_io[i] = solve_velocity(
-        a, b, dt * normal_force[i], vd, v, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol
-    )
+    v_io[i] = solve_velocity(a, b, dt * normal_force[i], vd, v, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol)
 
 
 @wp.kernel
@@ -262,8 +258,16 @@ def strang_open(
     im = inv_mass[i]
     vd = pad_omega[p] * radius[i]
     v = midpoint_friction(
-        v_io[i], half, type(dt)(1.0) / im, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p],
-        pad_decay[p], tol,
+        v_io[i],
+        half,
+        type(dt)(1.0) / im,
+        damping[i],
+        normal_force[i],
+        vd,
+        pad_mu_scale[p],
+        pad_slope[p],
+        pad_decay[p],
+        tol,
     )
     v = v + half * im * force_in[i]
     v_io[i] = v
@@ -301,10 +305,21 @@ def strang_step(
     im = inv_mass[i]
     kick = half * im * force_in[i]
     vd = pad_omega[p] * radius[i]
-    v = midpoint_friction(
-        v_io[i] + kick, dt, type(dt)(1.0) / im, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p],
-        pad_decay[p], tol,
-    ) + kick
+    v = (
+        midpoint_friction(
+            v_io[i] + kick,
+            dt,
+            type(dt)(1.0) / im,
+            damping[i],
+            normal_force[i],
+            vd,
+            pad_mu_scale[p],
+            pad_slope[p],
+            pad_decay[p],
+            tol,
+        )
+        + kick
+    )
     v_io[i] = v
     u_io[i] = u_io[i] + dt * v
 
@@ -336,8 +351,16 @@ def strang_close(
     im = inv_mass[i]
     vd = pad_omega[p] * radius[i]
     v_out[i] = midpoint_friction(
-        v_in[i] + half * im * force_in[i], half, type(dt)(1.0) / im, damping[i], normal_force[i], vd,
-        pad_mu_scale[p], pad_slope[p], pad_decay[p], tol,
+        v_in[i] + half * im * force_in[i],
+        half,
+        type(dt)(1.0) / im,
+        damping[i],
+        normal_force[i],
+        vd,
+        pad_mu_scale[p],
+        pad_slope[p],
+        pad_decay[p],
+        tol,
     )
 
 
@@ -384,12 +407,21 @@ def adaptive_trial_open(
     vd = pad_omega[p] * radius[i]
     fs = force_in[i]
     ve = solve_velocity(
-        m + dt * damping[i], m * v + dt * fs, dt * normal_force[i], vd, v, pad_mu_scale[p], pad_slope[p],
-        pad_decay[p], tol,
+        m + dt * damping[i],
+        m * v + dt * fs,
+        dt * normal_force[i],
+        vd,
+        v,
+        pad_mu_scale[p],
+        pad_slope[p],
+        pad_decay[p],
+        tol,
     )
     v_euler[i] = ve
     u_euler[i] = u + dt * ve
-    vs = midpoint_friction(v, half, m, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol)
+    vs = midpoint_friction(
+        v, half, m, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol
+    )
     vs = vs + half * im * fs
     v_trial[i] = vs
     u_trial[i] = u + dt * vs
@@ -441,7 +473,9 @@ def adaptive_trial_close(
     v = v_trial[i] + half * im * fs
     vd = pad_omega[p] * radius[i]
     fn = normal_force[i]
-    v = midpoint_friction(v, half, type(dt)(1.0) / im, damping[i], fn, vd, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol)
+    v = midpoint_friction(
+        v, half, type(dt)(1.0) / im, damping[i], fn, vd, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol
+    )
     v_trial[i] = v
     u = u_trial[i]
     u_ref = fn / k_t[i]
@@ -585,7 +619,9 @@ def record_globals(
     omega = pad_omega[pad]
     for i in range(pad_patch_start[pad], pad_patch_start[pad + 1]):
         v = v_in[i]
-        f = normal_force[i] * friction_coefficient(omega * radius[i] - v, pad_mu_scale[pad], pad_slope[pad], pad_decay[pad])
+        f = normal_force[i] * friction_coefficient(
+            omega * radius[i] - v, pad_mu_scale[pad], pad_slope[pad], pad_decay[pad]
+        )
         fsum += wp.float64(f)
         tsum += wp.float64(f * radius[i])
         vsum += wp.float64(v)
@@ -777,7 +813,9 @@ def contact_flat(
             break
     pad_gap[pad] = g
     for i in range(s, e):
-        normal_force_out[i] = type(pad_load[pad])(wp.float64(k_n[i]) * wp.max(wp.float64(height[i]) - g, wp.float64(0.0)))
+        normal_force_out[i] = type(pad_load[pad])(
+            wp.float64(k_n[i]) * wp.max(wp.float64(height[i]) - g, wp.float64(0.0))
+        )
     pad_matrix_force_out[pad] = type(pad_load[pad])(km * wp.max(-g, wp.float64(0.0)))
 
 
@@ -793,47 +831,167 @@ def _declare_overloads() -> None:
     for T in (wp.float32, wp.float64):
         a = _arr(T)
         model = {
-            "patch_pad": i32, "inv_mass": a, "k_t": a, "damping": a, "normal_force": a, "radius": a,
-            "nbr_start": i32, "nbr_index": i32, "nbr_stiffness": a,
-            "pad_omega": a, "pad_mu_scale": a, "pad_slope": a, "pad_decay": a,
+            "patch_pad": i32,
+            "inv_mass": a,
+            "k_t": a,
+            "damping": a,
+            "normal_force": a,
+            "radius": a,
+            "nbr_start": i32,
+            "nbr_index": i32,
+            "nbr_stiffness": a,
+            "pad_omega": a,
+            "pad_mu_scale": a,
+            "pad_slope": a,
+            "pad_decay": a,
         }
         wp.overload(euler_velocity, {**model, "dt": T, "u_in": a, "v_io": a})
         wp.overload(implicit_velocity, {**model, "dt": T, "tol": T, "u_in": a, "v_io": a})
         wp.overload(drift, {"dt": T, "v_in": a, "u_io": a})
-        wp.overload(spring_forces, {k: model[k] for k in ("k_t", "nbr_start", "nbr_index", "nbr_stiffness")}
-                    | {"u_in": a, "force_out": a})
-        wp.overload(coupling_stiffness, {"patch_pad": i32, "sqrt_area": a, "nbr_start": i32, "nbr_index": i32,
-                                         "nbr_inv_dist": a, "pad_kc": a, "nbr_stiffness_out": a})
-        local = {k: model[k] for k in ("patch_pad", "inv_mass", "damping", "normal_force", "radius", "pad_omega",
-                                        "pad_mu_scale", "pad_slope", "pad_decay")}
+        wp.overload(
+            spring_forces,
+            {k: model[k] for k in ("k_t", "nbr_start", "nbr_index", "nbr_stiffness")} | {"u_in": a, "force_out": a},
+        )
+        wp.overload(
+            coupling_stiffness,
+            {
+                "patch_pad": i32,
+                "sqrt_area": a,
+                "nbr_start": i32,
+                "nbr_index": i32,
+                "nbr_inv_dist": a,
+                "pad_kc": a,
+                "nbr_stiffness_out": a,
+            },
+        )
+        local = {
+            k: model[k]
+            for k in (
+                "patch_pad",
+                "inv_mass",
+                "damping",
+                "normal_force",
+                "radius",
+                "pad_omega",
+                "pad_mu_scale",
+                "pad_slope",
+                "pad_decay",
+            )
+        }
         wp.overload(strang_open, {**local, "dt": T, "tol": T, "force_in": a, "u_io": a, "v_io": a})
         wp.overload(strang_step, {**local, "dt": T, "tol": T, "force_in": a, "u_io": a, "v_io": a})
         wp.overload(strang_close, {**local, "dt": T, "tol": T, "force_in": a, "v_in": a, "v_out": a})
         ctl = {"clock": _arr(wp.float64), "flags": i32}
-        wp.overload(adaptive_trial_open, {**local, "tol": T, **ctl, "u_in": a, "v_in": a, "force_in": a,
-                                          "u_trial": a, "v_trial": a, "u_euler": a, "v_euler": a})
-        wp.overload(adaptive_trial_close, {**model, "tol": T, "rtol": T, **ctl, "u_trial": a, "v_trial": a,
-                                           "u_euler": a, "v_euler": a, "force_trial": a,
-                                           "error_out": _arr(wp.float64)})
-        wp.overload(adaptive_commit, {"flags": i32, "u_trial": a, "v_trial": a, "force_trial": a,
-                                      "u_out": a, "v_out": a, "force_out": a})
-        wp.overload(record_globals, {
-            "pad_patch_start": i32, "normal_force": a, "radius": a, "pad_omega": a, "pad_mu_scale": a,
-            "pad_slope": a, "pad_decay": a, "pad_mu_pad": a, "pad_load": a, "pad_matrix_force": a,
-            "pad_matrix_radius": a, "conditional": int, "u_in": a, "v_in": a, "counters": i32,
-            "globals_out": wp.array3d(dtype=wp.float64), "fault_out": wp.array2d(dtype=wp.int32),
-        })
-        wp.overload(record_patches, {"first": int, "last": int, "every": int, "conditional": int, "u_in": a,
-                                     "v_in": a, "counters": i32, "velocity_out": wp.array2d(dtype=T),
-                                     "displacement_out": wp.array2d(dtype=T)})
-        wp.overload(grow_patches, {"step": _arr(wp.int64), "every": int, "patch_pad": i32, "pad_growth": a, "pad_k_t": a, "pad_k_n": a,
-                                   "pad_mass_per_area": a, "pad_zeta": a, "area_io": a, "sqrt_area_out": a,
-                                   "inv_mass_out": a, "k_t_out": a, "k_n_out": a, "damping_out": a})
+        wp.overload(
+            adaptive_trial_open,
+            {
+                **local,
+                "tol": T,
+                **ctl,
+                "u_in": a,
+                "v_in": a,
+                "force_in": a,
+                "u_trial": a,
+                "v_trial": a,
+                "u_euler": a,
+                "v_euler": a,
+            },
+        )
+        wp.overload(
+            adaptive_trial_close,
+            {
+                **model,
+                "tol": T,
+                "rtol": T,
+                **ctl,
+                "u_trial": a,
+                "v_trial": a,
+                "u_euler": a,
+                "v_euler": a,
+                "force_trial": a,
+                "error_out": _arr(wp.float64),
+            },
+        )
+        wp.overload(
+            adaptive_commit,
+            {"flags": i32, "u_trial": a, "v_trial": a, "force_trial": a, "u_out": a, "v_out": a, "force_out": a},
+        )
+        wp.overload(
+            record_globals,
+            {
+                "pad_patch_start": i32,
+                "normal_force": a,
+                "radius": a,
+                "pad_omega": a,
+                "pad_mu_scale": a,
+                "pad_slope": a,
+                "pad_decay": a,
+                "pad_mu_pad": a,
+                "pad_load": a,
+                "pad_matrix_force": a,
+                "pad_matrix_radius": a,
+                "conditional": int,
+                "u_in": a,
+                "v_in": a,
+                "counters": i32,
+                "globals_out": wp.array3d(dtype=wp.float64),
+                "fault_out": wp.array2d(dtype=wp.int32),
+            },
+        )
+        wp.overload(
+            record_patches,
+            {
+                "first": int,
+                "last": int,
+                "every": int,
+                "conditional": int,
+                "u_in": a,
+                "v_in": a,
+                "counters": i32,
+                "velocity_out": wp.array2d(dtype=T),
+                "displacement_out": wp.array2d(dtype=T),
+            },
+        )
+        wp.overload(
+            grow_patches,
+            {
+                "step": _arr(wp.int64),
+                "every": int,
+                "patch_pad": i32,
+                "pad_growth": a,
+                "pad_k_t": a,
+                "pad_k_n": a,
+                "pad_mass_per_area": a,
+                "pad_zeta": a,
+                "area_io": a,
+                "sqrt_area_out": a,
+                "inv_mass_out": a,
+                "k_t_out": a,
+                "k_n_out": a,
+                "damping_out": a,
+            },
+        )
         f64 = _arr(wp.float64)
-        wp.overload(contact_flat, {"step": _arr(wp.int64), "every": int, "pad_patch_start": i32, "k_n": a, "height": a, "area": a, "radius": a,
-                                   "pad_area": f64, "pad_moment": f64, "pad_k_m": f64, "pad_load": a,
-                                   "pad_gap": f64, "normal_force_out": a, "pad_matrix_force_out": a,
-                                   "pad_matrix_radius_out": a})
+        wp.overload(
+            contact_flat,
+            {
+                "step": _arr(wp.int64),
+                "every": int,
+                "pad_patch_start": i32,
+                "k_n": a,
+                "height": a,
+                "area": a,
+                "radius": a,
+                "pad_area": f64,
+                "pad_moment": f64,
+                "pad_k_m": f64,
+                "pad_load": a,
+                "pad_gap": f64,
+                "normal_force_out": a,
+                "pad_matrix_force_out": a,
+                "pad_matrix_radius_out": a,
+            },
+        )
 
 
 _declare_overloads()

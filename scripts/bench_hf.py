@@ -45,8 +45,9 @@ def machine(device: wp.Device) -> str:
     return f"{cpu}, {os.cpu_count()} cores, one thread used (Warp {wp.__version__} CPU kernels are serial)"
 
 
-def run_case(scene, device: str, precision: str, integrator: str, pads: int, dt: float, duration: float,
-             warmup: float) -> dict:
+def run_case(
+    scene, device: str, precision: str, integrator: str, pads: int, dt: float, duration: float, warmup: float
+) -> dict:
     """Time one configuration; returns a result row."""
     t0 = time.perf_counter()
     model = build_model([scene] * pads, device=device, precision=precision)
@@ -58,12 +59,24 @@ def run_case(scene, device: str, precision: str, integrator: str, pads: int, dt:
     mu = res.collect().globals[:, 0, 0]
     n = model.patch_count
     return {
-        "device": str(model.device), "device_name": model.device.name, "warp_version": wp.__version__,
-        "precision": precision, "integrator": integrator, "pads": pads, "patches": n,
-        "patches_per_pad": n // pads, "dt": res.dt, "steps": res.steps, "rejected": res.rejected,
-        "compile_time_s": warm.compile_time, "model_build_s": build_time, "wall_s": res.wall_time,
-        "steps_per_s": res.steps / res.wall_time, "patch_steps_per_s": n * res.steps / res.wall_time,
-        "ns_per_patch_step": 1e9 * res.wall_time / (n * res.steps), "mu": mu,
+        "device": str(model.device),
+        "device_name": model.device.name,
+        "warp_version": wp.__version__,
+        "precision": precision,
+        "integrator": integrator,
+        "pads": pads,
+        "patches": n,
+        "patches_per_pad": n // pads,
+        "dt": res.dt,
+        "steps": res.steps,
+        "rejected": res.rejected,
+        "compile_time_s": warm.compile_time,
+        "model_build_s": build_time,
+        "wall_s": res.wall_time,
+        "steps_per_s": res.steps / res.wall_time,
+        "patch_steps_per_s": n * res.steps / res.wall_time,
+        "ns_per_patch_step": 1e9 * res.wall_time / (n * res.steps),
+        "mu": mu,
     }
 
 
@@ -93,21 +106,30 @@ def main() -> None:
                 mu = r.pop("mu")
                 r["mu_rel_error_max"] = float(np.max(np.abs(mu - refs[pads]) / np.abs(refs[pads]).max()))
                 rows.append(r)
-                print(f"{dev.name:>24s} {prec} {integ:>17s} pads={pads:5d} {r['patch_steps_per_s']:.3g} patch-steps/s "
-                      f"{r['ns_per_patch_step']:.3g} ns/patch-step, compile {r['compile_time_s']:.2f} s, "
-                      f"mu err {r['mu_rel_error_max']:.2e}", flush=True)
+                print(
+                    f"{dev.name:>24s} {prec} {integ:>17s} pads={pads:5d} {r['patch_steps_per_s']:.3g} patch-steps/s "
+                    f"{r['ns_per_patch_step']:.3g} ns/patch-step, compile {r['compile_time_s']:.2f} s, "
+                    f"mu err {r['mu_rel_error_max']:.2e}",
+                    flush=True,
+                )
     out = {"machine": machine(dev), "scene": args.scene, "duration_s": args.duration, "results": rows}
     Path(args.json).write_text(json.dumps(out, indent=1))
     if args.markdown:
-        lines = [f"Machine: {out['machine']}. Scene {args.scene}, timed window {args.duration:g} s simulated, "
-                 f"dt = {args.dt:g} s (adaptive: tolerance 1e-4). μ error: max |μ − μ_ref| / max|μ_ref| against "
-                 "fp64 strang at dt/4.", "",
-                 "| device | precision | integrator | pads | patches | steps/s | patch-steps/s | ns/patch-step "
-                 "| compile [s] | μ error |", "|---|---|---|---|---|---|---|---|---|---|"]
+        lines = [
+            f"Machine: {out['machine']}. Scene {args.scene}, timed window {args.duration:g} s simulated, "
+            f"dt = {args.dt:g} s (adaptive: tolerance 1e-4). μ error: max |μ − μ_ref| / max|μ_ref| against "
+            "fp64 strang at dt/4.",
+            "",
+            "| device | precision | integrator | pads | patches | steps/s | patch-steps/s | ns/patch-step "
+            "| compile [s] | μ error |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ]
         for r in rows:
-            lines.append(f"| {r['device_name']} | {r['precision']} | {r['integrator']} | {r['pads']} | {r['patches']} "
-                         f"| {r['steps_per_s']:.3g} | {r['patch_steps_per_s']:.3g} | {r['ns_per_patch_step']:.3g} "
-                         f"| {r['compile_time_s']:.2f} | {r['mu_rel_error_max']:.1e} |")
+            lines.append(
+                f"| {r['device_name']} | {r['precision']} | {r['integrator']} | {r['pads']} | {r['patches']} "
+                f"| {r['steps_per_s']:.3g} | {r['patch_steps_per_s']:.3g} | {r['ns_per_patch_step']:.3g} "
+                f"| {r['compile_time_s']:.2f} | {r['mu_rel_error_max']:.1e} |"
+            )
         Path(args.markdown).write_text("\n".join(lines) + "\n")
     print(f"wrote {args.json}")
 

@@ -1,0 +1,179 @@
+"""The ``aca-warp hf`` command and the run files it writes: exit codes, units, atomic output."""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+import pytest
+
+from aca_warp import runner
+from aca_warp.cli import main
+from aca_warp.io import read_run
+from aca_warp.scene import load_scene
+
+SCENE = """
+[scene]
+name = "small"
+[load]
+normal_force = 20.0
+[disc]
+sliding_speed = 10.0
+[patches]
+count = 60
+area_min = 2.0e-8
+area_max = 8.0e-8
+height = 3.0e-6
+seed = 4
+[record]
+sample_dt = 1.0e-7
+[run]
+duration = 2.0e-6
+"""
+
+
+@pytest.fixture
+def scene_file(tmp_path):
+    p = tmp_path / "small.toml"
+    p.write_text(SCENE)
+    return p
+
+
+def _datasets(path):
+    out = {}
+    with h5py.File(path, "r") as f:
+        f.visititems(lambda n, o: out.__setitem__(n, dict(o.attrs)) if isinstance(o, h5py.Dataset) else None)
+    return out
+
+
+def test_hf_writes_a_complete_run_file(scene_file, tmp_path, capsys):
+    """A TOML scene runs to completion; every dataset has a unit; provenance attributes are present."""
+    out = tmp_path / "run.h5"
+    assert main(["hf", str(scene_file), "-o", str(out), "--no-progress", "--record-patches", "velocity"]) == 0
+    assert "samples over" in capsys.readouterr().out
+    r = read_run(out)
+    assert r["attrs"]["complete"] and r["attrs"]["status"] == "complete"
+    assert len(r["global/time"]) == 21 and np.allclose(r["global/time"], np.arange(21) * 1e-7)
+    assert r["patches/velocity"].shape == (21, 60)
+    for name, attrs in _datasets(out).items():
+        assert "unit" in attrs, name
+    for key in ("scene", "integrator", "step_policy", "precision", "device", "versions", "stages", "stable_step"):
+        assert key in r["attrs"], key
+    assert "record:patches" in r["attrs"]["stages"]
+    assert r["attrs"]["scene"]["load"]["normal_force"] == 20.0
+    assert not (tmp_path / "run.h5.partial").exists()
+    mu = r["global/mu"]
+    assert np.all(np.isfinite(mu)) and 0.3 < mu[-1] < 0.8
+
+
+def test_only_what_is_asked_is_recorded(scene_file, tmp_path):
+    """Without --record-patches no per-patch history (and no per-patch stage) exists."""
+    out = tmp_path / "run.h5"
+    assert main(["hf", str(scene_file), "-o", str(out), "--no-progress"]) == 0
+    r = read_run(out)
+    assert not any(k.startswith("patches/velocity") or k == "patches/time" for k in r)
+    assert "record:patches" not in r["attrs"]["stages"]
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["hf", "nope", "-o", "{out}"], "neither a preset"),
+        (["hf", "{scene}", "-o", "{out}", "--integrator", "symplectic-euler", "--dt", "1e-6"], "stable-step"),
+        (["hf", "{scene}", "-o", "{out}", "--sample-dt", "1e-3"], "exceeds the duration"),
+        (["hf", "{scene}", "-o", "{out}", "--record-patches", "pressure"], "unknown variable"),
+        (["hf", "{scene}", "-o", "{out}", "--device", "cuda:7"], "device"),
+        (["hf", "{scene}", "-o", "/no/such/dir/run.h5"], "does not exist"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(argv, message, scene_file, tmp_path, capsys):
+    """Bad input: exit code 2, one line on stderr naming the problem, and no file written."""
+    out = tmp_path / "run.h5"
+    args = [a.format(out=out, scene=scene_file) for a in argv]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0] and err[0].startswith("aca-warp: error:")
+    assert not out.exists() and not (tmp_path / "run.h5.partial").exists()
+
+
+def test_existing_output_needs_overwrite(scene_file, tmp_path, capsys):
+    """An existing file is never replaced without --overwrite."""
+    out = tmp_path / "run.h5"
+    out.write_bytes(b"precious")
+    assert main(["hf", str(scene_file), "-o", str(out), "--no-progress"]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert out.read_bytes() == b"precious"
+    assert main(["hf", str(scene_file), "-o", str(out), "--no-progress", "--overwrite"]) == 0
+    assert read_run(out)["attrs"]["complete"]
+
+
+def test_fault_stops_with_exit_3_and_an_incomplete_file(scene_file, tmp_path, capsys):
+    """A forced explicit step far beyond the estimate blows up: exit 3, time/patch/cause reported, file kept."""
+    out = tmp_path / "run.h5"
+    code = main(
+        [
+            "hf",
+            str(scene_file),
+            "-o",
+            str(out),
+            "--no-progress",
+            "--integrator",
+            "symplectic-euler",
+            "--dt",
+            "5e-6",
+            "--sample-dt",
+            "1e-5",
+            "--duration",
+            "2e-3",
+            "--force",
+        ]
+    )
+    assert code == 3
+    err = capsys.readouterr().err
+    assert "non-finite" in err and "patch" in err and "likely cause" in err
+    r = read_run(out)
+    assert r["attrs"]["complete"] is False or not r["attrs"]["complete"]
+    assert "stopped" in r["attrs"]["status"]
+    assert np.all(np.isfinite(r["global/mu"]))  # only the samples before the fault
+
+
+def test_interrupt_leaves_a_marked_file(scene_file, tmp_path, monkeypatch):
+    """Ctrl-C during a run: the file holds the samples so far and says it was interrupted."""
+    real = runner.run_hf
+
+    def interrupted(*args, sink, **kw):
+        calls = []
+
+        def once(chunk):
+            sink(chunk)
+            calls.append(1)
+            raise KeyboardInterrupt
+
+        return real(*args, sink=once, **kw)
+
+    monkeypatch.setattr(runner, "run_hf", interrupted)
+    out = tmp_path / "run.h5"
+    assert main(["hf", str(scene_file), "-o", str(out), "--no-progress"]) == 130
+    r = read_run(out)
+    assert not r["attrs"]["complete"] and "interrupted" in r["attrs"]["status"]
+    assert len(r["global/mu"]) >= 1
+    assert not (tmp_path / "run.h5.partial").exists()
+
+
+def test_run_file_scene_reloads(scene_file, tmp_path):
+    """The scene stored in a run file describes the run (seeded generator, constants, record)."""
+    out = tmp_path / "run.h5"
+    assert main(["hf", str(scene_file), "-o", str(out), "--no-progress"]) == 0
+    stored = read_run(out)["attrs"]["scene"]
+    orig = load_scene(scene_file)
+    assert stored["patches"]["seed"] == 4 and stored["patches"]["count"] == 60
+    assert stored["disc"]["angular_velocity"] == pytest.approx(orig.angular_velocity)
+    assert stored["material"]["K_T"] == orig.material.K_T
+
+
+def test_help_explains(capsys):
+    """--help exits 0 and describes units and exit codes."""
+    with pytest.raises(SystemExit) as e:
+        main(["hf", "--help"])
+    assert e.value.code == 0
+    text = capsys.readouterr().out
+    assert "--record-patches" in text and "Exit codes" in text and "[s]" in text
