@@ -177,7 +177,7 @@ class HFSolver:
         self._model_args = [
             m.patch_pad,
             m.inv_mass,
-            m.k_t,
+            m.k_diag,
             m.damping,
             m.normal_force,
             m.radius,
@@ -208,7 +208,7 @@ class HFSolver:
     def prepare(self, state: HFState) -> None:
         """Fill the spring-force cache F_s(u) of a state (Strang and adaptive schemes)."""
         m = self.model
-        self._launch(K.spring_forces, [m.k_t, m.nbr_start, m.nbr_index, m.nbr_stiffness, state.u, state.force])
+        self._launch(K.spring_forces, [m.k_diag, m.nbr_start, m.nbr_index, m.nbr_stiffness, state.u, state.force])
 
     def step(self, state: HFState, dt: float, *, first: bool = False) -> None:
         """One fixed step of every pad (graph-capturable: two launches, no host reads).
@@ -452,7 +452,19 @@ def run_hf(
             K.coupling_stiffness,
             dim=m.patch_count,
             device=dev,
-            inputs=[m.patch_pad, m.sqrt_area, m.nbr_start, m.nbr_index, m.nbr_inv_dist, m.pad_kc, m.nbr_stiffness],
+            inputs=[
+                step_counter,
+                growth_every,
+                m.patch_pad,
+                m.sqrt_area,
+                m.nbr_start,
+                m.nbr_index,
+                m.nbr_inv_dist,
+                m.pad_kc,
+                m.k_t,
+                m.nbr_stiffness,
+                m.k_diag,
+            ],
         )
         wp.launch(
             K.contact_flat,

@@ -27,8 +27,8 @@ class PadModel:
     """Device arrays of the HF model; shapes: n = patch_count, P = pad_count, E = nnz of the CSR.
 
     Per patch (n,): ``area`` [m²], ``sqrt_area`` [m], ``height`` [m], ``radius`` (friction radius) [m],
-    ``inv_mass`` [1/kg], ``k_t`` and ``k_n`` [N/m], ``damping`` [N s/m], ``normal_force`` [N],
-    ``patch_pad`` (int32).
+    ``inv_mass`` [1/kg], ``k_t`` and ``k_n`` [N/m], ``k_diag`` = k_T + Σ_j k_ij [N/m], ``damping``
+    [N s/m], ``normal_force`` [N], ``patch_pad`` (int32).
 
     CSR: ``nbr_start`` (n+1,) int32, ``nbr_index`` (E,) int32, ``nbr_inv_dist`` (E,) [1/m],
     ``nbr_stiffness`` k_ij (E,) [N/m].
@@ -114,6 +114,8 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
         x, y, pad_of, np.array([s.material.coupling_radius for s in scenes]), dev
     )
 
+    k_ij = _edge_stiffness(scenes, sq, pad_of, nbr_start, nbr_index, nbr_inv)
+
     def dev_arr(a: np.ndarray, dtype: Any = T) -> wp.array:
         np_dtype = {wp.int32: np.int32, wp.float64: np.float64}.get(dtype, npT)
         return wp.array(np.ascontiguousarray(a, dtype=np_dtype), dtype=dtype, device=dev)
@@ -134,7 +136,11 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
         "nbr_start": dev_arr(nbr_start, wp.int32),
         "nbr_index": dev_arr(nbr_index if len(nbr_index) else np.zeros(1), wp.int32),
         "nbr_inv_dist": dev_arr(nbr_inv if len(nbr_inv) else np.zeros(1)),
-        "nbr_stiffness": dev_arr(_edge_stiffness(scenes, sq, pad_of, nbr_start, nbr_index, nbr_inv)),
+        "nbr_stiffness": dev_arr(k_ij),
+        "k_diag": dev_arr(
+            k_t
+            + np.bincount(np.repeat(np.arange(len(x)), np.diff(nbr_start)), k_ij[: len(nbr_index)], minlength=len(x))
+        ),
         "pad_kc": dev_arr(per_pad(lambda s: s.material.K_C)),
         "pad_omega": dev_arr(per_pad(lambda s: s.angular_velocity)),
         "pad_mu_scale": dev_arr(per_pad(lambda s: s.friction.M / np.pi)),
