@@ -107,6 +107,9 @@ def build_parser() -> argparse.ArgumentParser:
     hf.add_argument("--force", action="store_true", help="run explicit steps beyond the stable-step estimate")
     hf.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     hf.add_argument("--no-progress", action="store_true", help="no progress bar")
+    from aca_warp.analysis.commands import add_parsers
+
+    add_parsers(sub)
     return p
 
 
@@ -180,11 +183,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.command == "hf":
             return _cmd_hf(args)
+        if args.command in ("analyze", "plot"):
+            return args.handler(args)
     except AcaError as e:
         print(f"aca-warp: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("aca-warp: interrupted; the run file holds the samples so far, marked incomplete", file=sys.stderr)
+        if args.command == "hf":
+            print("aca-warp: interrupted; the run file holds the samples so far, marked incomplete", file=sys.stderr)
+        else:
+            print("aca-warp: interrupted", file=sys.stderr)
         return 130
     return 0
 

@@ -37,6 +37,7 @@ INTEGRATORS = ("symplectic-euler", "implicit-friction", "strang", "adaptive")
 DEFAULT_INTEGRATOR = "strang"
 DEFAULT_DT = 1.0e-8  # s
 DEFAULT_TOLERANCE = 1.0e-4
+FP32_MIN_TOLERANCE = 1.0e-5  # relative; tighter asks fp32 for more digits than it has
 GLOBAL_NAMES = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity")
 GLOBAL_UNITS = ("1", "N m", "m", "m s-1", "m s-1")
 
@@ -156,10 +157,15 @@ class HFSolver:
         self.integrator = integrator
         self.estimate = stable_step(model)
         self.T = model.dtype
-        self.newton_tol = self.T(1.0e-6 if self.T == wp.float32 else 1.0e-12)
+        self.newton_tol = self.T(1.0e-6 if self.T == wp.float32 else 1.0e-12)  # of the velocity increment
         if integrator == "adaptive":
             if not (tolerance > 0 and math.isfinite(tolerance)):
                 raise SceneError(f"tolerance must be a positive number, got {tolerance}")
+            if self.T == wp.float32 and tolerance < FP32_MIN_TOLERANCE:
+                raise SceneError(
+                    f"tolerance {tolerance:g} is below what fp32 state can resolve (>= {FP32_MIN_TOLERANCE:g}); "
+                    "use --precision fp64 or a looser tolerance"
+                )
             self.tolerance = tolerance
             self.dt = min(dt or 1.0e-9, 0.9 * self.estimate.spring)
         else:
@@ -369,7 +375,7 @@ def run_hf(
     sink: Callable[[Chunk], None] | None = None,
     progress: bool = False,
     use_graph: bool = True,
-    max_graph_steps: int = 2048,
+    max_graph_steps: int = 256,
 ) -> RunResult:
     """Advance all pads of ``model`` from ``state`` for ``duration`` [s], recording as ``record`` says.
 

@@ -45,6 +45,7 @@ class PadModel:
     dtype: Any
     pad_patch_start_host: np.ndarray
     contacts: list[ContactSolution]
+    nbr_count: int
     arrays: dict[str, wp.array] = field(default_factory=dict)
 
     def __getattr__(self, name: str) -> wp.array:
@@ -66,7 +67,7 @@ class PadModel:
     @property
     def nnz(self) -> int:
         """Number of directed neighbour links."""
-        return int(self.arrays["nbr_index"].shape[0]) if self.arrays["nbr_start"].shape[0] > 1 else 0
+        return self.nbr_count
 
     @property
     def has_coupling(self) -> bool:
@@ -166,7 +167,8 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
             }
         )
     return PadModel(
-        scenes=list(scenes), device=dev, dtype=T, pad_patch_start_host=start, contacts=contacts, arrays=arrays
+        scenes=list(scenes), device=dev, dtype=T, pad_patch_start_host=start, contacts=contacts,
+        nbr_count=len(nbr_index), arrays=arrays
     )
 
 

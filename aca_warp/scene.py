@@ -387,10 +387,13 @@ class Record:
         for v in self.patches:
             if v not in PATCH_VARIABLES:
                 raise SceneError(f"record.patches: unknown variable {v!r}; choose from {', '.join(PATCH_VARIABLES)}")
-        if len(self.window) != 2:
+        if isinstance(self.window, (str, bytes)) or not hasattr(self.window, "__len__") or len(self.window) != 2:
             raise SceneError(f"record.window must be [start, end] in seconds, got {self.window!r}")
         t0 = _finite("record.window start", self.window[0], low=0.0)
-        t1 = float(self.window[1])
+        t1 = self.window[1]
+        if isinstance(t1, bool) or not isinstance(t1, (int, float, np.floating, np.integer)):
+            raise SceneError(f"record.window end must be a number of seconds, got {t1!r}")
+        t1 = float(t1)
         if math.isnan(t1) or t1 <= t0:
             raise SceneError(f"record.window end must exceed its start, got {self.window!r}")
         object.__setattr__(self, "window", (t0, t1))
@@ -411,6 +414,17 @@ class Matrix:
     area: np.ndarray
     radius: np.ndarray
     height: np.ndarray
+
+    def __post_init__(self) -> None:
+        arrays = [np.atleast_1d(np.asarray(getattr(self, k), dtype=np.float64)) for k in ("area", "radius", "height")]
+        if len({a.shape for a in arrays}) != 1 or arrays[0].ndim != 1 or len(arrays[0]) == 0:
+            raise SceneError("matrix area, radius and height must be non-empty 1-D arrays of equal length")
+        for name, a in zip(("area", "radius", "height"), arrays, strict=True):
+            if not np.all(np.isfinite(a)):
+                raise SceneError(f"matrix.{name} has a non-finite value")
+            if name != "height" and np.any(a < 0):
+                raise SceneError(f"matrix.{name} must be >= 0")
+            object.__setattr__(self, name, a)
 
     @property
     def is_flat(self) -> bool:
@@ -568,6 +582,8 @@ def scene_from_dict(doc: dict, *, base_dir: Path | None = None, name: str = "sce
         omega = _finite("disc.sliding_speed", disc.get("sliding_speed", 10.0)) / pad.mean_radius
     rec = t["record"]
     if "window" in rec:
+        if not isinstance(rec["window"], list):
+            raise SceneError("record.window must be [start, end] in seconds")
         rec["window"] = tuple(rec["window"])
     if "patches" in rec:
         if isinstance(rec["patches"], str) or not isinstance(rec["patches"], list):

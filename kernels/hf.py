@@ -78,32 +78,39 @@ def spring_force(
 def solve_velocity(a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any):
     """Solve a·v − hfn·f(vd − v) = b for v (a > 0, hfn ≥ 0): per-patch implicit friction.
 
-    |f| ≤ 2 mu_scale π/2 brackets the root in [(b − hfn f_max)/a, (b + hfn f_max)/a]; safeguarded Newton
-    (bisection whenever a Newton step leaves the bracket) converges for any step size. It stops when the
-    Newton step is below ``tol`` times the velocity scale |vd| + (|b| + hfn f_max)/a, so a smooth patch
-    costs two friction evaluations per solve.
+    Works on the increment δ = v − guess, so the convergence test is relative to the size of the step's
+    velocity change (meaningful in fp32 too). |f| ≤ 2 mu_scale π/2 brackets δ in
+    [(r − hfn f_max)/a, (r + hfn f_max)/a], r = b − a·guess; safeguarded Newton (bisection whenever a Newton
+    step would leave the bracket) converges for any step size. It stops at an exact root, or when the
+    Newton step or the bracket is below ``tol`` times (|r| + hfn f_max)/a: a smooth patch costs two
+    friction evaluations per solve.
     """
     fmax = mu_scale * type(a)(3.141592653589793)
-    lo = (b - hfn * fmax) / a
-    hi = (b + hfn * fmax) / a
-    vtol = tol * (wp.abs(vd) + (wp.abs(b) + hfn * fmax) / a)
-    v = wp.clamp(guess, lo, hi)
+    r = b - a * guess
+    lo = (r - hfn * fmax) / a
+    hi = (r + hfn * fmax) / a
+    dtol = tol * (wp.abs(r) + hfn * fmax) / a
+    vp0 = vd - guess
+    zero = a - a
+    d = wp.clamp(zero, lo, hi)
     for _it in range(60):
-        f, df = friction_pair(vd - v, mu_scale, slope, decay)
-        g = a * v - hfn * f - b
-        if g > a - a:
-            hi = v
+        f, df = friction_pair(vp0 - d, mu_scale, slope, decay)
+        g = a * d - hfn * f - r
+        if g == zero:
+            break
+        if g > zero:
+            hi = d
         else:
-            lo = v
+            lo = d
         dg = a + hfn * df
-        vn = v - g / dg
-        if dg <= a - a or vn <= lo or vn >= hi:
-            vn = type(a)(0.5) * (lo + hi)
-        converged = wp.abs(vn - v) <= vtol or hi - lo <= vtol
-        v = vn
+        dn = d - g / dg
+        if dg <= zero or dn <= lo or dn >= hi:
+            dn = type(a)(0.5) * (lo + hi)
+        converged = wp.abs(dn - d) <= dtol or hi - lo <= dtol
+        d = dn
         if converged:
             break
-    return v
+    return guess + d
 
 
 @wp.func

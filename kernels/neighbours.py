@@ -82,8 +82,8 @@ def build_neighbours(
     span = max(float(np.ptp(x)), float(np.ptp(y)), cell)
     dim = int(min(max(np.ceil(span / cell) + 1, 1), 4096))
     pos = np.zeros((n, 3))
-    pos[:, 0] = x - x.min()
-    pos[:, 1] = y - y.min()
+    pos[:, 0] = x  # unshifted: 1/D0 of a pad must not depend on the other pads of its batch
+    pos[:, 1] = y
     pos_d = wp.array(pos, dtype=wp.vec3d, device=device)
     pad_d = wp.array(np.asarray(patch_pad, dtype=np.int32), dtype=wp.int32, device=device)
     rad_d = wp.array(radius, dtype=wp.float64, device=device)

@@ -1,0 +1,228 @@
+"""The ``aca-warp analyze`` and ``aca-warp plot`` subcommands (wired into ``aca_warp.cli``).
+
+``add_parsers(sub)`` adds both to the ``add_subparsers`` object of the main parser; each sets
+``handler`` (``set_defaults``), a function of the parsed arguments that returns the exit code and
+raises :class:`aca_warp.errors.AcaError` subclasses for bad input (the main CLI prints one line and
+exits 2). Heavy imports (SciPy, Matplotlib) happen inside the handlers, so ``--help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from typing import Any
+
+from aca_warp.errors import SceneError
+
+FIGURE_NAMES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
+"""Figure names of ``plot --only`` (same as ``aca_warp.plots.FIGURES``, kept here to avoid importing Matplotlib)."""
+
+ANALYZE_EPILOG = """\
+Writes the group /analysis into RUN.h5, replacing an earlier one (computed first, swapped in at the end: a
+failure leaves the file as it was):
+  /analysis/spectra         Hann amplitude spectra of mu, torque, friction radius, sum u', sum |u'| (mean-normalised)
+  /analysis/patch_spectrum  mean per-patch velocity amplitude spectrum          (with per-patch velocities)
+  /analysis/stft, /cwt      time-frequency maps of mu
+  /analysis/sync            Synchronization Index S(f), Phi(f), S_null(f), R_w(f) (with per-patch velocities)
+  /analysis/peaks           attributes: first velocity-spectrum peak, largest mu peak
+Units are SI: frequencies in Hz. See docs/analysis.md.
+Example:  aca-warp analyze run.h5 --freq-max 150e3 --rule snr --snr 8
+"""
+
+PLOT_EPILOG = """\
+Figures (PNG and PDF side by side; the animation as GIF), named <RUN stem>_<figure>.<ext>:
+  patch_map  patch coverage state coloured by direction of motion (paper Figs. 4/6)  needs per-patch velocities
+  global     mu, torque, friction radius, sum |u'| against time (Figs. 5/7)
+  spectra    amplitude spectra of all global outputs (Fig. 8)
+  sync       Synchronization Index against frequency (Fig. 9)                      needs per-patch velocities
+  stft, cwt  time-frequency maps of mu (Figs. 10/11)
+  animation  GIF of the patch coverage state                                       needs per-patch velocities
+Results of 'aca-warp analyze' are used when the file holds them; anything missing is computed on the fly
+(not written). Without --only, figures the file cannot support are skipped with a note.
+Example:  aca-warp plot run.h5 -o figures --only patch_map spectra --times 9.5e-4 9.6e-4
+"""
+
+
+def _number(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
+    return v
+
+
+def _nonneg(text: str) -> float:
+    v = _number(text)
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
+    return v
+
+
+def _positive(text: str) -> float:
+    v = _number(text)
+    if not v > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+    return v
+
+
+def _fraction(text: str) -> float:
+    v = _number(text)
+    if not 0.0 < v <= 1.0:
+        raise argparse.ArgumentTypeError(f"must lie in (0, 1], got {text!r}")
+    return v
+
+
+def _bins(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if v < 2:
+        raise argparse.ArgumentTypeError(f"must be >= 2, got {text!r}")
+    return v
+
+
+def add_parsers(subparsers: Any) -> None:
+    """Add ``analyze`` and ``plot`` to the ``add_subparsers()`` object of the ``aca-warp`` parser."""
+    fmt = argparse.RawDescriptionHelpFormatter
+    a = subparsers.add_parser(
+        "analyze",
+        help="spectra, time-frequency maps and Synchronization Index of a run file, into its /analysis group",
+        description="Analyse a run file (paper §2.2, §3): amplitude spectra of the global outputs, STFT and CWT "
+        "of mu, the first velocity-spectrum peak and, when the run recorded per-patch velocities, the "
+        "Synchronization Index S(f) with the number of oscillating patches Phi(f), its random-phase null "
+        "level and the order parameter R_w(f).",
+        formatter_class=fmt,
+        epilog=ANALYZE_EPILOG,
+    )
+    a.add_argument("run", metavar="RUN.h5", help="run file written by 'aca-warp hf'")
+    a.add_argument(
+        "--freq-min",
+        type=_nonneg,
+        metavar="HZ",
+        help="lower band edge [Hz] of the Synchronization Index, the CWT and the peak search (default 10 Hz)",
+    )
+    a.add_argument(
+        "--freq-max",
+        type=_positive,
+        metavar="HZ",
+        help="upper band edge [Hz] (default min(200 kHz, Nyquist frequency); with neither edge given the "
+        "peak search covers 1 kHz to the Nyquist frequency)",
+    )
+    a.add_argument(
+        "--rule",
+        choices=("relative", "snr"),
+        default="relative",
+        help="how Phi(f) counts a patch as oscillating at f: 'relative' |X_i(f)| >= eta * max_j |X_j(f)| "
+        "(default), or 'snr' |X_i(f)| >= snr * median over f of |X_i|",
+    )
+    a.add_argument("--eta", type=_fraction, default=0.1, metavar="X", help="eta of the relative rule (default 0.1)")
+    a.add_argument("--snr", type=_positive, default=5.0, metavar="X", help="factor of the snr rule (default 5)")
+    a.add_argument("--n-bins", type=_bins, default=180, metavar="N", help="phase bins on [-pi, pi) (default 180)")
+    a.add_argument(
+        "--stft-window", type=_positive, metavar="S", help="STFT window length [s] (default: about N/64 samples)"
+    )
+    a.add_argument(
+        "--no-sync",
+        action="store_true",
+        help="do not read the per-patch velocities: no Synchronization Index and no mean per-patch spectrum "
+        "(the slow part); the velocity peak then comes from the sum-of-velocities spectrum",
+    )
+    a.set_defaults(handler=cmd_analyze)
+
+    p = subparsers.add_parser(
+        "plot",
+        help="figures of a run file (patch map, global data, spectra, sync index, STFT, CWT, animation)",
+        description="Draw the paper-style figures of a run file (Merlis & Ostermeyer 2019, Figs. 4-11) as PNG "
+        "and PDF, each captioned with what it shows, its normalisation and the run's device, integrator and "
+        "precision.",
+        formatter_class=fmt,
+        epilog=PLOT_EPILOG,
+    )
+    p.add_argument("run", metavar="RUN.h5", help="run file written by 'aca-warp hf'")
+    p.add_argument(
+        "-o", "--output-dir", required=True, metavar="DIR", help="folder for the figures (created if missing)"
+    )
+    p.add_argument(
+        "--only",
+        nargs="+",
+        choices=FIGURE_NAMES,
+        metavar="NAME",
+        help=f"make only these figures: {', '.join(FIGURE_NAMES)}",
+    )
+    p.add_argument(
+        "--times",
+        nargs="+",
+        type=_nonneg,
+        metavar="T",
+        help="instants of the patch map [s] (nearest recorded sample; default: four quarter periods of the "
+        "first velocity-spectrum peak at the end of the per-patch record)",
+    )
+    p.set_defaults(handler=cmd_plot)
+
+
+def cmd_analyze(args: argparse.Namespace) -> int:
+    """``aca-warp analyze``: write /analysis and print a one-line summary; 0 on success."""
+    from aca_warp.analysis.report import analyze_run
+
+    if args.freq_min is not None and args.freq_max is not None and args.freq_min >= args.freq_max:
+        raise SceneError(f"--freq-min ({args.freq_min:g} Hz) must be below --freq-max ({args.freq_max:g} Hz)")
+    band = None if args.freq_min is None and args.freq_max is None else (args.freq_min, args.freq_max)
+    groups = analyze_run(
+        args.run,
+        freq_range=band,
+        sync=not args.no_sync,
+        rule=args.rule,
+        eta=args.eta,
+        snr=args.snr,
+        n_bins=args.n_bins,
+        stft_window_s=args.stft_window,
+    )
+    parts = [f"{args.run}: /analysis written ({', '.join(groups)})"]
+    peaks = groups["peaks"].attrs
+    if "first_velocity_peak_frequency" in peaks:
+        parts.append(f"first velocity-spectrum peak {peaks['first_velocity_peak_frequency'] / 1e3:.4g} kHz")
+    if "mu_peak_frequency" in peaks:
+        parts.append(f"largest mu peak {peaks['mu_peak_frequency'] / 1e3:.4g} kHz")
+    if "sync" in groups:
+        import numpy as np
+
+        s = groups["sync"]
+        valid = np.isfinite(s["S"])
+        if valid.any():
+            k = int(np.nanargmax(np.where(valid, s["S"] - s["S_null"], -np.inf)))
+            parts.append(
+                f"S > S_null in {int(np.count_nonzero(s['S'][valid] > s['S_null'][valid]))} of {s['S'].size} bins, "
+                f"largest excess S = {s['S'][k]:.3f} (null {s['S_null'][k]:.3f}, Phi {int(s['Phi'][k])}) at "
+                f"{s['freq'][k] / 1e3:.4g} kHz"
+            )
+    elif args.no_sync:
+        parts.append("per-patch velocities not read (--no-sync)")
+    else:
+        parts.append("no per-patch velocities: Synchronization Index skipped")
+    print("; ".join(parts))
+    return 0
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    """``aca-warp plot``: draw the figures and list the files written; 0 on success."""
+    from pathlib import Path
+
+    from aca_warp.plots import plot_run
+
+    out = Path(args.output_dir)
+    if out.exists() and not out.is_dir():
+        raise SceneError(f"output {out} exists and is not a folder")
+
+    def note(message: str) -> None:
+        print(f"aca-warp plot: {message}", file=sys.stderr)
+
+    files = plot_run(args.run, out, which=args.only, times=args.times, log=note)
+    for f in files:
+        print(f)
+    if not files:
+        raise SceneError(f"no figure could be made from {args.run}")
+    return 0

@@ -1,0 +1,708 @@
+"""Analysis of a run file into its ``/analysis`` group (paper §2.2, §3; model.md §3; docs/analysis.md).
+
+:func:`analyze_run` computes, from one run file written by :mod:`aca_warp.io`,
+
+* ``/analysis/spectra``: Hann amplitude spectra of every global output (mean-normalised, paper Fig. 8);
+* ``/analysis/patch_spectrum``: the mean over patches of the per-patch velocity amplitude spectra
+  (when per-patch velocities were recorded);
+* ``/analysis/stft`` and ``/analysis/cwt``: time-frequency maps of μ(t) (paper Figs. 10, 11);
+* ``/analysis/sync``: the Synchronization Index S(f) with Φ(f), its null level and R_w(f) (paper §2.2,
+  Fig. 9; only with per-patch velocities);
+* ``/analysis/peaks``: attributes with the first velocity-spectrum peak and the largest μ peak.
+
+Everything is computed first and written last, into a temporary group that replaces ``/analysis`` only
+once it is complete: a failure leaves the previous ``/analysis`` (or none) in place. The ``compute_*``
+functions are public so that :mod:`aca_warp.plots` can compute on the fly what a file does not hold
+(:func:`analysis_group`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+import scipy.fft
+
+from aca_warp.errors import SceneError
+
+from .spectra import DEFAULT_FLOOR_HZ, amplitude_spectrum, complex_spectrum, peak
+from .sync import _patch_groups, sync_index, sync_index_from_signals
+from .timefreq import cwt_morlet, stft
+
+GLOBAL_OUTPUTS = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity")
+"""Global outputs of a run file (datasets under ``/global``), in the order of ``aca_warp.hf.GLOBAL_NAMES``."""
+
+LABELS = {
+    "mu": "μ",
+    "torque": "friction torque T",
+    "friction_radius": "friction radius r_eff",
+    "sum_velocity": "Σ u̇",
+    "sum_abs_velocity": "Σ |u̇|",
+}
+"""Short names of the global outputs for captions and legends."""
+
+DEFAULT_BAND_TOP = 200.0e3
+"""Upper edge of the default analysis band of the Synchronization Index and the CWT [Hz]."""
+
+PEAK_FLOOR_HZ = 1.0e3
+"""Velocity and μ peaks are searched above this frequency [Hz] (and above 3 frequency bins)."""
+
+RULES = ("relative", "snr")
+GROUP = "analysis"
+_TMP_GROUP = "_analysis_new"
+
+
+@dataclass
+class Group:
+    """One analysis group in memory: group attributes and datasets with their attributes.
+
+    Attributes:
+        attrs: Attributes of the group (str, numbers, bools, lists of numbers).
+        datasets: name -> (array, attributes); every dataset's attributes include ``unit``.
+    """
+
+    attrs: dict[str, Any] = field(default_factory=dict)
+    datasets: dict[str, tuple[np.ndarray, dict[str, Any]]] = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.datasets[name][0]
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.datasets
+
+    def meta(self, name: str) -> dict[str, Any]:
+        """Attributes of dataset ``name``."""
+        return self.datasets[name][1]
+
+    def add(self, name: str, data: Any, unit: str, **attrs: Any) -> None:
+        """Add dataset ``name`` with its ``unit`` and further attributes."""
+        self.datasets[name] = (np.asarray(data), {"unit": unit, **attrs})
+
+
+# ----------------------------------------------------------------------------------------- run files
+
+
+def _decode(value: Any) -> Any:
+    if isinstance(value, bytes):
+        value = value.decode()
+    if isinstance(value, np.generic):
+        value = value.item()
+    return value
+
+
+def run_attr(f: h5py.File, name: str, default: Any = None) -> Any:
+    """Root attribute ``name`` of a run file, JSON-decoded where it holds JSON."""
+    if name not in f.attrs:
+        return default
+    v = _decode(f.attrs[name])
+    if isinstance(v, str) and v[:1] in "[{":
+        try:
+            return json.loads(v)
+        except json.JSONDecodeError:
+            return v
+    return v
+
+
+def check_run_file(f: h5py.File, name: str | Path = "") -> None:
+    """Refuse an HDF5 file that is not an aca_warp run file (:class:`SceneError`, one line)."""
+    where = f"{name}: " if name else ""
+    missing = [f"/global/{k}" for k in ("time", *GLOBAL_OUTPUTS) if f"global/{k}" not in f]
+    missing += [f"/patches/{k}" for k in ("x", "y", "area") if f"patches/{k}" not in f]
+    if "scene" not in f.attrs:
+        missing.append("root attribute 'scene'")
+    if missing:
+        raise SceneError(f"{where}not an aca_warp run file (lacks {', '.join(missing)})")
+    n = f["global/time"].shape
+    for k in GLOBAL_OUTPUTS:
+        if f[f"global/{k}"].shape != n or len(n) != 1:
+            raise SceneError(f"{where}/global/{k} has shape {f[f'global/{k}'].shape}, /global/time {n}")
+    if n[0] < 8:
+        raise SceneError(f"{where}the run holds {n[0]} samples; the analysis needs at least 8")
+    if "patches/velocity" in f:
+        v, rows = f["patches/velocity"], f["patches/time"].shape[0] if "patches/time" in f else -1
+        if v.ndim != 2 or v.shape != (rows, f["patches/x"].shape[0]):
+            raise SceneError(f"{where}/patches/velocity has shape {v.shape}, expected (len(/patches/time), patches)")
+
+
+def open_run(path: str | Path, mode: str = "r") -> h5py.File:
+    """Open and check a run file; :class:`SceneError` if it is missing, not HDF5 or not a run file."""
+    p = Path(path)
+    if not p.is_file():
+        raise SceneError(f"run file not found: {p}")
+    if not h5py.is_hdf5(p):
+        raise SceneError(f"{p} is not an HDF5 file (expected a run file written by aca-warp hf)")
+    try:
+        f = h5py.File(p, mode)
+    except OSError as e:
+        what = "for writing" if mode != "r" else ""
+        raise SceneError(f"cannot open {p} {what}: {e}".replace("  ", " ")) from None
+    try:
+        check_run_file(f, p)
+    except BaseException:
+        f.close()
+        raise
+    return f
+
+
+def sample_interval(time: np.ndarray, what: str = "/global/time") -> float:
+    """Uniform sampling interval of ``time`` [s]; :class:`SceneError` if the samples are not uniform."""
+    time = np.asarray(time, dtype=np.float64)
+    if time.size < 2:
+        raise SceneError(f"{what} holds {time.size} sample(s); need at least 2")
+    dt = (time[-1] - time[0]) / (time.size - 1)
+    if not dt > 0 or np.max(np.abs(np.diff(time) - dt)) > 1e-6 * dt:
+        raise SceneError(f"{what} is not uniformly sampled; the spectra need uniform samples")
+    return float(dt)
+
+
+def has_patch_velocity(f: h5py.File) -> bool:
+    """True when the run recorded per-patch velocities (with at least 8 rows)."""
+    return "patches/velocity" in f and "patches/time" in f and f["patches/velocity"].shape[0] >= 8
+
+
+def _band(freq_range: tuple[float, float] | None, nyquist: float, top: float = DEFAULT_BAND_TOP) -> tuple[float, float]:
+    lo, hi = (DEFAULT_FLOOR_HZ, min(top, nyquist)) if freq_range is None else freq_range
+    lo = DEFAULT_FLOOR_HZ if lo is None else float(lo)
+    hi = min(top, nyquist) if hi is None else min(float(hi), nyquist)
+    if not hi > lo:
+        raise SceneError(f"empty frequency band {lo:g}-{hi:g} Hz (the Nyquist frequency is {nyquist:g} Hz)")
+    return lo, hi
+
+
+# ------------------------------------------------------------------------------------------- compute
+
+
+def _normalisable(x: np.ndarray) -> bool:
+    """Mean normalisation is meaningful for a signal of one sign with a non-zero mean."""
+    return bool((np.all(x >= 0) or np.all(x <= 0)) and np.mean(x) != 0.0)
+
+
+def compute_spectra(f: h5py.File) -> Group:
+    """Hann amplitude spectra of every global output, normalised to the signal's mean (paper Fig. 8).
+
+    A signal that changes sign (Σu̇ typically) or has zero mean keeps its physical amplitude: a mean near
+    zero would make the normalised spectrum arbitrary. Each dataset's ``normalisation`` says which.
+    """
+    time = f["global/time"][()]
+    dt = sample_interval(time)
+    g = Group(
+        attrs={
+            "window": f"periodic Hann window over the whole record ({time.size} samples, {time.size * dt:.6g} s)",
+            "scaling": "one-sided, coherent-gain corrected: a sinusoid a·sin(2πft) on a bin shows a; bin 0 the mean",
+            "normalisation": "each spectrum divided by |mean| of its raw signal (dimensionless), except signals "
+            "that change sign or have zero mean (physical units)",
+            "resolution": f"Δf = {1.0 / (time.size * dt):.6g} Hz",
+            "sample_interval": dt,
+            "samples": time.size,
+        }
+    )
+    freq = None
+    for name in GLOBAL_OUTPUTS:
+        x = f[f"global/{name}"][()].astype(np.float64)
+        unit = _decode(f[f"global/{name}"].attrs.get("unit", "1"))
+        mean = float(np.mean(x))
+        normalised = _normalisable(x)
+        if normalised:
+            freq, amp = amplitude_spectrum(x, dt, normalise="mean")
+            norm, amp_unit = f"divided by |mean| = {abs(mean):.6g} {unit}", "1"
+        else:
+            freq, amp = amplitude_spectrum(x, dt, normalise=None)
+            norm, amp_unit = f"none: the signal changes sign or has zero mean (mean {mean:.4g} {unit})", unit
+        g.add(
+            name,
+            amp,
+            amp_unit,
+            signal=f"/global/{name}",
+            label=LABELS[name],
+            window="periodic Hann",
+            scaling="one-sided amplitude, coherent-gain corrected",
+            normalisation=norm,
+            normalised=normalised,
+            mean=mean,
+            signal_unit=unit,
+        )
+    g.datasets = {"freq": (freq, {"unit": "Hz"}), **g.datasets}
+    return g
+
+
+def _band_rows(freq: np.ndarray, band: tuple[float, float]) -> slice:
+    keep = np.flatnonzero((freq >= band[0]) & (freq <= band[1]))
+    if keep.size == 0:
+        raise SceneError(f"no frequency bin inside {band[0]:g}-{band[1]:g} Hz")
+    return slice(int(keep[0]), int(keep[-1]) + 1)
+
+
+def compute_patch_velocity(
+    f: h5py.File,
+    *,
+    sync: bool = True,
+    freq_range: tuple[float, float] | None = None,
+    rule: str = "relative",
+    eta: float = 0.1,
+    snr: float = 5.0,
+    n_bins: int = 180,
+    null_trials: int = 100,
+    max_bytes: int = 1 << 30,
+    workers: int | None = -1,
+) -> tuple[Group | None, Group | None]:
+    """Per-patch velocity analysis: the mean amplitude spectrum and (``sync``) the Synchronization Index.
+
+    One pass over ``/patches/velocity`` in patch-column groups of whole HDF5 chunks computes each patch's
+    Hann complex spectrum (float32 in, complex64 out, 32 columns per FFT, the scaling of
+    ``complex_spectrum``), adds |X_i(f)| to the mean amplitude spectrum and keeps the bins of the
+    Synchronization Index band. When that band array would exceed ``max_bytes``, the Synchronization Index
+    is computed by ``sync_index_from_signals`` instead (further passes, same results). The band defaults
+    to 10 Hz – min(200 kHz, Nyquist).
+
+    Returns:
+        ``(patch_spectrum, sync)``, each None when the run holds no per-patch velocities (``sync`` also
+        when not asked for).
+    """
+    if not has_patch_velocity(f):
+        return None, None
+    v = f["patches/velocity"]
+    dt = sample_interval(f["patches/time"][()], "/patches/time")
+    n, n_patches = v.shape
+    freq_all = scipy.fft.rfftfreq(n, dt)
+    band = _band(freq_range, 0.5 / dt)
+    rows = _band_rows(freq_all, band)
+    keep_band = sync and (rows.stop - rows.start) * n_patches * 8 <= max_bytes
+    X = np.empty((rows.stop - rows.start, n_patches), dtype=np.complex64) if keep_band else None
+    group = max(1, max_bytes // (4 * n))
+    if v.chunks and v.chunks[1] < n_patches:
+        group = max(1, group // v.chunks[1]) * v.chunks[1]
+    total = np.zeros(freq_all.size)
+    for g0, block in _patch_groups(v, group):
+        for c0 in range(0, block.shape[1], 32):
+            x = np.asarray(block[:, c0 : c0 + 32], dtype=np.float32)
+            _, spec = complex_spectrum(x, dt, axis=0, workers=workers)
+            total += np.abs(spec).sum(axis=1, dtype=np.float64)
+            if X is not None:
+                X[:, g0 + c0 : g0 + c0 + spec.shape[1]] = spec[rows]
+            del spec
+    patch = Group(
+        attrs={
+            "quantity": "mean over all patches of the one-sided Hann amplitude spectra |X_i(f)| of the per-patch "
+            "velocities (not normalised)",
+            "window": f"periodic Hann window over the per-patch record ({n} samples, {n * dt:.6g} s)",
+            "patches": n_patches,
+            "sample_interval": dt,
+        }
+    )
+    patch.add("freq", freq_all, "Hz")
+    patch.add("mean_amplitude", total / n_patches, "m s-1", signal="/patches/velocity", normalisation="none")
+    if not sync:
+        return patch, None
+    options = {"rule": rule, "eta": eta, "snr": snr, "n_bins": n_bins, "null_trials": null_trials}
+    try:
+        if X is not None:
+            res = sync_index(X, freq=freq_all[rows], **options)
+        else:
+            res = sync_index_from_signals(v, dt, freq_range=band, max_bytes=max_bytes, workers=workers, **options)
+    except ValueError as e:
+        raise SceneError(f"Synchronization Index: {e}") from None
+    del X
+    attrs: dict[str, Any] = dict(res.params)
+    attrs.update(
+        signal="/patches/velocity",
+        band=[band[0], band[1]],
+        band_unit="Hz",
+        sample_interval=dt,
+        samples=n,
+        patches=n_patches,
+        spectra="Hann-windowed one-sided complex spectra per patch (float32 in, complex64 out); phase arg X_i(f) "
+        "referenced to the first per-patch sample",
+        definition="paper §2.2 Eqs. 5-9 and Appendix; docs/analysis.md",
+    )
+    g = Group(attrs=attrs)
+    g.add("freq", res.freq, "Hz")
+    g.add("S", res.S, "1", meaning="Synchronization Index, Eq. 9 (NaN where Phi < 2)")
+    g.add("S_AB", res.S_AB, "1", meaning="A/B contribution, Eq. 6")
+    g.add("S_BC", res.S_BC, "1", meaning="B/C contribution, Eq. 8")
+    g.add("Phi", res.Phi.astype(np.int64), "1", meaning=f"patches counted as oscillating ({rule} rule)")
+    g.add("S_null", res.S_null, "1", meaning="mean S of Phi uniformly random phases (Monte-Carlo)")
+    g.add("R_w", res.R_w, "1", meaning="|sum_i X_i| / sum_i |X_i| over all patches")
+    return patch, g
+
+
+def compute_patch_spectrum(f: h5py.File, *, max_bytes: int = 1 << 30, workers: int | None = -1) -> Group | None:
+    """Mean over patches of the per-patch velocity amplitude spectra (None without per-patch velocities)."""
+    return compute_patch_velocity(f, sync=False, max_bytes=max_bytes, workers=workers)[0]
+
+
+def compute_sync(f: h5py.File, **options: Any) -> Group | None:
+    """Synchronization Index of the per-patch velocities (keywords of :func:`compute_patch_velocity`)."""
+    return compute_patch_velocity(f, sync=True, **options)[1]
+
+
+def default_stft_window(n: int, dt: float, top: float = DEFAULT_BAND_TOP) -> float:
+    """STFT window [s]: ``timefreq.stft``'s 2^round(log2(N/64)) samples, but long enough for Δf ≤ top/8 [Hz]
+    where the record allows (at most N/4 samples): short records would otherwise resolve nothing below ``top``.
+    """
+    samples = max(16, 2 ** round(math.log2(max(n / 64, 1.0))))
+    need = min(n / 4, 8.0 / (min(top, 0.5 / dt) * dt))
+    if samples < need:
+        samples = 2 ** round(math.log2(need))
+    return min(samples, n) * dt
+
+
+def compute_stft(f: h5py.File, *, window_s: float | None = None, detrend: str | None = "linear") -> Group:
+    """STFT amplitude of μ(t) (``timefreq.stft``; linear trend removed per window), float32.
+
+    ``window_s`` defaults to :func:`default_stft_window`.
+    """
+    mu = f["global/mu"][()]
+    dt = sample_interval(f["global/time"][()])
+    if window_s is None:
+        window_s = default_stft_window(mu.size, dt)
+    try:
+        times, freqs, amp, info = stft(mu, dt, window_s=window_s, detrend=detrend)
+    except ValueError as e:
+        raise SceneError(f"STFT of mu: {e}") from None
+    t0 = float(f["global/time"][0])
+    g = Group(attrs={"signal": "/global/mu", **info})
+    g.add("time", times + t0, "s", meaning="window centres")
+    g.add("freq", freqs, "Hz")
+    g.add("amplitude", amp.astype(np.float32), "1", caption=info["caption"], quantity=info["quantity"])
+    return g
+
+
+def default_cwt_freqs(
+    n: int, dt: float, *, freq_range: tuple[float, float] | None = None, count: int = 96
+) -> np.ndarray:
+    """Log-spaced CWT frequencies [Hz]: from max(10 Hz, 4/T) to min(200 kHz, 0.4/dt), or ``freq_range``."""
+    record = n * dt
+    hi_default = min(DEFAULT_BAND_TOP, 0.4 / dt)
+    if freq_range is None:
+        lo, hi = max(DEFAULT_FLOOR_HZ, 4.0 / record), hi_default
+    else:
+        lo = max(float(freq_range[0]), 4.0 / record, 1e-3)
+        hi = min(float(freq_range[1]), 0.45 / dt)
+    if not hi > lo:
+        lo = hi / 10.0
+    return np.geomspace(lo, hi, count)
+
+
+CWT_SAMPLES_PER_PERIOD = 16.0
+"""A CWT frequency f is computed on the record resampled to no fewer than this many samples per 1/f."""
+
+
+def downsample(x: np.ndarray, q: int) -> np.ndarray:
+    """Low-pass and keep every q-th sample: Kaiser FIR (80 dB), flat to 1/(8·q·dt), stop from 1/(4·q·dt)."""
+    from scipy.signal import firwin, kaiserord, resample_poly
+
+    taps, beta = kaiserord(80.0, 0.25 / q)
+    h = firwin(taps | 1, 0.375 / q, window=("kaiser", beta))
+    return resample_poly(x, 1, q, window=h)
+
+
+def multirate_cwt(
+    x: np.ndarray, dt: float, freqs: np.ndarray, *, stride: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, str]]:
+    """``cwt_morlet`` with each frequency computed on a record downsampled by a power of two q ≤ ``stride``.
+
+    q is the largest power of two with 1/(q·dt) ≥ 16 f. The record is low-passed and downsampled by
+    :func:`downsample` (sample j of the result at input sample j·q), so a wavelet of frequency f spans
+    16 or more samples per period instead of up to millions: low frequencies become cheap. The filter
+    passes f and the wavelet's band (up to ~2 f) unchanged and removes what lies above half the new
+    Nyquist frequency, where PyWavelets' sampled wavelets would leak. ``stride`` must be a power of two;
+    the output keeps every ``stride``-th input sample, so all groups share one time grid.
+    """
+    if stride & (stride - 1):
+        raise ValueError(f"stride must be a power of two, got {stride}")
+    n = x.size
+    q_max = np.floor(np.log2(np.maximum(1.0, 1.0 / (CWT_SAMPLES_PER_PERIOD * freqs * dt))))
+    q = (2 ** np.minimum(q_max, np.log2(stride))).astype(np.int64)
+    out = np.empty((freqs.size, -(-n // stride)), dtype=x.dtype)
+    info: dict[str, str] = {}
+    for qi in np.unique(q):
+        idx = np.flatnonzero(q == qi)
+        xq = x if qi == 1 else downsample(x, int(qi))
+        _, _, w, info = cwt_morlet(xq, dt * qi, freqs[idx], stride=stride // int(qi))
+        out[idx] = w[:, : out.shape[1]]
+    info = dict(info)
+    factors = ", ".join(str(int(v)) for v in np.unique(q))
+    info["multirate"] = (
+        f"frequencies computed on the record low-passed and downsampled by q in {{{factors}}}, "
+        f"at least {CWT_SAMPLES_PER_PERIOD:g} samples per period"
+    )
+    return np.arange(0, n, stride) * dt, freqs, out, info
+
+
+def compute_cwt(
+    f: h5py.File,
+    *,
+    freqs: Sequence[float] | np.ndarray | None = None,
+    freq_range: tuple[float, float] | None = None,
+    count: int = 96,
+    columns: int = 2048,
+) -> Group:
+    """Complex-Morlet CWT amplitude of μ(t) − mean(μ) (``timefreq.cwt_morlet``), time axis decimated.
+
+    Every ``stride``-th time sample of |W| is kept (float32), stride the smallest power of two with
+    ceil(N/stride) ≤ ``columns``; low frequencies are computed on a downsampled record (:func:`multirate_cwt`).
+    """
+    mu = f["global/mu"][()].astype(np.float64)
+    time = f["global/time"][()]
+    dt = sample_interval(time)
+    if freqs is None:
+        freqs = default_cwt_freqs(mu.size, dt, freq_range=freq_range, count=count)
+    freqs = np.asarray(freqs, dtype=np.float64)
+    stride = 1 << max(0, math.ceil(math.log2(max(1.0, mu.size / max(1, columns)))))
+    mean = float(np.mean(mu))
+    if np.any(freqs <= 0) or np.any(freqs >= 0.5 / dt):
+        raise SceneError(f"CWT frequencies must lie in (0, {0.5 / dt:g}) Hz (the Nyquist frequency)")
+    times, out_freqs, amp, info = multirate_cwt(mu - mean, dt, freqs, stride=stride)
+    info["mean_removed"] = f"mean(μ) = {mean:.6g} subtracted before the transform"
+    info["decimation"] = (
+        "Every time sample of |W| kept"
+        if stride == 1
+        else f"Every {stride}-th time sample of |W| kept ({stride * dt:.4g} s)"
+    )
+    g = Group(attrs={"signal": "/global/mu", **info})
+    g.add("time", times + float(time[0]), "s")
+    g.add("freq", out_freqs, "Hz")
+    g.add("amplitude", amp.astype(np.float32), "1", caption=info["caption"], quantity=info["quantity"])
+    return g
+
+
+def _peak_band(freq: np.ndarray, freq_range: tuple[float, float] | None) -> tuple[float, float]:
+    lo = max(PEAK_FLOOR_HZ, 3.0 * float(freq[1] - freq[0]))
+    hi = float(freq[-1])
+    if freq_range is not None:
+        lo, hi = max(lo, float(freq_range[0])), min(hi, float(freq_range[1]))
+    return lo, hi
+
+
+def compute_peaks(
+    spectra: Group, patch_spectrum: Group | None = None, *, freq_range: tuple[float, float] | None = None
+) -> Group:
+    """Largest spectral peaks above 1 kHz (and above 3 bins, clear of the Hann leakage of the mean).
+
+    The *first velocity-spectrum peak* is that of the mean per-patch velocity amplitude spectrum when the
+    run holds per-patch velocities, else that of the Σu̇ spectrum. The Σ|u̇| peak is stored too, but it is
+    not used as the velocity peak: rectification moves a patch oscillating at f to 2f and its harmonics.
+    """
+    freq = spectra["freq"]
+    lo, hi = _peak_band(freq, freq_range)
+    attrs: dict[str, Any] = {"band": [lo, hi], "band_unit": "Hz", "method": "largest bin, Gaussian interpolation"}
+    candidates = {}
+    for name in ("mu", "sum_velocity", "sum_abs_velocity"):
+        try:
+            candidates[name] = (*peak(freq, spectra[name], fmin=lo, fmax=hi), spectra.meta(name)["unit"])
+        except ValueError:
+            continue
+    if patch_spectrum is not None:
+        pf = patch_spectrum["freq"]
+        plo, phi = _peak_band(pf, freq_range)
+        try:
+            candidates["patch_velocity"] = (*peak(pf, patch_spectrum["mean_amplitude"], fmin=plo, fmax=phi), "m s-1")
+        except ValueError:
+            pass
+    for name, (fp, ap, unit) in candidates.items():
+        attrs[f"{name}_peak_frequency"] = fp
+        attrs[f"{name}_peak_frequency_unit"] = "Hz"
+        attrs[f"{name}_peak_amplitude"] = ap
+        attrs[f"{name}_peak_amplitude_unit"] = unit
+    source = "patch_velocity" if "patch_velocity" in candidates else "sum_velocity"
+    if source in candidates:
+        fp, ap, unit = candidates[source]
+        attrs["first_velocity_peak_frequency"] = fp
+        attrs["first_velocity_peak_frequency_unit"] = "Hz"
+        attrs["first_velocity_peak_amplitude"] = ap
+        attrs["first_velocity_peak_amplitude_unit"] = unit
+        attrs["first_velocity_peak_source"] = (
+            "mean per-patch velocity amplitude spectrum (/analysis/patch_spectrum)"
+            if source == "patch_velocity"
+            else "Σu̇ amplitude spectrum (/analysis/spectra/sum_velocity)"
+        )
+    return Group(attrs=attrs)
+
+
+# ---------------------------------------------------------------------------------------- read/write
+
+
+def _attr_value(v: Any) -> Any:
+    if isinstance(v, (str, bool, int, float, np.number, np.bool_)):
+        return v
+    if v is None:
+        return "none"
+    if isinstance(v, (list, tuple)) and all(isinstance(x, (int, float, np.number)) for x in v):
+        return np.asarray(v, dtype=np.float64)
+    return json.dumps(v)
+
+
+def _write_group(parent: h5py.Group, name: str, group: Group) -> None:
+    g = parent.create_group(name)
+    for k, v in group.attrs.items():
+        g.attrs[k] = _attr_value(v)
+    for dname, (data, attrs) in group.datasets.items():
+        _write_dataset(g, dname, data, attrs)
+
+
+def _write_dataset(g: h5py.Group, name: str, data: np.ndarray, attrs: dict[str, Any]) -> None:
+    d = g.create_dataset(name, data=data)
+    for k, v in attrs.items():
+        d.attrs[k] = _attr_value(v)
+
+
+def read_group(g: h5py.Group) -> Group:
+    """An ``/analysis/<name>`` group read back into a :class:`Group`."""
+    out = Group(attrs={k: _decode(v) for k, v in g.attrs.items()})
+    for name, d in g.items():
+        if isinstance(d, h5py.Dataset):
+            out.datasets[name] = (d[()], {k: _decode(v) for k, v in d.attrs.items()})
+    return out
+
+
+def analysis_group(f: h5py.File, name: str, compute: Callable[[], Group | None]) -> Group | None:
+    """``/analysis/<name>`` from the file when present, else ``compute()`` (nothing is written)."""
+    if f"{GROUP}/{name}" in f:
+        return read_group(f[f"{GROUP}/{name}"])
+    return compute()
+
+
+def write_analysis(f: h5py.File, groups: dict[str, Group], attrs: dict[str, Any]) -> None:
+    """Replace ``/analysis`` by ``groups``: written into a temporary group, then swapped in.
+
+    If writing fails, the temporary group is removed and the previous ``/analysis`` is left as it was.
+    """
+    if _TMP_GROUP in f:
+        del f[_TMP_GROUP]
+    try:
+        tmp = f.create_group(_TMP_GROUP)
+        for k, v in attrs.items():
+            tmp.attrs[k] = _attr_value(v)
+        for name, group in groups.items():
+            _write_group(tmp, name, group)
+    except BaseException:
+        try:
+            if _TMP_GROUP in f:
+                del f[_TMP_GROUP]
+        finally:
+            raise
+    if GROUP in f:
+        del f[GROUP]
+    f.move(_TMP_GROUP, GROUP)
+    f.flush()
+
+
+def _package_version() -> str:
+    import importlib.metadata as md
+
+    try:
+        return md.version("aca-warp")
+    except md.PackageNotFoundError:
+        return "unknown"
+
+
+def analyze_run(
+    path: str | Path,
+    *,
+    freq_range: tuple[float | None, float | None] | None = None,
+    sync: bool = True,
+    rule: str = "relative",
+    eta: float = 0.1,
+    snr: float = 5.0,
+    n_bins: int = 180,
+    stft_window_s: float | None = None,
+    cwt_freqs: Sequence[float] | np.ndarray | None = None,
+    cwt_count: int = 96,
+    cwt_columns: int = 2048,
+    null_trials: int = 100,
+    max_bytes: int = 1 << 30,
+    workers: int | None = -1,
+) -> dict[str, Group]:
+    """Analyse a run file and (re)write its ``/analysis`` group; returns the groups written.
+
+    Args:
+        path: Run file written by ``aca-warp hf`` / :func:`aca_warp.runner.run_scene`.
+        freq_range: ``(fmin, fmax)`` [Hz] of the Synchronization Index, the CWT and the peak search; a None
+            edge takes its default, 10 Hz or min(200 kHz, Nyquist). None: S(f) and the CWT use
+            10 Hz – min(200 kHz, Nyquist), the peak search 1 kHz – Nyquist.
+        sync: Read the per-patch velocities, when the run has them, for the Synchronization Index and the
+            mean per-patch velocity spectrum (one pass, the slow part). False skips both: the velocity peak
+            then comes from the Σu̇ spectrum.
+        rule: Φ rule of the Synchronization Index, ``"relative"`` (|X_i| ≥ η max_j |X_j|) or ``"snr"``
+            (|X_i| ≥ κ · median_f |X_i|).
+        eta: η of the relative rule, in (0, 1].
+        snr: κ of the SNR rule, > 0.
+        n_bins: Number of phase bins on [-π, π) (paper: 180).
+        stft_window_s: STFT window length [s] (default :func:`default_stft_window`).
+        cwt_freqs: CWT frequencies [Hz] (default ``cwt_count`` log-spaced, see :func:`default_cwt_freqs`).
+        cwt_count: Number of default CWT frequencies.
+        cwt_columns: Largest number of time columns of the stored CWT map.
+        null_trials: Monte-Carlo trials per Φ of the null level S_null (0: none).
+        max_bytes: Memory budget of each per-patch buffer [bytes] (see ``sync_index_from_signals``).
+        workers: Threads of ``scipy.fft`` (-1: all CPUs).
+
+    Raises:
+        SceneError: The file is missing, not an HDF5 run file, not writable, or an option is invalid;
+            the file is then left unchanged.
+    """
+    if rule not in RULES:
+        raise SceneError(f"rule must be one of {', '.join(RULES)}, got {rule!r}")
+    if not 0.0 < eta <= 1.0:
+        raise SceneError(f"eta must lie in (0, 1], got {eta}")
+    if not snr > 0.0:
+        raise SceneError(f"snr must be > 0, got {snr}")
+    if isinstance(n_bins, bool) or not isinstance(n_bins, (int, np.integer)) or n_bins < 2:
+        raise SceneError(f"n_bins must be an integer >= 2, got {n_bins!r}")
+    band: tuple[float, float] | None = None
+    with open_run(path, "r") as f:  # refuse a non-run file before opening it for writing
+        if freq_range is not None:
+            lo, hi = freq_range
+            lo = DEFAULT_FLOOR_HZ if lo is None else float(lo)
+            nyq = 0.5 / sample_interval(f["global/time"][()])
+            hi = min(DEFAULT_BAND_TOP, nyq) if hi is None else float(hi)
+            if not (0.0 <= lo < hi and math.isfinite(hi)):
+                raise SceneError(f"frequency range must satisfy 0 <= fmin < fmax, got {lo:g}, {hi:g} Hz")
+            band = (lo, hi)
+    with open_run(path, "r+") as f:
+        groups: dict[str, Group] = {"spectra": compute_spectra(f)}
+        patch = sync_group = None
+        if sync:
+            patch, sync_group = compute_patch_velocity(
+                f,
+                freq_range=band,
+                rule=rule,
+                eta=eta,
+                snr=snr,
+                n_bins=n_bins,
+                null_trials=null_trials,
+                max_bytes=max_bytes,
+                workers=workers,
+            )
+        if patch is not None:
+            groups["patch_spectrum"] = patch
+        if sync_group is not None:
+            groups["sync"] = sync_group
+        groups["stft"] = compute_stft(f, window_s=stft_window_s)
+        groups["cwt"] = compute_cwt(f, freqs=cwt_freqs, freq_range=band, count=cwt_count, columns=cwt_columns)
+        groups["peaks"] = compute_peaks(groups["spectra"], patch, freq_range=band)
+        attrs = {
+            "created_by": "aca_warp.analysis.report.analyze_run",
+            "aca_warp_version": _package_version(),
+            "parameters": {
+                "freq_range": list(band) if band else None,
+                "sync": sync,
+                "rule": rule,
+                "eta": eta,
+                "snr": snr,
+                "n_bins": n_bins,
+                "stft_window_s": stft_window_s,
+                "cwt_count": cwt_count,
+                "cwt_columns": cwt_columns,
+                "null_trials": null_trials,
+            },
+            "run_complete": bool(run_attr(f, "complete", False)),
+            "groups": json.dumps(sorted(groups)),
+        }
+        write_analysis(f, groups, attrs)
+    return groups

@@ -1,0 +1,317 @@
+"""``analyze_run`` (/analysis group of a run file), the figures of ``aca_warp.plots`` and their subcommands."""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import math
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+
+from aca_warp import plots
+from aca_warp.analysis import report, sync_index_from_signals
+from aca_warp.analysis.commands import FIGURE_NAMES, add_parsers
+from aca_warp.analysis.report import analyze_run
+from aca_warp.errors import AcaError, SceneError
+from aca_warp.runner import run_scene
+from aca_warp.scene import Material, Pad, Patches, PatchGenerator, Record, Scene
+
+SAMPLE_DT = 1.0e-7  # s
+SYNC_KEYS = ("rule", "eta", "n_bins", "tau_ab", "tau_bc", "w", "smooth", "null_trials", "seed", "smoothing_weights")
+
+
+def _small_scene(*, patches: tuple[str, ...]) -> Scene:
+    pad = Pad()
+    return Scene(
+        name="small",
+        pad=pad,
+        patches=PatchGenerator(count=60, seed=4).generate(pad),
+        normal_force=20.0,
+        record=Record(sample_dt=SAMPLE_DT, patches=patches),
+        duration=1.0e-4,
+    )
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """Three run files: 60 patches with and without per-patch velocities, and one isolated 0.05 mm² patch."""
+    d = tmp_path_factory.mktemp("runs")
+    out = {"patches": d / "patches.h5", "globals": d / "globals.h5", "single": d / "single.h5"}
+    for key, rec in (("patches", ("velocity",)), ("globals", ())):
+        run_scene(_small_scene(patches=rec), out[key], device="cpu", integrator="strang", dt=2e-8, overwrite=True)
+    one = Patches(np.array([0.0]), np.array([0.13]), np.array([5.0e-8]), np.array([3.0e-6]))
+    single = Scene(
+        name="single",
+        pad=Pad(),
+        patches=one,
+        normal_force=1.0,
+        record=Record(sample_dt=SAMPLE_DT, patches=("velocity",)),
+        duration=2.0e-4,
+    )
+    run_scene(single, out["single"], device="cpu", integrator="strang", dt=1e-7, overwrite=True)
+    return out
+
+
+def _copy(src, tmp_path, name="run.h5"):
+    dst = tmp_path / name
+    shutil.copy(src, dst)
+    return dst
+
+
+def _snapshot(path, group="analysis"):
+    """{dataset: (data, attrs)} and {group: attrs} under ``group`` of an HDF5 file."""
+    data, groups = {}, {}
+    with h5py.File(path, "r") as f:
+        if group not in f:
+            return None
+
+        def visit(name, obj):
+            attrs = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in obj.attrs.items()}
+            if isinstance(obj, h5py.Dataset):
+                data[name] = (obj[()], attrs)
+            else:
+                groups[name] = attrs
+
+        groups[""] = dict(f[group].attrs)
+        f[group].visititems(visit)
+    return data, groups
+
+
+def _assert_same(a, b):
+    assert a is not None and b is not None
+    assert sorted(a[0]) == sorted(b[0]) and sorted(a[1]) == sorted(b[1])
+    for name, (arr, attrs) in a[0].items():
+        np.testing.assert_array_equal(arr, b[0][name][0], err_msg=name)
+        assert attrs == b[0][name][1], name
+    for name, attrs in a[1].items():
+        assert set(attrs) == set(b[1][name]), name
+
+
+def _sha(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+# ---------------------------------------------------------------------------------------------- analyze
+
+
+def test_analyze_writes_every_group_with_units(runs, tmp_path):
+    """/analysis holds spectra, patch spectrum, STFT, CWT, sync and peaks; every dataset has a unit."""
+    path = _copy(runs["patches"], tmp_path)
+    groups = analyze_run(path)
+    assert set(groups) == {"spectra", "patch_spectrum", "stft", "cwt", "sync", "peaks"}
+    with h5py.File(path, "r") as f:
+        a = f["analysis"]
+        assert set(a) == set(groups) and report._TMP_GROUP not in f
+        units = {}
+        a.visititems(lambda n, o: units.__setitem__(n, o.attrs.get("unit")) if isinstance(o, h5py.Dataset) else None)
+        assert units and all(u is not None for u in units.values()), units
+        for name in ("freq", *report.GLOBAL_OUTPUTS):
+            assert f"spectra/{name}" in a
+        for name in report.GLOBAL_OUTPUTS:
+            attrs = a[f"spectra/{name}"].attrs
+            assert {"window", "scaling", "normalisation", "unit"} <= set(attrs)
+        assert a["spectra/mu"].attrs["unit"] == "1" and a["spectra/mu"][0] == pytest.approx(1.0, rel=1e-3)
+        assert a["spectra/sum_abs_velocity"].attrs["normalised"]
+        assert not a["spectra/sum_velocity"].attrs["normalised"]  # Σu̇ changes sign: physical units
+        assert a["spectra/sum_velocity"].attrs["unit"] == "m s-1"
+        for tf in ("stft", "cwt"):
+            assert {"time", "freq", "amplitude"} <= set(a[tf]) and "caption" in a[tf].attrs
+            assert a[f"{tf}/amplitude"].shape == (a[f"{tf}/freq"].size, a[f"{tf}/time"].size)
+        assert a["cwt/time"].size <= 2048
+        for key in SYNC_KEYS:
+            assert key in a["sync"].attrs, key
+        assert {"freq", "S", "Phi", "S_null", "R_w"} <= set(a["sync"])
+        assert list(a["sync"].attrs["band"]) == [10.0, 200e3]
+        peaks = a["peaks"].attrs
+        assert peaks["first_velocity_peak_frequency_unit"] == "Hz" and "patch" in peaks["first_velocity_peak_source"]
+        assert peaks["first_velocity_peak_amplitude"] > 0
+        v = f["patches/velocity"]
+        ref = sync_index_from_signals(v, SAMPLE_DT, freq_range=(10.0, 200e3))
+        np.testing.assert_array_equal(a["sync/S"][()], ref.S)
+        np.testing.assert_array_equal(a["sync/Phi"][()], ref.Phi)
+        np.testing.assert_array_equal(a["sync/R_w"][()], ref.R_w)
+
+
+def test_sync_in_several_passes_is_identical(runs):
+    """A band array over the memory budget falls back to sync_index_from_signals: same S, Φ, R_w."""
+    with h5py.File(runs["patches"], "r") as f:
+        one = report.compute_sync(f, freq_range=(1e3, 1e6))
+        many = report.compute_sync(f, freq_range=(1e3, 1e6), max_bytes=4096)
+    for key in ("S", "Phi", "R_w", "S_null"):
+        np.testing.assert_array_equal(one[key], many[key])
+
+
+def test_rerun_replaces_the_group(runs, tmp_path):
+    """Re-running rewrites /analysis: same content, no duplicates; other options replace, never merge."""
+    path = _copy(runs["patches"], tmp_path)
+    analyze_run(path)
+    first = _snapshot(path)
+    analyze_run(path)
+    _assert_same(first, _snapshot(path))
+    analyze_run(path, sync=False, freq_range=(20e3, 150e3), rule="snr")
+    with h5py.File(path, "r") as f:
+        assert "sync" not in f["analysis"] and "patch_spectrum" not in f["analysis"]
+        assert "Σu̇" in f["analysis/peaks"].attrs["first_velocity_peak_source"]
+        assert [k for k in f if "analysis" in k] == ["analysis"]
+        assert f["analysis/peaks"].attrs["band"][0] >= 20e3 and f["analysis/peaks"].attrs["band"][1] == 150e3
+        assert f["analysis/cwt/freq"][0] >= 20e3 and f["analysis/cwt/freq"][-1] <= 150e3 * (1 + 1e-12)
+
+
+def test_non_run_files_are_refused_and_left_unchanged(tmp_path):
+    """A plain HDF5 file, a text file and a missing path raise SceneError; files keep every byte."""
+    plain = tmp_path / "plain.h5"
+    with h5py.File(plain, "w") as f:
+        f["data"] = np.arange(10.0)
+    text = tmp_path / "notes.h5"
+    text.write_text("not HDF5\n")
+    for p, message in ((plain, "not an aca_warp run file"), (text, "not an HDF5 file")):
+        before = _sha(p)
+        with pytest.raises(SceneError, match=message):
+            analyze_run(p)
+        assert _sha(p) == before
+    with pytest.raises(SceneError, match="not found"):
+        analyze_run(tmp_path / "missing.h5")
+    with pytest.raises(SceneError, match="not an aca_warp run file"):
+        plots.plot_run(plain, tmp_path / "fig")
+
+
+def test_a_failed_write_keeps_the_previous_analysis(runs, tmp_path, monkeypatch):
+    """If writing fails half-way, the earlier /analysis survives untouched and no temporary group remains."""
+    path = _copy(runs["globals"], tmp_path)
+    analyze_run(path)
+    before = _snapshot(path)
+    calls = {"n": 0}
+    real = report._write_dataset
+
+    def failing(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 5:
+            raise OSError("disk full (simulated)")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(report, "_write_dataset", failing)
+    with pytest.raises(OSError, match="simulated"):
+        analyze_run(path, freq_range=(1e3, 1e5))
+    _assert_same(before, _snapshot(path))
+    with h5py.File(path, "r") as f:
+        assert report._TMP_GROUP not in f
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"rule": "majority"}, "rule"),
+        ({"eta": 0.0}, "eta"),
+        ({"snr": -1.0}, "snr"),
+        ({"n_bins": 1}, "n_bins"),
+        ({"freq_range": (5e4, 1e4)}, "frequency range"),
+    ],
+)
+def test_bad_options_are_refused(runs, tmp_path, kwargs, message):
+    path = _copy(runs["globals"], tmp_path)
+    before = _sha(path)
+    with pytest.raises(SceneError, match=message):
+        analyze_run(path, **kwargs)
+    assert _sha(path) == before
+
+
+def test_single_patch_peak_is_the_isolated_patch_frequency(runs, tmp_path):
+    """One 0.05 mm² patch: the first velocity peak is √(k_T/m)/2π = 75.2 kHz (model.md) within 2 %.
+
+    Σ|u̇| peaks at twice that frequency (|sin| rectifies), which is why it is not the velocity peak.
+    """
+    mat, area = Material(), 5.0e-8
+    f0 = math.sqrt(mat.K_T * math.sqrt(area) / (mat.mass_per_area * area)) / (2 * math.pi)
+    assert f0 == pytest.approx(75.2e3, rel=1e-3)
+    path = _copy(runs["single"], tmp_path)
+    peaks = analyze_run(path)["peaks"].attrs
+    assert "patch" in peaks["first_velocity_peak_source"]
+    assert peaks["first_velocity_peak_frequency"] == pytest.approx(f0, rel=0.02)
+    assert peaks["sum_velocity_peak_frequency"] == pytest.approx(f0, rel=0.02)
+    assert peaks["sum_abs_velocity_peak_frequency"] == pytest.approx(2 * f0, rel=0.02)
+    with h5py.File(path, "r") as f:
+        assert f["analysis/peaks"].attrs["first_velocity_peak_frequency"] == peaks["first_velocity_peak_frequency"]
+
+
+# ------------------------------------------------------------------------------------------------ plots
+
+
+def _check_files(files, expected):
+    assert sorted(p.name for p in files) == sorted(expected)
+    for p in files:
+        head = p.read_bytes()[:8]
+        assert p.stat().st_size > 1000, p
+        assert head.startswith({".png": b"\x89PNG", ".pdf": b"%PDF", ".gif": b"GIF8"}[p.suffix]), p
+
+
+def test_plot_run_with_per_patch_velocities(runs, tmp_path):
+    """Every figure is made (computing on the fly: the file has no /analysis), PNG + PDF, and the GIF."""
+    from matplotlib import animation
+
+    notes = []
+    files = plots.plot_run(runs["patches"], tmp_path / "fig", frames=4, log=notes.append)
+    names = [n for n in plots.FIGURES if n != "animation"]
+    expected = [f"patches_{n}.{ext}" for n in names for ext in ("png", "pdf")]
+    if animation.writers.is_available("pillow"):
+        expected.append("patches_patch_map.gif")
+    else:  # pragma: no cover
+        assert any("Pillow" in n for n in notes)
+    _check_files(files, expected)
+    assert not any("patch_map" in n or "sync" in n for n in notes), notes
+
+
+def test_plot_run_without_per_patch_velocities(runs, tmp_path):
+    """Figures needing per-patch velocities are skipped with a note; asking for one explicitly is an error."""
+    path = _copy(runs["globals"], tmp_path, "globals.h5")
+    analyze_run(path)  # the figures then read /analysis
+    notes = []
+    files = plots.plot_run(path, tmp_path / "fig", log=notes.append)
+    _check_files(files, [f"globals_{n}.{ext}" for n in ("global", "spectra", "stft", "cwt") for ext in ("png", "pdf")])
+    assert sorted(n.split(":")[0] for n in notes) == ["skipped animation", "skipped patch_map", "skipped sync"]
+    with pytest.raises(SceneError, match="per-patch velocities"):
+        plots.plot_run(path, tmp_path / "fig2", which=["spectra", "sync"])
+    assert not (tmp_path / "fig2").exists()
+    with pytest.raises(SceneError, match="unknown figure"):
+        plots.plot_run(path, tmp_path / "fig2", which=["bode"])
+
+
+# -------------------------------------------------------------------------------------------------- CLI
+
+
+def _cli(argv):
+    """The dispatch the lead adds to aca_warp.cli.main: subcommand handler, AcaError -> one line and 2."""
+    parser = argparse.ArgumentParser(prog="aca-warp")
+    sub = parser.add_subparsers(dest="command", required=True)
+    add_parsers(sub)
+    args = parser.parse_args(argv)
+    assert args.command in ("analyze", "plot")
+    try:
+        return args.handler(args)
+    except AcaError:
+        return 2
+
+
+def test_commands(runs, tmp_path, capsys):
+    """analyze and plot exit 0 and say what they did; bad input exits 2 (argparse or AcaError)."""
+    assert FIGURE_NAMES == plots.FIGURES
+    path = _copy(runs["patches"], tmp_path)
+    assert _cli(["analyze", str(path), "--freq-min", "1e3", "--freq-max", "3e5", "--rule", "snr", "--snr", "4"]) == 0
+    out = capsys.readouterr().out
+    assert "/analysis written" in out and "first velocity-spectrum peak" in out
+    with h5py.File(path, "r") as f:
+        assert f["analysis/sync"].attrs["rule"] == "snr" and f["analysis/sync"].attrs["snr"] == 4.0
+        assert list(f["analysis/sync"].attrs["band"]) == [1e3, 3e5]
+    assert _cli(["analyze", str(path), "--no-sync"]) == 0
+    assert "not read (--no-sync)" in capsys.readouterr().out
+    assert _cli(["analyze", str(tmp_path / "missing.h5")]) == 2
+    assert _cli(["analyze", str(path), "--freq-min", "5e4", "--freq-max", "1e4"]) == 2
+    with pytest.raises(SystemExit) as e:
+        _cli(["analyze", str(path), "--eta", "1.5"])
+    assert e.value.code == 2
+    out_dir = tmp_path / "fig"
+    assert _cli(["plot", str(path), "-o", str(out_dir), "--only", "patch_map", "--times", "5e-5", "9e-5"]) == 0
+    assert sorted(p.name for p in out_dir.iterdir()) == ["run_patch_map.pdf", "run_patch_map.png"]
+    assert _cli(["plot", str(path), "-o", str(out_dir), "--only", "patch_map", "--times", "1.0"]) == 2
