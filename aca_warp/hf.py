@@ -157,7 +157,7 @@ class HFSolver:
         self.integrator = integrator
         self.estimate = stable_step(model)
         self.T = model.dtype
-        self.newton_tol = self.T(1.0e-6 if self.T == wp.float32 else 1.0e-12)  # of the velocity increment
+        self.newton_tol = self.T(1.0e-6 if self.T == wp.float32 else 1.0e-9)  # of the velocity increment
         if integrator == "adaptive":
             if not (tolerance > 0 and math.isfinite(tolerance)):
                 raise SceneError(f"tolerance must be a positive number, got {tolerance}")
