@@ -6,6 +6,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
+from aca_warp.argtypes import int_at_least, nonneg, positive
 from aca_warp.errors import AcaError
 
 EPILOG = """\
@@ -14,36 +15,6 @@ Example:  aca-warp hf hf1 --duration 1e-3 -o run.h5
 Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad input (nothing written),
 3 the run stopped on a fault (the file holds everything before it, marked incomplete), 130 interrupted.
 """
-
-
-def _positive(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (v > 0 and v < float("inf")):
-        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text!r}")
-    return v
-
-
-def _nonneg(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not v >= 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
-    return v
-
-
-def _posint(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
-    return v
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -69,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     hf.add_argument("scene", metavar="SCENE", help="preset name or TOML scene file")
     hf.add_argument("-o", "--output", required=True, metavar="RUN.h5", help="run file to write")
-    hf.add_argument("--duration", type=_positive, metavar="S", help="simulated time [s] (default: the scene's)")
+    hf.add_argument("--duration", type=positive, metavar="S", help="simulated time [s] (default: the scene's)")
     hf.add_argument("--device", default="cpu", help="Warp device: cpu (default) or cuda:0, cuda:1, ...")
     hf.add_argument(
         "--integrator",
@@ -79,30 +50,30 @@ def build_parser() -> argparse.ArgumentParser:
     )
     hf.add_argument(
         "--dt",
-        type=_positive,
+        type=positive,
         metavar="S",
         help=f"fixed step [s] (default {DEFAULT_DT:g}; shortened to fit the sample interval); "
         "initial step of 'adaptive'",
     )
     hf.add_argument(
         "--tolerance",
-        type=_positive,
+        type=positive,
         default=DEFAULT_TOLERANCE,
         metavar="X",
         help=f"relative error tolerance of 'adaptive' (default {DEFAULT_TOLERANCE:g})",
     )
     hf.add_argument("--precision", choices=("fp32", "fp64"), default="fp64", help="state precision (default fp64)")
-    hf.add_argument("--sample-dt", type=_positive, metavar="S", help="interval of the recorded samples [s]")
+    hf.add_argument("--sample-dt", type=positive, metavar="S", help="interval of the recorded samples [s]")
     hf.add_argument(
         "--record-patches",
         metavar="VARS",
         help="record per-patch histories: velocity, displacement or velocity,displacement",
     )
     hf.add_argument(
-        "--patch-window", type=_nonneg, nargs=2, metavar=("T0", "T1"), help="time window of the per-patch histories [s]"
+        "--patch-window", type=nonneg, nargs=2, metavar=("T0", "T1"), help="time window of the per-patch histories [s]"
     )
     hf.add_argument(
-        "--patch-decimation", type=_posint, metavar="N", help="record per-patch histories every N-th sample"
+        "--patch-decimation", type=int_at_least(1), metavar="N", help="record per-patch histories every N-th sample"
     )
     hf.add_argument("--force", action="store_true", help="run explicit steps beyond the stable-step estimate")
     hf.add_argument("--overwrite", action="store_true", help="replace an existing output file")

@@ -9,10 +9,10 @@ exits 2). Heavy imports (SciPy, Matplotlib) happen inside the handlers, so ``--h
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from typing import Any
 
+from aca_warp.argtypes import fraction, int_at_least, nonneg, positive
 from aca_warp.errors import SceneError
 
 FIGURE_NAMES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
@@ -44,47 +44,6 @@ Example:  aca-warp plot run.h5 -o figures --only patch_map spectra --times 9.5e-
 """
 
 
-def _number(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
-    return v
-
-
-def _nonneg(text: str) -> float:
-    v = _number(text)
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
-    return v
-
-
-def _positive(text: str) -> float:
-    v = _number(text)
-    if not v > 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
-    return v
-
-
-def _fraction(text: str) -> float:
-    v = _number(text)
-    if not 0.0 < v <= 1.0:
-        raise argparse.ArgumentTypeError(f"must lie in (0, 1], got {text!r}")
-    return v
-
-
-def _bins(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v < 2:
-        raise argparse.ArgumentTypeError(f"must be >= 2, got {text!r}")
-    return v
-
-
 def add_parsers(subparsers: Any) -> None:
     """Add ``analyze`` and ``plot`` to the ``add_subparsers()`` object of the ``aca-warp`` parser."""
     fmt = argparse.RawDescriptionHelpFormatter
@@ -101,13 +60,13 @@ def add_parsers(subparsers: Any) -> None:
     a.add_argument("run", metavar="RUN.h5", help="run file written by 'aca-warp hf'")
     a.add_argument(
         "--freq-min",
-        type=_nonneg,
+        type=nonneg,
         metavar="HZ",
         help="lower band edge [Hz] of the Synchronization Index, the CWT and the peak search (default 10 Hz)",
     )
     a.add_argument(
         "--freq-max",
-        type=_positive,
+        type=positive,
         metavar="HZ",
         help="upper band edge [Hz] (default min(200 kHz, Nyquist frequency); with neither edge given the "
         "peak search covers 1 kHz to the Nyquist frequency)",
@@ -119,11 +78,13 @@ def add_parsers(subparsers: Any) -> None:
         help="how Phi(f) counts a patch as oscillating at f: 'relative' |X_i(f)| >= eta * max_j |X_j(f)| "
         "(default), or 'snr' |X_i(f)| >= snr * median over f of |X_i|",
     )
-    a.add_argument("--eta", type=_fraction, default=0.1, metavar="X", help="eta of the relative rule (default 0.1)")
-    a.add_argument("--snr", type=_positive, default=5.0, metavar="X", help="factor of the snr rule (default 5)")
-    a.add_argument("--n-bins", type=_bins, default=180, metavar="N", help="phase bins on [-pi, pi) (default 180)")
+    a.add_argument("--eta", type=fraction, default=0.1, metavar="X", help="eta of the relative rule (default 0.1)")
+    a.add_argument("--snr", type=positive, default=5.0, metavar="X", help="factor of the snr rule (default 5)")
     a.add_argument(
-        "--stft-window", type=_positive, metavar="S", help="STFT window length [s] (default: about N/64 samples)"
+        "--n-bins", type=int_at_least(2), default=180, metavar="N", help="phase bins on [-pi, pi) (default 180)"
+    )
+    a.add_argument(
+        "--stft-window", type=positive, metavar="S", help="STFT window length [s] (default: about N/64 samples)"
     )
     a.add_argument(
         "--no-sync",
@@ -156,7 +117,7 @@ def add_parsers(subparsers: Any) -> None:
     p.add_argument(
         "--times",
         nargs="+",
-        type=_nonneg,
+        type=nonneg,
         metavar="T",
         help="instants of the patch map [s] (nearest recorded sample; default: four quarter periods of the "
         "first velocity-spectrum peak at the end of the per-patch record)",
