@@ -174,10 +174,15 @@ class HFSolver:
                 raise SceneError(f"dt must be a positive number of seconds, got {self.dt}")
             limit = self.estimate.limit(integrator)
             if self.dt > limit and not force:
+                hint = (
+                    "choose a smaller --dt, an implicit-friction integrator (strang, implicit-friction), or --force"
+                    if self.dt <= self.estimate.spring
+                    else "choose a smaller --dt (the springs bound every fixed-step scheme), --integrator adaptive, "
+                    "or --force"
+                )
                 raise StabilityError(
                     f"dt = {self.dt:.3g} s exceeds the stable-step estimate {limit:.3g} s of {integrator} "
-                    f"(springs {self.estimate.spring:.3g} s, friction slope {self.estimate.friction:.3g} s); "
-                    "choose a smaller --dt, an implicit integrator, or --force"
+                    f"(springs {self.estimate.spring:.3g} s, friction slope {self.estimate.friction:.3g} s); {hint}"
                 )
         m = model
         self._model_args = [

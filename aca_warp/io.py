@@ -36,12 +36,27 @@ def versions() -> dict[str, str]:
     import importlib.metadata as md
 
     out = {"python": platform.python_version()}
-    for pkg in ("aca-warp", "warp-lang", "numpy", "scipy", "h5py"):
+    for pkg in ("aca-warp", "warp-lang", "numpy", "scipy", "h5py", "matplotlib"):
         try:
             out[pkg] = md.version(pkg)
         except md.PackageNotFoundError:
             out[pkg] = "not installed"
     return out
+
+
+def machine(device: Any) -> dict[str, str]:
+    """The device and host that ran something: ``device`` (Warp alias), ``device_name``, ``host``, ``platform``."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    host = f"{cpu}, {os.cpu_count()} cores"
+    name = device.name if device.is_cuda else f"CPU ({host}; Warp CPU kernels run on one thread)"
+    return {"device": str(device), "device_name": name, "host": host, "platform": platform.platform()}
 
 
 def check_output_path(path: str | Path, *, overwrite: bool) -> Path:

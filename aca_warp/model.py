@@ -167,8 +167,13 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
             }
         )
     return PadModel(
-        scenes=list(scenes), device=dev, dtype=T, pad_patch_start_host=start, contacts=contacts,
-        nbr_count=len(nbr_index), arrays=arrays
+        scenes=list(scenes),
+        device=dev,
+        dtype=T,
+        pad_patch_start_host=start,
+        contacts=contacts,
+        nbr_count=len(nbr_index),
+        arrays=arrays,
     )
 
 
@@ -188,7 +193,10 @@ def _matrix_radius(scene: Scene, contact: ContactSolution) -> float:
     f = contact.matrix_force
     if f.sum() > 0:
         return float(np.sum(f * scene.matrix.radius) / f.sum())
-    return float(np.sum(scene.matrix.area * scene.matrix.radius) / scene.matrix.area.sum())
+    a = scene.matrix.area
+    if a.sum() > 0:
+        return float(np.sum(a * scene.matrix.radius) / a.sum())
+    return float(np.mean(scene.matrix.radius))  # no matrix area, no matrix force: finite, unused (was 0/0 = NaN)
 
 
 def coupling_matrix(model: PadModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

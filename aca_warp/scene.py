@@ -504,7 +504,7 @@ class Scene:
             d = math.hypot(p.x[i] - p.x[j], p.y[i] - p.y[j])
             raise SceneError(
                 f"{len(pairs)} pair(s) of patches overlap, first patches {i} and {j}: centre distance {d:.4g} m "
-                f"< sum of radii {p.radius[i] + p.radius[j]:.4g} m"
+                f"< sum of radii {p.radius[i] + p.radius[j]:.4g} m (overlap {p.radius[i] + p.radius[j] - d:.3g} m)"
             )
 
     @property
@@ -513,7 +513,15 @@ class Scene:
         return self.angular_velocity * self.pad.mean_radius
 
     def replace(self, **changes: Any) -> Scene:
-        """A copy with some fields changed (validated again)."""
+        """A copy with some fields changed (validated again).
+
+        A new ``pad`` or ``patches`` without a new ``matrix`` rebuilds the fresh matrix (the old one described
+        other patches); new ``patches`` without a new ``origin`` drop it (it named the old patches' source).
+        """
+        if ("patches" in changes or "pad" in changes) and "matrix" not in changes:
+            changes["matrix"] = None
+        if "patches" in changes:
+            changes.setdefault("origin", None)
         return dataclasses.replace(self, **changes)
 
 

@@ -127,6 +127,17 @@ def midpoint_friction(
 
 
 @wp.func
+def sign_or_zero(x: Any):
+    """−1, 0 or 1 (``wp.sign`` returns 1 at 0: a disc at rest must give no matrix friction)."""
+    zero = x - x
+    if x > zero:
+        return type(x)(1.0)
+    if x < zero:
+        return type(x)(-1.0)
+    return zero
+
+
+@wp.func
 def growth_due(step: wp.array[wp.int64], every: int) -> bool:
     """Whether the step just taken (``step[0]`` counts completed steps before it) ends a growth interval."""
     return (step[0] + wp.int64(1)) % wp.int64(every) == wp.int64(0)
@@ -660,7 +671,7 @@ def record_globals(
         vsum += wp.float64(v)
         vabs += wp.float64(wp.abs(v))
         usum += wp.float64(u_in[i])
-    fm = wp.float64(pad_mu_pad[pad] * pad_matrix_force[pad] * wp.sign(omega))
+    fm = wp.float64(pad_mu_pad[pad] * pad_matrix_force[pad] * sign_or_zero(omega))
     ftot = fsum + fm
     ttot = tsum + fm * wp.float64(pad_matrix_radius[pad])
     load = wp.float64(pad_load[pad])

@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import time
 from pathlib import Path
 
@@ -25,24 +23,10 @@ import warp as wp
 wp.config.log_level = wp.LOG_WARNING
 
 from aca_warp.hf import INTEGRATORS, run_hf  # noqa: E402
+from aca_warp.io import machine  # noqa: E402
 from aca_warp.model import build_model  # noqa: E402
 from aca_warp.scene import Record, preset  # noqa: E402
 from aca_warp.state import initial_state  # noqa: E402
-
-
-def machine(device: wp.Device) -> str:
-    """A one-line description of the machine that ran the benchmark."""
-    if device.is_cuda:
-        return f"{device.name} (Warp {wp.__version__})"
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, one thread used (Warp {wp.__version__} CPU kernels are serial)"
 
 
 def run_case(
@@ -116,7 +100,8 @@ def main() -> None:
     Path(args.json).write_text(json.dumps(out, indent=1))
     if args.markdown:
         lines = [
-            f"Machine: {out['machine']}. Scene {args.scene}, timed window {args.duration:g} s simulated, "
+            f"Machine: {out['machine']['device_name']}. Scene {args.scene}, "
+            f"timed window {args.duration:g} s simulated, "
             f"dt = {args.dt:g} s (adaptive: tolerance 1e-4). μ error: max |μ − μ_ref| / max|μ_ref| against "
             "fp64 strang at dt/4.",
             "",

@@ -87,6 +87,17 @@ def test_small_scene_is_valid_and_fresh_matrix_is_derived():
     assert Pad().r_inner < s.matrix.radius[0] < Pad().r_outer
 
 
+def test_replace_with_new_patches_rebuilds_the_fresh_matrix():
+    """New patches without a new matrix get a fresh matrix (not the old one) and lose the old origin."""
+    s = preset("hf1")
+    p = s.patches
+    fewer = Patches(x=p.x[:100], y=p.y[:100], area=p.area[:100], height=p.height[:100])
+    t = s.replace(patches=fewer)
+    assert t.matrix.area[0] == pytest.approx(Pad().area - fewer.area.sum(), rel=1e-12)
+    assert t.origin is None
+    assert s.replace(duration=2e-3).origin == s.origin  # other changes keep the patch source
+
+
 # ------------------------------------------------------------------------------------------ numbers
 
 

@@ -1,0 +1,90 @@
+"""``scripts/hf_study.py``: the HF1-HF4 study and the area sweep, end to end on a tiny configuration (CPU)."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parent.parent / "scripts" / "hf_study.py"
+
+
+def _load():
+    spec = importlib.util.spec_from_file_location("hf_study", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def hf_study():
+    return _load()
+
+
+def test_fit_power_law(hf_study):
+    """The exponent of an exact power law is recovered; two points give no standard error."""
+    import numpy as np
+
+    a = np.array([5e-8, 1.25e-7, 3e-7, 6e-7, 1.25e-6])
+    fit = hf_study.fit_power_law(a, 2.0 * a**-0.25)
+    assert fit["exponent"] == pytest.approx(-0.25, abs=1e-12)
+    assert fit["stderr"] == pytest.approx(0.0, abs=1e-9)
+    two = hf_study.fit_power_law(a[:2], np.array([73e3, 60e3]))
+    assert math.isfinite(two["exponent"]) and two["stderr"] is None
+    # the isolated-patch frequency of model.md: 75.2 kHz at 0.05 mm²
+    from aca_warp.scene import Material
+
+    assert hf_study.isolated_frequency(5e-8, Material()) == pytest.approx(75.2e3, rel=2e-3)
+
+
+def test_tiny_study(hf_study, tmp_path, capsys):
+    """Four presets with 30 patches and two sweep points: summaries, page and figures are written."""
+    out = tmp_path / "study"
+    rc = hf_study.main(
+        [
+            "--device", "cpu", "--quick", "--duration", "1.2e-4", "--transient", "2e-5", "--dt", "2e-8",
+            "--patches", "30", "--sweep-areas", "0.05", "1.25", "--figures", "spectra", "sync",
+            "--outdir", str(out), "--archive", str(tmp_path / "study.tar.gz"),
+        ]
+    )  # fmt: skip
+    assert rc == 0
+    assert "hf1: simulating" in capsys.readouterr().out
+    study = json.loads((out / "study.json").read_text())
+    for key in ("machine", "versions", "settings", "presets", "sweep", "comparisons", "paper", "complete", "command"):
+        assert key in study
+    assert study["complete"] is True
+    assert study["machine"]["device"] == "cpu" and study["versions"]["warp-lang"]
+    assert sorted(study["presets"]) == ["hf1", "hf2", "hf3", "hf4"]
+    for name, p in study["presets"].items():
+        for key in (
+            "first_velocity_peak_hz",
+            "first_velocity_peak_amplitude",
+            "mu_peak_hz",
+            "mu_peak_amplitude",
+            "mu_mean",
+            "S_median_phi_min",
+            "S_max_phi_min",
+            "S_bins_above_null",
+            "S_bins_phi_min",
+        ):
+            assert key in p, (name, key)
+        assert p["scene"]["patches"] == 30
+        assert p["first_velocity_peak_hz"] > 0 and 0 < p["mu_mean"] < 1
+        for f in p["figures"]:
+            assert (out / f).is_file()
+        assert {f"{name}_spectra.png", f"{name}_sync.png"} <= set(p["figures"])
+    # the large patches (hf2) oscillate lower than the small ones (hf1)
+    assert study["presets"]["hf2"]["first_velocity_peak_hz"] < study["presets"]["hf1"]["first_velocity_peak_hz"]
+    sweep = study["sweep"]
+    assert len(sweep["points"]) == 2
+    assert math.isfinite(sweep["fit"]["exponent"]) and -0.6 < sweep["fit"]["exponent"] < 0.0
+    assert (out / "area_sweep.png").is_file() and (out / "area_sweep.pdf").is_file()
+    claims = [c["claim"] for c in study["comparisons"]]
+    assert any("lower M raises S" in c for c in claims) and any("spread S" in c for c in claims)
+    page = (out / "results.md").read_text()
+    assert "scripts/hf_study.py" in page and "Warp" in page and "73.0 kHz" in page
+    assert "](area_sweep.png)" in page and "](hf1_spectra.png)" in page
+    assert (tmp_path / "study.tar.gz").stat().st_size > 0
