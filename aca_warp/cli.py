@@ -78,9 +78,11 @@ def build_parser() -> argparse.ArgumentParser:
     hf.add_argument("--force", action="store_true", help="run explicit steps beyond the stable-step estimate")
     hf.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     hf.add_argument("--no-progress", action="store_true", help="no progress bar")
-    from aca_warp.analysis.commands import add_parsers
+    hf.set_defaults(handler=_cmd_hf)
+    # Every other command lives in its own module with an ``add_parsers(sub)`` that sets ``handler``.
+    from aca_warp.analysis.commands import add_parsers as add_analysis
 
-    add_parsers(sub)
+    add_analysis(sub)
     return p
 
 
@@ -152,10 +154,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        if args.command == "hf":
-            return _cmd_hf(args)
-        if args.command in ("analyze", "plot"):
-            return args.handler(args)
+        return args.handler(args)
     except AcaError as e:
         print(f"aca-warp: error: {e}", file=sys.stderr)
         return 2
@@ -165,7 +164,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         else:
             print("aca-warp: interrupted", file=sys.stderr)
         return 130
-    return 0
 
 
 if __name__ == "__main__":
