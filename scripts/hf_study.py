@@ -47,7 +47,7 @@ DEFAULT_PRESSURE = HF1_FORCE / (NOMINAL_PATCHES * HF1_MEAN_AREA)  # ≈ 5.54 MPa
 SPREAD = (0.4, 1.6)  # patch areas uniform in [0.4, 1.6] x mean (the paper's 0.02-0.08 and 0.5-2.0 mm²)
 MM2 = 1.0e-6  # m² per mm²
 
-FULL_DURATION, QUICK_DURATION = 2.0e-3, 2.0e-4  # s
+FULL_DURATION, QUICK_DURATION = 4.0e-3, 2.0e-4  # s
 FULL_TRANSIENT, QUICK_TRANSIENT = 2.0e-4, 5.0e-5  # s
 
 PAPER = {

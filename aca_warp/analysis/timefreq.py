@@ -7,6 +7,7 @@ scaling, for figure captions and file attributes.
 
 from __future__ import annotations
 
+import inspect
 from typing import Literal
 
 import numpy as np
@@ -15,6 +16,8 @@ from scipy.signal import ShortTimeFFT
 from scipy.signal.windows import hann
 
 from .spectra import DEFAULT_FLOOR_HZ
+
+_CWT_HAS_PRECISION = "precision" in inspect.signature(pywt.cwt).parameters
 
 
 def stft(
@@ -129,7 +132,8 @@ def cwt_morlet(
     for start in range(0, freqs.size, chunk):
         idx = order[start : start + chunk]
         precision = int(np.clip(np.ceil(np.log2(support * scales[idx].max())), 12, 24))
-        coef, _ = pywt.cwt(x, scales[idx], wavelet, method="fft", precision=precision)
+        kw = {"precision": precision} if _CWT_HAS_PRECISION else {}  # PyWavelets < 1.8 samples at 2^12 points
+        coef, _ = pywt.cwt(x, scales[idx], wavelet, method="fft", **kw)
         coef = coef[:, ::stride] * (2.0 / np.sqrt(scales[idx]))[:, None].astype(x.dtype)
         out[idx] = coef if complex_output else np.abs(coef)
     sigma_f = 1.0 / (np.pi * center * np.sqrt(2.0 * bandwidth))
