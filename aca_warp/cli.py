@@ -38,8 +38,8 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=EPILOG,
     )
-    hf.add_argument("scene", metavar="SCENE", help="preset name or TOML scene file")
-    hf.add_argument("-o", "--output", required=True, metavar="RUN.h5", help="run file to write")
+    hf.add_argument("scene", metavar="SCENE", nargs="?", help="preset name or TOML scene file (not with --resume)")
+    hf.add_argument("-o", "--output", metavar="RUN.h5", help="run file to write (required unless --resume)")
     hf.add_argument("--duration", type=positive, metavar="S", help="simulated time [s] (default: the scene's)")
     hf.add_argument("--device", default="cpu", help="Warp device: cpu (default) or cuda:0, cuda:1, ...")
     hf.add_argument(
@@ -63,6 +63,13 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"relative error tolerance of 'adaptive' (default {DEFAULT_TOLERANCE:g})",
     )
     hf.add_argument("--precision", choices=("fp32", "fp64"), default="fp64", help="state precision (default fp64)")
+    hf.add_argument(
+        "--engine",
+        choices=("auto", "onchip", "general"),
+        default="auto",
+        help="onchip: one thread block per pad, many strang steps per launch (CUDA; docs/onchip.md); general: "
+        "per-step kernels; auto (default): onchip where it applies (CUDA, strang, pad fits shared memory)",
+    )
     hf.add_argument("--sample-dt", type=positive, metavar="S", help="interval of the recorded samples [s]")
     hf.add_argument(
         "--record-patches",
@@ -76,13 +83,41 @@ def build_parser() -> argparse.ArgumentParser:
         "--patch-decimation", type=int_at_least(1), metavar="N", help="record per-patch histories every N-th sample"
     )
     hf.add_argument("--force", action="store_true", help="run explicit steps beyond the stable-step estimate")
+    hf.add_argument(
+        "--snapshot", metavar="NAME", help="SCENE is an LF run file (.h5): run HF on its snapshot NAME (aca-warp lf)"
+    )
     hf.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     hf.add_argument("--no-progress", action="store_true", help="no progress bar")
+    hf.add_argument(
+        "--checkpoint-interval",
+        type=positive,
+        metavar="S",
+        help="keep the solver state in the run file every S of simulated time, so that a killed run can be "
+        "resumed (docs/faults.md)",
+    )
+    hf.add_argument(
+        "--resume",
+        metavar="RUN.h5",
+        help="continue a killed or stopped run (RUN.h5 or RUN.h5.partial) from its last checkpoint, with the "
+        "run's own scene and settings; the finished file equals an uninterrupted run",
+    )
     hf.set_defaults(handler=_cmd_hf)
     # Every other command lives in its own module with an ``add_parsers(sub)`` that sets ``handler``.
     from aca_warp.analysis.commands import add_parsers as add_analysis
 
     add_analysis(sub)
+    from aca_warp.sweep import add_parsers as add_sweep
+
+    add_sweep(sub)
+    from aca_warp.bench import add_parsers as add_bench
+
+    add_bench(sub)
+    from aca_warp.rerun import add_parsers as add_rerun
+
+    add_rerun(sub)
+    from aca_warp.lf.commands import add_parsers as add_lf
+
+    add_lf(sub)
     return p
 
 
@@ -96,8 +131,19 @@ def _cmd_hf(args: argparse.Namespace) -> int:
     from aca_warp.runner import run_scene
     from aca_warp.scene import Record, load_scene
 
+    if args.resume is not None:
+        return _resume_hf(args)
+    if args.scene is None or args.output is None:
+        raise SceneError("hf needs SCENE and -o RUN.h5 (or --resume RUN.h5 to continue a run)")
     check_output_path(args.output, overwrite=args.overwrite)
-    scene = load_scene(args.scene)
+    if args.snapshot is not None or str(args.scene).endswith(".h5"):
+        from aca_warp.lf.io import scene_from_snapshot
+
+        if args.snapshot is None:
+            raise SceneError(f"{args.scene} is an LF run file: name a snapshot with --snapshot NAME")
+        scene = scene_from_snapshot(args.scene, args.snapshot)
+    else:
+        scene = load_scene(args.scene)
     rec = scene.record
     changes: dict = {}
     if args.sample_dt is not None:
@@ -126,6 +172,8 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         force=args.force,
         overwrite=args.overwrite,
         progress=not args.no_progress,
+        engine=args.engine,
+        checkpoint_interval=args.checkpoint_interval,
     )
     import h5py
 
@@ -138,6 +186,49 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         f"({result.dt:.3g} s, {args.integrator}, {args.precision}), mean mu {np.mean(mu):.4f}, "
         f"{rate:.3g} patch-steps/s"
     )
+    if result.fault is not None:
+        print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
+        print(line + " (incomplete)")
+        return 3
+    print(line)
+    return 0
+
+
+def _resume_hf(args: argparse.Namespace) -> int:
+    """``aca-warp hf --resume RUN.h5``: the run's own settings; only --device, --checkpoint-interval, --no-progress."""
+    from aca_warp.errors import SceneError
+    from aca_warp.hf import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE
+    from aca_warp.runner import resume_run
+
+    given = [
+        opt
+        for opt, value, default in (
+            ("SCENE", args.scene, None),
+            ("-o", args.output, None),
+            ("--duration", args.duration, None),
+            ("--dt", args.dt, None),
+            ("--sample-dt", args.sample_dt, None),
+            ("--record-patches", args.record_patches, None),
+            ("--patch-window", args.patch_window, None),
+            ("--patch-decimation", args.patch_decimation, None),
+            ("--integrator", args.integrator, DEFAULT_INTEGRATOR),
+            ("--tolerance", args.tolerance, DEFAULT_TOLERANCE),
+            ("--precision", args.precision, "fp64"),
+            ("--force", args.force, False),
+            ("--overwrite", args.overwrite, False),
+            ("--engine", getattr(args, "engine", "auto"), "auto"),
+        )
+        if value != default
+    ]
+    if given:
+        raise SceneError(f"--resume continues the run with its own settings; drop {', '.join(given)}")
+    result, path = resume_run(
+        args.resume,
+        progress=not args.no_progress,
+        checkpoint_interval=args.checkpoint_interval,
+        device=None if args.device == "cpu" else args.device,
+    )
+    line = f"{path}: resumed, {result.steps} steps over {result.sim_time:.4g} s"
     if result.fault is not None:
         print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
         print(line + " (incomplete)")

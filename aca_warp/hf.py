@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
+from aca_warp.checkpoint import Checkpoint
 from aca_warp.errors import SceneError, SimulationFault, StabilityError
 from aca_warp.kernels import hf as K
 from aca_warp.model import PadModel, coupling_matrix
@@ -40,6 +41,22 @@ DEFAULT_TOLERANCE = 1.0e-4
 FP32_MIN_TOLERANCE = 1.0e-5  # relative; tighter asks fp32 for more digits than it has
 GLOBAL_NAMES = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity")
 GLOBAL_UNITS = ("1", "N m", "m", "m s-1", "m s-1")
+WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (:func:`watchdog_bound`)
+# model arrays that growth events rewrite on the device (saved in checkpoints of growing runs)
+GROWTH_MUTABLE = (
+    "area",
+    "sqrt_area",
+    "inv_mass",
+    "k_t",
+    "k_n",
+    "damping",
+    "nbr_stiffness",
+    "k_diag",
+    "normal_force",
+    "pad_matrix_force",
+    "pad_matrix_radius",
+    "pad_gap",
+)
 
 
 @dataclass(frozen=True)
@@ -77,6 +94,35 @@ def stable_step(model: PadModel) -> StepEstimate:
     return StepEstimate(
         spring=float(2.0 / np.sqrt(w2.max())), friction=float(friction), explicit=float(h_explicit.min())
     )
+
+
+def watchdog_bound(model: PadModel, state: HFState, factor: float = WATCHDOG_FACTOR) -> np.ndarray:
+    """Per-pad bound on the patch energy speed s_i = √(u̇_i² + (k_T,i/m_i) u_i²) [m/s], shape (pads,).
+
+    B = max_i ω r_i + 3 max_i F_N,i M / √(k_T,i m_i) + 3 √(2 E₀ / m_min), bound = ``factor`` × B. The first
+    term is the disc speed (friction feeds energy only while 0 < u̇ < ω r); the second the speed of a patch
+    released from its largest static deflection F_N M / k_T under the largest friction force (|f| ≤ M); the
+    third the initial energy E₀ = Σ ½ m u̇₀² + ½ k_T u₀² concentrated in the lightest patch. Bounded runs stay
+    within about B (tests/test_extreme.py asserts |u̇| < B over its whole table); an unstable step grows
+    exponentially and crosses ``factor`` × B within a few dozen e-foldings, before it turns non-finite. A pad
+    with no load, no disc speed and no initial energy cannot move: its bound is +inf (only the non-finite check).
+    """
+    m = 1.0 / model.host("inv_mass").astype(np.float64)
+    k = model.host("k_t").astype(np.float64)
+    fn = model.host("normal_force").astype(np.float64)
+    r = model.host("radius").astype(np.float64)
+    u0, v0 = (a.astype(np.float64) for a in state.numpy())
+    out = np.empty(model.pad_count)
+    for p, s in enumerate(model.scenes):
+        a, b = (int(x) for x in model.pad_patch_start_host[p : p + 2])
+        e0 = 0.5 * float(np.sum(m[a:b] * v0[a:b] ** 2 + k[a:b] * u0[a:b] ** 2))
+        scale = (
+            float(np.max(np.abs(s.angular_velocity * r[a:b])))
+            + 3.0 * float(np.max(fn[a:b] * s.friction.M / np.sqrt(k[a:b] * m[a:b])))
+            + 3.0 * math.sqrt(2.0 * e0 / float(m[a:b].min()))
+        )
+        out[p] = factor * scale if scale > 0 and math.isfinite(scale) else math.inf
+    return out
 
 
 @dataclass
@@ -282,7 +328,12 @@ class _Recorder:
         n = model.patch_count if prow else 0
         self.counters = wp.zeros(4, dtype=wp.int32, device=dev)
         self.globals = wp.zeros((rows, model.pad_count, K.N_GLOBAL), dtype=wp.float64, device=dev)
-        self.fault = wp.array(np.full((model.pad_count, 2), -1, np.int32), dtype=wp.int32, device=dev)
+        # watchdog: [patch, sample, kind] of the first fault per pad (kind 0 non-finite, 1 beyond watch_bound)
+        table = np.full((model.pad_count, 3), -1, np.int32)
+        table[:, 2] = 0
+        self.fault = wp.array(table, dtype=wp.int32, device=dev)
+        self.fault_value = wp.zeros(model.pad_count, dtype=wp.float64, device=dev)
+        self.watch_bound = wp.array(np.full(model.pad_count, np.inf), dtype=wp.float64, device=dev)
         self.velocity = wp.zeros((prow, n), dtype=T, device=dev)
         self.displacement = wp.zeros((prow if self.want_u else 0, n), dtype=T, device=dev)
         self.sample_index = 0
@@ -311,12 +362,16 @@ class _Recorder:
                 m.pad_load,
                 m.pad_matrix_force,
                 m.pad_matrix_radius,
+                m.inv_mass,
+                m.k_t,
                 c,
                 u,
                 v,
                 self.counters,
                 self.globals,
+                self.watch_bound,
                 self.fault,
+                self.fault_value,
             ],
         )
         if self.patch_stage:
@@ -350,21 +405,76 @@ class _Recorder:
         return chunk, self.fault.numpy()
 
 
-def _fault_from(table: np.ndarray, model: PadModel, sample_dt: float, cause: str) -> SimulationFault | None:
+def _fault_from(
+    table: np.ndarray,
+    model: PadModel,
+    sample_dt: float,
+    cause: str,
+    values: np.ndarray | None = None,
+    bounds: np.ndarray | None = None,
+) -> SimulationFault | None:
+    """The earliest fault of the watchdog table (pads, 2 or 3): [patch, sample, kind]; None when there is none."""
     bad = np.flatnonzero(table[:, 0] >= 0)
     if len(bad) == 0:
         return None
     pad = int(bad[np.argmin(table[bad, 1])])
     patch, k = int(table[pad, 0]), int(table[pad, 1])
+    kind = int(table[pad, 2]) if table.shape[1] > 2 else 0
     t = k * sample_dt
+    if kind == 1:
+        what = (
+            f"diverging state (patch energy speed {values[pad]:.3g} m/s beyond the watchdog bound "
+            f"{bounds[pad]:.3g} m/s; stopped before it turns non-finite)"
+            if values is not None and bounds is not None
+            else "diverging state (beyond the watchdog bound)"
+        )
+    else:
+        what = "non-finite state"
     return SimulationFault(
-        f"non-finite state at t <= {t:.6g} s (sample {k}, between {max(t - sample_dt, 0):.6g} and {t:.6g} s), "
+        f"{what} at t <= {t:.6g} s (sample {k}, between {max(t - sample_dt, 0):.6g} and {t:.6g} s), "
         f"pad {pad}, patch {patch}; likely cause: {cause}",
         time=t,
         pad=pad,
         patch=patch,
         cause=cause,
     )
+
+
+def _restore(saved: dict[str, wp.array], ckpt: Checkpoint) -> None:
+    """Copy a checkpoint's arrays into the run's device arrays (names, shapes and dtypes must match)."""
+    missing = sorted(set(saved) - set(ckpt.arrays))
+    extra = sorted(set(ckpt.arrays) - set(saved))
+    if missing or extra:
+        raise SceneError(
+            f"the checkpoint does not fit this run (missing {', '.join(missing) or 'nothing'}, "
+            f"unexpected {', '.join(extra) or 'nothing'}): another integrator or scene?"
+        )
+    for name, arr in saved.items():
+        data = ckpt.arrays[name]
+        want = np.dtype(wp.dtype_to_numpy(arr.dtype))
+        if data.shape != arr.shape or data.dtype != want:
+            raise SceneError(
+                f"checkpoint array {name} has shape {data.shape} and dtype {data.dtype}, the run needs {arr.shape} "
+                f"{want}: another scene or precision?"
+            )
+        arr.assign(data)
+
+
+def check_run(duration: float, record: Record, checkpoint_every: float | None = None) -> int:
+    """Validate a run's duration [s], sample interval and checkpoint interval [s]; returns the number of samples."""
+    if not (duration > 0 and math.isfinite(duration)):
+        raise SceneError(f"duration must be a positive number of seconds, got {duration}")
+    if record.sample_dt > duration * (1 + 1e-12):
+        raise SceneError(f"sample interval {record.sample_dt:g} s exceeds the duration {duration:g} s")
+    if checkpoint_every is not None and not (checkpoint_every > 0 and math.isfinite(checkpoint_every)):
+        raise SceneError(f"checkpoint interval must be a positive number of seconds, got {checkpoint_every}")
+    n_samples = max(1, round(duration / record.sample_dt))
+    if n_samples > 2**31 - 2:  # the recorder counts samples in int32
+        raise SceneError(
+            f"{duration:g} s at a sample interval of {record.sample_dt:g} s is {n_samples:.3g} samples, more than "
+            f"a run records (2^31 - 2); use a larger sample interval"
+        )
+    return n_samples
 
 
 def run_hf(
@@ -381,6 +491,10 @@ def run_hf(
     progress: bool = False,
     use_graph: bool = True,
     max_graph_steps: int = 256,
+    checkpoint_every: float | None = None,
+    on_checkpoint: Callable[[Checkpoint], None] | None = None,
+    resume: Checkpoint | None = None,
+    watchdog_factor: float | None = WATCHDOG_FACTOR,
 ) -> RunResult:
     """Advance all pads of ``model`` from ``state`` for ``duration`` [s], recording as ``record`` says.
 
@@ -388,14 +502,18 @@ def run_hf(
     ``adaptive`` takes ``tolerance`` (relative, per patch, against the displacement and velocity scales).
     Samples go to ``sink`` (or into the result's ``chunks``) after every graph replay. A non-finite value
     stops the run: the result carries the fault and everything recorded before it.
+
+    Watchdog: at every sample the recording kernel also flags a patch whose energy speed exceeds
+    :func:`watchdog_bound` (``watchdog_factor`` × the scene's velocity scale; None: non-finite check only);
+    the host reads the flags with the samples, at chunk ends. Checkpoints: with ``checkpoint_every`` [s of
+    simulated time] and ``on_checkpoint``, the first chunk end at or past each multiple of it hands a
+    :class:`~aca_warp.checkpoint.Checkpoint` to ``on_checkpoint`` (device reads only then). ``resume`` (a
+    checkpoint of the same scene, integrator, step policy, device and precision) continues from it: the rest
+    of the run is the same arithmetic in the same order, so the samples equal an uninterrupted run's bit for bit.
     """
     t_compile = time.perf_counter()
     record = record or model.scenes[0].record
-    if not (duration > 0 and math.isfinite(duration)):
-        raise SceneError(f"duration must be a positive number of seconds, got {duration}")
-    if record.sample_dt > duration * (1 + 1e-12):
-        raise SceneError(f"sample interval {record.sample_dt:g} s exceeds the duration {duration:g} s")
-    n_samples = max(1, round(duration / record.sample_dt))
+    n_samples = check_run(duration, record, checkpoint_every)
     solver = HFSolver(model, integrator, dt, force=force, tolerance=tolerance)
     growth = "pad_growth" in model.arrays
     if growth and integrator == "adaptive":
@@ -406,6 +524,9 @@ def run_hf(
     block = 1 if adaptive else max(1, min(n_samples, max_graph_steps // sps))
     rows = 256 if adaptive else block
     rec = _Recorder(model, record, rows + 1, n_samples)
+    off = watchdog_factor is None
+    bounds = np.full(model.pad_count, np.inf) if off else watchdog_bound(model, state, watchdog_factor)
+    rec.watch_bound.assign(bounds)
     dev = model.device
     stages = [
         "contact",
@@ -609,7 +730,25 @@ def run_hf(
             capture_time += time.perf_counter() - tc
         wp.capture_launch(graphs[reps])
 
-    rec.launch(state.u, state.v, conditional=False)  # sample 0: the initial state
+    saved: dict[str, wp.array] = {
+        "state/u": state.u,
+        "state/v": state.v,
+        "state/force": state.force,
+        "recorder/counters": rec.counters,
+        "watchdog/bound": rec.watch_bound,
+    }
+    if adaptive:
+        saved.update({"adaptive/clock": clock, "adaptive/flags": flags, "adaptive/steps": steps_arr})
+    if growth:
+        saved["growth/step"] = step_counter
+        saved.update({f"model/{k}": model.arrays[k] for k in GROWTH_MUTABLE})
+    if resume is not None:
+        _restore(saved, resume)
+        started = bool(resume.counters.get("started", 0))
+        rec.sample_index = int(resume.counters["sample_index"])
+        bounds = rec.watch_bound.numpy()
+    else:
+        rec.launch(state.u, state.v, conditional=False)  # sample 0: the initial state
     wp.load_module(K, device=dev)
     compile_time = time.perf_counter() - t_compile
     bar = None
@@ -626,6 +765,14 @@ def run_hf(
     t0 = time.perf_counter()
     fault: SimulationFault | None = None
     done_samples, steps, rejected, sim_t = 0, 0, 0, 0.0
+    if resume is not None:
+        c = resume.counters
+        done_samples, steps, rejected, sim_t = int(c["samples"]), int(c["steps"]), int(c["rejected"]), resume.sim_time
+        if bar is not None:
+            bar.update(sim_t)
+    next_checkpoint = math.inf
+    if checkpoint_every is not None and on_checkpoint is not None:
+        next_checkpoint = (math.floor(sim_t / checkpoint_every) + 1) * checkpoint_every
     iters = 128
     try:
         while True:
@@ -644,7 +791,7 @@ def run_hf(
                 sim_t = done_samples * record.sample_dt
                 done = done_samples >= n_samples
             chunk, table = rec.flush()
-            fault = _fault_from(table, model, record.sample_dt, cause)
+            fault = _fault_from(table, model, record.sample_dt, cause, rec.fault_value.numpy(), bounds)
             if adaptive and fault is None and fl[2]:
                 fault = SimulationFault(
                     f"adaptive step fell below 1e-15 s at t = {sim_t:.6g} s; likely cause: {cause}",
@@ -668,6 +815,21 @@ def run_hf(
                 bar.update(sim_t - bar.n)
                 el = time.perf_counter() - t0
                 bar.set_postfix_str(f"{steps / max(el, 1e-9):.3g} steps/s")
+            if fault is None and not done and sim_t >= next_checkpoint * (1 - 1e-12):
+                on_checkpoint(  # type: ignore[misc]
+                    Checkpoint(
+                        sim_time=sim_t,
+                        arrays={k: a.numpy().copy() for k, a in saved.items()},
+                        counters={
+                            "samples": done_samples,
+                            "steps": steps,
+                            "rejected": rejected,
+                            "started": int(started),
+                            "sample_index": rec.sample_index,
+                        },
+                    )
+                )
+                next_checkpoint = (math.floor(sim_t / checkpoint_every) + 1) * checkpoint_every  # type: ignore[operator]
             if fault is not None or done:
                 break
     finally:

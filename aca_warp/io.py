@@ -6,12 +6,16 @@ Layout (issue "run files")::
     /patches/x, y, area, height, mass, normal_force                               (patches,)
     /patches/time, velocity[, displacement]     per-patch histories, (rows,) and (rows, patches), if recorded
     /patches/final/area, normal_force           after growth, if the scene grows
+    /matrix/area, radius, height                the pad matrix cells the run started from (cells,)
+    /checkpoint/...                             solver state of a resumable run (aca_warp/checkpoint.py)
 
 Root attributes: ``scene`` (JSON), ``integrator``, ``step_policy`` (JSON), ``precision``, ``device``,
 ``versions`` (JSON), ``stages`` (JSON list), ``stable_step`` (JSON), ``complete`` (bool), ``status``, and for
 a stopped run ``fault``. The file is written as ``NAME.partial`` and renamed to ``NAME`` when the run ends,
 completed or not (then ``complete = False`` and ``status`` says why): the final name never holds a file
-that is half written. A killed process leaves only the ``.partial`` file behind.
+that is half written. A killed process leaves only the ``.partial`` file behind; with checkpoints it holds
+everything up to the last checkpoint and ``aca-warp hf --resume`` continues it. Neither ``NAME`` nor a leftover
+``NAME.partial`` is replaced without ``overwrite``.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from aca_warp.checkpoint import Checkpoint, drop_checkpoint, read_checkpoint, write_checkpoint
 from aca_warp.errors import SceneError
 from aca_warp.hf import GLOBAL_NAMES, GLOBAL_UNITS, Chunk
 from aca_warp.model import PadModel
@@ -59,11 +64,25 @@ def machine(device: Any) -> dict[str, str]:
     return {"device": str(device), "device_name": name, "host": host, "platform": platform.platform()}
 
 
-def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
-    """Refuse to clobber an existing file unless ``overwrite``; the folder must exist."""
+def partial_path(path: str | Path) -> Path:
+    """The name a run file has while it is written: ``NAME.partial``."""
     p = Path(path)
+    return p.with_name(p.name + ".partial")
+
+
+def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
+    """Refuse to clobber an existing file (or a killed run's ``NAME.partial``) unless ``overwrite``; the folder
+    must exist and ``path`` must not be a folder."""
+    p = Path(path)
+    if p.is_dir():
+        raise SceneError(f"output {p} is a folder; give a file name such as {p / 'run.h5'}")
     if p.exists() and not overwrite:
         raise SceneError(f"output file {p} exists; pass --overwrite to replace it")
+    part = partial_path(p)
+    if part.exists() and not overwrite:
+        raise SceneError(
+            f"{part} exists (an unfinished run); continue it with 'aca-warp hf --resume {p}' or pass --overwrite"
+        )
     if not p.parent.exists():
         raise SceneError(f"output folder {p.parent} does not exist")
     return p
@@ -82,11 +101,12 @@ class RunWriter:
         attrs: dict[str, Any] | None = None,
     ) -> None:
         self.path = check_output_path(path, overwrite=overwrite)
-        self.partial = self.path.with_name(self.path.name + ".partial")
+        self.partial = partial_path(self.path)
         self.pad = pad
         self.model = model
         a, b = (int(x) for x in model.pad_patch_start_host[pad : pad + 2])
         self.slice = slice(a, b)
+        self.flush_each_chunk = True
         self.f = h5py.File(self.partial, "w", rdcc_nbytes=64 * 2**20)
         f = self.f
         scene: Scene = model.scenes[pad]
@@ -112,7 +132,62 @@ class RunWriter:
             ("normal_force", model.contacts[pad].patch_force, "N"),
         ):
             p.create_dataset(name, data=np.asarray(data, dtype=np.float64)).attrs["unit"] = unit
+        mg = f.create_group("matrix")
+        for name, unit in (("area", "m2"), ("radius", "m"), ("height", "m")):
+            mg.create_dataset(name, data=np.asarray(getattr(scene.matrix, name), np.float64)).attrs["unit"] = unit
         self._patch_ds: dict[str, h5py.Dataset] = {}
+
+    @classmethod
+    def reopen(cls, partial: str | Path, model: PadModel, *, pad: int = 0) -> tuple[RunWriter, Checkpoint]:
+        """Open a killed or stopped run's ``NAME.partial`` to continue it: read its checkpoint, truncate the
+        sample datasets to the checkpoint's rows and mark the file running again."""
+        self = cls.__new__(cls)
+        self.partial = Path(partial)
+        self.path = self.partial.with_name(self.partial.name.removesuffix(".partial"))
+        self.pad = pad
+        self.model = model
+        a, b = (int(x) for x in model.pad_patch_start_host[pad : pad + 2])
+        self.slice = slice(a, b)
+        self.flush_each_chunk = True
+        try:
+            self.f = h5py.File(self.partial, "r+", rdcc_nbytes=64 * 2**20)
+        except OSError as e:
+            raise SceneError(f"cannot open {self.partial} to resume it: {e}") from None
+        f = self.f
+        try:
+            ckpt = read_checkpoint(f, str(self.partial))
+            for name in ("time", *GLOBAL_NAMES):
+                f["global"][name].resize(ckpt.rows["global"], axis=0)
+            self._patch_ds = {}
+            for name in ("time", "velocity", "displacement"):
+                if name in f["patches"]:
+                    self._patch_ds[name] = f["patches"][name]
+                    self._patch_ds[name].resize(ckpt.rows["patches"], axis=0)
+        except (KeyError, ValueError, TypeError, OSError) as e:
+            f.close()
+            raise SceneError(f"cannot resume {self.partial}: its datasets do not match its checkpoint ({e})") from None
+        except BaseException:
+            f.close()
+            raise
+        if "final" in f["patches"]:
+            del f["patches"]["final"]
+        self.flush_each_chunk = False  # a resumed run keeps checkpointing: flush at checkpoints only
+        f.attrs["complete"] = False
+        f.attrs["status"] = f"running (resumed from the checkpoint at t = {ckpt.sim_time:.6g} s)"
+        f.flush()
+        return self, ckpt
+
+    def rows(self) -> dict[str, int]:
+        """Rows written so far: ``global`` (samples) and ``patches`` (per-patch samples)."""
+        pt = self._patch_ds.get("time")
+        return {"global": self.f["global"]["time"].shape[0], "patches": 0 if pt is None else pt.shape[0]}
+
+    def checkpoint(self, ckpt: Checkpoint) -> None:
+        """Store a checkpoint of the run (the run loop's ``on_checkpoint``); from then on the file is flushed only
+        at checkpoints, so that what is on disk always fits the last one (:mod:`aca_warp.checkpoint`)."""
+        self.flush_each_chunk = False
+        ckpt.rows = self.rows()
+        write_checkpoint(self.f, ckpt)
 
     def _patch_dataset(self, name: str, unit: str, width: int, dtype: Any) -> h5py.Dataset:
         if name not in self._patch_ds:
@@ -144,7 +219,8 @@ class RunWriter:
             for name, data, unit in (("velocity", chunk.velocity, "m s-1"), ("displacement", chunk.displacement, "m")):
                 if data is not None:
                     self._append(self._patch_dataset(name, unit, width, data.dtype), data[:, self.slice])
-        self.f.flush()
+        if self.flush_each_chunk:
+            self.f.flush()
 
     def close(self, *, complete: bool, status: str, attrs: dict[str, Any] | None = None) -> Path:
         """Write the closing attributes, close, and move the file to its final name."""
@@ -153,6 +229,8 @@ class RunWriter:
         f.attrs["status"] = status
         for k, v in (attrs or {}).items():
             f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
+        if complete:
+            drop_checkpoint(f)
         if self.model.scenes[self.pad].growth is not None:
             fin = f["patches"].create_group("final")
             fin.create_dataset("area", data=self.model.host("area")[self.slice].astype(np.float64)).attrs["unit"] = "m2"

@@ -246,6 +246,12 @@ class PatchGenerator:
 
     def generate(self, pad: Pad, *, max_tries: int = 200) -> Patches:
         """Place the patches by random sequential addition; sorted row-major by coupling-size cells."""
+        if self.count * self.area_min > pad.area:  # cannot fit; also keeps absurd counts from allocating
+            raise SceneError(
+                f"could not place {self.count} non-overlapping patches of {self.area_min:g}-{self.area_max:g} m² on "
+                f"the pad: count × area_min = {self.count * self.area_min:g} m² exceeds its area {pad.area:g} m²; "
+                "use fewer or smaller patches"
+            )
         rng = np.random.default_rng(self.seed)
         area = rng.uniform(self.area_min, self.area_max, self.count)
         rad = np.sqrt(area / np.pi)
@@ -309,8 +315,10 @@ def read_patch_file(path: str | Path) -> Patches:
             if missing:
                 raise SceneError(f"patch file {p} lacks dataset(s) {', '.join(missing)}")
             data = {k: np.asarray(f[k][()], dtype=np.float64) for k in ("x", "y", "area", "height")}
-    except OSError as e:
-        raise SceneError(f"cannot read patch file {p}: {e}") from None
+    except SceneError:
+        raise
+    except (OSError, ValueError, TypeError, KeyError, AttributeError) as e:  # not HDF5, a group, text, compound
+        raise SceneError(f"cannot read patch file {p}: {type(e).__name__}: {e}") from None
     return Patches(**data, source=str(p))
 
 

@@ -637,6 +637,8 @@ def record_globals(
     pad_load: wp.array[Any],
     pad_matrix_force: wp.array[Any],
     pad_matrix_radius: wp.array[Any],
+    inv_mass: wp.array[Any],
+    k_t: wp.array[Any],
     conditional: int,
     # State in:
     u_in: wp.array[Any],
@@ -644,12 +646,18 @@ def record_globals(
     # Recorder:
     counters: wp.array[wp.int32],
     globals_out: wp.array3d[wp.float64],
+    watch_bound: wp.array[wp.float64],
     fault_out: wp.array2d[wp.int32],
+    fault_value_out: wp.array[wp.float64],
 ):
-    """Per pad: μ, torque [N m], friction radius [m], Σu̇ [m/s], Σ|u̇| [m/s]; flags the first non-finite patch.
+    """Per pad: μ, torque [N m], friction radius [m], Σu̇ [m/s], Σ|u̇| [m/s]; flags the first faulty patch.
 
     μ = (Σ F_N,i f(ωr_i − u̇_i) + μ_pad F_matrix sign ω)/F_N (0 without load); T = Σ r_i F_i + r_m μ_pad F_m;
     r_eff = T / total friction force.
+
+    Watchdog (fault_out[pad] = [patch, sample, kind], first fault only): kind 0 a non-finite u or u̇; kind 1 a
+    patch whose energy speed s_i = √(u̇_i² + (k_T,i/m_i) u_i²) = √(2E_i/m_i) exceeds ``watch_bound[pad]`` [m/s]
+    (E_i: the patch's kinetic and own-spring energy); fault_value_out[pad] = s_i.
     """
     pad = wp.tid()
     if conditional != 0 and counters[3] == 0:
@@ -661,6 +669,9 @@ def record_globals(
     vabs = wp.float64(0.0)
     usum = wp.float64(0.0)
     omega = pad_omega[pad]
+    bound2 = watch_bound[pad] * watch_bound[pad]
+    runaway = int(-1)
+    speed2 = wp.float64(0.0)
     for i in range(pad_patch_start[pad], pad_patch_start[pad + 1]):
         v = v_in[i]
         f = normal_force[i] * friction_coefficient(
@@ -670,7 +681,12 @@ def record_globals(
         tsum += wp.float64(f * radius[i])
         vsum += wp.float64(v)
         vabs += wp.float64(wp.abs(v))
-        usum += wp.float64(u_in[i])
+        ui = wp.float64(u_in[i])
+        usum += ui
+        s2 = wp.float64(v) * wp.float64(v) + wp.float64(k_t[i] * inv_mass[i]) * ui * ui
+        if s2 > bound2 and runaway < 0:
+            runaway = i - pad_patch_start[pad]
+            speed2 = s2
     fm = wp.float64(pad_mu_pad[pad] * pad_matrix_force[pad] * sign_or_zero(omega))
     ftot = fsum + fm
     ttot = tsum + fm * wp.float64(pad_matrix_radius[pad])
@@ -686,13 +702,21 @@ def record_globals(
     globals_out[row, pad, 2] = reff
     globals_out[row, pad, 3] = vsum
     globals_out[row, pad, 4] = vabs
-    if not (wp.isfinite(vabs) and wp.isfinite(usum)) and fault_out[pad, 0] < 0:
+    if fault_out[pad, 0] >= 0:
+        return
+    if not (wp.isfinite(vabs) and wp.isfinite(usum)):
         first = int(-1)
         for i in range(pad_patch_start[pad], pad_patch_start[pad + 1]):
             if first < 0 and not (wp.isfinite(v_in[i]) and wp.isfinite(u_in[i])):
                 first = i - pad_patch_start[pad]
         fault_out[pad, 0] = first
         fault_out[pad, 1] = counters[0]
+        fault_out[pad, 2] = 0
+    elif runaway >= 0:
+        fault_out[pad, 0] = runaway
+        fault_out[pad, 1] = counters[0]
+        fault_out[pad, 2] = 1
+        fault_value_out[pad] = wp.sqrt(speed2)
 
 
 @wp.kernel
@@ -972,12 +996,16 @@ def _declare_overloads() -> None:
                 "pad_load": a,
                 "pad_matrix_force": a,
                 "pad_matrix_radius": a,
+                "inv_mass": a,
+                "k_t": a,
                 "conditional": int,
                 "u_in": a,
                 "v_in": a,
                 "counters": i32,
                 "globals_out": wp.array3d(dtype=wp.float64),
+                "watch_bound": _arr(wp.float64),
                 "fault_out": wp.array2d(dtype=wp.int32),
+                "fault_value_out": _arr(wp.float64),
             },
         )
         wp.overload(

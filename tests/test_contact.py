@@ -68,7 +68,7 @@ def test_random_sets_balance_and_match_bisection(seed):
         check_solution(k, h, load, sol)
 
 
-@settings(max_examples=150, deadline=None, database=None)
+@settings(max_examples=150, deadline=None, database=None, derandomize=True)
 @given(
     elems=st.lists(
         st.tuples(

@@ -1,0 +1,418 @@
+"""Throughput profiling of the HF step: ``aca-warp bench`` and ``scripts/bench_hf.py``.
+
+Per case (device, precision, integrator, pads) one row with: device, Warp version, precision, patches, pads,
+compile time (first kernel-module load of the process, then graph capture), per-stage times (contact solve,
+neighbour build, whole model build, capture, stepping, recording), steps/s, patch-steps/s, ns per patch-step,
+achieved memory bandwidth against the device peak, and the μ error against a reference run (fp64 ``strang``
+at a quarter of the step, over the same window).
+
+Timing method (all on warm kernels):
+
+* ``wall_s``, ``steps_per_s``, ``patch_steps_per_s``: one :func:`aca_warp.hf.run_hf` over the timed window,
+  recording every sample (what a user's run does; graph capture excluded, as in ``RunResult.wall_time``).
+* ``stepping_s``: the bare step, ``HFSolver.step`` captured into one graph of ``GRAPH_STEPS`` steps and replayed,
+  scaled to the run's step count (no recording, no host reads). Not for ``adaptive`` (no fixed step).
+* ``recording_s`` = ``wall_s`` − ``stepping_s``: sample kernels, host flushes, the run's first (eager) block.
+
+Memory traffic per step is a model, counted from the arrays each kernel of the step reads and writes
+(``bytes_per_step``): every per-patch array once per kernel that touches it, every CSR link once (index + k_ij),
+neighbour displacements u_j assumed to hit in cache (patches are spatially sorted), per-pad arrays neglected.
+With T the state size (4 or 8 B), n patches and E directed links:
+
+    strang              n (8 + 12 T) + E (4 + T)    strang_step: patch_pad, inv_mass, damping, F_N, r, F_s,
+                                                    u rw, v rw; spring_forces: nbr_start, k_diag, u, F_s out
+    symplectic-euler,   n (8 + 11 T) + E (4 + T)    velocity kernel (patch_pad, nbr_start, k_diag, inv_mass,
+    implicit-friction                               damping, F_N, r, u, v rw) + drift (v, u rw)
+    adaptive            n (12 + 27 T) + E (4 + T)   trial open (local args, u, v, F_s, 4 trial outs), trial
+                                                    close (model args, 4 trial ins, F_s out), commit (3 in, 3 out)
+
+Achieved bandwidth = bytes_per_step × steps / stepping time (run time for ``adaptive``). Device peak: CUDA, the
+data-sheet peak of known devices (``PEAK_TABLE``: H100, H200, A100), else the driver's memory clock and bus width
+(``2 × clock × width / 8``), else unknown; CPU, one thread's NumPy copy rate (``2 × bytes / time`` of a 128 MiB
+``np.copyto``), since Warp's CPU kernels are serial.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ctypes
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from aca_warp.errors import SceneError
+
+GRAPH_STEPS = 200
+# Data-sheet peaks [B/s] by device-name fragment; used when the driver query is unavailable.
+# Sources: NVIDIA H100 Tensor Core GPU data sheet (SXM5 80 GB HBM3: 3.35 TB/s; PCIe 80 GB HBM2e: 2.0 TB/s;
+# NVL 94 GB: 3.9 TB/s); NVIDIA H200 Tensor Core GPU data sheet (141 GB HBM3e: 4.8 TB/s);
+# NVIDIA A100 data sheet (80 GB SXM: 2.039 TB/s).
+PEAK_TABLE: tuple[tuple[str, float, str], ...] = (
+    ("H200", 4.8e12, "NVIDIA H200 data sheet, HBM3e 4.8 TB/s"),
+    ("H100 NVL", 3.9e12, "NVIDIA H100 data sheet, NVL 3.9 TB/s"),
+    ("H100 PCIe", 2.0e12, "NVIDIA H100 data sheet, PCIe 2.0 TB/s"),
+    ("H100", 3.35e12, "NVIDIA H100 data sheet, SXM5 HBM3 3.35 TB/s"),
+    ("A100", 2.039e12, "NVIDIA A100 data sheet, 80 GB SXM 2.039 TB/s"),
+)
+_STREAM_CACHE: dict[str, float] = {}
+
+
+def bytes_per_step(integrator: str, patches: int, links: int, precision: str) -> int:
+    """Modelled device-memory traffic of one step of all pads [B] (module docstring: the count)."""
+    t = 4 if precision == "fp32" else 8
+    per_patch = {
+        "strang": 8 + 12 * t,
+        "symplectic-euler": 8 + 11 * t,
+        "implicit-friction": 8 + 11 * t,
+        "adaptive": 12 + 27 * t,
+    }[integrator]
+    return int(patches * per_patch + links * (4 + t))
+
+
+def cpu_stream_bandwidth(nbytes: int = 128 * 2**20, repeats: int = 3) -> float:
+    """One thread's copy bandwidth: 2 × ``nbytes`` / best time of ``np.copyto`` [B/s] (cached per process)."""
+    if "cpu" not in _STREAM_CACHE:
+        a = np.ones(nbytes // 8)
+        b = np.empty_like(a)
+        best = np.inf
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            np.copyto(b, a)
+            best = min(best, time.perf_counter() - t0)
+        _STREAM_CACHE["cpu"] = 2.0 * a.nbytes / best
+    return _STREAM_CACHE["cpu"]
+
+
+def _driver_peak(ordinal: int) -> float | None:
+    """2 × memory clock × bus width / 8 from the CUDA driver [B/s], or None when the query fails."""
+    try:
+        cuda = ctypes.CDLL("libcuda.so.1")
+        dev = ctypes.c_int()
+        if cuda.cuDeviceGet(ctypes.byref(dev), ordinal) != 0:
+            return None
+        clock, width = ctypes.c_int(), ctypes.c_int()
+        # CU_DEVICE_ATTRIBUTE_MEMORY_CLOCK_RATE = 36 (kHz), CU_DEVICE_ATTRIBUTE_GLOBAL_MEMORY_BUS_WIDTH = 37 (bit)
+        if cuda.cuDeviceGetAttribute(ctypes.byref(clock), 36, dev) != 0:
+            return None
+        if cuda.cuDeviceGetAttribute(ctypes.byref(width), 37, dev) != 0:
+            return None
+        if clock.value <= 0 or width.value <= 0:
+            return None
+        return 2.0 * clock.value * 1e3 * width.value / 8.0
+    except (OSError, AttributeError):
+        return None
+
+
+def peak_bandwidth(device: Any) -> tuple[float | None, str]:
+    """Peak memory bandwidth of a Warp device [B/s] and where the number comes from."""
+    if not device.is_cuda:
+        return cpu_stream_bandwidth(), "measured: one-thread numpy copy (2 x 128 MiB moved), best of 3"
+    for frag, peak, src in PEAK_TABLE:
+        if frag in device.name:
+            return peak, src
+    drv = _driver_peak(device.ordinal)
+    if drv is not None:
+        return drv, "CUDA driver: 2 x memory clock x bus width"
+    return None, "unknown"
+
+
+def bench_scene(name: str = "hf1", patches: int | None = None, sample_dt: float = 1.0e-6):
+    """The preset ``name`` (or a TOML scene path) with ``patches`` generated patches (default: the scene's)."""
+    import dataclasses
+
+    from aca_warp.scene import PatchGenerator, Record, load_scene
+
+    scene = load_scene(name)
+    if patches is not None:
+        origin = dict((scene.origin or {}).get("patches", {}))
+        if "file" in origin:
+            raise SceneError("--patches needs a scene whose patches come from the generator")
+        fields = {f.name for f in dataclasses.fields(PatchGenerator)}
+        gen = PatchGenerator(**{**{k: v for k, v in origin.items() if k in fields}, "count": patches})
+        scene = scene.replace(patches=gen.generate(scene.pad))
+    return scene.replace(record=Record(sample_dt=sample_dt))
+
+
+def load_modules(device: Any) -> float:
+    """Load (compile, or fetch from the kernel cache) the HF kernel modules on ``device``; wall time [s]."""
+    import warp as wp
+
+    import aca_warp.kernels.hf
+    import aca_warp.kernels.neighbours
+
+    t0 = time.perf_counter()
+    wp.load_module(aca_warp.kernels.hf, device=device)
+    wp.load_module(aca_warp.kernels.neighbours, device=device)
+    wp.synchronize_device(device)
+    return time.perf_counter() - t0
+
+
+def _stepping_time(model: Any, state: Any, integrator: str, dt: float, steps: int) -> float | None:
+    """Wall time of ``steps`` bare steps (no recording) replayed from a captured graph [s]; None for adaptive."""
+    import warp as wp
+
+    from aca_warp.hf import HFSolver
+
+    if integrator == "adaptive":
+        return None
+    solver = HFSolver(model, integrator, dt, force=True)
+    dev = model.device
+    if integrator == "strang":
+        solver.prepare(state)
+    solver.step(state, dt, first=True)  # strang's opening step differs from the rest
+    with wp.ScopedCapture(device=dev, force_module_load=True) as cap:
+        for _ in range(GRAPH_STEPS):
+            solver.step(state, dt)
+    reps = max(1, round(steps / GRAPH_STEPS))
+    wp.capture_launch(cap.graph)  # warm replay
+    wp.synchronize_device(dev)
+    t0 = time.perf_counter()
+    for _ in range(reps):
+        wp.capture_launch(cap.graph)
+    wp.synchronize_device(dev)
+    return (time.perf_counter() - t0) * steps / (reps * GRAPH_STEPS)
+
+
+def run_case(
+    scene: Any,
+    device: str,
+    precision: str,
+    integrator: str,
+    pads: int,
+    dt: float,
+    duration: float,
+    warmup: float = 2.0e-6,
+    stages: bool = True,
+) -> dict:
+    """Time one configuration; returns a result row (with ``mu``, pad 0's μ(t), for the error; popped later)."""
+    import warp as wp
+
+    from aca_warp.contact import solve_scene_contact
+    from aca_warp.hf import run_hf
+    from aca_warp.kernels.neighbours import build_neighbours
+    from aca_warp.model import build_model
+    from aca_warp.scene import Record
+    from aca_warp.state import initial_state
+
+    dev = wp.get_device(device)
+    scenes = [scene] * pads
+    row: dict[str, Any] = {}
+    if stages:  # the two host/device stages inside build_model, timed alone
+        t0 = time.perf_counter()
+        for s in scenes:
+            solve_scene_contact(s)
+        row["contact_s"] = time.perf_counter() - t0
+        x = np.tile(scene.patches.x, pads)
+        y = np.tile(scene.patches.y, pads)
+        pad_of = np.repeat(np.arange(pads, dtype=np.int32), scene.patches.count)
+        t0 = time.perf_counter()
+        build_neighbours(x, y, pad_of, np.full(pads, scene.material.coupling_radius), dev)
+        wp.synchronize_device(dev)
+        row["neighbours_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    model = build_model(scenes, device=dev, precision=precision)
+    wp.synchronize_device(dev)
+    build_time = time.perf_counter() - t0
+    state = initial_state(model)
+    rec = Record(sample_dt=scene.record.sample_dt)
+    warm = run_hf(model, state, duration=warmup, integrator=integrator, dt=dt, record=rec)  # compiles, captures
+    res = run_hf(model, state, duration=duration, integrator=integrator, dt=dt, record=rec)
+    mu = res.collect().globals[:, 0, 0]
+    n = model.patch_count
+    stepping = _stepping_time(model, initial_state(model), integrator, res.dt, res.steps) if stages else None
+    moved = bytes_per_step(integrator, n, model.nnz, precision)
+    bw_time = stepping if stepping is not None else res.wall_time
+    bandwidth = moved * res.steps / max(bw_time, 1e-12)
+    peak, peak_src = peak_bandwidth(dev)
+    row.update(
+        {
+            "device": str(model.device),
+            "device_name": model.device.name,
+            "warp_version": wp.__version__,
+            "precision": precision,
+            "integrator": integrator,
+            "pads": pads,
+            "patches": n,
+            "patches_per_pad": n // pads,
+            "links": model.nnz,
+            "dt": res.dt,
+            "steps": res.steps,
+            "rejected": res.rejected,
+            "compile_time_s": warm.compile_time,
+            "capture_s": warm.compile_time,
+            "model_build_s": build_time,
+            "wall_s": res.wall_time,
+            "stepping_s": stepping,
+            "recording_s": None if stepping is None else max(res.wall_time - stepping, 0.0),
+            "steps_per_s": res.steps / res.wall_time,
+            "patch_steps_per_s": n * res.steps / res.wall_time,
+            "ns_per_patch_step": 1e9 * res.wall_time / (n * res.steps),
+            "stepping_patch_steps_per_s": None if stepping is None else n * res.steps / stepping,
+            "bytes_per_step": moved,
+            "bandwidth_Bps": bandwidth,
+            "peak_bandwidth_Bps": peak,
+            "peak_bandwidth_source": peak_src,
+            "bandwidth_fraction": None if peak is None else bandwidth / peak,
+            "complete": res.complete,
+            "mu": mu,
+        }
+    )
+    return row
+
+
+def run_bench(
+    *,
+    device: str = "cpu",
+    scene: str = "hf1",
+    patches: int | None = None,
+    precisions: tuple[str, ...] = ("fp64", "fp32"),
+    integrators: tuple[str, ...] = ("strang",),
+    pads: tuple[int, ...] = (1,),
+    dt: float = 1.0e-8,
+    duration: float = 2.0e-5,
+    sample_dt: float = 1.0e-6,
+    reference: bool = True,
+    stages: bool = True,
+    log: Any = None,
+) -> dict:
+    """Run every case; returns ``{"machine", "scene", ..., "results": [rows]}`` (JSON-able)."""
+    import warp as wp
+
+    from aca_warp.io import machine
+
+    if not (duration > 0 and dt > 0 and sample_dt > 0):
+        raise SceneError("duration, dt and sample interval must be > 0")
+    if sample_dt > duration:
+        raise SceneError(f"sample interval {sample_dt:g} s exceeds the duration {duration:g} s")
+    try:
+        dev = wp.get_device(device)
+    except (ValueError, RuntimeError) as e:
+        raise SceneError(f"device {device!r} is not available: {e}") from None
+    module_load = load_modules(dev)
+    sc = bench_scene(scene, patches, sample_dt)
+    rows = []
+    refs: dict[int, np.ndarray] = {}
+    for npads in pads:
+        for prec in precisions:
+            for integ in integrators:
+                r = run_case(sc, device, prec, integ, npads, dt, duration, stages=stages)
+                mu = r.pop("mu")
+                r["module_load_s"] = module_load
+                if reference:
+                    if npads not in refs:  # reference: fp64 strang at dt/4 over the same two windows
+                        ref = run_case(sc, device, "fp64", "strang", 1, dt / 4, duration, stages=False)
+                        refs[npads] = ref["mu"]
+                    n = min(len(mu), len(refs[npads]))
+                    scale = max(np.abs(refs[npads][:n]).max(), 1e-300)
+                    r["mu_rel_error_max"] = float(np.max(np.abs(mu[:n] - refs[npads][:n])) / scale)
+                else:
+                    r["mu_rel_error_max"] = None
+                rows.append(r)
+                if log:
+                    err = r["mu_rel_error_max"]
+                    log(
+                        f"{r['device_name'][:24]:>24s} {prec} {integ:>17s} pads={npads:5d} "
+                        f"{r['patch_steps_per_s']:.3g} patch-steps/s {r['ns_per_patch_step']:.3g} ns/patch-step, "
+                        f"{r['bandwidth_Bps'] / 1e9:.3g} GB/s, compile {r['compile_time_s']:.2f} s"
+                        + ("" if err is None else f", mu err {err:.2e}")
+                    )
+    return {
+        "machine": machine(dev),
+        "warp_version": wp.__version__,
+        "scene": scene,
+        "duration_s": duration,
+        "dt_s": dt,
+        "sample_dt_s": sample_dt,
+        "module_load_s": module_load,
+        "results": rows,
+    }
+
+
+def markdown(out: dict) -> str:
+    """A Markdown table of a :func:`run_bench` result."""
+    lines = [
+        f"Machine: {out['machine']['device_name']}. Scene {out['scene']}, timed window {out['duration_s']:g} s "
+        f"simulated, dt = {out['dt_s']:g} s (adaptive: tolerance 1e-4), Warp {out['warp_version']}. "
+        "μ error: max |μ − μ_ref| / max|μ_ref| against fp64 strang at dt/4. Bandwidth: modelled bytes per step "
+        "(aca_warp/bench.py) over the bare-step time.",
+        "",
+        "| device | precision | integrator | pads | patches | steps/s | patch-steps/s | ns/patch-step "
+        "| GB/s (of peak) | compile [s] | μ error |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in out["results"]:
+        frac = "" if r["bandwidth_fraction"] is None else f" ({100 * r['bandwidth_fraction']:.2g} %)"
+        err = "–" if r["mu_rel_error_max"] is None else f"{r['mu_rel_error_max']:.1e}"
+        lines.append(
+            f"| {r['device_name']} | {r['precision']} | {r['integrator']} | {r['pads']} | {r['patches']} "
+            f"| {r['steps_per_s']:.3g} | {r['patch_steps_per_s']:.3g} | {r['ns_per_patch_step']:.3g} "
+            f"| {r['bandwidth_Bps'] / 1e9:.3g}{frac} | {r['compile_time_s']:.2f} | {err} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------------------------------------- CLI
+
+
+def add_parsers(sub: Any) -> None:
+    """Register ``aca-warp bench``."""
+    from aca_warp.argtypes import int_at_least, positive
+    from aca_warp.hf import INTEGRATORS
+
+    p = sub.add_parser(
+        "bench",
+        help="measure HF step throughput (steps/s, patch-steps/s, bandwidth, error against a reference)",
+        description="Benchmark the HF step per device, precision, integrator and batch size; prints one line "
+        "per case and writes JSON rows (aca_warp/bench.py documents every field and the byte count).",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="Example: aca-warp bench --device cuda:0 --precision fp32 --pads 1 1024 --json bench.json\n"
+        "Exit codes: 0 done, 2 bad input, 3 a case stopped on a non-finite value.",
+    )
+    p.add_argument("--device", default="cpu", help="Warp device (default cpu)")
+    p.add_argument("--scene", default="hf1", help="preset or TOML scene (default hf1)")
+    p.add_argument(
+        "--precision", nargs="+", choices=("fp32", "fp64"), default=["fp64", "fp32"], help="precisions (default both)"
+    )
+    p.add_argument("--pads", nargs="+", type=int_at_least(1), default=[1], metavar="N", help="batch sizes (default 1)")
+    p.add_argument("--patches", type=int_at_least(1), metavar="N", help="patches per pad (default: the scene's)")
+    p.add_argument(
+        "--integrator", nargs="+", choices=INTEGRATORS, default=["strang"], help="integrators (default strang)"
+    )
+    p.add_argument("--dt", type=positive, default=1.0e-8, metavar="S", help="fixed step [s] (default 1e-8)")
+    p.add_argument("--duration", type=positive, default=2.0e-5, metavar="S", help="timed window [s] (default 2e-5)")
+    p.add_argument("--sample-dt", type=positive, default=1.0e-6, metavar="S", help="sample interval [s] (default 1e-6)")
+    p.add_argument("--no-reference", action="store_true", help="skip the fp64 dt/4 reference run (no μ error)")
+    p.add_argument("--no-stages", action="store_true", help="skip the per-stage timings")
+    p.add_argument("--json", metavar="FILE", help="write the result rows as JSON here")
+    p.add_argument("--markdown", metavar="FILE", help="also write a Markdown table here")
+    p.set_defaults(handler=_cmd_bench)
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    for path in (args.json, args.markdown):
+        if path is not None and not Path(path).resolve().parent.is_dir():
+            raise SceneError(f"output folder of {path} does not exist")
+    out = run_bench(
+        device=args.device,
+        scene=args.scene,
+        patches=args.patches,
+        precisions=tuple(args.precision),
+        integrators=tuple(args.integrator),
+        pads=tuple(args.pads),
+        dt=args.dt,
+        duration=args.duration,
+        sample_dt=args.sample_dt,
+        reference=not args.no_reference,
+        stages=not args.no_stages,
+        log=lambda s: print(s, flush=True),
+    )
+    if args.json:
+        Path(args.json).write_text(json.dumps(out, indent=1))
+        print(f"wrote {args.json}")
+    if args.markdown:
+        Path(args.markdown).write_text(markdown(out))
+        print(f"wrote {args.markdown}")
+    return 0 if all(r["complete"] for r in out["results"]) else 3

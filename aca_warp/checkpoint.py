@@ -1,0 +1,131 @@
+"""Checkpoints of HF runs: the full solver state, stored inside the run file's ``.partial`` so a killed run resumes.
+
+Design (one file, double-buffered slots). A run with ``--checkpoint-interval`` keeps, next to its samples, a
+group ``/checkpoint`` with two slots ``slot0`` and ``slot1`` and an attribute ``active`` (−1: none yet)::
+
+    /checkpoint                 attrs: format (int), active (−1, 0 or 1), sim_time [s] of the active slot
+    /checkpoint/slotK/sim_time          ()        simulated time reached [s]
+    /checkpoint/slotK/rows/global       ()        rows of /global/* written when the checkpoint was taken
+    /checkpoint/slotK/rows/patches      ()        rows of /patches/time, velocity, displacement
+    /checkpoint/slotK/counters/NAME     ()        host loop counters (int64): samples, steps, rejected, started,
+                                                  sample_index
+    /checkpoint/slotK/arrays/NAME       (...)     device arrays in their own dtype, e.g. state/u [m] (n,),
+                                                  state/v [m/s] (n,), state/force [N] (n,),
+                                                  recorder/counters (4,), watchdog/bound [m/s] (pads,),
+                                                  adaptive/clock [s] (4,), adaptive/flags (3,),
+                                                  adaptive/steps (2,), growth/step (1,), model/area [m²] (n,), ...
+
+A checkpoint is written into the slot that is *not* active (raw data of fixed shape, rewritten in place), the
+file is flushed, then ``active`` flips to the new slot and the file is flushed again. A kill while the new slot
+is being written leaves the old slot and its pointer intact. The sample datasets are only flushed at
+checkpoints (the run loop's writer skips its per-chunk flush when checkpointing), so what is on disk between
+checkpoints is the state of the last checkpoint plus raw chunk data beyond it; resuming truncates every sample
+dataset back to the active slot's ``rows`` and continues from its state. HDF5 has no journal: a kill *during*
+one of the two flushes (milliseconds per checkpoint) can still leave a file HDF5 cannot open; resuming then
+fails with one line, and ``aca-warp rerun`` repeats the run from the start.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import h5py
+import numpy as np
+
+from aca_warp.errors import SceneError
+
+FORMAT = 1
+GROUP = "checkpoint"
+
+
+@dataclass
+class Checkpoint:
+    """The state of a run at the end of a recorded chunk: enough to continue it bit for bit.
+
+    Attributes:
+        sim_time: Simulated time reached [s].
+        arrays: Host copies of the device arrays that change during a run, by name (module docstring), each in
+            the device array's own dtype and shape.
+        counters: Host loop counters: ``samples`` (global samples after sample 0), ``steps``, ``rejected``,
+            ``started`` (1 once the opening step ran: strang keeps a staggered velocity), ``sample_index``.
+        rows: Rows of the run file's sample datasets that belong to the checkpointed run (``global``,
+            ``patches``); filled by the writer.
+    """
+
+    sim_time: float
+    arrays: dict[str, np.ndarray]
+    counters: dict[str, int]
+    rows: dict[str, int] = field(default_factory=dict)
+
+
+def _put(g: h5py.Group, name: str, value: np.ndarray) -> None:
+    """Write ``value`` into dataset ``name`` in place when its shape and dtype match, else (re)create it."""
+    value = np.asarray(value)
+    if name in g:
+        d = g[name]
+        if isinstance(d, h5py.Dataset) and d.shape == value.shape and d.dtype == value.dtype:
+            d[...] = value
+            return
+        del g[name]
+    g.create_dataset(name, data=value)
+
+
+def write_checkpoint(f: h5py.File, ckpt: Checkpoint) -> int:
+    """Store ``ckpt`` into the inactive slot of ``f``, flush, flip ``active``, flush; returns the slot."""
+    g = f.require_group(GROUP)
+    active = int(g.attrs.get("active", -1))
+    slot = 0 if active != 0 else 1
+    s = g.require_group(f"slot{slot}")
+    _put(s, "sim_time", np.float64(ckpt.sim_time))
+    for k, v in ckpt.rows.items():
+        _put(s, f"rows/{k}", np.int64(v))
+    for k, v in ckpt.counters.items():
+        _put(s, f"counters/{k}", np.int64(v))
+    for k, v in ckpt.arrays.items():
+        _put(s, f"arrays/{k}", v)
+    g.attrs["format"] = FORMAT
+    f.flush()
+    g.attrs["active"] = slot
+    g.attrs["sim_time"] = float(ckpt.sim_time)
+    f.flush()
+    return slot
+
+
+def has_checkpoint(f: h5py.File) -> bool:
+    """Whether ``f`` holds a usable checkpoint slot."""
+    return GROUP in f and int(f[GROUP].attrs.get("active", -1)) in (0, 1)
+
+
+def read_checkpoint(f: h5py.File, path: str = "") -> Checkpoint:
+    """The active checkpoint of ``f`` (SceneError with one line when there is none or it is damaged)."""
+    if not has_checkpoint(f):
+        raise SceneError(
+            f"{path or 'the run file'} holds no checkpoint (was it run with --checkpoint-interval?); "
+            "repeat it with 'aca-warp rerun'"
+        )
+    g = f[GROUP]
+    if int(g.attrs.get("format", -1)) != FORMAT:
+        raise SceneError(f"{path}: checkpoint format {g.attrs.get('format')} is not {FORMAT}")
+    try:
+        s = g[f"slot{int(g.attrs['active'])}"]
+        arrays: dict[str, np.ndarray] = {}
+
+        def visit(name: str, obj: object) -> None:
+            if isinstance(obj, h5py.Dataset):
+                arrays[name] = obj[()]
+
+        s["arrays"].visititems(visit)
+        return Checkpoint(
+            sim_time=float(s["sim_time"][()]),
+            arrays=arrays,
+            counters={k: int(d[()]) for k, d in s["counters"].items()},
+            rows={k: int(d[()]) for k, d in s["rows"].items()},
+        )
+    except (KeyError, OSError, ValueError, TypeError) as e:
+        raise SceneError(f"{path}: the checkpoint is damaged ({e}); repeat the run with 'aca-warp rerun'") from None
+
+
+def drop_checkpoint(f: h5py.File) -> None:
+    """Remove the checkpoint group (a completed run needs none)."""
+    if GROUP in f:
+        del f[GROUP]

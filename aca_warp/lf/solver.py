@@ -1,0 +1,473 @@
+"""Device state of the LF automaton and the step sequence (one launch per rule; kernels in ``aca_warp.kernels.lf``).
+
+One LF step (docs/lf_model.md §"Step"): load from the schedule → bin patches into cells → contact solve
+(Newton on the gap) → friction, powers → temperatures (implicit) → wear → debris sweep → capture → growth,
+shrink, death → merge → birth → statistics and history row. In pauses only the temperatures run (cooling)
+and μ is recorded as 0. The only host read per step is the topology flag, which triggers the rebuild of the
+merge-candidate neighbourhoods (CSR from ``wp.HashGrid``) when the patch set changed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import warp as wp
+
+from aca_warp.errors import SceneError
+from aca_warp.kernels import lf as K
+from aca_warp.lf.scene import LFScene, StepTable, step_table
+from aca_warp.scene import Patches, overlapping_pairs
+
+_FAR = 1.0e3  # m: where empty slots are parked in the hash grid
+
+
+class LFSimulation:
+    """The LF model and state of one pad on one device (float64 throughout).
+
+    Grid: R = n_r rings × n_t columns = C cells (ring-major). Per cell (C,): ``cell_area`` A_e [m²], ``cell_r``
+    [m], ``cell_x``/``cell_y`` [m] (host), ``cell_z`` elevation [m], ``cell_T`` [K], ``cell_store`` [kg],
+    ``cell_src`` pending debris [kg], ``cell_fn`` [N], ``cell_power`` [W], ``cell_cover`` [m²], ``cell_chord`` [m].
+    Per ring (R,): ``ring_r`` [m], ``ring_T`` [K], ``ring_bulge`` [m], ``ring_power`` [W].
+    Per patch slot (P,): ``alive``, ``x``, ``y`` [m], ``area`` [m²], ``thick`` t [m], ``top`` free elevation of the
+    patch top [m], ``temp`` [K], ``mcap`` [kg], ``age`` [s], ``patch_fn`` [N], ``patch_power`` [W], ``patch_cell``.
+    ``glob`` holds the global scalars (``aca_warp.kernels.lf.G_*``), ``hist`` (steps, H_SIZE) the outputs.
+    """
+
+    def __init__(
+        self, scene: LFScene, *, device: str = "cpu", duration: float | None = None, graph: bool | None = None
+    ) -> None:
+        try:
+            self.device = wp.get_device(device)
+        except (ValueError, RuntimeError) as e:
+            raise SceneError(f"device {device!r} is not available: {e}") from None
+        self.scene = scene
+        self.table: StepTable = step_table(scene, duration)
+        c = scene.lf
+        pad = scene.pad
+        n_r = max(int(round((pad.r_outer - pad.r_inner) / c.cell)), 1)
+        n_t = max(int(round(2.0 * pad.half_span * pad.mean_radius / c.cell)), 1)
+        self.n_r, self.n_t = n_r, n_t
+        self.n_cells = n_r * n_t
+        self.capacity = c.capacity
+        dr = (pad.r_outer - pad.r_inner) / n_r
+        dphi = 2.0 * pad.half_span / n_t
+        p = K.LFParams()
+        vals = dict(
+            r_in=pad.r_inner, dr=dr, half=pad.half_span, dphi=dphi, n_r=n_r, n_t=n_t, dt=c.dt, seed=c.seed,
+            K_N=scene.material.K_N, k_m=scene.material.matrix_stiffness, mu_pad=scene.friction.mu_pad,
+            coulomb=c.coulomb, mu_coulomb=c.mu_coulomb, M=scene.friction.M, slope=scene.friction.slope,
+            decay=scene.friction.decay,
+        )  # fmt: skip
+        for f in dataclasses.fields(c):
+            if hasattr(p, f.name) and f.name not in vals:
+                vals[f.name] = getattr(c, f.name)
+        for k, v in vals.items():
+            setattr(p, k, v)
+        self.params = p
+        ring_r = pad.r_inner + (np.arange(n_r) + 0.5) * dr
+        phi = -pad.half_span + (np.arange(n_t) + 0.5) * dphi
+        rr, pp = np.meshgrid(ring_r, phi, indexing="ij")
+        self.cell_r_host = rr.ravel()
+        self.cell_x_host = (-rr * np.sin(pp)).ravel()
+        self.cell_y_host = (rr * np.cos(pp)).ravel()
+        # exact annular-sector cell areas: Σ A_e = pad area
+        edges = pad.r_inner + np.arange(n_r + 1) * dr
+        ring_area = 0.5 * dphi * (edges[1:] ** 2 - edges[:-1] ** 2)
+        self.cell_area_host = np.repeat(ring_area, n_t)
+        self.cell_rc_host = np.repeat(
+            2.0 / 3.0 * (edges[1:] ** 3 - edges[:-1] ** 3) / (edges[1:] ** 2 - edges[:-1] ** 2), n_t
+        )
+        dev = self.device
+        C, R, P = self.n_cells, n_r, self.capacity
+        f64 = lambda a: wp.array(np.asarray(a, dtype=np.float64), dtype=wp.float64, device=dev)  # noqa: E731
+        zf = lambda n: wp.zeros(n, dtype=wp.float64, device=dev)  # noqa: E731
+        zi = lambda n: wp.zeros(n, dtype=wp.int32, device=dev)  # noqa: E731
+        self.cell_area = f64(self.cell_area_host)
+        self.cell_r = f64(self.cell_rc_host)
+        self.ring_r = f64(ring_r)
+        self.cell_z, self.cell_store, self.cell_src = zf(C), zf(C), zf(C)
+        self.cell_T = f64(np.full(C, c.T_amb))
+        self.cell_fn, self.cell_power, self.cell_cover, self.cell_chord, self.cell_capture = (zf(C) for _ in range(5))
+        self.ring_T = f64(np.full(R, c.T_amb))
+        self.ring_bulge, self.ring_power, self.ring_emit = zf(R), zf(R), zf(R)
+        self.work = zf(2 * R)
+        self.alive, self.patch_cell, self.target = zi(P), zi(P), zi(P)
+        self.x, self.y, self.area, self.thick, self.top = (zf(P) for _ in range(5))
+        self.temp = f64(np.full(P, c.T_amb))
+        self.mcap, self.age, self.patch_fn, self.patch_power = (zf(P) for _ in range(4))
+        self.free, self.free_rank, self.slot_list = zi(P), zi(P), zi(P)
+        self.want, self.want_rank = zi(C), zi(C)
+        self.birth_xy = wp.zeros(C, dtype=wp.vec2d, device=dev)
+        self.death_count = zi(1)
+        self.death_age, self.death_area = zf(200_000), zf(200_000)
+        self.pos = wp.zeros(P, dtype=wp.vec3d, device=dev)
+        self.cand_count = zi(P)
+        self.cand_start = zi(P + 1)
+        self.cand_index = zi(max(16 * P, 1))
+        self.grid = wp.HashGrid(128, 128, 1, device=dev, dtype=wp.float64)
+        a_big = math.sqrt(2.0 * c.A_max / math.pi)
+        self.cand_radius = 2.0 * a_big + c.cand_margin
+        self.birth_radius = math.sqrt(c.A0 / math.pi) + a_big + c.cand_margin
+        sched = np.column_stack([self.table.load, self.table.omega]).astype(np.float64)
+        self.schedule = wp.array(sched, dtype=wp.float64, device=dev)
+        self.glob = zf(K.G_SIZE)
+        self.hist = wp.zeros((self.table.steps, K.H_SIZE), dtype=wp.float64, device=dev)
+        self.step_index = 0
+        self.dirty = True
+        if scene.patches is not None:
+            self._place(scene.patches)
+        # CUDA graphs of the step body (one for loaded steps, one for pauses); default on for CUDA devices. On
+        # the CPU, wp.utils.array_scan is a direct host call that a graph would not record, so CPU stays eager.
+        self.use_graph = self.device.is_cuda if graph is None else (graph and self.device.is_cuda)
+        self._graphs: dict[bool, Any] = {}
+        self._seen: set[bool] = set()
+
+    # ------------------------------------------------------------------------------------------- set-up
+
+    def _place(self, patches: Patches) -> None:
+        n = patches.count
+        if n > self.capacity:
+            raise SceneError(f"{n} initial patches exceed lf.capacity = {self.capacity}")
+        c = self.scene.lf
+        for name, val in (("x", patches.x), ("y", patches.y), ("area", patches.area)):
+            a = getattr(self, name).numpy()
+            a[:n] = val
+            getattr(self, name).assign(a)
+        alive = np.zeros(self.capacity, dtype=np.int32)
+        alive[:n] = 1
+        self.alive.assign(alive)
+        th = np.zeros(self.capacity)
+        th[:n] = patches.height
+        self.thick.assign(th)
+        self.top.assign(th)  # matrix starts flat at z = 0
+        del c
+
+    # ------------------------------------------------------------------------------------------- step
+
+    def _launch(self, kernel: Any, dim: int, inputs: list) -> None:
+        wp.launch(kernel, dim=dim, inputs=inputs, device=self.device)
+
+    def rebuild_neighbours(self) -> None:
+        """Merge-candidate CSR (alive pairs within ``cand_radius``) and the birth hash grid, from current positions."""
+        P = self.capacity
+        self._launch(K.positions3, P, [self.alive, self.x, self.y, wp.float64(_FAR), self.pos])
+        self.grid.build(self.pos, self.cand_radius)
+        self._launch(
+            K.count_candidates, P, [self.grid.id, wp.float64(self.cand_radius), self.alive, self.pos, self.cand_count]
+        )
+        wp.utils.array_scan(self.cand_count, self.cand_start[:P], inclusive=False)
+        self._launch(K.set_row_end, 1, [self.cand_count, self.cand_start, P])
+        total = int(self.cand_start.numpy()[P])
+        if total > self.cand_index.shape[0]:
+            self.cand_index = wp.zeros(int(total * 1.5) + 16, dtype=wp.int32, device=self.device)
+            self._graphs.clear()  # the graphs hold the old buffer
+        self._launch(
+            K.fill_candidates,
+            P,
+            [self.grid.id, wp.float64(self.cand_radius), self.alive, self.pos, self.cand_start, self.cand_index],
+        )
+        self.dirty = False
+
+    def _contact_and_friction(self) -> None:
+        p, C, P = self.params, self.n_cells, self.capacity
+        state = [self.cell_z, self.cell_cover, self.ring_bulge, self.alive, self.area, self.top, self.patch_cell]
+        for _ in range(self.scene.lf.contact_iterations):
+            self._launch(K.contact_sums, C + P, [p, C, self.cell_area, *state, self.glob])
+            self._launch(K.contact_update, 1, [wp.float64(self.scene.lf.contact_tol), self.glob])
+        self._launch(
+            K.friction,
+            C + P,
+            [p, C, self.cell_area, self.cell_r, self.cell_z, self.cell_cover, self.ring_bulge, self.alive, self.x,
+             self.y, self.area, self.top, self.patch_cell, self.cell_fn, self.cell_power, self.patch_fn,
+             self.patch_power, self.ring_power, self.glob],
+        )  # fmt: skip
+
+    def resolve(self) -> None:
+        """Re-bin the patches and re-solve contact and friction at the current load, without advancing time."""
+        p, C, P = self.params, self.n_cells, self.capacity
+        self._launch(K.zero_step, C, [self.cell_cover, self.cell_chord, self.cell_power, self.ring_power, self.glob])
+        self._launch(
+            K.bin_patches,
+            P,
+            [p, self.alive, self.x, self.y, self.area, self.patch_cell, self.cell_cover, self.cell_chord],
+        )
+        self._contact_and_friction()
+
+    def step(self) -> None:
+        """Advance one LF step (the step counter on the device advances with it)."""
+        if self.step_index >= self.table.steps:
+            raise SceneError("the schedule is over")
+        loaded = bool(self.table.load[self.step_index] > 0.0)
+        if self.dirty:
+            self.rebuild_neighbours()
+        if self.use_graph and loaded in self._seen:
+            if loaded not in self._graphs:
+                try:
+                    with wp.ScopedCapture(device=self.device) as cap:
+                        self._body(loaded)
+                    self._graphs[loaded] = cap.graph
+                except Exception as e:  # pragma: no cover - depends on the CUDA driver
+                    print(f"aca-warp lf: graph capture failed ({e}); running eagerly", flush=True)
+                    self.use_graph = False
+            if self.use_graph:
+                wp.capture_launch(self._graphs[loaded])
+            else:
+                self._body(loaded)
+        else:
+            self._body(loaded)
+            self._seen.add(loaded)
+        self.step_index += 1
+        if loaded and int(self.glob.numpy()[K.G_TOPOLOGY]) != 0:
+            self.dirty = True
+        c = self.scene.lf.compact_every
+        if c and self.step_index % c == 0:
+            self.compact()
+
+    def _body(self, loaded: bool) -> None:
+        """The launches of one step after the neighbourhood rebuild (graph-capturable: no host reads)."""
+        p, C, P, R = self.params, self.n_cells, self.capacity, self.n_r
+        self._launch(K.zero_step, C, [self.cell_cover, self.cell_chord, self.cell_power, self.ring_power, self.glob])
+        self._launch(K.set_load, 1, [self.schedule, self.glob])
+        self._launch(
+            K.bin_patches,
+            P,
+            [p, self.alive, self.x, self.y, self.area, self.patch_cell, self.cell_cover, self.cell_chord],
+        )
+        if loaded:
+            self._contact_and_friction()
+        else:
+            self.cell_fn.zero_()
+            self.cell_power.zero_()
+            self.patch_fn.zero_()
+            self.patch_power.zero_()
+        self._launch(K.disc_temperature, 1, [p, self.ring_r, self.ring_power, self.ring_T, self.ring_bulge, self.work])
+        self._launch(
+            K.pad_temperature,
+            C + P,
+            [p, C, self.cell_area, self.ring_T, self.cell_fn, self.cell_power, self.alive, self.area, self.patch_fn,
+             self.patch_power, self.patch_cell, self.cell_T, self.temp],
+        )  # fmt: skip
+        if loaded:
+            self._launch(
+                K.wear,
+                C + P,
+                [p, C, self.cell_area, self.cell_cover, self.cell_power, self.cell_T, self.alive, self.area,
+                 self.patch_power, self.temp, self.patch_cell, self.cell_z, self.thick, self.top, self.cell_src,
+                 self.glob],
+            )  # fmt: skip
+            self._launch(
+                K.debris_sweep,
+                R,
+                [p, self.cell_area, self.cell_cover, self.cell_chord, self.cell_fn, self.cell_src, self.cell_store,
+                 self.cell_capture, self.ring_emit],
+            )  # fmt: skip
+            self._launch(
+                K.capture_gather,
+                P,
+                [self.alive, self.area, self.patch_cell, self.cell_chord, self.cell_capture, self.mcap],
+            )
+            self._launch(
+                K.life_cycle,
+                P,
+                [p, self.patch_power, self.temp, self.patch_cell, self.alive, self.x, self.y, self.area, self.thick,
+                 self.top, self.mcap, self.age, self.cell_src, self.glob, self.death_count, self.death_age,
+                 self.death_area],
+            )  # fmt: skip
+            self.merge()
+            self._birth()
+        self._launch(K.patch_stats, P, [self.alive, self.area, self.temp, self.glob])
+        self._launch(
+            K.record_step,
+            1,
+            [wp.float64(self.scene.pad.area), self.ring_r, self.ring_T, self.ring_emit, self.glob, self.hist],
+        )  # fmt: skip
+
+    def merge(self) -> None:
+        """One merge pass over the candidate CSR: each root absorbs the patches that overlap it (lowest index)."""
+        P = self.capacity
+        self._launch(
+            K.merge_target, P, [self.cand_start, self.cand_index, self.alive, self.x, self.y, self.area, self.target]
+        )
+        self._launch(
+            K.merge_apply,
+            P,
+            [self.params, self.cand_start, self.cand_index, self.target, self.patch_cell, self.alive, self.x, self.y,
+             self.area, self.thick, self.top, self.temp, self.age, self.cell_src, self.glob],
+        )  # fmt: skip
+        self._launch(K.merge_kill, P, [self.target, self.alive, self.area, self.mcap])
+
+    def _birth(self) -> None:
+        p, C, P = self.params, self.n_cells, self.capacity
+        self._launch(
+            K.birth_want,
+            C,
+            [p, self.grid.id, wp.float64(self.birth_radius), self.cell_area, self.cell_r, self.cell_store, self.cell_fn,
+             self.cell_cover, self.alive, self.x, self.y, self.area, self.glob, self.want, self.birth_xy],
+        )  # fmt: skip
+        self._launch(K.free_slots, P, [self.alive, self.free])
+        wp.utils.array_scan(self.free, self.free_rank, inclusive=False)
+        self._launch(K.free_list, P, [self.free, self.free_rank, self.slot_list])
+        wp.utils.array_scan(self.want, self.want_rank, inclusive=False)
+        self._launch(
+            K.birth_apply,
+            C,
+            [p, self.want, self.want_rank, self.free, self.free_rank, self.slot_list, self.birth_xy, self.cell_z,
+             self.cell_T, self.cell_store, self.alive, self.x, self.y, self.area, self.thick, self.top, self.temp,
+             self.mcap, self.age, self.glob],
+        )  # fmt: skip
+
+    def compact(self) -> None:
+        """Move the alive patches to the front of the slot arrays, keeping their order (prefix sum)."""
+        P = self.capacity
+        a = self.alive.numpy()
+        if a[: int(a.sum())].all():
+            return
+        rank = wp.zeros(P, dtype=wp.int32, device=self.device)
+        wp.utils.array_scan(self.alive, rank, inclusive=False)
+        dst = wp.zeros(P, dtype=wp.int32, device=self.device)
+        self._launch(K.compact_map, P, [self.alive, rank, dst])
+        # in place (scatter to a scratch array, copy back), so captured graphs keep valid buffers
+        tmp = wp.zeros(P, dtype=wp.float64, device=self.device)
+        for name in ("x", "y", "area", "thick", "top", "temp", "mcap", "age", "patch_fn", "patch_power"):
+            tmp.fill_(self.scene.lf.T_amb if name == "temp" else 0.0)
+            self._launch(K.scatter_f64, P, [dst, getattr(self, name), tmp])
+            wp.copy(getattr(self, name), tmp)
+        tmpi = wp.zeros(P, dtype=wp.int32, device=self.device)
+        for name in ("alive", "patch_cell"):
+            tmpi.zero_()
+            self._launch(K.scatter_i32, P, [dst, getattr(self, name), tmpi])
+            wp.copy(getattr(self, name), tmpi)
+        self.dirty = True
+
+    # ------------------------------------------------------------------------------------------- runs
+
+    def run(
+        self,
+        steps: int | None = None,
+        *,
+        on_snapshot: Callable[[str, LFSimulation], None] | None = None,
+        progress: bool = False,
+    ) -> float:
+        """Run ``steps`` steps (default: to the end of the schedule), calling ``on_snapshot`` at snapshot steps.
+
+        Returns the wall time of the stepping [s] (the first step, which loads the kernels, is included).
+        """
+        end = self.table.steps if steps is None else min(self.step_index + steps, self.table.steps)
+        snaps = dict((s, n) for n, s in self.table.snapshots)
+        t0 = time.perf_counter()
+        last = t0
+        while self.step_index < end:
+            self.step()
+            s = self.step_index - 1
+            if on_snapshot is not None and s in snaps:
+                for name, si in self.table.snapshots:
+                    if si == s:
+                        on_snapshot(name, self)
+            if progress and time.perf_counter() - last > 2.0:
+                last = time.perf_counter()
+                h = self.hist.numpy()[s]
+                print(
+                    f"  t = {(s + 1) * self.scene.lf.dt:7.2f} s  mu {h[K.H_MU]:.3f}  patches {int(h[K.H_COUNT])}  "
+                    f"coverage {h[K.H_COVER]:.3f}",
+                    flush=True,
+                )
+        wp.synchronize_device(self.device)
+        return time.perf_counter() - t0
+
+    # ------------------------------------------------------------------------------------------- host views
+
+    def history(self) -> dict[str, np.ndarray]:
+        """The outputs of the steps done so far, by name (``aca_warp.kernels.lf.H_NAMES``), plus ``time`` [s]."""
+        h = self.hist.numpy()[: self.step_index]
+        out = {n: h[:, k].copy() for k, n in enumerate(K.H_NAMES)}
+        out["time"] = (np.arange(self.step_index) + 1) * self.scene.lf.dt
+        return out
+
+    def patches_host(self) -> dict[str, np.ndarray]:
+        """Alive patches (in slot order): x, y, area, thick, top, temp, mcap, age, normal_force, power, cell."""
+        a = self.alive.numpy() != 0
+        names = {"x": "x", "y": "y", "area": "area", "thick": "thick", "top": "top", "temp": "temp", "mcap": "mcap",
+                 "age": "age", "normal_force": "patch_fn", "power": "patch_power", "cell": "patch_cell"}  # fmt: skip
+        return {k: getattr(self, v).numpy()[a].copy() for k, v in names.items()}
+
+    def inventory(self) -> float:
+        """Debris-system mass [kg]: stored + pending debris in the cells + patch mass ρ_p A t + captured mass."""
+        d = self.patches_host()
+        rho = self.scene.lf.rho_patch
+        return float(
+            self.cell_store.numpy().sum()
+            + self.cell_src.numpy().sum()
+            + np.sum(rho * d["area"] * d["thick"])
+            + d["mcap"].sum()
+        )
+
+    def mass_fluxes(self) -> dict[str, float]:
+        """This step's debris fluxes [kg]: ``matrix_in`` (retained matrix debris), ``patch_lost``, ``emitted``."""
+        g = self.glob.numpy()
+        return {
+            "matrix_in": float(g[K.G_MATRIX_IN]),
+            "patch_lost": float(g[K.G_PATCH_LOST]),
+            "emitted": float(g[K.G_EMITTED]),
+        }
+
+    def resolve_overlaps(self, passes: int = 20) -> int:
+        """Merge until no two alive patches overlap (before a snapshot); returns the passes used."""
+        for k in range(passes):
+            d = self.patches_host()
+            pt = Patches(d["x"], d["y"], d["area"], np.maximum(d["thick"], 0.0)) if len(d["x"]) else None
+            if pt is None or len(overlapping_pairs(pt)) == 0:
+                return k
+            self.rebuild_neighbours()
+            self.merge()
+            self.dirty = True
+        raise SceneError("patches still overlap after the merge passes")
+
+    def snapshot(self) -> dict[str, Any]:
+        """The patch coverage state for HF hand-off (contact re-solved at this step's load), SI arrays + attrs.
+
+        Elevations include the disc rings' thermal bulge; all heights are shifted by one constant so the lowest
+        element sits at 0 (a common shift leaves the contact solution unchanged).
+        """
+        self.resolve_overlaps()
+        self.resolve()
+        self.dirty = True
+        bulge = self.ring_bulge.numpy()
+        d = self.patches_host()
+        a = self.alive.numpy() != 0
+        from aca_warp.kernels.lf import G_GAP, G_LOAD, G_OMEGA
+
+        g = self.glob.numpy()
+        n_t = self.n_t
+        cell_cover = self.cell_cover.numpy()
+        free = np.maximum(self.cell_area_host - cell_cover, 0.0)
+        z_cell = self.cell_z.numpy() + np.repeat(bulge, n_t)
+        z_patch = d["top"] + bulge[d["cell"] // n_t]
+        shift = min(z_cell.min(), z_patch.min() if len(z_patch) else np.inf)
+        del a
+        return {
+            "patches": {
+                "x": d["x"], "y": d["y"], "area": d["area"], "height": z_patch - shift, "thickness": d["thick"],
+                "normal_force": d["normal_force"], "temperature": d["temp"], "age": d["age"], "power": d["power"],
+            },
+            "matrix": {
+                "area": free, "radius": self.cell_rc_host.copy(), "height": z_cell - shift,
+                "x": self.cell_x_host.copy(),
+                "y": self.cell_y_host.copy(), "normal_force": self.cell_fn.numpy().copy(),
+                "temperature": self.cell_T.numpy().copy(), "store": self.cell_store.numpy().copy(),
+            },
+            "rings": {
+                "radius": self.ring_r.numpy().copy(), "temperature": self.ring_T.numpy().copy(), "bulge": bulge.copy(),
+            },
+            "attrs": {
+                "time": self.step_index * self.scene.lf.dt,
+                "normal_force": float(g[G_LOAD]),
+                "angular_velocity": float(g[G_OMEGA]),
+                "gap": float(g[G_GAP] - shift),
+                "height_shift": float(shift),
+            },
+        }  # fmt: skip

@@ -1,0 +1,333 @@
+"""On-chip HF engine: one thread block per pad advances many ``strang`` steps per launch.
+
+The pad's displacement (double-buffered), staggered velocity and spring-force cache live in shared memory
+for the whole launch, and the global outputs (μ, torque, friction radius, Σu̇, Σ|u̇|) and per-patch
+histories are recorded in-kernel after every sample interval (:mod:`aca_warp.kernels.hf_onchip`). The
+general per-step path (:func:`aca_warp.hf.run_hf`) stays for pads too large for one block's shared memory,
+for patch growth and for the other integrators; ``engine="auto"`` picks between them (:func:`choose_engine`).
+
+Same arithmetic as the general path: on the CPU (where Warp runs a block as one thread) μ(t) and the final
+(u, u̇) are bit-identical to :func:`run_hf`; on CUDA the in-block reductions of the global outputs sum in a
+different order and the CUDA compiler may contract differently, so results agree to rounding.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+
+import numpy as np
+import warp as wp
+
+from aca_warp.errors import SceneError, SimulationFault
+from aca_warp.hf import (
+    DEFAULT_INTEGRATOR,
+    WATCHDOG_FACTOR,
+    Chunk,
+    HFSolver,
+    RunResult,
+    _fault_from,
+    _Recorder,
+    run_hf,
+    watchdog_bound,
+)
+from aca_warp.kernels import hf as K
+from aca_warp.kernels.hf_onchip import onchip_kernel
+from aca_warp.model import PadModel
+from aca_warp.scene import Record
+from aca_warp.state import HFState
+
+ENGINES = ("auto", "onchip", "general")
+MAX_BLOCK = 1024  # threads per block
+DEFAULT_BLOCK = 512  # threads per pad by default (1024 leaves 64 registers per thread: the fp64 kernel spills)
+_SMEM_RESERVE = 8 * 1024  # bytes left for Warp's reduction scratch and static shared memory
+_PATCH_BUFFER_BYTES = 256 * 2**20  # cap of the per-patch history buffers of one launch
+
+
+def _itemsize(model: PadModel) -> int:
+    return 8 if model.dtype == wp.float64 else 4
+
+
+def _round_up(x: int, m: int) -> int:
+    return max(m, -(-x // m) * m)
+
+
+def pad_sizes(model: PadModel) -> tuple[int, int]:
+    """(most patches in one pad, most neighbour links in one pad) of the batch."""
+    start = model.pad_patch_start_host
+    nbr = model.host("nbr_start")
+    links = nbr[start[1:]] - nbr[start[:-1]]
+    return int(np.diff(start).max()), int(links.max())
+
+
+def shared_bytes(model: PadModel, csr_shared: bool) -> int:
+    """Shared memory one block needs [bytes]: u (×2), w, F_s per patch, plus the pad's CSR when kept on chip."""
+    nmax, emax = pad_sizes(model)
+    nmax, emax = _round_up(nmax, 32), _round_up(emax, 32)
+    b = 4 * nmax * _itemsize(model)
+    if csr_shared:
+        b += emax * (4 + _itemsize(model))
+    return b
+
+
+def _smem_limit(model: PadModel) -> int:
+    dev = model.device
+    if dev.is_cpu:
+        return 256 * 1024 - _SMEM_RESERVE  # Warp's CPU tile arena (native/tile.h)
+    return int(dev.max_shared_memory_per_block) - _SMEM_RESERVE
+
+
+def unsupported(model: PadModel, integrator: str = DEFAULT_INTEGRATOR) -> str | None:
+    """Why the on-chip engine cannot run this model (None when it can)."""
+    if integrator != "strang":
+        return f"the on-chip engine implements the strang integrator only (got {integrator})"
+    if "pad_growth" in model.arrays:
+        return "patch growth needs the general engine"
+    need, limit = shared_bytes(model, False), _smem_limit(model)
+    if need > limit:
+        return (
+            f"a pad of {pad_sizes(model)[0]} patches needs {need} B of shared memory per block, "
+            f"the device offers {limit} B"
+        )
+    return None
+
+
+def choose_engine(model: PadModel, engine: str, integrator: str = DEFAULT_INTEGRATOR) -> str:
+    """Resolve ``engine`` (auto, onchip, general) for a model; ``onchip`` on an unsupported model is an error.
+
+    ``auto`` picks ``onchip`` on CUDA devices whenever it can run the model, else ``general`` (on the CPU
+    the general path is as fast: Warp runs a block as one thread there).
+    """
+    if engine not in ENGINES:
+        raise SceneError(f"unknown engine {engine!r}; choose from {', '.join(ENGINES)}")
+    why = unsupported(model, integrator)
+    if engine == "onchip":
+        if why is not None:
+            raise SceneError(f"--engine onchip: {why}")
+        return "onchip"
+    if engine == "general":
+        return "general"
+    return "onchip" if (why is None and model.device.is_cuda) else "general"
+
+
+def _due(k: int, first: int, last: int, every: int) -> bool:
+    """Whether global sample k also records per-patch histories (``patch_sample_due`` of kernels.hf)."""
+    return first <= k <= last and (k - first) % every == 0
+
+
+def run_onchip(
+    model: PadModel,
+    state: HFState,
+    *,
+    duration: float,
+    dt: float | None = None,
+    force: bool = False,
+    record: Record | None = None,
+    sink: Callable[[Chunk], None] | None = None,
+    progress: bool = False,
+    block_dim: int | None = None,
+    csr_shared: bool | None = None,
+    samples_per_launch: int | None = None,
+    watchdog_factor: float | None = WATCHDOG_FACTOR,
+) -> RunResult:
+    """Advance all pads from ``state`` for ``duration`` [s] with the on-chip ``strang`` kernel.
+
+    Same contract as :func:`aca_warp.hf.run_hf` with ``integrator="strang"`` (step shortened so that a whole
+    number of steps fits a sample interval; samples go to ``sink`` or the result's chunks; the state is left
+    synchronous; the same watchdog, ``watchdog_factor``). ``block_dim``: threads per pad (default: the pad size
+    rounded up to 32, at most 512);
+    ``csr_shared``: keep the neighbour lists in shared memory (default: when they fit);
+    ``samples_per_launch``: sample intervals per kernel launch (default: as many as fit ~20k steps).
+    """
+    t_compile = time.perf_counter()
+    record = record or model.scenes[0].record
+    why = unsupported(model)
+    if why is not None:
+        raise SceneError(f"on-chip engine: {why}")
+    if not (duration > 0 and math.isfinite(duration)):
+        raise SceneError(f"duration must be a positive number of seconds, got {duration}")
+    if record.sample_dt > duration * (1 + 1e-12):
+        raise SceneError(f"sample interval {record.sample_dt:g} s exceeds the duration {duration:g} s")
+    n_samples = max(1, round(duration / record.sample_dt))
+    solver = HFSolver(model, "strang", dt, force=force)
+    sps = max(1, math.ceil(record.sample_dt / solver.dt - 1e-9))
+    h = record.sample_dt / sps
+    dev = model.device
+    nmax, emax = pad_sizes(model)
+    if csr_shared is None:
+        csr_shared = shared_bytes(model, True) <= _smem_limit(model)
+    elif csr_shared and shared_bytes(model, True) > _smem_limit(model):
+        raise SceneError(f"the neighbour lists of a {nmax}-patch pad do not fit shared memory with the state")
+    if block_dim is None:
+        block_dim = min(DEFAULT_BLOCK, _round_up(nmax, 32))
+    if not 1 <= block_dim <= MAX_BLOCK:
+        raise SceneError(f"block_dim must be in [1, {MAX_BLOCK}], got {block_dim}")
+    threads = 1 if dev.is_cpu else block_dim  # Warp runs a CPU block as one thread (enable_cpu_blocks off)
+
+    probe = _Recorder(model, record, 1, n_samples)
+    per_row = (int(probe.want_v) + int(probe.want_u)) * model.patch_count * _itemsize(model)
+    if samples_per_launch is None:
+        samples_per_launch = max(1, 20_000 // sps)
+    spl = max(1, min(samples_per_launch, n_samples))
+    if per_row:
+        spl = max(1, min(spl, _PATCH_BUFFER_BYTES // per_row))
+    rec = _Recorder(model, record, spl + 1, n_samples)
+    bounds = (
+        np.full(model.pad_count, np.inf) if watchdog_factor is None else watchdog_bound(model, state, watchdog_factor)
+    )
+    rec.watch_bound.assign(bounds)
+    kernel = onchip_kernel(model.dtype, _round_up(nmax, 32), _round_up(emax, 32), bool(csr_shared), block_dim)
+    stages = [
+        "contact",
+        "neighbours" if model.has_coupling else "no-coupling",
+        "step:strang:onchip",
+        "record:globals",
+    ] + (["record:patches"] if rec.patch_stage else [])
+    out: list[Chunk] = []
+    emit = sink or out.append
+    cause = (
+        f"step {h:.3g} s beyond the stable estimate {solver.estimate.limit('strang'):.3g} s"
+        if h > solver.estimate.limit("strang")
+        else "extreme scene parameters (check loads, areas, speeds)"
+    )
+    m = model
+    T = model.dtype
+    solver.prepare(state)
+    rec.launch(state.u, state.v, conditional=False)  # sample 0: the initial state (general kernels)
+    k_next, rows, prows = 1, 1, int(_due(0, rec.first, rec.last, rec.every))
+
+    def launch(samples: int, opening: bool) -> None:
+        wp.launch_tiled(
+            kernel,
+            dim=[m.pad_count],
+            block_dim=block_dim,
+            device=dev,
+            inputs=[
+                m.pad_patch_start,
+                m.inv_mass,
+                m.k_diag,
+                m.damping,
+                m.normal_force,
+                m.radius,
+                m.nbr_start,
+                m.nbr_index,
+                m.nbr_stiffness,
+                m.pad_omega,
+                m.pad_mu_scale,
+                m.pad_slope,
+                m.pad_decay,
+                m.pad_mu_pad,
+                m.pad_load,
+                m.pad_matrix_force,
+                m.pad_matrix_radius,
+                m.k_t,
+                threads,
+                T(h),
+                solver.newton_tol,
+                sps,
+                samples,
+                int(opening),
+                k_next,
+                rows,
+                prows,
+                rec.first,
+                rec.last,
+                rec.every,
+                state.u,
+                state.v,
+                state.force,
+                rec.globals,
+                rec.watch_bound,
+                rec.fault,
+                rec.fault_value,
+                rec.velocity,
+                rec.displacement,
+            ],
+        )
+
+    wp.load_module(kernel.module, device=dev)
+    wp.load_module(K, device=dev)
+    compile_time = time.perf_counter() - t_compile
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=n_samples * record.sample_dt, unit="s", unit_scale=True, dynamic_ncols=True)
+    t0 = time.perf_counter()
+    fault: SimulationFault | None = None
+    done_samples = 0
+    started = False
+    try:
+        while True:
+            reps = min(spl, n_samples - done_samples)
+            launch(reps, not started)
+            started = True
+            due = sum(1 for k in range(k_next, k_next + reps) if _due(k, rec.first, rec.last, rec.every))
+            k_next += reps
+            rows += reps
+            prows += due
+            done_samples += reps
+            sim_t = done_samples * record.sample_dt
+            rec.counters.assign(np.array([k_next, rows, prows, 0], dtype=np.int32))
+            chunk, table = rec.flush()
+            rows = prows = 0
+            fault = _fault_from(table, model, record.sample_dt, cause, rec.fault_value.numpy(), bounds)
+            if fault is not None:
+                keep = chunk.time < fault.time - 0.5 * record.sample_dt
+                pkeep = chunk.patch_time < fault.time - 0.5 * record.sample_dt
+                chunk = Chunk(
+                    chunk.time[keep],
+                    chunk.globals[keep],
+                    chunk.patch_time[pkeep],
+                    None if chunk.velocity is None else chunk.velocity[pkeep],
+                    None if chunk.displacement is None else chunk.displacement[pkeep],
+                )
+            emit(chunk)
+            if bar is not None:
+                bar.update(sim_t - bar.n)
+            if fault is not None or done_samples >= n_samples:
+                break
+    finally:
+        if bar is not None:
+            bar.close()
+        if started:
+            solver.finish(state, h)
+    wp.synchronize_device(dev)
+    wall = time.perf_counter() - t0
+    return RunResult(
+        complete=fault is None,
+        fault=fault,
+        steps=done_samples * sps,
+        rejected=0,
+        sim_time=done_samples * record.sample_dt,
+        wall_time=wall,
+        compile_time=compile_time,
+        dt=h,
+        estimate=solver.estimate,
+        stages=stages,
+        chunks=out,
+    )
+
+
+def run(
+    model: PadModel,
+    state: HFState,
+    *,
+    engine: str = "auto",
+    integrator: str = DEFAULT_INTEGRATOR,
+    **kwargs,
+) -> RunResult:
+    """:func:`run_onchip` or :func:`aca_warp.hf.run_hf`, as :func:`choose_engine` resolves ``engine``.
+
+    Checkpointed or resumed runs (``checkpoint_every``/``resume``) always take the general path.
+    """
+    wants_general = kwargs.get("resume") is not None or kwargs.get("checkpoint_every") is not None
+    if wants_general and engine == "onchip":
+        raise SceneError("--engine onchip: checkpoints and resume need the general engine")
+    if not wants_general and choose_engine(model, engine, integrator) == "onchip":
+        kwargs.pop("tolerance", None)
+        kwargs.pop("use_graph", None)
+        kwargs.pop("max_graph_steps", None)
+        return run_onchip(model, state, **kwargs)
+    return run_hf(model, state, integrator=integrator, **kwargs)

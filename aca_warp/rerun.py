@@ -1,0 +1,200 @@
+"""Repeat a run from its run file: ``aca-warp rerun RUN.h5 -o NEW.h5`` (and the settings ``--resume`` reads).
+
+A run file holds everything a run depends on (docs/run_files.md): the scene as JSON (every constant, the
+record settings, the duration), the patch arrays in ``/patches`` and the matrix cells in ``/matrix`` (so the
+original patch file is not needed), the integrator and step policy, the precision, the device and the
+package versions. :func:`read_settings` rebuilds the scene from them; the rerun uses the same code path as
+``aca-warp hf`` and, on the same device and precision, gives the same bits.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from aca_warp.argtypes import positive
+from aca_warp.errors import SceneError
+from aca_warp.scene import Friction, Growth, Initial, Material, Matrix, Pad, Patches, Record, Scene
+
+
+@dataclass
+class RunSettings:
+    """What a run file says about how it was made.
+
+    Attributes:
+        scene: The scene, rebuilt from the stored JSON, ``/patches`` and ``/matrix``.
+        integrator: Integrator name.
+        dt: Requested step [s] or None (the default).
+        tolerance: Tolerance of ``adaptive`` [1].
+        force: Whether explicit steps beyond the estimate were forced.
+        duration: Simulated duration [s].
+        precision: ``fp32`` or ``fp64``.
+        device: Warp device alias the run used.
+        checkpoint_interval: Checkpoint interval [s of simulated time] or None.
+        versions: Package versions of the run (JSON dict).
+        complete: Whether the run completed.
+        engine: HF engine the run used (``general`` or ``onchip``).
+    """
+
+    scene: Scene
+    integrator: str
+    dt: float | None
+    tolerance: float
+    force: bool
+    duration: float
+    precision: str
+    device: str
+    checkpoint_interval: float | None
+    versions: dict[str, str]
+    complete: bool
+    engine: str = "general"
+
+
+def _json(attrs: Any, key: str, path: Path) -> Any:
+    if key not in attrs:
+        raise SceneError(f"{path} lacks the attribute {key!r}: not an aca-warp run file, or one too old to rerun")
+    v = attrs[key]
+    try:
+        return json.loads(v) if isinstance(v, str) else v
+    except json.JSONDecodeError:
+        raise SceneError(f"{path}: attribute {key!r} is not valid JSON") from None
+
+
+def scene_from_run(f: h5py.File, path: Path) -> Scene:
+    """The scene of an open run file (stored JSON, patches from ``/patches``, matrix from ``/matrix``)."""
+    doc = _json(f.attrs, "scene", path)
+    try:
+        patches = Patches(
+            *(np.asarray(f["patches"][k][()], dtype=np.float64) for k in ("x", "y", "area", "height")),
+            source=f"{path}:/patches",
+        )
+        matrix = (
+            Matrix(*(np.asarray(f["matrix"][k][()], dtype=np.float64) for k in ("area", "radius", "height")))
+            if "matrix" in f
+            else None
+        )
+        rec = doc["record"]
+        window = tuple(rec["window"])
+        return Scene(
+            name=str(doc["scene"]["name"]),
+            pad=Pad(**doc["pad"]),
+            patches=patches,
+            material=Material(**doc["material"]),
+            friction=Friction(**doc["friction"]),
+            normal_force=doc["load"]["normal_force"],
+            angular_velocity=doc["disc"]["angular_velocity"],
+            initial=Initial(**doc["initial"]),
+            record=Record(
+                sample_dt=rec["sample_dt"],
+                patches=tuple(rec["patches"]),
+                window=(window[0], math.inf if window[1] >= 1e300 else window[1]),
+                decimation=rec["decimation"],
+            ),
+            duration=doc["run"]["duration"],
+            growth=Growth(**doc["growth"]) if "growth" in doc else None,
+            matrix=matrix,
+            origin={"patches": doc["patches"]},
+        )
+    except SceneError as e:
+        raise SceneError(f"{path}: the stored scene is invalid: {e}") from None
+    except (KeyError, TypeError, ValueError, AttributeError, OSError) as e:
+        raise SceneError(f"{path}: the stored scene is incomplete or damaged ({type(e).__name__}: {e})") from None
+
+
+def read_settings(path: str | Path) -> RunSettings:
+    """Read the settings of the run file ``path`` (SceneError with one line when it cannot be rerun)."""
+    p = Path(path)
+    if not p.is_file():
+        raise SceneError(f"run file not found: {p}")
+    try:
+        f = h5py.File(p, "r")
+    except OSError as e:
+        raise SceneError(f"cannot open run file {p}: {e}") from None
+    with f:
+        scene = scene_from_run(f, p)
+        policy = _json(f.attrs, "step_policy", p)
+        versions = _json(f.attrs, "versions", p) if "versions" in f.attrs else {}
+        try:
+            interval = policy.get("checkpoint_interval")
+            return RunSettings(
+                scene=scene,
+                integrator=str(policy["integrator"]),
+                dt=None if policy["dt"] is None else float(policy["dt"]),
+                tolerance=float(policy["tolerance"]),
+                force=bool(policy["force"]),
+                duration=float(policy["duration"]),
+                precision=str(f.attrs["precision"]),
+                device=str(f.attrs["device"]),
+                checkpoint_interval=None if interval is None else float(interval),
+                versions=versions if isinstance(versions, dict) else {},
+                complete=bool(f.attrs.get("complete", False)),
+                engine=str(policy.get("engine", "general")),
+            )
+        except (KeyError, TypeError, ValueError, AttributeError) as e:
+            raise SceneError(f"{p}: the stored step policy is incomplete ({type(e).__name__}: {e})") from None
+
+
+def version_changes(stored: dict[str, str]) -> list[str]:
+    """``name old -> new`` for every package whose version differs from the run file's."""
+    from aca_warp.io import versions
+
+    now = versions()
+    return [f"{k} {v} -> {now.get(k, 'missing')}" for k, v in stored.items() if now.get(k) != v]
+
+
+def add_parsers(sub: Any) -> None:
+    """Add ``rerun`` to the ``aca-warp`` subcommands."""
+    p = sub.add_parser(
+        "rerun",
+        help="repeat a run from its run file (scene, patches, integrator, precision, device)",
+        description="Repeat the run stored in RUN.h5 into NEW.h5: same scene (patches from the file), integrator, "
+        "step policy, precision and device. On the same device and precision the samples are bit-identical.",
+    )
+    p.add_argument("run", metavar="RUN.h5", help="run file to repeat")
+    p.add_argument("-o", "--output", required=True, metavar="NEW.h5", help="run file to write")
+    p.add_argument("--device", help="Warp device (default: the one the run used)")
+    p.add_argument("--checkpoint-interval", type=positive, metavar="S", help="checkpoint every S of simulated time")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(handler=_cmd_rerun)
+
+
+def _cmd_rerun(args: argparse.Namespace) -> int:
+    from aca_warp.io import check_output_path
+    from aca_warp.runner import run_scene
+
+    check_output_path(args.output, overwrite=args.overwrite)
+    if Path(args.output).resolve() == Path(args.run).resolve():
+        raise SceneError("rerun writes a new file; give an output other than the run file")
+    s = read_settings(args.run)
+    changed = version_changes(s.versions)
+    if changed:
+        print(f"aca-warp: note: versions differ from the run's: {', '.join(changed)}", file=sys.stderr)
+    result = run_scene(
+        s.scene,
+        args.output,
+        duration=s.duration,
+        device=args.device or s.device,
+        integrator=s.integrator,
+        dt=s.dt,
+        tolerance=s.tolerance,
+        precision=s.precision,
+        force=s.force,
+        overwrite=args.overwrite,
+        progress=not args.no_progress,
+        checkpoint_interval=args.checkpoint_interval or s.checkpoint_interval,
+        engine=s.engine,
+    )
+    if result.fault is not None:
+        print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
+        return 3
+    print(f"{args.output}: rerun of {args.run}, {result.steps} steps over {result.sim_time:.4g} s")
+    return 0

@@ -1,0 +1,303 @@
+"""On-chip HF kernel: one thread block per pad, many ``strang`` steps per launch, outputs reduced in-kernel.
+
+Each block keeps its pad's state in shared memory (Warp tiles with ``storage="shared"``):
+
+* ``u`` twice (double buffer: step n reads buffer n mod 2 and writes the other, so one block barrier per step
+  suffices: the drift of step n+1 writes the buffer that the gathers of step n do not read),
+* the staggered velocity ``w`` and the cached spring force F_s(u), both touched only by the owning thread,
+* optionally (``csr_shared``) the pad's neighbour lists (local index int32, k_ij in T); otherwise the CSR is
+  read from global memory (read-only, L1/L2 cached).
+
+Per-patch constants (1/m, c, F_N, r, k_diag) stay in global memory (read-only, cached). Thread ``lane`` owns
+patches lane, lane + B, lane + 2B, … of its pad (B the block size; 1 on the CPU, where Warp runs a block as
+one thread). The arithmetic per patch is that of :mod:`aca_warp.kernels.hf` (``strang_open``,
+``strang_step``, ``spring_forces``, ``strang_close``, ``record_globals``, ``record_patches``; the same
+``wp.func`` s), so on the CPU the results are bit-identical to the general per-step path; on the GPU the
+in-kernel reductions sum in a different order (a tree over threads), so the global outputs differ in the
+last bits.
+
+Kernels are made per (precision, max patches per pad, max links per pad, csr_shared) by
+:func:`onchip_kernel`: tile shapes are compile-time constants.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from typing import Any
+
+import warp as wp
+from aca_warp.kernels.hf import friction_coefficient, midpoint_friction, patch_sample_due, sign_or_zero
+
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.func_native("WP_TILE_SYNC();\n")
+def block_sync(): ...
+
+
+@cache
+def onchip_kernel(dtype: Any, nmax: int, emax: int, csr_shared: bool, block_dim: int) -> wp.Kernel:
+    """The on-chip strang kernel for pads of at most ``nmax`` patches (``emax`` links when ``csr_shared``).
+
+    Launch with ``wp.launch_tiled(kernel, dim=[pads], block_dim=B, ...)``; ``threads`` must be the block
+    size the device really runs (B on CUDA, 1 on the CPU). The kernel is compiled with
+    ``__launch_bounds__(block_dim)`` so that a block of ``block_dim`` threads gets the registers it may use.
+    """
+    T = dtype
+    NMAX = wp.constant(nmax)
+    EMAX = wp.constant(emax if csr_shared else 1)
+    CSR_SHARED = wp.constant(1 if csr_shared else 0)
+
+    @wp.func
+    def sync_velocity(
+        i: int,
+        g: int,
+        w: Any,
+        fs: Any,
+        inv_mass: wp.array[T],
+        damping: wp.array[T],
+        normal_force: wp.array[T],
+        radius: wp.array[T],
+        omega: T,
+        half: T,
+        mu_scale: T,
+        slope: T,
+        decay: T,
+        tol: T,
+    ):
+        """Synchronous velocity of local patch i (global g) from the staggered w and F_s (``strang_close``)."""
+        im = inv_mass[g]
+        return midpoint_friction(
+            w[i] + half * im * fs[i], half, T(1.0) / im, damping[g], normal_force[g], omega * radius[g],
+            mu_scale, slope, decay, tol,
+        )  # fmt: skip
+
+    @wp.kernel(enable_backward=False, module="unique", launch_bounds=(block_dim, 1))
+    def onchip_strang(
+        # Model:
+        pad_patch_start: wp.array[wp.int32],
+        inv_mass: wp.array[T],
+        k_diag: wp.array[T],
+        damping: wp.array[T],
+        normal_force: wp.array[T],
+        radius: wp.array[T],
+        nbr_start: wp.array[wp.int32],
+        nbr_index: wp.array[wp.int32],
+        nbr_stiffness: wp.array[T],
+        pad_omega: wp.array[T],
+        pad_mu_scale: wp.array[T],
+        pad_slope: wp.array[T],
+        pad_decay: wp.array[T],
+        pad_mu_pad: wp.array[T],
+        pad_load: wp.array[T],
+        pad_matrix_force: wp.array[T],
+        pad_matrix_radius: wp.array[T],
+        k_t: wp.array[T],
+        # Stepping:
+        threads: int,
+        dt: T,
+        tol: T,
+        steps_per_sample: int,
+        samples: int,
+        opening: int,
+        # Recording:
+        k0: int,
+        row0: int,
+        prow0: int,
+        first: int,
+        last: int,
+        every: int,
+        # State in/out (staggered w, cached F_s between launches):
+        u_io: wp.array[T],
+        v_io: wp.array[T],
+        force_io: wp.array[T],
+        # Recorder out:
+        globals_out: wp.array3d[wp.float64],
+        watch_bound: wp.array[wp.float64],
+        fault_out: wp.array2d[wp.int32],
+        fault_value_out: wp.array[wp.float64],
+        velocity_out: wp.array2d[T],
+        displacement_out: wp.array2d[T],
+    ):
+        """Advance pad ``pad`` by ``samples`` × ``steps_per_sample`` strang steps, recording after each sample.
+
+        ``opening`` = 1: the state is synchronous, the first step is the opening half step (``strang_open``).
+        Globals row ``row0 + s`` gets sample ``k0 + s``; per-patch rows start at ``prow0``.
+        """
+        pad, lane = wp.tid()
+        a = pad_patch_start[pad]
+        n = pad_patch_start[pad + 1] - a
+        u2 = wp.tile_zeros(shape=(2, NMAX), dtype=T, storage="shared")
+        w = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
+        fs = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
+        sidx = wp.tile_zeros(shape=EMAX, dtype=wp.int32, storage="shared")
+        sk = wp.tile_zeros(shape=EMAX, dtype=T, storage="shared")
+        e0 = nbr_start[a]
+        i = lane
+        while i < n:
+            u2[0, i] = u_io[a + i]
+            w[i] = v_io[a + i]
+            fs[i] = force_io[a + i]
+            i += threads
+        if CSR_SHARED != 0:
+            e = lane
+            ne = nbr_start[a + n] - e0
+            while e < ne:
+                sidx[e] = nbr_index[e0 + e] - a
+                sk[e] = nbr_stiffness[e0 + e]
+                e += threads
+        block_sync()
+
+        omega = pad_omega[pad]
+        mu_scale = pad_mu_scale[pad]
+        slope = pad_slope[pad]
+        decay = pad_decay[pad]
+        one = T(1.0)
+        half = dt * T(0.5)
+        bound2 = watch_bound[pad] * watch_bound[pad]
+        cur = int(0)
+        prow = prow0
+        first_step = opening
+        for s in range(samples):
+            for _q in range(steps_per_sample):
+                nxt = 1 - cur
+                # friction + kicks + drift (strang_open / strang_step), own patches only
+                i = lane
+                while i < n:
+                    g = a + i
+                    im = inv_mass[g]
+                    vd = omega * radius[g]
+                    if first_step != 0:
+                        v = midpoint_friction(
+                            w[i], half, one / im, damping[g], normal_force[g], vd, mu_scale, slope, decay, tol
+                        )
+                        v = v + half * im * fs[i]
+                    else:
+                        kick = half * im * fs[i]
+                        v = (
+                            midpoint_friction(
+                                w[i] + kick, dt, one / im, damping[g], normal_force[g], vd, mu_scale, slope, decay, tol
+                            )
+                            + kick
+                        )
+                    w[i] = v
+                    u2[nxt, i] = u2[cur, i] + dt * v
+                    i += threads
+                first_step = 0
+                block_sync()
+                # spring forces at the new u (spring_force of kernels.hf: same two partial sums, same order)
+                i = lane
+                while i < n:
+                    g = a + i
+                    a0 = T(0.0)
+                    a1 = T(0.0)
+                    e = nbr_start[g]
+                    end = nbr_start[g + 1]
+                    if CSR_SHARED != 0:
+                        e = e - e0
+                        end = end - e0
+                        while e + 1 < end:
+                            a0 += sk[e] * u2[nxt, sidx[e]]
+                            a1 += sk[e + 1] * u2[nxt, sidx[e + 1]]
+                            e += 2
+                        if e < end:
+                            a0 += sk[e] * u2[nxt, sidx[e]]
+                    else:
+                        while e + 1 < end:
+                            a0 += nbr_stiffness[e] * u2[nxt, nbr_index[e] - a]
+                            a1 += nbr_stiffness[e + 1] * u2[nxt, nbr_index[e + 1] - a]
+                            e += 2
+                        if e < end:
+                            a0 += nbr_stiffness[e] * u2[nxt, nbr_index[e] - a]
+                    fs[i] = (a0 + a1) - k_diag[g] * u2[nxt, i]
+                    i += threads
+                cur = nxt
+            # sample: synchronous velocity (strang_close), sums in float64 (record_globals), patch histories
+            k = k0 + s
+            due = patch_sample_due(k, first, last, every)
+            fsum = wp.float64(0.0)
+            tsum = wp.float64(0.0)
+            vsum = wp.float64(0.0)
+            vabs = wp.float64(0.0)
+            usum = wp.float64(0.0)
+            runaway = n  # first patch whose energy speed exceeds the watchdog bound (n: none)
+            i = lane
+            while i < n:
+                g = a + i
+                im = inv_mass[g]
+                r = radius[g]
+                vs = sync_velocity(i, g, w, fs, inv_mass, damping, normal_force, radius, omega, half, mu_scale,
+                                   slope, decay, tol)  # fmt: skip
+                uu = u2[cur, i]
+                f = normal_force[g] * friction_coefficient(omega * r - vs, mu_scale, slope, decay)
+                fsum += wp.float64(f)
+                tsum += wp.float64(f * r)
+                vsum += wp.float64(vs)
+                vabs += wp.float64(wp.abs(vs))
+                ui = wp.float64(uu)
+                usum += ui
+                s2 = wp.float64(vs) * wp.float64(vs) + wp.float64(k_t[g] * im) * ui * ui
+                if s2 > bound2 and runaway == n:
+                    runaway = i
+                if due:
+                    velocity_out[prow, g] = vs
+                    if displacement_out.shape[0] > 0:
+                        displacement_out[prow, g] = uu
+                i += threads
+            fsum = wp.tile_sum(wp.tile(fsum))[0]
+            tsum = wp.tile_sum(wp.tile(tsum))[0]
+            vsum = wp.tile_sum(wp.tile(vsum))[0]
+            vabs = wp.tile_sum(wp.tile(vabs))[0]
+            usum = wp.tile_sum(wp.tile(usum))[0]
+            runaway = wp.tile_min(wp.tile(runaway))[0]
+            if lane == 0:
+                row = row0 + s
+                fm = wp.float64(pad_mu_pad[pad] * pad_matrix_force[pad] * sign_or_zero(omega))
+                ftot = fsum + fm
+                ttot = tsum + fm * wp.float64(pad_matrix_radius[pad])
+                load = wp.float64(pad_load[pad])
+                mu = wp.float64(0.0)
+                reff = wp.float64(0.0)
+                if load > wp.float64(0.0):
+                    mu = ftot / load
+                if ftot != wp.float64(0.0):
+                    reff = ttot / ftot
+                globals_out[row, pad, 0] = mu
+                globals_out[row, pad, 1] = ttot
+                globals_out[row, pad, 2] = reff
+                globals_out[row, pad, 3] = vsum
+                globals_out[row, pad, 4] = vabs
+                if fault_out[pad, 0] < 0:
+                    if not (wp.isfinite(vabs) and wp.isfinite(usum)):
+                        bad = int(-1)
+                        for j in range(n):
+                            if bad < 0:
+                                vs = sync_velocity(j, a + j, w, fs, inv_mass, damping, normal_force, radius, omega,
+                                                   half, mu_scale, slope, decay, tol)  # fmt: skip
+                                if not (wp.isfinite(vs) and wp.isfinite(u2[cur, j])):
+                                    bad = j
+                        fault_out[pad, 0] = bad
+                        fault_out[pad, 1] = k
+                        fault_out[pad, 2] = 0
+                    elif runaway < n:
+                        g = a + runaway
+                        vs = sync_velocity(runaway, g, w, fs, inv_mass, damping, normal_force, radius, omega,
+                                           half, mu_scale, slope, decay, tol)  # fmt: skip
+                        ui = wp.float64(u2[cur, runaway])
+                        fault_out[pad, 0] = runaway
+                        fault_out[pad, 1] = k
+                        fault_out[pad, 2] = 1
+                        fault_value_out[pad] = wp.sqrt(
+                            wp.float64(vs) * wp.float64(vs) + wp.float64(k_t[g] * inv_mass[g]) * ui * ui
+                        )
+            if due:
+                prow += 1
+        # write back the staggered state and the force cache
+        i = lane
+        while i < n:
+            u_io[a + i] = u2[cur, i]
+            v_io[a + i] = w[i]
+            force_io[a + i] = fs[i]
+            i += threads
+
+    return onchip_strang

@@ -1,0 +1,133 @@
+#!/usr/bin/env python3
+"""Benchmark the on-chip HF engine against the general per-step path (``strang``, hf1 pads).
+
+Per case (engine, precision, pads, block size): µs per step, steps/s, patch-steps/s, compile time, and the
+error against the general path in fp64 on the same window: max |Δμ| over the samples and the max |Δu|
+relative to max |u| at the end (pad 0; every pad of a batch is the same scene). Results go to a JSON file
+and a Markdown table. Examples::
+
+    python scripts/bench_onchip.py --device cpu --pads 1 --duration 1e-6        # smoke test
+    python scripts/bench_onchip.py --device cuda:0 --pads 1 1024 --json $OUT/onchip.json --markdown $OUT/onchip.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+
+wp.config.log_level = wp.LOG_WARNING
+
+from aca_warp.hf import run_hf  # noqa: E402
+from aca_warp.io import machine  # noqa: E402
+from aca_warp.model import build_model  # noqa: E402
+from aca_warp.onchip import run_onchip, shared_bytes  # noqa: E402
+from aca_warp.scene import Record, preset  # noqa: E402
+from aca_warp.state import initial_state  # noqa: E402
+
+
+def run_case(scene, device, precision, engine, pads, dt, duration, block_dim=None, csr_shared=None) -> dict:
+    """Warm up (compile, capture) on a short window, then time ``duration`` [s]; returns a result row."""
+    model = build_model([scene] * pads, device=device, precision=precision)
+    state = initial_state(model)
+    if engine == "general":
+        kw = {}
+        fn = run_hf
+    else:
+        kw = {"block_dim": block_dim, "csr_shared": csr_shared}
+        fn = run_onchip
+    tc = time.perf_counter()
+    warm = fn(model, state, duration=scene.record.sample_dt * 2, dt=dt, **kw)
+    compile_s = time.perf_counter() - tc
+    state = initial_state(model)
+    res = fn(model, state, duration=duration, dt=dt, **kw)
+    c = res.collect()
+    n = model.patch_count
+    row = {
+        **machine(model.device),
+        "warp_version": wp.__version__,
+        "engine": engine,
+        "precision": precision,
+        "pads": pads,
+        "patches": n,
+        "block_dim": block_dim,
+        "csr_shared": csr_shared,
+        "shared_bytes": shared_bytes(model, bool(csr_shared)) if engine == "onchip" else 0,
+        "dt": res.dt,
+        "steps": res.steps,
+        "compile_s": compile_s - warm.wall_time,
+        "wall_s": res.wall_time,
+        "us_per_step": 1e6 * res.wall_time / res.steps,
+        "steps_per_s": res.steps / res.wall_time,
+        "patch_steps_per_s": n * res.steps / res.wall_time,
+    }
+    u, _ = state.numpy()
+    return row, c.globals[:, 0, 0], u[: n // pads].astype(np.float64)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--device", default="cuda:0" if wp.is_cuda_available() else "cpu")
+    ap.add_argument("--scene", default="hf1")
+    ap.add_argument("--pads", nargs="+", type=int, default=[1, 1024])
+    ap.add_argument("--precisions", nargs="+", default=["fp32", "fp64"], choices=["fp32", "fp64"])
+    ap.add_argument("--blocks", nargs="+", type=int, default=[1024, 512], help="threads per pad to try")
+    ap.add_argument("--dt", type=float, default=1e-8)
+    ap.add_argument("--duration", type=float, default=2e-4, help="timed window for one pad [s]")
+    ap.add_argument("--batch-duration", type=float, default=2e-5, help="timed window for batches [s]")
+    ap.add_argument("--general", action="store_true", help="also time the general path at every batch size")
+    ap.add_argument("--json", default="bench_onchip.json")
+    ap.add_argument("--markdown", default=None)
+    args = ap.parse_args()
+    scene = preset(args.scene).replace(record=Record(sample_dt=1e-6))
+    rows = []
+    for pads in args.pads:
+        dur = args.duration if pads == 1 else args.batch_duration
+        _, mu_ref, u_ref = run_case(scene, args.device, "fp64", "general", 1, args.dt, dur)
+        cases = [("general", p, None, None) for p in args.precisions] if (args.general or pads == 1) else []
+        for p in args.precisions:
+            for b in args.blocks:
+                cases.append(("onchip", p, b, False))
+            if p == "fp32":
+                cases.append(("onchip", p, args.blocks[0], True))
+        for engine, p, b, cs in cases:
+            try:
+                row, mu, u = run_case(scene, args.device, p, engine, pads, args.dt, dur, b, cs)
+            except Exception as e:  # noqa: BLE001  (report and go on: e.g. shared memory exceeded)
+                print(f"{engine} {p} pads={pads} block={b} csr_shared={cs}: {type(e).__name__}: {e}", flush=True)
+                continue
+            k = min(len(mu), len(mu_ref))
+            row["mu_err_vs_general_fp64"] = float(np.abs(mu[:k] - mu_ref[:k]).max())
+            row["u_rel_err_vs_general_fp64"] = float(np.abs(u - u_ref).max() / np.abs(u_ref).max())
+            rows.append(row)
+            print(
+                f"{row['device_name']}: {engine:7s} {p} pads={pads:5d} block={b} csr_shared={cs} "
+                f"{row['us_per_step']:.3f} us/step {row['patch_steps_per_s']:.3g} patch-steps/s "
+                f"compile {row['compile_s']:.2f} s  dmu {row['mu_err_vs_general_fp64']:.2e} "
+                f"du {row['u_rel_err_vs_general_fp64']:.2e}",
+                flush=True,
+            )
+    Path(args.json).write_text(json.dumps(rows, indent=1))
+    if args.markdown:
+        lines = [
+            f"Device: {rows[0]['device_name']}, Warp {rows[0]['warp_version']}, scene {args.scene}, dt {args.dt:g} s",
+            "",
+            "| engine | precision | pads | block | CSR in smem | µs/step | patch-steps/s | max abs dμ vs fp64 general "
+            "| rel. du vs fp64 general |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in rows:
+            lines.append(
+                f"| {r['engine']} | {r['precision']} | {r['pads']} | {r['block_dim'] or '-'} | "
+                f"{'yes' if r['csr_shared'] else 'no'} | {r['us_per_step']:.3g} | {r['patch_steps_per_s']:.3g} | "
+                f"{r['mu_err_vs_general_fp64']:.2g} | {r['u_rel_err_vs_general_fp64']:.2g} |"
+            )
+        Path(args.markdown).write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()

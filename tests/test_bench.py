@@ -1,0 +1,78 @@
+"""``aca-warp bench`` on a tiny CPU case: JSON keys, stage times, exit codes; the script wrapper; the byte model."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from aca_warp.bench import bytes_per_step
+from aca_warp.cli import main
+
+REPO = Path(__file__).resolve().parent.parent
+KEYS = (
+    "device",
+    "warp_version",
+    "precision",
+    "patches",
+    "pads",
+    "steps_per_s",
+    "patch_steps_per_s",
+    "ns_per_patch_step",
+    "compile_time_s",
+    "module_load_s",
+    "contact_s",
+    "neighbours_s",
+    "model_build_s",
+    "capture_s",
+    "stepping_s",
+    "recording_s",
+    "bytes_per_step",
+    "bandwidth_Bps",
+    "peak_bandwidth_Bps",
+    "peak_bandwidth_source",
+    "mu_rel_error_max",
+)
+
+
+def test_bench_cli_json(tmp_path: Path) -> None:
+    out = tmp_path / "b.json"
+    md = tmp_path / "b.md"
+    args = ["bench", "--patches", "20", "--duration", "3e-6", "--precision", "fp32", "--pads", "1", "2"]
+    assert main([*args, "--json", str(out), "--markdown", str(md)]) == 0
+    doc = json.loads(out.read_text())
+    rows = doc["results"]
+    assert [(r["pads"], r["patches"]) for r in rows] == [(1, 20), (2, 40)]
+    for r in rows:
+        assert all(k in r for k in KEYS), [k for k in KEYS if k not in r]
+        assert r["device"] == "cpu" and r["precision"] == "fp32" and r["steps"] == 300
+        assert r["patch_steps_per_s"] == pytest.approx(r["patches"] * r["steps_per_s"])
+        assert r["ns_per_patch_step"] == pytest.approx(1e9 / r["patch_steps_per_s"])
+        assert 0 < r["stepping_s"] and r["recording_s"] >= 0 and r["peak_bandwidth_Bps"] > 0
+        assert r["bytes_per_step"] == bytes_per_step("strang", r["patches"], r["links"], "fp32")
+        assert 0 <= r["mu_rel_error_max"] < 1e-5  # fp32 strang at dt against fp64 at dt/4
+    assert "| CPU | fp32 | strang | 2 | 40 |" in md.read_text()
+
+
+def test_bench_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    assert main(["bench", "--duration", "1e-7", "--patches", "5", "--json", str(tmp_path / "x.json")]) == 2
+    assert "exceeds the duration" in capsys.readouterr().err
+    assert main(["bench", "--patches", "5", "--json", str(tmp_path / "no" / "x.json")]) == 2
+    assert main(["bench", "--device", "cuda:7", "--patches", "5"]) == 2
+    with pytest.raises(SystemExit):
+        main(["bench", "--integrator", "rk4"])
+
+
+def test_byte_model_and_script(tmp_path: Path) -> None:
+    # strang fp64: n (8 + 12*8) + E (4 + 8)
+    assert bytes_per_step("strang", 10, 30, "fp64") == 10 * 104 + 30 * 12
+    assert bytes_per_step("symplectic-euler", 10, 30, "fp32") == 10 * 52 + 30 * 8
+    out = tmp_path / "s.json"
+    cmd = [sys.executable, str(REPO / "scripts" / "bench_hf.py"), "--patches", "8", "--duration", "2e-6"]
+    cmd += ["--precisions", "fp64", "--integrators", "symplectic-euler", "--no-reference", "--json", str(out)]
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert json.loads(out.read_text())["results"][0]["integrator"] == "symplectic-euler"

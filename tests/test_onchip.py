@@ -1,0 +1,118 @@
+"""The on-chip engine (aca_warp.onchip) against the general per-step path (aca_warp.hf.run_hf).
+
+On the CPU Warp runs a block as one thread, so the on-chip kernel does the same operations in the same order
+as the general kernels: μ(t), all global outputs, the per-patch histories and the final (u, u̇) must be
+bit-identical. On CUDA the in-block tree reductions reorder the float64 sums of the global outputs and the
+compiler may contract multiply-adds differently in the two kernels, so there they agree to rounding only
+(the bounds below are a few hundred ulps of the state precision after 200 steps).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aca_warp.errors import SceneError
+from aca_warp.hf import run_hf, stable_step
+from aca_warp.model import build_model
+from aca_warp.onchip import choose_engine, run, run_onchip
+from aca_warp.scene import Growth, Initial, Record, preset
+from aca_warp.state import initial_state
+
+RECORD = Record(sample_dt=2e-7, patches=("velocity", "displacement"), window=(4e-7, 2e-6), decimation=2)
+
+
+def _scenes():
+    """Two different hf1-size pads (load, speed and initial state differ) so that per-pad indexing is exercised."""
+    s = preset("hf1").replace(record=RECORD)
+    return [s, s.replace(normal_force=700.0, angular_velocity=5.0 / 0.13, initial=Initial(perturbation=0.02, seed=3))]
+
+
+def _both(device: str, precision: str, **onchip_kw):
+    out = {}
+    for engine in ("general", "onchip"):
+        model = build_model(_scenes(), device=device, precision=precision)
+        state = initial_state(model)
+        if engine == "general":
+            res = run_hf(model, state, duration=2e-6, dt=1e-8)
+        else:
+            res = run_onchip(model, state, duration=2e-6, dt=1e-8, samples_per_launch=3, **onchip_kw)
+        assert res.complete and res.steps == 200
+        out[engine] = (res.collect(), *state.numpy())
+    return out["general"], out["onchip"]
+
+
+@pytest.mark.parametrize("precision", ["fp64", "fp32"])
+def test_onchip_matches_general(device, precision):
+    (cg, ug, vg), (co, uo, vo) = _both(device, precision)
+    np.testing.assert_array_equal(co.time, cg.time)
+    np.testing.assert_array_equal(co.patch_time, cg.patch_time)
+    assert cg.velocity.shape == (5, 2 * 1758) and cg.globals.shape == (11, 2, 5)
+    if device == "cpu":
+        for a, b in [(co.globals, cg.globals), (co.velocity, cg.velocity), (co.displacement, cg.displacement)]:
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(uo, ug)
+        np.testing.assert_array_equal(vo, vg)
+    else:
+        rtol = 1e-10 if precision == "fp64" else 2e-4
+        np.testing.assert_allclose(co.globals[:, :, 0], cg.globals[:, :, 0], rtol=rtol, atol=0)  # mu
+        np.testing.assert_allclose(uo, ug, rtol=0, atol=rtol * np.abs(ug).max())
+        np.testing.assert_allclose(vo, vg, rtol=0, atol=rtol * np.abs(vg).max() * 10)
+
+
+def test_onchip_csr_in_shared_memory_matches(device):
+    """fp32 pads fit their neighbour lists in shared memory too; the gathers then read them from there."""
+    (cg, ug, vg), (co, uo, vo) = _both(device, "fp32", csr_shared=True, block_dim=256)
+    if device == "cpu":
+        np.testing.assert_array_equal(co.globals, cg.globals)
+        np.testing.assert_array_equal(uo, ug)
+    else:
+        np.testing.assert_allclose(co.globals[:, :, 0], cg.globals[:, :, 0], rtol=2e-4, atol=0)
+
+
+def test_engine_choice_and_refusals(device):
+    s = preset("hf1").replace(record=Record(sample_dt=1e-7))
+    model = build_model([s], device=device, precision="fp32")
+    assert choose_engine(model, "auto") == ("onchip" if device != "cpu" else "general")
+    assert choose_engine(model, "general") == "general"
+    assert choose_engine(model, "auto", "implicit-friction") == "general"
+    with pytest.raises(SceneError, match="strang"):
+        choose_engine(model, "onchip", "adaptive")
+    with pytest.raises(SceneError, match="unknown engine"):
+        choose_engine(model, "fast")
+    grow = build_model([s.replace(growth=Growth(increment=1e-9, interval=1e-6))], device=device, precision="fp32")
+    assert choose_engine(grow, "auto") == "general"
+    with pytest.raises(SceneError, match="growth"):
+        run_onchip(grow, initial_state(grow), duration=1e-6)
+    res = run(model, initial_state(model), engine="onchip", duration=2e-7, dt=1e-8)
+    assert "step:strang:onchip" in res.stages and res.steps == 20
+
+
+def test_onchip_fault_matches_general(device):
+    """Forced beyond the spring limit, both engines stop at the same sample, pad and patch."""
+    s = preset("hf1").replace(record=Record(sample_dt=2e-5))
+    faults = []
+    for engine in ("general", "onchip"):
+        model = build_model([s], device=device, precision="fp64")
+        dt = 1e-5
+        assert dt > 4.0 * stable_step(model).spring
+        res = run(model, initial_state(model), engine=engine, duration=4e-3, dt=dt, force=True)
+        assert not res.complete
+        c = res.collect()
+        assert np.all(np.isfinite(c.globals)) and np.all(c.time < res.fault.time)
+        faults.append((res.fault.time, res.fault.pad, res.fault.patch, len(c.time)))
+    assert faults[0] == faults[1]
+
+
+def test_cli_engine_option(tmp_path):
+    """``aca-warp hf --engine onchip`` runs the on-chip engine (on the CPU too) and records it in the stages."""
+    import h5py
+
+    from aca_warp.cli import main
+
+    out = tmp_path / "run.h5"
+    args = ["hf", "hf1", "-o", str(out), "--no-progress", "--duration", "4e-7", "--sample-dt", "2e-7"]
+    assert main([*args, "--engine", "onchip"]) == 0
+    with h5py.File(out, "r") as f:
+        assert "step:strang:onchip" in str(f.attrs["stages"]) and f["global/mu"].shape[0] == 3
+    assert main([*args, "--engine", "onchip", "--integrator", "adaptive", "--overwrite"]) == 2

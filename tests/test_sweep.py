@@ -1,0 +1,153 @@
+"""Sweeps: spec expansion, shard files, resume after a kill, refusal of a foreign spec, Dask == serial bit for bit."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from aca_warp.cli import main
+from aca_warp.hf import GLOBAL_NAMES, run_hf
+from aca_warp.model import build_model
+from aca_warp.scene import Friction, PatchGenerator, preset
+from aca_warp.state import initial_state
+from aca_warp.sweep import SweepError, load_spec, load_sweep, run_sweep
+
+# 2 M x 3 loads x 2 seeds = 12 pads of 25 patches, 4 shards of 3; 4 µs simulated (5 samples).
+TINY = {
+    "sweep": {"base": "hf1", "shard_size": 3, "name": "tiny"},
+    "run": {"duration": 4e-6, "precision": "fp32"},
+    "base": {"patches": {"count": 25}},
+    "parameters": {
+        "friction.M": [0.6, 0.8],
+        "load.normal_force": {"linspace": [300.0, 500.0, 3]},
+        "patches.seed": {"range": [1, 3]},
+    },
+}
+
+
+def _spec(**changes):
+    doc = json.loads(json.dumps(TINY))
+    for k, v in changes.items():
+        table, key = k.split("__")
+        doc[table][key] = v
+    return load_spec(doc, base_dir=Path.cwd())
+
+
+def _outputs(d: Path) -> dict:
+    s = load_sweep(d)
+    return {k: s[k] for k in ("time", *GLOBAL_NAMES)} | {f"p:{k}": v for k, v in s["parameters"].items()}
+
+
+def _assert_same(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for k in a:
+        assert np.array_equal(a[k], b[k]), k
+
+
+def test_spec_expansion_and_errors() -> None:
+    s = _spec()
+    assert (s.pad_count, s.shard_count, s.shard_range(3)) == (12, 4, (9, 12))
+    assert s.parameters["load.normal_force"][:3] == [300.0, 300.0, 400.0]  # product: last key varies fastest
+    assert s.parameters["patches.seed"][:4] == [1, 2, 1, 2]
+    sc = s.scene(11)
+    assert (sc.friction.M, sc.normal_force, sc.patches.count) == (0.8, 500.0, 25)
+    assert "seed=2" in sc.patches.source
+    z = load_spec(
+        {
+            "sweep": {"base": "hf1", "mode": "zip"},
+            "parameters": {"friction.M": [0.5, 0.7], "disc.sliding_speed": [5, 8]},
+        }
+    )
+    assert z.pad_count == 2 and z.scene(1).sliding_speed == pytest.approx(8.0)
+    bad = [
+        ({"parameters": {"friction.X": [1.0]}}, "unknown sweep parameter"),
+        (
+            {"sweep": {"base": "hf1", "mode": "zip"}, "parameters": {"friction.M": [0.5], "load.normal_force": [1, 2]}},
+            "equal length",
+        ),
+        ({"sweep": {"base": "nope"}}, "neither a preset"),
+        ({"parameters": {"patches.seed": [1.5]}}, "integers"),
+        ({"parameters": {"friction.M": [-1.0]}}, "friction.M must be >= 0"),
+        ({"extra": {}}, "unknown table"),
+    ]
+    for doc, msg in bad:
+        with pytest.raises(SweepError, match=msg):
+            load_spec(doc)
+
+
+def test_pad_equals_hand_built_scene() -> None:
+    """Pad 9 of the sweep (M 0.8, 400 N, seed 2) reproduces a scene built by hand, run alone."""
+    s = _spec()
+    base = preset("hf1")
+    hand = base.replace(
+        friction=Friction(M=0.8, mu_pad=base.friction.mu_pad),
+        normal_force=400.0,
+        patches=PatchGenerator(count=25, seed=2).generate(base.pad),
+        record=s.base.record,
+    )
+    m = build_model([hand], precision="fp32")
+    res = run_hf(m, initial_state(m), duration=4e-6, integrator="strang", record=hand.record)
+    mb = build_model(s.scenes(9, 12), precision="fp32")
+    rb = run_hf(mb, initial_state(mb), duration=4e-6, integrator="strang", record=hand.record)
+    np.testing.assert_allclose(rb.collect().globals[:, 0], res.collect().globals[:, 0], rtol=1e-6, atol=0)
+
+
+def test_dask_equals_serial_and_resume(tmp_path: Path) -> None:
+    spec = _spec()
+    serial, dask_dir = tmp_path / "serial", tmp_path / "dask"
+    r = run_sweep(spec, serial, workers=0)
+    assert r.ran == [0, 1, 2, 3] and not r.failed and not r.faults
+    ref = _outputs(serial)
+    assert ref["mu"].shape == (12, 5) and np.all(np.isfinite(ref["mu"]))
+    with h5py.File(serial / "shard-00001.h5", "r") as f:
+        assert f.attrs["complete"] and f.attrs["spec_hash"] == spec.hash
+        assert f["global/mu"].attrs["unit"] == "1" and f["parameters/load.normal_force"].attrs["unit"] == "N"
+        assert list(f["pads/index"][()]) == [3, 4, 5]
+
+    r = run_sweep(spec, dask_dir, workers=2)  # a local Dask cluster: two single-threaded worker processes
+    assert r.workers == 2 and sorted(r.ran) == [0, 1, 2, 3] and not r.failed
+    _assert_same(_outputs(dask_dir), ref)
+
+    # what a kill leaves behind: shard 1 mid-write (.partial, manifest 'queued'); shard 2's file lost although the
+    # manifest says done; shard 3 written by a worker whose client died before recording it (manifest 'queued')
+    man = json.loads((dask_dir / "manifest.json").read_text())
+    os.replace(dask_dir / "shard-00001.h5", dask_dir / "shard-00001.h5.partial")
+    (dask_dir / "shard-00002.h5").unlink()
+    man["shards"][1]["state"] = man["shards"][3]["state"] = "queued"
+    (dask_dir / "manifest.json").write_text(json.dumps(man))
+    kept = {i: (dask_dir / f"shard-0000{i}.h5").stat().st_mtime_ns for i in (0, 3)}
+    r = run_sweep(spec, dask_dir, workers=0)
+    assert sorted(r.ran) == [1, 2] and sorted(r.skipped) == [0, 3]
+    assert {i: (dask_dir / f"shard-0000{i}.h5").stat().st_mtime_ns for i in (0, 3)} == kept
+    assert not list(dask_dir.glob("*.partial"))
+    assert [s["state"] for s in json.loads((dask_dir / "manifest.json").read_text())["shards"]] == ["done"] * 4
+    _assert_same(_outputs(dask_dir), ref)
+    r = run_sweep(spec, dask_dir, workers=0)
+    assert r.ran == [] and sorted(r.skipped) == [0, 1, 2, 3]
+
+    other = _spec(run__duration=3e-6)
+    with pytest.raises(SweepError, match="different sweep"):
+        run_sweep(other, dask_dir, workers=0)
+    r = run_sweep(other, dask_dir, workers=0, overwrite=True)
+    assert sorted(r.ran) == [0, 1, 2, 3] and load_sweep(dask_dir)["mu"].shape == (12, 4)
+
+
+def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    spec = tmp_path / "s.toml"
+    spec.write_text(
+        '[sweep]\nbase = "hf1"\nshard_size = 2\n[run]\nduration = 2e-6\nprecision = "fp32"\n'
+        '[base.patches]\ncount = 12\n[parameters]\n"friction.M" = [0.7, 0.8, 0.9]\n'
+    )
+    out = tmp_path / "o"
+    assert main(["sweep", str(spec), "-o", str(out), "--workers", "0", "--quiet"]) == 0
+    assert "2 shard(s) run, 0 skipped" in capsys.readouterr().out
+    assert main(["sweep", str(spec), "-o", str(out), "--workers", "0", "--quiet"]) == 0
+    assert "0 shard(s) run, 2 skipped" in capsys.readouterr().out
+    assert main(["sweep", str(spec), "-o", str(out), "--workers", "0", "--shard-size", "3"]) == 2
+    assert "pass --overwrite" in capsys.readouterr().err
+    assert main(["sweep", str(tmp_path / "missing.toml"), "-o", str(out)]) == 2
