@@ -67,8 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--engine",
         choices=("auto", "onchip", "general"),
         default="auto",
-        help="onchip: one thread block per pad, many strang steps per launch (CUDA; docs/onchip.md); general: "
-        "per-step kernels; auto (default): onchip where it applies (CUDA, strang, pad fits shared memory)",
+        help="general: per-step kernels (what auto, the default, picks); onchip: one thread block per pad, many "
+        "strang steps per launch - experimental, CPU only for now (it hangs on CUDA; docs/onchip.md)",
     )
     hf.add_argument("--sample-dt", type=positive, metavar="S", help="interval of the recorded samples [s]")
     hf.add_argument(

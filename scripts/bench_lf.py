@@ -9,6 +9,11 @@ CPU core, ≥ 2000 on a GPU. Examples::
 
     python3 scripts/bench_lf.py                           # CPU, whole schedule (~5500 steps)
     python3 scripts/bench_lf.py --device cuda:0 --json $OUT/bench_lf_gpu.json --markdown $OUT/bench_lf_gpu.md
+    python3 scripts/bench_lf.py --duration 5 --save ref_cpu.h5                     # CPU reference run file
+    python3 scripts/bench_lf.py --duration 5 --device cuda:0 --compare ref_cpu.h5  # GPU against it
+
+``--compare`` checks the same scene on this device against a reference LF run file (another device): the
+global time series and every snapshot's patch arrays, relative to their scale.
 """
 
 from __future__ import annotations
@@ -25,13 +30,41 @@ import warp as wp
 wp.config.log_level = wp.LOG_WARNING
 
 
+def compare(path: Path, ref: Path) -> dict:
+    """Largest deviations of ``path`` from ``ref``: global series (relative to each series' max |value|) and per
+    snapshot patch count and patch arrays (sorted by position, relative to their max)."""
+    import h5py
+
+    res: dict = {}
+    with h5py.File(path, "r") as a, h5py.File(ref, "r") as b:
+        for k in ("mu", "torque", "friction_radius", "patch_count", "coverage", "disc_temperature_max"):
+            x, y = a["global"][k][()], b["global"][k][()]
+            n = min(len(x), len(y))
+            res[f"global/{k}"] = float(np.max(np.abs(x[:n] - y[:n])) / max(np.max(np.abs(y[:n])), 1e-300))
+        for name in b["snapshots"]:
+            if name not in a["snapshots"]:
+                continue
+            pa, pb = a["snapshots"][name]["patches"], b["snapshots"][name]["patches"]
+            res[f"{name}/count"] = [int(len(pa["x"])), int(len(pb["x"]))]
+            if len(pa["x"]) == len(pb["x"]):
+                oa = np.lexsort((pa["y"][()], pa["x"][()]))
+                ob = np.lexsort((pb["y"][()], pb["x"][()]))
+                for k in ("x", "y", "area", "normal_force", "temperature"):
+                    x, y = pa[k][()][oa], pb[k][()][ob]
+                    res[f"{name}/{k}"] = float(np.max(np.abs(x - y)) / max(np.max(np.abs(y)), 1e-300))
+    return res
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cpu", help="Warp device (default cpu)")
     ap.add_argument("--scene", default="multiscale", help="LF preset or TOML file (default multiscale)")
     ap.add_argument("--duration", type=float, help="simulated time [s] (default: the whole schedule)")
+    ap.add_argument("--eager", action="store_true", help="no graph capture (launch every kernel from Python)")
     ap.add_argument("--json", default="bench_lf.json", help="output JSON file")
     ap.add_argument("--markdown", help="also write a Markdown table here")
+    ap.add_argument("--save", help="also write the run (an LF run file with snapshots) here")
+    ap.add_argument("--compare", metavar="REF.h5", help="compare with a reference LF run file of the same scene")
     args = ap.parse_args()
 
     import aca_warp.kernels.lf as K
@@ -45,9 +78,17 @@ def main() -> int:
     wp.load_module(K, device=args.device)
     compile_s = time.perf_counter() - t0
     scene = load_lf_scene(args.scene)
-    sim = LFSimulation(scene, device=args.device, duration=args.duration)
+    sim = LFSimulation(scene, device=args.device, duration=args.duration, graph=False if args.eager else None)
     sim.step()  # first step: hash grid, scans, allocations
-    wall = sim.run()
+    writer = None
+    if args.save or args.compare:
+        from aca_warp.lf.io import LFRunWriter
+
+        path = args.save or str(Path(args.json).with_suffix(".h5"))
+        writer = LFRunWriter(path, sim, overwrite=True)
+    wall = sim.run(on_snapshot=writer.snapshot if writer else None)
+    if writer is not None:
+        writer.close(complete=True, status="complete")
     steps = sim.step_index - 1
     h = sim.history()
     # checks on the final state
@@ -63,6 +104,7 @@ def main() -> int:
         "device_name": mach["device_name"],
         "warp": wp.config.version,
         "precision": "fp64",
+        "graph": sim.use_graph,
         "scene": scene.name,
         "steps": steps,
         "simulated_s": sim.step_index * scene.lf.dt,
@@ -77,6 +119,8 @@ def main() -> int:
         "contact_force_balance_rel_err": float(force_err),
         "debris_inventory_kg": inv0,
     }
+    if args.compare:
+        out["compare"] = compare(writer.path, Path(args.compare))
     for k, v in out.items():
         print(f"{k:32s} {v}")
     Path(args.json).write_text(json.dumps(out, indent=1))

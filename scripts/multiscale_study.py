@@ -22,6 +22,7 @@ Examples::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -44,6 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--hf-duration", type=float, help="HF simulated time per state [s] (default 2e-3; quick 1e-4)")
     p.add_argument("--hf-sample-dt", type=float, default=1.0e-7, help="HF sample interval [s] (default 1e-7)")
     p.add_argument("--skip-hf", action="store_true", help="LF, figures of LF and calibration only")
+    p.add_argument("--runs-dir", help="folder of the HF run files (default: the output folder; they are large)")
     p.add_argument("--tei", action="store_true", help="also run the Coulomb-friction TEI check (tei.png)")
     p.add_argument("--tei-duration", type=float, default=20.0, help="TEI application length [s] (quick: 5)")
     p.add_argument("--docs", help="write the calibration page (markdown) to this file")
@@ -102,7 +104,8 @@ def run_hf_stage(lf_path: Path, args: argparse.Namespace, log: Log) -> dict[str,
             matrix=scene.matrix,
             origin=None,
         )
-        path = Path(args.outdir) / f"hf_{name}.h5"
+        path = Path(args.runs_dir or args.outdir) / f"hf_{name}.h5"
+        path.parent.mkdir(parents=True, exist_ok=True)
         t0 = time.perf_counter()
         run_scene(scene, path, device=args.device, overwrite=args.overwrite)
         analyze_run(path, freq_range=(1.0e3, None))
@@ -208,12 +211,12 @@ def tei_check(args: argparse.Namespace, log: Log) -> dict[str, Any]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from aca_warp.lf.scene import LFConstants, Segment, load_lf_scene
+    from aca_warp.lf.scene import Segment, load_lf_scene
     from aca_warp.lf.solver import LFSimulation
 
     base = load_lf_scene(args.scene)
     dur = 5.0 if args.quick else args.tei_duration
-    lf = LFConstants(**{**base.lf.__dict__, "coulomb": 1})
+    lf = dataclasses.replace(base.lf, coulomb=1)
     scene = base.replace(lf=lf, schedule=(Segment("application", dur, 15 * lf.newton_per_bar, 10.0, 0.2),))
     sim = LFSimulation(scene, device=args.device)
     every = 10
@@ -386,10 +389,16 @@ def write_docs(study: dict[str, Any], path: Path, argv: list[str]) -> None:
             f"(hot-band radius over time: {', '.join(f'{x:.1f}' for x in t['hot_band_radius_mm_path'])} mm). "
             f"Figure: `{t['figure']}` in the study folder.",
         ]
-    lines += [
-        "",
-        "Figures (in the study folder): `lf_timeseries.png`" + (", `fig13_panel.png`" if study.get("hf") else "") + ".",
-    ]
+    if not study.get("hf"):
+        lines += [
+            "",
+            "The HF half (Fig. 13 panel: patch map, μ spectrum and S(f) on each state) was not run for this page; on a "
+            "GPU: `python3 scripts/multiscale_study.py --device cuda:0 --reuse-lf --outdir DIR` with this run's "
+            "`lf.h5` in DIR (or without `--reuse-lf`).",
+        ]
+    figs = ["lf_timeseries.png"] + (["fig13_panel.png"] if study.get("hf") else [])
+    figs += ["tei.png"] if "tei" in study else []
+    lines += ["", "Figures (in the study folder): " + ", ".join(f"`{x}`" for x in figs) + "."]
     path.write_text("\n".join(lines) + "\n")
 
 

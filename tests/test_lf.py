@@ -162,7 +162,12 @@ def _final(device: str, seed: int = 1) -> dict:
 
 
 def test_determinism_fixed_seed(device):
-    a = _final("cpu")
+    try:
+        a = _final("cpu")
+    except Exception as e:  # a GPU machine whose Warp cannot build CPU kernels: use scripts/bench_lf.py --compare
+        if device == "cpu":
+            raise
+        pytest.skip(f"no CPU kernels on this machine ({type(e).__name__}); compare with scripts/bench_lf.py --compare")
     b = _final(device)
     if device == "cpu":
         for k in a:
@@ -199,3 +204,17 @@ def test_lf_command_writes_run_file(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text('[lf]\nwear_m = -1.0\n[[schedule]]\nkind = "application"\nduration = 1.0\nnormal_force = 1.0\n')
     assert main(["lf", str(bad), "-o", str(tmp_path / "b.h5")]) == 2
+
+
+def test_graph_replay_equals_eager(device):
+    runs = []
+    for graph in (False, True):
+        sim = LFSimulation(_scene(), device=device, duration=0.65, graph=graph)
+        sim.run()
+        runs.append((sim.patches_host(), sim.hist.numpy()))
+    if device == "cpu":  # serial kernels: the same bits
+        for k in runs[0][0]:
+            np.testing.assert_array_equal(runs[0][0][k], runs[1][0][k])
+        np.testing.assert_array_equal(runs[0][1], runs[1][1])
+    else:  # float atomics on a GPU are not ordered: equal within rounding
+        np.testing.assert_allclose(runs[0][1], runs[1][1], rtol=1e-6, atol=1e-9)

@@ -29,6 +29,8 @@ def _scenes():
 
 
 def _both(device: str, precision: str, **onchip_kw):
+    if device != "cpu":
+        pytest.skip("the on-chip engine refuses CUDA until its hang there is fixed (docs/onchip.md)")
     out = {}
     for engine in ("general", "onchip"):
         model = build_model(_scenes(), device=device, precision=precision)
@@ -73,7 +75,11 @@ def test_onchip_csr_in_shared_memory_matches(device):
 def test_engine_choice_and_refusals(device):
     s = preset("hf1").replace(record=Record(sample_dt=1e-7))
     model = build_model([s], device=device, precision="fp32")
-    assert choose_engine(model, "auto") == ("onchip" if device != "cpu" else "general")
+    assert choose_engine(model, "auto") == "general"
+    if device != "cpu":
+        with pytest.raises(SceneError, match="CUDA"):
+            choose_engine(model, "onchip")
+        return
     assert choose_engine(model, "general") == "general"
     assert choose_engine(model, "auto", "implicit-friction") == "general"
     with pytest.raises(SceneError, match="strang"):
@@ -90,6 +96,8 @@ def test_engine_choice_and_refusals(device):
 
 def test_onchip_fault_matches_general(device):
     """Forced beyond the spring limit, both engines stop at the same sample, pad and patch."""
+    if device != "cpu":
+        pytest.skip("the on-chip engine refuses CUDA until its hang there is fixed (docs/onchip.md)")
     s = preset("hf1").replace(record=Record(sample_dt=2e-5))
     faults = []
     for engine in ("general", "onchip"):

@@ -26,6 +26,7 @@ def run_lf(
     device: str = "cpu",
     overwrite: bool = False,
     progress: bool = False,
+    graph: bool | None = None,
 ) -> Any:
     """Run an LF scene over its schedule (or ``duration`` [s]) into ``output``; returns the simulation."""
     from aca_warp.io import check_output_path
@@ -33,7 +34,7 @@ def run_lf(
     from aca_warp.lf.solver import LFSimulation
 
     check_output_path(output, overwrite=overwrite)
-    sim = LFSimulation(scene, device=device, duration=duration)
+    sim = LFSimulation(scene, device=device, duration=duration, graph=graph)
     writer = LFRunWriter(output, sim, overwrite=overwrite)
     try:
         wall = sim.run(on_snapshot=writer.snapshot, progress=progress)
@@ -62,7 +63,7 @@ def _cmd_lf(args: argparse.Namespace) -> int:
         scene = scene.replace(lf=dataclasses.replace(scene.lf, seed=args.seed))
     sim = run_lf(
         scene, args.output, duration=args.duration, device=args.device, overwrite=args.overwrite,
-        progress=not args.no_progress,
+        progress=not args.no_progress, graph=False if args.eager else None,
     )  # fmt: skip
     h = sim.history()
     loaded = h["normal_force"] > 0
@@ -93,6 +94,7 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--seed", type=int, help="seed of the random numbers (default: the scene's lf.seed)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     p.add_argument("--no-progress", action="store_true", help="no progress lines")
+    p.add_argument("--eager", action="store_true", help="no graph capture of the step (debugging)")
     p.set_defaults(handler=_cmd_lf)
 
 

@@ -4,7 +4,8 @@ One LF step (docs/lf_model.md §"Step"): load from the schedule → bin patches 
 (Newton on the gap) → friction, powers → temperatures (implicit) → wear → debris sweep → capture → growth,
 shrink, death → merge → birth → statistics and history row. In pauses only the temperatures run (cooling)
 and μ is recorded as 0. The only host read per step is the topology flag, which triggers the rebuild of the
-merge-candidate neighbourhoods (CSR from ``wp.HashGrid``) when the patch set changed.
+merge-candidate neighbourhoods (CSR from ``wp.HashGrid``) when the patch set changed. On CUDA the rest of the
+step (``_body``) is captured once per step kind (loaded / pause) into a graph and replayed (CUDA and CPU).
 """
 
 from __future__ import annotations
@@ -121,9 +122,9 @@ class LFSimulation:
         self.dirty = True
         if scene.patches is not None:
             self._place(scene.patches)
-        # CUDA graphs of the step body (one for loaded steps, one for pauses); default on for CUDA devices. On
-        # the CPU, wp.utils.array_scan is a direct host call that a graph would not record, so CPU stays eager.
-        self.use_graph = self.device.is_cuda if graph is None else (graph and self.device.is_cuda)
+        # graphs of the step body (one for loaded steps, one for pauses), on by default: CUDA graphs, and on the
+        # CPU Warp 1.19's recorded launches and scans (bit-identical to eager, ~3x fewer µs per launch)
+        self.use_graph = True if graph is None else bool(graph)
         self._graphs: dict[bool, Any] = {}
         self._seen: set[bool] = set()
 
@@ -133,7 +134,6 @@ class LFSimulation:
         n = patches.count
         if n > self.capacity:
             raise SceneError(f"{n} initial patches exceed lf.capacity = {self.capacity}")
-        c = self.scene.lf
         for name, val in (("x", patches.x), ("y", patches.y), ("area", patches.area)):
             a = getattr(self, name).numpy()
             a[:n] = val
@@ -145,7 +145,6 @@ class LFSimulation:
         th[:n] = patches.height
         self.thick.assign(th)
         self.top.assign(th)  # matrix starts flat at z = 0
-        del c
 
     # ------------------------------------------------------------------------------------------- step
 
@@ -438,9 +437,6 @@ class LFSimulation:
         self.dirty = True
         bulge = self.ring_bulge.numpy()
         d = self.patches_host()
-        a = self.alive.numpy() != 0
-        from aca_warp.kernels.lf import G_GAP, G_LOAD, G_OMEGA
-
         g = self.glob.numpy()
         n_t = self.n_t
         cell_cover = self.cell_cover.numpy()
@@ -448,7 +444,6 @@ class LFSimulation:
         z_cell = self.cell_z.numpy() + np.repeat(bulge, n_t)
         z_patch = d["top"] + bulge[d["cell"] // n_t]
         shift = min(z_cell.min(), z_patch.min() if len(z_patch) else np.inf)
-        del a
         return {
             "patches": {
                 "x": d["x"], "y": d["y"], "area": d["area"], "height": z_patch - shift, "thickness": d["thick"],
@@ -465,9 +460,9 @@ class LFSimulation:
             },
             "attrs": {
                 "time": self.step_index * self.scene.lf.dt,
-                "normal_force": float(g[G_LOAD]),
-                "angular_velocity": float(g[G_OMEGA]),
-                "gap": float(g[G_GAP] - shift),
+                "normal_force": float(g[K.G_LOAD]),
+                "angular_velocity": float(g[K.G_OMEGA]),
+                "gap": float(g[K.G_GAP] - shift),
                 "height_shift": float(shift),
             },
         }  # fmt: skip
