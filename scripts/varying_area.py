@@ -36,27 +36,11 @@ import warp as wp
 wp.config.log_level = wp.LOG_WARNING
 wp.config.quiet = True
 
-from aca_warp.hf import DEFAULT_DT, INTEGRATORS, run_hf, stable_step  # noqa: E402
+from aca_warp.hf import DEFAULT_DT, GROWTH_MUTABLE, INTEGRATORS, run_hf, stable_step  # noqa: E402
 from aca_warp.io import machine  # noqa: E402
 from aca_warp.model import PadModel, build_model  # noqa: E402
 from aca_warp.scene import Growth, Record, Scene, preset  # noqa: E402
 from aca_warp.state import HFState, initial_state  # noqa: E402
-
-GROWN = (
-    "area",
-    "sqrt_area",
-    "inv_mass",
-    "k_t",
-    "k_n",
-    "damping",
-    "nbr_stiffness",
-    "k_diag",
-    "normal_force",
-    "pad_matrix_force",
-    "pad_matrix_radius",
-    "pad_gap",
-)
-"""Model arrays that the growth kernels change (saved and restored between segments)."""
 
 STATE_FILE = "varying_area_state.npz"
 RECORD_FILE = "varying_area.npz"
@@ -108,7 +92,7 @@ class Segment:
     def save(self, path: Path, meta: dict) -> None:
         m = self.model
         u, v = self.state.numpy()
-        arrays = {f"model_{k}": m.host(k) for k in GROWN}
+        arrays = {f"model_{k}": m.host(k) for k in GROWTH_MUTABLE}
         snaps = {f"snap_{k}": np.array([s[k] for s in self.snaps]) for k in self.snaps[0]}
         np.savez_compressed(
             path,
@@ -127,7 +111,7 @@ class Segment:
     def load(self, path: Path) -> dict:
         d = np.load(path)
         m = self.model
-        for k in GROWN:
+        for k in GROWTH_MUTABLE:
             m.arrays[k].assign(d[f"model_{k}"])
         self.state.u.assign(d["u"])
         self.state.v.assign(d["v"])
