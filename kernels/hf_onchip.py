@@ -18,6 +18,12 @@ last bits.
 
 Kernels are made per (precision, max patches per pad, max links per pad, csr_shared) by
 :func:`onchip_kernel`: tile shapes are compile-time constants.
+
+Barrier rule (CUDA): every block-cooperative op (``tile_zeros``, ``wp.tile``, ``tile_sum``/``tile_min``,
+``block_sync``, and Warp's ``tile[i] = x``, which ends in ``__syncthreads()``) must be reached by all threads of
+the block equally often, so none may sit inside the per-thread ``while i < n`` loops (threads own different
+numbers of patches). Per-thread stores into the shared tiles use the barrier-free ``put`` helpers below; a
+``tile[i] = x`` there made the kernel hang on an H100 (docs/onchip.md, "CUDA hang: cause and fix").
 """
 
 from __future__ import annotations
@@ -35,18 +41,45 @@ wp.set_module_options({"enable_backward": False})
 def block_sync(): ...
 
 
+def _tile_store_1d(dtype: Any, size: int) -> Any:
+    """``put(t, i, x)``: ``t[i] = x`` for one thread, no block barrier (t a tile of shape (size,))."""
+
+    def put(t, i, x): ...
+
+    put.__annotations__ = {"t": wp.tile[dtype, size], "i": int, "x": dtype}  # real types: closures need no eval
+    return wp.func_native("t.data(wp::tile_coord(i)) = x;\n")(put)
+
+
+def _tile_store_rows(dtype: Any, rows: int, size: int) -> Any:
+    """``put(t, r, i, x)``: ``t[r, i] = x`` for one thread, no block barrier (t a tile of shape (rows, size))."""
+
+    def put(t, r, i, x): ...
+
+    put.__annotations__ = {"t": wp.tile[dtype, rows, size], "r": int, "i": int, "x": dtype}
+    return wp.func_native("t.data(wp::tile_coord(r, i)) = x;\n")(put)
+
+
 @cache
 def onchip_kernel(dtype: Any, nmax: int, emax: int, csr_shared: bool, block_dim: int) -> wp.Kernel:
     """The on-chip strang kernel for pads of at most ``nmax`` patches (``emax`` links when ``csr_shared``).
 
     Launch with ``wp.launch_tiled(kernel, dim=[pads], block_dim=B, ...)``; ``threads`` must be the block
-    size the device really runs (B on CUDA, 1 on the CPU). The kernel is compiled with
+    size the device really runs (B on CUDA or with CPU fibers, else 1 on the CPU). The kernel is compiled with
     ``__launch_bounds__(block_dim)`` so that a block of ``block_dim`` threads gets the registers it may use.
     """
     T = dtype
     NMAX = wp.constant(nmax)
-    EMAX = wp.constant(emax if csr_shared else 1)
+    ne = emax if csr_shared else 1
+    EMAX = wp.constant(ne)
     CSR_SHARED = wp.constant(1 if csr_shared else 0)
+
+    # Per-thread element stores into the shared tiles. ``tile[i] = x`` in Warp is a block-cooperative op (it ends
+    # in WP_TILE_SYNC(), i.e. __syncthreads()), which inside the per-thread ``while i < n`` loops deadlocks on CUDA
+    # (threads own different numbers of patches); these store without a barrier (docs/onchip.md).
+    put_n = _tile_store_1d(T, nmax)
+    put_u = _tile_store_rows(T, 2, nmax)
+    put_ei = _tile_store_1d(wp.int32, ne)
+    put_ek = _tile_store_1d(T, ne)
 
     @wp.func
     def sync_velocity(
@@ -135,16 +168,16 @@ def onchip_kernel(dtype: Any, nmax: int, emax: int, csr_shared: bool, block_dim:
         e0 = nbr_start[a]
         i = lane
         while i < n:
-            u2[0, i] = u_io[a + i]
-            w[i] = v_io[a + i]
-            fs[i] = force_io[a + i]
+            put_u(u2, 0, i, u_io[a + i])
+            put_n(w, i, v_io[a + i])
+            put_n(fs, i, force_io[a + i])
             i += threads
         if CSR_SHARED != 0:
             e = lane
             ne = nbr_start[a + n] - e0
             while e < ne:
-                sidx[e] = nbr_index[e0 + e] - a
-                sk[e] = nbr_stiffness[e0 + e]
+                put_ei(sidx, e, nbr_index[e0 + e] - a)
+                put_ek(sk, e, nbr_stiffness[e0 + e])
                 e += threads
         block_sync()
 
@@ -180,8 +213,8 @@ def onchip_kernel(dtype: Any, nmax: int, emax: int, csr_shared: bool, block_dim:
                             )
                             + kick
                         )
-                    w[i] = v
-                    u2[nxt, i] = u2[cur, i] + dt * v
+                    put_n(w, i, v)
+                    put_u(u2, nxt, i, u2[cur, i] + dt * v)
                     i += threads
                 first_step = 0
                 block_sync()
@@ -209,7 +242,7 @@ def onchip_kernel(dtype: Any, nmax: int, emax: int, csr_shared: bool, block_dim:
                             e += 2
                         if e < end:
                             a0 += nbr_stiffness[e] * u2[nxt, nbr_index[e] - a]
-                    fs[i] = (a0 + a1) - k_diag[g] * u2[nxt, i]
+                    put_n(fs, i, (a0 + a1) - k_diag[g] * u2[nxt, i])
                     i += threads
                 cur = nxt
             # sample: synchronous velocity (strang_close), sums in float64 (record_globals), patch histories

@@ -2,15 +2,23 @@
 
 On the CPU Warp runs a block as one thread, so the on-chip kernel does the same operations in the same order
 as the general kernels: μ(t), all global outputs, the per-patch histories and the final (u, u̇) must be
-bit-identical. On CUDA the in-block tree reductions reorder the float64 sums of the global outputs and the
+bit-identical. With Warp's cooperative CPU fibers (``wp.config.enable_cpu_blocks``) a CPU block has real
+threads and barriers: the state and the per-patch histories stay bit-identical (no cross-thread sums), which
+fails if any barrier is reached by only part of the block (the CUDA hang of docs/onchip.md gave a 6 % error of μ
+here). On CUDA the in-block tree reductions reorder the float64 sums of the global outputs and the
 compiler may contract multiply-adds differently in the two kernels, so there they agree to rounding only
-(the bounds below are a few hundred ulps of the state precision after 200 steps).
+(the bounds below are a few hundred ulps of the state precision after 200 steps). CUDA runs need
+``ACA_WARP_ONCHIP_CUDA=1`` (``allow_cuda``) while :func:`aca_warp.onchip.unsupported` refuses CUDA.
 """
 
 from __future__ import annotations
 
+import os
+from contextlib import contextmanager
+
 import numpy as np
 import pytest
+import warp as wp
 
 from aca_warp.errors import SceneError
 from aca_warp.hf import run_hf, stable_step
@@ -28,9 +36,28 @@ def _scenes():
     return [s, s.replace(normal_force=700.0, angular_velocity=5.0 / 0.13, initial=Initial(perturbation=0.02, seed=3))]
 
 
-def _both(device: str, precision: str, **onchip_kw):
-    if device != "cpu":
-        pytest.skip("the on-chip engine refuses CUDA until its hang there is fixed (docs/onchip.md)")
+CUDA_OPT_IN = os.environ.get("ACA_WARP_ONCHIP_CUDA") == "1"
+
+
+def _cuda_gate(device: str) -> dict:
+    if device != "cpu" and not CUDA_OPT_IN:
+        pytest.skip("the on-chip engine refuses CUDA until validated there (ACA_WARP_ONCHIP_CUDA=1; docs/onchip.md)")
+    return {"allow_cuda": True} if device != "cpu" else {}
+
+
+@contextmanager
+def _cpu_fibers(on: bool):
+    """Warp's cooperative CPU blocks (block_dim threads per CPU block) for the duration of the block."""
+    old = wp.config.enable_cpu_blocks
+    wp.config.enable_cpu_blocks = on
+    try:
+        yield
+    finally:
+        wp.config.enable_cpu_blocks = old
+
+
+def _both(device: str, precision: str, fibers: bool = False, **onchip_kw):
+    onchip_kw |= _cuda_gate(device)
     out = {}
     for engine in ("general", "onchip"):
         model = build_model(_scenes(), device=device, precision=precision)
@@ -38,7 +65,8 @@ def _both(device: str, precision: str, **onchip_kw):
         if engine == "general":
             res = run_hf(model, state, duration=2e-6, dt=1e-8)
         else:
-            res = run_onchip(model, state, duration=2e-6, dt=1e-8, samples_per_launch=3, **onchip_kw)
+            with _cpu_fibers(fibers):
+                res = run_onchip(model, state, duration=2e-6, dt=1e-8, samples_per_launch=3, **onchip_kw)
         assert res.complete and res.steps == 200
         out[engine] = (res.collect(), *state.numpy())
     return out["general"], out["onchip"]
@@ -72,6 +100,18 @@ def test_onchip_csr_in_shared_memory_matches(device):
         np.testing.assert_allclose(co.globals[:, :, 0], cg.globals[:, :, 0], rtol=2e-4, atol=0)
 
 
+@pytest.mark.parametrize(("precision", "block", "csr"), [("fp32", 32, True), ("fp64", 96, False)])
+def test_onchip_multithread_block_cpu_fibers(precision, block, csr):
+    """Blocks of 32/96 real (fiber) threads, each owning 54–55 / 18–19 patches: every barrier must be reached by
+    all threads of the block (uneven patch counts per thread), else the gathers read unfinished drifts."""
+    (cg, ug, vg), (co, uo, vo) = _both("cpu", precision, fibers=True, block_dim=block, csr_shared=csr)
+    np.testing.assert_array_equal(uo, ug)
+    np.testing.assert_array_equal(vo, vg)
+    np.testing.assert_array_equal(co.velocity, cg.velocity)
+    np.testing.assert_array_equal(co.displacement, cg.displacement)
+    np.testing.assert_allclose(co.globals, cg.globals, rtol=1e-12, atol=0)  # tree sums in float64
+
+
 def test_engine_choice_and_refusals(device):
     s = preset("hf1").replace(record=Record(sample_dt=1e-7))
     model = build_model([s], device=device, precision="fp32")
@@ -79,6 +119,8 @@ def test_engine_choice_and_refusals(device):
     if device != "cpu":
         with pytest.raises(SceneError, match="CUDA"):
             choose_engine(model, "onchip")
+        with pytest.raises(SceneError, match="CUDA"):
+            run_onchip(model, initial_state(model), duration=2e-7, dt=1e-8)
         return
     assert choose_engine(model, "general") == "general"
     assert choose_engine(model, "auto", "implicit-friction") == "general"
@@ -96,15 +138,18 @@ def test_engine_choice_and_refusals(device):
 
 def test_onchip_fault_matches_general(device):
     """Forced beyond the spring limit, both engines stop at the same sample, pad and patch."""
-    if device != "cpu":
-        pytest.skip("the on-chip engine refuses CUDA until its hang there is fixed (docs/onchip.md)")
+    kw = _cuda_gate(device)
     s = preset("hf1").replace(record=Record(sample_dt=2e-5))
     faults = []
     for engine in ("general", "onchip"):
         model = build_model([s], device=device, precision="fp64")
         dt = 1e-5
         assert dt > 4.0 * stable_step(model).spring
-        res = run(model, initial_state(model), engine=engine, duration=4e-3, dt=dt, force=True)
+        if engine == "general":
+            res = run(model, initial_state(model), engine=engine, duration=4e-3, dt=dt, force=True)
+        else:  # on the CPU with 64 fiber threads per block: the in-block min/sums find the same first patch
+            with _cpu_fibers(device == "cpu"):
+                res = run_onchip(model, initial_state(model), duration=4e-3, dt=dt, force=True, block_dim=64, **kw)
         assert not res.complete
         c = res.collect()
         assert np.all(np.isfinite(c.globals)) and np.all(c.time < res.fault.time)
