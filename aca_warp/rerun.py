@@ -1,5 +1,8 @@
 """Repeat a run from its run file: ``aca-warp rerun RUN.h5 -o NEW.h5`` (and the settings ``--resume`` reads).
 
+LF run files (``kind = "lf"``) are repeated by :func:`aca_warp.lf.commands.rerun_lf` (stored scene JSON, initial
+patches, duration, device).
+
 A run file holds everything a run depends on (docs/run_files.md): the scene as JSON (every constant, the
 record settings, the duration), the patch arrays in ``/patches`` and the matrix cells in ``/matrix`` (so the
 original patch file is not needed), the integrator and step policy, the precision, the device and the
@@ -154,7 +157,7 @@ def add_parsers(sub: Any) -> None:
     """Add ``rerun`` to the ``aca-warp`` subcommands."""
     p = sub.add_parser(
         "rerun",
-        help="repeat a run from its run file (scene, patches, integrator, precision, device)",
+        help="repeat a run from its run file (HF or LF: scene, patches, integrator, precision, device)",
         description="Repeat the run stored in RUN.h5 into NEW.h5: same scene (patches from the file), integrator, "
         "step policy, precision and device. On the same device and precision the samples are bit-identical.",
     )
@@ -167,10 +170,26 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(handler=_cmd_rerun)
 
 
+def _is_lf(path: str | Path) -> bool:
+    """Whether ``path`` is an LF run file (root attribute ``kind = "lf"``); False when it cannot be read."""
+    try:
+        with h5py.File(path, "r") as f:
+            return f.attrs.get("kind") == "lf"
+    except (OSError, ValueError):
+        return False
+
+
 def _cmd_rerun(args: argparse.Namespace) -> int:
     from aca_warp.io import check_output_path
     from aca_warp.runner import run_scene
 
+    if _is_lf(args.run):
+        from aca_warp.lf.commands import rerun_lf
+
+        return rerun_lf(
+            args.run, args.output, device=args.device, checkpoint_interval=args.checkpoint_interval,
+            overwrite=args.overwrite, progress=not args.no_progress,
+        )  # fmt: skip
     check_output_path(args.output, overwrite=args.overwrite)
     if Path(args.output).resolve() == Path(args.run).resolve():
         raise SceneError("rerun writes a new file; give an output other than the run file")

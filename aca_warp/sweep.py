@@ -108,6 +108,8 @@ PARAMETERS: dict[str, tuple[str, str]] = {
     "growth.increment": ("m", "growth"),
 }
 _INT_PARAMETERS = ("patches.count", "patches.seed", "initial.seed")
+MAX_PADS = 10**6  # pads of one sweep (refused before the combinations are expanded)
+MAX_STEPS = 10**11  # steps of one pad's run (duration / dt; larger is a typo, not a run)
 
 
 class SweepError(AcaError, ValueError):
@@ -126,13 +128,23 @@ def _values(key: str, raw: Any) -> list:
         if form in ("linspace", "geomspace"):
             if not (isinstance(args, list) and len(args) == 3 and isinstance(args[2], int) and args[2] >= 1):
                 raise SweepError(f"parameters.{key}: {form} takes [start, stop, count], got {args!r}")
+            if args[2] > MAX_PADS:
+                raise SweepError(f"parameters.{key}: {args[2]} values, more than a sweep runs ({MAX_PADS} pads)")
             try:
                 vals = getattr(np, form)(float(args[0]), float(args[1]), args[2]).tolist()
             except (TypeError, ValueError) as e:
                 raise SweepError(f"parameters.{key}: bad {form} {args!r}: {e}") from None
         elif form == "range":
-            if not (isinstance(args, list) and 2 <= len(args) <= 3 and all(isinstance(a, int) for a in args)):
-                raise SweepError(f"parameters.{key}: range takes integers [start, stop] or [start, stop, step]")
+            if not (
+                isinstance(args, list)
+                and 2 <= len(args) <= 3
+                and all(isinstance(a, int) and not isinstance(a, bool) for a in args)
+            ) or (len(args) == 3 and args[2] == 0):
+                raise SweepError(
+                    f"parameters.{key}: range takes integers [start, stop] or [start, stop, step] (step != 0)"
+                )
+            if len(range(*args)) > MAX_PADS:
+                raise SweepError(f"parameters.{key}: {len(range(*args))} values, more than a sweep runs ({MAX_PADS})")
             vals = list(range(*args))
         else:
             raise SweepError(f"parameters.{key}: unknown form {form!r}; use a list, linspace, geomspace or range")
@@ -356,9 +368,14 @@ def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
     tolerance = num("tolerance", DEFAULT_TOLERANCE)
     sample_dt = num("sample_dt", base.record.sample_dt)
     try:
+        from aca_warp.hf import check_run
+
         base = base.replace(duration=duration, record=dataclasses.replace(base.record, sample_dt=sample_dt))
+        check_run(duration, base.record)
     except SceneError as e:
-        raise SweepError(f"base scene: {e}") from None
+        raise SweepError(f"run settings: {e}") from None
+    if dt is not None and not duration / dt <= MAX_STEPS:
+        raise SweepError(f"run.duration / run.dt = {duration / dt:.3g} steps per pad, more than {MAX_STEPS:.0e}")
     raw = doc.get("parameters", {})
     if not isinstance(raw, dict):
         raise SweepError("[parameters] must be a table of parameter = values")
@@ -379,6 +396,9 @@ def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
             raise SweepError(f"mode = 'zip' needs lists of equal length, got {lengths}")
         params = {k: list(v) for k, v in lists.items()}
     else:
+        total = math.prod(len(v) for v in lists.values())
+        if total > MAX_PADS:
+            raise SweepError(f"the parameter lists combine into {total:.3g} pads, more than a sweep runs ({MAX_PADS})")
         combos = list(itertools.product(*lists.values()))
         params = {k: [c[i] for c in combos] for i, k in enumerate(lists)}
     spec = SweepSpec(
@@ -396,8 +416,18 @@ def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
         dt=dt,
         tolerance=tolerance,
     )
-    # fail before any run: build the first and last pad (catches e.g. patches that do not fit)
-    for p in {0, spec.pad_count - 1}:
+    # fail before any run: build the first and last pad and, for every value of every parameter, one pad that
+    # has it (catches e.g. patches that do not fit; a bad combination of good values fails its shard at run time)
+    check = {0, spec.pad_count - 1}
+    for key, vals in lists.items():
+        first: dict[str, int] = {}
+        distinct = len(set(map(repr, vals)))
+        for p, v in enumerate(params[key]):
+            first.setdefault(repr(v), p)
+            if len(first) == distinct:
+                break
+        check.update(first.values())
+    for p in sorted(check):
         try:
             spec.scene(p)
         except SceneError as e:
@@ -887,7 +917,13 @@ def run_sweep(
         for i in todo:
             manifest["shards"][i]["state"] = "queued"
             _write_json(out / MANIFEST, manifest)
-            record(i, run_shard(*args, i, dev, memory_fraction=memory_fraction), None)
+            try:
+                summary = run_shard(*args, i, dev, memory_fraction=memory_fraction)
+            except AcaError as e:  # e.g. a pad whose combination of values is invalid: as on a Dask worker
+                (out / (shard_name(i) + ".partial")).unlink(missing_ok=True)
+                record(i, None, f"{type(e).__name__}: {e}")
+                continue
+            record(i, summary, None)
         result.wall_time = time.perf_counter() - t0
         return result
 

@@ -27,17 +27,36 @@ def run_lf(
     overwrite: bool = False,
     progress: bool = False,
     graph: bool | None = None,
+    checkpoint_interval: float | None = None,
 ) -> Any:
-    """Run an LF scene over its schedule (or ``duration`` [s]) into ``output``; returns the simulation."""
-    from aca_warp.io import check_output_path
-    from aca_warp.lf.io import LFRunWriter
+    """Run an LF scene over its schedule (or ``duration`` [s]) into ``output``; returns the simulation.
+
+    With ``checkpoint_interval`` [s of simulated time] the file keeps the full state of the last checkpoint, so
+    that a killed or stopped run continues with :func:`resume_lf` (docs/faults.md)."""
+    import math
+
+    from aca_warp.errors import SceneError
+    from aca_warp.lf.io import LFRunWriter, check_lf_output
     from aca_warp.lf.solver import LFSimulation
 
-    check_output_path(output, overwrite=overwrite)
+    check_lf_output(output, overwrite=overwrite)
+    if checkpoint_interval is not None and not (math.isfinite(checkpoint_interval) and checkpoint_interval > 0):
+        raise SceneError(f"checkpoint interval must be a positive number of seconds, got {checkpoint_interval}")
     sim = LFSimulation(scene, device=device, duration=duration, graph=graph)
-    writer = LFRunWriter(output, sim, overwrite=overwrite)
+    run = {"duration": duration, "checkpoint_interval": checkpoint_interval, "graph": graph}
+    writer = LFRunWriter(output, sim, overwrite=overwrite, run=run)
+    return _execute(sim, writer, progress=progress, checkpoint_interval=checkpoint_interval)
+
+
+def _execute(sim: Any, writer: Any, *, progress: bool, checkpoint_interval: float | None) -> Any:
+    """Run ``sim`` to the end of its schedule into ``writer``; close the file complete, interrupted or failed."""
     try:
-        wall = sim.run(on_snapshot=writer.snapshot, progress=progress)
+        wall = sim.run(
+            on_snapshot=writer.snapshot,
+            progress=progress,
+            checkpoint_every=checkpoint_interval,
+            on_checkpoint=None if checkpoint_interval is None else writer.checkpoint,
+        )
     except KeyboardInterrupt:
         writer.close(complete=False, status="interrupted by the user")
         raise
@@ -49,13 +68,153 @@ def run_lf(
     return sim
 
 
+def read_lf_settings(path: str | Path) -> dict[str, Any]:
+    """What an LF run file says about how it was made: ``scene`` (rebuilt from the stored JSON, initial patches
+    from /initial_patches), ``duration`` [s] or None, ``checkpoint_interval`` [s] or None, ``graph``, ``device``,
+    ``versions``, ``complete``. SceneError with one line when the file cannot be rerun."""
+    import json
+
+    import h5py
+    import numpy as np
+
+    from aca_warp.errors import SceneError
+    from aca_warp.lf.scene import lf_scene_from_dict
+    from aca_warp.scene import Patches
+
+    p = Path(path)
+    if not p.is_file():
+        raise SceneError(f"LF run file not found: {p}")
+    try:
+        f = h5py.File(p, "r")
+    except OSError as e:
+        raise SceneError(f"cannot open LF run file {p}: {e}") from None
+    with f:
+        try:
+            if f.attrs.get("kind") != "lf":
+                raise SceneError(f"{p} is not an LF run file (no kind = 'lf' attribute)")
+            doc = json.loads(f.attrs["scene"])
+            run = json.loads(f.attrs["lf_run"]) if "lf_run" in f.attrs else {}
+            scene = lf_scene_from_dict(doc, name=str(doc.get("scene", {}).get("name", p.stem)))
+            if "initial_patches" in f:
+                g = f["initial_patches"]
+                patches = Patches(*(np.asarray(g[k][()], np.float64) for k in ("x", "y", "area", "height")),
+                                  source=f"{p}:/initial_patches")  # fmt: skip
+                scene = scene.replace(patches=patches)
+            elif scene.patches is not None:
+                raise SceneError(f"{p} lacks /initial_patches; an LF file too old to rerun")
+            dur = run.get("duration")
+            ci = run.get("checkpoint_interval")
+            return {
+                "scene": scene,
+                "duration": None if dur is None else float(dur),
+                "checkpoint_interval": None if ci is None else float(ci),
+                "graph": run.get("graph"),
+                "device": str(f.attrs["device"]),
+                "versions": json.loads(f.attrs["versions"]) if "versions" in f.attrs else {},
+                "complete": bool(f.attrs.get("complete", False)),
+            }
+        except SceneError as e:
+            raise SceneError(f"{p}: the stored LF scene cannot be rerun: {e}") from None
+        except (KeyError, TypeError, ValueError, AttributeError, OSError) as e:
+            raise SceneError(f"{p}: the stored LF scene is incomplete or damaged ({type(e).__name__}: {e})") from None
+
+
+def resume_lf(
+    path: str | Path, *, progress: bool = False, checkpoint_interval: float | None = None, device: str | None = None
+) -> tuple[Any, Path]:
+    """Continue the killed or stopped LF run ``path`` (``NAME`` or ``NAME.partial``) from its last checkpoint;
+    returns the simulation and the final file name. Same scene, duration and device as the run (``device``
+    overrides it); on the same CPU the finished file equals an uninterrupted run's, snapshots included."""
+    import json
+    import os
+
+    from aca_warp.lf.io import LFRunWriter
+    from aca_warp.lf.solver import LFSimulation
+    from aca_warp.runner import find_resumable
+
+    final, part = find_resumable(path)
+    src = part if part.exists() else final
+    s = read_lf_settings(src)
+    sim = LFSimulation(s["scene"], device=device or s["device"], duration=s["duration"], graph=s["graph"])
+    if src == final:
+        os.replace(final, part)  # a stopped run goes back to being written
+    try:
+        writer = LFRunWriter.reopen(part, sim)
+    except BaseException:
+        if src == final:
+            os.replace(part, final)
+        raise
+    interval = checkpoint_interval or s["checkpoint_interval"]
+    if checkpoint_interval is not None:
+        run = json.loads(writer.f.attrs["lf_run"])
+        writer.f.attrs["lf_run"] = json.dumps({**run, "checkpoint_interval": checkpoint_interval})
+    return _execute(sim, writer, progress=progress, checkpoint_interval=interval), final
+
+
+def rerun_lf(run: str | Path, output: str | Path, *, device: str | None, checkpoint_interval: float | None,
+             overwrite: bool, progress: bool) -> int:  # fmt: skip
+    """``aca-warp rerun LF.h5 -o NEW.h5``: repeat an LF run from its file (scene, initial patches, duration,
+    device); on the same CPU the new file's datasets equal the old one's bit for bit."""
+    from aca_warp.errors import SceneError
+    from aca_warp.rerun import version_changes
+
+    if Path(output).resolve() == Path(run).resolve():
+        raise SceneError("rerun writes a new file; give an output other than the run file")
+    s = read_lf_settings(run)
+    changed = version_changes(s["versions"])
+    if changed:
+        print(f"aca-warp: note: versions differ from the run's: {', '.join(changed)}", file=sys.stderr)
+    sim = run_lf(
+        s["scene"], output, duration=s["duration"], device=device or s["device"], overwrite=overwrite,
+        progress=progress, graph=s["graph"], checkpoint_interval=checkpoint_interval or s["checkpoint_interval"],
+    )  # fmt: skip
+    print(_summary(output, sim).replace(": ", f": rerun of {run}, ", 1))
+    return 0
+
+
+def _summary(output: Any, sim: Any) -> str:
+    import numpy as np
+
+    h = sim.history()
+    loaded = h["normal_force"] > 0
+    mu = float(np.mean(h["mu"][loaded])) if loaded.any() else 0.0
+    return (
+        f"{output}: {sim.step_index} LF steps over {sim.step_index * sim.scene.lf.dt:.4g} s, "
+        f"{len(sim.table.snapshots)} snapshots, mean mu (loaded) {mu:.4f}, final patches "
+        f"{int(h['patch_count'][-1])}, coverage {h['coverage'][-1]:.4f}, {sim.step_index / sim.wall_time:.3g} steps/s"
+    )
+
+
 def _cmd_lf(args: argparse.Namespace) -> int:
     import dataclasses
 
-    import numpy as np
-
+    from aca_warp.errors import SceneError
     from aca_warp.lf.scene import load_lf_scene
 
+    if args.resume is not None:
+        given = [
+            opt
+            for opt, value, default in (
+                ("SCENE", args.scene, None),
+                ("-o", args.output, None),
+                ("--duration", args.duration, None),
+                ("--coulomb", args.coulomb, False),
+                ("--seed", args.seed, None),
+                ("--overwrite", args.overwrite, False),
+                ("--eager", args.eager, False),
+            )
+            if value != default
+        ]
+        if given:
+            raise SceneError(f"--resume continues the LF run with its own settings; drop {', '.join(given)}")
+        sim, path = resume_lf(
+            args.resume, progress=not args.no_progress, checkpoint_interval=args.checkpoint_interval,
+            device=None if args.device == "cpu" else args.device,
+        )  # fmt: skip
+        print(_summary(path, sim).replace(": ", ": resumed, ", 1))
+        return 0
+    if args.scene is None or args.output is None:
+        raise SceneError("lf needs SCENE and -o LF.h5 (or --resume LF.h5 to continue a run)")
     scene = load_lf_scene(args.scene)
     if args.coulomb:
         scene = scene.replace(lf=dataclasses.replace(scene.lf, coulomb=1))
@@ -64,15 +223,9 @@ def _cmd_lf(args: argparse.Namespace) -> int:
     sim = run_lf(
         scene, args.output, duration=args.duration, device=args.device, overwrite=args.overwrite,
         progress=not args.no_progress, graph=False if args.eager else None,
+        checkpoint_interval=args.checkpoint_interval,
     )  # fmt: skip
-    h = sim.history()
-    loaded = h["normal_force"] > 0
-    mu = float(np.mean(h["mu"][loaded])) if loaded.any() else 0.0
-    print(
-        f"{args.output}: {sim.step_index} LF steps over {sim.step_index * scene.lf.dt:.4g} s, "
-        f"{len(sim.table.snapshots)} snapshots, mean mu (loaded) {mu:.4f}, final patches "
-        f"{int(h['patch_count'][-1])}, coverage {h['coverage'][-1]:.4f}, {sim.step_index / sim.wall_time:.3g} steps/s"
-    )
+    print(_summary(args.output, sim))
     return 0
 
 
@@ -86,8 +239,8 @@ def add_parsers(sub: Any) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=EPILOG,
     )
-    p.add_argument("scene", metavar="SCENE", help="preset name (multiscale) or LF TOML scene file")
-    p.add_argument("-o", "--output", required=True, metavar="LF.h5", help="LF run file to write")
+    p.add_argument("scene", metavar="SCENE", nargs="?", help="preset (multiscale) or LF TOML file (not with --resume)")
+    p.add_argument("-o", "--output", metavar="LF.h5", help="LF run file to write (required unless --resume)")
     p.add_argument("--duration", type=positive, metavar="S", help="simulated time [s] (default: the whole schedule)")
     p.add_argument("--device", default="cpu", help="Warp device: cpu (default) or cuda:0, ...")
     p.add_argument("--coulomb", action="store_true", help="constant patch friction (lf.mu_coulomb) for a TEI check")
@@ -95,6 +248,18 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     p.add_argument("--no-progress", action="store_true", help="no progress lines")
     p.add_argument("--eager", action="store_true", help="no graph capture of the step (debugging)")
+    p.add_argument(
+        "--checkpoint-interval",
+        type=positive,
+        metavar="S",
+        help="keep the full LF state in the file every S of simulated time, so that a killed run can be resumed",
+    )
+    p.add_argument(
+        "--resume",
+        metavar="LF.h5",
+        help="continue a killed or stopped LF run (LF.h5 or LF.h5.partial) from its last checkpoint, with the "
+        "run's own scene and settings; the finished file equals an uninterrupted run",
+    )
     p.set_defaults(handler=_cmd_lf)
 
 

@@ -9,11 +9,16 @@ Layout of an LF run file (docs/lf_model.md "Run file")::
     /snapshots/NAME/matrix/area, radius, height, x, y, normal_force, temperature, store             (C,)
     /snapshots/NAME/rings/radius, temperature, bulge                                               (R,)
     /calibration/death_age, death_area                                                             (deaths,)
+    /initial_patches/x, y, area, height                                               (n0,)  initial patches
+    /checkpoint/...                  only while a run with --checkpoint-interval is unfinished (aca_warp.checkpoint)
 
 Every dataset has a ``unit`` attribute; snapshot groups carry ``time``, ``normal_force``, ``angular_velocity``,
 ``gap`` and ``height_shift`` attributes. Root attributes: ``scene`` (JSON, :func:`lf_scene_to_dict`),
-``kind = "lf"``, ``device``, ``versions``, ``complete``, ``status``, ``steps``, ``wall_time``. The file is written
-as ``NAME.partial`` and renamed when the run ends.
+``kind = "lf"``, ``lf_run`` (JSON: ``duration`` [s] or null for the whole schedule, ``checkpoint_interval``
+[s] or null, ``graph``), ``device``, ``versions``, ``complete``, ``status``, ``steps``, ``wall_time``. The file is
+written as ``NAME.partial`` and renamed when the run ends. /global grows at checkpoints (and at the end), so a
+killed checkpointed run's ``.partial`` holds every row up to its last checkpoint; ``aca-warp lf --resume``
+continues it (:meth:`LFRunWriter.reopen`) and ``aca-warp rerun`` repeats a finished one.
 """
 
 from __future__ import annotations
@@ -26,8 +31,9 @@ from typing import Any
 import h5py
 import numpy as np
 
+from aca_warp.checkpoint import drop_checkpoint, read_checkpoint, write_checkpoint
 from aca_warp.errors import SceneError
-from aca_warp.io import check_output_path, machine, versions
+from aca_warp.io import check_output_path, machine, partial_path, versions
 from aca_warp.kernels.lf import H_NAMES, H_UNITS
 from aca_warp.lf.scene import lf_scene_to_dict
 from aca_warp.lf.solver import LFSimulation
@@ -42,12 +48,16 @@ _UNITS = {
 class LFRunWriter:
     """Writes an LF run file: snapshots as they come, the global time series and calibration data at the end."""
 
-    def __init__(self, path: str | Path, sim: LFSimulation, *, overwrite: bool = False) -> None:
-        self.path = check_output_path(path, overwrite=overwrite)
+    def __init__(
+        self, path: str | Path, sim: LFSimulation, *, overwrite: bool = False, run: dict[str, Any] | None = None
+    ) -> None:
+        self.path = check_lf_output(path, overwrite=overwrite)
         self.partial = self.path.with_name(self.path.name + ".partial")
         self.sim = sim
+        self.rows = 0
         self.f = h5py.File(self.partial, "w")
         f = self.f
+        f.attrs["lf_run"] = json.dumps(run or {"duration": None, "checkpoint_interval": None})
         f.attrs["kind"] = "lf"
         f.attrs["scene"] = json.dumps(lf_scene_to_dict(sim.scene))
         f.attrs["scene_name"] = sim.scene.name
@@ -61,20 +71,96 @@ class LFRunWriter:
         f.attrs["complete"] = False
         f.attrs["status"] = "running"
         f.create_group("snapshots")
+        if sim.scene.patches is not None:  # the initial patches, so that a rerun needs no generator
+            ip = f.create_group("initial_patches")
+            for k in ("x", "y", "area", "height"):
+                data = np.asarray(getattr(sim.scene.patches, k), np.float64)
+                ip.create_dataset(k, data=data).attrs["unit"] = _UNITS[k]
+        chunk = (min(max(sim.table.steps, 1), 4096),)
+        g = f.create_group("global")
+        for name, unit in (("time", "s"), *zip(H_NAMES, H_UNITS, strict=True)):
+            g.create_dataset(name, shape=(0,), maxshape=(None,), dtype="f8", chunks=chunk).attrs["unit"] = unit
+
+    @classmethod
+    def reopen(cls, partial: str | Path, sim: LFSimulation) -> LFRunWriter:
+        """Open a killed or stopped LF run's ``NAME.partial`` to continue it: restore ``sim`` from its checkpoint,
+        cut /global back to the checkpoint's rows, drop the snapshots taken after it, mark it running again."""
+        self = cls.__new__(cls)
+        self.partial = Path(partial)
+        self.path = self.partial.with_name(self.partial.name.removesuffix(".partial"))
+        self.sim = sim
+        try:
+            self.f = h5py.File(self.partial, "r+")
+        except OSError as e:
+            raise SceneError(f"cannot open {self.partial} to resume it: {e}") from None
+        f = self.f
+        try:
+            ckpt = read_checkpoint(f, str(self.partial))
+            rows = int(ckpt.rows["global"])
+            if rows != int(ckpt.counters["step_index"]):
+                raise ValueError(f"{rows} rows of /global for step {ckpt.counters['step_index']}")
+            g = f["global"]
+            for name in ("time", *H_NAMES):
+                if g[name].shape[0] < rows:
+                    raise ValueError(f"/global/{name} has {g[name].shape[0]} rows, the checkpoint {rows}")
+                g[name].resize(rows, axis=0)
+            hist = np.column_stack([g[name][()] for name in H_NAMES]) if rows else None
+            keep = [n for n, s in sim.table.snapshots if s < rows]
+            if len(keep) != int(ckpt.counters["snapshots"]) or not set(keep) <= set(f["snapshots"]):
+                raise ValueError("the snapshots do not match the checkpoint")
+            for name in list(f["snapshots"]):
+                if name not in keep:
+                    del f["snapshots"][name]  # taken after the checkpoint: the resumed run takes it again
+            if "calibration" in f:
+                del f["calibration"]  # written when a stopped run was closed; rewritten at the end
+        except (KeyError, ValueError, TypeError, OSError) as e:
+            f.close()
+            raise SceneError(f"cannot resume {self.partial}: its datasets do not match its checkpoint ({e})") from None
+        except BaseException:
+            f.close()
+            raise
+        try:
+            sim.restore(ckpt, hist)
+        except BaseException:
+            f.close()
+            raise
+        self.rows = rows
+        f.attrs["complete"] = False
+        f.attrs["status"] = f"running (resumed from the checkpoint at t = {ckpt.sim_time:.6g} s)"
+        f.flush()
+        return self
+
+    def _append_rows(self) -> None:
+        """Append the history rows of the steps done since the last call to /global."""
+        n = self.sim.step_index
+        if n <= self.rows:
+            return
+        h = self.sim.hist.numpy()[self.rows : n]
+        g = self.f["global"]
+        t = (np.arange(self.rows, n) + 1) * self.sim.scene.lf.dt
+        for name, col in (("time", t), *zip(H_NAMES, h.T, strict=True)):
+            g[name].resize(n, axis=0)
+            g[name][self.rows :] = col
+        self.rows = n
 
     def snapshot(self, name: str, sim: LFSimulation) -> None:
         """Save ``sim``'s current patch coverage state under /snapshots/NAME (the run loop's callback)."""
         write_snapshot(self.f["snapshots"].create_group(name), sim.snapshot())
         self.f.flush()
 
+    def checkpoint(self, sim: LFSimulation) -> None:
+        """Store the run's state (the run loop's ``on_checkpoint``): /global up to this step, then the state into
+        the inactive checkpoint slot (:func:`aca_warp.checkpoint.write_checkpoint`: flush, flip, flush)."""
+        self._append_rows()
+        ckpt = sim.checkpoint_state()
+        ckpt.rows = {"global": self.rows}
+        write_checkpoint(self.f, ckpt)
+
     def close(self, *, complete: bool, status: str, attrs: dict[str, Any] | None = None) -> Path:
-        """Write the time series and closing attributes, close, and move the file to its final name."""
+        """Write the rest of the time series and the closing attributes, close, and move the file to its final
+        name (a complete run drops its checkpoint; a stopped one keeps it for ``aca-warp lf --resume``)."""
         f = self.f
-        h = self.sim.history()
-        g = f.create_group("global")
-        g.create_dataset("time", data=h["time"]).attrs["unit"] = "s"
-        for name, unit in zip(H_NAMES, H_UNITS, strict=True):
-            g.create_dataset(name, data=h[name]).attrs["unit"] = unit
+        self._append_rows()
         n = min(int(self.sim.death_count.numpy()[0]), self.sim.death_age.shape[0])
         c = f.create_group("calibration")
         c.create_dataset("death_age", data=self.sim.death_age.numpy()[:n]).attrs["unit"] = "s"
@@ -82,11 +168,23 @@ class LFRunWriter:
         f.attrs["complete"] = complete
         f.attrs["status"] = status
         f.attrs["steps"] = self.sim.step_index
+        if complete:
+            drop_checkpoint(f)
         for k, v in (attrs or {}).items():
             f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
         f.close()
         os.replace(self.partial, self.path)
         return self.path
+
+
+def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:
+    """:func:`aca_warp.io.check_output_path` for LF runs (an unfinished ``NAME.partial`` names ``lf --resume``)."""
+    part = partial_path(path)
+    if part.exists() and not overwrite and not Path(path).is_dir():
+        raise SceneError(
+            f"{part} exists (an unfinished LF run); continue it with 'aca-warp lf --resume {path}' or pass --overwrite"
+        )
+    return check_output_path(path, overwrite=overwrite)
 
 
 def write_snapshot(group: h5py.Group, snap: dict[str, Any]) -> None:

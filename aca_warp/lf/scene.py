@@ -28,6 +28,11 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 LF_PRESETS = ("multiscale",)
+# size limits (refused with one line before anything is allocated; int32 indices on the device)
+MAX_CAPACITY = 2**24  # patch slots
+MAX_CELLS = 2**24  # pad matrix cells (rings × columns)
+MAX_STEPS = 10**7  # LF steps of one run (the history alone is steps × 14 × 8 B on the device)
+MAX_CONTACT_ITERATIONS = 1000
 
 
 @dataclass(frozen=True)
@@ -138,6 +143,10 @@ class LFConstants:
                 raise SceneError(f"lf.{name} must be <= 1, got {getattr(self, name):g}")
         if self.capacity < 1 or self.contact_iterations < 1:
             raise SceneError("lf.capacity and lf.contact_iterations must be >= 1")
+        if self.capacity > MAX_CAPACITY:
+            raise SceneError(f"lf.capacity = {self.capacity} exceeds the limit of {MAX_CAPACITY} patch slots")
+        if self.contact_iterations > MAX_CONTACT_ITERATIONS:
+            raise SceneError(f"lf.contact_iterations = {self.contact_iterations} exceeds {MAX_CONTACT_ITERATIONS}")
         if self.coulomb not in (0, 1):
             raise SceneError(f"lf.coulomb must be 0 or 1, got {self.coulomb}")
         if not self.A_min < self.A0 <= self.A_max:
@@ -207,6 +216,7 @@ class LFScene:
             raise SceneError("an LF scene needs a [[schedule]] with at least one application")
         if self.pad.span_deg >= 360.0:
             raise SceneError("the LF grid needs an annular sector pad (span_deg < 360)")
+        check_grid(self.pad, self.lf)
 
     @property
     def duration(self) -> float:
@@ -216,6 +226,21 @@ class LFScene:
     def replace(self, **changes: Any) -> LFScene:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
+
+
+def check_grid(pad: Pad, lf: LFConstants) -> None:
+    """Refuse an LF grid of more than :data:`MAX_CELLS` cells (before patches are generated or arrays allocated)."""
+    try:
+        rings = (pad.r_outer - pad.r_inner) / lf.cell
+        columns = 2.0 * pad.half_span * (pad.r_outer + pad.r_inner) / 2.0 / lf.cell
+        ok = max(rings, 1.0) * max(columns, 1.0) <= MAX_CELLS
+    except ArithmeticError:
+        ok, rings, columns = False, math.inf, math.inf
+    if not ok:
+        raise SceneError(
+            f"the LF grid of lf.cell = {lf.cell:g} m over this pad has {rings:.3g} × {columns:.3g} cells, "
+            f"more than {MAX_CELLS}; choose a larger lf.cell or a smaller pad"
+        )
 
 
 @dataclass(frozen=True)
@@ -244,8 +269,10 @@ def step_table(scene: LFScene, duration: float | None = None) -> StepTable:
     """Sample the schedule at step midpoints; the run covers ``duration`` [s] (default: the whole schedule)."""
     dt = scene.lf.dt
     total = scene.duration if duration is None else duration
-    if not total > 0:
-        raise SceneError(f"duration must be > 0 s, got {total}")
+    if not (total > 0 and math.isfinite(total)):
+        raise SceneError(f"duration must be a positive number of seconds, got {total}")
+    if not total / dt <= MAX_STEPS:
+        raise SceneError(f"{total:g} s of {dt:g} s LF steps is more than {MAX_STEPS} steps; shorten the run")
     n = max(int(round(total / dt)), 1)
     t_mid = (np.arange(n) + 0.5) * dt
     load = np.zeros(n)
@@ -310,6 +337,7 @@ def lf_scene_from_dict(doc: dict, *, name: str = "lf") -> LFScene:
     try:
         pad = Pad(**t["pad"])
         lf = LFConstants(**t["lf"])
+        check_grid(pad, lf)
         sched = doc.get("schedule", [])
         if not isinstance(sched, list):
             raise SceneError("[[schedule]] must be an array of tables")
@@ -348,7 +376,7 @@ def lf_scene_from_dict(doc: dict, *, name: str = "lf") -> LFScene:
             snapshot_times=tuple(_finite("snapshots.times", x, low=0.0) for x in times),
             origin=doc,
         )
-    except TypeError as e:
+    except (TypeError, ArithmeticError) as e:
         raise SceneError(f"invalid LF scene value: {e}") from None
 
 

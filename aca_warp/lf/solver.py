@@ -19,12 +19,15 @@ from typing import Any
 import numpy as np
 import warp as wp
 
+from aca_warp.checkpoint import Checkpoint
 from aca_warp.errors import SceneError
 from aca_warp.kernels import lf as K
 from aca_warp.lf.scene import LFScene, StepTable, step_table
 from aca_warp.scene import Patches, overlapping_pairs
 
 _FAR = 1.0e3  # m: where empty slots are parked in the hash grid
+# arrays a checkpoint leaves out: constants of the grid and schedule, and the history (the run file's /global)
+_CONSTANT_ARRAYS = ("cell_area", "cell_r", "ring_r", "schedule", "hist")
 
 
 class LFSimulation:
@@ -351,13 +354,23 @@ class LFSimulation:
         *,
         on_snapshot: Callable[[str, LFSimulation], None] | None = None,
         progress: bool = False,
+        checkpoint_every: float | None = None,
+        on_checkpoint: Callable[[LFSimulation], None] | None = None,
     ) -> float:
         """Run ``steps`` steps (default: to the end of the schedule), calling ``on_snapshot`` at snapshot steps.
 
-        Returns the wall time of the stepping [s] (the first step, which loads the kernels, is included).
+        With ``checkpoint_every`` [s of simulated time] and ``on_checkpoint``, the first step end at or past each
+        multiple of it (after that step's snapshots; not at the end of the schedule) calls ``on_checkpoint(self)``
+        (:meth:`checkpoint_state` gives what to keep). Returns the wall time of the stepping [s] (the first step,
+        which loads the kernels, is included).
         """
         end = self.table.steps if steps is None else min(self.step_index + steps, self.table.steps)
         snaps = dict((s, n) for n, s in self.table.snapshots)
+        dt = self.scene.lf.dt
+        every = checkpoint_every if on_checkpoint is not None else None
+        if every is not None and not (math.isfinite(every) and every > 0):
+            raise SceneError(f"checkpoint interval must be a positive number of seconds, got {every}")
+        next_ckpt = math.inf if every is None else (math.floor(self.step_index * dt / every + 1e-9) + 1) * every
         t0 = time.perf_counter()
         last = t0
         while self.step_index < end:
@@ -367,6 +380,9 @@ class LFSimulation:
                 for name, si in self.table.snapshots:
                     if si == s:
                         on_snapshot(name, self)
+            if self.step_index * dt >= next_ckpt * (1 - 1e-12) and self.step_index < self.table.steps:
+                on_checkpoint(self)  # type: ignore[misc]
+                next_ckpt = (math.floor(self.step_index * dt / every + 1e-9) + 1) * every  # type: ignore[operator]
             if progress and time.perf_counter() - last > 2.0:
                 last = time.perf_counter()
                 h = self.hist.numpy()[s]
@@ -377,6 +393,72 @@ class LFSimulation:
                 )
         wp.synchronize_device(self.device)
         return time.perf_counter() - t0
+
+    # ------------------------------------------------------------------------------------------- checkpoints
+
+    def snapshots_done(self) -> list[str]:
+        """Names of the snapshots the run loop has passed (taken after steps before ``step_index``), in order."""
+        return [n for n, s in self.table.snapshots if s < self.step_index]
+
+    def checkpoint_state(self) -> Checkpoint:
+        """The full state after the current step, to continue bit for bit (:meth:`restore`).
+
+        ``arrays``: a host copy of every Warp array of the simulation (cells, rings, patch slots with ``alive``,
+        temperatures, debris, wear, ``glob`` with the RNG step counter G_STEP and this step's birth/death/merge
+        counts, the merge-candidate CSR and the hash-grid points ``pos``, scratch arrays), except the constants
+        (``cell_area``, ``cell_r``, ``ring_r``, ``schedule``) and ``hist``, whose rows are the run file's
+        /global datasets; ``death_age``/``death_area`` up to ``death_count``. ``counters``: ``step_index``,
+        ``dirty`` (neighbourhoods stale), ``snapshots`` (snapshots taken).
+        """
+        arrays: dict[str, np.ndarray] = {}
+        for name, value in vars(self).items():
+            if isinstance(value, wp.array) and name not in _CONSTANT_ARRAYS:
+                arrays[name] = value.numpy().copy()
+        n = min(int(arrays["death_count"][0]), self.death_age.shape[0])
+        arrays["death_age"] = arrays["death_age"][:n]
+        arrays["death_area"] = arrays["death_area"][:n]
+        counters = {
+            "step_index": self.step_index,
+            "dirty": int(self.dirty),
+            "snapshots": len(self.snapshots_done()),
+        }
+        return Checkpoint(sim_time=self.step_index * self.scene.lf.dt, arrays=arrays, counters=counters)
+
+    def restore(self, ckpt: Checkpoint, hist_rows: np.ndarray | None = None) -> None:
+        """Continue from :meth:`checkpoint_state` of a run of the same scene and duration (``hist_rows``
+        (step_index, H_SIZE): the history rows so far, from the run file). SceneError when it does not fit."""
+        mine = {n for n, v in vars(self).items() if isinstance(v, wp.array) and n not in _CONSTANT_ARRAYS}
+        if set(ckpt.arrays) != mine:
+            diff = sorted(set(ckpt.arrays) ^ mine)
+            raise SceneError(f"the checkpoint does not fit this LF run (arrays differ: {', '.join(diff)})")
+        step = int(ckpt.counters["step_index"])
+        if not 0 < step <= self.table.steps:
+            raise SceneError(f"the checkpoint's step {step} is outside this run's {self.table.steps} steps")
+        for name, data in ckpt.arrays.items():
+            cur = getattr(self, name)
+            data = np.asarray(data)
+            if name in ("death_age", "death_area"):
+                full = np.zeros(cur.shape, dtype=np.float64)
+                full[: len(data)] = data
+                data = full
+            want = cur.numpy().shape  # (n,) or (n, 2|3) for vector types
+            if name == "cand_index" and data.ndim == 1 and data.dtype == np.int32:
+                if data.shape != cur.shape:  # grown during the run
+                    setattr(self, name, wp.array(data, dtype=wp.int32, device=self.device))
+                    continue
+            elif data.shape != want:
+                raise SceneError(f"checkpoint array {name} has shape {data.shape}, this LF run needs {want}")
+            cur.assign(wp.array(data, dtype=cur.dtype, device=self.device))
+        self.step_index = step
+        self.dirty = bool(ckpt.counters["dirty"])
+        self._graphs.clear()
+        self._seen.clear()
+        if step > 0:  # the birth rule queries the grid of the last rebuild: rebuild it from the same points
+            self.grid.build(self.pos, self.cand_radius)
+        if hist_rows is not None:
+            h = self.hist.numpy()
+            h[:step] = hist_rows[:step]
+            self.hist.assign(h)
 
     # ------------------------------------------------------------------------------------------- host views
 

@@ -1,0 +1,223 @@
+"""Checkpoint, resume and rerun of LF runs: a run killed with SIGKILL (or stopped by Ctrl-C) and resumed from its last
+checkpoint ends in a file whose every dataset, /snapshots included, equals an uninterrupted run's bit for bit (CPU).
+
+The scene is test_lf.py's tiny pad (~150 cells, births, deaths and merges within a few dozen steps), with the
+schedule set in the TOML written to tmp_path.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from aca_warp.checkpoint import has_checkpoint
+from aca_warp.cli import main
+from aca_warp.lf import io as lf_io
+
+REPO = Path(__file__).resolve().parent.parent
+
+SCENE = """
+[scene]
+name = "lfckpt"
+[pad]
+r_inner = 0.100
+r_outer = 0.110
+span_deg = 8.0
+[patches]
+count = 60
+area_min = 2e-8
+area_max = 8e-8
+height = 3e-6
+seed = 3
+[lf]
+capacity = 512
+wear_m = 2e-12
+p_remob = 0.0
+p_store = 0.3
+p_birth = 1.0
+p_comp = 1e4
+k_shrink = 2e-14
+p_cap = 0.8
+lam0 = 2.0
+T_c = 293.15
+compact_every = 25
+[snapshots]
+applications = true
+times = [0.3, 0.75]
+[[schedule]]
+kind = "application"
+duration = {first}
+normal_force = 300.0
+ramp = 0.05
+[[schedule]]
+kind = "pause"
+duration = 0.1
+[[schedule]]
+kind = "application"
+duration = 0.4
+normal_force = 100.0
+"""
+
+
+def datasets(path: Path) -> dict[str, np.ndarray]:
+    """Every dataset of an HDF5 file by path."""
+    out: dict[str, np.ndarray] = {}
+    with h5py.File(path, "r") as f:
+        f.visititems(lambda n, o: out.__setitem__(n, o[()]) if isinstance(o, h5py.Dataset) else None)
+    return out
+
+
+def assert_same_lf_file(a: Path, b: Path) -> None:
+    """Same dataset names, shapes, dtypes and bits, same snapshot attributes; both complete, no checkpoint."""
+    da, db = datasets(a), datasets(b)
+    assert sorted(da) == sorted(db)
+    assert any(k.startswith("snapshots/") for k in da) and "global/mu" in da
+    for k in da:
+        assert da[k].dtype == db[k].dtype and da[k].shape == db[k].shape, k
+        assert da[k].tobytes() == db[k].tobytes(), k
+    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
+        for key in ("complete", "steps", "scene", "kind"):
+            assert fa.attrs[key] == fb.attrs[key], key
+        assert fa.attrs["complete"]
+        for name in fa["snapshots"]:
+            assert dict(fa["snapshots"][name].attrs) == dict(fb["snapshots"][name].attrs), name
+        assert "checkpoint" not in fa and "checkpoint" not in fb
+
+
+def scene_file(tmp_path: Path, first: float) -> Path:
+    p = tmp_path / "lfckpt.toml"
+    p.write_text(SCENE.format(first=first))
+    return p
+
+
+def test_sigkill_then_resume_is_bit_identical(tmp_path: Path) -> None:
+    """`aca-warp lf --checkpoint-interval` in a subprocess, killed with SIGKILL once the first checkpoint is in the
+    .partial: only LF.h5.partial is left, a new run refuses to clobber it, `lf --resume LF.h5.partial` finishes it,
+    and the file equals an uninterrupted run (no checkpoints) dataset for dataset, bit for bit."""
+    scene = scene_file(tmp_path, 12.0)  # 1250 steps, ~1 s of stepping
+    ref = tmp_path / "ref.h5"
+    assert main(["lf", str(scene), "-o", str(ref), "--no-progress"]) == 0
+
+    out = tmp_path / "run.h5"
+    part = tmp_path / "run.h5.partial"
+    env = {**os.environ, "HDF5_USE_FILE_LOCKING": "FALSE"}
+    env.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
+    cmd = [sys.executable, "-m", "aca_warp.cli", "lf", str(scene), "-o", str(out), "--no-progress"]
+    proc = subprocess.Popen([*cmd, "--checkpoint-interval", "0.3"], env=env, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 120
+    checkpointed = False
+    try:
+        while time.monotonic() < deadline and proc.poll() is None:
+            if part.exists():
+                try:
+                    with h5py.File(part, "r", locking=False) as f:
+                        checkpointed = has_checkpoint(f)
+                except Exception:  # noqa: BLE001  (the writer may be mid-flush: try again)
+                    checkpointed = False
+                if checkpointed:
+                    break
+            time.sleep(0.005)
+        assert proc.poll() is None, f"the run ended before it could be killed: {proc.stderr.read().decode()}"
+        assert checkpointed
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait()
+        proc.stderr.close()
+    assert proc.returncode == -signal.SIGKILL
+    assert part.exists() and not out.exists()  # never a half-written final file
+    with h5py.File(part, "r") as f:
+        assert not f.attrs["complete"] and f.attrs["status"] == "running"
+        at = float(f["checkpoint"].attrs["sim_time"])
+        slot = f["checkpoint"][f"slot{f['checkpoint'].attrs['active']}"]
+        rows = int(slot["rows/global"][()])
+        assert f["global/mu"].shape[0] >= rows == round(at / 0.01)  # every row up to the checkpoint is on disk
+        assert "arrays/glob" in slot and "arrays/alive" in slot and "arrays/cand_index" in slot
+    assert 0 < at < 12.5
+    assert main(["lf", str(scene), "-o", str(out), "--no-progress"]) == 2  # the unfinished run is not clobbered
+
+    assert main(["lf", "--resume", str(part), "--no-progress"]) == 0
+    assert out.exists() and not part.exists()
+    assert_same_lf_file(out, ref)
+
+
+def test_interrupted_run_resumes_and_reruns_bit_identical(tmp_path: Path, monkeypatch, capsys) -> None:
+    """Ctrl-C right after the snapshot t0.75s, which follows the checkpoint at 0.6 s: the file is closed as
+    LF.h5 (incomplete, rows and calibration beyond the checkpoint, checkpoint kept); `lf --resume LF.h5` cuts it
+    back, drops the later snapshot, takes it again and ends equal to an uninterrupted run. `aca-warp rerun` of
+    the finished file gives the same bits again (scene, initial patches and duration come from the file)."""
+    scene = scene_file(tmp_path, 0.8)  # 130 steps
+    ref = tmp_path / "ref.h5"
+    assert main(["lf", str(scene), "-o", str(ref), "--no-progress", "--seed", "7"]) == 0
+
+    real = lf_io.LFRunWriter.snapshot
+
+    def interrupted(self, name, sim):
+        real(self, name, sim)
+        if name == "t0.75s":
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(lf_io.LFRunWriter, "snapshot", interrupted)
+    out = tmp_path / "run.h5"
+    argv = ["lf", str(scene), "-o", str(out), "--no-progress", "--seed", "7", "--checkpoint-interval", "0.2"]
+    assert main(argv) == 130
+    monkeypatch.setattr(lf_io.LFRunWriter, "snapshot", real)
+    with h5py.File(out, "r") as f:
+        assert not f.attrs["complete"] and "interrupted" in f.attrs["status"]
+        assert has_checkpoint(f) and f["checkpoint"].attrs["sim_time"] == pytest.approx(0.6)
+        assert f["global/mu"].shape == (75,) and "t0.75s" in f["snapshots"] and "calibration" in f
+    assert main(["lf", "--resume", str(out), "--no-progress"]) == 0
+    assert "resumed" in capsys.readouterr().out
+    assert_same_lf_file(out, ref)
+
+    again = tmp_path / "rerun.h5"
+    assert main(["rerun", str(ref), "-o", str(again), "--no-progress"]) == 0
+    assert_same_lf_file(again, ref)
+
+
+def test_lf_output_and_resume_refusals(tmp_path: Path, capsys) -> None:
+    """Existing output without --overwrite, an unfinished .partial, --resume with options, a complete run, no
+    checkpoint: exit 2 with one line each, files untouched; --overwrite replaces."""
+    scene = scene_file(tmp_path, 0.1)
+    done = tmp_path / "done.h5"
+    assert main(["lf", str(scene), "-o", str(done), "--no-progress"]) == 0
+    capsys.readouterr()
+    before = done.read_bytes()
+    (tmp_path / "half.h5.partial").write_bytes(b"")
+    cases = [
+        (["lf", str(scene), "-o", str(done)], "pass --overwrite"),
+        (["lf", str(scene), "-o", str(tmp_path / "half.h5")], "lf --resume"),
+        (["lf", "--resume", str(done)], "complete run"),
+        (["lf", "--resume", str(done), "--seed", "3"], "drop --seed"),
+        (["lf", "--resume", str(tmp_path / "none.h5")], "nothing to resume"),
+        (["lf", str(scene)], "needs SCENE and -o"),
+    ]
+    for argv, message in cases:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], (argv, err)
+    assert done.read_bytes() == before
+    from aca_warp.errors import SceneError
+    from aca_warp.lf.commands import run_lf
+    from aca_warp.lf.scene import load_lf_scene
+
+    with pytest.raises(SceneError, match="checkpoint interval"):
+        run_lf(load_lf_scene(scene), tmp_path / "x.h5", checkpoint_interval=float("nan"))
+    assert not (tmp_path / "x.h5").exists() and not (tmp_path / "x.h5.partial").exists()
+    # a stopped run without checkpoints cannot resume
+    with h5py.File(done, "r+") as f:
+        f.attrs["complete"] = False
+    assert main(["lf", "--resume", str(done)]) == 2
+    assert "no checkpoint" in capsys.readouterr().err
+    assert main(["lf", str(scene), "-o", str(done), "--no-progress", "--overwrite"]) == 0
+    with h5py.File(done, "r") as f:
+        assert f.attrs["complete"]
