@@ -89,7 +89,8 @@ def stable_step(model: PadModel) -> StepEstimate:
     w2 = (model.host("k_t").astype(np.float64) + ksum) / m + off
     slope = np.array([s.friction.max_slope() for s in model.scenes])[model.host("patch_pad")]
     gamma = (model.host("damping").astype(np.float64) + model.host("normal_force").astype(np.float64) * slope) / m
-    h_explicit = (-gamma + np.sqrt(gamma**2 + 4.0 * w2)) / w2
+    # (-γ + √(γ² + 4ω²)) / ω², written without cancellation or overflow of γ²
+    h_explicit = 4.0 / (gamma + np.hypot(gamma, 2.0 * np.sqrt(w2)))
     friction = 2.0 / gamma.max() if gamma.max() > 0 else math.inf
     return StepEstimate(
         spring=float(2.0 / np.sqrt(w2.max())), friction=float(friction), explicit=float(h_explicit.min())
