@@ -6,7 +6,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from aca_warp.argtypes import int_at_least, nonneg, positive
+from aca_warp.argtypes import int_at_least, nonneg, positive, refuse_with_resume
 from aca_warp.errors import AcaError
 
 EPILOG = """\
@@ -196,13 +196,11 @@ def _cmd_hf(args: argparse.Namespace) -> int:
 
 def _resume_hf(args: argparse.Namespace) -> int:
     """``aca-warp hf --resume RUN.h5``: the run's own settings; only --device, --checkpoint-interval, --no-progress."""
-    from aca_warp.errors import SceneError
     from aca_warp.hf import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE
     from aca_warp.runner import resume_run
 
-    given = [
-        opt
-        for opt, value, default in (
+    refuse_with_resume(
+        (
             ("SCENE", args.scene, None),
             ("-o", args.output, None),
             ("--duration", args.duration, None),
@@ -217,11 +215,9 @@ def _resume_hf(args: argparse.Namespace) -> int:
             ("--force", args.force, False),
             ("--overwrite", args.overwrite, False),
             ("--engine", getattr(args, "engine", "auto"), "auto"),
-        )
-        if value != default
-    ]
-    if given:
-        raise SceneError(f"--resume continues the run with its own settings; drop {', '.join(given)}")
+        ),
+        "the run",
+    )
     result, path = resume_run(
         args.resume,
         progress=not args.no_progress,

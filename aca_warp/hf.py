@@ -144,6 +144,17 @@ class Chunk:
     velocity: np.ndarray | None
     displacement: np.ndarray | None
 
+    def before(self, t: float) -> Chunk:
+        """The samples taken before time ``t`` [s] (a fault's samples and those after it dropped)."""
+        keep, pkeep = self.time < t, self.patch_time < t
+        return Chunk(
+            self.time[keep],
+            self.globals[keep],
+            self.patch_time[pkeep],
+            None if self.velocity is None else self.velocity[pkeep],
+            None if self.displacement is None else self.displacement[pkeep],
+        )
+
 
 @dataclass
 class RunResult:
@@ -802,15 +813,7 @@ def run_hf(
                     cause="step-size underflow",
                 )
             if fault is not None:
-                keep = chunk.time < fault.time - 0.5 * record.sample_dt
-                pkeep = chunk.patch_time < fault.time - 0.5 * record.sample_dt
-                chunk = Chunk(
-                    chunk.time[keep],
-                    chunk.globals[keep],
-                    chunk.patch_time[pkeep],
-                    None if chunk.velocity is None else chunk.velocity[pkeep],
-                    None if chunk.displacement is None else chunk.displacement[pkeep],
-                )
+                chunk = chunk.before(fault.time - 0.5 * record.sample_dt)
             emit(chunk)
             if bar is not None:
                 bar.update(sim_t - bar.n)

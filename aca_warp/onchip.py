@@ -289,15 +289,7 @@ def run_onchip(
             rows = prows = 0
             fault = _fault_from(table, model, record.sample_dt, cause, rec.fault_value.numpy(), bounds)
             if fault is not None:
-                keep = chunk.time < fault.time - 0.5 * record.sample_dt
-                pkeep = chunk.patch_time < fault.time - 0.5 * record.sample_dt
-                chunk = Chunk(
-                    chunk.time[keep],
-                    chunk.globals[keep],
-                    chunk.patch_time[pkeep],
-                    None if chunk.velocity is None else chunk.velocity[pkeep],
-                    None if chunk.displacement is None else chunk.displacement[pkeep],
-                )
+                chunk = chunk.before(fault.time - 0.5 * record.sample_dt)
             emit(chunk)
             if bar is not None:
                 bar.update(sim_t - bar.n)

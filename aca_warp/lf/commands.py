@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from aca_warp.argtypes import positive
+from aca_warp.argtypes import positive, refuse_with_resume
 
 EPILOG = """\
 SCENE is the preset multiscale (paper §3.3: 10 s applications at 10/30/5/15 bar, 5 s pauses, 10 m/s, M = 0.8)
@@ -192,9 +192,8 @@ def _cmd_lf(args: argparse.Namespace) -> int:
     from aca_warp.lf.scene import load_lf_scene
 
     if args.resume is not None:
-        given = [
-            opt
-            for opt, value, default in (
+        refuse_with_resume(
+            (
                 ("SCENE", args.scene, None),
                 ("-o", args.output, None),
                 ("--duration", args.duration, None),
@@ -202,11 +201,9 @@ def _cmd_lf(args: argparse.Namespace) -> int:
                 ("--seed", args.seed, None),
                 ("--overwrite", args.overwrite, False),
                 ("--eager", args.eager, False),
-            )
-            if value != default
-        ]
-        if given:
-            raise SceneError(f"--resume continues the LF run with its own settings; drop {', '.join(given)}")
+            ),
+            "the LF run",
+        )
         sim, path = resume_lf(
             args.resume, progress=not args.no_progress, checkpoint_interval=args.checkpoint_interval,
             device=None if args.device == "cpu" else args.device,
