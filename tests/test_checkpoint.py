@@ -3,22 +3,16 @@ checkpoint ends in a file whose every dataset equals an uninterrupted run's, bit
 
 from __future__ import annotations
 
-import os
-import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
+from sigkill import kill_after_first_checkpoint
 
 from aca_warp import runner
 from aca_warp.checkpoint import has_checkpoint
 from aca_warp.cli import main
-
-REPO = Path(__file__).resolve().parent.parent
 
 SCENE = """
 [scene]
@@ -89,32 +83,9 @@ def test_sigkill_then_resume_is_bit_identical(scene_file: Path, tmp_path: Path) 
 
     out = tmp_path / "run.h5"
     part = tmp_path / "run.h5.partial"
-    env = {**os.environ, "HDF5_USE_FILE_LOCKING": "FALSE"}
-    env.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
-    cmd = [sys.executable, "-m", "aca_warp.cli", "hf", str(scene_file), "-o", str(out), *opts]
-    proc = subprocess.Popen([*cmd, "--checkpoint-interval", "1e-4"], env=env, stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 120
-    checkpointed = False
-    try:
-        while time.monotonic() < deadline and proc.poll() is None:
-            if part.exists():
-                try:
-                    with h5py.File(part, "r", locking=False) as f:
-                        checkpointed = has_checkpoint(f)
-                except Exception:  # noqa: BLE001  (the writer may be mid-flush: try again)
-                    checkpointed = False
-                if checkpointed:
-                    break
-            time.sleep(0.01)
-        assert proc.poll() is None, f"the run ended before it could be killed: {proc.stderr.read().decode()}"
-        assert checkpointed
-        os.kill(proc.pid, signal.SIGKILL)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-        proc.wait()
-        proc.stderr.close()
-    assert proc.returncode == -signal.SIGKILL
+    kill_after_first_checkpoint(
+        ["hf", str(scene_file), "-o", str(out), *opts, "--checkpoint-interval", "1e-4"], part, poll=0.01
+    )
     assert part.exists() and not out.exists()  # never a half-written final file
     with h5py.File(part, "r") as f:
         assert not f.attrs["complete"] and f.attrs["status"] == "running"

@@ -1,0 +1,47 @@
+"""Shared by the checkpoint tests: run an ``aca-warp`` command in a subprocess and SIGKILL it after its first
+checkpoint is on disk."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+
+from aca_warp.checkpoint import has_checkpoint
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def kill_after_first_checkpoint(args: list[str], part: Path, *, poll: float) -> None:
+    """Run ``python -m aca_warp.cli ARGS`` and kill it with SIGKILL as soon as ``part`` (the run's ``.partial``)
+    holds a checkpoint; asserts that the run was still going then and died by the signal. ``poll`` [s]."""
+    env = {**os.environ, "HDF5_USE_FILE_LOCKING": "FALSE"}
+    env.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
+    proc = subprocess.Popen([sys.executable, "-m", "aca_warp.cli", *args], env=env, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 120
+    checkpointed = False
+    try:
+        while time.monotonic() < deadline and proc.poll() is None:
+            if part.exists():
+                try:
+                    with h5py.File(part, "r", locking=False) as f:
+                        checkpointed = has_checkpoint(f)
+                except Exception:  # noqa: BLE001  (the writer may be mid-flush: try again)
+                    checkpointed = False
+                if checkpointed:
+                    break
+            time.sleep(poll)
+        assert proc.poll() is None, f"the run ended before it could be killed: {proc.stderr.read().decode()}"
+        assert checkpointed
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait()
+        proc.stderr.close()
+    assert proc.returncode == -signal.SIGKILL
