@@ -1,6 +1,6 @@
 """Throughput profiling of the HF step: ``aca-warp bench`` and ``scripts/bench_hf.py``.
 
-Per case (device, precision, integrator, pads) one row with: device, Warp version, precision, patches, pads,
+Per case (device, precision, integrator, engine, pads) one row with: device, Warp version, precision, patches, pads,
 compile time (first kernel-module load of the process, then graph capture), per-stage times (contact solve,
 neighbour build, whole model build, capture, stepping, recording), steps/s, patch-steps/s, ns per patch-step,
 achieved memory bandwidth against the device peak, and the μ error against a reference run (fp64 ``strang``
@@ -8,10 +8,13 @@ at a quarter of the step, over the same window).
 
 Timing method (all on warm kernels):
 
-* ``wall_s``, ``steps_per_s``, ``patch_steps_per_s``: one :func:`aca_warp.hf.run_hf` over the timed window,
-  recording every sample (what a user's run does; graph capture excluded, as in ``RunResult.wall_time``).
+* ``wall_s``, ``steps_per_s``, ``patch_steps_per_s``: one run (:func:`aca_warp.onchip.run` with the case's
+  ``engine``: ``general`` is :func:`aca_warp.hf.run_hf`, ``onchip`` the on-chip kernel, ``auto`` resolves as
+  ``aca-warp hf`` does) over the timed window, recording every sample (what a user's run does; graph capture and
+  compilation excluded, as in ``RunResult.wall_time``). ``engine`` in the row is the resolved one.
 * ``stepping_s``: the bare step, ``HFSolver.step`` captured into one graph of ``GRAPH_STEPS`` steps and replayed,
-  scaled to the run's step count (no recording, no host reads). Not for ``adaptive`` (no fixed step).
+  scaled to the run's step count (no recording, no host reads). Not for ``adaptive`` (no fixed step) nor for
+  the on-chip engine (its state stays in shared memory: no per-step global traffic, so no bandwidth either).
 * ``recording_s`` = ``wall_s`` − ``stepping_s``: sample kernels, host flushes, the run's first (eager) block.
 
 Memory traffic per step is a model, counted from the arrays each kernel of the step reads and writes
@@ -186,14 +189,15 @@ def run_case(
     duration: float,
     warmup: float = 2.0e-6,
     stages: bool = True,
+    engine: str = "general",
 ) -> dict:
     """Time one configuration; returns a result row (with ``mu``, pad 0's μ(t), for the error; popped later)."""
     import warp as wp
 
     from aca_warp.contact import solve_scene_contact
-    from aca_warp.hf import run_hf
     from aca_warp.kernels.neighbours import build_neighbours
     from aca_warp.model import build_model
+    from aca_warp.onchip import choose_engine, run
     from aca_warp.scene import Record
     from aca_warp.state import initial_state
 
@@ -218,14 +222,18 @@ def run_case(
     build_time = time.perf_counter() - t0
     state = initial_state(model)
     rec = Record(sample_dt=scene.record.sample_dt)
-    warm = run_hf(model, state, duration=warmup, integrator=integrator, dt=dt, record=rec)  # compiles, captures
-    res = run_hf(model, state, duration=duration, integrator=integrator, dt=dt, record=rec)
+    engine = choose_engine(model, engine, integrator)
+    kw = {"engine": engine, "integrator": integrator, "dt": dt, "record": rec}
+    warm = run(model, state, duration=warmup, **kw)  # compiles, captures
+    res = run(model, state, duration=duration, **kw)
     mu = res.collect().globals[:, 0, 0]
     n = model.patch_count
+    onchip = engine == "onchip"
     stepping = _stepping_time(model, initial_state(model), integrator, res.dt, res.steps) if stages else None
-    moved = bytes_per_step(integrator, n, model.nnz, precision)
+    stepping = None if onchip else stepping
+    moved = None if onchip else bytes_per_step(integrator, n, model.nnz, precision)
     bw_time = stepping if stepping is not None else res.wall_time
-    bandwidth = moved * res.steps / max(bw_time, 1e-12)
+    bandwidth = None if moved is None else moved * res.steps / max(bw_time, 1e-12)
     peak, peak_src = peak_bandwidth(dev)
     row.update(
         {
@@ -234,6 +242,7 @@ def run_case(
             "warp_version": wp.__version__,
             "precision": precision,
             "integrator": integrator,
+            "engine": engine,
             "pads": pads,
             "patches": n,
             "patches_per_pad": n // pads,
@@ -255,7 +264,7 @@ def run_case(
             "bandwidth_Bps": bandwidth,
             "peak_bandwidth_Bps": peak,
             "peak_bandwidth_source": peak_src,
-            "bandwidth_fraction": None if peak is None else bandwidth / peak,
+            "bandwidth_fraction": None if peak is None or bandwidth is None else bandwidth / peak,
             "complete": res.complete,
             "mu": mu,
         }
@@ -270,6 +279,7 @@ def run_bench(
     patches: int | None = None,
     precisions: tuple[str, ...] = ("fp64", "fp32"),
     integrators: tuple[str, ...] = ("strang",),
+    engines: tuple[str, ...] = ("auto",),
     pads: tuple[int, ...] = (1,),
     dt: float = 1.0e-8,
     duration: float = 2.0e-5,
@@ -297,8 +307,10 @@ def run_bench(
     refs: dict[int, np.ndarray] = {}
     for npads in pads:
         for prec in precisions:
-            for integ in integrators:
-                r = run_case(sc, device, prec, integ, npads, dt, duration, stages=stages)
+            for integ, eng in ((i, e) for i in integrators for e in engines):
+                if eng == "onchip" and integ != "strang":
+                    continue  # the on-chip kernel implements strang only
+                r = run_case(sc, device, prec, integ, npads, dt, duration, stages=stages, engine=eng)
                 mu = r.pop("mu")
                 r["module_load_s"] = module_load
                 if reference:
@@ -314,9 +326,10 @@ def run_bench(
                 if log:
                     err = r["mu_rel_error_max"]
                     log(
-                        f"{r['device_name'][:24]:>24s} {prec} {integ:>17s} pads={npads:5d} "
+                        f"{r['device_name'][:24]:>24s} {prec} {integ:>17s} {r['engine']:>7s} pads={npads:5d} "
                         f"{r['patch_steps_per_s']:.3g} patch-steps/s {r['ns_per_patch_step']:.3g} ns/patch-step, "
-                        f"{r['bandwidth_Bps'] / 1e9:.3g} GB/s, compile {r['compile_time_s']:.2f} s"
+                        + ("" if r["bandwidth_Bps"] is None else f"{r['bandwidth_Bps'] / 1e9:.3g} GB/s, ")
+                        + f"compile {r['compile_time_s']:.2f} s"
                         + ("" if err is None else f", mu err {err:.2e}")
                     )
     return {
@@ -339,17 +352,18 @@ def markdown(out: dict) -> str:
         "μ error: max |μ − μ_ref| / max|μ_ref| against fp64 strang at dt/4. Bandwidth: modelled bytes per step "
         "(aca_warp/bench.py) over the bare-step time.",
         "",
-        "| device | precision | integrator | pads | patches | steps/s | patch-steps/s | ns/patch-step "
+        "| device | precision | integrator | engine | pads | patches | steps/s | patch-steps/s | ns/patch-step "
         "| GB/s (of peak) | compile [s] | μ error |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in out["results"]:
         frac = "" if r["bandwidth_fraction"] is None else f" ({100 * r['bandwidth_fraction']:.2g} %)"
+        bw = "– (on chip)" if r["bandwidth_Bps"] is None else f"{r['bandwidth_Bps'] / 1e9:.3g}{frac}"
         err = "–" if r["mu_rel_error_max"] is None else f"{r['mu_rel_error_max']:.1e}"
         lines.append(
-            f"| {r['device_name']} | {r['precision']} | {r['integrator']} | {r['pads']} | {r['patches']} "
-            f"| {r['steps_per_s']:.3g} | {r['patch_steps_per_s']:.3g} | {r['ns_per_patch_step']:.3g} "
-            f"| {r['bandwidth_Bps'] / 1e9:.3g}{frac} | {r['compile_time_s']:.2f} | {err} |"
+            f"| {r['device_name']} | {r['precision']} | {r['integrator']} | {r.get('engine', 'general')} | {r['pads']} "
+            f"| {r['patches']} | {r['steps_per_s']:.3g} | {r['patch_steps_per_s']:.3g} | {r['ns_per_patch_step']:.3g} "
+            f"| {bw} | {r['compile_time_s']:.2f} | {err} |"
         )
     return "\n".join(lines) + "\n"
 
@@ -361,6 +375,7 @@ def add_parsers(sub: Any) -> None:
     """Register ``aca-warp bench``."""
     from aca_warp.argtypes import int_at_least, positive
     from aca_warp.hf import INTEGRATORS
+    from aca_warp.onchip import ENGINES
 
     p = sub.add_parser(
         "bench",
@@ -380,6 +395,13 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--patches", type=int_at_least(1), metavar="N", help="patches per pad (default: the scene's)")
     p.add_argument(
         "--integrator", nargs="+", choices=INTEGRATORS, default=["strang"], help="integrators (default strang)"
+    )
+    p.add_argument(
+        "--engine",
+        nargs="+",
+        choices=ENGINES,
+        default=["auto"],
+        help="HF engines (default auto: on-chip on CUDA where possible, else general; onchip runs strang only)",
     )
     p.add_argument("--dt", type=positive, default=1.0e-8, metavar="S", help="fixed step [s] (default 1e-8)")
     p.add_argument("--duration", type=positive, default=2.0e-5, metavar="S", help="timed window [s] (default 2e-5)")
@@ -401,6 +423,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         patches=args.patches,
         precisions=tuple(args.precision),
         integrators=tuple(args.integrator),
+        engines=tuple(args.engine),
         pads=tuple(args.pads),
         dt=args.dt,
         duration=args.duration,

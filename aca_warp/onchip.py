@@ -78,16 +78,8 @@ def _smem_limit(model: PadModel) -> int:
     return int(dev.max_shared_memory_per_block) - _SMEM_RESERVE
 
 
-def unsupported(model: PadModel, integrator: str = DEFAULT_INTEGRATOR, *, allow_cuda: bool = False) -> str | None:
-    """Why the on-chip engine cannot run this model (None when it can).
-
-    ``allow_cuda=True`` lifts the refusal of CUDA models, for validating the kernel on a GPU only
-    (``scripts/onchip_gpu_check.py``).
-    """
-    if model.device.is_cuda and not allow_cuda:
-        # Measured 2026-11-23 on an H100: the launch never completes (the host waits in the first flush for
-        # > 100 s on a 2-pad hf1 batch, block 256 and 512, fp32). Refuse instead of hanging; see docs/onchip.md.
-        return "the on-chip kernel does not finish on CUDA yet (it hangs on an H100; docs/onchip.md)"
+def unsupported(model: PadModel, integrator: str = DEFAULT_INTEGRATOR) -> str | None:
+    """Why the on-chip engine cannot run this model (None when it can)."""
     if integrator != "strang":
         return f"the on-chip engine implements the strang integrator only (got {integrator})"
     if "pad_growth" in model.arrays:
@@ -104,9 +96,8 @@ def unsupported(model: PadModel, integrator: str = DEFAULT_INTEGRATOR, *, allow_
 def choose_engine(model: PadModel, engine: str, integrator: str = DEFAULT_INTEGRATOR) -> str:
     """Resolve ``engine`` (auto, onchip, general) for a model; ``onchip`` on an unsupported model is an error.
 
-    ``auto`` picks ``general``: the on-chip kernel runs (bit-identical) only on the CPU, where it is no faster
-    (Warp runs a block as one thread there), and CUDA is refused until the fix of its hang there is verified
-    (docs/onchip.md).
+    ``auto`` picks ``onchip`` on CUDA when the model allows it (faster there, docs/onchip.md) and ``general`` on
+    the CPU (Warp runs a block as one thread there, so the on-chip kernel is no faster).
     """
     if engine not in ENGINES:
         raise SceneError(f"unknown engine {engine!r}; choose from {', '.join(ENGINES)}")
@@ -115,9 +106,9 @@ def choose_engine(model: PadModel, engine: str, integrator: str = DEFAULT_INTEGR
         if why is not None:
             raise SceneError(f"--engine onchip: {why}")
         return "onchip"
-    if engine == "general":
+    if engine == "general" or why is not None or model.device.is_cpu:
         return "general"
-    return "general"
+    return "onchip"
 
 
 def _due(k: int, first: int, last: int, every: int) -> bool:
@@ -139,7 +130,8 @@ def run_onchip(
     csr_shared: bool | None = None,
     samples_per_launch: int | None = None,
     watchdog_factor: float | None = WATCHDOG_FACTOR,
-    allow_cuda: bool = False,
+    ablate: frozenset[str] = frozenset(),
+    fast_math: bool = False,
 ) -> RunResult:
     """Advance all pads from ``state`` for ``duration`` [s] with the on-chip ``strang`` kernel.
 
@@ -149,14 +141,15 @@ def run_onchip(
     rounded up to 32, at most 512);
     ``csr_shared``: keep the neighbour lists in shared memory (default: when they fit);
     ``samples_per_launch``: sample intervals per kernel launch (default: as many as fit ~20k steps).
-    ``allow_cuda``: run on a CUDA model although :func:`unsupported` refuses CUDA (for validation on a GPU only,
-    ``scripts/onchip_gpu_check.py``; run it in a subprocess with a timeout).
+    ``ablate``: profiling only (``scripts/profile_onchip.py``): parts of the step left out, results wrong
+    (:func:`aca_warp.kernels.hf_onchip.onchip_kernel`).
+    ``fast_math``: compile with CUDA fast math (approximate division and transcendentals; profiling).
     On the CPU a block is one thread unless ``wp.config.enable_cpu_blocks`` is set (Warp's cooperative CPU
     fibers: ``block_dim`` threads per block with real barriers, used by the tests to exercise multi-thread blocks).
     """
     t_compile = time.perf_counter()
     record = record or model.scenes[0].record
-    why = unsupported(model, allow_cuda=allow_cuda)
+    why = unsupported(model)
     if why is not None:
         raise SceneError(f"on-chip engine: {why}")
     if not (duration > 0 and math.isfinite(duration)):
@@ -192,7 +185,9 @@ def run_onchip(
         np.full(model.pad_count, np.inf) if watchdog_factor is None else watchdog_bound(model, state, watchdog_factor)
     )
     rec.watch_bound.assign(bounds)
-    kernel = onchip_kernel(model.dtype, _round_up(nmax, 32), _round_up(emax, 32), bool(csr_shared), block_dim)
+    kernel = onchip_kernel(
+        model.dtype, _round_up(nmax, 32), _round_up(emax, 32), bool(csr_shared), block_dim, frozenset(ablate), fast_math
+    )
     stages = [
         "contact",
         "neighbours" if model.has_coupling else "no-coupling",

@@ -4,7 +4,8 @@ A sweep spec (``docs/sweeps.md``) names a base scene (a preset, a TOML scene fil
 or lists of scene parameters (``friction.M``, ``load.normal_force``, ``disc.sliding_speed``, ``patches.seed``,
 ``patches.area_min``, ``material.K_C``, ...), combined as a Cartesian product or zipped. Every combination is
 one pad. Pads are cut into shards of a fixed size; each shard is one batched HF run (one :func:`build_model`,
-one :func:`run_hf`, split only when the estimated device memory says the batch does not fit) and one HDF5 file::
+one :func:`aca_warp.onchip.run`: the on-chip kernel on CUDA, else :func:`run_hf`; split only when the
+estimated device memory says the batch does not fit) and one HDF5 file::
 
     DIR/manifest.json            spec, spec hash, shards and their state (written only by the client)
     DIR/shard-00000.h5           /global/time (samples,) [s]
@@ -546,9 +547,10 @@ def run_shard(
     import h5py
     import warp as wp
 
-    from aca_warp.hf import GLOBAL_NAMES, GLOBAL_UNITS, run_hf
+    from aca_warp.hf import GLOBAL_NAMES, GLOBAL_UNITS
     from aca_warp.io import versions
     from aca_warp.model import build_model
+    from aca_warp.onchip import run as run_engine
     from aca_warp.state import initial_state
 
     wp.config.log_level = wp.LOG_WARNING
@@ -565,6 +567,7 @@ def run_shard(
     summary: dict[str, Any] = {"index": index, "device": str(dev), "device_name": dev.name, "batches": 0}
     steps = 0
     wall = compile_time = 0.0
+    engines: set[str] = set()
     fault = None
     dt_used = math.nan
     with h5py.File(partial, "w") as f:
@@ -620,9 +623,10 @@ def run_shard(
                     d[b0:b1, r0 : r0 + k] = chunk.globals[:, :, j].T
                 row[0] = r0 + k
 
-            res = run_hf(
+            res = run_engine(  # on-chip kernel on CUDA where the model allows it, else the general path
                 model,
                 state,
+                engine="auto",
                 duration=spec.duration,
                 integrator=spec.integrator,
                 dt=spec.dt,
@@ -633,6 +637,7 @@ def run_shard(
             summary["batches"] += 1
             steps = max(steps, res.steps)
             wall += res.wall_time
+            engines.add("onchip" if "step:strang:onchip" in res.stages else "general")
             compile_time += res.compile_time
             dt_used = res.dt
             if res.fault is not None:
@@ -646,6 +651,7 @@ def run_shard(
         f.attrs["dt"] = dt_used
         f.attrs["wall_time"] = wall
         f.attrs["compile_time"] = compile_time
+        f.attrs["engine"] = ",".join(sorted(engines))
         f.attrs["batch_capacity"] = cap
     os.replace(partial, final)
     summary.update(

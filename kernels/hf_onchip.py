@@ -59,9 +59,25 @@ def _tile_store_rows(dtype: Any, rows: int, size: int) -> Any:
     return wp.func_native("t.data(wp::tile_coord(r, i)) = x;\n")(put)
 
 
+ABLATIONS = frozenset({"friction", "gather", "sync"})
+
+
 @cache
-def onchip_kernel(dtype: Any, nmax: int, emax: int, csr_shared: bool, block_dim: int) -> wp.Kernel:
+def onchip_kernel(
+    dtype: Any,
+    nmax: int,
+    emax: int,
+    csr_shared: bool,
+    block_dim: int,
+    ablate: frozenset[str] = frozenset(),
+    fast_math: bool = False,
+) -> wp.Kernel:
     """The on-chip strang kernel for pads of at most ``nmax`` patches (``emax`` links when ``csr_shared``).
+
+    ``ablate`` (profiling only, ``scripts/profile_onchip.py``; the results are then wrong) drops parts of the
+    step to time the rest: ``friction`` (the implicit friction solve becomes an explicit kick), ``gather``
+    (the neighbour sum), ``sync`` (the block barrier). ``fast_math``: compile with CUDA fast math (approximate
+    division and transcendental functions; changes the results in the last bits).
 
     Launch with ``wp.launch_tiled(kernel, dim=[pads], block_dim=B, ...)``; ``threads`` must be the block
     size the device really runs (B on CUDA or with CPU fibers, else 1 on the CPU). The kernel is compiled with
@@ -72,6 +88,11 @@ def onchip_kernel(dtype: Any, nmax: int, emax: int, csr_shared: bool, block_dim:
     ne = emax if csr_shared else 1
     EMAX = wp.constant(ne)
     CSR_SHARED = wp.constant(1 if csr_shared else 0)
+    if not ablate <= ABLATIONS:
+        raise ValueError(f"unknown ablations {sorted(ablate - ABLATIONS)}")
+    FRICTION = wp.constant(0 if "friction" in ablate else 1)
+    GATHER = wp.constant(0 if "gather" in ablate else 1)
+    SYNC = wp.constant(0 if "sync" in ablate else 1)
 
     # Per-thread element stores into the shared tiles. ``tile[i] = x`` in Warp is a block-cooperative op (it ends
     # in WP_TILE_SYNC(), i.e. __syncthreads()), which inside the per-thread ``while i < n`` loops deadlocks on CUDA
@@ -105,7 +126,9 @@ def onchip_kernel(dtype: Any, nmax: int, emax: int, csr_shared: bool, block_dim:
             mu_scale, slope, decay, tol,
         )  # fmt: skip
 
-    @wp.kernel(enable_backward=False, module="unique", launch_bounds=(block_dim, 1))
+    @wp.kernel(
+        enable_backward=False, module="unique", launch_bounds=(block_dim, 1), module_options={"fast_math": fast_math}
+    )
     def onchip_strang(
         # Model:
         pad_patch_start: wp.array[wp.int32],
@@ -200,7 +223,9 @@ def onchip_kernel(dtype: Any, nmax: int, emax: int, csr_shared: bool, block_dim:
                     g = a + i
                     im = inv_mass[g]
                     vd = omega * radius[g]
-                    if first_step != 0:
+                    if FRICTION == 0:
+                        v = w[i] + dt * im * fs[i]
+                    elif first_step != 0:
                         v = midpoint_friction(
                             w[i], half, one / im, damping[g], normal_force[g], vd, mu_scale, slope, decay, tol
                         )
@@ -217,7 +242,8 @@ def onchip_kernel(dtype: Any, nmax: int, emax: int, csr_shared: bool, block_dim:
                     put_u(u2, nxt, i, u2[cur, i] + dt * v)
                     i += threads
                 first_step = 0
-                block_sync()
+                if SYNC != 0:
+                    block_sync()
                 # spring forces at the new u (spring_force of kernels.hf: same two partial sums, same order)
                 i = lane
                 while i < n:
@@ -226,6 +252,8 @@ def onchip_kernel(dtype: Any, nmax: int, emax: int, csr_shared: bool, block_dim:
                     a1 = T(0.0)
                     e = nbr_start[g]
                     end = nbr_start[g + 1]
+                    if GATHER == 0:
+                        end = e
                     if CSR_SHARED != 0:
                         e = e - e0
                         end = end - e0

@@ -6,8 +6,8 @@ fix"). This script runs every CUDA part in a child process with a timeout (the c
 and exits on its own shortly before), so a hung kernel costs at most that timeout:
 
 1. **check** (child, ``--check-timeout`` s): the 2-pad hf1 case of ``tests/test_onchip.py`` (two different pads,
-   200 steps of 1e-8 s, patch histories, 3 samples per launch) with the general path and with ``run_onchip(...,
-   allow_cuda=True)``, fp32 then fp64; passes when μ agrees within rtol 2e-4 (fp32) / 1e-10 (fp64) and the final
+   200 steps of 1e-8 s, patch histories, 3 samples per launch) with the general path and with ``run_onchip``,
+   fp32 then fp64; passes when μ agrees within rtol 2e-4 (fp32) / 1e-10 (fp64) and the final
    (u, u̇) within that fraction of their maxima (u̇: ×10). Each precision's result is written as soon as it exists.
 2. **bench** (child, only if the fp32 check passed; the rest of ``--budget``): on-chip fp32 on one hf1 pad and on
    1024 pads over a ``--window`` [s] window after a warm-up (compile) run: µs/step, steps/s, patch-steps/s; then the
@@ -81,7 +81,7 @@ def child_check(args) -> None:
             else:
                 res = run_onchip(
                     model, state, duration=2e-6, dt=1e-8, samples_per_launch=3, block_dim=args.block,
-                    csr_shared=args.csr, allow_cuda=True,
+                    csr_shared=args.csr,
                 )  # fmt: skip
             row[f"{engine}_total_s"] = time.perf_counter() - t
             row[f"{engine}_compile_s"] = res.compile_time
@@ -144,7 +144,7 @@ def child_bench(args) -> None:
                 _log(f"built {pads} pads in {time.perf_counter() - t:.1f} s")
             model = models[pads]
             if engine == "onchip":
-                kw = {"block_dim": args.block, "csr_shared": args.csr, "allow_cuda": True}
+                kw = {"block_dim": args.block, "csr_shared": args.csr}
                 fn = run_onchip
             else:
                 kw = {}

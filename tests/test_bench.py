@@ -54,7 +54,7 @@ def test_bench_cli_json(tmp_path: Path) -> None:
         assert 0 < r["stepping_s"] and r["recording_s"] >= 0 and r["peak_bandwidth_Bps"] > 0
         assert r["bytes_per_step"] == bytes_per_step("strang", r["patches"], r["links"], "fp32")
         assert 0 <= r["mu_rel_error_max"] < 1e-5  # fp32 strang at dt against fp64 at dt/4
-    assert "| CPU | fp32 | strang | 2 | 40 |" in md.read_text()
+    assert "| CPU | fp32 | strang | general | 2 | 40 |" in md.read_text()
 
 
 def test_bench_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
