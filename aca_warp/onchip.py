@@ -61,21 +61,11 @@ def pad_sizes(model: PadModel) -> tuple[int, int]:
     return int(np.diff(start).max()), int(links.max())
 
 
-def gather_order(model: PadModel) -> np.ndarray:
-    """Per pad, its patches' local indices by decreasing neighbour count (stable): the on-chip gather's order."""
-    start = model.pad_patch_start_host
-    deg = np.diff(model.host("nbr_start"))
-    out = np.empty(model.patch_count, dtype=np.int32)
-    for a, b in zip(start[:-1], start[1:], strict=True):
-        out[a:b] = np.argsort(-deg[a:b], kind="stable")
-    return out
-
-
 def shared_bytes(model: PadModel, csr_shared: bool) -> int:
     """Shared memory one block needs [bytes]: u (×2), w, F_s per patch, plus the pad's CSR when kept on chip."""
     nmax, emax = pad_sizes(model)
     nmax, emax = _round_up(nmax, 32), _round_up(emax, 32)
-    b = 4 * nmax * _itemsize(model) + 4 * nmax  # u (x2), w, F_s; the gather order (int32)
+    b = 4 * nmax * _itemsize(model)
     if csr_shared:
         b += emax * (4 + _itemsize(model))
     return b
@@ -217,8 +207,6 @@ def run_onchip(
     rec.launch(state.u, state.v, conditional=False)  # sample 0: the initial state (general kernels)
     k_next, rows, prows = 1, 1, int(_due(0, rec.first, rec.last, rec.every))
 
-    order = wp.array(gather_order(model), dtype=wp.int32, device=dev)
-
     def launch(samples: int, opening: bool) -> None:
         wp.launch_tiled(
             kernel,
@@ -235,7 +223,6 @@ def run_onchip(
                 m.nbr_start,
                 m.nbr_index,
                 m.nbr_stiffness,
-                order,
                 m.pad_omega,
                 m.pad_mu_scale,
                 m.pad_slope,

@@ -59,7 +59,7 @@ def _tile_store_rows(dtype: Any, rows: int, size: int) -> Any:
     return wp.func_native("t.data(wp::tile_coord(r, i)) = x;\n")(put)
 
 
-ABLATIONS = frozenset({"friction", "gather", "sync", "order"})
+ABLATIONS = frozenset({"friction", "gather", "sync"})
 
 
 @cache
@@ -76,8 +76,7 @@ def onchip_kernel(
 
     ``ablate`` (profiling only, ``scripts/profile_onchip.py``; the results are then wrong) drops parts of the
     step to time the rest: ``friction`` (the implicit friction solve becomes an explicit kick), ``gather``
-    (the neighbour sum), ``sync`` (the block barrier), ``order`` (gather in patch order instead of by degree; this
-    one keeps the results). ``fast_math``: compile with CUDA fast math (approximate
+    (the neighbour sum), ``sync`` (the block barrier). ``fast_math``: compile with CUDA fast math (approximate
     division and transcendental functions; changes the results in the last bits).
 
     Launch with ``wp.launch_tiled(kernel, dim=[pads], block_dim=B, ...)``; ``threads`` must be the block
@@ -94,7 +93,6 @@ def onchip_kernel(
     FRICTION = wp.constant(0 if "friction" in ablate else 1)
     GATHER = wp.constant(0 if "gather" in ablate else 1)
     SYNC = wp.constant(0 if "sync" in ablate else 1)
-    BY_DEGREE = wp.constant(0 if "order" in ablate else 1)
 
     # Per-thread element stores into the shared tiles. ``tile[i] = x`` in Warp is a block-cooperative op (it ends
     # in WP_TILE_SYNC(), i.e. __syncthreads()), which inside the per-thread ``while i < n`` loops deadlocks on CUDA
@@ -103,7 +101,6 @@ def onchip_kernel(
     put_u = _tile_store_rows(T, 2, nmax)
     put_ei = _tile_store_1d(wp.int32, ne)
     put_ek = _tile_store_1d(T, ne)
-    put_o = _tile_store_1d(wp.int32, nmax)
 
     @wp.func
     def sync_velocity(
@@ -143,7 +140,6 @@ def onchip_kernel(
         nbr_start: wp.array[wp.int32],
         nbr_index: wp.array[wp.int32],
         nbr_stiffness: wp.array[T],
-        gather_order: wp.array[wp.int32],
         pad_omega: wp.array[T],
         pad_mu_scale: wp.array[T],
         pad_slope: wp.array[T],
@@ -192,14 +188,12 @@ def onchip_kernel(
         fs = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
         sidx = wp.tile_zeros(shape=EMAX, dtype=wp.int32, storage="shared")
         sk = wp.tile_zeros(shape=EMAX, dtype=T, storage="shared")
-        sord = wp.tile_zeros(shape=NMAX, dtype=wp.int32, storage="shared")
         e0 = nbr_start[a]
         i = lane
         while i < n:
             put_u(u2, 0, i, u_io[a + i])
             put_n(w, i, v_io[a + i])
             put_n(fs, i, force_io[a + i])
-            put_o(sord, i, gather_order[a + i])
             i += threads
         if CSR_SHARED != 0:
             e = lane
@@ -223,14 +217,9 @@ def onchip_kernel(
         for s in range(samples):
             for _q in range(steps_per_sample):
                 nxt = 1 - cur
-                # friction + kicks + drift (strang_open / strang_step), own patches only. A thread owns patches
-                # sord[lane], sord[lane + B], ... in both per-step loops (the gather's order, below), so w and F_s
-                # of a patch are only ever touched by one thread between barriers.
-                j = lane
-                while j < n:
-                    i = j
-                    if BY_DEGREE != 0:
-                        i = sord[j]
+                # friction + kicks + drift (strang_open / strang_step), own patches only
+                i = lane
+                while i < n:
                     g = a + i
                     im = inv_mass[g]
                     vd = omega * radius[g]
@@ -251,18 +240,13 @@ def onchip_kernel(
                         )
                     put_n(w, i, v)
                     put_u(u2, nxt, i, u2[cur, i] + dt * v)
-                    j += threads
+                    i += threads
                 first_step = 0
                 if SYNC != 0:
                     block_sync()
-                # spring forces at the new u (spring_force of kernels.hf: same two partial sums, same order). The
-                # patches are visited by decreasing neighbour count (gather_order), so that the 32 rows a warp walks
-                # together have similar lengths; each patch's sum is unchanged.
-                j = lane
-                while j < n:
-                    i = j
-                    if BY_DEGREE != 0:
-                        i = sord[j]
+                # spring forces at the new u (spring_force of kernels.hf: same two partial sums, same order)
+                i = lane
+                while i < n:
                     g = a + i
                     a0 = T(0.0)
                     a1 = T(0.0)
@@ -287,11 +271,8 @@ def onchip_kernel(
                         if e < end:
                             a0 += nbr_stiffness[e] * u2[nxt, nbr_index[e] - a]
                     put_n(fs, i, (a0 + a1) - k_diag[g] * u2[nxt, i])
-                    j += threads
+                    i += threads
                 cur = nxt
-            # The sample reads every patch in index order (the sums' order of record_globals), not the step loops'
-            # ownership: one barrier per sample interval.
-            block_sync()
             # sample: synchronous velocity (strang_close), sums in float64 (record_globals), patch histories
             k = k0 + s
             due = patch_sample_due(k, first, last, every)

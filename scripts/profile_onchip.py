@@ -3,8 +3,7 @@
 
 Times ``aca_warp.onchip.run_onchip`` on one pad for a window of steps with parts of the step left out
 (``ablate``: the implicit friction solve → an explicit kick, the neighbour gather, the block barrier; the results
-of those runs are wrong and only their time counts; and the gather in patch order instead of by neighbour count,
-which keeps the results), for several block sizes, with the CSR in shared or global
+of an ablated run are wrong and only its time counts), for several block sizes, with the CSR in shared or global
 memory, fp32 and fp64, and the general per-step path for comparison. The difference between two rows is the
 cost of the part left out. Writes a JSON list and a Markdown table.
 
@@ -25,7 +24,6 @@ CASES = [
     # (label, precision, block_dim, csr_shared, ablations)
     ("full", "fp32", 512, None, ()),
     ("full, CSR global", "fp32", 512, False, ()),
-    ("full, gather in patch order", "fp32", 512, None, ("order",)),
     ("full, block 256", "fp32", 256, None, ()),
     ("full, block 1024", "fp32", 1024, None, ()),
     ("no friction solve", "fp32", 512, None, ("friction",)),
