@@ -42,6 +42,8 @@ FP32_MIN_TOLERANCE = 1.0e-5  # relative; tighter asks fp32 for more digits than 
 GLOBAL_NAMES = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity")
 GLOBAL_UNITS = ("1", "N m", "m", "m s-1", "m s-1")
 WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (:func:`watchdog_bound`)
+CONTACT_BLOCK = 256  # threads per pad of the growth events' contact re-solve (Warp's default block size)
+
 # model arrays that growth events rewrite on the device (saved in checkpoints of growing runs)
 GROWTH_MUTABLE = (
     "area",
@@ -610,13 +612,15 @@ def run_hf(
                 m.k_diag,
             ],
         )
-        wp.launch(
+        wp.launch_tiled(
             K.contact_flat,
-            dim=m.pad_count,
+            dim=[m.pad_count],
+            block_dim=CONTACT_BLOCK,
             device=dev,
             inputs=[
                 step_counter,
                 growth_every,
+                CONTACT_BLOCK if dev.is_cuda or wp.config.enable_cpu_blocks else 1,
                 m.pad_patch_start,
                 m.k_n,
                 m.height,

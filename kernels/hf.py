@@ -810,6 +810,7 @@ def grow_patches(
 def contact_flat(
     step: wp.array[wp.int64],
     every: int,
+    threads: int,
     # Model:
     pad_patch_start: wp.array[wp.int32],
     k_n: wp.array[Any],
@@ -826,62 +827,79 @@ def contact_flat(
     pad_matrix_force_out: wp.array[Any],
     pad_matrix_radius_out: wp.array[Any],
 ):
-    """Re-solve the normal forces of one pad on a flat matrix at elevation 0 (one thread per pad).
+    """Re-solve the normal forces of one pad on a flat matrix at elevation 0 (one thread block per pad).
 
     Σ_i k_N,i max(h_i − g, 0) + k_m a_free max(−g, 0) = F_N by Newton from the left of the root (monotone
-    and exact on a piecewise-linear convex function), warm-started from the previous gap.
+    and exact on a piecewise-linear convex function), warm-started from the previous gap. Launch with
+    ``wp.launch_tiled(dim=[pads], block_dim=B)``; ``threads`` is the block size the device runs (B on CUDA, 1 on
+    the CPU): thread ``lane`` sums patches lane, lane + B, … and the block reduces the sums, so every thread
+    sees the same values and takes the same branches (the block-wide reductions stay outside per-thread code).
     """
-    pad = wp.tid()
+    pad, lane = wp.tid()
     if not growth_due(step, every):
         return
     s = pad_patch_start[pad]
     e = pad_patch_start[pad + 1]
+    zero = wp.float64(0.0)
     load = wp.float64(pad_load[pad])
-    covered = wp.float64(0.0)
-    moment = wp.float64(0.0)
-    hmin = wp.float64(0.0)
-    ktot = wp.float64(0.0)
-    for i in range(s, e):
+    covered = zero
+    moment = zero
+    hmin = zero
+    ktot = zero
+    i = s + lane
+    while i < e:
         covered += wp.float64(area[i])
         moment += wp.float64(area[i] * radius[i])
         hmin = wp.min(hmin, wp.float64(height[i]))
         ktot += wp.float64(k_n[i])
-    free = wp.max(pad_area[pad] - covered, wp.float64(0.0))
+        i += threads
+    covered = wp.tile_sum(wp.tile(covered))[0]
+    moment = wp.tile_sum(wp.tile(moment))[0]
+    hmin = wp.tile_min(wp.tile(hmin))[0]
+    ktot = wp.tile_sum(wp.tile(ktot))[0]
+    free = wp.max(pad_area[pad] - covered, zero)
     km = pad_k_m[pad] * free
     ktot += km
-    if free > wp.float64(0.0):
+    if free > zero and lane == 0:
         pad_matrix_radius_out[pad] = type(pad_load[pad])((pad_moment[pad] - moment) / free)
-    if load <= wp.float64(0.0):
-        for i in range(s, e):
-            normal_force_out[i] = type(pad_load[pad])(0.0)
-        pad_matrix_force_out[pad] = type(pad_load[pad])(0.0)
-        return
     g = pad_gap[pad]
-    for it in range(200):
-        f = km * wp.max(-g, wp.float64(0.0))
-        kact = wp.float64(0.0)
-        if g < wp.float64(0.0):
-            kact = km
-        for i in range(s, e):
-            d = wp.float64(height[i]) - g
-            if d > wp.float64(0.0):
-                f += wp.float64(k_n[i]) * d
-                kact += wp.float64(k_n[i])
-        if it == 0 and f < load:
-            g = hmin - load / ktot  # restart left of the root, where every element is compressed
-            continue
-        if kact <= wp.float64(0.0):
-            break
-        dg = (f - load) / kact
-        g = g + dg
-        if wp.abs(dg) <= wp.float64(1.0e-15) * (wp.abs(g) + wp.float64(1.0e-9)):
-            break
-    pad_gap[pad] = g
-    for i in range(s, e):
-        normal_force_out[i] = type(pad_load[pad])(
-            wp.float64(k_n[i]) * wp.max(wp.float64(height[i]) - g, wp.float64(0.0))
-        )
-    pad_matrix_force_out[pad] = type(pad_load[pad])(km * wp.max(-g, wp.float64(0.0)))
+    if load > zero:
+        for it in range(200):
+            fp = zero
+            kp = zero
+            i = s + lane
+            while i < e:
+                d = wp.float64(height[i]) - g
+                if d > zero:
+                    fp += wp.float64(k_n[i]) * d
+                    kp += wp.float64(k_n[i])
+                i += threads
+            f = km * wp.max(-g, zero) + wp.tile_sum(wp.tile(fp))[0]
+            kact = wp.tile_sum(wp.tile(kp))[0]
+            if g < zero:
+                kact += km
+            if it == 0 and f < load:
+                g = hmin - load / ktot  # restart left of the root, where every element is compressed
+                continue
+            if kact <= zero:
+                break
+            dg = (f - load) / kact
+            g = g + dg
+            if wp.abs(dg) <= wp.float64(1.0e-15) * (wp.abs(g) + wp.float64(1.0e-9)):
+                break
+    i = s + lane
+    while i < e:
+        f_i = zero
+        if load > zero:
+            f_i = wp.float64(k_n[i]) * wp.max(wp.float64(height[i]) - g, zero)
+        normal_force_out[i] = type(pad_load[pad])(f_i)
+        i += threads
+    if lane == 0:
+        if load > zero:
+            pad_gap[pad] = g
+            pad_matrix_force_out[pad] = type(pad_load[pad])(km * wp.max(-g, zero))
+        else:
+            pad_matrix_force_out[pad] = type(pad_load[pad])(0.0)
 
 
 # ---------------------------------------------------------------------------------------------- overloads
@@ -1050,6 +1068,7 @@ def _declare_overloads() -> None:
             {
                 "step": _arr(wp.int64),
                 "every": int,
+                "threads": int,
                 "pad_patch_start": i32,
                 "k_n": a,
                 "height": a,

@@ -85,3 +85,31 @@ def test_isolated_frequency(va):
     """model.md: 75.2 kHz at 0.05 mm², 33.6 kHz at 1.25 mm²."""
     assert va.isolated_frequency(5e-8) == pytest.approx(75.2e3, rel=2e-3)
     assert va.isolated_frequency(1.25e-6) == pytest.approx(33.6e3, rel=2e-3)
+
+
+def test_growth_contact_block_threads_agree():
+    """The growth events' contact re-solve (one thread block per pad) gives the same forces with one CPU thread
+    per block and with Warp's cooperative CPU fibers (256 threads, real barriers), to rounding, in force balance."""
+    import warp as wp
+
+    from aca_warp.hf import run_hf
+    from aca_warp.model import build_model
+    from aca_warp.state import initial_state
+
+    s = growing_scene()
+    out = []
+    old = wp.config.enable_cpu_blocks
+    try:
+        for fibers in (False, True):
+            wp.config.enable_cpu_blocks = fibers
+            model = build_model([s, s.replace(normal_force=35.0)], device="cpu", precision="fp64")
+            res = run_hf(model, initial_state(model), duration=4e-6, dt=1e-8)
+            assert res.complete and "growth" in res.stages
+            fn = model.host("normal_force")
+            total = fn.reshape(2, -1).sum(axis=1) + model.host("pad_matrix_force")
+            np.testing.assert_allclose(total, [20.0, 35.0], rtol=1e-12)
+            out.append((fn, model.host("pad_matrix_force"), model.host("area")))
+    finally:
+        wp.config.enable_cpu_blocks = old
+    for a, b in zip(out[0], out[1], strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=0)
