@@ -23,7 +23,7 @@ Barrier rule (CUDA): every block-cooperative op (``tile_zeros``, ``wp.tile``, ``
 ``block_sync``, and Warp's ``tile[i] = x``, which ends in ``__syncthreads()``) must be reached by all threads of
 the block equally often, so none may sit inside the per-thread ``while i < n`` loops (threads own different
 numbers of patches). Per-thread stores into the shared tiles use the barrier-free ``put`` helpers below; a
-``tile[i] = x`` there made the kernel hang on an H100 (docs/onchip.md, "CUDA hang: cause and fix").
+``tile[i] = x`` there made the kernel hang on an H100 (docs/onchip.md, "History: the CUDA hang").
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Validate the on-chip HF kernel on a GPU without ever hanging, then time it briefly.
 
-The on-chip kernel (``aca_warp.onchip``) once never finished on an H100 (docs/onchip.md, "CUDA hang: cause and
-fix"). This script runs every CUDA part in a child process with a timeout (the child also dumps its Python stack
+The on-chip kernel (``aca_warp.onchip``) once never finished on an H100 (docs/onchip.md, "History: the CUDA
+hang"). This script runs every CUDA part in a child process with a timeout (the child also dumps its Python stack
 and exits on its own shortly before), so a hung kernel costs at most that timeout:
 
 1. **check** (child, ``--check-timeout`` s): the 2-pad hf1 case of ``tests/test_onchip.py`` (two different pads,
