@@ -76,3 +76,19 @@ def test_byte_model_and_script(tmp_path: Path) -> None:
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     assert json.loads(out.read_text())["results"][0]["integrator"] == "symplectic-euler"
+
+
+def test_bench_engines(tmp_path: Path) -> None:
+    """``--engine general onchip``: one row per engine (on-chip: no bandwidth, strang only), same μ error."""
+    out = tmp_path / "e.json"
+    args = ["bench", "--patches", "20", "--duration", "3e-6", "--precision", "fp64", "--engine", "general", "onchip"]
+    assert main([*args, "--integrator", "strang", "symplectic-euler", "--json", str(out)]) == 0
+    rows = json.loads(out.read_text())["results"]
+    assert [(r["integrator"], r["engine"]) for r in rows] == [
+        ("strang", "general"),
+        ("strang", "onchip"),
+        ("symplectic-euler", "general"),
+    ]
+    on = rows[1]
+    assert on["bandwidth_Bps"] is None and on["stepping_s"] is None and on["steps"] == 300
+    assert on["mu_rel_error_max"] == pytest.approx(rows[0]["mu_rel_error_max"], rel=1e-9)
