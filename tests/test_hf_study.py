@@ -2,26 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-from pathlib import Path
 
 import pytest
-
-SCRIPT = Path(__file__).resolve().parent.parent / "scripts" / "hf_study.py"
-
-
-def _load():
-    spec = importlib.util.spec_from_file_location("hf_study", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from scriptload import load_script
 
 
 @pytest.fixture(scope="module")
 def hf_study():
-    return _load()
+    return load_script("hf_study")
 
 
 def test_fit_power_law(hf_study):

@@ -2,23 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
+from scriptload import load_script
 
 from aca_warp.scene import Friction, Growth, Initial, Pad, Patches, Record, Scene
-
-SCRIPT = Path(__file__).resolve().parent.parent / "scripts" / "varying_area.py"
 
 
 @pytest.fixture(scope="module")
 def va():
-    spec = importlib.util.spec_from_file_location("varying_area", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("varying_area")
 
 
 def growing_scene() -> Scene:

@@ -3,13 +3,12 @@ HF engine, and the measure → report pipeline end to end on a 9-patch scene (CP
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from scriptload import load_script
 
 from aca_warp.hf import run_hf
 from aca_warp.model import build_model
@@ -17,15 +16,10 @@ from aca_warp.reference import ReferenceODE
 from aca_warp.scene import Friction, Initial, Pad, Patches, Record, Scene
 from aca_warp.state import initial_state
 
-SCRIPT = Path(__file__).resolve().parent.parent / "scripts" / "work_precision.py"
-
 
 @pytest.fixture(scope="module")
 def wp_script():
-    spec = importlib.util.spec_from_file_location("work_precision", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("work_precision")
 
 
 def tiny_scene(speed=10.0, load=20.0) -> Scene:
