@@ -44,6 +44,13 @@ GLOBAL_UNITS = ("1", "N m", "m", "m s-1", "m s-1")
 WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (:func:`watchdog_bound`)
 CONTACT_BLOCK = 256  # threads per pad of the growth events' contact re-solve (Warp's default block size)
 
+
+def block_threads(device: wp.Device, block_dim: int) -> int:
+    """Threads a ``launch_tiled`` block of ``block_dim`` really runs: all on CUDA and with Warp's CPU fibers
+    (``wp.config.enable_cpu_blocks``), else one (a CPU block is one thread)."""
+    return block_dim if device.is_cuda or wp.config.enable_cpu_blocks else 1
+
+
 # model arrays that growth events rewrite on the device (saved in checkpoints of growing runs)
 GROWTH_MUTABLE = (
     "area",
@@ -620,7 +627,7 @@ def run_hf(
             inputs=[
                 step_counter,
                 growth_every,
-                CONTACT_BLOCK if dev.is_cuda or wp.config.enable_cpu_blocks else 1,
+                block_threads(dev, CONTACT_BLOCK),
                 m.pad_patch_start,
                 m.k_n,
                 m.height,

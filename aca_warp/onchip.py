@@ -29,6 +29,7 @@ from aca_warp.hf import (
     RunResult,
     _fault_from,
     _Recorder,
+    block_threads,
     run_hf,
     watchdog_bound,
 )
@@ -170,8 +171,7 @@ def run_onchip(
         block_dim = min(DEFAULT_BLOCK, _round_up(nmax, 32))
     if not 1 <= block_dim <= MAX_BLOCK:
         raise SceneError(f"block_dim must be in [1, {MAX_BLOCK}], got {block_dim}")
-    # Threads per block as the device runs them: a CPU block is one thread unless Warp's CPU fibers are enabled.
-    threads = block_dim if dev.is_cuda or wp.config.enable_cpu_blocks else 1
+    threads = block_threads(dev, block_dim)
 
     probe = _Recorder(model, record, 1, n_samples)
     per_row = (int(probe.want_v) + int(probe.want_u)) * model.patch_count * _itemsize(model)
