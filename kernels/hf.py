@@ -626,6 +626,39 @@ def patch_sample_due(k: int, first: int, last: int, every: int) -> bool:
     return k >= first and k <= last and (k - first) % every == 0
 
 
+@wp.func
+def write_globals(
+    globals_out: wp.array3d[wp.float64],
+    row: int,
+    pad: int,
+    fsum: wp.float64,
+    tsum: wp.float64,
+    vsum: wp.float64,
+    vabs: wp.float64,
+    omega: Any,
+    mu_pad: Any,
+    matrix_force: Any,
+    matrix_radius: Any,
+    load: Any,
+):
+    """Write one pad's sample row: μ, torque [N m], friction radius [m], Σu̇, Σ|u̇| [m/s] from the float64 patch
+    sums of friction force and torque and the matrix's Coulomb friction μ_pad F_m sign(ω) at radius r_m."""
+    fm = wp.float64(mu_pad * matrix_force * sign_or_zero(omega))
+    ftot = fsum + fm
+    ttot = tsum + fm * wp.float64(matrix_radius)
+    mu = wp.float64(0.0)
+    reff = wp.float64(0.0)
+    if wp.float64(load) > wp.float64(0.0):
+        mu = ftot / wp.float64(load)
+    if ftot != wp.float64(0.0):
+        reff = ttot / ftot
+    globals_out[row, pad, 0] = mu
+    globals_out[row, pad, 1] = ttot
+    globals_out[row, pad, 2] = reff
+    globals_out[row, pad, 3] = vsum
+    globals_out[row, pad, 4] = vabs
+
+
 @wp.kernel
 def record_globals(
     # Model:
@@ -690,21 +723,10 @@ def record_globals(
         if s2 > bound2 and runaway < 0:
             runaway = i - pad_patch_start[pad]
             speed2 = s2
-    fm = wp.float64(pad_mu_pad[pad] * pad_matrix_force[pad] * sign_or_zero(omega))
-    ftot = fsum + fm
-    ttot = tsum + fm * wp.float64(pad_matrix_radius[pad])
-    load = wp.float64(pad_load[pad])
-    mu = wp.float64(0.0)
-    reff = wp.float64(0.0)
-    if load > wp.float64(0.0):
-        mu = ftot / load
-    if ftot != wp.float64(0.0):
-        reff = ttot / ftot
-    globals_out[row, pad, 0] = mu
-    globals_out[row, pad, 1] = ttot
-    globals_out[row, pad, 2] = reff
-    globals_out[row, pad, 3] = vsum
-    globals_out[row, pad, 4] = vabs
+    write_globals(
+        globals_out, row, pad, fsum, tsum, vsum, vabs, omega, pad_mu_pad[pad], pad_matrix_force[pad],
+        pad_matrix_radius[pad], pad_load[pad],
+    )  # fmt: skip
     if fault_out[pad, 0] >= 0:
         return
     if not (wp.isfinite(vabs) and wp.isfinite(usum)):

@@ -32,7 +32,7 @@ from functools import cache
 from typing import Any
 
 import warp as wp
-from aca_warp.kernels.hf import friction_coefficient, midpoint_friction, patch_sample_due, sign_or_zero
+from aca_warp.kernels.hf import friction_coefficient, midpoint_friction, patch_sample_due, write_globals
 
 wp.set_module_options({"enable_backward": False})
 
@@ -312,22 +312,10 @@ def onchip_kernel(
             usum = wp.tile_sum(wp.tile(usum))[0]
             runaway = wp.tile_min(wp.tile(runaway))[0]
             if lane == 0:
-                row = row0 + s
-                fm = wp.float64(pad_mu_pad[pad] * pad_matrix_force[pad] * sign_or_zero(omega))
-                ftot = fsum + fm
-                ttot = tsum + fm * wp.float64(pad_matrix_radius[pad])
-                load = wp.float64(pad_load[pad])
-                mu = wp.float64(0.0)
-                reff = wp.float64(0.0)
-                if load > wp.float64(0.0):
-                    mu = ftot / load
-                if ftot != wp.float64(0.0):
-                    reff = ttot / ftot
-                globals_out[row, pad, 0] = mu
-                globals_out[row, pad, 1] = ttot
-                globals_out[row, pad, 2] = reff
-                globals_out[row, pad, 3] = vsum
-                globals_out[row, pad, 4] = vabs
+                write_globals(
+                    globals_out, row0 + s, pad, fsum, tsum, vsum, vabs, omega, pad_mu_pad[pad],
+                    pad_matrix_force[pad], pad_matrix_radius[pad], pad_load[pad],
+                )  # fmt: skip
                 if fault_out[pad, 0] < 0:
                     if not (wp.isfinite(vabs) and wp.isfinite(usum)):
                         bad = int(-1)
