@@ -242,13 +242,22 @@ class RunWriter:
         return self.path
 
 
-def read_run(path: str | Path) -> dict[str, Any]:
-    """Load a run file into a dict of NumPy arrays and decoded attributes (small runs; tests, plots)."""
+def open_h5(path: str | Path, what: str) -> h5py.File:
+    """Open an existing HDF5 file read-only; :class:`SceneError` naming ``what`` ("run file", …) when it is missing
+    or cannot be opened."""
     p = Path(path)
     if not p.is_file():
-        raise SceneError(f"run file not found: {p}")
+        raise SceneError(f"{what} not found: {p}")
+    try:
+        return h5py.File(p, "r")
+    except OSError as e:
+        raise SceneError(f"cannot open {what} {p}: {e}") from None
+
+
+def read_run(path: str | Path) -> dict[str, Any]:
+    """Load a run file into a dict of NumPy arrays and decoded attributes (small runs; tests, plots)."""
     out: dict[str, Any] = {}
-    with h5py.File(p, "r") as f:
+    with open_h5(path, "run file") as f:
 
         def visit(name: str, obj: Any) -> None:
             if isinstance(obj, h5py.Dataset):

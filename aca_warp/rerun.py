@@ -114,14 +114,10 @@ def scene_from_run(f: h5py.File, path: Path) -> Scene:
 
 def read_settings(path: str | Path) -> RunSettings:
     """Read the settings of the run file ``path`` (SceneError with one line when it cannot be rerun)."""
+    from aca_warp.io import open_h5
+
     p = Path(path)
-    if not p.is_file():
-        raise SceneError(f"run file not found: {p}")
-    try:
-        f = h5py.File(p, "r")
-    except OSError as e:
-        raise SceneError(f"cannot open run file {p}: {e}") from None
-    with f:
+    with open_h5(p, "run file") as f:
         scene = scene_from_run(f, p)
         policy = _json(f.attrs, "step_policy", p)
         versions = _json(f.attrs, "versions", p) if "versions" in f.attrs else {}

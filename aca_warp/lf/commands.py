@@ -74,21 +74,15 @@ def read_lf_settings(path: str | Path) -> dict[str, Any]:
     ``versions``, ``complete``. SceneError with one line when the file cannot be rerun."""
     import json
 
-    import h5py
     import numpy as np
 
     from aca_warp.errors import SceneError
+    from aca_warp.io import open_h5
     from aca_warp.lf.scene import lf_scene_from_dict
     from aca_warp.scene import Patches
 
     p = Path(path)
-    if not p.is_file():
-        raise SceneError(f"LF run file not found: {p}")
-    try:
-        f = h5py.File(p, "r")
-    except OSError as e:
-        raise SceneError(f"cannot open LF run file {p}: {e}") from None
-    with f:
+    with open_h5(p, "LF run file") as f:
         try:
             if f.attrs.get("kind") != "lf":
                 raise SceneError(f"{p} is not an LF run file (no kind = 'lf' attribute)")

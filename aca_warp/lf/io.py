@@ -33,7 +33,7 @@ import numpy as np
 
 from aca_warp.checkpoint import drop_checkpoint, read_checkpoint, write_checkpoint
 from aca_warp.errors import SceneError
-from aca_warp.io import check_output_path, machine, partial_path, versions
+from aca_warp.io import check_output_path, machine, open_h5, partial_path, versions
 from aca_warp.kernels.lf import H_NAMES, H_UNITS
 from aca_warp.lf.scene import lf_scene_to_dict
 from aca_warp.lf.solver import LFSimulation
@@ -206,12 +206,7 @@ def snapshot_names(path: str | Path) -> list[str]:
 
 def _open(path: str | Path) -> h5py.File:
     p = Path(path)
-    if not p.is_file():
-        raise SceneError(f"LF run file not found: {p}")
-    try:
-        f = h5py.File(p, "r")
-    except OSError as e:
-        raise SceneError(f"cannot read {p}: {e}") from None
+    f = open_h5(p, "LF run file")
     if f.attrs.get("kind") != "lf" or "snapshots" not in f:
         f.close()
         raise SceneError(f"{p} is not an LF run file (no kind = 'lf' attribute or /snapshots group)")
