@@ -19,11 +19,10 @@ last bits.
 Kernels are made per (precision, max patches per pad, max links per pad, csr_shared) by
 :func:`onchip_kernel`: tile shapes are compile-time constants.
 
-Barrier rule (CUDA): every block-cooperative op (``tile_zeros``, ``wp.tile``, ``tile_sum``/``tile_min``,
-``block_sync``, and Warp's ``tile[i] = x``, which ends in ``__syncthreads()``) must be reached by all threads of
-the block equally often, so none may sit inside the per-thread ``while i < n`` loops (threads own different
-numbers of patches). Per-thread stores into the shared tiles use the barrier-free ``put`` helpers below; a
-``tile[i] = x`` there made the kernel hang on an H100 (docs/onchip.md, "History: the CUDA hang").
+Barrier rule: see :mod:`aca_warp.kernels.tiles` (no block-cooperative op inside the per-thread
+``while i < n`` loops, whose trip counts differ between threads); per-thread stores into the shared tiles use
+its barrier-free ``put`` helpers: a ``tile[i] = x`` there made the kernel hang on an H100 (docs/onchip.md,
+"History: the CUDA hang").
 """
 
 from __future__ import annotations
@@ -33,30 +32,9 @@ from typing import Any
 
 import warp as wp
 from aca_warp.kernels.hf import friction_coefficient, midpoint_friction, patch_sample_due, write_globals
+from aca_warp.kernels.tiles import block_sync, tile_store_1d, tile_store_rows
 
 wp.set_module_options({"enable_backward": False})
-
-
-@wp.func_native("WP_TILE_SYNC();\n")
-def block_sync(): ...
-
-
-def _tile_store_1d(dtype: Any, size: int) -> Any:
-    """``put(t, i, x)``: ``t[i] = x`` for one thread, no block barrier (t a tile of shape (size,))."""
-
-    def put(t, i, x): ...
-
-    put.__annotations__ = {"t": wp.tile[dtype, size], "i": int, "x": dtype}  # real types: closures need no eval
-    return wp.func_native("t.data(wp::tile_coord(i)) = x;\n")(put)
-
-
-def _tile_store_rows(dtype: Any, rows: int, size: int) -> Any:
-    """``put(t, r, i, x)``: ``t[r, i] = x`` for one thread, no block barrier (t a tile of shape (rows, size))."""
-
-    def put(t, r, i, x): ...
-
-    put.__annotations__ = {"t": wp.tile[dtype, rows, size], "r": int, "i": int, "x": dtype}
-    return wp.func_native("t.data(wp::tile_coord(r, i)) = x;\n")(put)
 
 
 ABLATIONS = frozenset({"friction", "gather", "sync"})
@@ -97,10 +75,10 @@ def onchip_kernel(
     # Per-thread element stores into the shared tiles. ``tile[i] = x`` in Warp is a block-cooperative op (it ends
     # in WP_TILE_SYNC(), i.e. __syncthreads()), which inside the per-thread ``while i < n`` loops deadlocks on CUDA
     # (threads own different numbers of patches); these store without a barrier (docs/onchip.md).
-    put_n = _tile_store_1d(T, nmax)
-    put_u = _tile_store_rows(T, 2, nmax)
-    put_ei = _tile_store_1d(wp.int32, ne)
-    put_ek = _tile_store_1d(T, ne)
+    put_n = tile_store_1d(T, nmax)
+    put_u = tile_store_rows(T, 2, nmax)
+    put_ei = tile_store_1d(wp.int32, ne)
+    put_ek = tile_store_1d(T, ne)
 
     @wp.func
     def sync_velocity(

@@ -16,35 +16,37 @@ Random numbers: a stateless counter hash keyed by (seed, step, element, stream),
 from __future__ import annotations
 
 import warp as wp
+from aca_warp.kernels.tiles import block_sync, tile_store_1d
 
 wp.set_module_options({"enable_backward": False})
+
+# threads of the block kernels (contact solve, debris sweep): Warp's default block size, so that no second
+# module variant is compiled; also the debris sweep's chunk of cells per shared-memory load
+LF_BLOCK = wp.constant(256)
+_put = tile_store_1d(wp.float64, LF_BLOCK)
 
 # indices into the global scalar array ``glob`` (float64)
 G_LOAD = wp.constant(0)  # clamp force F_N this step [N]
 G_OMEGA = wp.constant(1)  # disc angular velocity [rad/s]
 G_GAP = wp.constant(2)  # contact gap g [m]
-G_S0 = wp.constant(3)  # Σ k max(h − g, 0) [N]
-G_S1 = wp.constant(4)  # Σ_active k [N/m]
-G_SK = wp.constant(5)  # Σ k [N/m]
-G_SKH = wp.constant(6)  # Σ k h [N]
-G_DONE = wp.constant(7)  # contact converged flag
-G_FN = wp.constant(8)  # Σ F_N [N]
-G_FF = wp.constant(9)  # Σ friction force [N]
-G_TORQUE = wp.constant(10)  # Σ r F_F [N m]
-G_FN_PATCH = wp.constant(11)  # Σ F_N on patches [N]
-G_MATRIX_IN = wp.constant(12)  # retained matrix debris entering the boundary layer this step [kg]
-G_PATCH_LOST = wp.constant(13)  # patch wear debris lost (not retained) this step [kg]
-G_EMITTED = wp.constant(14)  # debris leaving at the trailing edge this step [kg]
-G_TOPOLOGY = wp.constant(15)  # 1 when the patch set changed this step
-G_COUNT = wp.constant(16)  # alive patches
-G_AREA = wp.constant(17)  # Σ patch area [m²]
-G_TPATCH = wp.constant(18)  # Σ A T over patches [m² K]
-G_STEP = wp.constant(19)  # step counter (float64 integer value)
-G_BIRTHS = wp.constant(20)  # births this step
-G_DEATHS = wp.constant(21)  # deaths this step (not merges)
-G_MERGES = wp.constant(22)  # merges this step (absorbed patches)
-G_MATRIX_LOST = wp.constant(23)  # matrix wear debris lost (not retained) this step [kg]
-G_SIZE = wp.constant(24)
+G_DONE = wp.constant(3)  # contact converged flag
+G_FN = wp.constant(4)  # Σ F_N [N]
+G_FF = wp.constant(5)  # Σ friction force [N]
+G_TORQUE = wp.constant(6)  # Σ r F_F [N m]
+G_FN_PATCH = wp.constant(7)  # Σ F_N on patches [N]
+G_MATRIX_IN = wp.constant(8)  # retained matrix debris entering the boundary layer this step [kg]
+G_PATCH_LOST = wp.constant(9)  # patch wear debris lost (not retained) this step [kg]
+G_EMITTED = wp.constant(10)  # debris leaving at the trailing edge this step [kg]
+G_TOPOLOGY = wp.constant(11)  # 1 when the patch set changed this step
+G_COUNT = wp.constant(12)  # alive patches
+G_AREA = wp.constant(13)  # Σ patch area [m²]
+G_TPATCH = wp.constant(14)  # Σ A T over patches [m² K]
+G_STEP = wp.constant(15)  # step counter (float64 integer value)
+G_BIRTHS = wp.constant(16)  # births this step
+G_DEATHS = wp.constant(17)  # deaths this step (not merges)
+G_MERGES = wp.constant(18)  # merges this step (absorbed patches)
+G_MATRIX_LOST = wp.constant(19)  # matrix wear debris lost (not retained) this step [kg]
+G_SIZE = wp.constant(20)
 
 # columns of the per-step history
 H_NAMES = (
@@ -210,7 +212,7 @@ def zero_step(
     if e < ring_power_out.shape[0]:
         ring_power_out[e] = wp.float64(0.0)
     if e == 0:
-        for g in range(G_S0, G_SIZE):
+        for g in range(G_DONE, G_SIZE):
             if g != G_GAP and g != G_STEP:
                 glob_out[g] = wp.float64(0.0)
 
@@ -266,7 +268,7 @@ def element(
 
 
 @wp.kernel
-def contact_sums(
+def contact_elements(
     p: LFParams,
     n_cells: wp.int32,
     # Model:
@@ -279,47 +281,72 @@ def contact_sums(
     area: wp.array[wp.float64],
     top: wp.array[wp.float64],
     patch_cell: wp.array[wp.int32],
-    # State out:
-    glob: wp.array[wp.float64],
+    # Scratch out:
+    kh_out: wp.array[wp.vec2d],
 ):
-    """Reductions of one Newton iteration on g (dim = C + P): S0, S1, Σk, Σkh."""
+    """(k, h) of every element for the contact solve (dim = C + P; see :func:`element`)."""
     t = wp.tid()
-    if glob[G_DONE] != wp.float64(0.0):
-        return
-    kh = element(p, t, n_cells, cell_area, cell_z, cell_cover, ring_bulge, alive, area, top, patch_cell)
-    k = kh[0]
-    if k == wp.float64(0.0):
-        return
-    g = glob[G_GAP]
-    d = kh[1] - g
-    if d > wp.float64(0.0):
-        wp.atomic_add(glob, G_S0, k * d)
-        wp.atomic_add(glob, G_S1, k)
-    wp.atomic_add(glob, G_SK, k)
-    wp.atomic_add(glob, G_SKH, k * kh[1])
+    kh_out[t] = element(p, t, n_cells, cell_area, cell_z, cell_cover, ring_bulge, alive, area, top, patch_cell)
 
 
 @wp.kernel
-def contact_update(tol: wp.float64, glob: wp.array[wp.float64]):
-    """Newton step on Σ k max(h − g, 0) = F_N (dim = 1); convex and piecewise linear, so after one step the
-    iterate is at or left of the root and then converges monotonically, exactly once the active set is right."""
-    if glob[G_DONE] != wp.float64(0.0):
-        return
+def contact_solve(
+    max_iter: wp.int32,
+    tol: wp.float64,
+    threads: wp.int32,
+    # Scratch in:
+    kh: wp.array[wp.vec2d],
+    # State in/out:
+    glob: wp.array[wp.float64],
+):
+    """Newton on Σ k max(h − g, 0) = F_N for the gap g, all iterations in one thread block (dim = [1]).
+
+    Convex and piecewise linear, so after one step the iterate is at or left of the root and then converges
+    monotonically, exactly once the active set is right (typically one step and one check per LF step). Thread
+    ``lane`` sums elements lane, lane + B, …; the block reduces the sums, so every thread takes the same branches.
+    With no element in contact the next iterate is the all-active bound (Σkh − F_N)/Σk, at or left of the root.
+    Launch with ``wp.launch_tiled(dim=[1], block_dim=LF_BLOCK)``; ``threads`` as in ``aca_warp.hf.block_threads``.
+    """
+    _blk, lane = wp.tid()
+    n = kh.shape[0]
+    zero = wp.float64(0.0)
     load = glob[G_LOAD]
-    s1 = glob[G_S1]
-    if s1 > wp.float64(0.0):
-        r = glob[G_S0] - load
-        if wp.abs(r) <= tol * load:
-            glob[G_DONE] = wp.float64(1.0)
+    g = glob[G_GAP]
+    sk = zero
+    skh = zero
+    t = lane
+    while t < n:
+        e = kh[t]
+        sk += e[0]
+        skh += e[0] * e[1]
+        t += threads
+    sk = wp.tile_sum(wp.tile(sk))[0]
+    skh = wp.tile_sum(wp.tile(skh))[0]
+    done = wp.float64(0.0)
+    for _it in range(max_iter):
+        s0 = zero
+        s1 = zero
+        t = lane
+        while t < n:
+            e = kh[t]
+            d = e[1] - g
+            if e[0] != zero and d > zero:
+                s0 += e[0] * d
+                s1 += e[0]
+            t += threads
+        s0 = wp.tile_sum(wp.tile(s0))[0]
+        s1 = wp.tile_sum(wp.tile(s1))[0]
+        if s1 > zero:
+            r = s0 - load
+            if wp.abs(r) <= tol * load:
+                done = wp.float64(1.0)
+                break
+            g = g + r / s1
         else:
-            glob[G_GAP] = glob[G_GAP] + r / s1
-    else:
-        # no element in contact: the all-active bound lies at or left of the root
-        glob[G_GAP] = (glob[G_SKH] - load) / glob[G_SK]
-    glob[G_S0] = wp.float64(0.0)
-    glob[G_S1] = wp.float64(0.0)
-    glob[G_SK] = wp.float64(0.0)
-    glob[G_SKH] = wp.float64(0.0)
+            g = (skh - load) / sk
+    if lane == 0:
+        glob[G_GAP] = g
+        glob[G_DONE] = done
 
 
 # ----------------------------------------------------------------------------------------------- friction
@@ -408,7 +435,9 @@ def disc_temperature(
     n = p.n_r
     dt = p.dt
     two_pi = wp.float64(2.0 * wp.pi)
-    # work: [0, n) c' (super-diagonal), [n, 2n) d'
+    # work: [0, n) c' (super-diagonal), [n, 2n) d'; the recurrences carry c'_k−1, d'_k−1 and T_k+1 in registers
+    cp = wp.float64(0.0)
+    dp = wp.float64(0.0)
     for k in range(n):
         r = ring_r[k]
         C = p.rho_d * p.c_d * two_pi * r * p.dr * p.d_d
@@ -424,16 +453,20 @@ def disc_temperature(
         a = -g_lo
         c = -g_hi
         if k > 0:
-            m = diag - a * work[k - 1]
-            work[k] = c / m
-            work[n + k] = (rhs - a * work[n + k - 1]) / m
+            m = diag - a * cp
+            cp = c / m
+            dp = (rhs - a * dp) / m
         else:
-            work[k] = c / diag
-            work[n + k] = rhs / diag
-    ring_T[n - 1] = work[2 * n - 1]
+            cp = c / diag
+            dp = rhs / diag
+        work[k] = cp
+        work[n + k] = dp
+    T_next = dp
+    ring_T[n - 1] = T_next
     for kk in range(n - 1):
         k = n - 2 - kk
-        ring_T[k] = work[n + k] - work[k] * ring_T[k + 1]
+        T_next = work[n + k] - work[k] * T_next
+        ring_T[k] = T_next
     for k in range(n):
         ring_bulge_out[k] = p.kappa_d * p.alpha_d * p.d_d * (ring_T[k] - p.T_amb)
 
@@ -553,6 +586,7 @@ def wear(
 @wp.kernel
 def debris_sweep(
     p: LFParams,
+    threads: wp.int32,
     # Model:
     cell_area: wp.array[wp.float64],
     # State in:
@@ -566,35 +600,63 @@ def debris_sweep(
     cell_capture_out: wp.array[wp.float64],
     ring_emit_out: wp.array[wp.float64],
 ):
-    """Streamline sweep of the mobile debris along one radial band, leading → trailing edge (dim = R).
+    """Streamline sweep of the mobile debris along one radial band, leading → trailing edge (one block per ring).
 
     Per cell: take the source; capture p_cap · min(1, Σ2a/Δr) of the stream by the cell's patches;
     re-mobilise p_remob of the store of a loaded cell; store p_store (1 − coverage) of the stream in the cell's
     gaps up to s_max. What is left at the trailing edge is emitted. Every transfer is a subtraction from one term and
     the same addition to another, so the sweep conserves mass to rounding.
+
+    Only the stream M is sequential: the block computes each chunk of LF_BLOCK cells' terms that do not depend
+    on M in parallel into shared memory, then thread 0 walks the chunk. Launch with
+    ``wp.launch_tiled(dim=[R], block_dim=LF_BLOCK)``; ``threads`` as in ``aca_warp.hf.block_threads``.
     """
-    k = wp.tid()
-    M = wp.float64(0.0)
-    for j in range(p.n_t):
-        e = k * p.n_t + j
-        M = M + cell_src[e]
-        cell_src[e] = wp.float64(0.0)
-        frac = p.p_cap * wp.min(cell_chord[e] / p.dr, wp.float64(1.0))
-        cap = frac * M
-        cell_capture_out[e] = cap
-        M = M - cap
-        A = cell_area[e]
-        cov = wp.min(cell_cover[e] / A, wp.float64(1.0))
-        s = cell_store[e]
-        if cell_fn[e] > wp.float64(0.0):
-            dr = p.p_remob * s
-            s = s - dr
-            M = M + dr
-        room = wp.max(p.rho_patch * p.s_max_thick * A - s, wp.float64(0.0))
-        ds = wp.min(p.p_store * (wp.float64(1.0) - cov) * M, room)
-        cell_store[e] = s + ds
-        M = M - ds
-    ring_emit_out[k] = M
+    k, lane = wp.tid()
+    src_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
+    frac_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
+    remob_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
+    store_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
+    room_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
+    open_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
+    zero = wp.float64(0.0)
+    one = wp.float64(1.0)
+    M = zero
+    c0 = wp.int32(0)
+    while c0 < p.n_t:
+        m = wp.min(LF_BLOCK, p.n_t - c0)
+        j = lane
+        while j < m:
+            e = k * p.n_t + c0 + j
+            _put(src_t, j, cell_src[e])
+            cell_src[e] = zero
+            _put(frac_t, j, p.p_cap * wp.min(cell_chord[e] / p.dr, one))
+            A = cell_area[e]
+            s = cell_store[e]
+            dr = zero
+            if cell_fn[e] > zero:
+                dr = p.p_remob * s
+                s = s - dr
+            _put(remob_t, j, dr)
+            _put(store_t, j, s)
+            _put(room_t, j, wp.max(p.rho_patch * p.s_max_thick * A - s, zero))
+            _put(open_t, j, p.p_store * (one - wp.min(cell_cover[e] / A, one)))
+            j += threads
+        block_sync()
+        if lane == 0:
+            for jj in range(m):
+                e = k * p.n_t + c0 + jj
+                M = M + src_t[jj]
+                cap = frac_t[jj] * M
+                cell_capture_out[e] = cap
+                M = M - cap
+                M = M + remob_t[jj]
+                ds = wp.min(open_t[jj] * M, room_t[jj])
+                cell_store[e] = store_t[jj] + ds
+                M = M - ds
+        block_sync()
+        c0 += LF_BLOCK
+    if lane == 0:
+        ring_emit_out[k] = M
 
 
 @wp.kernel

@@ -218,3 +218,87 @@ def test_graph_replay_equals_eager(device):
         np.testing.assert_array_equal(runs[0][1], runs[1][1])
     else:  # float atomics on a GPU are not ordered: equal within rounding
         np.testing.assert_allclose(runs[0][1], runs[1][1], rtol=1e-6, atol=1e-9)
+
+
+def test_block_kernels_with_cpu_fibers_match_one_thread_blocks():
+    """The block kernels (contact solve, debris sweep) with Warp's cooperative CPU fibers (256 threads, real
+    barriers) against one-thread CPU blocks, on a grid whose rings have more cells than a block (n_t > LF_BLOCK:
+    the sweep walks several chunks): equal to rounding (the contact sums are reduced in a different order)."""
+    import warp as wp
+
+    runs = []
+    old = wp.config.enable_cpu_blocks
+    try:
+        for fibers in (False, True):
+            wp.config.enable_cpu_blocks = fibers
+            sim = LFSimulation(_scene(cell=4.0e-5), device="cpu", duration=0.3)
+            assert sim.n_t > K.LF_BLOCK and sim.threads == (K.LF_BLOCK if fibers else 1)
+            sim.run()
+            runs.append((sim.patches_host(), sim.hist.numpy(), sim.cell_store.numpy()))
+    finally:
+        wp.config.enable_cpu_blocks = old
+    (pa, ha, sa), (pb, hb, sb) = runs
+    assert len(pa["x"]) == len(pb["x"]) and np.any(sa > 0)
+    for k in pa:
+        np.testing.assert_allclose(pa[k], pb[k], rtol=1e-9, atol=1e-18)
+    np.testing.assert_allclose(ha, hb, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(sa, sb, rtol=1e-9, atol=1e-21)
+
+
+@pytest.mark.parametrize("fibers", [False, True])
+def test_debris_sweep_matches_a_serial_reference(fibers):
+    """The block debris sweep against a plain Python walk of each ring (random inputs, rings longer than a block,
+    so the sweep walks several chunks), one-thread CPU blocks and 256-thread CPU fibers."""
+    import warp as wp
+
+    sim = LFSimulation(_scene(cell=4.0e-5), device="cpu", duration=0.1)
+    p, R, T = sim.params, sim.n_r, sim.n_t
+    assert T > K.LF_BLOCK
+    rng = np.random.default_rng(5)
+    C = R * T
+    area = rng.uniform(1e-9, 2e-9, C)
+    cover = area * rng.uniform(0.0, 1.2, C)
+    chord = rng.uniform(0.0, 2.0 * p.dr, C)
+    fn = np.where(rng.random(C) < 0.5, 1.0, 0.0)
+    src = rng.uniform(0.0, 1e-12, C)
+    store = rng.uniform(0.0, p.rho_patch * p.s_max_thick * area)
+    arr = {k: wp.array(v, dtype=wp.float64, device="cpu") for k, v in
+           dict(area=area, cover=cover, chord=chord, fn=fn, src=src, store=store).items()}  # fmt: skip
+    cap = wp.zeros(C, dtype=wp.float64, device="cpu")
+    emit = wp.zeros(R, dtype=wp.float64, device="cpu")
+    old = wp.config.enable_cpu_blocks
+    try:
+        wp.config.enable_cpu_blocks = fibers
+        wp.launch_tiled(
+            K.debris_sweep, dim=[R], block_dim=K.LF_BLOCK, device="cpu",
+            inputs=[p, K.LF_BLOCK if fibers else 1, arr["area"], arr["cover"], arr["chord"], arr["fn"], arr["src"],
+                    arr["store"], cap, emit],
+        )  # fmt: skip
+    finally:
+        wp.config.enable_cpu_blocks = old
+    want_cap, want_store, want_emit = np.zeros(C), store.copy(), np.zeros(R)
+    for k in range(R):
+        M = 0.0
+        for e in range(k * T, (k + 1) * T):
+            M += src[e]
+            c = p.p_cap * min(chord[e] / p.dr, 1.0) * M
+            want_cap[e] = c
+            M -= c
+            s = want_store[e]
+            if fn[e] > 0:
+                M += p.p_remob * s
+                s -= p.p_remob * s
+            ds = min(
+                p.p_store * (1.0 - min(cover[e] / area[e], 1.0)) * M,
+                max(p.rho_patch * p.s_max_thick * area[e] - s, 0.0),
+            )
+            want_store[e] = s + ds
+            M -= ds
+        want_emit[k] = M
+    np.testing.assert_allclose(cap.numpy(), want_cap, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(arr["store"].numpy(), want_store, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(emit.numpy(), want_emit, rtol=1e-12, atol=0)
+    assert np.all(arr["src"].numpy() == 0)
+    total_in = src.sum() + store.sum()
+    total_out = cap.numpy().sum() + arr["store"].numpy().sum() + emit.numpy().sum()
+    assert total_out == pytest.approx(total_in, rel=1e-12)

@@ -21,13 +21,15 @@ import warp as wp
 
 from aca_warp.checkpoint import Checkpoint
 from aca_warp.errors import SceneError
+from aca_warp.hf import block_threads
 from aca_warp.kernels import lf as K
 from aca_warp.lf.scene import LFScene, StepTable, step_table
 from aca_warp.scene import Patches, overlapping_pairs
 
 _FAR = 1.0e3  # m: where empty slots are parked in the hash grid
-# arrays a checkpoint leaves out: constants of the grid and schedule, and the history (the run file's /global)
-_CONSTANT_ARRAYS = ("cell_area", "cell_r", "ring_r", "schedule", "hist")
+# arrays a checkpoint leaves out: constants of the grid and schedule, the history (the run file's /global) and
+# per-step scratch
+_CONSTANT_ARRAYS = ("cell_area", "cell_r", "ring_r", "schedule", "hist", "kh")
 
 
 class LFSimulation:
@@ -57,6 +59,7 @@ class LFSimulation:
         n_t = max(int(round(2.0 * pad.half_span * pad.mean_radius / c.cell)), 1)
         self.n_r, self.n_t = n_r, n_t
         self.n_cells = n_r * n_t
+        self.threads = block_threads(self.device, K.LF_BLOCK)  # threads a block kernel's block runs
         self.capacity = c.capacity
         dr = (pad.r_outer - pad.r_inner) / n_r
         dphi = 2.0 * pad.half_span / n_t
@@ -100,6 +103,7 @@ class LFSimulation:
         self.ring_T = f64(np.full(R, c.T_amb))
         self.ring_bulge, self.ring_power, self.ring_emit = zf(R), zf(R), zf(R)
         self.work = zf(2 * R)
+        self.kh = wp.zeros(C + P, dtype=wp.vec2d, device=dev)  # contact scratch: (k [N/m], h [m]) per element
         self.alive, self.patch_cell, self.target = zi(P), zi(P), zi(P)
         self.x, self.y, self.area, self.thick, self.top = (zf(P) for _ in range(5))
         self.temp = f64(np.full(P, c.T_amb))
@@ -178,9 +182,15 @@ class LFSimulation:
     def _contact_and_friction(self) -> None:
         p, C, P = self.params, self.n_cells, self.capacity
         state = [self.cell_z, self.cell_cover, self.ring_bulge, self.alive, self.area, self.top, self.patch_cell]
-        for _ in range(self.scene.lf.contact_iterations):
-            self._launch(K.contact_sums, C + P, [p, C, self.cell_area, *state, self.glob])
-            self._launch(K.contact_update, 1, [wp.float64(self.scene.lf.contact_tol), self.glob])
+        self._launch(K.contact_elements, C + P, [p, C, self.cell_area, *state, self.kh])
+        lf = self.scene.lf
+        wp.launch_tiled(
+            K.contact_solve,
+            dim=[1],
+            block_dim=K.LF_BLOCK,
+            device=self.device,
+            inputs=[lf.contact_iterations, wp.float64(lf.contact_tol), self.threads, self.kh, self.glob],
+        )
         self._launch(
             K.friction,
             C + P,
@@ -262,11 +272,13 @@ class LFSimulation:
                  self.patch_power, self.temp, self.patch_cell, self.cell_z, self.thick, self.top, self.cell_src,
                  self.glob],
             )  # fmt: skip
-            self._launch(
+            wp.launch_tiled(
                 K.debris_sweep,
-                R,
-                [p, self.cell_area, self.cell_cover, self.cell_chord, self.cell_fn, self.cell_src, self.cell_store,
-                 self.cell_capture, self.ring_emit],
+                dim=[R],
+                block_dim=K.LF_BLOCK,
+                device=self.device,
+                inputs=[p, self.threads, self.cell_area, self.cell_cover, self.cell_chord, self.cell_fn, self.cell_src,
+                        self.cell_store, self.cell_capture, self.ring_emit],
             )  # fmt: skip
             self._launch(
                 K.capture_gather,
