@@ -280,7 +280,7 @@ def figures(a: dict, figdir: Path, caption: str) -> list[str]:
         stems.append(stem)
 
     fig, ax = plt.subplots(figsize=(9, 3.8))
-    ax.plot(t, mu, lw=0.3, color="0.6", label="μ(t)")
+    ax.plot(t, mu, lw=0.3, color="0.6", label="μ(t)", rasterized=mu.size > 5000)
     nb = max(1, mu.size // 400)
     ax.plot(
         t[: mu.size // nb * nb].reshape(-1, nb).mean(1),
@@ -312,7 +312,9 @@ def figures(a: dict, figdir: Path, caption: str) -> list[str]:
         tt, ff, aa, info = a[key]
         fig, ax = plt.subplots(figsize=(9, 4.5))
         keep = ff >= 1e3
-        im = ax.pcolormesh(tt, ff[keep] / 1e3, np.log10(np.maximum(aa[keep], 1e-12)), shading="auto", cmap="magma")
+        im = ax.pcolormesh(
+            tt, ff[keep] / 1e3, np.log10(np.maximum(aa[keep], 1e-12)), shading="auto", cmap="magma", rasterized=True
+        )
         dom = a["dominant_stft" if key == "stft" else "dominant_cwt"]
         ax.plot(tt, dom / 1e3, "c.", ms=2, label="dominant f ≥ 5 kHz")
         ax.set_yscale("log")
