@@ -46,7 +46,8 @@ G_BIRTHS = wp.constant(16)  # births this step
 G_DEATHS = wp.constant(17)  # deaths this step (not merges)
 G_MERGES = wp.constant(18)  # merges this step (absorbed patches)
 G_MATRIX_LOST = wp.constant(19)  # matrix wear debris lost (not retained) this step [kg]
-G_SIZE = wp.constant(20)
+G_PASSES = wp.constant(20)  # contact-solve passes over the elements this step
+G_SIZE = wp.constant(21)
 
 # columns of the per-step history
 H_NAMES = (
@@ -64,8 +65,9 @@ H_NAMES = (
     "deaths",
     "merges",
     "gap",
+    "contact_passes",
 )
-H_UNITS = ("1", "N m", "m", "1", "1", "K", "K", "K", "1", "N", "1", "1", "1", "m")
+H_UNITS = ("1", "N m", "m", "1", "1", "K", "K", "K", "1", "N", "1", "1", "1", "m", "1")
 (
     H_MU,
     H_TORQUE,
@@ -81,7 +83,8 @@ H_UNITS = ("1", "N m", "m", "1", "1", "K", "K", "K", "1", "N", "1", "1", "1", "m
     H_DEATHS,
     H_MERGES,
     H_GAP,
-) = (wp.constant(k) for k in range(14))
+    H_PASSES,
+) = (wp.constant(k) for k in range(15))
 H_SIZE = len(H_NAMES)
 
 
@@ -302,7 +305,9 @@ def contact_solve(
     """Newton on Σ k max(h − g, 0) = F_N for the gap g, all iterations in one thread block (dim = [1]).
 
     Convex and piecewise linear, so after one step the iterate is at or left of the root and then converges
-    monotonically, exactly once the active set is right (typically one step and one check per LF step). Thread
+    monotonically, exactly once the active set is right (typically one step and one check per LF step). It stops
+    when |Σ − F_N| ≤ tol · F_N or, from the second step on, when |Σ − F_N| no longer falls (the rounding floor of
+    the sums, which for ~1e4 elements can lie above tol = 1e-13). The passes made are counted in ``G_PASSES``. Thread
     ``lane`` sums elements lane, lane + B, …; the block reduces the sums, so every thread takes the same branches.
     With no element in contact the next iterate is the all-active bound (Σkh − F_N)/Σk, at or left of the root.
     Launch with ``wp.launch_tiled(dim=[1], block_dim=LF_BLOCK)``; ``threads`` as in ``aca_warp.hf.block_threads``.
@@ -314,16 +319,11 @@ def contact_solve(
     g = glob[G_GAP]
     sk = zero
     skh = zero
-    t = lane
-    while t < n:
-        e = kh[t]
-        sk += e[0]
-        skh += e[0] * e[1]
-        t += threads
-    sk = wp.tile_sum(wp.tile(sk))[0]
-    skh = wp.tile_sum(wp.tile(skh))[0]
     done = wp.float64(0.0)
-    for _it in range(max_iter):
+    r_prev = wp.float64(1.0e300)
+    passes = int(0)
+    for it in range(max_iter):
+        passes += 1
         s0 = zero
         s1 = zero
         t = lane
@@ -333,20 +333,29 @@ def contact_solve(
             if e[0] != zero and d > zero:
                 s0 += e[0] * d
                 s1 += e[0]
+            if it == 0:
+                sk += e[0]
+                skh += e[0] * e[1]
             t += threads
         s0 = wp.tile_sum(wp.tile(s0))[0]
         s1 = wp.tile_sum(wp.tile(s1))[0]
+        if it == 0:  # the same for every thread: the block-wide sums stay outside per-thread branches
+            sk = wp.tile_sum(wp.tile(sk))[0]
+            skh = wp.tile_sum(wp.tile(skh))[0]
         if s1 > zero:
             r = s0 - load
-            if wp.abs(r) <= tol * load:
+            # converged: within tol, or (from the second Newton step on, where |r| must fall) at the rounding floor
+            if wp.abs(r) <= tol * load or (it >= 2 and wp.abs(r) >= r_prev):
                 done = wp.float64(1.0)
                 break
+            r_prev = wp.abs(r)
             g = g + r / s1
         else:
             g = (skh - load) / sk
     if lane == 0:
         glob[G_GAP] = g
         glob[G_DONE] = done
+        glob[G_PASSES] = wp.float64(passes)
 
 
 # ----------------------------------------------------------------------------------------------- friction
@@ -1074,6 +1083,7 @@ def record_step(
     hist_out[row, H_DEATHS] = glob[G_DEATHS]
     hist_out[row, H_MERGES] = glob[G_MERGES]
     hist_out[row, H_GAP] = glob[G_GAP]
+    hist_out[row, H_PASSES] = glob[G_PASSES]
     glob[G_STEP] = glob[G_STEP] + wp.float64(1.0)
 
 

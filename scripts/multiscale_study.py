@@ -392,9 +392,9 @@ def write_docs(study: dict[str, Any], path: Path, argv: list[str]) -> None:
     if not study.get("hf"):
         lines += [
             "",
-            "The HF half (Fig. 13 panel: patch map, μ spectrum and S(f) on each state) was not run for this page; on a "
-            "GPU: `python3 scripts/multiscale_study.py --device cuda:0 --reuse-lf --outdir DIR` with this run's "
-            "`lf.h5` in DIR (or without `--reuse-lf`).",
+            "The HF half (Fig. 13 panel: patch map, μ spectrum and S(f) on each state) was not run for this page; "
+            "[results_multiscale_hf.md](results_multiscale_hf.md) has it from a GPU run of the whole study "
+            "(`python3 scripts/multiscale_study.py --device cuda:0 --outdir DIR`).",
         ]
     figs = ["lf_timeseries.png"] + (["fig13_panel.png"] if study.get("hf") else [])
     figs += ["tei.png"] if "tei" in study else []

@@ -92,3 +92,23 @@ def test_bench_engines(tmp_path: Path) -> None:
     on = rows[1]
     assert on["bandwidth_Bps"] is None and on["stepping_s"] is None and on["steps"] == 300
     assert on["mu_rel_error_max"] == pytest.approx(rows[0]["mu_rel_error_max"], rel=1e-9)
+
+
+def test_ncu_summary_ranks_kernels_per_step(tmp_path: Path) -> None:
+    from scriptload import load_script
+
+    ncu = load_script("ncu_summary")
+    head = '"Process ID","Process Name","Host Name","Kernel Name","Block Size","Grid Size","Device","CC",'
+    head += '"Invocations","Section Name","Metric Name","Metric Unit","Minimum","Maximum","Average"'
+    row = '"1","py","h","{k}","(256, 1, 1)","(4, 1, 1)","0","9.0","{n}","s","gpu__time_duration.sum","ns","1","2","{a}"'
+    text = "\n".join(
+        ["==PROF== Connected", "steps 10", head,
+         row.format(k="small_0123abcd_cuda_kernel_forward", n=10, a="1,000.00"),
+         row.format(k="void scan::Kernel<int, 3>(T2)", n=40, a="500.00")]
+    )  # fmt: skip
+    rows = ncu.summarise(text, steps=10)
+    assert [r[0] for r in rows] == ["scan::Kernel", "small"]
+    assert rows[0][3] == pytest.approx(2.0) and rows[1][3] == pytest.approx(1.0)  # µs per step
+    f = tmp_path / "x.csv"
+    f.write_text("no table here")
+    assert ncu.main([str(f), "--steps", "1"]) == 2

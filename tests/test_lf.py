@@ -223,7 +223,9 @@ def test_graph_replay_equals_eager(device):
 def test_block_kernels_with_cpu_fibers_match_one_thread_blocks():
     """The block kernels (contact solve, debris sweep) with Warp's cooperative CPU fibers (256 threads, real
     barriers) against one-thread CPU blocks, on a grid whose rings have more cells than a block (n_t > LF_BLOCK:
-    the sweep walks several chunks): equal to rounding (the contact sums are reduced in a different order)."""
+    the sweep walks several chunks): equal to rounding (the contact sums are reduced in a different order). On
+    this 5.9e4-cell grid the serial sums once sat above the 1e-13 tolerance for good (40 passes before the
+    solve stopped at the rounding floor)."""
     import warp as wp
 
     runs = []
@@ -241,8 +243,12 @@ def test_block_kernels_with_cpu_fibers_match_one_thread_blocks():
     assert len(pa["x"]) == len(pb["x"]) and np.any(sa > 0)
     for k in pa:
         np.testing.assert_allclose(pa[k], pb[k], rtol=1e-9, atol=1e-18)
-    np.testing.assert_allclose(ha, hb, rtol=1e-9, atol=1e-15)
+    cols = [k for k in range(K.H_SIZE) if k != K.H_PASSES]  # sums in another order may need one pass more or less
+    np.testing.assert_allclose(ha[:, cols], hb[:, cols], rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(sa, sb, rtol=1e-9, atol=1e-21)
+    # the contact solve stops at the rounding floor instead of running all lf.contact_iterations (40) passes
+    loaded = ha[:, K.H_LOAD] > 0
+    assert np.all(ha[loaded, K.H_PASSES] >= 2) and ha[:, K.H_PASSES].max() <= 6 and hb[:, K.H_PASSES].max() <= 6
 
 
 @pytest.mark.parametrize("fibers", [False, True])
