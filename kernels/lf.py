@@ -365,18 +365,14 @@ def contact_solve(
 def friction(
     p: LFParams,
     n_cells: wp.int32,
+    threads: wp.int32,
     # Model:
-    cell_area: wp.array[wp.float64],
     cell_r: wp.array[wp.float64],
     # State in:
-    cell_z: wp.array[wp.float64],
-    cell_cover: wp.array[wp.float64],
-    ring_bulge: wp.array[wp.float64],
+    kh: wp.array[wp.vec2d],
     alive: wp.array[wp.int32],
     x: wp.array[wp.float64],
     y: wp.array[wp.float64],
-    area: wp.array[wp.float64],
-    top: wp.array[wp.float64],
     patch_cell: wp.array[wp.int32],
     # State out:
     cell_fn_out: wp.array[wp.float64],
@@ -386,40 +382,63 @@ def friction(
     ring_power_out: wp.array[wp.float64],
     glob: wp.array[wp.float64],
 ):
-    """Normal forces at the solved gap, friction forces and powers, global sums (dim = C + P)."""
-    t = wp.tid()
-    kh = element(p, t, n_cells, cell_area, cell_z, cell_cover, ring_bulge, alive, area, top, patch_cell)
-    fn = kh[0] * wp.max(kh[1] - glob[G_GAP], wp.float64(0.0))
+    """Normal forces at the solved gap (from the contact scratch ``kh``), friction forces and powers, global sums.
+
+    Block b covers elements b·LF_BLOCK … (b+1)·LF_BLOCK − 1 of the C + P; the block reduces its global sums
+    before one atomic add each. Launch with ``wp.launch_tiled(dim=[⌈(C+P)/LF_BLOCK⌉], block_dim=LF_BLOCK)``.
+    """
+    blk, lane = wp.tid()
+    n = kh.shape[0]
+    g = glob[G_GAP]
     omega = glob[G_OMEGA]
-    r = wp.float64(0.0)
-    ff = wp.float64(0.0)
-    pw = wp.float64(0.0)
-    ring = wp.int32(0)
-    if t < n_cells:
-        r = cell_r[t]
-        ff = p.mu_pad * fn
-        pw = ff * omega * r
-        cell_fn_out[t] = fn
-        wp.atomic_add(cell_power_out, t, pw)
-        ring = t / p.n_t
-    else:
-        i = t - n_cells
-        if alive[i] == 0:
-            patch_fn_out[i] = wp.float64(0.0)
-            patch_power_out[i] = wp.float64(0.0)
-            return
-        r = wp.sqrt(x[i] * x[i] + y[i] * y[i])
-        ff = eq4(p, omega * r) * fn
-        pw = ff * omega * r
-        patch_fn_out[i] = fn
-        patch_power_out[i] = pw
-        ring = patch_cell[i] / p.n_t
-        wp.atomic_add(glob, G_FN_PATCH, fn)
-    if fn > wp.float64(0.0):
-        wp.atomic_add(glob, G_FN, fn)
-        wp.atomic_add(glob, G_FF, ff)
-        wp.atomic_add(glob, G_TORQUE, ff * r)
-        wp.atomic_add(ring_power_out, ring, pw)
+    zero = wp.float64(0.0)
+    s_fn = zero  # Σ F_N, Σ F_F, Σ r F_F over loaded elements, Σ F_N over patches
+    s_ff = zero
+    s_tq = zero
+    s_fp = zero
+    j = lane
+    while j < LF_BLOCK:
+        t = blk * LF_BLOCK + j
+        j += threads
+        if t >= n:
+            continue
+        e = kh[t]
+        fn = e[0] * wp.max(e[1] - g, zero)
+        r = zero
+        ff = zero
+        ring = wp.int32(0)
+        if t < n_cells:
+            r = cell_r[t]
+            ff = p.mu_pad * fn
+            cell_fn_out[t] = fn
+            wp.atomic_add(cell_power_out, t, ff * omega * r)
+            ring = t / p.n_t
+        else:
+            i = t - n_cells
+            if alive[i] == 0:
+                patch_fn_out[i] = zero
+                patch_power_out[i] = zero
+                continue
+            r = wp.sqrt(x[i] * x[i] + y[i] * y[i])
+            ff = eq4(p, omega * r) * fn
+            patch_fn_out[i] = fn
+            patch_power_out[i] = ff * omega * r
+            ring = patch_cell[i] / p.n_t
+            s_fp += fn
+        if fn > zero:
+            wp.atomic_add(ring_power_out, ring, ff * omega * r)
+            s_fn += fn
+            s_ff += ff
+            s_tq += ff * r
+    s_fn = wp.tile_sum(wp.tile(s_fn))[0]
+    s_ff = wp.tile_sum(wp.tile(s_ff))[0]
+    s_tq = wp.tile_sum(wp.tile(s_tq))[0]
+    s_fp = wp.tile_sum(wp.tile(s_fp))[0]
+    if lane == 0:
+        wp.atomic_add(glob, G_FN, s_fn)
+        wp.atomic_add(glob, G_FF, s_ff)
+        wp.atomic_add(glob, G_TORQUE, s_tq)
+        wp.atomic_add(glob, G_FN_PATCH, s_fp)
 
 
 # ----------------------------------------------------------------------------------------------- temperatures
@@ -541,6 +560,7 @@ def pad_temperature(
 def wear(
     p: LFParams,
     n_cells: wp.int32,
+    threads: wp.int32,
     # Model:
     cell_area: wp.array[wp.float64],
     # State in:
@@ -559,34 +579,53 @@ def wear(
     cell_src: wp.array[wp.float64],
     glob: wp.array[wp.float64],
 ):
-    """Energy wear (dim = C + P): Δz = k_E f(T) P Δt / a. A fraction f_ret of the debris mass enters the
-    cell's debris source, the rest is lost (counted in ``glob``)."""
-    t = wp.tid()
-    if t < n_cells:
-        pw = cell_power[t]
-        free = wp.max(cell_area[t] - cell_cover[t], wp.float64(0.0))
-        if pw <= wp.float64(0.0) or free <= wp.float64(0.0):
-            return
-        dz = p.wear_m * wear_factor(p, cell_T[t]) * pw * p.dt / free
-        cell_z[t] = cell_z[t] - dz
-        m = p.rho_m * dz * free
-        wp.atomic_add(cell_src, t, p.f_ret * m)
-        wp.atomic_add(glob, G_MATRIX_IN, p.f_ret * m)
-        wp.atomic_add(glob, G_MATRIX_LOST, (wp.float64(1.0) - p.f_ret) * m)
-        return
-    i = t - n_cells
-    if alive[i] == 0:
-        return
-    pw = patch_power[i]
-    if pw <= wp.float64(0.0):
-        return
-    A = area[i]
-    dz = wp.min(p.wear_p * wear_factor(p, patch_T[i]) * pw * p.dt / A, thick[i])
-    thick[i] = thick[i] - dz
-    top[i] = top[i] - dz
-    m = p.rho_patch * dz * A
-    wp.atomic_add(cell_src, patch_cell[i], p.f_ret * m)
-    wp.atomic_add(glob, G_PATCH_LOST, (wp.float64(1.0) - p.f_ret) * m)
+    """Energy wear: Δz = k_E f(T) P Δt / a. A fraction f_ret of the debris mass enters the cell's debris source,
+    the rest is lost (counted in ``glob``). Blocks and launch as in :func:`friction`."""
+    blk, lane = wp.tid()
+    n = n_cells + alive.shape[0]
+    zero = wp.float64(0.0)
+    one = wp.float64(1.0)
+    s_in = zero  # debris mass: retained matrix, lost matrix, lost patch [kg]
+    s_ml = zero
+    s_pl = zero
+    j = lane
+    while j < LF_BLOCK:
+        t = blk * LF_BLOCK + j
+        j += threads
+        if t >= n:
+            continue
+        if t < n_cells:
+            pw = cell_power[t]
+            free = wp.max(cell_area[t] - cell_cover[t], zero)
+            if pw <= zero or free <= zero:
+                continue
+            dz = p.wear_m * wear_factor(p, cell_T[t]) * pw * p.dt / free
+            cell_z[t] = cell_z[t] - dz
+            m = p.rho_m * dz * free
+            wp.atomic_add(cell_src, t, p.f_ret * m)
+            s_in += p.f_ret * m
+            s_ml += (one - p.f_ret) * m
+            continue
+        i = t - n_cells
+        if alive[i] == 0:
+            continue
+        pw = patch_power[i]
+        if pw <= zero:
+            continue
+        A = area[i]
+        dz = wp.min(p.wear_p * wear_factor(p, patch_T[i]) * pw * p.dt / A, thick[i])
+        thick[i] = thick[i] - dz
+        top[i] = top[i] - dz
+        m = p.rho_patch * dz * A
+        wp.atomic_add(cell_src, patch_cell[i], p.f_ret * m)
+        s_pl += (one - p.f_ret) * m
+    s_in = wp.tile_sum(wp.tile(s_in))[0]
+    s_ml = wp.tile_sum(wp.tile(s_ml))[0]
+    s_pl = wp.tile_sum(wp.tile(s_pl))[0]
+    if lane == 0:
+        wp.atomic_add(glob, G_MATRIX_IN, s_in)
+        wp.atomic_add(glob, G_MATRIX_LOST, s_ml)
+        wp.atomic_add(glob, G_PATCH_LOST, s_pl)
 
 
 # ----------------------------------------------------------------------------------------------- debris

@@ -158,6 +158,11 @@ class LFSimulation:
     def _launch(self, kernel: Any, dim: int, inputs: list) -> None:
         wp.launch(kernel, dim=dim, inputs=inputs, device=self.device)
 
+    def _launch_blocks(self, kernel: Any, n: int, inputs: list) -> None:
+        """A block kernel over n elements: ⌈n / LF_BLOCK⌉ blocks of LF_BLOCK threads (one per element on CUDA)."""
+        blocks = (n + K.LF_BLOCK - 1) // K.LF_BLOCK
+        wp.launch_tiled(kernel, dim=[blocks], block_dim=K.LF_BLOCK, inputs=inputs, device=self.device)
+
     def rebuild_neighbours(self) -> None:
         """Merge-candidate CSR (alive pairs within ``cand_radius``) and the birth hash grid, from current positions."""
         P = self.capacity
@@ -191,12 +196,11 @@ class LFSimulation:
             device=self.device,
             inputs=[lf.contact_iterations, wp.float64(lf.contact_tol), self.threads, self.kh, self.glob],
         )
-        self._launch(
+        self._launch_blocks(
             K.friction,
             C + P,
-            [p, C, self.cell_area, self.cell_r, self.cell_z, self.cell_cover, self.ring_bulge, self.alive, self.x,
-             self.y, self.area, self.top, self.patch_cell, self.cell_fn, self.cell_power, self.patch_fn,
-             self.patch_power, self.ring_power, self.glob],
+            [p, C, self.threads, self.cell_r, self.kh, self.alive, self.x, self.y, self.patch_cell, self.cell_fn,
+             self.cell_power, self.patch_fn, self.patch_power, self.ring_power, self.glob],
         )  # fmt: skip
 
     def resolve(self) -> None:
@@ -265,12 +269,12 @@ class LFSimulation:
              self.patch_power, self.patch_cell, self.cell_T, self.temp],
         )  # fmt: skip
         if loaded:
-            self._launch(
+            self._launch_blocks(
                 K.wear,
                 C + P,
-                [p, C, self.cell_area, self.cell_cover, self.cell_power, self.cell_T, self.alive, self.area,
-                 self.patch_power, self.temp, self.patch_cell, self.cell_z, self.thick, self.top, self.cell_src,
-                 self.glob],
+                [p, C, self.threads, self.cell_area, self.cell_cover, self.cell_power, self.cell_T, self.alive,
+                 self.area, self.patch_power, self.temp, self.patch_cell, self.cell_z, self.thick, self.top,
+                 self.cell_src, self.glob],
             )  # fmt: skip
             wp.launch_tiled(
                 K.debris_sweep,
