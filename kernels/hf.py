@@ -246,6 +246,29 @@ def spring_forces(
     force_out[i] = spring_force(i, u_in, k_diag, nbr_start, nbr_index, nbr_stiffness)
 
 
+@wp.func
+def patch_coupling(
+    i: int,
+    p: int,
+    sqrt_area: wp.array[Any],
+    nbr_start: wp.array[wp.int32],
+    nbr_index: wp.array[wp.int32],
+    nbr_inv_dist: wp.array[Any],
+    pad_kc: wp.array[Any],
+    k_t: wp.array[Any],
+    nbr_stiffness_out: wp.array[Any],
+    k_diag_out: wp.array[Any],
+):
+    """k_ij = K_C √A_i √A_j / D0_ij for every link of patch i of pad p [N/m] (paper Eq. 3) and k_T,i + Σ_j k_ij."""
+    ki = pad_kc[p] * sqrt_area[i]
+    d = k_t[i]
+    for e in range(nbr_start[i], nbr_start[i + 1]):
+        k = ki * sqrt_area[nbr_index[e]] * nbr_inv_dist[e]
+        nbr_stiffness_out[e] = k
+        d += k
+    k_diag_out[i] = d
+
+
 @wp.kernel
 def coupling_stiffness(
     step: wp.array[wp.int64],
@@ -262,17 +285,13 @@ def coupling_stiffness(
     nbr_stiffness_out: wp.array[Any],
     k_diag_out: wp.array[Any],
 ):
-    """k_ij = K_C √A_i √A_j / D0_ij for every link of patch i [N/m] (paper Eq. 3) and k_T,i + Σ_j k_ij."""
+    """Coupling stiffnesses of every patch (:func:`patch_coupling`) when ``step`` ends a growth interval."""
     i = wp.tid()
     if not growth_due(step, every):
         return
-    ki = pad_kc[patch_pad[i]] * sqrt_area[i]
-    d = k_t[i]
-    for e in range(nbr_start[i], nbr_start[i + 1]):
-        k = ki * sqrt_area[nbr_index[e]] * nbr_inv_dist[e]
-        nbr_stiffness_out[e] = k
-        d += k
-    k_diag_out[i] = d
+    patch_coupling(
+        i, patch_pad[i], sqrt_area, nbr_start, nbr_index, nbr_inv_dist, pad_kc, k_t, nbr_stiffness_out, k_diag_out
+    )
 
 
 @wp.kernel
@@ -791,6 +810,36 @@ def tick(step: wp.array[wp.int64]):
     step[0] = step[0] + wp.int64(1)
 
 
+@wp.func
+def grow_patch(
+    i: int,
+    p: int,
+    pad_growth: wp.array[Any],
+    pad_k_t: wp.array[Any],
+    pad_k_n: wp.array[Any],
+    pad_mass_per_area: wp.array[Any],
+    pad_zeta: wp.array[Any],
+    area_io: wp.array[Any],
+    sqrt_area_out: wp.array[Any],
+    inv_mass_out: wp.array[Any],
+    k_t_out: wp.array[Any],
+    k_n_out: wp.array[Any],
+    damping_out: wp.array[Any],
+):
+    """One growth event of patch i of pad p (paper Eq. 10): A ← A + g √A, then m, k_T, k_N, c follow the area."""
+    a = area_io[i]
+    a = a + pad_growth[p] * wp.sqrt(a)
+    s = wp.sqrt(a)
+    m = pad_mass_per_area[p] * a
+    kt = pad_k_t[p] * s
+    area_io[i] = a
+    sqrt_area_out[i] = s
+    inv_mass_out[i] = type(a)(1.0) / m
+    k_t_out[i] = kt
+    k_n_out[i] = pad_k_n[p] * s
+    damping_out[i] = type(a)(2.0) * pad_zeta[p] * wp.sqrt(kt * m)
+
+
 @wp.kernel
 def grow_patches(
     step: wp.array[wp.int64],
@@ -810,30 +859,21 @@ def grow_patches(
     k_n_out: wp.array[Any],
     damping_out: wp.array[Any],
 ):
-    """One growth event (paper Eq. 10): A ← A + g √A, then m, k_T, k_N, c follow the new area."""
+    """One growth event for every patch (:func:`grow_patch`) when ``step`` ends a growth interval."""
     i = wp.tid()
     if not growth_due(step, every):
         return
-    p = patch_pad[i]
-    a = area_io[i]
-    a = a + pad_growth[p] * wp.sqrt(a)
-    s = wp.sqrt(a)
-    m = pad_mass_per_area[p] * a
-    kt = pad_k_t[p] * s
-    area_io[i] = a
-    sqrt_area_out[i] = s
-    inv_mass_out[i] = type(a)(1.0) / m
-    k_t_out[i] = kt
-    k_n_out[i] = pad_k_n[p] * s
-    damping_out[i] = type(a)(2.0) * pad_zeta[p] * wp.sqrt(kt * m)
+    grow_patch(
+        i, patch_pad[i], pad_growth, pad_k_t, pad_k_n, pad_mass_per_area, pad_zeta, area_io, sqrt_area_out,
+        inv_mass_out, k_t_out, k_n_out, damping_out,
+    )  # fmt: skip
 
 
-@wp.kernel
-def contact_flat(
-    step: wp.array[wp.int64],
-    every: int,
+@wp.func
+def contact_block(
+    pad: int,
+    lane: int,
     threads: int,
-    # Model:
     pad_patch_start: wp.array[wp.int32],
     k_n: wp.array[Any],
     height: wp.array[Any],
@@ -843,7 +883,6 @@ def contact_flat(
     pad_moment: wp.array[wp.float64],
     pad_k_m: wp.array[wp.float64],
     pad_load: wp.array[Any],
-    # Contact in/out:
     pad_gap: wp.array[wp.float64],
     normal_force_out: wp.array[Any],
     pad_matrix_force_out: wp.array[Any],
@@ -856,10 +895,8 @@ def contact_flat(
     ``wp.launch_tiled(dim=[pads], block_dim=B)``; ``threads`` is the block size the device runs (B on CUDA, 1 on
     the CPU): thread ``lane`` sums patches lane, lane + B, … and the block reduces the sums, so every thread
     sees the same values and takes the same branches (the block-wide reductions stay outside per-thread code).
+    Every thread of the block must call it (block-wide reductions inside).
     """
-    pad, lane = wp.tid()
-    if not growth_due(step, every):
-        return
     s = pad_patch_start[pad]
     e = pad_patch_start[pad + 1]
     zero = wp.float64(0.0)
@@ -922,6 +959,37 @@ def contact_flat(
             pad_matrix_force_out[pad] = type(pad_load[pad])(km * wp.max(-g, zero))
         else:
             pad_matrix_force_out[pad] = type(pad_load[pad])(0.0)
+
+
+@wp.kernel
+def contact_flat(
+    step: wp.array[wp.int64],
+    every: int,
+    threads: int,
+    # Model:
+    pad_patch_start: wp.array[wp.int32],
+    k_n: wp.array[Any],
+    height: wp.array[Any],
+    area: wp.array[Any],
+    radius: wp.array[Any],
+    pad_area: wp.array[wp.float64],
+    pad_moment: wp.array[wp.float64],
+    pad_k_m: wp.array[wp.float64],
+    pad_load: wp.array[Any],
+    # Contact in/out:
+    pad_gap: wp.array[wp.float64],
+    normal_force_out: wp.array[Any],
+    pad_matrix_force_out: wp.array[Any],
+    pad_matrix_radius_out: wp.array[Any],
+):
+    """:func:`contact_block` for every pad (one thread block each) when ``step`` ends a growth interval."""
+    pad, lane = wp.tid()
+    if not growth_due(step, every):
+        return
+    contact_block(
+        pad, lane, threads, pad_patch_start, k_n, height, area, radius, pad_area, pad_moment, pad_k_m, pad_load,
+        pad_gap, normal_force_out, pad_matrix_force_out, pad_matrix_radius_out,
+    )  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------------------- overloads
