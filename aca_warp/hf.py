@@ -45,6 +45,20 @@ WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (
 CONTACT_BLOCK = 256  # threads per pad of the growth events' contact re-solve (Warp's default block size)
 
 
+def growth_events(model: PadModel, h: float) -> tuple[int, wp.array]:
+    """(steps per growth event, growth increment per event per pad [m], shape (pads,)) for step ``h`` [s].
+
+    An event every round(interval / h) steps; the increment is scaled so that growth per simulated time is exact.
+    """
+    intervals = {s.growth.interval for s in model.scenes if s.growth is not None}
+    if len(intervals) > 1:
+        raise SceneError("all growing pads of a batch need the same growth.interval")
+    interval = intervals.pop()
+    every = max(1, round(interval / h))
+    scale = every * h / interval
+    return every, wp.array(model.host("pad_growth") * scale, dtype=model.dtype, device=model.device)
+
+
 def block_threads(device: wp.Device, block_dim: int) -> int:
     """Threads a ``launch_tiled`` block of ``block_dim`` really runs: all on CUDA and with Warp's CPU fibers
     (``wp.config.enable_cpu_blocks``), else one (a CPU block is one thread)."""
@@ -569,13 +583,7 @@ def run_hf(
     growth_every, step_counter = 0, None
     if growth:
         stages.append("growth")
-        intervals = {s.growth.interval for s in model.scenes if s.growth is not None}
-        if len(intervals) > 1:
-            raise SceneError("all growing pads of a batch need the same growth.interval")
-        interval = intervals.pop()
-        growth_every = max(1, round(interval / h))
-        scale = growth_every * h / interval  # growth per event, so that growth per simulated time is exact
-        growth_per_event = wp.array(model.host("pad_growth") * scale, dtype=model.dtype, device=dev)
+        growth_every, growth_per_event = growth_events(model, h)
         step_counter = wp.zeros(1, dtype=wp.int64, device=dev)
 
     def grow() -> None:

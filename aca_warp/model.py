@@ -80,8 +80,8 @@ class PadModel:
         return "fp64" if self.dtype == wp.float64 else "fp32"
 
     def host(self, name: str) -> np.ndarray:
-        """A copy of a model array on the host."""
-        return self.arrays[name].numpy()
+        """A copy of a model array on the host (``numpy()`` of a CPU array is a view of the live array)."""
+        return self.arrays[name].numpy().copy()
 
 
 def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precision: str = "fp64") -> PadModel:

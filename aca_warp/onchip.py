@@ -2,9 +2,10 @@
 
 The pad's displacement (double-buffered), staggered velocity and spring-force cache live in shared memory
 for the whole launch, and the global outputs (μ, torque, friction radius, Σu̇, Σ|u̇|) and per-patch
-histories are recorded in-kernel after every sample interval (:mod:`aca_warp.kernels.hf_onchip`). The
-general per-step path (:func:`aca_warp.hf.run_hf`) stays for pads too large for one block's shared memory,
-for patch growth and for the other integrators; ``engine="auto"`` picks between them (:func:`choose_engine`).
+histories are recorded in-kernel after every sample interval (:mod:`aca_warp.kernels.hf_onchip`). Patch
+growth (varying-area scenes) runs in the kernel too. The general per-step path (:func:`aca_warp.hf.run_hf`)
+stays for pads too large for one block's shared memory and for the other integrators; ``engine="auto"`` picks
+between them (:func:`choose_engine`).
 
 Same arithmetic as the general path: on the CPU (where Warp runs a block as one thread) μ(t) and the final
 (u, u̇) are bit-identical to :func:`run_hf`; on CUDA the in-block reductions of the global outputs sum in a
@@ -30,6 +31,7 @@ from aca_warp.hf import (
     _fault_from,
     _Recorder,
     block_threads,
+    growth_events,
     run_hf,
     watchdog_bound,
 )
@@ -83,8 +85,6 @@ def unsupported(model: PadModel, integrator: str = DEFAULT_INTEGRATOR) -> str | 
     """Why the on-chip engine cannot run this model (None when it can)."""
     if integrator != "strang":
         return f"the on-chip engine implements the strang integrator only (got {integrator})"
-    if "pad_growth" in model.arrays:
-        return "patch growth needs the general engine"
     need, limit = shared_bytes(model, False), _smem_limit(model)
     if need > limit:
         return (
@@ -98,7 +98,9 @@ def choose_engine(model: PadModel, engine: str, integrator: str = DEFAULT_INTEGR
     """Resolve ``engine`` (auto, onchip, general) for a model; ``onchip`` on an unsupported model is an error.
 
     ``auto`` picks ``onchip`` on CUDA when the model allows it (faster there, docs/onchip.md) and ``general`` on
-    the CPU (Warp runs a block as one thread there, so the on-chip kernel is no faster).
+    the CPU (Warp runs a block as one thread there, so the on-chip kernel is no faster). Growing models stay on
+    ``general`` under ``auto`` until the on-chip growth has been checked on a GPU (``scripts/onchip_gpu_check.py
+    --growth``; docs/onchip.md); ``onchip`` runs them.
     """
     if engine not in ENGINES:
         raise SceneError(f"unknown engine {engine!r}; choose from {', '.join(ENGINES)}")
@@ -107,7 +109,7 @@ def choose_engine(model: PadModel, engine: str, integrator: str = DEFAULT_INTEGR
         if why is not None:
             raise SceneError(f"--engine onchip: {why}")
         return "onchip"
-    if engine == "general" or why is not None or model.device.is_cpu:
+    if engine == "general" or why is not None or model.device.is_cpu or "pad_growth" in model.arrays:
         return "general"
     return "onchip"
 
@@ -185,8 +187,16 @@ def run_onchip(
         np.full(model.pad_count, np.inf) if watchdog_factor is None else watchdog_bound(model, state, watchdog_factor)
     )
     rec.watch_bound.assign(bounds)
+    growth = "pad_growth" in model.arrays
     kernel = onchip_kernel(
-        model.dtype, _round_up(nmax, 32), _round_up(emax, 32), bool(csr_shared), block_dim, frozenset(ablate), fast_math
+        model.dtype,
+        _round_up(nmax, 32),
+        _round_up(emax, 32),
+        bool(csr_shared),
+        block_dim,
+        frozenset(ablate),
+        fast_math,
+        growth,
     )
     stages = [
         "contact",
@@ -194,6 +204,19 @@ def run_onchip(
         "step:strang:onchip",
         "record:globals",
     ] + (["record:patches"] if rec.patch_stage else [])
+    if growth:
+        stages.append("growth")
+        growth_every, growth_per_event = growth_events(model, h)
+        grown = [model.arrays[k] for k in ("area", "sqrt_area", "k_n", "height", "nbr_inv_dist", "pad_kc")]
+        grown += [growth_per_event] + [model.arrays[k] for k in ("pad_k_t", "pad_k_n", "pad_mass_per_area", "pad_zeta")]
+        grown += [model.arrays[k] for k in ("pad_area", "pad_moment", "pad_k_m", "pad_gap")]
+    else:  # the growth arguments are not read: empty arrays of the right types
+        growth_every = 1
+        empty_t, empty_d = (
+            wp.empty(0, dtype=model.dtype, device=model.device),
+            wp.empty(0, dtype=wp.float64, device=model.device),
+        )
+        grown = [empty_t] * 11 + [empty_d] * 4
     out: list[Chunk] = []
     emit = sink or out.append
     cause = (
@@ -206,6 +229,8 @@ def run_onchip(
     solver.prepare(state)
     rec.launch(state.u, state.v, conditional=False)  # sample 0: the initial state (general kernels)
     k_next, rows, prows = 1, 1, int(_due(0, rec.first, rec.last, rec.every))
+
+    steps_done = 0  # steps taken in this run (growth events are counted from the run's start, as in run_hf)
 
     def launch(samples: int, opening: bool) -> None:
         wp.launch_tiled(
@@ -232,6 +257,9 @@ def run_onchip(
                 m.pad_matrix_force,
                 m.pad_matrix_radius,
                 m.k_t,
+                *grown,
+                growth_every,
+                steps_done % growth_every,
                 threads,
                 T(h),
                 solver.newton_tol,
@@ -273,6 +301,7 @@ def run_onchip(
             reps = min(spl, n_samples - done_samples)
             launch(reps, not started)
             started = True
+            steps_done += reps * sps
             due = sum(1 for k in range(k_next, k_next + reps) if _due(k, rec.first, rec.last, rec.every))
             k_next += reps
             rows += reps

@@ -31,7 +31,15 @@ from functools import cache
 from typing import Any
 
 import warp as wp
-from aca_warp.kernels.hf import friction_coefficient, midpoint_friction, patch_sample_due, write_globals
+from aca_warp.kernels.hf import (
+    contact_block,
+    friction_coefficient,
+    grow_patch,
+    midpoint_friction,
+    patch_coupling,
+    patch_sample_due,
+    write_globals,
+)
 from aca_warp.kernels.tiles import block_sync, tile_store_1d, tile_store_rows
 
 wp.set_module_options({"enable_backward": False})
@@ -49,8 +57,15 @@ def onchip_kernel(
     block_dim: int,
     ablate: frozenset[str] = frozenset(),
     fast_math: bool = False,
+    growth: bool = False,
 ) -> wp.Kernel:
     """The on-chip strang kernel for pads of at most ``nmax`` patches (``emax`` links when ``csr_shared``).
+
+    ``growth``: patch growth (paper Eq. 10) in the kernel: after every ``growth_every``-th step the block grows
+    its patches (``grow_patch``), recomputes their coupling stiffnesses (``patch_coupling``, and the shared copy
+    of the CSR) and re-solves the pad's contact (``contact_block``), in the order of the general path's
+    ``grow_patches`` → ``coupling_stiffness`` → ``contact_flat`` after ``strang_step`` (the cached spring force
+    keeps the stiffness of before the event, as there). The growth arrays are ignored (may be empty) otherwise.
 
     ``ablate`` (profiling only, ``scripts/profile_onchip.py``; the results are then wrong) drops parts of the
     step to time the rest: ``friction`` (the implicit friction solve becomes an explicit kick), ``gather``
@@ -71,6 +86,7 @@ def onchip_kernel(
     FRICTION = wp.constant(0 if "friction" in ablate else 1)
     GATHER = wp.constant(0 if "gather" in ablate else 1)
     SYNC = wp.constant(0 if "sync" in ablate else 1)
+    GROWTH = wp.constant(1 if growth else 0)
 
     # Per-thread element stores into the shared tiles. ``tile[i] = x`` in Warp is a block-cooperative op (it ends
     # in WP_TILE_SYNC(), i.e. __syncthreads()), which inside the per-thread ``while i < n`` loops deadlocks on CUDA
@@ -127,6 +143,24 @@ def onchip_kernel(
         pad_matrix_force: wp.array[T],
         pad_matrix_radius: wp.array[T],
         k_t: wp.array[T],
+        # Growth (model in/out; empty unless GROWTH):
+        area: wp.array[T],
+        sqrt_area: wp.array[T],
+        k_n: wp.array[T],
+        height: wp.array[T],
+        nbr_inv_dist: wp.array[T],
+        pad_kc: wp.array[T],
+        pad_growth: wp.array[T],
+        pad_k_t: wp.array[T],
+        pad_k_n: wp.array[T],
+        pad_mass_per_area: wp.array[T],
+        pad_zeta: wp.array[T],
+        pad_area: wp.array[wp.float64],
+        pad_moment: wp.array[wp.float64],
+        pad_k_m: wp.array[wp.float64],
+        pad_gap: wp.array[wp.float64],
+        growth_every: int,
+        growth_step0: int,
         # Stepping:
         threads: int,
         dt: T,
@@ -156,7 +190,8 @@ def onchip_kernel(
         """Advance pad ``pad`` by ``samples`` × ``steps_per_sample`` strang steps, recording after each sample.
 
         ``opening`` = 1: the state is synchronous, the first step is the opening half step (``strang_open``).
-        Globals row ``row0 + s`` gets sample ``k0 + s``; per-patch rows start at ``prow0``.
+        Globals row ``row0 + s`` gets sample ``k0 + s``; per-patch rows start at ``prow0``. With growth, steps are
+        counted from ``growth_step0`` (steps done before the launch, modulo ``growth_every``).
         """
         pad, lane = wp.tid()
         a = pad_patch_start[pad]
@@ -192,6 +227,7 @@ def onchip_kernel(
         cur = int(0)
         prow = prow0
         first_step = opening
+        steps_done = growth_step0
         for s in range(samples):
             for _q in range(steps_per_sample):
                 nxt = 1 - cur
@@ -251,6 +287,40 @@ def onchip_kernel(
                     put_n(fs, i, (a0 + a1) - k_diag[g] * u2[nxt, i])
                     i += threads
                 cur = nxt
+                if GROWTH != 0:
+                    steps_done += 1
+                    if steps_done % growth_every == 0:  # the same for every thread of the block
+                        i = lane
+                        while i < n:
+                            grow_patch(
+                                a + i, pad, pad_growth, pad_k_t, pad_k_n, pad_mass_per_area, pad_zeta, area, sqrt_area,
+                                inv_mass, k_t, k_n, damping,
+                            )  # fmt: skip
+                            i += threads
+                        block_sync()  # the links below read the neighbours' new √A
+                        i = lane
+                        while i < n:
+                            g = a + i
+                            patch_coupling(
+                                g,
+                                pad,
+                                sqrt_area,
+                                nbr_start,
+                                nbr_index,
+                                nbr_inv_dist,
+                                pad_kc,
+                                k_t,
+                                nbr_stiffness,
+                                k_diag,
+                            )
+                            if CSR_SHARED != 0:
+                                for e in range(nbr_start[g], nbr_start[g + 1]):
+                                    put_ek(sk, e - e0, nbr_stiffness[e])
+                            i += threads
+                        contact_block(
+                            pad, lane, threads, pad_patch_start, k_n, height, area, radius, pad_area, pad_moment,
+                            pad_k_m, pad_load, pad_gap, normal_force, pad_matrix_force, pad_matrix_radius,
+                        )  # fmt: skip
             # sample: synchronous velocity (strang_close), sums in float64 (record_globals), patch histories
             k = k0 + s
             due = patch_sample_due(k, first, last, every)

@@ -9,6 +9,8 @@ and exits on its own shortly before), so a hung kernel costs at most that timeou
    200 steps of 1e-8 s, patch histories, 3 samples per launch) with the general path and with ``run_onchip``,
    fp32 then fp64; passes when μ agrees within rtol 2e-4 (fp32) / 1e-10 (fp64) and the final
    (u, u̇) within that fraction of their maxima (u̇: ×10). Each precision's result is written as soon as it exists.
+   ``--growth``: the pads grow 1000× faster than Eq. 10 (an event every 20 steps), and the final areas, link
+   stiffnesses and normal forces must agree within rtol too (the in-kernel growth of the on-chip engine).
 2. **bench** (child, only if the fp32 check passed; the rest of ``--budget``): on-chip fp32 on one hf1 pad and on
    1024 pads over a ``--window`` [s] window after a warm-up (compile) run: µs/step, steps/s, patch-steps/s; then the
    general path on the same cases while time is left. Rows are appended as they finish.
@@ -18,6 +20,7 @@ Outputs in ``--out``: ``onchip_check.json`` (verdicts, errors, timings, the mach
 the fp32 check passed (and fp64 passed or did not run), 1 otherwise. Example (GPU machine, Warp in /tmp/site)::
 
     PYTHONPATH=/tmp/site python3 scripts/onchip_gpu_check.py --device cuda:0 --out $OUT/onchip_check --budget 80
+    PYTHONPATH=/tmp/site python3 scripts/onchip_gpu_check.py --device cuda:0 --out $OUT/growth --growth --no-bench
 
 On a CPU (``--device cpu``) the same runs take seconds per case (smoke test of the script).
 """
@@ -56,16 +59,20 @@ def child_check(args) -> None:
     from aca_warp.io import machine
     from aca_warp.model import build_model
     from aca_warp.onchip import run_onchip
-    from aca_warp.scene import Initial, Record, preset
+    from aca_warp.scene import Growth, Initial, Record, preset
     from aca_warp.state import initial_state
 
     out = Path(args.out)
     record = Record(sample_dt=2e-7, patches=("velocity", "displacement"), window=(4e-7, 2e-6), decimation=2)
     s = preset("hf1").replace(record=record)
     scenes = [s, s.replace(normal_force=700.0, angular_velocity=5.0 / 0.13, initial=Initial(perturbation=0.02, seed=3))]
+    if args.growth:
+        scenes = [x.replace(growth=Growth(increment=1e-6, interval=2e-7)) for x in scenes]
+    grown = ("area", "nbr_stiffness", "normal_force") if args.growth else ()
     results = {}
     for precision in args.precisions:
         row = {"precision": precision, "phase": "start", "block_dim": args.block, "csr_shared": args.csr}
+        row["growth"] = bool(args.growth)
         results[precision] = row
         runs = {}
         for engine in ("general", "onchip"):
@@ -91,9 +98,9 @@ def child_check(args) -> None:
                 row["phase"] = f"{engine}: incomplete run ({res.fault})"
                 row["passed"] = False
                 break
-            runs[engine] = (res.collect(), *state.numpy())
+            runs[engine] = (res.collect(), *state.numpy(), {k: model.host(k) for k in grown})
         else:
-            (cg, ug, vg), (co, uo, vo) = runs["general"], runs["onchip"]
+            (cg, ug, vg, ag), (co, uo, vo, ao) = runs["general"], runs["onchip"]
             rtol = RTOL[precision]
             mu_g, mu_o = cg.globals[:, :, 0], co.globals[:, :, 0]
             row["mu_max_rel_err"] = float(np.max(np.abs(mu_o - mu_g) / np.abs(mu_g)))
@@ -101,11 +108,14 @@ def child_check(args) -> None:
             row["v_err_rel_max"] = float(np.abs(vo - vg).max() / np.abs(vg).max())
             row["same_sample_times"] = bool(np.array_equal(co.time, cg.time) and co.globals.shape == cg.globals.shape)
             row["rtol"] = rtol
+            for k in grown:
+                row[f"{k}_err_rel_max"] = float(np.max(np.abs(ao[k] - ag[k]) / np.maximum(np.abs(ag[k]), 1e-300)))
             row["passed"] = bool(
                 row["same_sample_times"]
                 and row["mu_max_rel_err"] <= rtol
                 and row["u_err_rel_max"] <= rtol
                 and row["v_err_rel_max"] <= 10 * rtol
+                and all(row[f"{k}_err_rel_max"] <= rtol for k in grown)
             )
             row["phase"] = "done"
             _log(
@@ -199,6 +209,8 @@ def _run_child(stage: str, args, timeout: float, extra: list[str]) -> dict:
         cmd += ["--block", str(args.block)]
     if args.csr is not None:
         cmd += ["--csr" if args.csr else "--no-csr"]
+    if args.growth:
+        cmd += ["--growth"]
     log = out / f"log_{stage}.txt"
     t = time.perf_counter()
     with open(log, "w") as f:
@@ -294,6 +306,7 @@ def main() -> int:
     ap.add_argument("--block", type=int, default=None, help="threads per pad (default: run_onchip's)")
     ap.add_argument("--csr", action=argparse.BooleanOptionalAction, default=None, help="CSR in shared memory")
     ap.add_argument("--no-bench", action="store_true")
+    ap.add_argument("--growth", action="store_true", help="check the in-kernel patch growth (growing pads)")
     ap.add_argument("--stage", choices=["check", "bench"], default=None, help=argparse.SUPPRESS)
     ap.add_argument("--deadline", type=float, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--self-timeout", type=float, default=None, help=argparse.SUPPRESS)

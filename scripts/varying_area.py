@@ -17,6 +17,7 @@ Examples::
 
     python scripts/varying_area.py --quick --out /tmp/va --report             # CPU, ~2-3 min
     python scripts/varying_area.py --device cuda:0 --out $OUT/va --max-wall 500          # first GPU call
+    python scripts/varying_area.py --device cuda:0 --out $OUT/va --engine onchip          # growth in the on-chip kernel
     python scripts/varying_area.py --device cuda:0 --out $OUT/va --max-wall 500 --resume va/varying_area_state.npz
     python scripts/varying_area.py --report-only va/varying_area.npz                      # figures + docs
 """
@@ -36,9 +37,10 @@ import warp as wp
 wp.config.log_level = wp.LOG_WARNING
 wp.config.quiet = True
 
-from aca_warp.hf import DEFAULT_DT, GROWTH_MUTABLE, INTEGRATORS, run_hf, stable_step  # noqa: E402
+from aca_warp.hf import DEFAULT_DT, GROWTH_MUTABLE, INTEGRATORS, stable_step  # noqa: E402
 from aca_warp.io import machine  # noqa: E402
 from aca_warp.model import PadModel, build_model  # noqa: E402
+from aca_warp.onchip import run  # noqa: E402
 from aca_warp.scene import Growth, Record, Scene, preset  # noqa: E402
 from aca_warp.state import HFState, initial_state  # noqa: E402
 
@@ -125,13 +127,16 @@ class Segment:
         self.snaps = [{k: float(v) for k, v in s.items()} for s in self.snaps]
         return json.loads(str(d["meta"]))
 
-    def advance(self, until: float, *, chunk: float, integrator: str, dt: float, max_wall: float) -> None:
-        """Run in chunks of ``chunk`` simulated seconds to ``until`` or until ``max_wall`` wall seconds pass."""
+    def advance(
+        self, until: float, *, chunk: float, integrator: str, dt: float, max_wall: float, engine: str = "general"
+    ) -> None:
+        """Run in chunks of ``chunk`` simulated seconds to ``until`` or until ``max_wall`` wall seconds pass
+        (``engine``: general, onchip or auto, as ``aca_warp.onchip.run``)."""
         rec = Record(sample_dt=self.scene.record.sample_dt)
         t_start = time.perf_counter()
         while self.sim_time < until - 0.5 * rec.sample_dt:
             d = min(chunk, until - self.sim_time)
-            res = run_hf(self.model, self.state, duration=d, integrator=integrator, dt=dt, record=rec)
+            res = run(self.model, self.state, engine=engine, duration=d, integrator=integrator, dt=dt, record=rec)
             c = res.collect()
             if not res.complete:
                 raise RuntimeError(f"run stopped at {self.sim_time + res.sim_time:.6g} s: {res.fault}")
@@ -183,7 +188,9 @@ def simulate(args: argparse.Namespace) -> Path | None:
     )
     until = min(scene.duration, args.until or scene.duration)
     w0 = seg.wall
-    seg.advance(until, chunk=args.chunk, integrator=args.integrator, dt=args.dt, max_wall=args.max_wall)
+    seg.advance(
+        until, chunk=args.chunk, integrator=args.integrator, dt=args.dt, max_wall=args.max_wall, engine=args.engine
+    )
     dev = wp.get_device(args.device)
     meta["calls"].append(
         {
@@ -191,6 +198,7 @@ def simulate(args: argparse.Namespace) -> Path | None:
             "warp": wp.__version__,
             "sim_time": seg.sim_time,
             "wall_s": seg.wall - w0,
+            "engine": args.engine,
         }
     )
     out = Path(args.out)
@@ -399,6 +407,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--integrator", default="strang", choices=[i for i in INTEGRATORS if i != "adaptive"])
     ap.add_argument("--dt", type=float, default=DEFAULT_DT, help=f"step [s] (default {DEFAULT_DT:g})")
     ap.add_argument("--precision", default="fp64", choices=["fp32", "fp64"])
+    ap.add_argument(
+        "--engine",
+        default="general",
+        choices=["general", "onchip", "auto"],
+        help="HF engine (default general; onchip: growth inside the on-chip kernel, strang only; docs/onchip.md)",
+    )
     ap.add_argument("--chunk", type=float, default=1e-3, help="simulated time per run_hf call / load snapshot [s]")
     ap.add_argument("--until", type=float, help="stop this call at this simulated time [s]")
     ap.add_argument("--max-wall", type=float, default=math.inf, help="stop this call after this wall time [s]")
