@@ -12,17 +12,20 @@ compiler may contract multiply-adds differently in the two kernels, so there the
 
 from __future__ import annotations
 
+import dataclasses
 from contextlib import contextmanager
 
 import numpy as np
 import pytest
 import warp as wp
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from aca_warp.errors import SceneError
 from aca_warp.hf import run_hf, stable_step
 from aca_warp.model import build_model
 from aca_warp.onchip import choose_engine, run, run_onchip
-from aca_warp.scene import Growth, Initial, Record, preset
+from aca_warp.scene import Growth, Initial, Patches, Record, preset
 from aca_warp.state import initial_state
 
 RECORD = Record(sample_dt=2e-7, patches=("velocity", "displacement"), window=(4e-7, 2e-6), decimation=2)
@@ -214,3 +217,44 @@ def test_ablations_for_profiling(device):
     assert mus[()] != mus[("gather",)] and mus[()] != mus[("friction",)]
     with pytest.raises(ValueError, match="unknown ablations"):
         run_onchip(model, initial_state(model), duration=2e-7, dt=1e-8, ablate=frozenset({"springs"}))
+
+
+@settings(derandomize=True, deadline=None, database=None, max_examples=12)
+@given(
+    n=st.integers(1, 24),
+    seed=st.integers(0, 2**16),
+    load=st.sampled_from([0.0, 0.5, 5.0, 50.0]),
+    increment=st.floats(1e-8, 1e-5),
+    M=st.sampled_from([0.0, 0.8, 2.0]),
+    speed=st.sampled_from([0.0, 1e-4, 10.0]),
+    precision=st.sampled_from(["fp32", "fp64"]),
+)
+def test_onchip_growth_fuzzed_small_pads(n, seed, load, increment, M, speed, precision):
+    """Random small growing pads (1–24 patches on a 1 mm grid, so 0 to many links; zero load; standstill): the
+    on-chip growth gives the general engine's bits on the CPU, including the edge cases of the contact re-solve
+    (no load, all patches or none in contact) and pads smaller than a warp."""
+    rng = np.random.default_rng(seed)
+    cells = rng.choice(36, size=n, replace=False)
+    x, y = (cells % 6) * 1e-3 - 2.5e-3, 0.13 + (cells // 6) * 1e-3
+    patches = Patches(x, y, rng.uniform(2e-8, 8e-8, n), rng.uniform(1e-6, 4e-6, n))
+    base = preset("hf1")
+    scene = base.replace(
+        patches=patches,
+        normal_force=load,
+        angular_velocity=speed / 0.13,
+        friction=dataclasses.replace(base.friction, M=M),
+        initial=Initial(perturbation=1e-3, seed=seed),
+        record=Record(sample_dt=2e-7),
+        growth=Growth(increment=increment, interval=1e-7),
+    )
+    out = []
+    for engine in ("general", "onchip"):
+        model = build_model([scene], device="cpu", precision=precision)
+        state = initial_state(model)
+        fn = run_hf if engine == "general" else run_onchip
+        res = fn(model, state, duration=4e-7, dt=1e-8)
+        assert res.complete and res.steps == 40
+        keys = ("area", "nbr_stiffness", "normal_force", "pad_matrix_force", "pad_gap")
+        out.append((res.collect().globals, *state.numpy(), *(model.host(k) for k in keys)))
+    for a, b in zip(*out, strict=True):
+        np.testing.assert_array_equal(a, b)
