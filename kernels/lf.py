@@ -1147,15 +1147,15 @@ def positions3(
     alive: wp.array[wp.int32],
     x: wp.array[wp.float64],
     y: wp.array[wp.float64],
-    far: wp.float64,
+    park: wp.vec3d,
     pos_out: wp.array[wp.vec3d],
 ):
-    """Points for the hash grid; empty slots are parked far away (dim = P)."""
+    """Points for the hash grid; empty slots all at ``park``, in a cell no query visits (dim = P)."""
     i = wp.tid()
     if alive[i] != 0:
         pos_out[i] = wp.vec3d(x[i], y[i], wp.float64(0.0))
     else:
-        pos_out[i] = wp.vec3d(far + wp.float64(i) * wp.float64(10.0), far, wp.float64(0.0))
+        pos_out[i] = park
 
 
 @wp.kernel

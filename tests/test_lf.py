@@ -308,3 +308,33 @@ def test_debris_sweep_matches_a_serial_reference(fibers):
     total_in = src.sum() + store.sum()
     total_out = cap.numpy().sum() + arr["store"].numpy().sum() + emit.numpy().sum()
     assert total_out == pytest.approx(total_in, rel=1e-12)
+
+
+def test_empty_slots_parked_where_no_query_looks():
+    """The hash grid wraps cell coordinates modulo 128: the empty slots' parking point must not share a bucket
+    with any cell a candidate or birth query visits (else every such query walks thousands of empty slots),
+    for the built-in preset's pad and for the tiny test pad."""
+    import math
+
+    from aca_warp.lf.scene import load_lf_scene
+
+    for scene in (load_lf_scene("multiscale"), _scene()):
+        sim = LFSimulation(scene, device="cpu", duration=0.05)
+        r = sim.cand_radius
+        pad = scene.pad
+
+        park = (math.floor(sim.park[0] / r) % 128, math.floor(sim.park[1] / r) % 128)
+        # every point of the pad (a fine polar sample) and the cells within one radius of it
+        rr, phi = np.meshgrid(
+            np.linspace(pad.r_inner, pad.r_outer, 60), np.linspace(-pad.half_span, pad.half_span, 200)
+        )
+        xs, ys = (-rr * np.sin(phi)).ravel(), (rr * np.cos(phi)).ravel()
+        visited = set()
+        for x, y in zip(xs, ys, strict=True):
+            for i in range(math.floor((x - r) / r), math.floor((x + r) / r) + 1):
+                for j in range(math.floor((y - r) / r), math.floor((y + r) / r) + 1):
+                    visited.add((i % 128, j % 128))
+        assert park not in visited
+        # the old parking at y = 1000 m fell into a visited row for the preset's cell size
+        if scene.name == "multiscale":
+            assert any(b[1] == math.floor(1000.0 / r) % 128 for b in visited)

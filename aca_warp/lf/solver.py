@@ -26,7 +26,12 @@ from aca_warp.kernels import lf as K
 from aca_warp.lf.scene import LFScene, StepTable, step_table
 from aca_warp.scene import Patches, overlapping_pairs
 
-_FAR = 1.0e3  # m: where empty slots are parked in the hash grid
+# Empty slots are parked in the hash grid at one point half the grid's y period (64 of 128 cell rows) away from
+# the pad's middle row: the grid wraps cell coordinates modulo 128, so parking them "far away" can land them in a
+# row the pad's queries visit (1000 m did, at the multiscale cell size: every query near that row then walked
+# ~170 empty slots, ~100 µs per candidate kernel on an H100). Half a period away, no query of a pad less than
+# ~120 cells tall visits them.
+_PARK_ROWS = 64
 # arrays a checkpoint leaves out: constants of the grid and schedule, the history (the run file's /global) and
 # per-step scratch
 _CONSTANT_ARRAYS = ("cell_area", "cell_r", "ring_r", "schedule", "hist", "kh")
@@ -121,6 +126,8 @@ class LFSimulation:
         a_big = math.sqrt(2.0 * c.A_max / math.pi)
         self.cand_radius = 2.0 * a_big + c.cand_margin
         self.birth_radius = math.sqrt(c.A0 / math.pi) + a_big + c.cand_margin
+        y_mid = 0.5 * (pad.r_inner * math.cos(pad.half_span) + pad.r_outer)
+        self.park = (0.0, y_mid + _PARK_ROWS * self.cand_radius, 0.0)  # hash-grid point of the empty slots [m]
         sched = np.column_stack([self.table.load, self.table.omega]).astype(np.float64)
         self.schedule = wp.array(sched, dtype=wp.float64, device=dev)
         self.glob = zf(K.G_SIZE)
@@ -166,7 +173,7 @@ class LFSimulation:
     def rebuild_neighbours(self) -> None:
         """Merge-candidate CSR (alive pairs within ``cand_radius``) and the birth hash grid, from current positions."""
         P = self.capacity
-        self._launch(K.positions3, P, [self.alive, self.x, self.y, wp.float64(_FAR), self.pos])
+        self._launch(K.positions3, P, [self.alive, self.x, self.y, wp.vec3d(*self.park), self.pos])
         self.grid.build(self.pos, self.cand_radius)
         self._launch(
             K.count_candidates, P, [self.grid.id, wp.float64(self.cand_radius), self.alive, self.pos, self.cand_count]
