@@ -92,7 +92,7 @@ def run_hf_stage(lf_path: Path, args: argparse.Namespace, log: Log) -> dict[str,
     from aca_warp.runner import run_scene
     from aca_warp.scene import Record
 
-    duration = args.hf_duration or (1.0e-4 if args.quick else 2.0e-3)
+    duration = args.hf_duration or (1.0e-4 if args.quick else 2.0e-3)  # also in main's study["hf_duration_s"]
     transient = duration / 4
     out: dict[str, Path] = {}
     for name in snapshot_names(lf_path):
@@ -114,6 +114,35 @@ def run_hf_stage(lf_path: Path, args: argparse.Namespace, log: Log) -> dict[str,
             f"{time.perf_counter() - t0:.1f} s"
         )
         out[name] = path
+    return out
+
+
+def hf_summary(path: Path) -> dict[str, Any]:
+    """One HF state's numbers for the docs table: μ after the transient (mean, standard deviation), the largest
+    peaks of |μ(f)| / mean μ and of the mean patch-velocity spectrum (``/analysis/peaks``: above 1 kHz and 3 bins,
+    up to 200 kHz), and the Synchronization Index (largest S, share of frequencies with S above its null level)."""
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        t, mu = f["global/time"][()], f["global/mu"][()]
+        keep = t >= t[-1] / 4
+        pk = f["analysis/peaks"].attrs
+        out = {
+            "patches": int(f["patches/x"].shape[0]),
+            "normal_force_N": float(json.loads(f.attrs["scene"])["load"]["normal_force"]),
+            "mu_mean": float(mu[keep].mean()),
+            "mu_std": float(mu[keep].std()),
+            "mu_peak_hz": float(pk["mu_peak_frequency"]),
+            "mu_peak_amplitude": float(pk["mu_peak_amplitude"]),
+            "velocity_peak_hz": float(pk["first_velocity_peak_frequency"]),
+            "peak_band_hz": [float(x) for x in pk["band"]],
+        }
+        if "analysis/sync" in f:
+            sy = f["analysis/sync"]
+            S, S0 = sy["S"][()], sy["S_null"][()]
+            ok = np.isfinite(S)
+            out["S_max"] = float(S[ok].max()) if ok.any() else None
+            out["S_above_null_share"] = float(np.mean(S[ok] > S0[ok])) if ok.any() else None
     return out
 
 
@@ -351,9 +380,14 @@ def write_docs(study: dict[str, Any], path: Path, argv: list[str]) -> None:
         "",
         "## Patch life",
         "",
-        f"* Deaths (not merges) over the run: {lt['deaths']}; lifetime p10 / p50 / p90 = "
-        + " / ".join(f"{x:.3g}" for x in lt["percentiles_10_50_90"])
-        + f" s, mean {lt['mean']:.3g} s; median area at death {lt['area_at_death_mm2_median']:.3g} mm².",
+        f"* Deaths (not merges) over the run: {lt['deaths']}"
+        + (
+            "; lifetime p10 / p50 / p90 = "
+            + " / ".join(f"{x:.3g}" for x in lt["percentiles_10_50_90"])
+            + f" s, mean {lt['mean']:.3g} s; median area at death {lt['area_at_death_mm2_median']:.3g} mm²."
+            if lt["deaths"]
+            else "."
+        ),
         f"* Patch count range {c['patch_count']['min']}–{c['patch_count']['max']}; "
         f"peak coverage {c['coverage_max']:.4f}.",
         f"* μ while loaded: mean {c['mu_loaded']['mean']:.3f} "
@@ -389,6 +423,28 @@ def write_docs(study: dict[str, Any], path: Path, argv: list[str]) -> None:
             f"(hot-band radius over time: {', '.join(f'{x:.1f}' for x in t['hot_band_radius_mm_path'])} mm). "
             f"Figure: `{t['figure']}` in the study folder.",
         ]
+    if study.get("hf_summary"):
+        hs = study["hf_summary"]
+        lines += [
+            "",
+            "## HF on the states (paper Fig. 13)",
+            "",
+            f"Each state run for {study['hf_duration_s']:g} s of HF (areas frozen, the first quarter dropped as "
+            "transient, μ and every patch velocity sampled every "
+            f"{study['hf_sample_dt_s']:g} s); spectra and S(f) from `aca_warp.analysis.report.analyze_run`.",
+            "",
+            "| state | patches | F_N [kN] | mean μ | std μ | μ peak: |μ(f)|/μ̄ | at [kHz] | patch-velocity peak [kHz] "
+            "| max S(f) | share of f with S > S_null |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for name, h in hs.items():
+            smax = "–" if h.get("S_max") is None else f"{h['S_max']:.2f}"
+            share = "–" if h.get("S_above_null_share") is None else f"{h['S_above_null_share']:.2f}"
+            lines.append(
+                f"| {name} | {h['patches']} | {h['normal_force_N'] / 1e3:.2f} | {h['mu_mean']:.4f} | "
+                f"{h['mu_std']:.2e} | {h['mu_peak_amplitude']:.2e} | {h['mu_peak_hz'] / 1e3:.1f} | "
+                f"{h['velocity_peak_hz'] / 1e3:.1f} | {smax} | {share} |"
+            )
     if not study.get("hf"):
         lines += [
             "",
@@ -414,11 +470,14 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.reuse_lf and lf_path.is_file()):
         lf_path = run_lf_stage(args, log)
     study: dict[str, Any] = {"device": args.device, "quick": args.quick, "date": datetime.date.today().isoformat()}
+    study["hf_duration_s"] = args.hf_duration or (1.0e-4 if args.quick else 2.0e-3)
+    study["hf_sample_dt_s"] = args.hf_sample_dt
     study["lf_figure"] = lf_figure(lf_path, outdir).name
     study["calibration"] = calibration(lf_path)
     if not args.skip_hf:
         hf = run_hf_stage(lf_path, args, log)
         study["hf"] = {k: v.name for k, v in hf.items()}
+        study["hf_summary"] = {k: hf_summary(v) for k, v in hf.items()}
         study["fig13"] = fig13(hf, outdir).name
     if args.tei:
         study["tei"] = tei_check(args, log)
