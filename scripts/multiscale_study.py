@@ -10,13 +10,15 @@ Stages (each printed with the elapsed time):
 3. **Figures**: ``fig13_panel.png`` (per state: patch map, μ spectrum, S(f); paper Fig. 13),
    ``lf_timeseries.png`` (μ, torque, friction radius, patch count, coverage, temperatures) and, with ``--tei``,
    ``tei.png`` (Coulomb friction everywhere: ring temperatures over time and the effective friction radius).
-4. **Summaries**: ``study.json`` and, with ``--docs FILE``, the calibration page (patch lifetimes, areas,
-   counts, coverage per state, the carry-over of coverage from the high-load to the low-load application).
+4. **Summaries**: ``study.json`` and, with ``--docs FILE`` (``--figures DIR``: figures copied there and shown), the
+   calibration page (patch lifetimes, areas, counts, coverage per state, the carry-over of coverage from the
+   high-load to the low-load application) and, after the HF stage, a table of the HF states (μ, peaks, S(f)).
 
 Examples::
 
     python3 scripts/multiscale_study.py --quick                          # CPU, shortened schedule, minutes
-    python3 scripts/multiscale_study.py --device cuda:0 --tei --docs docs/results_multiscale.md
+    python3 scripts/multiscale_study.py --device cuda:0 --tei --docs docs/results_multiscale.md \
+        --figures docs/figures/multiscale
 """
 
 from __future__ import annotations
@@ -49,6 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tei", action="store_true", help="also run the Coulomb-friction TEI check (tei.png)")
     p.add_argument("--tei-duration", type=float, default=20.0, help="TEI application length [s] (quick: 5)")
     p.add_argument("--docs", help="write the calibration page (markdown) to this file")
+    p.add_argument("--figures", help="with --docs: copy the figures into this folder and show them on the page")
     p.add_argument("--overwrite", action="store_true", help="replace existing run files")
     p.add_argument("--reuse-lf", action="store_true", help="use <outdir>/lf.h5 from an earlier run (skip the LF stage)")
     return p
@@ -354,7 +357,8 @@ def _pad_area(pad: dict) -> float:
     return math.radians(pad["span_deg"]) / 2 * (pad["r_outer"] ** 2 - pad["r_inner"] ** 2)
 
 
-def write_docs(study: dict[str, Any], path: Path, argv: list[str]) -> None:
+def write_docs(study: dict[str, Any], path: Path, argv: list[str], figures: Path | None = None) -> None:
+    """The calibration page; with ``figures`` (a folder), the study's figures are copied there and shown."""
     c = study["calibration"]
     lines = [
         "# Multi-timescale study: LF calibration results",
@@ -454,7 +458,18 @@ def write_docs(study: dict[str, Any], path: Path, argv: list[str]) -> None:
         ]
     figs = ["lf_timeseries.png"] + (["fig13_panel.png"] if study.get("hf") else [])
     figs += ["tei.png"] if "tei" in study else []
-    lines += ["", "Figures (in the study folder): " + ", ".join(f"`{x}`" for x in figs) + "."]
+    if figures is None:
+        lines += ["", "Figures (in the study folder): " + ", ".join(f"`{x}`" for x in figs) + "."]
+    else:
+        import os
+        import shutil
+
+        figures.mkdir(parents=True, exist_ok=True)
+        lines += ["", "## Figures", ""]
+        for x in figs:
+            shutil.copyfile(Path(study["outdir"]) / x, figures / x)
+            rel = Path(os.path.relpath(figures / x, path.parent)).as_posix()
+            lines += [f"![{x}]({rel})", ""]
     path.write_text("\n".join(lines) + "\n")
 
 
@@ -470,6 +485,7 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.reuse_lf and lf_path.is_file()):
         lf_path = run_lf_stage(args, log)
     study: dict[str, Any] = {"device": args.device, "quick": args.quick, "date": datetime.date.today().isoformat()}
+    study["outdir"] = str(outdir)
     study["hf_duration_s"] = args.hf_duration or (1.0e-4 if args.quick else 2.0e-3)
     study["hf_sample_dt_s"] = args.hf_sample_dt
     study["lf_figure"] = lf_figure(lf_path, outdir).name
@@ -483,7 +499,7 @@ def main(argv: list[str] | None = None) -> int:
         study["tei"] = tei_check(args, log)
     (outdir / "study.json").write_text(json.dumps(study, indent=1))
     if args.docs:
-        write_docs(study, Path(args.docs), argv)
+        write_docs(study, Path(args.docs), argv, Path(args.figures) if args.figures else None)
     log(f"done: {outdir}/study.json")
     return 0
 

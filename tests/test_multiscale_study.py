@@ -27,7 +27,9 @@ def test_tiny_study_with_hf_table(tmp_path):
     scene = tmp_path / "tiny.toml"
     scene.write_text(TOML)
     out, page = tmp_path / "study", tmp_path / "page.md"
+    figs = tmp_path / "docs" / "figures"
     argv = ["--scene", str(scene), "--outdir", str(out), "--hf-duration", "5e-5", "--docs", str(page)]
+    argv += ["--figures", str(figs)]
     assert ms.main(argv) == 0
     study = json.loads((out / "study.json").read_text())
     assert sorted(study["hf_summary"]) == ["app1_end", "app1_start"]
@@ -37,5 +39,6 @@ def test_tiny_study_with_hf_table(tmp_path):
         assert h["S_max"] is None or 0.0 <= h["S_max"] <= 1.0 + 1e-9
     text = page.read_text()
     assert "## HF on the states (paper Fig. 13)" in text and text.count("| app1_") >= 4  # states + HF tables
-    assert (out / "fig13_panel.png").stat().st_size > 0 and (out / "lf_timeseries.png").stat().st_size > 0
+    assert (figs / "fig13_panel.png").stat().st_size > 0 and (figs / "lf_timeseries.png").stat().st_size > 0
+    assert "![fig13_panel.png](docs/figures/fig13_panel.png)" in text
     assert not any(math.isnan(v) for h in study["hf_summary"].values() for v in h.values() if isinstance(v, float))
