@@ -16,7 +16,7 @@ Random numbers: a stateless counter hash keyed by (seed, step, element, stream),
 from __future__ import annotations
 
 import warp as wp
-from aca_warp.kernels.tiles import block_sync, tile_store_1d
+from aca_warp.kernels.tiles import block_add, block_sync, tile_store_1d
 
 wp.set_module_options({"enable_backward": False})
 
@@ -430,15 +430,10 @@ def friction(
             s_fn += fn
             s_ff += ff
             s_tq += ff * r
-    s_fn = wp.tile_sum(wp.tile(s_fn))[0]
-    s_ff = wp.tile_sum(wp.tile(s_ff))[0]
-    s_tq = wp.tile_sum(wp.tile(s_tq))[0]
-    s_fp = wp.tile_sum(wp.tile(s_fp))[0]
-    if lane == 0:
-        wp.atomic_add(glob, G_FN, s_fn)
-        wp.atomic_add(glob, G_FF, s_ff)
-        wp.atomic_add(glob, G_TORQUE, s_tq)
-        wp.atomic_add(glob, G_FN_PATCH, s_fp)
+    block_add(glob, G_FN, s_fn, lane)
+    block_add(glob, G_FF, s_ff, lane)
+    block_add(glob, G_TORQUE, s_tq, lane)
+    block_add(glob, G_FN_PATCH, s_fp, lane)
 
 
 # ----------------------------------------------------------------------------------------------- temperatures
@@ -619,13 +614,9 @@ def wear(
         m = p.rho_patch * dz * A
         wp.atomic_add(cell_src, patch_cell[i], p.f_ret * m)
         s_pl += (one - p.f_ret) * m
-    s_in = wp.tile_sum(wp.tile(s_in))[0]
-    s_ml = wp.tile_sum(wp.tile(s_ml))[0]
-    s_pl = wp.tile_sum(wp.tile(s_pl))[0]
-    if lane == 0:
-        wp.atomic_add(glob, G_MATRIX_IN, s_in)
-        wp.atomic_add(glob, G_MATRIX_LOST, s_ml)
-        wp.atomic_add(glob, G_PATCH_LOST, s_pl)
+    block_add(glob, G_MATRIX_IN, s_in, lane)
+    block_add(glob, G_MATRIX_LOST, s_ml, lane)
+    block_add(glob, G_PATCH_LOST, s_pl, lane)
 
 
 # ----------------------------------------------------------------------------------------------- debris

@@ -35,3 +35,11 @@ def tile_store_rows(dtype: Any, rows: int, size: int) -> Any:
 
     put.__annotations__ = {"t": wp.tile[dtype, rows, size], "r": int, "i": int, "x": dtype}
     return wp.func_native("t.data(wp::tile_coord(r, i)) = x;\n")(put)
+
+
+@wp.func
+def block_add(a: wp.array[wp.float64], i: int, x: wp.float64, lane: int):
+    """``a[i] += Σ x`` over the block: a block-wide sum, then one atomic add by thread 0 (all threads must call)."""
+    s = wp.tile_sum(wp.tile(x))[0]
+    if lane == 0:
+        wp.atomic_add(a, i, s)
