@@ -37,7 +37,7 @@ G_FN_PATCH = wp.constant(7)  # Σ F_N on patches [N]
 G_MATRIX_IN = wp.constant(8)  # retained matrix debris entering the boundary layer this step [kg]
 G_PATCH_LOST = wp.constant(9)  # patch wear debris lost (not retained) this step [kg]
 G_EMITTED = wp.constant(10)  # debris leaving at the trailing edge this step [kg]
-G_TOPOLOGY = wp.constant(11)  # 1 when the patch set changed this step
+G_TOPOLOGY = wp.constant(11)  # 1 when patches were born or merged this step (candidate lists to rebuild)
 G_COUNT = wp.constant(12)  # alive patches
 G_AREA = wp.constant(13)  # Σ patch area [m²]
 G_TPATCH = wp.constant(14)  # Σ A T over patches [m² K]
@@ -786,8 +786,7 @@ def life_cycle(
     u = uniform64(p.seed, wp.uint64(glob[G_STEP]), wp.uint64(i), wp.uint64(1))
     if A < p.A_min or t < p.t_min or T >= p.T_kill or u < wp.float64(1.0) - wp.exp(-lam * p.dt):
         released = released + rho * A * t
-        alive[i] = 0
-        glob[G_TOPOLOGY] = wp.float64(1.0)
+        alive[i] = 0  # no G_TOPOLOGY: the grid and candidate lists may keep a dead slot (every query checks alive)
         wp.atomic_add(glob, G_DEATHS, wp.float64(1.0))
         slot = wp.atomic_add(death_count, 0, 1)
         if slot < death_age.shape[0]:

@@ -338,3 +338,24 @@ def test_empty_slots_parked_where_no_query_looks():
         # the old parking at y = 1000 m fell into a visited row for the preset's cell size
         if scene.name == "multiscale":
             assert any(b[1] == math.floor(1000.0 / r) % 128 for b in visited)
+
+
+def test_candidates_rebuilt_after_births_and_merges_only():
+    """The merge candidates are rebuilt before the first step, after a step with births or merges, and after a
+    compaction; a step with deaths only leaves them (every query skips dead slots)."""
+    sim = LFSimulation(_scene(), device="cpu")
+    rebuilt, orig = [], sim.rebuild_neighbours
+
+    def spy():
+        rebuilt.append(sim.step_index)
+        orig()
+
+    sim.rebuild_neighbours = spy
+    sim.run()
+    h = sim.history()
+    changed = (h["births"] + h["merges"]) > 0
+    every = sim.scene.lf.compact_every
+    want = {0} | {k + 1 for k in np.flatnonzero(changed)} | {k for k in range(every, sim.table.steps, every)}
+    assert rebuilt == sorted(k for k in want if k < sim.table.steps)
+    deaths_only = np.flatnonzero((h["deaths"] > 0) & ~changed)
+    assert any(k + 1 not in want for k in deaths_only), "the tiny scene must have a deaths-only step"

@@ -4,7 +4,7 @@ One LF step (docs/lf_model.md §"Step"): load from the schedule → bin patches 
 (Newton on the gap) → friction, powers → temperatures (implicit) → wear → debris sweep → capture → growth,
 shrink, death → merge → birth → statistics and history row. In pauses only the temperatures run (cooling)
 and μ is recorded as 0. The only host read per step is the topology flag, which triggers the rebuild of the
-merge-candidate neighbourhoods (CSR from ``wp.HashGrid``) when the patch set changed. On CUDA the rest of the
+merge-candidate neighbourhoods (CSR from ``wp.HashGrid``) when patches were born or merged. On CUDA the rest of the
 step (``_body``) is captured once per step kind (loaded / pause) into a graph and replayed (CUDA and CPU).
 """
 
