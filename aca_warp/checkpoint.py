@@ -34,7 +34,7 @@ import numpy as np
 
 from aca_warp.errors import SceneError
 
-FORMAT = 2  # 2: LF global-scalar layout without the contact sums (2026-11-23)
+FORMAT = 2  # 2: LF global-scalar layout without the contact sums and flag (2026-11-23)
 GROUP = "checkpoint"
 
 

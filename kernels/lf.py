@@ -29,25 +29,24 @@ _put = tile_store_1d(wp.float64, LF_BLOCK)
 G_LOAD = wp.constant(0)  # clamp force F_N this step [N]
 G_OMEGA = wp.constant(1)  # disc angular velocity [rad/s]
 G_GAP = wp.constant(2)  # contact gap g [m]
-G_DONE = wp.constant(3)  # contact converged flag
-G_FN = wp.constant(4)  # Σ F_N [N]
-G_FF = wp.constant(5)  # Σ friction force [N]
-G_TORQUE = wp.constant(6)  # Σ r F_F [N m]
-G_FN_PATCH = wp.constant(7)  # Σ F_N on patches [N]
-G_MATRIX_IN = wp.constant(8)  # retained matrix debris entering the boundary layer this step [kg]
-G_PATCH_LOST = wp.constant(9)  # patch wear debris lost (not retained) this step [kg]
-G_EMITTED = wp.constant(10)  # debris leaving at the trailing edge this step [kg]
-G_TOPOLOGY = wp.constant(11)  # 1 when patches were born or merged this step (candidate lists to rebuild)
-G_COUNT = wp.constant(12)  # alive patches
-G_AREA = wp.constant(13)  # Σ patch area [m²]
-G_TPATCH = wp.constant(14)  # Σ A T over patches [m² K]
-G_STEP = wp.constant(15)  # step counter (float64 integer value)
-G_BIRTHS = wp.constant(16)  # births this step
-G_DEATHS = wp.constant(17)  # deaths this step (not merges)
-G_MERGES = wp.constant(18)  # merges this step (absorbed patches)
-G_MATRIX_LOST = wp.constant(19)  # matrix wear debris lost (not retained) this step [kg]
-G_PASSES = wp.constant(20)  # contact-solve passes over the elements this step
-G_SIZE = wp.constant(21)
+G_FN = wp.constant(3)  # Σ F_N [N]
+G_FF = wp.constant(4)  # Σ friction force [N]
+G_TORQUE = wp.constant(5)  # Σ r F_F [N m]
+G_FN_PATCH = wp.constant(6)  # Σ F_N on patches [N]
+G_MATRIX_IN = wp.constant(7)  # retained matrix debris entering the boundary layer this step [kg]
+G_PATCH_LOST = wp.constant(8)  # patch wear debris lost (not retained) this step [kg]
+G_EMITTED = wp.constant(9)  # debris leaving at the trailing edge this step [kg]
+G_TOPOLOGY = wp.constant(10)  # 1 when patches were born or merged this step (candidate lists to rebuild)
+G_COUNT = wp.constant(11)  # alive patches
+G_AREA = wp.constant(12)  # Σ patch area [m²]
+G_TPATCH = wp.constant(13)  # Σ A T over patches [m² K]
+G_STEP = wp.constant(14)  # step counter (float64 integer value)
+G_BIRTHS = wp.constant(15)  # births this step
+G_DEATHS = wp.constant(16)  # deaths this step (not merges)
+G_MERGES = wp.constant(17)  # merges this step (absorbed patches)
+G_MATRIX_LOST = wp.constant(18)  # matrix wear debris lost (not retained) this step [kg]
+G_PASSES = wp.constant(19)  # contact-solve passes over the elements this step
+G_SIZE = wp.constant(20)
 
 # columns of the per-step history
 H_NAMES = (
@@ -215,7 +214,7 @@ def zero_step(
     if e < ring_power_out.shape[0]:
         ring_power_out[e] = wp.float64(0.0)
     if e == 0:
-        for g in range(G_DONE, G_SIZE):
+        for g in range(G_FN, G_SIZE):
             if g != G_GAP and g != G_STEP:
                 glob_out[g] = wp.float64(0.0)
 
@@ -319,7 +318,6 @@ def contact_solve(
     g = glob[G_GAP]
     sk = zero
     skh = zero
-    done = wp.float64(0.0)
     r_prev = wp.float64(1.0e300)
     passes = int(0)
     for it in range(max_iter):
@@ -346,7 +344,6 @@ def contact_solve(
             r = s0 - load
             # converged: within tol, or (from the second Newton step on, where |r| must fall) at the rounding floor
             if wp.abs(r) <= tol * load or (it >= 2 and wp.abs(r) >= r_prev):
-                done = wp.float64(1.0)
                 break
             r_prev = wp.abs(r)
             g = g + r / s1
@@ -354,7 +351,6 @@ def contact_solve(
             g = (skh - load) / sk
     if lane == 0:
         glob[G_GAP] = g
-        glob[G_DONE] = done
         glob[G_PASSES] = wp.float64(passes)
 
 
@@ -1126,7 +1122,6 @@ def set_load(
     s = wp.min(s, schedule.shape[0] - 1)
     glob[G_LOAD] = schedule[s, 0]
     glob[G_OMEGA] = schedule[s, 1]
-    glob[G_DONE] = wp.float64(0.0)
 
 
 # ----------------------------------------------------------------------------------------------- neighbours
