@@ -65,6 +65,7 @@ class LFSimulation:
         self.n_r, self.n_t = n_r, n_t
         self.n_cells = n_r * n_t
         self.threads = block_threads(self.device, K.LF_BLOCK)  # threads a block kernel's block runs
+        self.element_blocks = -(-(self.n_cells + c.capacity) // K.LF_BLOCK)  # blocks covering the C + P elements
         self.capacity = c.capacity
         dr = (pad.r_outer - pad.r_inner) / n_r
         dphi = 2.0 * pad.half_span / n_t
@@ -165,9 +166,8 @@ class LFSimulation:
     def _launch(self, kernel: Any, dim: int, inputs: list) -> None:
         wp.launch(kernel, dim=dim, inputs=inputs, device=self.device)
 
-    def _launch_blocks(self, kernel: Any, n: int, inputs: list) -> None:
-        """A block kernel over n elements: ⌈n / LF_BLOCK⌉ blocks of LF_BLOCK threads (one per element on CUDA)."""
-        blocks = (n + K.LF_BLOCK - 1) // K.LF_BLOCK
+    def _launch_blocks(self, kernel: Any, blocks: int, inputs: list) -> None:
+        """A block kernel: ``blocks`` thread blocks of LF_BLOCK threads (``wp.launch_tiled``)."""
         wp.launch_tiled(kernel, dim=[blocks], block_dim=K.LF_BLOCK, inputs=inputs, device=self.device)
 
     def rebuild_neighbours(self) -> None:
@@ -196,16 +196,12 @@ class LFSimulation:
         state = [self.cell_z, self.cell_cover, self.ring_bulge, self.alive, self.area, self.top, self.patch_cell]
         self._launch(K.contact_elements, C + P, [p, C, self.cell_area, *state, self.kh])
         lf = self.scene.lf
-        wp.launch_tiled(
-            K.contact_solve,
-            dim=[1],
-            block_dim=K.LF_BLOCK,
-            device=self.device,
-            inputs=[lf.contact_iterations, wp.float64(lf.contact_tol), self.threads, self.kh, self.glob],
+        self._launch_blocks(
+            K.contact_solve, 1, [lf.contact_iterations, wp.float64(lf.contact_tol), self.threads, self.kh, self.glob]
         )
         self._launch_blocks(
             K.friction,
-            C + P,
+            self.element_blocks,
             [p, C, self.threads, self.cell_r, self.kh, self.alive, self.x, self.y, self.patch_cell, self.cell_fn,
              self.cell_power, self.patch_fn, self.patch_power, self.ring_power, self.glob],
         )  # fmt: skip
@@ -278,18 +274,16 @@ class LFSimulation:
         if loaded:
             self._launch_blocks(
                 K.wear,
-                C + P,
+                self.element_blocks,
                 [p, C, self.threads, self.cell_area, self.cell_cover, self.cell_power, self.cell_T, self.alive,
                  self.area, self.patch_power, self.temp, self.patch_cell, self.cell_z, self.thick, self.top,
                  self.cell_src, self.glob],
             )  # fmt: skip
-            wp.launch_tiled(
+            self._launch_blocks(
                 K.debris_sweep,
-                dim=[R],
-                block_dim=K.LF_BLOCK,
-                device=self.device,
-                inputs=[p, self.threads, self.cell_area, self.cell_cover, self.cell_chord, self.cell_fn, self.cell_src,
-                        self.cell_store, self.cell_capture, self.ring_emit],
+                R,
+                [p, self.threads, self.cell_area, self.cell_cover, self.cell_chord, self.cell_fn, self.cell_src,
+                 self.cell_store, self.cell_capture, self.ring_emit],
             )  # fmt: skip
             self._launch(
                 K.capture_gather,
