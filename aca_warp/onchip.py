@@ -46,6 +46,12 @@ MAX_BLOCK = 1024  # threads per block
 DEFAULT_BLOCK = 512  # threads per pad by default (1024 leaves 64 registers per thread: the fp64 kernel spills)
 _SMEM_RESERVE = 8 * 1024  # bytes left for Warp's reduction scratch and static shared memory
 _PATCH_BUFFER_BYTES = 256 * 2**20  # cap of the per-patch history buffers of one launch
+# model arrays the on-chip growth reads and writes, in the kernel's argument order (float64 ones in _GROWTH_F64)
+_GROWTH_ARRAYS = (
+    "area", "sqrt_area", "k_n", "height", "nbr_inv_dist", "pad_kc", "pad_growth", "pad_k_t", "pad_k_n",
+    "pad_mass_per_area", "pad_zeta", "pad_area", "pad_moment", "pad_k_m", "pad_gap",
+)  # fmt: skip
+_GROWTH_F64 = frozenset({"pad_area", "pad_moment", "pad_k_m", "pad_gap"})
 
 
 def _itemsize(model: PadModel) -> int:
@@ -207,16 +213,11 @@ def run_onchip(
     if growth:
         stages.append("growth")
         growth_every, growth_per_event = growth_events(model, h)
-        grown = [model.arrays[k] for k in ("area", "sqrt_area", "k_n", "height", "nbr_inv_dist", "pad_kc")]
-        grown += [growth_per_event] + [model.arrays[k] for k in ("pad_k_t", "pad_k_n", "pad_mass_per_area", "pad_zeta")]
-        grown += [model.arrays[k] for k in ("pad_area", "pad_moment", "pad_k_m", "pad_gap")]
-    else:  # the growth arguments are not read: empty arrays of the right types
+        arrays = {**model.arrays, "pad_growth": growth_per_event}  # the increment per event, not per interval
+        grown = [arrays[k] for k in _GROWTH_ARRAYS]
+    else:  # the growth arguments are not read: empty arrays of the kernel's types
         growth_every = 1
-        empty_t, empty_d = (
-            wp.empty(0, dtype=model.dtype, device=model.device),
-            wp.empty(0, dtype=wp.float64, device=model.device),
-        )
-        grown = [empty_t] * 11 + [empty_d] * 4
+        grown = [wp.empty(0, dtype=wp.float64 if k in _GROWTH_F64 else model.dtype, device=dev) for k in _GROWTH_ARRAYS]
     out: list[Chunk] = []
     emit = sink or out.append
     cause = (
@@ -229,8 +230,7 @@ def run_onchip(
     solver.prepare(state)
     rec.launch(state.u, state.v, conditional=False)  # sample 0: the initial state (general kernels)
     k_next, rows, prows = 1, 1, int(_due(0, rec.first, rec.last, rec.every))
-
-    steps_done = 0  # steps taken in this run (growth events are counted from the run's start, as in run_hf)
+    done_samples = 0
 
     def launch(samples: int, opening: bool) -> None:
         wp.launch_tiled(
@@ -259,7 +259,7 @@ def run_onchip(
                 m.k_t,
                 *grown,
                 growth_every,
-                steps_done % growth_every,
+                done_samples * sps % growth_every,  # steps so far (growth events count from the run's start)
                 threads,
                 T(h),
                 solver.newton_tol,
@@ -294,14 +294,12 @@ def run_onchip(
         bar = tqdm(total=n_samples * record.sample_dt, unit="s", unit_scale=True, dynamic_ncols=True)
     t0 = time.perf_counter()
     fault: SimulationFault | None = None
-    done_samples = 0
     started = False
     try:
         while True:
             reps = min(spl, n_samples - done_samples)
             launch(reps, not started)
             started = True
-            steps_done += reps * sps
             due = sum(1 for k in range(k_next, k_next + reps) if _due(k, rec.first, rec.last, rec.every))
             k_next += reps
             rows += reps
