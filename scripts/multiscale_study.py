@@ -89,13 +89,18 @@ def run_lf_stage(args: argparse.Namespace, log: Log) -> Path:
     return out
 
 
+def hf_duration(args: argparse.Namespace) -> float:
+    """HF simulated time per state [s]: ``--hf-duration``, else 1e-4 (quick) or 2e-3."""
+    return args.hf_duration or (1.0e-4 if args.quick else 2.0e-3)
+
+
 def run_hf_stage(lf_path: Path, args: argparse.Namespace, log: Log) -> dict[str, Path]:
     from aca_warp.analysis.report import analyze_run
     from aca_warp.lf.io import scene_from_snapshot, snapshot_names
     from aca_warp.runner import run_scene
     from aca_warp.scene import Record
 
-    duration = args.hf_duration or (1.0e-4 if args.quick else 2.0e-3)  # also in main's study["hf_duration_s"]
+    duration = hf_duration(args)
     transient = duration / 4
     out: dict[str, Path] = {}
     for name in snapshot_names(lf_path):
@@ -486,7 +491,7 @@ def main(argv: list[str] | None = None) -> int:
         lf_path = run_lf_stage(args, log)
     study: dict[str, Any] = {"device": args.device, "quick": args.quick, "date": datetime.date.today().isoformat()}
     study["outdir"] = str(outdir)
-    study["hf_duration_s"] = args.hf_duration or (1.0e-4 if args.quick else 2.0e-3)
+    study["hf_duration_s"] = hf_duration(args)
     study["hf_sample_dt_s"] = args.hf_sample_dt
     study["lf_figure"] = lf_figure(lf_path, outdir).name
     study["calibration"] = calibration(lf_path)
