@@ -238,6 +238,11 @@ def analyse(path: Path) -> dict:
     dom = sf[band][np.argmax(sa[band], axis=0)]
     k = np.unravel_index(np.argmax(sa[band]), sa[band].shape)
     largest = float(sf[band][k[0]])
+    paper = (sf >= 60e3) & (sf <= 80e3)  # the band of the paper's largest peak (69.1 kHz)
+    kp = np.unravel_index(np.argmax(sa[paper]), sa[paper].shape)
+    first = int(np.searchsorted(st, 0.01))  # the first frame from t = 10 ms: the start of the falling line
+    kf = int(np.argmax(sa[band][:, first]))
+    ten_ms = max(1, round(0.01 / dt))
     from aca_warp.analysis.report import default_cwt_freqs
 
     freqs = default_cwt_freqs(mu.size, dt)
@@ -259,6 +264,10 @@ def analyse(path: Path) -> dict:
         "dominant_cwt": cdom,
         "largest_stft_peak_hz": largest,
         "largest_stft_peak_time": float(st[k[1]]),
+        "largest_stft_peak_amplitude": float(sa[band][k]),
+        "band_60_80khz_peak": [float(sf[paper][kp[0]]), float(st[kp[1]]), float(sa[paper][kp])],
+        "peak_at_10ms": [float(st[first]), float(sf[band][kf]), float(sa[band][kf, first])],
+        "mu_std_first_last_10ms": [float(mu[:ten_ms].std()), float(mu[-ten_ms:].std())],
         "snaps": snaps,
         "mu_thirds": [float(mu[i].mean()) for i in thirds],
         "dominant_thirds_hz": [float(np.median(dom[i])) for i in sthirds],
@@ -366,8 +375,13 @@ def report(path: Path, page: Path, figdir: Path) -> None:
         f"* Patch share of the load: {sn['patch_share'][0]:.3f} at the start → {sn['patch_share'][-1]:.3f} at the end "
         f"(matrix {sn['matrix_share'][0]:.3f} → {sn['matrix_share'][-1]:.3f}); mean patch area "
         f"{sn['area_mean'][0] * 1e6:.4f} → {sn['area_mean'][-1] * 1e6:.4f} mm².",
-        f"* Largest STFT amplitude (f ≥ 5 kHz): {a['largest_stft_peak_hz'] / 1e3:.1f} kHz at t = "
-        f"{a['largest_stft_peak_time']:.4g} s (paper Fig. 10: 69.1 kHz).",
+        f"* Largest STFT amplitude (f ≥ 5 kHz): {a['largest_stft_peak_amplitude']:.3g} at "
+        f"{a['largest_stft_peak_hz'] / 1e3:.1f} kHz, t = {a['largest_stft_peak_time']:.4g} s (paper Fig. 10: "
+        f"≈ 0.004 at 69.1 kHz). Largest in 60–80 kHz: {a['band_60_80khz_peak'][2]:.3g} at "
+        f"{a['band_60_80khz_peak'][0] / 1e3:.1f} kHz, t = {a['band_60_80khz_peak'][1]:.4g} s. Largest at "
+        f"t = {a['peak_at_10ms'][0]:.4g} s: {a['peak_at_10ms'][2]:.2g} at {a['peak_at_10ms'][1] / 1e3:.1f} kHz.",
+        f"* Standard deviation of μ over the first and the last 10 ms: {a['mu_std_first_last_10ms'][0]:.2g} and "
+        f"{a['mu_std_first_last_10ms'][1]:.2g}.",
         f"* Isolated-patch frequency √(k_T/m)/2π at the mean area: {a['isolated_hz_start_end'][0] / 1e3:.1f} kHz → "
         f"{a['isolated_hz_start_end'][1] / 1e3:.1f} kHz.",
         f"* STFT: {a['stft'][3]['caption']}.",
@@ -390,6 +404,10 @@ def report(path: Path, page: Path, figdir: Path) -> None:
             "dominant_thirds_hz",
             "largest_stft_peak_hz",
             "largest_stft_peak_time",
+            "largest_stft_peak_amplitude",
+            "band_60_80khz_peak",
+            "peak_at_10ms",
+            "mu_std_first_last_10ms",
             "isolated_hz_start_end",
         )
     }
