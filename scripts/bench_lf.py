@@ -3,7 +3,8 @@
 
 Prints and writes (JSON, optionally Markdown): device, Warp version, precision, problem size (cells, rings,
 patch slots, mean alive patches), kernel load/compile time separately from the run, LF steps/s and
-element-steps/s (cells + patch slots per step), the contact-solve passes per loaded step (mean, max), and two
+element-steps/s (cells + patch slots per step), the contact-solve passes per loaded step (mean, max), the
+merge-candidate rebuilds (and the steps with births or merges, which cause them, and with deaths only), and two
 checks of the final state: the contact force balance |ΣF_N − F_N| / F_N and the debris mass balance over the
 last step. Targets (issue 5): ≥ 100 LF steps/s on one
 CPU core, ≥ 2000 on a GPU. Examples::
@@ -93,6 +94,7 @@ def main() -> int:
     steps = sim.step_index - 1
     h = sim.history()
     passes = h["contact_passes"][h["normal_force"] > 0]  # contact-solve passes per loaded step
+    changed = (h["births"] + h["merges"]) > 0  # steps after which the merge candidates are rebuilt
     # checks on the final state
     inv0 = sim.inventory()
     sim_load = sim.table.load[-1]
@@ -120,6 +122,9 @@ def main() -> int:
         "element_steps_per_s": steps * (sim.n_cells + sim.capacity) / wall,
         "contact_force_balance_rel_err": float(force_err),
         "contact_passes_mean_max": [float(np.mean(passes)), float(np.max(passes))] if passes.size else [0.0, 0.0],
+        "neighbour_rebuilds": sim.rebuilds,
+        "steps_with_births_or_merges": int(np.sum(changed)),
+        "steps_with_deaths_only": int(np.sum((h["deaths"] > 0) & ~changed)),
         "debris_inventory_kg": inv0,
     }
     if args.compare:

@@ -134,6 +134,7 @@ class LFSimulation:
         self.glob = zf(K.G_SIZE)
         self.hist = wp.zeros((self.table.steps, K.H_SIZE), dtype=wp.float64, device=dev)
         self.step_index = 0
+        self.rebuilds = 0  # merge-candidate rebuilds so far (reported by scripts/bench_lf.py)
         self.dirty = True
         if scene.patches is not None:
             self._place(scene.patches)
@@ -190,6 +191,7 @@ class LFSimulation:
             [self.grid.id, wp.float64(self.cand_radius), self.alive, self.pos, self.cand_start, self.cand_index],
         )
         self.dirty = False
+        self.rebuilds += 1
 
     def _contact_and_friction(self) -> None:
         p, C, P = self.params, self.n_cells, self.capacity
