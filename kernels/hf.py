@@ -891,7 +891,9 @@ def contact_block(
     """Re-solve the normal forces of one pad on a flat matrix at elevation 0 (one thread block per pad).
 
     Σ_i k_N,i max(h_i − g, 0) + k_m a_free max(−g, 0) = F_N by Newton from the left of the root (monotone
-    and exact on a piecewise-linear convex function), warm-started from the previous gap. Launch with
+    and exact on a piecewise-linear convex function), warm-started from the previous gap; it stops when the step
+    falls below 1e-15 of the gap or stops being positive (the rounding floor of the block sums: without this a
+    sum that cannot reach F_N exactly made late varying-area events run all 200 passes). Launch with
     ``wp.launch_tiled(dim=[pads], block_dim=B)``; ``threads`` is the block size the device runs (B on CUDA, 1 on
     the CPU): thread ``lane`` sums patches lane, lane + B, … and the block reduces the sums, so every thread
     sees the same values and takes the same branches (the block-wide reductions stay outside per-thread code).
@@ -943,8 +945,10 @@ def contact_block(
             if kact <= zero:
                 break
             dg = (f - load) / kact
+            if dg <= zero:  # from the left of the root Newton only moves right: here f = F_N to rounding
+                break
             g = g + dg
-            if wp.abs(dg) <= wp.float64(1.0e-15) * (wp.abs(g) + wp.float64(1.0e-9)):
+            if dg <= wp.float64(1.0e-15) * (wp.abs(g) + wp.float64(1.0e-9)):
                 break
     i = s + lane
     while i < e:
