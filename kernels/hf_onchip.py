@@ -45,7 +45,7 @@ from aca_warp.kernels.tiles import block_sync, tile_store_1d, tile_store_rows
 wp.set_module_options({"enable_backward": False})
 
 
-ABLATIONS = frozenset({"friction", "gather", "sync"})
+ABLATIONS = frozenset({"friction", "gather", "sync", "coupling", "contact"})
 
 
 @cache
@@ -69,8 +69,9 @@ def onchip_kernel(
 
     ``ablate`` (profiling only, ``scripts/profile_onchip.py``; the results are then wrong) drops parts of the
     step to time the rest: ``friction`` (the implicit friction solve becomes an explicit kick), ``gather``
-    (the neighbour sum), ``sync`` (the block barrier). ``fast_math``: compile with CUDA fast math (approximate
-    division and transcendental functions; changes the results in the last bits).
+    (the neighbour sum), ``sync`` (the block barrier); with ``growth``, ``coupling`` (the stiffness update after
+    an event) and ``contact`` (the contact re-solve after an event). ``fast_math``: compile with CUDA fast math
+    (approximate division and transcendental functions; changes the results in the last bits).
 
     Launch with ``wp.launch_tiled(kernel, dim=[pads], block_dim=B, ...)``; ``threads`` must be the block
     size the device really runs (B on CUDA or with CPU fibers, else 1 on the CPU). The kernel is compiled with
@@ -86,6 +87,8 @@ def onchip_kernel(
     FRICTION = wp.constant(0 if "friction" in ablate else 1)
     GATHER = wp.constant(0 if "gather" in ablate else 1)
     SYNC = wp.constant(0 if "sync" in ablate else 1)
+    COUPLING = wp.constant(0 if "coupling" in ablate else 1)
+    CONTACT = wp.constant(0 if "contact" in ablate else 1)
     GROWTH = wp.constant(1 if growth else 0)
 
     # Per-thread element stores into the shared tiles. ``tile[i] = x`` in Warp is a block-cooperative op (it ends
@@ -299,6 +302,8 @@ def onchip_kernel(
                             i += threads
                         block_sync()  # the links below read the neighbours' new √A
                         i = lane
+                        if COUPLING == 0:
+                            i = n
                         while i < n:
                             g = a + i
                             patch_coupling(
@@ -317,10 +322,11 @@ def onchip_kernel(
                                 for e in range(nbr_start[g], nbr_start[g + 1]):
                                     put_ek(sk, e - e0, nbr_stiffness[e])
                             i += threads
-                        contact_block(
-                            pad, lane, threads, pad_patch_start, k_n, height, area, radius, pad_area, pad_moment,
-                            pad_k_m, pad_load, pad_gap, normal_force, pad_matrix_force, pad_matrix_radius,
-                        )  # fmt: skip
+                        if CONTACT != 0:
+                            contact_block(
+                                pad, lane, threads, pad_patch_start, k_n, height, area, radius, pad_area, pad_moment,
+                                pad_k_m, pad_load, pad_gap, normal_force, pad_matrix_force, pad_matrix_radius,
+                            )  # fmt: skip
             # sample: synchronous velocity (strang_close), sums in float64 (record_globals), patch histories
             k = k0 + s
             due = patch_sample_due(k, first, last, every)

@@ -7,18 +7,29 @@ of an ablated run are wrong and only its time counts), for several block sizes, 
 memory, fp32 and fp64, and the general per-step path for comparison. The difference between two rows is the
 cost of the part left out. Writes a JSON list and a Markdown table.
 
+``--growth`` profiles the growing pad of the varying-area study instead (preset ``varying_area``: hf1 patches,
+an event every 0.202 µs ≈ 20 steps): the same pad without growth, with growth as in the study, with the
+event's stiffness update (``coupling``) and/or contact re-solve (``contact``) left out, with events 100× rarer
+(the cost of the growth code being in the kernel at all), and the general path. ``--state STATE.npz`` (a
+``scripts/varying_area.py`` state file) starts every case from that point of the study instead of t = 0 (the
+grown areas, stiffnesses, forces and the patch motion).
+
 Example (GPU machine)::
 
     python3 scripts/profile_onchip.py --device cuda:0 --json $OUT/profile_onchip.json --markdown $OUT/profile.md
+    python3 scripts/profile_onchip.py --device cuda:0 --growth --json $OUT/profile_growth.json --markdown $OUT/g.md
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
 from pathlib import Path
+
+import numpy as np
 
 CASES = [
     # (label, precision, block_dim, csr_shared, ablations)
@@ -35,6 +46,18 @@ CASES = [
     ("full, fast math", "fp32", 512, None, ("fast_math",)),
     ("full, fast math, block 1024", "fp32", 1024, None, ("fast_math",)),
 ]
+# --growth: (label, precision, ablations or None for the general path, event interval × this; 0: no growth)
+GROWTH_CASES = [
+    ("general path, growth", "fp32", None, 1),
+    ("no growth", "fp32", (), 0),
+    ("growth", "fp32", (), 1),
+    ("growth, no contact re-solve", "fp32", ("contact",), 1),
+    ("growth, no stiffness update", "fp32", ("coupling",), 1),
+    ("growth, no stiffness update, no contact re-solve", "fp32", ("coupling", "contact"), 1),
+    ("growth, events 100x rarer", "fp32", (), 100),
+    ("growth, no friction solve", "fp32", ("friction",), 1),
+    ("growth", "fp64", (), 1),
+]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -43,32 +66,57 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--window", type=float, default=1e-4, help="simulated time per timed run [s] (default 1e-4)")
     ap.add_argument("--sample-dt", type=float, default=1e-5, help="sample interval [s] (default 1e-5)")
     ap.add_argument("--dt", type=float, default=1e-8, help="time step [s] (default 1e-8)")
+    ap.add_argument("--growth", action="store_true", help="profile the growing varying-area pad (GROWTH_CASES)")
+    ap.add_argument("--state", type=Path, help="with --growth: start from this varying_area.py state file")
     ap.add_argument("--only", nargs="*", default=None, help="labels of the cases to run (default: all)")
     ap.add_argument("--json", type=Path, default=None, help="write the rows here")
     ap.add_argument("--markdown", type=Path, default=None, help="write a table here")
     args = ap.parse_args(argv)
+    if args.state and not args.growth:
+        ap.error("--state needs --growth")
 
     import warp as wp
 
     wp.config.quiet = True
     wp.init()
     from aca_warp.errors import SceneError
-    from aca_warp.hf import run_hf
+    from aca_warp.hf import GROWTH_MUTABLE, run_hf
     from aca_warp.io import machine
     from aca_warp.model import build_model
     from aca_warp.onchip import run_onchip
     from aca_warp.scene import Record, preset
     from aca_warp.state import initial_state
 
-    scene = preset("hf1").replace(record=Record(sample_dt=args.sample_dt))
+    name = "varying_area" if args.growth else "hf1"
+    scene = preset(name).replace(record=Record(sample_dt=args.sample_dt))
     models = {p: build_model([scene], device=args.device, precision=p) for p in ("fp32", "fp64")}
+    if args.growth:
+        cases = [(label, prec, 512 if abl is not None else None, None, abl, k) for label, prec, abl, k in GROWTH_CASES]
+    else:
+        cases = [(label, prec, block, csr, abl, 1) for label, prec, block, csr, abl in
+                 [("general path", "fp32", None, None, None), *CASES]]  # fmt: skip
+
+    def start(model):
+        st = initial_state(model)
+        if args.state:
+            d = np.load(args.state)
+            st.u.assign(d["u"].astype(st.u.numpy().dtype))
+            st.v.assign(d["v"].astype(st.v.numpy().dtype))
+        return st
+
     rows = []
-    cases = [("general path", "fp32", None, None, None), *CASES]
-    for label, prec, block, csr, abl in cases:
+    for label, prec, block, csr, abl, k in cases:
         key = f"{label} [{prec}]"
         if args.only is not None and label not in args.only and key not in args.only:
             continue
         model = models[prec]
+        if args.growth and k != 1:
+            g = None if k == 0 else dataclasses.replace(scene.growth, interval=scene.growth.interval * k)
+            model = build_model([scene.replace(growth=g)], device=args.device, precision=prec)
+        if args.state:
+            d = np.load(args.state)
+            for k2 in (k3 for k3 in GROWTH_MUTABLE if k3 in model.arrays):  # a model without growth lacks some
+                model.arrays[k2].assign(d[f"model_{k2}"].astype(model.arrays[k2].numpy().dtype))
         if abl is None:
 
             def fn(st, duration, model=model):
@@ -82,11 +130,13 @@ def main(argv: list[str] | None = None) -> int:
                 )  # fmt: skip
 
         row = {"case": label, "precision": prec, "block_dim": block, "csr_shared": csr, "ablate": list(abl or ())}
+        if args.growth:
+            row["growth_interval_factor"] = k
         try:
             t = time.perf_counter()
-            fn(initial_state(model), args.sample_dt)
+            fn(start(model), args.sample_dt)
             row["warmup_s"] = time.perf_counter() - t
-            res = fn(initial_state(model), args.window)
+            res = fn(start(model), args.window)
             row.update(steps=res.steps, wall_s=res.wall_time, us_per_step=1e6 * res.wall_time / res.steps)
             row["patch_steps_per_s"] = model.patch_count * res.steps / res.wall_time
         except (SceneError, RuntimeError) as exc:  # e.g. too many resources for a 1024-thread block
@@ -100,8 +150,10 @@ def main(argv: list[str] | None = None) -> int:
         args.json.write_text(json.dumps({"machine": info, "rows": rows}, indent=1))
     if args.markdown:
         lines = [
-            f"On-chip ablation profile: hf1 (1758 patches), one pad, dt {args.dt:g} s, {rows[0].get('steps', '?')} "
-            f"steps, sample interval {args.sample_dt:g} s; {info.get('device_name', args.device)}, Warp "
+            f"On-chip ablation profile: {name} ({models['fp32'].patch_count} patches), one pad, dt {args.dt:g} s, "
+            f"{rows[0].get('steps', '?')} steps"
+            f"{f' from {args.state.name}' if args.state else ''}, "
+            f"sample interval {args.sample_dt:g} s; {info.get('device_name', args.device)}, Warp "
             f"{wp.__version__} (scripts/profile_onchip.py)",
             "",
             "| case | precision | block | µs/step | patch-steps/s |",
