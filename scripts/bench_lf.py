@@ -16,6 +16,13 @@ CPU core, ≥ 2000 on a GPU. Examples::
 
 ``--compare`` checks the same scene on this device against a reference LF run file (another device): the
 global time series and every snapshot's patch arrays, relative to their scale.
+
+``--activity`` (CUDA only) then runs the schedule twice more under Warp's activity timing
+(``wp.timing_begin``, CUDA events around every launch): once as benchmarked (graph replay; the neighbourhood
+rebuilds are eager launches) and once eagerly (every kernel timed). The JSON gets, per pass, the wall time, the
+GPU time of every named activity (count, total [ms]) and their sum; wall minus that sum is host time, launch
+latency and work Warp does not time (the hash-grid build's sort). Timing adds per-launch overhead, so these
+passes are slower than the benchmark and are not its result.
 """
 
 from __future__ import annotations
@@ -57,6 +64,28 @@ def compare(path: Path, ref: Path) -> dict:
     return res
 
 
+def activity(scene, device: str, duration: float | None, graph: bool) -> dict:
+    """One timed pass over the schedule: wall [s], GPU time per activity name {name: [count, ms]}, their sum."""
+    from aca_warp.lf.solver import LFSimulation
+
+    sim = LFSimulation(scene, device=device, duration=duration, graph=None if graph else False)
+    sim.step()
+    sim.run(steps=1)  # captures the graphs of a loaded step before timing
+    wp.timing_begin(cuda_filter=wp.TIMING_ALL)
+    t0 = time.perf_counter()
+    sim.run()
+    results = wp.timing_end()
+    wall = time.perf_counter() - t0
+    per: dict[str, list[float]] = {}
+    for r in results:
+        c = per.setdefault(r.name, [0, 0.0])
+        c[0] += 1
+        c[1] += r.elapsed
+    per = dict(sorted(per.items(), key=lambda kv: -kv[1][1]))
+    gpu_ms = sum(v[1] for v in per.values())
+    return {"graph": sim.use_graph, "steps": sim.step_index - 2, "wall_s": wall, "gpu_ms": gpu_ms, "activities": per}
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cpu", help="Warp device (default cpu)")
@@ -67,7 +96,10 @@ def main() -> int:
     ap.add_argument("--markdown", help="also write a Markdown table here")
     ap.add_argument("--save", help="also write the run (an LF run file with snapshots) here")
     ap.add_argument("--compare", metavar="REF.h5", help="compare with a reference LF run file of the same scene")
+    ap.add_argument("--activity", action="store_true", help="CUDA: also time every GPU activity (two more passes)")
     args = ap.parse_args()
+    if args.activity and not args.device.startswith("cuda"):
+        ap.error("--activity times CUDA activity; it needs a CUDA --device")
 
     import aca_warp.kernels.lf as K
 
@@ -129,7 +161,17 @@ def main() -> int:
     }
     if args.compare:
         out["compare"] = compare(writer.path, Path(args.compare))
+    if args.activity:
+        passes_ = (("graph", True), ("eager", False))
+        out["activity"] = {kind: activity(scene, args.device, args.duration, graph) for kind, graph in passes_}
     for k, v in out.items():
+        if k == "activity":
+            for kind, a in v.items():
+                gpu_s = a["gpu_ms"] / 1e3
+                print(f"activity {kind}: wall {a['wall_s']:.2f} s, GPU {gpu_s:.2f} s over {a['steps']} steps")
+                for name, (n, ms) in list(a["activities"].items())[:15]:
+                    print(f"    {name:40s} {n:7d} × {1e3 * ms / max(n, 1):8.1f} µs = {ms:9.1f} ms")
+            continue
         print(f"{k:32s} {v}")
     Path(args.json).write_text(json.dumps(out, indent=1))
     if args.markdown:
