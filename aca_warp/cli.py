@@ -69,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
         default="auto",
         help="onchip: one thread block per pad, many strang steps per launch (faster on CUDA; patch growth too); "
         "general: per-step kernels (every integrator, checkpoints); auto (default): onchip on CUDA where the run "
-        "allows it and has no growth, else general (docs/onchip.md)",
+        "allows it, else general (docs/onchip.md)",
     )
     hf.add_argument("--sample-dt", type=positive, metavar="S", help="interval of the recorded samples [s]")
     hf.add_argument(

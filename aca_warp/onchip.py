@@ -104,9 +104,8 @@ def choose_engine(model: PadModel, engine: str, integrator: str = DEFAULT_INTEGR
     """Resolve ``engine`` (auto, onchip, general) for a model; ``onchip`` on an unsupported model is an error.
 
     ``auto`` picks ``onchip`` on CUDA when the model allows it (faster there, docs/onchip.md) and ``general`` on
-    the CPU (Warp runs a block as one thread there, so the on-chip kernel is no faster). Growing models stay on
-    ``general`` under ``auto`` until the on-chip growth has been checked on a GPU (``scripts/onchip_gpu_check.py
-    --growth``; docs/onchip.md); ``onchip`` runs them.
+    the CPU (Warp runs a block as one thread there, so the on-chip kernel is no faster), growing models included
+    (their in-kernel growth passes ``scripts/onchip_gpu_check.py --growth`` on an H100; docs/onchip.md).
     """
     if engine not in ENGINES:
         raise SceneError(f"unknown engine {engine!r}; choose from {', '.join(ENGINES)}")
@@ -115,7 +114,7 @@ def choose_engine(model: PadModel, engine: str, integrator: str = DEFAULT_INTEGR
         if why is not None:
             raise SceneError(f"--engine onchip: {why}")
         return "onchip"
-    if engine == "general" or why is not None or model.device.is_cpu or "pad_growth" in model.arrays:
+    if engine == "general" or why is not None or model.device.is_cpu:
         return "general"
     return "onchip"
 

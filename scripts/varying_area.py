@@ -353,8 +353,10 @@ def report(path: Path, page: Path, figdir: Path) -> None:
     call = meta["calls"][-1]
     dev = call["machine"]["device_name"]
     q = f", growth ×{meta['speedup']:g} compressed (--quick)" if meta["speedup"] != 1 else ""
+    engines = sorted({c.get("engine", "general") for c in meta["calls"]})
     caption = (
-        f"{dev}; Warp {call['warp']}; {meta['integrator']} dt {meta['dt']:g} s {meta['precision']}; "
+        f"{dev}; Warp {call['warp']}; {meta['integrator']} dt {meta['dt']:g} s {meta['precision']}, "
+        f"{'/'.join(engines)} engine; "
         f"{meta['duration']:g} s{q}"
     )
     stems = figures(a, figdir, caption)

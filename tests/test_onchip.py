@@ -166,7 +166,7 @@ def test_engine_choice_and_refusals(device):
     with pytest.raises(SceneError, match="unknown engine"):
         choose_engine(model, "fast")
     grow = build_model([s.replace(growth=Growth(increment=1e-9, interval=1e-6))], device=device, precision="fp32")
-    assert choose_engine(grow, "auto") == "general"  # until the on-chip growth is checked on a GPU
+    assert choose_engine(grow, "auto") == ("onchip" if device != "cpu" else "general")
     assert choose_engine(grow, "onchip") == "onchip"
     res = run(model, initial_state(model), engine="onchip", duration=2e-7, dt=1e-8)
     assert "step:strang:onchip" in res.stages and res.steps == 20
