@@ -19,7 +19,8 @@ REPO = Path(__file__).resolve().parent.parent
 
 def kill_after_first_checkpoint(args: list[str], part: Path, *, poll: float) -> None:
     """Run ``python -m aca_warp.cli ARGS`` and kill it with SIGKILL as soon as ``part`` (the run's ``.partial``)
-    holds a checkpoint; asserts that the run was still going then and died by the signal. ``poll`` [s]."""
+    holds a checkpoint; asserts that the run was still going then and died by the signal. ``poll`` [s]. The file
+    is read while the run is stopped (SIGSTOP), so the kill comes before the run can write anything more."""
     env = {**os.environ, "HDF5_USE_FILE_LOCKING": "FALSE"}
     env.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
     proc = subprocess.Popen([sys.executable, "-m", "aca_warp.cli", *args], env=env, stderr=subprocess.PIPE)
@@ -28,6 +29,9 @@ def kill_after_first_checkpoint(args: list[str], part: Path, *, poll: float) -> 
     try:
         while time.monotonic() < deadline and proc.poll() is None:
             if part.exists():
+                # look with the run stopped (SIGSTOP), so that it cannot finish between a look and the kill on a
+                # busy machine; a look that lands mid-write fails and the run goes on (SIGCONT)
+                os.kill(proc.pid, signal.SIGSTOP)
                 try:
                     with h5py.File(part, "r", locking=False) as f:
                         checkpointed = has_checkpoint(f)
@@ -35,6 +39,7 @@ def kill_after_first_checkpoint(args: list[str], part: Path, *, poll: float) -> 
                     checkpointed = False
                 if checkpointed:
                     break
+                os.kill(proc.pid, signal.SIGCONT)
             time.sleep(poll)
         assert proc.poll() is None, f"the run ended before it could be killed: {proc.stderr.read().decode()}"
         assert checkpointed
