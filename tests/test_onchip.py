@@ -219,6 +219,22 @@ def test_ablations_for_profiling(device):
         run_onchip(model, initial_state(model), duration=2e-7, dt=1e-8, ablate=frozenset({"springs"}))
 
 
+def test_growth_ablations_for_profiling(device):
+    """The growth ablations of ``scripts/profile_onchip.py --growth``: ``coupling`` leaves the link stiffnesses as
+    they were, ``contact`` the normal forces; the areas grow either way."""
+    s = preset("hf1").replace(record=Record(sample_dt=1e-7), growth=Growth(increment=1e-6, interval=2e-7))
+    for abl, frozen, moved in (
+        (("coupling",), "nbr_stiffness", "normal_force"),
+        (("contact",), "normal_force", "nbr_stiffness"),
+    ):
+        model = build_model([s], device=device, precision="fp32")
+        before = {k: model.host(k) for k in ("area", frozen, moved)}
+        run_onchip(model, initial_state(model), duration=4e-7, dt=1e-8, ablate=frozenset(abl))
+        assert np.all(model.host("area") > before["area"])
+        np.testing.assert_array_equal(model.host(frozen), before[frozen])
+        assert not np.array_equal(model.host(moved), before[moved])
+
+
 @settings(derandomize=True, deadline=None, database=None, max_examples=12)
 @given(
     n=st.integers(1, 24),
