@@ -306,21 +306,20 @@ def onchip_kernel(
                             i = n
                         while i < n:
                             g = a + i
-                            patch_coupling(
-                                g,
-                                pad,
-                                sqrt_area,
-                                nbr_start,
-                                nbr_index,
-                                nbr_inv_dist,
-                                pad_kc,
-                                k_t,
-                                nbr_stiffness,
-                                k_diag,
-                            )
-                            if CSR_SHARED != 0:
-                                for e in range(nbr_start[g], nbr_start[g + 1]):
-                                    put_ek(sk, e - e0, nbr_stiffness[e])
+                            if CSR_SHARED != 0:  # patch_coupling with the neighbour indices from shared memory
+                                ki = pad_kc[pad] * sqrt_area[g]
+                                d = k_t[g]
+                                for e in range(nbr_start[g] - e0, nbr_start[g + 1] - e0):
+                                    kij = ki * sqrt_area[a + sidx[e]] * nbr_inv_dist[e0 + e]
+                                    nbr_stiffness[e0 + e] = kij
+                                    put_ek(sk, e, kij)
+                                    d += kij
+                                k_diag[g] = d
+                            else:
+                                patch_coupling(
+                                    g, pad, sqrt_area, nbr_start, nbr_index, nbr_inv_dist, pad_kc, k_t, nbr_stiffness,
+                                    k_diag,
+                                )  # fmt: skip
                             i += threads
                         if CONTACT != 0:
                             contact_block(
