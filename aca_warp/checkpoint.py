@@ -27,7 +27,10 @@ fails with one line, and ``aca-warp rerun`` repeats the run from the start.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -123,6 +126,22 @@ def read_checkpoint(f: h5py.File, path: str = "") -> Checkpoint:
         )
     except (KeyError, OSError, ValueError, TypeError) as e:
         raise SceneError(f"{path}: the checkpoint is damaged ({e}); repeat the run with 'aca-warp rerun'") from None
+
+
+@contextmanager
+def closed_on_failure(f: h5py.File, path: str | Path, check: bool = True) -> Iterator[None]:
+    """Close ``f`` if the body raises (a resume must not leave the partial file open). With ``check``, the errors
+    of a malformed file (KeyError, ValueError, TypeError, OSError) become one SceneError naming ``path``."""
+    try:
+        yield
+    except (KeyError, ValueError, TypeError, OSError) as e:
+        f.close()
+        if not check:
+            raise
+        raise SceneError(f"cannot resume {path}: its datasets do not match its checkpoint ({e})") from None
+    except BaseException:
+        f.close()
+        raise
 
 
 def drop_checkpoint(f: h5py.File) -> None:

@@ -29,7 +29,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from aca_warp.checkpoint import Checkpoint, drop_checkpoint, read_checkpoint, write_checkpoint
+from aca_warp.checkpoint import Checkpoint, closed_on_failure, drop_checkpoint, read_checkpoint, write_checkpoint
 from aca_warp.errors import SceneError
 from aca_warp.hf import GLOBAL_NAMES, GLOBAL_UNITS, Chunk
 from aca_warp.model import PadModel
@@ -154,7 +154,7 @@ class RunWriter:
         except OSError as e:
             raise SceneError(f"cannot open {self.partial} to resume it: {e}") from None
         f = self.f
-        try:
+        with closed_on_failure(f, self.partial):
             ckpt = read_checkpoint(f, str(self.partial))
             for name in ("time", *GLOBAL_NAMES):
                 f["global"][name].resize(ckpt.rows["global"], axis=0)
@@ -163,12 +163,6 @@ class RunWriter:
                 if name in f["patches"]:
                     self._patch_ds[name] = f["patches"][name]
                     self._patch_ds[name].resize(ckpt.rows["patches"], axis=0)
-        except (KeyError, ValueError, TypeError, OSError) as e:
-            f.close()
-            raise SceneError(f"cannot resume {self.partial}: its datasets do not match its checkpoint ({e})") from None
-        except BaseException:
-            f.close()
-            raise
         if "final" in f["patches"]:
             del f["patches"]["final"]
         self.flush_each_chunk = False  # a resumed run keeps checkpointing: flush at checkpoints only

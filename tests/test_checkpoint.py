@@ -166,3 +166,28 @@ def test_resume_refusals(scene_file: Path, tmp_path: Path, capsys) -> None:
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "lacks the attribute 'scene'" in err[0]
     assert part.exists()
+
+
+def test_closed_on_failure_closes_and_names_the_file(tmp_path: Path) -> None:
+    """The resume guard of both run files: a malformed file (KeyError, …) becomes a SceneError naming it, anything
+    else passes through; the file is closed either way, and stays open when the body succeeds."""
+    from aca_warp.checkpoint import closed_on_failure
+    from aca_warp.errors import SceneError
+
+    path = tmp_path / "x.h5.partial"
+    for exc, check, expect in (
+        (KeyError("global"), True, SceneError),
+        (KeyError("global"), False, KeyError),
+        (RuntimeError("boom"), True, RuntimeError),
+    ):
+        f = h5py.File(path, "w")
+        with pytest.raises(expect) as info, closed_on_failure(f, path, check=check):
+            raise exc
+        assert not f.id.valid
+        if expect is SceneError:
+            assert str(path) in str(info.value) and "do not match its checkpoint" in str(info.value)
+    f = h5py.File(path, "w")
+    with closed_on_failure(f, path):
+        pass
+    assert f.id.valid
+    f.close()

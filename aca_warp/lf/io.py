@@ -31,7 +31,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from aca_warp.checkpoint import drop_checkpoint, read_checkpoint, write_checkpoint
+from aca_warp.checkpoint import closed_on_failure, drop_checkpoint, read_checkpoint, write_checkpoint
 from aca_warp.errors import SceneError
 from aca_warp.io import check_output_path, machine, open_h5, partial_path, versions
 from aca_warp.kernels.lf import H_NAMES, H_UNITS
@@ -94,7 +94,7 @@ class LFRunWriter:
         except OSError as e:
             raise SceneError(f"cannot open {self.partial} to resume it: {e}") from None
         f = self.f
-        try:
+        with closed_on_failure(f, self.partial):
             ckpt = read_checkpoint(f, str(self.partial))
             rows = int(ckpt.rows["global"])
             if rows != int(ckpt.counters["step_index"]):
@@ -113,17 +113,8 @@ class LFRunWriter:
                     del f["snapshots"][name]  # taken after the checkpoint: the resumed run takes it again
             if "calibration" in f:
                 del f["calibration"]  # written when a stopped run was closed; rewritten at the end
-        except (KeyError, ValueError, TypeError, OSError) as e:
-            f.close()
-            raise SceneError(f"cannot resume {self.partial}: its datasets do not match its checkpoint ({e})") from None
-        except BaseException:
-            f.close()
-            raise
-        try:
+        with closed_on_failure(f, self.partial, check=False):
             sim.restore(ckpt, hist)
-        except BaseException:
-            f.close()
-            raise
         self.rows = rows
         f.attrs["complete"] = False
         f.attrs["status"] = f"running (resumed from the checkpoint at t = {ckpt.sim_time:.6g} s)"
