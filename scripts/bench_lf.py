@@ -162,8 +162,8 @@ def main() -> int:
     if args.compare:
         out["compare"] = compare(writer.path, Path(args.compare))
     if args.activity:
-        passes_ = (("graph", True), ("eager", False))
-        out["activity"] = {kind: activity(scene, args.device, args.duration, graph) for kind, graph in passes_}
+        modes = (("graph", True), ("eager", False))
+        out["activity"] = {kind: activity(scene, args.device, args.duration, graph) for kind, graph in modes}
     for k, v in out.items():
         if k == "activity":
             for kind, a in v.items():

@@ -96,12 +96,16 @@ def main(argv: list[str] | None = None) -> int:
         cases = [(label, prec, block, csr, abl, 1) for label, prec, block, csr, abl in
                  [("general path", "fp32", None, None, None), *CASES]]  # fmt: skip
 
+    saved = dict(np.load(args.state)) if args.state else None  # read once, put into every case's model and state
+
+    def put(arr, values):
+        arr.assign(values.astype(wp.dtype_to_numpy(arr.dtype)))
+
     def start(model):
         st = initial_state(model)
-        if args.state:
-            d = np.load(args.state)
-            st.u.assign(d["u"].astype(st.u.numpy().dtype))
-            st.v.assign(d["v"].astype(st.v.numpy().dtype))
+        if saved is not None:
+            put(st.u, saved["u"])
+            put(st.v, saved["v"])
         return st
 
     rows = []
@@ -113,10 +117,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.growth and k != 1:
             g = None if k == 0 else dataclasses.replace(scene.growth, interval=scene.growth.interval * k)
             model = build_model([scene.replace(growth=g)], device=args.device, precision=prec)
-        if args.state:
-            d = np.load(args.state)
+        if saved is not None:
             for k2 in (k3 for k3 in GROWTH_MUTABLE if k3 in model.arrays):  # a model without growth lacks some
-                model.arrays[k2].assign(d[f"model_{k2}"].astype(model.arrays[k2].numpy().dtype))
+                put(model.arrays[k2], saved[f"model_{k2}"])
         if abl is None:
 
             def fn(st, duration, model=model):
