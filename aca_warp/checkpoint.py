@@ -129,14 +129,14 @@ def read_checkpoint(f: h5py.File, path: str = "") -> Checkpoint:
 
 
 @contextmanager
-def closed_on_failure(f: h5py.File, path: str | Path, check: bool = True) -> Iterator[None]:
-    """Close ``f`` if the body raises (a resume must not leave the partial file open). With ``check``, the errors
+def closed_on_failure(f: h5py.File, path: str | Path, scene_error: bool = True) -> Iterator[None]:
+    """Close ``f`` if the body raises (a resume must not leave the partial file open). With ``scene_error``, the errors
     of a malformed file (KeyError, ValueError, TypeError, OSError) become one SceneError naming ``path``."""
     try:
         yield
     except (KeyError, ValueError, TypeError, OSError) as e:
         f.close()
-        if not check:
+        if not scene_error:
             raise
         raise SceneError(f"cannot resume {path}: its datasets do not match its checkpoint ({e})") from None
     except BaseException:

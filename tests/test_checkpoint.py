@@ -181,7 +181,7 @@ def test_closed_on_failure_closes_and_names_the_file(tmp_path: Path) -> None:
         (RuntimeError("boom"), True, RuntimeError),
     ):
         f = h5py.File(path, "w")
-        with pytest.raises(expect) as info, closed_on_failure(f, path, check=check):
+        with pytest.raises(expect) as info, closed_on_failure(f, path, scene_error=check):
             raise exc
         assert not f.id.valid
         if expect is SceneError:

@@ -113,7 +113,7 @@ class LFRunWriter:
                     del f["snapshots"][name]  # taken after the checkpoint: the resumed run takes it again
             if "calibration" in f:
                 del f["calibration"]  # written when a stopped run was closed; rewritten at the end
-        with closed_on_failure(f, self.partial, check=False):
+        with closed_on_failure(f, self.partial, scene_error=False):
             sim.restore(ckpt, hist)
         self.rows = rows
         f.attrs["complete"] = False
