@@ -9,7 +9,8 @@ at a quarter of the step, over the same window).
 Timing method (all on warm kernels):
 
 * ``wall_s``, ``steps_per_s``, ``patch_steps_per_s``: one run (:func:`aca_warp.onchip.run` with the case's
-  ``engine``: ``general`` is :func:`aca_warp.hf.run_hf`, ``onchip`` the on-chip kernel, ``auto`` resolves as
+  ``engine``: ``general`` is :func:`aca_warp.hf.run_hf`, ``onchip`` the on-chip kernel (``blocks_per_pad``: its
+  thread-block cluster size, :func:`aca_warp.onchip.default_cluster`), ``auto`` resolves as
   ``aca-warp hf`` does) over the timed window, recording every sample (what a user's run does; graph capture and
   compilation excluded, as in ``RunResult.wall_time``). ``engine`` in the row is the resolved one.
 * ``stepping_s``: the bare step, ``HFSolver.step`` captured into one graph of ``GRAPH_STEPS`` steps and replayed,
@@ -243,6 +244,7 @@ def run_case(
             "precision": precision,
             "integrator": integrator,
             "engine": engine,
+            "blocks_per_pad": res.blocks_per_pad,
             "pads": pads,
             "patches": n,
             "patches_per_pad": n // pads,
@@ -270,6 +272,12 @@ def run_case(
         }
     )
     return row
+
+
+def _engine_cell(r: dict) -> str:
+    """The engine of a row, with the on-chip cluster size when a pad ran on more than one block ("onchip ×8")."""
+    k = r.get("blocks_per_pad", 1)
+    return r.get("engine", "general") + (f" ×{k}" if k > 1 else "")
 
 
 def run_bench(
@@ -361,7 +369,7 @@ def markdown(out: dict) -> str:
         bw = "– (on chip)" if r["bandwidth_Bps"] is None else f"{r['bandwidth_Bps'] / 1e9:.3g}{frac}"
         err = "–" if r["mu_rel_error_max"] is None else f"{r['mu_rel_error_max']:.1e}"
         lines.append(
-            f"| {r['device_name']} | {r['precision']} | {r['integrator']} | {r.get('engine', 'general')} | {r['pads']} "
+            f"| {r['device_name']} | {r['precision']} | {r['integrator']} | {_engine_cell(r)} | {r['pads']} "
             f"| {r['patches']} | {r['steps_per_s']:.3g} | {r['patch_steps_per_s']:.3g} | {r['ns_per_patch_step']:.3g} "
             f"| {bw} | {r['compile_time_s']:.2f} | {err} |"
         )

@@ -195,6 +195,7 @@ class RunResult:
         estimate: Stable-step estimate.
         stages: Names of the stages that ran.
         chunks: Recorded chunks when no sink was given (see :meth:`collect`).
+        blocks_per_pad: Thread blocks that advanced each pad (the on-chip engine's cluster size; 1 otherwise).
     """
 
     complete: bool
@@ -208,6 +209,7 @@ class RunResult:
     estimate: StepEstimate
     stages: list[str]
     chunks: list[Chunk] = field(default_factory=list)
+    blocks_per_pad: int = 1
 
     def collect(self) -> Chunk:
         """All recorded chunks joined into one."""

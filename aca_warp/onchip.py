@@ -43,6 +43,7 @@ from aca_warp.state import HFState
 
 ENGINES = ("auto", "onchip", "general")
 MAX_BLOCK = 1024  # threads per block
+MAX_CLUSTER = 8  # blocks per pad (the portable thread-block cluster size)
 DEFAULT_BLOCK = 512  # threads per pad by default (1024 leaves 64 registers per thread: the fp64 kernel spills)
 _SMEM_RESERVE = 8 * 1024  # bytes left for Warp's reduction scratch and static shared memory
 _PATCH_BUFFER_BYTES = 256 * 2**20  # cap of the per-patch history buffers of one launch
@@ -62,22 +63,40 @@ def _round_up(x: int, m: int) -> int:
     return max(m, -(-x // m) * m)
 
 
-def pad_sizes(model: PadModel) -> tuple[int, int]:
-    """(most patches in one pad, most neighbour links in one pad) of the batch."""
+def pad_sizes(model: PadModel, cluster: int = 1) -> tuple[int, int]:
+    """(most patches in one pad, most neighbour links of one block) of the batch, a pad split over ``cluster``
+    blocks as the kernel splits it (block r: patches n·r // K … n·(r + 1) // K − 1)."""
     start = model.pad_patch_start_host
     nbr = model.host("nbr_start")
-    links = nbr[start[1:]] - nbr[start[:-1]]
-    return int(np.diff(start).max()), int(links.max())
+    n = np.diff(start)
+    cuts = start[:-1, None] + n[:, None] * np.arange(cluster + 1)[None, :] // cluster
+    return int(n.max()), int(np.diff(nbr[cuts], axis=1).max())
 
 
-def shared_bytes(model: PadModel, csr_shared: bool) -> int:
-    """Shared memory one block needs [bytes]: u (×2), w, F_s per patch, plus the pad's CSR when kept on chip."""
-    nmax, emax = pad_sizes(model)
+def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1) -> int:
+    """Shared memory one block needs [bytes]: u (×2), w, F_s per patch of the pad, the cluster's table of sample
+    sums, plus the block's part of the CSR when kept on chip."""
+    nmax, emax = pad_sizes(model, cluster)
     nmax, emax = _round_up(nmax, 32), _round_up(emax, 32)
-    b = 4 * nmax * _itemsize(model)
+    b = 4 * nmax * _itemsize(model) + 64 * cluster
     if csr_shared:
         b += emax * (4 + _itemsize(model))
     return b
+
+
+def default_cluster(pads: int, sm_count: int, split_fits_csr: bool = False) -> int:
+    """Blocks per pad for ``cluster=None`` on a CUDA device of compute capability 9.0+ (pads without growth).
+
+    The largest of 8, 4, 2 with which every block of the batch still gets an SM of its own (pads · K ≤ SMs);
+    otherwise 1, or 2 when only a pad split in two keeps its neighbour lists in shared memory (fp64 hf1 pads).
+    H100, hf1 (docs/benchmarks/onchip_h100/bench_cluster.md): one pad 8.3 → 3.2 µs/step fp32 (K = 1 → 8) and
+    18.8 → 4.1 fp64; 132 and 1024 fp32 pads are fastest with K = 1 (a cluster repeats the u update in each
+    block), 1024 fp64 pads with K = 2 (9.7e9 → 1.45e10 patch-steps/s).
+    """
+    for k in (8, 4, 2):
+        if pads * k <= sm_count:
+            return k
+    return 2 if split_fits_csr else 1
 
 
 def _smem_limit(model: PadModel) -> int:
@@ -140,6 +159,7 @@ def run_onchip(
     watchdog_factor: float | None = WATCHDOG_FACTOR,
     ablate: frozenset[str] = frozenset(),
     fast_math: bool = False,
+    cluster: int | None = None,
 ) -> RunResult:
     """Advance all pads from ``state`` for ``duration`` [s] with the on-chip ``strang`` kernel.
 
@@ -152,6 +172,8 @@ def run_onchip(
     ``ablate``: profiling only (``scripts/profile_onchip.py``): parts of the step left out, results wrong
     (:func:`aca_warp.kernels.hf_onchip.onchip_kernel`).
     ``fast_math``: compile with CUDA fast math (approximate division and transcendentals; profiling).
+    ``cluster``: blocks per pad, a thread-block cluster (CUDA sm_90+, pads without growth; default: 1 there,
+    else :func:`default_cluster`; docs/onchip.md).
     On the CPU a block is one thread unless ``wp.config.enable_cpu_blocks`` is set (Warp's cooperative CPU
     fibers: ``block_dim`` threads per block with real barriers, used by the tests to exercise multi-thread blocks).
     """
@@ -169,13 +191,26 @@ def run_onchip(
     sps = max(1, math.ceil(record.sample_dt / solver.dt - 1e-9))
     h = record.sample_dt / sps
     dev = model.device
-    nmax, emax = pad_sizes(model)
+    growth = "pad_growth" in model.arrays
+    if cluster is None:
+        cluster = 1
+        if dev.is_cuda and dev.arch >= 90 and not growth:
+            limit = _smem_limit(model)
+            split = shared_bytes(model, True) > limit and shared_bytes(model, True, 2) <= limit
+            cluster = default_cluster(model.pad_count, dev.sm_count, split)
+    if not 1 <= cluster <= MAX_CLUSTER:
+        raise SceneError(f"cluster must be in [1, {MAX_CLUSTER}] blocks per pad, got {cluster}")
+    if cluster > 1 and (dev.is_cpu or dev.arch < 90):
+        raise SceneError(f"a cluster of {cluster} blocks per pad needs a CUDA device of compute capability 9.0+")
+    if cluster > 1 and growth:
+        raise SceneError("growing pads run in one block per pad (cluster 1)")
+    nmax, emax = pad_sizes(model, cluster)
     if csr_shared is None:
-        csr_shared = shared_bytes(model, True) <= _smem_limit(model)
-    elif csr_shared and shared_bytes(model, True) > _smem_limit(model):
+        csr_shared = shared_bytes(model, True, cluster) <= _smem_limit(model)
+    elif csr_shared and shared_bytes(model, True, cluster) > _smem_limit(model):
         raise SceneError(f"the neighbour lists of a {nmax}-patch pad do not fit shared memory with the state")
     if block_dim is None:
-        block_dim = min(DEFAULT_BLOCK, _round_up(nmax, 32))
+        block_dim = min(DEFAULT_BLOCK, _round_up(-(-nmax // cluster), 32))
     if not 1 <= block_dim <= MAX_BLOCK:
         raise SceneError(f"block_dim must be in [1, {MAX_BLOCK}], got {block_dim}")
     threads = block_threads(dev, block_dim)
@@ -192,7 +227,6 @@ def run_onchip(
         np.full(model.pad_count, np.inf) if watchdog_factor is None else watchdog_bound(model, state, watchdog_factor)
     )
     rec.watch_bound.assign(bounds)
-    growth = "pad_growth" in model.arrays
     kernel = onchip_kernel(
         model.dtype,
         _round_up(nmax, 32),
@@ -202,6 +236,7 @@ def run_onchip(
         frozenset(ablate),
         fast_math,
         growth,
+        cluster,
     )
     stages = [
         "contact",
@@ -234,7 +269,7 @@ def run_onchip(
     def launch(samples: int, opening: bool) -> None:
         wp.launch_tiled(
             kernel,
-            dim=[m.pad_count],
+            dim=[m.pad_count * cluster],
             block_dim=block_dim,
             device=dev,
             inputs=[
@@ -335,6 +370,7 @@ def run_onchip(
         estimate=solver.estimate,
         stages=stages,
         chunks=out,
+        blocks_per_pad=cluster,
     )
 
 

@@ -40,7 +40,7 @@ from aca_warp.kernels.hf import (
     patch_sample_due,
     write_globals,
 )
-from aca_warp.kernels.tiles import block_sync, tile_store_1d, tile_store_rows
+from aca_warp.kernels.tiles import block_sync, cluster_sync, tile_store_1d, tile_store_rows, tile_store_rows_remote
 
 wp.set_module_options({"enable_backward": False})
 
@@ -58,6 +58,7 @@ def onchip_kernel(
     ablate: frozenset[str] = frozenset(),
     fast_math: bool = False,
     growth: bool = False,
+    cluster: int = 1,
 ) -> wp.Kernel:
     """The on-chip strang kernel for pads of at most ``nmax`` patches (``emax`` links when ``csr_shared``).
 
@@ -72,6 +73,12 @@ def onchip_kernel(
     (the neighbour sum), ``sync`` (the block barrier); with ``growth``, ``coupling`` (the stiffness update after
     an event) and ``contact`` (the contact re-solve after an event). ``fast_math``: compile with CUDA fast math
     (approximate division and transcendental functions; changes the results in the last bits).
+
+    ``cluster`` = K > 1 (CUDA sm_90+, no growth): a pad is advanced by a thread-block cluster of K blocks; block
+    ``rank`` owns the patches ``n·rank // K`` … ``n·(rank + 1) // K − 1`` (and their CSR rows, ``emax`` is then the
+    most links of one part), every block keeps a full copy of u, the drift stores each new u_i into all K copies
+    (distributed shared memory) and the step's one barrier is the cluster barrier; the sums of a sample are
+    combined in rank order by block 0. Launch with ``dim=[pads · K]``.
 
     Launch with ``wp.launch_tiled(kernel, dim=[pads], block_dim=B, ...)``; ``threads`` must be the block
     size the device really runs (B on CUDA or with CPU fibers, else 1 on the CPU). The kernel is compiled with
@@ -90,6 +97,9 @@ def onchip_kernel(
     COUPLING = wp.constant(0 if "coupling" in ablate else 1)
     CONTACT = wp.constant(0 if "contact" in ablate else 1)
     GROWTH = wp.constant(1 if growth else 0)
+    if cluster > 1 and growth:
+        raise ValueError("patch growth runs in one block per pad (cluster=1)")
+    CLUSTER = wp.constant(cluster)
 
     # Per-thread element stores into the shared tiles. ``tile[i] = x`` in Warp is a block-cooperative op (it ends
     # in WP_TILE_SYNC(), i.e. __syncthreads()), which inside the per-thread ``while i < n`` loops deadlocks on CUDA
@@ -98,6 +108,8 @@ def onchip_kernel(
     put_u = tile_store_rows(T, 2, nmax)
     put_ei = tile_store_1d(wp.int32, ne)
     put_ek = tile_store_1d(T, ne)
+    put_u_at = tile_store_rows_remote(T, 2, nmax)  # into the u copy of another block of the cluster
+    put_red = tile_store_rows_remote(wp.float64, cluster, 8)  # a block's sample sums into block 0's table
 
     @wp.func
     def sync_velocity(
@@ -124,7 +136,11 @@ def onchip_kernel(
         )  # fmt: skip
 
     @wp.kernel(
-        enable_backward=False, module="unique", launch_bounds=(block_dim, 1), module_options={"fast_math": fast_math}
+        enable_backward=False,
+        module="unique",
+        launch_bounds=(block_dim, 1),
+        cluster_dim=cluster,
+        module_options={"fast_math": fast_math},
     )
     def onchip_strang(
         # Model:
@@ -196,24 +212,32 @@ def onchip_kernel(
         Globals row ``row0 + s`` gets sample ``k0 + s``; per-patch rows start at ``prow0``. With growth, steps are
         counted from ``growth_step0`` (steps done before the launch, modulo ``growth_every``).
         """
-        pad, lane = wp.tid()
+        blk, lane = wp.tid()
+        pad = blk // CLUSTER
+        rank = blk % CLUSTER  # the block's rank in its cluster (clusters are CLUSTER consecutive blocks)
         a = pad_patch_start[pad]
         n = pad_patch_start[pad + 1] - a
+        lo = n * rank // CLUSTER  # this block's patches: lo … hi - 1
+        hi = n * (rank + 1) // CLUSTER
         u2 = wp.tile_zeros(shape=(2, NMAX), dtype=T, storage="shared")
         w = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
         fs = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
         sidx = wp.tile_zeros(shape=EMAX, dtype=wp.int32, storage="shared")
         sk = wp.tile_zeros(shape=EMAX, dtype=T, storage="shared")
-        e0 = nbr_start[a]
+        red = wp.tile_zeros(shape=(CLUSTER, 8), dtype=wp.float64, storage="shared")
+        e0 = nbr_start[a + lo]  # the block's first link
         i = lane
-        while i < n:
+        while i < n:  # every block holds all of u
             put_u(u2, 0, i, u_io[a + i])
+            i += threads
+        i = lo + lane
+        while i < hi:
             put_n(w, i, v_io[a + i])
             put_n(fs, i, force_io[a + i])
             i += threads
         if CSR_SHARED != 0:
             e = lane
-            ne = nbr_start[a + n] - e0
+            ne = nbr_start[a + hi] - e0
             while e < ne:
                 put_ei(sidx, e, nbr_index[e0 + e] - a)
                 put_ek(sk, e, nbr_stiffness[e0 + e])
@@ -235,8 +259,8 @@ def onchip_kernel(
             for _q in range(steps_per_sample):
                 nxt = 1 - cur
                 # friction + kicks + drift (strang_open / strang_step), own patches only
-                i = lane
-                while i < n:
+                i = lo + lane
+                while i < hi:
                     g = a + i
                     im = inv_mass[g]
                     vd = omega * radius[g]
@@ -256,14 +280,22 @@ def onchip_kernel(
                             + kick
                         )
                     put_n(w, i, v)
-                    put_u(u2, nxt, i, u2[cur, i] + dt * v)
+                    un = u2[cur, i] + dt * v
+                    if CLUSTER == 1:
+                        put_u(u2, nxt, i, un)
+                    else:
+                        for q in range(CLUSTER):
+                            put_u_at(u2, nxt, i, un, q)
                     i += threads
                 first_step = 0
                 if SYNC != 0:
-                    block_sync()
+                    if CLUSTER == 1:
+                        block_sync()
+                    else:
+                        cluster_sync()
                 # spring forces at the new u (spring_force of kernels.hf: same two partial sums, same order)
-                i = lane
-                while i < n:
+                i = lo + lane
+                while i < hi:
                     g = a + i
                     a0 = T(0.0)
                     a1 = T(0.0)
@@ -341,8 +373,8 @@ def onchip_kernel(
             vabs = wp.float64(0.0)
             usum = wp.float64(0.0)
             runaway = n  # first patch whose energy speed exceeds the watchdog bound (n: none)
-            i = lane
-            while i < n:
+            i = lo + lane
+            while i < hi:
                 g = a + i
                 im = inv_mass[g]
                 r = radius[g]
@@ -370,42 +402,80 @@ def onchip_kernel(
             vabs = wp.tile_sum(wp.tile(vabs))[0]
             usum = wp.tile_sum(wp.tile(usum))[0]
             runaway = wp.tile_min(wp.tile(runaway))[0]
-            if lane == 0:
+            # the block's fault candidates: its first non-finite patch, or its runaway patch's energy speed
+            bad = int(-1)
+            value = wp.float64(0.0)
+            if lane == 0 and fault_out[pad, 0] < 0:
+                if not (wp.isfinite(vabs) and wp.isfinite(usum)):
+                    for j in range(lo, hi):
+                        if bad < 0:
+                            vs = sync_velocity(j, a + j, w, fs, inv_mass, damping, normal_force, radius, omega,
+                                               half, mu_scale, slope, decay, tol)  # fmt: skip
+                            if not (wp.isfinite(vs) and wp.isfinite(u2[cur, j])):
+                                bad = j
+                elif runaway < n:
+                    g = a + runaway
+                    vs = sync_velocity(runaway, g, w, fs, inv_mass, damping, normal_force, radius, omega,
+                                       half, mu_scale, slope, decay, tol)  # fmt: skip
+                    ui = wp.float64(u2[cur, runaway])
+                    value = wp.sqrt(wp.float64(vs) * wp.float64(vs) + wp.float64(k_t[g] * inv_mass[g]) * ui * ui)
+            if CLUSTER > 1:  # block 0 combines the blocks' sums in rank order
+                if lane == 0:
+                    put_red(red, rank, 0, fsum, 0)
+                    put_red(red, rank, 1, tsum, 0)
+                    put_red(red, rank, 2, vsum, 0)
+                    put_red(red, rank, 3, vabs, 0)
+                    put_red(red, rank, 4, usum, 0)
+                    put_red(red, rank, 5, wp.float64(runaway), 0)
+                    put_red(red, rank, 6, wp.float64(bad), 0)
+                    put_red(red, rank, 7, value, 0)
+                cluster_sync()
+                if lane == 0 and rank == 0:
+                    fsum = wp.float64(0.0)
+                    tsum = wp.float64(0.0)
+                    vsum = wp.float64(0.0)
+                    vabs = wp.float64(0.0)
+                    usum = wp.float64(0.0)
+                    runaway = n
+                    bad = -1
+                    for q in range(CLUSTER):
+                        fsum += red[q, 0]
+                        tsum += red[q, 1]
+                        vsum += red[q, 2]
+                        vabs += red[q, 3]
+                        usum += red[q, 4]
+                        rq = int(red[q, 5])
+                        if rq < runaway:
+                            runaway = rq
+                            value = red[q, 7]
+                        bq = int(red[q, 6])
+                        if bad < 0 and bq >= 0:
+                            bad = bq
+            if lane == 0 and rank == 0:
                 write_globals(
                     globals_out, row0 + s, pad, fsum, tsum, vsum, vabs, omega, pad_mu_pad[pad],
                     pad_matrix_force[pad], pad_matrix_radius[pad], pad_load[pad],
                 )  # fmt: skip
                 if fault_out[pad, 0] < 0:
                     if not (wp.isfinite(vabs) and wp.isfinite(usum)):
-                        bad = int(-1)
-                        for j in range(n):
-                            if bad < 0:
-                                vs = sync_velocity(j, a + j, w, fs, inv_mass, damping, normal_force, radius, omega,
-                                                   half, mu_scale, slope, decay, tol)  # fmt: skip
-                                if not (wp.isfinite(vs) and wp.isfinite(u2[cur, j])):
-                                    bad = j
                         fault_out[pad, 0] = bad
                         fault_out[pad, 1] = k
                         fault_out[pad, 2] = 0
                     elif runaway < n:
-                        g = a + runaway
-                        vs = sync_velocity(runaway, g, w, fs, inv_mass, damping, normal_force, radius, omega,
-                                           half, mu_scale, slope, decay, tol)  # fmt: skip
-                        ui = wp.float64(u2[cur, runaway])
                         fault_out[pad, 0] = runaway
                         fault_out[pad, 1] = k
                         fault_out[pad, 2] = 1
-                        fault_value_out[pad] = wp.sqrt(
-                            wp.float64(vs) * wp.float64(vs) + wp.float64(k_t[g] * inv_mass[g]) * ui * ui
-                        )
+                        fault_value_out[pad] = value
             if due:
                 prow += 1
-        # write back the staggered state and the force cache
-        i = lane
-        while i < n:
+        # write back the staggered state and the force cache (own patches)
+        i = lo + lane
+        while i < hi:
             u_io[a + i] = u2[cur, i]
             v_io[a + i] = w[i]
             force_io[a + i] = fs[i]
             i += threads
+        if CLUSTER > 1:
+            cluster_sync()  # no block leaves while another may still address its shared memory
 
     return onchip_strang

@@ -43,3 +43,44 @@ def block_add(a: wp.array[wp.float64], i: int, x: wp.float64, lane: int):
     s = wp.tile_sum(wp.tile(x))[0]
     if lane == 0:
         wp.atomic_add(a, i, s)
+
+
+# Thread-block clusters (sm_90+): a cluster's blocks share a barrier and can store into each other's shared memory.
+# On the CPU and below sm_90 a cluster is one block: the barrier is the block barrier and "remote" means this block.
+
+
+@wp.func_native(
+    """
+#if defined(__CUDA_ARCH__) && (__CUDA_ARCH__ >= 900)
+    asm volatile("barrier.cluster.arrive.release.aligned;\\n\\tbarrier.cluster.wait.acquire.aligned;" ::: "memory");
+#else
+    WP_TILE_SYNC();
+#endif
+"""
+)
+def cluster_sync():
+    """Barrier of all threads of the thread-block cluster, with release/acquire of shared memory across it."""
+    ...
+
+
+def tile_store_rows_remote(dtype: Any, rows: int, size: int) -> Any:
+    """``put(t, r, i, x, rank)``: ``t[r, i] = x`` in the shared tile ``t`` of cluster block ``rank``, one thread,
+    no barrier (``mapa`` + ``st.shared::cluster``; visible to that block after the next :func:`cluster_sync`)."""
+
+    def put(t, r, i, x, rank): ...
+
+    put.__annotations__ = {"t": wp.tile[dtype, rows, size], "r": int, "i": int, "x": dtype, "rank": int}
+    bits, reg, cast = {4: ("b32", "r", "__float_as_uint"), 8: ("b64", "l", "__double_as_longlong")}[
+        wp.types.type_size_in_bytes(dtype)
+    ]
+    snippet = f"""
+#if defined(__CUDA_ARCH__) && (__CUDA_ARCH__ >= 900)
+    const unsigned local = static_cast<unsigned>(__cvta_generic_to_shared(&t.data(wp::tile_coord(r, i))));
+    unsigned remote;
+    asm volatile("mapa.shared::cluster.u32 %0, %1, %2;" : "=r"(remote) : "r"(local), "r"(rank));
+    asm volatile("st.shared::cluster.{bits} [%0], %1;" :: "r"(remote), "{reg}"({cast}(x)) : "memory");
+#else
+    t.data(wp::tile_coord(r, i)) = x;
+#endif
+"""
+    return wp.func_native(snippet)(put)

@@ -1,13 +1,15 @@
 #!/usr/bin/env python3
 """Benchmark the on-chip HF engine against the general per-step path (``strang``, hf1 pads).
 
-Per case (engine, precision, pads, block size): µs per step, steps/s, patch-steps/s, compile time, and the
+Per case (engine, precision, pads, blocks per pad (a thread-block cluster), block size, CSR on chip): µs per
+step, steps/s, patch-steps/s, compile time, and the
 error against the general path in fp64 on the same window: max |Δμ| over the samples and the max |Δu|
 relative to max |u| at the end (pad 0; every pad of a batch is the same scene). Results go to a JSON file
 and a Markdown table. Examples::
 
     python scripts/bench_onchip.py --device cpu --pads 1 --duration 1e-6        # smoke test
     python scripts/bench_onchip.py --device cuda:0 --pads 1 1024 --json $OUT/onchip.json --markdown $OUT/onchip.md
+    python scripts/bench_onchip.py --device cuda:0 --pads 1 16 132 1024 --clusters 1 2 4 8 --json $OUT/c.json
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from aca_warp.scene import Record, preset  # noqa: E402
 from aca_warp.state import initial_state  # noqa: E402
 
 
-def run_case(scene, device, precision, engine, pads, dt, duration, block_dim=None, csr_shared=None) -> dict:
+def run_case(scene, device, precision, engine, pads, dt, duration, block_dim=None, csr_shared=None, cluster=1):
     """Warm up (compile, capture) on a short window, then time ``duration`` [s]; returns a result row."""
     model = build_model([scene] * pads, device=device, precision=precision)
     state = initial_state(model)
@@ -38,7 +40,7 @@ def run_case(scene, device, precision, engine, pads, dt, duration, block_dim=Non
         kw = {}
         fn = run_hf
     else:
-        kw = {"block_dim": block_dim, "csr_shared": csr_shared}
+        kw = {"block_dim": block_dim, "csr_shared": csr_shared, "cluster": cluster}
         fn = run_onchip
     tc = time.perf_counter()
     warm = fn(model, state, duration=scene.record.sample_dt * 2, dt=dt, **kw)
@@ -54,9 +56,10 @@ def run_case(scene, device, precision, engine, pads, dt, duration, block_dim=Non
         "precision": precision,
         "pads": pads,
         "patches": n,
+        "cluster": cluster if engine == "onchip" else None,
         "block_dim": block_dim,
         "csr_shared": csr_shared,
-        "shared_bytes": shared_bytes(model, bool(csr_shared)) if engine == "onchip" else 0,
+        "shared_bytes": shared_bytes(model, bool(csr_shared), cluster) if engine == "onchip" else 0,
         "dt": res.dt,
         "steps": res.steps,
         "compile_s": compile_s - warm.wall_time,
@@ -75,7 +78,13 @@ def main() -> None:
     ap.add_argument("--scene", default="hf1")
     ap.add_argument("--pads", nargs="+", type=int, default=[1, 1024])
     ap.add_argument("--precisions", nargs="+", default=["fp32", "fp64"], choices=["fp32", "fp64"])
-    ap.add_argument("--blocks", nargs="+", type=int, default=[1024, 512], help="threads per pad to try")
+    ap.add_argument("--clusters", nargs="+", type=int, default=[1], help="blocks per pad to try (default 1)")
+    ap.add_argument(
+        "--blocks", nargs="+", type=int, default=[0], help="threads per block to try (0, the default: run_onchip's)"
+    )
+    ap.add_argument(
+        "--csr", nargs="+", choices=["auto", "on", "off"], default=["auto"], help="neighbour lists in shared memory"
+    )
     ap.add_argument("--dt", type=float, default=1e-8)
     ap.add_argument("--duration", type=float, default=2e-4, help="timed window for one pad [s]")
     ap.add_argument("--batch-duration", type=float, default=2e-5, help="timed window for batches [s]")
@@ -88,24 +97,27 @@ def main() -> None:
     for pads in args.pads:
         dur = args.duration if pads == 1 else args.batch_duration
         _, mu_ref, u_ref = run_case(scene, args.device, "fp64", "general", 1, args.dt, dur)
-        cases = [("general", p, None, None) for p in args.precisions] if (args.general or pads == 1) else []
+        cases = [("general", p) for p in args.precisions] if (args.general or pads == 1) else []
+        cases = [(*c, None, None, 1) for c in cases]
+        csr = {"auto": None, "on": True, "off": False}
         for p in args.precisions:
-            for b in args.blocks:
-                cases.append(("onchip", p, b, False))
-            if p == "fp32":
-                cases.append(("onchip", p, args.blocks[0], True))
-        for engine, p, b, cs in cases:
+            for kc in args.clusters:
+                for b in args.blocks:
+                    for cs in args.csr:
+                        cases.append(("onchip", p, b or None, csr[cs], kc))
+        for engine, p, b, cs, kc in cases:
             try:
-                row, mu, u = run_case(scene, args.device, p, engine, pads, args.dt, dur, b, cs)
+                row, mu, u = run_case(scene, args.device, p, engine, pads, args.dt, dur, b, cs, kc)
             except Exception as e:  # noqa: BLE001  (report and go on: e.g. shared memory exceeded)
-                print(f"{engine} {p} pads={pads} block={b} csr_shared={cs}: {type(e).__name__}: {e}", flush=True)
+                print(f"{engine} {p} pads={pads} cluster={kc} block={b} csr={cs}: {type(e).__name__}: {e}", flush=True)
                 continue
             k = min(len(mu), len(mu_ref))
             row["mu_err_vs_general_fp64"] = float(np.abs(mu[:k] - mu_ref[:k]).max())
             row["u_rel_err_vs_general_fp64"] = float(np.abs(u - u_ref).max() / np.abs(u_ref).max())
             rows.append(row)
+            Path(args.json).write_text(json.dumps(rows, indent=1))  # after every case: a cut-off run keeps its rows
             print(
-                f"{row['device_name']}: {engine:7s} {p} pads={pads:5d} block={b} csr_shared={cs} "
+                f"{row['device_name']}: {engine:7s} {p} pads={pads:5d} cluster={kc} block={b} csr={cs} "
                 f"{row['us_per_step']:.3f} us/step {row['patch_steps_per_s']:.3g} patch-steps/s "
                 f"compile {row['compile_s']:.2f} s  dmu {row['mu_err_vs_general_fp64']:.2e} "
                 f"du {row['u_rel_err_vs_general_fp64']:.2e}",
@@ -116,15 +128,18 @@ def main() -> None:
         lines = [
             f"Device: {rows[0]['device_name']}, Warp {rows[0]['warp_version']}, scene {args.scene}, dt {args.dt:g} s",
             "",
-            "| engine | precision | pads | block | CSR in smem | µs/step | patch-steps/s | max abs dμ vs fp64 general "
-            "| rel. du vs fp64 general |",
-            "|---|---|---|---|---|---|---|---|---|",
+            "| engine | precision | pads | blocks per pad | block | CSR in smem | µs/step | patch-steps/s "
+            "| max abs dμ vs fp64 general | rel. du vs fp64 general |",
+            "|---|---|---|---|---|---|---|---|---|---|",
         ]
         for r in rows:
+            on = r["engine"] == "onchip"
+            smem = {True: "yes", False: "no", None: "auto"}[r["csr_shared"]] if on else "-"
             lines.append(
-                f"| {r['engine']} | {r['precision']} | {r['pads']} | {r['block_dim'] or '-'} | "
-                f"{'yes' if r['csr_shared'] else 'no'} | {r['us_per_step']:.3g} | {r['patch_steps_per_s']:.3g} | "
-                f"{r['mu_err_vs_general_fp64']:.2g} | {r['u_rel_err_vs_general_fp64']:.2g} |"
+                f"| {r['engine']} | {r['precision']} | {r['pads']} | {r['cluster'] or '-'} | "
+                f"{(r['block_dim'] or 'auto') if on else '-'} | {smem} | {r['us_per_step']:.3g} | "
+                f"{r['patch_steps_per_s']:.3g} | {r['mu_err_vs_general_fp64']:.2g} | "
+                f"{r['u_rel_err_vs_general_fp64']:.2g} |"
             )
         Path(args.markdown).write_text("\n".join(lines) + "\n")
 

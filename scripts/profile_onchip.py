@@ -45,6 +45,15 @@ CASES = [
     ("full", "fp64", 512, None, ()),
     ("full, fast math", "fp32", 512, None, ("fast_math",)),
     ("full, fast math, block 1024", "fp32", 1024, None, ("fast_math",)),
+    # a pad over a thread-block cluster of K blocks ("clusterK"; block size: the part rounded up to 32, at most 512)
+    ("full, cluster 2", "fp32", None, None, ("cluster2",)),
+    ("full, cluster 4", "fp32", None, None, ("cluster4",)),
+    ("full, cluster 8", "fp32", None, None, ("cluster8",)),
+    ("no gather, cluster 4", "fp32", None, None, ("cluster4", "gather")),
+    ("no friction solve, cluster 4", "fp32", None, None, ("cluster4", "friction")),
+    ("no barrier, cluster 4", "fp32", None, None, ("cluster4", "sync")),
+    ("full, cluster 4", "fp64", None, None, ("cluster4",)),
+    ("full, cluster 8", "fp64", None, None, ("cluster8",)),
 ]
 # --growth: (label, precision, ablations or None for the general path, event interval × this; 0: no growth)
 GROWTH_CASES = [
@@ -127,9 +136,11 @@ def main(argv: list[str] | None = None) -> int:
         else:
 
             def fn(st, duration, model=model, block=block, csr=csr, abl=abl):
+                tags = {a for a in abl if a == "fast_math" or a.startswith("cluster")}
+                cluster = max([int(a[7:]) for a in tags if a.startswith("cluster")], default=1)
                 return run_onchip(
                     model, st, duration=duration, dt=args.dt, block_dim=block, csr_shared=csr,
-                    ablate=frozenset(abl) - {"fast_math"}, fast_math="fast_math" in abl,
+                    ablate=frozenset(abl) - tags, fast_math="fast_math" in abl, cluster=cluster,
                 )  # fmt: skip
 
         row = {"case": label, "precision": prec, "block_dim": block, "csr_shared": csr, "ablate": list(abl or ())}

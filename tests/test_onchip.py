@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 from aca_warp.errors import SceneError
 from aca_warp.hf import run_hf, stable_step
 from aca_warp.model import build_model
-from aca_warp.onchip import choose_engine, run, run_onchip
+from aca_warp.onchip import choose_engine, default_cluster, pad_sizes, run, run_onchip
 from aca_warp.scene import Growth, Initial, Patches, Record, preset
 from aca_warp.state import initial_state
 
@@ -274,3 +274,38 @@ def test_onchip_growth_fuzzed_small_pads(n, seed, load, increment, M, speed, pre
         out.append((res.collect().globals, *state.numpy(), *(model.host(k) for k in keys)))
     for a, b in zip(*out, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def test_cluster_split_sizes():
+    """pad_sizes(model, K) gives the largest part of a pad's links as the kernel splits it (n·r // K …)."""
+    model = build_model(_scenes(), device="cpu", precision="fp32")
+    start, nbr = model.pad_patch_start_host, model.host("nbr_start")
+    for k in (1, 3, 8):
+        parts = []
+        for p in range(model.pad_count):
+            a, n = start[p], start[p + 1] - start[p]
+            cuts = [a + n * r // k for r in range(k + 1)]
+            parts += [nbr[cuts[r + 1]] - nbr[cuts[r]] for r in range(k)]
+            assert sum(parts[-k:]) == nbr[a + n] - nbr[a]
+        assert pad_sizes(model, k) == (int(np.diff(start).max()), max(parts))
+    assert pad_sizes(model, 8)[1] < pad_sizes(model, 1)[1] / 4
+
+
+@pytest.mark.parametrize(
+    ("pads", "split", "expected"),
+    [(1, False, 8), (16, False, 8), (17, False, 4), (33, False, 4), (34, False, 2), (66, False, 2), (67, False, 1),
+     (67, True, 2), (1024, False, 1), (1024, True, 2)],
+)  # fmt: skip
+def test_default_cluster(pads, split, expected):
+    """Blocks per pad: the largest K ≤ 8 with pads·K ≤ SMs (an H100 has 132), else 1, or 2 for an fp64 CSR split."""
+    assert default_cluster(pads, 132, split) == expected
+
+
+def test_cluster_refused_where_it_cannot_run():
+    """Clusters need CUDA sm_90+ and pads without growth; the size is 1…8."""
+    model = build_model([preset("hf1").replace(record=Record(sample_dt=1e-7))], device="cpu", precision="fp32")
+    for k, why in ((2, "compute capability 9.0"), (0, r"\[1, 8\]"), (9, r"\[1, 8\]")):
+        with pytest.raises(SceneError, match=why):
+            run_onchip(model, initial_state(model), duration=1e-7, dt=1e-8, cluster=k)
+    res = run_onchip(model, initial_state(model), duration=1e-7, dt=1e-8)  # cluster=None: 1 on the CPU
+    assert res.complete and res.steps == 10
