@@ -87,14 +87,16 @@ def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1) -> int:
 def default_cluster(pads: int, sm_count: int, split_fits_csr: bool = False) -> int:
     """Blocks per pad for ``cluster=None`` on a CUDA device of compute capability 9.0+ (pads without growth).
 
-    The largest of 8, 4, 2 with which every block of the batch still gets an SM of its own (pads · K ≤ SMs);
-    otherwise 1, or 2 when only a pad split in two keeps its neighbour lists in shared memory (fp64 hf1 pads).
-    H100, hf1 (docs/benchmarks/onchip_h100/bench_cluster.md): one pad 8.3 → 3.2 µs/step fp32 (K = 1 → 8) and
-    18.8 → 4.1 fp64; 132 and 1024 fp32 pads are fastest with K = 1 (a cluster repeats the u update in each
-    block), 1024 fp64 pads with K = 2 (9.7e9 → 1.45e10 patch-steps/s).
+    A cluster's blocks run on the SMs of one GPC (≈ 16–18 SMs on an H100, sm_count // 16 GPCs taken), and the
+    batch should run in one wave: the largest K of 8, 4, 2 with pads ≤ GPCs · (16 // K − 1); otherwise 1, or 2
+    when only a pad split in two keeps its neighbour lists in shared memory (fp64 hf1 pads). Measured on an
+    H100 (hf1, docs/benchmarks/onchip_h100/bench_cluster.md): one pad 8.4 → 3.4 µs/step fp32 (K = 1 → 8) and
+    18.8 → 3.8 fp64; 16 pads are fastest with K = 4 (K = 8 needs a second wave: 6.6 against 4.3 µs/step);
+    132 and 1024 fp32 pads with K = 1 (a cluster repeats the u update in every block), fp64 with K = 2.
     """
+    gpcs = max(sm_count // 16, 1)
     for k in (8, 4, 2):
-        if pads * k <= sm_count:
+        if pads <= gpcs * (16 // k - 1):
             return k
     return 2 if split_fits_csr else 1
 

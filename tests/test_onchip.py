@@ -293,11 +293,11 @@ def test_cluster_split_sizes():
 
 @pytest.mark.parametrize(
     ("pads", "split", "expected"),
-    [(1, False, 8), (16, False, 8), (17, False, 4), (33, False, 4), (34, False, 2), (66, False, 2), (67, False, 1),
-     (67, True, 2), (1024, False, 1), (1024, True, 2)],
+    [(1, False, 8), (8, False, 8), (9, False, 4), (24, False, 4), (25, False, 2), (56, False, 2), (57, False, 1),
+     (57, True, 2), (1024, False, 1), (1024, True, 2)],
 )  # fmt: skip
 def test_default_cluster(pads, split, expected):
-    """Blocks per pad: the largest K ≤ 8 with pads·K ≤ SMs (an H100 has 132), else 1, or 2 for an fp64 CSR split."""
+    """Blocks per pad on an H100 (132 SMs, 8 GPCs taken): the largest K with pads ≤ 8 (16 // K − 1), else 1 or 2."""
     assert default_cluster(pads, 132, split) == expected
 
 
