@@ -67,7 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--engine",
         choices=("auto", "onchip", "general"),
         default="auto",
-        help="onchip: one thread block per pad, many strang steps per launch (faster on CUDA; patch growth too); "
+        help="onchip: one thread block per pad (a cluster of up to 8 on sm_90+ for a few pads without growth), "
+        "many strang steps per launch (faster on CUDA; patch growth too); "
         "general: per-step kernels (every integrator, checkpoints); auto (default): onchip on CUDA where the run "
         "allows it, else general (docs/onchip.md)",
     )
