@@ -1,4 +1,5 @@
-"""On-chip HF kernel: one thread block per pad, many ``strang`` steps per launch, outputs reduced in-kernel.
+"""On-chip HF kernel: one thread block (or a thread-block cluster) per pad, many ``strang`` steps per launch,
+outputs reduced in-kernel.
 
 Each block keeps its pad's state in shared memory (Warp tiles with ``storage="shared"``):
 
@@ -14,10 +15,12 @@ one thread). The arithmetic per patch is that of :mod:`aca_warp.kernels.hf` (``s
 ``strang_step``, ``spring_forces``, ``strang_close``, ``record_globals``, ``record_patches``; the same
 ``wp.func`` s), so on the CPU the results are bit-identical to the general per-step path; on the GPU the
 in-kernel reductions sum in a different order (a tree over threads), so the global outputs differ in the
-last bits.
+last bits. With a cluster of K blocks per pad (sm_90+), each block owns 1/K of the patches and keeps a full copy
+of ``u`` (:func:`onchip_kernel`).
 
-Kernels are made per (precision, max patches per pad, max links per pad, csr_shared) by
-:func:`onchip_kernel`: tile shapes are compile-time constants.
+Kernels are made per configuration (precision, max patches per pad, max links per block, csr_shared, block
+size, ablations, fast math, growth, cluster size) by :func:`onchip_kernel`: tile shapes are compile-time
+constants.
 
 Barrier rule: see :mod:`aca_warp.kernels.tiles` (no block-cooperative op inside the per-thread
 ``while i < n`` loops, whose trip counts differ between threads); per-thread stores into the shared tiles use
@@ -78,11 +81,12 @@ def onchip_kernel(
     ``rank`` owns the patches ``n·rank // K`` … ``n·(rank + 1) // K − 1`` (and their CSR rows, ``emax`` is then the
     most links of one part), every block keeps a full copy of u, the drift stores each new u_i into all K copies
     (distributed shared memory) and the step's one barrier is the cluster barrier; the sums of a sample are
-    combined in rank order by block 0. Launch with ``dim=[pads · K]``.
+    combined in rank order by block 0.
 
-    Launch with ``wp.launch_tiled(kernel, dim=[pads], block_dim=B, ...)``; ``threads`` must be the block
-    size the device really runs (B on CUDA or with CPU fibers, else 1 on the CPU). The kernel is compiled with
-    ``__launch_bounds__(block_dim)`` so that a block of ``block_dim`` threads gets the registers it may use.
+    Launch with ``wp.launch_tiled(kernel, dim=[pads · K], block_dim=B, ...)`` (K = ``cluster``); ``threads``
+    must be the block size the device really runs (B on CUDA or with CPU fibers, else 1 on the CPU). The kernel
+    is compiled with ``__launch_bounds__(block_dim)`` so that a block of ``block_dim`` threads gets the registers
+    it may use.
     """
     T = dtype
     NMAX = wp.constant(nmax)
