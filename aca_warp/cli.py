@@ -67,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--engine",
         choices=("auto", "onchip", "general"),
         default="auto",
-        help="onchip: one thread block per pad (a cluster of up to 8 on sm_90+ for a few pads without growth), "
+        help="onchip: one thread block per pad (a cluster of up to 8 on sm_90+ for a few pads), "
         "many strang steps per launch (faster on CUDA; patch growth too); "
         "general: per-step kernels (every integrator, checkpoints); auto (default): onchip on CUDA where the run "
         "allows it, else general (docs/onchip.md)",

@@ -1,4 +1,4 @@
-"""On-chip HF engine: one thread block per pad advances many ``strang`` steps per launch.
+"""On-chip HF engine: one thread block (or a thread-block cluster) per pad advances many ``strang`` steps per launch.
 
 The pad's displacement (double-buffered), staggered velocity and spring-force cache live in shared memory
 for the whole launch, and the global outputs (μ, torque, friction radius, Σu̇, Σ|u̇|) and per-patch
@@ -45,6 +45,9 @@ ENGINES = ("auto", "onchip", "general")
 MAX_BLOCK = 1024  # threads per block
 MAX_CLUSTER = 8  # blocks per pad (the portable thread-block cluster size)
 DEFAULT_BLOCK = 512  # threads per pad by default (1024 leaves 64 registers per thread: the fp64 kernel spills)
+# threads per block of a growing pad on one block: the growth kernel wants more than the 128 registers per thread
+# that 512 threads leave (H100 varying_area pad: 12.3 -> 11.4 us/step; docs/onchip.md)
+GROWTH_BLOCK = 384
 _SMEM_RESERVE = 8 * 1024  # bytes left for Warp's reduction scratch and static shared memory
 _PATCH_BUFFER_BYTES = 256 * 2**20  # cap of the per-patch history buffers of one launch
 # model arrays the on-chip growth reads and writes, in the kernel's argument order (float64 ones in _GROWTH_F64)
@@ -85,14 +88,16 @@ def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1) -> int:
 
 
 def default_cluster(pads: int, sm_count: int, split_fits_csr: bool = False) -> int:
-    """Blocks per pad for ``cluster=None`` on a CUDA device of compute capability 9.0+ (pads without growth).
+    """Blocks per pad for ``cluster=None`` on a CUDA device of compute capability 9.0+ (growing pads too).
 
     A cluster's blocks run on the SMs of one GPC (≈ 16–18 SMs on an H100, sm_count // 16 GPCs taken), and the
     batch should run in one wave: the largest K of 8, 4, 2 with pads ≤ GPCs · (16 // K − 1); otherwise 1, or 2
     when only a pad split in two keeps its neighbour lists in shared memory (fp64 hf1 pads). Measured on an
     H100 (hf1, docs/benchmarks/onchip_h100/bench_cluster.md): one pad 8.4 → 3.4 µs/step fp32 (K = 1 → 8) and
     18.8 → 3.8 fp64; 16 pads are fastest with K = 4 (K = 8 needs a second wave: 6.6 against 4.3 µs/step);
-    132 and 1024 fp32 pads with K = 1 (a cluster repeats the u update in every block), fp64 with K = 2.
+    132 and 1024 fp32 pads with K = 1 (a cluster repeats the u update in every block), fp64 with K = 2. The
+    growing varying_area pad (an event every 20 steps): 11.4 → 4.1 µs/step fp32 (K = 1 → 8; K = 2, 4: 8.5, 5.1;
+    docs/benchmarks/onchip_h100/profile_growth_cluster.md).
     """
     gpcs = max(sm_count // 16, 1)
     for k in (8, 4, 2):
@@ -167,15 +172,15 @@ def run_onchip(
 
     Same contract as :func:`aca_warp.hf.run_hf` with ``integrator="strang"`` (step shortened so that a whole
     number of steps fits a sample interval; samples go to ``sink`` or the result's chunks; the state is left
-    synchronous; the same watchdog, ``watchdog_factor``). ``block_dim``: threads per pad (default: the pad size
-    rounded up to 32, at most 512);
+    synchronous; the same watchdog, ``watchdog_factor``). ``block_dim``: threads per block (default: the
+    block's part of the pad rounded up to 32, at most 512, or 384 for a growing pad on one block);
     ``csr_shared``: keep the neighbour lists in shared memory (default: when they fit);
     ``samples_per_launch``: sample intervals per kernel launch (default: as many as fit ~20k steps).
     ``ablate``: profiling only (``scripts/profile_onchip.py``): parts of the step left out, results wrong
     (:func:`aca_warp.kernels.hf_onchip.onchip_kernel`).
     ``fast_math``: compile with CUDA fast math (approximate division and transcendentals; profiling).
-    ``cluster``: blocks per pad, a thread-block cluster (CUDA sm_90+, pads without growth; default: 1 there,
-    else :func:`default_cluster`; docs/onchip.md).
+    ``cluster``: blocks per pad, a thread-block cluster (CUDA sm_90+; default: :func:`default_cluster` there,
+    else 1; docs/onchip.md).
     On the CPU a block is one thread unless ``wp.config.enable_cpu_blocks`` is set (Warp's cooperative CPU
     fibers: ``block_dim`` threads per block with real barriers, used by the tests to exercise multi-thread blocks).
     """
@@ -196,7 +201,7 @@ def run_onchip(
     growth = "pad_growth" in model.arrays
     if cluster is None:
         cluster = 1
-        if dev.is_cuda and dev.arch >= 90 and not growth:
+        if dev.is_cuda and dev.arch >= 90:
             limit = _smem_limit(model)
             split = shared_bytes(model, True) > limit and shared_bytes(model, True, 2) <= limit
             cluster = default_cluster(model.pad_count, dev.sm_count, split)
@@ -204,15 +209,14 @@ def run_onchip(
         raise SceneError(f"cluster must be in [1, {MAX_CLUSTER}] blocks per pad, got {cluster}")
     if cluster > 1 and (dev.is_cpu or dev.arch < 90):
         raise SceneError(f"a cluster of {cluster} blocks per pad needs a CUDA device of compute capability 9.0+")
-    if cluster > 1 and growth:
-        raise SceneError("growing pads run in one block per pad (cluster 1)")
     nmax, emax = pad_sizes(model, cluster)
     if csr_shared is None:
         csr_shared = shared_bytes(model, True, cluster) <= _smem_limit(model)
     elif csr_shared and shared_bytes(model, True, cluster) > _smem_limit(model):
         raise SceneError(f"the neighbour lists of a {nmax}-patch pad do not fit shared memory with the state")
     if block_dim is None:
-        block_dim = min(DEFAULT_BLOCK, _round_up(-(-nmax // cluster), 32))
+        cap = GROWTH_BLOCK if growth and cluster == 1 else DEFAULT_BLOCK
+        block_dim = min(cap, _round_up(-(-nmax // cluster), 32))
     if not 1 <= block_dim <= MAX_BLOCK:
         raise SceneError(f"block_dim must be in [1, {MAX_BLOCK}], got {block_dim}")
     threads = block_threads(dev, block_dim)

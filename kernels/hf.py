@@ -883,11 +883,14 @@ def contact_block(
     pad_moment: wp.array[wp.float64],
     pad_k_m: wp.array[wp.float64],
     pad_load: wp.array[Any],
-    pad_gap: wp.array[wp.float64],
+    gap: wp.float64,
+    out_start: int,
+    out_end: int,
+    writer: bool,
     normal_force_out: wp.array[Any],
     pad_matrix_force_out: wp.array[Any],
     pad_matrix_radius_out: wp.array[Any],
-):
+) -> wp.float64:
     """Re-solve the normal forces of one pad on a flat matrix at elevation 0 (one thread block per pad).
 
     Σ_i k_N,i max(h_i − g, 0) + k_m a_free max(−g, 0) = F_N by Newton from the left of the root (monotone
@@ -899,6 +902,11 @@ def contact_block(
     the CPU): thread ``lane`` sums patches lane, lane + B, … and the block reduces the sums, so every thread
     sees the same values and takes the same branches (the block-wide reductions stay outside per-thread code).
     Every thread of the block must call it (block-wide reductions inside).
+
+    ``gap``: the previous gap g [m] (the warm start); returns the new one (unchanged when the load is 0), which the
+    caller stores. Writes the normal forces of the patches ``out_start`` … ``out_end − 1`` only (global indices;
+    the pad's whole range on the general path, a block's own part in a cluster, where every block of the cluster
+    solves the same contact redundantly) and, when ``writer``, the pad's matrix force and radius.
     """
     s = pad_patch_start[pad]
     e = pad_patch_start[pad + 1]
@@ -922,9 +930,9 @@ def contact_block(
     free = wp.max(pad_area[pad] - covered, zero)
     km = pad_k_m[pad] * free
     ktot += km
-    if free > zero and lane == 0:
+    if free > zero and lane == 0 and writer:
         pad_matrix_radius_out[pad] = type(pad_load[pad])((pad_moment[pad] - moment) / free)
-    g = pad_gap[pad]
+    g = gap
     if load > zero:
         for it in range(200):
             fp = zero
@@ -951,19 +959,19 @@ def contact_block(
             g = g + dg
             if dg <= wp.float64(1.0e-15) * (wp.abs(g) + wp.float64(1.0e-9)):
                 break
-    i = s + lane
-    while i < e:
+    i = out_start + lane
+    while i < out_end:
         f_i = zero
         if load > zero:
             f_i = wp.float64(k_n[i]) * wp.max(wp.float64(height[i]) - g, zero)
         normal_force_out[i] = type(pad_load[pad])(f_i)
         i += threads
-    if lane == 0:
+    if lane == 0 and writer:
         if load > zero:
-            pad_gap[pad] = g
             pad_matrix_force_out[pad] = type(pad_load[pad])(km * wp.max(-g, zero))
         else:
             pad_matrix_force_out[pad] = type(pad_load[pad])(0.0)
+    return g
 
 
 @wp.kernel
@@ -991,10 +999,13 @@ def contact_flat(
     pad, lane = wp.tid()
     if not growth_due(step, every):
         return
-    contact_block(
+    g = contact_block(
         pad, lane, threads, pad_patch_start, k_n, height, area, radius, pad_area, pad_moment, pad_k_m, pad_load,
-        pad_gap, normal_force_out, pad_matrix_force_out, pad_matrix_radius_out,
+        pad_gap[pad], pad_patch_start[pad], pad_patch_start[pad + 1], True, normal_force_out, pad_matrix_force_out,
+        pad_matrix_radius_out,
     )  # fmt: skip
+    if lane == 0:
+        pad_gap[pad] = g  # every thread read the old gap: the reductions in contact_block are block barriers
 
 
 # ---------------------------------------------------------------------------------------------- overloads

@@ -77,11 +77,14 @@ def onchip_kernel(
     an event) and ``contact`` (the contact re-solve after an event). ``fast_math``: compile with CUDA fast math
     (approximate division and transcendental functions; changes the results in the last bits).
 
-    ``cluster`` = K > 1 (CUDA sm_90+, no growth): a pad is advanced by a thread-block cluster of K blocks; block
+    ``cluster`` = K > 1 (CUDA sm_90+): a pad is advanced by a thread-block cluster of K blocks; block
     ``rank`` owns the patches ``n·rank // K`` … ``n·(rank + 1) // K − 1`` (and their CSR rows, ``emax`` is then the
     most links of one part), every block keeps a full copy of u, the drift stores each new u_i into all K copies
     (distributed shared memory) and the step's one barrier is the cluster barrier; the sums of a sample are
-    combined in rank order by block 0.
+    combined in rank order by block 0. A growth event there: each block grows its own patches, a cluster barrier
+    (the new areas and stiffnesses in global memory are then visible to the cluster), each block updates its own
+    CSR rows, and every block re-solves the whole pad's contact (the same sums in the same order, so the same
+    gap; cheaper than a cluster barrier per Newton iteration) and keeps its own patches' normal forces.
 
     Launch with ``wp.launch_tiled(kernel, dim=[pads · K], block_dim=B, ...)`` (K = ``cluster``); ``threads``
     must be the block size the device really runs (B on CUDA or with CPU fibers, else 1 on the CPU). The kernel
@@ -101,8 +104,6 @@ def onchip_kernel(
     COUPLING = wp.constant(0 if "coupling" in ablate else 1)
     CONTACT = wp.constant(0 if "contact" in ablate else 1)
     GROWTH = wp.constant(1 if growth else 0)
-    if cluster > 1 and growth:
-        raise ValueError("patch growth runs in one block per pad (cluster=1)")
     CLUSTER = wp.constant(cluster)
 
     # Per-thread element stores into the shared tiles. ``tile[i] = x`` in Warp is a block-cooperative op (it ends
@@ -230,6 +231,9 @@ def onchip_kernel(
         sk = wp.tile_zeros(shape=EMAX, dtype=T, storage="shared")
         red = wp.tile_zeros(shape=(CLUSTER, 8), dtype=wp.float64, storage="shared")
         e0 = nbr_start[a + lo]  # the block's first link
+        gap = wp.float64(0.0)
+        if GROWTH != 0:
+            gap = pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
         i = lane
         while i < n:  # every block holds all of u
             put_u(u2, 0, i, u_io[a + i])
@@ -334,19 +338,23 @@ def onchip_kernel(
                 cur = nxt
                 if GROWTH != 0:
                     steps_done += 1
-                    if steps_done % growth_every == 0:  # the same for every thread of the block
-                        i = lane
-                        while i < n:
+                    if steps_done % growth_every == 0:  # the same for every thread of the cluster
+                        i = lo + lane
+                        while i < hi:
                             grow_patch(
                                 a + i, pad, pad_growth, pad_k_t, pad_k_n, pad_mass_per_area, pad_zeta, area, sqrt_area,
                                 inv_mass, k_t, k_n, damping,
                             )  # fmt: skip
                             i += threads
-                        block_sync()  # the links below read the neighbours' new √A
-                        i = lane
+                        # the links below read the neighbours' new √A, the contact every patch's new area and k_N
+                        if CLUSTER == 1:
+                            block_sync()
+                        else:
+                            cluster_sync()
+                        i = lo + lane
                         if COUPLING == 0:
-                            i = n
-                        while i < n:
+                            i = hi
+                        while i < hi:
                             g = a + i
                             if CSR_SHARED != 0:  # patch_coupling with the neighbour indices from shared memory
                                 ki = pad_kc[pad] * sqrt_area[g]
@@ -363,10 +371,11 @@ def onchip_kernel(
                                     k_diag,
                                 )  # fmt: skip
                             i += threads
-                        if CONTACT != 0:
-                            contact_block(
+                        if CONTACT != 0:  # every block solves the pad's contact, keeps its own patches' forces
+                            gap = contact_block(
                                 pad, lane, threads, pad_patch_start, k_n, height, area, radius, pad_area, pad_moment,
-                                pad_k_m, pad_load, pad_gap, normal_force, pad_matrix_force, pad_matrix_radius,
+                                pad_k_m, pad_load, gap, a + lo, a + hi, rank == 0, normal_force, pad_matrix_force,
+                                pad_matrix_radius,
                             )  # fmt: skip
             # sample: synchronous velocity (strang_close), sums in float64 (record_globals), patch histories
             k = k0 + s
@@ -480,6 +489,8 @@ def onchip_kernel(
             force_io[a + i] = fs[i]
             i += threads
         if CLUSTER > 1:
-            cluster_sync()  # no block leaves while another may still address its shared memory
+            cluster_sync()  # no block leaves while another may still address its shared memory (or read the gap)
+        if GROWTH != 0 and rank == 0 and lane == 0:
+            pad_gap[pad] = gap
 
     return onchip_strang

@@ -72,7 +72,7 @@ def child_check(args) -> None:
     results = {}
     for precision in args.precisions:
         row = {"precision": precision, "phase": "start", "block_dim": args.block, "csr_shared": args.csr}
-        row["growth"] = bool(args.growth)
+        row.update(growth=bool(args.growth), cluster=args.cluster)
         results[precision] = row
         runs = {}
         for engine in ("general", "onchip"):
@@ -252,7 +252,13 @@ def _run_child(stage: str, args, timeout: float, extra: list[str]) -> dict:
 def _markdown(summary: dict) -> str:
     lines = ["# On-chip kernel GPU check (scripts/onchip_gpu_check.py)", ""]
     dev = next((r.get("device_name") for r in summary["check"].values() if r.get("device_name")), summary["device"])
-    lines += [f"Device: {dev}; verdict: **{summary['verdict']}**", ""]
+    row = next(iter(summary["check"].values()), {})
+    case = (
+        f"growing pads, {row.get('cluster', 1)} block(s) per pad"
+        if row.get("growth")
+        else (f"{row.get('cluster', 1)} block(s) per pad")
+    )
+    lines += [f"Device: {dev}; {case}; verdict: **{summary['verdict']}**", ""]
     lines += [
         "| precision | phase | passed | max rel dμ | rel du | rel du̇ | rtol | on-chip run incl. compile [s] |",
         "|---|---|---|---|---|---|---|---|",

@@ -55,17 +55,31 @@ CASES = [
     ("full, cluster 4", "fp64", None, None, ("cluster4",)),
     ("full, cluster 8", "fp64", None, None, ("cluster8",)),
 ]
-# --growth: (label, precision, ablations or None for the general path, event interval × this; 0: no growth)
+# --growth: (label, precision, block_dim (None: run_onchip's choice), ablations (with "clusterK" tags as above) or
+# None for the general path, event interval × this; 0: no growth)
 GROWTH_CASES = [
-    ("general path, growth", "fp32", None, 1),
-    ("no growth", "fp32", (), 0),
-    ("growth", "fp32", (), 1),
-    ("growth, no contact re-solve", "fp32", ("contact",), 1),
-    ("growth, no stiffness update", "fp32", ("coupling",), 1),
-    ("growth, no stiffness update, no contact re-solve", "fp32", ("coupling", "contact"), 1),
-    ("growth, events 100x rarer", "fp32", (), 100),
-    ("growth, no friction solve", "fp32", ("friction",), 1),
-    ("growth", "fp64", (), 1),
+    ("general path, growth", "fp32", None, None, 1),
+    ("no growth", "fp32", 512, (), 0),
+    ("growth", "fp32", 512, (), 1),
+    ("growth, no contact re-solve", "fp32", 512, ("contact",), 1),
+    ("growth, no stiffness update", "fp32", 512, ("coupling",), 1),
+    ("growth, no stiffness update, no contact re-solve", "fp32", 512, ("coupling", "contact"), 1),
+    ("growth, events 100x rarer", "fp32", 512, (), 100),
+    ("growth, no friction solve", "fp32", 512, ("friction",), 1),
+    ("growth", "fp64", 512, (), 1),
+    ("growth, block 384", "fp32", 384, (), 1),
+    ("growth, block 384, events 100x rarer", "fp32", 384, (), 100),
+    ("no growth, cluster 8", "fp32", None, ("cluster8",), 0),
+    ("growth, cluster 2", "fp32", None, ("cluster2",), 1),
+    ("growth, cluster 4", "fp32", None, ("cluster4",), 1),
+    ("growth, cluster 8", "fp32", None, ("cluster8",), 1),
+    ("growth, cluster 8, no contact re-solve", "fp32", None, ("cluster8", "contact"), 1),
+    ("growth, cluster 8, no stiffness update", "fp32", None, ("cluster8", "coupling"), 1),
+    ("growth, cluster 8, events 100x rarer", "fp32", None, ("cluster8",), 100),
+    ("growth, cluster 8", "fp64", None, ("cluster8",), 1),
+    ("growth, cluster 2, block 384", "fp32", 384, ("cluster2",), 1),
+    ("growth, cluster 4, block 384", "fp32", 384, ("cluster4",), 1),
+    ("growth, cluster 4, block 256", "fp32", 256, ("cluster4",), 1),
 ]
 
 
@@ -100,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     scene = preset(name).replace(record=Record(sample_dt=args.sample_dt))
     models = {p: build_model([scene], device=args.device, precision=p) for p in ("fp32", "fp64")}
     if args.growth:
-        cases = [(label, prec, 512 if abl is not None else None, None, abl, k) for label, prec, abl, k in GROWTH_CASES]
+        cases = [(label, prec, block, None, abl, k) for label, prec, block, abl, k in GROWTH_CASES]
     else:
         cases = [(label, prec, block, csr, abl, 1) for label, prec, block, csr, abl in
                  [("general path", "fp32", None, None, None), *CASES]]  # fmt: skip
@@ -152,6 +166,7 @@ def main(argv: list[str] | None = None) -> int:
             row["warmup_s"] = time.perf_counter() - t
             res = fn(start(model), args.window)
             row.update(steps=res.steps, wall_s=res.wall_time, us_per_step=1e6 * res.wall_time / res.steps)
+            row["blocks_per_pad"] = res.blocks_per_pad
             row["patch_steps_per_s"] = model.patch_count * res.steps / res.wall_time
         except (SceneError, RuntimeError) as exc:  # e.g. too many resources for a 1024-thread block
             row["error"] = str(exc).splitlines()[0][:200]
