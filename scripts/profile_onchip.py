@@ -52,6 +52,12 @@ CASES = [
     ("no gather, cluster 4", "fp32", None, None, ("cluster4", "gather")),
     ("no friction solve, cluster 4", "fp32", None, None, ("cluster4", "friction")),
     ("no barrier, cluster 4", "fp32", None, None, ("cluster4", "sync")),
+    ("no gather, cluster 8", "fp32", None, None, ("cluster8", "gather")),
+    ("no friction solve, cluster 8", "fp32", None, None, ("cluster8", "friction")),
+    ("no barrier, cluster 8", "fp32", None, None, ("cluster8", "sync")),
+    ("no friction, no gather, cluster 8", "fp32", None, None, ("cluster8", "friction", "gather")),
+    ("loop only, cluster 8", "fp32", None, None, ("cluster8", "friction", "gather", "sync")),
+    ("full, fast math, cluster 8", "fp32", None, None, ("cluster8", "fast_math")),
     ("full, cluster 4", "fp64", None, None, ("cluster4",)),
     ("full, cluster 8", "fp64", None, None, ("cluster8",)),
 ]

@@ -309,3 +309,25 @@ def test_cluster_refused_where_it_cannot_run():
             run_onchip(model, initial_state(model), duration=1e-7, dt=1e-8, cluster=k)
     res = run_onchip(model, initial_state(model), duration=1e-7, dt=1e-8)  # cluster=None: 1 on the CPU
     assert res.complete and res.steps == 10
+
+
+def test_register_report_respects_launch_bounds(tmp_path):
+    """scripts/onchip_registers.py compiles the on-chip kernel to an sm_90 cubin with NVRTC (no GPU) and reads its
+    registers and stack frame: the block size's register cap holds (65 536 registers per SM over four schedulers:
+    ≤ 128 per thread at 512 threads, ≤ 168 at 384), and the kernel without growth does not spill at 512."""
+    import json
+
+    from tests.scriptload import load_script
+
+    script = load_script("onchip_registers")
+    out = tmp_path / "regs.json"
+    try:
+        script.main(["--clusters", "1", "--precisions", "fp32", "--blocks", "384", "512", "--json", str(out)])
+    except RuntimeError as exc:  # a Warp build without NVRTC
+        pytest.skip(f"no NVRTC: {exc}")
+    rows = {(r["growth"], r["block_dim"]): r for r in json.loads(out.read_text())["rows"]}
+    assert set(rows) == {(False, 384), (False, 512), (True, 384), (True, 512)}
+    for (_growth, block), r in rows.items():
+        assert 0 < r["registers"] <= {384: 168, 512: 128}[block]
+    assert rows[(False, 512)]["frame_bytes"] == 0
+    assert rows[(True, 384)]["frame_bytes"] < rows[(True, 512)]["frame_bytes"]
