@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import warp as wp
+from aca_warp.kernels.hf import contact_block, contact_flat
 from scriptload import load_script
 
 from aca_warp.scene import Friction, Growth, Initial, Pad, Patches, Record, Scene
@@ -122,3 +124,78 @@ def test_growth_contact_block_threads_agree():
         wp.config.enable_cpu_blocks = old
     for a, b in zip(out[0], out[1], strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=0)
+
+
+@wp.kernel
+def _contact_part(
+    part: int,
+    parts: int,
+    pad_patch_start: wp.array(dtype=wp.int32),
+    k_n: wp.array(dtype=wp.float64),
+    height: wp.array(dtype=wp.float64),
+    area: wp.array(dtype=wp.float64),
+    radius: wp.array(dtype=wp.float64),
+    pad_area: wp.array(dtype=wp.float64),
+    pad_moment: wp.array(dtype=wp.float64),
+    pad_k_m: wp.array(dtype=wp.float64),
+    pad_load: wp.array(dtype=wp.float64),
+    pad_gap: wp.array(dtype=wp.float64),
+    normal_force_out: wp.array(dtype=wp.float64),
+    pad_matrix_force_out: wp.array(dtype=wp.float64),
+    pad_matrix_radius_out: wp.array(dtype=wp.float64),
+    gap_out: wp.array(dtype=wp.float64),
+):
+    """Block ``part`` of ``parts`` of a (one-thread CPU) cluster: the pad's whole contact, its own forces only."""
+    pad, lane = wp.tid()
+    s = pad_patch_start[pad]
+    n = pad_patch_start[pad + 1] - s
+    g = contact_block(
+        pad, lane, 1, pad_patch_start, k_n, height, area, radius, pad_area, pad_moment, pad_k_m, pad_load,
+        pad_gap[pad], s + n * part // parts, s + n * (part + 1) // parts, part == 0, normal_force_out,
+        pad_matrix_force_out, pad_matrix_radius_out,
+    )  # fmt: skip
+    if lane == 0:
+        gap_out[pad * parts + part] = g
+
+
+def test_contact_block_parts_compose():
+    """What a growth event on a thread-block cluster relies on (kernels/hf_onchip.py): every block re-solves the
+    pad's contact with the same gap, writes only its own range of normal forces, and only the writer block the
+    matrix force and radius; the parts together give the general path's contact_flat result exactly."""
+    from aca_warp.model import build_model
+
+    s = growing_scene()
+    parts = 3
+    model = build_model([s, s.replace(normal_force=35.0)], device="cpu", precision="fp64")
+    m = model.arrays
+    m["pad_load"].assign(m["pad_load"].numpy() * 1.3)  # a new load: the contact must move
+    args = [m[k] for k in ("pad_patch_start", "k_n", "height", "area", "radius", "pad_area", "pad_moment",
+                           "pad_k_m", "pad_load")]  # fmt: skip
+    gap0 = m["pad_gap"].numpy().copy()
+    ref = {k: wp.zeros_like(m[k]) for k in ("normal_force", "pad_matrix_force", "pad_matrix_radius")}
+    ref_gap = wp.array(gap0, dtype=wp.float64, device="cpu")
+    wp.launch_tiled(
+        contact_flat, dim=[model.pad_count], block_dim=1, device="cpu",
+        inputs=[wp.zeros(1, dtype=wp.int64, device="cpu"), 1, 1, *args, ref_gap, ref["normal_force"],
+                ref["pad_matrix_force"], ref["pad_matrix_radius"]],
+    )  # fmt: skip
+    out = {k: wp.full(v.shape, np.nan, dtype=wp.float64, device="cpu") for k, v in ref.items()}
+    gaps = wp.zeros(model.pad_count * parts, dtype=wp.float64, device="cpu")
+    for part in (2, 1, 0):  # the writer last: the others must leave the pad's matrix outputs alone
+        if part == 0:  # parts 1 and 2 wrote their own forces and nothing else
+            assert np.isnan(out["pad_matrix_force"].numpy()).all() and np.isnan(out["pad_matrix_radius"].numpy()).all()
+            start = model.pad_patch_start_host
+            own0 = np.concatenate([np.arange(a, a + (b - a) // parts) for a, b in zip(start, start[1:], strict=False)])
+            fn = out["normal_force"].numpy()
+            assert np.isnan(fn[own0]).all() and not np.isnan(np.delete(fn, own0)).any()
+        wp.launch_tiled(
+            _contact_part, dim=[model.pad_count], block_dim=1, device="cpu",
+            inputs=[part, parts, *args, m["pad_gap"], out["normal_force"], out["pad_matrix_force"],
+                    out["pad_matrix_radius"], gaps],
+        )  # fmt: skip
+    np.testing.assert_array_equal(m["pad_gap"].numpy(), gap0)  # the gap is returned, not stored
+    g = gaps.numpy().reshape(model.pad_count, parts)
+    np.testing.assert_array_equal(g, np.repeat(ref_gap.numpy()[:, None], parts, axis=1))
+    assert not np.array_equal(ref_gap.numpy(), gap0)  # the contact moved, so the test compares something
+    for k in ref:
+        np.testing.assert_array_equal(out[k].numpy(), ref[k].numpy())
