@@ -76,11 +76,23 @@ def pad_sizes(model: PadModel, cluster: int = 1) -> tuple[int, int]:
     return int(n.max()), int(np.diff(nbr[cuts], axis=1).max())
 
 
+def tile_sizes(model: PadModel, cluster: int = 1) -> tuple[int, int]:
+    """The kernel's tile sizes: :func:`pad_sizes` rounded up to whole warps (32)."""
+    nmax, emax = pad_sizes(model, cluster)
+    return _round_up(nmax, 32), _round_up(emax, 32)
+
+
+def default_block(nmax: int, cluster: int, growth: bool) -> int:
+    """Threads per block for ``block_dim=None``: the block's part of an ``nmax``-patch pad rounded up to 32, at most
+    ``DEFAULT_BLOCK``, or ``GROWTH_BLOCK`` for a growing pad on one block."""
+    cap = GROWTH_BLOCK if growth and cluster == 1 else DEFAULT_BLOCK
+    return min(cap, _round_up(-(-nmax // cluster), 32))
+
+
 def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1) -> int:
     """Shared memory one block needs [bytes]: u (×2), w, F_s per patch of the pad, the cluster's table of sample
     sums, plus the block's part of the CSR when kept on chip."""
-    nmax, emax = pad_sizes(model, cluster)
-    nmax, emax = _round_up(nmax, 32), _round_up(emax, 32)
+    nmax, emax = tile_sizes(model, cluster)
     b = 4 * nmax * _itemsize(model) + 64 * cluster
     if csr_shared:
         b += emax * (4 + _itemsize(model))
@@ -106,18 +118,20 @@ def default_cluster(pads: int, sm_count: int, split_fits_csr: bool = False) -> i
     return 2 if split_fits_csr else 1
 
 
-def _smem_limit(model: PadModel) -> int:
-    dev = model.device
-    if dev.is_cpu:
-        return 256 * 1024 - _SMEM_RESERVE  # Warp's CPU tile arena (native/tile.h)
-    return int(dev.max_shared_memory_per_block) - _SMEM_RESERVE
+def smem_limit(model: PadModel, per_block: int | None = None) -> int:
+    """Shared memory a block's tiles may use [bytes]: ``per_block`` (default: the model device's opt-in limit per
+    block; Warp's CPU tile arena on the CPU) less the reserve for Warp's own scratch."""
+    if per_block is None:
+        dev = model.device
+        per_block = 256 * 1024 if dev.is_cpu else int(dev.max_shared_memory_per_block)  # CPU: native/tile.h arena
+    return per_block - _SMEM_RESERVE
 
 
 def unsupported(model: PadModel, integrator: str = DEFAULT_INTEGRATOR) -> str | None:
     """Why the on-chip engine cannot run this model (None when it can)."""
     if integrator != "strang":
         return f"the on-chip engine implements the strang integrator only (got {integrator})"
-    need, limit = shared_bytes(model, False), _smem_limit(model)
+    need, limit = shared_bytes(model, False), smem_limit(model)
     if need > limit:
         return (
             f"a pad of {pad_sizes(model)[0]} patches needs {need} B of shared memory per block, "
@@ -202,21 +216,20 @@ def run_onchip(
     if cluster is None:
         cluster = 1
         if dev.is_cuda and dev.arch >= 90:
-            limit = _smem_limit(model)
+            limit = smem_limit(model)
             split = shared_bytes(model, True) > limit and shared_bytes(model, True, 2) <= limit
             cluster = default_cluster(model.pad_count, dev.sm_count, split)
     if not 1 <= cluster <= MAX_CLUSTER:
         raise SceneError(f"cluster must be in [1, {MAX_CLUSTER}] blocks per pad, got {cluster}")
     if cluster > 1 and (dev.is_cpu or dev.arch < 90):
         raise SceneError(f"a cluster of {cluster} blocks per pad needs a CUDA device of compute capability 9.0+")
-    nmax, emax = pad_sizes(model, cluster)
+    nmax = pad_sizes(model, cluster)[0]
     if csr_shared is None:
-        csr_shared = shared_bytes(model, True, cluster) <= _smem_limit(model)
-    elif csr_shared and shared_bytes(model, True, cluster) > _smem_limit(model):
+        csr_shared = shared_bytes(model, True, cluster) <= smem_limit(model)
+    elif csr_shared and shared_bytes(model, True, cluster) > smem_limit(model):
         raise SceneError(f"the neighbour lists of a {nmax}-patch pad do not fit shared memory with the state")
     if block_dim is None:
-        cap = GROWTH_BLOCK if growth and cluster == 1 else DEFAULT_BLOCK
-        block_dim = min(cap, _round_up(-(-nmax // cluster), 32))
+        block_dim = default_block(nmax, cluster, growth)
     if not 1 <= block_dim <= MAX_BLOCK:
         raise SceneError(f"block_dim must be in [1, {MAX_BLOCK}], got {block_dim}")
     threads = block_threads(dev, block_dim)
@@ -235,8 +248,7 @@ def run_onchip(
     rec.watch_bound.assign(bounds)
     kernel = onchip_kernel(
         model.dtype,
-        _round_up(nmax, 32),
-        _round_up(emax, 32),
+        *tile_sizes(model, cluster),
         bool(csr_shared),
         block_dim,
         frozenset(ablate),

@@ -25,6 +25,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+H100_SMEM_PER_BLOCK = 232448  # opt-in shared memory per block of an H100 / H200 (227 KB)
 EIATTR_REGCOUNT = 0x2F
 EIATTR_FRAME_SIZE = 0x11
 
@@ -67,6 +68,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--clusters", type=int, nargs="+", default=[1, 2, 4, 8], help="blocks per pad (default 1 2 4 8)")
     ap.add_argument("--blocks", type=int, nargs="*", help="threads per block (default: run_onchip's choice)")
     ap.add_argument("--precisions", nargs="+", default=["fp32", "fp64"], choices=["fp32", "fp64"])
+    ap.add_argument(
+        "--smem-per-block",
+        type=int,
+        default=H100_SMEM_PER_BLOCK,
+        help="shared memory per block the device offers [bytes], which decides as run_onchip does whether the "
+        f"neighbour lists are kept on chip (default {H100_SMEM_PER_BLOCK}, H100 and H200)",
+    )
     ap.add_argument("--json", type=Path, help="write the rows here")
     args = ap.parse_args(argv)
 
@@ -77,30 +85,29 @@ def main(argv: list[str] | None = None) -> int:
     from aca_warp.kernels.hf_onchip import onchip_kernel
 
     from aca_warp.model import build_model
-    from aca_warp.onchip import DEFAULT_BLOCK, GROWTH_BLOCK, _round_up, pad_sizes
+    from aca_warp.onchip import default_block, pad_sizes, shared_bytes, smem_limit, tile_sizes
     from aca_warp.scene import preset
 
-    model = build_model([preset(args.preset)], device="cpu", precision="fp32")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for prec in args.precisions:
-            dtype = wp.float32 if prec == "fp32" else wp.float64
+            model = build_model([preset(args.preset)], device="cpu", precision=prec)
+            dtype = model.dtype
             for k in args.clusters:
-                nmax, emax = pad_sizes(model, k)
+                csr = shared_bytes(model, True, k) <= smem_limit(model, args.smem_per_block)
                 for growth in (False, True):
-                    cap = GROWTH_BLOCK if growth and k == 1 else DEFAULT_BLOCK
-                    for b in args.blocks or [min(cap, _round_up(-(-nmax // k), 32))]:
-                        kernel = onchip_kernel(
-                            dtype, _round_up(nmax, 32), _round_up(emax, 32), True, b, growth=growth, cluster=k
-                        )
+                    for b in args.blocks or [default_block(pad_sizes(model, k)[0], k, growth)]:
+                        kernel = onchip_kernel(dtype, *tile_sizes(model, k), csr, b, growth=growth, cluster=k)
                         kernel.module.options["block_dim"] = b
                         out = Path(tmp) / f"{prec}_{k}_{int(growth)}_{b}"
                         wp.compile_aot_module(kernel.module, arch=90, module_dir=out, use_ptx=False)
                         info = cubin_info(next(out.glob("*.cubin")))
-                        row = {"precision": prec, "cluster": k, "growth": growth, "block_dim": b, **info}
+                        row = {"precision": prec, "cluster": k, "growth": growth, "block_dim": b, "csr_shared": csr}
+                        row.update(info)
                         rows.append(row)
                         print(
-                            f"{prec} K={k} {'growth   ' if growth else 'no growth'} block {b:4d}: "
+                            f"{prec} K={k} {'growth   ' if growth else 'no growth'} block {b:4d} "
+                            f"CSR {'on chip' if csr else 'global '}: "
                             f"{info.get('registers', '?')} registers, stack frame {info.get('frame_bytes', 0)} B",
                             flush=True,
                         )
