@@ -115,6 +115,9 @@ def onchip_kernel(
     put_ek = tile_store_1d(T, ne)
     put_u_at = tile_store_rows_remote(T, 2, nmax)  # into the u copy of another block of the cluster
     put_red = tile_store_rows_remote(wp.float64, cluster, 8)  # a block's sample sums into block 0's table
+    # the barrier of all threads that advance a pad (a plain block barrier for one block: on sm_90 cluster_sync
+    # would issue a cluster barrier for a one-block cluster)
+    pad_sync = block_sync if cluster == 1 else cluster_sync
 
     @wp.func
     def sync_velocity(
@@ -297,10 +300,7 @@ def onchip_kernel(
                     i += threads
                 first_step = 0
                 if SYNC != 0:
-                    if CLUSTER == 1:
-                        block_sync()
-                    else:
-                        cluster_sync()
+                    pad_sync()
                 # spring forces at the new u (spring_force of kernels.hf: same two partial sums, same order)
                 i = lo + lane
                 while i < hi:
@@ -346,11 +346,7 @@ def onchip_kernel(
                                 inv_mass, k_t, k_n, damping,
                             )  # fmt: skip
                             i += threads
-                        # the links below read the neighbours' new √A, the contact every patch's new area and k_N
-                        if CLUSTER == 1:
-                            block_sync()
-                        else:
-                            cluster_sync()
+                        pad_sync()  # the links below read the neighbours' new √A, the contact every new area and k_N
                         i = lo + lane
                         if COUPLING == 0:
                             i = hi
