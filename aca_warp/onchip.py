@@ -76,10 +76,37 @@ def pad_sizes(model: PadModel, cluster: int = 1) -> tuple[int, int]:
     return int(n.max()), int(np.diff(nbr[cuts], axis=1).max())
 
 
-def tile_sizes(model: PadModel, cluster: int = 1) -> tuple[int, int]:
-    """The kernel's tile sizes: :func:`pad_sizes` rounded up to whole warps (32)."""
-    nmax, emax = pad_sizes(model, cluster)
-    return _round_up(nmax, 32), _round_up(emax, 32)
+def csr_slots(model: PadModel, cluster: int = 1, threads: int = 1) -> int:
+    """Length of a block's on-chip neighbour-list tiles in the kernel's bank-interleaved layout.
+
+    Thread ``lane`` of a block of ``threads`` stores its patches' links one after another, link m at slot
+    W·(s + m) + lane mod W (W = min(threads, 32); s: the links of the threads before it with the same lane mod W),
+    so that the 32 lanes of a warp always read 32 different shared-memory banks. The tile needs W times the
+    largest sum of links over the threads of one bank, over every block of the batch (a pad split over
+    ``cluster`` blocks as the kernel splits it).
+    """
+    start = model.pad_patch_start_host
+    deg = np.diff(model.host("nbr_start"))
+    w = min(threads, 32)
+    per_thread = -(-int(np.diff(start).max()) // threads) * threads
+    banks = -(-threads // w) * w
+    most = 0
+    for p in range(model.pad_count):
+        n = start[p + 1] - start[p]
+        for r in range(cluster):
+            d = np.zeros(per_thread, dtype=np.int64)
+            part = deg[start[p] + n * r // cluster : start[p] + n * (r + 1) // cluster]
+            d[: part.size] = part
+            t = np.zeros(banks, dtype=np.int64)
+            t[:threads] = d.reshape(-1, threads).sum(axis=0)  # links per thread
+            most = max(most, int(t.reshape(-1, w).sum(axis=0).max()))  # links per bank
+    return w * most
+
+
+def tile_sizes(model: PadModel, cluster: int = 1, threads: int = 1) -> tuple[int, int]:
+    """The kernel's tile sizes (patches, CSR slots) for blocks of ``threads`` threads: the most patches of a pad
+    and :func:`csr_slots`, rounded up to whole warps (32)."""
+    return _round_up(pad_sizes(model, cluster)[0], 32), _round_up(csr_slots(model, cluster, threads), 32)
 
 
 def default_block(nmax: int, cluster: int, growth: bool) -> int:
@@ -89,13 +116,19 @@ def default_block(nmax: int, cluster: int, growth: bool) -> int:
     return min(cap, _round_up(-(-nmax // cluster), 32))
 
 
-def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1) -> int:
-    """Shared memory one block needs [bytes]: u (×2), w, F_s per patch of the pad, the cluster's table of sample
-    sums, plus the block's part of the CSR when kept on chip."""
-    nmax, emax = tile_sizes(model, cluster)
+def default_threads(model: PadModel, cluster: int = 1) -> int:
+    """Threads a block of the default size (:func:`default_block`) runs on the model's device."""
+    nmax = pad_sizes(model, cluster)[0]
+    return block_threads(model.device, default_block(nmax, cluster, "pad_growth" in model.arrays))
+
+
+def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1, threads: int = 1) -> int:
+    """Shared memory one block of ``threads`` threads needs [bytes]: u (×2), w, F_s per patch of the pad, the
+    cluster's table of sample sums, plus the block's part of the CSR (:func:`csr_slots`) when kept on chip."""
+    nmax, slots = tile_sizes(model, cluster, threads)
     b = 4 * nmax * _itemsize(model) + 64 * cluster
     if csr_shared:
-        b += emax * (4 + _itemsize(model))
+        b += slots * (2 + _itemsize(model))  # int16 local index, k_ij in the state precision
     return b
 
 
@@ -217,22 +250,23 @@ def run_onchip(
         cluster = 1
         if dev.is_cuda and dev.arch >= 90:
             limit = smem_limit(model)
-            split = shared_bytes(model, True) > limit and shared_bytes(model, True, 2) <= limit
-            cluster = default_cluster(model.pad_count, dev.sm_count, split)
+            one, two = (shared_bytes(model, True, k, default_threads(model, k)) for k in (1, 2))
+            cluster = default_cluster(model.pad_count, dev.sm_count, one > limit and two <= limit)
     if not 1 <= cluster <= MAX_CLUSTER:
         raise SceneError(f"cluster must be in [1, {MAX_CLUSTER}] blocks per pad, got {cluster}")
     if cluster > 1 and (dev.is_cpu or dev.arch < 90):
         raise SceneError(f"a cluster of {cluster} blocks per pad needs a CUDA device of compute capability 9.0+")
     nmax = pad_sizes(model, cluster)[0]
-    if csr_shared is None:
-        csr_shared = shared_bytes(model, True, cluster) <= smem_limit(model)
-    elif csr_shared and shared_bytes(model, True, cluster) > smem_limit(model):
-        raise SceneError(f"the neighbour lists of a {nmax}-patch pad do not fit shared memory with the state")
     if block_dim is None:
         block_dim = default_block(nmax, cluster, growth)
     if not 1 <= block_dim <= MAX_BLOCK:
         raise SceneError(f"block_dim must be in [1, {MAX_BLOCK}], got {block_dim}")
     threads = block_threads(dev, block_dim)
+    fits = shared_bytes(model, True, cluster, threads) <= smem_limit(model)
+    if csr_shared is None:
+        csr_shared = fits
+    elif csr_shared and not fits:
+        raise SceneError(f"the neighbour lists of a {nmax}-patch pad do not fit shared memory with the state")
 
     probe = _Recorder(model, record, 1, n_samples)
     per_row = (int(probe.want_v) + int(probe.want_u)) * model.patch_count * _itemsize(model)
@@ -248,7 +282,7 @@ def run_onchip(
     rec.watch_bound.assign(bounds)
     kernel = onchip_kernel(
         model.dtype,
-        *tile_sizes(model, cluster),
+        *tile_sizes(model, cluster, threads),
         bool(csr_shared),
         block_dim,
         frozenset(ablate),

@@ -6,8 +6,11 @@ Each block keeps its pad's state in shared memory (Warp tiles with ``storage="sh
 * ``u`` twice (double buffer: step n reads buffer n mod 2 and writes the other, so one block barrier per step
   suffices: the drift of step n+1 writes the buffer that the gathers of step n do not read),
 * the staggered velocity ``w`` and the cached spring force F_s(u), both touched only by the owning thread,
-* optionally (``csr_shared``) the pad's neighbour lists (local index int32, k_ij in T); otherwise the CSR is
-  read from global memory (read-only, L1/L2 cached).
+* optionally (``csr_shared``) the pad's neighbour lists (local index int16, k_ij in T), bank-interleaved:
+  each thread's links one after another, link m at slot W·(s + m) + lane mod W (W = 32 on CUDA; s: the links of
+  the earlier threads with the same lane mod W, :func:`aca_warp.onchip.csr_slots`), so the lanes of a warp read
+  32 different banks whatever their rows' lengths; otherwise the CSR is read from global memory (read-only,
+  L1/L2 cached).
 
 Per-patch constants (1/m, c, F_N, r, k_diag) stay in global memory (read-only, cached). Thread ``lane`` owns
 patches lane, lane + B, lane + 2B, … of its pad (B the block size; 1 on the CPU, where Warp runs a block as
@@ -63,7 +66,7 @@ def onchip_kernel(
     growth: bool = False,
     cluster: int = 1,
 ) -> wp.Kernel:
-    """The on-chip strang kernel for pads of at most ``nmax`` patches (``emax`` links when ``csr_shared``).
+    """The on-chip strang kernel for pads of at most ``nmax`` patches (``emax`` CSR slots when ``csr_shared``).
 
     ``growth``: patch growth (paper Eq. 10) in the kernel: after every ``growth_every``-th step the block grows
     its patches (``grow_patch``), recomputes their coupling stiffnesses (``patch_coupling``, and the shared copy
@@ -77,20 +80,22 @@ def onchip_kernel(
     an event) and ``contact`` (the contact re-solve after an event). ``fast_math``: compile with CUDA fast math
     (approximate division and transcendental functions; changes the results in the last bits).
 
-    ``cluster`` = K > 1 (CUDA sm_90+): a pad is advanced by a thread-block cluster of K blocks; block
-    ``rank`` owns the patches ``n·rank // K`` … ``n·(rank + 1) // K − 1`` (and their CSR rows, ``emax`` is then the
-    most links of one part), every block keeps a full copy of u, the drift stores each new u_i into all K copies
-    (distributed shared memory) and the step's one barrier is the cluster barrier; the sums of a sample are
-    combined in rank order by block 0. A growth event there: each block grows its own patches, a cluster barrier
-    (the new areas and stiffnesses in global memory are then visible to the cluster), each block updates its own
-    CSR rows, and every block re-solves the whole pad's contact (the same sums in the same order, so the same
-    gap; cheaper than a cluster barrier per Newton iteration) and keeps its own patches' normal forces.
+    ``cluster`` = K > 1 (CUDA sm_90+): a pad is advanced by a thread-block cluster of K blocks; block ``rank`` owns
+    the patches ``n·rank // K`` … ``n·(rank + 1) // K − 1`` (and their CSR rows, ``emax`` is then
+    :func:`aca_warp.onchip.csr_slots` of one part), every block keeps a full copy of u, the drift stores each new
+    u_i into all K copies (distributed shared memory) and the step's one barrier is the cluster barrier; the sums of
+    a sample are combined in rank order by block 0. A growth event there: each block grows its own patches, a
+    cluster barrier (the new areas and stiffnesses in global memory are then visible to the cluster), each block
+    updates its own CSR rows, and every block re-solves the whole pad's contact (the same sums in the same order, so
+    the same gap; cheaper than a cluster barrier per Newton iteration) and keeps its own patches' normal forces.
 
     Launch with ``wp.launch_tiled(kernel, dim=[pads · K], block_dim=B, ...)`` (K = ``cluster``); ``threads``
     must be the block size the device really runs (B on CUDA or with CPU fibers, else 1 on the CPU). The kernel
     is compiled with ``__launch_bounds__(block_dim)`` so that a block of ``block_dim`` threads gets the registers
     it may use.
     """
+    if nmax >= 2**15:
+        raise ValueError(f"on-chip pads hold fewer than 32768 patches (int16 neighbour indices), got {nmax}")
     T = dtype
     NMAX = wp.constant(nmax)
     ne = emax if csr_shared else 1
@@ -111,7 +116,7 @@ def onchip_kernel(
     # (threads own different numbers of patches); these store without a barrier (docs/onchip.md).
     put_n = tile_store_1d(T, nmax)
     put_u = tile_store_rows(T, 2, nmax)
-    put_ei = tile_store_1d(wp.int32, ne)
+    put_ei = tile_store_1d(wp.int16, ne)  # local neighbour index (nmax < 2**15, asserted above)
     put_ek = tile_store_1d(T, ne)
     put_u_at = tile_store_rows_remote(T, 2, nmax)  # into the u copy of another block of the cluster
     put_red = tile_store_rows_remote(wp.float64, cluster, 8)  # a block's sample sums into block 0's table
@@ -230,10 +235,9 @@ def onchip_kernel(
         u2 = wp.tile_zeros(shape=(2, NMAX), dtype=T, storage="shared")
         w = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
         fs = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
-        sidx = wp.tile_zeros(shape=EMAX, dtype=wp.int32, storage="shared")
+        sidx = wp.tile_zeros(shape=EMAX, dtype=wp.int16, storage="shared")
         sk = wp.tile_zeros(shape=EMAX, dtype=T, storage="shared")
         red = wp.tile_zeros(shape=(CLUSTER, 8), dtype=wp.float64, storage="shared")
-        e0 = nbr_start[a + lo]  # the block's first link
         gap = wp.float64(0.0)
         if GROWTH != 0:
             gap = pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
@@ -246,13 +250,27 @@ def onchip_kernel(
             put_n(w, i, v_io[a + i])
             put_n(fs, i, force_io[a + i])
             i += threads
+        # on-chip CSR, bank-interleaved (aca_warp.onchip.csr_slots): the thread's links one after another, link m
+        # at slot nw·(m0 + m) + bank, so the lanes of a warp always read different banks (nw = 32 on CUDA)
+        nw = wp.min(threads, 32)
+        bank = lane % nw
+        m0 = int(0)  # links of the block's threads before this one with the same bank
         if CSR_SHARED != 0:
-            e = lane
-            ne = nbr_start[a + hi] - e0
-            while e < ne:
-                put_ei(sidx, e, nbr_index[e0 + e] - a)
-                put_ek(sk, e, nbr_stiffness[e0 + e])
-                e += threads
+            q = bank
+            while q < lane:
+                i = lo + q
+                while i < hi:
+                    m0 += nbr_start[a + i + 1] - nbr_start[a + i]
+                    i += threads
+                q += nw
+            p = nw * m0 + bank
+            i = lo + lane
+            while i < hi:
+                for e in range(nbr_start[a + i], nbr_start[a + i + 1]):
+                    put_ei(sidx, p, wp.int16(nbr_index[e] - a))
+                    put_ek(sk, p, nbr_stiffness[e])
+                    p += nw
+                i += threads
         block_sync()
 
         omega = pad_omega[pad]
@@ -302,6 +320,7 @@ def onchip_kernel(
                 if SYNC != 0:
                     pad_sync()
                 # spring forces at the new u (spring_force of kernels.hf: same two partial sums, same order)
+                p = nw * m0 + bank  # the thread's first on-chip link
                 i = lo + lane
                 while i < hi:
                     g = a + i
@@ -312,20 +331,20 @@ def onchip_kernel(
                     if GATHER == 0:
                         end = e
                     if CSR_SHARED != 0:  # four links per pass: more shared loads in flight (H100: 8.6 -> 8.3 us)
-                        e = e - e0
-                        end = end - e0
-                        while e + 3 < end:
-                            a0 += sk[e] * u2[nxt, sidx[e]]
-                            a1 += sk[e + 1] * u2[nxt, sidx[e + 1]]
-                            a0 += sk[e + 2] * u2[nxt, sidx[e + 2]]
-                            a1 += sk[e + 3] * u2[nxt, sidx[e + 3]]
-                            e += 4
-                        if e + 1 < end:
-                            a0 += sk[e] * u2[nxt, sidx[e]]
-                            a1 += sk[e + 1] * u2[nxt, sidx[e + 1]]
-                            e += 2
-                        if e < end:
-                            a0 += sk[e] * u2[nxt, sidx[e]]
+                        pe = p + nw * (end - e)
+                        while p + 3 * nw < pe:
+                            a0 += sk[p] * u2[nxt, int(sidx[p])]
+                            a1 += sk[p + nw] * u2[nxt, int(sidx[p + nw])]
+                            a0 += sk[p + 2 * nw] * u2[nxt, int(sidx[p + 2 * nw])]
+                            a1 += sk[p + 3 * nw] * u2[nxt, int(sidx[p + 3 * nw])]
+                            p += 4 * nw
+                        if p + nw < pe:
+                            a0 += sk[p] * u2[nxt, int(sidx[p])]
+                            a1 += sk[p + nw] * u2[nxt, int(sidx[p + nw])]
+                            p += 2 * nw
+                        if p < pe:
+                            a0 += sk[p] * u2[nxt, int(sidx[p])]
+                            p += nw
                     else:
                         while e + 1 < end:
                             a0 += nbr_stiffness[e] * u2[nxt, nbr_index[e] - a]
@@ -350,16 +369,18 @@ def onchip_kernel(
                         i = lo + lane
                         if COUPLING == 0:
                             i = hi
+                        p = nw * m0 + bank
                         while i < hi:
                             g = a + i
                             if CSR_SHARED != 0:  # patch_coupling with the neighbour indices from shared memory
                                 ki = pad_kc[pad] * sqrt_area[g]
                                 d = k_t[g]
-                                for e in range(nbr_start[g] - e0, nbr_start[g + 1] - e0):
-                                    kij = ki * sqrt_area[a + sidx[e]] * nbr_inv_dist[e0 + e]
-                                    nbr_stiffness[e0 + e] = kij
-                                    put_ek(sk, e, kij)
+                                for e in range(nbr_start[g], nbr_start[g + 1]):
+                                    kij = ki * sqrt_area[a + int(sidx[p])] * nbr_inv_dist[e]
+                                    nbr_stiffness[e] = kij
+                                    put_ek(sk, p, kij)
                                     d += kij
+                                    p += nw
                                 k_diag[g] = d
                             else:
                                 patch_coupling(

@@ -94,10 +94,10 @@ def main(argv: list[str] | None = None) -> int:
             model = build_model([preset(args.preset)], device="cpu", precision=prec)
             dtype = model.dtype
             for k in args.clusters:
-                csr = shared_bytes(model, True, k) <= smem_limit(model, args.smem_per_block)
                 for growth in (False, True):
                     for b in args.blocks or [default_block(pad_sizes(model, k)[0], k, growth)]:
-                        kernel = onchip_kernel(dtype, *tile_sizes(model, k), csr, b, growth=growth, cluster=k)
+                        csr = shared_bytes(model, True, k, b) <= smem_limit(model, args.smem_per_block)
+                        kernel = onchip_kernel(dtype, *tile_sizes(model, k, b), csr, b, growth=growth, cluster=k)
                         kernel.module.options["block_dim"] = b
                         out = Path(tmp) / f"{prec}_{k}_{int(growth)}_{b}"
                         wp.compile_aot_module(kernel.module, arch=90, module_dir=out, use_ptx=False)

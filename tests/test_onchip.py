@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 from aca_warp.errors import SceneError
 from aca_warp.hf import run_hf, stable_step
 from aca_warp.model import build_model
-from aca_warp.onchip import choose_engine, default_cluster, pad_sizes, run, run_onchip
+from aca_warp.onchip import choose_engine, csr_slots, default_cluster, pad_sizes, run, run_onchip
 from aca_warp.scene import Growth, Initial, Patches, Record, preset
 from aca_warp.state import initial_state
 
@@ -91,10 +91,11 @@ def test_onchip_csr_in_shared_memory_matches(device):
         np.testing.assert_allclose(co.globals[:, :, 0], cg.globals[:, :, 0], rtol=2e-4, atol=0)
 
 
-@pytest.mark.parametrize(("precision", "block", "csr"), [("fp32", 32, True), ("fp64", 96, False)])
+@pytest.mark.parametrize(("precision", "block", "csr"), [("fp32", 96, True), ("fp64", 32, False)])
 def test_onchip_multithread_block_cpu_fibers(precision, block, csr):
-    """Blocks of 32/96 real (fiber) threads, each owning 54–55 / 18–19 patches: every barrier must be reached by
-    all threads of the block (uneven patch counts per thread), else the gathers read unfinished drifts."""
+    """Blocks of 96/32 real (fiber) threads, each owning 18–19 / 54–55 patches: every barrier must be reached by
+    all threads of the block (uneven patch counts per thread), else the gathers read unfinished drifts; with 96
+    threads three share each bank of the on-chip CSR (a wrong slot offset overlaps their links)."""
     (cg, ug, vg), (co, uo, vo) = _both("cpu", precision, fibers=True, block_dim=block, csr_shared=csr)
     np.testing.assert_array_equal(uo, ug)
     np.testing.assert_array_equal(vo, vg)
@@ -140,7 +141,7 @@ def test_onchip_growth_matches_general(device, precision):
         np.testing.assert_allclose(co.globals[:, :, 0], cg.globals[:, :, 0], rtol=rtol, atol=0)
 
 
-@pytest.mark.parametrize(("precision", "block", "csr"), [("fp32", 32, True), ("fp64", 96, False)])
+@pytest.mark.parametrize(("precision", "block", "csr"), [("fp32", 96, True), ("fp64", 32, False)])
 def test_onchip_growth_multithread_block_cpu_fibers(precision, block, csr):
     """Growth with real (fiber) threads per block: the contact re-solve's block sums run in a tree, so against the
     general path (one-thread blocks) everything agrees to rounding; a barrier missed by part of the block (the
@@ -289,6 +290,33 @@ def test_cluster_split_sizes():
             assert sum(parts[-k:]) == nbr[a + n] - nbr[a]
         assert pad_sizes(model, k) == (int(np.diff(start).max()), max(parts))
     assert pad_sizes(model, 8)[1] < pad_sizes(model, 1)[1] / 4
+
+
+@pytest.mark.parametrize(("cluster", "threads"), [(1, 1), (1, 96), (1, 100), (3, 512), (8, 224)])
+def test_csr_slots_bank_interleaved(cluster, threads):
+    """The kernel's on-chip CSR layout (link m of a thread at slot W·(s + m) + lane mod W, s the links of the earlier
+    threads of its bank): every link of a block gets its own slot, a warp's lanes sit in different banks, and
+    csr_slots is the smallest tile that holds the busiest bank."""
+    model = build_model(_scenes(), device="cpu", precision="fp32")
+    start, nbr = model.pad_patch_start_host, model.host("nbr_start")
+    slots = csr_slots(model, cluster, threads)
+    w = min(threads, 32)
+    top = 0
+    for p in range(model.pad_count):
+        n = start[p + 1] - start[p]
+        for r in range(cluster):
+            lo, hi = n * r // cluster, n * (r + 1) // cluster
+            links = [nbr[start[p] + i + 1] - nbr[start[p] + i] for i in range(lo, hi)]
+            own = [sum(links[i - lo] for i in range(lo + lane, hi, threads)) for lane in range(threads)]
+            used = []
+            for lane in range(threads):
+                s0 = sum(own[q] for q in range(lane % w, lane, w))
+                used += [(w * (s0 + m) + lane % w, lane) for m in range(own[lane])]
+            pos = [u for u, _ in used]
+            assert len(set(pos)) == len(pos) == nbr[start[p] + hi] - nbr[start[p] + lo]
+            assert all(u % w == lane % w for u, lane in used)
+            top = max(top, max(pos) + 1)
+    assert slots - w < top <= slots
 
 
 @pytest.mark.parametrize(
