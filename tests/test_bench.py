@@ -112,3 +112,37 @@ def test_ncu_summary_ranks_kernels_per_step(tmp_path: Path) -> None:
     f = tmp_path / "x.csv"
     f.write_text("no table here")
     assert ncu.main([str(f), "--steps", "1"]) == 2
+
+
+def test_ncu_onchip_normalises_one_launch(tmp_path: Path) -> None:
+    """scripts/ncu_onchip.py: the metrics of one launch per pad-step and patch-step; files with several launches or
+    without the needed metrics are refused."""
+    from scriptload import load_script
+
+    ncu = load_script("ncu_onchip")
+    head = '"ID","Kernel Name","Section Name","Metric Name","Metric Unit","Metric Value"'
+    metrics = {
+        "gpu__time_duration.sum": ("ns", "2,000,000"),
+        "smsp__inst_executed.sum": ("inst", "4,000,000"),
+        "smsp__thread_inst_executed.sum": ("inst", "96,000,000"),
+        "smsp__issue_active.avg.pct_of_peak_sustained_active": ("%", "50"),
+        "l1tex__data_pipe_lsu_wavefronts_mem_shared_op_ld.sum": ("", "800"),
+        "l1tex__data_bank_conflicts_pipe_lsu_mem_shared_op_ld.sum": ("", "200"),
+    }
+    rows = [f'"0","onchip_strang","s","{k}","{u}","{v}"' for k, (u, v) in metrics.items()]
+    f = tmp_path / "one.csv"
+    f.write_text("\n".join(["==PROF== Connected", head, *rows]))
+    row = ncu.summary_row(ncu.read_metrics(f), steps=100, patches=10, pads=2, sms=1, clock=1e9)
+    assert row["us_per_step"] == pytest.approx(20.0)
+    assert row["warp_inst_per_pad_step"] == pytest.approx(2.0e4)  # 4e6 / (100 steps · 2 pads)
+    assert row["warp_inst_per_patch_step"] == pytest.approx(2.0e3)
+    assert row["thread_inst_per_patch_step"] == pytest.approx(4.8e4)
+    assert row["bank_conflict_share"] == pytest.approx(0.25)
+    assert row["ceiling_patch_steps_per_s"] == pytest.approx(4e9 / 2.0e3)  # 1 SM · 4 schedulers · 1 GHz
+    assert ncu.main(["--steps", "100", "--patches", "10", f"{f}=case:2"]) == 0
+    two = tmp_path / "two.csv"
+    two.write_text("\n".join([head, *rows, rows[0].replace('"0"', '"1"', 1)]))
+    short = tmp_path / "short.csv"
+    short.write_text("\n".join([head, *rows[:2]]))
+    for bad in (two, short, tmp_path / "missing.csv"):
+        assert ncu.main(["--steps", "1", "--patches", "1", str(bad)]) == 2
