@@ -48,6 +48,9 @@ DEFAULT_BLOCK = 512  # threads per pad by default (1024 leaves 64 registers per 
 # threads per block of a growing pad on one block: the growth kernel wants more than the 128 registers per thread
 # that 512 threads leave (H100 varying_area pad: 12.3 -> 11.4 us/step; docs/onchip.md)
 GROWTH_BLOCK = 384
+# threads of a (not growing) fp32 pad on one block: 96 registers, 3 patches per thread for hf1; H100, 1024 hf1 pads:
+# 61.3 -> 55.3 us/step against 512 (576, 672, 704 threads: 66-68; 1024: 56.2; docs/onchip.md, "Block size")
+FP32_BLOCK = 640
 _SMEM_RESERVE = 8 * 1024  # bytes left for Warp's reduction scratch and static shared memory
 _PATCH_BUFFER_BYTES = 256 * 2**20  # cap of the per-patch history buffers of one launch
 # model arrays the on-chip growth reads and writes, in the kernel's argument order (float64 ones in _GROWTH_F64)
@@ -109,17 +112,20 @@ def tile_sizes(model: PadModel, cluster: int = 1, threads: int = 1) -> tuple[int
     return _round_up(pad_sizes(model, cluster)[0], 32), _round_up(csr_slots(model, cluster, threads), 32)
 
 
-def default_block(nmax: int, cluster: int, growth: bool) -> int:
+def default_block(nmax: int, cluster: int, growth: bool, fp64: bool) -> int:
     """Threads per block for ``block_dim=None``: the block's part of an ``nmax``-patch pad rounded up to 32, at most
-    ``DEFAULT_BLOCK``, or ``GROWTH_BLOCK`` for a growing pad on one block."""
-    cap = GROWTH_BLOCK if growth and cluster == 1 else DEFAULT_BLOCK
+    ``DEFAULT_BLOCK``; on one block at most ``GROWTH_BLOCK`` for a growing pad, ``FP32_BLOCK`` for an fp32 one."""
+    cap = DEFAULT_BLOCK
+    if cluster == 1:
+        cap = GROWTH_BLOCK if growth else (DEFAULT_BLOCK if fp64 else FP32_BLOCK)
     return min(cap, _round_up(-(-nmax // cluster), 32))
 
 
 def default_threads(model: PadModel, cluster: int = 1) -> int:
     """Threads a block of the default size (:func:`default_block`) runs on the model's device."""
     nmax = pad_sizes(model, cluster)[0]
-    return block_threads(model.device, default_block(nmax, cluster, "pad_growth" in model.arrays))
+    growth, fp64 = "pad_growth" in model.arrays, model.dtype == wp.float64
+    return block_threads(model.device, default_block(nmax, cluster, growth, fp64))
 
 
 def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1, threads: int = 1) -> int:
@@ -258,7 +264,7 @@ def run_onchip(
         raise SceneError(f"a cluster of {cluster} blocks per pad needs a CUDA device of compute capability 9.0+")
     nmax = pad_sizes(model, cluster)[0]
     if block_dim is None:
-        block_dim = default_block(nmax, cluster, growth)
+        block_dim = default_block(nmax, cluster, growth, model.dtype == wp.float64)
     if not 1 <= block_dim <= MAX_BLOCK:
         raise SceneError(f"block_dim must be in [1, {MAX_BLOCK}], got {block_dim}")
     threads = block_threads(dev, block_dim)
@@ -289,6 +295,7 @@ def run_onchip(
         fast_math,
         growth,
         cluster,
+        min(threads, 32),
     )
     stages = [
         "contact",

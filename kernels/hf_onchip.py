@@ -65,6 +65,7 @@ def onchip_kernel(
     fast_math: bool = False,
     growth: bool = False,
     cluster: int = 1,
+    lanes: int = 32,
 ) -> wp.Kernel:
     """The on-chip strang kernel for pads of at most ``nmax`` patches (``emax`` CSR slots when ``csr_shared``).
 
@@ -89,6 +90,8 @@ def onchip_kernel(
     updates its own CSR rows, and every block re-solves the whole pad's contact (the same sums in the same order, so
     the same gap; cheaper than a cluster barrier per Newton iteration) and keeps its own patches' normal forces.
 
+    ``lanes``: min(threads, 32), the banks of the on-chip CSR layout (:func:`aca_warp.onchip.csr_slots`).
+
     Launch with ``wp.launch_tiled(kernel, dim=[pads · K], block_dim=B, ...)`` (K = ``cluster``); ``threads``
     must be the block size the device really runs (B on CUDA or with CPU fibers, else 1 on the CPU). The kernel
     is compiled with ``__launch_bounds__(block_dim)`` so that a block of ``block_dim`` threads gets the registers
@@ -110,6 +113,7 @@ def onchip_kernel(
     CONTACT = wp.constant(0 if "contact" in ablate else 1)
     GROWTH = wp.constant(1 if growth else 0)
     CLUSTER = wp.constant(cluster)
+    NW = wp.constant(lanes)  # banks of the on-chip CSR: min(threads, 32), a constant so that slot steps fold
 
     # Per-thread element stores into the shared tiles. ``tile[i] = x`` in Warp is a block-cooperative op (it ends
     # in WP_TILE_SYNC(), i.e. __syncthreads()), which inside the per-thread ``while i < n`` loops deadlocks on CUDA
@@ -252,7 +256,7 @@ def onchip_kernel(
             i += threads
         # on-chip CSR, bank-interleaved (aca_warp.onchip.csr_slots): the thread's links one after another, link m
         # at slot nw·(m0 + m) + bank, so the lanes of a warp always read different banks (nw = 32 on CUDA)
-        nw = wp.min(threads, 32)
+        nw = NW
         bank = lane % nw
         m0 = int(0)  # links of the block's threads before this one with the same bank
         if CSR_SHARED != 0:

@@ -95,9 +95,11 @@ def main(argv: list[str] | None = None) -> int:
             dtype = model.dtype
             for k in args.clusters:
                 for growth in (False, True):
-                    for b in args.blocks or [default_block(pad_sizes(model, k)[0], k, growth)]:
+                    for b in args.blocks or [default_block(pad_sizes(model, k)[0], k, growth, prec == "fp64")]:
                         csr = shared_bytes(model, True, k, b) <= smem_limit(model, args.smem_per_block)
-                        kernel = onchip_kernel(dtype, *tile_sizes(model, k, b), csr, b, growth=growth, cluster=k)
+                        kernel = onchip_kernel(
+                            dtype, *tile_sizes(model, k, b), csr, b, growth=growth, cluster=k, lanes=min(b, 32)
+                        )
                         kernel.module.options["block_dim"] = b
                         out = Path(tmp) / f"{prec}_{k}_{int(growth)}_{b}"
                         wp.compile_aot_module(kernel.module, arch=90, module_dir=out, use_ptx=False)

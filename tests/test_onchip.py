@@ -24,7 +24,15 @@ from hypothesis import strategies as st
 from aca_warp.errors import SceneError
 from aca_warp.hf import run_hf, stable_step
 from aca_warp.model import build_model
-from aca_warp.onchip import choose_engine, csr_slots, default_cluster, pad_sizes, run, run_onchip
+from aca_warp.onchip import (
+    choose_engine,
+    csr_slots,
+    default_block,
+    default_cluster,
+    pad_sizes,
+    run,
+    run_onchip,
+)
 from aca_warp.scene import Growth, Initial, Patches, Record, preset
 from aca_warp.state import initial_state
 
@@ -317,6 +325,18 @@ def test_csr_slots_bank_interleaved(cluster, threads):
             assert all(u % w == lane % w for u, lane in used)
             top = max(top, max(pos) + 1)
     assert slots - w < top <= slots
+
+
+@pytest.mark.parametrize(
+    ("nmax", "cluster", "growth", "fp64", "expected"),
+    [(1758, 1, False, False, 640), (1758, 1, False, True, 512), (1758, 1, True, False, 384),
+     (1758, 1, True, True, 384), (1758, 2, False, False, 512), (1758, 4, True, False, 448),
+     (1758, 8, False, True, 224), (100, 1, False, False, 128)],
+)  # fmt: skip
+def test_default_block(nmax, cluster, growth, fp64, expected):
+    """Threads per block: the block's part rounded up to 32, capped at 640 (fp32) / 512 (fp64) on one block, 384 for a
+    growing pad on one block, 512 for a part of a cluster (the sizes measured fastest on the H100, docs/onchip.md)."""
+    assert default_block(nmax, cluster, growth, fp64) == expected
 
 
 @pytest.mark.parametrize(
