@@ -3,10 +3,13 @@
 Barrier rule (CUDA): every block-cooperative op (``tile_zeros``, ``wp.tile``, ``tile_sum``/``tile_min``,
 :func:`block_sync`, and Warp's ``tile[i] = x``, which ends in ``__syncthreads()``) must be reached by all threads
 of the block equally often, so none may sit inside per-thread loops or branches. Per-thread stores into shared
-tiles use the barrier-free ``put`` helpers made here; reads ``t[i]`` of a shared tile need no barrier.
-"""
+tiles use the barrier-free ``put`` helpers made here; reads ``t[i]`` of a shared tile need no barrier, and the
+``get`` helpers read without Warp's negative-index wrap (``t[i]`` adds a compare, an add and a select per index so
+that ``t[-1]`` works; in the on-chip gather that was about a third of its instructions, docs/onchip.md).
 
-from __future__ import annotations
+The helpers are native snippets typed per tile shape; this module keeps its annotations eager (no ``from
+__future__ import annotations``) so that the stubs made in the factories carry real tile types.
+"""
 
 from typing import Any
 
@@ -22,19 +25,37 @@ def block_sync(): ...
 def tile_store_1d(dtype: Any, size: int) -> Any:
     """``put(t, i, x)``: ``t[i] = x`` for one thread, no block barrier (t a tile of shape (size,))."""
 
-    def put(t, i, x): ...
+    @wp.func_native("t.data(wp::tile_coord(i)) = x;\n")
+    def put(t: wp.tile[dtype, size], i: int, x: dtype): ...
 
-    put.__annotations__ = {"t": wp.tile[dtype, size], "i": int, "x": dtype}  # real types: closures need no eval
-    return wp.func_native("t.data(wp::tile_coord(i)) = x;\n")(put)
+    return put
 
 
 def tile_store_rows(dtype: Any, rows: int, size: int) -> Any:
     """``put(t, r, i, x)``: ``t[r, i] = x`` for one thread, no block barrier (t a tile of shape (rows, size))."""
 
-    def put(t, r, i, x): ...
+    @wp.func_native("t.data(wp::tile_coord(r, i)) = x;\n")
+    def put(t: wp.tile[dtype, rows, size], r: int, i: int, x: dtype): ...
 
-    put.__annotations__ = {"t": wp.tile[dtype, rows, size], "r": int, "i": int, "x": dtype}
-    return wp.func_native("t.data(wp::tile_coord(r, i)) = x;\n")(put)
+    return put
+
+
+def tile_load_1d(dtype: Any, size: int) -> Any:
+    """``get(t, i)``: ``t[i]`` for 0 ≤ i < size, without the negative-index wrap (t a tile of shape (size,))."""
+
+    @wp.func_native("return t.data(wp::tile_coord(i));\n")
+    def get(t: wp.tile[dtype, size], i: int) -> dtype: ...
+
+    return get
+
+
+def tile_load_rows(dtype: Any, rows: int, size: int) -> Any:
+    """``get(t, r, i)``: ``t[r, i]`` for 0 ≤ r < rows, 0 ≤ i < size, without the negative-index wrap."""
+
+    @wp.func_native("return t.data(wp::tile_coord(r, i));\n")
+    def get(t: wp.tile[dtype, rows, size], r: int, i: int) -> dtype: ...
+
+    return get
 
 
 @wp.func
@@ -67,9 +88,6 @@ def tile_store_rows_remote(dtype: Any, rows: int, size: int) -> Any:
     """``put(t, r, i, x, rank)``: ``t[r, i] = x`` in the shared tile ``t`` of cluster block ``rank``, one thread,
     no barrier (``mapa`` + ``st.shared::cluster``; visible to that block after the next :func:`cluster_sync`)."""
 
-    def put(t, r, i, x, rank): ...
-
-    put.__annotations__ = {"t": wp.tile[dtype, rows, size], "r": int, "i": int, "x": dtype, "rank": int}
     bits, reg, cast = {4: ("b32", "r", "__float_as_uint"), 8: ("b64", "l", "__double_as_longlong")}[
         wp.types.type_size_in_bytes(dtype)
     ]
@@ -83,4 +101,8 @@ def tile_store_rows_remote(dtype: Any, rows: int, size: int) -> Any:
     t.data(wp::tile_coord(r, i)) = x;
 #endif
 """
-    return wp.func_native(snippet)(put)
+
+    @wp.func_native(snippet)
+    def put(t: wp.tile[dtype, rows, size], r: int, i: int, x: dtype, rank: int): ...
+
+    return put

@@ -1,0 +1,51 @@
+"""The barrier-free shared-tile helpers of aca_warp.kernels.tiles (CPU): ``get`` reads the element ``t[i]`` reads
+(without the negative-index wrap), ``put`` writes the element ``t[i] = x`` writes."""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+from aca_warp.kernels.tiles import tile_load_1d, tile_load_rows, tile_store_1d, tile_store_rows
+
+N = 48
+get_i = tile_load_1d(wp.int16, N)
+get_r = tile_load_rows(wp.float32, 2, N)
+put_i = tile_store_1d(wp.int16, N)
+put_r = tile_store_rows(wp.float32, 2, N)
+
+
+@wp.kernel(enable_backward=False, module="unique")
+def _copy_through_tiles(
+    idx: wp.array[wp.int16], rows: wp.array2d[wp.float32], out_i: wp.array[wp.int16], out_r: wp.array2d[wp.float32]
+):
+    _blk, lane = wp.tid()
+    ti = wp.tile_load(idx, shape=N, storage="shared")
+    tr = wp.tile_load(rows, shape=(2, N), storage="shared")
+    si = wp.tile_zeros(shape=N, dtype=wp.int16, storage="shared")
+    sr = wp.tile_zeros(shape=(2, N), dtype=wp.float32, storage="shared")
+    if lane == 0:
+        for i in range(N):
+            j = int(get_i(ti, i))  # a permutation: row entries read at scattered places
+            put_i(si, i, get_i(ti, j))
+            put_r(sr, 0, i, get_r(tr, 1, j) - tr[1, j])  # 0 when get reads what indexing reads
+            put_r(sr, 1, N - 1 - i, get_r(tr, 0, i))
+    wp.tile_store(out_i, si)
+    wp.tile_store(out_r, sr)
+
+
+def test_tile_get_put_match_indexing():
+    rng = np.random.default_rng(3)
+    perm = rng.permutation(N).astype(np.int16)
+    rows = rng.standard_normal((2, N)).astype(np.float32)
+    out_i = wp.zeros(N, dtype=wp.int16, device="cpu")
+    out_r = wp.zeros((2, N), dtype=wp.float32, device="cpu")
+    wp.launch_tiled(
+        _copy_through_tiles,
+        dim=[1],
+        inputs=[wp.array(perm, device="cpu"), wp.array(rows, device="cpu"), out_i, out_r],
+        block_dim=1,
+        device="cpu",
+    )
+    np.testing.assert_array_equal(out_i.numpy(), perm[perm])
+    np.testing.assert_array_equal(out_r.numpy()[0], np.zeros(N, np.float32))
+    np.testing.assert_array_equal(out_r.numpy()[1], rows[0][::-1])
