@@ -46,7 +46,15 @@ from aca_warp.kernels.hf import (
     patch_sample_due,
     write_globals,
 )
-from aca_warp.kernels.tiles import block_sync, cluster_sync, tile_store_1d, tile_store_rows, tile_store_rows_remote
+from aca_warp.kernels.tiles import (
+    block_sync,
+    cluster_sync,
+    tile_load_1d,
+    tile_load_rows,
+    tile_store_1d,
+    tile_store_rows,
+    tile_store_rows_remote,
+)
 
 wp.set_module_options({"enable_backward": False})
 
@@ -123,6 +131,11 @@ def onchip_kernel(
     put_ei = tile_store_1d(wp.int16, ne)  # local neighbour index (nmax < 2**15, asserted above)
     put_ek = tile_store_1d(T, ne)
     put_u_at = tile_store_rows_remote(T, 2, nmax)  # into the u copy of another block of the cluster
+    # reads without Warp's negative-index wrap (a compare, add and select per index; docs/onchip.md)
+    get_n = tile_load_1d(T, nmax)
+    get_u = tile_load_rows(T, 2, nmax)
+    get_ei = tile_load_1d(wp.int16, ne)
+    get_ek = tile_load_1d(T, ne)
     put_red = tile_store_rows_remote(wp.float64, cluster, 8)  # a block's sample sums into block 0's table
     # the barrier of all threads that advance a pad (a plain block barrier for one block: on sm_90 cluster_sync
     # would issue a cluster barrier for a one-block cluster)
@@ -148,7 +161,7 @@ def onchip_kernel(
         """Synchronous velocity of local patch i (global g) from the staggered w and F_s (``strang_close``)."""
         im = inv_mass[g]
         return midpoint_friction(
-            w[i] + half * im * fs[i], half, T(1.0) / im, damping[g], normal_force[g], omega * radius[g],
+            get_n(w, i) + half * im * get_n(fs, i), half, T(1.0) / im, damping[g], normal_force[g], omega * radius[g],
             mu_scale, slope, decay, tol,
         )  # fmt: skip
 
@@ -298,22 +311,31 @@ def onchip_kernel(
                     im = inv_mass[g]
                     vd = omega * radius[g]
                     if FRICTION == 0:
-                        v = w[i] + dt * im * fs[i]
+                        v = get_n(w, i) + dt * im * get_n(fs, i)
                     elif first_step != 0:
                         v = midpoint_friction(
-                            w[i], half, one / im, damping[g], normal_force[g], vd, mu_scale, slope, decay, tol
+                            get_n(w, i), half, one / im, damping[g], normal_force[g], vd, mu_scale, slope, decay, tol
                         )
-                        v = v + half * im * fs[i]
+                        v = v + half * im * get_n(fs, i)
                     else:
-                        kick = half * im * fs[i]
+                        kick = half * im * get_n(fs, i)
                         v = (
                             midpoint_friction(
-                                w[i] + kick, dt, one / im, damping[g], normal_force[g], vd, mu_scale, slope, decay, tol
+                                get_n(w, i) + kick,
+                                dt,
+                                one / im,
+                                damping[g],
+                                normal_force[g],
+                                vd,
+                                mu_scale,
+                                slope,
+                                decay,
+                                tol,
                             )
                             + kick
                         )
                     put_n(w, i, v)
-                    un = u2[cur, i] + dt * v
+                    un = get_u(u2, cur, i) + dt * v
                     if CLUSTER == 1:
                         put_u(u2, nxt, i, un)
                     else:
@@ -337,26 +359,26 @@ def onchip_kernel(
                     if CSR_SHARED != 0:  # four links per pass: more shared loads in flight (H100: 8.6 -> 8.3 us)
                         pe = p + nw * (end - e)
                         while p + 3 * nw < pe:
-                            a0 += sk[p] * u2[nxt, int(sidx[p])]
-                            a1 += sk[p + nw] * u2[nxt, int(sidx[p + nw])]
-                            a0 += sk[p + 2 * nw] * u2[nxt, int(sidx[p + 2 * nw])]
-                            a1 += sk[p + 3 * nw] * u2[nxt, int(sidx[p + 3 * nw])]
+                            a0 += get_ek(sk, p) * get_u(u2, nxt, int(get_ei(sidx, p)))
+                            a1 += get_ek(sk, p + nw) * get_u(u2, nxt, int(get_ei(sidx, p + nw)))
+                            a0 += get_ek(sk, p + 2 * nw) * get_u(u2, nxt, int(get_ei(sidx, p + 2 * nw)))
+                            a1 += get_ek(sk, p + 3 * nw) * get_u(u2, nxt, int(get_ei(sidx, p + 3 * nw)))
                             p += 4 * nw
                         if p + nw < pe:
-                            a0 += sk[p] * u2[nxt, int(sidx[p])]
-                            a1 += sk[p + nw] * u2[nxt, int(sidx[p + nw])]
+                            a0 += get_ek(sk, p) * get_u(u2, nxt, int(get_ei(sidx, p)))
+                            a1 += get_ek(sk, p + nw) * get_u(u2, nxt, int(get_ei(sidx, p + nw)))
                             p += 2 * nw
                         if p < pe:
-                            a0 += sk[p] * u2[nxt, int(sidx[p])]
+                            a0 += get_ek(sk, p) * get_u(u2, nxt, int(get_ei(sidx, p)))
                             p += nw
                     else:
                         while e + 1 < end:
-                            a0 += nbr_stiffness[e] * u2[nxt, nbr_index[e] - a]
-                            a1 += nbr_stiffness[e + 1] * u2[nxt, nbr_index[e + 1] - a]
+                            a0 += nbr_stiffness[e] * get_u(u2, nxt, nbr_index[e] - a)
+                            a1 += nbr_stiffness[e + 1] * get_u(u2, nxt, nbr_index[e + 1] - a)
                             e += 2
                         if e < end:
-                            a0 += nbr_stiffness[e] * u2[nxt, nbr_index[e] - a]
-                    put_n(fs, i, (a0 + a1) - k_diag[g] * u2[nxt, i])
+                            a0 += nbr_stiffness[e] * get_u(u2, nxt, nbr_index[e] - a)
+                    put_n(fs, i, (a0 + a1) - k_diag[g] * get_u(u2, nxt, i))
                     i += threads
                 cur = nxt
                 if GROWTH != 0:
@@ -380,7 +402,7 @@ def onchip_kernel(
                                 ki = pad_kc[pad] * sqrt_area[g]
                                 d = k_t[g]
                                 for e in range(nbr_start[g], nbr_start[g + 1]):
-                                    kij = ki * sqrt_area[a + int(sidx[p])] * nbr_inv_dist[e]
+                                    kij = ki * sqrt_area[a + int(get_ei(sidx, p))] * nbr_inv_dist[e]
                                     nbr_stiffness[e] = kij
                                     put_ek(sk, p, kij)
                                     d += kij
@@ -414,7 +436,7 @@ def onchip_kernel(
                 r = radius[g]
                 vs = sync_velocity(i, g, w, fs, inv_mass, damping, normal_force, radius, omega, half, mu_scale,
                                    slope, decay, tol)  # fmt: skip
-                uu = u2[cur, i]
+                uu = get_u(u2, cur, i)
                 f = normal_force[g] * friction_coefficient(omega * r - vs, mu_scale, slope, decay)
                 fsum += wp.float64(f)
                 tsum += wp.float64(f * r)
@@ -445,13 +467,13 @@ def onchip_kernel(
                         if bad < 0:
                             vs = sync_velocity(j, a + j, w, fs, inv_mass, damping, normal_force, radius, omega,
                                                half, mu_scale, slope, decay, tol)  # fmt: skip
-                            if not (wp.isfinite(vs) and wp.isfinite(u2[cur, j])):
+                            if not (wp.isfinite(vs) and wp.isfinite(get_u(u2, cur, j))):
                                 bad = j
                 elif runaway < n:
                     g = a + runaway
                     vs = sync_velocity(runaway, g, w, fs, inv_mass, damping, normal_force, radius, omega,
                                        half, mu_scale, slope, decay, tol)  # fmt: skip
-                    ui = wp.float64(u2[cur, runaway])
+                    ui = wp.float64(get_u(u2, cur, runaway))
                     value = wp.sqrt(wp.float64(vs) * wp.float64(vs) + wp.float64(k_t[g] * inv_mass[g]) * ui * ui)
             if CLUSTER > 1:  # block 0 combines the blocks' sums in rank order
                 if lane == 0:
@@ -505,9 +527,9 @@ def onchip_kernel(
         # write back the staggered state and the force cache (own patches)
         i = lo + lane
         while i < hi:
-            u_io[a + i] = u2[cur, i]
-            v_io[a + i] = w[i]
-            force_io[a + i] = fs[i]
+            u_io[a + i] = get_u(u2, cur, i)
+            v_io[a + i] = get_n(w, i)
+            force_io[a + i] = get_n(fs, i)
             i += threads
         if CLUSTER > 1:
             cluster_sync()  # no block leaves while another may still address its shared memory (or read the gap)
