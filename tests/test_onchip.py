@@ -300,6 +300,15 @@ def test_cluster_split_sizes():
     assert pad_sizes(model, 8)[1] < pad_sizes(model, 1)[1] / 4
 
 
+def test_onchip_kernel_refuses_pads_beyond_int16_indices():
+    """The on-chip CSR holds int16 local indices: a kernel for pads of 2**15 patches or more is refused."""
+    from aca_warp.kernels.hf_onchip import onchip_kernel
+
+    with pytest.raises(ValueError, match="32768"):
+        onchip_kernel(wp.float32, 2**15, 32, True, 32)
+    assert onchip_kernel(wp.float32, 2**15 - 1, 32, True, 32) is not None  # built lazily: no compile here
+
+
 @pytest.mark.parametrize(("cluster", "threads"), [(1, 1), (1, 96), (1, 100), (3, 512), (8, 224)])
 def test_csr_slots_bank_interleaved(cluster, threads):
     """The kernel's on-chip CSR layout (link m of a thread at slot W·(s + m) + lane mod W, s the links of the earlier
