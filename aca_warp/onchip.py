@@ -144,8 +144,8 @@ def default_cluster(pads: int, sm_count: int, split_fits_csr: bool = False) -> i
     A cluster's blocks run on the SMs of one GPC (≈ 16–18 SMs on an H100, sm_count // 16 GPCs taken), and the
     batch should run in one wave: the largest K of 8, 4, 2 with pads ≤ GPCs · (16 // K − 1); otherwise 1, or 2
     when only a pad split in two keeps its neighbour lists in shared memory (fp64 hf1 pads). Measured on an
-    H100 (hf1, docs/benchmarks/onchip_h100/bench_cluster.md): one pad 8.4 → 3.4 µs/step fp32 (K = 1 → 8) and
-    18.8 → 3.8 fp64; 16 pads are fastest with K = 4 (K = 8 needs a second wave: 6.6 against 4.3 µs/step);
+    H100 (hf1, docs/benchmarks/onchip_h100/bench_cluster.md): one pad 6.4 → 2.8 µs/step fp32 (K = 1 → 8) and
+    18.2 → 3.5 fp64; 16 pads are fastest with K = 4 (K = 8 needs a second wave: 5.7 against 3.9 µs/step);
     132 and 1024 fp32 pads with K = 1 (a cluster repeats the u update in every block), fp64 with K = 2. The
     growing varying_area pad (an event every 20 steps): 11.4 → 4.1 µs/step fp32 (K = 1 → 8; K = 2, 4: 8.5, 5.1;
     docs/benchmarks/onchip_h100/profile_growth_cluster.md).
@@ -225,8 +225,8 @@ def run_onchip(
 
     Same contract as :func:`aca_warp.hf.run_hf` with ``integrator="strang"`` (step shortened so that a whole
     number of steps fits a sample interval; samples go to ``sink`` or the result's chunks; the state is left
-    synchronous; the same watchdog, ``watchdog_factor``). ``block_dim``: threads per block (default: the
-    block's part of the pad rounded up to 32, at most 512, or 384 for a growing pad on one block);
+    synchronous; the same watchdog, ``watchdog_factor``). ``block_dim``: threads per block (default:
+    :func:`default_block`);
     ``csr_shared``: keep the neighbour lists in shared memory (default: when they fit);
     ``samples_per_launch``: sample intervals per kernel launch (default: as many as fit ~20k steps).
     ``ablate``: profiling only (``scripts/profile_onchip.py``): parts of the step left out, results wrong

@@ -280,7 +280,9 @@ def onchip_kernel(
                     m0 += nbr_start[a + i + 1] - nbr_start[a + i]
                     i += threads
                 q += nw
-            p = nw * m0 + bank
+        p0 = nw * m0 + bank  # the thread's first on-chip link slot
+        if CSR_SHARED != 0:
+            p = p0
             i = lo + lane
             while i < hi:
                 for e in range(nbr_start[a + i], nbr_start[a + i + 1]):
@@ -346,7 +348,7 @@ def onchip_kernel(
                 if SYNC != 0:
                     pad_sync()
                 # spring forces at the new u (spring_force of kernels.hf: same two partial sums, same order)
-                p = nw * m0 + bank  # the thread's first on-chip link
+                p = p0
                 i = lo + lane
                 while i < hi:
                     g = a + i
@@ -395,7 +397,7 @@ def onchip_kernel(
                         i = lo + lane
                         if COUPLING == 0:
                             i = hi
-                        p = nw * m0 + bank
+                        p = p0
                         while i < hi:
                             g = a + i
                             if CSR_SHARED != 0:  # patch_coupling with the neighbour indices from shared memory
