@@ -121,13 +121,6 @@ def default_block(nmax: int, cluster: int, growth: bool, fp64: bool) -> int:
     return min(cap, _round_up(-(-nmax // cluster), 32))
 
 
-def default_threads(model: PadModel, cluster: int = 1) -> int:
-    """Threads a block of the default size (:func:`default_block`) runs on the model's device."""
-    nmax = pad_sizes(model, cluster)[0]
-    growth, fp64 = "pad_growth" in model.arrays, model.dtype == wp.float64
-    return block_threads(model.device, default_block(nmax, cluster, growth, fp64))
-
-
 def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1, threads: int = 1) -> int:
     """Shared memory one block of ``threads`` threads needs [bytes]: u (×2), w, F_s per patch of the pad, the
     cluster's table of sample sums, plus the block's part of the CSR (:func:`csr_slots`) when kept on chip."""
@@ -164,6 +157,25 @@ def smem_limit(model: PadModel, per_block: int | None = None) -> int:
         dev = model.device
         per_block = 256 * 1024 if dev.is_cpu else int(dev.max_shared_memory_per_block)  # CPU: native/tile.h arena
     return per_block - _SMEM_RESERVE
+
+
+def block_config(
+    model: PadModel, cluster: int, block_dim: int | None = None, csr_shared: bool | None = None
+) -> tuple[int, int, bool]:
+    """(block size, threads the device runs per block, CSR on chip) of a launch with ``cluster`` blocks per pad:
+    ``block_dim`` or :func:`default_block`; ``csr_shared`` or, when None, whether the neighbour lists fit shared
+    memory beside the state. Raises :class:`SceneError` for a block size out of range or a CSR asked on chip that
+    does not fit."""
+    nmax = pad_sizes(model, cluster)[0]
+    if block_dim is None:
+        block_dim = default_block(nmax, cluster, "pad_growth" in model.arrays, model.dtype == wp.float64)
+    if not 1 <= block_dim <= MAX_BLOCK:
+        raise SceneError(f"block_dim must be in [1, {MAX_BLOCK}], got {block_dim}")
+    threads = block_threads(model.device, block_dim)
+    fits = shared_bytes(model, True, cluster, threads) <= smem_limit(model)
+    if csr_shared and not fits:
+        raise SceneError(f"the neighbour lists of a {nmax}-patch pad do not fit shared memory with the state")
+    return block_dim, threads, fits if csr_shared is None else bool(csr_shared)
 
 
 def unsupported(model: PadModel, integrator: str = DEFAULT_INTEGRATOR) -> str | None:
@@ -255,24 +267,13 @@ def run_onchip(
     if cluster is None:
         cluster = 1
         if dev.is_cuda and dev.arch >= 90:
-            limit = smem_limit(model)
-            one, two = (shared_bytes(model, True, k, default_threads(model, k)) for k in (1, 2))
-            cluster = default_cluster(model.pad_count, dev.sm_count, one > limit and two <= limit)
+            split = not block_config(model, 1)[2] and block_config(model, 2)[2]  # the CSR fits only when split
+            cluster = default_cluster(model.pad_count, dev.sm_count, split)
     if not 1 <= cluster <= MAX_CLUSTER:
         raise SceneError(f"cluster must be in [1, {MAX_CLUSTER}] blocks per pad, got {cluster}")
     if cluster > 1 and (dev.is_cpu or dev.arch < 90):
         raise SceneError(f"a cluster of {cluster} blocks per pad needs a CUDA device of compute capability 9.0+")
-    nmax = pad_sizes(model, cluster)[0]
-    if block_dim is None:
-        block_dim = default_block(nmax, cluster, growth, model.dtype == wp.float64)
-    if not 1 <= block_dim <= MAX_BLOCK:
-        raise SceneError(f"block_dim must be in [1, {MAX_BLOCK}], got {block_dim}")
-    threads = block_threads(dev, block_dim)
-    fits = shared_bytes(model, True, cluster, threads) <= smem_limit(model)
-    if csr_shared is None:
-        csr_shared = fits
-    elif csr_shared and not fits:
-        raise SceneError(f"the neighbour lists of a {nmax}-patch pad do not fit shared memory with the state")
+    block_dim, threads, csr_shared = block_config(model, cluster, block_dim, csr_shared)
 
     probe = _Recorder(model, record, 1, n_samples)
     per_row = (int(probe.want_v) + int(probe.want_u)) * model.patch_count * _itemsize(model)

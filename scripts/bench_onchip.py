@@ -24,20 +24,18 @@ import warp as wp
 
 wp.config.log_level = wp.LOG_WARNING
 
-from aca_warp.hf import block_threads, run_hf  # noqa: E402
+from aca_warp.hf import run_hf  # noqa: E402
 from aca_warp.io import machine  # noqa: E402
 from aca_warp.model import build_model  # noqa: E402
-from aca_warp.onchip import default_threads, run_onchip, shared_bytes, smem_limit  # noqa: E402
+from aca_warp.onchip import block_config, run_onchip, shared_bytes  # noqa: E402
 from aca_warp.scene import Record, preset  # noqa: E402
 from aca_warp.state import initial_state  # noqa: E402
 
 
 def onchip_bytes(model, block_dim, csr_shared, cluster) -> int:
     """Shared memory per block [bytes] of the on-chip run as run_onchip configures it."""
-    threads = default_threads(model, cluster) if block_dim is None else block_threads(model.device, block_dim)
-    if csr_shared is None:
-        csr_shared = shared_bytes(model, True, cluster, threads) <= smem_limit(model)
-    return shared_bytes(model, csr_shared, cluster, threads)
+    _, threads, csr = block_config(model, cluster, block_dim, csr_shared)
+    return shared_bytes(model, csr, cluster, threads)
 
 
 def run_case(scene, device, precision, engine, pads, dt, duration, block_dim=None, csr_shared=None, cluster=1):
