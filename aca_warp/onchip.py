@@ -43,7 +43,7 @@ from aca_warp.state import HFState
 
 ENGINES = ("auto", "onchip", "general")
 MAX_BLOCK = 1024  # threads per block
-MAX_CLUSTER = 8  # blocks per pad (the portable thread-block cluster size)
+MAX_CLUSTER = 16  # blocks per pad (8 is the portable cluster size; H100/H200 launch 16 as "non-portable")
 DEFAULT_BLOCK = 512  # threads per pad by default (1024 leaves 64 registers per thread: the fp64 kernel spills)
 # threads per block of a growing pad on one block: the growth kernel wants more than the 128 registers per thread
 # that 512 threads leave (H100 varying_area pad: 12.3 -> 11.4 us/step; docs/onchip.md)
@@ -244,8 +244,9 @@ def run_onchip(
     ``ablate``: profiling only (``scripts/profile_onchip.py``): parts of the step left out, results wrong
     (:func:`aca_warp.kernels.hf_onchip.onchip_kernel`).
     ``fast_math``: compile with CUDA fast math (approximate division and transcendentals; profiling).
-    ``cluster``: blocks per pad, a thread-block cluster (CUDA sm_90+; default: :func:`default_cluster` there,
-    else 1; docs/onchip.md).
+    ``cluster``: blocks per pad, a thread-block cluster of 1–16 (CUDA sm_90+; above 8 a "non-portable" size,
+    refused where the device cannot launch it; default: :func:`default_cluster` there, at most 8, else 1;
+    docs/onchip.md: 16 blocks are slower than 8 for an hf1 pad, and keep twice as large a pad's CSR on chip).
     On the CPU a block is one thread unless ``wp.config.enable_cpu_blocks`` is set (Warp's cooperative CPU
     fibers: ``block_dim`` threads per block with real barriers, used by the tests to exercise multi-thread blocks).
     """
@@ -298,6 +299,8 @@ def run_onchip(
         cluster,
         min(threads, 32),
     )
+    if cluster > 1 and wp.get_cuda_max_cluster_dim(kernel, dev, block_dim=block_dim) < cluster:
+        raise SceneError(f"{dev.name} cannot launch a cluster of {cluster} blocks of {block_dim} threads per pad")
     stages = [
         "contact",
         "neighbours" if model.has_coupling else "no-coupling",

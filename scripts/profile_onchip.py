@@ -58,8 +58,15 @@ CASES = [
     ("no friction, no gather, cluster 8", "fp32", None, None, ("cluster8", "friction", "gather")),
     ("loop only, cluster 8", "fp32", None, None, ("cluster8", "friction", "gather", "sync")),
     ("full, fast math, cluster 8", "fp32", None, None, ("cluster8", "fast_math")),
+    # 16 blocks: a "non-portable" cluster (H100/H200)
+    ("full, cluster 16", "fp32", None, None, ("cluster16",)),
+    ("no gather, cluster 16", "fp32", None, None, ("cluster16", "gather")),
+    ("no friction solve, cluster 16", "fp32", None, None, ("cluster16", "friction")),
+    ("no friction, no gather, cluster 16", "fp32", None, None, ("cluster16", "friction", "gather")),
+    ("loop only, cluster 16", "fp32", None, None, ("cluster16", "friction", "gather", "sync")),
     ("full, cluster 4", "fp64", None, None, ("cluster4",)),
     ("full, cluster 8", "fp64", None, None, ("cluster8",)),
+    ("full, cluster 16", "fp64", None, None, ("cluster16",)),
 ]
 # --growth: (label, precision, block_dim (None: run_onchip's choice), ablations (with "clusterK" tags as above) or
 # None for the general path, event interval × this; 0: no growth)
@@ -82,6 +89,7 @@ GROWTH_CASES = [
     ("growth, cluster 8, no contact re-solve", "fp32", None, ("cluster8", "contact"), 1),
     ("growth, cluster 8, no stiffness update", "fp32", None, ("cluster8", "coupling"), 1),
     ("growth, cluster 8, events 100x rarer", "fp32", None, ("cluster8",), 100),
+    ("growth, cluster 16", "fp32", None, ("cluster16",), 1),
     ("growth, cluster 8", "fp64", None, ("cluster8",), 1),
     ("growth, cluster 2, block 384", "fp32", 384, ("cluster2",), 1),
     ("growth, cluster 4, block 384", "fp32", 384, ("cluster4",), 1),

@@ -49,3 +49,25 @@ def test_tile_get_put_match_indexing():
     np.testing.assert_array_equal(out_i.numpy(), perm[perm])
     np.testing.assert_array_equal(out_r.numpy()[0], np.zeros(N, np.float32))
     np.testing.assert_array_equal(out_r.numpy()[1], rows[0][::-1])
+
+
+def test_barrier_rounds_kernel_on_cpu_blocks():
+    """scripts/bench_cluster_barrier.py's round (store into the u copies, barrier, read the next lane's value) on a
+    CPU block of 32 fiber threads with real barriers: lane l sums (l + 1) mod 32 + s over the rounds s, which holds
+    only when every store lands before the barrier releases the read; the script refuses a CPU device."""
+    from scriptload import load_script
+
+    bench = load_script("bench_cluster_barrier")
+    steps, lanes = 7, 32
+    old = wp.config.enable_cpu_blocks
+    try:
+        wp.config.enable_cpu_blocks = True
+        out = wp.zeros((1, lanes), dtype=wp.float32, device="cpu")
+        kernel = bench.barrier_kernel(1, lanes, remote=True)
+        wp.launch_tiled(kernel, dim=[1], block_dim=lanes, inputs=[steps, out], device="cpu")
+    finally:
+        wp.config.enable_cpu_blocks = old
+    lane = np.arange(lanes)
+    expected = steps * ((lane + 1) % lanes) + steps * (steps - 1) / 2
+    np.testing.assert_array_equal(out.numpy()[0], expected)
+    assert bench.main(["--device", "cpu"]) == 2
