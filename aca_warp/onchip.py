@@ -123,9 +123,10 @@ def default_block(nmax: int, cluster: int, growth: bool, fp64: bool) -> int:
 
 def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1, threads: int = 1) -> int:
     """Shared memory one block of ``threads`` threads needs [bytes]: u (×2), w, F_s per patch of the pad, the
-    cluster's table of sample sums, plus the block's part of the CSR (:func:`csr_slots`) when kept on chip."""
+    cluster's table of sample sums, the two mbarriers of the u exchange, plus the block's part of the CSR
+    (:func:`csr_slots`) when kept on chip."""
     nmax, slots = tile_sizes(model, cluster, threads)
-    b = 4 * nmax * _itemsize(model) + 64 * cluster
+    b = 4 * nmax * _itemsize(model) + 64 * cluster + 16
     if csr_shared:
         b += slots * (2 + _itemsize(model))  # int16 local index, k_ij in the state precision
     return b

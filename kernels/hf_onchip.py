@@ -49,10 +49,12 @@ from aca_warp.kernels.hf import (
 from aca_warp.kernels.tiles import (
     block_sync,
     cluster_sync,
+    mbarrier_ops,
     tile_load_1d,
     tile_load_rows,
     tile_store_1d,
     tile_store_rows,
+    tile_store_rows_async,
     tile_store_rows_remote,
 )
 
@@ -92,8 +94,10 @@ def onchip_kernel(
     ``cluster`` = K > 1 (CUDA sm_90+): a pad is advanced by a thread-block cluster of K blocks; block ``rank`` owns
     the patches ``n·rank // K`` … ``n·(rank + 1) // K − 1`` (and their CSR rows, ``emax`` is then
     :func:`aca_warp.onchip.csr_slots` of one part), every block keeps a full copy of u, the drift stores each new
-    u_i into all K copies (distributed shared memory) and the step's one barrier is the cluster barrier; the sums of
-    a sample are combined in rank order by block 0. A growth event there: each block grows its own patches, a
+    u_i into its own copy and, by ``st.async``, into the K − 1 others (distributed shared memory), and instead of a
+    cluster barrier each block waits for the bytes of u that the others send it (a transaction mbarrier per u
+    buffer; ``sync`` ablated: plain remote stores and no wait); the sums of a sample are combined in rank order by
+    block 0. A growth event there: each block grows its own patches, a
     cluster barrier (the new areas and stiffnesses in global memory are then visible to the cluster), each block
     updates its own CSR rows, and every block re-solves the whole pad's contact (the same sums in the same order, so
     the same gap; cheaper than a cluster barrier per Newton iteration) and keeps its own patches' normal forces.
@@ -121,6 +125,9 @@ def onchip_kernel(
     CONTACT = wp.constant(0 if "contact" in ablate else 1)
     GROWTH = wp.constant(1 if growth else 0)
     CLUSTER = wp.constant(cluster)
+    # a cluster exchanges u by st.async into the other blocks and mbarrier waits (no cluster barrier per step)
+    ASYNC = wp.constant(1 if cluster > 1 and "sync" not in ablate else 0)
+    TBYTES = wp.constant(wp.types.type_size_in_bytes(dtype))
     NW = wp.constant(lanes)  # banks of the on-chip CSR: min(threads, 32), a constant so that slot steps fold
 
     # Per-thread element stores into the shared tiles. ``tile[i] = x`` in Warp is a block-cooperative op (it ends
@@ -131,6 +138,8 @@ def onchip_kernel(
     put_ei = tile_store_1d(wp.int16, ne)  # local neighbour index (nmax < 2**15, asserted above)
     put_ek = tile_store_1d(T, ne)
     put_u_at = tile_store_rows_remote(T, 2, nmax)  # into the u copy of another block of the cluster
+    put_u_async = tile_store_rows_async(T, 2, nmax, 2)  # the same by st.async, counted by that block's mbarrier
+    mb_init, mb_expect, mb_wait = mbarrier_ops(2)  # one mbarrier per u buffer
     # reads without Warp's negative-index wrap (a compare, add and select per index; docs/onchip.md)
     get_n = tile_load_1d(T, nmax)
     get_u = tile_load_rows(T, 2, nmax)
@@ -255,6 +264,10 @@ def onchip_kernel(
         sidx = wp.tile_zeros(shape=EMAX, dtype=wp.int16, storage="shared")
         sk = wp.tile_zeros(shape=EMAX, dtype=T, storage="shared")
         red = wp.tile_zeros(shape=(CLUSTER, 8), dtype=wp.float64, storage="shared")
+        bars = wp.tile_zeros(shape=2, dtype=wp.int64, storage="shared")
+        if ASYNC != 0:
+            mb_init(bars, lane)
+        nbytes = (n - (hi - lo)) * TBYTES  # bytes of u the other blocks store into this one per step
         gap = wp.float64(0.0)
         if GROWTH != 0:
             gap = pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
@@ -290,7 +303,8 @@ def onchip_kernel(
                     put_ek(sk, p, nbr_stiffness[e])
                     p += nw
                 i += threads
-        block_sync()
+        # the whole cluster is set up (tiles zeroed, mbarriers initialised) before any block stores into another
+        pad_sync()
 
         omega = pad_omega[pad]
         mu_scale = pad_mu_scale[pad]
@@ -300,6 +314,7 @@ def onchip_kernel(
         half = dt * T(0.5)
         bound2 = watch_bound[pad] * watch_bound[pad]
         cur = int(0)
+        nstep = int(0)  # steps of this launch (the phase parity of the mbarrier of u buffer nxt: nstep // 2 % 2)
         prow = prow0
         first_step = opening
         steps_done = growth_step0
@@ -340,12 +355,25 @@ def onchip_kernel(
                     un = get_u(u2, cur, i) + dt * v
                     if CLUSTER == 1:
                         put_u(u2, nxt, i, un)
+                    elif ASYNC != 0:
+                        put_u(u2, nxt, i, un)
+                        for hop in range(1, CLUSTER):  # from rank + 1 on: the blocks do not all start at block 0
+                            put_u_async(u2, nxt, i, un, (rank + hop) % CLUSTER, bars, nxt)
                     else:
                         for q in range(CLUSTER):
                             put_u_at(u2, nxt, i, un, q)
                     i += threads
                 first_step = 0
-                if SYNC != 0:
+                if ASYNC != 0:
+                    # Wait for the other blocks' u of this step (each block sends u before it can wait for the
+                    # next step's, so a block can neither overwrite a buffer that another still gathers from nor
+                    # complete a phase early: docs/onchip.md, "Exchange of u on a cluster").
+                    if lane == 0:
+                        mb_expect(bars, nxt, nbytes)
+                    block_sync()  # the own block's stores into its copy
+                    mb_wait(bars, nxt, nstep // 2 % 2)
+                    nstep += 1
+                elif SYNC != 0:
                     pad_sync()
                 # spring forces at the new u (spring_force of kernels.hf: same two partial sums, same order)
                 p = p0

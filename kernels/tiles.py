@@ -106,3 +106,84 @@ def tile_store_rows_remote(dtype: Any, rows: int, size: int) -> Any:
     def put(t: wp.tile[dtype, rows, size], r: int, i: int, x: dtype, rank: int): ...
 
     return put
+
+
+# Transaction barriers (sm_90+): a block waits for the bytes that the other blocks of its cluster store into its
+# shared memory with ``st.async`` instead of meeting them all at a cluster barrier. ``bars`` is a shared int64 tile
+# of ``n`` mbarriers; on the CPU and below sm_90 (one-block clusters) these are no-ops and the store is local.
+
+_MBAR_ADDR = "static_cast<unsigned>(__cvta_generic_to_shared(&bars.data(wp::tile_coord(k))))"
+
+
+def mbarrier_ops(n: int) -> tuple[Any, Any, Any]:
+    """(``init(bars, lane)``, ``expect(bars, k, nbytes)``, ``wait(bars, k, parity)``) for a tile of ``n`` mbarriers.
+
+    ``init``: thread 0 sets each mbarrier to one expected arrival, then fences the init for the cluster (follow it
+    with :func:`cluster_sync` before any block stores into another). ``expect``: one thread per phase arrives on
+    mbarrier ``k`` and adds ``nbytes`` to the bytes the phase waits for (the stores may land before or after).
+    ``wait``: every thread spins until the phase of parity ``parity`` of mbarrier ``k`` has completed (acquire:
+    the bytes stored into this block are then visible).
+    """
+    init_src = f"""
+#if defined(__CUDA_ARCH__) && (__CUDA_ARCH__ >= 900)
+    if (lane == 0) {{
+        for (int k = 0; k < {n}; ++k)
+            asm volatile("mbarrier.init.shared::cta.b64 [%0], 1;" :: "r"({_MBAR_ADDR}) : "memory");
+        asm volatile("fence.mbarrier_init.release.cluster;" ::: "memory");
+    }}
+#endif
+"""
+    expect_src = f"""
+#if defined(__CUDA_ARCH__) && (__CUDA_ARCH__ >= 900)
+    asm volatile("mbarrier.arrive.expect_tx.shared::cta.b64 _, [%0], %1;" :: "r"({_MBAR_ADDR}), "r"(nbytes)
+                 : "memory");
+#endif
+"""
+    wait_src = f"""
+#if defined(__CUDA_ARCH__) && (__CUDA_ARCH__ >= 900)
+    const unsigned addr = {_MBAR_ADDR};
+    unsigned done = 0;
+    while (!done) {{
+        asm volatile("{{\\n\\t.reg .pred p;\\n\\tmbarrier.try_wait.parity.shared::cta.b64 p, [%1], %2;\\n\\t"
+                     "selp.u32 %0, 1, 0, p;\\n\\t}}" : "=r"(done) : "r"(addr), "r"(parity) : "memory");
+    }}
+#endif
+"""
+
+    @wp.func_native(init_src)
+    def init(bars: wp.tile[wp.int64, n], lane: int): ...
+
+    @wp.func_native(expect_src)
+    def expect(bars: wp.tile[wp.int64, n], k: int, nbytes: int): ...
+
+    @wp.func_native(wait_src)
+    def wait(bars: wp.tile[wp.int64, n], k: int, parity: int): ...
+
+    return init, expect, wait
+
+
+def tile_store_rows_async(dtype: Any, rows: int, size: int, n: int) -> Any:
+    """``put(t, r, i, x, rank, bars, k)``: ``t[r, i] = x`` in the shared tile ``t`` of cluster block ``rank`` by
+    ``st.async``, completing ``sizeof(x)`` bytes of that block's mbarrier ``k`` (of the ``n`` in ``bars``) when it
+    lands (:func:`mbarrier_ops`; local store below sm_90)."""
+
+    bits, reg, cast = {4: ("b32", "r", "__float_as_uint"), 8: ("b64", "l", "__double_as_longlong")}[
+        wp.types.type_size_in_bytes(dtype)
+    ]
+    snippet = f"""
+#if defined(__CUDA_ARCH__) && (__CUDA_ARCH__ >= 900)
+    const unsigned local = static_cast<unsigned>(__cvta_generic_to_shared(&t.data(wp::tile_coord(r, i))));
+    unsigned remote, rbar;
+    asm volatile("mapa.shared::cluster.u32 %0, %1, %2;" : "=r"(remote) : "r"(local), "r"(rank));
+    asm volatile("mapa.shared::cluster.u32 %0, %1, %2;" : "=r"(rbar) : "r"({_MBAR_ADDR}), "r"(rank));
+    asm volatile("st.async.shared::cluster.mbarrier::complete_tx::bytes.{bits} [%0], %1, [%2];"
+                 :: "r"(remote), "{reg}"({cast}(x)), "r"(rbar) : "memory");
+#else
+    t.data(wp::tile_coord(r, i)) = x;
+#endif
+"""
+
+    @wp.func_native(snippet)
+    def put(t: wp.tile[dtype, rows, size], r: int, i: int, x: dtype, rank: int, bars: wp.tile[wp.int64, n], k: int): ...
+
+    return put

@@ -29,31 +29,69 @@ from typing import Any
 
 import numpy as np
 import warp as wp
-from aca_warp.kernels.tiles import block_sync, cluster_sync, tile_load_rows, tile_store_rows_remote
+from aca_warp.kernels.tiles import (
+    block_sync,
+    cluster_sync,
+    mbarrier_ops,
+    tile_load_rows,
+    tile_store_rows,
+    tile_store_rows_async,
+    tile_store_rows_remote,
+)
+
+MODES = ("barrier", "stores", "async")
+KEYS = ("ns_barrier", "ns_barrier_and_stores", "ns_async_stores_and_wait")
 
 
-def barrier_kernel(cluster: int, block_dim: int, remote: bool) -> Any:
-    """A kernel of ``steps`` rounds: [stores into the K copies,] barrier, one read; ``out[block, lane]`` its sum."""
+def barrier_kernel(cluster: int, block_dim: int, mode: str) -> Any:
+    """A kernel of ``steps`` rounds; ``out[block, lane]`` the sum of the values read back. ``mode``:
+
+    * ``barrier``: barrier, one read;
+    * ``stores``: each thread stores its value into the u copy of every block of the cluster (``st.shared::cluster``,
+      the kernel's ``put_u_at``), barrier, one read;
+    * ``async``: the same stores, into the other blocks by ``st.async`` (each completing bytes of the receiving
+      block's mbarrier of that round's parity) and into the own copy directly; then a block barrier and a wait
+      for the bytes of the round (``mbarrier_ops``) instead of the cluster barrier.
+    """
     K = wp.constant(cluster)
-    REMOTE = wp.constant(int(remote))
+    MODE = wp.constant(MODES.index(mode))
+    NBYTES = wp.constant((cluster - 1) * block_dim * 4)  # bytes the other blocks store into one block per round
     put = tile_store_rows_remote(wp.float32, 2, block_dim)
+    put_async = tile_store_rows_async(wp.float32, 2, block_dim, 2)
+    put_local = tile_store_rows(wp.float32, 2, block_dim)
     get = tile_load_rows(wp.float32, 2, block_dim)
+    init, expect, wait = mbarrier_ops(2)
     sync = block_sync if cluster == 1 else cluster_sync
 
     @wp.kernel(enable_backward=False, module="unique", launch_bounds=(block_dim, 1), cluster_dim=cluster)
     def rounds(steps: int, out: wp.array2d[wp.float32]):
         blk, lane = wp.tid()
+        rank = blk % K
         t = wp.tile_zeros(shape=(2, block_dim), dtype=wp.float32, storage="shared")
+        bars = wp.tile_zeros(shape=2, dtype=wp.int64, storage="shared")
+        init(bars, lane)
+        sync()  # every block's mbarriers are set before any block stores into it
         x = wp.float32(lane)
         acc = wp.float32(0.0)
         for s in range(steps):
             row = s % 2
-            if REMOTE != 0:
+            if MODE == 1:
                 for q in range(K):
                     put(t, row, lane, x, q)
-            sync()
+            if MODE == 2:
+                put_local(t, row, lane, x)
+                for q in range(K):
+                    if q != rank:
+                        put_async(t, row, lane, x, q, bars, row)
+                if lane == 0:
+                    expect(bars, row, NBYTES)
+                block_sync()
+                wait(bars, row, (s // 2) % 2)
+            else:
+                sync()
             acc += get(t, row, (lane + 1) % block_dim)
             x = x + wp.float32(1.0)
+        sync()  # no block leaves while another may still store into it
         out[blk, lane] = acc
 
     return rounds
@@ -101,9 +139,8 @@ def main(argv: list[str] | None = None) -> int:
     for b in a.blocks:
         for k in a.clusters:
             row: dict[str, Any] = {"device": dev.name, "warp_version": wp.config.version, "cluster": k, "threads": b}
-            for remote in (False, True):
-                key = "ns_barrier_and_stores" if remote else "ns_barrier"
-                kern = barrier_kernel(k, b, remote)
+            for mode, key in zip(MODES, KEYS, strict=True):
+                kern = barrier_kernel(k, b, mode)
                 try:
                     row[key] = 1e9 * time_rounds(kern, k, b, a.steps, a.repeats, dev)
                 except Exception as exc:  # a cluster size the device cannot launch
@@ -115,14 +152,13 @@ def main(argv: list[str] | None = None) -> int:
         f"Barrier rounds on {dev.name} (Warp {wp.config.version}; `scripts/bench_cluster_barrier.py`, median of "
         f"{a.repeats} launches of {a.steps} rounds, one cluster)",
         "",
-        "| threads per block | blocks per cluster | ns per round: barrier | barrier + stores into every copy |",
-        "|---|---|---|---|",
+        "| threads per block | blocks per cluster | ns per round: barrier | barrier + stores into every copy "
+        "| st.async stores + mbarrier wait |",
+        "|---|---|---|---|---|",
     ]
     for r in rows:
-        cells = [
-            f"{r[k]:.0f}" if r.get(k) is not None else "not launchable" for k in ("ns_barrier", "ns_barrier_and_stores")
-        ]
-        lines.append(f"| {r['threads']} | {r['cluster']} | {cells[0]} | {cells[1]} |")
+        cells = " | ".join(f"{r[k]:.0f}" if r.get(k) is not None else "not launchable" for k in KEYS)
+        lines.append(f"| {r['threads']} | {r['cluster']} | {cells} |")
     text = "\n".join(lines) + "\n"
     print(text)
     if a.json:

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
-"""Where the on-chip HF kernel spends its time: ablation profile on one hf1 pad.
+"""Where the on-chip HF kernel spends its time: ablation profile on one hf1 pad (or a batch of them).
 
-Times ``aca_warp.onchip.run_onchip`` on one pad for a window of steps with parts of the step left out
+Times ``aca_warp.onchip.run_onchip`` on one pad (``--pads N``: a batch of N identical pads) for a window of steps
+with parts of the step left out
 (``ablate``: the implicit friction solve → an explicit kick, the neighbour gather, the block barrier; the results
 of an ablated run are wrong and only its time counts), for several block sizes, with the CSR in shared or global
 memory, fp32 and fp64, and the general per-step path for comparison. The difference between two rows is the
@@ -18,6 +19,8 @@ Example (GPU machine)::
 
     python3 scripts/profile_onchip.py --device cuda:0 --json $OUT/profile_onchip.json --markdown $OUT/profile.md
     python3 scripts/profile_onchip.py --device cuda:0 --growth --json $OUT/profile_growth.json --markdown $OUT/g.md
+    python3 scripts/profile_onchip.py --device cuda:0 --pads 1024 --window 2e-5 --only "full, default block" \
+        "no friction solve, default block" "no gather, default block" --markdown $OUT/batch.md
 """
 
 from __future__ import annotations
@@ -45,6 +48,11 @@ CASES = [
     ("full", "fp64", 512, None, ()),
     ("full, fast math", "fp32", 512, None, ("fast_math",)),
     ("full, fast math, block 1024", "fp32", 1024, None, ("fast_math",)),
+    # run_onchip's block (640 threads fp32): with --pads 1024 the batched target's case
+    ("full, default block", "fp32", None, None, ()),
+    ("no friction solve, default block", "fp32", None, None, ("friction",)),
+    ("no gather, default block", "fp32", None, None, ("gather",)),
+    ("no friction, no gather, default block", "fp32", None, None, ("friction", "gather")),
     # a pad over a thread-block cluster of K blocks ("clusterK"; block size: the part rounded up to 32, at most 512)
     ("full, cluster 2", "fp32", None, None, ("cluster2",)),
     ("full, cluster 4", "fp32", None, None, ("cluster4",)),
@@ -106,11 +114,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--growth", action="store_true", help="profile the growing varying-area pad (GROWTH_CASES)")
     ap.add_argument("--state", type=Path, help="with --growth: start from this varying_area.py state file")
     ap.add_argument("--only", nargs="*", default=None, help="labels of the cases to run (default: all)")
+    ap.add_argument(
+        "--pads", type=int, default=1, help="identical pads in the batch (default 1; e.g. 1024: the batched target)"
+    )
     ap.add_argument("--json", type=Path, default=None, help="write the rows here")
     ap.add_argument("--markdown", type=Path, default=None, help="write a table here")
     args = ap.parse_args(argv)
     if args.state and not args.growth:
         ap.error("--state needs --growth")
+    if args.pads < 1:
+        ap.error("--pads must be ≥ 1")
+    if args.state and args.pads != 1:
+        ap.error("--state holds one pad: use it with --pads 1")
 
     import warp as wp
 
@@ -126,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
 
     name = "varying_area" if args.growth else "hf1"
     scene = preset(name).replace(record=Record(sample_dt=args.sample_dt))
-    models = {p: build_model([scene], device=args.device, precision=p) for p in ("fp32", "fp64")}
+    models = {p: build_model([scene] * args.pads, device=args.device, precision=p) for p in ("fp32", "fp64")}
     if args.growth:
         cases = [(label, prec, block, None, abl, k) for label, prec, block, abl, k in GROWTH_CASES]
     else:
@@ -153,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
         model = models[prec]
         if args.growth and k != 1:
             g = None if k == 0 else dataclasses.replace(scene.growth, interval=scene.growth.interval * k)
-            model = build_model([scene.replace(growth=g)], device=args.device, precision=prec)
+            model = build_model([scene.replace(growth=g)] * args.pads, device=args.device, precision=prec)
         if saved is not None:
             for k2 in (k3 for k3 in GROWTH_MUTABLE if k3 in model.arrays):  # a model without growth lacks some
                 put(model.arrays[k2], saved[f"model_{k2}"])
@@ -193,7 +208,8 @@ def main(argv: list[str] | None = None) -> int:
         args.json.write_text(json.dumps({"machine": info, "rows": rows}, indent=1))
     if args.markdown:
         lines = [
-            f"On-chip ablation profile: {name} ({models['fp32'].patch_count} patches), one pad, dt {args.dt:g} s, "
+            f"On-chip ablation profile: {name} ({models['fp32'].patch_count} patches), {args.pads} pad(s), "
+            f"dt {args.dt:g} s, "
             f"{rows[0].get('steps', '?')} steps"
             f"{f' from {args.state.name}' if args.state else ''}, "
             f"sample interval {args.sample_dt:g} s; {info.get('device_name', args.device)}, Warp "

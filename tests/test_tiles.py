@@ -63,7 +63,7 @@ def test_barrier_rounds_kernel_on_cpu_blocks():
     try:
         wp.config.enable_cpu_blocks = True
         out = wp.zeros((1, lanes), dtype=wp.float32, device="cpu")
-        kernel = bench.barrier_kernel(1, lanes, remote=True)
+        kernel = bench.barrier_kernel(1, lanes, "stores")
         wp.launch_tiled(kernel, dim=[1], block_dim=lanes, inputs=[steps, out], device="cpu")
     finally:
         wp.config.enable_cpu_blocks = old
