@@ -264,10 +264,11 @@ def onchip_kernel(
         sidx = wp.tile_zeros(shape=EMAX, dtype=wp.int16, storage="shared")
         sk = wp.tile_zeros(shape=EMAX, dtype=T, storage="shared")
         red = wp.tile_zeros(shape=(CLUSTER, 8), dtype=wp.float64, storage="shared")
-        bars = wp.tile_zeros(shape=2, dtype=wp.int64, storage="shared")
-        if ASYNC != 0:
+        nbytes = int(0)  # bytes of u the other blocks store into this one per step
+        if wp.static(ASYNC != 0):  # static: a one-block kernel carries none of the exchange (registers)
+            bars = wp.tile_zeros(shape=2, dtype=wp.int64, storage="shared")
             mb_init(bars, lane)
-        nbytes = (n - (hi - lo)) * TBYTES  # bytes of u the other blocks store into this one per step
+            nbytes = (n - (hi - lo)) * TBYTES
         gap = wp.float64(0.0)
         if GROWTH != 0:
             gap = pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
@@ -355,7 +356,7 @@ def onchip_kernel(
                     un = get_u(u2, cur, i) + dt * v
                     if CLUSTER == 1:
                         put_u(u2, nxt, i, un)
-                    elif ASYNC != 0:
+                    elif wp.static(ASYNC != 0):
                         put_u(u2, nxt, i, un)
                         for hop in range(1, CLUSTER):  # from rank + 1 on: the blocks do not all start at block 0
                             put_u_async(u2, nxt, i, un, (rank + hop) % CLUSTER, bars, nxt)
@@ -364,7 +365,7 @@ def onchip_kernel(
                             put_u_at(u2, nxt, i, un, q)
                     i += threads
                 first_step = 0
-                if ASYNC != 0:
+                if wp.static(ASYNC != 0):
                     # Wait for the other blocks' u of this step (each block sends u before it can wait for the
                     # next step's, so a block can neither overwrite a buffer that another still gathers from nor
                     # complete a phase early: docs/onchip.md, "Exchange of u on a cluster").
