@@ -138,11 +138,12 @@ def default_cluster(pads: int, sm_count: int, split_fits_csr: bool = False) -> i
     A cluster's blocks run on the SMs of one GPC (≈ 16–18 SMs on an H100, sm_count // 16 GPCs taken), and the
     batch should run in one wave: the largest K of 8, 4, 2 with pads ≤ GPCs · (16 // K − 1); otherwise 1, or 2
     when only a pad split in two keeps its neighbour lists in shared memory (fp64 hf1 pads). Measured on an
-    H100 (hf1, docs/benchmarks/onchip_h100/bench_cluster.md): one pad 6.4 → 2.8 µs/step fp32 (K = 1 → 8) and
-    18.2 → 3.5 fp64; 16 pads are fastest with K = 4 (K = 8 needs a second wave: 5.7 against 3.9 µs/step);
-    132 and 1024 fp32 pads with K = 1 (a cluster repeats the u update in every block), fp64 with K = 2. The
-    growing varying_area pad (an event every 20 steps): 11.4 → 4.1 µs/step fp32 (K = 1 → 8; K = 2, 4: 8.5, 5.1;
-    docs/benchmarks/onchip_h100/profile_growth_cluster.md).
+    H100 (hf1, docs/benchmarks/onchip_h100/bench_cluster.md, 2026-11-25): one pad 6.3 → 1.8 µs/step fp32
+    (K = 1 → 8) and 18.4 → 2.6 fp64; 16 pads are fastest with K = 4 (K = 8 needs a second wave: 4.1 against 3.2
+    µs/step); 1024 fp32 pads with K = 1 (a cluster repeats the u update in every block), fp64 with K = 2; 132
+    fp32 pads ran 8 % faster with K = 2 than with the K = 1 this rule gives (one measurement, not acted on). The
+    growing varying_area pad (an event every 20 steps): 11.4 → 2.7 µs/step fp32 (K = 1 → 8; K = 4: 3.5;
+    docs/benchmarks/onchip_h100/cluster_exchange_ab.md).
     """
     gpcs = max(sm_count // 16, 1)
     for k in (8, 4, 2):
