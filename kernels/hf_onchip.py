@@ -61,7 +61,7 @@ from aca_warp.kernels.tiles import (
 wp.set_module_options({"enable_backward": False})
 
 
-ABLATIONS = frozenset({"friction", "gather", "sync", "coupling", "contact"})
+ABLATIONS = frozenset({"friction", "gather", "sync", "coupling", "contact", "gather_half"})
 
 
 @cache
@@ -87,9 +87,10 @@ def onchip_kernel(
 
     ``ablate`` (profiling only, ``scripts/profile_onchip.py``; the results are then wrong) drops parts of the
     step to time the rest: ``friction`` (the implicit friction solve becomes an explicit kick), ``gather``
-    (the neighbour sum), ``sync`` (the block barrier); with ``growth``, ``coupling`` (the stiffness update after
-    an event) and ``contact`` (the contact re-solve after an event). ``fast_math``: compile with CUDA fast math
-    (approximate division and transcendental functions; changes the results in the last bits).
+    (the neighbour sum), ``gather_half`` (the second half of every row's links), ``sync`` (the block barrier);
+    with ``growth``, ``coupling`` (the stiffness update after an event) and ``contact`` (the contact re-solve
+    after an event). ``fast_math``: compile with CUDA fast math (approximate division and transcendental
+    functions; changes the results in the last bits).
 
     ``cluster`` = K > 1 (CUDA sm_90+): a pad is advanced by a thread-block cluster of K blocks; block ``rank`` owns
     the patches ``n·rank // K`` … ``n·(rank + 1) // K − 1`` (and their CSR rows, ``emax`` is then
@@ -120,6 +121,7 @@ def onchip_kernel(
         raise ValueError(f"unknown ablations {sorted(ablate - ABLATIONS)}")
     FRICTION = wp.constant(0 if "friction" in ablate else 1)
     GATHER = wp.constant(0 if "gather" in ablate else 1)
+    HALF = wp.constant(1 if "gather_half" in ablate else 0)
     SYNC = wp.constant(0 if "sync" in ablate else 1)
     COUPLING = wp.constant(0 if "coupling" in ablate else 1)
     CONTACT = wp.constant(0 if "contact" in ablate else 1)
@@ -387,6 +389,10 @@ def onchip_kernel(
                     end = nbr_start[g + 1]
                     if GATHER == 0:
                         end = e
+                    row_end = p
+                    if wp.static(HALF != 0):  # profiling: the first half of the row's links only
+                        row_end = p + nw * (end - e)  # the next row's first on-chip slot
+                        end = e + (end - e + 1) // 2
                     if CSR_SHARED != 0:  # four links per pass: more shared loads in flight (H100: 8.6 -> 8.3 us)
                         pe = p + nw * (end - e)
                         while p + 3 * nw < pe:
@@ -409,6 +415,8 @@ def onchip_kernel(
                             e += 2
                         if e < end:
                             a0 += nbr_stiffness[e] * get_u(u2, nxt, nbr_index[e] - a)
+                    if wp.static(HALF != 0):
+                        p = row_end
                     put_n(fs, i, (a0 + a1) - k_diag[g] * get_u(u2, nxt, i))
                     i += threads
                 cur = nxt

@@ -2,11 +2,11 @@
 """Where the on-chip HF kernel spends its time: ablation profile on one hf1 pad (or a batch of them).
 
 Times ``aca_warp.onchip.run_onchip`` on one pad (``--pads N``: a batch of N identical pads) for a window of steps
-with parts of the step left out
-(``ablate``: the implicit friction solve → an explicit kick, the neighbour gather, the block barrier; the results
-of an ablated run are wrong and only its time counts), for several block sizes, with the CSR in shared or global
-memory, fp32 and fp64, and the general per-step path for comparison. The difference between two rows is the
-cost of the part left out. Writes a JSON list and a Markdown table.
+with parts of the step left out (``ablate``: the implicit friction solve → an explicit kick, the neighbour gather
+or its second half, the block barrier; the results of an ablated run are wrong and only its time counts), for
+several block sizes, with the CSR in shared or global memory, fp32 and fp64, and the general per-step path for
+comparison. The difference between two rows is the cost of the part left out. Writes a JSON list and a Markdown
+table.
 
 ``--growth`` profiles the growing pad of the varying-area study instead (preset ``varying_area``: hf1 patches,
 an event every 0.202 µs ≈ 20 steps): the same pad without growth, with growth as in the study, with the
@@ -66,6 +66,11 @@ CASES = [
     ("no friction, no gather, cluster 8", "fp32", None, None, ("cluster8", "friction", "gather")),
     ("loop only, cluster 8", "fp32", None, None, ("cluster8", "friction", "gather", "sync")),
     ("full, fast math, cluster 8", "fp32", None, None, ("cluster8", "fast_math")),
+    # the gather's first half of every row only: what a gather split over two threads per patch could save at best
+    ("half gather, cluster 8", "fp32", None, None, ("cluster8", "gather_half")),
+    ("full, cluster 8, block 448", "fp32", 448, None, ("cluster8",)),  # two threads per patch
+    ("half gather, cluster 8, block 448", "fp32", 448, None, ("cluster8", "gather_half")),
+    ("half gather, default block", "fp32", None, None, ("gather_half",)),
     # 16 blocks: a "non-portable" cluster (H100/H200)
     ("full, cluster 16", "fp32", None, None, ("cluster16",)),
     ("no gather, cluster 16", "fp32", None, None, ("cluster16", "gather")),

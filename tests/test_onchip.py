@@ -219,11 +219,20 @@ def test_ablations_for_profiling(device):
     """``ablate`` (scripts/profile_onchip.py) leaves out parts of the step: the runs differ; unknown names fail."""
     s = preset("hf1").replace(record=Record(sample_dt=1e-7))
     mus = {}
-    for abl in ((), ("gather",), ("friction",)):
+    for abl in ((), ("gather",), ("friction",), ("gather_half",)):
         model = build_model([s], device=device, precision="fp32")
         res = run_onchip(model, initial_state(model), duration=2e-7, dt=1e-8, ablate=frozenset(abl))
         mus[abl] = res.collect().globals[-1, 0, 0]
-    assert mus[()] != mus[("gather",)] and mus[()] != mus[("friction",)]
+    assert len(set(mus.values())) == len(mus), mus
+    # gather_half (the first half of every row's links) reads the same links from the on-chip CSR as from global
+    half = {}
+    for csr in (True, False):
+        model = build_model([s], device=device, precision="fp32")
+        res = run_onchip(
+            model, initial_state(model), duration=2e-7, dt=1e-8, ablate=frozenset({"gather_half"}), csr_shared=csr
+        )
+        half[csr] = res.collect().globals[-1, 0]
+    np.testing.assert_array_equal(half[True], half[False])
     with pytest.raises(ValueError, match="unknown ablations"):
         run_onchip(model, initial_state(model), duration=2e-7, dt=1e-8, ablate=frozenset({"springs"}))
 
