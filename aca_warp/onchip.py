@@ -135,20 +135,25 @@ def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1, threads: i
 def default_cluster(pads: int, sm_count: int, split_fits_csr: bool = False) -> int:
     """Blocks per pad for ``cluster=None`` on a CUDA device of compute capability 9.0+ (growing pads too).
 
-    A cluster's blocks run on the SMs of one GPC (≈ 16–18 SMs on an H100, sm_count // 16 GPCs taken), and the
-    batch should run in one wave: the largest K of 8, 4, 2 with pads ≤ GPCs · (16 // K − 1); otherwise 1, or 2
-    when only a pad split in two keeps its neighbour lists in shared memory (fp64 hf1 pads). Measured on an
-    H100 (hf1, docs/benchmarks/onchip_h100/bench_cluster.md, 2026-11-25): one pad 6.3 → 1.8 µs/step fp32
-    (K = 1 → 8) and 18.4 → 2.6 fp64; 16 pads are fastest with K = 4 (K = 8 needs a second wave: 4.1 against 3.2
-    µs/step); 1024 fp32 pads with K = 1 (a cluster repeats the u update in every block), fp64 with K = 2; 132
-    fp32 pads ran 8 % faster with K = 2 than with the K = 1 this rule gives (one measurement, not acted on). The
-    growing varying_area pad (an event every 20 steps): 11.4 → 2.7 µs/step fp32 (K = 1 → 8; K = 4: 3.5;
-    docs/benchmarks/onchip_h100/cluster_exchange_ab.md).
+    A cluster's blocks run on the SMs of one GPC, and the batch should run in one wave: every cluster resident at
+    once (one hf1 block per SM). Measured on an H100 (132 SMs; hf1 fp32, 2026-11-25,
+    docs/benchmarks/onchip_h100/cluster_waves_*.md): 14 clusters of 8, 28 of 4 and 66 of 2 run in one wave, 16, 32
+    and 68 need a second one (a step then takes 1.6–1.9× as long). Whole GPCs of 18 SMs (sm_count // 18 of them)
+    hold 18 // K clusters of 4 or 8, and pairs fill every SM; so K is the largest of 8, 4 with pads ≤
+    (sm_count // 18) · (18 // K), else 2 with pads ≤ sm_count // 2; otherwise 1, or 2 when only a pad split in two
+    keeps its neighbour lists in shared memory (fp64 hf1 pads: 2 blocks fastest, or within 2 %, from 57 to 1024
+    pads). Once the batch fills the GPU, a cluster loses (it repeats the u update of the whole pad in every block):
+    fp32 pads 67–1024 run fastest on one block each (64 pads: 7.2 µs/step on K = 1, 4.5 on K = 2; 100 pads: 7.5
+    against 8.3). One pad: 6.3 → 1.8 µs/step fp32 (K = 1 → 8) and 18.4 → 2.6 fp64
+    (docs/benchmarks/onchip_h100/bench_cluster.md); the growing varying_area pad (an event every 20 steps):
+    11.4 → 2.7 µs/step fp32 (K = 1 → 8; K = 4: 3.5; docs/benchmarks/onchip_h100/cluster_exchange_ab.md).
     """
-    gpcs = max(sm_count // 16, 1)
-    for k in (8, 4, 2):
-        if pads <= gpcs * (16 // k - 1):
+    gpcs = max(sm_count // 18, 1)
+    for k in (8, 4):
+        if pads <= gpcs * (18 // k):
             return k
+    if pads <= sm_count // 2:
+        return 2
     return 2 if split_fits_csr else 1
 
 

@@ -46,7 +46,7 @@ def run_case(scene, device, precision, engine, pads, dt, duration, block_dim=Non
         kw = {}
         fn = run_hf
     else:
-        kw = {"block_dim": block_dim, "csr_shared": csr_shared, "cluster": cluster}
+        kw = {"block_dim": block_dim, "csr_shared": csr_shared, "cluster": cluster or None}
         fn = run_onchip
     tc = time.perf_counter()
     warm = fn(model, state, duration=scene.record.sample_dt * 2, dt=dt, **kw)
@@ -62,10 +62,11 @@ def run_case(scene, device, precision, engine, pads, dt, duration, block_dim=Non
         "precision": precision,
         "pads": pads,
         "patches": n,
-        "cluster": cluster if engine == "onchip" else None,
+        "cluster": res.blocks_per_pad if engine == "onchip" else None,
+        "cluster_asked": (cluster or "default") if engine == "onchip" else None,
         "block_dim": block_dim,
         "csr_shared": csr_shared,
-        "shared_bytes": onchip_bytes(model, block_dim, csr_shared, cluster) if engine == "onchip" else 0,
+        "shared_bytes": onchip_bytes(model, block_dim, csr_shared, res.blocks_per_pad) if engine == "onchip" else 0,
         "dt": res.dt,
         "steps": res.steps,
         "compile_s": compile_s - warm.wall_time,
@@ -84,7 +85,10 @@ def main() -> None:
     ap.add_argument("--scene", default="hf1")
     ap.add_argument("--pads", nargs="+", type=int, default=[1, 1024])
     ap.add_argument("--precisions", nargs="+", default=["fp32", "fp64"], choices=["fp32", "fp64"])
-    ap.add_argument("--clusters", nargs="+", type=int, default=[1], help="blocks per pad to try (default 1)")
+    ap.add_argument(
+        "--clusters", nargs="+", type=int, default=[1],
+        help="blocks per pad to try (default 1; 0: run_onchip's default, default_cluster)",
+    )  # fmt: skip
     ap.add_argument(
         "--blocks", nargs="+", type=int, default=[0], help="threads per block to try (0, the default: run_onchip's)"
     )
@@ -123,7 +127,7 @@ def main() -> None:
             rows.append(row)
             Path(args.json).write_text(json.dumps(rows, indent=1))  # after every case: a cut-off run keeps its rows
             print(
-                f"{row['device_name']}: {engine:7s} {p} pads={pads:5d} cluster={kc} block={b} csr={cs} "
+                f"{row['device_name']}: {engine:7s} {p} pads={pads:5d} cluster={row['cluster']} block={b} csr={cs} "
                 f"{row['us_per_step']:.3f} us/step {row['patch_steps_per_s']:.3g} patch-steps/s "
                 f"compile {row['compile_s']:.2f} s  dmu {row['mu_err_vs_general_fp64']:.2e} "
                 f"du {row['u_rel_err_vs_general_fp64']:.2e}",
