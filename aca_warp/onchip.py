@@ -123,10 +123,12 @@ def default_block(nmax: int, cluster: int, growth: bool, fp64: bool) -> int:
 
 def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1, threads: int = 1) -> int:
     """Shared memory one block of ``threads`` threads needs [bytes]: u (×2), w, F_s per patch of the pad, the
-    cluster's table of sample sums, the two mbarriers of the u exchange, plus the block's part of the CSR
-    (:func:`csr_slots`) when kept on chip."""
+    cluster's table of sample sums and, on a cluster, the u exchange's two mbarriers and its per-patch mask of
+    receiving blocks, plus the block's part of the CSR (:func:`csr_slots`) when kept on chip."""
     nmax, slots = tile_sizes(model, cluster, threads)
-    b = 4 * nmax * _itemsize(model) + 64 * cluster + 16
+    b = 4 * nmax * _itemsize(model) + 64 * cluster
+    if cluster > 1:
+        b += 16 + 4 * (nmax // cluster + 1)
     if csr_shared:
         b += slots * (2 + _itemsize(model))  # int16 local index, k_ij in the state precision
     return b
@@ -253,7 +255,8 @@ def run_onchip(
     ``fast_math``: compile with CUDA fast math (approximate division and transcendentals; profiling).
     ``cluster``: blocks per pad, a thread-block cluster of 1–16 (CUDA sm_90+; above 8 a "non-portable" size,
     refused where the device cannot launch it; default: :func:`default_cluster` there, at most 8, else 1;
-    docs/onchip.md: 16 blocks are slower than 8 for an hf1 pad, and keep twice as large a pad's CSR on chip).
+    docs/onchip.md: 16 blocks are a few per cent faster than 8 for one hf1 pad (fp64 ≈ 7 %), and keep twice as
+    large a pad's CSR on chip).
     On the CPU a block is one thread unless ``wp.config.enable_cpu_blocks`` is set (Warp's cooperative CPU
     fibers: ``block_dim`` threads per block with real barriers, used by the tests to exercise multi-thread blocks).
     """

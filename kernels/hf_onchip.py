@@ -49,6 +49,7 @@ from aca_warp.kernels.hf import (
 from aca_warp.kernels.tiles import (
     block_sync,
     cluster_sync,
+    lowest_bit,
     mbarrier_ops,
     tile_load_1d,
     tile_load_rows,
@@ -59,6 +60,22 @@ from aca_warp.kernels.tiles import (
 )
 
 wp.set_module_options({"enable_backward": False})
+
+
+@wp.func
+def readers(g: int, a: int, n: int, k: int, nbr_start: wp.array[wp.int32], nbr_index: wp.array[wp.int32]) -> int:
+    """Bit mask of the blocks of a k-block cluster that own a neighbour of patch g (pad start a, n patches; block
+    r owns n·r // k … n·(r + 1) // k − 1): the blocks that read u_g in their gather."""
+    m = int(0)
+    for e in range(nbr_start[g], nbr_start[g + 1]):
+        j = nbr_index[e] - a
+        r = j * k // n
+        while n * (r + 1) // k <= j:
+            r += 1
+        while n * r // k > j:
+            r -= 1
+        m = m | (1 << r)
+    return m
 
 
 ABLATIONS = frozenset({"friction", "gather", "sync", "coupling", "contact", "gather_half"})
@@ -95,7 +112,8 @@ def onchip_kernel(
     ``cluster`` = K > 1 (CUDA sm_90+): a pad is advanced by a thread-block cluster of K blocks; block ``rank`` owns
     the patches ``n·rank // K`` … ``n·(rank + 1) // K − 1`` (and their CSR rows, ``emax`` is then
     :func:`aca_warp.onchip.csr_slots` of one part), every block keeps a full copy of u, the drift stores each new
-    u_i into its own copy and, by ``st.async``, into the K − 1 others (distributed shared memory), and instead of a
+    u_i into its own copy and, by ``st.async``, into those of the blocks that own a neighbour of i (:func:`readers`;
+    distributed shared memory), and instead of a
     cluster barrier each block waits for the bytes of u that the others send it (a transaction mbarrier per u
     buffer; ``sync`` ablated: plain remote stores and no wait); the sums of a sample are combined in rank order by
     block 0. A growth event there: each block grows its own patches, a
@@ -135,6 +153,9 @@ def onchip_kernel(
     # Per-thread element stores into the shared tiles. ``tile[i] = x`` in Warp is a block-cooperative op (it ends
     # in WP_TILE_SYNC(), i.e. __syncthreads()), which inside the per-thread ``while i < n`` loops deadlocks on CUDA
     # (threads own different numbers of patches); these store without a barrier (docs/onchip.md).
+    PMAX = wp.constant(nmax // cluster + 1)  # a block's own patches at most
+    put_d = tile_store_1d(wp.int32, nmax // cluster + 1)  # the ranks that read a patch's u (halo exchange)
+    get_d = tile_load_1d(wp.int32, nmax // cluster + 1)
     put_n = tile_store_1d(T, nmax)
     put_u = tile_store_rows(T, 2, nmax)
     put_ei = tile_store_1d(wp.int16, ne)  # local neighbour index (nmax < 2**15, asserted above)
@@ -270,7 +291,20 @@ def onchip_kernel(
         if wp.static(ASYNC != 0):  # static: a one-block kernel carries none of the exchange (registers)
             bars = wp.tile_zeros(shape=2, dtype=wp.int64, storage="shared")
             mb_init(bars, lane)
-            nbytes = (n - (hi - lo)) * TBYTES
+            # The halo: patch i's u goes to the blocks that own a neighbour of i (bit r of readers(i)); this block
+            # receives the u of every other block's patch with a neighbour here. Both sides test the same row, so
+            # the bytes expected are the bytes sent (and with symmetric lists a block sends to those it reads from).
+            dest = wp.tile_zeros(shape=PMAX, dtype=wp.int32, storage="shared")
+            count = int(0)
+            i = lane
+            while i < n:
+                m = readers(a + i, a, n, CLUSTER, nbr_start, nbr_index)
+                if i >= lo and i < hi:
+                    put_d(dest, i - lo, m - (m & (1 << rank)))
+                elif (m >> rank) & 1 != 0:
+                    count += 1
+                i += threads
+            nbytes = wp.tile_sum(wp.tile(count))[0] * TBYTES
         gap = wp.float64(0.0)
         if GROWTH != 0:
             gap = pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
@@ -360,8 +394,10 @@ def onchip_kernel(
                         put_u(u2, nxt, i, un)
                     elif wp.static(ASYNC != 0):
                         put_u(u2, nxt, i, un)
-                        for hop in range(1, CLUSTER):  # from rank + 1 on: the blocks do not all start at block 0
-                            put_u_async(u2, nxt, i, un, (rank + hop) % CLUSTER, bars, nxt)
+                        m = get_d(dest, i - lo)  # the other blocks that read u_i
+                        while m != 0:
+                            put_u_async(u2, nxt, i, un, lowest_bit(m), bars, nxt)
+                            m = m & (m - 1)
                     else:
                         for q in range(CLUSTER):
                             put_u_at(u2, nxt, i, un, q)

@@ -108,6 +108,20 @@ def tile_store_rows_remote(dtype: Any, rows: int, size: int) -> Any:
     return put
 
 
+@wp.func_native(
+    """
+#if defined(__CUDA_ARCH__)
+    return __ffs(m) - 1;
+#else
+    return __builtin_ctz(static_cast<unsigned>(m));
+#endif
+"""
+)
+def lowest_bit(m: int) -> int:
+    """Index of the lowest set bit of ``m`` (m ≠ 0)."""
+    ...
+
+
 # Transaction barriers (sm_90+): a block waits for the bytes that the other blocks of its cluster store into its
 # shared memory with ``st.async`` instead of meeting them all at a cluster barrier. ``bars`` is a shared int64 tile
 # of ``n`` mbarriers; on the CPU and below sm_90 (one-block clusters) these are no-ops and the store is local.

@@ -18,6 +18,7 @@ from contextlib import contextmanager
 import numpy as np
 import pytest
 import warp as wp
+from aca_warp.kernels.hf_onchip import readers
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -403,3 +404,40 @@ def test_register_report_respects_launch_bounds(tmp_path):
         assert 0 < r["registers"] <= {384: 168, 512: 128}[block]
     assert rows[(False, 512)]["frame_bytes"] == 0
     assert rows[(True, 384)]["frame_bytes"] < rows[(True, 512)]["frame_bytes"]
+
+
+@wp.kernel(enable_backward=False, module="unique")
+def _readers_of(
+    pad_patch_start: wp.array[wp.int32],
+    nbr_start: wp.array[wp.int32],
+    nbr_index: wp.array[wp.int32],
+    k: int,
+    out: wp.array[wp.int32],
+):
+    pad, i = wp.tid()
+    a = pad_patch_start[pad]
+    n = pad_patch_start[pad + 1] - a
+    if i < n:
+        out[a + i] = readers(a + i, a, n, k, nbr_start, nbr_index)
+
+
+@pytest.mark.parametrize("k", [2, 3, 8, 16])
+def test_halo_readers_cover_every_gather(k):
+    """The halo exchange of a k-block cluster sends u_j to the blocks whose bits ``readers`` sets: exactly the
+    blocks owning a neighbour of j, so every block receives every u_j its own patches' rows read (lists are
+    symmetric), for both pads of a batch (pad start ≠ 0)."""
+    model = build_model(_scenes(), device="cpu", precision="fp32")
+    start, nbr, idx = model.pad_patch_start_host, model.host("nbr_start"), model.host("nbr_index")
+    out = wp.zeros(model.patch_count, dtype=wp.int32, device="cpu")
+    most = int(np.diff(start).max())
+    arrays = [model.arrays[key] for key in ("pad_patch_start", "nbr_start", "nbr_index")]
+    wp.launch(_readers_of, dim=(model.pad_count, most), inputs=[*arrays, k, out], device="cpu")
+    mask = out.numpy()
+    for p in range(model.pad_count):
+        a, n = int(start[p]), int(start[p + 1] - start[p])
+        owner = np.searchsorted([n * r // k for r in range(1, k)], np.arange(n), side="right")
+        for i in range(n):
+            links = idx[nbr[a + i] : nbr[a + i + 1]] - a
+            assert mask[a + i] == np.bitwise_or.reduce(1 << owner[links], initial=0)
+            for j in links[owner[links] != owner[i]]:  # block owner[i] gathers u_j from another block
+                assert mask[a + j] >> owner[i] & 1

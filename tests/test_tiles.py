@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import warp as wp
-from aca_warp.kernels.tiles import tile_load_1d, tile_load_rows, tile_store_1d, tile_store_rows
+from aca_warp.kernels.tiles import lowest_bit, tile_load_1d, tile_load_rows, tile_store_1d, tile_store_rows
 
 N = 48
 get_i = tile_load_1d(wp.int16, N)
@@ -71,3 +71,18 @@ def test_barrier_rounds_kernel_on_cpu_blocks():
     expected = steps * ((lane + 1) % lanes) + steps * (steps - 1) / 2
     np.testing.assert_array_equal(out.numpy()[0], expected)
     assert bench.main(["--device", "cpu"]) == 2
+
+
+@wp.kernel(enable_backward=False, module="unique")
+def _lowest_bits(m: wp.array[wp.int32], out: wp.array[wp.int32]):
+    i = wp.tid()
+    out[i] = lowest_bit(m[i])
+
+
+def test_lowest_bit():
+    """``lowest_bit`` (the halo exchange walks its masks of receiving blocks with it): the lowest set bit's index."""
+    values = np.array([1, 2, 3, 6, 8, 0x500, 0x8000, 0x7FFF0000, -(2**31)], dtype=np.int32)
+    out = wp.zeros(len(values), dtype=wp.int32, device="cpu")
+    wp.launch(_lowest_bits, dim=len(values), inputs=[wp.array(values, device="cpu"), out], device="cpu")
+    want = [int(v & -v).bit_length() - 1 for v in values.astype(np.int64) % 2**32]
+    np.testing.assert_array_equal(out.numpy(), want)
