@@ -145,7 +145,7 @@ def onchip_kernel(
     CONTACT = wp.constant(0 if "contact" in ablate else 1)
     GROWTH = wp.constant(1 if growth else 0)
     CLUSTER = wp.constant(cluster)
-    # a cluster exchanges u by st.async into the other blocks and mbarrier waits (no cluster barrier per step)
+    # a cluster exchanges u by st.async into the blocks that read it and mbarrier waits (no cluster barrier per step)
     ASYNC = wp.constant(1 if cluster > 1 and "sync" not in ablate else 0)
     TBYTES = wp.constant(wp.types.type_size_in_bytes(dtype))
     NW = wp.constant(lanes)  # banks of the on-chip CSR: min(threads, 32), a constant so that slot steps fold
@@ -153,9 +153,10 @@ def onchip_kernel(
     # Per-thread element stores into the shared tiles. ``tile[i] = x`` in Warp is a block-cooperative op (it ends
     # in WP_TILE_SYNC(), i.e. __syncthreads()), which inside the per-thread ``while i < n`` loops deadlocks on CUDA
     # (threads own different numbers of patches); these store without a barrier (docs/onchip.md).
-    PMAX = wp.constant(nmax // cluster + 1)  # a block's own patches at most
-    put_d = tile_store_1d(wp.int32, nmax // cluster + 1)  # the ranks that read a patch's u (halo exchange)
-    get_d = tile_load_1d(wp.int32, nmax // cluster + 1)
+    pmax = nmax // cluster + 1  # a block's own patches at most
+    PMAX = wp.constant(pmax)
+    put_d = tile_store_1d(wp.int32, pmax)  # the ranks that read a patch's u (halo exchange)
+    get_d = tile_load_1d(wp.int32, pmax)
     put_n = tile_store_1d(T, nmax)
     put_u = tile_store_rows(T, 2, nmax)
     put_ei = tile_store_1d(wp.int16, ne)  # local neighbour index (nmax < 2**15, asserted above)
@@ -425,7 +426,6 @@ def onchip_kernel(
                     end = nbr_start[g + 1]
                     if GATHER == 0:
                         end = e
-                    row_end = p
                     if wp.static(HALF != 0):  # profiling: the first half of the row's links only
                         row_end = p + nw * (end - e)  # the next row's first on-chip slot
                         end = e + (end - e + 1) // 2
