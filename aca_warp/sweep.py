@@ -811,9 +811,16 @@ def cuda_ordinals(device: str) -> list[int]:
     return out
 
 
+LOOPBACK = "127.0.0.1"  # the only address a local cluster binds
+
+
 def local_cluster(device: str, workers: int | None = None) -> Any:
     """A local Dask cluster: one single-threaded worker process per GPU (``CUDA_VISIBLE_DEVICES`` pinned)
-    or, for ``cpu``, ``workers`` of them (default one per core). Returns (cluster, device seen by workers)."""
+    or, for ``cpu``, ``workers`` of them (default one per core). Returns (cluster, device seen by workers).
+
+    Scheduler, nannies and workers listen on 127.0.0.1 only and serve no dashboard: a Dask worker executes
+    whatever pickled function reaches it, so nothing of a local cluster may be reachable from another host.
+    Other hosts join only through an external scheduler (``--scheduler``; docs/sweeps.md, "Security")."""
     import logging
 
     from distributed import Nanny, Scheduler, SpecCluster
@@ -829,11 +836,22 @@ def local_cluster(device: str, workers: int | None = None) -> Any:
         n = workers or len(ords)
         envs = [{"CUDA_VISIBLE_DEVICES": names[ords[i % len(ords)]]} for i in range(n)]
         worker_device = "cuda:0"
-    opts = {"nthreads": 1, "memory_limit": 0, "silence_logs": logging.ERROR}
+    # every process on loopback: a Dask worker runs the pickled functions sent to it, unauthenticated
+    opts = {
+        "nthreads": 1,
+        "memory_limit": 0,
+        "silence_logs": logging.ERROR,
+        "host": LOOPBACK,
+        "dashboard": False,
+        "dashboard_address": f"{LOOPBACK}:0",
+    }
     spec = {f"w{i}": {"cls": Nanny, "options": {**opts, "env": env}} for i, env in enumerate(envs)}
     cluster = SpecCluster(
         workers=spec,
-        scheduler={"cls": Scheduler, "options": {"dashboard_address": None, "host": "127.0.0.1"}},
+        scheduler={
+            "cls": Scheduler,
+            "options": {"dashboard": False, "dashboard_address": f"{LOOPBACK}:0", "host": LOOPBACK},
+        },
         silence_logs=logging.ERROR,
         name="aca-warp-sweep",
     )

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import ipaddress
 import json
 import os
 from pathlib import Path
 
 import h5py
 import numpy as np
+import psutil
 import pytest
 
 from aca_warp.cli import main
@@ -97,6 +99,19 @@ def test_pad_equals_hand_built_scene() -> None:
     np.testing.assert_allclose(rb.collect().globals[:, 0], res.collect().globals[:, 0], rtol=1e-6, atol=0)
 
 
+def _listening_sockets() -> list[tuple[int, str, int]]:
+    """(pid, address, port) of every listening inet socket of this process and its descendants."""
+    me = psutil.Process()
+    out = []
+    for p in [me, *me.children(recursive=True)]:
+        try:
+            conns = p.net_connections(kind="inet")
+        except psutil.NoSuchProcess:
+            continue
+        out += [(p.pid, c.laddr.ip, c.laddr.port) for c in conns if c.status == psutil.CONN_LISTEN]
+    return out
+
+
 def test_dask_equals_serial_and_resume(tmp_path: Path) -> None:
     spec = _spec()
     serial, dask_dir = tmp_path / "serial", tmp_path / "dask"
@@ -109,8 +124,17 @@ def test_dask_equals_serial_and_resume(tmp_path: Path) -> None:
         assert f["global/mu"].attrs["unit"] == "1" and f["parameters/load.normal_force"].attrs["unit"] == "N"
         assert list(f["pads/index"][()]) == [3, 4, 5]
 
-    r = run_sweep(spec, dask_dir, workers=2)  # a local Dask cluster: two single-threaded worker processes
+    listening: list[tuple[int, str, int]] = []
+
+    def log(line: str) -> None:  # called while the cluster runs: note every socket its processes listen on
+        if line.startswith("running"):
+            listening.extend(_listening_sockets())
+
+    r = run_sweep(spec, dask_dir, workers=2, log=log)  # a local Dask cluster: two single-threaded worker processes
     assert r.workers == 2 and sorted(r.ran) == [0, 1, 2, 3] and not r.failed
+    # this process (scheduler and the two nannies) and the two worker processes listen, on loopback only
+    assert len({pid for pid, _, _ in listening}) >= 3, listening
+    assert all(ipaddress.ip_address(ip).is_loopback for _, ip, _ in listening), listening
     _assert_same(_outputs(dask_dir), ref)
 
     # what a kill leaves behind: shard 1 mid-write (.partial, manifest 'queued'); shard 2's file lost although the
