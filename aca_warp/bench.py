@@ -8,9 +8,9 @@ at a quarter of the step, over the same window).
 
 Timing method (all on warm kernels):
 
-* ``wall_s``, ``steps_per_s``, ``patch_steps_per_s``: one run (:func:`aca_warp.onchip.run` with the case's
+* ``wall_s``, ``steps_per_s``, ``patch_steps_per_s``: one run (:func:`aca_warp.hf.onchip.run` with the case's
   ``engine``: ``general`` is :func:`aca_warp.hf.run_hf`, ``onchip`` the on-chip kernel (``blocks_per_pad``: its
-  thread-block cluster size, :func:`aca_warp.onchip.default_cluster`), ``auto`` resolves as
+  thread-block cluster size, :func:`aca_warp.hf.onchip.default_cluster`), ``auto`` resolves as
   ``aca-warp hf`` does) over the timed window, recording every sample (what a user's run does; graph capture and
   compilation excluded, as in ``RunResult.wall_time``). ``engine`` in the row is the resolved one.
 * ``stepping_s``: the bare step, ``HFSolver.step`` captured into one graph of ``GRAPH_STEPS`` steps and replayed,
@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.errors import SceneError
+from aca_warp.common.errors import SceneError
 
 GRAPH_STEPS = 200
 # Data-sheet peaks [B/s] by device-name fragment; used when the driver query is unavailable.
@@ -158,7 +158,7 @@ def _stepping_time(model: Any, state: Any, integrator: str, dt: float, steps: in
     """Wall time of ``steps`` bare steps (no recording) replayed from a captured graph [s]; None for adaptive."""
     import warp as wp
 
-    from aca_warp.hf import HFSolver
+    from aca_warp.hf.solver import HFSolver
 
     if integrator == "adaptive":
         return None
@@ -195,12 +195,12 @@ def run_case(
     """Time one configuration; returns a result row (with ``mu``, pad 0's μ(t), for the error; popped later)."""
     import warp as wp
 
-    from aca_warp.contact import solve_scene_contact
+    from aca_warp.hf.contact import solve_scene_contact
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.onchip import choose_engine, run
+    from aca_warp.hf.state import initial_state
     from aca_warp.kernels.neighbours import build_neighbours
-    from aca_warp.model import build_model
-    from aca_warp.onchip import choose_engine, run
     from aca_warp.scene import Record
-    from aca_warp.state import initial_state
 
     dev = wp.get_device(device)
     scenes = [scene] * pads
@@ -299,7 +299,7 @@ def run_bench(
     """Run every case; returns ``{"machine", "scene", ..., "results": [rows]}`` (JSON-able)."""
     import warp as wp
 
-    from aca_warp.io import machine
+    from aca_warp.common.files import machine
 
     if not (duration > 0 and dt > 0 and sample_dt > 0):
         raise SceneError("duration, dt and sample interval must be > 0")
@@ -381,9 +381,9 @@ def markdown(out: dict) -> str:
 
 def add_parsers(sub: Any) -> None:
     """Register ``aca-warp bench``."""
-    from aca_warp.argtypes import int_at_least, positive
-    from aca_warp.hf import INTEGRATORS
-    from aca_warp.onchip import ENGINES
+    from aca_warp.common.argtypes import int_at_least, positive
+    from aca_warp.hf.onchip import ENGINES
+    from aca_warp.hf.solver import INTEGRATORS
 
     p = sub.add_parser(
         "bench",

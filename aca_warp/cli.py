@@ -6,8 +6,8 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from aca_warp.argtypes import int_at_least, nonneg, positive, refuse_with_resume
-from aca_warp.errors import AcaError
+from aca_warp.common.argtypes import int_at_least, nonneg, positive, refuse_with_resume
+from aca_warp.common.errors import AcaError
 
 EPILOG = """\
 SCENE is a preset (hf1, hf2, hf3, hf4, varying_area) or a TOML scene file (docs/scenes.md).
@@ -19,7 +19,7 @@ Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad inp
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``aca-warp``."""
-    from aca_warp.hf import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
+    from aca_warp.hf.solver import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
 
     p = argparse.ArgumentParser(
         prog="aca-warp",
@@ -114,7 +114,7 @@ def build_parser() -> argparse.ArgumentParser:
     from aca_warp.bench import add_parsers as add_bench
 
     add_bench(sub)
-    from aca_warp.rerun import add_parsers as add_rerun
+    from aca_warp.hf.rerun import add_parsers as add_rerun
 
     add_rerun(sub)
     from aca_warp.lf.commands import add_parsers as add_lf
@@ -128,9 +128,9 @@ def _cmd_hf(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from aca_warp.errors import SceneError
-    from aca_warp.io import check_output_path
-    from aca_warp.runner import run_scene
+    from aca_warp.common.errors import SceneError
+    from aca_warp.common.files import check_output_path
+    from aca_warp.hf.runner import run_scene
     from aca_warp.scene import Record, load_scene
 
     if args.resume is not None:
@@ -198,8 +198,8 @@ def _cmd_hf(args: argparse.Namespace) -> int:
 
 def _resume_hf(args: argparse.Namespace) -> int:
     """``aca-warp hf --resume RUN.h5``: the run's own settings; only --device, --checkpoint-interval, --no-progress."""
-    from aca_warp.hf import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE
-    from aca_warp.runner import resume_run
+    from aca_warp.hf.runner import resume_run
+    from aca_warp.hf.solver import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE
 
     refuse_with_resume(
         (

@@ -41,7 +41,7 @@ from matplotlib.ticker import FuncFormatter
 from aca_warp.analysis import report
 from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
-from aca_warp.errors import SceneError
+from aca_warp.common.errors import SceneError
 
 FIGURES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
 """Figure names accepted by :func:`plot_run` (``which``) and ``aca-warp plot --only``."""

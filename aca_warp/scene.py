@@ -3,7 +3,7 @@
 A scene holds everything one HF run of one pad needs (paper §2.1.2, §3.1; ``docs/model.md`` §1–2).
 Scenes come from Python objects, from TOML files (:func:`load_scene`) or from the built-in presets
 ``hf1``…``hf4`` and ``varying_area`` (:func:`preset`, files in ``aca_warp/data``). Everything is
-validated here, before any simulation starts; errors are :class:`~aca_warp.errors.SceneError` with a
+validated here, before any simulation starts; errors are :class:`~aca_warp.common.errors.SceneError` with a
 one-line message. All quantities are SI (m, m², kg, N, s, rad).
 """
 
@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.errors import SceneError
+from aca_warp.common.errors import SceneError
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -4,7 +4,7 @@ A sweep spec (``docs/sweeps.md``) names a base scene (a preset, a TOML scene fil
 or lists of scene parameters (``friction.M``, ``load.normal_force``, ``disc.sliding_speed``, ``patches.seed``,
 ``patches.area_min``, ``material.K_C``, ...), combined as a Cartesian product or zipped. Every combination is
 one pad. Pads are cut into shards of a fixed size; each shard is one batched HF run (one :func:`build_model`,
-one :func:`aca_warp.onchip.run`: the on-chip kernel on CUDA, else :func:`run_hf`; split only when the
+one :func:`aca_warp.hf.onchip.run`: the on-chip kernel on CUDA, else :func:`run_hf`; split only when the
 estimated device memory says the batch does not fit) and one HDF5 file::
 
     DIR/manifest.json            spec, spec hash, shards and their state (written only by the client)
@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.errors import AcaError, SceneError
+from aca_warp.common.errors import AcaError, SceneError
 from aca_warp.scene import (
     PRESETS,
     Friction,
@@ -330,8 +330,8 @@ def _base_doc(doc: dict, base_dir: Path) -> tuple[dict, Path, str]:
 
 
 def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
-    from aca_warp.hf import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
-    from aca_warp.model import PRECISIONS
+    from aca_warp.hf.model import PRECISIONS
+    from aca_warp.hf.solver import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
 
     sw, run = doc["sweep"], doc["run"]
     base_doc, scene_dir, base_name = _base_doc(doc, base_dir)
@@ -369,7 +369,7 @@ def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
     tolerance = num("tolerance", DEFAULT_TOLERANCE)
     sample_dt = num("sample_dt", base.record.sample_dt)
     try:
-        from aca_warp.hf import check_run
+        from aca_warp.hf.solver import check_run
 
         base = base.replace(duration=duration, record=dataclasses.replace(base.record, sample_dt=sample_dt))
         check_run(duration, base.record)
@@ -547,11 +547,11 @@ def run_shard(
     import h5py
     import warp as wp
 
-    from aca_warp.hf import GLOBAL_NAMES, GLOBAL_UNITS
-    from aca_warp.io import versions
-    from aca_warp.model import build_model
-    from aca_warp.onchip import run as run_engine
-    from aca_warp.state import initial_state
+    from aca_warp.common.files import versions
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.onchip import run as run_engine
+    from aca_warp.hf.solver import GLOBAL_NAMES, GLOBAL_UNITS
+    from aca_warp.hf.state import initial_state
 
     wp.config.log_level = wp.LOG_WARNING
     t_start = time.perf_counter()
@@ -1012,7 +1012,7 @@ def load_sweep(out_dir: str | Path) -> dict[str, Any]:
     """
     import h5py
 
-    from aca_warp.hf import GLOBAL_NAMES
+    from aca_warp.hf.solver import GLOBAL_NAMES
 
     d = Path(out_dir)
     manifest = read_manifest(d)
@@ -1061,8 +1061,8 @@ Exit codes: 0 every shard finished, 2 bad input, 3 some shard stopped on a fault
 
 def add_parsers(sub: Any) -> None:
     """Register ``aca-warp sweep``."""
-    from aca_warp.argtypes import fraction, int_at_least, positive
-    from aca_warp.hf import INTEGRATORS
+    from aca_warp.common.argtypes import fraction, int_at_least, positive
+    from aca_warp.hf.solver import INTEGRATORS
 
     p = sub.add_parser(
         "sweep",

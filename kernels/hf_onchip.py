@@ -8,7 +8,7 @@ Each block keeps its pad's state in shared memory (Warp tiles with ``storage="sh
 * the staggered velocity ``w`` and the cached spring force F_s(u), both touched only by the owning thread,
 * optionally (``csr_shared``) the pad's neighbour lists (local index int16, k_ij in T), bank-interleaved:
   each thread's links one after another, link m at slot W·(s + m) + lane mod W (W = 32 on CUDA; s: the links of
-  the earlier threads with the same lane mod W, :func:`aca_warp.onchip.csr_slots`), so the lanes of a warp read
+  the earlier threads with the same lane mod W, :func:`aca_warp.hf.onchip.csr_slots`), so the lanes of a warp read
   32 different banks whatever their rows' lengths; otherwise the CSR is read from global memory (read-only,
   L1/L2 cached).
 
@@ -111,7 +111,7 @@ def onchip_kernel(
 
     ``cluster`` = K > 1 (CUDA sm_90+): a pad is advanced by a thread-block cluster of K blocks; block ``rank`` owns
     the patches ``n·rank // K`` … ``n·(rank + 1) // K − 1`` (and their CSR rows, ``emax`` is then
-    :func:`aca_warp.onchip.csr_slots` of one part), every block keeps a full copy of u, the drift stores each new
+    :func:`aca_warp.hf.onchip.csr_slots` of one part), every block keeps a full copy of u, the drift stores each new
     u_i into its own copy and, by ``st.async``, into those of the blocks that own a neighbour of i (:func:`readers`;
     distributed shared memory), and instead of a
     cluster barrier each block waits for the bytes of u that the others send it (a transaction mbarrier per u
@@ -121,7 +121,7 @@ def onchip_kernel(
     updates its own CSR rows, and every block re-solves the whole pad's contact (the same sums in the same order, so
     the same gap; cheaper than a cluster barrier per Newton iteration) and keeps its own patches' normal forces.
 
-    ``lanes``: min(threads, 32), the banks of the on-chip CSR layout (:func:`aca_warp.onchip.csr_slots`).
+    ``lanes``: min(threads, 32), the banks of the on-chip CSR layout (:func:`aca_warp.hf.onchip.csr_slots`).
 
     Launch with ``wp.launch_tiled(kernel, dim=[pads · K], block_dim=B, ...)`` (K = ``cluster``); ``threads``
     must be the block size the device really runs (B on CUDA or with CPU fibers, else 1 on the CPU). The kernel
@@ -318,7 +318,7 @@ def onchip_kernel(
             put_n(w, i, v_io[a + i])
             put_n(fs, i, force_io[a + i])
             i += threads
-        # on-chip CSR, bank-interleaved (aca_warp.onchip.csr_slots): the thread's links one after another, link m
+        # on-chip CSR, bank-interleaved (aca_warp.hf.onchip.csr_slots): the thread's links one after another, link m
         # at slot nw·(m0 + m) + bank, so the lanes of a warp always read different banks (nw = 32 on CUDA)
         nw = NW
         bank = lane % nw

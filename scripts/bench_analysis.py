@@ -21,7 +21,7 @@ import numpy as np
 import warp as wp
 
 from aca_warp.analysis import sync_index_from_signals
-from aca_warp.io import machine
+from aca_warp.common.files import machine
 
 
 def write_signals(path: Path, patches: int, samples: int, dt: float, seed: int) -> None:

@@ -103,7 +103,7 @@ def main() -> int:
 
     import aca_warp.kernels.lf as K
 
-    from aca_warp.io import machine
+    from aca_warp.common.files import machine
     from aca_warp.lf.scene import load_lf_scene
     from aca_warp.lf.solver import LFSimulation
 

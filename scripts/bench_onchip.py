@@ -24,12 +24,12 @@ import warp as wp
 
 wp.config.log_level = wp.LOG_WARNING
 
-from aca_warp.hf import run_hf  # noqa: E402
-from aca_warp.io import machine  # noqa: E402
-from aca_warp.model import build_model  # noqa: E402
-from aca_warp.onchip import block_config, run_onchip, shared_bytes  # noqa: E402
+from aca_warp.common.files import machine  # noqa: E402
+from aca_warp.hf.model import build_model  # noqa: E402
+from aca_warp.hf.onchip import block_config, run_onchip, shared_bytes  # noqa: E402
+from aca_warp.hf.solver import run_hf  # noqa: E402
+from aca_warp.hf.state import initial_state  # noqa: E402
 from aca_warp.scene import Record, preset  # noqa: E402
-from aca_warp.state import initial_state  # noqa: E402
 
 
 def onchip_bytes(model, block_dim, csr_shared, cluster) -> int:

@@ -35,7 +35,7 @@ import warp as wp  # noqa: E402
 
 wp.config.log_level = wp.LOG_WARNING
 
-from aca_warp.io import machine  # noqa: E402
+from aca_warp.common.files import machine  # noqa: E402
 from aca_warp.sweep import load_spec, local_cluster, run_sweep, warm_workers  # noqa: E402
 
 

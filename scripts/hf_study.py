@@ -379,7 +379,7 @@ def simulate(scene: Any, path: Path, args: argparse.Namespace, log: Log, label: 
     import h5py
 
     from aca_warp.analysis.report import run_attr
-    from aca_warp.runner import run_scene
+    from aca_warp.hf.runner import run_scene
 
     steps = round(args.duration / args.dt)
     if args.reuse and path.is_file():
@@ -971,7 +971,7 @@ def main(argv: list[str] | None = None) -> int:
         wp.config.log_level = wp.LOG_WARNING
     wp.init()
     args = resolve(args, wp)
-    from aca_warp.io import machine, versions
+    from aca_warp.common.files import machine, versions
     from aca_warp.scene import Material
 
     log = Log()

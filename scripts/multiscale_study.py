@@ -5,7 +5,7 @@ Stages (each printed with the elapsed time):
 
 1. **LF** over the scene's schedule (default the preset ``multiscale``: 10 s applications at 10/30/5/15 bar,
    5 s pauses, 10 m/s, M = 0.8) into ``<outdir>/lf.h5`` with snapshots at the start and end of each application.
-2. **HF** (``aca_warp.runner.run_scene``) on each snapshot, areas frozen, recording per-patch velocities;
+2. **HF** (``aca_warp.hf.runner.run_scene``) on each snapshot, areas frozen, recording per-patch velocities;
    ``analyze_run`` gives the μ spectrum and the Synchronization Index S(f).
 3. **Figures**: ``fig13_panel.png`` (per state: patch map, μ spectrum, S(f); paper Fig. 13),
    ``lf_timeseries.png`` (μ, torque, friction radius, patch count, coverage, temperatures) and, with ``--tei``,
@@ -96,8 +96,8 @@ def hf_duration(args: argparse.Namespace) -> float:
 
 def run_hf_stage(lf_path: Path, args: argparse.Namespace, log: Log) -> dict[str, Path]:
     from aca_warp.analysis.report import analyze_run
+    from aca_warp.hf.runner import run_scene
     from aca_warp.lf.io import scene_from_snapshot, snapshot_names
-    from aca_warp.runner import run_scene
     from aca_warp.scene import Record
 
     duration = hf_duration(args)

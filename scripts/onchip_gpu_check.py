@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Validate the on-chip HF kernel on a GPU without ever hanging, then time it briefly.
 
-The on-chip kernel (``aca_warp.onchip``) once never finished on an H100 (docs/onchip.md, "History: the CUDA
+The on-chip kernel (``aca_warp.hf.onchip``) once never finished on an H100 (docs/onchip.md, "History: the CUDA
 hang"). This script runs every CUDA part in a child process with a timeout (the child also dumps its Python stack
 and exits on its own shortly before), so a hung kernel costs at most that timeout:
 
@@ -55,12 +55,12 @@ def child_check(args) -> None:
     import numpy as np
     import warp as wp
 
-    from aca_warp.hf import run_hf
-    from aca_warp.io import machine
-    from aca_warp.model import build_model
-    from aca_warp.onchip import run_onchip
+    from aca_warp.common.files import machine
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.onchip import run_onchip
+    from aca_warp.hf.solver import run_hf
+    from aca_warp.hf.state import initial_state
     from aca_warp.scene import Growth, Initial, Record, preset
-    from aca_warp.state import initial_state
 
     out = Path(args.out)
     record = Record(sample_dt=2e-7, patches=("velocity", "displacement"), window=(4e-7, 2e-6), decimation=2)
@@ -149,12 +149,12 @@ def child_bench(args) -> None:
     import numpy as np
     import warp as wp
 
-    from aca_warp.hf import run_hf
-    from aca_warp.io import machine
-    from aca_warp.model import build_model
-    from aca_warp.onchip import run_onchip
+    from aca_warp.common.files import machine
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.onchip import run_onchip
+    from aca_warp.hf.solver import run_hf
+    from aca_warp.hf.state import initial_state
     from aca_warp.scene import Record, preset
-    from aca_warp.state import initial_state
 
     out = Path(args.out)
     deadline = args.deadline

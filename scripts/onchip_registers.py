@@ -84,8 +84,8 @@ def main(argv: list[str] | None = None) -> int:
     wp.init()
     from aca_warp.kernels.hf_onchip import onchip_kernel
 
-    from aca_warp.model import build_model
-    from aca_warp.onchip import default_block, pad_sizes, shared_bytes, smem_limit, tile_sizes
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.onchip import default_block, pad_sizes, shared_bytes, smem_limit, tile_sizes
     from aca_warp.scene import preset
 
     rows = []

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Where the on-chip HF kernel spends its time: ablation profile on one hf1 pad (or a batch of them).
 
-Times ``aca_warp.onchip.run_onchip`` on one pad (``--pads N``: a batch of N identical pads) for a window of steps
+Times ``aca_warp.hf.onchip.run_onchip`` on one pad (``--pads N``: a batch of N identical pads) for a window of steps
 with parts of the step left out (``ablate``: the implicit friction solve → an explicit kick, the neighbour gather
 or its second half, the block barrier; the results of an ablated run are wrong and only its time counts), for
 several block sizes, with the CSR in shared or global memory, fp32 and fp64, and the general per-step path for
@@ -136,13 +136,13 @@ def main(argv: list[str] | None = None) -> int:
 
     wp.config.quiet = True
     wp.init()
-    from aca_warp.errors import SceneError
-    from aca_warp.hf import GROWTH_MUTABLE, run_hf
-    from aca_warp.io import machine
-    from aca_warp.model import build_model
-    from aca_warp.onchip import run_onchip
+    from aca_warp.common.errors import SceneError
+    from aca_warp.common.files import machine
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.onchip import run_onchip
+    from aca_warp.hf.solver import GROWTH_MUTABLE, run_hf
+    from aca_warp.hf.state import initial_state
     from aca_warp.scene import Record, preset
-    from aca_warp.state import initial_state
 
     name = "varying_area" if args.growth else "hf1"
     scene = preset(name).replace(record=Record(sample_dt=args.sample_dt))

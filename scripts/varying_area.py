@@ -37,12 +37,12 @@ import warp as wp
 wp.config.log_level = wp.LOG_WARNING
 wp.config.quiet = True
 
-from aca_warp.hf import DEFAULT_DT, GROWTH_MUTABLE, INTEGRATORS, stable_step  # noqa: E402
-from aca_warp.io import machine  # noqa: E402
-from aca_warp.model import PadModel, build_model  # noqa: E402
-from aca_warp.onchip import run  # noqa: E402
+from aca_warp.common.files import machine  # noqa: E402
+from aca_warp.hf.model import PadModel, build_model  # noqa: E402
+from aca_warp.hf.onchip import run  # noqa: E402
+from aca_warp.hf.solver import DEFAULT_DT, GROWTH_MUTABLE, INTEGRATORS, stable_step  # noqa: E402
+from aca_warp.hf.state import HFState, initial_state  # noqa: E402
 from aca_warp.scene import Growth, Record, Scene, preset  # noqa: E402
-from aca_warp.state import HFState, initial_state  # noqa: E402
 
 STATE_FILE = "varying_area_state.npz"
 RECORD_FILE = "varying_area.npz"
@@ -131,7 +131,7 @@ class Segment:
         self, until: float, *, chunk: float, integrator: str, dt: float, max_wall: float, engine: str = "general"
     ) -> None:
         """Run in chunks of ``chunk`` simulated seconds to ``until`` or until ``max_wall`` wall seconds pass
-        (``engine``: general, onchip or auto, as ``aca_warp.onchip.run``)."""
+        (``engine``: general, onchip or auto, as ``aca_warp.hf.onchip.run``)."""
         rec = Record(sample_dt=self.scene.record.sample_dt)
         t_start = time.perf_counter()
         while self.sim_time < until - 0.5 * rec.sample_dt:

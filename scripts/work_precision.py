@@ -6,7 +6,7 @@ steep enough that patches reach sticking). For every integrator of ``aca_warp.hf
 tolerances for ``adaptive``) × fp32/fp64, and for SciPy's ``solve_ivp`` methods as baselines, it measures:
 
 * ``state``: the final state after ``--t-state`` (0.1 ms): max(‖u − u_ref‖∞/‖u_ref‖∞, ‖u̇ − u̇_ref‖∞/‖u̇_ref‖∞)
-  against an independent SciPy DOP853 solution at rtol 1e-10 (``aca_warp.reference``);
+  against an independent SciPy DOP853 solution at rtol 1e-10 (``aca_warp.hf.reference``);
 * ``mu``: max |μ(t) − μ_ref(t)| over ``--t-long`` (1 ms, 0.2 ms with ``--quick``) against our own fp64 ``strang``
   run at ``--ref-dt``, checked by Richardson extrapolation (runs at 2 and 4 × ``--ref-dt``: estimated order and
   error of the reference);
@@ -43,12 +43,12 @@ wp.config.quiet = True
 
 from aca_warp.analysis.spectra import amplitude_spectrum, peak  # noqa: E402
 from aca_warp.analysis.sync import sync_index_from_signals  # noqa: E402
-from aca_warp.hf import DEFAULT_DT, DEFAULT_INTEGRATOR, INTEGRATORS, run_hf  # noqa: E402
-from aca_warp.io import machine  # noqa: E402
-from aca_warp.model import build_model  # noqa: E402
-from aca_warp.reference import SCIPY_METHODS, ReferenceODE  # noqa: E402
+from aca_warp.common.files import machine  # noqa: E402
+from aca_warp.hf.model import build_model  # noqa: E402
+from aca_warp.hf.reference import SCIPY_METHODS, ReferenceODE  # noqa: E402
+from aca_warp.hf.solver import DEFAULT_DT, DEFAULT_INTEGRATOR, INTEGRATORS, run_hf  # noqa: E402
+from aca_warp.hf.state import initial_state  # noqa: E402
 from aca_warp.scene import Record, Scene, preset  # noqa: E402
-from aca_warp.state import initial_state  # noqa: E402
 
 SCENES = ("hf1", "hf2", "stickslip")
 STICK_SPEED = 0.5  # m/s at the mean radius 0.13 m
@@ -246,7 +246,7 @@ class Study:
                     params = (TOL_QUICK if a.quick else TOL_FULL)[prec]
                 elif integ == "symplectic-euler":
                     model = build_model([self.scene], device=self.dev, precision=prec)
-                    from aca_warp.hf import stable_step
+                    from aca_warp.hf.solver import stable_step
 
                     lim = stable_step(model).explicit
                     base = a.explicit_steps or (EXPLICIT_QUICK if a.quick else EXPLICIT_FULL)

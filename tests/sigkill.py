@@ -12,7 +12,7 @@ from pathlib import Path
 
 import h5py
 
-from aca_warp.checkpoint import has_checkpoint
+from aca_warp.common.checkpoint import has_checkpoint
 
 REPO = Path(__file__).resolve().parent.parent
 

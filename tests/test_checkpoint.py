@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from sigkill import kill_after_first_checkpoint
 
-from aca_warp import runner
-from aca_warp.checkpoint import has_checkpoint
 from aca_warp.cli import main
+from aca_warp.common.checkpoint import has_checkpoint
+from aca_warp.hf import runner
 
 SCENE = """
 [scene]
@@ -171,8 +171,8 @@ def test_resume_refusals(scene_file: Path, tmp_path: Path, capsys) -> None:
 def test_closed_on_failure_closes_and_names_the_file(tmp_path: Path) -> None:
     """The resume guard of both run files: a malformed file (KeyError, …) becomes a SceneError naming it, anything
     else passes through; the file is closed either way, and stays open when the body succeeds."""
-    from aca_warp.checkpoint import closed_on_failure
-    from aca_warp.errors import SceneError
+    from aca_warp.common.checkpoint import closed_on_failure
+    from aca_warp.common.errors import SceneError
 
     path = tmp_path / "x.h5.partial"
     for exc, check, expect in (

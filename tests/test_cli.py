@@ -6,9 +6,9 @@ import h5py
 import numpy as np
 import pytest
 
-from aca_warp import runner
 from aca_warp.cli import main
-from aca_warp.io import read_run
+from aca_warp.hf import runner
+from aca_warp.hf.runfile import read_run
 from aca_warp.scene import load_scene
 
 SCENE = """

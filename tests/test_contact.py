@@ -1,4 +1,4 @@
-"""Tests of the normal force distribution (aca_warp.contact; model.md "Normal force distribution").
+"""Tests of the normal force distribution (aca_warp.hf.contact; model.md "Normal force distribution").
 
 Compression-only springs in parallel: F_i = k_i max(H_i − g, 0), Σ F_i = F_N. The exact piecewise-linear
 solve is checked against force balance, a brute-force bisection on g, and the load-sharing statements of
@@ -15,8 +15,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aca_warp.contact import solve_contact, solve_scene_contact
-from aca_warp.errors import SceneError
+from aca_warp.common.errors import SceneError
+from aca_warp.hf.contact import solve_contact, solve_scene_contact
 from aca_warp.scene import Matrix, Pad, Patches, Scene, preset
 
 

@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from aca_warp.hf import INTEGRATORS, run_hf
-from aca_warp.model import build_model
+from aca_warp.hf.model import build_model
+from aca_warp.hf.solver import INTEGRATORS, run_hf
+from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Material, Pad, Patches, Record, Scene
-from aca_warp.state import initial_state
 
 FIXED_STEP = [i for i in INTEGRATORS if i != "adaptive"]
 DT = {"symplectic-euler": 5e-9, "implicit-friction": 1e-8, "strang": 1e-8, "adaptive": None}

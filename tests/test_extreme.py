@@ -24,11 +24,11 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from aca_warp.errors import SceneError, StabilityError
-from aca_warp.hf import DEFAULT_DT, run_hf
-from aca_warp.model import PadModel, build_model, coupling_matrix
+from aca_warp.common.errors import SceneError, StabilityError
+from aca_warp.hf.model import PadModel, build_model, coupling_matrix
+from aca_warp.hf.solver import DEFAULT_DT, run_hf
+from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Material, Matrix, Pad, Patches, Record, Scene
-from aca_warp.state import initial_state
 
 GRAPH_STEPS = 200  # short graphs: graph capture is the slow part on the CPU
 DURATION = 5e-5  # s: 5000 default steps

@@ -1,4 +1,4 @@
-"""Numerical tests of the HF engine (aca_warp.hf) against independent references (model.md §2).
+"""Numerical tests of the HF engine (aca_warp.hf.solver) against independent references (model.md §2).
 
 * a single undamped, frictionless patch against the analytic oscillator u = (v0/ω) sin ωt;
 * a small coupled, loaded, sliding network against SciPy's DOP853 solution of the equation of motion
@@ -17,11 +17,11 @@ import warp as wp
 from aca_warp.kernels import hf as K
 from scipy.integrate import solve_ivp
 
-from aca_warp.errors import SceneError, SimulationFault, StabilityError
-from aca_warp.hf import INTEGRATORS, run_hf, stable_step
-from aca_warp.model import build_model
+from aca_warp.common.errors import SceneError, SimulationFault, StabilityError
+from aca_warp.hf.model import build_model
+from aca_warp.hf.solver import INTEGRATORS, run_hf, stable_step
+from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Material, Pad, Patches, Record, Scene
-from aca_warp.state import initial_state
 
 FIXED_STEP = [i for i in INTEGRATORS if i != "adaptive"]
 K_T, K_N, K_C, RHO_A = 1.87e9, 2.39e9, 7.96e8, 37.5  # model.md §2

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from aca_warp.kernels import lf as K
 
-from aca_warp.contact import solve_contact, solve_scene_contact
+from aca_warp.hf.contact import solve_contact, solve_scene_contact
 from aca_warp.lf.scene import lf_scene_from_dict, step_table
 from aca_warp.lf.solver import LFSimulation
 from aca_warp.scene import Patches
@@ -98,7 +98,7 @@ def test_contact_force_balance_matches_exact_solve():
     load = g[K.G_LOAD]
     fn_cells, fn_patch = sim.cell_fn.numpy(), sim.patch_fn.numpy()[sim.alive.numpy() != 0]
     assert fn_cells.sum() + fn_patch.sum() == pytest.approx(load, rel=1e-11)
-    # independent reference: the exact piecewise-linear solve of aca_warp.contact on the same springs
+    # independent reference: the exact piecewise-linear solve of aca_warp.hf.contact on the same springs
     snap = sim.snapshot()
     p, m = snap["patches"], snap["matrix"]
     k = np.concatenate([sim.scene.material.K_N * np.sqrt(p["area"]), sim.scene.material.matrix_stiffness * m["area"]])

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from sigkill import kill_after_first_checkpoint
 
-from aca_warp.checkpoint import has_checkpoint
 from aca_warp.cli import main
+from aca_warp.common.checkpoint import has_checkpoint
 from aca_warp.lf import io as lf_io
 
 SCENE = """
@@ -177,7 +177,7 @@ def test_lf_output_and_resume_refusals(tmp_path: Path, capsys) -> None:
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and message in err[0], (argv, err)
     assert done.read_bytes() == before
-    from aca_warp.errors import SceneError
+    from aca_warp.common.errors import SceneError
     from aca_warp.lf.commands import run_lf
     from aca_warp.lf.scene import load_lf_scene
 

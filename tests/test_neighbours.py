@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from aca_warp.kernels.neighbours import build_neighbours
 
-from aca_warp.model import build_model, coupling_matrix
+from aca_warp.hf.model import build_model, coupling_matrix
 from aca_warp.scene import Material, Pad, Patches, PatchGenerator, Scene
 
 

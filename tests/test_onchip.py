@@ -1,4 +1,4 @@
-"""The on-chip engine (aca_warp.onchip) against the general per-step path (aca_warp.hf.run_hf).
+"""The on-chip engine (aca_warp.hf.onchip) against the general per-step path (aca_warp.hf.run_hf).
 
 On the CPU Warp runs a block as one thread, so the on-chip kernel does the same operations in the same order
 as the general kernels: μ(t), all global outputs, the per-patch histories and the final (u, u̇) must be
@@ -22,10 +22,9 @@ from aca_warp.kernels.hf_onchip import readers
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aca_warp.errors import SceneError
-from aca_warp.hf import run_hf, stable_step
-from aca_warp.model import build_model
-from aca_warp.onchip import (
+from aca_warp.common.errors import SceneError
+from aca_warp.hf.model import build_model
+from aca_warp.hf.onchip import (
     choose_engine,
     csr_slots,
     default_block,
@@ -34,8 +33,9 @@ from aca_warp.onchip import (
     run,
     run_onchip,
 )
+from aca_warp.hf.solver import run_hf, stable_step
+from aca_warp.hf.state import initial_state
 from aca_warp.scene import Growth, Initial, Patches, Record, preset
-from aca_warp.state import initial_state
 
 RECORD = Record(sample_dt=2e-7, patches=("velocity", "displacement"), window=(4e-7, 2e-6), decimation=2)
 

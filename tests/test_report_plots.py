@@ -15,8 +15,8 @@ from aca_warp import plots
 from aca_warp.analysis import report, sync_index_from_signals
 from aca_warp.analysis.commands import FIGURE_NAMES, add_parsers
 from aca_warp.analysis.report import analyze_run
-from aca_warp.errors import AcaError, SceneError
-from aca_warp.runner import run_scene
+from aca_warp.common.errors import AcaError, SceneError
+from aca_warp.hf.runner import run_scene
 from aca_warp.scene import Material, Pad, Patches, PatchGenerator, Record, Scene
 
 SAMPLE_DT = 1.0e-7  # s

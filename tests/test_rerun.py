@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 
 from aca_warp.cli import main
-from aca_warp.rerun import read_settings
+from aca_warp.hf.rerun import read_settings
 from aca_warp.scene import load_scene, scene_to_dict, write_patch_file
 
 SCENE = """

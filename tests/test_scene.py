@@ -1,6 +1,6 @@
 """Tests of aca_warp.scene: validation errors, presets against the paper's numbers, TOML and HDF5 round trips.
 
-Every invalid input must raise :class:`aca_warp.errors.SceneError` with a message that names the
+Every invalid input must raise :class:`aca_warp.common.errors.SceneError` with a message that names the
 offending item (model.md §1–2, the presets table; paper Table 1 and §3.1–3.2).
 """
 
@@ -12,7 +12,7 @@ import h5py
 import numpy as np
 import pytest
 
-from aca_warp.errors import SceneError
+from aca_warp.common.errors import SceneError
 from aca_warp.scene import (
     Friction,
     Growth,

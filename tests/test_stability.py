@@ -26,11 +26,11 @@ import math
 import numpy as np
 import pytest
 
-from aca_warp.errors import SimulationFault, StabilityError
-from aca_warp.hf import run_hf, stable_step
-from aca_warp.model import PadModel, build_model, coupling_matrix
+from aca_warp.common.errors import SimulationFault, StabilityError
+from aca_warp.hf.model import PadModel, build_model, coupling_matrix
+from aca_warp.hf.solver import run_hf, stable_step
+from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Material, Pad, Patches, Record, Scene
-from aca_warp.state import initial_state
 
 GRAPH_STEPS = 200  # short graphs: graph capture is the slow part on the CPU
 STEPS = 100_000

@@ -13,10 +13,10 @@ import psutil
 import pytest
 
 from aca_warp.cli import main
-from aca_warp.hf import GLOBAL_NAMES, run_hf
-from aca_warp.model import build_model
+from aca_warp.hf.model import build_model
+from aca_warp.hf.solver import GLOBAL_NAMES, run_hf
+from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, PatchGenerator, preset
-from aca_warp.state import initial_state
 from aca_warp.sweep import SweepError, load_spec, load_sweep, run_sweep
 
 # 2 M x 3 loads x 2 seeds = 12 pads of 25 patches, 4 shards of 3; 4 µs simulated (5 samples).

@@ -103,9 +103,9 @@ def test_growth_contact_block_threads_agree():
     per block and with Warp's cooperative CPU fibers (256 threads, real barriers), to rounding, in force balance."""
     import warp as wp
 
-    from aca_warp.hf import run_hf
-    from aca_warp.model import build_model
-    from aca_warp.state import initial_state
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.solver import run_hf
+    from aca_warp.hf.state import initial_state
 
     s = growing_scene()
     out = []
@@ -162,7 +162,7 @@ def test_contact_block_parts_compose():
     """What a growth event on a thread-block cluster relies on (kernels/hf_onchip.py): every block re-solves the
     pad's contact with the same gap, writes only its own range of normal forces, and only the writer block the
     matrix force and radius; the parts together give the general path's contact_flat result exactly."""
-    from aca_warp.model import build_model
+    from aca_warp.hf.model import build_model
 
     s = growing_scene()
     parts = 3

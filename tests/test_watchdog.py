@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from aca_warp.errors import SimulationFault
-from aca_warp.hf import WATCHDOG_FACTOR, run_hf, stable_step, watchdog_bound
-from aca_warp.model import build_model
+from aca_warp.common.errors import SimulationFault
+from aca_warp.hf.model import build_model
+from aca_warp.hf.solver import WATCHDOG_FACTOR, run_hf, stable_step, watchdog_bound
+from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Pad, Patches, Record, Scene
-from aca_warp.state import initial_state
 
 
 def grid(n: int = 16, spacing: float = 1.2e-3) -> Patches:

@@ -1,4 +1,4 @@
-"""``scripts/work_precision.py`` and ``aca_warp.reference``: Richardson check, the SciPy reference against the
+"""``scripts/work_precision.py`` and ``aca_warp.hf.reference``: Richardson check, the SciPy reference against the
 HF engine, and the measure → report pipeline end to end on a 9-patch scene (CPU)."""
 
 from __future__ import annotations
@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from scriptload import load_script
 
-from aca_warp.hf import run_hf
-from aca_warp.model import build_model
-from aca_warp.reference import ReferenceODE
+from aca_warp.hf.model import build_model
+from aca_warp.hf.reference import ReferenceODE
+from aca_warp.hf.solver import run_hf
+from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Pad, Patches, Record, Scene
-from aca_warp.state import initial_state
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,7 @@
 
 ``add_parsers(sub)`` adds both to the ``add_subparsers`` object of the main parser; each sets
 ``handler`` (``set_defaults``), a function of the parsed arguments that returns the exit code and
-raises :class:`aca_warp.errors.AcaError` subclasses for bad input (the main CLI prints one line and
+raises :class:`aca_warp.common.errors.AcaError` subclasses for bad input (the main CLI prints one line and
 exits 2). Heavy imports (SciPy, Matplotlib) happen inside the handlers, so ``--help`` stays fast.
 """
 
@@ -12,8 +12,8 @@ import argparse
 import sys
 from typing import Any
 
-from aca_warp.argtypes import fraction, int_at_least, nonneg, positive
-from aca_warp.errors import SceneError
+from aca_warp.common.argtypes import fraction, int_at_least, nonneg, positive
+from aca_warp.common.errors import SceneError
 
 FIGURE_NAMES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
 """Figure names of ``plot --only`` (same as ``aca_warp.plots.FIGURES``, kept here to avoid importing Matplotlib)."""

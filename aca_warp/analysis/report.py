@@ -1,6 +1,6 @@
 """Analysis of a run file into its ``/analysis`` group (paper §2.2, §3; model.md §3; docs/analysis.md).
 
-:func:`analyze_run` computes, from one run file written by :mod:`aca_warp.io`,
+:func:`analyze_run` computes, from one run file written by :mod:`aca_warp.hf.runfile`,
 
 * ``/analysis/spectra``: Hann amplitude spectra of every global output (mean-normalised, paper Fig. 8);
 * ``/analysis/patch_spectrum``: the mean over patches of the per-patch velocity amplitude spectra
@@ -29,7 +29,7 @@ import h5py
 import numpy as np
 import scipy.fft
 
-from aca_warp.errors import SceneError
+from aca_warp.common.errors import SceneError
 
 from .spectra import DEFAULT_FLOOR_HZ, amplitude_spectrum, complex_spectrum, peak
 from .sync import _patch_groups, sync_index, sync_index_from_signals
@@ -622,7 +622,7 @@ def analyze_run(
     """Analyse a run file and (re)write its ``/analysis`` group; returns the groups written.
 
     Args:
-        path: Run file written by ``aca-warp hf`` / :func:`aca_warp.runner.run_scene`.
+        path: Run file written by ``aca-warp hf`` / :func:`aca_warp.hf.runner.run_scene`.
         freq_range: ``(fmin, fmax)`` [Hz] of the Synchronization Index, the CWT and the peak search; a None
             edge takes its default, 10 Hz or min(200 kHz, Nyquist). None: S(f) and the CWT use
             10 Hz – min(200 kHz, Nyquist), the peak search 1 kHz – Nyquist.

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from aca_warp.argtypes import positive, refuse_with_resume
+from aca_warp.common.argtypes import positive, refuse_with_resume
 
 EPILOG = """\
 SCENE is the preset multiscale (paper §3.3: 10 s applications at 10/30/5/15 bar, 5 s pauses, 10 m/s, M = 0.8)
@@ -35,7 +35,7 @@ def run_lf(
     that a killed or stopped run continues with :func:`resume_lf` (docs/faults.md)."""
     import math
 
-    from aca_warp.errors import SceneError
+    from aca_warp.common.errors import SceneError
     from aca_warp.lf.io import LFRunWriter, check_lf_output
     from aca_warp.lf.solver import LFSimulation
 
@@ -76,8 +76,8 @@ def read_lf_settings(path: str | Path) -> dict[str, Any]:
 
     import numpy as np
 
-    from aca_warp.errors import SceneError
-    from aca_warp.io import open_h5
+    from aca_warp.common.errors import SceneError
+    from aca_warp.common.files import open_h5
     from aca_warp.lf.scene import lf_scene_from_dict
     from aca_warp.scene import Patches
 
@@ -122,9 +122,9 @@ def resume_lf(
     import json
     import os
 
+    from aca_warp.hf.runner import find_resumable
     from aca_warp.lf.io import LFRunWriter
     from aca_warp.lf.solver import LFSimulation
-    from aca_warp.runner import find_resumable
 
     final, part = find_resumable(path)
     src = part if part.exists() else final
@@ -149,8 +149,8 @@ def rerun_lf(run: str | Path, output: str | Path, *, device: str | None, checkpo
              overwrite: bool, progress: bool) -> int:  # fmt: skip
     """``aca-warp rerun LF.h5 -o NEW.h5``: repeat an LF run from its file (scene, initial patches, duration,
     device); on the same CPU the new file's datasets equal the old one's bit for bit."""
-    from aca_warp.errors import SceneError
-    from aca_warp.rerun import version_changes
+    from aca_warp.common.errors import SceneError
+    from aca_warp.hf.rerun import version_changes
 
     if Path(output).resolve() == Path(run).resolve():
         raise SceneError("rerun writes a new file; give an output other than the run file")
@@ -182,7 +182,7 @@ def _summary(output: Any, sim: Any) -> str:
 def _cmd_lf(args: argparse.Namespace) -> int:
     import dataclasses
 
-    from aca_warp.errors import SceneError
+    from aca_warp.common.errors import SceneError
     from aca_warp.lf.scene import load_lf_scene
 
     if args.resume is not None:

@@ -10,7 +10,7 @@ Layout of an LF run file (docs/lf_model.md "Run file")::
     /snapshots/NAME/rings/radius, temperature, bulge                                               (R,)
     /calibration/death_age, death_area                                                             (deaths,)
     /initial_patches/x, y, area, height                                               (n0,)  initial patches
-    /checkpoint/...                  only while a run with --checkpoint-interval is unfinished (aca_warp.checkpoint)
+    /checkpoint/...                  only while a run with --checkpoint-interval is unfinished
 
 Every dataset has a ``unit`` attribute; snapshot groups carry ``time``, ``normal_force``, ``angular_velocity``,
 ``gap`` and ``height_shift`` attributes. Root attributes: ``scene`` (JSON, :func:`lf_scene_to_dict`),
@@ -31,9 +31,9 @@ from typing import Any
 import h5py
 import numpy as np
 
-from aca_warp.checkpoint import closed_on_failure, drop_checkpoint, read_checkpoint, write_checkpoint
-from aca_warp.errors import SceneError
-from aca_warp.io import check_output_path, machine, open_h5, partial_path, versions
+from aca_warp.common.checkpoint import closed_on_failure, drop_checkpoint, read_checkpoint, write_checkpoint
+from aca_warp.common.errors import SceneError
+from aca_warp.common.files import check_output_path, machine, open_h5, partial_path, versions
 from aca_warp.kernels.lf import H_NAMES, H_UNITS
 from aca_warp.lf.scene import lf_scene_to_dict
 from aca_warp.lf.solver import LFSimulation
@@ -141,7 +141,7 @@ class LFRunWriter:
 
     def checkpoint(self, sim: LFSimulation) -> None:
         """Store the run's state (the run loop's ``on_checkpoint``): /global up to this step, then the state into
-        the inactive checkpoint slot (:func:`aca_warp.checkpoint.write_checkpoint`: flush, flip, flush)."""
+        the inactive checkpoint slot (:func:`aca_warp.common.checkpoint.write_checkpoint`: flush, flip, flush)."""
         self._append_rows()
         ckpt = sim.checkpoint_state()
         ckpt.rows = {"global": self.rows}
@@ -169,7 +169,7 @@ class LFRunWriter:
 
 
 def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:
-    """:func:`aca_warp.io.check_output_path` for LF runs (an unfinished ``NAME.partial`` names ``lf --resume``)."""
+    """:func:`~aca_warp.common.files.check_output_path` for LF runs (``NAME.partial`` names ``lf --resume``)."""
     part = partial_path(path)
     if part.exists() and not overwrite and not Path(path).is_dir():
         raise SceneError(

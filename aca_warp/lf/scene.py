@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.errors import SceneError
+from aca_warp.common.errors import SceneError
 from aca_warp.scene import Friction, Material, Pad, Patches, PatchGenerator, _finite
 
 if sys.version_info >= (3, 11):

@@ -60,7 +60,7 @@ def int_at_least(low: int):
 def refuse_with_resume(options: tuple[tuple[str, object, object], ...], what: str) -> None:
     """Raise a SceneError naming every option (name, value, default) given with ``--resume``: a resumed run keeps
     its own settings (``what`` names the run, e.g. "the run")."""
-    from aca_warp.errors import SceneError
+    from aca_warp.common.errors import SceneError
 
     given = [name for name, value, default in options if value != default]
     if given:

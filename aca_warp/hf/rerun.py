@@ -23,8 +23,8 @@ from typing import Any
 import h5py
 import numpy as np
 
-from aca_warp.argtypes import positive
-from aca_warp.errors import SceneError
+from aca_warp.common.argtypes import positive
+from aca_warp.common.errors import SceneError
 from aca_warp.scene import Friction, Growth, Initial, Material, Matrix, Pad, Patches, Record, Scene
 
 
@@ -114,7 +114,7 @@ def scene_from_run(f: h5py.File, path: Path) -> Scene:
 
 def read_settings(path: str | Path) -> RunSettings:
     """Read the settings of the run file ``path`` (SceneError with one line when it cannot be rerun)."""
-    from aca_warp.io import open_h5
+    from aca_warp.common.files import open_h5
 
     p = Path(path)
     with open_h5(p, "run file") as f:
@@ -143,7 +143,7 @@ def read_settings(path: str | Path) -> RunSettings:
 
 def version_changes(stored: dict[str, str]) -> list[str]:
     """``name old -> new`` for every package whose version differs from the run file's."""
-    from aca_warp.io import versions
+    from aca_warp.common.files import versions
 
     now = versions()
     return [f"{k} {v} -> {now.get(k, 'missing')}" for k, v in stored.items() if now.get(k) != v]
@@ -176,8 +176,8 @@ def _is_lf(path: str | Path) -> bool:
 
 
 def _cmd_rerun(args: argparse.Namespace) -> int:
-    from aca_warp.io import check_output_path
-    from aca_warp.runner import run_scene
+    from aca_warp.common.files import check_output_path
+    from aca_warp.hf.runner import run_scene
 
     if _is_lf(args.run):
         from aca_warp.lf.commands import rerun_lf

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aca_warp.errors import SceneError
+from aca_warp.common.errors import SceneError
 from aca_warp.scene import Scene
 
 

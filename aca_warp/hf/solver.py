@@ -27,12 +27,12 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from aca_warp.checkpoint import Checkpoint
-from aca_warp.errors import SceneError, SimulationFault, StabilityError
+from aca_warp.common.checkpoint import Checkpoint
+from aca_warp.common.errors import SceneError, SimulationFault, StabilityError
+from aca_warp.hf.model import PadModel, coupling_matrix
+from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
-from aca_warp.model import PadModel, coupling_matrix
 from aca_warp.scene import Record
-from aca_warp.state import HFState
 
 INTEGRATORS = ("symplectic-euler", "implicit-friction", "strang", "adaptive")
 DEFAULT_INTEGRATOR = "strang"
@@ -544,7 +544,7 @@ def run_hf(
     :func:`watchdog_bound` (``watchdog_factor`` × the scene's velocity scale; None: non-finite check only);
     the host reads the flags with the samples, at chunk ends. Checkpoints: with ``checkpoint_every`` [s of
     simulated time] and ``on_checkpoint``, the first chunk end at or past each multiple of it hands a
-    :class:`~aca_warp.checkpoint.Checkpoint` to ``on_checkpoint`` (device reads only then). ``resume`` (a
+    :class:`~aca_warp.common.checkpoint.Checkpoint` to ``on_checkpoint`` (device reads only then). ``resume`` (a
     checkpoint of the same scene, integrator, step policy, device and precision) continues from it: the rest
     of the run is the same arithmetic in the same order, so the samples equal an uninterrupted run's bit for bit.
     """

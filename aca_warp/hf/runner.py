@@ -1,7 +1,7 @@
 """One HF run of one scene into one run file: the sequence behind ``aca-warp hf`` (and its Python twin).
 
 :func:`run_scene` starts a run; :func:`resume_run` continues a killed or stopped one from the last checkpoint
-in its run file (``aca-warp hf --resume``). Both stream samples into a :class:`~aca_warp.io.RunWriter` and
+in its run file (``aca-warp hf --resume``). Both stream samples into a :class:`~aca_warp.hf.runfile.RunWriter` and
 close it complete or marked incomplete (docs/run_files.md, docs/faults.md).
 """
 
@@ -14,13 +14,14 @@ from typing import Any
 import h5py
 import warp as wp
 
-from aca_warp.checkpoint import Checkpoint, has_checkpoint
-from aca_warp.errors import SceneError
-from aca_warp.hf import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, RunResult, run_hf
-from aca_warp.io import RunWriter, check_output_path, partial_path
-from aca_warp.model import PadModel, build_model
+from aca_warp.common.checkpoint import Checkpoint, has_checkpoint
+from aca_warp.common.errors import SceneError
+from aca_warp.common.files import check_output_path, partial_path
+from aca_warp.hf.model import PadModel, build_model
+from aca_warp.hf.runfile import RunWriter
+from aca_warp.hf.solver import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, RunResult, run_hf
+from aca_warp.hf.state import HFState, initial_state
 from aca_warp.scene import Scene
-from aca_warp.state import HFState, initial_state
 
 
 def run_scene(
@@ -45,7 +46,7 @@ def run_scene(
     readable file holding every sample up to that point, marked ``complete = False``. With
     ``checkpoint_interval`` [s of simulated time] the file also keeps the solver state of the last checkpoint,
     so that a killed run continues with :func:`resume_run`. ``engine``: ``auto``, ``onchip`` or ``general``
-    (:func:`aca_warp.onchip.choose_engine`); checkpointed runs take the general engine.
+    (:func:`aca_warp.hf.onchip.choose_engine`); checkpointed runs take the general engine.
     """
     check_output_path(output, overwrite=overwrite)
     duration = scene.duration if duration is None else duration
@@ -65,11 +66,11 @@ def run_scene(
         "checkpoint_interval": checkpoint_interval,
     }
     # refuse bad step choices before a file is created
-    from aca_warp.hf import HFSolver, check_run
+    from aca_warp.hf.solver import HFSolver, check_run
 
     check_run(duration, scene.record, checkpoint_interval)
     HFSolver(model, integrator, dt, force=force, tolerance=tolerance)
-    from aca_warp.onchip import choose_engine
+    from aca_warp.hf.onchip import choose_engine
 
     if checkpoint_interval is not None:
         if engine == "onchip":
@@ -113,7 +114,7 @@ def _execute(
     try:
         writer = open_writer()
         if engine == "onchip":
-            from aca_warp.onchip import run_onchip
+            from aca_warp.hf.onchip import run_onchip
 
             result = run_onchip(
                 model,
@@ -213,7 +214,7 @@ def resume_run(
     """Continue the run ``path`` (``NAME`` or ``NAME.partial``) from its last checkpoint; returns the result and
     the final file name. Same scene, step policy, precision and device as the run (``device`` overrides it: then
     the result is no longer bit-identical). The finished file equals an uninterrupted run's."""
-    from aca_warp.rerun import read_settings
+    from aca_warp.hf.rerun import read_settings
 
     final, part = find_resumable(path)
     src = part if part.exists() else final

@@ -6,7 +6,7 @@ The equation of motion of patch i (model.md §2, docs/stability.md),
 
 is written as a first-order system y = (u, u̇) of size 2n and handed to ``scipy.integrate.solve_ivp``
 with an analytic sparse Jacobian. The constants (masses, stiffnesses, damping, normal forces, radii) are
-read from a built :class:`~aca_warp.model.PadModel` of one pad; the integration is SciPy's. Used by
+read from a built :class:`~aca_warp.hf.model.PadModel` of one pad; the integration is SciPy's. Used by
 ``scripts/work_precision.py`` as the high-order reference of short windows and as the baseline solvers a
 user would otherwise pick.
 """
@@ -20,8 +20,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.integrate import solve_ivp
 
-from aca_warp.errors import SceneError
-from aca_warp.model import PadModel, coupling_matrix
+from aca_warp.common.errors import SceneError
+from aca_warp.hf.model import PadModel, coupling_matrix
 
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau", "BDF")
 IMPLICIT_METHODS = ("LSODA", "Radau", "BDF")

@@ -35,7 +35,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from aca_warp.errors import SceneError
+from aca_warp.common.errors import SceneError
 
 FORMAT = 2  # 2: LF global-scalar layout without the contact sums and flag (2026-11-23)
 GROUP = "checkpoint"

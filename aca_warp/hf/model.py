@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from aca_warp.contact import ContactSolution, solve_scene_contact
-from aca_warp.errors import SceneError
+from aca_warp.common.errors import SceneError
+from aca_warp.hf.contact import ContactSolution, solve_scene_contact
 from aca_warp.kernels.neighbours import build_neighbours
 from aca_warp.scene import Scene
 

@@ -9,7 +9,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import warp as wp
 
-from aca_warp.model import PadModel, coupling_matrix
+from aca_warp.hf.model import PadModel, coupling_matrix
 
 
 @dataclass

@@ -21,8 +21,9 @@ from collections.abc import Callable
 import numpy as np
 import warp as wp
 
-from aca_warp.errors import SceneError, SimulationFault
-from aca_warp.hf import (
+from aca_warp.common.errors import SceneError, SimulationFault
+from aca_warp.hf.model import PadModel
+from aca_warp.hf.solver import (
     DEFAULT_INTEGRATOR,
     WATCHDOG_FACTOR,
     Chunk,
@@ -35,11 +36,10 @@ from aca_warp.hf import (
     run_hf,
     watchdog_bound,
 )
+from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 from aca_warp.kernels.hf_onchip import onchip_kernel
-from aca_warp.model import PadModel
 from aca_warp.scene import Record
-from aca_warp.state import HFState
 
 ENGINES = ("auto", "onchip", "general")
 MAX_BLOCK = 1024  # threads per block

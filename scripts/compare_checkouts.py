@@ -1,0 +1,151 @@
+"""Run the same HF and LF jobs from two checkouts of aca_warp and compare their run files dataset by dataset.
+
+A restructuring must not change results: this script runs, from each checkout's own code, the CPU jobs
+
+* ``hf hf1 --duration 2e-5``            (the paper's HF1 pad, 20 µs)
+* ``hf varying_area --duration 1e-5``   (growing patches, 10 µs)
+* ``lf multiscale``                     (the LF automaton over the whole load procedure)
+
+and reports, per job, every dataset that differs (shape, dtype or any bit) and the root attributes that differ
+(wall times, versions and similar provenance are listed separately as expected differences). Exit code 0 when
+every dataset is bit-identical.
+
+Each checkout is imported as it is on disk: a temporary folder holds a package ``aca_warp`` whose entries link
+to the checkout's ``aca_warp/`` with ``kernels`` linked to the checkout's ``kernels/`` (the layout an install
+makes), and each job runs in a fresh Python process with that folder first on ``sys.path``.
+
+Usage::
+
+    git worktree add /tmp/base <commit>
+    python scripts/compare_checkouts.py /tmp/base . --out /tmp/cmp [--jobs hf1 varying_area lf]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+JOBS = {
+    "hf1": ["hf", "hf1", "--duration", "2e-5", "--no-progress"],
+    "varying_area": ["hf", "varying_area", "--duration", "1e-5", "--no-progress"],
+    "lf": ["lf", "multiscale", "--no-progress"],
+}
+# root attributes that describe the machine, the package or the wall clock, not the results
+PROVENANCE = {
+    "versions",
+    "wall_time",
+    "compile_time",
+    "steps_per_second",
+    "host",
+    "platform",
+    "created",
+    "device_name",
+    "machine",
+}
+
+
+def package_view(checkout: Path, into: Path) -> Path:
+    """A folder with package ``aca_warp`` made of links into ``checkout`` (kernels/ as aca_warp/kernels)."""
+    pkg = into / "aca_warp"
+    pkg.mkdir(parents=True)
+    for entry in (checkout / "aca_warp").iterdir():
+        if entry.name != "__pycache__":
+            (pkg / entry.name).symlink_to(entry.resolve())
+    (pkg / "kernels").symlink_to((checkout / "kernels").resolve())
+    return into
+
+
+def run_job(view: Path, args: list[str], output: Path, cache: Path) -> None:
+    """Run ``aca-warp ARGS -o OUTPUT`` with the package of ``view``; raise on a non-zero exit."""
+    code = (
+        "import sys; sys.path.insert(0, sys.argv[1]); import aca_warp; "
+        "assert aca_warp.__file__.startswith(sys.argv[1]), aca_warp.__file__; "
+        "from aca_warp.cli import main; sys.exit(main(sys.argv[2:]))"
+    )
+    env = {**os.environ, "WARP_CACHE_PATH": str(cache)}
+    cmd = [sys.executable, "-c", code, str(view), *args, "-o", str(output)]
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=view)
+    if done.returncode != 0:
+        raise RuntimeError(f"{' '.join(args)} failed ({done.returncode}): {done.stderr.strip()[-2000:]}")
+
+
+def datasets(path: Path) -> dict[str, np.ndarray]:
+    """Every dataset of an HDF5 file by path."""
+    out: dict[str, np.ndarray] = {}
+    with h5py.File(path, "r") as f:
+        f.visititems(lambda name, obj: out.__setitem__(name, obj[()]) if isinstance(obj, h5py.Dataset) else None)
+    return out
+
+
+def root_attrs(path: Path) -> dict[str, str]:
+    with h5py.File(path, "r") as f:
+        return {k: str(v) for k, v in f.attrs.items()}
+
+
+def same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    if a.shape != b.shape or a.dtype != b.dtype:
+        return False
+    if a.dtype.kind in "fc":
+        return a.tobytes() == b.tobytes()
+    return bool(np.array_equal(a, b))
+
+
+def compare(a: Path, b: Path) -> dict:
+    """Differences between two run files: datasets (missing, different) and root attributes."""
+    da, db = datasets(a), datasets(b)
+    only_a, only_b = sorted(da.keys() - db.keys()), sorted(db.keys() - da.keys())
+    differ = sorted(k for k in da.keys() & db.keys() if not same_bits(da[k], db[k]))
+    aa, ab = root_attrs(a), root_attrs(b)
+    attr_diff = sorted(k for k in aa.keys() | ab.keys() if aa.get(k) != ab.get(k))
+    return {
+        "datasets": len(da.keys() & db.keys()),
+        "only_first": only_a,
+        "only_second": only_b,
+        "different": differ,
+        "attrs_different": [k for k in attr_diff if k not in PROVENANCE],
+        "attrs_provenance": [k for k in attr_diff if k in PROVENANCE],
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("first", type=Path, help="first checkout (e.g. a worktree of the old commit)")
+    ap.add_argument("second", type=Path, help="second checkout")
+    ap.add_argument("--out", type=Path, required=True, help="folder for the run files and report.json")
+    ap.add_argument("--jobs", nargs="+", choices=sorted(JOBS), default=list(JOBS), help="jobs to run (default: all)")
+    args = ap.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    report: dict[str, dict] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        views = [package_view(c.resolve(), Path(tmp) / f"v{i}") for i, c in enumerate((args.first, args.second))]
+        for job in args.jobs:
+            files = [args.out / f"{job}_{i}.h5" for i in (0, 1)]
+            for view, path, i in zip(views, files, (0, 1), strict=True):
+                path.unlink(missing_ok=True)
+                run_job(view, JOBS[job], path, Path(tmp) / f"cache{i}")
+            report[job] = compare(*files)
+            r = report[job]
+            ok = not (r["different"] or r["only_first"] or r["only_second"])
+            print(
+                f"{job}: {r['datasets']} datasets, {'bit-identical' if ok else 'DIFFERENT'}"
+                + (f"; differ: {r['different']}" if r["different"] else "")
+                + (f"; only in first: {r['only_first']}" if r["only_first"] else "")
+                + (f"; only in second: {r['only_second']}" if r["only_second"] else "")
+                + (f"; attributes differ: {r['attrs_different']}" if r["attrs_different"] else "")
+            )
+    (args.out / "report.json").write_text(json.dumps(report, indent=1))
+    bad = any(r["different"] or r["only_first"] or r["only_second"] for r in report.values())
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
