@@ -1,11 +1,47 @@
 """aca_warp: the Abstract Cellular Automaton of the brake pad-disc boundary layer in NVIDIA Warp.
 
-After Merlis & Ostermeyer 2019 (doi 10.24352/UB.OVGU-2019-025). Public entry points::
+After Merlis & Ostermeyer 2019 (doi 10.24352/UB.OVGU-2019-025). The public names are importable from the top
+level; they load their modules (and Warp) only when first used, so that ``import aca_warp`` stays cheap::
 
-    from aca_warp.scene import preset, load_scene, Scene
-    from aca_warp.hf.runner import run_scene        # one scene -> one HDF5 run file
-    from aca_warp.hf.model import build_model       # batched pads on a Warp device
-    from aca_warp.hf.solver import run_hf, stable_step   # integrators, recording
+    from aca_warp import Scene, preset, load_scene        # scenes and the paper's presets
+    from aca_warp import RunOptions, run_scene, resume_run  # one scene -> one HDF5 run file
+    from aca_warp import build_model, initial_state, run_hf, EngineTuning  # batched pads in memory
+    from aca_warp import AcaError, SceneError, SimulationFault
+
+The package map is in docs/architecture.md.
 """
 
+from __future__ import annotations
+
+from importlib import import_module
+from typing import Any
+
 __version__ = "0.1.0"
+
+_PUBLIC = {
+    "Scene": "aca_warp.scene",
+    "preset": "aca_warp.scene",
+    "load_scene": "aca_warp.scene",
+    "RunOptions": "aca_warp.hf.options",
+    "run_scene": "aca_warp.hf.runner",
+    "resume_run": "aca_warp.hf.runner",
+    "build_model": "aca_warp.hf.model",
+    "initial_state": "aca_warp.hf.state",
+    "run_hf": "aca_warp.hf.loop",
+    "EngineTuning": "aca_warp.hf.loop",
+    "RunResult": "aca_warp.hf.loop",
+    "AcaError": "aca_warp.common.errors",
+    "SceneError": "aca_warp.common.errors",
+    "SimulationFault": "aca_warp.common.errors",
+}
+__all__ = sorted(_PUBLIC)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _PUBLIC:
+        return getattr(import_module(_PUBLIC[name]), name)
+    raise AttributeError(f"module 'aca_warp' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_PUBLIC))

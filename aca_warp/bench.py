@@ -196,8 +196,10 @@ def run_case(
     import warp as wp
 
     from aca_warp.hf.contact import solve_scene_contact
+    from aca_warp.hf.loop import run_hf
     from aca_warp.hf.model import build_model
-    from aca_warp.hf.onchip import choose_engine, run
+    from aca_warp.hf.onchip_layout import choose_engine
+    from aca_warp.hf.options import RunOptions
     from aca_warp.hf.state import initial_state
     from aca_warp.kernels.neighbours import build_neighbours
     from aca_warp.scene import Record
@@ -224,9 +226,9 @@ def run_case(
     state = initial_state(model)
     rec = Record(sample_dt=scene.record.sample_dt)
     engine = choose_engine(model, engine, integrator)
-    kw = {"engine": engine, "integrator": integrator, "dt": dt, "record": rec}
-    warm = run(model, state, duration=warmup, **kw)  # compiles, captures
-    res = run(model, state, duration=duration, **kw)
+    options = RunOptions(engine=engine, integrator=integrator, dt=dt)
+    warm = run_hf(model, state, options.with_duration(warmup), record=rec)  # compiles, captures
+    res = run_hf(model, state, options.with_duration(duration), record=rec)
     mu = res.collect().globals[:, 0, 0]
     n = model.patch_count
     onchip = engine == "onchip"
@@ -382,8 +384,7 @@ def markdown(out: dict) -> str:
 def add_parsers(sub: Any) -> None:
     """Register ``aca-warp bench``."""
     from aca_warp.common.argtypes import int_at_least, positive
-    from aca_warp.hf.onchip import ENGINES
-    from aca_warp.hf.solver import INTEGRATORS
+    from aca_warp.hf.options import ENGINES, INTEGRATORS
 
     p = sub.add_parser(
         "bench",

@@ -19,7 +19,7 @@ Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad inp
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``aca-warp``."""
-    from aca_warp.hf.solver import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
+    from aca_warp.hf.options import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
 
     p = argparse.ArgumentParser(
         prog="aca-warp",
@@ -130,6 +130,7 @@ def _cmd_hf(args: argparse.Namespace) -> int:
 
     from aca_warp.common.errors import SceneError
     from aca_warp.common.files import check_output_path
+    from aca_warp.hf.options import RunOptions
     from aca_warp.hf.runner import run_scene
     from aca_warp.scene import Record, load_scene
 
@@ -162,20 +163,23 @@ def _cmd_hf(args: argparse.Namespace) -> int:
             f"sample interval {changes.get('sample_dt', rec.sample_dt):g} s exceeds the duration {duration:g} s"
         )
     scene = scene.replace(duration=duration, record=Record(**{**dataclasses.asdict(rec), **changes}))
-    result = run_scene(
-        scene,
-        args.output,
+    options = RunOptions(
         duration=duration,
-        device=args.device,
         integrator=args.integrator,
         dt=args.dt,
         tolerance=args.tolerance,
-        precision=args.precision,
         force=args.force,
-        overwrite=args.overwrite,
-        progress=not args.no_progress,
         engine=args.engine,
         checkpoint_interval=args.checkpoint_interval,
+    )
+    result = run_scene(
+        scene,
+        args.output,
+        options,
+        device=args.device,
+        precision=args.precision,
+        overwrite=args.overwrite,
+        progress=not args.no_progress,
     )
     import h5py
 
@@ -198,8 +202,8 @@ def _cmd_hf(args: argparse.Namespace) -> int:
 
 def _resume_hf(args: argparse.Namespace) -> int:
     """``aca-warp hf --resume RUN.h5``: the run's own settings; only --device, --checkpoint-interval, --no-progress."""
+    from aca_warp.hf.options import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE
     from aca_warp.hf.runner import resume_run
-    from aca_warp.hf.solver import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE
 
     refuse_with_resume(
         (

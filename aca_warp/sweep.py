@@ -331,7 +331,7 @@ def _base_doc(doc: dict, base_dir: Path) -> tuple[dict, Path, str]:
 
 def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
     from aca_warp.hf.model import PRECISIONS
-    from aca_warp.hf.solver import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
+    from aca_warp.hf.options import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
 
     sw, run = doc["sweep"], doc["run"]
     base_doc, scene_dir, base_name = _base_doc(doc, base_dir)
@@ -369,7 +369,7 @@ def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
     tolerance = num("tolerance", DEFAULT_TOLERANCE)
     sample_dt = num("sample_dt", base.record.sample_dt)
     try:
-        from aca_warp.hf.solver import check_run
+        from aca_warp.hf.recorder import check_run
 
         base = base.replace(duration=duration, record=dataclasses.replace(base.record, sample_dt=sample_dt))
         check_run(duration, base.record)
@@ -548,9 +548,10 @@ def run_shard(
     import warp as wp
 
     from aca_warp.common.files import versions
+    from aca_warp.hf.loop import run_hf
     from aca_warp.hf.model import build_model
-    from aca_warp.hf.onchip import run as run_engine
-    from aca_warp.hf.solver import GLOBAL_NAMES, GLOBAL_UNITS
+    from aca_warp.hf.options import RunOptions
+    from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS
     from aca_warp.hf.state import initial_state
 
     wp.config.log_level = wp.LOG_WARNING
@@ -623,17 +624,10 @@ def run_shard(
                     d[b0:b1, r0 : r0 + k] = chunk.globals[:, :, j].T
                 row[0] = r0 + k
 
-            res = run_engine(  # on-chip kernel on CUDA where the model allows it, else the general path
-                model,
-                state,
-                engine="auto",
-                duration=spec.duration,
-                integrator=spec.integrator,
-                dt=spec.dt,
-                tolerance=spec.tolerance,
-                record=spec.base.record,
-                sink=sink,
-            )
+            options = RunOptions(
+                duration=spec.duration, integrator=spec.integrator, dt=spec.dt, tolerance=spec.tolerance
+            )  # engine auto: the on-chip kernel on CUDA where the model allows it, else the general one
+            res = run_hf(model, state, options, record=spec.base.record, sink=sink)
             summary["batches"] += 1
             steps = max(steps, res.steps)
             wall += res.wall_time
@@ -1012,7 +1006,7 @@ def load_sweep(out_dir: str | Path) -> dict[str, Any]:
     """
     import h5py
 
-    from aca_warp.hf.solver import GLOBAL_NAMES
+    from aca_warp.hf.recorder import GLOBAL_NAMES
 
     d = Path(out_dir)
     manifest = read_manifest(d)
@@ -1062,7 +1056,7 @@ Exit codes: 0 every shard finished, 2 bad input, 3 some shard stopped on a fault
 def add_parsers(sub: Any) -> None:
     """Register ``aca-warp sweep``."""
     from aca_warp.common.argtypes import fraction, int_at_least, positive
-    from aca_warp.hf.solver import INTEGRATORS
+    from aca_warp.hf.options import INTEGRATORS
 
     p = sub.add_parser(
         "sweep",

@@ -17,7 +17,7 @@ from __future__ import annotations
 import sys
 
 from aca_warp.cli import main as cli_main
-from aca_warp.hf.solver import INTEGRATORS
+from aca_warp.hf.options import INTEGRATORS
 
 RENAMED = {"--integrators": "--integrator", "--precisions": "--precision"}  # this script's plural options
 

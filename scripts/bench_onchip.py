@@ -25,15 +25,16 @@ import warp as wp
 wp.config.log_level = wp.LOG_WARNING
 
 from aca_warp.common.files import machine  # noqa: E402
+from aca_warp.hf.loop import EngineTuning, run_hf  # noqa: E402
 from aca_warp.hf.model import build_model  # noqa: E402
-from aca_warp.hf.onchip import block_config, run_onchip, shared_bytes  # noqa: E402
-from aca_warp.hf.solver import run_hf  # noqa: E402
+from aca_warp.hf.onchip_layout import block_config, shared_bytes  # noqa: E402
+from aca_warp.hf.options import RunOptions  # noqa: E402
 from aca_warp.hf.state import initial_state  # noqa: E402
 from aca_warp.scene import Record, preset  # noqa: E402
 
 
 def onchip_bytes(model, block_dim, csr_shared, cluster) -> int:
-    """Shared memory per block [bytes] of the on-chip run as run_onchip configures it."""
+    """Shared memory per block [bytes] of the on-chip run as the on-chip engine configures it."""
     _, threads, csr = block_config(model, cluster, block_dim, csr_shared)
     return shared_bytes(model, csr, cluster, threads)
 
@@ -42,17 +43,15 @@ def run_case(scene, device, precision, engine, pads, dt, duration, block_dim=Non
     """Warm up (compile, capture) on a short window, then time ``duration`` [s]; returns a result row."""
     model = build_model([scene] * pads, device=device, precision=precision)
     state = initial_state(model)
-    if engine == "general":
-        kw = {}
-        fn = run_hf
-    else:
-        kw = {"block_dim": block_dim, "csr_shared": csr_shared, "cluster": cluster or None}
-        fn = run_onchip
+    tuning = EngineTuning()
+    if engine != "general":
+        tuning = EngineTuning(block_dim=block_dim, csr_shared=csr_shared, cluster=cluster or None)
+    options = RunOptions(engine=engine, dt=dt)
     tc = time.perf_counter()
-    warm = fn(model, state, duration=scene.record.sample_dt * 2, dt=dt, **kw)
+    warm = run_hf(model, state, options.with_duration(scene.record.sample_dt * 2), tuning=tuning)
     compile_s = time.perf_counter() - tc
     state = initial_state(model)
-    res = fn(model, state, duration=duration, dt=dt, **kw)
+    res = run_hf(model, state, options.with_duration(duration), tuning=tuning)
     c = res.collect()
     n = model.patch_count
     row = {

@@ -379,6 +379,7 @@ def simulate(scene: Any, path: Path, args: argparse.Namespace, log: Log, label: 
     import h5py
 
     from aca_warp.analysis.report import run_attr
+    from aca_warp.hf.options import RunOptions
     from aca_warp.hf.runner import run_scene
 
     steps = round(args.duration / args.dt)
@@ -410,10 +411,8 @@ def simulate(scene: Any, path: Path, args: argparse.Namespace, log: Log, label: 
     res = run_scene(
         scene,
         path,
-        duration=args.duration,
+        RunOptions(duration=args.duration, integrator=args.integrator, dt=args.dt),
         device=args.device,
-        integrator=args.integrator,
-        dt=args.dt,
         precision=args.precision,
         overwrite=True,
         progress=args.progress,

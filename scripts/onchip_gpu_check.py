@@ -6,7 +6,7 @@ hang"). This script runs every CUDA part in a child process with a timeout (the 
 and exits on its own shortly before), so a hung kernel costs at most that timeout:
 
 1. **check** (child, ``--check-timeout`` s): the 2-pad hf1 case of ``tests/test_onchip.py`` (two different pads,
-   200 steps of 1e-8 s, patch histories, 3 samples per launch) with the general path and with ``run_onchip``,
+   200 steps of 1e-8 s, patch histories, 3 samples per launch) with the general engine and with the on-chip engine,
    fp32 then fp64; passes when μ agrees within rtol 2e-4 (fp32) / 1e-10 (fp64) and the final
    (u, u̇) within that fraction of their maxima (u̇: ×10). Each precision's result is written as soon as it exists.
    ``--growth``: the pads grow 1000× faster than Eq. 10 (an event every 20 steps), and the final areas, link
@@ -56,9 +56,9 @@ def child_check(args) -> None:
     import warp as wp
 
     from aca_warp.common.files import machine
+    from aca_warp.hf.loop import EngineTuning, run_hf
     from aca_warp.hf.model import build_model
-    from aca_warp.hf.onchip import run_onchip
-    from aca_warp.hf.solver import run_hf
+    from aca_warp.hf.options import RunOptions
     from aca_warp.hf.state import initial_state
     from aca_warp.scene import Growth, Initial, Record, preset
 
@@ -83,13 +83,8 @@ def child_check(args) -> None:
             _write_json(out / "check.json", results)
             _log(f"{precision} {engine}: start")
             t = time.perf_counter()
-            if engine == "general":
-                res = run_hf(model, state, duration=2e-6, dt=1e-8)
-            else:
-                res = run_onchip(
-                    model, state, duration=2e-6, dt=1e-8, samples_per_launch=3, block_dim=args.block,
-                    csr_shared=args.csr, cluster=args.cluster,
-                )  # fmt: skip
+            tuning = EngineTuning(samples_per_launch=3, block_dim=args.block, csr_shared=args.csr, cluster=args.cluster)
+            res = run_hf(model, state, RunOptions(duration=2e-6, dt=1e-8, engine=engine), tuning=tuning)
             row[f"{engine}_total_s"] = time.perf_counter() - t
             row[f"{engine}_compile_s"] = res.compile_time
             row[f"{engine}_wall_s"] = res.wall_time
@@ -130,12 +125,9 @@ def child_check(args) -> None:
         s1 = preset("hf1").replace(record=Record(sample_dt=2e-5))
         for engine in ("general", "onchip"):
             model = build_model([s1, s1], device=args.device, precision="fp64")
-            kw = {"duration": 4e-3, "dt": 1e-5, "force": True}
-            if engine == "general":
-                res = run_hf(model, initial_state(model), **kw)
-            else:
-                kw.update(block_dim=args.block, csr_shared=args.csr, cluster=args.cluster)
-                res = run_onchip(model, initial_state(model), **kw)
+            options = RunOptions(duration=4e-3, dt=1e-5, force=True, engine=engine)
+            tuning = EngineTuning(block_dim=args.block, csr_shared=args.csr, cluster=args.cluster)
+            res = run_hf(model, initial_state(model), options, tuning=tuning)
             f = res.fault
             faults.append(None if f is None else [f.time, f.pad, f.patch, len(res.collect().time)])
         row.update(phase="done", general=faults[0], onchip=faults[1])
@@ -150,9 +142,9 @@ def child_bench(args) -> None:
     import warp as wp
 
     from aca_warp.common.files import machine
+    from aca_warp.hf.loop import EngineTuning, run_hf
     from aca_warp.hf.model import build_model
-    from aca_warp.hf.onchip import run_onchip
-    from aca_warp.hf.solver import run_hf
+    from aca_warp.hf.options import RunOptions
     from aca_warp.hf.state import initial_state
     from aca_warp.scene import Record, preset
 
@@ -172,19 +164,15 @@ def child_bench(args) -> None:
                 models[pads] = build_model([scene] * pads, device=args.device, precision="fp32")
                 _log(f"built {pads} pads in {time.perf_counter() - t:.1f} s")
             model = models[pads]
-            if engine == "onchip":
-                kw = {"block_dim": args.block, "csr_shared": args.csr, "cluster": args.cluster}
-                fn = run_onchip
-            else:
-                kw = {}
-                fn = run_hf
+            tuning = EngineTuning(block_dim=args.block, csr_shared=args.csr, cluster=args.cluster)
+            options = RunOptions(dt=args.dt, engine=engine)
             _log(f"{engine} pads={pads}: warm-up")
             t = time.perf_counter()
-            fn(model, initial_state(model), duration=2 * scene.record.sample_dt, dt=args.dt, **kw)
+            run_hf(model, initial_state(model), options.with_duration(2 * scene.record.sample_dt), tuning=tuning)
             warm = time.perf_counter() - t
             state = initial_state(model)
             _log(f"{engine} pads={pads}: timed window")
-            res = fn(model, state, duration=args.window, dt=args.dt, **kw)
+            res = run_hf(model, state, options.with_duration(args.window), tuning=tuning)
             c = res.collect()
             n = model.patch_count
             row = {
@@ -330,7 +318,7 @@ def main() -> int:
     ap.add_argument("--pads", nargs="+", type=int, default=[1, 1024], help="batch sizes of the benchmark")
     ap.add_argument("--window", type=float, default=2e-5, help="timed simulated window of the benchmark [s]")
     ap.add_argument("--dt", type=float, default=1e-8)
-    ap.add_argument("--block", type=int, default=None, help="threads per pad (default: run_onchip's)")
+    ap.add_argument("--block", type=int, default=None, help="threads per pad (default: the on-chip engine's)")
     ap.add_argument("--cluster", type=int, default=1, help="blocks per pad (a thread-block cluster; default 1)")
     ap.add_argument("--csr", action=argparse.BooleanOptionalAction, default=None, help="CSR in shared memory")
     ap.add_argument("--no-bench", action="store_true")

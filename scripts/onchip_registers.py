@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     from aca_warp.kernels.hf_onchip import onchip_kernel
 
     from aca_warp.hf.model import build_model
-    from aca_warp.hf.onchip import default_block, pad_sizes, shared_bytes, smem_limit, tile_sizes
+    from aca_warp.hf.onchip_layout import default_block, pad_sizes, shared_bytes, smem_limit, tile_sizes
     from aca_warp.scene import preset
 
     rows = []

@@ -138,9 +138,10 @@ def main(argv: list[str] | None = None) -> int:
     wp.init()
     from aca_warp.common.errors import SceneError
     from aca_warp.common.files import machine
+    from aca_warp.hf.loop import EngineTuning, run_hf
     from aca_warp.hf.model import build_model
-    from aca_warp.hf.onchip import run_onchip
-    from aca_warp.hf.solver import GROWTH_MUTABLE, run_hf
+    from aca_warp.hf.options import RunOptions
+    from aca_warp.hf.solver import GROWTH_MUTABLE
     from aca_warp.hf.state import initial_state
     from aca_warp.scene import Record, preset
 
@@ -180,16 +181,20 @@ def main(argv: list[str] | None = None) -> int:
         if abl is None:
 
             def fn(st, duration, model=model):
-                return run_hf(model, st, duration=duration, dt=args.dt)
+                return run_hf(model, st, RunOptions(duration=duration, dt=args.dt, engine="general"))
         else:
 
             def fn(st, duration, model=model, block=block, csr=csr, abl=abl):
                 tags = {a for a in abl if a == "fast_math" or a.startswith("cluster")}
                 cluster = max([int(a[7:]) for a in tags if a.startswith("cluster")], default=1)
-                return run_onchip(
-                    model, st, duration=duration, dt=args.dt, block_dim=block, csr_shared=csr,
-                    ablate=frozenset(abl) - tags, fast_math="fast_math" in abl, cluster=cluster,
-                )  # fmt: skip
+                tuning = EngineTuning(
+                    block_dim=block,
+                    csr_shared=csr,
+                    ablate=frozenset(abl) - tags,
+                    fast_math="fast_math" in abl,
+                    cluster=cluster,
+                )
+                return run_hf(model, st, RunOptions(engine="onchip", duration=duration, dt=args.dt), tuning=tuning)
 
         row = {"case": label, "precision": prec, "block_dim": block, "csr_shared": csr, "ablate": list(abl or ())}
         if args.growth:

@@ -38,9 +38,10 @@ wp.config.log_level = wp.LOG_WARNING
 wp.config.quiet = True
 
 from aca_warp.common.files import machine  # noqa: E402
+from aca_warp.hf.loop import run_hf  # noqa: E402
 from aca_warp.hf.model import PadModel, build_model  # noqa: E402
-from aca_warp.hf.onchip import run  # noqa: E402
-from aca_warp.hf.solver import DEFAULT_DT, GROWTH_MUTABLE, INTEGRATORS, stable_step  # noqa: E402
+from aca_warp.hf.options import DEFAULT_DT, INTEGRATORS, RunOptions  # noqa: E402
+from aca_warp.hf.solver import GROWTH_MUTABLE, stable_step  # noqa: E402
 from aca_warp.hf.state import HFState, initial_state  # noqa: E402
 from aca_warp.scene import Growth, Record, Scene, preset  # noqa: E402
 
@@ -131,12 +132,13 @@ class Segment:
         self, until: float, *, chunk: float, integrator: str, dt: float, max_wall: float, engine: str = "general"
     ) -> None:
         """Run in chunks of ``chunk`` simulated seconds to ``until`` or until ``max_wall`` wall seconds pass
-        (``engine``: general, onchip or auto, as ``aca_warp.hf.onchip.run``)."""
+        (``engine``: general, onchip or auto, as :class:`aca_warp.hf.options.RunOptions`)."""
         rec = Record(sample_dt=self.scene.record.sample_dt)
         t_start = time.perf_counter()
         while self.sim_time < until - 0.5 * rec.sample_dt:
             d = min(chunk, until - self.sim_time)
-            res = run(self.model, self.state, engine=engine, duration=d, integrator=integrator, dt=dt, record=rec)
+            options = RunOptions(engine=engine, duration=d, integrator=integrator, dt=dt)
+            res = run_hf(self.model, self.state, options, record=rec)
             c = res.collect()
             if not res.complete:
                 raise RuntimeError(f"run stopped at {self.sim_time + res.sim_time:.6g} s: {res.fault}")

@@ -44,9 +44,10 @@ wp.config.quiet = True
 from aca_warp.analysis.spectra import amplitude_spectrum, peak  # noqa: E402
 from aca_warp.analysis.sync import sync_index_from_signals  # noqa: E402
 from aca_warp.common.files import machine  # noqa: E402
+from aca_warp.hf.loop import run_hf  # noqa: E402
 from aca_warp.hf.model import build_model  # noqa: E402
+from aca_warp.hf.options import DEFAULT_DT, DEFAULT_INTEGRATOR, INTEGRATORS, RunOptions  # noqa: E402
 from aca_warp.hf.reference import SCIPY_METHODS, ReferenceODE  # noqa: E402
-from aca_warp.hf.solver import DEFAULT_DT, DEFAULT_INTEGRATOR, INTEGRATORS, run_hf  # noqa: E402
 from aca_warp.hf.state import initial_state  # noqa: E402
 from aca_warp.scene import Record, Scene, preset  # noqa: E402
 
@@ -146,7 +147,9 @@ class Study:
         state = initial_state(model)
         rec = Record(sample_dt=SAMPLE_DT, patches=("velocity", "displacement") if patches else ())
         kw = {"tolerance": tol} if integrator == "adaptive" else {"dt": dt}
-        res = run_hf(model, state, duration=duration, integrator=integrator, record=rec, **kw)
+        res = run_hf(
+            model, state, RunOptions(duration=duration, integrator=integrator, engine="general", **kw), record=rec
+        )
         c = res.collect()
         out = {
             "complete": res.complete,

@@ -56,7 +56,7 @@ def test_hf_writes_a_complete_run_file(scene_file, tmp_path, capsys):
     assert r["patches/velocity"].shape == (21, 60)
     for name, attrs in _datasets(out).items():
         assert "unit" in attrs, name
-    for key in ("scene", "integrator", "step_policy", "precision", "device", "versions", "stages", "stable_step"):
+    for key in ("scene", "integrator", "run_options", "precision", "device", "versions", "stages", "stable_step"):
         assert key in r["attrs"], key
     assert "record:patches" in r["attrs"]["stages"]
     assert r["attrs"]["scene"]["load"]["normal_force"] == 20.0

@@ -9,8 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from aca_warp.hf.loop import EngineTuning, run_hf
 from aca_warp.hf.model import build_model
-from aca_warp.hf.solver import INTEGRATORS, run_hf
+from aca_warp.hf.options import INTEGRATORS, RunOptions
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Material, Pad, Patches, Record, Scene
 
@@ -70,9 +71,8 @@ def run(scenes, integrator, *, use_graph=True, device="cpu"):
     model = build_model(scenes, device=device, precision="fp64")
     state = initial_state(model)
     kw = {"tolerance": 1e-6} if integrator == "adaptive" else {"dt": DT[integrator]}
-    res = run_hf(
-        model, state, duration=5e-6, integrator=integrator, use_graph=use_graph, max_graph_steps=GRAPH_STEPS, **kw
-    )
+    tuning = EngineTuning(use_graph=use_graph, max_graph_steps=GRAPH_STEPS)
+    res = run_hf(model, state, RunOptions(duration=5e-6, integrator=integrator, **kw), tuning=tuning)
     assert res.complete
     return res.collect(), state.numpy(), res
 
@@ -115,7 +115,12 @@ def test_graph_size_does_not_change_results():
     out = []
     for steps in (30, 200, 1000):
         model = build_model([s])
-        res = run_hf(model, initial_state(model), duration=5e-6, integrator="strang", dt=1e-8, max_graph_steps=steps)
+        res = run_hf(
+            model,
+            initial_state(model),
+            RunOptions(duration=5e-6, integrator="strang", dt=1e-8),
+            tuning=EngineTuning(max_graph_steps=steps),
+        )
         out.append(res.collect())
     assert_identical(out[0], out[1])
     assert_identical(out[0], out[2])
@@ -187,8 +192,18 @@ def test_continuing_a_run_matches_one_long_run():
     s = scene_a()
     model = build_model([s])
     st = initial_state(model)
-    run_hf(model, st, duration=2.5e-6, integrator="strang", dt=1e-8, max_graph_steps=GRAPH_STEPS)
-    r2 = run_hf(model, st, duration=2.5e-6, integrator="strang", dt=1e-8, max_graph_steps=GRAPH_STEPS)
+    run_hf(
+        model,
+        st,
+        RunOptions(duration=2.5e-6, integrator="strang", dt=1e-8),
+        tuning=EngineTuning(max_graph_steps=GRAPH_STEPS),
+    )
+    r2 = run_hf(
+        model,
+        st,
+        RunOptions(duration=2.5e-6, integrator="strang", dt=1e-8),
+        tuning=EngineTuning(max_graph_steps=GRAPH_STEPS),
+    )
     c_long, (u, v), _ = run([s], "strang")
     c2 = r2.collect()
     np.testing.assert_allclose(st.numpy()[0], u, rtol=1e-9, atol=1e-18)

@@ -25,8 +25,9 @@ import numpy as np
 import pytest
 
 from aca_warp.common.errors import SceneError, StabilityError
+from aca_warp.hf.loop import EngineTuning, run_hf
 from aca_warp.hf.model import PadModel, build_model, coupling_matrix
-from aca_warp.hf.solver import DEFAULT_DT, run_hf
+from aca_warp.hf.options import DEFAULT_DT, RunOptions
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Material, Matrix, Pad, Patches, Record, Scene
 
@@ -261,11 +262,9 @@ def attempt(case: Case, *, precision: str = "fp64", duration: float = DURATION, 
     res = run_hf(
         model,
         state,
-        duration=duration,
-        integrator=case.integrator,
-        dt=case.dt,
+        RunOptions(duration=duration, integrator=case.integrator, dt=case.dt),
         record=record,
-        max_graph_steps=GRAPH_STEPS,
+        tuning=EngineTuning(max_graph_steps=GRAPH_STEPS),
     )
     return Outcome(s, model, res, res.collect(), bound)
 
@@ -306,7 +305,7 @@ def test_case_runs_bounded(case, outcomes):
     if est.explicit < DEFAULT_DT:
         hint = r"exceeds the stable-step estimate .* an implicit-friction integrator \(strang, implicit-friction\)"
         with pytest.raises(StabilityError, match=hint):
-            run_hf(model, initial_state(model), duration=DURATION, integrator="symplectic-euler")
+            run_hf(model, initial_state(model), RunOptions(duration=DURATION, integrator="symplectic-euler"))
     else:
         explicit = attempt(Case(case.name, case.what, case.build, integrator="symplectic-euler"))
         assert_bounded(explicit)

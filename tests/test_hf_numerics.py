@@ -18,8 +18,10 @@ from aca_warp.kernels import hf as K
 from scipy.integrate import solve_ivp
 
 from aca_warp.common.errors import SceneError, SimulationFault, StabilityError
+from aca_warp.hf.loop import EngineTuning, run_hf
 from aca_warp.hf.model import build_model
-from aca_warp.hf.solver import INTEGRATORS, run_hf, stable_step
+from aca_warp.hf.options import INTEGRATORS, RunOptions
+from aca_warp.hf.solver import stable_step
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Material, Pad, Patches, Record, Scene
 
@@ -43,8 +45,9 @@ def run(scene, *, integrator, dt=None, precision="fp64", device="cpu", duration=
     model = build_model([scene], device=device, precision=precision)
     state = initial_state(model)
     u0, v0 = (a.astype(np.float64).copy() for a in state.numpy())
-    kw.setdefault("max_graph_steps", GRAPH_STEPS)
-    res = run_hf(model, state, duration=duration or scene.duration, integrator=integrator, dt=dt, **kw)
+    tuning = EngineTuning(max_graph_steps=kw.pop("max_graph_steps", GRAPH_STEPS))
+    options = RunOptions(duration=duration or scene.duration, integrator=integrator, dt=dt, engine="general", **kw)
+    res = run_hf(model, state, options, tuning=tuning)
     return res, res.collect(), u0, v0
 
 
@@ -401,7 +404,12 @@ def test_isolated_patch_frequencies():
             )
         )
     model = build_model(scenes)  # one batch of two pads
-    res = run_hf(model, initial_state(model), duration=5e-4, integrator="strang", dt=1e-8, max_graph_steps=GRAPH_STEPS)
+    res = run_hf(
+        model,
+        initial_state(model),
+        RunOptions(duration=5e-4, integrator="strang", dt=1e-8),
+        tuning=EngineTuning(max_graph_steps=GRAPH_STEPS),
+    )
     assert res.complete
     c = res.collect()
     f_small = spectrum_peak(c.globals[:, 0, 3], 1e-7)
@@ -443,13 +451,16 @@ def test_explicit_step_beyond_estimate_is_refused():
     dt = 0.5 * (est.explicit + min(est.spring, 1e-6))
     model = build_model([s])
     with pytest.raises(StabilityError, match="exceeds the stable-step estimate"):
-        run_hf(model, initial_state(model), duration=2e-6, integrator="symplectic-euler", dt=dt)
+        run_hf(model, initial_state(model), RunOptions(duration=2e-6, integrator="symplectic-euler", dt=dt))
     res = run_hf(
-        model, initial_state(model), duration=2e-6, integrator="implicit-friction", dt=dt, max_graph_steps=GRAPH_STEPS
+        model,
+        initial_state(model),
+        RunOptions(duration=2e-6, integrator="implicit-friction", dt=dt),
+        tuning=EngineTuning(max_graph_steps=GRAPH_STEPS),
     )
     assert res.complete
     with pytest.raises(StabilityError):
-        run_hf(model, initial_state(model), duration=2e-6, integrator="strang", dt=1.5 * est.spring)
+        run_hf(model, initial_state(model), RunOptions(duration=2e-6, integrator="strang", dt=1.5 * est.spring))
 
 
 def test_forced_unstable_run_reports_a_fault():
@@ -460,15 +471,12 @@ def test_forced_unstable_run_reports_a_fault():
     dt = 5.0 * est.spring
     assert dt < 2e-5
     with pytest.raises(StabilityError):
-        run_hf(model, initial_state(model), duration=2e-2, integrator="symplectic-euler", dt=dt)
+        run_hf(model, initial_state(model), RunOptions(duration=2e-2, integrator="symplectic-euler", dt=dt))
     res = run_hf(
         model,
         initial_state(model),
-        duration=2e-2,
-        integrator="symplectic-euler",
-        dt=dt,
-        force=True,
-        max_graph_steps=GRAPH_STEPS,
+        RunOptions(duration=2e-2, integrator="symplectic-euler", dt=dt, force=True),
+        tuning=EngineTuning(max_graph_steps=GRAPH_STEPS),
     )
     assert not res.complete
     f = res.fault
@@ -493,11 +501,8 @@ def test_forced_explicit_friction_beyond_its_limit():
     res = run_hf(
         model,
         initial_state(model),
-        duration=2e-6,
-        integrator="symplectic-euler",
-        dt=dt,
-        force=True,
-        max_graph_steps=GRAPH_STEPS,
+        RunOptions(duration=2e-6, integrator="symplectic-euler", dt=dt, force=True),
+        tuning=EngineTuning(max_graph_steps=GRAPH_STEPS),
     )
     c = res.collect()
     if res.fault is not None:
@@ -512,17 +517,17 @@ def test_run_argument_errors():
     model = build_model([s])
     st = initial_state(model)
     with pytest.raises(SceneError, match="unknown integrator 'rk4'"):
-        run_hf(model, st, duration=1e-6, integrator="rk4")
+        run_hf(model, st, RunOptions(duration=1e-6, integrator="rk4"))
     with pytest.raises(SceneError, match="duration must be a positive number"):
-        run_hf(model, st, duration=-1e-6)
+        run_hf(model, st, RunOptions(duration=-1e-6))
     with pytest.raises(SceneError, match="duration must be a positive number"):
-        run_hf(model, st, duration=math.nan)
+        run_hf(model, st, RunOptions(duration=math.nan))
     with pytest.raises(SceneError, match="sample interval .* exceeds the duration"):
-        run_hf(model, st, duration=1e-8)
+        run_hf(model, st, RunOptions(duration=1e-8))
     with pytest.raises(SceneError, match="dt must be a positive number"):
-        run_hf(model, st, duration=1e-6, integrator="strang", dt=-1e-9)
+        run_hf(model, st, RunOptions(duration=1e-6, integrator="strang", dt=-1e-9))
     with pytest.raises(SceneError, match="tolerance must be a positive number"):
-        run_hf(model, st, duration=1e-6, integrator="adaptive", tolerance=0.0)
+        run_hf(model, st, RunOptions(duration=1e-6, integrator="adaptive", tolerance=0.0))
     with pytest.raises(SceneError, match="precision must be one of"):
         build_model([s], precision="fp16")
     with pytest.raises(SceneError, match="at least one scene"):

@@ -23,17 +23,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aca_warp.common.errors import SceneError
+from aca_warp.hf.loop import EngineTuning, run_hf
 from aca_warp.hf.model import build_model
-from aca_warp.hf.onchip import (
-    choose_engine,
-    csr_slots,
-    default_block,
-    default_cluster,
-    pad_sizes,
-    run,
-    run_onchip,
-)
-from aca_warp.hf.solver import run_hf, stable_step
+from aca_warp.hf.onchip_layout import choose_engine, csr_slots, default_block, default_cluster, pad_sizes
+from aca_warp.hf.options import RunOptions
+from aca_warp.hf.solver import stable_step
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import Growth, Initial, Patches, Record, preset
 
@@ -63,10 +57,11 @@ def _both(device: str, precision: str, fibers: bool = False, **onchip_kw):
         model = build_model(_scenes(), device=device, precision=precision)
         state = initial_state(model)
         if engine == "general":
-            res = run_hf(model, state, duration=2e-6, dt=1e-8)
+            res = run_hf(model, state, RunOptions(duration=2e-6, dt=1e-8, engine="general"))
         else:
             with _cpu_fibers(fibers):
-                res = run_onchip(model, state, duration=2e-6, dt=1e-8, samples_per_launch=3, **onchip_kw)
+                tuning = EngineTuning(samples_per_launch=3, **onchip_kw)
+                res = run_hf(model, state, RunOptions(duration=2e-6, dt=1e-8, engine="onchip"), tuning=tuning)
         assert res.complete and res.steps == 200
         out[engine] = (res.collect(), *state.numpy())
     return out["general"], out["onchip"]
@@ -121,9 +116,10 @@ def _grown(device: str, precision: str, engine: str, fibers: bool = False, **onc
     area0 = model.host("area")
     with _cpu_fibers(fibers):
         if engine == "general":
-            res = run_hf(model, state, duration=2e-6, dt=1e-8)
+            res = run_hf(model, state, RunOptions(duration=2e-6, dt=1e-8, engine="general"))
         else:
-            res = run_onchip(model, state, duration=2e-6, dt=1e-8, samples_per_launch=3, **onchip_kw)
+            tuning = EngineTuning(samples_per_launch=3, **onchip_kw)
+            res = run_hf(model, state, RunOptions(duration=2e-6, dt=1e-8, engine="onchip"), tuning=tuning)
     assert res.complete and res.steps == 200 and "growth" in res.stages
     keys = ("area", "k_t", "damping", "nbr_stiffness", "k_diag", "normal_force", "pad_matrix_force", "pad_gap")
     arrays = {k: model.host(k) for k in keys}
@@ -178,7 +174,7 @@ def test_engine_choice_and_refusals(device):
     grow = build_model([s.replace(growth=Growth(increment=1e-9, interval=1e-6))], device=device, precision="fp32")
     assert choose_engine(grow, "auto") == ("onchip" if device != "cpu" else "general")
     assert choose_engine(grow, "onchip") == "onchip"
-    res = run(model, initial_state(model), engine="onchip", duration=2e-7, dt=1e-8)
+    res = run_hf(model, initial_state(model), RunOptions(engine="onchip", duration=2e-7, dt=1e-8))
     assert "step:strang:onchip" in res.stages and res.steps == 20
 
 
@@ -191,10 +187,15 @@ def test_onchip_fault_matches_general(device):
         dt = 1e-5
         assert dt > 4.0 * stable_step(model).spring
         if engine == "general":
-            res = run(model, initial_state(model), engine=engine, duration=4e-3, dt=dt, force=True)
+            res = run_hf(model, initial_state(model), RunOptions(engine=engine, duration=4e-3, dt=dt, force=True))
         else:  # on the CPU with 64 fiber threads per block: the in-block min/sums find the same first patch
             with _cpu_fibers(device == "cpu"):
-                res = run_onchip(model, initial_state(model), duration=4e-3, dt=dt, force=True, block_dim=64)
+                res = run_hf(
+                    model,
+                    initial_state(model),
+                    RunOptions(engine="onchip", duration=4e-3, dt=dt, force=True),
+                    tuning=EngineTuning(block_dim=64),
+                )
         assert not res.complete
         c = res.collect()
         assert np.all(np.isfinite(c.globals)) and np.all(c.time < res.fault.time)
@@ -222,20 +223,33 @@ def test_ablations_for_profiling(device):
     mus = {}
     for abl in ((), ("gather",), ("friction",), ("gather_half",)):
         model = build_model([s], device=device, precision="fp32")
-        res = run_onchip(model, initial_state(model), duration=2e-7, dt=1e-8, ablate=frozenset(abl))
+        res = run_hf(
+            model,
+            initial_state(model),
+            RunOptions(engine="onchip", duration=2e-7, dt=1e-8),
+            tuning=EngineTuning(ablate=frozenset(abl)),
+        )
         mus[abl] = res.collect().globals[-1, 0, 0]
     assert len(set(mus.values())) == len(mus), mus
     # gather_half (the first half of every row's links) reads the same links from the on-chip CSR as from global
     half = {}
     for csr in (True, False):
         model = build_model([s], device=device, precision="fp32")
-        res = run_onchip(
-            model, initial_state(model), duration=2e-7, dt=1e-8, ablate=frozenset({"gather_half"}), csr_shared=csr
+        res = run_hf(
+            model,
+            initial_state(model),
+            RunOptions(engine="onchip", duration=2e-7, dt=1e-8),
+            tuning=EngineTuning(ablate=frozenset({"gather_half"}), csr_shared=csr),
         )
         half[csr] = res.collect().globals[-1, 0]
     np.testing.assert_array_equal(half[True], half[False])
     with pytest.raises(ValueError, match="unknown ablations"):
-        run_onchip(model, initial_state(model), duration=2e-7, dt=1e-8, ablate=frozenset({"springs"}))
+        run_hf(
+            model,
+            initial_state(model),
+            RunOptions(engine="onchip", duration=2e-7, dt=1e-8),
+            tuning=EngineTuning(ablate=frozenset({"springs"})),
+        )
 
 
 def test_growth_ablations_for_profiling(device):
@@ -248,7 +262,12 @@ def test_growth_ablations_for_profiling(device):
     ):
         model = build_model([s], device=device, precision="fp32")
         before = {k: model.host(k) for k in ("area", frozen, moved)}
-        run_onchip(model, initial_state(model), duration=4e-7, dt=1e-8, ablate=frozenset(abl))
+        run_hf(
+            model,
+            initial_state(model),
+            RunOptions(engine="onchip", duration=4e-7, dt=1e-8),
+            tuning=EngineTuning(ablate=frozenset(abl)),
+        )
         assert np.all(model.host("area") > before["area"])
         np.testing.assert_array_equal(model.host(frozen), before[frozen])
         assert not np.array_equal(model.host(moved), before[moved])
@@ -286,8 +305,7 @@ def test_onchip_growth_fuzzed_small_pads(n, seed, load, increment, M, speed, pre
     for engine in ("general", "onchip"):
         model = build_model([scene], device="cpu", precision=precision)
         state = initial_state(model)
-        fn = run_hf if engine == "general" else run_onchip
-        res = fn(model, state, duration=4e-7, dt=1e-8)
+        res = run_hf(model, state, RunOptions(duration=4e-7, dt=1e-8, engine=engine))
         assert res.complete and res.steps == 40
         keys = ("area", "nbr_stiffness", "normal_force", "pad_matrix_force", "pad_gap")
         out.append((res.collect().globals, *state.numpy(), *(model.host(k) for k in keys)))
@@ -379,8 +397,15 @@ def test_cluster_refused_where_it_cannot_run():
         (17, r"\[1, 16\]"),
     ):
         with pytest.raises(SceneError, match=why):
-            run_onchip(model, initial_state(model), duration=1e-7, dt=1e-8, cluster=k)
-    res = run_onchip(model, initial_state(model), duration=1e-7, dt=1e-8)  # cluster=None: 1 on the CPU
+            run_hf(
+                model,
+                initial_state(model),
+                RunOptions(engine="onchip", duration=1e-7, dt=1e-8),
+                tuning=EngineTuning(cluster=k),
+            )
+    res = run_hf(
+        model, initial_state(model), RunOptions(engine="onchip", duration=1e-7, dt=1e-8)
+    )  # cluster=None: 1 on the CPU
     assert res.complete and res.steps == 10
 
 

@@ -16,6 +16,7 @@ from aca_warp.analysis import report, sync_index_from_signals
 from aca_warp.analysis.commands import FIGURE_NAMES, add_parsers
 from aca_warp.analysis.report import analyze_run
 from aca_warp.common.errors import AcaError, SceneError
+from aca_warp.hf.options import RunOptions
 from aca_warp.hf.runner import run_scene
 from aca_warp.scene import Material, Pad, Patches, PatchGenerator, Record, Scene
 
@@ -41,7 +42,9 @@ def runs(tmp_path_factory):
     d = tmp_path_factory.mktemp("runs")
     out = {"patches": d / "patches.h5", "globals": d / "globals.h5", "single": d / "single.h5"}
     for key, rec in (("patches", ("velocity",)), ("globals", ())):
-        run_scene(_small_scene(patches=rec), out[key], device="cpu", integrator="strang", dt=2e-8, overwrite=True)
+        run_scene(
+            _small_scene(patches=rec), out[key], RunOptions(integrator="strang", dt=2e-8), device="cpu", overwrite=True
+        )
     one = Patches(np.array([0.0]), np.array([0.13]), np.array([5.0e-8]), np.array([3.0e-6]))
     single = Scene(
         name="single",
@@ -51,7 +54,7 @@ def runs(tmp_path_factory):
         record=Record(sample_dt=SAMPLE_DT, patches=("velocity",)),
         duration=2.0e-4,
     )
-    run_scene(single, out["single"], device="cpu", integrator="strang", dt=1e-7, overwrite=True)
+    run_scene(single, out["single"], RunOptions(integrator="strang", dt=1e-7), device="cpu", overwrite=True)
     return out
 
 

@@ -56,7 +56,8 @@ def test_rerun_without_the_patch_file_is_bit_identical(tmp_path, capsys):
     (tmp_path / "patches.h5").unlink()
 
     s = read_settings(run)
-    assert s.integrator == "adaptive" and s.tolerance == 1e-5 and s.precision == "fp64" and s.device == "cpu"
+    o = s.options
+    assert o.integrator == "adaptive" and o.tolerance == 1e-5 and s.precision == "fp64" and s.device == "cpu"
     assert s.scene.patches.count == len(keep)
     with h5py.File(run, "r") as f:
         assert scene_to_dict(s.scene) == json.loads(f.attrs["scene"])

@@ -27,8 +27,10 @@ import numpy as np
 import pytest
 
 from aca_warp.common.errors import SimulationFault, StabilityError
+from aca_warp.hf.loop import EngineTuning, run_hf
 from aca_warp.hf.model import PadModel, build_model, coupling_matrix
-from aca_warp.hf.solver import run_hf, stable_step
+from aca_warp.hf.options import RunOptions
+from aca_warp.hf.solver import stable_step
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Material, Pad, Patches, Record, Scene
 
@@ -86,12 +88,9 @@ def long_run(scene: Scene, integrator: str, dt: float, *, steps: int = STEPS, fo
     res = run_hf(
         model,
         state,
-        duration=steps * dt,
-        integrator=integrator,
-        dt=dt,
-        force=force,
+        RunOptions(duration=steps * dt, integrator=integrator, dt=dt, force=force),
         record=rec,
-        max_graph_steps=GRAPH_STEPS,
+        tuning=EngineTuning(max_graph_steps=GRAPH_STEPS),
     )
     return res, res.collect(), bound
 
@@ -196,7 +195,7 @@ def test_symplectic_euler_refused_and_unstable_at_3x_estimate(make, expect):
     model = build_model([scene])
     dt = 3.0 * stable_step(model).explicit
     with pytest.raises(StabilityError, match=r"exceeds the stable-step estimate .* of symplectic-euler"):
-        run_hf(model, initial_state(model), duration=100 * dt, integrator="symplectic-euler", dt=dt)
+        run_hf(model, initial_state(model), RunOptions(duration=100 * dt, integrator="symplectic-euler", dt=dt))
     res, c, bound = long_run(scene, "symplectic-euler", dt, force=True)
     assert assert_unstable(res, c, bound) == expect
 
@@ -215,7 +214,9 @@ def test_implicit_schemes_spring_limit(integrator):
     res, c, bound = long_run(scene, integrator, 0.9 * est.spring)
     assert_bounded(res, c, bound)
     with pytest.raises(StabilityError, match=f"of {integrator}"):
-        run_hf(model, initial_state(model), duration=300 * est.spring, integrator=integrator, dt=3 * est.spring)
+        run_hf(
+            model, initial_state(model), RunOptions(duration=300 * est.spring, integrator=integrator, dt=3 * est.spring)
+        )
     res, c, bound = long_run(scene, integrator, 3.0 * est.spring, force=True)
     assert assert_unstable(res, c, bound) == "fault"
 
@@ -233,7 +234,7 @@ def test_implicit_friction_far_past_the_friction_limit(factor):
         res, c, bound = long_run(scene, integrator, dt)
         assert_bounded(res, c, bound)
     with pytest.raises(StabilityError, match="friction slope"):
-        run_hf(model, initial_state(model), duration=100 * dt, integrator="symplectic-euler", dt=dt)
+        run_hf(model, initial_state(model), RunOptions(duration=100 * dt, integrator="symplectic-euler", dt=dt))
     res, c, bound = long_run(scene, "symplectic-euler", dt, steps=10_000, force=True)
     assert assert_unstable(res, c, bound) == "growth"
 
@@ -255,11 +256,9 @@ def recorded_run(scene: Scene, integrator: str, dt: float, steps: int, every: in
     res = run_hf(
         model,
         initial_state(model),
-        duration=steps * dt,
-        integrator=integrator,
-        dt=dt,
+        RunOptions(duration=steps * dt, integrator=integrator, dt=dt),
         record=Record(sample_dt=every * dt, patches=("velocity", "displacement")),
-        max_graph_steps=GRAPH_STEPS,
+        tuning=EngineTuning(max_graph_steps=GRAPH_STEPS),
     )
     assert res.complete
     c = res.collect()

@@ -13,8 +13,10 @@ import psutil
 import pytest
 
 from aca_warp.cli import main
+from aca_warp.hf.loop import run_hf
 from aca_warp.hf.model import build_model
-from aca_warp.hf.solver import GLOBAL_NAMES, run_hf
+from aca_warp.hf.options import RunOptions
+from aca_warp.hf.recorder import GLOBAL_NAMES
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, PatchGenerator, preset
 from aca_warp.sweep import SweepError, load_spec, load_sweep, run_sweep
@@ -93,9 +95,9 @@ def test_pad_equals_hand_built_scene() -> None:
         record=s.base.record,
     )
     m = build_model([hand], precision="fp32")
-    res = run_hf(m, initial_state(m), duration=4e-6, integrator="strang", record=hand.record)
+    res = run_hf(m, initial_state(m), RunOptions(duration=4e-6, integrator="strang"), record=hand.record)
     mb = build_model(s.scenes(9, 12), precision="fp32")
-    rb = run_hf(mb, initial_state(mb), duration=4e-6, integrator="strang", record=hand.record)
+    rb = run_hf(mb, initial_state(mb), RunOptions(duration=4e-6, integrator="strang"), record=hand.record)
     np.testing.assert_allclose(rb.collect().globals[:, 0], res.collect().globals[:, 0], rtol=1e-6, atol=0)
 
 

@@ -103,8 +103,9 @@ def test_growth_contact_block_threads_agree():
     per block and with Warp's cooperative CPU fibers (256 threads, real barriers), to rounding, in force balance."""
     import warp as wp
 
+    from aca_warp.hf.loop import run_hf
     from aca_warp.hf.model import build_model
-    from aca_warp.hf.solver import run_hf
+    from aca_warp.hf.options import RunOptions
     from aca_warp.hf.state import initial_state
 
     s = growing_scene()
@@ -114,7 +115,7 @@ def test_growth_contact_block_threads_agree():
         for fibers in (False, True):
             wp.config.enable_cpu_blocks = fibers
             model = build_model([s, s.replace(normal_force=35.0)], device="cpu", precision="fp64")
-            res = run_hf(model, initial_state(model), duration=4e-6, dt=1e-8)
+            res = run_hf(model, initial_state(model), RunOptions(duration=4e-6, dt=1e-8))
             assert res.complete and "growth" in res.stages
             fn = model.host("normal_force")
             total = fn.reshape(2, -1).sum(axis=1) + model.host("pad_matrix_force")

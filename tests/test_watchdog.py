@@ -3,14 +3,18 @@ kernel (inside the captured graph) and reported at chunk ends with time, pad, pa
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
 from aca_warp.common.errors import SimulationFault
+from aca_warp.hf.loop import EngineTuning, run_hf
 from aca_warp.hf.model import build_model
-from aca_warp.hf.solver import WATCHDOG_FACTOR, run_hf, stable_step, watchdog_bound
+from aca_warp.hf.options import WATCHDOG_FACTOR, RunOptions
+from aca_warp.hf.recorder import watchdog_bound
+from aca_warp.hf.solver import stable_step
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Pad, Patches, Record, Scene
 
@@ -56,7 +60,7 @@ def test_bounded_run_stays_far_below_the_bound():
     model = build_model([s])
     state = initial_state(model)
     bound = watchdog_bound(model, state)[0]
-    res = run_hf(model, state, duration=2e-5, record=Record(sample_dt=1e-7, patches=("velocity",)))
+    res = run_hf(model, state, RunOptions(duration=2e-5), record=Record(sample_dt=1e-7, patches=("velocity",)))
     assert res.complete and res.fault is None
     assert np.max(np.abs(res.collect().velocity)) < bound / 20
 
@@ -69,8 +73,9 @@ def test_runaway_is_caught_before_it_turns_non_finite():
     model = build_model([s])
     dt = 3.0 * stable_step(model).spring
     rec = Record(sample_dt=10 * dt, patches=("velocity",))
-    kw = dict(duration=20000 * dt, integrator="strang", dt=dt, force=True, record=rec, max_graph_steps=200)
-    res = run_hf(model, initial_state(model), **kw)
+    options = RunOptions(duration=20000 * dt, integrator="strang", dt=dt, force=True)
+    kw = dict(record=rec, tuning=EngineTuning(max_graph_steps=200))
+    res = run_hf(model, initial_state(model), options, **kw)
     f = res.fault
     assert isinstance(f, SimulationFault) and not res.complete
     assert str(f).startswith("diverging state (patch energy speed")
@@ -78,6 +83,6 @@ def test_runaway_is_caught_before_it_turns_non_finite():
     assert f.pad == 0 and 0 <= f.patch < s.patches.count and 0 < f.time < 20000 * dt
     c = res.collect()
     assert np.all(np.isfinite(c.globals)) and np.all(np.isfinite(c.velocity)) and np.all(c.time < f.time)
-    late = run_hf(model, initial_state(model), watchdog_factor=None, **kw)
+    late = run_hf(model, initial_state(model), dataclasses.replace(options, watchdog_factor=None), **kw)
     assert late.fault is not None and str(late.fault).startswith("non-finite state")
     assert late.fault.time > f.time

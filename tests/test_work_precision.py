@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 from scriptload import load_script
 
+from aca_warp.hf.loop import run_hf
 from aca_warp.hf.model import build_model
+from aca_warp.hf.options import RunOptions
 from aca_warp.hf.reference import ReferenceODE
-from aca_warp.hf.solver import run_hf
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Pad, Patches, Record, Scene
 
@@ -70,7 +71,9 @@ def test_reference_jacobian_and_agreement():
     err = []
     for dt in (1e-9, 5e-10):  # the sticking transient: strang converges to DOP853 at second order
         state = initial_state(model)
-        res = run_hf(model, state, duration=2e-5, integrator="strang", dt=dt, record=Record(1e-6, ("velocity",)))
+        res = run_hf(
+            model, state, RunOptions(duration=2e-5, integrator="strang", dt=dt), record=Record(1e-6, ("velocity",))
+        )
         c = res.collect()
         err.append(np.max(np.abs(c.globals[:, 0, 0] - mu_ref)))
     assert err[0] < 2e-4 and 3.2 < err[0] / err[1] < 4.8

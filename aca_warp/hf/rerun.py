@@ -13,6 +13,7 @@ package versions. :func:`read_settings` rebuilds the scene from them; the rerun 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import sys
@@ -25,6 +26,7 @@ import numpy as np
 
 from aca_warp.common.argtypes import positive
 from aca_warp.common.errors import SceneError
+from aca_warp.hf.options import RunOptions
 from aca_warp.scene import Friction, Growth, Initial, Material, Matrix, Pad, Patches, Record, Scene
 
 
@@ -34,31 +36,19 @@ class RunSettings:
 
     Attributes:
         scene: The scene, rebuilt from the stored JSON, ``/patches`` and ``/matrix``.
-        integrator: Integrator name.
-        dt: Requested step [s] or None (the default).
-        tolerance: Tolerance of ``adaptive`` [1].
-        force: Whether explicit steps beyond the estimate were forced.
-        duration: Simulated duration [s].
+        options: The run options (duration and engine resolved).
         precision: ``fp32`` or ``fp64``.
         device: Warp device alias the run used.
-        checkpoint_interval: Checkpoint interval [s of simulated time] or None.
         versions: Package versions of the run (JSON dict).
         complete: Whether the run completed.
-        engine: HF engine the run used (``general`` or ``onchip``).
     """
 
     scene: Scene
-    integrator: str
-    dt: float | None
-    tolerance: float
-    force: bool
-    duration: float
+    options: RunOptions
     precision: str
     device: str
-    checkpoint_interval: float | None
     versions: dict[str, str]
     complete: bool
-    engine: str = "general"
 
 
 def _json(attrs: Any, key: str, path: Path) -> Any:
@@ -112,6 +102,15 @@ def scene_from_run(f: h5py.File, path: Path) -> Scene:
         raise SceneError(f"{path}: the stored scene is incomplete or damaged ({type(e).__name__}: {e})") from None
 
 
+def _options(f: h5py.File, path: Path) -> RunOptions:
+    """The stored run options (files written before ``run_options`` existed keep them as ``step_policy``)."""
+    if "run_options" in f.attrs:
+        return RunOptions.from_dict(_json(f.attrs, "run_options", path))
+    policy = _json(f.attrs, "step_policy", path)
+    keys = ("duration", "integrator", "dt", "tolerance", "force", "engine", "checkpoint_interval")
+    return RunOptions.from_dict({k: policy[k] for k in keys if k in policy})
+
+
 def read_settings(path: str | Path) -> RunSettings:
     """Read the settings of the run file ``path`` (SceneError with one line when it cannot be rerun)."""
     from aca_warp.common.files import open_h5
@@ -119,26 +118,18 @@ def read_settings(path: str | Path) -> RunSettings:
     p = Path(path)
     with open_h5(p, "run file") as f:
         scene = scene_from_run(f, p)
-        policy = _json(f.attrs, "step_policy", p)
         versions = _json(f.attrs, "versions", p) if "versions" in f.attrs else {}
         try:
-            interval = policy.get("checkpoint_interval")
             return RunSettings(
                 scene=scene,
-                integrator=str(policy["integrator"]),
-                dt=None if policy["dt"] is None else float(policy["dt"]),
-                tolerance=float(policy["tolerance"]),
-                force=bool(policy["force"]),
-                duration=float(policy["duration"]),
+                options=_options(f, p),
                 precision=str(f.attrs["precision"]),
                 device=str(f.attrs["device"]),
-                checkpoint_interval=None if interval is None else float(interval),
                 versions=versions if isinstance(versions, dict) else {},
                 complete=bool(f.attrs.get("complete", False)),
-                engine=str(policy.get("engine", "general")),
             )
         except (KeyError, TypeError, ValueError, AttributeError) as e:
-            raise SceneError(f"{p}: the stored step policy is incomplete ({type(e).__name__}: {e})") from None
+            raise SceneError(f"{p}: the stored run options are incomplete ({type(e).__name__}: {e})") from None
 
 
 def version_changes(stored: dict[str, str]) -> list[str]:
@@ -193,20 +184,17 @@ def _cmd_rerun(args: argparse.Namespace) -> int:
     changed = version_changes(s.versions)
     if changed:
         print(f"aca-warp: note: versions differ from the run's: {', '.join(changed)}", file=sys.stderr)
+    options = s.options
+    if args.checkpoint_interval is not None:
+        options = dataclasses.replace(options, checkpoint_interval=args.checkpoint_interval)
     result = run_scene(
         s.scene,
         args.output,
-        duration=s.duration,
+        options,
         device=args.device or s.device,
-        integrator=s.integrator,
-        dt=s.dt,
-        tolerance=s.tolerance,
         precision=s.precision,
-        force=s.force,
         overwrite=args.overwrite,
         progress=not args.no_progress,
-        checkpoint_interval=args.checkpoint_interval or s.checkpoint_interval,
-        engine=s.engine,
     )
     if result.fault is not None:
         print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)

@@ -32,7 +32,7 @@ from aca_warp.common.checkpoint import Checkpoint, closed_on_failure, drop_check
 from aca_warp.common.errors import SceneError
 from aca_warp.common.files import check_output_path, open_h5, partial_path, versions
 from aca_warp.hf.model import PadModel
-from aca_warp.hf.solver import GLOBAL_NAMES, GLOBAL_UNITS, Chunk
+from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS, Chunk
 from aca_warp.scene import Scene, scene_to_dict
 
 

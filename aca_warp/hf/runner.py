@@ -1,15 +1,16 @@
 """One HF run of one scene into one run file: the sequence behind ``aca-warp hf`` (and its Python twin).
 
 :func:`run_scene` starts a run; :func:`resume_run` continues a killed or stopped one from the last checkpoint
-in its run file (``aca-warp hf --resume``). Both stream samples into a :class:`~aca_warp.hf.runfile.RunWriter` and
-close it complete or marked incomplete (docs/run_files.md, docs/faults.md).
+in its run file (``aca-warp hf --resume``). Both stream samples into a :class:`~aca_warp.hf.runfile.RunWriter`
+and close it complete or marked incomplete (docs/run_files.md, docs/faults.md).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import h5py
 import warp as wp
@@ -17,9 +18,13 @@ import warp as wp
 from aca_warp.common.checkpoint import Checkpoint, has_checkpoint
 from aca_warp.common.errors import SceneError
 from aca_warp.common.files import check_output_path, partial_path
+from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
+from aca_warp.hf.onchip_layout import choose_engine
+from aca_warp.hf.options import RunOptions
+from aca_warp.hf.recorder import check_run
 from aca_warp.hf.runfile import RunWriter
-from aca_warp.hf.solver import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, RunResult, run_hf
+from aca_warp.hf.solver import HFSolver
 from aca_warp.hf.state import HFState, initial_state
 from aca_warp.scene import Scene
 
@@ -27,57 +32,30 @@ from aca_warp.scene import Scene
 def run_scene(
     scene: Scene,
     output: str | Path,
+    options: RunOptions | None = None,
     *,
-    duration: float | None = None,
     device: str = "cpu",
-    integrator: str = DEFAULT_INTEGRATOR,
-    dt: float | None = None,
-    tolerance: float = DEFAULT_TOLERANCE,
     precision: str = "fp64",
-    force: bool = False,
     overwrite: bool = False,
     progress: bool = False,
-    checkpoint_interval: float | None = None,
-    engine: str = "auto",
 ) -> RunResult:
-    """Simulate ``scene`` for ``duration`` [s] (default: the scene's) and write the run file ``output``.
+    """Simulate ``scene`` as ``options`` say (default :class:`RunOptions`: the scene's duration, ``strang`` at
+    1e-8 s) on ``device`` in ``precision`` and write the run file ``output``.
 
     Everything is validated before the simulation starts. A fault or an interrupt (Ctrl-C) still leaves a
     readable file holding every sample up to that point, marked ``complete = False``. With
-    ``checkpoint_interval`` [s of simulated time] the file also keeps the solver state of the last checkpoint,
-    so that a killed run continues with :func:`resume_run`. ``engine``: ``auto``, ``onchip`` or ``general``
-    (:func:`aca_warp.hf.onchip.choose_engine`); checkpointed runs take the general engine.
+    ``options.checkpoint_interval`` the file also keeps the solver state of the last checkpoint, so that a killed
+    run continues with :func:`resume_run`. The file stores the options with the duration and the engine resolved.
     """
+    options = options or RunOptions()
     check_output_path(output, overwrite=overwrite)
-    duration = scene.duration if duration is None else duration
-    if not duration > 0:
-        raise SceneError(f"duration must be > 0 s, got {duration}")
-    if checkpoint_interval is not None and not checkpoint_interval > 0:
-        raise SceneError(f"checkpoint interval must be > 0 s, got {checkpoint_interval}")
+    options = options.with_duration(scene.duration if options.duration is None else options.duration)
     model = build_model([scene], device=device, precision=precision)
     state = initial_state(model)
-    policy = {
-        "integrator": integrator,
-        "dt": dt,
-        "tolerance": tolerance,
-        "sample_dt": scene.record.sample_dt,
-        "force": force,
-        "duration": duration,
-        "checkpoint_interval": checkpoint_interval,
-    }
     # refuse bad step choices before a file is created
-    from aca_warp.hf.solver import HFSolver, check_run
-
-    check_run(duration, scene.record, checkpoint_interval)
-    HFSolver(model, integrator, dt, force=force, tolerance=tolerance)
-    from aca_warp.hf.onchip import choose_engine
-
-    if checkpoint_interval is not None:
-        if engine == "onchip":
-            raise SceneError("--engine onchip: checkpoints and resume need the general engine")
-        engine = "general"
-    engine = choose_engine(model, engine, integrator)
-    policy["engine"] = engine
+    check_run(options.duration, scene.record, options.checkpoint_interval)
+    HFSolver(model, options.integrator, options.dt, force=options.force, tolerance=options.tolerance)
+    options = dataclasses.replace(options, engine=choose_engine(model, options.engine, options.integrator))
 
     def open_writer() -> RunWriter:
         return RunWriter(
@@ -85,63 +63,39 @@ def run_scene(
             model,
             overwrite=overwrite,
             attrs={
-                "integrator": integrator,
+                "integrator": options.integrator,
                 "precision": precision,
                 "device": str(model.device),
                 "device_name": model.device.name,
-                "step_policy": policy,
+                "run_options": options.to_json(),
             },
         )
 
-    return _execute(open_writer, model, state, policy, progress=progress, engine=engine)
+    return _execute(open_writer, model, state, options, progress=progress)
 
 
 def _execute(
-    open_writer: Any,
+    open_writer: Callable[[], RunWriter],
     model: PadModel,
     state: HFState,
-    policy: dict[str, Any],
+    options: RunOptions,
     *,
     progress: bool,
     resume: Checkpoint | None = None,
-    engine: str = "general",
 ) -> RunResult:
-    """Run into the writer ``open_writer()`` returns; close it complete, stopped, interrupted or failed.
-
-    ``engine`` is resolved already: ``onchip`` or ``general`` (:func:`run_hf`)."""
+    """Run into the writer ``open_writer()`` returns; close it complete, stopped, interrupted or failed."""
     writer = None
-    interval = policy.get("checkpoint_interval")
     try:
         writer = open_writer()
-        if engine == "onchip":
-            from aca_warp.hf.onchip import run_onchip
-
-            result = run_onchip(
-                model,
-                state,
-                duration=policy["duration"],
-                dt=policy["dt"],
-                force=policy["force"],
-                sink=writer.write,
-                progress=progress,
-            )
-        else:
-            result = run_hf(
-                model,
-                state,
-                duration=policy["duration"],
-                integrator=policy["integrator"],
-                dt=policy["dt"],
-                tolerance=policy["tolerance"],
-                force=policy["force"],
-                sink=writer.write,
-                progress=progress,
-                **(
-                    {}
-                    if interval is None and resume is None
-                    else {"checkpoint_every": interval, "on_checkpoint": writer.checkpoint, "resume": resume}
-                ),
-            )
+        result = run_hf(
+            model,
+            state,
+            options,
+            sink=writer.write,
+            progress=progress,
+            on_checkpoint=writer.checkpoint,
+            resume=resume,
+        )
     except KeyboardInterrupt:
         if writer is not None:
             writer.close(complete=False, status="interrupted by the user")
@@ -200,7 +154,7 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     if complete:
         raise SceneError(f"{final} is a complete run; nothing to resume")
     if not resumable:
-        raise SceneError(f"{final} holds no checkpoint (run without --checkpoint-interval); use 'aca-warp rerun'")
+        raise SceneError(f"{final} holds no checkpoint (run without checkpoint_interval); use 'aca-warp rerun'")
     return final, part
 
 
@@ -212,8 +166,8 @@ def resume_run(
     device: str | None = None,
 ) -> tuple[RunResult, Path]:
     """Continue the run ``path`` (``NAME`` or ``NAME.partial``) from its last checkpoint; returns the result and
-    the final file name. Same scene, step policy, precision and device as the run (``device`` overrides it: then
-    the result is no longer bit-identical). The finished file equals an uninterrupted run's."""
+    the final file name. Same scene, options, precision and device as the run (``device`` overrides it: then the
+    result is no longer bit-identical). The finished file equals an uninterrupted run's."""
     from aca_warp.hf.rerun import read_settings
 
     final, part = find_resumable(path)
@@ -221,24 +175,15 @@ def resume_run(
     s = read_settings(src)
     with h5py.File(src, "r") as f:
         if not has_checkpoint(f):
-            raise SceneError(f"{src} holds no checkpoint (run without --checkpoint-interval); use 'aca-warp rerun'")
+            raise SceneError(f"{src} holds no checkpoint (run without checkpoint_interval); use 'aca-warp rerun'")
     model = build_model([s.scene], device=device or s.device, precision=s.precision)
     state = initial_state(model)
-    policy = {
-        "integrator": s.integrator,
-        "dt": s.dt,
-        "tolerance": s.tolerance,
-        "sample_dt": s.scene.record.sample_dt,
-        "force": s.force,
-        "duration": s.duration,
-        "checkpoint_interval": checkpoint_interval or s.checkpoint_interval,
-        "engine": "general",
-    }
+    options = s.options
+    if checkpoint_interval is not None:
+        options = dataclasses.replace(options, checkpoint_interval=checkpoint_interval)
     if src == final:
         os.replace(final, part)  # a stopped run goes back to being written
     writer, ckpt = RunWriter.reopen(part, model)
     if checkpoint_interval is not None:
-        import json
-
-        writer.f.attrs["step_policy"] = json.dumps(policy)
-    return _execute(lambda: writer, model, state, policy, progress=progress, resume=ckpt), final
+        writer.f.attrs["run_options"] = options.to_json()
+    return _execute(lambda: writer, model, state, options, progress=progress, resume=ckpt), final

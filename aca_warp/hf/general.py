@@ -1,0 +1,247 @@
+"""The general HF engine: every integrator as per-step kernel launches, replayed from captured graphs.
+
+Fixed-step schemes take ``options.dt`` shortened so that a whole number of steps fits a sample interval and
+record one sample per interval; a chunk is a graph of up to ``max_graph_steps`` steps. ``adaptive`` runs trial
+steps whose controller (accept, reject, next step, landing on sample times) runs on the device; a chunk is a
+graph of 128 trials. Growing scenes run a growth event (areas, stiffnesses, the contact re-solve) every
+``growth.interval`` of simulated time, counted in steps on the device. Every stepping path is captured in a
+Warp graph (CPU and CUDA); the host reads back only a few counters per replay.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+import warp as wp
+
+from aca_warp.common.errors import SceneError, SimulationFault
+from aca_warp.hf.loop import EngineTuning, Progress
+from aca_warp.hf.model import PadModel
+from aca_warp.hf.options import RunOptions
+from aca_warp.hf.recorder import Recorder
+from aca_warp.hf.solver import CONTACT_BLOCK, GROWTH_MUTABLE, HFSolver, block_threads, growth_events
+from aca_warp.hf.state import HFState
+from aca_warp.kernels import hf as K
+from aca_warp.scene import Record
+
+ADAPTIVE_TRIALS = 128  # trial steps per replay of the adaptive graph
+ADAPTIVE_ROWS = 256  # sample rows the adaptive recorder holds between flushes
+MIN_ADAPTIVE_STEP = 1.0e-15  # s; below it the adaptive controller gives up (a fault)
+
+
+class Growth:
+    """Growth events of a growing model on the general engine: launches of one event, due every ``every`` steps."""
+
+    def __init__(self, model: PadModel, h: float) -> None:
+        self.model = model
+        self.every, self.per_event = growth_events(model, h)
+        self.step = wp.zeros(1, dtype=wp.int64, device=model.device)
+
+    def launch(self) -> None:
+        """Count one step; on every ``every``-th, grow the areas, update the stiffnesses and re-solve the contact."""
+        m, dev, due = self.model, self.model.device, (self.step, self.every)
+        wp.launch(
+            K.grow_patches,
+            dim=m.patch_count,
+            device=dev,
+            inputs=[*due, m.patch_pad, self.per_event, m.pad_k_t, m.pad_k_n, m.pad_mass_per_area, m.pad_zeta]
+            + [m.area, m.sqrt_area, m.inv_mass, m.k_t, m.k_n, m.damping],
+        )
+        wp.launch(
+            K.coupling_stiffness,
+            dim=m.patch_count,
+            device=dev,
+            inputs=[*due, m.patch_pad, m.sqrt_area, m.nbr_start, m.nbr_index, m.nbr_inv_dist, m.pad_kc, m.k_t]
+            + [m.nbr_stiffness, m.k_diag],
+        )
+        wp.launch_tiled(
+            K.contact_flat,
+            dim=[m.pad_count],
+            block_dim=CONTACT_BLOCK,
+            device=dev,
+            inputs=[*due, block_threads(dev, CONTACT_BLOCK), m.pad_patch_start, m.k_n, m.height, m.area, m.radius]
+            + [m.pad_area, m.pad_moment, m.pad_k_m, m.pad_load, m.pad_gap]
+            + [m.normal_force, m.pad_matrix_force, m.pad_matrix_radius],
+        )
+        wp.launch(K.tick, dim=1, device=dev, inputs=[self.step])
+
+
+class GeneralEngine:
+    """Per-step kernels for every integrator (:class:`~aca_warp.hf.loop.Engine`)."""
+
+    blocks_per_pad = 1
+
+    def __init__(
+        self,
+        model: PadModel,
+        state: HFState,
+        options: RunOptions,
+        record: Record,
+        n_samples: int,
+        tuning: EngineTuning,
+    ) -> None:
+        self.model, self.state, self.record, self.n_samples = model, state, record, n_samples
+        self.use_graph = tuning.use_graph
+        integrator = options.integrator
+        self.solver = HFSolver(model, integrator, options.dt, force=options.force, tolerance=options.tolerance)
+        self.estimate = self.solver.estimate
+        self.adaptive = integrator == "adaptive"
+        growing = "pad_growth" in model.arrays
+        if growing and self.adaptive:
+            raise SceneError("patch growth needs a fixed-step integrator (growth events are counted in steps)")
+        self.sps = 1 if self.adaptive else max(1, math.ceil(record.sample_dt / self.solver.dt - 1e-9))
+        self.h = record.sample_dt / self.sps
+        self.block = 1 if self.adaptive else max(1, min(n_samples, tuning.max_graph_steps // self.sps))
+        rows = ADAPTIVE_ROWS if self.adaptive else self.block
+        self.recorder = Recorder(model, record, rows + 1, n_samples)
+        self.stages = [
+            "contact",
+            "neighbours" if model.has_coupling else "no-coupling",
+            f"step:{integrator}",
+            "record:globals",
+        ] + (["record:patches"] if self.recorder.patch_stage else [])
+        limit = self.estimate.limit(integrator)
+        self.cause = (
+            f"step {self.h:.3g} s beyond the stable estimate {limit:.3g} s"
+            if self.h > limit
+            else "extreme scene parameters (check loads, areas, speeds)"
+        )
+        if integrator in ("strang", "adaptive"):
+            self.solver.prepare(state)
+        self.started = False
+        self.growth = None
+        if growing:
+            self.stages.append("growth")
+            self.growth = Growth(model, self.h)
+        self.body: Callable[[], None] = self._adaptive_body() if self.adaptive else self._fixed_body
+        self.graphs: dict[int, Any] = {}
+        self.capture_time = 0.0
+
+    # -- the Engine protocol
+
+    def saved(self) -> dict[str, wp.array]:
+        out: dict[str, wp.array] = {}
+        if self.adaptive:
+            out.update({"adaptive/clock": self.clock, "adaptive/flags": self.flags, "adaptive/steps": self.steps})
+        if self.growth is not None:
+            out["growth/step"] = self.growth.step
+            out.update({f"model/{k}": self.model.arrays[k] for k in GROWTH_MUTABLE})
+        return out
+
+    def begin(self, resume: dict[str, int] | None) -> None:
+        if resume is None:
+            self.recorder.launch(self.state.u, self.state.v, conditional=False)  # sample 0: the initial state
+        else:
+            self.started = bool(resume.get("started", 0))
+        wp.load_module(K, device=self.model.device)
+
+    def advance(self, p: Progress, most: int) -> Progress:
+        if self.adaptive:
+            self._replay(ADAPTIVE_TRIALS)
+            flags = self.flags.numpy()
+            steps = self.steps.numpy()
+            t = float(self.clock.numpy()[0])
+            fault = None
+            if flags[2]:
+                fault = SimulationFault(
+                    f"adaptive step fell below {MIN_ADAPTIVE_STEP:g} s at t = {t:.6g} s; likely cause: {self.cause}",
+                    time=t,
+                    pad=-1,
+                    patch=-1,
+                    cause="step-size underflow",
+                )
+            return Progress(0, int(steps[0]), int(steps[1]), t, bool(flags[1]), fault)
+        reps = min(self.block, self.n_samples - p.samples, most)
+        self._replay(reps)
+        samples = p.samples + reps
+        return Progress(samples, samples * self.sps, 0, samples * self.record.sample_dt, samples >= self.n_samples)
+
+    def counters(self) -> dict[str, int]:
+        return {"started": int(self.started)}
+
+    def step_used(self) -> float:
+        return float(self.clock.numpy()[2]) if self.adaptive else self.h
+
+    def finish(self) -> None:
+        if not self.adaptive and self.started:
+            self.solver.finish(self.state, self.h)
+
+    # -- stepping
+
+    def _fixed_body(self) -> None:
+        """One sample interval: ``sps`` steps (growth events due among them) and one recorded sample."""
+        s = self.state
+        for _ in range(self.sps):
+            self.solver.step(s, self.h, first=not self.started)
+            self.started = True
+            if self.growth is not None:
+                self.growth.launch()
+        self.recorder.launch(s.u, self.solver.velocity(s, self.h), conditional=False)
+
+    def _adaptive_body(self) -> Callable[[], None]:
+        """One adaptive trial step (open, close with the error estimate, control, commit, conditional sample)."""
+        m, s, sv, rec, dev = self.model, self.state, self.solver, self.recorder, self.model.device
+        T, n = m.dtype, m.patch_count
+        trial = {k: wp.zeros(n, dtype=T, device=dev) for k in ("u", "v", "ue", "ve", "f")}
+        self.clock = wp.array([0.0, sv.dt, sv.dt, self.record.sample_dt], dtype=wp.float64, device=dev)
+        self.flags = wp.zeros(3, dtype=wp.int32, device=dev)
+        self.steps = wp.zeros(2, dtype=wp.int64, device=dev)
+        err = wp.zeros(1, dtype=wp.float64, device=dev)
+        t_end = self.n_samples * self.record.sample_dt
+        dt_max = 0.9 * self.estimate.spring
+        rt = T(sv.tolerance)
+        clock, flags = self.clock, self.flags
+        opened = [trial["u"], trial["v"], trial["ue"], trial["ve"]]
+        control = [wp.float64(self.record.sample_dt), wp.float64(t_end), wp.float64(MIN_ADAPTIVE_STEP)]
+
+        def body() -> None:
+            wp.launch(
+                K.adaptive_trial_open,
+                dim=n,
+                device=dev,
+                inputs=[*sv.local_args, sv.newton_tol, clock, flags, s.u, s.v, s.force, *opened],
+            )
+            wp.launch(
+                K.adaptive_trial_close,
+                dim=n,
+                device=dev,
+                inputs=[*sv.model_args, sv.newton_tol, rt, clock, flags, *opened, trial["f"], err],
+            )
+            wp.launch(
+                K.adaptive_control,
+                dim=1,
+                device=dev,
+                inputs=[*control, wp.float64(dt_max), clock, flags, self.steps, err, rec.counters],
+            )
+            wp.launch(
+                K.adaptive_commit,
+                dim=n,
+                device=dev,
+                inputs=[flags, trial["u"], trial["v"], trial["f"], s.u, s.v, s.force],
+            )
+            rec.launch(s.u, s.v, conditional=True)
+
+        return body
+
+    def _replay(self, reps: int) -> None:
+        """Run ``reps`` bodies: from a captured graph (one per count), eagerly the first (opening) one."""
+        if not self.use_graph:
+            for _ in range(reps):
+                self.body()
+            return
+        if not self.started and not self.adaptive:  # the opening step differs from the rest: run it eagerly
+            self.body()
+            reps -= 1
+            if reps == 0:
+                return
+        if reps not in self.graphs:
+            tc = time.perf_counter()
+            with wp.ScopedCapture(device=self.model.device, force_module_load=True) as cap:
+                for _ in range(reps):
+                    self.body()
+            self.graphs[reps] = cap.graph
+            self.capture_time += time.perf_counter() - tc
+        wp.capture_launch(self.graphs[reps])

@@ -1,0 +1,300 @@
+"""The one HF run loop: chunks, recording, faults, progress, checkpoints and sinks, over an engine.
+
+An engine advances the pads and records samples into its :class:`~aca_warp.hf.recorder.Recorder`; everything
+around that — flushing chunks to a sink, the watchdog's faults, the progress bar, checkpoints and resume — is
+written once, here, for every engine:
+
+* :class:`~aca_warp.hf.general.GeneralEngine`: per-step kernels replayed from captured graphs, every integrator;
+* :class:`~aca_warp.hf.onchip.OnchipEngine`: one thread block (or cluster) per pad for many ``strang`` steps.
+
+A new integrator or engine implements :class:`Engine` (docs/architecture.md).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+import warp as wp
+
+from aca_warp.common.checkpoint import Checkpoint
+from aca_warp.common.errors import SceneError, SimulationFault
+from aca_warp.hf.model import PadModel
+from aca_warp.hf.options import RunOptions
+from aca_warp.hf.recorder import Chunk, Recorder, check_run, fault_from, watchdog_bound
+from aca_warp.hf.solver import StepEstimate
+from aca_warp.hf.state import HFState
+from aca_warp.scene import Record
+
+
+@dataclass
+class Progress:
+    """Where an engine stands after a chunk.
+
+    Attributes:
+        samples: Sample intervals completed (fixed-step engines; 0 for the adaptive one, whose clock is on the device).
+        steps: Accepted steps.
+        rejected: Rejected steps (adaptive only).
+        sim_time: Simulated time reached [s].
+        done: True when the whole duration is simulated.
+        fault: A fault the engine itself detected (e.g. step-size underflow), or None.
+    """
+
+    samples: int = 0
+    steps: int = 0
+    rejected: int = 0
+    sim_time: float = 0.0
+    done: bool = False
+    fault: SimulationFault | None = None
+
+
+class Engine(Protocol):
+    """What the run loop needs of an engine (constructed for one model, state, options and record)."""
+
+    recorder: Recorder
+    estimate: StepEstimate
+    stages: list[str]
+    blocks_per_pad: int
+    capture_time: float  # wall time spent capturing graphs inside advance() [s]
+    cause: str  # the likely cause of a fault, in words
+
+    def saved(self) -> dict[str, wp.array]:
+        """Device arrays a checkpoint holds besides the state, the recorder counters and the watchdog bound."""
+        ...
+
+    def begin(self, resume: dict[str, int] | None) -> None:
+        """Record sample 0, or take a checkpoint's counters (its arrays are restored already)."""
+        ...
+
+    def advance(self, progress: Progress, most: int) -> Progress:
+        """Advance one chunk from ``progress``, recording into the recorder; a fixed-step engine stops after at most
+        ``most`` sample intervals (so that a chunk ends at the next checkpoint)."""
+        ...
+
+    def counters(self) -> dict[str, int]:
+        """The engine's counters a checkpoint stores."""
+        ...
+
+    def step_used(self) -> float:
+        """The fixed step used, or the adaptive controller's last desired step [s]."""
+        ...
+
+    def finish(self) -> None:
+        """Leave the state synchronous (strang's staggered velocity closed)."""
+        ...
+
+
+@dataclass
+class RunResult:
+    """What a run did.
+
+    Attributes:
+        complete: True when the whole duration was simulated.
+        fault: The fault that stopped the run, or None.
+        steps: Accepted steps (all pads advance together).
+        rejected: Rejected steps (adaptive only).
+        sim_time: Simulated time reached [s].
+        wall_time: Wall time of the stepping loop, graph captures excluded [s].
+        compile_time: Wall time to load/compile the kernels and to capture the graphs [s].
+        dt: Step used (fixed-step) or the last desired step (adaptive) [s].
+        estimate: Stable-step estimate.
+        stages: Names of the stages that ran.
+        chunks: Recorded chunks when no sink was given (see :meth:`collect`).
+        blocks_per_pad: Thread blocks that advanced each pad (the on-chip engine's cluster size; 1 otherwise).
+    """
+
+    complete: bool
+    fault: SimulationFault | None
+    steps: int
+    rejected: int
+    sim_time: float
+    wall_time: float
+    compile_time: float
+    dt: float
+    estimate: StepEstimate
+    stages: list[str]
+    chunks: list[Chunk] = field(default_factory=list)
+    blocks_per_pad: int = 1
+
+    def collect(self) -> Chunk:
+        """All recorded chunks joined into one."""
+        c = self.chunks
+
+        def cat(name: str) -> np.ndarray | None:
+            parts = [getattr(x, name) for x in c if getattr(x, name) is not None]
+            return np.concatenate(parts) if parts else None
+
+        return Chunk(cat("time"), cat("globals"), cat("patch_time"), cat("velocity"), cat("displacement"))
+
+
+@dataclass(frozen=True)
+class EngineTuning:
+    """Engine settings that do not change results (general) or only by rounding (on-chip); for benchmarks.
+
+    Attributes:
+        use_graph: General engine: replay captured graphs (False: launch eagerly, for debugging).
+        max_graph_steps: General engine: most steps per captured graph.
+        block_dim: On-chip: threads per block (None: :func:`~aca_warp.hf.onchip_layout.default_block`).
+        csr_shared: On-chip: neighbour lists in shared memory (None: when they fit).
+        samples_per_launch: On-chip: sample intervals per launch (None: ~20k steps).
+        cluster: On-chip: blocks per pad (None: :func:`~aca_warp.hf.onchip_layout.default_cluster` on sm_90+).
+        ablate: On-chip profiling only: parts of the step left out (results wrong).
+        fast_math: On-chip profiling only: CUDA fast math.
+    """
+
+    use_graph: bool = True
+    max_graph_steps: int = 256
+    block_dim: int | None = None
+    csr_shared: bool | None = None
+    samples_per_launch: int | None = None
+    cluster: int | None = None
+    ablate: frozenset[str] = frozenset()
+    fast_math: bool = False
+
+
+def make_engine(
+    model: PadModel, state: HFState, options: RunOptions, record: Record, n_samples: int, tuning: EngineTuning
+) -> Engine:
+    """The engine ``options.engine`` resolves to (:func:`~aca_warp.hf.onchip.choose_engine`)."""
+    from aca_warp.hf.onchip import OnchipEngine
+    from aca_warp.hf.onchip_layout import choose_engine
+
+    if choose_engine(model, options.engine, options.integrator) == "onchip":
+        return OnchipEngine(model, state, options, record, n_samples, tuning)
+    from aca_warp.hf.general import GeneralEngine
+
+    return GeneralEngine(model, state, options, record, n_samples, tuning)
+
+
+def restore(saved: dict[str, wp.array], ckpt: Checkpoint) -> None:
+    """Copy a checkpoint's arrays into the run's device arrays (names, shapes and dtypes must match)."""
+    missing = sorted(set(saved) - set(ckpt.arrays))
+    extra = sorted(set(ckpt.arrays) - set(saved))
+    if missing or extra:
+        raise SceneError(
+            f"the checkpoint does not fit this run (missing {', '.join(missing) or 'nothing'}, "
+            f"unexpected {', '.join(extra) or 'nothing'}): another integrator or scene?"
+        )
+    for name, arr in saved.items():
+        data = ckpt.arrays[name]
+        want = np.dtype(wp.dtype_to_numpy(arr.dtype))
+        if data.shape != arr.shape or data.dtype != want:
+            raise SceneError(
+                f"checkpoint array {name} has shape {data.shape} and dtype {data.dtype}, the run needs {arr.shape} "
+                f"{want}: another scene or precision?"
+            )
+        arr.assign(data)
+
+
+def _progress_bar(total: float):  # noqa: ANN202 (tqdm)
+    from tqdm import tqdm
+
+    return tqdm(
+        total=total,
+        unit="s",
+        unit_scale=True,
+        dynamic_ncols=True,
+        bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s simulated [{elapsed}<{remaining}{postfix}]",
+    )
+
+
+def run_hf(
+    model: PadModel,
+    state: HFState,
+    options: RunOptions,
+    *,
+    record: Record | None = None,
+    sink: Callable[[Chunk], None] | None = None,
+    progress: bool = False,
+    on_checkpoint: Callable[[Checkpoint], None] | None = None,
+    resume: Checkpoint | None = None,
+    tuning: EngineTuning | None = None,
+) -> RunResult:
+    """Advance all pads of ``model`` from ``state`` as ``options`` say, recording as ``record`` says.
+
+    ``options.duration`` None means the first scene's duration. Samples go to ``sink`` (or into the result's
+    ``chunks``) at every chunk end. A non-finite value, or a patch beyond the watchdog bound
+    (:func:`~aca_warp.hf.recorder.watchdog_bound`), stops the run: the result carries the fault and every sample
+    before it. With ``options.checkpoint_interval`` and ``on_checkpoint``, the first chunk end at or past each
+    multiple of it hands a :class:`~aca_warp.common.checkpoint.Checkpoint` to ``on_checkpoint``; ``resume`` (a
+    checkpoint of the same scene, options, device and precision) continues from it with the same arithmetic in the
+    same order, so the samples equal an uninterrupted run's bit for bit.
+    """
+    t_compile = time.perf_counter()
+    record = record or model.scenes[0].record
+    duration = model.scenes[0].duration if options.duration is None else options.duration
+    n_samples = check_run(duration, record, options.checkpoint_interval)
+    engine = make_engine(model, state, options.with_duration(duration), record, n_samples, tuning or EngineTuning())
+    rec = engine.recorder
+    factor = options.watchdog_factor
+    bounds = np.full(model.pad_count, np.inf) if factor is None else watchdog_bound(model, state, factor)
+    rec.watch_bound.assign(bounds)
+    saved = {
+        "state/u": state.u,
+        "state/v": state.v,
+        "state/force": state.force,
+        "recorder/counters": rec.counters,
+        "watchdog/bound": rec.watch_bound,
+        **engine.saved(),
+    }
+    p = Progress()
+    if resume is not None:
+        restore(saved, resume)
+        c = resume.counters
+        p = Progress(int(c["samples"]), int(c["steps"]), int(c["rejected"]), resume.sim_time)
+        rec.sample_index = int(c["sample_index"])
+        bounds = rec.watch_bound.numpy()
+    engine.begin(None if resume is None else resume.counters)
+    compile_time = time.perf_counter() - t_compile
+    bar = _progress_bar(n_samples * record.sample_dt) if progress else None
+    if bar is not None and p.sim_time > 0:
+        bar.update(p.sim_time)
+    interval = options.checkpoint_interval if on_checkpoint is not None else None
+    next_checkpoint = math.inf if interval is None else (math.floor(p.sim_time / interval) + 1) * interval
+    out: list[Chunk] = []
+    emit = sink or out.append
+    t0 = time.perf_counter()
+    fault: SimulationFault | None = None
+    try:
+        while True:
+            most = n_samples if math.isinf(next_checkpoint) else math.ceil(next_checkpoint / record.sample_dt - 1e-9)
+            p = engine.advance(p, max(1, most - p.samples))
+            chunk, table = rec.flush()
+            fault = fault_from(table, model, record.sample_dt, engine.cause, rec.fault_value.numpy(), bounds) or p.fault
+            if fault is not None:
+                chunk = chunk.before(fault.time - 0.5 * record.sample_dt)
+            emit(chunk)
+            if bar is not None:
+                bar.update(p.sim_time - bar.n)
+                bar.set_postfix_str(f"{p.steps / max(time.perf_counter() - t0, 1e-9):.3g} steps/s")
+            if fault is None and not p.done and p.sim_time >= next_checkpoint * (1 - 1e-12):
+                counters = {"samples": p.samples, "steps": p.steps, "rejected": p.rejected, **engine.counters()}
+                counters["sample_index"] = rec.sample_index
+                arrays = {k: a.numpy().copy() for k, a in saved.items()}
+                on_checkpoint(Checkpoint(sim_time=p.sim_time, arrays=arrays, counters=counters))  # type: ignore[misc]
+                next_checkpoint = (math.floor(p.sim_time / interval) + 1) * interval  # type: ignore[operator]
+            if fault is not None or p.done:
+                break
+    finally:
+        if bar is not None:
+            bar.close()
+        engine.finish()
+    wp.synchronize_device(model.device)
+    return RunResult(
+        complete=fault is None,
+        fault=fault,
+        steps=p.steps,
+        rejected=p.rejected,
+        sim_time=p.sim_time,
+        wall_time=time.perf_counter() - t0 - engine.capture_time,
+        compile_time=compile_time + engine.capture_time,
+        dt=engine.step_used(),
+        estimate=engine.estimate,
+        stages=engine.stages,
+        chunks=out,
+        blocks_per_pad=engine.blocks_per_pad,
+    )

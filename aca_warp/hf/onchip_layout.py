@@ -1,0 +1,186 @@
+"""Launch layout of the on-chip HF engine: block size, cluster size, shared-memory tiles, and the engine choice.
+
+A pad lives in the shared memory of one thread block, or of a thread-block cluster of up to 16 blocks (CUDA
+sm_90+), for the whole launch (:mod:`aca_warp.hf.onchip`). These functions size the tiles (patches, the
+bank-interleaved neighbour lists), pick the threads per block and blocks per pad from measurements
+(docs/onchip.md), and decide whether a model runs on chip at all (:func:`choose_engine`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from aca_warp.common.errors import SceneError
+from aca_warp.hf.model import PadModel
+from aca_warp.hf.options import DEFAULT_INTEGRATOR, ENGINES
+from aca_warp.hf.solver import block_threads
+
+MAX_BLOCK = 1024  # threads per block
+MAX_CLUSTER = 16  # blocks per pad (8 is the portable cluster size; H100/H200 launch 16 as "non-portable")
+DEFAULT_BLOCK = 512  # threads per pad by default (1024 leaves 64 registers per thread: the fp64 kernel spills)
+# threads per block of a growing pad on one block: the growth kernel wants more than the 128 registers per thread
+# that 512 threads leave (H100 varying_area pad: 12.3 -> 11.4 us/step; docs/onchip.md)
+GROWTH_BLOCK = 384
+# threads of a (not growing) fp32 pad on one block: 96 registers, 3 patches per thread for hf1; H100, 1024 hf1 pads:
+# 61.3 -> 55.3 us/step against 512 (576, 672, 704 threads: 66-68; 1024: 56.2; docs/onchip.md, "Block size")
+FP32_BLOCK = 640
+_SMEM_RESERVE = 8 * 1024  # bytes left for Warp's reduction scratch and static shared memory
+
+
+def itemsize(model: PadModel) -> int:
+    return 8 if model.dtype == wp.float64 else 4
+
+
+def _round_up(x: int, m: int) -> int:
+    return max(m, -(-x // m) * m)
+
+
+def pad_sizes(model: PadModel, cluster: int = 1) -> tuple[int, int]:
+    """(most patches in one pad, most neighbour links of one block) of the batch, a pad split over ``cluster``
+    blocks as the kernel splits it (block r: patches n·r // K … n·(r + 1) // K − 1)."""
+    start = model.pad_patch_start_host
+    nbr = model.host("nbr_start")
+    n = np.diff(start)
+    cuts = start[:-1, None] + n[:, None] * np.arange(cluster + 1)[None, :] // cluster
+    return int(n.max()), int(np.diff(nbr[cuts], axis=1).max())
+
+
+def csr_slots(model: PadModel, cluster: int = 1, threads: int = 1) -> int:
+    """Length of a block's on-chip neighbour-list tiles in the kernel's bank-interleaved layout.
+
+    Thread ``lane`` of a block of ``threads`` stores its patches' links one after another, link m at slot
+    W·(s + m) + lane mod W (W = min(threads, 32); s: the links of the threads before it with the same lane mod W),
+    so that the 32 lanes of a warp always read 32 different shared-memory banks. The tile needs W times the
+    largest sum of links over the threads of one bank, over every block of the batch (a pad split over
+    ``cluster`` blocks as the kernel splits it).
+    """
+    start = model.pad_patch_start_host
+    deg = np.diff(model.host("nbr_start"))
+    w = min(threads, 32)
+    per_thread = -(-int(np.diff(start).max()) // threads) * threads
+    banks = -(-threads // w) * w
+    most = 0
+    for p in range(model.pad_count):
+        n = start[p + 1] - start[p]
+        for r in range(cluster):
+            d = np.zeros(per_thread, dtype=np.int64)
+            part = deg[start[p] + n * r // cluster : start[p] + n * (r + 1) // cluster]
+            d[: part.size] = part
+            t = np.zeros(banks, dtype=np.int64)
+            t[:threads] = d.reshape(-1, threads).sum(axis=0)  # links per thread
+            most = max(most, int(t.reshape(-1, w).sum(axis=0).max()))  # links per bank
+    return w * most
+
+
+def tile_sizes(model: PadModel, cluster: int = 1, threads: int = 1) -> tuple[int, int]:
+    """The kernel's tile sizes (patches, CSR slots) for blocks of ``threads`` threads: the most patches of a pad
+    and :func:`csr_slots`, rounded up to whole warps (32)."""
+    return _round_up(pad_sizes(model, cluster)[0], 32), _round_up(csr_slots(model, cluster, threads), 32)
+
+
+def default_block(nmax: int, cluster: int, growth: bool, fp64: bool) -> int:
+    """Threads per block for ``block_dim=None``: the block's part of an ``nmax``-patch pad rounded up to 32, at most
+    ``DEFAULT_BLOCK``; on one block at most ``GROWTH_BLOCK`` for a growing pad, ``FP32_BLOCK`` for an fp32 one."""
+    cap = DEFAULT_BLOCK
+    if cluster == 1:
+        cap = GROWTH_BLOCK if growth else (DEFAULT_BLOCK if fp64 else FP32_BLOCK)
+    return min(cap, _round_up(-(-nmax // cluster), 32))
+
+
+def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1, threads: int = 1) -> int:
+    """Shared memory one block of ``threads`` threads needs [bytes]: u (×2), w, F_s per patch of the pad, the
+    cluster's table of sample sums and, on a cluster, the u exchange's two mbarriers and its per-patch mask of
+    receiving blocks, plus the block's part of the CSR (:func:`csr_slots`) when kept on chip."""
+    nmax, slots = tile_sizes(model, cluster, threads)
+    b = 4 * nmax * itemsize(model) + 64 * cluster
+    if cluster > 1:
+        b += 16 + 4 * (nmax // cluster + 1)
+    if csr_shared:
+        b += slots * (2 + itemsize(model))  # int16 local index, k_ij in the state precision
+    return b
+
+
+def default_cluster(pads: int, sm_count: int, split_fits_csr: bool = False) -> int:
+    """Blocks per pad for ``cluster=None`` on a CUDA device of compute capability 9.0+ (growing pads too).
+
+    A cluster's blocks run on the SMs of one GPC, and the batch should run in one wave: every cluster resident at
+    once (one hf1 block per SM). Measured on an H100 (132 SMs; hf1 fp32, 2026-11-25,
+    docs/benchmarks/onchip_h100/cluster_waves_*.md): 14 clusters of 8, 28 of 4 and 66 of 2 run in one wave, 16, 32
+    and 68 need a second one (a step then takes 1.6–1.9× as long). Whole GPCs of 18 SMs (sm_count // 18 of them)
+    hold 18 // K clusters of 4 or 8, and pairs fill every SM; so K is the largest of 8, 4 with pads ≤
+    (sm_count // 18) · (18 // K), else 2 with pads ≤ sm_count // 2; otherwise 1, or 2 when only a pad split in two
+    keeps its neighbour lists in shared memory (fp64 hf1 pads: 2 blocks fastest, or within 2 %, from 57 to 1024
+    pads). Once the batch fills the GPU, a cluster loses (it repeats the u update of the whole pad in every block):
+    fp32 pads 67–1024 run fastest on one block each (64 pads: 7.2 µs/step on K = 1, 4.5 on K = 2; 100 pads: 7.5
+    against 8.3). One pad: 6.3 → 1.8 µs/step fp32 (K = 1 → 8) and 18.4 → 2.6 fp64
+    (docs/benchmarks/onchip_h100/bench_cluster.md); the growing varying_area pad (an event every 20 steps):
+    11.4 → 2.7 µs/step fp32 (K = 1 → 8; K = 4: 3.5; docs/benchmarks/onchip_h100/cluster_exchange_ab.md).
+    """
+    gpcs = max(sm_count // 18, 1)
+    for k in (8, 4):
+        if pads <= gpcs * (18 // k):
+            return k
+    if pads <= sm_count // 2:
+        return 2
+    return 2 if split_fits_csr else 1
+
+
+def smem_limit(model: PadModel, per_block: int | None = None) -> int:
+    """Shared memory a block's tiles may use [bytes]: ``per_block`` (default: the model device's opt-in limit per
+    block; Warp's CPU tile arena on the CPU) less the reserve for Warp's own scratch."""
+    if per_block is None:
+        dev = model.device
+        per_block = 256 * 1024 if dev.is_cpu else int(dev.max_shared_memory_per_block)  # CPU: native/tile.h arena
+    return per_block - _SMEM_RESERVE
+
+
+def block_config(
+    model: PadModel, cluster: int, block_dim: int | None = None, csr_shared: bool | None = None
+) -> tuple[int, int, bool]:
+    """(block size, threads the device runs per block, CSR on chip) of a launch with ``cluster`` blocks per pad:
+    ``block_dim`` or :func:`default_block`; ``csr_shared`` or, when None, whether the neighbour lists fit shared
+    memory beside the state. Raises :class:`SceneError` for a block size out of range or a CSR asked on chip that
+    does not fit."""
+    nmax = pad_sizes(model, cluster)[0]
+    if block_dim is None:
+        block_dim = default_block(nmax, cluster, "pad_growth" in model.arrays, model.dtype == wp.float64)
+    if not 1 <= block_dim <= MAX_BLOCK:
+        raise SceneError(f"block_dim must be in [1, {MAX_BLOCK}], got {block_dim}")
+    threads = block_threads(model.device, block_dim)
+    fits = shared_bytes(model, True, cluster, threads) <= smem_limit(model)
+    if csr_shared and not fits:
+        raise SceneError(f"the neighbour lists of a {nmax}-patch pad do not fit shared memory with the state")
+    return block_dim, threads, fits if csr_shared is None else bool(csr_shared)
+
+
+def unsupported(model: PadModel, integrator: str = DEFAULT_INTEGRATOR) -> str | None:
+    """Why the on-chip engine cannot run this model (None when it can)."""
+    if integrator != "strang":
+        return f"the on-chip engine implements the strang integrator only (got {integrator})"
+    need, limit = shared_bytes(model, False), smem_limit(model)
+    if need > limit:
+        return (
+            f"a pad of {pad_sizes(model)[0]} patches needs {need} B of shared memory per block, "
+            f"the device offers {limit} B"
+        )
+    return None
+
+
+def choose_engine(model: PadModel, engine: str, integrator: str = DEFAULT_INTEGRATOR) -> str:
+    """Resolve ``engine`` (auto, onchip, general) for a model; ``onchip`` on an unsupported model is an error.
+
+    ``auto`` picks ``onchip`` on CUDA when the model allows it (faster there, docs/onchip.md) and ``general`` on
+    the CPU (Warp runs a block as one thread there, so the on-chip kernel is no faster), growing models included
+    (their in-kernel growth passes ``scripts/onchip_gpu_check.py --growth`` on an H100; docs/onchip.md).
+    """
+    if engine not in ENGINES:
+        raise SceneError(f"unknown engine {engine!r}; choose from {', '.join(ENGINES)}")
+    why = unsupported(model, integrator)
+    if engine == "onchip":
+        if why is not None:
+            raise SceneError(f"--engine onchip: {why}")
+        return "onchip"
+    if engine == "general" or why is not None or model.device.is_cpu:
+        return "general"
+    return "onchip"

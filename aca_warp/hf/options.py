@@ -1,0 +1,82 @@
+"""How an HF run advances: :class:`RunOptions`, one typed and validated object from the command line to the loop.
+
+The run file stores it as JSON (root attribute ``run_options``), so that ``rerun`` and ``--resume`` repeat a
+run from what its file says. The model-build choices (device, precision) are not run options: they belong to
+the model (:func:`aca_warp.hf.model.build_model`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
+
+from aca_warp.common.errors import SceneError
+
+INTEGRATORS = ("symplectic-euler", "implicit-friction", "strang", "adaptive")
+DEFAULT_INTEGRATOR = "strang"
+DEFAULT_DT = 1.0e-8  # s
+DEFAULT_TOLERANCE = 1.0e-4
+ENGINES = ("auto", "onchip", "general")
+WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (recorder.watchdog_bound)
+
+
+def _positive_or_none(name: str, value: float | None, unit: str) -> None:
+    if value is not None and not (isinstance(value, int | float) and value > 0 and math.isfinite(value)):
+        raise SceneError(f"{name} must be a positive number{unit}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """Options of one HF run (all validated on construction; :class:`SceneError` names the bad one).
+
+    Attributes:
+        duration: Simulated time [s]; None: the scene's own duration.
+        integrator: One of :data:`INTEGRATORS` (docs/numerics.md).
+        dt: Fixed step [s] (shortened so that whole steps fit a sample interval); None: :data:`DEFAULT_DT`.
+            For ``adaptive`` the first trial step.
+        tolerance: Relative tolerance of the adaptive integrator [1].
+        force: Run a fixed step beyond the stable-step estimate.
+        engine: ``auto``, ``general`` or ``onchip`` (docs/onchip.md).
+        checkpoint_interval: Simulated time between checkpoints [s]; None: no checkpoints.
+        watchdog_factor: Watchdog bound in units of the scene's velocity scale; None: only non-finite checks.
+    """
+
+    duration: float | None = None
+    integrator: str = DEFAULT_INTEGRATOR
+    dt: float | None = None
+    tolerance: float = DEFAULT_TOLERANCE
+    force: bool = False
+    engine: str = "auto"
+    checkpoint_interval: float | None = None
+    watchdog_factor: float | None = WATCHDOG_FACTOR
+
+    def __post_init__(self) -> None:
+        if self.integrator not in INTEGRATORS:
+            raise SceneError(f"unknown integrator {self.integrator!r}; choose from {', '.join(INTEGRATORS)}")
+        if self.engine not in ENGINES:
+            raise SceneError(f"unknown engine {self.engine!r}; choose from {', '.join(ENGINES)}")
+        _positive_or_none("duration", self.duration, " of seconds")
+        _positive_or_none("dt", self.dt, " of seconds")
+        _positive_or_none("checkpoint_interval", self.checkpoint_interval, " of seconds")
+        _positive_or_none("watchdog_factor", self.watchdog_factor, "")
+        if not (isinstance(self.tolerance, int | float) and self.tolerance > 0 and math.isfinite(self.tolerance)):
+            raise SceneError(f"tolerance must be a positive number, got {self.tolerance!r}")
+
+    def with_duration(self, duration: float) -> RunOptions:
+        """A copy with ``duration`` [s] set."""
+        return replace(self, duration=duration)
+
+    def to_json(self) -> str:
+        """The options as a JSON object (what the run file stores)."""
+        return json.dumps(asdict(self))
+
+    @classmethod
+    def from_dict(cls, doc: dict[str, Any]) -> RunOptions:
+        """Options from a stored dict; unknown keys are an error, missing ones take their defaults."""
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(doc) - names)
+        if unknown:
+            raise SceneError(f"unknown run options {', '.join(unknown)}")
+        return cls(**doc)

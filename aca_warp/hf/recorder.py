@@ -1,0 +1,234 @@
+"""Recording of an HF run: the global outputs and per-patch histories on the device, flushed in chunks; the watchdog.
+
+Every engine records through one :class:`Recorder`: device buffers of the global outputs (μ, torque, friction
+radius, Σu̇, Σ|u̇|) per sample and pad, per-patch histories over the scene's window, a sample counter, and the
+watchdog's fault table (the first non-finite or diverging patch per pad). The run loop flushes them to the host
+at chunk ends (:mod:`aca_warp.hf.loop`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from aca_warp.common.errors import SceneError, SimulationFault
+from aca_warp.hf.model import PadModel
+from aca_warp.hf.options import WATCHDOG_FACTOR
+from aca_warp.hf.state import HFState
+from aca_warp.kernels import hf as K
+from aca_warp.scene import Record
+
+GLOBAL_NAMES = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity")
+GLOBAL_UNITS = ("1", "N m", "m", "m s-1", "m s-1")
+
+
+def check_run(duration: float, record: Record, checkpoint_every: float | None = None) -> int:
+    """Validate a run's duration [s], sample interval and checkpoint interval [s]; returns the number of samples."""
+    if not (duration > 0 and math.isfinite(duration)):
+        raise SceneError(f"duration must be a positive number of seconds, got {duration}")
+    if record.sample_dt > duration * (1 + 1e-12):
+        raise SceneError(f"sample interval {record.sample_dt:g} s exceeds the duration {duration:g} s")
+    if checkpoint_every is not None and not (checkpoint_every > 0 and math.isfinite(checkpoint_every)):
+        raise SceneError(f"checkpoint interval must be a positive number of seconds, got {checkpoint_every}")
+    n_samples = max(1, round(duration / record.sample_dt))
+    if n_samples > 2**31 - 2:  # the recorder counts samples in int32
+        raise SceneError(
+            f"{duration:g} s at a sample interval of {record.sample_dt:g} s is {n_samples:.3g} samples, more than "
+            f"a run records (2^31 - 2); use a larger sample interval"
+        )
+    return n_samples
+
+
+def watchdog_bound(model: PadModel, state: HFState, factor: float = WATCHDOG_FACTOR) -> np.ndarray:
+    """Per-pad bound on the patch energy speed s_i = √(u̇_i² + (k_T,i/m_i) u_i²) [m/s], shape (pads,).
+
+    B = max_i ω r_i + 3 max_i F_N,i M / √(k_T,i m_i) + 3 √(2 E₀ / m_min), bound = ``factor`` × B. The first
+    term is the disc speed (friction feeds energy only while 0 < u̇ < ω r); the second the speed of a patch
+    released from its largest static deflection F_N M / k_T under the largest friction force (|f| ≤ M); the
+    third the initial energy E₀ = Σ ½ m u̇₀² + ½ k_T u₀² concentrated in the lightest patch. Bounded runs stay
+    within about B (tests/test_extreme.py asserts |u̇| < B over its whole table); an unstable step grows
+    exponentially and crosses ``factor`` × B within a few dozen e-foldings, before it turns non-finite. A pad
+    with no load, no disc speed and no initial energy cannot move: its bound is +inf (only the non-finite check).
+    """
+    m = 1.0 / model.host("inv_mass").astype(np.float64)
+    k = model.host("k_t").astype(np.float64)
+    fn = model.host("normal_force").astype(np.float64)
+    r = model.host("radius").astype(np.float64)
+    u0, v0 = (a.astype(np.float64) for a in state.numpy())
+    out = np.empty(model.pad_count)
+    for p, s in enumerate(model.scenes):
+        a, b = (int(x) for x in model.pad_patch_start_host[p : p + 2])
+        e0 = 0.5 * float(np.sum(m[a:b] * v0[a:b] ** 2 + k[a:b] * u0[a:b] ** 2))
+        scale = (
+            float(np.max(np.abs(s.angular_velocity * r[a:b])))
+            + 3.0 * float(np.max(fn[a:b] * s.friction.M / np.sqrt(k[a:b] * m[a:b])))
+            + 3.0 * math.sqrt(2.0 * e0 / float(m[a:b].min()))
+        )
+        out[p] = factor * scale if scale > 0 and math.isfinite(scale) else math.inf
+    return out
+
+
+@dataclass
+class Chunk:
+    """Samples recorded since the previous flush.
+
+    Attributes:
+        time: Sample times [s], shape (rows,).
+        globals: Global outputs per sample and pad, shape (rows, pads, 5), order of ``GLOBAL_NAMES``.
+        patch_time: Times of the per-patch samples [s], shape (prows,).
+        velocity: Patch velocities [m/s], shape (prows, patch_count), or None.
+        displacement: Patch displacements [m], shape (prows, patch_count), or None.
+    """
+
+    time: np.ndarray
+    globals: np.ndarray
+    patch_time: np.ndarray
+    velocity: np.ndarray | None
+    displacement: np.ndarray | None
+
+    def before(self, t: float) -> Chunk:
+        """The samples taken before time ``t`` [s] (a fault's samples and those after it dropped)."""
+        keep, pkeep = self.time < t, self.patch_time < t
+        return Chunk(
+            self.time[keep],
+            self.globals[keep],
+            self.patch_time[pkeep],
+            None if self.velocity is None else self.velocity[pkeep],
+            None if self.displacement is None else self.displacement[pkeep],
+        )
+
+
+class Recorder:
+    """Device buffers and launches for the global outputs and per-patch histories."""
+
+    def __init__(self, model: PadModel, record: Record, rows: int, n_samples: int) -> None:
+        self.model = model
+        self.record = record
+        dev, T = model.device, model.dtype
+        self.sample_dt = record.sample_dt
+        k0 = math.ceil(record.window[0] / record.sample_dt - 1e-9)
+        k1 = record.window[1] / record.sample_dt + 1e-9
+        self.first = int(k0)
+        self.last = int(min(k1, n_samples, 2**31 - 2))
+        self.every = record.decimation
+        self.want_v = "velocity" in record.patches and self.first <= self.last
+        self.want_u = "displacement" in record.patches and self.first <= self.last
+        if not (self.want_v or self.want_u):
+            self.first, self.last = 0, -1  # no sample is due
+        prow = rows if (self.want_v or self.want_u) else 0
+        n = model.patch_count if prow else 0
+        self.counters = wp.zeros(4, dtype=wp.int32, device=dev)
+        self.globals = wp.zeros((rows, model.pad_count, K.N_GLOBAL), dtype=wp.float64, device=dev)
+        # watchdog: [patch, sample, kind] of the first fault per pad (kind 0 non-finite, 1 beyond watch_bound)
+        table = np.full((model.pad_count, 3), -1, np.int32)
+        table[:, 2] = 0
+        self.fault = wp.array(table, dtype=wp.int32, device=dev)
+        self.fault_value = wp.zeros(model.pad_count, dtype=wp.float64, device=dev)
+        self.watch_bound = wp.array(np.full(model.pad_count, np.inf), dtype=wp.float64, device=dev)
+        self.velocity = wp.zeros((prow, n), dtype=T, device=dev)
+        self.displacement = wp.zeros((prow if self.want_u else 0, n), dtype=T, device=dev)
+        self.sample_index = 0
+
+    @property
+    def patch_stage(self) -> bool:
+        """Whether per-patch histories are recorded at all."""
+        return self.want_v or self.want_u
+
+    def launch(self, u: wp.array, v: wp.array, conditional: bool) -> None:
+        """Record one sample of (u, u̇) (conditional: only when the adaptive controller landed on a sample)."""
+        m, c = self.model, int(conditional)
+        wp.launch(
+            K.record_globals,
+            dim=m.pad_count,
+            device=m.device,
+            inputs=[
+                m.pad_patch_start,
+                m.normal_force,
+                m.radius,
+                m.pad_omega,
+                m.pad_mu_scale,
+                m.pad_slope,
+                m.pad_decay,
+                m.pad_mu_pad,
+                m.pad_load,
+                m.pad_matrix_force,
+                m.pad_matrix_radius,
+                m.inv_mass,
+                m.k_t,
+                c,
+                u,
+                v,
+                self.counters,
+                self.globals,
+                self.watch_bound,
+                self.fault,
+                self.fault_value,
+            ],
+        )
+        if self.patch_stage:
+            wp.launch(
+                K.record_patches,
+                dim=m.patch_count,
+                device=m.device,
+                inputs=[self.first, self.last, self.every, c, u, v, self.counters, self.velocity, self.displacement],
+            )
+        wp.launch(
+            K.advance_counters, dim=1, device=m.device, inputs=[self.first, self.last, self.every, c, self.counters]
+        )
+
+    def flush(self) -> tuple[Chunk, np.ndarray]:
+        """Copy the recorded rows to the host and reset the buffers; returns the chunk and the fault table."""
+        c = self.counters.numpy()
+        rows, prows = int(c[1]), int(c[2])
+        k = np.arange(self.sample_index, self.sample_index + rows)
+        due = (k >= self.first) & (k <= self.last) & ((k - self.first) % self.every == 0)
+        assert int(due.sum()) == prows, "per-patch rows out of step with the sample counter"
+        chunk = Chunk(
+            time=k * self.sample_dt,
+            globals=self.globals.numpy()[:rows].copy(),
+            patch_time=k[due] * self.sample_dt,
+            velocity=self.velocity.numpy()[:prows].copy() if self.want_v else None,
+            displacement=self.displacement.numpy()[:prows].copy() if self.want_u else None,
+        )
+        self.sample_index += rows
+        c[1] = c[2] = 0
+        wp.copy(self.counters, wp.array(c, dtype=wp.int32, device=self.model.device))
+        return chunk, self.fault.numpy()
+
+
+def fault_from(
+    table: np.ndarray,
+    model: PadModel,
+    sample_dt: float,
+    cause: str,
+    values: np.ndarray | None = None,
+    bounds: np.ndarray | None = None,
+) -> SimulationFault | None:
+    """The earliest fault of the watchdog table (pads, 2 or 3): [patch, sample, kind]; None when there is none."""
+    bad = np.flatnonzero(table[:, 0] >= 0)
+    if len(bad) == 0:
+        return None
+    pad = int(bad[np.argmin(table[bad, 1])])
+    patch, k = int(table[pad, 0]), int(table[pad, 1])
+    kind = int(table[pad, 2]) if table.shape[1] > 2 else 0
+    t = k * sample_dt
+    if kind == 1:
+        what = (
+            f"diverging state (patch energy speed {values[pad]:.3g} m/s beyond the watchdog bound "
+            f"{bounds[pad]:.3g} m/s; stopped before it turns non-finite)"
+            if values is not None and bounds is not None
+            else "diverging state (beyond the watchdog bound)"
+        )
+    else:
+        what = "non-finite state"
+    return SimulationFault(
+        f"{what} at t <= {t:.6g} s (sample {k}, between {max(t - sample_dt, 0):.6g} and {t:.6g} s), "
+        f"pad {pad}, patch {patch}; likely cause: {cause}",
+        time=t,
+        pad=pad,
+        patch=patch,
+        cause=cause,
+    )
