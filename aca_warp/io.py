@@ -1,6 +1,6 @@
 """HDF5 run files: one file per run, SI ``unit`` attribute on every dataset, provenance as attributes.
 
-Layout (issue "run files")::
+Layout (docs/run_files.md)::
 
     /global/time, mu, torque, friction_radius, sum_velocity, sum_abs_velocity     (samples,)
     /patches/x, y, area, height, mass, normal_force                               (patches,)
