@@ -8,8 +8,8 @@ at a quarter of the step, over the same window).
 
 Timing method (all on warm kernels):
 
-* ``wall_s``, ``steps_per_s``, ``patch_steps_per_s``: one run (:func:`aca_warp.hf.onchip.run` with the case's
-  ``engine``: ``general`` is :func:`aca_warp.hf.run_hf`, ``onchip`` the on-chip kernel (``blocks_per_pad``: its
+* ``wall_s``, ``steps_per_s``, ``patch_steps_per_s``: one run (:func:`aca_warp.hf.loop.run_hf` with the case's
+  ``engine``: ``general`` is :func:`aca_warp.hf.loop.run_hf`, ``onchip`` the on-chip kernel (``blocks_per_pad``: its
   thread-block cluster size, :func:`aca_warp.hf.onchip.default_cluster`), ``auto`` resolves as
   ``aca-warp hf`` does) over the timed window, recording every sample (what a user's run does; graph capture and
   compilation excluded, as in ``RunResult.wall_time``). ``engine`` in the row is the resolved one.

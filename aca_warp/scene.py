@@ -45,7 +45,7 @@ def _finite(name: str, value: Any, *, low: float | None = None, strict: bool = F
 
 @dataclass(frozen=True)
 class Material:
-    """Constants of the HF model (model.md §2); each overridable in a scene's ``[material]`` table.
+    """Constants of the HF model (docs/model.md §2.1); each overridable in a scene's ``[material]`` table.
 
     Attributes:
         K_N: Normal stiffness constant, k_N = K_N √A [N m⁻²] (paper Eq. 1).
@@ -217,7 +217,7 @@ class Patches:
 
 @dataclass(frozen=True)
 class PatchGenerator:
-    """Seeded generator of non-overlapping patches, uniform over the pad (model.md, presets).
+    """Seeded generator of non-overlapping patches, uniform over the pad (docs/model.md §2.9).
 
     Attributes:
         count: Number of patches.
@@ -355,7 +355,7 @@ class Initial:
 
 @dataclass(frozen=True)
 class Growth:
-    """Patch growth of the varying-area study (paper Eq. 10, model.md presets).
+    """Patch growth of the varying-area study (paper Eq. 10, docs/model.md §2.10).
 
     Every ``interval`` of simulated time each area grows by ΔA = increment·√A. Eq. 10 (A in mm²,
     +1e-6·√A every 202 steps of ~1 ns) is increment = 1e-9 m and interval = 2.02e-7 s.
@@ -375,7 +375,7 @@ class Growth:
 
 @dataclass(frozen=True)
 class Record:
-    """What to record (model.md "Global outputs"): nothing else is computed or stored.
+    """What to record (docs/model.md §2.8): nothing else is computed or stored.
 
     Attributes:
         sample_dt: Interval between samples of the global outputs [s].
@@ -411,7 +411,7 @@ class Record:
 
 @dataclass(frozen=True)
 class Matrix:
-    """Pad matrix contact elements (Winkler cells), model.md "Normal force distribution".
+    """Pad matrix contact elements (Winkler cells), docs/model.md §2.6.
 
     Attributes:
         area: Uncovered area of each cell [m²], shape (c,).
@@ -640,7 +640,7 @@ def load_scene(spec: str | Path) -> Scene:
 
 
 def preset(name: str) -> Scene:
-    """The built-in scene ``name`` (files ``aca_warp/data/<name>.toml``; model.md presets table)."""
+    """The built-in scene ``name`` (files ``aca_warp/data/<name>.toml``; docs/model.md §2.9)."""
     if name not in PRESETS:
         raise SceneError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
     text = resources.files("aca_warp.data").joinpath(f"{name}.toml").read_text()

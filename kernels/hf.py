@@ -1,6 +1,6 @@
 """HF kernels: patch forces, integrator stages, recording, growth and the device contact solve.
 
-Equation of motion of patch i (paper §2.1.2, model.md §2), u along the local disc direction:
+Equation of motion of patch i (paper §2.1.2, docs/model.md §2.2), u along the local disc direction:
 
     m_i ü_i + c_i u̇_i + k_T,i u_i + Σ_j k_ij (u_i − u_j) = F_N,i f(ω r_i − u̇_i),
     k_ij = K_C √A_i √A_j / D0_ij,   f(v) = (M/π) atan(a v) (1/(b|v| + 1) + 1)   (Eq. 4, signed).

@@ -1,4 +1,4 @@
-"""Benchmark of the Synchronization Index on a large per-patch record (issue: 1758 patches × 2^20 samples).
+"""Benchmark of the Synchronization Index on a large per-patch record (target size: 1758 patches × 2^20 samples).
 
 Writes a synthetic run-file-like HDF5 dataset ``/patches/velocity`` (float32, samples × patches, chunks (1024, 64)
 as in run files) of patches oscillating at a few shared frequencies with random phases plus noise, then times

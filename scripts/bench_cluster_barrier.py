@@ -7,7 +7,7 @@ has stored its patches' new displacements into the shared-memory copy of every b
 times that skeleton alone, per step: a loop of ``steps`` rounds, each (optionally) storing one value per thread
 into the u copy of every block of the cluster (``--remote``: the kernel's ``put_u_at``), then the barrier, then
 reading one value back (so that the rounds form a chain as in the kernel). No physics: what it measures is the
-least time a step on K blocks can take, to set beside the one-pad target (1.5 µs per step, issue 6) and the
+least time a step on K blocks can take, to set beside the one-pad target (1.5 µs per step) and the
 kernel's ablation profile ("loop only" / "no friction, no gather" rows of docs/onchip.md).
 
 Prints a Markdown table (ns per round: barrier only, with the stores into the K copies) and writes JSON rows::

@@ -6,7 +6,7 @@ patch slots, mean alive patches), kernel load/compile time separately from the r
 element-steps/s (cells + patch slots per step), the contact-solve passes per loaded step (mean, max), the
 merge-candidate rebuilds (and the steps with births or merges, which cause them, and with deaths only), and two
 checks of the final state: the contact force balance |ΣF_N − F_N| / F_N and the debris mass balance over the
-last step. Targets (issue 5): ≥ 100 LF steps/s on one
+last step. Targets: ≥ 100 LF steps/s on one
 CPU core, ≥ 2000 on a GPU. Examples::
 
     python3 scripts/bench_lf.py                           # CPU, whole schedule (~5500 steps)

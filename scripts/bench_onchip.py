@@ -86,10 +86,10 @@ def main() -> None:
     ap.add_argument("--precisions", nargs="+", default=["fp32", "fp64"], choices=["fp32", "fp64"])
     ap.add_argument(
         "--clusters", nargs="+", type=int, default=[1],
-        help="blocks per pad to try (default 1; 0: run_onchip's default, default_cluster)",
+        help="blocks per pad to try (default 1; 0: the on-chip engine's default, default_cluster)",
     )  # fmt: skip
     ap.add_argument(
-        "--blocks", nargs="+", type=int, default=[0], help="threads per block to try (0, the default: run_onchip's)"
+        "--blocks", nargs="+", type=int, default=[0], help="threads per block to try (0, the default: the on-chip engine's)"
     )
     ap.add_argument(
         "--csr", nargs="+", choices=["auto", "on", "off"], default=["auto"], help="neighbour lists in shared memory"

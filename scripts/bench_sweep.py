@@ -8,7 +8,7 @@ load, sweep wall time, patch-steps/s over the sweep wall time (cluster already u
 first configuration. The sweep: hf1 (1758 patches) × friction.M (16 values) × load.normal_force (16) ×
 patches.seed (8) = 2048 pads, ``strang``, fp32, dt = 1e-8 s, 1 µs samples, shards of 256 pads.
 
-On a machine with two GPUs (issue 6 target: ≥ 1.8×)::
+On a machine with two GPUs (target: ≥ 1.8×)::
 
     NCCL_NVLS_ENABLE=0 python scripts/bench_sweep.py --device cuda --json bench_sweep.json
 

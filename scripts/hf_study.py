@@ -387,7 +387,7 @@ def simulate(scene: Any, path: Path, args: argparse.Namespace, log: Log, label: 
         try:
             with h5py.File(path, "r") as f:
                 ok = bool(run_attr(f, "complete", False))
-                dur = float(run_attr(f, "step_policy", {}).get("duration", -1.0))
+                dur = float(run_attr(f, "run_options", {}).get("duration", -1.0))
                 if ok and math.isclose(dur, args.duration, rel_tol=1e-9):
                     log(f"{label}: reusing {path}")
                     return {

@@ -66,13 +66,13 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--preset", default="hf1", help="scene preset whose pad size is used (default hf1)")
     ap.add_argument("--clusters", type=int, nargs="+", default=[1, 2, 4, 8], help="blocks per pad (default 1 2 4 8)")
-    ap.add_argument("--blocks", type=int, nargs="*", help="threads per block (default: run_onchip's choice)")
+    ap.add_argument("--blocks", type=int, nargs="*", help="threads per block (default: the on-chip engine's choice)")
     ap.add_argument("--precisions", nargs="+", default=["fp32", "fp64"], choices=["fp32", "fp64"])
     ap.add_argument(
         "--smem-per-block",
         type=int,
         default=H100_SMEM_PER_BLOCK,
-        help="shared memory per block the device offers [bytes], which decides as run_onchip does whether the "
+        help="shared memory per block the device offers [bytes], which decides as the on-chip engine does whether the "
         f"neighbour lists are kept on chip (default {H100_SMEM_PER_BLOCK}, H100 and H200)",
     )
     ap.add_argument("--json", type=Path, help="write the rows here")

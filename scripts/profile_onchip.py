@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Where the on-chip HF kernel spends its time: ablation profile on one hf1 pad (or a batch of them).
 
-Times ``aca_warp.hf.onchip.run_onchip`` on one pad (``--pads N``: a batch of N identical pads) for a window of steps
+Times the on-chip engine (``aca_warp.hf.onchip``) on one pad (``--pads N``: a batch of N identical pads) for a window of steps
 with parts of the step left out (``ablate``: the implicit friction solve → an explicit kick, the neighbour gather
 or its second half, the block barrier; the results of an ablated run are wrong and only its time counts), for
 several block sizes, with the CSR in shared or global memory, fp32 and fp64, and the general per-step path for
@@ -48,7 +48,7 @@ CASES = [
     ("full", "fp64", 512, None, ()),
     ("full, fast math", "fp32", 512, None, ("fast_math",)),
     ("full, fast math, block 1024", "fp32", 1024, None, ("fast_math",)),
-    # run_onchip's block (640 threads fp32): with --pads 1024 the batched target's case
+    # the on-chip engine's block (640 threads fp32): with --pads 1024 the batched target's case
     ("full, default block", "fp32", None, None, ()),
     ("no friction solve, default block", "fp32", None, None, ("friction",)),
     ("no gather, default block", "fp32", None, None, ("gather",)),
@@ -81,7 +81,7 @@ CASES = [
     ("full, cluster 8", "fp64", None, None, ("cluster8",)),
     ("full, cluster 16", "fp64", None, None, ("cluster16",)),
 ]
-# --growth: (label, precision, block_dim (None: run_onchip's choice), ablations (with "clusterK" tags as above) or
+# --growth: (label, precision, block_dim (None: the on-chip engine's choice), ablations (with "clusterK" tags as above) or
 # None for the general path, event interval × this; 0: no growth)
 GROWTH_CASES = [
     ("general path, growth", "fp32", None, None, 1),

@@ -48,7 +48,7 @@ from aca_warp.scene import Growth, Record, Scene, preset  # noqa: E402
 STATE_FILE = "varying_area_state.npz"
 RECORD_FILE = "varying_area.npz"
 PAPER_PEAK_HZ = 69.1e3
-K_T, RHO_A = 1.87e9, 37.5  # model.md §2: k_T = K_T √A, m = ρ_A A
+K_T, RHO_A = 1.87e9, 37.5  # docs/model.md §2.1: k_T = K_T √A, m = ρ_A A
 
 
 def make_scene(speedup: float = 1.0, duration: float | None = None, base: Scene | None = None) -> Scene:
@@ -220,7 +220,7 @@ def simulate(args: argparse.Namespace) -> Path | None:
 
 
 def isolated_frequency(area: float) -> float:
-    """√(k_T/m)/2π of an isolated patch of ``area`` [m²] (model.md §2) [Hz]."""
+    """√(k_T/m)/2π of an isolated patch of ``area`` [m²] (docs/model.md §2.2) [Hz]."""
     return math.sqrt(K_T * math.sqrt(area) / (RHO_A * area)) / (2 * math.pi)
 
 

@@ -2,7 +2,7 @@
 """Work-precision study of the HF integrators: error against wall time, per scene, method, step and precision.
 
 Scenes: ``hf1``, ``hf2`` and ``stickslip`` (hf1 with the disc at 0.5 m/s at the mean radius, where Eq. 4 is
-steep enough that patches reach sticking). For every integrator of ``aca_warp.hf.INTEGRATORS`` × steps (or
+steep enough that patches reach sticking). For every integrator of ``aca_warp.hf.options.INTEGRATORS`` × steps (or
 tolerances for ``adaptive``) × fp32/fp64, and for SciPy's ``solve_ivp`` methods as baselines, it measures:
 
 * ``state``: the final state after ``--t-state`` (0.1 ms): max(‖u − u_ref‖∞/‖u_ref‖∞, ‖u̇ − u̇_ref‖∞/‖u̇_ref‖∞)

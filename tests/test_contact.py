@@ -1,8 +1,8 @@
-"""Tests of the normal force distribution (aca_warp.hf.contact; model.md "Normal force distribution").
+"""Tests of the normal force distribution (aca_warp.hf.contact; docs/model.md §2.6).
 
 Compression-only springs in parallel: F_i = k_i max(H_i − g, 0), Σ F_i = F_N. The exact piecewise-linear
 solve is checked against force balance, a brute-force bisection on g, and the load-sharing statements of
-model.md for the presets (HF1/HF2 loads on the patches only; HF1 patches under the HF2 load share it with the
+docs/model.md §2.6 for the presets (HF1/HF2 loads on the patches only; HF1 patches under the HF2 load share it with the
 matrix, about half).
 """
 
@@ -217,7 +217,7 @@ def test_growing_areas_shift_the_load_to_the_patches(preset_contacts):
 
 
 def _elements(s: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """Stiffness and height of every element of a scene, patches first (written out from model.md)."""
+    """Stiffness and height of every element of a scene, patches first (written out from docs/model.md §2.6)."""
     k = np.concatenate([2.39e9 * np.sqrt(s.patches.area), 1.85e11 * s.matrix.area])
     h = np.concatenate([s.patches.height, s.matrix.height])
     return k, h

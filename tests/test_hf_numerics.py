@@ -1,9 +1,9 @@
-"""Numerical tests of the HF engine (aca_warp.hf.solver) against independent references (model.md §2).
+"""Numerical tests of the HF engine (aca_warp.hf) against independent references (docs/model.md §2).
 
 * a single undamped, frictionless patch against the analytic oscillator u = (v0/ω) sin ωt;
 * a small coupled, loaded, sliding network against SciPy's DOP853 solution of the equation of motion
-  written out here from model.md (masses, k_T, k_ij, damping, contact forces, signed Eq. 4, μ, torque);
-* the isolated-patch frequencies √(k_T/m)/2π of model.md (75.2 kHz at 0.05 mm², 33.6 kHz at 1.25 mm²);
+  written out here from docs/model.md (masses, k_T, k_ij, damping, contact forces, signed Eq. 4, μ, torque);
+* the isolated-patch frequencies √(k_T/m)/2π of docs/model.md §2.2 (75.2 kHz at 0.05 mm², 33.6 kHz at 1.25 mm²);
 * the stable-step estimate, StabilityError and fault reporting.
 """
 
@@ -26,7 +26,7 @@ from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Material, Pad, Patches, Record, Scene
 
 FIXED_STEP = [i for i in INTEGRATORS if i != "adaptive"]
-K_T, K_N, K_C, RHO_A = 1.87e9, 2.39e9, 7.96e8, 37.5  # model.md §2
+K_T, K_N, K_C, RHO_A = 1.87e9, 2.39e9, 7.96e8, 37.5  # docs/model.md §2.1
 K_M, MU_PAD = 1.85e11, 0.3
 
 
@@ -164,7 +164,7 @@ def friction_eq4(v, M=0.8):
 def network_reference(scene: Scene, v0: np.ndarray, times: np.ndarray) -> dict:
     """Independent solution of m ü + c u̇ + k_T u + Σ k_ij (u_i − u_j) = F_N,i f(ω r_i − u̇_i) (DOP853, rtol 1e-12).
 
-    Every constant is computed here from model.md and the patch geometry (not from the model's arrays).
+    Every constant is computed here from docs/model.md and the patch geometry (not from the model's arrays).
     """
     p = scene.patches
     n = p.count
@@ -415,7 +415,7 @@ def test_isolated_patch_frequencies():
     f_small = spectrum_peak(c.globals[:, 0, 3], 1e-7)
     f_large = spectrum_peak(c.globals[:, 1, 3], 1e-7)
     analytic = [math.sqrt(K_T * math.sqrt(a) / (RHO_A * a)) / (2 * math.pi) for a in (5e-8, 1.25e-6)]
-    assert analytic == pytest.approx([75.2e3, 33.6e3], rel=1e-3)  # model.md's √(k_T/m)/2π
+    assert analytic == pytest.approx([75.2e3, 33.6e3], rel=1e-3)  # docs/model.md §2.2: √(k_T/m)/2π
     assert f_small == pytest.approx(75.2e3, rel=0.01)
     assert f_large == pytest.approx(33.6e3, rel=0.01)
     assert f_small == pytest.approx(analytic[0], rel=2e-3)

@@ -24,7 +24,7 @@ def test_fit_power_law(hf_study):
     assert fit["stderr"] == pytest.approx(0.0, abs=1e-9)
     two = hf_study.fit_power_law(a[:2], np.array([73e3, 60e3]))
     assert math.isfinite(two["exponent"]) and two["stderr"] is None
-    # the isolated-patch frequency of model.md: 75.2 kHz at 0.05 mm²
+    # the isolated-patch frequency of docs/model.md §2.2: 75.2 kHz at 0.05 mm²
     from aca_warp.scene import Material
 
     assert hf_study.isolated_frequency(5e-8, Material()) == pytest.approx(75.2e3, rel=2e-3)

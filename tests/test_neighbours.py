@@ -1,7 +1,7 @@
 """Tests of the HashGrid neighbour search (kernels/neighbours.py) and the coupling springs of a model.
 
 Reference: brute force over all pairs of the same pad with centre distance D0 ≤ coupling radius
-(model.md §2, paper Eq. 3 and "coupling neglected if D0 exceeds 5 mm").
+(docs/model.md §2.5, paper Eq. 3 and "coupling neglected if D0 exceeds 5 mm").
 """
 
 from __future__ import annotations

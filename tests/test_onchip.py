@@ -1,4 +1,4 @@
-"""The on-chip engine (aca_warp.hf.onchip) against the general per-step path (aca_warp.hf.run_hf).
+"""The on-chip engine (aca_warp.hf.onchip) against the general per-step path (aca_warp.hf.loop.run_hf).
 
 On the CPU Warp runs a block as one thread, so the on-chip kernel does the same operations in the same order
 as the general kernels: μ(t), all global outputs, the per-patch histories and the final (u, u̇) must be

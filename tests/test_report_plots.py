@@ -222,7 +222,7 @@ def test_bad_options_are_refused(runs, tmp_path, kwargs, message):
 
 
 def test_single_patch_peak_is_the_isolated_patch_frequency(runs, tmp_path):
-    """One 0.05 mm² patch: the first velocity peak is √(k_T/m)/2π = 75.2 kHz (model.md) within 2 %.
+    """One 0.05 mm² patch: the first velocity peak is √(k_T/m)/2π = 75.2 kHz (docs/model.md §2.2) within 2 %.
 
     Σ|u̇| peaks at twice that frequency (|sin| rectifies), which is why it is not the velocity peak.
     """

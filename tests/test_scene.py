@@ -1,7 +1,7 @@
 """Tests of aca_warp.scene: validation errors, presets against the paper's numbers, TOML and HDF5 round trips.
 
 Every invalid input must raise :class:`aca_warp.common.errors.SceneError` with a message that names the
-offending item (model.md §1–2, the presets table; paper Table 1 and §3.1–3.2).
+offending item (docs/model.md §1–2, the presets table §2.9; paper Table 1 and §3.1–3.2).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from aca_warp.scene import (
 # angle from +y of a 0.05 mm² patch centre at r = 0.13 m whose disc crosses the straight +x edge by half its radius
 EDGE_INSIDE = math.radians(81.5 / 2) - 0.5 * math.sqrt(5e-8 / math.pi) / 0.13
 
-PAPER = {  # model.md presets table: area range [m²], M, F_N [N]
+PAPER = {  # docs/model.md §2.9: area range [m²], M, F_N [N]
     "hf1": ((2.0e-8, 8.0e-8), 0.8, 487.2),
     "hf2": ((5.0e-7, 2.0e-6), 0.8, 12370.0),
     "hf3": ((2.0e-8, 8.0e-8), 0.4, 487.2),

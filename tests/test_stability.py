@@ -1,6 +1,6 @@
 """Stability of the HF integrators against the stable-step estimate, and energy audits (docs/stability.md).
 
-* The estimate (``aca_warp.hf.stable_step``) against the exact spectrum of the spring network.
+* The estimate (``aca_warp.hf.solver.stable_step``) against the exact spectrum of the spring network.
 * Explicit symplectic Euler at 0.9× ``estimate.explicit`` stays bounded over 1e5 steps, both where the
   friction slope limits the step and where the springs do; at 3× it is refused, and, forced, it is unstable.
 * ``implicit-friction`` and ``strang`` are limited by ``estimate.spring`` only: bounded at 0.9×, refused and

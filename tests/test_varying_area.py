@@ -93,7 +93,7 @@ def test_growth_moves_load_to_patches(va):
 
 
 def test_isolated_frequency(va):
-    """model.md: 75.2 kHz at 0.05 mm², 33.6 kHz at 1.25 mm²."""
+    """docs/model.md §2.2: 75.2 kHz at 0.05 mm², 33.6 kHz at 1.25 mm²."""
     assert va.isolated_frequency(5e-8) == pytest.approx(75.2e3, rel=2e-3)
     assert va.isolated_frequency(1.25e-6) == pytest.approx(33.6e3, rel=2e-3)
 

@@ -1,4 +1,4 @@
-"""Analysis of a run file into its ``/analysis`` group (paper §2.2, §3; model.md §3; docs/analysis.md).
+"""Analysis of a run file into its ``/analysis`` group (paper §2.2, §3; docs/model.md §3; docs/analysis.md).
 
 :func:`analyze_run` computes, from one run file written by :mod:`aca_warp.hf.runfile`,
 

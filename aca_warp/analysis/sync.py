@@ -1,8 +1,8 @@
-"""Synchronization Index S(f) of many oscillating patches (paper §2.2, Eqs. 5-9, Appendix; model.md §3).
+"""Synchronization Index S(f) of many oscillating patches (paper §2.2, Eqs. 5-9, Appendix; docs/model.md §3.3).
 
 Per frequency bin f of the per-patch spectra X_i(f):
 
-1. Φ(f) patches are counted as oscillating at f by a selectable rule (model.md §3 step 1).
+1. Φ(f) patches are counted as oscillating at f by a selectable rule (docs/model.md §3.3, step 1).
 2. Their phases arg X_i(f) are binned into ``n_bins`` equal bins on [-π, π) (+π falls into
    the first bin); G = counts per bin, Φ = ΣG. S is undefined (NaN) for Φ < 2.
 3. Optionally, G is smoothed by a circular 3-bin moving average with Gaussian weights

@@ -1,4 +1,4 @@
-"""Normal force distribution between patches and the pad matrix (model.md "Normal force distribution").
+"""Normal force distribution between patches and the pad matrix (docs/model.md §2.6).
 
 A rigid backplate is pressed toward the disc with the clamp force F_N. Every contact element is a
 compression-only spring in parallel: patch i with stiffness k_N,i = K_N √A_i and free height h_i, matrix
@@ -9,7 +9,7 @@ matrix reference plane,
 
 The total force is a monotone, piecewise-linear function of g, so the solve here is exact: sort the
 breakpoints, find the active segment, solve the linear equation on it. Re-solve whenever areas (and so
-stiffnesses) change; the device version for growing patches on a flat matrix is in ``kernels/contact.py``.
+stiffnesses) change; the device version for growing patches on a flat matrix is ``contact_flat`` in ``kernels/hf.py``.
 """
 
 from __future__ import annotations

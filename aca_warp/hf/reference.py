@@ -1,6 +1,6 @@
 """Independent SciPy reference of the HF equations of motion (NumPy/SciPy only, no Warp kernels).
 
-The equation of motion of patch i (model.md §2, docs/stability.md),
+The equation of motion of patch i (docs/model.md §2.2, docs/stability.md),
 
     m_i ü_i + c_i u̇_i + k_T,i u_i + Σ_j k_ij (u_i − u_j) = F_N,i f(ω r_i − u̇_i),
 
@@ -124,7 +124,7 @@ class ReferenceODE:
         return sp.bmat([[sp.csr_matrix((self.n, self.n), dtype=np.int8), eye], [pattern, eye]], format="csr")
 
     def globals(self, u: np.ndarray, v: np.ndarray) -> dict[str, np.ndarray]:
-        """μ, torque [N m], Σu̇ and Σ|u̇| [m/s] for states of shape (N, n) (model.md "Global outputs")."""
+        """μ, torque [N m], Σu̇ and Σ|u̇| [m/s] for states of shape (N, n) (docs/model.md §2.8)."""
         f = self.fn * self.friction(self.vd[None, :] - v)
         coulomb = self.mu_pad * self.f_matrix * np.sign(self.omega)
         ftot = f.sum(axis=1) + coulomb

@@ -5,7 +5,7 @@ patches, duration, device).
 
 A run file holds everything a run depends on (docs/run_files.md): the scene as JSON (every constant, the
 record settings, the duration), the patch arrays in ``/patches`` and the matrix cells in ``/matrix`` (so the
-original patch file is not needed), the integrator and step policy, the precision, the device and the
+original patch file is not needed), the run options (integrator, step, tolerance, engine), the precision, the device and the
 package versions. :func:`read_settings` rebuilds the scene from them; the rerun uses the same code path as
 ``aca-warp hf`` and, on the same device and precision, gives the same bits.
 """
@@ -146,7 +146,7 @@ def add_parsers(sub: Any) -> None:
         "rerun",
         help="repeat a run from its run file (HF or LF: scene, patches, integrator, precision, device)",
         description="Repeat the run stored in RUN.h5 into NEW.h5: same scene (patches from the file), integrator, "
-        "step policy, precision and device. On the same device and precision the samples are bit-identical.",
+        "run options, precision and device. On the same device and precision the samples are bit-identical.",
     )
     p.add_argument("run", metavar="RUN.h5", help="run file to repeat")
     p.add_argument("-o", "--output", required=True, metavar="NEW.h5", help="run file to write")

@@ -1,15 +1,15 @@
 """HDF5 run files: one file per run, SI ``unit`` attribute on every dataset, provenance as attributes.
 
-Layout (issue "run files")::
+Layout (docs/run_files.md)::
 
     /global/time, mu, torque, friction_radius, sum_velocity, sum_abs_velocity     (samples,)
     /patches/x, y, area, height, mass, normal_force                               (patches,)
     /patches/time, velocity[, displacement]     per-patch histories, (rows,) and (rows, patches), if recorded
     /patches/final/area, normal_force           after growth, if the scene grows
     /matrix/area, radius, height                the pad matrix cells the run started from (cells,)
-    /checkpoint/...                             solver state of a resumable run (aca_warp/checkpoint.py)
+    /checkpoint/...                             solver state of a resumable run (aca_warp/common/checkpoint.py)
 
-Root attributes: ``scene`` (JSON), ``integrator``, ``step_policy`` (JSON), ``precision``, ``device``,
+Root attributes: ``scene`` (JSON), ``integrator``, ``run_options`` (JSON, :class:`~aca_warp.hf.options.RunOptions`), ``precision``, ``device``,
 ``versions`` (JSON), ``stages`` (JSON list), ``stable_step`` (JSON), ``complete`` (bool), ``status``, and for
 a stopped run ``fault``. The file is written as ``NAME.partial`` and renamed to ``NAME`` when the run ends,
 completed or not (then ``complete = False`` and ``status`` says why): the final name never holds a file

@@ -32,7 +32,7 @@ class HFState:
 
 
 def initial_state(model: PadModel) -> HFState:
-    """Initial state of every pad from its scene's ``[initial]`` table (model.md §2, "Initial state").
+    """Initial state of every pad from its scene's ``[initial]`` table (docs/model.md §2.7).
 
     ``rest``: u = u̇ = 0. ``equilibrium``: (diag k_T + L) u = F_N f(ω r), u̇ = 0, L the coupling Laplacian.
     ``perturbation`` adds N(0, σ²) velocities [m/s] from the scene's seed.

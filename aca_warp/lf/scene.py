@@ -4,7 +4,7 @@ An LF scene file has the tables ``[scene]``, ``[pad]``, ``[material]``, ``[frict
 docs/scenes.md), ``[patches]`` (initial population from the seeded generator; ``count = 0`` for a bare pad),
 ``[lf]`` (every constant of :class:`LFConstants`), ``[[schedule]]`` (applications and pauses, in order) and
 ``[snapshots]``. The built-in preset ``multiscale`` (``aca_warp/data/multiscale.toml``) is the paper's
-multi-timescale load procedure (§3.3; model.md §4). All quantities SI.
+multi-timescale load procedure (§3.3; docs/model.md §2.9, §4). All quantities SI.
 """
 
 from __future__ import annotations

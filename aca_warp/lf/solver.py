@@ -1,6 +1,6 @@
 """Device state of the LF automaton and the step sequence (one launch per rule; kernels in ``aca_warp.kernels.lf``).
 
-One LF step (docs/lf_model.md §"Step"): load from the schedule → bin patches into cells → contact solve
+One LF step (docs/lf_model.md, "One step, in order"): load from the schedule → bin patches into cells → contact solve
 (Newton on the gap) → friction, powers → temperatures (implicit) → wear → debris sweep → capture → growth,
 shrink, death → merge → birth → statistics and history row. In pauses only the temperatures run (cooling)
 and μ is recorded as 0. The only host read per step is the topology flag, which triggers the rebuild of the
