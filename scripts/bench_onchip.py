@@ -89,7 +89,11 @@ def main() -> None:
         help="blocks per pad to try (default 1; 0: the on-chip engine's default, default_cluster)",
     )  # fmt: skip
     ap.add_argument(
-        "--blocks", nargs="+", type=int, default=[0], help="threads per block to try (0, the default: the on-chip engine's)"
+        "--blocks",
+        nargs="+",
+        type=int,
+        default=[0],
+        help="threads per block to try (0, the default: the on-chip engine's)",
     )
     ap.add_argument(
         "--csr", nargs="+", choices=["auto", "on", "off"], default=["auto"], help="neighbour lists in shared memory"

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Where the on-chip HF kernel spends its time: ablation profile on one hf1 pad (or a batch of them).
 
-Times the on-chip engine (``aca_warp.hf.onchip``) on one pad (``--pads N``: a batch of N identical pads) for a window of steps
+Times the on-chip engine (``aca_warp.hf.onchip``) on one pad (``--pads N``: a batch of N identical pads) for a
+window of steps
 with parts of the step left out (``ablate``: the implicit friction solve → an explicit kick, the neighbour gather
 or its second half, the block barrier; the results of an ablated run are wrong and only its time counts), for
 several block sizes, with the CSR in shared or global memory, fp32 and fp64, and the general per-step path for
@@ -81,8 +82,8 @@ CASES = [
     ("full, cluster 8", "fp64", None, None, ("cluster8",)),
     ("full, cluster 16", "fp64", None, None, ("cluster16",)),
 ]
-# --growth: (label, precision, block_dim (None: the on-chip engine's choice), ablations (with "clusterK" tags as above) or
-# None for the general path, event interval × this; 0: no growth)
+# --growth: (label, precision, block_dim (None: the on-chip engine's choice), ablations (with "clusterK" tags as
+# above) or None for the general path, event interval × this; 0: no growth)
 GROWTH_CASES = [
     ("general path, growth", "fp32", None, None, 1),
     ("no growth", "fp32", 512, (), 0),

@@ -9,7 +9,8 @@ Layout (docs/run_files.md)::
     /matrix/area, radius, height                the pad matrix cells the run started from (cells,)
     /checkpoint/...                             solver state of a resumable run (aca_warp/common/checkpoint.py)
 
-Root attributes: ``scene`` (JSON), ``integrator``, ``run_options`` (JSON, :class:`~aca_warp.hf.options.RunOptions`), ``precision``, ``device``,
+Root attributes: ``scene`` (JSON), ``integrator``, ``run_options`` (JSON, :class:`~aca_warp.hf.options.RunOptions`),
+``precision``, ``device``,
 ``versions`` (JSON), ``stages`` (JSON list), ``stable_step`` (JSON), ``complete`` (bool), ``status``, and for
 a stopped run ``fault``. The file is written as ``NAME.partial`` and renamed to ``NAME`` when the run ends,
 completed or not (then ``complete = False`` and ``status`` says why): the final name never holds a file
