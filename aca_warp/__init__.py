@@ -28,7 +28,7 @@ _PUBLIC = {
     "build_model": "aca_warp.hf.model",
     "initial_state": "aca_warp.hf.state",
     "run_hf": "aca_warp.hf.loop",
-    "EngineTuning": "aca_warp.hf.loop",
+    "EngineTuning": "aca_warp.hf.engine",
     "RunResult": "aca_warp.hf.loop",
     "AcaError": "aca_warp.common.errors",
     "SceneError": "aca_warp.common.errors",

@@ -1,4 +1,9 @@
-"""Command line: ``aca-warp hf SCENE -o RUN.h5 ...`` (``aca-warp --help``, ``aca-warp hf --help``)."""
+"""Command line ``aca-warp COMMAND ...``: the top-level parser and the entry point.
+
+Each command registers its own parser from its package (``add_parsers(sub)`` in aca_warp.hf.commands,
+aca_warp.lf.commands, aca_warp.analysis.commands, aca_warp.sweep, aca_warp.bench) and sets ``handler``; nothing
+imports this module. Parsing imports no simulation code, so ``--help`` and argument errors answer at once.
+"""
 
 from __future__ import annotations
 
@@ -6,7 +11,6 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from aca_warp.common.argtypes import int_at_least, nonneg, positive, refuse_with_resume
 from aca_warp.common.errors import AcaError
 
 EPILOG = """\
@@ -19,7 +23,11 @@ Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad inp
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``aca-warp``."""
-    from aca_warp.hf.options import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
+    from aca_warp.analysis.commands import add_parsers as add_analysis
+    from aca_warp.bench import add_parsers as add_bench
+    from aca_warp.hf.commands import add_parsers as add_hf
+    from aca_warp.lf.commands import add_parsers as add_lf
+    from aca_warp.sweep import add_parsers as add_sweep
 
     p = argparse.ArgumentParser(
         prog="aca-warp",
@@ -29,223 +37,18 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=EPILOG,
     )
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    hf = sub.add_parser(
-        "hf",
-        help="simulate the high-frequency patch vibrations of one pad into a run file",
-        description="Simulate the HF vibrations of every patch of one pad (paper §2.1.2, §3.1) and "
-        "write global mu, torque, friction radius and velocity sums (and per-patch histories "
-        "when asked) to an HDF5 run file.",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog=EPILOG,
-    )
-    hf.add_argument("scene", metavar="SCENE", nargs="?", help="preset name or TOML scene file (not with --resume)")
-    hf.add_argument("-o", "--output", metavar="RUN.h5", help="run file to write (required unless --resume)")
-    hf.add_argument("--duration", type=positive, metavar="S", help="simulated time [s] (default: the scene's)")
-    hf.add_argument("--device", default="cpu", help="Warp device: cpu (default) or cuda:0, cuda:1, ...")
-    hf.add_argument(
-        "--integrator",
-        choices=INTEGRATORS,
-        default=DEFAULT_INTEGRATOR,
-        help=f"time integrator (default {DEFAULT_INTEGRATOR}); see docs/numerics.md",
-    )
-    hf.add_argument(
-        "--dt",
-        type=positive,
-        metavar="S",
-        help=f"fixed step [s] (default {DEFAULT_DT:g}; shortened to fit the sample interval); "
-        "initial step of 'adaptive'",
-    )
-    hf.add_argument(
-        "--tolerance",
-        type=positive,
-        default=DEFAULT_TOLERANCE,
-        metavar="X",
-        help=f"relative error tolerance of 'adaptive' (default {DEFAULT_TOLERANCE:g})",
-    )
-    hf.add_argument("--precision", choices=("fp32", "fp64"), default="fp64", help="state precision (default fp64)")
-    hf.add_argument(
-        "--engine",
-        choices=("auto", "onchip", "general"),
-        default="auto",
-        help="onchip: one thread block per pad (a cluster of up to 8 on sm_90+ for a few pads), "
-        "many strang steps per launch (faster on CUDA; patch growth too); "
-        "general: per-step kernels (every integrator, checkpoints); auto (default): onchip on CUDA where the run "
-        "allows it, else general (docs/onchip.md)",
-    )
-    hf.add_argument("--sample-dt", type=positive, metavar="S", help="interval of the recorded samples [s]")
-    hf.add_argument(
-        "--record-patches",
-        metavar="VARS",
-        help="record per-patch histories: velocity, displacement or velocity,displacement",
-    )
-    hf.add_argument(
-        "--patch-window", type=nonneg, nargs=2, metavar=("T0", "T1"), help="time window of the per-patch histories [s]"
-    )
-    hf.add_argument(
-        "--patch-decimation", type=int_at_least(1), metavar="N", help="record per-patch histories every N-th sample"
-    )
-    hf.add_argument("--force", action="store_true", help="run explicit steps beyond the stable-step estimate")
-    hf.add_argument(
-        "--snapshot", metavar="NAME", help="SCENE is an LF run file (.h5): run HF on its snapshot NAME (aca-warp lf)"
-    )
-    hf.add_argument("--overwrite", action="store_true", help="replace an existing output file")
-    hf.add_argument("--no-progress", action="store_true", help="no progress bar")
-    hf.add_argument(
-        "--checkpoint-interval",
-        type=positive,
-        metavar="S",
-        help="keep the solver state in the run file every S of simulated time, so that a killed run can be "
-        "resumed (docs/faults.md)",
-    )
-    hf.add_argument(
-        "--resume",
-        metavar="RUN.h5",
-        help="continue a killed or stopped run (RUN.h5 or RUN.h5.partial) from its last checkpoint, with the "
-        "run's own scene and settings; the finished file equals an uninterrupted run",
-    )
-    hf.set_defaults(handler=_cmd_hf)
-    # Every other command lives in its own module with an ``add_parsers(sub)`` that sets ``handler``.
-    from aca_warp.analysis.commands import add_parsers as add_analysis
-
-    add_analysis(sub)
-    from aca_warp.sweep import add_parsers as add_sweep
-
-    add_sweep(sub)
-    from aca_warp.bench import add_parsers as add_bench
-
-    add_bench(sub)
-    from aca_warp.hf.rerun import add_parsers as add_rerun
-
-    add_rerun(sub)
-    from aca_warp.lf.commands import add_parsers as add_lf
-
-    add_lf(sub)
+    for add in (add_hf, add_lf, add_analysis, add_sweep, add_bench):
+        add(sub)
     return p
-
-
-def _cmd_hf(args: argparse.Namespace) -> int:
-    import dataclasses
-
-    import numpy as np
-
-    from aca_warp.common.errors import SceneError
-    from aca_warp.common.files import check_output_path
-    from aca_warp.hf.options import RunOptions
-    from aca_warp.hf.runner import run_scene
-    from aca_warp.scene import Record, load_scene
-
-    if args.resume is not None:
-        return _resume_hf(args)
-    if args.scene is None or args.output is None:
-        raise SceneError("hf needs SCENE and -o RUN.h5 (or --resume RUN.h5 to continue a run)")
-    check_output_path(args.output, overwrite=args.overwrite)
-    if args.snapshot is not None or str(args.scene).endswith(".h5"):
-        from aca_warp.lf.io import scene_from_snapshot
-
-        if args.snapshot is None:
-            raise SceneError(f"{args.scene} is an LF run file: name a snapshot with --snapshot NAME")
-        scene = scene_from_snapshot(args.scene, args.snapshot)
-    else:
-        scene = load_scene(args.scene)
-    rec = scene.record
-    changes: dict = {}
-    if args.sample_dt is not None:
-        changes["sample_dt"] = args.sample_dt
-    if args.record_patches is not None:
-        changes["patches"] = tuple(v.strip() for v in args.record_patches.split(",") if v.strip())
-    if args.patch_window is not None:
-        changes["window"] = tuple(args.patch_window)
-    if args.patch_decimation is not None:
-        changes["decimation"] = args.patch_decimation
-    duration = args.duration if args.duration is not None else scene.duration
-    if changes.get("sample_dt", rec.sample_dt) > duration:
-        raise SceneError(
-            f"sample interval {changes.get('sample_dt', rec.sample_dt):g} s exceeds the duration {duration:g} s"
-        )
-    scene = scene.replace(duration=duration, record=Record(**{**dataclasses.asdict(rec), **changes}))
-    options = RunOptions(
-        duration=duration,
-        integrator=args.integrator,
-        dt=args.dt,
-        tolerance=args.tolerance,
-        force=args.force,
-        engine=args.engine,
-        checkpoint_interval=args.checkpoint_interval,
-    )
-    result = run_scene(
-        scene,
-        args.output,
-        options,
-        device=args.device,
-        precision=args.precision,
-        overwrite=args.overwrite,
-        progress=not args.no_progress,
-    )
-    import h5py
-
-    with h5py.File(args.output, "r") as f:
-        mu = f["global/mu"][()]
-    n = scene.patches.count
-    rate = n * result.steps / max(result.wall_time, 1e-12)
-    line = (
-        f"{args.output}: {len(mu)} samples over {result.sim_time:.4g} s, {result.steps} steps "
-        f"({result.dt:.3g} s, {args.integrator}, {args.precision}), mean mu {np.mean(mu):.4f}, "
-        f"{rate:.3g} patch-steps/s"
-    )
-    if result.fault is not None:
-        print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
-        print(line + " (incomplete)")
-        return 3
-    print(line)
-    return 0
-
-
-def _resume_hf(args: argparse.Namespace) -> int:
-    """``aca-warp hf --resume RUN.h5``: the run's own settings; only --device, --checkpoint-interval, --no-progress."""
-    from aca_warp.hf.options import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE
-    from aca_warp.hf.runner import resume_run
-
-    refuse_with_resume(
-        (
-            ("SCENE", args.scene, None),
-            ("-o", args.output, None),
-            ("--duration", args.duration, None),
-            ("--dt", args.dt, None),
-            ("--sample-dt", args.sample_dt, None),
-            ("--record-patches", args.record_patches, None),
-            ("--patch-window", args.patch_window, None),
-            ("--patch-decimation", args.patch_decimation, None),
-            ("--integrator", args.integrator, DEFAULT_INTEGRATOR),
-            ("--tolerance", args.tolerance, DEFAULT_TOLERANCE),
-            ("--precision", args.precision, "fp64"),
-            ("--force", args.force, False),
-            ("--overwrite", args.overwrite, False),
-            ("--engine", getattr(args, "engine", "auto"), "auto"),
-        ),
-        "the run",
-    )
-    result, path = resume_run(
-        args.resume,
-        progress=not args.no_progress,
-        checkpoint_interval=args.checkpoint_interval,
-        device=None if args.device == "cpu" else args.device,
-    )
-    line = f"{path}: resumed, {result.steps} steps over {result.sim_time:.4g} s"
-    if result.fault is not None:
-        print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
-        print(line + " (incomplete)")
-        return 3
-    print(line)
-    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``aca-warp`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
     import warp as wp
 
     wp.config.log_level = wp.LOG_WARNING
-    parser = build_parser()
-    args = parser.parse_args(argv)
     try:
         return args.handler(args)
     except AcaError as e:

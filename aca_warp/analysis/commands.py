@@ -1,4 +1,4 @@
-"""The ``aca-warp analyze`` and ``aca-warp plot`` subcommands (wired into ``aca_warp.cli``).
+"""The ``aca-warp analyze`` and ``aca-warp plot`` subcommands (registered by the ``aca-warp`` parser).
 
 ``add_parsers(sub)`` adds both to the ``add_subparsers`` object of the main parser; each sets
 ``handler`` (``set_defaults``), a function of the parsed arguments that returns the exit code and

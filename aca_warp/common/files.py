@@ -9,6 +9,7 @@ from typing import Any
 
 import h5py
 
+from aca_warp.common.checkpoint import has_checkpoint
 from aca_warp.common.errors import SceneError
 
 
@@ -74,3 +75,39 @@ def open_h5(path: str | Path, what: str) -> h5py.File:
         return h5py.File(p, "r")
     except OSError as e:
         raise SceneError(f"cannot open {what} {p}: {e}") from None
+
+
+def version_changes(stored: dict[str, str]) -> list[str]:
+    """``name old -> new`` for every package whose version differs from the run file's."""
+    now = versions()
+    return [f"{k} {v} -> {now.get(k, 'missing')}" for k, v in stored.items() if now.get(k) != v]
+
+
+def find_resumable(path: str | Path) -> tuple[Path, Path]:
+    """(run file, its ``.partial``) of the run ``path`` names: ``NAME``, ``NAME.partial`` or a stopped ``NAME``.
+
+    A killed run left ``NAME.partial``; a run stopped by Ctrl-C or a fault was moved to ``NAME`` (incomplete)
+    and keeps its checkpoint. Raises SceneError when there is nothing to resume.
+    """
+    p = Path(path)
+    if p.name.endswith(".partial"):
+        final, part = p.with_name(p.name.removesuffix(".partial")), p
+    else:
+        final, part = p, partial_path(p)
+    if part.exists():
+        if final.exists():
+            raise SceneError(f"both {final} and {part} exist; move the one you do not want to resume away")
+        return final, part
+    if not final.exists():
+        raise SceneError(f"nothing to resume: neither {final} nor {part} exists")
+    try:
+        with h5py.File(final, "r") as f:
+            complete = bool(f.attrs.get("complete", False))
+            resumable = has_checkpoint(f)
+    except OSError as e:
+        raise SceneError(f"cannot open run file {final}: {e}") from None
+    if complete:
+        raise SceneError(f"{final} is a complete run; nothing to resume")
+    if not resumable:
+        raise SceneError(f"{final} holds no checkpoint (run without checkpoint_interval); use 'aca-warp rerun'")
+    return final, part

@@ -17,12 +17,13 @@ from typing import Any
 
 import warp as wp
 
+from aca_warp.common.devices import block_threads
 from aca_warp.common.errors import SceneError, SimulationFault
-from aca_warp.hf.loop import EngineTuning, Progress
+from aca_warp.hf.engine import EngineTuning, Progress
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Recorder
-from aca_warp.hf.solver import CONTACT_BLOCK, GROWTH_MUTABLE, HFSolver, block_threads, growth_events
+from aca_warp.hf.solver import CONTACT_BLOCK, GROWTH_MUTABLE, HFSolver, growth_events
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 from aca_warp.scene import Record

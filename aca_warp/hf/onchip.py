@@ -19,7 +19,7 @@ import numpy as np
 import warp as wp
 
 from aca_warp.common.errors import SceneError
-from aca_warp.hf.loop import EngineTuning, Progress
+from aca_warp.hf.engine import EngineTuning, Progress
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.onchip_layout import (
     MAX_CLUSTER,

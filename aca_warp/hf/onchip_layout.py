@@ -11,10 +11,10 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from aca_warp.common.devices import block_threads
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import DEFAULT_INTEGRATOR, ENGINES
-from aca_warp.hf.solver import block_threads
 
 MAX_BLOCK = 1024  # threads per block
 MAX_CLUSTER = 16  # blocks per pad (8 is the portable cluster size; H100/H200 launch 16 as "non-portable")

@@ -12,11 +12,8 @@ path as ``aca-warp hf`` and, on the same device and precision, gives the same bi
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
 import json
 import math
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -24,7 +21,6 @@ from typing import Any
 import h5py
 import numpy as np
 
-from aca_warp.common.argtypes import positive
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.options import RunOptions
 from aca_warp.scene import Friction, Growth, Initial, Material, Matrix, Pad, Patches, Record, Scene
@@ -130,74 +126,3 @@ def read_settings(path: str | Path) -> RunSettings:
             )
         except (KeyError, TypeError, ValueError, AttributeError) as e:
             raise SceneError(f"{p}: the stored run options are incomplete ({type(e).__name__}: {e})") from None
-
-
-def version_changes(stored: dict[str, str]) -> list[str]:
-    """``name old -> new`` for every package whose version differs from the run file's."""
-    from aca_warp.common.files import versions
-
-    now = versions()
-    return [f"{k} {v} -> {now.get(k, 'missing')}" for k, v in stored.items() if now.get(k) != v]
-
-
-def add_parsers(sub: Any) -> None:
-    """Add ``rerun`` to the ``aca-warp`` subcommands."""
-    p = sub.add_parser(
-        "rerun",
-        help="repeat a run from its run file (HF or LF: scene, patches, integrator, precision, device)",
-        description="Repeat the run stored in RUN.h5 into NEW.h5: same scene (patches from the file), integrator, "
-        "run options, precision and device. On the same device and precision the samples are bit-identical.",
-    )
-    p.add_argument("run", metavar="RUN.h5", help="run file to repeat")
-    p.add_argument("-o", "--output", required=True, metavar="NEW.h5", help="run file to write")
-    p.add_argument("--device", help="Warp device (default: the one the run used)")
-    p.add_argument("--checkpoint-interval", type=positive, metavar="S", help="checkpoint every S of simulated time")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.set_defaults(handler=_cmd_rerun)
-
-
-def _is_lf(path: str | Path) -> bool:
-    """Whether ``path`` is an LF run file (root attribute ``kind = "lf"``); False when it cannot be read."""
-    try:
-        with h5py.File(path, "r") as f:
-            return f.attrs.get("kind") == "lf"
-    except (OSError, ValueError):
-        return False
-
-
-def _cmd_rerun(args: argparse.Namespace) -> int:
-    from aca_warp.common.files import check_output_path
-    from aca_warp.hf.runner import run_scene
-
-    if _is_lf(args.run):
-        from aca_warp.lf.commands import rerun_lf
-
-        return rerun_lf(
-            args.run, args.output, device=args.device, checkpoint_interval=args.checkpoint_interval,
-            overwrite=args.overwrite, progress=not args.no_progress,
-        )  # fmt: skip
-    check_output_path(args.output, overwrite=args.overwrite)
-    if Path(args.output).resolve() == Path(args.run).resolve():
-        raise SceneError("rerun writes a new file; give an output other than the run file")
-    s = read_settings(args.run)
-    changed = version_changes(s.versions)
-    if changed:
-        print(f"aca-warp: note: versions differ from the run's: {', '.join(changed)}", file=sys.stderr)
-    options = s.options
-    if args.checkpoint_interval is not None:
-        options = dataclasses.replace(options, checkpoint_interval=args.checkpoint_interval)
-    result = run_scene(
-        s.scene,
-        args.output,
-        options,
-        device=args.device or s.device,
-        precision=s.precision,
-        overwrite=args.overwrite,
-        progress=not args.no_progress,
-    )
-    if result.fault is not None:
-        print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
-        return 3
-    print(f"{args.output}: rerun of {args.run}, {result.steps} steps over {result.sim_time:.4g} s")
-    return 0

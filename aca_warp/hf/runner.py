@@ -17,7 +17,7 @@ import warp as wp
 
 from aca_warp.common.checkpoint import Checkpoint, has_checkpoint
 from aca_warp.common.errors import SceneError
-from aca_warp.common.files import check_output_path, partial_path
+from aca_warp.common.files import check_output_path, find_resumable
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
@@ -126,36 +126,6 @@ def _execute(
     )
     wp.synchronize_device(model.device)
     return result
-
-
-def find_resumable(path: str | Path) -> tuple[Path, Path]:
-    """(run file, its ``.partial``) of the run ``path`` names: ``NAME``, ``NAME.partial`` or a stopped ``NAME``.
-
-    A killed run left ``NAME.partial``; a run stopped by Ctrl-C or a fault was moved to ``NAME`` (incomplete)
-    and keeps its checkpoint. Raises SceneError when there is nothing to resume.
-    """
-    p = Path(path)
-    if p.name.endswith(".partial"):
-        final, part = p.with_name(p.name.removesuffix(".partial")), p
-    else:
-        final, part = p, partial_path(p)
-    if part.exists():
-        if final.exists():
-            raise SceneError(f"both {final} and {part} exist; move the one you do not want to resume away")
-        return final, part
-    if not final.exists():
-        raise SceneError(f"nothing to resume: neither {final} nor {part} exists")
-    try:
-        with h5py.File(final, "r") as f:
-            complete = bool(f.attrs.get("complete", False))
-            resumable = has_checkpoint(f)
-    except OSError as e:
-        raise SceneError(f"cannot open run file {final}: {e}") from None
-    if complete:
-        raise SceneError(f"{final} is a complete run; nothing to resume")
-    if not resumable:
-        raise SceneError(f"{final} holds no checkpoint (run without checkpoint_interval); use 'aca-warp rerun'")
-    return final, part
 
 
 def resume_run(

@@ -46,12 +46,6 @@ def growth_events(model: PadModel, h: float) -> tuple[int, wp.array]:
     return every, wp.array(model.host("pad_growth") * scale, dtype=model.dtype, device=model.device)
 
 
-def block_threads(device: wp.Device, block_dim: int) -> int:
-    """Threads a ``launch_tiled`` block of ``block_dim`` really runs: all on CUDA and with Warp's CPU fibers
-    (``wp.config.enable_cpu_blocks``), else one (a CPU block is one thread)."""
-    return block_dim if device.is_cuda or wp.config.enable_cpu_blocks else 1
-
-
 # model arrays that growth events rewrite on the device (saved in checkpoints of growing runs)
 GROWTH_MUTABLE = (
     "area",

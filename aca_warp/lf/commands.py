@@ -122,7 +122,7 @@ def resume_lf(
     import json
     import os
 
-    from aca_warp.hf.runner import find_resumable
+    from aca_warp.common.files import find_resumable
     from aca_warp.lf.io import LFRunWriter
     from aca_warp.lf.solver import LFSimulation
 
@@ -150,7 +150,7 @@ def rerun_lf(run: str | Path, output: str | Path, *, device: str | None, checkpo
     """``aca-warp rerun LF.h5 -o NEW.h5``: repeat an LF run from its file (scene, initial patches, duration,
     device); on the same CPU the new file's datasets equal the old one's bit for bit."""
     from aca_warp.common.errors import SceneError
-    from aca_warp.hf.rerun import version_changes
+    from aca_warp.common.files import version_changes
 
     if Path(output).resolve() == Path(run).resolve():
         raise SceneError("rerun writes a new file; give an output other than the run file")
@@ -252,9 +252,3 @@ def add_parsers(sub: Any) -> None:
         "run's own scene and settings; the finished file equals an uninterrupted run",
     )
     p.set_defaults(handler=_cmd_lf)
-
-
-if __name__ == "__main__":  # pragma: no cover
-    from aca_warp.cli import main
-
-    sys.exit(main(["lf", *sys.argv[1:]]))

@@ -20,8 +20,8 @@ import numpy as np
 import warp as wp
 
 from aca_warp.common.checkpoint import Checkpoint
+from aca_warp.common.devices import block_threads
 from aca_warp.common.errors import SceneError
-from aca_warp.hf.solver import block_threads
 from aca_warp.kernels import lf as K
 from aca_warp.lf.scene import LFScene, StepTable, step_table
 from aca_warp.scene import Patches, overlapping_pairs

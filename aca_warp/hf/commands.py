@@ -1,0 +1,286 @@
+"""``aca-warp hf`` and ``aca-warp rerun``: simulate one pad into a run file, resume it, or repeat a run.
+
+Only argument parsing happens at import; the handlers import the simulation code when they run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from aca_warp.common.argtypes import int_at_least, nonneg, positive, refuse_with_resume
+from aca_warp.common.errors import SceneError
+from aca_warp.hf.options import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, ENGINES, INTEGRATORS
+
+EPILOG = """\
+SCENE is a preset (hf1, hf2, hf3, hf4, varying_area) or a TOML scene file (docs/scenes.md).
+Example:  aca-warp hf hf1 --duration 1e-3 -o run.h5
+Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad input (nothing written),
+3 the run stopped on a fault (the file holds everything before it, marked incomplete), 130 interrupted.
+"""
+
+
+def add_parsers(sub: Any) -> None:
+    """Register ``aca-warp hf`` and ``aca-warp rerun``."""
+    hf = sub.add_parser(
+        "hf",
+        help="simulate the high-frequency patch vibrations of one pad into a run file",
+        description="Simulate the HF vibrations of every patch of one pad (paper §2.1.2, §3.1) and "
+        "write global mu, torque, friction radius and velocity sums (and per-patch histories "
+        "when asked) to an HDF5 run file.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=EPILOG,
+    )
+    hf.add_argument("scene", metavar="SCENE", nargs="?", help="preset name or TOML scene file (not with --resume)")
+    hf.add_argument("-o", "--output", metavar="RUN.h5", help="run file to write (required unless --resume)")
+    hf.add_argument("--duration", type=positive, metavar="S", help="simulated time [s] (default: the scene's)")
+    hf.add_argument("--device", default="cpu", help="Warp device: cpu (default) or cuda:0, cuda:1, ...")
+    hf.add_argument(
+        "--integrator",
+        choices=INTEGRATORS,
+        default=DEFAULT_INTEGRATOR,
+        help=f"time integrator (default {DEFAULT_INTEGRATOR}); see docs/numerics.md",
+    )
+    hf.add_argument(
+        "--dt",
+        type=positive,
+        metavar="S",
+        help=f"fixed step [s] (default {DEFAULT_DT:g}; shortened to fit the sample interval); "
+        "initial step of 'adaptive'",
+    )
+    hf.add_argument(
+        "--tolerance",
+        type=positive,
+        default=DEFAULT_TOLERANCE,
+        metavar="X",
+        help=f"relative error tolerance of 'adaptive' (default {DEFAULT_TOLERANCE:g})",
+    )
+    hf.add_argument("--precision", choices=("fp32", "fp64"), default="fp64", help="state precision (default fp64)")
+    hf.add_argument(
+        "--engine",
+        choices=ENGINES,
+        default="auto",
+        help="onchip: one thread block per pad (a cluster of up to 8 on sm_90+ for a few pads), "
+        "many strang steps per launch (faster on CUDA; patch growth too); "
+        "general: per-step kernels (every integrator, checkpoints); auto (default): onchip on CUDA where the run "
+        "allows it, else general (docs/onchip.md)",
+    )
+    hf.add_argument("--sample-dt", type=positive, metavar="S", help="interval of the recorded samples [s]")
+    hf.add_argument(
+        "--record-patches",
+        metavar="VARS",
+        help="record per-patch histories: velocity, displacement or velocity,displacement",
+    )
+    hf.add_argument(
+        "--patch-window", type=nonneg, nargs=2, metavar=("T0", "T1"), help="time window of the per-patch histories [s]"
+    )
+    hf.add_argument(
+        "--patch-decimation", type=int_at_least(1), metavar="N", help="record per-patch histories every N-th sample"
+    )
+    hf.add_argument("--force", action="store_true", help="run explicit steps beyond the stable-step estimate")
+    hf.add_argument(
+        "--snapshot", metavar="NAME", help="SCENE is an LF run file (.h5): run HF on its snapshot NAME (aca-warp lf)"
+    )
+    hf.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    hf.add_argument("--no-progress", action="store_true", help="no progress bar")
+    hf.add_argument(
+        "--checkpoint-interval",
+        type=positive,
+        metavar="S",
+        help="keep the solver state in the run file every S of simulated time, so that a killed run can be "
+        "resumed (docs/faults.md)",
+    )
+    hf.add_argument(
+        "--resume",
+        metavar="RUN.h5",
+        help="continue a killed or stopped run (RUN.h5 or RUN.h5.partial) from its last checkpoint, with the "
+        "run's own scene and settings; the finished file equals an uninterrupted run",
+    )
+    hf.set_defaults(handler=_cmd_hf)
+    _add_rerun(sub)
+
+
+def _cmd_hf(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    import numpy as np
+
+    from aca_warp.common.errors import SceneError
+    from aca_warp.common.files import check_output_path
+    from aca_warp.hf.options import RunOptions
+    from aca_warp.hf.runner import run_scene
+    from aca_warp.scene import Record, load_scene
+
+    if args.resume is not None:
+        return _resume_hf(args)
+    if args.scene is None or args.output is None:
+        raise SceneError("hf needs SCENE and -o RUN.h5 (or --resume RUN.h5 to continue a run)")
+    check_output_path(args.output, overwrite=args.overwrite)
+    if args.snapshot is not None or str(args.scene).endswith(".h5"):
+        from aca_warp.lf.io import scene_from_snapshot
+
+        if args.snapshot is None:
+            raise SceneError(f"{args.scene} is an LF run file: name a snapshot with --snapshot NAME")
+        scene = scene_from_snapshot(args.scene, args.snapshot)
+    else:
+        scene = load_scene(args.scene)
+    rec = scene.record
+    changes: dict = {}
+    if args.sample_dt is not None:
+        changes["sample_dt"] = args.sample_dt
+    if args.record_patches is not None:
+        changes["patches"] = tuple(v.strip() for v in args.record_patches.split(",") if v.strip())
+    if args.patch_window is not None:
+        changes["window"] = tuple(args.patch_window)
+    if args.patch_decimation is not None:
+        changes["decimation"] = args.patch_decimation
+    duration = args.duration if args.duration is not None else scene.duration
+    if changes.get("sample_dt", rec.sample_dt) > duration:
+        raise SceneError(
+            f"sample interval {changes.get('sample_dt', rec.sample_dt):g} s exceeds the duration {duration:g} s"
+        )
+    scene = scene.replace(duration=duration, record=Record(**{**dataclasses.asdict(rec), **changes}))
+    options = RunOptions(
+        duration=duration,
+        integrator=args.integrator,
+        dt=args.dt,
+        tolerance=args.tolerance,
+        force=args.force,
+        engine=args.engine,
+        checkpoint_interval=args.checkpoint_interval,
+    )
+    result = run_scene(
+        scene,
+        args.output,
+        options,
+        device=args.device,
+        precision=args.precision,
+        overwrite=args.overwrite,
+        progress=not args.no_progress,
+    )
+    import h5py
+
+    with h5py.File(args.output, "r") as f:
+        mu = f["global/mu"][()]
+    n = scene.patches.count
+    rate = n * result.steps / max(result.wall_time, 1e-12)
+    line = (
+        f"{args.output}: {len(mu)} samples over {result.sim_time:.4g} s, {result.steps} steps "
+        f"({result.dt:.3g} s, {args.integrator}, {args.precision}), mean mu {np.mean(mu):.4f}, "
+        f"{rate:.3g} patch-steps/s"
+    )
+    if result.fault is not None:
+        print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
+        print(line + " (incomplete)")
+        return 3
+    print(line)
+    return 0
+
+
+def _resume_hf(args: argparse.Namespace) -> int:
+    """``aca-warp hf --resume RUN.h5``: the run's own settings; only --device, --checkpoint-interval, --no-progress."""
+    from aca_warp.hf.options import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE
+    from aca_warp.hf.runner import resume_run
+
+    refuse_with_resume(
+        (
+            ("SCENE", args.scene, None),
+            ("-o", args.output, None),
+            ("--duration", args.duration, None),
+            ("--dt", args.dt, None),
+            ("--sample-dt", args.sample_dt, None),
+            ("--record-patches", args.record_patches, None),
+            ("--patch-window", args.patch_window, None),
+            ("--patch-decimation", args.patch_decimation, None),
+            ("--integrator", args.integrator, DEFAULT_INTEGRATOR),
+            ("--tolerance", args.tolerance, DEFAULT_TOLERANCE),
+            ("--precision", args.precision, "fp64"),
+            ("--force", args.force, False),
+            ("--overwrite", args.overwrite, False),
+            ("--engine", getattr(args, "engine", "auto"), "auto"),
+        ),
+        "the run",
+    )
+    result, path = resume_run(
+        args.resume,
+        progress=not args.no_progress,
+        checkpoint_interval=args.checkpoint_interval,
+        device=None if args.device == "cpu" else args.device,
+    )
+    line = f"{path}: resumed, {result.steps} steps over {result.sim_time:.4g} s"
+    if result.fault is not None:
+        print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
+        print(line + " (incomplete)")
+        return 3
+    print(line)
+    return 0
+
+
+def _add_rerun(sub: Any) -> None:
+    """Register ``aca-warp rerun`` (HF and LF run files)."""
+    p = sub.add_parser(
+        "rerun",
+        help="repeat a run from its run file (HF or LF: scene, patches, integrator, precision, device)",
+        description="Repeat the run stored in RUN.h5 into NEW.h5: same scene (patches from the file), integrator, "
+        "run options, precision and device. On the same device and precision the samples are bit-identical.",
+    )
+    p.add_argument("run", metavar="RUN.h5", help="run file to repeat")
+    p.add_argument("-o", "--output", required=True, metavar="NEW.h5", help="run file to write")
+    p.add_argument("--device", help="Warp device (default: the one the run used)")
+    p.add_argument("--checkpoint-interval", type=positive, metavar="S", help="checkpoint every S of simulated time")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(handler=_cmd_rerun)
+
+
+def _is_lf(path: str | Path) -> bool:
+    """Whether ``path`` is an LF run file (root attribute ``kind = "lf"``); False when it cannot be read."""
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as f:
+            return f.attrs.get("kind") == "lf"
+    except (OSError, ValueError):
+        return False
+
+
+def _cmd_rerun(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from aca_warp.common.files import check_output_path, version_changes
+    from aca_warp.hf.rerun import read_settings
+    from aca_warp.hf.runner import run_scene
+
+    if _is_lf(args.run):
+        from aca_warp.lf.commands import rerun_lf
+
+        return rerun_lf(
+            args.run, args.output, device=args.device, checkpoint_interval=args.checkpoint_interval,
+            overwrite=args.overwrite, progress=not args.no_progress,
+        )  # fmt: skip
+    check_output_path(args.output, overwrite=args.overwrite)
+    if Path(args.output).resolve() == Path(args.run).resolve():
+        raise SceneError("rerun writes a new file; give an output other than the run file")
+    s = read_settings(args.run)
+    changed = version_changes(s.versions)
+    if changed:
+        print(f"aca-warp: note: versions differ from the run's: {', '.join(changed)}", file=sys.stderr)
+    options = s.options
+    if args.checkpoint_interval is not None:
+        options = dataclasses.replace(options, checkpoint_interval=args.checkpoint_interval)
+    result = run_scene(
+        s.scene,
+        args.output,
+        options,
+        device=args.device or s.device,
+        precision=s.precision,
+        overwrite=args.overwrite,
+        progress=not args.no_progress,
+    )
+    if result.fault is not None:
+        print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
+        return 3
+    print(f"{args.output}: rerun of {args.run}, {result.steps} steps over {result.sim_time:.4g} s")
+    return 0

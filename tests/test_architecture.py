@@ -1,0 +1,126 @@
+"""The package's shape: no import cycles (function-level imports included), nothing imports the CLI, the command
+line answers ``--help`` without loading the simulation, and the docs name only files of the repository."""
+
+from __future__ import annotations
+
+import ast
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def _module_files() -> dict[str, Path]:
+    """Module name -> source file of every module of the installed layout (kernels/ is aca_warp.kernels)."""
+    out: dict[str, Path] = {}
+    for root, prefix in ((REPO / "aca_warp", "aca_warp"), (REPO / "kernels", "aca_warp.kernels")):
+        for f in root.rglob("*.py"):
+            parts = list(f.relative_to(root).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            out[".".join([prefix, *parts])] = f
+    return out
+
+
+def _imports(name: str, path: Path, modules: set[str]) -> set[str]:
+    """The aca_warp modules ``name`` imports anywhere in its source (a ``from X import y`` of a submodule y
+    counts as importing X.y)."""
+    found: set[str] = set()
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join([*anchor, base] if base else anchor)
+            found.add(base)
+            found.update(f"{base}.{a.name}" for a in node.names)
+    return {m for m in found if m in modules and m != name}
+
+
+def _graph() -> dict[str, set[str]]:
+    files = _module_files()
+    return {name: _imports(name, path, set(files)) for name, path in files.items()}
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def _package_parents(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    """The graph without the edge from a module to its own package (``import a.b`` runs ``a/__init__``, which is
+    not a dependency of the code in a.b)."""
+    return {m: {d for d in deps if not m.startswith(d + ".")} for m, deps in graph.items()}
+
+
+def test_no_import_cycles() -> None:
+    cycles = _cycles(_package_parents(_graph()))
+    assert cycles == [], f"import cycles: {cycles}"
+
+
+def test_cycle_finder_finds_a_cycle() -> None:
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert _cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_nothing_imports_the_cli() -> None:
+    users = sorted(m for m, deps in _graph().items() if "aca_warp.cli" in deps)
+    assert users == []
+
+
+def test_help_loads_no_simulation_code() -> None:
+    """Building the whole parser imports neither Warp nor SciPy nor h5py (``--help`` answers at once)."""
+    code = (
+        "import sys, aca_warp.cli as c; c.build_parser(); "
+        "print(sorted(m for m in ('warp', 'scipy', 'h5py', 'matplotlib') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_docs_name_no_issue_numbers_or_outside_files() -> None:
+    pattern = re.compile(r"\bissues? #?\d+\b|\.\./shared/|/work/shared", re.IGNORECASE)
+    files = [REPO / "README.md", *(REPO / "docs").glob("*.md"), *REPO.glob("aca_warp/**/*.py")]
+    files += [*REPO.glob("kernels/*.py"), *REPO.glob("scripts/*.py")]
+    hits = [
+        f"{f.relative_to(REPO)}:{i}: {line.strip()}"
+        for f in files
+        for i, line in enumerate(f.read_text().splitlines(), 1)
+        if pattern.search(line)
+    ]
+    assert hits == []
