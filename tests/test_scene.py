@@ -36,11 +36,11 @@ from aca_warp.scene import (
 EDGE_INSIDE = math.radians(81.5 / 2) - 0.5 * math.sqrt(5e-8 / math.pi) / 0.13
 
 PAPER = {  # model.md presets table: area range [m²], M, F_N [N]; height spread [m] (docs/presets.md)
-    "hf1": ((2.0e-8, 8.0e-8), 0.8, 487.2, 0.0),
-    "hf2": ((5.0e-7, 2.0e-6), 0.8, 12370.0, 0.0),
-    "hf3": ((2.0e-8, 8.0e-8), 0.4, 487.2, 0.0),
-    "hf4": ((5.0e-7, 2.0e-6), 0.4, 12370.0, 0.0),
-    "varying_area": ((2.0e-8, 8.0e-8), 0.8, 12370.0, 0.0),
+    "hf1": ((2.0e-8, 8.0e-8), 0.8, 487.2, 2.42e-7),
+    "hf2": ((5.0e-7, 2.0e-6), 0.8, 12370.0, 1.23e-6),
+    "hf3": ((2.0e-8, 8.0e-8), 0.4, 487.2, 2.42e-7),
+    "hf4": ((5.0e-7, 2.0e-6), 0.4, 12370.0, 1.23e-6),
+    "varying_area": ((2.0e-8, 8.0e-8), 0.8, 12370.0, 2.42e-7),
 }
 PAPER.update({f"{k}_equal": (*v[:3], 0.0) for k, v in list(PAPER.items())})  # the same with equal heights
 
