@@ -310,3 +310,35 @@ def test_device_contact_resolve_with_spread_heights():
             assert mf.numpy()[0] == pytest.approx(ref.matrix_force.sum(), rel=1e-9, abs=1e-12 * load)
             assert fn.numpy().sum() + mf.numpy()[0] == pytest.approx(load, rel=1e-12)
     assert np.ptp(h[: s.patches.count]) > 0 and k.size == s.patches.count + 1
+
+
+def test_growth_moves_the_contact_in_both_engines():
+    """hf1 under 300 N (below its all-in-contact load 442 N) with fast growth: stiffer patches lift the disc, so the
+    growth events' re-solves take the lowest patches out of contact; the forces balance the load and equal the
+    host's exact solve at the grown areas; the on-chip engine gives the general engine's bits (CPU)."""
+    from aca_warp.hf import run_hf
+    from aca_warp.model import build_model
+    from aca_warp.onchip import run_onchip
+    from aca_warp.scene import Growth
+    from aca_warp.state import initial_state
+
+    s = preset("hf1").replace(
+        normal_force=300.0, record=Record(sample_dt=1e-7), growth=Growth(increment=1e-6, interval=2e-7)
+    )
+    start = solve_scene_contact(s)
+    touching0 = np.count_nonzero(start.patch_force > 0)
+    out = []
+    for fn in (run_hf, run_onchip):
+        model = build_model([s], device="cpu", precision="fp64")
+        state = initial_state(model)
+        assert fn(model, state, duration=1e-6, dt=1e-8).complete
+        f = model.host("normal_force")
+        ref = solve_scene_contact(s, area=model.host("area"))
+        np.testing.assert_allclose(f, ref.patch_force, rtol=1e-9, atol=1e-12 * s.normal_force)
+        np.testing.assert_array_equal(f == 0.0, ref.patch_force == 0.0)
+        assert f.sum() + model.host("pad_matrix_force")[0] == pytest.approx(300.0, rel=1e-12)
+        assert 0 < np.count_nonzero(f > 0) < touching0 < s.patches.count
+        assert model.host("pad_gap")[0] == pytest.approx(ref.gap, rel=1e-12) and ref.gap > start.gap
+        out.append((f, *state.numpy()))
+    for a, b in zip(*out, strict=True):
+        np.testing.assert_array_equal(a, b)
