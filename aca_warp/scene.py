@@ -2,7 +2,8 @@
 
 A scene holds everything one HF run of one pad needs (paper §2.1.2, §3.1; ``docs/model.md`` §1–2).
 Scenes come from Python objects, from TOML files (:func:`load_scene`) or from the built-in presets
-``hf1``…``hf4`` and ``varying_area`` (:func:`preset`, files in ``aca_warp/data``). Everything is
+``hf1``…``hf4`` and ``varying_area`` and their equal-height variants ``hf1_equal``… (:func:`preset`, files in
+``aca_warp/data``; ``docs/presets.md``). Everything is
 validated here, before any simulation starts; errors are :class:`~aca_warp.common.errors.SceneError` with a
 one-line message. All quantities are SI (m, m², kg, N, s, rad).
 """
@@ -26,9 +27,22 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-PRESETS = ("hf1", "hf2", "hf3", "hf4", "varying_area")
+# the paper's scenes (heights spread so the loads meet §3.1/§3.2), then the same with equal heights (docs/presets.md)
+PRESETS = (
+    "hf1",
+    "hf2",
+    "hf3",
+    "hf4",
+    "varying_area",
+    "hf1_equal",
+    "hf2_equal",
+    "hf3_equal",
+    "hf4_equal",
+    "varying_area_equal",
+)
 INITIAL_STATES = ("rest", "equilibrium")
 PATCH_VARIABLES = ("velocity", "displacement")
+HEIGHT_LAWS = ("normal", "uniform")
 
 
 def _finite(name: str, value: Any, *, low: float | None = None, strict: bool = False) -> float:
@@ -99,6 +113,13 @@ class Friction:
         """Signed friction coefficient f(v) of Eq. 4 for sliding velocity ``v`` [m/s]."""
         v = np.asarray(v, dtype=np.float64)
         return self.M / np.pi * np.arctan(self.slope * v) * (1.0 / (self.decay * np.abs(v) + 1.0) + 1.0)
+
+    def derivative(self, v: np.ndarray | float) -> np.ndarray:
+        """Slope df/dv of the signed Eq. 4 at sliding velocity ``v`` [m/s] [s m⁻¹] (negative where f falls)."""
+        v = np.asarray(v, dtype=np.float64)
+        q = 1.0 / (self.decay * np.abs(v) + 1.0)
+        da = self.slope / (1.0 + (self.slope * v) ** 2)
+        return self.M / np.pi * (da * (q + 1.0) - np.arctan(self.slope * v) * self.decay * np.sign(v) * q * q)
 
     def max_slope(self) -> float:
         """Largest |df/dv|, reached at v = 0: 2·slope·M/π [s m⁻¹]."""
@@ -219,12 +240,27 @@ class Patches:
 class PatchGenerator:
     """Seeded generator of non-overlapping patches, uniform over the pad (docs/model.md §2.9).
 
+    Positions and areas come from ``np.random.default_rng(seed)``; heights from a separate stream of the
+    same seed (:meth:`heights`), so a height law never moves a patch. Heights are h_i = height + height_spread·z_i
+    with z_i drawn independently of position and area:
+
+    * ``"normal"``: z standard normal truncated to [−height_truncation, height_truncation] (Gaussian summit
+      heights, Greenwood–Williamson; the cut bounds the lowest patch, hence the load that brings every patch
+      into contact, independently of the patch count);
+    * ``"uniform"``: z uniform in [−1, 1] (height_spread is the half-width).
+
+    ``height_spread = 0`` gives equal heights (no height is drawn).
+
     Attributes:
         count: Number of patches.
         area_min: Smallest area [m²]; areas are uniform in [area_min, area_max].
         area_max: Largest area [m²].
-        height: Free height of every patch above the matrix [m].
+        height: Centre (mean) of the free heights above the matrix [m].
         seed: Seed of the generator (NumPy PCG64).
+        height_spread: Spread of the heights [m]: standard deviation before truncation (normal law) or
+            half-width (uniform law).
+        height_law: ``"normal"`` (truncated) or ``"uniform"``.
+        height_truncation: Cut of the normal law in standard deviations [1] (ignored by the uniform law).
     """
 
     count: int = 1758
@@ -232,6 +268,9 @@ class PatchGenerator:
     area_max: float = 8.0e-8
     height: float = 3.0e-6
     seed: int = 1
+    height_spread: float = 0.0
+    height_law: str = "normal"
+    height_truncation: float = 2.0
 
     def __post_init__(self) -> None:
         if isinstance(self.count, bool) or not isinstance(self.count, int) or self.count < 1:
@@ -243,6 +282,41 @@ class PatchGenerator:
             raise SceneError(f"patches.area_max ({self.area_max:g}) must be >= patches.area_min ({self.area_min:g})")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise SceneError(f"patches.seed must be a non-negative integer, got {self.seed!r}")
+        _finite("patches.height_spread", self.height_spread, low=0.0)
+        if self.height_law not in HEIGHT_LAWS:
+            raise SceneError(f"patches.height_law must be one of {', '.join(HEIGHT_LAWS)}, got {self.height_law!r}")
+        _finite("patches.height_truncation", self.height_truncation, low=0.0, strict=True)
+        if self.height_bounds[0] < 0.0:
+            raise SceneError(
+                f"patches.height ({self.height:g} m) minus the law's reach ({self.height - self.height_bounds[0]:g} m) "
+                "must be >= 0: the lowest patch would lie below the matrix; lower height_spread or height_truncation"
+            )
+
+    @property
+    def height_bounds(self) -> tuple[float, float]:
+        """Smallest and largest height the law can draw [m]."""
+        reach = self.height_spread * (self.height_truncation if self.height_law == "normal" else 1.0)
+        return self.height - reach, self.height + reach
+
+    def heights(self) -> np.ndarray:
+        """Free heights of the patches in placement order [m], shape (count,).
+
+        Drawn from ``np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])`` (a stream independent
+        of the one that places the patches), one uniform u_i per patch: z_i = 2u_i − 1 (uniform law) or
+        z_i = Φ⁻¹(Φ(−c) + u_i (Φ(c) − Φ(−c))) (normal law cut at c = height_truncation, inverse CDF).
+        """
+        if self.height_spread == 0.0:
+            return np.full(self.count, self.height)
+        from scipy.special import ndtr, ndtri
+
+        u = np.random.default_rng(np.random.SeedSequence(self.seed).spawn(1)[0]).random(self.count)
+        if self.height_law == "uniform":
+            z = 2.0 * u - 1.0
+        else:
+            c = self.height_truncation
+            lo = ndtr(-c)
+            z = np.clip(ndtri(lo + u * (ndtr(c) - lo)), -c, c)
+        return np.clip(self.height + self.height_spread * z, *self.height_bounds)
 
     def generate(self, pad: Pad, *, max_tries: int = 200) -> Patches:
         """Place the patches by random sequential addition; sorted row-major by coupling-size cells."""
@@ -254,7 +328,19 @@ class PatchGenerator:
             )
         rng = np.random.default_rng(self.seed)
         area = rng.uniform(self.area_min, self.area_max, self.count)
-        rad = np.sqrt(area / np.pi)
+        xy = self._place(pad, rng, np.sqrt(area / np.pi), max_tries)
+        order = _spatial_order(xy[:, 0], xy[:, 1], 5.0e-3)
+        desc = (
+            f"generator(count={self.count}, area=[{self.area_min:g}, {self.area_max:g}] m2, "
+            f"height={self.height:g} m, seed={self.seed})"
+        )
+        if self.height_spread > 0.0:
+            cut = f", cut={self.height_truncation:g}" if self.height_law == "normal" else ""
+            desc = desc[:-1] + f", height_spread={self.height_spread:g} m, law={self.height_law}{cut})"
+        return Patches(xy[order, 0], xy[order, 1], area[order], self.heights()[order], source=desc)
+
+    def _place(self, pad: Pad, rng: np.random.Generator, rad: np.ndarray, max_tries: int) -> np.ndarray:
+        """Centres (count, 2) [m] of discs of radii ``rad`` [m] by random sequential addition inside the pad."""
         cell = max(2.0 * rad.max(), 1e-4)
         grid: dict[tuple[int, int], list[int]] = {}
         xy = np.zeros((self.count, 2))
@@ -287,12 +373,7 @@ class PatchGenerator:
                     f"could not place {self.count} non-overlapping patches of {self.area_min:g}-{self.area_max:g} m² "
                     f"on the pad (placed {i}); use fewer or smaller patches"
                 )
-        order = _spatial_order(xy[:, 0], xy[:, 1], 5.0e-3)
-        desc = (
-            f"generator(count={self.count}, area=[{self.area_min:g}, {self.area_max:g}] m2, "
-            f"height={self.height:g} m, seed={self.seed})"
-        )
-        return Patches(xy[order, 0], xy[order, 1], area[order], np.full(self.count, self.height), source=desc)
+        return xy
 
 
 def _spatial_order(x: np.ndarray, y: np.ndarray, cell: float) -> np.ndarray:
@@ -333,22 +414,30 @@ def write_patch_file(path: str | Path, patches: Patches) -> None:
 
 @dataclass(frozen=True)
 class Initial:
-    """Initial state of the HF run.
+    """Initial state of the HF run: a base state plus optional seeded perturbations.
+
+    Perturbations are independent N(0, σ²) draws per patch, added to the base state: velocities from
+    ``np.random.default_rng(seed)``, displacements from ``np.random.default_rng(np.random.SeedSequence(seed)
+    .spawn(1)[0])`` (a separate stream: switching one on does not change the other's draws).
 
     Attributes:
-        state: ``"rest"`` (u = u̇ = 0) or ``"equilibrium"`` (static balance of springs and friction, u̇ = 0).
-        perturbation: Standard deviation of random initial patch velocities added to the state [m/s].
-        seed: Seed of the perturbation.
+        state: ``"rest"`` (u = u̇ = 0) or ``"equilibrium"`` (static balance of springs and steady friction, u̇ = 0).
+        perturbation: Standard deviation σ of random initial patch velocities added to the state [m/s].
+        seed: Seed of the perturbations.
+        displacement_perturbation: Standard deviation σ of random initial patch displacements added to the
+            state [m].
     """
 
     state: str = "rest"
     perturbation: float = 0.0
     seed: int = 0
+    displacement_perturbation: float = 0.0
 
     def __post_init__(self) -> None:
         if self.state not in INITIAL_STATES:
             raise SceneError(f"initial.state must be one of {', '.join(INITIAL_STATES)}, got {self.state!r}")
         _finite("initial.perturbation", self.perturbation, low=0.0)
+        _finite("initial.displacement_perturbation", self.displacement_perturbation, low=0.0)
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise SceneError(f"initial.seed must be a non-negative integer, got {self.seed!r}")
 
@@ -557,7 +646,7 @@ _TABLES: dict[str, tuple[str, ...]] = {
     "load": ("normal_force",),
     "disc": ("sliding_speed", "angular_velocity"),
     "friction": tuple(f.name for f in dataclasses.fields(Friction)),
-    "patches": ("file", "count", "area_min", "area_max", "height", "seed"),
+    "patches": ("file", *(f.name for f in dataclasses.fields(PatchGenerator))),
     "material": tuple(f.name for f in dataclasses.fields(Material)),
     "initial": tuple(f.name for f in dataclasses.fields(Initial)),
     "growth": tuple(f.name for f in dataclasses.fields(Growth)),
@@ -625,7 +714,7 @@ def scene_from_dict(doc: dict, *, base_dir: Path | None = None, name: str = "sce
 
 
 def load_scene(spec: str | Path) -> Scene:
-    """A preset name (``hf1``…``hf4``, ``varying_area``) or the path of a TOML scene file."""
+    """A preset name (:data:`PRESETS`) or the path of a TOML scene file."""
     s = str(spec)
     if s in PRESETS:
         return preset(s)

@@ -2,8 +2,8 @@
 
 Compression-only springs in parallel: F_i = k_i max(H_i − g, 0), Σ F_i = F_N. The exact piecewise-linear
 solve is checked against force balance, a brute-force bisection on g, and the load-sharing statements of
-docs/model.md §2.6 for the presets (HF1/HF2 loads on the patches only; HF1 patches under the HF2 load share it with the
-matrix, about half).
+docs/model.md §2.6 for the equal-height presets (HF1/HF2 loads on the patches only; HF1 patches under the HF2 load
+share it with the matrix, about half), and the load window (all patches in contact, matrix free) against the solve.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aca_warp.common.errors import SceneError
-from aca_warp.hf.contact import solve_contact, solve_scene_contact
+from aca_warp.hf.contact import load_at_gap, load_window, solve_contact, solve_scene_contact
 from aca_warp.scene import Matrix, Pad, Patches, Scene, preset
 
 
@@ -175,12 +175,13 @@ def test_patches_at_matrix_level_share_by_stiffness():
 
 @pytest.fixture(scope="module")
 def preset_contacts():
-    """Contact solutions of the presets (each solved once)."""
-    return {n: (preset(n), solve_scene_contact(preset(n))) for n in ("hf1", "hf2", "varying_area")}
+    """Contact solutions of the equal-height presets (each solved once; spread heights: tests/test_heights.py)."""
+    scenes = {n: preset(f"{n}_equal") for n in ("hf1", "hf2", "varying_area")}
+    return {n: (s, solve_scene_contact(s)) for n, s in scenes.items()}
 
 
 def test_hf1_load_sits_on_the_patches(preset_contacts):
-    """HF1: all 487.2 N on the patches, each compressed ≈ 0.52 µm of its 3 µm height."""
+    """hf1_equal: all 487.2 N on the patches, each compressed ≈ 0.52 µm of its 3 µm height."""
     s, sol = preset_contacts["hf1"]
     check_solution(*_elements(s), s.normal_force, sol, s.patches.count)
     assert sol.patch_share == 1.0
@@ -191,7 +192,7 @@ def test_hf1_load_sits_on_the_patches(preset_contacts):
 
 
 def test_hf2_load_sits_on_the_patches(preset_contacts):
-    """HF2: all 12.37 kN on the patches, compression 2.6–2.7 µm < 3 µm (matrix not touched)."""
+    """hf2_equal: all 12.37 kN on the patches, compression 2.6–2.7 µm < 3 µm (matrix not touched)."""
     s, sol = preset_contacts["hf2"]
     check_solution(*_elements(s), s.normal_force, sol, s.patches.count)
     assert sol.patch_share == 1.0
@@ -200,7 +201,8 @@ def test_hf2_load_sits_on_the_patches(preset_contacts):
 
 
 def test_varying_area_start_shares_with_the_matrix(preset_contacts):
-    """varying_area start (HF1 patches, HF2 load): patches carry ≈ 0.47, compressed ≈ 6.2 µm; the matrix the rest."""
+    """varying_area_equal start (HF1 patches, HF2 load): patches carry ≈ 0.47, compressed ≈ 6.2 µm; the matrix the
+    rest."""
     s, sol = preset_contacts["varying_area"]
     check_solution(*_elements(s), s.normal_force, sol, s.patches.count)
     assert 0.45 <= sol.patch_share <= 0.49
@@ -221,3 +223,44 @@ def _elements(s: Scene) -> tuple[np.ndarray, np.ndarray]:
     k = np.concatenate([2.39e9 * np.sqrt(s.patches.area), 1.85e11 * s.matrix.area])
     h = np.concatenate([s.patches.height, s.matrix.height])
     return k, h
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_load_window_ends_are_where_the_solve_reaches_the_lowest_patch_and_the_matrix(seed):
+    """At F_all the solved gap is the lowest patch height (every patch just touching); at F_mat it is the highest
+    matrix cell; holds() and margin() follow; load_at_gap is the force sum of the solve at that gap."""
+    rng = np.random.default_rng(seed)
+    n = 12
+    p = Patches(
+        x=np.linspace(-0.03, 0.03, n),
+        y=np.full(n, 0.13),
+        area=rng.uniform(2e-8, 8e-8, n),
+        height=rng.uniform(2e-6, 4e-6, n),
+    )
+    cells = Matrix(area=np.array([4e-3, 6e-3]), radius=np.array([0.12, 0.14]), height=np.array([0.5e-6, -0.2e-6]))
+    s = Scene(name="window", pad=Pad(), patches=p, normal_force=1.0, matrix=cells)
+    win = load_window(s)
+    assert 0 < win.all_in_contact < win.matrix_contact
+    at_all = solve_scene_contact(s.replace(normal_force=win.all_in_contact))
+    assert at_all.gap == pytest.approx(p.height.min(), rel=1e-12)
+    assert np.count_nonzero(at_all.patch_force > 0) == n - 1  # the lowest patch touches with zero force
+    at_mat = solve_scene_contact(s.replace(normal_force=win.matrix_contact))
+    assert at_mat.gap == pytest.approx(0.5e-6, rel=1e-9)
+    assert at_mat.matrix_force.sum() < 1e-9 * win.matrix_contact and np.all(at_mat.patch_force > 0)
+    k = np.concatenate([2.39e9 * np.sqrt(p.area), 1.85e11 * cells.area])
+    h = np.concatenate([p.height, cells.height])
+    assert load_at_gap(k, h, at_all.gap) == pytest.approx(win.all_in_contact, rel=1e-12)
+    assert win.holds(win.all_in_contact) and win.holds(win.matrix_contact)
+    assert not win.holds(0.99 * win.all_in_contact) and not win.holds(1.01 * win.matrix_contact)
+    assert win.margin(1.1 * win.all_in_contact) == pytest.approx(0.1, rel=1e-12)
+    assert solve_scene_contact(s.replace(normal_force=0.99 * win.all_in_contact)).patch_force.min() == 0.0
+    over = solve_scene_contact(s.replace(normal_force=1.01 * win.matrix_contact))
+    assert over.matrix_force[0] > 0 and over.matrix_force[1] == 0.0
+
+
+def test_equal_heights_are_all_in_contact_under_any_load(preset_contacts):
+    """Equal heights: the all-in-contact load is 0 (any load touches every patch), margin infinite."""
+    s, _ = preset_contacts["hf1"]
+    win = load_window(s)
+    assert win.all_in_contact == 0.0 and win.margin(s.normal_force) == math.inf
+    assert win.matrix_contact == pytest.approx(2.39e9 * np.sqrt(s.patches.area).sum() * 3e-6, rel=1e-12)

@@ -35,13 +35,14 @@ from aca_warp.scene import (
 # angle from +y of a 0.05 mm² patch centre at r = 0.13 m whose disc crosses the straight +x edge by half its radius
 EDGE_INSIDE = math.radians(81.5 / 2) - 0.5 * math.sqrt(5e-8 / math.pi) / 0.13
 
-PAPER = {  # docs/model.md §2.9: area range [m²], M, F_N [N]
-    "hf1": ((2.0e-8, 8.0e-8), 0.8, 487.2),
-    "hf2": ((5.0e-7, 2.0e-6), 0.8, 12370.0),
-    "hf3": ((2.0e-8, 8.0e-8), 0.4, 487.2),
-    "hf4": ((5.0e-7, 2.0e-6), 0.4, 12370.0),
-    "varying_area": ((2.0e-8, 8.0e-8), 0.8, 12370.0),
+PAPER = {  # docs/model.md §2.9: area range [m²], M, F_N [N]; height spread [m] (docs/presets.md)
+    "hf1": ((2.0e-8, 8.0e-8), 0.8, 487.2, 2.42e-7),
+    "hf2": ((5.0e-7, 2.0e-6), 0.8, 12370.0, 1.23e-6),
+    "hf3": ((2.0e-8, 8.0e-8), 0.4, 487.2, 2.42e-7),
+    "hf4": ((5.0e-7, 2.0e-6), 0.4, 12370.0, 1.23e-6),
+    "varying_area": ((2.0e-8, 8.0e-8), 0.8, 12370.0, 2.42e-7),
 }
+PAPER.update({f"{k}_equal": (*v[:3], 0.0) for k, v in list(PAPER.items())})  # the same with equal heights
 
 
 def small_patches(**changes) -> Patches:
@@ -121,6 +122,9 @@ def test_replace_with_new_patches_rebuilds_the_fresh_matrix():
         (lambda v: Friction(slope=v), "friction.slope"),
         (lambda v: Friction(decay=v), "friction.decay"),
         (lambda v: Initial(perturbation=v), "initial.perturbation"),
+        (lambda v: Initial(displacement_perturbation=v), "initial.displacement_perturbation"),
+        (lambda v: PatchGenerator(height_spread=v), "patches.height_spread"),
+        (lambda v: PatchGenerator(height_spread=1e-7, height_truncation=v), "patches.height_truncation"),
         (lambda v: Growth(increment=v), "growth.increment"),
         (lambda v: Pad(r_outer=v), "pad.r_outer"),
     ],
@@ -390,7 +394,8 @@ def test_unparsable_toml_and_missing_scene(tmp_path):
 
 def test_unknown_preset():
     """preset() names the allowed presets."""
-    with pytest.raises(SceneError, match=r"unknown preset 'hf5'; choose from hf1, hf2, hf3, hf4, varying_area"):
+    names = "hf1, hf2, hf3, hf4, varying_area, hf1_equal, hf2_equal, hf3_equal, hf4_equal, varying_area_equal"
+    with pytest.raises(SceneError, match=rf"unknown preset 'hf5'; choose from {names}$"):
         preset("hf5")
 
 
@@ -508,7 +513,7 @@ def presets() -> dict[str, Scene]:
 def test_presets_match_the_paper(presets, name):
     """Presets: 1758 patches in the paper's area range, M and F_N per Table 1, default pad, 10 m/s."""
     s = presets[name]
-    (a_lo, a_hi), M, load = PAPER[name]
+    (a_lo, a_hi), M, load, spread = PAPER[name]
     p = s.patches
     assert s.name == name
     assert p.count == 1758
@@ -516,7 +521,12 @@ def test_presets_match_the_paper(presets, name):
     # uniform over the range: the extremes are close to its ends and the mean is near the middle
     assert p.area.min() < a_lo + 0.01 * (a_hi - a_lo) and p.area.max() > a_hi - 0.01 * (a_hi - a_lo)
     assert p.area.mean() == pytest.approx(0.5 * (a_lo + a_hi), rel=0.03)
-    np.testing.assert_array_equal(p.height, 3.0e-6)
+    if spread == 0.0:
+        np.testing.assert_array_equal(p.height, 3.0e-6)
+    else:  # truncated normal: mean 3 µm, within ±2 spreads, reaching close to both cuts
+        assert p.height.min() >= 3.0e-6 - 2 * spread and p.height.max() <= 3.0e-6 + 2 * spread
+        assert p.height.min() < 3.0e-6 - 1.9 * spread and p.height.max() > 3.0e-6 + 1.9 * spread
+        assert p.height.mean() == pytest.approx(3.0e-6, abs=4 * spread / math.sqrt(p.count))
     assert s.friction.M == M
     assert s.friction.mu_pad == 0.3
     assert s.normal_force == load
@@ -532,7 +542,7 @@ def test_presets_match_the_paper(presets, name):
     if a_hi < 1e-7:
         m = s.material.mass_per_area * p.area
         assert m.min() >= 0.75e-6 and m.max() <= 3.0e-6
-    assert (s.growth is not None) == (name == "varying_area")
+    assert (s.growth is not None) == name.startswith("varying_area")
 
 
 def test_varying_area_growth_is_eq10():
@@ -546,11 +556,18 @@ def test_varying_area_growth_is_eq10():
 
 
 def test_presets_are_reproducible_and_share_positions():
-    """Presets are generated from seed 1: loading twice gives identical patches; hf1 and hf3 share them."""
+    """Presets are generated from seed 1: loading twice gives identical patches; hf1, hf3 and varying_area share
+    positions, areas and heights, hf1_equal their positions and areas."""
     a, b = preset("hf1"), preset("hf1")
     np.testing.assert_array_equal(a.patches.x, b.patches.x)
-    np.testing.assert_array_equal(a.patches.x, preset("hf3").patches.x)
-    np.testing.assert_array_equal(a.patches.area, preset("varying_area").patches.area)
+    np.testing.assert_array_equal(a.patches.height, b.patches.height)
+    for other in ("hf3", "varying_area", "hf1_equal"):
+        o = preset(other).patches
+        np.testing.assert_array_equal(a.patches.x, o.x)
+        np.testing.assert_array_equal(a.patches.area, o.area)
+        if other != "hf1_equal":
+            np.testing.assert_array_equal(a.patches.height, o.height)
+    np.testing.assert_array_equal(preset("hf2").patches.height, preset("hf4").patches.height)
 
 
 def test_load_scene_accepts_preset_names():

@@ -91,7 +91,7 @@ def test_pad_equals_hand_built_scene() -> None:
     hand = base.replace(
         friction=Friction(M=0.8, mu_pad=base.friction.mu_pad),
         normal_force=400.0,
-        patches=PatchGenerator(count=25, seed=2).generate(base.pad),
+        patches=PatchGenerator(**{**base.origin["patches"], "count": 25, "seed": 2}).generate(base.pad),
         record=s.base.record,
     )
     m = build_model([hand], precision="fp32")

@@ -84,8 +84,54 @@ def solve_contact(
 
 def solve_scene_contact(scene: Scene, *, area: np.ndarray | None = None) -> ContactSolution:
     """Contact of a scene (optionally with patch areas ``area`` [m²] replacing the scene's)."""
+    k, h = scene_elements(scene, area=area)
+    return solve_contact(k, h, scene.normal_force, n_patches=scene.patches.count)
+
+
+def scene_elements(scene: Scene, *, area: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Stiffness [N/m] and free height [m] of every contact element, patches first, shape (n + c,) each.
+
+    Patches: k_N,i = K_N √A_i (Eq. 1) and h_i; matrix cells: k_m a_e and z_e. ``area`` [m²] replaces the
+    scene's patch areas (growth).
+    """
     p, mat = scene.patches, scene.matrix
     a = p.area if area is None else np.asarray(area, dtype=np.float64)
     k = np.concatenate([scene.material.K_N * np.sqrt(a), scene.material.matrix_stiffness * mat.area])
     h = np.concatenate([p.height, mat.height])
-    return solve_contact(k, h, scene.normal_force, n_patches=p.count)
+    return k, h
+
+
+def load_at_gap(stiffness: np.ndarray, height: np.ndarray, gap: float) -> float:
+    """Σ_j k_j max(H_j − g, 0) [N]: the clamp force that puts the disc surface at height ``gap`` [m]."""
+    k = np.asarray(stiffness, dtype=np.float64)
+    return float(np.sum(k * np.maximum(np.asarray(height, dtype=np.float64) - gap, 0.0)))
+
+
+@dataclass(frozen=True)
+class LoadWindow:
+    """The loads between which every patch touches the disc and the matrix does not (paper §3.1) [N].
+
+    Attributes:
+        all_in_contact: Load at which the disc reaches the lowest patch (g = min h_i): above it every patch
+            is in contact; Σ k_N,i (h_i − h_min) on a matrix below the patches.
+        matrix_contact: Load at which the disc reaches the highest matrix cell (g = max z_e): above it the
+            matrix carries load; Σ k_N,i h_i on a fresh (flat, elevation 0) matrix.
+    """
+
+    all_in_contact: float
+    matrix_contact: float
+
+    def holds(self, load: float) -> bool:
+        """Whether ``load`` [N] keeps every patch in contact and the matrix free (both ends included)."""
+        return self.all_in_contact <= load <= self.matrix_contact
+
+    def margin(self, load: float) -> float:
+        """How far ``load`` [N] lies above the all-in-contact load, relative to it [1] (inf if that is 0)."""
+        return load / self.all_in_contact - 1.0 if self.all_in_contact > 0 else np.inf
+
+
+def load_window(scene: Scene, *, area: np.ndarray | None = None) -> LoadWindow:
+    """The :class:`LoadWindow` of a scene (optionally at patch areas ``area`` [m²], e.g. after growth)."""
+    k, h = scene_elements(scene, area=area)
+    n = scene.patches.count
+    return LoadWindow(load_at_gap(k, h, float(h[:n].min())), load_at_gap(k, h, float(h[n:].max())))

@@ -10,6 +10,7 @@ import scipy.sparse.linalg as spla
 import warp as wp
 
 from aca_warp.hf.model import PadModel, coupling_matrix
+from aca_warp.scene import Initial
 
 
 @dataclass
@@ -35,7 +36,8 @@ def initial_state(model: PadModel) -> HFState:
     """Initial state of every pad from its scene's ``[initial]`` table (docs/model.md §2.7).
 
     ``rest``: u = u̇ = 0. ``equilibrium``: (diag k_T + L) u = F_N f(ω r), u̇ = 0, L the coupling Laplacian.
-    ``perturbation`` adds N(0, σ²) velocities [m/s] from the scene's seed.
+    Then, per pad, ``perturbation`` adds N(0, σ²) velocities [m/s] and ``displacement_perturbation`` N(0, σ²)
+    displacements [m], drawn as :func:`perturbations` does.
     """
     n = model.patch_count
     u = np.zeros(n)
@@ -47,12 +49,30 @@ def initial_state(model: PadModel) -> HFState:
                 a, b = model.pad_patch_start_host[p : p + 2]
                 u[a:b] = u_eq[a:b]
     for p, s in enumerate(model.scenes):
-        if s.initial.perturbation > 0:
-            a, b = model.pad_patch_start_host[p : p + 2]
-            v[a:b] += np.random.default_rng(s.initial.seed).normal(0.0, s.initial.perturbation, b - a)
+        a, b = model.pad_patch_start_host[p : p + 2]
+        du, dv = perturbations(s.initial, b - a)
+        if dv is not None:
+            v[a:b] += dv
+        if du is not None:
+            u[a:b] += du
     np_t = np.float32 if model.dtype == wp.float32 else np.float64
     mk = lambda a: wp.array(a.astype(np_t), dtype=model.dtype, device=model.device)  # noqa: E731
     return HFState(u=mk(u), v=mk(v), force=mk(np.zeros(n)))
+
+
+def perturbations(initial: Initial, n: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Seeded perturbations (displacement [m], velocity [m/s]) of ``n`` patches, shape (n,) each; None when off.
+
+    Velocities: ``np.random.default_rng(seed).normal(0, perturbation, n)``. Displacements: the same from the
+    first child of the seed's ``SeedSequence``, so each stream is the same whether the other is on or not.
+    """
+    dv = du = None
+    if initial.perturbation > 0:
+        dv = np.random.default_rng(initial.seed).normal(0.0, initial.perturbation, n)
+    if initial.displacement_perturbation > 0:
+        rng = np.random.default_rng(np.random.SeedSequence(initial.seed).spawn(1)[0])
+        du = rng.normal(0.0, initial.displacement_perturbation, n)
+    return du, dv
 
 
 def _equilibrium(model: PadModel) -> np.ndarray:
