@@ -1,5 +1,23 @@
-"""Analysis of run files: spectra, time-frequency transforms, the Synchronization Index (paper §2.2), saturation."""
+"""Analysis of run files: spectra, time-frequency maps, Synchronization Index (paper §2.2), saturation, measures."""
 
+from .measures import (
+    CorrelationLength,
+    EnsembleInterval,
+    LineTrend,
+    PeakWidth,
+    SharedPeak,
+    SpectralOverlap,
+    StftPeak,
+    ensemble_interval,
+    line_trend,
+    peak_track,
+    peak_width,
+    phase_correlation_length,
+    shared_peaks,
+    spectral_overlap,
+    stft_peak,
+    stft_peaks,
+)
 from .saturation import (
     SaturationResult,
     common_start,
@@ -21,7 +39,14 @@ from .sync import (
 from .timefreq import cwt_morlet, stft
 
 __all__ = [
+    "CorrelationLength",
+    "EnsembleInterval",
+    "LineTrend",
+    "PeakWidth",
     "SaturationResult",
+    "SharedPeak",
+    "SpectralOverlap",
+    "StftPeak",
     "SyncBins",
     "SyncResult",
     "amplitude_spectrum",
@@ -30,12 +55,21 @@ __all__ = [
     "coupled_growth_rates",
     "cwt_morlet",
     "drop_low_frequencies",
+    "ensemble_interval",
     "friction_slope",
     "growth_rate_summary",
+    "line_trend",
     "peak",
+    "peak_track",
+    "peak_width",
+    "phase_correlation_length",
     "predicted_growth_rate",
     "saturation",
+    "shared_peaks",
+    "spectral_overlap",
     "stft",
+    "stft_peak",
+    "stft_peaks",
     "sync_index",
     "sync_index_from_bins",
     "sync_index_from_signals",
