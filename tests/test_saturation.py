@@ -168,6 +168,12 @@ def test_bad_input_raises_one_clear_line():
     x2[5, 1] = np.nan
     with pytest.raises(ValueError, match="non-finite value at sample 5, column 1"):
         saturation(t, x2)
+    wide = np.tile(x[:, None], (1, 70)).astype(np.float32)  # two column blocks, float32 kept
+    wide[-1, 66] = np.inf
+    with pytest.raises(ValueError, match=f"non-finite value at sample {t.size - 1}, column 66"):
+        saturation(t, wide, window=400)
+    with pytest.raises(ValueError, match="non-finite value at sample 7$|sample 7;"):
+        saturation(t, np.where(np.arange(t.size) == 7, np.nan, x))
     with pytest.raises(ValueError, match="shapes|must be"):
         saturation(t[:-1], x)
     with pytest.raises(ValueError, match="too short"):

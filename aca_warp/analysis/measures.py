@@ -205,7 +205,7 @@ def shared_peaks(
     spectra: dict[str, np.ndarray],
     *,
     band: tuple[float, float] | None = None,
-    prominence: float = 2.0,
+    prominence: float = 4.0,
     tolerance: float | None = None,
     min_count: int | None = None,
 ) -> list[SharedPeak]:
@@ -221,7 +221,9 @@ def shared_peaks(
         freq: Uniformly spaced frequencies [Hz], shape (F,).
         spectra: Name -> amplitude spectrum, each of shape (F,).
         band: (fmin, fmax) [Hz] in which peaks count; default (10 Hz, highest frequency).
-        prominence: Factor by which a peak must exceed its surroundings (2: 6 dB).
+        prominence: Factor by which a peak must exceed its surroundings (4: 12 dB). The single-record Hann
+            spectrum of a chaotic saturated signal fluctuates from bin to bin; a factor 2 there finds a peak
+            every few bins.
         tolerance: Largest frequency difference within a group [Hz]; default 2 bins.
         min_count: Spectra a shared peak must appear in; default all of them.
 

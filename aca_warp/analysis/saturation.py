@@ -91,20 +91,35 @@ class SaturationResult:
         return self.t_s is not None
 
 
+_BLOCK_COLUMNS = 64
+"""Columns converted to float64 at a time: bounds the temporaries of a per-patch record to 64 columns."""
+
+_FREQUENCY_COLUMNS = 32
+"""At most this many evenly spaced columns are transformed to find a batch's dominant frequency."""
+
+
 def _check_record(time: np.ndarray, signal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Validate shapes and finiteness; return (time (N,), signal (N, P)) as float64."""
+    """Validate shapes and time; return (time (N,), signal (N, P)) without copying a floating-point signal."""
     time = np.asarray(time, dtype=np.float64)
-    signal = np.asarray(signal, dtype=np.float64)
+    signal = np.asarray(signal)
+    if not np.issubdtype(signal.dtype, np.floating):
+        signal = signal.astype(np.float64)
     if time.ndim != 1 or signal.ndim not in (1, 2) or signal.shape[0] != time.size:
         raise ValueError(f"time must be (N,) and signal (N,) or (N, pads); got {time.shape} and {signal.shape}")
-    bad = ~np.isfinite(signal)
-    if bad.any():
-        row, *col = np.unravel_index(int(np.flatnonzero(bad.ravel())[0]), signal.shape)
-        where = f"sample {row}" + (f", column {col[0]}" if col else "")
-        raise ValueError(f"signal has a non-finite value at {where}; saturation needs a finite record")
     if not np.all(np.isfinite(time)) or np.any(np.diff(time) <= 0):
         raise ValueError("time must be finite and strictly increasing")
     return time, signal.reshape(time.size, -1)
+
+
+def _finite_block(x: np.ndarray, columns: np.ndarray, one: bool) -> np.ndarray:
+    """``x`` as float64, or ValueError naming the first non-finite sample (``columns``: the input's column numbers)."""
+    x = np.asarray(x, dtype=np.float64)
+    bad = ~np.isfinite(x)
+    if bad.any():
+        row, col = np.unravel_index(int(np.flatnonzero(bad.ravel())[0]), x.shape)
+        where = f"sample {row}" + ("" if one else f", column {columns[col]}")
+        raise ValueError(f"signal has a non-finite value at {where}; saturation needs a finite record")
+    return x
 
 
 def dominant_frequency(time: np.ndarray, signal: np.ndarray) -> float:
@@ -112,28 +127,35 @@ def dominant_frequency(time: np.ndarray, signal: np.ndarray) -> float:
 
     Differencing suppresses a growing or drifting mean (its spectrum sits in the lowest bins) by the factor
     2 sin(πfΔt) relative to the oscillation, so the oscillation of a growing record is found. For a batch
-    (N, P) the median over columns is returned. Bins below 3 are ignored.
+    (N, P) the median over at most 32 evenly spaced columns is returned. Bins below 3 are ignored.
     """
     time, x = _check_record(time, signal)
-    dt = (time[-1] - time[0]) / (time.size - 1)
-    d = np.diff(x, axis=0)
-    if d.shape[0] < 8:
+    if time.size < 9:
         raise ValueError(f"need at least 9 samples to find a dominant frequency, got {time.size}")
+    cols = np.unique(np.linspace(0, x.shape[1] - 1, min(x.shape[1], _FREQUENCY_COLUMNS)).round().astype(int))
+    dt = (time[-1] - time[0]) / (time.size - 1)
+    d = np.diff(_finite_block(x[:, cols], cols, np.ndim(signal) == 1), axis=0)
     w = np.hanning(d.shape[0])[:, None]
     amp = np.abs(scipy.fft.rfft(d * w, axis=0))
     freq = scipy.fft.rfftfreq(d.shape[0], dt)
     return float(np.median(freq[3 + np.argmax(amp[3:], axis=0)]))
 
 
-def _envelope(x: np.ndarray, window: int, statistic: str) -> np.ndarray:
-    """Per-window statistic of x (N, P) -> (K, P)."""
+def _envelope(x: np.ndarray, window: int, statistic: str, one: bool) -> np.ndarray:
+    """Per-window statistic of x (N, P) -> (K, P), float64, computed 64 columns at a time."""
     k = x.shape[0] // window
-    xw = x[: k * window].reshape(k, window, x.shape[1])
-    if statistic == "std":
-        return xw.std(axis=1)
-    if statistic == "mean":
-        return np.abs(xw.mean(axis=1))
-    return np.sqrt(np.mean(xw * xw, axis=1))
+    out = np.empty((k, x.shape[1]))
+    for c0 in range(0, x.shape[1], _BLOCK_COLUMNS):
+        xb = _finite_block(x[:, c0 : c0 + _BLOCK_COLUMNS], np.arange(c0, x.shape[1]), one)
+        xw = xb[: k * window].reshape(k, window, xb.shape[1])
+        if statistic == "std":
+            e = xw.std(axis=1)
+        elif statistic == "mean":
+            e = np.abs(xw.mean(axis=1))
+        else:
+            e = np.sqrt(np.mean(xw * xw, axis=1))
+        out[:, c0 : c0 + xb.shape[1]] = e
+    return out
 
 
 def _local_fit(y: np.ndarray, t: np.ndarray, span: int) -> tuple[np.ndarray, np.ndarray]:
@@ -313,12 +335,12 @@ def saturation(
         raise ValueError(f"record too short: {n} samples, need at least {4 * min_windows} ({min_windows} windows of 4)")
     dt = (time[-1] - time[0]) / (n - 1)
     if window is None:
-        window = int(round(periods / (dominant_frequency(time, x) * dt)))
+        window = int(round(periods / (dominant_frequency(time, signal) * dt)))
         window = int(np.clip(window, 4, max(4, n // DEFAULT_WINDOWS)))
     if not 1 <= window <= n // min_windows:
         raise ValueError(f"window of {window} samples gives fewer than {min_windows} windows in {n} samples")
     opt = _Options(smooth, min_rise, tuple(fit_margin), growth_fraction, rel_change, band, min_saturated, fit_window)
-    e = _envelope(x, window, statistic)
+    e = _envelope(x, window, statistic, one)
     k = e.shape[0]
     t0 = time[: k * window : window]
     te = time[: k * window].reshape(k, window).mean(axis=1)
