@@ -291,8 +291,9 @@ def small_hf1_pad(count: int, seed: int):
 def test_coupled_pad_growth_of_sum_abs_velocity():
     """100 coupled hf1 patches from rest, nonlinear (ReferenceODE) and linearised, 3 ms of growth.
 
-    Σ|u̇| grows at the rate of the bulk of the patches early on (observed within 2 % of the median isolated
-    σ_i on six pads), well below the fastest patch, whose localised mode has not yet taken over.
+    Σ|u̇| grows at the rate of the bulk of the patches early on (0.7 % above the median isolated σ_i here),
+    well below the fastest patch (σ_max = 1.66 median), whose localised mode has not yet taken over. The
+    fastest coupled mode lies between median and maximum, as Re λ is a weighted mean of the isolated rates.
     """
     from aca_warp.model import build_model
     from aca_warp.reference import ReferenceODE
@@ -317,6 +318,6 @@ def test_coupled_pad_growth_of_sum_abs_velocity():
     fit = {"statistic": "mean", "window": 150, "fit_window": (0.5e-3, 3e-3)}
     measured = saturation(t, np.abs(nonlinear).sum(axis=1), **fit).growth_rate
     linearised = saturation(t, np.abs(lin.y[n:]).sum(axis=0), **fit).growth_rate
-    assert measured == pytest.approx(linearised, rel=0.02)  # amplitudes ≤ 0.3 m/s ≪ ω r: linear
+    assert measured == pytest.approx(linearised, rel=0.02)  # |u̇| < 3 m/s < 0.3 ω r: still nearly linear
     assert sigma.min() < measured < sigma.max()
     assert measured == pytest.approx(np.median(sigma), rel=0.1)
