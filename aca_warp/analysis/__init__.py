@@ -1,4 +1,4 @@
-"""Analysis of run files: spectra, time-frequency transforms and the Synchronization Index (paper §2.2).
+"""Analysis of run files: spectra, time-frequency maps, Synchronization Index (paper §2.2), saturation, measures.
 
 The names below load their modules (and SciPy) when first used, so that the command line starts fast.
 """
@@ -8,20 +8,23 @@ from __future__ import annotations
 from importlib import import_module
 from typing import Any
 
-_PUBLIC = {
-    "amplitude_spectrum": "spectra",
-    "complex_spectrum": "spectra",
-    "drop_low_frequencies": "spectra",
-    "peak": "spectra",
-    "SyncBins": "sync",
-    "SyncResult": "sync",
-    "sync_index": "sync",
-    "sync_index_from_bins": "sync",
-    "sync_index_from_signals": "sync",
-    "sync_null_level": "sync",
-    "cwt_morlet": "timefreq",
-    "stft": "timefreq",
-}
+_MODULES = {
+    "measures": (
+        "CorrelationLength", "EnsembleInterval", "LineTrend", "PeakWidth", "SharedPeak", "SpectralOverlap",
+        "StftPeak", "ensemble_interval", "line_trend", "peak_track", "peak_width", "phase_correlation_length",
+        "shared_peaks", "spectral_overlap", "stft_peak", "stft_peaks",
+    ),
+    "saturation": (
+        "SaturationResult", "common_start", "coupled_growth_rates", "friction_slope", "growth_rate_summary",
+        "predicted_growth_rate", "saturation",
+    ),
+    "spectra": ("amplitude_spectrum", "complex_spectrum", "drop_low_frequencies", "peak"),
+    "sync": (
+        "SyncBins", "SyncResult", "sync_index", "sync_index_from_bins", "sync_index_from_signals", "sync_null_level",
+    ),
+    "timefreq": ("cwt_morlet", "stft"),
+}  # fmt: skip
+_PUBLIC = {name: module for module, names in _MODULES.items() for name in names}
 __all__ = sorted(_PUBLIC)
 
 

@@ -1,0 +1,243 @@
+"""Measures for the paper's statements (aca_warp/analysis/measures.py), each on a signal with a known answer."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aca_warp.analysis.measures import (
+    ensemble_interval,
+    line_trend,
+    peak_track,
+    peak_width,
+    phase_correlation_length,
+    shared_peaks,
+    spectral_overlap,
+    stft_peak,
+    stft_peaks,
+)
+from aca_warp.analysis.spectra import amplitude_spectrum
+from aca_warp.analysis.timefreq import stft
+
+# ---------------------------------------------------------------------------------------------- peak width
+
+
+def lorentz(f: np.ndarray, f0: float, gamma: float) -> np.ndarray:
+    """Amplitude response of a resonance: 1/√(1 + ((f − f0)/γ)²)."""
+    return 1.0 / np.sqrt(1.0 + ((f - f0) / gamma) ** 2)
+
+
+def test_peak_width_of_a_hann_sinusoid_is_two_bins():
+    dt, n, k = 1e-6, 4096, 300
+    t = np.arange(n) * dt
+    freq, amp = amplitude_spectrum(2.5 * np.sin(2 * np.pi * k / (n * dt) * t), dt, normalise=None)
+    w = peak_width(freq, amp, k / (n * dt) + 40.0)
+    df = freq[1]
+    assert w.frequency == pytest.approx(k * df, abs=1e-6 * df)
+    assert w.height == pytest.approx(2.5, rel=1e-9)
+    assert w.width == pytest.approx(2.0 * df, rel=1e-9)  # Hann main lobe: 1, 1/2, 0 at 0, ±1, ±2 bins
+    assert w.f_low == pytest.approx((k - 1) * df, rel=1e-9)
+    assert w.relative_prominence == pytest.approx(1.0, abs=1e-6)
+
+
+@pytest.mark.parametrize(("rel_height", "factor"), [(0.5, 2 * np.sqrt(3.0)), (1 / np.sqrt(2.0), 2.0)])
+def test_peak_width_of_a_resonance(rel_height, factor):
+    freq = np.arange(0.0, 200e3, 10.0)
+    gamma = 1.5e3
+    amp = 3.0 * lorentz(freq, 73e3, gamma) + 0.01
+    w = peak_width(freq, amp, 73.02e3, search=200.0, rel_height=rel_height)
+    level = rel_height * 3.01  # the floor adds 0.01 to the height; solve 3 L(f) + 0.01 = level for the width
+    half = gamma * np.sqrt((3.0 / (level - 0.01)) ** 2 - 1.0)
+    assert w.width == pytest.approx(2 * half, rel=1e-3)
+    assert w.width == pytest.approx(factor * gamma, rel=0.02)
+    assert w.frequency == pytest.approx(73e3, abs=0.5)
+    narrow = peak_width(freq, 3.0 * lorentz(freq, 73e3, gamma / 2) + 0.01, 73e3, rel_height=rel_height)
+    assert narrow.width == pytest.approx(w.width / 2, rel=0.02)
+
+
+def test_peak_width_without_a_crossing_is_nan():
+    freq = np.arange(0.0, 10e3, 10.0)
+    amp = lorentz(freq, 100.0, 500.0)  # the lower half-maximum crossing would lie below 0 Hz
+    w = peak_width(freq, amp, 100.0)
+    assert np.isnan(w.f_low) and np.isnan(w.width) and np.isfinite(w.f_high)
+    with pytest.raises(ValueError, match="rel_height"):
+        peak_width(freq, amp, 100.0, rel_height=1.0)
+
+
+# ------------------------------------------------------------------------------------------ spectral overlap
+
+
+def test_spectral_overlap():
+    rng = np.random.default_rng(0)
+    freq = np.arange(0.0, 1e5, 25.0)
+    a = rng.lognormal(size=freq.size)
+    o = spectral_overlap(freq, a, 1.1 * a)
+    assert o.mean_abs_log == pytest.approx(np.log(1.1)) and o.mean_log_ratio == pytest.approx(-np.log(1.1))
+    assert o.bins == np.count_nonzero(freq >= 10.0) and o.band == (10.0, freq[-1])
+    assert spectral_overlap(freq, a, a).mean_abs_log == 0.0
+    b = a.copy()
+    b[freq > 5e4] *= 2.0  # differ in the upper half only
+    o = spectral_overlap(freq, a, b, band=(0.0, 5e4))
+    assert o.mean_abs_log == 0.0
+    o = spectral_overlap(freq, a, b)
+    assert o.mean_abs_log == pytest.approx(np.log(2.0) * np.mean(freq[freq >= 10.0] > 5e4))
+    assert o.max_abs_log == pytest.approx(np.log(2.0))
+    b[:] = 0.0
+    with pytest.raises(ValueError, match="both spectra are positive"):
+        spectral_overlap(freq, a, b)
+
+
+# -------------------------------------------------------------------------------------------- shared peaks
+
+
+def test_shared_peaks():
+    freq = np.arange(0.0, 200e3, 100.0)
+    floor = 1e-4 / (1.0 + freq / 1e4)
+
+    def spec(peaks):
+        return floor + sum(h * lorentz(freq, f, 150.0) * 1e-3 for f, h in peaks)
+
+    spectra = {
+        "mu": spec([(20e3, 1.0), (73e3, 3.0), (110e3, 0.5)]),
+        "torque": spec([(20.1e3, 1.0), (25e3, 0.15), (73e3, 2.0), (150e3, 1.0)]),
+        "friction_radius": spec([(19.9e3, 1.5), (73.1e3, 1.0), (110e3, 1.0)]),
+    }
+    common = shared_peaks(freq, spectra)
+    assert [round(p.frequency, -2) for p in common] == [20e3, 73e3]
+    assert set(common[1].members) == set(spectra)
+    assert common[1].members["mu"][0] == 73e3
+    two = shared_peaks(freq, spectra, min_count=2)
+    assert [round(p.frequency, -2) for p in two] == [20e3, 73e3, 110e3]
+    assert set(two[2].members) == {"mu", "friction_radius"}
+    assert shared_peaks(freq, spectra, tolerance=50.0) == []  # 100 Hz apart: never grouped
+    wide = shared_peaks(freq, spectra, tolerance=5.5e3, prominence=2.0)  # torque's 25 kHz peak joins the 20 kHz group
+    assert wide[0].members["torque"] == (20.1e3, pytest.approx(spectra["torque"][201]))  # the larger one
+    assert 25e3 not in [f for f, _ in wide[0].members.values()]
+    assert all(p.frequency != 25e3 for p in shared_peaks(freq, spectra, min_count=1))  # < 4x its surroundings
+    assert len(shared_peaks(freq, spectra, prominence=1e3)) == 0  # no peak stands 1000x above its surroundings
+
+
+# ------------------------------------------------------------------------------------ phase correlation length
+
+
+def test_phase_random_walk_along_a_line_has_its_exact_length():
+    """φ(x) a Brownian path with Var(φ(x) − φ(x + d)) = 2d/ℓ: E cos(Δφ) = exp(−d/ℓ) exactly."""
+    rng = np.random.default_rng(1)
+    n, dx, ell = 1000, 5e-5, 5e-3
+    x = np.arange(n) * dx
+    phase = np.cumsum(rng.normal(0.0, np.sqrt(2 * dx / ell), (20, n)), axis=1)
+    r = phase_correlation_length(x, np.zeros(n), phase, max_distance=3 * ell, bins=15)
+    assert r.length == pytest.approx(ell, rel=0.1)
+    assert r.length_e == pytest.approx(ell, rel=0.1)
+    assert r.fit_rms < 0.05
+    np.testing.assert_allclose(r.correlation, np.exp(-r.distance / ell), atol=0.08)
+
+
+def test_gaussian_phase_field_in_two_dimensions():
+    """φ a Gaussian field, covariance s² exp(−d²/2λ²): E cos(Δφ) = exp(−s²(1 − exp(−d²/2λ²)))."""
+    rng = np.random.default_rng(2)
+    n, s2, lam = 500, 2.0, 3e-3
+    x, y = rng.uniform(0, 0.03, n), rng.uniform(0, 0.03, n)
+    d = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
+    chol = np.linalg.cholesky(s2 * np.exp(-(d**2) / (2 * lam**2)) + 1e-9 * np.eye(n))
+    phase = (chol @ rng.standard_normal((n, 40))).T
+    r = phase_correlation_length(x, y, phase, max_distance=0.012, bins=24)
+    d_e = lam * np.sqrt(-2.0 * np.log(1.0 - 1.0 / s2))  # 1/e distance of the exact curve: 3.53 mm
+    assert r.length_e == pytest.approx(d_e, rel=0.1)
+    exact = np.exp(-s2 * (1 - np.exp(-(r.distance**2) / (2 * lam**2))))
+    np.testing.assert_allclose(r.correlation, exact, atol=0.1)
+
+
+def test_random_and_uniform_phases_and_amplitude_weights():
+    rng = np.random.default_rng(3)
+    n = 400
+    x, y = rng.uniform(0, 0.02, n), rng.uniform(0, 0.02, n)
+    random = phase_correlation_length(x, y, rng.uniform(-np.pi, np.pi, (10, n)))
+    assert random.length < 0.25 * random.distance[0] and random.length_e == 0.0  # 0 within the bins' resolution
+    assert np.all(np.abs(random.correlation) < 0.05)
+    uniform = phase_correlation_length(x, y, np.full(n, 0.7))
+    assert uniform.length == np.inf and uniform.length_e == np.inf
+    # patches that do not move (amplitude 0) with random phases do not change C(d)
+    half = np.arange(n) < n // 2
+    phase = np.where(half, 0.3 + 0.1 * rng.standard_normal(n), rng.uniform(-np.pi, np.pi, n))
+    weighted = phase_correlation_length(x, y, phase, amplitude=half.astype(float), max_distance=0.01, bins=5)
+    alone = phase_correlation_length(x[half], y[half], phase[half], max_distance=0.01, bins=5)
+    np.testing.assert_allclose(weighted.correlation, alone.correlation, rtol=1e-12)
+    with pytest.raises(ValueError, match="finite"):
+        phase_correlation_length(x, y, np.full(n, np.nan))
+
+
+# ------------------------------------------------------------------------------------------- STFT measures
+
+DT = 1e-7  # s: 10 MHz sampling, as hf1 records at 0.1 µs
+
+
+def test_stft_peak_amplitude_frequency_and_time():
+    n, w, k = 2**16, 4096, 283
+    t = np.arange(n) * DT
+    f = k / (w * DT)  # on a bin of the 4096-sample window: 69.09 kHz
+    ramp = 0.5 + 0.5 * t / t[-1]
+    mu = 0.4 + 0.004 * ramp * np.sin(2 * np.pi * f * t) + 0.05 * t / t[-1]  # slow drift of the mean
+    p = stft_peak(t, mu, w)
+    centres = stft(mu, DT, window_s=w * DT, hop_s=w // 4 * DT)[0]
+    assert p.time == pytest.approx(centres[-1], abs=DT / 2)  # the largest amplitude: the last window
+    mean = np.mean(mu)
+    assert p.amplitude == pytest.approx(0.004 * (0.5 + 0.5 * p.time / t[-1]) / mean, rel=1e-3)
+    assert p.frequency == pytest.approx(f, abs=1e-3 * p.resolution)
+    assert "Hann" in p.window and p.window_samples == w and p.hop_samples == w // 4
+    local = stft_peak(t, mu, w, normalise="window")
+    start = round(local.time / DT) - w // 2
+    assert local.mean == pytest.approx(np.mean(mu[start : start + w]), rel=1e-12)
+    assert local.amplitude == pytest.approx(p.amplitude * mean / local.mean, rel=1e-9)
+    assert [q.window_samples for q in stft_peaks(t, mu)] == [2**12, 2**13, 2**14, 2**15, 2**16]
+    with pytest.raises(ValueError, match="normalise"):
+        stft_peak(t, mu, w, normalise="max")
+
+
+def test_falling_line_from_the_stft_of_a_chirp():
+    n, w = 2**17, 2048
+    t = np.arange(n) * DT
+    rate = -2.0e6  # Hz/s: 73 kHz → 46.8 kHz over the 13.1 ms record
+    phase = 2 * np.pi * (73e3 * t + 0.5 * rate * t**2)
+    mu = 0.4 + 0.004 * np.sin(phase)
+    times, freqs, amp, _ = stft(mu, DT, window_s=w * DT, hop_s=w * DT, detrend="linear")  # no overlap
+    f_line, _ = peak_track(times, freqs, amp, band=(20e3, 100e3))
+    trend = line_trend(times, f_line)
+    assert trend.slope_low < rate < trend.slope_high
+    assert trend.slope == pytest.approx(rate, rel=0.02)
+    assert trend.falling and trend.r2 > 0.99
+    assert trend.intercept == pytest.approx(73e3, rel=0.01)
+
+
+def test_line_trend_interval_covers_the_true_slope_at_its_level():
+    rng = np.random.default_rng(4)
+    t = np.linspace(0.0, 1.0, 12)
+    hits = []
+    for _ in range(2000):
+        f = 70e3 - 500.0 * t + rng.normal(0.0, 100.0, t.size)
+        r = line_trend(t, f)
+        hits.append(r.slope_low <= -500.0 <= r.slope_high)
+    assert 0.94 <= np.mean(hits) <= 0.96  # 2000 trials: binomial standard deviation 0.005
+    f = 70e3 - 500.0 * t
+    f[3] = np.nan
+    r = line_trend(t, f)
+    assert r.n == 11 and r.slope == pytest.approx(-500.0) and r.stderr < 1e-4
+    with pytest.raises(ValueError, match="3 finite points"):
+        line_trend(t[:2], f[:2])
+
+
+def test_ensemble_interval():
+    rng = np.random.default_rng(5)
+    values = rng.normal(3.0, 2.0, (5, 4000))  # 4000 ensembles of 5 seeds
+    e = ensemble_interval(values)
+    covered = (e.mean_low <= 3.0) & (3.0 <= e.mean_high)
+    assert 0.94 <= covered.mean() <= 0.96  # binomial standard deviation 0.0034
+    one = ensemble_interval(np.arange(101.0))
+    assert one.mean == 50.0 and one.median == 50.0 and one.n == 101
+    assert (one.low, one.high) == pytest.approx((2.5, 97.5))
+    half = 1.984 * np.std(np.arange(101.0), ddof=1) / np.sqrt(101)  # t_{0.975, 100} = 1.984
+    assert one.mean_high - one.mean == pytest.approx(half, rel=1e-3)
+    single = ensemble_interval([4.2])
+    assert single.mean == 4.2 and np.isnan(single.mean_low) and np.isnan(single.std)
+    with pytest.raises(ValueError, match="finite"):
+        ensemble_interval([1.0, np.nan])
