@@ -5,7 +5,7 @@ Equation of motion of patch i (paper §2.1.2, docs/model.md §2.2), u along the 
     m_i ü_i + c_i u̇_i + k_T,i u_i + Σ_j k_ij (u_i − u_j) = F_N,i f(ω r_i − u̇_i),
     k_ij = K_C √A_i √A_j / D0_ij,   f(v) = (M/π) atan(a v) (1/(b|v| + 1) + 1)   (Eq. 4, signed).
 
-All kernels are generic in the state precision T (float32 or float64; overloads at the bottom). Batched
+All kernels are generic in the state precision T (float32 or float64; overloads generated at the bottom). Batched
 pads are flat arrays: ``patch_pad`` gives each patch's pad, ``pad_patch_start`` (pads+1) the offsets, and
 ``pad_*`` arrays hold per-pad parameters. Recorded sums are accumulated in float64 whatever T is.
 """
@@ -15,6 +15,7 @@ from __future__ import annotations
 from typing import Any
 
 import warp as wp
+from aca_warp.kernels import precision_overloads
 
 wp.set_module_options({"enable_backward": False})
 
@@ -244,54 +245,6 @@ def spring_forces(
     """Elastic force F_s(u) on every patch [N] (first-same-as-last cache of the Strang scheme)."""
     i = wp.tid()
     force_out[i] = spring_force(i, u_in, k_diag, nbr_start, nbr_index, nbr_stiffness)
-
-
-@wp.func
-def patch_coupling(
-    i: int,
-    p: int,
-    sqrt_area: wp.array[Any],
-    nbr_start: wp.array[wp.int32],
-    nbr_index: wp.array[wp.int32],
-    nbr_inv_dist: wp.array[Any],
-    pad_kc: wp.array[Any],
-    k_t: wp.array[Any],
-    nbr_stiffness_out: wp.array[Any],
-    k_diag_out: wp.array[Any],
-):
-    """k_ij = K_C √A_i √A_j / D0_ij for every link of patch i of pad p [N/m] (paper Eq. 3) and k_T,i + Σ_j k_ij."""
-    ki = pad_kc[p] * sqrt_area[i]
-    d = k_t[i]
-    for e in range(nbr_start[i], nbr_start[i + 1]):
-        k = ki * sqrt_area[nbr_index[e]] * nbr_inv_dist[e]
-        nbr_stiffness_out[e] = k
-        d += k
-    k_diag_out[i] = d
-
-
-@wp.kernel
-def coupling_stiffness(
-    step: wp.array[wp.int64],
-    every: int,
-    # Model:
-    patch_pad: wp.array[wp.int32],
-    sqrt_area: wp.array[Any],
-    nbr_start: wp.array[wp.int32],
-    nbr_index: wp.array[wp.int32],
-    nbr_inv_dist: wp.array[Any],
-    pad_kc: wp.array[Any],
-    k_t: wp.array[Any],
-    # Model out:
-    nbr_stiffness_out: wp.array[Any],
-    k_diag_out: wp.array[Any],
-):
-    """Coupling stiffnesses of every patch (:func:`patch_coupling`) when ``step`` ends a growth interval."""
-    i = wp.tid()
-    if not growth_due(step, every):
-        return
-    patch_coupling(
-        i, patch_pad[i], sqrt_area, nbr_start, nbr_index, nbr_inv_dist, pad_kc, k_t, nbr_stiffness_out, k_diag_out
-    )
 
 
 @wp.kernel
@@ -842,8 +795,6 @@ def grow_patch(
 
 @wp.kernel
 def grow_patches(
-    step: wp.array[wp.int64],
-    every: int,
     # Model:
     patch_pad: wp.array[wp.int32],
     pad_growth: wp.array[Any],
@@ -851,6 +802,9 @@ def grow_patches(
     pad_k_n: wp.array[Any],
     pad_mass_per_area: wp.array[Any],
     pad_zeta: wp.array[Any],
+    # Control:
+    step: wp.array[wp.int64],
+    every: int,
     # Model in/out:
     area_io: wp.array[Any],
     sqrt_area_out: wp.array[Any],
@@ -867,6 +821,55 @@ def grow_patches(
         i, patch_pad[i], pad_growth, pad_k_t, pad_k_n, pad_mass_per_area, pad_zeta, area_io, sqrt_area_out,
         inv_mass_out, k_t_out, k_n_out, damping_out,
     )  # fmt: skip
+
+
+@wp.func
+def patch_coupling(
+    i: int,
+    p: int,
+    sqrt_area: wp.array[Any],
+    nbr_start: wp.array[wp.int32],
+    nbr_index: wp.array[wp.int32],
+    nbr_inv_dist: wp.array[Any],
+    pad_kc: wp.array[Any],
+    k_t: wp.array[Any],
+    nbr_stiffness_out: wp.array[Any],
+    k_diag_out: wp.array[Any],
+):
+    """k_ij = K_C √A_i √A_j / D0_ij for every link of patch i of pad p [N/m] (paper Eq. 3) and k_T,i + Σ_j k_ij."""
+    ki = pad_kc[p] * sqrt_area[i]
+    d = k_t[i]
+    for e in range(nbr_start[i], nbr_start[i + 1]):
+        k = ki * sqrt_area[nbr_index[e]] * nbr_inv_dist[e]
+        nbr_stiffness_out[e] = k
+        d += k
+    k_diag_out[i] = d
+
+
+@wp.kernel
+def coupling_stiffness(
+    # Model:
+    patch_pad: wp.array[wp.int32],
+    sqrt_area: wp.array[Any],
+    nbr_start: wp.array[wp.int32],
+    nbr_index: wp.array[wp.int32],
+    nbr_inv_dist: wp.array[Any],
+    pad_kc: wp.array[Any],
+    k_t: wp.array[Any],
+    # Control:
+    step: wp.array[wp.int64],
+    every: int,
+    # Model out:
+    nbr_stiffness_out: wp.array[Any],
+    k_diag_out: wp.array[Any],
+):
+    """Coupling stiffnesses of every patch (:func:`patch_coupling`) when ``step`` ends a growth interval."""
+    i = wp.tid()
+    if not growth_due(step, every):
+        return
+    patch_coupling(
+        i, patch_pad[i], sqrt_area, nbr_start, nbr_index, nbr_inv_dist, pad_kc, k_t, nbr_stiffness_out, k_diag_out
+    )
 
 
 @wp.func
@@ -976,9 +979,6 @@ def contact_block(
 
 @wp.kernel
 def contact_flat(
-    step: wp.array[wp.int64],
-    every: int,
-    threads: int,
     # Model:
     pad_patch_start: wp.array[wp.int32],
     k_n: wp.array[Any],
@@ -989,6 +989,10 @@ def contact_flat(
     pad_moment: wp.array[wp.float64],
     pad_k_m: wp.array[wp.float64],
     pad_load: wp.array[Any],
+    # Control:
+    step: wp.array[wp.int64],
+    every: int,
+    threads: int,
     # Contact in/out:
     pad_gap: wp.array[wp.float64],
     normal_force_out: wp.array[Any],
@@ -1010,186 +1014,8 @@ def contact_flat(
 
 # ---------------------------------------------------------------------------------------------- overloads
 
-
-def _arr(t: Any) -> Any:
-    return wp.array(dtype=t)
-
-
-def _declare_overloads() -> None:
-    i32 = _arr(wp.int32)
-    for T in (wp.float32, wp.float64):
-        a = _arr(T)
-        model = {
-            "patch_pad": i32,
-            "inv_mass": a,
-            "k_diag": a,
-            "damping": a,
-            "normal_force": a,
-            "radius": a,
-            "nbr_start": i32,
-            "nbr_index": i32,
-            "nbr_stiffness": a,
-            "pad_omega": a,
-            "pad_mu_scale": a,
-            "pad_slope": a,
-            "pad_decay": a,
-        }
-        wp.overload(euler_velocity, {**model, "dt": T, "u_in": a, "v_io": a})
-        wp.overload(implicit_velocity, {**model, "dt": T, "tol": T, "u_in": a, "v_io": a})
-        wp.overload(drift, {"dt": T, "v_in": a, "u_io": a})
-        wp.overload(
-            spring_forces,
-            {k: model[k] for k in ("k_diag", "nbr_start", "nbr_index", "nbr_stiffness")} | {"u_in": a, "force_out": a},
-        )
-        wp.overload(
-            coupling_stiffness,
-            {
-                "step": _arr(wp.int64),
-                "every": int,
-                "patch_pad": i32,
-                "sqrt_area": a,
-                "nbr_start": i32,
-                "nbr_index": i32,
-                "nbr_inv_dist": a,
-                "pad_kc": a,
-                "k_t": a,
-                "nbr_stiffness_out": a,
-                "k_diag_out": a,
-            },
-        )
-        local = {
-            k: model[k]
-            for k in (
-                "patch_pad",
-                "inv_mass",
-                "damping",
-                "normal_force",
-                "radius",
-                "pad_omega",
-                "pad_mu_scale",
-                "pad_slope",
-                "pad_decay",
-            )
-        }
-        wp.overload(strang_open, {**local, "dt": T, "tol": T, "force_in": a, "u_io": a, "v_io": a})
-        wp.overload(strang_step, {**local, "dt": T, "tol": T, "force_in": a, "u_io": a, "v_io": a})
-        wp.overload(strang_close, {**local, "dt": T, "tol": T, "force_in": a, "v_in": a, "v_out": a})
-        ctl = {"clock": _arr(wp.float64), "flags": i32}
-        wp.overload(
-            adaptive_trial_open,
-            {
-                **local,
-                "tol": T,
-                **ctl,
-                "u_in": a,
-                "v_in": a,
-                "force_in": a,
-                "u_trial": a,
-                "v_trial": a,
-                "u_euler": a,
-                "v_euler": a,
-            },
-        )
-        wp.overload(
-            adaptive_trial_close,
-            {
-                **model,
-                "tol": T,
-                "rtol": T,
-                **ctl,
-                "u_trial": a,
-                "v_trial": a,
-                "u_euler": a,
-                "v_euler": a,
-                "force_trial": a,
-                "error_out": _arr(wp.float64),
-            },
-        )
-        wp.overload(
-            adaptive_commit,
-            {"flags": i32, "u_trial": a, "v_trial": a, "force_trial": a, "u_out": a, "v_out": a, "force_out": a},
-        )
-        wp.overload(
-            record_globals,
-            {
-                "pad_patch_start": i32,
-                "normal_force": a,
-                "radius": a,
-                "pad_omega": a,
-                "pad_mu_scale": a,
-                "pad_slope": a,
-                "pad_decay": a,
-                "pad_mu_pad": a,
-                "pad_load": a,
-                "pad_matrix_force": a,
-                "pad_matrix_radius": a,
-                "inv_mass": a,
-                "k_t": a,
-                "conditional": int,
-                "u_in": a,
-                "v_in": a,
-                "counters": i32,
-                "globals_out": wp.array3d(dtype=wp.float64),
-                "watch_bound": _arr(wp.float64),
-                "fault_out": wp.array2d(dtype=wp.int32),
-                "fault_value_out": _arr(wp.float64),
-            },
-        )
-        wp.overload(
-            record_patches,
-            {
-                "first": int,
-                "last": int,
-                "every": int,
-                "conditional": int,
-                "u_in": a,
-                "v_in": a,
-                "counters": i32,
-                "velocity_out": wp.array2d(dtype=T),
-                "displacement_out": wp.array2d(dtype=T),
-            },
-        )
-        wp.overload(
-            grow_patches,
-            {
-                "step": _arr(wp.int64),
-                "every": int,
-                "patch_pad": i32,
-                "pad_growth": a,
-                "pad_k_t": a,
-                "pad_k_n": a,
-                "pad_mass_per_area": a,
-                "pad_zeta": a,
-                "area_io": a,
-                "sqrt_area_out": a,
-                "inv_mass_out": a,
-                "k_t_out": a,
-                "k_n_out": a,
-                "damping_out": a,
-            },
-        )
-        f64 = _arr(wp.float64)
-        wp.overload(
-            contact_flat,
-            {
-                "step": _arr(wp.int64),
-                "every": int,
-                "threads": int,
-                "pad_patch_start": i32,
-                "k_n": a,
-                "height": a,
-                "area": a,
-                "radius": a,
-                "pad_area": f64,
-                "pad_moment": f64,
-                "pad_k_m": f64,
-                "pad_load": a,
-                "pad_gap": f64,
-                "normal_force_out": a,
-                "pad_matrix_force_out": a,
-                "pad_matrix_radius_out": a,
-            },
-        )
-
-
-_declare_overloads()
+precision_overloads(
+    euler_velocity, implicit_velocity, drift, spring_forces, strang_open, strang_step, strang_close,
+    adaptive_trial_open, adaptive_trial_close, adaptive_commit, record_globals, record_patches, grow_patches,
+    coupling_stiffness, contact_flat,
+)  # fmt: skip

@@ -302,7 +302,7 @@ def test_device_contact_resolve_with_spread_heights():
                 dim=[1],
                 block_dim=1,
                 device="cpu",
-                inputs=[wp.zeros(1, dtype=wp.int64, device="cpu"), 1, 1, *(m[n] for n in names), gap, fn, mf, mr],
+                inputs=[*(m[n] for n in names), wp.zeros(1, dtype=wp.int64, device="cpu"), 1, 1, gap, fn, mf, mr],
             )
             ref = solve_scene_contact(s.replace(normal_force=load))
             assert gap.numpy()[0] == pytest.approx(ref.gap, rel=1e-12, abs=1e-20)

@@ -177,7 +177,7 @@ def test_contact_block_parts_compose():
     ref_gap = wp.array(gap0, dtype=wp.float64, device="cpu")
     wp.launch_tiled(
         contact_flat, dim=[model.pad_count], block_dim=1, device="cpu",
-        inputs=[wp.zeros(1, dtype=wp.int64, device="cpu"), 1, 1, *args, ref_gap, ref["normal_force"],
+        inputs=[*args, wp.zeros(1, dtype=wp.int64, device="cpu"), 1, 1, ref_gap, ref["normal_force"],
                 ref["pad_matrix_force"], ref["pad_matrix_radius"]],
     )  # fmt: skip
     out = {k: wp.full(v.shape, np.nan, dtype=wp.float64, device="cpu") for k, v in ref.items()}

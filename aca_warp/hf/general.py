@@ -48,14 +48,14 @@ class Growth:
             K.grow_patches,
             dim=m.patch_count,
             device=dev,
-            inputs=[*due, m.patch_pad, self.per_event, m.pad_k_t, m.pad_k_n, m.pad_mass_per_area, m.pad_zeta]
+            inputs=[m.patch_pad, self.per_event, m.pad_k_t, m.pad_k_n, m.pad_mass_per_area, m.pad_zeta, *due]
             + [m.area, m.sqrt_area, m.inv_mass, m.k_t, m.k_n, m.damping],
         )
         wp.launch(
             K.coupling_stiffness,
             dim=m.patch_count,
             device=dev,
-            inputs=[*due, m.patch_pad, m.sqrt_area, m.nbr_start, m.nbr_index, m.nbr_inv_dist, m.pad_kc, m.k_t]
+            inputs=[m.patch_pad, m.sqrt_area, m.nbr_start, m.nbr_index, m.nbr_inv_dist, m.pad_kc, m.k_t, *due]
             + [m.nbr_stiffness, m.k_diag],
         )
         wp.launch_tiled(
@@ -63,8 +63,8 @@ class Growth:
             dim=[m.pad_count],
             block_dim=CONTACT_BLOCK,
             device=dev,
-            inputs=[*due, block_threads(dev, CONTACT_BLOCK), m.pad_patch_start, m.k_n, m.height, m.area, m.radius]
-            + [m.pad_area, m.pad_moment, m.pad_k_m, m.pad_load, m.pad_gap]
+            inputs=[m.pad_patch_start, m.k_n, m.height, m.area, m.radius, m.pad_area, m.pad_moment, m.pad_k_m]
+            + [m.pad_load, *due, block_threads(dev, CONTACT_BLOCK), m.pad_gap]
             + [m.normal_force, m.pad_matrix_force, m.pad_matrix_radius],
         )
         wp.launch(K.tick, dim=1, device=dev, inputs=[self.step])
