@@ -1,0 +1,9 @@
+"""The paper's studies as library code; ``scripts/<study>.py`` are their command-line entry points.
+
+* :mod:`~aca_warp.studies.hf_study`: stand-alone HF presets HF1-HF4 and the patch-area sweep (§3.1, Figs. 8-9);
+* :mod:`~aca_warp.studies.report`: what the studies share (progress lines, tables, JSON, docs sections, figures);
+* :mod:`~aca_warp.studies.runs`: their calls into the HF run API, all in one module.
+
+Each study has ``main(argv)`` (its command line) and functions a test or a notebook can call. Nothing outside
+this package imports it.
+"""
