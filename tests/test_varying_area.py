@@ -1,4 +1,5 @@
-"""``scripts/varying_area.py``: segment/resume logic and the growth trends on a 9-patch growing scene (CPU)."""
+"""``aca_warp.studies.varying_area`` (``scripts/varying_area.py``): segment/resume logic and the growth trends on a
+9-patch growing scene, and the contact re-solve of growth events (CPU)."""
 
 from __future__ import annotations
 
@@ -6,14 +7,9 @@ import numpy as np
 import pytest
 import warp as wp
 from aca_warp.kernels.hf import contact_block, contact_flat
-from scriptload import load_script
 
 from aca_warp.scene import Friction, Growth, Initial, Pad, Patches, Record, Scene
-
-
-@pytest.fixture(scope="module")
-def va():
-    return load_script("varying_area")
+from aca_warp.studies import varying_area as va
 
 
 def growing_scene() -> Scene:
@@ -35,7 +31,7 @@ def growing_scene() -> Scene:
 
 
 @pytest.mark.parametrize("integrator", ["strang", "implicit-friction"])
-def test_resume_equals_one_go(va, tmp_path, integrator):
+def test_resume_equals_one_go(tmp_path, integrator):
     """Stopping at 20 µs, saving and resuming in a fresh model gives the one-go record bit for bit."""
     s = growing_scene()
     kw = {"chunk": 1e-5, "integrator": integrator, "dt": 1e-8, "max_wall": np.inf}
@@ -59,7 +55,7 @@ def test_resume_equals_one_go(va, tmp_path, integrator):
     assert c.snaps[-1]["area_total"] == pytest.approx(one.snaps[-1]["area_total"], rel=1e-12)
 
 
-def test_onchip_engine_equals_general(va):
+def test_onchip_engine_equals_general():
     """``--engine onchip`` (growth inside the on-chip kernel) gives the general engine's record bit for bit on the
     CPU, over several run calls (the growth counter restarts with each call in both)."""
     s = growing_scene()
@@ -75,7 +71,7 @@ def test_onchip_engine_equals_general(va):
     assert o.snaps == g.snaps
 
 
-def test_growth_moves_load_to_patches(va):
+def test_growth_moves_load_to_patches():
     """Areas follow Eq. 10 (√A grows linearly); the patch share of the load and μ rise as they grow."""
     s = growing_scene()
     seg = va.Segment(s, "cpu", "fp64")
@@ -90,12 +86,6 @@ def test_growth_moves_load_to_patches(va):
     assert seg.snaps[-1]["matrix_share"] == pytest.approx(1 - share[-1], abs=1e-9)
     mu = np.concatenate(seg.globals)[:, 0]
     assert mu[-10:].mean() > mu[5:15].mean()
-
-
-def test_isolated_frequency(va):
-    """model.md: 75.2 kHz at 0.05 mm², 33.6 kHz at 1.25 mm²."""
-    assert va.isolated_frequency(5e-8) == pytest.approx(75.2e3, rel=2e-3)
-    assert va.isolated_frequency(1.25e-6) == pytest.approx(33.6e3, rel=2e-3)
 
 
 def test_growth_contact_block_threads_agree():
