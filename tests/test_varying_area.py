@@ -189,3 +189,38 @@ def test_contact_block_parts_compose():
     assert not np.array_equal(ref_gap.numpy(), gap0)  # the contact moved, so the test compares something
     for k in ref:
         np.testing.assert_array_equal(out[k].numpy(), ref[k].numpy())
+
+
+def test_report_of_a_compressed_record(tmp_path):
+    """A --quick record (growth ×100, 3.6 ms) gets its figures, summary and docs section: the report reads the
+    frame at 10 ms of growth and the μ spread over 10 ms of growth compressed 100× (0.1 ms), as the growth is."""
+    import json
+
+    t = np.arange(3601) * 1e-6
+    mu = 0.4 + 0.004 * np.sin(2 * np.pi * 70e3 * t) + 0.002 * (t < 1e-4) * np.sin(2 * np.pi * 20e3 * t)
+    g = np.zeros((t.size, 5))
+    g[:, 0] = mu
+    st = np.linspace(0.0, 3.6e-3, 5)
+    call = {"machine": {"device_name": "Test CPU"}, "warp": "1.19.0", "sim_time": 3.6e-3, "engine": "general"}
+    meta = {"speedup": 100.0, "duration": 3.6e-3, "integrator": "strang", "dt": 1e-8, "precision": "fp64"}
+    meta.update(chunk=1e-3, calls=[{**call, "wall_s": 1.0}], complete=True, steps=360000, wall_s=1.0)
+    snaps = {f"snap_{k}": st for k in ("time", "area_total", "patch_force", "matrix_force", "patches_loaded")}
+    snaps.update(snap_patch_share=0.5 + st, snap_matrix_share=0.5 - st, snap_area_mean=5e-8 * (1 + 100 * st))
+    record = tmp_path / "varying_area.npz"
+    np.savez_compressed(record, time=t, globals=g, meta=json.dumps(meta), **snaps)
+    page, figdir = tmp_path / "page.md", tmp_path / "figures" / "va"
+    page.write_text(f"# Varying area\n\nhand-written\n\n{va.BEGIN}\nold\n{va.END}\n\nafter\n")
+    va.report(record, page, figdir)
+    text = page.read_text()
+    assert "hand-written" in text and "after" in text and "old" not in text
+    assert "growth ×100 compressed (--quick)" in text and "over the first and the last 0.1 ms" in text
+    assert "![va_stft](figures/va/va_stft.png)" in text
+    summary = json.loads((figdir / "summary.json").read_text())
+    frame, hz, amp = summary["peak_at_10ms"]
+    frames = va.analyse(record)["stft"][0]
+    hop = frames[1] - frames[0]
+    assert 1e-4 <= frame < 1e-4 + hop and 60e3 <= hz <= 80e3 and amp == pytest.approx(0.004, rel=0.25)
+    np.testing.assert_allclose(summary["mu_std_first_last_10ms"], [mu[:100].std(), mu[-100:].std()], rtol=1e-12)
+    assert summary["patch_share"] == [0.5, pytest.approx(0.5036)]
+    for stem in ("va_mu", "va_load_share", "va_stft", "va_cwt"):
+        assert (figdir / f"{stem}.png").stat().st_size > 0 and (figdir / f"{stem}.pdf").stat().st_size > 0

@@ -10,7 +10,8 @@ the call that reaches the end also writes ``OUT/varying_area.npz`` (the record).
 into figures (μ(t), load shares, STFT, CWT; PNG + PDF) and the generated part of docs/results_varying_area.md.
 
 ``--quick`` (CPU) compresses the growth: the increment is multiplied by ``--speedup`` (100) and the duration
-divided by it, so the areas follow the same path in 1/100 of the time (3.6 ms); its spectra are coarse.
+divided by it, so the areas follow the same path in 1/100 of the time (3.6 ms); its spectra are coarse, and the
+report's marks at 10 ms of growth (the frame it reads, the windows of the μ spread) shrink by the same factor.
 
 Examples::
 
@@ -246,7 +247,7 @@ def _stft_numbers(mu: np.ndarray, dt: float, mark: float) -> dict[str, Any]:
     k = np.unravel_index(np.argmax(sa[band]), sa[band].shape)
     paper = (sf >= 60e3) & (sf <= 80e3)  # the band of the paper's largest peak
     kp = np.unravel_index(np.argmax(sa[paper]), sa[paper].shape)
-    first = int(np.searchsorted(st, mark))  # the first frame from the mark: the start of the falling line
+    first = min(int(np.searchsorted(st, mark)), st.size - 1)  # the first frame from the mark (or the last frame)
     kf = int(np.argmax(sa[band][:, first]))
     return {
         "stft": (st, sf, sa, sinfo),
@@ -278,7 +279,7 @@ def analyse(path: Path) -> dict:
     t, g = d["time"], d["globals"]
     mu = g[:, 0]
     dt = float(np.median(np.diff(t)))
-    mark = MARK_S
+    mark = MARK_S / meta["speedup"]  # 10 ms of growth, compressed as the growth is
     window = max(1, round(mark / dt))
     snaps = {k[5:]: d[k] for k in d.files if k.startswith("snap_")}
     return {
