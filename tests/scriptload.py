@@ -1,4 +1,5 @@
-"""Import a file of ``scripts/`` as a module, for the tests of the study and benchmark scripts."""
+"""Import a file of ``scripts/`` as a module, for the tests of the benchmark and profiling scripts
+(the studies are library code, ``aca_warp.studies``, imported directly)."""
 
 from __future__ import annotations
 

@@ -1,20 +1,20 @@
-"""``scripts/hf_study.py``: the HF1-HF4 study and the area sweep, end to end on a tiny configuration (CPU)."""
+"""``aca_warp.studies.hf_study`` (``scripts/hf_study.py``): the HF1-HF4 study and the area sweep, end to end on a
+tiny configuration (CPU)."""
 
 from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
-from scriptload import load_script
+
+from aca_warp.studies import hf_study
 
 
-@pytest.fixture(scope="module")
-def hf_study():
-    return load_script("hf_study")
-
-
-def test_fit_power_law(hf_study):
+def test_fit_power_law():
     """The exponent of an exact power law is recovered; two points give no standard error."""
     import numpy as np
 
@@ -24,13 +24,31 @@ def test_fit_power_law(hf_study):
     assert fit["stderr"] == pytest.approx(0.0, abs=1e-9)
     two = hf_study.fit_power_law(a[:2], np.array([73e3, 60e3]))
     assert math.isfinite(two["exponent"]) and two["stderr"] is None
-    # the isolated-patch frequency of docs/model.md §2.2: 75.2 kHz at 0.05 mm²
+
+
+def test_isolated_frequency():
+    """sqrt(K_T sqrt(A) / (rho_A A)) / 2 pi of the default material: 75.2 kHz at 0.05 mm², 33.6 kHz at 1.25 mm²;
+    an explicit material and arrays of areas give the same."""
+    import numpy as np
+
     from aca_warp.scene import Material
 
     assert hf_study.isolated_frequency(5e-8, Material()) == pytest.approx(75.2e3, rel=2e-3)
+    assert hf_study.isolated_frequency(1.25e-6) == pytest.approx(33.6e3, rel=2e-3)
+    both = hf_study.isolated_frequency(np.array([5e-8, 1.25e-6]))
+    np.testing.assert_allclose(both, [hf_study.isolated_frequency(5e-8), hf_study.isolated_frequency(1.25e-6)])
+    stiffer = Material(K_T=4 * Material().K_T)
+    assert hf_study.isolated_frequency(5e-8, stiffer) == pytest.approx(2 * hf_study.isolated_frequency(5e-8))
 
 
-def test_tiny_study(hf_study, tmp_path, capsys):
+def test_script_help():
+    """``scripts/hf_study.py`` is the study's command line."""
+    script = Path(__file__).resolve().parent.parent / "scripts" / "hf_study.py"
+    out = subprocess.run([sys.executable, str(script), "--help"], capture_output=True, text=True, check=True).stdout
+    assert "--sweep-areas" in out and "--archive" in out
+
+
+def test_tiny_study(tmp_path, capsys):
     """Four presets with 30 patches and two sweep points: summaries, page and figures are written."""
     out = tmp_path / "study"
     rc = hf_study.main(

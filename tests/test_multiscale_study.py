@@ -1,11 +1,12 @@
-"""scripts/multiscale_study.py end to end on a tiny pad: LF, HF on both snapshots, figures, the docs page."""
+"""``aca_warp.studies.multiscale`` (``scripts/multiscale_study.py``) end to end on a tiny pad: LF, HF on both
+snapshots, figures, the docs page."""
 
 from __future__ import annotations
 
 import json
 import math
 
-from scriptload import load_script
+from aca_warp.studies import multiscale as ms
 
 TOML = """
 [pad]
@@ -23,7 +24,6 @@ pressure_bar = 0.5
 
 
 def test_tiny_study_with_hf_table(tmp_path):
-    ms = load_script("multiscale_study")
     scene = tmp_path / "tiny.toml"
     scene.write_text(TOML)
     out, page = tmp_path / "study", tmp_path / "page.md"

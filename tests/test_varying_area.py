@@ -1,4 +1,5 @@
-"""``scripts/varying_area.py``: segment/resume logic and the growth trends on a 9-patch growing scene (CPU)."""
+"""``aca_warp.studies.varying_area`` (``scripts/varying_area.py``): segment/resume logic and the growth trends on a
+9-patch growing scene, and the contact re-solve of growth events (CPU)."""
 
 from __future__ import annotations
 
@@ -6,14 +7,9 @@ import numpy as np
 import pytest
 import warp as wp
 from aca_warp.kernels.hf import contact_block, contact_flat
-from scriptload import load_script
 
 from aca_warp.scene import Friction, Growth, Initial, Pad, Patches, Record, Scene
-
-
-@pytest.fixture(scope="module")
-def va():
-    return load_script("varying_area")
+from aca_warp.studies import varying_area as va
 
 
 def growing_scene() -> Scene:
@@ -35,7 +31,7 @@ def growing_scene() -> Scene:
 
 
 @pytest.mark.parametrize("integrator", ["strang", "implicit-friction"])
-def test_resume_equals_one_go(va, tmp_path, integrator):
+def test_resume_equals_one_go(tmp_path, integrator):
     """Stopping at 20 µs, saving and resuming in a fresh model gives the one-go record bit for bit."""
     s = growing_scene()
     kw = {"chunk": 1e-5, "integrator": integrator, "dt": 1e-8, "max_wall": np.inf}
@@ -59,7 +55,7 @@ def test_resume_equals_one_go(va, tmp_path, integrator):
     assert c.snaps[-1]["area_total"] == pytest.approx(one.snaps[-1]["area_total"], rel=1e-12)
 
 
-def test_onchip_engine_equals_general(va):
+def test_onchip_engine_equals_general():
     """``--engine onchip`` (growth inside the on-chip kernel) gives the general engine's record bit for bit on the
     CPU, over several run calls (the growth counter restarts with each call in both)."""
     s = growing_scene()
@@ -75,7 +71,7 @@ def test_onchip_engine_equals_general(va):
     assert o.snaps == g.snaps
 
 
-def test_growth_moves_load_to_patches(va):
+def test_growth_moves_load_to_patches():
     """Areas follow Eq. 10 (√A grows linearly); the patch share of the load and μ rise as they grow."""
     s = growing_scene()
     seg = va.Segment(s, "cpu", "fp64")
@@ -90,12 +86,6 @@ def test_growth_moves_load_to_patches(va):
     assert seg.snaps[-1]["matrix_share"] == pytest.approx(1 - share[-1], abs=1e-9)
     mu = np.concatenate(seg.globals)[:, 0]
     assert mu[-10:].mean() > mu[5:15].mean()
-
-
-def test_isolated_frequency(va):
-    """docs/model.md §2.2: 75.2 kHz at 0.05 mm², 33.6 kHz at 1.25 mm²."""
-    assert va.isolated_frequency(5e-8) == pytest.approx(75.2e3, rel=2e-3)
-    assert va.isolated_frequency(1.25e-6) == pytest.approx(33.6e3, rel=2e-3)
 
 
 def test_growth_contact_block_threads_agree():
@@ -200,3 +190,38 @@ def test_contact_block_parts_compose():
     assert not np.array_equal(ref_gap.numpy(), gap0)  # the contact moved, so the test compares something
     for k in ref:
         np.testing.assert_array_equal(out[k].numpy(), ref[k].numpy())
+
+
+def test_report_of_a_compressed_record(tmp_path):
+    """A --quick record (growth ×100, 3.6 ms) gets its figures, summary and docs section: the report reads the
+    frame at 10 ms of growth and the μ spread over 10 ms of growth compressed 100× (0.1 ms), as the growth is."""
+    import json
+
+    t = np.arange(3601) * 1e-6
+    mu = 0.4 + 0.004 * np.sin(2 * np.pi * 70e3 * t) + 0.002 * (t < 1e-4) * np.sin(2 * np.pi * 20e3 * t)
+    g = np.zeros((t.size, 5))
+    g[:, 0] = mu
+    st = np.linspace(0.0, 3.6e-3, 5)
+    call = {"machine": {"device_name": "Test CPU"}, "warp": "1.19.0", "sim_time": 3.6e-3, "engine": "general"}
+    meta = {"speedup": 100.0, "duration": 3.6e-3, "integrator": "strang", "dt": 1e-8, "precision": "fp64"}
+    meta.update(chunk=1e-3, calls=[{**call, "wall_s": 1.0}], complete=True, steps=360000, wall_s=1.0)
+    snaps = {f"snap_{k}": st for k in ("time", "area_total", "patch_force", "matrix_force", "patches_loaded")}
+    snaps.update(snap_patch_share=0.5 + st, snap_matrix_share=0.5 - st, snap_area_mean=5e-8 * (1 + 100 * st))
+    record = tmp_path / "varying_area.npz"
+    np.savez_compressed(record, time=t, globals=g, meta=json.dumps(meta), **snaps)
+    page, figdir = tmp_path / "page.md", tmp_path / "figures" / "va"
+    page.write_text(f"# Varying area\n\nhand-written\n\n{va.BEGIN}\nold\n{va.END}\n\nafter\n")
+    va.report(record, page, figdir)
+    text = page.read_text()
+    assert "hand-written" in text and "after" in text and "old" not in text
+    assert "growth ×100 compressed (--quick)" in text and "over the first and the last 0.1 ms" in text
+    assert "![va_stft](figures/va/va_stft.png)" in text
+    summary = json.loads((figdir / "summary.json").read_text())
+    frame, hz, amp = summary["peak_at_10ms"]
+    frames = va.analyse(record)["stft"][0]
+    hop = frames[1] - frames[0]
+    assert 1e-4 <= frame < 1e-4 + hop and 60e3 <= hz <= 80e3 and amp == pytest.approx(0.004, rel=0.25)
+    np.testing.assert_allclose(summary["mu_std_first_last_10ms"], [mu[:100].std(), mu[-100:].std()], rtol=1e-12)
+    assert summary["patch_share"] == [0.5, pytest.approx(0.5036)]
+    for stem in ("va_mu", "va_load_share", "va_stft", "va_cwt"):
+        assert (figdir / f"{stem}.png").stat().st_size > 0 and (figdir / f"{stem}.pdf").stat().st_size > 0

@@ -1,5 +1,6 @@
-"""``scripts/work_precision.py`` and ``aca_warp.hf.reference``: Richardson check, the SciPy reference against the
-HF engine, and the measure → report pipeline end to end on a 9-patch scene (CPU)."""
+"""``aca_warp.studies.work_precision`` (``scripts/work_precision.py``) and ``aca_warp.hf.reference``: Richardson
+check, the SciPy reference against the HF engine, and the measure → report pipeline end to end on a 9-patch scene
+(CPU)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,6 @@ import math
 
 import numpy as np
 import pytest
-from scriptload import load_script
 
 from aca_warp.hf.loop import run_hf
 from aca_warp.hf.model import build_model
@@ -16,11 +16,7 @@ from aca_warp.hf.options import RunOptions
 from aca_warp.hf.reference import ReferenceODE
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Pad, Patches, Record, Scene
-
-
-@pytest.fixture(scope="module")
-def wp_script():
-    return load_script("work_precision")
+from aca_warp.studies import work_precision as wp_study
 
 
 def tiny_scene(speed=10.0, load=20.0) -> Scene:
@@ -41,16 +37,16 @@ def tiny_scene(speed=10.0, load=20.0) -> Scene:
     )
 
 
-def test_richardson_recovers_order(wp_script):
+def test_richardson_recovers_order():
     """Three solutions exact + C hᵖ at h = 4, 2, 1: the order p and the finest error C are recovered."""
     x = np.linspace(0, 1, 50)
     exact, c = np.sin(x), 1e-3 * np.cos(3 * x)
     for p in (1.0, 2.0, 4.0):
         a, b, f = (exact + c * h**p for h in (4.0, 2.0, 1.0))
-        r = wp_script.richardson(a, b, f)
+        r = wp_study.richardson(a, b, f)
         assert r["order"] == pytest.approx(p, abs=1e-9)
         assert r["error_estimate"] == pytest.approx(np.max(np.abs(c)), rel=1e-9)
-    assert math.isnan(wp_script.richardson(exact, exact, exact)["order"])
+    assert math.isnan(wp_study.richardson(exact, exact, exact)["order"])
 
 
 def test_reference_jacobian_and_agreement():
@@ -82,14 +78,14 @@ def test_reference_jacobian_and_agreement():
     assert np.max(np.abs(ode.globals(radau.u, radau.v)["mu"] - mu_ref)) < 1e-5
 
 
-def test_measure_and_report_end_to_end(wp_script, tmp_path, monkeypatch):
+def test_measure_and_report_end_to_end(tmp_path, monkeypatch):
     """A tiny study (one scene, strang + adaptive, fp64, DOP853 baseline) and a page merged from two JSONs."""
     base = tiny_scene()
-    monkeypatch.setattr(wp_script, "make_scene", lambda name: base.replace(name=name))
+    monkeypatch.setattr(wp_study, "make_scene", lambda name: base.replace(name=name))
     args = ["--quick", "--scenes", "stickslip", "--integrators", "strang", "adaptive", "--precisions", "fp64"]
     args += ["--scipy-methods", "DOP853", "--t-state", "1e-5", "--t-long", "4e-5", "--steps", "1e-7", "2e-8"]
     args += ["--ref-dt", "2.5e-9", "--out", str(tmp_path)]
-    assert wp_script.main(args) == 0
+    assert wp_study.main(args) == 0
     path = next(tmp_path.glob("wp_cpu_quick_stickslip.json"))
     doc = json.loads(path.read_text())
     sc = doc["scenes"][0]
@@ -106,8 +102,8 @@ def test_measure_and_report_end_to_end(wp_script, tmp_path, monkeypatch):
     p2 = tmp_path / "gpu.json"
     p2.write_text(json.dumps(other))
     page = tmp_path / "page.md"
-    page.write_text(f"# Title\n\nhand-written\n\n{wp_script.BEGIN}\nold\n{wp_script.END}\n\nafter\n")
-    wp_script.main(["--report", str(path), str(p2), "--page", str(page), "--figures", str(tmp_path / "fig")])
+    page.write_text(f"# Title\n\nhand-written\n\n{wp_study.BEGIN}\nold\n{wp_study.END}\n\nafter\n")
+    wp_study.main(["--report", str(path), str(p2), "--page", str(page), "--figures", str(tmp_path / "fig")])
     text = page.read_text()
     assert "hand-written" in text and "after" in text and "old" not in text
     assert text.count("### stickslip on") == 2 and "Fake GPU" in text

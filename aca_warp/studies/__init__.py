@@ -1,0 +1,12 @@
+"""The paper's studies as library code; ``scripts/<study>.py`` are their command-line entry points.
+
+* :mod:`~aca_warp.studies.hf_study`: stand-alone HF presets HF1-HF4 and the patch-area sweep (§3.1, Figs. 8-9);
+* :mod:`~aca_warp.studies.varying_area`: growing patch areas under the HF2 load (§3.2, Eq. 10, Figs. 10-11);
+* :mod:`~aca_warp.studies.multiscale`: LF over the load procedure, HF on its saved states (§3.3, Figs. 12-13);
+* :mod:`~aca_warp.studies.work_precision`: error against wall time of the HF integrators and SciPy's solvers;
+* :mod:`~aca_warp.studies.report`: what the studies share (progress lines, tables, JSON, docs sections, figures);
+* :mod:`~aca_warp.studies.runs`: their calls into the HF run API, all in one module.
+
+Each study has ``main(argv)`` (its command line) and functions a test or a notebook can call. Nothing outside
+this package imports it.
+"""

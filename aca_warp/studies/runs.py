@@ -1,0 +1,69 @@
+"""Every call of the studies into the HF run API, in one place.
+
+The studies build models and states, step them and write run files only through these functions; each passes
+its arguments on unchanged, so a change of the run API is made here and nowhere else in ``aca_warp.studies``.
+
+* :func:`model_at_rest`: ``build_model`` of one scene and its ``initial_state`` (varying_area, work_precision);
+* :func:`run_general`: ``run_hf`` on a model and state, general engine (work_precision);
+* :func:`run_engine`: ``run_hf``, the engine chosen by name (varying_area);
+* :func:`run_to_file`: ``run_scene``, a scene into a run file (hf_study, multiscale).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from aca_warp.hf.loop import RunResult, run_hf
+from aca_warp.hf.model import PadModel, build_model
+from aca_warp.hf.options import DEFAULT_INTEGRATOR, RunOptions
+from aca_warp.hf.runner import run_scene
+from aca_warp.hf.state import HFState, initial_state
+from aca_warp.scene import Record, Scene
+
+
+def model_at_rest(scene: Scene, device: str, precision: str) -> tuple[PadModel, HFState]:
+    """The model of the one pad ``scene`` on ``device`` in ``precision`` (fp32/fp64) and its initial state."""
+    model = build_model([scene], device=device, precision=precision)
+    return model, initial_state(model)
+
+
+def run_general(
+    model: PadModel,
+    state: HFState,
+    *,
+    duration: float,
+    integrator: str,
+    record: Record,
+    dt: float | None = None,
+    tolerance: float | None = None,
+) -> RunResult:
+    """``run_hf`` for ``duration`` [s]: ``adaptive`` with ``tolerance``, a fixed-step integrator with ``dt`` [s]."""
+    kw = {"tolerance": tolerance} if integrator == "adaptive" else {"dt": dt}
+    return run_hf(
+        model, state, RunOptions(duration=duration, integrator=integrator, engine="general", **kw), record=record
+    )
+
+
+def run_engine(
+    model: PadModel, state: HFState, *, engine: str, duration: float, integrator: str, dt: float, record: Record
+) -> RunResult:
+    """``run_hf`` for ``duration`` [s] with step ``dt`` [s]; ``engine``: general, onchip or auto."""
+    options = RunOptions(engine=engine, duration=duration, integrator=integrator, dt=dt)
+    return run_hf(model, state, options, record=record)
+
+
+def run_to_file(
+    scene: Scene,
+    path: Path,
+    *,
+    device: str,
+    overwrite: bool,
+    duration: float | None = None,
+    integrator: str = DEFAULT_INTEGRATOR,
+    dt: float | None = None,
+    precision: str = "fp64",
+    progress: bool = False,
+) -> RunResult:
+    """``run_scene``: simulate ``scene`` for ``duration`` [s] (None: the scene's) into the run file ``path``."""
+    options = RunOptions(duration=duration, integrator=integrator, dt=dt)
+    return run_scene(scene, path, options, device=device, precision=precision, overwrite=overwrite, progress=progress)
