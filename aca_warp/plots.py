@@ -448,7 +448,11 @@ def plot_spectra(path: str | Path, outdir: str | Path) -> list[Path]:
         fig = _figure(6.4 if lower else 4.2)
         axes = fig.subplots(2 if lower else 1, 1, sharex=True, squeeze=False)[:, 0]
         colours = dict(
-            zip(report.GLOBAL_OUTPUTS, ("k", "tab:orange", "tab:green", "tab:purple", "tab:blue"), strict=True)
+            zip(
+                report.GLOBAL_OUTPUTS,
+                ("k", "tab:orange", "tab:green", "tab:purple", "tab:blue", "tab:brown"),
+                strict=True,
+            )
         )
         styles = {"mu": "-", "torque": "--"}
         for name in norm:

@@ -9,7 +9,7 @@ split only when the estimated device memory says the batch does not fit) and one
 
     DIR/manifest.json            spec, spec hash, shards and their state (written only by the client)
     DIR/shard-00000.h5           /global/time (samples,) [s]
-                                 /global/mu, torque, friction_radius, sum_velocity, sum_abs_velocity
+                                 /global/mu, torque, friction_radius, sum_velocity, sum_abs_velocity, friction_centroid
                                      (pads, samples), unit attributes as in run files
                                  /parameters/<key> (pads,) one dataset per swept parameter, unit attribute
                                  /pads/index (pads,) global pad index, /pads/patch_count (pads,)

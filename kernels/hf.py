@@ -25,7 +25,7 @@ GLOBAL_ROWS = 1  # rows written to the global buffer since the last flush
 PATCH_ROWS = 2  # rows written to the per-patch buffer since the last flush
 RECORD_FLAG = 3  # adaptive stepping: 1 when the last accepted step landed on a sample time
 
-N_GLOBAL = 5  # mu, torque, friction radius, Σ u̇, Σ|u̇|
+N_GLOBAL = 6  # mu, torque, friction radius, Σ u̇, Σ|u̇|, friction centroid
 
 
 # ---------------------------------------------------------------------------------------------- physics
@@ -607,14 +607,21 @@ def write_globals(
     tsum: wp.float64,
     vsum: wp.float64,
     vabs: wp.float64,
+    fxsum: wp.float64,
+    fysum: wp.float64,
     omega: Any,
     mu_pad: Any,
     matrix_force: Any,
     matrix_radius: Any,
     load: Any,
 ):
-    """Write one pad's sample row: μ, torque [N m], friction radius [m], Σu̇, Σ|u̇| [m/s] from the float64 patch
-    sums of friction force and torque and the matrix's Coulomb friction μ_pad F_m sign(ω) at radius r_m."""
+    """Write one pad's sample row: μ, torque [N m], friction radius [m], Σu̇, Σ|u̇| [m/s], friction centroid [m]
+    from the float64 patch sums of friction force, torque and force-weighted position (Σ F_i x_i, Σ F_i y_i) and the
+    matrix's Coulomb friction μ_pad F_m sign(ω) at radius r_m.
+
+    Friction radius r_eff = T / total friction force (matrix included); friction centroid = |Σ F_i r⃗_i| / |Σ F_i|,
+    the distance from the disc axis of the centroid of the patches' friction forces (the matrix, whose friction
+    does not vibrate and whose cells carry no angular position, is left out; 0 when the patch forces sum to 0)."""
     fm = wp.float64(mu_pad * matrix_force * sign_or_zero(omega))
     ftot = fsum + fm
     ttot = tsum + fm * wp.float64(matrix_radius)
@@ -629,6 +636,10 @@ def write_globals(
     globals_out[row, pad, 2] = reff
     globals_out[row, pad, 3] = vsum
     globals_out[row, pad, 4] = vabs
+    centroid = wp.float64(0.0)
+    if fsum != wp.float64(0.0):
+        centroid = wp.sqrt(fxsum * fxsum + fysum * fysum) / wp.abs(fsum)
+    globals_out[row, pad, 5] = centroid
 
 
 @wp.kernel
@@ -647,6 +658,8 @@ def record_globals(
     pad_matrix_radius: wp.array[Any],
     inv_mass: wp.array[Any],
     k_t: wp.array[Any],
+    x: wp.array[Any],
+    y: wp.array[Any],
     conditional: int,
     # State in:
     u_in: wp.array[Any],
@@ -658,10 +671,11 @@ def record_globals(
     fault_out: wp.array2d[wp.int32],
     fault_value_out: wp.array[wp.float64],
 ):
-    """Per pad: μ, torque [N m], friction radius [m], Σu̇ [m/s], Σ|u̇| [m/s]; flags the first faulty patch.
+    """Per pad: μ, torque [N m], friction radius [m], Σu̇ [m/s], Σ|u̇| [m/s], friction centroid [m]; flags the first
+    faulty patch.
 
     μ = (Σ F_N,i f(ωr_i − u̇_i) + μ_pad F_matrix sign ω)/F_N (0 without load); T = Σ r_i F_i + r_m μ_pad F_m;
-    r_eff = T / total friction force.
+    r_eff = T / total friction force; centroid = |Σ F_i (x_i, y_i)| / |Σ F_i| over the patches (:func:`write_globals`).
 
     Watchdog (fault_out[pad] = [patch, sample, kind], first fault only): kind 0 a non-finite u or u̇; kind 1 a
     patch whose energy speed s_i = √(u̇_i² + (k_T,i/m_i) u_i²) = √(2E_i/m_i) exceeds ``watch_bound[pad]`` [m/s]
@@ -675,6 +689,8 @@ def record_globals(
     tsum = wp.float64(0.0)
     vsum = wp.float64(0.0)
     vabs = wp.float64(0.0)
+    fxsum = wp.float64(0.0)
+    fysum = wp.float64(0.0)
     usum = wp.float64(0.0)
     omega = pad_omega[pad]
     bound2 = watch_bound[pad] * watch_bound[pad]
@@ -689,6 +705,8 @@ def record_globals(
         tsum += wp.float64(f * radius[i])
         vsum += wp.float64(v)
         vabs += wp.float64(wp.abs(v))
+        fxsum += wp.float64(f * x[i])
+        fysum += wp.float64(f * y[i])
         ui = wp.float64(u_in[i])
         usum += ui
         s2 = wp.float64(v) * wp.float64(v) + wp.float64(k_t[i] * inv_mass[i]) * ui * ui
@@ -696,7 +714,7 @@ def record_globals(
             runaway = i - pad_patch_start[pad]
             speed2 = s2
     write_globals(
-        globals_out, row, pad, fsum, tsum, vsum, vabs, omega, pad_mu_pad[pad], pad_matrix_force[pad],
+        globals_out, row, pad, fsum, tsum, vsum, vabs, fxsum, fysum, omega, pad_mu_pad[pad], pad_matrix_force[pad],
         pad_matrix_radius[pad], pad_load[pad],
     )  # fmt: skip
     if fault_out[pad, 0] >= 0:

@@ -79,6 +79,9 @@ def readers(g: int, a: int, n: int, k: int, nbr_start: wp.array[wp.int32], nbr_i
 
 
 ABLATIONS = frozenset({"friction", "gather", "sync", "coupling", "contact", "gather_half"})
+# entries per block of a cluster's table of sample sums (float64): Σ F, Σ F r, Σ u̇, Σ|u̇|, Σ u, the runaway patch,
+# the first non-finite patch, its energy speed, Σ F x, Σ F y
+RED_SLOTS = 10
 
 
 @cache
@@ -145,6 +148,7 @@ def onchip_kernel(
     CONTACT = wp.constant(0 if "contact" in ablate else 1)
     GROWTH = wp.constant(1 if growth else 0)
     CLUSTER = wp.constant(cluster)
+    RED = wp.constant(RED_SLOTS)
     # a cluster exchanges u by st.async into the blocks that read it and mbarrier waits (no cluster barrier per step)
     ASYNC = wp.constant(1 if cluster > 1 and "sync" not in ablate else 0)
     TBYTES = wp.constant(wp.types.type_size_in_bytes(dtype))
@@ -169,7 +173,7 @@ def onchip_kernel(
     get_u = tile_load_rows(T, 2, nmax)
     get_ei = tile_load_1d(wp.int16, ne)
     get_ek = tile_load_1d(T, ne)
-    put_red = tile_store_rows_remote(wp.float64, cluster, 8)  # a block's sample sums into block 0's table
+    put_red = tile_store_rows_remote(wp.float64, cluster, RED_SLOTS)  # a block's sample sums into block 0's table
     # the barrier of all threads that advance a pad (a plain block barrier for one block: on sm_90 cluster_sync
     # would issue a cluster barrier for a one-block cluster)
     pad_sync = block_sync if cluster == 1 else cluster_sync
@@ -225,6 +229,8 @@ def onchip_kernel(
         pad_matrix_force: wp.array[T],
         pad_matrix_radius: wp.array[T],
         k_t: wp.array[T],
+        x: wp.array[T],
+        y: wp.array[T],
         # Growth (model in/out; empty unless GROWTH):
         area: wp.array[T],
         sqrt_area: wp.array[T],
@@ -287,7 +293,7 @@ def onchip_kernel(
         fs = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
         sidx = wp.tile_zeros(shape=EMAX, dtype=wp.int16, storage="shared")
         sk = wp.tile_zeros(shape=EMAX, dtype=T, storage="shared")
-        red = wp.tile_zeros(shape=(CLUSTER, 8), dtype=wp.float64, storage="shared")
+        red = wp.tile_zeros(shape=(CLUSTER, RED), dtype=wp.float64, storage="shared")
         nbytes = int(0)  # bytes of u the other blocks store into this one per step
         if wp.static(ASYNC != 0):  # static: a one-block kernel carries none of the exchange (registers)
             bars = wp.tile_zeros(shape=2, dtype=wp.int64, storage="shared")
@@ -502,6 +508,8 @@ def onchip_kernel(
             tsum = wp.float64(0.0)
             vsum = wp.float64(0.0)
             vabs = wp.float64(0.0)
+            fxsum = wp.float64(0.0)
+            fysum = wp.float64(0.0)
             usum = wp.float64(0.0)
             runaway = n  # first patch whose energy speed exceeds the watchdog bound (n: none)
             i = lo + lane
@@ -517,6 +525,8 @@ def onchip_kernel(
                 tsum += wp.float64(f * r)
                 vsum += wp.float64(vs)
                 vabs += wp.float64(wp.abs(vs))
+                fxsum += wp.float64(f * x[g])
+                fysum += wp.float64(f * y[g])
                 ui = wp.float64(uu)
                 usum += ui
                 s2 = wp.float64(vs) * wp.float64(vs) + wp.float64(k_t[g] * im) * ui * ui
@@ -531,6 +541,8 @@ def onchip_kernel(
             tsum = wp.tile_sum(wp.tile(tsum))[0]
             vsum = wp.tile_sum(wp.tile(vsum))[0]
             vabs = wp.tile_sum(wp.tile(vabs))[0]
+            fxsum = wp.tile_sum(wp.tile(fxsum))[0]
+            fysum = wp.tile_sum(wp.tile(fysum))[0]
             usum = wp.tile_sum(wp.tile(usum))[0]
             runaway = wp.tile_min(wp.tile(runaway))[0]
             # the block's fault candidates: its first non-finite patch, or its runaway patch's energy speed
@@ -560,12 +572,16 @@ def onchip_kernel(
                     put_red(red, rank, 5, wp.float64(runaway), 0)
                     put_red(red, rank, 6, wp.float64(bad), 0)
                     put_red(red, rank, 7, value, 0)
+                    put_red(red, rank, 8, fxsum, 0)
+                    put_red(red, rank, 9, fysum, 0)
                 cluster_sync()
                 if lane == 0 and rank == 0:
                     fsum = wp.float64(0.0)
                     tsum = wp.float64(0.0)
                     vsum = wp.float64(0.0)
                     vabs = wp.float64(0.0)
+                    fxsum = wp.float64(0.0)
+                    fysum = wp.float64(0.0)
                     usum = wp.float64(0.0)
                     runaway = n
                     bad = -1
@@ -575,6 +591,8 @@ def onchip_kernel(
                         vsum += red[q, 2]
                         vabs += red[q, 3]
                         usum += red[q, 4]
+                        fxsum += red[q, 8]
+                        fysum += red[q, 9]
                         rq = int(red[q, 5])
                         if rq < runaway:
                             runaway = rq
@@ -584,7 +602,7 @@ def onchip_kernel(
                             bad = bq
             if lane == 0 and rank == 0:
                 write_globals(
-                    globals_out, row0 + s, pad, fsum, tsum, vsum, vabs, omega, pad_mu_pad[pad],
+                    globals_out, row0 + s, pad, fsum, tsum, vsum, vabs, fxsum, fysum, omega, pad_mu_pad[pad],
                     pad_matrix_force[pad], pad_matrix_radius[pad], pad_load[pad],
                 )  # fmt: skip
                 if fault_out[pad, 0] < 0:

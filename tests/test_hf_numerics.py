@@ -213,6 +213,7 @@ def network_reference(scene: Scene, v0: np.ndarray, times: np.ndarray) -> dict:
         "radius": torque / ftot,
         "sum_v": v.sum(axis=1),
         "sum_abs_v": np.abs(v).sum(axis=1),
+        "centroid": np.hypot(f @ p.x, f @ p.y) / np.abs(f.sum(axis=1)),  # patch friction only
         "fn": fn,
         "f_matrix": f_matrix,
     }
@@ -260,6 +261,8 @@ def test_network_strang_fp64_matches_reference(net_ref, device):
     np.testing.assert_allclose(g[:, 2], ref["radius"], rtol=1e-6)
     np.testing.assert_allclose(g[:, 3], ref["sum_v"], atol=1e-5 * np.abs(ref["v"]).max())
     np.testing.assert_allclose(g[:, 4], ref["sum_abs_v"], atol=1e-5 * np.abs(ref["v"]).max())
+    np.testing.assert_allclose(g[:, 5], ref["centroid"], rtol=1e-6)
+    assert np.all(g[:, 5] < g[:, 2])  # the centroid of forces along an arc lies inside it
     # the dynamic part of μ, not only its mean, is resolved
     dmu = g[:, 0] - g[0, 0]
     assert np.max(np.abs(dmu - (ref["mu"] - ref["mu"][0]))) < 1e-6 * np.ptp(ref["mu"])

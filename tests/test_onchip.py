@@ -72,7 +72,7 @@ def test_onchip_matches_general(device, precision):
     (cg, ug, vg), (co, uo, vo) = _both(device, precision)
     np.testing.assert_array_equal(co.time, cg.time)
     np.testing.assert_array_equal(co.patch_time, cg.patch_time)
-    assert cg.velocity.shape == (5, 2 * 1758) and cg.globals.shape == (11, 2, 5)
+    assert cg.velocity.shape == (5, 2 * 1758) and cg.globals.shape == (11, 2, 6)
     if device == "cpu":
         for a, b in [(co.globals, cg.globals), (co.velocity, cg.velocity), (co.displacement, cg.displacement)]:
             np.testing.assert_array_equal(a, b)

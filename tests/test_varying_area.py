@@ -44,7 +44,7 @@ def test_resume_equals_one_go(tmp_path, integrator):
     assert b.load(tmp_path / "state.npz") == {"x": 1}
     b.advance(4e-5, **kw)
     g1, g2 = np.concatenate(one.globals), np.concatenate(b.globals)
-    assert g1.shape == (41, 5) and np.array_equal(np.concatenate(one.time), np.concatenate(b.time))
+    assert g1.shape == (41, 6) and np.array_equal(np.concatenate(one.time), np.concatenate(b.time))
     np.testing.assert_array_equal(g1, g2)
     np.testing.assert_array_equal(one.state.numpy()[1], b.state.numpy()[1])
     assert [x["patch_share"] for x in one.snaps] == [x["patch_share"] for x in b.snaps]

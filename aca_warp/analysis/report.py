@@ -35,8 +35,9 @@ from .spectra import DEFAULT_FLOOR_HZ, amplitude_spectrum, complex_spectrum, pea
 from .sync import _patch_groups, sync_index, sync_index_from_signals
 from .timefreq import cwt_morlet, stft
 
-GLOBAL_OUTPUTS = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity")
-"""Global outputs of a run file (datasets under ``/global``), in the order of ``aca_warp.hf.GLOBAL_NAMES``."""
+GLOBAL_OUTPUTS = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity", "friction_centroid")
+"""Global outputs of a run file (datasets under ``/global``), in the order of ``aca_warp.hf.recorder.GLOBAL_NAMES``.
+Run files of versions before the friction centroid lack it; everything else is required."""
 
 LABELS = {
     "mu": "μ",
@@ -44,6 +45,7 @@ LABELS = {
     "friction_radius": "friction radius r_eff",
     "sum_velocity": "Σ u̇",
     "sum_abs_velocity": "Σ |u̇|",
+    "friction_centroid": "friction centroid |Σ F r⃗| / |Σ F|",
 }
 """Short names of the global outputs for captions and legends."""
 
@@ -112,14 +114,14 @@ def run_attr(f: h5py.File, name: str, default: Any = None) -> Any:
 def check_run_file(f: h5py.File, name: str | Path = "") -> None:
     """Refuse an HDF5 file that is not an aca_warp run file (:class:`SceneError`, one line)."""
     where = f"{name}: " if name else ""
-    missing = [f"/global/{k}" for k in ("time", *GLOBAL_OUTPUTS) if f"global/{k}" not in f]
+    missing = [f"/global/{k}" for k in ("time", *GLOBAL_OUTPUTS[:5]) if f"global/{k}" not in f]
     missing += [f"/patches/{k}" for k in ("x", "y", "area") if f"patches/{k}" not in f]
     if "scene" not in f.attrs:
         missing.append("root attribute 'scene'")
     if missing:
         raise SceneError(f"{where}not an aca_warp run file (lacks {', '.join(missing)})")
     n = f["global/time"].shape
-    for k in GLOBAL_OUTPUTS:
+    for k in (k for k in GLOBAL_OUTPUTS if f"global/{k}" in f):
         if f[f"global/{k}"].shape != n or len(n) != 1:
             raise SceneError(f"{where}/global/{k} has shape {f[f'global/{k}'].shape}, /global/time {n}")
     if n[0] < 8:
@@ -203,7 +205,7 @@ def compute_spectra(f: h5py.File) -> Group:
         }
     )
     freq = None
-    for name in GLOBAL_OUTPUTS:
+    for name in (k for k in GLOBAL_OUTPUTS if f"global/{k}" in f):
         x = f[f"global/{name}"][()].astype(np.float64)
         unit = _decode(f[f"global/{name}"].attrs.get("unit", "1"))
         mean = float(np.mean(x))

@@ -26,7 +26,8 @@ PRECISIONS = {"fp32": wp.float32, "fp64": wp.float64}
 class PadModel:
     """Device arrays of the HF model; shapes: n = patch_count, P = pad_count, E = nnz of the CSR.
 
-    Per patch (n,): ``area`` [m²], ``sqrt_area`` [m], ``height`` [m], ``radius`` (friction radius) [m],
+    Per patch (n,): ``area`` [m²], ``sqrt_area`` [m], ``height`` [m], ``radius`` (friction radius) [m], ``x``, ``y``
+    (position in the disc plane) [m],
     ``inv_mass`` [1/kg], ``k_t`` and ``k_n`` [N/m], ``k_diag`` = k_T + Σ_j k_ij [N/m], ``damping``
     [N s/m], ``normal_force`` [N], ``patch_pad`` (int32).
 
@@ -129,6 +130,8 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
         "sqrt_area": dev_arr(sq),
         "height": dev_arr(cat(lambda s: s.patches.height)),
         "radius": dev_arr(np.hypot(x, y)),
+        "x": dev_arr(x),
+        "y": dev_arr(y),
         "inv_mass": dev_arr(1.0 / mass),
         "k_t": dev_arr(k_t),
         "k_n": dev_arr(mat["K_N"] * sq),

@@ -52,7 +52,7 @@ _GROWTH_F64 = frozenset({"pad_area", "pad_moment", "pad_k_m", "pad_gap"})
 _MODEL_ARRAYS = (
     "pad_patch_start", "inv_mass", "k_diag", "damping", "normal_force", "radius", "nbr_start", "nbr_index",
     "nbr_stiffness", "pad_omega", "pad_mu_scale", "pad_slope", "pad_decay", "pad_mu_pad", "pad_load",
-    "pad_matrix_force", "pad_matrix_radius", "k_t",
+    "pad_matrix_force", "pad_matrix_radius", "k_t", "x", "y",
 )  # fmt: skip
 
 

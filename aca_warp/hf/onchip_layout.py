@@ -15,6 +15,7 @@ from aca_warp.common.devices import block_threads
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import DEFAULT_INTEGRATOR, ENGINES
+from aca_warp.kernels.hf_onchip import RED_SLOTS
 
 MAX_BLOCK = 1024  # threads per block
 MAX_CLUSTER = 16  # blocks per pad (8 is the portable cluster size; H100/H200 launch 16 as "non-portable")
@@ -93,7 +94,7 @@ def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1, threads: i
     cluster's table of sample sums and, on a cluster, the u exchange's two mbarriers and its per-patch mask of
     receiving blocks, plus the block's part of the CSR (:func:`csr_slots`) when kept on chip."""
     nmax, slots = tile_sizes(model, cluster, threads)
-    b = 4 * nmax * itemsize(model) + 64 * cluster
+    b = 4 * nmax * itemsize(model) + 8 * RED_SLOTS * cluster
     if cluster > 1:
         b += 16 + 4 * (nmax // cluster + 1)
     if csr_shared:

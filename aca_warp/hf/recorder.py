@@ -21,8 +21,8 @@ from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 from aca_warp.scene import Record
 
-GLOBAL_NAMES = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity")
-GLOBAL_UNITS = ("1", "N m", "m", "m s-1", "m s-1")
+GLOBAL_NAMES = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity", "friction_centroid")
+GLOBAL_UNITS = ("1", "N m", "m", "m s-1", "m s-1", "m")
 
 
 def check_run(duration: float, record: Record, checkpoint_every: float | None = None) -> int:
@@ -77,7 +77,7 @@ class Chunk:
 
     Attributes:
         time: Sample times [s], shape (rows,).
-        globals: Global outputs per sample and pad, shape (rows, pads, 5), order of ``GLOBAL_NAMES``.
+        globals: Global outputs per sample and pad, shape (rows, pads, 6), order of ``GLOBAL_NAMES``.
         patch_time: Times of the per-patch samples [s], shape (prows,).
         velocity: Patch velocities [m/s], shape (prows, patch_count), or None.
         displacement: Patch displacements [m], shape (prows, patch_count), or None.
@@ -158,6 +158,8 @@ class Recorder:
                 m.pad_matrix_radius,
                 m.inv_mass,
                 m.k_t,
+                m.x,
+                m.y,
                 c,
                 u,
                 v,

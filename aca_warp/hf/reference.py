@@ -72,6 +72,7 @@ class ReferenceODE:
         self.c = f64("damping")
         self.fn = f64("normal_force")
         self.r = f64("radius")
+        self.x, self.y = f64("x"), f64("y")
         start, index, kij = coupling_matrix(model)
         rows = np.repeat(np.arange(n), np.diff(start))
         lap = sp.csr_matrix((-kij, (rows, index)), shape=(n, n))
@@ -124,8 +125,11 @@ class ReferenceODE:
         return sp.bmat([[sp.csr_matrix((self.n, self.n), dtype=np.int8), eye], [pattern, eye]], format="csr")
 
     def globals(self, u: np.ndarray, v: np.ndarray) -> dict[str, np.ndarray]:
-        """μ, torque [N m], Σu̇ and Σ|u̇| [m/s] for states of shape (N, n) (docs/model.md §2.8)."""
+        """μ, torque [N m], Σu̇ and Σ|u̇| [m/s] and the friction centroid |Σ F_i r⃗_i| / |Σ F_i| [m] of the patches
+        for states of shape (N, n) (docs/model.md §2.8)."""
         f = self.fn * self.friction(self.vd[None, :] - v)
+        fsum = f.sum(axis=1)
+        centroid = np.hypot(f @ self.x, f @ self.y) / np.where(fsum != 0.0, np.abs(fsum), np.inf)
         coulomb = self.mu_pad * self.f_matrix * np.sign(self.omega)
         ftot = f.sum(axis=1) + coulomb
         return {
@@ -133,6 +137,7 @@ class ReferenceODE:
             "torque": (f * self.r).sum(axis=1) + coulomb * self.r_matrix,
             "sum_velocity": v.sum(axis=1),
             "sum_abs_velocity": np.abs(v).sum(axis=1),
+            "friction_centroid": centroid,
         }
 
     def solve(

@@ -2,7 +2,7 @@
 
 Layout (docs/run_files.md)::
 
-    /global/time, mu, torque, friction_radius, sum_velocity, sum_abs_velocity     (samples,)
+    /global/time, mu, torque, friction_radius, sum_velocity, sum_abs_velocity, friction_centroid     (samples,)
     /patches/x, y, area, height, mass, normal_force                               (patches,)
     /patches/time, velocity[, displacement]     per-patch histories, (rows,) and (rows, patches), if recorded
     /patches/final/area, normal_force           after growth, if the scene grows

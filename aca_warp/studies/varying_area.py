@@ -40,6 +40,7 @@ import numpy as np
 
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import DEFAULT_DT, INTEGRATORS
+from aca_warp.hf.recorder import GLOBAL_NAMES
 from aca_warp.hf.solver import GROWTH_MUTABLE, stable_step
 from aca_warp.hf.state import HFState
 from aca_warp.scene import Growth, Record, Scene, preset
@@ -119,7 +120,7 @@ class Segment:
             steps=self.steps,
             wall=self.wall,
             time=np.concatenate(self.time) if self.time else np.zeros(0),
-            globals=np.concatenate(self.globals) if self.globals else np.zeros((0, 5)),
+            globals=np.concatenate(self.globals) if self.globals else np.zeros((0, len(GLOBAL_NAMES))),
             meta=json.dumps(meta),
             **arrays,
             **snaps,
