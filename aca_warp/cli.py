@@ -8,9 +8,11 @@ imports this module. Parsing imports no simulation code, so ``--help`` and argum
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 
+from aca_warp import __version__
 from aca_warp.common.errors import AcaError
 
 EPILOG = """\
@@ -36,6 +38,10 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=EPILOG,
     )
+    p.add_argument("--version", action="version", version=f"aca-warp {__version__}")
+    p.add_argument(
+        "--verbose", action="store_true", help="show Warp's own messages (start-up, module loads, CUDA driver)"
+    )
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (add_hf, add_lf, add_analysis, add_sweep, add_bench):
         add(sub)
@@ -46,9 +52,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``aca-warp`` console script."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    import warp as wp
+    if args.verbose:
+        os.environ["ACA_WARP_VERBOSE"] = "1"
+    from aca_warp.common.devices import init_warp
 
-    wp.config.log_level = wp.LOG_WARNING
+    init_warp()
     try:
         return args.handler(args)
     except AcaError as e:

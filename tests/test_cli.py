@@ -177,3 +177,49 @@ def test_help_explains(capsys):
     assert e.value.code == 0
     text = capsys.readouterr().out
     assert "--record-patches" in text and "Exit codes" in text and "[s]" in text
+
+
+def _cli(*args: str, cwd=None, env=None):
+    """``aca-warp ARGS`` in a subprocess (stdout, stderr and stdin not a terminal); returns the completed process."""
+    import os
+    import subprocess
+    import sys
+
+    code = "import sys; from aca_warp.cli import main; sys.exit(main(sys.argv[1:]))"
+    return subprocess.run(
+        [sys.executable, "-c", code, *args], capture_output=True, text=True, cwd=cwd, env={**os.environ, **(env or {})}
+    )
+
+
+def test_version_and_quiet_start(scene_file, tmp_path):
+    """--version answers; a run into a log writes no Warp banner, no CUDA-driver warning, no module-load lines and
+    no progress bar: stderr holds the plan line only, stdout the summary line."""
+    from aca_warp import __version__
+
+    done = _cli("--version")
+    assert done.returncode == 0 and done.stdout.strip() == f"aca-warp {__version__}"
+    out = tmp_path / "run.h5"
+    done = _cli("hf", str(scene_file), "-o", str(out))
+    assert done.returncode == 0, done.stderr
+    err = [line for line in done.stderr.splitlines() if not line.startswith("compiling kernels (first run only")]
+    assert len(err) == 1 and err[0].startswith(f"aca-warp: {out}: 200 steps of 1e-08 s, 21 samples"), done.stderr
+    assert "%|" not in done.stderr and "Module" not in done.stderr and "CUDA" not in done.stderr
+    assert len(done.stdout.strip().splitlines()) == 1 and "samples over" in done.stdout
+
+
+def test_absurd_runs_are_refused_before_anything_is_written(scene_file, tmp_path, capsys):
+    """A duration typed in the wrong unit, a step of 1e-20 s or an output of terabytes: one line, exit 2, no file;
+    --force lifts the limits (checked with the step count only: the plan passes)."""
+    out = tmp_path / "run.h5"
+    for extra, message in (
+        (["--duration", "1e3"], "more than a run records"),
+        (["--duration", "50", "--dt", "1e-10"], "5e+11 steps, more than 1e+10"),
+        (["--dt", "1e-20"], "steps, more than 1e+10"),
+        (["--duration", "1e1", "--sample-dt", "1e-8", "--record-patches", "velocity"], "more than 50 GB"),
+    ):
+        assert main(["hf", str(scene_file), "-o", str(out), *extra]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], err
+        assert not out.exists() and not out.with_name("run.h5.partial").exists()
+    plan = runner.plan_run(load_scene(str(scene_file)), runner.RunOptions(duration=50.0, dt=1e-10, force=True))
+    assert plan.steps == 500_000_000_000 and plan.samples == 500_000_001

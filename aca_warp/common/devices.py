@@ -1,8 +1,80 @@
-"""Warp device facts shared by HF and LF."""
+"""Warp start-up and device facts shared by HF and LF: a quiet initialisation, kernel loading with a first-run
+note, and the threads a tiled block runs.
+
+Warp prints its native CUDA-driver warning on every machine without a GPU and a line per module load; aca_warp
+keeps both off unless asked (``aca-warp --verbose``, or ``ACA_WARP_VERBOSE=1`` for the Python API), and says
+"compiling kernels (first run only)…" before a compile that would otherwise leave the terminal silent.
+"""
 
 from __future__ import annotations
 
+import os
+import sys
+import tempfile
+from collections.abc import Callable, Iterable
+from types import ModuleType
+
 import warp as wp
+
+_CUDA_DRIVER_WARNING = "Could not find or load the NVIDIA CUDA driver"
+_state = {"initialised": False, "compiling_said": False}
+
+
+def verbose() -> bool:
+    """Whether Warp's own messages are wanted (``ACA_WARP_VERBOSE`` set to anything but 0/empty)."""
+    return os.environ.get("ACA_WARP_VERBOSE", "") not in ("", "0")
+
+
+def init_warp() -> None:
+    """Initialise Warp once, quietly unless :func:`verbose`: its log level at warnings, and its native start-up
+    message about a missing CUDA driver dropped (any other native message is passed on to stderr)."""
+    if _state["initialised"]:
+        return
+    _state["initialised"] = True
+    if verbose():
+        wp.init()
+        return
+    wp.config.log_level = wp.LOG_WARNING
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            wp.init()
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        tmp.seek(0)
+        text = tmp.read().decode(errors="replace")
+    kept = [line for line in text.splitlines() if _CUDA_DRIVER_WARNING not in line]
+    if kept:
+        print("\n".join(kept), file=sys.stderr)
+
+
+def _cached(module: ModuleType, device: wp.Device) -> bool:
+    """Whether ``module``'s compiled kernels are in Warp's kernel cache (a heuristic: its cache folder exists)."""
+    m = wp.get_module(module.__name__)
+    try:  # Warp loads CPU modules with block_dim 1, CUDA modules with the module's own
+        ident = m.get_module_identifier(1 if device.is_cpu else None)
+    except Exception:  # noqa: BLE001 (a Warp internal; when it fails, assume a compile is coming)
+        return False
+    return os.path.isdir(os.path.join(wp.config.kernel_cache_dir, ident))
+
+
+def load_kernels(
+    modules: Iterable[ModuleType], device: wp.Device | str, say: Callable[[str], None] | None = None
+) -> None:
+    """Load (compile, or fetch from the kernel cache) kernel ``modules`` on ``device``; before the first compile of
+    the process, ``say`` (default: a line on stderr) "compiling kernels (first run only)…"."""
+    init_warp()
+    device = wp.get_device(device)
+    for module in modules:
+        if not _cached(module, device) and not _state["compiling_said"]:
+            _state["compiling_said"] = True
+            (say or (lambda s: print(s, file=sys.stderr, flush=True)))(
+                f"compiling kernels (first run only; cached in {wp.config.kernel_cache_dir})…"
+            )
+        wp.load_module(module, device=device)
 
 
 def block_threads(device: wp.Device, block_dim: int) -> int:

@@ -79,7 +79,12 @@ def add_parsers(sub: Any) -> None:
     hf.add_argument(
         "--patch-decimation", type=int_at_least(1), metavar="N", help="record per-patch histories every N-th sample"
     )
-    hf.add_argument("--force", action="store_true", help="run explicit steps beyond the stable-step estimate")
+    hf.add_argument(
+        "--force",
+        action="store_true",
+        help="run explicit steps beyond the stable-step estimate, or a run beyond the size limits "
+        "(1e10 steps, 50 GB of samples)",
+    )
     hf.add_argument(
         "--snapshot", metavar="NAME", help="SCENE is an LF run file (.h5): run HF on its snapshot NAME (aca-warp lf)"
     )
@@ -159,6 +164,7 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         precision=args.precision,
         overwrite=args.overwrite,
         progress=not args.no_progress,
+        announce=lambda plan: print(f"aca-warp: {args.output}: {plan.describe()}", file=sys.stderr, flush=True),
     )
     import h5py
 

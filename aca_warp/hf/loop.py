@@ -13,6 +13,7 @@ A new integrator or engine implements :class:`Engine` (docs/architecture.md).
 from __future__ import annotations
 
 import math
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -135,8 +136,9 @@ def run_hf(
     """Advance all pads of ``model`` from ``state`` as ``options`` say, recording as ``record`` says.
 
     ``options.duration`` None means the first scene's duration. Samples go to ``sink`` (or into the result's
-    ``chunks``) at every chunk end. A non-finite value, or a patch beyond the watchdog bound
-    (:func:`~aca_warp.hf.recorder.watchdog_bound`), stops the run: the result carries the fault and every sample
+    ``chunks``) at every chunk end. ``progress``: a progress bar on stderr when it is a terminal (none in a log).
+    A non-finite value, or a patch beyond the watchdog bound (:func:`~aca_warp.hf.recorder.watchdog_bound`), stops
+    the run: the result carries the fault and every sample
     before it. With ``options.checkpoint_interval`` and ``on_checkpoint``, the first chunk end at or past each
     multiple of it hands a :class:`~aca_warp.common.checkpoint.Checkpoint` to ``on_checkpoint``; ``resume`` (a
     checkpoint of the same scene, options, device and precision) continues from it with the same arithmetic in the
@@ -168,7 +170,7 @@ def run_hf(
         bounds = rec.watch_bound.numpy()
     engine.begin(None if resume is None else resume.counters)
     compile_time = time.perf_counter() - t_compile
-    bar = _progress_bar(n_samples * record.sample_dt) if progress else None
+    bar = _progress_bar(n_samples * record.sample_dt) if progress and sys.stderr.isatty() else None
     if bar is not None and p.sim_time > 0:
         bar.update(p.sim_time)
     interval = options.checkpoint_interval if on_checkpoint is not None else None

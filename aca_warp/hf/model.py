@@ -14,8 +14,11 @@ from typing import Any
 import numpy as np
 import warp as wp
 
+from aca_warp.common.devices import init_warp, load_kernels
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.contact import ContactSolution, solve_scene_contact
+from aca_warp.kernels import hf as hf_kernels
+from aca_warp.kernels import neighbours as neighbours_kernels
 from aca_warp.kernels.neighbours import build_neighbours
 from aca_warp.scene import Scene
 
@@ -91,10 +94,12 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
         raise SceneError("a batch needs at least one scene")
     if precision not in PRECISIONS:
         raise SceneError(f"precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
+    init_warp()
     try:
         dev = wp.get_device(device)
     except (ValueError, RuntimeError) as e:
         raise SceneError(f"device {device!r} is not available: {e}") from None
+    load_kernels([neighbours_kernels, hf_kernels], dev)
     T = PRECISIONS[precision]
     npT = np.float32 if T == wp.float32 else np.float64
     counts = np.array([s.patches.count for s in scenes])

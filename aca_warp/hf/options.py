@@ -37,7 +37,8 @@ class RunOptions:
         dt: Fixed step [s] (shortened so that whole steps fit a sample interval); None: :data:`DEFAULT_DT`.
             For ``adaptive`` the first trial step.
         tolerance: Relative tolerance of the adaptive integrator [1].
-        force: Run a fixed step beyond the stable-step estimate.
+        force: Run a fixed step beyond the stable-step estimate, or a run beyond the size limits of
+            :func:`~aca_warp.hf.runner.plan_run` (step count, recorded bytes).
         engine: ``auto``, ``general`` or ``onchip`` (docs/onchip.md).
         checkpoint_interval: Simulated time between checkpoints [s]; None: no checkpoints.
         watchdog_factor: Watchdog bound in units of the scene's velocity scale; None: only non-finite checks.

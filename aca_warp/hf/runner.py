@@ -8,8 +8,10 @@ and close it complete or marked incomplete (docs/run_files.md, docs/faults.md).
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
@@ -21,12 +23,79 @@ from aca_warp.common.files import check_output_path, find_resumable
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
-from aca_warp.hf.options import RunOptions
+from aca_warp.hf.options import DEFAULT_DT, RunOptions
 from aca_warp.hf.recorder import check_run
 from aca_warp.hf.runfile import RunWriter
 from aca_warp.hf.solver import HFSolver
 from aca_warp.hf.state import HFState, initial_state
 from aca_warp.scene import Scene
+
+MAX_STEPS = 1.0e10  # steps of one run without force=True (≈ 5 h of the fastest on-chip pad, months on a CPU)
+MAX_OUTPUT_BYTES = 50.0e9  # bytes of recorded samples of one run without force=True
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """What a run will do, known before it starts.
+
+    Attributes:
+        steps: Fixed steps (None for the adaptive integrator, whose count is not known ahead).
+        step: The step those are [s] (the requested one shortened to fit the sample interval), or None.
+        samples: Global samples to record (the initial one included).
+        patch_rows: Per-patch history rows to record.
+        output_bytes: Bytes the recorded samples take in the run file (uncompressed).
+    """
+
+    steps: int | None
+    step: float | None
+    samples: int
+    patch_rows: int
+    output_bytes: int
+
+    def describe(self) -> str:
+        """One line for the user."""
+        steps = "adaptive steps" if self.steps is None else f"{self.steps:.4g} steps of {self.step:.3g} s"
+        return f"{steps}, {self.samples:.4g} samples, about {_size(self.output_bytes)} to record"
+
+
+def _size(b: float) -> str:
+    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if b >= scale:
+            return f"{b / scale:.3g} {unit}"
+    return f"{b:.0f} B"
+
+
+def plan_run(scene: Scene, options: RunOptions, precision: str = "fp64") -> RunPlan:
+    """The :class:`RunPlan` of ``scene`` under ``options`` (``options.duration`` None: the scene's); raises
+    :class:`SceneError` for one beyond :data:`MAX_STEPS` or :data:`MAX_OUTPUT_BYTES` unless ``options.force``."""
+    duration = scene.duration if options.duration is None else options.duration
+    rec = scene.record
+    n = check_run(duration, rec, options.checkpoint_interval)
+    steps = step = None
+    if options.integrator != "adaptive":
+        dt = DEFAULT_DT if options.dt is None else options.dt
+        sps = max(1, math.ceil(rec.sample_dt / dt - 1e-9))
+        steps, step = n * sps, rec.sample_dt / sps
+    first = math.ceil(rec.window[0] / rec.sample_dt - 1e-9)
+    last = min(rec.window[1] / rec.sample_dt + 1e-9, n)
+    rows = max(0, math.floor((last - first) / rec.decimation) + 1) if rec.patches and last >= first else 0
+    item = 4 if precision == "fp32" else 8
+    out = (n + 1) * 8 * 7 + rows * (8 + len(rec.patches) * scene.patches.count * item)
+    plan = RunPlan(steps, step, n + 1, rows, out)
+    if options.force:
+        return plan
+    if steps is not None and steps > MAX_STEPS:
+        raise SceneError(
+            f"{duration:g} s at a step of {step:.3g} s is {steps:.3g} steps, more than {MAX_STEPS:.0e} (check the "
+            "duration and --dt units: seconds); force=True (--force) runs it anyway"
+        )
+    if out > MAX_OUTPUT_BYTES:
+        raise SceneError(
+            f"the run would record about {_size(out)} ({n + 1:.3g} samples, {rows:.3g} per-patch rows), more than "
+            f"{_size(MAX_OUTPUT_BYTES)}; use a larger sample interval, a shorter patch window or decimation, or "
+            "force=True (--force)"
+        )
+    return plan
 
 
 def run_scene(
@@ -38,6 +107,7 @@ def run_scene(
     precision: str = "fp64",
     overwrite: bool = False,
     progress: bool = False,
+    announce: Callable[[RunPlan], None] | None = None,
 ) -> RunResult:
     """Simulate ``scene`` as ``options`` say (default :class:`RunOptions`: the scene's duration, ``strang`` at
     1e-8 s) on ``device`` in ``precision`` and write the run file ``output``.
@@ -46,16 +116,19 @@ def run_scene(
     readable file holding every sample up to that point, marked ``complete = False``. With
     ``options.checkpoint_interval`` the file also keeps the solver state of the last checkpoint, so that a killed
     run continues with :func:`resume_run`. The file stores the options with the duration and the engine resolved.
+    ``announce`` receives the :class:`RunPlan` once everything is validated, just before the run starts.
     """
     options = options or RunOptions()
     check_output_path(output, overwrite=overwrite)
     options = options.with_duration(scene.duration if options.duration is None else options.duration)
+    plan = plan_run(scene, options, precision)  # absurd step counts or sizes refused before anything is allocated
     model = build_model([scene], device=device, precision=precision)
     state = initial_state(model)
     # refuse bad step choices before a file is created
-    check_run(options.duration, scene.record, options.checkpoint_interval)
     HFSolver(model, options.integrator, options.dt, force=options.force, tolerance=options.tolerance)
     options = dataclasses.replace(options, engine=choose_engine(model, options.engine, options.integrator))
+    if announce is not None:
+        announce(plan)
 
     def open_writer() -> RunWriter:
         return RunWriter(

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import time
 from collections.abc import Callable
 from typing import Any
@@ -20,7 +21,7 @@ import numpy as np
 import warp as wp
 
 from aca_warp.common.checkpoint import Checkpoint
-from aca_warp.common.devices import block_threads
+from aca_warp.common.devices import block_threads, init_warp, load_kernels
 from aca_warp.common.errors import SceneError
 from aca_warp.kernels import lf as K
 from aca_warp.lf.scene import LFScene, StepTable, step_table
@@ -52,10 +53,12 @@ class LFSimulation:
     def __init__(
         self, scene: LFScene, *, device: str = "cpu", duration: float | None = None, graph: bool | None = None
     ) -> None:
+        init_warp()
         try:
             self.device = wp.get_device(device)
         except (ValueError, RuntimeError) as e:
             raise SceneError(f"device {device!r} is not available: {e}") from None
+        load_kernels([K], self.device)
         self.scene = scene
         self.table: StepTable = step_table(scene, duration)
         c = scene.lf
@@ -402,7 +405,7 @@ class LFSimulation:
             if self.step_index * dt >= next_ckpt * (1 - 1e-12) and self.step_index < self.table.steps:
                 on_checkpoint(self)  # type: ignore[misc]
                 next_ckpt = (math.floor(self.step_index * dt / every + 1e-9) + 1) * every  # type: ignore[operator]
-            if progress and time.perf_counter() - last > 2.0:
+            if progress and sys.stdout.isatty() and time.perf_counter() - last > 2.0:
                 last = time.perf_counter()
                 h = self.hist.numpy()[s]
                 print(
