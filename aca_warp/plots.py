@@ -39,7 +39,7 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter
 
 from aca_warp.analysis import report
-from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run, run_attr
+from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run_file, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
 from aca_warp.common.errors import SceneError
 
@@ -63,7 +63,7 @@ class _Run:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        self.f = open_run(self.path, "r")
+        self.f = open_run_file(self.path, "r")
         self.scene = run_attr(self.f, "scene", {}) or {}
         if not isinstance(self.scene, dict):
             self.scene = {}
@@ -440,8 +440,8 @@ def plot_spectra(path: str | Path, outdir: str | Path) -> list[Path]:
         peaks = run.peaks()
         patch = analysis_group(run.f, "patch_spectrum", lambda: None)
         freq = spec["freq"]
-        floor = max(DEFAULT_FLOOR_HZ, 2.0 * float(freq[1] - freq[0]))
-        keep = freq >= floor
+        floor = report.leakage_floor(freq)
+        keep = report.shown_bins(freq)
         norm = [k for k in report.GLOBAL_OUTPUTS if k in spec and spec.meta(k).get("unit") == "1"]
         phys = [k for k in report.GLOBAL_OUTPUTS if k in spec and k not in norm]
         lower = bool(phys) or patch is not None
@@ -464,7 +464,7 @@ def plot_spectra(path: str | Path, outdir: str | Path) -> list[Path]:
                 ax.loglog(f / 1e3, a, lw=0.7, color=colours[name], label=f"{report.LABELS[name]} [{unit}]")
             if patch is not None:
                 pf = patch["freq"]
-                pk = pf >= max(DEFAULT_FLOOR_HZ, 2.0 * float(pf[1] - pf[0]))
+                pk = report.shown_bins(pf)
                 f, a = _log_max(pf[pk], patch["mean_amplitude"][pk])
                 ax.loglog(f / 1e3, a, lw=0.7, color="tab:red", label="mean per-patch |X_i(f)| of u̇_i [m/s]")
             ax.set_ylabel("amplitude [m/s]" if all(spec.meta(k).get("unit") == "m s-1" for k in phys) else "amplitude")
@@ -506,8 +506,8 @@ def plot_spectra(path: str | Path, outdir: str | Path) -> list[Path]:
             + (" and " if phys and patch else "")
             + ("the mean over patches of the per-patch velocity amplitude spectra" if patch else "")
             + ("." if lower else "")
-            + f" Dropped: f < {floor:.4g} Hz (10 Hz, or 2 bins where the record is short: bin 1 holds the window's "
-            "leakage of the mean). Log axes; the largest value per logarithmic frequency bin is drawn." + peak_text
+            + f" Dropped: f < max(10 Hz, 2 Δf) = {floor:.4g} Hz (bin 1 holds the window's leakage of the mean). "
+            "Log axes; the largest value per logarithmic frequency bin is drawn." + peak_text
         )
         _finish(fig, caption, run.footer)
         return _save(fig, Path(outdir), f"{run.path.stem}_spectra")
@@ -535,6 +535,8 @@ def plot_sync(path: str | Path, outdir: str | Path, **options: Any) -> list[Path
         assert g is not None
         a = g.attrs
         f, S, phi, s0, rw = (g[k] for k in ("freq", "S", "Phi", "S_null", "R_w"))
+        df, floor, shown = float(f[1] - f[0]), report.leakage_floor(f), report.shown_bins(f)
+        f, S, phi, s0, rw = (x[shown] for x in (f, S, phi, s0, rw))
         valid = np.isfinite(S)
         above = valid & (S > s0)
         below = valid & ~above
@@ -584,8 +586,9 @@ def plot_sync(path: str | Path, outdir: str | Path, **options: Any) -> list[Path
             f"over all patches. Φ: {_rule_text(a)}; {a.get('n_bins')} phase bins on [−π, π)"
             + (", circular 3-bin Gaussian filter (σ = 1 bin)" if a.get("smooth", True) else ", no filter")
             + f"; τ_AB = {a.get('tau_ab')}, τ_BC = {a.get('tau_bc')}, w = {a.get('w')}. Band "
-            f"{band[0]:g}–{band[1] / 1e3:g} kHz, Δf = {f[1] - f[0]:.4g} Hz; {a.get('patches')} patches × "
-            f"{a.get('samples')} samples, Hann window. {np.count_nonzero(valid)} of {f.size} bins have Φ ≥ 2, "
+            f"{band[0]:g}–{band[1] / 1e3:g} kHz, Δf = {df:.4g} Hz; {a.get('patches')} patches × "
+            f"{a.get('samples')} samples, Hann window; bins below max(10 Hz, 2 Δf) = {floor:.4g} Hz left out (the "
+            f"window's leakage of the mean). {np.count_nonzero(valid)} of {f.size} bins shown have Φ ≥ 2, "
             f"{np.count_nonzero(above)} with S > S_null."
         )
         _finish(fig, caption, run.footer)

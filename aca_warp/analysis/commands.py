@@ -149,16 +149,18 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     if "mu_peak_frequency" in peaks:
         parts.append(f"largest mu peak {peaks['mu_peak_frequency'] / 1e3:.4g} kHz")
     if "sync" in groups:
-        import numpy as np
+        from aca_warp.analysis.report import LEAKAGE_BINS, sync_excess
 
-        s = groups["sync"]
-        valid = np.isfinite(s["S"])
-        if valid.any():
-            k = int(np.nanargmax(np.where(valid, s["S"] - s["S_null"], -np.inf)))
+        ex = sync_excess(groups["sync"])
+        if ex is None:
+            parts.append("no frequency bin with Phi >= 2 above the leakage floor: no Synchronization Index to report")
+        else:
+            lo, hi = ex["band"]
             parts.append(
-                f"S > S_null in {int(np.count_nonzero(s['S'][valid] > s['S_null'][valid]))} of {s['S'].size} bins, "
-                f"largest excess S = {s['S'][k]:.3f} (null {s['S_null'][k]:.3f}, Phi {int(s['Phi'][k])}) at "
-                f"{s['freq'][k] / 1e3:.4g} kHz"
+                f"Synchronization Index over {lo / 1e3:.4g}-{hi / 1e3:.4g} kHz (the analysis band without the bins "
+                f"below max(10 Hz, {LEAKAGE_BINS} df) = {ex['floor'] / 1e3:.4g} kHz, the Hann leakage of the mean, as "
+                f"in the figures): S > S_null in {ex['above']} of {ex['bins']} bins with Phi >= 2, largest excess "
+                f"S = {ex['S']:.3f} (null {ex['S_null']:.3f}, Phi {ex['Phi']}) at {ex['freq'] / 1e3:.4g} kHz"
             )
     elif args.no_sync:
         parts.append("per-patch velocities not read (--no-sync)")
