@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 import sys
-import textwrap
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -42,6 +41,11 @@ from aca_warp.analysis import report
 from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run_file, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
 from aca_warp.common.errors import SceneError
+from aca_warp.plotting import envelope as _envelope
+from aca_warp.plotting import finish as _finish
+from aca_warp.plotting import new_figure as _figure
+from aca_warp.plotting import pad_outline as _pad_outline
+from aca_warp.plotting import save as _save
 
 FIGURES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
 """Figure names accepted by :func:`plot_run` (``which``) and ``aca-warp plot --only``."""
@@ -49,10 +53,6 @@ FIGURES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
 WITH_DISC = "#d62728"
 AGAINST_DISC = "#1f77b4"
 AT_REST = "#9a9a9a"
-WIDTH = 9.0  # in
-DPI = 150
-_CAPTION_PT = 8.0
-_FOOTER_PT = 6.5
 
 
 # ------------------------------------------------------------------------------------------- helpers
@@ -110,47 +110,6 @@ class _Run:
         return min(report.DEFAULT_BAND_TOP, 0.5 / dt)
 
 
-def _figure(height: float, width: float = WIDTH) -> Figure:
-    """A constrained-layout figure on the Agg canvas (``_finish`` adds the caption strip below it)."""
-    fig = Figure(figsize=(width, height), layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _finish(fig: Figure, caption: str, footer: str) -> None:
-    """Grow ``fig`` by a bottom strip holding the wrapped ``caption`` and the small-print ``footer``."""
-    lines = textwrap.wrap(caption, width=int(0.97 * fig.get_figwidth() * 72 / (_CAPTION_PT * 0.52)))
-    strip = (len(lines) * _CAPTION_PT * 1.3 + _FOOTER_PT * 1.5 + 12.0) / 72.0  # in
-    h = fig.get_figheight()
-    fig.set_figheight(h + strip)
-    fig.get_layout_engine().set(rect=(0.0, strip / (h + strip), 1.0, h / (h + strip)))
-    fig.text(0.012, (strip - 4.0 / 72.0) / (h + strip), "\n".join(lines), va="top", ha="left", fontsize=_CAPTION_PT)
-    fig.text(0.012, 3.0 / 72.0 / (h + strip), footer, va="bottom", ha="left", fontsize=_FOOTER_PT, color="0.35")
-
-
-def _save(fig: Figure, outdir: Path, stem: str) -> list[Path]:
-    outdir.mkdir(parents=True, exist_ok=True)
-    files = [outdir / f"{stem}.png", outdir / f"{stem}.pdf"]
-    fig.savefig(files[0], dpi=DPI)
-    fig.savefig(files[1])
-    return files
-
-
-def _envelope(t: np.ndarray, y: np.ndarray, points: int = 4000) -> tuple[np.ndarray, np.ndarray, int]:
-    """Min/max envelope of blocks so that at most ~``points`` are drawn; returns (t, y, block length)."""
-    n = y.size
-    block = max(1, math.ceil(n / (points // 2)))
-    if block <= 2:
-        return t, y, 1
-    m = n // block * block
-    yb = y[:m].reshape(-1, block)
-    tb = t[:m].reshape(-1, block)
-    lo, hi = yb.min(axis=1), yb.max(axis=1)
-    tt = np.repeat(tb.mean(axis=1), 2)
-    yy = np.column_stack([lo, hi]).ravel()
-    return tt, yy, block
-
-
 def _log_max(f: np.ndarray, a: np.ndarray, points: int = 3000) -> tuple[np.ndarray, np.ndarray]:
     """Largest value per logarithmic frequency bin (peaks survive), for f > 0 sorted ascending."""
     if f.size <= points:
@@ -175,19 +134,6 @@ def _plain_log(axis: Any) -> None:
     """Plain numbers (20, 50, 100) instead of powers of ten on a logarithmic frequency axis."""
     axis.set_major_formatter(_PLAIN)
     axis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}" if f"{v:.1g}"[0] in "25" else ""))
-
-
-def _pad_outline(scene: dict) -> tuple[np.ndarray, np.ndarray] | None:
-    """Outline of the annular-sector pad [mm] from the run's scene attribute, or None."""
-    try:
-        pad = scene["pad"]
-        r0, r1, span = float(pad["r_inner"]), float(pad["r_outer"]), math.radians(float(pad["span_deg"]))
-    except (KeyError, TypeError, ValueError):
-        return None
-    th = np.pi / 2 + np.linspace(-span / 2, span / 2, 200)
-    th_all = np.concatenate([th, th[::-1], th[:1]])
-    r = np.concatenate([np.full(200, r1), np.full(200, r0), [r1]])
-    return 1e3 * r * np.cos(th_all), 1e3 * r * np.sin(th_all)
 
 
 def _require_patch_velocity(run: _Run, figure: str) -> None:
