@@ -37,6 +37,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter
 
+from aca_warp import plots_lf
 from aca_warp.analysis import report
 from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run_file, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
@@ -636,8 +637,14 @@ def plot_run(
     times: Sequence[float] | None = None,
     frames: int = 40,
     log: Callable[[str], None] | None = _stderr,
+    quantity: str | None = None,
+    snapshots: Sequence[str] | None = None,
 ) -> list[Path]:
     """Make every figure the run file supports (or those named in ``which``); returns the files written.
+
+    An LF run file (root attribute ``kind = "lf"``) gets the LF figures instead (:func:`aca_warp.plots_lf.plot_lf_run`:
+    ``which`` from :data:`aca_warp.plots_lf.LF_FIGURES`, ``quantity`` colours its patch map, ``snapshots`` selects
+    its panels); ``times`` and ``frames`` apply to HF run files only, ``quantity`` and ``snapshots`` to LF ones.
 
     Figures whose data are absent (per-patch velocities for ``patch_map``, ``sync``, ``animation``; a
     record too short for a transform) are skipped with a message to ``log`` when ``which`` is None; a
@@ -651,7 +658,22 @@ def plot_run(
         frames: Frames of the animation (see :func:`animate_patch_map`).
         log: Receives one line per skipped figure (None: silent).
     """
+    if plots_lf.is_lf_file(path):
+        if times is not None:
+            raise SceneError(
+                f"{Path(path).name} is an LF run file: choose its patch-map panels with snapshots, not times"
+            )
+        return plots_lf.plot_lf_run(
+            path, outdir, which=which, quantity=quantity or "temperature", snapshots=snapshots, log=log
+        )
+    if quantity is not None or snapshots is not None:
+        raise SceneError(f"{Path(path).name} is not an LF run file: quantity and snapshots apply to LF patch maps")
     names = list(FIGURES if which is None else dict.fromkeys(which))
+    lf_names = [n for n in names if n in plots_lf.LF_FIGURES]
+    if lf_names:
+        raise SceneError(
+            f"{', '.join(lf_names)}: LF figures need an LF run file (aca-warp lf); {Path(path).name} is not one"
+        )
     unknown = [n for n in names if n not in FIGURES]
     if unknown:
         raise SceneError(f"unknown figure(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
