@@ -42,6 +42,7 @@ _LONG_NAMES = {
     ("global", "mu"): "global friction coefficient μ (signed with the sliding direction)",
     ("global", "torque"): "friction torque about the disc axis",
     ("global", "friction_radius"): "effective friction radius (torque / total friction force)",
+    ("global", "friction_centroid"): "distance of the friction-force centroid from the disc axis |Σ F_i r_i| / |Σ F_i|",
     ("global", "sum_velocity"): "sum of the patch velocities Σ u̇_i (pad frame)",
     ("global", "sum_abs_velocity"): "sum of the absolute patch velocities Σ |u̇_i| (pad frame)",
     ("global", "patch_count"): "alive patches",
