@@ -33,6 +33,7 @@ _PUBLIC = {
     "AcaError": "aca_warp.common.errors",
     "SceneError": "aca_warp.common.errors",
     "SimulationFault": "aca_warp.common.errors",
+    "open_run": "aca_warp.dataset",
 }
 __all__ = sorted(_PUBLIC)
 

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 import sys
-import textwrap
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -38,10 +37,16 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter
 
+from aca_warp import plots_lf
 from aca_warp.analysis import report
-from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run, run_attr
+from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run_file, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
 from aca_warp.common.errors import SceneError
+from aca_warp.plotting import envelope as _envelope
+from aca_warp.plotting import finish as _finish
+from aca_warp.plotting import new_figure as _figure
+from aca_warp.plotting import pad_outline as _pad_outline
+from aca_warp.plotting import save as _save
 
 FIGURES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
 """Figure names accepted by :func:`plot_run` (``which``) and ``aca-warp plot --only``."""
@@ -49,10 +54,6 @@ FIGURES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
 WITH_DISC = "#d62728"
 AGAINST_DISC = "#1f77b4"
 AT_REST = "#9a9a9a"
-WIDTH = 9.0  # in
-DPI = 150
-_CAPTION_PT = 8.0
-_FOOTER_PT = 6.5
 
 
 # ------------------------------------------------------------------------------------------- helpers
@@ -63,7 +64,7 @@ class _Run:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        self.f = open_run(self.path, "r")
+        self.f = open_run_file(self.path, "r")
         self.scene = run_attr(self.f, "scene", {}) or {}
         if not isinstance(self.scene, dict):
             self.scene = {}
@@ -110,47 +111,6 @@ class _Run:
         return min(report.DEFAULT_BAND_TOP, 0.5 / dt)
 
 
-def _figure(height: float, width: float = WIDTH) -> Figure:
-    """A constrained-layout figure on the Agg canvas (``_finish`` adds the caption strip below it)."""
-    fig = Figure(figsize=(width, height), layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _finish(fig: Figure, caption: str, footer: str) -> None:
-    """Grow ``fig`` by a bottom strip holding the wrapped ``caption`` and the small-print ``footer``."""
-    lines = textwrap.wrap(caption, width=int(0.97 * fig.get_figwidth() * 72 / (_CAPTION_PT * 0.52)))
-    strip = (len(lines) * _CAPTION_PT * 1.3 + _FOOTER_PT * 1.5 + 12.0) / 72.0  # in
-    h = fig.get_figheight()
-    fig.set_figheight(h + strip)
-    fig.get_layout_engine().set(rect=(0.0, strip / (h + strip), 1.0, h / (h + strip)))
-    fig.text(0.012, (strip - 4.0 / 72.0) / (h + strip), "\n".join(lines), va="top", ha="left", fontsize=_CAPTION_PT)
-    fig.text(0.012, 3.0 / 72.0 / (h + strip), footer, va="bottom", ha="left", fontsize=_FOOTER_PT, color="0.35")
-
-
-def _save(fig: Figure, outdir: Path, stem: str) -> list[Path]:
-    outdir.mkdir(parents=True, exist_ok=True)
-    files = [outdir / f"{stem}.png", outdir / f"{stem}.pdf"]
-    fig.savefig(files[0], dpi=DPI)
-    fig.savefig(files[1])
-    return files
-
-
-def _envelope(t: np.ndarray, y: np.ndarray, points: int = 4000) -> tuple[np.ndarray, np.ndarray, int]:
-    """Min/max envelope of blocks so that at most ~``points`` are drawn; returns (t, y, block length)."""
-    n = y.size
-    block = max(1, math.ceil(n / (points // 2)))
-    if block <= 2:
-        return t, y, 1
-    m = n // block * block
-    yb = y[:m].reshape(-1, block)
-    tb = t[:m].reshape(-1, block)
-    lo, hi = yb.min(axis=1), yb.max(axis=1)
-    tt = np.repeat(tb.mean(axis=1), 2)
-    yy = np.column_stack([lo, hi]).ravel()
-    return tt, yy, block
-
-
 def _log_max(f: np.ndarray, a: np.ndarray, points: int = 3000) -> tuple[np.ndarray, np.ndarray]:
     """Largest value per logarithmic frequency bin (peaks survive), for f > 0 sorted ascending."""
     if f.size <= points:
@@ -175,19 +135,6 @@ def _plain_log(axis: Any) -> None:
     """Plain numbers (20, 50, 100) instead of powers of ten on a logarithmic frequency axis."""
     axis.set_major_formatter(_PLAIN)
     axis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}" if f"{v:.1g}"[0] in "25" else ""))
-
-
-def _pad_outline(scene: dict) -> tuple[np.ndarray, np.ndarray] | None:
-    """Outline of the annular-sector pad [mm] from the run's scene attribute, or None."""
-    try:
-        pad = scene["pad"]
-        r0, r1, span = float(pad["r_inner"]), float(pad["r_outer"]), math.radians(float(pad["span_deg"]))
-    except (KeyError, TypeError, ValueError):
-        return None
-    th = np.pi / 2 + np.linspace(-span / 2, span / 2, 200)
-    th_all = np.concatenate([th, th[::-1], th[:1]])
-    r = np.concatenate([np.full(200, r1), np.full(200, r0), [r1]])
-    return 1e3 * r * np.cos(th_all), 1e3 * r * np.sin(th_all)
 
 
 def _require_patch_velocity(run: _Run, figure: str) -> None:
@@ -440,8 +387,8 @@ def plot_spectra(path: str | Path, outdir: str | Path) -> list[Path]:
         peaks = run.peaks()
         patch = analysis_group(run.f, "patch_spectrum", lambda: None)
         freq = spec["freq"]
-        floor = max(DEFAULT_FLOOR_HZ, 2.0 * float(freq[1] - freq[0]))
-        keep = freq >= floor
+        floor = report.leakage_floor(freq)
+        keep = report.shown_bins(freq)
         norm = [k for k in report.GLOBAL_OUTPUTS if k in spec and spec.meta(k).get("unit") == "1"]
         phys = [k for k in report.GLOBAL_OUTPUTS if k in spec and k not in norm]
         lower = bool(phys) or patch is not None
@@ -468,7 +415,7 @@ def plot_spectra(path: str | Path, outdir: str | Path) -> list[Path]:
                 ax.loglog(f / 1e3, a, lw=0.7, color=colours[name], label=f"{report.LABELS[name]} [{unit}]")
             if patch is not None:
                 pf = patch["freq"]
-                pk = pf >= max(DEFAULT_FLOOR_HZ, 2.0 * float(pf[1] - pf[0]))
+                pk = report.shown_bins(pf)
                 f, a = _log_max(pf[pk], patch["mean_amplitude"][pk])
                 ax.loglog(f / 1e3, a, lw=0.7, color="tab:red", label="mean per-patch |X_i(f)| of u̇_i [m/s]")
             ax.set_ylabel("amplitude [m/s]" if all(spec.meta(k).get("unit") == "m s-1" for k in phys) else "amplitude")
@@ -510,8 +457,8 @@ def plot_spectra(path: str | Path, outdir: str | Path) -> list[Path]:
             + (" and " if phys and patch else "")
             + ("the mean over patches of the per-patch velocity amplitude spectra" if patch else "")
             + ("." if lower else "")
-            + f" Dropped: f < {floor:.4g} Hz (10 Hz, or 2 bins where the record is short: bin 1 holds the window's "
-            "leakage of the mean). Log axes; the largest value per logarithmic frequency bin is drawn." + peak_text
+            + f" Dropped: f < max(10 Hz, 2 Δf) = {floor:.4g} Hz (bin 1 holds the window's leakage of the mean). "
+            "Log axes; the largest value per logarithmic frequency bin is drawn." + peak_text
         )
         _finish(fig, caption, run.footer)
         return _save(fig, Path(outdir), f"{run.path.stem}_spectra")
@@ -539,6 +486,8 @@ def plot_sync(path: str | Path, outdir: str | Path, **options: Any) -> list[Path
         assert g is not None
         a = g.attrs
         f, S, phi, s0, rw = (g[k] for k in ("freq", "S", "Phi", "S_null", "R_w"))
+        df, floor, shown = float(f[1] - f[0]), report.leakage_floor(f), report.shown_bins(f)
+        f, S, phi, s0, rw = (x[shown] for x in (f, S, phi, s0, rw))
         valid = np.isfinite(S)
         above = valid & (S > s0)
         below = valid & ~above
@@ -588,8 +537,9 @@ def plot_sync(path: str | Path, outdir: str | Path, **options: Any) -> list[Path
             f"over all patches. Φ: {_rule_text(a)}; {a.get('n_bins')} phase bins on [−π, π)"
             + (", circular 3-bin Gaussian filter (σ = 1 bin)" if a.get("smooth", True) else ", no filter")
             + f"; τ_AB = {a.get('tau_ab')}, τ_BC = {a.get('tau_bc')}, w = {a.get('w')}. Band "
-            f"{band[0]:g}–{band[1] / 1e3:g} kHz, Δf = {f[1] - f[0]:.4g} Hz; {a.get('patches')} patches × "
-            f"{a.get('samples')} samples, Hann window. {np.count_nonzero(valid)} of {f.size} bins have Φ ≥ 2, "
+            f"{band[0]:g}–{band[1] / 1e3:g} kHz, Δf = {df:.4g} Hz; {a.get('patches')} patches × "
+            f"{a.get('samples')} samples, Hann window; bins below max(10 Hz, 2 Δf) = {floor:.4g} Hz left out (the "
+            f"window's leakage of the mean). {np.count_nonzero(valid)} of {f.size} bins shown have Φ ≥ 2, "
             f"{np.count_nonzero(above)} with S > S_null."
         )
         _finish(fig, caption, run.footer)
@@ -691,8 +641,14 @@ def plot_run(
     times: Sequence[float] | None = None,
     frames: int = 40,
     log: Callable[[str], None] | None = _stderr,
+    quantity: str | None = None,
+    snapshots: Sequence[str] | None = None,
 ) -> list[Path]:
     """Make every figure the run file supports (or those named in ``which``); returns the files written.
+
+    An LF run file (root attribute ``kind = "lf"``) gets the LF figures instead (:func:`aca_warp.plots_lf.plot_lf_run`:
+    ``which`` from :data:`aca_warp.plots_lf.LF_FIGURES`, ``quantity`` colours its patch map, ``snapshots`` selects
+    its panels); ``times`` and ``frames`` apply to HF run files only, ``quantity`` and ``snapshots`` to LF ones.
 
     Figures whose data are absent (per-patch velocities for ``patch_map``, ``sync``, ``animation``; a
     record too short for a transform) are skipped with a message to ``log`` when ``which`` is None; a
@@ -706,7 +662,22 @@ def plot_run(
         frames: Frames of the animation (see :func:`animate_patch_map`).
         log: Receives one line per skipped figure (None: silent).
     """
+    if plots_lf.is_lf_file(path):
+        if times is not None:
+            raise SceneError(
+                f"{Path(path).name} is an LF run file: choose its patch-map panels with snapshots, not times"
+            )
+        return plots_lf.plot_lf_run(
+            path, outdir, which=which, quantity=quantity or "temperature", snapshots=snapshots, log=log
+        )
+    if quantity is not None or snapshots is not None:
+        raise SceneError(f"{Path(path).name} is not an LF run file: quantity and snapshots apply to LF patch maps")
     names = list(FIGURES if which is None else dict.fromkeys(which))
+    lf_names = [n for n in names if n in plots_lf.LF_FIGURES]
+    if lf_names:
+        raise SceneError(
+            f"{', '.join(lf_names)}: LF figures need an LF run file (aca-warp lf); {Path(path).name} is not one"
+        )
     unknown = [n for n in names if n not in FIGURES]
     if unknown:
         raise SceneError(f"unknown figure(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")

@@ -318,3 +318,25 @@ def test_commands(runs, tmp_path, capsys):
     assert _cli(["plot", str(path), "-o", str(out_dir), "--only", "patch_map", "--times", "5e-5", "9e-5"]) == 0
     assert sorted(p.name for p in out_dir.iterdir()) == ["run_patch_map.pdf", "run_patch_map.png"]
     assert _cli(["plot", str(path), "-o", str(out_dir), "--only", "patch_map", "--times", "1.0"]) == 2
+
+
+def test_analyze_summary_uses_the_figures_band(runs, tmp_path, capsys):
+    """The printed largest excess S skips the bins below max(10 Hz, 2 Δf), as the figures do, and names that band.
+
+    On this 0.1 ms record (Δf ≈ 10 kHz) bin 1, the Hann leakage of the mean, has the largest S − S_null.
+    """
+    path = _copy(runs["patches"], tmp_path)
+    assert _cli(["analyze", str(path)]) == 0
+    out = capsys.readouterr().out
+    with h5py.File(path, "r") as f:
+        freq, S, s0, phi = (f[f"analysis/sync/{k}"][()] for k in ("freq", "S", "S_null", "Phi"))
+    df = (freq[-1] - freq[0]) / (freq.size - 1)
+    excess = np.where(np.isfinite(S), S - s0, -np.inf)
+    assert freq[np.argmax(excess)] == pytest.approx(df, rel=1e-6), "bin 1 must win without the rule"
+    shown = freq > 1.5 * df
+    k = int(np.argmax(np.where(shown, excess, -np.inf)))
+    assert freq[k] >= 2 * df * (1 - 1e-9)
+    assert f"largest excess S = {S[k]:.3f} (null {s0[k]:.3f}, Phi {phi[k]}) at {freq[k] / 1e3:.4g} kHz" in out
+    assert f"over {2 * df / 1e3:.4g}-200 kHz" in out and "leakage of the mean" in out
+    above = np.count_nonzero((S > s0)[shown & np.isfinite(S)])
+    assert f"S > S_null in {above} of {np.count_nonzero(shown & np.isfinite(S))} bins" in out

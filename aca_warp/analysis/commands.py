@@ -16,7 +16,13 @@ from aca_warp.common.argtypes import fraction, int_at_least, nonneg, positive
 from aca_warp.common.errors import SceneError
 
 FIGURE_NAMES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
-"""Figure names of ``plot --only`` (same as ``aca_warp.plots.FIGURES``, kept here to avoid importing Matplotlib)."""
+"""HF figure names of ``plot --only`` (same as ``aca_warp.plots.FIGURES``, kept here to avoid importing Matplotlib)."""
+
+LF_FIGURE_NAMES = ("lf_global", "lf_population", "lf_patch_map")
+"""LF figure names of ``plot --only`` (same as ``aca_warp.plots_lf.LF_FIGURES``)."""
+
+LF_QUANTITIES = ("temperature", "thickness", "normal_force", "pressure", "age", "power", "height", "area")
+"""Colour quantities of the LF patch map (``plot --quantity``; keys of ``aca_warp.plots_lf.QUANTITIES``)."""
 
 ANALYZE_EPILOG = """\
 Writes the group /analysis into RUN.h5, replacing an earlier one (computed first, swapped in at the end: a
@@ -31,16 +37,22 @@ Example:  aca-warp analyze run.h5 --freq-max 150e3 --rule snr --snr 8
 """
 
 PLOT_EPILOG = """\
-Figures (PNG and PDF side by side; the animation as GIF), named <RUN stem>_<figure>.<ext>:
+Figures (PNG and PDF side by side; the animation as GIF), named <RUN stem>_<figure>.<ext>.
+HF run files (aca-warp hf):
   patch_map  patch coverage state coloured by direction of motion (paper Figs. 4/6)  needs per-patch velocities
   global     mu, torque, friction radius, sum |u'| against time (Figs. 5/7)
   spectra    amplitude spectra of all global outputs (Fig. 8)
   sync       Synchronization Index against frequency (Fig. 9)                      needs per-patch velocities
   stft, cwt  time-frequency maps of mu (Figs. 10/11)
   animation  GIF of the patch coverage state                                       needs per-patch velocities
+LF run files (aca-warp lf; recognised by their root attribute kind = "lf"):
+  lf_global      clamp force, mu, torque, friction radius, disc and patch temperatures against time
+  lf_population  patch count, coverage, load share, births/deaths/merges; debris and patch mass at snapshots
+  lf_patch_map   one panel per snapshot: patches as discs (area ~ patch area) coloured by --quantity
 Results of 'aca-warp analyze' are used when the file holds them; anything missing is computed on the fly
 (not written). Without --only, figures the file cannot support are skipped with a note.
-Example:  aca-warp plot run.h5 -o figures --only patch_map spectra --times 9.5e-4 9.6e-4
+Examples: aca-warp plot run.h5 -o figures --only patch_map spectra --times 9.5e-4 9.6e-4
+          aca-warp plot lf.h5 -o figures --only lf_patch_map --quantity thickness --snapshots app2_start app2_end
 """
 
 
@@ -57,7 +69,7 @@ def add_parsers(subparsers: Any) -> None:
         formatter_class=fmt,
         epilog=ANALYZE_EPILOG,
     )
-    a.add_argument("run", metavar="RUN.h5", help="run file written by 'aca-warp hf'")
+    a.add_argument("run", metavar="RUN.h5", help="HF run file written by 'aca-warp hf'")
     a.add_argument(
         "--freq-min",
         type=nonneg,
@@ -96,23 +108,24 @@ def add_parsers(subparsers: Any) -> None:
 
     p = subparsers.add_parser(
         "plot",
-        help="figures of a run file (patch map, global data, spectra, sync index, STFT, CWT, animation)",
-        description="Draw the paper-style figures of a run file (Merlis & Ostermeyer 2019, Figs. 4-11) as PNG "
-        "and PDF, each captioned with what it shows, its normalisation and the run's device, integrator and "
-        "precision.",
+        help="figures of a run file (HF: patch map, global data, spectra, sync index, STFT, CWT, animation; LF: "
+        "time series, patch population, snapshot patch maps)",
+        description="Draw the paper-style figures of an HF run file (Merlis & Ostermeyer 2019, Figs. 4-11), or the "
+        "time series and snapshot patch maps of an LF run file, as PNG and PDF, each captioned with what it shows, "
+        "its normalisation and the run's device, integrator and precision.",
         formatter_class=fmt,
         epilog=PLOT_EPILOG,
     )
-    p.add_argument("run", metavar="RUN.h5", help="run file written by 'aca-warp hf'")
+    p.add_argument("run", metavar="RUN.h5", help="run file written by 'aca-warp hf' or 'aca-warp lf'")
     p.add_argument(
         "-o", "--output-dir", required=True, metavar="DIR", help="folder for the figures (created if missing)"
     )
     p.add_argument(
         "--only",
         nargs="+",
-        choices=FIGURE_NAMES,
+        choices=FIGURE_NAMES + LF_FIGURE_NAMES,
         metavar="NAME",
-        help=f"make only these figures: {', '.join(FIGURE_NAMES)}",
+        help=f"make only these figures: HF {', '.join(FIGURE_NAMES)}; LF {', '.join(LF_FIGURE_NAMES)}",
     )
     p.add_argument(
         "--times",
@@ -121,6 +134,15 @@ def add_parsers(subparsers: Any) -> None:
         metavar="T",
         help="instants of the patch map [s] (nearest recorded sample; default: four quarter periods of the "
         "first velocity-spectrum peak at the end of the per-patch record)",
+    )
+    p.add_argument(
+        "--quantity",
+        choices=LF_QUANTITIES,
+        metavar="NAME",
+        help=f"LF patch map colour: {', '.join(LF_QUANTITIES)} (default temperature)",
+    )
+    p.add_argument(
+        "--snapshots", nargs="+", metavar="NAME", help="LF patch map panels (default: every snapshot, in time order)"
     )
     p.set_defaults(handler=cmd_plot)
 
@@ -149,16 +171,18 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     if "mu_peak_frequency" in peaks:
         parts.append(f"largest mu peak {peaks['mu_peak_frequency'] / 1e3:.4g} kHz")
     if "sync" in groups:
-        import numpy as np
+        from aca_warp.analysis.report import LEAKAGE_BINS, sync_excess
 
-        s = groups["sync"]
-        valid = np.isfinite(s["S"])
-        if valid.any():
-            k = int(np.nanargmax(np.where(valid, s["S"] - s["S_null"], -np.inf)))
+        ex = sync_excess(groups["sync"])
+        if ex is None:
+            parts.append("no frequency bin with Phi >= 2 above the leakage floor: no Synchronization Index to report")
+        else:
+            lo, hi = ex["band"]
             parts.append(
-                f"S > S_null in {int(np.count_nonzero(s['S'][valid] > s['S_null'][valid]))} of {s['S'].size} bins, "
-                f"largest excess S = {s['S'][k]:.3f} (null {s['S_null'][k]:.3f}, Phi {int(s['Phi'][k])}) at "
-                f"{s['freq'][k] / 1e3:.4g} kHz"
+                f"Synchronization Index over {lo / 1e3:.4g}-{hi / 1e3:.4g} kHz (the analysis band without the bins "
+                f"below max(10 Hz, {LEAKAGE_BINS} df) = {ex['floor'] / 1e3:.4g} kHz, the Hann leakage of the mean, as "
+                f"in the figures): S > S_null in {ex['above']} of {ex['bins']} bins with Phi >= 2, largest excess "
+                f"S = {ex['S']:.3f} (null {ex['S_null']:.3f}, Phi {ex['Phi']}) at {ex['freq'] / 1e3:.4g} kHz"
             )
     elif args.no_sync:
         parts.append("per-patch velocities not read (--no-sync)")
@@ -181,7 +205,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
     def note(message: str) -> None:
         print(f"aca-warp plot: {message}", file=sys.stderr)
 
-    files = plot_run(args.run, out, which=args.only, times=args.times, log=note)
+    files = plot_run(
+        args.run, out, which=args.only, times=args.times, log=note, quantity=args.quantity, snapshots=args.snapshots
+    )
     for f in files:
         print(f)
     if not files:

@@ -132,8 +132,9 @@ def check_run_file(f: h5py.File, name: str | Path = "") -> None:
             raise SceneError(f"{where}/patches/velocity has shape {v.shape}, expected (len(/patches/time), patches)")
 
 
-def open_run(path: str | Path, mode: str = "r") -> h5py.File:
-    """Open and check a run file; :class:`SceneError` if it is missing, not HDF5 or not a run file."""
+def open_run_file(path: str | Path, mode: str = "r") -> h5py.File:
+    """Open and check an HF run file as an h5py File; :class:`SceneError` if it is missing, not HDF5, an LF run
+    file or not a run file. (:func:`aca_warp.open_run` reads any run file into an xarray Dataset.)"""
     p = Path(path)
     if not p.is_file():
         raise SceneError(f"run file not found: {p}")
@@ -145,6 +146,11 @@ def open_run(path: str | Path, mode: str = "r") -> h5py.File:
         what = "for writing" if mode != "r" else ""
         raise SceneError(f"cannot open {p} {what}: {e}".replace("  ", " ")) from None
     try:
+        if _decode(f.attrs.get("kind")) == "lf":
+            raise SceneError(
+                f"{p} is an LF run file: the analysis applies to HF run files (aca-warp hf); "
+                f"draw its figures with 'aca-warp plot {p} -o DIR'"
+            )
         check_run_file(f, p)
     except BaseException:
         f.close()
@@ -166,6 +172,57 @@ def sample_interval(time: np.ndarray, what: str = "/global/time") -> float:
 def has_patch_velocity(f: h5py.File) -> bool:
     """True when the run recorded per-patch velocities (with at least 8 rows)."""
     return "patches/velocity" in f and "patches/time" in f and f["patches/velocity"].shape[0] >= 8
+
+
+LEAKAGE_BINS = 2
+"""Figures and the ``analyze`` summary leave out the lowest bins f < LEAKAGE_BINS·Δf (see :func:`leakage_floor`)."""
+
+
+def leakage_floor(freq: np.ndarray) -> float:
+    """Lowest frequency [Hz] the figures show and the ``analyze`` summary names: max(10 Hz, 2 Δf).
+
+    ``freq``: a uniform frequency grid (Hz, any start), Δf = freq[1] − freq[0]. A periodic Hann window over the
+    whole record puts the record's mean into bins 0 and 1 (bin 1 at half its height); on a short record bin 1
+    lies inside the band, and there every patch's velocity spectrum holds its mean with one common phase, which
+    makes S(f) ≈ 1 without any oscillation. 10 Hz is the paper's floor (Fig. 10).
+    """
+    freq = np.asarray(freq, dtype=np.float64)
+    df = float(freq[1] - freq[0]) if freq.size > 1 else 0.0
+    return max(DEFAULT_FLOOR_HZ, LEAKAGE_BINS * df)
+
+
+def shown_bins(freq: np.ndarray) -> np.ndarray:
+    """Boolean mask of the bins of ``freq`` at or above :func:`leakage_floor` (bin 2 itself is kept whatever the
+    rounding of freq[1] − freq[0])."""
+    freq = np.asarray(freq, dtype=np.float64)
+    return freq >= leakage_floor(freq) * (1.0 - 1e-9)
+
+
+def sync_excess(sync: Group) -> dict[str, Any] | None:
+    """Where S(f) exceeds its null level most, over the bins the figures show (f ≥ :func:`leakage_floor`).
+
+    Returns None when no such bin has Φ ≥ 2, else a dict: ``freq`` [Hz], ``S``, ``S_null``, ``Phi`` of the bin
+    with the largest S − S_null; ``above`` (bins with S > S_null) and ``bins`` (bins with Φ ≥ 2), both counted
+    over the shown bins; ``band`` [Hz] (the stored band, its lower edge raised to the floor) and ``floor`` [Hz].
+    """
+    freq, S, s0 = (np.asarray(sync[k], dtype=np.float64) for k in ("freq", "S", "S_null"))
+    floor = leakage_floor(freq)
+    band = np.asarray(sync.attrs.get("band", [freq[0], freq[-1]]), dtype=np.float64)
+    shown = shown_bins(freq) & (freq >= float(band[0]))
+    valid = shown & np.isfinite(S)
+    if not valid.any():
+        return None
+    k = int(np.argmax(np.where(valid, S - s0, -np.inf)))
+    return {
+        "freq": float(freq[k]),
+        "S": float(S[k]),
+        "S_null": float(s0[k]),
+        "Phi": int(sync["Phi"][k]),
+        "above": int(np.count_nonzero(S[valid] > s0[valid])),
+        "bins": int(np.count_nonzero(valid)),
+        "band": (max(floor, float(band[0])), float(band[1])),
+        "floor": floor,
+    }
 
 
 def _band(freq_range: tuple[float, float] | None, nyquist: float, top: float = DEFAULT_BAND_TOP) -> tuple[float, float]:
@@ -657,7 +714,7 @@ def analyze_run(
     if isinstance(n_bins, bool) or not isinstance(n_bins, (int, np.integer)) or n_bins < 2:
         raise SceneError(f"n_bins must be an integer >= 2, got {n_bins!r}")
     band: tuple[float, float] | None = None
-    with open_run(path, "r") as f:  # refuse a non-run file before opening it for writing
+    with open_run_file(path, "r") as f:  # refuse a non-run file before opening it for writing
         if freq_range is not None:
             lo, hi = freq_range
             lo = DEFAULT_FLOOR_HZ if lo is None else float(lo)
@@ -666,7 +723,7 @@ def analyze_run(
             if not (0.0 <= lo < hi and math.isfinite(hi)):
                 raise SceneError(f"frequency range must satisfy 0 <= fmin < fmax, got {lo:g}, {hi:g} Hz")
             band = (lo, hi)
-    with open_run(path, "r+") as f:
+    with open_run_file(path, "r+") as f:
         groups: dict[str, Group] = {"spectra": compute_spectra(f)}
         patch = sync_group = None
         if sync:
