@@ -9,6 +9,7 @@ from aca_warp.analysis.measures import (
     PrevalenceTable,
     ensemble_interval,
     equal_prevalence_difference,
+    first_peak,
     line_trend,
     peak_to_floor,
     peak_track,
@@ -252,6 +253,18 @@ def test_ensemble_interval():
 
 
 # ------------------------------------------------------------------------------ peak contrast and plateaus
+
+
+def test_first_peak_is_the_lowest_peak_reaching_the_fraction():
+    freq = np.arange(0.0, 200e3, 100.0)
+    amp = 1e-3 + 0.6 * lorentz(freq, 72e3, 300.0) + 1.0 * lorentz(freq, 95e3, 300.0) + 0.3 * lorentz(freq, 50e3, 300.0)
+    f, a = first_peak(freq, amp, fmin=1e3)
+    assert f == pytest.approx(72e3, abs=20.0) and a == pytest.approx(amp[720], rel=1e-6)  # 50 kHz: below half the max
+    assert first_peak(freq, amp, fraction=0.25, fmin=1e3)[0] == pytest.approx(50e3, abs=20.0)
+    assert first_peak(freq, amp, fraction=0.9)[0] == pytest.approx(95e3, abs=20.0)  # only the largest reaches 0.9
+    assert first_peak(freq, amp, fmin=80e3)[0] == pytest.approx(95e3, abs=20.0)
+    with pytest.raises(ValueError, match="fraction"):
+        first_peak(freq, amp, fraction=0.0)
 
 
 def test_peak_to_floor_is_height_over_the_median_of_its_octaves():

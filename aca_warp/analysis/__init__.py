@@ -12,9 +12,9 @@ _MODULES = {
     "measures": (
         "CorrelationLength", "EnsembleInterval", "EqualPrevalence", "LineTrend", "PeakContrast", "PeakWidth",
         "PlateauExcess", "PrevalenceTable", "SharedFraction", "SharedPeak", "SpectralOverlap", "StftPeak",
-        "ensemble_interval", "equal_prevalence_difference", "line_trend", "peak_to_floor", "peak_track", "peak_width",
-        "phase_correlation_length", "plateau_excess", "prevalence_classes", "shared_peak_fraction", "shared_peaks",
-        "spectral_agreement", "spectral_overlap", "stft_peak", "stft_peaks", "sync_by_prevalence",
+        "ensemble_interval", "equal_prevalence_difference", "first_peak", "line_trend", "peak_to_floor", "peak_track",
+        "peak_width", "phase_correlation_length", "plateau_excess", "prevalence_classes", "shared_peak_fraction",
+        "shared_peaks", "spectral_agreement", "spectral_overlap", "stft_peak", "stft_peaks", "sync_by_prevalence",
     ),
     "saturation": (
         "SaturationResult", "common_start", "coupled_growth_rates", "friction_slope", "growth_rate_summary",

@@ -16,6 +16,8 @@ filled from any record:
 * :func:`line_trend` — slope of a spectral line over time with a confidence interval ("decreasing
   frequencies of the characteristic peaks", §3.2);
 * :func:`ensemble_interval` — mean and 95 % intervals over seeds, for every validation row;
+* :func:`first_peak` — the lowest-frequency peak that reaches a fraction of a spectrum's maximum ("the first peak
+  of each velocity spectrum", §3.1);
 * :func:`peak_to_floor` — a peak's height over the median of its neighbourhood ("significantly more pronounced
   than the other output quantities", §3.1);
 * :func:`plateau_excess` — how far a spectrum stays raised just above a peak ("broad-band plateaus", §3.1);
@@ -675,6 +677,38 @@ def _band_bins(freq: np.ndarray, lo: float, hi: float, what: str) -> np.ndarray:
     if idx.size == 0:
         raise ValueError(f"no frequency bin in the {what} band [{lo:g}, {hi:g}] Hz")
     return idx
+
+
+def first_peak(
+    freq: np.ndarray, amp: np.ndarray, *, fraction: float = 0.5, fmin: float = -np.inf, fmax: float = np.inf
+) -> tuple[float, float]:
+    """The first peak of a spectrum: the lowest-frequency local maximum that reaches ``fraction`` of the largest
+    amplitude in ``[fmin, fmax]``.
+
+    From the first bin at or above ``fraction``·max the spectrum is followed uphill to its local maximum, which is
+    Gaussian-interpolated as in ``spectra.peak``. In the saturated HF state the patch velocities fill a band
+    (each patch near its own natural frequency, coupling spreading it upward) whose lower edge is a sharp peak
+    followed by a plateau; the largest bin may lie anywhere in the plateau, the first peak does not.
+
+    Args:
+        freq: Uniformly spaced frequencies [Hz], shape (F,).
+        amp: Amplitude spectrum, shape (F,), non-negative.
+        fraction: Share of the band's maximum the first peak must reach, in (0, 1].
+        fmin: Lower band edge [Hz].
+        fmax: Upper band edge [Hz].
+
+    Returns:
+        ``(f_peak [Hz], a_peak)``.
+    """
+    freq, amp = np.asarray(freq, dtype=np.float64), np.asarray(amp, dtype=np.float64)
+    if not 0.0 < fraction <= 1.0:
+        raise ValueError(f"fraction must lie in (0, 1], got {fraction}")
+    band = _band_bins(freq, fmin, fmax, "search")
+    sub = amp[band]
+    i = int(np.flatnonzero(sub >= fraction * sub.max())[0])
+    while i + 1 < sub.size and sub[i + 1] > sub[i]:
+        i += 1
+    return _refine(freq[band], sub, i)
 
 
 @dataclass(frozen=True)
