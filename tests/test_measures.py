@@ -6,15 +6,24 @@ import numpy as np
 import pytest
 
 from aca_warp.analysis.measures import (
+    PrevalenceTable,
     ensemble_interval,
+    equal_prevalence_difference,
+    first_peak,
     line_trend,
+    peak_to_floor,
     peak_track,
     peak_width,
     phase_correlation_length,
+    plateau_excess,
+    prevalence_classes,
+    shared_peak_fraction,
     shared_peaks,
+    spectral_agreement,
     spectral_overlap,
     stft_peak,
     stft_peaks,
+    sync_by_prevalence,
 )
 from aca_warp.analysis.spectra import amplitude_spectrum
 from aca_warp.analysis.timefreq import stft
@@ -241,3 +250,132 @@ def test_ensemble_interval():
     assert single.mean == 4.2 and np.isnan(single.mean_low) and np.isnan(single.std)
     with pytest.raises(ValueError, match="finite"):
         ensemble_interval([1.0, np.nan])
+
+
+# ------------------------------------------------------------------------------ peak contrast and plateaus
+
+
+def test_first_peak_is_the_lowest_peak_reaching_the_fraction():
+    freq = np.arange(0.0, 200e3, 100.0)
+    amp = 1e-3 + 0.6 * lorentz(freq, 72e3, 300.0) + 1.0 * lorentz(freq, 95e3, 300.0) + 0.3 * lorentz(freq, 50e3, 300.0)
+    f, a = first_peak(freq, amp, fmin=1e3)
+    assert f == pytest.approx(72e3, abs=20.0) and a == pytest.approx(amp[720], rel=1e-6)  # 50 kHz: below half the max
+    assert first_peak(freq, amp, fraction=0.25, fmin=1e3)[0] == pytest.approx(50e3, abs=20.0)
+    assert first_peak(freq, amp, fraction=0.9)[0] == pytest.approx(95e3, abs=20.0)  # only the largest reaches 0.9
+    assert first_peak(freq, amp, fmin=80e3)[0] == pytest.approx(95e3, abs=20.0)
+    with pytest.raises(ValueError, match="fraction"):
+        first_peak(freq, amp, fraction=0.0)
+
+
+def test_peak_to_floor_is_height_over_the_median_of_its_octaves():
+    freq = np.arange(0.0, 200e3, 50.0)
+    amp = np.full(freq.size, 2.0)
+    amp[(freq > 36e3) & (freq < 40e3)] = 1.0  # a dip inside the floor band moves the median, not the peak
+    amp[1460] = 30.0  # 73 kHz
+    c = peak_to_floor(freq, amp, 73.04e3)
+    assert c.frequency == 73e3 and c.height == 30.0
+    band = (freq >= 0.5 * 73.04e3) & (freq <= 2 * 73.04e3)
+    assert c.floor == np.median(amp[band]) == 2.0
+    assert c.ratio == 15.0 and c.floor_band == (0.5 * 73.04e3, 2 * 73.04e3)
+    assert peak_to_floor(freq, 7.0 * amp, 73e3).ratio == pytest.approx(15.0)  # independent of normalisation
+    assert peak_to_floor(freq, amp, 60e3).height == 2.0  # no peak within 2 bins of 60 kHz
+    with pytest.raises(ValueError, match="floor band"):
+        peak_to_floor(freq, amp, 150e3, floor_band=(1.5, 2.0))
+
+
+def test_plateau_excess_of_piecewise_levels():
+    freq = np.arange(0.0, 400e3, 50.0)
+    f0 = 50e3
+    amp = np.where(freq < 1.5 * f0, 1.0, np.where(freq <= 2 * f0, 0.5, 0.125))
+    p = plateau_excess(freq, amp, f0, near=(1.6, 2.0), far=(2.5, 4.0))
+    assert p.excess == pytest.approx(np.log(4.0)) and p.near_level == 0.5 and p.far_level == 0.125
+    assert plateau_excess(freq, np.ones(freq.size), f0).excess == 0.0
+    falling = 1.0 / freq[1:]  # a 1/f spectrum: the excess is the log ratio of the bands' median frequencies
+    p = plateau_excess(freq[1:], falling, f0)
+    assert p.excess == pytest.approx(np.log(np.median([2.5, 4.0]) / np.median([1.1, 2.0])), rel=1e-3)
+
+
+def test_shared_peak_fraction_and_its_chance_level():
+    freq = np.arange(0.0, 100e3, 100.0)
+    base = np.ones(freq.size)
+
+    def spec(peaks):
+        a = base.copy()
+        a[peaks] = 10.0
+        return a
+
+    mu = spec([100, 200, 300, 400])
+    torque = spec([100, 201, 300, 600, 700])
+    radius = spec([101, 199, 500])
+    s = shared_peak_fraction(freq, {"mu": mu, "torque": torque, "friction_radius": radius}, "mu", band=(1e3, 1e5))
+    assert (s.shared, s.reference_peaks, s.fraction) == (2, 4, 0.5)  # 10 kHz and 20 kHz are in all three
+    bins = np.count_nonzero(freq >= 1e3)
+    assert s.chance == pytest.approx((5 * 5 / bins) * (3 * 5 / bins))  # ±2 bins: 5 bins per peak
+    with pytest.raises(ValueError, match="reference"):
+        shared_peak_fraction(freq, {"a": mu, "b": torque}, "mu")
+    assert np.isnan(shared_peak_fraction(freq, {"mu": base, "torque": torque}, "mu").fraction)
+
+
+# ----------------------------------------------------------------------------- synchronisation at equal Φ
+
+
+def test_sync_by_prevalence_matches_a_direct_average():
+    rng = np.random.default_rng(3)
+    phi = rng.integers(0, 300, 5000)
+    S = rng.random(5000)
+    null = rng.random(5000) * 0.5
+    S[:50] = np.nan  # undefined bins are left out
+    t = sync_by_prevalence(S, null, phi)
+    assert list(t.lower) == [2, 4, 8, 16, 32, 64, 128, 256] and t.upper[-1] == 512
+    assert list(prevalence_classes(255)) == [2, 4, 8, 16, 32, 64, 128, 256]
+    for k, (lo, hi) in enumerate(zip(t.lower, t.upper, strict=True)):
+        sel = (phi >= lo) & (phi < hi) & np.isfinite(S)
+        assert t.bins[k] == sel.sum()
+        assert t.mean_S[k] == pytest.approx(S[sel].mean())
+        assert t.mean_excess[k] == pytest.approx((S[sel] - null[sel]).mean())
+    assert t.bins.sum() == np.count_nonzero((phi >= 2) & np.isfinite(S))
+    fixed = sync_by_prevalence(S, null, phi, edges=np.array([2, 10, 1000]))
+    assert fixed.bins.sum() == t.bins.sum() and np.isnan(sync_by_prevalence(S, null, 0 * phi, edges=[2, 4]).mean_S[0])
+
+
+def _table(lower, bins, excess, s):
+    lower = np.asarray(lower)
+    n = len(lower)
+    return PrevalenceTable(lower, 2 * lower, np.asarray(bins), np.asarray(s, float), np.zeros(n), np.asarray(excess))
+
+
+def test_equal_prevalence_difference_uses_the_classes_every_record_populates():
+    edges = [2, 4, 8, 16]
+    a = [_table(edges, [50, 50, 50, 5], [0.3, 0.5, 0.7, 9.0], [0.9, 0.8, 0.7, 0.0]) for _ in range(2)]
+    b = [
+        _table(edges, [50, 50, 50, 50], [0.1, 0.2, 0.3, 0.0], [0.1, 0.1, 0.1, 0.1]),
+        _table(edges, [0, 50, 50, 50], [0.0, 0.1, 0.1, 0.0], [0.0, 0.0, 0.0, 0.0]),
+    ]
+    d = equal_prevalence_difference(a, b)  # class 0 empty in b[1], class 3 sparse in a: classes 1, 2 only
+    assert list(d.classes) == [False, True, True, False]
+    assert d.difference == pytest.approx([np.mean([0.3, 0.4]), np.mean([0.4, 0.6])])
+    raw = equal_prevalence_difference(a, b, value="S")
+    assert raw.difference == pytest.approx([np.mean([0.7, 0.6]), np.mean([0.8, 0.7])])
+    none = equal_prevalence_difference(a, b, min_bins=1000)
+    assert not none.classes.any() and np.all(np.isnan(none.difference))
+    with pytest.raises(ValueError, match="equal size"):
+        equal_prevalence_difference(a, b[:1])
+
+
+def test_spectral_agreement_is_a_rank_correlation_over_the_band():
+    from scipy.stats import spearmanr
+
+    freq = np.arange(0.0, 100e3, 100.0)
+    rng = np.random.default_rng(4)
+    amp = rng.lognormal(size=freq.size)
+    S = np.full(freq.size, 0.5)
+    phi = 2 + np.argsort(np.argsort(amp))  # S·Φ a strictly increasing function of amp
+    assert spectral_agreement(freq, S, phi, amp) == pytest.approx(1.0)
+    assert spectral_agreement(freq, S, phi, 1.0 / amp) == pytest.approx(-1.0)
+    S2 = rng.random(freq.size)
+    S2[::7] = np.nan  # undefined: no synchronised patches, S·Φ = 0
+    band = (freq >= 20e3) & (freq <= 80e3)
+    ref = spearmanr(np.nan_to_num(S2[band]) * phi[band], amp[band]).statistic
+    assert spectral_agreement(freq, S2, phi, amp) == pytest.approx(ref)
+    assert abs(spectral_agreement(freq, S2, rng.integers(2, 50, freq.size), amp)) < 0.1
+    assert np.isnan(spectral_agreement(freq, S, np.ones(freq.size), amp))

@@ -10,9 +10,11 @@ from typing import Any
 
 _MODULES = {
     "measures": (
-        "CorrelationLength", "EnsembleInterval", "LineTrend", "PeakWidth", "SharedPeak", "SpectralOverlap",
-        "StftPeak", "ensemble_interval", "line_trend", "peak_track", "peak_width", "phase_correlation_length",
-        "shared_peaks", "spectral_overlap", "stft_peak", "stft_peaks",
+        "CorrelationLength", "EnsembleInterval", "EqualPrevalence", "LineTrend", "PeakContrast", "PeakWidth",
+        "PlateauExcess", "PrevalenceTable", "SharedFraction", "SharedPeak", "SpectralOverlap", "StftPeak",
+        "ensemble_interval", "equal_prevalence_difference", "first_peak", "line_trend", "peak_to_floor", "peak_track",
+        "peak_width", "phase_correlation_length", "plateau_excess", "prevalence_classes", "shared_peak_fraction",
+        "shared_peaks", "spectral_agreement", "spectral_overlap", "stft_peak", "stft_peaks", "sync_by_prevalence",
     ),
     "saturation": (
         "SaturationResult", "common_start", "coupled_growth_rates", "friction_slope", "growth_rate_summary",

@@ -15,7 +15,18 @@ filled from any record:
   around 69.1 kHz"); :func:`peak_track` — the frequency of the largest STFT bin per window;
 * :func:`line_trend` — slope of a spectral line over time with a confidence interval ("decreasing
   frequencies of the characteristic peaks", §3.2);
-* :func:`ensemble_interval` — mean and 95 % intervals over seeds, for every validation row.
+* :func:`ensemble_interval` — mean and 95 % intervals over seeds, for every validation row;
+* :func:`first_peak` — the lowest-frequency peak that reaches a fraction of a spectrum's maximum ("the first peak
+  of each velocity spectrum", §3.1);
+* :func:`peak_to_floor` — a peak's height over the median of its neighbourhood ("significantly more pronounced
+  than the other output quantities", §3.1);
+* :func:`plateau_excess` — how far a spectrum stays raised just above a peak ("broad-band plateaus", §3.1);
+* :func:`shared_peak_fraction` — the share of one spectrum's peaks that every other spectrum has, beside the
+  share expected by chance;
+* :func:`sync_by_prevalence` and :func:`equal_prevalence_difference` — S(f) compared at equal Φ (S depends on
+  Φ: a few random phases already give a high S);
+* :func:`spectral_agreement` — rank correlation of S(f)·Φ(f) with a friction spectrum ("agreement between the
+  Synchronization Index results and the friction frequency spectrum", §3.1).
 """
 
 from __future__ import annotations
@@ -655,3 +666,361 @@ def ensemble_interval(values: np.ndarray, level: float = 0.95) -> EnsembleInterv
         median=out(np.median(v, axis=0)),
         level=level,
     )
+
+
+# ------------------------------------------------------------------------------------------ spectral shape
+
+
+def _band_bins(freq: np.ndarray, lo: float, hi: float, what: str) -> np.ndarray:
+    """Indices of the bins with lo <= f <= hi; ValueError naming ``what`` when there is none."""
+    idx = np.flatnonzero((freq >= lo) & (freq <= hi))
+    if idx.size == 0:
+        raise ValueError(f"no frequency bin in the {what} band [{lo:g}, {hi:g}] Hz")
+    return idx
+
+
+def first_peak(
+    freq: np.ndarray, amp: np.ndarray, *, fraction: float = 0.5, fmin: float = -np.inf, fmax: float = np.inf
+) -> tuple[float, float]:
+    """The first peak of a spectrum: the lowest-frequency local maximum that reaches ``fraction`` of the largest
+    amplitude in ``[fmin, fmax]``.
+
+    From the first bin at or above ``fraction``·max the spectrum is followed uphill to its local maximum, which is
+    Gaussian-interpolated as in ``spectra.peak``. In the saturated HF state the patch velocities fill a band
+    (each patch near its own natural frequency, coupling spreading it upward) whose lower edge is a sharp peak
+    followed by a plateau; the largest bin may lie anywhere in the plateau, the first peak does not.
+
+    Args:
+        freq: Uniformly spaced frequencies [Hz], shape (F,).
+        amp: Amplitude spectrum, shape (F,), non-negative.
+        fraction: Share of the band's maximum the first peak must reach, in (0, 1].
+        fmin: Lower band edge [Hz].
+        fmax: Upper band edge [Hz].
+
+    Returns:
+        ``(f_peak [Hz], a_peak)``.
+    """
+    freq, amp = np.asarray(freq, dtype=np.float64), np.asarray(amp, dtype=np.float64)
+    if not 0.0 < fraction <= 1.0:
+        raise ValueError(f"fraction must lie in (0, 1], got {fraction}")
+    band = _band_bins(freq, fmin, fmax, "search")
+    sub = amp[band]
+    i = int(np.flatnonzero(sub >= fraction * sub.max())[0])
+    while i + 1 < sub.size and sub[i + 1] > sub[i]:
+        i += 1
+    return _refine(freq[band], sub, i)
+
+
+@dataclass(frozen=True)
+class PeakContrast:
+    """Height of a spectral peak over the typical level around it.
+
+    Attributes:
+        frequency: Frequency of the largest bin within the search band [Hz].
+        height: Its amplitude (units of the spectrum).
+        floor: Median amplitude over the floor band (units of the spectrum).
+        ratio: height / floor (dimensionless; independent of how the spectrum is normalised).
+        floor_band: (fmin, fmax) of the floor band [Hz].
+    """
+
+    frequency: float
+    height: float
+    floor: float
+    ratio: float
+    floor_band: tuple[float, float]
+
+
+def peak_to_floor(
+    freq: np.ndarray,
+    amp: np.ndarray,
+    f0: float,
+    *,
+    search: float | None = None,
+    floor_band: tuple[float, float] = (0.5, 2.0),
+) -> PeakContrast:
+    """How pronounced the peak near ``f0`` is: its height over the median amplitude of the band around it.
+
+    The height is the largest bin within ``f0 ± search`` (no interpolation, so that spectra of one grid are
+    compared bin for bin); the floor is the median over ``[floor_band[0]·f0, floor_band[1]·f0]`` (an octave on
+    either side by default), which a single peak hardly moves. The ratio does not depend on a spectrum's
+    normalisation, so spectra of different quantities (μ, torque, Σu̇) can be compared.
+
+    Args:
+        freq: Uniformly spaced frequencies [Hz], shape (F,).
+        amp: Amplitude spectrum, shape (F,), non-negative.
+        f0: Peak frequency [Hz], e.g. the first velocity-spectrum peak.
+        search: Half-width of the search band [Hz]; default 2 bins.
+        floor_band: Floor band as multiples of f0.
+
+    Returns:
+        A :class:`PeakContrast`.
+    """
+    freq, amp = np.asarray(freq, dtype=np.float64), np.asarray(amp, dtype=np.float64)
+    if freq.shape != amp.shape or freq.ndim != 1 or freq.size < 3:
+        raise ValueError(f"freq and amp must be 1-D of equal length >= 3, got {freq.shape} and {amp.shape}")
+    search = 2.0 * (freq[1] - freq[0]) if search is None else search
+    near = _band_bins(freq, f0 - search, f0 + search, "search")
+    i = int(near[np.argmax(amp[near])])
+    band = (floor_band[0] * f0, floor_band[1] * f0)
+    floor = float(np.median(amp[_band_bins(freq, *band, "floor")]))
+    ratio = float(amp[i] / floor) if floor > 0 else float("inf")
+    return PeakContrast(float(freq[i]), float(amp[i]), floor, ratio, band)
+
+
+@dataclass(frozen=True)
+class PlateauExcess:
+    """Level of a spectrum just above a peak against its level further up (natural-log units).
+
+    Attributes:
+        excess: ln(near_level) − ln(far_level): 0 for a flat spectrum, ln 2 for a near band twice as high.
+        near_level: Median amplitude over the near band.
+        far_level: Median amplitude over the far band.
+        near_band: (fmin, fmax) [Hz].
+        far_band: (fmin, fmax) [Hz].
+    """
+
+    excess: float
+    near_level: float
+    far_level: float
+    near_band: tuple[float, float]
+    far_band: tuple[float, float]
+
+
+def plateau_excess(
+    freq: np.ndarray,
+    amp: np.ndarray,
+    f0: float,
+    *,
+    near: tuple[float, float] = (1.1, 2.0),
+    far: tuple[float, float] = (2.5, 4.0),
+) -> PlateauExcess:
+    """How much a spectrum stays raised above a peak at ``f0``: a broad-band plateau after the peak (§3.1).
+
+    excess = ln median(amp over near·f0) − ln median(amp over far·f0). A plateau that follows the peak (the
+    near band, clear of the peak's own lobe) raises the excess above that of a spectrum that falls off evenly;
+    a comparison between spectra of one record (velocity against μ, torque, friction radius) tells which of them
+    carries the plateau. Medians make both levels insensitive to single peaks.
+
+    Args:
+        freq: Frequencies [Hz], shape (F,).
+        amp: Amplitude spectrum, shape (F,), positive in both bands.
+        f0: Peak frequency [Hz].
+        near: Near band as multiples of f0.
+        far: Far band as multiples of f0.
+
+    Returns:
+        A :class:`PlateauExcess`.
+    """
+    freq, amp = np.asarray(freq, dtype=np.float64), np.asarray(amp, dtype=np.float64)
+    if freq.shape != amp.shape or freq.ndim != 1:
+        raise ValueError(f"freq and amp must be 1-D of equal length, got {freq.shape} and {amp.shape}")
+    nb, fb = (near[0] * f0, near[1] * f0), (far[0] * f0, far[1] * f0)
+    a = float(np.median(amp[_band_bins(freq, *nb, "near")]))
+    b = float(np.median(amp[_band_bins(freq, *fb, "far")]))
+    if not (a > 0 and b > 0):
+        raise ValueError("plateau_excess needs positive median amplitudes in both bands")
+    return PlateauExcess(float(np.log(a) - np.log(b)), a, b, nb, fb)
+
+
+@dataclass(frozen=True)
+class SharedFraction:
+    """Share of a reference spectrum's peaks that every other spectrum has too.
+
+    Attributes:
+        fraction: shared / reference_peaks (NaN without reference peaks).
+        shared: Reference peaks found in every spectrum (:func:`shared_peaks` groups).
+        reference_peaks: Peaks of the reference spectrum in the band.
+        chance: Fraction expected if the other spectra's peaks lay at random: Π_x min(1, n_x (2t + 1)/B),
+            n_x the peaks of spectrum x, t the tolerance in bins, B the bins of the band.
+    """
+
+    fraction: float
+    shared: int
+    reference_peaks: int
+    chance: float
+
+
+def shared_peak_fraction(
+    freq: np.ndarray,
+    spectra: dict[str, np.ndarray],
+    reference: str,
+    *,
+    band: tuple[float, float] | None = None,
+    prominence: float = 4.0,
+    tolerance: float | None = None,
+) -> SharedFraction:
+    """Share of the peaks of ``spectra[reference]`` that all spectra have (:func:`shared_peaks`), and chance.
+
+    Args:
+        freq: Uniformly spaced frequencies [Hz], shape (F,).
+        spectra: Name -> amplitude spectrum, each (F,); at least two, ``reference`` among them.
+        reference: Name of the spectrum whose peaks are counted (e.g. "mu").
+        band: (fmin, fmax) [Hz]; default (10 Hz, highest frequency).
+        prominence: As in :func:`shared_peaks`.
+        tolerance: As in :func:`shared_peaks` [Hz]; default 2 bins.
+
+    Returns:
+        A :class:`SharedFraction`.
+    """
+    freq = np.asarray(freq, dtype=np.float64)
+    if reference not in spectra:
+        raise ValueError(f"reference spectrum {reference!r} is not among {sorted(spectra)}")
+    band = (DEFAULT_FLOOR_HZ, float(freq[-1])) if band is None else (float(band[0]), float(band[1]))
+    df = freq[1] - freq[0]
+    tolerance = 2.0 * df if tolerance is None else tolerance
+    common = shared_peaks(freq, spectra, band=band, prominence=prominence, tolerance=tolerance)
+    counts = {k: _find_peaks(freq, np.asarray(a, dtype=np.float64), band, prominence).size for k, a in spectra.items()}
+    n_band = int(np.count_nonzero((freq >= band[0]) & (freq <= band[1])))
+    width = 2.0 * np.floor(tolerance / df + 1e-9) + 1.0
+    chance = float(np.prod([min(1.0, counts[k] * width / n_band) for k in spectra if k != reference]))
+    n_ref = counts[reference]
+    return SharedFraction(len(common) / n_ref if n_ref else float("nan"), len(common), n_ref, chance)
+
+
+# ---------------------------------------------------------------------------------- synchronisation at equal Φ
+
+
+@dataclass(frozen=True)
+class PrevalenceTable:
+    """S(f) averaged within classes of Φ (equal-prevalence comparison); every array has shape (C,).
+
+    Attributes:
+        lower: Smallest Φ of each class (inclusive).
+        upper: Largest Φ of each class (exclusive).
+        bins: Frequency bins in each class.
+        mean_S: Mean S over the class's bins (NaN if empty).
+        mean_S_null: Mean null level S_null (NaN if empty).
+        mean_excess: Mean of S − S_null (NaN if empty).
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    bins: np.ndarray
+    mean_S: np.ndarray
+    mean_S_null: np.ndarray
+    mean_excess: np.ndarray
+
+    def value(self, name: str) -> np.ndarray:
+        """``"S"``, ``"S_null"`` or ``"excess"`` per class."""
+        return {"S": self.mean_S, "S_null": self.mean_S_null, "excess": self.mean_excess}[name]
+
+
+def prevalence_classes(phi_max: int) -> np.ndarray:
+    """Octave class edges 2, 4, 8, …, the first power of two above ``phi_max`` (Φ < 2 leaves S undefined)."""
+    top = max(2, int(np.ceil(np.log2(max(phi_max, 2) + 1))))
+    return 2 ** np.arange(1, top + 1)
+
+
+def sync_by_prevalence(
+    S: np.ndarray, S_null: np.ndarray, Phi: np.ndarray, *, edges: np.ndarray | None = None
+) -> PrevalenceTable:
+    """Mean S, S_null and S − S_null over the frequency bins of each class of Φ.
+
+    S of a few patches is high by chance (its null level falls as Φ grows), so S of two records is comparable
+    only at equal Φ. Bins with Φ < 2 or a non-finite S or S_null are left out.
+
+    Args:
+        S: Synchronization Index per bin, shape (F,).
+        S_null: Its random-phase null level per bin, shape (F,).
+        Phi: Oscillating patches per bin, shape (F,).
+        edges: Increasing class edges (class k: edges[k] <= Φ < edges[k+1]); default
+            :func:`prevalence_classes` of the largest Φ.
+
+    Returns:
+        A :class:`PrevalenceTable` with len(edges) − 1 classes.
+    """
+    S, null = np.asarray(S, dtype=np.float64), np.asarray(S_null, dtype=np.float64)
+    phi = np.asarray(Phi, dtype=np.int64)
+    if not S.shape == null.shape == phi.shape or S.ndim != 1:
+        raise ValueError(f"S, S_null and Phi must be 1-D of equal length, got {S.shape}, {null.shape}, {phi.shape}")
+    edges = prevalence_classes(int(phi.max()) if phi.size else 2) if edges is None else np.asarray(edges)
+    ok = (phi >= 2) & np.isfinite(S) & np.isfinite(null)
+    cls = np.searchsorted(edges, phi[ok], side="right") - 1
+    inside = (cls >= 0) & (cls < edges.size - 1)
+    cls, s, sn = cls[inside], S[ok][inside], null[ok][inside]
+    c = edges.size - 1
+    count = np.bincount(cls, minlength=c)
+
+    def mean(v: np.ndarray) -> np.ndarray:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(count > 0, np.bincount(cls, v, minlength=c) / count, np.nan)
+
+    return PrevalenceTable(edges[:-1].copy(), edges[1:].copy(), count, mean(s), mean(sn), mean(s - sn))
+
+
+@dataclass(frozen=True)
+class EqualPrevalence:
+    """Differences of S between paired records at equal Φ.
+
+    Attributes:
+        difference: Per pair, the mean over the common classes of (value of a − value of b), shape (n,); NaN
+            when no class is common.
+        classes: Boolean mask of the classes used (populated by ``min_bins`` bins in every record), shape (C,).
+        lower: Smallest Φ of each class, shape (C,).
+        upper: Largest Φ (exclusive), shape (C,).
+        value: Which per-class value was compared ("S", "S_null" or "excess").
+    """
+
+    difference: np.ndarray
+    classes: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    value: str
+
+
+def equal_prevalence_difference(
+    a: list[PrevalenceTable], b: list[PrevalenceTable], *, value: str = "excess", min_bins: int = 10
+) -> EqualPrevalence:
+    """Paired differences a_k − b_k of S at equal Φ, over the Φ classes every record populates.
+
+    A class counts when each of the records a_1…a_n, b_1…b_n has at least ``min_bins`` bins in it, so every
+    pair is compared over the same classes; each class weighs the same (an average over Φ, not over bins).
+
+    Args:
+        a: Tables of the first ensemble (one per seed), all with the same class edges.
+        b: Tables of the second ensemble, paired with ``a`` by position.
+        value: "excess" (S − S_null, default), "S" or "S_null".
+        min_bins: Fewest bins a class needs in every record.
+
+    Returns:
+        An :class:`EqualPrevalence`.
+    """
+    if len(a) != len(b) or not a:
+        raise ValueError(f"need two non-empty ensembles of equal size, got {len(a)} and {len(b)}")
+    edges = a[0].lower
+    if any(t.lower.shape != edges.shape or np.any(t.lower != edges) for t in (*a, *b)):
+        raise ValueError("every table must have the same class edges")
+    mask = np.logical_and.reduce([t.bins >= min_bins for t in (*a, *b)])
+    pairs = zip(a, b, strict=True)
+    diff = np.array([np.mean(x.value(value)[mask] - y.value(value)[mask]) if mask.any() else np.nan for x, y in pairs])
+    return EqualPrevalence(diff, mask, edges.copy(), a[0].upper.copy(), value)
+
+
+def spectral_agreement(
+    freq: np.ndarray, S: np.ndarray, Phi: np.ndarray, amp: np.ndarray, *, band: tuple[float, float] = (20e3, 80e3)
+) -> float:
+    """Spearman rank correlation of S(f)·Φ(f) with an amplitude spectrum over ``band`` (paper §3.1, §4).
+
+    High where the bins with synchronised, prevalent patch motion are the bins where the friction spectrum is
+    high. Bins where S is undefined count as S·Φ = 0 (no synchronised patches). The paper's 20–80 kHz is
+    where it finds its friction and synchronisation behaviour to agree with measurements (§4).
+
+    Args:
+        freq: Frequencies [Hz], shape (F,).
+        S: Synchronization Index, shape (F,) (NaN where undefined).
+        Phi: Oscillating patches per bin, shape (F,).
+        amp: Amplitude spectrum on the same bins (e.g. |μ(f)|/μ̄), shape (F,).
+        band: (fmin, fmax) [Hz].
+
+    Returns:
+        ρ in [−1, 1] (NaN when either series is constant over the band).
+    """
+    freq = np.asarray(freq, dtype=np.float64)
+    S, phi, amp = (np.asarray(v, dtype=np.float64) for v in (S, Phi, amp))
+    if not freq.shape == S.shape == phi.shape == amp.shape or freq.ndim != 1:
+        raise ValueError("freq, S, Phi and amp must be 1-D of equal length")
+    idx = _band_bins(freq, band[0], band[1], "agreement")
+    weight = np.where(np.isfinite(S[idx]), S[idx], 0.0) * phi[idx]
+    if np.ptp(weight) == 0 or np.ptp(amp[idx]) == 0:
+        return float("nan")
+    return float(scipy.stats.spearmanr(weight, amp[idx]).statistic)

@@ -4,18 +4,21 @@ The studies build models and states, step them and write run files only through 
 its arguments on unchanged, so a change of the run API is made here and nowhere else in ``aca_warp.studies``.
 
 * :func:`model_at_rest`: ``build_model`` of one scene and its ``initial_state`` (varying_area, work_precision);
+* :func:`batch_at_start`: ``build_model`` of a batch of scenes (one pad each) and its ``initial_state`` (validation);
 * :func:`run_general`: ``run_hf`` on a model and state, general engine (work_precision);
-* :func:`run_engine`: ``run_hf``, the engine chosen by name (varying_area);
+* :func:`run_engine`: ``run_hf``, the engine chosen by name, samples to a sink if given (varying_area, validation);
 * :func:`run_to_file`: ``run_scene``, a scene into a run file (hf_study, multiscale).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.options import DEFAULT_INTEGRATOR, RunOptions
+from aca_warp.hf.recorder import Chunk
 from aca_warp.hf.runner import run_scene
 from aca_warp.hf.state import HFState, initial_state
 from aca_warp.scene import Record, Scene
@@ -24,6 +27,13 @@ from aca_warp.scene import Record, Scene
 def model_at_rest(scene: Scene, device: str, precision: str) -> tuple[PadModel, HFState]:
     """The model of the one pad ``scene`` on ``device`` in ``precision`` (fp32/fp64) and its initial state."""
     model = build_model([scene], device=device, precision=precision)
+    return model, initial_state(model)
+
+
+def batch_at_start(scenes: list[Scene], device: str, precision: str) -> tuple[PadModel, HFState]:
+    """The model of a batch of pads (one per scene) on ``device`` in ``precision`` and its initial state (each
+    pad's ``[initial]`` table: rest or equilibrium, seeded perturbations)."""
+    model = build_model(scenes, device=device, precision=precision)
     return model, initial_state(model)
 
 
@@ -45,11 +55,20 @@ def run_general(
 
 
 def run_engine(
-    model: PadModel, state: HFState, *, engine: str, duration: float, integrator: str, dt: float, record: Record
+    model: PadModel,
+    state: HFState,
+    *,
+    engine: str,
+    duration: float,
+    integrator: str,
+    dt: float,
+    record: Record,
+    sink: Callable[[Chunk], None] | None = None,
 ) -> RunResult:
-    """``run_hf`` for ``duration`` [s] with step ``dt`` [s]; ``engine``: general, onchip or auto."""
+    """``run_hf`` for ``duration`` [s] with step ``dt`` [s]; ``engine``: general, onchip or auto. With ``sink``
+    every recorded chunk goes there (the result then holds none)."""
     options = RunOptions(engine=engine, duration=duration, integrator=integrator, dt=dt)
-    return run_hf(model, state, options, record=record)
+    return run_hf(model, state, options, record=record, sink=sink)
 
 
 def run_to_file(

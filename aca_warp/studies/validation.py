@@ -1,0 +1,1910 @@
+"""Validation against the paper's statements from seed ensembles of saturated runs (§3.1; registries for §3.2/§3.3).
+
+The paper's findings (§3) describe the saturated state of the friction instability; a single run stopped in its
+linear growth says nothing about them. Every number here comes from an **experiment**: one batch of N pads that
+differ in their seed (patch layout, areas and heights, ``[patches] seed``; initial perturbation, ``[initial]
+seed``), run with the one run loop (engine ``auto``: on-chip on CUDA, general on the CPU) until every pad has
+saturated, then analysed over the saturated part only. A **row** compares one statement of the paper with an
+ensemble measure: the mean over seeds with its 95 % Student-t interval (``ensemble_interval``), the paper's value
+and a verdict whose criterion is fixed in advance (:data:`CRITERIA`).
+
+Stages of an experiment (:func:`run_experiment`):
+
+1. **Scenes**: the preset (or a changed copy: another M, another mean patch area, another initial state) with
+   seed ``first_seed + k`` for pad k; ``--patches`` fewer patches on a sector of the pad of the same patch
+   density and pressure (``reduced_pad``).
+2. **Plan** (:func:`plan_run`): the predicted linear growth rate σ_i of every patch (``predicted_growth_rate``);
+   the run lasts ``settle_safety · ln(v_sat / v_0) / σ_25`` (e-folds from the initial velocity amplitude v_0 to
+   the disc speed v_sat, at the 25th percentile of σ_i, because Σ|u̇| settles only when most patches have
+   saturated) plus the measurement window. Global outputs every ``sample_dt`` over the whole run, per-patch
+   velocities every ``decimation`` samples over the window only.
+3. **Run** through :func:`aca_warp.studies.runs.run_engine`, samples collected by a sink (per-patch velocities
+   as float32).
+4. **Saturation** per pad (``saturation``) on Σ|u̇| (envelope: window mean) and on μ (window standard deviation
+   over 64 windows of the record); a pad counts only when Σ|u̇| has a growth phase and a saturated part that
+   starts at least half a window before the end. The analysis segment of the experiment starts at the latest
+   saturated start of its pads (and no earlier than the window), so that every pad gives spectra on one grid.
+5. **Measures** per pad (:func:`pad_measures`): spectra of the global outputs and of the patch velocities, the
+   first velocity-spectrum peak, the Fig. 8 shape measures, S(f) under the ``relative`` and the ``snr`` rule with
+   the random-phase null level, S at equal Φ, the spatial correlation of the directions of motion (Figs. 4/6) and
+   of the spectral phases at the first peak, the STFT maximum of μ over windows of 2^12 … 2^17 samples.
+6. **Checkpoint**: ``<out>/<experiment>/result.json`` and ``arrays.npz`` as soon as the experiment is done; a
+   rerun with the same settings reuses them.
+
+Rows (:data:`ROWS`) read only the saved results, so the table can be rebuilt from checkpoints, and a row that
+fails is marked, not fatal. New experiments and rows (e.g. §3.2 varying area, §3.3 multi-timescale states) plug in
+with :func:`register_experiment` and :func:`register_row`.
+
+Examples::
+
+    python3 scripts/validation.py --device cuda:0 --seeds 8 --out DIR --page docs/validation.md   # GPU, full size
+    python3 scripts/validation.py --quick --out DIR --page docs/validation.md                    # CPU smoke check
+    python3 scripts/validation.py --device cuda:0 --out DIR --only hf1 hf3 --max-wall 300
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import datetime as _dt
+import json
+import math
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from aca_warp.studies.report import Log, clean, command_line, fmt, generated_markers, md_table, replace_generated
+
+MM2 = 1.0e-6  # m² per mm²
+HF1_PRESSURE = 487.2 / (1758 * 5.0e-8)  # Pa: hf1's clamp force over its nominal patch area (the sweep keeps it)
+AREA_SPREAD = (0.4, 1.6)  # sweep areas uniform in [0.4, 1.6] x mean (the paper's 0.02-0.08 and 0.5-2.0 mm²)
+HEIGHT_MARGIN = 0.10  # sweep loads 10 % above the all-in-contact load, as the presets (docs/presets.md)
+MARKER = "scripts/validation.py"  # the generated section's marker on the page
+
+PAPER = {
+    "first_peak_hz": {"hf1": 73.0e3, "hf2": 32.8e3, "hf3": 73.0e3, "hf4": 32.8e3},
+    "exponent": -0.25,
+    "source": "Merlis & Ostermeyer 2019",
+}
+
+CRITERIA = {
+    "value": "reproduced when the whole 95 % interval of the mean lies within the paper's value ± the tolerance; "
+    "partly when the mean does; not reproduced otherwise",
+    "direction": "reproduced when the 95 % interval of the paired difference over seeds excludes 0 on the paper's "
+    "side for every part of the statement; partly when some parts (or only the primary measure) do; not "
+    "reproduced when none does (an interval containing 0 is no evidence either way)",
+    "equal": "reproduced when the 95 % interval of the paired difference contains 0 and lies within ± the margin; "
+    "partly when it contains 0 but reaches beyond the margin; not reproduced when it excludes 0",
+    "threshold": "reproduced when the whole 95 % interval lies on the paper's side of the threshold; partly when the "
+    "mean does; not reproduced otherwise",
+}
+
+
+# ------------------------------------------------------------------------------------------------ settings
+
+
+@dataclass(frozen=True)
+class Config:
+    """Settings of a validation run (one for every experiment).
+
+    Attributes:
+        device: Warp device ("cpu", "cuda:0").
+        precision: "fp64" or "fp32".
+        engine: "auto", "general" or "onchip".
+        seeds: Pads per experiment (seeds first_seed … first_seed + seeds − 1).
+        first_seed: Seed of pad 0 (1: the presets' own layout).
+        patches: Patches per pad; None: the preset's count (1758). Fewer sit on a sector of the pad.
+        dt: Time step [s] (strang).
+        sample_dt: Sampling interval of the global outputs [s].
+        decimation: Per-patch velocities every ``decimation`` global samples (Nyquist 1/(2·dt_p)).
+        window: Measurement window at the end of a run [s] (per-patch record; spectra resolve 1/window).
+        perturbation: Standard deviation of the initial patch velocities about equilibrium [m/s].
+        settle_safety: Factor on the predicted time to saturation.
+        sync_band: (fmin, fmax) of S(f) [Hz]; fmax is lowered to 0.9 Nyquist of the per-patch record.
+        quick: The reduced CPU variant (named in the table).
+    """
+
+    device: str = "cpu"
+    precision: str = "fp64"
+    engine: str = "auto"
+    seeds: int = 8
+    first_seed: int = 1
+    patches: int | None = None
+    dt: float = 1.0e-8
+    sample_dt: float = 1.0e-6
+    decimation: int = 3
+    window: float = 20.0e-3
+    perturbation: float = 1.0e-2
+    settle_safety: float = 1.5
+    sync_band: tuple[float, float] = (1.0e3, 150.0e3)
+    quick: bool = False
+
+    def run_key(self) -> dict[str, Any]:
+        """The settings that decide a run's result (device and engine left out)."""
+        d = dataclasses.asdict(self)
+        for k in ("device", "engine"):
+            d.pop(k)
+        return clean(d)
+
+
+FULL = Config()
+QUICK = Config(seeds=3, patches=150, dt=1.0e-7, window=8.0e-3, quick=True)
+
+
+# ------------------------------------------------------------------------------------------------ registries
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One ensemble: a preset with changes, one pad per seed.
+
+    Attributes:
+        name: Key (folder name under ``--out``).
+        section: The paper's section it serves.
+        description: One line for the tables.
+        preset: Base preset.
+        M: Friction factor of Eq. 4 instead of the preset's (None: keep).
+        mean_area_mm2: Mean patch area [mm²] instead of the preset's: areas uniform in AREA_SPREAD × mean, load
+            HF1_PRESSURE × patches × mean, height spread derived so the load is HEIGHT_MARGIN above the
+            all-in-contact load (None: keep the preset's patches).
+        initial: "equilibrium" (+ the configured velocity perturbation) or "rest".
+        duration: Fixed run length [s]; None: from the predicted growth rate (:func:`plan_run`).
+        builder: ``(experiment, seed index, config) -> Scene`` instead of :func:`experiment_scene` (for studies
+            whose scenes are not a changed preset, e.g. LF snapshots).
+    """
+
+    name: str
+    section: str
+    description: str
+    preset: str
+    M: float | None = None
+    mean_area_mm2: float | None = None
+    initial: str = "equilibrium"
+    duration: float | None = None
+    builder: Callable[[Experiment, int, Config], Any] | None = None
+
+    def key(self) -> dict[str, Any]:
+        """The definition as it decides the result (for checkpoint reuse)."""
+        return {k: v for k, v in dataclasses.asdict(self).items() if k != "builder"}
+
+
+@dataclass(frozen=True)
+class RowValue:
+    """What a row function returns: the value text, the verdict, and notes (secondary measures)."""
+
+    value: str
+    verdict: str
+    notes: str = ""
+
+
+@dataclass(frozen=True)
+class Row:
+    """One statement of the paper and the ensemble measure that tests it.
+
+    Attributes:
+        section: Where the paper says it (section/figure).
+        statement: The statement, quoted briefly.
+        paper: The paper's value or claim.
+        kind: Key of :data:`CRITERIA` (how the verdict is decided).
+        experiments: Experiments the row needs.
+        measure: ``(results, config) -> RowValue``; results maps experiment name -> saved result (JSON dict).
+        criterion: The row's own tolerance or threshold, in words.
+        min_experiments: How many of ``experiments`` need two usable pads (None: all of them).
+    """
+
+    section: str
+    statement: str
+    paper: str
+    kind: str
+    experiments: tuple[str, ...]
+    measure: Callable[[dict[str, dict], Config], RowValue]
+    criterion: str = ""
+    min_experiments: int | None = None
+
+
+EXPERIMENTS: dict[str, Experiment] = {}
+ROWS: list[Row] = []
+
+
+def register_experiment(exp: Experiment) -> Experiment:
+    """Add ``exp`` to :data:`EXPERIMENTS` (a name already there is replaced)."""
+    EXPERIMENTS[exp.name] = exp
+    return exp
+
+
+def register_row(row: Row) -> Row:
+    """Append ``row`` to :data:`ROWS`."""
+    ROWS.append(row)
+    return row
+
+
+SWEEP_AREAS_MM2 = (0.125, 0.3, 0.6)  # between hf1 (0.05) and hf2 (1.25): five mean areas with the presets
+
+for _exp in (
+    Experiment("hf1", "§3.1", "HF1: 0.02–0.08 mm², M = 0.8, 487.2 N", "hf1"),
+    Experiment("hf2", "§3.1", "HF2: 0.5–2 mm², M = 0.8, 12.37 kN", "hf2"),
+    Experiment("hf3", "§3.1", "HF3: 0.02–0.08 mm², M = 0.4, 487.2 N", "hf3"),
+    Experiment("hf4", "§3.1", "HF4: 0.5–2 mm², M = 0.4, 12.37 kN", "hf4"),
+    Experiment("hf1_rest", "§3.1", "HF1 started from rest (initial-state comparison)", "hf1", initial="rest"),
+    *(
+        Experiment(
+            f"sweep_{a:g}".replace(".", "p"),
+            "§3.1",
+            f"area sweep: mean {a:g} mm² (uniform 0.4–1.6 × mean), hf1 pressure, M = 0.8",
+            "hf1",
+            mean_area_mm2=a,
+        )
+        for a in SWEEP_AREAS_MM2
+    ),
+):
+    register_experiment(_exp)
+SWEEP = ("hf1", *(f"sweep_{a:g}".replace(".", "p") for a in SWEEP_AREAS_MM2), "hf2")
+
+
+# ------------------------------------------------------------------------------------------------ scenes
+
+
+def reduced_pad(pad: Any, fraction: float) -> Any:
+    """The sector of ``pad`` with ``fraction`` of its angular span (same radii): fewer patches at the same density."""
+    return dataclasses.replace(pad, span_deg=pad.span_deg * fraction)
+
+
+_PATCH_CACHE: dict[str, Any] = {}
+
+
+def _generate(gen: dict[str, Any], pad: Any) -> Any:
+    """``PatchGenerator(**gen).generate(pad)``, cached per process (experiments share layouts)."""
+    from aca_warp.scene import PatchGenerator
+
+    key = json.dumps([gen, dataclasses.asdict(pad)], sort_keys=True)
+    if key not in _PATCH_CACHE:
+        _PATCH_CACHE[key] = PatchGenerator(**gen).generate(pad)
+    return _PATCH_CACHE[key]
+
+
+def spread_for_margin(gen: dict[str, Any], pad: Any, force: float, margin: float, K_N: float) -> tuple[Any, float]:
+    """Patches of ``gen`` with the height spread s that puts ``force`` [N] ``margin`` above the all-in-contact load.
+
+    Heights are h_0 + s z_i with z_i independent of s (``PatchGenerator.heights``), so the all-in-contact load
+    F_all = s Σ k_N,i (z_i − z_min) is linear in s and s = F / ((1 + margin) Σ k_N,i (z_i − z_min)) (the
+    derivation of docs/presets.md). Returns the patches with those heights (what ``PatchGenerator(**gen,
+    height_spread=s)`` draws) and s [m].
+    """
+    from aca_warp.scene import Patches
+
+    c = float(gen.get("height_truncation", 2.0))
+    probe = float(gen["height"]) / (2.0 * c)
+    p = _generate({**gen, "height_spread": probe}, pad)
+    z = (p.height - float(gen["height"])) / probe
+    s = force / ((1.0 + margin) * float(np.sum(K_N * np.sqrt(p.area) * (z - z.min()))))
+    s = min(s, float(gen["height"]) / c)
+    height = np.clip(float(gen["height"]) + s * z, float(gen["height"]) - c * s, float(gen["height"]) + c * s)
+    return Patches(
+        p.x, p.y, p.area, height, source=p.source.replace(f"height_spread={probe:g}", f"height_spread={s:g}")
+    ), s
+
+
+def experiment_scene(exp: Experiment, k: int, cfg: Config) -> Any:
+    """Pad ``k`` of experiment ``exp``: its preset with seed ``first_seed + k``, the changes, the initial state."""
+    if exp.builder is not None:
+        return exp.builder(exp, k, cfg)
+    from aca_warp.scene import Initial, preset
+
+    base = preset(exp.preset)
+    seed = cfg.first_seed + k
+    gen = dict(base.origin["patches"])
+    gen["seed"] = seed
+    pad, force, nominal = base.pad, base.normal_force, int(gen["count"])
+    if cfg.patches is not None and cfg.patches != nominal:
+        pad = reduced_pad(pad, cfg.patches / nominal)
+        force *= cfg.patches / nominal
+        gen["count"] = cfg.patches
+    if exp.mean_area_mm2 is not None:
+        mean = exp.mean_area_mm2 * MM2
+        gen.update(area_min=AREA_SPREAD[0] * mean, area_max=AREA_SPREAD[1] * mean)
+        force = HF1_PRESSURE * gen["count"] * mean
+        patches, spread = spread_for_margin(gen, pad, force, HEIGHT_MARGIN, base.material.K_N)
+        gen["height_spread"] = spread
+    else:
+        patches = _generate(gen, pad)
+    friction = base.friction if exp.M is None else dataclasses.replace(base.friction, M=exp.M)
+    initial = Initial(
+        state=exp.initial, perturbation=cfg.perturbation if exp.initial == "equilibrium" else 0.0, seed=seed
+    )
+    origin = dict(base.origin)  # the scene as a table of tables, naming the generator that draws these patches
+    origin.update(
+        patches=gen,
+        load={"normal_force": force},
+        pad=dataclasses.asdict(pad),
+        friction=dataclasses.asdict(friction),
+        initial=dataclasses.asdict(initial),
+    )
+    return base.replace(
+        name=f"{exp.name}_seed{seed}",
+        pad=pad,
+        patches=patches,
+        normal_force=force,
+        friction=friction,
+        initial=initial,
+        origin=origin,
+    )
+
+
+# ------------------------------------------------------------------------------------------------ plan
+
+
+@dataclass(frozen=True)
+class Plan:
+    """How long an experiment runs and what it records.
+
+    Attributes:
+        duration: Simulated time [s].
+        settle: Predicted time to saturation [s] (0 when the duration is fixed).
+        v0: Initial velocity amplitude the growth starts from [m/s].
+        v_sat: Saturated velocity amplitude (the disc speed at the mean radius) [m/s].
+        sigma_q25: 25th percentile of the predicted σ_i over the batch [1/s].
+        record: The ``Record`` (global outputs every sample_dt, per-patch velocities over the window).
+        window_start: Time of the first per-patch sample [s].
+        patch_samples: Per-patch samples per patch.
+        steps: Time steps of the run.
+        velocity_bytes: Host memory of the float32 per-patch record [bytes].
+    """
+
+    duration: float
+    settle: float
+    v0: float
+    v_sat: float
+    sigma_q25: float
+    record: Any
+    window_start: float
+    patch_samples: int
+    steps: int
+    velocity_bytes: int
+
+
+def predicted_sigma(scenes: list[Any], contacts: list[Any]) -> list[np.ndarray]:
+    """σ_i [1/s] of every pad (isolated patch linearised about steady sliding; ``predicted_growth_rate``), one
+    array per pad, from the host contact solves ``contacts`` (what ``build_model`` loads)."""
+    from aca_warp.analysis.saturation import predicted_growth_rate
+
+    out = []
+    for s, c in zip(scenes, contacts, strict=True):
+        f, m, a = s.friction, s.material, s.patches.area
+        out.append(
+            predicted_growth_rate(
+                c.patch_force, a, s.patches.friction_radius, s.angular_velocity, f.M, f.slope, f.decay,
+                m.mass_per_area, m.damping_ratio, m.K_T * np.sqrt(a),
+            )
+        )  # fmt: skip
+    return out
+
+
+def start_amplitude(scenes: list[Any], contacts: list[Any]) -> float:
+    """Median velocity amplitude of a patch released from rest, F_N,i |f(ω r_i)| / √(k_T,i m_i) [m/s]."""
+    amps = []
+    for s, c in zip(scenes, contacts, strict=True):
+        a, m = s.patches.area, s.material
+        f = np.abs(s.friction.coefficient(s.angular_velocity * s.patches.friction_radius))
+        amps.append(c.patch_force * f / np.sqrt(m.K_T * np.sqrt(a) * m.mass_per_area * a))
+    return float(np.median(np.concatenate(amps)))
+
+
+def plan_run(exp: Experiment, scenes: list[Any], contacts: list[Any], sigma: list[np.ndarray], cfg: Config) -> Plan:
+    """Run length from the predicted growth (module docstring, stage 2) and the recording of the window."""
+    from aca_warp.scene import Record
+
+    v_sat = float(np.median([s.sliding_speed for s in scenes]))
+    states = {s.initial.state for s in scenes}
+    v0 = start_amplitude(scenes, contacts) if states == {"rest"} else max(s.initial.perturbation for s in scenes)
+    pos = np.concatenate([s[s > 0] for s in sigma])
+    q25 = float(np.percentile(pos, 25)) if pos.size else float("nan")
+    settle = 0.0
+    if exp.duration is None:
+        if not (v0 > 0 and q25 > 0):
+            raise ValueError(f"{exp.name}: no growth to plan for (v0 = {v0:g} m/s, σ_25 = {q25:g} 1/s)")
+        settle = cfg.settle_safety * max(math.log(v_sat / v0), 1.0) / q25
+    dtp = cfg.sample_dt * cfg.decimation
+    n_win = max(16, int(round(cfg.window / dtp)))
+    duration = exp.duration if exp.duration is not None else settle + n_win * dtp
+    n_samples = int(math.ceil(duration / cfg.sample_dt - 1e-9))
+    n_win = min(n_win, (n_samples // cfg.decimation) + 1)
+    j0 = n_samples - (n_win - 1) * cfg.decimation
+    record = Record(
+        sample_dt=cfg.sample_dt,
+        patches=("velocity",),
+        window=(j0 * cfg.sample_dt, n_samples * cfg.sample_dt * (1 + 1e-9)),
+        decimation=cfg.decimation,
+    )
+    n_dur = n_samples * cfg.sample_dt
+    return Plan(
+        duration=n_dur,
+        settle=settle,
+        v0=v0,
+        v_sat=v_sat,
+        sigma_q25=q25,
+        record=record,
+        window_start=j0 * cfg.sample_dt,
+        patch_samples=n_win,
+        steps=int(round(n_dur / cfg.dt)),
+        velocity_bytes=4 * n_win * sum(sc.patches.count for sc in scenes),
+    )
+
+
+def step_seconds(cfg: Config, total_patches: int, calibration: dict[str, float]) -> float:
+    """Estimated wall seconds per time step of a batch of ``total_patches`` patches.
+
+    ``calibration`` (seconds per step per patch, measured by earlier experiments on this device) when present;
+    otherwise: CPU ≈ 1e7 patch-steps/s (general engine, 2-core AMD EPYC, measured with 400–600 patches); CUDA
+    (on-chip engine, H100, docs/benchmarks/onchip_h100/cluster_waves_default.md) ≈ max(3.4 µs, n/8e9 s) in fp64
+    and max(2.7 µs, n/1.2e10 s) in fp32 — a batch below about 30 000 patches is latency-bound.
+    """
+    if "per_patch" in calibration:
+        per_step = calibration["per_patch"] * total_patches
+        return per_step if cfg.device == "cpu" else max(per_step, calibration.get("floor", 0.0))
+    if cfg.device == "cpu":
+        return total_patches / 1.0e7
+    return max(3.4e-6, total_patches / 8.0e9) if cfg.precision == "fp64" else max(2.7e-6, total_patches / 1.2e10)
+
+
+# ------------------------------------------------------------------------------------------------ saturation
+
+
+def pad_saturation(time: np.ndarray, glob: np.ndarray, window_end: float, window: float) -> dict[str, Any]:
+    """Saturation of one pad on Σ|u̇| (window means, default windows) and μ (standard deviation over N/64 windows).
+
+    μ is chaotic once saturated: the default window of 32 dominant periods leaves its standard deviation too noisy
+    for the ±10 % band, 64 windows over the record do not. ``status``: "saturated" (Σ|u̇| grows, then settles
+    early enough: the analysed part starts at least half a window before ``window_end``), "not saturated",
+    "no growth phase" (settled without growing: not the instability's saturated state) or "saturated too late".
+    """
+    from aca_warp.analysis.saturation import saturation
+
+    rs = saturation(time, glob[:, 4], statistic="mean", unit="m/s")
+    rm = saturation(time, glob[:, 0], statistic="std", window=max(4, time.size // 64))
+    out: dict[str, Any] = {
+        "t_s_sum_abs_velocity": rs.t_s,
+        "t_s_mu": rm.t_s,
+        "mu_saturated": rm.saturated,
+        "growth_rate": rs.growth_rate,
+        "growth_r2": rs.growth_r2,
+        "growth_rise": rs.growth_rise,
+        "growth_window": rs.growth_window,
+        "level_sum_abs_velocity": rs.level,
+        "mu_growth_rate": rm.growth_rate,
+        "verdict_sum_abs_velocity": rs.verdict,
+        "verdict_mu": rm.verdict,
+    }
+    if not rs.saturated:
+        out.update(status="not saturated", t_start=None)
+    elif rs.growth_rate is None:
+        out.update(status="no growth phase", t_start=None)
+    else:
+        start = max(rs.t_s, rm.t_s if rm.saturated else rs.t_s)
+        late = start > window_end - 0.5 * window
+        out.update(status="saturated too late" if late else "saturated", t_start=start)
+    return out
+
+
+# ------------------------------------------------------------------------------------------------ measures
+
+
+FIRST_PEAK_FRACTION = 0.1  # the first peak: the lowest peak of the mean per-patch spectrum reaching 1/10 of its maximum
+
+
+def global_spectra(seg: np.ndarray, sample_dt: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Hann amplitude spectra of one pad's global outputs over a segment (N, 5), all dimensionless.
+
+    μ, torque, friction radius and Σ|u̇| divided by their mean (paper Fig. 8); the "velocity" spectrum is Σu̇ (the
+    patches' velocities in the pad frame) divided by the mean of Σ|u̇|, since Σu̇ itself has zero mean.
+    """
+    from aca_warp.analysis.spectra import amplitude_spectrum
+
+    freq, amp = amplitude_spectrum(seg[:, [0, 1, 2, 4]], sample_dt, normalise="mean", axis=0)
+    _, v = amplitude_spectrum(seg[:, 3], sample_dt, normalise=None)
+    out = {"mu": amp[:, 0], "torque": amp[:, 1], "friction_radius": amp[:, 2], "abs_velocity": amp[:, 3]}
+    out["velocity"] = v / abs(float(np.mean(seg[:, 4])))
+    return freq, out
+
+
+_NULL_TABLES: dict[int, np.ndarray] = {}
+
+
+def null_table(n_max: int) -> np.ndarray:
+    """S_null for Φ = 0 … n_max (``sync_null_level`` with its defaults, so equal to what ``sync_index`` stores)."""
+    from aca_warp.analysis.sync import sync_null_level
+
+    if n_max not in _NULL_TABLES:
+        _NULL_TABLES[n_max] = sync_null_level(np.arange(n_max + 1))
+    return _NULL_TABLES[n_max]
+
+
+def sync_measures(
+    freq: np.ndarray, X: np.ndarray, f1: float, mu_amp: np.ndarray, rule: str
+) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """S(f) of one pad's per-patch spectra X (F, n) under ``rule``, with S_null, and its summaries (scalars, arrays).
+
+    Summaries: the equal-Φ tables over the whole band and above f1 (octave classes of Φ, ``sync_by_prevalence``),
+    the median S − S_null over bins with Φ ≥ 10, the share of defined bins with S > S_null, the *spread* (share of
+    the bins in [f1/8, 2 f1] with S − S_null > 0.05) and *prevalence* (mean Φ over the bins of that band with S
+    defined), S and Φ at f1, and the agreement with the μ spectrum (``spectral_agreement``, 20–80 kHz).
+    """
+    from aca_warp.analysis.measures import prevalence_classes, spectral_agreement, sync_by_prevalence
+    from aca_warp.analysis.sync import sync_index
+
+    res = sync_index(X, freq=freq, rule=rule, null_trials=0)
+    S, phi = res.S, res.Phi
+    null = null_table(X.shape[1])[phi]
+    edges = prevalence_classes(X.shape[1])
+    table = sync_by_prevalence(S, null, phi, edges=edges)
+    high = freq > f1
+    table_high = sync_by_prevalence(S[high], null[high], phi[high], edges=edges)
+    ok = np.isfinite(S) & np.isfinite(null)
+    rel = ok & (freq >= f1 / 8) & (freq <= 2 * f1)
+    i1 = int(np.argmin(np.abs(freq - f1)))
+    prevalent = ok & (phi >= 10)
+    band = (20e3, 80e3)
+    in_band = (freq >= band[0]) & (freq <= band[1])
+    scalars = {
+        "table": _table_dict(table),
+        "table_high": _table_dict(table_high),
+        "median_excess_phi10": float(np.median(S[prevalent] - null[prevalent])) if prevalent.any() else None,
+        "fraction_above_null": float(np.mean(S[ok] > null[ok])) if ok.any() else None,
+        "spread": float(np.mean(S[rel] - null[rel] > 0.05)) if rel.any() else None,
+        "prevalence": float(np.mean(phi[rel])) if rel.any() else None,
+        "S_at_f1": float(S[i1]),
+        "Phi_at_f1": int(phi[i1]),
+        "agreement": spectral_agreement(freq, S, phi, mu_amp, band=band) if in_band.sum() > 2 else None,
+        "params": res.params,
+    }
+    return scalars, {"S": S.astype(np.float32), "Phi": phi.astype(np.int32), "S_null": null.astype(np.float32)}
+
+
+def _table_dict(t: Any) -> dict[str, list]:
+    return {
+        k: np.asarray(getattr(t, k)).tolist()
+        for k in ("lower", "upper", "bins", "mean_S", "mean_S_null", "mean_excess")
+    }
+
+
+def fig8_measures(freq: np.ndarray, spectra: dict[str, np.ndarray], f1: float) -> dict[str, Any]:
+    """The Fig. 8 shape measures of one pad at its first velocity peak f1 (global spectra of one segment).
+
+    * ``contrast_*``: peak_to_floor at f1 (±2 bins over the median of [f1/2, 2 f1]) of velocity, μ, torque, radius;
+    * ``plateau_*``: plateau_excess (median over [1.1, 2] f1 against [2.5, 4] f1) of the same four;
+    * ``overlap_mu_torque`` / ``overlap_mu_radius``: spectral_overlap D over 1–200 kHz;
+    * ``shared_*``: shared_peak_fraction of μ's peaks in μ, torque and radius (1–200 kHz), with chance, and the
+      share of those shared peaks also in the velocity spectrum;
+    * ``peak_*``: peak_width (FWHM) of the velocity spectrum's peak at f1: frequency, height, width, width/f.
+    """
+    import warnings
+
+    from aca_warp.analysis.measures import (
+        peak_to_floor,
+        peak_width,
+        plateau_excess,
+        shared_peak_fraction,
+        shared_peaks,
+        spectral_overlap,
+    )
+
+    out: dict[str, Any] = {}
+    names = {"velocity": "velocity", "mu": "mu", "torque": "torque", "radius": "friction_radius"}
+    for short, key in names.items():
+        out[f"contrast_{short}"] = peak_to_floor(freq, spectra[key], f1).ratio
+        out[f"plateau_{short}"] = plateau_excess(freq, spectra[key], f1).excess
+    band = (1.0e3, min(200.0e3, float(freq[-1])))
+    out["overlap_mu_torque"] = spectral_overlap(freq, spectra["mu"], spectra["torque"], band=band).mean_abs_log
+    out["overlap_mu_radius"] = spectral_overlap(freq, spectra["mu"], spectra["friction_radius"], band=band).mean_abs_log
+    trio = {k: spectra[k] for k in ("mu", "torque", "friction_radius")}
+    sf = shared_peak_fraction(freq, trio, "mu", band=band)
+    out.update(
+        shared_fraction=sf.fraction, shared_count=sf.shared, shared_chance=sf.chance, mu_peaks=sf.reference_peaks
+    )
+    four = shared_peaks(freq, {**trio, "velocity": spectra["velocity"]}, band=band)
+    out["shared_in_velocity"] = len(four) / sf.shared if sf.shared else None
+    with warnings.catch_warnings():  # the prominence of a largest bin that is no local maximum is 0: said, not warned
+        warnings.filterwarnings("ignore", message="some peaks have a prominence of 0")
+        w = peak_width(freq, spectra["velocity"], f1, search=max(2.0 * (freq[1] - freq[0]), 0.01 * f1))
+    out.update(
+        peak_frequency=w.frequency, peak_height=w.height, peak_width=w.width, peak_relative_width=w.width / w.frequency
+    )
+    return out
+
+
+SNAPSHOTS = 64  # instants of the direction-of-motion pattern (Figs. 4/6) per pad
+
+
+def correlation_measures(x: np.ndarray, y: np.ndarray, v: np.ndarray, X: np.ndarray, i1: int) -> dict[str, Any]:
+    """Spatial correlation C(d) of the patch motion over pairs closer than 20 mm (or half the patches' extent)
+    (``phase_correlation_length``, 20 distance bins), summarised by
+
+    * ``*_near``: C over the pairs within the coupling radius 5 mm (pair-weighted): > 0 when coupled neighbours move
+      together (synchronised islands), < 0 when they move against each other;
+    * ``*_zero``: where C first falls to 0 (linear interpolation; 0 when it starts at or below 0, the reach when it
+      stays positive): the size of the co-moving groups;
+
+    for ``corr``: the direction-of-motion pattern of Figs. 4/6 — sign(u̇_i) at ``SNAPSHOTS`` instants evenly spread
+    over the segment (phase 0 with the disc, π against it, so cos(φ_i − φ_j) = s_i s_j), unweighted; and for
+    ``corr_f1``: the phases of the patch spectra at the first peak, bins f1 ± 2, weighted by the amplitudes.
+    """
+    from aca_warp.analysis.measures import phase_correlation_length
+
+    reach = min(20.0e-3, 0.5 * float(np.hypot(np.ptp(x), np.ptp(y))))
+    rows = np.linspace(0, v.shape[0] - 1, min(SNAPSHOTS, v.shape[0])).round().astype(int)
+    sign = np.where(v[rows] < 0, np.pi, 0.0)
+    spec = X[max(i1 - 2, 0) : i1 + 3]
+    out: dict[str, Any] = {"corr_reach": reach}
+    for key, c in (
+        ("corr", phase_correlation_length(x, y, sign, max_distance=reach)),
+        ("corr_f1", phase_correlation_length(x, y, np.angle(spec), np.abs(spec), max_distance=reach)),
+    ):
+        ok = np.isfinite(c.correlation) & (c.pairs > 0)
+        d, cc, n = c.distance[ok], c.correlation[ok], c.pairs[ok]
+        near = d <= COUPLING_RADIUS
+        out[f"{key}_near"] = float(np.average(cc[near], weights=n[near])) if near.any() else None
+        out[f"{key}_zero"] = _zero_crossing(d, cc, reach)
+        out[f"{key}_curve"] = {"distance": d.tolist(), "C": cc.tolist()}
+    return out
+
+
+COUPLING_RADIUS = 5.0e-3  # m: the default coupling radius (docs/model.md §2.5)
+
+
+def _zero_crossing(d: np.ndarray, c: np.ndarray, reach: float) -> float:
+    """First distance where c falls to 0 (linear interpolation); 0 if c[0] <= 0, ``reach`` if it never does."""
+    below = np.flatnonzero(c <= 0)
+    if below.size == 0:
+        return reach
+    k = int(below[0])
+    if k == 0:
+        return 0.0
+    return float(d[k - 1] + c[k - 1] / (c[k - 1] - c[k]) * (d[k] - d[k - 1]))
+
+
+def stft_measures(mu: np.ndarray, sample_dt: float) -> list[dict[str, Any]]:
+    """Largest STFT amplitude of μ over the saturated part divided by its mean (Fig. 10's normalisation), for every
+    window of 2^12 … 2^17 samples that fits, with the window named."""
+    from aca_warp.analysis.measures import stft_peaks
+
+    t = np.arange(mu.size) * sample_dt
+    return [
+        {"window": p.window, "samples": p.window_samples, "amplitude": p.amplitude, "frequency": p.frequency}
+        for p in stft_peaks(t, mu)
+    ]
+
+
+def pad_measures(
+    gseg: np.ndarray, vseg: np.ndarray, xy: tuple[np.ndarray, np.ndarray], cfg: Config
+) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Every measure of one saturated pad over its analysis segment.
+
+    Args:
+        gseg: Global outputs over the segment, shape (decimation·M, 5), sampled every ``cfg.sample_dt``.
+        vseg: Patch velocities over the same span, shape (M, n) float32, every ``cfg.sample_dt·decimation``.
+        xy: Patch centres (x, y) [m], each (n,).
+        cfg: Settings.
+
+    Returns:
+        (scalars, arrays): JSON-ready numbers, and the spectra and S(f) for the arrays file.
+    """
+    from aca_warp.analysis.measures import first_peak
+    from aca_warp.analysis.spectra import complex_spectrum, peak
+
+    dtp = cfg.sample_dt * cfg.decimation
+    fg, spectra = global_spectra(gseg, cfg.sample_dt)
+    top = min(cfg.sync_band[1], 0.9 / (2.0 * dtp))
+    fp, X = complex_spectrum(vseg, dtp, axis=0, freq_range=(cfg.sync_band[0], top))
+    mean_amp = np.abs(X).mean(axis=1)
+    df = fp[1] - fp[0]
+    fmin = max(cfg.sync_band[0], 3.0 * df)
+    f1, a1 = first_peak(fp, mean_amp, fraction=FIRST_PEAK_FRACTION, fmin=fmin)
+    f_max, a_max = peak(fp, mean_amp, fmin=fmin)
+    i1 = int(np.argmin(np.abs(fp - f1)))
+    lo = int(round(fp[0] / (fg[1] - fg[0])))
+    mu_on_p = spectra["mu"][lo : lo + fp.size]
+    out: dict[str, Any] = {"f1": f1, "f1_amplitude": a1, "f_largest": f_max, "largest_amplitude": a_max}
+    out.update(resolution_hz=df, segment_s=vseg.shape[0] * dtp)
+    out.update(fig8_measures(fg, spectra, f1))
+    arrays: dict[str, np.ndarray] = {"patch_mean_amplitude": mean_amp.astype(np.float32)}
+    for rule in ("relative", "snr"):
+        scalars, arr = sync_measures(fp, X, f1, mu_on_p, rule)
+        out[f"sync_{rule}"] = scalars
+        arrays.update({f"{k}_{rule}": v for k, v in arr.items()})
+    out.update(correlation_measures(xy[0], xy[1], vseg, X, i1))
+    out["stft"] = stft_measures(gseg[:, 0], cfg.sample_dt)
+    arrays.update({f"spectrum_{k}": v.astype(np.float32) for k, v in spectra.items()})
+    return out, arrays
+
+
+# ------------------------------------------------------------------------------------------------ running
+
+
+class Collector:
+    """Sink of the run loop: keeps the global outputs (float64) and the per-patch velocities (float32)."""
+
+    def __init__(self) -> None:
+        self.time: list[np.ndarray] = []
+        self.globals: list[np.ndarray] = []
+        self.patch_time: list[np.ndarray] = []
+        self.velocity: list[np.ndarray] = []
+
+    def __call__(self, chunk: Any) -> None:
+        self.time.append(chunk.time)
+        self.globals.append(np.asarray(chunk.globals, dtype=np.float64))
+        if chunk.velocity is not None and len(chunk.patch_time):
+            self.patch_time.append(chunk.patch_time)
+            self.velocity.append(np.asarray(chunk.velocity, dtype=np.float32))
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(time (N,), globals (N, pads, 5), patch time (M,), velocity (M, patches))."""
+
+        def cat(parts: list[np.ndarray], empty: tuple[int, ...]) -> np.ndarray:
+            return np.concatenate(parts) if parts else np.zeros(empty)
+
+        v = cat(self.velocity, (0, 0)).astype(np.float32, copy=False)
+        self.velocity.clear()
+        return cat(self.time, (0,)), cat(self.globals, (0, 0, 5)), cat(self.patch_time, (0,)), v
+
+
+def analysis_segment(sat: list[dict[str, Any]], patch_time: np.ndarray) -> int | None:
+    """First per-patch sample of the common analysis segment: the latest saturated start of the usable pads (no
+    earlier than the window); None when no pad is usable."""
+    starts = [s["t_start"] for s in sat if s["status"] == "saturated"]
+    if not starts or patch_time.size == 0:
+        return None
+    return int(np.searchsorted(patch_time, max(starts) - 1e-12))
+
+
+def analyse_batch(
+    scenes: list[Any], time: np.ndarray, glob: np.ndarray, ptime: np.ndarray, vel: np.ndarray, plan: Plan, cfg: Config
+) -> tuple[list[dict[str, Any]], dict[str, np.ndarray], dict[str, Any]]:
+    """Saturation of every pad, the common segment, and the measures of each usable pad.
+
+    Returns (pads, arrays, segment): one dict per pad (seed, status, saturation figures, measures), the arrays for
+    ``arrays.npz`` (stacked per pad; NaN rows for unusable pads), and the segment's start, length and resolution.
+    """
+    window = plan.patch_samples * cfg.sample_dt * cfg.decimation
+    sat = [pad_saturation(time, glob[:, p], plan.duration, window) for p in range(len(scenes))]
+    k0 = analysis_segment(sat, ptime)
+    pads: list[dict[str, Any]] = []
+    arrays: dict[str, list] = {}
+    segment: dict[str, Any] = {"start_s": None, "samples": 0}
+    if k0 is not None:
+        m = ptime.size - k0 - 1  # one short: the global segment (m·decimation samples) must end inside the record
+        j0 = int(round(ptime[k0] / cfg.sample_dt))
+        segment = {"start_s": float(ptime[k0]), "samples": m, "seconds": m * cfg.sample_dt * cfg.decimation}
+        segment["resolution_hz"] = 1.0 / segment["seconds"]
+    start = np.concatenate([[0], np.cumsum([s.patches.count for s in scenes])])
+    for p, s in enumerate(scenes):
+        a, b = int(start[p]), int(start[p + 1])
+        entry: dict[str, Any] = {"seed": s.initial.seed, "patches": b - a, **sat[p]}
+        if sat[p]["status"] == "saturated" and k0 is not None:
+            gseg = glob[j0 : j0 + m * cfg.decimation, p]
+            try:
+                scal, arr = pad_measures(gseg, vel[k0 : k0 + m, a:b], (s.patches.x, s.patches.y), cfg)
+            except (ValueError, FloatingPointError, IndexError) as e:  # the pad is reported, never silently used
+                entry["status"] = f"analysis failed: {type(e).__name__}: {e}"
+                pads.append(entry)
+                continue
+            entry["measures"] = scal
+            for k, v in arr.items():
+                arrays.setdefault(k, []).append(v)
+            arrays.setdefault("pad", []).append(p)
+        pads.append(entry)
+    return pads, {k: np.asarray(v) for k, v in arrays.items()}, segment
+
+
+def pad_facts(scenes: list[Any], contacts: list[Any], sigma: list[np.ndarray]) -> list[dict[str, Any]]:
+    """Per pad: patches in contact, matrix load share, mean area, predicted σ min / median / max [1/s]."""
+    out = []
+    for p, (s, c) in enumerate(zip(scenes, contacts, strict=True)):
+        out.append(
+            {
+                "in_contact": int(np.count_nonzero(c.patch_force > 0)),
+                "matrix_share": float(c.matrix_force.sum() / s.normal_force) if s.normal_force > 0 else 0.0,
+                "mean_area_m2": float(s.patches.area.mean()),
+                "sigma_min": float(sigma[p].min()),
+                "sigma_median": float(np.median(sigma[p])),
+                "sigma_max": float(sigma[p].max()),
+                "normal_force_N": float(s.normal_force),
+            }
+        )
+    return out
+
+
+@dataclass
+class Prepared:
+    """An experiment's scenes, their host contact solves, predicted growth rates and plan (before any run)."""
+
+    exp: Experiment
+    scenes: list[Any]
+    contacts: list[Any]
+    sigma: list[np.ndarray]
+    plan: Plan
+
+    @property
+    def patch_count(self) -> int:
+        return sum(s.patches.count for s in self.scenes)
+
+    def estimate(self, cfg: Config, calibration: dict[str, float]) -> float:
+        """Estimated wall seconds of the run (stepping only; see :func:`step_seconds`)."""
+        return self.plan.steps * step_seconds(cfg, self.patch_count, calibration)
+
+
+def prepare(exp: Experiment, cfg: Config) -> Prepared:
+    """Scenes, contact solves, predicted σ and plan of ``exp`` (host only: cheap)."""
+    from aca_warp.hf.contact import solve_scene_contact
+
+    scenes = [experiment_scene(exp, k, cfg) for k in range(cfg.seeds)]
+    contacts = [solve_scene_contact(s) for s in scenes]
+    sigma = predicted_sigma(scenes, contacts)
+    return Prepared(exp, scenes, contacts, sigma, plan_run(exp, scenes, contacts, sigma, cfg))
+
+
+def run_experiment(
+    prep: Prepared,
+    cfg: Config,
+    out: Path,
+    log: Log,
+    calibration: dict[str, float],
+    budget: float | None,
+    keep_records: bool = False,
+) -> dict[str, Any]:
+    """Run, analyse and save one prepared experiment (module docstring); returns its result dict.
+
+    A run the ``budget`` [s of wall time left] cannot hold is not started: the result says so.
+    """
+    from aca_warp.studies.runs import batch_at_start, run_engine
+
+    t0 = time.perf_counter()
+    exp, scenes, plan = prep.exp, prep.scenes, prep.plan
+    est = prep.estimate(cfg, calibration)
+    log(
+        f"{exp.name}: {cfg.seeds} pads × {scenes[0].patches.count} patches, {exp.initial}, run "
+        f"{plan.duration * 1e3:.1f} ms (settle {plan.settle * 1e3:.1f} ms + window "
+        f"{plan.patch_samples * cfg.sample_dt * cfg.decimation * 1e3:.1f} ms) = {plan.steps:,} steps; per-patch "
+        f"record {plan.velocity_bytes / 2**20:.0f} MiB; estimated {est:.0f} s"
+    )
+    result = _result_head(exp, cfg, plan, pad_facts(scenes, prep.contacts, prep.sigma), est)
+    if budget is not None and est > budget:
+        log(f"{exp.name}: not run: estimated {est:.0f} s exceeds the {budget:.0f} s left of --max-wall")
+        return {**result, "status": "skipped (--max-wall)"}
+    model, state = batch_at_start(scenes, cfg.device, cfg.precision)
+    sink = Collector()
+    res = run_engine(
+        model,
+        state,
+        engine=cfg.engine,
+        duration=plan.duration,
+        integrator="strang",
+        dt=cfg.dt,
+        record=plan.record,
+        sink=sink,
+    )
+    result["run"] = _run_facts(res, model, cfg)
+    per = res.wall_time / max(res.steps, 1)
+    calibration.update(per_patch=per / model.patch_count, floor=per if cfg.device != "cpu" else 0.0)
+    del model, state
+    log(
+        f"{exp.name}: {'complete' if res.complete else 'stopped: ' + str(res.fault)} in {res.wall_time:.1f} s "
+        f"({res.steps / max(res.wall_time, 1e-9):,.0f} steps/s, {per * 1e6:.2f} µs/step, "
+        f"compile {res.compile_time:.1f} s)"
+    )
+    t, g, pt, v = sink.arrays()
+    del sink
+    result["total_s"] = time.perf_counter() - t0
+    return finish_experiment(prep, cfg, out, log, result, (t, g, pt, v), keep_records)
+
+
+def finish_experiment(
+    prep: Prepared,
+    cfg: Config,
+    out: Path,
+    log: Log,
+    result: dict[str, Any],
+    records: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    keep_records: bool,
+) -> dict[str, Any]:
+    """Analyse the records (time, globals, patch time, velocity) of a run and save the result (and, with
+    ``keep_records``, the records themselves as ``records.npz``, for :func:`reanalyse`)."""
+    t, g, pt, v = records
+    name = prep.exp.name
+    ta = time.perf_counter()
+    pads, arrays, segment = analyse_batch(prep.scenes, t, g, pt, v, prep.plan, cfg)
+    result["pads"] = pad_facts(prep.scenes, prep.contacts, prep.sigma)
+    for entry, facts in zip(pads, result["pads"], strict=True):
+        facts.update(entry)
+    run = result.get("run") or {}
+    result.update(segment=segment, status="done" if run.get("complete", True) else "stopped")
+    result["analysis_s"] = time.perf_counter() - ta
+    series = {"time": t.astype(np.float32), "globals": g.astype(np.float32)}
+    save_result(out / name, clean(result), {**series, **arrays})
+    if keep_records:
+        np.savez(out / name / "records.npz", time=t, globals=g, patch_time=pt, velocity=v)
+    usable_pads = sum(p["status"] == "saturated" for p in pads)
+    log(f"{name}: {usable_pads}/{len(pads)} pads saturated and analysed in {result['analysis_s']:.1f} s; saved")
+    return clean(result)
+
+
+def reanalyse(prep: Prepared, cfg: Config, out: Path, log: Log) -> dict[str, Any] | None:
+    """Analyse again the kept records of a saved run of ``prep`` (same settings); None when there are none."""
+    folder = out / prep.exp.name
+    path, res = folder / "records.npz", folder / "result.json"
+    if not (path.is_file() and res.is_file()):
+        return None
+    result = json.loads(res.read_text())
+    if result.get("experiment") != clean(prep.exp.key()) or result.get("config") != cfg.run_key():
+        return None
+    with np.load(path) as d:
+        records = (d["time"], d["globals"], d["patch_time"], d["velocity"])
+    log(f"{prep.exp.name}: analysing the kept records again")
+    return finish_experiment(prep, cfg, out, log, result, records, keep_records=False)
+
+
+def _result_head(exp: Experiment, cfg: Config, plan: Plan, facts: list[dict], est: float) -> dict[str, Any]:
+    return {
+        "experiment": exp.key(),
+        "config": cfg.run_key(),
+        "plan": {
+            "duration_s": plan.duration,
+            "settle_s": plan.settle,
+            "v0_m_s": plan.v0,
+            "v_sat_m_s": plan.v_sat,
+            "sigma_q25": plan.sigma_q25,
+            "window_start_s": plan.window_start,
+            "patch_samples": plan.patch_samples,
+            "steps": plan.steps,
+            "velocity_bytes": plan.velocity_bytes,
+            "estimate_s": est,
+        },
+        "pads": facts,
+    }
+
+
+def _run_facts(res: Any, model: Any, cfg: Config) -> dict[str, Any]:
+    from aca_warp.common.files import machine
+
+    return {
+        "complete": bool(res.complete),
+        "fault": None if res.fault is None else str(res.fault),
+        "steps": int(res.steps),
+        "wall_s": float(res.wall_time),
+        "compile_s": float(res.compile_time),
+        "us_per_step": 1e6 * res.wall_time / max(res.steps, 1),
+        "blocks_per_pad": int(res.blocks_per_pad),
+        "stages": list(res.stages),
+        "device": machine(model.device),
+        "engine": cfg.engine,
+    }
+
+
+def save_result(folder: Path, result: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+    """``result.json`` (written last, so its presence marks a finished experiment) and ``arrays.npz``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(folder / "arrays.npz", **arrays)
+    tmp = folder / "result.json.tmp"
+    tmp.write_text(json.dumps(result, indent=1, ensure_ascii=False) + "\n")
+    tmp.replace(folder / "result.json")
+
+
+def load_result(folder: Path, exp: Experiment, cfg: Config) -> dict[str, Any] | None:
+    """The saved result of ``exp`` if it was made with the same definition and settings, else None."""
+    path = folder / "result.json"
+    if not path.is_file():
+        return None
+    try:
+        res = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    same = res.get("experiment") == clean(exp.key()) and res.get("config") == cfg.run_key()
+    return res if same and res.get("status") in ("done", "stopped") else None
+
+
+# ------------------------------------------------------------------------------------------------ row helpers
+
+
+def usable(res: dict[str, Any] | None) -> list[dict[str, Any]]:
+    """The analysed pads of an experiment's result (saturated, with measures)."""
+    if not res:
+        return []
+    return [p for p in res.get("pads", []) if p.get("status") == "saturated" and "measures" in p]
+
+
+def _get(pad: dict[str, Any], key: str) -> float:
+    """A measure of a pad by dotted key ("sync_relative.spread"), NaN when missing or not finite."""
+    v: Any = pad["measures"]
+    for part in key.split("."):
+        v = v.get(part) if isinstance(v, dict) else None
+    return float(v) if isinstance(v, (int, float)) and math.isfinite(v) else float("nan")
+
+
+def by_seed(res: dict[str, Any] | None, value: Callable[[dict[str, Any]], float]) -> dict[int, float]:
+    """Seed -> value(pad) over the usable pads, finite values only."""
+    out = {}
+    for p in usable(res):
+        try:
+            v = float(value(p))
+        except (ValueError, ZeroDivisionError, KeyError, TypeError):  # a measure missing or out of its domain
+            continue
+        if math.isfinite(v):
+            out[int(p["seed"])] = v
+    return out
+
+
+def values(res: dict[str, Any] | None, key: str) -> np.ndarray:
+    """A measure over the usable pads (finite values)."""
+    return np.array(list(by_seed(res, lambda p: _get(p, key)).values()))
+
+
+def paired(a: dict[int, float], b: dict[int, float]) -> np.ndarray:
+    """a − b over the seeds both have."""
+    return np.array([a[s] - b[s] for s in sorted(a) if s in b])
+
+
+def interval(v: np.ndarray, spec: str = ".3g", scale: float = 1.0, unit: str = "") -> str:
+    """ "mean [low, high] unit (n)" of the Student-t 95 % interval of the mean over seeds (``ensemble_interval``)."""
+    from aca_warp.analysis.measures import ensemble_interval
+
+    v = np.asarray(v, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return "–"
+    e = ensemble_interval(v * scale)
+    u = f" {unit}" if unit else ""
+    if v.size == 1:
+        return f"{format(e.mean, spec)}{u} (n = 1, no interval)"
+    return f"{format(e.mean, spec)} [{format(e.mean_low, spec)}, {format(e.mean_high, spec)}]{u} (n = {v.size})"
+
+
+def ci(v: np.ndarray) -> tuple[float, float, float]:
+    """(mean, low, high) of the 95 % t-interval; NaN interval for fewer than two values."""
+    from aca_warp.analysis.measures import ensemble_interval
+
+    v = np.asarray(v, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return (float("nan"),) * 3
+    e = ensemble_interval(v)
+    return float(e.mean), float(e.mean_low), float(e.mean_high)
+
+
+def side(v: np.ndarray, sign: float = 1.0) -> int:
+    """+1 when the 95 % interval of the mean of ``sign``·v lies above 0, −1 when below, 0 otherwise."""
+    m, lo, hi = ci(sign * np.asarray(v, dtype=np.float64))
+    if not math.isfinite(lo):
+        return 0
+    return 1 if lo > 0 else (-1 if hi < 0 else 0)
+
+
+def direction_verdict(parts: list[int], secondary: list[int] | None = None) -> str:
+    """Verdict of a directional statement from its parts' :func:`side` (+1: the paper's side) (:data:`CRITERIA`).
+
+    ``secondary``: sides of further measures of a one-part statement; one significantly opposite makes a
+    reproduced primary only "partly", one on the paper's side lifts a non-significant primary to "partly".
+    """
+    sec = secondary or []
+    if parts and all(p == 1 for p in parts):
+        return "partly" if any(s == -1 for s in sec) else "reproduced"
+    if any(p == 1 for p in parts) or (len(parts) == 1 and any(s == 1 for s in sec)):
+        return "partly"
+    return "not reproduced"
+
+
+def value_verdict(v: np.ndarray, paper: float, tol: float) -> str:
+    """Verdict of a value within ``paper`` ± ``tol`` (:data:`CRITERIA`)."""
+    m, lo, hi = ci(v)
+    if not math.isfinite(m):
+        return "not measured"
+    if math.isfinite(lo) and paper - tol <= lo and hi <= paper + tol:
+        return "reproduced"
+    return "partly" if abs(m - paper) <= tol else "not reproduced"
+
+
+def threshold_verdict(v: np.ndarray, limit: float, below: bool) -> str:
+    """Verdict of a value on the paper's side of ``limit`` (below it when ``below``) (:data:`CRITERIA`)."""
+    m, lo, hi = ci(v)
+    if not math.isfinite(m):
+        return "not measured"
+    whole = (hi <= limit) if below else (lo >= limit)
+    if math.isfinite(lo) and whole:
+        return "reproduced"
+    return "partly" if (m <= limit if below else m >= limit) else "not reproduced"
+
+
+def equal_verdict(d: np.ndarray, margin: float) -> str:
+    """Verdict of "not significantly different" with an equivalence ``margin`` (:data:`CRITERIA`)."""
+    m, lo, hi = ci(d)
+    if not math.isfinite(lo):
+        return "not measured"
+    if lo > 0 or hi < 0:
+        return "not reproduced"
+    return "reproduced" if -margin <= lo and hi <= margin else "partly"
+
+
+def tables(res: dict[str, Any] | None, rule: str, which: str = "table") -> dict[int, Any]:
+    """Seed -> ``PrevalenceTable`` of S at equal Φ of the usable pads."""
+    from aca_warp.analysis.measures import PrevalenceTable
+
+    out = {}
+    for p in usable(res):
+        t = p["measures"][f"sync_{rule}"][which]
+        arr = {k: np.array([np.nan if x is None else x for x in t[k]], dtype=np.float64) for k in t}
+        out[int(p["seed"])] = PrevalenceTable(
+            arr["lower"].astype(int), arr["upper"].astype(int), arr["bins"].astype(int), arr["mean_S"],
+            arr["mean_S_null"], arr["mean_excess"],
+        )  # fmt: skip
+    return out
+
+
+def equal_phi(
+    results: dict[str, dict], a: str, b: str, rule: str = "relative", value: str = "excess", which: str = "table"
+) -> tuple[np.ndarray, str]:
+    """Paired differences a − b of S (``value``: "excess" = S − S_null, or "S") at equal Φ, and the classes used."""
+    from aca_warp.analysis.measures import equal_prevalence_difference
+
+    ta, tb = tables(results.get(a), rule, which), tables(results.get(b), rule, which)
+    seeds = [s for s in sorted(ta) if s in tb]
+    if not seeds:
+        return np.array([]), "no common seed"
+    d = equal_prevalence_difference([ta[s] for s in seeds], [tb[s] for s in seeds], value=value)
+    used = [f"{lo}–{hi - 1}" for lo, hi, u in zip(d.lower, d.upper, d.classes, strict=True) if u]
+    return d.difference, "Φ classes " + (", ".join(used) if used else "none in common")
+
+
+def _need(results: dict[str, dict], names: tuple[str, ...], n: int = 2) -> str | None:
+    """Why a row cannot be measured (an experiment missing or with fewer than ``n`` usable pads), or None."""
+    short = [f"{k} ({len(usable(results.get(k)))} usable pads)" for k in names if len(usable(results.get(k))) < n]
+    return ("needs " + ", ".join(short)) if short else None
+
+
+# ------------------------------------------------------------------------------------------------ rows: §3.1
+
+PRESETS = ("hf1", "hf2", "hf3", "hf4")
+PEAK_TOLERANCE = 0.05  # relative: "around 73 kHz" read off Fig. 8
+EXPONENT_TOLERANCE = 0.025  # absolute: 10 % of 1/4
+OVERLAP_LIMIT = math.log(1.25)  # D = mean |ln μ − ln T| ≤ ln 1.25: a typical difference below 25 %
+SHARED_LIMIT = 0.5  # "similar characteristic peaks": at least half of μ's peaks in torque and radius too
+EQUAL_MARGIN = 0.05  # S − S_null: a difference below 0.05 counts as "not significantly affected"
+
+
+def _first_peak(name: str) -> Callable[[dict[str, dict], Config], RowValue]:
+    def measure(results: dict[str, dict], cfg: Config) -> RowValue:
+        f = values(results.get(name), "f1")
+        paper = PAPER["first_peak_hz"][name]
+        sumv = values(results.get(name), "peak_frequency")
+        largest = values(results.get(name), "f_largest")
+        return RowValue(
+            interval(f, ".1f", 1e-3, "kHz"),
+            value_verdict(f, paper, PEAK_TOLERANCE * paper),
+            f"first peak: the lowest peak of the mean per-patch velocity spectrum reaching {FIRST_PEAK_FRACTION:g} of "
+            f"its maximum; the Σu̇ spectrum's peak there {interval(sumv, '.1f', 1e-3, 'kHz')}; the largest peak "
+            f"{interval(largest, '.1f', 1e-3, 'kHz')}",
+        )
+
+    return measure
+
+
+for _name in PRESETS:
+    register_row(
+        Row(
+            "§3.1, Fig. 8",
+            f"{_name.upper()}: first velocity-spectrum peak",
+            f"≈ {PAPER['first_peak_hz'][_name] / 1e3:g} kHz",
+            "value",
+            (_name,),
+            _first_peak(_name),
+            f"± {100 * PEAK_TOLERANCE:g} %",
+        )
+    )
+
+
+def exponent_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    """f1 ∝ A^b per seed over the mean areas of SWEEP (at least 3 areas per seed); b against −1/4."""
+    from aca_warp.studies.hf_study import fit_power_law
+
+    points: dict[int, list[tuple[float, float]]] = {}
+    for name in SWEEP:
+        for p in usable(results.get(name)):
+            f = _get(p, "f1")
+            if math.isfinite(f):
+                points.setdefault(int(p["seed"]), []).append((p["mean_area_m2"], f))
+    b = np.array(
+        [fit_power_law(*map(np.array, zip(*pts, strict=True)))["exponent"] for pts in points.values() if len(pts) >= 3]
+    )
+    allp = [q for pts in points.values() for q in pts]
+    pooled = fit_power_law(*map(np.array, zip(*allp, strict=True))) if len(allp) >= 3 else {}
+    areas = sorted({round(a / MM2, 3) for a, _ in allp})
+    note = f"fit per seed over the mean areas {', '.join(f'{a:g}' for a in areas)} mm²"
+    if pooled.get("stderr") is not None:
+        note += (
+            f"; pooled over all {pooled['n_points']} pads {pooled['exponent']:.3f} ± {pooled['stderr']:.3f} (1 s.e.)"
+        )
+    return RowValue(interval(b, ".3f"), value_verdict(b, PAPER["exponent"], EXPONENT_TOLERANCE), note)
+
+
+register_row(
+    Row(
+        "§3.1",
+        "f_p ∝ A_p^(−1/4): exponent of the first velocity peak against the mean patch area",
+        "−1/4",
+        "value",
+        SWEEP,
+        exponent_row,
+        f"± {EXPONENT_TOLERANCE:g}",
+        min_experiments=3,
+    )
+)
+
+
+def _per_preset(
+    results: dict[str, dict], value: Callable[[dict[str, Any]], float], verdict: Callable[[np.ndarray], Any]
+) -> tuple[list[str], list[Any]]:
+    """Per preset: the interval text of value(pad) and verdict(values)."""
+    texts, verdicts = [], []
+    for name in PRESETS:
+        v = np.array(list(by_seed(results.get(name), value).values()))
+        texts.append(f"{name}: {interval(v)}")
+        verdicts.append(verdict(v))
+    return texts, verdicts
+
+
+def _combine(sides: list[int]) -> str:
+    return direction_verdict(sides)
+
+
+def pronounced_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    """ln of the velocity spectrum's peak contrast at f1 over the largest of μ's, torque's and radius's."""
+
+    def ratio(p: dict[str, Any]) -> float:
+        others = max(_get(p, k) for k in ("contrast_mu", "contrast_torque", "contrast_radius"))
+        return math.log(_get(p, "contrast_velocity") / others)
+
+    texts, sides = _per_preset(results, ratio, side)
+    mu = [f"{n}: μ {interval(values(results.get(n), 'contrast_mu'), '.2g')}" for n in PRESETS]
+    return RowValue(
+        "ln(contrast ratio) " + "; ".join(texts),
+        _combine(sides),
+        "contrast = height at f1 over the median of [f1/2, 2 f1]; velocity = |Σu̇(f)| / mean Σ|u̇|; " + "; ".join(mu),
+    )
+
+
+def plateau_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    """Plateau excess of the velocity spectrum minus the largest of μ's, torque's and radius's."""
+
+    def diff(p: dict[str, Any]) -> float:
+        return _get(p, "plateau_velocity") - max(_get(p, k) for k in ("plateau_mu", "plateau_torque", "plateau_radius"))
+
+    texts, sides = _per_preset(results, diff, side)
+    vel = [f"{n}: {interval(values(results.get(n), 'plateau_velocity'), '.2g')}" for n in PRESETS]
+    return RowValue(
+        "excess difference " + "; ".join(texts),
+        _combine(sides),
+        "excess = ln median [1.1, 2] f1 − ln median [2.5, 4] f1; velocity's own excess " + "; ".join(vel),
+    )
+
+
+def overlap_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    texts, verdicts = _per_preset(
+        results, lambda p: _get(p, "overlap_mu_torque"), lambda v: threshold_verdict(v, OVERLAP_LIMIT, True)
+    )
+    radius = [f"{n}: {interval(values(results.get(n), 'overlap_mu_radius'), '.2g')}" for n in PRESETS]
+    return RowValue(
+        "D(μ, torque) " + "; ".join(texts),
+        _all_of(verdicts),
+        "D = mean |ln a − ln b| over 1–200 kHz; for contrast D(μ, friction radius) " + "; ".join(radius),
+    )
+
+
+def _all_of(verdicts: list[str]) -> str:
+    if all(v == "reproduced" for v in verdicts):
+        return "reproduced"
+    return "not reproduced" if all(v == "not reproduced" for v in verdicts) else "partly"
+
+
+def shared_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    texts, verdicts = _per_preset(
+        results, lambda p: _get(p, "shared_fraction"), lambda v: threshold_verdict(v, SHARED_LIMIT, False)
+    )
+    chance = [f"{n}: {interval(values(results.get(n), 'shared_chance'), '.2g')}" for n in PRESETS]
+    vel = [f"{n}: {interval(values(results.get(n), 'shared_in_velocity'), '.2g')}" for n in PRESETS]
+    return RowValue(
+        "share of μ's peaks " + "; ".join(texts),
+        _all_of(verdicts),
+        "peaks ≥ 4× their surroundings, within 2 bins, 1–200 kHz; chance "
+        + "; ".join(chance)
+        + "; share of the shared peaks also in the velocity spectrum "
+        + "; ".join(vel),
+    )
+
+
+for _row in (
+    Row("§3.1, Fig. 8", "the first velocity peak is significantly more pronounced than in μ, torque, friction radius",
+        "yes, in all four", "direction", PRESETS, pronounced_row, "ln ratio > 0 in each preset"),
+    Row("§3.1, Fig. 8", "broad-band plateaus follow the first peak in the velocity spectra, not in the other outputs",
+        "yes, in all four", "direction", PRESETS, plateau_row, "excess difference > 0 in each preset"),
+    Row("§3.1, Fig. 8", "μ and torque spectra nearly completely overlap", "yes", "threshold", PRESETS, overlap_row,
+        f"D ≤ ln 1.25 = {OVERLAP_LIMIT:.3f} in each preset"),
+    Row("§3.1, Fig. 8", "similar characteristic peaks of μ, torque and friction radius", "yes", "threshold", PRESETS,
+        shared_row, f"share ≥ {SHARED_LIMIT:g} in each preset"),
+):  # fmt: skip
+    register_row(_row)
+
+
+def _sync_claim(results: dict[str, dict], a: str, b: str) -> tuple[str, str, list[int], int]:
+    """S of a above S of b at equal Φ: primary (relative rule, S − S_null) and the secondary measures."""
+    primary, classes = equal_phi(results, a, b)
+    sec = {
+        "raw S, relative": equal_phi(results, a, b, value="S")[0],
+        "S − S_null, snr": equal_phi(results, a, b, rule="snr")[0],
+        "median S − S_null (Φ ≥ 10), relative": paired(
+            by_seed(results.get(a), lambda p: _get(p, "sync_relative.median_excess_phi10")),
+            by_seed(results.get(b), lambda p: _get(p, "sync_relative.median_excess_phi10")),
+        ),
+    }
+    notes = f"{classes}; " + "; ".join(f"{k}: {interval(v)}" for k, v in sec.items())
+    return interval(primary), notes, [side(v) for v in sec.values()], side(primary)
+
+
+def lower_m_row(a: str, b: str) -> Callable[[dict[str, dict], Config], RowValue]:
+    def measure(results: dict[str, dict], cfg: Config) -> RowValue:
+        value, notes, sec, prim = _sync_claim(results, a, b)
+        return RowValue(f"Δ(S − S_null) at equal Φ {a} − {b}: {value}", direction_verdict([prim], sec), notes)
+
+    return measure
+
+
+def less_for_large_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    small, _ = equal_phi(results, "hf3", "hf1")
+    large, _ = equal_phi(results, "hf4", "hf2")
+    ds = by_seed_pairs(results, ("hf3", "hf1"), ("hf4", "hf2"))
+    return RowValue(
+        f"(hf3 − hf1) − (hf4 − hf2): {interval(ds)}",
+        direction_verdict([side(ds)]),
+        f"Δ at equal Φ (relative rule, S − S_null): small patches {interval(small)}, large patches {interval(large)}",
+    )
+
+
+def by_seed_pairs(results: dict[str, dict], first: tuple[str, str], second: tuple[str, str]) -> np.ndarray:
+    """Per seed, the equal-Φ difference of ``first`` minus that of ``second`` (S − S_null, relative rule)."""
+    from aca_warp.analysis.measures import equal_prevalence_difference
+
+    ts = {n: tables(results.get(n), "relative") for n in (*first, *second)}
+    seeds = [s for s in sorted(ts[first[0]]) if all(s in ts[n] for n in ts)]
+    if not seeds:
+        return np.array([])
+    d1 = equal_prevalence_difference([ts[first[0]][s] for s in seeds], [ts[first[1]][s] for s in seeds]).difference
+    d2 = equal_prevalence_difference([ts[second[0]][s] for s in seeds], [ts[second[1]][s] for s in seeds]).difference
+    return d1 - d2
+
+
+def larger_peaks_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    """HF2 vs HF1 and HF4 vs HF3: ln height ratio > 0, ln width ratio < 0, frequency ratio < 1 (velocity spectrum)."""
+    texts, sides = [], []
+    for big, small in (("hf2", "hf1"), ("hf4", "hf3")):
+        parts = {}
+        for key, sign in (("peak_height", 1.0), ("peak_width", -1.0), ("f1", -1.0)):
+            d = paired(
+                by_seed(results.get(big), lambda p, k=key: math.log(_get(p, k))),
+                by_seed(results.get(small), lambda p, k=key: math.log(_get(p, k))),
+            )
+            parts[key] = d
+            sides.append(side(d, sign))
+        texts.append(
+            f"{big}/{small}: height ×{_exp_interval(parts['peak_height'])}, "
+            f"width ×{_exp_interval(parts['peak_width'])}, frequency ×{_exp_interval(parts['f1'])}"
+        )
+    rel = [f"{n}: {interval(values(results.get(n), 'peak_relative_width'), '.2g')}" for n in PRESETS]
+    return RowValue(
+        "; ".join(texts),
+        direction_verdict(sides),
+        "peak of the velocity spectrum at f1, FWHM of the amplitude; relative width Δf/f " + "; ".join(rel),
+    )
+
+
+def _exp_interval(d: np.ndarray) -> str:
+    m, lo, hi = ci(d)
+    if not math.isfinite(m):
+        return "–"
+    return f"{math.exp(m):.3g} [{math.exp(lo):.3g}, {math.exp(hi):.3g}]" if math.isfinite(lo) else f"{math.exp(m):.3g}"
+
+
+def spread_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    texts, sides, notes = [], [], []
+    for key, label in (("spread", "spread"), ("prevalence", "mean Φ")):
+        d = paired(*(by_seed(results.get(n), lambda p, k=key: _get(p, f"sync_relative.{k}")) for n in ("hf2", "hf1")))
+        texts.append(f"Δ {label} hf2 − hf1: {interval(d)}")
+        sides.append(side(d))
+        snr = paired(*(by_seed(results.get(n), lambda p, k=key: _get(p, f"sync_snr.{k}")) for n in ("hf2", "hf1")))
+        notes.append(f"{label} (snr rule) {interval(snr)}")
+    return RowValue(
+        "; ".join(texts),
+        direction_verdict(sides),
+        "spread = share of the bins in [f1/8, 2 f1] with S − S_null > 0.05; mean Φ over that band; " + "; ".join(notes),
+    )
+
+
+def patterns_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    """HF2 vs HF1: the size of the co-moving groups (where C(d) of the directions of motion falls to 0: larger) and
+    C among coupled neighbours (better defined); the same of the spectral phases at f1 beside them."""
+    parts = []
+    for key in ("corr", "corr_f1"):
+        d_size = paired(*(by_seed(results.get(n), lambda p, k=key: _get(p, f"{k}_zero")) for n in ("hf2", "hf1")))
+        d_near = paired(*(by_seed(results.get(n), lambda p, k=key: _get(p, f"{k}_near")) for n in ("hf2", "hf1")))
+        each = "; ".join(
+            f"{n}: C near {interval(values(results.get(n), f'{key}_near'))}, zero at "
+            f"{interval(values(results.get(n), f'{key}_zero'), '.3g', 1e3, 'mm')}"
+            for n in ("hf1", "hf2")
+        )
+        parts.append((d_size, d_near, each))
+    (d_size, d_near, each), (f_size, f_near, f_each) = parts
+    return RowValue(
+        f"Δ group size hf2 − hf1: {interval(d_size, '.3g', 1e3, 'mm')}; Δ C of coupled neighbours: {interval(d_near)}",
+        direction_verdict([side(d_size), side(d_near)]),
+        f"C(d) = ⟨s_i s_j⟩ of the directions of motion s = sign(u̇) at {SNAPSHOTS} instants (Figs. 4/6); "
+        f"{each}; spectral phases at f1 (amplitude-weighted): Δ size {interval(f_size, '.3g', 1e3, 'mm')}, "
+        f"Δ C near {interval(f_near)}; {f_each}",
+    )
+
+
+def hf1_hf2_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    d, classes = equal_phi(results, "hf2", "hf1")
+    snr = equal_phi(results, "hf2", "hf1", rule="snr")[0]
+    return RowValue(
+        f"Δ(S − S_null) at equal Φ hf2 − hf1: {interval(d)}",
+        equal_verdict(d, EQUAL_MARGIN),
+        f"{classes}; snr rule {interval(snr)}",
+    )
+
+
+def agreement_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    rho = {n: by_seed(results.get(n), lambda p: _get(p, "sync_relative.agreement")) for n in PRESETS}
+    diffs = {n: paired(rho["hf4"], rho[n]) for n in ("hf1", "hf2", "hf3")}
+    snr = {n: by_seed(results.get(n), lambda p: _get(p, "sync_snr.agreement")) for n in PRESETS}
+    return RowValue(
+        "; ".join(f"ρ {n}: {interval(np.array(list(rho[n].values())))}" for n in PRESETS),
+        direction_verdict([side(d) for d in diffs.values()]),
+        "ρ = Spearman(S·Φ, |μ(f)|/μ̄) over 20–80 kHz; paired hf4 − other: "
+        + "; ".join(f"{n} {interval(d)}" for n, d in diffs.items())
+        + "; snr rule ρ "
+        + "; ".join(f"{n} {interval(np.array(list(snr[n].values())))}" for n in PRESETS),
+    )
+
+
+def combination_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    spread = paired(*(by_seed(results.get(n), lambda p: _get(p, "sync_relative.spread")) for n in ("hf4", "hf1")))
+    high, classes = equal_phi(results, "hf4", "hf1", which="table_high")
+    whole, _ = equal_phi(results, "hf4", "hf1")
+    return RowValue(
+        f"Δ spread hf4 − hf1: {interval(spread)}; Δ(S − S_null) at equal Φ above f1: {interval(high)}",
+        direction_verdict([side(spread), side(high), side(high - whole)]),
+        f'the whole band: {interval(whole)}; above f1 minus whole band ("especially at higher frequencies"): '
+        f"{interval(high - whole)}; {classes}",
+    )
+
+
+for _row in (
+    Row("§3.1, Fig. 9", "lower M raises S significantly for small patches (HF3 vs HF1)", "S(HF3) > S(HF1)",
+        "direction", ("hf1", "hf3"), lower_m_row("hf3", "hf1"), "Δ > 0"),
+    Row("§3.1, Fig. 9", "lower M raises S for large patches too (HF4 vs HF2)", "S(HF4) > S(HF2)", "direction",
+        ("hf2", "hf4"), lower_m_row("hf4", "hf2"), "Δ > 0"),
+    Row("§3.1, Fig. 9", "the rise with lower M is not as substantial for the larger patches",
+        "Δ(HF3 − HF1) > Δ(HF4 − HF2)", "direction", PRESETS, less_for_large_row, "difference > 0"),
+    Row("§3.1, Fig. 8", "larger patches: peaks higher, narrower, at lower frequencies (HF2 vs HF1, HF4 vs HF3)",
+        "yes", "direction", PRESETS, larger_peaks_row, "height ×>1, width ×<1, frequency ×<1 in both pairs"),
+    Row("§3.1, Fig. 9", "larger patches spread S over more frequencies with higher prevalence Φ (HF2 vs HF1)", "yes",
+        "direction", ("hf1", "hf2"), spread_row, "both Δ > 0"),
+    Row("§3.1, Figs. 4/6", "larger patches: larger, better-defined synchronisation patterns (HF2 vs HF1)", "yes",
+        "direction", ("hf1", "hf2"), patterns_row, "both Δ > 0"),
+    Row("§3.1, Fig. 9", "HF1 vs HF2: the size increase does not significantly affect the synchronisation quality",
+        "no significant difference", "equal", ("hf1", "hf2"), hf1_hf2_row, f"margin ± {EQUAL_MARGIN:g}"),
+    Row("§3.1, Figs. 8/9", "HF4 shows the best agreement of S with the friction spectrum", "HF4 highest", "direction",
+        PRESETS, agreement_row, "ρ(hf4) − ρ(other) > 0 for all three"),
+    Row("§3.1, Fig. 9", "HF4 vs HF1: S more spread out, greater, especially at higher frequencies", "yes",
+        "direction", ("hf1", "hf4"), combination_row, "three Δ > 0"),
+):  # fmt: skip
+    register_row(_row)
+
+
+# ------------------------------------------------------------------------------------------------ the table
+
+
+def evaluate_rows(results: dict[str, dict], cfg: Config, rows: list[Row] | None = None) -> list[dict[str, Any]]:
+    """Every row's value and verdict; a row whose experiments are missing says so, a row that fails is marked."""
+    out = []
+    for row in ROWS if rows is None else rows:
+        entry = {
+            "section": row.section,
+            "statement": row.statement,
+            "paper": row.paper,
+            "kind": row.kind,
+            "criterion": row.criterion,
+            "experiments": list(row.experiments),
+        }
+        need = row.min_experiments or len(row.experiments)
+        have = [k for k in row.experiments if len(usable(results.get(k))) >= 2]
+        if len(have) < need:
+            missing = _need(results, row.experiments) or ""
+            entry.update(value="–", verdict="not measured", notes=missing)
+        else:
+            try:
+                v = row.measure(results, cfg)
+                entry.update(value=v.value, verdict=v.verdict, notes=v.notes)
+            except Exception as e:  # noqa: BLE001 (one failing row must not take the table with it)
+                entry.update(value="–", verdict="failed", notes=f"{type(e).__name__}: {e}")
+        out.append(entry)
+    return out
+
+
+def _range(v: list[float | None], scale: float = 1.0, spec: str = ".3g") -> str:
+    x = np.array([np.nan if a is None else a for a in v], dtype=np.float64) * scale
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return "–"
+    return format(np.mean(x), spec) + (f" ({format(x.min(), spec)}–{format(x.max(), spec)})" if x.size > 1 else "")
+
+
+def experiment_rows(results: dict[str, dict]) -> list[list[str]]:
+    """One line per experiment: what, pads used, run, predicted against measured growth, saturation, segment."""
+    rows = []
+    for name, exp in EXPERIMENTS.items():
+        res = results.get(name)
+        if not res or "plan" not in res:
+            rows.append([name, exp.description, res.get("status", "not run") if res else "not run", *["–"] * 7])
+            continue
+        pads, plan, run = res.get("pads", []), res["plan"], res.get("run") or {}
+        ok = usable(res)
+        grow = np.array([p["growth_rate"] for p in ok if p.get("growth_rate") is not None])
+        seg = res.get("segment") or {}
+        rows.append(
+            [
+                name,
+                exp.description,
+                f"{len(ok)} / {len(pads)}" + ("" if res.get("status") == "done" else f" ({res.get('status')})"),
+                _contact_text(pads),
+                f"{exp.initial}; {plan['duration_s'] * 1e3:.1f} ms ({plan['settle_s'] * 1e3:.1f} + window)",
+                f"{plan['steps']:,}; {fmt(run.get('wall_s'), '.0f')} s, {fmt(run.get('us_per_step'), '.3g')} µs/step",
+                " / ".join(
+                    _range([p[k] for p in pads], spec=".0f") for k in ("sigma_min", "sigma_median", "sigma_max")
+                ),
+                interval(grow, ".0f"),
+                f"{_range([p.get('t_s_sum_abs_velocity') for p in pads], 1e3)} / "
+                f"{_range([p.get('t_s_mu') for p in pads], 1e3)}",
+                f"{fmt((seg.get('seconds') or 0) * 1e3, '.2f')} ms, {fmt(seg.get('resolution_hz'), '.0f')} Hz"
+                if seg.get("samples")
+                else "–",
+            ]
+        )
+    return rows
+
+
+def _contact_text(pads: list[dict[str, Any]]) -> str:
+    """Patches per pad and how many are in contact (fewest over the pads)."""
+    if not pads:
+        return "–"
+    n = [p.get("patches", 0) for p in pads]
+    c = [p["in_contact"] for p in pads]
+    where = "all in contact" if all(a == b for a, b in zip(c, n, strict=True)) else f"at least {min(c)} in contact"
+    return f"{max(n)} ({where})"
+
+
+EXPERIMENT_HEADER = [
+    "experiment",
+    "what",
+    "pads used / seeds",
+    "patches per pad",
+    "start; run (predicted settling + window)",
+    "steps; wall",
+    "predicted σ_i min / median / max [1/s] (mean over pads)",
+    "measured σ on Σ|u̇| [1/s]",
+    "t_s Σ|u̇| / μ [ms], mean (range)",
+    "analysed segment, Δf",
+]
+
+
+def pad_notes(results: dict[str, dict]) -> list[str]:
+    """Every pad that is not used, with the reason (the detector's verdict)."""
+    lines = []
+    for name, res in results.items():
+        for p in res.get("pads", []):
+            st = p.get("status")
+            if st is not None and st != "saturated":
+                lines.append(f"* {name}, seed {p.get('seed')}: **{st}** — Σ|u̇|: {p.get('verdict_sum_abs_velocity')}")
+    return lines or ["* none: every pad of every experiment run saturated and was analysed."]
+
+
+def initial_state_rows(results: dict[str, dict]) -> list[list[str]]:
+    """hf1 from equilibrium + perturbation against hf1 from rest: saturation and the main measures."""
+    out = []
+    for key, label, scale, unit in (
+        ("t_s_sum_abs_velocity", "t_s of Σ|u̇|", 1e3, "ms"),
+        ("t_s_mu", "t_s of μ", 1e3, "ms"),
+        ("growth_rate", "fitted growth rate of Σ|u̇|", 1.0, "1/s"),
+    ):
+        out.append(
+            [label, *(interval(_pad_values(results.get(n), key), ".3g", scale, unit) for n in ("hf1", "hf1_rest"))]
+        )
+    for key, label, scale, unit in (
+        ("f1", "first velocity peak", 1e-3, "kHz"),
+        ("sync_relative.median_excess_phi10", "median S − S_null (Φ ≥ 10)", 1.0, ""),
+        ("corr_near", "C of the directions of motion of coupled neighbours (≤ 5 mm)", 1.0, ""),
+        ("corr_zero", "distance where that C falls to 0", 1e3, "mm"),
+        ("corr_f1_near", "C of the phases at f1 of coupled neighbours", 1.0, ""),
+    ):
+        out.append([label, *(interval(values(results.get(n), key), ".3g", scale, unit) for n in ("hf1", "hf1_rest"))])
+    return out
+
+
+def _pad_values(res: dict[str, Any] | None, key: str) -> np.ndarray:
+    v = [p.get(key) for p in usable(res)]
+    return np.array([x for x in v if x is not None], dtype=np.float64)
+
+
+def stft_lines(results: dict[str, dict]) -> list[str]:
+    """Largest STFT amplitude of μ/μ̄ per window length, per experiment (mean over pads)."""
+    lines = []
+    for name, res in results.items():
+        per: dict[str, list[tuple[float, float]]] = {}
+        for p in usable(res):
+            for w in p["measures"].get("stft", []):
+                per.setdefault(w["window"], []).append((w["amplitude"], w["frequency"]))
+        for window, v in per.items():
+            a, f = np.array(v).T
+            lines.append(f"* {name}, {window}: {interval(a, '.3g')} at {interval(f, '.1f', 1e-3, 'kHz')}")
+    return lines or ["* no saturated segment holds a window of 2^12 samples."]
+
+
+def render(results: dict[str, dict], rows: list[dict[str, Any]], meta: dict[str, Any]) -> list[str]:
+    """The generated part of docs/validation.md."""
+    cfg = meta["config"]
+    variant = (
+        "**QUICK variant (reduced CPU smoke check: small pads, short windows, few seeds, a coarser step) — not the "
+        "validation itself.**"
+        if cfg["quick"]
+        else "Full variant."
+    )
+    dtp = cfg["sample_dt"] * cfg["decimation"]
+    lines = [
+        variant,
+        "",
+        f"Produced by `{meta['command']}` on {meta['created']}, {meta['machine']}; "
+        f"Warp {meta['versions'].get('warp-lang')}, aca-warp {meta['versions'].get('aca-warp')}; "
+        f"wall time {meta['wall_s']:.0f} s.",
+        "",
+        f"Settings: {cfg['seeds']} seeds from {cfg['first_seed']}; {cfg['patches'] or 'the preset’s'} patches per pad; "
+        f"strang, dt = {cfg['dt']:g} s, {cfg['precision']}; global outputs every {cfg['sample_dt']:g} s, per-patch "
+        f"velocities every {dtp:g} s (Nyquist {0.5 / dtp / 1e3:.0f} kHz) over the last {cfg['window'] * 1e3:g} ms; "
+        f"initial velocity perturbation {cfg['perturbation']:g} m/s; settling factor {cfg['settle_safety']:g}; "
+        f"S(f) over {cfg['sync_band'][0] / 1e3:g}–{cfg['sync_band'][1] / 1e3:g} kHz.",
+        "",
+        "### The paper's statements",
+        "",
+        *md_table(
+            [
+                "§",
+                "statement",
+                "ours: mean [95 % interval] (n seeds)",
+                "paper",
+                "verdict (criterion)",
+                "experiments",
+                "notes",
+            ],
+            [
+                [
+                    r["section"],
+                    r["statement"],
+                    r["value"],
+                    r["paper"],
+                    f"**{r['verdict']}** ({r['kind']}: {r['criterion']})",
+                    ", ".join(r["experiments"]),
+                    r["notes"],
+                ]
+                for r in rows
+            ],
+        ),  # fmt: skip
+        "",
+        "### Experiments",
+        "",
+        *md_table(EXPERIMENT_HEADER, experiment_rows(results)),
+        "",
+        "Pads not used:",
+        "",
+        *pad_notes(results),
+        "",
+        "### Initial state: equilibrium + perturbation (hf1) against rest (hf1_rest)",
+        "",
+        *md_table(["measure", "hf1 (equilibrium)", "hf1_rest (rest)"], initial_state_rows(results)),
+        "",
+        "### STFT maximum of μ/μ̄ over the saturated segment (Fig. 10's normalisation; the paper gives ≈ 0.004 at "
+        "69.1 kHz for §3.2 only)",
+        "",
+        *stft_lines(results),
+    ]
+    return lines
+
+
+# ------------------------------------------------------------------------------------------------ command line
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command line (``scripts/validation.py``)."""
+    p = argparse.ArgumentParser(
+        prog="validation.py",
+        description="Seed ensembles of saturated HF runs against the paper's statements; writes everything under "
+        "--out and, with --page, the generated table of a docs page.",
+        epilog="Full variant (GPU): python3 scripts/validation.py --device cuda:0 --seeds 8 --out DIR --page "
+        "docs/validation.md. Quick CPU smoke check: --quick. Checkpoints: each experiment's result is saved under "
+        "DIR/<experiment>/ when done and reused by a rerun with the same settings (--rerun: run again).",
+    )
+    p.add_argument("--out", type=Path, default=Path("out/validation"), help="output folder (created)")
+    p.add_argument("--page", type=Path, default=None, help="docs page whose generated section is rewritten")
+    p.add_argument("--device", default="auto", help="Warp device: cpu, cuda:0, or auto (cuda:0 when present)")
+    p.add_argument("--precision", choices=("fp64", "fp32"), default=None, help="precision (default fp64)")
+    p.add_argument("--engine", choices=("auto", "general", "onchip"), default="auto", help="HF engine")
+    p.add_argument("--quick", action="store_true", help="the reduced CPU variant (small pads, short windows)")
+    p.add_argument("--seeds", type=int, default=None, help=f"pads per experiment ({FULL.seeds}; quick {QUICK.seeds})")
+    p.add_argument("--first-seed", type=int, default=None, help="seed of pad 0 (1: the presets' layout)")
+    p.add_argument("--patches", type=int, default=None, help=f"patches per pad (preset's; quick {QUICK.patches})")
+    p.add_argument("--dt", type=float, default=None, help=f"time step [s] ({FULL.dt:g}; quick {QUICK.dt:g})")
+    p.add_argument("--window", type=float, default=None, help=f"window [s] ({FULL.window:g}; quick {QUICK.window:g})")
+    p.add_argument("--perturbation", type=float, default=None, help=f"initial velocity σ [m/s] ({FULL.perturbation:g})")
+    p.add_argument("--settle-safety", type=float, default=None, help=f"factor on the predicted settling time "
+                   f"({FULL.settle_safety:g})")  # fmt: skip
+    p.add_argument("--only", nargs="+", default=None, metavar="EXPERIMENT", help="run only these experiments "
+                   "(the table still uses the saved results of the others)")  # fmt: skip
+    p.add_argument("--max-wall", type=float, default=None, help="wall-time budget [s]: an experiment whose estimate "
+                   "no longer fits is not started")  # fmt: skip
+    p.add_argument("--rerun", action="store_true", help="run again even where a saved result fits")
+    p.add_argument("--keep-records", action="store_true", help="also keep each run's records (globals and per-patch "
+                   "velocities, DIR/<experiment>/records.npz: the per-patch record's size per experiment)")  # fmt: skip
+    p.add_argument("--reanalyse", action="store_true", help="analyse kept records again instead of reusing the "
+                   "saved results (experiments without records are run)")  # fmt: skip
+    p.add_argument("--list", action="store_true", help="list the experiments and rows, then exit")
+    p.add_argument("--dry-run", action="store_true", help="plan the experiments (run lengths, steps, memory, the "
+                   "time estimate for --device and --precision), then exit; runs nothing, needs no GPU")  # fmt: skip
+    return p
+
+
+def dry_run(names: list[str], cfg: Config, log: Log) -> float:
+    """Plan every experiment of ``names`` and print its run length, steps, memory and estimate; the total [s]."""
+    total = 0.0
+    for name in names:
+        prep = prepare(EXPERIMENTS[name], cfg)
+        est = prep.estimate(cfg, {})
+        total += est
+        p = prep.plan
+        sig = np.median([np.percentile(s, [0, 50, 100]) for s in prep.sigma], axis=0)
+        log(
+            f"{name}: {cfg.seeds} × {prep.scenes[0].patches.count} patches; σ_i min/median/max {sig[0]:.0f}/"
+            f"{sig[1]:.0f}/{sig[2]:.0f} 1/s, σ_25 {p.sigma_q25:.0f} 1/s; v0 {p.v0:.3g} m/s; run "
+            f"{p.duration * 1e3:.1f} ms (settle {p.settle * 1e3:.1f}); {p.steps:,} steps; per-patch record "
+            f"{p.velocity_bytes / 2**20:.0f} MiB; estimated {est:.0f} s on {cfg.device} ({cfg.precision})"
+        )
+    log(f"total: estimated {total:.0f} s of stepping ({total / 60:.1f} min) for {len(names)} experiment(s)")
+    return total
+
+
+def config_from(args: argparse.Namespace, device: str) -> Config:
+    """The settings: the quick or the full defaults, with the options given."""
+    base = QUICK if args.quick else FULL
+    over = {
+        "seeds": args.seeds,
+        "first_seed": args.first_seed,
+        "patches": args.patches,
+        "dt": args.dt,
+        "window": args.window,
+        "perturbation": args.perturbation,
+        "settle_safety": args.settle_safety,
+        "precision": args.precision,
+    }
+    return dataclasses.replace(
+        base, device=device, engine=args.engine, **{k: v for k, v in over.items() if v is not None}
+    )
+
+
+def _list(log: Log) -> None:
+    for name, exp in EXPERIMENTS.items():
+        print(f"experiment {name:12} {exp.section:6} {exp.description}")
+    for row in ROWS:
+        print(f"row {row.section:16} {row.statement}  [{', '.join(row.experiments)}]")
+
+
+def run_all(names: list[str], cfg: Config, out: Path, log: Log, args: argparse.Namespace) -> dict:
+    """Reuse, analyse again or run every experiment of ``names`` (estimates first); failures are logged and
+    recorded (``args``: rerun, reanalyse, keep_records, max_wall)."""
+    results: dict[str, dict] = {}
+    preps: dict[str, Prepared] = {}
+    calibration: dict[str, float] = {}
+    for name in names:
+        exp = EXPERIMENTS[name]
+        saved = None if args.rerun or args.reanalyse else load_result(out / name, exp, cfg)
+        if saved is not None:
+            results[name] = saved
+            log(f"{name}: reusing the saved result in {out / name}")
+            continue
+        try:
+            prep = prepare(exp, cfg)
+            again = reanalyse(prep, cfg, out, log) if args.reanalyse else None
+            if again is not None:
+                results[name] = again
+            else:
+                preps[name] = prep
+        except Exception as e:  # noqa: BLE001 (one experiment must not stop the others)
+            results[name] = _failed(out, name, e, log)
+    total = sum(p.estimate(cfg, calibration) for p in preps.values())
+    steps = sum(p.plan.steps for p in preps.values())
+    log(f"{len(preps)} experiment(s) to run: {steps:,} steps, estimated {total:.0f} s of stepping on {cfg.device}")
+    for name, prep in preps.items():
+        budget = None if args.max_wall is None else args.max_wall - log.elapsed()
+        try:
+            results[name] = run_experiment(prep, cfg, out, log, calibration, budget, args.keep_records)
+        except Exception as e:  # noqa: BLE001
+            results[name] = _failed(out, name, e, log)
+    return results
+
+
+def _failed(out: Path, name: str, e: Exception, log: Log) -> dict[str, Any]:
+    import traceback
+
+    (out / name).mkdir(parents=True, exist_ok=True)
+    (out / name / "error.txt").write_text(traceback.format_exc())
+    log(f"{name}: FAILED: {type(e).__name__}: {e} (traceback in {out / name / 'error.txt'})")
+    return {"status": f"failed: {type(e).__name__}: {e}", "pads": []}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the selected experiments, build the table, write ``--out`` and ``--page``; 0 unless the input is bad."""
+    from aca_warp.common.files import machine, versions
+    from aca_warp.studies.report import init_warp, write_json
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(argv)
+    log = Log()
+    if args.list:
+        _list(log)
+        return 0
+    names = args.only or list(EXPERIMENTS)
+    unknown = [n for n in names if n not in EXPERIMENTS]
+    if unknown:
+        print(f"validation.py: unknown experiment(s) {', '.join(unknown)}; see --list", file=sys.stderr)
+        return 2
+    if args.dry_run:
+        dry_run(names, config_from(args, "cpu" if args.device == "auto" else args.device), log)
+        return 0
+    wp = init_warp()
+    device = ("cuda:0" if wp.is_cuda_available() else "cpu") if args.device == "auto" else args.device
+    cfg = config_from(args, device)
+    args.out.mkdir(parents=True, exist_ok=True)
+    log(f"validation ({'quick' if cfg.quick else 'full'}): {', '.join(names)} on {device} -> {args.out}")
+    results = run_all(names, cfg, args.out, log, args)
+    for name, exp in EXPERIMENTS.items():  # the table uses every saved result that fits these settings
+        if name not in results:
+            saved = load_result(args.out / name, exp, cfg)
+            if saved is not None:
+                results[name] = saved
+    rows = evaluate_rows(results, cfg)
+    meta = {
+        "command": command_line("validation.py", argv),
+        "created": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "machine": machine(wp.get_device(device))["device_name"],
+        "versions": versions(),
+        "config": cfg.run_key(),
+        "wall_s": log.elapsed(),
+    }
+    body = render(results, rows, meta)
+    (args.out / "validation.md").write_text("# Validation\n\n" + "\n".join(body) + "\n")
+    write_json(args.out / "validation.json", clean({"meta": meta, "rows": rows}), indent=1)
+    if args.page is not None:
+        replace_generated(args.page, body, generated_markers(MARKER), "Validation")
+    for r in rows:
+        print(f"  {r['verdict']:15} {r['statement']}")
+    log(f"wrote {args.out / 'validation.md'}" + (f" and {args.page}" if args.page else ""))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
