@@ -1,9 +1,9 @@
 """The general HF engine: every integrator as per-step kernel launches, replayed from captured graphs.
 
 Fixed-step schemes take ``options.dt`` shortened so that a whole number of steps fits a sample interval and
-record one sample per interval; a chunk is a graph of up to ``max_graph_steps`` steps. ``adaptive`` runs trial
-steps whose controller (accept, reject, next step, landing on sample times) runs on the device; a chunk is a
-graph of 128 trials. Growing scenes run a growth event (areas, stiffnesses, the contact re-solve) every
+record one sample per interval; a chunk is a graph of up to ``max_graph_steps`` steps. ``adaptive`` steps every pad
+with its own step and mode, decided on the device (:mod:`aca_warp.hf.adaptive`); a chunk is a graph of 128
+iterations. Growing scenes run a growth event (areas, stiffnesses, the contact re-solve) every
 ``growth.interval`` of simulated time, counted in steps on the device. Every stepping path is captured in a
 Warp graph (CPU and CUDA); the host reads back only a few counters per replay.
 """
@@ -18,7 +18,8 @@ from typing import Any
 import warp as wp
 
 from aca_warp.common.devices import block_threads
-from aca_warp.common.errors import SceneError, SimulationFault
+from aca_warp.common.errors import SceneError
+from aca_warp.hf import adaptive
 from aca_warp.hf.engine import EngineTuning, Progress
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import RunOptions
@@ -27,10 +28,6 @@ from aca_warp.hf.solver import CONTACT_BLOCK, GROWTH_MUTABLE, HFSolver, growth_e
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 from aca_warp.scene import Record
-
-ADAPTIVE_TRIALS = 128  # trial steps per replay of the adaptive graph
-ADAPTIVE_ROWS = 256  # sample rows the adaptive recorder holds between flushes
-MIN_ADAPTIVE_STEP = 1.0e-15  # s; below it the adaptive controller gives up (a fault)
 
 
 class Growth:
@@ -93,11 +90,10 @@ class GeneralEngine:
         growing = "pad_growth" in model.arrays
         if growing and self.adaptive:
             raise SceneError("patch growth needs a fixed-step integrator (growth events are counted in steps)")
-        self.sps = 1 if self.adaptive else max(1, math.ceil(record.sample_dt / self.solver.dt - 1e-9))
+        self.sps = max(1, math.ceil(record.sample_dt / self.solver.dt - 1e-9))
         self.h = record.sample_dt / self.sps
-        self.block = 1 if self.adaptive else max(1, min(n_samples, tuning.max_graph_steps // self.sps))
-        rows = ADAPTIVE_ROWS if self.adaptive else self.block
-        self.recorder = Recorder(model, record, rows + 1, n_samples)
+        self.block = max(1, min(n_samples, tuning.max_graph_steps // self.sps))
+        self.recorder = Recorder(model, record, (adaptive.ROWS if self.adaptive else self.block) + 1, n_samples)
         self.stages = [
             "contact",
             "neighbours" if model.has_coupling else "no-coupling",
@@ -110,14 +106,18 @@ class GeneralEngine:
             if self.h > limit
             else "extreme scene parameters (check loads, areas, speeds)"
         )
-        if integrator in ("strang", "adaptive"):
+        if integrator == "strang":
             self.solver.prepare(state)
         self.started = False
         self.growth = None
         if growing:
             self.stages.append("growth")
             self.growth = Growth(model, self.h)
-        self.body: Callable[[], None] = self._adaptive_body() if self.adaptive else self._fixed_body
+        self.stepper = None
+        if self.adaptive:
+            t_end = n_samples * record.sample_dt
+            self.stepper = adaptive.AdaptiveStepper(model, state, self.solver, self.recorder, t_end)
+        self.body: Callable[[], None] = self.stepper.body if self.stepper is not None else self._fixed_body
         self.graphs: dict[int, Any] = {}
         self.capture_time = 0.0
 
@@ -125,8 +125,8 @@ class GeneralEngine:
 
     def saved(self) -> dict[str, wp.array]:
         out: dict[str, wp.array] = {}
-        if self.adaptive:
-            out.update({"adaptive/clock": self.clock, "adaptive/flags": self.flags, "adaptive/steps": self.steps})
+        if self.stepper is not None:
+            out.update(self.stepper.saved())
         if self.growth is not None:
             out["growth/step"] = self.growth.step
             out.update({f"model/{k}": self.model.arrays[k] for k in GROWTH_MUTABLE})
@@ -140,21 +140,10 @@ class GeneralEngine:
         wp.load_module(K, device=self.model.device)
 
     def advance(self, p: Progress, most: int) -> Progress:
-        if self.adaptive:
-            self._replay(ADAPTIVE_TRIALS)
-            flags = self.flags.numpy()
-            steps = self.steps.numpy()
-            t = float(self.clock.numpy()[0])
-            fault = None
-            if flags[2]:
-                fault = SimulationFault(
-                    f"adaptive step fell below {MIN_ADAPTIVE_STEP:g} s at t = {t:.6g} s; likely cause: {self.cause}",
-                    time=t,
-                    pad=-1,
-                    patch=-1,
-                    cause="step-size underflow",
-                )
-            return Progress(0, int(steps[0]), int(steps[1]), t, bool(flags[1]), fault)
+        if self.stepper is not None:
+            self.stepper.stop_after(p.samples + most)
+            self._replay(adaptive.ITERATIONS)
+            return self.stepper.progress()
         reps = min(self.block, self.n_samples - p.samples, most)
         self._replay(reps)
         samples = p.samples + reps
@@ -164,7 +153,7 @@ class GeneralEngine:
         return {"started": int(self.started)}
 
     def step_used(self) -> float:
-        return float(self.clock.numpy()[2]) if self.adaptive else self.h
+        return self.stepper.mean_step() if self.stepper is not None else self.h
 
     def finish(self) -> None:
         if not self.adaptive and self.started:
@@ -181,51 +170,6 @@ class GeneralEngine:
             if self.growth is not None:
                 self.growth.launch()
         self.recorder.launch(s.u, self.solver.velocity(s, self.h), conditional=False)
-
-    def _adaptive_body(self) -> Callable[[], None]:
-        """One adaptive trial step (open, close with the error estimate, control, commit, conditional sample)."""
-        m, s, sv, rec, dev = self.model, self.state, self.solver, self.recorder, self.model.device
-        T, n = m.dtype, m.patch_count
-        trial = {k: wp.zeros(n, dtype=T, device=dev) for k in ("u", "v", "ue", "ve", "f")}
-        self.clock = wp.array([0.0, sv.dt, sv.dt, self.record.sample_dt], dtype=wp.float64, device=dev)
-        self.flags = wp.zeros(3, dtype=wp.int32, device=dev)
-        self.steps = wp.zeros(2, dtype=wp.int64, device=dev)
-        err = wp.zeros(1, dtype=wp.float64, device=dev)
-        t_end = self.n_samples * self.record.sample_dt
-        dt_max = 0.9 * self.estimate.spring
-        rt = T(sv.tolerance)
-        clock, flags = self.clock, self.flags
-        opened = [trial["u"], trial["v"], trial["ue"], trial["ve"]]
-        control = [wp.float64(self.record.sample_dt), wp.float64(t_end), wp.float64(MIN_ADAPTIVE_STEP)]
-
-        def body() -> None:
-            wp.launch(
-                K.adaptive_trial_open,
-                dim=n,
-                device=dev,
-                inputs=[*sv.local_args, sv.newton_tol, clock, flags, s.u, s.v, s.force, *opened],
-            )
-            wp.launch(
-                K.adaptive_trial_close,
-                dim=n,
-                device=dev,
-                inputs=[*sv.model_args, sv.newton_tol, rt, clock, flags, *opened, trial["f"], err],
-            )
-            wp.launch(
-                K.adaptive_control,
-                dim=1,
-                device=dev,
-                inputs=[*control, wp.float64(dt_max), clock, flags, self.steps, err, rec.counters],
-            )
-            wp.launch(
-                K.adaptive_commit,
-                dim=n,
-                device=dev,
-                inputs=[flags, trial["u"], trial["v"], trial["f"], s.u, s.v, s.force],
-            )
-            rec.launch(s.u, s.v, conditional=True)
-
-        return body
 
     def _replay(self, reps: int) -> None:
         """Run ``reps`` bodies: from a captured graph (one per count), eagerly the first (opening) one."""

@@ -9,8 +9,9 @@ Integrators (:data:`~aca_warp.hf.options.INTEGRATORS`):
 * ``strang``: second order; Strang splitting of friction/damping (implicit midpoint, per patch) and the
   springs (velocity Verlet). Consecutive friction half steps are merged, so a step costs one spring
   evaluation and one implicit solve; between steps the velocity is staggered and synchronised for output.
-* ``adaptive``: ``strang`` with the embedded IMEX-Euler step as error estimate; the controller (accept,
-  reject, next step, landing on sample times) runs on the device (:mod:`aca_warp.hf.general`).
+* ``adaptive``: per pad, the explicit Dormand–Prince 5(4) pair with its embedded error estimate in a
+  friction-weighted norm and a PI step controller on the device (:mod:`aca_warp.hf.adaptive`); ``dt`` is its first
+  trial step.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 
 FP32_MIN_TOLERANCE = 1.0e-5  # relative; tighter asks fp32 for more digits than it has
+ADAPTIVE_FIRST_STEP = 1.0e-9  # s; the adaptive controller grows it by up to 5× per accepted step
 CONTACT_BLOCK = 256  # threads per pad of the growth events' contact re-solve (Warp's default block size)
 
 
@@ -129,23 +131,21 @@ class HFSolver:
                     "use --precision fp64 or a looser tolerance"
                 )
             self.tolerance = tolerance
-            self.dt = min(dt or 1.0e-9, 0.9 * self.estimate.spring)
-        else:
-            self.dt = DEFAULT_DT if dt is None else dt
-            if not (self.dt > 0 and math.isfinite(self.dt)):
-                raise SceneError(f"dt must be a positive number of seconds, got {self.dt}")
-            limit = self.estimate.limit(integrator)
-            if self.dt > limit and not force:
-                hint = (
-                    "choose a smaller --dt, an implicit-friction integrator (strang, implicit-friction), or --force"
-                    if self.dt <= self.estimate.spring
-                    else "choose a smaller --dt (the springs bound every fixed-step scheme), --integrator adaptive, "
-                    "or --force"
-                )
-                raise StabilityError(
-                    f"dt = {self.dt:.3g} s exceeds the stable-step estimate {limit:.3g} s of {integrator} "
-                    f"(springs {self.estimate.spring:.3g} s, friction slope {self.estimate.friction:.3g} s); {hint}"
-                )
+        self.dt = (ADAPTIVE_FIRST_STEP if integrator == "adaptive" else DEFAULT_DT) if dt is None else dt
+        if not (self.dt > 0 and math.isfinite(self.dt)):
+            raise SceneError(f"dt must be a positive number of seconds, got {self.dt}")
+        limit = self.estimate.limit(integrator)
+        if integrator != "adaptive" and self.dt > limit and not force:  # adaptive: dt is only its first trial
+            hint = (
+                "choose a smaller --dt, an implicit-friction integrator (strang, implicit-friction), or --force"
+                if self.dt <= self.estimate.spring
+                else "choose a smaller --dt (the springs bound every fixed-step scheme), --integrator adaptive, "
+                "or --force"
+            )
+            raise StabilityError(
+                f"dt = {self.dt:.3g} s exceeds the stable-step estimate {limit:.3g} s of {integrator} "
+                f"(springs {self.estimate.spring:.3g} s, friction slope {self.estimate.friction:.3g} s); {hint}"
+            )
         m = model
         self.model_args = [
             m.patch_pad,
@@ -202,7 +202,7 @@ class HFSolver:
             self._launch(kernel, [*self.local_args, h, self.newton_tol, state.force, state.u, state.v])
             self.prepare(state)
         else:
-            raise SceneError("the adaptive integrator has no fixed step; use run_hf")
+            raise SceneError("the adaptive integrator steps each pad on its own; use run_hf")
 
     def velocity(self, state: HFState, dt: float) -> wp.array:
         """The synchronous patch velocities [m/s] (for strang computed from the staggered state)."""

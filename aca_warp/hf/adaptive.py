@@ -1,0 +1,165 @@
+"""The ``adaptive`` integrator on the general engine: the Dormand–Prince 5(4) pair with its own step per pad.
+
+Every pad has its own clock and step on the device (:mod:`aca_warp.kernels.hf_adaptive`): the explicit 5th-order
+pair, its embedded 4th-order error estimate in a friction-weighted maximum norm relative to ``tolerance`` and a PI
+controller. In sliding it takes steps of tenths of a microsecond; near sticking, where the steep friction law has
+nanosecond transients, the friction weight shrinks its steps as far as the forces need. All pads land on every
+sample time (samples are exact states, no interpolation); one replay of the captured graph runs a fixed number of
+iterations, each one trial per pad. Choice and measurements: docs/numerics.md and docs/work_precision.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from aca_warp.common.devices import block_threads
+from aca_warp.common.errors import SimulationFault
+from aca_warp.hf.engine import Progress
+from aca_warp.hf.model import PadModel
+from aca_warp.hf.recorder import Recorder
+from aca_warp.hf.solver import HFSolver
+from aca_warp.hf.state import HFState
+from aca_warp.kernels import hf_adaptive as KA
+
+MIN_STEP = 1.0e-15  # s; a pad whose error needs a smaller step stops the run (a fault)
+CONTROL_BLOCK = 256  # threads per pad of the error reduction and step control
+ITERATIONS = 128  # trials (or strang steps) per pad per graph replay
+ROWS = 256  # sample rows the recorder holds between flushes (more than one replay can land)
+
+
+class AdaptiveStepper:
+    """Device state and launches of the per-pad DP5/strang integrator for one model (general engine)."""
+
+    def __init__(self, model: PadModel, state: HFState, solver: HFSolver, recorder: Recorder, t_end: float) -> None:
+        self.model, self.state, self.solver, self.rec = model, state, solver, recorder
+        dev, T, n, P = model.device, model.dtype, model.patch_count, model.pad_count
+        self.sample_dt = recorder.sample_dt
+        self.t_end = t_end
+        self.tol = wp.float64(solver.tolerance)
+        self.h_max = self.sample_dt  # steps land on every sample: none is longer
+        self.h_start = min(solver.dt, self.sample_dt)  # the PI controller grows it up to 5× per accepted step
+        ctl = np.zeros((P, KA.CTL))
+        ctl[:, KA.C_TARGET] = self.sample_dt
+        ctl[:, KA.C_H] = self.h_start
+        ctl[:, KA.C_TRIAL] = self.h_start
+        ctl[:, KA.C_ERR] = 1.0e-4
+        mode = np.zeros((P, KA.MODE), dtype=np.int32)
+        mode[:, KA.M_NEEDK1] = 1
+        self.ctl = wp.array(ctl, dtype=wp.float64, device=dev)
+        self.mode = wp.array(mode, dtype=wp.int32, device=dev)
+        self.stats = wp.zeros((P, 2), dtype=wp.int64, device=dev)
+        self.done = wp.zeros(3, dtype=wp.int32, device=dev)  # [run over, waiting at t_stop, step underflow]
+        self.t_stop = wp.array([t_end], dtype=wp.float64, device=dev)
+        self.accepted = wp.zeros(P, dtype=wp.int32, device=dev)
+        self.ku = wp.zeros((KA.STAGES, n), dtype=T, device=dev)
+        self.kv = wp.zeros((KA.STAGES, n), dtype=T, device=dev)
+        self.us = wp.zeros(n, dtype=T, device=dev)
+        self.vs = wp.zeros(n, dtype=T, device=dev)
+        self.coeff = wp.array(np.array(KA.DP5_A), dtype=wp.float64, device=dev)
+        self.err_coeff = wp.array(np.array(KA.DP5_E), dtype=wp.float64, device=dev)
+        self.u_scale, self.v_scale = self._scales()
+
+    def _scales(self) -> tuple[wp.array, wp.array]:
+        """Per-patch scales of the error norm: U_i = F_N,i M / k_T,i [m], the static deflection under the largest
+        friction force, and V_i = max(|ω r_i|, F_N,i M / √(k_T,i m_i)) [m/s], the disc speed or the speed of a patch
+        released from that deflection; each at least a 1e-6 share of its pad's largest (an unloaded patch is not
+        judged against 0)."""
+        m = self.model
+        pad = m.host("patch_pad")
+        M = np.array([s.friction.M for s in m.scenes])[pad]
+        omega = np.abs(np.array([s.angular_velocity for s in m.scenes]))[pad]
+        k_t = m.host("k_t").astype(np.float64)
+        mass = 1.0 / m.host("inv_mass").astype(np.float64)
+        force = m.host("normal_force").astype(np.float64) * M
+        u = force / k_t
+        v = np.maximum(omega * m.host("radius").astype(np.float64), force / np.sqrt(k_t * mass))
+        for x in (u, v):
+            floor = np.zeros(m.pad_count)
+            np.maximum.at(floor, pad, x)
+            np.maximum(x, 1.0e-6 * floor[pad] + 1.0e-30, out=x)
+        return (wp.array(a, dtype=m.dtype, device=m.device) for a in (u, v))
+
+    def saved(self) -> dict[str, wp.array]:
+        """Arrays a checkpoint holds: the clocks, modes, counters and the first stage (FSAL)."""
+        return {
+            "adaptive/ctl": self.ctl,
+            "adaptive/mode": self.mode,
+            "adaptive/stats": self.stats,
+            "adaptive/done": self.done,
+            "adaptive/ku": self.ku,
+            "adaptive/kv": self.kv,
+        }
+
+    def stop_after(self, samples: int) -> None:
+        """Let the next replays run at most to sample ``samples`` (the run loop's chunk end)."""
+        self.t_stop.assign(np.array([samples * self.sample_dt]))
+
+    def progress(self) -> Progress:
+        """Samples done, accepted steps (the busiest pad's), rejected trials (all pads), time of the last sample,
+        done; a step underflow as a fault."""
+        st = self.stats.numpy()
+        done = self.done.numpy()
+        # the last recorded sample: the pads' targets while they wait there, else the start of their interval
+        t = float(self.ctl.numpy()[:, KA.C_TARGET if done[1] else KA.C_START].min())
+        fault = None
+        if done[2]:
+            fault = SimulationFault(
+                f"adaptive step fell below {MIN_STEP:g} s at t = {t:.6g} s: the tolerance cannot be met there",
+                time=t,
+                pad=-1,
+                patch=-1,
+                cause="step-size underflow",
+            )
+        if done[0]:
+            t = self.t_end
+        return Progress(round(t / self.sample_dt), int(st[:, 0].max()), int(st[:, 1].sum()), t, bool(done[0]), fault)
+
+    def mean_step(self) -> float:
+        """Simulated time per accepted step of the busiest pad [s] (the step the run reports)."""
+        n = int(self.stats.numpy()[:, 0].max())
+        return float(self.ctl.numpy()[:, KA.C_START].min()) / n if n else self.h_start
+
+    def body(self) -> None:
+        """One iteration: a trial of every pad that has not landed, the landing check and (when every pad has
+        landed) a sample."""
+        m, s, dev, n = self.model, self.state, self.model.device, self.model.patch_count
+        ctl, mode = self.ctl, self.mode
+        deriv = [m.patch_pad, m.inv_mass, m.k_diag, m.damping, m.normal_force, m.radius, m.nbr_start, m.nbr_index]
+        deriv += [m.nbr_stiffness, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay]
+        wp.launch(KA.dp5_eval, dim=n, device=dev, inputs=[*deriv, 0, 1, mode, s.u, s.v, self.ku, self.kv])
+        wp.launch(KA.k1_done, dim=m.pad_count, device=dev, inputs=[mode])
+        for stage in range(1, KA.STAGES):
+            wp.launch(
+                KA.dp5_stage,
+                dim=n,
+                device=dev,
+                inputs=[m.patch_pad, self.coeff, stage, ctl, mode, s.u, s.v, self.ku, self.kv, self.us, self.vs],
+            )
+            wp.launch(
+                KA.dp5_eval, dim=n, device=dev, inputs=[*deriv, stage, 0, mode, self.us, self.vs, self.ku, self.kv]
+            )
+        wp.launch_tiled(
+            KA.dp5_control,
+            dim=[m.pad_count],
+            block_dim=CONTROL_BLOCK,
+            device=dev,
+            inputs=[m.pad_patch_start, m.radius, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay]
+            + [self.err_coeff, self.u_scale, self.v_scale]
+            + [block_threads(dev, CONTROL_BLOCK), self.tol, wp.float64(self.h_max), wp.float64(MIN_STEP)]
+            + [s.u, s.v, self.us, self.vs, self.ku, self.kv, ctl, mode, self.stats, self.accepted, self.done],
+        )
+        wp.launch(
+            KA.dp5_commit,
+            dim=n,
+            device=dev,
+            inputs=[m.patch_pad, self.accepted, self.us, self.vs, s.u, s.v, self.ku, self.kv],
+        )
+        wp.launch(
+            KA.landing,
+            dim=1,
+            device=dev,
+            inputs=[m.pad_count, wp.float64(self.sample_dt), wp.float64(self.t_end), self.t_stop]
+            + [ctl, mode, self.done, self.rec.counters],
+        )
+        self.rec.launch(s.u, s.v, conditional=True)

@@ -1,0 +1,336 @@
+"""HF kernels of the ``adaptive`` integrator: the Dormand–Prince 5(4) pair with its own step per pad.
+
+DP5 (7 stages, first same as last: 6 right-hand-side evaluations per trial) on y = (u, u̇), u̇ = v,
+m v̇ = F_s(u) − c v + F_N f(ωr − v), explicit in every term. Error estimate: the embedded 4th-order solution, the
+maximum over the pad's patches of |e_u| / (tol (U_i + |u|)) and |e_v| / (tol w_i), w_i = min(V_i + |u̇|,
+M / |f′(s_i)|): U_i the static deflection scale, V_i the velocity scale (the disc speed or the release speed of the
+largest friction force), and the friction weight M/|f′| at the trial's slip s_i, which asks every patch's friction
+force to be right to tol·F_N M (near sticking a velocity error of M/f′ ≈ 8 mm/s already moves it by F_N M). PI step
+control (Gustafsson: k_I = 0.3, k_P = 0.4 over the order 5, factors 0.2–5, no growth right after a rejection);
+steps land exactly on the sample times, where every pad waits for the others so that a sample is recorded for all.
+
+Per-pad control arrays: float64 ``ctl`` (pads, CTL): t, desired step, previous error (PI), target time, start of
+the interval, trial step; int32 ``mode`` (pads, MODE): landed, needs its first stage, last trial rejected; int64
+``stats`` (pads, 2): accepted and rejected trials.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import warp as wp
+from aca_warp.kernels import precision_overloads
+from aca_warp.kernels.hf import friction_coefficient, friction_pair, spring_force
+
+wp.set_module_options({"enable_backward": False})
+
+# ctl columns (float64)
+C_T, C_H, C_ERR, C_TARGET, C_START, C_TRIAL = 0, 1, 2, 3, 4, 5
+CTL = 6
+# mode columns (int32)
+M_LANDED, M_NEEDK1, M_REJECTED = 0, 1, 2
+MODE = 3
+STAGES = 7
+
+# Dormand–Prince 5(4): a (7×7, row s: the stage-s combination of k_0 … k_{s-1}), e = b − b* (b = a[6], b_7 = 0)
+DP5_A = (
+    (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    (1.0 / 5.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    (3.0 / 40.0, 9.0 / 40.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    (44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0, 0.0, 0.0, 0.0, 0.0),
+    (19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0, 0.0, 0.0, 0.0),
+    (9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0, 0.0, 0.0),
+    (35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0, 0.0),
+)
+DP5_E = (
+    71.0 / 57600.0,
+    0.0,
+    -71.0 / 16695.0,
+    71.0 / 1920.0,
+    -17253.0 / 339200.0,
+    22.0 / 525.0,
+    -1.0 / 40.0,
+)
+
+
+@wp.func
+def acceleration(
+    i: int,
+    p: int,
+    u: wp.array[Any],
+    v: Any,
+    inv_mass: wp.array[Any],
+    k_diag: wp.array[Any],
+    damping: wp.array[Any],
+    normal_force: wp.array[Any],
+    radius: wp.array[Any],
+    nbr_start: wp.array[wp.int32],
+    nbr_index: wp.array[wp.int32],
+    nbr_stiffness: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+):
+    """v̇_i = (F_s,i(u) − c_i v + F_N,i f(ω r_i − v)) / m_i [m/s²] at displacements ``u`` and velocity ``v``."""
+    fs = spring_force(i, u, k_diag, nbr_start, nbr_index, nbr_stiffness)
+    ff = normal_force[i] * friction_coefficient(
+        pad_omega[p] * radius[i] - v, pad_mu_scale[p], pad_slope[p], pad_decay[p]
+    )
+    return inv_mass[i] * (fs + ff - damping[i] * v)
+
+
+@wp.kernel
+def dp5_stage(
+    # Model:
+    patch_pad: wp.array[wp.int32],
+    coeff: wp.array2d[wp.float64],
+    # Control:
+    stage: int,
+    ctl: wp.array2d[wp.float64],
+    mode: wp.array2d[wp.int32],
+    # State in:
+    u_in: wp.array[Any],
+    v_in: wp.array[Any],
+    ku: wp.array2d[Any],
+    kv: wp.array2d[Any],
+    # Stage state out:
+    u_stage: wp.array[Any],
+    v_stage: wp.array[Any],
+):
+    """The stage state y_s = y_0 + h Σ_{j<s} a_sj k_j of every patch of a pad that has not landed."""
+    i = wp.tid()
+    p = patch_pad[i]
+    if mode[p, M_LANDED] != 0:
+        return
+    h = type(u_in[i])(ctl[p, C_TRIAL])
+    du = u_in[i] - u_in[i]
+    dv = du
+    for j in range(stage):
+        a = type(du)(coeff[stage, j])
+        du += a * ku[j, i]
+        dv += a * kv[j, i]
+    u_stage[i] = u_in[i] + h * du
+    v_stage[i] = v_in[i] + h * dv
+
+
+@wp.kernel
+def dp5_eval(
+    # Model:
+    patch_pad: wp.array[wp.int32],
+    inv_mass: wp.array[Any],
+    k_diag: wp.array[Any],
+    damping: wp.array[Any],
+    normal_force: wp.array[Any],
+    radius: wp.array[Any],
+    nbr_start: wp.array[wp.int32],
+    nbr_index: wp.array[wp.int32],
+    nbr_stiffness: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+    # Control:
+    stage: int,
+    first: int,
+    mode: wp.array2d[wp.int32],
+    # Stage state in:
+    u_stage: wp.array[Any],
+    v_stage: wp.array[Any],
+    # Out:
+    ku: wp.array2d[Any],
+    kv: wp.array2d[Any],
+):
+    """k_s = (u̇, v̇) at the stage state of every pad that has not landed; ``first``: k_0 of the pads that need it
+    (at the start), at the state itself."""
+    i = wp.tid()
+    p = patch_pad[i]
+    if mode[p, M_LANDED] != 0:
+        return
+    if first != 0 and mode[p, M_NEEDK1] == 0:
+        return
+    v = v_stage[i]
+    ku[stage, i] = v
+    kv[stage, i] = acceleration(
+        i, p, u_stage, v, inv_mass, k_diag, damping, normal_force, radius, nbr_start, nbr_index, nbr_stiffness,
+        pad_omega, pad_mu_scale, pad_slope, pad_decay,
+    )  # fmt: skip
+
+
+@wp.kernel
+def dp5_control(
+    # Model:
+    pad_patch_start: wp.array[wp.int32],
+    radius: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+    err_coeff: wp.array[wp.float64],
+    u_scale: wp.array[Any],
+    v_scale: wp.array[Any],
+    threads: int,
+    tol: wp.float64,
+    h_max: wp.float64,
+    h_min: wp.float64,
+    # State in (y_0, the 5th-order solution = stage 7, the stages):
+    u_in: wp.array[Any],
+    v_in: wp.array[Any],
+    u_new: wp.array[Any],
+    v_new: wp.array[Any],
+    ku: wp.array2d[Any],
+    kv: wp.array2d[Any],
+    # Control in/out:
+    ctl: wp.array2d[wp.float64],
+    mode: wp.array2d[wp.int32],
+    stats: wp.array2d[wp.int64],
+    accepted: wp.array[wp.int32],
+    done: wp.array[wp.int32],
+):
+    """Per pad (one block): the trial's scaled error (maximum over the pad), accept or reject, next step (PI),
+    landing on the target; ``done[1]`` flags a step below ``h_min`` (the pad cannot go on)."""
+    pad, lane = wp.tid()
+    accepted[pad] = 0
+    if mode[pad, M_LANDED] != 0:
+        return
+    a = pad_patch_start[pad]
+    n = pad_patch_start[pad + 1] - a
+    h = ctl[pad, C_TRIAL]
+    mu_max = wp.float64(pad_mu_scale[pad]) * wp.float64(3.141592653589793)
+    omega = pad_omega[pad]
+    part = wp.float64(0.0)
+    i = lane
+    while i < n:
+        g = a + i
+        eu = wp.float64(0.0)
+        ev = wp.float64(0.0)
+        for j in range(STAGES):
+            e = err_coeff[j]
+            eu += e * wp.float64(ku[j, g])
+            ev += e * wp.float64(kv[j, g])
+        vn = v_new[g]
+        fv, fd = friction_pair(omega * radius[g] - vn, pad_mu_scale[pad], pad_slope[pad], pad_decay[pad])
+        wv = wp.float64(v_scale[g]) + wp.max(wp.abs(wp.float64(v_in[g])), wp.abs(wp.float64(vn)))
+        slope = wp.abs(wp.float64(fd))
+        if slope * wv > mu_max:
+            wv = mu_max / slope
+        su = tol * (wp.float64(u_scale[g]) + wp.max(wp.abs(wp.float64(u_in[g])), wp.abs(wp.float64(u_new[g]))))
+        part = wp.max(part, wp.max(wp.abs(h * eu) / su, wp.abs(h * ev) / (tol * wv)))
+        i += threads
+    err = wp.tile_max(wp.tile(part))[0]
+    if lane != 0:
+        return
+    if not wp.isfinite(err):
+        err = wp.float64(1.0e10)
+    t = ctl[pad, C_T]
+    target = ctl[pad, C_TARGET]
+    want = ctl[pad, C_H]
+    e = wp.max(err, wp.float64(1.0e-10))
+    if err <= wp.float64(1.0):  # PI controller (Gustafsson): k_I = 0.3, k_P = 0.4 over the order 5
+        fac = wp.float64(0.9) * wp.pow(e, wp.float64(-0.14)) * wp.pow(ctl[pad, C_ERR], wp.float64(0.08))
+        top = wp.float64(5.0)
+        if mode[pad, M_REJECTED] != 0:
+            top = wp.float64(1.0)
+        fac = wp.clamp(fac, wp.float64(0.2), top)
+        mode[pad, M_REJECTED] = 0
+        accepted[pad] = 1
+        stats[pad, 0] = stats[pad, 0] + wp.int64(1)
+        ctl[pad, C_ERR] = wp.max(e, wp.float64(1.0e-4))
+        if h >= want:
+            want = h * fac
+        else:  # a step cut short to land says nothing against the desired one
+            want = wp.max(want, h * fac)
+        t = t + h
+        if t >= target * (wp.float64(1.0) - wp.float64(1.0e-13)):
+            t = target
+            mode[pad, M_LANDED] = 1
+        ctl[pad, C_T] = t
+    else:
+        fac = wp.clamp(wp.float64(0.9) * wp.pow(e, wp.float64(-0.2)), wp.float64(0.2), wp.float64(1.0))
+        mode[pad, M_REJECTED] = 1
+        stats[pad, 1] = stats[pad, 1] + wp.int64(1)
+        want = h * fac
+    if want < h_min:
+        done[2] = 1  # the error cannot be met: the run stops with a fault
+    want = wp.clamp(want, h_min, h_max)
+    ctl[pad, C_H] = want
+    if mode[pad, M_LANDED] != 0:
+        return
+    rest = target - t
+    nxt = wp.min(want, rest)
+    if rest - nxt < wp.float64(0.01) * nxt:  # no sliver step before the target
+        nxt = rest
+    ctl[pad, C_TRIAL] = nxt
+
+
+@wp.kernel
+def dp5_commit(
+    patch_pad: wp.array[wp.int32],
+    accepted: wp.array[wp.int32],
+    # Trial in:
+    u_new: wp.array[Any],
+    v_new: wp.array[Any],
+    # State and stages out:
+    u_io: wp.array[Any],
+    v_io: wp.array[Any],
+    ku: wp.array2d[Any],
+    kv: wp.array2d[Any],
+):
+    """An accepted trial becomes the state; its last stage becomes the next first one (FSAL)."""
+    i = wp.tid()
+    if accepted[patch_pad[i]] == 0:
+        return
+    u_io[i] = u_new[i]
+    v_io[i] = v_new[i]
+    ku[0, i] = ku[STAGES - 1, i]
+    kv[0, i] = kv[STAGES - 1, i]
+
+
+@wp.kernel
+def landing(
+    pads: int,
+    sample_dt: wp.float64,
+    t_end: wp.float64,
+    t_stop: wp.array[wp.float64],
+    # Control in/out:
+    ctl: wp.array2d[wp.float64],
+    mode: wp.array2d[wp.int32],
+    done: wp.array[wp.int32],
+    counters: wp.array[wp.int32],
+):
+    """One thread: when every pad has landed on the sample time, flag the sample (``counters[3]``); then, unless
+    the run is over or stopped (``done[0]``, ``done[2]``: a step underflow) or the host asked to pause there
+    (``t_stop[0]``; ``done[1]`` waits until it is moved on), open every pad's next interval."""
+    counters[3] = 0
+    if done[0] != 0 or done[2] != 0:
+        return
+    if done[1] == 0:
+        for p in range(pads):
+            if mode[p, M_LANDED] == 0:
+                return
+        counters[3] = 1
+        if ctl[0, C_TARGET] >= t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
+            done[0] = 1
+            return
+        if ctl[0, C_TARGET] >= t_stop[0] * (wp.float64(1.0) - wp.float64(1.0e-12)):
+            done[1] = 1
+            return
+    elif ctl[0, C_TARGET] >= t_stop[0] * (wp.float64(1.0) - wp.float64(1.0e-12)):
+        return
+    done[1] = 0
+    for p in range(pads):
+        t = ctl[p, C_TARGET]
+        ctl[p, C_START] = t
+        ctl[p, C_TARGET] = t + sample_dt
+        ctl[p, C_TRIAL] = wp.min(ctl[p, C_H], sample_dt)
+        mode[p, M_LANDED] = 0
+
+
+@wp.kernel
+def k1_done(mode: wp.array2d[wp.int32]):
+    """Per pad: its first stage is evaluated."""
+    p = wp.tid()
+    mode[p, M_NEEDK1] = 0
+
+
+precision_overloads(dp5_stage, dp5_eval, dp5_control, dp5_commit)
