@@ -250,7 +250,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return args.handler(args)
     except AcaError as e:
         print(f"aca-warp: error: {e}", file=sys.stderr)
-        return 2
+        return e.exit_code  # 2 bad input, 3 unphysical, 4 output not writable (docs/faults.md)
     except KeyboardInterrupt:
         if args.command == "hf":
             print("aca-warp: interrupted; the run file holds the samples so far, marked incomplete", file=sys.stderr)
