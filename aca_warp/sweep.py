@@ -688,8 +688,12 @@ def run_shard(
 
 
 def shard_finished(path: Path, spec_hash: str, start: int, stop: int) -> str | None:
-    """``"done"``/``"fault"`` when ``path`` holds a finished shard of this spec and pad range, else None."""
+    """``"done"``/``"fault"`` when ``path`` holds a finished, readable shard of this spec and pad range, else None
+    (then it runs again). Readable: every object opens and the last sample of every output reads (a damaged group
+    or chunk index shows up here)."""
     import h5py
+
+    from aca_warp.hf.recorder import GLOBAL_NAMES
 
     if not path.is_file():
         return None
@@ -703,8 +707,12 @@ def shard_finished(path: Path, spec_hash: str, start: int, stop: int) -> str | N
                 and int(a.get("pad_stop", -1)) == stop
             ):
                 return None
+            f.visititems(lambda name, obj: None)
+            f["global/time"][-1:]
+            for k in GLOBAL_NAMES:
+                f["global"][k][:, -1:]
             return "done" if bool(a.get("complete", False)) else "fault"
-    except (OSError, KeyError, ValueError):
+    except (OSError, KeyError, ValueError, RuntimeError, TypeError):  # missing, truncated or damaged: run it again
         return None
 
 

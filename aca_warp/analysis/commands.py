@@ -14,6 +14,7 @@ from typing import Any
 
 from aca_warp.common.argtypes import fraction, int_at_least, nonneg, positive
 from aca_warp.common.errors import SceneError
+from aca_warp.common.files import reading
 
 FIGURE_NAMES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
 """Figure names of ``plot --only`` (same as ``aca_warp.plots.FIGURES``, kept here to avoid importing Matplotlib)."""
@@ -132,16 +133,17 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     if args.freq_min is not None and args.freq_max is not None and args.freq_min >= args.freq_max:
         raise SceneError(f"--freq-min ({args.freq_min:g} Hz) must be below --freq-max ({args.freq_max:g} Hz)")
     band = None if args.freq_min is None and args.freq_max is None else (args.freq_min, args.freq_max)
-    groups = analyze_run(
-        args.run,
-        freq_range=band,
-        sync=not args.no_sync,
-        rule=args.rule,
-        eta=args.eta,
-        snr=args.snr,
-        n_bins=args.n_bins,
-        stft_window_s=args.stft_window,
-    )
+    with reading(args.run, "run file"):
+        groups = analyze_run(
+            args.run,
+            freq_range=band,
+            sync=not args.no_sync,
+            rule=args.rule,
+            eta=args.eta,
+            snr=args.snr,
+            n_bins=args.n_bins,
+            stft_window_s=args.stft_window,
+        )
     parts = [f"{args.run}: /analysis written ({', '.join(groups)})"]
     peaks = groups["peaks"].attrs
     if "first_velocity_peak_frequency" in peaks:
@@ -181,7 +183,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
     def note(message: str) -> None:
         print(f"aca-warp plot: {message}", file=sys.stderr)
 
-    files = plot_run(args.run, out, which=args.only, times=args.times, log=note)
+    with reading(args.run, "run file"):
+        files = plot_run(args.run, out, which=args.only, times=args.times, log=note)
     for f in files:
         print(f)
     if not files:

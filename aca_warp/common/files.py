@@ -16,7 +16,7 @@ from typing import Any
 
 import h5py
 
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import AcaError, SceneError
 
 
 def versions() -> dict[str, str]:
@@ -206,5 +206,33 @@ def open_h5(path: str | Path, what: str) -> h5py.File:
         raise SceneError(f"{what} not found: {p}")
     try:
         return h5py.File(p, "r")
-    except OSError as e:
-        raise SceneError(f"cannot open {what} {p}: {e}") from None
+    except (OSError, RuntimeError) as e:
+        raise SceneError(f"cannot open {what} {p}: {str(e).strip().splitlines()[0] if str(e).strip() else e}") from None
+
+
+def from_h5py(e: BaseException) -> bool:
+    """Whether ``e`` was raised inside h5py (its innermost frame lies in the h5py package)."""
+    tb = e.__traceback__
+    if tb is None:
+        return False
+    while tb.tb_next is not None:
+        tb = tb.tb_next
+    return "h5py" in Path(tb.tb_frame.f_code.co_filename).parts
+
+
+@contextmanager
+def reading(path: str | Path, what: str = "file") -> Iterator[None]:
+    """The read boundary of an input file: an error that h5py raises in the body (a bit flip in the file's metadata,
+    a truncated file, a missing object) becomes one :class:`SceneError` line naming ``path``; errors of the
+    program itself, storage errors and :class:`AcaError` pass through."""
+    from aca_warp.common.storage import storage_errno
+
+    try:
+        yield
+    except AcaError:
+        raise
+    except (OSError, RuntimeError, KeyError, ValueError, TypeError, IndexError) as e:
+        if storage_errno(e) is not None or not from_h5py(e):
+            raise
+        detail = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise SceneError(f"cannot read {what} {path}: it is damaged or incomplete ({detail})") from None

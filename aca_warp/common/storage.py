@@ -71,6 +71,12 @@ def storage_error(code: int, path: str | Path, advice: str) -> StorageError:
     return e
 
 
+def write_failed(e: BaseException, path: str | Path, advice: str) -> StorageError:
+    """A :class:`StorageError` for a write that HDF5 refused for another reason than room (a damaged file)."""
+    detail = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+    return StorageError(f"writing {path} failed inside HDF5 ({detail}; is the file damaged?); {advice}")
+
+
 class GuardedFile:
     """An HDF5 file open for writing whose writes cannot leave it inconsistent on a full device (module docstring).
 

@@ -44,8 +44,8 @@ from aca_warp.common.checkpoint import (
     write_checkpoint,
 )
 from aca_warp.common.errors import AcaError, SceneError
-from aca_warp.common.files import OutputLock, check_output_path, new_path, open_h5, partial_path, versions
-from aca_warp.common.storage import GuardedFile, storage_errno, storage_error
+from aca_warp.common.files import OutputLock, check_output_path, from_h5py, new_path, open_h5, partial_path, versions
+from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS, Chunk
 from aca_warp.scene import Scene, scene_to_dict
@@ -181,6 +181,10 @@ class RunWriter:
                 if name in f["patches"]:
                     self._patch_ds[name] = f["patches"][name]
                     self._patch_ds[name].resize(ckpt.rows["patches"], axis=0)
+            # read the last kept row of every sample dataset: a damaged chunk index shows up here, not mid-run
+            for d in (*(f["global"][name] for name in ("time", *GLOBAL_NAMES)), *self._patch_ds.values()):
+                if d.shape[0]:
+                    d[d.shape[0] - 1]
             if "final" in f["patches"]:
                 del f["patches"]["final"]
         self.flush_each_chunk = False  # a resumed run keeps checkpointing: flush at checkpoints only
@@ -280,13 +284,15 @@ class RunWriter:
         ``error`` is a storage failure. Returns the exception to raise instead of ``error`` (a one-line
         :class:`~aca_warp.common.errors.StorageError`), or None to raise ``error`` itself."""
         code = storage_errno(error)
-        if code is None:
+        if code is None and not from_h5py(error):
             try:
                 self.close(complete=False, status=status)
             except AcaError as e:
                 return e
             return None
         self.abandon()
+        if code is None:  # HDF5 failed to write (a damaged file): nothing more goes into it
+            return write_failed(error, self.partial, hf_advice(self.path, self.checkpoint_time))
         return storage_error(code, self.partial, hf_advice(self.path, self.checkpoint_time))
 
 

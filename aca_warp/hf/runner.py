@@ -16,7 +16,7 @@ import warp as wp
 
 from aca_warp.common.checkpoint import Checkpoint, has_checkpoint
 from aca_warp.common.errors import SceneError
-from aca_warp.common.files import OutputLock, check_output_path, open_h5, partial_path
+from aca_warp.common.files import OutputLock, check_output_path, open_h5, partial_path, reading
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
@@ -182,7 +182,7 @@ def resume_run(
         final, part = find_resumable(path)  # again, now that no other process can move it
         src = part if part.exists() else final
         s = read_settings(src)
-        with open_h5(src, "run file") as f:
+        with reading(src, "run file"), open_h5(src, "run file") as f:
             if not has_checkpoint(f):
                 raise SceneError(f"{src} holds no checkpoint (run without checkpoint_interval); use 'aca-warp rerun'")
         model = build_model([s.scene], device=device or s.device, precision=s.precision)

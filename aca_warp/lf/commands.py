@@ -88,12 +88,12 @@ def read_lf_settings(path: str | Path) -> dict[str, Any]:
     import numpy as np
 
     from aca_warp.common.errors import SceneError
-    from aca_warp.common.files import open_h5
+    from aca_warp.common.files import open_h5, reading
     from aca_warp.lf.scene import lf_scene_from_dict
     from aca_warp.scene import Patches
 
     p = Path(path)
-    with open_h5(p, "LF run file") as f:
+    with reading(p, "LF run file"), open_h5(p, "LF run file") as f:
         try:
             if f.attrs.get("kind") != "lf":
                 raise SceneError(f"{p} is not an LF run file (no kind = 'lf' attribute)")

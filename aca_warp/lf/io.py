@@ -41,8 +41,18 @@ from aca_warp.common.checkpoint import (
     write_checkpoint,
 )
 from aca_warp.common.errors import AcaError, SceneError
-from aca_warp.common.files import OutputLock, check_output_path, machine, new_path, open_h5, partial_path, versions
-from aca_warp.common.storage import GuardedFile, storage_errno, storage_error
+from aca_warp.common.files import (
+    OutputLock,
+    check_output_path,
+    from_h5py,
+    machine,
+    new_path,
+    open_h5,
+    partial_path,
+    reading,
+    versions,
+)
+from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
 from aca_warp.kernels.lf import H_NAMES, H_UNITS
 from aca_warp.lf.scene import lf_scene_to_dict
 from aca_warp.lf.solver import LFSimulation
@@ -256,13 +266,15 @@ class LFRunWriter:
     def finish(self, error: BaseException, status: str) -> BaseException | None:
         """Close the file after ``error`` stopped the run (as :meth:`aca_warp.hf.runfile.RunWriter.finish`)."""
         code = storage_errno(error)
-        if code is None:
+        if code is None and not from_h5py(error):
             try:
                 self.close(complete=False, status=status)
             except AcaError as e:
                 return e
             return None
         self.abandon()
+        if code is None:  # HDF5 failed to write (a damaged file): nothing more goes into it
+            return write_failed(error, self.partial, lf_advice(self.path, self.checkpoint_time))
         return storage_error(code, self.partial, lf_advice(self.path, self.checkpoint_time))
 
 
@@ -288,7 +300,7 @@ def write_snapshot(group: h5py.Group, snap: dict[str, Any]) -> None:
 
 def snapshot_names(path: str | Path) -> list[str]:
     """Names of the snapshots in an LF run file, in time order."""
-    with _open(path) as f:
+    with reading(path, "LF run file"), _open(path) as f:
         g = f["snapshots"]
         return sorted(g, key=lambda n: float(g[n].attrs["time"]))
 
@@ -304,14 +316,17 @@ def _open(path: str | Path) -> h5py.File:
 
 def read_snapshot(path: str | Path, name: str) -> dict[str, Any]:
     """One snapshot as nested dicts of arrays plus its ``attrs``."""
-    with _open(path) as f:
+    with reading(path, "LF run file"), _open(path) as f:
         if name not in f["snapshots"]:
             names = ", ".join(sorted(f["snapshots"])) or "none"
             raise SceneError(f"no snapshot {name!r} in {path}; it has: {names}")
         g = f["snapshots"][name]
         out: dict[str, Any] = {part: {k: g[part][k][()] for k in g[part]} for part in ("patches", "matrix", "rings")}
         out["attrs"] = {k: (v.item() if hasattr(v, "item") else v) for k, v in g.attrs.items()}
-        out["scene"] = json.loads(f.attrs["scene"])
+        try:
+            out["scene"] = json.loads(f.attrs["scene"])
+        except (KeyError, TypeError, ValueError) as e:
+            raise SceneError(f"{path}: the stored LF scene is missing or damaged ({type(e).__name__}: {e})") from None
     return out
 
 
@@ -323,24 +338,34 @@ def scene_from_snapshot(path: str | Path, name: str, *, duration: float | None =
     """
     s = read_snapshot(path, name)
     doc = s["scene"]
-    p = s["patches"]
-    if len(p["x"]) == 0:
-        raise SceneError(f"snapshot {name!r} has no patches; an HF scene needs at least one")
-    patches = Patches(p["x"], p["y"], p["area"], p["height"], source=f"{path}:/snapshots/{name}")
-    m = s["matrix"]
-    matrix = Matrix(m["area"], m["radius"], m["height"])
+    try:
+        p = s["patches"]
+        if len(p["x"]) == 0:
+            raise SceneError(f"snapshot {name!r} has no patches; an HF scene needs at least one")
+        patches = Patches(p["x"], p["y"], p["area"], p["height"], source=f"{path}:/snapshots/{name}")
+        m = s["matrix"]
+        matrix = Matrix(m["area"], m["radius"], m["height"])
+    except SceneError as e:
+        raise SceneError(f"{path}: snapshot {name!r} is not a valid HF scene: {e}") from None
+    except (KeyError, TypeError, ValueError) as e:
+        raise SceneError(f"{path}: snapshot {name!r} is incomplete or damaged ({type(e).__name__}: {e})") from None
     a = s["attrs"]
     kw: dict[str, Any] = {}
     if duration is not None:
         kw["duration"] = duration
-    return Scene(
-        name=f"{doc['scene']['name']}:{name}",
-        pad=Pad(**doc["pad"]),
-        patches=patches,
-        material=Material(**doc["material"]),
-        friction=Friction(**doc["friction"]),
-        normal_force=float(a["normal_force"]),
-        angular_velocity=float(a["angular_velocity"]),
-        matrix=matrix,
-        **kw,
-    )
+    try:
+        return Scene(
+            name=f"{doc['scene']['name']}:{name}",
+            pad=Pad(**doc["pad"]),
+            patches=patches,
+            material=Material(**doc["material"]),
+            friction=Friction(**doc["friction"]),
+            normal_force=float(a["normal_force"]),
+            angular_velocity=float(a["angular_velocity"]),
+            matrix=matrix,
+            **kw,
+        )
+    except SceneError as e:
+        raise SceneError(f"{path}: snapshot {name!r} is not a valid HF scene: {e}") from None
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise SceneError(f"{path}: snapshot {name!r} is incomplete or damaged ({type(e).__name__}: {e})") from None
