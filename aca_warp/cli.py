@@ -13,7 +13,9 @@ EPILOG = """\
 SCENE is a preset (hf1, hf2, hf3, hf4, varying_area) or a TOML scene file (docs/scenes.md).
 Example:  aca-warp hf hf1 --duration 1e-3 -o run.h5
 Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad input (nothing written),
-3 the run stopped on a fault (the file holds everything before it, marked incomplete), 130 interrupted.
+3 the run stopped on a fault or an unphysical result (the file holds everything before it, marked incomplete),
+4 the output could not be written (disk full, file-size limit; the .partial keeps its last checkpoint),
+130 interrupted (docs/faults.md).
 """
 
 
@@ -84,7 +86,17 @@ def build_parser() -> argparse.ArgumentParser:
     hf.add_argument(
         "--patch-decimation", type=int_at_least(1), metavar="N", help="record per-patch histories every N-th sample"
     )
-    hf.add_argument("--force", action="store_true", help="run explicit steps beyond the stable-step estimate")
+    hf.add_argument(
+        "--force",
+        action="store_true",
+        help="run a step beyond the stable-step estimate, or a strang step that does not resolve sticking (warns)",
+    )
+    hf.add_argument(
+        "--accept-unphysical",
+        action="store_true",
+        help="run on, with a warning, where the physical sanity checks would stop the run (normal forces that do "
+        "not carry the load, mu beyond its bound; docs/faults.md)",
+    )
     hf.add_argument(
         "--snapshot", metavar="NAME", help="SCENE is an LF run file (.h5): run HF on its snapshot NAME (aca-warp lf)"
     )
@@ -171,6 +183,7 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         force=args.force,
         engine=args.engine,
         checkpoint_interval=args.checkpoint_interval,
+        accept_unphysical=args.accept_unphysical,
     )
     result = run_scene(
         scene,
@@ -219,6 +232,7 @@ def _resume_hf(args: argparse.Namespace) -> int:
             ("--tolerance", args.tolerance, DEFAULT_TOLERANCE),
             ("--precision", args.precision, "fp64"),
             ("--force", args.force, False),
+            ("--accept-unphysical", args.accept_unphysical, False),
             ("--overwrite", args.overwrite, False),
             ("--engine", getattr(args, "engine", "auto"), "auto"),
         ),

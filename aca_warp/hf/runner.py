@@ -23,7 +23,8 @@ from aca_warp.hf.onchip_layout import choose_engine
 from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import check_run
 from aca_warp.hf.runfile import BUSY, RunWriter
-from aca_warp.hf.solver import HFSolver
+from aca_warp.hf.sanity import check_contact
+from aca_warp.hf.solver import check_step
 from aca_warp.hf.state import HFState, initial_state
 from aca_warp.scene import Scene
 
@@ -55,7 +56,8 @@ def run_scene(
         check_run(options.duration, scene.record, options.checkpoint_interval)
         model = build_model([scene], device=device, precision=precision)
         state = initial_state(model)
-        HFSolver(model, options.integrator, options.dt, force=options.force, tolerance=options.tolerance)
+        check_step(model, options, scene.record.sample_dt)  # the step the run takes, the sticking bound
+        check_contact(model, accept=options.accept_unphysical)  # exit 3 before a file exists
         options = dataclasses.replace(options, engine=choose_engine(model, options.engine, options.integrator))
     except BaseException:
         lock.release()
@@ -114,11 +116,7 @@ def _execute(
                 "wall_time": result.wall_time,
                 "compile_time": result.compile_time,
                 "dt": result.dt,
-                "stable_step": {
-                    "spring": result.estimate.spring,
-                    "friction": result.estimate.friction,
-                    "explicit": result.estimate.explicit,
-                },
+                "stable_step": result.estimate.as_dict(),
                 "fault": "" if result.fault is None else str(result.fault),
             },
         )
