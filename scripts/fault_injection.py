@@ -11,13 +11,18 @@ checkpoints). The recovery then does what a user would:
   itself is killed at a random time too (at most ``--max-kills`` kills per trial) and recovered again;
 * sweep: the same command again (a sweep resumes by design).
 
+With ``--file-size-limits N`` each workload also runs N times under a file-size limit (RLIMIT_FSIZE, SIGXFSZ
+ignored: a write past it fails with EFBIG, the path of a full device), the limits spread evenly from 30 % to
+110 % of the reference output's size (a sweep: of its largest shard); the run must stop with exit 4 (or finish,
+when the limit is not reached), and its recovery without the limit must again equal the reference.
+
 A trial passes when the recovered output equals the reference dataset for dataset, bit for bit (HF: every dataset
 of the run file; LF: every dataset, snapshots included; sweep: every dataset of every shard file), every recovery
 command exited 0 and no ``.partial`` or lock is left. Counts and failures are printed and written as JSON and
 Markdown.
 
-    python scripts/fault_injection.py --kills 15                 # ~5 minutes on the 2-core CPU container
-    python scripts/fault_injection.py --quick                    # one trial per workload, short runs (tests)
+    python scripts/fault_injection.py --kills 12 --file-size-limits 6    # ~12 minutes on the 2-core container
+    python scripts/fault_injection.py --quick                            # one trial per workload, short runs
 """
 
 from __future__ import annotations
@@ -119,11 +124,19 @@ class Workload:
     output: str  # OUT: a file (hf, lf) or a folder (sweep)
 
 
+LIMITED = (
+    "import resource, signal, sys; lim = int(sys.argv[1]); signal.signal(signal.SIGXFSZ, signal.SIG_IGN); "
+    "resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim)); from aca_warp.cli import main; sys.exit(main(sys.argv[2:]))"
+)
+
+
 @dataclass
 class Trial:
     """What one trial did."""
 
     workload: str
+    limit: int | None = None  # file-size limit [bytes] of a disk-full trial
+    stopped: int | None = None  # exit code of the limited run
     kills: int = 0
     delays: list[float] = field(default_factory=list)
     recoveries: list[str] = field(default_factory=list)  # resume, rerun, sweep-rerun, finished
@@ -155,9 +168,10 @@ def env() -> dict[str, str]:
     return e
 
 
-def cli(args: list[str], cwd: Path) -> subprocess.Popen:
+def cli(args: list[str], cwd: Path, limit: int | None = None) -> subprocess.Popen:
+    pre = [sys.executable, "-m", "aca_warp.cli"] if limit is None else [sys.executable, "-c", LIMITED, str(limit)]
     return subprocess.Popen(
-        [sys.executable, "-m", "aca_warp.cli", *args],
+        [*pre, *args],
         cwd=cwd,
         env=env(),
         stdout=subprocess.DEVNULL,
@@ -166,25 +180,23 @@ def cli(args: list[str], cwd: Path) -> subprocess.Popen:
     )
 
 
-def run_to_end(args: list[str], cwd: Path) -> tuple[int, str]:
-    p = cli(args, cwd)
+def run_to_end(args: list[str], cwd: Path, limit: int | None = None) -> tuple[int, str]:
+    p = cli(args, cwd, limit)
     _, err = p.communicate(timeout=600)
     return p.returncode, err
 
 
-def run_and_kill(args: list[str], cwd: Path, delay: float) -> bool:
-    """Start ``aca-warp ARGS``, SIGKILL it after ``delay`` s; True when it was still running then."""
+def run_and_kill(args: list[str], cwd: Path, delay: float) -> tuple[bool, int, str]:
+    """Start ``aca-warp ARGS``, SIGKILL it after ``delay`` s; (killed, exit code, stderr): killed is False when it
+    ended by itself before (then its exit code and stderr count)."""
     p = cli(args, cwd)
     try:
-        p.wait(timeout=delay)
-        return False
+        _, err = p.communicate(timeout=delay)
+        return False, p.returncode, err
     except subprocess.TimeoutExpired:
         p.send_signal(signal.SIGKILL)
-        p.wait()
-        return True
-    finally:
-        if p.stderr:
-            p.stderr.close()
+        p.communicate()
+        return True, -signal.SIGKILL, ""
 
 
 def datasets(path: Path) -> dict[str, bytes]:
@@ -237,11 +249,13 @@ def recover(w: Workload, cwd: Path, t: Trial, rng: random.Random, budget: float,
         if t.kills < max_kills and rng.random() < 0.5:
             delay = rng.uniform(0.0, budget)
             t.delays.append(round(delay, 3))
-            if run_and_kill(args, cwd, delay):
+            killed, code, err = run_and_kill(args, cwd, delay)
+            if killed:
                 t.kills += 1
                 t.recoveries.append(f"{what} (killed)")
                 continue
-        code, err = run_to_end(args, cwd)
+        else:
+            code, err = run_to_end(args, cwd)
         t.recoveries.append(what)
         if w.name != "sweep" and code == 2 and "holds no checkpoint" in err:
             code, err = run_to_end([*w.start, "-o", str(out), "--overwrite"], cwd)  # killed before a checkpoint
@@ -257,18 +271,56 @@ def trial(w: Workload, root: Path, ref: dict[str, bytes], budget: float, rng: ra
     try:
         delay = rng.uniform(0.0, budget)
         t.delays.append(round(delay, 3))
-        if run_and_kill([*w.start, "-o", str(cwd / w.output)], cwd, delay):
+        killed, code, err = run_and_kill([*w.start, "-o", str(cwd / w.output)], cwd, delay)
+        if killed:
             t.kills += 1
-        code, err = recover(w, cwd, t, rng, budget, max_kills)
-        if code != 0:
-            t.outcome, t.detail = "error", f"exit {code}: {err.strip().splitlines()[-1] if err.strip() else ''}"
-        elif leftovers(w, cwd):
-            t.outcome, t.detail = "error", f"left behind: {', '.join(leftovers(w, cwd))}"
+            code, err = recover(w, cwd, t, rng, budget, max_kills)
         else:
-            got = output_datasets(w, cwd)
-            diff = sorted(set(got) ^ set(ref)) + sorted(k for k in set(got) & set(ref) if got[k] != ref[k])
-            t.outcome = "identical" if not diff else "different"
-            t.detail = ", ".join(diff[:5])
+            t.recoveries.append("finished before the kill")
+        compare(t, w, cwd, ref, code, err)
+    except Exception as e:  # noqa: BLE001  (the harness reports, it does not stop)
+        t.outcome, t.detail = "error", f"{type(e).__name__}: {e}"
+    finally:
+        t.seconds = round(time.perf_counter() - t0, 2)
+        if t.outcome == "identical":
+            shutil.rmtree(cwd, ignore_errors=True)
+    return t
+
+
+def compare(t: Trial, w: Workload, cwd: Path, ref: dict[str, bytes], code: int, err: str) -> None:
+    """Set ``t.outcome``: the recovered output against the reference."""
+    if code != 0:
+        t.outcome, t.detail = "error", f"exit {code}: {err.strip().splitlines()[-1] if err.strip() else ''}"
+    elif leftovers(w, cwd):
+        t.outcome, t.detail = "error", f"left behind: {', '.join(leftovers(w, cwd))}"
+    else:
+        got = output_datasets(w, cwd)
+        diff = sorted(set(got) ^ set(ref)) + sorted(k for k in set(got) & set(ref) if got[k] != ref[k])
+        t.outcome = "identical" if not diff else "different"
+        t.detail = ", ".join(diff[:5])
+
+
+def output_size(w: Workload, cwd: Path) -> int:
+    """Bytes of a workload's output (a sweep: its largest shard)."""
+    out = cwd / w.output
+    return out.stat().st_size if w.name != "sweep" else max(p.stat().st_size for p in out.glob("shard-*.h5"))
+
+
+def limit_trial(w: Workload, root: Path, ref: dict[str, bytes], limit: int, rng: random.Random) -> Trial:
+    """Run ``w`` under a file-size limit of ``limit`` bytes, then recover it without the limit and compare."""
+    t = Trial(w.name, limit=limit)
+    t0 = time.perf_counter()
+    cwd = root / f"limit-{w.name}-{limit}"
+    cwd.mkdir()
+    try:
+        code, err = run_to_end([*w.start, "-o", str(cwd / w.output)], cwd, limit)
+        t.stopped = code
+        lines = [x for x in err.splitlines() if x.strip() and not x.startswith("Warp ")]
+        if code not in (0, 4) or (code == 4 and (len(lines) != 1 or "file size limit reached" not in lines[0])):
+            t.outcome, t.detail = "error", f"limited run: exit {code}: {' | '.join(lines[-2:])}"
+        else:
+            code, err = recover(w, cwd, t, rng, 0.0, 0) if code == 4 else (0, "")
+            compare(t, w, cwd, ref, code, err)
     except Exception as e:  # noqa: BLE001  (the harness reports, it does not stop)
         t.outcome, t.detail = "error", f"{type(e).__name__}: {e}"
     finally:
@@ -293,8 +345,13 @@ def machine() -> str:
 def summarize(trials: list[Trial], refs: dict[str, float], args: argparse.Namespace) -> dict:
     by = {}
     for name in refs:
-        ts = [t for t in trials if t.workload == name]
+        ts = [t for t in trials if t.workload == name and t.limit is None]
+        lim = [t for t in trials if t.workload == name and t.limit is not None]
         by[name] = {
+            "limit_trials": len(lim),
+            "limit_stopped_exit4": sum(t.stopped == 4 for t in lim),
+            "limit_finished": sum(t.stopped == 0 for t in lim),
+            "limit_recovered_identical": sum(t.outcome == "identical" for t in lim),
             "trials": len(ts),
             "kills": sum(t.kills for t in ts),
             "resumes": sum(r.startswith("resume") for t in ts for r in t.recoveries),
@@ -328,8 +385,20 @@ def markdown(s: dict) -> str:
             f"| {name} | {w['trials']} | {w['kills']} | {w['resumes']} | {reruns} | {w['identical']} | "
             f"{w['different']} | {w['errors']} |"
         )
+    if any(w["limit_trials"] for w in s["workloads"].values()):
+        lines += [
+            "",
+            "| workload | file-size limits | stopped, exit 4 | finished under the limit | recovered bit-identical |",
+            "|---|---|---|---|---|",
+        ]
+        for name, w in s["workloads"].items():
+            lines.append(
+                f"| {name} | {w['limit_trials']} | {w['limit_stopped_exit4']} | {w['limit_finished']} | "
+                f"{w['limit_recovered_identical']} |"
+            )
     for f in s["failures"]:
-        lines.append(f"\nFAILED {f['workload']}: {f['outcome']} {f['detail']} (kills at {f['delays']} s)")
+        where = f"limit {f['limit']} B" if f["limit"] is not None else f"kills at {f['delays']} s"
+        lines.append(f"\nFAILED {f['workload']}: {f['outcome']} {f['detail']} ({where})")
     return "\n".join(lines) + "\n"
 
 
@@ -337,6 +406,13 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog="See docs/faults.md.")
     p.add_argument("--kills", type=int, default=10, help="trials per workload (each kills at least once; default 10)")
     p.add_argument("--max-kills", type=int, default=3, help="most SIGKILLs in one trial, recoveries included")
+    p.add_argument(
+        "--file-size-limits",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also run each workload under N file-size limits (30-110 %% of its output) and recover it",
+    )
     p.add_argument("--workloads", default="hf,lf,sweep", help="comma-separated subset of hf, lf, sweep")
     p.add_argument("--seed", type=int, default=1, help="random seed of the kill times")
     p.add_argument("--quick", action="store_true", help="short runs, one trial per workload (used by the tests)")
@@ -366,6 +442,12 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{w.name}: the uninterrupted run failed (exit {code}): {err.strip()}", file=sys.stderr)
             return 1
         ref = output_datasets(w, ref_dir)
+        size = output_size(w, ref_dir)
+        n = args.file_size_limits
+        for limit in (int(size * (0.3 + 0.8 * i / max(n - 1, 1))) for i in range(n)):
+            t = limit_trial(w, root, ref, limit, rng)
+            trials.append(t)
+            print(f"{w.name} limit {limit} B: exit {t.stopped}, {t.outcome} ({t.seconds} s) {t.detail}", flush=True)
         for k in range(args.kills):
             t = trial(w, root, ref, refs[w.name], rng, args.max_kills)
             trials.append(t)
