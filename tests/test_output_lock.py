@@ -12,6 +12,7 @@ import h5py
 import pytest
 from procs import cli, error_lines, resume, start, stop, wait_for
 
+from aca_warp.cli import main
 from aca_warp.common.errors import SceneError
 from aca_warp.common.files import OutputLock, lock_path
 
@@ -75,8 +76,17 @@ def test_lock_in_process(tmp_path: Path) -> None:
         OutputLock.acquire(tmp_path / "missing" / "run.h5")
 
 
+def refused(capsys: pytest.CaptureFixture, argv: list[str], pid: int) -> None:
+    """``aca-warp ARGV`` in this process: exit 2 and one line naming the holder ``pid``."""
+    capsys.readouterr()
+    code = main(argv)
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert code == 2 and len(lines) == 1, (argv, lines)
+    assert f"is being written by pid {pid}" in lines[0], lines
+
+
 @pytest.mark.parametrize("locking", ["TRUE", "FALSE"])
-def test_live_hf_run_is_not_replaced_or_resumed(tmp_path: Path, locking: str) -> None:
+def test_live_hf_run_is_not_replaced_or_resumed(tmp_path, locking, capsys, monkeypatch) -> None:
     """While `hf` runs (held with SIGSTOP), a second `hf --overwrite` on the same output, an `hf` without it and an
     `hf --resume` are refused with one line naming the holder, with HDF5's own locking on or off; nothing of the live
     `.partial` changes; the first run then finishes into a complete, readable file."""
@@ -90,15 +100,15 @@ def test_live_hf_run_is_not_replaced_or_resumed(tmp_path: Path, locking: str) ->
         wait_for(part, first)
         stop(first)
         before = part.read_bytes()
+        monkeypatch.setenv("HDF5_USE_FILE_LOCKING", locking)
         for argv in (
             ["hf", str(scene), "-o", str(out), "--overwrite", "--no-progress"],
             ["hf", str(scene), "-o", str(out), "--no-progress"],
             ["hf", "--resume", str(out), "--no-progress"],
         ):
-            r = cli(argv, HDF5_USE_FILE_LOCKING=locking)
-            lines = error_lines(r.stderr)
-            assert r.returncode == 2 and len(lines) == 1, (argv, r.stderr)
-            assert f"is being written by pid {first.pid}" in lines[0], lines
+            refused(capsys, argv, first.pid)
+        r = cli(["hf", "--resume", str(out), "--no-progress"], HDF5_USE_FILE_LOCKING=locking)  # a process too
+        assert r.returncode == 2 and f"pid {first.pid}" in error_lines(r.stderr)[0], r.stderr
         assert part.read_bytes() == before and not out.exists()
         resume(first)
         assert first.wait(timeout=120) == 0, first.stderr.read()
@@ -113,7 +123,7 @@ def test_live_hf_run_is_not_replaced_or_resumed(tmp_path: Path, locking: str) ->
     assert not part.exists() and not lock_path(out).exists()
 
 
-def test_live_lf_run_and_sweep_are_not_replaced(tmp_path: Path) -> None:
+def test_live_lf_run_and_sweep_are_not_replaced(tmp_path: Path, capsys) -> None:
     """The same for `lf` (`--overwrite` and `lf --resume` refused while it runs) and for a second `sweep` into the
     folder of a running one (with and without `--overwrite`)."""
     scene = tmp_path / "lf.toml"
@@ -131,9 +141,7 @@ def test_live_lf_run_and_sweep_are_not_replaced(tmp_path: Path) -> None:
         wait_for(out.with_name("lf.h5.partial"), first)
         stop(first)
         for argv in (["lf", str(scene), "-o", str(out), "--overwrite"], ["lf", "--resume", str(out)]):
-            r = cli(argv)
-            lines = error_lines(r.stderr)
-            assert r.returncode == 2 and len(lines) == 1 and f"pid {first.pid}" in lines[0], (argv, r.stderr)
+            refused(capsys, argv, first.pid)
         resume(first)
         assert first.wait(timeout=120) == 0, first.stderr.read()
         sweep = start(["sweep", str(spec), "-o", str(sweep_dir), "--workers", "0", "--quiet"])
@@ -141,9 +149,7 @@ def test_live_lf_run_and_sweep_are_not_replaced(tmp_path: Path) -> None:
         stop(sweep)
         manifest = (sweep_dir / "manifest.json").read_text()
         for extra in ([], ["--overwrite"]):
-            r = cli(["sweep", str(spec), "-o", str(sweep_dir), "--workers", "0", "--quiet", *extra])
-            lines = error_lines(r.stderr)
-            assert r.returncode == 2 and len(lines) == 1 and f"pid {sweep.pid}" in lines[0], (extra, r.stderr)
+            refused(capsys, ["sweep", str(spec), "-o", str(sweep_dir), "--workers", "0", "--quiet", *extra], sweep.pid)
         assert (sweep_dir / "manifest.json").read_text() == manifest
         resume(sweep)
         assert sweep.wait(timeout=120) == 0, sweep.stderr.read()
