@@ -9,10 +9,10 @@ it after the error only adds more such writes.
 :class:`GuardedFile` keeps this from happening to the files a run writes:
 
 * before every batch of appends, every checkpoint and every flush it *reserves* the blocks HDF5 may write
-  (``posix_fallocate``: from just below the end of what is on disk, or from the start of the file before a flush,
-  to HDF5's end of file plus the chunks begun since the last flush, up to the raw-data chunk cache, plus
-  :data:`SLACK`), so that a full device, a size limit or a quota shows up in the reservation, before HDF5 writes
-  anything, and HDF5's own writes land in blocks that are already allocated;
+  (``posix_fallocate`` up to HDF5's end of file plus the chunks begun since the last flush, up to the raw-data
+  chunk cache, plus :data:`SLACK`; the whole file the first time, only the new range after that), so that a full
+  device, a size limit or a quota shows up in the reservation, before HDF5 writes anything, and HDF5's own writes
+  land in blocks that are already allocated;
 * after every flush it trims the reservation (``ftruncate`` to HDF5's own end of file), so a finished file holds
   no padding;
 * on a storage error, from a reservation or from HDF5 itself, :meth:`GuardedFile.abandon` closes the HDF5 file
@@ -46,7 +46,6 @@ STORAGE_ERRNOS = {
     errno.EDQUOT: "disk quota exceeded",
 }
 SLACK = 64 * 1024  # bytes reserved past the estimate: metadata a flush allocates (index nodes, 2 KiB aggregator blocks)
-MARGIN = 1024 * 1024  # bytes below the end of the file reserved again (unwritten tails of aggregator blocks)
 _HDF5_ERRNO = re.compile(r"errno = (\d+)")
 
 
@@ -96,6 +95,7 @@ class GuardedFile:
             self.fd = handle if isinstance(handle, int) else None
         self.can_reserve = self.fd is not None and hasattr(os, "posix_fallocate")
         self._rows: dict[str, list] = {}  # dataset name -> [dataset, axis, extent at the last flush, reserved, now]
+        self._solid = 0  # bytes from the start of the file known to be allocated (no holes below)
 
     def touch(self, d: h5py.Dataset, start: int, stop: int, axis: int = 0) -> None:
         """Entries ``start:stop`` along ``axis`` of the chunked dataset ``d`` are about to be written (appended).
@@ -123,17 +123,18 @@ class GuardedFile:
         new = sum(self._begun(d, ax, reserved, now) for d, ax, _, reserved, now in self._rows.values())
         return min(old, self.raw_cache) + new
 
-    def reserve(self, extra: int = 0, *, whole: bool = False) -> None:
+    def reserve(self, extra: int = 0) -> None:
         """Make sure the device holds the blocks HDF5 may write next (``extra`` bytes of new datasets besides the
         chunks begun since the last flush); :class:`StorageError` when it does not, before anything is written.
 
-        Reserved: from :data:`MARGIN` below the end of what is on disk (or of what HDF5 has allocated, if that is
-        less) to HDF5's end of file plus the estimate plus :data:`SLACK`; ``whole``: from the start of the file (any
-        hole HDF5 may still fill; before a flush)."""
+        Reserved: from the end of what is known to be allocated (the start of the file the first time: a hole
+        anywhere below HDF5's end of file would need a block when HDF5 fills it) to HDF5's end of file plus the
+        estimate plus :data:`SLACK`. HDF5 punches no holes and a trim only shortens the file, so each later call
+        reserves only the new range (``fallocate`` over allocated blocks costs time on tmpfs)."""
         if not self.can_reserve:
             return
         eoa = int(self.f.id.get_filesize())
-        start = 0 if whole else max(0, min(os.fstat(self.fd).st_size, eoa) - MARGIN)  # type: ignore[arg-type]
+        start = min(self._solid, eoa)
         end = eoa + self.pending + extra + SLACK
         try:
             os.posix_fallocate(self.fd, start, end - start)  # type: ignore[arg-type]
@@ -144,6 +145,7 @@ class GuardedFile:
                 self.can_reserve = False  # a filesystem without preallocation: write unguarded
                 return
             raise
+        self._solid = max(self._solid, end)
         for entry in self._rows.values():
             entry[3] = entry[4]
 
@@ -154,10 +156,11 @@ class GuardedFile:
         end = int(self.f.id.get_filesize())
         if os.fstat(self.fd).st_size > end:
             os.ftruncate(self.fd, end)
+        self._solid = min(self._solid, os.fstat(self.fd).st_size)  # HDF5 may have truncated at its flush too
 
     def flush(self, extra: int = 0) -> None:
-        """Reserve (the whole file), flush, trim."""
-        self.reserve(extra, whole=True)
+        """Reserve, flush, trim."""
+        self.reserve(extra)
         self.f.flush()
         for entry in self._rows.values():
             entry[2] = entry[3] = entry[4]
