@@ -19,7 +19,9 @@ EPILOG = """\
 SCENE is a preset (hf1, hf2, hf3, hf4, varying_area) or a TOML scene file (docs/scenes.md).
 Example:  aca-warp hf hf1 --duration 1e-3 -o run.h5
 Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad input (nothing written),
-3 the run stopped on a fault (the file holds everything before it, marked incomplete), 130 interrupted.
+3 the run stopped on a fault or an unphysical result (the file holds everything before it, marked incomplete),
+4 the output could not be written (disk full, file-size limit; the .partial keeps its last checkpoint),
+130 interrupted (docs/faults.md).
 """
 
 
@@ -61,7 +63,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return args.handler(args)
     except AcaError as e:
         print(f"aca-warp: error: {e}", file=sys.stderr)
-        return 2
+        return e.exit_code  # 2 bad input, 3 unphysical, 4 output not writable (docs/faults.md)
     except KeyboardInterrupt:
         if args.command == "hf":
             print("aca-warp: interrupted; the run file holds the samples so far, marked incomplete", file=sys.stderr)

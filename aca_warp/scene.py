@@ -148,6 +148,12 @@ class Pad:
             raise SceneError(f"pad.r_outer ({self.r_outer:g} m) must exceed pad.r_inner ({self.r_inner:g} m)")
         if self.span_deg > 360.0:
             raise SceneError(f"pad.span_deg must be <= 360, got {self.span_deg:g}")
+        try:
+            finite = math.isfinite(self.first_moment)  # ∝ r_outer³, the largest power used
+        except OverflowError:
+            finite = False
+        if not finite:
+            raise SceneError(f"pad.r_outer = {self.r_outer:g} m is too large: the pad's area and moments overflow")
 
     @property
     def half_span(self) -> float:
@@ -388,6 +394,8 @@ def read_patch_file(path: str | Path) -> Patches:
     import h5py
 
     p = Path(path)
+    if p.is_dir():
+        raise SceneError(f"patch file {p} is a folder; give the HDF5 file with datasets x, y, area, height")
     if not p.is_file():
         raise SceneError(f"patch file not found: {p}")
     try:
@@ -398,7 +406,7 @@ def read_patch_file(path: str | Path) -> Patches:
             data = {k: np.asarray(f[k][()], dtype=np.float64) for k in ("x", "y", "area", "height")}
     except SceneError:
         raise
-    except (OSError, ValueError, TypeError, KeyError, AttributeError) as e:  # not HDF5, a group, text, compound
+    except (OSError, ValueError, TypeError, KeyError, AttributeError, RuntimeError) as e:  # not HDF5, damaged, …
         raise SceneError(f"cannot read patch file {p}: {type(e).__name__}: {e}") from None
     return Patches(**data, source=str(p))
 

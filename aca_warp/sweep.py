@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.common.errors import AcaError, SceneError
+from aca_warp.common.errors import AcaError, SceneError, StorageError
 from aca_warp.scene import (
     PRESETS,
     Friction,
@@ -399,7 +399,7 @@ def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
     else:
         total = math.prod(len(v) for v in lists.values())
         if total > MAX_PADS:
-            raise SweepError(f"the parameter lists combine into {total:.3g} pads, more than a sweep runs ({MAX_PADS})")
+            raise SweepError(f"the parameter lists combine into {total} pads, more than a sweep runs ({MAX_PADS})")
         combos = list(itertools.product(*lists.values()))
         params = {k: [c[i] for c in combos] for i, k in enumerate(lists)}
     spec = SweepSpec(
@@ -547,7 +547,8 @@ def run_shard(
     import h5py
     import warp as wp
 
-    from aca_warp.common.files import versions
+    from aca_warp.common.files import OutputLock, new_path, versions
+    from aca_warp.common.storage import GuardedFile, storage_errno, storage_error
     from aca_warp.hf.loop import run_hf
     from aca_warp.hf.model import build_model
     from aca_warp.hf.options import RunOptions
@@ -571,7 +572,13 @@ def run_shard(
     engines: set[str] = set()
     fault = None
     dt_used = math.nan
-    with h5py.File(partial, "w") as f:
+    lock = OutputLock.acquire(final, what="a worker of another sweep still writes this shard")
+    tmp = new_path(partial)
+    out = None
+    try:
+        tmp.unlink(missing_ok=True)
+        f = h5py.File(tmp, "w")
+        out = GuardedFile(f, partial)
         f.attrs["format"] = FORMAT
         f.attrs["spec"] = json.dumps(spec.doc, default=str)
         f.attrs["spec_hash"] = spec.hash
@@ -598,10 +605,13 @@ def run_shard(
         for key, vals in spec.parameters.items():
             v = vals[start:stop]
             data = np.array(v, dtype=h5py.string_dtype()) if key == "initial.state" else np.asarray(v)
+            out.reserve(data.nbytes)
             pg.create_dataset(key, data=data).attrs["unit"] = PARAMETERS[key][0]
         pads = f.create_group("pads")
         pads.create_dataset("index", data=np.arange(start, stop, dtype=np.int64))
         pads.create_dataset("patch_count", data=np.array([s.patches.count for s in scenes], dtype=np.int64))
+        out.flush()
+        os.replace(tmp, partial)  # readable from the moment it has this name
         for b0 in range(0, n, cap):
             b1 = min(b0 + cap, n)
             model = build_model(scenes[b0:b1], device=dev, precision=spec.precision)
@@ -613,6 +623,10 @@ def run_shard(
                 if k == 0:
                     return
                 r0 = row[0]
+                out.touch(g["time"], r0, r0 + k)
+                for nm in GLOBAL_NAMES:
+                    out.touch(g[nm], r0, r0 + k, axis=1)
+                out.reserve()
                 if b0 == 0:
                     t = g["time"]
                     t.resize((r0 + k,))
@@ -647,7 +661,18 @@ def run_shard(
         f.attrs["compile_time"] = compile_time
         f.attrs["engine"] = ",".join(sorted(engines))
         f.attrs["batch_capacity"] = cap
-    os.replace(partial, final)
+        out.close()
+        os.replace(partial, final)
+    except BaseException as e:
+        if out is not None:
+            out.abandon()
+        tmp.unlink(missing_ok=True)
+        code = storage_errno(e)
+        if code is not None:
+            raise storage_error(code, partial, "the shard runs again when the sweep is rerun") from None
+        raise
+    finally:
+        lock.release()
     summary.update(
         state="done" if fault is None else "fault",
         file=final.name,
@@ -663,8 +688,12 @@ def run_shard(
 
 
 def shard_finished(path: Path, spec_hash: str, start: int, stop: int) -> str | None:
-    """``"done"``/``"fault"`` when ``path`` holds a finished shard of this spec and pad range, else None."""
+    """``"done"``/``"fault"`` when ``path`` holds a finished, readable shard of this spec and pad range, else None
+    (then it runs again). Readable: every object opens and the last sample of every output reads (a damaged group
+    or chunk index shows up here)."""
     import h5py
+
+    from aca_warp.hf.recorder import GLOBAL_NAMES
 
     if not path.is_file():
         return None
@@ -678,8 +707,12 @@ def shard_finished(path: Path, spec_hash: str, start: int, stop: int) -> str | N
                 and int(a.get("pad_stop", -1)) == stop
             ):
                 return None
+            f.visititems(lambda name, obj: None)
+            f["global/time"][-1:]
+            for k in GLOBAL_NAMES:
+                f["global"][k][:, -1:]
             return "done" if bool(a.get("complete", False)) else "fault"
-    except (OSError, KeyError, ValueError):
+    except (OSError, KeyError, ValueError, RuntimeError, TypeError):  # missing, truncated or damaged: run it again
         return None
 
 
@@ -687,9 +720,19 @@ def shard_finished(path: Path, spec_hash: str, start: int, stop: int) -> str | N
 
 
 def _write_json(path: Path, doc: dict) -> None:
+    """Write ``doc`` to ``path`` atomically (a temporary file, then a rename); a full device keeps the old one."""
+    from aca_warp.common.storage import storage_errno, storage_error
+
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(doc, indent=1, default=str))
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(json.dumps(doc, indent=1, default=str))
+        os.replace(tmp, path)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        code = storage_errno(e)
+        if code is None:
+            raise
+        raise storage_error(code, path, "it keeps its previous state; make room and run the sweep again") from None
 
 
 def read_manifest(out_dir: str | Path) -> dict | None:
@@ -707,8 +750,11 @@ def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False
     """Create or reopen the sweep directory; returns the manifest with every shard's verified state.
 
     A directory that holds another sweep (different spec hash) is refused unless ``overwrite``, which removes
-    that sweep's manifest and shard files (nothing else).
+    that sweep's manifest and shard files (nothing else). The caller holds the directory's lock
+    (:func:`run_sweep`); a shard still being written by a worker of an earlier sweep is refused.
     """
+    from aca_warp.common.files import locked_output
+
     d = Path(out_dir)
     if d.exists() and not d.is_dir():
         raise SweepError(f"{d} exists and is not a directory")
@@ -726,7 +772,8 @@ def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False
                 "pass --overwrite to replace it, or choose another output directory"
             )
         for p in stray:
-            p.unlink()
+            with locked_output(d / p.name.removesuffix(".partial"), what="it belongs to a sweep that still runs"):
+                p.unlink(missing_ok=True)
         (d / MANIFEST).unlink(missing_ok=True)
         old = None
     shards = []
@@ -738,7 +785,8 @@ def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False
         verified = shard_finished(d / shard_name(i), spec.hash, a, b)
         if verified is None:
             entry["state"] = "pending"
-            (d / (shard_name(i) + ".partial")).unlink(missing_ok=True)
+            with locked_output(d / shard_name(i), what="a worker of an earlier sweep still runs; stop it first"):
+                (d / (shard_name(i) + ".partial")).unlink(missing_ok=True)
         elif entry.get("state") != verified:
             entry["state"] = verified  # the worker finished; the client died before recording it
         shards.append(entry)
@@ -896,6 +944,29 @@ def run_sweep(
     out = Path(out_dir)
     if device != "cpu" and scheduler is None and client is None:
         cuda_ordinals(device)  # validate before anything is written
+    if out.exists() and not out.is_dir():
+        raise SweepError(f"{out} exists and is not a directory")
+    out.mkdir(parents=True, exist_ok=True)
+    from aca_warp.common.files import locked_output
+
+    # one sweep per directory: held until the last shard is recorded
+    with locked_output(out / MANIFEST, what="wait for that sweep to finish or stop it"):
+        return _run_sweep(spec, out, device, workers, scheduler, overwrite, memory_fraction, say, client, t0)
+
+
+def _run_sweep(
+    spec: SweepSpec,
+    out: Path,
+    device: str,
+    workers: int | None,
+    scheduler: str | None,
+    overwrite: bool,
+    memory_fraction: float,
+    say: Callable[[str], None],
+    client: Any,
+    t0: float,
+) -> SweepResult:
+    """:func:`run_sweep` with the directory locked."""
     manifest = prepare_dir(spec, out, overwrite=overwrite)
     todo = [s["index"] for s in manifest["shards"] if s["state"] not in ("done", "fault")]
     skipped = [s["index"] for s in manifest["shards"] if s["state"] in ("done", "fault")]
@@ -937,6 +1008,9 @@ def run_sweep(
             _write_json(out / MANIFEST, manifest)
             try:
                 summary = run_shard(*args, i, dev, memory_fraction=memory_fraction)
+            except StorageError as e:  # the device is full: the other shards would fail the same way
+                record(i, None, f"{type(e).__name__}: {e}")
+                raise
             except AcaError as e:  # e.g. a pad whose combination of values is invalid: as on a Dask worker
                 (out / (shard_name(i) + ".partial")).unlink(missing_ok=True)
                 record(i, None, f"{type(e).__name__}: {e}")
@@ -1016,15 +1090,20 @@ def load_sweep(out_dir: str | Path) -> dict[str, Any]:
     for s in manifest["shards"]:
         if s["state"] not in ("done", "fault"):
             continue
-        with h5py.File(d / s["file"], "r") as f:
-            parts.append(
-                {
-                    "time": f["global/time"][()],
-                    **{k: f["global"][k][()] for k in GLOBAL_NAMES},
-                    "parameters": {k: v[()] for k, v in f["parameters"].items()},
-                    "pad_index": f["pads/index"][()],
-                }
-            )
+        try:
+            with h5py.File(d / s["file"], "r") as f:
+                parts.append(
+                    {
+                        "time": f["global/time"][()],
+                        **{k: f["global"][k][()] for k in GLOBAL_NAMES},
+                        "parameters": {k: v[()] for k, v in f["parameters"].items()},
+                        "pad_index": f["pads/index"][()],
+                    }
+                )
+        except (OSError, RuntimeError, KeyError, ValueError, TypeError) as e:  # missing, truncated or damaged
+            raise SweepError(
+                f"cannot read shard {d / s['file']} ({type(e).__name__}: {e}); remove it and rerun the sweep"
+            ) from None
     if not parts:
         raise SweepError(f"{d}: no finished shard yet")
     width = max(len(p["time"]) for p in parts)

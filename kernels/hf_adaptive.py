@@ -10,8 +10,8 @@ control (Gustafsson: k_I = 0.3, k_P = 0.4 over the order 5, factors 0.2–5, no 
 steps land exactly on the sample times, where every pad waits for the others so that a sample is recorded for all.
 
 Per-pad control arrays: float64 ``ctl`` (pads, CTL): t, desired step, previous error (PI), target time, start of
-the interval, trial step; int32 ``mode`` (pads, MODE): landed, needs its first stage, last trial rejected; int64
-``stats`` (pads, 2): accepted and rejected trials.
+the interval, trial step; int32 ``mode`` (pads, MODE): landed, needs its first stage, last trial rejected, index of
+the target sample; int64 ``stats`` (pads, 2): accepted and rejected trials.
 """
 
 from __future__ import annotations
@@ -28,8 +28,8 @@ wp.set_module_options({"enable_backward": False})
 C_T, C_H, C_ERR, C_TARGET, C_START, C_TRIAL = 0, 1, 2, 3, 4, 5
 CTL = 6
 # mode columns (int32)
-M_LANDED, M_NEEDK1, M_REJECTED = 0, 1, 2
-MODE = 3
+M_LANDED, M_NEEDK1, M_REJECTED, M_SAMPLE = 0, 1, 2, 3
+MODE = 4
 STAGES = 7
 
 # Dormand–Prince 5(4): a (7×7, row s: the stage-s combination of k_0 … k_{s-1}), e = b − b* (b = a[6], b_7 = 0)
@@ -319,9 +319,10 @@ def landing(
         return
     done[1] = 0
     for p in range(pads):
-        t = ctl[p, C_TARGET]
-        ctl[p, C_START] = t
-        ctl[p, C_TARGET] = t + sample_dt
+        k = mode[p, M_SAMPLE] + 1  # sample times k·sample_dt, not sums of sample intervals
+        mode[p, M_SAMPLE] = k
+        ctl[p, C_START] = ctl[p, C_TARGET]
+        ctl[p, C_TARGET] = wp.float64(k) * sample_dt
         ctl[p, C_TRIAL] = wp.min(ctl[p, C_H], sample_dt)
         mode[p, M_LANDED] = 0
 

@@ -7,6 +7,8 @@ Rows list neighbours in hash-grid order (cell-sorted, deterministic); indices ar
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import warp as wp
 
@@ -60,7 +62,12 @@ def _fill_neighbours(
 
 
 def build_neighbours(
-    x: np.ndarray, y: np.ndarray, patch_pad: np.ndarray, radius: np.ndarray, device: wp.Device | str
+    x: np.ndarray,
+    y: np.ndarray,
+    patch_pad: np.ndarray,
+    radius: np.ndarray,
+    device: wp.Device | str,
+    check: Callable[[int], None] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """CSR neighbour list of all patch pairs of the same pad within that pad's coupling radius.
 
@@ -69,6 +76,8 @@ def build_neighbours(
         patch_pad: Pad index of every patch, shape (n,), int.
         radius: Coupling radius of every pad [m], shape (pads,).
         device: Warp device for the search.
+        check: Called with the number of links (summed in int64) after they are counted and before the int32 row
+            offsets and the link arrays are made; raises to refuse them (:mod:`aca_warp.hf.limits`).
 
     Returns:
         (nbr_start (n+1,) int32, nbr_index (nnz,) int32, nbr_inv_dist (nnz,) float64 [1/m]): row offsets,
@@ -91,6 +100,8 @@ def build_neighbours(
     grid.build(pos_d, cell, groups=pad_d)
     counts = wp.zeros(n + 1, dtype=wp.int32, device=device)
     wp.launch(_count_neighbours, dim=n, inputs=[grid.id, pos_d, pad_d, rad_d], outputs=[counts], device=device)
+    if check is not None:
+        check(int(counts.numpy().astype(np.int64).sum()))  # each count < n fits int32; their sum may not
     start = wp.zeros(n + 1, dtype=wp.int32, device=device)
     wp.utils.array_scan(counts, start, inclusive=False)
     nnz = int(start.numpy()[-1])

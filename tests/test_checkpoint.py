@@ -172,8 +172,9 @@ def test_resume_refusals(scene_file: Path, tmp_path: Path, capsys) -> None:
 
 
 def test_closed_on_failure_closes_and_names_the_file(tmp_path: Path) -> None:
-    """The resume guard of both run files: a malformed file (KeyError, …) becomes a SceneError naming it, anything
-    else passes through; the file is closed either way, and stays open when the body succeeds."""
+    """The resume guard of both run files: a malformed file (KeyError, …, and h5py's RuntimeError) becomes a
+    SceneError naming it, anything else passes through; the file is closed either way, and stays open when the body
+    succeeds."""
     from aca_warp.common.checkpoint import closed_on_failure
     from aca_warp.common.errors import SceneError
 
@@ -181,7 +182,8 @@ def test_closed_on_failure_closes_and_names_the_file(tmp_path: Path) -> None:
     for exc, check, expect in (
         (KeyError("global"), True, SceneError),
         (KeyError("global"), False, KeyError),
-        (RuntimeError("boom"), True, RuntimeError),
+        (RuntimeError("Unable to read (bad heap)"), True, SceneError),
+        (ZeroDivisionError("boom"), True, ZeroDivisionError),
     ):
         f = h5py.File(path, "w")
         with pytest.raises(expect) as info, closed_on_failure(f, path, scene_error=check):

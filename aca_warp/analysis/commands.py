@@ -154,16 +154,19 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     if args.freq_min is not None and args.freq_max is not None and args.freq_min >= args.freq_max:
         raise SceneError(f"--freq-min ({args.freq_min:g} Hz) must be below --freq-max ({args.freq_max:g} Hz)")
     band = None if args.freq_min is None and args.freq_max is None else (args.freq_min, args.freq_max)
-    groups = analyze_run(
-        args.run,
-        freq_range=band,
-        sync=not args.no_sync,
-        rule=args.rule,
-        eta=args.eta,
-        snr=args.snr,
-        n_bins=args.n_bins,
-        stft_window_s=args.stft_window,
-    )
+    from aca_warp.common.files import reading
+
+    with reading(args.run, "run file"):
+        groups = analyze_run(
+            args.run,
+            freq_range=band,
+            sync=not args.no_sync,
+            rule=args.rule,
+            eta=args.eta,
+            snr=args.snr,
+            n_bins=args.n_bins,
+            stft_window_s=args.stft_window,
+        )
     parts = [f"{args.run}: /analysis written ({', '.join(groups)})"]
     peaks = groups["peaks"].attrs
     if "first_velocity_peak_frequency" in peaks:
@@ -205,9 +208,12 @@ def cmd_plot(args: argparse.Namespace) -> int:
     def note(message: str) -> None:
         print(f"aca-warp plot: {message}", file=sys.stderr)
 
-    files = plot_run(
-        args.run, out, which=args.only, times=args.times, log=note, quantity=args.quantity, snapshots=args.snapshots
-    )
+    from aca_warp.common.files import reading
+
+    with reading(args.run, "run file"):
+        files = plot_run(
+            args.run, out, which=args.only, times=args.times, log=note, quantity=args.quantity, snapshots=args.snapshots
+        )
     for f in files:
         print(f)
     if not files:

@@ -142,9 +142,10 @@ def open_run_file(path: str | Path, mode: str = "r") -> h5py.File:
         raise SceneError(f"{p} is not an HDF5 file (expected a run file written by aca-warp hf)")
     try:
         f = h5py.File(p, mode)
-    except OSError as e:
-        what = "for writing" if mode != "r" else ""
-        raise SceneError(f"cannot open {p} {what}: {e}".replace("  ", " ")) from None
+    except (OSError, RuntimeError) as e:
+        what = " for writing" if mode != "r" else ""
+        detail = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise SceneError(f"cannot open {p}{what}: {detail}") from None
     try:
         if _decode(f.attrs.get("kind")) == "lf":
             raise SceneError(

@@ -27,7 +27,7 @@ fails with one line, and ``aca-warp rerun`` repeats the run from the start.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,7 +35,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import AcaError, SceneError
 
 FORMAT = 2  # 2: LF global-scalar layout without the contact sums and flag (2026-11-23)
 GROUP = "checkpoint"
@@ -73,8 +73,19 @@ def _put(g: h5py.Group, name: str, value: np.ndarray) -> None:
     g.create_dataset(name, data=value)
 
 
-def write_checkpoint(f: h5py.File, ckpt: Checkpoint) -> int:
-    """Store ``ckpt`` into the inactive slot of ``f``, flush, flip ``active``, flush; returns the slot."""
+def checkpoint_room(f: h5py.File, ckpt: Checkpoint) -> int:
+    """Bytes :func:`write_checkpoint` adds to ``f``: the arrays, unless the slot it writes holds them already."""
+    g = f.get(GROUP)
+    slot = 0 if g is None or int(g.attrs.get("active", -1)) != 0 else 1
+    if g is not None and f"slot{slot}/arrays" in g:
+        return 4096
+    return sum(np.asarray(a).nbytes for a in ckpt.arrays.values()) + 4096
+
+
+def write_checkpoint(f: h5py.File, ckpt: Checkpoint, flush: Callable[[], None] | None = None) -> int:
+    """Store ``ckpt`` into the inactive slot of ``f``, flush, flip ``active``, flush; returns the slot. ``flush``
+    replaces ``f.flush`` (a :class:`~aca_warp.common.storage.GuardedFile` reserves room first)."""
+    flush = flush or f.flush
     g = f.require_group(GROUP)
     active = int(g.attrs.get("active", -1))
     slot = 0 if active != 0 else 1
@@ -87,10 +98,10 @@ def write_checkpoint(f: h5py.File, ckpt: Checkpoint) -> int:
     for k, v in ckpt.arrays.items():
         _put(s, f"arrays/{k}", v)
     g.attrs["format"] = FORMAT
-    f.flush()
+    flush()
     g.attrs["active"] = slot
     g.attrs["sim_time"] = float(ckpt.sim_time)
-    f.flush()
+    flush()
     return slot
 
 
@@ -124,23 +135,33 @@ def read_checkpoint(f: h5py.File, path: str = "") -> Checkpoint:
             counters={k: int(d[()]) for k, d in s["counters"].items()},
             rows={k: int(d[()]) for k, d in s["rows"].items()},
         )
-    except (KeyError, OSError, ValueError, TypeError) as e:
+    except (KeyError, OSError, ValueError, TypeError, RuntimeError) as e:
         raise SceneError(f"{path}: the checkpoint is damaged ({e}); repeat the run with 'aca-warp rerun'") from None
 
 
 @contextmanager
-def closed_on_failure(f: h5py.File, path: str | Path, scene_error: bool = True) -> Iterator[None]:
-    """Close ``f`` if the body raises (a resume must not leave the partial file open). With ``scene_error``, the errors
-    of a malformed file (KeyError, ValueError, TypeError, OSError) become one SceneError naming ``path``."""
+def closed_on_failure(
+    f: h5py.File, path: str | Path, scene_error: bool = True, close: Callable[[], None] | None = None
+) -> Iterator[None]:
+    """Close ``f`` if the body raises (a resume must not leave the partial file open); ``close`` replaces
+    ``f.close`` (:meth:`~aca_warp.common.storage.GuardedFile.abandon`: a failed resume writes nothing). With
+    ``scene_error``, the errors of a malformed file (KeyError, ValueError, TypeError, OSError, RuntimeError)
+    become one SceneError naming ``path``."""
+    close = close or f.close
     try:
         yield
-    except (KeyError, ValueError, TypeError, OSError) as e:
-        f.close()
+    except AcaError:  # already one line
+        close()
+        raise
+    except (KeyError, ValueError, TypeError, OSError, RuntimeError) as e:
+        close()
         if not scene_error:
             raise
-        raise SceneError(f"cannot resume {path}: its datasets do not match its checkpoint ({e})") from None
+        raise SceneError(
+            f"cannot resume {path}: its datasets are damaged or do not match its checkpoint ({e})"
+        ) from None
     except BaseException:
-        f.close()
+        close()
         raise
 
 

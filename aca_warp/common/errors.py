@@ -1,10 +1,16 @@
-"""Exceptions with messages meant for the user: one line that says what is wrong and how to fix it."""
+"""Exceptions with messages meant for the user: one line that says what is wrong and how to fix it.
+
+The command line prints an :class:`AcaError` as one ``aca-warp: error:`` line and exits with its
+``exit_code`` (docs/faults.md): 2 bad input, 3 unphysical result, 4 the output could not be written.
+"""
 
 from __future__ import annotations
 
 
 class AcaError(Exception):
     """Base class of all errors aca_warp reports to a user (the CLI prints them as one line)."""
+
+    exit_code = 2
 
 
 class SceneError(AcaError, ValueError):
@@ -13,6 +19,21 @@ class SceneError(AcaError, ValueError):
 
 class StabilityError(AcaError, ValueError):
     """An explicit step exceeds the solver's stable-step estimate (pass ``force=True`` to run anyway)."""
+
+
+class PhysicsError(AcaError, ValueError):
+    """A scene whose solution is not physical (e.g. normal forces that do not carry the load); exit 3."""
+
+    exit_code = 3
+
+
+class StorageError(AcaError):
+    """An output could not be written: no space left on the device, a file-size limit or a disk quota; exit 4.
+
+    The file being written is left as it was at its last flush (its last checkpoint), so the run resumes once
+    there is room again."""
+
+    exit_code = 4
 
 
 class SimulationFault(AcaError, RuntimeError):
@@ -24,6 +45,8 @@ class SimulationFault(AcaError, RuntimeError):
         patch: Index of the first faulty patch within its pad.
         cause: Likely cause, in words.
     """
+
+    exit_code = 3
 
     def __init__(self, message: str, *, time: float, pad: int, patch: int, cause: str) -> None:
         super().__init__(message)

@@ -1,16 +1,23 @@
-"""Files shared by HF and LF runs: output paths, the ``.partial`` convention, opening HDF5 files, provenance."""
+"""Files shared by HF and LF runs: output paths, the ``.partial`` convention, the one-writer lock, opening HDF5
+files, provenance."""
 
 from __future__ import annotations
 
+import errno
+import fcntl
 import os
 import platform
+import socket
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import h5py
 
 from aca_warp.common.checkpoint import has_checkpoint
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import AcaError, SceneError
 
 
 def versions() -> dict[str, str]:
@@ -47,12 +54,139 @@ def partial_path(path: str | Path) -> Path:
     return p.with_name(p.name + ".partial")
 
 
+def lock_path(path: str | Path) -> Path:
+    """The lock file of the output ``path``: ``NAME.lock`` next to it."""
+    p = Path(path)
+    return p.with_name(p.name + ".lock")
+
+
+class OutputLock:
+    """The one writer of an output (a run file with its ``.partial``, or a sweep folder's manifest).
+
+    ``flock(LOCK_EX | LOCK_NB)`` on ``NAME.lock``, a file that holds the holder's pid, host and command for the
+    refusal message. The kernel drops the lock when its holder exits, however it exits (SIGKILL included), so a
+    killed run leaves no stale lock; the lock is independent of HDF5's own file locking
+    (``HDF5_USE_FILE_LOCKING``). :meth:`release` removes the file while still holding the lock, and
+    :meth:`acquire` checks after locking that the path still names the file it locked (else it lost a race with a
+    release and tries again), so two processes never both hold the lock of one name. On NFS ``flock`` is carried
+    by byte-range locks (lockd); where a filesystem has no locks at all the output is written unlocked, with a note.
+    """
+
+    def __init__(self, path: Path, fd: int | None) -> None:
+        self.path = path
+        self.fd = fd
+
+    @classmethod
+    def acquire(cls, path: str | Path, *, what: str = "output") -> OutputLock:
+        """Lock ``path`` for writing; :class:`SceneError` naming the holder when another process holds it."""
+        p = Path(path)
+        lp = lock_path(p)
+        while True:
+            try:
+                fd = os.open(lp, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            except FileNotFoundError:
+                raise SceneError(f"output folder {p.parent} does not exist") from None
+            except OSError as e:
+                raise SceneError(f"cannot create the lock file {lp}: {e.strerror}") from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = _read_holder(fd)
+                os.close(fd)
+                raise SceneError(f"{p} is being written by {holder}; {what}") from None
+            except OSError as e:
+                if e.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL):
+                    os.close(fd)
+                    raise
+                os.close(fd)
+                print(f"aca-warp: note: {lp.parent} has no file locks ({e.strerror}); {p} is written unlocked: "
+                      "make sure no other process writes it", file=sys.stderr)  # fmt: skip
+                return cls(lp, None)
+            try:
+                same = os.path.samestat(os.fstat(fd), os.stat(lp))
+            except FileNotFoundError:
+                same = False
+            if not same:  # the holder released (and removed) it between our open and flock: try again
+                os.close(fd)
+                continue
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()} {socket.gethostname()} {' '.join(sys.argv[:4])[:200]}\n".encode())
+            return cls(lp, fd)
+
+    @property
+    def held(self) -> bool:
+        """Whether this object still holds the lock."""
+        return self.fd is not None
+
+    def release(self) -> None:
+        """Remove the lock file and drop the lock (idempotent)."""
+        if self.fd is None:
+            return
+        try:
+            os.unlink(self.path)
+        except OSError:
+            pass
+        os.close(self.fd)
+        self.fd = None
+
+
+def _read_holder(fd: int) -> str:
+    """'pid P on HOST (COMMAND)' from a lock file's content, or 'another process'."""
+    try:
+        parts = os.pread(fd, 512, 0).decode(errors="replace").split(maxsplit=2)
+        if len(parts) >= 2:
+            cmd = f" ({parts[2].strip()})" if len(parts) > 2 else ""
+            return f"pid {parts[0]} on {parts[1]}{cmd}"
+    except OSError:
+        pass
+    return "another process"
+
+
+def holder(path: str | Path) -> str | None:
+    """Who holds the lock of the output ``path`` ('pid P on HOST (COMMAND)'), or None when no other live process
+    does (this process holding it counts as none: :meth:`OutputLock.acquire` guards against itself)."""
+    try:
+        fd = os.open(lock_path(path), os.O_RDWR | os.O_CLOEXEC)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        who = _read_holder(fd)
+        return None if who.startswith(f"pid {os.getpid()} on {socket.gethostname()}") else who
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+    return None
+
+
+@contextmanager
+def locked_output(path: str | Path, *, what: str = "output") -> Iterator[OutputLock]:
+    """:meth:`OutputLock.acquire` for the body; released when it ends."""
+    lock = OutputLock.acquire(path, what=what)
+    try:
+        yield lock
+    finally:
+        lock.release()
+
+
+def new_path(partial: str | Path) -> Path:
+    """Where a file is created before it is renamed into ``NAME.partial``: ``NAME.partial.new``."""
+    p = Path(partial)
+    return p.with_name(p.name + ".new")
+
+
 def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
-    """Refuse to clobber an existing file (or a killed run's ``NAME.partial``) unless ``overwrite``; the folder
-    must exist and ``path`` must not be a folder."""
+    """Refuse to clobber an existing file (or a killed run's ``NAME.partial``) unless ``overwrite``, and an output
+    that a live process writes (:class:`OutputLock`) in any case; the folder must exist and ``path`` must not be a
+    folder."""
     p = Path(path)
     if p.is_dir():
         raise SceneError(f"output {p} is a folder; give a file name such as {p / 'run.h5'}")
+    busy = holder(p)
+    if busy is not None:
+        raise SceneError(f"{p} is being written by {busy}; wait for it to finish or stop it")
     if p.exists() and not overwrite:
         raise SceneError(f"output file {p} exists; pass --overwrite to replace it")
     part = partial_path(p)
@@ -73,8 +207,8 @@ def open_h5(path: str | Path, what: str) -> h5py.File:
         raise SceneError(f"{what} not found: {p}")
     try:
         return h5py.File(p, "r")
-    except OSError as e:
-        raise SceneError(f"cannot open {what} {p}: {e}") from None
+    except (OSError, RuntimeError) as e:
+        raise SceneError(f"cannot open {what} {p}: {str(e).strip().splitlines()[0] if str(e).strip() else e}") from None
 
 
 def version_changes(stored: dict[str, str]) -> list[str]:
@@ -101,13 +235,41 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     if not final.exists():
         raise SceneError(f"nothing to resume: neither {final} nor {part} exists")
     try:
-        with h5py.File(final, "r") as f:
+        with open_h5(final, "run file") as f:
             complete = bool(f.attrs.get("complete", False))
             resumable = has_checkpoint(f)
-    except OSError as e:
-        raise SceneError(f"cannot open run file {final}: {e}") from None
+    except (OSError, RuntimeError, KeyError, ValueError) as e:
+        raise SceneError(f"cannot read run file {final}: {e}") from None
     if complete:
         raise SceneError(f"{final} is a complete run; nothing to resume")
     if not resumable:
         raise SceneError(f"{final} holds no checkpoint (run without checkpoint_interval); use 'aca-warp rerun'")
     return final, part
+
+
+def from_h5py(e: BaseException) -> bool:
+    """Whether ``e`` was raised inside h5py (its innermost frame lies in the h5py package)."""
+    tb = e.__traceback__
+    if tb is None:
+        return False
+    while tb.tb_next is not None:
+        tb = tb.tb_next
+    return "h5py" in Path(tb.tb_frame.f_code.co_filename).parts
+
+
+@contextmanager
+def reading(path: str | Path, what: str = "file") -> Iterator[None]:
+    """The read boundary of an input file: an error that h5py raises in the body (a bit flip in the file's metadata,
+    a truncated file, a missing object) becomes one :class:`SceneError` line naming ``path``; errors of the
+    program itself, storage errors and :class:`AcaError` pass through."""
+    from aca_warp.common.storage import storage_errno
+
+    try:
+        yield
+    except AcaError:
+        raise
+    except (OSError, RuntimeError, KeyError, ValueError, TypeError, IndexError) as e:
+        if storage_errno(e) is not None or not from_h5py(e):
+            raise
+        detail = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise SceneError(f"cannot read {what} {path}: it is damaged or incomplete ({detail})") from None

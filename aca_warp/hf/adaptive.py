@@ -46,6 +46,7 @@ class AdaptiveStepper:
         ctl[:, KA.C_ERR] = 1.0e-4
         mode = np.zeros((P, KA.MODE), dtype=np.int32)
         mode[:, KA.M_NEEDK1] = 1
+        mode[:, KA.M_SAMPLE] = 1
         self.ctl = wp.array(ctl, dtype=wp.float64, device=dev)
         self.mode = wp.array(mode, dtype=wp.int32, device=dev)
         self.stats = wp.zeros((P, 2), dtype=wp.int64, device=dev)

@@ -18,7 +18,9 @@ EPILOG = """\
 SCENE is a preset (hf1, hf2, hf3, hf4, varying_area) or a TOML scene file (docs/scenes.md).
 Example:  aca-warp hf hf1 --duration 1e-3 -o run.h5
 Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad input (nothing written),
-3 the run stopped on a fault (the file holds everything before it, marked incomplete), 130 interrupted.
+3 the run stopped on a fault or an unphysical result (the file holds everything before it, marked incomplete),
+4 the output could not be written (disk full, file-size limit; the .partial keeps its last checkpoint),
+130 interrupted (docs/faults.md).
 """
 
 
@@ -82,8 +84,14 @@ def add_parsers(sub: Any) -> None:
     hf.add_argument(
         "--force",
         action="store_true",
-        help="run explicit steps beyond the stable-step estimate, or a run beyond the size limits "
-        "(1e10 steps, 50 GB of samples)",
+        help="run a step beyond the stable-step estimate, a strang step that does not resolve sticking (warns), "
+        "or a run beyond the size limits (1e10 steps, 50 GB of samples)",
+    )
+    hf.add_argument(
+        "--accept-unphysical",
+        action="store_true",
+        help="run on, with a warning, where the physical sanity checks would stop the run (normal forces that do "
+        "not carry the load, mu beyond its bound; docs/faults.md)",
     )
     hf.add_argument(
         "--snapshot", metavar="NAME", help="SCENE is an LF run file (.h5): run HF on its snapshot NAME (aca-warp lf)"
@@ -155,6 +163,7 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         force=args.force,
         engine=args.engine,
         checkpoint_interval=args.checkpoint_interval,
+        accept_unphysical=args.accept_unphysical,
     )
     result = run_scene(
         scene,
@@ -164,7 +173,7 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         precision=args.precision,
         overwrite=args.overwrite,
         progress=not args.no_progress,
-        announce=lambda plan: print(f"aca-warp: {args.output}: {plan.describe()}", file=sys.stderr, flush=True),
+        announce=_announce(args.output, not args.no_progress),
     )
     import h5py
 
@@ -183,6 +192,14 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         return 3
     print(line)
     return 0
+
+
+def _announce(output: str, progress: bool) -> Any:
+    """What to do with the plan of a validated run: on a terminal with progress shown, a line on stderr before the
+    bar (in a log the summary line at the end says the same)."""
+    if not (progress and sys.stderr.isatty()):
+        return None
+    return lambda plan: print(f"aca-warp: {output}: {plan.describe()}", file=sys.stderr, flush=True)
 
 
 def _resume_hf(args: argparse.Namespace) -> int:
@@ -204,6 +221,7 @@ def _resume_hf(args: argparse.Namespace) -> int:
             ("--tolerance", args.tolerance, DEFAULT_TOLERANCE),
             ("--precision", args.precision, "fp64"),
             ("--force", args.force, False),
+            ("--accept-unphysical", args.accept_unphysical, False),
             ("--overwrite", args.overwrite, False),
             ("--engine", getattr(args, "engine", "auto"), "auto"),
         ),
@@ -248,7 +266,7 @@ def _is_lf(path: str | Path) -> bool:
     try:
         with h5py.File(path, "r") as f:
             return f.attrs.get("kind") == "lf"
-    except (OSError, ValueError):
+    except (OSError, ValueError, RuntimeError, KeyError):
         return False
 
 

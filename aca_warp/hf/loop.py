@@ -12,6 +12,7 @@ A new integrator or engine implements :class:`Engine` (docs/architecture.md).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import time
@@ -27,7 +28,8 @@ from aca_warp.hf.engine import Engine, EngineTuning, Progress
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Chunk, check_run, fault_from, watchdog_bound
-from aca_warp.hf.solver import StepEstimate
+from aca_warp.hf.sanity import check_contact, mu_bounds, mu_fault, warn
+from aca_warp.hf.solver import StepEstimate, check_step
 from aca_warp.hf.state import HFState
 from aca_warp.scene import Record
 
@@ -109,6 +111,13 @@ def restore(saved: dict[str, wp.array], ckpt: Checkpoint) -> None:
         arr.assign(data)
 
 
+def _next_checkpoint(t: float, interval: float) -> float:
+    """The first multiple of ``interval`` after ``t`` [s]; a ``t`` within 1e-9 intervals below a multiple counts as
+    on it (sample times are sums of rounded steps: 9.999999999999999e-05 is the checkpoint at 1e-4, and the next
+    one is 2e-4, not 1e-4 again)."""
+    return (math.floor(t / interval + 1e-9) + 1) * interval
+
+
 def _progress_bar(total: float):  # noqa: ANN202 (tqdm)
     from tqdm import tqdm
 
@@ -148,8 +157,15 @@ def run_hf(
     record = record or model.scenes[0].record
     duration = model.scenes[0].duration if options.duration is None else options.duration
     n_samples = check_run(duration, record, options.checkpoint_interval)
-    engine = make_engine(model, state, options.with_duration(duration), record, n_samples, tuning or EngineTuning())
+    options = options.with_duration(duration)
+    # the step (as the run takes it), the int32 step counts and the contact solution, checked once here for every
+    # engine; the engines then skip their own check of the step asked for (it is not the step they take)
+    check_step(model, options, record.sample_dt)
+    check_contact(model, accept=options.accept_unphysical)
+    engine_options = dataclasses.replace(options, force=True)
+    engine = make_engine(model, state, engine_options, record, n_samples, tuning or EngineTuning())
     rec = engine.recorder
+    mu_bound = mu_bounds(model)
     factor = options.watchdog_factor
     bounds = np.full(model.pad_count, np.inf) if factor is None else watchdog_bound(model, state, factor)
     rec.watch_bound.assign(bounds)
@@ -174,20 +190,29 @@ def run_hf(
     if bar is not None and p.sim_time > 0:
         bar.update(p.sim_time)
     interval = options.checkpoint_interval if on_checkpoint is not None else None
-    next_checkpoint = math.inf if interval is None else (math.floor(p.sim_time / interval) + 1) * interval
+    next_checkpoint = math.inf if interval is None else _next_checkpoint(p.sim_time, interval)
     out: list[Chunk] = []
     emit = sink or out.append
     t0 = time.perf_counter()
     fault: SimulationFault | None = None
+    last_sample = p.sim_time  # time of the last sample handed to the sink [s]
+    unphysical_seen = False
     try:
         while True:
             most = n_samples if math.isinf(next_checkpoint) else math.ceil(next_checkpoint / record.sample_dt - 1e-9)
             p = engine.advance(p, max(1, most - p.samples))
             chunk, table = rec.flush()
             fault = fault_from(table, model, record.sample_dt, engine.cause, rec.fault_value.numpy(), bounds) or p.fault
+            if fault is None and not unphysical_seen:
+                fault = mu_fault(chunk.time, chunk.globals[:, :, 0], mu_bound)
+                if fault is not None and options.accept_unphysical:
+                    warn(f"{fault} (accepted: --accept-unphysical; not checked again)")
+                    fault, unphysical_seen = None, True
             if fault is not None:
                 chunk = chunk.before(fault.time - 0.5 * record.sample_dt)
             emit(chunk)
+            if len(chunk.time):
+                last_sample = float(chunk.time[-1])
             if bar is not None:
                 bar.update(p.sim_time - bar.n)
                 bar.set_postfix_str(f"{p.steps / max(time.perf_counter() - t0, 1e-9):.3g} steps/s")
@@ -196,7 +221,7 @@ def run_hf(
                 counters["sample_index"] = rec.sample_index
                 arrays = {k: a.numpy().copy() for k, a in saved.items()}
                 on_checkpoint(Checkpoint(sim_time=p.sim_time, arrays=arrays, counters=counters))  # type: ignore[misc]
-                next_checkpoint = (math.floor(p.sim_time / interval) + 1) * interval  # type: ignore[operator]
+                next_checkpoint = _next_checkpoint(p.sim_time, interval)  # type: ignore[arg-type]
             if fault is not None or p.done:
                 break
     finally:
@@ -204,12 +229,17 @@ def run_hf(
             bar.close()
         engine.finish()
     wp.synchronize_device(model.device)
+    steps, sim_time = p.steps, p.sim_time
+    if fault is not None:  # describe the samples kept, not the chunk the fault was found in
+        sim_time = last_sample
+        if p.samples > 0:  # fixed-step engines: whole steps per sample interval
+            steps = round(last_sample / record.sample_dt) * (p.steps // p.samples)
     return RunResult(
         complete=fault is None,
         fault=fault,
-        steps=p.steps,
+        steps=steps,
         rejected=p.rejected,
-        sim_time=p.sim_time,
+        sim_time=sim_time,
         wall_time=time.perf_counter() - t0 - engine.capture_time,
         compile_time=compile_time + engine.capture_time,
         dt=engine.step_used(),

@@ -16,6 +16,7 @@ import warp as wp
 
 from aca_warp.common.devices import init_warp, load_kernels
 from aca_warp.common.errors import SceneError
+from aca_warp.hf import limits
 from aca_warp.hf.contact import ContactSolution, solve_scene_contact
 from aca_warp.kernels import hf as hf_kernels
 from aca_warp.kernels import neighbours as neighbours_kernels
@@ -103,6 +104,7 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
     T = PRECISIONS[precision]
     npT = np.float32 if T == wp.float32 else np.float64
     counts = np.array([s.patches.count for s in scenes])
+    limits.check_int32("the patches of the batch", int(counts.sum()), "run fewer or smaller pads")
     start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
     pad_of = np.repeat(np.arange(len(scenes), dtype=np.int32), counts)
     cat = lambda f: np.concatenate([f(s) for s in scenes])  # noqa: E731
@@ -115,10 +117,14 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
     sq = np.sqrt(area)
     mass = mat["mass_per_area"] * area
     k_t = mat["K_T"] * sq
+    radius = np.array([s.material.coupling_radius for s in scenes])
+    # refuse what int32 offsets or the memory cannot hold before the links are counted (lower bound), then made
+    n, r_max = len(x), float(radius.max())
+    limits.check_model_memory(n, limits.links_lower_bound(x, y, pad_of, radius), dev, r_max, exact=False)
     contacts = [solve_scene_contact(s) for s in scenes]
     growth = [s.growth for s in scenes]
     nbr_start, nbr_index, nbr_inv = build_neighbours(
-        x, y, pad_of, np.array([s.material.coupling_radius for s in scenes]), dev
+        x, y, pad_of, radius, dev, check=lambda links: limits.check_model_memory(n, links, dev, r_max, exact=True)
     )
 
     k_ij = _edge_stiffness(scenes, sq, pad_of, nbr_start, nbr_index, nbr_inv)

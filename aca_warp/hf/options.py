@@ -42,6 +42,8 @@ class RunOptions:
         engine: ``auto``, ``general`` or ``onchip`` (docs/onchip.md).
         checkpoint_interval: Simulated time between checkpoints [s]; None: no checkpoints.
         watchdog_factor: Watchdog bound in units of the scene's velocity scale; None: only non-finite checks.
+        accept_unphysical: Run on, with a warning, where the physical sanity checks (:mod:`aca_warp.hf.sanity`:
+            contact solution, μ bound) would stop the run.
     """
 
     duration: float | None = None
@@ -52,6 +54,7 @@ class RunOptions:
     engine: str = "auto"
     checkpoint_interval: float | None = None
     watchdog_factor: float | None = WATCHDOG_FACTOR
+    accept_unphysical: bool = False
 
     def __post_init__(self) -> None:
         if self.integrator not in INTEGRATORS:

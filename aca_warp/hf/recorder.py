@@ -15,6 +15,7 @@ import numpy as np
 import warp as wp
 
 from aca_warp.common.errors import SceneError, SimulationFault
+from aca_warp.hf.limits import check_int32
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import WATCHDOG_FACTOR
 from aca_warp.hf.state import HFState
@@ -39,6 +40,8 @@ def check_run(duration: float, record: Record, checkpoint_every: float | None = 
             f"{duration:g} s at a sample interval of {record.sample_dt:g} s is {n_samples:.3g} samples, more than "
             f"a run records (2^31 - 2); use a larger sample interval"
         )
+    # the kernels take the decimation as an int32 (a wrapped value divides by zero: SIGFPE)
+    check_int32("record.decimation", record.decimation, f"any value above {n_samples} records one row only")
     return n_samples
 
 

@@ -109,10 +109,10 @@ def _options(f: h5py.File, path: Path) -> RunOptions:
 
 def read_settings(path: str | Path) -> RunSettings:
     """Read the settings of the run file ``path`` (SceneError with one line when it cannot be rerun)."""
-    from aca_warp.common.files import open_h5
+    from aca_warp.common.files import open_h5, reading
 
     p = Path(path)
-    with open_h5(p, "run file") as f:
+    with reading(p, "run file"), open_h5(p, "run file") as f:
         scene = scene_from_run(f, p)
         versions = _json(f.attrs, "versions", p) if "versions" in f.attrs else {}
         try:

@@ -17,6 +17,12 @@ completed or not (then ``complete = False`` and ``status`` says why): the final 
 that is half written. A killed process leaves only the ``.partial`` file behind; with checkpoints it holds
 everything up to the last checkpoint and ``aca-warp hf --resume`` continues it. Neither ``NAME`` nor a leftover
 ``NAME.partial`` is replaced without ``overwrite``.
+
+One writer per output: a writer holds ``NAME.lock`` (:class:`~aca_warp.common.files.OutputLock`) from before it
+looks at ``NAME`` until the file has its final name, so a second run, an ``--overwrite`` or a ``--resume`` of the
+same name is refused while it runs. The file is created as ``NAME.partial.new``, its header written and flushed,
+and only then renamed to ``NAME.partial``: a ``.partial`` is a readable HDF5 file from the moment it exists. On a
+full device the file is abandoned as it was at its last flush (:mod:`aca_warp.common.storage`).
 """
 
 from __future__ import annotations
@@ -29,12 +35,33 @@ from typing import Any
 import h5py
 import numpy as np
 
-from aca_warp.common.checkpoint import Checkpoint, closed_on_failure, drop_checkpoint, read_checkpoint, write_checkpoint
-from aca_warp.common.errors import SceneError
-from aca_warp.common.files import check_output_path, open_h5, partial_path, versions
+from aca_warp.common.checkpoint import (
+    Checkpoint,
+    checkpoint_room,
+    closed_on_failure,
+    drop_checkpoint,
+    read_checkpoint,
+    write_checkpoint,
+)
+from aca_warp.common.errors import AcaError, SceneError
+from aca_warp.common.files import OutputLock, check_output_path, from_h5py, new_path, open_h5, partial_path, versions
+from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS, Chunk
 from aca_warp.scene import Scene, scene_to_dict
+
+RAW_CACHE = 64 * 2**20  # bytes of HDF5 chunk cache: appended rows of wide per-patch histories stay cached
+BUSY = "wait for it to finish or stop it (--overwrite does not replace a run in progress)"
+
+
+def hf_advice(path: Path, checkpoint_time: float | None) -> str:
+    """What to do with an HF ``.partial`` left by a storage failure."""
+    if checkpoint_time is None:
+        return "it holds no checkpoint: make room and run again with --overwrite"
+    return (
+        f"it keeps its checkpoint at t = {checkpoint_time:.6g} s: make room, then continue with "
+        f"'aca-warp hf --resume {path}'"
+    )
 
 
 class RunWriter:
@@ -48,23 +75,47 @@ class RunWriter:
         pad: int = 0,
         overwrite: bool = False,
         attrs: dict[str, Any] | None = None,
+        lock: OutputLock | None = None,
     ) -> None:
-        self.path = check_output_path(path, overwrite=overwrite)
-        self.partial = partial_path(self.path)
+        self.lock = lock or OutputLock.acquire(path, what=BUSY)
         self.pad = pad
         self.model = model
+        self.checkpoint_time: float | None = None
         a, b = (int(x) for x in model.pad_patch_start_host[pad : pad + 2])
         self.slice = slice(a, b)
         self.flush_each_chunk = True
-        self.f = h5py.File(self.partial, "w", rdcc_nbytes=64 * 2**20)
-        f = self.f
-        scene: Scene = model.scenes[pad]
+        self._patch_ds: dict[str, h5py.Dataset] = {}
+        tmp = new_path(partial_path(path))
+        try:
+            self.path = check_output_path(path, overwrite=overwrite)
+            self.partial = partial_path(self.path)
+            tmp.unlink(missing_ok=True)  # left by a run killed while creating its file (we hold the lock)
+            self.f = h5py.File(tmp, "w", rdcc_nbytes=RAW_CACHE)
+            self.out = GuardedFile(self.f, self.partial, raw_cache=RAW_CACHE)
+            self._write_header(model.scenes[pad], attrs or {})
+            self.out.flush()
+            os.replace(tmp, self.partial)  # readable from the moment it has this name
+        except BaseException as e:
+            if getattr(self, "out", None) is not None:
+                self.out.abandon()
+            elif getattr(self, "f", None) is not None:
+                self.f.close()
+            tmp.unlink(missing_ok=True)
+            self.lock.release()
+            code = storage_errno(e)
+            if code is not None:
+                raise storage_error(code, tmp, "nothing was written") from None
+            raise
+
+    def _write_header(self, scene: Scene, attrs: dict[str, Any]) -> None:
+        """Attributes, empty sample datasets, the patch set and the matrix cells."""
+        f, pad = self.f, self.pad
         f.attrs["scene"] = json.dumps(scene_to_dict(scene))
         f.attrs["scene_name"] = scene.name
         f.attrs["versions"] = json.dumps(versions())
         f.attrs["complete"] = False
         f.attrs["status"] = "running"
-        for k, v in (attrs or {}).items():
+        for k, v in attrs.items():
             f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
         g = f.create_group("global")
         for name, unit in (("time", "s"), *zip(GLOBAL_NAMES, GLOBAL_UNITS, strict=True)):
@@ -78,19 +129,25 @@ class RunWriter:
             ("area", scene.patches.area, "m2"),
             ("height", scene.patches.height, "m"),
             ("mass", mass, "kg"),
-            ("normal_force", model.contacts[pad].patch_force, "N"),
+            ("normal_force", self.model.contacts[pad].patch_force, "N"),
         ):
+            self.out.reserve(8 * len(data))
             p.create_dataset(name, data=np.asarray(data, dtype=np.float64)).attrs["unit"] = unit
         mg = f.create_group("matrix")
         for name, unit in (("area", "m2"), ("radius", "m"), ("height", "m")):
-            mg.create_dataset(name, data=np.asarray(getattr(scene.matrix, name), np.float64)).attrs["unit"] = unit
-        self._patch_ds: dict[str, h5py.Dataset] = {}
+            data = np.asarray(getattr(scene.matrix, name), np.float64)
+            self.out.reserve(data.nbytes)
+            mg.create_dataset(name, data=data).attrs["unit"] = unit
 
     @classmethod
-    def reopen(cls, partial: str | Path, model: PadModel, *, pad: int = 0) -> tuple[RunWriter, Checkpoint]:
-        """Open a killed or stopped run's ``NAME.partial`` to continue it: read its checkpoint, truncate the
-        sample datasets to the checkpoint's rows and mark the file running again."""
+    def reopen(
+        cls, partial: str | Path, model: PadModel, *, pad: int = 0, lock: OutputLock
+    ) -> tuple[RunWriter, Checkpoint]:
+        """Open a killed or stopped run's ``NAME.partial`` to continue it (``lock``: the lock of ``NAME``, held; the
+        caller releases it when this fails): read its checkpoint, truncate the sample datasets to the checkpoint's
+        rows and mark the file running again."""
         self = cls.__new__(cls)
+        self.lock = lock
         self.partial = Path(partial)
         self.path = self.partial.with_name(self.partial.name.removesuffix(".partial"))
         self.pad = pad
@@ -99,11 +156,23 @@ class RunWriter:
         self.slice = slice(a, b)
         self.flush_each_chunk = True
         try:
-            self.f = h5py.File(self.partial, "r+", rdcc_nbytes=64 * 2**20)
-        except OSError as e:
+            self.f = h5py.File(self.partial, "r+", rdcc_nbytes=RAW_CACHE)
+        except (OSError, RuntimeError) as e:
             raise SceneError(f"cannot open {self.partial} to resume it: {e}") from None
+        try:
+            ckpt = self._truncate_to_checkpoint()
+        except BaseException as e:
+            code = storage_errno(e)
+            if code is not None:
+                raise storage_error(code, self.partial, "it was not changed; make room and resume again") from None
+            raise
+        return self, ckpt
+
+    def _truncate_to_checkpoint(self) -> Checkpoint:
+        """Read the checkpoint, cut the sample datasets back to its rows, mark the file running (reopen)."""
         f = self.f
-        with closed_on_failure(f, self.partial):
+        self.out = GuardedFile(f, self.partial, raw_cache=RAW_CACHE)
+        with closed_on_failure(f, self.partial, close=self.out.abandon):
             ckpt = read_checkpoint(f, str(self.partial))
             for name in ("time", *GLOBAL_NAMES):
                 f["global"][name].resize(ckpt.rows["global"], axis=0)
@@ -112,13 +181,22 @@ class RunWriter:
                 if name in f["patches"]:
                     self._patch_ds[name] = f["patches"][name]
                     self._patch_ds[name].resize(ckpt.rows["patches"], axis=0)
-        if "final" in f["patches"]:
-            del f["patches"]["final"]
+            # read the last kept row of every sample dataset: a damaged chunk index shows up here, not mid-run
+            for d in (*(f["global"][name] for name in ("time", *GLOBAL_NAMES)), *self._patch_ds.values()):
+                if d.shape[0]:
+                    d[d.shape[0] - 1]
+            if "final" in f["patches"]:
+                del f["patches"]["final"]
         self.flush_each_chunk = False  # a resumed run keeps checkpointing: flush at checkpoints only
-        f.attrs["complete"] = False
-        f.attrs["status"] = f"running (resumed from the checkpoint at t = {ckpt.sim_time:.6g} s)"
-        f.flush()
-        return self, ckpt
+        self.checkpoint_time = ckpt.sim_time
+        try:
+            f.attrs["complete"] = False
+            f.attrs["status"] = f"running (resumed from the checkpoint at t = {ckpt.sim_time:.6g} s)"
+            self.out.flush()
+        except BaseException:
+            self.out.abandon()
+            raise
+        return ckpt
 
     def rows(self) -> dict[str, int]:
         """Rows written so far: ``global`` (samples) and ``patches`` (per-patch samples)."""
@@ -130,7 +208,9 @@ class RunWriter:
         at checkpoints, so that what is on disk always fits the last one (:mod:`aca_warp.common.checkpoint`)."""
         self.flush_each_chunk = False
         ckpt.rows = self.rows()
-        write_checkpoint(self.f, ckpt)
+        self.out.reserve(checkpoint_room(self.f, ckpt))
+        write_checkpoint(self.f, ckpt, flush=self.out.flush)
+        self.checkpoint_time = ckpt.sim_time
 
     def _patch_dataset(self, name: str, unit: str, width: int, dtype: Any) -> h5py.Dataset:
         if name not in self._patch_ds:
@@ -144,9 +224,10 @@ class RunWriter:
             self._patch_ds[name] = d
         return self._patch_ds[name]
 
-    @staticmethod
-    def _append(d: h5py.Dataset, data: np.ndarray) -> None:
+    def _append(self, d: h5py.Dataset, data: np.ndarray) -> None:
         n = d.shape[0]
+        self.out.touch(d, n, n + len(data))
+        self.out.reserve()
         d.resize(n + len(data), axis=0)
         d[n:] = data
 
@@ -163,26 +244,56 @@ class RunWriter:
                 if data is not None:
                     self._append(self._patch_dataset(name, unit, width, data.dtype), data[:, self.slice])
         if self.flush_each_chunk:
-            self.f.flush()
+            self.out.flush()
 
     def close(self, *, complete: bool, status: str, attrs: dict[str, Any] | None = None) -> Path:
-        """Write the closing attributes, close, and move the file to its final name."""
-        f = self.f
-        f.attrs["complete"] = complete
-        f.attrs["status"] = status
-        for k, v in (attrs or {}).items():
-            f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
-        if complete:
-            drop_checkpoint(f)
-        if self.model.scenes[self.pad].growth is not None:
-            fin = f["patches"].create_group("final")
-            fin.create_dataset("area", data=self.model.host("area")[self.slice].astype(np.float64)).attrs["unit"] = "m2"
-            fin.create_dataset(
-                "normal_force", data=self.model.host("normal_force")[self.slice].astype(np.float64)
-            ).attrs["unit"] = "N"
-        f.close()
-        os.replace(self.partial, self.path)
+        """Write the closing attributes, close, move the file to its final name and release the output. A failure
+        abandons the file as it was at its last flush (a storage failure raises a one-line StorageError)."""
+        try:
+            f = self.f
+            f.attrs["complete"] = complete
+            f.attrs["status"] = status
+            for k, v in (attrs or {}).items():
+                f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
+            if complete:
+                drop_checkpoint(f)
+            if self.model.scenes[self.pad].growth is not None:
+                fin = f["patches"].create_group("final")
+                for name, unit in (("area", "m2"), ("normal_force", "N")):
+                    data = self.model.host(name)[self.slice].astype(np.float64)
+                    self.out.reserve(data.nbytes)
+                    fin.create_dataset(name, data=data).attrs["unit"] = unit
+            self.out.close()
+            os.replace(self.partial, self.path)
+        except BaseException as e:
+            self.abandon()
+            code = storage_errno(e)
+            if code is not None:
+                raise storage_error(code, self.partial, hf_advice(self.path, self.checkpoint_time)) from None
+            raise
+        self.lock.release()
         return self.path
+
+    def abandon(self) -> None:
+        """Leave the ``.partial`` as it was at its last flush (after a failure) and release the output."""
+        self.out.abandon()
+        self.lock.release()
+
+    def finish(self, error: BaseException, status: str) -> BaseException | None:
+        """Close the file after ``error`` stopped the run: marked incomplete with ``status``, or abandoned when
+        ``error`` is a storage failure. Returns the exception to raise instead of ``error`` (a one-line
+        :class:`~aca_warp.common.errors.StorageError`), or None to raise ``error`` itself."""
+        code = storage_errno(error)
+        if code is None and not from_h5py(error):
+            try:
+                self.close(complete=False, status=status)
+            except AcaError as e:
+                return e
+            return None
+        self.abandon()
+        if code is None:  # HDF5 failed to write (a damaged file): nothing more goes into it
+            return write_failed(error, self.partial, hf_advice(self.path, self.checkpoint_time))
+        return storage_error(code, self.partial, hf_advice(self.path, self.checkpoint_time))
 
 
 def read_run(path: str | Path) -> dict[str, Any]:

@@ -14,19 +14,19 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-import h5py
 import warp as wp
 
 from aca_warp.common.checkpoint import Checkpoint, has_checkpoint
 from aca_warp.common.errors import SceneError
-from aca_warp.common.files import check_output_path, find_resumable
+from aca_warp.common.files import OutputLock, check_output_path, find_resumable, open_h5, reading
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
 from aca_warp.hf.options import DEFAULT_DT, RunOptions
 from aca_warp.hf.recorder import check_run
-from aca_warp.hf.runfile import RunWriter
-from aca_warp.hf.solver import HFSolver
+from aca_warp.hf.runfile import BUSY, RunWriter
+from aca_warp.hf.sanity import check_contact
+from aca_warp.hf.solver import check_step
 from aca_warp.hf.state import HFState, initial_state
 from aca_warp.scene import Scene
 
@@ -119,14 +119,19 @@ def run_scene(
     ``announce`` receives the :class:`RunPlan` once everything is validated, just before the run starts.
     """
     options = options or RunOptions()
-    check_output_path(output, overwrite=overwrite)
-    options = options.with_duration(scene.duration if options.duration is None else options.duration)
-    plan = plan_run(scene, options, precision)  # absurd step counts or sizes refused before anything is allocated
-    model = build_model([scene], device=device, precision=precision)
-    state = initial_state(model)
-    # refuse bad step choices before a file is created
-    HFSolver(model, options.integrator, options.dt, force=options.force, tolerance=options.tolerance)
-    options = dataclasses.replace(options, engine=choose_engine(model, options.engine, options.integrator))
+    lock = OutputLock.acquire(output, what=BUSY)  # held from here until the file has its final name
+    try:
+        check_output_path(output, overwrite=overwrite)
+        options = options.with_duration(scene.duration if options.duration is None else options.duration)
+        plan = plan_run(scene, options, precision)  # bad sample counts, absurd step counts or sizes: refused early
+        model = build_model([scene], device=device, precision=precision)
+        state = initial_state(model)
+        check_step(model, options, scene.record.sample_dt)  # the step the run takes, the sticking bound
+        check_contact(model, accept=options.accept_unphysical)  # exit 3 before a file exists
+        options = dataclasses.replace(options, engine=choose_engine(model, options.engine, options.integrator))
+    except BaseException:
+        lock.release()
+        raise
     if announce is not None:
         announce(plan)
 
@@ -135,6 +140,7 @@ def run_scene(
             output,
             model,
             overwrite=overwrite,
+            lock=lock,
             attrs={
                 "integrator": options.integrator,
                 "precision": precision,
@@ -156,7 +162,8 @@ def _execute(
     progress: bool,
     resume: Checkpoint | None = None,
 ) -> RunResult:
-    """Run into the writer ``open_writer()`` returns; close it complete, stopped, interrupted or failed."""
+    """Run into the writer ``open_writer()`` returns; close it complete, stopped, interrupted or failed (a storage
+    failure leaves the ``.partial`` as it was at its last checkpoint and raises a one-line StorageError)."""
     writer = None
     try:
         writer = open_writer()
@@ -169,34 +176,30 @@ def _execute(
             on_checkpoint=writer.checkpoint,
             resume=resume,
         )
-    except KeyboardInterrupt:
-        if writer is not None:
-            writer.close(complete=False, status="interrupted by the user")
-        raise
-    except BaseException:
-        if writer is not None:
-            writer.close(complete=False, status="failed")
-        raise
-    status = "complete" if result.complete else f"stopped: {result.fault}"
-    writer.close(
-        complete=result.complete,
-        status=status,
-        attrs={
-            "stages": result.stages,
-            "steps": result.steps,
-            "rejected_steps": result.rejected,
-            "sim_time": result.sim_time,
-            "wall_time": result.wall_time,
-            "compile_time": result.compile_time,
-            "dt": result.dt,
-            "stable_step": {
-                "spring": result.estimate.spring,
-                "friction": result.estimate.friction,
-                "explicit": result.estimate.explicit,
+        status = "complete" if result.complete else f"stopped: {result.fault}"
+        writer.close(
+            complete=result.complete,
+            status=status,
+            attrs={
+                "stages": result.stages,
+                "steps": result.steps,
+                "rejected_steps": result.rejected,
+                "sim_time": result.sim_time,
+                "wall_time": result.wall_time,
+                "compile_time": result.compile_time,
+                "dt": result.dt,
+                "stable_step": result.estimate.as_dict(),
+                "fault": "" if result.fault is None else str(result.fault),
             },
-            "fault": "" if result.fault is None else str(result.fault),
-        },
-    )
+        )
+    except BaseException as e:
+        if writer is None or not writer.lock.held:  # not opened, or closed (close raised its own error)
+            raise
+        status = "interrupted by the user" if isinstance(e, KeyboardInterrupt) else "failed"
+        replacement = writer.finish(e, status)
+        if replacement is not None:
+            raise replacement from None
+        raise
     wp.synchronize_device(model.device)
     return result
 
@@ -214,19 +217,31 @@ def resume_run(
     from aca_warp.hf.rerun import read_settings
 
     final, part = find_resumable(path)
-    src = part if part.exists() else final
-    s = read_settings(src)
-    with h5py.File(src, "r") as f:
-        if not has_checkpoint(f):
-            raise SceneError(f"{src} holds no checkpoint (run without checkpoint_interval); use 'aca-warp rerun'")
-    model = build_model([s.scene], device=device or s.device, precision=s.precision)
-    state = initial_state(model)
-    options = s.options
-    if checkpoint_interval is not None:
-        options = dataclasses.replace(options, checkpoint_interval=checkpoint_interval)
-    if src == final:
-        os.replace(final, part)  # a stopped run goes back to being written
-    writer, ckpt = RunWriter.reopen(part, model)
+    lock = OutputLock.acquire(final, what="it cannot be resumed while it runs")
+    try:
+        final, part = find_resumable(path)  # again, now that no other process can move it
+        src = part if part.exists() else final
+        s = read_settings(src)
+        with reading(src, "run file"), open_h5(src, "run file") as f:
+            if not has_checkpoint(f):
+                raise SceneError(f"{src} holds no checkpoint (run without checkpoint_interval); use 'aca-warp rerun'")
+        model = build_model([s.scene], device=device or s.device, precision=s.precision)
+        state = initial_state(model)
+        options = s.options
+        if checkpoint_interval is not None:
+            options = dataclasses.replace(options, checkpoint_interval=checkpoint_interval)
+        if src == final:
+            os.replace(final, part)  # a stopped run goes back to being written
+    except BaseException:
+        lock.release()
+        raise
+    try:
+        writer, ckpt = RunWriter.reopen(part, model, lock=lock)
+    except BaseException:
+        if src == final and part.exists() and not final.exists():
+            os.replace(part, final)  # not resumed: the stopped run keeps its name
+        lock.release()
+        raise
     if checkpoint_interval is not None:
         writer.f.attrs["run_options"] = options.to_json()
     return _execute(lambda: writer, model, state, options, progress=progress, resume=ckpt), final

@@ -36,20 +36,28 @@ def run_lf(
     import math
 
     from aca_warp.common.errors import SceneError
-    from aca_warp.lf.io import LFRunWriter, check_lf_output
+    from aca_warp.common.files import OutputLock
+    from aca_warp.lf.io import BUSY, LFRunWriter, check_lf_output
     from aca_warp.lf.solver import LFSimulation
 
     check_lf_output(output, overwrite=overwrite)
     if checkpoint_interval is not None and not (math.isfinite(checkpoint_interval) and checkpoint_interval > 0):
         raise SceneError(f"checkpoint interval must be a positive number of seconds, got {checkpoint_interval}")
-    sim = LFSimulation(scene, device=device, duration=duration, graph=graph)
+    lock = OutputLock.acquire(output, what=BUSY)  # held from here until the file has its final name
+    try:
+        check_lf_output(output, overwrite=overwrite)
+        sim = LFSimulation(scene, device=device, duration=duration, graph=graph)
+    except BaseException:
+        lock.release()
+        raise
     run = {"duration": duration, "checkpoint_interval": checkpoint_interval, "graph": graph}
-    writer = LFRunWriter(output, sim, overwrite=overwrite, run=run)
+    writer = LFRunWriter(output, sim, overwrite=overwrite, run=run, lock=lock)
     return _execute(sim, writer, progress=progress, checkpoint_interval=checkpoint_interval)
 
 
 def _execute(sim: Any, writer: Any, *, progress: bool, checkpoint_interval: float | None) -> Any:
-    """Run ``sim`` to the end of its schedule into ``writer``; close the file complete, interrupted or failed."""
+    """Run ``sim`` to the end of its schedule into ``writer``; close the file complete, interrupted or failed (a
+    storage failure leaves the ``.partial`` as it was at its last checkpoint and raises a one-line StorageError)."""
     try:
         wall = sim.run(
             on_snapshot=writer.snapshot,
@@ -57,13 +65,16 @@ def _execute(sim: Any, writer: Any, *, progress: bool, checkpoint_interval: floa
             checkpoint_every=checkpoint_interval,
             on_checkpoint=None if checkpoint_interval is None else writer.checkpoint,
         )
-    except KeyboardInterrupt:
-        writer.close(complete=False, status="interrupted by the user")
+        attrs = {"wall_time": wall, "steps_per_second": sim.step_index / wall}
+        writer.close(complete=True, status="complete", attrs=attrs)
+    except BaseException as e:
+        if not writer.lock.held:  # closed already (close raised its own error)
+            raise
+        status = "interrupted by the user" if isinstance(e, KeyboardInterrupt) else "failed"
+        replacement = writer.finish(e, status)
+        if replacement is not None:
+            raise replacement from None
         raise
-    except BaseException:
-        writer.close(complete=False, status="failed")
-        raise
-    writer.close(complete=True, status="complete", attrs={"wall_time": wall, "steps_per_second": sim.step_index / wall})
     sim.wall_time = wall
     return sim
 
@@ -77,12 +88,12 @@ def read_lf_settings(path: str | Path) -> dict[str, Any]:
     import numpy as np
 
     from aca_warp.common.errors import SceneError
-    from aca_warp.common.files import open_h5
+    from aca_warp.common.files import open_h5, reading
     from aca_warp.lf.scene import lf_scene_from_dict
     from aca_warp.scene import Patches
 
     p = Path(path)
-    with open_h5(p, "LF run file") as f:
+    with reading(p, "LF run file"), open_h5(p, "LF run file") as f:
         try:
             if f.attrs.get("kind") != "lf":
                 raise SceneError(f"{p} is not an LF run file (no kind = 'lf' attribute)")
@@ -122,21 +133,28 @@ def resume_lf(
     import json
     import os
 
-    from aca_warp.common.files import find_resumable
+    from aca_warp.common.files import OutputLock, find_resumable
     from aca_warp.lf.io import LFRunWriter
     from aca_warp.lf.solver import LFSimulation
 
     final, part = find_resumable(path)
-    src = part if part.exists() else final
-    s = read_lf_settings(src)
-    sim = LFSimulation(s["scene"], device=device or s["device"], duration=s["duration"], graph=s["graph"])
-    if src == final:
-        os.replace(final, part)  # a stopped run goes back to being written
+    lock = OutputLock.acquire(final, what="it cannot be resumed while it runs")
     try:
-        writer = LFRunWriter.reopen(part, sim)
-    except BaseException:
+        final, part = find_resumable(path)  # again, now that no other process can move it
+        src = part if part.exists() else final
+        s = read_lf_settings(src)
+        sim = LFSimulation(s["scene"], device=device or s["device"], duration=s["duration"], graph=s["graph"])
         if src == final:
-            os.replace(part, final)
+            os.replace(final, part)  # a stopped run goes back to being written
+    except BaseException:
+        lock.release()
+        raise
+    try:
+        writer = LFRunWriter.reopen(part, sim, lock=lock)
+    except BaseException:
+        if src == final and part.exists() and not final.exists():
+            os.replace(part, final)  # not resumed: the stopped run keeps its name
+        lock.release()
         raise
     interval = checkpoint_interval or s["checkpoint_interval"]
     if checkpoint_interval is not None:

@@ -18,7 +18,9 @@ Every dataset has a ``unit`` attribute; snapshot groups carry ``time``, ``normal
 [s] or null, ``graph``), ``device``, ``versions``, ``complete``, ``status``, ``steps``, ``wall_time``. The file is
 written as ``NAME.partial`` and renamed when the run ends. /global grows at checkpoints (and at the end), so a
 killed checkpointed run's ``.partial`` holds every row up to its last checkpoint; ``aca-warp lf --resume``
-continues it (:meth:`LFRunWriter.reopen`) and ``aca-warp rerun`` repeats a finished one.
+continues it (:meth:`LFRunWriter.reopen`) and ``aca-warp rerun`` repeats a finished one. As for HF run files, one
+writer holds ``NAME.lock`` while it writes, the ``.partial`` is created as ``NAME.partial.new`` and renamed once
+its header is on disk, and a full device leaves it as it was at its last flush (:mod:`aca_warp.common.storage`).
 """
 
 from __future__ import annotations
@@ -31,13 +33,43 @@ from typing import Any
 import h5py
 import numpy as np
 
-from aca_warp.common.checkpoint import closed_on_failure, drop_checkpoint, read_checkpoint, write_checkpoint
-from aca_warp.common.errors import SceneError
-from aca_warp.common.files import check_output_path, machine, open_h5, partial_path, versions
+from aca_warp.common.checkpoint import (
+    checkpoint_room,
+    closed_on_failure,
+    drop_checkpoint,
+    read_checkpoint,
+    write_checkpoint,
+)
+from aca_warp.common.errors import AcaError, SceneError
+from aca_warp.common.files import (
+    OutputLock,
+    check_output_path,
+    from_h5py,
+    machine,
+    new_path,
+    open_h5,
+    partial_path,
+    reading,
+    versions,
+)
+from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
 from aca_warp.kernels.lf import H_NAMES, H_UNITS
 from aca_warp.lf.scene import lf_scene_to_dict
 from aca_warp.lf.solver import LFSimulation
 from aca_warp.scene import Friction, Material, Matrix, Pad, Patches, Scene
+
+BUSY = "wait for it to finish or stop it (--overwrite does not replace a run in progress)"
+
+
+def lf_advice(path: Path, checkpoint_time: float | None) -> str:
+    """What to do with an LF ``.partial`` left by a storage failure."""
+    if checkpoint_time is None:
+        return "it holds no checkpoint: make room and run again with --overwrite"
+    return (
+        f"it keeps its checkpoint at t = {checkpoint_time:.6g} s: make room, then continue with "
+        f"'aca-warp lf --resume {path}'"
+    )
+
 
 _UNITS = {
     "x": "m", "y": "m", "area": "m2", "height": "m", "thickness": "m", "normal_force": "N", "temperature": "K",
@@ -49,14 +81,43 @@ class LFRunWriter:
     """Writes an LF run file: snapshots as they come, the global time series and calibration data at the end."""
 
     def __init__(
-        self, path: str | Path, sim: LFSimulation, *, overwrite: bool = False, run: dict[str, Any] | None = None
+        self,
+        path: str | Path,
+        sim: LFSimulation,
+        *,
+        overwrite: bool = False,
+        run: dict[str, Any] | None = None,
+        lock: OutputLock | None = None,
     ) -> None:
-        self.path = check_lf_output(path, overwrite=overwrite)
-        self.partial = self.path.with_name(self.path.name + ".partial")
+        self.lock = lock or OutputLock.acquire(path, what=BUSY)
         self.sim = sim
         self.rows = 0
-        self.f = h5py.File(self.partial, "w")
-        f = self.f
+        self.checkpoint_time: float | None = None
+        tmp = new_path(partial_path(path))
+        try:
+            self.path = check_lf_output(path, overwrite=overwrite)
+            self.partial = self.path.with_name(self.path.name + ".partial")
+            tmp.unlink(missing_ok=True)  # left by a run killed while creating its file (we hold the lock)
+            self.f = h5py.File(tmp, "w")
+            self.out = GuardedFile(self.f, self.partial)
+            self._write_header(run)
+            self.out.flush()
+            os.replace(tmp, self.partial)  # readable from the moment it has this name
+        except BaseException as e:
+            if getattr(self, "out", None) is not None:
+                self.out.abandon()
+            elif getattr(self, "f", None) is not None:
+                self.f.close()
+            tmp.unlink(missing_ok=True)
+            self.lock.release()
+            code = storage_errno(e)
+            if code is not None:
+                raise storage_error(code, tmp, "nothing was written") from None
+            raise
+
+    def _write_header(self, run: dict[str, Any] | None) -> None:
+        """Attributes, the initial patches and the empty /global datasets."""
+        f, sim = self.f, self.sim
         f.attrs["lf_run"] = json.dumps(run or {"duration": None, "checkpoint_interval": None})
         f.attrs["kind"] = "lf"
         f.attrs["scene"] = json.dumps(lf_scene_to_dict(sim.scene))
@@ -75,6 +136,7 @@ class LFRunWriter:
             ip = f.create_group("initial_patches")
             for k in ("x", "y", "area", "height"):
                 data = np.asarray(getattr(sim.scene.patches, k), np.float64)
+                self.out.reserve(data.nbytes)
                 ip.create_dataset(k, data=data).attrs["unit"] = _UNITS[k]
         chunk = (min(max(sim.table.steps, 1), 4096),)
         g = f.create_group("global")
@@ -82,19 +144,22 @@ class LFRunWriter:
             g.create_dataset(name, shape=(0,), maxshape=(None,), dtype="f8", chunks=chunk).attrs["unit"] = unit
 
     @classmethod
-    def reopen(cls, partial: str | Path, sim: LFSimulation) -> LFRunWriter:
-        """Open a killed or stopped LF run's ``NAME.partial`` to continue it: restore ``sim`` from its checkpoint,
-        cut /global back to the checkpoint's rows, drop the snapshots taken after it, mark it running again."""
+    def reopen(cls, partial: str | Path, sim: LFSimulation, *, lock: OutputLock) -> LFRunWriter:
+        """Open a killed or stopped LF run's ``NAME.partial`` to continue it (``lock``: the lock of ``NAME``, held;
+        the caller releases it when this fails): restore ``sim`` from its checkpoint, cut /global back to the
+        checkpoint's rows, drop the snapshots taken after it, mark it running again."""
         self = cls.__new__(cls)
+        self.lock = lock
         self.partial = Path(partial)
         self.path = self.partial.with_name(self.partial.name.removesuffix(".partial"))
         self.sim = sim
         try:
             self.f = h5py.File(self.partial, "r+")
-        except OSError as e:
+        except (OSError, RuntimeError) as e:
             raise SceneError(f"cannot open {self.partial} to resume it: {e}") from None
         f = self.f
-        with closed_on_failure(f, self.partial):
+        self.out = GuardedFile(f, self.partial)
+        with closed_on_failure(f, self.partial, close=self.out.abandon):
             ckpt = read_checkpoint(f, str(self.partial))
             rows = int(ckpt.rows["global"])
             if rows != int(ckpt.counters["step_index"]):
@@ -113,12 +178,20 @@ class LFRunWriter:
                     del f["snapshots"][name]  # taken after the checkpoint: the resumed run takes it again
             if "calibration" in f:
                 del f["calibration"]  # written when a stopped run was closed; rewritten at the end
-        with closed_on_failure(f, self.partial, scene_error=False):
+        with closed_on_failure(f, self.partial, scene_error=False, close=self.out.abandon):
             sim.restore(ckpt, hist)
         self.rows = rows
-        f.attrs["complete"] = False
-        f.attrs["status"] = f"running (resumed from the checkpoint at t = {ckpt.sim_time:.6g} s)"
-        f.flush()
+        self.checkpoint_time = ckpt.sim_time
+        try:
+            f.attrs["complete"] = False
+            f.attrs["status"] = f"running (resumed from the checkpoint at t = {ckpt.sim_time:.6g} s)"
+            self.out.flush()
+        except BaseException as e:
+            self.out.abandon()
+            code = storage_errno(e)
+            if code is not None:
+                raise storage_error(code, self.partial, "it was not changed; make room and resume again") from None
+            raise
         return self
 
     def _append_rows(self) -> None:
@@ -129,6 +202,9 @@ class LFRunWriter:
         h = self.sim.hist.numpy()[self.rows : n]
         g = self.f["global"]
         t = (np.arange(self.rows, n) + 1) * self.sim.scene.lf.dt
+        for name in ("time", *H_NAMES):
+            self.out.touch(g[name], self.rows, n)
+        self.out.reserve()
         for name, col in (("time", t), *zip(H_NAMES, h.T, strict=True)):
             g[name].resize(n, axis=0)
             g[name][self.rows :] = col
@@ -136,8 +212,10 @@ class LFRunWriter:
 
     def snapshot(self, name: str, sim: LFSimulation) -> None:
         """Save ``sim``'s current patch coverage state under /snapshots/NAME (the run loop's callback)."""
-        write_snapshot(self.f["snapshots"].create_group(name), sim.snapshot())
-        self.f.flush()
+        snap = sim.snapshot()
+        self.out.reserve(sum(8 * np.size(v) for part in ("patches", "matrix", "rings") for v in snap[part].values()))
+        write_snapshot(self.f["snapshots"].create_group(name), snap)
+        self.out.flush()
 
     def checkpoint(self, sim: LFSimulation) -> None:
         """Store the run's state (the run loop's ``on_checkpoint``): /global up to this step, then the state into
@@ -145,27 +223,59 @@ class LFRunWriter:
         self._append_rows()
         ckpt = sim.checkpoint_state()
         ckpt.rows = {"global": self.rows}
-        write_checkpoint(self.f, ckpt)
+        self.out.reserve(checkpoint_room(self.f, ckpt))
+        write_checkpoint(self.f, ckpt, flush=self.out.flush)
+        self.checkpoint_time = ckpt.sim_time
 
     def close(self, *, complete: bool, status: str, attrs: dict[str, Any] | None = None) -> Path:
-        """Write the rest of the time series and the closing attributes, close, and move the file to its final
-        name (a complete run drops its checkpoint; a stopped one keeps it for ``aca-warp lf --resume``)."""
-        f = self.f
-        self._append_rows()
-        n = min(int(self.sim.death_count.numpy()[0]), self.sim.death_age.shape[0])
-        c = f.create_group("calibration")
-        c.create_dataset("death_age", data=self.sim.death_age.numpy()[:n]).attrs["unit"] = "s"
-        c.create_dataset("death_area", data=self.sim.death_area.numpy()[:n]).attrs["unit"] = "m2"
-        f.attrs["complete"] = complete
-        f.attrs["status"] = status
-        f.attrs["steps"] = self.sim.step_index
-        if complete:
-            drop_checkpoint(f)
-        for k, v in (attrs or {}).items():
-            f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
-        f.close()
-        os.replace(self.partial, self.path)
+        """Write the rest of the time series and the closing attributes, close, move the file to its final name
+        and release the output (a complete run drops its checkpoint; a stopped one keeps it for ``aca-warp lf
+        --resume``). A failure abandons the file as it was at its last flush (a storage failure raises a one-line
+        StorageError)."""
+        try:
+            f = self.f
+            self._append_rows()
+            n = min(int(self.sim.death_count.numpy()[0]), self.sim.death_age.shape[0])
+            self.out.reserve(16 * n)
+            c = f.create_group("calibration")
+            c.create_dataset("death_age", data=self.sim.death_age.numpy()[:n]).attrs["unit"] = "s"
+            c.create_dataset("death_area", data=self.sim.death_area.numpy()[:n]).attrs["unit"] = "m2"
+            f.attrs["complete"] = complete
+            f.attrs["status"] = status
+            f.attrs["steps"] = self.sim.step_index
+            if complete:
+                drop_checkpoint(f)
+            for k, v in (attrs or {}).items():
+                f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
+            self.out.close()
+            os.replace(self.partial, self.path)
+        except BaseException as e:
+            self.abandon()
+            code = storage_errno(e)
+            if code is not None:
+                raise storage_error(code, self.partial, lf_advice(self.path, self.checkpoint_time)) from None
+            raise
+        self.lock.release()
         return self.path
+
+    def abandon(self) -> None:
+        """Leave the ``.partial`` as it was at its last flush (after a failure) and release the output."""
+        self.out.abandon()
+        self.lock.release()
+
+    def finish(self, error: BaseException, status: str) -> BaseException | None:
+        """Close the file after ``error`` stopped the run (as :meth:`aca_warp.hf.runfile.RunWriter.finish`)."""
+        code = storage_errno(error)
+        if code is None and not from_h5py(error):
+            try:
+                self.close(complete=False, status=status)
+            except AcaError as e:
+                return e
+            return None
+        self.abandon()
+        if code is None:  # HDF5 failed to write (a damaged file): nothing more goes into it
+            return write_failed(error, self.partial, lf_advice(self.path, self.checkpoint_time))
+        return storage_error(code, self.partial, lf_advice(self.path, self.checkpoint_time))
 
 
 def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:
@@ -190,7 +300,7 @@ def write_snapshot(group: h5py.Group, snap: dict[str, Any]) -> None:
 
 def snapshot_names(path: str | Path) -> list[str]:
     """Names of the snapshots in an LF run file, in time order."""
-    with _open(path) as f:
+    with reading(path, "LF run file"), _open(path) as f:
         g = f["snapshots"]
         return sorted(g, key=lambda n: float(g[n].attrs["time"]))
 
@@ -206,14 +316,17 @@ def _open(path: str | Path) -> h5py.File:
 
 def read_snapshot(path: str | Path, name: str) -> dict[str, Any]:
     """One snapshot as nested dicts of arrays plus its ``attrs``."""
-    with _open(path) as f:
+    with reading(path, "LF run file"), _open(path) as f:
         if name not in f["snapshots"]:
             names = ", ".join(sorted(f["snapshots"])) or "none"
             raise SceneError(f"no snapshot {name!r} in {path}; it has: {names}")
         g = f["snapshots"][name]
         out: dict[str, Any] = {part: {k: g[part][k][()] for k in g[part]} for part in ("patches", "matrix", "rings")}
         out["attrs"] = {k: (v.item() if hasattr(v, "item") else v) for k, v in g.attrs.items()}
-        out["scene"] = json.loads(f.attrs["scene"])
+        try:
+            out["scene"] = json.loads(f.attrs["scene"])
+        except (KeyError, TypeError, ValueError) as e:
+            raise SceneError(f"{path}: the stored LF scene is missing or damaged ({type(e).__name__}: {e})") from None
     return out
 
 
@@ -225,24 +338,34 @@ def scene_from_snapshot(path: str | Path, name: str, *, duration: float | None =
     """
     s = read_snapshot(path, name)
     doc = s["scene"]
-    p = s["patches"]
-    if len(p["x"]) == 0:
-        raise SceneError(f"snapshot {name!r} has no patches; an HF scene needs at least one")
-    patches = Patches(p["x"], p["y"], p["area"], p["height"], source=f"{path}:/snapshots/{name}")
-    m = s["matrix"]
-    matrix = Matrix(m["area"], m["radius"], m["height"])
+    try:
+        p = s["patches"]
+        if len(p["x"]) == 0:
+            raise SceneError(f"snapshot {name!r} has no patches; an HF scene needs at least one")
+        patches = Patches(p["x"], p["y"], p["area"], p["height"], source=f"{path}:/snapshots/{name}")
+        m = s["matrix"]
+        matrix = Matrix(m["area"], m["radius"], m["height"])
+    except SceneError as e:
+        raise SceneError(f"{path}: snapshot {name!r} is not a valid HF scene: {e}") from None
+    except (KeyError, TypeError, ValueError) as e:
+        raise SceneError(f"{path}: snapshot {name!r} is incomplete or damaged ({type(e).__name__}: {e})") from None
     a = s["attrs"]
     kw: dict[str, Any] = {}
     if duration is not None:
         kw["duration"] = duration
-    return Scene(
-        name=f"{doc['scene']['name']}:{name}",
-        pad=Pad(**doc["pad"]),
-        patches=patches,
-        material=Material(**doc["material"]),
-        friction=Friction(**doc["friction"]),
-        normal_force=float(a["normal_force"]),
-        angular_velocity=float(a["angular_velocity"]),
-        matrix=matrix,
-        **kw,
-    )
+    try:
+        return Scene(
+            name=f"{doc['scene']['name']}:{name}",
+            pad=Pad(**doc["pad"]),
+            patches=patches,
+            material=Material(**doc["material"]),
+            friction=Friction(**doc["friction"]),
+            normal_force=float(a["normal_force"]),
+            angular_velocity=float(a["angular_velocity"]),
+            matrix=matrix,
+            **kw,
+        )
+    except SceneError as e:
+        raise SceneError(f"{path}: snapshot {name!r} is not a valid HF scene: {e}") from None
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise SceneError(f"{path}: snapshot {name!r} is incomplete or damaged ({type(e).__name__}: {e})") from None

@@ -47,8 +47,9 @@ def run_general(
     dt: float | None = None,
     tolerance: float | None = None,
 ) -> RunResult:
-    """``run_hf`` for ``duration`` [s]: ``adaptive`` with ``tolerance``, a fixed-step integrator with ``dt`` [s]."""
-    kw = {"tolerance": tolerance} if integrator == "adaptive" else {"dt": dt}
+    """``run_hf`` for ``duration`` [s]: ``adaptive`` with ``tolerance``, a fixed-step integrator with ``dt`` [s]
+    (forced: the work-precision study measures the error of every step, those that do not resolve sticking too)."""
+    kw = {"tolerance": tolerance} if integrator == "adaptive" else {"dt": dt, "force": integrator != "symplectic-euler"}
     return run_hf(
         model, state, RunOptions(duration=duration, integrator=integrator, engine="general", **kw), record=record
     )

@@ -1,0 +1,281 @@
+"""Single-bit flips and truncations of run files, fed to every command that reads them.
+
+Builds the inputs (an HF run with per-patch velocities, an HF run stopped at its first checkpoint, an LF run with
+snapshots and an LF run stopped at its first checkpoint), then for each reading command flips one bit at
+``--flips`` offsets of its input (a dozen fixed offsets in the first 3 kB, where the superblock and the root group
+live, the rest drawn at random over the file and its last 4 kB) and cuts it at four lengths, and runs the command
+in a subprocess. Outcomes: ``ok`` (exit 0: the flip hit data the command does not check), ``one line`` (exit 2
+or 4 with exactly one ``aca-warp: error:`` line), ``bad`` (anything else: a traceback, a crash, a hang).
+
+``--formats N`` instead reads every dataset and attribute of the HF run after N random single-bit flips, once as
+written (HDF5 ``libver = earliest``, no filters) and once copied with ``libver = "v108"`` (checksummed object
+headers and index nodes) and the Fletcher-32 filter on every dataset: how many flips each format detects.
+
+    python scripts/corrupt_files.py --flips 20          # ~10 minutes on the 2-core CPU container
+    python scripts/corrupt_files.py --formats 120       # ~2 minutes
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import random
+import shutil
+import subprocess
+import sys
+import tempfile
+from collections import Counter
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+
+HF_SCENE = """
+[scene]
+name = "corrupt"
+[load]
+normal_force = 20.0
+[disc]
+sliding_speed = 10.0
+[patches]
+count = 40
+area_min = 2.0e-8
+area_max = 8.0e-8
+height = 3.0e-6
+seed = 4
+[record]
+sample_dt = 1.0e-6
+patches = ["velocity"]
+[run]
+duration = 2.0e-4
+"""
+
+LF_SCENE = """
+[scene]
+name = "corrupt-lf"
+[pad]
+r_inner = 0.100
+r_outer = 0.110
+span_deg = 8.0
+[patches]
+count = 60
+area_min = 2e-8
+area_max = 8e-8
+height = 3e-6
+seed = 3
+[lf]
+capacity = 512
+p_birth = 1.0
+[snapshots]
+applications = true
+[[schedule]]
+kind = "application"
+duration = 1.0
+normal_force = 300.0
+ramp = 0.05
+[[schedule]]
+kind = "pause"
+duration = 0.1
+[[schedule]]
+kind = "application"
+duration = 0.4
+normal_force = 100.0
+"""
+
+# command: (input, file name in the trial folder, argv)
+COMMANDS = {
+    "rerun": ("hf", "in.h5", ["rerun", "in.h5", "-o", "out.h5", "--no-progress"]),
+    "analyze": ("hf", "in.h5", ["analyze", "in.h5"]),
+    "plot": ("hf", "in.h5", ["plot", "in.h5", "-o", "figs", "--only", "global", "spectra", "patch_map"]),
+    "hf --resume": ("hf_stopped", "in.h5", ["hf", "--resume", "in.h5", "--no-progress"]),
+    "lf --resume": ("lf_stopped", "in.h5", ["lf", "--resume", "in.h5", "--no-progress"]),
+    "hf --snapshot": ("lf", "in.h5", ["hf", "in.h5", "--snapshot", "app1_end", "-o", "out.h5", "--duration", "2e-6"]),
+    "rerun (LF)": ("lf", "in.h5", ["rerun", "in.h5", "-o", "out.h5", "--no-progress"]),
+}
+
+
+def env() -> dict[str, str]:
+    e = dict(os.environ)
+    e.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
+    return e
+
+
+def build_inputs(root: Path) -> dict[str, Path]:
+    """The four input files (in this process; the stopped ones by an interrupt at the first checkpoint)."""
+    from aca_warp.cli import main
+    from aca_warp.hf import runner
+    from aca_warp.lf import io as lf_io
+
+    (root / "hf.toml").write_text(HF_SCENE)
+    (root / "lf.toml").write_text(LF_SCENE)
+    out = {k: root / f"{k}.h5" for k in ("hf", "hf_stopped", "lf", "lf_stopped")}
+    assert main(["hf", str(root / "hf.toml"), "-o", str(out["hf"]), "--no-progress"]) == 0
+    assert main(["lf", str(root / "lf.toml"), "-o", str(out["lf"]), "--no-progress"]) == 0
+    real_hf, real_lf = runner.run_hf, lf_io.LFRunWriter.checkpoint
+
+    def hf_once(*args, on_checkpoint=None, **kw):
+        def ckpt(c):
+            on_checkpoint(c)
+            raise KeyboardInterrupt
+
+        return real_hf(*args, on_checkpoint=ckpt, **kw)
+
+    def lf_once(self, sim):
+        real_lf(self, sim)
+        raise KeyboardInterrupt
+
+    runner.run_hf, lf_io.LFRunWriter.checkpoint = hf_once, lf_once
+    try:
+        args = ["--no-progress", "--checkpoint-interval"]
+        assert main(["hf", str(root / "hf.toml"), "-o", str(out["hf_stopped"]), *args, "5e-5"]) == 130
+        assert main(["lf", str(root / "lf.toml"), "-o", str(out["lf_stopped"]), *args, "0.2"]) == 130
+    finally:
+        runner.run_hf, lf_io.LFRunWriter.checkpoint = real_hf, real_lf
+    return out
+
+
+def positions(n: int, k: int, rng: random.Random) -> list[int]:
+    head = [p for p in (8, 40, 64, 100, 200, 300, 500, 800, 1000, 1500, 2000, 3000) if p < n]
+    rest = [rng.randrange(n) for _ in range(max(k - len(head), 0) * 2 // 3)]
+    tail = [n - 1 - rng.randrange(min(n, 4096)) for _ in range(max(k - len(head), 0) - len(rest))]
+    return sorted(set(head + rest + tail))
+
+
+def one(command: str, src: Path, how: str, pos: int, root: Path) -> dict:
+    """Damage a copy of ``src`` (flip the bit ``pos % 8`` of byte ``pos``, or cut at ``pos``), run the command."""
+    _, name, argv = COMMANDS[command]
+    d = root / f"trial-{command.replace(' ', '_')}-{how}-{pos}"
+    shutil.rmtree(d, ignore_errors=True)
+    d.mkdir()
+    data = bytearray(src.read_bytes())
+    if how == "flip":
+        data[pos] ^= 1 << (pos % 8)
+    else:
+        del data[pos:]
+    (d / name).write_bytes(bytes(data))
+    try:
+        r = subprocess.run(
+            [sys.executable, "-m", "aca_warp.cli", *argv], cwd=d, env=env(), capture_output=True, text=True, timeout=300
+        )
+        code, err = r.returncode, r.stderr
+    except subprocess.TimeoutExpired:
+        code, err = "timeout", ""
+    lines = [x for x in err.splitlines() if x.strip() and x.startswith(("aca-warp: error", "Traceback", "  File"))]
+    if code == 0:
+        outcome = "ok"
+    elif code in (2, 4) and len(lines) == 1 and lines[0].startswith("aca-warp: error:"):
+        outcome = "one line"
+    else:
+        outcome = "bad"
+    shutil.rmtree(d, ignore_errors=True)
+    return {"command": command, "how": how, "pos": pos, "exit": code, "outcome": outcome, "last": err.strip()[-300:]}
+
+
+READ_ALL = r"""
+import h5py, sys, hashlib
+try:
+    h = hashlib.sha256()
+    with h5py.File(sys.argv[1], 'r') as f:
+        def visit(name, obj):
+            if isinstance(obj, h5py.Dataset):
+                h.update(name.encode() + obj[()].tobytes())
+        f.visititems(visit)
+        for k in sorted(f.attrs):
+            h.update(k.encode() + repr(f.attrs[k]).encode())
+    print(h.hexdigest())
+except Exception as e:
+    print('ERROR', type(e).__name__)
+"""
+
+
+def formats(src: Path, root: Path, n: int, rng: random.Random) -> dict:
+    """Flips detected when every dataset and attribute is read: the file as written, and a checksummed copy."""
+    import h5py
+
+    copy = root / "checksummed.h5"
+    with h5py.File(src, "r") as a, h5py.File(copy, "w", libver="v108") as b:
+        for k, v in a.attrs.items():
+            b.attrs[k] = v
+
+        def visit(name: str, obj: object) -> None:
+            if isinstance(obj, h5py.Dataset):
+                data = obj[()]
+                if data.ndim:
+                    chunks = obj.chunks if obj.chunks and obj.maxshape[0] is None else True
+                    kw = {"maxshape": obj.maxshape} if obj.maxshape[0] is None else {}
+                    b.create_dataset(name, data=data, fletcher32=True, chunks=chunks, **kw)
+                else:
+                    b.create_dataset(name, data=data)
+
+        a.visititems(visit)
+    out = {}
+    for label, path in (("as written (libver earliest, no filters)", src), ("v108 + Fletcher-32", copy)):
+        ref = subprocess.run([sys.executable, "-c", READ_ALL, str(path)], capture_output=True, text=True).stdout
+        data = path.read_bytes()
+        counts: Counter = Counter()
+        for _ in range(n):
+            pos = rng.randrange(len(data))
+            b = bytearray(data)
+            b[pos] ^= 1 << rng.randrange(8)
+            (root / "flipped.h5").write_bytes(bytes(b))
+            cmd = [sys.executable, "-c", READ_ALL, str(root / "flipped.h5")]
+            r = subprocess.run(cmd, capture_output=True, text=True)
+            if r.returncode != 0:
+                counts["crash"] += 1
+            elif r.stdout.startswith("ERROR"):
+                counts["detected"] += 1
+            elif r.stdout == ref:
+                counts["no effect"] += 1
+            else:
+                counts["silent change"] += 1
+        out[label] = {"bytes": len(data), **counts}
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--flips", type=int, default=20, help="bit flips per command (default 20)")
+    p.add_argument("--commands", default=",".join(COMMANDS), help="comma-separated subset of: " + ", ".join(COMMANDS))
+    p.add_argument("--formats", type=int, default=0, metavar="N", help="compare detection of N flips by format")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--jobs", type=int, default=2, help="commands run at once (default 2)")
+    p.add_argument("--json", type=Path, help="write the results here")
+    args = p.parse_args(argv)
+    rng = random.Random(args.seed)
+    root = Path(tempfile.mkdtemp(prefix="aca-warp-corrupt-"))
+    try:
+        inputs = build_inputs(root)
+        if args.formats:
+            res = formats(inputs["hf"], root, args.formats, rng)
+            for label, c in res.items():
+                print(f"{label}: {c}")
+            if args.json:
+                args.json.write_text(json.dumps(res, indent=1))
+            return 0
+        jobs = []
+        for command in args.commands.split(","):
+            src = inputs[COMMANDS[command][0]]
+            n = src.stat().st_size
+            jobs += [(command, src, "flip", q, root) for q in positions(n, args.flips, rng)]
+            jobs += [(command, src, "cut", q, root) for q in sorted({96, 2000, n // 2, n - 100})]
+        with ThreadPoolExecutor(args.jobs) as ex:
+            results = list(ex.map(lambda j: one(*j), jobs))
+        table = Counter((r["command"], r["outcome"]) for r in results)
+        print("| command | runs | exit 0 | one line | bad |\n|---|---|---|---|---|")
+        for command in dict.fromkeys(r["command"] for r in results):
+            runs = sum(v for (c, _), v in table.items() if c == command)
+            row = [table[(command, o)] for o in ("ok", "one line", "bad")]
+            print(f"| {command} | {runs} | {row[0]} | {row[1]} | {row[2]} |")
+        for r in results:
+            if r["outcome"] == "bad":
+                print(f"BAD {r['command']} {r['how']} at {r['pos']}: exit {r['exit']}: {r['last']}")
+        if args.json:
+            args.json.write_text(json.dumps(results, indent=1))
+        return 1 if any(r["outcome"] == "bad" for r in results) else 0
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

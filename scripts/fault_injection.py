@@ -1,0 +1,474 @@
+"""Random SIGKILLs of ``aca-warp hf``, ``lf`` and ``sweep``, then recovery, compared with uninterrupted runs.
+
+For each workload (a small HF scene with per-patch histories and checkpoints, a small LF scene with checkpoints and
+snapshots, a four-shard sweep) the script runs the command once without interruption (the reference), then, per
+trial, starts it in a subprocess and kills it with SIGKILL after a random delay (uniform over the reference's wall
+time, start-up included, so kills land before, during and after the file appears and between and inside
+checkpoints). The recovery then does what a user would:
+
+* HF / LF: ``--resume`` the ``.partial`` (or the stopped file); a run killed before its first checkpoint (``holds
+  no checkpoint``) or before its file existed runs again (``--overwrite``); with probability 1/2 the recovery
+  itself is killed at a random time too (at most ``--max-kills`` kills per trial) and recovered again;
+* sweep: the same command again (a sweep resumes by design).
+
+With ``--file-size-limits N`` each workload also runs N times under a file-size limit (RLIMIT_FSIZE, SIGXFSZ
+ignored: a write past it fails with EFBIG, the path of a full device), the limits spread evenly from 30 % to
+110 % of the reference output's size (a sweep: of its largest shard); the run must stop with exit 4 (or finish,
+when the limit is not reached), and its recovery without the limit must again equal the reference.
+
+A trial passes when the recovered output equals the reference dataset for dataset, bit for bit (HF: every dataset
+of the run file; LF: every dataset, snapshots included; sweep: every dataset of every shard file), every recovery
+command exited 0 and no ``.partial`` or lock is left. Counts and failures are printed and written as JSON and
+Markdown.
+
+    python scripts/fault_injection.py --kills 12 --file-size-limits 6    # ~12 minutes on the 2-core container
+    python scripts/fault_injection.py --quick                            # one trial per workload, short runs
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+
+HF_SCENE = """
+[scene]
+name = "fi-hf"
+[load]
+normal_force = 20.0
+[disc]
+sliding_speed = 10.0
+[patches]
+count = 40
+area_min = 2.0e-8
+area_max = 8.0e-8
+height = 3.0e-6
+seed = 4
+[initial]
+perturbation = 1.0e-3
+seed = 2
+[record]
+sample_dt = 1.0e-6
+patches = ["velocity", "displacement"]
+[run]
+duration = {duration}
+"""
+
+LF_SCENE = """
+[scene]
+name = "fi-lf"
+[pad]
+r_inner = 0.100
+r_outer = 0.110
+span_deg = 8.0
+[patches]
+count = 60
+area_min = 2e-8
+area_max = 8e-8
+height = 3e-6
+seed = 3
+[lf]
+capacity = 512
+wear_m = 2e-12
+p_birth = 1.0
+p_store = 0.3
+compact_every = 25
+[snapshots]
+applications = true
+[[schedule]]
+kind = "application"
+duration = {duration}
+normal_force = 300.0
+ramp = 0.05
+[[schedule]]
+kind = "pause"
+duration = 0.1
+[[schedule]]
+kind = "application"
+duration = 0.4
+normal_force = 100.0
+"""
+
+SWEEP_SPEC = """
+[sweep]
+base = "base.toml"
+shard_size = 1
+name = "fi-sweep"
+[run]
+duration = {duration}
+[parameters]
+"friction.M" = [0.6, 0.7, 0.8, 0.9]
+"""
+
+
+@dataclass
+class Workload:
+    """One command under test: how to start it, recover it and read its output."""
+
+    name: str
+    start: list[str]  # argv after ``aca-warp`` of the uninterrupted command (output OUT)
+    output: str  # OUT: a file (hf, lf) or a folder (sweep)
+
+
+LIMITED = (
+    "import resource, signal, sys; lim = int(sys.argv[1]); signal.signal(signal.SIGXFSZ, signal.SIG_IGN); "
+    "resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim)); from aca_warp.cli import main; sys.exit(main(sys.argv[2:]))"
+)
+
+
+@dataclass
+class Trial:
+    """What one trial did."""
+
+    workload: str
+    limit: int | None = None  # file-size limit [bytes] of a disk-full trial
+    stopped: int | None = None  # exit code of the limited run
+    kills: int = 0
+    delays: list[float] = field(default_factory=list)
+    recoveries: list[str] = field(default_factory=list)  # resume, rerun, sweep-rerun, finished
+    outcome: str = ""  # identical, different, error
+    detail: str = ""
+    seconds: float = 0.0
+
+
+def workloads(root: Path, quick: bool) -> list[Workload]:
+    """The three workloads, their scene files written into ``root``."""
+    hf = root / "hf.toml"
+    hf.write_text(HF_SCENE.format(duration="5e-4" if quick else "2e-3"))
+    lf = root / "lf.toml"
+    lf.write_text(LF_SCENE.format(duration="1.0" if quick else "4.0"))
+    base = root / "base.toml"
+    base.write_text(HF_SCENE.format(duration="1e-4").replace('patches = ["velocity", "displacement"]\n', ""))
+    spec = root / "spec.toml"
+    spec.write_text(SWEEP_SPEC.format(duration="1e-4" if quick else "3e-4"))
+    return [
+        Workload("hf", ["hf", str(hf), "--no-progress", "--checkpoint-interval", "1e-4"], "hf.h5"),
+        Workload("lf", ["lf", str(lf), "--no-progress", "--checkpoint-interval", "0.1"], "lf.h5"),
+        Workload("sweep", ["sweep", str(spec), "--workers", "0", "--quiet"], "sweep"),
+    ]
+
+
+def env() -> dict[str, str]:
+    e = dict(os.environ)
+    e.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
+    return e
+
+
+def cli(args: list[str], cwd: Path, limit: int | None = None) -> subprocess.Popen:
+    pre = [sys.executable, "-m", "aca_warp.cli"] if limit is None else [sys.executable, "-c", LIMITED, str(limit)]
+    return subprocess.Popen(
+        [*pre, *args],
+        cwd=cwd,
+        env=env(),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def run_to_end(args: list[str], cwd: Path, limit: int | None = None) -> tuple[int, str]:
+    p = cli(args, cwd, limit)
+    _, err = p.communicate(timeout=600)
+    return p.returncode, err
+
+
+def run_and_kill(args: list[str], cwd: Path, delay: float) -> tuple[bool, int, str]:
+    """Start ``aca-warp ARGS``, SIGKILL it after ``delay`` s; (killed, exit code, stderr): killed is False when it
+    ended by itself before (then its exit code and stderr count)."""
+    p = cli(args, cwd)
+    try:
+        _, err = p.communicate(timeout=delay)
+        return False, p.returncode, err
+    except subprocess.TimeoutExpired:
+        p.send_signal(signal.SIGKILL)
+        p.communicate()
+        return True, -signal.SIGKILL, ""
+
+
+def datasets(path: Path) -> dict[str, bytes]:
+    """Every dataset of an HDF5 file (dtype, shape and bytes)."""
+    out: dict[str, bytes] = {}
+    with h5py.File(path, "r") as f:
+
+        def visit(name: str, obj: object) -> None:
+            if isinstance(obj, h5py.Dataset):
+                a = np.asarray(obj[()])
+                out[name] = repr((a.dtype.str, a.shape)).encode() + a.tobytes()
+
+        f.visititems(visit)
+    return out
+
+
+def output_datasets(w: Workload, cwd: Path) -> dict[str, bytes]:
+    """Every dataset of a workload's output (a sweep: of every shard file, keyed by shard)."""
+    out = cwd / w.output
+    if w.name != "sweep":
+        return datasets(out)
+    merged: dict[str, bytes] = {}
+    for shard in sorted(out.glob("shard-*.h5")):
+        merged.update({f"{shard.name}/{k}": v for k, v in datasets(shard).items()})
+    states = [s["state"] for s in json.loads((out / "manifest.json").read_text())["shards"]]
+    merged["manifest/states"] = repr(states).encode()
+    return merged
+
+
+def leftovers(w: Workload, cwd: Path) -> list[str]:
+    """Files a finished workload must not leave: ``.partial``, ``.partial.new``, locks."""
+    where = cwd / w.output if w.name == "sweep" else cwd
+    return sorted(p.name for p in where.iterdir() if p.name.endswith((".partial", ".new", ".lock")))
+
+
+def recover(w: Workload, cwd: Path, t: Trial, rng: random.Random, budget: float, max_kills: int) -> tuple[int, str]:
+    """Bring a killed workload to its end (possibly killing the recovery again); returns the last exit code and
+    stderr."""
+    out = cwd / w.output
+    while True:
+        if w.name == "sweep":
+            args, what = [*w.start, "-o", str(out)], "sweep-rerun"
+        elif out.exists():
+            t.recoveries.append("finished")
+            return 0, ""
+        elif out.with_name(out.name + ".partial").exists():
+            args, what = [w.name, "--resume", str(out), "--no-progress"], "resume"
+        else:
+            args, what = [*w.start, "-o", str(out)], "rerun"
+        if t.kills < max_kills and rng.random() < 0.5:
+            delay = rng.uniform(0.0, budget)
+            t.delays.append(round(delay, 3))
+            killed, code, err = run_and_kill(args, cwd, delay)
+            if killed:
+                t.kills += 1
+                t.recoveries.append(f"{what} (killed)")
+                continue
+        else:
+            code, err = run_to_end(args, cwd)
+        t.recoveries.append(what)
+        if w.name != "sweep" and code == 2 and "holds no checkpoint" in err:
+            code, err = run_to_end([*w.start, "-o", str(out), "--overwrite"], cwd)  # killed before a checkpoint
+            t.recoveries.append("rerun --overwrite")
+        return code, err
+
+
+def trial(w: Workload, root: Path, ref: dict[str, bytes], budget: float, rng: random.Random, max_kills: int) -> Trial:
+    t = Trial(w.name)
+    t0 = time.perf_counter()
+    cwd = root / f"trial-{w.name}-{rng.randrange(10**9)}"
+    cwd.mkdir()
+    try:
+        delay = rng.uniform(0.0, budget)
+        t.delays.append(round(delay, 3))
+        killed, code, err = run_and_kill([*w.start, "-o", str(cwd / w.output)], cwd, delay)
+        if killed:
+            t.kills += 1
+            code, err = recover(w, cwd, t, rng, budget, max_kills)
+        else:
+            t.recoveries.append("finished before the kill")
+        compare(t, w, cwd, ref, code, err)
+    except Exception as e:  # noqa: BLE001  (the harness reports, it does not stop)
+        t.outcome, t.detail = "error", f"{type(e).__name__}: {e}"
+    finally:
+        t.seconds = round(time.perf_counter() - t0, 2)
+        if t.outcome == "identical":
+            shutil.rmtree(cwd, ignore_errors=True)
+    return t
+
+
+def compare(t: Trial, w: Workload, cwd: Path, ref: dict[str, bytes], code: int, err: str) -> None:
+    """Set ``t.outcome``: the recovered output against the reference."""
+    if code != 0:
+        t.outcome, t.detail = "error", f"exit {code}: {err.strip().splitlines()[-1] if err.strip() else ''}"
+    elif leftovers(w, cwd):
+        t.outcome, t.detail = "error", f"left behind: {', '.join(leftovers(w, cwd))}"
+    else:
+        got = output_datasets(w, cwd)
+        diff = sorted(set(got) ^ set(ref)) + sorted(k for k in set(got) & set(ref) if got[k] != ref[k])
+        t.outcome = "identical" if not diff else "different"
+        t.detail = ", ".join(diff[:5])
+
+
+def output_size(w: Workload, cwd: Path) -> int:
+    """Bytes of a workload's output (a sweep: its largest shard)."""
+    out = cwd / w.output
+    return out.stat().st_size if w.name != "sweep" else max(p.stat().st_size for p in out.glob("shard-*.h5"))
+
+
+def limit_trial(w: Workload, root: Path, ref: dict[str, bytes], limit: int, rng: random.Random) -> Trial:
+    """Run ``w`` under a file-size limit of ``limit`` bytes, then recover it without the limit and compare."""
+    t = Trial(w.name, limit=limit)
+    t0 = time.perf_counter()
+    cwd = root / f"limit-{w.name}-{limit}"
+    cwd.mkdir()
+    try:
+        code, err = run_to_end([*w.start, "-o", str(cwd / w.output)], cwd, limit)
+        t.stopped = code
+        lines = [x for x in err.splitlines() if x.strip() and not x.startswith("Warp ")]
+        if code not in (0, 4) or (code == 4 and (len(lines) != 1 or "file size limit reached" not in lines[0])):
+            t.outcome, t.detail = "error", f"limited run: exit {code}: {' | '.join(lines[-2:])}"
+        else:
+            code, err = recover(w, cwd, t, rng, 0.0, 0) if code == 4 else (0, "")
+            compare(t, w, cwd, ref, code, err)
+    except Exception as e:  # noqa: BLE001  (the harness reports, it does not stop)
+        t.outcome, t.detail = "error", f"{type(e).__name__}: {e}"
+    finally:
+        t.seconds = round(time.perf_counter() - t0, 2)
+        if t.outcome == "identical":
+            shutil.rmtree(cwd, ignore_errors=True)
+    return t
+
+
+def machine() -> str:
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, {platform.platform()}"
+
+
+def summarize(trials: list[Trial], refs: dict[str, float], args: argparse.Namespace) -> dict:
+    by = {}
+    for name in refs:
+        ts = [t for t in trials if t.workload == name and t.limit is None]
+        lim = [t for t in trials if t.workload == name and t.limit is not None]
+        by[name] = {
+            "limit_trials": len(lim),
+            "limit_stopped_exit4": sum(t.stopped == 4 for t in lim),
+            "limit_finished": sum(t.stopped == 0 for t in lim),
+            "limit_recovered_identical": sum(t.outcome == "identical" for t in lim),
+            "trials": len(ts),
+            "kills": sum(t.kills for t in ts),
+            "resumes": sum(r.startswith("resume") for t in ts for r in t.recoveries),
+            "reruns": sum(r.startswith("rerun") for t in ts for r in t.recoveries),
+            "sweep_reruns": sum(r.startswith("sweep-rerun") for t in ts for r in t.recoveries),
+            "identical": sum(t.outcome == "identical" for t in ts),
+            "different": sum(t.outcome == "different" for t in ts),
+            "errors": sum(t.outcome == "error" for t in ts),
+            "reference_wall_s": round(refs[name], 2),
+        }
+    return {
+        "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
+        "machine": machine(),
+        "seed": args.seed,
+        "workloads": by,
+        "failures": [asdict(t) for t in trials if t.outcome != "identical"],
+        "trials": [asdict(t) for t in trials],
+    }
+
+
+def markdown(s: dict) -> str:
+    lines = [
+        f"Fault injection: `{s['command']}` (seed {s['seed']}) on {s['machine']}.",
+        "",
+        "| workload | trials | SIGKILLs | resumes | reruns | recovered bit-identical | different | errors |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for name, w in s["workloads"].items():
+        reruns = w["reruns"] + w["sweep_reruns"]
+        lines.append(
+            f"| {name} | {w['trials']} | {w['kills']} | {w['resumes']} | {reruns} | {w['identical']} | "
+            f"{w['different']} | {w['errors']} |"
+        )
+    if any(w["limit_trials"] for w in s["workloads"].values()):
+        lines += [
+            "",
+            "| workload | file-size limits | stopped, exit 4 | finished under the limit | recovered bit-identical |",
+            "|---|---|---|---|---|",
+        ]
+        for name, w in s["workloads"].items():
+            lines.append(
+                f"| {name} | {w['limit_trials']} | {w['limit_stopped_exit4']} | {w['limit_finished']} | "
+                f"{w['limit_recovered_identical']} |"
+            )
+    for f in s["failures"]:
+        where = f"limit {f['limit']} B" if f["limit"] is not None else f"kills at {f['delays']} s"
+        lines.append(f"\nFAILED {f['workload']}: {f['outcome']} {f['detail']} ({where})")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog="See docs/faults.md.")
+    p.add_argument("--kills", type=int, default=10, help="trials per workload (each kills at least once; default 10)")
+    p.add_argument("--max-kills", type=int, default=3, help="most SIGKILLs in one trial, recoveries included")
+    p.add_argument(
+        "--file-size-limits",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also run each workload under N file-size limits (30-110 %% of its output) and recover it",
+    )
+    p.add_argument("--workloads", default="hf,lf,sweep", help="comma-separated subset of hf, lf, sweep")
+    p.add_argument("--seed", type=int, default=1, help="random seed of the kill times")
+    p.add_argument("--quick", action="store_true", help="short runs, one trial per workload (used by the tests)")
+    p.add_argument("--dir", type=Path, help="work folder (default: a new temporary folder, removed when all pass)")
+    p.add_argument("--json", type=Path, help="write the summary as JSON here")
+    p.add_argument("--markdown", type=Path, help="write the summary table as Markdown here")
+    args = p.parse_args(argv)
+    if args.quick:
+        args.kills = 1
+    import tempfile
+
+    root = args.dir or Path(tempfile.mkdtemp(prefix="aca-warp-faults-"))
+    root.mkdir(parents=True, exist_ok=True)
+    rng = random.Random(args.seed)
+    wanted = args.workloads.split(",")
+    trials: list[Trial] = []
+    refs: dict[str, float] = {}
+    for w in workloads(root, args.quick):
+        if w.name not in wanted:
+            continue
+        ref_dir = root / f"reference-{w.name}"
+        ref_dir.mkdir(exist_ok=True)
+        t0 = time.perf_counter()
+        code, err = run_to_end([*w.start, "-o", str(ref_dir / w.output)], ref_dir)
+        refs[w.name] = time.perf_counter() - t0
+        if code != 0:
+            print(f"{w.name}: the uninterrupted run failed (exit {code}): {err.strip()}", file=sys.stderr)
+            return 1
+        ref = output_datasets(w, ref_dir)
+        size = output_size(w, ref_dir)
+        n = args.file_size_limits
+        for limit in (int(size * (0.3 + 0.8 * i / max(n - 1, 1))) for i in range(n)):
+            t = limit_trial(w, root, ref, limit, rng)
+            trials.append(t)
+            print(f"{w.name} limit {limit} B: exit {t.stopped}, {t.outcome} ({t.seconds} s) {t.detail}", flush=True)
+        for k in range(args.kills):
+            t = trial(w, root, ref, refs[w.name], rng, args.max_kills)
+            trials.append(t)
+            steps = " -> ".join(t.recoveries) or "nothing to recover"
+            print(
+                f"{w.name} {k + 1}/{args.kills}: {t.outcome} after {t.kills} kill(s) at {t.delays} s, {steps} "
+                f"({t.seconds} s) {t.detail}",
+                flush=True,
+            )
+    s = summarize(trials, refs, args)
+    text = markdown(s)
+    print(text)
+    if args.json:
+        args.json.write_text(json.dumps(s, indent=1))
+    if args.markdown:
+        args.markdown.write_text(text)
+    ok = all(t.outcome == "identical" for t in trials)
+    if ok and args.dir is None:
+        shutil.rmtree(root, ignore_errors=True)
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

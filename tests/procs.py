@@ -1,0 +1,86 @@
+"""Shared by the fault tests: ``aca-warp`` in a subprocess (optionally under a file-size limit), stopped, killed."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+
+# runs ``aca_warp.cli`` with RLIMIT_FSIZE = argv[1] bytes and SIGXFSZ ignored (writes past it fail with EFBIG)
+LIMITED = (
+    "import resource, signal, sys; lim = int(sys.argv[1]); signal.signal(signal.SIGXFSZ, signal.SIG_IGN); "
+    "resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim)); from aca_warp.cli import main; sys.exit(main(sys.argv[2:]))"
+)
+
+
+def env(**extra: str) -> dict[str, str]:
+    """The environment of a subprocess: the repository's kernel cache, plus ``extra``."""
+    e = {**os.environ, **extra}
+    e.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
+    return e
+
+
+def cli(args: list[str], *, limit: int | None = None, **extra: str) -> subprocess.CompletedProcess:
+    """Run ``aca-warp ARGS`` in a subprocess (under a file-size limit of ``limit`` bytes) and wait for it."""
+    pre = [sys.executable, "-c", LIMITED, str(limit)] if limit is not None else [sys.executable, "-m", "aca_warp.cli"]
+    return subprocess.run([*pre, *args], env=env(**extra), capture_output=True, text=True, timeout=300)
+
+
+def start(args: list[str], **extra: str) -> subprocess.Popen:
+    """Start ``aca-warp ARGS`` in a subprocess."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "aca_warp.cli", *args],
+        env=env(**extra),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def wait_for(path: Path, proc: subprocess.Popen, *, poll: float = 0.0005, timeout: float = 120.0) -> None:
+    """Wait until ``path`` exists while ``proc`` runs (asserts that it appeared before ``proc`` ended)."""
+    deadline = time.monotonic() + timeout
+    while not path.exists():
+        assert proc.poll() is None, f"{proc.args} ended before {path} appeared: {proc.stderr.read()}"
+        assert time.monotonic() < deadline, f"{path} did not appear"
+        time.sleep(poll)
+
+
+def stop(proc: subprocess.Popen) -> None:
+    """SIGSTOP ``proc`` (it keeps its files and locks, writes nothing more)."""
+    os.kill(proc.pid, signal.SIGSTOP)
+
+
+def resume(proc: subprocess.Popen) -> None:
+    """SIGCONT ``proc``."""
+    os.kill(proc.pid, signal.SIGCONT)
+
+
+def error_lines(stderr: str) -> list[str]:
+    """stderr without Warp's start-up notes."""
+    return [line for line in stderr.splitlines() if line.strip() and not line.startswith("Warp ")]
+
+
+def datasets(path: Path) -> dict[str, np.ndarray]:
+    """Every dataset of an HDF5 file by path."""
+    out: dict[str, np.ndarray] = {}
+    with h5py.File(path, "r") as f:
+        f.visititems(lambda n, o: out.__setitem__(n, o[()]) if isinstance(o, h5py.Dataset) else None)
+    return out
+
+
+def assert_same_datasets(a: Path, b: Path) -> None:
+    """Same dataset names, dtypes, shapes and bits."""
+    da, db = datasets(a), datasets(b)
+    assert sorted(da) == sorted(db)
+    for k in da:
+        assert da[k].dtype == db[k].dtype and da[k].shape == db[k].shape, k
+        assert da[k].tobytes() == db[k].tobytes(), k

@@ -1,0 +1,156 @@
+"""Damaged input files: every command that reads a run file answers a bit flip in its metadata or a truncation with
+one ``aca-warp: error:`` line and exit 2, never a traceback (the read boundaries, aca_warp.common.files.reading).
+
+The flips hit HDF5 structures on purpose, so that the library fails: the signatures of the groups' local heaps
+("HEAP"; a damaged group: the run file opens, its members do not) and of the chunk index nodes ("TREE" of type 1; a
+damaged dataset: it opens and has its shape, its samples cannot be read, so the command fails in the middle of its
+work). A flip in raw sample data is not detectable (HDF5 keeps no checksum of unfiltered data): docs/faults.md."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import h5py
+import pytest
+from test_lf_checkpoint import SCENE as LF_SCENE
+
+from aca_warp.cli import main
+from aca_warp.hf import runner
+from aca_warp.lf import io as lf_io
+from aca_warp.sweep import SweepError, load_sweep
+
+HF_SCENE = """
+[scene]
+name = "corrupt"
+[load]
+normal_force = 20.0
+[disc]
+sliding_speed = 10.0
+[patches]
+count = 30
+area_min = 2.0e-8
+area_max = 8.0e-8
+height = 3.0e-6
+seed = 4
+[record]
+sample_dt = 1.0e-7
+patches = ["velocity"]
+[run]
+duration = 3.0e-5
+"""
+
+
+def damage(path: Path, how: str) -> None:
+    """Flip one bit of every local-heap signature ("heap"), of every chunk-index node signature ("tree"), or cut
+    the file in half ("truncate")."""
+    data = bytearray(path.read_bytes())
+    if how == "truncate":
+        path.write_bytes(bytes(data[: len(data) // 2]))
+        return
+    sig = b"HEAP" if how == "heap" else b"TREE"
+    hits = 0
+    i = data.find(sig, 8)
+    while i >= 0:
+        if sig == b"HEAP" or data[i + 4] == 1:  # TREE node type 1: raw-data chunks
+            data[i] ^= 0x01
+            hits += 1
+        i = data.find(sig, i + 4)
+    assert hits, f"no {sig!r} in {path}"
+    path.write_bytes(bytes(data))
+
+
+def one_error_line(capsys: pytest.CaptureFixture, argv: list[str]) -> str:
+    capsys.readouterr()
+    code = main(argv)
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert code == 2 and len(err) == 1 and err[0].startswith("aca-warp: error:"), (argv, code, err)
+    return err[0]
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """A finished HF run (per-patch velocities), an HF run stopped at its first checkpoint, a finished LF run with
+    snapshots and an LF run stopped at its first checkpoint, a finished two-shard sweep."""
+    d = tmp_path_factory.mktemp("corrupt")
+    (d / "hf.toml").write_text(HF_SCENE)
+    (d / "lf.toml").write_text(LF_SCENE.format(first=0.6))
+    out = {"hf": d / "hf.h5", "hf_stopped": d / "hf_stopped.h5", "lf": d / "lf.h5", "lf_stopped": d / "lf_stopped.h5"}
+    assert main(["hf", str(d / "hf.toml"), "-o", str(out["hf"]), "--no-progress"]) == 0
+    assert main(["lf", str(d / "lf.toml"), "-o", str(out["lf"]), "--no-progress"]) == 0
+    mp = pytest.MonkeyPatch()
+    real_hf, real_lf = runner.run_hf, lf_io.LFRunWriter.checkpoint
+
+    def hf_once(*args, on_checkpoint=None, **kw):
+        def ckpt(c):
+            on_checkpoint(c)
+            raise KeyboardInterrupt
+
+        return real_hf(*args, on_checkpoint=ckpt, **kw)
+
+    def lf_once(self, sim):
+        real_lf(self, sim)
+        raise KeyboardInterrupt
+
+    mp.setattr(runner, "run_hf", hf_once)
+    mp.setattr(lf_io.LFRunWriter, "checkpoint", lf_once)
+    try:
+        args = ["--no-progress", "--checkpoint-interval"]
+        assert main(["hf", str(d / "hf.toml"), "-o", str(out["hf_stopped"]), *args, "1e-5"]) == 130
+        assert main(["lf", str(d / "lf.toml"), "-o", str(out["lf_stopped"]), *args, "0.2"]) == 130
+    finally:
+        mp.undo()
+    spec = d / "spec.toml"
+    spec.write_text(
+        '[sweep]\nbase = "hf1"\nshard_size = 1\n[run]\nduration = 1e-6\nprecision = "fp32"\n'
+        '[base.patches]\ncount = 25\n[parameters]\n"friction.M" = [0.6, 0.8]\n'
+    )
+    out["spec"] = spec
+    out["sweep"] = d / "sweep"
+    assert main(["sweep", str(spec), "-o", str(out["sweep"]), "--workers", "0", "--quiet"]) == 0
+    return out
+
+
+CASES = [
+    ("rerun", "hf", "heap", lambda f, d: ["rerun", str(f), "-o", str(d / "new.h5"), "--no-progress"]),
+    ("rerun", "hf", "truncate", lambda f, d: ["rerun", str(f), "-o", str(d / "new.h5"), "--no-progress"]),
+    ("analyze", "hf", "tree", lambda f, d: ["analyze", str(f)]),
+    ("analyze", "hf", "heap", lambda f, d: ["analyze", str(f)]),
+    ("plot", "hf", "tree", lambda f, d: ["plot", str(f), "-o", str(d / "figs"), "--only", "global", "patch_map"]),
+    ("hf --resume", "hf_stopped", "heap", lambda f, d: ["hf", "--resume", str(f), "--no-progress"]),
+    ("hf --resume", "hf_stopped", "tree", lambda f, d: ["hf", "--resume", str(f), "--no-progress"]),
+    ("hf --resume", "hf_stopped", "truncate", lambda f, d: ["hf", "--resume", str(f), "--no-progress"]),
+    ("lf --resume", "lf_stopped", "heap", lambda f, d: ["lf", "--resume", str(f), "--no-progress"]),
+    ("lf --resume", "lf_stopped", "tree", lambda f, d: ["lf", "--resume", str(f), "--no-progress"]),
+    ("hf --snapshot", "lf", "heap", lambda f, d: ["hf", str(f), "--snapshot", "app1_end", "-o", str(d / "x.h5")]),
+    ("hf --snapshot", "lf", "truncate", lambda f, d: ["hf", str(f), "--snapshot", "app1_end", "-o", str(d / "x.h5")]),
+    ("rerun lf", "lf", "heap", lambda f, d: ["rerun", str(f), "-o", str(d / "new.h5"), "--no-progress"]),
+]
+
+
+@pytest.mark.parametrize(("command", "which", "how", "argv"), CASES, ids=[f"{c[0]}-{c[2]}" for c in CASES])
+def test_damaged_input_gives_one_line(command, which, how, argv, files, tmp_path, capsys) -> None:
+    src = files[which]
+    f = tmp_path / src.name
+    shutil.copy(src, f)
+    damage(f, how)
+    line = one_error_line(capsys, argv(f, tmp_path))
+    assert str(f) in line or f.name in line, line
+    assert not (tmp_path / "new.h5").exists() and not (tmp_path / "x.h5").exists()
+
+
+def test_damaged_sweep_shard(files, tmp_path, capsys) -> None:
+    """A damaged finished shard: reading the sweep is one SweepError line naming it; running the same sweep again
+    finds the shard unreadable and runs it again (exit 0)."""
+    d = tmp_path / "sweep"
+    shutil.copytree(files["sweep"], d)
+    damage(d / "shard-00001.h5", "heap")
+    with pytest.raises(SweepError, match="cannot read shard .*shard-00001.h5"):
+        load_sweep(d)
+    assert main(["sweep", str(files["spec"]), "-o", str(d), "--workers", "0", "--quiet"]) == 0
+    manifest = json.loads((d / "manifest.json").read_text())
+    assert [s["state"] for s in manifest["shards"]] == ["done", "done"]
+    assert load_sweep(d)["mu"].shape[0] == 2
+    with h5py.File(d / "shard-00001.h5", "r") as f:
+        assert f.attrs["complete"]

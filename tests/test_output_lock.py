@@ -1,0 +1,192 @@
+"""One writer per output: a second run, an ``--overwrite``, a ``--resume`` or a second sweep is refused with one line
+while a live process writes the same output (real processes; the first one is held with SIGSTOP so the timing does
+not matter), whatever HDF5_USE_FILE_LOCKING says; and a run file is readable from the moment it exists."""
+
+from __future__ import annotations
+
+import json
+import signal
+from pathlib import Path
+
+import h5py
+import pytest
+from procs import cli, error_lines, resume, start, stop, wait_for
+
+from aca_warp.cli import main
+from aca_warp.common.errors import SceneError
+from aca_warp.common.files import OutputLock, lock_path
+
+SCENE = """
+[scene]
+name = "lock"
+[load]
+normal_force = 20.0
+[disc]
+sliding_speed = 10.0
+[patches]
+count = 40
+area_min = 2.0e-8
+area_max = 8.0e-8
+height = 3.0e-6
+seed = 4
+[record]
+sample_dt = 1.0e-6
+[run]
+duration = 2.0e-4
+"""
+
+LF_SCENE = """
+[scene]
+name = "lflock"
+[pad]
+r_inner = 0.100
+r_outer = 0.110
+span_deg = 8.0
+[patches]
+count = 60
+area_min = 2e-8
+area_max = 8e-8
+height = 3e-6
+seed = 3
+[lf]
+capacity = 512
+[[schedule]]
+kind = "application"
+duration = 0.3
+normal_force = 300.0
+"""
+
+
+def test_lock_in_process(tmp_path: Path) -> None:
+    """A held lock refuses a second holder (even in the same process) and names the holder; release removes the
+    lock file; a lock file left by a dead process (no flock on it) is simply taken over."""
+    out = tmp_path / "run.h5"
+    a = OutputLock.acquire(out)
+    assert lock_path(out).is_file() and str(__import__("os").getpid()) in lock_path(out).read_text()
+    with pytest.raises(SceneError, match=r"is being written by pid \d+ on"):
+        OutputLock.acquire(out, what="wait")
+    a.release()
+    a.release()  # idempotent
+    assert not lock_path(out).exists()
+    lock_path(out).write_text("999999 elsewhere aca-warp hf\n")  # as a killed process leaves it
+    b = OutputLock.acquire(out)
+    assert b.held and "999999" not in lock_path(out).read_text()
+    b.release()
+    with pytest.raises(SceneError, match="does not exist"):
+        OutputLock.acquire(tmp_path / "missing" / "run.h5")
+
+
+def refused(capsys: pytest.CaptureFixture, argv: list[str], pid: int) -> None:
+    """``aca-warp ARGV`` in this process: exit 2 and one line naming the holder ``pid``."""
+    capsys.readouterr()
+    code = main(argv)
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert code == 2 and len(lines) == 1, (argv, lines)
+    assert f"is being written by pid {pid}" in lines[0], lines
+
+
+@pytest.mark.parametrize("locking", ["TRUE", "FALSE"])
+def test_live_hf_run_is_not_replaced_or_resumed(tmp_path, locking, capsys, monkeypatch) -> None:
+    """While `hf` runs (held with SIGSTOP), a second `hf --overwrite` on the same output, an `hf` without it and an
+    `hf --resume` are refused with one line naming the holder, with HDF5's own locking on or off; nothing of the live
+    `.partial` changes; the first run then finishes into a complete, readable file."""
+    scene = tmp_path / "s.toml"
+    scene.write_text(SCENE)
+    out = tmp_path / "run.h5"
+    part = tmp_path / "run.h5.partial"
+    args = ["hf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "5e-5"]
+    first = start(args)
+    try:
+        wait_for(part, first)
+        stop(first)
+        before = part.read_bytes()
+        monkeypatch.setenv("HDF5_USE_FILE_LOCKING", locking)
+        for argv in (
+            ["hf", str(scene), "-o", str(out), "--overwrite", "--no-progress"],
+            ["hf", str(scene), "-o", str(out), "--no-progress"],
+            ["hf", "--resume", str(out), "--no-progress"],
+        ):
+            refused(capsys, argv, first.pid)
+        r = cli(["hf", "--resume", str(out), "--no-progress"], HDF5_USE_FILE_LOCKING=locking)  # a process too
+        assert r.returncode == 2 and f"pid {first.pid}" in error_lines(r.stderr)[0], r.stderr
+        assert part.read_bytes() == before and not out.exists()
+        resume(first)
+        assert first.wait(timeout=120) == 0, first.stderr.read()
+    finally:
+        if first.poll() is None:
+            first.kill()
+            first.wait()
+        first.stdout.close()
+        first.stderr.close()
+    with h5py.File(out, "r") as f:
+        assert f.attrs["complete"] and f["global/mu"].shape == (201,)
+    assert not part.exists() and not lock_path(out).exists()
+
+
+def test_live_lf_run_and_sweep_are_not_replaced(tmp_path: Path, capsys) -> None:
+    """The same for `lf` (`--overwrite` and `lf --resume` refused while it runs) and for a second `sweep` into the
+    folder of a running one (with and without `--overwrite`)."""
+    scene = tmp_path / "lf.toml"
+    scene.write_text(LF_SCENE)
+    out = tmp_path / "lf.h5"
+    first = start(["lf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "0.05"])
+    spec = tmp_path / "spec.toml"
+    spec.write_text(
+        '[sweep]\nbase = "hf1"\nshard_size = 1\n[run]\nduration = 2e-5\nprecision = "fp32"\n'
+        '[base.patches]\ncount = 25\n[parameters]\n"friction.M" = [0.6, 0.7, 0.8]\n'
+    )
+    sweep_dir = tmp_path / "sweep"
+    sweep = None
+    try:
+        wait_for(out.with_name("lf.h5.partial"), first)
+        stop(first)
+        for argv in (["lf", str(scene), "-o", str(out), "--overwrite"], ["lf", "--resume", str(out)]):
+            refused(capsys, argv, first.pid)
+        resume(first)
+        assert first.wait(timeout=120) == 0, first.stderr.read()
+        sweep = start(["sweep", str(spec), "-o", str(sweep_dir), "--workers", "0", "--quiet"])
+        wait_for(sweep_dir / "manifest.json", sweep)
+        stop(sweep)
+        manifest = (sweep_dir / "manifest.json").read_text()
+        for extra in ([], ["--overwrite"]):
+            refused(capsys, ["sweep", str(spec), "-o", str(sweep_dir), "--workers", "0", "--quiet", *extra], sweep.pid)
+        assert (sweep_dir / "manifest.json").read_text() == manifest
+        resume(sweep)
+        assert sweep.wait(timeout=120) == 0, sweep.stderr.read()
+    finally:
+        for p in (first, sweep):
+            if p is not None:
+                if p.poll() is None:
+                    p.kill()
+                    p.wait()
+                p.stdout.close()
+                p.stderr.close()
+    with h5py.File(out, "r") as f:
+        assert f.attrs["complete"]
+    assert [s["state"] for s in json.loads((sweep_dir / "manifest.json").read_text())["shards"]] == ["done"] * 3
+
+
+@pytest.mark.parametrize("command", ["hf", "lf"])
+def test_kill_right_after_the_file_appears(tmp_path: Path, command: str) -> None:
+    """SIGKILL within a millisecond of `RUN.h5.partial` appearing (three times): the file opens and reads
+    `status = running` (it is created as `.partial.new` and renamed only once its header is on disk)."""
+    scene = tmp_path / "s.toml"
+    scene.write_text(SCENE if command == "hf" else LF_SCENE)
+    out = tmp_path / "run.h5"
+    part = tmp_path / "run.h5.partial"
+    for _ in range(3):
+        proc = start([command, str(scene), "-o", str(out), "--no-progress", "--overwrite"])
+        try:
+            wait_for(part, proc, poll=0.0)
+            proc.send_signal(signal.SIGKILL)
+            proc.wait(timeout=30)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+            proc.stdout.close()
+            proc.stderr.close()
+        assert proc.returncode == -signal.SIGKILL
+        with h5py.File(part, "r") as f:
+            assert f.attrs["status"] == "running" and not f.attrs["complete"] and "global" in f
+    assert lock_path(out).exists()  # left by the killed run, unlocked: each next run above took it over

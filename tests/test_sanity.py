@@ -1,0 +1,168 @@
+"""Physical sanity (aca_warp/hf/sanity.py, the sticking bound of aca_warp/hf/solver.py): a contact solution that
+does not carry the load is refused before a file exists (exit 3); a μ beyond what Eq. 4 allows stops the run
+(exit 3); a strang step that does not resolve sticking is refused (exit 2); each is a warning when forced."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from aca_warp.cli import main
+from aca_warp.common.errors import PhysicsError
+from aca_warp.hf import sanity
+from aca_warp.hf.loop import run_hf
+from aca_warp.hf.model import build_model
+from aca_warp.hf.options import RunOptions
+from aca_warp.hf.state import initial_state
+from aca_warp.scene import PRESETS, Friction, load_scene, preset
+
+BASE = """
+[scene]
+name = "sane"
+[load]
+normal_force = 20.0
+[disc]
+sliding_speed = 10.0
+[patches]
+count = 40
+area_min = 2.0e-8
+area_max = 8.0e-8
+seed = 4
+{height}
+[initial]
+perturbation = 1.0e-3
+seed = 2
+[record]
+sample_dt = 1.0e-7
+[run]
+duration = 2.0e-6
+"""
+
+
+def scene_file(tmp_path: Path, extra: str = "", height: str = "height = 3.0e-6") -> Path:
+    p = tmp_path / "s.toml"
+    p.write_text(BASE.format(height=height) + extra)
+    return p
+
+
+def run_cli(capsys, argv: list[str]) -> tuple[int, list[str]]:
+    capsys.readouterr()
+    code = main(argv)
+    return code, [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+
+
+@pytest.mark.parametrize(
+    ("extra", "height", "message"),
+    [
+        ("[material]\nK_N = 1e308\n", "height = 3.0e-6", "the normal forces sum to 0 N for a clamp force of 20 N"),
+        ("[material]\nK_N = 1e20\n", "height = 3.0e-6", "relative error 1.2e-05 > 1e-06"),
+        ("", "height = 1.0e6", "heights up to 1e+06 m are beyond what float64 resolves"),
+    ],
+    ids=["K_N-1e308", "K_N-1e20", "heights-1e6"],
+)
+def test_contact_that_loses_the_load_is_refused(tmp_path, capsys, extra, height, message) -> None:
+    """Stiffnesses or heights beyond float64: exit 3, one line, no file; --accept-unphysical runs with a warning."""
+    s = scene_file(tmp_path, extra, height)
+    out = tmp_path / "run.h5"
+    code, err = run_cli(capsys, ["hf", str(s), "-o", str(out), "--no-progress"])
+    assert code == 3 and len(err) == 1 and message in err[0] and "--accept-unphysical" in err[0], err
+    assert not out.exists() and not (tmp_path / "run.h5.partial").exists() and not (tmp_path / "run.h5.lock").exists()
+    if "1e20" in extra:
+        code, err = run_cli(capsys, ["hf", str(s), "-o", str(out), "--no-progress", "--accept-unphysical"])
+        assert code == 0 and len(err) == 1 and err[0].startswith("aca-warp: warning:") and message in err[0], err
+        with h5py.File(out, "r") as f:
+            assert f.attrs["complete"] and '"accept_unphysical": true' in f.attrs["run_options"]
+
+
+def test_presets_carry_their_load() -> None:
+    """Every preset's contact solution sums to the clamp force far inside the tolerance (float64: ~1e-13)."""
+    for name in PRESETS:
+        s = preset(name)
+        model = build_model([s])
+        c = model.contacts[0]
+        total = float(np.sum(c.patch_force) + np.sum(c.matrix_force))
+        assert abs(total - s.normal_force) < 1e-3 * sanity.CONTACT_RTOL * s.normal_force, name
+        assert sanity.contact_problem(model) is None
+
+
+def test_mu_bound_stops_a_run_whose_forces_are_wrong(tmp_path) -> None:
+    """Normal forces tripled on the device after the contact solve (a state no physics allows, still finite): the
+    first chunk's μ exceeds (M Σ F_N,i + μ_pad F_m)/F_N, the run stops with a fault before that sample; accepted,
+    it runs to the end with one warning. Unchanged forces never come near the bound."""
+    s = load_scene(scene_file(tmp_path))
+    bound = None
+    for factor, accept in ((1.0, False), (3.0, False), (3.0, True)):
+        model = build_model([s])
+        model.normal_force.assign(model.host("normal_force") * factor)
+        bound = sanity.mu_bounds(model)[0]
+        res = run_hf(model, initial_state(model), RunOptions(accept_unphysical=accept))
+        mu = res.collect().globals[:, 0, 0]
+        if factor == 1.0:
+            assert res.complete and np.max(np.abs(mu)) < 0.9 * bound
+        elif not accept:
+            assert not res.complete and "unphysical friction coefficient" in str(res.fault)
+            kept = res.collect().time
+            assert np.all(np.abs(mu) <= bound) and res.sim_time == (kept[-1] if len(kept) else 0.0)
+        else:
+            assert res.complete and np.max(np.abs(mu)) > bound
+    f = Friction()
+    assert bound == pytest.approx((f.M * 1.0 + f.mu_pad * 0.0) * (1 + sanity.MU_SLACK), rel=1e-6)  # all on patches
+
+
+def test_mu_fault_unit() -> None:
+    t = np.arange(4) * 1e-7
+    mu = np.array([[0.1, 0.2], [0.3, -0.95], [0.2, 2.0], [np.nan, 0.1]])
+    f = sanity.mu_fault(t, mu, np.array([1.0, 1.0]))
+    assert f is not None and f.pad == 1 and f.time == t[2]
+    assert sanity.mu_fault(t[:1], mu[:1], np.array([1.0, 1.0])) is None
+    assert sanity.mu_fault(t[3:], mu[3:], np.array([1.0, np.inf])).pad == 0  # NaN beyond a finite bound
+
+
+def test_m100_stated_case(tmp_path, capsys) -> None:
+    """M = 100 (40 patches, 20 N, 20 µs): strang at the default 1e-8 s has h γ = 46 at sticking and is refused
+    (exit 2, naming the bound); forced it gives mean μ −0.17 with a warning, at dt/10 (h γ = 4.6, still refused)
+    51.1, at 2.5e-10 s (h γ = 1.2, accepted) 54.90 — within 1 % of implicit-friction (L-stable friction, no
+    sticking bound), which gives 55.24 at the default step."""
+    s = scene_file(tmp_path, "[friction]\nM = 100.0\n")
+    common = ["--no-progress", "--duration", "2e-5", "--sample-dt", "1e-7"]
+
+    def mu(tag: str, *extra: str, expect_warning: bool = False) -> float:
+        out = tmp_path / f"{tag}.h5"
+        code, err = run_cli(capsys, ["hf", str(s), "-o", str(out), *common, *extra])
+        assert code == 0 and len(err) == int(expect_warning), err
+        if expect_warning:
+            assert "does not resolve sticking for strang" in err[0]
+        with h5py.File(out, "r") as f:
+            return float(np.mean(f["global/mu"][()]))
+
+    for dt in ("1e-8", "1e-9"):
+        code, err = run_cli(capsys, ["hf", str(s), "-o", str(tmp_path / "no.h5"), *common, "--dt", dt])
+        assert code == 2 and len(err) == 1 and "does not resolve sticking for strang" in err[0], err
+    reference = mu("implicit", "--integrator", "implicit-friction")
+    coarse = mu("coarse", "--force", expect_warning=True)
+    tenth = mu("tenth", "--dt", "1e-9", "--force", expect_warning=True)
+    fine = mu("fine", "--dt", "2.5e-10")
+    assert reference == pytest.approx(55.24, abs=0.05)
+    assert abs(coarse - reference) > 50 and abs(tenth - reference) > 3
+    assert abs(fine - reference) < 0.01 * reference
+
+
+def test_sticking_bound_formula() -> None:
+    """estimate.sticking = 4 / max γ (γ = (c + F_N max|f'|)/m) = 2 × estimate.friction, in limit('strang') only."""
+    s = preset("hf1")
+    s = s.replace(friction=dataclasses.replace(s.friction, M=100.0))
+    model = build_model([s])
+    from aca_warp.hf.solver import stable_step
+
+    est = stable_step(model)
+    m = 1.0 / model.host("inv_mass")
+    gamma = (model.host("damping") + model.host("normal_force") * s.friction.max_slope()) / m
+    assert est.sticking == pytest.approx(4.0 / gamma.max(), rel=1e-12)
+    assert est.limit("strang") == est.sticking < est.spring == est.limit("implicit-friction")
+    with pytest.raises(PhysicsError):
+        bad = build_model([s.replace(material=dataclasses.replace(s.material, K_N=1e308))])
+        sanity.check_contact(bad, accept=False)

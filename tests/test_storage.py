@@ -1,0 +1,125 @@
+"""A full device or a file-size limit in the middle of a run: one line, exit 4, the `.partial` left as it was at its
+last checkpoint, and once the limit is lifted `--resume` finishes the run bit-identical to an uninterrupted one.
+
+The limit is RLIMIT_FSIZE in a subprocess (SIGXFSZ ignored, so writes past it fail with EFBIG), the same failure path
+as ENOSPC on a full device (aca_warp/common/storage.py); docs/faults.md lists a tmpfs check of ENOSPC itself."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import h5py
+import pytest
+from procs import assert_same_datasets, cli, error_lines
+
+from aca_warp.cli import main
+from aca_warp.common.storage import GuardedFile, storage_errno
+
+HF_SCENE = """
+[scene]
+name = "full"
+[load]
+normal_force = 20.0
+[disc]
+sliding_speed = 10.0
+[patches]
+count = 40
+area_min = 2.0e-8
+area_max = 8.0e-8
+height = 3.0e-6
+seed = 4
+[initial]
+perturbation = 1.0e-3
+seed = 2
+[record]
+sample_dt = 5.0e-7
+patches = ["velocity", "displacement"]
+[run]
+duration = 1.0e-3
+"""
+# 2001 samples: the per-patch histories fill 2 chunk rows of 1024 samples (327 kB each); 1.3 MB stops the run when
+# the second row begins (t = 512 µs), after the checkpoint at 500 µs; the whole file is 1.6 MB
+
+
+def test_hf_file_size_limit_then_resume(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    scene = tmp_path / "s.toml"
+    scene.write_text(HF_SCENE)
+    ref = tmp_path / "ref.h5"
+    assert main(["hf", str(scene), "-o", str(ref), "--no-progress"]) == 0
+    out = tmp_path / "run.h5"
+    r = cli(["hf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "1e-4"], limit=1_300_000)
+    lines = error_lines(r.stderr)
+    assert r.returncode == 4 and len(lines) == 1, r.stderr
+    assert "file size limit reached while writing" in lines[0] and "checkpoint at t = 0.0005 s" in lines[0]
+    part = tmp_path / "run.h5.partial"
+    assert part.exists() and not out.exists()
+    with h5py.File(part, "r") as f:  # as it was at its last checkpoint, still readable
+        assert f.attrs["status"] == "running" and float(f["checkpoint"].attrs["sim_time"]) == pytest.approx(5e-4)
+    assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
+    assert_same_datasets(out, ref)
+    with h5py.File(out, "r") as f:
+        assert f.attrs["complete"] and "checkpoint" not in f
+    # a limit below the first chunk: nothing to resume, one line; the next run (without the limit) replaces it
+    r = cli(["hf", str(scene), "-o", str(tmp_path / "b.h5"), "--no-progress"], limit=200_000)
+    lines = error_lines(r.stderr)
+    assert r.returncode == 4 and len(lines) == 1 and "no checkpoint" in lines[0], r.stderr
+
+
+def test_lf_file_size_limit_then_resume(tmp_path: Path) -> None:
+    from test_lf_checkpoint import SCENE
+
+    scene = tmp_path / "lf.toml"
+    scene.write_text(SCENE.format(first=1.0))
+    ref = tmp_path / "ref.h5"
+    assert main(["lf", str(scene), "-o", str(ref), "--no-progress"]) == 0
+    out = tmp_path / "run.h5"
+    r = cli(["lf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "0.1"], limit=400_000)
+    lines = error_lines(r.stderr)
+    assert r.returncode == 4 and len(lines) == 1 and "keeps its checkpoint" in lines[0], r.stderr
+    assert main(["lf", "--resume", str(out), "--no-progress"]) == 0
+    assert_same_datasets(out, ref)
+
+
+def test_sweep_file_size_limit_then_rerun(tmp_path: Path) -> None:
+    """A sweep whose shard hits the limit stops with one line (exit 4, the shard `failed` in the manifest); the same
+    sweep without the limit reruns that shard and finishes."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(
+        '[sweep]\nbase = "hf1"\nshard_size = 2\n[run]\nduration = 4e-4\nprecision = "fp32"\n'
+        '[base.patches]\ncount = 25\n[base.record]\nsample_dt = 1e-7\n[parameters]\n"friction.M" = [0.6, 0.7, 0.8]\n'
+    )
+    d = tmp_path / "sweep"
+    args = ["sweep", str(spec), "-o", str(d), "--workers", "0", "--quiet"]
+    r = cli(args, limit=120_000)
+    lines = error_lines(r.stderr)
+    assert r.returncode == 4 and len(lines) == 1 and "file size limit reached" in lines[0], r.stderr
+    states = [s["state"] for s in json.loads((d / "manifest.json").read_text())["shards"]]
+    assert "failed" in states
+    r = cli(args)
+    assert r.returncode == 0, r.stderr
+    assert [s["state"] for s in json.loads((d / "manifest.json").read_text())["shards"]] == ["done", "done"]
+
+
+def test_guarded_file_reserves_and_trims(tmp_path: Path) -> None:
+    """The reservation makes the file longer than HDF5's end of file only until the next flush; a finished file
+    ends where HDF5's end of file says (no padding); the storage errno is found in h5py's messages."""
+    f = h5py.File(tmp_path / "g.h5", "w")
+    g = GuardedFile(f, tmp_path / "g.h5")
+    d = f.create_dataset("x", shape=(0, 40), maxshape=(None, 40), chunks=(1024, 40), dtype="f8")
+    g.touch(d, 0, 10)
+    assert g.pending == 1024 * 40 * 8  # one chunk begun
+    g.reserve()
+    assert (tmp_path / "g.h5").stat().st_size >= f.id.get_filesize() + 1024 * 40 * 8
+    d.resize(10, axis=0)
+    d[:] = 1.0
+    g.flush()
+    assert (tmp_path / "g.h5").stat().st_size == f.id.get_filesize() and g.pending == 0
+    g.touch(d, 10, 20)
+    assert g.pending == 0  # the chunk exists already
+    g.close()
+    with h5py.File(tmp_path / "g.h5", "r") as r:
+        assert r["x"].shape == (10, 40)
+    assert storage_errno(RuntimeError("file write failed: errno = 28, error message = 'No space'")) == 28
+    assert storage_errno(OSError(27, "File too large")) == 27
+    assert storage_errno(RuntimeError("errno = 2")) is None
