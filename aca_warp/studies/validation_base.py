@@ -55,6 +55,12 @@ class Config:
         settle_safety: Factor on the predicted time to saturation.
         sync_band: (fmin, fmax) of S(f) [Hz]; fmax is lowered to 0.9 Nyquist of the per-patch record.
         quick: The reduced CPU variant (named in the table).
+        growth_speedup: Compression of the varying-area growth (§3.2): the increment of Eq. 10 × this, the run
+            ÷ this, so the areas follow the same path in a shorter time (1: the paper's 0.36 s).
+        state_patches: Patches per LF state of the multi-timescale experiments (a sector of the state, §3.3);
+            None: ``patches`` (None: the whole state).
+        lf_dir: Folder of the LF runs of the multi-timescale experiments (§3.3); not part of the run key.
+        workers: Processes that analyse the pads of an experiment in parallel; not part of the run key.
     """
 
     device: str = "cpu"
@@ -71,17 +77,46 @@ class Config:
     settle_safety: float = 1.5
     sync_band: tuple[float, float] = (1.0e3, 150.0e3)
     quick: bool = False
+    growth_speedup: float = 10.0
+    state_patches: int | None = None
+    lf_dir: str | None = None
+    workers: int = 1
 
     def run_key(self) -> dict[str, Any]:
-        """The settings that decide a run's result (device and engine left out)."""
+        """The settings that decide a run's result (device, engine, LF folder and workers left out)."""
         d = dataclasses.asdict(self)
-        for k in ("device", "engine"):
+        for k in ("device", "engine", "lf_dir", "workers"):
             d.pop(k)
         return clean(d)
 
 
 FULL = Config()
-QUICK = Config(seeds=3, patches=150, dt=1.0e-7, window=8.0e-3, quick=True)
+QUICK = Config(seeds=3, patches=150, dt=1.0e-7, window=8.0e-3, quick=True, growth_speedup=20.0, state_patches=60)
+
+
+# ------------------------------------------------------------------------------------------------ processes
+
+
+_POOL: dict[int, Any] = {}
+
+
+def map_pads(fn: Callable[[Any], Any], jobs: list[Any], workers: int) -> list[Any]:
+    """``[fn(j) for j in jobs]``, in ``workers`` processes (spawned, kept for the next call) when more than one."""
+    if workers <= 1 or len(jobs) <= 1:
+        return [fn(j) for j in jobs]
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    if workers not in _POOL:
+        _POOL[workers] = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+    return list(_POOL[workers].map(fn, jobs))
+
+
+def close_pools() -> None:
+    """Shut the analysis processes down."""
+    for pool in _POOL.values():
+        pool.shutdown()
+    _POOL.clear()
 
 
 # ------------------------------------------------------------------------------------------------ registries
@@ -101,9 +136,24 @@ class Experiment:
             HF1_PRESSURE × patches × mean, height spread derived so the load is HEIGHT_MARGIN above the
             all-in-contact load (None: keep the preset's patches).
         initial: "equilibrium" (+ the configured velocity perturbation) or "rest".
-        duration: Fixed run length [s]; None: from the predicted growth rate (:func:`plan_run`).
-        builder: ``(experiment, seed index, config) -> Scene`` instead of :func:`experiment_scene` (for studies
-            whose scenes are not a changed preset, e.g. LF snapshots).
+        duration: Fixed run length [s]; None: from the predicted growth rate (:func:`plan_run`), or for a
+            growing scene its own duration (compressed by the growth speedup).
+        builder: ``(experiment, pad index, config) -> Scene`` instead of :func:`experiment_scene` (for studies
+            whose scenes are not a changed preset, e.g. LF snapshots); the pad index k stands for member
+            ``members[k // seeds]`` of seed ``first_seed + k % seeds`` (:func:`pad_member`).
+        kind: How the run is planned and analysed: ``"saturated"`` (run to saturation, analyse the saturated
+            part), ``"window"`` (a fixed run, every pad analysed over the per-patch window from ``window_start``
+            whether saturated or not: the linear phase of the single-run studies) or ``"growth"`` (a growing
+            scene, μ and the global sums analysed over the whole run after the first saturation).
+        members: Scenes per seed (e.g. LF states); the experiment has seeds × len(members) pads (one per seed
+            when empty).
+        window_scale: Measurement window of a ``"saturated"`` run as a multiple of the configured window.
+        window_start: Start of the per-patch record of a ``"window"`` run [s].
+        growth_speedup: Growth compression of a growing scene; None: the configured one × ``growth_clock``.
+        growth_clock: Factor on the configured growth compression (the growth-clock variant).
+        schedule_bar: Application pressures [bar] of the LF schedule in order (None: the preset's).
+        quick: Run in the quick CPU variant too (False: only in the full variant or when named with --only).
+        opt_in: Run only when named with --only or switched on (e.g. --full-varying-area).
     """
 
     name: str
@@ -115,10 +165,36 @@ class Experiment:
     initial: str = "equilibrium"
     duration: float | None = None
     builder: Callable[[Experiment, int, Config], Any] | None = None
+    kind: str = "saturated"
+    members: tuple[str, ...] = ()
+    window_scale: float = 1.0
+    window_start: float | None = None
+    growth_speedup: float | None = None
+    growth_clock: float = 1.0
+    schedule_bar: tuple[float, ...] | None = None
+    quick: bool = True
+    opt_in: bool = False
 
     def key(self) -> dict[str, Any]:
-        """The definition as it decides the result (for checkpoint reuse)."""
-        return {k: v for k, v in dataclasses.asdict(self).items() if k != "builder"}
+        """The definition as it decides the result (for checkpoint reuse; fields at their defaults beyond the
+        original eight are left out, so that results saved before they existed still match)."""
+        d = {k: v for k, v in dataclasses.asdict(self).items() if k not in ("builder", "quick", "opt_in")}
+        defaults = {f.name: f.default for f in dataclasses.fields(self) if f.name not in _ORIGINAL_KEYS}
+        return {k: v for k, v in d.items() if k in _ORIGINAL_KEYS or v != defaults.get(k)}
+
+    @property
+    def pads_per_seed(self) -> int:
+        """Pads per seed: the number of members (1 without)."""
+        return max(1, len(self.members))
+
+
+_ORIGINAL_KEYS = ("name", "section", "description", "preset", "M", "mean_area_mm2", "initial", "duration")
+
+
+def pad_member(exp: Experiment, k: int, cfg: Config) -> tuple[str | None, int]:
+    """(member, seed) of pad ``k`` of ``exp``: member ``members[k // seeds]``, seed ``first_seed + k % seeds``."""
+    member = exp.members[k // cfg.seeds] if exp.members else None
+    return member, cfg.first_seed + k % cfg.seeds
 
 
 @dataclass(frozen=True)
@@ -143,6 +219,8 @@ class Row:
         measure: ``(results, config) -> RowValue``; results maps experiment name -> saved result (JSON dict).
         criterion: The row's own tolerance or threshold, in words.
         min_experiments: How many of ``experiments`` need two usable pads (None: all of them).
+        uses: What the measure depends on beyond the runs, for the analysis variants of
+            :mod:`~aca_warp.studies.validation_causes`: "sync" (S and Φ), "stft" (the STFT window).
     """
 
     section: str
@@ -153,6 +231,7 @@ class Row:
     measure: Callable[[dict[str, dict], Config], RowValue]
     criterion: str = ""
     min_experiments: int | None = None
+    uses: tuple[str, ...] = ()
 
 
 EXPERIMENTS: dict[str, Experiment] = {}
@@ -174,11 +253,17 @@ def register_row(row: Row) -> Row:
 # ------------------------------------------------------------------------------------------------ row helpers
 
 
-def usable(res: dict[str, Any] | None) -> list[dict[str, Any]]:
-    """The analysed pads of an experiment's result (saturated, with measures)."""
+USABLE = ("saturated", "linear phase")
+"""Pad statuses that enter rows: saturated, or analysed over a fixed window of a ``"window"`` experiment."""
+
+
+def usable(res: dict[str, Any] | None, member: str | None = None) -> list[dict[str, Any]]:
+    """The analysed pads of an experiment's result (saturated or a linear-phase window, with measures); with
+    ``member``, only that member's pads (e.g. one LF state)."""
     if not res:
         return []
-    return [p for p in res.get("pads", []) if p.get("status") == "saturated" and "measures" in p]
+    pads = [p for p in res.get("pads", []) if p.get("status") in USABLE and "measures" in p]
+    return pads if member is None else [p for p in pads if p.get("member") == member]
 
 
 def _get(pad: dict[str, Any], key: str) -> float:
@@ -187,6 +272,20 @@ def _get(pad: dict[str, Any], key: str) -> float:
     for part in key.split("."):
         v = v.get(part) if isinstance(v, dict) else None
     return float(v) if isinstance(v, (int, float)) and math.isfinite(v) else float("nan")
+
+
+def member_result(results: dict[str, dict], names: tuple[str, ...], member: str) -> dict[str, Any]:
+    """The pads of ``member`` (e.g. the LF state "app3_start") over the results of the experiments ``names``,
+    as one result {"pads": [...]} that the other helpers take (an experiment named twice counts once)."""
+    seen: set[int] = set()
+    pads: list[dict[str, Any]] = []
+    for n in names:
+        res = results.get(n)
+        if res is None or id(res) in seen:
+            continue
+        seen.add(id(res))
+        pads += [p for p in res.get("pads", []) if p.get("member") == member]
+    return {"pads": pads}
 
 
 def by_seed(res: dict[str, Any] | None, value: Callable[[dict[str, Any]], float]) -> dict[int, float]:
@@ -256,7 +355,7 @@ def direction_verdict(parts: list[int], secondary: list[int] | None = None) -> s
     sec = secondary or []
     if parts and all(p == 1 for p in parts):
         return "partly" if any(s == -1 for s in sec) else "reproduced"
-    if any(p == 1 for p in parts) or (len(parts) == 1 and any(s == 1 for s in sec)):
+    if any(p == 1 for p in parts) or (parts == [0] and any(s == 1 for s in sec)):
         return "partly"
     return "not reproduced"
 
