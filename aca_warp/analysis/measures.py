@@ -26,7 +26,11 @@ filled from any record:
 * :func:`sync_by_prevalence` and :func:`equal_prevalence_difference` — S(f) compared at equal Φ (S depends on
   Φ: a few random phases already give a high S);
 * :func:`spectral_agreement` — rank correlation of S(f)·Φ(f) with a friction spectrum ("agreement between the
-  Synchronization Index results and the friction frequency spectrum", §3.1).
+  Synchronization Index results and the friction frequency spectrum", §3.1);
+* :func:`tonality` — peak-to-median ratio and spectral flatness of a spectrum ("from stochastic ... to periodic",
+  §3.2);
+* :func:`neighbour_coherence` — phase coherence of neighbouring patches per frequency bin ("local clustering",
+  §3.3).
 """
 
 from __future__ import annotations

@@ -1393,23 +1393,24 @@ def combination_row(results: dict[str, dict], cfg: Config) -> RowValue:
 
 for _row in (
     Row("§3.1, Fig. 9", "lower M raises S significantly for small patches (HF3 vs HF1)", "S(HF3) > S(HF1)",
-        "direction", ("hf1", "hf3"), lower_m_row("hf3", "hf1"), "Δ > 0"),
+        "direction", ("hf1", "hf3"), lower_m_row("hf3", "hf1"), "Δ > 0", uses=("sync",)),
     Row("§3.1, Fig. 9", "lower M raises S for large patches too (HF4 vs HF2)", "S(HF4) > S(HF2)", "direction",
-        ("hf2", "hf4"), lower_m_row("hf4", "hf2"), "Δ > 0"),
+        ("hf2", "hf4"), lower_m_row("hf4", "hf2"), "Δ > 0", uses=("sync",)),
     Row("§3.1, Fig. 9", "the rise with lower M is not as substantial for the larger patches",
-        "Δ(HF3 − HF1) > Δ(HF4 − HF2)", "direction", PRESETS, less_for_large_row, "difference > 0"),
+        "Δ(HF3 − HF1) > Δ(HF4 − HF2)", "direction", PRESETS, less_for_large_row, "difference > 0", uses=("sync",)),
     Row("§3.1, Fig. 8", "larger patches: peaks higher, narrower, at lower frequencies (HF2 vs HF1, HF4 vs HF3)",
         "yes", "direction", PRESETS, larger_peaks_row, "height ×>1, width ×<1, frequency ×<1 in both pairs"),
     Row("§3.1, Fig. 9", "larger patches spread S over more frequencies with higher prevalence Φ (HF2 vs HF1)", "yes",
-        "direction", ("hf1", "hf2"), spread_row, "both Δ > 0"),
+        "direction", ("hf1", "hf2"), spread_row, "both Δ > 0", uses=("sync",)),
     Row("§3.1, Figs. 4/6", "larger patches: larger, better-defined synchronisation patterns (HF2 vs HF1)", "yes",
         "direction", ("hf1", "hf2"), patterns_row, "both Δ > 0"),
     Row("§3.1, Fig. 9", "HF1 vs HF2: the size increase does not significantly affect the synchronisation quality",
-        "no significant difference", "equal", ("hf1", "hf2"), hf1_hf2_row, f"margin ± {EQUAL_MARGIN:g}"),
+        "no significant difference", "equal", ("hf1", "hf2"), hf1_hf2_row, f"margin ± {EQUAL_MARGIN:g}",
+        uses=("sync",)),
     Row("§3.1, Figs. 8/9", "HF4 shows the best agreement of S with the friction spectrum", "HF4 highest", "direction",
-        PRESETS, agreement_row, "ρ(hf4) − ρ(other) > 0 for all three"),
+        PRESETS, agreement_row, "ρ(hf4) − ρ(other) > 0 for all three", uses=("sync",)),
     Row("§3.1, Fig. 9", "HF4 vs HF1: S more spread out, greater, especially at higher frequencies", "yes",
-        "direction", ("hf1", "hf4"), combination_row, "three Δ > 0"),
+        "direction", ("hf1", "hf4"), combination_row, "three Δ > 0", uses=("sync",)),
 ):  # fmt: skip
     register_row(_row)
 
@@ -1724,6 +1725,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "at the paper's clock (0.36 s, 3.6e7 steps; about 140 s on an H100 for 8 pads)")  # fmt: skip
     p.add_argument("--growth-speedup", type=float, default=None, help=f"compression of the varying-area growth "
                    f"({FULL.growth_speedup:g}; quick {QUICK.growth_speedup:g})")  # fmt: skip
+    p.add_argument("--state-patches", type=int, default=None, help=f"patches per LF state of the multi-timescale "
+                   f"experiments (a sector; the whole state; quick {QUICK.state_patches})")  # fmt: skip
     p.add_argument("--workers", type=int, default=None, help="processes that analyse the pads of an experiment "
                    "(default: the CPU count less one, at most 8)")  # fmt: skip
     p.add_argument("--rerun", action="store_true", help="run again even where a saved result fits")
@@ -1761,6 +1764,10 @@ def overheads(preps: dict[str, Prepared], cfg: Config, lf_runs: int) -> dict[str
     """Estimated wall seconds beside the stepping: kernel compilation (CUDA), LF runs and the pads' analysis
     (both spread over ``cfg.workers`` processes)."""
     pads = 0.0
+    layouts = {
+        (p.exp.kind == "growth", tuple((s.patches.count, round(float(s.patches.x.sum()), 12)) for s in p.scenes))
+        for p in preps.values()
+    }  # one on-chip module per layout of a batch (tile sizes); the cache serves the others
     for p in preps.values():
         if p.exp.kind == "growth":
             pads += 0.3 * len(p.scenes)
@@ -1768,7 +1775,7 @@ def overheads(preps: dict[str, Prepared], cfg: Config, lf_runs: int) -> dict[str
             pads += sum(s.patches.count for s in p.scenes) / 1758 * p.plan.patch_samples / 6667
     lf = LF_RUN_S * (4.0 / 11.0 if cfg.quick else 1.0)
     return {
-        "compile": COMPILE_S * len(preps) if cfg.device != "cpu" else 0.0,
+        "compile": COMPILE_S * len(layouts) if cfg.device != "cpu" else 0.0,
         "lf": lf * math.ceil(lf_runs / max(cfg.workers, 1)) if lf_runs else 0.0,
         "analysis": ANALYSIS_S * pads / max(cfg.workers, 1),
     }
@@ -1816,7 +1823,7 @@ def default_experiments(quick: bool, full_varying_area: bool = False) -> list[st
     out = []
     for name, exp in EXPERIMENTS.items():
         if exp.opt_in and not (full_varying_area and name == "va_full"):
-            continue
+            continue  # va_full, hf3_equal, hf4_equal: --only NAME
         if quick and not exp.quick:
             continue
         out.append(name)
@@ -1836,6 +1843,7 @@ def config_from(args: argparse.Namespace, device: str) -> Config:
         "settle_safety": args.settle_safety,
         "precision": args.precision,
         "growth_speedup": args.growth_speedup,
+        "state_patches": args.state_patches,
         "workers": args.workers if args.workers is not None else default_workers(),
     }
     return dataclasses.replace(

@@ -59,7 +59,7 @@ def _experiments() -> tuple[Experiment, ...]:
                               "(run-length variant: the single run's window)", p, initial="rest", kind="window",
                               duration=LIN_DURATION, window_start=LIN_START))  # fmt: skip
         out.append(Experiment(f"{p}_equal", "§3.1", f"{up} with every height 3 µm (preset {p}_equal; height-spread "
-                              "variant)", f"{p}_equal", quick=False))  # fmt: skip
+                              "variant)", f"{p}_equal", quick=False, opt_in=p in ("hf3", "hf4")))  # fmt: skip
         out.append(Experiment(f"{p}_equal_lin", "§3.1", f"{up} with equal heights from rest for 4 ms, over 0.2–4 ms "
                               "(the single runs' conditions)", f"{p}_equal", initial="rest", kind="window",
                               duration=LIN_DURATION, window_start=LIN_START))  # fmt: skip
@@ -157,7 +157,8 @@ def _sub(names: tuple[str, ...], suffix: str) -> tuple[tuple[str, str], ...]:
 
 def variants(cfg: Config) -> list[Variant]:
     """Every variant, in the order of the summary's columns."""
-    ms = ("ms_fast", "ms_mid", "ms_app3")
+    from aca_warp.studies.validation_multiscale import MAIN as ms
+
     half = cfg.seeds // 2
     out = [
         Variant("run length", "linear phase: 4 ms from rest, 0.2–4 ms", _sub(PRESETS, "_lin")),
