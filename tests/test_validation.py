@@ -149,7 +149,7 @@ def test_reduced_run_end_to_end(tmp_path, short_experiment, capsys):
     page.write_text("# Validation\n\nMethod text that stays.\n")
     argv = [
         "--device", "cpu", "--quick", "--seeds", "2", "--patches", "50", "--dt", "1e-7", "--window", "3e-3",
-        "--only", "hf1", "hf1_short", "--out", str(out), "--page", str(page),
+        "--workers", "1", "--only", "hf1", "hf1_short", "--out", str(out), "--page", str(page),
     ]  # fmt: skip
     assert V.main(argv) == 0
     res = json.loads((out / "hf1" / "result.json").read_text())
@@ -319,7 +319,7 @@ def test_multiscale_rows_follow_their_criteria():
     res = _ms_results(app3_high, top={"app3_start": 0.5})
     verdicts = {k: r.measure(res, cfg).verdict for k, r in rows.items()}
     assert set(verdicts.values()) == {"reproduced"}, verdicts
-    res = _ms_results({**std, "app1_start": 0.03}, after_low=0.05)
+    res = _ms_results({**std, "app1_start": 0.03, "app3_start": 0.015}, after_low=0.05)
     largest = rows["μ oscillates with the greatest amplitudes at the start of application 3"].measure(res, cfg)
     assert largest.verdict == "not reproduced" and "app1_start ×5" in largest.notes
     history = rows["a low-load application right after a high-load one oscillates more (load history)"]
@@ -397,7 +397,8 @@ def test_growth_window_and_lf_state_experiments_end_to_end(tmp_path, lf_window_e
     out = tmp_path / "val"
     argv = [
         "--device", "cpu", "--quick", "--seeds", "2", "--patches", "30", "--state-patches", "30", "--dt", "1e-7",
-        "--window", "3e-3", "--growth-speedup", "60", "--only", "va", "hf1_lin", "ms_test", "--out", str(out),
+        "--window", "3e-3", "--growth-speedup", "60", "--workers", "1", "--only", "va", "hf1_lin", "ms_test",
+        "--out", str(out),
     ]  # fmt: skip
     assert V.main(argv) == 0
     va = json.loads((out / "va" / "result.json").read_text())
@@ -417,7 +418,7 @@ def test_growth_window_and_lf_state_experiments_end_to_end(tmp_path, lf_window_e
     ]  # fmt: skip
     assert all(p["status"] == "linear phase" and p["patches"] <= 40 for p in ms["pads"])
     assert sorted(f.name for f in (out / "lf").iterdir()) == [
-        "lf_quick_preset_seed1.h5", "lf_quick_preset_seed2.h5"
+        "lf_quick-0.3-0.1_preset_seed1.h5", "lf_quick-0.3-0.1_preset_seed2.h5"
     ]  # fmt: skip
     doc = json.loads((out / "validation.json").read_text())
     va_rows = [r for r in doc["rows"] if r["experiments"] == ["va"]]
@@ -433,7 +434,7 @@ def test_state_sector_keeps_the_gap_of_the_full_state(tmp_path, monkeypatch):
 
     monkeypatch.setattr(VM, "QUICK_DURATIONS", (0.3, 0.1))
     cfg = V.Config(seeds=1, quick=True, lf_dir=str(tmp_path))
-    VM._run_lf_job((1, None, True, str(VM.lf_path(cfg, 1, None))))
+    VM._run_lf_job((1, None, VM.QUICK_DURATIONS, str(VM.lf_path(cfg, 1, None))))
     full = scene_from_snapshot(VM.lf_path(cfg, 1, None), "app2_end")
     part = VM.state_sector(full, 40)
     assert 0 < part.patches.count < full.patches.count and part.pad.span_deg < full.pad.span_deg

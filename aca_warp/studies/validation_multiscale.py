@@ -71,9 +71,10 @@ SYNC_EXCESS = 0.05  # S − S_null above which a bin counts as synchronised (val
 # ------------------------------------------------------------------------------------------------ LF runs
 
 
-def lf_scene(seed: int, schedule_bar: tuple[float, ...] | None, quick: bool) -> Any:
+def lf_scene(seed: int, schedule_bar: tuple[float, ...] | None, durations: tuple[float, float] | None) -> Any:
     """The ``multiscale`` LF scene with ``[lf] seed`` and ``[patches] seed`` = ``seed``, the applications at
-    ``schedule_bar`` [bar] in order (None: the preset's), shortened in the quick variant."""
+    ``schedule_bar`` [bar] in order (None: the preset's), with ``durations`` (application, pause) [s] instead of
+    the preset's (the quick variant's :data:`QUICK_DURATIONS`)."""
     from aca_warp.lf.scene import Segment, load_lf_scene
 
     base = load_lf_scene("multiscale")
@@ -87,7 +88,7 @@ def lf_scene(seed: int, schedule_bar: tuple[float, ...] | None, quick: bool) -> 
         patches = PatchGenerator(**gen).generate(base.pad)
     segs, k = [], 0
     for s in base.schedule:
-        dur = s.duration if not quick else (QUICK_DURATIONS[0] if s.kind == "application" else QUICK_DURATIONS[1])
+        dur = s.duration if durations is None else durations[0 if s.kind == "application" else 1]
         force = s.normal_force
         if s.kind == "application":
             if schedule_bar is not None:
@@ -101,32 +102,40 @@ def lf_scene(seed: int, schedule_bar: tuple[float, ...] | None, quick: bool) -> 
 
 
 def lf_path(cfg: Config, seed: int, schedule_bar: tuple[float, ...] | None) -> Path:
-    """Where the LF run of ``seed`` (and schedule) is kept: ``<lf_dir>/lf_<quick|full>_<schedule>_seed<N>.h5``."""
+    """Where the LF run of ``seed`` (and schedule) is kept: ``<lf_dir>/lf_<full|quick-A-P>_<schedule>_seed<N>.h5``
+    (A, P: the quick variant's application and pause lengths)."""
     if cfg.lf_dir is None:
         raise ValueError("the multi-timescale experiments need Config.lf_dir (the folder of their LF runs)")
     sched = "preset" if schedule_bar is None else "-".join(f"{b:g}" for b in schedule_bar)
-    return Path(cfg.lf_dir) / f"lf_{'quick' if cfg.quick else 'full'}_{sched}_seed{seed}.h5"
+    length = "quick-{:g}-{:g}".format(*QUICK_DURATIONS) if cfg.quick else "full"
+    return Path(cfg.lf_dir) / f"lf_{length}_{sched}_seed{seed}.h5"
 
 
-def _run_lf_job(job: tuple[int, tuple[float, ...] | None, bool, str]) -> float:
-    """One LF run on the CPU into a temporary file renamed when complete; returns its wall time [s]."""
+def _run_lf_job(job: tuple[int, tuple[float, ...] | None, tuple[float, float] | None, str]) -> float:
+    """One LF run on the CPU into a temporary file renamed when complete; returns its wall time [s]. In a worker
+    process CUDA is hidden before Warp starts (the run needs none, and a context per worker would hold GPU memory)."""
+    import multiprocessing
+    import os
+    import sys
     import time
 
+    if multiprocessing.current_process().name != "MainProcess" and "warp" not in sys.modules:
+        os.environ["CUDA_VISIBLE_DEVICES"] = ""
     from aca_warp.lf.commands import run_lf
     from aca_warp.studies.report import init_warp
 
     init_warp()
-    seed, schedule, quick, path = job
+    seed, schedule, durations, path = job
     tmp = Path(path).with_suffix(".tmp.h5")
     t0 = time.perf_counter()
-    run_lf(lf_scene(seed, schedule, quick), tmp, device="cpu", overwrite=True, progress=False)
+    run_lf(lf_scene(seed, schedule, durations), tmp, device="cpu", overwrite=True, progress=False)
     tmp.replace(path)
     return time.perf_counter() - t0
 
 
-def lf_jobs(names: list[str], cfg: Config, first_only: bool = False) -> list[tuple[int, Any, bool, str]]:
-    """The LF runs the experiments ``names`` need that are not on disk yet (seed, schedule, quick, path)."""
-    jobs: dict[str, tuple[int, Any, bool, str]] = {}
+def lf_jobs(names: list[str], cfg: Config, first_only: bool = False) -> list[tuple[int, Any, Any, str]]:
+    """The LF runs the experiments ``names`` need that are not on disk yet (seed, schedule, durations, path)."""
+    jobs: dict[str, tuple[int, Any, Any, str]] = {}
     for name in names:
         exp = EXPERIMENTS[name]
         if exp.builder is not state_scene:
@@ -135,7 +144,7 @@ def lf_jobs(names: list[str], cfg: Config, first_only: bool = False) -> list[tup
             seed = cfg.first_seed + k
             path = lf_path(cfg, seed, exp.schedule_bar)
             if not path.is_file():
-                jobs[str(path)] = (seed, exp.schedule_bar, cfg.quick, str(path))
+                jobs[str(path)] = (seed, exp.schedule_bar, QUICK_DURATIONS if cfg.quick else None, str(path))
     return list(jobs.values())
 
 
