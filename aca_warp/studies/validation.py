@@ -1,4 +1,7 @@
-"""Validation against the paper's statements from seed ensembles of saturated runs (§3.1; registries for §3.2/§3.3).
+"""Validation against the paper's statements from seed ensembles of saturated runs: the runner, the §3.1 rows and the
+page (§3.2 in :mod:`~aca_warp.studies.validation_area`, §3.3 and §4 in :mod:`~aca_warp.studies.validation_multiscale`,
+the candidate causes of open verdicts in :mod:`~aca_warp.studies.validation_causes`; settings, registries and
+verdicts in :mod:`~aca_warp.studies.validation_base`).
 
 The paper's findings (§3) describe the saturated state of the friction instability; a single run stopped in its
 linear growth says nothing about them. Every number here comes from an **experiment**: one batch of N pads that
@@ -31,15 +34,20 @@ Stages of an experiment (:func:`run_experiment`):
 6. **Checkpoint**: ``<out>/<experiment>/result.json`` and ``arrays.npz`` as soon as the experiment is done; a
    rerun with the same settings reuses them.
 
-Rows (:data:`ROWS`) read only the saved results, so the table can be rebuilt from checkpoints, and a row that
-fails is marked, not fatal. New experiments and rows (e.g. §3.2 varying area, §3.3 multi-timescale states) plug in
-with :func:`register_experiment` and :func:`register_row`.
+Experiments of other kinds follow the same stages: ``"window"`` (a fixed run analysed over its per-patch window
+whether saturated or not: the linear phase of the single-run studies) and ``"growth"`` (the varying-area runs,
+analysed from the global outputs after the first saturation, :mod:`~aca_warp.studies.validation_area`); an
+experiment with members (the LF states of §3.3) has one pad per member and seed, its run sized by the slowest
+member. Rows (:data:`ROWS`) read only the saved results, so the table can be rebuilt from checkpoints, and a row
+that fails is marked, not fatal. New experiments and rows plug in with :func:`register_experiment` and
+:func:`register_row`.
 
 Examples::
 
     python3 scripts/validation.py --device cuda:0 --seeds 8 --out DIR --page docs/validation.md   # GPU, full size
     python3 scripts/validation.py --quick --out DIR --page docs/validation.md                    # CPU smoke check
     python3 scripts/validation.py --device cuda:0 --out DIR --only hf1 hf3 --max-wall 300
+    python3 scripts/validation.py --device cuda:0 --seeds 8 --workers 8 --dry-run         # the cost, runs nothing
 """
 
 from __future__ import annotations
