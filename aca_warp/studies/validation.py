@@ -338,8 +338,9 @@ def plan_run(
         if exp.duration is None or exp.window_start is None:
             raise ValueError(f"{exp.name}: a window experiment needs duration and window_start")
         duration = exp.duration
-    else:
-        duration = exp.duration if exp.duration is not None else settle + cfg.window * exp.window_scale
+    else:  # at least one window of settling: μ's detector (64 windows over the record) needs both parts
+        win = cfg.window * exp.window_scale
+        duration = exp.duration if exp.duration is not None else max(settle, win) + win
     n_samples = int(math.ceil(duration / cfg.sample_dt - 1e-9))
     n_dur = n_samples * cfg.sample_dt
     if exp.kind == "growth":
