@@ -1434,7 +1434,7 @@ validation_multiscale.register_variants()
 
 
 def _range(v: list[float | None], scale: float = 1.0, spec: str = ".3g") -> str:
-    x = np.array([np.nan if a is None else a for a in v], dtype=np.float64) * scale
+    x = np.array([np.nan if a is None else a for a in v], dtype=np.float64) * scale + 0.0  # no "-0"
     x = x[np.isfinite(x)]
     if x.size == 0:
         return "–"
@@ -1497,8 +1497,10 @@ def _run_text(exp: Experiment, res: dict[str, Any]) -> str:
         return f"{exp.initial}; {dur} fixed, per-patch window from {plan['window_start_s'] * 1e3:.2f} ms"
     if exp.kind == "growth":
         return f"{exp.initial}; {dur} of growth (first saturation predicted at {plan['settle_s'] * 1e3:.1f} ms)"
-    members = f", {len(exp.members)} states" if exp.members else ""
-    return f"{exp.initial}; {dur} ({plan['settle_s'] * 1e3:.1f} + window{members})"
+    members = f", {len(exp.members)} state{'s' if len(exp.members) > 1 else ''}" if exp.members else ""
+    settle = plan["window_start_s"]  # the planned settling: the predicted one, at least one window
+    predicted = "" if abs(settle - plan["settle_s"]) < 1e-4 else f"; predicted {plan['settle_s'] * 1e3:.1f}"
+    return f"{exp.initial}; {dur} ({settle * 1e3:.1f} + window{members}{predicted})"
 
 
 EXPERIMENT_HEADER = [
@@ -1521,9 +1523,10 @@ def pad_notes(results: dict[str, dict]) -> list[str]:
     for name, res in results.items():
         for p in res.get("pads", []):
             st = p.get("status")
-            if st is not None and st != "saturated":
-                lines.append(f"* {name}, seed {p.get('seed')}: **{st}** — Σ|u̇|: {p.get('verdict_sum_abs_velocity')}")
-    return lines or ["* none: every pad of every experiment run saturated and was analysed."]
+            if st is not None and not (st in USABLE and "measures" in p):
+                who = f"{name}, {p['member'] + ', ' if p.get('member') else ''}seed {p.get('seed')}"
+                lines.append(f"* {who}: **{st}** — Σ|u̇|: {p.get('verdict_sum_abs_velocity')}")
+    return lines or ["* none: every pad of every experiment run was analysed (saturated, or over its fixed window)."]
 
 
 def initial_state_rows(results: dict[str, dict]) -> list[list[str]]:
@@ -1629,7 +1632,8 @@ def render(
         "",
         f"Produced by `{meta['command']}` on {meta['created']}, {meta['machine']}; "
         f"Warp {meta['versions'].get('warp-lang')}, aca-warp {meta['versions'].get('aca-warp')}; "
-        f"wall time {meta['wall_s']:.0f} s.",
+        f"wall time {meta['wall_s']:.0f} s (the experiments' runs and analyses, from their checkpoints: "
+        f"{meta.get('experiments_s', 0.0):.0f} s).",
         "",
         f"Settings: {cfg['seeds']} seeds from {cfg['first_seed']}; {cfg['patches'] or 'the preset’s'} patches per pad; "
         f"strang, dt = {cfg['dt']:g} s, {cfg['precision']}; global outputs every {cfg['sample_dt']:g} s, per-patch "
@@ -1960,6 +1964,7 @@ def main(argv: list[str] | None = None) -> int:
         "versions": versions(),
         "config": cfg.run_key(),
         "wall_s": log.elapsed(),
+        "experiments_s": sum((r.get("total_s") or 0.0) + (r.get("analysis_s") or 0.0) for r in results.values()),
     }
     body = render(results, rows, meta, causes)
     (args.out / "validation.md").write_text("# Validation\n\n" + "\n".join(body) + "\n")

@@ -193,8 +193,9 @@ def evaluate_causes(results: dict[str, dict], cfg: Config, rows: list[dict[str, 
         if main["verdict"] not in OPEN:
             continue
         for v in variants(cfg):
-            if not v.applies(row) or (v.substitute and not any(b in results for _, b in v.substitute)):
-                continue
+            targets = [b for a, b in v.substitute if a in row.experiments]
+            if not v.applies(row) or not all(b in results for b in targets):
+                continue  # a variant whose experiments were not run
             if v.substitute and all(results.get(a) is results.get(b) for a, b in v.substitute):
                 continue  # the variant is what the row already reads (va_full as the rows' source)
             e = evaluate_rows(v.results(results), cfg, [row])[0]
