@@ -11,6 +11,7 @@ from aca_warp.analysis.measures import (
     equal_prevalence_difference,
     first_peak,
     line_trend,
+    neighbour_coherence,
     peak_to_floor,
     peak_track,
     peak_width,
@@ -24,6 +25,7 @@ from aca_warp.analysis.measures import (
     stft_peak,
     stft_peaks,
     sync_by_prevalence,
+    tonality,
 )
 from aca_warp.analysis.spectra import amplitude_spectrum
 from aca_warp.analysis.timefreq import stft
@@ -379,3 +381,41 @@ def test_spectral_agreement_is_a_rank_correlation_over_the_band():
     assert spectral_agreement(freq, S2, phi, amp) == pytest.approx(ref)
     assert abs(spectral_agreement(freq, S2, rng.integers(2, 50, freq.size), amp)) < 0.1
     assert np.isnan(spectral_agreement(freq, S, np.ones(freq.size), amp))
+
+
+def test_tonality_of_a_line_over_noise_and_of_white_noise():
+    rng = np.random.default_rng(3)
+    dt, n = 1e-6, 2**14
+    t = np.arange(n) * dt
+    noise = rng.normal(0.0, 1.0, n)
+    f, a = amplitude_spectrum(noise, dt, normalise=None)
+    white = tonality(f, a, band=(5e3, 150e3))
+    # |X| of white noise is Rayleigh: power exponential, flatness = exp(E ln P)/E P = exp(−γ) ≈ 0.561
+    assert white.flatness == pytest.approx(np.exp(-np.euler_gamma), abs=0.03)
+    assert white.peak_to_median < 2.0
+    f0 = 2**9 / (n * dt)  # on a bin
+    f, a = amplitude_spectrum(noise + 5.0 * np.sin(2 * np.pi * f0 * t), dt, normalise=None)
+    line = tonality(f, a, band=(5e3, 150e3))
+    assert line.peak_frequency == pytest.approx(f0)
+    med = np.median(a[(f >= 5e3) & (f <= 150e3)])
+    assert line.peak_to_median == pytest.approx(np.log(a[np.argmin(np.abs(f - f0))] / med))
+    assert line.flatness < white.flatness and line.peak_to_median > white.peak_to_median + 2.0
+    with pytest.raises(ValueError, match="no frequency bin"):
+        tonality(f, a, band=(1e9, 2e9))
+
+
+def test_neighbour_coherence_matches_a_pairwise_sum():
+    rng = np.random.default_rng(4)
+    n, bins, radius = 120, 6, 2.5e-3
+    x, y = rng.uniform(0, 0.02, n), rng.uniform(0, 0.02, n)
+    X = rng.uniform(0.1, 1.0, (bins, n)) * np.exp(1j * rng.uniform(-np.pi, np.pi, (bins, n)))
+    X[0] = rng.uniform(0.1, 1.0, n) * np.exp(0.7j)  # every patch in phase: C = 1
+    X[1] = np.where(x < 0.01, 1.0, -1.0) * rng.uniform(0.1, 1.0, n)  # two antiphase halves: C < 1
+    d = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
+    i, j = np.nonzero(np.triu(d <= radius, 1))
+    ref = np.real(np.sum(X[:, i] * np.conj(X[:, j]), axis=1)) / np.sum(np.abs(X[:, i] * X[:, j]), axis=1)
+    c = neighbour_coherence(x, y, X, radius)
+    np.testing.assert_allclose(c, ref, rtol=1e-12)
+    assert c[0] == pytest.approx(1.0) and 0.0 < c[1] < 1.0
+    with pytest.raises(ValueError, match="no pair"):
+        neighbour_coherence(np.array([0.0, 1.0]), np.array([0.0, 0.0]), np.ones((2, 2)), 0.1)

@@ -26,7 +26,11 @@ filled from any record:
 * :func:`sync_by_prevalence` and :func:`equal_prevalence_difference` — S(f) compared at equal Φ (S depends on
   Φ: a few random phases already give a high S);
 * :func:`spectral_agreement` — rank correlation of S(f)·Φ(f) with a friction spectrum ("agreement between the
-  Synchronization Index results and the friction frequency spectrum", §3.1).
+  Synchronization Index results and the friction frequency spectrum", §3.1);
+* :func:`tonality` — peak-to-median ratio and spectral flatness of a spectrum ("from stochastic ... to periodic",
+  §3.2);
+* :func:`neighbour_coherence` — phase coherence of neighbouring patches per frequency bin ("local clustering",
+  §3.3).
 """
 
 from __future__ import annotations
@@ -1024,3 +1028,91 @@ def spectral_agreement(
     if np.ptp(weight) == 0 or np.ptp(amp[idx]) == 0:
         return float("nan")
     return float(scipy.stats.spearmanr(weight, amp[idx]).statistic)
+
+
+# ---------------------------------------------------------------------------------- tonality and local clustering
+
+
+@dataclass(frozen=True)
+class Tonality:
+    """How periodic (a few dominant lines) or stochastic (broad band) a spectrum is over a band.
+
+    Attributes:
+        peak_to_median: ln(largest amplitude / median amplitude) over the band: 0 for a flat spectrum, large for
+            one dominant line above a low floor.
+        flatness: Spectral flatness of the power a²: geometric mean over arithmetic mean, in (0, 1]; 1 for a flat
+            (white) spectrum, near 0 for a few lines.
+        peak_frequency: Frequency of the largest amplitude [Hz].
+        band: (fmin, fmax) [Hz].
+        bins: Bins in the band.
+    """
+
+    peak_to_median: float
+    flatness: float
+    peak_frequency: float
+    band: tuple[float, float]
+    bins: int
+
+
+def tonality(freq: np.ndarray, amp: np.ndarray, *, band: tuple[float, float]) -> Tonality:
+    """Peak-to-median ratio and spectral flatness of an amplitude spectrum over ``band`` (paper §3.2: "from
+    stochastic (low-amplitude oscillations over a wide frequency range) to periodic (one or multiple dominant
+    frequencies)").
+
+    Both are independent of the spectrum's scale. Zero amplitudes are left out of the flatness (its logarithm).
+
+    Args:
+        freq: Frequencies [Hz], shape (F,).
+        amp: Amplitude spectrum, shape (F,), non-negative.
+        band: (fmin, fmax) [Hz].
+
+    Returns:
+        A :class:`Tonality`.
+    """
+    freq, amp = np.asarray(freq, dtype=np.float64), np.asarray(amp, dtype=np.float64)
+    if freq.shape != amp.shape or freq.ndim != 1:
+        raise ValueError(f"freq and amp must be 1-D of equal length, got {freq.shape} and {amp.shape}")
+    idx = _band_bins(freq, band[0], band[1], "tonality")
+    a = amp[idx]
+    med = float(np.median(a))
+    if not (med > 0 and np.all(a >= 0)):
+        raise ValueError("tonality needs a non-negative spectrum with a positive median over the band")
+    p = a[a > 0] ** 2
+    flat = float(np.exp(np.mean(np.log(p))) / np.mean(p))
+    i = int(np.argmax(a))
+    return Tonality(float(np.log(a[i] / med)), flat, float(freq[idx[i]]), (float(band[0]), float(band[1])), idx.size)
+
+
+def neighbour_coherence(x: np.ndarray, y: np.ndarray, spectra: np.ndarray, radius: float) -> np.ndarray:
+    """Phase coherence of neighbouring patches per frequency bin (local clustering of synchronised motion).
+
+    C(f) = Σ_pairs Re(X_i X_j*) / Σ_pairs |X_i||X_j| over the pairs of patches closer than ``radius``: the
+    amplitude-weighted mean cos(φ_i − φ_j) of neighbours at f, as :func:`phase_correlation_length` over the
+    first distance bin but for every bin at once. 1: neighbours oscillate in phase at f (a synchronised island),
+    0: unrelated phases, negative: neighbours in antiphase.
+
+    Args:
+        x: Patch centres x [m], shape (n,).
+        y: Patch centres y [m], shape (n,).
+        spectra: Complex per-patch spectra X_i(f), shape (F, n).
+        radius: Largest pair distance [m] (e.g. the coupling radius).
+
+    Returns:
+        C per bin, shape (F,); NaN where no pair has amplitude.
+    """
+    import scipy.sparse as sp
+
+    x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    X = np.asarray(spectra)
+    if x.shape != y.shape or x.ndim != 1 or X.ndim != 2 or X.shape[1] != x.size:
+        raise ValueError(f"x, y must be (n,) and spectra (F, n); got {x.shape}, {y.shape}, {X.shape}")
+    pairs = cKDTree(np.column_stack([x, y])).query_pairs(radius, output_type="ndarray")
+    if len(pairs) == 0:
+        raise ValueError(f"no pair of patches closer than {radius:g} m")
+    n = x.size
+    adj = sp.csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    num = np.real(np.sum(np.conj(X) * (adj @ X.T).T, axis=1))
+    a = np.abs(X)
+    den = np.sum(a * (adj @ a.T).T, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, num / den, np.nan)

@@ -4,6 +4,9 @@
 * :mod:`~aca_warp.studies.varying_area`: growing patch areas under the HF2 load (§3.2, Eq. 10, Figs. 10-11);
 * :mod:`~aca_warp.studies.multiscale`: LF over the load procedure, HF on its saved states (§3.3, Figs. 12-13);
 * :mod:`~aca_warp.studies.work_precision`: error against wall time of the HF integrators and SciPy's solvers;
+* :mod:`~aca_warp.studies.validation`: the paper's statements (§3.1–§3.3, §4) from seed ensembles of saturated runs,
+  with :mod:`~aca_warp.studies.validation_base`, ``validation_area``, ``validation_multiscale`` and
+  ``validation_causes``;
 * :mod:`~aca_warp.studies.report`: what the studies share (progress lines, tables, JSON, docs sections, figures);
 * :mod:`~aca_warp.studies.runs`: their calls into the HF run API, all in one module.
 

@@ -527,6 +527,13 @@ def _figures_section(study: dict[str, Any], path: Path, figures: Path | None) ->
     return lines
 
 
+VERDICTS = (
+    "**For verdicts see [validation.md](validation.md)** (the §3.3 and §4 rows: LF seed ensembles, every state run "
+    "to saturation). This page is the calibration record of one LF run and, where the HF stage ran, of short HF "
+    "runs from rest on its states, which stop in the linear growth of the slowly growing ones."
+)
+
+
 def write_docs(study: dict[str, Any], path: Path, argv: list[str], figures: Path | None = None) -> None:
     """The calibration page; with ``figures`` (a folder), the study's figures are copied there and shown."""
     c = study["calibration"]
@@ -537,6 +544,8 @@ def write_docs(study: dict[str, Any], path: Path, argv: list[str], figures: Path
         f" ({study['date']}). Numbers are measured, not tuned by hand afterwards; the constants are the defaults",
         "of `aca_warp/lf/scene.py` (docs/lf_model.md). "
         + ("**Quick mode**: 2 s applications, 1 s pauses." if study["quick"] else "Full schedule of the preset."),
+        "",
+        VERDICTS,
         "",
         *_states_section(study),
         "",

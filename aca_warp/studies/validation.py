@@ -1,4 +1,7 @@
-"""Validation against the paper's statements from seed ensembles of saturated runs (§3.1; registries for §3.2/§3.3).
+"""Validation against the paper's statements from seed ensembles of saturated runs: the runner, the §3.1 rows and the
+page (§3.2 in :mod:`~aca_warp.studies.validation_area`, §3.3 and §4 in :mod:`~aca_warp.studies.validation_multiscale`,
+the candidate causes of open verdicts in :mod:`~aca_warp.studies.validation_causes`; settings, registries and
+verdicts in :mod:`~aca_warp.studies.validation_base`).
 
 The paper's findings (§3) describe the saturated state of the friction instability; a single run stopped in its
 linear growth says nothing about them. Every number here comes from an **experiment**: one batch of N pads that
@@ -31,15 +34,20 @@ Stages of an experiment (:func:`run_experiment`):
 6. **Checkpoint**: ``<out>/<experiment>/result.json`` and ``arrays.npz`` as soon as the experiment is done; a
    rerun with the same settings reuses them.
 
-Rows (:data:`ROWS`) read only the saved results, so the table can be rebuilt from checkpoints, and a row that
-fails is marked, not fatal. New experiments and rows (e.g. §3.2 varying area, §3.3 multi-timescale states) plug in
-with :func:`register_experiment` and :func:`register_row`.
+Experiments of other kinds follow the same stages: ``"window"`` (a fixed run analysed over its per-patch window
+whether saturated or not: the linear phase of the single-run studies) and ``"growth"`` (the varying-area runs,
+analysed from the global outputs after the first saturation, :mod:`~aca_warp.studies.validation_area`); an
+experiment with members (the LF states of §3.3) has one pad per member and seed, its run sized by the slowest
+member. Rows (:data:`ROWS`) read only the saved results, so the table can be rebuilt from checkpoints, and a row
+that fails is marked, not fatal. New experiments and rows plug in with :func:`register_experiment` and
+:func:`register_row`.
 
 Examples::
 
     python3 scripts/validation.py --device cuda:0 --seeds 8 --out DIR --page docs/validation.md   # GPU, full size
     python3 scripts/validation.py --quick --out DIR --page docs/validation.md                    # CPU smoke check
     python3 scripts/validation.py --device cuda:0 --out DIR --only hf1 hf3 --max-wall 300
+    python3 scripts/validation.py --device cuda:0 --seeds 8 --workers 8 --dry-run         # the cost, runs nothing
 """
 
 from __future__ import annotations
@@ -58,9 +66,44 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.studies import validation_area, validation_causes, validation_multiscale
 from aca_warp.studies.report import Log, clean, command_line, fmt, generated_markers, md_table, replace_generated
+from aca_warp.studies.validation_base import (  # noqa: F401 (re-exported: the validation API in one module)
+    CRITERIA,
+    EXPERIMENTS,
+    FULL,
+    MM2,
+    QUICK,
+    ROWS,
+    USABLE,
+    Config,
+    Experiment,
+    Row,
+    RowValue,
+    _all_of,
+    _get,
+    _need,
+    by_seed,
+    ci,
+    close_pools,
+    direction_verdict,
+    equal_phi,
+    equal_verdict,
+    evaluate_rows,
+    interval,
+    map_pads,
+    pad_member,
+    paired,
+    register_experiment,
+    register_row,
+    side,
+    tables,
+    threshold_verdict,
+    usable,
+    value_verdict,
+    values,
+)
 
-MM2 = 1.0e-6  # m² per mm²
 HF1_PRESSURE = 487.2 / (1758 * 5.0e-8)  # Pa: hf1's clamp force over its nominal patch area (the sweep keeps it)
 AREA_SPREAD = (0.4, 1.6)  # sweep areas uniform in [0.4, 1.6] x mean (the paper's 0.02-0.08 and 0.5-2.0 mm²)
 HEIGHT_MARGIN = 0.10  # sweep loads 10 % above the all-in-contact load, as the presets (docs/presets.md)
@@ -71,157 +114,6 @@ PAPER = {
     "exponent": -0.25,
     "source": "Merlis & Ostermeyer 2019",
 }
-
-CRITERIA = {
-    "value": "reproduced when the whole 95 % interval of the mean lies within the paper's value ± the tolerance; "
-    "partly when the mean does; not reproduced otherwise",
-    "direction": "reproduced when the 95 % interval of the paired difference over seeds excludes 0 on the paper's "
-    "side for every part of the statement; partly when some parts (or only the primary measure) do; not "
-    "reproduced when none does (an interval containing 0 is no evidence either way)",
-    "equal": "reproduced when the 95 % interval of the paired difference contains 0 and lies within ± the margin; "
-    "partly when it contains 0 but reaches beyond the margin; not reproduced when it excludes 0",
-    "threshold": "reproduced when the whole 95 % interval lies on the paper's side of the threshold; partly when the "
-    "mean does; not reproduced otherwise",
-}
-
-
-# ------------------------------------------------------------------------------------------------ settings
-
-
-@dataclass(frozen=True)
-class Config:
-    """Settings of a validation run (one for every experiment).
-
-    Attributes:
-        device: Warp device ("cpu", "cuda:0").
-        precision: "fp64" or "fp32".
-        engine: "auto", "general" or "onchip".
-        seeds: Pads per experiment (seeds first_seed … first_seed + seeds − 1).
-        first_seed: Seed of pad 0 (1: the presets' own layout).
-        patches: Patches per pad; None: the preset's count (1758). Fewer sit on a sector of the pad.
-        dt: Time step [s] (strang).
-        sample_dt: Sampling interval of the global outputs [s].
-        decimation: Per-patch velocities every ``decimation`` global samples (Nyquist 1/(2·dt_p)).
-        window: Measurement window at the end of a run [s] (per-patch record; spectra resolve 1/window).
-        perturbation: Standard deviation of the initial patch velocities about equilibrium [m/s].
-        settle_safety: Factor on the predicted time to saturation.
-        sync_band: (fmin, fmax) of S(f) [Hz]; fmax is lowered to 0.9 Nyquist of the per-patch record.
-        quick: The reduced CPU variant (named in the table).
-    """
-
-    device: str = "cpu"
-    precision: str = "fp64"
-    engine: str = "auto"
-    seeds: int = 8
-    first_seed: int = 1
-    patches: int | None = None
-    dt: float = 1.0e-8
-    sample_dt: float = 1.0e-6
-    decimation: int = 3
-    window: float = 20.0e-3
-    perturbation: float = 1.0e-2
-    settle_safety: float = 1.5
-    sync_band: tuple[float, float] = (1.0e3, 150.0e3)
-    quick: bool = False
-
-    def run_key(self) -> dict[str, Any]:
-        """The settings that decide a run's result (device and engine left out)."""
-        d = dataclasses.asdict(self)
-        for k in ("device", "engine"):
-            d.pop(k)
-        return clean(d)
-
-
-FULL = Config()
-QUICK = Config(seeds=3, patches=150, dt=1.0e-7, window=8.0e-3, quick=True)
-
-
-# ------------------------------------------------------------------------------------------------ registries
-
-
-@dataclass(frozen=True)
-class Experiment:
-    """One ensemble: a preset with changes, one pad per seed.
-
-    Attributes:
-        name: Key (folder name under ``--out``).
-        section: The paper's section it serves.
-        description: One line for the tables.
-        preset: Base preset.
-        M: Friction factor of Eq. 4 instead of the preset's (None: keep).
-        mean_area_mm2: Mean patch area [mm²] instead of the preset's: areas uniform in AREA_SPREAD × mean, load
-            HF1_PRESSURE × patches × mean, height spread derived so the load is HEIGHT_MARGIN above the
-            all-in-contact load (None: keep the preset's patches).
-        initial: "equilibrium" (+ the configured velocity perturbation) or "rest".
-        duration: Fixed run length [s]; None: from the predicted growth rate (:func:`plan_run`).
-        builder: ``(experiment, seed index, config) -> Scene`` instead of :func:`experiment_scene` (for studies
-            whose scenes are not a changed preset, e.g. LF snapshots).
-    """
-
-    name: str
-    section: str
-    description: str
-    preset: str
-    M: float | None = None
-    mean_area_mm2: float | None = None
-    initial: str = "equilibrium"
-    duration: float | None = None
-    builder: Callable[[Experiment, int, Config], Any] | None = None
-
-    def key(self) -> dict[str, Any]:
-        """The definition as it decides the result (for checkpoint reuse)."""
-        return {k: v for k, v in dataclasses.asdict(self).items() if k != "builder"}
-
-
-@dataclass(frozen=True)
-class RowValue:
-    """What a row function returns: the value text, the verdict, and notes (secondary measures)."""
-
-    value: str
-    verdict: str
-    notes: str = ""
-
-
-@dataclass(frozen=True)
-class Row:
-    """One statement of the paper and the ensemble measure that tests it.
-
-    Attributes:
-        section: Where the paper says it (section/figure).
-        statement: The statement, quoted briefly.
-        paper: The paper's value or claim.
-        kind: Key of :data:`CRITERIA` (how the verdict is decided).
-        experiments: Experiments the row needs.
-        measure: ``(results, config) -> RowValue``; results maps experiment name -> saved result (JSON dict).
-        criterion: The row's own tolerance or threshold, in words.
-        min_experiments: How many of ``experiments`` need two usable pads (None: all of them).
-    """
-
-    section: str
-    statement: str
-    paper: str
-    kind: str
-    experiments: tuple[str, ...]
-    measure: Callable[[dict[str, dict], Config], RowValue]
-    criterion: str = ""
-    min_experiments: int | None = None
-
-
-EXPERIMENTS: dict[str, Experiment] = {}
-ROWS: list[Row] = []
-
-
-def register_experiment(exp: Experiment) -> Experiment:
-    """Add ``exp`` to :data:`EXPERIMENTS` (a name already there is replaced)."""
-    EXPERIMENTS[exp.name] = exp
-    return exp
-
-
-def register_row(row: Row) -> Row:
-    """Append ``row`` to :data:`ROWS`."""
-    ROWS.append(row)
-    return row
-
 
 SWEEP_AREAS_MM2 = (0.125, 0.3, 0.6)  # between hf1 (0.05) and hf2 (1.25): five mean areas with the presets
 
@@ -316,6 +208,11 @@ def experiment_scene(exp: Experiment, k: int, cfg: Config) -> Any:
     initial = Initial(
         state=exp.initial, perturbation=cfg.perturbation if exp.initial == "equilibrium" else 0.0, seed=seed
     )
+    growth, duration = base.growth, base.duration
+    if growth is not None:  # the same area path in 1/speedup of the time (docs/validation.md, §3.2)
+        speed = exp.growth_speedup or cfg.growth_speedup * exp.growth_clock
+        growth = dataclasses.replace(growth, increment=growth.increment * speed)
+        duration = base.duration / speed
     origin = dict(base.origin)  # the scene as a table of tables, naming the generator that draws these patches
     origin.update(
         patches=gen,
@@ -324,6 +221,8 @@ def experiment_scene(exp: Experiment, k: int, cfg: Config) -> Any:
         friction=dataclasses.asdict(friction),
         initial=dataclasses.asdict(initial),
     )
+    if growth is not None:
+        origin.update(growth=dataclasses.asdict(growth), run={**origin.get("run", {}), "duration": duration})
     return base.replace(
         name=f"{exp.name}_seed{seed}",
         pad=pad,
@@ -331,6 +230,8 @@ def experiment_scene(exp: Experiment, k: int, cfg: Config) -> Any:
         normal_force=force,
         friction=friction,
         initial=initial,
+        growth=growth,
+        duration=duration,
         origin=origin,
     )
 
@@ -344,10 +245,10 @@ class Plan:
 
     Attributes:
         duration: Simulated time [s].
-        settle: Predicted time to saturation [s] (0 when the duration is fixed).
+        settle: Predicted time to saturation of the slowest member [s] (0 for a window run).
         v0: Initial velocity amplitude the growth starts from [m/s].
         v_sat: Saturated velocity amplitude (the disc speed at the mean radius) [m/s].
-        sigma_q25: 25th percentile of the predicted σ_i over the batch [1/s].
+        sigma_q25: 25th percentile of the predicted σ_i over the slowest member's pads [1/s].
         record: The ``Record`` (global outputs every sample_dt, per-patch velocities over the window).
         window_start: Time of the first per-patch sample [s].
         patch_samples: Per-patch samples per patch.
@@ -394,36 +295,69 @@ def start_amplitude(scenes: list[Any], contacts: list[Any]) -> float:
     return float(np.median(np.concatenate(amps)))
 
 
-def plan_run(exp: Experiment, scenes: list[Any], contacts: list[Any], sigma: list[np.ndarray], cfg: Config) -> Plan:
-    """Run length from the predicted growth (module docstring, stage 2) and the recording of the window."""
+def plan_run(
+    exp: Experiment,
+    scenes: list[Any],
+    contacts: list[Any],
+    sigma: list[np.ndarray],
+    cfg: Config,
+    members: list[str | None] | None = None,
+) -> Plan:
+    """Run length from the predicted growth (module docstring, stage 2) and the recording of the window.
+
+    The predicted settling time is taken per member (e.g. per LF state, pooled over its seeds) and the run sized
+    by the slowest; an experiment without members is one member. A ``"window"`` run has its fixed duration and
+    records the patches from ``window_start``; a ``"growth"`` run has its scene's (compressed) duration and
+    records the global outputs only (its settle is the predicted first saturation, for the analysis).
+    """
     from aca_warp.scene import Record
 
+    members = members or [None] * len(scenes)
     v_sat = float(np.median([s.sliding_speed for s in scenes]))
-    states = {s.initial.state for s in scenes}
-    v0 = start_amplitude(scenes, contacts) if states == {"rest"} else max(s.initial.perturbation for s in scenes)
-    pos = np.concatenate([s[s > 0] for s in sigma])
-    q25 = float(np.percentile(pos, 25)) if pos.size else float("nan")
-    settle = 0.0
-    if exp.duration is None:
+    slowest = (0.0, float("nan"), float("nan"))  # (settle, v0, σ_25) of the slowest member
+    for m in dict.fromkeys(members):
+        idx = [i for i, x in enumerate(members) if x == m]
+        sc, cs = [scenes[i] for i in idx], [contacts[i] for i in idx]
+        rest = {s.initial.state for s in sc} == {"rest"}
+        v0 = start_amplitude(sc, cs) if rest else max(s.initial.perturbation for s in sc)
+        pos = np.concatenate([sigma[i][sigma[i] > 0] for i in idx])
+        q25 = float(np.percentile(pos, 25)) if pos.size else float("nan")
         if not (v0 > 0 and q25 > 0):
-            raise ValueError(f"{exp.name}: no growth to plan for (v0 = {v0:g} m/s, σ_25 = {q25:g} 1/s)")
+            if exp.duration is None and exp.kind == "saturated":
+                raise ValueError(f"{exp.name}: no growth to plan for{f' ({m})' if m else ''} (v0 = {v0:g} m/s, "
+                                 f"σ_25 = {q25:g} 1/s)")  # fmt: skip
+            continue
         settle = cfg.settle_safety * max(math.log(v_sat / v0), 1.0) / q25
+        if settle >= slowest[0]:
+            slowest = (settle, v0, q25)
+    settle, v0, q25 = slowest
     dtp = cfg.sample_dt * cfg.decimation
-    n_win = max(16, int(round(cfg.window / dtp)))
-    duration = exp.duration if exp.duration is not None else settle + n_win * dtp
+    if exp.kind == "growth":
+        duration = exp.duration if exp.duration is not None else float(scenes[0].duration)
+    elif exp.kind == "window":
+        if exp.duration is None or exp.window_start is None:
+            raise ValueError(f"{exp.name}: a window experiment needs duration and window_start")
+        duration = exp.duration
+    else:  # at least one window of settling: μ's detector (64 windows over the record) needs both parts
+        win = cfg.window * exp.window_scale
+        duration = exp.duration if exp.duration is not None else max(settle, win) + win
     n_samples = int(math.ceil(duration / cfg.sample_dt - 1e-9))
-    n_win = min(n_win, (n_samples // cfg.decimation) + 1)
-    j0 = n_samples - (n_win - 1) * cfg.decimation
-    record = Record(
-        sample_dt=cfg.sample_dt,
-        patches=("velocity",),
-        window=(j0 * cfg.sample_dt, n_samples * cfg.sample_dt * (1 + 1e-9)),
-        decimation=cfg.decimation,
-    )
     n_dur = n_samples * cfg.sample_dt
+    if exp.kind == "growth":
+        record, j0, n_win = Record(sample_dt=cfg.sample_dt), n_samples, 0
+    else:
+        span = duration - exp.window_start if exp.kind == "window" else cfg.window * exp.window_scale
+        n_win = min(max(16, int(round(span / dtp))), (n_samples // cfg.decimation) + 1)
+        j0 = n_samples - (n_win - 1) * cfg.decimation
+        record = Record(
+            sample_dt=cfg.sample_dt,
+            patches=("velocity",),
+            window=(j0 * cfg.sample_dt, n_samples * cfg.sample_dt * (1 + 1e-9)),
+            decimation=cfg.decimation,
+        )
     return Plan(
         duration=n_dur,
-        settle=settle,
+        settle=settle if exp.kind != "window" else 0.0,
         v0=v0,
         v_sat=v_sat,
         sigma_q25=q25,
@@ -435,20 +369,32 @@ def plan_run(exp: Experiment, scenes: list[Any], contacts: list[Any], sigma: lis
     )
 
 
-def step_seconds(cfg: Config, total_patches: int, calibration: dict[str, float]) -> float:
-    """Estimated wall seconds per time step of a batch of ``total_patches`` patches.
+GROWTH_FLOOR_S = {"fp32": 2.7e-6, "fp64": 3.9e-6}
+"""Seconds per step of a batch of growing pads that fits one wave on an H100 (on-chip engine, growth in the kernel,
+a cluster of 8 blocks per pad): 2.7 µs measured in fp32 for one varying_area pad (an event every 20 steps;
+``default_cluster``'s docstring, docs/onchip.md); fp64 estimated as 1.45 × that, the fp64/fp32 ratio of one
+non-growing hf1 pad on 8 blocks (2.6 / 1.8 µs, docs/onchip.md)."""
 
-    ``calibration`` (seconds per step per patch, measured by earlier experiments on this device) when present;
-    otherwise: CPU ≈ 1e7 patch-steps/s (general engine, 2-core AMD EPYC, measured with 400–600 patches); CUDA
-    (on-chip engine, H100, docs/benchmarks/onchip_h100/cluster_waves_default.md) ≈ max(3.4 µs, n/8e9 s) in fp64
-    and max(2.7 µs, n/1.2e10 s) in fp32 — a batch below about 30 000 patches is latency-bound.
+
+def step_seconds(cfg: Config, total_patches: int, calibration: dict[str, float], growth: bool = False) -> float:
+    """Estimated wall seconds per time step of a batch of ``total_patches`` patches (on CUDA: pads × the largest
+    pad's patches, since every block's tiles are sized for the largest pad of the batch).
+
+    ``calibration`` (seconds per step per patch, measured by earlier experiments of the same kind — growing or
+    not — on this device) when present; otherwise: CPU ≈ 1e7 patch-steps/s (general engine, 2-core AMD EPYC,
+    measured with 400–600 patches); CUDA (on-chip engine, H100,
+    docs/benchmarks/onchip_h100/cluster_waves_default.md) ≈ max(3.4 µs, n/8e9 s) in fp64 and max(2.7 µs,
+    n/1.2e10 s) in fp32 — a batch below about 30 000 patches is latency-bound; growing pads at least
+    :data:`GROWTH_FLOOR_S`.
     """
-    if "per_patch" in calibration:
-        per_step = calibration["per_patch"] * total_patches
-        return per_step if cfg.device == "cpu" else max(per_step, calibration.get("floor", 0.0))
+    kind = "growth" if growth else "fixed"
+    if f"per_patch_{kind}" in calibration:
+        per_step = calibration[f"per_patch_{kind}"] * total_patches
+        return per_step if cfg.device == "cpu" else max(per_step, calibration.get(f"floor_{kind}", 0.0))
     if cfg.device == "cpu":
         return total_patches / 1.0e7
-    return max(3.4e-6, total_patches / 8.0e9) if cfg.precision == "fp64" else max(2.7e-6, total_patches / 1.2e10)
+    fixed = max(3.4e-6, total_patches / 8.0e9) if cfg.precision == "fp64" else max(2.7e-6, total_patches / 1.2e10)
+    return max(fixed, GROWTH_FLOOR_S[cfg.precision]) if growth else fixed
 
 
 # ------------------------------------------------------------------------------------------------ saturation
@@ -524,14 +470,18 @@ def null_table(n_max: int) -> np.ndarray:
 
 
 def sync_measures(
-    freq: np.ndarray, X: np.ndarray, f1: float, mu_amp: np.ndarray, rule: str
+    freq: np.ndarray, X: np.ndarray, f1: float, mu_amp: np.ndarray, rule: str, coherence: np.ndarray | None = None
 ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """S(f) of one pad's per-patch spectra X (F, n) under ``rule``, with S_null, and its summaries (scalars, arrays).
 
     Summaries: the equal-Φ tables over the whole band and above f1 (octave classes of Φ, ``sync_by_prevalence``),
     the median S − S_null over bins with Φ ≥ 10, the share of defined bins with S > S_null, the *spread* (share of
     the bins in [f1/8, 2 f1] with S − S_null > 0.05) and *prevalence* (mean Φ over the bins of that band with S
-    defined), S and Φ at f1, and the agreement with the μ spectrum (``spectral_agreement``, 20–80 kHz).
+    defined), S and Φ at f1, and the agreement with the μ spectrum (``spectral_agreement``, 20–80 kHz); for §3.3:
+    ``top_excess`` (mean of the top 1 % of S − S_null over the defined bins: "individual high-valued S"),
+    ``phi_sync`` and ``phi_sync_share`` (mean Φ, and Φ over the patches, of the bins with S − S_null > 0.05) and,
+    with the neighbours' phase coherence C(f) (``neighbour_coherence``), ``cluster_phi_rho``: Spearman ρ of C
+    against Φ over the bins with Φ ≥ 2.
     """
     from aca_warp.analysis.measures import prevalence_classes, spectral_agreement, sync_by_prevalence
     from aca_warp.analysis.sync import sync_index
@@ -561,7 +511,35 @@ def sync_measures(
         "agreement": spectral_agreement(freq, S, phi, mu_amp, band=band) if in_band.sum() > 2 else None,
         "params": res.params,
     }
+    scalars.update(local_sync_measures(S, null, phi, X.shape[1], coherence))
     return scalars, {"S": S.astype(np.float32), "Phi": phi.astype(np.int32), "S_null": null.astype(np.float32)}
+
+
+def local_sync_measures(
+    S: np.ndarray, null: np.ndarray, phi: np.ndarray, patches: int, coherence: np.ndarray | None
+) -> dict[str, Any]:
+    """The §3.3 summaries of S(f) (:func:`sync_measures`): top-1 % excess, Φ of the synchronised bins, and the
+    rank correlation of the neighbours' coherence C(f) with Φ(f)."""
+    import scipy.stats
+
+    ok = np.isfinite(S) & np.isfinite(null)
+    ex = np.sort((S - null)[ok])[::-1]
+    sync = ok & (S - null > SYNC_EXCESS)
+    out: dict[str, Any] = {
+        "top_excess": float(np.mean(ex[: max(1, ex.size // 100)])) if ex.size else None,
+        "phi_sync": float(np.mean(phi[sync])) if sync.any() else None,
+        "phi_sync_share": float(np.mean(phi[sync]) / patches) if sync.any() else None,
+        "sync_bins": int(sync.sum()),
+        "cluster_phi_rho": None,
+    }
+    if coherence is not None:
+        use = (phi >= 2) & np.isfinite(coherence)
+        if use.sum() > 2 and np.ptp(coherence[use]) > 0 and np.ptp(phi[use]) > 0:
+            out["cluster_phi_rho"] = float(scipy.stats.spearmanr(coherence[use], phi[use]).statistic)
+    return out
+
+
+SYNC_EXCESS = 0.05  # S − S_null above which a bin counts as synchronised (the spread of §3.1, Φ of §3.3)
 
 
 def _table_dict(t: Any) -> dict[str, list]:
@@ -678,6 +656,15 @@ def stft_measures(mu: np.ndarray, sample_dt: float) -> list[dict[str, Any]]:
     ]
 
 
+def mu_measures(freq: np.ndarray, spectra: dict[str, np.ndarray], mu: np.ndarray) -> dict[str, Any]:
+    """μ's oscillation over the segment: mean, standard deviation (the amplitude of §3.3) and the largest peak
+    of |μ(f)|/μ̄ at or above 5 kHz (frequency and height)."""
+    from aca_warp.analysis.spectra import peak
+
+    f, a = peak(freq, spectra["mu"], fmin=5.0e3)
+    return {"mu_mean": float(np.mean(mu)), "mu_std": float(np.std(mu)), "mu_peak_hz": f, "mu_peak_amplitude": a}
+
+
 def pad_measures(
     gseg: np.ndarray, vseg: np.ndarray, xy: tuple[np.ndarray, np.ndarray], cfg: Config
 ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
@@ -692,7 +679,7 @@ def pad_measures(
     Returns:
         (scalars, arrays): JSON-ready numbers, and the spectra and S(f) for the arrays file.
     """
-    from aca_warp.analysis.measures import first_peak
+    from aca_warp.analysis.measures import first_peak, neighbour_coherence
     from aca_warp.analysis.spectra import complex_spectrum, peak
 
     dtp = cfg.sample_dt * cfg.decimation
@@ -710,9 +697,15 @@ def pad_measures(
     out: dict[str, Any] = {"f1": f1, "f1_amplitude": a1, "f_largest": f_max, "largest_amplitude": a_max}
     out.update(resolution_hz=df, segment_s=vseg.shape[0] * dtp)
     out.update(fig8_measures(fg, spectra, f1))
+    out.update(mu_measures(fg, spectra, gseg[:, 0]))
     arrays: dict[str, np.ndarray] = {"patch_mean_amplitude": mean_amp.astype(np.float32)}
+    try:
+        coherence = neighbour_coherence(xy[0], xy[1], X, COUPLING_RADIUS)
+        arrays["neighbour_coherence"] = coherence.astype(np.float32)
+    except ValueError:  # no two patches within the coupling radius: no local clustering to measure
+        coherence = None
     for rule in ("relative", "snr"):
-        scalars, arr = sync_measures(fp, X, f1, mu_on_p, rule)
+        scalars, arr = sync_measures(fp, X, f1, mu_on_p, rule, coherence)
         out[f"sync_{rule}"] = scalars
         arrays.update({f"{k}_{rule}": v for k, v in arr.items()})
     out.update(correlation_measures(xy[0], xy[1], vseg, X, i1))
@@ -761,42 +754,71 @@ def analysis_segment(sat: list[dict[str, Any]], patch_time: np.ndarray) -> int |
 
 
 def analyse_batch(
-    scenes: list[Any], time: np.ndarray, glob: np.ndarray, ptime: np.ndarray, vel: np.ndarray, plan: Plan, cfg: Config
+    scenes: list[Any],
+    time: np.ndarray,
+    glob: np.ndarray,
+    ptime: np.ndarray,
+    vel: np.ndarray,
+    plan: Plan,
+    cfg: Config,
+    kind: str = "saturated",
+    members: list[str | None] | None = None,
 ) -> tuple[list[dict[str, Any]], dict[str, np.ndarray], dict[str, Any]]:
     """Saturation of every pad, the common segment, and the measures of each usable pad.
 
-    Returns (pads, arrays, segment): one dict per pad (seed, status, saturation figures, measures), the arrays for
-    ``arrays.npz`` (stacked per pad; NaN rows for unusable pads), and the segment's start, length and resolution.
+    ``kind`` "saturated": the segment starts at the latest saturated start of the usable pads, the others are not
+    analysed; "window": every pad is analysed over the whole per-patch record, saturated or not (status
+    "linear phase"; the detector's verdict is kept as ``detector_status``). Pads are analysed in ``cfg.workers``
+    processes. Returns (pads, arrays, segment): one dict per pad (seed, member, status, saturation figures,
+    measures), the arrays for ``arrays.npz`` (stacked over the analysed pads, their indices in "pad"), and the
+    segment's start, length and resolution.
     """
     window = plan.patch_samples * cfg.sample_dt * cfg.decimation
     sat = [pad_saturation(time, glob[:, p], plan.duration, window) for p in range(len(scenes))]
-    k0 = analysis_segment(sat, ptime)
+    if kind == "window":
+        for s in sat:
+            s.update(
+                detector_status=s["status"], status="linear phase", t_start=float(ptime[0]) if ptime.size else None
+            )
+        k0 = 0 if ptime.size else None
+    else:
+        k0 = analysis_segment(sat, ptime)
     pads: list[dict[str, Any]] = []
-    arrays: dict[str, list] = {}
     segment: dict[str, Any] = {"start_s": None, "samples": 0}
+    jobs: list[tuple[int, tuple]] = []
+    start = np.concatenate([[0], np.cumsum([s.patches.count for s in scenes])])
     if k0 is not None:
         m = ptime.size - k0 - 1  # one short: the global segment (m·decimation samples) must end inside the record
         j0 = int(round(ptime[k0] / cfg.sample_dt))
         segment = {"start_s": float(ptime[k0]), "samples": m, "seconds": m * cfg.sample_dt * cfg.decimation}
         segment["resolution_hz"] = 1.0 / segment["seconds"]
-    start = np.concatenate([[0], np.cumsum([s.patches.count for s in scenes])])
     for p, s in enumerate(scenes):
         a, b = int(start[p]), int(start[p + 1])
         entry: dict[str, Any] = {"seed": s.initial.seed, "patches": b - a, **sat[p]}
-        if sat[p]["status"] == "saturated" and k0 is not None:
-            gseg = glob[j0 : j0 + m * cfg.decimation, p]
-            try:
-                scal, arr = pad_measures(gseg, vel[k0 : k0 + m, a:b], (s.patches.x, s.patches.y), cfg)
-            except (ValueError, FloatingPointError, IndexError) as e:  # the pad is reported, never silently used
-                entry["status"] = f"analysis failed: {type(e).__name__}: {e}"
-                pads.append(entry)
-                continue
-            entry["measures"] = scal
-            for k, v in arr.items():
-                arrays.setdefault(k, []).append(v)
-            arrays.setdefault("pad", []).append(p)
+        if members is not None and members[p] is not None:
+            entry["member"] = members[p]
         pads.append(entry)
+        if sat[p]["status"] in USABLE and k0 is not None:
+            gseg = glob[j0 : j0 + m * cfg.decimation, p]
+            jobs.append((p, (gseg, vel[k0 : k0 + m, a:b], (s.patches.x, s.patches.y), cfg)))
+    arrays: dict[str, list] = {}
+    for (p, _), (scal, arr) in zip(jobs, map_pads(_pad_job, [j for _, j in jobs], cfg.workers), strict=True):
+        if isinstance(scal, str):  # the pad is reported, never silently used
+            pads[p]["status"] = f"analysis failed: {scal}"
+            continue
+        pads[p]["measures"] = scal
+        for k, v in arr.items():
+            arrays.setdefault(k, []).append(v)
+        arrays.setdefault("pad", []).append(p)
     return pads, {k: np.asarray(v) for k, v in arrays.items()}, segment
+
+
+def _pad_job(args: tuple) -> tuple[Any, Any]:
+    """:func:`pad_measures` of one pad; ("ErrorType: message", None) when its analysis fails."""
+    try:
+        return pad_measures(*args)
+    except (ValueError, FloatingPointError, IndexError) as e:
+        return f"{type(e).__name__}: {e}", None
 
 
 def pad_facts(scenes: list[Any], contacts: list[Any], sigma: list[np.ndarray]) -> list[dict[str, Any]]:
@@ -805,6 +827,7 @@ def pad_facts(scenes: list[Any], contacts: list[Any], sigma: list[np.ndarray]) -
     for p, (s, c) in enumerate(zip(scenes, contacts, strict=True)):
         out.append(
             {
+                "patches": int(s.patches.count),
                 "in_contact": int(np.count_nonzero(c.patch_force > 0)),
                 "matrix_share": float(c.matrix_force.sum() / s.normal_force) if s.normal_force > 0 else 0.0,
                 "mean_area_m2": float(s.patches.area.mean()),
@@ -819,31 +842,43 @@ def pad_facts(scenes: list[Any], contacts: list[Any], sigma: list[np.ndarray]) -
 
 @dataclass
 class Prepared:
-    """An experiment's scenes, their host contact solves, predicted growth rates and plan (before any run)."""
+    """An experiment's scenes, their host contact solves, predicted growth rates and plan (before any run);
+    ``members``: the member (e.g. LF state) of each pad, None without members."""
 
     exp: Experiment
     scenes: list[Any]
     contacts: list[Any]
     sigma: list[np.ndarray]
     plan: Plan
+    members: list[str | None]
 
     @property
     def patch_count(self) -> int:
         return sum(s.patches.count for s in self.scenes)
 
+    def cost_patches(self, cfg: Config) -> int:
+        """Patches that set the step time: on CUDA pads × the largest pad (blocks are sized for it), else all."""
+        if cfg.device == "cpu":
+            return self.patch_count
+        return len(self.scenes) * max(s.patches.count for s in self.scenes)
+
     def estimate(self, cfg: Config, calibration: dict[str, float]) -> float:
         """Estimated wall seconds of the run (stepping only; see :func:`step_seconds`)."""
-        return self.plan.steps * step_seconds(cfg, self.patch_count, calibration)
+        growth = self.exp.kind == "growth"
+        return self.plan.steps * step_seconds(cfg, self.cost_patches(cfg), calibration, growth)
 
 
 def prepare(exp: Experiment, cfg: Config) -> Prepared:
     """Scenes, contact solves, predicted σ and plan of ``exp`` (host only: cheap)."""
     from aca_warp.hf.contact import solve_scene_contact
 
-    scenes = [experiment_scene(exp, k, cfg) for k in range(cfg.seeds)]
+    n = cfg.seeds * exp.pads_per_seed
+    members = [pad_member(exp, k, cfg)[0] for k in range(n)]
+    scenes = [experiment_scene(exp, k, cfg) for k in range(n)]
     contacts = [solve_scene_contact(s) for s in scenes]
     sigma = predicted_sigma(scenes, contacts)
-    return Prepared(exp, scenes, contacts, sigma, plan_run(exp, scenes, contacts, sigma, cfg))
+    plan = plan_run(exp, scenes, contacts, sigma, cfg, members)
+    return Prepared(exp, scenes, contacts, sigma, plan, members)
 
 
 def run_experiment(
@@ -864,9 +899,10 @@ def run_experiment(
     t0 = time.perf_counter()
     exp, scenes, plan = prep.exp, prep.scenes, prep.plan
     est = prep.estimate(cfg, calibration)
+    sizes = sorted({s.patches.count for s in scenes})
     log(
-        f"{exp.name}: {cfg.seeds} pads × {scenes[0].patches.count} patches, {exp.initial}, run "
-        f"{plan.duration * 1e3:.1f} ms (settle {plan.settle * 1e3:.1f} ms + window "
+        f"{exp.name}: {len(scenes)} pads × {'/'.join(map(str, sizes))} patches, {exp.initial}, {exp.kind} run "
+        f"{plan.duration * 1e3:.1f} ms (settle {plan.settle * 1e3:.1f} ms; per-patch window "
         f"{plan.patch_samples * cfg.sample_dt * cfg.decimation * 1e3:.1f} ms) = {plan.steps:,} steps; per-patch "
         f"record {plan.velocity_bytes / 2**20:.0f} MiB; estimated {est:.0f} s"
     )
@@ -888,7 +924,9 @@ def run_experiment(
     )
     result["run"] = _run_facts(res, model, cfg)
     per = res.wall_time / max(res.steps, 1)
-    calibration.update(per_patch=per / model.patch_count, floor=per if cfg.device != "cpu" else 0.0)
+    grown = "growth" if exp.kind == "growth" else "fixed"
+    calibration[f"per_patch_{grown}"] = per / prep.cost_patches(cfg)
+    calibration[f"floor_{grown}"] = per if cfg.device != "cpu" else 0.0
     del model, state
     log(
         f"{exp.name}: {'complete' if res.complete else 'stopped: ' + str(res.fault)} in {res.wall_time:.1f} s "
@@ -915,7 +953,12 @@ def finish_experiment(
     t, g, pt, v = records
     name = prep.exp.name
     ta = time.perf_counter()
-    pads, arrays, segment = analyse_batch(prep.scenes, t, g, pt, v, prep.plan, cfg)
+    if prep.exp.kind == "growth":
+        from aca_warp.studies.validation_area import analyse_growth
+
+        pads, arrays, segment = analyse_growth(prep.scenes, t, g, prep.plan, cfg)
+    else:
+        pads, arrays, segment = analyse_batch(prep.scenes, t, g, pt, v, prep.plan, cfg, prep.exp.kind, prep.members)
     result["pads"] = pad_facts(prep.scenes, prep.contacts, prep.sigma)
     for entry, facts in zip(pads, result["pads"], strict=True):
         facts.update(entry)
@@ -926,8 +969,8 @@ def finish_experiment(
     save_result(out / name, clean(result), {**series, **arrays})
     if keep_records:
         np.savez(out / name / "records.npz", time=t, globals=g, patch_time=pt, velocity=v)
-    usable_pads = sum(p["status"] == "saturated" for p in pads)
-    log(f"{name}: {usable_pads}/{len(pads)} pads saturated and analysed in {result['analysis_s']:.1f} s; saved")
+    usable_pads = sum(p["status"] in USABLE and "measures" in p for p in pads)
+    log(f"{name}: {usable_pads}/{len(pads)} pads analysed ({prep.exp.kind}) in {result['analysis_s']:.1f} s; saved")
     return clean(result)
 
 
@@ -1003,163 +1046,6 @@ def load_result(folder: Path, exp: Experiment, cfg: Config) -> dict[str, Any] | 
         return None
     same = res.get("experiment") == clean(exp.key()) and res.get("config") == cfg.run_key()
     return res if same and res.get("status") in ("done", "stopped") else None
-
-
-# ------------------------------------------------------------------------------------------------ row helpers
-
-
-def usable(res: dict[str, Any] | None) -> list[dict[str, Any]]:
-    """The analysed pads of an experiment's result (saturated, with measures)."""
-    if not res:
-        return []
-    return [p for p in res.get("pads", []) if p.get("status") == "saturated" and "measures" in p]
-
-
-def _get(pad: dict[str, Any], key: str) -> float:
-    """A measure of a pad by dotted key ("sync_relative.spread"), NaN when missing or not finite."""
-    v: Any = pad["measures"]
-    for part in key.split("."):
-        v = v.get(part) if isinstance(v, dict) else None
-    return float(v) if isinstance(v, (int, float)) and math.isfinite(v) else float("nan")
-
-
-def by_seed(res: dict[str, Any] | None, value: Callable[[dict[str, Any]], float]) -> dict[int, float]:
-    """Seed -> value(pad) over the usable pads, finite values only."""
-    out = {}
-    for p in usable(res):
-        try:
-            v = float(value(p))
-        except (ValueError, ZeroDivisionError, KeyError, TypeError):  # a measure missing or out of its domain
-            continue
-        if math.isfinite(v):
-            out[int(p["seed"])] = v
-    return out
-
-
-def values(res: dict[str, Any] | None, key: str) -> np.ndarray:
-    """A measure over the usable pads (finite values)."""
-    return np.array(list(by_seed(res, lambda p: _get(p, key)).values()))
-
-
-def paired(a: dict[int, float], b: dict[int, float]) -> np.ndarray:
-    """a − b over the seeds both have."""
-    return np.array([a[s] - b[s] for s in sorted(a) if s in b])
-
-
-def interval(v: np.ndarray, spec: str = ".3g", scale: float = 1.0, unit: str = "") -> str:
-    """ "mean [low, high] unit (n)" of the Student-t 95 % interval of the mean over seeds (``ensemble_interval``)."""
-    from aca_warp.analysis.measures import ensemble_interval
-
-    v = np.asarray(v, dtype=np.float64)
-    v = v[np.isfinite(v)]
-    if v.size == 0:
-        return "–"
-    e = ensemble_interval(v * scale)
-    u = f" {unit}" if unit else ""
-    if v.size == 1:
-        return f"{format(e.mean, spec)}{u} (n = 1, no interval)"
-    return f"{format(e.mean, spec)} [{format(e.mean_low, spec)}, {format(e.mean_high, spec)}]{u} (n = {v.size})"
-
-
-def ci(v: np.ndarray) -> tuple[float, float, float]:
-    """(mean, low, high) of the 95 % t-interval; NaN interval for fewer than two values."""
-    from aca_warp.analysis.measures import ensemble_interval
-
-    v = np.asarray(v, dtype=np.float64)
-    v = v[np.isfinite(v)]
-    if v.size == 0:
-        return (float("nan"),) * 3
-    e = ensemble_interval(v)
-    return float(e.mean), float(e.mean_low), float(e.mean_high)
-
-
-def side(v: np.ndarray, sign: float = 1.0) -> int:
-    """+1 when the 95 % interval of the mean of ``sign``·v lies above 0, −1 when below, 0 otherwise."""
-    m, lo, hi = ci(sign * np.asarray(v, dtype=np.float64))
-    if not math.isfinite(lo):
-        return 0
-    return 1 if lo > 0 else (-1 if hi < 0 else 0)
-
-
-def direction_verdict(parts: list[int], secondary: list[int] | None = None) -> str:
-    """Verdict of a directional statement from its parts' :func:`side` (+1: the paper's side) (:data:`CRITERIA`).
-
-    ``secondary``: sides of further measures of a one-part statement; one significantly opposite makes a
-    reproduced primary only "partly", one on the paper's side lifts a non-significant primary to "partly".
-    """
-    sec = secondary or []
-    if parts and all(p == 1 for p in parts):
-        return "partly" if any(s == -1 for s in sec) else "reproduced"
-    if any(p == 1 for p in parts) or (len(parts) == 1 and any(s == 1 for s in sec)):
-        return "partly"
-    return "not reproduced"
-
-
-def value_verdict(v: np.ndarray, paper: float, tol: float) -> str:
-    """Verdict of a value within ``paper`` ± ``tol`` (:data:`CRITERIA`)."""
-    m, lo, hi = ci(v)
-    if not math.isfinite(m):
-        return "not measured"
-    if math.isfinite(lo) and paper - tol <= lo and hi <= paper + tol:
-        return "reproduced"
-    return "partly" if abs(m - paper) <= tol else "not reproduced"
-
-
-def threshold_verdict(v: np.ndarray, limit: float, below: bool) -> str:
-    """Verdict of a value on the paper's side of ``limit`` (below it when ``below``) (:data:`CRITERIA`)."""
-    m, lo, hi = ci(v)
-    if not math.isfinite(m):
-        return "not measured"
-    whole = (hi <= limit) if below else (lo >= limit)
-    if math.isfinite(lo) and whole:
-        return "reproduced"
-    return "partly" if (m <= limit if below else m >= limit) else "not reproduced"
-
-
-def equal_verdict(d: np.ndarray, margin: float) -> str:
-    """Verdict of "not significantly different" with an equivalence ``margin`` (:data:`CRITERIA`)."""
-    m, lo, hi = ci(d)
-    if not math.isfinite(lo):
-        return "not measured"
-    if lo > 0 or hi < 0:
-        return "not reproduced"
-    return "reproduced" if -margin <= lo and hi <= margin else "partly"
-
-
-def tables(res: dict[str, Any] | None, rule: str, which: str = "table") -> dict[int, Any]:
-    """Seed -> ``PrevalenceTable`` of S at equal Φ of the usable pads."""
-    from aca_warp.analysis.measures import PrevalenceTable
-
-    out = {}
-    for p in usable(res):
-        t = p["measures"][f"sync_{rule}"][which]
-        arr = {k: np.array([np.nan if x is None else x for x in t[k]], dtype=np.float64) for k in t}
-        out[int(p["seed"])] = PrevalenceTable(
-            arr["lower"].astype(int), arr["upper"].astype(int), arr["bins"].astype(int), arr["mean_S"],
-            arr["mean_S_null"], arr["mean_excess"],
-        )  # fmt: skip
-    return out
-
-
-def equal_phi(
-    results: dict[str, dict], a: str, b: str, rule: str = "relative", value: str = "excess", which: str = "table"
-) -> tuple[np.ndarray, str]:
-    """Paired differences a − b of S (``value``: "excess" = S − S_null, or "S") at equal Φ, and the classes used."""
-    from aca_warp.analysis.measures import equal_prevalence_difference
-
-    ta, tb = tables(results.get(a), rule, which), tables(results.get(b), rule, which)
-    seeds = [s for s in sorted(ta) if s in tb]
-    if not seeds:
-        return np.array([]), "no common seed"
-    d = equal_prevalence_difference([ta[s] for s in seeds], [tb[s] for s in seeds], value=value)
-    used = [f"{lo}–{hi - 1}" for lo, hi, u in zip(d.lower, d.upper, d.classes, strict=True) if u]
-    return d.difference, "Φ classes " + (", ".join(used) if used else "none in common")
-
-
-def _need(results: dict[str, dict], names: tuple[str, ...], n: int = 2) -> str | None:
-    """Why a row cannot be measured (an experiment missing or with fewer than ``n`` usable pads), or None."""
-    short = [f"{k} ({len(usable(results.get(k)))} usable pads)" for k in names if len(usable(results.get(k))) < n]
-    return ("needs " + ", ".join(short)) if short else None
 
 
 # ------------------------------------------------------------------------------------------------ rows: §3.1
@@ -1241,6 +1127,39 @@ register_row(
 )
 
 
+def two_area_exponent_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    """b = ln(f1(HF2)/f1(HF1)) / ln(A(HF2)/A(HF1)) per seed (the two presets of the paper, paired by seed)."""
+
+    def lnf(name: str) -> dict[int, float]:
+        return by_seed(results.get(name), lambda p: math.log(_get(p, "f1")))
+
+    def lna(name: str) -> dict[int, float]:
+        return by_seed(results.get(name), lambda p: math.log(p["mean_area_m2"]))
+
+    df, da = paired(lnf("hf2"), lnf("hf1")), paired(lna("hf2"), lna("hf1"))
+    b = df / da if df.size == da.size else np.array([])
+    f1 = [interval(values(results.get(n), "f1"), ".1f", 1e-3, "kHz") for n in ("hf1", "hf2")]
+    return RowValue(
+        interval(b, ".3f"),
+        value_verdict(b, PAPER["exponent"], EXPONENT_TOLERANCE),
+        f"first peaks hf1 {f1[0]}, hf2 {f1[1]}; the paper's own peaks (73 and 32.8 kHz at 0.05 and 1.25 mm²) give "
+        f"{math.log(32.8 / 73.0) / math.log(25.0):.3f}",
+    )
+
+
+register_row(
+    Row(
+        "§3.1",
+        "f_p ∝ A_p^(−1/4) from the two patch sizes of Table 1 (HF1, HF2)",
+        "−1/4",
+        "value",
+        ("hf1", "hf2"),
+        two_area_exponent_row,
+        f"± {EXPONENT_TOLERANCE:g}",
+    )
+)
+
+
 def _per_preset(
     results: dict[str, dict], value: Callable[[dict[str, Any]], float], verdict: Callable[[np.ndarray], Any]
 ) -> tuple[list[str], list[Any]]:
@@ -1298,12 +1217,6 @@ def overlap_row(results: dict[str, dict], cfg: Config) -> RowValue:
         _all_of(verdicts),
         "D = mean |ln a − ln b| over 1–200 kHz; for contrast D(μ, friction radius) " + "; ".join(radius),
     )
-
-
-def _all_of(verdicts: list[str]) -> str:
-    if all(v == "reproduced" for v in verdicts):
-        return "reproduced"
-    return "not reproduced" if all(v == "not reproduced" for v in verdicts) else "partly"
 
 
 def shared_row(results: dict[str, dict], cfg: Config) -> RowValue:
@@ -1489,59 +1402,39 @@ def combination_row(results: dict[str, dict], cfg: Config) -> RowValue:
 
 for _row in (
     Row("§3.1, Fig. 9", "lower M raises S significantly for small patches (HF3 vs HF1)", "S(HF3) > S(HF1)",
-        "direction", ("hf1", "hf3"), lower_m_row("hf3", "hf1"), "Δ > 0"),
+        "direction", ("hf1", "hf3"), lower_m_row("hf3", "hf1"), "Δ > 0", uses=("sync",)),
     Row("§3.1, Fig. 9", "lower M raises S for large patches too (HF4 vs HF2)", "S(HF4) > S(HF2)", "direction",
-        ("hf2", "hf4"), lower_m_row("hf4", "hf2"), "Δ > 0"),
+        ("hf2", "hf4"), lower_m_row("hf4", "hf2"), "Δ > 0", uses=("sync",)),
     Row("§3.1, Fig. 9", "the rise with lower M is not as substantial for the larger patches",
-        "Δ(HF3 − HF1) > Δ(HF4 − HF2)", "direction", PRESETS, less_for_large_row, "difference > 0"),
+        "Δ(HF3 − HF1) > Δ(HF4 − HF2)", "direction", PRESETS, less_for_large_row, "difference > 0", uses=("sync",)),
     Row("§3.1, Fig. 8", "larger patches: peaks higher, narrower, at lower frequencies (HF2 vs HF1, HF4 vs HF3)",
         "yes", "direction", PRESETS, larger_peaks_row, "height ×>1, width ×<1, frequency ×<1 in both pairs"),
     Row("§3.1, Fig. 9", "larger patches spread S over more frequencies with higher prevalence Φ (HF2 vs HF1)", "yes",
-        "direction", ("hf1", "hf2"), spread_row, "both Δ > 0"),
+        "direction", ("hf1", "hf2"), spread_row, "both Δ > 0", uses=("sync",)),
     Row("§3.1, Figs. 4/6", "larger patches: larger, better-defined synchronisation patterns (HF2 vs HF1)", "yes",
         "direction", ("hf1", "hf2"), patterns_row, "both Δ > 0"),
     Row("§3.1, Fig. 9", "HF1 vs HF2: the size increase does not significantly affect the synchronisation quality",
-        "no significant difference", "equal", ("hf1", "hf2"), hf1_hf2_row, f"margin ± {EQUAL_MARGIN:g}"),
+        "no significant difference", "equal", ("hf1", "hf2"), hf1_hf2_row, f"margin ± {EQUAL_MARGIN:g}",
+        uses=("sync",)),
     Row("§3.1, Figs. 8/9", "HF4 shows the best agreement of S with the friction spectrum", "HF4 highest", "direction",
-        PRESETS, agreement_row, "ρ(hf4) − ρ(other) > 0 for all three"),
+        PRESETS, agreement_row, "ρ(hf4) − ρ(other) > 0 for all three", uses=("sync",)),
     Row("§3.1, Fig. 9", "HF4 vs HF1: S more spread out, greater, especially at higher frequencies", "yes",
-        "direction", ("hf1", "hf4"), combination_row, "three Δ > 0"),
+        "direction", ("hf1", "hf4"), combination_row, "three Δ > 0", uses=("sync",)),
 ):  # fmt: skip
     register_row(_row)
 
 
-# ------------------------------------------------------------------------------------------------ the table
+# ------------------------------------------------------------------------------------------------ §3.2, §3.3, causes
 
-
-def evaluate_rows(results: dict[str, dict], cfg: Config, rows: list[Row] | None = None) -> list[dict[str, Any]]:
-    """Every row's value and verdict; a row whose experiments are missing says so, a row that fails is marked."""
-    out = []
-    for row in ROWS if rows is None else rows:
-        entry = {
-            "section": row.section,
-            "statement": row.statement,
-            "paper": row.paper,
-            "kind": row.kind,
-            "criterion": row.criterion,
-            "experiments": list(row.experiments),
-        }
-        need = row.min_experiments or len(row.experiments)
-        have = [k for k in row.experiments if len(usable(results.get(k))) >= 2]
-        if len(have) < need:
-            missing = _need(results, row.experiments) or ""
-            entry.update(value="–", verdict="not measured", notes=missing)
-        else:
-            try:
-                v = row.measure(results, cfg)
-                entry.update(value=v.value, verdict=v.verdict, notes=v.notes)
-            except Exception as e:  # noqa: BLE001 (one failing row must not take the table with it)
-                entry.update(value="–", verdict="failed", notes=f"{type(e).__name__}: {e}")
-        out.append(entry)
-    return out
+validation_area.register()
+validation_multiscale.register()
+validation_causes.register()
+validation_area.register_variants()
+validation_multiscale.register_variants()
 
 
 def _range(v: list[float | None], scale: float = 1.0, spec: str = ".3g") -> str:
-    x = np.array([np.nan if a is None else a for a in v], dtype=np.float64) * scale
+    x = np.array([np.nan if a is None else a for a in v], dtype=np.float64) * scale + 0.0  # no "-0"
     x = x[np.isfinite(x)]
     if x.size == 0:
         return "–"
@@ -1566,7 +1459,7 @@ def experiment_rows(results: dict[str, dict]) -> list[list[str]]:
                 exp.description,
                 f"{len(ok)} / {len(pads)}" + ("" if res.get("status") == "done" else f" ({res.get('status')})"),
                 _contact_text(pads),
-                f"{exp.initial}; {plan['duration_s'] * 1e3:.1f} ms ({plan['settle_s'] * 1e3:.1f} + window)",
+                _run_text(exp, res),
                 f"{plan['steps']:,}; {fmt(run.get('wall_s'), '.0f')} s, {fmt(run.get('us_per_step'), '.3g')} µs/step",
                 " / ".join(
                     _range([p[k] for p in pads], spec=".0f") for k in ("sigma_min", "sigma_median", "sigma_max")
@@ -1583,13 +1476,31 @@ def experiment_rows(results: dict[str, dict]) -> list[list[str]]:
 
 
 def _contact_text(pads: list[dict[str, Any]]) -> str:
-    """Patches per pad and how many are in contact (fewest over the pads)."""
+    """Patches per pad (the range where they differ) and how many are in contact."""
     if not pads:
         return "–"
     n = [p.get("patches", 0) for p in pads]
-    c = [p["in_contact"] for p in pads]
-    where = "all in contact" if all(a == b for a, b in zip(c, n, strict=True)) else f"at least {min(c)} in contact"
-    return f"{max(n)} ({where})"
+    c = [p.get("in_contact", 0) for p in pads]
+    if all(a == b for a, b in zip(c, n, strict=True)):
+        where = "all in contact"
+    else:
+        where = f"at least {min(b / max(a, 1) for a, b in zip(n, c, strict=True)) * 100:.0f} % in contact"
+    size = f"{max(n)}" if min(n) == max(n) else f"{min(n)}–{max(n)}"
+    return f"{size} ({where})"
+
+
+def _run_text(exp: Experiment, res: dict[str, Any]) -> str:
+    """Start and run length: predicted settling + window, a fixed window, or a growth run."""
+    plan = res["plan"]
+    dur = f"{plan['duration_s'] * 1e3:.1f} ms"
+    if exp.kind == "window":
+        return f"{exp.initial}; {dur} fixed, per-patch window from {plan['window_start_s'] * 1e3:.2f} ms"
+    if exp.kind == "growth":
+        return f"{exp.initial}; {dur} of growth (first saturation predicted at {plan['settle_s'] * 1e3:.1f} ms)"
+    members = f", {len(exp.members)} state{'s' if len(exp.members) > 1 else ''}" if exp.members else ""
+    settle = plan["window_start_s"]  # the planned settling: the predicted one, at least one window
+    predicted = "" if abs(settle - plan["settle_s"]) < 1e-4 else f"; predicted {plan['settle_s'] * 1e3:.1f}"
+    return f"{exp.initial}; {dur} ({settle * 1e3:.1f} + window{members}{predicted})"
 
 
 EXPERIMENT_HEADER = [
@@ -1612,9 +1523,10 @@ def pad_notes(results: dict[str, dict]) -> list[str]:
     for name, res in results.items():
         for p in res.get("pads", []):
             st = p.get("status")
-            if st is not None and st != "saturated":
-                lines.append(f"* {name}, seed {p.get('seed')}: **{st}** — Σ|u̇|: {p.get('verdict_sum_abs_velocity')}")
-    return lines or ["* none: every pad of every experiment run saturated and was analysed."]
+            if st is not None and not (st in USABLE and "measures" in p):
+                who = f"{name}, {p['member'] + ', ' if p.get('member') else ''}seed {p.get('seed')}"
+                lines.append(f"* {who}: **{st}** — Σ|u̇|: {p.get('verdict_sum_abs_velocity')}")
+    return lines or ["* none: every pad of every experiment run was analysed (saturated, or over its fixed window)."]
 
 
 def initial_state_rows(results: dict[str, dict]) -> list[list[str]]:
@@ -1645,9 +1557,11 @@ def _pad_values(res: dict[str, Any] | None, key: str) -> np.ndarray:
 
 
 def stft_lines(results: dict[str, dict]) -> list[str]:
-    """Largest STFT amplitude of μ/μ̄ per window length, per experiment (mean over pads)."""
+    """Largest STFT amplitude of μ/μ̄ per window length, per §3.1 experiment (mean over pads)."""
     lines = []
     for name, res in results.items():
+        if name not in EXPERIMENTS or EXPERIMENTS[name].section != "§3.1" or EXPERIMENTS[name].kind != "saturated":
+            continue
         per: dict[str, list[tuple[float, float]]] = {}
         for p in usable(res):
             for w in p["measures"].get("stft", []):
@@ -1658,7 +1572,51 @@ def stft_lines(results: dict[str, dict]) -> list[str]:
     return lines or ["* no saturated segment holds a window of 2^12 samples."]
 
 
-def render(results: dict[str, dict], rows: list[dict[str, Any]], meta: dict[str, Any]) -> list[str]:
+def cause_lines(causes: list[dict[str, Any]]) -> list[str]:
+    """The summary of the variants of the open rows and, folded, every variant's value."""
+    if not causes:
+        return ["No open verdict, or no variant of one was run."]
+    header, rows = validation_causes.cause_summary(causes)
+    moved = [c for c in causes if c["moved"]]
+    lines = [
+        "Each open statement (main verdict ✗ not reproduced or ~ partly) evaluated again with one change (a "
+        "variant); a cell gives the variant and its verdict (✓ reproduced, ~ partly, ✗ not reproduced, · not "
+        "measured), **bold** where the verdict moved. Variants whose experiments were not run are left out.",
+        "",
+        *md_table(header, rows),
+        "",
+        f"Verdicts moved by a variant: {len(moved)} of {len(causes)}"
+        + (
+            ": "
+            + "; ".join(
+                f"{c['statement']} — {c['cause']} ({c['variant']}): {c['main_verdict']} → {c['verdict']}" for c in moved
+            )
+            if moved
+            else ""
+        )
+        + ".",  # fmt: skip
+        "",
+        "<details><summary>Every variant's value</summary>",
+        "",
+        *md_table(
+            ["statement", "cause", "variant", "experiments", "value", "verdict"],
+            [
+                [c["statement"], c["cause"], c["variant"], ", ".join(c["experiments"]), c["value"], c["verdict"]]
+                for c in causes
+            ],
+        ),  # fmt: skip
+        "",
+        "</details>",
+    ]
+    return lines
+
+
+def render(
+    results: dict[str, dict],
+    rows: list[dict[str, Any]],
+    meta: dict[str, Any],
+    causes: list[dict[str, Any]] | None = None,
+) -> list[str]:
     """The generated part of docs/validation.md."""
     cfg = meta["config"]
     variant = (
@@ -1668,18 +1626,24 @@ def render(results: dict[str, dict], rows: list[dict[str, Any]], meta: dict[str,
         else "Full variant."
     )
     dtp = cfg["sample_dt"] * cfg["decimation"]
+    cut = cfg.get("state_patches") or cfg["patches"]
     lines = [
         variant,
         "",
         f"Produced by `{meta['command']}` on {meta['created']}, {meta['machine']}; "
         f"Warp {meta['versions'].get('warp-lang')}, aca-warp {meta['versions'].get('aca-warp')}; "
-        f"wall time {meta['wall_s']:.0f} s.",
+        f"wall time {meta['wall_s']:.0f} s (the experiments' runs and analyses, from their checkpoints: "
+        f"{meta.get('experiments_s', 0.0):.0f} s).",
         "",
         f"Settings: {cfg['seeds']} seeds from {cfg['first_seed']}; {cfg['patches'] or 'the preset’s'} patches per pad; "
         f"strang, dt = {cfg['dt']:g} s, {cfg['precision']}; global outputs every {cfg['sample_dt']:g} s, per-patch "
         f"velocities every {dtp:g} s (Nyquist {0.5 / dtp / 1e3:.0f} kHz) over the last {cfg['window'] * 1e3:g} ms; "
         f"initial velocity perturbation {cfg['perturbation']:g} m/s; settling factor {cfg['settle_safety']:g}; "
-        f"S(f) over {cfg['sync_band'][0] / 1e3:g}–{cfg['sync_band'][1] / 1e3:g} kHz.",
+        f"S(f) over {cfg['sync_band'][0] / 1e3:g}–{cfg['sync_band'][1] / 1e3:g} kHz. §3.2: the varying-area "
+        f"growth compressed × {cfg['growth_speedup']:g} ({0.36 / cfg['growth_speedup'] * 1e3:g} ms; `va_full` at "
+        f"the paper's 0.36 s only with --full-varying-area, and then the rows' source). §3.3: the LF "
+        f"{'quick ' if cfg['quick'] else ''}schedule per seed on the CPU, every state "
+        f"{f'cut to about {cut} patches' if cut else 'whole'}, a window of half the above.",
         "",
         "### The paper's statements",
         "",
@@ -1707,6 +1671,18 @@ def render(results: dict[str, dict], rows: list[dict[str, Any]], meta: dict[str,
             ],
         ),  # fmt: skip
         "",
+        "### Which change moves which verdict",
+        "",
+        *cause_lines(causes or []),
+        "",
+        "### §3.2: the growth runs (means over the analysed pads)",
+        "",
+        *md_table(*validation_area.growth_table(results)),
+        "",
+        "### §3.3: the LF states (means over the seeds' pads; equilibrium start)",
+        "",
+        *md_table(*validation_multiscale.state_table(results)),
+        "",
         "### Experiments",
         "",
         *md_table(EXPERIMENT_HEADER, experiment_rows(results)),
@@ -1719,8 +1695,8 @@ def render(results: dict[str, dict], rows: list[dict[str, Any]], meta: dict[str,
         "",
         *md_table(["measure", "hf1 (equilibrium)", "hf1_rest (rest)"], initial_state_rows(results)),
         "",
-        "### STFT maximum of μ/μ̄ over the saturated segment (Fig. 10's normalisation; the paper gives ≈ 0.004 at "
-        "69.1 kHz for §3.2 only)",
+        "### §3.1: STFT maximum of μ/μ̄ over the saturated segment (Fig. 10's normalisation; the paper gives "
+        "≈ 0.004 at 69.1 kHz for §3.2 only)",
         "",
         *stft_lines(results),
     ]
@@ -1758,6 +1734,14 @@ def build_parser() -> argparse.ArgumentParser:
                    "(the table still uses the saved results of the others)")  # fmt: skip
     p.add_argument("--max-wall", type=float, default=None, help="wall-time budget [s]: an experiment whose estimate "
                    "no longer fits is not started")  # fmt: skip
+    p.add_argument("--full-varying-area", action="store_true", help="also run va_full: the varying-area ensemble "
+                   "at the paper's clock (0.36 s, 3.6e7 steps; about 140 s on an H100 for 8 pads)")  # fmt: skip
+    p.add_argument("--growth-speedup", type=float, default=None, help=f"compression of the varying-area growth "
+                   f"({FULL.growth_speedup:g}; quick {QUICK.growth_speedup:g})")  # fmt: skip
+    p.add_argument("--state-patches", type=int, default=None, help=f"patches per LF state of the multi-timescale "
+                   f"experiments (a sector; the whole state; quick {QUICK.state_patches})")  # fmt: skip
+    p.add_argument("--workers", type=int, default=None, help="processes that analyse the pads of an experiment "
+                   "(default: the CPU count less one, at most 8)")  # fmt: skip
     p.add_argument("--rerun", action="store_true", help="run again even where a saved result fits")
     p.add_argument("--keep-records", action="store_true", help="also keep each run's records (globals and per-patch "
                    "velocities, DIR/<experiment>/records.npz: the per-patch record's size per experiment)")  # fmt: skip
@@ -1769,23 +1753,94 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+COMPILE_S = 4.0  # s per experiment on CUDA: one on-chip module per tile shape (1.7–4.5 s, docs/benchmarks/onchip_h100)
+LF_RUN_S = 11.0  # s per LF run of the full multiscale schedule on one CPU core (2-core AMD EPYC host; quick: 4 s)
+ANALYSIS_S = 1.5  # s per analysed pad of 1758 patches × 6667 per-patch samples on one core of the same host
+
+
+def dry_prepare(exp: Experiment, cfg: Config, log: Log) -> Prepared:
+    """:func:`prepare` for the cost: an LF-state experiment is planned from the LF run of the first seed only
+    (run here if missing; its states stand for every seed's)."""
+    if exp.builder is not validation_multiscale.state_scene:
+        return prepare(exp, cfg)
+    one = dataclasses.replace(cfg, seeds=1)
+    validation_multiscale.ensure_lf([exp.name], one, log)
+    p = prepare(exp, one)
+    rep = cfg.seeds
+    return Prepared(
+        exp, [s for s in p.scenes for _ in range(rep)], [c for c in p.contacts for _ in range(rep)],
+        [s for s in p.sigma for _ in range(rep)], p.plan, [m for m in p.members for _ in range(rep)],
+    )  # fmt: skip
+
+
+def overheads(preps: dict[str, Prepared], cfg: Config, lf_runs: int) -> dict[str, float]:
+    """Estimated wall seconds beside the stepping: kernel compilation (CUDA), LF runs and the pads' analysis
+    (both spread over ``cfg.workers`` processes)."""
+    pads = 0.0
+    layouts = {
+        (p.exp.kind == "growth", tuple((s.patches.count, round(float(s.patches.x.sum()), 12)) for s in p.scenes))
+        for p in preps.values()
+    }  # one on-chip module per layout of a batch (tile sizes); the cache serves the others
+    for p in preps.values():
+        if p.exp.kind == "growth":
+            pads += 0.3 * len(p.scenes)
+        else:
+            pads += sum(s.patches.count for s in p.scenes) / 1758 * p.plan.patch_samples / 6667
+    lf = LF_RUN_S * (4.0 / 11.0 if cfg.quick else 1.0)
+    return {
+        "compile": COMPILE_S * len(layouts) if cfg.device != "cpu" else 0.0,
+        "lf": lf * math.ceil(lf_runs / max(cfg.workers, 1)) if lf_runs else 0.0,
+        "analysis": ANALYSIS_S * pads / max(cfg.workers, 1),
+    }
+
+
 def dry_run(names: list[str], cfg: Config, log: Log) -> float:
-    """Plan every experiment of ``names`` and print its run length, steps, memory and estimate; the total [s]."""
+    """Plan every experiment of ``names`` and print its run length, steps, memory and estimate; the total [s]
+    of stepping and overheads."""
     total = 0.0
+    preps: dict[str, Prepared] = {}
+    lf_runs = len(validation_multiscale.lf_jobs(names, cfg))
     for name in names:
-        prep = prepare(EXPERIMENTS[name], cfg)
+        prep = preps[name] = dry_prepare(EXPERIMENTS[name], cfg, log)
         est = prep.estimate(cfg, {})
         total += est
         p = prep.plan
         sig = np.median([np.percentile(s, [0, 50, 100]) for s in prep.sigma], axis=0)
+        sizes = sorted({s.patches.count for s in prep.scenes})
         log(
-            f"{name}: {cfg.seeds} × {prep.scenes[0].patches.count} patches; σ_i min/median/max {sig[0]:.0f}/"
-            f"{sig[1]:.0f}/{sig[2]:.0f} 1/s, σ_25 {p.sigma_q25:.0f} 1/s; v0 {p.v0:.3g} m/s; run "
-            f"{p.duration * 1e3:.1f} ms (settle {p.settle * 1e3:.1f}); {p.steps:,} steps; per-patch record "
+            f"{name}: {len(prep.scenes)} pads × {'/'.join(map(str, sizes))} patches; {prep.exp.kind}; σ_i "
+            f"min/median/max {sig[0]:.0f}/{sig[1]:.0f}/{sig[2]:.0f} 1/s, σ_25 {p.sigma_q25:.0f} 1/s; v0 {p.v0:.3g} "
+            f"m/s; run {p.duration * 1e3:.1f} ms (settle {p.settle * 1e3:.1f}); {p.steps:,} steps; per-patch record "
             f"{p.velocity_bytes / 2**20:.0f} MiB; estimated {est:.0f} s on {cfg.device} ({cfg.precision})"
         )
+    extra = overheads(preps, cfg, lf_runs)
     log(f"total: estimated {total:.0f} s of stepping ({total / 60:.1f} min) for {len(names)} experiment(s)")
-    return total
+    log(
+        f"beside it (estimates): kernel compilation {extra['compile']:.0f} s, {lf_runs} LF run(s) "
+        f"{extra['lf']:.0f} s, analysis {extra['analysis']:.0f} s with {cfg.workers} worker(s); in all "
+        f"{total + sum(extra.values()):.0f} s ({(total + sum(extra.values())) / 60:.1f} min)"
+    )
+    return total + sum(extra.values())
+
+
+def default_workers() -> int:
+    """Analysis processes by default: the CPU count less one (the run loop's), at most 8."""
+    import os
+
+    return max(1, min(8, (os.cpu_count() or 1) - 1))
+
+
+def default_experiments(quick: bool, full_varying_area: bool = False) -> list[str]:
+    """The experiments a run without --only runs: every registered one except the opt-in ones (unless switched
+    on: ``va_full`` with ``full_varying_area``) and, in the quick variant, those marked full-variant only."""
+    out = []
+    for name, exp in EXPERIMENTS.items():
+        if exp.opt_in and not (full_varying_area and name == "va_full"):
+            continue  # va_full, hf3_equal, hf4_equal: --only NAME
+        if quick and not exp.quick:
+            continue
+        out.append(name)
+    return out
 
 
 def config_from(args: argparse.Namespace, device: str) -> Config:
@@ -1800,6 +1855,9 @@ def config_from(args: argparse.Namespace, device: str) -> Config:
         "perturbation": args.perturbation,
         "settle_safety": args.settle_safety,
         "precision": args.precision,
+        "growth_speedup": args.growth_speedup,
+        "state_patches": args.state_patches,
+        "workers": args.workers if args.workers is not None else default_workers(),
     }
     return dataclasses.replace(
         base, device=device, engine=args.engine, **{k: v for k, v in over.items() if v is not None}
@@ -1819,13 +1877,20 @@ def run_all(names: list[str], cfg: Config, out: Path, log: Log, args: argparse.N
     results: dict[str, dict] = {}
     preps: dict[str, Prepared] = {}
     calibration: dict[str, float] = {}
+    todo = []
     for name in names:
-        exp = EXPERIMENTS[name]
-        saved = None if args.rerun or args.reanalyse else load_result(out / name, exp, cfg)
+        saved = None if args.rerun or args.reanalyse else load_result(out / name, EXPERIMENTS[name], cfg)
         if saved is not None:
             results[name] = saved
             log(f"{name}: reusing the saved result in {out / name}")
-            continue
+        else:
+            todo.append(name)
+    try:
+        validation_multiscale.ensure_lf(todo, cfg, log)
+    except Exception as e:  # noqa: BLE001 (the experiments that need the LF runs fail below, the others go on)
+        log(f"LF runs: FAILED: {type(e).__name__}: {e}")
+    for name in todo:
+        exp = EXPERIMENTS[name]
         try:
             prep = prepare(exp, cfg)
             again = reanalyse(prep, cfg, out, log) if args.reanalyse else None
@@ -1867,17 +1932,18 @@ def main(argv: list[str] | None = None) -> int:
     if args.list:
         _list(log)
         return 0
-    names = args.only or list(EXPERIMENTS)
+    names = args.only or default_experiments(args.quick, args.full_varying_area)
     unknown = [n for n in names if n not in EXPERIMENTS]
     if unknown:
         print(f"validation.py: unknown experiment(s) {', '.join(unknown)}; see --list", file=sys.stderr)
         return 2
     if args.dry_run:
-        dry_run(names, config_from(args, "cpu" if args.device == "auto" else args.device), log)
+        cfg = config_from(args, "cpu" if args.device == "auto" else args.device)
+        dry_run(names, dataclasses.replace(cfg, lf_dir=str(args.out / "lf")), log)
         return 0
     wp = init_warp()
     device = ("cuda:0" if wp.is_cuda_available() else "cpu") if args.device == "auto" else args.device
-    cfg = config_from(args, device)
+    cfg = dataclasses.replace(config_from(args, device), lf_dir=str(args.out / "lf"))
     args.out.mkdir(parents=True, exist_ok=True)
     log(f"validation ({'quick' if cfg.quick else 'full'}): {', '.join(names)} on {device} -> {args.out}")
     results = run_all(names, cfg, args.out, log, args)
@@ -1886,7 +1952,11 @@ def main(argv: list[str] | None = None) -> int:
             saved = load_result(args.out / name, exp, cfg)
             if saved is not None:
                 results[name] = saved
-    rows = evaluate_rows(results, cfg)
+    view, aliases = validation_area.full_view(results)
+    rows = evaluate_rows(view, cfg)
+    for r in rows:
+        r["experiments"] = [aliases.get(n, n) for n in r["experiments"]]
+    causes = validation_causes.evaluate_causes(view, cfg, rows)
     meta = {
         "command": command_line("validation.py", argv),
         "created": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
@@ -1894,15 +1964,17 @@ def main(argv: list[str] | None = None) -> int:
         "versions": versions(),
         "config": cfg.run_key(),
         "wall_s": log.elapsed(),
+        "experiments_s": sum((r.get("total_s") or 0.0) + (r.get("analysis_s") or 0.0) for r in results.values()),
     }
-    body = render(results, rows, meta)
+    body = render(results, rows, meta, causes)
     (args.out / "validation.md").write_text("# Validation\n\n" + "\n".join(body) + "\n")
-    write_json(args.out / "validation.json", clean({"meta": meta, "rows": rows}), indent=1)
+    write_json(args.out / "validation.json", clean({"meta": meta, "rows": rows, "causes": causes}), indent=1)
     if args.page is not None:
         replace_generated(args.page, body, generated_markers(MARKER), "Validation")
     for r in rows:
         print(f"  {r['verdict']:15} {r['statement']}")
     log(f"wrote {args.out / 'validation.md'}" + (f" and {args.page}" if args.page else ""))
+    close_pools()
     return 0
 
 
