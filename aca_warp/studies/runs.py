@@ -65,10 +65,12 @@ def run_engine(
     dt: float,
     record: Record,
     sink: Callable[[Chunk], None] | None = None,
+    force: bool = False,
 ) -> RunResult:
     """``run_hf`` for ``duration`` [s] with step ``dt`` [s]; ``engine``: general, onchip or auto. With ``sink``
-    every recorded chunk goes there (the result then holds none)."""
-    options = RunOptions(engine=engine, duration=duration, integrator=integrator, dt=dt)
+    every recorded chunk goes there (the result then holds none); ``force``: a step beyond the stable or the
+    sticking bound runs (with a warning)."""
+    options = RunOptions(engine=engine, duration=duration, integrator=integrator, dt=dt, force=force)
     return run_hf(model, state, options, record=record, sink=sink)
 
 
