@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import contextlib
 import os
+import uuid
 from typing import Any
 
 from aca_warp.sweep_manifest import _Book, _one_line
+from aca_warp.sweep_overlap import ShardCancelled, ShardContext, stop_event, stop_sweep
 from aca_warp.sweep_shard import run_shard
 from aca_warp.sweep_spec import SweepError
 
@@ -136,6 +138,7 @@ def _run_on_dask(
     own_client = client is None
     futures: dict[Any, int] = {}
     interrupted = False
+    token = uuid.uuid4().hex  # this call's tasks, for stop_sweep
     try:
         if client is not None:
             worker_device = "cuda:0" if device.startswith("cuda") else device
@@ -154,13 +157,14 @@ def _run_on_dask(
         spec_hash = book.manifest["spec_hash"]
         for i in book.todo:
             fut = client.submit(
-                run_shard,
+                shard_task,
                 *args,
                 i,
                 worker_device,
                 memory_fraction=memory_fraction,
                 sharing=sharing,
                 overlap=overlap,
+                token=token,
                 key=f"shard-{spec_hash[:12]}-{i}",
                 pure=False,
             )
@@ -169,15 +173,62 @@ def _run_on_dask(
         for fut in as_completed(list(futures)):
             i = futures[fut]
             try:
-                book.done(i, fut.result())
+                summary = fut.result()
             except Exception as e:  # a worker died (KilledWorker) or the shard raised: record, go on
                 book.failed(i, _one_line(e))
-    except BaseException:  # KeyboardInterrupt: mark the shards that were running, stop the cluster quietly
+                continue
+            if summary["state"] != "interrupted":  # (stopped by another client's stop_sweep: left to book.stopped)
+                book.done(i, summary)
+    except BaseException:  # KeyboardInterrupt: stop the tasks, mark the shards that were running, close quietly
         interrupted = True
-        book.stopped(_running_shards(client, futures) if client is not None else set())
+        if client is None:
+            book.stopped(set())
+        else:
+            _stop_tasks(client, futures, token, book)
         raise
     finally:
         _close(client if own_client else None, cluster, quiet=interrupted)
+
+
+def shard_task(
+    doc: dict,
+    base_dir: str,
+    out_dir: str,
+    index: int,
+    device: str,
+    *,
+    memory_fraction: float,
+    sharing: int,
+    overlap: bool,
+    token: str,
+) -> dict:
+    """:func:`~aca_warp.sweep_shard.run_shard` as a Dask task that :func:`~aca_warp.sweep_overlap.stop_sweep`
+    (``token``) stops at its next chunk or phase: its ``.partial`` is deleted and ``{"index", "state":
+    "interrupted"}`` returned."""
+    ctx = ShardContext(overlap=overlap, cancel=stop_event(token))
+    try:
+        return run_shard(
+            doc, base_dir, out_dir, index, device, memory_fraction=memory_fraction, sharing=sharing, ctx=ctx
+        )
+    except ShardCancelled:
+        return {"index": index, "state": "interrupted"}
+
+
+STOP_WAIT_S = 60.0  # how long a stopped sweep waits for its running tasks to reach their next chunk [s]
+
+
+def _stop_tasks(client: Any, futures: dict[Any, int], token: str, book: _Book) -> None:
+    """A sweep on Dask stops: queued tasks are cancelled, running ones told to stop (they delete their ``.partial``
+    at their next chunk) and waited for, then the manifest is written (:meth:`_Book.stopped`: a shard that finished
+    meanwhile is recorded as its file says)."""
+    from distributed import wait
+
+    running = _running_shards(client, futures)
+    with contextlib.suppress(Exception):
+        client.cancel([f for f, i in futures.items() if i not in running])
+        client.run(stop_sweep, token)
+        wait([f for f, i in futures.items() if i in running], timeout=STOP_WAIT_S)
+    book.stopped(running)
 
 
 def _max_sharing(cluster: Any, device: str) -> int:

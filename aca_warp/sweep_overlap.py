@@ -199,6 +199,22 @@ class KernelTurn:
             self.lock.release()
 
 
+_STOPS: dict[str, threading.Event] = {}
+_STOPS_GUARD = threading.Lock()
+
+
+def stop_event(token: str) -> threading.Event:
+    """The cancel event of the sweep call ``token`` in this process (a Dask worker's shard tasks wait on it)."""
+    with _STOPS_GUARD:
+        return _STOPS.setdefault(token, threading.Event())
+
+
+def stop_sweep(token: str) -> None:
+    """Stop this process's shard tasks of the sweep call ``token`` at their next chunk or phase (run on every Dask
+    worker by the client when the sweep is stopped; tasks that start later stop at once)."""
+    stop_event(token).set()
+
+
 @dataclass
 class ShardContext:
     """How a shard task runs (:func:`run_shard`).
