@@ -244,15 +244,7 @@ def run_shard(
         write = _chunk_writer(f, out, stop - start)
         writer = ChunkWriter(write) if ctx.overlap else None
         run = _run_batches(spec, scenes, dev, cap, ctx, clock, turn, writer.put if writer else write, start)
-        if turn is not None:
-            turn.exit()
-            clock.add("turn_wait", turn.waited)
-        if writer is not None:
-            with clock("write_wait"):
-                writer.close()
-            clock.add("write", writer.seconds)
-        else:
-            clock.add("write", clock.s.get("sink", 0.0))
+        _end_run(turn, writer, clock)
         clock.add("task", time.perf_counter() - t_start)
         timings = {**clock.s, "run_start": run["run_start"], "run_end": run["run_end"]}
         with clock("close"):
@@ -281,20 +273,40 @@ def run_shard(
         lock.release()
     timings["close"] = clock.s["close"]
     timings["task"] = time.perf_counter() - t_start
-    summary = {"index": index, "device": str(dev), "device_name": dev.name, "batches": run["batches"]}
-    summary.update(
-        state="done" if run["fault"] is None else "fault",
-        file=final.name,
-        pads=stop - start,
-        steps=run["steps"],
-        wall_time=run["wall"],
-        compile_time=run["compile"],
-        task_time=timings["task"],
-        patch_steps=int(sum(s.patches.count for s in scenes)) * run["steps"],
-        fault=run["fault"],
-        timings=timings,
-    )
-    return summary
+    return _summary(index, dev, final.name, scenes, run, timings)
+
+
+def _end_run(turn: KernelTurn | None, writer: ChunkWriter | None, clock: _Clock) -> None:
+    """After the shard's last batch: give the device's turn back and wait for the writer (its time is ``write``)."""
+    if turn is not None:
+        turn.exit()
+        clock.add("turn_wait", turn.waited)
+    if writer is not None:
+        with clock("write_wait"):
+            writer.close()
+        clock.add("write", writer.seconds)
+    else:
+        clock.add("write", clock.s.get("sink", 0.0))
+
+
+def _summary(index: int, dev: Any, file: str, scenes: list[Scene], run: dict, timings: dict) -> dict:
+    """The manifest entry of a finished shard (:func:`run_shard`)."""
+    return {
+        "index": index,
+        "device": str(dev),
+        "device_name": dev.name,
+        "batches": run["batches"],
+        "state": "done" if run["fault"] is None else "fault",
+        "file": file,
+        "pads": len(scenes),
+        "steps": run["steps"],
+        "wall_time": run["wall"],
+        "compile_time": run["compile"],
+        "task_time": timings["task"],
+        "patch_steps": int(sum(s.patches.count for s in scenes)) * run["steps"],
+        "fault": run["fault"],
+        "timings": timings,
+    }
 
 
 def _run_batches(
@@ -310,47 +322,16 @@ def _run_batches(
 ) -> dict:
     """Build and run the shard's pads in batches of at most ``cap``; every recorded chunk goes to ``emit`` as
     ``(b0, b1, chunk)``. Returns the run's attributes for the file and its figures for the summary."""
-    from aca_warp.hf.loop import run_hf
-    from aca_warp.hf.model import build_model
-    from aca_warp.hf.options import RunOptions
-    from aca_warp.hf.state import initial_state
-
-    n = len(scenes)
     steps, wall, compile_time, batches = 0, 0.0, 0.0, 0
     engines: set[str] = set()
     fault = None
     dt_used = math.nan
     run_start = run_end = math.nan
-    for b0 in range(0, n, cap):
-        b1 = min(b0 + cap, n)
-        ctx.check()
-        if turn is not None and dev.is_cuda:
-            turn.enter()  # the build's syncs would wait behind another task's kernel on the device's one stream
-        with clock("build"):
-            model = build_model(scenes[b0:b1], device=dev, precision=spec.precision)
-            state = initial_state(model)
-        if turn is not None:
-            turn.enter()
-
-        def sink(chunk: Any, b0: int = b0, b1: int = b1) -> None:
-            t = time.perf_counter()
-            ctx.check()
-            if turn is not None:
-                turn.first_chunk()
-            emit((b0, b1, chunk))
-            clock.add("sink", time.perf_counter() - t)
-
-        options = RunOptions(
-            duration=spec.duration, integrator=spec.integrator, dt=spec.dt, tolerance=spec.tolerance
-        )  # engine auto: the on-chip kernel on CUDA where the model allows it, else the general one
-        sink_before = clock.s.get("sink", 0.0)
-        if math.isnan(run_start):
-            run_start = time.time()
-        res = run_hf(model, state, options, record=spec.base.record, sink=sink)
+    for b0 in range(0, len(scenes), cap):
+        b1 = min(b0 + cap, len(scenes))
+        res, began = _run_batch(spec, scenes[b0:b1], b0, dev, ctx, clock, turn, emit)
+        run_start = began if math.isnan(run_start) else run_start
         run_end = time.time()
-        del model, state  # freed within the turn
-        clock.add("setup", res.compile_time)
-        clock.add("kernel", max(0.0, res.wall_time - (clock.s.get("sink", 0.0) - sink_before)))
         batches += 1
         steps = max(steps, res.steps)
         wall += res.wall_time
@@ -380,6 +361,54 @@ def _run_batches(
         "run_start": run_start,
         "run_end": run_end,
     }
+
+
+def _run_batch(
+    spec: SweepSpec,
+    scenes: list[Scene],
+    b0: int,
+    dev: Any,
+    ctx: ShardContext,
+    clock: _Clock,
+    turn: KernelTurn | None,
+    emit: Callable[[tuple[int, int, Any]], None],
+) -> tuple[Any, float]:
+    """Build and run one batch (the shard's pads [b0, b0 + len(scenes))) in its turn on the device; returns the
+    :class:`~aca_warp.hf.loop.RunResult` and the wall-clock time its run began (``time.time()``) [s]. Clock:
+    ``build``, ``setup``, ``kernel`` (the run less its sink), ``sink``."""
+    from aca_warp.hf.loop import run_hf
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.options import RunOptions
+    from aca_warp.hf.state import initial_state
+
+    b1 = b0 + len(scenes)
+    ctx.check()
+    if turn is not None and dev.is_cuda:
+        turn.enter()  # the build's syncs would wait behind another task's kernel on the device's one stream
+    with clock("build"):
+        model = build_model(scenes, device=dev, precision=spec.precision)
+        state = initial_state(model)
+    if turn is not None:
+        turn.enter()
+
+    def sink(chunk: Any) -> None:
+        t = time.perf_counter()
+        ctx.check()
+        if turn is not None:
+            turn.first_chunk()
+        emit((b0, b1, chunk))
+        clock.add("sink", time.perf_counter() - t)
+
+    options = RunOptions(
+        duration=spec.duration, integrator=spec.integrator, dt=spec.dt, tolerance=spec.tolerance
+    )  # engine auto: the on-chip kernel on CUDA where the model allows it, else the general one
+    sink_before = clock.s.get("sink", 0.0)
+    began = time.time()
+    res = run_hf(model, state, options, record=spec.base.record, sink=sink)
+    del model, state  # freed within the turn
+    clock.add("setup", res.compile_time)
+    clock.add("kernel", max(0.0, res.wall_time - (clock.s.get("sink", 0.0) - sink_before)))
+    return res, began
 
 
 def shard_finished(path: Path, spec_hash: str, start: int, stop: int) -> str | None:

@@ -350,7 +350,28 @@ def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
         raise SweepError(f"run settings: {e}") from None
     if dt is not None and not duration / dt <= MAX_STEPS:
         raise SweepError(f"run.duration / run.dt = {duration / dt:.3g} steps per pad, more than {MAX_STEPS:.0e}")
-    raw = doc.get("parameters", {})
+    lists, params = _expand(doc.get("parameters", {}), mode, base, base_doc)
+    spec = SweepSpec(
+        doc=doc,
+        base_dir=base_dir,
+        name=name,
+        base_doc=base_doc,
+        base=base,
+        parameters=params,
+        mode=mode,
+        shard_size=shard_size,
+        duration=duration,
+        integrator=integrator,
+        precision=precision,
+        dt=dt,
+        tolerance=tolerance,
+    )
+    _check_pads(spec, lists)
+    return spec
+
+
+def _expand(raw: Any, mode: str, base: Scene, base_doc: dict) -> tuple[dict[str, list], dict[str, list]]:
+    """The ``[parameters]`` table: (key -> its values, key -> its value per pad) in the sweep's ``mode``."""
     if not isinstance(raw, dict):
         raise SweepError("[parameters] must be a table of parameter = values")
     lists: dict[str, list] = {}
@@ -368,35 +389,22 @@ def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
         lengths = {k: len(v) for k, v in lists.items()}
         if len(set(lengths.values())) > 1:
             raise SweepError(f"mode = 'zip' needs lists of equal length, got {lengths}")
-        params = {k: list(v) for k, v in lists.items()}
-    else:
-        total = math.prod(len(v) for v in lists.values())
-        if total > MAX_PADS:
-            raise SweepError(f"the parameter lists combine into {total} pads, more than a sweep runs ({MAX_PADS})")
-        combos = list(itertools.product(*lists.values()))
-        params = {k: [c[i] for c in combos] for i, k in enumerate(lists)}
-    spec = SweepSpec(
-        doc=doc,
-        base_dir=base_dir,
-        name=name,
-        base_doc=base_doc,
-        base=base,
-        parameters=params,
-        mode=mode,
-        shard_size=shard_size,
-        duration=duration,
-        integrator=integrator,
-        precision=precision,
-        dt=dt,
-        tolerance=tolerance,
-    )
-    # fail before any run: build the first and last pad and, for every value of every parameter, one pad that
-    # has it (catches e.g. patches that do not fit; a bad combination of good values fails its shard at run time)
+        return lists, {k: list(v) for k, v in lists.items()}
+    total = math.prod(len(v) for v in lists.values())
+    if total > MAX_PADS:
+        raise SweepError(f"the parameter lists combine into {total} pads, more than a sweep runs ({MAX_PADS})")
+    combos = list(itertools.product(*lists.values()))
+    return lists, {k: [c[i] for c in combos] for i, k in enumerate(lists)}
+
+
+def _check_pads(spec: SweepSpec, lists: dict[str, list]) -> None:
+    """Fail before any run: build the first and last pad and, for every value of every parameter, one pad that has
+    it (catches e.g. patches that do not fit; a bad combination of good values fails its shard at run time)."""
     check = {0, spec.pad_count - 1}
     for key, vals in lists.items():
         first: dict[str, int] = {}
         distinct = len(set(map(repr, vals)))
-        for p, v in enumerate(params[key]):
+        for p, v in enumerate(spec.parameters[key]):
             first.setdefault(repr(v), p)
             if len(first) == distinct:
                 break
@@ -406,7 +414,6 @@ def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
             spec.scene(p)
         except SceneError as e:
             raise SweepError(f"pad {p} ({spec.pad_values(p)}): {e}") from None
-    return spec
 
 
 @functools.lru_cache(maxsize=64)
