@@ -82,22 +82,25 @@ def run_sweep(
 
 def _run_in_process(book: _Book, args: tuple, dev: str, memory_fraction: float) -> None:
     """The serial path: one shard after another in this thread."""
-    for i in book.todo:
-        book.queued([i])
-        try:
-            summary = run_shard(*args, i, dev, memory_fraction=memory_fraction)
-        except StorageError as e:  # the device is full: the other shards would fail the same way
-            book.failed(i, _one_line(e))
-            book.stopped(set())
-            raise
-        except Exception as e:  # e.g. a pad whose combination of values is invalid: as on a Dask worker
-            (book.out / (shard_name(i) + ".partial")).unlink(missing_ok=True)
-            book.failed(i, _one_line(e))
-            continue
-        except BaseException:  # KeyboardInterrupt: run_shard has dropped the shard's .partial
-            book.stopped({i})
-            raise
-        book.done(i, summary)
+    running: set[int] = set()
+    try:
+        for i in book.todo:
+            running = {i}
+            book.queued([i])
+            try:
+                summary = run_shard(*args, i, dev, memory_fraction=memory_fraction)
+            except StorageError as e:  # the device is full: the other shards would fail the same way
+                book.failed(i, _one_line(e))
+                book.stopped(set())
+                raise
+            except Exception as e:  # e.g. a pad whose combination of values is invalid: as on a Dask worker
+                (book.out / (shard_name(i) + ".partial")).unlink(missing_ok=True)
+                book.failed(i, _one_line(e))
+                continue
+            book.done(i, summary)
+    except KeyboardInterrupt:  # run_shard has dropped the shard's .partial (or its file finished: adopted)
+        book.stopped(running)
+        raise
 
 
 PIPELINE_DEPTH = 2  # shard tasks at a time in one process (overlapped path): one runs, one builds
