@@ -169,7 +169,8 @@ class KernelTurn:
         self.waited += time.perf_counter() - t
 
     def first_chunk(self) -> None:
-        """After a run's first chunk: wait for the GPU's turn among processes (idempotent; CPU: nothing)."""
+        """After a run's first chunk: wait for the GPU's turn among processes (idempotent; CPU: nothing); raises
+        :class:`ShardCancelled` on a stop."""
         if not self.processes or self.fd is not None:
             return
         key = self.device.uuid or self.device.pci_bus_id or str(self.device)
@@ -180,12 +181,19 @@ class KernelTurn:
         except OSError:
             self.processes = False  # no turn across processes: the runs share the GPU as they come
             return
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX)
-        except OSError:
-            os.close(fd)
-            self.processes = False
-            return
+        while True:  # polled, so that a stopping sweep is not held up by another process's run
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if self.cancel is not None and self.cancel.is_set():
+                    os.close(fd)
+                    raise ShardCancelled() from None
+                time.sleep(0.01)
+            except OSError:
+                os.close(fd)
+                self.processes = False
+                return
         self.fd = fd
         self.waited += time.perf_counter() - t
 

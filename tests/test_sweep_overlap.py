@@ -140,3 +140,39 @@ def test_kernel_turn_is_one_at_a_time_and_cancellable() -> None:
     b.first_chunk()  # CPU: no turn across processes
     assert b.fd is None
     b.exit()
+
+
+def test_gpu_turn_across_processes_is_a_file_lock(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two runs on one GPU (a stand-in device; flock conflicts between open files as between processes): the
+    second waits after its first chunk until the first ends its turn, or stops when the sweep stops."""
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    gpu = types.SimpleNamespace(is_cuda=True, uuid="GPU-test-0", pci_bus_id=None)
+    cancel = threading.Event()
+    a, b = KernelTurn(gpu, cancel, processes=True), KernelTurn(gpu, cancel, processes=True)
+    a.first_chunk()
+    assert a.fd is not None and (tmp_path / "aca-warp-kernel-GPU-test-0.lock").exists()
+    got: list[str] = []
+
+    def second() -> None:
+        try:
+            b.first_chunk()
+            got.append("turn")
+        except ShardCancelled:
+            got.append("cancelled")
+
+    t = threading.Thread(target=second)
+    t.start()
+    time.sleep(0.2)
+    assert got == []  # a's run holds the GPU
+    a.exit()
+    t.join(5)
+    assert got == ["turn"] and b.fd is not None
+    held, b = b, KernelTurn(gpu, cancel, processes=True)  # a third run waits behind it, and stops with the sweep
+    t = threading.Thread(target=second)
+    t.start()
+    time.sleep(0.1)
+    assert got == ["turn"]
+    cancel.set()
+    t.join(5)
+    assert got == ["turn", "cancelled"] and b.fd is None
+    held.exit()
