@@ -102,7 +102,8 @@ def test_problem_error_over_checked_pads():
 
 
 def test_ladder_stops_at_the_first_setting_that_reaches():
-    """Settings are tried loosest first until one reaches the target; a failure ends the ladder and is marked."""
+    """Settings are tried loosest first until one reaches the target; a failure ends the ladder and is marked;
+    short runs are timed by the fastest of three."""
     errors = {1e-3: 5e-6, 1e-4: 3e-7, 1e-5: 4e-8, 1e-6: 1e-9}
     tried = []
 
@@ -123,6 +124,10 @@ def test_ladder_stops_at_the_first_setting_that_reaches():
     assert len(tries) == 2 and tries[1]["failed"] == "RuntimeError: run stopped: fault"
     assert tts.chosen(tries)["setting"] == 1e-3 and not tts.chosen(tries)["reached"]
     assert tts.chosen([{"setting": 1.0, "failed": "ImportError: x"}]) is None
+    # a short run is repeated and timed by its fastest run
+    clock = iter([0.3, 0.1, 0.2, 0.05])
+    tries = tts.ladder((1e-3,), lambda s: {"error": 1e-8, "time_s": next(clock)}, 1e-7, lambda m: None, "x")
+    assert tries[0]["times_s"] == [0.3, 0.1, 0.2] and tries[0]["time_s"] == 0.1
 
 
 def test_json_table_and_page(tmp_path, monkeypatch):

@@ -112,7 +112,8 @@ def test_measure_and_report_end_to_end(tmp_path, tiny_study):
     """A tiny study (a sliding scene named stickslip and a saturated scene with its statistics window; adaptive,
     strang, DOP853) and a page merged from two JSONs; the start state is made once and read back."""
     args = ["--quick", "--scenes", "stickslip", "hf1_sat", "--tolerances", "1e-2", "1e-5", "--steps", "1e-7", "2e-8"]
-    args += ["--scipy-methods", "DOP853", "--window", "2e-5", "--long-window", "5e-5", "--out", str(tmp_path)]
+    args += ["--scipy-methods", "DOP853", "--scipy-rtols", "1e-6", "1e-9"]
+    args += ["--window", "2e-5", "--long-window", "5e-5", "--out", str(tmp_path)]
     assert wp_study.main(args) == 0
     path = tmp_path / "wp_cpu_quick_stickslip-hf1_sat.json"
     doc = json.loads(path.read_text())

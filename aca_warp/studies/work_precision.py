@@ -65,11 +65,11 @@ BAND_WIDTH = 5.0e3  # Hz, bands of the spectrum statistic
 STICK_THRESHOLD = 1.0e-3  # m/s: a patch "sticks" while |ω r − u̇| is below this (1/5 of Eq. 4's 1/slope)
 TWIN_DV = 1.0e-9  # m/s, perturbation of the floor run
 QUICK_PATCHES = 300
-TOLS = {False: (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7), True: (1e-2, 1e-4, 1e-6)}
-LONG_TOLS = {False: (1e-3, 1e-4, 1e-5), True: (1e-4,)}
-LONG_STEPS = {False: (3e-8, 1e-8, 3e-9), True: (1e-8,)}
+TOLS = {False: (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7), True: (1e-3, 1e-4, 1e-5, 1e-6, 1e-7)}
+LONG_TOLS = {False: (1e-3, 1e-4, 1e-5), True: (1e-3, 1e-4, 1e-5)}
+LONG_STEPS = {False: (3e-8, 1e-8, 3e-9), True: (3e-8, 1e-8, 3e-9)}
 SCIPY_RTOL = {"DOP853": (1e-5, 1e-7, 1e-9), "Radau": (1e-4, 1e-6, 1e-8)}
-SCIPY_RTOL_QUICK = {"DOP853": (1e-6, 1e-9), "Radau": (1e-6,)}
+SCIPY_RTOL_QUICK = {"DOP853": (1e-5, 1e-7, 1e-9), "Radau": (1e-6,)}
 LONG_SCIPY = ("DOP853", 1e-8)
 EXPLICIT_STEPS = (5e-8, 2e-8, 1e-8)
 
@@ -95,8 +95,9 @@ class Spec:
     spectra: bool = True
 
 
-SLIDING_STEPS = ((1e-7, 3e-8, 1e-8, 3e-9), (3e-8, 1e-8))
-STICK_STEPS = ((3e-8, 1e-8, 3e-9, 1e-9), (1e-8, 3e-9))
+SLIDING_STEPS = ((1e-7, 3e-8, 1e-8, 3e-9), (3e-8, 1e-8, 3e-9))
+STICK_STEPS = ((3e-8, 1e-8, 3e-9, 1e-9), (1e-8, 3e-9, 1e-9))
+FINE_STEPS = ((1e-8, 3e-9, 1e-9), (1e-8, 3e-9, 1e-9))
 SPECS = {
     "hf1": Spec("hf1 from rest (sliding at 10 m/s, linear growth)", "sliding", (1e-3, 2e-4), SLIDING_STEPS),
     "hf2": Spec("hf2 from rest (sliding at 10 m/s, linear growth)", "sliding", (1e-3, 2e-4), SLIDING_STEPS),
@@ -106,30 +107,30 @@ SPECS = {
     "va_start": Spec(
         "varying_area at its start, growth off (HF1 patches under the HF2 load) from rest",
         "stick-slip",
-        (2e-4, 5e-5),
-        ((1e-8, 3e-9, 1e-9), (3e-9, 1e-9)),
+        (2e-4, 1e-4),
+        FINE_STEPS,
     ),  # fmt: skip
     "va_late": Spec(
         f"varying_area, growth ×{VA_SPEEDUP:g} for {VA_GROW * 1e3:g} ms from rest, then frozen (saturated)",
         "saturated",
-        (5e-5, 2e-5),
-        ((1e-8, 3e-9, 1e-9), (3e-9, 1e-9)),
+        (5e-5, 5e-5),
+        FINE_STEPS,
         (5e-4, 1e-4),
         spectra=False,
     ),  # fmt: skip
     "hf1_sat": Spec(
         "hf1 saturated (from equilibrium + perturbation)",
         "saturated",
-        (1e-4, 2e-5),
-        ((1e-8, 3e-9, 1e-9), (3e-9, 1e-9)),
+        (1e-4, 1e-4),
+        FINE_STEPS,
         (1e-3, 2e-4),
         spectra=False,
     ),  # fmt: skip
     "hf3_sat": Spec(
         "hf3 saturated (from equilibrium + perturbation)",
         "saturated",
-        (1e-4, 2e-5),
-        ((1e-8, 3e-9, 1e-9), (3e-9, 1e-9)),
+        (1e-4, 1e-4),
+        FINE_STEPS,
         (1e-3, 2e-4),
         spectra=False,
     ),  # fmt: skip
