@@ -73,6 +73,7 @@ DURATIONS = {"hf1": 1e-3, "hf2": 1e-3, "stickslip": 2e-4}  # s, default simulate
 # s per simulated ms: DOP853 reference, our ladders, SciPy ladder
 COST_PER_MS = {"hf1": (1.5, 50.0, 3.0), "hf2": (1.5, 50.0, 3.0), "stickslip": (35.0, 250.0, 40.0)}
 BEGIN, END = generated_markers("scripts/time_to_solution.py --report")
+OUT_ARG = re.compile(r"--out \S+")  # the result folder, shown as OUT in the tables
 
 
 def make_scene(name: str) -> Scene:
@@ -472,7 +473,7 @@ def table(doc: dict) -> list[str]:
         )
         + f"; total {doc['total_wall_s']:.0f} s. Versions: "
         + ", ".join(f"{k} {v}" for k, v in doc["versions"].items())
-        + f". Command: `{doc['command']}`.",
+        + f". Command: `{OUT_ARG.sub('--out OUT', doc['command'])}`.",
         "",
         *md_table(head, rows),
         "",

@@ -227,6 +227,39 @@ def at_floor(b: dict, floor: dict) -> bool:
 METHODS = ("adaptive", "strang", "scipy-DOP853", "scipy-Radau")
 
 
+def scene_cell(doc: dict, sc: dict) -> str:
+    """A scene with its patches, window and the quick mark, as a table cell."""
+    return f"{sc['scene']} ({sc['patches']} patches, {_fmt_s(sc['window_s'])}{', quick' if doc.get('quick') else ''})"
+
+
+def defaults_table(pairs: list[tuple[dict, dict]]) -> list[str]:
+    """μ error over the pointwise window of strang at its default step and of adaptive at its default tolerance."""
+    d = pairs[0][0]["defaults"] if pairs else {}
+    rows = []
+    for doc, sc in pairs:
+        cells = []
+        for method, key, value in (
+            ("strang", "dt_requested", d.get("dt")),
+            ("adaptive", "tolerance", d.get("tolerance")),
+        ):
+            r = next((r for r in sc["rows"] if r["method"] == method and r.get(key) == value and r.get("window")), None)
+            cells.append("–" if r is None else f"{fmt(r['window'].get('mu'), '.1e')} in {_wall(r['window'])} s")
+        rows.append([scene_cell(doc, sc), doc["machine"]["device_name"], sc["regime"], *cells])
+    head = [
+        "scene",
+        "device",
+        "regime",
+        f"strang {d.get('dt', math.nan):g} s",
+        f"adaptive tol {d.get('tolerance', math.nan):g}",
+    ]
+    return [
+        "**μ error over the pointwise window at the defaults** (strang's default step, adaptive's default tolerance).",
+        "",
+        *md_table(head, rows),
+        "",
+    ]
+
+
 def summary(pairs: list[tuple[dict, dict]]) -> list[str]:
     """The summary tables: cheapest setting per method at each μ-error target, and at the statistics floor."""
     rows = []
@@ -236,7 +269,7 @@ def summary(pairs: list[tuple[dict, dict]]) -> list[str]:
         agree = min(ours, default=math.nan)
         for t in TARGETS:
             cells = [_cell(cheapest(sc, m, lambda b, t=t: b.get("mu", math.inf) <= t)) for m in METHODS]
-            rows.append([sc["scene"], doc["machine"]["device_name"], sc["regime"], f"{t:.0e}", *cells,
+            rows.append([scene_cell(doc, sc), doc["machine"]["device_name"], sc["regime"], f"{t:.0e}", *cells,
                          f"{ref['check_mu']:.1e} / {agree:.1e}"])  # fmt: skip
     lines = [
         "**Cheapest setting that reaches a μ error over the pointwise window** (wall time of the stepping; "
@@ -253,7 +286,9 @@ def summary(pairs: list[tuple[dict, dict]]) -> list[str]:
             continue
         cells = [_cell(cheapest(sc, m, lambda b, f=lr["floor"]: at_floor(b, f), "long"), "long") for m in METHODS]
         floor = ", ".join(f"{k} {fmt(lr['floor'].get(k), '.1e')}" for k in FLOOR_STATS)
-        long_rows.append([sc["scene"], doc["machine"]["device_name"], _fmt_s(sc["long_window_s"]), *cells, floor])
+        long_rows.append(
+            [scene_cell(doc, sc), doc["machine"]["device_name"], _fmt_s(sc["long_window_s"]), *cells, floor]
+        )
     if long_rows:
         lines += [
             f"**Cheapest setting whose statistics are at the floor** (every one of {', '.join(FLOOR_STATS)} within "
@@ -271,7 +306,8 @@ def _scene_section(doc: dict, sc: dict, figdir: Path, stem: str) -> list[str]:
     ref, st = sc["reference"], sc["reference"]["stick"]
     v = doc["versions"]
     rel = (Path("figures") / figdir.name / f"{stem}.png").as_posix()
-    first = f"{st['first_stick_s'] * 1e6:.0f} µs" if st.get("first_stick_s") is not None else "never"
+    t_first = st.get("first_stick_s")
+    first = f"{t_first * 1e6:.0f} µs" if t_first is not None and math.isfinite(t_first) else "never"
     start = sc["start"]
     lines = [
         f"### {sc['scene']} on {doc['machine']['device_name']}{' (--quick)' if doc.get('quick') else ''}",
@@ -293,7 +329,7 @@ def _scene_section(doc: dict, sc: dict, figdir: Path, stem: str) -> list[str]:
         + (f", spectral peak {ref['peak_hz'] / 1e3:.2f} kHz (amplitude {ref['peak_amplitude']:.3g})" if "peak_hz" in ref
            else "")
         + f". Sticking (|ωr − u̇| < {st['threshold_m_s']:g} m/s): at most {100 * st['max_fraction']:.2f} % of the "
-        f"patches at once, {100 * st['patches_ever_stuck']:.1f} % at some time, first at {first}.",
+        f"patches at once, {100 * st['patches_ever_stuck']:.1f} % at some time, first: {first}.",
         "",
         *window_table(sc),
         "",
@@ -316,7 +352,7 @@ def _scene_section(doc: dict, sc: dict, figdir: Path, stem: str) -> list[str]:
 def report(paths: list[str], page: Path, figdir: Path) -> None:
     """Figures for every (device, scene) of the result JSONs and the generated part of ``page``."""
     pairs = load_results(paths)
-    lines = ["", *summary(pairs)]
+    lines = ["", *defaults_table(pairs), *summary(pairs)]
     for doc, sc in pairs:
         lines += _scene_section(doc, sc, figdir, plot(doc, sc, figdir))
     replace_generated(page, lines, (BEGIN, END), "Work-precision")
