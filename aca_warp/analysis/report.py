@@ -8,7 +8,9 @@
 * ``/analysis/stft`` and ``/analysis/cwt``: time-frequency maps of μ(t) (paper Figs. 10, 11);
 * ``/analysis/sync``: the Synchronization Index S(f) with Φ(f), its null level and R_w(f) (paper §2.2,
   Fig. 9; only with per-patch velocities);
-* ``/analysis/peaks``: attributes with the first velocity-spectrum peak and the largest μ peak.
+* ``/analysis/peaks``: attributes with the first velocity-spectrum peak and the largest μ peak;
+* ``/analysis/saturation``: where the record's growth saturates (Σ|u̇| and μ), with the measured growth rate beside
+  the predicted one the run file holds (:func:`compute_saturation`).
 
 Everything is computed first and written last, into a temporary group that replaces ``/analysis`` only
 once it is complete: a failure leaves the previous ``/analysis`` (or none) in place. The ``compute_*``
@@ -31,6 +33,7 @@ import scipy.fft
 
 from aca_warp.common.errors import SceneError
 
+from .saturation import record_saturation
 from .spectra import DEFAULT_FLOOR_HZ, amplitude_spectrum, complex_spectrum, peak
 from .sync import SyncResult, _patch_groups, sync_index, sync_index_from_signals
 from .timefreq import cwt_morlet, stft
@@ -609,6 +612,80 @@ def compute_peaks(
     return Group(attrs=attrs)
 
 
+# ------------------------------------------------------------------------------------------ saturation
+
+
+def _predicted_rates(f: h5py.File) -> dict[str, float]:
+    """Percentiles of the run file's ``/patches/predicted_growth_rate`` σ_i [1/s] (empty for files without it)."""
+    if "patches/predicted_growth_rate" not in f:
+        return {}
+    sigma = f["patches/predicted_growth_rate"][()].astype(np.float64)
+    q = np.percentile(sigma, [0.0, 25.0, 50.0, 100.0])
+    return dict(zip(("min", "q25", "median", "max"), (float(v) for v in q), strict=True))
+
+
+def compute_saturation(f: h5py.File) -> Group:
+    """Saturation of the run's record (``saturation.record_saturation`` on /global/sum_abs_velocity and /global/mu).
+
+    Attributes: ``status`` ("saturated", "not saturated", "no growth phase", or "not analysed" for a record shorter
+    than 64 samples, with ``reason``), ``t_start`` [s] (the later of ``t_s_sum_abs_velocity`` and ``t_s_mu``),
+    the measured ``growth_rate`` of Σ|u̇| over ``growth_window`` [s] with ``growth_r2`` and ``growth_rise``
+    [e-folds], ``mu_growth_rate``, both verdicts, and (where the run file holds σ_i) ``predicted_growth_rate_*``
+    (min, q25, median, max) and ``growth_rate_ratio`` = measured / predicted median. Datasets: the envelopes of
+    both signals per window with their log-slopes. Absent values are stored as "none".
+    """
+    time = f["global/time"][()]
+    attrs: dict[str, Any] = {"signals": ["/global/sum_abs_velocity", "/global/mu"], "method": "docs/analysis.md"}
+    predicted = _predicted_rates(f)
+    attrs.update({f"predicted_growth_rate_{k}": v for k, v in predicted.items()})
+    attrs["predicted_source"] = "/patches/predicted_growth_rate" if predicted else "none (not in this run file)"
+    try:
+        sample_interval(time)
+        rec = record_saturation(time, f["global/mu"][()], f["global/sum_abs_velocity"][()])
+    except (ValueError, SceneError) as e:
+        return Group(attrs={**attrs, "status": "not analysed", "reason": str(e), "t_start": None})
+    figures = rec.figures()
+    figures["growth_window"] = list(figures["growth_window"]) if figures["growth_window"] else None
+    attrs.update(figures)
+    rate = figures["growth_rate"]
+    attrs["growth_rate_ratio"] = rate / predicted["median"] if rate is not None and predicted.get("median") else None
+    for key in ("t_start", "t_s_sum_abs_velocity", "t_s_mu", "growth_window"):
+        attrs[f"{key}_unit"] = "s"
+    for key in ("growth_rate", "mu_growth_rate", "predicted_growth_rate"):
+        attrs[f"{key}_unit"] = "s-1"
+    g = Group(attrs=attrs)
+    for name, res, unit in (("sum_abs_velocity", rec.sum_abs_velocity, "m s-1"), ("mu", rec.mu, "1")):
+        g.add(f"{name}_time", res.envelope_time, "s", meaning="window centres")
+        g.add(f"{name}_envelope", res.envelope, unit, statistic=res.statistic, window=res.window)
+        g.add(f"{name}_log_slope", res.log_slope, "s-1", meaning="local slope of ln envelope")
+    return g
+
+
+def saturation_summary(g: Group) -> str:
+    """One clause for the ``analyze`` summary line: whether the record is saturated, from when, and the measured
+    growth rate beside the predicted median and 25th percentile."""
+    a = g.attrs
+    status = a["status"]
+    if status == "not analysed":
+        return f"saturation not analysed ({a['reason']})"
+
+    def ms(t: Any) -> str:
+        return "none" if t is None or t == "none" else f"{float(t) * 1e3:.4g} ms"
+
+    if status == "saturated":
+        text = f"saturated from {ms(a['t_start'])} (Σ|u̇| {ms(a['t_s_sum_abs_velocity'])}, μ {ms(a['t_s_mu'])})"
+    elif status == "no growth phase":
+        text = f"no growth phase (Σ|u̇| settled from {ms(a['t_s_sum_abs_velocity'])} without growing)"
+    else:
+        text = "not saturated (Σ|u̇| still changes at the end of the record)"
+    rate = a.get("growth_rate")
+    measured = "no growth phase fitted" if rate is None or rate == "none" else f"growth {float(rate):.4g} s^-1"
+    if "predicted_growth_rate_median" in a:
+        pm, pq = a["predicted_growth_rate_median"], a["predicted_growth_rate_q25"]
+        return f"{text}; {measured} (predicted σ median {pm:.4g}, 25th percentile {pq:.4g} s^-1)"
+    return f"{text}; {measured} (no predicted σ in this run file)"
+
+
 # ---------------------------------------------------------------------------------------- read/write
 
 
@@ -740,6 +817,7 @@ def analyze_run(
         groups["stft"] = compute_stft(f, window_s=stft_window_s)
         groups["cwt"] = compute_cwt(f, freqs=cwt_freqs, freq_range=band, count=cwt_count, columns=cwt_columns)
         groups["peaks"] = compute_peaks(groups["spectra"], groups.get("patch_spectrum"), freq_range=band)
+        groups["saturation"] = compute_saturation(f)
         parameters = {
             "freq_range": list(band) if band else None,
             "sync": sync,

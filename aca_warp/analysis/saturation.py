@@ -32,12 +32,15 @@ reasoning behind each default):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import scipy.fft
 
 from aca_warp.scene import Friction, Material
+
+if TYPE_CHECKING:
+    from aca_warp.scene import Scene
 
 Statistic = Literal["std", "mean", "rms"]
 STATISTICS = ("std", "mean", "rms")
@@ -385,6 +388,75 @@ def common_start(results: list[SaturationResult]) -> int | None:
     return None if any(s is None for s in starts) else max(starts)
 
 
+# ------------------------------------------------------------------------------------------------ a run's record
+
+
+GROWTH_STATUSES = ("saturated", "not saturated", "no growth phase")
+"""Status of a run's record (:func:`record_saturation`)."""
+
+
+@dataclass(frozen=True)
+class RecordSaturation:
+    """Saturation of one pad's record from its global outputs Σ|u̇| and μ (:func:`record_saturation`).
+
+    Attributes:
+        sum_abs_velocity: :func:`saturation` of Σ|u̇| (window means, default windows).
+        mu: :func:`saturation` of μ (window standard deviations, N/64 windows).
+        status: "saturated" (Σ|u̇| grows, then settles), "not saturated" (Σ|u̇| has no settled part) or
+            "no growth phase" (Σ|u̇| settles without having grown by ``min_rise``: not the instability's saturated
+            state, e.g. a run started from a saturated state, or a stable one).
+        t_start: Start of the saturated part [s]: the later of the two saturation times (Σ|u̇|'s alone when μ does
+            not saturate); None unless ``status`` is "saturated".
+    """
+
+    sum_abs_velocity: SaturationResult
+    mu: SaturationResult
+    status: str
+    t_start: float | None
+
+    def figures(self) -> dict[str, Any]:
+        """The figures as plain values: times [s], rates [1/s], levels [m/s], verdicts, status."""
+        rs, rm = self.sum_abs_velocity, self.mu
+        return {
+            "t_s_sum_abs_velocity": rs.t_s,
+            "t_s_mu": rm.t_s,
+            "mu_saturated": rm.saturated,
+            "growth_rate": rs.growth_rate,
+            "growth_r2": rs.growth_r2,
+            "growth_rise": rs.growth_rise,
+            "growth_window": rs.growth_window,
+            "level_sum_abs_velocity": rs.level,
+            "mu_growth_rate": rm.growth_rate,
+            "verdict_sum_abs_velocity": rs.verdict,
+            "verdict_mu": rm.verdict,
+            "status": self.status,
+            "t_start": self.t_start,
+        }
+
+
+def record_saturation(time: np.ndarray, mu: np.ndarray, sum_abs_velocity: np.ndarray) -> RecordSaturation:
+    """Saturation of one pad on Σ|u̇| (window means, default windows) and μ (standard deviation over N/64 windows).
+
+    μ is chaotic once saturated: the default window of 32 dominant periods leaves its standard deviation too noisy
+    for the ±10 % band, 64 windows over the record do not. The status follows Σ|u̇| (:class:`RecordSaturation`).
+
+    Args:
+        time: Sample times [s], shape (N,), uniform, N ≥ 64.
+        mu: μ(t), shape (N,).
+        sum_abs_velocity: Σ|u̇|(t) [m/s], shape (N,).
+
+    Raises:
+        ValueError: As :func:`saturation` (a record shorter than 64 samples, non-finite samples).
+    """
+    rs = saturation(time, sum_abs_velocity, statistic="mean", unit="m/s")
+    rm = saturation(time, mu, statistic="std", window=max(4, np.size(time) // 64))
+    if not rs.saturated:
+        return RecordSaturation(rs, rm, "not saturated", None)
+    if rs.growth_rate is None:
+        return RecordSaturation(rs, rm, "no growth phase", None)
+    return RecordSaturation(rs, rm, "saturated", max(rs.t_s, rm.t_s if rm.saturated else rs.t_s))
+
+
 # ------------------------------------------------------------------------------------------------ linear theory
 
 
@@ -457,6 +529,16 @@ def predicted_growth_rate(
     c_eff = 2.0 * zeta * np.sqrt(k * m) + fn * friction_slope(omega * r, M, slope, decay)
     disc = (c_eff * c_eff - 4.0 * m * k).astype(np.complex128)
     return (-c_eff + np.sqrt(disc).real) / (2.0 * m)
+
+
+def scene_growth_rate(scene: Scene, normal_force: np.ndarray) -> np.ndarray:
+    """:func:`predicted_growth_rate` of every patch of ``scene`` under the contact forces ``normal_force`` [N],
+    shape (patches,): the scene's friction law, material and disc speed, k_T,i = K_T √A_i (paper Eq. 2) [1/s]."""
+    f, m, a = scene.friction, scene.material, scene.patches.area
+    return predicted_growth_rate(
+        normal_force, a, scene.patches.friction_radius, scene.angular_velocity, f.M, f.slope, f.decay,
+        m.mass_per_area, m.damping_ratio, m.K_T * np.sqrt(a),
+    )  # fmt: skip
 
 
 def coupled_growth_rates(
