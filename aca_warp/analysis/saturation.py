@@ -338,8 +338,7 @@ def saturation(
         raise ValueError(f"record too short: {n} samples, need at least {4 * min_windows} ({min_windows} windows of 4)")
     dt = (time[-1] - time[0]) / (n - 1)
     if window is None:
-        window = int(round(periods / (dominant_frequency(time, signal) * dt)))
-        window = int(np.clip(window, 4, max(4, n // DEFAULT_WINDOWS)))
+        window = _default_window(time, signal, periods, dt)
     if not 1 <= window <= n // min_windows:
         raise ValueError(f"window of {window} samples gives fewer than {min_windows} windows in {n} samples")
     opt = _Options(smooth, min_rise, tuple(fit_margin), growth_fraction, rel_change, band, min_saturated, fit_window)
@@ -351,35 +350,63 @@ def saturation(
     floor = np.where(positive.any(axis=0), np.min(np.where(positive, e, np.inf), axis=0), 1.0) * 1e-6
     L = np.log(np.where(positive, e, floor))
     s, Lbar = _local_fit(L, te, smooth)
+    frame = _Frame(te, t0, window, dt, statistic, unit, opt)
     out = []
     for j in range(x.shape[1]):
-        if not positive[:, j].any():
-            k_s, fit, rise, reason = None, None, 0.0, "zero"
-        else:
-            k_s, fit, rise, reason = _analyse_column(
-                np.where(positive[:, j], e[:, j], floor[j]), te, s[:, j], Lbar[:, j], t0, opt
-            )
-        tail = e[k_s:, j] if k_s is not None else None
-        res = {
-            "t_s": float(t0[k_s]) if k_s is not None else None,
-            "start_index": k_s * window if k_s is not None else None,
-            "envelope_time": te,
-            "envelope": e[:, j],
-            "log_slope": s[:, j],
-            "window": window,
-            "window_duration": window * dt,
-            "statistic": statistic,
-            "growth_rate": fit[0] if fit else None,
-            "growth_window": (fit[1], fit[2]) if fit else None,
-            "growth_r2": fit[3] if fit else None,
-            "growth_rise": rise,
-            "level": float(tail.mean()) if tail is not None else None,
-            "level_spread": float(tail.std()) if tail is not None else None,
-            "final_log_slope": float(s[-1, j]),
-        }
-        verdict = "not saturated: the signal is constant (zero envelope)" if reason == "zero" else None
-        out.append(SaturationResult(verdict=verdict or _verdict(res, opt, reason, unit), **res))
+        out.append(_column_result(frame, e[:, j], s[:, j], Lbar[:, j], positive[:, j], floor[j]))
     return out[0] if one else out
+
+
+def _default_window(time: np.ndarray, signal: np.ndarray, periods: float, dt: float) -> int:
+    """``periods`` periods of the dominant frequency in samples, at least 4, at most N // ``DEFAULT_WINDOWS``."""
+    n = time.size
+    window = int(round(periods / (dominant_frequency(time, signal) * dt)))
+    return int(np.clip(window, 4, max(4, n // DEFAULT_WINDOWS)))
+
+
+@dataclass(frozen=True)
+class _Frame:
+    """What every column of one :func:`saturation` call shares: window centres ``te`` and starts ``t0`` [s], W,
+    Δt [s], the statistic, the unit of the verdict and the options."""
+
+    te: np.ndarray
+    t0: np.ndarray
+    window: int
+    dt: float
+    statistic: str
+    unit: str
+    opt: _Options
+
+
+def _column_result(
+    fr: _Frame, e: np.ndarray, s: np.ndarray, Lbar: np.ndarray, positive: np.ndarray, floor: float
+) -> SaturationResult:
+    """:class:`SaturationResult` of one column: envelope ``e``, local slope ``s`` and level ``Lbar`` per window
+    (K,), ``positive`` where e > 0, ``floor`` the stand-in for e = 0."""
+    if not positive.any():
+        k_s, fit, rise, reason = None, None, 0.0, "zero"
+    else:
+        k_s, fit, rise, reason = _analyse_column(np.where(positive, e, floor), fr.te, s, Lbar, fr.t0, fr.opt)
+    tail = e[k_s:] if k_s is not None else None
+    res = {
+        "t_s": float(fr.t0[k_s]) if k_s is not None else None,
+        "start_index": k_s * fr.window if k_s is not None else None,
+        "envelope_time": fr.te,
+        "envelope": e,
+        "log_slope": s,
+        "window": fr.window,
+        "window_duration": fr.window * fr.dt,
+        "statistic": fr.statistic,
+        "growth_rate": fit[0] if fit else None,
+        "growth_window": (fit[1], fit[2]) if fit else None,
+        "growth_r2": fit[3] if fit else None,
+        "growth_rise": rise,
+        "level": float(tail.mean()) if tail is not None else None,
+        "level_spread": float(tail.std()) if tail is not None else None,
+        "final_log_slope": float(s[-1]),
+    }
+    verdict = "not saturated: the signal is constant (zero envelope)" if reason == "zero" else None
+    return SaturationResult(verdict=verdict or _verdict(res, fr.opt, reason, fr.unit), **res)
 
 
 def common_start(results: list[SaturationResult]) -> int | None:
