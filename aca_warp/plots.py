@@ -646,6 +646,37 @@ def _stderr(message: str) -> None:
     print(message, file=sys.stderr)
 
 
+def _hf_figure_names(path: str | Path, which: Sequence[str] | None) -> list[str]:
+    """The HF figures :func:`plot_run` makes, in order, without repeats; :class:`SceneError` for an LF figure name
+    or an unknown one."""
+    names = list(FIGURES if which is None else dict.fromkeys(which))
+    lf_names = [n for n in names if n in plots_lf.LF_FIGURES]
+    if lf_names:
+        raise SceneError(
+            f"{', '.join(lf_names)}: LF figures need an LF run file (aca-warp lf); {Path(path).name} is not one"
+        )
+    unknown = [n for n in names if n not in FIGURES]
+    if unknown:
+        raise SceneError(f"unknown figure(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
+    return names
+
+
+def _absent_figures(path: str | Path, names: list[str], which: Sequence[str] | None) -> list[str]:
+    """The figures of ``names`` whose per-patch velocities the file lacks (``sync`` also counts as present when
+    ``/analysis/sync`` is stored); :class:`SceneError` when ``which`` named one of them."""
+    with _Run(path) as run:
+        patches = has_patch_velocity(run.f)
+        stored_sync = "analysis/sync" in run.f
+    needs = {"patch_map": patches, "animation": patches, "sync": patches or stored_sync}
+    absent = [n for n in names if not needs.get(n, True)]
+    if absent and which is not None:
+        raise SceneError(
+            f"{Path(path).name} holds no per-patch velocities, needed by {', '.join(absent)}; rerun aca-warp hf "
+            "with --record-patches velocity"
+        )
+    return absent
+
+
 def plot_run(
     path: str | Path,
     outdir: str | Path,
@@ -685,25 +716,8 @@ def plot_run(
         )
     if quantity is not None or snapshots is not None:
         raise SceneError(f"{Path(path).name} is not an LF run file: quantity and snapshots apply to LF patch maps")
-    names = list(FIGURES if which is None else dict.fromkeys(which))
-    lf_names = [n for n in names if n in plots_lf.LF_FIGURES]
-    if lf_names:
-        raise SceneError(
-            f"{', '.join(lf_names)}: LF figures need an LF run file (aca-warp lf); {Path(path).name} is not one"
-        )
-    unknown = [n for n in names if n not in FIGURES]
-    if unknown:
-        raise SceneError(f"unknown figure(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
-    with _Run(path) as run:
-        patches = has_patch_velocity(run.f)
-        stored_sync = "analysis/sync" in run.f
-    needs = {"patch_map": patches, "animation": patches, "sync": patches or stored_sync}
-    absent = [n for n in names if not needs.get(n, True)]
-    if absent and which is not None:
-        raise SceneError(
-            f"{Path(path).name} holds no per-patch velocities, needed by {', '.join(absent)}; rerun aca-warp hf "
-            "with --record-patches velocity"
-        )
+    names = _hf_figure_names(path, which)
+    absent = _absent_figures(path, names, which)
     makers: dict[str, Callable[[], list[Path]]] = {
         "patch_map": lambda: plot_patch_map(path, outdir, times=times),
         "global": lambda: plot_global(path, outdir),
