@@ -1,6 +1,6 @@
-"""``aca_warp.studies.work_precision`` (``scripts/work_precision.py``) and ``aca_warp.hf.reference``: Richardson
-check, the SciPy reference against the HF engine, and the measure → report pipeline end to end on a 9-patch scene
-(CPU)."""
+"""``aca_warp.studies.work_precision`` (``scripts/work_precision.py``) and ``aca_warp.hf.reference``: the statistics
+of saturated windows, the SciPy reference against the HF engine, start states made once and cached, and the
+measure → report pipeline end to end on a 9-patch scene (CPU)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from aca_warp.analysis.spectra import amplitude_spectrum
 from aca_warp.hf.loop import run_hf
 from aca_warp.hf.model import build_model
 from aca_warp.hf.options import RunOptions
@@ -17,6 +18,8 @@ from aca_warp.hf.reference import ReferenceODE
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Pad, Patches, Record, Scene
 from aca_warp.studies import work_precision as wp_study
+from aca_warp.studies import work_precision_report as wp_report
+from aca_warp.studies import work_precision_states as wp_states
 
 
 def tiny_scene(speed=10.0, load=20.0) -> Scene:
@@ -37,16 +40,26 @@ def tiny_scene(speed=10.0, load=20.0) -> Scene:
     )
 
 
-def test_richardson_recovers_order():
-    """Three solutions exact + C hᵖ at h = 4, 2, 1: the order p and the finest error C are recovered."""
-    x = np.linspace(0, 1, 50)
-    exact, c = np.sin(x), 1e-3 * np.cos(3 * x)
-    for p in (1.0, 2.0, 4.0):
-        a, b, f = (exact + c * h**p for h in (4.0, 2.0, 1.0))
-        r = wp_study.richardson(a, b, f)
-        assert r["order"] == pytest.approx(p, abs=1e-9)
-        assert r["error_estimate"] == pytest.approx(np.max(np.abs(c)), rel=1e-9)
-    assert math.isnan(wp_study.richardson(exact, exact, exact)["order"])
+def test_statistics_errors():
+    """Identical records give zero errors; a record whose oscillation is ×2 gives std error 1 and a spectrum error
+    of ln 2 (the mean stays); sticking counts |ωr − u̇| below the threshold."""
+    t = np.arange(1001) * 1e-6
+    rng = np.random.default_rng(0)
+    osc = 0.01 * np.sin(2 * np.pi * 50e3 * t) + 0.003 * rng.standard_normal(len(t))
+    v = 1e-3 * rng.standard_normal((len(t), 20))
+    slip = np.full(20, 2e-3)
+    a = wp_study.statistics(0.5 + osc, v, slip, 5e3)
+    b = wp_study.statistics(0.5 + 2 * osc, v, slip, 5e3)
+    zero = wp_study.stat_errors(a, a)
+    assert all(v == 0.0 for k, v in zero.items() if k != "stick")
+    e = wp_study.stat_errors(b, a)
+    assert e["std"] == pytest.approx(1.0, rel=1e-12)
+    assert e["spectrum"] == pytest.approx(math.log(2.0), rel=1e-3)  # spectra normalised by the mean of μ
+    assert e["mean"] < 1e-3 and e["peak_f"] < 1e-3
+    # |2e-3 − v| < 1e-3 ⇔ 1e-3 < v < 3e-3: the normal tail above 1σ (15.87 %) minus above 3σ (0.13 %)
+    assert a["stick"] == pytest.approx(0.1574, abs=0.01)
+    f, amp = amplitude_spectrum(0.5 + osc, 1e-6)
+    assert a["bands"].max() <= amp[f >= 5e3].max()
 
 
 def test_reference_jacobian_and_agreement():
@@ -78,34 +91,99 @@ def test_reference_jacobian_and_agreement():
     assert np.max(np.abs(ode.globals(radau.u, radau.v)["mu"] - mu_ref)) < 1e-5
 
 
-def test_measure_and_report_end_to_end(tmp_path, monkeypatch):
-    """A tiny study (one scene, strang + adaptive, fp64, DOP853 baseline) and a page merged from two JSONs."""
+def test_deadline_stops_a_slow_solve():
+    """Past its deadline the right-hand side raises Overrun (the SciPy solve stops); afterwards the ODE is as before."""
+    ode = ReferenceODE(build_model([tiny_scene()]))
+    times = np.arange(11) * 1e-6
+    with pytest.raises(wp_study.Overrun), wp_study.deadline(ode, 0.0):
+        ode.solve(times, method="DOP853", rtol=1e-8)
+    assert "rhs" not in vars(ode)
+    with wp_study.deadline(ode, 60.0):
+        sol = ode.solve(times, method="DOP853", rtol=1e-8)
+    assert sol.nfev > 0 and "rhs" not in vars(ode)
+
+
+@pytest.fixture
+def tiny_study(monkeypatch):
+    """The study's scenes replaced by the tiny pad (hf1_sat: from equilibrium + perturbation, 0.3 ms spin-up)."""
     base = tiny_scene()
-    monkeypatch.setattr(wp_study, "make_scene", lambda name: base.replace(name=name))
-    args = ["--quick", "--scenes", "stickslip", "--integrators", "strang", "adaptive", "--precisions", "fp64"]
-    args += ["--scipy-methods", "DOP853", "--t-state", "1e-5", "--t-long", "4e-5", "--steps", "1e-7", "2e-8"]
-    args += ["--ref-dt", "2.5e-9", "--out", str(tmp_path)]
+    real = wp_states.make_scene
+
+    def scene(name, patches=None):
+        s = base.replace(name=name)
+        if name in wp_states.SPIN:
+            return s.replace(initial=Initial(state="equilibrium", perturbation=0.05, seed=1))
+        return s
+
+    monkeypatch.setattr(wp_states, "make_scene", scene)
+    monkeypatch.setattr(wp_states, "SPIN", {"hf1_sat": ("hf1", 3e-4)})
+    return real
+
+
+def test_measure_and_report_end_to_end(tmp_path, tiny_study):
+    """A tiny study (a sliding scene named stickslip and a saturated scene with its statistics window; adaptive,
+    strang, DOP853) and a page merged from two JSONs; the start state is made once and read back."""
+    args = ["--quick", "--scenes", "stickslip", "hf1_sat", "--tolerances", "1e-2", "1e-5", "--steps", "1e-7", "2e-8"]
+    args += ["--scipy-methods", "DOP853", "--scipy-rtols", "1e-6", "1e-9"]
+    args += ["--window", "2e-5", "--long-window", "5e-5", "--out", str(tmp_path)]
     assert wp_study.main(args) == 0
-    path = next(tmp_path.glob("wp_cpu_quick_stickslip.json"))
+    path = tmp_path / "wp_cpu_quick_stickslip-hf1_sat.json"
     doc = json.loads(path.read_text())
-    sc = doc["scenes"][0]
-    rows = {(r["method"], r.get("dt_requested", r.get("tolerance", r.get("rtol")))): r for r in sc["rows"]}
-    assert len(rows) == 2 + 3 + 2
-    assert 1.8 < sc["long_reference"]["richardson_mu"]["order"] < 2.2
-    s1, s2 = rows[("strang", 1e-7)], rows[("strang", 2e-8)]
-    assert s2["state"]["error"] < s1["state"]["error"] / 10  # second order: 25× expected
-    assert s2["long"]["mu"] < s1["long"]["mu"] / 10
-    assert rows[("scipy-DOP853", 1e-7)]["state"]["error"] < 1e-4
-    # a second "device": the same results relabelled, merged into one page that keeps the hand-written text
+    st, sat = doc["scenes"]
+    rows = {(r["method"], r.get("dt_requested", r.get("tolerance", r.get("rtol")))): r for r in st["rows"]}
+    assert len(rows) == 2 + 2 + 2
+    assert st["reference"]["check_mu"] < 1e-8
+    s1, s2 = rows[("strang", 1e-7)]["window"], rows[("strang", 2e-8)]["window"]
+    assert s2["state"] < s1["state"] / 10 and s2["mu"] < s1["mu"] / 10  # second order: 25× expected
+    a1, a2 = rows[("adaptive", 1e-2)]["window"], rows[("adaptive", 1e-5)]["window"]
+    assert a2["mu"] < a1["mu"] / 30 and a2["mu"] < 1e-6 and a2["steps"] > a1["steps"]
+    assert rows[("scipy-DOP853", 1e-6)]["window"]["mu"] < 1e-5
+    assert {"peak_f", "sync"} <= set(s1)
+    # the saturated scene: start state from a run, statistics window with its floor
+    assert sat["start"]["how"].startswith("equilibrium") and (tmp_path / "state_hf1_sat_9.npz").exists()
+    lr = sat["long_reference"]
+    assert lr["vs_reference_mu"] < 1e-6 and set(lr["floor"]) == {"mean", "std", "spectrum", "peak_f", "sync", "stick"}
+    long_rows = [r for r in sat["rows"] if "long" in r]
+    assert {r["method"] for r in long_rows} == {"adaptive", "strang", "scipy-DOP853"}
+    fine = next(r for r in long_rows if r["method"] == "scipy-DOP853")["long"]
+    assert fine["spectrum"] < 1e-3 and fine["std"] < 1e-3
+    # the cached start state is read back, not made again
+    start = wp_states.start_state("hf1_sat", wp_study.build_parser().parse_args(["--out", str(tmp_path)]), print)
+    assert start.info.get("cached", "").endswith("state_hf1_sat_9.npz")
+    u0 = np.load(tmp_path / "state_hf1_sat_9.npz")["u"]
+    np.testing.assert_array_equal(start.u, u0)
+    # report: a second "device" merged into one page that keeps the hand-written text
     other = json.loads(path.read_text())
     other["machine"]["device"], other["machine"]["device_name"] = "cuda:0", "Fake GPU"
     p2 = tmp_path / "gpu.json"
     p2.write_text(json.dumps(other))
     page = tmp_path / "page.md"
-    page.write_text(f"# Title\n\nhand-written\n\n{wp_study.BEGIN}\nold\n{wp_study.END}\n\nafter\n")
+    page.write_text(f"# Title\n\nhand-written\n\n{wp_report.BEGIN}\nOLD-GENERATED-TEXT\n{wp_report.END}\n\nafter\n")
     wp_study.main(["--report", str(path), str(p2), "--page", str(page), "--figures", str(tmp_path / "fig")])
     text = page.read_text()
-    assert "hand-written" in text and "after" in text and "old" not in text
-    assert text.count("### stickslip on") == 2 and "Fake GPU" in text
-    assert (tmp_path / "fig" / "wp_stickslip_cpu_quick.png").exists()
+    assert "hand-written" in text and "after" in text and "OLD-GENERATED-TEXT" not in text
+    assert text.count("### stickslip on") == 2 and "Fake GPU" in text and "floor (twin reference)" in text
+    assert "Cheapest setting that reaches a μ error" in text and "at the floor or within" in text
+    assert (tmp_path / "fig" / "wp_hf1_sat_cpu_quick.png").exists()
     assert (tmp_path / "fig" / "wp_stickslip_cuda0_quick.pdf").exists()
+
+
+def test_summary_picks_the_cheapest_that_reaches():
+    """The summary's cell is the cheapest row of a method within the target, and ``at_floor`` needs every
+    statistic with a floor within the factor."""
+    rows = [
+        {"method": "adaptive", "precision": "fp64", "tolerance": 1e-3, "window": {"mu": 2e-6, "wall_s": 1.0}},
+        {"method": "adaptive", "precision": "fp64", "tolerance": 1e-5, "window": {"mu": 5e-8, "wall_s": 3.0}},
+        {"method": "adaptive", "precision": "fp64", "tolerance": 1e-6, "window": {"mu": 4e-9, "wall_s": 9.0}},
+        {"method": "adaptive", "precision": "fp32", "tolerance": 1e-4, "window": {"mu": 1e-8, "wall_s": 0.1}},
+    ]
+    sc = {"rows": rows}
+    assert wp_report.cheapest(sc, "adaptive", lambda b: b["mu"] <= 1e-5)["tolerance"] == 1e-3
+    assert wp_report.cheapest(sc, "adaptive", lambda b: b["mu"] <= 1e-7)["tolerance"] == 1e-5
+    assert wp_report.cheapest(sc, "adaptive", lambda b: b["mu"] <= 1e-10) is None
+    floor = {"std": 0.01, "spectrum": 0.1, "sync": 0.02, "stick": None}
+    assert wp_report.at_floor({"std": 0.015, "spectrum": 0.2, "sync": 0.01, "stick": 5.0}, floor)
+    assert not wp_report.at_floor({"std": 0.015, "spectrum": 0.21, "sync": 0.01}, floor)
+    tiny = {"std": 1e-10, "spectrum": 1e-10, "sync": 0.0, "stick": 0.0}  # a twin that has not parted
+    assert wp_report.at_floor({"std": 0.009, "spectrum": 0.009, "sync": 0.005, "stick": 0.05}, tiny)
+    assert not wp_report.at_floor({"std": 0.009, "spectrum": 0.011, "sync": 0.005, "stick": 0.05}, tiny)

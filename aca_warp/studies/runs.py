@@ -4,8 +4,11 @@ The studies build models and states, step them and write run files only through 
 its arguments on unchanged, so a change of the run API is made here and nowhere else in ``aca_warp.studies``.
 
 * :func:`model_at_rest`: ``build_model`` of one scene and its ``initial_state`` (varying_area, work_precision);
+* :func:`model_from_state`: ``build_model`` of one scene, then model arrays and the state set from saved ones
+  (work_precision: saturated and grown start states);
 * :func:`batch_at_start`: ``build_model`` of a batch of scenes (one pad each) and its ``initial_state`` (validation);
-* :func:`run_general`: ``run_hf`` on a model and state, general engine (work_precision);
+* :func:`run_general`: ``run_hf`` on a model and state, general engine unless named (work_precision,
+  time_to_solution);
 * :func:`run_engine`: ``run_hf``, the engine chosen by name, samples to a sink if given (varying_area, validation);
 * :func:`run_to_file`: ``run_scene``, a scene into a run file (hf_study, multiscale).
 """
@@ -14,6 +17,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+
+import numpy as np
 
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
@@ -28,6 +33,26 @@ def model_at_rest(scene: Scene, device: str, precision: str) -> tuple[PadModel, 
     """The model of the one pad ``scene`` on ``device`` in ``precision`` (fp32/fp64) and its initial state."""
     model = build_model([scene], device=device, precision=precision)
     return model, initial_state(model)
+
+
+def model_from_state(
+    scene: Scene,
+    device: str,
+    precision: str,
+    u: np.ndarray,
+    v: np.ndarray,
+    arrays: dict[str, np.ndarray] | None = None,
+) -> tuple[PadModel, HFState]:
+    """The model of the one pad ``scene`` (its growth dropped: a frozen pad) on ``device`` in ``precision`` with the
+    model ``arrays`` (name → values, e.g. the areas, stiffnesses and normal forces a growing run reached) assigned,
+    and the state u [m], u̇ [m/s] (shape (patches,) each)."""
+    model = build_model([scene.replace(growth=None)], device=device, precision=precision)
+    for name, values in (arrays or {}).items():
+        model.arrays[name].assign(np.asarray(values).astype(model.host(name).dtype))
+    state = initial_state(model)
+    state.u.assign(np.asarray(u).astype(state.u.numpy().dtype))
+    state.v.assign(np.asarray(v).astype(state.v.numpy().dtype))
+    return model, state
 
 
 def batch_at_start(scenes: list[Scene], device: str, precision: str) -> tuple[PadModel, HFState]:
@@ -46,13 +71,14 @@ def run_general(
     record: Record,
     dt: float | None = None,
     tolerance: float | None = None,
+    engine: str = "general",
 ) -> RunResult:
-    """``run_hf`` for ``duration`` [s]: ``adaptive`` with ``tolerance``, a fixed-step integrator with ``dt`` [s]
-    (forced: the work-precision study measures the error of every step, those that do not resolve sticking too)."""
+    """``run_hf`` for ``duration`` [s] on ``engine`` (general, onchip, auto): ``adaptive`` with ``tolerance``, a
+    fixed-step integrator with ``dt`` [s] (forced: the work-precision study measures the error of every step, those
+    that do not resolve sticking too)."""
     kw = {"tolerance": tolerance} if integrator == "adaptive" else {"dt": dt, "force": integrator != "symplectic-euler"}
-    return run_hf(
-        model, state, RunOptions(duration=duration, integrator=integrator, engine="general", **kw), record=record
-    )
+    options = RunOptions(duration=duration, integrator=integrator, engine=engine, **kw)
+    return run_hf(model, state, options, record=record)
 
 
 def run_engine(

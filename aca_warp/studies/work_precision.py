@@ -1,40 +1,53 @@
-"""Work-precision study of the HF integrators: error against wall time, per scene, method, step and precision.
+"""Work-precision study of the HF integrators: error against wall time in sliding, stick-slip and saturation.
 
-Scenes: ``hf1``, ``hf2`` and ``stickslip`` (hf1 with the disc at 0.5 m/s at the mean radius, where Eq. 4 is
-steep enough that patches reach sticking). For every integrator of ``aca_warp.hf.options.INTEGRATORS`` × steps (or
-tolerances for ``adaptive``) × fp32/fp64, and for SciPy's ``solve_ivp`` methods as baselines, it measures:
+Scenes (:data:`SPECS`): ``hf1`` and ``hf2`` from rest (sliding), ``stickslip`` (hf1 with the disc at 0.5 m/s at the
+mean radius: patches stick within 0.1 ms), ``va_start`` (the varying_area preset at its start, growth off: HF1
+patches under the HF2 load, from rest, near sticking), ``va_late`` (varying_area with its growth ×100 run for 2 ms
+from rest, then frozen: the grown areas, stiffnesses and normal forces, the saturated state), ``hf1_sat`` and
+``hf3_sat`` (hf1 and hf3 from equilibrium + 0.01 m/s velocity perturbation run to saturation, 20 and 40 ms of
+strang at 5e-8 s). The start states that need a run are made once and cached in the output folder
+(``state_<scene>.npz``, with how they were made and the saturation detector's verdict).
 
-* ``state``: the final state after ``--t-state`` (0.1 ms): max(‖u − u_ref‖∞/‖u_ref‖∞, ‖u̇ − u̇_ref‖∞/‖u̇_ref‖∞)
-  against an independent SciPy DOP853 solution at rtol 1e-10 (``aca_warp.hf.reference``);
-* ``mu``: max |μ(t) − μ_ref(t)| over ``--t-long`` (1 ms, 0.2 ms with ``--quick``) against our own fp64 ``strang``
-  run at ``--ref-dt``, checked by Richardson extrapolation (runs at 2 and 4 × ``--ref-dt``: estimated order and
-  error of the reference);
-* ``peak_f``, ``peak_a``: relative errors of the frequency and amplitude of the largest peak of the mean-normalised
-  Hann spectrum of μ over the same record (``aca_warp.analysis.spectra``), band [``--fmin``, 200 kHz];
-* ``sync``: mean |S(f) − S_ref(f)| of the Synchronization Index of the per-patch velocities (bins where both are
-  defined, ``aca_warp.analysis.sync``, relative rule η = 0.1, no null trials).
+Measures:
 
-Wall times are those of the stepping loop (kernel compilation and graph capture excluded, reported apart);
-SciPy times are those of ``solve_ivp``. A SciPy method too slow for a window is timed on a tenth of it and its
-time extrapolated ×10 (flagged ``extrapolated`` in the JSON and drawn hollow); its error is then the error at
-the end of that shorter window. Results: ``OUT/wp_<device>_<scenes>.json``. Examples::
+* **pointwise window** (every scene): max |μ(t) − μ_ref(t)| and the final state error
+  max(‖u − u_ref‖∞/‖u_ref‖∞, ‖u̇ − u̇_ref‖∞/‖u̇_ref‖∞) against SciPy DOP853 at ``--ref-rtol`` (1e-11) on
+  :class:`~aca_warp.hf.reference.ReferenceODE`, checked by DOP853 at 10× that rtol and by our own finest
+  ``adaptive`` run (an independent code); on the non-chaotic scenes also the relative errors of the frequency and
+  amplitude of the largest peak of μ's spectrum and the mean |S(f) − S_ref(f)| of the Synchronization Index;
+* **statistics window** (saturated scenes: chaotic, pointwise μ errors there say nothing after a short time):
+  mean and standard deviation of μ, its spectrum in bands (mean |ln A/A_ref| over 5 kHz bands), the largest
+  peak, S(f) and the fraction of sticking patches, against a long fp64 ``strang`` reference at ``--long-ref-dt``;
+  the **floor** is the same reference run from a state perturbed by 1e-9 m/s (an equally exact trajectory):
+  statistics errors at the floor are as good as exact for that window length.
 
-    python scripts/work_precision.py --quick --out /tmp/wp                # CPU, ~5 min
-    python scripts/work_precision.py --device cuda:0 --out $OUT/wp        # GPU
-    python scripts/work_precision.py --report a.json b.json               # figures + docs/work_precision.md
+Our methods: ``adaptive`` over tolerances 1e-2 … 1e-7 and ``strang`` over steps (fp64; the other integrators and
+fp32 on request: earlier full runs found them dominated by strang and fp64); baselines SciPy DOP853 and Radau at
+several rtols. Wall times are those of the stepping loop (kernel compilation and graph capture excluded); SciPy
+times those of ``solve_ivp``; a SciPy run whose first tenth extrapolates beyond ``--scipy-cap`` is timed on that
+tenth and extrapolated ×10 (flagged; its error is the error at the end of the tenth). Results:
+``OUT/wp_<device>_<scenes>.json``. Examples::
 
-As a library: :class:`Study` measures one scene (:meth:`Study.references`, :meth:`Study.ours`,
-:meth:`Study.scipy`); :func:`measure` writes a result JSON, :func:`report` turns result JSONs into figures and the
-docs section; :func:`richardson` is the convergence check on its own.
+    python scripts/work_precision.py --quick --out /tmp/wp                 # CPU, 300-patch sectors, ~8 min
+    python scripts/work_precision.py --out wp_cpu                          # CPU, full pads, ~45 min
+    python scripts/work_precision.py --report wp_cpu/*.json                # figures + docs/work_precision.md
+
+As a library: :mod:`aca_warp.studies.work_precision_states` makes (or reads) the scenes' start states,
+:class:`Study` measures one scene (:meth:`Study.reference`, :meth:`Study.long_reference`, :meth:`Study.ours`,
+:meth:`Study.scipy`), :func:`measure` writes a result JSON; :mod:`aca_warp.studies.work_precision_report` turns
+result JSONs into figures and the docs section.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import re
 import sys
 import time
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -42,69 +55,92 @@ import numpy as np
 
 from aca_warp.analysis.spectra import amplitude_spectrum, peak
 from aca_warp.analysis.sync import sync_index_from_signals
-from aca_warp.hf.options import DEFAULT_DT, DEFAULT_INTEGRATOR, INTEGRATORS
+from aca_warp.hf.options import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
 from aca_warp.hf.reference import SCIPY_METHODS, ReferenceODE
-from aca_warp.hf.solver import stable_step
-from aca_warp.scene import Record, Scene, preset
-from aca_warp.studies.report import (
-    add_device,
-    add_page_options,
-    command_line,
-    figure,
-    fmt,
-    generated_markers,
-    md_table,
-    replace_generated,
-    save_figure,
-    write_json,
-)
-from aca_warp.studies.runs import model_at_rest, run_general
+from aca_warp.scene import Record
+from aca_warp.studies.report import add_device, add_page_options, command_line, write_json
+from aca_warp.studies.runs import model_from_state, run_general
+from aca_warp.studies.work_precision_states import SAMPLE_DT, SAT_SEED, VA_GROW, VA_SPEEDUP, Start, start_state
 
-SCENES = ("hf1", "hf2", "stickslip")
-STICK_SPEED = 0.5  # m/s at the mean radius 0.13 m
-STICK_THRESHOLD = 1.0e-3  # m/s: a patch "sticks" while |ω r − u̇| is below this (1/5 of Eq. 4's 1/slope)
-SAMPLE_DT = 1.0e-6  # s
 BAND_TOP = 2.0e5  # Hz
-MEASURES = ("state", "mu", "peak_f", "peak_a", "sync")
-MEASURE_LABELS = {
-    "state": "final state after {t_state} (rel. max error of u, u̇)",
-    "mu": "μ(t) over {t_long} (max abs. error)",
-    "peak_f": "largest spectral peak of μ: frequency (rel. error)",
-    "peak_a": "largest spectral peak of μ: amplitude (rel. error)",
-    "sync": "S(f) (mean abs. error)",
-}
-STEPS_FULL = [1e-6, 3e-7, 1e-7, 3e-8, 1e-8]
-STEPS_QUICK = [1e-7, 3e-8, 1e-8]
-EXPLICIT_FULL = [5e-8, 2e-8, 1e-8, 5e-9]
-EXPLICIT_QUICK = [2e-8, 1e-8]
-TOL_FULL = {"fp64": [1e-3, 1e-4, 1e-5, 1e-6], "fp32": [1e-3, 1e-4, 1e-5]}
-TOL_QUICK = {"fp64": [1e-3, 1e-4, 1e-5], "fp32": [1e-3, 1e-4]}
-SCIPY_RTOL = {"RK45": [1e-4, 1e-6, 1e-8], "DOP853": [1e-5, 1e-7, 1e-9]}
-SCIPY_RTOL_IMPLICIT = [1e-4, 1e-6, 1e-8]
-BEGIN, END = generated_markers("scripts/work_precision.py --report")
+BAND_WIDTH = 5.0e3  # Hz, bands of the spectrum statistic
+STICK_THRESHOLD = 1.0e-3  # m/s: a patch "sticks" while |ω r − u̇| is below this (1/5 of Eq. 4's 1/slope)
+TWIN_DV = 1.0e-9  # m/s, perturbation of the floor run
+QUICK_PATCHES = 300
+TOLS = {False: (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7), True: (1e-3, 1e-4, 1e-5, 1e-6, 1e-7)}
+LONG_TOLS = {False: (1e-3, 1e-4, 1e-5), True: (1e-3, 1e-4, 1e-5)}
+LONG_STEPS = {False: (3e-8, 1e-8, 3e-9), True: (3e-8, 1e-8, 3e-9)}
+SCIPY_RTOL = {"DOP853": (1e-5, 1e-7, 1e-9), "Radau": (1e-4, 1e-6, 1e-8)}
+SCIPY_RTOL_QUICK = {"DOP853": (1e-5, 1e-7, 1e-9), "Radau": (1e-6,)}
+LONG_SCIPY = ("DOP853", 1e-8)
+EXPLICIT_STEPS = (5e-8, 2e-8, 1e-8)
 
 
-def make_scene(name: str) -> Scene:
-    """The scene ``name``: a preset, or ``stickslip`` (hf1 at 0.5 m/s at the mean radius)."""
-    if name == "stickslip":
-        s = preset("hf1")
-        return s.replace(name="stickslip", angular_velocity=STICK_SPEED / s.pad.mean_radius)
-    return preset(name)
+@dataclass(frozen=True)
+class Spec:
+    """How one scene of the study is measured.
 
-
-def richardson(a: np.ndarray, b: np.ndarray, c: np.ndarray, ratio: float = 2.0) -> dict[str, float]:
-    """Richardson check of three solutions at steps r²h, rh, h (``a``, ``b``, ``c``; any common shape).
-
-    Returns the observed order p = log(‖a − b‖∞/‖b − c‖∞)/log r and the estimated error of the finest one,
-    ‖b − c‖∞/(r^p − 1) (NaN order when the differences vanish).
+    Attributes:
+        what: One line for the docs.
+        regime: ``sliding``, ``stick-slip`` or ``saturated``.
+        window: Pointwise window [s]: (full, --quick).
+        steps: strang steps [s] of the pointwise window: (full, --quick).
+        long: Statistics window [s]: (full, --quick); (0, 0) for none.
+        spectra: Spectral errors over the pointwise window (not on chaotic states).
     """
-    e1 = float(np.max(np.abs(np.asarray(a, float) - np.asarray(b, float))))
-    e2 = float(np.max(np.abs(np.asarray(b, float) - np.asarray(c, float))))
-    if e2 == 0.0 or e1 == 0.0:
-        return {"order": math.nan, "diff_coarse": e1, "diff_fine": e2, "error_estimate": e2}
-    p = math.log(e1 / e2) / math.log(ratio)
-    est = e2 / (ratio**p - 1.0) if p > 0 else e2
-    return {"order": p, "diff_coarse": e1, "diff_fine": e2, "error_estimate": est}
+
+    what: str
+    regime: str
+    window: tuple[float, float]
+    steps: tuple[tuple[float, ...], tuple[float, ...]]
+    long: tuple[float, float] = (0.0, 0.0)
+    spectra: bool = True
+
+
+SLIDING_STEPS = ((1e-7, 3e-8, 1e-8, 3e-9), (3e-8, 1e-8, 3e-9))
+STICK_STEPS = ((3e-8, 1e-8, 3e-9, 1e-9), (1e-8, 3e-9, 1e-9))
+FINE_STEPS = ((1e-8, 3e-9, 1e-9), (1e-8, 3e-9, 1e-9))
+SPECS = {
+    "hf1": Spec("hf1 from rest (sliding at 10 m/s, linear growth)", "sliding", (1e-3, 2e-4), SLIDING_STEPS),
+    "hf2": Spec("hf2 from rest (sliding at 10 m/s, linear growth)", "sliding", (1e-3, 2e-4), SLIDING_STEPS),
+    "stickslip": Spec(
+        "hf1 at 0.5 m/s from rest: patches reach sticking within 0.1 ms", "stick-slip", (5e-4, 1e-4), STICK_STEPS
+    ),
+    "va_start": Spec(
+        "varying_area at its start, growth off (HF1 patches under the HF2 load) from rest",
+        "stick-slip",
+        (2e-4, 1e-4),
+        FINE_STEPS,
+    ),  # fmt: skip
+    "va_late": Spec(
+        f"varying_area, growth ×{VA_SPEEDUP:g} for {VA_GROW * 1e3:g} ms from rest, then frozen (saturated)",
+        "saturated",
+        (5e-5, 5e-5),
+        FINE_STEPS,
+        (5e-4, 1e-4),
+        spectra=False,
+    ),  # fmt: skip
+    "hf1_sat": Spec(
+        "hf1 saturated (from equilibrium + perturbation)",
+        "saturated",
+        (1e-4, 1e-4),
+        FINE_STEPS,
+        (1e-3, 2e-4),
+        spectra=False,
+    ),  # fmt: skip
+    "hf3_sat": Spec(
+        "hf3 saturated (from equilibrium + perturbation)",
+        "saturated",
+        (1e-4, 1e-4),
+        FINE_STEPS,
+        (1e-3, 2e-4),
+        spectra=False,
+    ),  # fmt: skip
+}
+SCENES = tuple(SPECS)
+
+
+# ----------------------------------------------------------------------------------------------- measures
 
 
 def spectral_peak(mu: np.ndarray, fmin: float) -> tuple[float, float]:
@@ -119,45 +155,117 @@ def sync_curve(v: np.ndarray, fmin: float) -> np.ndarray:
     return sync_index_from_signals(np.asarray(v, np.float32), SAMPLE_DT, freq_range=(fmin, top), null_trials=0).S
 
 
-def stick_stats(scene: Scene, radius: np.ndarray, t: np.ndarray, v: np.ndarray) -> dict[str, float]:
-    """How much sticking a run shows: |ω r − u̇| < STICK_THRESHOLD per patch and sample."""
-    s = np.abs(scene.angular_velocity * radius[None, :] - v) < STICK_THRESHOLD
-    frac = s.mean(axis=1)
-    first = np.flatnonzero(frac > 0)
+def sticking(slip_speed: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Fraction of sticking patches (|ω r − u̇| < STICK_THRESHOLD) per sample; ``slip_speed`` ω r [m/s] (n,),
+    ``v`` [m/s] (N, n)."""
+    return (np.abs(slip_speed[None, :] - v) < STICK_THRESHOLD).mean(axis=1)
+
+
+def statistics(mu: np.ndarray, v: np.ndarray, slip_speed: np.ndarray, fmin: float) -> dict[str, Any]:
+    """Statistics of a saturated window: μ (N,), per-patch velocities v (N, n) [m/s], disc speeds ω r (n,) [m/s].
+
+    Returns mean and std of μ, the mean-normalised amplitude spectrum of μ averaged over bands of
+    max(5 kHz, 5/T) from ``fmin`` to 200 kHz, the largest peak, S(f) and the mean fraction of sticking patches.
+    """
+    f, a = amplitude_spectrum(mu, SAMPLE_DT, normalise="mean")
+    top = min(BAND_TOP, f[-1])
+    width = max(BAND_WIDTH, 5.0 / (len(mu) * SAMPLE_DT))
+    edges = np.arange(fmin, top + 0.5 * width, width)
+    bands = np.array([a[(f >= lo) & (f < hi)].mean() for lo, hi in zip(edges[:-1], edges[1:], strict=True)])
+    pf, pa = peak(f, a, fmin=fmin, fmax=top)
     return {
-        "threshold_m_s": STICK_THRESHOLD,
-        "max_fraction": float(frac.max()),
-        "mean_fraction": float(frac.mean()),
-        "patches_ever_stuck": float(s.any(axis=0).mean()),
-        "first_stick_s": float(t[first[0]]) if len(first) else math.nan,
+        "mean": float(mu.mean()),
+        "std": float(mu.std()),
+        "bands": bands,
+        "peak_f": pf,
+        "peak_a": pa,
+        "sync": sync_curve(v, fmin),
+        "stick": float(sticking(slip_speed, v).mean()),
     }
 
 
-class Study:
-    """One device's measurements of one scene."""
+def stat_errors(s: dict[str, Any], ref: dict[str, Any]) -> dict[str, float]:
+    """Errors of the statistics ``s`` against ``ref`` (:func:`statistics`): |Δ mean μ|, |Δ std μ|/std, mean
+    |ln A/A_ref| over the bands, relative peak-frequency error, mean |ΔS| (bins defined in both) and the relative
+    error of the sticking fraction."""
+    both = np.isfinite(s["sync"]) & np.isfinite(ref["sync"])
+    pos = (s["bands"] > 0) & (ref["bands"] > 0)
+    return {
+        "mean": abs(s["mean"] - ref["mean"]),
+        "std": abs(s["std"] - ref["std"]) / ref["std"],
+        "spectrum": float(np.mean(np.abs(np.log(s["bands"][pos] / ref["bands"][pos])))) if pos.any() else math.nan,
+        "peak_f": abs(s["peak_f"] - ref["peak_f"]) / ref["peak_f"],
+        "sync": float(np.mean(np.abs(s["sync"][both] - ref["sync"][both]))) if both.any() else math.nan,
+        "stick": abs(s["stick"] - ref["stick"]) / ref["stick"] if ref["stick"] > 0 else math.nan,
+    }
 
-    def __init__(self, name: str, args: argparse.Namespace) -> None:
-        self.name = name
-        self.args = args
-        self.scene = make_scene(name).replace(record=Record(sample_dt=SAMPLE_DT))
-        self.dev = args.device
-        self.n_state = round(args.t_state / SAMPLE_DT)
-        self.n_long = round(args.t_long / SAMPLE_DT)
-        self.fmin = max(args.fmin, 2.0 / args.t_long)
-        self.rows: list[dict] = []
-        self.info: dict = {"scene": name, "angular_velocity": self.scene.angular_velocity}
+
+def state_error(u: np.ndarray, v: np.ndarray, ru: np.ndarray, rv: np.ndarray) -> float:
+    """max(‖u − u_ref‖∞/‖u_ref‖∞, ‖u̇ − u̇_ref‖∞/‖u̇_ref‖∞) of one state."""
+    return float(max(np.max(np.abs(u - ru)) / np.max(np.abs(ru)), np.max(np.abs(v - rv)) / np.max(np.abs(rv))))
+
+
+class Overrun(Exception):
+    """A SciPy solve ran past its time limit."""
+
+
+@contextlib.contextmanager
+def deadline(ode: ReferenceODE, seconds: float) -> Iterator[None]:
+    """Within the block, ``ode``'s right-hand side raises :class:`Overrun` once ``seconds`` [s] have passed (a
+    SciPy method that would take far longer than the cap is stopped instead of waited for)."""
+    rhs, end = ode.rhs, time.perf_counter() + seconds
+
+    def capped(t: float, y: np.ndarray) -> np.ndarray:
+        if time.perf_counter() > end:
+            raise Overrun(f"first tenth not done within {seconds:g} s")
+        return rhs(t, y)
+
+    ode.rhs = capped  # type: ignore[method-assign]
+    try:
+        yield
+    finally:
+        del ode.rhs
+
+
+# ----------------------------------------------------------------------------------------------- one scene
+
+
+class Study:
+    """One device's measurements of one scene from its start state."""
+
+    def __init__(self, name: str, start: Start, args: argparse.Namespace) -> None:
+        self.name, self.start, self.args = name, start, args
+        self.spec = SPECS[name]
+        q = int(bool(args.quick))
+        self.window = args.window or self.spec.window[q]
+        self.long = 0.0 if args.no_long else (args.long_window or self.spec.long[q]) if self.spec.long[q] else 0.0
+        self.n = round(self.window / SAMPLE_DT)
+        self.n_long = round(self.long / SAMPLE_DT)
+        self.fmin = max(args.fmin, 2.0 / self.window)
+        self.fmin_long = max(args.fmin, 2.0 / self.long) if self.long else math.nan
+        self.rows: list[dict[str, Any]] = []
+        self.info: dict[str, Any] = {
+            "scene": name,
+            "what": self.spec.what,
+            "regime": self.spec.regime,
+            "patches": start.scene.patches.count,
+            "angular_velocity": start.scene.angular_velocity,
+            "start": start.info,
+            "window_s": self.window,
+            "long_window_s": self.long,
+        }
 
     def log(self, msg: str) -> None:
         print(f"[{self.name}] {msg}", flush=True)
 
-    # ------------------------------------------------------------------------------------------- our runs
-    def run(self, integrator: str, precision: str, duration: float, *, dt=None, tol=None, patches=True) -> dict:
-        """One run from the initial state; returns μ, per-patch u/u̇ (if ``patches``) and timings."""
-        model, state = model_at_rest(self.scene, self.dev, precision)
-        rec = Record(sample_dt=SAMPLE_DT, patches=("velocity", "displacement") if patches else ())
-        res = run_general(model, state, duration=duration, integrator=integrator, record=rec, dt=dt, tolerance=tol)
+    def run(self, integrator: str, precision: str, n: int, *, dt=None, tol=None, v=None) -> dict[str, Any]:
+        """One run of n samples from the start state (velocities ``v`` instead of the start's if given)."""
+        s = self.start
+        model, state = model_from_state(s.scene, self.args.device, precision, s.u, s.v if v is None else v, s.arrays)
+        rec = Record(sample_dt=SAMPLE_DT, patches=("velocity", "displacement"))
+        res = run_general(model, state, duration=n * SAMPLE_DT, integrator=integrator, record=rec, dt=dt, tolerance=tol)
         c = res.collect()
-        out = {
+        return {
             "complete": res.complete,
             "fault": "" if res.fault is None else str(res.fault),
             "wall_s": res.wall_time,
@@ -166,198 +274,200 @@ class Study:
             "rejected": res.rejected,
             "dt": res.dt,
             "mu": c.globals[:, 0, 0].astype(np.float64),
-            "radius": model.host("radius").astype(np.float64),
+            "u": c.displacement.astype(np.float64),
+            "v": c.velocity.astype(np.float64),
         }
-        if patches:
-            out["u"] = c.displacement.astype(np.float64)
-            out["v"] = c.velocity.astype(np.float64)
-        return out
 
     # ------------------------------------------------------------------------------------------- references
-    def references(self) -> None:
-        """The SciPy DOP853 reference of the short window and the fp64 strang references of the long one."""
-        self._scipy_reference()
-        self._long_reference()
-
-    def _scipy_reference(self) -> None:
-        """DOP853 at --ref-rtol over --t-state (with a check at 100× looser tolerance)."""
-        a = self.args
-        model, state = model_at_rest(self.scene, self.dev, "fp64")
+    def reference(self) -> None:
+        """DOP853 at --ref-rtol over the pointwise window, checked at 10× that rtol; sticking and spectra of it."""
+        a, s = self.args, self.start
+        model, _ = model_from_state(s.scene, "cpu", "fp64", s.u, s.v, s.arrays)
         self.ode = ReferenceODE(model)
-        self.u0, self.v0 = (x.astype(np.float64) for x in state.numpy())
-        times = np.arange(self.n_state + 1) * SAMPLE_DT
-        self.log(f"SciPy DOP853 reference, rtol {a.ref_rtol:g}, {a.t_state:g} s")
-        ref = self.ode.solve(times, method="DOP853", rtol=a.ref_rtol, u0=self.u0, v0=self.v0)
-        self.ref_state = ref
-        self.ref_state_mu = self.ode.globals(ref.u, ref.v)["mu"]
-        self.info["scipy_reference"] = {
+        self.slip = self.ode.vd
+        times = np.arange(self.n + 1) * SAMPLE_DT
+        self.log(f"SciPy DOP853 reference, rtol {a.ref_rtol:g}, {self.window:g} s")
+        ref = self.ode.solve(times, method="DOP853", rtol=a.ref_rtol, u0=s.u, v0=s.v)
+        chk = self.ode.solve(times, method="DOP853", rtol=10 * a.ref_rtol, u0=s.u, v0=s.v)
+        self.ref, self.ref_mu = ref, self.ode.globals(ref.u, ref.v)["mu"]
+        stick = sticking(self.slip, ref.v)
+        first = np.flatnonzero(stick > 0)
+        self.info["reference"] = {
             "method": "DOP853",
             "rtol": a.ref_rtol,
             "atol": "rtol × per-patch scales F_N/k_T and (F_N/k_T)√(k_T/m)",
-            "window_s": a.t_state,
             "wall_s": ref.wall_time,
             "nfev": ref.nfev,
+            "check_rtol": 10 * a.ref_rtol,
+            "check_mu": float(np.max(np.abs(self.ode.globals(chk.u, chk.v)["mu"] - self.ref_mu))),
+            "check_state": state_error(chk.u[-1], chk.v[-1], ref.u[-1], ref.v[-1]),
+            "mu_mean": float(self.ref_mu.mean()),
+            "stick": {
+                "threshold_m_s": STICK_THRESHOLD,
+                "max_fraction": float(stick.max()),
+                "mean_fraction": float(stick.mean()),
+                "patches_ever_stuck": float((np.abs(self.slip - ref.v) < STICK_THRESHOLD).any(axis=0).mean()),
+                "first_stick_s": float(times[first[0]]) if len(first) else math.nan,
+            },
         }
-        # cross-check: DOP853 at 100× looser tolerance
-        chk = self.ode.solve(times, method="DOP853", rtol=a.ref_rtol * 100, u0=self.u0, v0=self.v0)
-        self.info["scipy_reference"]["self_check_rtol_x100"] = self.state_error(chk.u[-1], chk.v[-1])
+        if self.spec.spectra:
+            self.ref_peak = spectral_peak(self.ref_mu, self.fmin)
+            self.ref_sync = sync_curve(ref.v, self.fmin)
+            self.info["reference"].update(peak_hz=self.ref_peak[0], peak_amplitude=self.ref_peak[1])
+        r = self.info["reference"]
+        self.log(
+            f"reference {ref.wall_time:.3g} s, check rtol ×10: μ {r['check_mu']:.2e}; sticking max {stick.max():.4f}"
+        )
 
-    def _long_reference(self) -> None:
-        """fp64 strang at 4, 2 and 1 × --ref-dt over --t-long: the finest is the reference, Richardson checks it."""
+    def long_reference(self) -> None:
+        """fp64 strang at --long-ref-dt over the statistics window, and its twin from a perturbed state (floor)."""
+        if not self.long:
+            return
         a = self.args
-        runs = []
-        for h in (4 * a.ref_dt, 2 * a.ref_dt, a.ref_dt):
-            self.log(f"fp64 strang reference at {h:.3g} s over {a.t_long:g} s")
-            runs.append(self.run("strang", "fp64", a.t_long, dt=h))
-        self.ref = runs[-1]
-        rich_mu = richardson(*(r["mu"] for r in runs))
-        f_ref, a_ref = spectral_peak(self.ref["mu"], self.fmin)
-        self.ref_peak = (f_ref, a_ref)
-        self.ref_sync = sync_curve(self.ref["v"], self.fmin)
-        stick = stick_stats(self.scene, self.ref["radius"], np.arange(self.n_long + 1) * SAMPLE_DT, self.ref["v"])
+        dv = TWIN_DV * np.random.default_rng(SAT_SEED).standard_normal(len(self.start.v))
+        self.log(f"long reference: fp64 strang at {a.long_ref_dt:g} s over {self.long:g} s, and its twin")
+        ref = self.run("strang", "fp64", self.n_long, dt=a.long_ref_dt)
+        twin = self.run("strang", "fp64", self.n_long, dt=a.long_ref_dt, v=self.start.v + dv)
+        for r in (ref, twin):
+            if not r["complete"]:
+                raise RuntimeError(f"long reference of {self.name} stopped: {r['fault']}")
+        self.long_ref = statistics(ref["mu"], ref["v"], self.slip, self.fmin_long)
+        floor = stat_errors(statistics(twin["mu"], twin["v"], self.slip, self.fmin_long), self.long_ref)
         self.info["long_reference"] = {
             "integrator": "strang",
             "precision": "fp64",
-            "dt": [r["dt"] for r in runs],
-            "window_s": a.t_long,
-            "wall_s": [r["wall_s"] for r in runs],
-            "richardson_mu": rich_mu,
-            "richardson_mu_first_window": richardson(*(r["mu"][: self.n_state + 1] for r in runs)),
-            "richardson_final_state": richardson(*(np.concatenate([r["u"][-1], r["v"][-1]]) for r in runs)),
-            "peak_hz": f_ref,
-            "peak_amplitude": a_ref,
-            "mu_mean": float(self.ref["mu"].mean()),
-            "vs_scipy_mu_first_window": float(np.max(np.abs(self.ref["mu"][: self.n_state + 1] - self.ref_state_mu))),
-            "vs_scipy_state": self.state_error(self.ref["u"][self.n_state], self.ref["v"][self.n_state]),
-            "stick": stick,
+            "dt": a.long_ref_dt,
+            "wall_s": [ref["wall_s"], twin["wall_s"]],
+            "twin_dv_m_s": TWIN_DV,
+            "floor": floor,
+            "vs_reference_mu": float(np.max(np.abs(ref["mu"][: self.n + 1] - self.ref_mu))),
+            "mean": self.long_ref["mean"],
+            "std": self.long_ref["std"],
+            "stick": self.long_ref["stick"],
+            "peak_hz": self.long_ref["peak_f"],
         }
-        self.log(
-            f"Richardson order μ {rich_mu['order']:.2f} (est. error {rich_mu['error_estimate']:.2e}); "
-            f"peak {f_ref:.5g} Hz; sticking max {stick['max_fraction']:.3f}, ever {stick['patches_ever_stuck']:.3f}"
-        )
+        self.log(f"floor: {', '.join(f'{k} {v:.2e}' for k, v in floor.items())}")
 
-    def state_error(self, u: np.ndarray, v: np.ndarray) -> float:
-        """Relative max error of the final state (u, u̇) against the DOP853 reference."""
-        ru, rv = self.ref_state.u[-1], self.ref_state.v[-1]
-        return float(max(np.max(np.abs(u - ru)) / np.max(np.abs(ru)), np.max(np.abs(v - rv)) / np.max(np.abs(rv))))
-
-    def long_errors(self, mu: np.ndarray, v: np.ndarray | None) -> dict[str, float]:
-        """Errors of μ(t), its spectral peak and (with per-patch velocities ``v``) S(f) against the long reference."""
-        f, a = spectral_peak(mu, self.fmin)
+    # ------------------------------------------------------------------------------------------- errors
+    def window_errors(self, mu: np.ndarray, u: np.ndarray, v: np.ndarray) -> dict[str, float]:
+        """Errors of a pointwise-window run (μ (N,), u and v (N, n), N ≤ window samples + 1) against DOP853."""
+        k = len(mu)
         out = {
-            "mu": float(np.max(np.abs(mu - self.ref["mu"]))),
-            "peak_f": abs(f - self.ref_peak[0]) / self.ref_peak[0],
-            "peak_a": abs(a - self.ref_peak[1]) / self.ref_peak[1],
+            "mu": float(np.max(np.abs(mu - self.ref_mu[:k]))),
+            "state": state_error(u[-1], v[-1], self.ref.u[k - 1], self.ref.v[k - 1]),
         }
-        if v is not None:
+        if self.spec.spectra and k == self.n + 1:
+            f, amp = spectral_peak(mu, self.fmin)
             s = sync_curve(v, self.fmin)
             both = np.isfinite(s) & np.isfinite(self.ref_sync)
-            out["sync"] = float(np.mean(np.abs(s[both] - self.ref_sync[both]))) if both.any() else math.nan
+            out.update(
+                peak_f=abs(f - self.ref_peak[0]) / self.ref_peak[0],
+                peak_a=abs(amp - self.ref_peak[1]) / self.ref_peak[1],
+                sync=float(np.mean(np.abs(s[both] - self.ref_sync[both]))) if both.any() else math.nan,
+            )
         return out
 
-    # ------------------------------------------------------------------------------------------- sweeps
-    def params(self, integrator: str, precision: str) -> list[float]:
-        """The tolerances (``adaptive``) or steps [s] of ``integrator`` in ``precision``; symplectic-euler's steps
-        stay below 0.9 × its stability limit, which is always one of them."""
-        a = self.args
-        if integrator == "adaptive":
-            return (TOL_QUICK if a.quick else TOL_FULL)[precision]
-        if integrator == "symplectic-euler":
-            lim = stable_step(model_at_rest(self.scene, self.dev, precision)[0]).explicit
-            base = a.explicit_steps or (EXPLICIT_QUICK if a.quick else EXPLICIT_FULL)
-            return sorted({0.9 * lim, *[h for h in base if h < 0.9 * lim]}, reverse=True)
-        return a.steps or (STEPS_QUICK if a.quick else STEPS_FULL)
+    def long_errors(self, mu: np.ndarray, v: np.ndarray) -> dict[str, float]:
+        """Statistics errors of a statistics-window run against the long reference."""
+        return stat_errors(statistics(mu, v, self.slip, self.fmin_long), self.long_ref)
 
-    def measure_one(self, integ: str, prec: str, p: float) -> dict[str, Any]:
-        """One row: ``integ`` in ``prec`` at step (tolerance for ``adaptive``) ``p``, both windows."""
-        a = self.args
-        kw = {"tol": p} if integ == "adaptive" else {"dt": p}
-        row: dict[str, Any] = {"kind": "aca_warp", "method": integ, "precision": prec, "device": self.dev}
-        row["tolerance" if integ == "adaptive" else "dt_requested"] = p
-        s = self.run(integ, prec, a.t_state, **kw)
-        row["state"] = {
-            "error": self.state_error(s["u"][-1], s["v"][-1]) if s["complete"] else math.nan,
-            "wall_s": s["wall_s"],
-            "steps": s["steps"],
-            "rejected": s["rejected"],
-        }
-        row["dt"] = s["dt"]
-        row["compile_s"] = s["compile_s"]
-        lg = self.run(integ, prec, a.t_long, **kw)
-        errs = self.long_errors(lg["mu"], lg["v"]) if lg["complete"] else {}
-        row["long"] = {
-            "wall_s": lg["wall_s"],
-            "steps": lg["steps"],
-            "rejected": lg["rejected"],
-            "complete": lg["complete"],
-            "fault": lg["fault"],
-            **errs,
-        }
-        self.log(
-            f"{integ:17s} {prec} {'tol' if integ == 'adaptive' else 'dt'} {p:.3g}: state "
-            f"{row['state']['error']:.2e} in {s['wall_s']:.3g} s; μ {errs.get('mu', math.nan):.2e}, "
-            f"peak f {errs.get('peak_f', math.nan):.1e} in {lg['wall_s']:.3g} s ({lg['steps']} steps)"
-        )
-        return row
+    # ------------------------------------------------------------------------------------------- our runs
+    def params(self, integrator: str, precision: str) -> tuple[list[float], list[float]]:
+        """(pointwise, statistics-window) tolerances (``adaptive``) or steps [s] of ``integrator``."""
+        from aca_warp.hf.solver import stable_step
+
+        a, q = self.args, bool(self.args.quick)
+        long = {"adaptive": LONG_TOLS[q], "strang": LONG_STEPS[q]}.get(integrator, ()) if self.long else ()
+        if integrator == "adaptive":
+            return list(a.tolerances or TOLS[q]), list(long)
+        if integrator == "symplectic-euler":
+            s = self.start
+            lim = stable_step(model_from_state(s.scene, "cpu", precision, s.u, s.v, s.arrays)[0]).explicit
+            return sorted({0.9 * lim, *[h for h in EXPLICIT_STEPS if h < 0.9 * lim]}, reverse=True), []
+        return list(a.steps or self.spec.steps[q]), list(long)
 
     def ours(self) -> None:
-        """Every --integrators × --precisions × step (or tolerance)."""
+        """Every --integrators × --precisions × its steps or tolerances (pointwise and statistics windows)."""
         for integ in self.args.integrators:
             for prec in self.args.precisions:
-                for p in self.params(integ, prec):
-                    self.rows.append(self.measure_one(integ, prec, p))
+                point, long = self.params(integ, prec)
+                order = sorted(set(point) | set(long), reverse=True)
+                for p in order:
+                    self.rows.append(self.measure_one(integ, prec, p, window=p in point, long=p in long))
 
+    def measure_one(self, integ: str, prec: str, p: float, *, window: bool, long: bool) -> dict[str, Any]:
+        """One row: ``integ`` in ``prec`` at step (tolerance for ``adaptive``) ``p`` over the windows asked for."""
+        kw = {"tol": p} if integ == "adaptive" else {"dt": p}
+        row: dict[str, Any] = {"kind": "aca_warp", "method": integ, "precision": prec, "device": self.args.device}
+        row["tolerance" if integ == "adaptive" else "dt_requested"] = p
+        msg = []
+        for block, n, on in (("window", self.n, window), ("long", self.n_long, long)):
+            if not on:
+                continue
+            r = self.run(integ, prec, n, **kw)
+            row.update(dt=r["dt"], compile_s=r["compile_s"])
+            b = {k: r[k] for k in ("wall_s", "steps", "rejected", "complete", "fault")}
+            if r["complete"]:
+                b.update(
+                    self.window_errors(r["mu"], r["u"], r["v"])
+                    if block == "window"
+                    else self.long_errors(r["mu"], r["v"])
+                )
+            row[block] = b
+            err = (
+                f"μ {b.get('mu', math.nan):.2e}" if block == "window" else f"spectrum {b.get('spectrum', math.nan):.2e}"
+            )
+            msg.append(f"{block} {err} in {b['wall_s']:.3g} s ({b['steps']} steps)")
+        self.log(f"{integ} {prec} {'tol' if integ == 'adaptive' else 'dt'} {p:.3g}: " + "; ".join(msg))
+        return row
+
+    # ------------------------------------------------------------------------------------------- SciPy
     def scipy(self) -> None:
-        """Every --scipy-methods at its rtols (two with --quick)."""
+        """Every --scipy-methods at its rtols over the pointwise window; DOP853 at 1e-8 over the statistics one."""
         a = self.args
-        cap = a.scipy_cap
+        table = SCIPY_RTOL_QUICK if a.quick else SCIPY_RTOL
         for method in a.scipy_methods:
-            rtols = SCIPY_RTOL.get(method, SCIPY_RTOL_IMPLICIT)
-            if a.quick:
-                rtols = rtols[:2]
-            for rtol in rtols:
+            point = list(a.scipy_rtols or table.get(method, (1e-6,)))
+            long = [LONG_SCIPY[1]] if self.long and method == LONG_SCIPY[0] else []
+            for rtol in sorted(set(point) | set(long), reverse=True):
                 row = {"kind": "scipy", "method": f"scipy-{method}", "precision": "fp64", "rtol": rtol}
                 row["device"] = "host CPU (NumPy/SciPy)"
-                row["state"] = self._scipy_window(method, rtol, self.n_state, cap, long=False)
-                row["long"] = self._scipy_window(method, rtol, self.n_long, cap, long=True)
+                if rtol in point:
+                    row["window"] = self._scipy(method, rtol, self.n, a.scipy_cap, long=False)
+                if rtol in long:
+                    row["long"] = self._scipy(method, rtol, self.n_long, a.scipy_cap_long, long=True)
                 self.rows.append(row)
-                self.log(
-                    f"scipy {method:6s} rtol {rtol:.0e}: state {row['state']['error']:.2e} in "
-                    f"{row['state']['wall_s']:.3g} s{' (extrapolated)' if row['state']['extrapolated'] else ''}; "
-                    f"μ {row['long'].get('mu', math.nan):.2e} in {row['long']['wall_s']:.3g} s"
-                    f"{' (extrapolated)' if row['long']['extrapolated'] else ''}"
-                )
+                self.log(f"scipy {method} rtol {rtol:.0e}: " + "; ".join(
+                    f"{b} {row[b].get('mu', row[b].get('spectrum', math.nan)):.2e} in {row[b]['wall_s']:.3g} s"
+                    f"{' (extrapolated)' if row[b].get('extrapolated') else ''}" for b in ("window", "long") if b in row
+                ))  # fmt: skip
 
-    def _scipy_window(self, method: str, rtol: float, n: int, cap: float, *, long: bool) -> dict:
-        """Run on n samples if a tenth of it (timed first) extrapolates to ≤ cap seconds, else extrapolate."""
+    def _scipy(self, method: str, rtol: float, n: int, cap: float, *, long: bool) -> dict[str, Any]:
+        """Run n samples if its first tenth (timed first) extrapolates to ≤ ``cap`` s; else report that tenth,
+        extrapolated (statistics windows: no errors then)."""
+        s = self.start
         short = max(1, n // 10)
-        times = np.arange(short + 1) * SAMPLE_DT
+        out: dict[str, Any] = {"extrapolated": True}
         try:
-            sol = self.ode.solve(times, method=method, rtol=rtol, u0=self.u0, v0=self.v0)
-        except RuntimeError as e:
-            return {"error": math.nan, "wall_s": math.nan, "extrapolated": False, "failed": str(e)}
-        out: dict = {"extrapolated": True, "window_s": short * SAMPLE_DT, "nfev": sol.nfev, "njev": sol.njev}
-        if sol.wall_time * n / short <= cap:
-            sol = self.ode.solve(np.arange(n + 1) * SAMPLE_DT, method=method, rtol=rtol, u0=self.u0, v0=self.v0)
-            out.update({"extrapolated": False, "window_s": n * SAMPLE_DT, "nfev": sol.nfev, "njev": sol.njev})
-            out["wall_s"] = sol.wall_time
-        else:
-            out["wall_s"] = sol.wall_time * n / short
-            out["measured_wall_s"] = sol.wall_time
+            with deadline(self.ode, cap):  # a tenth that alone takes longer than the cap is given up
+                sol = self.ode.solve(np.arange(short + 1) * SAMPLE_DT, method=method, rtol=rtol, u0=s.u, v0=s.v)
+            if sol.wall_time * n / short <= cap:
+                sol = self.ode.solve(np.arange(n + 1) * SAMPLE_DT, method=method, rtol=rtol, u0=s.u, v0=s.v)
+                out["extrapolated"] = False
+        except (RuntimeError, Overrun) as e:
+            return {"wall_s": math.nan, "extrapolated": False, "complete": False, "fault": str(e)}
+        k = len(sol.t) - 1
+        out.update(window_s=k * SAMPLE_DT, nfev=sol.nfev, njev=sol.njev, complete=True)
+        out["wall_s"] = sol.wall_time * (n / k if out["extrapolated"] else 1.0)
         mu = self.ode.globals(sol.u, sol.v)["mu"]
-        if long and not out["extrapolated"]:
+        if not long:
+            out.update(self.window_errors(mu, sol.u, sol.v))
+        elif not out["extrapolated"]:
             out.update(self.long_errors(mu, sol.v))
-        elif long:  # error over the shorter window only
-            out["mu"] = float(np.max(np.abs(mu - self.ref["mu"][: len(mu)])))
-        else:
-            ref_u, ref_v = self.ref_state.u[len(mu) - 1], self.ref_state.v[len(mu) - 1]
-            err = max(
-                np.max(np.abs(sol.u[-1] - ref_u)) / np.max(np.abs(ref_u)),
-                np.max(np.abs(sol.v[-1] - ref_v)) / np.max(np.abs(ref_v)),
-            )
-            out["error"] = float(err)
-        out.setdefault("error", out.get("mu", math.nan) if long else math.nan)
         return out
+
+
+# ----------------------------------------------------------------------------------------------- the study
 
 
 def measure(args: argparse.Namespace, argv: list[str]) -> Path:
@@ -371,26 +481,23 @@ def measure(args: argparse.Namespace, argv: list[str]) -> Path:
     t0 = time.perf_counter()
     results = []
     for name in args.scenes:
-        st = Study(name, args)
-        st.references()
+        start = start_state(name, args, lambda m: print(m, flush=True))
+        st = Study(name, start, args)
+        st.reference()
+        st.long_reference()
         if "ours" in args.parts:
             st.ours()
         if "scipy" in args.parts:
             st.scipy()
-        results.append({**st.info, "rows": st.rows, "patches": st.scene.patches.count})
+        results.append({**st.info, "rows": st.rows, "wall_s": time.perf_counter() - t0})
     doc = {
         "machine": machine(dev),
-        "versions": {
-            "warp": wp.__version__,
-            "numpy": np.__version__,
-            "scipy": scipy.__version__,
-            "python": sys.version.split()[0],
-        },
-        "quick": args.quick,
-        "t_state_s": args.t_state,
-        "t_long_s": args.t_long,
+        "versions": {"warp": wp.__version__, "numpy": np.__version__, "scipy": scipy.__version__},
+        "python": sys.version.split()[0],
+        "quick": bool(args.quick),
         "sample_dt_s": SAMPLE_DT,
         "fmin_hz": args.fmin,
+        "defaults": {"integrator": DEFAULT_INTEGRATOR, "dt": DEFAULT_DT, "tolerance": DEFAULT_TOLERANCE},
         "scenes": results,
         "total_wall_s": time.perf_counter() - t0,
         "command": command_line("work_precision.py", argv),
@@ -403,168 +510,6 @@ def measure(args: argparse.Namespace, argv: list[str]) -> Path:
     return path
 
 
-# ----------------------------------------------------------------------------------------------- report
-
-
-def _fmt_s(x: float) -> str:
-    return f"{x * 1e3:g} ms" if x >= 1e-3 else f"{x * 1e6:g} µs"
-
-
-def _device_tag(doc: dict) -> str:
-    return re.sub(r"[^A-Za-z0-9]+", "", doc["machine"]["device"]) + ("_quick" if doc.get("quick") else "")
-
-
-def load_results(paths: list[str]) -> list[tuple[dict, dict]]:
-    """(document, scene block) pairs of several result JSONs; for a repeated (device, scene) the last file wins."""
-    import json
-
-    out: dict[tuple[str, str], tuple[dict, dict]] = {}
-    for p in paths:
-        doc = json.loads(Path(p).read_text())
-        for sc in doc["scenes"]:
-            out[(_device_tag(doc), sc["scene"])] = (doc, sc)  # a later file replaces the same device and scene
-    return list(out.values())
-
-
-def _draw_measure(ax: Any, sc: dict, meas: str, colours: dict[str, str], title: str) -> None:
-    """Error of ``meas`` against wall time, a line per (method, precision)."""
-    block = "state" if meas == "state" else "long"
-    groups: dict[tuple[str, str], list] = {}
-    for r in sc["rows"]:
-        b = r[block]
-        err = b.get("error") if meas == "state" else b.get(meas)
-        if err is None or not np.isfinite(err) or not np.isfinite(b.get("wall_s", np.nan)):
-            continue
-        groups.setdefault((r["method"], r["precision"]), []).append(
-            (b["wall_s"], max(err, 1e-16), b.get("extrapolated", False))
-        )
-    for (m, prec), pts in sorted(groups.items()):
-        pts.sort()
-        w, e, x = (np.array(z) for z in zip(*pts, strict=True))
-        ax.plot(
-            w,
-            e,
-            "-" if prec == "fp64" else "--",
-            color=colours.get(m, "k"),
-            marker="o" if m.startswith("scipy") else "s",
-            ms=4,
-            mfc="none" if x.any() else colours.get(m, "k"),
-            label=f"{m} {prec}" if not m.startswith("scipy") else f"{m}",
-        )
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("wall time [s]")
-    ax.set_ylabel("error")
-    ax.set_title(title, fontsize=9)
-    ax.grid(True, which="both", alpha=0.3)
-
-
-def plot(doc: dict, sc: dict, figdir: Path) -> str:
-    """One figure per (device, scene): a panel per error measure; returns the file stem."""
-    stem = f"wp_{sc['scene']}_{_device_tag(doc)}"
-    fig = figure(figsize=(15, 8.5))
-    axes = fig.subplots(2, 3)
-    colours = {m: f"C{i}" for i, m in enumerate([*INTEGRATORS, *(f"scipy-{s}" for s in SCIPY_METHODS)])}
-    windows = {"t_state": _fmt_s(doc["t_state_s"]), "t_long": _fmt_s(doc["t_long_s"])}
-    for ax, meas in zip(axes.flat, MEASURES, strict=False):
-        _draw_measure(ax, sc, meas, colours, MEASURE_LABELS[meas].format(**windows))
-    h, labels = axes.flat[0].get_legend_handles_labels()
-    axes.flat[5].axis("off")
-    axes.flat[5].legend(h, labels, loc="center", fontsize=8, ncol=1)
-    lr = sc["long_reference"]
-    v = doc["versions"]
-    fig.suptitle(
-        f"Work-precision, {sc['scene']} ({sc['patches']} patches, ω = {sc['angular_velocity']:.4g} rad/s) on "
-        f"{doc['machine']['device_name']}\nWarp {v['warp']}, NumPy {v['numpy']}, SciPy {v['scipy']}. References: "
-        f"state — SciPy DOP853 rtol {sc['scipy_reference']['rtol']:g}; μ, spectra — fp64 strang dt "
-        f"{lr['dt'][-1]:.3g} s (Richardson order {lr['richardson_mu']['order']:.2f}, est. error "
-        f"{lr['richardson_mu']['error_estimate']:.1e}). Solid fp64, dashed fp32; hollow: SciPy time extrapolated.",
-        fontsize=9,
-    )
-    fig.tight_layout(rect=(0, 0, 1, 0.93))
-    save_figure(fig, figdir, stem)
-    return stem
-
-
-def table(doc: dict, sc: dict) -> list[str]:
-    """The markdown table of a scene's rows: step or tolerance, every error, wall times, steps."""
-    rows = []
-    for r in sc["rows"]:
-        s, lg = r["state"], r["long"]
-        par = (
-            f"tol {r['tolerance']:.0e}"
-            if "tolerance" in r
-            else (f"rtol {r['rtol']:.0e}" if "rtol" in r else f"{r['dt']:.3g}")
-        )
-        xs = " (extrap.)" if s.get("extrapolated") else ""
-        xl = " (extrap.)" if lg.get("extrapolated") else ""
-        steps = lg.get("steps", lg.get("nfev", ""))
-        if r["kind"] == "scipy":
-            steps = f"{lg.get('nfev', '')} f-evals"
-        elif lg.get("rejected"):
-            steps = f"{steps} (+{lg['rejected']} rej.)"
-        rows.append(
-            [
-                r["method"],
-                r["precision"],
-                par,
-                fmt(s.get("error"), ".1e"),
-                f"{s['wall_s']:.3g}{xs}",
-                *(fmt(lg.get(k), ".1e") for k in ("mu", "peak_f", "peak_a", "sync")),
-                f"{lg['wall_s']:.3g}{xl}",
-                steps,
-            ]
-        )
-    header = ["method", "precision", "dt [s] / rtol, tol", "state err", "wall [s]", "μ err", "peak f err"]
-    header += ["peak A err", "S err", "wall [s]", "steps"]
-    return md_table(header, rows)
-
-
-def _scene_section(doc: dict, sc: dict, figdir: Path, stem: str) -> list[str]:
-    """A scene on a device: figure, caption, the references and their checks, sticking, the table."""
-    lr, sr = sc["long_reference"], sc["scipy_reference"]
-    rm, rs = lr["richardson_mu"], lr["richardson_final_state"]
-    st = lr["stick"]
-    rel = Path("figures") / figdir.name / f"{stem}.png"
-    v = doc["versions"]
-    first_stick = f"{st['first_stick_s'] * 1e6:.0f} µs." if np.isfinite(st["first_stick_s"]) else "never."
-    return [
-        f"### {sc['scene']} on {doc['machine']['device_name']}{' (--quick)' if doc.get('quick') else ''}",
-        "",
-        f"![work-precision {sc['scene']}]({rel.as_posix()})",
-        "",
-        f"*{sc['scene']}, {sc['patches']} patches, ω = {sc['angular_velocity']:.4g} rad/s; "
-        f"{doc['machine']['device_name']}; Warp {v['warp']}, SciPy {v['scipy']}; "
-        f"windows {_fmt_s(doc['t_state_s'])} "
-        f"(state) and {_fmt_s(doc['t_long_s'])} (μ, spectra), samples every {_fmt_s(doc['sample_dt_s'])}. "
-        f"PDF: `{(Path('figures') / figdir.name / f'{stem}.pdf').as_posix()}`.*",
-        "",
-        f"References: SciPy DOP853 at rtol {sr['rtol']:g} ({sr['wall_s']:.3g} s; rtol ×100 differs by "
-        f"{sr['self_check_rtol_x100']:.1e}); fp64 strang at dt = {', '.join(f'{h:.3g}' for h in lr['dt'])} s: "
-        f"Richardson order of μ(t) {rm['order']:.2f} (over the first {_fmt_s(doc['t_state_s'])}: "
-        f"{lr['richardson_mu_first_window']['order']:.2f}), "
-        f"estimated μ error of the reference {rm['error_estimate']:.1e}; "
-        f"final state order {rs['order']:.2f}. "
-        f"The finest strang run against DOP853 over {_fmt_s(doc['t_state_s'])}: "
-        f"μ {lr['vs_scipy_mu_first_window']:.1e}, state {lr['vs_scipy_state']:.1e}. Reference spectral peak "
-        f"{lr['peak_hz'] / 1e3:.2f} kHz, amplitude {lr['peak_amplitude']:.3g} (of mean μ {lr['mu_mean']:.4f}). "
-        f"Sticking (|ωr − u̇| < {st['threshold_m_s']:g} m/s): at most {100 * st['max_fraction']:.2f} % of the "
-        f"patches at once, {100 * st['patches_ever_stuck']:.1f} % at some time, first at " + first_stick,
-        "",
-        *table(doc, sc),
-        "",
-    ]
-
-
-def report(paths: list[str], page: Path, figdir: Path) -> None:
-    """Figures for every (device, scene) of the result JSONs and the generated part of ``page``."""
-    lines = [""]
-    for doc, sc in load_results(paths):
-        lines += _scene_section(doc, sc, figdir, plot(doc, sc, figdir))
-    replace_generated(page, lines, (BEGIN, END), "Work-precision")
-    print(f"wrote {page} and figures in {figdir}")
-
-
 # ----------------------------------------------------------------------------------------------- command line
 
 
@@ -574,21 +519,25 @@ def build_parser() -> argparse.ArgumentParser:
         description=__doc__.split("As a library:")[0].rstrip(), formatter_class=argparse.RawDescriptionHelpFormatter
     )
     add_device(ap)
-    ap.add_argument("--quick", action="store_true", help="short windows, fewer steps (CPU: a few minutes)")
-    ap.add_argument("--out", default="wp_results", help="folder of the result JSON")
+    ap.add_argument("--quick", action="store_true", help=f"{QUICK_PATCHES}-patch sectors, short windows, fewer points")
+    ap.add_argument("--out", default="wp_results", help="folder of the result JSON and the cached start states")
     ap.add_argument("--scenes", nargs="+", default=list(SCENES), choices=SCENES)
-    ap.add_argument("--integrators", nargs="+", default=list(INTEGRATORS), choices=INTEGRATORS)
-    ap.add_argument("--precisions", nargs="+", default=["fp64", "fp32"], choices=["fp64", "fp32"])
+    ap.add_argument("--patches", type=int, help=f"patches per pad (a sector; default all, --quick {QUICK_PATCHES})")
+    ap.add_argument("--integrators", nargs="+", default=["adaptive", "strang"], choices=INTEGRATORS)
+    ap.add_argument("--precisions", nargs="+", default=["fp64"], choices=["fp64", "fp32"])
     ap.add_argument("--parts", nargs="+", default=["ours", "scipy"], choices=["ours", "scipy"])
-    ap.add_argument("--scipy-methods", nargs="+", default=list(SCIPY_METHODS), choices=SCIPY_METHODS)
-    ap.add_argument("--steps", nargs="+", type=float, help="fixed steps of strang/implicit-friction [s]")
-    ap.add_argument("--explicit-steps", nargs="+", type=float, help="steps of symplectic-euler [s] (+0.9×limit)")
-    ap.add_argument("--t-state", type=float, default=1e-4, help="window of the final-state error [s]")
-    ap.add_argument("--t-long", type=float, help="window of μ(t) and the spectra [s] (1e-3; --quick 2e-4)")
-    ap.add_argument("--ref-dt", type=float, help="finest step of the strang reference [s] (2.5e-9; cuda 1.25e-9)")
-    ap.add_argument("--ref-rtol", type=float, default=1e-10, help="rtol of the SciPy DOP853 reference")
+    ap.add_argument("--scipy-methods", nargs="+", default=["DOP853", "Radau"], choices=SCIPY_METHODS)
+    ap.add_argument("--scipy-rtols", nargs="+", type=float, help="rtols of every SciPy method (default per method)")
+    ap.add_argument("--tolerances", nargs="+", type=float, help="tolerances of adaptive (default 1e-2 … 1e-7)")
+    ap.add_argument("--steps", nargs="+", type=float, help="steps of strang/implicit-friction [s] (default per scene)")
+    ap.add_argument("--window", type=float, help="pointwise window [s] (default per scene)")
+    ap.add_argument("--long-window", type=float, help="statistics window of the saturated scenes [s]")
+    ap.add_argument("--no-long", action="store_true", help="no statistics windows")
+    ap.add_argument("--ref-rtol", type=float, default=1e-11, help="rtol of the SciPy DOP853 reference")
+    ap.add_argument("--long-ref-dt", type=float, help="step of the strang statistics reference [s] (2.5e-9)")
     ap.add_argument("--fmin", type=float, default=5e3, help="lower edge of the spectral band [Hz]")
-    ap.add_argument("--scipy-cap", type=float, help="SciPy runs longer than this are extrapolated [s] (20; quick 5)")
+    ap.add_argument("--scipy-cap", type=float, help="SciPy runs longer than this are extrapolated [s] (30; quick 5)")
+    ap.add_argument("--scipy-cap-long", type=float, help="the same for the statistics window [s] (60; quick 10)")
     ap.add_argument("--report", nargs="+", metavar="JSON", help="make figures and the docs page from result JSONs")
     add_page_options(ap, "docs/work_precision.md", "docs/figures/work_precision")
     return ap
@@ -601,13 +550,17 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)
     if args.report:
+        from aca_warp.studies.work_precision_report import report
+
         report(args.report, Path(args.page), Path(args.figures))
         return 0
-    args.t_long = args.t_long or (2e-4 if args.quick else 1e-3)
-    args.ref_dt = args.ref_dt or (1.25e-9 if args.device.startswith("cuda") else 2.5e-9)
-    args.scipy_cap = args.scipy_cap or (5.0 if args.quick else 20.0)
+    if args.quick and args.patches is None:
+        args.patches = QUICK_PATCHES
+    args.long_ref_dt = args.long_ref_dt or 2.5e-9
+    args.scipy_cap = args.scipy_cap or (5.0 if args.quick else 30.0)
+    args.scipy_cap_long = args.scipy_cap_long or (10.0 if args.quick else 60.0)
     init_warp()
-    print(f"default integrator {DEFAULT_INTEGRATOR}, dt {DEFAULT_DT:g} s", flush=True)
+    print(f"default integrator {DEFAULT_INTEGRATOR}, dt {DEFAULT_DT:g} s, tolerance {DEFAULT_TOLERANCE:g}", flush=True)
     measure(args, argv)
     return 0
 
