@@ -376,6 +376,55 @@ def plot_global(path: str | Path, outdir: str | Path) -> list[Path]:
 # ------------------------------------------------------------------------------------------- spectra
 
 
+_SPECTRA_COLOURS = dict(
+    zip(report.GLOBAL_OUTPUTS, ("k", "tab:orange", "tab:green", "tab:purple", "tab:blue", "tab:brown"), strict=True)
+)
+"""Colour of each global output's spectrum in :func:`plot_spectra`."""
+
+
+def _physical_spectra(ax: Any, spec: Group, phys: list[str], keep: np.ndarray, patch: Group | None) -> None:
+    """The lower panel of :func:`plot_spectra`: the spectra ``phys`` kept in physical units (bins ``keep``) and,
+    when given, the mean per-patch velocity spectrum of ``patch``."""
+    freq = spec["freq"]
+    for name in phys:
+        f, a = _log_max(freq[keep], spec[name][keep])
+        unit = _unit(spec.meta(name).get("unit", "?"))
+        ax.loglog(f / 1e3, a, lw=0.7, color=_SPECTRA_COLOURS[name], label=f"{report.LABELS[name]} [{unit}]")
+    if patch is not None:
+        pf = patch["freq"]
+        pk = report.shown_bins(pf)
+        f, a = _log_max(pf[pk], patch["mean_amplitude"][pk])
+        ax.loglog(f / 1e3, a, lw=0.7, color="tab:red", label="mean per-patch |X_i(f)| of u̇_i [m/s]")
+    ax.set_ylabel("amplitude [m/s]" if all(spec.meta(k).get("unit") == "m s-1" for k in phys) else "amplitude")
+    ax.legend(fontsize=7)
+
+
+def _mark_velocity_peak(axes: Any, peaks: Group) -> str:
+    """A dotted line at the first velocity-spectrum peak on every panel, its frequency on the top one; the
+    caption's sentence about it ("" without a peak)."""
+    fp = peaks.attrs.get("first_velocity_peak_frequency")
+    if fp is None:
+        return ""
+    for ax in axes:
+        ax.axvline(fp / 1e3, color="tab:red", lw=0.8, ls=":")
+    axes[0].annotate(
+        f"{fp / 1e3:.4g} kHz",
+        (fp / 1e3, 1.0),
+        xycoords=("data", "axes fraction"),
+        fontsize=7,
+        color="tab:red",
+        ha="left",
+        va="top",
+        xytext=(3, -3),
+        textcoords="offset points",
+    )
+    return (
+        f" Dotted red: first velocity-spectrum peak, {fp / 1e3:.4g} kHz "
+        f"(largest peak above {peaks.attrs['band'][0] / 1e3:.3g} kHz of the "
+        f"{peaks.attrs.get('first_velocity_peak_source', '?').split(' (')[0]})."
+    )
+
+
 def plot_spectra(path: str | Path, outdir: str | Path) -> list[Path]:
     """Amplitude spectra of every global output on a log frequency axis [kHz], f < 10 Hz dropped (Fig. 8).
 
@@ -394,53 +443,17 @@ def plot_spectra(path: str | Path, outdir: str | Path) -> list[Path]:
         lower = bool(phys) or patch is not None
         fig = _figure(6.4 if lower else 4.2)
         axes = fig.subplots(2 if lower else 1, 1, sharex=True, squeeze=False)[:, 0]
-        colours = dict(
-            zip(
-                report.GLOBAL_OUTPUTS,
-                ("k", "tab:orange", "tab:green", "tab:purple", "tab:blue", "tab:brown"),
-                strict=True,
-            )
-        )
         styles = {"mu": "-", "torque": "--"}
         for name in norm:
             f, a = _log_max(freq[keep], spec[name][keep])
-            axes[0].loglog(f / 1e3, a, lw=0.7, color=colours[name], ls=styles.get(name, "-"), label=report.LABELS[name])
+            axes[0].loglog(
+                f / 1e3, a, lw=0.7, color=_SPECTRA_COLOURS[name], ls=styles.get(name, "-"), label=report.LABELS[name]
+            )
         axes[0].set_ylabel("amplitude / |mean| [1]")
         axes[0].legend(fontsize=7, ncols=2)
         if lower:
-            ax = axes[1]
-            for name in phys:
-                f, a = _log_max(freq[keep], spec[name][keep])
-                unit = _unit(spec.meta(name).get("unit", "?"))
-                ax.loglog(f / 1e3, a, lw=0.7, color=colours[name], label=f"{report.LABELS[name]} [{unit}]")
-            if patch is not None:
-                pf = patch["freq"]
-                pk = report.shown_bins(pf)
-                f, a = _log_max(pf[pk], patch["mean_amplitude"][pk])
-                ax.loglog(f / 1e3, a, lw=0.7, color="tab:red", label="mean per-patch |X_i(f)| of u̇_i [m/s]")
-            ax.set_ylabel("amplitude [m/s]" if all(spec.meta(k).get("unit") == "m s-1" for k in phys) else "amplitude")
-            ax.legend(fontsize=7)
-        fp = peaks.attrs.get("first_velocity_peak_frequency")
-        peak_text = ""
-        if fp is not None:
-            for ax in axes:
-                ax.axvline(fp / 1e3, color="tab:red", lw=0.8, ls=":")
-            axes[0].annotate(
-                f"{fp / 1e3:.4g} kHz",
-                (fp / 1e3, 1.0),
-                xycoords=("data", "axes fraction"),
-                fontsize=7,
-                color="tab:red",
-                ha="left",
-                va="top",
-                xytext=(3, -3),
-                textcoords="offset points",
-            )
-            peak_text = (
-                f" Dotted red: first velocity-spectrum peak, {fp / 1e3:.4g} kHz "
-                f"(largest peak above {peaks.attrs['band'][0] / 1e3:.3g} kHz of the "
-                f"{peaks.attrs.get('first_velocity_peak_source', '?').split(' (')[0]})."
-            )
+            _physical_spectra(axes[1], spec, phys, keep, patch)
+        peak_text = _mark_velocity_peak(axes, peaks)
         for ax in axes:
             ax.grid(True, which="major", lw=0.3, alpha=0.5)
             ax.tick_params(labelsize=7, which="both")
@@ -633,6 +646,37 @@ def _stderr(message: str) -> None:
     print(message, file=sys.stderr)
 
 
+def _hf_figure_names(path: str | Path, which: Sequence[str] | None) -> list[str]:
+    """The HF figures :func:`plot_run` makes, in order, without repeats; :class:`SceneError` for an LF figure name
+    or an unknown one."""
+    names = list(FIGURES if which is None else dict.fromkeys(which))
+    lf_names = [n for n in names if n in plots_lf.LF_FIGURES]
+    if lf_names:
+        raise SceneError(
+            f"{', '.join(lf_names)}: LF figures need an LF run file (aca-warp lf); {Path(path).name} is not one"
+        )
+    unknown = [n for n in names if n not in FIGURES]
+    if unknown:
+        raise SceneError(f"unknown figure(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
+    return names
+
+
+def _absent_figures(path: str | Path, names: list[str], which: Sequence[str] | None) -> list[str]:
+    """The figures of ``names`` whose per-patch velocities the file lacks (``sync`` also counts as present when
+    ``/analysis/sync`` is stored); :class:`SceneError` when ``which`` named one of them."""
+    with _Run(path) as run:
+        patches = has_patch_velocity(run.f)
+        stored_sync = "analysis/sync" in run.f
+    needs = {"patch_map": patches, "animation": patches, "sync": patches or stored_sync}
+    absent = [n for n in names if not needs.get(n, True)]
+    if absent and which is not None:
+        raise SceneError(
+            f"{Path(path).name} holds no per-patch velocities, needed by {', '.join(absent)}; rerun aca-warp hf "
+            "with --record-patches velocity"
+        )
+    return absent
+
+
 def plot_run(
     path: str | Path,
     outdir: str | Path,
@@ -672,25 +716,8 @@ def plot_run(
         )
     if quantity is not None or snapshots is not None:
         raise SceneError(f"{Path(path).name} is not an LF run file: quantity and snapshots apply to LF patch maps")
-    names = list(FIGURES if which is None else dict.fromkeys(which))
-    lf_names = [n for n in names if n in plots_lf.LF_FIGURES]
-    if lf_names:
-        raise SceneError(
-            f"{', '.join(lf_names)}: LF figures need an LF run file (aca-warp lf); {Path(path).name} is not one"
-        )
-    unknown = [n for n in names if n not in FIGURES]
-    if unknown:
-        raise SceneError(f"unknown figure(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
-    with _Run(path) as run:
-        patches = has_patch_velocity(run.f)
-        stored_sync = "analysis/sync" in run.f
-    needs = {"patch_map": patches, "animation": patches, "sync": patches or stored_sync}
-    absent = [n for n in names if not needs.get(n, True)]
-    if absent and which is not None:
-        raise SceneError(
-            f"{Path(path).name} holds no per-patch velocities, needed by {', '.join(absent)}; rerun aca-warp hf "
-            "with --record-patches velocity"
-        )
+    names = _hf_figure_names(path, which)
+    absent = _absent_figures(path, names, which)
     makers: dict[str, Callable[[], list[Path]]] = {
         "patch_map": lambda: plot_patch_map(path, outdir, times=times),
         "global": lambda: plot_global(path, outdir),

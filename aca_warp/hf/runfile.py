@@ -3,18 +3,18 @@
 Layout (docs/run_files.md)::
 
     /global/time, mu, torque, friction_radius, sum_velocity, sum_abs_velocity, friction_centroid     (samples,)
-    /patches/x, y, area, height, mass, normal_force                               (patches,)
+    /patches/x, y, area, height, mass, normal_force, predicted_growth_rate        (patches,)
     /patches/time, velocity[, displacement]     per-patch histories, (rows,) and (rows, patches), if recorded
     /patches/final/area, normal_force           after growth, if the scene grows
     /matrix/area, radius, height                the pad matrix cells the run started from (cells,)
     /checkpoint/...                             solver state of a resumable run (aca_warp/common/checkpoint.py)
 
 Root attributes: ``scene`` (JSON), ``integrator``, ``run_options`` (JSON, :class:`~aca_warp.hf.options.RunOptions`),
-``precision``, ``device``,
-``versions`` (JSON), ``stages`` (JSON list), ``stable_step`` (JSON), ``complete`` (bool), ``status``, and for
-a stopped run ``fault``. The file is written as ``NAME.partial`` and renamed to ``NAME`` when the run ends,
-completed or not (then ``complete = False`` and ``status`` says why): the final name never holds a file
-that is half written. A killed process leaves only the ``.partial`` file behind; with checkpoints it holds
+``precision``, ``device``, ``versions`` (JSON), ``stages`` (JSON list), ``stable_step`` (JSON),
+``predicted_growth_rate_min``, ``_median``, ``_max`` [1/s] (absent in files of earlier versions), ``complete``
+(bool), ``status``, and for a stopped run ``fault``. The file is written as ``NAME.partial`` and renamed to ``NAME``
+when the run ends, completed or not (then ``complete = False`` and ``status`` says why): the final name never holds
+a file that is half written. A killed process leaves only the ``.partial`` file behind; with checkpoints it holds
 everything up to the last checkpoint and ``aca-warp hf --resume`` continues it. Neither ``NAME`` nor a leftover
 ``NAME.partial`` is replaced without ``overwrite``.
 
@@ -133,11 +133,27 @@ class RunWriter:
         ):
             self.out.reserve(8 * len(data))
             p.create_dataset(name, data=np.asarray(data, dtype=np.float64)).attrs["unit"] = unit
+        self._write_growth_rate(scene, p)
         mg = f.create_group("matrix")
         for name, unit in (("area", "m2"), ("radius", "m"), ("height", "m")):
             data = np.asarray(getattr(scene.matrix, name), np.float64)
             self.out.reserve(data.nbytes)
             mg.create_dataset(name, data=data).attrs["unit"] = unit
+
+    def _write_growth_rate(self, scene: Scene, p: h5py.Group) -> None:
+        """``/patches/predicted_growth_rate`` σ_i [1/s] and its minimum, median and maximum as root attributes."""
+        from aca_warp.analysis.saturation import scene_growth_rate
+
+        sigma = scene_growth_rate(scene, self.model.contacts[self.pad].patch_force)
+        self.out.reserve(sigma.nbytes)
+        d = p.create_dataset("predicted_growth_rate", data=sigma)
+        d.attrs["unit"] = "s-1"
+        d.attrs["meaning"] = (
+            "growth rate of each isolated patch linearised about steady sliding at the contact forces of the start, "
+            "p_i |f'(omega r_i)| / (2 rho_A) - zeta omega_0,i (docs/analysis.md)"
+        )
+        for stat, value in (("min", sigma.min()), ("median", np.median(sigma)), ("max", sigma.max())):
+            self.f.attrs[f"predicted_growth_rate_{stat}"] = float(value)
 
     @classmethod
     def reopen(
