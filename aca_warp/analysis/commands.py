@@ -191,6 +191,10 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         parts.append("per-patch velocities not read (--no-sync)")
     else:
         parts.append("no per-patch velocities: Synchronization Index skipped")
+    if "saturation" in groups:
+        from aca_warp.analysis.report import saturation_summary
+
+        parts.append(saturation_summary(groups["saturation"]))
     print("; ".join(parts))
     return 0
 
