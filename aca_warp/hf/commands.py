@@ -96,6 +96,13 @@ def add_parsers(sub: Any) -> None:
     hf.add_argument(
         "--snapshot", metavar="NAME", help="SCENE is an LF run file (.h5): run HF on its snapshot NAME (aca-warp lf)"
     )
+    hf.add_argument(
+        "--allow-implausible",
+        action="store_true",
+        help="run values far outside a brake pad's range (pad radius beyond 2 m, patch areas beyond 1e-3 m^2, loads "
+        "beyond 1e6 N, ...), refused otherwise as likely unit mistakes; sets the scene's allow_implausible "
+        "(docs/scenes.md)",
+    )
     hf.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     hf.add_argument("--no-progress", action="store_true", help="no progress bar")
     hf.add_argument(
@@ -136,9 +143,9 @@ def _cmd_hf(args: argparse.Namespace) -> int:
 
         if args.snapshot is None:
             raise SceneError(f"{args.scene} is an LF run file: name a snapshot with --snapshot NAME")
-        scene = scene_from_snapshot(args.scene, args.snapshot)
+        scene = scene_from_snapshot(args.scene, args.snapshot, allow_implausible=args.allow_implausible)
     else:
-        scene = load_scene(args.scene)
+        scene = load_scene(args.scene, allow_implausible=args.allow_implausible)
     rec = scene.record
     changes: dict = {}
     if args.sample_dt is not None:
@@ -149,6 +156,12 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         changes["window"] = tuple(args.patch_window)
     if args.patch_decimation is not None:
         changes["decimation"] = args.patch_decimation
+    if not changes.get("patches", rec.patches) and (args.patch_window or args.patch_decimation):
+        given = "--patch-window" if args.patch_window else "--patch-decimation"
+        raise SceneError(
+            f"{given} applies to per-patch histories, which this run does not record: add --record-patches velocity "
+            "(or velocity,displacement)"
+        )
     duration = args.duration if args.duration is not None else scene.duration
     if changes.get("sample_dt", rec.sample_dt) > duration:
         raise SceneError(
@@ -222,6 +235,7 @@ def _resume_hf(args: argparse.Namespace) -> int:
             ("--precision", args.precision, "fp64"),
             ("--force", args.force, False),
             ("--accept-unphysical", args.accept_unphysical, False),
+            ("--allow-implausible", args.allow_implausible, False),
             ("--overwrite", args.overwrite, False),
             ("--engine", getattr(args, "engine", "auto"), "auto"),
         ),

@@ -23,7 +23,7 @@ import numpy as np
 import warp as wp
 
 from aca_warp.common.checkpoint import Checkpoint
-from aca_warp.common.errors import SceneError, SimulationFault
+from aca_warp.common.errors import SceneError, SimulationFault, option
 from aca_warp.hf.engine import Engine, EngineTuning, Progress
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import RunOptions
@@ -206,7 +206,8 @@ def run_hf(
             if fault is None and not unphysical_seen:
                 fault = mu_fault(chunk.time, chunk.globals[:, :, 0], mu_bound)
                 if fault is not None and options.accept_unphysical:
-                    warn(f"{fault} (accepted: --accept-unphysical; not checked again)")
+                    accepted = option("accept_unphysical=True", "--accept-unphysical")
+                    warn(f"{fault} (accepted: {accepted}; not checked again)")
                     fault, unphysical_seen = None, True
             if fault is not None:
                 chunk = chunk.before(fault.time - 0.5 * record.sample_dt)
