@@ -147,105 +147,150 @@ def run_hf(
     ``options.duration`` None means the first scene's duration. Samples go to ``sink`` (or into the result's
     ``chunks``) at every chunk end. ``progress``: a progress bar on stderr when it is a terminal (none in a log).
     A non-finite value, or a patch beyond the watchdog bound (:func:`~aca_warp.hf.recorder.watchdog_bound`), stops
-    the run: the result carries the fault and every sample
-    before it. With ``options.checkpoint_interval`` and ``on_checkpoint``, the first chunk end at or past each
-    multiple of it hands a :class:`~aca_warp.common.checkpoint.Checkpoint` to ``on_checkpoint``; ``resume`` (a
-    checkpoint of the same scene, options, device and precision) continues from it with the same arithmetic in the
-    same order, so the samples equal an uninterrupted run's bit for bit.
+    the run: the result carries the fault and every sample before it. With ``options.checkpoint_interval`` and
+    ``on_checkpoint``, the first chunk end at or past each multiple of it hands a
+    :class:`~aca_warp.common.checkpoint.Checkpoint` to ``on_checkpoint``; ``resume`` (a checkpoint of the same scene,
+    options, device and precision) continues from it with the same arithmetic in the same order, so the samples
+    equal an uninterrupted run's bit for bit.
     """
     t_compile = time.perf_counter()
-    record = record or model.scenes[0].record
-    duration = model.scenes[0].duration if options.duration is None else options.duration
-    n_samples = check_run(duration, record, options.checkpoint_interval)
-    options = options.with_duration(duration)
-    # the step (as the run takes it), the int32 step counts and the contact solution, checked once here for every
-    # engine; the engines then skip their own check of the step asked for (it is not the step they take)
-    check_step(model, options, record.sample_dt)
-    check_contact(model, accept=options.accept_unphysical)
-    engine_options = dataclasses.replace(options, force=True)
-    engine = make_engine(model, state, engine_options, record, n_samples, tuning or EngineTuning())
-    rec = engine.recorder
-    mu_bound = mu_bounds(model)
-    factor = options.watchdog_factor
-    bounds = np.full(model.pad_count, np.inf) if factor is None else watchdog_bound(model, state, factor)
-    rec.watch_bound.assign(bounds)
-    saved = {
-        "state/u": state.u,
-        "state/v": state.v,
-        "state/force": state.force,
-        "recorder/counters": rec.counters,
-        "watchdog/bound": rec.watch_bound,
-        **engine.saved(),
-    }
-    p = Progress()
-    if resume is not None:
-        restore(saved, resume)
-        c = resume.counters
-        p = Progress(int(c["samples"]), int(c["steps"]), int(c["rejected"]), resume.sim_time)
-        rec.sample_index = int(c["sample_index"])
-        bounds = rec.watch_bound.numpy()
-    engine.begin(None if resume is None else resume.counters)
+    run = _Run(model, state, options, record or model.scenes[0].record, tuning or EngineTuning(), resume)
     compile_time = time.perf_counter() - t_compile
-    bar = _progress_bar(n_samples * record.sample_dt) if progress and sys.stderr.isatty() else None
-    if bar is not None and p.sim_time > 0:
-        bar.update(p.sim_time)
-    interval = options.checkpoint_interval if on_checkpoint is not None else None
-    next_checkpoint = math.inf if interval is None else _next_checkpoint(p.sim_time, interval)
-    out: list[Chunk] = []
-    emit = sink or out.append
-    t0 = time.perf_counter()
-    fault: SimulationFault | None = None
-    last_sample = p.sim_time  # time of the last sample handed to the sink [s]
-    unphysical_seen = False
-    try:
-        while True:
-            most = n_samples if math.isinf(next_checkpoint) else math.ceil(next_checkpoint / record.sample_dt - 1e-9)
-            p = engine.advance(p, max(1, most - p.samples))
-            chunk, table = rec.flush()
-            fault = fault_from(table, model, record.sample_dt, engine.cause, rec.fault_value.numpy(), bounds) or p.fault
-            if fault is None and not unphysical_seen:
-                fault = mu_fault(chunk.time, chunk.globals[:, :, 0], mu_bound)
-                if fault is not None and options.accept_unphysical:
-                    accepted = option("accept_unphysical=True", "--accept-unphysical")
-                    warn(f"{fault} (accepted: {accepted}; not checked again)")
-                    fault, unphysical_seen = None, True
-            if fault is not None:
-                chunk = chunk.before(fault.time - 0.5 * record.sample_dt)
-            emit(chunk)
-            if len(chunk.time):
-                last_sample = float(chunk.time[-1])
+    return run.loop(sink, progress, on_checkpoint, compile_time)
+
+
+class _Run:
+    """One run's engine, recorder, watchdog bounds, checkpointed arrays and progress (:func:`run_hf`)."""
+
+    def __init__(
+        self,
+        model: PadModel,
+        state: HFState,
+        options: RunOptions,
+        record: Record,
+        tuning: EngineTuning,
+        resume: Checkpoint | None,
+    ) -> None:
+        self.model, self.record = model, record
+        duration = model.scenes[0].duration if options.duration is None else options.duration
+        self.n_samples = check_run(duration, record, options.checkpoint_interval)
+        self.options = options = options.with_duration(duration)
+        # the step (as the run takes it), the int32 step counts and the contact solution, checked once here for
+        # every engine; the engines then skip their own check of the step asked for (it is not the step they take)
+        check_step(model, options, record.sample_dt)
+        check_contact(model, accept=options.accept_unphysical)
+        engine_options = dataclasses.replace(options, force=True)
+        self.engine = make_engine(model, state, engine_options, record, self.n_samples, tuning)
+        self.rec = rec = self.engine.recorder
+        self.mu_bound = mu_bounds(model)
+        factor = options.watchdog_factor
+        self.bounds = np.full(model.pad_count, np.inf) if factor is None else watchdog_bound(model, state, factor)
+        rec.watch_bound.assign(self.bounds)
+        self.saved = {
+            "state/u": state.u,
+            "state/v": state.v,
+            "state/force": state.force,
+            "recorder/counters": rec.counters,
+            "watchdog/bound": rec.watch_bound,
+            **self.engine.saved(),
+        }
+        self.p = Progress()
+        if resume is not None:
+            restore(self.saved, resume)
+            c = resume.counters
+            self.p = Progress(int(c["samples"]), int(c["steps"]), int(c["rejected"]), resume.sim_time)
+            rec.sample_index = int(c["sample_index"])
+            self.bounds = rec.watch_bound.numpy()
+        self.engine.begin(None if resume is None else resume.counters)
+        self.last_sample = self.p.sim_time  # time of the last sample handed to the sink [s]
+        self.unphysical_seen = False
+
+    def loop(
+        self,
+        sink: Callable[[Chunk], None] | None,
+        progress: bool,
+        on_checkpoint: Callable[[Checkpoint], None] | None,
+        compile_time: float,
+    ) -> RunResult:
+        """Advance chunk by chunk to the end or a fault: emit samples, show progress, write checkpoints."""
+        engine, record, p = self.engine, self.record, self.p
+        bar = _progress_bar(self.n_samples * record.sample_dt) if progress and sys.stderr.isatty() else None
+        if bar is not None and p.sim_time > 0:
+            bar.update(p.sim_time)
+        interval = self.options.checkpoint_interval if on_checkpoint is not None else None
+        next_checkpoint = math.inf if interval is None else _next_checkpoint(p.sim_time, interval)
+        out: list[Chunk] = []
+        emit = sink or out.append
+        t0 = time.perf_counter()
+        fault: SimulationFault | None = None
+        try:
+            while fault is None and not p.done:
+                most = self.n_samples
+                if not math.isinf(next_checkpoint):
+                    most = math.ceil(next_checkpoint / record.sample_dt - 1e-9)
+                p = self.p = engine.advance(p, max(1, most - p.samples))
+                fault = self._chunk(emit)
+                if bar is not None:
+                    bar.update(p.sim_time - bar.n)
+                    bar.set_postfix_str(f"{p.steps / max(time.perf_counter() - t0, 1e-9):.3g} steps/s")
+                if fault is None and not p.done and p.sim_time >= next_checkpoint * (1 - 1e-12):
+                    on_checkpoint(self._checkpoint())  # type: ignore[misc]
+                    next_checkpoint = _next_checkpoint(p.sim_time, interval)  # type: ignore[arg-type]
+        finally:
             if bar is not None:
-                bar.update(p.sim_time - bar.n)
-                bar.set_postfix_str(f"{p.steps / max(time.perf_counter() - t0, 1e-9):.3g} steps/s")
-            if fault is None and not p.done and p.sim_time >= next_checkpoint * (1 - 1e-12):
-                counters = {"samples": p.samples, "steps": p.steps, "rejected": p.rejected, **engine.counters()}
-                counters["sample_index"] = rec.sample_index
-                arrays = {k: a.numpy().copy() for k, a in saved.items()}
-                on_checkpoint(Checkpoint(sim_time=p.sim_time, arrays=arrays, counters=counters))  # type: ignore[misc]
-                next_checkpoint = _next_checkpoint(p.sim_time, interval)  # type: ignore[arg-type]
-            if fault is not None or p.done:
-                break
-    finally:
-        if bar is not None:
-            bar.close()
-        engine.finish()
-    wp.synchronize_device(model.device)
-    steps, sim_time = p.steps, p.sim_time
-    if fault is not None:  # describe the samples kept, not the chunk the fault was found in
-        sim_time = last_sample
-        if p.samples > 0:  # fixed-step engines: whole steps per sample interval
-            steps = round(last_sample / record.sample_dt) * (p.steps // p.samples)
-    return RunResult(
-        complete=fault is None,
-        fault=fault,
-        steps=steps,
-        rejected=p.rejected,
-        sim_time=sim_time,
-        wall_time=time.perf_counter() - t0 - engine.capture_time,
-        compile_time=compile_time + engine.capture_time,
-        dt=engine.step_used(),
-        estimate=engine.estimate,
-        stages=engine.stages,
-        chunks=out,
-        blocks_per_pad=engine.blocks_per_pad,
-    )
+                bar.close()
+            engine.finish()
+        wp.synchronize_device(self.model.device)
+        return self._result(fault, out, t0, compile_time)
+
+    def _chunk(self, emit: Callable[[Chunk], None]) -> SimulationFault | None:
+        """Flush the recorder, find the first fault (the watchdog's, the engine's, μ beyond its bound) and emit the
+        samples before it; returns the fault or None."""
+        rec, record = self.rec, self.record
+        chunk, table = rec.flush()
+        fault = fault_from(table, self.model, record.sample_dt, self.engine.cause, rec.fault_value.numpy(), self.bounds)
+        fault = fault or self.p.fault
+        if fault is None and not self.unphysical_seen:
+            fault = mu_fault(chunk.time, chunk.globals[:, :, 0], self.mu_bound)
+            if fault is not None and self.options.accept_unphysical:
+                accepted = option("accept_unphysical=True", "--accept-unphysical")
+                warn(f"{fault} (accepted: {accepted}; not checked again)")
+                fault, self.unphysical_seen = None, True
+        if fault is not None:
+            chunk = chunk.before(fault.time - 0.5 * record.sample_dt)
+        emit(chunk)
+        if len(chunk.time):
+            self.last_sample = float(chunk.time[-1])
+        return fault
+
+    def _checkpoint(self) -> Checkpoint:
+        """The run's state now: every checkpointed array and the counters to continue from."""
+        p = self.p
+        counters = {"samples": p.samples, "steps": p.steps, "rejected": p.rejected, **self.engine.counters()}
+        counters["sample_index"] = self.rec.sample_index
+        arrays = {k: a.numpy().copy() for k, a in self.saved.items()}
+        return Checkpoint(sim_time=p.sim_time, arrays=arrays, counters=counters)
+
+    def _result(self, fault: SimulationFault | None, out: list[Chunk], t0: float, compile_time: float) -> RunResult:
+        """The :class:`RunResult`; after a fault, time and steps describe the samples kept, not the chunk the fault
+        was found in."""
+        p, engine = self.p, self.engine
+        steps, sim_time = p.steps, p.sim_time
+        if fault is not None:
+            sim_time = self.last_sample
+            if p.samples > 0:  # whole steps per sample interval (fixed-step engines; the adaptive mean)
+                steps = round(self.last_sample / self.record.sample_dt) * (p.steps // p.samples)
+        return RunResult(
+            complete=fault is None,
+            fault=fault,
+            steps=steps,
+            rejected=p.rejected,
+            sim_time=sim_time,
+            wall_time=time.perf_counter() - t0 - engine.capture_time,
+            compile_time=compile_time + engine.capture_time,
+            dt=engine.step_used(),
+            estimate=engine.estimate,
+            stages=engine.stages,
+            chunks=out,
+            blocks_per_pad=engine.blocks_per_pad,
+        )

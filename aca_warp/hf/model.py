@@ -102,11 +102,59 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
         raise SceneError(f"device {device!r} is not available: {e}") from None
     load_kernels([neighbours_kernels, hf_kernels], dev)
     T = PRECISIONS[precision]
-    npT = np.float32 if T == wp.float32 else np.float64
     counts = np.array([s.patches.count for s in scenes])
     limits.check_int32("the patches of the batch", int(counts.sum()), "run fewer or smaller pads")
     start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
-    pad_of = np.repeat(np.arange(len(scenes), dtype=np.int32), counts)
+    host = _patch_arrays(scenes, counts)
+    x, y, pad_of = host["x"], host["y"], host["patch_pad"]
+    radius = np.array([s.material.coupling_radius for s in scenes])
+    # refuse what int32 offsets or the memory cannot hold before the links are counted (lower bound), then made
+    n, r_max = len(x), float(radius.max())
+    limits.check_model_memory(n, limits.links_lower_bound(x, y, pad_of, radius), dev, r_max, exact=False)
+    contacts = [solve_scene_contact(s) for s in scenes]
+    nbr_start, nbr_index, nbr_inv = build_neighbours(
+        x, y, pad_of, radius, dev, check=lambda links: limits.check_model_memory(n, links, dev, r_max, exact=True)
+    )
+    k_ij = _edge_stiffness(scenes, host["sqrt_area"], pad_of, nbr_start, nbr_index, nbr_inv)
+    rows = np.repeat(np.arange(n), np.diff(nbr_start))
+    host.update(
+        {
+            "pad_patch_start": start,
+            "normal_force": np.concatenate([c.patch_force for c in contacts]),
+            "nbr_start": nbr_start,
+            "nbr_index": nbr_index if len(nbr_index) else np.zeros(1),
+            "nbr_inv_dist": nbr_inv if len(nbr_inv) else np.zeros(1),
+            "nbr_stiffness": k_ij,
+            "k_diag": host["k_t"] + np.bincount(rows, k_ij[: len(nbr_index)], minlength=n),
+        }
+    )
+    host.update(_pad_arrays(scenes, contacts))
+    wide = {"pad_area", "pad_moment", "pad_k_m", "pad_gap"}  # float64 whatever the precision (the growth re-solve)
+    arrays = {k: _device_array(a, _INT32 if k in _INT32_NAMES else wp.float64 if k in wide else T, dev)
+              for k, a in host.items()}  # fmt: skip
+    return PadModel(
+        scenes=list(scenes),
+        device=dev,
+        dtype=T,
+        pad_patch_start_host=start,
+        contacts=contacts,
+        nbr_count=len(nbr_index),
+        arrays=arrays,
+    )
+
+
+_INT32 = wp.int32
+_INT32_NAMES = frozenset({"patch_pad", "pad_patch_start", "nbr_start", "nbr_index"})
+
+
+def _device_array(a: np.ndarray, dtype: Any, device: wp.Device) -> wp.array:
+    """A host array on ``device`` as ``dtype`` (int32, float64 or the state precision)."""
+    np_dtype = {wp.int32: np.int32, wp.float64: np.float64, wp.float32: np.float32}[dtype]
+    return wp.array(np.ascontiguousarray(a, dtype=np_dtype), dtype=dtype, device=device)
+
+
+def _patch_arrays(scenes: list[Scene], counts: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-patch host arrays of a batch: pad index, geometry [m, m²], mass, stiffnesses and damping (SI)."""
     cat = lambda f: np.concatenate([f(s) for s in scenes])  # noqa: E731
     x, y = cat(lambda s: s.patches.x), cat(lambda s: s.patches.y)
     area = cat(lambda s: s.patches.area)
@@ -117,78 +165,52 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
     sq = np.sqrt(area)
     mass = mat["mass_per_area"] * area
     k_t = mat["K_T"] * sq
-    radius = np.array([s.material.coupling_radius for s in scenes])
-    # refuse what int32 offsets or the memory cannot hold before the links are counted (lower bound), then made
-    n, r_max = len(x), float(radius.max())
-    limits.check_model_memory(n, limits.links_lower_bound(x, y, pad_of, radius), dev, r_max, exact=False)
-    contacts = [solve_scene_contact(s) for s in scenes]
-    growth = [s.growth for s in scenes]
-    nbr_start, nbr_index, nbr_inv = build_neighbours(
-        x, y, pad_of, radius, dev, check=lambda links: limits.check_model_memory(n, links, dev, r_max, exact=True)
-    )
-
-    k_ij = _edge_stiffness(scenes, sq, pad_of, nbr_start, nbr_index, nbr_inv)
-
-    def dev_arr(a: np.ndarray, dtype: Any = T) -> wp.array:
-        np_dtype = {wp.int32: np.int32, wp.float64: np.float64}.get(dtype, npT)
-        return wp.array(np.ascontiguousarray(a, dtype=np_dtype), dtype=dtype, device=dev)
-
-    per_pad = lambda f: np.array([f(s) for s in scenes], dtype=np.float64)  # noqa: E731
-    arrays = {
-        "patch_pad": dev_arr(pad_of, wp.int32),
-        "pad_patch_start": dev_arr(start, wp.int32),
-        "area": dev_arr(area),
-        "sqrt_area": dev_arr(sq),
-        "height": dev_arr(cat(lambda s: s.patches.height)),
-        "radius": dev_arr(np.hypot(x, y)),
-        "x": dev_arr(x),
-        "y": dev_arr(y),
-        "inv_mass": dev_arr(1.0 / mass),
-        "k_t": dev_arr(k_t),
-        "k_n": dev_arr(mat["K_N"] * sq),
-        "damping": dev_arr(2.0 * mat["damping_ratio"] * np.sqrt(k_t * mass)),
-        "normal_force": dev_arr(np.concatenate([c.patch_force for c in contacts])),
-        "nbr_start": dev_arr(nbr_start, wp.int32),
-        "nbr_index": dev_arr(nbr_index if len(nbr_index) else np.zeros(1), wp.int32),
-        "nbr_inv_dist": dev_arr(nbr_inv if len(nbr_inv) else np.zeros(1)),
-        "nbr_stiffness": dev_arr(k_ij),
-        "k_diag": dev_arr(
-            k_t
-            + np.bincount(np.repeat(np.arange(len(x)), np.diff(nbr_start)), k_ij[: len(nbr_index)], minlength=len(x))
-        ),
-        "pad_kc": dev_arr(per_pad(lambda s: s.material.K_C)),
-        "pad_omega": dev_arr(per_pad(lambda s: s.angular_velocity)),
-        "pad_mu_scale": dev_arr(per_pad(lambda s: s.friction.M / np.pi)),
-        "pad_slope": dev_arr(per_pad(lambda s: s.friction.slope)),
-        "pad_decay": dev_arr(per_pad(lambda s: s.friction.decay)),
-        "pad_mu_pad": dev_arr(per_pad(lambda s: s.friction.mu_pad)),
-        "pad_load": dev_arr(per_pad(lambda s: s.normal_force)),
-        "pad_matrix_force": dev_arr(np.array([c.matrix_force.sum() for c in contacts])),
-        "pad_matrix_radius": dev_arr(np.array([_matrix_radius(s, c) for s, c in zip(scenes, contacts, strict=True)])),
+    return {
+        "patch_pad": np.repeat(np.arange(len(scenes), dtype=np.int32), counts),
+        "area": area,
+        "sqrt_area": sq,
+        "height": cat(lambda s: s.patches.height),
+        "radius": np.hypot(x, y),
+        "x": x,
+        "y": y,
+        "inv_mass": 1.0 / mass,
+        "k_t": k_t,
+        "k_n": mat["K_N"] * sq,
+        "damping": 2.0 * mat["damping_ratio"] * np.sqrt(k_t * mass),
     }
+
+
+def _pad_arrays(scenes: list[Scene], contacts: list[ContactSolution]) -> dict[str, np.ndarray]:
+    """Per-pad host arrays: coupling, disc, friction law, load and matrix; for growing batches the growth law and
+    the float64 contact terms its re-solve needs."""
+    per_pad = lambda f: np.array([f(s) for s in scenes], dtype=np.float64)  # noqa: E731
+    out = {
+        "pad_kc": per_pad(lambda s: s.material.K_C),
+        "pad_omega": per_pad(lambda s: s.angular_velocity),
+        "pad_mu_scale": per_pad(lambda s: s.friction.M / np.pi),
+        "pad_slope": per_pad(lambda s: s.friction.slope),
+        "pad_decay": per_pad(lambda s: s.friction.decay),
+        "pad_mu_pad": per_pad(lambda s: s.friction.mu_pad),
+        "pad_load": per_pad(lambda s: s.normal_force),
+        "pad_matrix_force": np.array([c.matrix_force.sum() for c in contacts]),
+        "pad_matrix_radius": np.array([_matrix_radius(s, c) for s, c in zip(scenes, contacts, strict=True)]),
+    }
+    growth = [s.growth for s in scenes]
     if any(g is not None for g in growth):
-        arrays.update(
+        out.update(
             {
-                "pad_growth": dev_arr(np.array([g.increment if g else 0.0 for g in growth])),
-                "pad_k_t": dev_arr(per_pad(lambda s: s.material.K_T)),
-                "pad_k_n": dev_arr(per_pad(lambda s: s.material.K_N)),
-                "pad_mass_per_area": dev_arr(per_pad(lambda s: s.material.mass_per_area)),
-                "pad_zeta": dev_arr(per_pad(lambda s: s.material.damping_ratio)),
-                "pad_area": dev_arr(per_pad(lambda s: s.pad.area), wp.float64),
-                "pad_moment": dev_arr(per_pad(lambda s: s.pad.first_moment), wp.float64),
-                "pad_k_m": dev_arr(per_pad(lambda s: s.material.matrix_stiffness), wp.float64),
-                "pad_gap": dev_arr(np.array([c.gap if np.isfinite(c.gap) else 0.0 for c in contacts]), wp.float64),
+                "pad_growth": np.array([g.increment if g else 0.0 for g in growth]),
+                "pad_k_t": per_pad(lambda s: s.material.K_T),
+                "pad_k_n": per_pad(lambda s: s.material.K_N),
+                "pad_mass_per_area": per_pad(lambda s: s.material.mass_per_area),
+                "pad_zeta": per_pad(lambda s: s.material.damping_ratio),
+                "pad_area": per_pad(lambda s: s.pad.area),
+                "pad_moment": per_pad(lambda s: s.pad.first_moment),
+                "pad_k_m": per_pad(lambda s: s.material.matrix_stiffness),
+                "pad_gap": np.array([c.gap if np.isfinite(c.gap) else 0.0 for c in contacts]),
             }
         )
-    return PadModel(
-        scenes=list(scenes),
-        device=dev,
-        dtype=T,
-        pad_patch_start_host=start,
-        contacts=contacts,
-        nbr_count=len(nbr_index),
-        arrays=arrays,
-    )
+    return out
 
 
 def _edge_stiffness(
