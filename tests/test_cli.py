@@ -128,12 +128,17 @@ def test_fault_stops_with_exit_3_and_an_incomplete_file(scene_file, tmp_path, ca
         ]
     )
     assert code == 3
-    err = capsys.readouterr().err
+    captured = capsys.readouterr()
+    err = captured.err
     assert "non-finite" in err and "patch" in err and "likely cause" in err
+    # the summary gives the time the run stopped at, not the 2 ms asked for
+    stopped = float(captured.out.split("stopped at t = ")[1].split(" s")[0])
+    assert "of the requested 0.002 s (incomplete)" in captured.out and 0 < stopped < 2e-3
     r = read_run(out)
     assert r["attrs"]["complete"] is False or not r["attrs"]["complete"]
     assert "stopped" in r["attrs"]["status"]
     assert np.all(np.isfinite(r["global/mu"]))  # only the samples before the fault
+    assert r["global/time"][-1] == pytest.approx(stopped)
 
 
 def test_interrupt_leaves_a_marked_file(scene_file, tmp_path, monkeypatch):

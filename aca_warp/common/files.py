@@ -274,6 +274,12 @@ def check_room(folder: str | Path, need: float, what: str) -> None:
         raise err
 
 
+def resume_hint(kind: str, path: str | Path) -> str:
+    """How to continue the unfinished ``kind`` run (``hf`` or ``lf``) of ``path``, for the reader of the message."""
+    function = "resume_run" if kind == "hf" else "resume_lf"
+    return option(f"{function}({str(path)!r})", f"'aca-warp {kind} --resume {path}'")
+
+
 def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
     """Refuse to clobber an existing file (or a killed run's ``NAME.partial``) unless ``overwrite``, and an output
     that a live process writes (:class:`OutputLock`) in any case; the name must name a file
@@ -290,8 +296,7 @@ def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
     part = partial_path(p)
     if part.exists() and not overwrite:
         raise SceneError(
-            f"{part} exists (an unfinished run); continue it with "
-            f"{option(f'resume_run({str(p)!r})', f'aca-warp hf --resume {p}')} or pass "
+            f"{part} exists (an unfinished run); continue it with {resume_hint('hf', p)} or pass "
             f"{option('overwrite=True', '--overwrite')}"
         )
     if not p.parent.exists():

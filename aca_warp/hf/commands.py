@@ -201,10 +201,16 @@ def _cmd_hf(args: argparse.Namespace) -> int:
     )
     if result.fault is not None:
         print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
-        print(line + " (incomplete)")
+        print(line + stopped_at(result.sim_time, duration))
         return 3
     print(line)
     return 0
+
+
+def stopped_at(sim_time: float, duration: float | None) -> str:
+    """The end of the summary line of a run that stopped early: where it stopped, of what was asked."""
+    asked = "" if duration is None else f" of the requested {duration:.4g} s"
+    return f"; stopped at t = {sim_time:.4g} s{asked} (incomplete)"
 
 
 def _announce(output: str, progress: bool) -> Any:
@@ -250,7 +256,9 @@ def _resume_hf(args: argparse.Namespace) -> int:
     line = f"{path}: resumed, {result.steps} steps over {result.sim_time:.4g} s"
     if result.fault is not None:
         print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
-        print(line + " (incomplete)")
+        from aca_warp.hf.rerun import read_settings
+
+        print(line + stopped_at(result.sim_time, read_settings(path).options.duration))
         return 3
     print(line)
     return 0
@@ -317,8 +325,10 @@ def _cmd_rerun(args: argparse.Namespace) -> int:
         overwrite=args.overwrite,
         progress=not args.no_progress,
     )
+    line = f"{args.output}: rerun of {args.run}, {result.steps} steps over {result.sim_time:.4g} s"
     if result.fault is not None:
         print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
+        print(line + stopped_at(result.sim_time, options.duration))
         return 3
-    print(f"{args.output}: rerun of {args.run}, {result.steps} steps over {result.sim_time:.4g} s")
+    print(line)
     return 0

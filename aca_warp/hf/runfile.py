@@ -44,7 +44,16 @@ from aca_warp.common.checkpoint import (
     write_checkpoint,
 )
 from aca_warp.common.errors import AcaError, SceneError, option
-from aca_warp.common.files import OutputLock, check_output_path, from_h5py, new_path, open_h5, partial_path, versions
+from aca_warp.common.files import (
+    OutputLock,
+    check_output_path,
+    from_h5py,
+    new_path,
+    open_h5,
+    partial_path,
+    resume_hint,
+    versions,
+)
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS, Chunk
@@ -65,7 +74,7 @@ def hf_advice(path: Path, checkpoint_time: float | None) -> str:
         return f"it holds no checkpoint: make room and run again with {option('overwrite=True', '--overwrite')}"
     return (
         f"it keeps its checkpoint at t = {checkpoint_time:.6g} s: make room, then continue with "
-        f"{option(f'resume_run({str(path)!r})', f'aca-warp hf --resume {path}')}"
+        f"{resume_hint('hf', path)}"
     )
 
 

@@ -50,6 +50,7 @@ from aca_warp.common.files import (
     open_h5,
     partial_path,
     reading,
+    resume_hint,
     versions,
 )
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
@@ -71,7 +72,7 @@ def lf_advice(path: Path, checkpoint_time: float | None) -> str:
         return f"it holds no checkpoint: make room and run again with {option('overwrite=True', '--overwrite')}"
     return (
         f"it keeps its checkpoint at t = {checkpoint_time:.6g} s: make room, then continue with "
-        f"{option(f'resume_lf({str(path)!r})', f'aca-warp lf --resume {path}')}"
+        f"{resume_hint('lf', path)}"
     )
 
 
@@ -288,7 +289,7 @@ def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:
     if part.exists() and not overwrite and not Path(path).is_dir():
         raise SceneError(
             f"{part} exists (an unfinished LF run); continue it with "
-            f"{option(f'resume_lf({str(path)!r})', f'aca-warp lf --resume {path}')} or pass "
+            f"{resume_hint('lf', path)} or pass "
             f"{option('overwrite=True', '--overwrite')}"
         )
     return check_output_path(path, overwrite=overwrite)
