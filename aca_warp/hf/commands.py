@@ -19,8 +19,10 @@ SCENE is a preset (hf1, hf2, hf3, hf4, varying_area) or a TOML scene file (docs/
 Example:  aca-warp hf hf1 --duration 1e-3 -o run.h5
 Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad input (nothing written),
 3 the run stopped on a fault or an unphysical result (the file holds everything before it, marked incomplete),
-4 the output could not be written (disk full, file-size limit; the .partial keeps its last checkpoint),
-130 interrupted (docs/faults.md).
+4 the output cannot be written (read-only or full file system, no permission: found before the run, nothing
+written; disk full or file-size limit during the run: the .partial keeps its last checkpoint),
+130 interrupted by Ctrl-C, 143 by SIGTERM (the file closed, marked incomplete, resumable; docs/faults.md).
+Values far outside a brake pad's range are refused as likely unit mistakes unless --allow-implausible.
 """
 
 
