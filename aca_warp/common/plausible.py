@@ -118,7 +118,7 @@ def check(name: str, value: float, kind: str, *, allow: bool = False) -> None:
         where, hint = f"below {r.low:g}", r.guess(v, r.below)
     else:
         return
-    run_anyway = option("allow_implausible=True", "--allow-implausible")
+    run_anyway = option("allow_implausible=True to the scene or its loader", "--allow-implausible")
     raise ImplausibleError(
         f"{name} = {value:g} {r.unit} — {where} {r.unit} ({r.why}); {hint}; to run it anyway set [scene] "
         f"allow_implausible = true or pass {run_anyway}"
