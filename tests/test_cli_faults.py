@@ -124,6 +124,18 @@ def test_bad_plot_folders_are_refused_first(tmp_path, capsys, runs, name, messag
     assert listing(tmp_path) == before
 
 
+def test_sweep_folder_checked_before_the_spec(tmp_path, capsys) -> None:
+    """sweep shares the output-folder check: a path under a file is refused before the spec is expanded."""
+    (tmp_path / "file.txt").write_text("x")
+    spec = tmp_path / "spec.toml"
+    spec.write_text('[sweep]\nbase = "hf1"\n[parameters]\n"friction.M" = [0.6, 0.7]\n')
+    before = listing(tmp_path)
+    assert main(["sweep", str(spec), "-o", str(tmp_path / "file.txt" / "sweep"), "--workers", "0", "--quiet"]) == 2
+    err = one_line(capsys)
+    assert len(err) == 1 and "file.txt is not a folder" in err[0], err
+    assert listing(tmp_path) == before
+
+
 def read_only(folder: Path, args: list[str]) -> subprocess.CompletedProcess | None:
     """``aca-warp ARGS`` with ``folder`` read-only: as root (who passes every permission check, so ``chmod`` would
     not do) through a read-only bind mount in a user namespace; otherwise a folder without write permission.
