@@ -59,12 +59,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     Every error is one ``aca-warp: error:`` line and the error's exit code; SIGINT (Ctrl-C) and SIGTERM end a
     command with one ``aca-warp: interrupted`` line saying what its output holds, exit 130 and 143
     (:mod:`aca_warp.common.interrupts`)."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if args.verbose:
-        os.environ["ACA_WARP_VERBOSE"] = "1"
-    with interrupts.installed(), command_line():
+    with interrupts.installed(), command_line():  # from the start: a signal during start-up ends the same way
+        args: argparse.Namespace | None = None
         try:
+            args = build_parser().parse_args(argv)
+            if args.verbose:
+                os.environ["ACA_WARP_VERBOSE"] = "1"
             from aca_warp.common.devices import init_warp
 
             init_warp()
@@ -75,7 +75,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return e.exit_code  # 2 bad input, 3 unphysical, 4 output not writable (docs/faults.md)
         except KeyboardInterrupt as e:
             code = interrupts.exit_code(e)
-            print(f"aca-warp: interrupted ({'SIGTERM' if code == 143 else 'Ctrl-C'}); {_left(args)}", file=sys.stderr)
+            left = "nothing was written" if args is None else _left(args)
+            print(f"aca-warp: interrupted ({'SIGTERM' if code == 143 else 'Ctrl-C'}); {left}", file=sys.stderr)
             return code
         if code == 130 and interrupts.received() is not None:  # a command that handled the interrupt itself
             return interrupts.exit_code()

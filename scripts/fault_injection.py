@@ -288,7 +288,7 @@ def recover(
         if t.kills < max_kills and rng.random() < 0.5:
             delay = rng.uniform(0.0, budget)
             t.delays.append(round(delay, 3))
-            killed, code = kill(t, w, args, cwd, delay, rng, signals)
+            killed, code, err = kill(t, w, args, cwd, delay, rng, signals)
             if killed:
                 t.recoveries.append(f"{what} (killed)")
                 continue
@@ -303,16 +303,16 @@ def recover(
 
 def kill(
     t: Trial, w: Workload, args: list[str], cwd: Path, delay: float, rng: random.Random, signals: list[str]
-) -> tuple[bool, int]:
+) -> tuple[bool, int, str]:
     """One kill of ``args`` after ``delay`` s with a signal drawn from ``signals`` (a sweep: SIGKILL), counted in
-    ``t``; (killed, exit code)."""
+    ``t``; (killed, exit code, stderr)."""
     sig = "KILL" if w.name == "sweep" else rng.choice(signals)
-    killed, code, _ = run_and_kill(args, cwd, delay, sig)
+    killed, code, err = run_and_kill(args, cwd, delay, sig)
     if killed:
         t.kills += 1
         t.signals.append(sig)
         t.early += code == -1
-    return killed, code
+    return killed, code, err
 
 
 def trial(
@@ -331,8 +331,7 @@ def trial(
     try:
         delay = rng.uniform(0.0, budget)
         t.delays.append(round(delay, 3))
-        killed, code = kill(t, w, [*w.start, "-o", str(cwd / w.output)], cwd, delay, rng, signals)
-        err = ""
+        killed, code, err = kill(t, w, [*w.start, "-o", str(cwd / w.output)], cwd, delay, rng, signals)
         if killed:
             code, err = recover(w, cwd, t, rng, budget, max_kills, signals)
         else:
