@@ -9,6 +9,7 @@ import os
 import platform
 import socket
 import sys
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -217,12 +218,9 @@ def probe_folder(folder: str | Path) -> None:
     delete it. Raises :func:`unwritable`'s error (a read-only file system, a folder without write permission, a full
     device; root passes permission checks, so ``os.access`` would not do)."""
     d = Path(folder)
-    probe = d / f".aca-warp-probe.{os.getpid()}"
     try:
-        fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o600)
-    except FileExistsError:  # left by a killed process of the same pid: ours to replace
-        probe.unlink(missing_ok=True)
-        return probe_folder(folder)
+        fd, name = tempfile.mkstemp(prefix=".aca-warp-probe.", dir=d)  # a new name: never another's file
+        probe = Path(name)
     except FileNotFoundError:
         raise SceneError(f"output folder {d} does not exist") from None
     except NotADirectoryError:
