@@ -77,6 +77,18 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     return {"hf": d / "small.toml", "lf": d / "lf.toml", "run": d / "small.h5", "long": d / "long.h5"}
 
 
+@pytest.fixture(scope="module")
+def refs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Uninterrupted HF (HF_SCENE, 1 ms, 40 patches with per-patch histories) and LF runs, the references of the
+    interrupted, limited and resumed ones."""
+    d = tmp_path_factory.mktemp("refs")
+    (d / "hf.toml").write_text(HF_SCENE)
+    (d / "lf.toml").write_text(LF_SCENE.format(first=1.0))
+    assert main(["hf", str(d / "hf.toml"), "-o", str(d / "hf.h5"), "--no-progress"]) == 0
+    assert main(["lf", str(d / "lf.toml"), "-o", str(d / "lf.h5"), "--no-progress"]) == 0
+    return {"hf_scene": d / "hf.toml", "hf": d / "hf.h5", "lf_scene": d / "lf.toml", "lf": d / "lf.h5"}
+
+
 def command(kind: str, runs: dict[str, Path], out: str) -> list[str]:
     """The command line of ``kind`` writing ``out``."""
     return {
@@ -196,13 +208,10 @@ def test_too_little_space_is_refused_before_the_run(tmp_path, capsys, runs, monk
 # -------------------------------------------------------------------------------- file-size limit mid-run
 
 
-def test_rerun_file_size_limit_then_resume(tmp_path: Path) -> None:
+def test_rerun_file_size_limit_then_resume(tmp_path: Path, refs) -> None:
     """rerun under a file-size limit: exit 4, one line, the .partial kept at its checkpoint; --resume then
     finishes it bit-identical to the run it repeats (the limit as in test_storage.py)."""
-    scene = tmp_path / "s.toml"
-    scene.write_text(HF_SCENE)
-    ref = tmp_path / "ref.h5"
-    assert main(["hf", str(scene), "-o", str(ref), "--no-progress"]) == 0
+    ref = refs["hf"]
     out = tmp_path / "again.h5"
     r = cli(["rerun", str(ref), "-o", str(out), "--no-progress", "--checkpoint-interval", "1e-4"], limit=1_300_000)
     lines = error_lines(r.stderr)
@@ -298,23 +307,22 @@ def assert_interrupted(code: int, lines: list[str], sig: int) -> None:
     assert ("SIGTERM" if sig == signal.SIGTERM else "Ctrl-C") in lines[0]
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
-@pytest.mark.parametrize("kind", ["hf", "rerun", "lf"])
-def test_interrupt_then_resume(tmp_path: Path, kind: str, sig: int) -> None:
+@pytest.mark.parametrize(
+    ("kind", "sig"),
+    [("hf", signal.SIGINT), ("hf", signal.SIGTERM), ("rerun", signal.SIGINT), ("lf", signal.SIGTERM)],
+    ids=["hf-SIGINT", "hf-SIGTERM", "rerun-SIGINT", "lf-SIGTERM"],
+)
+def test_interrupt_then_resume(tmp_path: Path, refs, kind: str, sig: int) -> None:
     """Interrupted after its first checkpoint: one line naming what the file keeps and how to continue, exit
     128 + signal, the file closed and marked incomplete (no .partial, no lock); --resume finishes it with the bits
     of the uninterrupted run."""
-    scene = tmp_path / "s.toml"
-    ref = tmp_path / "ref.h5"
     out = tmp_path / "run.h5"
     if kind == "lf":
-        scene.write_text(LF_SCENE.format(first=1.0))
-        assert main(["lf", str(scene), "-o", str(ref), "--no-progress"]) == 0
-        args = ["lf", str(scene), "-o", str(out), "--checkpoint-interval", "0.05", "--no-progress"]
+        ref = refs["lf"]
+        args = ["lf", str(refs["lf_scene"]), "-o", str(out), "--checkpoint-interval", "0.05", "--no-progress"]
     else:
-        scene.write_text(HF_SCENE)
-        assert main(["hf", str(scene), "-o", str(ref), "--no-progress"]) == 0
-        first = ["hf", str(scene)] if kind == "hf" else ["rerun", str(ref)]
+        ref = refs["hf"]
+        first = ["hf", str(refs["hf_scene"])] if kind == "hf" else ["rerun", str(ref)]
         args = [*first, "-o", str(out), "--checkpoint-interval", "5e-5", "--no-progress"]
     part = tmp_path / "run.h5.partial"
     code, lines = interrupt_when(start(args), lambda: part.exists() and has_checkpoint(part), sig)
