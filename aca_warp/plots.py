@@ -41,12 +41,13 @@ from aca_warp import plots_lf
 from aca_warp.analysis import report
 from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run_file, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import SceneError, option
 from aca_warp.plotting import envelope as _envelope
 from aca_warp.plotting import finish as _finish
 from aca_warp.plotting import new_figure as _figure
 from aca_warp.plotting import pad_outline as _pad_outline
 from aca_warp.plotting import save as _save
+from aca_warp.plotting import whole
 
 FIGURES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
 """Figure names accepted by :func:`plot_run` (``which``) and ``aca-warp plot --only``."""
@@ -137,12 +138,17 @@ def _plain_log(axis: Any) -> None:
     axis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}" if f"{v:.1g}"[0] in "25" else ""))
 
 
+def _record_velocity() -> str:
+    """How to record what the patch figures need, for the reader of the message."""
+    return option(
+        "run it again with Record(patches=('velocity',)) in the scene",
+        "rerun aca-warp hf with --record-patches velocity",
+    )
+
+
 def _require_patch_velocity(run: _Run, figure: str) -> None:
     if not has_patch_velocity(run.f):
-        raise SceneError(
-            f"{run.path.name}: the {figure} figure needs per-patch velocities; rerun aca-warp hf with "
-            "--record-patches velocity"
-        )
+        raise SceneError(f"{run.path.name}: the {figure} figure needs per-patch velocities; {_record_velocity()}")
 
 
 # ----------------------------------------------------------------------------------------- patch map
@@ -335,7 +341,8 @@ def animate_patch_map(
         out = Path(outdir)
         out.mkdir(parents=True, exist_ok=True)
         gif = out / f"{run.path.stem}_patch_map.gif"
-        anim.save(gif, writer=animation.PillowWriter(fps=fps), dpi=80)
+        with whole(gif) as tmp:
+            anim.save(tmp, writer=animation.PillowWriter(fps=fps), dpi=80)
         return [gif]
 
 
@@ -671,8 +678,7 @@ def _absent_figures(path: str | Path, names: list[str], which: Sequence[str] | N
     absent = [n for n in names if not needs.get(n, True)]
     if absent and which is not None:
         raise SceneError(
-            f"{Path(path).name} holds no per-patch velocities, needed by {', '.join(absent)}; rerun aca-warp hf "
-            "with --record-patches velocity"
+            f"{Path(path).name} holds no per-patch velocities, needed by {', '.join(absent)}; {_record_velocity()}"
         )
     return absent
 

@@ -732,26 +732,43 @@ def analysis_group(f: h5py.File, name: str, compute: Callable[[], Group | None])
 def write_analysis(f: h5py.File, groups: dict[str, Group], attrs: dict[str, Any]) -> None:
     """Replace ``/analysis`` by ``groups``: written into a temporary group, then swapped in.
 
-    If writing fails, the temporary group is removed and the previous ``/analysis`` is left as it was.
+    If writing fails, the temporary group is removed and the previous ``/analysis`` is left as it was. Room for
+    the groups is reserved first (:class:`~aca_warp.common.storage.GuardedFile`): a full device, a file-size limit
+    or a quota raises a :class:`~aca_warp.common.errors.StorageError` before anything is written, and the file is
+    closed without another write (as it was); the swap is not cut half-way by Ctrl-C or SIGTERM.
     """
-    if _TMP_GROUP in f:
-        del f[_TMP_GROUP]
+    from aca_warp.common.interrupts import deferred
+    from aca_warp.common.storage import GuardedFile, storage_errno, storage_error
+
+    guard = GuardedFile(f, f.filename)
+    need = sum(np.asarray(d).nbytes + 4096 for g in groups.values() for d, _ in g.datasets.values())
     try:
-        tmp = f.create_group(_TMP_GROUP)
-        for k, v in attrs.items():
-            tmp.attrs[k] = _attr_value(v)
-        for name, group in groups.items():
-            _write_group(tmp, name, group)
-    except BaseException:
+        guard.reserve(need)
+        if _TMP_GROUP in f:
+            del f[_TMP_GROUP]
         try:
-            if _TMP_GROUP in f:
-                del f[_TMP_GROUP]
-        finally:
+            tmp = f.create_group(_TMP_GROUP)
+            for k, v in attrs.items():
+                tmp.attrs[k] = _attr_value(v)
+            for name, group in groups.items():
+                _write_group(tmp, name, group)
+        except BaseException:
+            try:
+                if _TMP_GROUP in f:
+                    del f[_TMP_GROUP]
+            finally:
+                raise
+        with deferred():
+            if GROUP in f:
+                del f[GROUP]
+            f.move(_TMP_GROUP, GROUP)
+            guard.flush()
+    except Exception as e:  # a StorageError of the reservation, or an OSError/RuntimeError of HDF5
+        code = storage_errno(e)
+        if code is None:
             raise
-    if GROUP in f:
-        del f[GROUP]
-    f.move(_TMP_GROUP, GROUP)
-    f.flush()
+        guard.abandon()
+        raise storage_error(code, f"/analysis into {guard.path}", "the file keeps its samples as they were") from None
 
 
 def _package_version() -> str:

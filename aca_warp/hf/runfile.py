@@ -43,24 +43,38 @@ from aca_warp.common.checkpoint import (
     read_checkpoint,
     write_checkpoint,
 )
-from aca_warp.common.errors import AcaError, SceneError
-from aca_warp.common.files import OutputLock, check_output_path, from_h5py, new_path, open_h5, partial_path, versions
+from aca_warp.common.errors import AcaError, SceneError, option
+from aca_warp.common.files import (
+    OutputLock,
+    check_output_path,
+    from_h5py,
+    new_path,
+    open_h5,
+    partial_path,
+    resume_hint,
+    versions,
+)
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS, Chunk
 from aca_warp.scene import Scene, scene_to_dict
 
 RAW_CACHE = 64 * 2**20  # bytes of HDF5 chunk cache: appended rows of wide per-patch histories stay cached
-BUSY = "wait for it to finish or stop it (--overwrite does not replace a run in progress)"
+
+
+def busy() -> str:
+    """The advice of a refusal to write an output that a live process writes."""
+    overwrite = option("overwrite=True", "--overwrite")
+    return f"wait for it to finish or stop it ({overwrite} does not replace a run in progress)"
 
 
 def hf_advice(path: Path, checkpoint_time: float | None) -> str:
     """What to do with an HF ``.partial`` left by a storage failure."""
     if checkpoint_time is None:
-        return "it holds no checkpoint: make room and run again with --overwrite"
+        return f"it holds no checkpoint: make room and run again with {option('overwrite=True', '--overwrite')}"
     return (
         f"it keeps its checkpoint at t = {checkpoint_time:.6g} s: make room, then continue with "
-        f"'aca-warp hf --resume {path}'"
+        f"{resume_hint('hf', path)}"
     )
 
 
@@ -77,7 +91,7 @@ class RunWriter:
         attrs: dict[str, Any] | None = None,
         lock: OutputLock | None = None,
     ) -> None:
-        self.lock = lock or OutputLock.acquire(path, what=BUSY)
+        self.lock = lock or OutputLock.acquire(path, what=busy())
         self.pad = pad
         self.model = model
         self.checkpoint_time: float | None = None
