@@ -54,9 +54,24 @@ def wait_for(path: Path, proc: subprocess.Popen, *, poll: float = 0.0005, timeou
         time.sleep(poll)
 
 
-def stop(proc: subprocess.Popen) -> None:
-    """SIGSTOP ``proc`` (it keeps its files and locks, writes nothing more)."""
+def stop(proc: subprocess.Popen, timeout: float = 10.0) -> None:
+    """SIGSTOP ``proc`` and wait until every thread of it has stopped (it keeps its files and locks, writes
+    nothing more): the signal is delivered asynchronously, and a thread running on another core could otherwise
+    still write after this returns."""
     os.kill(proc.pid, signal.SIGSTOP)
+    deadline = time.monotonic() + timeout
+    tasks = Path(f"/proc/{proc.pid}/task")
+    while True:
+        states = []
+        for stat in tasks.glob("*/stat"):
+            try:
+                states.append(stat.read_text().rsplit(")", 1)[1].split()[0])
+            except (OSError, IndexError):
+                continue  # a thread that just ended
+        if states and all(s in "tT" for s in states):
+            return
+        assert time.monotonic() < deadline, f"{proc.args} did not stop: thread states {states}"
+        time.sleep(0.001)
 
 
 def resume(proc: subprocess.Popen) -> None:
