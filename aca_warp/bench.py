@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common.errors import SceneError
+from aca_warp.hf.options import DEFAULT_TOLERANCE
 
 GRAPH_STEPS = 200
 # Data-sheet peaks [B/s] by device-name fragment; used when the driver query is unavailable.
@@ -358,7 +359,7 @@ def markdown(out: dict) -> str:
     """A Markdown table of a :func:`run_bench` result."""
     lines = [
         f"Machine: {out['machine']['device_name']}. Scene {out['scene']}, timed window {out['duration_s']:g} s "
-        f"simulated, dt = {out['dt_s']:g} s (adaptive: tolerance 1e-4), Warp {out['warp_version']}. "
+        f"simulated, dt = {out['dt_s']:g} s (adaptive: tolerance {DEFAULT_TOLERANCE:g}), Warp {out['warp_version']}. "
         "μ error: max |μ − μ_ref| / max|μ_ref| against fp64 strang at dt/4. Bandwidth: modelled bytes per step "
         "(aca_warp/bench.py) over the bare-step time.",
         "",

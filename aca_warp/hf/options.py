@@ -17,7 +17,7 @@ from aca_warp.common.errors import SceneError
 INTEGRATORS = ("symplectic-euler", "implicit-friction", "strang", "adaptive")
 DEFAULT_INTEGRATOR = "strang"
 DEFAULT_DT = 1.0e-8  # s
-DEFAULT_TOLERANCE = 1.0e-4
+DEFAULT_TOLERANCE = 1.0e-5  # adaptive: μ errors ≤ 1e-7 on hf1 and stick-slip (docs/time_to_solution.md)
 ENGINES = ("auto", "onchip", "general")
 WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (recorder.watchdog_bound)
 
