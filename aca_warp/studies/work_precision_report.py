@@ -157,8 +157,9 @@ def _steps(b: dict, kind: str) -> str:
     return s + (f" (+{b['rejected']} rej.)" if b.get("rejected") else "")
 
 
-def _wall(b: dict) -> str:
-    return fmt(b.get("wall_s"), ".3g") + (" (extrap.)" if b.get("extrapolated") else "")
+def _wall(b: dict, unit: str = "") -> str:
+    """Wall time of a block as a cell (``unit`` after the number), marked when extrapolated."""
+    return fmt(b.get("wall_s"), ".3g") + unit + (" (extrap.)" if b.get("extrapolated") else "")
 
 
 def window_table(sc: dict) -> list[str]:
@@ -209,7 +210,7 @@ def cheapest(sc: dict, method: str, ok: Any, block: str = "window") -> dict | No
 def _cell(r: dict | None, block: str = "window") -> str:
     if r is None:
         return "–"
-    return f"{_wall(r[block])} s ({setting(r)})"
+    return f"{_wall(r[block], ' s')} ({setting(r)})"
 
 
 def at_floor(b: dict, floor: dict) -> bool:
@@ -251,7 +252,7 @@ def defaults_table(pairs: list[tuple[dict, dict]]) -> list[str]:
                 (r for r in sc["rows"] if r["method"] == method and _close(r.get(key), value) and r.get("window")),
                 None,
             )
-            cells.append("–" if r is None else f"{fmt(r['window'].get('mu'), '.1e')} ({_wall(r['window'])} s)")
+            cells.append("–" if r is None else f"{fmt(r['window'].get('mu'), '.1e')} ({_wall(r['window'], ' s')})")
         rows.append([sc["regime"], scene_cell(doc, sc), doc["machine"]["device"], *cells])
     head = ["regime", "scene", "device"] + [f"{m} {'dt' if m == 'strang' else 'tol'} {v:g}" for m, _, v in settings]
     return [
