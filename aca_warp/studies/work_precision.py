@@ -28,8 +28,8 @@ times those of ``solve_ivp``; a SciPy run whose first tenth extrapolates beyond 
 tenth and extrapolated ×10 (flagged; its error is the error at the end of the tenth). Results:
 ``OUT/wp_<device>_<scenes>.json``. Examples::
 
-    python scripts/work_precision.py --quick --out /tmp/wp                 # CPU, 300-patch sectors, ~8 min
-    python scripts/work_precision.py --out wp_cpu                          # CPU, full pads, ~45 min
+    python scripts/work_precision.py --quick --out /tmp/wp                 # CPU, 300-patch sectors, ~4 min
+    python scripts/work_precision.py --scenes hf1 hf2 stickslip va_start --out wp_cpu   # CPU, full pads, ~16 min
     python scripts/work_precision.py --report wp_cpu/*.json                # figures + docs/work_precision.md
 
 As a library: :mod:`aca_warp.studies.work_precision_states` makes (or reads) the scenes' start states,
