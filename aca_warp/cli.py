@@ -11,17 +11,20 @@ import argparse
 import os
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from aca_warp import __version__
-from aca_warp.common.errors import AcaError
+from aca_warp.common import interrupts
+from aca_warp.common.errors import AcaError, command_line
 
 EPILOG = """\
 SCENE is a preset (hf1, hf2, hf3, hf4, varying_area) or a TOML scene file (docs/scenes.md).
 Example:  aca-warp hf hf1 --duration 1e-3 -o run.h5
 Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad input (nothing written),
 3 the run stopped on a fault or an unphysical result (the file holds everything before it, marked incomplete),
-4 the output could not be written (disk full, file-size limit; the .partial keeps its last checkpoint),
-130 interrupted (docs/faults.md).
+4 the output cannot be written (read-only or full file system, no permission: found before the run, nothing
+written; disk full or file-size limit during the run: the .partial keeps its last checkpoint),
+130 interrupted by Ctrl-C, 143 by SIGTERM (the file closed and marked incomplete; docs/faults.md).
 """
 
 
@@ -51,25 +54,92 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``aca-warp`` console script."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if args.verbose:
-        os.environ["ACA_WARP_VERBOSE"] = "1"
-    from aca_warp.common.devices import init_warp
+    """Entry point of the ``aca-warp`` console script.
 
-    init_warp()
+    Every error is one ``aca-warp: error:`` line and the error's exit code; SIGINT (Ctrl-C) and SIGTERM end a
+    command with one ``aca-warp: interrupted`` line saying what its output holds, exit 130 and 143
+    (:mod:`aca_warp.common.interrupts`)."""
+    with interrupts.installed(), command_line():  # from the start: a signal during start-up ends the same way
+        args: argparse.Namespace | None = None
+        try:
+            args = build_parser().parse_args(argv)
+            if args.verbose:
+                os.environ["ACA_WARP_VERBOSE"] = "1"
+            from aca_warp.common.devices import init_warp
+
+            init_warp()
+            _check_output_folder(args)
+            code = args.handler(args)
+        except AcaError as e:
+            print(f"aca-warp: error: {e}", file=sys.stderr)
+            return e.exit_code  # 2 bad input, 3 unphysical, 4 output not writable (docs/faults.md)
+        except KeyboardInterrupt as e:
+            code = interrupts.exit_code(e)
+            left = "nothing was written" if args is None else _left(args)
+            print(f"aca-warp: interrupted ({'SIGTERM' if code == 143 else 'Ctrl-C'}); {left}", file=sys.stderr)
+            return code
+        if code == 130 and interrupts.received() is not None:  # a command that handled the interrupt itself
+            return interrupts.exit_code()
+        return code
+
+
+def _check_output_folder(args: argparse.Namespace) -> None:
+    """The output folder of ``sweep -o DIR`` must be creatable and writable before the sweep expands its spec (the
+    other commands check their outputs themselves)."""
+    if args.command == "sweep" and not Path(args.output).is_file():  # a file there: the sweep's own message
+        from aca_warp.common.files import check_output_folder
+
+        check_output_folder(args.output)
+
+
+def _left(args: argparse.Namespace) -> str:
+    """What an interrupted command left behind, in words (docs/faults.md "Interrupts")."""
+    cmd = args.command
+    if cmd in ("hf", "lf", "rerun"):
+        out = args.resume if getattr(args, "resume", None) else args.output
+        if out is None:
+            return "nothing was written"
+        return _run_file_state(Path(out), "lf" if cmd == "lf" else "hf")
+    if cmd == "analyze":
+        return f"{args.run} is unchanged (an earlier /analysis, if any, is kept)"
+    if cmd == "plot":
+        return f"the figures finished before it are in {args.output_dir}; none is half written"
+    if cmd == "sweep":
+        return f"finished shards are kept in {args.output}; the same command continues the sweep"
+    return "nothing was written"
+
+
+def _run_file_state(path: Path, kind: str) -> str:
+    """'RUN.h5 keeps …' for an interrupted run: where its samples end and how to continue it."""
+    from aca_warp.common.files import partial_path
+
+    final = path.with_name(path.name.removesuffix(".partial"))
+    part = partial_path(final)
+    if part.exists():  # interrupted before the file was closed (or a killed run's file)
+        return f"{part} was left as it was (continue it with 'aca-warp {kind} --resume {final}' if it has a checkpoint)"
+    if not final.exists():
+        return "nothing was written"
     try:
-        return args.handler(args)
-    except AcaError as e:
-        print(f"aca-warp: error: {e}", file=sys.stderr)
-        return e.exit_code  # 2 bad input, 3 unphysical, 4 output not writable (docs/faults.md)
-    except KeyboardInterrupt:
-        if args.command == "hf":
-            print("aca-warp: interrupted; the run file holds the samples so far, marked incomplete", file=sys.stderr)
-        else:
-            print("aca-warp: interrupted", file=sys.stderr)
-        return 130
+        import h5py
+
+        from aca_warp.common.checkpoint import has_checkpoint
+
+        with h5py.File(final, "r") as f:
+            if bool(f.attrs.get("complete", False)):
+                return f"{final} is complete"
+            kind = "lf" if f.attrs.get("kind") == "lf" else kind
+            t = f["global/time"]
+            upto = f"to t = {float(t[-1]):.6g} s" if t.shape[0] else "no sample"
+            resumable = has_checkpoint(f)
+            at = float(f["checkpoint"].attrs.get("sim_time", 0.0)) if resumable else 0.0
+    except (OSError, KeyError, ValueError, RuntimeError):
+        return f"{final} was written but cannot be read back"
+    then = (
+        f"continue it from its checkpoint at t = {at:.6g} s with 'aca-warp {kind} --resume {final}'"
+        if resumable
+        else "no checkpoint to resume from (run with --checkpoint-interval for one)"
+    )
+    return f"{final} keeps the samples {upto}, marked incomplete; {then}"
 
 
 if __name__ == "__main__":

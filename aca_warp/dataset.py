@@ -64,6 +64,7 @@ _LONG_NAMES = {
     ("patches", "height"): "patch height (top elevation)",
     ("patches", "mass"): "patch mass",
     ("patches", "normal_force"): "patch normal force (contact solution)",
+    ("patches", "predicted_growth_rate"): "predicted linear growth rate σ_i of the patch (steady sliding, start)",
     ("patches", "velocity"): "patch velocity u̇_i (pad frame)",
     ("patches", "displacement"): "patch displacement u_i",
     ("patches", "thickness"): "patch thickness",

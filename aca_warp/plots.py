@@ -41,12 +41,13 @@ from aca_warp import plots_lf
 from aca_warp.analysis import report
 from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run_file, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import SceneError, option
 from aca_warp.plotting import envelope as _envelope
 from aca_warp.plotting import finish as _finish
 from aca_warp.plotting import new_figure as _figure
 from aca_warp.plotting import pad_outline as _pad_outline
 from aca_warp.plotting import save as _save
+from aca_warp.plotting import whole
 
 FIGURES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
 """Figure names accepted by :func:`plot_run` (``which``) and ``aca-warp plot --only``."""
@@ -137,12 +138,17 @@ def _plain_log(axis: Any) -> None:
     axis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}" if f"{v:.1g}"[0] in "25" else ""))
 
 
+def _record_velocity() -> str:
+    """How to record what the patch figures need, for the reader of the message."""
+    return option(
+        "run it again with Record(patches=('velocity',)) in the scene",
+        "rerun aca-warp hf with --record-patches velocity",
+    )
+
+
 def _require_patch_velocity(run: _Run, figure: str) -> None:
     if not has_patch_velocity(run.f):
-        raise SceneError(
-            f"{run.path.name}: the {figure} figure needs per-patch velocities; rerun aca-warp hf with "
-            "--record-patches velocity"
-        )
+        raise SceneError(f"{run.path.name}: the {figure} figure needs per-patch velocities; {_record_velocity()}")
 
 
 # ----------------------------------------------------------------------------------------- patch map
@@ -335,7 +341,8 @@ def animate_patch_map(
         out = Path(outdir)
         out.mkdir(parents=True, exist_ok=True)
         gif = out / f"{run.path.stem}_patch_map.gif"
-        anim.save(gif, writer=animation.PillowWriter(fps=fps), dpi=80)
+        with whole(gif) as tmp:
+            anim.save(tmp, writer=animation.PillowWriter(fps=fps), dpi=80)
         return [gif]
 
 
@@ -376,6 +383,55 @@ def plot_global(path: str | Path, outdir: str | Path) -> list[Path]:
 # ------------------------------------------------------------------------------------------- spectra
 
 
+_SPECTRA_COLOURS = dict(
+    zip(report.GLOBAL_OUTPUTS, ("k", "tab:orange", "tab:green", "tab:purple", "tab:blue", "tab:brown"), strict=True)
+)
+"""Colour of each global output's spectrum in :func:`plot_spectra`."""
+
+
+def _physical_spectra(ax: Any, spec: Group, phys: list[str], keep: np.ndarray, patch: Group | None) -> None:
+    """The lower panel of :func:`plot_spectra`: the spectra ``phys`` kept in physical units (bins ``keep``) and,
+    when given, the mean per-patch velocity spectrum of ``patch``."""
+    freq = spec["freq"]
+    for name in phys:
+        f, a = _log_max(freq[keep], spec[name][keep])
+        unit = _unit(spec.meta(name).get("unit", "?"))
+        ax.loglog(f / 1e3, a, lw=0.7, color=_SPECTRA_COLOURS[name], label=f"{report.LABELS[name]} [{unit}]")
+    if patch is not None:
+        pf = patch["freq"]
+        pk = report.shown_bins(pf)
+        f, a = _log_max(pf[pk], patch["mean_amplitude"][pk])
+        ax.loglog(f / 1e3, a, lw=0.7, color="tab:red", label="mean per-patch |X_i(f)| of u̇_i [m/s]")
+    ax.set_ylabel("amplitude [m/s]" if all(spec.meta(k).get("unit") == "m s-1" for k in phys) else "amplitude")
+    ax.legend(fontsize=7)
+
+
+def _mark_velocity_peak(axes: Any, peaks: Group) -> str:
+    """A dotted line at the first velocity-spectrum peak on every panel, its frequency on the top one; the
+    caption's sentence about it ("" without a peak)."""
+    fp = peaks.attrs.get("first_velocity_peak_frequency")
+    if fp is None:
+        return ""
+    for ax in axes:
+        ax.axvline(fp / 1e3, color="tab:red", lw=0.8, ls=":")
+    axes[0].annotate(
+        f"{fp / 1e3:.4g} kHz",
+        (fp / 1e3, 1.0),
+        xycoords=("data", "axes fraction"),
+        fontsize=7,
+        color="tab:red",
+        ha="left",
+        va="top",
+        xytext=(3, -3),
+        textcoords="offset points",
+    )
+    return (
+        f" Dotted red: first velocity-spectrum peak, {fp / 1e3:.4g} kHz "
+        f"(largest peak above {peaks.attrs['band'][0] / 1e3:.3g} kHz of the "
+        f"{peaks.attrs.get('first_velocity_peak_source', '?').split(' (')[0]})."
+    )
+
+
 def plot_spectra(path: str | Path, outdir: str | Path) -> list[Path]:
     """Amplitude spectra of every global output on a log frequency axis [kHz], f < 10 Hz dropped (Fig. 8).
 
@@ -394,53 +450,17 @@ def plot_spectra(path: str | Path, outdir: str | Path) -> list[Path]:
         lower = bool(phys) or patch is not None
         fig = _figure(6.4 if lower else 4.2)
         axes = fig.subplots(2 if lower else 1, 1, sharex=True, squeeze=False)[:, 0]
-        colours = dict(
-            zip(
-                report.GLOBAL_OUTPUTS,
-                ("k", "tab:orange", "tab:green", "tab:purple", "tab:blue", "tab:brown"),
-                strict=True,
-            )
-        )
         styles = {"mu": "-", "torque": "--"}
         for name in norm:
             f, a = _log_max(freq[keep], spec[name][keep])
-            axes[0].loglog(f / 1e3, a, lw=0.7, color=colours[name], ls=styles.get(name, "-"), label=report.LABELS[name])
+            axes[0].loglog(
+                f / 1e3, a, lw=0.7, color=_SPECTRA_COLOURS[name], ls=styles.get(name, "-"), label=report.LABELS[name]
+            )
         axes[0].set_ylabel("amplitude / |mean| [1]")
         axes[0].legend(fontsize=7, ncols=2)
         if lower:
-            ax = axes[1]
-            for name in phys:
-                f, a = _log_max(freq[keep], spec[name][keep])
-                unit = _unit(spec.meta(name).get("unit", "?"))
-                ax.loglog(f / 1e3, a, lw=0.7, color=colours[name], label=f"{report.LABELS[name]} [{unit}]")
-            if patch is not None:
-                pf = patch["freq"]
-                pk = report.shown_bins(pf)
-                f, a = _log_max(pf[pk], patch["mean_amplitude"][pk])
-                ax.loglog(f / 1e3, a, lw=0.7, color="tab:red", label="mean per-patch |X_i(f)| of u̇_i [m/s]")
-            ax.set_ylabel("amplitude [m/s]" if all(spec.meta(k).get("unit") == "m s-1" for k in phys) else "amplitude")
-            ax.legend(fontsize=7)
-        fp = peaks.attrs.get("first_velocity_peak_frequency")
-        peak_text = ""
-        if fp is not None:
-            for ax in axes:
-                ax.axvline(fp / 1e3, color="tab:red", lw=0.8, ls=":")
-            axes[0].annotate(
-                f"{fp / 1e3:.4g} kHz",
-                (fp / 1e3, 1.0),
-                xycoords=("data", "axes fraction"),
-                fontsize=7,
-                color="tab:red",
-                ha="left",
-                va="top",
-                xytext=(3, -3),
-                textcoords="offset points",
-            )
-            peak_text = (
-                f" Dotted red: first velocity-spectrum peak, {fp / 1e3:.4g} kHz "
-                f"(largest peak above {peaks.attrs['band'][0] / 1e3:.3g} kHz of the "
-                f"{peaks.attrs.get('first_velocity_peak_source', '?').split(' (')[0]})."
-            )
+            _physical_spectra(axes[1], spec, phys, keep, patch)
+        peak_text = _mark_velocity_peak(axes, peaks)
         for ax in axes:
             ax.grid(True, which="major", lw=0.3, alpha=0.5)
             ax.tick_params(labelsize=7, which="both")
@@ -633,6 +653,36 @@ def _stderr(message: str) -> None:
     print(message, file=sys.stderr)
 
 
+def _hf_figure_names(path: str | Path, which: Sequence[str] | None) -> list[str]:
+    """The HF figures :func:`plot_run` makes, in order, without repeats; :class:`SceneError` for an LF figure name
+    or an unknown one."""
+    names = list(FIGURES if which is None else dict.fromkeys(which))
+    lf_names = [n for n in names if n in plots_lf.LF_FIGURES]
+    if lf_names:
+        raise SceneError(
+            f"{', '.join(lf_names)}: LF figures need an LF run file (aca-warp lf); {Path(path).name} is not one"
+        )
+    unknown = [n for n in names if n not in FIGURES]
+    if unknown:
+        raise SceneError(f"unknown figure(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
+    return names
+
+
+def _absent_figures(path: str | Path, names: list[str], which: Sequence[str] | None) -> list[str]:
+    """The figures of ``names`` whose per-patch velocities the file lacks (``sync`` also counts as present when
+    ``/analysis/sync`` is stored); :class:`SceneError` when ``which`` named one of them."""
+    with _Run(path) as run:
+        patches = has_patch_velocity(run.f)
+        stored_sync = "analysis/sync" in run.f
+    needs = {"patch_map": patches, "animation": patches, "sync": patches or stored_sync}
+    absent = [n for n in names if not needs.get(n, True)]
+    if absent and which is not None:
+        raise SceneError(
+            f"{Path(path).name} holds no per-patch velocities, needed by {', '.join(absent)}; {_record_velocity()}"
+        )
+    return absent
+
+
 def plot_run(
     path: str | Path,
     outdir: str | Path,
@@ -672,25 +722,8 @@ def plot_run(
         )
     if quantity is not None or snapshots is not None:
         raise SceneError(f"{Path(path).name} is not an LF run file: quantity and snapshots apply to LF patch maps")
-    names = list(FIGURES if which is None else dict.fromkeys(which))
-    lf_names = [n for n in names if n in plots_lf.LF_FIGURES]
-    if lf_names:
-        raise SceneError(
-            f"{', '.join(lf_names)}: LF figures need an LF run file (aca-warp lf); {Path(path).name} is not one"
-        )
-    unknown = [n for n in names if n not in FIGURES]
-    if unknown:
-        raise SceneError(f"unknown figure(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
-    with _Run(path) as run:
-        patches = has_patch_velocity(run.f)
-        stored_sync = "analysis/sync" in run.f
-    needs = {"patch_map": patches, "animation": patches, "sync": patches or stored_sync}
-    absent = [n for n in names if not needs.get(n, True)]
-    if absent and which is not None:
-        raise SceneError(
-            f"{Path(path).name} holds no per-patch velocities, needed by {', '.join(absent)}; rerun aca-warp hf "
-            "with --record-patches velocity"
-        )
+    names = _hf_figure_names(path, which)
+    absent = _absent_figures(path, names, which)
     makers: dict[str, Callable[[], list[Path]]] = {
         "patch_map": lambda: plot_patch_map(path, outdir, times=times),
         "global": lambda: plot_global(path, outdir),

@@ -8,8 +8,11 @@ by side, min/max envelopes of long series and the annular-sector pad outline fro
 from __future__ import annotations
 
 import math
+import os
 import textwrap
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -40,12 +43,28 @@ def finish(fig: Figure, caption: str, footer: str) -> None:
     fig.text(0.012, 3.0 / 72.0 / (h + strip), footer, va="bottom", ha="left", fontsize=FOOTER_PT, color="0.35")
 
 
+@contextmanager
+def whole(path: Path) -> Iterator[Path]:
+    """Yield a temporary name next to ``path`` (hidden, same suffix, so writers pick the format from it) and move
+    the file written there to ``path`` when the body ends; on any failure or interrupt the temporary file is
+    removed. A figure file is never half written."""
+    tmp = path.with_name(f".{path.stem}.partial{path.suffix}")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def save(fig: Figure, outdir: Path, stem: str) -> list[Path]:
-    """Write ``outdir/stem.png`` (150 dpi) and ``outdir/stem.pdf`` (folder created if missing); returns both paths."""
+    """Write ``outdir/stem.png`` (150 dpi) and ``outdir/stem.pdf`` (folder created if missing), each whole
+    (:func:`whole`); returns both paths."""
     outdir.mkdir(parents=True, exist_ok=True)
     files = [outdir / f"{stem}.png", outdir / f"{stem}.pdf"]
-    fig.savefig(files[0], dpi=DPI)
-    fig.savefig(files[1])
+    with whole(files[0]) as tmp:
+        fig.savefig(tmp, dpi=DPI)
+    with whole(files[1]) as tmp:
+        fig.savefig(tmp)
     return files
 
 

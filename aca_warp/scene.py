@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common import plausible
 from aca_warp.common.errors import SceneError
 
 if sys.version_info >= (3, 11):
@@ -505,6 +506,16 @@ class Record:
         if isinstance(self.decimation, bool) or not isinstance(self.decimation, int) or self.decimation < 1:
             raise SceneError(f"record.decimation must be a positive integer, got {self.decimation!r}")
 
+    def patch_rows(self, duration: float) -> int:
+        """Rows of per-patch histories a run of ``duration`` [s] records: the global samples k·sample_dt, k = 0 …
+        round(duration / sample_dt), inside the window, every ``decimation``-th (0 when nothing is recorded)."""
+        if not self.patches:
+            return 0
+        n = max(1, round(duration / self.sample_dt))
+        first = math.ceil(self.window[0] / self.sample_dt - 1e-9)
+        last = min(self.window[1] / self.sample_dt + 1e-9, n)
+        return max(0, math.floor((last - first) / self.decimation) + 1) if last >= first else 0
+
 
 @dataclass(frozen=True)
 class Matrix:
@@ -564,6 +575,9 @@ class Scene:
         growth: Patch growth (varying-area study), or None.
         matrix: Matrix contact cells; None means a fresh flat matrix (:meth:`Matrix.fresh`).
         origin: The table-of-tables this scene was read from (for run files), or None.
+        allow_implausible: Accept values far outside the physical range of a brake pad (a pad radius beyond
+            2 m, patch areas beyond 1e-3 m², ...; :mod:`aca_warp.common.plausible`), which are refused otherwise
+            as likely unit mistakes.
     """
 
     name: str
@@ -579,6 +593,7 @@ class Scene:
     growth: Growth | None = None
     matrix: Matrix | None = None
     origin: dict | None = None
+    allow_implausible: bool = False
 
     def __post_init__(self) -> None:
         _finite("load.normal_force", self.normal_force, low=0.0)
@@ -588,11 +603,43 @@ class Scene:
             raise SceneError(
                 f"record.sample_dt ({self.record.sample_dt:g} s) exceeds the duration ({self.duration:g} s)"
             )
+        plausible.flag(self.allow_implausible)
+        self._check_plausible()
+        self._check_window()
         if self.matrix is None:
             object.__setattr__(self, "matrix", Matrix.fresh(self.pad, self.patches))
         if self.growth is not None and not self.matrix.is_flat:
             raise SceneError("patch growth needs a flat (fresh) matrix; this scene's matrix has several cells")
         self._check_geometry()
+
+    def _check_plausible(self) -> None:
+        """Refuse values far outside a brake pad's range (likely unit mistakes) unless ``allow_implausible``."""
+        if self.allow_implausible:
+            return
+        check_pad_plausible(self.pad)
+        m = self.material
+        plausible.check("material.coupling_radius", m.coupling_radius, "length")
+        for k in ("K_N", "K_T", "K_C"):
+            plausible.check(f"material.{k}", getattr(m, k), "stiffness")
+        p = self.patches
+        for i in (int(np.argmax(p.area)), int(np.argmin(p.area))):
+            plausible.check(f"patch area (patch {i})", p.area[i], "area")
+        i = int(np.argmax(p.height))
+        plausible.check(f"patch height (patch {i})", p.height[i], "height")
+        plausible.check("load.normal_force", self.normal_force, "force")
+        plausible.check("the sliding speed at the mean radius", self.sliding_speed, "speed")
+        plausible.check("run.duration", self.duration, "hf_duration")
+        plausible.check("record.sample_dt", self.record.sample_dt, "sample_dt")
+
+    def _check_window(self) -> None:
+        """Per-patch histories whose window holds no sample of the run are refused (they would record nothing)."""
+        rec = self.record
+        if rec.patches and rec.patch_rows(self.duration) == 0:
+            raise SceneError(
+                f"the per-patch window [{rec.window[0]:g}, {rec.window[1]:g}] s holds no sample of the run "
+                f"(0 to {self.duration:g} s, every {rec.sample_dt:g} s): nothing would be recorded; choose a window "
+                "inside the run"
+            )
 
     def _check_geometry(self) -> None:
         p = self.patches
@@ -646,10 +693,30 @@ def overlapping_pairs(p: Patches) -> np.ndarray:
     return hit[np.lexsort((hit[:, 1], hit[:, 0]))]
 
 
+def check_pad_plausible(pad: Pad) -> None:
+    """Refuse pad radii beyond the range of a brake pad (:func:`aca_warp.common.plausible.check`)."""
+    plausible.check("pad.r_inner", pad.r_inner, "length")
+    plausible.check("pad.r_outer", pad.r_outer, "length")
+
+
+GENERATOR_KINDS = {"area_min": "area", "area_max": "area", "height": "height", "height_spread": "height"}
+
+
+def check_numbers_plausible(table: dict, name: str, kinds: dict[str, str]) -> None:
+    """Refuse the numbers of the TOML table ``[name]`` whose keys ``kinds`` names (key: kind of
+    :data:`aca_warp.common.plausible.RANGES`) beyond a brake pad's range, before the table is built into a pad or
+    patches (a unit mistake would otherwise fail later with a less helpful message: an ordering of radii, the
+    placement of patches)."""
+    for key, kind in kinds.items():
+        value = table.get(key)
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            plausible.check(f"{name}.{key}", value, kind)
+
+
 # ----------------------------------------------------------------------------------------------- TOML
 
 _TABLES: dict[str, tuple[str, ...]] = {
-    "scene": ("name",),
+    "scene": ("name", "allow_implausible"),
     "pad": tuple(f.name for f in dataclasses.fields(Pad)),
     "load": ("normal_force",),
     "disc": ("sliding_speed", "angular_velocity"),
@@ -663,8 +730,11 @@ _TABLES: dict[str, tuple[str, ...]] = {
 }
 
 
-def scene_from_dict(doc: dict, *, base_dir: Path | None = None, name: str = "scene") -> Scene:
-    """Build and validate a scene from a TOML-shaped dict (see ``docs/scenes.md`` for every key)."""
+def scene_from_dict(
+    doc: dict, *, base_dir: Path | None = None, name: str = "scene", allow_implausible: bool = False
+) -> Scene:
+    """Build and validate a scene from a TOML-shaped dict (see ``docs/scenes.md`` for every key);
+    ``allow_implausible`` accepts implausible values as ``[scene] allow_implausible = true`` does."""
     for table, value in doc.items():
         if table not in _TABLES:
             raise SceneError(f"unknown table [{table}]; allowed: {', '.join('[' + t + ']' for t in _TABLES)}")
@@ -674,8 +744,12 @@ def scene_from_dict(doc: dict, *, base_dir: Path | None = None, name: str = "sce
             if key not in _TABLES[table]:
                 raise SceneError(f"unknown key {key!r} in [{table}]; allowed: {', '.join(_TABLES[table])}")
     t = {k: dict(doc.get(k, {})) for k in _TABLES}
-    pad = Pad(**t["pad"])
+    allow = plausible.flag(t["scene"].get("allow_implausible", False)) or allow_implausible
     pt = t["patches"]
+    if not allow:  # before the pad's own checks: r_inner = 100 is a unit mistake before it is an ordering one
+        check_numbers_plausible(t["pad"], "pad", {"r_inner": "length", "r_outer": "length"})
+        check_numbers_plausible(pt, "patches", GENERATOR_KINDS)
+    pad = Pad(**t["pad"])
     if "file" in pt:
         extra = sorted(set(pt) - {"file"})
         if extra:
@@ -716,24 +790,35 @@ def scene_from_dict(doc: dict, *, base_dir: Path | None = None, name: str = "sce
             duration=t["run"].get("duration", 1.0e-3),
             growth=Growth(**t["growth"]) if "growth" in doc else None,
             origin=doc,
+            allow_implausible=allow,
         )
     except TypeError as e:  # a wrongly typed value that slipped through, e.g. a table for a number
         raise SceneError(f"invalid scene value: {e}") from None
 
 
-def load_scene(spec: str | Path) -> Scene:
-    """A preset name (:data:`PRESETS`) or the path of a TOML scene file."""
+def load_scene(spec: str | Path, *, allow_implausible: bool = False) -> Scene:
+    """A preset name (:data:`PRESETS`) or the path of a TOML scene file (``allow_implausible``: as the scene key)."""
     s = str(spec)
     if s in PRESETS:
-        return preset(s)
+        scene = preset(s)
+        return scene.replace(allow_implausible=True) if allow_implausible else scene
     p = Path(s)
+    if p.is_dir():
+        raise SceneError(f"scene {s!r} is a folder; give a preset ({', '.join(PRESETS)}) or a TOML scene file")
     if not p.is_file():
         raise SceneError(f"scene {s!r} is neither a preset ({', '.join(PRESETS)}) nor an existing TOML file")
     try:
         doc = tomllib.loads(p.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise SceneError(f"cannot parse {p}: {e}") from None
-    return scene_from_dict(doc, base_dir=p.parent, name=p.stem)
+    except OSError as e:
+        raise SceneError(f"cannot read scene file {p}: {e.strerror}") from None
+    if not doc:
+        raise SceneError(
+            f"scene file {p} is empty (no table, no key): it would silently run the defaults; start from a preset "
+            "file (aca_warp/data/hf1.toml, docs/scenes.md) or name the preset (hf1)"
+        )
+    return scene_from_dict(doc, base_dir=p.parent, name=p.stem, allow_implausible=allow_implausible)
 
 
 def preset(name: str) -> Scene:
@@ -753,7 +838,7 @@ def scene_to_dict(scene: Scene) -> dict:
     origin = scene.origin or {}
     patches = dict(origin.get("patches", {})) or {"source": scene.patches.source}
     doc = {
-        "scene": {"name": scene.name},
+        "scene": {"name": scene.name, **({"allow_implausible": True} if scene.allow_implausible else {})},
         "pad": dataclasses.asdict(scene.pad),
         "load": {"normal_force": scene.normal_force},
         "disc": {"angular_velocity": scene.angular_velocity},

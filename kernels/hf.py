@@ -455,6 +455,7 @@ def record_globals(
     x: wp.array[Any],
     y: wp.array[Any],
     conditional: int,
+    threads: int,
     # State in:
     u_in: wp.array[Any],
     v_in: wp.array[Any],
@@ -465,67 +466,81 @@ def record_globals(
     fault_out: wp.array2d[wp.int32],
     fault_value_out: wp.array[wp.float64],
 ):
-    """Per pad: μ, torque [N m], friction radius [m], Σu̇ [m/s], Σ|u̇| [m/s], friction centroid [m]; flags the first
-    faulty patch.
+    """Per pad (one block, ``launch_tiled``): μ, torque [N m], friction radius [m], Σu̇ [m/s], Σ|u̇| [m/s], friction
+    centroid [m]; flags the first faulty patch.
 
     μ = (Σ F_N,i f(ωr_i − u̇_i) + μ_pad F_matrix sign ω)/F_N (0 without load); T = Σ r_i F_i + r_m μ_pad F_m;
     r_eff = T / total friction force; centroid = |Σ F_i (x_i, y_i)| / |Σ F_i| over the patches (:func:`write_globals`).
+    Each of the block's ``threads`` lanes sums the patches lane, lane + threads, … in float64, and the block adds
+    the lanes' sums; with one lane (a CPU block) that is the sum in patch order.
 
     Watchdog (fault_out[pad] = [patch, sample, kind], first fault only): kind 0 a non-finite u or u̇; kind 1 a
     patch whose energy speed s_i = √(u̇_i² + (k_T,i/m_i) u_i²) = √(2E_i/m_i) exceeds ``watch_bound[pad]`` [m/s]
-    (E_i: the patch's kinetic and own-spring energy); fault_value_out[pad] = s_i.
+    (E_i: the patch's kinetic and own-spring energy); fault_value_out[pad] = s_i; "first" is the lowest patch index.
     """
-    pad = wp.tid()
+    pad, lane = wp.tid()
     if conditional != 0 and counters[3] == 0:
         return
-    row = counters[1]
+    a = pad_patch_start[pad]
+    n = pad_patch_start[pad + 1] - a
     fsum = wp.float64(0.0)
     tsum = wp.float64(0.0)
     vsum = wp.float64(0.0)
     vabs = wp.float64(0.0)
     fxsum = wp.float64(0.0)
     fysum = wp.float64(0.0)
-    usum = wp.float64(0.0)
     omega = pad_omega[pad]
     bound2 = watch_bound[pad] * watch_bound[pad]
-    runaway = int(-1)
-    speed2 = wp.float64(0.0)
-    for i in range(pad_patch_start[pad], pad_patch_start[pad + 1]):
-        v = v_in[i]
-        f = normal_force[i] * friction_coefficient(
-            omega * radius[i] - v, pad_mu_scale[pad], pad_slope[pad], pad_decay[pad]
+    runaway = n  # the lane's first patch beyond the bound (n: none)
+    broken = n  # the lane's first patch with a non-finite u or u̇ (n: none)
+    i = lane
+    while i < n:
+        g = a + i
+        v = v_in[g]
+        f = normal_force[g] * friction_coefficient(
+            omega * radius[g] - v, pad_mu_scale[pad], pad_slope[pad], pad_decay[pad]
         )
         fsum += wp.float64(f)
-        tsum += wp.float64(f * radius[i])
+        tsum += wp.float64(f * radius[g])
         vsum += wp.float64(v)
         vabs += wp.float64(wp.abs(v))
-        fxsum += wp.float64(f * x[i])
-        fysum += wp.float64(f * y[i])
-        ui = wp.float64(u_in[i])
-        usum += ui
-        s2 = wp.float64(v) * wp.float64(v) + wp.float64(k_t[i] * inv_mass[i]) * ui * ui
-        if s2 > bound2 and runaway < 0:
-            runaway = i - pad_patch_start[pad]
-            speed2 = s2
+        fxsum += wp.float64(f * x[g])
+        fysum += wp.float64(f * y[g])
+        ui = wp.float64(u_in[g])
+        s2 = wp.float64(v) * wp.float64(v) + wp.float64(k_t[g] * inv_mass[g]) * ui * ui
+        if s2 > bound2 and runaway == n:
+            runaway = i
+        if broken == n and not (wp.isfinite(v) and wp.isfinite(ui)):
+            broken = i
+        i += threads
+    fsum = wp.tile_sum(wp.tile(fsum))[0]
+    tsum = wp.tile_sum(wp.tile(tsum))[0]
+    vsum = wp.tile_sum(wp.tile(vsum))[0]
+    vabs = wp.tile_sum(wp.tile(vabs))[0]
+    fxsum = wp.tile_sum(wp.tile(fxsum))[0]
+    fysum = wp.tile_sum(wp.tile(fysum))[0]
+    runaway = wp.tile_min(wp.tile(runaway))[0]
+    broken = wp.tile_min(wp.tile(broken))[0]
+    if lane != 0:
+        return
     write_globals(
-        globals_out, row, pad, fsum, tsum, vsum, vabs, fxsum, fysum, omega, pad_mu_pad[pad], pad_matrix_force[pad],
-        pad_matrix_radius[pad], pad_load[pad],
+        globals_out, counters[1], pad, fsum, tsum, vsum, vabs, fxsum, fysum, omega, pad_mu_pad[pad],
+        pad_matrix_force[pad], pad_matrix_radius[pad], pad_load[pad],
     )  # fmt: skip
     if fault_out[pad, 0] >= 0:
         return
-    if not (wp.isfinite(vabs) and wp.isfinite(usum)):
-        first = int(-1)
-        for i in range(pad_patch_start[pad], pad_patch_start[pad + 1]):
-            if first < 0 and not (wp.isfinite(v_in[i]) and wp.isfinite(u_in[i])):
-                first = i - pad_patch_start[pad]
-        fault_out[pad, 0] = first
+    if broken < n:
+        fault_out[pad, 0] = broken
         fault_out[pad, 1] = counters[0]
         fault_out[pad, 2] = 0
-    elif runaway >= 0:
+    elif runaway < n:
+        g = a + runaway
+        ui = wp.float64(u_in[g])
+        vi = wp.float64(v_in[g])
         fault_out[pad, 0] = runaway
         fault_out[pad, 1] = counters[0]
         fault_out[pad, 2] = 1
-        fault_value_out[pad] = wp.sqrt(speed2)
+        fault_value_out[pad] = wp.sqrt(vi * vi + wp.float64(k_t[g] * inv_mass[g]) * ui * ui)
 
 
 @wp.kernel

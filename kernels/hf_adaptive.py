@@ -80,6 +80,32 @@ def acceleration(
     return inv_mass[i] * (fs + ff - damping[i] * v)
 
 
+@wp.func
+def stage_state(
+    i: int,
+    p: int,
+    stage: int,
+    coeff: wp.array2d[wp.float64],
+    ctl: wp.array2d[wp.float64],
+    u_in: wp.array[Any],
+    v_in: wp.array[Any],
+    ku: wp.array2d[Any],
+    kv: wp.array2d[Any],
+    u_stage: wp.array[Any],
+    v_stage: wp.array[Any],
+):
+    """Patch i's (of pad p) stage state y_s = y_0 + h Σ_{j<s} a_sj k_j at the pad's trial step h."""
+    h = type(u_in[i])(ctl[p, C_TRIAL])
+    du = u_in[i] - u_in[i]
+    dv = du
+    for j in range(stage):
+        a = type(du)(coeff[stage, j])
+        du += a * ku[j, i]
+        dv += a * kv[j, i]
+    u_stage[i] = u_in[i] + h * du
+    v_stage[i] = v_in[i] + h * dv
+
+
 @wp.kernel
 def dp5_stage(
     # Model:
@@ -98,20 +124,12 @@ def dp5_stage(
     u_stage: wp.array[Any],
     v_stage: wp.array[Any],
 ):
-    """The stage state y_s = y_0 + h Σ_{j<s} a_sj k_j of every patch of a pad that has not landed."""
+    """The stage state y_s of every patch of a pad that has not landed (:func:`stage_state`)."""
     i = wp.tid()
     p = patch_pad[i]
     if mode[p, M_LANDED] != 0:
         return
-    h = type(u_in[i])(ctl[p, C_TRIAL])
-    du = u_in[i] - u_in[i]
-    dv = du
-    for j in range(stage):
-        a = type(du)(coeff[stage, j])
-        du += a * ku[j, i]
-        dv += a * kv[j, i]
-    u_stage[i] = u_in[i] + h * du
-    v_stage[i] = v_in[i] + h * dv
+    stage_state(i, p, stage, coeff, ctl, u_in, v_in, ku, kv, u_stage, v_stage)
 
 
 @wp.kernel
@@ -140,9 +158,17 @@ def dp5_eval(
     # Out:
     ku: wp.array2d[Any],
     kv: wp.array2d[Any],
+    # Next stage (stage > 0 and stage + 1 < STAGES): y_0, the coefficients and the next stage state's buffers
+    coeff: wp.array2d[wp.float64],
+    ctl: wp.array2d[wp.float64],
+    u_in: wp.array[Any],
+    v_in: wp.array[Any],
+    u_next: wp.array[Any],
+    v_next: wp.array[Any],
 ):
     """k_s = (u̇, v̇) at the stage state of every pad that has not landed; ``first``: k_0 of the pads that need it
-    (at the start), at the state itself."""
+    (at the start), at the state itself. For 0 < s < 6 also the patch's next stage state y_{s+1} (:func:`stage_state`)
+    into ``u_next``/``v_next``, which must not be ``u_stage``/``v_stage``: the neighbours still read those."""
     i = wp.tid()
     p = patch_pad[i]
     if mode[p, M_LANDED] != 0:
@@ -155,6 +181,8 @@ def dp5_eval(
         i, p, u_stage, v, inv_mass, k_diag, damping, normal_force, radius, nbr_start, nbr_index, nbr_stiffness,
         pad_omega, pad_mu_scale, pad_slope, pad_decay,
     )  # fmt: skip
+    if stage > 0 and stage + 1 < STAGES:
+        stage_state(i, p, stage + 1, coeff, ctl, u_in, v_in, ku, kv, u_next, v_next)
 
 
 @wp.kernel

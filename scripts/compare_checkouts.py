@@ -36,6 +36,8 @@ import numpy as np
 JOBS = {
     "hf1": ["hf", "hf1", "--duration", "2e-5", "--no-progress"],
     "varying_area": ["hf", "varying_area", "--duration", "1e-5", "--no-progress"],
+    "hf1_adaptive": ["hf", "hf1", "--duration", "1e-4", "--integrator", "adaptive", "--tolerance", "1e-5"]
+    + ["--no-progress"],
     "lf": ["lf", "multiscale", "--no-progress"],
 }
 # root attributes that describe the machine, the package or the wall clock, not the results

@@ -1,4 +1,5 @@
-"""Random SIGKILLs of ``aca-warp hf``, ``lf`` and ``sweep``, then recovery, compared with uninterrupted runs.
+"""Random SIGKILLs (or Ctrl-C, SIGTERM) of ``aca-warp hf``, ``lf`` and ``sweep``, then recovery, compared with
+uninterrupted runs.
 
 For each workload (a small HF scene with per-patch histories and checkpoints, a small LF scene with checkpoints and
 snapshots, a four-shard sweep) the script runs the command once without interruption (the reference), then, per
@@ -10,6 +11,13 @@ checkpoints). The recovery then does what a user would:
   no checkpoint``) or before its file existed runs again (``--overwrite``); with probability 1/2 the recovery
   itself is killed at a random time too (at most ``--max-kills`` kills per trial) and recovered again;
 * sweep: the same command again (a sweep resumes by design).
+
+With ``--signals INT,TERM`` (any of KILL, INT, TERM; default KILL) each kill of an HF or LF run sends one of these
+signals, chosen at random (a sweep always gets SIGKILL). A run that takes a SIGINT or SIGTERM must end with exit
+130 or 143 and exactly one ``aca-warp: interrupted`` line, no traceback (or exit 0, when it finished first); a
+signal that lands before Python has started the command (the interpreter's start-up: SIGTERM's default action,
+Python's own KeyboardInterrupt) is counted as ``early``, as nothing was written then. The recovery resumes the
+interrupted file (``RUN.h5``, marked incomplete) as it resumes a killed run's ``.partial``.
 
 With ``--file-size-limits N`` each workload also runs N times under a file-size limit (RLIMIT_FSIZE, SIGXFSZ
 ignored: a write past it fails with EFBIG, the path of a full device), the limits spread evenly from 30 % to
@@ -139,6 +147,8 @@ class Trial:
     stopped: int | None = None  # exit code of the limited run
     kills: int = 0
     delays: list[float] = field(default_factory=list)
+    signals: list[str] = field(default_factory=list)  # the signal of each kill: KILL, INT, TERM
+    early: int = 0  # SIGINT/SIGTERM that landed before the command's handlers (interpreter start-up)
     recoveries: list[str] = field(default_factory=list)  # resume, rerun, sweep-rerun, finished
     outcome: str = ""  # identical, different, error
     detail: str = ""
@@ -186,17 +196,44 @@ def run_to_end(args: list[str], cwd: Path, limit: int | None = None) -> tuple[in
     return p.returncode, err
 
 
-def run_and_kill(args: list[str], cwd: Path, delay: float) -> tuple[bool, int, str]:
-    """Start ``aca-warp ARGS``, SIGKILL it after ``delay`` s; (killed, exit code, stderr): killed is False when it
-    ended by itself before (then its exit code and stderr count)."""
+SIGNALS = {"KILL": signal.SIGKILL, "INT": signal.SIGINT, "TERM": signal.SIGTERM}
+
+
+def run_and_kill(args: list[str], cwd: Path, delay: float, sig: str = "KILL") -> tuple[bool, int, str]:
+    """Start ``aca-warp ARGS``, send it SIG{sig} after ``delay`` s; (killed, exit code, stderr): killed is False
+    when it ended by itself before (then its exit code and stderr count). A SIGINT or SIGTERM must end the command
+    as :func:`interrupted` checks (else RuntimeError, which the trial reports)."""
     p = cli(args, cwd)
     try:
         _, err = p.communicate(timeout=delay)
         return False, p.returncode, err
     except subprocess.TimeoutExpired:
-        p.send_signal(signal.SIGKILL)
-        p.communicate()
+        p.send_signal(SIGNALS[sig])
+        _, err = p.communicate(timeout=600)
+    if sig == "KILL":
         return True, -signal.SIGKILL, ""
+    return interrupted(p.returncode, err, SIGNALS[sig])
+
+
+def interrupted(code: int, err: str, sig: int) -> tuple[bool, int, str]:
+    """Judge how a command ended after SIGINT/SIGTERM ``sig``: exit 128 + sig with one ``aca-warp: interrupted``
+    line and no traceback (killed), exit 0 (it finished first: not killed), or ``early`` (the signal came before
+    the command's handlers: SIGTERM's default action, or Python's KeyboardInterrupt at start-up; exit code -sig
+    or 1 with ``KeyboardInterrupt`` and no ``aca-warp`` line)."""
+    lines = [x for x in err.splitlines() if x.strip() and not x.startswith("Warp ")]
+    if code == 128 + sig and len(lines) == 1 and lines[0].startswith("aca-warp: interrupted"):
+        return True, code, err
+    if code == 0:
+        return False, 0, err
+    if code == -sig or (code == 1 and "KeyboardInterrupt" in err and "aca-warp" not in err):
+        return True, -1, err  # -1: early
+    raise RuntimeError(f"signal {sig}: exit {code}, {len(lines)} line(s): {' | '.join(lines[-3:])}")
+
+
+def complete(path: Path) -> bool:
+    """Whether the run file ``path`` says it is complete (an interrupted one says not)."""
+    with h5py.File(path, "r") as f:
+        return bool(f.attrs.get("complete", False))
 
 
 def datasets(path: Path) -> dict[str, bytes]:
@@ -232,26 +269,27 @@ def leftovers(w: Workload, cwd: Path) -> list[str]:
     return sorted(p.name for p in where.iterdir() if p.name.endswith((".partial", ".new", ".lock")))
 
 
-def recover(w: Workload, cwd: Path, t: Trial, rng: random.Random, budget: float, max_kills: int) -> tuple[int, str]:
+def recover(
+    w: Workload, cwd: Path, t: Trial, rng: random.Random, budget: float, max_kills: int, signals: list[str]
+) -> tuple[int, str]:
     """Bring a killed workload to its end (possibly killing the recovery again); returns the last exit code and
     stderr."""
     out = cwd / w.output
     while True:
         if w.name == "sweep":
             args, what = [*w.start, "-o", str(out)], "sweep-rerun"
-        elif out.exists():
+        elif out.exists() and complete(out):
             t.recoveries.append("finished")
             return 0, ""
-        elif out.with_name(out.name + ".partial").exists():
+        elif out.exists() or out.with_name(out.name + ".partial").exists():  # interrupted, or killed
             args, what = [w.name, "--resume", str(out), "--no-progress"], "resume"
         else:
             args, what = [*w.start, "-o", str(out)], "rerun"
         if t.kills < max_kills and rng.random() < 0.5:
             delay = rng.uniform(0.0, budget)
             t.delays.append(round(delay, 3))
-            killed, code, err = run_and_kill(args, cwd, delay)
+            killed, code, err = kill(t, w, args, cwd, delay, rng, signals)
             if killed:
-                t.kills += 1
                 t.recoveries.append(f"{what} (killed)")
                 continue
         else:
@@ -263,7 +301,29 @@ def recover(w: Workload, cwd: Path, t: Trial, rng: random.Random, budget: float,
         return code, err
 
 
-def trial(w: Workload, root: Path, ref: dict[str, bytes], budget: float, rng: random.Random, max_kills: int) -> Trial:
+def kill(
+    t: Trial, w: Workload, args: list[str], cwd: Path, delay: float, rng: random.Random, signals: list[str]
+) -> tuple[bool, int, str]:
+    """One kill of ``args`` after ``delay`` s with a signal drawn from ``signals`` (a sweep: SIGKILL), counted in
+    ``t``; (killed, exit code, stderr)."""
+    sig = "KILL" if w.name == "sweep" else rng.choice(signals)
+    killed, code, err = run_and_kill(args, cwd, delay, sig)
+    if killed:
+        t.kills += 1
+        t.signals.append(sig)
+        t.early += code == -1
+    return killed, code, err
+
+
+def trial(
+    w: Workload,
+    root: Path,
+    ref: dict[str, bytes],
+    budget: float,
+    rng: random.Random,
+    max_kills: int,
+    signals: list[str],
+) -> Trial:
     t = Trial(w.name)
     t0 = time.perf_counter()
     cwd = root / f"trial-{w.name}-{rng.randrange(10**9)}"
@@ -271,10 +331,9 @@ def trial(w: Workload, root: Path, ref: dict[str, bytes], budget: float, rng: ra
     try:
         delay = rng.uniform(0.0, budget)
         t.delays.append(round(delay, 3))
-        killed, code, err = run_and_kill([*w.start, "-o", str(cwd / w.output)], cwd, delay)
+        killed, code, err = kill(t, w, [*w.start, "-o", str(cwd / w.output)], cwd, delay, rng, signals)
         if killed:
-            t.kills += 1
-            code, err = recover(w, cwd, t, rng, budget, max_kills)
+            code, err = recover(w, cwd, t, rng, budget, max_kills, signals)
         else:
             t.recoveries.append("finished before the kill")
         compare(t, w, cwd, ref, code, err)
@@ -319,7 +378,7 @@ def limit_trial(w: Workload, root: Path, ref: dict[str, bytes], limit: int, rng:
         if code not in (0, 4) or (code == 4 and (len(lines) != 1 or "file size limit reached" not in lines[0])):
             t.outcome, t.detail = "error", f"limited run: exit {code}: {' | '.join(lines[-2:])}"
         else:
-            code, err = recover(w, cwd, t, rng, 0.0, 0) if code == 4 else (0, "")
+            code, err = recover(w, cwd, t, rng, 0.0, 0, ["KILL"]) if code == 4 else (0, "")
             compare(t, w, cwd, ref, code, err)
     except Exception as e:  # noqa: BLE001  (the harness reports, it does not stop)
         t.outcome, t.detail = "error", f"{type(e).__name__}: {e}"
@@ -354,6 +413,8 @@ def summarize(trials: list[Trial], refs: dict[str, float], args: argparse.Namesp
             "limit_recovered_identical": sum(t.outcome == "identical" for t in lim),
             "trials": len(ts),
             "kills": sum(t.kills for t in ts),
+            "signals": {k: sum(t.signals.count(k) for t in ts) for k in SIGNALS},
+            "early": sum(t.early for t in ts),
             "resumes": sum(r.startswith("resume") for t in ts for r in t.recoveries),
             "reruns": sum(r.startswith("rerun") for t in ts for r in t.recoveries),
             "sweep_reruns": sum(r.startswith("sweep-rerun") for t in ts for r in t.recoveries),
@@ -376,14 +437,16 @@ def markdown(s: dict) -> str:
     lines = [
         f"Fault injection: `{s['command']}` (seed {s['seed']}) on {s['machine']}.",
         "",
-        "| workload | trials | SIGKILLs | resumes | reruns | recovered bit-identical | different | errors |",
+        "| workload | trials | kills (KILL/INT/TERM; early) | resumes | reruns | recovered bit-identical | different "
+        "| errors |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for name, w in s["workloads"].items():
         reruns = w["reruns"] + w["sweep_reruns"]
+        by = "/".join(str(w["signals"][k]) for k in SIGNALS)
         lines.append(
-            f"| {name} | {w['trials']} | {w['kills']} | {w['resumes']} | {reruns} | {w['identical']} | "
-            f"{w['different']} | {w['errors']} |"
+            f"| {name} | {w['trials']} | {w['kills']} ({by}; {w['early']}) | {w['resumes']} | {reruns} | "
+            f"{w['identical']} | {w['different']} | {w['errors']} |"
         )
     if any(w["limit_trials"] for w in s["workloads"].values()):
         lines += [
@@ -413,6 +476,11 @@ def main(argv: list[str] | None = None) -> int:
         metavar="N",
         help="also run each workload under N file-size limits (30-110 %% of its output) and recover it",
     )
+    p.add_argument(
+        "--signals",
+        default="KILL",
+        help="comma-separated signals of the kills of hf and lf runs, drawn at random: KILL, INT, TERM (default KILL)",
+    )
     p.add_argument("--workloads", default="hf,lf,sweep", help="comma-separated subset of hf, lf, sweep")
     p.add_argument("--seed", type=int, default=1, help="random seed of the kill times")
     p.add_argument("--quick", action="store_true", help="short runs, one trial per workload (used by the tests)")
@@ -420,6 +488,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", type=Path, help="write the summary as JSON here")
     p.add_argument("--markdown", type=Path, help="write the summary table as Markdown here")
     args = p.parse_args(argv)
+    signals = args.signals.split(",")
+    if not set(signals) <= set(SIGNALS):
+        p.error(f"--signals takes {', '.join(SIGNALS)}")
     if args.quick:
         args.kills = 1
     import tempfile
@@ -449,11 +520,12 @@ def main(argv: list[str] | None = None) -> int:
             trials.append(t)
             print(f"{w.name} limit {limit} B: exit {t.stopped}, {t.outcome} ({t.seconds} s) {t.detail}", flush=True)
         for k in range(args.kills):
-            t = trial(w, root, ref, refs[w.name], rng, args.max_kills)
+            t = trial(w, root, ref, refs[w.name], rng, args.max_kills, signals)
             trials.append(t)
             steps = " -> ".join(t.recoveries) or "nothing to recover"
             print(
-                f"{w.name} {k + 1}/{args.kills}: {t.outcome} after {t.kills} kill(s) at {t.delays} s, {steps} "
+                f"{w.name} {k + 1}/{args.kills}: {t.outcome} after {t.kills} kill(s) ({', '.join(t.signals)}) at "
+                f"{t.delays} s, {steps} "
                 f"({t.seconds} s) {t.detail}",
                 flush=True,
             )

@@ -128,12 +128,17 @@ def test_fault_stops_with_exit_3_and_an_incomplete_file(scene_file, tmp_path, ca
         ]
     )
     assert code == 3
-    err = capsys.readouterr().err
+    captured = capsys.readouterr()
+    err = captured.err
     assert "non-finite" in err and "patch" in err and "likely cause" in err
+    # the summary gives the time the run stopped at, not the 2 ms asked for
+    stopped = float(captured.out.split("stopped at t = ")[1].split(" s")[0])
+    assert "of the requested 0.002 s (incomplete)" in captured.out and 0 < stopped < 2e-3
     r = read_run(out)
     assert r["attrs"]["complete"] is False or not r["attrs"]["complete"]
     assert "stopped" in r["attrs"]["status"]
     assert np.all(np.isfinite(r["global/mu"]))  # only the samples before the fault
+    assert r["global/time"][-1] == pytest.approx(stopped)
 
 
 def test_interrupt_leaves_a_marked_file(scene_file, tmp_path, monkeypatch):
@@ -208,19 +213,22 @@ def test_version_and_quiet_start(scene_file, tmp_path):
 
 
 def test_absurd_runs_are_refused_before_anything_is_written(scene_file, tmp_path, capsys):
-    """A duration typed in the wrong unit, a step of 1e-20 s or an output of terabytes: one line, exit 2, no file;
-    --force lifts the limits (checked with the step count only: the plan passes)."""
+    """A duration typed in the wrong unit, a step of 1e-20 s or an output of terabytes: one line, exit 2, no file,
+    first as implausible values (the unit named), and with --allow-implausible by the size limits; --force lifts the
+    limits (checked with the step count only: the plan passes)."""
     out = tmp_path / "run.h5"
-    for extra, message in (
-        (["--duration", "1e3"], "more than a run records"),
-        (["--duration", "50", "--dt", "1e-10"], "5e+11 steps, more than 1e+10"),
-        (["--dt", "1e-20"], "steps, more than 1e+10"),
-        (["--duration", "1e1", "--sample-dt", "1e-8", "--record-patches", "velocity"], "more than 50 GB"),
+    for extra, message, limit in (
+        (["--duration", "1e3"], "did you mean µs? (1000 µs = 0.001 s)", "more than a run records"),
+        (["--duration", "50", "--dt", "1e-10"], "run.duration = 50 s — beyond 1 s", "5e+11 steps, more than 1e+10"),
+        (["--dt", "1e-20"], "dt = 1e-20 s — below 1e-13 s", "steps, more than 1e+10"),
+        (["--duration", "1e1", "--sample-dt", "1e-8", "--record-patches", "velocity"], "beyond 1 s", "more than 50 GB"),
     ):
-        assert main(["hf", str(scene_file), "-o", str(out), *extra]) == 2
-        err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and message in err[0], err
-        assert not out.exists() and not out.with_name("run.h5.partial").exists()
-    plan = runner.plan_run(load_scene(str(scene_file)), runner.RunOptions(duration=50.0, dt=1e-10, force=True))
+        for allow, expected in (([], message), (["--allow-implausible"], limit)):
+            assert main(["hf", str(scene_file), "-o", str(out), *extra, *allow]) == 2
+            err = capsys.readouterr().err.strip().splitlines()
+            assert len(err) == 1 and expected in err[0], err
+            assert not out.exists() and not out.with_name("run.h5.partial").exists()
+    scene = load_scene(str(scene_file), allow_implausible=True)
+    plan = runner.plan_run(scene, runner.RunOptions(duration=50.0, dt=1e-10, force=True))
     assert plan.steps == 500_000_000_000 and plan.samples == 500_000_001
     assert plan.describe() == "5e+11 steps of 1e-10 s, 5e+08 samples, about 28 GB to record"

@@ -214,8 +214,8 @@ CASES = [
         (
             StabilityError,
             r"dt = 1e-08 s exceeds the stable-step estimate 8.8\de-10 s of symplectic-euler \(springs 2.02e-06 s, "
-            r"friction slope 8.8\de-10 s\); choose a smaller --dt, an implicit-friction integrator \(strang, "
-            r"implicit-friction\), or --force",
+            r"friction slope 8.8\de-10 s\); choose a smaller dt, an implicit-friction integrator "
+            r"\(strang, implicit-friction\), or force=True$",
         ),
         integrator="symplectic-euler",
     ),
@@ -226,7 +226,8 @@ CASES = [
         (
             StabilityError,
             r"dt = 1e-05 s exceeds the stable-step estimate 2.02e-06 s of strang \(springs 2.02e-06 s, .*\); "
-            r"choose a smaller --dt \(the springs bound every fixed-step scheme\), --integrator adaptive",
+            r"choose a smaller dt \(the springs bound every fixed-step scheme\), integrator='adaptive', or "
+            r"force=True$",
         ),
         dt=1e-5,
     ),

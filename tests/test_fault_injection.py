@@ -21,6 +21,39 @@ def test_quick_hf_trial(tmp_path) -> None:
     assert s["failures"] == [] and "| hf | 1 |" in md.read_text()
 
 
+def test_quick_interrupt_trials(tmp_path) -> None:
+    """--signals INT,TERM: the kill of an LF run is Ctrl-C or SIGTERM, which ends it with one line and exit
+    130/143 (checked by the script), and --resume of the interrupted file ends bit-identical (HF runs:
+    test_cli_faults.py)."""
+    fi = load_script("fault_injection")
+    js = tmp_path / "fi.json"
+    argv = ["--quick", "--workloads", "lf", "--max-kills", "1", "--signals", "INT,TERM", "--seed", "3"]
+    assert fi.main([*argv, "--dir", str(tmp_path / "w"), "--json", str(js)]) == 0
+    s = json.loads(js.read_text())
+    for name in ("lf",):
+        w = s["workloads"][name]
+        assert w["identical"] == w["trials"] == 1 and w["signals"]["KILL"] == 0, w
+    assert s["failures"] == []
+
+
+def test_interrupt_outcomes_are_judged() -> None:
+    """One line and 128 + signal pass; a traceback, two lines or another exit code fail; exit 0 is a run that
+    finished first."""
+    import signal
+
+    fi = load_script("fault_injection")
+    line = "aca-warp: interrupted (SIGTERM); run.h5 keeps the samples ..."
+    assert fi.interrupted(143, line + "\n", signal.SIGTERM) == (True, 143, line + "\n")
+    assert fi.interrupted(0, "", signal.SIGINT)[0] is False
+    assert fi.interrupted(-15, "", signal.SIGTERM)[1] == -1  # before the handlers: early
+    for code, err in ((143, "Traceback (most recent call last):\n" + line), (1, "aca-warp: error: x"), (130, "")):
+        try:
+            fi.interrupted(code, err, signal.SIGTERM if code != 130 else signal.SIGINT)
+        except RuntimeError:
+            continue
+        raise AssertionError(f"accepted exit {code}: {err!r}")
+
+
 def test_a_different_output_is_reported(tmp_path) -> None:
     """The comparison sees one changed value (a trial's output against the reference)."""
     fi = load_script("fault_injection")

@@ -132,12 +132,14 @@ def test_largest_int32_decimation_runs(tmp_path, capsys) -> None:
 
 @pytest.mark.parametrize(
     ("extra", "message"),
-    [
-        ("[pad]\nr_outer = 1e308\n", "pad.r_outer = 1e+308 m is too large"),
-        ("[pad]\nr_outer = 1e150\n", "pad.r_outer = 1e+150 m is too large"),
+    [  # radii are refused first as implausible (a unit mistake), then, allowed, as too large
+        ("[pad]\nr_outer = 1e308\n", "pad.r_outer = 1e+308 m — beyond 2 m"),
+        ("[pad]\nr_outer = 1e150\n", "pad.r_outer = 1e+150 m — beyond 2 m"),
+        ("[scene]\nallow_implausible = true\n[pad]\nr_outer = 1e308\n", "pad.r_outer = 1e+308 m is too large"),
+        ("[scene]\nallow_implausible = true\n[pad]\nr_outer = 1e150\n", "pad.r_outer = 1e+150 m is too large"),
         ('[patches]\nfile = "folder"\n', "is a folder"),
     ],
-    ids=["r_outer-1e308", "r_outer-1e150", "patch-file-folder"],
+    ids=["r_outer-1e308", "r_outer-1e150", "r_outer-1e308-allowed", "r_outer-1e150-allowed", "patch-file-folder"],
 )
 def test_scene_values_one_line(tmp_path, capsys, extra, message) -> None:
     (tmp_path / "folder").mkdir()
@@ -152,5 +154,8 @@ def test_step_counts_beyond_int32(tmp_path, capsys) -> None:
     """A sample interval of more than 2^31 − 1 steps (the on-chip kernel takes it as an int32): one line."""
     s = tmp_path / "s.toml"
     s.write_text(TINY.replace("sample_dt = 1.0e-7", "sample_dt = 1.0e-2").replace("2.0e-6", "1.0e-2"))
-    code, err = run_cli(capsys, ["hf", str(s), "-o", str(tmp_path / "run.h5"), "--dt", "1e-12", "--no-progress"])
+    argv = ["hf", str(s), "-o", str(tmp_path / "run.h5"), "--dt", "1e-12", "--no-progress"]
+    code, err = run_cli(capsys, argv)  # 1e-2 s samples are implausible for HF (docs/scenes.md)
+    assert code == 2 and len(err) == 1 and "record.sample_dt = 0.01 s — beyond 0.001 s" in err[0]
+    code, err = run_cli(capsys, [*argv, "--allow-implausible"])
     assert code == 2 and len(err) == 1 and "steps per sample interval = 10000000000 exceeds 2147483647" in err[0]

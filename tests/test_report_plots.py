@@ -103,10 +103,10 @@ def _sha(path):
 
 
 def test_analyze_writes_every_group_with_units(runs, tmp_path):
-    """/analysis holds spectra, patch spectrum, STFT, CWT, sync and peaks; every dataset has a unit."""
+    """/analysis holds spectra, patch spectrum, STFT, CWT, sync, peaks and saturation; every dataset has a unit."""
     path = _copy(runs["patches"], tmp_path)
     groups = analyze_run(path)
-    assert set(groups) == {"spectra", "patch_spectrum", "stft", "cwt", "sync", "peaks"}
+    assert set(groups) == {"spectra", "patch_spectrum", "stft", "cwt", "sync", "peaks", "saturation"}
     with h5py.File(path, "r") as f:
         a = f["analysis"]
         assert set(a) == set(groups) and report._TMP_GROUP not in f

@@ -65,14 +65,18 @@ def run_cli(capsys, argv: list[str]) -> tuple[int, list[str]]:
     ids=["K_N-1e308", "K_N-1e20", "heights-1e6"],
 )
 def test_contact_that_loses_the_load_is_refused(tmp_path, capsys, extra, height, message) -> None:
-    """Stiffnesses or heights beyond float64: exit 3, one line, no file; --accept-unphysical runs with a warning."""
+    """Stiffnesses or heights beyond float64: refused as implausible values (exit 2); allowed, the contact check
+    refuses them: exit 3, one line, no file; --accept-unphysical runs with a warning."""
     s = scene_file(tmp_path, extra, height)
     out = tmp_path / "run.h5"
     code, err = run_cli(capsys, ["hf", str(s), "-o", str(out), "--no-progress"])
+    assert code == 2 and len(err) == 1 and "allow_implausible" in err[0], err
+    code, err = run_cli(capsys, ["hf", str(s), "-o", str(out), "--no-progress", "--allow-implausible"])
     assert code == 3 and len(err) == 1 and message in err[0] and "--accept-unphysical" in err[0], err
     assert not out.exists() and not (tmp_path / "run.h5.partial").exists() and not (tmp_path / "run.h5.lock").exists()
     if "1e20" in extra:
-        code, err = run_cli(capsys, ["hf", str(s), "-o", str(out), "--no-progress", "--accept-unphysical"])
+        argv = ["hf", str(s), "-o", str(out), "--no-progress", "--accept-unphysical", "--allow-implausible"]
+        code, err = run_cli(capsys, argv)
         assert code == 0 and len(err) == 1 and err[0].startswith("aca-warp: warning:") and message in err[0], err
         with h5py.File(out, "r") as f:
             assert f.attrs["complete"] and '"accept_unphysical": true' in f.attrs["run_options"]
@@ -164,5 +168,5 @@ def test_sticking_bound_formula() -> None:
     assert est.sticking == pytest.approx(4.0 / gamma.max(), rel=1e-12)
     assert est.limit("strang") == est.sticking < est.spring == est.limit("implicit-friction")
     with pytest.raises(PhysicsError):
-        bad = build_model([s.replace(material=dataclasses.replace(s.material, K_N=1e308))])
+        bad = build_model([s.replace(material=dataclasses.replace(s.material, K_N=1e308), allow_implausible=True)])
         sanity.check_contact(bad, accept=False)

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 from aca_warp.common.argtypes import fraction, int_at_least, nonneg, positive
@@ -156,7 +158,8 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     band = None if args.freq_min is None and args.freq_max is None else (args.freq_min, args.freq_max)
     from aca_warp.common.files import reading
 
-    with reading(args.run, "run file"):
+    check_writable_file(args.run)
+    with reading(args.run, "run file"), storage_errors(f"/analysis into {args.run}", "the file keeps its samples"):
         groups = analyze_run(
             args.run,
             freq_range=band,
@@ -191,31 +194,84 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         parts.append("per-patch velocities not read (--no-sync)")
     else:
         parts.append("no per-patch velocities: Synchronization Index skipped")
+    if "saturation" in groups:
+        from aca_warp.analysis.report import saturation_summary
+
+        parts.append(saturation_summary(groups["saturation"]))
     print("; ".join(parts))
     return 0
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    """``aca-warp plot``: draw the figures and list the files written; 0 on success."""
+    """``aca-warp plot``: draw the figures and list the files written; 0 on success. The output folder is checked
+    first (not a file, writable: exit 4 for a read-only or full file system); a folder this command created is
+    removed again when no figure was written into it; every figure is written whole (``aca_warp.plotting``)."""
     from pathlib import Path
 
+    from aca_warp.common.files import check_output_folder, reading
     from aca_warp.plots import plot_run
 
-    out = Path(args.output_dir)
-    if out.exists() and not out.is_dir():
-        raise SceneError(f"output {out} exists and is not a folder")
+    out = check_output_folder(args.output_dir)
+    created = not out.exists()
 
     def note(message: str) -> None:
         print(f"aca-warp plot: {message}", file=sys.stderr)
 
-    from aca_warp.common.files import reading
-
-    with reading(args.run, "run file"):
-        files = plot_run(
-            args.run, out, which=args.only, times=args.times, log=note, quantity=args.quantity, snapshots=args.snapshots
-        )
+    files: list[Path] = []
+    try:
+        with reading(args.run, "run file"), storage_errors(f"figures into {out}", "the figures before it are kept"):
+            files = plot_run(
+                args.run,
+                out,
+                which=args.only,
+                times=args.times,
+                log=note,
+                quantity=args.quantity,
+                snapshots=args.snapshots,
+            )
+    finally:
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
     for f in files:
         print(f)
     if not files:
         raise SceneError(f"no figure could be made from {args.run}")
     return 0
+
+
+def check_writable_file(path: str) -> None:
+    """``analyze`` writes into the run file: refuse one that cannot be opened for writing (read-only file system,
+    no permission) before anything is computed, with exit 4. A missing file is left to the analysis' own message."""
+    import os
+
+    from aca_warp.common.errors import StorageError
+    from aca_warp.common.files import UNWRITABLE
+
+    if not os.path.isfile(path):
+        return
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CLOEXEC)  # opens for writing, changes nothing
+    except OSError as e:
+        why = UNWRITABLE.get(e.errno or 0, e.strerror)
+        raise StorageError(
+            f"cannot write into {path} ({why}); analyze stores /analysis in the run file: copy it to a writable folder"
+        ) from None
+    os.close(fd)
+
+
+@contextmanager
+def storage_errors(what: str, kept: str) -> Iterator[None]:
+    """Turn a full device, a file-size limit or a quota met while writing ``what`` into one StorageError line
+    (exit 4) that says what is kept (``kept``)."""
+    from aca_warp.common.errors import AcaError, StorageError
+    from aca_warp.common.storage import STORAGE_ERRNOS, storage_errno
+
+    try:
+        yield
+    except AcaError:
+        raise
+    except (OSError, RuntimeError) as e:
+        code = storage_errno(e)
+        if code is None:
+            raise
+        raise StorageError(f"{STORAGE_ERRNOS[code]} while writing {what}; {kept}") from None

@@ -8,7 +8,9 @@
 * ``/analysis/stft`` and ``/analysis/cwt``: time-frequency maps of μ(t) (paper Figs. 10, 11);
 * ``/analysis/sync``: the Synchronization Index S(f) with Φ(f), its null level and R_w(f) (paper §2.2,
   Fig. 9; only with per-patch velocities);
-* ``/analysis/peaks``: attributes with the first velocity-spectrum peak and the largest μ peak.
+* ``/analysis/peaks``: attributes with the first velocity-spectrum peak and the largest μ peak;
+* ``/analysis/saturation``: where the record's growth saturates (Σ|u̇| and μ), with the measured growth rate beside
+  the predicted one the run file holds (:func:`compute_saturation`).
 
 Everything is computed first and written last, into a temporary group that replaces ``/analysis`` only
 once it is complete: a failure leaves the previous ``/analysis`` (or none) in place. The ``compute_*``
@@ -31,8 +33,9 @@ import scipy.fft
 
 from aca_warp.common.errors import SceneError
 
+from .saturation import record_saturation
 from .spectra import DEFAULT_FLOOR_HZ, amplitude_spectrum, complex_spectrum, peak
-from .sync import _patch_groups, sync_index, sync_index_from_signals
+from .sync import SyncResult, _patch_groups, sync_index, sync_index_from_signals
 from .timefreq import cwt_morlet, stft
 
 GLOBAL_OUTPUTS = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity", "friction_centroid")
@@ -333,19 +336,7 @@ def compute_patch_velocity(
     band = _band(freq_range, 0.5 / dt)
     rows = _band_rows(freq_all, band)
     keep_band = sync and (rows.stop - rows.start) * n_patches * 8 <= max_bytes
-    X = np.empty((rows.stop - rows.start, n_patches), dtype=np.complex64) if keep_band else None
-    group = max(1, max_bytes // (4 * n))
-    if v.chunks and v.chunks[1] < n_patches:
-        group = max(1, group // v.chunks[1]) * v.chunks[1]
-    total = np.zeros(freq_all.size)
-    for g0, block in _patch_groups(v, group):
-        for c0 in range(0, block.shape[1], 32):
-            x = np.asarray(block[:, c0 : c0 + 32], dtype=np.float32)
-            _, spec = complex_spectrum(x, dt, axis=0, workers=workers)
-            total += np.abs(spec).sum(axis=1, dtype=np.float64)
-            if X is not None:
-                X[:, g0 + c0 : g0 + c0 + spec.shape[1]] = spec[rows]
-            del spec
+    total, X = _patch_spectra(v, dt, rows if keep_band else None, max_bytes, workers)
     patch = Group(
         attrs={
             "quantity": "mean over all patches of the one-sided Hann amplitude spectra |X_i(f)| of the per-patch "
@@ -368,6 +359,42 @@ def compute_patch_velocity(
     except ValueError as e:
         raise SceneError(f"Synchronization Index: {e}") from None
     del X
+    return patch, _sync_group(res, band, dt, v.shape)
+
+
+def _patch_spectra(
+    v: h5py.Dataset, dt: float, band_rows: slice | None, max_bytes: int, workers: int | None
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """One pass over the per-patch velocities ``v`` (samples, patches) [m/s] sampled every ``dt`` [s].
+
+    Reads patch-column groups of whole HDF5 chunks (at most ``max_bytes`` of float32 each) and computes each
+    patch's Hann complex spectrum, 32 columns per FFT (``complex_spectrum``'s scaling).
+
+    Returns:
+        ``(total, X)``: total, shape (samples // 2 + 1,), the sum over patches of |X_i(f)| [m/s]; X, shape
+        (rows of ``band_rows``, patches), complex64, the spectra's bins ``band_rows``, or None without them.
+    """
+    n, n_patches = v.shape
+    X = None if band_rows is None else np.empty((band_rows.stop - band_rows.start, n_patches), dtype=np.complex64)
+    group = max(1, max_bytes // (4 * n))
+    if v.chunks and v.chunks[1] < n_patches:
+        group = max(1, group // v.chunks[1]) * v.chunks[1]
+    total = np.zeros(n // 2 + 1)  # one entry per bin of the one-sided spectrum
+    for g0, block in _patch_groups(v, group):
+        for c0 in range(0, block.shape[1], 32):
+            x = np.asarray(block[:, c0 : c0 + 32], dtype=np.float32)
+            _, spec = complex_spectrum(x, dt, axis=0, workers=workers)
+            total += np.abs(spec).sum(axis=1, dtype=np.float64)
+            if X is not None:
+                X[:, g0 + c0 : g0 + c0 + spec.shape[1]] = spec[band_rows]
+            del spec
+    return total, X
+
+
+def _sync_group(res: SyncResult, band: tuple[float, float], dt: float, shape: tuple[int, int]) -> Group:
+    """``/analysis/sync`` from the Synchronization Index ``res`` of per-patch velocities of ``shape`` (samples,
+    patches), sampled every ``dt`` [s], over ``band`` [Hz]."""
+    n, n_patches = shape
     attrs: dict[str, Any] = dict(res.params)
     attrs.update(
         signal="/patches/velocity",
@@ -385,10 +412,10 @@ def compute_patch_velocity(
     g.add("S", res.S, "1", meaning="Synchronization Index, Eq. 9 (NaN where Phi < 2)")
     g.add("S_AB", res.S_AB, "1", meaning="A/B contribution, Eq. 6")
     g.add("S_BC", res.S_BC, "1", meaning="B/C contribution, Eq. 8")
-    g.add("Phi", res.Phi.astype(np.int64), "1", meaning=f"patches counted as oscillating ({rule} rule)")
+    g.add("Phi", res.Phi.astype(np.int64), "1", meaning=f"patches counted as oscillating ({res.rule} rule)")
     g.add("S_null", res.S_null, "1", meaning="mean S of Phi uniformly random phases (Monte-Carlo)")
     g.add("R_w", res.R_w, "1", meaning="|sum_i X_i| / sum_i |X_i| over all patches")
-    return patch, g
+    return g
 
 
 def compute_patch_spectrum(f: h5py.File, *, max_bytes: int = 1 << 30, workers: int | None = -1) -> Group | None:
@@ -585,6 +612,80 @@ def compute_peaks(
     return Group(attrs=attrs)
 
 
+# ------------------------------------------------------------------------------------------ saturation
+
+
+def _predicted_rates(f: h5py.File) -> dict[str, float]:
+    """Percentiles of the run file's ``/patches/predicted_growth_rate`` σ_i [1/s] (empty for files without it)."""
+    if "patches/predicted_growth_rate" not in f:
+        return {}
+    sigma = f["patches/predicted_growth_rate"][()].astype(np.float64)
+    q = np.percentile(sigma, [0.0, 25.0, 50.0, 100.0])
+    return dict(zip(("min", "q25", "median", "max"), (float(v) for v in q), strict=True))
+
+
+def compute_saturation(f: h5py.File) -> Group:
+    """Saturation of the run's record (``saturation.record_saturation`` on /global/sum_abs_velocity and /global/mu).
+
+    Attributes: ``status`` ("saturated", "not saturated", "no growth phase", or "not analysed" for a record shorter
+    than 64 samples, with ``reason``), ``t_start`` [s] (the later of ``t_s_sum_abs_velocity`` and ``t_s_mu``),
+    the measured ``growth_rate`` of Σ|u̇| over ``growth_window`` [s] with ``growth_r2`` and ``growth_rise``
+    [e-folds], ``mu_growth_rate``, both verdicts, and (where the run file holds σ_i) ``predicted_growth_rate_*``
+    (min, q25, median, max) and ``growth_rate_ratio`` = measured / predicted median. Datasets: the envelopes of
+    both signals per window with their log-slopes. Absent values are stored as "none".
+    """
+    time = f["global/time"][()]
+    attrs: dict[str, Any] = {"signals": ["/global/sum_abs_velocity", "/global/mu"], "method": "docs/analysis.md"}
+    predicted = _predicted_rates(f)
+    attrs.update({f"predicted_growth_rate_{k}": v for k, v in predicted.items()})
+    attrs["predicted_source"] = "/patches/predicted_growth_rate" if predicted else "none (not in this run file)"
+    try:
+        sample_interval(time)
+        rec = record_saturation(time, f["global/mu"][()], f["global/sum_abs_velocity"][()])
+    except (ValueError, SceneError) as e:
+        return Group(attrs={**attrs, "status": "not analysed", "reason": str(e), "t_start": None})
+    figures = rec.figures()
+    figures["growth_window"] = list(figures["growth_window"]) if figures["growth_window"] else None
+    attrs.update(figures)
+    rate = figures["growth_rate"]
+    attrs["growth_rate_ratio"] = rate / predicted["median"] if rate is not None and predicted.get("median") else None
+    for key in ("t_start", "t_s_sum_abs_velocity", "t_s_mu", "growth_window"):
+        attrs[f"{key}_unit"] = "s"
+    for key in ("growth_rate", "mu_growth_rate", "predicted_growth_rate"):
+        attrs[f"{key}_unit"] = "s-1"
+    g = Group(attrs=attrs)
+    for name, res, unit in (("sum_abs_velocity", rec.sum_abs_velocity, "m s-1"), ("mu", rec.mu, "1")):
+        g.add(f"{name}_time", res.envelope_time, "s", meaning="window centres")
+        g.add(f"{name}_envelope", res.envelope, unit, statistic=res.statistic, window=res.window)
+        g.add(f"{name}_log_slope", res.log_slope, "s-1", meaning="local slope of ln envelope")
+    return g
+
+
+def saturation_summary(g: Group) -> str:
+    """One clause for the ``analyze`` summary line: whether the record is saturated, from when, and the measured
+    growth rate beside the predicted median and 25th percentile."""
+    a = g.attrs
+    status = a["status"]
+    if status == "not analysed":
+        return f"saturation not analysed ({a['reason']})"
+
+    def ms(t: Any) -> str:
+        return "none" if t is None or t == "none" else f"{float(t) * 1e3:.4g} ms"
+
+    if status == "saturated":
+        text = f"saturated from {ms(a['t_start'])} (Σ|u̇| {ms(a['t_s_sum_abs_velocity'])}, μ {ms(a['t_s_mu'])})"
+    elif status == "no growth phase":
+        text = f"no growth phase (Σ|u̇| settled from {ms(a['t_s_sum_abs_velocity'])} without growing)"
+    else:
+        text = "not saturated (Σ|u̇| still changes at the end of the record)"
+    rate = a.get("growth_rate")
+    measured = "no growth phase fitted" if rate is None or rate == "none" else f"growth {float(rate):.4g} s^-1"
+    if "predicted_growth_rate_median" in a:
+        pm, pq = a["predicted_growth_rate_median"], a["predicted_growth_rate_q25"]
+        return f"{text}; {measured} (predicted σ median {pm:.4g}, 25th percentile {pq:.4g} s^-1)"
+    return f"{text}; {measured} (no predicted σ in this run file)"
+
+
 # ---------------------------------------------------------------------------------------- read/write
 
 
@@ -631,26 +732,43 @@ def analysis_group(f: h5py.File, name: str, compute: Callable[[], Group | None])
 def write_analysis(f: h5py.File, groups: dict[str, Group], attrs: dict[str, Any]) -> None:
     """Replace ``/analysis`` by ``groups``: written into a temporary group, then swapped in.
 
-    If writing fails, the temporary group is removed and the previous ``/analysis`` is left as it was.
+    If writing fails, the temporary group is removed and the previous ``/analysis`` is left as it was. Room for
+    the groups is reserved first (:class:`~aca_warp.common.storage.GuardedFile`): a full device, a file-size limit
+    or a quota raises a :class:`~aca_warp.common.errors.StorageError` before anything is written, and the file is
+    closed without another write (as it was); the swap is not cut half-way by Ctrl-C or SIGTERM.
     """
-    if _TMP_GROUP in f:
-        del f[_TMP_GROUP]
+    from aca_warp.common.interrupts import deferred
+    from aca_warp.common.storage import GuardedFile, storage_errno, storage_error
+
+    guard = GuardedFile(f, f.filename)
+    need = sum(np.asarray(d).nbytes + 4096 for g in groups.values() for d, _ in g.datasets.values())
     try:
-        tmp = f.create_group(_TMP_GROUP)
-        for k, v in attrs.items():
-            tmp.attrs[k] = _attr_value(v)
-        for name, group in groups.items():
-            _write_group(tmp, name, group)
-    except BaseException:
+        guard.reserve(need)
+        if _TMP_GROUP in f:
+            del f[_TMP_GROUP]
         try:
-            if _TMP_GROUP in f:
-                del f[_TMP_GROUP]
-        finally:
+            tmp = f.create_group(_TMP_GROUP)
+            for k, v in attrs.items():
+                tmp.attrs[k] = _attr_value(v)
+            for name, group in groups.items():
+                _write_group(tmp, name, group)
+        except BaseException:
+            try:
+                if _TMP_GROUP in f:
+                    del f[_TMP_GROUP]
+            finally:
+                raise
+        with deferred():
+            if GROUP in f:
+                del f[GROUP]
+            f.move(_TMP_GROUP, GROUP)
+            guard.flush()
+    except Exception as e:  # a StorageError of the reservation, or an OSError/RuntimeError of HDF5
+        code = storage_errno(e)
+        if code is None:
             raise
-    if GROUP in f:
-        del f[GROUP]
-    f.move(_TMP_GROUP, GROUP)
-    f.flush()
+        guard.abandon()
+        raise storage_error(code, f"/analysis into {guard.path}", "the file keeps its samples as they were") from None
 
 
 def _package_version() -> str:
@@ -706,6 +824,42 @@ def analyze_run(
         SceneError: The file is missing, not an HDF5 run file, not writable, or an option is invalid;
             the file is then left unchanged.
     """
+    _check_options(rule, eta, snr, n_bins)
+    band = _checked_band(path, freq_range)
+    index = {"rule": rule, "eta": eta, "snr": snr, "n_bins": n_bins, "null_trials": null_trials}
+    with open_run_file(path, "r+") as f:
+        groups: dict[str, Group] = {"spectra": compute_spectra(f)}
+        if sync:
+            groups.update(_patch_velocity_groups(f, band, index, max_bytes, workers))
+        groups["stft"] = compute_stft(f, window_s=stft_window_s)
+        groups["cwt"] = compute_cwt(f, freqs=cwt_freqs, freq_range=band, count=cwt_count, columns=cwt_columns)
+        groups["peaks"] = compute_peaks(groups["spectra"], groups.get("patch_spectrum"), freq_range=band)
+        groups["saturation"] = compute_saturation(f)
+        parameters = {
+            "freq_range": list(band) if band else None,
+            "sync": sync,
+            "rule": rule,
+            "eta": eta,
+            "snr": snr,
+            "n_bins": n_bins,
+            "stft_window_s": stft_window_s,
+            "cwt_count": cwt_count,
+            "cwt_columns": cwt_columns,
+            "null_trials": null_trials,
+        }
+        attrs = {
+            "created_by": "aca_warp.analysis.report.analyze_run",
+            "aca_warp_version": _package_version(),
+            "parameters": parameters,
+            "run_complete": bool(run_attr(f, "complete", False)),
+            "groups": json.dumps(sorted(groups)),
+        }
+        write_analysis(f, groups, attrs)
+    return groups
+
+
+def _check_options(rule: str, eta: float, snr: float, n_bins: int) -> None:
+    """Refuse a Synchronization Index option of :func:`analyze_run` that is out of range (:class:`SceneError`)."""
     if rule not in RULES:
         raise SceneError(f"rule must be one of {', '.join(RULES)}, got {rule!r}")
     if not 0.0 < eta <= 1.0:
@@ -714,55 +868,28 @@ def analyze_run(
         raise SceneError(f"snr must be > 0, got {snr}")
     if isinstance(n_bins, bool) or not isinstance(n_bins, (int, np.integer)) or n_bins < 2:
         raise SceneError(f"n_bins must be an integer >= 2, got {n_bins!r}")
-    band: tuple[float, float] | None = None
-    with open_run_file(path, "r") as f:  # refuse a non-run file before opening it for writing
-        if freq_range is not None:
-            lo, hi = freq_range
-            lo = DEFAULT_FLOOR_HZ if lo is None else float(lo)
-            nyq = 0.5 / sample_interval(f["global/time"][()])
-            hi = min(DEFAULT_BAND_TOP, nyq) if hi is None else float(hi)
-            if not (0.0 <= lo < hi and math.isfinite(hi)):
-                raise SceneError(f"frequency range must satisfy 0 <= fmin < fmax, got {lo:g}, {hi:g} Hz")
-            band = (lo, hi)
-    with open_run_file(path, "r+") as f:
-        groups: dict[str, Group] = {"spectra": compute_spectra(f)}
-        patch = sync_group = None
-        if sync:
-            patch, sync_group = compute_patch_velocity(
-                f,
-                freq_range=band,
-                rule=rule,
-                eta=eta,
-                snr=snr,
-                n_bins=n_bins,
-                null_trials=null_trials,
-                max_bytes=max_bytes,
-                workers=workers,
-            )
-        if patch is not None:
-            groups["patch_spectrum"] = patch
-        if sync_group is not None:
-            groups["sync"] = sync_group
-        groups["stft"] = compute_stft(f, window_s=stft_window_s)
-        groups["cwt"] = compute_cwt(f, freqs=cwt_freqs, freq_range=band, count=cwt_count, columns=cwt_columns)
-        groups["peaks"] = compute_peaks(groups["spectra"], patch, freq_range=band)
-        attrs = {
-            "created_by": "aca_warp.analysis.report.analyze_run",
-            "aca_warp_version": _package_version(),
-            "parameters": {
-                "freq_range": list(band) if band else None,
-                "sync": sync,
-                "rule": rule,
-                "eta": eta,
-                "snr": snr,
-                "n_bins": n_bins,
-                "stft_window_s": stft_window_s,
-                "cwt_count": cwt_count,
-                "cwt_columns": cwt_columns,
-                "null_trials": null_trials,
-            },
-            "run_complete": bool(run_attr(f, "complete", False)),
-            "groups": json.dumps(sorted(groups)),
-        }
-        write_analysis(f, groups, attrs)
-    return groups
+
+
+def _checked_band(path: str | Path, freq_range: tuple[float | None, float | None] | None) -> tuple[float, float] | None:
+    """:func:`analyze_run`'s band [Hz]: ``freq_range`` with a None edge replaced by its default (10 Hz, or
+    min(200 kHz, Nyquist)); None stays None. Opens the file read-only first, so that a file that is not a run file
+    is refused before it is opened for writing."""
+    with open_run_file(path, "r") as f:
+        if freq_range is None:
+            return None
+        lo, hi = freq_range
+        lo = DEFAULT_FLOOR_HZ if lo is None else float(lo)
+        nyq = 0.5 / sample_interval(f["global/time"][()])
+        hi = min(DEFAULT_BAND_TOP, nyq) if hi is None else float(hi)
+        if not (0.0 <= lo < hi and math.isfinite(hi)):
+            raise SceneError(f"frequency range must satisfy 0 <= fmin < fmax, got {lo:g}, {hi:g} Hz")
+        return lo, hi
+
+
+def _patch_velocity_groups(
+    f: h5py.File, band: tuple[float, float] | None, index: dict[str, Any], max_bytes: int, workers: int | None
+) -> dict[str, Group]:
+    """``patch_spectrum`` and ``sync`` of a run with per-patch velocities (none without them); ``index``: the
+    Synchronization Index keywords of :func:`compute_patch_velocity`."""
+    patch, sync = compute_patch_velocity(f, freq_range=band, max_bytes=max_bytes, workers=workers, **index)
+    return {name: g for name, g in (("patch_spectrum", patch), ("sync", sync)) if g is not None}

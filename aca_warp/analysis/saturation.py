@@ -32,12 +32,15 @@ reasoning behind each default):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import scipy.fft
 
 from aca_warp.scene import Friction, Material
+
+if TYPE_CHECKING:
+    from aca_warp.scene import Scene
 
 Statistic = Literal["std", "mean", "rms"]
 STATISTICS = ("std", "mean", "rms")
@@ -335,8 +338,7 @@ def saturation(
         raise ValueError(f"record too short: {n} samples, need at least {4 * min_windows} ({min_windows} windows of 4)")
     dt = (time[-1] - time[0]) / (n - 1)
     if window is None:
-        window = int(round(periods / (dominant_frequency(time, signal) * dt)))
-        window = int(np.clip(window, 4, max(4, n // DEFAULT_WINDOWS)))
+        window = _default_window(time, signal, periods, dt)
     if not 1 <= window <= n // min_windows:
         raise ValueError(f"window of {window} samples gives fewer than {min_windows} windows in {n} samples")
     opt = _Options(smooth, min_rise, tuple(fit_margin), growth_fraction, rel_change, band, min_saturated, fit_window)
@@ -348,41 +350,138 @@ def saturation(
     floor = np.where(positive.any(axis=0), np.min(np.where(positive, e, np.inf), axis=0), 1.0) * 1e-6
     L = np.log(np.where(positive, e, floor))
     s, Lbar = _local_fit(L, te, smooth)
+    frame = _Frame(te, t0, window, dt, statistic, unit, opt)
     out = []
     for j in range(x.shape[1]):
-        if not positive[:, j].any():
-            k_s, fit, rise, reason = None, None, 0.0, "zero"
-        else:
-            k_s, fit, rise, reason = _analyse_column(
-                np.where(positive[:, j], e[:, j], floor[j]), te, s[:, j], Lbar[:, j], t0, opt
-            )
-        tail = e[k_s:, j] if k_s is not None else None
-        res = {
-            "t_s": float(t0[k_s]) if k_s is not None else None,
-            "start_index": k_s * window if k_s is not None else None,
-            "envelope_time": te,
-            "envelope": e[:, j],
-            "log_slope": s[:, j],
-            "window": window,
-            "window_duration": window * dt,
-            "statistic": statistic,
-            "growth_rate": fit[0] if fit else None,
-            "growth_window": (fit[1], fit[2]) if fit else None,
-            "growth_r2": fit[3] if fit else None,
-            "growth_rise": rise,
-            "level": float(tail.mean()) if tail is not None else None,
-            "level_spread": float(tail.std()) if tail is not None else None,
-            "final_log_slope": float(s[-1, j]),
-        }
-        verdict = "not saturated: the signal is constant (zero envelope)" if reason == "zero" else None
-        out.append(SaturationResult(verdict=verdict or _verdict(res, opt, reason, unit), **res))
+        out.append(_column_result(frame, e[:, j], s[:, j], Lbar[:, j], positive[:, j], floor[j]))
     return out[0] if one else out
+
+
+def _default_window(time: np.ndarray, signal: np.ndarray, periods: float, dt: float) -> int:
+    """``periods`` periods of the dominant frequency in samples, at least 4, at most N // ``DEFAULT_WINDOWS``."""
+    n = time.size
+    window = int(round(periods / (dominant_frequency(time, signal) * dt)))
+    return int(np.clip(window, 4, max(4, n // DEFAULT_WINDOWS)))
+
+
+@dataclass(frozen=True)
+class _Frame:
+    """What every column of one :func:`saturation` call shares: window centres ``te`` and starts ``t0`` [s], W,
+    Δt [s], the statistic, the unit of the verdict and the options."""
+
+    te: np.ndarray
+    t0: np.ndarray
+    window: int
+    dt: float
+    statistic: str
+    unit: str
+    opt: _Options
+
+
+def _column_result(
+    fr: _Frame, e: np.ndarray, s: np.ndarray, Lbar: np.ndarray, positive: np.ndarray, floor: float
+) -> SaturationResult:
+    """:class:`SaturationResult` of one column: envelope ``e``, local slope ``s`` and level ``Lbar`` per window
+    (K,), ``positive`` where e > 0, ``floor`` the stand-in for e = 0."""
+    if not positive.any():
+        k_s, fit, rise, reason = None, None, 0.0, "zero"
+    else:
+        k_s, fit, rise, reason = _analyse_column(np.where(positive, e, floor), fr.te, s, Lbar, fr.t0, fr.opt)
+    tail = e[k_s:] if k_s is not None else None
+    res = {
+        "t_s": float(fr.t0[k_s]) if k_s is not None else None,
+        "start_index": k_s * fr.window if k_s is not None else None,
+        "envelope_time": fr.te,
+        "envelope": e,
+        "log_slope": s,
+        "window": fr.window,
+        "window_duration": fr.window * fr.dt,
+        "statistic": fr.statistic,
+        "growth_rate": fit[0] if fit else None,
+        "growth_window": (fit[1], fit[2]) if fit else None,
+        "growth_r2": fit[3] if fit else None,
+        "growth_rise": rise,
+        "level": float(tail.mean()) if tail is not None else None,
+        "level_spread": float(tail.std()) if tail is not None else None,
+        "final_log_slope": float(s[-1]),
+    }
+    verdict = "not saturated: the signal is constant (zero envelope)" if reason == "zero" else None
+    return SaturationResult(verdict=verdict or _verdict(res, fr.opt, reason, fr.unit), **res)
 
 
 def common_start(results: list[SaturationResult]) -> int | None:
     """First sample from which every series of a batch is saturated (the latest start), or None if one is not."""
     starts = [r.start_index for r in results]
     return None if any(s is None for s in starts) else max(starts)
+
+
+# ------------------------------------------------------------------------------------------------ a run's record
+
+
+GROWTH_STATUSES = ("saturated", "not saturated", "no growth phase")
+"""Status of a run's record (:func:`record_saturation`)."""
+
+
+@dataclass(frozen=True)
+class RecordSaturation:
+    """Saturation of one pad's record from its global outputs Σ|u̇| and μ (:func:`record_saturation`).
+
+    Attributes:
+        sum_abs_velocity: :func:`saturation` of Σ|u̇| (window means, default windows).
+        mu: :func:`saturation` of μ (window standard deviations, N/64 windows).
+        status: "saturated" (Σ|u̇| grows, then settles), "not saturated" (Σ|u̇| has no settled part) or
+            "no growth phase" (Σ|u̇| settles without having grown by ``min_rise``: not the instability's saturated
+            state, e.g. a run started from a saturated state, or a stable one).
+        t_start: Start of the saturated part [s]: the later of the two saturation times (Σ|u̇|'s alone when μ does
+            not saturate); None unless ``status`` is "saturated".
+    """
+
+    sum_abs_velocity: SaturationResult
+    mu: SaturationResult
+    status: str
+    t_start: float | None
+
+    def figures(self) -> dict[str, Any]:
+        """The figures as plain values: times [s], rates [1/s], levels [m/s], verdicts, status."""
+        rs, rm = self.sum_abs_velocity, self.mu
+        return {
+            "t_s_sum_abs_velocity": rs.t_s,
+            "t_s_mu": rm.t_s,
+            "mu_saturated": rm.saturated,
+            "growth_rate": rs.growth_rate,
+            "growth_r2": rs.growth_r2,
+            "growth_rise": rs.growth_rise,
+            "growth_window": rs.growth_window,
+            "level_sum_abs_velocity": rs.level,
+            "mu_growth_rate": rm.growth_rate,
+            "verdict_sum_abs_velocity": rs.verdict,
+            "verdict_mu": rm.verdict,
+            "status": self.status,
+            "t_start": self.t_start,
+        }
+
+
+def record_saturation(time: np.ndarray, mu: np.ndarray, sum_abs_velocity: np.ndarray) -> RecordSaturation:
+    """Saturation of one pad on Σ|u̇| (window means, default windows) and μ (standard deviation over N/64 windows).
+
+    μ is chaotic once saturated: the default window of 32 dominant periods leaves its standard deviation too noisy
+    for the ±10 % band, 64 windows over the record do not. The status follows Σ|u̇| (:class:`RecordSaturation`).
+
+    Args:
+        time: Sample times [s], shape (N,), uniform, N ≥ 64.
+        mu: μ(t), shape (N,).
+        sum_abs_velocity: Σ|u̇|(t) [m/s], shape (N,).
+
+    Raises:
+        ValueError: As :func:`saturation` (a record shorter than 64 samples, non-finite samples).
+    """
+    rs = saturation(time, sum_abs_velocity, statistic="mean", unit="m/s")
+    rm = saturation(time, mu, statistic="std", window=max(4, np.size(time) // 64))
+    if not rs.saturated:
+        return RecordSaturation(rs, rm, "not saturated", None)
+    if rs.growth_rate is None:
+        return RecordSaturation(rs, rm, "no growth phase", None)
+    return RecordSaturation(rs, rm, "saturated", max(rs.t_s, rm.t_s if rm.saturated else rs.t_s))
 
 
 # ------------------------------------------------------------------------------------------------ linear theory
@@ -457,6 +556,16 @@ def predicted_growth_rate(
     c_eff = 2.0 * zeta * np.sqrt(k * m) + fn * friction_slope(omega * r, M, slope, decay)
     disc = (c_eff * c_eff - 4.0 * m * k).astype(np.complex128)
     return (-c_eff + np.sqrt(disc).real) / (2.0 * m)
+
+
+def scene_growth_rate(scene: Scene, normal_force: np.ndarray) -> np.ndarray:
+    """:func:`predicted_growth_rate` of every patch of ``scene`` under the contact forces ``normal_force`` [N],
+    shape (patches,): the scene's friction law, material and disc speed, k_T,i = K_T √A_i (paper Eq. 2) [1/s]."""
+    f, m, a = scene.friction, scene.material, scene.patches.area
+    return predicted_growth_rate(
+        normal_force, a, scene.patches.friction_radius, scene.angular_velocity, f.M, f.slope, f.decay,
+        m.mass_per_area, m.damping_ratio, m.K_T * np.sqrt(a),
+    )  # fmt: skip
 
 
 def coupled_growth_rates(

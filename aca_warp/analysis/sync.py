@@ -252,37 +252,14 @@ def sync_index(
     Returns:
         A ``SyncResult`` with per-frequency S, S_AB, S_BC, Φ, S_null and R_w.
     """
-    if rule == "relative":
-        rule_params: dict[str, Any] = {"eta": eta}
-    elif rule == "snr":
-        if noise_floor is None:
-            if not isinstance(X, np.ndarray):
-                raise ValueError('rule="snr" with streamed spectra needs an explicit noise_floor')
-            noise_floor = np.median(np.abs(X), axis=0)
-        noise_floor = np.asarray(noise_floor)
-        rule_params = {"snr": snr, "snr_reference": SNR_REFERENCE}
-    else:
-        raise ValueError(f"rule must be 'relative' or 'snr', got {rule!r}")
+    rule_params, noise_floor = _rule_params(X, rule, eta, snr, noise_floor)
     options = {"tau_ab": tau_ab, "tau_bc": tau_bc, "w": w, "smooth": smooth}
     parts: dict[str, list[np.ndarray]] = {key: [] for key in ("S", "S_AB", "S_BC", "Phi", "R_w")}
     for block in _row_blocks(X, rows_per_block):
         amp = np.abs(block)
-        if rule == "relative":
-            threshold = eta * amp.max(axis=1, keepdims=True)
-        else:
-            threshold = snr * noise_floor[None, :]
-        counted = (amp >= threshold) & (amp > 0)
-        bins = np.floor((np.angle(block) + np.pi) * (n_bins / (2.0 * np.pi))).astype(np.intp) % n_bins
-        bins += (np.arange(block.shape[0]) * n_bins)[:, None]
-        G = np.bincount(bins[counted], minlength=block.shape[0] * n_bins).reshape(-1, n_bins)
-        res = sync_index_from_bins(G, **options)
-        total = amp.sum(axis=1, dtype=np.float64)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r_w = np.abs(block.sum(axis=1, dtype=np.complex128)) / total
-        for key, value in (("S", res.S), ("S_AB", res.S_AB), ("S_BC", res.S_BC)):
-            parts[key].append(np.atleast_1d(value))
-        parts["Phi"].append(counted.sum(axis=1))
-        parts["R_w"].append(np.where(total > 0, r_w, np.nan))
+        threshold = eta * amp.max(axis=1, keepdims=True) if rule == "relative" else snr * noise_floor[None, :]
+        for key, value in _block_index(block, amp, threshold, n_bins, options).items():
+            parts[key].append(value)
     out = {key: np.concatenate(value) if value else np.empty(0) for key, value in parts.items()}
     if freq is not None and np.shape(freq) != out["S"].shape:
         raise ValueError(f"freq has shape {np.shape(freq)} but the spectra have {out['S'].size} rows")
@@ -293,6 +270,42 @@ def sync_index(
     params = {"rule": rule, **rule_params, "n_bins": n_bins, **options, "null_trials": null_trials, "seed": seed}
     params["smoothing_weights"] = SMOOTHING_WEIGHTS.tolist() if smooth else [1.0]
     return SyncResult(freq=freq, S_null=s_null, rule=rule, params=params, **out)
+
+
+def _rule_params(
+    X: np.ndarray | Iterable[np.ndarray], rule: str, eta: float, snr: float, noise_floor: np.ndarray | None
+) -> tuple[dict[str, Any], np.ndarray | None]:
+    """The parameters of the Φ ``rule`` as stored in the result, and the SNR rule's per-patch floor (the median of
+    |X_i| over all rows unless given; ``noise_floor`` unchanged for the relative rule). ValueError for an unknown
+    rule or streamed spectra without a floor."""
+    if rule == "relative":
+        return {"eta": eta}, noise_floor
+    if rule != "snr":
+        raise ValueError(f"rule must be 'relative' or 'snr', got {rule!r}")
+    if noise_floor is None:
+        if not isinstance(X, np.ndarray):
+            raise ValueError('rule="snr" with streamed spectra needs an explicit noise_floor')
+        noise_floor = np.median(np.abs(X), axis=0)
+    return {"snr": snr, "snr_reference": SNR_REFERENCE}, np.asarray(noise_floor)
+
+
+def _block_index(
+    block: np.ndarray, amp: np.ndarray, threshold: np.ndarray, n_bins: int, options: dict[str, Any]
+) -> dict[str, np.ndarray]:
+    """S, S_AB, S_BC, Φ and R_w of the rows of ``block`` (rows, patches) with amplitudes ``amp``: the patches with
+    |X_i| ≥ ``threshold`` (and > 0) counted into ``n_bins`` phase bins, then :func:`sync_index_from_bins`."""
+    counted = (amp >= threshold) & (amp > 0)
+    bins = np.floor((np.angle(block) + np.pi) * (n_bins / (2.0 * np.pi))).astype(np.intp) % n_bins
+    bins += (np.arange(block.shape[0]) * n_bins)[:, None]
+    G = np.bincount(bins[counted], minlength=block.shape[0] * n_bins).reshape(-1, n_bins)
+    res = sync_index_from_bins(G, **options)
+    total = amp.sum(axis=1, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r_w = np.abs(block.sum(axis=1, dtype=np.complex128)) / total
+    out = {key: np.atleast_1d(value) for key, value in (("S", res.S), ("S_AB", res.S_AB), ("S_BC", res.S_BC))}
+    out["Phi"] = counted.sum(axis=1)
+    out["R_w"] = np.where(total > 0, r_w, np.nan)
+    return out
 
 
 _FFT_COLUMNS = 32

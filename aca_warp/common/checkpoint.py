@@ -35,7 +35,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from aca_warp.common.errors import AcaError, SceneError
+from aca_warp.common.errors import AcaError, SceneError, option
 
 FORMAT = 2  # 2: LF global-scalar layout without the contact sums and flag (2026-11-23)
 GROUP = "checkpoint"
@@ -114,8 +114,9 @@ def read_checkpoint(f: h5py.File, path: str = "") -> Checkpoint:
     """The active checkpoint of ``f`` (SceneError with one line when there is none or it is damaged)."""
     if not has_checkpoint(f):
         raise SceneError(
-            f"{path or 'the run file'} holds no checkpoint (was it run with --checkpoint-interval?); "
-            "repeat it with 'aca-warp rerun'"
+            f"{path or 'the run file'} holds no checkpoint (was it run with "
+            f"{option('checkpoint_interval', '--checkpoint-interval')}?); "
+            f"{option('run it again with run_scene', 'repeat it with aca-warp rerun')}"
         )
     g = f[GROUP]
     if int(g.attrs.get("format", -1)) != FORMAT:

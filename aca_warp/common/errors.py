@@ -2,9 +2,35 @@
 
 The command line prints an :class:`AcaError` as one ``aca-warp: error:`` line and exits with its
 ``exit_code`` (docs/faults.md): 2 bad input, 3 unphysical result, 4 the output could not be written.
+
+A message that names an option names it the way its reader passes it: as a Python parameter (``overwrite=True``)
+from the Python API, as a flag (``--overwrite``) from the command line, which runs its commands inside
+:func:`command_line`; messages build the name with :func:`option`.
 """
 
 from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+_command_line = [False]  # inside command_line()
+
+
+def option(python: str, flag: str) -> str:
+    """The name of an option in a message: ``python`` (a parameter, e.g. ``overwrite=True``) for the Python API,
+    ``flag`` (e.g. ``--overwrite``) inside :func:`command_line`."""
+    return flag if _command_line[0] else python
+
+
+@contextmanager
+def command_line() -> Iterator[None]:
+    """Messages built in the body name options as command-line flags (:func:`option`)."""
+    before = _command_line[0]
+    _command_line[0] = True
+    try:
+        yield
+    finally:
+        _command_line[0] = before
 
 
 class AcaError(Exception):

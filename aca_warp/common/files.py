@@ -9,6 +9,7 @@ import os
 import platform
 import socket
 import sys
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -17,7 +18,17 @@ from typing import Any
 import h5py
 
 from aca_warp.common.checkpoint import has_checkpoint
-from aca_warp.common.errors import AcaError, SceneError
+from aca_warp.common.errors import AcaError, SceneError, StorageError, option
+
+# why a folder cannot take a new file, by errno (the probe and the lock file; docs/faults.md "Output folders")
+UNWRITABLE = {
+    errno.EROFS: "read-only file system",
+    errno.EACCES: "permission denied",
+    errno.EPERM: "operation not permitted",
+    errno.ENOSPC: "no space left on device",
+    errno.EDQUOT: "disk quota exceeded",
+    errno.EFBIG: "file size limit reached",
+}
 
 
 def versions() -> dict[str, str]:
@@ -78,16 +89,20 @@ class OutputLock:
 
     @classmethod
     def acquire(cls, path: str | Path, *, what: str = "output") -> OutputLock:
-        """Lock ``path`` for writing; :class:`SceneError` naming the holder when another process holds it."""
-        p = Path(path)
+        """Lock ``path`` for writing; :class:`SceneError` naming the holder when another process holds it, one
+        for a path that names a folder (:func:`check_output_name`), :class:`StorageError` (exit 4) when its folder
+        takes no new file (:func:`unwritable`)."""
+        p = check_output_name(path)
         lp = lock_path(p)
         while True:
             try:
                 fd = os.open(lp, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
             except FileNotFoundError:
                 raise SceneError(f"output folder {p.parent} does not exist") from None
+            except NotADirectoryError:
+                raise SceneError(f"output folder {p.parent} is not a folder") from None
             except OSError as e:
-                raise SceneError(f"cannot create the lock file {lp}: {e.strerror}") from None
+                raise unwritable(p.parent, e) from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -177,25 +192,116 @@ def new_path(partial: str | Path) -> Path:
     return p.with_name(p.name + ".new")
 
 
+def check_output_name(path: str | Path) -> Path:
+    """``path`` as the name of an output file: a name that ends in a path separator or is ``.``/``..`` names a
+    folder (``Path`` would drop the separator and write a file named like the folder) and is refused."""
+    text = os.fspath(path)
+    if not text or text.endswith(("/", os.sep)) or Path(text).name in ("", ".", ".."):
+        base = text.rstrip("/" + os.sep) or "."
+        raise SceneError(f"output {text!r} names a folder; give a file name such as {Path(base) / 'run.h5'}")
+    return Path(text)
+
+
+def unwritable(folder: str | Path, e: OSError) -> AcaError:
+    """The one-line error for a folder that takes no new file: :class:`StorageError` (exit 4) for a read-only file
+    system, missing permission, a full device or quota; :class:`SceneError` (exit 2) for anything else."""
+    why = UNWRITABLE.get(e.errno or 0)
+    if why is None:
+        return SceneError(f"cannot create a file in {folder}: {e.strerror or e}")
+    err = StorageError(f"cannot write into {folder} ({why}); nothing was written: choose another output folder")
+    err.errno = e.errno  # type: ignore[attr-defined]
+    return err
+
+
+def probe_folder(folder: str | Path) -> None:
+    """Check that ``folder`` takes a new file the honest way: create a small probe file there, write to it and
+    delete it. Raises :func:`unwritable`'s error (a read-only file system, a folder without write permission, a full
+    device; root passes permission checks, so ``os.access`` would not do)."""
+    d = Path(folder)
+    try:
+        fd, name = tempfile.mkstemp(prefix=".aca-warp-probe.", dir=d)  # a new name: never another's file
+        probe = Path(name)
+    except FileNotFoundError:
+        raise SceneError(f"output folder {d} does not exist") from None
+    except NotADirectoryError:
+        raise SceneError(f"output folder {d} is not a folder") from None
+    except OSError as e:
+        raise unwritable(d, e) from None
+    try:
+        os.write(fd, b"\0" * 4096)  # a full device takes an empty file, not a block
+    except OSError as e:
+        raise unwritable(d, e) from None
+    finally:
+        os.close(fd)
+        probe.unlink(missing_ok=True)
+
+
+def check_output_folder(path: str | Path) -> Path:
+    """An output folder (``plot -o DIR``, ``sweep -o DIR``; created later if missing): it must not be a file, and
+    the folder that will hold it (itself, or its nearest existing parent) must take a new file (:func:`probe_folder`:
+    exit 4 for a read-only or full file system, nothing written)."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise SceneError(f"output {p} exists and is not a folder")
+    parent = p
+    while not parent.exists():
+        if parent.parent == parent:
+            break
+        parent = parent.parent
+    if not parent.is_dir():
+        raise SceneError(f"output {p} cannot be created: {parent} is not a folder")
+    probe_folder(parent)
+    return p
+
+
+def check_room(folder: str | Path, need: float, what: str) -> None:
+    """Refuse a run whose recorded samples alone (``need`` bytes, a lower bound of its file) exceed the space free
+    to this user in ``folder``: :class:`StorageError` (exit 4) before anything is written. ``what`` names the
+    run's options that shrink it. Filesystems without ``statvfs`` figures pass."""
+    try:
+        st = os.statvfs(folder)
+    except OSError:
+        return
+    free = st.f_bavail * st.f_frsize
+    if st.f_blocks and need > free:
+        err = StorageError(
+            f"the run records about {need / 1e6:.4g} MB but {folder} has {free / 1e6:.4g} MB free; nothing was "
+            f"written: make room, choose another output folder or record less ({what})"
+        )
+        err.errno = errno.ENOSPC  # type: ignore[attr-defined]
+        raise err
+
+
+def resume_hint(kind: str, path: str | Path) -> str:
+    """How to continue the unfinished ``kind`` run (``hf`` or ``lf``) of ``path``, for the reader of the message."""
+    function = "resume_run" if kind == "hf" else "resume_lf"
+    return option(f"{function}({str(path)!r})", f"'aca-warp {kind} --resume {path}'")
+
+
 def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
     """Refuse to clobber an existing file (or a killed run's ``NAME.partial``) unless ``overwrite``, and an output
-    that a live process writes (:class:`OutputLock`) in any case; the folder must exist and ``path`` must not be a
-    folder."""
-    p = Path(path)
+    that a live process writes (:class:`OutputLock`) in any case; the name must name a file
+    (:func:`check_output_name`), its folder must exist and take a new file (:func:`probe_folder`: exit 4 for a
+    read-only or full file system)."""
+    p = check_output_name(path)
     if p.is_dir():
         raise SceneError(f"output {p} is a folder; give a file name such as {p / 'run.h5'}")
     busy = holder(p)
     if busy is not None:
         raise SceneError(f"{p} is being written by {busy}; wait for it to finish or stop it")
     if p.exists() and not overwrite:
-        raise SceneError(f"output file {p} exists; pass --overwrite to replace it")
+        raise SceneError(f"output file {p} exists; pass {option('overwrite=True', '--overwrite')} to replace it")
     part = partial_path(p)
     if part.exists() and not overwrite:
         raise SceneError(
-            f"{part} exists (an unfinished run); continue it with 'aca-warp hf --resume {p}' or pass --overwrite"
+            f"{part} exists (an unfinished run); continue it with {resume_hint('hf', p)} or pass "
+            f"{option('overwrite=True', '--overwrite')}"
         )
     if not p.parent.exists():
         raise SceneError(f"output folder {p.parent} does not exist")
+    if not p.parent.is_dir():
+        raise SceneError(f"output folder {p.parent} is not a folder")
+    probe_folder(p.parent)
     return p
 
 
@@ -243,7 +349,10 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     if complete:
         raise SceneError(f"{final} is a complete run; nothing to resume")
     if not resumable:
-        raise SceneError(f"{final} holds no checkpoint (run without checkpoint_interval); use 'aca-warp rerun'")
+        raise SceneError(
+            f"{final} holds no checkpoint (run without {option('checkpoint_interval', '--checkpoint-interval')}); "
+            f"{option('run it again with run_scene', 'repeat it with aca-warp rerun')}"
+        )
     return final, part
 
 

@@ -55,8 +55,9 @@ class AdaptiveStepper:
         self.accepted = wp.zeros(P, dtype=wp.int32, device=dev)
         self.ku = wp.zeros((KA.STAGES, n), dtype=T, device=dev)
         self.kv = wp.zeros((KA.STAGES, n), dtype=T, device=dev)
-        self.us = wp.zeros(n, dtype=T, device=dev)
-        self.vs = wp.zeros(n, dtype=T, device=dev)
+        # stage states, odd stages in the first pair, even ones in the second (y_6, the 5th-order solution, there)
+        self.stage_u = (wp.zeros(n, dtype=T, device=dev), wp.zeros(n, dtype=T, device=dev))
+        self.stage_v = (wp.zeros(n, dtype=T, device=dev), wp.zeros(n, dtype=T, device=dev))
         self.coeff = wp.array(np.array(KA.DP5_A), dtype=wp.float64, device=dev)
         self.err_coeff = wp.array(np.array(KA.DP5_E), dtype=wp.float64, device=dev)
         self.u_scale, self.v_scale = self._scales()
@@ -128,18 +129,23 @@ class AdaptiveStepper:
         ctl, mode = self.ctl, self.mode
         deriv = [m.patch_pad, m.inv_mass, m.k_diag, m.damping, m.normal_force, m.radius, m.nbr_start, m.nbr_index]
         deriv += [m.nbr_stiffness, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay]
-        wp.launch(KA.dp5_eval, dim=n, device=dev, inputs=[*deriv, 0, 1, mode, s.u, s.v, self.ku, self.kv])
+        su, sv = self.stage_u, self.stage_v
+        nxt = [self.coeff, ctl, s.u, s.v]
+        k = [self.ku, self.kv]
+        wp.launch(KA.dp5_eval, dim=n, device=dev, inputs=[*deriv, 0, 1, mode, s.u, s.v, *k, *nxt, su[1], sv[1]])
         wp.launch(KA.k1_done, dim=m.pad_count, device=dev, inputs=[mode])
-        for stage in range(1, KA.STAGES):
+        wp.launch(
+            KA.dp5_stage,
+            dim=n,
+            device=dev,
+            inputs=[m.patch_pad, self.coeff, 1, ctl, mode, s.u, s.v, *k, su[1], sv[1]],
+        )
+        for stage in range(1, KA.STAGES):  # each evaluation also forms its patch's next stage state
+            a, b = stage % 2, (stage + 1) % 2
             wp.launch(
-                KA.dp5_stage,
-                dim=n,
-                device=dev,
-                inputs=[m.patch_pad, self.coeff, stage, ctl, mode, s.u, s.v, self.ku, self.kv, self.us, self.vs],
+                KA.dp5_eval, dim=n, device=dev, inputs=[*deriv, stage, 0, mode, su[a], sv[a], *k, *nxt, su[b], sv[b]]
             )
-            wp.launch(
-                KA.dp5_eval, dim=n, device=dev, inputs=[*deriv, stage, 0, mode, self.us, self.vs, self.ku, self.kv]
-            )
+        u_new, v_new = su[(KA.STAGES - 1) % 2], sv[(KA.STAGES - 1) % 2]
         wp.launch_tiled(
             KA.dp5_control,
             dim=[m.pad_count],
@@ -148,13 +154,13 @@ class AdaptiveStepper:
             inputs=[m.pad_patch_start, m.radius, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay]
             + [self.err_coeff, self.u_scale, self.v_scale]
             + [block_threads(dev, CONTROL_BLOCK), self.tol, wp.float64(self.h_max), wp.float64(MIN_STEP)]
-            + [s.u, s.v, self.us, self.vs, self.ku, self.kv, ctl, mode, self.stats, self.accepted, self.done],
+            + [s.u, s.v, u_new, v_new, self.ku, self.kv, ctl, mode, self.stats, self.accepted, self.done],
         )
         wp.launch(
             KA.dp5_commit,
             dim=n,
             device=dev,
-            inputs=[m.patch_pad, self.accepted, self.us, self.vs, s.u, s.v, self.ku, self.kv],
+            inputs=[m.patch_pad, self.accepted, u_new, v_new, s.u, s.v, self.ku, self.kv],
         )
         wp.launch(
             KA.landing,

@@ -19,8 +19,10 @@ SCENE is a preset (hf1, hf2, hf3, hf4, varying_area) or a TOML scene file (docs/
 Example:  aca-warp hf hf1 --duration 1e-3 -o run.h5
 Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad input (nothing written),
 3 the run stopped on a fault or an unphysical result (the file holds everything before it, marked incomplete),
-4 the output could not be written (disk full, file-size limit; the .partial keeps its last checkpoint),
-130 interrupted (docs/faults.md).
+4 the output cannot be written (read-only or full file system, no permission: found before the run, nothing
+written; disk full or file-size limit during the run: the .partial keeps its last checkpoint),
+130 interrupted by Ctrl-C, 143 by SIGTERM (the file closed, marked incomplete, resumable; docs/faults.md).
+Values far outside a brake pad's range are refused as likely unit mistakes unless --allow-implausible.
 """
 
 
@@ -96,6 +98,13 @@ def add_parsers(sub: Any) -> None:
     hf.add_argument(
         "--snapshot", metavar="NAME", help="SCENE is an LF run file (.h5): run HF on its snapshot NAME (aca-warp lf)"
     )
+    hf.add_argument(
+        "--allow-implausible",
+        action="store_true",
+        help="run values far outside a brake pad's range (pad radius beyond 2 m, patch areas beyond 1e-3 m^2, loads "
+        "beyond 1e6 N, ...), refused otherwise as likely unit mistakes; sets the scene's allow_implausible "
+        "(docs/scenes.md)",
+    )
     hf.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     hf.add_argument("--no-progress", action="store_true", help="no progress bar")
     hf.add_argument(
@@ -136,9 +145,9 @@ def _cmd_hf(args: argparse.Namespace) -> int:
 
         if args.snapshot is None:
             raise SceneError(f"{args.scene} is an LF run file: name a snapshot with --snapshot NAME")
-        scene = scene_from_snapshot(args.scene, args.snapshot)
+        scene = scene_from_snapshot(args.scene, args.snapshot, allow_implausible=args.allow_implausible)
     else:
-        scene = load_scene(args.scene)
+        scene = load_scene(args.scene, allow_implausible=args.allow_implausible)
     rec = scene.record
     changes: dict = {}
     if args.sample_dt is not None:
@@ -149,6 +158,12 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         changes["window"] = tuple(args.patch_window)
     if args.patch_decimation is not None:
         changes["decimation"] = args.patch_decimation
+    if not changes.get("patches", rec.patches) and (args.patch_window or args.patch_decimation):
+        given = "--patch-window" if args.patch_window else "--patch-decimation"
+        raise SceneError(
+            f"{given} applies to per-patch histories, which this run does not record: add --record-patches velocity "
+            "(or velocity,displacement)"
+        )
     duration = args.duration if args.duration is not None else scene.duration
     if changes.get("sample_dt", rec.sample_dt) > duration:
         raise SceneError(
@@ -188,10 +203,16 @@ def _cmd_hf(args: argparse.Namespace) -> int:
     )
     if result.fault is not None:
         print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
-        print(line + " (incomplete)")
+        print(line + stopped_at(result.sim_time, duration))
         return 3
     print(line)
     return 0
+
+
+def stopped_at(sim_time: float, duration: float | None) -> str:
+    """The end of the summary line of a run that stopped early: where it stopped, of what was asked."""
+    asked = "" if duration is None else f" of the requested {duration:.4g} s"
+    return f"; stopped at t = {sim_time:.4g} s{asked} (incomplete)"
 
 
 def _announce(output: str, progress: bool) -> Any:
@@ -222,6 +243,7 @@ def _resume_hf(args: argparse.Namespace) -> int:
             ("--precision", args.precision, "fp64"),
             ("--force", args.force, False),
             ("--accept-unphysical", args.accept_unphysical, False),
+            ("--allow-implausible", args.allow_implausible, False),
             ("--overwrite", args.overwrite, False),
             ("--engine", getattr(args, "engine", "auto"), "auto"),
         ),
@@ -236,7 +258,9 @@ def _resume_hf(args: argparse.Namespace) -> int:
     line = f"{path}: resumed, {result.steps} steps over {result.sim_time:.4g} s"
     if result.fault is not None:
         print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
-        print(line + " (incomplete)")
+        from aca_warp.hf.rerun import read_settings
+
+        print(line + stopped_at(result.sim_time, read_settings(path).options.duration))
         return 3
     print(line)
     return 0
@@ -303,8 +327,10 @@ def _cmd_rerun(args: argparse.Namespace) -> int:
         overwrite=args.overwrite,
         progress=not args.no_progress,
     )
+    line = f"{args.output}: rerun of {args.run}, {result.steps} steps over {result.sim_time:.4g} s"
     if result.fault is not None:
         print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
+        print(line + stopped_at(result.sim_time, options.duration))
         return 3
-    print(f"{args.output}: rerun of {args.run}, {result.steps} steps over {result.sim_time:.4g} s")
+    print(line)
     return 0

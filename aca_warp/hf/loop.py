@@ -23,7 +23,7 @@ import numpy as np
 import warp as wp
 
 from aca_warp.common.checkpoint import Checkpoint
-from aca_warp.common.errors import SceneError, SimulationFault
+from aca_warp.common.errors import SceneError, SimulationFault, option
 from aca_warp.hf.engine import Engine, EngineTuning, Progress
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import RunOptions
@@ -253,7 +253,8 @@ class _Run:
         if fault is None and not self.unphysical_seen:
             fault = mu_fault(chunk.time, chunk.globals[:, :, 0], self.mu_bound)
             if fault is not None and self.options.accept_unphysical:
-                warn(f"{fault} (accepted: --accept-unphysical; not checked again)")
+                accepted = option("accept_unphysical=True", "--accept-unphysical")
+                warn(f"{fault} (accepted: {accepted}; not checked again)")
                 fault, self.unphysical_seen = None, True
         if fault is not None:
             chunk = chunk.before(fault.time - 0.5 * record.sample_dt)

@@ -12,7 +12,7 @@ import numpy as np
 import warp as wp
 
 from aca_warp.common.devices import block_threads
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import SceneError, option
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import DEFAULT_INTEGRATOR, ENGINES
 from aca_warp.kernels.hf_onchip import RED_SLOTS
@@ -180,7 +180,8 @@ def choose_engine(model: PadModel, engine: str, integrator: str = DEFAULT_INTEGR
     why = unsupported(model, integrator)
     if engine == "onchip":
         if why is not None:
-            raise SceneError(f"--engine onchip: {why}")
+            given = option("engine='onchip'", "--engine onchip")
+            raise SceneError(f"{given}: {why}")
         return "onchip"
     if engine == "general" or why is not None or model.device.is_cpu:
         return "general"

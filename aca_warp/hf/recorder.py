@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from aca_warp.common.devices import block_threads
 from aca_warp.common.errors import SceneError, SimulationFault
 from aca_warp.hf.limits import check_int32
 from aca_warp.hf.model import PadModel
@@ -24,6 +25,7 @@ from aca_warp.scene import Record
 
 GLOBAL_NAMES = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity", "friction_centroid")
 GLOBAL_UNITS = ("1", "N m", "m", "m s-1", "m s-1", "m")
+RECORD_BLOCK = 256  # threads per pad of the global outputs' sums on CUDA (one on the CPU: sums in patch order)
 
 
 def check_run(duration: float, record: Record, checkpoint_every: float | None = None) -> int:
@@ -143,9 +145,10 @@ class Recorder:
     def launch(self, u: wp.array, v: wp.array, conditional: bool) -> None:
         """Record one sample of (u, u̇) (conditional: only when the adaptive controller landed on a sample)."""
         m, c = self.model, int(conditional)
-        wp.launch(
+        wp.launch_tiled(
             K.record_globals,
-            dim=m.pad_count,
+            dim=[m.pad_count],
+            block_dim=RECORD_BLOCK,
             device=m.device,
             inputs=[
                 m.pad_patch_start,
@@ -164,6 +167,7 @@ class Recorder:
                 m.x,
                 m.y,
                 c,
+                block_threads(m.device, RECORD_BLOCK),
                 u,
                 v,
                 self.counters,

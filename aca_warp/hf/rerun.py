@@ -91,6 +91,7 @@ def scene_from_run(f: h5py.File, path: Path) -> Scene:
             growth=Growth(**doc["growth"]) if "growth" in doc else None,
             matrix=matrix,
             origin={"patches": doc["patches"]},
+            allow_implausible=doc["scene"].get("allow_implausible", False) is True,
         )
     except SceneError as e:
         raise SceneError(f"{path}: the stored scene is invalid: {e}") from None

@@ -3,18 +3,18 @@
 Layout (docs/run_files.md)::
 
     /global/time, mu, torque, friction_radius, sum_velocity, sum_abs_velocity, friction_centroid     (samples,)
-    /patches/x, y, area, height, mass, normal_force                               (patches,)
+    /patches/x, y, area, height, mass, normal_force, predicted_growth_rate        (patches,)
     /patches/time, velocity[, displacement]     per-patch histories, (rows,) and (rows, patches), if recorded
     /patches/final/area, normal_force           after growth, if the scene grows
     /matrix/area, radius, height                the pad matrix cells the run started from (cells,)
     /checkpoint/...                             solver state of a resumable run (aca_warp/common/checkpoint.py)
 
 Root attributes: ``scene`` (JSON), ``integrator``, ``run_options`` (JSON, :class:`~aca_warp.hf.options.RunOptions`),
-``precision``, ``device``,
-``versions`` (JSON), ``stages`` (JSON list), ``stable_step`` (JSON), ``complete`` (bool), ``status``, and for
-a stopped run ``fault``. The file is written as ``NAME.partial`` and renamed to ``NAME`` when the run ends,
-completed or not (then ``complete = False`` and ``status`` says why): the final name never holds a file
-that is half written. A killed process leaves only the ``.partial`` file behind; with checkpoints it holds
+``precision``, ``device``, ``versions`` (JSON), ``stages`` (JSON list), ``stable_step`` (JSON),
+``predicted_growth_rate_min``, ``_median``, ``_max`` [1/s] (absent in files of earlier versions), ``complete``
+(bool), ``status``, and for a stopped run ``fault``. The file is written as ``NAME.partial`` and renamed to ``NAME``
+when the run ends, completed or not (then ``complete = False`` and ``status`` says why): the final name never holds
+a file that is half written. A killed process leaves only the ``.partial`` file behind; with checkpoints it holds
 everything up to the last checkpoint and ``aca-warp hf --resume`` continues it. Neither ``NAME`` nor a leftover
 ``NAME.partial`` is replaced without ``overwrite``.
 
@@ -43,24 +43,38 @@ from aca_warp.common.checkpoint import (
     read_checkpoint,
     write_checkpoint,
 )
-from aca_warp.common.errors import AcaError, SceneError
-from aca_warp.common.files import OutputLock, check_output_path, from_h5py, new_path, open_h5, partial_path, versions
+from aca_warp.common.errors import AcaError, SceneError, option
+from aca_warp.common.files import (
+    OutputLock,
+    check_output_path,
+    from_h5py,
+    new_path,
+    open_h5,
+    partial_path,
+    resume_hint,
+    versions,
+)
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS, Chunk
 from aca_warp.scene import Scene, scene_to_dict
 
 RAW_CACHE = 64 * 2**20  # bytes of HDF5 chunk cache: appended rows of wide per-patch histories stay cached
-BUSY = "wait for it to finish or stop it (--overwrite does not replace a run in progress)"
+
+
+def busy() -> str:
+    """The advice of a refusal to write an output that a live process writes."""
+    overwrite = option("overwrite=True", "--overwrite")
+    return f"wait for it to finish or stop it ({overwrite} does not replace a run in progress)"
 
 
 def hf_advice(path: Path, checkpoint_time: float | None) -> str:
     """What to do with an HF ``.partial`` left by a storage failure."""
     if checkpoint_time is None:
-        return "it holds no checkpoint: make room and run again with --overwrite"
+        return f"it holds no checkpoint: make room and run again with {option('overwrite=True', '--overwrite')}"
     return (
         f"it keeps its checkpoint at t = {checkpoint_time:.6g} s: make room, then continue with "
-        f"'aca-warp hf --resume {path}'"
+        f"{resume_hint('hf', path)}"
     )
 
 
@@ -77,7 +91,7 @@ class RunWriter:
         attrs: dict[str, Any] | None = None,
         lock: OutputLock | None = None,
     ) -> None:
-        self.lock = lock or OutputLock.acquire(path, what=BUSY)
+        self.lock = lock or OutputLock.acquire(path, what=busy())
         self.pad = pad
         self.model = model
         self.checkpoint_time: float | None = None
@@ -133,11 +147,27 @@ class RunWriter:
         ):
             self.out.reserve(8 * len(data))
             p.create_dataset(name, data=np.asarray(data, dtype=np.float64)).attrs["unit"] = unit
+        self._write_growth_rate(scene, p)
         mg = f.create_group("matrix")
         for name, unit in (("area", "m2"), ("radius", "m"), ("height", "m")):
             data = np.asarray(getattr(scene.matrix, name), np.float64)
             self.out.reserve(data.nbytes)
             mg.create_dataset(name, data=data).attrs["unit"] = unit
+
+    def _write_growth_rate(self, scene: Scene, p: h5py.Group) -> None:
+        """``/patches/predicted_growth_rate`` σ_i [1/s] and its minimum, median and maximum as root attributes."""
+        from aca_warp.analysis.saturation import scene_growth_rate
+
+        sigma = scene_growth_rate(scene, self.model.contacts[self.pad].patch_force)
+        self.out.reserve(sigma.nbytes)
+        d = p.create_dataset("predicted_growth_rate", data=sigma)
+        d.attrs["unit"] = "s-1"
+        d.attrs["meaning"] = (
+            "growth rate of each isolated patch linearised about steady sliding at the contact forces of the start, "
+            "p_i |f'(omega r_i)| / (2 rho_A) - zeta omega_0,i (docs/analysis.md)"
+        )
+        for stat, value in (("min", sigma.min()), ("median", np.median(sigma)), ("max", sigma.max())):
+            self.f.attrs[f"predicted_growth_rate_{stat}"] = float(value)
 
     @classmethod
     def reopen(

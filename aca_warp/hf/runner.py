@@ -13,23 +13,26 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import warp as wp
 
+from aca_warp.common import interrupts, plausible
 from aca_warp.common.checkpoint import Checkpoint, has_checkpoint
-from aca_warp.common.errors import SceneError
-from aca_warp.common.files import OutputLock, check_output_path, find_resumable, open_h5, reading
+from aca_warp.common.errors import SceneError, option
+from aca_warp.common.files import OutputLock, check_output_path, check_room, find_resumable, open_h5, reading
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
 from aca_warp.hf.options import DEFAULT_DT, RunOptions
 from aca_warp.hf.recorder import check_run
-from aca_warp.hf.runfile import BUSY, RunWriter
+from aca_warp.hf.runfile import RunWriter, busy
 from aca_warp.hf.sanity import check_contact
 from aca_warp.hf.solver import check_step
 from aca_warp.hf.state import HFState, initial_state
 from aca_warp.scene import Scene
 
+T = TypeVar("T")
 MAX_STEPS = 1.0e10  # steps of one run without force=True (≈ 5 h of the fastest on-chip pad, months on a CPU)
 MAX_OUTPUT_BYTES = 50.0e9  # bytes of recorded samples of one run without force=True
 
@@ -71,14 +74,20 @@ def plan_run(scene: Scene, options: RunOptions, precision: str = "fp64") -> RunP
     duration = scene.duration if options.duration is None else options.duration
     rec = scene.record
     n = check_run(duration, rec, options.checkpoint_interval)
+    plausible.check("duration", duration, "hf_duration", allow=scene.allow_implausible)
+    if options.dt is not None:
+        plausible.check("dt", options.dt, "hf_step", allow=scene.allow_implausible)
     steps = step = None
     if options.integrator != "adaptive":
         dt = DEFAULT_DT if options.dt is None else options.dt
         sps = max(1, math.ceil(rec.sample_dt / dt - 1e-9))
         steps, step = n * sps, rec.sample_dt / sps
-    first = math.ceil(rec.window[0] / rec.sample_dt - 1e-9)
-    last = min(rec.window[1] / rec.sample_dt + 1e-9, n)
-    rows = max(0, math.floor((last - first) / rec.decimation) + 1) if rec.patches and last >= first else 0
+    rows = rec.patch_rows(duration)
+    if rec.patches and rows == 0:
+        raise SceneError(
+            f"the per-patch window [{rec.window[0]:g}, {rec.window[1]:g}] s holds no sample of the run (0 to "
+            f"{duration:g} s, every {rec.sample_dt:g} s): nothing would be recorded; choose a window inside the run"
+        )
     item = 4 if precision == "fp32" else 8
     out = (n + 1) * 8 * 7 + rows * (8 + len(rec.patches) * scene.patches.count * item)
     plan = RunPlan(steps, step, n + 1, rows, out)
@@ -87,13 +96,13 @@ def plan_run(scene: Scene, options: RunOptions, precision: str = "fp64") -> RunP
     if steps is not None and steps > MAX_STEPS:
         raise SceneError(
             f"{duration:g} s at a step of {step:.3g} s is {steps:.3g} steps, more than {MAX_STEPS:.0e} (check the "
-            "duration and --dt units: seconds); force=True (--force) runs it anyway"
+            f"duration and {option('dt', '--dt')} units: seconds); {option('force=True', '--force')} runs it anyway"
         )
     if out > MAX_OUTPUT_BYTES:
         raise SceneError(
             f"the run would record about {_size(out)} ({n + 1:.3g} samples, {rows:.3g} per-patch rows), more than "
             f"{_size(MAX_OUTPUT_BYTES)}; use a larger sample interval, a shorter patch window or decimation, or "
-            "force=True (--force)"
+            f"{option('force=True', '--force')}"
         )
     return plan
 
@@ -119,11 +128,14 @@ def run_scene(
     ``announce`` receives the :class:`RunPlan` once everything is validated, just before the run starts.
     """
     options = options or RunOptions()
-    lock = OutputLock.acquire(output, what=BUSY)  # held from here until the file has its final name
+    lock = OutputLock.acquire(output, what=busy())  # held from here until the file has its final name
     try:
         check_output_path(output, overwrite=overwrite)
         options = options.with_duration(scene.duration if options.duration is None else options.duration)
         plan = plan_run(scene, options, precision)  # bad sample counts, absurd step counts or sizes: refused early
+        if not options.force:
+            hint = "a larger sample interval, a shorter patch window or decimation; "
+            check_room(Path(output).parent, plan.output_bytes, hint + f"{option('force=True', '--force')} tries anyway")
         model = build_model([scene], device=device, precision=precision)
         state = initial_state(model)
         check_step(model, options, scene.record.sample_dt)  # the step the run takes, the sticking bound
@@ -163,7 +175,8 @@ def _execute(
     resume: Checkpoint | None = None,
 ) -> RunResult:
     """Run into the writer ``open_writer()`` returns; close it complete, stopped, interrupted or failed (a storage
-    failure leaves the ``.partial`` as it was at its last checkpoint and raises a one-line StorageError)."""
+    failure leaves the ``.partial`` as it was at its last checkpoint and raises a one-line StorageError). Appends,
+    checkpoints and the closing are not interrupted half-way (:func:`aca_warp.common.interrupts.deferred`)."""
     writer = None
     try:
         writer = open_writer()
@@ -171,37 +184,55 @@ def _execute(
             model,
             state,
             options,
-            sink=writer.write,
+            sink=_whole(writer.write),
             progress=progress,
-            on_checkpoint=writer.checkpoint,
+            on_checkpoint=_whole(writer.checkpoint),
             resume=resume,
         )
         status = "complete" if result.complete else f"stopped: {result.fault}"
-        writer.close(
-            complete=result.complete,
-            status=status,
-            attrs={
-                "stages": result.stages,
-                "steps": result.steps,
-                "rejected_steps": result.rejected,
-                "sim_time": result.sim_time,
-                "wall_time": result.wall_time,
-                "compile_time": result.compile_time,
-                "dt": result.dt,
-                "stable_step": result.estimate.as_dict(),
-                "fault": "" if result.fault is None else str(result.fault),
-            },
-        )
+        with interrupts.deferred():
+            writer.close(
+                complete=result.complete,
+                status=status,
+                attrs={
+                    "stages": result.stages,
+                    "steps": result.steps,
+                    "rejected_steps": result.rejected,
+                    "sim_time": result.sim_time,
+                    "wall_time": result.wall_time,
+                    "compile_time": result.compile_time,
+                    "dt": result.dt,
+                    "stable_step": result.estimate.as_dict(),
+                    "fault": "" if result.fault is None else str(result.fault),
+                },
+            )
     except BaseException as e:
         if writer is None or not writer.lock.held:  # not opened, or closed (close raised its own error)
             raise
-        status = "interrupted by the user" if isinstance(e, KeyboardInterrupt) else "failed"
-        replacement = writer.finish(e, status)
+        status = interrupted_status(e) if isinstance(e, KeyboardInterrupt) else "failed"
+        with interrupts.deferred():
+            replacement = writer.finish(e, status)
         if replacement is not None:
             raise replacement from None
         raise
     wp.synchronize_device(model.device)
     return result
+
+
+def _whole(write: Callable[[T], None]) -> Callable[[T], None]:
+    """``write`` run whole: a SIGINT or SIGTERM that arrives during it is raised after it (the datasets it appends
+    to keep equal lengths)."""
+
+    def call(item: T) -> None:
+        with interrupts.deferred():
+            write(item)
+
+    return call
+
+
+def interrupted_status(e: BaseException) -> str:
+    """The ``status`` of a run file stopped by ``e``, a KeyboardInterrupt: Ctrl-C or SIGTERM."""
+    return "interrupted (SIGTERM)" if isinstance(e, interrupts.Terminated) else "interrupted by the user"
 
 
 def resume_run(

@@ -22,7 +22,7 @@ import sys
 
 import numpy as np
 
-from aca_warp.common.errors import PhysicsError, SimulationFault
+from aca_warp.common.errors import PhysicsError, SimulationFault, option
 from aca_warp.hf.model import PadModel
 
 CONTACT_RTOL = 1.0e-6  # relative mismatch of Σ normal forces and the clamp force (float64 solves reach ~1e-13)
@@ -70,9 +70,9 @@ def check_contact(model: PadModel, *, accept: bool) -> None:
     if problem is None:
         return
     if accept:
-        warn(problem + " (accepted: --accept-unphysical)")
+        warn(f"{problem} (accepted: {option('accept_unphysical=True', '--accept-unphysical')})")
         return
-    raise PhysicsError(problem + "; --accept-unphysical runs it anyway")
+    raise PhysicsError(f"{problem}; {option('accept_unphysical=True', '--accept-unphysical')} runs it anyway")
 
 
 def mu_bounds(model: PadModel) -> np.ndarray:

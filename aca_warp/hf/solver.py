@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from aca_warp.common.errors import SceneError, StabilityError
+from aca_warp.common.errors import SceneError, StabilityError, option
 from aca_warp.hf.model import PadModel, coupling_matrix
 from aca_warp.hf.options import DEFAULT_DT, DEFAULT_TOLERANCE, INTEGRATORS
 from aca_warp.hf.state import HFState
@@ -138,21 +138,25 @@ def step_refusal(estimate: StepEstimate, integrator: str, h: float) -> None:
     bound (symplectic Euler) or the springs' (every other scheme), then for strang the sticking bound."""
     limit = estimate.explicit if integrator == "symplectic-euler" else estimate.spring
     if h > limit:
+        dt, force = option("dt", "--dt"), option("force=True", "--force")
+        adaptive = option("integrator='adaptive'", "--integrator adaptive")
         hint = (
-            "choose a smaller --dt, an implicit-friction integrator (strang, implicit-friction), or --force"
+            f"choose a smaller {dt}, an implicit-friction integrator (strang, implicit-friction), or {force}"
             if h <= estimate.spring
-            else "choose a smaller --dt (the springs bound every fixed-step scheme), --integrator adaptive, or --force"
+            else f"choose a smaller {dt} (the springs bound every fixed-step scheme), {adaptive}, or {force}"
         )
         raise StabilityError(
             f"dt = {h:.3g} s exceeds the stable-step estimate {limit:.3g} s of {integrator} "
             f"(springs {estimate.spring:.3g} s, friction slope {estimate.friction:.3g} s); {hint}"
         )
     if integrator == "strang" and h > estimate.sticking:
+        implicit = option("integrator='implicit-friction'", "--integrator implicit-friction")
         raise StabilityError(
             f"dt = {h:.3g} s does not resolve sticking for strang: h (c + F_N max|f'|)/m = "
             f"{4.0 * h / estimate.sticking:.3g} > 4 (its friction step then flips the sign of a sticking patch's "
-            f"velocity each step); choose --dt <= {estimate.sticking:.3g} s or --integrator implicit-friction, or "
-            "--force"
+            f"velocity each step); choose {option('dt', '--dt')} <= {estimate.sticking:.3g} s or "
+            f"{implicit}, or "
+            f"{option('force=True', '--force')}"
         )
 
 
@@ -172,10 +176,16 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
     if options.integrator == "adaptive":
         return est
     h = fitted_step(solver.dt, sample_dt)
-    check_int32("steps per sample interval", round(sample_dt / h), "choose a larger --dt or a smaller sample interval")
+    check_int32(
+        "steps per sample interval",
+        round(sample_dt / h),
+        f"choose a larger {option('dt', '--dt')} or a smaller sample interval",
+    )
     for scene in model.scenes:
         if scene.growth is not None:
-            check_int32("steps per growth interval", round(scene.growth.interval / h), "choose a larger --dt")
+            check_int32(
+                "steps per growth interval", round(scene.growth.interval / h), f"choose a larger {option('dt', '--dt')}"
+            )
     if not options.force:
         step_refusal(est, options.integrator, h)
     elif options.integrator == "strang" and est.sticking < h <= est.spring:
@@ -209,9 +219,10 @@ class HFSolver:
             if not (tolerance > 0 and math.isfinite(tolerance)):
                 raise SceneError(f"tolerance must be a positive number, got {tolerance}")
             if self.T == wp.float32 and tolerance < FP32_MIN_TOLERANCE:
+                fp64 = option("precision='fp64'", "--precision fp64")
                 raise SceneError(
                     f"tolerance {tolerance:g} is below what fp32 state can resolve (>= {FP32_MIN_TOLERANCE:g}); "
-                    "use --precision fp64 or a looser tolerance"
+                    f"use {fp64} or a looser tolerance"
                 )
             self.tolerance = tolerance
         self.dt = (ADAPTIVE_FIRST_STEP if integrator == "adaptive" else DEFAULT_DT) if dt is None else dt

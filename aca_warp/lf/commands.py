@@ -37,13 +37,13 @@ def run_lf(
 
     from aca_warp.common.errors import SceneError
     from aca_warp.common.files import OutputLock
-    from aca_warp.lf.io import BUSY, LFRunWriter, check_lf_output
+    from aca_warp.lf.io import LFRunWriter, busy, check_lf_output
     from aca_warp.lf.solver import LFSimulation
 
     check_lf_output(output, overwrite=overwrite)
     if checkpoint_interval is not None and not (math.isfinite(checkpoint_interval) and checkpoint_interval > 0):
         raise SceneError(f"checkpoint interval must be a positive number of seconds, got {checkpoint_interval}")
-    lock = OutputLock.acquire(output, what=BUSY)  # held from here until the file has its final name
+    lock = OutputLock.acquire(output, what=busy())  # held from here until the file has its final name
     try:
         check_lf_output(output, overwrite=overwrite)
         sim = LFSimulation(scene, device=device, duration=duration, graph=graph)
@@ -58,20 +58,32 @@ def run_lf(
 def _execute(sim: Any, writer: Any, *, progress: bool, checkpoint_interval: float | None) -> Any:
     """Run ``sim`` to the end of its schedule into ``writer``; close the file complete, interrupted or failed (a
     storage failure leaves the ``.partial`` as it was at its last checkpoint and raises a one-line StorageError)."""
+    from aca_warp.common.interrupts import deferred
+    from aca_warp.hf.runner import interrupted_status
+
+    def whole(write: Any) -> Any:  # a signal during a write is raised after it (aca_warp.common.interrupts)
+        def call(*args: Any) -> None:
+            with deferred():
+                write(*args)
+
+        return call
+
     try:
         wall = sim.run(
-            on_snapshot=writer.snapshot,
+            on_snapshot=whole(writer.snapshot),
             progress=progress,
             checkpoint_every=checkpoint_interval,
-            on_checkpoint=None if checkpoint_interval is None else writer.checkpoint,
+            on_checkpoint=None if checkpoint_interval is None else whole(writer.checkpoint),
         )
         attrs = {"wall_time": wall, "steps_per_second": sim.step_index / wall}
-        writer.close(complete=True, status="complete", attrs=attrs)
+        with deferred():
+            writer.close(complete=True, status="complete", attrs=attrs)
     except BaseException as e:
         if not writer.lock.held:  # closed already (close raised its own error)
             raise
-        status = "interrupted by the user" if isinstance(e, KeyboardInterrupt) else "failed"
-        replacement = writer.finish(e, status)
+        status = interrupted_status(e) if isinstance(e, KeyboardInterrupt) else "failed"
+        with deferred():
+            replacement = writer.finish(e, status)
         if replacement is not None:
             raise replacement from None
         raise
@@ -213,6 +225,7 @@ def _cmd_lf(args: argparse.Namespace) -> int:
                 ("--seed", args.seed, None),
                 ("--overwrite", args.overwrite, False),
                 ("--eager", args.eager, False),
+                ("--allow-implausible", args.allow_implausible, False),
             ),
             "the LF run",
         )
@@ -224,7 +237,7 @@ def _cmd_lf(args: argparse.Namespace) -> int:
         return 0
     if args.scene is None or args.output is None:
         raise SceneError("lf needs SCENE and -o LF.h5 (or --resume LF.h5 to continue a run)")
-    scene = load_lf_scene(args.scene)
+    scene = load_lf_scene(args.scene, allow_implausible=args.allow_implausible)
     if args.coulomb:
         scene = scene.replace(lf=dataclasses.replace(scene.lf, coulomb=1))
     if args.seed is not None:
@@ -254,6 +267,12 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--device", default="cpu", help="Warp device: cpu (default) or cuda:0, ...")
     p.add_argument("--coulomb", action="store_true", help="constant patch friction (lf.mu_coulomb) for a TEI check")
     p.add_argument("--seed", type=int, help="seed of the random numbers (default: the scene's lf.seed)")
+    p.add_argument(
+        "--allow-implausible",
+        action="store_true",
+        help="run values far outside a brake pad's range (loads beyond 1e6 N, speeds beyond 200 m/s, ...), refused "
+        "otherwise as likely unit mistakes; sets the scene's allow_implausible (docs/scenes.md)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     p.add_argument("--no-progress", action="store_true", help="no progress lines")
     p.add_argument("--eager", action="store_true", help="no graph capture of the step (debugging)")

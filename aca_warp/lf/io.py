@@ -40,7 +40,7 @@ from aca_warp.common.checkpoint import (
     read_checkpoint,
     write_checkpoint,
 )
-from aca_warp.common.errors import AcaError, SceneError
+from aca_warp.common.errors import AcaError, SceneError, option
 from aca_warp.common.files import (
     OutputLock,
     check_output_path,
@@ -50,6 +50,7 @@ from aca_warp.common.files import (
     open_h5,
     partial_path,
     reading,
+    resume_hint,
     versions,
 )
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
@@ -58,16 +59,20 @@ from aca_warp.lf.scene import lf_scene_to_dict
 from aca_warp.lf.solver import LFSimulation
 from aca_warp.scene import Friction, Material, Matrix, Pad, Patches, Scene
 
-BUSY = "wait for it to finish or stop it (--overwrite does not replace a run in progress)"
+
+def busy() -> str:
+    """The advice of a refusal to write an output that a live process writes."""
+    overwrite = option("overwrite=True", "--overwrite")
+    return f"wait for it to finish or stop it ({overwrite} does not replace a run in progress)"
 
 
 def lf_advice(path: Path, checkpoint_time: float | None) -> str:
     """What to do with an LF ``.partial`` left by a storage failure."""
     if checkpoint_time is None:
-        return "it holds no checkpoint: make room and run again with --overwrite"
+        return f"it holds no checkpoint: make room and run again with {option('overwrite=True', '--overwrite')}"
     return (
         f"it keeps its checkpoint at t = {checkpoint_time:.6g} s: make room, then continue with "
-        f"'aca-warp lf --resume {path}'"
+        f"{resume_hint('lf', path)}"
     )
 
 
@@ -89,7 +94,7 @@ class LFRunWriter:
         run: dict[str, Any] | None = None,
         lock: OutputLock | None = None,
     ) -> None:
-        self.lock = lock or OutputLock.acquire(path, what=BUSY)
+        self.lock = lock or OutputLock.acquire(path, what=busy())
         self.sim = sim
         self.rows = 0
         self.checkpoint_time: float | None = None
@@ -283,7 +288,9 @@ def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:
     part = partial_path(path)
     if part.exists() and not overwrite and not Path(path).is_dir():
         raise SceneError(
-            f"{part} exists (an unfinished LF run); continue it with 'aca-warp lf --resume {path}' or pass --overwrite"
+            f"{part} exists (an unfinished LF run); continue it with "
+            f"{resume_hint('lf', path)} or pass "
+            f"{option('overwrite=True', '--overwrite')}"
         )
     return check_output_path(path, overwrite=overwrite)
 
@@ -330,11 +337,14 @@ def read_snapshot(path: str | Path, name: str) -> dict[str, Any]:
     return out
 
 
-def scene_from_snapshot(path: str | Path, name: str, *, duration: float | None = None) -> Scene:
+def scene_from_snapshot(
+    path: str | Path, name: str, *, duration: float | None = None, allow_implausible: bool = False
+) -> Scene:
     """An HF scene of a saved LF state: its patches (areas frozen), matrix cells, load, speed and friction law.
 
     The HF contact solve of the returned scene reproduces the snapshot's normal forces (same springs, same
-    elevations). Material constants come from the LF scene's ``[material]``; recording defaults are HF's.
+    elevations). Material constants come from the LF scene's ``[material]``; recording defaults are HF's. The
+    scene accepts implausible values when ``allow_implausible`` or the LF scene did.
     """
     s = read_snapshot(path, name)
     doc = s["scene"]
@@ -363,6 +373,7 @@ def scene_from_snapshot(path: str | Path, name: str, *, duration: float | None =
             normal_force=float(a["normal_force"]),
             angular_velocity=float(a["angular_velocity"]),
             matrix=matrix,
+            allow_implausible=allow_implausible or doc["scene"].get("allow_implausible", False) is True,
             **kw,
         )
     except SceneError as e:

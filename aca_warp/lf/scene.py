@@ -19,8 +19,19 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common import plausible
 from aca_warp.common.errors import SceneError
-from aca_warp.scene import Friction, Material, Pad, Patches, PatchGenerator, _finite
+from aca_warp.scene import (
+    GENERATOR_KINDS,
+    Friction,
+    Material,
+    Pad,
+    Patches,
+    PatchGenerator,
+    _finite,
+    check_numbers_plausible,
+    check_pad_plausible,
+)
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -197,6 +208,8 @@ class LFScene:
         snapshot_applications: Save the state at the start (after the ramp) and end of every application.
         snapshot_times: Extra snapshot times [s] (saved after the step that ends at or after each).
         origin: The TOML-shaped dict the scene came from (for run files), or None.
+        allow_implausible: Accept values far outside the physical range of a brake pad (as HF scenes:
+            :mod:`aca_warp.common.plausible`; here also loads, speeds and lengths of the schedule and the LF step).
     """
 
     name: str
@@ -209,14 +222,34 @@ class LFScene:
     snapshot_applications: bool = True
     snapshot_times: tuple[float, ...] = ()
     origin: dict | None = None
+    allow_implausible: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "schedule", tuple(self.schedule))
         if not self.schedule:
             raise SceneError("an LF scene needs a [[schedule]] with at least one application")
+        if not plausible.flag(self.allow_implausible):
+            self._check_plausible()
         if self.pad.span_deg >= 360.0:
             raise SceneError("the LF grid needs an annular sector pad (span_deg < 360)")
         check_grid(self.pad, self.lf)
+
+    def _check_plausible(self) -> None:
+        """Refuse values far outside a brake pad's range (likely unit mistakes; docs/scenes.md)."""
+        check_pad_plausible(self.pad)
+        plausible.check("material.coupling_radius", self.material.coupling_radius, "length")
+        for k in ("K_N", "K_T", "K_C"):
+            plausible.check(f"material.{k}", getattr(self.material, k), "stiffness")
+        if self.patches is not None:
+            p = self.patches
+            for i in (int(np.argmax(p.area)), int(np.argmin(p.area))):
+                plausible.check(f"patch area (patch {i})", p.area[i], "area")
+            plausible.check("patch height", float(np.max(p.height)), "height")
+        plausible.check("lf.dt", self.lf.dt, "lf_step")
+        for i, s in enumerate(self.schedule):
+            plausible.check(f"schedule[{i}].normal_force", s.normal_force, "force")
+            plausible.check(f"schedule[{i}].sliding_speed", s.sliding_speed, "speed")
+            plausible.check(f"schedule[{i}].duration", s.duration, "lf_duration")
 
     @property
     def duration(self) -> float:
@@ -309,7 +342,7 @@ def step_table(scene: LFScene, duration: float | None = None) -> StepTable:
 # ----------------------------------------------------------------------------------------------- TOML
 
 _TABLES: dict[str, tuple[str, ...]] = {
-    "scene": ("name",),
+    "scene": ("name", "allow_implausible"),
     "pad": tuple(f.name for f in dataclasses.fields(Pad)),
     "material": tuple(f.name for f in dataclasses.fields(Material)),
     "friction": tuple(f.name for f in dataclasses.fields(Friction)),
@@ -321,8 +354,9 @@ _TABLES: dict[str, tuple[str, ...]] = {
 _SEGMENT_KEYS = ("kind", "duration", "normal_force", "pressure_bar", "sliding_speed", "ramp")
 
 
-def lf_scene_from_dict(doc: dict, *, name: str = "lf") -> LFScene:
-    """Build and validate an LF scene from a TOML-shaped dict (keys: module docstring, docs/lf_model.md)."""
+def lf_scene_from_dict(doc: dict, *, name: str = "lf", allow_implausible: bool = False) -> LFScene:
+    """Build and validate an LF scene from a TOML-shaped dict (keys: module docstring, docs/lf_model.md);
+    ``allow_implausible`` as the key ``[scene] allow_implausible``."""
     for table, value in doc.items():
         if table not in _TABLES:
             raise SceneError(f"unknown table [{table}]; allowed: {', '.join('[' + t + ']' for t in _TABLES)}")
@@ -334,7 +368,12 @@ def lf_scene_from_dict(doc: dict, *, name: str = "lf") -> LFScene:
             if key not in _TABLES[table]:
                 raise SceneError(f"unknown key {key!r} in [{table}]; allowed: {', '.join(_TABLES[table])}")
     t = {k: dict(doc.get(k, {})) for k in _TABLES if k != "schedule"}
+    allow = plausible.flag(t["scene"].get("allow_implausible", False)) or allow_implausible
     try:
+        if not allow:  # before the pad's own checks (r_inner = 100 is a unit mistake before an ordering one)
+            check_numbers_plausible(t["pad"], "pad", {"r_inner": "length", "r_outer": "length"})
+            check_numbers_plausible(t["patches"], "patches", GENERATOR_KINDS)
+            check_numbers_plausible(t["lf"], "lf", {"dt": "lf_step"})
         pad = Pad(**t["pad"])
         lf = LFConstants(**t["lf"])
         check_grid(pad, lf)
@@ -354,7 +393,9 @@ def lf_scene_from_dict(doc: dict, *, name: str = "lf") -> LFScene:
             if "pressure_bar" in s:
                 if "normal_force" in s:
                     raise SceneError("[[schedule]] takes normal_force or pressure_bar, not both")
-                s["normal_force"] = _finite("schedule.pressure_bar", s.pop("pressure_bar"), low=0.0) * lf.newton_per_bar
+                bar = _finite("schedule.pressure_bar", s.pop("pressure_bar"), low=0.0)
+                plausible.check("schedule.pressure_bar", bar, "pressure_bar", allow=allow)
+                s["normal_force"] = bar * lf.newton_per_bar
             segs.append(Segment(**s))
         pt = t["patches"]
         patches = None
@@ -375,13 +416,15 @@ def lf_scene_from_dict(doc: dict, *, name: str = "lf") -> LFScene:
             snapshot_applications=bool(sn.get("applications", True)),
             snapshot_times=tuple(_finite("snapshots.times", x, low=0.0) for x in times),
             origin=doc,
+            allow_implausible=allow,
         )
     except (TypeError, ArithmeticError) as e:
         raise SceneError(f"invalid LF scene value: {e}") from None
 
 
-def load_lf_scene(spec: str | Path, overrides: dict | None = None) -> LFScene:
-    """The preset ``multiscale`` or the path of an LF TOML file; ``overrides`` ({table: {key: value}}) on top."""
+def load_lf_scene(spec: str | Path, overrides: dict | None = None, *, allow_implausible: bool = False) -> LFScene:
+    """The preset ``multiscale`` or the path of an LF TOML file; ``overrides`` ({table: {key: value}}) on top;
+    ``allow_implausible`` as the key ``[scene] allow_implausible``."""
     s = str(spec)
     if s in LF_PRESETS:
         doc = tomllib.loads(resources.files("aca_warp.data").joinpath(f"{s}.toml").read_text())
@@ -394,20 +437,24 @@ def load_lf_scene(spec: str | Path, overrides: dict | None = None) -> LFScene:
             doc = tomllib.loads(p.read_text())
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
             raise SceneError(f"cannot parse {p}: {e}") from None
+        except OSError as e:
+            raise SceneError(f"cannot read LF scene file {p}: {e.strerror}") from None
+        if not doc:
+            raise SceneError(f"LF scene file {p} is empty; start from the preset file aca_warp/data/multiscale.toml")
         name = p.stem
     for table, vals in (overrides or {}).items():
         if table == "schedule":
             doc["schedule"] = vals
         else:
             doc.setdefault(table, {}).update(vals)
-    return lf_scene_from_dict(doc, name=name)
+    return lf_scene_from_dict(doc, name=name, allow_implausible=allow_implausible)
 
 
 def lf_scene_to_dict(scene: LFScene) -> dict:
     """The scene as a TOML-shaped dict with every constant explicit (stored in run files as JSON)."""
     origin = scene.origin or {}
     return {
-        "scene": {"name": scene.name},
+        "scene": {"name": scene.name, **({"allow_implausible": True} if scene.allow_implausible else {})},
         "pad": dataclasses.asdict(scene.pad),
         "material": dataclasses.asdict(scene.material),
         "friction": dataclasses.asdict(scene.friction),

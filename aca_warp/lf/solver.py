@@ -61,8 +61,25 @@ class LFSimulation:
         load_kernels([K], self.device)
         self.scene = scene
         self.table: StepTable = step_table(scene, duration)
-        c = scene.lf
-        pad = scene.pad
+        dr, dphi = self._set_grid()
+        self.params = self._lf_params(dr, dphi)
+        ring_r = self._set_cell_geometry(dr, dphi)
+        self._allocate(ring_r)
+        self.step_index = 0
+        self.rebuilds = 0  # merge-candidate rebuilds so far (reported by scripts/bench_lf.py)
+        self.dirty = True
+        if scene.patches is not None:
+            self._place(scene.patches)
+        # graphs of the step body (one for loaded steps, one for pauses), on by default: CUDA graphs, and on the
+        # CPU Warp 1.19's recorded launches and scans (bit-identical to eager, ~3x fewer µs per launch)
+        self.use_graph = True if graph is None else bool(graph)
+        self._graphs: dict[bool, Any] = {}
+        self._seen: set[bool] = set()
+
+    def _set_grid(self) -> tuple[float, float]:
+        """Ring and column counts of the cell grid (cells of about ``lf.cell`` [m]), the launch sizes and the slot
+        capacity; returns the ring width dr [m] and the column angle dφ [rad]."""
+        c, pad = self.scene.lf, self.scene.pad
         n_r = max(int(round((pad.r_outer - pad.r_inner) / c.cell)), 1)
         n_t = max(int(round(2.0 * pad.half_span * pad.mean_radius / c.cell)), 1)
         self.n_r, self.n_t = n_r, n_t
@@ -70,12 +87,16 @@ class LFSimulation:
         self.threads = block_threads(self.device, K.LF_BLOCK)  # threads a block kernel's block runs
         self.element_blocks = -(-(self.n_cells + c.capacity) // K.LF_BLOCK)  # blocks covering the C + P elements
         self.capacity = c.capacity
-        dr = (pad.r_outer - pad.r_inner) / n_r
-        dphi = 2.0 * pad.half_span / n_t
+        return (pad.r_outer - pad.r_inner) / n_r, 2.0 * pad.half_span / n_t
+
+    def _lf_params(self, dr: float, dphi: float) -> Any:
+        """The kernels' ``LFParams``: the grid, the scene's material and friction, and every ``lf`` constant the
+        struct has a field for."""
+        scene, c, pad = self.scene, self.scene.lf, self.scene.pad
         p = K.LFParams()
         vals = dict(
-            r_in=pad.r_inner, dr=dr, half=pad.half_span, dphi=dphi, n_r=n_r, n_t=n_t, dt=c.dt, seed=c.seed,
-            K_N=scene.material.K_N, k_m=scene.material.matrix_stiffness, mu_pad=scene.friction.mu_pad,
+            r_in=pad.r_inner, dr=dr, half=pad.half_span, dphi=dphi, n_r=self.n_r, n_t=self.n_t, dt=c.dt,
+            seed=c.seed, K_N=scene.material.K_N, k_m=scene.material.matrix_stiffness, mu_pad=scene.friction.mu_pad,
             coulomb=c.coulomb, mu_coulomb=c.mu_coulomb, M=scene.friction.M, slope=scene.friction.slope,
             decay=scene.friction.decay,
         )  # fmt: skip
@@ -84,7 +105,12 @@ class LFSimulation:
                 vals[f.name] = getattr(c, f.name)
         for k, v in vals.items():
             setattr(p, k, v)
-        self.params = p
+        return p
+
+    def _set_cell_geometry(self, dr: float, dphi: float) -> np.ndarray:
+        """Host arrays of the cells (C,): centre radius, x, y [m], exact annular-sector area [m²] and area-weighted
+        radius [m]; returns the ring radii [m], shape (R,)."""
+        pad, n_r, n_t = self.scene.pad, self.n_r, self.n_t
         ring_r = pad.r_inner + (np.arange(n_r) + 0.5) * dr
         phi = -pad.half_span + (np.arange(n_t) + 0.5) * dphi
         rr, pp = np.meshgrid(ring_r, phi, indexing="ij")
@@ -98,8 +124,14 @@ class LFSimulation:
         self.cell_rc_host = np.repeat(
             2.0 / 3.0 * (edges[1:] ** 3 - edges[:-1] ** 3) / (edges[1:] ** 2 - edges[:-1] ** 2), n_t
         )
+        return ring_r
+
+    def _allocate(self, ring_r: np.ndarray) -> None:
+        """Every device array of the state (class docstring), the hash grid with its radii and parking point, the
+        load schedule, the global scalars and the history."""
         dev = self.device
-        C, R, P = self.n_cells, n_r, self.capacity
+        C, R, P = self.n_cells, self.n_r, self.capacity
+        c, pad = self.scene.lf, self.scene.pad
         f64 = lambda a: wp.array(np.asarray(a, dtype=np.float64), dtype=wp.float64, device=dev)  # noqa: E731
         zf = lambda n: wp.zeros(n, dtype=wp.float64, device=dev)  # noqa: E731
         zi = lambda n: wp.zeros(n, dtype=wp.int32, device=dev)  # noqa: E731
@@ -136,16 +168,6 @@ class LFSimulation:
         self.schedule = wp.array(sched, dtype=wp.float64, device=dev)
         self.glob = zf(K.G_SIZE)
         self.hist = wp.zeros((self.table.steps, K.H_SIZE), dtype=wp.float64, device=dev)
-        self.step_index = 0
-        self.rebuilds = 0  # merge-candidate rebuilds so far (reported by scripts/bench_lf.py)
-        self.dirty = True
-        if scene.patches is not None:
-            self._place(scene.patches)
-        # graphs of the step body (one for loaded steps, one for pauses), on by default: CUDA graphs, and on the
-        # CPU Warp 1.19's recorded launches and scans (bit-identical to eager, ~3x fewer µs per launch)
-        self.use_graph = True if graph is None else bool(graph)
-        self._graphs: dict[bool, Any] = {}
-        self._seen: set[bool] = set()
 
     # ------------------------------------------------------------------------------------------- set-up
 

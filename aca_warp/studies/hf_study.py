@@ -792,6 +792,11 @@ def _header_lines(study: dict[str, Any]) -> list[str]:
     return [
         "# HF study: stand-alone HF simulations (paper §3.1) and patch-area sweep",
         "",
+        "One run per preset from rest (4 ms by default): the record ends in the linear growth phase of the "
+        "friction instability and each verdict below rests on one realisation. The "
+        "verdicts on the paper's statements are those of [validation.md](../validation.md) (seed ensembles of "
+        "saturated runs); this page is the single-run record they are compared with.",
+        "",
         f"Produced by `{study['command']}` on {study['created']}"
         + ("" if study["complete"] else " — **incomplete: the study did not finish**")
         + ".",

@@ -529,8 +529,10 @@ def _figures_section(study: dict[str, Any], path: Path, figures: Path | None) ->
 
 VERDICTS = (
     "**For verdicts see [validation.md](validation.md)** (the §3.3 and §4 rows: LF seed ensembles, every state run "
-    "to saturation). This page is the calibration record of one LF run and, where the HF stage ran, of short HF "
-    "runs from rest on its states, which stop in the linear growth of the slowly growing ones."
+    "to saturation), summarised with what the cause experiments show on "
+    "[results_multiscale_hf.md](results_multiscale_hf.md). This page is the calibration record of one LF run and, "
+    "where the HF stage ran, of short HF runs from rest on its states (one realisation), which stop in the linear "
+    "growth of the slowly growing ones: its HF table is not the saturated state that the verdicts judge."
 )
 
 

@@ -98,8 +98,18 @@ def check_pads(pads: int, count: int) -> list[int]:
 class Problem:
     """One scene on one device: its pads, their DOP853 references and the μ error of a solution."""
 
-    def __init__(self, scene: Scene, pads: int, checked: int, duration: float, log: Callable[[str], None]) -> None:
-        self.scene, self.duration, self.log = scene, duration, log
+    def __init__(
+        self,
+        scene: Scene,
+        pads: int,
+        checked: int,
+        duration: float,
+        log: Callable[[str], None],
+        device: str = "cpu",
+    ) -> None:
+        """``device``: where the pads' start states are built (the Warp device of the run; the references run in
+        NumPy/SciPy on the host)."""
+        self.scene, self.duration, self.log, self.device = scene, duration, log, device
         self.n = round(duration / SAMPLE_DT)
         self.times = np.arange(self.n + 1) * SAMPLE_DT
         self.scenes = batch_scenes(scene, pads) if pads > 1 else [scene]
@@ -109,7 +119,7 @@ class Problem:
         self.ref: dict[int, np.ndarray] = {}
         self.ref_wall = 0.0
         for p in self.checked:
-            model, state = batch_at_start([self.scenes[p]], "cpu", "fp64")
+            model, state = batch_at_start([self.scenes[p]], device, "fp64")
             ode = ReferenceODE(model)
             u0, v0 = (x.astype(np.float64) for x in state.numpy())
             sol = ode.solve(self.times, method="DOP853", rtol=REF_RTOL, u0=u0, v0=v0)
@@ -252,7 +262,7 @@ def run_diffrax(prob: Problem, rtol: float, solver: Compiled) -> dict[str, Any]:
     if pads == 1:
         u0, v0 = prob.y0[0]
     else:
-        _, state = batch_at_start(prob.scenes, "cpu", "fp64")
+        _, state = batch_at_start(prob.scenes, prob.device, "fp64")
         u0, v0 = (x.astype(np.float64).reshape(pads, -1) for x in state.numpy())
     if not solver.warm:  # compile once (rtol is traced: no recompilation per rtol)
         jax.block_until_ready(solver.fn(u0, v0, rtol))
@@ -325,8 +335,8 @@ def measure_scene(name: str, args: argparse.Namespace, log: Callable[[str], None
     cuda = args.device.startswith("cuda")
     scene = make_scene(name)
     duration = args.duration or DURATIONS[name]
-    prob = Problem(scene, 1, 1, duration, log)
-    batch = Problem(scene, args.pads, args.check_pads, duration, log) if args.pads > 1 else None
+    prob = Problem(scene, 1, 1, duration, log, args.device)
+    batch = Problem(scene, args.pads, args.check_pads, duration, log, args.device) if args.pads > 1 else None
     fixed = "onchip" if cuda else "general"
     rows = [entry(name, "reference: SciPy DOP853", 1, "host CPU", "rtol",
                   [{"setting": REF_RTOL, "error": 0.0, "time_s": prob.ref_wall, "reached": True}])]  # fmt: skip

@@ -269,20 +269,11 @@ class Plan:
 
 
 def predicted_sigma(scenes: list[Any], contacts: list[Any]) -> list[np.ndarray]:
-    """σ_i [1/s] of every pad (isolated patch linearised about steady sliding; ``predicted_growth_rate``), one
+    """σ_i [1/s] of every pad (isolated patch linearised about steady sliding; ``scene_growth_rate``), one
     array per pad, from the host contact solves ``contacts`` (what ``build_model`` loads)."""
-    from aca_warp.analysis.saturation import predicted_growth_rate
+    from aca_warp.analysis.saturation import scene_growth_rate
 
-    out = []
-    for s, c in zip(scenes, contacts, strict=True):
-        f, m, a = s.friction, s.material, s.patches.area
-        out.append(
-            predicted_growth_rate(
-                c.patch_force, a, s.patches.friction_radius, s.angular_velocity, f.M, f.slope, f.decay,
-                m.mass_per_area, m.damping_ratio, m.K_T * np.sqrt(a),
-            )
-        )  # fmt: skip
-    return out
+    return [scene_growth_rate(s, c.patch_force) for s, c in zip(scenes, contacts, strict=True)]
 
 
 def start_amplitude(scenes: list[Any], contacts: list[Any]) -> float:
@@ -401,38 +392,16 @@ def step_seconds(cfg: Config, total_patches: int, calibration: dict[str, float],
 
 
 def pad_saturation(time: np.ndarray, glob: np.ndarray, window_end: float, window: float) -> dict[str, Any]:
-    """Saturation of one pad on Σ|u̇| (window means, default windows) and μ (standard deviation over N/64 windows).
-
-    μ is chaotic once saturated: the default window of 32 dominant periods leaves its standard deviation too noisy
-    for the ±10 % band, 64 windows over the record do not. ``status``: "saturated" (Σ|u̇| grows, then settles
-    early enough: the analysed part starts at least half a window before ``window_end``), "not saturated",
-    "no growth phase" (settled without growing: not the instability's saturated state) or "saturated too late".
+    """Saturation of one pad (``record_saturation``: Σ|u̇| by window means, μ by standard deviations over N/64
+    windows) as plain figures. ``status``: "saturated" (Σ|u̇| grows, then settles early enough: the analysed part
+    starts at least half a window before ``window_end``), "not saturated", "no growth phase" (settled without
+    growing: not the instability's saturated state) or "saturated too late".
     """
-    from aca_warp.analysis.saturation import saturation
+    from aca_warp.analysis.saturation import record_saturation
 
-    rs = saturation(time, glob[:, 4], statistic="mean", unit="m/s")
-    rm = saturation(time, glob[:, 0], statistic="std", window=max(4, time.size // 64))
-    out: dict[str, Any] = {
-        "t_s_sum_abs_velocity": rs.t_s,
-        "t_s_mu": rm.t_s,
-        "mu_saturated": rm.saturated,
-        "growth_rate": rs.growth_rate,
-        "growth_r2": rs.growth_r2,
-        "growth_rise": rs.growth_rise,
-        "growth_window": rs.growth_window,
-        "level_sum_abs_velocity": rs.level,
-        "mu_growth_rate": rm.growth_rate,
-        "verdict_sum_abs_velocity": rs.verdict,
-        "verdict_mu": rm.verdict,
-    }
-    if not rs.saturated:
-        out.update(status="not saturated", t_start=None)
-    elif rs.growth_rate is None:
-        out.update(status="no growth phase", t_start=None)
-    else:
-        start = max(rs.t_s, rm.t_s if rm.saturated else rs.t_s)
-        late = start > window_end - 0.5 * window
-        out.update(status="saturated too late" if late else "saturated", t_start=start)
+    out = record_saturation(time, glob[:, 0], glob[:, 4]).figures()
+    if out["status"] == "saturated" and out["t_start"] > window_end - 0.5 * window:
+        out["status"] = "saturated too late"
     return out
 
 

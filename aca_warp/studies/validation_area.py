@@ -308,7 +308,9 @@ def peak_amplitude_row(results: dict[str, dict], cfg: Config) -> RowValue:
     a, window = _stft_values(res, "amplitude")
     la = np.log(a[a > 0]) if a.size else a
     m, lo, hi = ci(la)
-    ratio = f"{math.exp(m):.3g} × 0.004 = exp(mean ln a)" if math.isfinite(m) else "–"
+    ratio = "–"
+    if math.isfinite(m):
+        ratio = f"{math.exp(m):.3g} = exp(mean ln a), {math.exp(m) / PAPER_PEAK_AMPLITUDE:.3g} × the paper's"
     return RowValue(
         interval(a, ".3g"),
         value_verdict(la, math.log(PAPER_PEAK_AMPLITUDE), AMPLITUDE_TOLERANCE),

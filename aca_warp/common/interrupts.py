@@ -1,0 +1,134 @@
+"""Interrupts of an ``aca-warp`` command: SIGINT (Ctrl-C) and SIGTERM end it like Ctrl-C, with one line and exit
+130 or 143 (128 + the signal), the files it writes closed as described in docs/faults.md "Interrupts".
+
+Python turns SIGINT into :class:`KeyboardInterrupt` at the next bytecode, anywhere; SIGTERM kills the process
+outright by default, leaving a ``.partial`` and its lock behind. :func:`installed` (the command line's) makes both
+raise: SIGINT a :class:`KeyboardInterrupt`, SIGTERM a :class:`Terminated` (a KeyboardInterrupt, so every writer that
+closes its file after Ctrl-C does so after SIGTERM too). Writes that must not stop half-way (a chunk of samples
+appended to several datasets, a checkpoint, the closing of a file) run inside :func:`deferred`: a signal that
+arrives there is raised when the write is done. After the first interrupt has been raised, later signals are
+ignored while the command closes its files (a second Ctrl-C would otherwise stop that clean-up half-way). An
+interrupt raised while Python runs a finalizer (``__del__``, a weakref callback) is swallowed there by Python, which
+prints it as "Exception ignored"; :func:`installed` catches it in ``sys.unraisablehook`` instead and raises it again
+a millisecond later (a SIGALRM timer, the command's ``installed`` owns SIGALRM), from ordinary code.
+Without :func:`installed` (the Python API) Python's own SIGINT handling applies and :func:`deferred` defers nothing.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM received: handled as Ctrl-C (files closed, marked interrupted), exit 143."""
+
+
+@dataclass
+class _State:
+    installed: bool = False
+    depth: int = 0  # nesting of deferred()
+    pending: int | None = None  # a signal that arrived inside deferred()
+    raised: bool = False  # the first interrupt has been raised: ignore the rest
+    last: int | None = None  # the last signal received
+
+
+_state = _State()
+
+
+def _interrupt(signum: int) -> KeyboardInterrupt:
+    _state.raised = True
+    return Terminated("terminated (SIGTERM)") if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def _handler(signum: int, frame: object) -> None:
+    _state.last = signum
+    if _state.raised:
+        return
+    if _state.depth > 0:
+        _state.pending = signum
+        return
+    raise _interrupt(signum)
+
+
+def _again(signum: int, frame: object) -> None:
+    """SIGALRM: deliver the interrupt a finalizer swallowed (:func:`_unraisable`)."""
+    if _state.last is not None:
+        _handler(_state.last, frame)
+
+
+def _unraisable(previous: Callable[[Any], object]) -> Callable[[Any], None]:
+    """A ``sys.unraisablehook`` that delivers again an interrupt a finalizer swallowed (module docstring)."""
+
+    def hook(u: Any) -> None:
+        if isinstance(u.exc_value, KeyboardInterrupt) and _state.installed and _state.last is not None:
+            # it never reached the command: raise it again in a millisecond (SIGALRM, :func:`_again`), from
+            # ordinary code; nothing here may block or run Python code that a signal could interrupt
+            _state.raised = False
+            signal.setitimer(signal.ITIMER_REAL, 1e-3)
+            return
+        previous(u)
+
+    return hook
+
+
+def exit_code(e: BaseException | None = None) -> int:
+    """128 + the signal behind ``e`` (or the last one received): 130 for SIGINT, 143 for SIGTERM."""
+    if isinstance(e, Terminated) or (e is None and _state.last == signal.SIGTERM):
+        return 128 + signal.SIGTERM
+    return 128 + signal.SIGINT
+
+
+def received() -> int | None:
+    """The last signal received while :func:`installed` was in effect, or None."""
+    return _state.last
+
+
+@contextmanager
+def installed() -> Iterator[None]:
+    """Make SIGINT and SIGTERM raise (module docstring) for the body; the previous handlers come back after it.
+    Does nothing outside the main thread (Python delivers signals to the main thread only)."""
+    global _state
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = {s: signal.getsignal(s) for s in (*SIGNALS, signal.SIGALRM)}
+    hook = sys.unraisablehook
+    saved = _state
+    _state = _State(installed=True)
+    try:
+        sys.unraisablehook = _unraisable(hook)
+        for s in SIGNALS:
+            signal.signal(s, _handler)
+        signal.signal(signal.SIGALRM, _again)
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        for s, h in before.items():
+            signal.signal(s, h)
+        sys.unraisablehook = hook
+        _state = saved
+
+
+@contextmanager
+def deferred() -> Iterator[None]:
+    """Run the body without being interrupted half-way: a SIGINT or SIGTERM that arrives meanwhile is raised when
+    the body has finished (not when it raised an error of its own: that error ends the command anyway)."""
+    if not _state.installed:
+        yield
+        return
+    _state.depth += 1
+    try:
+        yield
+    finally:
+        _state.depth -= 1
+    if _state.depth == 0 and _state.pending is not None and not _state.raised:
+        signum, _state.pending = _state.pending, None
+        raise _interrupt(signum)

@@ -1,0 +1,505 @@
+"""What a user meets at the command line when something is wrong (docs/faults.md): every case ends with its exit
+code, one line, and nothing half-written left behind.
+
+* Output paths known bad before any simulation (a name ending in ``/``, a folder, a missing folder, a path under a
+  file): exit 2; a read-only folder: exit 4 (a read-only bind mount in a user namespace when run as root, who passes
+  every permission check, else a folder without write permission), for hf, lf, rerun, analyze and plot.
+* Too little space for the samples a run records, known from the plan: exit 4 before anything is written.
+* A file-size limit (RLIMIT_FSIZE in a subprocess) met by rerun, analyze and plot (hf, lf and sweep in
+  test_storage.py): exit 4, what was written kept whole.
+* Ctrl-C (SIGINT) and SIGTERM in a subprocess: one line, exit 130 and 143, no traceback, the run file closed,
+  marked incomplete and resumable to the same bits as an uninterrupted run; analyze and plot leave no half-written
+  group or figure.
+* Values far outside a brake pad's range (likely unit mistakes), empty scene files, patch windows outside the run:
+  exit 2, the mistake named; the summary of a run that stopped early gives the time it stopped at.
+* Messages name Python parameters from the Python API, flags from the command line.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import pytest
+from procs import assert_same_datasets, cli, datasets, env, error_lines
+from test_lf_checkpoint import SCENE as LF_SCENE
+from test_storage import HF_SCENE
+
+from aca_warp.cli import main
+from aca_warp.common.errors import SceneError
+from aca_warp.scene import load_scene, scene_from_dict
+
+SMALL = """
+[scene]
+name = "small"
+[load]
+normal_force = 20.0
+[disc]
+sliding_speed = 10.0
+[patches]
+count = 60
+area_min = 2.0e-8
+area_max = 8.0e-8
+height = 3.0e-6
+seed = 4
+[record]
+sample_dt = 1.0e-7
+patches = ["velocity"]
+[run]
+duration = 2.0e-6
+"""
+
+
+def listing(folder: Path) -> list[str]:
+    """Every path under ``folder``, relative, sorted."""
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*"))
+
+
+def one_line(capsys: pytest.CaptureFixture) -> list[str]:
+    return error_lines(capsys.readouterr().err)
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Scene files and a small HF run file (with per-patch velocities) shared by the tests of this module."""
+    d = tmp_path_factory.mktemp("runs")
+    (d / "small.toml").write_text(SMALL)
+    (d / "lf.toml").write_text(LF_SCENE.format(first=0.2))
+    (d / "long.toml").write_text(HF_SCENE)
+    assert main(["hf", str(d / "small.toml"), "-o", str(d / "small.h5"), "--no-progress"]) == 0
+    assert main(["hf", str(d / "long.toml"), "-o", str(d / "long.h5"), "--duration", "2e-4", "--no-progress"]) == 0
+    return {"hf": d / "small.toml", "lf": d / "lf.toml", "run": d / "small.h5", "long": d / "long.h5"}
+
+
+@pytest.fixture(scope="module")
+def refs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Uninterrupted HF (HF_SCENE, 1 ms, 40 patches with per-patch histories) and LF runs, the references of the
+    interrupted, limited and resumed ones."""
+    d = tmp_path_factory.mktemp("refs")
+    (d / "hf.toml").write_text(HF_SCENE)
+    (d / "lf.toml").write_text(LF_SCENE.format(first=1.0))
+    assert main(["hf", str(d / "hf.toml"), "-o", str(d / "hf.h5"), "--no-progress"]) == 0
+    assert main(["lf", str(d / "lf.toml"), "-o", str(d / "lf.h5"), "--no-progress"]) == 0
+    return {"hf_scene": d / "hf.toml", "hf": d / "hf.h5", "lf_scene": d / "lf.toml", "lf": d / "lf.h5"}
+
+
+def command(kind: str, runs: dict[str, Path], out: str) -> list[str]:
+    """The command line of ``kind`` writing ``out``."""
+    return {
+        "hf": ["hf", str(runs["hf"]), "-o", out, "--no-progress"],
+        "lf": ["lf", str(runs["lf"]), "-o", out, "--no-progress"],
+        "rerun": ["rerun", str(runs["run"]), "-o", out, "--no-progress"],
+        "plot": ["plot", str(runs["run"]), "-o", out, "--only", "global"],
+    }[kind]
+
+
+# ------------------------------------------------------------------------------------------- output paths
+
+
+@pytest.mark.parametrize("kind", ["hf", "lf", "rerun"])
+@pytest.mark.parametrize(
+    ("name", "message"),
+    [
+        ("sub/", "names a folder; give a file name such as"),
+        ("folder", "is a folder; give a file name such as"),
+        ("missing/run.h5", "does not exist"),
+        ("file.txt/run.h5", "is not a folder"),
+    ],
+    ids=["trailing-slash", "folder", "missing-folder", "under-a-file"],
+)
+def test_bad_output_paths_are_refused_first(tmp_path, capsys, runs, kind, name, message) -> None:
+    """Exit 2, one line naming the problem, nothing created (no file, no lock, no folder)."""
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "file.txt").write_text("x")
+    before = listing(tmp_path)
+    assert main(command(kind, runs, f"{tmp_path}/{name}")) == 2
+    err = one_line(capsys)
+    assert len(err) == 1 and message in err[0], err
+    assert listing(tmp_path) == before
+
+
+@pytest.mark.parametrize(
+    ("name", "message"), [("file.txt", "exists and is not a folder"), ("file.txt/figs", "is not a folder")]
+)
+def test_bad_plot_folders_are_refused_first(tmp_path, capsys, runs, name, message) -> None:
+    (tmp_path / "file.txt").write_text("x")
+    before = listing(tmp_path)
+    assert main(command("plot", runs, str(tmp_path / name))) == 2
+    err = one_line(capsys)
+    assert len(err) == 1 and message in err[0], err
+    assert listing(tmp_path) == before
+
+
+def test_sweep_folder_checked_before_the_spec(tmp_path, capsys) -> None:
+    """sweep shares the output-folder check: a path under a file is refused before the spec is expanded."""
+    (tmp_path / "file.txt").write_text("x")
+    spec = tmp_path / "spec.toml"
+    spec.write_text('[sweep]\nbase = "hf1"\n[parameters]\n"friction.M" = [0.6, 0.7]\n')
+    before = listing(tmp_path)
+    assert main(["sweep", str(spec), "-o", str(tmp_path / "file.txt" / "sweep"), "--workers", "0", "--quiet"]) == 2
+    err = one_line(capsys)
+    assert len(err) == 1 and "file.txt is not a folder" in err[0], err
+    assert listing(tmp_path) == before
+
+
+def read_only(folder: Path, args: list[str]) -> subprocess.CompletedProcess | None:
+    """``aca-warp ARGS`` with ``folder`` read-only: as root (who passes every permission check, so ``chmod`` would
+    not do) through a read-only bind mount in a user namespace; otherwise a folder without write permission.
+    None when neither is possible here."""
+    if os.geteuid() != 0:
+        folder.chmod(0o555)
+        try:
+            if os.access(folder, os.W_OK):
+                return None
+            return cli(args)
+        finally:
+            folder.chmod(0o755)
+    if shutil.which("unshare") is None:
+        return None
+    mount = 'mount --bind "$1" "$1" && mount -o remount,bind,ro "$1" || exit 99; shift; exec "$@"'
+    cmd = ["unshare", "-rm", "sh", "-c", mount, "sh", str(folder), sys.executable, "-m", "aca_warp.cli", *args]
+    r = subprocess.run(cmd, env=env(), capture_output=True, text=True, timeout=300)
+    return None if r.returncode == 99 else r
+
+
+@pytest.mark.parametrize("kind", ["hf", "lf", "rerun", "plot", "analyze"])
+def test_read_only_folder(tmp_path, runs, kind) -> None:
+    """Exit 4 and one line before any simulation; the folder as it was (analyze: the run file unchanged)."""
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    if kind == "analyze":
+        shutil.copy(runs["run"], ro / "run.h5")
+        args = ["analyze", str(ro / "run.h5")]
+    else:
+        args = command(kind, runs, str(ro / ("figs" if kind == "plot" else "run.h5")))
+    before = {p: (ro / p).read_bytes() for p in listing(ro)}
+    r = read_only(ro, args)
+    if r is None:
+        pytest.skip("no way to make a folder read-only here (no user namespaces, and root ignores permissions)")
+    lines = error_lines(r.stderr)
+    assert r.returncode == 4 and len(lines) == 1, r.stderr
+    assert "read-only file system" in lines[0] or "permission denied" in lines[0], lines
+    assert {p: (ro / p).read_bytes() for p in listing(ro)} == before
+
+
+def test_too_little_space_is_refused_before_the_run(tmp_path, capsys, runs, monkeypatch) -> None:
+    """The plan's recorded bytes against the free space of the output folder: exit 4, one line, nothing written."""
+    from aca_warp.common import files
+
+    real = os.statvfs
+
+    class Full:
+        def __init__(self, st: os.statvfs_result) -> None:
+            self.f_frsize, self.f_blocks, self.f_bavail = st.f_frsize, st.f_blocks, 0
+
+    monkeypatch.setattr(files.os, "statvfs", lambda p: Full(real(p)))
+    assert main(command("hf", runs, str(tmp_path / "run.h5"))) == 4
+    err = one_line(capsys)
+    assert len(err) == 1 and "MB free; nothing was written" in err[0], err
+    assert listing(tmp_path) == []
+
+
+# -------------------------------------------------------------------------------- file-size limit mid-run
+
+
+def test_rerun_file_size_limit_then_resume(tmp_path: Path, refs) -> None:
+    """rerun under a file-size limit: exit 4, one line, the .partial kept at its checkpoint; --resume then
+    finishes it bit-identical to the run it repeats (the limit as in test_storage.py)."""
+    ref = refs["hf"]
+    out = tmp_path / "again.h5"
+    r = cli(["rerun", str(ref), "-o", str(out), "--no-progress", "--checkpoint-interval", "1e-4"], limit=1_300_000)
+    lines = error_lines(r.stderr)
+    assert r.returncode == 4 and len(lines) == 1, r.stderr
+    assert "file size limit reached" in lines[0] and f"continue with 'aca-warp hf --resume {out}'" in lines[0]
+    assert (tmp_path / "again.h5.partial").exists() and not out.exists()
+    assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
+    assert_same_datasets(out, ref)
+
+
+def test_analyze_file_size_limit_keeps_the_run_file(tmp_path: Path, runs) -> None:
+    """analyze under a file-size limit just above the run file: exit 4, one line; the file keeps every dataset
+    it had, and no half-written /analysis."""
+    run = tmp_path / "run.h5"
+    shutil.copy(runs["long"], run)
+    before = datasets(run)
+    r = cli(["analyze", str(run)], limit=run.stat().st_size + 4096)
+    lines = error_lines(r.stderr)
+    assert r.returncode == 4 and len(lines) == 1, r.stderr
+    assert "file size limit reached while writing /analysis" in lines[0] and "keeps its samples" in lines[0]
+    after = datasets(run)
+    assert sorted(after) == sorted(before) and all(after[k].tobytes() == before[k].tobytes() for k in before)
+    assert main(["analyze", str(run)]) == 0  # the file takes the analysis once there is room
+
+
+def test_plot_file_size_limit_leaves_whole_figures(tmp_path: Path, runs) -> None:
+    """plot under a file-size limit below one figure: exit 4, one line, no half-written figure (the folder it
+    created removed again, as nothing was written into it)."""
+    out = tmp_path / "figs"
+    r = cli(["plot", str(runs["run"]), "-o", str(out), "--only", "global"], limit=20_000)
+    lines = error_lines(r.stderr)
+    assert r.returncode == 4 and len(lines) == 1 and "file size limit reached while writing figures" in lines[0], r
+    assert not out.exists()
+
+
+# ------------------------------------------------------------------------------------------------- interrupts
+
+
+def start(args: list[str]) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "aca_warp.cli", *args],
+        env=env(HDF5_USE_FILE_LOCKING="FALSE"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def has_checkpoint(part: Path) -> bool:
+    from aca_warp.common.checkpoint import has_checkpoint as holds
+
+    try:
+        with h5py.File(part, "r", locking=False) as f:
+            return holds(f)
+    except Exception:  # noqa: BLE001  (mid-write: look again)
+        return False
+
+
+def opened(proc: subprocess.Popen, path: Path) -> bool:
+    """Whether ``proc`` has ``path`` open (Linux /proc)."""
+    fds = Path(f"/proc/{proc.pid}/fd")
+    try:
+        return any(os.readlink(fd) == str(path) for fd in fds.iterdir())
+    except OSError:
+        return False
+
+
+def interrupt_when(proc: subprocess.Popen, ready, sig: int, *, timeout: float = 120.0) -> tuple[int, list[str]]:
+    """Stop ``proc`` (SIGSTOP) as soon as ``ready()`` holds, send ``sig``, let it go on; (exit code, stderr lines)."""
+    deadline = time.monotonic() + timeout
+    try:
+        while True:
+            assert proc.poll() is None, f"ended before it could be interrupted: {proc.stderr.read()}"
+            assert time.monotonic() < deadline
+            os.kill(proc.pid, signal.SIGSTOP)
+            if ready():
+                break
+            os.kill(proc.pid, signal.SIGCONT)
+            time.sleep(0.002)
+        os.kill(proc.pid, sig)
+        os.kill(proc.pid, signal.SIGCONT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    return proc.returncode, error_lines(err)
+
+
+def assert_interrupted(code: int, lines: list[str], sig: int) -> None:
+    assert code == 128 + sig, (code, lines)
+    assert len(lines) == 1 and lines[0].startswith("aca-warp: interrupted"), lines
+    assert ("SIGTERM" if sig == signal.SIGTERM else "Ctrl-C") in lines[0]
+
+
+@pytest.mark.parametrize(
+    ("kind", "sig"),
+    [("hf", signal.SIGINT), ("hf", signal.SIGTERM), ("rerun", signal.SIGINT), ("lf", signal.SIGTERM)],
+    ids=["hf-SIGINT", "hf-SIGTERM", "rerun-SIGINT", "lf-SIGTERM"],
+)
+def test_interrupt_then_resume(tmp_path: Path, refs, kind: str, sig: int) -> None:
+    """Interrupted after its first checkpoint: one line naming what the file keeps and how to continue, exit
+    128 + signal, the file closed and marked incomplete (no .partial, no lock); --resume finishes it with the bits
+    of the uninterrupted run."""
+    out = tmp_path / "run.h5"
+    if kind == "lf":
+        ref = refs["lf"]
+        args = ["lf", str(refs["lf_scene"]), "-o", str(out), "--checkpoint-interval", "0.05", "--no-progress"]
+    else:
+        ref = refs["hf"]
+        first = ["hf", str(refs["hf_scene"])] if kind == "hf" else ["rerun", str(ref)]
+        args = [*first, "-o", str(out), "--checkpoint-interval", "5e-5", "--no-progress"]
+    part = tmp_path / "run.h5.partial"
+    code, lines = interrupt_when(start(args), lambda: part.exists() and has_checkpoint(part), sig)
+    assert_interrupted(code, lines, sig)
+    resume = "lf" if kind == "lf" else "hf"
+    assert f"aca-warp {resume} --resume {out}" in lines[0] and "marked incomplete" in lines[0]
+    assert out.exists() and not part.exists() and not (tmp_path / "run.h5.lock").exists()
+    with h5py.File(out, "r") as f:
+        assert not f.attrs["complete"] and str(f.attrs["status"]).startswith("interrupted")
+    assert main([resume, "--resume", str(out), "--no-progress"]) == 0
+    assert_same_datasets(out, ref)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_interrupted_analyze_leaves_the_run_file(tmp_path: Path, runs, sig: int) -> None:
+    """analyze interrupted once it has the run file open: one line, exit 128 + signal, the file's datasets as they
+    were and no half-written /analysis."""
+    run = tmp_path / "run.h5"
+    shutil.copy(runs["long"], run)
+    before = datasets(run)
+    proc = start(["analyze", str(run)])
+    code, lines = interrupt_when(proc, lambda: opened(proc, run), sig)
+    assert_interrupted(code, lines, sig)
+    after = datasets(run)
+    assert sorted(after) == sorted(before) and all(after[k].tobytes() == before[k].tobytes() for k in before)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_interrupted_plot_leaves_no_half_figure(tmp_path: Path, runs, sig: int) -> None:
+    """plot interrupted while it draws: one line, exit 128 + signal, only whole figures in the folder."""
+    out = tmp_path / "figs"
+    proc = start(["plot", str(runs["run"]), "-o", str(out)])
+    code, lines = interrupt_when(proc, lambda: opened(proc, runs["run"]), sig)
+    assert_interrupted(code, lines, sig)
+    figures = listing(out) if out.exists() else []
+    assert not any(".partial" in p for p in figures), figures
+
+
+# ---------------------------------------------------------------------------------- implausible values
+
+
+def small_scene(**tables: dict) -> str:
+    """The TOML of SMALL with the keys of ``tables`` ({table: {key: value}}) replaced or added."""
+    doc = {
+        "scene": {"name": "small"},
+        "load": {"normal_force": 20.0},
+        "disc": {"sliding_speed": 10.0},
+        "patches": {"count": 60, "area_min": 2.0e-8, "area_max": 8.0e-8, "height": 3.0e-6, "seed": 4},
+        "record": {"sample_dt": 1.0e-7},
+        "run": {"duration": 2.0e-6},
+    }
+    for t, kv in tables.items():
+        doc.setdefault(t, {}).update(kv)
+    return "".join(f"[{t}]\n" + "".join(f"{k} = {v!r}\n" for k, v in kv.items()) for t, kv in doc.items())
+
+
+@pytest.mark.parametrize(
+    ("tables", "extra", "message", "hint"),
+    [
+        ({"pad": {"r_inner": 100, "r_outer": 160}}, [], "pad.r_inner = 100 m — beyond 2 m", "did you mean mm?"),
+        ({"patches": {"area_min": 20, "area_max": 80}}, [], "patches.area_min = 20 m² — beyond", "did you mean mm²"),
+        ({"load": {"normal_force": 5e7}}, [], "load.normal_force = 5e+07 N — beyond 1e+06 N", "did you mean mN?"),
+        ({"disc": {"sliding_speed": 360}}, [], "mean radius = 360 m/s — beyond 200 m/s", "did you mean km/h"),
+        ({}, ["--duration", "1e3"], "run.duration = 1000 s — beyond 1 s", "did you mean µs?"),
+        ({}, ["--dt", "1e-20"], "dt = 1e-20 s — below 1e-13 s", "check the exponent"),
+    ],
+    ids=["length-mm", "area-mm2", "load-mN", "speed-kmh", "duration-us", "step"],
+)
+def test_unit_mistakes_are_named(tmp_path, capsys, tables, extra, message, hint) -> None:
+    """Exit 2, one line with the value, the range and the likely unit, nothing written; --allow-implausible lifts
+    the check (the run then goes on to its other checks)."""
+    s = tmp_path / "s.toml"
+    s.write_text(small_scene(**tables))
+    out = tmp_path / "run.h5"
+    argv = ["hf", str(s), "-o", str(out), "--no-progress", *extra]
+    assert main(argv) == 2
+    err = one_line(capsys)
+    assert len(err) == 1 and message in err[0] and hint in err[0], err
+    assert "pass --allow-implausible" in err[0] and "allow_implausible=True" not in err[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+    main([*argv, "--allow-implausible"])
+    assert "— beyond" not in capsys.readouterr().err
+
+
+def test_implausible_values_in_python(tmp_path) -> None:
+    """The Python API names its parameter; allow_implausible=True (or the scene key) accepts the value."""
+    import tomllib
+
+    doc = tomllib.loads(small_scene(pad={"r_inner": 100, "r_outer": 160}))
+    with pytest.raises(SceneError, match="did you mean mm") as e:
+        scene_from_dict(doc)
+    assert "allow_implausible=True" in str(e.value) and "--allow-implausible" not in str(e.value)
+    assert scene_from_dict(doc, allow_implausible=True).pad.r_inner == 100
+    doc["scene"]["allow_implausible"] = True
+    scene = scene_from_dict(doc)
+    assert scene.allow_implausible and scene.pad.r_inner == 100
+    s = tmp_path / "s.toml"
+    s.write_text(small_scene(load={"normal_force": 5e7}))
+    with pytest.raises(SceneError, match="did you mean mN"):
+        load_scene(s)
+    assert load_scene(s, allow_implausible=True).normal_force == 5e7
+
+
+def test_lf_unit_mistakes_are_named(tmp_path, capsys) -> None:
+    """LF scenes too: a schedule load in mN, the LF step of an HF run."""
+    s = tmp_path / "lf.toml"
+    for old, new, message in (
+        ("normal_force = 300.0", "normal_force = 3e7", "schedule[0].normal_force = 3e+07 N — beyond"),
+        ("[lf]", "[lf]\ndt = 1e-8", "lf.dt = 1e-08 s — below 1e-05 s"),
+    ):
+        s.write_text(LF_SCENE.format(first=0.2).replace(old, new, 1))
+        assert main(["lf", str(s), "-o", str(tmp_path / "lf.h5"), "--no-progress"]) == 2
+        err = one_line(capsys)
+        assert len(err) == 1 and message in err[0] and "--allow-implausible" in err[0], err
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["lf.toml"]
+
+
+# --------------------------------------------------------------------------- empty files, windows, summaries
+
+
+@pytest.mark.parametrize("kind", ["hf", "lf"])
+@pytest.mark.parametrize("text", ["", "# only a comment\n\n"], ids=["empty", "comment"])
+def test_empty_scene_file(tmp_path, capsys, kind, text) -> None:
+    """An empty scene file would run the defaults silently: exit 2, one line, nothing written."""
+    s = tmp_path / "s.toml"
+    s.write_text(text)
+    assert main([kind, str(s), "-o", str(tmp_path / "run.h5"), "--no-progress"]) == 2
+    err = one_line(capsys)
+    assert len(err) == 1 and "is empty" in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+@pytest.mark.parametrize(
+    "how",
+    [
+        ["--record-patches", "velocity", "--patch-window", "5e-6", "6e-6"],
+        ["--duration", "2e-6", "SCENE_WINDOW"],
+    ],
+    ids=["option", "scene"],
+)
+def test_patch_window_outside_the_run(tmp_path, capsys, how) -> None:
+    """A per-patch window after the run's end records nothing: exit 2, one line, nothing written."""
+    s = tmp_path / "s.toml"
+    record = {"sample_dt": 1.0e-7}
+    if "SCENE_WINDOW" in how:
+        record = {**record, "patches": ["velocity"], "window": [1e-3, 2e-3]}
+        how = how[:-1]
+    s.write_text(small_scene(record=record))
+    assert main(["hf", str(s), "-o", str(tmp_path / "run.h5"), "--no-progress", *how]) == 2
+    err = one_line(capsys)
+    assert len(err) == 1 and "holds no sample of the run" in err[0] and "choose a window inside the run" in err[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+def test_patch_window_without_patch_histories(tmp_path, capsys) -> None:
+    """--patch-window without per-patch histories would be ignored silently: exit 2, one line."""
+    s = tmp_path / "s.toml"
+    s.write_text(small_scene())
+    argv = ["hf", str(s), "-o", str(tmp_path / "run.h5"), "--no-progress", "--patch-window", "0", "1e-6"]
+    assert main(argv) == 2
+    err = one_line(capsys)
+    assert len(err) == 1 and "add --record-patches velocity" in err[0], err
+
+
+# ---------------------------------------------------------------------------------------------- wording
+
+
+def test_python_api_names_parameters_and_the_cli_flags(tmp_path, capsys, runs) -> None:
+    """The same refusal from run_scene names overwrite=True; from aca-warp it names --overwrite."""
+    from aca_warp.hf.runner import run_scene
+
+    out = tmp_path / "run.h5"
+    out.write_bytes(b"precious")
+    with pytest.raises(SceneError) as e:
+        run_scene(load_scene(runs["hf"]), out)
+    assert "pass overwrite=True to replace it" in str(e.value) and "--" not in str(e.value)
+    assert main(["hf", str(runs["hf"]), "-o", str(out), "--no-progress"]) == 2
+    err = one_line(capsys)
+    assert len(err) == 1 and "pass --overwrite to replace it" in err[0] and "overwrite=True" not in err[0]
+    assert out.read_bytes() == b"precious"

@@ -1,0 +1,101 @@
+"""Ctrl-C and SIGTERM during ``aca-warp sweep``: one line, exit 130/143, the running shards marked ``interrupted``,
+and a rerun that finishes them (the finished ones untouched) with the files of an uninterrupted sweep."""
+
+from __future__ import annotations
+
+import json
+import signal
+import time
+from pathlib import Path
+
+import pytest
+from procs import assert_same_datasets, cli, env, error_lines, start
+
+# 6 pads of 25 patches in 3 shards of 2; 2 ms simulated (about a second of stepping per shard on one core)
+SPEC = """[sweep]
+base = "hf1"
+shard_size = 2
+name = "interrupt"
+[run]
+duration = 2e-3
+precision = "fp32"
+sample_dt = 1e-5
+[base.patches]
+count = 25
+[parameters]
+"friction.M" = [0.6, 0.7, 0.8, 0.9, 0.95, 0.85]
+"""
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """The spec file and an uninterrupted sweep of it (sequential, in one process)."""
+    d = tmp_path_factory.mktemp("sweep_ref")
+    spec = d / "spec.toml"
+    spec.write_text(SPEC)
+    r = cli(["sweep", str(spec), "-o", str(d / "ref"), "--workers", "0", "--no-overlap", "--quiet"])
+    assert r.returncode == 0, r.stderr
+    return spec, d / "ref"
+
+
+def _states(out: Path) -> list[str]:
+    return [s["state"] for s in json.loads((out / "manifest.json").read_text())["shards"]]
+
+
+def _wait_for_running_shard(out: Path, proc, timeout: float = 120.0) -> None:
+    """Until one shard is finished and another is being written (its ``.partial`` exists)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        assert proc.poll() is None, f"the sweep ended first: {proc.stderr.read()}"
+        assert time.monotonic() < deadline, "no shard finished in time"
+        try:
+            done = _states(out).count("done")
+        except (FileNotFoundError, json.JSONDecodeError):
+            done = 0
+        if done >= 1 and list(out.glob("shard-*.h5.partial")):
+            return
+        time.sleep(0.005)
+
+
+@pytest.mark.parametrize(
+    ("sig", "code", "word", "mode"),
+    [
+        (signal.SIGINT, 130, "interrupted", ["--workers", "0"]),
+        (signal.SIGTERM, 143, "terminated (SIGTERM)", ["--workers", "0", "--no-overlap"]),
+        (signal.SIGTERM, 143, "terminated (SIGTERM)", ["--workers", "2"]),
+    ],
+    ids=["sigint-overlapped", "sigterm-sequential", "sigterm-dask"],
+)
+def test_signal_marks_running_shards_and_rerun_finishes(
+    tmp_path: Path, reference: tuple[Path, Path], sig: int, code: int, word: str, mode: list[str]
+) -> None:
+    spec, ref = reference
+    out = tmp_path / "out"
+    args = ["sweep", str(spec), "-o", str(out), "--quiet", *mode]
+    proc = start(args)
+    _wait_for_running_shard(out, proc)
+    proc.send_signal(sig)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == code, stderr
+    lines = error_lines(stderr)
+    assert len(lines) == 1, stderr  # no traceback, no Dask shutdown chatter
+    assert lines[0].startswith(f"aca-warp: {word};") and "run the same command again" in lines[0]
+    assert "Traceback" not in stderr and "Traceback" not in stdout
+
+    states = _states(out)
+    assert "interrupted" in states and "queued" not in states, states
+    assert set(states) <= {"done", "interrupted", "pending"}, states
+    hit = [i for i, s in enumerate(states) if s == "interrupted"]
+    assert f"shard(s) {', '.join(map(str, hit))} marked interrupted" in lines[0]
+    assert not list(out.glob("*.partial"))  # a stopped shard deletes its file (Dask workers too)
+    finished = {p.name: p.stat().st_mtime_ns for p in out.glob("shard-*.h5")}
+    assert len(finished) == states.count("done") >= 1
+
+    r = cli(["sweep", str(spec), "-o", str(out), "--workers", "0"], **env())
+    assert r.returncode == 0, r.stderr
+    assert f"{3 - len(finished)} shard(s) run, {len(finished)} skipped" in r.stdout
+    assert _states(out) == ["done"] * 3
+    assert {n: (out / n).stat().st_mtime_ns for n in finished} == finished  # finished shards were not redone
+    assert not list(out.glob("*.partial"))
+    for i in range(3):
+        assert_same_datasets(ref / f"shard-0000{i}.h5", out / f"shard-0000{i}.h5")

@@ -1,0 +1,208 @@
+"""Overlapped sweeps: the same files as the sequential path, bit for bit; the writer thread and the device's turns."""
+
+from __future__ import annotations
+
+import threading
+import time
+import types
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from procs import assert_same_datasets
+
+from aca_warp.sweep import ChunkWriter, KernelTurn, ShardCancelled, load_spec, run_sweep
+
+# 8 pads of 20 patches in 3 shards (3, 3, 2 pads); 400 µs at 1 µs samples: 401 samples, more than one recorder
+# chunk, so that the writer joins chunks and the time axis is appended several times
+SPEC = {
+    "sweep": {"base": "hf1", "shard_size": 3, "name": "overlap"},
+    "run": {"duration": 4e-4, "precision": "fp32", "sample_dt": 1e-6},
+    "base": {"patches": {"count": 20}},
+    "parameters": {"friction.M": [0.6, 0.9], "patches.seed": {"range": [1, 5]}},
+}
+# attributes that say how long something took or how much memory there was, not what was computed
+_TIMES = {"timings", "wall_time", "compile_time", "batch_capacity"}
+
+
+def _attrs(path: Path) -> dict:
+    with h5py.File(path, "r") as f:
+        return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in f.attrs.items() if k not in _TIMES}
+
+
+def _assert_same_files(a: Path, b: Path) -> None:
+    names = sorted(p.name for p in a.glob("shard-*.h5"))
+    assert names == sorted(p.name for p in b.glob("shard-*.h5")) and len(names) == 3
+    for n in names:
+        assert_same_datasets(a / n, b / n)
+        assert _attrs(a / n) == _attrs(b / n), n
+
+
+@pytest.mark.parametrize("memory_fraction", [0.5, 1e-12], ids=["one-batch", "a-batch-per-pad"])
+def test_overlapped_files_equal_sequential(tmp_path: Path, memory_fraction: float) -> None:
+    """In this process: two shard tasks in threads (builds beside runs, writes behind them) against one shard after
+    another with inline writes; also when every pad is its own batch (rows appended per batch)."""
+    spec = load_spec(SPEC, base_dir=Path.cwd())
+    seq, ovl = tmp_path / "seq", tmp_path / "ovl"
+    r = run_sweep(spec, seq, workers=0, overlap=False, memory_fraction=memory_fraction)
+    assert r.ran == [0, 1, 2] and not r.failed and not r.faults
+    r = run_sweep(spec, ovl, workers=0, overlap=True, memory_fraction=memory_fraction)
+    assert r.ran == [0, 1, 2] and not r.failed and not r.faults
+    _assert_same_files(seq, ovl)
+    with h5py.File(ovl / "shard-00002.h5", "r") as f:
+        assert f["global/mu"].shape == (2, 401) and f["global/time"].shape == (401,)
+        assert np.all(np.isfinite(f["global/mu"][()]))
+        assert (f.attrs["batch_capacity"] >= 3) == (memory_fraction == 0.5)
+    summary = {s["index"]: s for s in r.summaries}[0]
+    assert summary["batches"] == (1 if memory_fraction == 0.5 else 3)
+    assert summary["timings"]["kernel"] > 0 and summary["timings"]["run_end"] >= summary["timings"]["run_start"]
+
+
+def test_overlapped_on_dask_equals_sequential(tmp_path: Path) -> None:
+    """Two Dask worker processes with writes behind their runs, against the sequential path in this process."""
+    spec = load_spec(SPEC, base_dir=Path.cwd())
+    seq, ovl = tmp_path / "seq", tmp_path / "dask"
+    run_sweep(spec, seq, workers=0, overlap=False)
+    r = run_sweep(spec, ovl, workers=2, overlap=True)
+    assert r.workers == 2 and sorted(r.ran) == [0, 1, 2] and not r.failed
+    _assert_same_files(seq, ovl)
+
+
+def _chunk(t0: float, k: int, pads: int = 2) -> types.SimpleNamespace:
+    t = t0 + np.arange(k, dtype=np.float64)
+    return types.SimpleNamespace(time=t, globals=np.repeat(t[:, None, None], pads, axis=1).repeat(3, axis=2))
+
+
+def test_chunk_writer_joins_chunks_of_a_batch_and_keeps_order() -> None:
+    written: list[tuple[int, int, np.ndarray]] = []
+    w = ChunkWriter(lambda item: written.append((item[0], item[1], item[2].time.copy())), rows=5)
+    w.put((0, 2, _chunk(0, 3)))
+    w.put((0, 2, _chunk(3, 3)))  # 6 rows held: one write of both
+    w.put((0, 2, _chunk(6, 2)))
+    w.put((2, 4, _chunk(0, 1)))  # another batch: the held rows of the first go out first
+    w.close()
+    assert [(b0, b1, t.tolist()) for b0, b1, t in written] == [
+        (0, 2, [0, 1, 2, 3, 4, 5]),
+        (0, 2, [6, 7]),
+        (2, 4, [0]),
+    ]
+    assert w.seconds >= 0.0
+
+
+def test_chunk_writer_raises_the_first_write_error_in_the_run_thread() -> None:
+    calls = []
+
+    def write(item: tuple) -> None:
+        calls.append(item[0])
+        raise OSError(28, "No space left on device")
+
+    w = ChunkWriter(write, rows=1)
+    w.put((0, 1, _chunk(0, 1, 1)))
+    with pytest.raises(OSError, match="No space"):
+        for _ in range(200):  # the error reaches a later put (or close) once the thread has met it
+            w.put((0, 1, _chunk(0, 1, 1)))
+            time.sleep(0.01)
+        w.close()
+    w.abort()
+    assert calls == [0]  # nothing more was written after the first error
+
+
+def test_kernel_turn_is_one_at_a_time_and_cancellable() -> None:
+    import warp as wp
+
+    dev = wp.get_device("cpu")
+    cancel = threading.Event()
+    a = KernelTurn(dev, cancel, processes=True)
+    b = KernelTurn(dev, cancel, processes=True)
+    a.enter()
+    a.enter()  # idempotent
+    entered = threading.Event()
+    errors: list[BaseException] = []
+
+    def other() -> None:
+        try:
+            b.enter()
+            entered.set()
+        except ShardCancelled as e:
+            errors.append(e)
+
+    t = threading.Thread(target=other)
+    t.start()
+    time.sleep(0.2)
+    assert not entered.is_set()  # a holds the device
+    cancel.set()
+    t.join(5)
+    assert len(errors) == 1 and not entered.is_set()
+    a.exit()
+    cancel.clear()
+    b.enter()  # free again
+    b.first_chunk()  # CPU: no turn across processes
+    assert b.fd is None
+    b.exit()
+
+
+def test_gpu_turn_across_processes_is_a_file_lock(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two runs on one GPU (a stand-in device; flock conflicts between open files as between processes): the
+    second waits after its first chunk until the first ends its turn, or stops when the sweep stops."""
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    gpu = types.SimpleNamespace(is_cuda=True, uuid="GPU-test-0", pci_bus_id=None)
+    cancel = threading.Event()
+    a, b = KernelTurn(gpu, cancel, processes=True), KernelTurn(gpu, cancel, processes=True)
+    a.first_chunk()
+    assert a.fd is not None and (tmp_path / "aca-warp-kernel-GPU-test-0.lock").exists()
+    got: list[str] = []
+
+    def second() -> None:
+        try:
+            b.first_chunk()
+            got.append("turn")
+        except ShardCancelled:
+            got.append("cancelled")
+
+    t = threading.Thread(target=second)
+    t.start()
+    time.sleep(0.2)
+    assert got == []  # a's run holds the GPU
+    a.exit()
+    t.join(5)
+    assert got == ["turn"] and b.fd is not None
+    held, b = b, KernelTurn(gpu, cancel, processes=True)  # a third run waits behind it, and stops with the sweep
+    t = threading.Thread(target=second)
+    t.start()
+    time.sleep(0.1)
+    assert got == ["turn"]
+    cancel.set()
+    t.join(5)
+    assert got == ["turn", "cancelled"] and b.fd is None
+    held.exit()
+
+
+def test_throughput_script_reports_both_modes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """scripts/sweep_throughput.py with tiny settings: both modes, rates from the shards' own timings."""
+    import json
+    import sys
+
+    from scriptload import load_script
+
+    st = load_script("sweep_throughput")
+    for pads in (1, 2, 16, 2048):
+        doc = st.sweep_doc(pads, 10, 4, 1e-5, "fp32")
+        assert len(load_spec(doc).parameters["friction.M"]) == pads
+    with pytest.raises(SystemExit, match="power of two"):
+        st.sweep_doc(12, 10, 4, 1e-5, "fp32")
+    out, md = tmp_path / "t.json", tmp_path / "t.md"
+    argv = ["sweep_throughput.py", "--device", "cpu", "--pads", "4", "--patches", "12", "--shard-size", "2"]
+    argv += ["--duration", "5e-5", "--json", str(out), "--md", str(md), "--dir", str(tmp_path / "w")]
+    monkeypatch.setattr(sys, "argv", argv)
+    assert st.main() == 0
+    doc = json.loads(out.read_text())
+    rows = {r["mode"]: r for r in doc["results"]}
+    assert set(rows) == {"sequential", "overlapped"} and doc["path"] == "inprocess"
+    for r in rows.values():
+        assert r["patch_steps"] == 4 * 12 * 5000
+        assert r["kernel_s"] == pytest.approx(sum(s["kernel"] for s in r["shards"]))
+        assert r["in_shard_rate"] == pytest.approx(r["patch_steps"] / r["kernel_s"])
+        assert r["wall_rate"] == pytest.approx(r["patch_steps"] / r["wall_s"]) and r["kernel_s"] < r["wall_s"]
+    assert doc["target_ratio"] == pytest.approx(rows["overlapped"]["wall_rate"] / rows["sequential"]["in_shard_rate"])
+    assert len(md.read_text().splitlines()) == 1 and "overlapped wall / sequential in-shard" in md.read_text()
