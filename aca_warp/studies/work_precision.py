@@ -282,7 +282,7 @@ class Study:
     def reference(self) -> None:
         """DOP853 at --ref-rtol over the pointwise window, checked at 10× that rtol; sticking and spectra of it."""
         a, s = self.args, self.start
-        model, _ = model_from_state(s.scene, "cpu", "fp64", s.u, s.v, s.arrays)
+        model, _ = model_from_state(s.scene, a.device, "fp64", s.u, s.v, s.arrays)
         self.ode = ReferenceODE(model)
         self.slip = self.ode.vd
         times = np.arange(self.n + 1) * SAMPLE_DT
@@ -382,7 +382,7 @@ class Study:
             return list(a.tolerances or TOLS[q]), list(long)
         if integrator == "symplectic-euler":
             s = self.start
-            lim = stable_step(model_from_state(s.scene, "cpu", precision, s.u, s.v, s.arrays)[0]).explicit
+            lim = stable_step(model_from_state(s.scene, self.args.device, precision, s.u, s.v, s.arrays)[0]).explicit
             return sorted({0.9 * lim, *[h for h in EXPLICIT_STEPS if h < 0.9 * lim]}, reverse=True), []
         return list(a.steps or self.spec.steps[q]), list(long)
 
