@@ -24,7 +24,7 @@ set-up is in the JSON); SciPy — ``solve_ivp``; diffrax — the jitted solve af
 ``block_until_ready``. A part that fails is marked in its row; the rest of the table goes on. Results:
 ``OUT/tts_<device>.json`` and a markdown table; ``--report JSON...`` writes the tables into docs/time_to_solution.md.
 
-    python scripts/time_to_solution.py --out /tmp/tts                        # CPU (no batches), ~5 min
+    python scripts/time_to_solution.py --out /tmp/tts                        # CPU (no batches), ~3 min
     python scripts/time_to_solution.py --device cuda:0 --out $OUT/tts        # GPU
     python scripts/time_to_solution.py --report tts_cpu.json tts_cuda0.json  # docs/time_to_solution.md
 """

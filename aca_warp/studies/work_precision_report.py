@@ -157,8 +157,9 @@ def _steps(b: dict, kind: str) -> str:
     return s + (f" (+{b['rejected']} rej.)" if b.get("rejected") else "")
 
 
-def _wall(b: dict) -> str:
-    return fmt(b.get("wall_s"), ".3g") + (" (extrap.)" if b.get("extrapolated") else "")
+def _wall(b: dict, unit: str = "") -> str:
+    """Wall time of a block as a cell (``unit`` after the number), marked when extrapolated."""
+    return fmt(b.get("wall_s"), ".3g") + unit + (" (extrap.)" if b.get("extrapolated") else "")
 
 
 def window_table(sc: dict) -> list[str]:
@@ -209,7 +210,7 @@ def cheapest(sc: dict, method: str, ok: Any, block: str = "window") -> dict | No
 def _cell(r: dict | None, block: str = "window") -> str:
     if r is None:
         return "–"
-    return f"{_wall(r[block])} s ({setting(r)})"
+    return f"{_wall(r[block], ' s')} ({setting(r)})"
 
 
 def at_floor(b: dict, floor: dict) -> bool:
@@ -234,32 +235,37 @@ def scene_cell(doc: dict, sc: dict) -> str:
     return f"{sc['scene']} ({sc['patches']} patches, {_fmt_s(sc['window_s'])}{', quick' if doc.get('quick') else ''})"
 
 
+REGIME_ORDER = {"sliding": 0, "stick-slip": 1, "saturated": 2}
+
+
 def defaults_table(pairs: list[tuple[dict, dict]]) -> list[str]:
-    """μ error over the pointwise window of strang at its default step and of adaptive at its default tolerance."""
+    """Per scene (by regime): μ error over the pointwise window and wall time of strang at its default step and of
+    adaptive at its default tolerance and the two below it."""
     d = pairs[0][0]["defaults"] if pairs else {}
+    dt, tol = d.get("dt", math.nan), d.get("tolerance", math.nan)
+    settings = [("strang", "dt_requested", dt)] + [("adaptive", "tolerance", tol / f) for f in (1, 10, 100)]
     rows = []
-    for doc, sc in pairs:
+    for doc, sc in sorted(pairs, key=lambda p: (REGIME_ORDER.get(p[1]["regime"], 9), p[1]["scene"])):
         cells = []
-        for method, key, value in (
-            ("strang", "dt_requested", d.get("dt")),
-            ("adaptive", "tolerance", d.get("tolerance")),
-        ):
-            r = next((r for r in sc["rows"] if r["method"] == method and r.get(key) == value and r.get("window")), None)
-            cells.append("–" if r is None else f"{fmt(r['window'].get('mu'), '.1e')} in {_wall(r['window'])} s")
-        rows.append([scene_cell(doc, sc), doc["machine"]["device_name"], sc["regime"], *cells])
-    head = [
-        "scene",
-        "device",
-        "regime",
-        f"strang {d.get('dt', math.nan):g} s",
-        f"adaptive tol {d.get('tolerance', math.nan):g}",
-    ]
+        for method, key, value in settings:
+            r = next(
+                (r for r in sc["rows"] if r["method"] == method and _close(r.get(key), value) and r.get("window")),
+                None,
+            )
+            cells.append("–" if r is None else f"{fmt(r['window'].get('mu'), '.1e')} ({_wall(r['window'], ' s')})")
+        rows.append([sc["regime"], scene_cell(doc, sc), doc["machine"]["device"], *cells])
+    head = ["regime", "scene", "device"] + [f"{m} {'dt' if m == 'strang' else 'tol'} {v:g}" for m, _, v in settings]
     return [
-        "**μ error over the pointwise window at the defaults** (strang's default step, adaptive's default tolerance).",
+        f"**μ error over the pointwise window (wall time) at strang's default step {dt:g} s and at adaptive's default "
+        f"tolerance {tol:g} and below.**",
         "",
         *md_table(head, rows),
         "",
     ]
+
+
+def _close(a: float | None, b: float) -> bool:
+    return a is not None and math.isclose(a, b, rel_tol=1e-9)
 
 
 def summary(pairs: list[tuple[dict, dict]]) -> list[str]:
@@ -271,7 +277,7 @@ def summary(pairs: list[tuple[dict, dict]]) -> list[str]:
         agree = min(ours, default=math.nan)
         for t in TARGETS:
             cells = [_cell(cheapest(sc, m, lambda b, t=t: b.get("mu", math.inf) <= t)) for m in METHODS]
-            rows.append([scene_cell(doc, sc), doc["machine"]["device_name"], sc["regime"], f"{t:.0e}", *cells,
+            rows.append([scene_cell(doc, sc), doc["machine"]["device"], sc["regime"], f"{t:.0e}", *cells,
                          f"{ref['check_mu']:.1e} / {agree:.1e}"])  # fmt: skip
     lines = [
         "**Cheapest setting that reaches a μ error over the pointwise window** (wall time of the stepping; "
@@ -288,9 +294,7 @@ def summary(pairs: list[tuple[dict, dict]]) -> list[str]:
             continue
         cells = [_cell(cheapest(sc, m, lambda b, f=lr["floor"]: at_floor(b, f), "long"), "long") for m in METHODS]
         floor = ", ".join(f"{k} {fmt(lr['floor'].get(k), '.1e')}" for k in FLOOR_STATS)
-        long_rows.append(
-            [scene_cell(doc, sc), doc["machine"]["device_name"], _fmt_s(sc["long_window_s"]), *cells, floor]
-        )
+        long_rows.append([scene_cell(doc, sc), doc["machine"]["device"], _fmt_s(sc["long_window_s"]), *cells, floor])
     if long_rows:
         lines += [
             f"**Cheapest setting whose statistics are at the floor or within the tolerance** (every one of "

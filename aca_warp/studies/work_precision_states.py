@@ -140,7 +140,7 @@ def start_state(name: str, args: argparse.Namespace, log: Any = print) -> Start:
     file is remade when its settings differ from these)."""
     scene = make_scene(name, args.patches)
     if name not in SPIN and name != "va_late":
-        model, state = batch_at_start([scene], "cpu", "fp64")
+        model, state = batch_at_start([scene], args.device, "fp64")
         u, v = state.numpy()
         return Start(scene, u.astype(np.float64), v.astype(np.float64), {}, {"how": f"{scene.initial.state}"})
     duration = SPIN[name][1] if name in SPIN else VA_GROW
