@@ -3,7 +3,9 @@
 * :mod:`~aca_warp.studies.hf_study`: stand-alone HF presets HF1-HF4 and the patch-area sweep (§3.1, Figs. 8-9);
 * :mod:`~aca_warp.studies.varying_area`: growing patch areas under the HF2 load (§3.2, Eq. 10, Figs. 10-11);
 * :mod:`~aca_warp.studies.multiscale`: LF over the load procedure, HF on its saved states (§3.3, Figs. 12-13);
-* :mod:`~aca_warp.studies.work_precision`: error against wall time of the HF integrators and SciPy's solvers;
+* :mod:`~aca_warp.studies.work_precision`: error against wall time of the HF integrators and SciPy's solvers, with
+  ``work_precision_states`` (the start states, made once and cached) and ``work_precision_report`` (figures, page);
+* :mod:`~aca_warp.studies.time_to_solution`: wall time of every solver (ours, SciPy DOP853, diffrax) to a μ error;
 * :mod:`~aca_warp.studies.validation`: the paper's statements (§3.1–§3.3, §4) from seed ensembles of saturated runs,
   with :mod:`~aca_warp.studies.validation_base`, ``validation_area``, ``validation_multiscale`` and
   ``validation_causes``;
