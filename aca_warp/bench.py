@@ -196,30 +196,16 @@ def run_case(
     """Time one configuration; returns a result row (with ``mu``, pad 0's μ(t), for the error; popped later)."""
     import warp as wp
 
-    from aca_warp.hf.contact import solve_scene_contact
     from aca_warp.hf.loop import run_hf
     from aca_warp.hf.model import build_model
     from aca_warp.hf.onchip_layout import choose_engine
     from aca_warp.hf.options import RunOptions
     from aca_warp.hf.state import initial_state
-    from aca_warp.kernels.neighbours import build_neighbours
     from aca_warp.scene import Record
 
     dev = wp.get_device(device)
     scenes = [scene] * pads
-    row: dict[str, Any] = {}
-    if stages:  # the two host/device stages inside build_model, timed alone
-        t0 = time.perf_counter()
-        for s in scenes:
-            solve_scene_contact(s)
-        row["contact_s"] = time.perf_counter() - t0
-        x = np.tile(scene.patches.x, pads)
-        y = np.tile(scene.patches.y, pads)
-        pad_of = np.repeat(np.arange(pads, dtype=np.int32), scene.patches.count)
-        t0 = time.perf_counter()
-        build_neighbours(x, y, pad_of, np.full(pads, scene.material.coupling_radius), dev)
-        wp.synchronize_device(dev)
-        row["neighbours_s"] = time.perf_counter() - t0
+    row: dict[str, Any] = _stage_times(scene, pads, dev) if stages else {}
     t0 = time.perf_counter()
     model = build_model(scenes, device=dev, precision=precision)
     wp.synchronize_device(dev)
@@ -235,10 +221,6 @@ def run_case(
     onchip = engine == "onchip"
     bare = stages and not onchip  # the on-chip step has no bare-step graph to time
     stepping = _stepping_time(model, initial_state(model), integrator, res.dt, res.steps) if bare else None
-    moved = None if onchip else bytes_per_step(integrator, n, model.nnz, precision)
-    bw_time = stepping if stepping is not None else res.wall_time
-    bandwidth = None if moved is None else moved * res.steps / max(bw_time, 1e-12)
-    peak, peak_src = peak_bandwidth(dev)
     row.update(
         {
             "device": str(model.device),
@@ -265,16 +247,54 @@ def run_case(
             "patch_steps_per_s": n * res.steps / res.wall_time,
             "ns_per_patch_step": 1e9 * res.wall_time / (n * res.steps),
             "stepping_patch_steps_per_s": None if stepping is None else n * res.steps / stepping,
-            "bytes_per_step": moved,
-            "bandwidth_Bps": bandwidth,
-            "peak_bandwidth_Bps": peak,
-            "peak_bandwidth_source": peak_src,
-            "bandwidth_fraction": None if peak is None or bandwidth is None else bandwidth / peak,
+            **_bandwidth_fields(model, res, stepping, integrator, precision, onchip, dev),
             "complete": res.complete,
             "mu": mu,
         }
     )
     return row
+
+
+def _stage_times(scene: Any, pads: int, dev: Any) -> dict[str, Any]:
+    """The two host/device stages inside build_model, timed alone for ``pads`` copies of ``scene``: ``contact_s``
+    (the contact solve of every pad) and ``neighbours_s`` (the neighbour lists on ``dev``), both wall time [s]."""
+    import warp as wp
+
+    from aca_warp.hf.contact import solve_scene_contact
+    from aca_warp.kernels.neighbours import build_neighbours
+
+    row: dict[str, Any] = {}
+    t0 = time.perf_counter()
+    for s in [scene] * pads:
+        solve_scene_contact(s)
+    row["contact_s"] = time.perf_counter() - t0
+    x = np.tile(scene.patches.x, pads)
+    y = np.tile(scene.patches.y, pads)
+    pad_of = np.repeat(np.arange(pads, dtype=np.int32), scene.patches.count)
+    t0 = time.perf_counter()
+    build_neighbours(x, y, pad_of, np.full(pads, scene.material.coupling_radius), dev)
+    wp.synchronize_device(dev)
+    row["neighbours_s"] = time.perf_counter() - t0
+    return row
+
+
+def _bandwidth_fields(
+    model: Any, res: Any, stepping: float | None, integrator: str, precision: str, onchip: bool, dev: Any
+) -> dict[str, Any]:
+    """The bandwidth fields of a row: ``bytes_per_step`` [B] (None on the on-chip engine), ``bandwidth_Bps``
+    [B/s] over the bare stepping time ``stepping`` [s] where measured, else over the run's wall time, the device's
+    ``peak_bandwidth_Bps`` [B/s] with its ``peak_bandwidth_source``, and the ``bandwidth_fraction`` reached."""
+    moved = None if onchip else bytes_per_step(integrator, model.patch_count, model.nnz, precision)
+    bw_time = stepping if stepping is not None else res.wall_time
+    bandwidth = None if moved is None else moved * res.steps / max(bw_time, 1e-12)
+    peak, peak_src = peak_bandwidth(dev)
+    return {
+        "bytes_per_step": moved,
+        "bandwidth_Bps": bandwidth,
+        "peak_bandwidth_Bps": peak,
+        "peak_bandwidth_source": peak_src,
+        "bandwidth_fraction": None if peak is None or bandwidth is None else bandwidth / peak,
+    }
 
 
 def _engine_cell(r: dict) -> str:

@@ -86,7 +86,8 @@ def activity(scene, device: str, duration: float | None, graph: bool) -> dict:
     return {"graph": sim.use_graph, "steps": sim.step_index - 2, "wall_s": wall, "gpu_ms": gpu_ms, "activities": per}
 
 
-def main() -> int:
+def _parse() -> argparse.Namespace:
+    """The command line, with its combinations checked."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cpu", help="Warp device (default cpu)")
     ap.add_argument("--scene", default="multiscale", help="LF preset or TOML file (default multiscale)")
@@ -100,29 +101,16 @@ def main() -> int:
     args = ap.parse_args()
     if args.activity and not args.device.startswith("cuda"):
         ap.error("--activity times CUDA activity; it needs a CUDA --device")
+    return args
 
+
+def _summary(sim, scene, compile_s: float, wall: float) -> dict:
+    """The result of a finished run: machine, sizes, times [s] and rates, and checks on the final state (the
+    relative force balance of the contact solve, contact-solve passes, rebuilds, the debris inventory [kg])."""
     import aca_warp.kernels.lf as K
 
     from aca_warp.common.files import machine
-    from aca_warp.lf.scene import load_lf_scene
-    from aca_warp.lf.solver import LFSimulation
 
-    wp.init()
-    t0 = time.perf_counter()
-    wp.load_module(K, device=args.device)
-    compile_s = time.perf_counter() - t0
-    scene = load_lf_scene(args.scene)
-    sim = LFSimulation(scene, device=args.device, duration=args.duration, graph=False if args.eager else None)
-    sim.step()  # first step: hash grid, scans, allocations
-    writer = None
-    if args.save or args.compare:
-        from aca_warp.lf.io import LFRunWriter
-
-        path = args.save or str(Path(args.json).with_suffix(".h5"))
-        writer = LFRunWriter(path, sim, overwrite=True)
-    wall = sim.run(on_snapshot=writer.snapshot if writer else None)
-    if writer is not None:
-        writer.close(complete=True, status="complete")
     steps = sim.step_index - 1
     h = sim.history()
     passes = h["contact_passes"][h["normal_force"] > 0]  # contact-solve passes per loaded step
@@ -135,7 +123,7 @@ def main() -> int:
     fn = sim.cell_fn.numpy().sum() + sim.patch_fn.numpy()[sim.alive.numpy() != 0].sum()
     force_err = abs(fn - g[K.G_LOAD]) / g[K.G_LOAD] if sim_load > 0 else 0.0
     mach = machine(sim.device)
-    out = {
+    return {
         "device": mach["device"],
         "device_name": mach["device_name"],
         "warp": wp.config.version,
@@ -159,11 +147,10 @@ def main() -> int:
         "steps_with_deaths_only": int(np.sum((h["deaths"] > 0) & ~changed)),
         "debris_inventory_kg": inv0,
     }
-    if args.compare:
-        out["compare"] = compare(writer.path, Path(args.compare))
-    if args.activity:
-        modes = (("graph", True), ("eager", False))
-        out["activity"] = {kind: activity(scene, args.device, args.duration, graph) for kind, graph in modes}
+
+
+def _print_summary(out: dict) -> None:
+    """One line per field; with --activity the GPU activities of each mode, the 15 largest."""
     for k, v in out.items():
         if k == "activity":
             for kind, a in v.items():
@@ -173,17 +160,55 @@ def main() -> int:
                     print(f"    {name:40s} {n:7d} × {1e3 * ms / max(n, 1):8.1f} µs = {ms:9.1f} ms")
             continue
         print(f"{k:32s} {v}")
+
+
+def _markdown(out: dict) -> str:
+    """The Markdown table of one run."""
+    return (
+        f"Machine: {out['device_name']}. Warp {out['warp']}, fp64, scene {out['scene']} "
+        f"({out['cells']} cells, {out['rings']} rings, {out['patch_slots']} patch slots, mean "
+        f"{out['mean_alive_patches']:.0f} alive patches).\n\n"
+        "| device | steps | compile [s] | run [s] | LF steps/s | element-steps/s | force balance err |\n"
+        "|---|---|---|---|---|---|---|\n"
+        f"| {out['device']} | {out['steps']} | {out['compile_s']:.2f} | {out['run_s']:.2f} | "
+        f"{out['steps_per_s']:.0f} | {out['element_steps_per_s']:.3g} | {out['contact_force_balance_rel_err']:.1e} |\n"
+    )
+
+
+def main() -> int:
+    args = _parse()
+
+    import aca_warp.kernels.lf as K
+
+    from aca_warp.lf.scene import load_lf_scene
+    from aca_warp.lf.solver import LFSimulation
+
+    wp.init()
+    t0 = time.perf_counter()
+    wp.load_module(K, device=args.device)
+    compile_s = time.perf_counter() - t0
+    scene = load_lf_scene(args.scene)
+    sim = LFSimulation(scene, device=args.device, duration=args.duration, graph=False if args.eager else None)
+    sim.step()  # first step: hash grid, scans, allocations
+    writer = None
+    if args.save or args.compare:
+        from aca_warp.lf.io import LFRunWriter
+
+        path = args.save or str(Path(args.json).with_suffix(".h5"))
+        writer = LFRunWriter(path, sim, overwrite=True)
+    wall = sim.run(on_snapshot=writer.snapshot if writer else None)
+    if writer is not None:
+        writer.close(complete=True, status="complete")
+    out = _summary(sim, scene, compile_s, wall)
+    if args.compare:
+        out["compare"] = compare(writer.path, Path(args.compare))
+    if args.activity:
+        modes = (("graph", True), ("eager", False))
+        out["activity"] = {kind: activity(scene, args.device, args.duration, graph) for kind, graph in modes}
+    _print_summary(out)
     Path(args.json).write_text(json.dumps(out, indent=1))
     if args.markdown:
-        Path(args.markdown).write_text(
-            f"Machine: {out['device_name']}. Warp {out['warp']}, fp64, scene {out['scene']} "
-            f"({out['cells']} cells, {out['rings']} rings, {out['patch_slots']} patch slots, mean "
-            f"{out['mean_alive_patches']:.0f} alive patches).\n\n"
-            "| device | steps | compile [s] | run [s] | LF steps/s | element-steps/s | force balance err |\n"
-            "|---|---|---|---|---|---|---|\n"
-            f"| {out['device']} | {steps} | {compile_s:.2f} | {wall:.2f} | {out['steps_per_s']:.0f} | "
-            f"{out['element_steps_per_s']:.3g} | {force_err:.1e} |\n"
-        )
+        Path(args.markdown).write_text(_markdown(out))
     return 0
 
 

@@ -61,7 +61,8 @@ def sweep_doc(pads: int, patches: int | None, shard_size: int, duration: float, 
     return doc
 
 
-def main() -> int:
+def _parse() -> argparse.Namespace:
+    """The command line."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cuda", help="cuda (GPUs 0..N-1 for N workers) or cpu (default cuda)")
     ap.add_argument("--workers", nargs="+", type=int, default=[1, 2], help="worker counts to compare (default 1 2)")
@@ -72,8 +73,54 @@ def main() -> int:
     ap.add_argument("--precision", default="fp32", choices=("fp32", "fp64"))
     ap.add_argument("--dir", help="scratch folder for the sweep outputs (default: a temporary one, removed)")
     ap.add_argument("--json", default="bench_sweep.json", help="output JSON file")
-    args = ap.parse_args()
+    return ap.parse_args()
+
+
+def _measure(spec, n: int, device_arg: str, scratch: Path) -> dict | None:
+    """Start a local cluster of ``n`` workers, load the kernels on each and run the sweep into ``scratch``/w<n>;
+    the row of times [s] and rates, or None (after a message) when a shard failed or stopped on a fault."""
     from distributed import Client
+
+    device = "cpu" if device_arg == "cpu" else ",".join(f"cuda:{i}" for i in range(n))
+    t0 = time.perf_counter()
+    cluster, worker_device = local_cluster(device, n)
+    client = Client(cluster)
+    client.wait_for_workers(n)
+    start_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    loads = warm_workers(client, worker_device)
+    warm_s = time.perf_counter() - t0
+    out = scratch / f"w{n}"
+    shutil.rmtree(out, ignore_errors=True)
+    try:
+        res = run_sweep(spec, out, device=worker_device, client=client, log=lambda s: print("  " + s, flush=True))
+    finally:
+        client.close()
+        cluster.close()
+    if res.failed or res.faults:
+        print(f"workers={n}: failed shards {res.failed}, faults {res.faults}", file=sys.stderr)
+        return None
+    rate = res.patch_steps / res.wall_time
+    names = sorted({s["device_name"] for s in res.summaries})
+    return {
+        "workers": n,
+        "device": device,
+        "device_names": names,
+        "cluster_start_s": start_s,
+        "kernel_load_s": warm_s,
+        "kernel_load_per_worker_s": loads,
+        "sweep_wall_s": res.wall_time,
+        "patch_steps": res.patch_steps,
+        "patch_steps_per_s": rate,
+        "shard_compile_s": [s["compile_time"] for s in res.summaries],
+        "shard_wall_s": [s["wall_time"] for s in res.summaries],
+        "shard_task_s": [s["task_time"] for s in res.summaries],
+    }
+
+
+def main() -> int:
+    args = _parse()
+    from distributed import Client  # noqa: F401 (fails here, before any work, where Dask is missing)
 
     spec = load_spec(sweep_doc(args.pads, args.patches, args.shard_size, args.duration, args.precision))
     scratch = Path(args.dir or tempfile.mkdtemp(prefix="aca_bench_sweep_"))
@@ -84,45 +131,15 @@ def main() -> int:
         flush=True,
     )
     for n in args.workers:
-        device = "cpu" if args.device == "cpu" else ",".join(f"cuda:{i}" for i in range(n))
-        t0 = time.perf_counter()
-        cluster, worker_device = local_cluster(device, n)
-        client = Client(cluster)
-        client.wait_for_workers(n)
-        start_s = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        loads = warm_workers(client, worker_device)
-        warm_s = time.perf_counter() - t0
-        out = scratch / f"w{n}"
-        shutil.rmtree(out, ignore_errors=True)
-        try:
-            res = run_sweep(spec, out, device=worker_device, client=client, log=lambda s: print("  " + s, flush=True))
-        finally:
-            client.close()
-            cluster.close()
-        if res.failed or res.faults:
-            print(f"workers={n}: failed shards {res.failed}, faults {res.faults}", file=sys.stderr)
+        row = _measure(spec, n, args.device, scratch)
+        if row is None:
             return 3
-        rate = res.patch_steps / res.wall_time
-        names = sorted({s["device_name"] for s in res.summaries})
-        rows.append(
-            {
-                "workers": n,
-                "device": device,
-                "device_names": names,
-                "cluster_start_s": start_s,
-                "kernel_load_s": warm_s,
-                "kernel_load_per_worker_s": loads,
-                "sweep_wall_s": res.wall_time,
-                "patch_steps": res.patch_steps,
-                "patch_steps_per_s": rate,
-                "shard_compile_s": [s["compile_time"] for s in res.summaries],
-                "shard_wall_s": [s["wall_time"] for s in res.summaries],
-                "shard_task_s": [s["task_time"] for s in res.summaries],
-            }
+        rows.append(row)
+        start_s, warm_s, wall, rate = (
+            row[k] for k in ("cluster_start_s", "kernel_load_s", "sweep_wall_s", "patch_steps_per_s")
         )
         print(
-            f"workers={n} ({device}): start {start_s:.1f} s, kernels {warm_s:.1f} s, sweep {res.wall_time:.1f} s, "
+            f"workers={n} ({row['device']}): start {start_s:.1f} s, kernels {warm_s:.1f} s, sweep {wall:.1f} s, "
             f"{rate:.3g} patch-steps/s, ratio {rate / rows[0]['patch_steps_per_s']:.2f}",
             flush=True,
         )

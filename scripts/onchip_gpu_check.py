@@ -52,14 +52,6 @@ def _log(msg: str) -> None:
 
 # ----------------------------------------------------------------------------------------------- child: check
 def child_check(args) -> None:
-    import numpy as np
-    import warp as wp
-
-    from aca_warp.common.files import machine
-    from aca_warp.hf.loop import EngineTuning, run_hf
-    from aca_warp.hf.model import build_model
-    from aca_warp.hf.options import RunOptions
-    from aca_warp.hf.state import initial_state
     from aca_warp.scene import Growth, Initial, Record, preset
 
     out = Path(args.out)
@@ -71,69 +63,103 @@ def child_check(args) -> None:
     grown = ("area", "nbr_stiffness", "normal_force") if args.growth else ()
     results = {}
     for precision in args.precisions:
-        row = {"precision": precision, "phase": "start", "block_dim": args.block, "csr_shared": args.csr}
-        row.update(growth=bool(args.growth), cluster=args.cluster)
-        results[precision] = row
-        runs = {}
-        for engine in ("general", "onchip"):
-            model = build_model(scenes, device=args.device, precision=precision)
-            row.update(machine(model.device), warp_version=wp.__version__)
-            state = initial_state(model)
-            row["phase"] = f"{engine}: running (compile, launch, flush)"
-            _write_json(out / "check.json", results)
-            _log(f"{precision} {engine}: start")
-            t = time.perf_counter()
-            tuning = EngineTuning(samples_per_launch=3, block_dim=args.block, csr_shared=args.csr, cluster=args.cluster)
-            res = run_hf(model, state, RunOptions(duration=2e-6, dt=1e-8, engine=engine), tuning=tuning)
-            row[f"{engine}_total_s"] = time.perf_counter() - t
-            row[f"{engine}_compile_s"] = res.compile_time
-            row[f"{engine}_wall_s"] = res.wall_time
-            _log(f"{precision} {engine}: done in {row[f'{engine}_total_s']:.2f} s (complete={res.complete})")
-            if not (res.complete and res.steps == 200):
-                row["phase"] = f"{engine}: incomplete run ({res.fault})"
-                row["passed"] = False
-                break
-            runs[engine] = (res.collect(), *state.numpy(), {k: model.host(k) for k in grown})
-        else:
-            (cg, ug, vg, ag), (co, uo, vo, ao) = runs["general"], runs["onchip"]
-            rtol = RTOL[precision]
-            mu_g, mu_o = cg.globals[:, :, 0], co.globals[:, :, 0]
-            row["mu_max_rel_err"] = float(np.max(np.abs(mu_o - mu_g) / np.abs(mu_g)))
-            row["u_err_rel_max"] = float(np.abs(uo - ug).max() / np.abs(ug).max())
-            row["v_err_rel_max"] = float(np.abs(vo - vg).max() / np.abs(vg).max())
-            row["same_sample_times"] = bool(np.array_equal(co.time, cg.time) and co.globals.shape == cg.globals.shape)
-            row["rtol"] = rtol
-            for k in grown:
-                row[f"{k}_err_rel_max"] = float(np.max(np.abs(ao[k] - ag[k]) / np.maximum(np.abs(ag[k]), 1e-300)))
-            row["passed"] = bool(
-                row["same_sample_times"]
-                and row["mu_max_rel_err"] <= rtol
-                and row["u_err_rel_max"] <= rtol
-                and row["v_err_rel_max"] <= 10 * rtol
-                and all(row[f"{k}_err_rel_max"] <= rtol for k in grown)
-            )
-            row["phase"] = "done"
-            _log(
-                f"{precision}: passed={row['passed']} dmu/mu={row['mu_max_rel_err']:.2e} "
-                f"du={row['u_err_rel_max']:.2e} dv={row['v_err_rel_max']:.2e}"
-            )
-        _write_json(out / "check.json", results)
+        _check_precision(args, precision, scenes, grown, results, out)
     if not args.growth:  # forced beyond the spring limit: both engines must stop at the same sample, pad and patch
-        row = {"phase": "fault: running", "passed": None}
-        results["fault"] = row
-        faults = []
-        s1 = preset("hf1").replace(record=Record(sample_dt=2e-5))
-        for engine in ("general", "onchip"):
-            model = build_model([s1, s1], device=args.device, precision="fp64")
-            options = RunOptions(duration=4e-3, dt=1e-5, force=True, engine=engine)
-            tuning = EngineTuning(block_dim=args.block, csr_shared=args.csr, cluster=args.cluster)
-            res = run_hf(model, initial_state(model), options, tuning=tuning)
-            f = res.fault
-            faults.append(None if f is None else [f.time, f.pad, f.patch, len(res.collect().time)])
-        row.update(phase="done", general=faults[0], onchip=faults[1])
-        row["passed"] = faults[0] is not None and faults[0] == faults[1]
-        _log(f"fault: general {faults[0]}, onchip {faults[1]}: passed={row['passed']}")
+        _check_fault(args, results, out)
+
+
+def _check_precision(args, precision: str, scenes: list, grown: tuple, results: dict, out: Path) -> None:
+    """Run the 2-pad case with the general and the on-chip engine in ``precision`` and compare them; the row in
+    ``results[precision]``, written to check.json before each run and at the end."""
+    import warp as wp
+
+    from aca_warp.common.files import machine
+    from aca_warp.hf.loop import EngineTuning, run_hf
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.options import RunOptions
+    from aca_warp.hf.state import initial_state
+
+    row = {"precision": precision, "phase": "start", "block_dim": args.block, "csr_shared": args.csr}
+    row.update(growth=bool(args.growth), cluster=args.cluster)
+    results[precision] = row
+    runs = {}
+    for engine in ("general", "onchip"):
+        model = build_model(scenes, device=args.device, precision=precision)
+        row.update(machine(model.device), warp_version=wp.__version__)
+        state = initial_state(model)
+        row["phase"] = f"{engine}: running (compile, launch, flush)"
         _write_json(out / "check.json", results)
+        _log(f"{precision} {engine}: start")
+        t = time.perf_counter()
+        tuning = EngineTuning(samples_per_launch=3, block_dim=args.block, csr_shared=args.csr, cluster=args.cluster)
+        res = run_hf(model, state, RunOptions(duration=2e-6, dt=1e-8, engine=engine), tuning=tuning)
+        row[f"{engine}_total_s"] = time.perf_counter() - t
+        row[f"{engine}_compile_s"] = res.compile_time
+        row[f"{engine}_wall_s"] = res.wall_time
+        _log(f"{precision} {engine}: done in {row[f'{engine}_total_s']:.2f} s (complete={res.complete})")
+        if not (res.complete and res.steps == 200):
+            row["phase"] = f"{engine}: incomplete run ({res.fault})"
+            row["passed"] = False
+            break
+        runs[engine] = (res.collect(), *state.numpy(), {k: model.host(k) for k in grown})
+    else:
+        _compare_engines(row, runs, precision, grown)
+    _write_json(out / "check.json", results)
+
+
+def _compare_engines(row: dict, runs: dict, precision: str, grown: tuple) -> None:
+    """The largest relative differences of mu, u [m], u' [m/s] (and the grown arrays) between the on-chip and the
+    general run, and the verdict against RTOL, into ``row``."""
+    import numpy as np
+
+    (cg, ug, vg, ag), (co, uo, vo, ao) = runs["general"], runs["onchip"]
+    rtol = RTOL[precision]
+    mu_g, mu_o = cg.globals[:, :, 0], co.globals[:, :, 0]
+    row["mu_max_rel_err"] = float(np.max(np.abs(mu_o - mu_g) / np.abs(mu_g)))
+    row["u_err_rel_max"] = float(np.abs(uo - ug).max() / np.abs(ug).max())
+    row["v_err_rel_max"] = float(np.abs(vo - vg).max() / np.abs(vg).max())
+    row["same_sample_times"] = bool(np.array_equal(co.time, cg.time) and co.globals.shape == cg.globals.shape)
+    row["rtol"] = rtol
+    for k in grown:
+        row[f"{k}_err_rel_max"] = float(np.max(np.abs(ao[k] - ag[k]) / np.maximum(np.abs(ag[k]), 1e-300)))
+    row["passed"] = bool(
+        row["same_sample_times"]
+        and row["mu_max_rel_err"] <= rtol
+        and row["u_err_rel_max"] <= rtol
+        and row["v_err_rel_max"] <= 10 * rtol
+        and all(row[f"{k}_err_rel_max"] <= rtol for k in grown)
+    )
+    row["phase"] = "done"
+    _log(
+        f"{precision}: passed={row['passed']} dmu/mu={row['mu_max_rel_err']:.2e} "
+        f"du={row['u_err_rel_max']:.2e} dv={row['v_err_rel_max']:.2e}"
+    )
+
+
+def _check_fault(args, results: dict, out: Path) -> None:
+    """Two hf1 pads forced beyond the spring limit with each engine: both must stop at the same time, pad and
+    patch, after the same number of samples; the row in ``results["fault"]``."""
+    from aca_warp.hf.loop import EngineTuning, run_hf
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.options import RunOptions
+    from aca_warp.hf.state import initial_state
+    from aca_warp.scene import Record, preset
+
+    row = {"phase": "fault: running", "passed": None}
+    results["fault"] = row
+    faults = []
+    s1 = preset("hf1").replace(record=Record(sample_dt=2e-5))
+    for engine in ("general", "onchip"):
+        model = build_model([s1, s1], device=args.device, precision="fp64")
+        options = RunOptions(duration=4e-3, dt=1e-5, force=True, engine=engine)
+        tuning = EngineTuning(block_dim=args.block, csr_shared=args.csr, cluster=args.cluster)
+        res = run_hf(model, initial_state(model), options, tuning=tuning)
+        f = res.fault
+        faults.append(None if f is None else [f.time, f.pad, f.patch, len(res.collect().time)])
+    row.update(phase="done", general=faults[0], onchip=faults[1])
+    row["passed"] = faults[0] is not None and faults[0] == faults[1]
+    _log(f"fault: general {faults[0]}, onchip {faults[1]}: passed={row['passed']}")
+    _write_json(out / "check.json", results)
 
 
 # ----------------------------------------------------------------------------------------------- child: bench

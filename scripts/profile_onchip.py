@@ -111,7 +111,8 @@ GROWTH_CASES = [
 ]
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parse(argv: list[str] | None) -> argparse.Namespace:
+    """The command line, with its combinations checked."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cuda:0", help="Warp device (default cuda:0)")
     ap.add_argument("--window", type=float, default=1e-4, help="simulated time per timed run [s] (default 1e-4)")
@@ -132,84 +133,142 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--pads must be ≥ 1")
     if args.state and args.pads != 1:
         ap.error("--state holds one pad: use it with --pads 1")
+    return args
+
+
+def _cases(growth: bool) -> list[tuple]:
+    """(label, precision, block_dim, csr_shared, ablations, event interval factor) of every case to profile."""
+    if growth:
+        return [(label, prec, block, None, abl, k) for label, prec, block, abl, k in GROWTH_CASES]
+    return [(label, prec, block, csr, abl, 1) for label, prec, block, csr, abl in
+            [("general path", "fp32", None, None, None), *CASES]]  # fmt: skip
+
+
+def _put(arr, values) -> None:
+    """Copy the NumPy array ``values`` into the Warp array ``arr`` (converted to its dtype)."""
+    import warp as wp
+
+    arr.assign(values.astype(wp.dtype_to_numpy(arr.dtype)))
+
+
+def _start(model, saved: dict | None):
+    """A fresh state of ``model``, its u [m] and v [m/s] taken from the saved state file where given."""
+    from aca_warp.hf.state import initial_state
+
+    st = initial_state(model)
+    if saved is not None:
+        _put(st.u, saved["u"])
+        _put(st.v, saved["v"])
+    return st
+
+
+def _case_model(args: argparse.Namespace, scene, model, prec: str, k: int, saved: dict | None):
+    """The model of one case: ``model``, or with --growth and an event interval factor ``k`` other than 1 one built
+    with the events ``k`` times rarer (0: no growth); the saved state file's grown arrays put in where given."""
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.solver import GROWTH_MUTABLE
+
+    if args.growth and k != 1:
+        g = None if k == 0 else dataclasses.replace(scene.growth, interval=scene.growth.interval * k)
+        model = build_model([scene.replace(growth=g)] * args.pads, device=args.device, precision=prec)
+    if saved is not None:
+        for k2 in (k3 for k3 in GROWTH_MUTABLE if k3 in model.arrays):  # a model without growth lacks some
+            _put(model.arrays[k2], saved[f"model_{k2}"])
+    return model
+
+
+def _case_runner(args: argparse.Namespace, model, block, csr, abl):
+    """``fn(state, duration)``: one run of the case, the general path (``abl`` None) or the on-chip engine with
+    the case's block size, CSR placement, ablations, fast-math and cluster tags."""
+    from aca_warp.hf.loop import EngineTuning, run_hf
+    from aca_warp.hf.options import RunOptions
+
+    if abl is None:
+
+        def fn(st, duration, model=model):
+            return run_hf(model, st, RunOptions(duration=duration, dt=args.dt, engine="general"))
+    else:
+
+        def fn(st, duration, model=model, block=block, csr=csr, abl=abl):
+            tags = {a for a in abl if a == "fast_math" or a.startswith("cluster")}
+            cluster = max([int(a[7:]) for a in tags if a.startswith("cluster")], default=1)
+            tuning = EngineTuning(
+                block_dim=block,
+                csr_shared=csr,
+                ablate=frozenset(abl) - tags,
+                fast_math="fast_math" in abl,
+                cluster=cluster,
+            )
+            return run_hf(model, st, RunOptions(engine="onchip", duration=duration, dt=args.dt), tuning=tuning)
+
+    return fn
+
+
+def _time_case(row: dict, fn, model, args: argparse.Namespace, saved: dict | None) -> None:
+    """Warm up (one sample interval), then time a window; the times [s] and rates into ``row``, or its error."""
+    from aca_warp.common.errors import SceneError
+
+    try:
+        t = time.perf_counter()
+        fn(_start(model, saved), args.sample_dt)
+        row["warmup_s"] = time.perf_counter() - t
+        res = fn(_start(model, saved), args.window)
+        row.update(steps=res.steps, wall_s=res.wall_time, us_per_step=1e6 * res.wall_time / res.steps)
+        row["blocks_per_pad"] = res.blocks_per_pad
+        row["patch_steps_per_s"] = model.patch_count * res.steps / res.wall_time
+    except (SceneError, RuntimeError) as exc:  # e.g. too many resources for a 1024-thread block
+        row["error"] = str(exc).splitlines()[0][:200]
+
+
+def _markdown_lines(args: argparse.Namespace, name: str, patches: int, rows: list[dict], info: dict) -> list[str]:
+    """The Markdown table of the rows, under a line naming the pad, steps, machine and Warp version."""
+    import warp as wp
+
+    lines = [
+        f"On-chip ablation profile: {name} ({patches} patches), {args.pads} pad(s), "
+        f"dt {args.dt:g} s, "
+        f"{rows[0].get('steps', '?')} steps"
+        f"{f' from {args.state.name}' if args.state else ''}, "
+        f"sample interval {args.sample_dt:g} s; {info.get('device_name', args.device)}, Warp "
+        f"{wp.__version__} (scripts/profile_onchip.py)",
+        "",
+        "| case | precision | block | µs/step | patch-steps/s |",
+        "|---|---|---|---|---|",
+    ]
+    for r in rows:
+        t = f"{r['us_per_step']:.2f} | {r['patch_steps_per_s']:.3g}" if "us_per_step" in r else f"{r['error']} | –"
+        lines.append(f"| {r['case']} | {r['precision']} | {r['block_dim'] or '–'} | {t} |")
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parse(argv)
 
     import warp as wp
 
     wp.config.quiet = True
     wp.init()
-    from aca_warp.common.errors import SceneError
     from aca_warp.common.files import machine
-    from aca_warp.hf.loop import EngineTuning, run_hf
     from aca_warp.hf.model import build_model
-    from aca_warp.hf.options import RunOptions
-    from aca_warp.hf.solver import GROWTH_MUTABLE
-    from aca_warp.hf.state import initial_state
     from aca_warp.scene import Record, preset
 
     name = "varying_area" if args.growth else "hf1"
     scene = preset(name).replace(record=Record(sample_dt=args.sample_dt))
     models = {p: build_model([scene] * args.pads, device=args.device, precision=p) for p in ("fp32", "fp64")}
-    if args.growth:
-        cases = [(label, prec, block, None, abl, k) for label, prec, block, abl, k in GROWTH_CASES]
-    else:
-        cases = [(label, prec, block, csr, abl, 1) for label, prec, block, csr, abl in
-                 [("general path", "fp32", None, None, None), *CASES]]  # fmt: skip
+    cases = _cases(args.growth)
 
     saved = dict(np.load(args.state)) if args.state else None  # read once, put into every case's model and state
-
-    def put(arr, values):
-        arr.assign(values.astype(wp.dtype_to_numpy(arr.dtype)))
-
-    def start(model):
-        st = initial_state(model)
-        if saved is not None:
-            put(st.u, saved["u"])
-            put(st.v, saved["v"])
-        return st
-
     rows = []
     for label, prec, block, csr, abl, k in cases:
         key = f"{label} [{prec}]"
         if args.only is not None and label not in args.only and key not in args.only:
             continue
-        model = models[prec]
-        if args.growth and k != 1:
-            g = None if k == 0 else dataclasses.replace(scene.growth, interval=scene.growth.interval * k)
-            model = build_model([scene.replace(growth=g)] * args.pads, device=args.device, precision=prec)
-        if saved is not None:
-            for k2 in (k3 for k3 in GROWTH_MUTABLE if k3 in model.arrays):  # a model without growth lacks some
-                put(model.arrays[k2], saved[f"model_{k2}"])
-        if abl is None:
-
-            def fn(st, duration, model=model):
-                return run_hf(model, st, RunOptions(duration=duration, dt=args.dt, engine="general"))
-        else:
-
-            def fn(st, duration, model=model, block=block, csr=csr, abl=abl):
-                tags = {a for a in abl if a == "fast_math" or a.startswith("cluster")}
-                cluster = max([int(a[7:]) for a in tags if a.startswith("cluster")], default=1)
-                tuning = EngineTuning(
-                    block_dim=block,
-                    csr_shared=csr,
-                    ablate=frozenset(abl) - tags,
-                    fast_math="fast_math" in abl,
-                    cluster=cluster,
-                )
-                return run_hf(model, st, RunOptions(engine="onchip", duration=duration, dt=args.dt), tuning=tuning)
-
+        model = _case_model(args, scene, models[prec], prec, k, saved)
+        fn = _case_runner(args, model, block, csr, abl)
         row = {"case": label, "precision": prec, "block_dim": block, "csr_shared": csr, "ablate": list(abl or ())}
         if args.growth:
             row["growth_interval_factor"] = k
-        try:
-            t = time.perf_counter()
-            fn(start(model), args.sample_dt)
-            row["warmup_s"] = time.perf_counter() - t
-            res = fn(start(model), args.window)
-            row.update(steps=res.steps, wall_s=res.wall_time, us_per_step=1e6 * res.wall_time / res.steps)
-            row["blocks_per_pad"] = res.blocks_per_pad
-            row["patch_steps_per_s"] = model.patch_count * res.steps / res.wall_time
-        except (SceneError, RuntimeError) as exc:  # e.g. too many resources for a 1024-thread block
-            row["error"] = str(exc).splitlines()[0][:200]
+        _time_case(row, fn, model, args, saved)
         rows.append(row)
         print(f"{key:52s} " + (f"{row['us_per_step']:8.2f} us/step" if "us_per_step" in row else row["error"]),
               flush=True)  # fmt: skip
@@ -218,20 +277,7 @@ def main(argv: list[str] | None = None) -> int:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps({"machine": info, "rows": rows}, indent=1))
     if args.markdown:
-        lines = [
-            f"On-chip ablation profile: {name} ({models['fp32'].patch_count} patches), {args.pads} pad(s), "
-            f"dt {args.dt:g} s, "
-            f"{rows[0].get('steps', '?')} steps"
-            f"{f' from {args.state.name}' if args.state else ''}, "
-            f"sample interval {args.sample_dt:g} s; {info.get('device_name', args.device)}, Warp "
-            f"{wp.__version__} (scripts/profile_onchip.py)",
-            "",
-            "| case | precision | block | µs/step | patch-steps/s |",
-            "|---|---|---|---|---|",
-        ]
-        for r in rows:
-            t = f"{r['us_per_step']:.2f} | {r['patch_steps_per_s']:.3g}" if "us_per_step" in r else f"{r['error']} | –"
-            lines.append(f"| {r['case']} | {r['precision']} | {r['block_dim'] or '–'} | {t} |")
+        lines = _markdown_lines(args, name, models["fp32"].patch_count, rows, info)
         args.markdown.parent.mkdir(parents=True, exist_ok=True)
         args.markdown.write_text("\n".join(lines) + "\n")
     return 0

@@ -60,7 +60,12 @@ Examples: aca-warp plot run.h5 -o figures --only patch_map spectra --times 9.5e-
 
 def add_parsers(subparsers: Any) -> None:
     """Add ``analyze`` and ``plot`` to the ``add_subparsers()`` object of the ``aca-warp`` parser."""
-    fmt = argparse.RawDescriptionHelpFormatter
+    _add_analyze(subparsers)
+    _add_plot(subparsers)
+
+
+def _add_analyze(subparsers: Any) -> None:
+    """Register ``aca-warp analyze``."""
     a = subparsers.add_parser(
         "analyze",
         help="spectra, time-frequency maps and Synchronization Index of a run file, into its /analysis group",
@@ -68,7 +73,7 @@ def add_parsers(subparsers: Any) -> None:
         "of mu, the first velocity-spectrum peak and, when the run recorded per-patch velocities, the "
         "Synchronization Index S(f) with the number of oscillating patches Phi(f), its random-phase null "
         "level and the order parameter R_w(f).",
-        formatter_class=fmt,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=ANALYZE_EPILOG,
     )
     a.add_argument("run", metavar="RUN.h5", help="HF run file written by 'aca-warp hf'")
@@ -108,6 +113,9 @@ def add_parsers(subparsers: Any) -> None:
     )
     a.set_defaults(handler=cmd_analyze)
 
+
+def _add_plot(subparsers: Any) -> None:
+    """Register ``aca-warp plot``."""
     p = subparsers.add_parser(
         "plot",
         help="figures of a run file (HF: patch map, global data, spectra, sync index, STFT, CWT, animation; LF: "
@@ -115,7 +123,7 @@ def add_parsers(subparsers: Any) -> None:
         description="Draw the paper-style figures of an HF run file (Merlis & Ostermeyer 2019, Figs. 4-11), or the "
         "time series and snapshot patch maps of an LF run file, as PNG and PDF, each captioned with what it shows, "
         "its normalisation and the run's device, integrator and precision.",
-        formatter_class=fmt,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=PLOT_EPILOG,
     )
     p.add_argument("run", metavar="RUN.h5", help="run file written by 'aca-warp hf' or 'aca-warp lf'")

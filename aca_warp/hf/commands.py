@@ -37,6 +37,16 @@ def add_parsers(sub: Any) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=EPILOG,
     )
+    _add_run_arguments(hf)
+    _add_record_arguments(hf)
+    _add_safety_arguments(hf)
+    _add_file_arguments(hf)
+    hf.set_defaults(handler=_cmd_hf)
+    _add_rerun(sub)
+
+
+def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
+    """``aca-warp hf``: the scene, output, duration, device and the solver's options."""
     hf.add_argument("scene", metavar="SCENE", nargs="?", help="preset name or TOML scene file (not with --resume)")
     hf.add_argument("-o", "--output", metavar="RUN.h5", help="run file to write (required unless --resume)")
     hf.add_argument("--duration", type=positive, metavar="S", help="simulated time [s] (default: the scene's)")
@@ -71,6 +81,10 @@ def add_parsers(sub: Any) -> None:
         "general: per-step kernels (every integrator, checkpoints); auto (default): onchip on CUDA where the run "
         "allows it, else general (docs/onchip.md)",
     )
+
+
+def _add_record_arguments(hf: argparse.ArgumentParser) -> None:
+    """``aca-warp hf``: what the run file records (sample interval, per-patch histories)."""
     hf.add_argument("--sample-dt", type=positive, metavar="S", help="interval of the recorded samples [s]")
     hf.add_argument(
         "--record-patches",
@@ -83,6 +97,10 @@ def add_parsers(sub: Any) -> None:
     hf.add_argument(
         "--patch-decimation", type=int_at_least(1), metavar="N", help="record per-patch histories every N-th sample"
     )
+
+
+def _add_safety_arguments(hf: argparse.ArgumentParser) -> None:
+    """``aca-warp hf``: the overrides of the run's limits and checks, and the LF snapshot to start from."""
     hf.add_argument(
         "--force",
         action="store_true",
@@ -105,6 +123,10 @@ def add_parsers(sub: Any) -> None:
         "beyond 1e6 N, ...), refused otherwise as likely unit mistakes; sets the scene's allow_implausible "
         "(docs/scenes.md)",
     )
+
+
+def _add_file_arguments(hf: argparse.ArgumentParser) -> None:
+    """``aca-warp hf``: overwriting, progress, checkpoints and resuming."""
     hf.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     hf.add_argument("--no-progress", action="store_true", help="no progress bar")
     hf.add_argument(
@@ -120,56 +142,19 @@ def add_parsers(sub: Any) -> None:
         help="continue a killed or stopped run (RUN.h5 or RUN.h5.partial) from its last checkpoint, with the "
         "run's own scene and settings; the finished file equals an uninterrupted run",
     )
-    hf.set_defaults(handler=_cmd_hf)
-    _add_rerun(sub)
 
 
 def _cmd_hf(args: argparse.Namespace) -> int:
-    import dataclasses
-
-    import numpy as np
-
-    from aca_warp.common.errors import SceneError
     from aca_warp.common.files import check_output_path
     from aca_warp.hf.options import RunOptions
     from aca_warp.hf.runner import run_scene
-    from aca_warp.scene import Record, load_scene
 
     if args.resume is not None:
         return _resume_hf(args)
     if args.scene is None or args.output is None:
         raise SceneError("hf needs SCENE and -o RUN.h5 (or --resume RUN.h5 to continue a run)")
     check_output_path(args.output, overwrite=args.overwrite)
-    if args.snapshot is not None or str(args.scene).endswith(".h5"):
-        from aca_warp.lf.io import scene_from_snapshot
-
-        if args.snapshot is None:
-            raise SceneError(f"{args.scene} is an LF run file: name a snapshot with --snapshot NAME")
-        scene = scene_from_snapshot(args.scene, args.snapshot, allow_implausible=args.allow_implausible)
-    else:
-        scene = load_scene(args.scene, allow_implausible=args.allow_implausible)
-    rec = scene.record
-    changes: dict = {}
-    if args.sample_dt is not None:
-        changes["sample_dt"] = args.sample_dt
-    if args.record_patches is not None:
-        changes["patches"] = tuple(v.strip() for v in args.record_patches.split(",") if v.strip())
-    if args.patch_window is not None:
-        changes["window"] = tuple(args.patch_window)
-    if args.patch_decimation is not None:
-        changes["decimation"] = args.patch_decimation
-    if not changes.get("patches", rec.patches) and (args.patch_window or args.patch_decimation):
-        given = "--patch-window" if args.patch_window else "--patch-decimation"
-        raise SceneError(
-            f"{given} applies to per-patch histories, which this run does not record: add --record-patches velocity "
-            "(or velocity,displacement)"
-        )
-    duration = args.duration if args.duration is not None else scene.duration
-    if changes.get("sample_dt", rec.sample_dt) > duration:
-        raise SceneError(
-            f"sample interval {changes.get('sample_dt', rec.sample_dt):g} s exceeds the duration {duration:g} s"
-        )
-    scene = scene.replace(duration=duration, record=Record(**{**dataclasses.asdict(rec), **changes}))
+    scene, duration = _hf_scene(args)
     options = RunOptions(
         duration=duration,
         integrator=args.integrator,
@@ -190,7 +175,60 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         progress=not args.no_progress,
         announce=_announce(args.output, not args.no_progress),
     )
+    return _summarise_hf(args, scene, result, duration)
+
+
+def _hf_scene(args: argparse.Namespace) -> tuple[Any, float]:
+    """The scene of ``aca-warp hf`` (preset, TOML file or LF snapshot) with the command line's duration and
+    recording options applied, and its duration [s]; SceneError where they contradict each other."""
+    import dataclasses
+
+    from aca_warp.scene import Record, load_scene
+
+    if args.snapshot is not None or str(args.scene).endswith(".h5"):
+        from aca_warp.lf.io import scene_from_snapshot
+
+        if args.snapshot is None:
+            raise SceneError(f"{args.scene} is an LF run file: name a snapshot with --snapshot NAME")
+        scene = scene_from_snapshot(args.scene, args.snapshot, allow_implausible=args.allow_implausible)
+    else:
+        scene = load_scene(args.scene, allow_implausible=args.allow_implausible)
+    rec = scene.record
+    changes = _record_changes(args)
+    if not changes.get("patches", rec.patches) and (args.patch_window or args.patch_decimation):
+        given = "--patch-window" if args.patch_window else "--patch-decimation"
+        raise SceneError(
+            f"{given} applies to per-patch histories, which this run does not record: add --record-patches velocity "
+            "(or velocity,displacement)"
+        )
+    duration = args.duration if args.duration is not None else scene.duration
+    if changes.get("sample_dt", rec.sample_dt) > duration:
+        raise SceneError(
+            f"sample interval {changes.get('sample_dt', rec.sample_dt):g} s exceeds the duration {duration:g} s"
+        )
+    scene = scene.replace(duration=duration, record=Record(**{**dataclasses.asdict(rec), **changes}))
+    return scene, duration
+
+
+def _record_changes(args: argparse.Namespace) -> dict:
+    """The fields of the scene's Record that the command line sets (--sample-dt, --record-patches, --patch-window,
+    --patch-decimation)."""
+    changes: dict = {}
+    if args.sample_dt is not None:
+        changes["sample_dt"] = args.sample_dt
+    if args.record_patches is not None:
+        changes["patches"] = tuple(v.strip() for v in args.record_patches.split(",") if v.strip())
+    if args.patch_window is not None:
+        changes["window"] = tuple(args.patch_window)
+    if args.patch_decimation is not None:
+        changes["decimation"] = args.patch_decimation
+    return changes
+
+
+def _summarise_hf(args: argparse.Namespace, scene: Any, result: Any, duration: float) -> int:
+    """Print the summary line of a finished or stopped ``aca-warp hf`` run; the exit code (0 done, 3 stopped)."""
     import h5py
+    import numpy as np
 
     with h5py.File(args.output, "r") as f:
         mu = f["global/mu"][()]

@@ -1594,32 +1594,8 @@ def render(
     causes: list[dict[str, Any]] | None = None,
 ) -> list[str]:
     """The generated part of docs/validation.md."""
-    cfg = meta["config"]
-    variant = (
-        "**QUICK variant (reduced CPU smoke check: small pads, short windows, few seeds, a coarser step) — not the "
-        "validation itself.**"
-        if cfg["quick"]
-        else "Full variant."
-    )
-    dtp = cfg["sample_dt"] * cfg["decimation"]
-    cut = cfg.get("state_patches") or cfg["patches"]
     lines = [
-        variant,
-        "",
-        f"Produced by `{meta['command']}` on {meta['created']}, {meta['machine']}; "
-        f"Warp {meta['versions'].get('warp-lang')}, aca-warp {meta['versions'].get('aca-warp')}; "
-        f"wall time {meta['wall_s']:.0f} s (the experiments' runs and analyses, from their checkpoints: "
-        f"{meta.get('experiments_s', 0.0):.0f} s).",
-        "",
-        f"Settings: {cfg['seeds']} seeds from {cfg['first_seed']}; {cfg['patches'] or 'the preset’s'} patches per pad; "
-        f"strang, dt = {cfg['dt']:g} s, {cfg['precision']}; global outputs every {cfg['sample_dt']:g} s, per-patch "
-        f"velocities every {dtp:g} s (Nyquist {0.5 / dtp / 1e3:.0f} kHz) over the last {cfg['window'] * 1e3:g} ms; "
-        f"initial velocity perturbation {cfg['perturbation']:g} m/s; settling factor {cfg['settle_safety']:g}; "
-        f"S(f) over {cfg['sync_band'][0] / 1e3:g}–{cfg['sync_band'][1] / 1e3:g} kHz. §3.2: the varying-area "
-        f"growth compressed × {cfg['growth_speedup']:g} ({0.36 / cfg['growth_speedup'] * 1e3:g} ms; `va_full` at "
-        f"the paper's 0.36 s only with --full-varying-area, and then the rows' source). §3.3: the LF "
-        f"{'quick ' if cfg['quick'] else ''}schedule per seed on the CPU, every state "
-        f"{f'cut to about {cut} patches' if cut else 'whole'}, a window of half the above.",
+        *_header_lines(meta),
         "",
         "### The paper's statements",
         "",
@@ -1677,6 +1653,38 @@ def render(
         *stft_lines(results),
     ]
     return lines
+
+
+def _header_lines(meta: dict[str, Any]) -> list[str]:
+    """The opening of the generated page: the variant (quick or full), the command, machine, versions and wall
+    time that produced it, and the settings of its runs."""
+    cfg = meta["config"]
+    variant = (
+        "**QUICK variant (reduced CPU smoke check: small pads, short windows, few seeds, a coarser step) — not the "
+        "validation itself.**"
+        if cfg["quick"]
+        else "Full variant."
+    )
+    dtp = cfg["sample_dt"] * cfg["decimation"]
+    cut = cfg.get("state_patches") or cfg["patches"]
+    return [
+        variant,
+        "",
+        f"Produced by `{meta['command']}` on {meta['created']}, {meta['machine']}; "
+        f"Warp {meta['versions'].get('warp-lang')}, aca-warp {meta['versions'].get('aca-warp')}; "
+        f"wall time {meta['wall_s']:.0f} s (the experiments' runs and analyses, from their checkpoints: "
+        f"{meta.get('experiments_s', 0.0):.0f} s).",
+        "",
+        f"Settings: {cfg['seeds']} seeds from {cfg['first_seed']}; {cfg['patches'] or 'the preset’s'} patches per pad; "
+        f"strang, dt = {cfg['dt']:g} s, {cfg['precision']}; global outputs every {cfg['sample_dt']:g} s, per-patch "
+        f"velocities every {dtp:g} s (Nyquist {0.5 / dtp / 1e3:.0f} kHz) over the last {cfg['window'] * 1e3:g} ms; "
+        f"initial velocity perturbation {cfg['perturbation']:g} m/s; settling factor {cfg['settle_safety']:g}; "
+        f"S(f) over {cfg['sync_band'][0] / 1e3:g}–{cfg['sync_band'][1] / 1e3:g} kHz. §3.2: the varying-area "
+        f"growth compressed × {cfg['growth_speedup']:g} ({0.36 / cfg['growth_speedup'] * 1e3:g} ms; `va_full` at "
+        f"the paper's 0.36 s only with --full-varying-area, and then the rows' source). §3.3: the LF "
+        f"{'quick ' if cfg['quick'] else ''}schedule per seed on the CPU, every state "
+        f"{f'cut to about {cut} patches' if cut else 'whole'}, a window of half the above.",
+    ]
 
 
 # ------------------------------------------------------------------------------------------------ command line
