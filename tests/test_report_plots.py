@@ -287,7 +287,7 @@ def test_plot_run_without_per_patch_velocities(runs, tmp_path):
 
 
 def _cli(argv):
-    """The dispatch the lead adds to aca_warp.cli.main: subcommand handler, AcaError -> one line and 2."""
+    """The dispatch aca_warp.cli.main applies: subcommand handler, AcaError -> one line and 2."""
     parser = argparse.ArgumentParser(prog="aca-warp")
     sub = parser.add_subparsers(dest="command", required=True)
     add_parsers(sub)
