@@ -54,26 +54,47 @@ DP5_E = (
 
 
 @wp.func
-def acceleration(
+def lane_spring_force(
     i: int,
-    p: int,
+    lane: int,
+    threads: int,
     u: wp.array[Any],
-    v: Any,
-    inv_mass: wp.array[Any],
     k_diag: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
     nbr_start: wp.array[wp.int32],
     nbr_index: wp.array[wp.int32],
     nbr_stiffness: wp.array[Any],
+):
+    """Elastic force on patch i [N] (:func:`~aca_warp.kernels.hf.spring_force`) from the ``threads`` lanes of its
+    block: each lane sums every ``threads``-th link, the block adds the lanes' sums. One lane (a CPU block) sums
+    as ``spring_force`` does, so CPU results do not depend on the block size; on CUDA the links of a patch are read
+    in parallel instead of in one dependent chain."""
+    if threads == 1:
+        return spring_force(i, u, k_diag, nbr_start, nbr_index, nbr_stiffness)
+    part = u[i] - u[i]
+    e = nbr_start[i] + lane
+    end = nbr_start[i + 1]
+    while e < end:
+        part += nbr_stiffness[e] * u[nbr_index[e]]
+        e += threads
+    return wp.tile_sum(wp.tile(part))[0] - k_diag[i] * u[i]
+
+
+@wp.func
+def acceleration(
+    i: int,
+    p: int,
+    fs: Any,
+    v: Any,
+    inv_mass: wp.array[Any],
+    damping: wp.array[Any],
+    normal_force: wp.array[Any],
+    radius: wp.array[Any],
     pad_omega: wp.array[Any],
     pad_mu_scale: wp.array[Any],
     pad_slope: wp.array[Any],
     pad_decay: wp.array[Any],
 ):
-    """v̇_i = (F_s,i(u) − c_i v + F_N,i f(ω r_i − v)) / m_i [m/s²] at displacements ``u`` and velocity ``v``."""
-    fs = spring_force(i, u, k_diag, nbr_start, nbr_index, nbr_stiffness)
+    """v̇_i = (F_s,i − c_i v + F_N,i f(ω r_i − v)) / m_i [m/s²] at elastic force ``fs`` [N] and velocity ``v``."""
     ff = normal_force[i] * friction_coefficient(
         pad_omega[p] * radius[i] - v, pad_mu_scale[p], pad_slope[p], pad_decay[p]
     )
@@ -151,6 +172,7 @@ def dp5_eval(
     # Control:
     stage: int,
     first: int,
+    threads: int,
     mode: wp.array2d[wp.int32],
     # Stage state in:
     u_stage: wp.array[Any],
@@ -168,19 +190,22 @@ def dp5_eval(
 ):
     """k_s = (u̇, v̇) at the stage state of every pad that has not landed; ``first``: k_0 of the pads that need it
     (at the start), at the state itself. For 0 < s < 6 also the patch's next stage state y_{s+1} (:func:`stage_state`)
-    into ``u_next``/``v_next``, which must not be ``u_stage``/``v_stage``: the neighbours still read those."""
-    i = wp.tid()
+    into ``u_next``/``v_next``, which must not be ``u_stage``/``v_stage``: the neighbours still read those.
+    One block of ``threads`` lanes per patch (``launch_tiled``; :func:`lane_spring_force`)."""
+    i, lane = wp.tid()
     p = patch_pad[i]
     if mode[p, M_LANDED] != 0:
         return
     if first != 0 and mode[p, M_NEEDK1] == 0:
         return
+    fs = lane_spring_force(i, lane, threads, u_stage, k_diag, nbr_start, nbr_index, nbr_stiffness)
+    if lane != 0:
+        return
     v = v_stage[i]
     ku[stage, i] = v
     kv[stage, i] = acceleration(
-        i, p, u_stage, v, inv_mass, k_diag, damping, normal_force, radius, nbr_start, nbr_index, nbr_stiffness,
-        pad_omega, pad_mu_scale, pad_slope, pad_decay,
-    )  # fmt: skip
+        i, p, fs, v, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay
+    )
     if stage > 0 and stage + 1 < STAGES:
         stage_state(i, p, stage + 1, coeff, ctl, u_in, v_in, ku, kv, u_next, v_next)
 

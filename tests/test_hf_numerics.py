@@ -296,6 +296,28 @@ def test_network_adaptive_matches_reference(net_ref):
     assert e["mu"] < 1e-6 and e["v"] < 1e-5, e
 
 
+def test_network_block_lanes_agree_with_one_lane(net_ref):
+    """The lane-parallel paths that CUDA takes (a stage evaluation's links read by 32 lanes of a block, a sample's
+    global sums by 256), run on Warp's CPU fibers, agree with the one-lane CPU path to rounding, and the run with
+    them still matches the reference."""
+    s, _, _, ref = net_ref
+    out = []
+    old = wp.config.enable_cpu_blocks
+    try:
+        for fibers in (False, True):
+            wp.config.enable_cpu_blocks = fibers
+            res, c, _, _ = run(s, integrator="adaptive", tolerance=1e-7)
+            assert res.complete
+            out.append(c)
+    finally:
+        wp.config.enable_cpu_blocks = old
+    one, lanes = out
+    np.testing.assert_allclose(lanes.globals, one.globals, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(lanes.velocity, one.velocity, rtol=0, atol=1e-12 * np.abs(one.velocity).max())
+    e = net_errors(lanes, ref)
+    assert e["mu"] < 1e-6 and e["v"] < 1e-5, e
+
+
 def test_network_symplectic_euler_fp32(net_ref):
     """fp32 state with the explicit scheme agrees with the fp64 reference to ~1e-4 of the velocity scale."""
     s, _, _, ref = net_ref

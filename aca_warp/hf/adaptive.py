@@ -24,6 +24,7 @@ from aca_warp.kernels import hf_adaptive as KA
 
 MIN_STEP = 1.0e-15  # s; a pad whose error needs a smaller step stops the run (a fault)
 CONTROL_BLOCK = 256  # threads per pad of the error reduction and step control
+EVAL_LANES = 32  # threads per patch of a stage evaluation on CUDA (its links read in parallel; one on the CPU)
 ITERATIONS = 128  # trials (or strang steps) per pad per graph replay
 ROWS = 256  # sample rows the recorder holds between flushes (more than one replay can land)
 
@@ -132,7 +133,18 @@ class AdaptiveStepper:
         su, sv = self.stage_u, self.stage_v
         nxt = [self.coeff, ctl, s.u, s.v]
         k = [self.ku, self.kv]
-        wp.launch(KA.dp5_eval, dim=n, device=dev, inputs=[*deriv, 0, 1, mode, s.u, s.v, *k, *nxt, su[1], sv[1]])
+        lanes = block_threads(dev, EVAL_LANES)
+
+        def evaluate(stage: int, first: int, u: wp.array, v: wp.array, u_next: wp.array, v_next: wp.array) -> None:
+            wp.launch_tiled(
+                KA.dp5_eval,
+                dim=[n],
+                block_dim=EVAL_LANES,
+                device=dev,
+                inputs=[*deriv, stage, first, lanes, mode, u, v, *k, *nxt, u_next, v_next],
+            )
+
+        evaluate(0, 1, s.u, s.v, su[1], sv[1])
         wp.launch(KA.k1_done, dim=m.pad_count, device=dev, inputs=[mode])
         wp.launch(
             KA.dp5_stage,
@@ -142,9 +154,7 @@ class AdaptiveStepper:
         )
         for stage in range(1, KA.STAGES):  # each evaluation also forms its patch's next stage state
             a, b = stage % 2, (stage + 1) % 2
-            wp.launch(
-                KA.dp5_eval, dim=n, device=dev, inputs=[*deriv, stage, 0, mode, su[a], sv[a], *k, *nxt, su[b], sv[b]]
-            )
+            evaluate(stage, 0, su[a], sv[a], su[b], sv[b])
         u_new, v_new = su[(KA.STAGES - 1) % 2], sv[(KA.STAGES - 1) % 2]
         wp.launch_tiled(
             KA.dp5_control,
