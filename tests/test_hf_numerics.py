@@ -318,6 +318,18 @@ def test_network_block_lanes_agree_with_one_lane(net_ref):
     assert e["mu"] < 1e-6 and e["v"] < 1e-5, e
 
 
+def test_eval_lanes_rule():
+    """Stage evaluations use 32 lanes per patch on CUDA for small batches only, one lane on the CPU."""
+    from types import SimpleNamespace
+
+    from aca_warp.hf.adaptive import eval_lanes
+
+    h200 = SimpleNamespace(is_cuda=True, sm_count=132)
+    assert eval_lanes(h200, 1758) == 32 and eval_lanes(h200, 4224) == 32
+    assert eval_lanes(h200, 4225) == 1 and eval_lanes(h200, 64 * 1758) == 1
+    assert eval_lanes(wp.get_device("cpu"), 1758) == (32 if wp.config.enable_cpu_blocks else 1)
+
+
 def test_network_symplectic_euler_fp32(net_ref):
     """fp32 state with the explicit scheme agrees with the fp64 reference to ~1e-4 of the velocity scale."""
     s, _, _, ref = net_ref

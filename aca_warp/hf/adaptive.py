@@ -24,9 +24,22 @@ from aca_warp.kernels import hf_adaptive as KA
 
 MIN_STEP = 1.0e-15  # s; a pad whose error needs a smaller step stops the run (a fault)
 CONTROL_BLOCK = 256  # threads per pad of the error reduction and step control
-EVAL_LANES = 32  # threads per patch of a stage evaluation on CUDA (its links read in parallel; one on the CPU)
+EVAL_LANES = 32  # threads per patch of a stage evaluation on CUDA, for small batches (links read in parallel)
+LANE_THREADS_PER_SM = 1024  # lanes only while patches × EVAL_LANES ≤ this × the device's SMs (else one per patch)
 ITERATIONS = 128  # trials (or strang steps) per pad per graph replay
 ROWS = 256  # sample rows the recorder holds between flushes (more than one replay can land)
+
+
+def eval_lanes(device: wp.Device, patches: int) -> int:
+    """Threads per patch of a stage evaluation: EVAL_LANES for a batch of up to LANE_THREADS_PER_SM × SMs /
+    EVAL_LANES patches on CUDA (on an H200, 4224 patches: one hf1 pad took 0.23 s for 1 ms at tol 1e-5 with
+    lanes, 0.29 s without), one above that (64 hf1 pads: 2.6 s with lanes, 0.43 s without) and on the CPU (where
+    a block is one lane, unless Warp's CPU fibers are on)."""
+    if block_threads(device, EVAL_LANES) == 1:
+        return 1
+    if device.is_cuda and patches * EVAL_LANES > LANE_THREADS_PER_SM * device.sm_count:
+        return 1
+    return EVAL_LANES
 
 
 class AdaptiveStepper:
@@ -62,6 +75,7 @@ class AdaptiveStepper:
         self.coeff = wp.array(np.array(KA.DP5_A), dtype=wp.float64, device=dev)
         self.err_coeff = wp.array(np.array(KA.DP5_E), dtype=wp.float64, device=dev)
         self.u_scale, self.v_scale = self._scales()
+        self.lanes = eval_lanes(dev, n)
 
     def _scales(self) -> tuple[wp.array, wp.array]:
         """Per-patch scales of the error norm: U_i = F_N,i M / k_T,i [m], the static deflection under the largest
@@ -133,16 +147,14 @@ class AdaptiveStepper:
         su, sv = self.stage_u, self.stage_v
         nxt = [self.coeff, ctl, s.u, s.v]
         k = [self.ku, self.kv]
-        lanes = block_threads(dev, EVAL_LANES)
+        lanes = self.lanes
 
         def evaluate(stage: int, first: int, u: wp.array, v: wp.array, u_next: wp.array, v_next: wp.array) -> None:
-            wp.launch_tiled(
-                KA.dp5_eval,
-                dim=[n],
-                block_dim=EVAL_LANES,
-                device=dev,
-                inputs=[*deriv, stage, first, lanes, mode, u, v, *k, *nxt, u_next, v_next],
-            )
+            inputs = [*deriv, stage, first, lanes, mode, u, v, *k, *nxt, u_next, v_next]
+            if lanes > 1:
+                wp.launch_tiled(KA.dp5_eval, dim=[n], block_dim=lanes, device=dev, inputs=inputs)
+            else:
+                wp.launch(KA.dp5_eval, dim=(n, 1), device=dev, inputs=inputs)
 
         evaluate(0, 1, s.u, s.v, su[1], sv[1])
         wp.launch(KA.k1_done, dim=m.pad_count, device=dev, inputs=[mode])
