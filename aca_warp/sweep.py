@@ -68,6 +68,7 @@ from aca_warp.sweep_spec import (
     SweepError,
     SweepSpec,
     apply_parameters,
+    hf1_product_doc,
     load_spec,
 )
 
@@ -95,6 +96,7 @@ __all__ = [
     "Terminated",
     "add_parsers",
     "apply_parameters",
+    "hf1_product_doc",
     "batch_capacity",
     "cuda_ordinals",
     "device_memory",

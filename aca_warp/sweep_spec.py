@@ -461,3 +461,31 @@ def apply_parameters(base: Scene, base_doc: dict, values: dict[str, Any], *, nam
     if name is not None:
         changes["name"] = name
     return base.replace(**changes)
+
+
+def hf1_product_doc(
+    name: str,
+    n_m: int,
+    n_f: int,
+    seeds: int,
+    *,
+    shard_size: int,
+    duration: float,
+    precision: str,
+    patches: int | None = None,
+) -> dict:
+    """The spec (as for :func:`load_spec`) of a benchmark sweep of hf1 pads: ``n_m`` values of friction.M in
+    0.6–0.9 × ``n_f`` normal forces in 300–600 N × ``seeds`` patch layouts, ``strang`` at 1e-8 s for ``duration``
+    [s] in ``precision``; ``patches``: patches per pad (None: the preset's)."""
+    doc: dict = {
+        "sweep": {"name": name, "base": "hf1", "shard_size": shard_size},
+        "run": {"duration": duration, "precision": precision, "integrator": "strang", "dt": 1e-8},
+        "parameters": {
+            "friction.M": {"linspace": [0.6, 0.9, n_m]},
+            "load.normal_force": {"linspace": [300.0, 600.0, n_f]},
+            "patches.seed": {"range": [1, seeds + 1]},
+        },
+    }
+    if patches is not None:
+        doc["base"] = {"patches": {"count": patches}}
+    return doc

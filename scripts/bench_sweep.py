@@ -36,7 +36,7 @@ import warp as wp  # noqa: E402
 wp.config.log_level = wp.LOG_WARNING
 
 from aca_warp.common.files import machine  # noqa: E402
-from aca_warp.sweep import load_spec, local_cluster, run_sweep, warm_workers  # noqa: E402
+from aca_warp.sweep import hf1_product_doc, load_spec, local_cluster, run_sweep, warm_workers  # noqa: E402
 
 
 def sweep_doc(pads: int, patches: int | None, shard_size: int, duration: float, precision: str) -> dict:
@@ -47,18 +47,9 @@ def sweep_doc(pads: int, patches: int | None, shard_size: int, duration: float, 
     n_f = rest // n_m
     if n_m * n_f * seeds != pads:
         raise SystemExit(f"--pads {pads}: choose a power of two (the sweep is a product M x F_N x seed)")
-    doc = {
-        "sweep": {"name": f"bench-{pads}", "base": "hf1", "shard_size": shard_size},
-        "run": {"duration": duration, "precision": precision, "integrator": "strang", "dt": 1e-8},
-        "parameters": {
-            "friction.M": {"linspace": [0.6, 0.9, n_m]},
-            "load.normal_force": {"linspace": [300.0, 600.0, n_f]},
-            "patches.seed": {"range": [1, seeds + 1]},
-        },
-    }
-    if patches is not None:
-        doc["base"] = {"patches": {"count": patches}}
-    return doc
+    return hf1_product_doc(
+        f"bench-{pads}", n_m, n_f, seeds, shard_size=shard_size, duration=duration, precision=precision, patches=patches
+    )
 
 
 def _parse() -> argparse.Namespace:

@@ -46,7 +46,7 @@ import warp as wp  # noqa: E402
 
 from aca_warp.common.devices import init_warp  # noqa: E402
 from aca_warp.common.files import machine  # noqa: E402
-from aca_warp.sweep import WORKERS_PER_GPU, SweepSpec, load_spec, local_cluster, run_sweep  # noqa: E402
+from aca_warp.sweep import WORKERS_PER_GPU, SweepSpec, hf1_product_doc, load_spec, local_cluster, run_sweep  # noqa: E402
 
 # (pads, patches per pad, shard size, duration [s]) when not given: the GPU figure's sweep, and a tiny CPU one
 DEFAULTS = {"cuda": (2048, None, 256, 2e-3), "cpu": (16, 40, 4, 1.5e-3)}
@@ -61,18 +61,16 @@ def sweep_doc(pads: int, patches: int | None, shard_size: int, duration: float, 
     rest = pads // seeds
     n_m = 2 ** (int(math.log2(rest)) // 2)
     n_f = rest // n_m
-    doc = {
-        "sweep": {"name": f"throughput-{pads}", "base": "hf1", "shard_size": shard_size},
-        "run": {"duration": duration, "precision": precision, "integrator": "strang", "dt": 1e-8},
-        "parameters": {
-            "friction.M": {"linspace": [0.6, 0.9, n_m]},
-            "load.normal_force": {"linspace": [300.0, 600.0, n_f]},
-            "patches.seed": {"range": [1, seeds + 1]},
-        },
-    }
-    if patches is not None:
-        doc["base"] = {"patches": {"count": patches}}
-    return doc
+    return hf1_product_doc(
+        f"throughput-{pads}",
+        n_m,
+        n_f,
+        seeds,
+        shard_size=shard_size,
+        duration=duration,
+        precision=precision,
+        patches=patches,
+    )
 
 
 class Runner:
