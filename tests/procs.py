@@ -21,6 +21,21 @@ LIMITED = (
 )
 
 
+def small_scene_toml(
+    name: str = "small", *, count: int = 60, duration: float = 2.0e-6, velocity: bool = False, disc: bool = True
+) -> str:
+    """A small HF scene file: ``count`` HF1-size patches (seed 4, 3 µm), 20 N, samples every 0.1 µs for
+    ``duration`` [s]; ``velocity``: per-patch velocities recorded; ``disc``: the disc at 10 m/s stated."""
+    record = "[record]\nsample_dt = 1.0e-7\n" + ('patches = ["velocity"]\n' if velocity else "")
+    return (
+        f'[scene]\nname = "{name}"\n[load]\nnormal_force = 20.0\n'
+        + ("[disc]\nsliding_speed = 10.0\n" if disc else "")
+        + f"[patches]\ncount = {count}\narea_min = 2.0e-8\narea_max = 8.0e-8\nheight = 3.0e-6\nseed = 4\n"
+        + record
+        + f"[run]\nduration = {duration!r}\n"
+    )
+
+
 def env(**extra: str) -> dict[str, str]:
     """The environment of a subprocess: the repository's kernel cache, plus ``extra``."""
     e = {**os.environ, **extra}

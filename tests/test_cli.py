@@ -5,30 +5,14 @@ from __future__ import annotations
 import h5py
 import numpy as np
 import pytest
+from procs import small_scene_toml
 
 from aca_warp.cli import main
 from aca_warp.hf import runner
 from aca_warp.hf.runfile import read_run
 from aca_warp.scene import load_scene
 
-SCENE = """
-[scene]
-name = "small"
-[load]
-normal_force = 20.0
-[disc]
-sliding_speed = 10.0
-[patches]
-count = 60
-area_min = 2.0e-8
-area_max = 8.0e-8
-height = 3.0e-6
-seed = 4
-[record]
-sample_dt = 1.0e-7
-[run]
-duration = 2.0e-6
-"""
+SCENE = small_scene_toml()
 
 
 @pytest.fixture

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import h5py
 import pytest
-from procs import assert_same_datasets, cli, datasets, env, error_lines
+from procs import assert_same_datasets, cli, datasets, env, error_lines, small_scene_toml
 from test_lf_checkpoint import SCENE as LF_SCENE
 from test_storage import HF_SCENE
 
@@ -35,25 +35,7 @@ from aca_warp.cli import main
 from aca_warp.common.errors import SceneError
 from aca_warp.scene import load_scene, scene_from_dict
 
-SMALL = """
-[scene]
-name = "small"
-[load]
-normal_force = 20.0
-[disc]
-sliding_speed = 10.0
-[patches]
-count = 60
-area_min = 2.0e-8
-area_max = 8.0e-8
-height = 3.0e-6
-seed = 4
-[record]
-sample_dt = 1.0e-7
-patches = ["velocity"]
-[run]
-duration = 2.0e-6
-"""
+SMALL = small_scene_toml(velocity=True)
 
 
 def listing(folder: Path) -> list[str]:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import h5py
 import pytest
+from procs import small_scene_toml
 from test_lf_checkpoint import SCENE as LF_SCENE
 
 from aca_warp.cli import main
@@ -21,25 +22,7 @@ from aca_warp.hf import runner
 from aca_warp.lf import io as lf_io
 from aca_warp.sweep import SweepError, load_sweep
 
-HF_SCENE = """
-[scene]
-name = "corrupt"
-[load]
-normal_force = 20.0
-[disc]
-sliding_speed = 10.0
-[patches]
-count = 30
-area_min = 2.0e-8
-area_max = 8.0e-8
-height = 3.0e-6
-seed = 4
-[record]
-sample_dt = 1.0e-7
-patches = ["velocity"]
-[run]
-duration = 3.0e-5
-"""
+HF_SCENE = small_scene_toml("corrupt", count=30, duration=3.0e-5, velocity=True)
 
 
 def damage(path: Path, how: str) -> None:

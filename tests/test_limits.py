@@ -9,6 +9,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from procs import small_scene_toml
 
 from aca_warp.cli import main
 from aca_warp.common.errors import SceneError
@@ -17,22 +18,7 @@ from aca_warp.hf import model as model_module
 from aca_warp.hf.model import build_model
 from aca_warp.scene import Pad, PatchGenerator, load_scene
 
-TINY = """
-[scene]
-name = "limits"
-[load]
-normal_force = 20.0
-[patches]
-count = 40
-area_min = 2.0e-8
-area_max = 8.0e-8
-height = 3.0e-6
-seed = 4
-[record]
-sample_dt = 1.0e-7
-[run]
-duration = 2.0e-6
-"""
+TINY = small_scene_toml("limits", count=40, disc=False)
 
 
 def run_cli(capsys, argv: list[str]) -> tuple[int, list[str]]:
@@ -153,7 +139,8 @@ def test_scene_values_one_line(tmp_path, capsys, extra, message) -> None:
 def test_step_counts_beyond_int32(tmp_path, capsys) -> None:
     """A sample interval of more than 2^31 − 1 steps (the on-chip kernel takes it as an int32): one line."""
     s = tmp_path / "s.toml"
-    s.write_text(TINY.replace("sample_dt = 1.0e-7", "sample_dt = 1.0e-2").replace("2.0e-6", "1.0e-2"))
+    tiny = small_scene_toml("limits", count=40, disc=False, duration=1.0e-2)
+    s.write_text(tiny.replace("sample_dt = 1.0e-7", "sample_dt = 1.0e-2"))
     argv = ["hf", str(s), "-o", str(tmp_path / "run.h5"), "--dt", "1e-12", "--no-progress"]
     code, err = run_cli(capsys, argv)  # 1e-2 s samples are implausible for HF (docs/scenes.md)
     assert code == 2 and len(err) == 1 and "record.sample_dt = 0.01 s — beyond 0.001 s" in err[0]
