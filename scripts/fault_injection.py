@@ -51,6 +51,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from aca_warp.common.files import host_cpu
+
 REPO = Path(__file__).resolve().parent.parent
 
 HF_SCENE = """
@@ -390,15 +392,8 @@ def limit_trial(w: Workload, root: Path, ref: dict[str, bytes], limit: int, rng:
 
 
 def machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, {platform.platform()}"
+    """The CPU model, core count and platform of this machine."""
+    return f"{host_cpu()}, {platform.platform()}"
 
 
 def summarize(trials: list[Trial], refs: dict[str, float], args: argparse.Namespace) -> dict:

@@ -31,13 +31,13 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import os
 import platform
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from aca_warp.common.files import host_cpu
 from aca_warp.hf.contact import load_window, solve_scene_contact
 from aca_warp.scene import PRESETS, PatchGenerator, Scene, preset
 
@@ -129,15 +129,7 @@ def derive_spread(scene: Scene, margin: float) -> float:
 
 def host() -> str:
     """The CPU model and core count of this machine."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, {platform.platform()}"
+    return f"{host_cpu()}, {platform.platform()}"
 
 
 def main(argv: list[str] | None = None) -> int:

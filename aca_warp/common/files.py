@@ -44,8 +44,8 @@ def versions() -> dict[str, str]:
     return out
 
 
-def machine(device: Any) -> dict[str, str]:
-    """The device and host that ran something: ``device`` (Warp alias), ``device_name``, ``host``, ``platform``."""
+def host_cpu() -> str:
+    """This host's CPU model (from /proc/cpuinfo where there is one) and core count, e.g. "AMD EPYC, 2 cores"."""
     cpu = platform.processor() or platform.machine()
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
@@ -54,7 +54,12 @@ def machine(device: Any) -> dict[str, str]:
                 break
     except OSError:
         pass
-    host = f"{cpu}, {os.cpu_count()} cores"
+    return f"{cpu}, {os.cpu_count()} cores"
+
+
+def machine(device: Any) -> dict[str, str]:
+    """The device and host that ran something: ``device`` (Warp alias), ``device_name``, ``host``, ``platform``."""
+    host = host_cpu()
     name = device.name if device.is_cuda else f"CPU ({host}; Warp CPU kernels run on one thread)"
     return {"device": str(device), "device_name": name, "host": host, "platform": platform.platform()}
 
