@@ -22,7 +22,6 @@ until ``Dataset.close()`` (or the end of a ``with`` block).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +32,7 @@ from xarray.backends import BackendArray
 from xarray.core import indexing
 
 from aca_warp.common.errors import SceneError
+from aca_warp.common.files import attr_value
 
 EAGER_BYTES = 256 * 2**20
 """Datasets up to this size [bytes] are read at once; larger ones are read lazily."""
@@ -159,18 +159,8 @@ def _text(v: Any) -> Any:
 
 
 def _attr(v: Any) -> Any:
-    """A root attribute as a Python value: bytes → str, NumPy scalars → Python, JSON text → objects."""
-    v = _text(v)
-    if isinstance(v, np.generic):
-        v = v.item()
-    if isinstance(v, np.ndarray):
-        return v.tolist()
-    if isinstance(v, str) and v[:1] in "[{":
-        try:
-            return json.loads(v)
-        except json.JSONDecodeError:
-            return v
-    return v
+    """A root attribute as a Python value: arrays → lists, else :func:`~aca_warp.common.files.attr_value`."""
+    return v.tolist() if isinstance(v, np.ndarray) else attr_value(v)
 
 
 def _kind(f: h5py.File) -> str | None:

@@ -32,6 +32,7 @@ import numpy as np
 import scipy.fft
 
 from aca_warp.common.errors import SceneError
+from aca_warp.common.files import attr_value
 
 from .saturation import record_saturation
 from .spectra import DEFAULT_FLOOR_HZ, amplitude_spectrum, complex_spectrum, peak
@@ -103,15 +104,7 @@ def _decode(value: Any) -> Any:
 
 def run_attr(f: h5py.File, name: str, default: Any = None) -> Any:
     """Root attribute ``name`` of a run file, JSON-decoded where it holds JSON."""
-    if name not in f.attrs:
-        return default
-    v = _decode(f.attrs[name])
-    if isinstance(v, str) and v[:1] in "[{":
-        try:
-            return json.loads(v)
-        except json.JSONDecodeError:
-            return v
-    return v
+    return attr_value(f.attrs[name]) if name in f.attrs else default
 
 
 def check_run_file(f: h5py.File, name: str | Path = "") -> None:

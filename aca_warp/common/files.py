@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import json
 import os
 import platform
 import socket
@@ -16,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import h5py
+import numpy as np
 
 from aca_warp.common.checkpoint import has_checkpoint
 from aca_warp.common.errors import AcaError, SceneError, StorageError, option
@@ -42,6 +44,21 @@ def versions() -> dict[str, str]:
         except md.PackageNotFoundError:
             out[pkg] = "not installed"
     return out
+
+
+def attr_value(value: Any) -> Any:
+    """An HDF5 attribute as a Python value: bytes → str, NumPy scalars → Python scalars, text holding a JSON list
+    or object → that object (other text unchanged)."""
+    if isinstance(value, bytes):
+        value = value.decode()
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, str) and value[:1] in "[{":
+        try:
+            return json.loads(value)
+        except json.JSONDecodeError:
+            return value
+    return value
 
 
 def host_cpu() -> str:
