@@ -22,18 +22,31 @@ LIMITED = (
 
 
 def small_scene_toml(
-    name: str = "small", *, count: int = 60, duration: float = 2.0e-6, velocity: bool = False, disc: bool = True
+    name: str = "small",
+    *,
+    count: int = 60,
+    duration: float = 2.0e-6,
+    sample_dt: float = 1.0e-7,
+    patches: tuple[str, ...] = (),
+    perturbation: float | None = None,
+    disc: bool = True,
+    tables: dict[str, dict] | None = None,
 ) -> str:
-    """A small HF scene file: ``count`` HF1-size patches (seed 4, 3 µm), 20 N, samples every 0.1 µs for
-    ``duration`` [s]; ``velocity``: per-patch velocities recorded; ``disc``: the disc at 10 m/s stated."""
-    record = "[record]\nsample_dt = 1.0e-7\n" + ('patches = ["velocity"]\n' if velocity else "")
-    return (
-        f'[scene]\nname = "{name}"\n[load]\nnormal_force = 20.0\n'
-        + ("[disc]\nsliding_speed = 10.0\n" if disc else "")
-        + f"[patches]\ncount = {count}\narea_min = 2.0e-8\narea_max = 8.0e-8\nheight = 3.0e-6\nseed = 4\n"
-        + record
-        + f"[run]\nduration = {duration!r}\n"
-    )
+    """A small HF scene file: ``count`` HF1-size patches (seed 4, 3 µm), 20 N, samples every ``sample_dt`` [s] for
+    ``duration`` [s]; ``patches``: the per-patch histories recorded; ``perturbation``: a seeded initial velocity
+    perturbation [m/s] (seed 2); ``disc``: the disc at 10 m/s stated; ``tables`` ({table: {key: value}}): keys
+    replaced or added."""
+    doc: dict[str, dict] = {"scene": {"name": name}, "load": {"normal_force": 20.0}}
+    if disc:
+        doc["disc"] = {"sliding_speed": 10.0}
+    doc["patches"] = {"count": count, "area_min": 2.0e-8, "area_max": 8.0e-8, "height": 3.0e-6, "seed": 4}
+    if perturbation is not None:
+        doc["initial"] = {"perturbation": perturbation, "seed": 2}
+    doc["record"] = {"sample_dt": sample_dt, **({"patches": list(patches)} if patches else {})}
+    doc["run"] = {"duration": duration}
+    for t, kv in (tables or {}).items():
+        doc.setdefault(t, {}).update(kv)
+    return "".join(f"[{t}]\n" + "".join(f"{k} = {v!r}\n" for k, v in kv.items()) for t, kv in doc.items())
 
 
 def env(**extra: str) -> dict[str, str]:

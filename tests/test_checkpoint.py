@@ -8,33 +8,14 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from procs import small_scene_toml
 from sigkill import kill_after_first_checkpoint
 
 from aca_warp.cli import main
 from aca_warp.common.checkpoint import has_checkpoint
 from aca_warp.hf import runner
 
-SCENE = """
-[scene]
-name = "ckpt"
-[load]
-normal_force = 20.0
-[disc]
-sliding_speed = 10.0
-[patches]
-count = 40
-area_min = 2.0e-8
-area_max = 8.0e-8
-height = 3.0e-6
-seed = 4
-[initial]
-perturbation = 1.0e-3
-seed = 2
-[record]
-sample_dt = 1.0e-7
-[run]
-duration = 2.0e-5
-"""
+SCENE = small_scene_toml("ckpt", count=40, duration=2.0e-5, perturbation=1.0e-3)
 
 GROWTH = """
 [growth]

@@ -35,7 +35,7 @@ from aca_warp.cli import main
 from aca_warp.common.errors import SceneError
 from aca_warp.scene import load_scene, scene_from_dict
 
-SMALL = small_scene_toml(velocity=True)
+SMALL = small_scene_toml(patches=("velocity",))
 
 
 def listing(folder: Path) -> list[str]:
@@ -346,21 +346,6 @@ def test_interrupted_plot_leaves_no_half_figure(tmp_path: Path, runs, sig: int) 
 # ---------------------------------------------------------------------------------- implausible values
 
 
-def small_scene(**tables: dict) -> str:
-    """The TOML of SMALL with the keys of ``tables`` ({table: {key: value}}) replaced or added."""
-    doc = {
-        "scene": {"name": "small"},
-        "load": {"normal_force": 20.0},
-        "disc": {"sliding_speed": 10.0},
-        "patches": {"count": 60, "area_min": 2.0e-8, "area_max": 8.0e-8, "height": 3.0e-6, "seed": 4},
-        "record": {"sample_dt": 1.0e-7},
-        "run": {"duration": 2.0e-6},
-    }
-    for t, kv in tables.items():
-        doc.setdefault(t, {}).update(kv)
-    return "".join(f"[{t}]\n" + "".join(f"{k} = {v!r}\n" for k, v in kv.items()) for t, kv in doc.items())
-
-
 @pytest.mark.parametrize(
     ("tables", "extra", "message", "hint"),
     [
@@ -377,7 +362,7 @@ def test_unit_mistakes_are_named(tmp_path, capsys, tables, extra, message, hint)
     """Exit 2, one line with the value, the range and the likely unit, nothing written; --allow-implausible lifts
     the check (the run then goes on to its other checks)."""
     s = tmp_path / "s.toml"
-    s.write_text(small_scene(**tables))
+    s.write_text(small_scene_toml(tables=tables))
     out = tmp_path / "run.h5"
     argv = ["hf", str(s), "-o", str(out), "--no-progress", *extra]
     assert main(argv) == 2
@@ -393,7 +378,7 @@ def test_implausible_values_in_python(tmp_path) -> None:
     """The Python API names its parameter; allow_implausible=True (or the scene key) accepts the value."""
     import tomllib
 
-    doc = tomllib.loads(small_scene(pad={"r_inner": 100, "r_outer": 160}))
+    doc = tomllib.loads(small_scene_toml(tables={"pad": {"r_inner": 100, "r_outer": 160}}))
     with pytest.raises(SceneError, match="did you mean mm") as e:
         scene_from_dict(doc)
     assert "allow_implausible=True" in str(e.value) and "--allow-implausible" not in str(e.value)
@@ -402,7 +387,7 @@ def test_implausible_values_in_python(tmp_path) -> None:
     scene = scene_from_dict(doc)
     assert scene.allow_implausible and scene.pad.r_inner == 100
     s = tmp_path / "s.toml"
-    s.write_text(small_scene(load={"normal_force": 5e7}))
+    s.write_text(small_scene_toml(tables={"load": {"normal_force": 5e7}}))
     with pytest.raises(SceneError, match="did you mean mN"):
         load_scene(s)
     assert load_scene(s, allow_implausible=True).normal_force == 5e7
@@ -452,7 +437,7 @@ def test_patch_window_outside_the_run(tmp_path, capsys, how) -> None:
     if "SCENE_WINDOW" in how:
         record = {**record, "patches": ["velocity"], "window": [1e-3, 2e-3]}
         how = how[:-1]
-    s.write_text(small_scene(record=record))
+    s.write_text(small_scene_toml(tables={"record": record}))
     assert main(["hf", str(s), "-o", str(tmp_path / "run.h5"), "--no-progress", *how]) == 2
     err = one_line(capsys)
     assert len(err) == 1 and "holds no sample of the run" in err[0] and "choose a window inside the run" in err[0]
@@ -462,7 +447,7 @@ def test_patch_window_outside_the_run(tmp_path, capsys, how) -> None:
 def test_patch_window_without_patch_histories(tmp_path, capsys) -> None:
     """--patch-window without per-patch histories would be ignored silently: exit 2, one line."""
     s = tmp_path / "s.toml"
-    s.write_text(small_scene())
+    s.write_text(small_scene_toml())
     argv = ["hf", str(s), "-o", str(tmp_path / "run.h5"), "--no-progress", "--patch-window", "0", "1e-6"]
     assert main(argv) == 2
     err = one_line(capsys)

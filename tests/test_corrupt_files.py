@@ -22,7 +22,7 @@ from aca_warp.hf import runner
 from aca_warp.lf import io as lf_io
 from aca_warp.sweep import SweepError, load_sweep
 
-HF_SCENE = small_scene_toml("corrupt", count=30, duration=3.0e-5, velocity=True)
+HF_SCENE = small_scene_toml("corrupt", count=30, duration=3.0e-5, patches=("velocity",))
 
 
 def damage(path: Path, how: str) -> None:

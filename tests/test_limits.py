@@ -93,7 +93,7 @@ def test_decimation_beyond_int32_is_refused(tmp_path, capsys, how, value) -> Non
     """--patch-decimation 2^32 (was SIGFPE, a .partial left) and 2^31, decimation = 2^63 − 1 in TOML (was an
     AssertionError and a 'failed' file): exit 2, one line naming the limit, nothing written."""
     s = tmp_path / "s.toml"
-    text = TINY.replace("[record]\n", '[record]\npatches = ["velocity"]\n')
+    text = small_scene_toml("limits", count=40, disc=False, patches=("velocity",))
     argv = ["hf", str(s), "-o", str(tmp_path / "run.h5"), "--no-progress"]
     if how == "toml":
         text = text.replace("[record]\n", f"[record]\ndecimation = {value}\n")
@@ -108,7 +108,7 @@ def test_decimation_beyond_int32_is_refused(tmp_path, capsys, how, value) -> Non
 def test_largest_int32_decimation_runs(tmp_path, capsys) -> None:
     """2^31 − 1 is accepted: the per-patch history holds the first sample of its window only."""
     s = tmp_path / "s.toml"
-    s.write_text(TINY.replace("[record]\n", '[record]\npatches = ["velocity"]\n'))
+    s.write_text(small_scene_toml("limits", count=40, disc=False, patches=("velocity",)))
     out = tmp_path / "run.h5"
     code, err = run_cli(capsys, ["hf", str(s), "-o", str(out), "--no-progress", "--patch-decimation", str(2**31 - 1)])
     assert code == 0 and not err, err
@@ -139,8 +139,7 @@ def test_scene_values_one_line(tmp_path, capsys, extra, message) -> None:
 def test_step_counts_beyond_int32(tmp_path, capsys) -> None:
     """A sample interval of more than 2^31 − 1 steps (the on-chip kernel takes it as an int32): one line."""
     s = tmp_path / "s.toml"
-    tiny = small_scene_toml("limits", count=40, disc=False, duration=1.0e-2)
-    s.write_text(tiny.replace("sample_dt = 1.0e-7", "sample_dt = 1.0e-2"))
+    s.write_text(small_scene_toml("limits", count=40, disc=False, duration=1.0e-2, sample_dt=1.0e-2))
     argv = ["hf", str(s), "-o", str(tmp_path / "run.h5"), "--dt", "1e-12", "--no-progress"]
     code, err = run_cli(capsys, argv)  # 1e-2 s samples are implausible for HF (docs/scenes.md)
     assert code == 2 and len(err) == 1 and "record.sample_dt = 0.01 s — beyond 0.001 s" in err[0]

@@ -10,30 +10,13 @@ from pathlib import Path
 
 import h5py
 import pytest
-from procs import cli, error_lines, resume, start, stop, wait_for
+from procs import cli, error_lines, resume, small_scene_toml, start, stop, wait_for
 
 from aca_warp.cli import main
 from aca_warp.common.errors import SceneError
 from aca_warp.common.files import OutputLock, lock_path
 
-SCENE = """
-[scene]
-name = "lock"
-[load]
-normal_force = 20.0
-[disc]
-sliding_speed = 10.0
-[patches]
-count = 40
-area_min = 2.0e-8
-area_max = 8.0e-8
-height = 3.0e-6
-seed = 4
-[record]
-sample_dt = 1.0e-6
-[run]
-duration = 2.0e-4
-"""
+SCENE = small_scene_toml("lock", count=40, duration=2.0e-4, sample_dt=1.0e-6)
 
 LF_SCENE = """
 [scene]

@@ -11,33 +11,14 @@ from pathlib import Path
 
 import h5py
 import pytest
-from procs import assert_same_datasets, cli, error_lines
+from procs import assert_same_datasets, cli, error_lines, small_scene_toml
 
 from aca_warp.cli import main
 from aca_warp.common.storage import GuardedFile, storage_errno
 
-HF_SCENE = """
-[scene]
-name = "full"
-[load]
-normal_force = 20.0
-[disc]
-sliding_speed = 10.0
-[patches]
-count = 40
-area_min = 2.0e-8
-area_max = 8.0e-8
-height = 3.0e-6
-seed = 4
-[initial]
-perturbation = 1.0e-3
-seed = 2
-[record]
-sample_dt = 5.0e-7
-patches = ["velocity", "displacement"]
-[run]
-duration = 1.0e-3
-"""
+HF_SCENE = small_scene_toml(
+    "full", count=40, duration=1.0e-3, sample_dt=5.0e-7, perturbation=1.0e-3, patches=("velocity", "displacement")
+)
 # 2001 samples: the per-patch histories fill 2 chunk rows of 1024 samples (327 kB each); 1.3 MB stops the run when
 # the second row begins (t = 512 µs), after the checkpoint at 500 µs; the whole file is 1.6 MB
 
