@@ -127,6 +127,117 @@ def stage_state(
     v_stage[i] = v_in[i] + h * dv
 
 
+@wp.func
+def patch_error(
+    g: int,
+    pad: int,
+    h: wp.float64,
+    tol: wp.float64,
+    err_coeff: wp.array[wp.float64],
+    u_scale: wp.array[Any],
+    v_scale: wp.array[Any],
+    radius: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+    u_in: wp.array[Any],
+    v_in: wp.array[Any],
+    u_new: wp.array[Any],
+    v_new: wp.array[Any],
+    ku: wp.array2d[Any],
+    kv: wp.array2d[Any],
+):
+    """Patch g's (of pad ``pad``) scaled error of a trial of step h: max(|e_u| / (tol (U_g + |u|)),
+    |e_v| / (tol w_g)) with the friction weight w_g (module docstring); below 1 the patch accepts the trial."""
+    eu = wp.float64(0.0)
+    ev = wp.float64(0.0)
+    for j in range(STAGES):
+        e = err_coeff[j]
+        eu += e * wp.float64(ku[j, g])
+        ev += e * wp.float64(kv[j, g])
+    mu_max = wp.float64(pad_mu_scale[pad]) * wp.float64(3.141592653589793)
+    vn = v_new[g]
+    fv, fd = friction_pair(pad_omega[pad] * radius[g] - vn, pad_mu_scale[pad], pad_slope[pad], pad_decay[pad])
+    wv = wp.float64(v_scale[g]) + wp.max(wp.abs(wp.float64(v_in[g])), wp.abs(wp.float64(vn)))
+    slope = wp.abs(wp.float64(fd))
+    if slope * wv > mu_max:
+        wv = mu_max / slope
+    su = tol * (wp.float64(u_scale[g]) + wp.max(wp.abs(wp.float64(u_in[g])), wp.abs(wp.float64(u_new[g]))))
+    return wp.max(wp.abs(h * eu) / su, wp.abs(h * ev) / (tol * wv))
+
+
+@wp.func
+def pi_control(
+    pad: int,
+    err: wp.float64,
+    h_max: wp.float64,
+    h_min: wp.float64,
+    ctl: wp.array2d[wp.float64],
+    mode: wp.array2d[wp.int32],
+    stats: wp.array2d[wp.int64],
+    done: wp.array[wp.int32],
+) -> int:
+    """Accept or reject pad ``pad``'s trial of scaled error ``err``, choose its next step (PI) and land it on its
+    target; returns 1 when accepted. ``done[2]`` flags a step below ``h_min`` (the pad cannot go on)."""
+    accepted = int(0)
+    if not wp.isfinite(err):
+        err = wp.float64(1.0e10)
+    h = ctl[pad, C_TRIAL]
+    t = ctl[pad, C_T]
+    target = ctl[pad, C_TARGET]
+    want = ctl[pad, C_H]
+    e = wp.max(err, wp.float64(1.0e-10))
+    if err <= wp.float64(1.0):  # PI controller (Gustafsson): k_I = 0.3, k_P = 0.4 over the order 5
+        fac = wp.float64(0.9) * wp.pow(e, wp.float64(-0.14)) * wp.pow(ctl[pad, C_ERR], wp.float64(0.08))
+        top = wp.float64(5.0)
+        if mode[pad, M_REJECTED] != 0:
+            top = wp.float64(1.0)
+        fac = wp.clamp(fac, wp.float64(0.2), top)
+        mode[pad, M_REJECTED] = 0
+        accepted = 1
+        stats[pad, 0] = stats[pad, 0] + wp.int64(1)
+        ctl[pad, C_ERR] = wp.max(e, wp.float64(1.0e-4))
+        if h >= want:
+            want = h * fac
+        else:  # a step cut short to land says nothing against the desired one
+            want = wp.max(want, h * fac)
+        t = t + h
+        if t >= target * (wp.float64(1.0) - wp.float64(1.0e-13)):
+            t = target
+            mode[pad, M_LANDED] = 1
+        ctl[pad, C_T] = t
+    else:
+        fac = wp.clamp(wp.float64(0.9) * wp.pow(e, wp.float64(-0.2)), wp.float64(0.2), wp.float64(1.0))
+        mode[pad, M_REJECTED] = 1
+        stats[pad, 1] = stats[pad, 1] + wp.int64(1)
+        want = h * fac
+    if want < h_min:
+        done[2] = 1  # the error cannot be met: the run stops with a fault
+    want = wp.clamp(want, h_min, h_max)
+    ctl[pad, C_H] = want
+    if mode[pad, M_LANDED] != 0:
+        return accepted
+    rest = target - t
+    nxt = wp.min(want, rest)
+    if rest - nxt < wp.float64(0.01) * nxt:  # no sliver step before the target
+        nxt = rest
+    ctl[pad, C_TRIAL] = nxt
+    return accepted
+
+
+@wp.func
+def open_interval(p: int, sample_dt: wp.float64, ctl: wp.array2d[wp.float64], mode: wp.array2d[wp.int32]):
+    """Pad p, landed on its target sample, heads for the next one (sample times k·sample_dt, not sums of
+    intervals); its first trial is its desired step, at most one interval."""
+    k = mode[p, M_SAMPLE] + 1
+    mode[p, M_SAMPLE] = k
+    ctl[p, C_START] = ctl[p, C_TARGET]
+    ctl[p, C_TARGET] = wp.float64(k) * sample_dt
+    ctl[p, C_TRIAL] = wp.min(ctl[p, C_H], sample_dt)
+    mode[p, M_LANDED] = 0
+
+
 @wp.kernel
 def dp5_stage(
     # Model:
@@ -249,71 +360,18 @@ def dp5_control(
     a = pad_patch_start[pad]
     n = pad_patch_start[pad + 1] - a
     h = ctl[pad, C_TRIAL]
-    mu_max = wp.float64(pad_mu_scale[pad]) * wp.float64(3.141592653589793)
-    omega = pad_omega[pad]
     part = wp.float64(0.0)
     i = lane
     while i < n:
         g = a + i
-        eu = wp.float64(0.0)
-        ev = wp.float64(0.0)
-        for j in range(STAGES):
-            e = err_coeff[j]
-            eu += e * wp.float64(ku[j, g])
-            ev += e * wp.float64(kv[j, g])
-        vn = v_new[g]
-        fv, fd = friction_pair(omega * radius[g] - vn, pad_mu_scale[pad], pad_slope[pad], pad_decay[pad])
-        wv = wp.float64(v_scale[g]) + wp.max(wp.abs(wp.float64(v_in[g])), wp.abs(wp.float64(vn)))
-        slope = wp.abs(wp.float64(fd))
-        if slope * wv > mu_max:
-            wv = mu_max / slope
-        su = tol * (wp.float64(u_scale[g]) + wp.max(wp.abs(wp.float64(u_in[g])), wp.abs(wp.float64(u_new[g]))))
-        part = wp.max(part, wp.max(wp.abs(h * eu) / su, wp.abs(h * ev) / (tol * wv)))
+        e = patch_error(g, pad, h, tol, err_coeff, u_scale, v_scale, radius, pad_omega, pad_mu_scale, pad_slope,
+                        pad_decay, u_in, v_in, u_new, v_new, ku, kv)  # fmt: skip
+        part = wp.max(part, e)
         i += threads
     err = wp.tile_max(wp.tile(part))[0]
     if lane != 0:
         return
-    if not wp.isfinite(err):
-        err = wp.float64(1.0e10)
-    t = ctl[pad, C_T]
-    target = ctl[pad, C_TARGET]
-    want = ctl[pad, C_H]
-    e = wp.max(err, wp.float64(1.0e-10))
-    if err <= wp.float64(1.0):  # PI controller (Gustafsson): k_I = 0.3, k_P = 0.4 over the order 5
-        fac = wp.float64(0.9) * wp.pow(e, wp.float64(-0.14)) * wp.pow(ctl[pad, C_ERR], wp.float64(0.08))
-        top = wp.float64(5.0)
-        if mode[pad, M_REJECTED] != 0:
-            top = wp.float64(1.0)
-        fac = wp.clamp(fac, wp.float64(0.2), top)
-        mode[pad, M_REJECTED] = 0
-        accepted[pad] = 1
-        stats[pad, 0] = stats[pad, 0] + wp.int64(1)
-        ctl[pad, C_ERR] = wp.max(e, wp.float64(1.0e-4))
-        if h >= want:
-            want = h * fac
-        else:  # a step cut short to land says nothing against the desired one
-            want = wp.max(want, h * fac)
-        t = t + h
-        if t >= target * (wp.float64(1.0) - wp.float64(1.0e-13)):
-            t = target
-            mode[pad, M_LANDED] = 1
-        ctl[pad, C_T] = t
-    else:
-        fac = wp.clamp(wp.float64(0.9) * wp.pow(e, wp.float64(-0.2)), wp.float64(0.2), wp.float64(1.0))
-        mode[pad, M_REJECTED] = 1
-        stats[pad, 1] = stats[pad, 1] + wp.int64(1)
-        want = h * fac
-    if want < h_min:
-        done[2] = 1  # the error cannot be met: the run stops with a fault
-    want = wp.clamp(want, h_min, h_max)
-    ctl[pad, C_H] = want
-    if mode[pad, M_LANDED] != 0:
-        return
-    rest = target - t
-    nxt = wp.min(want, rest)
-    if rest - nxt < wp.float64(0.01) * nxt:  # no sliver step before the target
-        nxt = rest
-    ctl[pad, C_TRIAL] = nxt
+    accepted[pad] = pi_control(pad, err, h_max, h_min, ctl, mode, stats, done)
 
 
 @wp.kernel
@@ -372,12 +430,7 @@ def landing(
         return
     done[1] = 0
     for p in range(pads):
-        k = mode[p, M_SAMPLE] + 1  # sample times k·sample_dt, not sums of sample intervals
-        mode[p, M_SAMPLE] = k
-        ctl[p, C_START] = ctl[p, C_TARGET]
-        ctl[p, C_TARGET] = wp.float64(k) * sample_dt
-        ctl[p, C_TRIAL] = wp.min(ctl[p, C_H], sample_dt)
-        mode[p, M_LANDED] = 0
+        open_interval(p, sample_dt, ctl, mode)
 
 
 @wp.kernel
