@@ -436,8 +436,13 @@ def write_globals(
     globals_out[row, pad, 5] = centroid
 
 
-@wp.kernel
-def record_globals(
+@wp.func
+def record_pad(
+    pad: int,
+    lane: int,
+    threads: int,
+    row: int,
+    k: int,
     # Model:
     pad_patch_start: wp.array[wp.int32],
     normal_force: wp.array[Any],
@@ -454,20 +459,17 @@ def record_globals(
     k_t: wp.array[Any],
     x: wp.array[Any],
     y: wp.array[Any],
-    conditional: int,
-    threads: int,
     # State in:
     u_in: wp.array[Any],
     v_in: wp.array[Any],
     # Recorder:
-    counters: wp.array[wp.int32],
     globals_out: wp.array3d[wp.float64],
     watch_bound: wp.array[wp.float64],
     fault_out: wp.array2d[wp.int32],
     fault_value_out: wp.array[wp.float64],
 ):
-    """Per pad (one block, ``launch_tiled``): μ, torque [N m], friction radius [m], Σu̇ [m/s], Σ|u̇| [m/s], friction
-    centroid [m]; flags the first faulty patch.
+    """Sample k of pad ``pad`` (lane ``lane`` of its block of ``threads``) into globals row ``row``: μ, torque [N m],
+    friction radius [m], Σu̇ [m/s], Σ|u̇| [m/s], friction centroid [m]; flags the first faulty patch.
 
     μ = (Σ F_N,i f(ωr_i − u̇_i) + μ_pad F_matrix sign ω)/F_N (0 without load); T = Σ r_i F_i + r_m μ_pad F_m;
     r_eff = T / total friction force; centroid = |Σ F_i (x_i, y_i)| / |Σ F_i| over the patches (:func:`write_globals`).
@@ -478,9 +480,6 @@ def record_globals(
     patch whose energy speed s_i = √(u̇_i² + (k_T,i/m_i) u_i²) = √(2E_i/m_i) exceeds ``watch_bound[pad]`` [m/s]
     (E_i: the patch's kinetic and own-spring energy); fault_value_out[pad] = s_i; "first" is the lowest patch index.
     """
-    pad, lane = wp.tid()
-    if conditional != 0 and counters[3] == 0:
-        return
     a = pad_patch_start[pad]
     n = pad_patch_start[pad + 1] - a
     fsum = wp.float64(0.0)
@@ -524,23 +523,65 @@ def record_globals(
     if lane != 0:
         return
     write_globals(
-        globals_out, counters[1], pad, fsum, tsum, vsum, vabs, fxsum, fysum, omega, pad_mu_pad[pad],
+        globals_out, row, pad, fsum, tsum, vsum, vabs, fxsum, fysum, omega, pad_mu_pad[pad],
         pad_matrix_force[pad], pad_matrix_radius[pad], pad_load[pad],
     )  # fmt: skip
     if fault_out[pad, 0] >= 0:
         return
     if broken < n:
         fault_out[pad, 0] = broken
-        fault_out[pad, 1] = counters[0]
+        fault_out[pad, 1] = k
         fault_out[pad, 2] = 0
     elif runaway < n:
         g = a + runaway
         ui = wp.float64(u_in[g])
         vi = wp.float64(v_in[g])
         fault_out[pad, 0] = runaway
-        fault_out[pad, 1] = counters[0]
+        fault_out[pad, 1] = k
         fault_out[pad, 2] = 1
         fault_value_out[pad] = wp.sqrt(vi * vi + wp.float64(k_t[g] * inv_mass[g]) * ui * ui)
+
+
+@wp.kernel
+def record_globals(
+    # Model:
+    pad_patch_start: wp.array[wp.int32],
+    normal_force: wp.array[Any],
+    radius: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+    pad_mu_pad: wp.array[Any],
+    pad_load: wp.array[Any],
+    pad_matrix_force: wp.array[Any],
+    pad_matrix_radius: wp.array[Any],
+    inv_mass: wp.array[Any],
+    k_t: wp.array[Any],
+    x: wp.array[Any],
+    y: wp.array[Any],
+    conditional: int,
+    threads: int,
+    # State in:
+    u_in: wp.array[Any],
+    v_in: wp.array[Any],
+    # Recorder:
+    counters: wp.array[wp.int32],
+    globals_out: wp.array3d[wp.float64],
+    watch_bound: wp.array[wp.float64],
+    fault_out: wp.array2d[wp.int32],
+    fault_value_out: wp.array[wp.float64],
+):
+    """Per pad (one block, ``launch_tiled``): the sample ``counters[0]`` into globals row ``counters[1]``
+    (:func:`record_pad`); with ``conditional``, only when ``counters[3]`` flags a sample."""
+    pad, lane = wp.tid()
+    if conditional != 0 and counters[3] == 0:
+        return
+    record_pad(
+        pad, lane, threads, counters[1], counters[0], pad_patch_start, normal_force, radius, pad_omega, pad_mu_scale,
+        pad_slope, pad_decay, pad_mu_pad, pad_load, pad_matrix_force, pad_matrix_radius, inv_mass, k_t, x, y, u_in,
+        v_in, globals_out, watch_bound, fault_out, fault_value_out,
+    )  # fmt: skip
 
 
 @wp.kernel
