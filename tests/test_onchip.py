@@ -167,8 +167,9 @@ def test_engine_choice_and_refusals(device):
     assert choose_engine(model, "onchip") == "onchip"
     assert choose_engine(model, "general") == "general"
     assert choose_engine(model, "auto", "implicit-friction") == "general"
-    with pytest.raises(SceneError, match="strang"):
-        choose_engine(model, "onchip", "adaptive")
+    assert choose_engine(model, "auto", "adaptive") == "onchip"
+    with pytest.raises(SceneError, match="strang and adaptive"):
+        choose_engine(model, "onchip", "implicit-friction")
     with pytest.raises(SceneError, match="unknown engine"):
         choose_engine(model, "fast")
     grow = build_model([s.replace(growth=Growth(increment=1e-9, interval=1e-6))], device=device, precision="fp32")
@@ -204,7 +205,8 @@ def test_onchip_fault_matches_general(device):
 
 
 def test_cli_engine_option(tmp_path):
-    """``aca-warp hf --engine onchip`` runs the on-chip engine (on the CPU too) and records it in the stages."""
+    """``aca-warp hf --engine onchip`` runs the on-chip engine (on the CPU too; strang and adaptive, nothing else)
+    and records it in the stages."""
     import h5py
 
     from aca_warp.cli import main
@@ -214,7 +216,10 @@ def test_cli_engine_option(tmp_path):
     assert main([*args, "--engine", "onchip"]) == 0
     with h5py.File(out, "r") as f:
         assert "step:strang:onchip" in str(f.attrs["stages"]) and f["global/mu"].shape[0] == 3
-    assert main([*args, "--engine", "onchip", "--integrator", "adaptive", "--overwrite"]) == 2
+    assert main([*args, "--engine", "onchip", "--integrator", "implicit-friction", "--overwrite"]) == 2
+    assert main([*args, "--engine", "onchip", "--integrator", "adaptive", "--overwrite"]) == 0
+    with h5py.File(out, "r") as f:
+        assert "step:adaptive:onchip" in str(f.attrs["stages"]) and f["global/mu"].shape[0] == 3
 
 
 def test_ablations_for_profiling(device):

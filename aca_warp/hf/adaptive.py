@@ -42,6 +42,17 @@ def eval_lanes(device: wp.Device, patches: int) -> int:
     return EVAL_LANES
 
 
+def underflow_fault(t: float) -> SimulationFault:
+    """The fault of a pad whose error needs a step below MIN_STEP, at simulated time t [s]."""
+    return SimulationFault(
+        f"adaptive step fell below {MIN_STEP:g} s at t = {t:.6g} s: the tolerance cannot be met there",
+        time=t,
+        pad=-1,
+        patch=-1,
+        cause="step-size underflow",
+    )
+
+
 class AdaptiveStepper:
     """Device state and launches of the per-pad DP5/strang integrator for one model (general engine)."""
 
@@ -119,15 +130,7 @@ class AdaptiveStepper:
         done = self.done.numpy()
         # the last recorded sample: the pads' targets while they wait there, else the start of their interval
         t = float(self.ctl.numpy()[:, KA.C_TARGET if done[1] else KA.C_START].min())
-        fault = None
-        if done[2]:
-            fault = SimulationFault(
-                f"adaptive step fell below {MIN_STEP:g} s at t = {t:.6g} s: the tolerance cannot be met there",
-                time=t,
-                pad=-1,
-                patch=-1,
-                cause="step-size underflow",
-            )
+        fault = underflow_fault(t) if done[2] else None
         if done[0]:
             t = self.t_end
         return Progress(round(t / self.sample_dt), int(st[:, 0].max()), int(st[:, 1].sum()), t, bool(done[0]), fault)

@@ -5,7 +5,8 @@ around that — flushing chunks to a sink, the watchdog's faults, the progress b
 written once, here, for every engine:
 
 * :class:`~aca_warp.hf.general.GeneralEngine`: per-step kernels replayed from captured graphs, every integrator;
-* :class:`~aca_warp.hf.onchip.OnchipEngine`: one thread block (or cluster) per pad for many ``strang`` steps.
+* :class:`~aca_warp.hf.onchip.OnchipEngine`: one thread block (or cluster) per pad for many ``strang`` steps;
+* :class:`~aca_warp.hf.onchip_adaptive.OnchipAdaptiveEngine`: one thread block per pad for many ``adaptive`` trials.
 
 A new integrator or engine implements :class:`Engine` (docs/architecture.md).
 """
@@ -81,10 +82,15 @@ def make_engine(
     model: PadModel, state: HFState, options: RunOptions, record: Record, n_samples: int, tuning: EngineTuning
 ) -> Engine:
     """The engine ``options.engine`` resolves to (:func:`~aca_warp.hf.onchip.choose_engine`)."""
-    from aca_warp.hf.onchip import OnchipEngine
     from aca_warp.hf.onchip_layout import choose_engine
 
     if choose_engine(model, options.engine, options.integrator) == "onchip":
+        if options.integrator == "adaptive":
+            from aca_warp.hf.onchip_adaptive import OnchipAdaptiveEngine
+
+            return OnchipAdaptiveEngine(model, state, options, record, n_samples, tuning)
+        from aca_warp.hf.onchip import OnchipEngine
+
         return OnchipEngine(model, state, options, record, n_samples, tuning)
     from aca_warp.hf.general import GeneralEngine
 

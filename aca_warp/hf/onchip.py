@@ -56,19 +56,16 @@ _MODEL_ARRAYS = (
 )  # fmt: skip
 
 
-def _due(k: int, first: int, last: int, every: int) -> bool:
-    """Whether global sample k also records per-patch histories (``patch_sample_due`` of kernels.hf)."""
-    return first <= k <= last and (k - first) % every == 0
-
-
-def _cluster(model: PadModel, cluster: int | None) -> int:
-    """Blocks per pad: ``cluster`` checked, or :func:`default_cluster` on CUDA sm_90+ (else 1)."""
+def cluster_size(model: PadModel, cluster: int | None, split_fits_csr: bool | None = None) -> int:
+    """Blocks per pad: ``cluster`` checked, or :func:`default_cluster` on CUDA sm_90+ (else 1); ``split_fits_csr``
+    (default: whether only a pad split in two keeps its neighbour lists in shared memory) for the rule's last case."""
     dev = model.device
     if cluster is None:
         cluster = 1
         if dev.is_cuda and dev.arch >= 90:
-            split = not block_config(model, 1)[2] and block_config(model, 2)[2]  # the CSR fits only when split
-            cluster = default_cluster(model.pad_count, dev.sm_count, split)
+            if split_fits_csr is None:
+                split_fits_csr = not block_config(model, 1)[2] and block_config(model, 2)[2]
+            cluster = default_cluster(model.pad_count, dev.sm_count, split_fits_csr)
     if not 1 <= cluster <= MAX_CLUSTER:
         raise SceneError(f"cluster must be in [1, {MAX_CLUSTER}] blocks per pad, got {cluster}")
     if cluster > 1 and (dev.is_cpu or dev.arch < 90):
@@ -105,7 +102,7 @@ class OnchipEngine:
         self.estimate = self.solver.estimate
         self.sps = max(1, math.ceil(record.sample_dt / self.solver.dt - 1e-9))
         self.h = record.sample_dt / self.sps
-        self.blocks_per_pad = cluster = _cluster(model, tuning.cluster)
+        self.blocks_per_pad = cluster = cluster_size(model, tuning.cluster)
         self.block_dim, self.threads, csr_shared = block_config(model, cluster, tuning.block_dim, tuning.csr_shared)
         self.spl = self._samples_per_launch(tuning.samples_per_launch)
         self.recorder = Recorder(model, record, self.spl + 1, n_samples)
@@ -181,7 +178,7 @@ class OnchipEngine:
         k_next, rows, prows = (int(x) for x in rec.counters.numpy()[:3])
         self._launch(p.samples, reps, k_next, rows, prows)
         self.started = True
-        due = sum(1 for k in range(k_next, k_next + reps) if _due(k, rec.first, rec.last, rec.every))
+        due = sum(1 for k in range(k_next, k_next + reps) if rec.due(k))
         rec.counters.assign(np.array([k_next + reps, rows + reps, prows + due, 0], dtype=np.int32))
         samples = p.samples + reps
         return Progress(samples, samples * self.sps, 0, samples * self.record.sample_dt, samples >= self.n_samples)

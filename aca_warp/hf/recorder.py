@@ -137,6 +137,10 @@ class Recorder:
         self.displacement = wp.zeros((prow if self.want_u else 0, n), dtype=T, device=dev)
         self.sample_index = 0
 
+    def due(self, k: int) -> bool:
+        """Whether global sample k also records per-patch histories (``patch_sample_due`` of kernels.hf)."""
+        return self.first <= k <= self.last and (k - self.first) % self.every == 0
+
     @property
     def patch_stage(self) -> bool:
         """Whether per-patch histories are recorded at all."""

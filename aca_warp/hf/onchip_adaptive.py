@@ -1,0 +1,148 @@
+"""On-chip engine of the ``adaptive`` integrator: one thread block per pad runs its own DP5(4) trials and samples.
+
+Where the general engine runs a trial of every pad as 14 launches and lands every pad on each sample before any
+goes on (:mod:`aca_warp.hf.adaptive`), this engine runs one launch per chunk of sample intervals: each block
+steps its pad with its own clock, error control and samples (:mod:`aca_warp.kernels.hf_onchip_adaptive`), so a
+one-pad run pays a block barrier per stage instead of a kernel launch and a batch never waits for its slowest pad
+between samples. Initial control, error scales and checkpointed arrays are the general engine's
+(:class:`~aca_warp.hf.adaptive.AdaptiveStepper`); on the CPU the runs are bit-identical to it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from aca_warp.common.devices import block_threads
+from aca_warp.common.errors import SceneError
+from aca_warp.hf import adaptive
+from aca_warp.hf.engine import EngineTuning, Progress
+from aca_warp.hf.model import PadModel
+from aca_warp.hf.onchip import cluster_size
+from aca_warp.hf.options import RunOptions
+from aca_warp.hf.recorder import Recorder
+from aca_warp.hf.solver import HFSolver
+from aca_warp.hf.state import HFState
+from aca_warp.kernels import hf as K
+from aca_warp.kernels import hf_adaptive as KA
+from aca_warp.kernels import hf_onchip_adaptive as KO
+from aca_warp.scene import Record
+
+BLOCK = 512  # most threads per block by default (one hf1 pad on a cluster of 8: 224, one patch per thread)
+SAMPLES_PER_LAUNCH = 256  # sample intervals per launch (a chunk; the recorder holds one launch's rows)
+
+
+class OnchipAdaptiveEngine:
+    """The on-chip ``adaptive`` kernel (:class:`~aca_warp.hf.engine.Engine`). Tuning: ``cluster`` blocks per pad
+    (default :func:`~aca_warp.hf.onchip_layout.default_cluster` on CUDA sm_90+, else 1), ``block_dim`` threads per
+    block (default: a block's share of the largest pad rounded up to 32, at most ``BLOCK``), ``samples_per_launch``
+    sample intervals per launch (default ``SAMPLES_PER_LAUNCH``). On the CPU a block is one thread unless Warp's
+    CPU fibers are on."""
+
+    capture_time = 0.0
+
+    def __init__(
+        self,
+        model: PadModel,
+        state: HFState,
+        options: RunOptions,
+        record: Record,
+        n_samples: int,
+        tuning: EngineTuning,
+    ) -> None:
+        if "pad_growth" in model.arrays:
+            raise SceneError("on-chip engine: growing scenes run the adaptive integrator on the general engine")
+        self.model, self.state, self.record, self.n_samples = model, state, record, n_samples
+        self.solver = HFSolver(model, "adaptive", options.dt, force=options.force, tolerance=options.tolerance)
+        self.estimate = self.solver.estimate
+        spl = SAMPLES_PER_LAUNCH if tuning.samples_per_launch is None else tuning.samples_per_launch
+        if spl < 1:
+            raise SceneError(f"samples_per_launch must be at least 1, got {spl}")
+        self.spl = min(spl, n_samples)
+        self.blocks_per_pad = cluster = cluster_size(model, tuning.cluster, split_fits_csr=False)
+        most = -(-int(np.diff(model.pad_patch_start_host).max()) // cluster)  # patches of a block at most
+        self.block_dim = tuning.block_dim or min(BLOCK, -(-most // 32) * 32)
+        if not 1 <= self.block_dim <= 1024:
+            raise SceneError(f"block_dim must be in [1, 1024], got {self.block_dim}")
+        self.kernel = KO.onchip_dp5_kernel(model.dtype, cluster, self.block_dim)
+        dev = model.device
+        if cluster > 1 and wp.get_cuda_max_cluster_dim(self.kernel, dev, block_dim=self.block_dim) < cluster:
+            raise SceneError(
+                f"{dev.name} cannot launch a cluster of {cluster} blocks of {self.block_dim} threads per pad"
+            )
+        self.threads = block_threads(model.device, self.block_dim)
+        self.recorder = Recorder(model, record, self.spl + 1, n_samples)
+        self.t_end = n_samples * record.sample_dt
+        self.stepper = adaptive.AdaptiveStepper(model, state, self.solver, self.recorder, self.t_end)
+        self.stages = [
+            "contact",
+            "neighbours" if model.has_coupling else "no-coupling",
+            "step:adaptive:onchip",
+            "record:globals",
+        ] + (["record:patches"] if self.recorder.patch_stage else [])
+        self.cause = "extreme scene parameters (check loads, areas, speeds)"
+        self.started = False
+
+    # -- the Engine protocol
+
+    def saved(self) -> dict[str, wp.array]:
+        return self.stepper.saved()
+
+    def begin(self, resume: dict[str, int] | None) -> None:
+        if resume is None:
+            self.recorder.launch(self.state.u, self.state.v, conditional=False)  # sample 0: the initial state
+        else:
+            self.started = bool(resume.get("started", 0))
+        wp.load_module(self.kernel.module, device=self.model.device)
+        wp.load_module(K, device=self.model.device)
+
+    def advance(self, p: Progress, most: int) -> Progress:
+        rec = self.recorder
+        reps = min(self.spl, self.n_samples - p.samples, most)
+        k_next, rows, prows = (int(x) for x in rec.counters.numpy()[:3])
+        self._launch(reps, k_next, rows, prows)
+        self.started = True
+        mode = self.stepper.mode.numpy()
+        # samples recorded by every pad: up to its target's, less the one it is heading for
+        reached = int((mode[:, KA.M_SAMPLE] - 1 + mode[:, KA.M_LANDED]).min())
+        done_here = max(0, min(reps, reached - (k_next - 1)))
+        due = sum(1 for k in range(k_next, k_next + done_here) if rec.due(k))
+        rec.counters.assign(np.array([k_next + done_here, rows + done_here, prows + due, 0], dtype=np.int32))
+        st = self.stepper.stats.numpy()
+        samples = p.samples + done_here
+        t = samples * self.record.sample_dt
+        fault = None
+        if self.stepper.done.numpy()[2]:
+            fault = adaptive.underflow_fault(t)
+        return Progress(samples, int(st[:, 0].max()), int(st[:, 1].sum()), t, samples >= self.n_samples, fault)
+
+    def counters(self) -> dict[str, int]:
+        return {"started": int(self.started)}
+
+    def step_used(self) -> float:
+        return self.stepper.mean_step()
+
+    def finish(self) -> None:
+        """Nothing to close: the adaptive state is synchronous."""
+
+    def _launch(self, samples: int, k_next: int, rows: int, prows: int) -> None:
+        """One launch of ``samples`` sample intervals, rows counted from the recorder's."""
+        m, s, rec, st = self.model, self.state, self.recorder, self.stepper
+        f64 = wp.float64
+        wp.launch_tiled(
+            self.kernel,
+            dim=[m.pad_count * self.blocks_per_pad],
+            block_dim=self.block_dim,
+            device=m.device,
+            inputs=[
+                m.pad_patch_start, m.inv_mass, m.k_diag, m.damping, m.normal_force, m.radius, m.nbr_start,
+                m.nbr_index, m.nbr_stiffness, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay, m.pad_mu_pad,
+                m.pad_load, m.pad_matrix_force, m.pad_matrix_radius, m.k_t, m.x, m.y,
+                st.coeff, st.err_coeff, st.u_scale, st.v_scale, st.tol, f64(st.h_max), f64(adaptive.MIN_STEP),
+                f64(self.record.sample_dt), f64(self.t_end),
+                self.threads, samples, k_next, rows, prows, rec.first, rec.last, rec.every,
+                s.u, s.v, st.ku, st.kv, st.stage_u[0], st.stage_v[0], st.stage_u[1], st.stage_v[1],
+                st.ctl, st.mode, st.stats, st.done,
+                rec.globals, rec.watch_bound, rec.fault, rec.fault_value, rec.velocity, rec.displacement,
+            ],
+        )  # fmt: skip

@@ -1,0 +1,98 @@
+"""The on-chip adaptive engine (aca_warp.hf.onchip_adaptive) against the general engine's adaptive integrator.
+
+On the CPU Warp runs a block as one thread, so the on-chip kernel does the general kernels' per-patch operations
+in the same order: μ(t) and every global output, the per-patch histories, the final (u, u̇) and the step counts
+must be bit-identical, across launch boundaries and for two pads that take different steps. With Warp's CPU
+fibers a block has real threads and barriers: the state stays bit-identical (no cross-thread sums in it), which
+fails if a barrier is missing between a stage and the next (a thread would read a neighbour's stale stage state).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import warp as wp
+
+from aca_warp.common.errors import SceneError
+from aca_warp.hf.loop import EngineTuning, run_hf
+from aca_warp.hf.model import build_model
+from aca_warp.hf.options import RunOptions
+from aca_warp.hf.state import initial_state
+from aca_warp.scene import Growth, Initial, Record, preset
+
+RECORD = Record(sample_dt=1e-6, patches=("velocity", "displacement"), window=(2e-6, 1.5e-5), decimation=2)
+
+
+def _scenes():
+    """Two hf1 pads that differ in load, speed and initial state, so that they choose different steps."""
+    s = preset("hf1").replace(record=RECORD)
+    return [s, s.replace(normal_force=700.0, angular_velocity=5.0 / 0.13, initial=Initial(perturbation=0.02, seed=3))]
+
+
+def _run(engine: str, precision: str, fibers: bool = False, **tuning):
+    old = wp.config.enable_cpu_blocks
+    wp.config.enable_cpu_blocks = fibers
+    try:
+        model = build_model(_scenes(), device="cpu", precision=precision)
+        state = initial_state(model)
+        opts = RunOptions(duration=2e-5, integrator="adaptive", engine=engine, tolerance=1e-5)
+        res = run_hf(model, state, opts, tuning=EngineTuning(**tuning))
+    finally:
+        wp.config.enable_cpu_blocks = old
+    return res, res.collect(), state.u.numpy(), state.v.numpy()
+
+
+@pytest.mark.parametrize("precision", ["fp32", "fp64"])
+def test_bit_identical_to_general_on_cpu(precision):
+    rg, cg, ug, vg = _run("general", precision)
+    ro, co, uo, vo = _run("onchip", precision, samples_per_launch=7)  # three launches, the last one short
+    assert "step:adaptive:onchip" in ro.stages and "step:adaptive" in rg.stages
+    assert ro.complete and rg.complete and ro.steps == rg.steps and ro.rejected == rg.rejected
+    np.testing.assert_array_equal(co.time, cg.time)
+    np.testing.assert_array_equal(co.globals, cg.globals)
+    np.testing.assert_array_equal(co.patch_time, cg.patch_time)
+    np.testing.assert_array_equal(co.velocity, cg.velocity)
+    np.testing.assert_array_equal(co.displacement, cg.displacement)
+    np.testing.assert_array_equal(uo, ug)
+    np.testing.assert_array_equal(vo, vg)
+    assert co.globals.shape[0] == 21 and co.velocity.shape[0] == 7
+    assert np.ptp(cg.globals[1:, :, 0], axis=0).min() > 0  # μ moves: the comparison is not of a rest state
+
+
+def test_cpu_fibers_same_state():
+    """64 threads per block on Warp's CPU fibers: the state is the same bit for bit, the sums of the global
+    outputs differ only in summation order."""
+    _, cg, ug, vg = _run("general", "fp64")
+    _, co, uo, vo = _run("onchip", "fp64", fibers=True, block_dim=64, samples_per_launch=5)
+    np.testing.assert_array_equal(uo, ug)
+    np.testing.assert_array_equal(vo, vg)
+    np.testing.assert_array_equal(co.velocity, cg.velocity)
+    np.testing.assert_allclose(co.globals, cg.globals, rtol=1e-12, atol=1e-15)
+
+
+def test_step_underflow_is_a_fault_on_both_engines():
+    """A tolerance no step can meet: the step shrinks below MIN_STEP within the first interval and the run stops
+    with that fault at t = 0, keeping no sample after it, on both engines alike."""
+    faults = []
+    for engine in ("general", "onchip"):
+        model = build_model([preset("hf1").replace(record=Record(sample_dt=1e-6))], device="cpu")
+        res = run_hf(model, initial_state(model), RunOptions(duration=4e-6, integrator="adaptive", tolerance=1e-30,
+                                                             engine=engine))  # fmt: skip
+        assert not res.complete and res.fault is not None and res.fault.cause == "step-size underflow"
+        faults.append((res.fault.time, res.collect().globals.shape[0], res.rejected > 0))
+    assert faults[0] == faults[1] == (0.0, 0, True)
+
+
+def test_growing_scene_and_options():
+    """Growing scenes run the adaptive integrator on the general engine; bad tuning is refused."""
+    s = preset("hf1").replace(record=Record(sample_dt=1e-6), growth=Growth(increment=1e-9, interval=1e-6))
+    model = build_model([s], device="cpu")
+    with pytest.raises(SceneError, match="growing scenes run the adaptive integrator on the general engine"):
+        run_hf(model, initial_state(model), RunOptions(duration=2e-6, integrator="adaptive", engine="onchip"))
+    model = build_model([preset("hf1").replace(record=Record(sample_dt=1e-6))], device="cpu")
+    with pytest.raises(SceneError, match="samples_per_launch"):
+        run_hf(model, initial_state(model), RunOptions(duration=2e-6, integrator="adaptive", engine="onchip"),
+               tuning=EngineTuning(samples_per_launch=0))  # fmt: skip
+    with pytest.raises(SceneError, match="block_dim"):
+        run_hf(model, initial_state(model), RunOptions(duration=2e-6, integrator="adaptive", engine="onchip"),
+               tuning=EngineTuning(block_dim=2048))  # fmt: skip
