@@ -36,9 +36,51 @@ from aca_warp.kernels.hf_adaptive import (
     pi_control,
     stage_state,
 )
-from aca_warp.kernels.tiles import block_sync, cluster_sync, tile_load_rows, tile_store_rows, tile_store_rows_remote
+from aca_warp.kernels.tiles import (
+    block_sync,
+    cluster_sync,
+    lane_sum,
+    tile_load_rows,
+    tile_store_rows,
+    tile_store_rows_remote,
+)
 
 wp.set_module_options({"enable_backward": False})
+
+
+@wp.func
+def stage_rest(
+    i: int,
+    p: int,
+    stage: int,
+    fs: Any,
+    inv_mass: wp.array[Any],
+    damping: wp.array[Any],
+    normal_force: wp.array[Any],
+    radius: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+    coeff: wp.array2d[wp.float64],
+    ctl: wp.array2d[wp.float64],
+    u_in: wp.array[Any],
+    v_in: wp.array[Any],
+    v_stage: wp.array[Any],
+    ku: wp.array2d[Any],
+    kv: wp.array2d[Any],
+    u_next: wp.array[Any],
+    v_next: wp.array[Any],
+):
+    """Patch i's k_s from its elastic force ``fs`` [N] at the stage state and, for 0 < s < 6, its next stage state
+    (the rest of ``dp5_eval``)."""
+    v = v_stage[i]
+    ku[stage, i] = v
+    kv[stage, i] = acceleration(
+        i, p, fs, v, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay
+    )
+    if stage > 0 and stage + 1 < STAGES:
+        stage_state(i, p, stage + 1, coeff, ctl, u_in, v_in, ku, kv, u_next, v_next)
 
 
 @wp.func
@@ -69,24 +111,28 @@ def stage_eval(
     u_next: wp.array[Any],
     v_next: wp.array[Any],
 ):
-    """Patch i's k_s at the stage state and, for 0 < s < 6, its next stage state (``dp5_eval`` with one lane)."""
+    """Patch i's k_s and next stage state by one thread (``dp5_eval`` with one lane: the same sums)."""
     fs = spring_force(i, u_stage, k_diag, nbr_start, nbr_index, nbr_stiffness)
-    v = v_stage[i]
-    ku[stage, i] = v
-    kv[stage, i] = acceleration(
-        i, p, fs, v, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay
-    )
-    if stage > 0 and stage + 1 < STAGES:
-        stage_state(i, p, stage + 1, coeff, ctl, u_in, v_in, ku, kv, u_next, v_next)
+    stage_rest(
+        i, p, stage, fs, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff,
+        ctl, u_in, v_in, v_stage, ku, kv, u_next, v_next,
+    )  # fmt: skip
 
 
 @cache
-def onchip_dp5_kernel(dtype: Any, cluster: int = 1, block_dim: int = 256) -> wp.Kernel:
+def onchip_dp5_kernel(dtype: Any, cluster: int = 1, block_dim: int = 256, lanes: int = 1) -> wp.Kernel:
     """The on-chip DP5 kernel in precision ``dtype`` on ``cluster`` blocks per pad (CUDA sm_90+ for more than one)
     of ``block_dim`` threads. Launch with ``wp.launch_tiled(kernel, dim=[pads · cluster], block_dim=block_dim)``;
-    ``threads`` must be the block size the device really runs (``block_dim`` on CUDA or with CPU fibers, else 1)."""
+    ``threads`` must be the block size the device really runs (``block_dim`` on CUDA or with CPU fibers, else 1).
+
+    ``lanes`` (CUDA only, a power of two ≤ 32 dividing ``block_dim``): threads per patch of a stage evaluation;
+    lane l of a patch sums its links l, l + lanes, … and the lanes add their sums by warp shuffles
+    (:func:`~aca_warp.kernels.tiles.lane_sum`), so the links of a row are read side by side (coalesced) instead of
+    in one dependent chain. 1: one thread per patch, the general engine's sums (bit-identical on the CPU)."""
     T = dtype
     CLUSTER = wp.constant(cluster)
+    LANES = wp.constant(lanes)
+    total = lane_sum(dtype, lanes)
     SLOTS = wp.constant(max(cluster, 2))
     put_red = tile_store_rows(wp.float64, 2, max(cluster, 2))  # row 0: the blocks' errors; row 1: [accepted, stop]
     put_red_at = tile_store_rows_remote(wp.float64, 2, max(cluster, 2))
@@ -216,23 +262,59 @@ def onchip_dp5_kernel(dtype: Any, cluster: int = 1, block_dim: int = 256) -> wp.
             while landed == 0 and stop == 0:
                 stage = int(1)
                 while stage < STAGES:  # each evaluation also forms its patch's next stage state
-                    g = lo + lane
-                    while g < hi:
-                        if stage % 2 == 1:
-                            stage_eval(
-                                g, pad, stage, inv_mass, k_diag, damping, normal_force, radius, nbr_start, nbr_index,
-                                nbr_stiffness, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io,
-                                u_b, v_b, ku, kv, u_a, v_a,
-                            )  # fmt: skip
-                        else:
-                            stage_eval(
-                                g, pad, stage, inv_mass, k_diag, damping, normal_force, radius, nbr_start, nbr_index,
-                                nbr_stiffness, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io,
-                                u_a, v_a, ku, kv, u_b, v_b,
-                            )  # fmt: skip
-                        g += threads
-                    if stage + 1 < STAGES:  # the error reads the own patches' stages only
+                    if wp.static(lanes == 1):
+                        g = lo + lane
+                        while g < hi:
+                            if stage % 2 == 1:
+                                stage_eval(
+                                    g, pad, stage, inv_mass, k_diag, damping, normal_force, radius, nbr_start,
+                                    nbr_index, nbr_stiffness, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff,
+                                    ctl, u_io, v_io, u_b, v_b, ku, kv, u_a, v_a,
+                                )  # fmt: skip
+                            else:
+                                stage_eval(
+                                    g, pad, stage, inv_mass, k_diag, damping, normal_force, radius, nbr_start,
+                                    nbr_index, nbr_stiffness, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff,
+                                    ctl, u_io, v_io, u_a, v_a, ku, kv, u_b, v_b,
+                                )  # fmt: skip
+                            g += threads
+                    else:  # LANES threads per patch; every thread runs the same rounds (the shuffles need them all)
+                        slots = threads // LANES
+                        sub = lane % LANES
+                        own = hi - lo
+                        for r in range((own + slots - 1) // slots):
+                            j = r * slots + lane // LANES
+                            g = lo + j
+                            fsum = T(0.0)
+                            if j < own:
+                                link = nbr_start[g] + sub
+                                end = nbr_start[g + 1]
+                                if stage % 2 == 1:
+                                    while link < end:
+                                        fsum += nbr_stiffness[link] * u_b[nbr_index[link]]
+                                        link += LANES
+                                else:
+                                    while link < end:
+                                        fsum += nbr_stiffness[link] * u_a[nbr_index[link]]
+                                        link += LANES
+                            fsum = total(fsum)
+                            if sub == 0 and j < own:
+                                if stage % 2 == 1:
+                                    stage_rest(
+                                        g, pad, stage, fsum - k_diag[g] * u_b[g], inv_mass, damping, normal_force,
+                                        radius, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io,
+                                        v_b, ku, kv, u_a, v_a,
+                                    )  # fmt: skip
+                                else:
+                                    stage_rest(
+                                        g, pad, stage, fsum - k_diag[g] * u_a[g], inv_mass, damping, normal_force,
+                                        radius, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io,
+                                        v_a, ku, kv, u_b, v_b,
+                                    )  # fmt: skip
+                    if stage + 1 < STAGES:
                         pad_sync()
+                    elif wp.static(lanes > 1):  # the error and the commit read k_6 of the block's patches, which
+                        block_sync()  # other threads of the block wrote (with one lane per patch: the same thread)
                     stage += 1
                 h = ctl[pad, C_TRIAL]
                 part = wp.float64(0.0)

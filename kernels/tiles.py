@@ -22,6 +22,27 @@ wp.set_module_options({"enable_backward": False})
 def block_sync(): ...
 
 
+def lane_sum(dtype: Any, width: int) -> Any:
+    """``total(x)``: the sum of ``x`` over each group of ``width`` consecutive lanes of a warp (a power of two ≤ 32),
+    returned to every lane of the group, by warp shuffles (a tree); every lane of the warp must call it. On the CPU
+    it returns ``x`` (use ``width`` 1 there)."""
+    ctype = {4: "float", 8: "double"}[wp.types.type_size_in_bytes(dtype)]
+    snippet = f"""
+#if defined(__CUDA_ARCH__)
+    {ctype} s = x;
+    for (int o = {width} / 2; o > 0; o >>= 1) s += __shfl_xor_sync(0xffffffffu, s, o, {width});
+    return s;
+#else
+    return x;
+#endif
+"""
+
+    @wp.func_native(snippet)
+    def total(x: dtype) -> dtype: ...
+
+    return total
+
+
 def tile_store_1d(dtype: Any, size: int) -> Any:
     """``put(t, i, x)``: ``t[i] = x`` for one thread, no block barrier (t a tile of shape (size,))."""
 

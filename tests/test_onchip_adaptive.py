@@ -96,3 +96,12 @@ def test_growing_scene_and_options():
     with pytest.raises(SceneError, match="block_dim"):
         run_hf(model, initial_state(model), RunOptions(duration=2e-6, integrator="adaptive", engine="onchip"),
                tuning=EngineTuning(block_dim=2048))  # fmt: skip
+
+
+def test_cuda_lane_path_builds():
+    """The stage evaluation with several lanes per patch (warp shuffles; CUDA only, checked against the general
+    engine by scripts/onchip_gpu_check.py --integrator adaptive) passes Warp's code generation and compiles."""
+    from aca_warp.kernels.hf_onchip_adaptive import onchip_dp5_kernel
+
+    for dtype in (wp.float32, wp.float64):
+        wp.load_module(onchip_dp5_kernel(dtype, 1, 64, 8).module, device="cpu")

@@ -28,16 +28,44 @@ from aca_warp.kernels import hf_adaptive as KA
 from aca_warp.kernels import hf_onchip_adaptive as KO
 from aca_warp.scene import Record
 
-BLOCK = 512  # most threads per block by default (one hf1 pad on a cluster of 8: 224, one patch per thread)
+BLOCK = 512  # most threads per block by default
+# Threads per patch of a stage evaluation on CUDA when a block's patches take at most BLOCK threads that way (else
+# 1, and always 1 on the CPU). H200, hf1 1 ms tol 1e-5 fp64, one pad, seconds: 16 blocks 0.149 with 1 lane, 0.119
+# with 4 (512 threads), 0.121 with 8 (1024), 0.174 with 16 (1024); 8 blocks 0.151 with 1, 0.179 with 8 (1024);
+# 64 pads on 2 blocks: 0.269 with 1, 0.538 with 8 (1024).
+EVAL_LANES = 4
+WIDE_CLUSTER = 16  # blocks per pad for at most one pad per GPC (18 SMs) where the device launches them (else 8)
 SAMPLES_PER_LAUNCH = 256  # sample intervals per launch (a chunk; the recorder holds one launch's rows)
+
+
+def _layout(model: PadModel, tuning: EngineTuning) -> tuple[int, int, int, wp.Kernel]:
+    """(blocks per pad, lanes per patch, threads per block, kernel) from ``tuning`` or the defaults: the strang
+    engine's cluster rule, but WIDE_CLUSTER blocks for up to one pad per 18 SMs where the device can launch them;
+    EVAL_LANES lanes where a block's patches fit BLOCK threads so; the threads a block's patches need that way,
+    rounded up to 32, at most BLOCK."""
+    dev = model.device
+    most = int(np.diff(model.pad_patch_start_host).max())
+    cluster = cluster_size(model, tuning.cluster, split_fits_csr=False)
+    wide = tuning.cluster is None and cluster == 8 and model.pad_count <= max(dev.sm_count // 18, 1)
+    for k in (WIDE_CLUSTER, cluster) if wide else (cluster,):
+        per_block = -(-most // k)
+        lanes = EVAL_LANES if dev.is_cuda and per_block * EVAL_LANES <= BLOCK else 1
+        block_dim = tuning.block_dim or min(BLOCK, -(-per_block * lanes // 32) * 32)
+        if not 1 <= block_dim <= 1024 or block_dim % lanes:
+            raise SceneError(f"block_dim must be in [1, 1024] and a multiple of {lanes}, got {block_dim}")
+        kernel = KO.onchip_dp5_kernel(model.dtype, k, block_dim, lanes)
+        if k == 1 or wp.get_cuda_max_cluster_dim(kernel, dev, block_dim=block_dim) >= k:
+            return k, lanes, block_dim, kernel
+        if k == cluster:
+            raise SceneError(f"{dev.name} cannot launch a cluster of {k} blocks of {block_dim} threads per pad")
+    raise AssertionError("unreachable")
 
 
 class OnchipAdaptiveEngine:
     """The on-chip ``adaptive`` kernel (:class:`~aca_warp.hf.engine.Engine`). Tuning: ``cluster`` blocks per pad
-    (default :func:`~aca_warp.hf.onchip_layout.default_cluster` on CUDA sm_90+, else 1), ``block_dim`` threads per
-    block (default: a block's share of the largest pad rounded up to 32, at most ``BLOCK``), ``samples_per_launch``
-    sample intervals per launch (default ``SAMPLES_PER_LAUNCH``). On the CPU a block is one thread unless Warp's
-    CPU fibers are on."""
+    (default :func:`_layout`: 16 for one hf1 pad on an H100/H200, else as the strang engine), ``block_dim`` threads
+    per block (default :func:`_layout`), ``samples_per_launch`` sample intervals per launch (default
+    ``SAMPLES_PER_LAUNCH``). On the CPU a block is one thread unless Warp's CPU fibers are on."""
 
     capture_time = 0.0
 
@@ -59,17 +87,7 @@ class OnchipAdaptiveEngine:
         if spl < 1:
             raise SceneError(f"samples_per_launch must be at least 1, got {spl}")
         self.spl = min(spl, n_samples)
-        self.blocks_per_pad = cluster = cluster_size(model, tuning.cluster, split_fits_csr=False)
-        most = -(-int(np.diff(model.pad_patch_start_host).max()) // cluster)  # patches of a block at most
-        self.block_dim = tuning.block_dim or min(BLOCK, -(-most // 32) * 32)
-        if not 1 <= self.block_dim <= 1024:
-            raise SceneError(f"block_dim must be in [1, 1024], got {self.block_dim}")
-        self.kernel = KO.onchip_dp5_kernel(model.dtype, cluster, self.block_dim)
-        dev = model.device
-        if cluster > 1 and wp.get_cuda_max_cluster_dim(self.kernel, dev, block_dim=self.block_dim) < cluster:
-            raise SceneError(
-                f"{dev.name} cannot launch a cluster of {cluster} blocks of {self.block_dim} threads per pad"
-            )
+        self.blocks_per_pad, self.lanes, self.block_dim, self.kernel = _layout(model, tuning)
         self.threads = block_threads(model.device, self.block_dim)
         self.recorder = Recorder(model, record, self.spl + 1, n_samples)
         self.t_end = n_samples * record.sample_dt
