@@ -339,8 +339,8 @@ def run_bench(
     for npads in pads:
         for prec in precisions:
             for integ, eng in ((i, e) for i in integrators for e in engines):
-                if eng == "onchip" and integ != "strang":
-                    continue  # the on-chip kernel implements strang only
+                if eng == "onchip" and integ not in ("strang", "adaptive"):
+                    continue  # the on-chip engine implements strang and adaptive
                 r = run_case(sc, device, prec, integ, npads, dt, duration, stages=stages, engine=eng)
                 mu = r.pop("mu")
                 r["module_load_s"] = module_load
@@ -431,7 +431,7 @@ def add_parsers(sub: Any) -> None:
         nargs="+",
         choices=ENGINES,
         default=["auto"],
-        help="HF engines (default auto: on-chip on CUDA where possible, else general; onchip runs strang only)",
+        help="HF engines (default auto: on-chip on CUDA where possible, else general; onchip runs strang and adaptive)",
     )
     p.add_argument("--dt", type=positive, default=1.0e-8, metavar="S", help="fixed step [s] (default 1e-8)")
     p.add_argument("--duration", type=positive, default=2.0e-5, metavar="S", help="timed window [s] (default 2e-5)")

@@ -119,8 +119,13 @@ def stage_eval(
     )  # fmt: skip
 
 
+ABLATIONS = frozenset({"gather", "record", "sync"})
+
+
 @cache
-def onchip_dp5_kernel(dtype: Any, cluster: int = 1, block_dim: int = 256, lanes: int = 1) -> wp.Kernel:
+def onchip_dp5_kernel(
+    dtype: Any, cluster: int = 1, block_dim: int = 256, lanes: int = 1, ablate: frozenset[str] = frozenset()
+) -> wp.Kernel:
     """The on-chip DP5 kernel in precision ``dtype`` on ``cluster`` blocks per pad (CUDA sm_90+ for more than one)
     of ``block_dim`` threads. Launch with ``wp.launch_tiled(kernel, dim=[pads · cluster], block_dim=block_dim)``;
     ``threads`` must be the block size the device really runs (``block_dim`` on CUDA or with CPU fibers, else 1).
@@ -128,8 +133,17 @@ def onchip_dp5_kernel(dtype: Any, cluster: int = 1, block_dim: int = 256, lanes:
     ``lanes`` (CUDA only, a power of two ≤ 32 dividing ``block_dim``): threads per patch of a stage evaluation;
     lane l of a patch sums its links l, l + lanes, … and the lanes add their sums by warp shuffles
     (:func:`~aca_warp.kernels.tiles.lane_sum`), so the links of a row are read side by side (coalesced) instead of
-    in one dependent chain. 1: one thread per patch, the general engine's sums (bit-identical on the CPU)."""
+    in one dependent chain. 1: one thread per patch, the general engine's sums (bit-identical on the CPU).
+
+    ``ablate`` (profiling only, ``scripts/profile_onchip_adaptive.py``; the results are then wrong) leaves out
+    ``gather`` (the neighbour sums of the stage evaluations with lanes), ``record`` (the samples' global outputs)
+    or ``sync`` (the barriers between stages)."""
+    if not ablate <= ABLATIONS:
+        raise ValueError(f"unknown ablations {sorted(ablate - ABLATIONS)}")
     T = dtype
+    GATHER = wp.constant(0 if "gather" in ablate else 1)
+    RECORD = wp.constant(0 if "record" in ablate else 1)
+    SYNC = wp.constant(0 if "sync" in ablate else 1)
     CLUSTER = wp.constant(cluster)
     LANES = wp.constant(lanes)
     total = lane_sum(dtype, lanes)
@@ -289,6 +303,8 @@ def onchip_dp5_kernel(dtype: Any, cluster: int = 1, block_dim: int = 256, lanes:
                             if j < own:
                                 link = nbr_start[g] + sub
                                 end = nbr_start[g + 1]
+                                if GATHER == 0:
+                                    end = link
                                 if stage % 2 == 1:
                                     while link < end:
                                         fsum += nbr_stiffness[link] * u_b[nbr_index[link]]
@@ -311,7 +327,7 @@ def onchip_dp5_kernel(dtype: Any, cluster: int = 1, block_dim: int = 256, lanes:
                                         radius, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io,
                                         v_a, ku, kv, u_b, v_b,
                                     )  # fmt: skip
-                    if stage + 1 < STAGES:
+                    if stage + 1 < STAGES and SYNC != 0:
                         pad_sync()
                     elif wp.static(lanes > 1):  # the error and the commit read k_6 of the block's patches, which
                         block_sync()  # other threads of the block wrote (with one lane per patch: the same thread)
@@ -357,7 +373,7 @@ def onchip_dp5_kernel(dtype: Any, cluster: int = 1, block_dim: int = 256, lanes:
                 pad_sync()  # the commit and the next first stage are complete, the flags read before block 0 rewrites
             if stop == 0:
                 k = k0 + s
-                if rank == 0:
+                if rank == 0 and RECORD != 0:
                     record_pad(
                         pad, lane, threads, row0 + s, k, pad_patch_start, normal_force, radius, pad_omega,
                         pad_mu_scale, pad_slope, pad_decay, pad_mu_pad, pad_load, pad_matrix_force, pad_matrix_radius,

@@ -105,3 +105,16 @@ def test_cuda_lane_path_builds():
 
     for dtype in (wp.float32, wp.float64):
         wp.load_module(onchip_dp5_kernel(dtype, 1, 64, 8).module, device="cpu")
+
+
+def test_profiling_ablations():
+    """``ablate`` (scripts/profile_onchip_adaptive.py) leaves parts out: without ``record`` no sample after the
+    first has its global outputs; unknown names are refused."""
+    from aca_warp.kernels.hf_onchip_adaptive import onchip_dp5_kernel
+
+    model = build_model([preset("hf1").replace(record=Record(sample_dt=1e-6))], device="cpu")
+    opts = RunOptions(duration=3e-6, integrator="adaptive", engine="onchip")
+    g = run_hf(model, initial_state(model), opts, tuning=EngineTuning(ablate=frozenset({"record"}))).collect().globals
+    assert g[0, 0, 0] > 0 and np.all(g[1:] == 0)
+    with pytest.raises(ValueError, match="unknown ablations"):
+        onchip_dp5_kernel(wp.float64, ablate=frozenset({"friction"}))

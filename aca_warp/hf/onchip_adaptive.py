@@ -38,7 +38,7 @@ WIDE_CLUSTER = 16  # blocks per pad for at most one pad per GPC (18 SMs) where t
 SAMPLES_PER_LAUNCH = 256  # sample intervals per launch (a chunk; the recorder holds one launch's rows)
 
 
-def _layout(model: PadModel, tuning: EngineTuning) -> tuple[int, int, int, wp.Kernel]:
+def layout(model: PadModel, tuning: EngineTuning) -> tuple[int, int, int, wp.Kernel]:
     """(blocks per pad, lanes per patch, threads per block, kernel) from ``tuning`` or the defaults: the strang
     engine's cluster rule, but WIDE_CLUSTER blocks for up to one pad per 18 SMs where the device can launch them;
     EVAL_LANES lanes where a block's patches fit BLOCK threads so; the threads a block's patches need that way,
@@ -53,7 +53,7 @@ def _layout(model: PadModel, tuning: EngineTuning) -> tuple[int, int, int, wp.Ke
         block_dim = tuning.block_dim or min(BLOCK, -(-per_block * lanes // 32) * 32)
         if not 1 <= block_dim <= 1024 or block_dim % lanes:
             raise SceneError(f"block_dim must be in [1, 1024] and a multiple of {lanes}, got {block_dim}")
-        kernel = KO.onchip_dp5_kernel(model.dtype, k, block_dim, lanes)
+        kernel = KO.onchip_dp5_kernel(model.dtype, k, block_dim, lanes, frozenset(tuning.ablate))
         if k == 1 or wp.get_cuda_max_cluster_dim(kernel, dev, block_dim=block_dim) >= k:
             return k, lanes, block_dim, kernel
         if k == cluster:
@@ -63,9 +63,10 @@ def _layout(model: PadModel, tuning: EngineTuning) -> tuple[int, int, int, wp.Ke
 
 class OnchipAdaptiveEngine:
     """The on-chip ``adaptive`` kernel (:class:`~aca_warp.hf.engine.Engine`). Tuning: ``cluster`` blocks per pad
-    (default :func:`_layout`: 16 for one hf1 pad on an H100/H200, else as the strang engine), ``block_dim`` threads
-    per block (default :func:`_layout`), ``samples_per_launch`` sample intervals per launch (default
-    ``SAMPLES_PER_LAUNCH``). On the CPU a block is one thread unless Warp's CPU fibers are on."""
+    (default :func:`layout`: 16 for one hf1 pad on an H100/H200, else as the strang engine), ``block_dim`` threads
+    per block (default :func:`layout`), ``samples_per_launch`` sample intervals per launch (default
+    ``SAMPLES_PER_LAUNCH``), ``ablate`` (profiling only: ``kernels.hf_onchip_adaptive.ABLATIONS``). On the CPU a
+    block is one thread unless Warp's CPU fibers are on."""
 
     capture_time = 0.0
 
@@ -87,7 +88,7 @@ class OnchipAdaptiveEngine:
         if spl < 1:
             raise SceneError(f"samples_per_launch must be at least 1, got {spl}")
         self.spl = min(spl, n_samples)
-        self.blocks_per_pad, self.lanes, self.block_dim, self.kernel = _layout(model, tuning)
+        self.blocks_per_pad, self.lanes, self.block_dim, self.kernel = layout(model, tuning)
         self.threads = block_threads(model.device, self.block_dim)
         self.recorder = Recorder(model, record, self.spl + 1, n_samples)
         self.t_end = n_samples * record.sample_dt
