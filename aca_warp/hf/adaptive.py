@@ -12,7 +12,7 @@ docs/work_precision.md.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 import warp as wp
@@ -26,15 +26,22 @@ from aca_warp.hf.solver import HFSolver
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf_adaptive as KA
 
-if TYPE_CHECKING:
-    from aca_warp.hf.general import Growth
-
 MIN_STEP = 1.0e-15  # s; a pad whose error needs a smaller step stops the run (a fault)
 CONTROL_BLOCK = 256  # threads per pad of the error reduction and step control
 EVAL_LANES = 32  # threads per patch of a stage evaluation on CUDA, for small batches (links read in parallel)
 LANE_THREADS_PER_SM = 1024  # lanes only while patches × EVAL_LANES ≤ this × the device's SMs (else one per patch)
 ITERATIONS = 128  # trials (or strang steps) per pad per graph replay
 ROWS = 256  # sample rows the recorder holds between flushes (more than one replay can land)
+
+
+class GrowthEvents(Protocol):
+    """The growth events of a growing model (:class:`aca_warp.hf.general.Growth` with ``h`` None)."""
+
+    interval: float  # s, between events
+    step: wp.array  # int64 (1,): the event flag, set by the landing
+
+    def launch(self) -> None:
+        """The launches of one event, which run only while the flag is set."""
 
 
 def first_target(sample_dt: float, interval: float) -> float:
@@ -68,7 +75,7 @@ class AdaptiveStepper:
         solver: HFSolver,
         recorder: Recorder,
         t_end: float,
-        growth: Growth | None = None,
+        growth: GrowthEvents | None = None,
     ) -> None:
         self.model, self.state, self.solver, self.rec, self.growth = model, state, solver, recorder, growth
         dev, T, n, P = model.device, model.dtype, model.patch_count, model.pad_count

@@ -33,8 +33,8 @@ from aca_warp.scene import Record
 class Growth:
     """Growth events of a growing model on the general engine: the launches of one event, due every ``every``-th
     step of ``h`` [s] (fixed step; the device counts steps in ``step``) or, with ``h`` None (adaptive), wherever
-    the adaptive landing sets ``flag``: at the event times j·interval, each event adding the scene's increment
-    unscaled (``every`` = 1 of a step of one interval)."""
+    the adaptive landing sets ``step`` as the event flag: at the event times j·interval, each event adding the
+    scene's increment unscaled (``every`` = 1 of a step of one interval)."""
 
     def __init__(self, model: PadModel, h: float | None) -> None:
         self.model = model
