@@ -153,3 +153,15 @@ def test_onchip_engine_leaves_growing_adaptive_to_general():
     the general engine (``unsupported`` names why)."""
     model = build_model([growing_scene(2.0e-6)], device="cpu", precision="fp64")
     assert unsupported(model, "adaptive") is not None
+
+
+def test_script_table(capsys):
+    """``scripts/adaptive_growth.py`` on the varying_area preset's first 2 µs: one row per run, strang against
+    itself 0, the tightest adaptive run against itself 0; adaptive lands on 9 events and 2 samples."""
+    from scriptload import load_script
+
+    assert load_script("adaptive_growth").main(["--duration", "2e-6", "--tols", "1e-5"]) == 0
+    rows = [r.split("|")[1:-1] for r in capsys.readouterr().out.splitlines() if r.startswith("| ") and "run" not in r]
+    assert [r[0].strip() for r in rows] == ["strang 1e-08 s", "adaptive tol 1e-05"]
+    assert float(rows[0][7]) == 0.0 and float(rows[1][8]) == 0.0
+    assert int(rows[1][2]) >= 11 and int(rows[1][2]) > int(rows[1][4])  # ≥ one trial per target; fewer without
