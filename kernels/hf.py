@@ -143,7 +143,11 @@ def sign_or_zero(x: Any):
 
 @wp.func
 def growth_due(step: wp.array[wp.int64], every: int) -> bool:
-    """Whether the step just taken (``step[0]`` counts completed steps before it) ends a growth interval."""
+    """Whether a growth event is due. ``every`` > 0 (fixed step): whether the step just taken (``step[0]`` counts
+    completed steps before it) ends a growth interval; ``every`` = 0 (adaptive): whether ``step[0]``, the event
+    flag that the adaptive landing sets when every pad stands on an event time, is set."""
+    if every == 0:
+        return step[0] != wp.int64(0)
     return (step[0] + wp.int64(1)) % wp.int64(every) == wp.int64(0)
 
 
@@ -681,7 +685,7 @@ def grow_patches(
     k_n_out: wp.array[Any],
     damping_out: wp.array[Any],
 ):
-    """One growth event for every patch (:func:`grow_patch`) when ``step`` ends a growth interval."""
+    """One growth event for every patch (:func:`grow_patch`) when an event is due (:func:`growth_due`)."""
     i = wp.tid()
     if not growth_due(step, every):
         return
@@ -731,7 +735,7 @@ def coupling_stiffness(
     nbr_stiffness_out: wp.array[Any],
     k_diag_out: wp.array[Any],
 ):
-    """Coupling stiffnesses of every patch (:func:`patch_coupling`) when ``step`` ends a growth interval."""
+    """Coupling stiffnesses of every patch (:func:`patch_coupling`) when an event is due (:func:`growth_due`)."""
     i = wp.tid()
     if not growth_due(step, every):
         return
@@ -867,7 +871,7 @@ def contact_flat(
     pad_matrix_force_out: wp.array[Any],
     pad_matrix_radius_out: wp.array[Any],
 ):
-    """:func:`contact_block` for every pad (one thread block each) when ``step`` ends a growth interval."""
+    """:func:`contact_block` for every pad (one thread block each) when an event is due (:func:`growth_due`)."""
     pad, lane = wp.tid()
     if not growth_due(step, every):
         return

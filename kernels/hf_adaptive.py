@@ -8,10 +8,14 @@ largest friction force), and the friction weight M/|f′| at the trial's slip s_
 force to be right to tol·F_N M (near sticking a velocity error of M/f′ ≈ 8 mm/s already moves it by F_N M). PI step
 control (Gustafsson: k_I = 0.3, k_P = 0.4 over the order 5, factors 0.2–5, no growth right after a rejection);
 steps land exactly on the sample times, where every pad waits for the others so that a sample is recorded for all.
+In a growing model they land on the growth event times j·interval as well (a target is the earlier of the next
+sample and the next event): there the landing sets the event flag that the growth kernels read
+(:func:`~aca_warp.kernels.hf.growth_due` with ``every`` = 0) and every pad evaluates its first stage again.
 
 Per-pad control arrays: float64 ``ctl`` (pads, CTL): t, desired step, previous error (PI), target time, start of
 the interval, trial step; int32 ``mode`` (pads, MODE): landed, needs its first stage, last trial rejected, index of
-the target sample; int64 ``stats`` (pads, 2): accepted and rejected trials.
+the next sample (the target's, or the one after an event target), index of the next growth event; int64 ``stats``
+(pads, 2): accepted and rejected trials.
 """
 
 from __future__ import annotations
@@ -28,8 +32,11 @@ wp.set_module_options({"enable_backward": False})
 C_T, C_H, C_ERR, C_TARGET, C_START, C_TRIAL = 0, 1, 2, 3, 4, 5
 CTL = 6
 # mode columns (int32)
-M_LANDED, M_NEEDK1, M_REJECTED, M_SAMPLE = 0, 1, 2, 3
-MODE = 4
+M_LANDED, M_NEEDK1, M_REJECTED, M_SAMPLE, M_EVENT = 0, 1, 2, 3, 4
+MODE = 5
+# an event within this share of the shorter of the sample and event intervals from a sample time is at that time
+# (j·interval and k·sample_dt of the same instant differ by a few rounding units)
+EVENT_MERGE = 1.0e-9
 STAGES = 7
 
 # Dormand–Prince 5(4): a (7×7, row s: the stage-s combination of k_0 … k_{s-1}), e = b − b* (b = a[6], b_7 = 0)
@@ -238,6 +245,61 @@ def open_interval(p: int, sample_dt: wp.float64, ctl: wp.array2d[wp.float64], mo
     mode[p, M_LANDED] = 0
 
 
+@wp.func
+def merge_width(sample_dt: wp.float64, interval: wp.float64) -> wp.float64:
+    """How close [s] an event time must come to a sample time to be at it (:data:`EVENT_MERGE`)."""
+    return wp.float64(EVENT_MERGE) * wp.min(sample_dt, interval)
+
+
+@wp.func
+def next_target(p: int, sample_dt: wp.float64, interval: wp.float64, mode: wp.array2d[wp.int32]) -> wp.float64:
+    """Pad p's next target [s]: its next sample time k·sample_dt, or its next event time j·interval when that comes
+    earlier by more than the merge width (both products of an index, not sums of intervals)."""
+    ts = wp.float64(mode[p, M_SAMPLE]) * sample_dt
+    te = wp.float64(mode[p, M_EVENT]) * interval
+    if te < ts - merge_width(sample_dt, interval):
+        return te
+    return ts
+
+
+@wp.func
+def on_sample(p: int, sample_dt: wp.float64, interval: wp.float64, ctl: wp.array2d[wp.float64],
+              mode: wp.array2d[wp.int32]) -> bool:  # fmt: skip
+    """Whether pad p's target (:func:`next_target`) is its next sample time."""
+    return ctl[p, C_TARGET] >= wp.float64(mode[p, M_SAMPLE]) * sample_dt - merge_width(sample_dt, interval)
+
+
+@wp.func
+def on_event(p: int, sample_dt: wp.float64, interval: wp.float64, ctl: wp.array2d[wp.float64],
+             mode: wp.array2d[wp.int32]) -> bool:  # fmt: skip
+    """Whether pad p's target (:func:`next_target`) is its next growth event time (never without growth,
+    ``interval`` = 0)."""
+    if interval <= wp.float64(0.0):
+        return False
+    return ctl[p, C_TARGET] >= wp.float64(mode[p, M_EVENT]) * interval - merge_width(sample_dt, interval)
+
+
+@wp.func
+def open_growth_interval(
+    p: int, sample_dt: wp.float64, interval: wp.float64, ctl: wp.array2d[wp.float64], mode: wp.array2d[wp.int32]
+):
+    """:func:`open_interval` of a growing model: pad p, landed on its target (a sample time, an event time or
+    both), moves past what it landed on and heads for the next target; its first trial is its desired step, at
+    most the whole interval."""
+    sample = on_sample(p, sample_dt, interval, ctl, mode)
+    event = on_event(p, sample_dt, interval, ctl, mode)
+    if sample:
+        mode[p, M_SAMPLE] = mode[p, M_SAMPLE] + 1
+    if event:
+        mode[p, M_EVENT] = mode[p, M_EVENT] + 1
+    start = ctl[p, C_TARGET]
+    target = next_target(p, sample_dt, interval, mode)
+    ctl[p, C_START] = start
+    ctl[p, C_TARGET] = target
+    ctl[p, C_TRIAL] = wp.min(ctl[p, C_H], target - start)
+    mode[p, M_LANDED] = 0
+
+
 @wp.kernel
 def dp5_stage(
     # Model:
@@ -401,6 +463,7 @@ def dp5_commit(
 def landing(
     pads: int,
     sample_dt: wp.float64,
+    interval: wp.float64,
     t_end: wp.float64,
     t_stop: wp.array[wp.float64],
     # Control in/out:
@@ -408,17 +471,30 @@ def landing(
     mode: wp.array2d[wp.int32],
     done: wp.array[wp.int32],
     counters: wp.array[wp.int32],
+    event: wp.array[wp.int64],
 ):
-    """One thread: when every pad has landed on the sample time, flag the sample (``counters[3]``); then, unless
-    the run is over or stopped (``done[0]``, ``done[2]``: a step underflow) or the host asked to pause there
-    (``t_stop[0]``; ``done[1]`` waits until it is moved on), open every pad's next interval."""
+    """One thread: when every pad has landed on its target, flag a growth event there (``event[0]``, with every
+    pad's first stage due again; growing models, ``interval`` > 0) and a sample there (``counters[3]``); the growth
+    launches and then the recorder follow in the same iteration, so a sample at an event time sees the grown
+    patches, as on the fixed-step path. Then, unless the run is over or stopped (``done[0]``, ``done[2]``: a step
+    underflow) or the host asked to pause at this sample (``t_stop[0]``; ``done[1]`` waits until it is moved on),
+    open every pad's next interval."""
     counters[3] = 0
+    event[0] = wp.int64(0)
     if done[0] != 0 or done[2] != 0:
         return
     if done[1] == 0:
         for p in range(pads):
             if mode[p, M_LANDED] == 0:
                 return
+        if on_event(0, sample_dt, interval, ctl, mode):
+            event[0] = wp.int64(1)
+            for p in range(pads):
+                mode[p, M_NEEDK1] = 1  # k_0 (FSAL) was evaluated with the model before the event
+        if not on_sample(0, sample_dt, interval, ctl, mode):
+            for p in range(pads):
+                open_growth_interval(p, sample_dt, interval, ctl, mode)
+            return
         counters[3] = 1
         if ctl[0, C_TARGET] >= t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
             done[0] = 1
@@ -430,7 +506,10 @@ def landing(
         return
     done[1] = 0
     for p in range(pads):
-        open_interval(p, sample_dt, ctl, mode)
+        if interval > wp.float64(0.0):
+            open_growth_interval(p, sample_dt, interval, ctl, mode)
+        else:
+            open_interval(p, sample_dt, ctl, mode)
 
 
 @wp.kernel

@@ -3,12 +3,13 @@
 
 Runs the on-chip ``adaptive`` engine (``aca_warp.hf.onchip_adaptive``, its default layout unless ``--cluster`` /
 ``--block``) on hf1 from rest over ``--duration`` at ``--tolerance`` (fp64, samples every 1 µs), whole and with
-parts of the kernel left out (``gather``: the neighbour sums of the stage evaluations when they use lanes, the
-CUDA layout of one pad; ``record``: the samples' global outputs, ``sync``: the barriers between stages, and all three; an ablated run is wrong and only its time
-counts), and the general engine for comparison. Each case: a warm-up run that compiles, then the best of
-``--repeats`` timed runs (the stepping loop's wall time). µs per trial = wall / (accepted + rejected trials); the
-difference between the whole kernel and an ablated row is about the cost of the part left out (an ablated run may
-take a different number of trials, hence per trial). Writes a JSON list and a Markdown table.
+parts of the kernel left out — ``gather``: the neighbour sums of the stage evaluations when they use lanes (the
+CUDA layout of one pad); ``record``: the samples' global outputs; ``sync``: the barriers between stages; and all
+three (an ablated run is wrong and only its time counts) — and the general engine for comparison. Each case: a
+warm-up run that compiles, then the best of ``--repeats`` timed runs (the stepping loop's wall time). µs per
+trial = wall / (accepted + rejected trials); the difference between the whole kernel and an ablated row is about
+the cost of the part left out (an ablated run may take a different number of trials, hence per trial). Writes a
+JSON list and a Markdown table.
 
     python3 scripts/profile_onchip_adaptive.py --device cuda:0 --json $OUT/prof.json --markdown $OUT/prof.md
 """

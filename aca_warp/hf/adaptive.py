@@ -5,10 +5,14 @@ pair, its embedded 4th-order error estimate in a friction-weighted maximum norm 
 controller. In sliding it takes steps of tenths of a microsecond; near sticking, where the steep friction law has
 nanosecond transients, the friction weight shrinks its steps as far as the forces need. All pads land on every
 sample time (samples are exact states, no interpolation); one replay of the captured graph runs a fixed number of
-iterations, each one trial per pad. Choice and measurements: docs/numerics.md and docs/work_precision.md.
+iterations, each one trial per pad. In a growing model they land on every growth event time j·interval as well,
+where the growth launches run for all pads inside the graph. Choice and measurements: docs/numerics.md and
+docs/work_precision.md.
 """
 
 from __future__ import annotations
+
+from typing import Protocol
 
 import numpy as np
 import warp as wp
@@ -28,6 +32,24 @@ EVAL_LANES = 32  # threads per patch of a stage evaluation on CUDA, for small ba
 LANE_THREADS_PER_SM = 1024  # lanes only while patches × EVAL_LANES ≤ this × the device's SMs (else one per patch)
 ITERATIONS = 128  # trials (or strang steps) per pad per graph replay
 ROWS = 256  # sample rows the recorder holds between flushes (more than one replay can land)
+
+
+class GrowthEvents(Protocol):
+    """The growth events of a growing model (:class:`aca_warp.hf.general.Growth` with ``h`` None)."""
+
+    interval: float  # s, between events
+    step: wp.array  # int64 (1,): the event flag, set by the landing
+
+    def launch(self) -> None:
+        """The launches of one event, which run only while the flag is set."""
+
+
+def first_target(sample_dt: float, interval: float) -> float:
+    """The first target [s]: the first sample time, or the first growth event when it comes earlier by more than
+    the merge width (as :func:`~aca_warp.kernels.hf_adaptive.next_target` chooses; ``interval`` 0: no growth)."""
+    if interval > 0.0 and interval < sample_dt - KA.EVENT_MERGE * min(sample_dt, interval):
+        return interval
+    return sample_dt
 
 
 def eval_lanes(device: wp.Device, patches: int) -> int:
@@ -54,28 +76,42 @@ def underflow_fault(t: float) -> SimulationFault:
 
 
 class AdaptiveStepper:
-    """Device state and launches of the per-pad DP5/strang integrator for one model (general engine)."""
+    """Device state and launches of the per-pad DP5 integrator for one model (general engine); ``growth``: the
+    growth events of a growing model (their flag set by the landing, their launches between it and the recorder)."""
 
-    def __init__(self, model: PadModel, state: HFState, solver: HFSolver, recorder: Recorder, t_end: float) -> None:
-        self.model, self.state, self.solver, self.rec = model, state, solver, recorder
+    def __init__(
+        self,
+        model: PadModel,
+        state: HFState,
+        solver: HFSolver,
+        recorder: Recorder,
+        t_end: float,
+        growth: GrowthEvents | None = None,
+    ) -> None:
+        self.model, self.state, self.solver, self.rec, self.growth = model, state, solver, recorder, growth
         dev, T, n, P = model.device, model.dtype, model.patch_count, model.pad_count
         self.sample_dt = recorder.sample_dt
+        self.interval = 0.0 if growth is None else growth.interval
         self.t_end = t_end
         self.tol = wp.float64(solver.tolerance)
         self.h_max = self.sample_dt  # steps land on every sample: none is longer
-        self.h_start = min(solver.dt, self.sample_dt)  # the PI controller grows it up to 5× per accepted step
+        target = first_target(self.sample_dt, self.interval)
+        self.h_start = min(solver.dt, target)  # the PI controller grows it up to 5× per accepted step
         ctl = np.zeros((P, KA.CTL))
-        ctl[:, KA.C_TARGET] = self.sample_dt
+        ctl[:, KA.C_TARGET] = target
         ctl[:, KA.C_H] = self.h_start
         ctl[:, KA.C_TRIAL] = self.h_start
         ctl[:, KA.C_ERR] = 1.0e-4
         mode = np.zeros((P, KA.MODE), dtype=np.int32)
         mode[:, KA.M_NEEDK1] = 1
         mode[:, KA.M_SAMPLE] = 1
+        mode[:, KA.M_EVENT] = 1
         self.ctl = wp.array(ctl, dtype=wp.float64, device=dev)
         self.mode = wp.array(mode, dtype=wp.int32, device=dev)
         self.stats = wp.zeros((P, 2), dtype=wp.int64, device=dev)
         self.done = wp.zeros(3, dtype=wp.int32, device=dev)  # [run over, waiting at t_stop, step underflow]
+        # the growth event flag (set by the landing, read by the growth kernels); a placeholder without growth
+        self.event = wp.zeros(1, dtype=wp.int64, device=dev) if growth is None else growth.step
         self.t_stop = wp.array([t_end], dtype=wp.float64, device=dev)
         self.accepted = wp.zeros(P, dtype=wp.int32, device=dev)
         self.ku = wp.zeros((KA.STAGES, n), dtype=T, device=dev)
@@ -128,8 +164,9 @@ class AdaptiveStepper:
         done; a step underflow as a fault."""
         st = self.stats.numpy()
         done = self.done.numpy()
-        # the last recorded sample: the pads' targets while they wait there, else the start of their interval
-        t = float(self.ctl.numpy()[:, KA.C_TARGET if done[1] else KA.C_START].min())
+        # the last recorded sample: the pads' next sample while they wait there, else the one before it
+        k = int(self.mode.numpy()[:, KA.M_SAMPLE].min())
+        t = (k if done[1] else k - 1) * self.sample_dt
         fault = underflow_fault(t) if done[2] else None
         if done[0]:
             t = self.t_end
@@ -142,7 +179,7 @@ class AdaptiveStepper:
 
     def body(self) -> None:
         """One iteration: a trial of every pad that has not landed, the landing check and (when every pad has
-        landed) a sample."""
+        landed) a growth event and a sample, as the targets fall."""
         m, s, dev, n = self.model, self.state, self.model.device, self.model.patch_count
         ctl, mode = self.ctl, self.mode
         deriv = [m.patch_pad, m.inv_mass, m.k_diag, m.damping, m.normal_force, m.radius, m.nbr_start, m.nbr_index]
@@ -191,7 +228,9 @@ class AdaptiveStepper:
             KA.landing,
             dim=1,
             device=dev,
-            inputs=[m.pad_count, wp.float64(self.sample_dt), wp.float64(self.t_end), self.t_stop]
-            + [ctl, mode, self.done, self.rec.counters],
+            inputs=[m.pad_count, wp.float64(self.sample_dt), wp.float64(self.interval), wp.float64(self.t_end)]
+            + [self.t_stop, ctl, mode, self.done, self.rec.counters, self.event],
         )
+        if self.growth is not None:
+            self.growth.launch()
         self.rec.launch(s.u, s.v, conditional=True)

@@ -4,8 +4,9 @@ Fixed-step schemes take ``options.dt`` shortened so that a whole number of steps
 record one sample per interval; a chunk is a graph of up to ``max_graph_steps`` steps. ``adaptive`` steps every pad
 with its own step and mode, decided on the device (:mod:`aca_warp.hf.adaptive`); a chunk is a graph of 128
 iterations. Growing scenes run a growth event (areas, stiffnesses, the contact re-solve) every
-``growth.interval`` of simulated time, counted in steps on the device. Every stepping path is captured in a
-Warp graph (CPU and CUDA); the host reads back only a few counters per replay.
+``growth.interval`` of simulated time: counted in steps on the device (fixed step), or at the event times
+j·interval, on which every pad lands (adaptive). Every stepping path is captured in a Warp graph (CPU and CUDA);
+the host reads back only a few counters per replay.
 """
 
 from __future__ import annotations
@@ -18,29 +19,40 @@ from typing import Any
 import warp as wp
 
 from aca_warp.common.devices import block_threads
-from aca_warp.common.errors import SceneError
 from aca_warp.hf import adaptive
 from aca_warp.hf.engine import EngineTuning, Progress
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Recorder
-from aca_warp.hf.solver import CONTACT_BLOCK, GROWTH_MUTABLE, HFSolver, growth_events
+from aca_warp.hf.solver import CONTACT_BLOCK, GROWTH_MUTABLE, HFSolver, growth_events, growth_interval
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 from aca_warp.scene import Record
 
 
 class Growth:
-    """Growth events of a growing model on the general engine: launches of one event, due every ``every`` steps."""
+    """Growth events of a growing model on the general engine: the launches of one event, due every ``every``-th
+    step of ``h`` [s] (fixed step; the device counts steps in ``step``) or, with ``h`` None (adaptive), wherever
+    the adaptive landing sets ``step`` as the event flag: at the event times j·interval, each event adding the
+    scene's increment unscaled (``every`` = 1 of a step of one interval)."""
 
-    def __init__(self, model: PadModel, h: float) -> None:
+    def __init__(self, model: PadModel, h: float | None) -> None:
         self.model = model
-        self.every, self.per_event = growth_events(model, h)
+        self.interval = growth_interval(model)
+        self.counted = h is not None
+        self.every, self.per_event = growth_events(model, h if self.counted else self.interval)
+        # int64 (1,): the completed steps (fixed step) or the event flag (adaptive)
         self.step = wp.zeros(1, dtype=wp.int64, device=model.device)
+        self.due = (self.step, self.every if self.counted else 0)  # growth_due with every = 0 reads the flag
+
+    def saved(self) -> dict[str, wp.array]:
+        """What a checkpoint holds: the step count (fixed step) or the event flag (adaptive)."""
+        return {"growth/step" if self.counted else "growth/event": self.step}
 
     def launch(self) -> None:
-        """Count one step; on every ``every``-th, grow the areas, update the stiffnesses and re-solve the contact."""
-        m, dev, due = self.model, self.model.device, (self.step, self.every)
+        """Count one step (fixed step); when an event is due, grow the areas, update the stiffnesses and re-solve
+        the contact."""
+        m, dev, due = self.model, self.model.device, self.due
         wp.launch(
             K.grow_patches,
             dim=m.patch_count,
@@ -64,7 +76,8 @@ class Growth:
             + [m.pad_load, *due, block_threads(dev, CONTACT_BLOCK), m.pad_gap]
             + [m.normal_force, m.pad_matrix_force, m.pad_matrix_radius],
         )
-        wp.launch(K.tick, dim=1, device=dev, inputs=[self.step])
+        if self.counted:
+            wp.launch(K.tick, dim=1, device=dev, inputs=[self.step])
 
 
 class GeneralEngine:
@@ -88,8 +101,6 @@ class GeneralEngine:
         self.estimate = self.solver.estimate
         self.adaptive = integrator == "adaptive"
         growing = "pad_growth" in model.arrays
-        if growing and self.adaptive:
-            raise SceneError("patch growth needs a fixed-step integrator (growth events are counted in steps)")
         self.sps = max(1, math.ceil(record.sample_dt / self.solver.dt - 1e-9))
         self.h = record.sample_dt / self.sps
         self.block = max(1, min(n_samples, tuning.max_graph_steps // self.sps))
@@ -112,11 +123,11 @@ class GeneralEngine:
         self.growth = None
         if growing:
             self.stages.append("growth")
-            self.growth = Growth(model, self.h)
+            self.growth = Growth(model, None if self.adaptive else self.h)
         self.stepper = None
         if self.adaptive:
             t_end = n_samples * record.sample_dt
-            self.stepper = adaptive.AdaptiveStepper(model, state, self.solver, self.recorder, t_end)
+            self.stepper = adaptive.AdaptiveStepper(model, state, self.solver, self.recorder, t_end, self.growth)
         self.body: Callable[[], None] = self.stepper.body if self.stepper is not None else self._fixed_body
         self.graphs: dict[int, Any] = {}
         self.capture_time = 0.0
@@ -128,7 +139,7 @@ class GeneralEngine:
         if self.stepper is not None:
             out.update(self.stepper.saved())
         if self.growth is not None:
-            out["growth/step"] = self.growth.step
+            out.update(self.growth.saved())
             out.update({f"model/{k}": self.model.arrays[k] for k in GROWTH_MUTABLE})
         return out
 

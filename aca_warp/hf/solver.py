@@ -34,15 +34,21 @@ ADAPTIVE_FIRST_STEP = 1.0e-9  # s; the adaptive controller grows it by up to 5×
 CONTACT_BLOCK = 256  # threads per pad of the growth events' contact re-solve (Warp's default block size)
 
 
-def growth_events(model: PadModel, h: float) -> tuple[int, wp.array]:
-    """(steps per growth event, growth increment per event per pad [m], shape (pads,)) for step ``h`` [s].
-
-    An event every round(interval / h) steps; the increment is scaled so that growth per simulated time is exact.
-    """
+def growth_interval(model: PadModel) -> float:
+    """The growth interval [s] of a growing model, which all its growing pads share."""
     intervals = {s.growth.interval for s in model.scenes if s.growth is not None}
     if len(intervals) > 1:
         raise SceneError("all growing pads of a batch need the same growth.interval")
-    interval = intervals.pop()
+    return intervals.pop()
+
+
+def growth_events(model: PadModel, h: float) -> tuple[int, wp.array]:
+    """(steps per growth event, growth increment per event per pad [m], shape (pads,)) for step ``h`` [s].
+
+    An event every round(interval / h) steps; the increment is scaled so that growth per simulated time is exact
+    (h = interval, the adaptive integrator's events at the event times: every step, unscaled).
+    """
+    interval = growth_interval(model)
     every = max(1, round(interval / h))
     scale = every * h / interval
     return every, wp.array(model.host("pad_growth") * scale, dtype=model.dtype, device=model.device)
@@ -166,14 +172,19 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
     The bound is checked for the step the run takes (:func:`fitted_step`), not the one asked for. Beyond it a
     :class:`StabilityError` (exit 2), or with ``options.force`` a warning when strang does not resolve sticking
     (the explicit bounds stay silent when forced, as before). Steps per sample interval and per growth interval
-    are checked against int32 (the kernels count them so). ``options``: :class:`~aca_warp.hf.options.RunOptions`.
+    (adaptive: growth events of the run) are checked against int32 (the kernels count them so). ``options``:
+    :class:`~aca_warp.hf.options.RunOptions`.
     """
     from aca_warp.hf.limits import check_int32
     from aca_warp.hf.sanity import warn
 
     solver = HFSolver(model, options.integrator, options.dt, force=True, tolerance=options.tolerance)
     est = solver.estimate
-    if options.integrator == "adaptive":
+    if options.integrator == "adaptive":  # its steps are not counted; its growth events are (their index)
+        for scene in model.scenes:
+            if scene.growth is not None and options.duration is not None:
+                events = options.duration / scene.growth.interval
+                check_int32("growth events of the run", events, "choose a larger growth interval or a shorter run")
         return est
     h = fitted_step(solver.dt, sample_dt)
     check_int32(

@@ -1,0 +1,167 @@
+"""The adaptive integrator on growing scenes (CPU): growth events at their simulated times j·interval, on which
+every pad lands; the areas after the run, μ(t) against a piecewise SciPy reference and strang, the order of an
+event and a sample at the same time, checkpoint and resume."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aca_warp.common.checkpoint import Checkpoint
+from aca_warp.hf.general import Growth
+from aca_warp.hf.loop import RunResult, run_hf
+from aca_warp.hf.model import PadModel, build_model
+from aca_warp.hf.onchip_layout import unsupported
+from aca_warp.hf.options import RunOptions
+from aca_warp.hf.reference import ReferenceODE
+from aca_warp.hf.solver import GROWTH_MUTABLE
+from aca_warp.hf.state import initial_state
+from aca_warp.scene import Friction, Initial, Pad, Patches, Record, Scene
+from aca_warp.scene import Growth as GrowthLaw
+
+SAMPLE_DT = 1.0e-6  # s
+INCREMENT = 1.0e-6  # m: ΔA = 1e-6 m · √A per event, ≈ 0.5 % of an HF1 patch's area (1000× Eq. 10)
+
+
+def growing_scene(interval: float, duration: float = 1.0e-5) -> Scene:
+    """9 HF1-size patches sharing 20 N with the matrix, sliding at 10 m/s, growing every ``interval`` [s]."""
+    pos = [(i * 1.5e-3, 0.13 + j * 1.5e-3) for i in (-1, 0, 1) for j in (-1, 0, 1)]
+    area = np.random.default_rng(2).uniform(2e-8, 8e-8, len(pos))
+    p = Patches(np.array([q[0] for q in pos]), np.array([q[1] for q in pos]), area, np.full(len(pos), 3e-6))
+    return Scene(
+        name="grow",
+        pad=Pad(),
+        patches=p,
+        friction=Friction(M=0.8),
+        normal_force=20.0,
+        initial=Initial(perturbation=0.05, seed=3),
+        record=Record(sample_dt=SAMPLE_DT),
+        growth=GrowthLaw(increment=INCREMENT, interval=interval),
+        duration=duration,
+    )
+
+
+def run(scene: Scene, precision: str = "fp64", **options) -> tuple[RunResult, PadModel, np.ndarray]:
+    """A run of ``scene`` on the CPU: the result, the model after it and μ at every sample."""
+    model = build_model([scene], device="cpu", precision=precision)
+    res = run_hf(model, initial_state(model), RunOptions(engine="general", **options))
+    assert res.complete
+    return res, model, res.collect().globals[:, 0, 0]
+
+
+def eq10_areas(area: np.ndarray, events: int) -> np.ndarray:
+    """The areas after ``events`` events of Eq. 10, A ← A + g √A [m²] (NumPy, float64)."""
+    a = area.astype(np.float64)
+    for _ in range(events):
+        a = a + INCREMENT * np.sqrt(a)
+    return a
+
+
+def piecewise_reference(scene: Scene, duration: float) -> tuple[np.ndarray, np.ndarray]:
+    """μ at every sample time from SciPy (DOP853, rtol 1e-12) integrated between the event times, each event
+    applied by the model's growth launches; returns (μ after the events at a sample time, μ before them)."""
+    grown = build_model([scene], device="cpu", precision="fp64")
+    still = build_model([scene.replace(growth=None)], device="cpu", precision="fp64")
+    event = Growth(grown, scene.growth.interval)  # a step of one interval: an event at every launch
+    state = initial_state(grown)
+    u, v = state.u.numpy().astype(np.float64), state.v.numpy().astype(np.float64)
+    interval = scene.growth.interval
+    marks = {k * SAMPLE_DT: {"sample"} for k in range(round(duration / SAMPLE_DT) + 1)}
+    for j in range(1, int(duration / interval + 1e-9) + 1):
+        te, ts = j * interval, round(j * interval / SAMPLE_DT) * SAMPLE_DT
+        marks.setdefault(ts if abs(ts - te) <= 1e-9 * min(SAMPLE_DT, interval) else te, set()).add("event")
+    after, before = [], []
+    now = 0.0
+    for t in sorted(marks):
+        if t > now:
+            sol = ReferenceODE(still).solve(np.array([t - now]), method="DOP853", rtol=1e-12, u0=u, v0=v)
+            u, v, now = sol.u[-1], sol.v[-1], t
+        mu_before = ReferenceODE(still).globals(u[None], v[None])["mu"][0]
+        if "event" in marks[t]:
+            event.launch()
+            for name in GROWTH_MUTABLE:
+                if name in still.arrays:  # (not the contact solve's warm start, pad_gap)
+                    still.arrays[name].assign(grown.arrays[name])
+        if "sample" in marks[t]:
+            before.append(mu_before)
+            after.append(ReferenceODE(still).globals(u[None], v[None])["mu"][0])
+    return np.array(after), np.array(before)
+
+
+@pytest.mark.parametrize("precision", ["fp64", "fp32"])
+@pytest.mark.parametrize("interval", [2.0e-6, 2.5e-6, 3.3e-7])
+def test_areas_follow_the_events(interval, precision):
+    """Every event at j·interval up to the end (t = 10 µs included) adds g √A once (Eq. 10, unscaled): the areas
+    equal the NumPy sum of the events and strang's areas at dt = 1e-9 s (whose events fall on the same times)."""
+    s = growing_scene(interval)
+    tol = 1e-9 if precision == "fp64" else 1e-5
+    res, model, _ = run(s, precision, integrator="adaptive", tolerance=tol)
+    events = int(1.0e-5 / interval + 1e-9)
+    rtol = 1e-12 if precision == "fp64" else 1e-6
+    np.testing.assert_allclose(model.host("area"), eq10_areas(s.patches.area, events), rtol=rtol)
+    _, strang, _ = run(s, precision, integrator="strang", dt=1e-9)
+    np.testing.assert_allclose(model.host("area"), strang.host("area"), rtol=rtol)
+    np.testing.assert_allclose(model.host("normal_force"), strang.host("normal_force"), rtol=10 * rtol)
+    # at least one trial per event interval and per sample interval
+    assert res.steps >= events + 10
+
+
+def test_mu_matches_piecewise_reference_and_strang():
+    """μ(t) at tol 1e-9 against SciPy integrated between the events (interval 2.5 µs: events between samples and
+    on them) and against strang at 1e-9 s; a sample at an event time sees the grown patches (the fixed-step order:
+    growth after the step, the sample after it)."""
+    s = growing_scene(2.5e-6)
+    ref_after, ref_before = piecewise_reference(s, 1.0e-5)
+    _, _, mu = run(s, integrator="adaptive", tolerance=1e-9)
+    _, _, mu_strang = run(s, integrator="strang", dt=1e-9)
+    assert mu.shape == ref_after.shape == (11,)
+    np.testing.assert_allclose(mu, ref_after, rtol=0, atol=1e-10)  # measured 1.6e-12
+    np.testing.assert_allclose(mu_strang, ref_after, rtol=0, atol=5e-8)  # strang: 1.2e-8 at 1e-9 s, 2.3e-8 at 2e-9 s
+    # the events at 5 and 10 µs move μ by far more than the tolerance: the order is seen
+    coincide = [5, 10]
+    assert np.all(np.abs(ref_after[coincide] - ref_before[coincide]) > 1e-5)
+    np.testing.assert_allclose(mu[coincide], ref_after[coincide], rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize("precision", ["fp64", "fp32"])
+def test_checkpoint_resume_bit_identical(precision):
+    """Resuming from a checkpoint between events (areas, stiffnesses, contact, clocks, event index and flag) gives
+    the uninterrupted run's samples and final areas bit for bit."""
+    s = growing_scene(7.0e-7)
+    tol = 1e-8 if precision == "fp64" else 1e-5
+    opts = RunOptions(engine="general", integrator="adaptive", tolerance=tol, checkpoint_interval=3e-6)
+    model = build_model([s], device="cpu", precision=precision)
+    ckpts: list[Checkpoint] = []
+    full = run_hf(model, initial_state(model), opts, on_checkpoint=ckpts.append)
+    assert full.complete and len(ckpts) == 3
+    ck = ckpts[1]
+    assert "growth/event" in ck.arrays and "adaptive/mode" in ck.arrays
+    again = build_model([s], device="cpu", precision=precision)
+    rest = run_hf(again, initial_state(again), opts, resume=ck)
+    a, b = full.collect(), rest.collect()
+    k = len(a.time) - len(b.time)
+    assert k == int(ck.counters["samples"]) + 1
+    np.testing.assert_array_equal(a.time[k:], b.time)
+    np.testing.assert_array_equal(a.globals[k:], b.globals)
+    for name in ("area", "normal_force", "k_diag"):
+        np.testing.assert_array_equal(model.host(name), again.host(name))
+    assert (full.steps, full.rejected) == (rest.steps, rest.rejected)
+
+
+def test_onchip_engine_leaves_growing_adaptive_to_general():
+    """The on-chip engine implements growth for strang only: a growing scene with the adaptive integrator goes to
+    the general engine (``unsupported`` names why)."""
+    model = build_model([growing_scene(2.0e-6)], device="cpu", precision="fp64")
+    assert unsupported(model, "adaptive") is not None
+
+
+def test_script_table(capsys):
+    """``scripts/adaptive_growth.py`` on the varying_area preset's first 2 µs: one row per run, strang against
+    itself 0, the tightest adaptive run against itself 0; adaptive lands on 9 events and 2 samples."""
+    from scriptload import load_script
+
+    assert load_script("adaptive_growth").main(["--duration", "2e-6", "--tols", "1e-5"]) == 0
+    rows = [r.split("|")[1:-1] for r in capsys.readouterr().out.splitlines() if r.startswith("| ") and "run" not in r]
+    assert [r[0].strip() for r in rows] == ["strang 1e-08 s", "adaptive tol 1e-05"]
+    assert float(rows[0][7]) == 0.0 and float(rows[1][8]) == 0.0
+    assert int(rows[1][2]) >= 11 and int(rows[1][2]) > int(rows[1][4])  # ≥ one trial per target; fewer without
