@@ -12,8 +12,10 @@ group ``/checkpoint`` with two slots ``slot0`` and ``slot1`` and an attribute ``
     /checkpoint/slotK/arrays/NAME       (...)     device arrays in their own dtype, e.g. state/u [m] (n,),
                                                   state/v [m/s] (n,), state/force [N] (n,),
                                                   recorder/counters (4,), watchdog/bound [m/s] (pads,),
-                                                  adaptive/clock [s] (4,), adaptive/flags (3,),
-                                                  adaptive/steps (2,), growth/step (1,), model/area [m²] (n,), ...
+                                                  adaptive/ctl [s] (pads, 6), adaptive/mode (pads, 5),
+                                                  adaptive/stats (pads, 2), adaptive/done (3,), adaptive/ku and
+                                                  adaptive/kv (7, n), growth/step (1,) or, adaptive, growth/event
+                                                  (1,), model/area [m²] (n,), ... (each engine's ``saved()``)
 
 A checkpoint is written into the slot that is *not* active (raw data of fixed shape, rewritten in place), the
 file is flushed, then ``active`` flips to the new slot and the file is flushed again. A kill while the new slot
