@@ -35,6 +35,9 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--tolerance", type=float, default=1e-5, help="adaptive tolerance (default 1e-5)")
     ap.add_argument("--cluster", type=int, default=None, help="blocks per pad (default: the engine's)")
     ap.add_argument("--block", type=int, default=None, help="threads per block (default: the engine's)")
+    ap.add_argument(
+        "--lanes", type=int, default=None, help="threads per patch of a stage evaluation on CUDA (default: the engine)"
+    )
     ap.add_argument("--repeats", type=int, default=2, help="timed runs per case, best kept (default 2)")
     ap.add_argument("--json", type=Path, default=None, help="write the rows here")
     ap.add_argument("--markdown", type=Path, default=None, help="write a table here")
@@ -61,12 +64,15 @@ def main(argv: list[str] | None = None) -> int:
 
     wp.config.quiet = True
     from aca_warp.common.files import machine
+    from aca_warp.hf import onchip_adaptive
     from aca_warp.hf.loop import EngineTuning
     from aca_warp.hf.model import build_model
     from aca_warp.hf.onchip_adaptive import layout
     from aca_warp.hf.options import RunOptions
     from aca_warp.scene import Record, preset
 
+    if args.lanes is not None:  # the engine's rule with another lane count
+        onchip_adaptive.EVAL_LANES = args.lanes
     scene = preset("hf1").replace(record=Record(sample_dt=1e-6))
     model = build_model([scene] * args.pads, device=args.device, precision="fp64")
     options = RunOptions(duration=args.duration, integrator="adaptive", tolerance=args.tolerance)

@@ -30,9 +30,9 @@ from aca_warp.scene import Record
 
 BLOCK = 512  # most threads per block by default
 # Threads per patch of a stage evaluation on CUDA when a block's patches take at most BLOCK threads that way (else
-# 1, and always 1 on the CPU). H200, hf1 1 ms tol 1e-5 fp64, one pad, seconds: 16 blocks 0.149 with 1 lane, 0.119
-# with 4 (512 threads), 0.121 with 8 (1024), 0.174 with 16 (1024); 8 blocks 0.151 with 1, 0.179 with 8 (1024);
-# 64 pads on 2 blocks: 0.269 with 1, 0.538 with 8 (1024).
+# 1, and always 1 on the CPU): chosen from runs of one hf1 pad (1 ms, tol 1e-5, fp64) on an H200 with 1, 4, 8, 16
+# and 32 lanes on 8 and 16 blocks (4 lanes on 16 blocks the fastest, 20 % ahead of one lane), and of 64 pads on 2
+# blocks, where lanes made it 2× slower (scripts/profile_onchip_adaptive.py --cluster K --lanes L; docs/onchip.md).
 EVAL_LANES = 4
 WIDE_CLUSTER = 16  # blocks per pad for at most one pad per GPC (18 SMs) where the device launches them (else 8)
 SAMPLES_PER_LAUNCH = 256  # sample intervals per launch (a chunk; the recorder holds one launch's rows)

@@ -27,7 +27,7 @@ set-up is in the JSON); SciPy — ``solve_ivp``; diffrax — the jitted solve af
 
     python scripts/time_to_solution.py --out /tmp/tts                        # CPU (no batches), ~3 min
     python scripts/time_to_solution.py --device cuda:0 --out $OUT/tts        # GPU
-    python scripts/time_to_solution.py --report tts_cpu.json tts_cuda0.json  # docs/time_to_solution.md
+    python scripts/time_to_solution.py --report tts_cpu.json tts_h100.json   # docs/time_to_solution.md
 """
 
 from __future__ import annotations
