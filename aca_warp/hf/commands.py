@@ -76,10 +76,10 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "--engine",
         choices=ENGINES,
         default="auto",
-        help="onchip: one thread block per pad (a cluster of up to 8 on sm_90+ for a few pads), "
-        "many strang steps per launch (faster on CUDA; patch growth too); "
-        "general: per-step kernels (every integrator, checkpoints); auto (default): onchip on CUDA where the run "
-        "allows it, else general (docs/onchip.md)",
+        help="onchip: one thread block per pad (a cluster of up to 16 on sm_90+ for a few pads), many strang "
+        "steps or adaptive trials per launch (faster on CUDA; strang grows patches too); general: per-step kernels "
+        "(every integrator; adaptive with growth); auto (default): onchip on CUDA where the run allows it, and for "
+        "adaptive on the CPU too (docs/onchip.md)",
     )
 
 
