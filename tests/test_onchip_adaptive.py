@@ -118,3 +118,19 @@ def test_profiling_ablations():
     assert g[0, 0, 0] > 0 and np.all(g[1:] == 0)
     with pytest.raises(ValueError, match="unknown ablations"):
         onchip_dp5_kernel(wp.float64, ablate=frozenset({"friction"}))
+
+
+def test_non_finite_state_is_the_same_fault_on_both_engines():
+    """A patch with a non-finite velocity: the watchdog names it at sample 0 on both engines (the trial's error is
+    not finite, so no step is accepted after it either)."""
+    faults = []
+    for engine in ("general", "onchip"):
+        model = build_model([preset("hf1").replace(record=Record(sample_dt=1e-6))], device="cpu")
+        state = initial_state(model)
+        v = state.v.numpy()
+        v[123] = np.nan
+        state.v.assign(v)
+        res = run_hf(model, state, RunOptions(duration=4e-6, integrator="adaptive", engine=engine))
+        assert not res.complete and res.fault is not None
+        faults.append((res.fault.time, res.fault.pad, res.fault.patch, res.fault.cause))
+    assert faults[0] == faults[1] and faults[0][2] == 123
