@@ -597,3 +597,17 @@ def test_patch_history_window_and_decimation():
     np.testing.assert_array_equal(part.velocity, full.velocity[k])
     np.testing.assert_array_equal(part.globals, full.globals)  # global outputs are recorded at every sample
     assert len(part.time) == 51
+
+
+def test_dp5_stability_function():
+    """R(z) of the adaptive pair agrees with e^z to 5th order (the local error shrinks 64× when z halves), and its
+    stability interval on the negative real axis is DOPRI5's [−3.31, 0] (Hairer & Wanner); on the imaginary axis
+    |R| stays ≤ 1 up to about 1 only."""
+    from aca_warp.hf.adaptive import stability_bounds, stability_function
+
+    e1 = abs(stability_function(0.1) - np.exp(0.1))
+    e2 = abs(stability_function(0.05) - np.exp(0.05))
+    assert 55 < e1 / e2 < 72
+    x, y = stability_bounds()
+    assert 3.30 < x < 3.31 and 0.99 < y < 1.0
+    assert abs(stability_function(-3.4)) > 1 and abs(stability_function(2.0j)) > 1

@@ -64,6 +64,25 @@ def eval_lanes(device: wp.Device, patches: int) -> int:
     return EVAL_LANES
 
 
+def stability_function(z: complex) -> complex:
+    """R(z) of the Dormand–Prince 5(4) pair's 5th-order solution: y_{n+1} = R(hλ) y_n on y′ = λy."""
+    a = np.array(KA.DP5_A)
+    return complex(1.0 + z * a[-1] @ np.linalg.solve(np.eye(len(a)) - z * a, np.ones(len(a))))
+
+
+def stability_bounds(step: float = 1e-4) -> tuple[float, float]:
+    """(x, y): |R| ≤ 1 on the real interval [−x, 0] and on the imaginary segment [0, iy] (scanned outward from 0 in
+    steps of ``step``; |R| within 1e-9 of 1 counts as 1). The time step that keeps a real decay rate γ [1/s] stable
+    is x/γ, an undamped oscillation of ω [rad/s] y/ω."""
+    bounds = []
+    for unit in (-1.0, 1.0j):
+        k = 1
+        while abs(stability_function(unit * k * step)) <= 1.0 + 1e-9:
+            k += 1
+        bounds.append((k - 1) * step)
+    return bounds[0], bounds[1]
+
+
 def underflow_fault(t: float) -> SimulationFault:
     """The fault of a pad whose error needs a step below MIN_STEP, at simulated time t [s]."""
     return SimulationFault(
