@@ -39,8 +39,11 @@ from aca_warp.kernels.hf_adaptive import (
 from aca_warp.kernels.tiles import (
     block_sync,
     cluster_sync,
+    lane_first,
     lane_sum,
+    tile_load_1d,
     tile_load_rows,
+    tile_store_1d,
     tile_store_rows,
     tile_store_rows_remote,
 )
@@ -73,50 +76,17 @@ def stage_rest(
     v_next: wp.array[Any],
 ):
     """Patch i's k_s from its elastic force ``fs`` [N] at the stage state and, for 0 < s < 6, its next stage state
-    (the rest of ``dp5_eval``)."""
+    (the rest of ``dp5_eval``); returns that next stage displacement [m] (0 when there is none)."""
     v = v_stage[i]
     ku[stage, i] = v
     kv[stage, i] = acceleration(
         i, p, fs, v, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay
     )
+    un = v - v
     if stage > 0 and stage + 1 < STAGES:
         stage_state(i, p, stage + 1, coeff, ctl, u_in, v_in, ku, kv, u_next, v_next)
-
-
-@wp.func
-def stage_eval(
-    i: int,
-    p: int,
-    stage: int,
-    inv_mass: wp.array[Any],
-    k_diag: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    nbr_start: wp.array[wp.int32],
-    nbr_index: wp.array[wp.int32],
-    nbr_stiffness: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
-    coeff: wp.array2d[wp.float64],
-    ctl: wp.array2d[wp.float64],
-    u_in: wp.array[Any],
-    v_in: wp.array[Any],
-    u_stage: wp.array[Any],
-    v_stage: wp.array[Any],
-    ku: wp.array2d[Any],
-    kv: wp.array2d[Any],
-    u_next: wp.array[Any],
-    v_next: wp.array[Any],
-):
-    """Patch i's k_s and next stage state by one thread (``dp5_eval`` with one lane: the same sums)."""
-    fs = spring_force(i, u_stage, k_diag, nbr_start, nbr_index, nbr_stiffness)
-    stage_rest(
-        i, p, stage, fs, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff,
-        ctl, u_in, v_in, v_stage, ku, kv, u_next, v_next,
-    )  # fmt: skip
+        un = u_next[i]
+    return un
 
 
 ABLATIONS = frozenset({"gather", "record", "sync"})
@@ -124,39 +94,77 @@ ABLATIONS = frozenset({"gather", "record", "sync"})
 
 @cache
 def onchip_dp5_kernel(
-    dtype: Any, cluster: int = 1, block_dim: int = 256, lanes: int = 1, ablate: frozenset[str] = frozenset()
+    dtype: Any,
+    cluster: int = 1,
+    block_dim: int = 256,
+    lanes: int = 1,
+    nmax: int = 32,
+    emax: int = 0,
+    ablate: frozenset[str] = frozenset(),
 ) -> wp.Kernel:
     """The on-chip DP5 kernel in precision ``dtype`` on ``cluster`` blocks per pad (CUDA sm_90+ for more than one)
-    of ``block_dim`` threads. Launch with ``wp.launch_tiled(kernel, dim=[pads · cluster], block_dim=block_dim)``;
-    ``threads`` must be the block size the device really runs (``block_dim`` on CUDA or with CPU fibers, else 1).
+    of ``block_dim`` threads, for pads of at most ``nmax`` patches. Launch with ``wp.launch_tiled(kernel,
+    dim=[pads · cluster], block_dim=block_dim)``; ``threads`` must be the block size the device really runs
+    (``block_dim`` on CUDA or with CPU fibers, else 1).
+
+    Every block keeps the stage displacements of the whole pad in shared memory (two rows, ``nmax`` each: the odd
+    and the even stages), and each new stage displacement is stored into every block of the cluster (distributed
+    shared memory; visible after the next cluster barrier), so a stage's neighbour gathers read shared memory only.
+    ``emax`` > 0: the block's own neighbour lists (at most ``emax`` links, local int16 indices and k_ij) are kept
+    in shared memory too; 0: read from global memory.
 
     ``lanes`` (CUDA only, a power of two ≤ 32 dividing ``block_dim``): threads per patch of a stage evaluation;
     lane l of a patch sums its links l, l + lanes, … and the lanes add their sums by warp shuffles
-    (:func:`~aca_warp.kernels.tiles.lane_sum`), so the links of a row are read side by side (coalesced) instead of
-    in one dependent chain. 1: one thread per patch, the general engine's sums (bit-identical on the CPU).
+    (:func:`~aca_warp.kernels.tiles.lane_sum`). 1: one thread per patch, the general engine's sums in its order
+    (bit-identical on the CPU).
 
     ``ablate`` (profiling only, ``scripts/profile_onchip_adaptive.py``; the results are then wrong) leaves out
     ``gather`` (the neighbour sums of the stage evaluations with lanes), ``record`` (the samples' global outputs)
     or ``sync`` (the barriers between stages)."""
     if not ablate <= ABLATIONS:
         raise ValueError(f"unknown ablations {sorted(ablate - ABLATIONS)}")
+    if nmax >= 2**15:
+        raise ValueError(f"on-chip pads hold fewer than 32768 patches (int16 neighbour indices), got {nmax}")
     T = dtype
     GATHER = wp.constant(0 if "gather" in ablate else 1)
     RECORD = wp.constant(0 if "record" in ablate else 1)
     SYNC = wp.constant(0 if "sync" in ablate else 1)
     CLUSTER = wp.constant(cluster)
     LANES = wp.constant(lanes)
+    NMAX = wp.constant(nmax)
+    EMAX = wp.constant(max(emax, 1))
     total = lane_sum(dtype, lanes)
+    first_lane = lane_first(dtype, lanes)
     SLOTS = wp.constant(max(cluster, 2))
     put_red = tile_store_rows(wp.float64, 2, max(cluster, 2))  # row 0: the blocks' errors; row 1: [accepted, stop]
     put_red_at = tile_store_rows_remote(wp.float64, 2, max(cluster, 2))
     get_red = tile_load_rows(wp.float64, 2, max(cluster, 2))
+    put_u = tile_store_rows(dtype, 2, nmax)
+    put_u_at = tile_store_rows_remote(dtype, 2, nmax)
+    get_u = tile_load_rows(dtype, 2, nmax)
+    put_ei = tile_store_1d(wp.int16, max(emax, 1))
+    get_ei = tile_load_1d(wp.int16, max(emax, 1))
+    put_ek = tile_store_1d(dtype, max(emax, 1))
+    get_ek = tile_load_1d(dtype, max(emax, 1))
     pad_sync = block_sync if cluster == 1 else cluster_sync  # (a one-block "cluster" barrier would be dearer)
+
+    @wp.func
+    def share(us: wp.tile[T, 2, NMAX], row: int, i: int, x: T, q0: int, dq: int):
+        """Stage displacement ``x`` of local patch i into row ``row`` of the blocks q0, q0 + dq, … of the cluster."""
+        if wp.static(cluster == 1):
+            if q0 == 0:
+                put_u(us, row, i, x)
+        else:
+            q = q0
+            while q < CLUSTER:
+                put_u_at(us, row, i, x, q)
+                q += dq
 
     @wp.func
     def stage_one(
         lo: int,
         hi: int,
+        a: int,
         lane: int,
         threads: int,
         pad: int,
@@ -168,12 +176,83 @@ def onchip_dp5_kernel(
         kv: wp.array2d[T],
         u_b: wp.array[T],
         v_b: wp.array[T],
+        us: wp.tile[T, 2, NMAX],
     ):
-        """The first stage state y_1 of the block's patches lo … hi − 1 (global indices) at the pad's trial step."""
+        """The first stage state y_1 of the block's patches lo … hi − 1 (global indices) at the pad's trial step,
+        its displacements shared with every block (row 1)."""
         g = lo + lane
         while g < hi:
             stage_state(g, pad, 1, coeff, ctl, u_io, v_io, ku, kv, u_b, v_b)
+            share(us, 1, g - a, u_b[g], 0, 1)
             g += threads
+
+    @wp.func
+    def gather(
+        g: int,
+        a: int,
+        base: int,
+        row: int,
+        us: wp.tile[T, 2, NMAX],
+        sidx: wp.tile[wp.int16, EMAX],
+        sk: wp.tile[T, EMAX],
+        k_diag: wp.array[T],
+        nbr_start: wp.array[wp.int32],
+        nbr_index: wp.array[wp.int32],
+        nbr_stiffness: wp.array[T],
+    ):
+        """Elastic force on patch g [N] from the stage displacements in row ``row`` of the shared copy: the two
+        partial sums of :func:`~aca_warp.kernels.hf.spring_force` in its order (``base``: the block's first link)."""
+        a0 = T(0.0)
+        a1 = T(0.0)
+        e = nbr_start[g]
+        end = nbr_start[g + 1]
+        if wp.static(emax > 0):
+            p = e - base
+            pe = end - base
+            while p + 1 < pe:
+                a0 += get_ek(sk, p) * get_u(us, row, int(get_ei(sidx, p)))
+                a1 += get_ek(sk, p + 1) * get_u(us, row, int(get_ei(sidx, p + 1)))
+                p += 2
+            if p < pe:
+                a0 += get_ek(sk, p) * get_u(us, row, int(get_ei(sidx, p)))
+        else:
+            while e + 1 < end:
+                a0 += nbr_stiffness[e] * get_u(us, row, nbr_index[e] - a)
+                a1 += nbr_stiffness[e + 1] * get_u(us, row, nbr_index[e + 1] - a)
+                e += 2
+            if e < end:
+                a0 += nbr_stiffness[e] * get_u(us, row, nbr_index[e] - a)
+        return (a0 + a1) - k_diag[g] * get_u(us, row, g - a)
+
+    @wp.func
+    def lane_gather(
+        g: int,
+        a: int,
+        base: int,
+        row: int,
+        sub: int,
+        us: wp.tile[T, 2, NMAX],
+        sidx: wp.tile[wp.int16, EMAX],
+        sk: wp.tile[T, EMAX],
+        nbr_start: wp.array[wp.int32],
+        nbr_index: wp.array[wp.int32],
+        nbr_stiffness: wp.array[T],
+    ):
+        """Lane ``sub``'s part of the neighbour sum of patch g: its links sub, sub + LANES, …"""
+        part = T(0.0)
+        link = nbr_start[g] + sub
+        end = nbr_start[g + 1]
+        if GATHER == 0:
+            end = link
+        if wp.static(emax > 0):
+            while link < end:
+                part += get_ek(sk, link - base) * get_u(us, row, int(get_ei(sidx, link - base)))
+                link += LANES
+        else:
+            while link < end:
+                part += nbr_stiffness[link] * get_u(us, row, nbr_index[link] - a)
+                link += LANES
+        return part
 
     @wp.kernel(enable_backward=False, module="unique", launch_bounds=(block_dim, 1), cluster_dim=cluster)
     def onchip_dp5(
@@ -242,9 +321,9 @@ def onchip_dp5_kernel(
         """Advance pad ``pad`` through ``samples`` sample intervals (its interval is open unless the run is over),
         recording sample ``k0 + s`` into globals row ``row0 + s`` and, when due, per-patch rows from ``prow0``.
 
-        Stage states alternate between buffer b (odd stages) and a (even stages; the 5th-order solution y_6 ends in
-        a). The pad stops early when a step falls below ``h_min`` (``done[2]``, which stops every pad that sees it);
-        after the run's last sample (target ≥ ``t_end``) it stays landed.
+        Stage states alternate between buffer b (odd stages; shared row 1) and a (even stages, row 0; the
+        5th-order solution y_6 ends in a). The pad stops early when a step falls below ``h_min`` (``done[2]``,
+        which stops every pad that sees it); after the run's last sample (target ≥ ``t_end``) it stays landed.
         """
         blk, lane = wp.tid()
         pad = blk // CLUSTER
@@ -253,19 +332,30 @@ def onchip_dp5_kernel(
         n = pad_patch_start[pad + 1] - a
         lo = a + n * rank // CLUSTER  # this block's patches (global indices): lo … hi − 1
         hi = a + n * (rank + 1) // CLUSTER
+        base = nbr_start[lo]  # the block's first link
         red = wp.tile_zeros(shape=(2, SLOTS), dtype=wp.float64, storage="shared")
+        us = wp.tile_zeros(shape=(2, NMAX), dtype=T, storage="shared")
+        sidx = wp.tile_zeros(shape=EMAX, dtype=wp.int16, storage="shared")
+        sk = wp.tile_zeros(shape=EMAX, dtype=T, storage="shared")
+        if wp.static(emax > 0):
+            link = base + lane
+            while link < nbr_start[hi]:
+                put_ei(sidx, link - base, wp.int16(nbr_index[link] - a))
+                put_ek(sk, link - base, nbr_stiffness[link])
+                link += threads
+        pad_sync()  # every block's tiles are zeroed before another stores into them
         landed = mode[pad, M_LANDED]
         if landed == 0:
             if mode[pad, M_NEEDK1] != 0:  # k_0 at the state itself (the run's first trial)
                 g = lo + lane
                 while g < hi:
-                    stage_eval(
-                        g, pad, 0, inv_mass, k_diag, damping, normal_force, radius, nbr_start, nbr_index,
-                        nbr_stiffness, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io, u_io,
-                        v_io, ku, kv, u_b, v_b,
+                    fs = spring_force(g, u_io, k_diag, nbr_start, nbr_index, nbr_stiffness)
+                    stage_rest(
+                        g, pad, 0, fs, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope,
+                        pad_decay, coeff, ctl, u_io, v_io, v_io, ku, kv, u_b, v_b,
                     )  # fmt: skip
                     g += threads
-            stage_one(lo, hi, lane, threads, pad, coeff, ctl, u_io, v_io, ku, kv, u_b, v_b)
+            stage_one(lo, hi, a, lane, threads, pad, coeff, ctl, u_io, v_io, ku, kv, u_b, v_b, us)
         pad_sync()  # every block has read the mode before block 0 may change it
         if rank == 0 and lane == 0:
             mode[pad, M_NEEDK1] = 0
@@ -276,21 +366,23 @@ def onchip_dp5_kernel(
             while landed == 0 and stop == 0:
                 stage = int(1)
                 while stage < STAGES:  # each evaluation also forms its patch's next stage state
+                    row = stage % 2  # odd stages in row 1 (buffer b), even ones in row 0 (buffer a)
                     if wp.static(lanes == 1):
                         g = lo + lane
                         while g < hi:
-                            if stage % 2 == 1:
-                                stage_eval(
-                                    g, pad, stage, inv_mass, k_diag, damping, normal_force, radius, nbr_start,
-                                    nbr_index, nbr_stiffness, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff,
-                                    ctl, u_io, v_io, u_b, v_b, ku, kv, u_a, v_a,
+                            fs = gather(g, a, base, row, us, sidx, sk, k_diag, nbr_start, nbr_index, nbr_stiffness)
+                            if row == 1:
+                                un = stage_rest(
+                                    g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
+                                    pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io, v_b, ku, kv, u_a, v_a,
                                 )  # fmt: skip
                             else:
-                                stage_eval(
-                                    g, pad, stage, inv_mass, k_diag, damping, normal_force, radius, nbr_start,
-                                    nbr_index, nbr_stiffness, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff,
-                                    ctl, u_io, v_io, u_a, v_a, ku, kv, u_b, v_b,
+                                un = stage_rest(
+                                    g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
+                                    pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io, v_a, ku, kv, u_b, v_b,
                                 )  # fmt: skip
+                            if stage + 1 < STAGES:
+                                share(us, 1 - row, g - a, un, 0, 1)
                             g += threads
                     else:  # LANES threads per patch; every thread runs the same rounds (the shuffles need them all)
                         slots = threads // LANES
@@ -301,32 +393,27 @@ def onchip_dp5_kernel(
                             g = lo + j
                             fsum = T(0.0)
                             if j < own:
-                                link = nbr_start[g] + sub
-                                end = nbr_start[g + 1]
-                                if GATHER == 0:
-                                    end = link
-                                if stage % 2 == 1:
-                                    while link < end:
-                                        fsum += nbr_stiffness[link] * u_b[nbr_index[link]]
-                                        link += LANES
-                                else:
-                                    while link < end:
-                                        fsum += nbr_stiffness[link] * u_a[nbr_index[link]]
-                                        link += LANES
+                                fsum = lane_gather(g, a, base, row, sub, us, sidx, sk, nbr_start, nbr_index,
+                                                   nbr_stiffness)  # fmt: skip
                             fsum = total(fsum)
+                            un = T(0.0)
                             if sub == 0 and j < own:
-                                if stage % 2 == 1:
-                                    stage_rest(
-                                        g, pad, stage, fsum - k_diag[g] * u_b[g], inv_mass, damping, normal_force,
-                                        radius, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io,
-                                        v_b, ku, kv, u_a, v_a,
+                                fs = fsum - k_diag[g] * get_u(us, row, j + lo - a)
+                                if row == 1:
+                                    un = stage_rest(
+                                        g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
+                                        pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io, v_b, ku, kv, u_a,
+                                        v_a,
                                     )  # fmt: skip
                                 else:
-                                    stage_rest(
-                                        g, pad, stage, fsum - k_diag[g] * u_a[g], inv_mass, damping, normal_force,
-                                        radius, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io,
-                                        v_a, ku, kv, u_b, v_b,
+                                    un = stage_rest(
+                                        g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
+                                        pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io, v_a, ku, kv, u_b,
+                                        v_b,
                                     )  # fmt: skip
+                            un = first_lane(un)  # the lanes of the patch share its stores into the cluster
+                            if j < own and stage + 1 < STAGES:
+                                share(us, 1 - row, j + lo - a, un, sub, LANES)
                     if stage + 1 < STAGES and SYNC != 0:
                         pad_sync()
                     elif wp.static(lanes > 1):  # the error and the commit read k_6 of the block's patches, which
@@ -369,6 +456,7 @@ def onchip_dp5_kernel(
                         kv[0, g] = kv[STAGES - 1, g]
                     if landed == 0 and stop == 0:
                         stage_state(g, pad, 1, coeff, ctl, u_io, v_io, ku, kv, u_b, v_b)
+                        share(us, 1, g - a, u_b[g], 0, 1)
                     g += threads
                 pad_sync()  # the commit and the next first stage are complete, the flags read before block 0 rewrites
             if stop == 0:
@@ -392,8 +480,10 @@ def onchip_dp5_kernel(
                 pad_sync()
                 landed = mode[pad, M_LANDED]
                 if landed == 0:
-                    stage_one(lo, hi, lane, threads, pad, coeff, ctl, u_io, v_io, ku, kv, u_b, v_b)
+                    stage_one(lo, hi, a, lane, threads, pad, coeff, ctl, u_io, v_io, ku, kv, u_b, v_b, us)
                 pad_sync()  # the first stage is complete and the mode read before block 0 may change it
                 s += 1
+        if wp.static(cluster > 1):
+            cluster_sync()  # no block leaves while another may still store into its shared memory
 
     return onchip_dp5

@@ -43,6 +43,24 @@ def lane_sum(dtype: Any, width: int) -> Any:
     return total
 
 
+def lane_first(dtype: Any, width: int) -> Any:
+    """``first(x)``: the ``x`` of the first lane of each group of ``width`` consecutive lanes of a warp, to every
+    lane of the group (a warp shuffle; every lane of the warp must call it). On the CPU it returns ``x``."""
+    ctype = {4: "float", 8: "double"}[wp.types.type_size_in_bytes(dtype)]
+    snippet = f"""
+#if defined(__CUDA_ARCH__)
+    return __shfl_sync(0xffffffffu, ({ctype})x, 0, {width});
+#else
+    return x;
+#endif
+"""
+
+    @wp.func_native(snippet)
+    def first(x: dtype) -> dtype: ...
+
+    return first
+
+
 def tile_store_1d(dtype: Any, size: int) -> Any:
     """``put(t, i, x)``: ``t[i] = x`` for one thread, no block barrier (t a tile of shape (size,))."""
 

@@ -134,3 +134,19 @@ def test_non_finite_state_is_the_same_fault_on_both_engines():
         assert not res.complete and res.fault is not None
         faults.append((res.fault.time, res.fault.pad, res.fault.patch, res.fault.cause))
     assert faults[0] == faults[1] and faults[0][2] == 123
+
+
+def test_neighbour_lists_from_global_memory(monkeypatch):
+    """Where a block's neighbour lists do not fit shared memory beside the stage displacements (large pads on few
+    blocks), they are read from global memory: the same results bit for bit."""
+    import aca_warp.hf.onchip_adaptive as OA
+
+    model = build_model(_scenes()[:1], device="cpu")
+    assert OA.tile_sizes(model, 1)[1] > 0  # on the CPU an hf1 pad's lists fit
+    _, cg, ug, vg = _run("general", "fp64")
+    monkeypatch.setattr(OA, "smem_limit", lambda m: 64 * 1024)
+    assert OA.tile_sizes(model, 1)[1] == 0
+    _, co, uo, vo = _run("onchip", "fp64", samples_per_launch=9)
+    np.testing.assert_array_equal(co.globals, cg.globals)
+    np.testing.assert_array_equal(uo, ug)
+    np.testing.assert_array_equal(vo, vg)

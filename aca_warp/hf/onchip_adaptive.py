@@ -19,6 +19,7 @@ from aca_warp.hf import adaptive
 from aca_warp.hf.engine import EngineTuning, Progress
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.onchip import cluster_size
+from aca_warp.hf.onchip_layout import itemsize, pad_sizes, smem_limit
 from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import HFSolver
@@ -38,6 +39,17 @@ WIDE_CLUSTER = 16  # blocks per pad for at most one pad per GPC (18 SMs) where t
 SAMPLES_PER_LAUNCH = 256  # sample intervals per launch (a chunk; the recorder holds one launch's rows)
 
 
+def tile_sizes(model: PadModel, cluster: int) -> tuple[int, int]:
+    """(patches of the shared stage displacements, links of a block's shared neighbour lists or 0): the largest pad
+    rounded up to 32, and the most links of one block of ``cluster`` when they fit shared memory beside the
+    displacements (else 0: the lists are read from global memory)."""
+    nmax = -(-pad_sizes(model)[0] // 32) * 32
+    links = -(-pad_sizes(model, cluster)[1] // 32) * 32
+    b = itemsize(model)
+    fits = 2 * nmax * b + links * (2 + b) + 16 * max(cluster, 2) <= smem_limit(model)
+    return nmax, links if fits else 0
+
+
 def layout(model: PadModel, tuning: EngineTuning) -> tuple[int, int, int, wp.Kernel]:
     """(blocks per pad, lanes per patch, threads per block, kernel) from ``tuning`` or the defaults: the strang
     engine's cluster rule, but WIDE_CLUSTER blocks for up to one pad per 18 SMs where the device can launch them;
@@ -53,7 +65,7 @@ def layout(model: PadModel, tuning: EngineTuning) -> tuple[int, int, int, wp.Ker
         block_dim = tuning.block_dim or min(BLOCK, -(-per_block * lanes // 32) * 32)
         if not 1 <= block_dim <= 1024 or block_dim % lanes:
             raise SceneError(f"block_dim must be in [1, 1024] and a multiple of {lanes}, got {block_dim}")
-        kernel = KO.onchip_dp5_kernel(model.dtype, k, block_dim, lanes, frozenset(tuning.ablate))
+        kernel = KO.onchip_dp5_kernel(model.dtype, k, block_dim, lanes, *tile_sizes(model, k), frozenset(tuning.ablate))
         if k == 1 or wp.get_cuda_max_cluster_dim(kernel, dev, block_dim=block_dim) >= k:
             return k, lanes, block_dim, kernel
         if k == cluster:

@@ -159,8 +159,12 @@ def unsupported(model: PadModel, integrator: str = DEFAULT_INTEGRATOR) -> str | 
     """Why the on-chip engine cannot run this model with ``integrator`` (None when it can): ``strang`` keeps a pad in
     shared memory, ``adaptive`` keeps it in global memory and does not grow patches."""
     if integrator == "adaptive":
-        growing = "pad_growth" in model.arrays
-        return "growing scenes run the adaptive integrator on the general engine" if growing else None
+        if "pad_growth" in model.arrays:
+            return "growing scenes run the adaptive integrator on the general engine"
+        need = 2 * (-(-pad_sizes(model)[0] // 32) * 32) * itemsize(model)
+        if need > smem_limit(model):
+            return f"the stage displacements of a {pad_sizes(model)[0]}-patch pad need {need} B of shared memory"
+        return None
     if integrator != "strang":
         return f"the on-chip engine implements the strang and adaptive integrators only (got {integrator})"
     need, limit = shared_bytes(model, False), smem_limit(model)
