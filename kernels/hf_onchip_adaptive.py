@@ -7,9 +7,13 @@ evaluations separated by barriers of the pad (a stage reads its neighbours' stag
 threads and blocks), the pad's error as a maximum over its blocks (each block's maximum into block 0's shared
 table), the step decision by thread 0 of block 0 (:func:`~aca_warp.kernels.hf_adaptive.pi_control`, broadcast into
 every block's shared memory), the commit and the next trial's first stage state. On landing, block 0 records the
-sample (:func:`~aca_warp.kernels.hf.record_pad`, the per-patch histories) and opens the next interval. The state,
-the stages and the control live in the general engine's arrays in global memory (a cluster barrier releases and
-acquires them across its blocks), so a pad's step is its own and no launch waits for another pad.
+sample (:func:`~aca_warp.kernels.hf.record_pad`, the per-patch histories) and opens the next interval. Every block
+keeps the pad's stage displacements in shared memory, two rows (odd and even stages), and each new stage
+displacement is stored into every block of the cluster (distributed shared memory, released and acquired by the
+cluster barrier that follows), so the neighbour gathers read shared memory only; the block's neighbour lists are
+kept there too where they fit. The state, the stages, the stage velocities and the control stay in the general
+engine's arrays in global memory, so a pad's step is its own, no launch waits for another pad and checkpoints hold
+what the general engine's hold.
 
 Same per-patch arithmetic as the general engine's kernels (:mod:`aca_warp.kernels.hf_adaptive`: the same
 ``wp.func`` s in the same order), so on the CPU the runs are bit-identical to it; on CUDA the general engine may

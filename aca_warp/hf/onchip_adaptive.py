@@ -1,11 +1,14 @@
-"""On-chip engine of the ``adaptive`` integrator: one thread block per pad runs its own DP5(4) trials and samples.
+"""On-chip engine of the ``adaptive`` integrator: a thread block or cluster per pad runs its own DP5(4) trials and
+samples.
 
 Where the general engine runs a trial of every pad as 14 launches and lands every pad on each sample before any
 goes on (:mod:`aca_warp.hf.adaptive`), this engine runs one launch per chunk of sample intervals: each block
 steps its pad with its own clock, error control and samples (:mod:`aca_warp.kernels.hf_onchip_adaptive`), so a
-one-pad run pays a block barrier per stage instead of a kernel launch and a batch never waits for its slowest pad
-between samples. Initial control, error scales and checkpointed arrays are the general engine's
-(:class:`~aca_warp.hf.adaptive.AdaptiveStepper`); on the CPU the runs are bit-identical to it.
+one-pad run pays a barrier per stage instead of a kernel launch, its gathers read shared memory, and a batch never
+waits for its slowest pad between samples. A pad whose stage displacements do not fit shared memory runs on the
+general engine (:func:`~aca_warp.hf.onchip_layout.unsupported`). Initial control, error scales and checkpointed
+arrays are the general engine's (:class:`~aca_warp.hf.adaptive.AdaptiveStepper`); on the CPU the runs are
+bit-identical to it.
 """
 
 from __future__ import annotations
