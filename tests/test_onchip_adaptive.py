@@ -150,3 +150,26 @@ def test_neighbour_lists_from_global_memory(monkeypatch):
     np.testing.assert_array_equal(co.globals, cg.globals)
     np.testing.assert_array_equal(uo, ug)
     np.testing.assert_array_equal(vo, vg)
+
+
+def test_pads_of_different_sizes():
+    """An hf1 pad and the same pad without its last 700 patches (different patch counts and neighbour lists) in
+    one batch: bit-identical to the general engine, each pad with its own steps."""
+    import dataclasses
+
+    rec = Record(sample_dt=1e-6)
+    s = preset("hf1").replace(record=rec)
+    p = s.patches
+    small = dataclasses.replace(p, x=p.x[:-700], y=p.y[:-700], area=p.area[:-700], height=p.height[:-700])
+    out = {}
+    for engine in ("general", "onchip"):
+        model = build_model([s, s.replace(patches=small, normal_force=300.0)], device="cpu")
+        sizes = np.diff(model.pad_patch_start_host)
+        assert sizes[0] != sizes[1]
+        state = initial_state(model)
+        res = run_hf(model, state, RunOptions(duration=1e-5, integrator="adaptive", engine=engine),
+                     tuning=EngineTuning(samples_per_launch=4))  # fmt: skip
+        out[engine] = (res.collect().globals, state.u.numpy(), res.steps, res.rejected)
+    np.testing.assert_array_equal(out["onchip"][0], out["general"][0])
+    np.testing.assert_array_equal(out["onchip"][1], out["general"][1])
+    assert out["onchip"][2:] == out["general"][2:]
