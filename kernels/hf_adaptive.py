@@ -109,6 +109,31 @@ def acceleration(
 
 
 @wp.func
+def stage_state_h(
+    i: int,
+    stage: int,
+    coeff: wp.array2d[wp.float64],
+    h: wp.float64,
+    u_in: wp.array[Any],
+    v_in: wp.array[Any],
+    ku: wp.array2d[Any],
+    kv: wp.array2d[Any],
+    u_stage: wp.array[Any],
+    v_stage: wp.array[Any],
+):
+    """Patch i's stage state y_s = y_0 + h Σ_{j<s} a_sj k_j at trial step h [s]."""
+    hh = type(u_in[i])(h)
+    du = u_in[i] - u_in[i]
+    dv = du
+    for j in range(stage):
+        a = type(du)(coeff[stage, j])
+        du += a * ku[j, i]
+        dv += a * kv[j, i]
+    u_stage[i] = u_in[i] + hh * du
+    v_stage[i] = v_in[i] + hh * dv
+
+
+@wp.func
 def stage_state(
     i: int,
     p: int,
@@ -122,16 +147,8 @@ def stage_state(
     u_stage: wp.array[Any],
     v_stage: wp.array[Any],
 ):
-    """Patch i's (of pad p) stage state y_s = y_0 + h Σ_{j<s} a_sj k_j at the pad's trial step h."""
-    h = type(u_in[i])(ctl[p, C_TRIAL])
-    du = u_in[i] - u_in[i]
-    dv = du
-    for j in range(stage):
-        a = type(du)(coeff[stage, j])
-        du += a * ku[j, i]
-        dv += a * kv[j, i]
-    u_stage[i] = u_in[i] + h * du
-    v_stage[i] = v_in[i] + h * dv
+    """Patch i's (of pad p) stage state at the pad's trial step (:func:`stage_state_h`)."""
+    stage_state_h(i, stage, coeff, ctl[p, C_TRIAL], u_in, v_in, ku, kv, u_stage, v_stage)
 
 
 @wp.func
@@ -174,6 +191,90 @@ def patch_error(
     return wp.max(wp.abs(h * eu) / su, wp.abs(h * ev) / (tol * wv))
 
 
+CtlVec = wp.types.vector(length=CTL, dtype=wp.float64)
+ModeVec = wp.types.vector(length=MODE, dtype=wp.int32)
+
+
+@wp.func
+def load_control(p: int, ctl: wp.array2d[wp.float64], mode: wp.array2d[wp.int32]):
+    """Pad p's rows of ``ctl`` and ``mode`` as vectors."""
+    c = CtlVec()
+    m = ModeVec()
+    for j in range(CTL):
+        c[j] = ctl[p, j]
+    for j in range(MODE):
+        m[j] = mode[p, j]
+    return c, m
+
+
+@wp.func
+def store_control(p: int, c: CtlVec, m: ModeVec, ctl: wp.array2d[wp.float64], mode: wp.array2d[wp.int32]):
+    """Vectors ``c`` and ``m`` into pad p's rows of ``ctl`` and ``mode``."""
+    for j in range(CTL):
+        ctl[p, j] = c[j]
+    for j in range(MODE):
+        mode[p, j] = m[j]
+
+
+@wp.func
+def pi_decide(c: CtlVec, m: ModeVec, err: wp.float64, h_max: wp.float64, h_min: wp.float64):
+    """Accept or reject a trial of scaled error ``err`` of a pad with control ``c`` and mode ``m``, choose its
+    next step (PI) and land it on its target: (c, m, accepted, below h_min) after the decision."""
+    accepted = int(0)
+    if not wp.isfinite(err):
+        err = wp.float64(1.0e10)
+    h = c[C_TRIAL]
+    t = c[C_T]
+    target = c[C_TARGET]
+    want = c[C_H]
+    e = wp.max(err, wp.float64(1.0e-10))
+    if err <= wp.float64(1.0):  # PI controller (Gustafsson): k_I = 0.3, k_P = 0.4 over the order 5
+        fac = wp.float64(0.9) * wp.pow(e, wp.float64(-0.14)) * wp.pow(c[C_ERR], wp.float64(0.08))
+        top = wp.float64(5.0)
+        if m[M_REJECTED] != 0:
+            top = wp.float64(1.0)
+        fac = wp.clamp(fac, wp.float64(0.2), top)
+        m[M_REJECTED] = 0
+        accepted = 1
+        c[C_ERR] = wp.max(e, wp.float64(1.0e-4))
+        if h >= want:
+            want = h * fac
+        else:  # a step cut short to land says nothing against the desired one
+            want = wp.max(want, h * fac)
+        t = t + h
+        if t >= target * (wp.float64(1.0) - wp.float64(1.0e-13)):
+            t = target
+            m[M_LANDED] = 1
+        c[C_T] = t
+    else:
+        fac = wp.clamp(wp.float64(0.9) * wp.pow(e, wp.float64(-0.2)), wp.float64(0.2), wp.float64(1.0))
+        m[M_REJECTED] = 1
+        want = h * fac
+    underflow = int(0)
+    if want < h_min:
+        underflow = 1  # the error cannot be met: the run stops with a fault
+    want = wp.clamp(want, h_min, h_max)
+    c[C_H] = want
+    if m[M_LANDED] == 0:
+        rest = target - t
+        nxt = wp.min(want, rest)
+        if rest - nxt < wp.float64(0.01) * nxt:  # no sliver step before the target
+            nxt = rest
+        c[C_TRIAL] = nxt
+    return c, m, accepted, underflow
+
+
+@wp.func
+def count_trial(p: int, accepted: int, underflow: int, stats: wp.array2d[wp.int64], done: wp.array[wp.int32]):
+    """Pad p's accepted or rejected trial into ``stats``; a step below the minimum into ``done[2]``."""
+    if accepted != 0:
+        stats[p, 0] = stats[p, 0] + wp.int64(1)
+    else:
+        stats[p, 1] = stats[p, 1] + wp.int64(1)
+    if underflow != 0:
+        done[2] = 1
+
+
 @wp.func
 def pi_control(
     pad: int,
@@ -185,64 +286,34 @@ def pi_control(
     stats: wp.array2d[wp.int64],
     done: wp.array[wp.int32],
 ) -> int:
-    """Accept or reject pad ``pad``'s trial of scaled error ``err``, choose its next step (PI) and land it on its
-    target; returns 1 when accepted. ``done[2]`` flags a step below ``h_min`` (the pad cannot go on)."""
-    accepted = int(0)
-    if not wp.isfinite(err):
-        err = wp.float64(1.0e10)
-    h = ctl[pad, C_TRIAL]
-    t = ctl[pad, C_T]
-    target = ctl[pad, C_TARGET]
-    want = ctl[pad, C_H]
-    e = wp.max(err, wp.float64(1.0e-10))
-    if err <= wp.float64(1.0):  # PI controller (Gustafsson): k_I = 0.3, k_P = 0.4 over the order 5
-        fac = wp.float64(0.9) * wp.pow(e, wp.float64(-0.14)) * wp.pow(ctl[pad, C_ERR], wp.float64(0.08))
-        top = wp.float64(5.0)
-        if mode[pad, M_REJECTED] != 0:
-            top = wp.float64(1.0)
-        fac = wp.clamp(fac, wp.float64(0.2), top)
-        mode[pad, M_REJECTED] = 0
-        accepted = 1
-        stats[pad, 0] = stats[pad, 0] + wp.int64(1)
-        ctl[pad, C_ERR] = wp.max(e, wp.float64(1.0e-4))
-        if h >= want:
-            want = h * fac
-        else:  # a step cut short to land says nothing against the desired one
-            want = wp.max(want, h * fac)
-        t = t + h
-        if t >= target * (wp.float64(1.0) - wp.float64(1.0e-13)):
-            t = target
-            mode[pad, M_LANDED] = 1
-        ctl[pad, C_T] = t
-    else:
-        fac = wp.clamp(wp.float64(0.9) * wp.pow(e, wp.float64(-0.2)), wp.float64(0.2), wp.float64(1.0))
-        mode[pad, M_REJECTED] = 1
-        stats[pad, 1] = stats[pad, 1] + wp.int64(1)
-        want = h * fac
-    if want < h_min:
-        done[2] = 1  # the error cannot be met: the run stops with a fault
-    want = wp.clamp(want, h_min, h_max)
-    ctl[pad, C_H] = want
-    if mode[pad, M_LANDED] != 0:
-        return accepted
-    rest = target - t
-    nxt = wp.min(want, rest)
-    if rest - nxt < wp.float64(0.01) * nxt:  # no sliver step before the target
-        nxt = rest
-    ctl[pad, C_TRIAL] = nxt
+    """:func:`pi_decide` on pad ``pad``'s rows of ``ctl`` and ``mode``, counted in ``stats``; returns 1 when the
+    trial is accepted. ``done[2]`` flags a step below ``h_min`` (the pad cannot go on)."""
+    c, m = load_control(pad, ctl, mode)
+    c, m, accepted, underflow = pi_decide(c, m, err, h_max, h_min)
+    store_control(pad, c, m, ctl, mode)
+    count_trial(pad, accepted, underflow, stats, done)
     return accepted
 
 
 @wp.func
+def open_decide(c: CtlVec, m: ModeVec, sample_dt: wp.float64):
+    """A pad landed on its target sample heads for the next one (sample times k·sample_dt, not sums of
+    intervals); its first trial is its desired step, at most one interval: (c, m) after."""
+    k = m[M_SAMPLE] + 1
+    m[M_SAMPLE] = k
+    c[C_START] = c[C_TARGET]
+    c[C_TARGET] = wp.float64(k) * sample_dt
+    c[C_TRIAL] = wp.min(c[C_H], sample_dt)
+    m[M_LANDED] = 0
+    return c, m
+
+
+@wp.func
 def open_interval(p: int, sample_dt: wp.float64, ctl: wp.array2d[wp.float64], mode: wp.array2d[wp.int32]):
-    """Pad p, landed on its target sample, heads for the next one (sample times k·sample_dt, not sums of
-    intervals); its first trial is its desired step, at most one interval."""
-    k = mode[p, M_SAMPLE] + 1
-    mode[p, M_SAMPLE] = k
-    ctl[p, C_START] = ctl[p, C_TARGET]
-    ctl[p, C_TARGET] = wp.float64(k) * sample_dt
-    ctl[p, C_TRIAL] = wp.min(ctl[p, C_H], sample_dt)
-    mode[p, M_LANDED] = 0
+    """:func:`open_decide` on pad p's rows of ``ctl`` and ``mode``."""
+    c, m = load_control(p, ctl, mode)
+    c, m = open_decide(c, m, sample_dt)
+    store_control(p, c, m, ctl, mode)
 
 
 @wp.func

@@ -4,9 +4,10 @@ Dormand–Prince 5(4) trials, step control and samples for many sample intervals
 Block ``rank`` of a K-block cluster owns patches n·rank // K … n·(rank + 1) // K − 1 of the pad; its threads own
 every B-th of them (B threads; one on the CPU, where Warp runs a block as one thread). A trial is six stage
 evaluations separated by barriers of the pad (a stage reads its neighbours' stage displacements, written by other
-threads and blocks), the pad's error as a maximum over its blocks (each block's maximum into block 0's shared
-table), the step decision by thread 0 of block 0 (:func:`~aca_warp.kernels.hf_adaptive.pi_control`, broadcast into
-every block's shared memory), the commit and the next trial's first stage state. On landing, block 0 records the
+threads and blocks), the pad's error as a maximum over its blocks (each block's maximum stored into every block's
+shared table), the step decision (:func:`~aca_warp.kernels.hf_adaptive.pi_decide`), taken alike by thread 0 of
+every block on its own copy of the pad's control (block 0 writes it to ``ctl``/``mode`` for the host and the
+checkpoints), the commit and the next trial's first stage state. On landing, block 0 records the
 sample (:func:`~aca_warp.kernels.hf.record_pad`, the per-patch histories) and opens the next interval. Every block
 keeps the pad's stage displacements in shared memory, two rows (odd and even stages), and each new stage
 displacement is stored into every block of the cluster (distributed shared memory, released and acquired by the
@@ -35,10 +36,13 @@ from aca_warp.kernels.hf_adaptive import (
     M_NEEDK1,
     STAGES,
     acceleration,
-    open_interval,
+    count_trial,
+    load_control,
+    open_decide,
     patch_error,
-    pi_control,
-    stage_state,
+    pi_decide,
+    stage_state_h,
+    store_control,
 )
 from aca_warp.kernels.tiles import (
     block_sync,
@@ -70,7 +74,7 @@ def stage_rest(
     pad_slope: wp.array[Any],
     pad_decay: wp.array[Any],
     coeff: wp.array2d[wp.float64],
-    ctl: wp.array2d[wp.float64],
+    h: wp.float64,
     u_in: wp.array[Any],
     v_in: wp.array[Any],
     v_stage: wp.array[Any],
@@ -80,7 +84,7 @@ def stage_rest(
     v_next: wp.array[Any],
 ):
     """Patch i's k_s from its elastic force ``fs`` [N] at the stage state and, for 0 < s < 6, its next stage state
-    (the rest of ``dp5_eval``); returns that next stage displacement [m] (0 when there is none)."""
+    at trial step ``h`` [s] (the rest of ``dp5_eval``); returns that next displacement [m] (0 when there is none)."""
     v = v_stage[i]
     ku[stage, i] = v
     kv[stage, i] = acceleration(
@@ -88,7 +92,7 @@ def stage_rest(
     )
     un = v - v
     if stage > 0 and stage + 1 < STAGES:
-        stage_state(i, p, stage + 1, coeff, ctl, u_in, v_in, ku, kv, u_next, v_next)
+        stage_state_h(i, stage + 1, coeff, h, u_in, v_in, ku, kv, u_next, v_next)
         un = u_next[i]
     return un
 
@@ -139,10 +143,12 @@ def onchip_dp5_kernel(
     EMAX = wp.constant(max(emax, 1))
     total = lane_sum(dtype, lanes)
     first_lane = lane_first(dtype, lanes)
-    SLOTS = wp.constant(max(cluster, 2))
-    put_red = tile_store_rows(wp.float64, 2, max(cluster, 2))  # row 0: the blocks' errors; row 1: [accepted, stop]
-    put_red_at = tile_store_rows_remote(wp.float64, 2, max(cluster, 2))
-    get_red = tile_load_rows(wp.float64, 2, max(cluster, 2))
+    slots = max(cluster, 4)
+    SLOTS = wp.constant(slots)
+    # row 0: the blocks' error maxima; row 1: the decision [accepted, step underflow, trial step, landed]
+    put_red = tile_store_rows(wp.float64, 2, slots)
+    put_red_at = tile_store_rows_remote(wp.float64, 2, slots)
+    get_red = tile_load_rows(wp.float64, 2, slots)
     put_u = tile_store_rows(dtype, 2, nmax)
     put_u_at = tile_store_rows_remote(dtype, 2, nmax)
     get_u = tile_load_rows(dtype, 2, nmax)
@@ -173,7 +179,7 @@ def onchip_dp5_kernel(
         threads: int,
         pad: int,
         coeff: wp.array2d[wp.float64],
-        ctl: wp.array2d[wp.float64],
+        h: wp.float64,
         u_io: wp.array[T],
         v_io: wp.array[T],
         ku: wp.array2d[T],
@@ -182,11 +188,11 @@ def onchip_dp5_kernel(
         v_b: wp.array[T],
         us: wp.tile[T, 2, NMAX],
     ):
-        """The first stage state y_1 of the block's patches lo … hi − 1 (global indices) at the pad's trial step,
+        """The first stage state y_1 of the block's patches lo … hi − 1 (global indices) at trial step ``h`` [s],
         its displacements shared with every block (row 1)."""
         g = lo + lane
         while g < hi:
-            stage_state(g, pad, 1, coeff, ctl, u_io, v_io, ku, kv, u_b, v_b)
+            stage_state_h(g, 1, coeff, h, u_io, v_io, ku, kv, u_b, v_b)
             share(us, 1, g - a, u_b[g], 0, 1)
             g += threads
 
@@ -326,8 +332,8 @@ def onchip_dp5_kernel(
         recording sample ``k0 + s`` into globals row ``row0 + s`` and, when due, per-patch rows from ``prow0``.
 
         Stage states alternate between buffer b (odd stages; shared row 1) and a (even stages, row 0; the
-        5th-order solution y_6 ends in a). The pad stops early when a step falls below ``h_min`` (``done[2]``,
-        which stops every pad that sees it); after the run's last sample (target ≥ ``t_end``) it stays landed.
+        5th-order solution y_6 ends in a). The pad stops early when its step falls below ``h_min`` (block 0 sets
+        ``done[2]``); after the run's last sample (target ≥ ``t_end``) it stays landed.
         """
         blk, lane = wp.tid()
         pad = blk // CLUSTER
@@ -348,21 +354,24 @@ def onchip_dp5_kernel(
                 put_ek(sk, link - base, nbr_stiffness[link])
                 link += threads
         pad_sync()  # every block's tiles are zeroed before another stores into them
-        landed = mode[pad, M_LANDED]
+        # Every block keeps the pad's control (clock, steps, mode) and takes the same decisions on it; block 0 also
+        # writes it to ctl and mode (the checkpoint's and the host's copy), which no block reads during the launch.
+        c, m = load_control(pad, ctl, mode)
+        h = c[C_TRIAL]
+        landed = m[M_LANDED]
         if landed == 0:
-            if mode[pad, M_NEEDK1] != 0:  # k_0 at the state itself (the run's first trial)
+            if m[M_NEEDK1] != 0:  # k_0 at the state itself (the run's first trial)
                 g = lo + lane
                 while g < hi:
                     fs = spring_force(g, u_io, k_diag, nbr_start, nbr_index, nbr_stiffness)
                     stage_rest(
                         g, pad, 0, fs, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope,
-                        pad_decay, coeff, ctl, u_io, v_io, v_io, ku, kv, u_b, v_b,
+                        pad_decay, coeff, h, u_io, v_io, v_io, ku, kv, u_b, v_b,
                     )  # fmt: skip
                     g += threads
-            stage_one(lo, hi, a, lane, threads, pad, coeff, ctl, u_io, v_io, ku, kv, u_b, v_b, us)
-        pad_sync()  # every block has read the mode before block 0 may change it
-        if rank == 0 and lane == 0:
-            mode[pad, M_NEEDK1] = 0
+            stage_one(lo, hi, a, lane, threads, pad, coeff, h, u_io, v_io, ku, kv, u_b, v_b, us)
+        m[M_NEEDK1] = 0
+        pad_sync()  # every block has read ctl and mode before block 0 writes them
         stop = int(0)
         prow = prow0
         s = int(0)
@@ -378,12 +387,12 @@ def onchip_dp5_kernel(
                             if row == 1:
                                 un = stage_rest(
                                     g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
-                                    pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io, v_b, ku, kv, u_a, v_a,
+                                    pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_b, ku, kv, u_a, v_a,
                                 )  # fmt: skip
                             else:
                                 un = stage_rest(
                                     g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
-                                    pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io, v_a, ku, kv, u_b, v_b,
+                                    pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_a, ku, kv, u_b, v_b,
                                 )  # fmt: skip
                             if stage + 1 < STAGES:
                                 share(us, 1 - row, g - a, un, 0, 1)
@@ -406,13 +415,13 @@ def onchip_dp5_kernel(
                                 if row == 1:
                                     un = stage_rest(
                                         g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
-                                        pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io, v_b, ku, kv, u_a,
+                                        pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_b, ku, kv, u_a,
                                         v_a,
                                     )  # fmt: skip
                                 else:
                                     un = stage_rest(
                                         g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
-                                        pad_mu_scale, pad_slope, pad_decay, coeff, ctl, u_io, v_io, v_a, ku, kv, u_b,
+                                        pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_a, ku, kv, u_b,
                                         v_b,
                                     )  # fmt: skip
                             un = first_lane(un)  # the lanes of the patch share its stores into the cluster
@@ -423,7 +432,6 @@ def onchip_dp5_kernel(
                     elif wp.static(lanes > 1):  # the error and the commit read k_6 of the block's patches, which
                         block_sync()  # other threads of the block wrote (with one lane per patch: the same thread)
                     stage += 1
-                h = ctl[pad, C_TRIAL]
                 part = wp.float64(0.0)
                 g = lo + lane
                 while g < hi:
@@ -432,25 +440,26 @@ def onchip_dp5_kernel(
                     part = wp.max(part, e)
                     g += threads
                 err = wp.tile_max(wp.tile(part))[0]
-                if wp.static(cluster > 1):  # the blocks' maxima into block 0's table
+                if wp.static(cluster > 1):  # every block's maximum into every block's table
                     if lane == 0:
-                        put_red_at(red, 0, rank, err, 0)
+                        for q in range(CLUSTER):
+                            put_red_at(red, 0, rank, err, q)
                     cluster_sync()
-                if rank == 0 and lane == 0:
+                if lane == 0:  # the same decision in every block (the maxima in rank order: the same err)
                     for q in range(1, CLUSTER):
                         err = wp.max(err, get_red(red, 0, q))
-                    accepted = wp.float64(pi_control(pad, err, h_max, h_min, ctl, mode, stats, done))
-                    halt = wp.float64(done[2])
-                    for q in range(CLUSTER):
-                        if wp.static(cluster > 1):
-                            put_red_at(red, 1, 0, accepted, q)
-                            put_red_at(red, 1, 1, halt, q)
-                        else:
-                            put_red(red, 1, 0, accepted)
-                            put_red(red, 1, 1, halt)
-                pad_sync()
-                landed = mode[pad, M_LANDED]
+                    c, m, accepted, underflow = pi_decide(c, m, err, h_max, h_min)
+                    if rank == 0:
+                        store_control(pad, c, m, ctl, mode)
+                        count_trial(pad, accepted, underflow, stats, done)
+                    put_red(red, 1, 0, wp.float64(accepted))
+                    put_red(red, 1, 1, wp.float64(underflow))
+                    put_red(red, 1, 2, c[C_TRIAL])
+                    put_red(red, 1, 3, wp.float64(m[M_LANDED]))
+                block_sync()
                 stop = int(get_red(red, 1, 1))
+                h = get_red(red, 1, 2)
+                landed = int(get_red(red, 1, 3))
                 g = lo + lane
                 while g < hi:
                     if get_red(red, 1, 0) != wp.float64(0.0):  # accepted: y_6 is the state, k_6 the next k_0 (FSAL)
@@ -459,10 +468,10 @@ def onchip_dp5_kernel(
                         ku[0, g] = ku[STAGES - 1, g]
                         kv[0, g] = kv[STAGES - 1, g]
                     if landed == 0 and stop == 0:
-                        stage_state(g, pad, 1, coeff, ctl, u_io, v_io, ku, kv, u_b, v_b)
+                        stage_state_h(g, 1, coeff, h, u_io, v_io, ku, kv, u_b, v_b)
                         share(us, 1, g - a, u_b[g], 0, 1)
                     g += threads
-                pad_sync()  # the commit and the next first stage are complete, the flags read before block 0 rewrites
+                pad_sync()  # the commit and the next first stage are complete, the flags read before lane 0 rewrites
             if stop == 0:
                 k = k0 + s
                 if rank == 0 and RECORD != 0:
@@ -479,13 +488,19 @@ def onchip_dp5_kernel(
                             displacement_out[prow, g] = u_io[g]
                         g += threads
                     prow += 1
-                if rank == 0 and lane == 0 and ctl[pad, C_TARGET] < t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
-                    open_interval(pad, sample_dt, ctl, mode)
-                pad_sync()
-                landed = mode[pad, M_LANDED]
+                if lane == 0:
+                    if c[C_TARGET] < t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
+                        c, m = open_decide(c, m, sample_dt)
+                        if rank == 0:
+                            store_control(pad, c, m, ctl, mode)
+                    put_red(red, 1, 2, c[C_TRIAL])
+                    put_red(red, 1, 3, wp.float64(m[M_LANDED]))
+                block_sync()
+                h = get_red(red, 1, 2)
+                landed = int(get_red(red, 1, 3))
                 if landed == 0:
-                    stage_one(lo, hi, a, lane, threads, pad, coeff, ctl, u_io, v_io, ku, kv, u_b, v_b, us)
-                pad_sync()  # the first stage is complete and the mode read before block 0 may change it
+                    stage_one(lo, hi, a, lane, threads, pad, coeff, h, u_io, v_io, ku, kv, u_b, v_b, us)
+                pad_sync()  # the first stage is complete (and shared), the flags read before lane 0 rewrites them
                 s += 1
         if wp.static(cluster > 1):
             cluster_sync()  # no block leaves while another may still store into its shared memory
