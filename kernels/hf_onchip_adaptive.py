@@ -445,9 +445,11 @@ def onchip_dp5_kernel(
                         for q in range(CLUSTER):
                             put_red_at(red, 0, rank, err, q)
                     cluster_sync()
-                if lane == 0:  # the same decision in every block (the maxima in rank order: the same err)
-                    for q in range(1, CLUSTER):
-                        err = wp.max(err, get_red(red, 0, q))
+                if lane == 0:  # the same decision in every block (every block's maximum, in rank order: the same err)
+                    if wp.static(cluster > 1):
+                        err = get_red(red, 0, 0)
+                        for q in range(1, CLUSTER):
+                            err = wp.max(err, get_red(red, 0, q))
                     c, m, accepted, underflow = pi_decide(c, m, err, h_max, h_min)
                     if rank == 0:
                         store_control(pad, c, m, ctl, mode)
