@@ -183,7 +183,7 @@ def choose_engine(model: PadModel, engine: str, integrator: str = DEFAULT_INTEGR
     included (their in-kernel growth passes ``scripts/onchip_gpu_check.py --growth`` on an H100; docs/onchip.md).
     On the CPU, where Warp runs a block as one thread, ``strang`` stays on the general engine (no faster on chip)
     and ``adaptive`` goes on chip: one launch per chunk instead of 14 per trial (hf1, 1 ms, tolerance 1e-5:
-    1.07 s against 1.79 s on the 2-core host of docs/time_to_solution.md).
+    1.03 s against 1.84 s on the 2-core host of docs/time_to_solution.md).
     """
     if engine not in ENGINES:
         raise SceneError(f"unknown engine {engine!r}; choose from {', '.join(ENGINES)}")
