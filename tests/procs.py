@@ -1,4 +1,5 @@
-"""Shared by the fault tests: ``aca-warp`` in a subprocess (optionally under a file-size limit), stopped, killed."""
+"""Shared by the tests: ``aca-warp`` in a subprocess (optionally under a file-size limit), stopped, killed; small
+scenes."""
 
 from __future__ import annotations
 
@@ -12,7 +13,30 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from aca_warp.scene import Friction, Growth, Initial, Pad, Patches, Record, Scene
+
 REPO = Path(__file__).resolve().parent.parent
+
+
+def nine_patch_scene(*, increment: float, interval: float, sample_dt: float, duration: float) -> Scene:
+    """9 HF1-size patches on a 1.5 mm grid sharing 20 N with the matrix, sliding at 10 m/s (seeded areas and
+    initial perturbation), growing by ``increment`` [m] · √A every ``interval`` [s]; samples every ``sample_dt``
+    [s] over ``duration`` [s]."""
+    pos = [(i * 1.5e-3, 0.13 + j * 1.5e-3) for i in (-1, 0, 1) for j in (-1, 0, 1)]
+    area = np.random.default_rng(2).uniform(2e-8, 8e-8, len(pos))
+    p = Patches(np.array([q[0] for q in pos]), np.array([q[1] for q in pos]), area, np.full(len(pos), 3e-6))
+    return Scene(
+        name="grow",
+        pad=Pad(),
+        patches=p,
+        friction=Friction(M=0.8),
+        normal_force=20.0,
+        initial=Initial(perturbation=0.05, seed=3),
+        record=Record(sample_dt=sample_dt),
+        growth=Growth(increment=increment, interval=interval),
+        duration=duration,
+    )
+
 
 # runs ``aca_warp.cli`` with RLIMIT_FSIZE = argv[1] bytes and SIGXFSZ ignored (writes past it fail with EFBIG)
 LIMITED = (

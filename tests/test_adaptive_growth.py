@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from procs import nine_patch_scene
 
 from aca_warp.common.checkpoint import Checkpoint
 from aca_warp.hf.general import Growth
@@ -16,29 +17,15 @@ from aca_warp.hf.options import RunOptions
 from aca_warp.hf.reference import ReferenceODE
 from aca_warp.hf.solver import GROWTH_MUTABLE
 from aca_warp.hf.state import initial_state
-from aca_warp.scene import Friction, Initial, Pad, Patches, Record, Scene
-from aca_warp.scene import Growth as GrowthLaw
+from aca_warp.scene import Scene
 
 SAMPLE_DT = 1.0e-6  # s
 INCREMENT = 1.0e-6  # m: ΔA = 1e-6 m · √A per event, ≈ 0.5 % of an HF1 patch's area (1000× Eq. 10)
 
 
 def growing_scene(interval: float, duration: float = 1.0e-5) -> Scene:
-    """9 HF1-size patches sharing 20 N with the matrix, sliding at 10 m/s, growing every ``interval`` [s]."""
-    pos = [(i * 1.5e-3, 0.13 + j * 1.5e-3) for i in (-1, 0, 1) for j in (-1, 0, 1)]
-    area = np.random.default_rng(2).uniform(2e-8, 8e-8, len(pos))
-    p = Patches(np.array([q[0] for q in pos]), np.array([q[1] for q in pos]), area, np.full(len(pos), 3e-6))
-    return Scene(
-        name="grow",
-        pad=Pad(),
-        patches=p,
-        friction=Friction(M=0.8),
-        normal_force=20.0,
-        initial=Initial(perturbation=0.05, seed=3),
-        record=Record(sample_dt=SAMPLE_DT),
-        growth=GrowthLaw(increment=INCREMENT, interval=interval),
-        duration=duration,
-    )
+    """The 9-patch scene growing by INCREMENT · √A every ``interval`` [s], sampled every SAMPLE_DT."""
+    return nine_patch_scene(increment=INCREMENT, interval=interval, sample_dt=SAMPLE_DT, duration=duration)
 
 
 def run(scene: Scene, precision: str = "fp64", **options) -> tuple[RunResult, PadModel, np.ndarray]:
