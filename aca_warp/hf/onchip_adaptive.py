@@ -22,7 +22,7 @@ from aca_warp.hf import adaptive
 from aca_warp.hf.engine import EngineTuning, Progress
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.onchip import cluster_size
-from aca_warp.hf.onchip_layout import itemsize, pad_sizes, smem_limit
+from aca_warp.hf.onchip_layout import adaptive_shared_bytes, pad_sizes, smem_limit
 from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import HFSolver
@@ -48,8 +48,7 @@ def tile_sizes(model: PadModel, cluster: int) -> tuple[int, int]:
     displacements (else 0: the lists are read from global memory)."""
     nmax = -(-pad_sizes(model)[0] // 32) * 32
     links = -(-pad_sizes(model, cluster)[1] // 32) * 32
-    b = itemsize(model)
-    fits = 2 * nmax * b + links * (2 + b) + 16 * max(cluster, 2) <= smem_limit(model)
+    fits = adaptive_shared_bytes(model, cluster, links) <= smem_limit(model)
     return nmax, links if fits else 0
 
 
