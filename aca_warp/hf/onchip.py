@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import warp as wp
 
 from aca_warp.common.errors import SceneError
@@ -175,11 +174,10 @@ class OnchipEngine:
     def advance(self, p: Progress, most: int) -> Progress:
         rec = self.recorder
         reps = min(self.spl, self.n_samples - p.samples, most)
-        k_next, rows, prows = (int(x) for x in rec.counters.numpy()[:3])
+        k_next, rows, prows = rec.kernel_rows()
         self._launch(p.samples, reps, k_next, rows, prows)
         self.started = True
-        due = sum(1 for k in range(k_next, k_next + reps) if rec.due(k))
-        rec.counters.assign(np.array([k_next + reps, rows + reps, prows + due, 0], dtype=np.int32))
+        rec.kernel_recorded(k_next, rows, prows, reps)
         samples = p.samples + reps
         return Progress(samples, samples * self.sps, 0, samples * self.record.sample_dt, samples >= self.n_samples)
 

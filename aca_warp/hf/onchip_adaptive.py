@@ -22,7 +22,7 @@ from aca_warp.hf import adaptive
 from aca_warp.hf.engine import EngineTuning, Progress
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.onchip import cluster_size
-from aca_warp.hf.onchip_layout import adaptive_shared_bytes, pad_sizes, smem_limit
+from aca_warp.hf.onchip_layout import adaptive_shared_bytes, pad_sizes, smem_limit, unsupported
 from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import HFSolver
@@ -93,8 +93,9 @@ class OnchipAdaptiveEngine:
         n_samples: int,
         tuning: EngineTuning,
     ) -> None:
-        if "pad_growth" in model.arrays:
-            raise SceneError("on-chip engine: growing scenes run the adaptive integrator on the general engine")
+        why = unsupported(model, "adaptive")
+        if why is not None:
+            raise SceneError(f"on-chip engine: {why}")
         self.model, self.state, self.record, self.n_samples = model, state, record, n_samples
         self.solver = HFSolver(model, "adaptive", options.dt, force=options.force, tolerance=options.tolerance)
         self.estimate = self.solver.estimate
@@ -132,15 +133,14 @@ class OnchipAdaptiveEngine:
     def advance(self, p: Progress, most: int) -> Progress:
         rec = self.recorder
         reps = min(self.spl, self.n_samples - p.samples, most)
-        k_next, rows, prows = (int(x) for x in rec.counters.numpy()[:3])
+        k_next, rows, prows = rec.kernel_rows()
         self._launch(reps, k_next, rows, prows)
         self.started = True
         mode = self.stepper.mode.numpy()
         # samples recorded by every pad: up to its target's, less the one it is heading for
         reached = int((mode[:, KA.M_SAMPLE] - 1 + mode[:, KA.M_LANDED]).min())
         done_here = max(0, min(reps, reached - (k_next - 1)))
-        due = sum(1 for k in range(k_next, k_next + done_here) if rec.due(k))
-        rec.counters.assign(np.array([k_next + done_here, rows + done_here, prows + due, 0], dtype=np.int32))
+        rec.kernel_recorded(k_next, rows, prows, done_here)
         st = self.stepper.stats.numpy()
         samples = p.samples + done_here
         t = samples * self.record.sample_dt

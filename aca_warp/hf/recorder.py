@@ -141,6 +141,17 @@ class Recorder:
         """Whether global sample k also records per-patch histories (``patch_sample_due`` of kernels.hf)."""
         return self.first <= k <= self.last and (k - self.first) % self.every == 0
 
+    def kernel_rows(self) -> tuple[int, int, int]:
+        """(next sample index, next globals row, next per-patch row) for a kernel that records in-kernel."""
+        k_next, rows, prows = (int(x) for x in self.counters.numpy()[:3])
+        return k_next, rows, prows
+
+    def kernel_recorded(self, k_next: int, rows: int, prows: int, samples: int) -> None:
+        """Count ``samples`` samples a kernel recorded from :meth:`kernel_rows` on (the per-patch rows of those
+        due among them)."""
+        due = sum(1 for k in range(k_next, k_next + samples) if self.due(k))
+        self.counters.assign(np.array([k_next + samples, rows + samples, prows + due, 0], dtype=np.int32))
+
     @property
     def patch_stage(self) -> bool:
         """Whether per-patch histories are recorded at all."""
