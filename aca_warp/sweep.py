@@ -36,14 +36,11 @@ The code lives in modules of one concern each, re-exported here (``from aca_warp
 from __future__ import annotations
 
 import argparse
-import contextlib
-import os
-import signal
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from aca_warp.common import interrupts
 from aca_warp.sweep_cluster import LOOPBACK, WORKERS_PER_GPU, cuda_ordinals, local_cluster, warm_workers
 from aca_warp.sweep_manifest import MANIFEST, SHARD_STATES, SweepResult, load_sweep, prepare_dir, read_manifest
 from aca_warp.sweep_overlap import ChunkWriter, KernelTurn, ShardCancelled, ShardContext
@@ -93,7 +90,6 @@ __all__ = [
     "SweepError",
     "SweepResult",
     "SweepSpec",
-    "Terminated",
     "add_parsers",
     "apply_parameters",
     "hf1_product_doc",
@@ -110,7 +106,6 @@ __all__ = [
     "run_sweep",
     "shard_finished",
     "shard_name",
-    "stop_signals",
     "warm_workers",
 ]
 
@@ -182,35 +177,9 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(handler=_cmd_sweep)
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised in the main thread by :func:`stop_signals` (handled as Ctrl-C; exit code 143)."""
-
-
-@contextlib.contextmanager
-def stop_signals() -> Iterator[None]:
-    """Ctrl-C raises ``KeyboardInterrupt`` and SIGTERM :class:`Terminated` in the main thread, once: a second signal
-    while the first one is being handled ends the process at once (exit 130 or 143; the next sweep call deletes
-    what it left, as after a kill). The previous handlers are restored afterwards."""
-    hit: list[int] = []
-
-    def handler(signum: int, frame: Any) -> None:
-        code = 128 + signum
-        if hit:
-            os._exit(code)
-        hit.append(signum)
-        raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
-
-    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
-
-
 def _interrupted_line(out: str, e: KeyboardInterrupt) -> str:
     """The one line printed when a sweep is stopped by a signal."""
-    what = "terminated (SIGTERM)" if isinstance(e, Terminated) else "interrupted"
+    what = "terminated (SIGTERM)" if isinstance(e, interrupts.Terminated) else "interrupted"
     try:
         m = read_manifest(out)
     except SweepError:
@@ -243,7 +212,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             f"{spec.integrator} {spec.precision}, spec hash {spec.hash[:12]}"
         )
     try:
-        with stop_signals():
+        with interrupts.second_signal_exits():  # the signals are the command line's (aca_warp.cli.main)
             res = run_sweep(
                 spec,
                 args.output,
@@ -257,7 +226,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             )
     except KeyboardInterrupt as e:
         print(_interrupted_line(args.output, e), file=sys.stderr, flush=True)
-        return 143 if isinstance(e, Terminated) else 130
+        return interrupts.exit_code(e)
     rate = res.patch_steps / max(res.wall_time, 1e-12)
     print(
         f"{args.output}: {len(res.ran)} shard(s) run, {len(res.skipped)} skipped, {len(res.faults)} stopped on a "

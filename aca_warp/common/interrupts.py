@@ -7,7 +7,9 @@ raise: SIGINT a :class:`KeyboardInterrupt`, SIGTERM a :class:`Terminated` (a Key
 closes its file after Ctrl-C does so after SIGTERM too). Writes that must not stop half-way (a chunk of samples
 appended to several datasets, a checkpoint, the closing of a file) run inside :func:`deferred`: a signal that
 arrives there is raised when the write is done. After the first interrupt has been raised, later signals are
-ignored while the command closes its files (a second Ctrl-C would otherwise stop that clean-up half-way). An
+ignored while the command closes its files (a second Ctrl-C would otherwise stop that clean-up half-way), except
+inside :func:`second_signal_exits`, for a clean-up that may wait long (a sweep waits for its Dask workers): there a
+second signal ends the process at once. An
 interrupt raised while Python runs a finalizer (``__del__``, a weakref callback) is swallowed there by Python, which
 prints it as "Exception ignored"; :func:`installed` catches it in ``sys.unraisablehook`` instead and raises it again
 a millisecond later (a SIGALRM timer, the command's ``installed`` owns SIGALRM), from ordinary code.
@@ -16,6 +18,7 @@ Without :func:`installed` (the Python API) Python's own SIGINT handling applies 
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 import threading
@@ -37,6 +40,7 @@ class _State:
     depth: int = 0  # nesting of deferred()
     pending: int | None = None  # a signal that arrived inside deferred()
     raised: bool = False  # the first interrupt has been raised: ignore the rest
+    second_exits: bool = False  # ... or end the process at the second one (second_signal_exits)
     last: int | None = None  # the last signal received
 
 
@@ -51,6 +55,8 @@ def _interrupt(signum: int) -> KeyboardInterrupt:
 def _handler(signum: int, frame: object) -> None:
     _state.last = signum
     if _state.raised:
+        if _state.second_exits:
+            os._exit(128 + signum)
         return
     if _state.depth > 0:
         _state.pending = signum
@@ -132,3 +138,17 @@ def deferred() -> Iterator[None]:
     if _state.depth == 0 and _state.pending is not None and not _state.raised:
         signum, _state.pending = _state.pending, None
         raise _interrupt(signum)
+
+
+@contextmanager
+def second_signal_exits() -> Iterator[None]:
+    """In the body, a signal that comes while the first interrupt is being handled ends the process at once with
+    exit code 128 + the signal, leaving its files as a kill would (for a clean-up that may wait long, such as a
+    sweep waiting for its Dask workers; the next call of the command cleans up). Without :func:`installed`
+    it changes nothing."""
+    before = _state.second_exits
+    _state.second_exits = True
+    try:
+        yield
+    finally:
+        _state.second_exits = before

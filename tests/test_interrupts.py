@@ -1,0 +1,110 @@
+"""The command line's signal handling (aca_warp.common.interrupts), in this process where it is deterministic: an
+interrupt that lands in a finalizer is raised again, ``deferred`` holds one back, a second one is ignored or (in
+``second_signal_exits``) ends the process, and ``aca-warp sweep`` takes these rules rather than its own."""
+
+from __future__ import annotations
+
+import gc
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from aca_warp.common import interrupts
+
+
+class _SignalsInFinalizer:
+    """An object whose finalizer sends ``sig`` to this process and runs Python code afterwards, so that the handler
+    raises inside ``__del__``, where Python swallows the exception."""
+
+    def __init__(self, sig: int) -> None:
+        self.sig = sig
+
+    def __del__(self) -> None:
+        os.kill(os.getpid(), self.sig)
+        for _ in range(1000):
+            pass
+
+
+def _ordinary_code(seconds: float = 2.0) -> None:
+    """Python bytecode for ``seconds`` (a signal handler runs between bytecodes)."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        time.sleep(0.001)
+
+
+@pytest.mark.parametrize(("sig", "kind"), [(signal.SIGINT, KeyboardInterrupt), (signal.SIGTERM, interrupts.Terminated)])
+def test_interrupt_in_a_finalizer_is_raised_again(sig: int, kind: type) -> None:
+    with interrupts.installed():
+        with pytest.raises(KeyboardInterrupt) as e:
+            obj = _SignalsInFinalizer(sig)
+            del obj
+            gc.collect()
+            _ordinary_code()
+        assert type(e.value) is kind
+        assert interrupts.exit_code(e.value) == 128 + sig
+
+
+def test_deferred_raises_at_its_end_and_later_signals_are_ignored() -> None:
+    steps = []
+    with interrupts.installed():
+        with pytest.raises(interrupts.Terminated):
+            with interrupts.deferred():
+                os.kill(os.getpid(), signal.SIGTERM)
+                _ordinary_code(0.05)
+                steps.append("body finished")
+        os.kill(os.getpid(), signal.SIGINT)  # while the first is handled: ignored
+        _ordinary_code(0.05)
+        steps.append("clean-up finished")
+    assert steps == ["body finished", "clean-up finished"]
+
+
+SECOND = """
+import os, signal, sys, time
+from aca_warp.common import interrupts
+with interrupts.installed(), interrupts.second_signal_exits():
+    try:
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)
+    except KeyboardInterrupt:
+        print("first", flush=True)
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(5)
+        print("clean-up went on", flush=True)
+sys.exit(1)
+"""
+
+
+def test_second_signal_exits_at_once() -> None:
+    r = subprocess.run([sys.executable, "-c", SECOND], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 130, r.stderr
+    assert r.stdout.split() == ["first"]
+
+
+def test_sweep_command_raises_an_interrupt_from_a_finalizer(tmp_path: Path, monkeypatch, capsys) -> None:
+    """A SIGTERM whose interrupt Python swallowed in a finalizer still stops the sweep (exit 143, one line)."""
+    import aca_warp.sweep as sweep
+    from aca_warp.cli import main
+
+    ran = []
+
+    def run_sweep(*args, **kwargs):
+        obj = _SignalsInFinalizer(signal.SIGTERM)
+        del obj
+        gc.collect()
+        _ordinary_code()
+        ran.append("finished")  # not reached: the interrupt is raised again
+        raise AssertionError("the sweep ran to its end")
+
+    monkeypatch.setattr(sweep, "run_sweep", run_sweep)
+    spec = tmp_path / "spec.toml"
+    spec.write_text('[sweep]\nbase = "hf1"\n[run]\nduration = 1e-4\n[parameters]\n"friction.M" = [0.6]\n')
+    code = main(["sweep", str(spec), "-o", str(tmp_path / "out"), "--workers", "0", "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 143, err
+    assert ran == []
+    assert err.startswith("aca-warp: terminated (SIGTERM);") and "Exception ignored" not in err
