@@ -112,7 +112,7 @@ def restore(saved: dict[str, wp.array], ckpt: Checkpoint) -> None:
         if data.shape != arr.shape or data.dtype != want:
             raise SceneError(
                 f"checkpoint array {name} has shape {data.shape} and dtype {data.dtype}, the run needs {arr.shape} "
-                f"{want}: another scene or precision?"
+                f"{want}: another scene or precision, or a checkpoint of an older aca_warp?"
             )
         arr.assign(data)
 
