@@ -323,52 +323,77 @@ def merge_width(sample_dt: wp.float64, interval: wp.float64) -> wp.float64:
 
 
 @wp.func
-def next_target(p: int, sample_dt: wp.float64, interval: wp.float64, mode: wp.array2d[wp.int32]) -> wp.float64:
-    """Pad p's next target [s]: its next sample time k·sample_dt, or its next event time j·interval when that comes
-    earlier by more than the merge width (both products of an index, not sums of intervals)."""
-    ts = wp.float64(mode[p, M_SAMPLE]) * sample_dt
-    te = wp.float64(mode[p, M_EVENT]) * interval
+def target_after(m: ModeVec, sample_dt: wp.float64, interval: wp.float64) -> wp.float64:
+    """The next target [s] of a pad with mode ``m``: its next sample time k·sample_dt, or its next event time
+    j·interval when that comes earlier by more than the merge width (both products of an index, not sums of
+    intervals)."""
+    ts = wp.float64(m[M_SAMPLE]) * sample_dt
+    te = wp.float64(m[M_EVENT]) * interval
     if te < ts - merge_width(sample_dt, interval):
         return te
     return ts
 
 
 @wp.func
+def at_sample(c: CtlVec, m: ModeVec, sample_dt: wp.float64, interval: wp.float64) -> bool:
+    """Whether the target of a pad with control ``c`` and mode ``m`` (:func:`target_after`) is its next sample
+    time."""
+    return c[C_TARGET] >= wp.float64(m[M_SAMPLE]) * sample_dt - merge_width(sample_dt, interval)
+
+
+@wp.func
+def at_event(c: CtlVec, m: ModeVec, sample_dt: wp.float64, interval: wp.float64) -> bool:
+    """Whether the target of a pad with control ``c`` and mode ``m`` is its next growth event time (never without
+    growth, ``interval`` = 0)."""
+    if interval <= wp.float64(0.0):
+        return False
+    return c[C_TARGET] >= wp.float64(m[M_EVENT]) * interval - merge_width(sample_dt, interval)
+
+
+@wp.func
+def open_growth_decide(c: CtlVec, m: ModeVec, sample_dt: wp.float64, interval: wp.float64):
+    """A pad of a growing model, landed on its target (a sample time, an event time or both), moves past what it
+    landed on and heads for the next target; its first trial is its desired step, at most the whole interval:
+    (c, m) after."""
+    sample = at_sample(c, m, sample_dt, interval)
+    event = at_event(c, m, sample_dt, interval)
+    if sample:
+        m[M_SAMPLE] = m[M_SAMPLE] + 1
+    if event:
+        m[M_EVENT] = m[M_EVENT] + 1
+    start = c[C_TARGET]
+    target = target_after(m, sample_dt, interval)
+    c[C_START] = start
+    c[C_TARGET] = target
+    c[C_TRIAL] = wp.min(c[C_H], target - start)
+    m[M_LANDED] = 0
+    return c, m
+
+
+@wp.func
 def on_sample(p: int, sample_dt: wp.float64, interval: wp.float64, ctl: wp.array2d[wp.float64],
               mode: wp.array2d[wp.int32]) -> bool:  # fmt: skip
-    """Whether pad p's target (:func:`next_target`) is its next sample time."""
-    return ctl[p, C_TARGET] >= wp.float64(mode[p, M_SAMPLE]) * sample_dt - merge_width(sample_dt, interval)
+    """:func:`at_sample` of pad p's rows of ``ctl`` and ``mode``."""
+    c, m = load_control(p, ctl, mode)
+    return at_sample(c, m, sample_dt, interval)
 
 
 @wp.func
 def on_event(p: int, sample_dt: wp.float64, interval: wp.float64, ctl: wp.array2d[wp.float64],
              mode: wp.array2d[wp.int32]) -> bool:  # fmt: skip
-    """Whether pad p's target (:func:`next_target`) is its next growth event time (never without growth,
-    ``interval`` = 0)."""
-    if interval <= wp.float64(0.0):
-        return False
-    return ctl[p, C_TARGET] >= wp.float64(mode[p, M_EVENT]) * interval - merge_width(sample_dt, interval)
+    """:func:`at_event` of pad p's rows of ``ctl`` and ``mode``."""
+    c, m = load_control(p, ctl, mode)
+    return at_event(c, m, sample_dt, interval)
 
 
 @wp.func
 def open_growth_interval(
     p: int, sample_dt: wp.float64, interval: wp.float64, ctl: wp.array2d[wp.float64], mode: wp.array2d[wp.int32]
 ):
-    """:func:`open_interval` of a growing model: pad p, landed on its target (a sample time, an event time or
-    both), moves past what it landed on and heads for the next target; its first trial is its desired step, at
-    most the whole interval."""
-    sample = on_sample(p, sample_dt, interval, ctl, mode)
-    event = on_event(p, sample_dt, interval, ctl, mode)
-    if sample:
-        mode[p, M_SAMPLE] = mode[p, M_SAMPLE] + 1
-    if event:
-        mode[p, M_EVENT] = mode[p, M_EVENT] + 1
-    start = ctl[p, C_TARGET]
-    target = next_target(p, sample_dt, interval, mode)
-    ctl[p, C_START] = start
-    ctl[p, C_TARGET] = target
-    ctl[p, C_TRIAL] = wp.min(ctl[p, C_H], target - start)
-    mode[p, M_LANDED] = 0
+    """:func:`open_growth_decide` on pad p's rows of ``ctl`` and ``mode``."""
+    c, m = load_control(p, ctl, mode)
+    c, m = open_growth_decide(c, m, sample_dt, interval)
+    store_control(p, c, m, ctl, mode)
 
 
 @wp.kernel

@@ -28,7 +28,7 @@ from functools import cache
 from typing import Any
 
 import warp as wp
-from aca_warp.kernels.hf import patch_sample_due, record_pad, spring_force
+from aca_warp.kernels.hf import contact_block, grow_patch, patch_coupling, patch_sample_due, record_pad, spring_force
 from aca_warp.kernels.hf_adaptive import (
     C_TARGET,
     C_TRIAL,
@@ -36,9 +36,12 @@ from aca_warp.kernels.hf_adaptive import (
     M_NEEDK1,
     STAGES,
     acceleration,
+    at_event,
+    at_sample,
     count_trial,
     load_control,
     open_decide,
+    open_growth_decide,
     patch_error,
     pi_decide,
     stage_state_h,
@@ -109,6 +112,7 @@ def onchip_dp5_kernel(
     nmax: int = 32,
     emax: int = 0,
     ablate: frozenset[str] = frozenset(),
+    growth: bool = False,
 ) -> wp.Kernel:
     """The on-chip DP5 kernel in precision ``dtype`` on ``cluster`` blocks per pad (CUDA sm_90+ for more than one)
     of ``block_dim`` threads, for pads of at most ``nmax`` patches. Launch with ``wp.launch_tiled(kernel,
@@ -125,6 +129,13 @@ def onchip_dp5_kernel(
     lane l of a patch sums its links l, l + lanes, … and the lanes add their sums by warp shuffles
     (:func:`~aca_warp.kernels.tiles.lane_sum`). 1: one thread per patch, the general engine's sums in its order
     (bit-identical on the CPU).
+
+    ``growth``: growth events (paper Eq. 10) at their times j·``interval``, landed on like the samples: a pad
+    landed on one grows its patches (``grow_patch``, each block its own), recomputes their coupling stiffnesses
+    (``patch_coupling``, and the block's shared copy of them), re-solves its contact in every block
+    (``contact_block``, each block keeping its own patches' normal forces) and evaluates its first stage again, as
+    the general engine's growth launches and its next trial do; at an event that is also a sample time the event
+    comes first. Without it the growth arrays are not read (may be empty).
 
     ``ablate`` (profiling only, ``scripts/profile_onchip_adaptive.py``; the results are then wrong) leaves out
     ``gather`` (the neighbour sums of the stage evaluations with lanes), ``record`` (the samples' global outputs)
@@ -143,9 +154,10 @@ def onchip_dp5_kernel(
     EMAX = wp.constant(max(emax, 1))
     total = lane_sum(dtype, lanes)
     first_lane = lane_first(dtype, lanes)
-    slots = max(cluster, 4)
+    slots = max(cluster, 6)
     SLOTS = wp.constant(slots)
-    # row 0: the blocks' error maxima; row 1: the decision [accepted, step underflow, trial step, landed]
+    # row 0: the blocks' error maxima; row 1: the decision [accepted, step underflow, trial step, landed] and, on
+    # landing, what the target is [event, sample]
     put_red = tile_store_rows(wp.float64, 2, slots)
     put_red_at = tile_store_rows_remote(wp.float64, 2, slots)
     get_red = tile_load_rows(wp.float64, 2, slots)
@@ -195,6 +207,108 @@ def onchip_dp5_kernel(
             stage_state_h(g, 1, coeff, h, u_io, v_io, ku, kv, u_b, v_b)
             share(us, 1, g - a, u_b[g], 0, 1)
             g += threads
+
+    @wp.func
+    def first_stage(
+        lo: int,
+        hi: int,
+        lane: int,
+        threads: int,
+        pad: int,
+        inv_mass: wp.array[T],
+        k_diag: wp.array[T],
+        damping: wp.array[T],
+        normal_force: wp.array[T],
+        radius: wp.array[T],
+        nbr_start: wp.array[wp.int32],
+        nbr_index: wp.array[wp.int32],
+        nbr_stiffness: wp.array[T],
+        pad_omega: wp.array[T],
+        pad_mu_scale: wp.array[T],
+        pad_slope: wp.array[T],
+        pad_decay: wp.array[T],
+        coeff: wp.array2d[wp.float64],
+        h: wp.float64,
+        u_io: wp.array[T],
+        v_io: wp.array[T],
+        ku: wp.array2d[T],
+        kv: wp.array2d[T],
+        u_b: wp.array[T],
+        v_b: wp.array[T],
+    ):
+        """k_0 of the block's patches lo … hi − 1 at the state itself (the run's first trial, or after a growth
+        event), from the displacements in global memory."""
+        g = lo + lane
+        while g < hi:
+            fs = spring_force(g, u_io, k_diag, nbr_start, nbr_index, nbr_stiffness)
+            stage_rest(
+                g, pad, 0, fs, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope,
+                pad_decay, coeff, h, u_io, v_io, v_io, ku, kv, u_b, v_b,
+            )  # fmt: skip
+            g += threads
+
+    @wp.func
+    def grow(
+        lo: int,
+        hi: int,
+        lane: int,
+        threads: int,
+        pad: int,
+        rank: int,
+        base: int,
+        gap: wp.float64,
+        sk: wp.tile[T, EMAX],
+        pad_patch_start: wp.array[wp.int32],
+        inv_mass: wp.array[T],
+        k_diag: wp.array[T],
+        damping: wp.array[T],
+        normal_force: wp.array[T],
+        radius: wp.array[T],
+        nbr_start: wp.array[wp.int32],
+        nbr_index: wp.array[wp.int32],
+        nbr_stiffness: wp.array[T],
+        pad_load: wp.array[T],
+        pad_matrix_force: wp.array[T],
+        pad_matrix_radius: wp.array[T],
+        k_t: wp.array[T],
+        area: wp.array[T],
+        sqrt_area: wp.array[T],
+        k_n: wp.array[T],
+        height: wp.array[T],
+        nbr_inv_dist: wp.array[T],
+        pad_kc: wp.array[T],
+        pad_growth: wp.array[T],
+        pad_k_t: wp.array[T],
+        pad_k_n: wp.array[T],
+        pad_mass_per_area: wp.array[T],
+        pad_zeta: wp.array[T],
+        pad_area: wp.array[wp.float64],
+        pad_moment: wp.array[wp.float64],
+        pad_k_m: wp.array[wp.float64],
+    ) -> wp.float64:
+        """A growth event of the pad (see the factory): its new contact gap [m]; on return every block of the pad has
+        its patches' new areas, stiffnesses and normal forces in global memory (a pad barrier follows)."""
+        g = lo + lane
+        while g < hi:
+            grow_patch(
+                g, pad, pad_growth, pad_k_t, pad_k_n, pad_mass_per_area, pad_zeta, area, sqrt_area, inv_mass, k_t,
+                k_n, damping,
+            )  # fmt: skip
+            g += threads
+        pad_sync()  # the links below read the neighbours' new √A, the contact every new area and k_N
+        g = lo + lane
+        while g < hi:
+            patch_coupling(g, pad, sqrt_area, nbr_start, nbr_index, nbr_inv_dist, pad_kc, k_t, nbr_stiffness, k_diag)
+            if wp.static(emax > 0):
+                for e in range(nbr_start[g], nbr_start[g + 1]):
+                    put_ek(sk, e - base, nbr_stiffness[e])
+            g += threads
+        gap = contact_block(
+            pad, lane, threads, pad_patch_start, k_n, height, area, radius, pad_area, pad_moment, pad_k_m, pad_load,
+            gap, lo, hi, rank == 0, normal_force, pad_matrix_force, pad_matrix_radius,
+        )  # fmt: skip
+        pad_sync()  # the sample reads every new normal force, k_0 the new stiffnesses
+        return gap
 
     @wp.func
     def gather(
@@ -287,6 +401,22 @@ def onchip_dp5_kernel(
         k_t: wp.array[T],
         x: wp.array[T],
         y: wp.array[T],
+        # Growth (read with ``growth`` only; pad_growth: the increment per event):
+        area: wp.array[T],
+        sqrt_area: wp.array[T],
+        k_n: wp.array[T],
+        height: wp.array[T],
+        nbr_inv_dist: wp.array[T],
+        pad_kc: wp.array[T],
+        pad_growth: wp.array[T],
+        pad_k_t: wp.array[T],
+        pad_k_n: wp.array[T],
+        pad_mass_per_area: wp.array[T],
+        pad_zeta: wp.array[T],
+        pad_area: wp.array[wp.float64],
+        pad_moment: wp.array[wp.float64],
+        pad_k_m: wp.array[wp.float64],
+        pad_gap: wp.array[wp.float64],
         # Integrator:
         coeff: wp.array2d[wp.float64],
         err_coeff: wp.array[wp.float64],
@@ -296,6 +426,7 @@ def onchip_dp5_kernel(
         h_max: wp.float64,
         h_min: wp.float64,
         sample_dt: wp.float64,
+        interval: wp.float64,
         t_end: wp.float64,
         # Control:
         threads: int,
@@ -359,16 +490,16 @@ def onchip_dp5_kernel(
         c, m = load_control(pad, ctl, mode)
         h = c[C_TRIAL]
         landed = m[M_LANDED]
+        gap = wp.float64(0.0)
+        if wp.static(growth):
+            gap = pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
         if landed == 0:
             if m[M_NEEDK1] != 0:  # k_0 at the state itself (the run's first trial)
-                g = lo + lane
-                while g < hi:
-                    fs = spring_force(g, u_io, k_diag, nbr_start, nbr_index, nbr_stiffness)
-                    stage_rest(
-                        g, pad, 0, fs, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope,
-                        pad_decay, coeff, h, u_io, v_io, v_io, ku, kv, u_b, v_b,
-                    )  # fmt: skip
-                    g += threads
+                first_stage(
+                    lo, hi, lane, threads, pad, inv_mass, k_diag, damping, normal_force, radius, nbr_start, nbr_index,
+                    nbr_stiffness, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, ku, kv, u_b,
+                    v_b,
+                )  # fmt: skip
             stage_one(lo, hi, a, lane, threads, pad, coeff, h, u_io, v_io, ku, kv, u_b, v_b, us)
         m[M_NEEDK1] = 0
         pad_sync()  # every block has read ctl and mode before block 0 writes them
@@ -475,24 +606,46 @@ def onchip_dp5_kernel(
                     g += threads
                 pad_sync()  # the commit and the next first stage are complete, the flags read before lane 0 rewrites
             if stop == 0:
-                k = k0 + s
-                if rank == 0 and RECORD != 0:
-                    record_pad(
-                        pad, lane, threads, row0 + s, k, pad_patch_start, normal_force, radius, pad_omega,
-                        pad_mu_scale, pad_slope, pad_decay, pad_mu_pad, pad_load, pad_matrix_force, pad_matrix_radius,
-                        inv_mass, k_t, x, y, u_io, v_io, globals_out, watch_bound, fault_out, fault_value_out,
-                    )  # fmt: skip
-                if patch_sample_due(k, first, last, every):
-                    g = lo + lane
-                    while g < hi:
-                        velocity_out[prow, g] = v_io[g]
-                        if displacement_out.shape[0] > 0:
-                            displacement_out[prow, g] = u_io[g]
-                        g += threads
-                    prow += 1
+                event = int(0)
+                sample = int(1)
+                if wp.static(growth):  # what the pad landed on: an event time, a sample time or both
+                    if lane == 0:
+                        put_red(red, 1, 4, wp.float64(int(at_event(c, m, sample_dt, interval))))
+                        put_red(red, 1, 5, wp.float64(int(at_sample(c, m, sample_dt, interval))))
+                    block_sync()
+                    event = int(get_red(red, 1, 4))
+                    sample = int(get_red(red, 1, 5))
+                    if event != 0:  # before a sample at the same time, which sees the grown patches
+                        gap = grow(
+                            lo, hi, lane, threads, pad, rank, base, gap, sk, pad_patch_start, inv_mass, k_diag,
+                            damping, normal_force, radius, nbr_start, nbr_index, nbr_stiffness, pad_load,
+                            pad_matrix_force, pad_matrix_radius, k_t, area, sqrt_area, k_n, height, nbr_inv_dist,
+                            pad_kc, pad_growth, pad_k_t, pad_k_n, pad_mass_per_area, pad_zeta, pad_area, pad_moment,
+                            pad_k_m,
+                        )  # fmt: skip
+                if sample != 0:
+                    k = k0 + s
+                    if rank == 0 and RECORD != 0:
+                        record_pad(
+                            pad, lane, threads, row0 + s, k, pad_patch_start, normal_force, radius, pad_omega,
+                            pad_mu_scale, pad_slope, pad_decay, pad_mu_pad, pad_load, pad_matrix_force,
+                            pad_matrix_radius, inv_mass, k_t, x, y, u_io, v_io, globals_out, watch_bound, fault_out,
+                            fault_value_out,
+                        )  # fmt: skip
+                    if patch_sample_due(k, first, last, every):
+                        g = lo + lane
+                        while g < hi:
+                            velocity_out[prow, g] = v_io[g]
+                            if displacement_out.shape[0] > 0:
+                                displacement_out[prow, g] = u_io[g]
+                            g += threads
+                        prow += 1
                 if lane == 0:
-                    if c[C_TARGET] < t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
-                        c, m = open_decide(c, m, sample_dt)
+                    if sample == 0 or c[C_TARGET] < t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
+                        if wp.static(growth):
+                            c, m = open_growth_decide(c, m, sample_dt, interval)
+                        else:
+                            c, m = open_decide(c, m, sample_dt)
                         if rank == 0:
                             store_control(pad, c, m, ctl, mode)
                     put_red(red, 1, 2, c[C_TRIAL])
@@ -501,10 +654,19 @@ def onchip_dp5_kernel(
                 h = get_red(red, 1, 2)
                 landed = int(get_red(red, 1, 3))
                 if landed == 0:
+                    if event != 0:  # k_0 (FSAL) was evaluated with the patches of before the event
+                        first_stage(
+                            lo, hi, lane, threads, pad, inv_mass, k_diag, damping, normal_force, radius, nbr_start,
+                            nbr_index, nbr_stiffness, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io,
+                            v_io, ku, kv, u_b, v_b,
+                        )  # fmt: skip
                     stage_one(lo, hi, a, lane, threads, pad, coeff, h, u_io, v_io, ku, kv, u_b, v_b, us)
                 pad_sync()  # the first stage is complete (and shared), the flags read before lane 0 rewrites them
-                s += 1
+                s += sample
         if wp.static(cluster > 1):
             cluster_sync()  # no block leaves while another may still store into its shared memory
+        if wp.static(growth):
+            if rank == 0 and lane == 0:
+                pad_gap[pad] = gap
 
     return onchip_dp5

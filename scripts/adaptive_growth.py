@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """The adaptive integrator on a growing scene against strang: the ``varying_area`` preset (1758 patches, growth
 events every 2.02e-7 s, docs/model.md §2.10) from rest over its first ``--duration`` (default 20 µs), with strang
-at ``--dt`` (default 1e-8 s) and adaptive at each ``--tols`` (default 1e-5 and 1e-6), general engine, fp64.
+at ``--dt`` (default 1e-8 s) and adaptive at each ``--tols`` (default 1e-5 and 1e-6), in ``--precision`` (default
+fp64) on ``--engine`` (default ``auto``: both integrators on chip on CUDA, adaptive on chip on the CPU; ``general``
+for the per-step kernels).
 
 Prints a markdown table, one row per run: wall time of the stepping loop (compilation and graph captures
 excluded), accepted steps (adaptive: trials of the pad) and rejected trials, mean step (simulated time per
@@ -12,6 +14,7 @@ landing on the events costs). The machine is named in the line above the table.
 Example (docs/numerics.md, "Growth events")::
 
     python scripts/adaptive_growth.py --duration 2e-5 --tols 1e-5 1e-6
+    python scripts/adaptive_growth.py --device cuda:0 --duration 1e-4 --tols 1e-5 --engine onchip --precision fp32
 """
 
 from __future__ import annotations
@@ -25,17 +28,18 @@ import numpy as np
 from aca_warp.common.files import host_cpu
 from aca_warp.hf.loop import run_hf
 from aca_warp.hf.model import build_model
-from aca_warp.hf.options import RunOptions
+from aca_warp.hf.options import ENGINES, RunOptions
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import preset
 
 
-def one_run(duration: float, device: str, growth: bool = True, **options: Any) -> dict[str, Any]:
-    """One run of the varying_area preset (``growth`` False: its growth off) over ``duration`` [s]: its figures and
-    μ at every sample."""
+def one_run(args: argparse.Namespace, growth: bool = True, **options: Any) -> dict[str, Any]:
+    """One run of the varying_area preset (``growth`` False: its growth off) over ``args.duration`` [s] on
+    ``args.device``, ``args.engine``, in ``args.precision``: its figures and μ at every sample."""
     scene = preset("varying_area")
-    model = build_model([scene if growth else scene.replace(growth=None)], device=device, precision="fp64")
-    res = run_hf(model, initial_state(model), RunOptions(duration=duration, engine="general", **options))
+    model = build_model([scene if growth else scene.replace(growth=None)], device=args.device, precision=args.precision)
+    opts = RunOptions(duration=args.duration, engine=args.engine, **options)
+    res = run_hf(model, initial_state(model), opts)
     if not res.complete:
         raise RuntimeError(f"{options}: stopped at {res.sim_time:.3g} s: {res.fault}")
     return {
@@ -45,6 +49,7 @@ def one_run(duration: float, device: str, growth: bool = True, **options: Any) -
         "mean_step": res.sim_time / res.steps,
         "area": float(model.host("area").mean()),
         "mu": res.collect().globals[:, 0, 0],
+        "engine": "onchip" if any(s.endswith(":onchip") for s in res.stages) else "general",
     }
 
 
@@ -54,23 +59,33 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--dt", type=float, default=1e-8, help="strang step [s]")
     ap.add_argument("--tols", type=float, nargs="+", default=[1e-5, 1e-6], help="adaptive tolerances")
     ap.add_argument("--device", default="cpu")
+    ap.add_argument("--engine", default="auto", choices=ENGINES, help="HF engine (default auto)")
+    ap.add_argument("--precision", default="fp64", choices=["fp32", "fp64"])
     args = ap.parse_args(argv)
-    runs = {f"strang {args.dt:g} s": one_run(args.duration, args.device, integrator="strang", dt=args.dt)}
+    runs = {f"strang {args.dt:g} s": one_run(args, integrator="strang", dt=args.dt)}
     for tol in args.tols:
-        runs[f"adaptive tol {tol:g}"] = one_run(args.duration, args.device, integrator="adaptive", tolerance=tol)
-        still = one_run(args.duration, args.device, False, integrator="adaptive", tolerance=tol)
+        runs[f"adaptive tol {tol:g}"] = one_run(args, integrator="adaptive", tolerance=tol)
+        still = one_run(args, False, integrator="adaptive", tolerance=tol)
         runs[f"adaptive tol {tol:g}"]["still"] = still["steps"]
     strang = runs[f"strang {args.dt:g} s"]["mu"]
     tightest = runs[f"adaptive tol {min(args.tols):g}"]["mu"]
-    print(f"varying_area, first {args.duration:g} s from rest, fp64, general engine, {args.device} ({host_cpu()})\n")
-    print("| run | wall [s] | steps | rejected | steps, growth off | mean step [s] | mean area [m²] "
+    where = args.device if args.device == "cpu" else f"{args.device} ({_gpu_name(args.device)})"
+    print(f"varying_area, first {args.duration:g} s from rest, {args.precision}, engine {args.engine}, {where}, "
+          f"host {host_cpu()}\n")  # fmt: skip
+    print("| run | engine | wall [s] | steps | rejected | steps, growth off | mean step [s] | mean area [m²] "
           f"| max abs Δμ vs strang | max abs Δμ vs tol {min(args.tols):g} |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for name, r in runs.items():
         d_strang, d_tight = np.abs(r["mu"] - strang).max(), np.abs(r["mu"] - tightest).max()
-        print(f"| {name} | {r['wall']:.2f} | {r['steps']} | {r['rejected']} | {r.get('still', '')} "
+        print(f"| {name} | {r['engine']} | {r['wall']:.2f} | {r['steps']} | {r['rejected']} | {r.get('still', '')} "
               f"| {r['mean_step']:.3g} | {r['area']:.6g} | {d_strang:.2g} | {d_tight:.2g} |")  # fmt: skip
     return 0
+
+
+def _gpu_name(device: str) -> str:
+    import warp as wp
+
+    return wp.get_device(device).name
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ from procs import nine_patch_scene
 
 from aca_warp.common.checkpoint import Checkpoint
 from aca_warp.hf.general import Growth
-from aca_warp.hf.loop import RunResult, run_hf
+from aca_warp.hf.loop import EngineTuning, RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import unsupported
 from aca_warp.hf.options import RunOptions
@@ -110,36 +110,61 @@ def test_mu_matches_piecewise_reference_and_strang():
     np.testing.assert_allclose(mu[coincide], ref_after[coincide], rtol=0, atol=1e-10)
 
 
+@pytest.mark.parametrize("engine", ["general", "onchip"])
 @pytest.mark.parametrize("precision", ["fp64", "fp32"])
-def test_checkpoint_resume_bit_identical(precision):
-    """Resuming from a checkpoint between events (areas, stiffnesses, contact, clocks, event index and flag) gives
-    the uninterrupted run's samples and final areas bit for bit."""
+def test_checkpoint_resume_bit_identical(precision, engine):
+    """Resuming from a checkpoint between events (areas, stiffnesses, contact, clocks, event index and, on the
+    general engine, flag) gives the uninterrupted run's samples and final areas bit for bit, on both engines."""
     s = growing_scene(7.0e-7)
     tol = 1e-8 if precision == "fp64" else 1e-5
-    opts = RunOptions(engine="general", integrator="adaptive", tolerance=tol, checkpoint_interval=3e-6)
+    opts = RunOptions(engine=engine, integrator="adaptive", tolerance=tol, checkpoint_interval=3e-6)
     model = build_model([s], device="cpu", precision=precision)
     ckpts: list[Checkpoint] = []
-    full = run_hf(model, initial_state(model), opts, on_checkpoint=ckpts.append)
+    tuning = EngineTuning(samples_per_launch=2) if engine == "onchip" else EngineTuning()
+    full = run_hf(model, initial_state(model), opts, on_checkpoint=ckpts.append, tuning=tuning)
     assert full.complete and len(ckpts) == 3
     ck = ckpts[1]
-    assert "growth/event" in ck.arrays and "adaptive/mode" in ck.arrays
+    assert "adaptive/mode" in ck.arrays and "model/area" in ck.arrays
+    assert ("growth/event" in ck.arrays) == (engine == "general")
     again = build_model([s], device="cpu", precision=precision)
-    rest = run_hf(again, initial_state(again), opts, resume=ck)
+    rest = run_hf(again, initial_state(again), opts, resume=ck, tuning=tuning)
     a, b = full.collect(), rest.collect()
     k = len(a.time) - len(b.time)
     assert k == int(ck.counters["samples"]) + 1
     np.testing.assert_array_equal(a.time[k:], b.time)
     np.testing.assert_array_equal(a.globals[k:], b.globals)
-    for name in ("area", "normal_force", "k_diag"):
+    for name in ("area", "normal_force", "k_diag", "pad_gap"):
         np.testing.assert_array_equal(model.host(name), again.host(name))
     assert (full.steps, full.rejected) == (rest.steps, rest.rejected)
 
 
-def test_onchip_engine_leaves_growing_adaptive_to_general():
-    """The on-chip engine implements growth for strang only: a growing scene with the adaptive integrator goes to
-    the general engine (``unsupported`` names why)."""
-    model = build_model([growing_scene(2.0e-6)], device="cpu", precision="fp64")
-    assert unsupported(model, "adaptive") is not None
+@pytest.mark.parametrize("precision", ["fp64", "fp32"])
+@pytest.mark.parametrize(("interval", "sample_dt"), [(1.5e-6, 1e-6), (1e-6, 3e-6), (1e-6, 1e-6)])
+def test_onchip_engine_grows_bit_identical_to_general(interval, sample_dt, precision):
+    """The on-chip kernel lands on the growth events and grows its pad itself: on the CPU every sample, the grown
+    model (areas, stiffnesses, normal forces, contact gap) and the step counts equal the general engine's, bit for
+    bit, with events between samples, samples between events and both at once, across launches."""
+    s = nine_patch_scene(increment=2e-5, interval=interval, sample_dt=sample_dt, duration=2e-5)
+    runs = []
+    for engine, tuning in (("general", EngineTuning()), ("onchip", EngineTuning(samples_per_launch=3))):
+        model = build_model([s], device="cpu", precision=precision)
+        assert unsupported(model, "adaptive") is None
+        state = initial_state(model)
+        opts = RunOptions(engine=engine, integrator="adaptive", tolerance=1e-5)
+        res = run_hf(model, state, opts, tuning=tuning)
+        assert res.complete and ("growth" in res.stages)
+        runs.append((res, model, state))
+    (rg, mg, sg), (ro, mo, so) = runs
+    assert "step:adaptive:onchip" in ro.stages
+    np.testing.assert_array_equal(ro.collect().globals, rg.collect().globals)
+    for name in ("area", "sqrt_area", "k_t", "k_diag", "nbr_stiffness", "normal_force", "damping", "pad_gap"):
+        np.testing.assert_array_equal(mo.host(name), mg.host(name), err_msg=name)
+    np.testing.assert_array_equal(so.u.numpy(), sg.u.numpy())
+    np.testing.assert_array_equal(so.v.numpy(), sg.v.numpy())
+    assert (ro.steps, ro.rejected) == (rg.steps, rg.rejected)
+    fresh = build_model([s], device="cpu", precision=precision)
+    assert np.all(mo.host("area") > fresh.host("area") * 1.01)  # the events happened: not a comparison at rest
+    assert np.any(mo.host("normal_force") != fresh.host("normal_force"))
 
 
 def test_script_table(capsys):
@@ -150,5 +175,6 @@ def test_script_table(capsys):
     assert load_script("adaptive_growth").main(["--duration", "2e-6", "--tols", "1e-5"]) == 0
     rows = [r.split("|")[1:-1] for r in capsys.readouterr().out.splitlines() if r.startswith("| ") and "run" not in r]
     assert [r[0].strip() for r in rows] == ["strang 1e-08 s", "adaptive tol 1e-05"]
-    assert float(rows[0][7]) == 0.0 and float(rows[1][8]) == 0.0
-    assert int(rows[1][2]) >= 11 and int(rows[1][2]) > int(rows[1][4])  # ≥ one trial per target; fewer without
+    assert [r[1].strip() for r in rows] == ["general", "onchip"]  # auto on the CPU
+    assert float(rows[0][8]) == 0.0 and float(rows[1][9]) == 0.0
+    assert int(rows[1][3]) >= 11 and int(rows[1][3]) > int(rows[1][5])  # ≥ one trial per target; fewer without

@@ -46,7 +46,7 @@ class GrowthEvents(Protocol):
 
 def first_target(sample_dt: float, interval: float) -> float:
     """The first target [s]: the first sample time, or the first growth event when it comes earlier by more than
-    the merge width (as :func:`~aca_warp.kernels.hf_adaptive.next_target` chooses; ``interval`` 0: no growth)."""
+    the merge width (as :func:`~aca_warp.kernels.hf_adaptive.target_after` chooses; ``interval`` 0: no growth)."""
     if interval > 0.0 and interval < sample_dt - KA.EVENT_MERGE * min(sample_dt, interval):
         return interval
     return sample_dt

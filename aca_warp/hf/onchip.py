@@ -37,7 +37,7 @@ from aca_warp.kernels import hf as K
 from aca_warp.kernels.hf_onchip import onchip_kernel
 from aca_warp.scene import Record
 
-__all__ = ["OnchipEngine", "choose_engine"]
+__all__ = ["OnchipEngine", "choose_engine", "growth_arguments"]
 
 _PATCH_BUFFER_BYTES = 256 * 2**20  # cap of the per-patch history buffers of one launch
 _STEPS_PER_LAUNCH = 20_000  # default: sample intervals per launch fill about this many steps
@@ -53,6 +53,19 @@ _MODEL_ARRAYS = (
     "nbr_stiffness", "pad_omega", "pad_mu_scale", "pad_slope", "pad_decay", "pad_mu_pad", "pad_load",
     "pad_matrix_force", "pad_matrix_radius", "k_t", "x", "y",
 )  # fmt: skip
+
+
+def growth_arguments(model: PadModel, per_event: wp.array | None) -> list[wp.array]:
+    """The growth arguments of an on-chip kernel, in its order: the model's arrays with ``per_event`` (the area
+    increment per event) as ``pad_growth``, or, for a model that does not grow (``per_event`` None), empty typed
+    arrays (not read)."""
+    if per_event is None:
+        return [
+            wp.empty(0, dtype=wp.float64 if k in _GROWTH_F64 else model.dtype, device=model.device)
+            for k in _GROWTH_ARRAYS
+        ]
+    arrays = {**model.arrays, "pad_growth": per_event}
+    return [arrays[k] for k in _GROWTH_ARRAYS]
 
 
 def cluster_size(model: PadModel, cluster: int | None, split_fits_csr: bool | None = None) -> int:
@@ -146,15 +159,14 @@ class OnchipEngine:
         return max(1, min(spl, _PATCH_BUFFER_BYTES // per_row)) if per_row else spl
 
     def _growth_arrays(self) -> list[wp.array]:
-        """The kernel's growth arguments: the model's arrays (the increment per event), or empty typed arrays."""
+        """The kernel's growth arguments (:func:`growth_arguments`) with the increment per event of step h."""
         m = self.model
         if "pad_growth" in m.arrays:
             self.stages.append("growth")
             self.growth_every, per_event = growth_events(m, self.h)
-            arrays = {**m.arrays, "pad_growth": per_event}  # the increment per event, not per interval
-            return [arrays[k] for k in _GROWTH_ARRAYS]
+            return growth_arguments(m, per_event)
         self.growth_every = 1  # the growth arguments are not read
-        return [wp.empty(0, dtype=wp.float64 if k in _GROWTH_F64 else m.dtype, device=m.device) for k in _GROWTH_ARRAYS]
+        return growth_arguments(m, None)
 
     # -- the Engine protocol
 

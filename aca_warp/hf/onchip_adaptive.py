@@ -5,10 +5,11 @@ Where the general engine runs a trial of every pad as 14 launches and lands ever
 goes on (:mod:`aca_warp.hf.adaptive`), this engine runs one launch per chunk of sample intervals: each block
 steps its pad with its own clock, error control and samples (:mod:`aca_warp.kernels.hf_onchip_adaptive`), so a
 one-pad run pays a barrier per stage instead of a kernel launch, its gathers read shared memory, and a batch never
-waits for its slowest pad between samples. A pad whose stage displacements do not fit shared memory runs on the
-general engine (:func:`~aca_warp.hf.onchip_layout.unsupported`). Initial control, error scales and checkpointed
-arrays are the general engine's (:class:`~aca_warp.hf.adaptive.AdaptiveStepper`); on the CPU the runs are
-bit-identical to it.
+waits for its slowest pad between samples; a growing pad lands on its growth events and grows itself there. A pad
+whose stage displacements do not fit shared memory runs on the general engine
+(:func:`~aca_warp.hf.onchip_layout.unsupported`). Initial control, error scales, event times and checkpointed
+arrays are the general engine's (:class:`~aca_warp.hf.adaptive.AdaptiveStepper`,
+:class:`~aca_warp.hf.general.Growth`); on the CPU the runs are bit-identical to it.
 """
 
 from __future__ import annotations
@@ -20,12 +21,13 @@ from aca_warp.common.devices import block_threads
 from aca_warp.common.errors import SceneError
 from aca_warp.hf import adaptive
 from aca_warp.hf.engine import EngineTuning, Progress
+from aca_warp.hf.general import Growth
 from aca_warp.hf.model import PadModel
-from aca_warp.hf.onchip import cluster_size
+from aca_warp.hf.onchip import cluster_size, growth_arguments
 from aca_warp.hf.onchip_layout import adaptive_shared_bytes, pad_sizes, smem_limit, unsupported
 from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Recorder
-from aca_warp.hf.solver import HFSolver
+from aca_warp.hf.solver import GROWTH_MUTABLE, HFSolver
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 from aca_warp.kernels import hf_adaptive as KA
@@ -67,7 +69,15 @@ def layout(model: PadModel, tuning: EngineTuning) -> tuple[int, int, int, wp.Ker
         block_dim = tuning.block_dim or min(BLOCK, -(-per_block * lanes // 32) * 32)
         if not 1 <= block_dim <= 1024 or block_dim % lanes:
             raise SceneError(f"block_dim must be in [1, 1024] and a multiple of {lanes}, got {block_dim}")
-        kernel = KO.onchip_dp5_kernel(model.dtype, k, block_dim, lanes, *tile_sizes(model, k), frozenset(tuning.ablate))
+        kernel = KO.onchip_dp5_kernel(
+            model.dtype,
+            k,
+            block_dim,
+            lanes,
+            *tile_sizes(model, k),
+            frozenset(tuning.ablate),
+            "pad_growth" in model.arrays,
+        )
         if k == 1 or wp.get_cuda_max_cluster_dim(kernel, dev, block_dim=block_dim) >= k:
             return k, lanes, block_dim, kernel
         if k == cluster:
@@ -107,20 +117,28 @@ class OnchipAdaptiveEngine:
         self.threads = block_threads(model.device, self.block_dim)
         self.recorder = Recorder(model, record, self.spl + 1, n_samples)
         self.t_end = n_samples * record.sample_dt
-        self.stepper = adaptive.AdaptiveStepper(model, state, self.solver, self.recorder, self.t_end)
+        # the event times and the increment per event (its flag and launches are the general engine's, unused here)
+        self.growth = Growth(model, None) if "pad_growth" in model.arrays else None
+        self.stepper = adaptive.AdaptiveStepper(model, state, self.solver, self.recorder, self.t_end, self.growth)
+        self.grown = growth_arguments(model, None if self.growth is None else self.growth.per_event)
         self.stages = [
             "contact",
             "neighbours" if model.has_coupling else "no-coupling",
             "step:adaptive:onchip",
             "record:globals",
         ] + (["record:patches"] if self.recorder.patch_stage else [])
+        if self.growth is not None:
+            self.stages.append("growth")
         self.cause = "extreme scene parameters (check loads, areas, speeds)"
         self.started = False
 
     # -- the Engine protocol
 
     def saved(self) -> dict[str, wp.array]:
-        return self.stepper.saved()
+        out = self.stepper.saved()
+        if self.growth is not None:
+            out.update({f"model/{k}": self.model.arrays[k] for k in GROWTH_MUTABLE})
+        return out
 
     def begin(self, resume: dict[str, int] | None) -> None:
         if resume is None:
@@ -170,9 +188,9 @@ class OnchipAdaptiveEngine:
             inputs=[
                 m.pad_patch_start, m.inv_mass, m.k_diag, m.damping, m.normal_force, m.radius, m.nbr_start,
                 m.nbr_index, m.nbr_stiffness, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay, m.pad_mu_pad,
-                m.pad_load, m.pad_matrix_force, m.pad_matrix_radius, m.k_t, m.x, m.y,
+                m.pad_load, m.pad_matrix_force, m.pad_matrix_radius, m.k_t, m.x, m.y, *self.grown,
                 st.coeff, st.err_coeff, st.u_scale, st.v_scale, st.tol, f64(st.h_max), f64(adaptive.MIN_STEP),
-                f64(self.record.sample_dt), f64(self.t_end),
+                f64(self.record.sample_dt), f64(st.interval), f64(self.t_end),
                 self.threads, samples, k_next, rows, prows, rec.first, rec.last, rec.every,
                 s.u, s.v, st.ku, st.kv, st.stage_u[0], st.stage_v[0], st.stage_u[1], st.stage_v[1],
                 st.ctl, st.mode, st.stats, st.done,

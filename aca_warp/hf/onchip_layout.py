@@ -104,10 +104,10 @@ def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1, threads: i
 
 def adaptive_shared_bytes(model: PadModel, cluster: int = 1, links: int = 0) -> int:
     """Shared memory one block of the on-chip ``adaptive`` kernel needs [bytes]: the pad's stage displacements (two
-    rows of the largest pad rounded up to 32), its decision table (2 × max(cluster, 4) float64) and, when ``links``
+    rows of the largest pad rounded up to 32), its decision table (2 × max(cluster, 6) float64) and, when ``links``
     > 0, that many neighbour links of its own (int16 local index, k_ij in the state precision)."""
     b = itemsize(model)
-    return 2 * _round_up(pad_sizes(model)[0], 32) * b + 16 * max(cluster, 4) + links * (2 + b)
+    return 2 * _round_up(pad_sizes(model)[0], 32) * b + 16 * max(cluster, 6) + links * (2 + b)
 
 
 def default_cluster(pads: int, sm_count: int, split_fits_csr: bool = False) -> int:
@@ -165,11 +165,8 @@ def block_config(
 
 def unsupported(model: PadModel, integrator: str = DEFAULT_INTEGRATOR) -> str | None:
     """Why the on-chip engine cannot run this model with ``integrator`` (None when it can): ``strang`` keeps a pad in
-    shared memory; ``adaptive`` keeps a pad's stage displacements there (:func:`adaptive_shared_bytes`) and does not
-    grow patches."""
+    shared memory; ``adaptive`` keeps a pad's stage displacements there (:func:`adaptive_shared_bytes`)."""
     if integrator == "adaptive":
-        if "pad_growth" in model.arrays:
-            return "growing scenes run the adaptive integrator on the general engine"
         need = adaptive_shared_bytes(model)
         if need > smem_limit(model):
             return f"the stage displacements of a {pad_sizes(model)[0]}-patch pad need {need} B of shared memory"
