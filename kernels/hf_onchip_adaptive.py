@@ -8,7 +8,8 @@ threads and blocks), the pad's error as a maximum over its blocks (each block's 
 shared table), the step decision (:func:`~aca_warp.kernels.hf_adaptive.pi_decide`), taken alike by thread 0 of
 every block on its own copy of the pad's control (block 0 writes it to ``ctl``/``mode`` for the host and the
 checkpoints), the commit and the next trial's first stage state. On landing, block 0 records the
-sample (:func:`~aca_warp.kernels.hf.record_pad`, the per-patch histories) and opens the next interval. Every block
+sample (:func:`~aca_warp.kernels.hf.record_pad`, the per-patch histories) and opens the next interval; a growing
+pad also lands on its growth events and grows there (the factory's ``growth``). Every block
 keeps the pad's stage displacements in shared memory, two rows (odd and even stages), and each new stage
 displacement is stored into every block of the cluster (distributed shared memory, released and acquired by the
 cluster barrier that follows), so the neighbour gathers read shared memory only; the block's neighbour lists are
