@@ -77,9 +77,9 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         choices=ENGINES,
         default="auto",
         help="onchip: one thread block per pad (a cluster of up to 16 on sm_90+ for a few pads), many strang "
-        "steps or adaptive trials per launch (faster on CUDA; strang grows patches too); general: per-step kernels "
-        "(every integrator; adaptive with growth); auto (default): onchip on CUDA where the run allows it, and for "
-        "adaptive on the CPU too (docs/onchip.md)",
+        "steps or adaptive trials per launch (faster on CUDA; both grow patches too); general: per-step kernels "
+        "(every integrator); auto (default): onchip on CUDA where the run allows it, and for adaptive on the CPU "
+        "too (docs/onchip.md)",
     )
 
 
