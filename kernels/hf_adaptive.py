@@ -134,6 +134,41 @@ def stage_state_h(
 
 
 @wp.func
+def stage_k(
+    i: int,
+    p: int,
+    stage: int,
+    fs: Any,
+    inv_mass: wp.array[Any],
+    damping: wp.array[Any],
+    normal_force: wp.array[Any],
+    radius: wp.array[Any],
+    pad_omega: wp.array[Any],
+    pad_mu_scale: wp.array[Any],
+    pad_slope: wp.array[Any],
+    pad_decay: wp.array[Any],
+    coeff: wp.array2d[wp.float64],
+    h: wp.float64,
+    u_in: wp.array[Any],
+    v_in: wp.array[Any],
+    v_stage: wp.array[Any],
+    ku: wp.array2d[Any],
+    kv: wp.array2d[Any],
+    u_next: wp.array[Any],
+    v_next: wp.array[Any],
+):
+    """Patch i's (of pad p) k_s = (u̇, v̇) from its elastic force ``fs`` [N] and velocity at the stage state and,
+    for 0 < s < 6, its next stage state y_{s+1} at trial step ``h`` [s] into ``u_next``/``v_next``."""
+    v = v_stage[i]
+    ku[stage, i] = v
+    kv[stage, i] = acceleration(
+        i, p, fs, v, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay
+    )
+    if stage > 0 and stage + 1 < STAGES:
+        stage_state_h(i, stage + 1, coeff, h, u_in, v_in, ku, kv, u_next, v_next)
+
+
+@wp.func
 def stage_state(
     i: int,
     p: int,
@@ -470,13 +505,10 @@ def dp5_eval(
     fs = lane_spring_force(i, lane, threads, u_stage, k_diag, nbr_start, nbr_index, nbr_stiffness)
     if lane != 0:
         return
-    v = v_stage[i]
-    ku[stage, i] = v
-    kv[stage, i] = acceleration(
-        i, p, fs, v, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay
-    )
-    if stage > 0 and stage + 1 < STAGES:
-        stage_state(i, p, stage + 1, coeff, ctl, u_in, v_in, ku, kv, u_next, v_next)
+    stage_k(
+        i, p, stage, fs, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff,
+        ctl[p, C_TRIAL], u_in, v_in, v_stage, ku, kv, u_next, v_next,
+    )  # fmt: skip
 
 
 @wp.kernel

@@ -36,7 +36,6 @@ from aca_warp.kernels.hf_adaptive import (
     M_LANDED,
     M_NEEDK1,
     STAGES,
-    acceleration,
     at_event,
     at_sample,
     count_trial,
@@ -45,6 +44,7 @@ from aca_warp.kernels.hf_adaptive import (
     open_growth_decide,
     patch_error,
     pi_decide,
+    stage_k,
     stage_state_h,
     store_control,
 )
@@ -61,44 +61,6 @@ from aca_warp.kernels.tiles import (
 )
 
 wp.set_module_options({"enable_backward": False})
-
-
-@wp.func
-def stage_rest(
-    i: int,
-    p: int,
-    stage: int,
-    fs: Any,
-    inv_mass: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
-    coeff: wp.array2d[wp.float64],
-    h: wp.float64,
-    u_in: wp.array[Any],
-    v_in: wp.array[Any],
-    v_stage: wp.array[Any],
-    ku: wp.array2d[Any],
-    kv: wp.array2d[Any],
-    u_next: wp.array[Any],
-    v_next: wp.array[Any],
-):
-    """Patch i's k_s from its elastic force ``fs`` [N] at the stage state and, for 0 < s < 6, its next stage state
-    at trial step ``h`` [s] (the rest of ``dp5_eval``); returns that next displacement [m] (0 when there is none)."""
-    v = v_stage[i]
-    ku[stage, i] = v
-    kv[stage, i] = acceleration(
-        i, p, fs, v, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay
-    )
-    un = v - v
-    if stage > 0 and stage + 1 < STAGES:
-        stage_state_h(i, stage + 1, coeff, h, u_in, v_in, ku, kv, u_next, v_next)
-        un = u_next[i]
-    return un
 
 
 ABLATIONS = frozenset({"gather", "record", "sync"})
@@ -242,7 +204,7 @@ def onchip_dp5_kernel(
         g = lo + lane
         while g < hi:
             fs = spring_force(g, u_io, k_diag, nbr_start, nbr_index, nbr_stiffness)
-            stage_rest(
+            stage_k(
                 g, pad, 0, fs, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope,
                 pad_decay, coeff, h, u_io, v_io, v_io, ku, kv, u_b, v_b,
             )  # fmt: skip
@@ -516,16 +478,21 @@ def onchip_dp5_kernel(
                         g = lo + lane
                         while g < hi:
                             fs = gather(g, a, base, row, us, sidx, sk, k_diag, nbr_start, nbr_index, nbr_stiffness)
+                            un = T(0.0)  # the next stage displacement (none after the last stage)
                             if row == 1:
-                                un = stage_rest(
+                                stage_k(
                                     g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
                                     pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_b, ku, kv, u_a, v_a,
                                 )  # fmt: skip
+                                if stage + 1 < STAGES:
+                                    un = u_a[g]
                             else:
-                                un = stage_rest(
+                                stage_k(
                                     g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
                                     pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_a, ku, kv, u_b, v_b,
                                 )  # fmt: skip
+                                if stage + 1 < STAGES:
+                                    un = u_b[g]
                             if stage + 1 < STAGES:
                                 share(us, 1 - row, g - a, un, 0, 1)
                             g += threads
@@ -545,17 +512,21 @@ def onchip_dp5_kernel(
                             if sub == 0 and j < own:
                                 fs = fsum - k_diag[g] * get_u(us, row, j + lo - a)
                                 if row == 1:
-                                    un = stage_rest(
+                                    stage_k(
                                         g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
                                         pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_b, ku, kv, u_a,
                                         v_a,
                                     )  # fmt: skip
+                                    if stage + 1 < STAGES:
+                                        un = u_a[g]
                                 else:
-                                    un = stage_rest(
+                                    stage_k(
                                         g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
                                         pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_a, ku, kv, u_b,
                                         v_b,
                                     )  # fmt: skip
+                                    if stage + 1 < STAGES:
+                                        un = u_b[g]
                             un = first_lane(un)  # the lanes of the patch share its stores into the cluster
                             if j < own and stage + 1 < STAGES:
                                 share(us, 1 - row, j + lo - a, un, sub, LANES)
