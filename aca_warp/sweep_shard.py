@@ -335,7 +335,7 @@ def _run_batches(
         batches += 1
         steps = max(steps, res.steps)
         wall += res.wall_time
-        engines.add("onchip" if "step:strang:onchip" in res.stages else "general")
+        engines.add(res.engine)
         compile_time += res.compile_time
         dt_used = res.dt
         if res.fault is not None:

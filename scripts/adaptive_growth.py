@@ -24,8 +24,9 @@ import sys
 from typing import Any
 
 import numpy as np
+import warp as wp
 
-from aca_warp.common.files import host_cpu
+from aca_warp.common.files import machine
 from aca_warp.hf.loop import run_hf
 from aca_warp.hf.model import build_model
 from aca_warp.hf.options import ENGINES, RunOptions
@@ -49,7 +50,7 @@ def one_run(args: argparse.Namespace, growth: bool = True, **options: Any) -> di
         "mean_step": res.sim_time / res.steps,
         "area": float(model.host("area").mean()),
         "mu": res.collect().globals[:, 0, 0],
-        "engine": "onchip" if any(s.endswith(":onchip") for s in res.stages) else "general",
+        "engine": res.engine,
     }
 
 
@@ -69,9 +70,9 @@ def main(argv: list[str] | None = None) -> int:
         runs[f"adaptive tol {tol:g}"]["still"] = still["steps"]
     strang = runs[f"strang {args.dt:g} s"]["mu"]
     tightest = runs[f"adaptive tol {min(args.tols):g}"]["mu"]
-    where = args.device if args.device == "cpu" else f"{args.device} ({_gpu_name(args.device)})"
-    print(f"varying_area, first {args.duration:g} s from rest, {args.precision}, engine {args.engine}, {where}, "
-          f"host {host_cpu()}\n")  # fmt: skip
+    m = machine(wp.get_device(args.device))
+    print(f"varying_area, first {args.duration:g} s from rest, {args.precision}, engine {args.engine}, "
+          f"{m['device']}: {m['device_name']}, host {m['host']}\n")  # fmt: skip
     print("| run | engine | wall [s] | steps | rejected | steps, growth off | mean step [s] | mean area [m²] "
           f"| max abs Δμ vs strang | max abs Δμ vs tol {min(args.tols):g} |")  # fmt: skip
     print("|---|---|---|---|---|---|---|---|---|---|")
@@ -80,12 +81,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"| {name} | {r['engine']} | {r['wall']:.2f} | {r['steps']} | {r['rejected']} | {r.get('still', '')} "
               f"| {r['mean_step']:.3g} | {r['area']:.6g} | {d_strang:.2g} | {d_tight:.2g} |")  # fmt: skip
     return 0
-
-
-def _gpu_name(device: str) -> str:
-    import warp as wp
-
-    return wp.get_device(device).name
 
 
 if __name__ == "__main__":

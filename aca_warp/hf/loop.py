@@ -77,6 +77,11 @@ class RunResult:
 
         return Chunk(cat("time"), cat("globals"), cat("patch_time"), cat("velocity"), cat("displacement"))
 
+    @property
+    def engine(self) -> str:
+        """The engine that stepped the run: ``onchip`` (a ``step:…:onchip`` stage) or ``general``."""
+        return "onchip" if any(s.startswith("step:") and s.endswith(":onchip") for s in self.stages) else "general"
+
 
 def make_engine(
     model: PadModel, state: HFState, options: RunOptions, record: Record, n_samples: int, tuning: EngineTuning
