@@ -24,7 +24,7 @@ from aca_warp.hf.engine import EngineTuning, Progress
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Recorder
-from aca_warp.hf.solver import CONTACT_BLOCK, GROWTH_MUTABLE, HFSolver, growth_events, growth_interval
+from aca_warp.hf.solver import CONTACT_BLOCK, HFSolver, grown_arrays, growth_events, growth_interval
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 from aca_warp.scene import Record
@@ -140,8 +140,7 @@ class GeneralEngine:
             out.update(self.stepper.saved())
         if self.growth is not None:
             out.update(self.growth.saved())
-            out.update({f"model/{k}": self.model.arrays[k] for k in GROWTH_MUTABLE})
-        return out
+        return out | grown_arrays(self.model)
 
     def begin(self, resume: dict[str, int] | None) -> None:
         if resume is None:

@@ -31,7 +31,7 @@ from aca_warp.hf.onchip_layout import (
 )
 from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Recorder
-from aca_warp.hf.solver import GROWTH_MUTABLE, HFSolver, growth_events
+from aca_warp.hf.solver import HFSolver, grown_arrays, growth_events
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 from aca_warp.kernels.hf_onchip import onchip_kernel
@@ -171,9 +171,7 @@ class OnchipEngine:
     # -- the Engine protocol
 
     def saved(self) -> dict[str, wp.array]:
-        if "pad_growth" not in self.model.arrays:
-            return {}
-        return {f"model/{k}": self.model.arrays[k] for k in GROWTH_MUTABLE}
+        return grown_arrays(self.model)
 
     def begin(self, resume: dict[str, int] | None) -> None:
         if resume is None:

@@ -27,7 +27,7 @@ from aca_warp.hf.onchip import cluster_size, growth_arguments
 from aca_warp.hf.onchip_layout import adaptive_shared_bytes, pad_sizes, smem_limit, unsupported
 from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Recorder
-from aca_warp.hf.solver import GROWTH_MUTABLE, HFSolver
+from aca_warp.hf.solver import HFSolver, grown_arrays
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 from aca_warp.kernels import hf_adaptive as KA
@@ -135,10 +135,7 @@ class OnchipAdaptiveEngine:
     # -- the Engine protocol
 
     def saved(self) -> dict[str, wp.array]:
-        out = self.stepper.saved()
-        if self.growth is not None:
-            out.update({f"model/{k}": self.model.arrays[k] for k in GROWTH_MUTABLE})
-        return out
+        return self.stepper.saved() | grown_arrays(self.model)
 
     def begin(self, resume: dict[str, int] | None) -> None:
         if resume is None:

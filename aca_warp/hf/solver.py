@@ -71,6 +71,14 @@ GROWTH_MUTABLE = (
 )
 
 
+def grown_arrays(model: PadModel) -> dict[str, wp.array]:
+    """The model arrays a checkpoint of a growing run holds, as ``model/NAME`` (:data:`GROWTH_MUTABLE`); empty for
+    a model that does not grow."""
+    if "pad_growth" not in model.arrays:
+        return {}
+    return {f"model/{k}": model.arrays[k] for k in GROWTH_MUTABLE}
+
+
 STICKING_FACTOR = 1.0 / 3.0  # largest |R| of strang's friction step on a sticking patch (sticking bound below)
 
 
