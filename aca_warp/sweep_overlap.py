@@ -3,9 +3,10 @@ and the cancel event of a stopping sweep.
 
 :class:`ChunkWriter` writes a shard's recorded chunks to its HDF5 file in a thread while the run goes on;
 :class:`KernelTurn` gives one shard at a time the device's kernels (threads of one process, and processes that share
-a GPU), so that the next shard's model build runs beside the current shard's kernel; :class:`ShardContext` says how a
-shard task runs and carries the event that stops it (:class:`ShardCancelled`). None of them decides what a kernel
-computes: results are the same bit for bit with or without them.
+a GPU), so that the next shard's scenes, file and writes (across processes on a GPU: also its model build) run
+beside the current shard's kernel; :class:`ShardContext` says how a shard task runs and carries the event that stops
+it (:class:`ShardCancelled`). None of them decides what a kernel computes: results are the same bit for bit with or
+without them.
 """
 
 from __future__ import annotations
@@ -136,9 +137,13 @@ _TURN_LOCKS_GUARD = threading.Lock()
 class KernelTurn:
     """A shard's turn on its device in the overlapped path: one shard's kernels at a time, others build meanwhile.
 
-    * Shard tasks of one process (threads): a lock per device, held from the model build (CUDA: build and run share
-      the device's one stream, where the build's host syncs would wait behind the running kernel) or from the run
-      (CPU: Warp's CPU kernels share static tile memory) to the end of the run. :meth:`enter` waits for it.
+    * Shard tasks of one process (threads): a lock per device, held from the model build to the end of the run, so
+      that one task at a time does Warp work on the device. CUDA: build and run share the device's one stream, where
+      the build's host syncs would wait behind the running kernel. CPU: Warp's CPU runtime is not safe for two
+      threads at once: the general engine captures its steps in a CPU graph, and an array allocation or a launch of
+      another thread during that capture fails (``'NoneType' object has no attribute 'track_array'``) or would be
+      recorded into the graph; and the CPU kernels of one Warp module find their tile memory through one static
+      pointer, which concurrent launches overwrite. :meth:`enter` waits for the lock.
     * Processes that share a GPU (two Dask workers per GPU): a file lock named after the GPU (host-local, in the
       temporary folder), taken by :meth:`first_chunk` after the run's first chunk and dropped when the run ends.
       The next shard's model build, run set-up and first launch therefore overlap the current shard's run (the

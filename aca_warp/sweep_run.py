@@ -2,7 +2,7 @@
 
 :func:`run_sweep` holds the directory's lock, prepares the manifest and hands the shards to one of three paths:
 :func:`_run_in_process` (one shard after another), :func:`_run_in_process_overlapped` (:data:`PIPELINE_DEPTH`
-shard tasks in threads: one steps while the next builds, samples written behind the run), or
+shard tasks in threads: one steps while the next prepares its scenes and file, samples written behind the run), or
 :func:`~aca_warp.sweep_cluster._run_on_dask`. A ``KeyboardInterrupt`` stops the shards in flight, marks them
 ``interrupted`` and is raised again.
 """
@@ -42,12 +42,12 @@ def run_sweep(
     (``workers`` processes; default :data:`WORKERS_PER_GPU` per GPU of ``device`` with ``overlap``, else one, or
     one per CPU core for ``cpu``), or the cluster at ``scheduler`` is used (its workers run on ``device``: ``cuda``
     there means each worker's first visible GPU), or an open Dask ``client`` (``device`` as for a scheduler; see
-    :func:`local_cluster`). ``overlap`` (default): model builds and file writes overlap the kernels (in this process:
-    :data:`PIPELINE_DEPTH` shard tasks in threads; on Dask: two worker processes per GPU; both: a writer thread per
-    shard and the device taken in turns, :class:`KernelTurn`); False: the serial path, same results bit for bit.
-    The manifest is updated as shards finish. A ``KeyboardInterrupt`` (Ctrl-C, or SIGTERM as the CLI maps it)
-    stops the shards in flight, marks them ``interrupted`` in the manifest (the next call runs them) and is raised
-    again.
+    :func:`local_cluster`). ``overlap`` (default): file writes, and on Dask model builds, overlap the kernels (in this
+    process: :data:`PIPELINE_DEPTH` shard tasks in threads, each one's Warp work in its turn; on Dask: two worker
+    processes per GPU; both: a writer thread per shard and the device taken in turns, :class:`KernelTurn`); False:
+    the serial path, same results bit for bit. The manifest is updated as shards finish. A ``KeyboardInterrupt``
+    (Ctrl-C, or SIGTERM as the CLI maps it) stops the shards in flight, marks them ``interrupted`` in the manifest
+    (the next call runs them) and is raised again.
     """
     t0 = time.perf_counter()
     say = log or (lambda s: None)
@@ -103,7 +103,7 @@ def _run_in_process(book: _Book, args: tuple, dev: str, memory_fraction: float) 
         raise
 
 
-PIPELINE_DEPTH = 2  # shard tasks at a time in one process (overlapped path): one runs, one builds
+PIPELINE_DEPTH = 2  # shard tasks at a time in one process (overlapped path): one runs, one prepares and writes
 
 
 def _run_in_process_overlapped(book: _Book, args: tuple, dev: str, memory_fraction: float) -> None:

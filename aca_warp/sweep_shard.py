@@ -210,9 +210,9 @@ def run_shard(
     shard's pads as one batch (several when the memory estimate says they do not fit), streams the samples
     into ``shard-NNNNN.h5.partial`` and renames it when done. ``overlap``: write the samples behind the run (a
     :class:`ChunkWriter` thread) and take the device in turns (:class:`KernelTurn`), so that several tasks of one
-    process or several processes on one GPU overlap their model builds and writes with each other's kernels
-    (``ctx`` overrides it, with a cancel event). Same results either way. Returns a summary for the manifest,
-    with the time per phase (``timings``, :data:`TIMING_DOC`).
+    process overlap their scenes and writes, and several processes on one GPU also their model builds, with each
+    other's kernels (``ctx`` overrides it, with a cancel event). Same results either way. Returns a summary for
+    the manifest, with the time per phase (``timings``, :data:`TIMING_DOC`).
     """
     import warp as wp
 
@@ -383,13 +383,11 @@ def _run_batch(
 
     b1 = b0 + len(scenes)
     ctx.check()
-    if turn is not None and dev.is_cuda:
-        turn.enter()  # the build's syncs would wait behind another task's kernel on the device's one stream
+    if turn is not None:
+        turn.enter()  # the build is Warp work too: see KernelTurn
     with clock("build"):
         model = build_model(scenes, device=dev, precision=spec.precision)
         state = initial_state(model)
-    if turn is not None:
-        turn.enter()
 
     def sink(chunk: Any) -> None:
         t = time.perf_counter()

@@ -3,8 +3,8 @@
 
 One product sweep of hf1 pads (friction.M × load.normal_force × patches.seed, ``strang``, dt 1e-8 s) runs twice into
 fresh directories on the device given: once ``sequential`` (one shard after another: build, run, write) and once
-``overlapped`` (the next shard's model built while the current one steps, samples written behind the run;
-docs/sweeps.md, "Overlap"). Reported per mode:
+``overlapped`` (while one shard steps, the next prepares its scenes and file, on Dask also builds its model; samples
+written behind the run; docs/sweeps.md, "Overlap"). Reported per mode:
 
 * in-shard rate: patch-steps / seconds inside stepping, summed over the shards (``timings.kernel`` of each shard:
   the run loop less its sink; no model building, set-up or writing);

@@ -41,14 +41,14 @@ def _assert_same_files(a: Path, b: Path) -> None:
 
 @pytest.mark.parametrize("memory_fraction", [0.5, 1e-12], ids=["one-batch", "a-batch-per-pad"])
 def test_overlapped_files_equal_sequential(tmp_path: Path, memory_fraction: float) -> None:
-    """In this process: two shard tasks in threads (builds beside runs, writes behind them) against one shard after
-    another with inline writes; also when every pad is its own batch (rows appended per batch)."""
+    """In this process: two shard tasks in threads (scenes and files beside runs, writes behind them) against one
+    shard after another with inline writes; also when every pad is its own batch (rows appended per batch)."""
     spec = load_spec(SPEC, base_dir=Path.cwd())
     seq, ovl = tmp_path / "seq", tmp_path / "ovl"
     r = run_sweep(spec, seq, workers=0, overlap=False, memory_fraction=memory_fraction)
-    assert r.ran == [0, 1, 2] and not r.failed and not r.faults
+    assert r.ran == [0, 1, 2] and not r.failed and not r.faults, (r.ran, r.failed, r.faults)
     r = run_sweep(spec, ovl, workers=0, overlap=True, memory_fraction=memory_fraction)
-    assert r.ran == [0, 1, 2] and not r.failed and not r.faults
+    assert r.ran == [0, 1, 2] and not r.failed and not r.faults, (r.ran, r.failed, r.faults)
     _assert_same_files(seq, ovl)
     with h5py.File(ovl / "shard-00002.h5", "r") as f:
         assert f["global/mu"].shape == (2, 401) and f["global/time"].shape == (401,)
@@ -57,6 +57,38 @@ def test_overlapped_files_equal_sequential(tmp_path: Path, memory_fraction: floa
     summary = {s["index"]: s for s in r.summaries}[0]
     assert summary["batches"] == (1 if memory_fraction == 0.5 else 3)
     assert summary["timings"]["kernel"] > 0 and summary["timings"]["run_end"] >= summary["timings"]["run_start"]
+
+
+def test_overlapped_shards_do_warp_work_one_at_a_time(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two shard tasks in threads never call Warp at the same time: a model build beside another shard's run fails
+    now and then on the CPU (the run captures a CPU graph; scripts/warp_cpu_threads.py measures it), so the build is
+    done in the device's turn too. Every build and run is widened by a short sleep, so that two of them would
+    overlap if the turn allowed it."""
+    import aca_warp.hf.loop as loop
+    import aca_warp.hf.model as model
+
+    inside, most, guard = [0], [0], threading.Lock()
+
+    def counted(f):
+        def g(*args, **kwargs):
+            with guard:
+                inside[0] += 1
+                most[0] = max(most[0], inside[0])
+            try:
+                time.sleep(0.05)
+                return f(*args, **kwargs)
+            finally:
+                with guard:
+                    inside[0] -= 1
+
+        return g
+
+    monkeypatch.setattr(model, "build_model", counted(model.build_model))
+    monkeypatch.setattr(loop, "run_hf", counted(loop.run_hf))
+    spec = load_spec(SPEC, base_dir=Path.cwd())
+    r = run_sweep(spec, tmp_path / "ovl", workers=0, overlap=True, memory_fraction=1e-12)
+    assert r.ran == [0, 1, 2] and not r.failed and not r.faults, (r.ran, r.failed, r.faults)
+    assert most[0] == 1
 
 
 def test_overlapped_on_dask_equals_sequential(tmp_path: Path) -> None:
