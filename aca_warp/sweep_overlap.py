@@ -135,7 +135,7 @@ _TURN_LOCKS_GUARD = threading.Lock()
 
 
 class KernelTurn:
-    """A shard's turn on its device in the overlapped path: one shard's kernels at a time, others build meanwhile.
+    """A shard's turn on its device in the overlapped path: one shard's Warp work at a time, others prepare meanwhile.
 
     * Shard tasks of one process (threads): a lock per device, held from the model build to the end of the run, so
       that one task at a time does Warp work on the device. CUDA: build and run share the device's one stream, where
