@@ -116,7 +116,7 @@ class Friction:
         return self.M / np.pi * np.arctan(self.slope * v) * (1.0 / (self.decay * np.abs(v) + 1.0) + 1.0)
 
     def derivative(self, v: np.ndarray | float) -> np.ndarray:
-        """Slope df/dv of the signed Eq. 4 at sliding velocity ``v`` [m/s] [s m⁻¹] (negative where f falls)."""
+        """Slope df/dv [s m⁻¹] of the signed Eq. 4 at sliding velocity ``v`` [m/s] (negative where f falls)."""
         v = np.asarray(v, dtype=np.float64)
         q = 1.0 / (self.decay * np.abs(v) + 1.0)
         da = self.slope / (1.0 + (self.slope * v) ** 2)
