@@ -1,7 +1,7 @@
 """Command line ``aca-warp COMMAND ...``: the top-level parser and the entry point.
 
 Each command registers its own parser from its package (``add_parsers(sub)`` in aca_warp.hf.commands,
-aca_warp.lf.commands, aca_warp.analysis.commands, aca_warp.sweep, aca_warp.bench) and sets ``handler``; nothing
+aca_warp.lf.commands, aca_warp.analysis.commands, aca_warp.sweep.commands, aca_warp.bench) and sets ``handler``; nothing
 imports this module. Parsing imports no simulation code, so ``--help`` and argument errors answer at once.
 """
 
@@ -34,7 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
     from aca_warp.bench import add_parsers as add_bench
     from aca_warp.hf.commands import add_parsers as add_hf
     from aca_warp.lf.commands import add_parsers as add_lf
-    from aca_warp.sweep import add_parsers as add_sweep
+    from aca_warp.sweep.commands import add_parsers as add_sweep
 
     p = argparse.ArgumentParser(
         prog="aca-warp",

@@ -7,7 +7,7 @@ Two threads of this process do what two shard tasks of an overlapped sweep would
 build done alone before (every model array, bit for bit), every run with its lone run (every recorded global
 sample); an exception, a difference or a fault counts as a failure. Run twice: ``free`` (the threads call Warp
 whenever they like, as a sweep did when the build was outside the device's turn) and ``turns`` (one lock around
-each build and each run, as ``aca_warp.sweep_overlap.KernelTurn`` holds it now). The pads are those of the
+each build and each run, as ``aca_warp.sweep.overlap.KernelTurn`` holds it now). The pads are those of the
 overlapped-sweep test (hf1, 20 patches, 400 µs at 1 µs samples, fp32, eight seeds × M).
 
     python scripts/warp_cpu_threads.py --seconds 90 --md warp_cpu_threads.md

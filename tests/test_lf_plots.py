@@ -12,9 +12,10 @@ import h5py
 import numpy as np
 import pytest
 
-from aca_warp import plots, plots_lf
+from aca_warp import plots
 from aca_warp.analysis.commands import FIGURE_NAMES, LF_FIGURE_NAMES, LF_QUANTITIES, add_parsers
 from aca_warp.common.errors import SceneError
+from aca_warp.plots import lf as plots_lf
 
 DOC = {
     "scene": {"name": "tiny"},

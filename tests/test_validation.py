@@ -12,37 +12,41 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aca_warp.studies import validation as V
+from aca_warp.studies.validation import base as VB
+from aca_warp.studies.validation import cli as VL
+from aca_warp.studies.validation import experiments as VE
+from aca_warp.studies.validation import plan as VP
+from aca_warp.studies.validation.measures import local_sync_measures
 
 # ------------------------------------------------------------------------------------------------ scenes and plan
 
 
 def test_seeds_layouts_and_reduced_pads():
-    cfg = V.Config(seeds=2, patches=60)
-    a0, a1 = (V.experiment_scene(V.EXPERIMENTS["hf1"], k, cfg) for k in (0, 1))
-    c0 = V.experiment_scene(V.EXPERIMENTS["hf3"], 0, cfg)
+    cfg = VB.Config(seeds=2, patches=60)
+    a0, a1 = (VP.experiment_scene(VB.EXPERIMENTS["hf1"], k, cfg) for k in (0, 1))
+    c0 = VP.experiment_scene(VB.EXPERIMENTS["hf3"], 0, cfg)
     assert a0.patches.count == 60 and (a0.initial.seed, a1.initial.seed) == (1, 2)
     assert not np.array_equal(a0.patches.x, a1.patches.x)  # another seed, another layout
     np.testing.assert_array_equal(a0.patches.x, c0.patches.x)  # hf1 and hf3 share it: paired comparisons
     assert (a0.friction.M, c0.friction.M) == (0.8, 0.4)
-    full = V.experiment_scene(V.EXPERIMENTS["hf1"], 0, V.Config(seeds=1))
+    full = VP.experiment_scene(VB.EXPERIMENTS["hf1"], 0, VB.Config(seeds=1))
     assert full.patches.count == 1758 and full.initial.state == "equilibrium" and full.initial.perturbation == 1e-2
     # the sector keeps the preset's patch density and pressure
     assert a0.patches.count / a0.pad.area == pytest.approx(1758 / full.pad.area)
     assert a0.normal_force / a0.patches.count == pytest.approx(full.normal_force / 1758)
-    rest = V.experiment_scene(V.EXPERIMENTS["hf1_rest"], 0, cfg)
+    rest = VP.experiment_scene(VB.EXPERIMENTS["hf1_rest"], 0, cfg)
     assert rest.initial.state == "rest" and rest.initial.perturbation == 0.0
 
 
 def test_sweep_heights_put_the_load_ten_percent_above_all_in_contact():
     from aca_warp.hf.contact import load_window, solve_scene_contact
 
-    cfg = V.Config(seeds=1, patches=80)
-    s = V.experiment_scene(V.EXPERIMENTS["sweep_0p3"], 0, cfg)
+    cfg = VB.Config(seeds=1, patches=80)
+    s = VP.experiment_scene(VB.EXPERIMENTS["sweep_0p3"], 0, cfg)
     assert s.patches.area.mean() == pytest.approx(0.3e-6, rel=0.1)
-    assert s.normal_force == pytest.approx(V.HF1_PRESSURE * 80 * 0.3e-6)
+    assert s.normal_force == pytest.approx(VP.HF1_PRESSURE * 80 * 0.3e-6)
     win = load_window(s)
-    assert s.normal_force / win.all_in_contact == pytest.approx(1.0 + V.HEIGHT_MARGIN, rel=1e-9)
+    assert s.normal_force / win.all_in_contact == pytest.approx(1.0 + VP.HEIGHT_MARGIN, rel=1e-9)
     sol = solve_scene_contact(s)
     assert np.all(sol.patch_force > 0) and sol.matrix_force.sum() == 0.0
     from aca_warp.scene import PatchGenerator
@@ -52,8 +56,8 @@ def test_sweep_heights_put_the_load_ten_percent_above_all_in_contact():
 
 
 def test_plan_follows_the_predicted_growth_and_aligns_the_window():
-    cfg = V.Config(seeds=2, patches=60, window=3e-3)
-    prep = V.prepare(V.EXPERIMENTS["hf1"], cfg)
+    cfg = VB.Config(seeds=2, patches=60, window=3e-3)
+    prep = VE.prepare(VB.EXPERIMENTS["hf1"], cfg)
     p = prep.plan
     q25 = np.percentile(np.concatenate(prep.sigma), 25)
     assert p.sigma_q25 == pytest.approx(q25)
@@ -64,7 +68,7 @@ def test_plan_follows_the_predicted_growth_and_aligns_the_window():
     assert p.duration >= p.settle + cfg.window - dtp and p.steps == round(p.duration / cfg.dt)
     first = round(p.window_start / cfg.sample_dt)  # the recorder's per-patch rows: first, first + 3, ..., n
     assert (n - first) % cfg.decimation == 0 and (n - first) // cfg.decimation + 1 == p.patch_samples
-    rest = V.prepare(V.EXPERIMENTS["hf1_rest"], cfg).plan
+    rest = VE.prepare(VB.EXPERIMENTS["hf1_rest"], cfg).plan
     assert 0.05 < rest.v0 < 1.0 and rest.settle < p.settle  # released from rest: a larger start, fewer e-folds
 
 
@@ -74,20 +78,20 @@ def test_plan_follows_the_predicted_growth_and_aligns_the_window():
 def test_verdicts_follow_the_stated_criteria():
     rng = np.random.default_rng(0)
     near = 73e3 + rng.normal(0, 200.0, 8)
-    assert V.value_verdict(near, 73e3, 0.05 * 73e3) == "reproduced"
-    assert V.value_verdict(np.array([70e3, 76.5e3]), 73e3, 3.65e3) == "partly"  # mean in, wide interval out
-    assert V.value_verdict(near + 10e3, 73e3, 3.65e3) == "not reproduced"
+    assert VB.value_verdict(near, 73e3, 0.05 * 73e3) == "reproduced"
+    assert VB.value_verdict(np.array([70e3, 76.5e3]), 73e3, 3.65e3) == "partly"  # mean in, wide interval out
+    assert VB.value_verdict(near + 10e3, 73e3, 3.65e3) == "not reproduced"
     up, flat, down = rng.normal(1.0, 0.1, 8), rng.normal(0.0, 1.0, 8), rng.normal(-1.0, 0.1, 8)
-    assert (V.side(up), V.side(flat), V.side(down), V.side(down, -1.0)) == (1, 0, -1, 1)
-    assert V.direction_verdict([1, 1]) == "reproduced" and V.direction_verdict([1, 0]) == "partly"
-    assert V.direction_verdict([0]) == "not reproduced" and V.direction_verdict([0], [1]) == "partly"
-    assert V.direction_verdict([1], [-1]) == "partly"
-    assert V.equal_verdict(rng.normal(0, 0.01, 8), 0.05) == "reproduced"
-    assert V.equal_verdict(np.array([-0.3, 0.32]), 0.05) == "partly"
-    assert V.equal_verdict(up, 0.05) == "not reproduced"
-    assert V.threshold_verdict(np.full(3, 0.1) + [0, 0.01, -0.01], 0.223, below=True) == "reproduced"
-    assert V.threshold_verdict(np.array([0.6, 0.7, 0.65]), 0.5, below=False) == "reproduced"
-    assert V.threshold_verdict(np.array([0.3, 0.35]), 0.5, below=False) == "not reproduced"
+    assert (VB.side(up), VB.side(flat), VB.side(down), VB.side(down, -1.0)) == (1, 0, -1, 1)
+    assert VB.direction_verdict([1, 1]) == "reproduced" and VB.direction_verdict([1, 0]) == "partly"
+    assert VB.direction_verdict([0]) == "not reproduced" and VB.direction_verdict([0], [1]) == "partly"
+    assert VB.direction_verdict([1], [-1]) == "partly"
+    assert VB.equal_verdict(rng.normal(0, 0.01, 8), 0.05) == "reproduced"
+    assert VB.equal_verdict(np.array([-0.3, 0.32]), 0.05) == "partly"
+    assert VB.equal_verdict(up, 0.05) == "not reproduced"
+    assert VB.threshold_verdict(np.full(3, 0.1) + [0, 0.01, -0.01], 0.223, below=True) == "reproduced"
+    assert VB.threshold_verdict(np.array([0.6, 0.7, 0.65]), 0.5, below=False) == "reproduced"
+    assert VB.threshold_verdict(np.array([0.3, 0.35]), 0.5, below=False) == "not reproduced"
 
 
 def test_interval_is_the_ensemble_interval_over_seeds():
@@ -95,8 +99,8 @@ def test_interval_is_the_ensemble_interval_over_seeds():
 
     v = np.array([70.1e3, 72.4e3, 71.0e3])
     e = ensemble_interval(v * 1e-3)
-    assert V.interval(v, ".1f", 1e-3, "kHz") == f"{e.mean:.1f} [{e.mean_low:.1f}, {e.mean_high:.1f}] kHz (n = 3)"
-    assert V.interval(np.array([np.nan, 4.0])) == "4 (n = 1, no interval)" and V.interval(np.array([])) == "–"
+    assert VB.interval(v, ".1f", 1e-3, "kHz") == f"{e.mean:.1f} [{e.mean_low:.1f}, {e.mean_high:.1f}] kHz (n = 3)"
+    assert VB.interval(np.array([np.nan, 4.0])) == "4 (n = 1, no interval)" and VB.interval(np.array([])) == "–"
 
 
 def test_a_failing_row_is_marked_and_a_missing_experiment_is_not_measured():
@@ -106,11 +110,11 @@ def test_a_failing_row_is_marked_and_a_missing_experiment_is_not_measured():
     pad = {"seed": 1, "status": "saturated", "measures": {"f1": 7.3e4}}
     results = {"hf1": {"pads": [pad, {**pad, "seed": 2}]}}
     rows = [
-        V.Row("§x", "breaks", "–", "value", ("hf1",), broken),
-        V.Row("§x", "needs hf2", "–", "value", ("hf2",), broken),
-        V.ROWS[0],
+        VB.Row("§x", "breaks", "–", "value", ("hf1",), broken),
+        VB.Row("§x", "needs hf2", "–", "value", ("hf2",), broken),
+        VB.ROWS[0],
     ]
-    out = V.evaluate_rows(results, V.Config(), rows)
+    out = VB.evaluate_rows(results, VB.Config(), rows)
     assert out[0]["verdict"] == "failed" and "boom" in out[0]["notes"]
     assert out[1]["verdict"] == "not measured" and "hf2 (0 usable pads)" in out[1]["notes"]
     assert out[2]["verdict"] == "reproduced" and out[2]["value"].startswith("73.0 [73.0, 73.0] kHz (n = 2)")
@@ -123,13 +127,13 @@ def test_saturation_status_of_a_growing_and_a_saturating_record():
     glob = np.zeros((t.size, 5))
     glob[:, 4] = 100.0 * a * carrier
     glob[:, 0] = 0.5 + 0.01 * a * np.sin(2 * np.pi * 70e3 * t)
-    sat = V.pad_saturation(t, glob, 40e-3, 8e-3)
+    sat = VE.pad_saturation(t, glob, 40e-3, 8e-3)
     assert sat["status"] == "saturated" and 5e-3 < sat["t_start"] < 32e-3
     assert sat["growth_rate"] == pytest.approx(600.0, rel=0.1)
     short = slice(0, 8000)  # still growing at the end
-    grow = V.pad_saturation(t[short], glob[short], 8e-3, 8e-3)
+    grow = VE.pad_saturation(t[short], glob[short], 8e-3, 8e-3)
     assert grow["status"] == "not saturated" and grow["t_start"] is None
-    late = V.pad_saturation(t, glob, 40e-3, 2 * 40e-3)  # settles, but not half a window before the end
+    late = VE.pad_saturation(t, glob, 40e-3, 2 * 40e-3)  # settles, but not half a window before the end
     assert late["status"] == "saturated too late"
 
 
@@ -139,9 +143,9 @@ def test_saturation_status_of_a_growing_and_a_saturating_record():
 @pytest.fixture
 def short_experiment():
     """hf1 cut short at 3 ms: still growing, so its pads cannot saturate."""
-    exp = V.register_experiment(V.Experiment("hf1_short", "§3.1", "hf1 cut short (test)", "hf1", duration=3e-3))
+    exp = VB.register_experiment(VB.Experiment("hf1_short", "§3.1", "hf1 cut short (test)", "hf1", duration=3e-3))
     yield exp
-    V.EXPERIMENTS.pop(exp.name)
+    VB.EXPERIMENTS.pop(exp.name)
 
 
 def test_reduced_run_end_to_end(tmp_path, short_experiment, capsys):
@@ -151,7 +155,7 @@ def test_reduced_run_end_to_end(tmp_path, short_experiment, capsys):
         "--device", "cpu", "--quick", "--seeds", "2", "--patches", "50", "--dt", "1e-7", "--window", "3e-3",
         "--workers", "1", "--only", "hf1", "hf1_short", "--out", str(out), "--page", str(page),
     ]  # fmt: skip
-    assert V.main(argv) == 0
+    assert VL.main(argv) == 0
     res = json.loads((out / "hf1" / "result.json").read_text())
     assert [p["status"] for p in res["pads"]] == ["saturated", "saturated"]
     for p in res["pads"]:
@@ -163,19 +167,19 @@ def test_reduced_run_end_to_end(tmp_path, short_experiment, capsys):
     assert "measures" not in short["pads"][0]
     text = page.read_text()
     assert text.startswith("# Validation\n\nMethod text that stays.") and "QUICK variant" in text
-    assert text.count(f"<!-- BEGIN GENERATED ({V.MARKER}) -->") == 1
+    assert text.count(f"<!-- BEGIN GENERATED ({VL.MARKER}) -->") == 1
     assert "| § | statement | ours: mean [95 % interval] (n seeds) | paper | verdict (criterion) |" in text
     assert "hf1_short, seed 1: **not saturated**" in text
     rows = json.loads((out / "validation.json").read_text())["rows"]
-    assert len(rows) == len(V.ROWS)
+    assert len(rows) == len(VB.ROWS)
     first = next(r for r in rows if r["statement"] == "HF1: first velocity-spectrum peak")
-    assert first["value"] == V.interval(V.values(res, "f1"), ".1f", 1e-3, "kHz") and "(n = 2)" in first["value"]
+    assert first["value"] == VB.interval(VB.values(res, "f1"), ".1f", 1e-3, "kHz") and "(n = 2)" in first["value"]
     assert first["verdict"] in ("reproduced", "partly", "not reproduced")
     assert all(r["verdict"] == "not measured" for r in rows if "hf2" in r["experiments"])
     capsys.readouterr()
-    assert V.main(argv) == 0  # checkpoints: nothing is run again
+    assert VL.main(argv) == 0  # checkpoints: nothing is run again
     assert "reusing the saved result" in capsys.readouterr().out
-    assert V.main([*argv[:-4], "--out", str(tmp_path / "none"), "--max-wall", "0"]) == 0
+    assert VL.main([*argv[:-4], "--out", str(tmp_path / "none"), "--max-wall", "0"]) == 0
     assert not (tmp_path / "none" / "hf1" / "result.json").exists()
 
 
@@ -184,14 +188,14 @@ def test_script_help_and_list():
     out = subprocess.run([sys.executable, str(script), "--help"], capture_output=True, text=True, check=True).stdout
     assert "--max-wall" in out and "--only" in out and "--quick" in out
     listed = subprocess.run([sys.executable, str(script), "--list"], capture_output=True, text=True, check=True).stdout
-    assert all(f"experiment {n}" in listed for n in V.EXPERIMENTS)
+    assert all(f"experiment {n}" in listed for n in VB.EXPERIMENTS)
 
 
 # ------------------------------------------------------------------------------------------------ §3.2 (synthetic)
 
-from aca_warp.studies import validation_area as VA  # noqa: E402
-from aca_warp.studies import validation_causes as VC  # noqa: E402
-from aca_warp.studies import validation_multiscale as VM  # noqa: E402
+from aca_warp.studies.validation import area as VA  # noqa: E402
+from aca_warp.studies.validation import causes as VC  # noqa: E402
+from aca_warp.studies.validation import multiscale as VM  # noqa: E402
 
 
 def _growing_mu(seed: int, falling: bool = True, periodic: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -210,7 +214,7 @@ def _growing_mu(seed: int, falling: bool = True, periodic: bool = True) -> tuple
 
 
 def _va_scene():
-    return V.experiment_scene(V.EXPERIMENTS["va"], 0, V.Config(seeds=1, patches=40))
+    return VP.experiment_scene(VB.EXPERIMENTS["va"], 0, VB.Config(seeds=1, patches=40))
 
 
 def test_growth_measures_of_a_synthetic_record():
@@ -270,10 +274,10 @@ def _va_result(rise: float, dlnf: float, freq: float, amp: float, ptm: tuple[flo
 
 
 def test_varying_area_rows_follow_their_criteria():
-    cfg = V.Config()
+    cfg = VB.Config()
     good = {"va": _va_result(0.1, -0.8, 69.5e3, 0.0041, (1.0, 2.0))}
     bad = {"va": _va_result(-0.05, 0.5, 35.6e3, 0.025, (1.0, 0.5))}
-    rows = {r.statement: r for r in V.ROWS if r.experiments == ("va",)}
+    rows = {r.statement: r for r in VB.ROWS if r.experiments == ("va",)}
     assert len(rows) == 5
     for r in rows.values():
         assert r.measure(good, cfg).verdict == "reproduced", r.statement
@@ -311,8 +315,8 @@ def _ms_results(std: dict[str, float], top: dict[str, float] | None = None, afte
 
 
 def test_multiscale_rows_follow_their_criteria():
-    cfg = V.Config()
-    rows = {r.statement: r for r in V.ROWS if r.section.startswith(("§3.3", "§4"))}
+    cfg = VB.Config()
+    rows = {r.statement: r for r in VB.ROWS if r.section.startswith(("§3.3", "§4"))}
     assert len(rows) == 7
     std = dict.fromkeys(VM.STATES, 0.01)
     app3_high = {**std, "app3_start": 0.02}
@@ -336,7 +340,7 @@ def test_local_sync_measures():
     null = np.array([0.1, 0.1, 0.2, 0.1, 0.4])
     phi = np.array([40, 10, 20, 1, 30])
     coh = np.array([0.8, 0.1, 0.5, np.nan, 0.6])
-    m = V.local_sync_measures(S, null, phi, 100, coh)
+    m = local_sync_measures(S, null, phi, 100, coh)
     assert m["top_excess"] == pytest.approx(0.8)  # top 1 % of 4 defined bins: the largest
     assert m["phi_sync"] == pytest.approx((40 + 10 + 20) / 3) and m["sync_bins"] == 3
     assert m["phi_sync_share"] == pytest.approx(70 / 3 / 100)
@@ -347,11 +351,11 @@ def test_local_sync_measures():
 
 
 def test_variants_apply_only_where_they_replace_every_experiment():
-    vs = {(v.cause, tuple(v.substitute)): v for v in VC.variants(V.Config())}
+    vs = {(v.cause, tuple(v.substitute)): v for v in VC.variants(VB.Config())}
     lin = next(v for v in vs.values() if v.cause == "run length" and ("hf2", "hf2_lin") in v.substitute)
     rest = next(v for v in vs.values() if v.cause == "initial state" and ("hf1", "hf1_rest") in v.substitute)
-    peak2 = next(r for r in V.ROWS if r.statement == "HF2: first velocity-spectrum peak")
-    m_row = next(r for r in V.ROWS if r.statement.startswith("lower M raises S significantly"))
+    peak2 = next(r for r in VB.ROWS if r.statement == "HF2: first velocity-spectrum peak")
+    m_row = next(r for r in VB.ROWS if r.statement.startswith("lower M raises S significantly"))
     assert lin.applies(peak2) and lin.applies(m_row) and rest.applies(peak2) and not rest.applies(m_row)
     snr = next(v for v in vs.values() if v.cause == "Φ rule")
     assert snr.applies(m_row) and not snr.applies(peak2)
@@ -367,8 +371,8 @@ def test_a_variant_that_moves_a_verdict_is_marked():
         return {"pads": [_pad(s, {"f1": f + 30.0 * s, "peak_frequency": f, "f_largest": f}) for s in range(1, 5)]}
 
     results = {"hf2": f1_pads(39e3), "hf2_lin": f1_pads(32.9e3)}
-    rows = V.evaluate_rows(results, V.Config())
-    causes = VC.evaluate_causes(results, V.Config(), rows)
+    rows = VB.evaluate_rows(results, VB.Config())
+    causes = VC.evaluate_causes(results, VB.Config(), rows)
     lin = [c for c in causes if c["statement"] == "HF2: first velocity-spectrum peak" and c["cause"] == "run length"]
     assert len(lin) == 1 and lin[0]["main_verdict"] == "not reproduced"
     assert lin[0]["verdict"] == "reproduced" and lin[0]["moved"] and lin[0]["experiments"] == ["hf2_lin"]
@@ -384,13 +388,13 @@ def test_a_variant_that_moves_a_verdict_is_marked():
 def lf_window_experiment(monkeypatch):
     """Two LF states as a fixed 1 ms window run (a tiny stand-in for the §3.3 groups) on a shortened schedule."""
     monkeypatch.setattr(VM, "QUICK_DURATIONS", (0.3, 0.1))
-    exp = V.register_experiment(
-        V.Experiment("ms_test", "§3.3", "two LF states (test)", "multiscale", builder=VM.state_scene,
+    exp = VB.register_experiment(
+        VB.Experiment("ms_test", "§3.3", "two LF states (test)", "multiscale", builder=VM.state_scene,
                      members=("app1_start", "app3_start"), initial="rest", kind="window", duration=1e-3,
                      window_start=0.2e-3)
     )  # fmt: skip
     yield exp
-    V.EXPERIMENTS.pop(exp.name)
+    VB.EXPERIMENTS.pop(exp.name)
 
 
 def test_growth_window_and_lf_state_experiments_end_to_end(tmp_path, lf_window_experiment):
@@ -400,7 +404,7 @@ def test_growth_window_and_lf_state_experiments_end_to_end(tmp_path, lf_window_e
         "--window", "3e-3", "--growth-speedup", "60", "--workers", "1", "--only", "va", "hf1_lin", "ms_test",
         "--out", str(out),
     ]  # fmt: skip
-    assert V.main(argv) == 0
+    assert VL.main(argv) == 0
     va = json.loads((out / "va" / "result.json").read_text())
     assert va["plan"]["patch_samples"] == 0 and va["plan"]["duration_s"] == pytest.approx(0.36 / 60)
     for p in va["pads"]:
@@ -433,7 +437,7 @@ def test_state_sector_keeps_the_gap_of_the_full_state(tmp_path, monkeypatch):
     from aca_warp.lf.io import scene_from_snapshot
 
     monkeypatch.setattr(VM, "QUICK_DURATIONS", (0.3, 0.1))
-    cfg = V.Config(seeds=1, quick=True, lf_dir=str(tmp_path))
+    cfg = VB.Config(seeds=1, quick=True, lf_dir=str(tmp_path))
     VM._run_lf_job((1, None, VM.QUICK_DURATIONS, str(VM.lf_path(cfg, 1, None))))
     full = scene_from_snapshot(VM.lf_path(cfg, 1, None), "app2_end")
     part = VM.state_sector(full, 40)

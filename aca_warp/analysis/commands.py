@@ -21,10 +21,10 @@ FIGURE_NAMES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animat
 """HF figure names of ``plot --only`` (same as ``aca_warp.plots.FIGURES``, kept here to avoid importing Matplotlib)."""
 
 LF_FIGURE_NAMES = ("lf_global", "lf_population", "lf_patch_map")
-"""LF figure names of ``plot --only`` (same as ``aca_warp.plots_lf.LF_FIGURES``)."""
+"""LF figure names of ``plot --only`` (same as ``aca_warp.plots.lf.LF_FIGURES``)."""
 
 LF_QUANTITIES = ("temperature", "thickness", "normal_force", "pressure", "age", "power", "height", "area")
-"""Colour quantities of the LF patch map (``plot --quantity``; keys of ``aca_warp.plots_lf.QUANTITIES``)."""
+"""Colour quantities of the LF patch map (``plot --quantity``; keys of ``aca_warp.plots.lf.QUANTITIES``)."""
 
 ANALYZE_EPILOG = """\
 Writes the group /analysis into RUN.h5, replacing an earlier one (computed first, swapped in at the end: a
@@ -213,7 +213,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 def cmd_plot(args: argparse.Namespace) -> int:
     """``aca-warp plot``: draw the figures and list the files written; 0 on success. The output folder is checked
     first (not a file, writable: exit 4 for a read-only or full file system); a folder this command created is
-    removed again when no figure was written into it; every figure is written whole (``aca_warp.plotting``)."""
+    removed again when no figure was written into it; every figure is written whole (``aca_warp.plots.figure``)."""
     from pathlib import Path
 
     from aca_warp.common.files import check_output_folder, reading

@@ -7,8 +7,9 @@
   ``work_precision_states`` (the start states, made once and cached) and ``work_precision_report`` (figures, page);
 * :mod:`~aca_warp.studies.time_to_solution`: wall time of every solver (ours, SciPy DOP853, diffrax) to a μ error;
 * :mod:`~aca_warp.studies.validation`: the paper's statements (§3.1–§3.3, §4) from seed ensembles of saturated runs,
-  with :mod:`~aca_warp.studies.validation_base`, ``validation_area``, ``validation_multiscale`` and
-  ``validation_causes``;
+  a package with a module per section of the paper (``hf_rows``, ``area``, ``multiscale``), the candidate causes
+  of open verdicts (``causes``), the verdict machinery (``base``), the runs (``plan``, ``experiments``,
+  ``measures``), the page (``page``) and the command line (``cli``);
 * :mod:`~aca_warp.studies.report`: what the studies share (progress lines, tables, JSON, docs sections, figures);
 * :mod:`~aca_warp.studies.runs`: their calls into the HF run API, all in one module.
 

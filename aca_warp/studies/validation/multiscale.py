@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.studies.validation_base import (
+from aca_warp.studies.validation.base import (
     EXPERIMENTS,
     Config,
     Experiment,
@@ -65,7 +65,7 @@ REST = tuple(f"{g}_rest" for g in GROUPS)
 ORDER_BAR = (10.0, 5.0, 30.0, 15.0)  # the low-load application right after the 10-bar one
 QUICK_DURATIONS = (2.0, 1.0)  # s: application and pause lengths of the quick variant (multiscale_study --quick)
 BAND = (20.0e3, 80.0e3)  # Hz: §4, "the characteristic friction and synchronization behavior ... 20–80 kHz"
-SYNC_EXCESS = 0.05  # S − S_null above which a bin counts as synchronised (validation.SYNC_EXCESS)
+SYNC_EXCESS = 0.05  # S − S_null above which a bin counts as synchronised (measures.SYNC_EXCESS)
 
 
 # ------------------------------------------------------------------------------------------------ LF runs
@@ -422,7 +422,7 @@ STATE_COLUMNS = (
 def state_table(results: dict[str, dict], names: tuple[str, ...] = MAIN) -> tuple[list[str], list[list[str]]]:
     """One line per LF state of the experiments ``names``: the pads used and the means over seeds of the
     measures the §3.3 rows read."""
-    from aca_warp.studies.validation_base import usable
+    from aca_warp.studies.validation.base import usable
 
     header = ["state", "pads used", *(c[1] for c in STATE_COLUMNS)]
     rows = []

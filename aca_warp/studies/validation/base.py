@@ -1,9 +1,10 @@
 """What every part of the validation study shares: settings, the registries of experiments and rows, and the
 helpers that turn saved per-pad results into intervals over seeds and verdicts.
 
-:mod:`aca_warp.studies.validation` runs the experiments and writes the table (§3.1 rows there);
-:mod:`aca_warp.studies.validation_area` (§3.2), :mod:`aca_warp.studies.validation_multiscale` (§3.3) and
-:mod:`aca_warp.studies.validation_causes` (the candidate causes of open verdicts) register theirs here.
+:mod:`~aca_warp.studies.validation.hf_rows` (§3.1), :mod:`~aca_warp.studies.validation.area` (§3.2),
+:mod:`~aca_warp.studies.validation.multiscale` (§3.3, §4) and :mod:`~aca_warp.studies.validation.causes` (the
+candidate causes of open verdicts) register their experiments and rows here;
+:mod:`~aca_warp.studies.validation.experiments` runs them and :mod:`~aca_warp.studies.validation.cli` writes the table.
 """
 
 from __future__ import annotations
@@ -220,7 +221,7 @@ class Row:
         criterion: The row's own tolerance or threshold, in words.
         min_experiments: How many of ``experiments`` need two usable pads (None: all of them).
         uses: What the measure depends on beyond the runs, for the analysis variants of
-            :mod:`~aca_warp.studies.validation_causes`: "sync" (S and Φ), "stft" (the STFT window).
+            :mod:`~aca_warp.studies.validation.causes`: "sync" (S and Φ), "stft" (the STFT window).
     """
 
     section: str

@@ -1,31 +1,9 @@
-"""Figures of a run file after the paper's Figs. 4-11 (``aca-warp plot``; docs/analysis.md).
-
-One public function per figure, each taking the run file and an output folder and returning the files
-it wrote (a PNG and a PDF of the same figure, or a GIF for the animation):
-
-===================  ==================================================================  =============
-function             figure                                                              needs
-===================  ==================================================================  =============
-plot_patch_map       patch coverage state at chosen instants, coloured by u̇ (Figs. 4/6)   per-patch u̇
-plot_global          μ, torque, friction radius, Σ|u̇| against time (Figs. 5/7)          -
-plot_spectra         amplitude spectra of all global outputs (Fig. 8)                    -
-plot_sync            Synchronization Index S(f) with Φ(f), null level, R_w (Fig. 9)     per-patch u̇
-plot_stft            μ(t) and its STFT (Fig. 10)                                         -
-plot_cwt             CWT of μ (Fig. 11)                                                   -
-animate_patch_map    GIF of the patch coverage state over time (Pillow)                  per-patch u̇
-===================  ==================================================================  =============
-
-:func:`plot_run` makes every figure the file supports. Results stored under ``/analysis`` by
-``aca-warp analyze`` are used when present; what is missing is computed on the fly (not written).
-Figures are built on ``matplotlib.figure.Figure`` with the Agg canvas: pyplot's global state and the
-interactive backend are never touched. Every figure carries a caption (what it shows, the normalisation)
-and, in small print, the run's scene, integrator, precision and device.
-"""
+"""The HF figures of a run file after the paper's Figs. 4-11, one public function per figure (the table of them
+and :func:`~aca_warp.plots.plot_run`, which makes them all, are in :mod:`aca_warp.plots`)."""
 
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -37,20 +15,19 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter
 
-from aca_warp import plots_lf
 from aca_warp.analysis import report
 from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run_file, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
 from aca_warp.common.errors import SceneError, option
-from aca_warp.plotting import envelope as _envelope
-from aca_warp.plotting import finish as _finish
-from aca_warp.plotting import new_figure as _figure
-from aca_warp.plotting import pad_outline as _pad_outline
-from aca_warp.plotting import save as _save
-from aca_warp.plotting import whole
+from aca_warp.plots.figure import envelope as _envelope
+from aca_warp.plots.figure import finish as _finish
+from aca_warp.plots.figure import new_figure as _figure
+from aca_warp.plots.figure import pad_outline as _pad_outline
+from aca_warp.plots.figure import save as _save
+from aca_warp.plots.figure import whole
 
 FIGURES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
-"""Figure names accepted by :func:`plot_run` (``which``) and ``aca-warp plot --only``."""
+"""Figure names accepted by :func:`~aca_warp.plots.plot_run` (``which``) and ``aca-warp plot --only``."""
 
 WITH_DISC = "#d62728"
 AGAINST_DISC = "#1f77b4"
@@ -644,106 +621,3 @@ def plot_cwt(path: str | Path, outdir: str | Path) -> list[Path]:
         )
         _finish(fig, caption, run.footer)
         return _save(fig, Path(outdir), f"{run.path.stem}_cwt")
-
-
-# ------------------------------------------------------------------------------------------ all of it
-
-
-def _stderr(message: str) -> None:
-    print(message, file=sys.stderr)
-
-
-def _hf_figure_names(path: str | Path, which: Sequence[str] | None) -> list[str]:
-    """The HF figures :func:`plot_run` makes, in order, without repeats; :class:`SceneError` for an LF figure name
-    or an unknown one."""
-    names = list(FIGURES if which is None else dict.fromkeys(which))
-    lf_names = [n for n in names if n in plots_lf.LF_FIGURES]
-    if lf_names:
-        raise SceneError(
-            f"{', '.join(lf_names)}: LF figures need an LF run file (aca-warp lf); {Path(path).name} is not one"
-        )
-    unknown = [n for n in names if n not in FIGURES]
-    if unknown:
-        raise SceneError(f"unknown figure(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
-    return names
-
-
-def _absent_figures(path: str | Path, names: list[str], which: Sequence[str] | None) -> list[str]:
-    """The figures of ``names`` whose per-patch velocities the file lacks (``sync`` also counts as present when
-    ``/analysis/sync`` is stored); :class:`SceneError` when ``which`` named one of them."""
-    with _Run(path) as run:
-        patches = has_patch_velocity(run.f)
-        stored_sync = "analysis/sync" in run.f
-    needs = {"patch_map": patches, "animation": patches, "sync": patches or stored_sync}
-    absent = [n for n in names if not needs.get(n, True)]
-    if absent and which is not None:
-        raise SceneError(
-            f"{Path(path).name} holds no per-patch velocities, needed by {', '.join(absent)}; {_record_velocity()}"
-        )
-    return absent
-
-
-def plot_run(
-    path: str | Path,
-    outdir: str | Path,
-    *,
-    which: Sequence[str] | None = None,
-    times: Sequence[float] | None = None,
-    frames: int = 40,
-    log: Callable[[str], None] | None = _stderr,
-    quantity: str | None = None,
-    snapshots: Sequence[str] | None = None,
-) -> list[Path]:
-    """Make every figure the run file supports (or those named in ``which``); returns the files written.
-
-    An LF run file (root attribute ``kind = "lf"``) gets the LF figures instead (:func:`aca_warp.plots_lf.plot_lf_run`:
-    ``which`` from :data:`aca_warp.plots_lf.LF_FIGURES`, ``quantity`` colours its patch map, ``snapshots`` selects
-    its panels); ``times`` and ``frames`` apply to HF run files only, ``quantity`` and ``snapshots`` to LF ones.
-
-    Figures whose data are absent (per-patch velocities for ``patch_map``, ``sync``, ``animation``; a
-    record too short for a transform) are skipped with a message to ``log`` when ``which`` is None; a
-    figure named in ``which`` that cannot be made raises :class:`SceneError` before anything is written.
-
-    Args:
-        path: Run file.
-        outdir: Output folder (created if missing); files are named ``<run stem>_<figure>.png/.pdf/.gif``.
-        which: Figure names from :data:`FIGURES` (default: all).
-        times: Instants of the patch map [s] (see :func:`plot_patch_map`).
-        frames: Frames of the animation (see :func:`animate_patch_map`).
-        log: Receives one line per skipped figure (None: silent).
-    """
-    if plots_lf.is_lf_file(path):
-        if times is not None:
-            raise SceneError(
-                f"{Path(path).name} is an LF run file: choose its patch-map panels with snapshots, not times"
-            )
-        return plots_lf.plot_lf_run(
-            path, outdir, which=which, quantity=quantity or "temperature", snapshots=snapshots, log=log
-        )
-    if quantity is not None or snapshots is not None:
-        raise SceneError(f"{Path(path).name} is not an LF run file: quantity and snapshots apply to LF patch maps")
-    names = _hf_figure_names(path, which)
-    absent = _absent_figures(path, names, which)
-    makers: dict[str, Callable[[], list[Path]]] = {
-        "patch_map": lambda: plot_patch_map(path, outdir, times=times),
-        "global": lambda: plot_global(path, outdir),
-        "spectra": lambda: plot_spectra(path, outdir),
-        "sync": lambda: plot_sync(path, outdir),
-        "stft": lambda: plot_stft(path, outdir),
-        "cwt": lambda: plot_cwt(path, outdir),
-        "animation": lambda: animate_patch_map(path, outdir, frames=frames),
-    }
-    files: list[Path] = []
-    for name in names:
-        if name in absent:
-            if log:
-                log(f"skipped {name}: {Path(path).name} holds no per-patch velocities")
-            continue
-        try:
-            files += makers[name]()
-        except SceneError as e:
-            if which is not None:
-                raise
-            if log:
-                log(f"skipped {name}: {e}")
-    return files

@@ -16,7 +16,7 @@ of each pad (:func:`growth_measures`) over the record after its first saturation
 * **the largest STFT peak**: ``stft_peaks`` of μ over windows of 2^12 … 2^17 samples (those that fit), above
   10 Hz × the growth compression (the paper truncates at 10 Hz; μ's slow rise is compressed with the growth),
   divided by the record's mean μ, one-sided (Fig. 10's normalisation); the row names its window (2^12 by default,
-  every other window is a variant, :mod:`~aca_warp.studies.validation_causes`);
+  every other window is a variant, :mod:`~aca_warp.studies.validation.causes`);
 * **stochastic → periodic**: the amplitude spectrum of μ over the first and the last third of the analysed
   record, its ``tonality`` over 5–150 kHz: ln(peak / median) and the spectral flatness, late − early.
 
@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.studies.validation_base import (
+from aca_warp.studies.validation.base import (
     EXPERIMENTS,
     Config,
     Experiment,
@@ -385,7 +385,7 @@ def register_variants() -> None:
 def full_view(results: dict[str, dict]) -> tuple[dict[str, dict], dict[str, str]]:
     """The results the §3.2 rows read: ``va_full`` in place of ``va`` when it has two usable pads (the compressed
     ``va`` then stays as the variant ``va_compressed``), and the names to show for the experiments read."""
-    from aca_warp.studies.validation_base import usable
+    from aca_warp.studies.validation.base import usable
 
     if len(usable(results.get("va_full"))) < 2:
         return results, {}

@@ -1,4 +1,4 @@
-"""Figure scaffolding shared by the HF figures (:mod:`aca_warp.plots`) and the LF figures (:mod:`aca_warp.plots_lf`).
+"""Figure scaffolding shared by the HF figures (:mod:`aca_warp.plots.hf`) and the LF figures (:mod:`aca_warp.plots.lf`).
 
 A constrained-layout ``matplotlib.figure.Figure`` on the Agg canvas (pyplot's global state and the interactive
 backend are never touched), a caption strip with a small-print footer below it, PNG (150 dpi) and PDF output side

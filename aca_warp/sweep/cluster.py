@@ -13,10 +13,10 @@ import os
 import uuid
 from typing import Any
 
-from aca_warp.sweep_manifest import _Book, _one_line
-from aca_warp.sweep_overlap import ShardCancelled, ShardContext, stop_event, stop_sweep
-from aca_warp.sweep_shard import run_shard
-from aca_warp.sweep_spec import SweepError
+from aca_warp.sweep.manifest import _Book, _one_line
+from aca_warp.sweep.overlap import ShardCancelled, ShardContext, stop_event, stop_sweep
+from aca_warp.sweep.shard import run_shard
+from aca_warp.sweep.spec import SweepError
 
 
 def cuda_ordinals(device: str) -> list[int]:
@@ -206,7 +206,7 @@ def shard_task(
     overlap: bool,
     token: str,
 ) -> dict:
-    """:func:`~aca_warp.sweep_shard.run_shard` as a Dask task that :func:`~aca_warp.sweep_overlap.stop_sweep`
+    """:func:`~aca_warp.sweep.shard.run_shard` as a Dask task that :func:`~aca_warp.sweep.overlap.stop_sweep`
     (``token``) stops at its next chunk or phase: its ``.partial`` is deleted and ``{"index", "state":
     "interrupted"}`` returned."""
     ctx = ShardContext(overlap=overlap, cancel=stop_event(token))

@@ -3,7 +3,7 @@
 :func:`run_sweep` holds the directory's lock, prepares the manifest and hands the shards to one of three paths:
 :func:`_run_in_process` (one shard after another), :func:`_run_in_process_overlapped` (:data:`PIPELINE_DEPTH`
 shard tasks in threads: one steps while the next prepares its scenes and file, samples written behind the run), or
-:func:`~aca_warp.sweep_cluster._run_on_dask`. A ``KeyboardInterrupt`` stops the shards in flight, marks them
+:func:`~aca_warp.sweep.cluster._run_on_dask`. A ``KeyboardInterrupt`` stops the shards in flight, marks them
 ``interrupted`` and is raised again.
 """
 
@@ -16,11 +16,11 @@ from pathlib import Path
 from typing import Any
 
 from aca_warp.common.errors import StorageError
-from aca_warp.sweep_cluster import _have_dask, _run_on_dask, cuda_ordinals
-from aca_warp.sweep_manifest import MANIFEST, SweepResult, _Book, _one_line, prepare_dir
-from aca_warp.sweep_overlap import ShardCancelled, ShardContext
-from aca_warp.sweep_shard import run_shard, shard_name
-from aca_warp.sweep_spec import SweepError, SweepSpec
+from aca_warp.sweep.cluster import _have_dask, _run_on_dask, cuda_ordinals
+from aca_warp.sweep.manifest import MANIFEST, SweepResult, _Book, _one_line, prepare_dir
+from aca_warp.sweep.overlap import ShardCancelled, ShardContext
+from aca_warp.sweep.shard import run_shard, shard_name
+from aca_warp.sweep.spec import SweepError, SweepSpec
 
 
 def run_sweep(

@@ -2,7 +2,7 @@
 
 :func:`run_shard` builds the shard's pads as one batch (several when the memory estimate, :func:`batch_capacity`,
 says they do not fit), runs them, streams the samples into ``shard-NNNNN.h5.partial`` (inline, or behind the run
-through a :class:`~aca_warp.sweep_overlap.ChunkWriter`) and renames the file when done. :func:`shard_finished` tells
+through a :class:`~aca_warp.sweep.overlap.ChunkWriter`) and renames the file when done. :func:`shard_finished` tells
 a finished shard file from one to run again.
 """
 
@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from aca_warp.scene import Scene
-from aca_warp.sweep_overlap import ChunkWriter, KernelTurn, ShardCancelled, ShardContext
-from aca_warp.sweep_spec import FORMAT, PARAMETERS, SweepSpec, _resolve
+from aca_warp.sweep.overlap import ChunkWriter, KernelTurn, ShardCancelled, ShardContext
+from aca_warp.sweep.spec import FORMAT, PARAMETERS, SweepSpec, _resolve
 
 # -------------------------------------------------------------------------------------------- memory
 

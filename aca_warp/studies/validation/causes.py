@@ -32,7 +32,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from aca_warp.studies.validation_base import (
+from aca_warp.studies.validation.base import (
     EXPERIMENTS,
     ROWS,
     Config,
@@ -157,7 +157,7 @@ def _sub(names: tuple[str, ...], suffix: str) -> tuple[tuple[str, str], ...]:
 
 def variants(cfg: Config) -> list[Variant]:
     """Every variant, in the order of the summary's columns."""
-    from aca_warp.studies.validation_multiscale import MAIN as ms
+    from aca_warp.studies.validation.multiscale import MAIN as ms
 
     half = cfg.seeds // 2
     out = [

@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.sweep_shard import shard_finished, shard_name
-from aca_warp.sweep_spec import FORMAT, SweepError, SweepSpec
+from aca_warp.sweep.shard import shard_finished, shard_name
+from aca_warp.sweep.spec import FORMAT, SweepError, SweepSpec
 
 MANIFEST = "manifest.json"
 # the states of a shard in the manifest (docs/sweeps.md, "Manifest states")

@@ -12,7 +12,7 @@ lf_patch_map     one panel per snapshot: every patch a disc of area ∝ its area
 
 :func:`plot_lf_run` makes them all (or those named); :func:`aca_warp.plots.plot_run` calls it for a file with the
 root attribute ``kind = "lf"``; :func:`lf_figure` returns one as an unsaved Matplotlib figure. Files are
-``<run stem>_<name>.png`` and ``.pdf``, drawn with the scaffolding of :mod:`aca_warp.plotting` (captions,
+``<run stem>_<name>.png`` and ``.pdf``, drawn with the scaffolding of :mod:`aca_warp.plots.figure` (captions,
 small-print footer, Agg canvas).
 """
 
@@ -35,7 +35,7 @@ from matplotlib.figure import Figure
 from aca_warp.analysis.report import run_attr
 from aca_warp.common.errors import SceneError
 from aca_warp.common.files import open_h5
-from aca_warp.plotting import WIDTH, envelope, finish, new_figure, pad_outline, save
+from aca_warp.plots.figure import WIDTH, envelope, finish, new_figure, pad_outline, save
 
 LF_FIGURES = ("lf_global", "lf_population", "lf_patch_map")
 """LF figure names accepted by :func:`plot_lf_run` (``which``) and ``aca-warp plot --only``."""
