@@ -1,6 +1,9 @@
 """The paper's studies as library code; ``scripts/<study>.py`` are their command-line entry points.
 
-* :mod:`~aca_warp.studies.hf_study`: stand-alone HF presets HF1-HF4 and the patch-area sweep (§3.1, Figs. 8-9);
+* :mod:`~aca_warp.studies.hf_study`: stand-alone HF presets HF1-HF4 and the patch-area sweep (§3.1, Figs. 8-9), a
+  package: the constants and the fit (``base``), the scenes (``scenes``), one run (``one_run``), the sweep figure
+  (``sweep_figure``), the paper's claims (``claims``), ``results.md`` and ``study.json`` (``page``), the stages
+  (``stages``) and the command line (``cli``);
 * :mod:`~aca_warp.studies.varying_area`: growing patch areas under the HF2 load (§3.2, Eq. 10, Figs. 10-11);
 * :mod:`~aca_warp.studies.multiscale`: LF over the load procedure, HF on its saved states (§3.3, Figs. 12-13);
 * :mod:`~aca_warp.studies.work_precision`: error against wall time of the HF integrators and SciPy's solvers, with

@@ -108,7 +108,7 @@ for _name in PRESETS:
 
 def exponent_row(results: dict[str, dict], cfg: Config) -> RowValue:
     """f1 ∝ A^b per seed over the mean areas of SWEEP (at least 3 areas per seed); b against −1/4."""
-    from aca_warp.studies.hf_study import fit_power_law
+    from aca_warp.studies.hf_study.base import fit_power_law
 
     points: dict[int, list[tuple[float, float]]] = {}
     for name in SWEEP:
