@@ -9,7 +9,8 @@ its arguments on unchanged, so a change of the run API is made here and nowhere 
 * :func:`batch_at_start`: ``build_model`` of a batch of scenes (one pad each) and its ``initial_state`` (validation);
 * :func:`run_general`: ``run_hf`` on a model and state, general engine unless named (work_precision,
   time_to_solution);
-* :func:`run_engine`: ``run_hf``, the engine chosen by name, samples to a sink if given (varying_area, validation);
+* :func:`run_engine`: ``run_hf``, the engine chosen by name, samples to a sink if given (varying_area, validation,
+  work_precision_stats);
 * :func:`run_to_file`: ``run_scene``, a scene into a run file (hf_study, multiscale).
 """
 
@@ -55,11 +56,18 @@ def model_from_state(
     return model, state
 
 
-def batch_at_start(scenes: list[Scene], device: str, precision: str) -> tuple[PadModel, HFState]:
+def batch_at_start(
+    scenes: list[Scene], device: str, precision: str, velocity_offset: np.ndarray | None = None
+) -> tuple[PadModel, HFState]:
     """The model of a batch of pads (one per scene) on ``device`` in ``precision`` and its initial state (each
-    pad's ``[initial]`` table: rest or equilibrium, seeded perturbations)."""
+    pad's ``[initial]`` table: rest or equilibrium, seeded perturbations), with ``velocity_offset`` [m/s] (shape
+    (patches of the batch,)) added to the initial velocities if given."""
     model = build_model(scenes, device=device, precision=precision)
-    return model, initial_state(model)
+    state = initial_state(model)
+    if velocity_offset is not None:
+        v = state.v.numpy()
+        state.v.assign((v + np.asarray(velocity_offset)).astype(v.dtype))
+    return model, state
 
 
 def run_general(
@@ -88,15 +96,18 @@ def run_engine(
     engine: str,
     duration: float,
     integrator: str,
-    dt: float,
+    dt: float | None,
     record: Record,
     sink: Callable[[Chunk], None] | None = None,
     force: bool = False,
+    tolerance: float | None = None,
 ) -> RunResult:
-    """``run_hf`` for ``duration`` [s] with step ``dt`` [s]; ``engine``: general, onchip or auto. With ``sink``
-    every recorded chunk goes there (the result then holds none); ``force``: a step beyond the stable or the
-    sticking bound runs (with a warning)."""
-    options = RunOptions(engine=engine, duration=duration, integrator=integrator, dt=dt, force=force)
+    """``run_hf`` for ``duration`` [s] with step ``dt`` [s] (None: the integrator's default; an error-controlled
+    integrator's first trial) and ``tolerance`` (None: the default); ``engine``: general, onchip or auto. With
+    ``sink`` every recorded chunk goes there (the result then holds none); ``force``: a step beyond the stable or
+    the sticking bound runs (with a warning)."""
+    tol = {} if tolerance is None else {"tolerance": tolerance}
+    options = RunOptions(engine=engine, duration=duration, integrator=integrator, dt=dt, force=force, **tol)
     return run_hf(model, state, options, record=record, sink=sink)
 
 
