@@ -18,31 +18,31 @@ from aca_warp.studies import work_precision_stats_rule as rule
 
 
 def test_compare_known_ensemble():
-    """A setting whose every seed is the reference's + 0.3: error 0.3, σ the reference's sample std, the 95 %
-    half-width t·σ/√n, no paired noise; a vector measure gives the rms over its components; a seed missing in
-    either ensemble is left out of both."""
+    """A setting whose every seed is the reference's + 0.3: error 0.3 with no noise (bound = low = 0.3), σ the
+    reference's sample std, the 95 % half-width t·σ/√n; seed-by-seed noise of zero mean leaves no error but a bound
+    of t·sd/√n; a vector measure gives the rms over its components; a seed missing in either ensemble is left out."""
     rng = np.random.default_rng(4)
     ref = rng.normal(5.0, 2.0, 40)
+    t = scipy.stats.t.ppf(0.975, 39)
     c = rule.compare(ref, ref + 0.3)
     sd = ref.std(ddof=1)
     assert c.n == 40
-    assert c.error == pytest.approx(0.3, rel=1e-12)
+    assert c.error == pytest.approx(0.3, rel=1e-12) and c.bound == pytest.approx(0.3) and c.low == pytest.approx(0.3)
     assert c.sigma == pytest.approx(sd, rel=1e-12)
     assert c.ratio == pytest.approx(0.3 / sd, rel=1e-12)
-    assert c.half_width == pytest.approx(scipy.stats.t.ppf(0.975, 39) * sd / math.sqrt(40), rel=1e-9)
+    assert c.half_width == pytest.approx(t * sd / math.sqrt(40), rel=1e-9)
     assert c.paired_se == pytest.approx(0.0, abs=1e-12)
     assert c.reference_mean == pytest.approx(ref.mean(), rel=1e-12)
-    # the errors of the ensemble mean, not of the seeds: seed-by-seed noise of zero mean leaves no error
     noise = np.tile([0.5, -0.5], 20)
     d = rule.compare(ref, ref + noise)
-    assert d.error == pytest.approx(0.0, abs=1e-12)
-    assert d.paired_se == pytest.approx(0.5 * math.sqrt(40 / 39) / math.sqrt(40), rel=1e-12)
-    # vectors: per-component bias (0.3, 0.4) → rms 0.3536; σ the rms of the per-component stds
+    se = 0.5 * math.sqrt(40 / 39) / math.sqrt(40)
+    assert d.error == pytest.approx(0.0, abs=1e-12) and d.paired_se == pytest.approx(se, rel=1e-12)
+    assert d.bound == pytest.approx(t * se, rel=1e-9) and d.low == 0.0
     vec = np.stack([ref, 2 * ref], axis=1)
     v = rule.compare(vec, vec + [0.3, 0.4])
     assert v.error == pytest.approx(math.sqrt((0.09 + 0.16) / 2), rel=1e-12)
     assert v.sigma == pytest.approx(math.sqrt((sd**2 + 4 * sd**2) / 2), rel=1e-12)
-    # a NaN seed drops out of both ensembles
+    assert v.reference_mean == pytest.approx(1.5 * ref.mean(), rel=1e-12)
     bad = ref + 0.3
     bad[0] = np.nan
     e = rule.compare(ref, bad)
@@ -56,50 +56,67 @@ def _setting(label: str, role: str, wall: float, values: dict, complete: bool = 
             "complete": complete, "values": values if complete else None, "steps": 1}  # fmt: skip
 
 
+T29 = scipy.stats.t.ppf(0.975, 29)
+
+
 def synthetic_regime(seeds: int = 30) -> dict:
-    """A regime with two measures over ``seeds`` pads: a = μ std (σ ≈ 1) and b = Φ (σ ≈ 2); the floor is off by
-    0.05 σ in a and 0.4 σ in b; grid settings (wall, bias of a in σ): cheap (1, 0.5), mid (2, 0.2), dear (3, 0.0),
-    fast but incomplete (0.5), every one off in b by 1 σ."""
+    """A regime with μ std (σ ≈ 1) and Φ (σ ≈ 2) over ``seeds`` pads. A setting's values are the reference's +
+    bias·σ + c·σ·z (z of mean 0 and standard deviation 1 over the seeds), so its bound/σ is bias + c·t/√n. Settings
+    (wall; μ std bias, c; Φ bias): cheap (1; 0.5, 0; 0) moves μ std, noisy (1.5; 0, 1; 0) leaves it undecided
+    (bound 0.37), mid (2; 0.1, 0.2; 0) keeps it (bound 0.17), dear (3; 0, 0; 0.3) moves Φ, fast (0.5) did not
+    complete."""
     rng = np.random.default_rng(7)
     a = rng.normal(0.0, 1.0, seeds)
     b = rng.normal(10.0, 2.0, seeds)
+    z = rng.normal(0.0, 1.0, seeds)
+    z = (z - z.mean()) / z.std(ddof=1)
     sa, sb = a.std(ddof=1), b.std(ddof=1)
 
-    def vals(da: float, db: float) -> dict:
-        return {"mu_std": (a + da * sa).tolist(), "phi": (b + db * sb).tolist()}
+    def vals(bias: float, c: float, bias_b: float) -> dict:
+        return {"mu_std": (a + bias * sa + c * sa * z).tolist(), "phi": (b + bias_b * sb).tolist()}
 
     return {
         "name": "syn", "description": "synthetic", "kind": "saturated", "measures": ["mu_std", "phi"],
         "pads": [{"seed": s + 1, "member": None, "patches": 10} for s in range(seeds)],
         "config": {"perturbation": 0.01}, "duration_s": 0.03, "window_start_s": 0.02,
         "settings": [
-            _setting("strang@fp64:dt=1e-08", "reference", 10.0, vals(0, 0)),
-            _setting("strang@fp64:dt=1e-08", "floor", 10.0, vals(0.05, 0.4)),
-            _setting("strang@fp32:dt=5e-07", "grid", 1.0, vals(0.5, 1.0)),
-            _setting("strang@fp32:dt=1e-07", "grid", 2.0, vals(0.2, 1.0)),
-            _setting("strang@fp32:dt=2e-08", "grid", 3.0, vals(0.0, 1.0)),
+            _setting("strang@fp64:dt=1e-08", "reference", 10.0, vals(0, 0, 0)),
+            _setting("strang@fp32:dt=5e-07", "grid", 1.0, vals(0.5, 0, 0)),
+            _setting("adaptive@fp64:tol=0.001", "grid", 1.5, vals(0, 1, 0)),
+            _setting("strang@fp32:dt=1e-07", "grid", 2.0, vals(0.1, 0.2, 0)),
+            _setting("strang@fp32:dt=2e-08", "grid", 3.0, vals(0, 0, 0.3)),
             _setting("implicit-friction@fp32:dt=5e-07", "grid", 0.5, {}, complete=False),
         ],
     }  # fmt: skip
 
 
-def test_rule_picks_the_cheapest_setting_within_the_rule():
-    """b's floor (0.4 σ) exceeds ¼ σ: undecided, so the choice rests on a: 0.5 σ fails, 0.2 σ passes (the cheaper
-    of the two that do); a tighter rule takes the exact one, a looser the cheapest; an incomplete run is never
-    chosen; where b is decided (rule 0.5) it leaves only the reference, and so does deciding on nothing."""
+def test_verdicts_are_an_equivalence_test():
+    """keeps: the 95 % interval of the bias within ± rule·σ; moves: wholly beyond; undecided: across; an incomplete
+    run keeps nothing."""
+    reg = synthetic_regime()
+    cheap, noisy, mid, dear, fast = reg["settings"][1:]
+    c = rule.compare_setting(reg, mid, "mu_std")
+    assert c.ratio == pytest.approx(0.1) and c.bound_ratio == pytest.approx(0.1 + 0.2 * T29 / math.sqrt(30))
+    assert [rule.verdict(reg, s, "mu_std", 0.25) for s in (cheap, noisy, mid, dear, fast)] == [
+        "moves", "undecided", "keeps", "keeps", "no run"]  # fmt: skip
+    assert rule.verdict(reg, dear, "phi", 0.25) == "moves" and rule.verdict(reg, dear, "phi", 0.31) == "keeps"
+    assert rule.verdict(reg, noisy, "mu_std", 0.4) == "keeps"  # bound 0.373
+    assert rule.verdict(reg, reg["settings"][0], "phi", 0.0) == "keeps"
+
+
+def test_rule_picks_the_cheapest_setting_that_keeps_every_measure():
+    """mid is the cheapest setting that keeps both (cheap moves μ std, noisy leaves it undecided); μ std binds it;
+    a tighter rule leaves the reference, a looser one takes the cheaper settings; one measure alone its cheapest;
+    an incomplete run is never chosen."""
     doc = {"regimes": {"syn": synthetic_regime()}}
     ch = rule.settings_for(doc, "syn")
-    assert ch.undecided == ["phi"] and ch.decided == ["mu_std"]
-    assert ch.setting == "strang@fp32:dt=1e-07" and ch.wall_s == 2.0
-    assert ch.ratios["mu_std"] == pytest.approx(0.2, rel=1e-9)
-    assert ch.speedup == pytest.approx(5.0)
-    assert ch.passing == ["strang@fp32:dt=1e-07", "strang@fp32:dt=2e-08", "strang@fp64:dt=1e-08"]
-    assert rule.settings_for(doc, "syn", rule=0.1).setting == "strang@fp32:dt=2e-08"
-    assert rule.settings_for(doc, "syn", ["mu_std"], rule=0.6).setting == "strang@fp32:dt=5e-07"
-    assert rule.settings_for(doc, "syn", rule=0.5).undecided == []
-    assert rule.settings_for(doc, "syn", rule=0.5).setting == "strang@fp64:dt=1e-08"  # b is 1 σ off everywhere
-    nothing = rule.settings_for(doc, "syn", rule=0.01)
-    assert nothing.decided == [] and nothing.setting == "strang@fp64:dt=1e-08" and nothing.passing == [nothing.setting]
+    assert ch.setting == "strang@fp32:dt=1e-07" and ch.wall_s == 2.0 and ch.speedup == pytest.approx(5.0)
+    assert ch.passing == ["strang@fp32:dt=1e-07", "strang@fp64:dt=1e-08"]
+    assert ch.cheapest == {"mu_std": "strang@fp32:dt=1e-07", "phi": "strang@fp32:dt=5e-07"}
+    assert rule.settings_for(doc, "syn", rule=0.1).setting == "strang@fp64:dt=1e-08"
+    assert rule.settings_for(doc, "syn", rule=0.4).setting == "adaptive@fp64:tol=0.001"
+    assert rule.settings_for(doc, "syn", rule=0.6).setting == "strang@fp32:dt=5e-07"
+    assert rule.settings_for(doc, "syn", ["phi"]).setting == "strang@fp32:dt=5e-07"
     with pytest.raises(KeyError):
         rule.settings_for(doc, "syn", ["f1"])
     with pytest.raises(KeyError):
@@ -107,17 +124,17 @@ def test_rule_picks_the_cheapest_setting_within_the_rule():
 
 
 def test_members_take_the_worst():
-    """A regime with two members (LF states): the regime's figure is the member with the larger error/σ."""
+    """A regime with two members (LF states): the regime's figure is the member with the larger bound/σ."""
     reg = synthetic_regime(20)
     for i, p in enumerate(reg["pads"]):
         p["member"] = "s1" if i < 10 else "s2"
-    grid = reg["settings"][3]  # 0.2 σ of the whole ensemble in a; now shift s2's pads by another 2 σ
-    grid["values"]["mu_std"] = [x + (2.0 if i >= 10 else 0.0) for i, x in enumerate(grid["values"]["mu_std"])]
-    c = rule.compare_setting(reg, grid, "mu_std")
+    mid = reg["settings"][3]
+    mid["values"]["mu_std"] = [x + (2.0 if i >= 10 else 0.0) for i, x in enumerate(mid["values"]["mu_std"])]
+    c = rule.compare_setting(reg, mid, "mu_std")
     ref_a = np.array(reg["settings"][0]["values"]["mu_std"][10:])
     assert c.member == "s2" and c.n == 10
     assert c.sigma == pytest.approx(ref_a.std(ddof=1), rel=1e-12)
-    assert c.error == pytest.approx(np.mean(grid["values"]["mu_std"][10:]) - ref_a.mean(), rel=1e-9)
+    assert c.error == pytest.approx(np.mean(mid["values"]["mu_std"][10:]) - ref_a.mean(), rel=1e-9)
 
 
 def test_grid_syntax_and_new_integrators(monkeypatch):
@@ -173,8 +190,8 @@ def test_pad_measures_read_from_the_validation_pad():
 
 
 def test_report_page_from_a_synthetic_result(tmp_path):
-    """The page names the machine, the choice and every setting's error/σ (bold above the rule); the figure is
-    written; a regime named in two files is refused."""
+    """The page names the machine and the choice, gives every setting's error/σ with its bound and verdict, and
+    the cheapest setting per measure; the figure is written; a regime named in two files is refused."""
     doc = {
         "machine": {"device": "cpu", "device_name": "CPU", "host": "Test CPU, 2 cores"},
         "quick": True, "command": "python3 scripts/work_precision_stats.py --quick", "total_wall_s": 12.0,
@@ -187,10 +204,14 @@ def test_report_page_from_a_synthetic_result(tmp_path):
     wps_report.report([path], page, figs, 0.25, None)
     text = page.read_text()
     assert "Test CPU, 2 cores" in text and "(the quick CPU variant)" in text
-    assert "| syn | 30 × 10 | 30.0 ms | `strang@fp64:dt=1e-08` (10 s) | `strang@fp32:dt=1e-07` | 2 | 5 | Φ |" in text
-    assert "| `strang@fp32:dt=5e-07` | grid | 1 | 10 | **0.5** | **1** | no |" in text
-    assert "| `strang@fp32:dt=1e-07` | grid | 2 | 5 | 0.2 | **1** | yes |" in text
-    assert "| `implicit-friction@fp32:dt=5e-07` | grid | 0.5 | 20 | – | – | no (incomplete) |" in text
+    assert (
+        "| syn | 30 × 10 | 30.0 ms | `strang@fp64:dt=1e-08` (10 s) | `strang@fp32:dt=1e-07` | 2 | 5 | μ std |" in text
+    )
+    assert "| `strang@fp32:dt=5e-07` | 1 | 10 | **0.5 (0.5)** | 0 (0) ✓ | no |" in text
+    assert "| `adaptive@fp64:tol=0.001` | 1.5 | 6.7 | < 0.001 (0.37) | 0 (0) ✓ | no |" in text
+    assert "| `strang@fp32:dt=1e-07` | 2 | 5 | 0.1 (0.17) ✓ | 0 (0) ✓ | yes |" in text
+    assert "| `implicit-friction@fp32:dt=5e-07` | 0.5 | 20 | – | – | no (incomplete) |" in text
+    assert "`strang@fp32:dt=5e-07` (1 s) |" in text  # Φ: the cheapest setting keeping it
     assert (figs / "wps_cpu_quick_syn.png").stat().st_size > 10_000
     with pytest.raises(ValueError, match="both"):
         wps_report.report([path, path], page, figs, 0.25, None)
@@ -207,19 +228,20 @@ def test_bad_input_exits_2(capsys):
 
 
 def test_tiny_run_end_to_end(tmp_path):
-    """Two 10-patch hf1 sectors for 1 ms (linear growth: not chaotic yet): the floor's 1e-9 m/s perturbation
-    leaves the measures within 1e-3 σ, strang at 5e-7 s forced moves them by more than 0.1 σ; the file holds every
-    pad's value."""
+    """Two 10-patch hf1 sectors for 1 ms (linear growth: not chaotic yet): strang at 1e-8 s stays within 1e-3 σ of
+    the 2e-8 s reference, at 5e-7 s forced it moves the measures by more than 0.1 σ; the file holds every pad's
+    value."""
     out = tmp_path / "wps"
     argv = ["--quick", "--regimes", "hf1", "--seeds", "2", "--patches", "10", "--duration", "1e-3", "--window",
-            "5e-4", "--grid", "strang@fp64:dt=5e-7", "--out", str(out)]  # fmt: skip
+            "5e-4", "--grid", "strang@fp64:dt=5e-7,1e-8", "--out", str(out)]  # fmt: skip
     assert wps.main(argv) == 0
     doc = json.loads((out / "wps_cpu_quick_hf1.json").read_text())
     reg = doc["regimes"]["hf1"]
-    assert [s["role"] for s in reg["settings"]] == ["reference", "floor", "grid"]
+    assert [s["label"] for s in reg["settings"]] == ["strang@fp64:dt=2e-08", "strang@fp64:dt=5e-07",
+                                                     "strang@fp64:dt=1e-08"]  # fmt: skip
     assert all(s["complete"] for s in reg["settings"])
-    assert len(reg["settings"][0]["values"]["mu_mean"]) == 2 and reg["settings"][0]["label"] == "strang@fp64:dt=2e-08"
-    floor = rule.floor_ratios(reg, ["mu_mean", "mu_std", "f1", "phi", "mu_spectrum"])
-    assert all(r < 1e-3 for r in floor.values()), floor
-    coarse = [rule.compare_setting(reg, reg["settings"][2], m).ratio for m in ("mu_std", "f1", "phi", "top_excess")]
+    assert len(reg["settings"][0]["values"]["mu_mean"]) == 2 and reg["settings"][0]["role"] == "reference"
+    fine = [rule.compare_setting(reg, reg["settings"][2], m).ratio for m in ("mu_mean", "mu_std", "f1", "phi")]
+    assert max(fine) < 1e-3, fine
+    coarse = [rule.compare_setting(reg, reg["settings"][1], m).ratio for m in ("mu_std", "f1", "phi", "top_excess")]
     assert max(coarse) > 0.1, coarse

@@ -56,18 +56,11 @@ def model_from_state(
     return model, state
 
 
-def batch_at_start(
-    scenes: list[Scene], device: str, precision: str, velocity_offset: np.ndarray | None = None
-) -> tuple[PadModel, HFState]:
+def batch_at_start(scenes: list[Scene], device: str, precision: str) -> tuple[PadModel, HFState]:
     """The model of a batch of pads (one per scene) on ``device`` in ``precision`` and its initial state (each
-    pad's ``[initial]`` table: rest or equilibrium, seeded perturbations), with ``velocity_offset`` [m/s] (shape
-    (patches of the batch,)) added to the initial velocities if given."""
+    pad's ``[initial]`` table: rest or equilibrium, seeded perturbations)."""
     model = build_model(scenes, device=device, precision=precision)
-    state = initial_state(model)
-    if velocity_offset is not None:
-        v = state.v.numpy()
-        state.v.assign((v + np.asarray(velocity_offset)).astype(v.dtype))
-    return model, state
+    return model, initial_state(model)
 
 
 def run_general(

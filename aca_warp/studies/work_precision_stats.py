@@ -20,11 +20,11 @@ A **setting** is ``INTEGRATOR@PRECISIONS[:dt=STEPS][:tol=TOLERANCES]`` (a produc
 defaults. Fixed steps run forced (past strang's sticking bound too). Any name of ``aca_warp.hf.options.INTEGRATORS``
 is accepted, and a name that the default grid does not list runs at its defaults in fp32 and fp64. The
 **reference** (``--reference``; strang fp64 at 1e-8 s, --quick 2e-8 s, capped at 0.9 × the regime's sticking
-bound as the validation caps its step) and the **floor** (the reference from initial velocities perturbed by
-N(0, (1e-9 m/s)²): an equally exact ensemble, what chaos alone gives) run first, then the grid, cheapest first.
+bound as the validation caps its step) runs first, then the grid, cheapest first.
 
-The statistics and the rule (error ≤ ``--rule`` × the standard deviation between seeds for every measure the
-floor can decide; the cheapest such setting per regime) are in :mod:`aca_warp.studies.work_precision_stats_rule`
+The statistics and the rule (the 95 % interval of a setting's bias within ± ``--rule`` × the standard deviation
+between seeds for every measure; the cheapest such setting per regime) are in
+:mod:`aca_warp.studies.work_precision_stats_rule`
 (:func:`~aca_warp.studies.work_precision_stats_rule.settings_for`); the figure and the page in
 :mod:`aca_warp.studies.work_precision_stats_report`. Results: ``OUT/wps_<device>[_quick]_<regimes>.json``,
 rewritten after every setting (per pad and measure the values, per setting the stepping wall time). Examples::
@@ -54,8 +54,6 @@ from aca_warp.studies.report import Log, add_device, add_page_options, clean, co
 from aca_warp.studies.work_precision_stats_rule import DEFAULT_RULE, MEASURES, measures_of, pad_values
 
 PRECISIONS = ("fp32", "fp64")
-TWIN_DV = 1.0e-9  # m/s: the floor's initial velocity perturbation
-TWIN_SEED = 12345
 STICKING_MARGIN = 0.9  # the reference step: at most this × strang's sticking bound (the validation's cap)
 REFERENCE = {False: "strang@fp64:dt=1e-8", True: "strang@fp64:dt=2e-8"}
 GRID = {
@@ -235,19 +233,15 @@ def reference_setting(spec: str, model: Any) -> Setting:
 
 
 def run_setting(prep: Any, cfg: Any, setting: Setting, role: str, names: list[str], log: Log) -> dict[str, Any]:
-    """One run of the regime's batch with ``setting`` (``role`` "floor": from perturbed initial velocities),
-    analysed; the row of the result file."""
+    """One run of the regime's batch with ``setting``, analysed; the row of the result file (``role``: "reference"
+    or "grid")."""
     from aca_warp.common.errors import SceneError
     from aca_warp.studies.runs import batch_at_start, run_engine
 
     v = validation()
     row: dict[str, Any] = {"label": setting.label, "role": role, **dataclasses.asdict(setting)}
-    offset = None
-    if role == "floor":
-        n = sum(s.patches.count for s in prep.scenes)
-        offset = TWIN_DV * np.random.default_rng(TWIN_SEED).standard_normal(n)
     try:
-        model, state = batch_at_start(prep.scenes, cfg.device, setting.precision, offset)
+        model, state = batch_at_start(prep.scenes, cfg.device, setting.precision)
         sink = Progress(v.Collector(), f"{prep.exp.name} {setting.label}", prep.plan.duration, log)
         res = run_engine(
             model, state, engine=cfg.engine, duration=prep.plan.duration, integrator=setting.integrator,
@@ -284,7 +278,7 @@ def _rounded(values: dict[str, list[Any]]) -> dict[str, list[Any]]:
 def measure_regime(
     name: str, args: argparse.Namespace, cfg: Any, settings: list[Setting], doc: dict[str, Any], save: Any, log: Log
 ) -> None:
-    """Every setting of one regime (reference and floor first, then the grid cheapest first), into
+    """Every setting of one regime (the reference first, then the grid cheapest first), into
     ``doc["regimes"][name]``; ``save()`` after each."""
     from aca_warp.studies.runs import batch_at_start
 
@@ -303,7 +297,7 @@ def measure_regime(
     }  # fmt: skip
     doc["regimes"][name] = reg
     grid_rows = sorted((s for s in settings if s != ref), key=lambda s: s.cost(plan.duration))
-    plan_rows = [(ref, "reference"), *([] if args.no_floor else [(ref, "floor")]), *((s, "grid") for s in grid_rows)]
+    plan_rows = [(ref, "reference"), *((s, "grid") for s in grid_rows)]
     log(f"{name}: {len(prep.scenes)} pads × {sorted({s.patches.count for s in prep.scenes})} patches, "
         f"{plan.duration * 1e3:.1f} ms (window from {plan.window_start * 1e3:.1f} ms); {len(plan_rows)} runs; "
         f"reference {ref.label}")  # fmt: skip
@@ -348,7 +342,6 @@ def measure(args: argparse.Namespace, argv: list[str]) -> Path:
         "quick": bool(args.quick),
         "command": command_line("work_precision_stats.py", argv),
         "reference": args.reference,
-        "floor_dv_m_s": None if args.no_floor else TWIN_DV,
         "rule": DEFAULT_RULE,
         "grid": [s.label for s in settings],
         "regimes": {},
@@ -407,7 +400,6 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"the reference setting (default {REFERENCE[False]}; --quick "
         f"{REFERENCE[True]}; a strang step is capped at {STICKING_MARGIN:g} × the sticking bound)",
     )
-    ap.add_argument("--no-floor", action="store_true", help="no floor run (every measure then counts as decided)")
     ap.add_argument("--engine", default="auto", choices=["auto", "general", "onchip"], help="HF engine (auto)")
     ap.add_argument("--workers", type=int, help="processes that analyse the pads of a run (default: 1 on the "
                     "CPU, else the CPU count less one, at most 8)")  # fmt: skip
@@ -416,8 +408,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "estimate: the reference's time per step × the steps); written as not run")  # fmt: skip
     ap.add_argument("--report", nargs="+", metavar="JSON", help="only write the figure(s) and the page from "
                     "result files")  # fmt: skip
-    ap.add_argument("--rule", type=float, default=DEFAULT_RULE, help="the rule of the report: error ≤ RULE × the "
-                    f"standard deviation between seeds ({DEFAULT_RULE:g})")  # fmt: skip
+    ap.add_argument("--rule", type=float, default=DEFAULT_RULE, help="the report's rule: the 95 %% interval of a "
+                    f"setting's bias within ± RULE × σ between seeds ({DEFAULT_RULE:g})")  # fmt: skip
     ap.add_argument("--measures", nargs="+", choices=list(MEASURES), metavar="MEASURE", help="measures the "
                     f"report's rule uses (default every one of a regime; any of: {' '.join(MEASURES)})")  # fmt: skip
     add_page_options(ap, "docs/work_precision_statistics.md", "docs/figures/work_precision_statistics")

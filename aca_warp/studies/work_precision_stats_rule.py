@@ -7,24 +7,25 @@ the saturation figures of every pad). A measure's per-pad value is a number, or 
 the mean amplitude in :data:`BAND_WIDTH` bands over :data:`SPECTRUM_BAND`).
 
 **Statistics** (:func:`compare`): for one measure, the reference ensemble x_ref (one value per seed) and the
-ensemble of a setting x (the same seeds, the same pads):
+ensemble of a setting x (the same seeds, the same pads), with d = x − x_ref per seed:
 
-* error = |mean(x) − mean(x_ref)|, the error of the setting's ensemble mean;
+* error = |mean(d)| = |mean(x) − mean(x_ref)|, the error of the setting's ensemble mean;
 * σ = the standard deviation of x_ref between seeds (ddof 1), and the 95 % half-width of its mean
   t(0.975, n − 1) σ / √n (``ensemble_interval``);
-* the paired standard error sd(x − x_ref) / √n: how much of the error chaos alone makes (the runs part after
-  saturation, so their values differ seed by seed even for an exact integrator);
-* for a vector measure every figure is the root mean square over the components (bands).
+* the standard error of the error, sd(d) / √n: a chaotic run parts from the reference's soon after it saturates,
+  so part of any error is the sampling noise of two different trajectories over a finite window, not a bias of
+  the integrator; ``bound`` = error + t(0.975, n − 1) sd(d)/√n is the upper end of the 95 % interval of the bias;
+* for a vector measure every figure is the root mean square over the components (bands), the bound over the
+  components' bounds.
 
-A regime whose pads have members (the LF states) is compared member by member; the regime's figure is the
-member with the largest error/σ.
+A regime whose pads have members (the LF states) is compared member by member; the regime's figure is the member
+with the largest bound/σ.
 
-**Rule** (:func:`settings_for`): a setting meets the rule for a measure when error ≤ ``rule`` · σ. The **floor**
-(the reference settings from initial velocities perturbed by 1e-9 m/s: an equally exact ensemble) shows what
-chaos alone gives; a measure whose floor already exceeds ``rule`` · σ cannot tell settings apart with this many
-seeds and is *undecided* (listed, not used). The chosen setting is the one with the least stepping wall time that
-meets the rule for every decided measure; the reference itself always does, and is the choice when no measure is
-decided (nothing shows that a coarser setting keeps the statistics).
+**Rule** (:func:`settings_for`), an equivalence test as the validation's "equal" criterion: a setting **keeps** a
+measure when the 95 % interval of its bias lies within ± ``rule`` · σ (bound ≤ ``rule`` · σ), **moves** it when
+the interval lies wholly beyond (error − t sd(d)/√n > ``rule`` · σ), and is **undecided** otherwise (too few seeds
+to tell). The rule picks the setting of least stepping wall time that keeps every measure asked for; the
+reference always does (and is the pick when no other setting does).
 """
 
 from __future__ import annotations
@@ -42,7 +43,6 @@ BAND_WIDTH = 5.0e3  # Hz
 PEAK_FMIN = 5.0e3  # Hz: lowest frequency of the velocity-sum peak (as the μ peak of ``mu_measures``)
 STFT_SAMPLES = 2**12  # the STFT window of the varying-area rows
 DEFAULT_RULE = 0.25  # error ≤ ¼ of the standard deviation between seeds
-ROLES = ("reference", "floor", "grid")
 
 
 # ------------------------------------------------------------------------------------------------ measures
@@ -189,7 +189,9 @@ class Comparison:
         error: |mean − mean_ref| (rms over components).
         sigma: Standard deviation between the reference's seeds (rms over components).
         half_width: 95 % half-width of the reference ensemble's mean (rms over components).
-        paired_se: Standard error of the mean paired difference (rms over components).
+        paired_se: Standard error of the mean paired difference, sd(x − x_ref)/√n (rms over components).
+        bound: Upper end of the 95 % interval of |bias|: error + t sd/√n (rms over components).
+        low: Lower end, max(0, error − t sd/√n) (rms over components).
         member: The member (LF state) it belongs to, or None.
     """
 
@@ -199,12 +201,25 @@ class Comparison:
     sigma: float
     half_width: float
     paired_se: float
+    bound: float
+    low: float
     member: str | None = None
 
     @property
     def ratio(self) -> float:
         """error / σ (NaN when σ is not positive or not known)."""
         return self.error / self.sigma if self.sigma > 0 else math.nan
+
+    @property
+    def bound_ratio(self) -> float:
+        """bound / σ: the largest bias in units of σ that the 95 % interval allows."""
+        return self.bound / self.sigma if self.sigma > 0 else math.nan
+
+    def verdict(self, rule: float) -> str:
+        """ "keeps" (bound ≤ rule·σ), "moves" (low > rule·σ) or "undecided" (module docstring; NaN: undecided)."""
+        if self.bound_ratio <= rule:
+            return "keeps"
+        return "moves" if self.sigma > 0 and self.low > rule * self.sigma else "undecided"
 
 
 def _rms(x: np.ndarray) -> float:
@@ -227,17 +242,20 @@ def compare(reference: Any, values: Any, member: str | None = None) -> Compariso
     rows = both[:, cols].all(axis=1) if cols.any() else np.zeros(ref2.shape[0], bool)
     n = int(rows.sum())
     if n < 2:
-        return Comparison(n, math.nan, math.nan, math.nan, math.nan, math.nan, member)
+        return Comparison(n, *([math.nan] * 7), member=member)
     r, v = ref2[rows][:, cols], val2[rows][:, cols]
     e = ensemble_interval(r)
-    d = v - r
+    d = ensemble_interval(v - r)  # its mean is the signed error, its half-width t·sd/√n
+    err, half = np.abs(d.mean), d.mean_high - d.mean
     return Comparison(
         n=n,
         reference_mean=float(np.mean(e.mean)),
-        error=_rms(v.mean(axis=0) - r.mean(axis=0)),
+        error=_rms(err),
         sigma=_rms(e.std),
         half_width=_rms(e.mean_high - e.mean),
-        paired_se=_rms(d.std(axis=0, ddof=1) / math.sqrt(n)),
+        paired_se=_rms(d.std / math.sqrt(n)),
+        bound=_rms(err + half),
+        low=_rms(np.maximum(err - half, 0.0)),
         member=member,
     )
 
@@ -251,15 +269,15 @@ def _members(regime: dict[str, Any]) -> dict[str | None, list[int]]:
 
 
 def compare_setting(regime: dict[str, Any], setting: dict[str, Any], measure: str) -> Comparison:
-    """``setting`` against the regime's reference for ``measure``: the member with the largest error/σ (a member
-    whose ratio is not defined counts as the worst)."""
+    """``setting`` against the regime's reference for ``measure``: the member with the largest bound/σ (a member
+    whose figure is not defined counts as the worst)."""
     ref = reference_of(regime)
     worst: Comparison | None = None
     for member, idx in _members(regime).items():
         a = [ref["values"][measure][i] for i in idx]
         b = [setting["values"][measure][i] for i in idx] if setting.get("values") else [math.nan] * len(idx)
         c = compare(_matrix(a), _matrix(b), member)
-        if worst is None or not (c.ratio <= worst.ratio):  # NaN beats every number
+        if worst is None or not (c.bound_ratio <= worst.bound_ratio):  # NaN beats every number
             worst = c
     assert worst is not None
     return worst
@@ -287,6 +305,16 @@ def usable(setting: dict[str, Any]) -> bool:
     return bool(setting.get("complete")) and bool(setting.get("values"))
 
 
+def verdict(regime: dict[str, Any], setting: dict[str, Any], measure: str, rule: float) -> str:
+    """ "keeps", "moves" or "undecided" (:meth:`Comparison.verdict`); the reference keeps, a run that did not
+    complete keeps nothing ("no run")."""
+    if setting["role"] == "reference":
+        return "keeps"
+    if not usable(setting):
+        return "no run"
+    return compare_setting(regime, setting, measure).verdict(rule)
+
+
 # ------------------------------------------------------------------------------------------------ the rule
 
 
@@ -299,10 +327,9 @@ class Choice:
         setting: Label of the chosen setting.
         wall_s: Its stepping wall time [s].
         reference_wall_s: The reference's [s].
-        ratios: error/σ of the chosen setting per decided measure.
-        decided: Measures the choice rests on.
-        undecided: Measures whose floor exceeds the rule (chaos alone; too few seeds to judge).
-        passing: Labels of every setting that meets the rule, cheapest first.
+        measures: The measures it keeps.
+        passing: Labels of every setting that keeps them all, cheapest first.
+        cheapest: Per measure, the cheapest setting that keeps it (the dearest of these sets the choice).
         rule: The fraction of σ.
     """
 
@@ -310,29 +337,15 @@ class Choice:
     setting: str
     wall_s: float
     reference_wall_s: float
-    ratios: dict[str, float]
-    decided: list[str]
-    undecided: list[str]
+    measures: list[str]
     passing: list[str] = field(default_factory=list)
+    cheapest: dict[str, str] = field(default_factory=dict)
     rule: float = DEFAULT_RULE
 
     @property
     def speedup(self) -> float:
         """Reference wall time over the chosen setting's."""
         return self.reference_wall_s / self.wall_s if self.wall_s > 0 else math.nan
-
-
-def floor_ratios(regime: dict[str, Any], measures: Sequence[str]) -> dict[str, float]:
-    """error/σ of the floor run per measure (empty without one)."""
-    floors = [s for s in regime["settings"] if s["role"] == "floor" and usable(s)]
-    return {m: compare_setting(regime, floors[0], m).ratio for m in measures} if floors else {}
-
-
-def meets(regime: dict[str, Any], setting: dict[str, Any], measures: Sequence[str], rule: float) -> bool:
-    """True when ``setting`` completed and its error is within ``rule`` · σ for every one of ``measures``."""
-    if setting["role"] == "reference":
-        return True
-    return usable(setting) and all(compare_setting(regime, setting, m).ratio <= rule for m in measures)
 
 
 def load_results(source: dict[str, Any] | str | Path) -> dict[str, Any]:
@@ -350,9 +363,9 @@ def settings_for(
     measures: Sequence[str] | None = None,
     rule: float = DEFAULT_RULE,
 ) -> Choice:
-    """The cheapest setting of ``regime`` in a result file whose ensemble-mean error is within ``rule`` × the
-    standard deviation between seeds for every one of ``measures`` (None: every measure of the regime) that its
-    floor can decide (module docstring). Raises KeyError for a regime or measure the file does not hold."""
+    """The cheapest setting of ``regime`` in a result file that keeps every one of ``measures`` (None: every measure
+    of the regime) within ``rule`` × the standard deviation between seeds (module docstring). Raises KeyError for
+    a regime or measure the file does not hold."""
     doc = load_results(results)
     if regime not in doc["regimes"]:
         raise KeyError(f"no regime {regime!r} in the results (has {', '.join(doc['regimes'])})")
@@ -361,17 +374,13 @@ def settings_for(
     unknown = [m for m in names if m not in reg["measures"]]
     if unknown:
         raise KeyError(f"regime {regime!r} has no measure {', '.join(unknown)} (has {', '.join(reg['measures'])})")
-    floor = floor_ratios(reg, names)
-    undecided = [m for m in names if m in floor and not floor[m] <= rule]
-    decided = [m for m in names if m not in undecided]
-    cands = [s for s in reg["settings"] if s["role"] in ("reference", "grid") and s.get("wall_s") is not None]
+    cands = sorted((s for s in reg["settings"] if s.get("wall_s") is not None), key=lambda s: s["wall_s"])
+    keeps = {s["label"]: {m for m in names if verdict(reg, s, m, rule) == "keeps"} for s in cands}
+    passing = [s for s in cands if keeps[s["label"]] == set(names)]
+    cheapest = {m: next(s["label"] for s in cands if m in keeps[s["label"]]) for m in names}
     ref = reference_of(reg)
-    passing = (
-        sorted((s for s in cands if meets(reg, s, decided, rule)), key=lambda s: s["wall_s"]) if decided else [ref]
-    )
+    if not usable(ref) or ref.get("wall_s") is None:
+        raise ValueError(f"the reference of regime {regime!r} did not complete: {ref.get('fault')}")
     best = passing[0]
-    ratios = {m: compare_setting(reg, best, m).ratio if best is not ref else 0.0 for m in decided}
-    return Choice(
-        regime, best["label"], best["wall_s"], ref["wall_s"], ratios, decided, undecided,
-        [s["label"] for s in passing], rule,
-    )  # fmt: skip
+    return Choice(regime, best["label"], best["wall_s"], ref["wall_s"], names, [s["label"] for s in passing],
+                  cheapest, rule)  # fmt: skip
