@@ -194,7 +194,7 @@ def test_report_page_from_a_synthetic_result(tmp_path):
     the cheapest setting per measure; the figure is written; a regime named in two files is refused."""
     doc = {
         "machine": {"device": "cpu", "device_name": "CPU", "host": "Test CPU, 2 cores"},
-        "quick": True, "command": "python3 scripts/work_precision_stats.py --quick", "total_wall_s": 12.0,
+        "tag": "cpu_quick", "quick": True, "commands": ["python3 scripts/work_precision_stats.py --quick"],
         "regimes": {"syn": synthetic_regime()},
     }  # fmt: skip
     path = tmp_path / "wps_cpu_quick_syn.json"
@@ -212,7 +212,7 @@ def test_report_page_from_a_synthetic_result(tmp_path):
     assert "| `strang@fp32:dt=1e-07` | 2 | 5 | 0.1 (0.17) ✓ | 0 (0) ✓ | yes |" in text
     assert "| `implicit-friction@fp32:dt=5e-07` | 0.5 | 20 | – | – | no (incomplete) |" in text
     assert "`strang@fp32:dt=5e-07` (1 s) |" in text  # Φ: the cheapest setting keeping it
-    assert (figs / "wps_cpu_quick_syn.png").stat().st_size > 10_000
+    assert (figs / "wps_cpu_quick.png").stat().st_size > 10_000
     with pytest.raises(ValueError, match="both"):
         wps_report.report([path, path], page, figs, 0.25, None)
 
@@ -227,16 +227,17 @@ def test_bad_input_exits_2(capsys):
     assert wps.main(["--report", "missing.json"]) == 2
 
 
-def test_tiny_run_end_to_end(tmp_path):
+def test_tiny_run_end_to_end(tmp_path, capsys):
     """Two 10-patch hf1 sectors for 1 ms (linear growth: not chaotic yet): strang at 1e-8 s stays within 1e-3 σ of
     the 2e-8 s reference, at 5e-7 s forced it moves the measures by more than 0.1 σ; the file holds every pad's
-    value."""
+    value. A second call with another grid continues the file (the reference kept, not rerun); a call with other
+    pads is refused."""
     out = tmp_path / "wps"
     argv = ["--quick", "--regimes", "hf1", "--seeds", "2", "--patches", "10", "--duration", "1e-3", "--window",
-            "5e-4", "--grid", "strang@fp64:dt=5e-7,1e-8", "--out", str(out)]  # fmt: skip
-    assert wps.main(argv) == 0
-    doc = json.loads((out / "wps_cpu_quick_hf1.json").read_text())
-    reg = doc["regimes"]["hf1"]
+            "5e-4", "--out", str(out)]  # fmt: skip
+    assert wps.main([*argv, "--grid", "strang@fp64:dt=5e-7,1e-8"]) == 0
+    path = out / "wps_cpu_quick_hf1.json"
+    reg = json.loads(path.read_text())["regimes"]["hf1"]
     assert [s["label"] for s in reg["settings"]] == ["strang@fp64:dt=2e-08", "strang@fp64:dt=5e-07",
                                                      "strang@fp64:dt=1e-08"]  # fmt: skip
     assert all(s["complete"] for s in reg["settings"])
@@ -245,3 +246,11 @@ def test_tiny_run_end_to_end(tmp_path):
     assert max(fine) < 1e-3, fine
     coarse = [rule.compare_setting(reg, reg["settings"][1], m).ratio for m in ("mu_std", "f1", "phi", "top_excess")]
     assert max(coarse) > 0.1, coarse
+    assert wps.main([*argv, "--grid", "implicit-friction@fp64:dt=2.5e-7"]) == 0
+    doc = json.loads(path.read_text())
+    again = doc["regimes"]["hf1"]["settings"]
+    assert [s["label"] for s in again] == [*(s["label"] for s in reg["settings"]), "implicit-friction@fp64:dt=2.5e-07"]
+    assert again[0] == reg["settings"][0] and len(doc["commands"]) == 2
+    capsys.readouterr()
+    assert wps.main([*argv[:4], "3", *argv[5:], "--grid", "strang@fp64:dt=5e-7"]) == 2
+    assert "choose another --out" in capsys.readouterr().err

@@ -26,12 +26,14 @@ The statistics and the rule (the 95 % interval of a setting's bias within ± ``-
 between seeds for every measure; the cheapest such setting per regime) are in
 :mod:`aca_warp.studies.work_precision_stats_rule`
 (:func:`~aca_warp.studies.work_precision_stats_rule.settings_for`); the figure and the page in
-:mod:`aca_warp.studies.work_precision_stats_report`. Results: ``OUT/wps_<device>[_quick]_<regimes>.json``,
-rewritten after every setting (per pad and measure the values, per setting the stepping wall time). Examples::
+:mod:`aca_warp.studies.work_precision_stats_report`. Results: one file per regime,
+``OUT/wps_<device>[_quick]_<regime>.json``, rewritten after every run (per pad and measure the values, per setting
+the stepping wall time); a later call with the same settings continues it (runs kept, missing ones added: another
+integrator, or what a time limit cut off). Examples::
 
     python3 scripts/work_precision_stats.py --quick --out /tmp/wps                          # CPU, ~10 min
     python3 scripts/work_precision_stats.py --device cuda:0 --seeds 32 --out wps --regimes hf1 hf2
-    python3 scripts/work_precision_stats.py --report wps/wps_cuda0_hf1-hf2.json                 # figure + page
+    python3 scripts/work_precision_stats.py --report wps/wps_cuda0_*.json                       # figure + page
 """
 
 from __future__ import annotations
@@ -51,7 +53,7 @@ import numpy as np
 
 from aca_warp.hf.options import INTEGRATORS
 from aca_warp.studies.report import Log, add_device, add_page_options, clean, command_line, write_json
-from aca_warp.studies.work_precision_stats_rule import DEFAULT_RULE, MEASURES, measures_of, pad_values
+from aca_warp.studies.work_precision_stats_rule import DEFAULT_RULE, MEASURES, load_results, measures_of, pad_values
 
 PRECISIONS = ("fp32", "fp64")
 STICKING_MARGIN = 0.9  # the reference step: at most this × strang's sticking bound (the validation's cap)
@@ -276,10 +278,12 @@ def _rounded(values: dict[str, list[Any]]) -> dict[str, list[Any]]:
 
 
 def measure_regime(
-    name: str, args: argparse.Namespace, cfg: Any, settings: list[Setting], doc: dict[str, Any], save: Any, log: Log
-) -> None:
-    """Every setting of one regime (the reference first, then the grid cheapest first), into
-    ``doc["regimes"][name]``; ``save()`` after each."""
+    name: str, args: argparse.Namespace, cfg: Any, settings: list[Setting], head: dict[str, Any], log: Log
+) -> Path:
+    """Every setting of one regime (the reference first, then the grid cheapest first) into its result file
+    ``OUT/wps_<tag>_<regime>.json``, rewritten after each run. A file of the same regime, pads, settings and
+    reference is continued: its runs are kept, the missing ones added (a run skipped by --max-wall is run again).
+    Raises FileExistsError when the file holds another configuration or machine."""
     from aca_warp.studies.runs import batch_at_start
 
     prep = prepare_regime(name, cfg, args.duration, log)
@@ -293,16 +297,30 @@ def measure_regime(
         "duration_s": plan.duration, "settle_s": plan.settle, "window_start_s": plan.window_start,
         "pads": [{"seed": s.initial.seed, "member": m, "patches": s.patches.count}
                  for s, m in zip(prep.scenes, prep.members, strict=True)],
-        "measures": names, "settings": [],
+        "measures": names, "reference": ref.label, "settings": [],
     }  # fmt: skip
-    doc["regimes"][name] = reg
+    path = Path(args.out) / f"wps_{head['tag']}_{name}.json"
+    doc = {**{k: v for k, v in head.items() if k != "command"}, "commands": [head["command"]], "regimes": {name: reg}}
+    if path.exists():
+        old = load_results(path)
+        oreg = old["regimes"][name]
+        if old["machine"] != head["machine"] or any(oreg.get(k) != reg[k] for k in CONTINUED):
+            raise FileExistsError(f"{path} holds another run of {name} (machine, pads, settings or reference "
+                                  "differ): choose another --out")  # fmt: skip
+        reg["settings"] = [r for r in oreg["settings"] if not str(r.get("fault")).startswith("not run")]
+        doc["commands"] = [*old["commands"], head["command"]]
+        log(f"{name}: continuing {path} ({len(reg['settings'])} runs in it)")
+    done = {(r["label"], r["role"]) for r in reg["settings"]}
     grid_rows = sorted((s for s in settings if s != ref), key=lambda s: s.cost(plan.duration))
-    plan_rows = [(ref, "reference"), *((s, "grid") for s in grid_rows)]
+    todo = [(s, role) for s, role in [(ref, "reference"), *((s, "grid") for s in grid_rows)] if (s.label, role)
+            not in done]  # fmt: skip
     log(f"{name}: {len(prep.scenes)} pads × {sorted({s.patches.count for s in prep.scenes})} patches, "
-        f"{plan.duration * 1e3:.1f} ms (window from {plan.window_start * 1e3:.1f} ms); {len(plan_rows)} runs; "
+        f"{plan.duration * 1e3:.1f} ms (window from {plan.window_start * 1e3:.1f} ms); {len(todo)} runs; "
         f"reference {ref.label}")  # fmt: skip
-    per_step = math.nan
-    for k, (s, role) in enumerate(plan_rows, 1):
+    rref = [r for r in reg["settings"] if r["role"] == "reference" and r.get("steps")]
+    per_step = rref[0]["wall_s"] / rref[0]["steps"] if rref else math.nan
+    t0 = log.elapsed()
+    for k, (s, role) in enumerate(todo, 1):
         steps = s.cost(plan.duration)
         est = steps * per_step if math.isfinite(steps * per_step) else 0.0  # unknown: run while time is left
         if args.max_wall is not None and log.elapsed() + est > args.max_wall:
@@ -314,15 +332,29 @@ def measure_regime(
         reg["settings"].append(row)
         if role == "reference" and row.get("steps"):
             per_step = row["wall_s"] / row["steps"]
-        save()
+        _write(path, doc, log.elapsed() - t0)
         state = "complete" if row.get("complete") else f"stopped: {row.get('fault')}"
         wall = "–" if row.get("wall_s") is None else f"{row['wall_s']:.3g} s"
-        log(f"{name} [{k}/{len(plan_rows)}] {role} {s.label}: {wall} stepping, {row.get('steps', 0):,} steps, "
+        log(f"{name} [{k}/{len(todo)}] {role} {s.label}: {wall} stepping, {row.get('steps', 0):,} steps, "
             f"{state}, {row.get('saturated', 0)}/{len(prep.scenes)} pads saturated")  # fmt: skip
+    _write(path, doc, log.elapsed() - t0)
+    return path
 
 
-def measure(args: argparse.Namespace, argv: list[str]) -> Path:
-    """Run the study; returns the result file."""
+CONTINUED = ("config", "pads", "duration_s", "measures", "reference")
+"""The regime fields that must match for a result file to be continued."""
+
+
+def _write(path: Path, doc: dict[str, Any], seconds: float) -> None:
+    """Write the result file (through a temporary file); ``seconds``: this command's time on the regime so far."""
+    doc["regime_wall_s"] = seconds
+    tmp = path.with_suffix(".json.tmp")
+    write_json(tmp, clean(doc), indent=None)
+    tmp.replace(path)
+
+
+def measure(args: argparse.Namespace, argv: list[str]) -> list[Path]:
+    """Run the study; returns the result files (one per regime)."""
     import scipy
     import warp as wp
 
@@ -331,33 +363,19 @@ def measure(args: argparse.Namespace, argv: list[str]) -> Path:
     log = Log()
     cfg = regime_config(args)
     settings = grid(args.grid or default_grid(args.quick), args.integrators, args.precisions)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    tag = re.sub(r"[^A-Za-z0-9]+", "", args.device) + ("_quick" if args.quick else "")
-    path = out / f"wps_{tag}_{'-'.join(args.regimes)}.json"
-    doc: dict[str, Any] = {
+    Path(args.out).mkdir(parents=True, exist_ok=True)
+    head: dict[str, Any] = {
+        "tag": re.sub(r"[^A-Za-z0-9]+", "", args.device) + ("_quick" if args.quick else ""),
         "machine": machine(wp.get_device(args.device)),
         "versions": {"warp": wp.__version__, "numpy": np.__version__, "scipy": scipy.__version__},
         "python": sys.version.split()[0],
         "quick": bool(args.quick),
         "command": command_line("work_precision_stats.py", argv),
-        "reference": args.reference,
         "rule": DEFAULT_RULE,
-        "grid": [s.label for s in settings],
-        "regimes": {},
     }
-
-    def save() -> None:
-        doc["total_wall_s"] = log.elapsed()
-        tmp = path.with_suffix(".json.tmp")
-        write_json(tmp, clean(doc), indent=None)
-        tmp.replace(path)
-
-    for name in args.regimes:
-        measure_regime(name, args, cfg, settings, doc, save, log)
-    save()
-    log(f"wrote {path}")
-    return path
+    paths = [measure_regime(name, args, cfg, settings, head, log) for name in args.regimes]
+    log(f"wrote {', '.join(str(p) for p in paths)}")
+    return paths
 
 
 # ------------------------------------------------------------------------------------------------ command line
@@ -444,5 +462,9 @@ def main(argv: list[str] | None = None) -> int:
     from aca_warp.studies.report import init_warp
 
     init_warp()
-    measure(args, argv)
+    try:
+        measure(args, argv)
+    except FileExistsError as e:
+        print(f"work_precision_stats: {e}", file=sys.stderr)
+        return 2
     return 0

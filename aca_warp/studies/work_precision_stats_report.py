@@ -187,13 +187,15 @@ def render(docs: Sequence[dict[str, Any]], names: Sequence[str], figures: Sequen
            measures: Sequence[str] | None) -> list[str]:  # fmt: skip
     """The generated section of the page (``names``: the result files, as the page links them)."""
     lines: list[str] = []
-    for doc, name in zip(docs, names, strict=True):
+    for tag in dict.fromkeys(d["tag"] for d in docs):
+        group = [(d, n) for d, n in zip(docs, names, strict=True) if d["tag"] == tag]
+        commands = dict.fromkeys(c for d, _ in group for c in d["commands"])
         lines += [
-            f"Results `{name}` on **{machine_text(doc)}**{' (the quick CPU variant)' if doc.get('quick') else ''}: "
-            f"`{doc['command']}` ({fmt(doc.get('total_wall_s'), '.0f')} s in all). Rule: the 95 % interval of a "
-            f"setting's bias within ± {rule:g} × σ between seeds.",
+            f"Results on **{machine_text(group[0][0])}**{' (the quick CPU variant)' if group[0][0]['quick'] else ''}: "
+            + ", ".join(f"`{n}`" for _, n in group) + " from " + "; ".join(f"`{c}`" for c in commands) + ". Rule: "
+            f"the 95 % interval of a setting's bias within ± {rule:g} × σ between seeds.",
             "",
-        ]
+        ]  # fmt: skip
     lines += ["### The settings the rule picks", "", *summary_table(docs, rule, measures), ""]
     lines += ["### Measures", "", *measure_table(docs), ""]
     for fig in figures:
@@ -232,16 +234,17 @@ def render(docs: Sequence[dict[str, Any]], names: Sequence[str], figures: Sequen
 
 
 def report(paths: Sequence[Path], page: Path, figures: Path, rule: float, measures: Sequence[str] | None) -> None:
-    """Figure per result file and the page's generated section from ``paths``; a regime named in two files is an
-    error."""
+    """The figure of each machine (``wps_<tag>.png``: the files' device and variant) and the page's generated section
+    from the result files ``paths``; a regime given twice for one machine is an error."""
     docs = [load_results(p) for p in paths]
-    seen: dict[str, Path] = {}
+    seen: dict[tuple[str, str], Path] = {}
     for p, d in zip(paths, docs, strict=True):
         for name in d["regimes"]:
-            if name in seen:
-                raise ValueError(f"regime {name} is in both {seen[name]} and {p}")
-            seen[name] = p
-    figs = [regime_figure([d], figures, p.stem.removeprefix("wps_"), rule) for p, d in zip(paths, docs, strict=True)]
+            if (d["tag"], name) in seen:
+                raise ValueError(f"regime {name} is in both {seen[d['tag'], name]} and {p}")
+            seen[d["tag"], name] = p
+    tags = list(dict.fromkeys(d["tag"] for d in docs))
+    figs = [regime_figure([d for d in docs if d["tag"] == t], figures, t, rule) for t in tags]
     try:
         names = [p.resolve().relative_to(page.resolve().parent.parent).as_posix() for p in paths]
     except ValueError:
