@@ -314,8 +314,9 @@ def measure_regime(
     grid_rows = sorted((s for s in settings if s != ref), key=lambda s: s.cost(plan.duration))
     todo = [(s, role) for s, role in [(ref, "reference"), *((s, "grid") for s in grid_rows)] if (s.label, role)
             not in done]  # fmt: skip
+    span = "growing" if prep.exp.kind == "growth" else f"window from {plan.window_start * 1e3:.1f} ms"
     log(f"{name}: {len(prep.scenes)} pads × {sorted({s.patches.count for s in prep.scenes})} patches, "
-        f"{plan.duration * 1e3:.1f} ms (window from {plan.window_start * 1e3:.1f} ms); {len(todo)} runs; "
+        f"{plan.duration * 1e3:.1f} ms ({span}); {len(todo)} runs; "
         f"reference {ref.label}")  # fmt: skip
     rref = [r for r in reg["settings"] if r["role"] == "reference" and r.get("steps")]
     per_step = rref[0]["wall_s"] / rref[0]["steps"] if rref else math.nan

@@ -49,6 +49,8 @@ def regime_figure(docs: Sequence[dict[str, Any]], folder: Path, stem: str, rule:
     setting (one marker per integrator and precision, filled where the setting keeps the measure; one colour per
     measure; a line through the steps or tolerances of one integrator and precision), the rule, the reference's
     wall time and the chosen setting's. Returns the PNG's path."""
+    from matplotlib.lines import Line2D
+
     from aca_warp.studies.report import figure
 
     regimes = [(d, name) for d in docs for name in d["regimes"]]
@@ -76,7 +78,7 @@ def regime_figure(docs: Sequence[dict[str, Any]], folder: Path, stem: str, rule:
                 for xi, yi, k in pts:
                     ax.plot([xi], [yi], _marker(fam, families), color=colours[m], ms=4.5,
                             mfc=colours[m] if k else "none")  # fmt: skip
-                seen.setdefault(m, ax.lines[-1])
+                seen.setdefault(m, Line2D([], [], color=colours[m], ls=styles[m], lw=2))
         ax.axhline(rule, color="k", lw=1.0, ls="--")
         ax.axvline(settings_for(doc, name, rule=rule).wall_s, color="0.3", lw=1.0, ls=":")
         ax.axvline(reference_of(reg)["wall_s"], color="0.7", lw=1.5)
