@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -237,7 +238,8 @@ def test_tiny_run_end_to_end(tmp_path, capsys):
             "5e-4", "--out", str(out)]  # fmt: skip
     assert wps.main([*argv, "--grid", "strang@fp64:dt=5e-7,1e-8"]) == 0
     path = out / "wps_cpu_quick_hf1.json"
-    reg = json.loads(path.read_text())["regimes"]["hf1"]
+    first = json.loads(path.read_text())
+    reg = first["regimes"]["hf1"]
     assert [s["label"] for s in reg["settings"]] == ["strang@fp64:dt=2e-08", "strang@fp64:dt=5e-07",
                                                      "strang@fp64:dt=1e-08"]  # fmt: skip
     assert all(s["complete"] for s in reg["settings"])
@@ -251,6 +253,27 @@ def test_tiny_run_end_to_end(tmp_path, capsys):
     again = doc["regimes"]["hf1"]["settings"]
     assert [s["label"] for s in again] == [*(s["label"] for s in reg["settings"]), "implicit-friction@fp64:dt=2.5e-07"]
     assert again[0] == reg["settings"][0] and len(doc["commands"]) == 2
+    assert doc["regime_wall_s"] > first["regime_wall_s"] + again[-1]["wall_s"]
     capsys.readouterr()
     assert wps.main([*argv[:4], "3", *argv[5:], "--grid", "strang@fp64:dt=5e-7"]) == 2
     assert "choose another --out" in capsys.readouterr().err
+
+
+def test_committed_page_is_what_the_report_writes():
+    """The generated section of docs/work_precision_statistics.md is what ``--report`` writes from the committed
+    result files (every number on the page traceable to them)."""
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parent.parent
+    page = repo / "docs" / "work_precision_statistics.md"
+    folder = repo / "docs" / "figures" / "work_precision_statistics"
+    text = page.read_text()
+    names = [n for n in re.findall(r"`(docs/figures/work_precision_statistics/wps_[^`]+\.json)`", text)]
+    assert names, "the page names no result file"
+    docs = [rule.load_results(repo / n) for n in names]
+    tags = list(dict.fromkeys(d["tag"] for d in docs))
+    body = wps_report.render(docs, names, [folder / f"wps_{t}.png" for t in tags], page, 0.25, None)
+    begin, end = wps_report.generated_markers(wps_report.MARKER)
+    assert text.split(begin, 1)[1].split(end, 1)[0] == "\n" + "\n".join(body) + "\n"
+    for t in tags:
+        assert (folder / f"wps_{t}.png").is_file()

@@ -300,6 +300,7 @@ def measure_regime(
         "measures": names, "reference": ref.label, "settings": [],
     }  # fmt: skip
     path = Path(args.out) / f"wps_{head['tag']}_{name}.json"
+    before = 0.0  # s of wall time earlier calls spent on this file
     doc = {**{k: v for k, v in head.items() if k != "command"}, "commands": [head["command"]], "regimes": {name: reg}}
     if path.exists():
         old = load_results(path)
@@ -309,6 +310,7 @@ def measure_regime(
                                   "differ): choose another --out")  # fmt: skip
         reg["settings"] = [r for r in oreg["settings"] if not str(r.get("fault")).startswith("not run")]
         doc["commands"] = [*old["commands"], head["command"]]
+        before = old.get("regime_wall_s") or 0.0
         log(f"{name}: continuing {path} ({len(reg['settings'])} runs in it)")
     done = {(r["label"], r["role"]) for r in reg["settings"]}
     grid_rows = sorted((s for s in settings if s != ref), key=lambda s: s.cost(plan.duration))
@@ -333,12 +335,12 @@ def measure_regime(
         reg["settings"].append(row)
         if role == "reference" and row.get("steps"):
             per_step = row["wall_s"] / row["steps"]
-        _write(path, doc, log.elapsed() - t0)
+        _write(path, doc, before + log.elapsed() - t0)
         state = "complete" if row.get("complete") else f"stopped: {row.get('fault')}"
         wall = "–" if row.get("wall_s") is None else f"{row['wall_s']:.3g} s"
         log(f"{name} [{k}/{len(todo)}] {role} {s.label}: {wall} stepping, {row.get('steps', 0):,} steps, "
             f"{state}, {row.get('saturated', 0)}/{len(prep.scenes)} pads saturated")  # fmt: skip
-    _write(path, doc, log.elapsed() - t0)
+    _write(path, doc, before + log.elapsed() - t0)
     return path
 
 
@@ -347,7 +349,8 @@ CONTINUED = ("config", "pads", "duration_s", "measures", "reference")
 
 
 def _write(path: Path, doc: dict[str, Any], seconds: float) -> None:
-    """Write the result file (through a temporary file); ``seconds``: this command's time on the regime so far."""
+    """Write the result file (through a temporary file); ``seconds``: the wall time spent on the regime so far, by
+    every call that wrote the file."""
     doc["regime_wall_s"] = seconds
     tmp = path.with_suffix(".json.tmp")
     write_json(tmp, clean(doc), indent=None)

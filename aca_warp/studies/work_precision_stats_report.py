@@ -49,6 +49,7 @@ def regime_figure(docs: Sequence[dict[str, Any]], folder: Path, stem: str, rule:
     setting (one marker per integrator and precision, filled where the setting keeps the measure; one colour per
     measure; a line through the steps or tolerances of one integrator and precision), the rule, the reference's
     wall time and the chosen setting's. Returns the PNG's path."""
+    from matplotlib import colormaps
     from matplotlib.lines import Line2D
 
     from aca_warp.studies.report import figure
@@ -58,8 +59,8 @@ def regime_figure(docs: Sequence[dict[str, Any]], folder: Path, stem: str, rule:
     nrow = math.ceil(len(regimes) / ncol)
     fig = figure(figsize=(max(6.5, 5.2 * ncol), 3.9 * nrow + 1.3), layout="constrained")
     axes = fig.subplots(nrow, ncol, squeeze=False).ravel()
-    colours = {m: f"C{i % 10}" for i, m in enumerate(MEASURES)}
-    styles = {m: "-" if i < 10 else "--" for i, m in enumerate(MEASURES)}
+    palette = colormaps["tab20"]
+    colours = {m: palette(i % 20) for i, m in enumerate(MEASURES)}
     seen: dict[str, Any] = {}
     for ax, (doc, name) in zip(axes, regimes, strict=False):
         reg = doc["regimes"][name]
@@ -74,11 +75,11 @@ def regime_figure(docs: Sequence[dict[str, Any]], folder: Path, stem: str, rule:
                 if not pts:
                     continue
                 x, y, keeps = zip(*pts, strict=True)
-                ax.plot(x, y, styles[m], color=colours[m], lw=0.7, alpha=0.6)
+                ax.plot(x, y, "-", color=colours[m], lw=0.7, alpha=0.6)
                 for xi, yi, k in pts:
                     ax.plot([xi], [yi], _marker(fam, families), color=colours[m], ms=4.5,
                             mfc=colours[m] if k else "none")  # fmt: skip
-                seen.setdefault(m, Line2D([], [], color=colours[m], ls=styles[m], lw=2))
+                seen.setdefault(m, Line2D([], [], color=colours[m], lw=2))
         ax.axhline(rule, color="k", lw=1.0, ls="--")
         ax.axvline(settings_for(doc, name, rule=rule).wall_s, color="0.3", lw=1.0, ls=":")
         ax.axvline(reference_of(reg)["wall_s"], color="0.7", lw=1.5)
@@ -95,7 +96,7 @@ def regime_figure(docs: Sequence[dict[str, Any]], folder: Path, stem: str, rule:
         fontsize=7,
     )  # fmt: skip
     fig.suptitle(f"error of the ensemble mean / σ between seeds against wall time\n{machine_text(docs[0])}", fontsize=9)
-    return save_figure(fig, folder, f"wps_{stem}", formats=("png",))[0]
+    return save_figure(fig, folder, f"wps_{stem}", dpi=90, formats=("png",))[0]
 
 
 # ------------------------------------------------------------------------------------------------ tables
@@ -221,7 +222,8 @@ def render(docs: Sequence[dict[str, Any]], names: Sequence[str], figures: Sequen
                 f"{len(reg['pads'])} pads (seeds {reg['pads'][0]['seed']}…{reg['pads'][-1]['seed']}), "
                 f"{reg['duration_s'] * 1e3:.1f} ms ({span}), perturbation {cfg['perturbation']:g} m/s; pads the "
                 f"saturation detector calls saturated: {reference_of(reg).get('saturated', '–')} of "
-                f"{len(reg['pads'])} in the reference. Per setting and measure: error/σ (the upper end of the 95 % "
+                f"{len(reg['pads'])} in the reference; {fmt(doc.get('regime_wall_s'), '.0f')} s of wall time in "
+                f"all (runs, analysis, compilation). Per setting and measure: error/σ (the upper end of the 95 % "
                 f"interval of |bias|/σ); ✓ keeps (bound ≤ {rule:g}), **bold** moves (the whole interval beyond "
                 f"{rule:g}), plain: undecided.",
                 "",
