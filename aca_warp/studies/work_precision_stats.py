@@ -53,6 +53,11 @@ import numpy as np
 
 from aca_warp.hf.options import INTEGRATORS
 from aca_warp.studies.report import Log, add_device, add_page_options, clean, command_line, write_json
+from aca_warp.studies.validation.area import analyse_growth
+from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK
+from aca_warp.studies.validation.cli import default_workers
+from aca_warp.studies.validation.experiments import Collector, analyse_batch, prepare
+from aca_warp.studies.validation.multiscale import ensure_lf
 from aca_warp.studies.work_precision_stats_rule import DEFAULT_RULE, MEASURES, load_results, measures_of, pad_values
 
 PRECISIONS = ("fp32", "fp64")
@@ -152,22 +157,14 @@ def default_grid(quick: bool) -> list[str]:
 # ------------------------------------------------------------------------------------------------ the validation
 
 
-def validation() -> Any:
-    """The validation study (its experiments, settings, preparation, run collector and per-pad analysis)."""
-    from aca_warp.studies import validation as v
-
-    return v
-
-
 def regime_config(args: argparse.Namespace) -> Any:
     """The validation ``Config`` of the study: the validation's full or quick defaults with ``--seeds``,
     ``--patches``, ``--window`` and the quick variant's smaller sizes (:data:`QUICK_CONFIG`)."""
-    v = validation()
-    base = dataclasses.replace(v.QUICK, **QUICK_CONFIG) if args.quick else v.FULL
+    base = dataclasses.replace(QUICK, **QUICK_CONFIG) if args.quick else FULL
     over = {"seeds": args.seeds, "first_seed": args.first_seed, "patches": args.patches, "window": args.window}
     over |= {"state_patches": args.patches} if args.patches is not None and args.quick else {}
     lf = str(Path(args.lf_dir or Path(args.out) / "lf"))
-    workers = args.workers or (1 if args.device == "cpu" else v.default_workers())
+    workers = args.workers or (1 if args.device == "cpu" else default_workers())
     over = {k: x for k, x in over.items() if x is not None}
     return dataclasses.replace(base, device=args.device, engine=args.engine, lf_dir=lf, workers=workers, **over)
 
@@ -175,24 +172,22 @@ def regime_config(args: argparse.Namespace) -> Any:
 def prepare_regime(name: str, cfg: Any, duration: float | None, log: Log) -> Any:
     """The validation's preparation of experiment ``name`` (scenes, contact solves, plan), its LF runs made first
     when it needs them; a saturated experiment's run lasts ``duration`` [s] when given."""
-    v = validation()
-    exp = v.EXPERIMENTS[name]
+    exp = EXPERIMENTS[name]
     if duration is not None and exp.kind == "saturated":
         exp = dataclasses.replace(exp, duration=duration)
-    v.validation_multiscale.ensure_lf([name], cfg, log)
-    return v.prepare(exp, cfg)
+    ensure_lf([name], cfg, log)
+    return prepare(exp, cfg)
 
 
 def analyse(prep: Any, cfg: Any, records: tuple[np.ndarray, ...]) -> tuple[list[dict], list[dict | None]]:
     """Per pad: the validation's analysis (growing pads: ``analyse_growth``; others: ``analyse_batch`` over the
     whole per-patch window, saturated or not) and its global spectra {"freq", "mu", "velocity"} (None for a growing
     pad or one not analysed)."""
-    v = validation()
     t, g, pt, vel = records
     if prep.exp.kind == "growth":
-        pads, _, _ = v.validation_area.analyse_growth(prep.scenes, t, g, prep.plan, cfg)
+        pads, _, _ = analyse_growth(prep.scenes, t, g, prep.plan, cfg)
         return pads, [None] * len(pads)
-    pads, arrays, seg = v.analyse_batch(prep.scenes, t, g, pt, vel, prep.plan, cfg, "window", prep.members)
+    pads, arrays, seg = analyse_batch(prep.scenes, t, g, pt, vel, prep.plan, cfg, "window", prep.members)
     spectra: list[dict | None] = [None] * len(pads)
     if "pad" in arrays:
         freq = np.fft.rfftfreq(seg["samples"] * cfg.decimation, cfg.sample_dt)
@@ -240,11 +235,10 @@ def run_setting(prep: Any, cfg: Any, setting: Setting, role: str, names: list[st
     from aca_warp.common.errors import SceneError
     from aca_warp.studies.runs import batch_at_start, run_engine
 
-    v = validation()
     row: dict[str, Any] = {"label": setting.label, "role": role, **dataclasses.asdict(setting)}
     try:
         model, state = batch_at_start(prep.scenes, cfg.device, setting.precision)
-        sink = Progress(v.Collector(), f"{prep.exp.name} {setting.label}", prep.plan.duration, log)
+        sink = Progress(Collector(), f"{prep.exp.name} {setting.label}", prep.plan.duration, log)
         res = run_engine(
             model, state, engine=cfg.engine, duration=prep.plan.duration, integrator=setting.integrator,
             dt=setting.dt, tolerance=setting.tolerance, record=prep.plan.record, sink=sink,
@@ -387,8 +381,7 @@ def measure(args: argparse.Namespace, argv: list[str]) -> list[Path]:
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of the study."""
-    v = validation()
-    regimes = [k for k, e in v.EXPERIMENTS.items() if e.kind in ("saturated", "growth")]
+    regimes = [k for k, e in EXPERIMENTS.items() if e.kind in ("saturated", "growth")]
     ap = argparse.ArgumentParser(
         description=__doc__.split("Examples::")[0].rstrip() + "\n\nExamples::" + __doc__.split("Examples::")[1],
         formatter_class=argparse.RawDescriptionHelpFormatter,
