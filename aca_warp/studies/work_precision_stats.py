@@ -54,7 +54,7 @@ import numpy as np
 from aca_warp.hf.options import INTEGRATORS
 from aca_warp.studies.report import Log, add_device, add_page_options, clean, command_line, write_json
 from aca_warp.studies.validation.area import analyse_growth
-from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK
+from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK, close_pools
 from aca_warp.studies.validation.cli import default_workers
 from aca_warp.studies.validation.experiments import Collector, analyse_batch, prepare
 from aca_warp.studies.validation.multiscale import ensure_lf
@@ -371,7 +371,10 @@ def measure(args: argparse.Namespace, argv: list[str]) -> list[Path]:
         "command": command_line("work_precision_stats.py", argv),
         "rule": DEFAULT_RULE,
     }
-    paths = [measure_regime(name, args, cfg, settings, head, log) for name in args.regimes]
+    try:
+        paths = [measure_regime(name, args, cfg, settings, head, log) for name in args.regimes]
+    finally:
+        close_pools()
     log(f"wrote {', '.join(str(p) for p in paths)}")
     return paths
 
