@@ -31,7 +31,7 @@ between seeds for every measure; the cheapest such setting per regime) are in
 the stepping wall time); a later call with the same settings continues it (runs kept, missing ones added: another
 integrator, or what a time limit cut off). Examples::
 
-    python3 scripts/work_precision_stats.py --quick --out /tmp/wps                          # CPU, ~10 min
+    python3 scripts/work_precision_stats.py --quick --out out/wps_quick                     # the CPU variant
     python3 scripts/work_precision_stats.py --device cuda:0 --seeds 32 --out wps --regimes hf1 hf2
     python3 scripts/work_precision_stats.py --report wps/wps_cuda0_*.json                       # figure + page
 """
