@@ -8,6 +8,9 @@
 * :mod:`~aca_warp.studies.multiscale`: LF over the load procedure, HF on its saved states (§3.3, Figs. 12-13);
 * :mod:`~aca_warp.studies.work_precision`: error against wall time of the HF integrators and SciPy's solvers, with
   ``work_precision_states`` (the start states, made once and cached) and ``work_precision_report`` (figures, page);
+* :mod:`~aca_warp.studies.work_precision_stats`: the error of the validation's ensemble statistics against integrator,
+  step and precision, relative to the spread between seeds, with ``work_precision_stats_rule`` (measures,
+  statistics, the rule that picks the cheapest settings) and ``work_precision_stats_report`` (figure, page);
 * :mod:`~aca_warp.studies.time_to_solution`: wall time of every solver (ours, SciPy DOP853, diffrax) to a μ error;
 * :mod:`~aca_warp.studies.validation`: the paper's statements (§3.1–§3.3, §4) from seed ensembles of saturated runs,
   a package with a module per section of the paper (``hf_rows``, ``area``, ``multiscale``), the candidate causes
