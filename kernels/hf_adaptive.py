@@ -24,7 +24,8 @@ from typing import Any
 
 import warp as wp
 from aca_warp.kernels import precision_overloads
-from aca_warp.kernels.hf import friction_coefficient, friction_pair, spring_force
+from aca_warp.kernels.friction import friction_pair
+from aca_warp.kernels.patch import patch_force, spring_force
 
 wp.set_module_options({"enable_backward": False})
 
@@ -71,7 +72,7 @@ def lane_spring_force(
     nbr_index: wp.array[wp.int32],
     nbr_stiffness: wp.array[Any],
 ):
-    """Elastic force on patch i [N] (:func:`~aca_warp.kernels.hf.spring_force`) from the ``threads`` lanes of its
+    """Elastic force on patch i [N] (:func:`~aca_warp.kernels.patch.spring_force`) from the ``threads`` lanes of its
     block: each lane sums every ``threads``-th link, the block adds the lanes' sums. One lane (a CPU block) sums
     as ``spring_force`` does, so CPU results do not depend on the block size; on CUDA the links of a patch are read
     in parallel instead of in one dependent chain."""
@@ -101,11 +102,11 @@ def acceleration(
     pad_slope: wp.array[Any],
     pad_decay: wp.array[Any],
 ):
-    """v̇_i = (F_s,i − c_i v + F_N,i f(ω r_i − v)) / m_i [m/s²] at elastic force ``fs`` [N] and velocity ``v``."""
-    ff = normal_force[i] * friction_coefficient(
-        pad_omega[p] * radius[i] - v, pad_mu_scale[p], pad_slope[p], pad_decay[p]
+    """v̇_i = (F_s,i − c_i v + F_N,i f(ω r_i − v)) / m_i [m/s²] at elastic force ``fs`` [N] and velocity ``v``
+    (:func:`~aca_warp.kernels.patch.patch_force`)."""
+    return inv_mass[i] * patch_force(
+        fs, v, damping[i], normal_force[i], pad_omega[p] * radius[i], pad_mu_scale[p], pad_slope[p], pad_decay[p]
     )
-    return inv_mass[i] * (fs + ff - damping[i] * v)
 
 
 @wp.func

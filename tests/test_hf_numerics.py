@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 import warp as wp
-from aca_warp.kernels import hf as K
+from aca_warp.kernels.friction import friction_substep
 from scipy.integrate import solve_ivp
 
 from aca_warp.common.errors import SceneError, SimulationFault, StabilityError
@@ -368,12 +368,12 @@ def test_friction_solve_fp32_residual():
 
 
 def _midpoint_kernel_for(T):
-    """A kernel applying kernels.hf.midpoint_friction to 0.05 mm² patches with F_N = 1 N at 10 m/s."""
+    """A kernel applying kernels.friction.friction_substep to 0.05 mm² patches with F_N = 1 N at 10 m/s."""
 
     @wp.kernel(enable_backward=False, module="unique")
     def kernel(v_in: wp.array(dtype=T), dt: T, tol: T, v_out: wp.array(dtype=T)):
         i = wp.tid()
-        v_out[i] = K.midpoint_friction(
+        v_out[i] = friction_substep(
             v_in[i], dt, T(37.5 * 5e-8), T(0.0), T(1.0), T(10.0), T(0.8 / 3.141592653589793), T(200.0), T(0.25), tol
         )
 

@@ -21,6 +21,7 @@ from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import WATCHDOG_FACTOR
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
+from aca_warp.kernels.samples import N_GLOBAL
 from aca_warp.scene import Record
 
 GLOBAL_NAMES = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity", "friction_centroid")
@@ -126,7 +127,7 @@ class Recorder:
         prow = rows if (self.want_v or self.want_u) else 0
         n = model.patch_count if prow else 0
         self.counters = wp.zeros(4, dtype=wp.int32, device=dev)
-        self.globals = wp.zeros((rows, model.pad_count, K.N_GLOBAL), dtype=wp.float64, device=dev)
+        self.globals = wp.zeros((rows, model.pad_count, N_GLOBAL), dtype=wp.float64, device=dev)
         # watchdog: [patch, sample, kind] of the first fault per pad (kind 0 non-finite, 1 beyond watch_bound)
         table = np.full((model.pad_count, 3), -1, np.int32)
         table[:, 2] = 0
@@ -138,7 +139,7 @@ class Recorder:
         self.sample_index = 0
 
     def due(self, k: int) -> bool:
-        """Whether global sample k also records per-patch histories (``patch_sample_due`` of kernels.hf)."""
+        """Whether global sample k also records per-patch histories (``patch_sample_due`` of kernels.samples)."""
         return self.first <= k <= self.last and (k - self.first) % self.every == 0
 
     def kernel_rows(self) -> tuple[int, int, int]:

@@ -301,8 +301,8 @@ class HFSolver:
             self._launch(K.implicit_velocity, [*self.model_args, h, self.newton_tol, state.u, state.v])
             self._launch(K.drift, [h, state.v, state.u])
         elif self.integrator == "strang":
-            kernel = K.strang_open if first else K.strang_step
-            self._launch(kernel, [*self.local_args, h, self.newton_tol, state.force, state.u, state.v])
+            args = [*self.local_args, h, self.newton_tol, int(first), state.force, state.u, state.v]
+            self._launch(K.strang_advance, args)
             self.prepare(state)
         else:
             raise SceneError("the adaptive integrator steps each pad on its own; use run_hf")
