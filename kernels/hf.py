@@ -69,55 +69,31 @@ def euler_velocity(
     pad_mu_scale: wp.array[Any],
     pad_slope: wp.array[Any],
     pad_decay: wp.array[Any],
-    dt: Any,
-    # State in:
-    u_in: wp.array[Any],
-    # State in/out:
-    v_io: wp.array[Any],
-):
-    """Symplectic Euler, velocity half: v ← v + dt/m (F_s(u) + F_N f(ωr − v) − c v) (explicit friction)."""
-    i = wp.tid()
-    p = patch_pad[i]
-    v = v_io[i]
-    fs = spring_force(i, u_in, k_diag, nbr_start, nbr_index, nbr_stiffness)
-    f = patch_force(fs, v, damping[i], normal_force[i], pad_omega[p] * radius[i], pad_mu_scale[p], pad_slope[p],
-                    pad_decay[p])  # fmt: skip
-    v_io[i] = v + dt * inv_mass[i] * f
-
-
-@wp.kernel
-def implicit_velocity(
-    # Model:
-    patch_pad: wp.array[wp.int32],
-    inv_mass: wp.array[Any],
-    k_diag: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    nbr_start: wp.array[wp.int32],
-    nbr_index: wp.array[wp.int32],
-    nbr_stiffness: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
+    # Control:
     dt: Any,
     tol: Any,
+    implicit: int,
     # State in:
     u_in: wp.array[Any],
     # State in/out:
     v_io: wp.array[Any],
 ):
-    """IMEX Euler, velocity half: m(v⁺ − v) = dt (F_s(u) + F_N f(ωr − v⁺) − c v⁺), Newton per patch."""
+    """The velocity half of both Euler schemes. ``implicit`` = 0, symplectic Euler (explicit friction):
+    v ← v + dt/m (F_s(u) + F_N f(ωr − v) − c v). Otherwise IMEX Euler: m(v⁺ − v) = dt (F_s(u) + F_N f(ωr − v⁺) − c v⁺),
+    Newton per patch (:func:`~aca_warp.kernels.friction.solve_velocity`, relative tolerance ``tol``)."""
     i = wp.tid()
     p = patch_pad[i]
     v = v_io[i]
-    m = type(v)(1.0) / inv_mass[i]
     fs = spring_force(i, u_in, k_diag, nbr_start, nbr_index, nbr_stiffness)
-    a = m + dt * damping[i]
-    b = m * v + dt * fs
     vd = pad_omega[p] * radius[i]
-    v_io[i] = solve_velocity(a, b, dt * normal_force[i], vd, v, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol)
+    if implicit != 0:
+        m = type(v)(1.0) / inv_mass[i]
+        a = m + dt * damping[i]
+        b = m * v + dt * fs
+        v_io[i] = solve_velocity(a, b, dt * normal_force[i], vd, v, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol)
+    else:
+        f = patch_force(fs, v, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p], pad_decay[p])
+        v_io[i] = v + dt * inv_mass[i] * f
 
 
 @wp.kernel
@@ -399,6 +375,6 @@ def contact_flat(
 # ---------------------------------------------------------------------------------------------- overloads
 
 precision_overloads(
-    euler_velocity, implicit_velocity, drift, spring_forces, strang_advance, strang_close,
+    euler_velocity, drift, spring_forces, strang_advance, strang_close,
     record_globals, record_patches, grow_patches, coupling_stiffness, contact_flat,
 )  # fmt: skip

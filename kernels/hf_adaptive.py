@@ -88,28 +88,6 @@ def lane_spring_force(
 
 
 @wp.func
-def acceleration(
-    i: int,
-    p: int,
-    fs: Any,
-    v: Any,
-    inv_mass: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
-):
-    """v̇_i = (F_s,i − c_i v + F_N,i f(ω r_i − v)) / m_i [m/s²] at elastic force ``fs`` [N] and velocity ``v``
-    (:func:`~aca_warp.kernels.patch.patch_force`)."""
-    return inv_mass[i] * patch_force(
-        fs, v, damping[i], normal_force[i], pad_omega[p] * radius[i], pad_mu_scale[p], pad_slope[p], pad_decay[p]
-    )
-
-
-@wp.func
 def stage_state_h(
     i: int,
     stage: int,
@@ -158,12 +136,13 @@ def stage_k(
     u_next: wp.array[Any],
     v_next: wp.array[Any],
 ):
-    """Patch i's (of pad p) k_s = (u̇, v̇) from its elastic force ``fs`` [N] and velocity at the stage state and,
-    for 0 < s < 6, its next stage state y_{s+1} at trial step ``h`` [s] into ``u_next``/``v_next``."""
+    """Patch i's (of pad p) k_s = (u̇, v̇), v̇ = F/m (:func:`~aca_warp.kernels.patch.patch_force`), from its elastic
+    force ``fs`` [N] and velocity at the stage state and, for 0 < s < 6, its next stage state y_{s+1} at trial step
+    ``h`` [s] into ``u_next``/``v_next``."""
     v = v_stage[i]
     ku[stage, i] = v
-    kv[stage, i] = acceleration(
-        i, p, fs, v, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay
+    kv[stage, i] = inv_mass[i] * patch_force(
+        fs, v, damping[i], normal_force[i], pad_omega[p] * radius[i], pad_mu_scale[p], pad_slope[p], pad_decay[p]
     )
     if stage > 0 and stage + 1 < STAGES:
         stage_state_h(i, stage + 1, coeff, h, u_in, v_in, ku, kv, u_next, v_next)
