@@ -107,6 +107,13 @@ class Chunk:
         )
 
 
+# model arrays of the sample kernel (kernels.hf.record_globals), in its argument order
+SAMPLE_ARRAYS = (
+    "pad_patch_start", "normal_force", "radius", "pad_omega", "pad_mu_scale", "pad_slope", "pad_decay", "pad_mu_pad",
+    "pad_load", "pad_matrix_force", "pad_matrix_radius", "inv_mass", "k_t", "x", "y",
+)  # fmt: skip
+
+
 class Recorder:
     """Device buffers and launches for the global outputs and per-patch histories."""
 
@@ -167,21 +174,7 @@ class Recorder:
             block_dim=RECORD_BLOCK,
             device=m.device,
             inputs=[
-                m.pad_patch_start,
-                m.normal_force,
-                m.radius,
-                m.pad_omega,
-                m.pad_mu_scale,
-                m.pad_slope,
-                m.pad_decay,
-                m.pad_mu_pad,
-                m.pad_load,
-                m.pad_matrix_force,
-                m.pad_matrix_radius,
-                m.inv_mass,
-                m.k_t,
-                m.x,
-                m.y,
+                *m.args(SAMPLE_ARRAYS),
                 c,
                 block_threads(m.device, RECORD_BLOCK),
                 u,
