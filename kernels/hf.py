@@ -1,9 +1,8 @@
 """HF kernels of the general engine: one launch per stage (stepping, recording, growth) over flat batched arrays.
 
-The physics they launch lives in Warp functions with one home each, shared by every engine: the friction law and
-the friction/damping sub-step in :mod:`aca_warp.kernels.friction`, the per-patch terms (coupling gather, net
-force, Strang velocity updates, growth, coupling stiffness) in :mod:`aca_warp.kernels.patch`, the contact in
-:mod:`aca_warp.kernels.contact` and the sample sums in :mod:`aca_warp.kernels.samples`.
+The physics they launch lives in Warp functions with one home each, shared by every engine
+(:mod:`aca_warp.kernels.physics`: friction law and sub-step, coupling gather, net force, Strang velocity updates,
+growth, coupling stiffness, contact, sample sums).
 
 All kernels are generic in the state precision T (float32 or float64; overloads generated at the bottom). Batched
 pads are flat arrays: ``patch_pad`` gives each patch's pad, ``pad_patch_start`` (pads+1) the offsets, and
@@ -16,17 +15,19 @@ from typing import Any
 
 import warp as wp
 from aca_warp.kernels import precision_overloads
-from aca_warp.kernels.contact import contact_block
-from aca_warp.kernels.friction import solve_velocity
-from aca_warp.kernels.patch import (
+from aca_warp.kernels.physics import (
+    contact_block,
     grow_patch,
     patch_coupling,
     patch_force,
+    patch_sample_due,
+    record_pad,
+    solve_velocity,
     spring_force,
+    store_patch_sample,
     strang_close_velocity,
     strang_velocity,
 )
-from aca_warp.kernels.samples import patch_sample_due, record_pad, store_patch_sample
 
 wp.set_module_options({"enable_backward": False})
 
@@ -80,7 +81,7 @@ def euler_velocity(
 ):
     """The velocity half of both Euler schemes. ``implicit`` = 0, symplectic Euler (explicit friction):
     v ← v + dt/m (F_s(u) + F_N f(ωr − v) − c v). Otherwise IMEX Euler: m(v⁺ − v) = dt (F_s(u) + F_N f(ωr − v⁺) − c v⁺),
-    Newton per patch (:func:`~aca_warp.kernels.friction.solve_velocity`, relative tolerance ``tol``)."""
+    Newton per patch (:func:`~aca_warp.kernels.physics.solve_velocity`, relative tolerance ``tol``)."""
     i = wp.tid()
     p = patch_pad[i]
     v = v_io[i]
@@ -147,7 +148,7 @@ def strang_advance(
     u_io: wp.array[Any],
     v_io: wp.array[Any],
 ):
-    """One Strang step of every patch: the velocity update (:func:`~aca_warp.kernels.patch.strang_velocity`; the
+    """One Strang step of every patch: the velocity update (:func:`~aca_warp.kernels.physics.strang_velocity`; the
     opening half step from a synchronous state when ``first`` ≠ 0, else a merged step), then the drift u ← u + dt v.
 
     Afterwards ``v_io`` holds the staggered velocity w; follow with :func:`spring_forces` at the new u.
@@ -182,7 +183,7 @@ def strang_close(
     # Out:
     v_out: wp.array[Any],
 ):
-    """Synchronous velocity from the staggered w and F_s(uₙ) (:func:`~aca_warp.kernels.patch.strang_close_velocity`;
+    """Synchronous velocity from the staggered w and F_s(uₙ) (:func:`~aca_warp.kernels.physics.strang_close_velocity`;
     may be in place)."""
     i = wp.tid()
     p = patch_pad[i]

@@ -24,8 +24,7 @@ from typing import Any
 
 import warp as wp
 from aca_warp.kernels import precision_overloads
-from aca_warp.kernels.friction import friction_pair
-from aca_warp.kernels.patch import patch_force, spring_force
+from aca_warp.kernels.physics import friction_pair, patch_force, spring_force
 
 wp.set_module_options({"enable_backward": False})
 
@@ -72,7 +71,7 @@ def lane_spring_force(
     nbr_index: wp.array[wp.int32],
     nbr_stiffness: wp.array[Any],
 ):
-    """Elastic force on patch i [N] (:func:`~aca_warp.kernels.patch.spring_force`) from the ``threads`` lanes of its
+    """Elastic force on patch i [N] (:func:`~aca_warp.kernels.physics.spring_force`) from the ``threads`` lanes of its
     block: each lane sums every ``threads``-th link, the block adds the lanes' sums. One lane (a CPU block) sums
     as ``spring_force`` does, so CPU results do not depend on the block size; on CUDA the links of a patch are read
     in parallel instead of in one dependent chain."""
@@ -136,7 +135,7 @@ def stage_k(
     u_next: wp.array[Any],
     v_next: wp.array[Any],
 ):
-    """Patch i's (of pad p) k_s = (u̇, v̇), v̇ = F/m (:func:`~aca_warp.kernels.patch.patch_force`), from its elastic
+    """Patch i's (of pad p) k_s = (u̇, v̇), v̇ = F/m (:func:`~aca_warp.kernels.physics.patch_force`), from its elastic
     force ``fs`` [N] and velocity at the stage state and, for 0 < s < 6, its next stage state y_{s+1} at trial step
     ``h`` [s] into ``u_next``/``v_next``."""
     v = v_stage[i]

@@ -16,7 +16,7 @@ Per-patch constants (1/m, c, F_N, r, k_diag) stay in global memory (read-only, c
 patches lane, lane + B, lane + 2B, … of its pad (B the block size; 1 on the CPU, where Warp runs a block as
 one thread). The arithmetic per patch is that of the general path's kernels (:mod:`aca_warp.kernels.hf`): the same
 ``wp.func`` s (``strang_velocity``, ``strang_close_velocity``, the gather order of ``spring_force``, the sample
-sums of :mod:`aca_warp.kernels.samples`), so on the CPU the results are bit-identical to the general per-step path;
+sums of :mod:`aca_warp.kernels.physics`), so on the CPU the results are bit-identical to the general per-step path;
 on the GPU the in-kernel reductions sum in a different order (a tree over threads), so the global outputs differ in the
 last bits. With a cluster of K blocks per pad (sm_90+), each block owns 1/K of the patches and keeps a full copy
 of ``u`` (:func:`onchip_kernel`).
@@ -37,17 +37,21 @@ from functools import cache
 from typing import Any
 
 import warp as wp
-from aca_warp.kernels.contact import contact_block
 from aca_warp.kernels.hf_onchip_gather import tile_gather
-from aca_warp.kernels.patch import grow_patch, link_stiffness, patch_coupling, strang_close_velocity, strang_velocity
-from aca_warp.kernels.samples import (
+from aca_warp.kernels.physics import (
     SampleSums,
     block_sums,
+    contact_block,
     energy_speed2,
     flag_fault,
+    grow_patch,
+    link_stiffness,
+    patch_coupling,
     patch_sample,
     patch_sample_due,
     store_patch_sample,
+    strang_close_velocity,
+    strang_velocity,
     write_globals,
 )
 from aca_warp.kernels.tiles import (
@@ -83,7 +87,7 @@ def readers(g: int, a: int, n: int, k: int, nbr_start: wp.array[wp.int32], nbr_i
 
 
 ABLATIONS = frozenset({"friction", "gather", "sync", "coupling", "contact", "gather_half"})
-# entries per block of a cluster's table of sample sums (float64): the six SampleSums (kernels.samples), Σ u, the
+# entries per block of a cluster's table of sample sums (float64): the six SampleSums (kernels.physics), Σ u, the
 # runaway patch, the first non-finite patch, the runaway patch's energy speed
 RED_SLOTS = 10
 
@@ -406,7 +410,7 @@ def onchip_kernel(
                     nstep += 1
                 elif SYNC != 0:
                     pad_sync()
-                # spring forces at the new u (spring_force of kernels.patch: same two partial sums, same order)
+                # spring forces at the new u (spring_force of kernels.physics: same two partial sums, same order)
                 p = p0
                 i = lo + lane
                 while i < hi:
@@ -463,7 +467,7 @@ def onchip_kernel(
                                 pad_k_m, pad_load, gap, a + lo, a + hi, rank == 0, normal_force, pad_matrix_force,
                                 pad_matrix_radius,
                             )  # fmt: skip
-            # sample: synchronous velocity (strang_close_velocity), the sums of kernels.samples, patch histories
+            # sample: synchronous velocity (strang_close_velocity), the sums of kernels.physics, patch histories
             k = k0 + s
             due = patch_sample_due(k, first, last, every)
             sums = SampleSums()

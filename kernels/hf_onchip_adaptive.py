@@ -8,7 +8,7 @@ threads and blocks), the pad's error as a maximum over its blocks (each block's 
 shared table), the step decision (:func:`~aca_warp.kernels.hf_adaptive.pi_decide`), taken alike by thread 0 of
 every block on its own copy of the pad's control (block 0 writes it to ``ctl``/``mode`` for the host and the
 checkpoints), the commit and the next trial's first stage state. On landing, block 0 records the
-sample (:func:`~aca_warp.kernels.samples.record_pad`, the per-patch histories) and opens the next interval; a growing
+sample (:func:`~aca_warp.kernels.physics.record_pad`, the per-patch histories) and opens the next interval; a growing
 pad also lands on its growth events and grows there (the factory's ``growth``). Every block
 keeps the pad's stage displacements in shared memory, two rows (odd and even stages), and each new stage
 displacement is stored into every block of the cluster (distributed shared memory, released and acquired by the
@@ -29,7 +29,6 @@ from functools import cache
 from typing import Any
 
 import warp as wp
-from aca_warp.kernels.contact import contact_block
 from aca_warp.kernels.hf_adaptive import (
     C_TARGET,
     C_TRIAL,
@@ -49,8 +48,15 @@ from aca_warp.kernels.hf_adaptive import (
     store_control,
 )
 from aca_warp.kernels.hf_onchip_gather import tile_gather
-from aca_warp.kernels.patch import grow_patch, patch_coupling, spring_force
-from aca_warp.kernels.samples import patch_sample_due, record_pad, store_patch_sample
+from aca_warp.kernels.physics import (
+    contact_block,
+    grow_patch,
+    patch_coupling,
+    patch_sample_due,
+    record_pad,
+    spring_force,
+    store_patch_sample,
+)
 from aca_warp.kernels.tiles import (
     block_sync,
     cluster_sync,
@@ -278,26 +284,6 @@ def onchip_dp5_kernel(
         return gap
 
     @wp.func
-    def gather(
-        g: int,
-        a: int,
-        base: int,
-        row: int,
-        us: wp.tile[T, 2, NMAX],
-        sidx: wp.tile[wp.int16, EMAX],
-        sk: wp.tile[T, EMAX],
-        k_diag: wp.array[T],
-        nbr_start: wp.array[wp.int32],
-        nbr_index: wp.array[wp.int32],
-        nbr_stiffness: wp.array[T],
-    ):
-        """Elastic force on patch g [N] from the stage displacements in row ``row`` of the shared copy
-        (:func:`~aca_warp.kernels.hf_onchip_gather.tile_gather`; ``base``: the block's first link)."""
-        e = nbr_start[g]
-        links, _p = links_sum(e, nbr_start[g + 1], e - base, row, a, us, sidx, sk, nbr_index, nbr_stiffness)
-        return links - k_diag[g] * get_u(us, row, g - a)
-
-    @wp.func
     def lane_gather(
         g: int,
         a: int,
@@ -463,7 +449,12 @@ def onchip_dp5_kernel(
                     if wp.static(lanes == 1):
                         g = lo + lane
                         while g < hi:
-                            fs = gather(g, a, base, row, us, sidx, sk, k_diag, nbr_start, nbr_index, nbr_stiffness)
+                            first_link = nbr_start[g]  # the links in spring_force's order (tile_gather)
+                            links, _p = links_sum(
+                                first_link, nbr_start[g + 1], first_link - base, row, a, us, sidx, sk, nbr_index,
+                                nbr_stiffness,
+                            )  # fmt: skip
+                            fs = links - k_diag[g] * get_u(us, row, g - a)
                             un = T(0.0)  # the next stage displacement (none after the last stage)
                             if row == 1:
                                 stage_k(

@@ -1,7 +1,7 @@
 """The coupling gather of the two on-chip HF kernels: Σ_j k_ij u_j of one patch from the pad's displacements in a
 shared-memory tile (the strang kernel's u double buffer, the adaptive kernel's odd/even stage rows).
 
-The links are summed in the order of :func:`~aca_warp.kernels.patch.spring_force` (the general engine's CSR
+The links are summed in the order of :func:`~aca_warp.kernels.physics.spring_force` (the general engine's CSR
 gather): the row's even links into one partial sum, its odd links into another, then their sum; so on the CPU both
 on-chip kernels stay bit-identical to the general engine. The neighbour lists are read either from global memory
 (the CSR) or from a shared-memory copy: local int16 neighbour indices and k_ij, link m of a row at slot

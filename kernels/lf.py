@@ -18,7 +18,7 @@ from __future__ import annotations
 from typing import Any
 
 import warp as wp
-from aca_warp.kernels.friction import friction_coefficient
+from aca_warp.kernels.physics import friction_coefficient
 from aca_warp.kernels.tiles import block_add, block_sync, tile_store_1d
 
 wp.set_module_options({"enable_backward": False})
@@ -201,7 +201,7 @@ def cell_of(p: LFParams, x: wp.float64, y: wp.float64) -> wp.int32:
 @wp.func
 def eq4(p: LFParams, v: wp.float64) -> wp.float64:
     """Patch friction coefficient: paper Eq. 4 at sliding speed v (the HF engines' law,
-    :func:`~aca_warp.kernels.friction.friction_coefficient`), or the Coulomb value."""
+    :func:`~aca_warp.kernels.physics.friction_coefficient`), or the Coulomb value."""
     if p.coulomb != 0:
         return p.mu_coulomb
     return friction_coefficient(v, p.M / wp.float64(wp.pi), p.slope, p.decay)

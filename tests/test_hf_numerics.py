@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 import warp as wp
-from aca_warp.kernels.friction import friction_substep
+from aca_warp.kernels.physics import friction_substep
 from scipy.integrate import solve_ivp
 
 from aca_warp.common.errors import SceneError, SimulationFault, StabilityError
@@ -368,7 +368,7 @@ def test_friction_solve_fp32_residual():
 
 
 def _midpoint_kernel_for(T):
-    """A kernel applying kernels.friction.friction_substep to 0.05 mm² patches with F_N = 1 N at 10 m/s."""
+    """A kernel applying kernels.physics.friction_substep to 0.05 mm² patches with F_N = 1 N at 10 m/s."""
 
     @wp.kernel(enable_backward=False, module="unique")
     def kernel(v_in: wp.array(dtype=T), dt: T, tol: T, v_out: wp.array(dtype=T)):

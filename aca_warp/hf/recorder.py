@@ -21,7 +21,7 @@ from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import WATCHDOG_FACTOR
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
-from aca_warp.kernels.samples import N_GLOBAL
+from aca_warp.kernels.physics import N_GLOBAL
 from aca_warp.scene import Record
 
 GLOBAL_NAMES = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity", "friction_centroid")
@@ -146,7 +146,7 @@ class Recorder:
         self.sample_index = 0
 
     def due(self, k: int) -> bool:
-        """Whether global sample k also records per-patch histories (``patch_sample_due`` of kernels.samples)."""
+        """Whether global sample k also records per-patch histories (``patch_sample_due`` of kernels.physics)."""
         return self.first <= k <= self.last and (k - self.first) % self.every == 0
 
     def kernel_rows(self) -> tuple[int, int, int]:
