@@ -7,10 +7,11 @@ checkout runs in its own Python process (its own package view and kernel cache, 
 timed runs over ``--window`` [s] of simulated time. The checkouts alternate case by case (first, second, first,
 …), so drifts of the machine's clock or load hit both alike. Reported per case and checkout: the best and the
 median wall time of the stepping loop [s] (``RunResult.wall_time``, graph captures excluded), µs per accepted
-step, and the ratio second/first of the best times. JSON into ``--out``. Examples::
+step, and the ratio second/first of the best times. JSON into ``--out``; ``--cache`` keeps the two checkouts'
+kernel caches for a later call (e.g. the cases split over two calls). Examples::
 
-    python scripts/bench_checkouts.py OLD NEW --out $OUT/bench --device cuda:0
-    python scripts/bench_checkouts.py OLD NEW --out /tmp/bench --device cpu --pads 1 --window 2e-7 --repeats 1
+    python scripts/bench_checkouts.py OLD NEW --out $OUT/bench --device cuda:0 --cache /tmp/bench_cache
+    python scripts/bench_checkouts.py OLD NEW --out /tmp/bench --device cpu --pads 1 --window 2e-6 --repeats 1
 """
 
 from __future__ import annotations
@@ -84,6 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scene", default="hf1")
     ap.add_argument("--window", type=float, default=2e-5, help="timed simulated time per run [s]")
     ap.add_argument("--repeats", type=int, default=3, help="timed runs per case and checkout")
+    ap.add_argument("--cache", type=Path, default=None, help="kernel caches kept here (default: a temporary folder)")
     args = ap.parse_args(argv)
     for c in (args.first, args.second):
         if not (c / "aca_warp").is_dir() or not (c / "kernels").is_dir():
@@ -100,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
                     case = {"scene": args.scene, "pads": pads, "device": args.device, "precision": precision}
                     case |= {"engine": engine, "integrator": integrator, "options": options}
                     case |= {"window": args.window, "repeats": args.repeats}
-                    got = [run_case(v, Path(tmp) / f"cache{i}", case) for i, v in enumerate(views)]
+                    got = [run_case(v, (args.cache or Path(tmp)) / f"cache{i}", case) for i, v in enumerate(views)]
                     row = {"case": name, "precision": precision, "pads": pads, "first": got[0], "second": got[1]}
                     row["ratio"] = got[1]["wall_best"] / got[0]["wall_best"]
                     rows.append(row)
