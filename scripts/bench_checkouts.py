@@ -32,7 +32,9 @@ CASES = {
     "onchip_adaptive": ("onchip", "adaptive", {"tolerance": 1e-5}),
     "general_strang": ("general", "strang", {"dt": 1e-8}),
     "general_adaptive": ("general", "adaptive", {"tolerance": 1e-5}),
+    "general_euler": ("general", "symplectic-euler", {"dt": 2e-10}),  # explicit friction: a short step
 }
+DEFAULT_CASES = ["onchip_strang", "onchip_adaptive", "general_strang", "general_adaptive"]
 
 # runs one case inside a checkout's package view; prints one JSON line
 CHILD = """
@@ -79,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("second", type=Path, help="second checkout")
     ap.add_argument("--out", type=Path, required=True, help="folder for bench_checkouts.json")
     ap.add_argument("--device", default="cuda:0")
-    ap.add_argument("--cases", nargs="+", choices=sorted(CASES), default=list(CASES))
+    ap.add_argument("--cases", nargs="+", choices=sorted(CASES), default=DEFAULT_CASES)
     ap.add_argument("--precisions", nargs="+", choices=["fp32", "fp64"], default=["fp32", "fp64"])
     ap.add_argument("--pads", nargs="+", type=int, default=[1, 1024])
     ap.add_argument("--scene", default="hf1")
