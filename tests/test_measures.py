@@ -1,4 +1,4 @@
-"""Measures for the paper's statements (aca_warp/analysis/measures.py), each on a signal with a known answer."""
+"""Measures for the paper's statements (aca_warp/analysis/measures/), each on a signal with a known answer."""
 
 from __future__ import annotations
 
