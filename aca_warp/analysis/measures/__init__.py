@@ -6,7 +6,8 @@ filled from any record. The modules, by what they measure:
 * :mod:`~aca_warp.analysis.measures.peaks` — one spectral peak and the spectrum around it: :func:`first_peak`
   ("the first peak of each velocity spectrum", §3.1), :func:`peak_width` ("the peaks of HF₂ and HF₄ ... are
   narrower"), :func:`peak_to_floor` ("significantly more pronounced than the other output quantities"),
-  :func:`plateau_excess` ("broad-band plateaus"), :func:`tonality` ("from stochastic ... to periodic", §3.2);
+  :func:`plateau_excess` ("broad-band plateaus"), :func:`tonality` ("from stochastic ... to periodic", §3.2),
+  :func:`averaged_spectrum` (a Welch-averaged amplitude spectrum whose peaks stand out of the scatter);
 * :mod:`~aca_warp.analysis.measures.comparison` — spectra of one record compared: :func:`spectral_overlap` ("μ and
   torque ... nearly completely overlapping", Fig. 8), :func:`shared_peaks` and :func:`shared_peak_fraction`
   ("similar characteristic peaks of the global friction coefficient, friction torque, and effective friction
@@ -43,6 +44,7 @@ from .peaks import (
     PeakWidth,
     PlateauExcess,
     Tonality,
+    averaged_spectrum,
     first_peak,
     peak_to_floor,
     peak_width,
@@ -62,8 +64,8 @@ from .spatial import CorrelationLength, neighbour_coherence, phase_correlation_l
 __all__ = [
     "STFT_WINDOWS", "CorrelationLength", "EnsembleInterval", "EqualPrevalence", "LineTrend", "PeakContrast",
     "PeakWidth", "PlateauExcess", "PrevalenceTable", "SharedFraction", "SharedPeak", "SpectralOverlap", "StftPeak",
-    "Tonality", "ensemble_interval", "equal_prevalence_difference", "first_peak", "line_trend", "neighbour_coherence",
-    "peak_to_floor", "peak_track", "peak_width", "phase_correlation_length", "plateau_excess", "prevalence_classes",
-    "shared_peak_fraction", "shared_peaks", "spectral_agreement", "spectral_overlap", "stft_peak", "stft_peaks",
-    "sync_by_prevalence", "tonality",
+    "Tonality", "averaged_spectrum", "ensemble_interval", "equal_prevalence_difference", "first_peak", "line_trend",
+    "neighbour_coherence", "peak_to_floor", "peak_track", "peak_width", "phase_correlation_length",
+    "plateau_excess", "prevalence_classes", "shared_peak_fraction", "shared_peaks", "spectral_agreement",
+    "spectral_overlap", "stft_peak", "stft_peaks", "sync_by_prevalence", "tonality",
 ]  # fmt: skip
