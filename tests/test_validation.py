@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from aca_warp.studies.validation import analysis as VAN
 from aca_warp.studies.validation import base as VB
 from aca_warp.studies.validation import cli as VL
 from aca_warp.studies.validation import experiments as VE
@@ -145,19 +146,19 @@ def test_saturation_status_of_a_growing_and_a_saturating_record():
     glob = np.zeros((t.size, 6))
     glob[:, 4] = 100.0 * a * carrier
     glob[:, 0] = 0.5 + 0.01 * a * np.sin(2 * np.pi * 70e3 * t)
-    sat = VE.pad_saturation(t, glob, 40e-3, 8e-3)
+    sat = VAN.pad_saturation(t, glob, 40e-3, 8e-3)
     assert sat["status"] == "saturated" and 5e-3 < sat["t_start"] < 32e-3
     assert sat["growth_rate"] == pytest.approx(600.0, rel=0.1)
     short = slice(0, 8000)  # still growing at the end
-    grow = VE.pad_saturation(t[short], glob[short], 8e-3, 8e-3)
+    grow = VAN.pad_saturation(t[short], glob[short], 8e-3, 8e-3)
     assert grow["status"] == "not saturated" and grow["t_start"] is None
-    late = VE.pad_saturation(t, glob, 40e-3, 2 * 40e-3)  # settles, but not half a window before the end
+    late = VAN.pad_saturation(t, glob, 40e-3, 2 * 40e-3)  # settles, but not half a window before the end
     assert late["status"] == "saturated too late"
     # released from rest: near its saturated level from the start, no growth phase; counts only from rest
     flat = glob.copy()
     flat[:, 4] = 100.0 * carrier * (1 + 0.3 * np.exp(-t / 2e-3))
-    assert VE.pad_saturation(t, flat, 40e-3, 8e-3)["status"] == "no growth phase"
-    rest = VE.pad_saturation(t, flat, 40e-3, 8e-3, from_rest=True)
+    assert VAN.pad_saturation(t, flat, 40e-3, 8e-3)["status"] == "no growth phase"
+    rest = VAN.pad_saturation(t, flat, 40e-3, 8e-3, from_rest=True)
     assert rest["status"] == "saturated" and 0 < rest["t_start"] < 20e-3
 
 

@@ -238,3 +238,32 @@ def test_table_rows_and_every_registered_row_has_a_known_kind():
     assert {r.kind for r in VB.ROWS} <= set(V.CRITERIA)
     assert len({(r.section, r.statement) for r in VB.ROWS}) == len(VB.ROWS)
     assert math.isclose(VS.SYNC_EXCESS, 0.05)
+
+
+# ------------------------------------------------------------------------------------------------ settings and cost
+
+
+def test_stepping_takes_the_bound_rule_the_cap_or_an_override():
+    from aca_warp.studies.validation import settings as VSet
+
+    hf = VSet.STEPPING["hf"]
+    assert hf.step(8.8e-8) == pytest.approx(0.9 * 8.8e-8)  # accepted without force: below strang's bound
+    assert hf.step(9.65e-8) == hf.step(1.9e-7) == 8e-8  # larger bounds: capped at the step the statistics were checked
+    assert VB.Config().stepping("growth").step(1.34e-8) == pytest.approx(1.206e-8)
+    assert VB.Config(dt=5e-9, precision="fp64").stepping("hf").step(9.65e-8) == 5e-9
+    quick = VB.Config(quick=True).stepping("lf_states")
+    assert quick.dt == 1e-7 and quick.force and "forced" in quick.describe()
+
+
+def test_cost_model_follows_the_measured_waves_and_the_shared_memory():
+    from aca_warp.studies.validation import cost as VC
+
+    one = VC.step_seconds(14, 1758, 20904, "fp32", False, "cuda:0")
+    assert one == pytest.approx(1.16e-6 + 5.14e-6 / 8)  # one wave of clusters of 8
+    assert VC.step_seconds(64, 1758, 20904, "fp32", False, "cuda:0") == pytest.approx(1.16e-6 + 5.14e-6 / 2)
+    assert VC.step_seconds(264, 1758, 20904, "fp32", False, "cuda:0") == pytest.approx(2 * (1.16e-6 + 5.14e-6))
+    assert VC.fits_on_chip(1758, 20904, 1, "fp32") and not VC.fits_on_chip(4329, 31 * 4329, 4, "fp64")
+    dense = VC.step_seconds(8, 4329, 31 * 4329, "fp64", False, "cuda:0")
+    assert dense > 4 * VC.step_seconds(8, 1758, 20904, "fp64", False, "cuda:0")  # lists off chip
+    assert VC.step_seconds(1, 1758, 20904, "fp32", True, "cuda:0") == VC.GROWTH_FLOOR_S["fp32"]
+    assert VC.step_seconds(2, 500, 100, "fp64", False, "cpu") == pytest.approx(1000 / VC.CPU_PATCH_STEPS)

@@ -11,6 +11,29 @@ import numpy as np
 from aca_warp.studies.validation.base import USABLE, Config, map_pads
 
 
+def pad_saturation(
+    time: np.ndarray, glob: np.ndarray, window_end: float, window: float, from_rest: bool = False
+) -> dict[str, Any]:
+    """Saturation of one pad (``record_saturation``: Σ|u̇| by window means, μ by standard deviations over N/64
+    windows) as plain figures. ``status``: "saturated" (Σ|u̇| grows, then settles early enough: the analysed part
+    starts at least half a window before ``window_end``), "not saturated", "no growth phase" (settled without
+    growing: not the instability's saturated state) or "saturated too late".
+
+    A pad released from rest (``from_rest``) starts at an amplitude near its saturated one (every patch released
+    into the full friction force), so its Σ|u̇| need not rise by the e-fold of a growth phase: it counts as
+    saturated once Σ|u̇| (and μ, where it settles) have settled.
+    """
+    from aca_warp.analysis.saturation import record_saturation
+
+    out = record_saturation(time, glob[:, 0], glob[:, 4]).figures()
+    if from_rest and out["status"] == "no growth phase":
+        ts = out["t_s_sum_abs_velocity"]
+        out.update(status="saturated", t_start=max(ts, out["t_s_mu"]) if out["mu_saturated"] else ts)
+    if out["status"] == "saturated" and out["t_start"] > window_end - 0.5 * window:
+        out["status"] = "saturated too late"
+    return out
+
+
 def analysis_segment(sat: list[dict[str, Any]], patch_time: np.ndarray, window_start: float) -> int | None:
     """First per-patch sample of the common analysis segment: the latest saturated start of the usable pads, no
     earlier than the final window's start; None when no pad is usable."""
@@ -40,8 +63,6 @@ def analyse_batch(
     the arrays for ``arrays.npz`` (stacked over the analysed pads, their indices in "pad"), and the segment's
     start, length and resolution.
     """
-    from aca_warp.studies.validation.experiments import pad_saturation
-
     scenes, plan, kind = prep.scenes, prep.plan, prep.exp.kind
     window = plan.patch_samples * cfg.sample_dt * cfg.decimation
     rest = prep.exp.initial == "rest"
@@ -112,10 +133,32 @@ def analyse_tracks(
     return out
 
 
-def _pad_job(args: tuple) -> tuple[Any, Any]:
-    """``pad_measures`` of one pad; ("ErrorType: message", None) when its analysis fails."""
-    from aca_warp.studies.validation.measures import pad_measures
+def pad_measures(
+    gsat: np.ndarray, gseg: np.ndarray, vseg: np.ndarray, geometry: dict[str, np.ndarray], cfg: Config
+) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Every measure of one saturated pad.
 
+    Args:
+        gsat: Global outputs over the pad's own saturated span, shape (N, 6), every ``cfg.sample_dt``.
+        gseg: Global outputs over the experiment's common per-patch segment, shape (decimation·M, 6).
+        vseg: Patch velocities over that segment, shape (M, n) float32, every ``cfg.sample_dt·decimation``.
+        geometry: Patch centres "x", "y" and friction radii "r" [m], each (n,).
+        cfg: Settings.
+
+    Returns:
+        (scalars, arrays): JSON-ready numbers, and the spectra and S(f) for the arrays file.
+    """
+    from aca_warp.studies.validation.measures import global_measures
+    from aca_warp.studies.validation.sync_measures import patch_measures
+
+    out = global_measures(gsat, cfg)
+    scalars, arrays = patch_measures(gseg, vseg, geometry, out["f1"], cfg)
+    out.update(scalars)
+    return out, arrays
+
+
+def _pad_job(args: tuple) -> tuple[Any, Any]:
+    """:func:`pad_measures` of one pad; ("ErrorType: message", None) when its analysis fails."""
     try:
         return pad_measures(*args)
     except (ValueError, FloatingPointError, IndexError) as e:

@@ -1,10 +1,11 @@
 """What every part of the validation study shares: settings, the registries of experiments and rows, and the
-helpers that turn saved per-pad results into intervals over seeds and verdicts.
+helpers that turn saved per-pad results into intervals over seeds.
 
-:mod:`~aca_warp.studies.validation.hf_rows` (§3.1), :mod:`~aca_warp.studies.validation.area` (§3.2),
-:mod:`~aca_warp.studies.validation.multiscale` (§3.3, §4) and :mod:`~aca_warp.studies.validation.causes` (the
-candidate causes of open verdicts) register their experiments and rows here;
-:mod:`~aca_warp.studies.validation.experiments` runs them and :mod:`~aca_warp.studies.validation.cli` writes the table.
+:mod:`~aca_warp.studies.validation.hf_experiments` (§3.1), :mod:`~aca_warp.studies.validation.area` (§3.2) and
+:mod:`~aca_warp.studies.validation.multiscale` (§3.3, §4) register their experiments here, the row modules
+(``hf_patterns``, ``hf_peaks``, ``hf_sync``, ``area_rows``, ``multiscale_rows``, ``appendix``) their rows;
+:mod:`~aca_warp.studies.validation.experiments` runs them and :mod:`~aca_warp.studies.validation.cli` writes the
+results and the table; the verdicts are in :mod:`~aca_warp.studies.validation.verdicts`.
 """
 
 from __future__ import annotations

@@ -20,32 +20,6 @@ from aca_warp.studies.report import Log, clean
 from aca_warp.studies.validation.base import USABLE, Config, Experiment, pad_member
 from aca_warp.studies.validation.plan import Plan, experiment_scene, plan_run, predicted_sigma
 
-# ------------------------------------------------------------------------------------------------ saturation
-
-
-def pad_saturation(
-    time: np.ndarray, glob: np.ndarray, window_end: float, window: float, from_rest: bool = False
-) -> dict[str, Any]:
-    """Saturation of one pad (``record_saturation``: Σ|u̇| by window means, μ by standard deviations over N/64
-    windows) as plain figures. ``status``: "saturated" (Σ|u̇| grows, then settles early enough: the analysed part
-    starts at least half a window before ``window_end``), "not saturated", "no growth phase" (settled without
-    growing: not the instability's saturated state) or "saturated too late".
-
-    A pad released from rest (``from_rest``) starts at an amplitude near its saturated one (every patch released
-    into the full friction force), so its Σ|u̇| need not rise by the e-fold of a growth phase: it counts as
-    saturated once Σ|u̇| (and μ, where it settles) have settled.
-    """
-    from aca_warp.analysis.saturation import record_saturation
-
-    out = record_saturation(time, glob[:, 0], glob[:, 4]).figures()
-    if from_rest and out["status"] == "no growth phase":
-        ts = out["t_s_sum_abs_velocity"]
-        out.update(status="saturated", t_start=max(ts, out["t_s_mu"]) if out["mu_saturated"] else ts)
-    if out["status"] == "saturated" and out["t_start"] > window_end - 0.5 * window:
-        out["status"] = "saturated too late"
-    return out
-
-
 # ------------------------------------------------------------------------------------------------ running
 
 
@@ -211,23 +185,23 @@ def run_batch(
     t0 = time.perf_counter()
     scenes, plan = batch.scenes, batch.plan
     step = cfg.stepping(batch.stepping_kind)
-    est = costs.estimate(batch, cfg)
+    model, state = batch_at_start(scenes, cfg.device, step.precision)
+    bound = stable_step(model).sticking
+    dt = step.step(bound)
+    steps = plan.steps(dt, cfg.sample_dt)
+    est = costs.estimate(batch, cfg, bound)
     sizes = sorted({s.patches.count for s in scenes})
     names = ", ".join(p.exp.name for p in batch.members)
     log(
         f"{batch.name} ({names}): {len(scenes)} pads × {'/'.join(map(str, sizes))} patches, run "
         f"{plan.duration * 1e3:.1f} ms in {len(plan.segments)} segment(s), {len(plan.tracks)} track window(s); "
-        f"per-patch record {sum(p.plan.velocity_bytes for p in batch.members) / 2**20:.0f} MiB; {step.describe()}; "
-        f"estimated {est:.0f} s"
+        f"per-patch record {sum(p.plan.velocity_bytes for p in batch.members) / 2**20:.0f} MiB; {step.describe()}: "
+        f"dt {dt:.3g} s (sticking bound {bound:.3g} s), {steps:,} steps, estimated {est:.0f} s"
     )
     heads = {p.exp.name: _result_head(p, cfg, est) for p in batch.members}
     if budget is not None and est > budget:
         log(f"{batch.name}: not run: estimated {est:.0f} s exceeds the {budget:.0f} s left of the budget")
         return {n: {**h, "status": "skipped (budget)"} for n, h in heads.items()}
-    model, state = batch_at_start(scenes, cfg.device, step.precision)
-    bound = stable_step(model).sticking
-    dt = step.step(bound)
-    steps = plan.steps(dt, cfg.sample_dt)
     projection: dict[str, float] = {}
 
     def probe(res: Any) -> bool:

@@ -180,26 +180,3 @@ def global_measures(gsat: np.ndarray, cfg: Config) -> dict[str, Any]:
     out["global_span_s"] = gsat.shape[0] * cfg.sample_dt
     out["stft"] = stft_measures(gsat[:, 0], cfg.sample_dt)
     return out
-
-
-def pad_measures(
-    gsat: np.ndarray, gseg: np.ndarray, vseg: np.ndarray, geometry: dict[str, np.ndarray], cfg: Config
-) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """Every measure of one saturated pad.
-
-    Args:
-        gsat: Global outputs over the pad's own saturated span, shape (N, 6), every ``cfg.sample_dt``.
-        gseg: Global outputs over the experiment's common per-patch segment, shape (decimation·M, 6).
-        vseg: Patch velocities over that segment, shape (M, n) float32, every ``cfg.sample_dt·decimation``.
-        geometry: Patch centres "x", "y" and friction radii "r" [m], each (n,).
-        cfg: Settings.
-
-    Returns:
-        (scalars, arrays): JSON-ready numbers, and the spectra and S(f) for the arrays file.
-    """
-    from aca_warp.studies.validation.sync_measures import patch_measures
-
-    out = global_measures(gsat, cfg)
-    scalars, arrays = patch_measures(gseg, vseg, geometry, out["f1"], cfg)
-    out.update(scalars)
-    return out, arrays
