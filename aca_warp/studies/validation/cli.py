@@ -10,6 +10,7 @@ import argparse
 import dataclasses
 import datetime as _dt
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -202,9 +203,13 @@ def _list() -> None:
         print(f"row {row.section:18} [{row.kind}] {row.statement}  [{', '.join(row.experiments)}]")
 
 
-def run_all(names: list[str], cfg: Config, out: Path, log: Log, args: argparse.Namespace) -> dict:
+def run_all(
+    names: list[str], cfg: Config, out: Path, log: Log, args: argparse.Namespace,
+    done: Callable[[dict[str, dict]], None] | None = None,
+) -> dict:  # fmt: skip
     """Reuse, analyse again or run every experiment of ``names`` batch by batch; failures are logged and recorded
-    (``args``: rerun, reanalyse, keep_records, max_wall)."""
+    (``args``: rerun, reanalyse, keep_records, max_wall). ``done(results)`` after every batch (the results file is
+    written then, so a run cut off keeps what it finished)."""
     results: dict[str, dict] = {}
     todo = []
     for name in names:
@@ -239,6 +244,8 @@ def run_all(names: list[str], cfg: Config, out: Path, log: Log, args: argparse.N
         except Exception as e:  # noqa: BLE001
             for p in preps:
                 results[p.exp.name] = _failed(out, p.exp.name, e, log)
+        if done is not None:
+            done(results)
     return results
 
 
@@ -262,9 +269,44 @@ def write_page(results_json: Path, page: Path | None, out_md: Path | None, log: 
     return rows
 
 
+def meta_of(argv: list[str], wp: Any, device: str, cfg: Config) -> dict[str, Any]:
+    """The provenance of a run: its command, time, machine, versions and settings."""
+    from aca_warp.common.files import machine, versions
+
+    return {
+        "command": command_line("validation.py", argv),
+        "created": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "machine": machine(wp.get_device(device))["device_name"],
+        "versions": versions(),
+        "config": cfg.run_key(),
+    }
+
+
+class ResultsWriter:
+    """Writes ``results.json`` (called after every batch, and at the end with ``final``): the results so far, every
+    saved result in ``out`` that fits the settings, the LF facts once the multi-timescale experiments have results,
+    and the provenance with the wall time so far."""
+
+    def __init__(self, path: Path, out: Path, cfg: Config, log: Log, meta: dict[str, Any]) -> None:
+        self.path, self.out, self.cfg, self.log, self.meta = path, out, cfg, log, meta
+        self.lf: dict[str, Any] | None = None
+
+    def __call__(self, results: dict[str, dict], final: bool = False) -> Path:
+        every = dict(results)
+        for name, exp in EXPERIMENTS.items():
+            saved = None if name in every else load_result(self.out / name, exp, self.cfg)
+            if saved is not None:
+                every[name] = saved
+        if any(n in EXPERIMENTS and EXPERIMENTS[n].builder is validation_multiscale.state_scene for n in every):
+            self.lf = self.lf or validation_multiscale.lf_facts(self.cfg)
+            every["lf_states"] = self.lf
+        spent = sum((r.get("total_s") or 0.0) for r in every.values())
+        meta = {**self.meta, "wall_s": self.log.elapsed(), "experiments_s": spent, "complete": final}
+        return write_results(self.path, every, meta)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the selected experiments, write results.json, the log and --page; 0 unless the input is bad (2)."""
-    from aca_warp.common.files import machine, versions
     from aca_warp.studies.report import init_warp
 
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -298,24 +340,8 @@ def main(argv: list[str] | None = None) -> int:
     cfg = dataclasses.replace(config_from(args, device), lf_dir=str(args.out / "lf"))
     args.out.mkdir(parents=True, exist_ok=True)
     log(f"validation ({'quick' if cfg.quick else 'full'}): {', '.join(names)} on {device} -> {args.out}")
-    results = run_all(names, cfg, args.out, log, args)
-    for name, exp in EXPERIMENTS.items():  # the table uses every saved result that fits these settings
-        if name not in results:
-            saved = load_result(args.out / name, exp, cfg)
-            if saved is not None:
-                results[name] = saved
-    if any(EXPERIMENTS[n].builder is validation_multiscale.state_scene for n in results if n in EXPERIMENTS):
-        results["lf_states"] = validation_multiscale.lf_facts(cfg)
-    meta = {
-        "command": command_line("validation.py", argv),
-        "created": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-        "machine": machine(wp.get_device(device))["device_name"],
-        "versions": versions(),
-        "config": cfg.run_key(),
-        "wall_s": log.elapsed(),
-        "experiments_s": sum((r.get("total_s") or 0.0) for r in results.values()),
-    }
-    path = write_results(results_dir / "results.json", results, meta)
+    save = ResultsWriter(results_dir / "results.json", args.out, cfg, log, meta_of(argv, wp, device, cfg))
+    path = save(run_all(names, cfg, args.out, log, args, save), final=True)
     log(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
     rows = write_page(path, args.page, results_dir / "validation.md", log)
     for r in rows:

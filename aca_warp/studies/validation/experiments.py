@@ -211,7 +211,8 @@ def run_batch(
         log(f"{batch.name}: probe {res.steps:,} steps at {per * 1e6:.2f} µs/step: {per * steps:.0f} s projected")
         return left is None or per * steps <= left
 
-    run_plan = plan if batch.growth else split_segments(plan, min(5.0e-4, 0.05 * plan.duration))
+    probe_s = cfg.sample_dt * max(1, round(min(5.0e-4, 0.05 * plan.duration) / cfg.sample_dt))  # whole samples
+    run_plan = plan if batch.growth else split_segments(plan, probe_s)
     sink = Collector()
     last, parts = run_segments(model, state, run_plan, cfg, step, dt, sink, probe if not batch.growth else None)
     if "total" in projection and len(parts) == 1 and len(run_plan.segments) > 1 and last.complete:

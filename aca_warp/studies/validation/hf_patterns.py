@@ -129,7 +129,7 @@ def patterns_row(results: dict[str, dict], cfg: Config) -> RowValue:
 
 
 COMOVING = f"C > 0 (margin {C_MARGIN:g}) and size > spacing"
-for _row in (
+PATTERN_ROWS = (
     Row("§3.1", "the loads keep every patch in contact with the disc, the matrix contact minimised", "all in contact",
         "threshold", PRESETS, contact_row, f"every patch in contact, matrix share ≤ {MATRIX_LIMIT:g}"),
     Row("§3.1, Fig. 4", "HF1: macroscopic groups of patches move together in the same direction as their neighbours",
@@ -142,5 +142,10 @@ for _row in (
         "yes", "direction", PRESETS, radial_row, f"ρ(B, radius) > 0 (margin {RHO_MARGIN:g}), ρ(B, T) > ρ(B, μ)"),
     Row("§3.1, Figs. 4/6", "larger patches: larger, better-defined synchronisation patterns (HF2 vs HF1)", "yes",
         "direction", ("hf1", "hf2"), patterns_row, f"groups in HF2; Δ C > 0 (margin {C_MARGIN:g}) and Δ size > 0"),
-):  # fmt: skip
-    register_row(_row)
+)  # fmt: skip
+
+
+def register() -> None:
+    """Register the §3.1 rows on the patterns of motion (Figs. 4–7)."""
+    for row in PATTERN_ROWS:
+        register_row(row)

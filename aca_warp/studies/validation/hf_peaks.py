@@ -153,19 +153,19 @@ def sync_exponent_row(results: dict[str, dict], cfg: Config) -> RowValue:
     )
 
 
-for _name in PRESETS:
-    register_row(Row("§3.1, Fig. 8", f"{_name.upper()}: first velocity-spectrum peak",
-                     f"≈ {PAPER_PEAK_HZ[_name] / 1e3:g} kHz", "value", (_name,), first_peak_row(_name),
-                     f"± {100 * PEAK_TOLERANCE:g} %"))  # fmt: skip
-for _row in (
+FIRST_PEAK_ROWS = tuple(
+    Row("§3.1, Fig. 8", f"{n.upper()}: first velocity-spectrum peak", f"≈ {PAPER_PEAK_HZ[n] / 1e3:g} kHz", "value",
+        (n,), first_peak_row(n), f"± {100 * PEAK_TOLERANCE:g} %")
+    for n in PRESETS
+)  # fmt: skip
+LAW_ROWS = (
     Row("§3.1", "f_p ∝ A_p^(−1/4): exponent of the first velocity peak against the mean patch area", "−1/4", "value",
         SWEEP, exponent_row, f"± {EXPONENT_TOLERANCE:g}", min_experiments=3),
     Row("§3.1", "f_p ∝ A_p^(−1/4) from the two patch sizes of Table 1 (HF1, HF2)", "−1/4", "value", ("hf1", "hf2"),
         two_area_row, f"± {EXPONENT_TOLERANCE:g}"),
     Row("§3.1, Fig. 9", "the A_p^(−1/4) shift is also seen in the Synchronization Indices (HF1→HF2, HF3→HF4)",
         "−1/4", "value", PRESETS, sync_exponent_row, f"± {EXPONENT_TOLERANCE:g}", uses=("sync",)),
-):  # fmt: skip
-    register_row(_row)
+)  # fmt: skip
 
 
 # ------------------------------------------------------------------------------------------------ the shapes
@@ -289,7 +289,7 @@ def single_patch_row(results: dict[str, dict], cfg: Config) -> RowValue:
     )
 
 
-for _row in (
+SHAPE_ROWS = (
     Row("§3.1, Fig. 8", "the first velocity peak is significantly more pronounced than in μ, torque, friction radius",
         "yes, in all four", "direction", PRESETS, pronounced_row, "ln ratio > 0 in each preset, margin ln 2"),
     Row("§3.1, Fig. 8", "broad-band plateaus follow the first peak in the velocity spectra, not in the other outputs",
@@ -307,8 +307,7 @@ for _row in (
         "many", "threshold", PRESETS, unmatched_row, f"share ≥ {UNMATCHED_LIMIT:g} in each preset", uses=("sync",)),
     Row("§3.1, Fig. 8", "those peaks are caused by individual, highly influential patches (few oscillate there)",
         "likely", "direction", PRESETS, single_patch_row, "−ln ratio > 0 in each preset, margin ln 2", uses=("sync",)),
-):  # fmt: skip
-    register_row(_row)
+)  # fmt: skip
 
 
 # ------------------------------------------------------------------------------------------------ larger patches
@@ -362,12 +361,17 @@ def larger_frequency_row(results: dict[str, dict], cfg: Config) -> RowValue:
     )
 
 
-for _row in (
+SIZE_ROWS = (
     Row("§3.1, Fig. 8", "larger patches (HF2, HF4): the peaks have increased amplitudes", "higher", "direction",
         PRESETS, larger_height_row, "ln ratio > 0 in both pairs, margin ln 1.25"),
     Row("§3.1, Fig. 8", "larger patches (HF2, HF4): the peaks are narrower", "narrower", "direction", PRESETS,
         larger_width_row, "ln ratio < 0 in both pairs, margin ln 1.25"),
     Row("§3.1, Fig. 8", "larger patches (HF2, HF4): the peaks occur at lower frequencies", "lower", "direction",
         PRESETS, larger_frequency_row, "ln ratio < 0 in both pairs, margin ln 1.25"),
-):  # fmt: skip
-    register_row(_row)
+)  # fmt: skip
+
+
+def register() -> None:
+    """Register the §3.1 rows on the spectra of Fig. 8."""
+    for row in (*FIRST_PEAK_ROWS, *LAW_ROWS, *SHAPE_ROWS, *SIZE_ROWS):
+        register_row(row)

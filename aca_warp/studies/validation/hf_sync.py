@@ -205,7 +205,7 @@ def mu_relation_row(results: dict[str, dict], cfg: Config) -> RowValue:
     return RowValue("; ".join(notes), verdict, "Spearman over 20–80 kHz per pad, mean over the four presets per seed")
 
 
-for _row in (
+SYNC_ROWS = (
     Row("§3.1, Fig. 9", "larger patches: Synchronization Index results more spread out (HF2 vs HF1)", "yes",
         "direction", ("hf1", "hf2"), spread_row_for("hf2", "hf1"), f"Δ > 0, margin {SPREAD_MARGIN:g}", uses=("sync",)),
     Row("§3.1, Fig. 9", "larger patches: generally increased prevalence Φ (HF2 vs HF1)", "yes", "direction",
@@ -230,8 +230,13 @@ for _row in (
         "band's", uses=("sync",)),
     Row("§3.1", "HF4 can be interpreted as the combination of the changes of HF2 and HF3", "additive", "equivalence",
         PRESETS, combination_row, f"interaction within ± {S_MARGIN:g}", uses=("sync",)),
-):  # fmt: skip
-    register_row(_row)
+)  # fmt: skip
+
+
+def register() -> None:
+    """Register the §3.1 rows on the Synchronization Index (Fig. 9)."""
+    for row in SYNC_ROWS:
+        register_row(row)
 
 
 def register_conclusions() -> None:

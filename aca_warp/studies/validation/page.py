@@ -302,6 +302,11 @@ def _header_lines(meta: dict[str, Any]) -> list[str]:
         else "; ".join(f"{k}: {s.describe()}" for k, s in STEPPING.items())
     )
     over = ", ".join(f"{k} = {cfg[k]}" for k in ("dt", "precision") if cfg.get(k) is not None)
+    if not meta.get("complete", True):
+        variant += (
+            " **Incomplete: the run stopped before its last batch (the results file is written after every batch); "
+            "experiments not run read not run.**"
+        )
     return [
         variant,
         "",
