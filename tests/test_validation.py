@@ -208,8 +208,13 @@ def test_reduced_run_end_to_end(tmp_path, short_experiment, capsys):
     capsys.readouterr()
     assert VL.main(argv) == 0  # checkpoints: nothing is run again
     assert "reusing the saved result" in capsys.readouterr().out
-    assert VL.main([*argv[:-4], "--out", str(tmp_path / "none"), "--max-wall", "0"]) == 0
+    assert VL.main([*argv[:-6], "--out", str(tmp_path / "none"), "--max-wall", "0"]) == 0
     assert not (tmp_path / "none" / "hf1" / "result.json").exists()
+    # a second call on a bare machine takes the first call's results file as done (--with)
+    second = [*argv[:-6], "--out", str(tmp_path / "bare"), "--with", str(res_dir / "results.json")]
+    assert VL.main(second) == 0 and not (tmp_path / "bare" / "hf1").exists()
+    again = json.loads((tmp_path / "bare" / "results.json").read_text())["results"]
+    assert again["hf1"]["pads"][0]["measures"]["f1"] == doc["results"]["hf1"]["pads"][0]["measures"]["f1"]
 
 
 def test_report_refuses_a_file_that_is_not_a_results_file(tmp_path, capsys):

@@ -69,7 +69,7 @@ class Variant:
     def applies(self, row: Row) -> bool:
         """Whether the variant changes something the row depends on, and only that."""
         if self.substitute:
-            return set(row.experiments) <= {a for a, _ in self.substitute}
+            return bool(row.experiments) and set(row.experiments) <= {a for a, _ in self.substitute}
         if self.needs is not None:
             return self.needs in row.uses
         return True

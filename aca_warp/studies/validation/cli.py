@@ -76,6 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
                    f"experiments (a sector; the whole state; quick {QUICK.state_patches})")  # fmt: skip
     p.add_argument("--workers", type=int, default=None, help="processes that analyse the pads of an experiment "
                    "(default: the CPU count less one, at most 15)")  # fmt: skip
+    p.add_argument("--with", dest="with_results", type=Path, default=None, metavar="RESULTS_JSON", help="take the "
+                   "experiments of an earlier results.json with the same settings as done (a second call that runs "
+                   "what the first left out)")  # fmt: skip
     p.add_argument("--rerun", action="store_true", help="run again even where a saved result fits")
     p.add_argument("--keep-records", action="store_true", help="also keep each run's records (globals and per-patch "
                    "velocities, DIR/<experiment>/records.npz: the per-patch record's size per experiment)")  # fmt: skip
@@ -211,12 +214,14 @@ def run_all(
     (``args``: rerun, reanalyse, keep_records, max_wall). ``done(results)`` after every batch (the results file is
     written then, so a run cut off keeps what it finished)."""
     results: dict[str, dict] = {}
+    earlier = earlier_results(args.with_results, cfg, log)
     todo = []
     for name in names:
         saved = None if args.rerun or args.reanalyse else load_result(out / name, EXPERIMENTS[name], cfg)
+        saved = saved or earlier.get(name)
         if saved is not None:
             results[name] = saved
-            log(f"{name}: reusing the saved result in {out / name}")
+            log(f"{name}: reusing the saved result")
         else:
             todo.append(name)
     try:
@@ -249,6 +254,19 @@ def run_all(
     return results
 
 
+def earlier_results(path: Path | None, cfg: Config, log: Log) -> dict[str, dict]:
+    """The finished experiments of an earlier ``results.json`` made with the same settings (``--with``)."""
+    from aca_warp.studies.validation.results import read_results
+
+    if path is None:
+        return {}
+    results, meta, _ = read_results(path)
+    if meta["config"] != cfg.run_key():
+        log(f"{path}: other settings than this run's; not used")
+        return {}
+    return {n: r for n, r in results.items() if n in EXPERIMENTS and r.get("status") in ("done", "stopped")}
+
+
 def _failed(out: Path, name: str, e: Exception, log: Log) -> dict[str, Any]:
     import traceback
 
@@ -269,12 +287,25 @@ def write_page(results_json: Path, page: Path | None, out_md: Path | None, log: 
     return rows
 
 
+FOLDERS = {"--out": "DIR", "--results": "RESULTS", "--with": "EARLIER_RESULTS_JSON"}
+"""Options whose value is a folder or file of the machine that ran: named by their role in the recorded command."""
+
+
+def portable(argv: list[str]) -> list[str]:
+    """``argv`` with the values of :data:`FOLDERS` replaced by their role (the run's folders are not the reader's)."""
+    out = list(argv)
+    for i, a in enumerate(out[:-1]):
+        if a in FOLDERS:
+            out[i + 1] = FOLDERS[a]
+    return out
+
+
 def meta_of(argv: list[str], wp: Any, device: str, cfg: Config) -> dict[str, Any]:
     """The provenance of a run: its command, time, machine, versions and settings."""
     from aca_warp.common.files import machine, versions
 
     return {
-        "command": command_line("validation.py", argv),
+        "command": command_line("validation.py", portable(argv)),
         "created": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         "machine": machine(wp.get_device(device))["device_name"],
         "versions": versions(),
@@ -300,7 +331,7 @@ class ResultsWriter:
         if any(n in EXPERIMENTS and EXPERIMENTS[n].builder is validation_multiscale.state_scene for n in every):
             self.lf = self.lf or validation_multiscale.lf_facts(self.cfg)
             every["lf_states"] = self.lf
-        spent = sum((r.get("total_s") or 0.0) for r in every.values())
+        spent = sum((r.get("total_s") or 0.0) + (r.get("analysis_s") or 0.0) for r in every.values())
         meta = {**self.meta, "wall_s": self.log.elapsed(), "experiments_s": spent, "complete": final}
         return write_results(self.path, every, meta)
 

@@ -230,11 +230,12 @@ def run_batch(
     records = sink.arrays()
     del sink
     out_results, pad0, patch0 = {}, 0, 0
+    share = (time.perf_counter() - t0) / len(batch.members)  # the batch's setup and run, shared by its members
     for prep in batch.members:
         n, m = len(prep.scenes), prep.patch_count
         t, g, pt, v = records
         mine = (t, g[:, pad0 : pad0 + n], pt, v[:, patch0 : patch0 + m])
-        result = {**heads[prep.exp.name], "run": facts, "total_s": time.perf_counter() - t0}
+        result = {**heads[prep.exp.name], "run": facts, "total_s": share}
         out_results[prep.exp.name] = finish_experiment(prep, cfg, out, log, result, mine, keep_records)
         pad0, patch0 = pad0 + n, patch0 + m
     return out_results
