@@ -161,6 +161,18 @@ class Plan:
     tracks: tuple[tuple[float, float], ...]
     velocity_bytes: int
 
+    def record(self, cfg: Config) -> Any:
+        """The ``Record`` of the run stepped in one go instead of in segments: the global outputs every
+        ``cfg.sample_dt``, the per-patch velocities every ``cfg.decimation`` samples from the final window's start
+        (none for a growing run)."""
+        from aca_warp.scene import Record
+
+        if self.patch_samples == 0:
+            return Record(sample_dt=cfg.sample_dt)
+        end = self.duration * (1 + 1e-9)
+        return Record(sample_dt=cfg.sample_dt, patches=("velocity",), window=(self.window_start, end),
+                      decimation=cfg.decimation)  # fmt: skip
+
     def steps(self, dt: float, sample_dt: float) -> int:
         """Time steps of the run at the step ``dt`` [s] as the run fits it to the sample interval [s]."""
         from aca_warp.hf.solver import fitted_step
