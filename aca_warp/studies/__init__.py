@@ -12,10 +12,11 @@
   step and precision, relative to the spread between seeds, with ``work_precision_stats_rule`` (measures,
   statistics, the rule that picks the cheapest settings) and ``work_precision_stats_report`` (figure, page);
 * :mod:`~aca_warp.studies.time_to_solution`: wall time of every solver (ours, SciPy DOP853, diffrax) to a μ error;
-* :mod:`~aca_warp.studies.validation`: the paper's statements (§3.1–§3.3, §4) from seed ensembles of saturated runs,
-  a package with a module per section of the paper (``hf_rows``, ``area``, ``multiscale``), the candidate causes
-  of open verdicts (``causes``), the verdict machinery (``base``), the runs (``plan``, ``experiments``,
-  ``measures``), the page (``page``) and the command line (``cli``);
+* :mod:`~aca_warp.studies.validation`: the paper's statements (§3.1–§5, Table A.2) from seed ensembles, a package
+  with modules per section of the paper (``hf_*``, ``area*``, ``multiscale*``, ``appendix``), the stepping
+  (``settings``), the verdicts (``verdicts``), the runs (``plan``, ``experiments``, ``analysis``, ``measures``,
+  ``sync_measures``), the candidate causes of open verdicts (``causes``), the results file (``results``), the page
+  (``page``, ``tracks``) and the command line (``cli``);
 * :mod:`~aca_warp.studies.report`: what the studies share (progress lines, tables, JSON, docs sections, figures);
 * :mod:`~aca_warp.studies.runs`: their calls into the HF run API, all in one module.
 

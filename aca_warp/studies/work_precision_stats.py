@@ -53,10 +53,11 @@ import numpy as np
 
 from aca_warp.hf.options import INTEGRATORS
 from aca_warp.studies.report import Log, add_device, add_page_options, clean, command_line, write_json
+from aca_warp.studies.validation.analysis import analyse_batch
 from aca_warp.studies.validation.area import analyse_growth
 from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK, close_pools
 from aca_warp.studies.validation.cli import default_workers
-from aca_warp.studies.validation.experiments import Collector, analyse_batch, prepare
+from aca_warp.studies.validation.experiments import Collector, prepare
 from aca_warp.studies.validation.multiscale import ensure_lf
 from aca_warp.studies.work_precision_stats_rule import DEFAULT_RULE, MEASURES, load_results, measures_of, pad_values
 
@@ -187,7 +188,8 @@ def analyse(prep: Any, cfg: Any, records: tuple[np.ndarray, ...]) -> tuple[list[
     if prep.exp.kind == "growth":
         pads, _, _ = analyse_growth(prep.scenes, t, g, prep.plan, cfg)
         return pads, [None] * len(pads)
-    pads, arrays, seg = analyse_batch(prep.scenes, t, g, pt, vel, prep.plan, cfg, "window", prep.members)
+    every_pad = dataclasses.replace(prep, exp=dataclasses.replace(prep.exp, kind="window"))  # saturated or not
+    pads, arrays, seg = analyse_batch(every_pad, t, g, pt, vel, cfg)
     spectra: list[dict | None] = [None] * len(pads)
     if "pad" in arrays:
         freq = np.fft.rfftfreq(seg["samples"] * cfg.decimation, cfg.sample_dt)
@@ -241,7 +243,7 @@ def run_setting(prep: Any, cfg: Any, setting: Setting, role: str, names: list[st
         sink = Progress(Collector(), f"{prep.exp.name} {setting.label}", prep.plan.duration, log)
         res = run_engine(
             model, state, engine=cfg.engine, duration=prep.plan.duration, integrator=setting.integrator,
-            dt=setting.dt, tolerance=setting.tolerance, record=prep.plan.record, sink=sink,
+            dt=setting.dt, tolerance=setting.tolerance, record=prep.plan.record(cfg), sink=sink,
             force=setting.dt is not None,
         )  # fmt: skip
     except (SceneError, ValueError) as e:  # a setting the integrator refuses (e.g. an fp32 tolerance too tight)
