@@ -5,6 +5,7 @@ not matter), whatever HDF5_USE_FILE_LOCKING says; and a run file is readable fro
 from __future__ import annotations
 
 import json
+import os
 import signal
 from pathlib import Path
 
@@ -104,6 +105,48 @@ def test_live_hf_run_is_not_replaced_or_resumed(tmp_path, locking, capsys, monke
     with h5py.File(out, "r") as f:
         assert f.attrs["complete"] and f["global/mu"].shape == (201,)
     assert not part.exists() and not lock_path(out).exists()
+
+
+@pytest.mark.parametrize("locking", ["TRUE", "FALSE"])
+def test_aliases_of_a_live_run_are_refused(tmp_path, locking, capsys, monkeypatch) -> None:
+    """One writer per file, not per name: while `hf` runs (held with SIGSTOP), `hf --resume` and `analyze` through a
+    symbolic link or a hard link of its live `.partial`, or of the `.partial` moved to another name, are refused with
+    one line naming the holder, with HDF5's own locking on or off; the live file is unchanged and the run completes."""
+    scene = tmp_path / "s.toml"
+    scene.write_text(SCENE)
+    out = tmp_path / "run.h5"
+    part = tmp_path / "run.h5.partial"
+    first = start(["hf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "5e-5"])
+    try:
+        wait_for(part, first)
+        stop(first)
+        before = part.read_bytes()
+        monkeypatch.setenv("HDF5_USE_FILE_LOCKING", locking)
+        (tmp_path / "sym.h5.partial").symlink_to(part)
+        os.link(part, tmp_path / "hard.h5.partial")
+        for alias in ("sym.h5", "hard.h5"):
+            refused(capsys, ["hf", "--resume", str(tmp_path / alias), "--no-progress"], first.pid)
+            refused(capsys, ["analyze", str(tmp_path / f"{alias}.partial")], first.pid)
+        for argv in (["hf", "--resume", str(tmp_path / "hard.h5")], ["analyze", str(tmp_path / "sym.h5.partial")]):
+            r = cli(argv, HDF5_USE_FILE_LOCKING=locking)  # a process: HDF5 reads the variable when it starts
+            assert r.returncode == 2 and f"pid {first.pid}" in error_lines(r.stderr)[0], r.stderr
+        (tmp_path / "sym.h5.partial").unlink()
+        (tmp_path / "hard.h5.partial").unlink()
+        os.replace(part, tmp_path / "moved.h5.partial")
+        refused(capsys, ["hf", "--resume", str(tmp_path / "moved.h5"), "--no-progress"], first.pid)
+        os.replace(tmp_path / "moved.h5.partial", part)
+        assert part.read_bytes() == before and not out.exists()
+        resume(first)
+        assert first.wait(timeout=120) == 0, first.stderr.read()
+    finally:
+        if first.poll() is None:
+            first.kill()
+            first.wait()
+        first.stdout.close()
+        first.stderr.close()
+    with h5py.File(out, "r") as f:
+        assert f.attrs["complete"] and f["global/mu"].shape == (201,)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.h5", "s.toml"]
 
 
 def test_live_lf_run_and_sweep_are_not_replaced(tmp_path: Path, capsys) -> None:

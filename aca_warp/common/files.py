@@ -21,6 +21,7 @@ import numpy as np
 
 from aca_warp.common.checkpoint import has_checkpoint
 from aca_warp.common.errors import AcaError, SceneError, StorageError, option
+from aca_warp.common.links import NOFOLLOW, clear_name, open_lock_file, private_dir
 
 # why a folder cannot take a new file, by errno (the probe and the lock file; docs/faults.md "Output folders")
 UNWRITABLE = {
@@ -103,52 +104,54 @@ class OutputLock:
     :meth:`acquire` checks after locking that the path still names the file it locked (else it lost a race with a
     release and tries again), so two processes never both hold the lock of one name. On NFS ``flock`` is carried
     by byte-range locks (lockd); where a filesystem has no locks at all the output is written unlocked, with a note.
+    The lock file is opened without following a link (:func:`~aca_warp.common.links.open_lock_file`).
+
+    One writer per *file*, not per name: :meth:`own` also locks the identity (device and inode) of the file being
+    written, in the user's private folder (:func:`~aca_warp.common.links.private_dir`), so that a symbolic or hard
+    link of a live file, or the file moved to another name, is refused as a second writer too.
     """
 
     def __init__(self, path: Path, fd: int | None) -> None:
         self.path = path
         self.fd = fd
+        self.identity: list[tuple[Path, int]] = []  # (lock file, fd) of the files this writer owns
 
     @classmethod
     def acquire(cls, path: str | Path, *, what: str = "output") -> OutputLock:
         """Lock ``path`` for writing; :class:`SceneError` naming the holder when another process holds it, one
-        for a path that names a folder (:func:`check_output_name`), :class:`StorageError` (exit 4) when its folder
-        takes no new file (:func:`unwritable`)."""
+        for a path that names a folder (:func:`check_output_name`) or a link planted at ``NAME.lock``,
+        :class:`StorageError` (exit 4) when its folder takes no new file (:func:`unwritable`)."""
         p = check_output_name(path)
         lp = lock_path(p)
-        while True:
-            try:
-                fd = os.open(lp, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-            except FileNotFoundError:
-                raise SceneError(f"output folder {p.parent} does not exist") from None
-            except NotADirectoryError:
-                raise SceneError(f"output folder {p.parent} is not a folder") from None
-            except OSError as e:
-                raise unwritable(p.parent, e) from None
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                holder = _read_holder(fd)
-                os.close(fd)
-                raise SceneError(f"{p} is being written by {holder}; {what}") from None
-            except OSError as e:
-                if e.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL):
-                    os.close(fd)
-                    raise
-                os.close(fd)
-                print(f"aca-warp: note: {lp.parent} has no file locks ({e.strerror}); {p} is written unlocked: "
-                      "make sure no other process writes it", file=sys.stderr)  # fmt: skip
-                return cls(lp, None)
-            try:
-                same = os.path.samestat(os.fstat(fd), os.stat(lp))
-            except FileNotFoundError:
-                same = False
-            if not same:  # the holder released (and removed) it between our open and flock: try again
-                os.close(fd)
-                continue
-            os.ftruncate(fd, 0)
-            os.write(fd, f"{os.getpid()} {socket.gethostname()} {' '.join(sys.argv[:4])[:200]}\n".encode())
-            return cls(lp, fd)
+        try:
+            fd = _take(lp, p, what)
+        except FileNotFoundError:
+            raise SceneError(f"output folder {p.parent} does not exist") from None
+        except NotADirectoryError:
+            raise SceneError(f"output folder {p.parent} is not a folder") from None
+        except OSError as e:
+            raise unwritable(p.parent, e) from None
+        if fd is None:
+            print(f"aca-warp: note: {lp.parent} has no file locks; {p} is written unlocked: "
+                  "make sure no other process writes it", file=sys.stderr)  # fmt: skip
+        return cls(lp, fd)
+
+    def own(self, file: str | Path, *, what: str = "output") -> None:
+        """Lock the identity of ``file`` (the file this writer writes, reached through whatever name):
+        :class:`SceneError` naming the holder when another process writes the same file under another name. Where
+        the user has no private folder, only the name is locked (a note says so)."""
+        st = os.stat(file)
+        try:
+            lp = private_dir("files") / f"{st.st_dev:x}-{st.st_ino}.lock"
+            fd = _take(lp, Path(file), what)
+        except AcaError:
+            raise
+        except OSError as e:
+            print(f"aca-warp: note: no private lock folder ({e.strerror or e}); {file} is locked by its name only",
+                  file=sys.stderr)  # fmt: skip
+            return
+        if fd is not None:
+            self.identity.append((lp, fd))
 
     @property
     def held(self) -> bool:
@@ -156,15 +159,52 @@ class OutputLock:
         return self.fd is not None
 
     def release(self) -> None:
-        """Remove the lock file and drop the lock (idempotent)."""
+        """Remove the lock files and drop the locks (idempotent)."""
+        for lp, fd in self.identity:
+            _drop(lp, fd)
+        self.identity = []
         if self.fd is None:
             return
-        try:
-            os.unlink(self.path)
-        except OSError:
-            pass
-        os.close(self.fd)
+        _drop(self.path, self.fd)
         self.fd = None
+
+
+def _take(lp: Path, p: Path, what: str) -> int | None:
+    """Take ``flock(LOCK_EX | LOCK_NB)`` on the lock file ``lp`` of ``p`` (created if missing, never through a
+    link) and write this process into it; the descriptor, or None on a filesystem without locks. SceneError naming
+    the holder when another process holds it; OSError when the file cannot be created."""
+    while True:
+        fd = open_lock_file(lp)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _read_holder(fd)
+            os.close(fd)
+            raise SceneError(f"{p} is being written by {holder}; {what}") from None
+        except OSError as e:
+            os.close(fd)
+            if e.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL):
+                raise
+            return None
+        try:
+            same = os.path.samestat(os.fstat(fd), os.lstat(lp))
+        except FileNotFoundError:
+            same = False
+        if not same:  # the holder released (and removed) it between our open and flock: try again
+            os.close(fd)
+            continue
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()} {socket.gethostname()} {' '.join(sys.argv[:4])[:200]}\n".encode())
+        return fd
+
+
+def _drop(lp: Path, fd: int) -> None:
+    """Remove the lock file ``lp`` while still holding its lock, then drop the lock."""
+    try:
+        os.unlink(lp)
+    except OSError:
+        pass
+    os.close(fd)
 
 
 def _read_holder(fd: int) -> str:
@@ -183,7 +223,7 @@ def holder(path: str | Path) -> str | None:
     """Who holds the lock of the output ``path`` ('pid P on HOST (COMMAND)'), or None when no other live process
     does (this process holding it counts as none: :meth:`OutputLock.acquire` guards against itself)."""
     try:
-        fd = os.open(lock_path(path), os.O_RDWR | os.O_CLOEXEC)
+        fd = os.open(lock_path(path), os.O_RDONLY | os.O_CLOEXEC | os.O_NONBLOCK | NOFOLLOW)
     except OSError:
         return None
     try:
@@ -212,6 +252,21 @@ def new_path(partial: str | Path) -> Path:
     """Where a file is created before it is renamed into ``NAME.partial``: ``NAME.partial.new``."""
     p = Path(partial)
     return p.with_name(p.name + ".new")
+
+
+def create_h5(tmp: Path, lock: OutputLock, **kw: Any) -> h5py.File:
+    """Create the HDF5 file ``tmp`` (``NAME.partial.new``) for the writer holding ``lock``: exclusively and never
+    through a link (:func:`~aca_warp.common.links.clear_name`, then HDF5's ``mode="x"``), its identity locked
+    (:meth:`OutputLock.own`). ``kw`` go to ``h5py.File``."""
+    clear_name(tmp, "temporary file")
+    f = h5py.File(tmp, "x", **kw)
+    try:
+        lock.own(tmp)
+    except BaseException:
+        f.close()
+        tmp.unlink(missing_ok=True)
+        raise
+    return f
 
 
 def check_output_name(path: str | Path) -> Path:
@@ -376,6 +431,23 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
             f"{option('run it again with run_scene', 'repeat it with aca-warp rerun')}"
         )
     return final, part
+
+
+def lock_resumable(path: str | Path) -> tuple[Path, Path, Path, OutputLock]:
+    """:func:`find_resumable` under the output lock of the run: (run file, its ``.partial``, the one of them that
+    exists, the lock). The lock also owns that file's identity (:meth:`OutputLock.own`), so a run that another
+    process writes under another name (a link, a hard link, a moved file) is refused too."""
+    final, part = find_resumable(path)
+    what = "it cannot be resumed while it runs"
+    lock = OutputLock.acquire(final, what=what)
+    try:
+        final, part = find_resumable(path)  # again, now that no other process can move it
+        src = part if part.exists() else final
+        lock.own(src, what=what)
+    except BaseException:
+        lock.release()
+        raise
+    return final, part, src, lock
 
 
 def from_h5py(e: BaseException) -> bool:

@@ -47,6 +47,7 @@ from aca_warp.common.errors import AcaError, SceneError, option
 from aca_warp.common.files import (
     OutputLock,
     check_output_path,
+    create_h5,
     from_h5py,
     new_path,
     open_h5,
@@ -103,8 +104,7 @@ class RunWriter:
         try:
             self.path = check_output_path(path, overwrite=overwrite)
             self.partial = partial_path(self.path)
-            tmp.unlink(missing_ok=True)  # left by a run killed while creating its file (we hold the lock)
-            self.f = h5py.File(tmp, "w", rdcc_nbytes=RAW_CACHE)
+            self.f = create_h5(tmp, self.lock, rdcc_nbytes=RAW_CACHE)  # a leftover .new is replaced, a link refused
             self.out = GuardedFile(self.f, self.partial, raw_cache=RAW_CACHE)
             self._write_header(model.scenes[pad], attrs or {})
             self.out.flush()
@@ -114,7 +114,8 @@ class RunWriter:
                 self.out.abandon()
             elif getattr(self, "f", None) is not None:
                 self.f.close()
-            tmp.unlink(missing_ok=True)
+            if getattr(self, "f", None) is not None:
+                tmp.unlink(missing_ok=True)
             self.lock.release()
             code = storage_errno(e)
             if code is not None:
@@ -217,6 +218,11 @@ class RunWriter:
                     d[d.shape[0] - 1]
             if "final" in f["patches"]:
                 del f["patches"]["final"]
+            from aca_warp.analysis.report import GROUP, TMP_GROUP
+
+            for name in (GROUP, TMP_GROUP):  # an analysis of the samples as they were no longer describes the file
+                if name in f:
+                    del f[name]
         self.flush_each_chunk = False  # a resumed run keeps checkpointing: flush at checkpoints only
         self.checkpoint_time = ckpt.sim_time
         try:

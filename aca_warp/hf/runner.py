@@ -20,7 +20,7 @@ import warp as wp
 from aca_warp.common import interrupts, plausible
 from aca_warp.common.checkpoint import Checkpoint, has_checkpoint
 from aca_warp.common.errors import SceneError, option
-from aca_warp.common.files import OutputLock, check_output_path, check_room, find_resumable, open_h5, reading
+from aca_warp.common.files import OutputLock, check_output_path, check_room, lock_resumable, open_h5, reading
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
@@ -247,11 +247,8 @@ def resume_run(
     result is no longer bit-identical). The finished file equals an uninterrupted run's."""
     from aca_warp.hf.rerun import read_settings
 
-    final, part = find_resumable(path)
-    lock = OutputLock.acquire(final, what="it cannot be resumed while it runs")
+    final, part, src, lock = lock_resumable(path)
     try:
-        final, part = find_resumable(path)  # again, now that no other process can move it
-        src = part if part.exists() else final
         s = read_settings(src)
         with reading(src, "run file"), open_h5(src, "run file") as f:
             if not has_checkpoint(f):

@@ -145,15 +145,12 @@ def resume_lf(
     import json
     import os
 
-    from aca_warp.common.files import OutputLock, find_resumable
+    from aca_warp.common.files import lock_resumable
     from aca_warp.lf.io import LFRunWriter
     from aca_warp.lf.solver import LFSimulation
 
-    final, part = find_resumable(path)
-    lock = OutputLock.acquire(final, what="it cannot be resumed while it runs")
+    final, part, src, lock = lock_resumable(path)
     try:
-        final, part = find_resumable(path)  # again, now that no other process can move it
-        src = part if part.exists() else final
         s = read_lf_settings(src)
         sim = LFSimulation(s["scene"], device=device or s["device"], duration=s["duration"], graph=s["graph"])
         if src == final:

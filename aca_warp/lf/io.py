@@ -44,6 +44,7 @@ from aca_warp.common.errors import AcaError, SceneError, option
 from aca_warp.common.files import (
     OutputLock,
     check_output_path,
+    create_h5,
     from_h5py,
     machine,
     new_path,
@@ -102,8 +103,7 @@ class LFRunWriter:
         try:
             self.path = check_lf_output(path, overwrite=overwrite)
             self.partial = self.path.with_name(self.path.name + ".partial")
-            tmp.unlink(missing_ok=True)  # left by a run killed while creating its file (we hold the lock)
-            self.f = h5py.File(tmp, "w")
+            self.f = create_h5(tmp, self.lock)  # a leftover .new is replaced, a link refused
             self.out = GuardedFile(self.f, self.partial)
             self._write_header(run)
             self.out.flush()
@@ -113,7 +113,8 @@ class LFRunWriter:
                 self.out.abandon()
             elif getattr(self, "f", None) is not None:
                 self.f.close()
-            tmp.unlink(missing_ok=True)
+            if getattr(self, "f", None) is not None:
+                tmp.unlink(missing_ok=True)
             self.lock.release()
             code = storage_errno(e)
             if code is not None:

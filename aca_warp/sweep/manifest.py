@@ -28,12 +28,15 @@ SHARD_STATES = ("pending", "queued", "done", "fault", "failed", "interrupted")
 
 
 def _write_json(path: Path, doc: dict) -> None:
-    """Write ``doc`` to ``path`` atomically (a temporary file, then a rename); a full device keeps the old one."""
+    """Write ``doc`` to ``path`` atomically (a temporary file, created exclusively and never through a link, then a
+    rename); a full device keeps the old one."""
+    from aca_warp.common.links import create_new
     from aca_warp.common.storage import storage_errno, storage_error
 
     tmp = path.with_name(path.name + ".tmp")
     try:
-        tmp.write_text(json.dumps(doc, indent=1, default=str))
+        with os.fdopen(create_new(tmp, "temporary manifest"), "w") as fh:
+            fh.write(json.dumps(doc, indent=1, default=str))
         os.replace(tmp, path)
     except OSError as e:
         tmp.unlink(missing_ok=True)
