@@ -31,6 +31,7 @@ import h5py
 import numpy as np
 import scipy.fft
 
+from aca_warp.common.bounds import check_h5, json_attribute
 from aca_warp.common.errors import SceneError
 from aca_warp.common.files import attr_value
 
@@ -116,10 +117,19 @@ def check_run_file(f: h5py.File, name: str | Path = "") -> None:
         missing.append("root attribute 'scene'")
     if missing:
         raise SceneError(f"{where}not an aca_warp run file (lacks {', '.join(missing)})")
+    if not isinstance(json_attribute(f.attrs["scene"], f"{where}attribute 'scene'"), dict):
+        raise SceneError(f"{where}attribute 'scene' is not a JSON object (a crafted or damaged file)")
+    for k in ("global/time", *(f"global/{k}" for k in GLOBAL_OUTPUTS), "patches/x", "patches/y", "patches/area"):
+        if k in f and not isinstance(f[k], h5py.Dataset):
+            raise SceneError(f"{where}/{k} is a {type(f[k]).__name__.lower()}, not a dataset")
     n = f["global/time"].shape
     for k in (k for k in GLOBAL_OUTPUTS if f"global/{k}" in f):
         if f[f"global/{k}"].shape != n or len(n) != 1:
             raise SceneError(f"{where}/global/{k} has shape {f[f'global/{k}'].shape}, /global/time {n}")
+    m = f["patches/x"].shape
+    for k in ("x", "y", "area"):
+        if f[f"patches/{k}"].shape != m or len(m) != 1:
+            raise SceneError(f"{where}/patches/{k} has shape {f[f'patches/{k}'].shape}, expected one value per patch")
     if n[0] < 8:
         raise SceneError(f"{where}the run holds {n[0]} samples; the analysis needs at least 8")
     if "patches/velocity" in f:
@@ -143,6 +153,7 @@ def open_run_file(path: str | Path, mode: str = "r") -> h5py.File:
         detail = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise SceneError(f"cannot open {p}{what}: {detail}") from None
     try:
+        check_h5(f, p, "run file")  # links, declared sizes, numbers: before anything is read
         if _decode(f.attrs.get("kind")) == "lf":
             raise SceneError(
                 f"{p} is an LF run file: the analysis applies to HF run files (aca-warp hf); "

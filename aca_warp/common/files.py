@@ -49,12 +49,16 @@ def versions() -> dict[str, str]:
 
 def attr_value(value: Any) -> Any:
     """An HDF5 attribute as a Python value: bytes → str, NumPy scalars → Python scalars, text holding a JSON list
-    or object → that object (other text unchanged)."""
+    or object → that object (other text unchanged; nested beyond :data:`~aca_warp.common.bounds.MAX_NESTING`:
+    SceneError)."""
     if isinstance(value, bytes):
         value = value.decode()
     if isinstance(value, np.generic):
         value = value.item()
     if isinstance(value, str) and value[:1] in "[{":
+        from aca_warp.common.bounds import check_nesting
+
+        check_nesting(value, "an attribute")  # a crafted attribute nested 20 000 deep: one line, not a RecursionError
         try:
             return json.loads(value)
         except json.JSONDecodeError:
@@ -382,16 +386,27 @@ def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
     return p
 
 
-def open_h5(path: str | Path, what: str) -> h5py.File:
-    """Open an existing HDF5 file read-only; :class:`SceneError` naming ``what`` ("run file", …) when it is missing
-    or cannot be opened."""
+def open_h5(path: str | Path, what: str, *, mode: str = "r", text: tuple[str, ...] = ()) -> h5py.File:
+    """Open an existing HDF5 input (read-only, or ``mode``) and check it before anything is read
+    (:func:`~aca_warp.common.bounds.check_h5`: no soft or external links, declared sizes backed by the file and
+    within memory, numbers outside the groups named in ``text``); :class:`SceneError` naming ``what`` ("run file",
+    …) when it is missing, cannot be opened or fails a check."""
+    from aca_warp.common.bounds import check_h5
+
     p = Path(path)
     if not p.is_file():
         raise SceneError(f"{what} not found: {p}")
     try:
-        return h5py.File(p, "r")
+        f = h5py.File(p, mode)
     except (OSError, RuntimeError) as e:
         raise SceneError(f"cannot open {what} {p}: {str(e).strip().splitlines()[0] if str(e).strip() else e}") from None
+    try:
+        with reading(p, what):
+            check_h5(f, p, what, text=text)
+    except BaseException:
+        f.close()
+        raise
+    return f
 
 
 def version_changes(stored: dict[str, str]) -> list[str]:
@@ -421,6 +436,8 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
         with open_h5(final, "run file") as f:
             complete = bool(f.attrs.get("complete", False))
             resumable = has_checkpoint(f)
+    except AcaError:
+        raise
     except (OSError, RuntimeError, KeyError, ValueError) as e:
         raise SceneError(f"cannot read run file {final}: {e}") from None
     if complete:

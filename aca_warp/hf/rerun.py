@@ -12,7 +12,6 @@ path as ``aca-warp hf`` and, on the same device and precision, gives the same bi
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +20,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from aca_warp.common.bounds import json_attribute
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.options import RunOptions
 from aca_warp.scene import Friction, Growth, Initial, Material, Matrix, Pad, Patches, Record, Scene
@@ -48,18 +48,17 @@ class RunSettings:
 
 
 def _json(attrs: Any, key: str, path: Path) -> Any:
+    """The JSON root attribute ``key`` (:func:`~aca_warp.common.bounds.json_attribute`: text, bounded nesting)."""
     if key not in attrs:
         raise SceneError(f"{path} lacks the attribute {key!r}: not an aca-warp run file, or one too old to rerun")
-    v = attrs[key]
-    try:
-        return json.loads(v) if isinstance(v, str) else v
-    except json.JSONDecodeError:
-        raise SceneError(f"{path}: attribute {key!r} is not valid JSON") from None
+    return json_attribute(attrs[key], f"{path}: attribute {key!r}")
 
 
 def scene_from_run(f: h5py.File, path: Path) -> Scene:
     """The scene of an open run file (stored JSON, patches from ``/patches``, matrix from ``/matrix``)."""
     doc = _json(f.attrs, "scene", path)
+    if not isinstance(doc, dict):
+        raise SceneError(f"{path}: attribute 'scene' is not a JSON object (a crafted or damaged file)")
     try:
         patches = Patches(
             *(np.asarray(f["patches"][k][()], dtype=np.float64) for k in ("x", "y", "area", "height")),

@@ -33,6 +33,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from aca_warp.common.bounds import json_attribute
 from aca_warp.common.checkpoint import (
     checkpoint_room,
     closed_on_failure,
@@ -332,7 +333,7 @@ def read_snapshot(path: str | Path, name: str) -> dict[str, Any]:
         out: dict[str, Any] = {part: {k: g[part][k][()] for k in g[part]} for part in ("patches", "matrix", "rings")}
         out["attrs"] = {k: (v.item() if hasattr(v, "item") else v) for k, v in g.attrs.items()}
         try:
-            out["scene"] = json.loads(f.attrs["scene"])
+            out["scene"] = json_attribute(f.attrs["scene"], f"{path}: attribute 'scene'")
         except (KeyError, TypeError, ValueError) as e:
             raise SceneError(f"{path}: the stored LF scene is missing or damaged ({type(e).__name__}: {e})") from None
     return out

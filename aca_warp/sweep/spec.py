@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common.bounds import read_toml
 from aca_warp.common.errors import AcaError, SceneError
 from aca_warp.scene import (
     PRESETS,
@@ -252,9 +253,9 @@ def load_spec(source: str | Path | dict, *, base_dir: Path | None = None, **over
         if not p.is_file():
             raise SweepError(f"sweep spec {p} not found")
         try:
-            doc = tomllib.loads(p.read_text())
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-            raise SweepError(f"cannot parse {p}: {e}") from None
+            doc = read_toml(p, "sweep spec")
+        except SceneError as e:
+            raise SweepError(str(e)) from None
         base_dir = p.resolve().parent
     for table in doc:
         if table not in ("sweep", "run", "base", "parameters"):
@@ -297,9 +298,9 @@ def _base_doc(doc: dict, base_dir: Path) -> tuple[dict, Path, str]:
     if not p.is_file():
         raise SweepError(f"sweep.base {base!r} is neither a preset ({', '.join(PRESETS)}) nor a TOML file")
     try:
-        return _merge(tomllib.loads(p.read_text()), inline), p.parent, p.stem
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise SweepError(f"cannot parse the base scene {p}: {e}") from None
+        return _merge(read_toml(p, "base scene"), inline), p.parent, p.stem
+    except SceneError as e:
+        raise SweepError(f"the base scene: {e}") from None
 
 
 def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
