@@ -65,47 +65,46 @@ def check_h5(f: Any, path: str | Path, what: str, *, text: tuple[str, ...] = ())
     import h5py
 
     where = f"{what} {path}"
-    bad: list[str] = []
-
-    def link(name: str) -> None:
-        kind = f.get(name, getlink=True)
-        if isinstance(kind, (h5py.SoftLink, h5py.ExternalLink)) and not bad:
-            bad.append(name)
-
-    f.visit_links(link)
-    if bad:
-        kind = f.get(bad[0], getlink=True)
-        target = f"{kind.filename}:{kind.path}" if isinstance(kind, h5py.ExternalLink) else kind.path
-        form = "an external link" if isinstance(kind, h5py.ExternalLink) else "a soft link"
-        raise SceneError(
-            f"{where}: /{bad[0]} is {form} (to {target}); aca-warp files hold none and it is not followed: "
-            "a crafted or foreign file"
-        )
     memory = available_memory()
-    problems: list[str] = []
+    seen: set[Any] = set()
+    groups: list[tuple[Any, str]] = [(f, "")]
+    while groups:  # a walk by hand, not h5py's visit (a signal inside its C callback would be lost)
+        g, prefix = groups.pop()
+        for name in g:
+            path_in = f"{prefix}{name}"
+            link = g.get(name, getlink=True)
+            if isinstance(link, (h5py.SoftLink, h5py.ExternalLink)):
+                external = isinstance(link, h5py.ExternalLink)
+                target = f"{link.filename}:{link.path}" if external else link.path
+                raise SceneError(
+                    f"{where}: /{path_in} is {'an external' if external else 'a soft'} link (to {target}); aca-warp "
+                    "files hold none and it is not followed: a crafted or foreign file"
+                )
+            obj = g[name]
+            if isinstance(obj, h5py.Group):
+                if obj.id not in seen:  # a group hard-linked into itself is walked once
+                    seen.add(obj.id)
+                    groups.append((obj, f"{path_in}/"))
+            elif isinstance(obj, h5py.Dataset):
+                problem = _dataset_problem(obj, memory, numbers=path_in.split("/")[0] not in text)
+                if problem:
+                    raise SceneError(f"{where}: /{path_in} {problem}; it is not read (a crafted or damaged file)")
 
-    def dataset(name: str, obj: Any) -> None:
-        if not isinstance(obj, h5py.Dataset) or problems:
-            return
-        dt = obj.dtype
-        if name.split("/")[0] not in text and not (dt.kind in "biuf" and dt.fields is None and not dt.subdtype):
-            problems.append(f"/{name} holds {dt} values, not numbers")
-            return
-        declared = int(np.prod(obj.shape or (0,), dtype=object)) * dt.itemsize
-        stored = obj.id.get_storage_size()
-        backed = stored * COMPRESSION_RATIO if obj.id.get_create_plist().get_nfilters() else stored
-        if declared > backed + UNSTORED_SLACK:
-            problems.append(
-                f"/{name} declares {obj.shape} ({_size(declared)}) but the file stores {_size(stored)} of it"
-            )
-        elif declared > memory:
-            problems.append(
-                f"/{name} declares {obj.shape} ({_size(declared)}), more than the {_size(memory)} available"
-            )
 
-    f.visititems(dataset)
-    if problems:
-        raise SceneError(f"{where}: {problems[0]}; it is not read (a crafted or damaged file)")
+def _dataset_problem(d: Any, memory: int, *, numbers: bool) -> str | None:
+    """What is wrong with dataset ``d`` as an input (:func:`check_h5`), or None."""
+    dt = d.dtype
+    if numbers and not (dt.kind in "biuf" and dt.fields is None and not dt.subdtype):
+        return f"holds {dt} values, not numbers"
+    declared = int(np.prod(d.shape or (0,), dtype=object)) * dt.itemsize
+    stored = d.id.get_storage_size()
+    backed = stored * COMPRESSION_RATIO if d.id.get_create_plist().get_nfilters() else stored
+    says = f"declares {d.shape} ({_size(declared)})"
+    if declared > backed + UNSTORED_SLACK:
+        return f"{says} but the file stores {_size(stored)} of it"
+    if declared > memory:
+        return f"{says}, more than the {_size(memory)} of memory available"
+    return None
 
 
 def check_nesting(text: str, what: str, *, toml: bool = False) -> None:

@@ -336,9 +336,9 @@ def check_output_folder(path: str | Path) -> Path:
 
 
 def check_room(folder: str | Path, need: float, what: str) -> None:
-    """Refuse a run whose recorded samples alone (``need`` bytes, a lower bound of its file) exceed the space free
-    to this user in ``folder``: :class:`StorageError` (exit 4) before anything is written. ``what`` names the
-    run's options that shrink it. Filesystems without ``statvfs`` figures pass."""
+    """Refuse a run whose file (``need`` bytes on disk, as the run's plan estimates it) exceeds the space free to
+    this user in ``folder``: :class:`StorageError` (exit 4) before anything is written. ``what`` names the run's
+    options that shrink it. Filesystems without ``statvfs`` figures pass."""
     try:
         st = os.statvfs(folder)
     except OSError:
@@ -346,8 +346,8 @@ def check_room(folder: str | Path, need: float, what: str) -> None:
     free = st.f_bavail * st.f_frsize
     if st.f_blocks and need > free:
         err = StorageError(
-            f"the run records about {need / 1e6:.4g} MB but {folder} has {free / 1e6:.4g} MB free; nothing was "
-            f"written: make room, choose another output folder or record less ({what})"
+            f"the run's file will take about {need / 1e6:.4g} MB but {folder} has {free / 1e6:.4g} MB free; nothing "
+            f"was written: make room, choose another output folder or record less ({what})"
         )
         err.errno = errno.ENOSPC  # type: ignore[attr-defined]
         raise err
@@ -357,6 +357,33 @@ def resume_hint(kind: str, path: str | Path) -> str:
     """How to continue the unfinished ``kind`` run (``hf`` or ``lf``) of ``path``, for the reader of the message."""
     function = "resume_run" if kind == "hf" else "resume_lf"
     return option(f"{function}({str(path)!r})", f"'aca-warp {kind} --resume {path}'")
+
+
+def recovery(path: str | Path) -> str:
+    """What to do with the unfinished run ``path`` (``NAME``, or ``NAME.partial``), true of its file as it is now:
+    continue it from its checkpoint (``--resume``), or, when it holds none (it ran without checkpoints, or stopped
+    before its first), repeat it from the settings the file stores (``rerun``, into the same name). The one piece of
+    advice of every message that leaves a run unfinished: a storage failure, an interrupt, a refused resume, an
+    output whose ``.partial`` is in the way."""
+    p = Path(path)
+    final = p.with_name(p.name.removesuffix(".partial"))
+    part = partial_path(final)
+    src = part if part.exists() else final
+    try:
+        with open_h5(src, "run file") as f:
+            kind = "lf" if attr_value(f.attrs.get("kind")) == "lf" else "hf"
+            at = float(f["checkpoint"].attrs["sim_time"]) if has_checkpoint(f) else None
+            stored = attr_value(f.attrs.get("lf_run" if kind == "lf" else "run_options", "{}"))
+            interval = stored.get("checkpoint_interval") if isinstance(stored, dict) else None
+    except (AcaError, OSError, RuntimeError, KeyError, ValueError, TypeError):
+        return f"{src.name} cannot be read back (empty or damaged): run its scene again"
+    if at is not None:
+        return f"continue it from its checkpoint at t = {at:.6g} s with {resume_hint(kind, final)}"
+    why = "it stopped before its first one" if interval else "it ran without checkpoints"
+    target, extra = (final, " --overwrite") if src == part else (final.with_name(f"{final.stem}-rerun.h5"), "")
+    reader = "read_lf_settings" if kind == "lf" else "read_settings"
+    again = option(f"the settings {reader}({str(src)!r}) returns", f"'aca-warp rerun {src} -o {target}{extra}'")
+    return f"repeat it with {again} (it holds no checkpoint: {why})"
 
 
 def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
@@ -375,8 +402,8 @@ def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
     part = partial_path(p)
     if part.exists() and not overwrite:
         raise SceneError(
-            f"{part} exists (an unfinished run); continue it with {resume_hint('hf', p)} or pass "
-            f"{option('overwrite=True', '--overwrite')}"
+            f"{part} exists (an unfinished run): {recovery(p)}; or pass {option('overwrite=True', '--overwrite')} "
+            "to replace it"
         )
     if not p.parent.exists():
         raise SceneError(f"output folder {p.parent} does not exist")
@@ -443,11 +470,16 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     if complete:
         raise SceneError(f"{final} is a complete run; nothing to resume")
     if not resumable:
-        raise SceneError(
-            f"{final} holds no checkpoint (run without {option('checkpoint_interval', '--checkpoint-interval')}); "
-            f"{option('run it again with run_scene', 'repeat it with aca-warp rerun')}"
-        )
+        raise SceneError(f"{final} cannot be resumed: {recovery(final)}")
     return final, part
+
+
+def require_checkpoint(src: Path) -> None:
+    """Refuse to resume the run file ``src`` when it holds no checkpoint, with :func:`recovery`'s advice."""
+    with reading(src, "run file"), open_h5(src, "run file") as f:
+        resumable = has_checkpoint(f)
+    if not resumable:
+        raise SceneError(f"{src} cannot be resumed: {recovery(src)}")
 
 
 def lock_resumable(path: str | Path) -> tuple[Path, Path, Path, OutputLock]:

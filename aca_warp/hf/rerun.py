@@ -22,7 +22,7 @@ import numpy as np
 
 from aca_warp.common.bounds import json_attribute
 from aca_warp.common.errors import SceneError
-from aca_warp.hf.options import RunOptions
+from aca_warp.hf.options import WATCHDOG_FACTOR, RunOptions
 from aca_warp.scene import Friction, Growth, Initial, Material, Matrix, Pad, Patches, Record, Scene
 
 
@@ -105,6 +105,23 @@ def _options(f: h5py.File, path: Path) -> RunOptions:
     policy = _json(f.attrs, "step_policy", path)
     keys = ("duration", "integrator", "dt", "tolerance", "force", "engine", "checkpoint_interval")
     return RunOptions.from_dict({k: policy[k] for k in keys if k in policy})
+
+
+def relaxed_checks(s: RunSettings) -> list[str]:
+    """The stored options of a run that relax a check, in words (``rerun`` names each one it applies)."""
+    o = s.options
+    out = []
+    if o.force:
+        out.append("force (a step beyond the stable-step estimate or the sticking bound runs, with a warning)")
+    if o.watchdog_factor is None:
+        out.append("the watchdog off (only non-finite values stop the run)")
+    elif o.watchdog_factor != WATCHDOG_FACTOR:
+        out.append(f"a watchdog bound of {o.watchdog_factor:g} x the velocity scale (default {WATCHDOG_FACTOR:g})")
+    if o.accept_unphysical:
+        out.append("accept_unphysical (the physical sanity checks warn instead of stopping the run)")
+    if s.scene.allow_implausible:
+        out.append("allow_implausible (values far outside a brake pad's range are accepted)")
+    return out
 
 
 def read_settings(path: str | Path) -> RunSettings:

@@ -147,13 +147,14 @@ def resume_lf(
     import json
     import os
 
-    from aca_warp.common.files import lock_resumable
+    from aca_warp.common.files import lock_resumable, require_checkpoint
     from aca_warp.lf.io import LFRunWriter
     from aca_warp.lf.solver import LFSimulation
 
     final, part, src, lock = lock_resumable(path)
     try:
         s = read_lf_settings(src)
+        require_checkpoint(src)
         sim = LFSimulation(s["scene"], device=device or s["device"], duration=s["duration"], graph=s["graph"])
         if src == final:
             os.replace(final, part)  # a stopped run goes back to being written

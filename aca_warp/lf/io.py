@@ -52,7 +52,7 @@ from aca_warp.common.files import (
     open_h5,
     partial_path,
     reading,
-    resume_hint,
+    recovery,
     versions,
 )
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
@@ -66,16 +66,6 @@ def busy() -> str:
     """The advice of a refusal to write an output that a live process writes."""
     overwrite = option("overwrite=True", "--overwrite")
     return f"wait for it to finish or stop it ({overwrite} does not replace a run in progress)"
-
-
-def lf_advice(path: Path, checkpoint_time: float | None) -> str:
-    """What to do with an LF ``.partial`` left by a storage failure."""
-    if checkpoint_time is None:
-        return f"it holds no checkpoint: make room and run again with {option('overwrite=True', '--overwrite')}"
-    return (
-        f"it keeps its checkpoint at t = {checkpoint_time:.6g} s: make room, then continue with "
-        f"{resume_hint('lf', path)}"
-    )
 
 
 _UNITS = {
@@ -260,7 +250,7 @@ class LFRunWriter:
             self.abandon()
             code = storage_errno(e)
             if code is not None:
-                raise storage_error(code, self.partial, lf_advice(self.path, self.checkpoint_time)) from None
+                raise storage_error(code, self.partial, f"make room, then {recovery(self.path)}") from None
             raise
         self.lock.release()
         return self.path
@@ -281,8 +271,8 @@ class LFRunWriter:
             return None
         self.abandon()
         if code is None:  # HDF5 failed to write (a damaged file): nothing more goes into it
-            return write_failed(error, self.partial, lf_advice(self.path, self.checkpoint_time))
-        return storage_error(code, self.partial, lf_advice(self.path, self.checkpoint_time))
+            return write_failed(error, self.partial, f"make room, then {recovery(self.path)}")
+        return storage_error(code, self.partial, f"make room, then {recovery(self.path)}")
 
 
 def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:
@@ -290,9 +280,8 @@ def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:
     part = partial_path(path)
     if part.exists() and not overwrite and not Path(path).is_dir():
         raise SceneError(
-            f"{part} exists (an unfinished LF run); continue it with "
-            f"{resume_hint('lf', path)} or pass "
-            f"{option('overwrite=True', '--overwrite')}"
+            f"{part} exists (an unfinished LF run): {recovery(path)}; or pass "
+            f"{option('overwrite=True', '--overwrite')} to replace it"
         )
     return check_output_path(path, overwrite=overwrite)
 

@@ -305,7 +305,7 @@ def _base_doc(doc: dict, base_dir: Path) -> tuple[dict, Path, str]:
 
 def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
     from aca_warp.hf.model import PRECISIONS
-    from aca_warp.hf.options import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
+    from aca_warp.hf.options import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
 
     sw, run = doc["sweep"], doc["run"]
     base_doc, scene_dir, base_name = _base_doc(doc, base_dir)
@@ -343,10 +343,11 @@ def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
     tolerance = num("tolerance", DEFAULT_TOLERANCE)
     sample_dt = num("sample_dt", base.record.sample_dt)
     try:
-        from aca_warp.hf.recorder import check_run
+        from aca_warp.hf.recorder import check_run, check_sample_step
 
         base = base.replace(duration=duration, record=dataclasses.replace(base.record, sample_dt=sample_dt))
         check_run(duration, base.record)
+        check_sample_step(sample_dt, DEFAULT_DT if dt is None else dt)
     except SceneError as e:
         raise SweepError(f"run settings: {e}") from None
     if dt is not None and not duration / dt <= MAX_STEPS:
