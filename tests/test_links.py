@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 from procs import small_scene_toml
+from test_output_lock import LF_SCENE
 
 from aca_warp.cli import main
 from aca_warp.common import links
@@ -18,26 +19,6 @@ from aca_warp.common.files import OutputLock
 from aca_warp.hf import runner
 
 SCENE = small_scene_toml("links", count=20, duration=2.0e-6)
-LF_SCENE = """
-[scene]
-name = "lflinks"
-[pad]
-r_inner = 0.100
-r_outer = 0.110
-span_deg = 8.0
-[patches]
-count = 30
-area_min = 2e-8
-area_max = 8e-8
-height = 3e-6
-seed = 3
-[lf]
-capacity = 256
-[[schedule]]
-kind = "application"
-duration = 0.02
-normal_force = 300.0
-"""
 SPEC = (
     '[sweep]\nbase = "hf1"\nshard_size = 1\n[run]\nduration = 1e-6\nprecision = "fp32"\n'
     '[base.patches]\ncount = 20\n[parameters]\n"friction.M" = [0.6, 0.8]\n'
@@ -165,6 +146,8 @@ def test_kernel_turn_lock_is_private(tmp_path: Path, monkeypatch) -> None:
 
     monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path / "run"))
     (tmp_path / "run").mkdir(mode=0o700)
+    (tmp_path / "tmp").mkdir()
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path / "tmp"))  # the shared temporary folder, where it was
     gpu = types.SimpleNamespace(is_cuda=True, uuid="GPU-1234", pci_bus_id=None)
     turn = KernelTurn(gpu, None, processes=True)
     turn.first_chunk()
@@ -174,7 +157,7 @@ def test_kernel_turn_lock_is_private(tmp_path: Path, monkeypatch) -> None:
         lock = folder / "GPU-1234.lock"
         assert lock.is_file() and stat.S_IMODE(lock.stat().st_mode) == 0o600
         assert stat.S_IMODE(folder.stat().st_mode) == 0o700 and stat.S_IMODE(folder.parent.stat().st_mode) == 0o700
-        assert not list(Path("/tmp").glob("aca-warp-kernel-GPU-1234*"))
+        assert not list((tmp_path / "tmp").iterdir())
     finally:
         turn.exit()
     lock.unlink()

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import h5py
 import pytest
-from procs import cli, error_lines, resume, small_scene_toml, start, stop, wait_for
+from procs import cli, error_lines, resume, small_scene_toml, start, started, stop, wait_for
 
 from aca_warp.cli import main
 from aca_warp.common.errors import SceneError
@@ -116,8 +116,7 @@ def test_aliases_of_a_live_run_are_refused(tmp_path, locking, capsys, monkeypatc
     scene.write_text(SCENE)
     out = tmp_path / "run.h5"
     part = tmp_path / "run.h5.partial"
-    first = start(["hf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "5e-5"])
-    try:
+    with started(["hf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "5e-5"]) as first:
         wait_for(part, first)
         stop(first)
         before = part.read_bytes()
@@ -138,12 +137,6 @@ def test_aliases_of_a_live_run_are_refused(tmp_path, locking, capsys, monkeypatc
         assert part.read_bytes() == before and not out.exists()
         resume(first)
         assert first.wait(timeout=120) == 0, first.stderr.read()
-    finally:
-        if first.poll() is None:
-            first.kill()
-            first.wait()
-        first.stdout.close()
-        first.stderr.close()
     with h5py.File(out, "r") as f:
         assert f.attrs["complete"] and f["global/mu"].shape == (201,)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.h5", "s.toml"]
@@ -201,17 +194,10 @@ def test_kill_right_after_the_file_appears(tmp_path: Path, command: str) -> None
     out = tmp_path / "run.h5"
     part = tmp_path / "run.h5.partial"
     for _ in range(3):
-        proc = start([command, str(scene), "-o", str(out), "--no-progress", "--overwrite"])
-        try:
+        with started([command, str(scene), "-o", str(out), "--no-progress", "--overwrite"]) as proc:
             wait_for(part, proc, poll=0.0)
             proc.send_signal(signal.SIGKILL)
             proc.wait(timeout=30)
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
-            proc.stdout.close()
-            proc.stderr.close()
         assert proc.returncode == -signal.SIGKILL
         with h5py.File(part, "r") as f:
             assert f.attrs["status"] == "running" and not f.attrs["complete"] and "global" in f

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import psutil
 import pytest
-from procs import start
+from procs import started
 
 dask = pytest.importorskip("dask")
 pytest.importorskip("distributed")
@@ -93,8 +93,7 @@ async def probe(addresses: list[str]) -> tuple[dict[str, str], dict[str, str]]:
 def test_plain_client_cannot_use_a_running_sweep(tmp_path: Path) -> None:
     (tmp_path / "spec.toml").write_text(SPEC)
     out = tmp_path / "out"
-    sweep = start(["sweep", str(tmp_path / "spec.toml"), "-o", str(out), "--workers", "2"])
-    try:
+    with started(["sweep", str(tmp_path / "spec.toml"), "-o", str(out), "--workers", "2"]) as sweep:
         ports: set[tuple[int, str, int]] = set()
         deadline = time.monotonic() + 120
         while len({pid for pid, _, _ in ports}) < 3 and time.monotonic() < deadline:  # the sweep and 2 workers
@@ -111,11 +110,5 @@ def test_plain_client_cannot_use_a_running_sweep(tmp_path: Path) -> None:
         assert all(v.startswith("refused") for v in clients.values()), clients
         assert all(v.startswith("refused") for v in rpcs.values()), rpcs
         assert sweep.wait(timeout=300) == 0, sweep.stderr.read()
-    finally:
-        if sweep.poll() is None:
-            sweep.kill()
-            sweep.wait()
-        sweep.stdout.close()
-        sweep.stderr.close()
     shards = json.loads((out / "manifest.json").read_text())["shards"]
     assert [s["state"] for s in shards] == ["done"] * 8
