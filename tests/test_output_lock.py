@@ -202,3 +202,31 @@ def test_kill_right_after_the_file_appears(tmp_path: Path, command: str) -> None
         with h5py.File(part, "r") as f:
             assert f.attrs["status"] == "running" and not f.attrs["complete"] and "global" in f
     assert lock_path(out).exists()  # left by the killed run, unlocked: each next run above took it over
+
+
+def test_identity_lock_in_process(tmp_path: Path, monkeypatch) -> None:
+    """The identity lock of a file lives in the user's private folder (0700): a second owner of the same file under
+    another name (a hard link) is refused, naming the holder; release removes the lock file; lock files of dead
+    writers are removed when another file is locked, a live one is kept."""
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path / "run"))
+    (tmp_path / "run").mkdir(mode=0o700)
+    data = tmp_path / "a.h5.partial"
+    data.write_bytes(b"x")
+    os.link(data, tmp_path / "b.h5.partial")
+    a = OutputLock.acquire(tmp_path / "a.h5")
+    a.own(data)
+    folder = tmp_path / "run" / "aca-warp" / "files"
+    assert oct(folder.stat().st_mode & 0o777) == "0o700" and len(list(folder.iterdir())) == 1
+    b = OutputLock.acquire(tmp_path / "b.h5")
+    with pytest.raises(SceneError, match=r"b.h5.partial is being written by pid \d+"):
+        b.own(tmp_path / "b.h5.partial")
+    b.release()
+    (folder / "0-1.lock").write_text("999999 elsewhere aca-warp hf\n")  # as a killed writer leaves it
+    other = tmp_path / "c.h5.partial"
+    other.write_bytes(b"y")
+    c = OutputLock.acquire(tmp_path / "c.h5")
+    c.own(other)
+    assert len(list(folder.iterdir())) == 2 and not (folder / "0-1.lock").exists()  # a's and c's
+    a.release()
+    c.release()
+    assert list(folder.iterdir()) == []

@@ -1,7 +1,8 @@
 """The local Dask cluster of ``aca-warp sweep --workers N`` is closed to other users of the host: every port its
 processes listen on (found by inspecting the process tree, not guessed) is on 127.0.0.1 and speaks TLS with this
 sweep's own credentials, so a plain ``distributed.Client`` (or a plain Dask RPC) can neither connect nor run a task
-through any of them, while the sweep itself completes (aca_warp.sweep.cluster.cluster_security)."""
+through any of them, while the sweep itself completes (aca_warp.sweep.cluster.cluster_security); Dask's work
+folders and their lock files are in the user's private folder, not in the shared temporary folder."""
 
 from __future__ import annotations
 
@@ -93,7 +94,10 @@ async def probe(addresses: list[str]) -> tuple[dict[str, str], dict[str, str]]:
 def test_plain_client_cannot_use_a_running_sweep(tmp_path: Path) -> None:
     (tmp_path / "spec.toml").write_text(SPEC)
     out = tmp_path / "out"
-    with started(["sweep", str(tmp_path / "spec.toml"), "-o", str(out), "--workers", "2"]) as sweep:
+    (tmp_path / "tmp").mkdir()
+    (tmp_path / "run").mkdir(mode=0o700)
+    folders = {"TMPDIR": str(tmp_path / "tmp"), "XDG_RUNTIME_DIR": str(tmp_path / "run")}
+    with started(["sweep", str(tmp_path / "spec.toml"), "-o", str(out), "--workers", "2"], **folders) as sweep:
         ports: set[tuple[int, str, int]] = set()
         deadline = time.monotonic() + 120
         while len({pid for pid, _, _ in ports}) < 3 and time.monotonic() < deadline:  # the sweep and 2 workers
@@ -112,3 +116,5 @@ def test_plain_client_cannot_use_a_running_sweep(tmp_path: Path) -> None:
         assert sweep.wait(timeout=300) == 0, sweep.stderr.read()
     shards = json.loads((out / "manifest.json").read_text())["shards"]
     assert [s["state"] for s in shards] == ["done"] * 8
+    assert list((tmp_path / "tmp").iterdir()) == []  # Dask's work folders and locks: in the private folder
+    assert (tmp_path / "run" / "aca-warp" / "dask").is_dir()

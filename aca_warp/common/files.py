@@ -146,7 +146,8 @@ class OutputLock:
         the user has no private folder, only the name is locked (a note says so)."""
         st = os.stat(file)
         try:
-            lp = private_dir("files") / f"{st.st_dev:x}-{st.st_ino}.lock"
+            folder = private_dir("files")
+            lp = folder / f"{st.st_dev:x}-{st.st_ino}.lock"
             fd = _take(lp, Path(file), what)
         except AcaError:
             raise
@@ -156,6 +157,7 @@ class OutputLock:
             return
         if fd is not None:
             self.identity.append((lp, fd))
+            _drop_stale(folder, keep=lp)
 
     @property
     def held(self) -> bool:
@@ -200,6 +202,27 @@ def _take(lp: Path, p: Path, what: str) -> int | None:
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()} {socket.gethostname()} {' '.join(sys.argv[:4])[:200]}\n".encode())
         return fd
+
+
+def _drop_stale(folder: Path, keep: Path) -> None:
+    """Remove the identity lock files in ``folder`` that no process holds (left by killed writers), ``keep``
+    aside: each is locked first and removed while locked, so a live one is never touched."""
+    for lp in folder.glob("*.lock"):
+        if lp == keep:
+            continue
+        try:
+            fd = open_lock_file(lp)
+        except (AcaError, OSError):
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)  # held by a live writer
+            continue
+        if os.path.samestat(os.fstat(fd), os.lstat(lp)):
+            _drop(lp, fd)
+        else:
+            os.close(fd)
 
 
 def _drop(lp: Path, fd: int) -> None:

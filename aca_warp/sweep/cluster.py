@@ -14,6 +14,7 @@ import sys
 import uuid
 from typing import Any
 
+from aca_warp.common.links import private_dir
 from aca_warp.sweep.manifest import _Book, _one_line
 from aca_warp.sweep.overlap import ShardCancelled, ShardContext, stop_event, stop_sweep
 from aca_warp.sweep.shard import run_shard
@@ -62,7 +63,8 @@ def local_cluster(device: str, workers: int | None = None, *, per_gpu: int = 1) 
     authentication under credentials made for this cluster alone (:func:`cluster_security`): a Dask worker executes
     whatever pickled function reaches it, so nothing of a local cluster may be reachable from another host, nor
     usable by another local user (a client without the credentials cannot complete a handshake on any of its
-    ports). Other hosts join only through an external scheduler (``--scheduler``; docs/sweeps.md, "Security").
+    ports); their work folders live in the user's private folder, not in the shared temporary folder. Other hosts
+    join only through an external scheduler (``--scheduler``; docs/sweeps.md, "Security").
     The worker processes ignore SIGINT (the client stops them)."""
     import logging
 
@@ -82,6 +84,7 @@ def local_cluster(device: str, workers: int | None = None, *, per_gpu: int = 1) 
     # every process on loopback and behind TLS with this cluster's own credentials: a Dask worker runs the pickled
     # functions sent to it
     security = cluster_security()
+    scratch = str(private_dir("dask"))  # Dask's work folders and their lock files: not in the shared /tmp
     opts = {
         "nthreads": 1,
         "memory_limit": 0,
@@ -92,9 +95,16 @@ def local_cluster(device: str, workers: int | None = None, *, per_gpu: int = 1) 
         "preload": [_WORKER_PRELOAD],
         "security": security,
         "protocol": "tls",
+        "local_directory": scratch,
     }
     spec = {f"w{i}": {"cls": Nanny, "options": {**opts, "env": env}} for i, env in enumerate(envs)}
-    scheduler = {"dashboard": False, "dashboard_address": f"{LOOPBACK}:0", "host": LOOPBACK, "protocol": "tls"}
+    scheduler = {
+        "dashboard": False,
+        "dashboard_address": f"{LOOPBACK}:0",
+        "host": LOOPBACK,
+        "protocol": "tls",
+        "local_directory": scratch,
+    }
     cluster = SpecCluster(
         workers=spec,
         scheduler={"cls": Scheduler, "options": {**scheduler, "security": security}},
