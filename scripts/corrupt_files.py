@@ -7,12 +7,18 @@ live, the rest drawn at random over the file and its last 4 kB) and cuts it at f
 in a subprocess. Outcomes: ``ok`` (exit 0: the flip hit data the command does not check), ``one line`` (exit 2
 or 4 with exactly one ``aca-warp: error:`` line), ``bad`` (anything else: a traceback, a crash, a hang).
 
+``--crafted`` instead feeds crafted files (well-formed HDF5 or TOML built to break a reader: nested, int and array
+``scene`` attributes, ``/global/mu`` as strings or a compound type, ``/global/time`` a group, a 2-D ``/patches/x``, a
+checkpoint array of another shape, datasets declaring 2^28 or 2^40 rows never written, external and soft links,
+TOML scenes and specs nested 20 000 deep) to every command that reads them; each must end with one line, exit 2.
+
 ``--formats N`` instead reads every dataset and attribute of the HF run after N random single-bit flips, once as
 written (HDF5 ``libver = earliest``, no filters) and once copied with ``libver = "v108"`` (checksummed object
 headers and index nodes) and the Fletcher-32 filter on every dataset: how many flips each format detects.
 
     python scripts/corrupt_files.py --flips 20          # ~10 minutes on the 2-core CPU container
     python scripts/corrupt_files.py --formats 120       # ~2 minutes
+    python scripts/corrupt_files.py --crafted           # 45 runs
 """
 
 from __future__ import annotations

@@ -855,50 +855,37 @@ def analyze_run(
         if Path(path).is_file():  # a missing file: open_run_file's message
             lock.own(path, what=busy)
         band = _checked_band(path, freq_range)
-        return _analyze(path, band, index, sync, stft_window_s, cwt_freqs, cwt_count, cwt_columns, max_bytes, workers)
-
-
-def _analyze(
-    path: str | Path,
-    band: tuple[float, float] | None,
-    index: dict[str, Any],
-    sync: bool,
-    stft_window_s: float | None,
-    cwt_freqs: Sequence[float] | np.ndarray | None,
-    cwt_count: int,
-    cwt_columns: int,
-    max_bytes: int,
-    workers: int | None,
-) -> dict[str, Group]:
-    """The body of :func:`analyze_run`, under the run file's lock."""
-    with open_run_file(path, "r+") as f:
-        groups: dict[str, Group] = {"spectra": compute_spectra(f)}
-        if sync:
-            groups.update(_patch_velocity_groups(f, band, index, max_bytes, workers))
-        groups["stft"] = compute_stft(f, window_s=stft_window_s)
-        groups["cwt"] = compute_cwt(f, freqs=cwt_freqs, freq_range=band, count=cwt_count, columns=cwt_columns)
-        groups["peaks"] = compute_peaks(groups["spectra"], groups.get("patch_spectrum"), freq_range=band)
-        groups["saturation"] = compute_saturation(f)
-        parameters = {
-            "freq_range": list(band) if band else None,
-            "sync": sync,
-            **{k: index[k] for k in ("rule", "eta", "snr", "n_bins")},
-            "stft_window_s": stft_window_s,
-            "cwt_count": cwt_count,
-            "cwt_columns": cwt_columns,
-            "null_trials": index["null_trials"],
-        }
-        t = f["global/time"]
-        attrs = {
-            "created_by": "aca_warp.analysis.report.analyze_run",
-            "aca_warp_version": _package_version(),
-            "parameters": parameters,
-            "run_complete": bool(run_attr(f, "complete", False)),
-            "samples": int(t.shape[0]),
-            "time_range": [float(t[0]), float(t[-1])],
-            "groups": json.dumps(sorted(groups)),
-        }
-        write_analysis(f, groups, attrs)
+        with open_run_file(path, "r+") as f:
+            groups: dict[str, Group] = {"spectra": compute_spectra(f)}
+            if sync:
+                groups.update(_patch_velocity_groups(f, band, index, max_bytes, workers))
+            groups["stft"] = compute_stft(f, window_s=stft_window_s)
+            groups["cwt"] = compute_cwt(f, freqs=cwt_freqs, freq_range=band, count=cwt_count, columns=cwt_columns)
+            groups["peaks"] = compute_peaks(groups["spectra"], groups.get("patch_spectrum"), freq_range=band)
+            groups["saturation"] = compute_saturation(f)
+            parameters = {
+                "freq_range": list(band) if band else None,
+                "sync": sync,
+                "rule": rule,
+                "eta": eta,
+                "snr": snr,
+                "n_bins": n_bins,
+                "stft_window_s": stft_window_s,
+                "cwt_count": cwt_count,
+                "cwt_columns": cwt_columns,
+                "null_trials": null_trials,
+            }
+            t = f["global/time"]
+            attrs = {
+                "created_by": "aca_warp.analysis.report.analyze_run",
+                "aca_warp_version": _package_version(),
+                "parameters": parameters,
+                "run_complete": bool(run_attr(f, "complete", False)),
+                "samples": int(t.shape[0]),
+                "time_range": [float(t[0]), float(t[-1])],
+                "groups": json.dumps(sorted(groups)),
+            }
+            write_analysis(f, groups, attrs)
     return groups
 
 
