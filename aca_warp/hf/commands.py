@@ -61,8 +61,8 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "--dt",
         type=positive,
         metavar="S",
-        help=f"fixed step [s] (default {DEFAULT_DT:g}; shortened to fit the sample interval); "
-        "initial step of 'adaptive'",
+        help=f"fixed step [s] (default {DEFAULT_DT:g}; shortened so that whole steps fit the sample interval, which "
+        "may not be shorter than it); initial step of 'adaptive'",
     )
     hf.add_argument(
         "--tolerance",
