@@ -219,7 +219,11 @@ def _drop_stale(folder: Path, keep: Path) -> None:
         except OSError:
             os.close(fd)  # held by a live writer
             continue
-        if os.path.samestat(os.fstat(fd), os.lstat(lp)):
+        try:
+            stale = os.path.samestat(os.fstat(fd), os.lstat(lp))
+        except FileNotFoundError:  # removed meanwhile by its owner or another sweep of the folder
+            stale = False
+        if stale:
             _drop(lp, fd)
         else:
             os.close(fd)

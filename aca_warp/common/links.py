@@ -87,10 +87,10 @@ def create_new(path: Path, what: str, mode: int = 0o644) -> int:
 
 def private_dir(*parts: str) -> Path:
     """A folder only this user can enter (mode 0700, owned by the user, not a link): ``$XDG_RUNTIME_DIR/aca-warp``
-    when that is set, else ``$XDG_CACHE_HOME/aca_warp`` (``~/.cache/aca_warp``), with ``parts`` below it; created
+    when that folder exists, else ``$XDG_CACHE_HOME/aca_warp`` (``~/.cache/aca_warp``), with ``parts`` below it; created
     when missing. OSError when it cannot be created or is not private (another owner, a link, other users' access)."""
     runtime = os.environ.get("XDG_RUNTIME_DIR")
-    if runtime and os.path.isabs(runtime):
+    if runtime and os.path.isabs(runtime) and os.path.isdir(runtime):
         base = Path(runtime) / "aca-warp"
     else:
         cache = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
