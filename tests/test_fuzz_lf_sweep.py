@@ -164,9 +164,9 @@ def test_lf_resume_of_bad_files(tmp_path, capsys):
     out.rename(damaged)
     for argv, message in (
         (["lf", "--resume", str(junk)], "cannot open"),
-        (["lf", "--resume", str(hf_like)], "incomplete or damaged"),
+        (["lf", "--resume", str(hf_like)], "attribute 'scene' is not valid JSON"),
         (["lf", "--resume", str(damaged)], "no checkpoint"),
-        (["rerun", str(hf_like), "-o", str(tmp_path / "r.h5")], "incomplete or damaged"),
+        (["rerun", str(hf_like), "-o", str(tmp_path / "r.h5")], "attribute 'scene' is not valid JSON"),
     ):
         capsys.readouterr()
         assert main(argv) == 2, argv

@@ -15,7 +15,7 @@ import numpy as np
 import warp as wp
 
 from aca_warp.common.devices import block_threads
-from aca_warp.common.errors import SceneError, SimulationFault
+from aca_warp.common.errors import SceneError, SimulationFault, option
 from aca_warp.hf.limits import check_int32
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import WATCHDOG_FACTOR
@@ -46,6 +46,18 @@ def check_run(duration: float, record: Record, checkpoint_every: float | None = 
     # the kernels take the decimation as an int32 (a wrapped value divides by zero: SIGFPE)
     check_int32("record.decimation", record.decimation, f"any value above {n_samples} records one row only")
     return n_samples
+
+
+def check_sample_step(sample_dt: float, dt: float, anyway: str = "") -> None:
+    """Refuse a sample interval [s] shorter than the step ``dt`` [s] that was asked for (or the default): the run
+    would shrink every step to the sample interval, silently multiplying the steps (``record.sample_dt = 1e-12``
+    turned a 1e-8 s step into 1e-12 s and a run of hours). ``anyway`` names the override, if there is one."""
+    if sample_dt < dt * (1 - 1e-9):
+        raise SceneError(
+            f"record.sample_dt = {sample_dt:g} s is shorter than the step {dt:g} s: every step would shrink to the "
+            f"sample interval ({dt / sample_dt:.3g} times the steps); choose a sample interval of at least the step "
+            f"(seconds) or ask for that step ({option('dt', '--dt')})" + (f"; {anyway}" if anyway else "")
+        )
 
 
 def watchdog_bound(model: PadModel, state: HFState, factor: float = WATCHDOG_FACTOR) -> np.ndarray:

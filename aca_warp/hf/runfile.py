@@ -47,11 +47,12 @@ from aca_warp.common.errors import AcaError, SceneError, option
 from aca_warp.common.files import (
     OutputLock,
     check_output_path,
+    create_h5,
     from_h5py,
     new_path,
     open_h5,
     partial_path,
-    resume_hint,
+    recovery,
     versions,
 )
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
@@ -60,22 +61,42 @@ from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS, Chunk
 from aca_warp.scene import Scene, scene_to_dict
 
 RAW_CACHE = 64 * 2**20  # bytes of HDF5 chunk cache: appended rows of wide per-patch histories stay cached
+SERIES_CHUNK = 4096  # samples per chunk of /global/* and /patches/time
+HISTORY_CHUNK = (1024, 64)  # (samples, patches) per chunk of the per-patch histories (patches: at most 64)
+# what else a file holds, on disk: object headers, chunk index nodes, the two checkpoint slots (measured by
+# scripts/file_size.py: docs/faults.md, "Output folders")
+HEADER_BYTES = 64 * 1024
+BYTES_PER_CHUNK = 128
+CHECKPOINT_BYTES_PER_PATCH = 2 * 16 * 8
+
+
+def file_bytes(
+    samples: int, rows: int, patches: int, histories: int, item: int, *, cells: int, checkpoints: bool
+) -> int:
+    """Bytes the run file takes on disk when it ends [B]: ``samples`` global samples, ``rows`` rows of
+    ``histories`` per-patch histories (velocity, displacement) of ``patches`` patches in ``item``-byte values,
+    ``cells`` matrix cells, with or without checkpoint slots. HDF5 allocates chunks whole, so the series round up to
+    :data:`SERIES_CHUNK` samples and the histories to :data:`HISTORY_CHUNK` (a 40-patch history takes 64 columns),
+    and a deleted checkpoint leaves its space in the file."""
+
+    def up(n: int, k: int) -> int:
+        return -(-n // k) * k
+
+    width = min(patches, HISTORY_CHUNK[1])
+    series = (1 + len(GLOBAL_NAMES)) * up(samples, SERIES_CHUNK) * 8
+    history = up(rows, SERIES_CHUNK) * 8 if rows else 0
+    history += histories * up(rows, HISTORY_CHUNK[0]) * up(patches, width) * item if rows else 0
+    chunks = (1 + len(GLOBAL_NAMES)) * up(samples, SERIES_CHUNK) // SERIES_CHUNK
+    if rows:
+        chunks += histories * (up(rows, HISTORY_CHUNK[0]) // HISTORY_CHUNK[0]) * (up(patches, width) // width)
+    fixed = 7 * patches * 8 + 3 * cells * 8 + (CHECKPOINT_BYTES_PER_PATCH * patches if checkpoints else 0)
+    return series + history + fixed + chunks * BYTES_PER_CHUNK + HEADER_BYTES
 
 
 def busy() -> str:
     """The advice of a refusal to write an output that a live process writes."""
     overwrite = option("overwrite=True", "--overwrite")
     return f"wait for it to finish or stop it ({overwrite} does not replace a run in progress)"
-
-
-def hf_advice(path: Path, checkpoint_time: float | None) -> str:
-    """What to do with an HF ``.partial`` left by a storage failure."""
-    if checkpoint_time is None:
-        return f"it holds no checkpoint: make room and run again with {option('overwrite=True', '--overwrite')}"
-    return (
-        f"it keeps its checkpoint at t = {checkpoint_time:.6g} s: make room, then continue with "
-        f"{resume_hint('hf', path)}"
-    )
 
 
 class RunWriter:
@@ -103,8 +124,7 @@ class RunWriter:
         try:
             self.path = check_output_path(path, overwrite=overwrite)
             self.partial = partial_path(self.path)
-            tmp.unlink(missing_ok=True)  # left by a run killed while creating its file (we hold the lock)
-            self.f = h5py.File(tmp, "w", rdcc_nbytes=RAW_CACHE)
+            self.f = create_h5(tmp, self.lock, rdcc_nbytes=RAW_CACHE)  # a leftover .new is replaced, a link refused
             self.out = GuardedFile(self.f, self.partial, raw_cache=RAW_CACHE)
             self._write_header(model.scenes[pad], attrs or {})
             self.out.flush()
@@ -114,7 +134,8 @@ class RunWriter:
                 self.out.abandon()
             elif getattr(self, "f", None) is not None:
                 self.f.close()
-            tmp.unlink(missing_ok=True)
+            if getattr(self, "f", None) is not None:
+                tmp.unlink(missing_ok=True)
             self.lock.release()
             code = storage_errno(e)
             if code is not None:
@@ -133,7 +154,7 @@ class RunWriter:
             f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
         g = f.create_group("global")
         for name, unit in (("time", "s"), *zip(GLOBAL_NAMES, GLOBAL_UNITS, strict=True)):
-            d = g.create_dataset(name, shape=(0,), maxshape=(None,), dtype="f8", chunks=(4096,))
+            d = g.create_dataset(name, shape=(0,), maxshape=(None,), dtype="f8", chunks=(SERIES_CHUNK,))
             d.attrs["unit"] = unit
         p = f.create_group("patches")
         mass = scene.material.mass_per_area * scene.patches.area
@@ -217,6 +238,11 @@ class RunWriter:
                     d[d.shape[0] - 1]
             if "final" in f["patches"]:
                 del f["patches"]["final"]
+            from aca_warp.analysis.report import GROUP, TMP_GROUP
+
+            for name in (GROUP, TMP_GROUP):  # an analysis of the samples as they were no longer describes the file
+                if name in f:
+                    del f[name]
         self.flush_each_chunk = False  # a resumed run keeps checkpointing: flush at checkpoints only
         self.checkpoint_time = ckpt.sim_time
         try:
@@ -246,7 +272,7 @@ class RunWriter:
         if name not in self._patch_ds:
             shape = (0,) if width == 0 else (0, width)
             # narrow in patches, long in time: an analysis reads column blocks of patches in one pass
-            chunks = (4096,) if width == 0 else (1024, min(width, 64))
+            chunks = (SERIES_CHUNK,) if width == 0 else (HISTORY_CHUNK[0], min(width, HISTORY_CHUNK[1]))
             d = self.f["patches"].create_dataset(
                 name, shape=shape, maxshape=(None, *shape[1:]), dtype=dtype, chunks=chunks
             )
@@ -299,7 +325,7 @@ class RunWriter:
             self.abandon()
             code = storage_errno(e)
             if code is not None:
-                raise storage_error(code, self.partial, hf_advice(self.path, self.checkpoint_time)) from None
+                raise storage_error(code, self.partial, f"make room, then {recovery(self.path)}") from None
             raise
         self.lock.release()
         return self.path
@@ -322,8 +348,8 @@ class RunWriter:
             return None
         self.abandon()
         if code is None:  # HDF5 failed to write (a damaged file): nothing more goes into it
-            return write_failed(error, self.partial, hf_advice(self.path, self.checkpoint_time))
-        return storage_error(code, self.partial, hf_advice(self.path, self.checkpoint_time))
+            return write_failed(error, self.partial, f"make room, then {recovery(self.path)}")
+        return storage_error(code, self.partial, f"make room, then {recovery(self.path)}")
 
 
 def read_run(path: str | Path) -> dict[str, Any]:

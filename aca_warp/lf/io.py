@@ -33,6 +33,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from aca_warp.common.bounds import json_attribute
 from aca_warp.common.checkpoint import (
     checkpoint_room,
     closed_on_failure,
@@ -44,13 +45,14 @@ from aca_warp.common.errors import AcaError, SceneError, option
 from aca_warp.common.files import (
     OutputLock,
     check_output_path,
+    create_h5,
     from_h5py,
     machine,
     new_path,
     open_h5,
     partial_path,
     reading,
-    resume_hint,
+    recovery,
     versions,
 )
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
@@ -64,16 +66,6 @@ def busy() -> str:
     """The advice of a refusal to write an output that a live process writes."""
     overwrite = option("overwrite=True", "--overwrite")
     return f"wait for it to finish or stop it ({overwrite} does not replace a run in progress)"
-
-
-def lf_advice(path: Path, checkpoint_time: float | None) -> str:
-    """What to do with an LF ``.partial`` left by a storage failure."""
-    if checkpoint_time is None:
-        return f"it holds no checkpoint: make room and run again with {option('overwrite=True', '--overwrite')}"
-    return (
-        f"it keeps its checkpoint at t = {checkpoint_time:.6g} s: make room, then continue with "
-        f"{resume_hint('lf', path)}"
-    )
 
 
 _UNITS = {
@@ -102,8 +94,7 @@ class LFRunWriter:
         try:
             self.path = check_lf_output(path, overwrite=overwrite)
             self.partial = self.path.with_name(self.path.name + ".partial")
-            tmp.unlink(missing_ok=True)  # left by a run killed while creating its file (we hold the lock)
-            self.f = h5py.File(tmp, "w")
+            self.f = create_h5(tmp, self.lock)  # a leftover .new is replaced, a link refused
             self.out = GuardedFile(self.f, self.partial)
             self._write_header(run)
             self.out.flush()
@@ -113,7 +104,8 @@ class LFRunWriter:
                 self.out.abandon()
             elif getattr(self, "f", None) is not None:
                 self.f.close()
-            tmp.unlink(missing_ok=True)
+            if getattr(self, "f", None) is not None:
+                tmp.unlink(missing_ok=True)
             self.lock.release()
             code = storage_errno(e)
             if code is not None:
@@ -258,7 +250,7 @@ class LFRunWriter:
             self.abandon()
             code = storage_errno(e)
             if code is not None:
-                raise storage_error(code, self.partial, lf_advice(self.path, self.checkpoint_time)) from None
+                raise storage_error(code, self.partial, f"make room, then {recovery(self.path)}") from None
             raise
         self.lock.release()
         return self.path
@@ -279,8 +271,8 @@ class LFRunWriter:
             return None
         self.abandon()
         if code is None:  # HDF5 failed to write (a damaged file): nothing more goes into it
-            return write_failed(error, self.partial, lf_advice(self.path, self.checkpoint_time))
-        return storage_error(code, self.partial, lf_advice(self.path, self.checkpoint_time))
+            return write_failed(error, self.partial, f"make room, then {recovery(self.path)}")
+        return storage_error(code, self.partial, f"make room, then {recovery(self.path)}")
 
 
 def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:
@@ -288,9 +280,8 @@ def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:
     part = partial_path(path)
     if part.exists() and not overwrite and not Path(path).is_dir():
         raise SceneError(
-            f"{part} exists (an unfinished LF run); continue it with "
-            f"{resume_hint('lf', path)} or pass "
-            f"{option('overwrite=True', '--overwrite')}"
+            f"{part} exists (an unfinished LF run): {recovery(path)}; or pass "
+            f"{option('overwrite=True', '--overwrite')} to replace it"
         )
     return check_output_path(path, overwrite=overwrite)
 
@@ -331,7 +322,7 @@ def read_snapshot(path: str | Path, name: str) -> dict[str, Any]:
         out: dict[str, Any] = {part: {k: g[part][k][()] for k in g[part]} for part in ("patches", "matrix", "rings")}
         out["attrs"] = {k: (v.item() if hasattr(v, "item") else v) for k, v in g.attrs.items()}
         try:
-            out["scene"] = json.loads(f.attrs["scene"])
+            out["scene"] = json_attribute(f.attrs["scene"], f"{path}: attribute 'scene'")
         except (KeyError, TypeError, ValueError) as e:
             raise SceneError(f"{path}: the stored LF scene is missing or damaged ({type(e).__name__}: {e})") from None
     return out

@@ -32,8 +32,9 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from aca_warp.analysis.report import has_patch_velocity
+from aca_warp.analysis.report import has_patch_velocity, stored
 from aca_warp.common.errors import SceneError
+from aca_warp.common.links import LinkError
 from aca_warp.plots import lf as plots_lf
 from aca_warp.plots.hf import (
     FIGURES,
@@ -85,7 +86,7 @@ def _absent_figures(path: str | Path, names: list[str], which: Sequence[str] | N
     ``/analysis/sync`` is stored); :class:`SceneError` when ``which`` named one of them."""
     with _Run(path) as run:
         patches = has_patch_velocity(run.f)
-        stored_sync = "analysis/sync" in run.f
+        stored_sync = stored(run.f, "sync")
     needs = {"patch_map": patches, "animation": patches, "sync": patches or stored_sync}
     absent = [n for n in names if not needs.get(n, True)]
     if absent and which is not None:
@@ -154,7 +155,7 @@ def plot_run(
         try:
             files += makers[name]()
         except SceneError as e:
-            if which is not None:
+            if which is not None or isinstance(e, LinkError):
                 raise
             if log:
                 log(f"skipped {name}: {e}")

@@ -19,12 +19,12 @@ from aca_warp.analysis import report
 from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run_file, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
 from aca_warp.common.errors import SceneError, option
+from aca_warp.plots.figure import GifInto, whole
 from aca_warp.plots.figure import envelope as _envelope
 from aca_warp.plots.figure import finish as _finish
 from aca_warp.plots.figure import new_figure as _figure
 from aca_warp.plots.figure import pad_outline as _pad_outline
 from aca_warp.plots.figure import save as _save
-from aca_warp.plots.figure import whole
 
 FIGURES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
 """Figure names accepted by :func:`~aca_warp.plots.plot_run` (``which``) and ``aca-warp plot --only``."""
@@ -83,7 +83,7 @@ class _Run:
 
     def band_top(self) -> float:
         """Top of the analysis band [Hz]: /analysis/sync's band, else min(200 kHz, Nyquist)."""
-        if "analysis/sync" in self.f:
+        if report.stored(self.f, "sync"):
             return float(np.asarray(self.f["analysis/sync"].attrs["band"])[1])
         dt = report.sample_interval(self.f["global/time"][()])
         return min(report.DEFAULT_BAND_TOP, 0.5 / dt)
@@ -318,8 +318,8 @@ def animate_patch_map(
         out = Path(outdir)
         out.mkdir(parents=True, exist_ok=True)
         gif = out / f"{run.path.stem}_patch_map.gif"
-        with whole(gif) as tmp:
-            anim.save(tmp, writer=animation.PillowWriter(fps=fps), dpi=80)
+        with whole(gif) as fh:
+            anim.save(fh.name, writer=GifInto(fh, fps), dpi=80)
         return [gif]
 
 
@@ -477,7 +477,7 @@ def plot_sync(path: str | Path, outdir: str | Path, **options: Any) -> list[Path
     ``options`` (keywords of :func:`aca_warp.analysis.report.compute_patch_velocity`).
     """
     with _Run(path) as run:
-        if "analysis/sync" not in run.f:
+        if not report.stored(run.f, "sync"):
             _require_patch_velocity(run, "Synchronization Index")
         g = run.group("sync", lambda: report.compute_sync(run.f, **options))
         assert g is not None
