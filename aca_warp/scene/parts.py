@@ -441,7 +441,11 @@ class Scene:
             )
 
     def _check_geometry(self) -> None:
+        """Refuse patches outside the pad or overlapping each other. Patches found fitting a pad remember it
+        (``_fits``), so that the many scenes of a sweep that share one layout check it once."""
         p = self.patches
+        if p.__dict__.get("_fits") == self.pad:
+            return
         inside = self.pad.contains_disc(p.x, p.y, p.radius)
         if not np.all(inside):
             bad = np.flatnonzero(~inside)
@@ -457,6 +461,7 @@ class Scene:
                 f"{len(pairs)} pair(s) of patches overlap, first patches {i} and {j}: centre distance {d:.4g} m "
                 f"< sum of radii {p.radius[i] + p.radius[j]:.4g} m (overlap {p.radius[i] + p.radius[j] - d:.3g} m)"
             )
+        object.__setattr__(p, "_fits", self.pad)
 
     @property
     def sliding_speed(self) -> float:
