@@ -122,7 +122,7 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
     n, r_max = len(x), float(radius.max())
     limits.check_model_memory(n, limits.links_lower_bound(x, y, pad_of, radius), dev, r_max, exact=False)
     contacts = [solve_scene_contact(s) for s in scenes]
-    nbr_start, nbr_index, nbr_inv, k_ij, k_sum = _coupling(scenes, host, start, dev)
+    nbr_start, nbr_index, nbr_inv, k_ij, k_sum = _coupling(scenes, host, start, dev, _NP_DTYPES[T])
     host.update(
         {
             "pad_patch_start": start,
@@ -168,10 +168,11 @@ def layout_groups(scenes: list[Scene]) -> np.ndarray:
 
 
 def _coupling(
-    scenes: list[Scene], host: dict[str, np.ndarray], start: np.ndarray, dev: wp.Device
+    scenes: list[Scene], host: dict[str, np.ndarray], start: np.ndarray, dev: wp.Device, dtype: Any
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The batch's CSR neighbour lists (start (n+1,) int32, index (E,) int32, 1/D0 (E,) [1/m]), coupling springs k_ij
-    (E,) [N/m] and their sum per patch Σ_j k_ij (n,) [N/m].
+    (E,) [N/m] (both as ``dtype``, the state precision's NumPy type) and their sum per patch Σ_j k_ij (n,) [N/m]
+    (float64, summed before the springs are rounded to ``dtype``).
 
     One neighbour search covers one pad of each layout (:func:`layout_groups`) with the batch's cell size (the largest
     coupling radius) and extent, so that every list is in the order and every 1/D0 has the bits of a search over the
@@ -201,7 +202,8 @@ def _coupling(
         inv = s_inv[st[0] : st[-1]]
         rows = np.repeat(np.arange(b - a), np.diff(st))
         k_ij = scenes[p].material.K_C * sq[a:b][rows] * sq[a:b][index] * inv  # paper Eq. 3, left to right as a batch
-        parts.append((st - st[0], index, inv, k_ij, np.bincount(rows, k_ij, minlength=b - a)))
+        k_sum = np.bincount(rows, k_ij, minlength=b - a)
+        parts.append((st - st[0], index, inv.astype(dtype), k_ij.astype(dtype), k_sum))
     links = np.array([len(parts[g][1]) for g in group], dtype=np.int64)
     if shared:
         limits.check_model_memory(n, int(links.sum()), dev, float(radius.max()), exact=True)
@@ -218,10 +220,12 @@ _INT32 = wp.int32
 _INT32_NAMES = frozenset({"patch_pad", "pad_patch_start", "nbr_start", "nbr_index"})
 
 
+_NP_DTYPES = {wp.int32: np.int32, wp.float64: np.float64, wp.float32: np.float32}
+
+
 def _device_array(a: np.ndarray, dtype: Any, device: wp.Device) -> wp.array:
     """A host array on ``device`` as ``dtype`` (int32, float64 or the state precision)."""
-    np_dtype = {wp.int32: np.int32, wp.float64: np.float64, wp.float32: np.float32}[dtype]
-    return wp.array(np.ascontiguousarray(a, dtype=np_dtype), dtype=dtype, device=device)
+    return wp.array(np.ascontiguousarray(a, dtype=_NP_DTYPES[dtype]), dtype=dtype, device=device)
 
 
 def _patch_arrays(scenes: list[Scene], counts: np.ndarray) -> dict[str, np.ndarray]:
