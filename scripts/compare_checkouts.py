@@ -6,7 +6,7 @@ A restructuring must not change results: this script runs, from each checkout's 
 * ``hf varying_area --duration 1e-5``   (growing patches, 10 µs)
 * ``lf multiscale``                     (the LF automaton over the whole load procedure)
 * ``sweep aca_warp/data/sweep_hf1.toml`` (24 hf1 pads in 5 shards, 10 µs, in this process)
-* ``sweep`` of pads of unequal size     (3 patch counts × 2 layouts × 2 friction factors, shards of 4)
+* ``sweep`` of pads of unequal size     (2 friction factors × 2 layouts × 3 patch counts, shards of 4)
 
 and reports, per job, every dataset that differs (shape, dtype or any bit) and the root attributes that differ
 (wall times, versions and similar provenance are listed separately as expected differences); a sweep's shard files
@@ -55,9 +55,9 @@ shard_size = 4
 duration = 2.0e-5
 precision = "fp32"
 [parameters]
-"patches.count" = [60, 200, 120]
-"patches.seed" = [1, 2]
 "friction.M" = [0.7, 0.8]
+"patches.seed" = [1, 2]
+"patches.count" = [60, 200, 120]
 """
 # root attributes that describe the machine, the package or the wall clock, not the results
 PROVENANCE = {

@@ -113,6 +113,7 @@ def _create_shard_file(
     from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS
 
     start, stop = spec.shard_range(index)
+    pads = spec.shard_pads(index)
     n = stop - start
     f = create_h5(tmp, lock)
     out = GuardedFile(f, partial)
@@ -145,13 +146,13 @@ def _create_shard_file(
             d.attrs["unit"] = unit
         pg = f.create_group("parameters")
         for key, vals in spec.parameters.items():
-            v = vals[start:stop]
+            v = [vals[p] for p in pads]
             data = np.array(v, dtype=h5py.string_dtype()) if key == "initial.state" else np.asarray(v)
             out.reserve(data.nbytes)
             pg.create_dataset(key, data=data).attrs["unit"] = PARAMETERS[key][0]
-        pads = f.create_group("pads")
-        pads.create_dataset("index", data=np.arange(start, stop, dtype=np.int64))
-        pads.create_dataset("patch_count", data=np.array([s.patches.count for s in scenes], dtype=np.int64))
+        group = f.create_group("pads")
+        group.create_dataset("index", data=pads)
+        group.create_dataset("patch_count", data=np.array([s.patches.count for s in scenes], dtype=np.int64))
         out.flush()
         os.replace(tmp, partial)  # readable from the moment it has this name
     except BaseException:
@@ -226,10 +227,11 @@ def run_shard(
     ctx.check()
     with clock("prepare"):
         spec = _resolve(copy.deepcopy(doc), Path(base_dir), check=False)
-        start, stop = spec.shard_range(index)
-        scenes = spec.scenes(start, stop)
+        pads = spec.shard_pads(index)
+        scenes = spec.scenes(pads)
         dev = wp.get_device(device)
-        cap = batch_capacity(scenes[0], spec.precision, device, fraction=memory_fraction, sharing=sharing)
+        largest = max(scenes, key=lambda s: s.patches.count)
+        cap = batch_capacity(largest, spec.precision, device, fraction=memory_fraction, sharing=sharing)
     final = Path(out_dir) / shard_name(index)
     partial = final.with_name(final.name + ".partial")
     n_samples = max(1, round(spec.duration / spec.base.record.sample_dt)) + 1
@@ -241,9 +243,9 @@ def run_shard(
         ctx.check()
         with clock("write"):
             f, out = _create_shard_file(tmp, partial, lock, spec, index, scenes, dev, n_samples)
-        write = _chunk_writer(f, out, stop - start)
+        write = _chunk_writer(f, out, len(pads))
         writer = ChunkWriter(write) if ctx.overlap else None
-        run = _run_batches(spec, scenes, dev, cap, ctx, clock, turn, writer.put if writer else write, start)
+        run = _run_batches(spec, scenes, dev, cap, ctx, clock, turn, writer.put if writer else write, pads)
         _end_run(turn, writer, clock)
         clock.add("task", time.perf_counter() - t_start)
         timings = {**clock.s, "run_start": run["run_start"], "run_end": run["run_end"]}
@@ -318,10 +320,11 @@ def _run_batches(
     clock: _Clock,
     turn: KernelTurn | None,
     emit: Callable[[tuple[int, int, Any]], None],
-    pad_start: int,
+    pads: np.ndarray,
 ) -> dict:
-    """Build and run the shard's pads in batches of at most ``cap``; every recorded chunk goes to ``emit`` as
-    ``(b0, b1, chunk)``. Returns the run's attributes for the file and its figures for the summary."""
+    """Build and run the shard's pads (global indices ``pads``) in batches of at most ``cap``; every recorded chunk
+    goes to ``emit`` as ``(b0, b1, chunk)``. Returns the run's attributes for the file and its figures for the
+    summary."""
     steps, wall, compile_time, batches = 0, 0.0, 0.0, 0
     engines: set[str] = set()
     fault = None
@@ -339,7 +342,7 @@ def _run_batches(
         compile_time += res.compile_time
         dt_used = res.dt
         if res.fault is not None:
-            fault = f"pads {pad_start + b0}..{pad_start + b1 - 1}: {res.fault}"
+            fault = f"pads {_pad_list(pads[b0:b1])}: {res.fault}"
             break
     attrs = {
         "complete": fault is None,
@@ -361,6 +364,14 @@ def _run_batches(
         "run_start": run_start,
         "run_end": run_end,
     }
+
+
+def _pad_list(pads: np.ndarray) -> str:
+    """Global pad indices in words: ``a..b`` for a run of consecutive ones, else a list (the first 8)."""
+    if np.all(np.diff(pads) == 1):
+        return f"{pads[0]}..{pads[-1]}"
+    shown = ", ".join(str(p) for p in pads[:8])
+    return shown + (f", ... ({len(pads)} pads)" if len(pads) > 8 else "")
 
 
 def _run_batch(
