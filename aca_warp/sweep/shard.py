@@ -9,7 +9,6 @@ a finished shard file from one to run again.
 from __future__ import annotations
 
 import contextlib
-import copy
 import json
 import math
 import os
@@ -23,7 +22,8 @@ import numpy as np
 
 from aca_warp.scene import Scene
 from aca_warp.sweep.overlap import ChunkWriter, KernelTurn, ShardCancelled, ShardContext
-from aca_warp.sweep.spec import FORMAT, PARAMETERS, SweepSpec, _resolve
+from aca_warp.sweep.prepare import PreparedShard, prepare_shard
+from aca_warp.sweep.spec import FORMAT, PARAMETERS, SweepSpec
 
 # -------------------------------------------------------------------------------------------- memory
 
@@ -88,9 +88,23 @@ class _Clock:
             self.add(phase, time.perf_counter() - t)
 
 
-TIMING_PHASES = ("prepare", "build", "setup", "kernel", "sink", "write", "turn_wait", "write_wait", "close", "task")
+TIMING_PHASES = (
+    "prepare",
+    "prepare_ahead",
+    "build",
+    "setup",
+    "kernel",
+    "sink",
+    "write",
+    "turn_wait",
+    "write_wait",
+    "close",
+    "task",
+)
 TIMING_DOC = """Seconds per phase of a shard task:
-prepare: the spec and the shard's scenes; build: build_model and initial_state (contact solve, neighbour lists,
+prepare: the spec and the shard's scenes (taken as prepared ahead: almost nothing) and the memory estimate;
+prepare_ahead: present when a preparation pool made the spec and scenes before the task began, the time it took
+there (not part of the task); build: build_model and initial_state (contact solve, neighbour lists,
 device arrays); setup: run_hf before its first step (checks, engine, launch layout; RunResult.compile_time);
 kernel: the run loop less the time in the sink (steps, recording, flushing to the host); sink: time inside the
 sink (serial: the HDF5 writes; overlapped: handing chunks to the writer, and the wait for the GPU's turn);
@@ -204,16 +218,19 @@ def run_shard(
     sharing: int = 1,
     overlap: bool = False,
     ctx: ShardContext | None = None,
+    prepared: PreparedShard | None = None,
 ) -> dict:
     """Run shard ``index`` of the spec ``doc`` (already resolved, overrides applied) and write its file.
 
-    This is the task a Dask worker runs; it rebuilds the spec from ``doc`` (cheap, deterministic), runs the
-    shard's pads as one batch (several when the memory estimate says they do not fit), streams the samples
-    into ``shard-NNNNN.h5.partial`` and renames it when done. ``overlap``: write the samples behind the run (a
-    :class:`ChunkWriter` thread) and take the device in turns (:class:`KernelTurn`), so that several tasks of one
-    process overlap their scenes and writes, and several processes on one GPU also their model builds, with each
-    other's kernels (``ctx`` overrides it, with a cancel event). Same results either way. Returns a summary for
-    the manifest, with the time per phase (``timings``, :data:`TIMING_DOC`).
+    This is the task a Dask worker runs; it rebuilds the spec from ``doc`` and makes the shard's scenes
+    (:func:`~aca_warp.sweep.prepare.prepare_shard`; cheap, deterministic), or takes them ``prepared`` ahead by a
+    :class:`~aca_warp.sweep.prepare.Preparer`; runs the shard's pads as one batch (several when the memory estimate
+    says they do not fit), streams the samples into ``shard-NNNNN.h5.partial`` and renames it when done.
+    ``overlap``: write the samples behind the run (a :class:`ChunkWriter` thread) and take the device in turns
+    (:class:`KernelTurn`), so that several tasks of one process overlap their scenes and writes, and several
+    processes on one GPU also their model builds, with each other's kernels (``ctx`` overrides it, with a cancel
+    event). Same results either way. Returns a summary for the manifest, with the time per phase (``timings``,
+    :data:`TIMING_DOC`).
     """
     import warp as wp
 
@@ -226,9 +243,13 @@ def run_shard(
     t_start = time.perf_counter()
     ctx.check()
     with clock("prepare"):
-        spec = _resolve(copy.deepcopy(doc), Path(base_dir), check=False)
-        pads = spec.shard_pads(index)
-        scenes = spec.scenes(pads)
+        if prepared is None:
+            prepared = prepare_shard(doc, base_dir, index)
+        else:
+            clock.add("prepare_ahead", prepared.seconds)
+        if prepared.index != index:
+            raise ValueError(f"shard {index} was handed the scenes of shard {prepared.index}")
+        spec, pads, scenes = prepared.spec, prepared.pads, prepared.scenes
         dev = wp.get_device(device)
         largest = max(scenes, key=lambda s: s.patches.count)
         cap = batch_capacity(largest, spec.precision, device, fraction=memory_fraction, sharing=sharing)
