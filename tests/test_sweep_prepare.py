@@ -160,3 +160,30 @@ def test_prepared_shards_on_dask(tmp_path: Path) -> None:
         client.close()
         cluster.close()
     assert np.isfinite(a["mu"]).all()
+
+
+def test_bench_script_runs_every_configuration(tmp_path: Path) -> None:
+    """scripts/bench_sweep.py on the CPU with tiny settings and this checkout as its own baseline: the new path
+    overlapped and sequential, the baseline overlapped, each in a process that imported the code it names; rates and
+    ratios from the shards' own timings."""
+    pytest.importorskip("distributed")
+    from scriptload import load_script
+
+    bench = load_script("bench_sweep")
+    repo = Path(bench.__file__).resolve().parent.parent
+    out, md = tmp_path / "b.json", tmp_path / "b.md"
+    argv = ["--device", "cpu", "--units", "1", "--pads", "8", "--patches", "12", "--shard-size", "4"]
+    argv += ["--duration", "3e-6", "--baseline", str(repo), "--prepare", "1", "--json", str(out), "--md", str(md)]
+    assert bench.main([*argv, "--dir", str(tmp_path / "w")]) == 0
+    doc = json.loads(out.read_text())
+    rows = {(r["code"], r["mode"]): r for r in doc["results"]}
+    assert set(rows) == {("new", "overlapped"), ("new", "sequential"), ("baseline", "overlapped")}
+    for r in rows.values():
+        assert r["patch_steps"] == 8 * 12 * 300 and r["package"].startswith(str(tmp_path / "w"))
+        assert r["in_shard_rate"] == pytest.approx(r["patch_steps"] / sum(s["kernel"] for s in r["shards"]))
+        assert r["wall_over_in_shard"] == pytest.approx(r["wall_rate"] / r["in_shard_rate"])
+        assert set(r["phase_median_s"]) == set(bench.PHASES) == set(r["phase_least_s"]) and r["runs"] == 1
+        assert r["phase_median_s"]["kernel"] > 0
+    new = rows[("new", "overlapped")]
+    assert new["prepare"] == 1 and new["phase_total_s"]["prepare_ahead"] > 0
+    assert len(md.read_text().splitlines()) == 1 and "baseline overlapped on 1 CPU worker" in md.read_text()
