@@ -24,22 +24,25 @@ over shards of ``timings.kernel`` (per GPU: each shard runs on one), wall rate /
 against the sequential reference's in-shard rate (target: ≥ 0.9 on one GPU), the speedup over the same code on the
 first of ``--units`` (target: ≥ 1.9 for two GPUs over one), and per phase of a shard task (prepare, prepare_ahead,
 build, setup, kernel, write, task) the median and the total over the shards (and, over repeated runs, the least of
-the medians: ``phase_least_s``, the host time per shard least disturbed by other work on a shared machine).
+the medians: ``phase_least_s``). Before the sweeps, per code, the host phases of one shard measured alone in one
+process (``--host-repeat`` times; :func:`host_phases`): the least wall time and the least CPU time of prepare, build
+and setup, which on a machine shared with other work say more than the sweeps' wall times.
 
 Two H100s (one GPU and two, the code before as baseline; a few minutes)::
 
     mkdir -p build/baseline && git archive <commit> aca_warp kernels | tar -x -C build/baseline
     NCCL_NVLS_ENABLE=0 python scripts/bench_sweep.py --device cuda --units 1 2 --baseline build/baseline
 
-CPU (the host time per shard before and after: 2 shards of 256 hf1 pads, 1 µs simulated, twice in turn)::
+CPU (the host time per shard before and after: 2 shards of 256 hf1 pads, 1 µs simulated, 3 times in turn)::
 
-    python scripts/bench_sweep.py --device cpu --units 1 --pads 512 --duration 1e-6 --repeat 2 --baseline build/baseline
+    python scripts/bench_sweep.py --device cpu --units 1 --pads 512 --duration 1e-6 --repeat 3 --baseline build/baseline
 """
 
 from __future__ import annotations
 
 import argparse
 import datetime
+import functools
 import inspect
 import json
 import os
@@ -77,8 +80,80 @@ def sweep_doc(
 # ----------------------------------------------------------------------------------------------------- child
 
 
+def host_phases(cfg: dict) -> dict:
+    """The host phases of one shard (shard 1 of the sweep) as a shard task has them, in this process, ``cfg["repeat"]``
+    times: the spec and scenes (``prepare``), ``build_model`` and ``initial_state`` (``build``), the run's set-up
+    before its first step (``setup``: checks, stable-step estimate, engine, launch layout); per phase the least wall
+    time and the least CPU time of this process over the repeats [s] (CPU time: the work itself, whatever else the
+    machine runs). The first repeat loads the kernels; the least is the steady state of a warm worker."""
+    import copy
+    import inspect
+
+    import warp as wp
+
+    import aca_warp
+    from aca_warp.common.devices import init_warp
+
+    init_warp()
+    from aca_warp.hf.engine import EngineTuning
+    from aca_warp.hf.loop import _Run
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.options import RunOptions
+    from aca_warp.hf.state import initial_state
+    from aca_warp.sweep import hf1_product_doc, load_spec
+    from aca_warp.sweep import spec as spec_module
+
+    args = (cfg["pads"], cfg["patches"], cfg["shard_size"])
+    spec = load_spec(sweep_doc(hf1_product_doc, *args, cfg["duration"], cfg["precision"]))
+    device = "cpu" if cfg["device"] == "cpu" else "cuda:0"
+    index = min(1, spec.shard_count - 1)
+    resolve = spec_module._resolve
+    unchecked = {"check": False} if "check" in inspect.signature(resolve).parameters else {}  # a task's resolve
+
+    def prepare() -> list:
+        s = resolve(copy.deepcopy(spec.doc), spec.base_dir, **unchecked)
+        a, b = s.shard_range(index)
+        return s.scenes(s.shard_pads(index)) if hasattr(s, "shard_pads") else s.scenes(a, b)
+
+    least: dict[str, list[float]] = {}
+
+    def build(scenes: list) -> tuple:
+        model = build_model(scenes, device=device, precision=spec.precision)
+        return model, initial_state(model)
+
+    def clock(phase: str, fn: Any) -> Any:
+        w, c = time.perf_counter(), time.process_time()
+        out = fn()
+        wp.synchronize_device(device)
+        w, c = time.perf_counter() - w, time.process_time() - c
+        got = least.setdefault(phase, [w, c])
+        got[:] = [min(got[0], w), min(got[1], c)]
+        return out
+
+    options = RunOptions(duration=spec.duration, integrator=spec.integrator, dt=spec.dt, tolerance=spec.tolerance)
+    for _ in range(cfg["repeat"]):
+        scenes = clock("prepare", prepare)
+        model, state = clock("build", functools.partial(build, scenes))
+        run = clock("setup", functools.partial(_Run, model, state, options, spec.base.record, EngineTuning(), None))
+        engine = type(run.engine).__name__
+        del run, model, state
+    return {
+        "code": cfg["code"],
+        "mode": "host",
+        "package": str(Path(aca_warp.__file__).parent),
+        "pads": len(scenes),
+        "engine": engine,
+        "repeats": cfg["repeat"],
+        "wall_s": {p: v[0] for p, v in least.items()},
+        "cpu_s": {p: v[1] for p, v in least.items()},
+    }
+
+
 def child(cfg: dict) -> dict:
-    """One configuration, in a process whose ``aca_warp`` is the code under test: cluster, warm-up, timed sweep."""
+    """One configuration, in a process whose ``aca_warp`` is the code under test: cluster, warm-up, timed sweep (or,
+    for mode ``host``, :func:`host_phases`)."""
+    if cfg["mode"] == "host":
+        return host_phases(cfg)
     import warp as wp
 
     import aca_warp
@@ -228,6 +303,13 @@ def markdown_line(doc: dict) -> str:
             f"{ph['build']:.2f}, setup {ph['setup']:.2f}, "
             f"kernel {ph['kernel']:.2f} s"
         )
+    for h in doc.get("host", []):
+        w, c = h["wall_s"], h["cpu_s"]
+        parts.append(
+            f"{h['code']}: host time per shard (least of {h['repeats']}, wall / CPU) prepare {w['prepare']:.2f} / "
+            f"{c['prepare']:.2f}, build {w['build']:.2f} / {c['build']:.2f}, setup {w['setup']:.2f} / "
+            f"{c['setup']:.2f} s"
+        )
     s = doc["sweep"]
     m = doc["machine"]
     where = m["device_name"] if doc["device"] == "cpu" else f"{m['device_name']} ({m['host']})"
@@ -251,6 +333,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--prepare", type=int, help="preparation processes of the new code (default: as aca-warp sweep)")
     ap.add_argument("--baseline", type=Path, help="a checkout of the code to compare against (e.g. the previous main)")
     ap.add_argument("--repeat", type=int, default=1, help="runs of every configuration, in turn (default 1)")
+    ap.add_argument(
+        "--host-repeat",
+        type=int,
+        default=3,
+        help="repeats of the host phases of one shard per code, in one process (default 3; 0: none)",
+    )
     ap.add_argument("--dir", type=Path, help="scratch folder (default: a temporary one, removed)")
     ap.add_argument("--json", default="bench_sweep.json", help="output JSON file")
     ap.add_argument("--md", default="bench_sweep.md", help="output Markdown file (one line)")
@@ -276,8 +364,16 @@ def main(argv: list[str] | None = None) -> int:
     scratch = Path(args.dir or tempfile.mkdtemp(prefix="aca_bench_sweep_"))
     scratch.mkdir(parents=True, exist_ok=True)
     codes = {"new": HERE.parent, "baseline": args.baseline}
-    runs = []
+    runs, hosts = [], []
     try:
+        for code in ("new", "baseline") if args.host_repeat else ():  # first: on an idle device
+            if codes[code] is not None:
+                cfg = {**configurations(args)[0], "code": code, "mode": "host", "repeat": args.host_repeat}
+                h = run_child(codes[code].resolve(), cfg, scratch)
+                hosts.append(h)
+                print(
+                    f"{code} host phases of a shard ({h['engine']}): wall {h['wall_s']}, CPU {h['cpu_s']}", flush=True
+                )
         for rep in range(args.repeat):  # in turn: a slow spell of a shared machine spreads over every configuration
             for cfg in configurations(args):
                 r = {**run_child(codes[cfg["code"]].resolve(), cfg, scratch), "run": rep + 1}
@@ -312,6 +408,7 @@ def main(argv: list[str] | None = None) -> int:
         },
         "results": rows,
         "runs": runs,
+        "host": hosts,
     }
     line = markdown_line(doc)
     Path(args.json).write_text(json.dumps(doc, indent=1))

@@ -184,6 +184,9 @@ def test_bench_script_runs_every_configuration(tmp_path: Path) -> None:
         assert r["wall_over_in_shard"] == pytest.approx(r["wall_rate"] / r["in_shard_rate"])
         assert set(r["phase_median_s"]) == set(bench.PHASES) == set(r["phase_least_s"]) and r["runs"] == 1
         assert r["phase_median_s"]["kernel"] > 0
+    hosts = {h["code"]: h for h in doc["host"]}
+    assert set(hosts) == {"new", "baseline"} and all(h["repeats"] == 3 and h["pads"] == 4 for h in hosts.values())
+    assert all(0 < h["cpu_s"][p] and 0 < h["wall_s"][p] for h in hosts.values() for p in ("prepare", "build", "setup"))
     new = rows[("new", "overlapped")]
     assert new["prepare"] == 1 and new["phase_total_s"]["prepare_ahead"] > 0
     assert len(md.read_text().splitlines()) == 1 and "baseline overlapped on 1 CPU worker" in md.read_text()
