@@ -48,7 +48,7 @@ class Work:
 
     def __init__(self) -> None:
         self.spec = load_spec(SPEC, base_dir=Path.cwd())
-        self.scenes = self.spec.scenes(0, self.spec.pad_count)
+        self.scenes = self.spec.scenes(range(self.spec.pad_count))
         s = self.spec
         self.options = RunOptions(duration=s.duration, integrator=s.integrator, dt=s.dt, tolerance=s.tolerance)
         self.built = [self.build(i) for i in range(len(self.scenes))]

@@ -23,7 +23,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from aca_warp.cli import main
-from aca_warp.scene import _TABLES
+from aca_warp.scene.files import _TABLES
 
 REPO = Path(__file__).resolve().parent.parent
 FUZZ = settings(

@@ -96,7 +96,7 @@ def test_pad_equals_hand_built_scene() -> None:
     )
     m = build_model([hand], precision="fp32")
     res = run_hf(m, initial_state(m), RunOptions(duration=4e-6, integrator="strang"), record=hand.record)
-    mb = build_model(s.scenes(9, 12), precision="fp32")
+    mb = build_model(s.scenes(range(9, 12)), precision="fp32")
     rb = run_hf(mb, initial_state(mb), RunOptions(duration=4e-6, integrator="strang"), record=hand.record)
     np.testing.assert_allclose(rb.collect().globals[:, 0], res.collect().globals[:, 0], rtol=1e-6, atol=0)
 

@@ -129,6 +129,8 @@ class EngineSetup:
         record: What and how often to record.
         n_samples: Sample intervals of the run.
         tuning: Engine settings that do not change results.
+        estimate: The model's stable-step estimate when the run has it already (it reads every link of the batch),
+            else None (the engine's solver computes it).
     """
 
     model: PadModel
@@ -137,3 +139,4 @@ class EngineSetup:
     record: Record
     n_samples: int
     tuning: EngineTuning
+    estimate: StepEstimate | None = None

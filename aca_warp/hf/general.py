@@ -88,7 +88,9 @@ class GeneralEngine:
         self.model, self.state, self.record, self.n_samples = model, state, record, n_samples
         self.use_graph = tuning.use_graph
         integrator = options.integrator
-        self.solver = HFSolver(model, integrator, options.dt, force=options.force, tolerance=options.tolerance)
+        self.solver = HFSolver(
+            model, integrator, options.dt, force=options.force, tolerance=options.tolerance, estimate=setup.estimate
+        )
         self.estimate = self.solver.estimate
         self.adaptive = integrator == "adaptive"
         growing = "pad_growth" in model.arrays

@@ -64,8 +64,12 @@ def links_lower_bound(x: np.ndarray, y: np.ndarray, pad_of: np.ndarray, radius: 
     # cell indices, clipped so that a huge coordinate over a tiny cell cannot overflow int64
     kx = np.clip(np.floor(xs / cell), 0, 2.0**40).astype(np.int64)
     ky = np.clip(np.floor(ys / cell), 0, 2.0**40).astype(np.int64)
-    keys = np.stack([np.asarray(pad_of)[ok].astype(np.int64), kx, ky], axis=1)
-    _, counts = np.unique(keys, axis=0, return_counts=True)
+    pads = np.asarray(pad_of)[ok].astype(np.int64)
+    nx, ny = int(kx.max()) + 1, int(ky.max()) + 1
+    if (int(pads.max()) + 1) * nx * ny < 2**62:  # one int64 key per cell: a 1-D sort (a row-wise unique is ~20× slower)
+        _, counts = np.unique((pads * nx + kx) * ny + ky, return_counts=True)
+    else:
+        _, counts = np.unique(np.stack([pads, kx, ky], axis=1), axis=0, return_counts=True)
     counts = counts.astype(np.int64)
     return int(np.sum(counts * (counts - 1)))
 

@@ -84,12 +84,19 @@ class RunResult:
 
 
 def make_engine(
-    model: PadModel, state: HFState, options: RunOptions, record: Record, n_samples: int, tuning: EngineTuning
+    model: PadModel,
+    state: HFState,
+    options: RunOptions,
+    record: Record,
+    n_samples: int,
+    tuning: EngineTuning,
+    estimate: StepEstimate | None = None,
 ) -> Engine:
-    """The engine ``options.engine`` resolves to (:func:`~aca_warp.hf.onchip.choose_engine`)."""
+    """The engine ``options.engine`` resolves to (:func:`~aca_warp.hf.onchip.choose_engine`); ``estimate``: the model's
+    stable-step estimate, if known (else the engine computes it)."""
     from aca_warp.hf.onchip_layout import choose_engine
 
-    setup = EngineSetup(model, state, options, record, n_samples, tuning)
+    setup = EngineSetup(model, state, options, record, n_samples, tuning, estimate)
     if choose_engine(model, options.engine, options.integrator) == "onchip":
         if options.integrator == "adaptive":
             from aca_warp.hf.onchip_adaptive import OnchipAdaptiveEngine
@@ -189,10 +196,10 @@ class _Run:
         self.options = options = options.with_duration(duration)
         # the step (as the run takes it), the int32 step counts and the contact solution, checked once here for
         # every engine; the engines then skip their own check of the step asked for (it is not the step they take)
-        check_step(model, options, record.sample_dt)
+        estimate = check_step(model, options, record.sample_dt)
         check_contact(model, accept=options.accept_unphysical)
         engine_options = dataclasses.replace(options, force=True)
-        self.engine = make_engine(model, state, engine_options, record, self.n_samples, tuning)
+        self.engine = make_engine(model, state, engine_options, record, self.n_samples, tuning, estimate)
         self.rec = rec = self.engine.recorder
         self.mu_bound = mu_bounds(model)
         factor = options.watchdog_factor

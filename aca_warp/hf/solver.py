@@ -132,9 +132,10 @@ def stable_step(model: PadModel) -> StepEstimate:
     start, index, kij = coupling_matrix(model)
     n = model.patch_count
     m = 1.0 / model.host("inv_mass").astype(np.float64)
-    rows = np.repeat(np.arange(n), np.diff(start))
+    deg = np.diff(start)
+    rows = np.repeat(np.arange(n), deg)
     ksum = np.bincount(rows, kij, minlength=n)
-    off = np.bincount(rows, kij / np.sqrt(m[rows] * m[index]), minlength=n) if len(kij) else np.zeros(n)
+    off = np.bincount(rows, kij / np.sqrt(np.repeat(m, deg) * m[index]), minlength=n) if len(kij) else np.zeros(n)
     w2 = (model.host("k_t").astype(np.float64) + ksum) / m + off
     slope = np.array([s.friction.max_slope() for s in model.scenes])[model.host("patch_pad")]
     gamma = (model.host("damping").astype(np.float64) + model.host("normal_force").astype(np.float64) * slope) / m
@@ -224,7 +225,10 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
 
 
 class HFSolver:
-    """Launch wrappers of one integrator for a model; ``step`` advances all pads by one fixed step."""
+    """Launch wrappers of one integrator for a model; ``step`` advances all pads by one fixed step.
+
+    ``estimate``: the model's :func:`stable_step`, when the caller has it already (it reads every link of the batch).
+    """
 
     def __init__(
         self,
@@ -234,12 +238,13 @@ class HFSolver:
         *,
         force: bool = False,
         tolerance: float = DEFAULT_TOLERANCE,
+        estimate: StepEstimate | None = None,
     ) -> None:
         if integrator not in INTEGRATORS:
             raise SceneError(f"unknown integrator {integrator!r}; choose from {', '.join(INTEGRATORS)}")
         self.model = model
         self.integrator = integrator
-        self.estimate = stable_step(model)
+        self.estimate = stable_step(model) if estimate is None else estimate
         self.T = model.dtype
         self.newton_tol = self.T(1.0e-6 if self.T == wp.float32 else 1.0e-9)  # of the velocity increment
         if integrator == "adaptive":

@@ -29,10 +29,10 @@ from aca_warp.scene import (
     Pad,
     Patches,
     PatchGenerator,
-    _finite,
     check_numbers_plausible,
     check_pad_plausible,
 )
+from aca_warp.scene.parts import _finite
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -57,12 +57,14 @@ from aca_warp.sweep.spec import (
     MAX_PADS,
     MAX_STEPS,
     MODES,
+    PACKINGS,
     PARAMETERS,
     SweepError,
     SweepSpec,
     apply_parameters,
     hf1_product_doc,
     load_spec,
+    pack_order,
 )
 
 __all__ = [
@@ -73,6 +75,7 @@ __all__ = [
     "MAX_PADS",
     "MAX_STEPS",
     "MODES",
+    "PACKINGS",
     "PARAMETERS",
     "PIPELINE_DEPTH",
     "SHARD_STATES",
@@ -94,6 +97,7 @@ __all__ = [
     "device_memory",
     "load_spec",
     "load_sweep",
+    "pack_order",
     "local_cluster",
     "pad_bytes",
     "prepare_dir",

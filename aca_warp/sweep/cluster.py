@@ -11,12 +11,16 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import time
 import uuid
+from collections import deque
+from collections.abc import Callable
 from typing import Any
 
 from aca_warp.common.links import private_dir
 from aca_warp.sweep.manifest import _Book, _one_line
 from aca_warp.sweep.overlap import ShardCancelled, ShardContext, stop_event, stop_sweep
+from aca_warp.sweep.prepare import PreparedShard, Preparer
 from aca_warp.sweep.shard import run_shard
 from aca_warp.sweep.spec import SweepError
 
@@ -163,10 +167,12 @@ def _run_on_dask(
     client: Any,
     memory_fraction: float,
     overlap: bool,
+    preparer: Preparer | None = None,
 ) -> None:
-    """Run ``book.todo`` as Dask tasks (a local cluster, a scheduler's, or ``client``'s)."""
+    """Run ``book.todo`` as Dask tasks (a local cluster, a scheduler's, or ``client``'s); ``preparer``: the shards'
+    scenes made ahead and sent with the tasks (:func:`_feed`)."""
     try:
-        from distributed import Client, as_completed
+        from distributed import Client
     except ImportError:
         raise SweepError(
             "Dask is not installed: pip install 'aca-warp[sweep]' (or dask[distributed]), or run with --workers 0"
@@ -198,7 +204,8 @@ def _run_on_dask(
         book.result.workers = len(client.scheduler_info(n_workers=-1)["workers"])
         book.say(f"running {len(book.todo)} shard(s) on {book.result.workers} Dask worker(s), device {worker_device}")
         spec_hash = book.manifest["spec_hash"]
-        for i in book.todo:
+
+        def submit(i: int, prepared: PreparedShard | None) -> Any:
             fut = client.submit(
                 shard_task,
                 *args,
@@ -208,20 +215,14 @@ def _run_on_dask(
                 sharing=sharing,
                 overlap=overlap,
                 token=token,
+                prepared=prepared,
                 key=f"shard-{spec_hash[:12]}-{i}",
                 pure=False,
             )
             futures[fut] = i
-        book.queued(book.todo)
-        for fut in as_completed(list(futures)):
-            i = futures[fut]
-            try:
-                summary = fut.result()
-            except Exception as e:  # a worker died (KilledWorker) or the shard raised: record, go on
-                book.failed(i, _one_line(e))
-                continue
-            if summary["state"] != "interrupted":  # (stopped by another client's stop_sweep: left to book.stopped)
-                book.done(i, summary)
+            return fut
+
+        _feed(book, submit, preparer, window=2 * book.result.workers)
     except BaseException:  # KeyboardInterrupt: stop the tasks, mark the shards that were running, close quietly
         interrupted = True
         if client is None:
@@ -244,6 +245,7 @@ def shard_task(
     sharing: int,
     overlap: bool,
     token: str,
+    prepared: PreparedShard | None = None,
 ) -> dict:
     """:func:`~aca_warp.sweep.shard.run_shard` as a Dask task that :func:`~aca_warp.sweep.overlap.stop_sweep`
     (``token``) stops at its next chunk or phase: its ``.partial`` is deleted and ``{"index", "state":
@@ -251,10 +253,62 @@ def shard_task(
     ctx = ShardContext(overlap=overlap, cancel=stop_event(token))
     try:
         return run_shard(
-            doc, base_dir, out_dir, index, device, memory_fraction=memory_fraction, sharing=sharing, ctx=ctx
+            doc,
+            base_dir,
+            out_dir,
+            index,
+            device,
+            memory_fraction=memory_fraction,
+            sharing=sharing,
+            ctx=ctx,
+            prepared=prepared,
         )
     except ShardCancelled:
         return {"index": index, "state": "interrupted"}
+
+
+def _feed(
+    book: _Book, submit: Callable[[int, PreparedShard | None], Any], preparer: Preparer | None, window: int
+) -> None:
+    """Hand ``book.todo`` to Dask in order (``submit``) and record the tasks as they finish.
+
+    Without a ``preparer`` every shard is submitted at once (its task makes its own scenes). With one, a shard is
+    submitted with its prepared scenes once they are ready and fewer than ``window`` of its tasks are unfinished (so
+    that prepared shards wait in the pool's results, not in the cluster's memory); a shard whose preparation raised
+    (or whose pool process died) is recorded failed, not submitted."""
+    from distributed import as_completed
+
+    todo = deque(book.todo)
+    index: dict[Any, int] = {}
+    running = as_completed()
+    if preparer is not None:
+        preparer.plan(book.todo)
+    while todo or not running.is_empty():
+        handed = []
+        while todo and (preparer is None or (running.count() < window and preparer.poll(todo[0]))):
+            i = todo.popleft()
+            try:
+                prepared = None if preparer is None else preparer.get(i)
+            except Exception as e:  # noqa: BLE001  (recorded as the shard's failure)
+                book.failed(i, _one_line(e))
+                continue
+            fut = submit(i, prepared)
+            index[fut] = i
+            running.add(fut)
+            handed.append(i)
+        if handed:
+            book.queued(handed)
+        finished = [] if running.is_empty() else running.next_batch(block=not todo)
+        for fut in finished:
+            try:
+                summary = fut.result()
+            except Exception as e:  # a worker died (KilledWorker) or the shard raised: record, go on
+                book.failed(index[fut], _one_line(e))
+                continue
+            if summary["state"] != "interrupted":  # (stopped by another client's stop_sweep: left to book.stopped)
+                book.done(index[fut], summary)
+        if todo and not handed and not finished:
+            time.sleep(0.02)  # a preparation, or room in the window, to wait for
 
 
 STOP_WAIT_S = 60.0  # how long a stopped sweep waits for its running tasks to reach their next chunk [s]

@@ -81,6 +81,13 @@ def add_parsers(sub: Any) -> None:
         help="the serial path: one worker per GPU, one shard at a time per worker, writes inline (same results); "
         "default: model builds and writes overlap the kernels (docs/sweeps.md)",
     )
+    p.add_argument(
+        "--prepare",
+        type=int_at_least(0),
+        metavar="N",
+        help="processes that make the shards' scenes ahead of their runs (default: 2 per GPU of a local CUDA sweep, "
+        "else 0: each shard task makes its own)",
+    )
     p.add_argument("--quiet", action="store_true", help="print only the summary")
     p.set_defaults(handler=_cmd_sweep)
 
@@ -131,6 +138,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
                 memory_fraction=args.memory_fraction,
                 log=log,
                 overlap=args.overlap,
+                prepare=args.prepare,
             )
     except KeyboardInterrupt as e:
         print(_interrupted_line(args.output, e), file=sys.stderr, flush=True)

@@ -114,6 +114,7 @@ def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False
         "base_dir": str(spec.base_dir),
         "pads": spec.pad_count,
         "shard_size": spec.shard_size,
+        "pad_order": "spec" if spec.order is None else "patch_count",
         "parameters": list(spec.parameters),
         "run": spec.run_settings(),
         "shards": shards,
@@ -232,7 +233,8 @@ class _Book:
 
 
 def load_sweep(out_dir: str | Path) -> dict[str, Any]:
-    """Read every finished shard of a sweep directory into one dict, pads in global order.
+    """Read every finished shard of a sweep directory into one dict, pads in global order (rows placed by each
+    file's ``/pads/index``: shards of pads packed by size hold pads from all over the sweep).
 
     Keys: ``time`` (samples,) [s] of the first shard, the global outputs (pads, samples), ``parameters``
     (key -> (pads,)), ``pad_index`` (pads,), ``manifest``. Shards with different sample counts (a fault) are
@@ -273,9 +275,10 @@ def load_sweep(out_dir: str | Path) -> dict[str, Any]:
     def pad_cols(a: np.ndarray) -> np.ndarray:
         return a if a.shape[1] == width else np.pad(a, ((0, 0), (0, width - a.shape[1])), constant_values=np.nan)
 
+    order = np.argsort(np.concatenate([p["pad_index"] for p in parts]), kind="stable")
     out: dict[str, Any] = {"time": max((p["time"] for p in parts), key=len), "manifest": manifest}
     for k in GLOBAL_NAMES:
-        out[k] = np.concatenate([pad_cols(p[k]) for p in parts])
-    out["parameters"] = {k: np.concatenate([p["parameters"][k] for p in parts]) for k in parts[0]["parameters"]}
-    out["pad_index"] = np.concatenate([p["pad_index"] for p in parts])
+        out[k] = np.concatenate([pad_cols(p[k]) for p in parts])[order]
+    out["parameters"] = {k: np.concatenate([p["parameters"][k] for p in parts])[order] for k in parts[0]["parameters"]}
+    out["pad_index"] = np.concatenate([p["pad_index"] for p in parts])[order]
     return out

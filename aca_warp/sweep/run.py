@@ -3,12 +3,14 @@
 :func:`run_sweep` holds the directory's lock, prepares the manifest and hands the shards to one of three paths:
 :func:`_run_in_process` (one shard after another), :func:`_run_in_process_overlapped` (:data:`PIPELINE_DEPTH`
 shard tasks in threads: one steps while the next prepares its scenes and file, samples written behind the run), or
-:func:`~aca_warp.sweep.cluster._run_on_dask`. A ``KeyboardInterrupt`` stops the shards in flight, marks them
-``interrupted`` and is raised again.
+:func:`~aca_warp.sweep.cluster._run_on_dask`; on every path a :class:`~aca_warp.sweep.prepare.Preparer` may make the
+shards' scenes ahead in a pool of processes (:func:`prepare_processes`). A ``KeyboardInterrupt`` stops the shards in
+flight, marks them ``interrupted`` and is raised again.
 """
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -16,9 +18,10 @@ from pathlib import Path
 from typing import Any
 
 from aca_warp.common.errors import StorageError
-from aca_warp.sweep.cluster import _have_dask, _run_on_dask, cuda_ordinals
+from aca_warp.sweep.cluster import WORKERS_PER_GPU, _have_dask, _run_on_dask, cuda_ordinals
 from aca_warp.sweep.manifest import MANIFEST, SweepResult, _Book, _one_line, prepare_dir
 from aca_warp.sweep.overlap import ShardCancelled, ShardContext
+from aca_warp.sweep.prepare import Preparer
 from aca_warp.sweep.shard import run_shard, shard_name
 from aca_warp.sweep.spec import SweepError, SweepSpec
 
@@ -35,6 +38,7 @@ def run_sweep(
     log: Callable[[str], None] | None = None,
     client: Any = None,
     overlap: bool = True,
+    prepare: int | None = None,
 ) -> SweepResult:
     """Run every unfinished shard of ``spec`` into ``out_dir``.
 
@@ -45,7 +49,9 @@ def run_sweep(
     :func:`local_cluster`). ``overlap`` (default): file writes, and on Dask model builds, overlap the kernels (in this
     process: :data:`PIPELINE_DEPTH` shard tasks in threads, each one's Warp work in its turn; on Dask: two worker
     processes per GPU; both: a writer thread per shard and the device taken in turns, :class:`KernelTurn`); False:
-    the serial path, same results bit for bit. The manifest is updated as shards finish. A ``KeyboardInterrupt``
+    the serial path, same results bit for bit. ``prepare``: processes that make the shards' scenes ahead of their
+    tasks (:mod:`aca_warp.sweep.prepare`; 0: each task makes its own; None: :func:`prepare_processes`), same results
+    bit for bit. The manifest is updated as shards finish. A ``KeyboardInterrupt``
     (Ctrl-C, or SIGTERM as the CLI maps it) stops the shards in flight, marks them ``interrupted`` in the manifest
     (the next call runs them) and is raised again.
     """
@@ -69,26 +75,50 @@ def run_sweep(
             if workers is None and scheduler is None and client is None and not _have_dask():
                 say("Dask is not installed (pip install 'aca-warp[sweep]'): running the shards in this process")
                 workers = 0
-            if workers == 0 and scheduler is None and client is None:
-                dev = device if device == "cpu" else f"cuda:{cuda_ordinals(device)[0]}"
-                run = _run_in_process_overlapped if overlap else _run_in_process
-                run(book, args, dev, memory_fraction)
-            else:
-                _run_on_dask(book, args, device, workers, scheduler, client, memory_fraction, overlap)
+            local = scheduler is None and client is None
+            processes = prepare_processes(device, workers, local) if prepare is None else prepare
+            preparer = Preparer(*args[:2], processes, ahead=2 * processes) if processes > 0 else None
+            try:
+                if workers == 0 and local:
+                    dev = device if device == "cpu" else f"cuda:{cuda_ordinals(device)[0]}"
+                    run = _run_in_process_overlapped if overlap else _run_in_process
+                    run(book, args, dev, memory_fraction, preparer)
+                else:
+                    _run_on_dask(book, args, device, workers, scheduler, client, memory_fraction, overlap, preparer)
+            finally:
+                if preparer is not None:
+                    preparer.close()
         book.result.ran.sort()
         book.result.wall_time = time.perf_counter() - t0
         return book.result
 
 
-def _run_in_process(book: _Book, args: tuple, dev: str, memory_fraction: float) -> None:
-    """The serial path: one shard after another in this thread."""
+PREPARE_PER_GPU = 2  # default preparation processes per GPU of a local sweep (prepare_processes)
+
+
+def prepare_processes(device: str, workers: int | None, local: bool) -> int:
+    """Default size of the preparation pool: on CUDA :data:`PREPARE_PER_GPU` per GPU of a local sweep (a cluster
+    this call starts, or this process), at most the cores its workers leave; 0 (each task makes its own scenes) on
+    the CPU, whose cores the workers use, and with a scheduler or client given (their hosts are not known here)."""
+    if device == "cpu" or not local:
+        return 0
+    gpus = len(cuda_ordinals(device))
+    busy = gpus * WORKERS_PER_GPU if workers is None else workers
+    return max(1, min(PREPARE_PER_GPU * gpus, (os.cpu_count() or 1) - busy - 1))
+
+
+def _run_in_process(book: _Book, args: tuple, dev: str, memory_fraction: float, preparer: Preparer | None) -> None:
+    """The serial path: one shard after another in this thread (``preparer``: scenes made ahead)."""
     running: set[int] = set()
+    if preparer is not None:
+        preparer.plan(book.todo)
     try:
         for i in book.todo:
             running = {i}
             book.queued([i])
             try:
-                summary = run_shard(*args, i, dev, memory_fraction=memory_fraction)
+                prepared = None if preparer is None else preparer.get(i)
+                summary = run_shard(*args, i, dev, memory_fraction=memory_fraction, prepared=prepared)
             except StorageError as e:  # the device is full: the other shards would fail the same way
                 book.failed(i, _one_line(e))
                 book.stopped(set())
@@ -106,8 +136,11 @@ def _run_in_process(book: _Book, args: tuple, dev: str, memory_fraction: float) 
 PIPELINE_DEPTH = 2  # shard tasks at a time in one process (overlapped path): one runs, one prepares and writes
 
 
-def _run_in_process_overlapped(book: _Book, args: tuple, dev: str, memory_fraction: float) -> None:
-    """The overlapped path in this process: :data:`PIPELINE_DEPTH` shard tasks in threads, kernels in turns."""
+def _run_in_process_overlapped(
+    book: _Book, args: tuple, dev: str, memory_fraction: float, preparer: Preparer | None
+) -> None:
+    """The overlapped path in this process: :data:`PIPELINE_DEPTH` shard tasks in threads, kernels in turns
+    (``preparer``: scenes made ahead)."""
     from concurrent.futures import ThreadPoolExecutor, as_completed, wait
 
     cancel = threading.Event()
@@ -116,8 +149,11 @@ def _run_in_process_overlapped(book: _Book, args: tuple, dev: str, memory_fracti
 
     def task(i: int) -> dict:
         started.add(i)
-        return run_shard(*args, i, dev, memory_fraction=memory_fraction, ctx=ctx)
+        prepared = None if preparer is None else preparer.get(i, cancel)
+        return run_shard(*args, i, dev, memory_fraction=memory_fraction, ctx=ctx, prepared=prepared)
 
+    if preparer is not None:
+        preparer.plan(book.todo)
     book.queued(book.todo)
     pool = ThreadPoolExecutor(max_workers=PIPELINE_DEPTH, thread_name_prefix="aca-warp-shard")
     futures = {pool.submit(task, i): i for i in book.todo}

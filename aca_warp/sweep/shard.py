@@ -9,7 +9,6 @@ a finished shard file from one to run again.
 from __future__ import annotations
 
 import contextlib
-import copy
 import json
 import math
 import os
@@ -23,7 +22,8 @@ import numpy as np
 
 from aca_warp.scene import Scene
 from aca_warp.sweep.overlap import ChunkWriter, KernelTurn, ShardCancelled, ShardContext
-from aca_warp.sweep.spec import FORMAT, PARAMETERS, SweepSpec, _resolve
+from aca_warp.sweep.prepare import PreparedShard, prepare_shard
+from aca_warp.sweep.spec import FORMAT, PARAMETERS, SweepSpec
 
 # -------------------------------------------------------------------------------------------- memory
 
@@ -88,9 +88,23 @@ class _Clock:
             self.add(phase, time.perf_counter() - t)
 
 
-TIMING_PHASES = ("prepare", "build", "setup", "kernel", "sink", "write", "turn_wait", "write_wait", "close", "task")
+TIMING_PHASES = (
+    "prepare",
+    "prepare_ahead",
+    "build",
+    "setup",
+    "kernel",
+    "sink",
+    "write",
+    "turn_wait",
+    "write_wait",
+    "close",
+    "task",
+)
 TIMING_DOC = """Seconds per phase of a shard task:
-prepare: the spec and the shard's scenes; build: build_model and initial_state (contact solve, neighbour lists,
+prepare: the spec and the shard's scenes (taken as prepared ahead: almost nothing) and the memory estimate;
+prepare_ahead: present when a preparation pool made the spec and scenes before the task began, the time it took
+there (not part of the task); build: build_model and initial_state (contact solve, neighbour lists,
 device arrays); setup: run_hf before its first step (checks, engine, launch layout; RunResult.compile_time);
 kernel: the run loop less the time in the sink (steps, recording, flushing to the host); sink: time inside the
 sink (serial: the HDF5 writes; overlapped: handing chunks to the writer, and the wait for the GPU's turn);
@@ -113,6 +127,7 @@ def _create_shard_file(
     from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS
 
     start, stop = spec.shard_range(index)
+    pads = spec.shard_pads(index)
     n = stop - start
     f = create_h5(tmp, lock)
     out = GuardedFile(f, partial)
@@ -145,13 +160,13 @@ def _create_shard_file(
             d.attrs["unit"] = unit
         pg = f.create_group("parameters")
         for key, vals in spec.parameters.items():
-            v = vals[start:stop]
+            v = [vals[p] for p in pads]
             data = np.array(v, dtype=h5py.string_dtype()) if key == "initial.state" else np.asarray(v)
             out.reserve(data.nbytes)
             pg.create_dataset(key, data=data).attrs["unit"] = PARAMETERS[key][0]
-        pads = f.create_group("pads")
-        pads.create_dataset("index", data=np.arange(start, stop, dtype=np.int64))
-        pads.create_dataset("patch_count", data=np.array([s.patches.count for s in scenes], dtype=np.int64))
+        group = f.create_group("pads")
+        group.create_dataset("index", data=pads)
+        group.create_dataset("patch_count", data=np.array([s.patches.count for s in scenes], dtype=np.int64))
         out.flush()
         os.replace(tmp, partial)  # readable from the moment it has this name
     except BaseException:
@@ -203,16 +218,19 @@ def run_shard(
     sharing: int = 1,
     overlap: bool = False,
     ctx: ShardContext | None = None,
+    prepared: PreparedShard | None = None,
 ) -> dict:
     """Run shard ``index`` of the spec ``doc`` (already resolved, overrides applied) and write its file.
 
-    This is the task a Dask worker runs; it rebuilds the spec from ``doc`` (cheap, deterministic), runs the
-    shard's pads as one batch (several when the memory estimate says they do not fit), streams the samples
-    into ``shard-NNNNN.h5.partial`` and renames it when done. ``overlap``: write the samples behind the run (a
-    :class:`ChunkWriter` thread) and take the device in turns (:class:`KernelTurn`), so that several tasks of one
-    process overlap their scenes and writes, and several processes on one GPU also their model builds, with each
-    other's kernels (``ctx`` overrides it, with a cancel event). Same results either way. Returns a summary for
-    the manifest, with the time per phase (``timings``, :data:`TIMING_DOC`).
+    This is the task a Dask worker runs; it rebuilds the spec from ``doc`` and makes the shard's scenes
+    (:func:`~aca_warp.sweep.prepare.prepare_shard`; cheap, deterministic), or takes them ``prepared`` ahead by a
+    :class:`~aca_warp.sweep.prepare.Preparer`; runs the shard's pads as one batch (several when the memory estimate
+    says they do not fit), streams the samples into ``shard-NNNNN.h5.partial`` and renames it when done.
+    ``overlap``: write the samples behind the run (a :class:`ChunkWriter` thread) and take the device in turns
+    (:class:`KernelTurn`), so that several tasks of one process overlap their scenes and writes, and several
+    processes on one GPU also their model builds, with each other's kernels (``ctx`` overrides it, with a cancel
+    event). Same results either way. Returns a summary for the manifest, with the time per phase (``timings``,
+    :data:`TIMING_DOC`).
     """
     import warp as wp
 
@@ -225,11 +243,16 @@ def run_shard(
     t_start = time.perf_counter()
     ctx.check()
     with clock("prepare"):
-        spec = _resolve(copy.deepcopy(doc), Path(base_dir))
-        start, stop = spec.shard_range(index)
-        scenes = spec.scenes(start, stop)
+        if prepared is None:
+            prepared = prepare_shard(doc, base_dir, index)
+        else:
+            clock.add("prepare_ahead", prepared.seconds)
+        if prepared.index != index:
+            raise ValueError(f"shard {index} was handed the scenes of shard {prepared.index}")
+        spec, pads, scenes = prepared.spec, prepared.pads, prepared.scenes
         dev = wp.get_device(device)
-        cap = batch_capacity(scenes[0], spec.precision, device, fraction=memory_fraction, sharing=sharing)
+        largest = max(scenes, key=lambda s: s.patches.count)
+        cap = batch_capacity(largest, spec.precision, device, fraction=memory_fraction, sharing=sharing)
     final = Path(out_dir) / shard_name(index)
     partial = final.with_name(final.name + ".partial")
     n_samples = max(1, round(spec.duration / spec.base.record.sample_dt)) + 1
@@ -241,9 +264,9 @@ def run_shard(
         ctx.check()
         with clock("write"):
             f, out = _create_shard_file(tmp, partial, lock, spec, index, scenes, dev, n_samples)
-        write = _chunk_writer(f, out, stop - start)
+        write = _chunk_writer(f, out, len(pads))
         writer = ChunkWriter(write) if ctx.overlap else None
-        run = _run_batches(spec, scenes, dev, cap, ctx, clock, turn, writer.put if writer else write, start)
+        run = _run_batches(spec, scenes, dev, cap, ctx, clock, turn, writer.put if writer else write, pads)
         _end_run(turn, writer, clock)
         clock.add("task", time.perf_counter() - t_start)
         timings = {**clock.s, "run_start": run["run_start"], "run_end": run["run_end"]}
@@ -318,10 +341,11 @@ def _run_batches(
     clock: _Clock,
     turn: KernelTurn | None,
     emit: Callable[[tuple[int, int, Any]], None],
-    pad_start: int,
+    pads: np.ndarray,
 ) -> dict:
-    """Build and run the shard's pads in batches of at most ``cap``; every recorded chunk goes to ``emit`` as
-    ``(b0, b1, chunk)``. Returns the run's attributes for the file and its figures for the summary."""
+    """Build and run the shard's pads (global indices ``pads``) in batches of at most ``cap``; every recorded chunk
+    goes to ``emit`` as ``(b0, b1, chunk)``. Returns the run's attributes for the file and its figures for the
+    summary."""
     steps, wall, compile_time, batches = 0, 0.0, 0.0, 0
     engines: set[str] = set()
     fault = None
@@ -339,7 +363,7 @@ def _run_batches(
         compile_time += res.compile_time
         dt_used = res.dt
         if res.fault is not None:
-            fault = f"pads {pad_start + b0}..{pad_start + b1 - 1}: {res.fault}"
+            fault = f"pads {_pad_list(pads[b0:b1])}: {res.fault}"
             break
     attrs = {
         "complete": fault is None,
@@ -361,6 +385,14 @@ def _run_batches(
         "run_start": run_start,
         "run_end": run_end,
     }
+
+
+def _pad_list(pads: np.ndarray) -> str:
+    """Global pad indices in words: ``a..b`` for a run of consecutive ones, else a list (the first 8)."""
+    if np.all(np.diff(pads) == 1):
+        return f"{pads[0]}..{pads[-1]}"
+    shown = ", ".join(str(p) for p in pads[:8])
+    return shown + (f", ... ({len(pads)} pads)" if len(pads) > 8 else "")
 
 
 def _run_batch(

@@ -44,7 +44,8 @@ else:  # pragma: no cover
 FORMAT = "aca_warp.sweep/1"
 MODES = ("product", "zip")
 DEFAULT_SHARD_SIZE = 64
-_SWEEP_KEYS = ("name", "base", "mode", "shard_size")
+PACKINGS = ("size", "none")
+_SWEEP_KEYS = ("name", "base", "mode", "shard_size", "pack")
 _RUN_KEYS = ("duration", "integrator", "precision", "dt", "tolerance", "sample_dt")
 
 # Parameters a sweep may vary: key -> (unit, kind); kind says how the value is applied to the base scene.
@@ -169,6 +170,10 @@ class SweepSpec:
         parameters: Parameter values per pad, key -> list of length ``pad_count`` (order of the spec).
         mode: ``"product"`` or ``"zip"``.
         shard_size: Pads per shard.
+        pack: How pads are cut into shards: ``"size"`` (default: by patch count, so that a shard's pads are alike)
+            or ``"none"`` (in the spec's order).
+        order: The pads in the order shards take them (global pad indices, shape (pads,)), or None for the spec's
+            order (``pack = "none"``, or every pad of the same patch count).
         duration: Simulated duration of every pad [s].
         integrator, precision, dt, tolerance: Solver settings (as ``run_hf``).
     """
@@ -186,6 +191,8 @@ class SweepSpec:
     precision: str
     dt: float | None
     tolerance: float
+    pack: str = "size"
+    order: np.ndarray | None = field(default=None, repr=False)
     _hash: str = field(default="", repr=False)
 
     @property
@@ -199,9 +206,15 @@ class SweepSpec:
         return math.ceil(self.pad_count / self.shard_size)
 
     def shard_range(self, index: int) -> tuple[int, int]:
-        """[start, stop) global pad indices of shard ``index``."""
+        """[start, stop) positions of shard ``index`` in the order shards take the pads (:attr:`order`; the global pad
+        indices themselves when pads are not reordered)."""
         a = index * self.shard_size
         return a, min(a + self.shard_size, self.pad_count)
+
+    def shard_pads(self, index: int) -> np.ndarray:
+        """Global indices of the pads of shard ``index``, in the shard's (and its file's) row order, int64."""
+        a, b = self.shard_range(index)
+        return np.arange(a, b, dtype=np.int64) if self.order is None else self.order[a:b]
 
     @property
     def hash(self) -> str:
@@ -214,6 +227,8 @@ class SweepSpec:
                 "run": self.run_settings(),
                 "shard_size": self.shard_size,
             }
+            if self.order is not None:  # pads reordered into shards (absent otherwise: hashes of earlier sweeps hold)
+                payload["pack"] = self.pack
             text = json.dumps(payload, sort_keys=True, default=str)
             self._hash = hashlib.sha256(text.encode()).hexdigest()
         return self._hash
@@ -237,9 +252,9 @@ class SweepSpec:
         """The scene of global pad ``pad``."""
         return apply_parameters(self.base, self.base_doc, self.pad_values(pad), name=f"{self.name}[{pad}]")
 
-    def scenes(self, start: int, stop: int) -> list[Scene]:
-        """Scenes of global pads [start, stop)."""
-        return [self.scene(p) for p in range(start, stop)]
+    def scenes(self, pads: Any) -> list[Scene]:
+        """Scenes of the global pads ``pads`` (an iterable of indices), in that order."""
+        return [self.scene(int(p)) for p in pads]
 
 
 def load_spec(source: str | Path | dict, *, base_dir: Path | None = None, **overrides: Any) -> SweepSpec:
@@ -303,7 +318,9 @@ def _base_doc(doc: dict, base_dir: Path) -> tuple[dict, Path, str]:
         raise SweepError(f"the base scene: {e}") from None
 
 
-def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
+def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
+    """The :class:`SweepSpec` of a spec doc; ``check``: build a few pads first (:func:`_check_pads`; a shard task
+    skips it, its client checked the spec)."""
     from aca_warp.hf.model import PRECISIONS
     from aca_warp.hf.options import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
 
@@ -323,6 +340,9 @@ def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
     shard_size = sw.get("shard_size", DEFAULT_SHARD_SIZE)
     if isinstance(shard_size, bool) or not isinstance(shard_size, int) or shard_size < 1:
         raise SweepError(f"sweep.shard_size must be a positive integer, got {shard_size!r}")
+    pack = sw.get("pack", "size")
+    if pack not in PACKINGS:
+        raise SweepError(f"sweep.pack must be one of {', '.join(PACKINGS)}, got {pack!r}")
     integrator = run.get("integrator", DEFAULT_INTEGRATOR)
     if integrator not in INTEGRATORS:
         raise SweepError(f"run.integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
@@ -367,8 +387,11 @@ def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
         precision=precision,
         dt=dt,
         tolerance=tolerance,
+        pack=pack,
+        order=pack_order(params, pack),
     )
-    _check_pads(spec, lists)
+    if check:
+        _check_pads(spec, lists)
     return spec
 
 
@@ -397,6 +420,20 @@ def _expand(raw: Any, mode: str, base: Scene, base_doc: dict) -> tuple[dict[str,
         raise SweepError(f"the parameter lists combine into {total} pads, more than a sweep runs ({MAX_PADS})")
     combos = list(itertools.product(*lists.values()))
     return lists, {k: [c[i] for c in combos] for i, k in enumerate(lists)}
+
+
+def pack_order(parameters: dict[str, list], pack: str) -> np.ndarray | None:
+    """The order in which shards take the pads (global pad indices, int64), or None for the spec's order.
+
+    ``"size"``: pads sorted by patch count (stable: pads of equal count keep the spec's order), so that the pads of
+    a shard, one batch on the device, are alike (the on-chip kernel sizes every block of a batch for its largest
+    pad; only ``patches.count`` changes the count of a generated layout); the spec's order when every pad has the same
+    count. ``"none"``: the spec's order.
+    """
+    counts = parameters.get("patches.count")
+    if pack == "none" or counts is None or len(set(counts)) == 1:
+        return None
+    return np.argsort(np.asarray(counts, dtype=np.int64), kind="stable").astype(np.int64)
 
 
 def _check_pads(spec: SweepSpec, lists: dict[str, list]) -> None:
@@ -444,7 +481,8 @@ def apply_parameters(base: Scene, base_doc: dict, values: dict[str, Any], *, nam
         gen = PatchGenerator(**gen_doc)
         patches = _generate(pad, gen)
         changes["patches"] = patches
-        changes["origin"] = _merge(base.origin or base_doc, {"patches": gen_doc})
+        src = base.origin or base_doc  # the other tables shared with the base (scene origins are never changed)
+        changes["origin"] = {**src, "patches": {**src.get("patches", {}), **gen_doc}}
     if "friction" in groups:
         changes["friction"] = dataclasses.replace(base.friction, **groups["friction"])
     if "material" in groups:

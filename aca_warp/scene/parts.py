@@ -1,47 +1,23 @@
-"""Scenes: pad geometry, patch coverage state, material constants, loads, friction law, initial state, recording.
+"""The parts of a scene and the scene itself: pad, patches, material, friction, initial state, growth, record,
+matrix cells and :class:`Scene`, each validated as it is made.
 
-A scene holds everything one HF run of one pad needs (paper §2.1.2, §3.1; ``docs/model.md`` §1–2).
-Scenes come from Python objects, from TOML files (:func:`load_scene`) or from the built-in presets
-``hf1``…``hf4`` and ``varying_area`` and their equal-height variants ``hf1_equal``… (:func:`preset`, files in
-``aca_warp/data``; ``docs/presets.md``). Everything is
-validated here, before any simulation starts; errors are :class:`~aca_warp.common.errors.SceneError` with a
-one-line message. All quantities are SI (m, m², kg, N, s, rad).
+A scene holds everything one HF run of one pad needs (paper §2.1.2, §3.1; ``docs/model.md`` §1–2). Every value is
+checked here, before any simulation starts; errors are :class:`~aca_warp.common.errors.SceneError` with a one-line
+message. All quantities are SI (m, m², kg, N, s, rad).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-import sys
 from dataclasses import dataclass, field
-from importlib import resources
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from aca_warp.common import plausible
-from aca_warp.common.bounds import check_h5, read_toml
 from aca_warp.common.errors import SceneError
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
-
-# the paper's scenes (heights spread so the loads meet §3.1/§3.2), then the same with equal heights (docs/presets.md)
-PRESETS = (
-    "hf1",
-    "hf2",
-    "hf3",
-    "hf4",
-    "varying_area",
-    "hf1_equal",
-    "hf2_equal",
-    "hf3_equal",
-    "hf4_equal",
-    "varying_area_equal",
-)
 INITIAL_STATES = ("rest", "equilibrium")
 PATCH_VARIABLES = ("velocity", "displacement")
 HEIGHT_LAWS = ("normal", "uniform")
@@ -242,185 +218,6 @@ class Patches:
     def friction_radius(self) -> np.ndarray:
         """Distance from the disc axis [m], shape (n,)."""
         return np.hypot(self.x, self.y)
-
-
-@dataclass(frozen=True)
-class PatchGenerator:
-    """Seeded generator of non-overlapping patches, uniform over the pad (docs/model.md §2.9).
-
-    Positions and areas come from ``np.random.default_rng(seed)``; heights from a separate stream of the
-    same seed (:meth:`heights`), so a height law never moves a patch. Heights are h_i = height + height_spread·z_i
-    with z_i drawn independently of position and area:
-
-    * ``"normal"``: z standard normal truncated to [−height_truncation, height_truncation] (Gaussian summit
-      heights, Greenwood–Williamson; the cut bounds the lowest patch, hence the load that brings every patch
-      into contact, independently of the patch count);
-    * ``"uniform"``: z uniform in [−1, 1] (height_spread is the half-width).
-
-    ``height_spread = 0`` gives equal heights (no height is drawn).
-
-    Attributes:
-        count: Number of patches.
-        area_min: Smallest area [m²]; areas are uniform in [area_min, area_max].
-        area_max: Largest area [m²].
-        height: Centre (mean) of the free heights above the matrix [m].
-        seed: Seed of the generator (NumPy PCG64).
-        height_spread: Spread of the heights [m]: standard deviation before truncation (normal law) or
-            half-width (uniform law).
-        height_law: ``"normal"`` (truncated) or ``"uniform"``.
-        height_truncation: Cut of the normal law in standard deviations [1] (ignored by the uniform law).
-    """
-
-    count: int = 1758
-    area_min: float = 2.0e-8
-    area_max: float = 8.0e-8
-    height: float = 3.0e-6
-    seed: int = 1
-    height_spread: float = 0.0
-    height_law: str = "normal"
-    height_truncation: float = 2.0
-
-    def __post_init__(self) -> None:
-        if isinstance(self.count, bool) or not isinstance(self.count, int) or self.count < 1:
-            raise SceneError(f"patches.count must be a positive integer, got {self.count!r}")
-        _finite("patches.area_min", self.area_min, low=0.0, strict=True)
-        _finite("patches.area_max", self.area_max, low=0.0, strict=True)
-        _finite("patches.height", self.height, low=0.0)
-        if self.area_max < self.area_min:
-            raise SceneError(f"patches.area_max ({self.area_max:g}) must be >= patches.area_min ({self.area_min:g})")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise SceneError(f"patches.seed must be a non-negative integer, got {self.seed!r}")
-        _finite("patches.height_spread", self.height_spread, low=0.0)
-        if self.height_law not in HEIGHT_LAWS:
-            raise SceneError(f"patches.height_law must be one of {', '.join(HEIGHT_LAWS)}, got {self.height_law!r}")
-        _finite("patches.height_truncation", self.height_truncation, low=0.0, strict=True)
-        if self.height_bounds[0] < 0.0:
-            raise SceneError(
-                f"patches.height ({self.height:g} m) minus the law's reach ({self.height - self.height_bounds[0]:g} m) "
-                "must be >= 0: the lowest patch would lie below the matrix; lower height_spread or height_truncation"
-            )
-
-    @property
-    def height_bounds(self) -> tuple[float, float]:
-        """Smallest and largest height the law can draw [m]."""
-        reach = self.height_spread * (self.height_truncation if self.height_law == "normal" else 1.0)
-        return self.height - reach, self.height + reach
-
-    def heights(self) -> np.ndarray:
-        """Free heights of the patches in placement order [m], shape (count,).
-
-        Drawn from ``np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])`` (a stream independent
-        of the one that places the patches), one uniform u_i per patch: z_i = 2u_i − 1 (uniform law) or
-        z_i = Φ⁻¹(Φ(−c) + u_i (Φ(c) − Φ(−c))) (normal law cut at c = height_truncation, inverse CDF).
-        """
-        if self.height_spread == 0.0:
-            return np.full(self.count, self.height)
-        from scipy.special import ndtr, ndtri
-
-        u = np.random.default_rng(np.random.SeedSequence(self.seed).spawn(1)[0]).random(self.count)
-        if self.height_law == "uniform":
-            z = 2.0 * u - 1.0
-        else:
-            c = self.height_truncation
-            lo = ndtr(-c)
-            z = np.clip(ndtri(lo + u * (ndtr(c) - lo)), -c, c)
-        return np.clip(self.height + self.height_spread * z, *self.height_bounds)
-
-    def generate(self, pad: Pad, *, max_tries: int = 200) -> Patches:
-        """Place the patches by random sequential addition; sorted row-major by coupling-size cells."""
-        if self.count * self.area_min > pad.area:  # cannot fit; also keeps absurd counts from allocating
-            raise SceneError(
-                f"could not place {self.count} non-overlapping patches of {self.area_min:g}-{self.area_max:g} m² on "
-                f"the pad: count × area_min = {self.count * self.area_min:g} m² exceeds its area {pad.area:g} m²; "
-                "use fewer or smaller patches"
-            )
-        rng = np.random.default_rng(self.seed)
-        area = rng.uniform(self.area_min, self.area_max, self.count)
-        xy = self._place(pad, rng, np.sqrt(area / np.pi), max_tries)
-        order = _spatial_order(xy[:, 0], xy[:, 1], 5.0e-3)
-        desc = (
-            f"generator(count={self.count}, area=[{self.area_min:g}, {self.area_max:g}] m2, "
-            f"height={self.height:g} m, seed={self.seed})"
-        )
-        if self.height_spread > 0.0:
-            cut = f", cut={self.height_truncation:g}" if self.height_law == "normal" else ""
-            desc = desc[:-1] + f", height_spread={self.height_spread:g} m, law={self.height_law}{cut})"
-        return Patches(xy[order, 0], xy[order, 1], area[order], self.heights()[order], source=desc)
-
-    def _place(self, pad: Pad, rng: np.random.Generator, rad: np.ndarray, max_tries: int) -> np.ndarray:
-        """Centres (count, 2) [m] of discs of radii ``rad`` [m] by random sequential addition inside the pad."""
-        cell = max(2.0 * rad.max(), 1e-4)
-        grid: dict[tuple[int, int], list[int]] = {}
-        xy = np.zeros((self.count, 2))
-        lo2, hi2 = pad.r_inner**2, pad.r_outer**2
-        for i in range(self.count):
-            for _ in range(max_tries * 10):
-                r = math.sqrt(rng.uniform(lo2, hi2))
-                th = math.pi / 2 + rng.uniform(-pad.half_span, pad.half_span)
-                p = (r * math.cos(th), r * math.sin(th))
-                if not pad.contains_disc(np.array(p[0]), np.array(p[1]), np.array(rad[i])):
-                    continue
-                cx, cy = int(math.floor(p[0] / cell)), int(math.floor(p[1] / cell))
-                ok = True
-                for gx in (cx - 1, cx, cx + 1):
-                    for gy in (cy - 1, cy, cy + 1):
-                        for j in grid.get((gx, gy), ()):
-                            if math.hypot(p[0] - xy[j, 0], p[1] - xy[j, 1]) < rad[i] + rad[j]:
-                                ok = False
-                                break
-                        if not ok:
-                            break
-                    if not ok:
-                        break
-                if ok:
-                    xy[i] = p
-                    grid.setdefault((cx, cy), []).append(i)
-                    break
-            else:
-                raise SceneError(
-                    f"could not place {self.count} non-overlapping patches of {self.area_min:g}-{self.area_max:g} m² "
-                    f"on the pad (placed {i}); use fewer or smaller patches"
-                )
-        return xy
-
-
-def _spatial_order(x: np.ndarray, y: np.ndarray, cell: float) -> np.ndarray:
-    """Row-major order of square cells of width ``cell`` [m], then x: neighbours end up close in memory."""
-    cx = np.floor((x - x.min()) / cell).astype(np.int64)
-    cy = np.floor((y - y.min()) / cell).astype(np.int64)
-    return np.lexsort((x, cx, cy))
-
-
-def read_patch_file(path: str | Path) -> Patches:
-    """Read patches from an HDF5 file with 1-D datasets ``x``, ``y``, ``area``, ``height`` (SI units)."""
-    import h5py
-
-    p = Path(path)
-    if p.is_dir():
-        raise SceneError(f"patch file {p} is a folder; give the HDF5 file with datasets x, y, area, height")
-    if not p.is_file():
-        raise SceneError(f"patch file not found: {p}")
-    try:
-        with h5py.File(p, "r") as f:
-            check_h5(f, p, "patch file")  # links, declared sizes, numbers: before anything is read
-            missing = [k for k in ("x", "y", "area", "height") if k not in f]
-            if missing:
-                raise SceneError(f"patch file {p} lacks dataset(s) {', '.join(missing)}")
-            data = {k: np.asarray(f[k][()], dtype=np.float64) for k in ("x", "y", "area", "height")}
-    except SceneError:
-        raise
-    except (OSError, ValueError, TypeError, KeyError, AttributeError, RuntimeError) as e:  # not HDF5, damaged, …
-        raise SceneError(f"cannot read patch file {p}: {type(e).__name__}: {e}") from None
-    return Patches(**data, source=str(p))
-
-
-def write_patch_file(path: str | Path, patches: Patches) -> None:
-    """Write patches to an HDF5 file readable by :func:`read_patch_file`, with ``unit`` attributes."""
-    import h5py
-
-    with h5py.File(path, "w") as f:
-        for name, unit in (("x", "m"), ("y", "m"), ("area", "m2"), ("height", "m")):
-            f.create_dataset(name, data=getattr(patches, name)).attrs["unit"] = unit
 
 
 @dataclass(frozen=True)
@@ -644,7 +441,11 @@ class Scene:
             )
 
     def _check_geometry(self) -> None:
+        """Refuse patches outside the pad or overlapping each other. Patches found fitting a pad remember it
+        (``_fits``), so that the many scenes of a sweep that share one layout check it once."""
         p = self.patches
+        if p.__dict__.get("_fits") == self.pad:
+            return
         inside = self.pad.contains_disc(p.x, p.y, p.radius)
         if not np.all(inside):
             bad = np.flatnonzero(~inside)
@@ -660,6 +461,7 @@ class Scene:
                 f"{len(pairs)} pair(s) of patches overlap, first patches {i} and {j}: centre distance {d:.4g} m "
                 f"< sum of radii {p.radius[i] + p.radius[j]:.4g} m (overlap {p.radius[i] + p.radius[j] - d:.3g} m)"
             )
+        object.__setattr__(p, "_fits", self.pad)
 
     @property
     def sliding_speed(self) -> float:
@@ -699,164 +501,3 @@ def check_pad_plausible(pad: Pad) -> None:
     """Refuse pad radii beyond the range of a brake pad (:func:`aca_warp.common.plausible.check`)."""
     plausible.check("pad.r_inner", pad.r_inner, "length")
     plausible.check("pad.r_outer", pad.r_outer, "length")
-
-
-GENERATOR_KINDS = {"area_min": "area", "area_max": "area", "height": "height", "height_spread": "height"}
-
-
-def check_numbers_plausible(table: dict, name: str, kinds: dict[str, str]) -> None:
-    """Refuse the numbers of the TOML table ``[name]`` whose keys ``kinds`` names (key: kind of
-    :data:`aca_warp.common.plausible.RANGES`) beyond a brake pad's range, before the table is built into a pad or
-    patches (a unit mistake would otherwise fail later with a less helpful message: an ordering of radii, the
-    placement of patches)."""
-    for key, kind in kinds.items():
-        value = table.get(key)
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            plausible.check(f"{name}.{key}", value, kind)
-
-
-# ----------------------------------------------------------------------------------------------- TOML
-
-_TABLES: dict[str, tuple[str, ...]] = {
-    "scene": ("name", "allow_implausible"),
-    "pad": tuple(f.name for f in dataclasses.fields(Pad)),
-    "load": ("normal_force",),
-    "disc": ("sliding_speed", "angular_velocity"),
-    "friction": tuple(f.name for f in dataclasses.fields(Friction)),
-    "patches": ("file", *(f.name for f in dataclasses.fields(PatchGenerator))),
-    "material": tuple(f.name for f in dataclasses.fields(Material)),
-    "initial": tuple(f.name for f in dataclasses.fields(Initial)),
-    "growth": tuple(f.name for f in dataclasses.fields(Growth)),
-    "record": ("sample_dt", "patches", "window", "decimation"),
-    "run": ("duration",),
-}
-
-
-def scene_from_dict(
-    doc: dict, *, base_dir: Path | None = None, name: str = "scene", allow_implausible: bool = False
-) -> Scene:
-    """Build and validate a scene from a TOML-shaped dict (see ``docs/scenes.md`` for every key);
-    ``allow_implausible`` accepts implausible values as ``[scene] allow_implausible = true`` does."""
-    for table, value in doc.items():
-        if table not in _TABLES:
-            raise SceneError(f"unknown table [{table}]; allowed: {', '.join('[' + t + ']' for t in _TABLES)}")
-        if not isinstance(value, dict):
-            raise SceneError(f"[{table}] must be a table")
-        for key in value:
-            if key not in _TABLES[table]:
-                raise SceneError(f"unknown key {key!r} in [{table}]; allowed: {', '.join(_TABLES[table])}")
-    t = {k: dict(doc.get(k, {})) for k in _TABLES}
-    allow = plausible.flag(t["scene"].get("allow_implausible", False)) or allow_implausible
-    pt = t["patches"]
-    if not allow:  # before the pad's own checks: r_inner = 100 is a unit mistake before it is an ordering one
-        check_numbers_plausible(t["pad"], "pad", {"r_inner": "length", "r_outer": "length"})
-        check_numbers_plausible(pt, "patches", GENERATOR_KINDS)
-    pad = Pad(**t["pad"])
-    if "file" in pt:
-        extra = sorted(set(pt) - {"file"})
-        if extra:
-            raise SceneError(f"[patches] file = ... cannot be combined with generator keys {', '.join(extra)}")
-        f = Path(pt["file"])
-        if not f.is_absolute() and base_dir is not None:
-            f = base_dir / f
-        patches = read_patch_file(f)
-    else:
-        patches = PatchGenerator(**pt).generate(pad)
-    disc = t["disc"]
-    if "sliding_speed" in disc and "angular_velocity" in disc:
-        raise SceneError("[disc] takes sliding_speed or angular_velocity, not both")
-    if "angular_velocity" in disc:
-        omega = _finite("disc.angular_velocity", disc["angular_velocity"])
-    else:
-        omega = _finite("disc.sliding_speed", disc.get("sliding_speed", 10.0)) / pad.mean_radius
-    rec = t["record"]
-    if "window" in rec:
-        if not isinstance(rec["window"], list):
-            raise SceneError("record.window must be [start, end] in seconds")
-        rec["window"] = tuple(rec["window"])
-    if "patches" in rec:
-        if isinstance(rec["patches"], str) or not isinstance(rec["patches"], list):
-            raise SceneError('record.patches must be a list such as ["velocity"]')
-        rec["patches"] = tuple(rec["patches"])
-    try:
-        return Scene(
-            name=str(t["scene"].get("name", name)),
-            pad=pad,
-            patches=patches,
-            material=Material(**t["material"]),
-            friction=Friction(**t["friction"]),
-            normal_force=t["load"].get("normal_force", 487.2),
-            angular_velocity=omega,
-            initial=Initial(**t["initial"]),
-            record=Record(**rec),
-            duration=t["run"].get("duration", 1.0e-3),
-            growth=Growth(**t["growth"]) if "growth" in doc else None,
-            origin=doc,
-            allow_implausible=allow,
-        )
-    except TypeError as e:  # a wrongly typed value that slipped through, e.g. a table for a number
-        raise SceneError(f"invalid scene value: {e}") from None
-
-
-def load_scene(spec: str | Path, *, allow_implausible: bool = False) -> Scene:
-    """A preset name (:data:`PRESETS`) or the path of a TOML scene file (``allow_implausible``: as the scene key)."""
-    s = str(spec)
-    if s in PRESETS:
-        scene = preset(s)
-        return scene.replace(allow_implausible=True) if allow_implausible else scene
-    p = Path(s)
-    if p.is_dir():
-        raise SceneError(f"scene {s!r} is a folder; give a preset ({', '.join(PRESETS)}) or a TOML scene file")
-    if not p.is_file():
-        raise SceneError(f"scene {s!r} is neither a preset ({', '.join(PRESETS)}) nor an existing TOML file")
-    try:
-        doc = read_toml(p, "scene file")
-    except OSError as e:
-        raise SceneError(f"cannot read scene file {p}: {e.strerror}") from None
-    if not doc:
-        raise SceneError(
-            f"scene file {p} is empty (no table, no key): it would silently run the defaults; start from a preset "
-            "file (aca_warp/data/hf1.toml, docs/scenes.md) or name the preset (hf1)"
-        )
-    return scene_from_dict(doc, base_dir=p.parent, name=p.stem, allow_implausible=allow_implausible)
-
-
-def preset(name: str) -> Scene:
-    """The built-in scene ``name`` (files ``aca_warp/data/<name>.toml``; docs/model.md §2.9)."""
-    if name not in PRESETS:
-        raise SceneError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
-    text = resources.files("aca_warp.data").joinpath(f"{name}.toml").read_text()
-    return scene_from_dict(tomllib.loads(text), name=name)
-
-
-def scene_to_dict(scene: Scene) -> dict:
-    """The scene as a TOML-shaped dict with every value explicit (patch data excepted: see ``patches.source``).
-
-    Run files store it (JSON) so a run can be repeated; ``scene_from_dict`` reads it back when the
-    patches come from a generator or a file that still exists.
-    """
-    origin = scene.origin or {}
-    patches = dict(origin.get("patches", {})) or {"source": scene.patches.source}
-    doc = {
-        "scene": {"name": scene.name, **({"allow_implausible": True} if scene.allow_implausible else {})},
-        "pad": dataclasses.asdict(scene.pad),
-        "load": {"normal_force": scene.normal_force},
-        "disc": {"angular_velocity": scene.angular_velocity},
-        "friction": dataclasses.asdict(scene.friction),
-        "patches": patches,
-        "material": dataclasses.asdict(scene.material),
-        "initial": dataclasses.asdict(scene.initial),
-        "record": {
-            "sample_dt": scene.record.sample_dt,
-            "patches": list(scene.record.patches),
-            "window": [
-                scene.record.window[0],
-                scene.record.window[1] if math.isfinite(scene.record.window[1]) else 1e300,
-            ],
-            "decimation": scene.record.decimation,
-        },
-        "run": {"duration": scene.duration},
-    }
-    if scene.growth is not None:
-        doc["growth"] = dataclasses.asdict(scene.growth)
-    return doc
