@@ -105,9 +105,10 @@ def test_failed_preparation_fails_its_shards(tmp_path: Path, prepare: int) -> No
     assert [s["state"] for s in manifest["shards"]] == ["failed"] * 3
 
 
-def _pool_processes() -> list[psutil.Process]:
-    """The pool's worker processes among this process's children (not multiprocessing's resource tracker)."""
-    return [p for p in psutil.Process().children() if "spawn_main" in " ".join(p.cmdline())]
+def _pool_processes(before: set[int] = frozenset()) -> list[psutil.Process]:
+    """The pool's worker processes among this process's children (not multiprocessing's resource tracker), leaving
+    out the children in ``before`` (processes of earlier tests in this worker, e.g. Dask's, are spawned too)."""
+    return [p for p in psutil.Process().children() if p.pid not in before and "spawn_main" in " ".join(p.cmdline())]
 
 
 def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
@@ -117,11 +118,12 @@ def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
     doc["base"]["patches"] = {"count": 6000, "area_min": 2e-9, "area_max": 4e-9}  # seconds of placement per layout
     doc["sweep"]["shard_size"] = 8
     spec = load_spec(doc, base_dir=Path.cwd())
+    before = {p.pid for p in psutil.Process().children()}
     prep = Preparer(spec.doc, str(spec.base_dir), processes=1, ahead=1)
     try:
         prep.plan([0])
         deadline = time.monotonic() + 60
-        while not (kids := _pool_processes()) and time.monotonic() < deadline:
+        while not (kids := _pool_processes(before)) and time.monotonic() < deadline:
             time.sleep(0.05)
         time.sleep(1.0)  # inside the preparation
         assert kids and not prep.poll(0)
