@@ -4,11 +4,13 @@ A restructuring must not change results: this script runs, from each checkout's 
 
 * ``hf hf1 --duration 2e-5``            (the paper's HF1 pad, 20 µs)
 * ``hf varying_area --duration 1e-5``   (growing patches, 10 µs)
+* ``hf hf1 --integrator adaptive``      (100 µs at tolerance 1e-5; on the CPU the on-chip adaptive engine)
 * ``lf multiscale``                     (the LF automaton over the whole load procedure)
 
-and reports, per job, every dataset that differs (shape, dtype or any bit) and the root attributes that differ
-(wall times, versions and similar provenance are listed separately as expected differences). Exit code 0 when
-every dataset is bit-identical.
+(opt-in with ``--jobs``, ``EXTRA_JOBS``: the on-chip strang engine, the general adaptive engine, growth on every
+engine, both Euler schemes) and reports, per job, every dataset that differs (shape, dtype or any bit) and the root
+attributes that differ (wall times, versions and similar provenance are listed separately as expected differences).
+Exit code 0 when every dataset is bit-identical.
 
 Each checkout is imported as it is on disk: a temporary folder holds a package ``aca_warp`` whose entries link
 to the checkout's ``aca_warp/`` with ``kernels`` linked to the checkout's ``kernels/`` (the layout an install
@@ -18,6 +20,9 @@ Usage::
 
     git worktree add /tmp/base <commit>
     python scripts/compare_checkouts.py /tmp/base . --out /tmp/cmp [--jobs hf1 varying_area lf]
+
+``--cache DIR`` keeps the two checkouts' kernel caches (DIR/cache0, DIR/cache1) for later calls, so that an unchanged
+first checkout compiles once.
 """
 
 from __future__ import annotations
@@ -39,6 +44,21 @@ JOBS = {
     "hf1_adaptive": ["hf", "hf1", "--duration", "1e-4", "--integrator", "adaptive", "--tolerance", "1e-5"]
     + ["--no-progress"],
     "lf": ["lf", "multiscale", "--no-progress"],
+}
+# opt-in jobs (--jobs): the engines and integrators the default jobs leave out on the CPU
+EXTRA_JOBS = {
+    "hf1_onchip": ["hf", "hf1", "--duration", "2e-5", "--engine", "onchip", "--record-patches", "velocity,displacement"]
+    + ["--no-progress"],
+    "varying_area_onchip": ["hf", "varying_area", "--duration", "1e-5", "--engine", "onchip", "--no-progress"],
+    "hf1_adaptive_general": ["hf", "hf1", "--duration", "1e-4", "--integrator", "adaptive", "--tolerance", "1e-5"]
+    + ["--engine", "general", "--record-patches", "velocity", "--no-progress"],
+    "varying_area_adaptive": ["hf", "varying_area", "--duration", "1e-5", "--integrator", "adaptive"]
+    + ["--tolerance", "1e-5", "--no-progress"],
+    "varying_area_adaptive_general": ["hf", "varying_area", "--duration", "1e-5", "--integrator", "adaptive"]
+    + ["--tolerance", "1e-5", "--engine", "general", "--no-progress"],
+    "hf1_euler": ["hf", "hf1", "--duration", "2e-6", "--integrator", "symplectic-euler", "--dt", "2e-10"]
+    + ["--no-progress"],
+    "hf1_imex": ["hf", "hf1", "--duration", "2e-5", "--integrator", "implicit-friction", "--no-progress"],
 }
 # root attributes that describe the machine, the package or the wall clock, not the results
 PROVENANCE = {
@@ -123,7 +143,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("first", type=Path, help="first checkout (e.g. a worktree of the old commit)")
     ap.add_argument("second", type=Path, help="second checkout")
     ap.add_argument("--out", type=Path, required=True, help="folder for the run files and report.json")
-    ap.add_argument("--jobs", nargs="+", choices=sorted(JOBS), default=list(JOBS), help="jobs to run (default: all)")
+    ap.add_argument(
+        "--jobs", nargs="+", choices=sorted(JOBS | EXTRA_JOBS), default=list(JOBS), help="jobs to run (default: JOBS)"
+    )
+    ap.add_argument("--cache", type=Path, default=None, help="kernel caches kept here (default: a temporary folder)")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     report: dict[str, dict] = {}
@@ -133,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
             files = [args.out / f"{job}_{i}.h5" for i in (0, 1)]
             for view, path, i in zip(views, files, (0, 1), strict=True):
                 path.unlink(missing_ok=True)
-                run_job(view, JOBS[job], path, Path(tmp) / f"cache{i}")
+                run_job(view, (JOBS | EXTRA_JOBS)[job], path, (args.cache or Path(tmp)) / f"cache{i}")
             report[job] = compare(*files)
             r = report[job]
             ok = not (r["different"] or r["only_first"] or r["only_second"])
