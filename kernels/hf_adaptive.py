@@ -24,6 +24,7 @@ from typing import Any
 
 import warp as wp
 from aca_warp.kernels import precision_overloads
+from aca_warp.kernels.hf_types import HFModel
 from aca_warp.kernels.physics import friction_pair, patch_force, spring_force
 
 wp.set_module_options({"enable_backward": False})
@@ -61,29 +62,20 @@ DP5_E = (
 
 
 @wp.func
-def lane_spring_force(
-    i: int,
-    lane: int,
-    threads: int,
-    u: wp.array[Any],
-    k_diag: wp.array[Any],
-    nbr_start: wp.array[wp.int32],
-    nbr_index: wp.array[wp.int32],
-    nbr_stiffness: wp.array[Any],
-):
+def lane_spring_force(i: int, lane: int, threads: int, u: wp.array[Any], model: Any):
     """Elastic force on patch i [N] (:func:`~aca_warp.kernels.physics.spring_force`) from the ``threads`` lanes of its
     block: each lane sums every ``threads``-th link, the block adds the lanes' sums. One lane (a CPU block) sums
     as ``spring_force`` does, so CPU results do not depend on the block size; on CUDA the links of a patch are read
     in parallel instead of in one dependent chain."""
     if threads == 1:
-        return spring_force(i, u, k_diag, nbr_start, nbr_index, nbr_stiffness)
+        return spring_force(i, u, model)
     part = u[i] - u[i]
-    e = nbr_start[i] + lane
-    end = nbr_start[i + 1]
+    e = model.nbr_start[i] + lane
+    end = model.nbr_start[i + 1]
     while e < end:
-        part += nbr_stiffness[e] * u[nbr_index[e]]
+        part += model.nbr_stiffness[e] * u[model.nbr_index[e]]
         e += threads
-    return wp.tile_sum(wp.tile(part))[0] - k_diag[i] * u[i]
+    return wp.tile_sum(wp.tile(part))[0] - model.k_diag[i] * u[i]
 
 
 @wp.func
@@ -117,14 +109,7 @@ def stage_k(
     p: int,
     stage: int,
     fs: Any,
-    inv_mass: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
+    model: Any,
     coeff: wp.array2d[wp.float64],
     h: wp.float64,
     u_in: wp.array[Any],
@@ -140,9 +125,10 @@ def stage_k(
     ``h`` [s] into ``u_next``/``v_next``."""
     v = v_stage[i]
     ku[stage, i] = v
-    kv[stage, i] = inv_mass[i] * patch_force(
-        fs, v, damping[i], normal_force[i], pad_omega[p] * radius[i], pad_mu_scale[p], pad_slope[p], pad_decay[p]
-    )
+    kv[stage, i] = model.inv_mass[i] * patch_force(
+        fs, v, model.damping[i], model.normal_force[i], model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p],
+        model.pad_slope[p], model.pad_decay[p],
+    )  # fmt: skip
     if stage > 0 and stage + 1 < STAGES:
         stage_state_h(i, stage + 1, coeff, h, u_in, v_in, ku, kv, u_next, v_next)
 
@@ -174,11 +160,7 @@ def patch_error(
     err_coeff: wp.array[wp.float64],
     u_scale: wp.array[Any],
     v_scale: wp.array[Any],
-    radius: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
+    model: Any,
     u_in: wp.array[Any],
     v_in: wp.array[Any],
     u_new: wp.array[Any],
@@ -194,9 +176,11 @@ def patch_error(
         e = err_coeff[j]
         eu += e * wp.float64(ku[j, g])
         ev += e * wp.float64(kv[j, g])
-    mu_max = wp.float64(pad_mu_scale[pad]) * wp.float64(3.141592653589793)
+    mu_max = wp.float64(model.pad_mu_scale[pad]) * wp.float64(3.141592653589793)
     vn = v_new[g]
-    fv, fd = friction_pair(pad_omega[pad] * radius[g] - vn, pad_mu_scale[pad], pad_slope[pad], pad_decay[pad])
+    fv, fd = friction_pair(
+        model.pad_omega[pad] * model.radius[g] - vn, model.pad_mu_scale[pad], model.pad_slope[pad], model.pad_decay[pad]
+    )
     wv = wp.float64(v_scale[g]) + wp.max(wp.abs(wp.float64(v_in[g])), wp.abs(wp.float64(vn)))
     slope = wp.abs(wp.float64(fd))
     if slope * wv > mu_max:
@@ -412,8 +396,7 @@ def open_growth_interval(
 
 @wp.kernel
 def dp5_stage(
-    # Model:
-    patch_pad: wp.array[wp.int32],
+    model: Any,
     coeff: wp.array2d[wp.float64],
     # Control:
     stage: int,
@@ -430,7 +413,7 @@ def dp5_stage(
 ):
     """The stage state y_s of every patch of a pad that has not landed (:func:`stage_state`)."""
     i = wp.tid()
-    p = patch_pad[i]
+    p = model.patch_pad[i]
     if mode[p, M_LANDED] != 0:
         return
     stage_state(i, p, stage, coeff, ctl, u_in, v_in, ku, kv, u_stage, v_stage)
@@ -438,20 +421,7 @@ def dp5_stage(
 
 @wp.kernel
 def dp5_eval(
-    # Model:
-    patch_pad: wp.array[wp.int32],
-    inv_mass: wp.array[Any],
-    k_diag: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    nbr_start: wp.array[wp.int32],
-    nbr_index: wp.array[wp.int32],
-    nbr_stiffness: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
+    model: Any,
     # Control:
     stage: int,
     first: int,
@@ -476,29 +446,20 @@ def dp5_eval(
     into ``u_next``/``v_next``, which must not be ``u_stage``/``v_stage``: the neighbours still read those.
     One block of ``threads`` lanes per patch (``launch_tiled``; :func:`lane_spring_force`)."""
     i, lane = wp.tid()
-    p = patch_pad[i]
+    p = model.patch_pad[i]
     if mode[p, M_LANDED] != 0:
         return
     if first != 0 and mode[p, M_NEEDK1] == 0:
         return
-    fs = lane_spring_force(i, lane, threads, u_stage, k_diag, nbr_start, nbr_index, nbr_stiffness)
+    fs = lane_spring_force(i, lane, threads, u_stage, model)
     if lane != 0:
         return
-    stage_k(
-        i, p, stage, fs, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff,
-        ctl[p, C_TRIAL], u_in, v_in, v_stage, ku, kv, u_next, v_next,
-    )  # fmt: skip
+    stage_k(i, p, stage, fs, model, coeff, ctl[p, C_TRIAL], u_in, v_in, v_stage, ku, kv, u_next, v_next)
 
 
 @wp.kernel
 def dp5_control(
-    # Model:
-    pad_patch_start: wp.array[wp.int32],
-    radius: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
+    model: Any,
     err_coeff: wp.array[wp.float64],
     u_scale: wp.array[Any],
     v_scale: wp.array[Any],
@@ -526,15 +487,14 @@ def dp5_control(
     accepted[pad] = 0
     if mode[pad, M_LANDED] != 0:
         return
-    a = pad_patch_start[pad]
-    n = pad_patch_start[pad + 1] - a
+    a = model.pad_patch_start[pad]
+    n = model.pad_patch_start[pad + 1] - a
     h = ctl[pad, C_TRIAL]
     part = wp.float64(0.0)
     i = lane
     while i < n:
         g = a + i
-        e = patch_error(g, pad, h, tol, err_coeff, u_scale, v_scale, radius, pad_omega, pad_mu_scale, pad_slope,
-                        pad_decay, u_in, v_in, u_new, v_new, ku, kv)  # fmt: skip
+        e = patch_error(g, pad, h, tol, err_coeff, u_scale, v_scale, model, u_in, v_in, u_new, v_new, ku, kv)
         part = wp.max(part, e)
         i += threads
     err = wp.tile_max(wp.tile(part))[0]
@@ -545,7 +505,7 @@ def dp5_control(
 
 @wp.kernel
 def dp5_commit(
-    patch_pad: wp.array[wp.int32],
+    model: Any,
     accepted: wp.array[wp.int32],
     # Trial in:
     u_new: wp.array[Any],
@@ -558,7 +518,7 @@ def dp5_commit(
 ):
     """An accepted trial becomes the state; its last stage becomes the next first one (FSAL)."""
     i = wp.tid()
-    if accepted[patch_pad[i]] == 0:
+    if accepted[model.patch_pad[i]] == 0:
         return
     u_io[i] = u_new[i]
     v_io[i] = v_new[i]
@@ -626,4 +586,4 @@ def k1_done(mode: wp.array2d[wp.int32]):
     mode[p, M_NEEDK1] = 0
 
 
-precision_overloads(dp5_stage, dp5_eval, dp5_control, dp5_commit)
+precision_overloads(dp5_stage, dp5_eval, dp5_control, dp5_commit, model=HFModel)

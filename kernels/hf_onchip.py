@@ -31,13 +31,14 @@ its barrier-free ``put`` helpers: a ``tile[i] = x`` there made the kernel hang o
 "History: the CUDA hang").
 """
 
-from __future__ import annotations
-
+# Annotations stay eager (no ``from __future__ import annotations``): the kernel made in the factory is typed by the
+# factory's model struct, which string annotations could not see.
 from functools import cache
 from typing import Any
 
 import warp as wp
 from aca_warp.kernels.hf_onchip_gather import tile_gather
+from aca_warp.kernels.hf_types import HFModel
 from aca_warp.kernels.physics import (
     SampleSums,
     block_sums,
@@ -142,6 +143,7 @@ def onchip_kernel(
     if nmax >= 2**15:
         raise ValueError(f"on-chip pads hold fewer than 32768 patches (int16 neighbour indices), got {nmax}")
     T = dtype
+    Model = HFModel(T)
     NMAX = wp.constant(nmax)
     ne = emax if csr_shared else 1
     EMAX = wp.constant(ne)
@@ -193,10 +195,7 @@ def onchip_kernel(
         g: int,
         w: Any,
         fs: Any,
-        inv_mass: wp.array[Any],
-        damping: wp.array[Any],
-        normal_force: wp.array[Any],
-        radius: wp.array[Any],
+        model: Any,
         omega: Any,
         dt: Any,
         mu_scale: Any,
@@ -206,8 +205,8 @@ def onchip_kernel(
     ):
         """Synchronous velocity of local patch i (global g) from the staggered w and F_s (``strang_close_velocity``)."""
         return strang_close_velocity(
-            get_n(w, i), get_n(fs, i), dt, inv_mass[g], damping[g], normal_force[g], omega * radius[g], mu_scale,
-            slope, decay, tol,
+            get_n(w, i), get_n(fs, i), dt, model.inv_mass[g], model.damping[g], model.normal_force[g],
+            omega * model.radius[g], mu_scale, slope, decay, tol,
         )  # fmt: skip
 
     @wp.kernel(
@@ -218,43 +217,8 @@ def onchip_kernel(
         module_options={"fast_math": fast_math},
     )
     def onchip_strang(
-        # Model:
-        pad_patch_start: wp.array[wp.int32],
-        inv_mass: wp.array[T],
-        k_diag: wp.array[T],
-        damping: wp.array[T],
-        normal_force: wp.array[T],
-        radius: wp.array[T],
-        nbr_start: wp.array[wp.int32],
-        nbr_index: wp.array[wp.int32],
-        nbr_stiffness: wp.array[T],
-        pad_omega: wp.array[T],
-        pad_mu_scale: wp.array[T],
-        pad_slope: wp.array[T],
-        pad_decay: wp.array[T],
-        pad_mu_pad: wp.array[T],
-        pad_load: wp.array[T],
-        pad_matrix_force: wp.array[T],
-        pad_matrix_radius: wp.array[T],
-        k_t: wp.array[T],
-        x: wp.array[T],
-        y: wp.array[T],
-        # Growth (model in/out; empty unless GROWTH):
-        area: wp.array[T],
-        sqrt_area: wp.array[T],
-        k_n: wp.array[T],
-        height: wp.array[T],
-        nbr_inv_dist: wp.array[T],
-        pad_kc: wp.array[T],
-        pad_growth: wp.array[T],
-        pad_k_t: wp.array[T],
-        pad_k_n: wp.array[T],
-        pad_mass_per_area: wp.array[T],
-        pad_zeta: wp.array[T],
-        pad_area: wp.array[wp.float64],
-        pad_moment: wp.array[wp.float64],
-        pad_k_m: wp.array[wp.float64],
-        pad_gap: wp.array[wp.float64],
+        model: Model,  # growth fields read only with growth (pad_growth: the increment per event)
+        # Growth:
         growth_every: int,
         growth_step0: int,
         # Stepping:
@@ -292,8 +256,8 @@ def onchip_kernel(
         blk, lane = wp.tid()
         pad = blk // CLUSTER
         rank = blk % CLUSTER  # the block's rank in its cluster (clusters are CLUSTER consecutive blocks)
-        a = pad_patch_start[pad]
-        n = pad_patch_start[pad + 1] - a
+        a = model.pad_patch_start[pad]
+        n = model.pad_patch_start[pad + 1] - a
         lo = n * rank // CLUSTER  # this block's patches: lo … hi - 1
         hi = n * (rank + 1) // CLUSTER
         u2 = wp.tile_zeros(shape=(2, NMAX), dtype=T, storage="shared")
@@ -313,7 +277,7 @@ def onchip_kernel(
             count = int(0)
             i = lane
             while i < n:
-                m = readers(a + i, a, n, CLUSTER, nbr_start, nbr_index)
+                m = readers(a + i, a, n, CLUSTER, model.nbr_start, model.nbr_index)
                 if i >= lo and i < hi:
                     put_d(dest, i - lo, m - (m & (1 << rank)))
                 elif (m >> rank) & 1 != 0:
@@ -322,7 +286,7 @@ def onchip_kernel(
             nbytes = wp.tile_sum(wp.tile(count))[0] * TBYTES
         gap = wp.float64(0.0)
         if GROWTH != 0:
-            gap = pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
+            gap = model.pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
         i = lane
         while i < n:  # every block holds all of u
             put_u(u2, 0, i, u_io[a + i])
@@ -342,7 +306,7 @@ def onchip_kernel(
             while q < lane:
                 i = lo + q
                 while i < hi:
-                    m0 += nbr_start[a + i + 1] - nbr_start[a + i]
+                    m0 += model.nbr_start[a + i + 1] - model.nbr_start[a + i]
                     i += threads
                 q += nw
         p0 = nw * m0 + bank  # the thread's first on-chip link slot
@@ -350,18 +314,18 @@ def onchip_kernel(
             p = p0
             i = lo + lane
             while i < hi:
-                for e in range(nbr_start[a + i], nbr_start[a + i + 1]):
-                    put_ei(sidx, p, wp.int16(nbr_index[e] - a))
-                    put_ek(sk, p, nbr_stiffness[e])
+                for e in range(model.nbr_start[a + i], model.nbr_start[a + i + 1]):
+                    put_ei(sidx, p, wp.int16(model.nbr_index[e] - a))
+                    put_ek(sk, p, model.nbr_stiffness[e])
                     p += nw
                 i += threads
         # the whole cluster is set up (tiles zeroed, mbarriers initialised) before any block stores into another
         pad_sync()
 
-        omega = pad_omega[pad]
-        mu_scale = pad_mu_scale[pad]
-        slope = pad_slope[pad]
-        decay = pad_decay[pad]
+        omega = model.pad_omega[pad]
+        mu_scale = model.pad_mu_scale[pad]
+        slope = model.pad_slope[pad]
+        decay = model.pad_decay[pad]
         bound2 = watch_bound[pad] * watch_bound[pad]
         cur = int(0)
         nstep = int(0)  # steps of this launch (the phase parity of the mbarrier of u buffer nxt: nstep // 2 % 2)
@@ -375,14 +339,14 @@ def onchip_kernel(
                 i = lo + lane
                 while i < hi:
                     g = a + i
-                    im = inv_mass[g]
-                    vd = omega * radius[g]
+                    im = model.inv_mass[g]
+                    vd = omega * model.radius[g]
                     if FRICTION == 0:
                         v = get_n(w, i) + dt * im * get_n(fs, i)
                     else:
                         v = strang_velocity(
-                            first_step, get_n(w, i), get_n(fs, i), dt, im, damping[g], normal_force[g], vd, mu_scale,
-                            slope, decay, tol,
+                            first_step, get_n(w, i), get_n(fs, i), dt, im, model.damping[g], model.normal_force[g], vd,
+                            mu_scale, slope, decay, tol,
                         )  # fmt: skip
                     put_n(w, i, v)
                     un = get_u(u2, cur, i) + dt * v
@@ -415,17 +379,17 @@ def onchip_kernel(
                 i = lo + lane
                 while i < hi:
                     g = a + i
-                    e = nbr_start[g]
-                    end = nbr_start[g + 1]
+                    e = model.nbr_start[g]
+                    end = model.nbr_start[g + 1]
                     if GATHER == 0:
                         end = e
                     if wp.static(HALF != 0):  # profiling: the first half of the row's links only
                         row_end = p + nw * (end - e)  # the next row's first on-chip slot
                         end = e + (end - e + 1) // 2
-                    links, p = gather(e, end, p, nxt, a, u2, sidx, sk, nbr_index, nbr_stiffness)
+                    links, p = gather(e, end, p, nxt, a, u2, sidx, sk, model.nbr_index, model.nbr_stiffness)
                     if wp.static(HALF != 0):
                         p = row_end
-                    put_n(fs, i, links - k_diag[g] * get_u(u2, nxt, i))
+                    put_n(fs, i, links - model.k_diag[g] * get_u(u2, nxt, i))
                     i += threads
                 cur = nxt
                 if GROWTH != 0:
@@ -433,10 +397,7 @@ def onchip_kernel(
                     if steps_done % growth_every == 0:  # the same for every thread of the cluster
                         i = lo + lane
                         while i < hi:
-                            grow_patch(
-                                a + i, pad, pad_growth, pad_k_t, pad_k_n, pad_mass_per_area, pad_zeta, area, sqrt_area,
-                                inv_mass, k_t, k_n, damping,
-                            )  # fmt: skip
+                            grow_patch(a + i, pad, model)
                             i += threads
                         pad_sync()  # the links below read the neighbours' new √A, the contact every new area and k_N
                         i = lo + lane
@@ -446,27 +407,22 @@ def onchip_kernel(
                         while i < hi:
                             g = a + i
                             if CSR_SHARED != 0:  # patch_coupling with the neighbour indices from shared memory
-                                ki = pad_kc[pad] * sqrt_area[g]
-                                d = k_t[g]
-                                for e in range(nbr_start[g], nbr_start[g + 1]):
-                                    kij = link_stiffness(ki, sqrt_area[a + int(get_ei(sidx, p))], nbr_inv_dist[e])
-                                    nbr_stiffness[e] = kij
+                                ki = model.pad_kc[pad] * model.sqrt_area[g]
+                                d = model.k_t[g]
+                                for e in range(model.nbr_start[g], model.nbr_start[g + 1]):
+                                    kij = link_stiffness(
+                                        ki, model.sqrt_area[a + int(get_ei(sidx, p))], model.nbr_inv_dist[e]
+                                    )
+                                    model.nbr_stiffness[e] = kij
                                     put_ek(sk, p, kij)
                                     d += kij
                                     p += nw
-                                k_diag[g] = d
+                                model.k_diag[g] = d
                             else:
-                                patch_coupling(
-                                    g, pad, sqrt_area, nbr_start, nbr_index, nbr_inv_dist, pad_kc, k_t, nbr_stiffness,
-                                    k_diag,
-                                )  # fmt: skip
+                                patch_coupling(g, pad, model)
                             i += threads
                         if CONTACT != 0:  # every block solves the pad's contact, keeps its own patches' forces
-                            gap = contact_block(
-                                pad, lane, threads, pad_patch_start, k_n, height, area, radius, pad_area, pad_moment,
-                                pad_k_m, pad_load, gap, a + lo, a + hi, rank == 0, normal_force, pad_matrix_force,
-                                pad_matrix_radius,
-                            )  # fmt: skip
+                            gap = contact_block(pad, lane, threads, model, gap, a + lo, a + hi, rank == 0)
             # sample: synchronous velocity (strang_close_velocity), the sums of kernels.physics, patch histories
             k = k0 + s
             due = patch_sample_due(k, first, last, every)
@@ -476,12 +432,13 @@ def onchip_kernel(
             i = lo + lane
             while i < hi:
                 g = a + i
-                vs = sync_velocity(i, g, w, fs, inv_mass, damping, normal_force, radius, omega, dt, mu_scale,
-                                   slope, decay, tol)  # fmt: skip
+                vs = sync_velocity(i, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
                 uu = get_u(u2, cur, i)
-                sums += patch_sample(vs, normal_force[g], radius[g], x[g], y[g], omega, mu_scale, slope, decay)
+                sums += patch_sample(
+                    vs, model.normal_force[g], model.radius[g], model.x[g], model.y[g], omega, mu_scale, slope, decay
+                )
                 usum += wp.float64(uu)
-                if energy_speed2(vs, uu, k_t[g], inv_mass[g]) > bound2 and runaway == n:
+                if energy_speed2(vs, uu, model.k_t[g], model.inv_mass[g]) > bound2 and runaway == n:
                     runaway = i
                 if due:
                     store_patch_sample(velocity_out, displacement_out, prow, g, vs, uu)
@@ -496,15 +453,13 @@ def onchip_kernel(
                 if not (wp.isfinite(sums[3]) and wp.isfinite(usum)):
                     for j in range(lo, hi):
                         if bad < 0:
-                            vs = sync_velocity(j, a + j, w, fs, inv_mass, damping, normal_force, radius, omega,
-                                               dt, mu_scale, slope, decay, tol)  # fmt: skip
+                            vs = sync_velocity(j, a + j, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
                             if not (wp.isfinite(vs) and wp.isfinite(get_u(u2, cur, j))):
                                 bad = j
                 elif runaway < n:
                     g = a + runaway
-                    vs = sync_velocity(runaway, g, w, fs, inv_mass, damping, normal_force, radius, omega,
-                                       dt, mu_scale, slope, decay, tol)  # fmt: skip
-                    value = wp.sqrt(energy_speed2(vs, get_u(u2, cur, runaway), k_t[g], inv_mass[g]))
+                    vs = sync_velocity(runaway, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
+                    value = wp.sqrt(energy_speed2(vs, get_u(u2, cur, runaway), model.k_t[g], model.inv_mass[g]))
             if CLUSTER > 1:  # block 0 combines the blocks' sums in rank order
                 if lane == 0:
                     for c in range(6):
@@ -532,8 +487,8 @@ def onchip_kernel(
                             bad = bq
             if lane == 0 and rank == 0:
                 write_globals(
-                    globals_out, row0 + s, pad, sums, omega, pad_mu_pad[pad], pad_matrix_force[pad],
-                    pad_matrix_radius[pad], pad_load[pad],
+                    globals_out, row0 + s, pad, sums, omega, model.pad_mu_pad[pad], model.pad_matrix_force[pad],
+                    model.pad_matrix_radius[pad], model.pad_load[pad],
                 )  # fmt: skip
                 broken = not (wp.isfinite(sums[3]) and wp.isfinite(usum))
                 flag_fault(fault_out, fault_value_out, pad, k, broken, bad, runaway, n, value)
@@ -549,6 +504,6 @@ def onchip_kernel(
         if CLUSTER > 1:
             cluster_sync()  # no block leaves while another may still address its shared memory (or read the gap)
         if GROWTH != 0 and rank == 0 and lane == 0:
-            pad_gap[pad] = gap
+            model.pad_gap[pad] = gap
 
     return onchip_strang

@@ -48,6 +48,7 @@ from aca_warp.kernels.hf_adaptive import (
     store_control,
 )
 from aca_warp.kernels.hf_onchip_gather import tile_gather
+from aca_warp.kernels.hf_types import HFModel
 from aca_warp.kernels.physics import (
     contact_block,
     grow_patch,
@@ -117,6 +118,7 @@ def onchip_dp5_kernel(
     if nmax >= 2**15:
         raise ValueError(f"on-chip pads hold fewer than 32768 patches (int16 neighbour indices), got {nmax}")
     T = dtype
+    Model = HFModel(T)
     GATHER = wp.constant(0 if "gather" in ablate else 1)
     RECORD = wp.constant(0 if "record" in ablate else 1)
     SYNC = wp.constant(0 if "sync" in ablate else 1)
@@ -188,18 +190,7 @@ def onchip_dp5_kernel(
         lane: int,
         threads: int,
         pad: int,
-        inv_mass: wp.array[T],
-        k_diag: wp.array[T],
-        damping: wp.array[T],
-        normal_force: wp.array[T],
-        radius: wp.array[T],
-        nbr_start: wp.array[wp.int32],
-        nbr_index: wp.array[wp.int32],
-        nbr_stiffness: wp.array[T],
-        pad_omega: wp.array[T],
-        pad_mu_scale: wp.array[T],
-        pad_slope: wp.array[T],
-        pad_decay: wp.array[T],
+        model: Model,
         coeff: wp.array2d[wp.float64],
         h: wp.float64,
         u_io: wp.array[T],
@@ -213,11 +204,8 @@ def onchip_dp5_kernel(
         event), from the displacements in global memory."""
         g = lo + lane
         while g < hi:
-            fs = spring_force(g, u_io, k_diag, nbr_start, nbr_index, nbr_stiffness)
-            stage_k(
-                g, pad, 0, fs, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope,
-                pad_decay, coeff, h, u_io, v_io, v_io, ku, kv, u_b, v_b,
-            )  # fmt: skip
+            fs = spring_force(g, u_io, model)
+            stage_k(g, pad, 0, fs, model, coeff, h, u_io, v_io, v_io, ku, kv, u_b, v_b)
             g += threads
 
     @wp.func
@@ -231,55 +219,23 @@ def onchip_dp5_kernel(
         base: int,
         gap: wp.float64,
         sk: wp.tile[T, EMAX],
-        pad_patch_start: wp.array[wp.int32],
-        inv_mass: wp.array[T],
-        k_diag: wp.array[T],
-        damping: wp.array[T],
-        normal_force: wp.array[T],
-        radius: wp.array[T],
-        nbr_start: wp.array[wp.int32],
-        nbr_index: wp.array[wp.int32],
-        nbr_stiffness: wp.array[T],
-        pad_load: wp.array[T],
-        pad_matrix_force: wp.array[T],
-        pad_matrix_radius: wp.array[T],
-        k_t: wp.array[T],
-        area: wp.array[T],
-        sqrt_area: wp.array[T],
-        k_n: wp.array[T],
-        height: wp.array[T],
-        nbr_inv_dist: wp.array[T],
-        pad_kc: wp.array[T],
-        pad_growth: wp.array[T],
-        pad_k_t: wp.array[T],
-        pad_k_n: wp.array[T],
-        pad_mass_per_area: wp.array[T],
-        pad_zeta: wp.array[T],
-        pad_area: wp.array[wp.float64],
-        pad_moment: wp.array[wp.float64],
-        pad_k_m: wp.array[wp.float64],
+        model: Model,
     ) -> wp.float64:
         """A growth event of the pad (see the factory): its new contact gap [m]; on return every block of the pad has
         its patches' new areas, stiffnesses and normal forces in global memory (a pad barrier follows)."""
         g = lo + lane
         while g < hi:
-            grow_patch(
-                g, pad, pad_growth, pad_k_t, pad_k_n, pad_mass_per_area, pad_zeta, area, sqrt_area, inv_mass, k_t,
-                k_n, damping,
-            )  # fmt: skip
+            grow_patch(g, pad, model)
             g += threads
         pad_sync()  # the links below read the neighbours' new √A, the contact every new area and k_N
         g = lo + lane
         while g < hi:
-            patch_coupling(g, pad, sqrt_area, nbr_start, nbr_index, nbr_inv_dist, pad_kc, k_t, nbr_stiffness, k_diag)
+            patch_coupling(g, pad, model)
             if wp.static(emax > 0):
-                for e in range(nbr_start[g], nbr_start[g + 1]):
-                    put_ek(sk, e - base, nbr_stiffness[e])
+                for e in range(model.nbr_start[g], model.nbr_start[g + 1]):
+                    put_ek(sk, e - base, model.nbr_stiffness[e])
             g += threads
-        gap = contact_block(
-            pad, lane, threads, pad_patch_start, k_n, height, area, radius, pad_area, pad_moment, pad_k_m, pad_load,
-            gap, lo, hi, rank == 0, normal_force, pad_matrix_force, pad_matrix_radius,
-        )  # fmt: skip
+        gap = contact_block(pad, lane, threads, model, gap, lo, hi, rank == 0)
         pad_sync()  # the sample reads every new normal force, k_0 the new stiffnesses
         return gap
 
@@ -293,14 +249,12 @@ def onchip_dp5_kernel(
         us: wp.tile[T, 2, NMAX],
         sidx: wp.tile[wp.int16, EMAX],
         sk: wp.tile[T, EMAX],
-        nbr_start: wp.array[wp.int32],
-        nbr_index: wp.array[wp.int32],
-        nbr_stiffness: wp.array[T],
+        model: Model,
     ):
         """Lane ``sub``'s part of the neighbour sum of patch g: its links sub, sub + LANES, …"""
         part = T(0.0)
-        link = nbr_start[g] + sub
-        end = nbr_start[g + 1]
+        link = model.nbr_start[g] + sub
+        end = model.nbr_start[g + 1]
         if GATHER == 0:
             end = link
         if wp.static(emax > 0):
@@ -309,49 +263,13 @@ def onchip_dp5_kernel(
                 link += LANES
         else:
             while link < end:
-                part += nbr_stiffness[link] * get_u(us, row, nbr_index[link] - a)
+                part += model.nbr_stiffness[link] * get_u(us, row, model.nbr_index[link] - a)
                 link += LANES
         return part
 
     @wp.kernel(enable_backward=False, module="unique", launch_bounds=(block_dim, 1), cluster_dim=cluster)
     def onchip_dp5(
-        # Model:
-        pad_patch_start: wp.array[wp.int32],
-        inv_mass: wp.array[T],
-        k_diag: wp.array[T],
-        damping: wp.array[T],
-        normal_force: wp.array[T],
-        radius: wp.array[T],
-        nbr_start: wp.array[wp.int32],
-        nbr_index: wp.array[wp.int32],
-        nbr_stiffness: wp.array[T],
-        pad_omega: wp.array[T],
-        pad_mu_scale: wp.array[T],
-        pad_slope: wp.array[T],
-        pad_decay: wp.array[T],
-        pad_mu_pad: wp.array[T],
-        pad_load: wp.array[T],
-        pad_matrix_force: wp.array[T],
-        pad_matrix_radius: wp.array[T],
-        k_t: wp.array[T],
-        x: wp.array[T],
-        y: wp.array[T],
-        # Growth (read with ``growth`` only; pad_growth: the increment per event):
-        area: wp.array[T],
-        sqrt_area: wp.array[T],
-        k_n: wp.array[T],
-        height: wp.array[T],
-        nbr_inv_dist: wp.array[T],
-        pad_kc: wp.array[T],
-        pad_growth: wp.array[T],
-        pad_k_t: wp.array[T],
-        pad_k_n: wp.array[T],
-        pad_mass_per_area: wp.array[T],
-        pad_zeta: wp.array[T],
-        pad_area: wp.array[wp.float64],
-        pad_moment: wp.array[wp.float64],
-        pad_k_m: wp.array[wp.float64],
-        pad_gap: wp.array[wp.float64],
+        model: Model,  # growth fields read only with growth (pad_growth: the increment per event)
         # Integrator:
         coeff: wp.array2d[wp.float64],
         err_coeff: wp.array[wp.float64],
@@ -404,20 +322,20 @@ def onchip_dp5_kernel(
         blk, lane = wp.tid()
         pad = blk // CLUSTER
         rank = blk % CLUSTER
-        a = pad_patch_start[pad]
-        n = pad_patch_start[pad + 1] - a
+        a = model.pad_patch_start[pad]
+        n = model.pad_patch_start[pad + 1] - a
         lo = a + n * rank // CLUSTER  # this block's patches (global indices): lo … hi − 1
         hi = a + n * (rank + 1) // CLUSTER
-        base = nbr_start[lo]  # the block's first link
+        base = model.nbr_start[lo]  # the block's first link
         red = wp.tile_zeros(shape=(2, SLOTS), dtype=wp.float64, storage="shared")
         us = wp.tile_zeros(shape=(2, NMAX), dtype=T, storage="shared")
         sidx = wp.tile_zeros(shape=EMAX, dtype=wp.int16, storage="shared")
         sk = wp.tile_zeros(shape=EMAX, dtype=T, storage="shared")
         if wp.static(emax > 0):
             link = base + lane
-            while link < nbr_start[hi]:
-                put_ei(sidx, link - base, wp.int16(nbr_index[link] - a))
-                put_ek(sk, link - base, nbr_stiffness[link])
+            while link < model.nbr_start[hi]:
+                put_ei(sidx, link - base, wp.int16(model.nbr_index[link] - a))
+                put_ek(sk, link - base, model.nbr_stiffness[link])
                 link += threads
         pad_sync()  # every block's tiles are zeroed before another stores into them
         # Every block keeps the pad's control (clock, steps, mode) and takes the same decisions on it; block 0 also
@@ -427,14 +345,10 @@ def onchip_dp5_kernel(
         landed = m[M_LANDED]
         gap = wp.float64(0.0)
         if wp.static(growth):
-            gap = pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
+            gap = model.pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
         if landed == 0:
             if m[M_NEEDK1] != 0:  # k_0 at the state itself (the run's first trial)
-                first_stage(
-                    lo, hi, lane, threads, pad, inv_mass, k_diag, damping, normal_force, radius, nbr_start, nbr_index,
-                    nbr_stiffness, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, ku, kv, u_b,
-                    v_b,
-                )  # fmt: skip
+                first_stage(lo, hi, lane, threads, pad, model, coeff, h, u_io, v_io, ku, kv, u_b, v_b)
             stage_one(lo, hi, a, lane, threads, pad, coeff, h, u_io, v_io, ku, kv, u_b, v_b, us)
         m[M_NEEDK1] = 0
         pad_sync()  # every block has read ctl and mode before block 0 writes them
@@ -449,25 +363,19 @@ def onchip_dp5_kernel(
                     if wp.static(lanes == 1):
                         g = lo + lane
                         while g < hi:
-                            first_link = nbr_start[g]  # the links in spring_force's order (tile_gather)
+                            first_link = model.nbr_start[g]  # the links in spring_force's order (tile_gather)
                             links, _p = links_sum(
-                                first_link, nbr_start[g + 1], first_link - base, row, a, us, sidx, sk, nbr_index,
-                                nbr_stiffness,
+                                first_link, model.nbr_start[g + 1], first_link - base, row, a, us, sidx, sk,
+                                model.nbr_index, model.nbr_stiffness,
                             )  # fmt: skip
-                            fs = links - k_diag[g] * get_u(us, row, g - a)
+                            fs = links - model.k_diag[g] * get_u(us, row, g - a)
                             un = T(0.0)  # the next stage displacement (none after the last stage)
                             if row == 1:
-                                stage_k(
-                                    g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
-                                    pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_b, ku, kv, u_a, v_a,
-                                )  # fmt: skip
+                                stage_k(g, pad, stage, fs, model, coeff, h, u_io, v_io, v_b, ku, kv, u_a, v_a)
                                 if stage + 1 < STAGES:
                                     un = u_a[g]
                             else:
-                                stage_k(
-                                    g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
-                                    pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_a, ku, kv, u_b, v_b,
-                                )  # fmt: skip
+                                stage_k(g, pad, stage, fs, model, coeff, h, u_io, v_io, v_a, ku, kv, u_b, v_b)
                                 if stage + 1 < STAGES:
                                     un = u_b[g]
                             if stage + 1 < STAGES:
@@ -482,26 +390,17 @@ def onchip_dp5_kernel(
                             g = lo + j
                             fsum = T(0.0)
                             if j < own:
-                                fsum = lane_gather(g, a, base, row, sub, us, sidx, sk, nbr_start, nbr_index,
-                                                   nbr_stiffness)  # fmt: skip
+                                fsum = lane_gather(g, a, base, row, sub, us, sidx, sk, model)
                             fsum = total(fsum)
                             un = T(0.0)
                             if sub == 0 and j < own:
-                                fs = fsum - k_diag[g] * get_u(us, row, j + lo - a)
+                                fs = fsum - model.k_diag[g] * get_u(us, row, j + lo - a)
                                 if row == 1:
-                                    stage_k(
-                                        g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
-                                        pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_b, ku, kv, u_a,
-                                        v_a,
-                                    )  # fmt: skip
+                                    stage_k(g, pad, stage, fs, model, coeff, h, u_io, v_io, v_b, ku, kv, u_a, v_a)
                                     if stage + 1 < STAGES:
                                         un = u_a[g]
                                 else:
-                                    stage_k(
-                                        g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
-                                        pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_a, ku, kv, u_b,
-                                        v_b,
-                                    )  # fmt: skip
+                                    stage_k(g, pad, stage, fs, model, coeff, h, u_io, v_io, v_a, ku, kv, u_b, v_b)
                                     if stage + 1 < STAGES:
                                         un = u_b[g]
                             un = first_lane(un)  # the lanes of the patch share its stores into the cluster
@@ -515,8 +414,7 @@ def onchip_dp5_kernel(
                 part = wp.float64(0.0)
                 g = lo + lane
                 while g < hi:
-                    e = patch_error(g, pad, h, tol, err_coeff, u_scale, v_scale, radius, pad_omega, pad_mu_scale,
-                                    pad_slope, pad_decay, u_io, v_io, u_a, v_a, ku, kv)  # fmt: skip
+                    e = patch_error(g, pad, h, tol, err_coeff, u_scale, v_scale, model, u_io, v_io, u_a, v_a, ku, kv)
                     part = wp.max(part, e)
                     g += threads
                 err = wp.tile_max(wp.tile(part))[0]
@@ -565,20 +463,12 @@ def onchip_dp5_kernel(
                     event = int(get_red(red, 1, 4))
                     sample = int(get_red(red, 1, 5))
                     if event != 0:  # before a sample at the same time, which sees the grown patches
-                        gap = grow(
-                            lo, hi, lane, threads, pad, rank, base, gap, sk, pad_patch_start, inv_mass, k_diag,
-                            damping, normal_force, radius, nbr_start, nbr_index, nbr_stiffness, pad_load,
-                            pad_matrix_force, pad_matrix_radius, k_t, area, sqrt_area, k_n, height, nbr_inv_dist,
-                            pad_kc, pad_growth, pad_k_t, pad_k_n, pad_mass_per_area, pad_zeta, pad_area, pad_moment,
-                            pad_k_m,
-                        )  # fmt: skip
+                        gap = grow(lo, hi, lane, threads, pad, rank, base, gap, sk, model)
                 if sample != 0:
                     k = k0 + s
                     if rank == 0 and RECORD != 0:
                         record_pad(
-                            pad, lane, threads, row0 + s, k, pad_patch_start, normal_force, radius, pad_omega,
-                            pad_mu_scale, pad_slope, pad_decay, pad_mu_pad, pad_load, pad_matrix_force,
-                            pad_matrix_radius, inv_mass, k_t, x, y, u_io, v_io, globals_out, watch_bound, fault_out,
+                            pad, lane, threads, row0 + s, k, model, u_io, v_io, globals_out, watch_bound, fault_out,
                             fault_value_out,
                         )  # fmt: skip
                     if patch_sample_due(k, first, last, every):
@@ -602,11 +492,7 @@ def onchip_dp5_kernel(
                 landed = int(get_red(red, 1, 3))
                 if landed == 0:
                     if event != 0:  # k_0 (FSAL) was evaluated with the patches of before the event
-                        first_stage(
-                            lo, hi, lane, threads, pad, inv_mass, k_diag, damping, normal_force, radius, nbr_start,
-                            nbr_index, nbr_stiffness, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io,
-                            v_io, ku, kv, u_b, v_b,
-                        )  # fmt: skip
+                        first_stage(lo, hi, lane, threads, pad, model, coeff, h, u_io, v_io, ku, kv, u_b, v_b)
                     stage_one(lo, hi, a, lane, threads, pad, coeff, h, u_io, v_io, ku, kv, u_b, v_b, us)
                 pad_sync()  # the first stage is complete (and shared), the flags read before lane 0 rewrites them
                 s += sample
@@ -614,6 +500,6 @@ def onchip_dp5_kernel(
             cluster_sync()  # no block leaves while another may still store into its shared memory
         if wp.static(growth):
             if rank == 0 and lane == 0:
-                pad_gap[pad] = gap
+                model.pad_gap[pad] = gap
 
     return onchip_dp5

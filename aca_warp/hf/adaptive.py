@@ -201,15 +201,14 @@ class AdaptiveStepper:
         landed) a growth event and a sample, as the targets fall."""
         m, s, dev, n = self.model, self.state, self.model.device, self.model.patch_count
         ctl, mode = self.ctl, self.mode
-        deriv = [m.patch_pad, m.inv_mass, m.k_diag, m.damping, m.normal_force, m.radius, m.nbr_start, m.nbr_index]
-        deriv += [m.nbr_stiffness, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay]
+        km = m.struct()
         su, sv = self.stage_u, self.stage_v
         nxt = [self.coeff, ctl, s.u, s.v]
         k = [self.ku, self.kv]
         lanes = self.lanes
 
         def evaluate(stage: int, first: int, u: wp.array, v: wp.array, u_next: wp.array, v_next: wp.array) -> None:
-            inputs = [*deriv, stage, first, lanes, mode, u, v, *k, *nxt, u_next, v_next]
+            inputs = [km, stage, first, lanes, mode, u, v, *k, *nxt, u_next, v_next]
             if lanes > 1:
                 wp.launch_tiled(KA.dp5_eval, dim=[n], block_dim=lanes, device=dev, inputs=inputs)
             else:
@@ -221,7 +220,7 @@ class AdaptiveStepper:
             KA.dp5_stage,
             dim=n,
             device=dev,
-            inputs=[m.patch_pad, self.coeff, 1, ctl, mode, s.u, s.v, *k, su[1], sv[1]],
+            inputs=[km, self.coeff, 1, ctl, mode, s.u, s.v, *k, su[1], sv[1]],
         )
         for stage in range(1, KA.STAGES):  # each evaluation also forms its patch's next stage state
             a, b = stage % 2, (stage + 1) % 2
@@ -232,8 +231,7 @@ class AdaptiveStepper:
             dim=[m.pad_count],
             block_dim=CONTROL_BLOCK,
             device=dev,
-            inputs=[m.pad_patch_start, m.radius, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay]
-            + [self.err_coeff, self.u_scale, self.v_scale]
+            inputs=[km, self.err_coeff, self.u_scale, self.v_scale]
             + [block_threads(dev, CONTROL_BLOCK), self.tol, wp.float64(self.h_max), wp.float64(MIN_STEP)]
             + [s.u, s.v, u_new, v_new, self.ku, self.kv, ctl, mode, self.stats, self.accepted, self.done],
         )
@@ -241,7 +239,7 @@ class AdaptiveStepper:
             KA.dp5_commit,
             dim=n,
             device=dev,
-            inputs=[m.patch_pad, self.accepted, u_new, v_new, s.u, s.v, self.ku, self.kv],
+            inputs=[km, self.accepted, u_new, v_new, s.u, s.v, self.ku, self.kv],
         )
         wp.launch(
             KA.landing,

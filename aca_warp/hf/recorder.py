@@ -107,13 +107,6 @@ class Chunk:
         )
 
 
-# model arrays of the sample kernel (kernels.hf.record_globals), in its argument order
-SAMPLE_ARRAYS = (
-    "pad_patch_start", "normal_force", "radius", "pad_omega", "pad_mu_scale", "pad_slope", "pad_decay", "pad_mu_pad",
-    "pad_load", "pad_matrix_force", "pad_matrix_radius", "inv_mass", "k_t", "x", "y",
-)  # fmt: skip
-
-
 class Recorder:
     """Device buffers and launches for the global outputs and per-patch histories."""
 
@@ -174,7 +167,7 @@ class Recorder:
             block_dim=RECORD_BLOCK,
             device=m.device,
             inputs=[
-                *m.args(SAMPLE_ARRAYS),
+                m.struct(),
                 c,
                 block_threads(m.device, RECORD_BLOCK),
                 u,

@@ -1,0 +1,69 @@
+"""The parameter groups of the HF kernels as Warp structs, each declared once: the model's arrays (:data:`HFModel`).
+
+Every kernel and function that needs a group takes the whole struct (``model: Any``, the concrete struct of the
+state precision T, :class:`~aca_warp.kernels.PrecisionStruct`) and reads its fields where it used them as separate
+parameters before: a field access compiles to a load from the kernel's parameters, as a parameter of its own did. The
+host builds each struct once per model or engine (:meth:`aca_warp.hf.model.PadModel.struct`); its arrays are updated
+in place on the device (growth), so captured graphs stay valid.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import warp as wp
+from aca_warp.kernels import PrecisionStruct
+
+wp.set_module_options({"enable_backward": False})
+
+
+@PrecisionStruct
+class HFModel:
+    """The device arrays of an HF model (:class:`aca_warp.hf.model.PadModel`, whose docstring gives the units);
+    n = patches, P = pads, E = neighbour links; T unless noted.
+
+    The growth fields are read only by growth events (empty for a model that does not grow); ``pad_growth`` is the
+    area increment per event of the engine's step, which the engine sets.
+    """
+
+    # per patch (n,)
+    patch_pad: wp.array[wp.int32]
+    area: wp.array[Any]
+    sqrt_area: wp.array[Any]
+    height: wp.array[Any]
+    radius: wp.array[Any]
+    x: wp.array[Any]
+    y: wp.array[Any]
+    inv_mass: wp.array[Any]
+    k_t: wp.array[Any]
+    k_n: wp.array[Any]
+    damping: wp.array[Any]
+    normal_force: wp.array[Any]
+    k_diag: wp.array[Any]
+    # neighbour links (CSR): row offsets (n + 1,), neighbour, 1/D0_ij and k_ij (E,)
+    nbr_start: wp.array[wp.int32]
+    nbr_index: wp.array[wp.int32]
+    nbr_inv_dist: wp.array[Any]
+    nbr_stiffness: wp.array[Any]
+    # per pad: patch offsets (P + 1,), coupling, disc, friction law, load and matrix (P,)
+    pad_patch_start: wp.array[wp.int32]
+    pad_kc: wp.array[Any]
+    pad_omega: wp.array[Any]
+    pad_mu_scale: wp.array[Any]
+    pad_slope: wp.array[Any]
+    pad_decay: wp.array[Any]
+    pad_mu_pad: wp.array[Any]
+    pad_load: wp.array[Any]
+    pad_matrix_force: wp.array[Any]
+    pad_matrix_radius: wp.array[Any]
+    # per pad, growth (P,); the contact terms of its re-solve in float64
+    pad_growth: wp.array[Any]
+    pad_k_t: wp.array[Any]
+    pad_k_n: wp.array[Any]
+    pad_mass_per_area: wp.array[Any]
+    pad_zeta: wp.array[Any]
+    pad_area: wp.array[wp.float64]
+    pad_moment: wp.array[wp.float64]
+    pad_k_m: wp.array[wp.float64]
+    pad_gap: wp.array[wp.float64]
+
