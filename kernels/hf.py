@@ -16,7 +16,7 @@ from typing import Any
 
 import warp as wp
 from aca_warp.kernels import precision_overloads
-from aca_warp.kernels.hf_types import HFModel
+from aca_warp.kernels.hf_types import HFModel, HFRecorder
 from aca_warp.kernels.physics import (
     contact_block,
     grow_patch,
@@ -33,7 +33,7 @@ from aca_warp.kernels.physics import (
 
 wp.set_module_options({"enable_backward": False})
 
-# counters[] slots shared by the recording kernels (int32 array of length 4)
+# slots of the recorder's counters (HFRecorder.counters, int32 (4,)) shared by the recording kernels
 SAMPLE_INDEX = 0  # absolute index of the next global sample
 GLOBAL_ROWS = 1  # rows written to the global buffer since the last flush
 PATCH_ROWS = 2  # rows written to the per-patch buffer since the last flush
@@ -170,66 +170,58 @@ def strang_close(
 # ---------------------------------------------------------------------------------------------- recording
 
 
+@wp.func
+def sample_flagged(rec: Any, conditional: int) -> bool:
+    """Whether a sample is taken now: always, or with ``conditional`` only when ``rec``'s counters flag one."""
+    return conditional == 0 or rec.counters[RECORD_FLAG] != 0
+
+
 @wp.kernel
 def record_globals(
     model: Any,
+    rec: Any,
     # Control:
     conditional: int,
     threads: int,
     # State in:
     u_in: wp.array[Any],
     v_in: wp.array[Any],
-    # Recorder:
-    counters: wp.array[wp.int32],
-    globals_out: wp.array3d[wp.float64],
-    watch_bound: wp.array[wp.float64],
-    fault_out: wp.array2d[wp.int32],
-    fault_value_out: wp.array[wp.float64],
 ):
-    """Per pad (one block, ``launch_tiled``): the sample ``counters[0]`` into globals row ``counters[1]``
-    (:func:`record_pad`); with ``conditional``, only when ``counters[3]`` flags a sample."""
+    """Per pad (one block, ``launch_tiled``): the sample of the recorder's sample index into its next globals row
+    (:func:`record_pad`), when one is taken (:func:`sample_flagged`)."""
     pad, lane = wp.tid()
-    if conditional != 0 and counters[3] == 0:
+    if not sample_flagged(rec, conditional):
         return
-    record_pad(
-        pad, lane, threads, counters[1], counters[0], model, u_in, v_in, globals_out, watch_bound, fault_out,
-        fault_value_out,
-    )  # fmt: skip
+    record_pad(pad, lane, threads, rec.counters[GLOBAL_ROWS], rec.counters[SAMPLE_INDEX], model, u_in, v_in, rec)
 
 
 @wp.kernel
 def record_patches(
-    first: int,
-    last: int,
-    every: int,
+    rec: Any,
     conditional: int,
     # State in:
     u_in: wp.array[Any],
     v_in: wp.array[Any],
-    # Recorder:
-    counters: wp.array[wp.int32],
-    velocity_out: wp.array2d[Any],
-    displacement_out: wp.array2d[Any],
 ):
     """Copy u̇ (and u, when its buffer has rows) of every patch into the per-patch buffers when due."""
     i = wp.tid()
-    if conditional != 0 and counters[3] == 0:
+    if not sample_flagged(rec, conditional):
         return
-    if not patch_sample_due(counters[0], first, last, every):
+    if not patch_sample_due(rec, rec.counters[SAMPLE_INDEX]):
         return
-    store_patch_sample(velocity_out, displacement_out, counters[2], i, v_in[i], u_in[i])
+    store_patch_sample(rec, rec.counters[PATCH_ROWS], i, v_in[i], u_in[i])
 
 
 @wp.kernel
-def advance_counters(first: int, last: int, every: int, conditional: int, counters: wp.array[wp.int32]):
+def advance_counters(rec: Any, conditional: int):
     """After a sample: next sample index and buffer rows (one thread)."""
-    if conditional != 0 and counters[3] == 0:
+    if not sample_flagged(rec, conditional):
         return
-    k = counters[0]
-    if patch_sample_due(k, first, last, every):
-        counters[2] = counters[2] + 1
-    counters[0] = k + 1
-    counters[1] = counters[1] + 1
+    k = rec.counters[SAMPLE_INDEX]
+    if patch_sample_due(rec, k):
+        rec.counters[PATCH_ROWS] = rec.counters[PATCH_ROWS] + 1
+    rec.counters[SAMPLE_INDEX] = k + 1
+    rec.counters[GLOBAL_ROWS] = rec.counters[GLOBAL_ROWS] + 1
 
 
 # ---------------------------------------------------------------------------------------------- growth
@@ -294,6 +286,6 @@ def contact_flat(
 # ---------------------------------------------------------------------------------------------- overloads
 
 precision_overloads(
-    euler_velocity, drift, spring_forces, strang_advance, strang_close,
-    record_globals, record_patches, grow_patches, coupling_stiffness, contact_flat, model=HFModel,
+    euler_velocity, drift, spring_forces, strang_advance, strang_close, record_globals, record_patches,
+    advance_counters, grow_patches, coupling_stiffness, contact_flat, model=HFModel, rec=HFRecorder,
 )  # fmt: skip

@@ -38,7 +38,7 @@ from typing import Any
 
 import warp as wp
 from aca_warp.kernels.hf_onchip_gather import tile_gather
-from aca_warp.kernels.hf_types import HFModel
+from aca_warp.kernels.hf_types import HFModel, HFRecorder
 from aca_warp.kernels.physics import (
     SampleSums,
     block_sums,
@@ -144,6 +144,7 @@ def onchip_kernel(
         raise ValueError(f"on-chip pads hold fewer than 32768 patches (int16 neighbour indices), got {nmax}")
     T = dtype
     Model = HFModel(T)
+    Recorder = HFRecorder(T)
     NMAX = wp.constant(nmax)
     ne = emax if csr_shared else 1
     EMAX = wp.constant(ne)
@@ -218,6 +219,7 @@ def onchip_kernel(
     )
     def onchip_strang(
         model: Model,  # growth fields read only with growth (pad_growth: the increment per event)
+        rec: Recorder,
         # Growth:
         growth_every: int,
         growth_step0: int,
@@ -232,20 +234,10 @@ def onchip_kernel(
         k0: int,
         row0: int,
         prow0: int,
-        first: int,
-        last: int,
-        every: int,
         # State in/out (staggered w, cached F_s between launches):
         u_io: wp.array[T],
         v_io: wp.array[T],
         force_io: wp.array[T],
-        # Recorder out:
-        globals_out: wp.array3d[wp.float64],
-        watch_bound: wp.array[wp.float64],
-        fault_out: wp.array2d[wp.int32],
-        fault_value_out: wp.array[wp.float64],
-        velocity_out: wp.array2d[T],
-        displacement_out: wp.array2d[T],
     ):
         """Advance pad ``pad`` by ``samples`` × ``steps_per_sample`` strang steps, recording after each sample.
 
@@ -326,7 +318,7 @@ def onchip_kernel(
         mu_scale = model.pad_mu_scale[pad]
         slope = model.pad_slope[pad]
         decay = model.pad_decay[pad]
-        bound2 = watch_bound[pad] * watch_bound[pad]
+        bound2 = rec.watch_bound[pad] * rec.watch_bound[pad]
         cur = int(0)
         nstep = int(0)  # steps of this launch (the phase parity of the mbarrier of u buffer nxt: nstep // 2 % 2)
         prow = prow0
@@ -425,7 +417,7 @@ def onchip_kernel(
                             gap = contact_block(pad, lane, threads, model, gap, a + lo, a + hi, rank == 0)
             # sample: synchronous velocity (strang_close_velocity), the sums of kernels.physics, patch histories
             k = k0 + s
-            due = patch_sample_due(k, first, last, every)
+            due = patch_sample_due(rec, k)
             sums = SampleSums()
             usum = wp.float64(0.0)
             runaway = n  # first patch whose energy speed exceeds the watchdog bound (n: none)
@@ -441,7 +433,7 @@ def onchip_kernel(
                 if energy_speed2(vs, uu, model.k_t[g], model.inv_mass[g]) > bound2 and runaway == n:
                     runaway = i
                 if due:
-                    store_patch_sample(velocity_out, displacement_out, prow, g, vs, uu)
+                    store_patch_sample(rec, prow, g, vs, uu)
                 i += threads
             sums = block_sums(sums)
             usum = wp.tile_sum(wp.tile(usum))[0]
@@ -449,7 +441,7 @@ def onchip_kernel(
             # the block's fault candidates: its first non-finite patch, or its runaway patch's energy speed
             bad = int(-1)
             value = wp.float64(0.0)
-            if lane == 0 and fault_out[pad, 0] < 0:
+            if lane == 0 and rec.fault[pad, 0] < 0:
                 if not (wp.isfinite(sums[3]) and wp.isfinite(usum)):
                     for j in range(lo, hi):
                         if bad < 0:
@@ -487,11 +479,11 @@ def onchip_kernel(
                             bad = bq
             if lane == 0 and rank == 0:
                 write_globals(
-                    globals_out, row0 + s, pad, sums, omega, model.pad_mu_pad[pad], model.pad_matrix_force[pad],
+                    rec, row0 + s, pad, sums, omega, model.pad_mu_pad[pad], model.pad_matrix_force[pad],
                     model.pad_matrix_radius[pad], model.pad_load[pad],
                 )  # fmt: skip
                 broken = not (wp.isfinite(sums[3]) and wp.isfinite(usum))
-                flag_fault(fault_out, fault_value_out, pad, k, broken, bad, runaway, n, value)
+                flag_fault(rec, pad, k, broken, bad, runaway, n, value)
             if due:
                 prow += 1
         # write back the staggered state and the force cache (own patches)

@@ -48,7 +48,7 @@ from aca_warp.kernels.hf_adaptive import (
     store_control,
 )
 from aca_warp.kernels.hf_onchip_gather import tile_gather
-from aca_warp.kernels.hf_types import HFModel
+from aca_warp.kernels.hf_types import HFModel, HFRecorder
 from aca_warp.kernels.physics import (
     contact_block,
     grow_patch,
@@ -119,6 +119,7 @@ def onchip_dp5_kernel(
         raise ValueError(f"on-chip pads hold fewer than 32768 patches (int16 neighbour indices), got {nmax}")
     T = dtype
     Model = HFModel(T)
+    Recorder = HFRecorder(T)
     GATHER = wp.constant(0 if "gather" in ablate else 1)
     RECORD = wp.constant(0 if "record" in ablate else 1)
     SYNC = wp.constant(0 if "sync" in ablate else 1)
@@ -270,6 +271,7 @@ def onchip_dp5_kernel(
     @wp.kernel(enable_backward=False, module="unique", launch_bounds=(block_dim, 1), cluster_dim=cluster)
     def onchip_dp5(
         model: Model,  # growth fields read only with growth (pad_growth: the increment per event)
+        rec: Recorder,
         # Integrator:
         coeff: wp.array2d[wp.float64],
         err_coeff: wp.array[wp.float64],
@@ -287,9 +289,6 @@ def onchip_dp5_kernel(
         k0: int,
         row0: int,
         prow0: int,
-        first: int,
-        last: int,
-        every: int,
         # State in/out:
         u_io: wp.array[T],
         v_io: wp.array[T],
@@ -304,13 +303,6 @@ def onchip_dp5_kernel(
         mode: wp.array2d[wp.int32],
         stats: wp.array2d[wp.int64],
         done: wp.array[wp.int32],
-        # Recorder out:
-        globals_out: wp.array3d[wp.float64],
-        watch_bound: wp.array[wp.float64],
-        fault_out: wp.array2d[wp.int32],
-        fault_value_out: wp.array[wp.float64],
-        velocity_out: wp.array2d[T],
-        displacement_out: wp.array2d[T],
     ):
         """Advance pad ``pad`` through ``samples`` sample intervals (its interval is open unless the run is over),
         recording sample ``k0 + s`` into globals row ``row0 + s`` and, when due, per-patch rows from ``prow0``.
@@ -467,14 +459,11 @@ def onchip_dp5_kernel(
                 if sample != 0:
                     k = k0 + s
                     if rank == 0 and RECORD != 0:
-                        record_pad(
-                            pad, lane, threads, row0 + s, k, model, u_io, v_io, globals_out, watch_bound, fault_out,
-                            fault_value_out,
-                        )  # fmt: skip
-                    if patch_sample_due(k, first, last, every):
+                        record_pad(pad, lane, threads, row0 + s, k, model, u_io, v_io, rec)
+                    if patch_sample_due(rec, k):
                         g = lo + lane
                         while g < hi:
-                            store_patch_sample(velocity_out, displacement_out, prow, g, v_io[g], u_io[g])
+                            store_patch_sample(rec, prow, g, v_io[g], u_io[g])
                             g += threads
                         prow += 1
                 if lane == 0:

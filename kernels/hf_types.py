@@ -1,4 +1,5 @@
-"""The parameter groups of the HF kernels as Warp structs, each declared once: the model's arrays (:data:`HFModel`).
+"""The parameter groups of the HF kernels as Warp structs, each declared once: the model's arrays (:data:`HFModel`)
+and the recorder's (:data:`HFRecorder`).
 
 Every kernel and function that needs a group takes the whole struct (``model: Any``, the concrete struct of the
 state precision T, :class:`~aca_warp.kernels.PrecisionStruct`) and reads its fields where it used them as separate
@@ -67,3 +68,27 @@ class HFModel:
     pad_k_m: wp.array[wp.float64]
     pad_gap: wp.array[wp.float64]
 
+
+@PrecisionStruct
+class HFRecorder:
+    """The recorder's device buffers and per-patch window (:class:`aca_warp.hf.recorder.Recorder`).
+
+    ``counters`` int32 (4,): the next sample's index, the globals rows and the per-patch rows written since the last
+    flush, and (adaptive) the flag that a sample is due (slots in ``aca_warp.kernels.hf``: SAMPLE_INDEX …
+    RECORD_FLAG). ``globals`` (rows, pads, 6) float64: the samples' global outputs. ``watch_bound`` (pads,) [m/s]:
+    the watchdog's bound on a patch's energy speed; ``fault`` (pads, 3) int32: the first fault per pad [patch,
+    sample, kind], ``fault_value`` (pads,) [m/s] its energy speed. ``velocity``, ``displacement`` (prows, n) in T:
+    the per-patch histories (``displacement`` without rows when not recorded). Global sample k also records the
+    per-patch histories when ``first`` ≤ k ≤ ``last`` and (k − ``first``) % ``every`` = 0.
+    """
+
+    counters: wp.array[wp.int32]
+    globals: wp.array3d[wp.float64]
+    watch_bound: wp.array[wp.float64]
+    fault: wp.array2d[wp.int32]
+    fault_value: wp.array[wp.float64]
+    velocity: wp.array2d[Any]
+    displacement: wp.array2d[Any]
+    first: int
+    last: int
+    every: int

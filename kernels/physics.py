@@ -348,7 +348,7 @@ def block_sums(s: SampleSums):
 
 @wp.func
 def write_globals(
-    globals_out: wp.array3d[wp.float64],
+    rec: Any,
     row: int,
     pad: int,
     s: SampleSums,
@@ -358,8 +358,9 @@ def write_globals(
     matrix_radius: Any,
     load: Any,
 ):
-    """Write one pad's sample row: μ, torque [N m], friction radius [m], Σu̇, Σ|u̇| [m/s], friction centroid [m]
-    from the pad's :data:`SampleSums` ``s`` and the matrix's Coulomb friction μ_pad F_m sign(ω) at radius r_m.
+    """Write one pad's sample row into ``rec.globals``: μ, torque [N m], friction radius [m], Σu̇, Σ|u̇| [m/s],
+    friction centroid [m] from the pad's :data:`SampleSums` ``s`` and the matrix's Coulomb friction μ_pad F_m sign(ω)
+    at radius r_m.
 
     μ = (Σ F_i + μ_pad F_m sign ω)/F_N (0 without load); friction radius r_eff = T / total friction force (matrix
     included); friction centroid = |Σ F_i r⃗_i| / |Σ F_i|, the distance from the disc axis of the centroid of the
@@ -375,15 +376,15 @@ def write_globals(
         mu = ftot / wp.float64(load)
     if ftot != wp.float64(0.0):
         reff = ttot / ftot
-    globals_out[row, pad, 0] = mu
-    globals_out[row, pad, 1] = ttot
-    globals_out[row, pad, 2] = reff
-    globals_out[row, pad, 3] = s[2]
-    globals_out[row, pad, 4] = s[3]
+    rec.globals[row, pad, 0] = mu
+    rec.globals[row, pad, 1] = ttot
+    rec.globals[row, pad, 2] = reff
+    rec.globals[row, pad, 3] = s[2]
+    rec.globals[row, pad, 4] = s[3]
     centroid = wp.float64(0.0)
     if fsum != wp.float64(0.0):
         centroid = wp.sqrt(s[4] * s[4] + s[5] * s[5]) / wp.abs(fsum)
-    globals_out[row, pad, 5] = centroid
+    rec.globals[row, pad, 5] = centroid
 
 
 @wp.func
@@ -395,47 +396,35 @@ def energy_speed2(v: Any, u: Any, k_t: Any, inv_mass: Any) -> wp.float64:
 
 
 @wp.func
-def flag_fault(
-    fault_out: wp.array2d[wp.int32],
-    fault_value_out: wp.array[wp.float64],
-    pad: int,
-    k: int,
-    broken: bool,
-    bad: int,
-    runaway: int,
-    n: int,
-    value: wp.float64,
-):
-    """The pad's first fault at sample k (fault_out[pad] = [patch, sample, kind], kept once set): kind 0 when
+def flag_fault(rec: Any, pad: int, k: int, broken: bool, bad: int, runaway: int, n: int, value: wp.float64):
+    """The pad's first fault at sample k (rec.fault[pad] = [patch, sample, kind], kept once set): kind 0 when
     ``broken`` (a non-finite u or u̇; ``bad`` its first patch), else kind 1 when ``runaway`` < ``n`` (a patch whose
-    energy speed √(:func:`energy_speed2`) = ``value`` [m/s] exceeds the pad's bound; fault_value_out[pad] = value)."""
-    if fault_out[pad, 0] >= 0:
+    energy speed √(:func:`energy_speed2`) = ``value`` [m/s] exceeds the pad's bound; rec.fault_value[pad] = value)."""
+    if rec.fault[pad, 0] >= 0:
         return
     if broken:
-        fault_out[pad, 0] = bad
-        fault_out[pad, 1] = k
-        fault_out[pad, 2] = 0
+        rec.fault[pad, 0] = bad
+        rec.fault[pad, 1] = k
+        rec.fault[pad, 2] = 0
     elif runaway < n:
-        fault_out[pad, 0] = runaway
-        fault_out[pad, 1] = k
-        fault_out[pad, 2] = 1
-        fault_value_out[pad] = value
+        rec.fault[pad, 0] = runaway
+        rec.fault[pad, 1] = k
+        rec.fault[pad, 2] = 1
+        rec.fault_value[pad] = value
 
 
 @wp.func
-def patch_sample_due(k: int, first: int, last: int, every: int) -> bool:
-    """Whether global sample k also records per-patch histories (window [first, last], every n-th)."""
-    return k >= first and k <= last and (k - first) % every == 0
+def patch_sample_due(rec: Any, k: int) -> bool:
+    """Whether global sample k also records per-patch histories (``rec``'s window [first, last], every n-th)."""
+    return k >= rec.first and k <= rec.last and (k - rec.first) % rec.every == 0
 
 
 @wp.func
-def store_patch_sample(
-    velocity_out: wp.array2d[Any], displacement_out: wp.array2d[Any], row: int, g: int, v: Any, u: Any
-):
-    """Patch g's u̇ (and u, when its buffer has rows) into row ``row`` of the per-patch histories."""
-    velocity_out[row, g] = v
-    if displacement_out.shape[0] > 0:
-        displacement_out[row, g] = u
+def store_patch_sample(rec: Any, row: int, g: int, v: Any, u: Any):
+    """Patch g's u̇ (and u, when its buffer has rows) into row ``row`` of ``rec``'s per-patch histories."""
+    rec.velocity[row, g] = v
+    if rec.displacement.shape[0] > 0:
+        rec.displacement[row, g] = u
 
 
 @wp.func
@@ -449,26 +438,23 @@ def record_pad(
     # State in:
     u_in: wp.array[Any],
     v_in: wp.array[Any],
-    # Recorder:
-    globals_out: wp.array3d[wp.float64],
-    watch_bound: wp.array[wp.float64],
-    fault_out: wp.array2d[wp.int32],
-    fault_value_out: wp.array[wp.float64],
+    rec: Any,
 ):
     """Sample k of pad ``pad`` (lane ``lane`` of its block of ``threads``) of the state (``u_in``, ``v_in``) of
-    ``model`` (an :data:`~aca_warp.kernels.hf_types.HFModel`) into globals row ``row`` (:func:`write_globals`);
-    flags the first faulty patch (:func:`flag_fault`).
+    ``model`` (an :data:`~aca_warp.kernels.hf_types.HFModel`) into globals row ``row`` of ``rec`` (an
+    :data:`~aca_warp.kernels.hf_types.HFRecorder`, :func:`write_globals`); flags the first faulty patch
+    (:func:`flag_fault`).
 
     Each of the block's ``threads`` lanes sums the patches lane, lane + threads, … in float64 (:func:`patch_sample`),
     and the block adds the lanes' sums; with one lane (a CPU block) that is the sum in patch order. Watchdog: a
-    non-finite u or u̇, or a patch whose energy speed exceeds ``watch_bound[pad]`` [m/s]; "first" is the lowest
+    non-finite u or u̇, or a patch whose energy speed exceeds ``rec.watch_bound[pad]`` [m/s]; "first" is the lowest
     patch index.
     """
     a = model.pad_patch_start[pad]
     n = model.pad_patch_start[pad + 1] - a
     sums = SampleSums()
     omega = model.pad_omega[pad]
-    bound2 = watch_bound[pad] * watch_bound[pad]
+    bound2 = rec.watch_bound[pad] * rec.watch_bound[pad]
     runaway = n  # the lane's first patch beyond the bound (n: none)
     broken = n  # the lane's first patch with a non-finite u or u̇ (n: none)
     i = lane
@@ -490,11 +476,11 @@ def record_pad(
     if lane != 0:
         return
     write_globals(
-        globals_out, row, pad, sums, omega, model.pad_mu_pad[pad], model.pad_matrix_force[pad],
+        rec, row, pad, sums, omega, model.pad_mu_pad[pad], model.pad_matrix_force[pad],
         model.pad_matrix_radius[pad], model.pad_load[pad],
     )  # fmt: skip
     value = wp.float64(0.0)
     if runaway < n:
         g = a + runaway
         value = wp.sqrt(energy_speed2(v_in[g], u_in[g], model.k_t[g], model.inv_mass[g]))
-    flag_fault(fault_out, fault_value_out, pad, k, broken < n, broken, runaway, n, value)
+    flag_fault(rec, pad, k, broken < n, broken, runaway, n, value)

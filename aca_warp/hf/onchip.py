@@ -191,6 +191,7 @@ class OnchipEngine(OnchipLaunches):
         self.launch_kernel(
             [
                 self.kernel_model,
+                rec.struct,
                 self.growth_every,
                 done * self.sps % self.growth_every,  # steps so far (growth events count from the run's start)
                 self.threads,
@@ -202,17 +203,8 @@ class OnchipEngine(OnchipLaunches):
                 k_next,
                 rows,
                 prows,
-                rec.first,
-                rec.last,
-                rec.every,
                 s.u,
                 s.v,
                 s.force,
-                rec.globals,
-                rec.watch_bound,
-                rec.fault,
-                rec.fault_value,
-                rec.velocity,
-                rec.displacement,
             ],
         )

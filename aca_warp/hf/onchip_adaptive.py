@@ -147,12 +147,11 @@ class OnchipAdaptiveEngine(OnchipLaunches):
         f64 = wp.float64
         self.launch_kernel(
             [
-                self.kernel_model,
+                self.kernel_model, rec.struct,
                 st.coeff, st.err_coeff, st.u_scale, st.v_scale, st.tol, f64(st.h_max), f64(adaptive.MIN_STEP),
                 f64(self.record.sample_dt), f64(st.interval), f64(self.t_end),
-                self.threads, samples, k_next, rows, prows, rec.first, rec.last, rec.every,
+                self.threads, samples, k_next, rows, prows,
                 s.u, s.v, st.ku, st.kv, st.stage_u[0], st.stage_v[0], st.stage_u[1], st.stage_v[1],
                 st.ctl, st.mode, st.stats, st.done,
-                rec.globals, rec.watch_bound, rec.fault, rec.fault_value, rec.velocity, rec.displacement,
             ],
         )  # fmt: skip
