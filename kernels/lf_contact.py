@@ -17,7 +17,10 @@ from aca_warp.kernels.lf_types import (
     G_STEP,
     G_TORQUE,
     LF_BLOCK,
+    LFCells,
     LFParams,
+    LFPatches,
+    LFRings,
     disc_radius,
     polar,
 )
@@ -52,19 +55,17 @@ def eq4(p: LFParams, v: wp.float64) -> wp.float64:
 @wp.kernel
 def zero_step(
     # State out:
-    cell_cover_out: wp.array[wp.float64],
-    cell_chord_out: wp.array[wp.float64],
-    cell_power_out: wp.array[wp.float64],
-    ring_power_out: wp.array[wp.float64],
+    cells: LFCells,
+    rings: LFRings,
     glob_out: wp.array[wp.float64],
 ):
     """Reset per-step accumulators (dim = C)."""
     e = wp.tid()
-    cell_cover_out[e] = wp.float64(0.0)
-    cell_chord_out[e] = wp.float64(0.0)
-    cell_power_out[e] = wp.float64(0.0)
-    if e < ring_power_out.shape[0]:
-        ring_power_out[e] = wp.float64(0.0)
+    cells.cover[e] = wp.float64(0.0)
+    cells.chord[e] = wp.float64(0.0)
+    cells.power[e] = wp.float64(0.0)
+    if e < rings.power.shape[0]:
+        rings.power[e] = wp.float64(0.0)
     if e == 0:
         for g in range(G_FN, G_SIZE):
             if g != G_GAP and g != G_STEP:
@@ -74,24 +75,18 @@ def zero_step(
 @wp.kernel
 def bin_patches(
     p: LFParams,
-    # State in:
-    alive: wp.array[wp.int32],
-    x: wp.array[wp.float64],
-    y: wp.array[wp.float64],
-    area: wp.array[wp.float64],
-    # State out:
-    patch_cell_out: wp.array[wp.int32],
-    cell_cover_out: wp.array[wp.float64],
-    cell_chord_out: wp.array[wp.float64],
+    # State in/out (the patches' cells, the cells' cover and chord):
+    cells: LFCells,
+    patches: LFPatches,
 ):
     """Cell of each alive patch (its centre) and per-cell covered area and summed chord 2a (dim = P)."""
     i = wp.tid()
-    if alive[i] == 0:
+    if patches.alive[i] == 0:
         return
-    e = cell_of(p, x[i], y[i])
-    patch_cell_out[i] = e
-    wp.atomic_add(cell_cover_out, e, area[i])
-    wp.atomic_add(cell_chord_out, e, wp.float64(2.0) * disc_radius(area[i]))
+    e = cell_of(p, patches.x[i], patches.y[i])
+    patches.cell[i] = e
+    wp.atomic_add(cells.cover, e, patches.area[i])
+    wp.atomic_add(cells.chord, e, wp.float64(2.0) * disc_radius(patches.area[i]))
 
 
 @wp.func
@@ -99,23 +94,18 @@ def element(
     p: LFParams,
     t: wp.int32,
     n_cells: wp.int32,
-    cell_area: wp.array[wp.float64],
-    cell_z: wp.array[wp.float64],
-    cell_cover: wp.array[wp.float64],
-    ring_bulge: wp.array[wp.float64],
-    alive: wp.array[wp.int32],
-    area: wp.array[wp.float64],
-    top: wp.array[wp.float64],
-    patch_cell: wp.array[wp.int32],
+    cells: LFCells,
+    rings: LFRings,
+    patches: LFPatches,
 ) -> wp.vec2d:
     """(stiffness [N/m], free elevation [m]) of element t: cells first, then patch slots; k = 0 if inactive."""
     if t < n_cells:
-        free = wp.max(cell_area[t] - cell_cover[t], wp.float64(0.0))
-        return wp.vec2d(p.k_m * free, cell_z[t] + ring_bulge[t / p.n_t])
+        free = wp.max(cells.area[t] - cells.cover[t], wp.float64(0.0))
+        return wp.vec2d(p.k_m * free, cells.z[t] + rings.bulge[t / p.n_t])
     i = t - n_cells
-    if alive[i] == 0:
+    if patches.alive[i] == 0:
         return wp.vec2d(wp.float64(0.0), wp.float64(0.0))
-    return wp.vec2d(p.K_N * wp.sqrt(area[i]), top[i] + ring_bulge[patch_cell[i] / p.n_t])
+    return wp.vec2d(p.K_N * wp.sqrt(patches.area[i]), patches.top[i] + rings.bulge[patches.cell[i] / p.n_t])
 
 
 # ----------------------------------------------------------------------------------------------- contact
@@ -125,22 +115,16 @@ def element(
 def contact_elements(
     p: LFParams,
     n_cells: wp.int32,
-    # Model:
-    cell_area: wp.array[wp.float64],
     # State in:
-    cell_z: wp.array[wp.float64],
-    cell_cover: wp.array[wp.float64],
-    ring_bulge: wp.array[wp.float64],
-    alive: wp.array[wp.int32],
-    area: wp.array[wp.float64],
-    top: wp.array[wp.float64],
-    patch_cell: wp.array[wp.int32],
+    cells: LFCells,
+    rings: LFRings,
+    patches: LFPatches,
     # Scratch out:
     kh_out: wp.array[wp.vec2d],
 ):
     """(k, h) of every element for the contact solve (dim = C + P; see :func:`element`)."""
     t = wp.tid()
-    kh_out[t] = element(p, t, n_cells, cell_area, cell_z, cell_cover, ring_bulge, alive, area, top, patch_cell)
+    kh_out[t] = element(p, t, n_cells, cells, rings, patches)
 
 
 @wp.kernel
@@ -214,20 +198,12 @@ def friction(
     p: LFParams,
     n_cells: wp.int32,
     threads: wp.int32,
-    # Model:
-    cell_r: wp.array[wp.float64],
-    # State in:
+    # Scratch in:
     kh: wp.array[wp.vec2d],
-    alive: wp.array[wp.int32],
-    x: wp.array[wp.float64],
-    y: wp.array[wp.float64],
-    patch_cell: wp.array[wp.int32],
-    # State out:
-    cell_fn_out: wp.array[wp.float64],
-    cell_power_out: wp.array[wp.float64],
-    patch_fn_out: wp.array[wp.float64],
-    patch_power_out: wp.array[wp.float64],
-    ring_power_out: wp.array[wp.float64],
+    # State in/out (writes the normal forces and powers):
+    cells: LFCells,
+    rings: LFRings,
+    patches: LFPatches,
     glob: wp.array[wp.float64],
 ):
     """Normal forces at the solved gap (from the contact scratch ``kh``), friction forces and powers, global sums.
@@ -256,25 +232,25 @@ def friction(
         ff = zero
         ring = wp.int32(0)
         if t < n_cells:
-            r = cell_r[t]
+            r = cells.r[t]
             ff = p.mu_pad * fn
-            cell_fn_out[t] = fn
-            wp.atomic_add(cell_power_out, t, ff * omega * r)
+            cells.fn[t] = fn
+            wp.atomic_add(cells.power, t, ff * omega * r)
             ring = t / p.n_t
         else:
             i = t - n_cells
-            if alive[i] == 0:
-                patch_fn_out[i] = zero
-                patch_power_out[i] = zero
+            if patches.alive[i] == 0:
+                patches.fn[i] = zero
+                patches.power[i] = zero
                 continue
-            r = wp.sqrt(x[i] * x[i] + y[i] * y[i])
+            r = wp.sqrt(patches.x[i] * patches.x[i] + patches.y[i] * patches.y[i])
             ff = eq4(p, omega * r) * fn
-            patch_fn_out[i] = fn
-            patch_power_out[i] = ff * omega * r
-            ring = patch_cell[i] / p.n_t
+            patches.fn[i] = fn
+            patches.power[i] = ff * omega * r
+            ring = patches.cell[i] / p.n_t
             s_fp += fn
         if fn > zero:
-            wp.atomic_add(ring_power_out, ring, ff * omega * r)
+            wp.atomic_add(rings.power, ring, ff * omega * r)
             s_fn += fn
             s_ff += ff
             s_tq += ff * r

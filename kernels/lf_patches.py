@@ -9,7 +9,18 @@ from __future__ import annotations
 from typing import Any
 
 import warp as wp
-from aca_warp.kernels.lf_types import G_BIRTHS, G_DEATHS, G_MERGES, G_STEP, G_TOPOLOGY, LFParams, disc_radius, polar
+from aca_warp.kernels.lf_types import (
+    G_BIRTHS,
+    G_DEATHS,
+    G_MERGES,
+    G_STEP,
+    G_TOPOLOGY,
+    LFCells,
+    LFParams,
+    LFPatches,
+    disc_radius,
+    polar,
+)
 
 wp.set_module_options({"enable_backward": False})
 
@@ -56,20 +67,9 @@ def clamp_inside(p: LFParams, x: wp.float64, y: wp.float64, a: wp.float64) -> wp
 @wp.kernel
 def life_cycle(
     p: LFParams,
-    # State in:
-    patch_power: wp.array[wp.float64],
-    patch_T: wp.array[wp.float64],
-    patch_cell: wp.array[wp.int32],
     # State in/out:
-    alive: wp.array[wp.int32],
-    x: wp.array[wp.float64],
-    y: wp.array[wp.float64],
-    area: wp.array[wp.float64],
-    thick: wp.array[wp.float64],
-    top: wp.array[wp.float64],
-    mcap: wp.array[wp.float64],
-    age: wp.array[wp.float64],
-    cell_src: wp.array[wp.float64],
+    cells: LFCells,
+    patches: LFPatches,
     glob: wp.array[wp.float64],
     # Out:
     death_count: wp.array[wp.int32],
@@ -82,43 +82,45 @@ def life_cycle(
     A < A_min, t < t_min, T ≥ T_kill, or with probability 1 − exp(−λ0 exp((T − T_c)/T_s) Δt).
     """
     i = wp.tid()
-    if alive[i] == 0:
+    if patches.alive[i] == 0:
         return
-    e = patch_cell[i]
+    e = patches.cell[i]
     rho = p.rho_patch
-    t = thick[i]
-    A = area[i]
+    t = patches.thick[i]
+    A = patches.area[i]
     released = wp.float64(0.0)
     if t > wp.float64(0.0):
-        A_grow = A + mcap[i] / (rho * t)
+        A_grow = A + patches.mcap[i] / (rho * t)
         A_new = wp.min(A_grow, wp.max(p.A_max, A))
         released = released + (A_grow - A_new) * rho * t
-        ds = wp.min(p.k_shrink * patch_power[i] * p.dt / t, A_new)
+        ds = wp.min(p.k_shrink * patches.power[i] * p.dt / t, A_new)
         A = A_new - ds
         released = released + ds * rho * t
     else:
-        released = released + mcap[i]
-    mcap[i] = wp.float64(0.0)
-    age[i] = age[i] + p.dt
-    T = patch_T[i]
+        released = released + patches.mcap[i]
+    patches.mcap[i] = wp.float64(0.0)
+    patches.age[i] = patches.age[i] + p.dt
+    T = patches.temp[i]
     lam = p.lam0 * wp.exp(wp.min((T - p.T_c) / p.T_s, wp.float64(50.0)))
     u = uniform64(p.seed, wp.uint64(glob[G_STEP]), wp.uint64(i), wp.uint64(1))
     if A < p.A_min or t < p.t_min or T >= p.T_kill or u < wp.float64(1.0) - wp.exp(-lam * p.dt):
         released = released + rho * A * t
-        alive[i] = 0  # no G_TOPOLOGY: the grid and candidate lists may keep a dead slot (every query checks alive)
+        patches.alive[i] = (
+            0  # no G_TOPOLOGY: the grid and candidate lists may keep a dead slot (every query checks alive)
+        )
         wp.atomic_add(glob, G_DEATHS, wp.float64(1.0))
         slot = wp.atomic_add(death_count, 0, 1)
         if slot < death_age.shape[0]:
-            death_age[slot] = age[i]
+            death_age[slot] = patches.age[i]
             death_area[slot] = A
         A = wp.float64(0.0)
     else:
-        xy = clamp_inside(p, x[i], y[i], disc_radius(A))
-        x[i] = xy[0]
-        y[i] = xy[1]
-    area[i] = A
+        xy = clamp_inside(p, patches.x[i], patches.y[i], disc_radius(A))
+        patches.x[i] = xy[0]
+        patches.y[i] = xy[1]
+    patches.area[i] = A
     if released != wp.float64(0.0):
-        wp.atomic_add(cell_src, e, released)
+        wp.atomic_add(cells.src, e, released)
 
 
 # ----------------------------------------------------------------------------------------------- merges
@@ -130,24 +132,21 @@ def merge_target(
     nbr_start: wp.array[wp.int32],
     nbr_index: wp.array[wp.int32],
     # State in:
-    alive: wp.array[wp.int32],
-    x: wp.array[wp.float64],
-    y: wp.array[wp.float64],
-    area: wp.array[wp.float64],
-    # State out:
+    patches: LFPatches,
+    # Out:
     target_out: wp.array[wp.int32],
 ):
     """target[i] = the lowest-index alive patch j < i that overlaps i, else −1 (dim = P)."""
     i = wp.tid()
     target_out[i] = -1
-    if alive[i] == 0:
+    if patches.alive[i] == 0:
         return
-    ai = disc_radius(area[i])
+    ai = disc_radius(patches.area[i])
     best = wp.int32(-1)
     for q in range(nbr_start[i], nbr_start[i + 1]):
         j = nbr_index[q]
-        if j < i and alive[j] != 0 and (best < 0 or j < best):
-            if overlaps(x[i], y[i], ai, x[j], y[j], disc_radius(area[j])):
+        if j < i and patches.alive[j] != 0 and (best < 0 or j < best):
+            if overlaps(patches.x[i], patches.y[i], ai, patches.x[j], patches.y[j], disc_radius(patches.area[j])):
                 best = j
     target_out[i] = best
 
@@ -158,64 +157,56 @@ def merge_apply(
     nbr_start: wp.array[wp.int32],
     nbr_index: wp.array[wp.int32],
     target: wp.array[wp.int32],
-    patch_cell: wp.array[wp.int32],
     # State in/out (roots write only their own entries, read only absorbed ones):
-    alive: wp.array[wp.int32],
-    x: wp.array[wp.float64],
-    y: wp.array[wp.float64],
-    area: wp.array[wp.float64],
-    thick: wp.array[wp.float64],
-    top: wp.array[wp.float64],
-    temp: wp.array[wp.float64],
-    age: wp.array[wp.float64],
-    cell_src: wp.array[wp.float64],
+    cells: LFCells,
+    patches: LFPatches,
     glob: wp.array[wp.float64],
 ):
     """A root (target −1) absorbs every neighbour whose target it is: area sum, area-weighted centroid, top,
     temperature; volume-weighted thickness (mass conserved); oldest age (dim = P). A merged area above
     max(A_max, the root's area) is cut back to it and the cut mass goes to the cell's debris source."""
     i = wp.tid()
-    if alive[i] == 0 or target[i] != -1:
+    if patches.alive[i] == 0 or target[i] != -1:
         return
-    A = area[i]
-    sx = A * x[i]
-    sy = A * y[i]
-    sv = A * thick[i]
-    stop = A * top[i]
-    sT = A * temp[i]
-    ag = age[i]
+    A = patches.area[i]
+    sx = A * patches.x[i]
+    sy = A * patches.y[i]
+    sv = A * patches.thick[i]
+    stop = A * patches.top[i]
+    sT = A * patches.temp[i]
+    ag = patches.age[i]
     n = int(0)
     for q in range(nbr_start[i], nbr_start[i + 1]):
         j = nbr_index[q]
         if target[j] == i:
-            Aj = area[j]
+            Aj = patches.area[j]
             A = A + Aj
-            sx = sx + Aj * x[j]
-            sy = sy + Aj * y[j]
-            sv = sv + Aj * thick[j]
-            stop = stop + Aj * top[j]
-            sT = sT + Aj * temp[j]
-            ag = wp.max(ag, age[j])
+            sx = sx + Aj * patches.x[j]
+            sy = sy + Aj * patches.y[j]
+            sv = sv + Aj * patches.thick[j]
+            stop = stop + Aj * patches.top[j]
+            sT = sT + Aj * patches.temp[j]
+            ag = wp.max(ag, patches.age[j])
             n += 1
     if n == 0:
         return
     t_new = sv / A
-    cap = wp.max(p.A_max, area[i])
+    cap = wp.max(p.A_max, patches.area[i])
     if A > cap:
-        wp.atomic_add(cell_src, patch_cell[i], (A - cap) * t_new * p.rho_patch)
+        wp.atomic_add(cells.src, patches.cell[i], (A - cap) * t_new * p.rho_patch)
         sx = sx * (cap / A)
         sy = sy * (cap / A)
         stop = stop * (cap / A)
         sT = sT * (cap / A)
         A = cap
     xy = clamp_inside(p, sx / A, sy / A, disc_radius(A))
-    x[i] = xy[0]
-    y[i] = xy[1]
-    area[i] = A
-    thick[i] = t_new
-    top[i] = stop / A
-    temp[i] = sT / A
-    age[i] = ag
+    patches.x[i] = xy[0]
+    patches.y[i] = xy[1]
+    patches.area[i] = A
+    patches.thick[i] = t_new
+    patches.top[i] = stop / A
+    patches.temp[i] = sT / A
+    patches.age[i] = ag
     glob[G_TOPOLOGY] = wp.float64(1.0)
     wp.atomic_add(glob, G_MERGES, wp.float64(n))
 
@@ -223,17 +214,15 @@ def merge_apply(
 @wp.kernel
 def merge_kill(
     target: wp.array[wp.int32],
-    alive: wp.array[wp.int32],
-    area: wp.array[wp.float64],
-    mcap: wp.array[wp.float64],
+    patches: LFPatches,
 ):
     """Free the slots of absorbed patches (those whose target is a root) (dim = P)."""
     i = wp.tid()
     t = target[i]
     if t >= 0 and target[t] == -1:
-        alive[i] = 0
-        area[i] = wp.float64(0.0)
-        mcap[i] = wp.float64(0.0)
+        patches.alive[i] = 0
+        patches.area[i] = wp.float64(0.0)
+        patches.mcap[i] = wp.float64(0.0)
 
 
 # ----------------------------------------------------------------------------------------------- births
@@ -244,19 +233,11 @@ def birth_want(
     p: LFParams,
     grid: wp.uint64,
     query_radius: wp.float64,
-    # Model:
-    cell_area: wp.array[wp.float64],
-    cell_r: wp.array[wp.float64],
     # State in:
-    cell_store: wp.array[wp.float64],
-    cell_fn: wp.array[wp.float64],
-    cell_cover: wp.array[wp.float64],
-    alive: wp.array[wp.int32],
-    x: wp.array[wp.float64],
-    y: wp.array[wp.float64],
-    area: wp.array[wp.float64],
+    cells: LFCells,
+    patches: LFPatches,
     glob: wp.array[wp.float64],
-    # State out:
+    # Out:
     want_out: wp.array[wp.int32],
     birth_xy_out: wp.array[wp.vec2d],
 ):
@@ -265,8 +246,8 @@ def birth_want(
     e = wp.tid()
     want_out[e] = 0
     s_crit = p.rho_patch * p.t0 * p.A0
-    free = wp.max(cell_area[e] - cell_cover[e], wp.float64(0.0))
-    if cell_store[e] < s_crit or free <= wp.float64(0.0) or cell_fn[e] < p.p_comp * free:
+    free = wp.max(cells.area[e] - cells.cover[e], wp.float64(0.0))
+    if cells.store[e] < s_crit or free <= wp.float64(0.0) or cells.fn[e] < p.p_comp * free:
         return
     step = wp.uint64(glob[G_STEP])
     if uniform64(p.seed, step, wp.uint64(e), wp.uint64(2)) >= p.p_birth:
@@ -274,7 +255,7 @@ def birth_want(
     a0 = disc_radius(p.A0)
     k = e / p.n_t
     j = e - k * p.n_t
-    r = cell_r[e]
+    r = cells.r[e]
     u1 = uniform64(p.seed, step, wp.uint64(e), wp.uint64(3))
     u2 = uniform64(p.seed, step, wp.uint64(e), wp.uint64(4))
     rr = p.r_in + (wp.float64(k) * p.dr + a0) + u1 * wp.max(p.dr - wp.float64(2.0) * a0, wp.float64(0.0))
@@ -286,7 +267,9 @@ def birth_want(
     xy = clamp_inside(p, bx, by, a0)
     q = wp.vec3d(xy[0], xy[1], wp.float64(0.0))
     for i in wp.hash_grid_query(grid, q, query_radius):
-        if alive[i] != 0 and overlaps(x[i], y[i], disc_radius(area[i]), xy[0], xy[1], a0):
+        if patches.alive[i] != 0 and overlaps(
+            patches.x[i], patches.y[i], disc_radius(patches.area[i]), xy[0], xy[1], a0
+        ):
             return
     want_out[e] = 1
     birth_xy_out[e] = xy
@@ -316,19 +299,9 @@ def birth_apply(
     free_rank: wp.array[wp.int32],
     slot_list: wp.array[wp.int32],
     birth_xy: wp.array[wp.vec2d],
-    cell_z: wp.array[wp.float64],
-    cell_T: wp.array[wp.float64],
     # State in/out:
-    cell_store: wp.array[wp.float64],
-    alive: wp.array[wp.int32],
-    x: wp.array[wp.float64],
-    y: wp.array[wp.float64],
-    area: wp.array[wp.float64],
-    thick: wp.array[wp.float64],
-    top: wp.array[wp.float64],
-    temp: wp.array[wp.float64],
-    mcap: wp.array[wp.float64],
-    age: wp.array[wp.float64],
+    cells: LFCells,
+    patches: LFPatches,
     glob: wp.array[wp.float64],
 ):
     """Create the flagged patches in the lowest free slots, in cell order (dim = C); the cell's store pays
@@ -343,16 +316,16 @@ def birth_apply(
         return
     i = slot_list[r]
     xy = birth_xy[e]
-    alive[i] = 1
-    x[i] = xy[0]
-    y[i] = xy[1]
-    area[i] = p.A0
-    thick[i] = p.t0
-    top[i] = cell_z[e] + p.t0
-    temp[i] = cell_T[e]
-    mcap[i] = wp.float64(0.0)
-    age[i] = wp.float64(0.0)
-    cell_store[e] = cell_store[e] - p.rho_patch * p.t0 * p.A0
+    patches.alive[i] = 1
+    patches.x[i] = xy[0]
+    patches.y[i] = xy[1]
+    patches.area[i] = p.A0
+    patches.thick[i] = p.t0
+    patches.top[i] = cells.z[e] + p.t0
+    patches.temp[i] = cells.T[e]
+    patches.mcap[i] = wp.float64(0.0)
+    patches.age[i] = wp.float64(0.0)
+    cells.store[e] = cells.store[e] - p.rho_patch * p.t0 * p.A0
     glob[G_TOPOLOGY] = wp.float64(1.0)
     wp.atomic_add(glob, G_BIRTHS, wp.float64(1.0))
 
@@ -362,16 +335,14 @@ def birth_apply(
 
 @wp.kernel
 def positions3(
-    alive: wp.array[wp.int32],
-    x: wp.array[wp.float64],
-    y: wp.array[wp.float64],
+    patches: LFPatches,
     park: wp.vec3d,
     pos_out: wp.array[wp.vec3d],
 ):
     """Points for the hash grid; empty slots all at ``park``, in a cell no query visits (dim = P)."""
     i = wp.tid()
-    if alive[i] != 0:
-        pos_out[i] = wp.vec3d(x[i], y[i], wp.float64(0.0))
+    if patches.alive[i] != 0:
+        pos_out[i] = wp.vec3d(patches.x[i], patches.y[i], wp.float64(0.0))
     else:
         pos_out[i] = park
 

@@ -22,6 +22,8 @@ from aca_warp.kernels.lf_types import (
     G_STEP,
     G_TORQUE,
     G_TPATCH,
+    LFPatches,
+    LFRings,
 )
 
 wp.set_module_options({"enable_backward": False})
@@ -79,26 +81,22 @@ def set_load(
 
 @wp.kernel
 def patch_stats(
-    alive: wp.array[wp.int32],
-    area: wp.array[wp.float64],
-    temp: wp.array[wp.float64],
+    patches: LFPatches,
     glob: wp.array[wp.float64],
 ):
     """Count, Σ area and Σ A T of the alive patches (dim = P)."""
     i = wp.tid()
-    if alive[i] == 0:
+    if patches.alive[i] == 0:
         return
     wp.atomic_add(glob, G_COUNT, wp.float64(1.0))
-    wp.atomic_add(glob, G_AREA, area[i])
-    wp.atomic_add(glob, G_TPATCH, area[i] * temp[i])
+    wp.atomic_add(glob, G_AREA, patches.area[i])
+    wp.atomic_add(glob, G_TPATCH, patches.area[i] * patches.temp[i])
 
 
 @wp.kernel
 def record_step(
     pad_area: wp.float64,
-    ring_r: wp.array[wp.float64],
-    ring_T: wp.array[wp.float64],
-    ring_emit: wp.array[wp.float64],
+    rings: LFRings,
     glob: wp.array[wp.float64],
     hist_out: wp.array2d[wp.float64],
 ):
@@ -119,14 +117,14 @@ def record_step(
         reff = glob[G_TORQUE] / ff
     tsum = wp.float64(0.0)
     wsum = wp.float64(0.0)
-    tmax = ring_T[0]
+    tmax = rings.T[0]
     em = wp.float64(0.0)
-    for k in range(ring_T.shape[0]):
-        tsum = tsum + ring_T[k] * ring_r[k]
-        wsum = wsum + ring_r[k]
-        tmax = wp.max(tmax, ring_T[k])
-        em = em + ring_emit[k]
-        ring_emit[k] = wp.float64(0.0)
+    for k in range(rings.T.shape[0]):
+        tsum = tsum + rings.T[k] * rings.r[k]
+        wsum = wsum + rings.r[k]
+        tmax = wp.max(tmax, rings.T[k])
+        em = em + rings.emit[k]
+        rings.emit[k] = wp.float64(0.0)
     glob[G_EMITTED] = em
     tp = wp.float64(0.0)
     if glob[G_AREA] > wp.float64(0.0):

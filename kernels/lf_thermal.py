@@ -5,7 +5,7 @@ their thermal bulge, the pad cells and the patches against their ring and the pa
 from __future__ import annotations
 
 import warp as wp
-from aca_warp.kernels.lf_types import LFParams, disc_radius
+from aca_warp.kernels.lf_types import LFCells, LFParams, LFPatches, LFRings, disc_radius
 
 wp.set_module_options({"enable_backward": False})
 
@@ -13,12 +13,8 @@ wp.set_module_options({"enable_backward": False})
 @wp.kernel
 def disc_temperature(
     p: LFParams,
-    # Model:
-    ring_r: wp.array[wp.float64],
-    # State in/out:
-    ring_power: wp.array[wp.float64],
-    ring_T: wp.array[wp.float64],
-    ring_bulge_out: wp.array[wp.float64],
+    # State in/out (the rings' temperatures and bulge):
+    rings: LFRings,
     work: wp.array[wp.float64],
 ):
     """Backward Euler of the ring temperatures with radial conduction (Thomas algorithm; dim = 1).
@@ -33,7 +29,7 @@ def disc_temperature(
     cp = wp.float64(0.0)
     dp = wp.float64(0.0)
     for k in range(n):
-        r = ring_r[k]
+        r = rings.r[k]
         C = p.rho_d * p.c_d * two_pi * r * p.dr * p.d_d
         hA = p.h_conv * wp.float64(2.0) * two_pi * r * p.dr
         g_lo = wp.float64(0.0)
@@ -43,7 +39,7 @@ def disc_temperature(
         if k < n - 1:
             g_hi = p.k_d * two_pi * (r + wp.float64(0.5) * p.dr) * p.d_d / p.dr
         diag = C / dt + hA + g_lo + g_hi
-        rhs = C / dt * ring_T[k] + p.gamma_disc * ring_power[k] + hA * p.T_amb
+        rhs = C / dt * rings.T[k] + p.gamma_disc * rings.power[k] + hA * p.T_amb
         a = -g_lo
         c = -g_hi
         if k > 0:
@@ -56,13 +52,13 @@ def disc_temperature(
         work[k] = cp
         work[n + k] = dp
     T_next = dp
-    ring_T[n - 1] = T_next
+    rings.T[n - 1] = T_next
     for kk in range(n - 1):
         k = n - 2 - kk
         T_next = work[n + k] - work[k] * T_next
-        ring_T[k] = T_next
+        rings.T[k] = T_next
     for k in range(n):
-        ring_bulge_out[k] = p.kappa_d * p.alpha_d * p.d_d * (ring_T[k] - p.T_amb)
+        rings.bulge[k] = p.kappa_d * p.alpha_d * p.d_d * (rings.T[k] - p.T_amb)
 
 
 @wp.func
@@ -78,20 +74,10 @@ def implicit_temperature(
 def pad_temperature(
     p: LFParams,
     n_cells: wp.int32,
-    # Model:
-    cell_area: wp.array[wp.float64],
-    # State in:
-    ring_T: wp.array[wp.float64],
-    cell_fn: wp.array[wp.float64],
-    cell_power: wp.array[wp.float64],
-    alive: wp.array[wp.int32],
-    area: wp.array[wp.float64],
-    patch_fn: wp.array[wp.float64],
-    patch_power: wp.array[wp.float64],
-    patch_cell: wp.array[wp.int32],
-    # State in/out:
-    cell_T: wp.array[wp.float64],
-    patch_T: wp.array[wp.float64],
+    # State in/out (the cells' and patches' temperatures):
+    cells: LFCells,
+    rings: LFRings,
+    patches: LFPatches,
 ):
     """Backward Euler of a pad cell (t < C) or patch (t ≥ C) temperature against its disc ring and the pad bulk.
 
@@ -103,26 +89,26 @@ def pad_temperature(
     t = wp.tid()
     dt = p.dt
     if t < n_cells:
-        A = cell_area[t]
+        A = cells.area[t]
         C = p.rho_p * p.c_p * A * p.t_eff
         g_d = wp.float64(0.0)
-        if cell_fn[t] > wp.float64(0.0):
+        if cells.fn[t] > wp.float64(0.0):
             g_d = p.h_pd * A
         g_b = p.k_p * A / p.L_b
-        Td = ring_T[t / p.n_t]
-        q = (wp.float64(1.0) - p.gamma_disc) * cell_power[t]
-        cell_T[t] = implicit_temperature(C / dt, cell_T[t], q, g_d, Td, g_b, p.T_amb)
+        Td = rings.T[t / p.n_t]
+        q = (wp.float64(1.0) - p.gamma_disc) * cells.power[t]
+        cells.T[t] = implicit_temperature(C / dt, cells.T[t], q, g_d, Td, g_b, p.T_amb)
         return
     i = t - n_cells
-    if alive[i] == 0:
+    if patches.alive[i] == 0:
         return
-    A = area[i]
-    e = patch_cell[i]
+    A = patches.area[i]
+    e = patches.cell[i]
     C = p.rho_p * p.c_p * A * p.t_eff
     g_d = wp.float64(0.0)
-    if patch_fn[i] > wp.float64(0.0):
+    if patches.fn[i] > wp.float64(0.0):
         g_d = wp.float64(4.0) * p.k_d * disc_radius(A)
     g_b = p.k_p * A / p.L_b
-    Td = ring_T[e / p.n_t]
-    q = (wp.float64(1.0) - p.gamma_disc) * patch_power[i]
-    patch_T[i] = implicit_temperature(C / dt, patch_T[i], q, g_d, Td, g_b, cell_T[e])
+    Td = rings.T[e / p.n_t]
+    q = (wp.float64(1.0) - p.gamma_disc) * patches.power[i]
+    patches.temp[i] = implicit_temperature(C / dt, patches.temp[i], q, g_d, Td, g_b, cells.T[e])

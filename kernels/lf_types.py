@@ -1,8 +1,10 @@
 """The LF automaton's kernels (docs/lf_model.md; thin wrappers in ``aca_warp.lf.solver``): their shared constants,
 indices and parameters, and the geometry helpers of more than one stage.
 
-One module per stage: :mod:`~aca_warp.kernels.lf_contact` (binning, contact, friction),
-:mod:`~aca_warp.kernels.lf_thermal` (temperatures), :mod:`~aca_warp.kernels.lf_wear` (wear and its debris),
+The automaton's state comes to the kernels in three structs, :class:`LFCells`, :class:`LFRings` and
+:class:`LFPatches`, besides ``glob`` and the contact scratch. One module per stage:
+:mod:`~aca_warp.kernels.lf_contact` (binning, contact, friction), :mod:`~aca_warp.kernels.lf_thermal`
+(temperatures), :mod:`~aca_warp.kernels.lf_wear` (wear and its debris),
 :mod:`~aca_warp.kernels.lf_patches` (life cycle, merges, births, merge candidates, compaction),
 :mod:`~aca_warp.kernels.lf_record` (load schedule and outputs).
 
@@ -113,6 +115,54 @@ class LFParams:
     T_s: wp.float64
     T_kill: wp.float64
     cand_margin: wp.float64
+
+
+@wp.struct
+class LFCells:
+    """The matrix cells of the pad's polar grid, shape (C,) each, float64 (:class:`aca_warp.lf.solver.LFSimulation`
+    holds the arrays as ``cell_*``)."""
+
+    area: wp.array[wp.float64]  # exact annular-sector area A_e [m²] (constant)
+    r: wp.array[wp.float64]  # area-weighted radius [m] (constant)
+    z: wp.array[wp.float64]  # elevation [m] (worn)
+    T: wp.array[wp.float64]  # temperature [K]
+    store: wp.array[wp.float64]  # debris stored in the cell's gaps [kg]
+    src: wp.array[wp.float64]  # debris released into the cell, pending the next sweep [kg]
+    fn: wp.array[wp.float64]  # normal force this step [N]
+    power: wp.array[wp.float64]  # friction power this step [W]
+    cover: wp.array[wp.float64]  # area covered by the cell's patches [m²]
+    chord: wp.array[wp.float64]  # Σ 2a over the cell's patches [m]
+    capture: wp.array[wp.float64]  # debris the cell's patches captured this step [kg]
+
+
+@wp.struct
+class LFRings:
+    """The disc rings (the grid's radial bands), shape (R,) each, float64 (held as ``ring_*``)."""
+
+    r: wp.array[wp.float64]  # centre radius [m] (constant)
+    T: wp.array[wp.float64]  # temperature [K]
+    bulge: wp.array[wp.float64]  # thermal bulge toward the pad [m]
+    power: wp.array[wp.float64]  # friction power into the ring this step [W]
+    emit: wp.array[wp.float64]  # debris leaving the ring at the trailing edge this step [kg]
+
+
+@wp.struct
+class LFPatches:
+    """The patch slots, shape (P,) each, float64 unless noted (held under these names, ``patch_fn``,
+    ``patch_power``, ``patch_cell`` for the last three)."""
+
+    alive: wp.array[wp.int32]  # 1 for a patch, 0 for an empty slot
+    x: wp.array[wp.float64]  # centre in the pad frame [m]
+    y: wp.array[wp.float64]
+    area: wp.array[wp.float64]  # A [m²]
+    thick: wp.array[wp.float64]  # thickness t [m]
+    top: wp.array[wp.float64]  # free elevation of the top [m]
+    temp: wp.array[wp.float64]  # temperature [K]
+    mcap: wp.array[wp.float64]  # captured debris not yet grown into area [kg]
+    age: wp.array[wp.float64]  # [s]
+    fn: wp.array[wp.float64]  # normal force this step [N]
+    power: wp.array[wp.float64]  # friction power this step [W]
+    cell: wp.array[wp.int32]  # the cell of its centre
 
 
 # ----------------------------------------------------------------------------------------------- helpers

@@ -5,7 +5,17 @@ mobile debris along each ring, and its capture by the patches (docs/lf_model.md)
 from __future__ import annotations
 
 import warp as wp
-from aca_warp.kernels.lf_types import G_MATRIX_IN, G_MATRIX_LOST, G_PATCH_LOST, LF_BLOCK, LFParams, disc_radius
+from aca_warp.kernels.lf_types import (
+    G_MATRIX_IN,
+    G_MATRIX_LOST,
+    G_PATCH_LOST,
+    LF_BLOCK,
+    LFCells,
+    LFParams,
+    LFPatches,
+    LFRings,
+    disc_radius,
+)
 from aca_warp.kernels.tiles import block_add, block_sync, tile_store_1d
 
 wp.set_module_options({"enable_backward": False})
@@ -33,28 +43,15 @@ def wear(
     p: LFParams,
     n_cells: wp.int32,
     threads: wp.int32,
-    # Model:
-    cell_area: wp.array[wp.float64],
-    # State in:
-    cell_cover: wp.array[wp.float64],
-    cell_power: wp.array[wp.float64],
-    cell_T: wp.array[wp.float64],
-    alive: wp.array[wp.int32],
-    area: wp.array[wp.float64],
-    patch_power: wp.array[wp.float64],
-    patch_T: wp.array[wp.float64],
-    patch_cell: wp.array[wp.int32],
-    # State in/out:
-    cell_z: wp.array[wp.float64],
-    thick: wp.array[wp.float64],
-    top: wp.array[wp.float64],
-    cell_src: wp.array[wp.float64],
+    # State in/out (the cells' elevations and debris sources, the patches' thicknesses and tops):
+    cells: LFCells,
+    patches: LFPatches,
     glob: wp.array[wp.float64],
 ):
     """Energy wear: Δz = k_E f(T) P Δt / a. A fraction f_ret of the debris mass enters the cell's debris source,
     the rest is lost (counted in ``glob``). Blocks and launch as in :func:`friction`."""
     blk, lane = wp.tid()
-    n = n_cells + alive.shape[0]
+    n = n_cells + patches.alive.shape[0]
     zero = wp.float64(0.0)
     one = wp.float64(1.0)
     s_in = zero  # debris mass: retained matrix, lost matrix, lost patch [kg]
@@ -67,29 +64,29 @@ def wear(
         if t >= n:
             continue
         if t < n_cells:
-            pw = cell_power[t]
-            free = wp.max(cell_area[t] - cell_cover[t], zero)
+            pw = cells.power[t]
+            free = wp.max(cells.area[t] - cells.cover[t], zero)
             if pw <= zero or free <= zero:
                 continue
-            dz = wear_depth(p, p.wear_m, cell_T[t], pw, free)
-            cell_z[t] = cell_z[t] - dz
+            dz = wear_depth(p, p.wear_m, cells.T[t], pw, free)
+            cells.z[t] = cells.z[t] - dz
             m = p.rho_m * dz * free
-            wp.atomic_add(cell_src, t, p.f_ret * m)
+            wp.atomic_add(cells.src, t, p.f_ret * m)
             s_in += p.f_ret * m
             s_ml += (one - p.f_ret) * m
             continue
         i = t - n_cells
-        if alive[i] == 0:
+        if patches.alive[i] == 0:
             continue
-        pw = patch_power[i]
+        pw = patches.power[i]
         if pw <= zero:
             continue
-        A = area[i]
-        dz = wp.min(wear_depth(p, p.wear_p, patch_T[i], pw, A), thick[i])
-        thick[i] = thick[i] - dz
-        top[i] = top[i] - dz
+        A = patches.area[i]
+        dz = wp.min(wear_depth(p, p.wear_p, patches.temp[i], pw, A), patches.thick[i])
+        patches.thick[i] = patches.thick[i] - dz
+        patches.top[i] = patches.top[i] - dz
         m = p.rho_patch * dz * A
-        wp.atomic_add(cell_src, patch_cell[i], p.f_ret * m)
+        wp.atomic_add(cells.src, patches.cell[i], p.f_ret * m)
         s_pl += (one - p.f_ret) * m
     block_add(glob, G_MATRIX_IN, s_in, lane)
     block_add(glob, G_MATRIX_LOST, s_ml, lane)
@@ -103,18 +100,9 @@ def wear(
 def debris_sweep(
     p: LFParams,
     threads: wp.int32,
-    # Model:
-    cell_area: wp.array[wp.float64],
-    # State in:
-    cell_cover: wp.array[wp.float64],
-    cell_chord: wp.array[wp.float64],
-    cell_fn: wp.array[wp.float64],
-    # State in/out:
-    cell_src: wp.array[wp.float64],
-    cell_store: wp.array[wp.float64],
-    # State out:
-    cell_capture_out: wp.array[wp.float64],
-    ring_emit_out: wp.array[wp.float64],
+    # State in/out (the cells' sources, stores and captures, the rings' emitted debris):
+    cells: LFCells,
+    rings: LFRings,
 ):
     """Streamline sweep of the mobile debris along one radial band, leading → trailing edge (one block per ring).
 
@@ -143,19 +131,19 @@ def debris_sweep(
         j = lane
         while j < m:
             e = k * p.n_t + c0 + j
-            _put(src_t, j, cell_src[e])
-            cell_src[e] = zero
-            _put(frac_t, j, p.p_cap * wp.min(cell_chord[e] / p.dr, one))
-            A = cell_area[e]
-            s = cell_store[e]
+            _put(src_t, j, cells.src[e])
+            cells.src[e] = zero
+            _put(frac_t, j, p.p_cap * wp.min(cells.chord[e] / p.dr, one))
+            A = cells.area[e]
+            s = cells.store[e]
             dr = zero
-            if cell_fn[e] > zero:
+            if cells.fn[e] > zero:
                 dr = p.p_remob * s
                 s = s - dr
             _put(remob_t, j, dr)
             _put(store_t, j, s)
             _put(room_t, j, wp.max(p.rho_patch * p.s_max_thick * A - s, zero))
-            _put(open_t, j, p.p_store * (one - wp.min(cell_cover[e] / A, one)))
+            _put(open_t, j, p.p_store * (one - wp.min(cells.cover[e] / A, one)))
             j += threads
         block_sync()
         if lane == 0:
@@ -163,34 +151,29 @@ def debris_sweep(
                 e = k * p.n_t + c0 + jj
                 M = M + src_t[jj]
                 cap = frac_t[jj] * M
-                cell_capture_out[e] = cap
+                cells.capture[e] = cap
                 M = M - cap
                 M = M + remob_t[jj]
                 ds = wp.min(open_t[jj] * M, room_t[jj])
-                cell_store[e] = store_t[jj] + ds
+                cells.store[e] = store_t[jj] + ds
                 M = M - ds
         block_sync()
         c0 += LF_BLOCK
     if lane == 0:
-        ring_emit_out[k] = M
+        rings.emit[k] = M
 
 
 @wp.kernel
 def capture_gather(
-    # State in:
-    alive: wp.array[wp.int32],
-    area: wp.array[wp.float64],
-    patch_cell: wp.array[wp.int32],
-    cell_chord: wp.array[wp.float64],
-    cell_capture: wp.array[wp.float64],
-    # State in/out:
-    mcap: wp.array[wp.float64],
+    # State in/out (the patches' captured debris):
+    cells: LFCells,
+    patches: LFPatches,
 ):
     """Each patch takes its chord share 2a_i / Σ2a of its cell's captured mass (dim = P)."""
     i = wp.tid()
-    if alive[i] == 0:
+    if patches.alive[i] == 0:
         return
-    e = patch_cell[i]
-    c = cell_chord[e]
+    e = patches.cell[i]
+    c = cells.chord[e]
     if c > wp.float64(0.0):
-        mcap[i] = mcap[i] + cell_capture[e] * (wp.float64(2.0) * disc_radius(area[i])) / c
+        patches.mcap[i] = patches.mcap[i] + cells.capture[e] * (wp.float64(2.0) * disc_radius(patches.area[i])) / c

@@ -11,7 +11,7 @@ import copy
 import numpy as np
 import pytest
 from aca_warp.kernels.lf_record import H_LOAD, H_PASSES, H_SIZE
-from aca_warp.kernels.lf_types import G_LOAD, LF_BLOCK
+from aca_warp.kernels.lf_types import G_LOAD, LF_BLOCK, LFCells, LFRings
 from aca_warp.kernels.lf_wear import debris_sweep
 
 from aca_warp.hf.contact import solve_contact, solve_scene_contact
@@ -274,14 +274,16 @@ def test_debris_sweep_matches_a_serial_reference(fibers):
            dict(area=area, cover=cover, chord=chord, fn=fn, src=src, store=store).items()}  # fmt: skip
     cap = wp.zeros(C, dtype=wp.float64, device="cpu")
     emit = wp.zeros(R, dtype=wp.float64, device="cpu")
+    cells, rings = LFCells(), LFRings()
+    for k, v in arr.items():
+        setattr(cells, k, v)
+    cells.capture, rings.emit = cap, emit
     old = wp.config.enable_cpu_blocks
     try:
         wp.config.enable_cpu_blocks = fibers
         wp.launch_tiled(
-            debris_sweep, dim=[R], block_dim=LF_BLOCK, device="cpu",
-            inputs=[p, LF_BLOCK if fibers else 1, arr["area"], arr["cover"], arr["chord"], arr["fn"], arr["src"],
-                    arr["store"], cap, emit],
-        )  # fmt: skip
+            debris_sweep, dim=[R], block_dim=LF_BLOCK, device="cpu", inputs=[p, LF_BLOCK if fibers else 1, cells, rings]
+        )
     finally:
         wp.config.enable_cpu_blocks = old
     want_cap, want_store, want_emit = np.zeros(C), store.copy(), np.zeros(R)

@@ -35,7 +35,10 @@ from aca_warp.kernels.lf_types import (
     G_SIZE,
     G_TOPOLOGY,
     LF_BLOCK,
+    LFCells,
     LFParams,
+    LFPatches,
+    LFRings,
 )
 from aca_warp.lf.scene import LFScene, StepTable, step_table
 from aca_warp.scene import Patches, overlapping_pairs
@@ -46,6 +49,8 @@ from aca_warp.scene import Patches, overlapping_pairs
 # ~170 empty slots, ~100 µs per candidate kernel on an H100). Half a period away, no query of a pad less than
 # ~120 cells tall visits them.
 _PARK_ROWS = 64
+# the arrays of LFPatches fields named otherwise here (the rest: the field's name)
+_PATCH_ARRAYS = {"fn": "patch_fn", "power": "patch_power", "cell": "patch_cell"}
 # arrays a checkpoint leaves out: constants of the grid and schedule, the history (the run file's /global) and
 # per-step scratch
 _CONSTANT_ARRAYS = ("cell_area", "cell_r", "ring_r", "schedule", "hist", "kh")
@@ -61,6 +66,8 @@ class LFSimulation:
     Per patch slot (P,): ``alive``, ``x``, ``y`` [m], ``area`` [m²], ``thick`` t [m], ``top`` free elevation of the
     patch top [m], ``temp`` [K], ``mcap`` [kg], ``age`` [s], ``patch_fn`` [N], ``patch_power`` [W], ``patch_cell``.
     ``glob`` holds the global scalars (``aca_warp.kernels.lf_types.G_*``), ``hist`` (steps, H_SIZE) the outputs.
+    The kernels take the cells, rings and patch slots as the structs ``cells``, ``rings`` and ``patches``
+    (:class:`~aca_warp.kernels.lf_types.LFCells` …) of these arrays.
     """
 
     def __init__(
@@ -181,6 +188,14 @@ class LFSimulation:
         self.schedule = wp.array(sched, dtype=wp.float64, device=dev)
         self.glob = zf(G_SIZE)
         self.hist = wp.zeros((self.table.steps, H_SIZE), dtype=wp.float64, device=dev)
+        # the kernels' parameter groups of the state, built once: the arrays change in place (captured graphs keep them)
+        self.cells, self.rings, self.patches = LFCells(), LFRings(), LFPatches()
+        for f in LFCells.vars:
+            setattr(self.cells, f, getattr(self, f"cell_{f}"))
+        for f in LFRings.vars:
+            setattr(self.rings, f, getattr(self, f"ring_{f}"))
+        for f in LFPatches.vars:
+            setattr(self.patches, f, getattr(self, _PATCH_ARRAYS.get(f, f)))
 
     # ------------------------------------------------------------------------------------------- set-up
 
@@ -212,13 +227,10 @@ class LFSimulation:
     def rebuild_neighbours(self) -> None:
         """Merge-candidate CSR (alive pairs within ``cand_radius``) and the birth hash grid, from current positions."""
         P = self.capacity
-        self._launch(lf_patches.positions3, P, [self.alive, self.x, self.y, wp.vec3d(*self.park), self.pos])
+        self._launch(lf_patches.positions3, P, [self.patches, wp.vec3d(*self.park), self.pos])
         self.grid.build(self.pos, self.cand_radius)
-        self._launch(
-            lf_patches.count_candidates,
-            P,
-            [self.grid.id, wp.float64(self.cand_radius), self.alive, self.pos, self.cand_count],
-        )
+        radius = wp.float64(self.cand_radius)
+        self._launch(lf_patches.count_candidates, P, [self.grid.id, radius, self.alive, self.pos, self.cand_count])
         wp.utils.array_scan(self.cand_count, self.cand_start[:P], inclusive=False)
         self._launch(lf_patches.set_row_end, 1, [self.cand_count, self.cand_start, P])
         total = int(self.cand_start.numpy()[P])
@@ -228,39 +240,27 @@ class LFSimulation:
         self._launch(
             lf_patches.fill_candidates,
             P,
-            [self.grid.id, wp.float64(self.cand_radius), self.alive, self.pos, self.cand_start, self.cand_index],
+            [self.grid.id, radius, self.alive, self.pos, self.cand_start, self.cand_index],
         )
         self.dirty = False
         self.rebuilds += 1
 
+    def _bin(self) -> None:
+        """Reset the step's accumulators and bin the patches into the cells."""
+        self._launch(lf_contact.zero_step, self.n_cells, [self.cells, self.rings, self.glob])
+        self._launch(lf_contact.bin_patches, self.capacity, [self.params, self.cells, self.patches])
+
     def _contact_and_friction(self) -> None:
-        p, C, P = self.params, self.n_cells, self.capacity
-        state = [self.cell_z, self.cell_cover, self.ring_bulge, self.alive, self.area, self.top, self.patch_cell]
-        self._launch(lf_contact.contact_elements, C + P, [p, C, self.cell_area, *state, self.kh])
+        p, C, P, state = self.params, self.n_cells, self.capacity, (self.cells, self.rings, self.patches)
+        self._launch(lf_contact.contact_elements, C + P, [p, C, *state, self.kh])
         lf = self.scene.lf
-        self._launch_blocks(
-            lf_contact.contact_solve,
-            1,
-            [lf.contact_iterations, wp.float64(lf.contact_tol), self.threads, self.kh, self.glob],
-        )
-        self._launch_blocks(
-            lf_contact.friction,
-            self.element_blocks,
-            [p, C, self.threads, self.cell_r, self.kh, self.alive, self.x, self.y, self.patch_cell, self.cell_fn,
-             self.cell_power, self.patch_fn, self.patch_power, self.ring_power, self.glob],
-        )  # fmt: skip
+        tol = wp.float64(lf.contact_tol)
+        self._launch_blocks(lf_contact.contact_solve, 1, [lf.contact_iterations, tol, self.threads, self.kh, self.glob])
+        self._launch_blocks(lf_contact.friction, self.element_blocks, [p, C, self.threads, self.kh, *state, self.glob])
 
     def resolve(self) -> None:
         """Re-bin the patches and re-solve contact and friction at the current load, without advancing time."""
-        p, C, P = self.params, self.n_cells, self.capacity
-        self._launch(
-            lf_contact.zero_step, C, [self.cell_cover, self.cell_chord, self.cell_power, self.ring_power, self.glob]
-        )
-        self._launch(
-            lf_contact.bin_patches,
-            P,
-            [p, self.alive, self.x, self.y, self.area, self.patch_cell, self.cell_cover, self.cell_chord],
-        )
+        self._bin()
         self._contact_and_friction()
 
     def step(self) -> None:
@@ -296,15 +296,9 @@ class LFSimulation:
     def _body(self, loaded: bool) -> None:
         """The launches of one step after the neighbourhood rebuild (graph-capturable: no host reads)."""
         p, C, P, R = self.params, self.n_cells, self.capacity, self.n_r
-        self._launch(
-            lf_contact.zero_step, C, [self.cell_cover, self.cell_chord, self.cell_power, self.ring_power, self.glob]
-        )
+        cells, rings, patches = self.cells, self.rings, self.patches
+        self._bin()
         self._launch(lf_record.set_load, 1, [self.schedule, self.glob])
-        self._launch(
-            lf_contact.bin_patches,
-            P,
-            [p, self.alive, self.x, self.y, self.area, self.patch_cell, self.cell_cover, self.cell_chord],
-        )
         if loaded:
             self._contact_and_friction()
         else:
@@ -312,85 +306,38 @@ class LFSimulation:
             self.cell_power.zero_()
             self.patch_fn.zero_()
             self.patch_power.zero_()
-        self._launch(
-            lf_thermal.disc_temperature, 1, [p, self.ring_r, self.ring_power, self.ring_T, self.ring_bulge, self.work]
-        )
-        self._launch(
-            lf_thermal.pad_temperature,
-            C + P,
-            [p, C, self.cell_area, self.ring_T, self.cell_fn, self.cell_power, self.alive, self.area, self.patch_fn,
-             self.patch_power, self.patch_cell, self.cell_T, self.temp],
-        )  # fmt: skip
+        self._launch(lf_thermal.disc_temperature, 1, [p, rings, self.work])
+        self._launch(lf_thermal.pad_temperature, C + P, [p, C, cells, rings, patches])
         if loaded:
-            self._launch_blocks(
-                lf_wear.wear,
-                self.element_blocks,
-                [p, C, self.threads, self.cell_area, self.cell_cover, self.cell_power, self.cell_T, self.alive,
-                 self.area, self.patch_power, self.temp, self.patch_cell, self.cell_z, self.thick, self.top,
-                 self.cell_src, self.glob],
-            )  # fmt: skip
-            self._launch_blocks(
-                lf_wear.debris_sweep,
-                R,
-                [p, self.threads, self.cell_area, self.cell_cover, self.cell_chord, self.cell_fn, self.cell_src,
-                 self.cell_store, self.cell_capture, self.ring_emit],
-            )  # fmt: skip
-            self._launch(
-                lf_wear.capture_gather,
-                P,
-                [self.alive, self.area, self.patch_cell, self.cell_chord, self.cell_capture, self.mcap],
-            )
-            self._launch(
-                lf_patches.life_cycle,
-                P,
-                [p, self.patch_power, self.temp, self.patch_cell, self.alive, self.x, self.y, self.area, self.thick,
-                 self.top, self.mcap, self.age, self.cell_src, self.glob, self.death_count, self.death_age,
-                 self.death_area],
-            )  # fmt: skip
+            self._launch_blocks(lf_wear.wear, self.element_blocks, [p, C, self.threads, cells, patches, self.glob])
+            self._launch_blocks(lf_wear.debris_sweep, R, [p, self.threads, cells, rings])
+            self._launch(lf_wear.capture_gather, P, [cells, patches])
+            deaths = [self.death_count, self.death_age, self.death_area]
+            self._launch(lf_patches.life_cycle, P, [p, cells, patches, self.glob, *deaths])
             self.merge()
             self._birth()
-        self._launch(lf_record.patch_stats, P, [self.alive, self.area, self.temp, self.glob])
-        self._launch(
-            lf_record.record_step,
-            1,
-            [wp.float64(self.scene.pad.area), self.ring_r, self.ring_T, self.ring_emit, self.glob, self.hist],
-        )  # fmt: skip
+        self._launch(lf_record.patch_stats, P, [patches, self.glob])
+        self._launch(lf_record.record_step, 1, [wp.float64(self.scene.pad.area), rings, self.glob, self.hist])
 
     def merge(self) -> None:
         """One merge pass over the candidate CSR: each root absorbs the patches that overlap it (lowest index)."""
-        P = self.capacity
-        self._launch(
-            lf_patches.merge_target,
-            P,
-            [self.cand_start, self.cand_index, self.alive, self.x, self.y, self.area, self.target],
-        )
-        self._launch(
-            lf_patches.merge_apply,
-            P,
-            [self.params, self.cand_start, self.cand_index, self.target, self.patch_cell, self.alive, self.x, self.y,
-             self.area, self.thick, self.top, self.temp, self.age, self.cell_src, self.glob],
-        )  # fmt: skip
-        self._launch(lf_patches.merge_kill, P, [self.target, self.alive, self.area, self.mcap])
+        P, cand = self.capacity, (self.cand_start, self.cand_index)
+        self._launch(lf_patches.merge_target, P, [*cand, self.patches, self.target])
+        merge = [self.params, *cand, self.target, self.cells, self.patches, self.glob]
+        self._launch(lf_patches.merge_apply, P, merge)
+        self._launch(lf_patches.merge_kill, P, [self.target, self.patches])
 
     def _birth(self) -> None:
         p, C, P = self.params, self.n_cells, self.capacity
-        self._launch(
-            lf_patches.birth_want,
-            C,
-            [p, self.grid.id, wp.float64(self.birth_radius), self.cell_area, self.cell_r, self.cell_store, self.cell_fn,
-             self.cell_cover, self.alive, self.x, self.y, self.area, self.glob, self.want, self.birth_xy],
-        )  # fmt: skip
+        radius = wp.float64(self.birth_radius)
+        want = [self.want, self.birth_xy]
+        self._launch(lf_patches.birth_want, C, [p, self.grid.id, radius, self.cells, self.patches, self.glob, *want])
         self._launch(lf_patches.free_slots, P, [self.alive, self.free])
         wp.utils.array_scan(self.free, self.free_rank, inclusive=False)
         self._launch(lf_patches.free_list, P, [self.free, self.free_rank, self.slot_list])
         wp.utils.array_scan(self.want, self.want_rank, inclusive=False)
-        self._launch(
-            lf_patches.birth_apply,
-            C,
-            [p, self.want, self.want_rank, self.free, self.free_rank, self.slot_list, self.birth_xy, self.cell_z,
-             self.cell_T, self.cell_store, self.alive, self.x, self.y, self.area, self.thick, self.top, self.temp,
-             self.mcap, self.age, self.glob],
-        )  # fmt: skip
+        slots = [self.want, self.want_rank, self.free, self.free_rank, self.slot_list, self.birth_xy]
+        self._launch(lf_patches.birth_apply, C, [p, *slots, self.cells, self.patches, self.glob])
 
     def compact(self) -> None:
         """Move the alive patches to the front of the slot arrays, keeping their order (prefix sum)."""
