@@ -37,6 +37,7 @@ from aca_warp.kernels.hf_adaptive import (
     STAGES,
     at_event,
     at_sample,
+    commit_patch,
     count_trial,
     load_control,
     open_decide,
@@ -48,7 +49,7 @@ from aca_warp.kernels.hf_adaptive import (
     store_control,
 )
 from aca_warp.kernels.hf_onchip_gather import tile_gather
-from aca_warp.kernels.hf_types import HFModel, HFRecorder
+from aca_warp.kernels.hf_types import HFAdaptive, HFModel, HFRecorder
 from aca_warp.kernels.physics import (
     contact_block,
     grow_patch,
@@ -120,6 +121,7 @@ def onchip_dp5_kernel(
     T = dtype
     Model = HFModel(T)
     Recorder = HFRecorder(T)
+    Adaptive = HFAdaptive(T)
     GATHER = wp.constant(0 if "gather" in ablate else 1)
     RECORD = wp.constant(0 if "record" in ablate else 1)
     SYNC = wp.constant(0 if "sync" in ablate else 1)
@@ -165,23 +167,18 @@ def onchip_dp5_kernel(
         a: int,
         lane: int,
         threads: int,
-        pad: int,
-        coeff: wp.array2d[wp.float64],
+        dp5: Adaptive,
         h: wp.float64,
         u_io: wp.array[T],
         v_io: wp.array[T],
-        ku: wp.array2d[T],
-        kv: wp.array2d[T],
-        u_b: wp.array[T],
-        v_b: wp.array[T],
         us: wp.tile[T, 2, NMAX],
     ):
-        """The first stage state y_1 of the block's patches lo … hi − 1 (global indices) at trial step ``h`` [s],
-        its displacements shared with every block (row 1)."""
+        """The first stage state y_1 of the block's patches lo … hi − 1 (global indices) at trial step ``h`` [s] into
+        buffer b, its displacements shared with every block (row 1)."""
         g = lo + lane
         while g < hi:
-            stage_state_h(g, 1, coeff, h, u_io, v_io, ku, kv, u_b, v_b)
-            share(us, 1, g - a, u_b[g], 0, 1)
+            stage_state_h(g, 1, dp5, h, u_io, v_io, dp5.u_b, dp5.v_b)
+            share(us, 1, g - a, dp5.u_b[g], 0, 1)
             g += threads
 
     @wp.func
@@ -192,22 +189,37 @@ def onchip_dp5_kernel(
         threads: int,
         pad: int,
         model: Model,
-        coeff: wp.array2d[wp.float64],
+        dp5: Adaptive,
         h: wp.float64,
         u_io: wp.array[T],
         v_io: wp.array[T],
-        ku: wp.array2d[T],
-        kv: wp.array2d[T],
-        u_b: wp.array[T],
-        v_b: wp.array[T],
     ):
         """k_0 of the block's patches lo … hi − 1 at the state itself (the run's first trial, or after a growth
         event), from the displacements in global memory."""
         g = lo + lane
         while g < hi:
             fs = spring_force(g, u_io, model)
-            stage_k(g, pad, 0, fs, model, coeff, h, u_io, v_io, v_io, ku, kv, u_b, v_b)
+            stage_k(g, pad, 0, fs, model, dp5, h, u_io, v_io, v_io, dp5.u_b, dp5.v_b)
             g += threads
+
+    @wp.func
+    def stage_next(
+        g: int, pad: int, stage: int, row: int, fs: T, model: Model, dp5: Adaptive, h: wp.float64, u_io: wp.array[T],
+        v_io: wp.array[T],
+    ) -> T:  # fmt: skip
+        """k_s of patch g (elastic force ``fs`` [N]) at its stage state in row ``row``'s buffer (1: b, the odd
+        stages; 0: a, the even ones) and its next stage state into the other buffer; returns the next stage
+        displacement (0 after the last stage)."""
+        un = T(0.0)
+        if row == 1:
+            stage_k(g, pad, stage, fs, model, dp5, h, u_io, v_io, dp5.v_b, dp5.u_a, dp5.v_a)
+            if stage + 1 < STAGES:
+                un = dp5.u_a[g]
+        else:
+            stage_k(g, pad, stage, fs, model, dp5, h, u_io, v_io, dp5.v_a, dp5.u_b, dp5.v_b)
+            if stage + 1 < STAGES:
+                un = dp5.u_b[g]
+        return un
 
     @wp.func
     def grow(
@@ -272,17 +284,7 @@ def onchip_dp5_kernel(
     def onchip_dp5(
         model: Model,  # growth fields read only with growth (pad_growth: the increment per event)
         rec: Recorder,
-        # Integrator:
-        coeff: wp.array2d[wp.float64],
-        err_coeff: wp.array[wp.float64],
-        u_scale: wp.array[T],
-        v_scale: wp.array[T],
-        tol: wp.float64,
-        h_max: wp.float64,
-        h_min: wp.float64,
-        sample_dt: wp.float64,
-        interval: wp.float64,
-        t_end: wp.float64,
+        dp5: Adaptive,
         # Control:
         threads: int,
         samples: int,
@@ -292,24 +294,13 @@ def onchip_dp5_kernel(
         # State in/out:
         u_io: wp.array[T],
         v_io: wp.array[T],
-        # Integrator state in/out (stages, two stage-state buffers, per-pad control):
-        ku: wp.array2d[T],
-        kv: wp.array2d[T],
-        u_a: wp.array[T],
-        v_a: wp.array[T],
-        u_b: wp.array[T],
-        v_b: wp.array[T],
-        ctl: wp.array2d[wp.float64],
-        mode: wp.array2d[wp.int32],
-        stats: wp.array2d[wp.int64],
-        done: wp.array[wp.int32],
     ):
         """Advance pad ``pad`` through ``samples`` sample intervals (its interval is open unless the run is over),
         recording sample ``k0 + s`` into globals row ``row0 + s`` and, when due, per-patch rows from ``prow0``.
 
         Stage states alternate between buffer b (odd stages; shared row 1) and a (even stages, row 0; the
-        5th-order solution y_6 ends in a). The pad stops early when its step falls below ``h_min`` (block 0 sets
-        ``done[2]``); after the run's last sample (target ≥ ``t_end``) it stays landed.
+        5th-order solution y_6 ends in a). The pad stops early when its step falls below ``dp5.h_min`` (block 0 sets
+        ``dp5.done[2]``); after the run's last sample (target ≥ ``dp5.t_end``) it stays landed.
         """
         blk, lane = wp.tid()
         pad = blk // CLUSTER
@@ -332,7 +323,7 @@ def onchip_dp5_kernel(
         pad_sync()  # every block's tiles are zeroed before another stores into them
         # Every block keeps the pad's control (clock, steps, mode) and takes the same decisions on it; block 0 also
         # writes it to ctl and mode (the checkpoint's and the host's copy), which no block reads during the launch.
-        c, m = load_control(pad, ctl, mode)
+        c, m = load_control(pad, dp5)
         h = c[C_TRIAL]
         landed = m[M_LANDED]
         gap = wp.float64(0.0)
@@ -340,8 +331,8 @@ def onchip_dp5_kernel(
             gap = model.pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
         if landed == 0:
             if m[M_NEEDK1] != 0:  # k_0 at the state itself (the run's first trial)
-                first_stage(lo, hi, lane, threads, pad, model, coeff, h, u_io, v_io, ku, kv, u_b, v_b)
-            stage_one(lo, hi, a, lane, threads, pad, coeff, h, u_io, v_io, ku, kv, u_b, v_b, us)
+                first_stage(lo, hi, lane, threads, pad, model, dp5, h, u_io, v_io)
+            stage_one(lo, hi, a, lane, threads, dp5, h, u_io, v_io, us)
         m[M_NEEDK1] = 0
         pad_sync()  # every block has read ctl and mode before block 0 writes them
         stop = int(0)
@@ -361,15 +352,7 @@ def onchip_dp5_kernel(
                                 model.nbr_index, model.nbr_stiffness,
                             )  # fmt: skip
                             fs = links - model.k_diag[g] * get_u(us, row, g - a)
-                            un = T(0.0)  # the next stage displacement (none after the last stage)
-                            if row == 1:
-                                stage_k(g, pad, stage, fs, model, coeff, h, u_io, v_io, v_b, ku, kv, u_a, v_a)
-                                if stage + 1 < STAGES:
-                                    un = u_a[g]
-                            else:
-                                stage_k(g, pad, stage, fs, model, coeff, h, u_io, v_io, v_a, ku, kv, u_b, v_b)
-                                if stage + 1 < STAGES:
-                                    un = u_b[g]
+                            un = stage_next(g, pad, stage, row, fs, model, dp5, h, u_io, v_io)
                             if stage + 1 < STAGES:
                                 share(us, 1 - row, g - a, un, 0, 1)
                             g += threads
@@ -387,14 +370,7 @@ def onchip_dp5_kernel(
                             un = T(0.0)
                             if sub == 0 and j < own:
                                 fs = fsum - model.k_diag[g] * get_u(us, row, j + lo - a)
-                                if row == 1:
-                                    stage_k(g, pad, stage, fs, model, coeff, h, u_io, v_io, v_b, ku, kv, u_a, v_a)
-                                    if stage + 1 < STAGES:
-                                        un = u_a[g]
-                                else:
-                                    stage_k(g, pad, stage, fs, model, coeff, h, u_io, v_io, v_a, ku, kv, u_b, v_b)
-                                    if stage + 1 < STAGES:
-                                        un = u_b[g]
+                                un = stage_next(g, pad, stage, row, fs, model, dp5, h, u_io, v_io)
                             un = first_lane(un)  # the lanes of the patch share its stores into the cluster
                             if j < own and stage + 1 < STAGES:
                                 share(us, 1 - row, j + lo - a, un, sub, LANES)
@@ -406,7 +382,7 @@ def onchip_dp5_kernel(
                 part = wp.float64(0.0)
                 g = lo + lane
                 while g < hi:
-                    e = patch_error(g, pad, h, tol, err_coeff, u_scale, v_scale, model, u_io, v_io, u_a, v_a, ku, kv)
+                    e = patch_error(g, pad, h, model, dp5, u_io, v_io, dp5.u_a, dp5.v_a)
                     part = wp.max(part, e)
                     g += threads
                 err = wp.tile_max(wp.tile(part))[0]
@@ -420,10 +396,10 @@ def onchip_dp5_kernel(
                         err = get_red(red, 0, 0)
                         for q in range(1, CLUSTER):
                             err = wp.max(err, get_red(red, 0, q))
-                    c, m, accepted, underflow = pi_decide(c, m, err, h_max, h_min)
+                    c, m, accepted, underflow = pi_decide(c, m, err, dp5.h_max, dp5.h_min)
                     if rank == 0:
-                        store_control(pad, c, m, ctl, mode)
-                        count_trial(pad, accepted, underflow, stats, done)
+                        store_control(pad, c, m, dp5)
+                        count_trial(pad, accepted, underflow, dp5)
                     put_red(red, 1, 0, wp.float64(accepted))
                     put_red(red, 1, 1, wp.float64(underflow))
                     put_red(red, 1, 2, c[C_TRIAL])
@@ -435,13 +411,10 @@ def onchip_dp5_kernel(
                 g = lo + lane
                 while g < hi:
                     if get_red(red, 1, 0) != wp.float64(0.0):  # accepted: y_6 is the state, k_6 the next k_0 (FSAL)
-                        u_io[g] = u_a[g]
-                        v_io[g] = v_a[g]
-                        ku[0, g] = ku[STAGES - 1, g]
-                        kv[0, g] = kv[STAGES - 1, g]
+                        commit_patch(g, dp5, dp5.u_a, dp5.v_a, u_io, v_io)
                     if landed == 0 and stop == 0:
-                        stage_state_h(g, 1, coeff, h, u_io, v_io, ku, kv, u_b, v_b)
-                        share(us, 1, g - a, u_b[g], 0, 1)
+                        stage_state_h(g, 1, dp5, h, u_io, v_io, dp5.u_b, dp5.v_b)
+                        share(us, 1, g - a, dp5.u_b[g], 0, 1)
                     g += threads
                 pad_sync()  # the commit and the next first stage are complete, the flags read before lane 0 rewrites
             if stop == 0:
@@ -449,8 +422,8 @@ def onchip_dp5_kernel(
                 sample = int(1)
                 if wp.static(growth):  # what the pad landed on: an event time, a sample time or both
                     if lane == 0:
-                        put_red(red, 1, 4, wp.float64(int(at_event(c, m, sample_dt, interval))))
-                        put_red(red, 1, 5, wp.float64(int(at_sample(c, m, sample_dt, interval))))
+                        put_red(red, 1, 4, wp.float64(int(at_event(c, m, dp5.sample_dt, dp5.interval))))
+                        put_red(red, 1, 5, wp.float64(int(at_sample(c, m, dp5.sample_dt, dp5.interval))))
                     block_sync()
                     event = int(get_red(red, 1, 4))
                     sample = int(get_red(red, 1, 5))
@@ -467,13 +440,13 @@ def onchip_dp5_kernel(
                             g += threads
                         prow += 1
                 if lane == 0:
-                    if sample == 0 or c[C_TARGET] < t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
+                    if sample == 0 or c[C_TARGET] < dp5.t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
                         if wp.static(growth):
-                            c, m = open_growth_decide(c, m, sample_dt, interval)
+                            c, m = open_growth_decide(c, m, dp5.sample_dt, dp5.interval)
                         else:
-                            c, m = open_decide(c, m, sample_dt)
+                            c, m = open_decide(c, m, dp5.sample_dt)
                         if rank == 0:
-                            store_control(pad, c, m, ctl, mode)
+                            store_control(pad, c, m, dp5)
                     put_red(red, 1, 2, c[C_TRIAL])
                     put_red(red, 1, 3, wp.float64(m[M_LANDED]))
                 block_sync()
@@ -481,8 +454,8 @@ def onchip_dp5_kernel(
                 landed = int(get_red(red, 1, 3))
                 if landed == 0:
                     if event != 0:  # k_0 (FSAL) was evaluated with the patches of before the event
-                        first_stage(lo, hi, lane, threads, pad, model, coeff, h, u_io, v_io, ku, kv, u_b, v_b)
-                    stage_one(lo, hi, a, lane, threads, pad, coeff, h, u_io, v_io, ku, kv, u_b, v_b, us)
+                        first_stage(lo, hi, lane, threads, pad, model, dp5, h, u_io, v_io)
+                    stage_one(lo, hi, a, lane, threads, dp5, h, u_io, v_io, us)
                 pad_sync()  # the first stage is complete (and shared), the flags read before lane 0 rewrites them
                 s += sample
         if wp.static(cluster > 1):

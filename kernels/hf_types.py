@@ -1,5 +1,5 @@
-"""The parameter groups of the HF kernels as Warp structs, each declared once: the model's arrays (:data:`HFModel`)
-and the recorder's (:data:`HFRecorder`).
+"""The parameter groups of the HF kernels as Warp structs, each declared once: the model's arrays (:data:`HFModel`),
+the recorder's (:data:`HFRecorder`) and the adaptive integrator's (:data:`HFAdaptive`).
 
 Every kernel and function that needs a group takes the whole struct (``model: Any``, the concrete struct of the
 state precision T, :class:`~aca_warp.kernels.PrecisionStruct`) and reads its fields where it used them as separate
@@ -92,3 +92,43 @@ class HFRecorder:
     first: int
     last: int
     every: int
+
+
+@PrecisionStruct
+class HFAdaptive:
+    """The adaptive integrator's device arrays (:class:`aca_warp.hf.adaptive.AdaptiveStepper`; column indices and
+    the tableau in ``aca_warp.kernels.hf_adaptive``); n = patches, P = pads, S = 7 stages; T unless noted.
+
+    ``coeff`` (S, S) and ``err_coeff`` (S,) float64: the Dormand–Prince 5(4) tableau a and e = b − b*. ``u_scale``
+    [m], ``v_scale`` [m/s] (n,): the error norm's per-patch scales; ``tol``: its relative tolerance; ``h_max``,
+    ``h_min`` [s]: the step's bounds. ``sample_dt``, ``interval`` (0: no growth), ``t_end`` [s]: the sample
+    interval, the growth interval and the end of the run; ``t_stop`` (1,) [s]: where the host asked the pads to
+    wait. Per pad: ``ctl`` (P, CTL) float64 and ``mode`` (P, MODE) int32, the control and mode columns; ``stats``
+    (P, 2) int64: accepted and rejected trials; ``accepted`` (P,) int32: the last trial's verdict. ``done`` (3,)
+    int32: run over, waiting at ``t_stop``, step underflow. ``ku``, ``kv`` (S, n): the stages k_s = (u̇, v̇);
+    ``u_a``, ``v_a`` (n,): the even stages' states (y_6, the 5th-order solution, last), ``u_b``, ``v_b``: the odd
+    stages'.
+    """
+
+    coeff: wp.array2d[wp.float64]
+    err_coeff: wp.array[wp.float64]
+    u_scale: wp.array[Any]
+    v_scale: wp.array[Any]
+    tol: wp.float64
+    h_max: wp.float64
+    h_min: wp.float64
+    sample_dt: wp.float64
+    interval: wp.float64
+    t_end: wp.float64
+    t_stop: wp.array[wp.float64]
+    ctl: wp.array2d[wp.float64]
+    mode: wp.array2d[wp.int32]
+    stats: wp.array2d[wp.int64]
+    accepted: wp.array[wp.int32]
+    done: wp.array[wp.int32]
+    ku: wp.array2d[Any]
+    kv: wp.array2d[Any]
+    u_a: wp.array[Any]
+    v_a: wp.array[Any]
+    u_b: wp.array[Any]
+    v_b: wp.array[Any]

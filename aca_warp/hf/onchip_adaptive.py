@@ -144,14 +144,6 @@ class OnchipAdaptiveEngine(OnchipLaunches):
     def _launch(self, samples: int, k_next: int, rows: int, prows: int) -> None:
         """One launch of ``samples`` sample intervals, rows counted from the recorder's."""
         s, rec, st = self.state, self.recorder, self.stepper
-        f64 = wp.float64
         self.launch_kernel(
-            [
-                self.kernel_model, rec.struct,
-                st.coeff, st.err_coeff, st.u_scale, st.v_scale, st.tol, f64(st.h_max), f64(adaptive.MIN_STEP),
-                f64(self.record.sample_dt), f64(st.interval), f64(self.t_end),
-                self.threads, samples, k_next, rows, prows,
-                s.u, s.v, st.ku, st.kv, st.stage_u[0], st.stage_v[0], st.stage_u[1], st.stage_v[1],
-                st.ctl, st.mode, st.stats, st.done,
-            ],
-        )  # fmt: skip
+            [self.kernel_model, rec.struct, st.struct, self.threads, samples, k_next, rows, prows, s.u, s.v]
+        )
