@@ -21,6 +21,7 @@ from aca_warp.kernels.lf_types import (
     LFParams,
     LFPatches,
     LFRings,
+    block_end,
     disc_radius,
     polar,
 )
@@ -220,12 +221,7 @@ def friction(
     s_ff = zero
     s_tq = zero
     s_fp = zero
-    j = lane
-    while j < LF_BLOCK:
-        t = blk * LF_BLOCK + j
-        j += threads
-        if t >= n:
-            continue
+    for t in range(blk * LF_BLOCK + lane, block_end(blk, n), threads):
         e = kh[t]
         fn = e[0] * wp.max(e[1] - g, zero)
         r = zero

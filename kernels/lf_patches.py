@@ -228,6 +228,22 @@ def merge_kill(
 # ----------------------------------------------------------------------------------------------- births
 
 
+@wp.struct
+class LFBirths:
+    """The births' bookkeeping of a step (:class:`aca_warp.lf.solver.LFSimulation` holds the arrays as ``want``,
+    ``want_rank``, ``birth_xy``, ``free``, ``free_rank``, ``slot_list``). Per cell (C,): ``want`` int32, 1 where a
+    birth is flagged; ``want_rank`` its rank among the flagged cells (an exclusive scan); ``xy`` vec2d, its centre
+    [m]. Per slot (P,): ``free`` int32, 1 for an empty slot; ``free_rank`` its rank among them; ``slot`` the slot of
+    each rank."""
+
+    want: wp.array[wp.int32]
+    want_rank: wp.array[wp.int32]
+    xy: wp.array[wp.vec2d]
+    free: wp.array[wp.int32]
+    free_rank: wp.array[wp.int32]
+    slot: wp.array[wp.int32]
+
+
 @wp.kernel
 def birth_want(
     p: LFParams,
@@ -237,14 +253,13 @@ def birth_want(
     cells: LFCells,
     patches: LFPatches,
     glob: wp.array[wp.float64],
-    # Out:
-    want_out: wp.array[wp.int32],
-    birth_xy_out: wp.array[wp.vec2d],
+    # Out (want, xy):
+    births: LFBirths,
 ):
     """Flag a birth in cell e (dim = C): stored debris ≥ ρ_p t0 A0, matrix pressure ≥ p_comp, a draw < p_birth,
     and a free spot for a disc of A0 at a random point of the cell (at least a0 from its edges)."""
     e = wp.tid()
-    want_out[e] = 0
+    births.want[e] = 0
     s_crit = p.rho_patch * p.t0 * p.A0
     free = wp.max(cells.area[e] - cells.cover[e], wp.float64(0.0))
     if cells.store[e] < s_crit or free <= wp.float64(0.0) or cells.fn[e] < p.p_comp * free:
@@ -271,34 +286,29 @@ def birth_want(
             patches.x[i], patches.y[i], disc_radius(patches.area[i]), xy[0], xy[1], a0
         ):
             return
-    want_out[e] = 1
-    birth_xy_out[e] = xy
+    births.want[e] = 1
+    births.xy[e] = xy
 
 
 @wp.kernel
-def free_slots(alive: wp.array[wp.int32], free_out: wp.array[wp.int32]):
-    """free[i] = 1 for an empty slot (dim = P)."""
+def free_slots(patches: LFPatches, births: LFBirths):
+    """births.free[i] = 1 for an empty slot (dim = P)."""
     i = wp.tid()
-    free_out[i] = 1 - wp.min(alive[i], 1)
+    births.free[i] = 1 - wp.min(patches.alive[i], 1)
 
 
 @wp.kernel
-def free_list(free: wp.array[wp.int32], free_rank: wp.array[wp.int32], list_out: wp.array[wp.int32]):
-    """list[rank] = slot for every empty slot (dim = P)."""
+def free_list(births: LFBirths):
+    """births.slot[rank] = slot for every empty slot (dim = P)."""
     i = wp.tid()
-    if free[i] != 0:
-        list_out[free_rank[i]] = i
+    if births.free[i] != 0:
+        births.slot[births.free_rank[i]] = i
 
 
 @wp.kernel
 def birth_apply(
     p: LFParams,
-    want: wp.array[wp.int32],
-    want_rank: wp.array[wp.int32],
-    free: wp.array[wp.int32],
-    free_rank: wp.array[wp.int32],
-    slot_list: wp.array[wp.int32],
-    birth_xy: wp.array[wp.vec2d],
+    births: LFBirths,
     # State in/out:
     cells: LFCells,
     patches: LFPatches,
@@ -307,15 +317,15 @@ def birth_apply(
     """Create the flagged patches in the lowest free slots, in cell order (dim = C); the cell's store pays
     ρ_p t0 A0. Births beyond the capacity are dropped (and pay nothing)."""
     e = wp.tid()
-    if want[e] == 0:
+    if births.want[e] == 0:
         return
-    n = free.shape[0]
-    n_free = free_rank[n - 1] + free[n - 1]
-    r = want_rank[e]
+    n = births.free.shape[0]
+    n_free = births.free_rank[n - 1] + births.free[n - 1]
+    r = births.want_rank[e]
     if r >= n_free:
         return
-    i = slot_list[r]
-    xy = birth_xy[e]
+    i = births.slot[r]
+    xy = births.xy[e]
     patches.alive[i] = 1
     patches.x[i] = xy[0]
     patches.y[i] = xy[1]
@@ -354,49 +364,40 @@ def candidate(i: int, j: int, alive: wp.array[wp.int32], pos: wp.array[wp.vec3d]
 
 
 @wp.kernel
-def count_candidates(
-    grid: wp.uint64,
-    radius: wp.float64,
-    alive: wp.array[wp.int32],
-    pos: wp.array[wp.vec3d],
-    count_out: wp.array[wp.int32],
-):
-    """Number of alive patches within ``radius`` of each alive patch (dim = P)."""
-    i = wp.tid()
-    count_out[i] = 0
-    if alive[i] == 0:
-        return
-    n = int(0)
-    for j in wp.hash_grid_query(grid, pos[i], radius):
-        if candidate(i, j, alive, pos, radius):
-            n += 1
-    count_out[i] = n
-
-
-@wp.kernel
-def fill_candidates(
+def candidates(
     grid: wp.uint64,
     radius: wp.float64,
     alive: wp.array[wp.int32],
     pos: wp.array[wp.vec3d],
     start: wp.array[wp.int32],
+    fill: int,
+    # Out:
+    count_out: wp.array[wp.int32],
     index_out: wp.array[wp.int32],
 ):
-    """CSR rows of merge candidates, sorted by index within each row (deterministic on every device)."""
+    """The merge candidates of every alive patch (:func:`candidate`; dim = P): ``fill`` = 0, their number into
+    ``count_out``; ``fill`` = 1, the CSR row from ``start[i]``, sorted by index (deterministic on every device).
+    Both passes take the same hits, so a row holds exactly the entries counted for it."""
     i = wp.tid()
+    if fill == 0:
+        count_out[i] = 0
     if alive[i] == 0:
         return
-    a = start[i]
+    a = int(0)
+    if fill != 0:
+        a = start[i]
     k = a
     for j in wp.hash_grid_query(grid, pos[i], radius):
         if candidate(i, j, alive, pos, radius):
-            # insertion sort keeps the row ordered whatever order the grid returns
-            q = k
-            while q > a and index_out[q - 1] > j:
-                index_out[q] = index_out[q - 1]
-                q -= 1
-            index_out[q] = j
+            if fill != 0:  # insertion sort keeps the row ordered whatever order the grid returns
+                q = k
+                while q > a and index_out[q - 1] > j:
+                    index_out[q] = index_out[q - 1]
+                    q -= 1
+                index_out[q] = j
             k += 1
+    if fill == 0:
+        count_out[i] = k
 
 
 @wp.kernel

@@ -178,3 +178,10 @@ def polar(x: wp.float64, y: wp.float64) -> wp.vec2d:
 def disc_radius(area: wp.float64) -> wp.float64:
     """Radius a = √(A/π) [m] of a round patch of area A [m²]."""
     return wp.sqrt(area / wp.float64(wp.pi))
+
+
+@wp.func
+def block_end(blk: int, n: int) -> int:
+    """One past the last of the ``n`` elements that block ``blk`` of a block kernel covers (LF_BLOCK consecutive
+    elements per block; its threads take every ``threads``-th of them from their lane on)."""
+    return wp.min(n, (blk + 1) * LF_BLOCK)

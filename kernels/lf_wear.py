@@ -14,6 +14,7 @@ from aca_warp.kernels.lf_types import (
     LFParams,
     LFPatches,
     LFRings,
+    block_end,
     disc_radius,
 )
 from aca_warp.kernels.tiles import block_add, block_sync, tile_store_1d
@@ -57,12 +58,7 @@ def wear(
     s_in = zero  # debris mass: retained matrix, lost matrix, lost patch [kg]
     s_ml = zero
     s_pl = zero
-    j = lane
-    while j < LF_BLOCK:
-        t = blk * LF_BLOCK + j
-        j += threads
-        if t >= n:
-            continue
+    for t in range(blk * LF_BLOCK + lane, block_end(blk, n), threads):
         if t < n_cells:
             pw = cells.power[t]
             free = wp.max(cells.area[t] - cells.cover[t], zero)

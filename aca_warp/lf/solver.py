@@ -51,6 +51,7 @@ from aca_warp.scene import Patches, overlapping_pairs
 _PARK_ROWS = 64
 # the arrays of LFPatches fields named otherwise here (the rest: the field's name)
 _PATCH_ARRAYS = {"fn": "patch_fn", "power": "patch_power", "cell": "patch_cell"}
+_BIRTH_ARRAYS = {"xy": "birth_xy", "slot": "slot_list"}
 # arrays a checkpoint leaves out: constants of the grid and schedule, the history (the run file's /global) and
 # per-step scratch
 _CONSTANT_ARRAYS = ("cell_area", "cell_r", "ring_r", "schedule", "hist", "kh")
@@ -196,6 +197,9 @@ class LFSimulation:
             setattr(self.rings, f, getattr(self, f"ring_{f}"))
         for f in LFPatches.vars:
             setattr(self.patches, f, getattr(self, _PATCH_ARRAYS.get(f, f)))
+        self.births = lf_patches.LFBirths()
+        for f in lf_patches.LFBirths.vars:
+            setattr(self.births, f, getattr(self, _BIRTH_ARRAYS.get(f, f)))
 
     # ------------------------------------------------------------------------------------------- set-up
 
@@ -229,19 +233,15 @@ class LFSimulation:
         P = self.capacity
         self._launch(lf_patches.positions3, P, [self.patches, wp.vec3d(*self.park), self.pos])
         self.grid.build(self.pos, self.cand_radius)
-        radius = wp.float64(self.cand_radius)
-        self._launch(lf_patches.count_candidates, P, [self.grid.id, radius, self.alive, self.pos, self.cand_count])
+        cand = [self.grid.id, wp.float64(self.cand_radius), self.alive, self.pos, self.cand_start]
+        self._launch(lf_patches.candidates, P, [*cand, 0, self.cand_count, self.cand_index])
         wp.utils.array_scan(self.cand_count, self.cand_start[:P], inclusive=False)
         self._launch(lf_patches.set_row_end, 1, [self.cand_count, self.cand_start, P])
         total = int(self.cand_start.numpy()[P])
         if total > self.cand_index.shape[0]:
             self.cand_index = wp.zeros(int(total * 1.5) + 16, dtype=wp.int32, device=self.device)
             self._graphs.clear()  # the graphs hold the old buffer
-        self._launch(
-            lf_patches.fill_candidates,
-            P,
-            [self.grid.id, radius, self.alive, self.pos, self.cand_start, self.cand_index],
-        )
+        self._launch(lf_patches.candidates, P, [*cand, 1, self.cand_count, self.cand_index])
         self.dirty = False
         self.rebuilds += 1
 
@@ -329,15 +329,14 @@ class LFSimulation:
 
     def _birth(self) -> None:
         p, C, P = self.params, self.n_cells, self.capacity
+        state = [self.cells, self.patches, self.glob]
         radius = wp.float64(self.birth_radius)
-        want = [self.want, self.birth_xy]
-        self._launch(lf_patches.birth_want, C, [p, self.grid.id, radius, self.cells, self.patches, self.glob, *want])
-        self._launch(lf_patches.free_slots, P, [self.alive, self.free])
+        self._launch(lf_patches.birth_want, C, [p, self.grid.id, radius, *state, self.births])
+        self._launch(lf_patches.free_slots, P, [self.patches, self.births])
         wp.utils.array_scan(self.free, self.free_rank, inclusive=False)
-        self._launch(lf_patches.free_list, P, [self.free, self.free_rank, self.slot_list])
+        self._launch(lf_patches.free_list, P, [self.births])
         wp.utils.array_scan(self.want, self.want_rank, inclusive=False)
-        slots = [self.want, self.want_rank, self.free, self.free_rank, self.slot_list, self.birth_xy]
-        self._launch(lf_patches.birth_apply, C, [p, *slots, self.cells, self.patches, self.glob])
+        self._launch(lf_patches.birth_apply, C, [p, self.births, *state])
 
     def compact(self) -> None:
         """Move the alive patches to the front of the slot arrays, keeping their order (prefix sum)."""
