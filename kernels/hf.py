@@ -239,28 +239,19 @@ def grow_patches(
     # Control:
     step: wp.array[wp.int64],
     every: int,
+    coupling: int,
 ):
-    """One growth event for every patch (:func:`grow_patch`; writes the model's areas, masses, stiffnesses and
-    dampings) when an event is due (:func:`growth_due`)."""
+    """The per-patch part of a growth event, when one is due (:func:`growth_due`): ``coupling`` = 0, every patch
+    grows (:func:`grow_patch`; the model's areas, masses, stiffnesses and dampings); ``coupling`` = 1, the coupling
+    stiffnesses at the new areas (:func:`patch_coupling`; k_ij and k_diag), a launch of their own because they read
+    the neighbours' new √A."""
     i = wp.tid()
     if not growth_due(step, every):
         return
-    grow_patch(i, model.patch_pad[i], model)
-
-
-@wp.kernel
-def coupling_stiffness(
-    model: Any,
-    # Control:
-    step: wp.array[wp.int64],
-    every: int,
-):
-    """Coupling stiffnesses of every patch (:func:`patch_coupling`; writes the model's k_ij and k_diag) when an event
-    is due (:func:`growth_due`)."""
-    i = wp.tid()
-    if not growth_due(step, every):
-        return
-    patch_coupling(i, model.patch_pad[i], model)
+    if coupling == 0:
+        grow_patch(i, model.patch_pad[i], model)
+    else:
+        patch_coupling(i, model.patch_pad[i], model)
 
 
 @wp.kernel
@@ -287,5 +278,5 @@ def contact_flat(
 
 precision_overloads(
     euler_velocity, drift, spring_forces, strang_advance, strang_close, record_globals, record_patches,
-    advance_counters, grow_patches, coupling_stiffness, contact_flat, model=HFModel, rec=HFRecorder,
+    advance_counters, grow_patches, contact_flat, model=HFModel, rec=HFRecorder,
 )  # fmt: skip

@@ -111,7 +111,7 @@ def onchip_kernel(
     ``growth``: patch growth (paper Eq. 10) in the kernel: after every ``growth_every``-th step the block grows
     its patches (``grow_patch``), recomputes their coupling stiffnesses (``patch_coupling``, and the shared copy
     of the CSR) and re-solves the pad's contact (``contact_block``), in the order of the general path's
-    ``grow_patches`` → ``coupling_stiffness`` → ``contact_flat`` after ``strang_advance`` (the cached spring force
+    ``grow_patches`` (areas, then stiffnesses) → ``contact_flat`` after ``strang_advance`` (the cached spring force
     keeps the stiffness of before the event, as there). The growth arrays are ignored (may be empty) otherwise.
 
     ``ablate`` (profiling only, ``scripts/profile_onchip.py``; the results are then wrong) drops parts of the

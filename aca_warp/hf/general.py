@@ -51,8 +51,8 @@ class Growth:
         """Count one step (fixed step); when an event is due, grow the areas, update the stiffnesses and re-solve
         the contact."""
         m, dev, km = self.model, self.model.device, self.kernel_model
-        wp.launch(K.grow_patches, dim=m.patch_count, device=dev, inputs=[km, *self.due])
-        wp.launch(K.coupling_stiffness, dim=m.patch_count, device=dev, inputs=[km, *self.due])
+        for coupling in (0, 1):  # the areas, then the stiffnesses at the new areas
+            wp.launch(K.grow_patches, dim=m.patch_count, device=dev, inputs=[km, *self.due, coupling])
         threads = block_threads(dev, CONTACT_BLOCK)
         wp.launch_tiled(
             K.contact_flat, dim=[m.pad_count], block_dim=CONTACT_BLOCK, device=dev, inputs=[km, *self.due, threads]
