@@ -161,45 +161,35 @@ def onchip_dp5_kernel(
                 q += dq
 
     @wp.func
-    def stage_one(
+    def open_trial(
         lo: int,
         hi: int,
         a: int,
         lane: int,
         threads: int,
+        pad: int,
+        need_k0: bool,
+        model: Model,
         dp5: Adaptive,
         h: wp.float64,
         u_io: wp.array[T],
         v_io: wp.array[T],
         us: wp.tile[T, 2, NMAX],
     ):
-        """The first stage state y_1 of the block's patches lo … hi − 1 (global indices) at trial step ``h`` [s] into
-        buffer b, its displacements shared with every block (row 1)."""
+        """The start of a trial of step ``h`` [s] for the block's patches lo … hi − 1 (global indices, pad from
+        ``a``): with ``need_k0`` their k_0 at the state itself, from the displacements in global memory (the run's
+        first trial, or after a growth event: FSAL's k_0 is of the patches before it); then their first stage state
+        y_1 into buffer b, its displacements shared with every block (row 1)."""
+        if need_k0:
+            g = lo + lane
+            while g < hi:
+                fs = spring_force(g, u_io, model)
+                stage_k(g, pad, 0, fs, model, dp5, h, u_io, v_io, v_io, dp5.u_b, dp5.v_b)
+                g += threads
         g = lo + lane
         while g < hi:
             stage_state_h(g, 1, dp5, h, u_io, v_io, dp5.u_b, dp5.v_b)
             share(us, 1, g - a, dp5.u_b[g], 0, 1)
-            g += threads
-
-    @wp.func
-    def first_stage(
-        lo: int,
-        hi: int,
-        lane: int,
-        threads: int,
-        pad: int,
-        model: Model,
-        dp5: Adaptive,
-        h: wp.float64,
-        u_io: wp.array[T],
-        v_io: wp.array[T],
-    ):
-        """k_0 of the block's patches lo … hi − 1 at the state itself (the run's first trial, or after a growth
-        event), from the displacements in global memory."""
-        g = lo + lane
-        while g < hi:
-            fs = spring_force(g, u_io, model)
-            stage_k(g, pad, 0, fs, model, dp5, h, u_io, v_io, v_io, dp5.u_b, dp5.v_b)
             g += threads
 
     @wp.func
@@ -329,10 +319,8 @@ def onchip_dp5_kernel(
         gap = wp.float64(0.0)
         if wp.static(growth):
             gap = model.pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
-        if landed == 0:
-            if m[M_NEEDK1] != 0:  # k_0 at the state itself (the run's first trial)
-                first_stage(lo, hi, lane, threads, pad, model, dp5, h, u_io, v_io)
-            stage_one(lo, hi, a, lane, threads, dp5, h, u_io, v_io, us)
+        if landed == 0:  # k_0 at the state itself when the run starts here
+            open_trial(lo, hi, a, lane, threads, pad, m[M_NEEDK1] != 0, model, dp5, h, u_io, v_io, us)
         m[M_NEEDK1] = 0
         pad_sync()  # every block has read ctl and mode before block 0 writes them
         stop = int(0)
@@ -452,10 +440,8 @@ def onchip_dp5_kernel(
                 block_sync()
                 h = get_red(red, 1, 2)
                 landed = int(get_red(red, 1, 3))
-                if landed == 0:
-                    if event != 0:  # k_0 (FSAL) was evaluated with the patches of before the event
-                        first_stage(lo, hi, lane, threads, pad, model, dp5, h, u_io, v_io)
-                    stage_one(lo, hi, a, lane, threads, dp5, h, u_io, v_io, us)
+                if landed == 0:  # k_0 again after a growth event
+                    open_trial(lo, hi, a, lane, threads, pad, event != 0, model, dp5, h, u_io, v_io, us)
                 pad_sync()  # the first stage is complete (and shared), the flags read before lane 0 rewrites them
                 s += sample
         if wp.static(cluster > 1):

@@ -17,8 +17,10 @@ Equation of motion of patch i (paper §2.1.2, docs/model.md §2.2), u along the 
 * samples: a patch's terms of a sample (:func:`patch_sample`), the block sums, the globals row
   (:func:`write_globals`), the watchdog and the per-patch histories (:func:`record_pad` puts them together).
 
-Functions are generic in the state precision T (float32 or float64 arguments; sample sums in float64); SI units:
-velocities in m/s, forces in N, masses in kg, times in s.
+Functions are generic in the state precision T (float32 or float64 arguments; sample sums in float64); those that read
+the model's or the recorder's arrays take them as one struct, ``model`` (:data:`~aca_warp.kernels.hf_types.HFModel`)
+or ``rec`` (:data:`~aca_warp.kernels.hf_types.HFRecorder`). SI units: velocities in m/s, forces in N, masses in kg,
+times in s.
 """
 
 from __future__ import annotations
