@@ -277,14 +277,6 @@ def open_decide(c: CtlVec, m: ModeVec, sample_dt: wp.float64):
 
 
 @wp.func
-def open_interval(p: int, dp5: Any):
-    """:func:`open_decide` on pad p's rows of ``dp5.ctl`` and ``dp5.mode``."""
-    c, m = load_control(p, dp5)
-    c, m = open_decide(c, m, dp5.sample_dt)
-    store_control(p, c, m, dp5)
-
-
-@wp.func
 def merge_width(sample_dt: wp.float64, interval: wp.float64) -> wp.float64:
     """How close [s] an event time must come to a sample time to be at it (:data:`EVENT_MERGE`)."""
     return wp.float64(EVENT_MERGE) * wp.min(sample_dt, interval)
@@ -339,24 +331,14 @@ def open_growth_decide(c: CtlVec, m: ModeVec, sample_dt: wp.float64, interval: w
 
 
 @wp.func
-def on_sample(p: int, dp5: Any) -> bool:
-    """:func:`at_sample` of pad p's rows of ``dp5.ctl`` and ``dp5.mode``."""
+def open_next(p: int, dp5: Any):
+    """Pad p, landed, heads for its next target on its rows of ``dp5.ctl`` and ``dp5.mode``:
+    :func:`open_growth_decide` in a growing model (``dp5.interval`` > 0), else :func:`open_decide`."""
     c, m = load_control(p, dp5)
-    return at_sample(c, m, dp5.sample_dt, dp5.interval)
-
-
-@wp.func
-def on_event(p: int, dp5: Any) -> bool:
-    """:func:`at_event` of pad p's rows of ``dp5.ctl`` and ``dp5.mode``."""
-    c, m = load_control(p, dp5)
-    return at_event(c, m, dp5.sample_dt, dp5.interval)
-
-
-@wp.func
-def open_growth_interval(p: int, dp5: Any):
-    """:func:`open_growth_decide` on pad p's rows of ``dp5.ctl`` and ``dp5.mode``."""
-    c, m = load_control(p, dp5)
-    c, m = open_growth_decide(c, m, dp5.sample_dt, dp5.interval)
+    if dp5.interval > wp.float64(0.0):
+        c, m = open_growth_decide(c, m, dp5.sample_dt, dp5.interval)
+    else:
+        c, m = open_decide(c, m, dp5.sample_dt)
     store_control(p, c, m, dp5)
 
 
@@ -497,13 +479,14 @@ def landing(
         for p in range(pads):
             if dp5.mode[p, M_LANDED] == 0:
                 return
-        if on_event(0, dp5):
+        c, m = load_control(0, dp5)  # every pad stands on the same target
+        if at_event(c, m, dp5.sample_dt, dp5.interval):
             event[0] = wp.int64(1)
             for p in range(pads):
                 dp5.mode[p, M_NEEDK1] = 1  # k_0 (FSAL) was evaluated with the model before the event
-        if not on_sample(0, dp5):
+        if not at_sample(c, m, dp5.sample_dt, dp5.interval):
             for p in range(pads):
-                open_growth_interval(p, dp5)
+                open_next(p, dp5)
             return
         rec.counters[RECORD_FLAG] = 1
         if dp5.ctl[0, C_TARGET] >= dp5.t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
@@ -516,10 +499,7 @@ def landing(
         return
     dp5.done[1] = 0
     for p in range(pads):
-        if dp5.interval > wp.float64(0.0):
-            open_growth_interval(p, dp5)
-        else:
-            open_interval(p, dp5)
+        open_next(p, dp5)
 
 
 @wp.kernel
