@@ -4,9 +4,10 @@ The physics they launch lives in Warp functions with one home each, shared by ev
 (:mod:`aca_warp.kernels.physics`: friction law and sub-step, coupling gather, net force, Strang velocity updates,
 growth, coupling stiffness, contact, sample sums).
 
-All kernels are generic in the state precision T (float32 or float64; overloads generated at the bottom). Batched
-pads are flat arrays: ``patch_pad`` gives each patch's pad, ``pad_patch_start`` (pads+1) the offsets, and
-``pad_*`` arrays hold per-pad parameters. Recorded sums are accumulated in float64 whatever T is.
+All kernels are generic in the state precision T (float32 or float64; overloads generated at the bottom) and take the
+model's arrays as one struct, ``model`` (:data:`~aca_warp.kernels.hf_types.HFModel`). Batched pads are flat arrays:
+``model.patch_pad`` gives each patch's pad, ``model.pad_patch_start`` (pads+1) the offsets, and the ``pad_*`` fields
+hold per-pad parameters. Recorded sums are accumulated in float64 whatever T is.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from typing import Any
 
 import warp as wp
 from aca_warp.kernels import precision_overloads
+from aca_warp.kernels.hf_types import HFModel, HFRecorder
 from aca_warp.kernels.physics import (
     contact_block,
     grow_patch,
@@ -31,7 +33,7 @@ from aca_warp.kernels.physics import (
 
 wp.set_module_options({"enable_backward": False})
 
-# counters[] slots shared by the recording kernels (int32 array of length 4)
+# slots of the recorder's counters (HFRecorder.counters, int32 (4,)) shared by the recording kernels
 SAMPLE_INDEX = 0  # absolute index of the next global sample
 GLOBAL_ROWS = 1  # rows written to the global buffer since the last flush
 PATCH_ROWS = 2  # rows written to the per-patch buffer since the last flush
@@ -56,20 +58,7 @@ def growth_due(step: wp.array[wp.int64], every: int) -> bool:
 
 @wp.kernel
 def euler_velocity(
-    # Model:
-    patch_pad: wp.array[wp.int32],
-    inv_mass: wp.array[Any],
-    k_diag: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    nbr_start: wp.array[wp.int32],
-    nbr_index: wp.array[wp.int32],
-    nbr_stiffness: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
+    model: Any,
     # Control:
     dt: Any,
     tol: Any,
@@ -83,18 +72,23 @@ def euler_velocity(
     v ← v + dt/m (F_s(u) + F_N f(ωr − v) − c v). Otherwise IMEX Euler: m(v⁺ − v) = dt (F_s(u) + F_N f(ωr − v⁺) − c v⁺),
     Newton per patch (:func:`~aca_warp.kernels.physics.solve_velocity`, relative tolerance ``tol``)."""
     i = wp.tid()
-    p = patch_pad[i]
+    p = model.patch_pad[i]
     v = v_io[i]
-    fs = spring_force(i, u_in, k_diag, nbr_start, nbr_index, nbr_stiffness)
-    vd = pad_omega[p] * radius[i]
+    fs = spring_force(i, u_in, model)
+    vd = model.pad_omega[p] * model.radius[i]
     if implicit != 0:
-        m = type(v)(1.0) / inv_mass[i]
-        a = m + dt * damping[i]
+        m = type(v)(1.0) / model.inv_mass[i]
+        a = m + dt * model.damping[i]
         b = m * v + dt * fs
-        v_io[i] = solve_velocity(a, b, dt * normal_force[i], vd, v, pad_mu_scale[p], pad_slope[p], pad_decay[p], tol)
+        v_io[i] = solve_velocity(
+            a, b, dt * model.normal_force[i], vd, v, model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol
+        )
     else:
-        f = patch_force(fs, v, damping[i], normal_force[i], vd, pad_mu_scale[p], pad_slope[p], pad_decay[p])
-        v_io[i] = v + dt * inv_mass[i] * f
+        f = patch_force(
+            fs, v, model.damping[i], model.normal_force[i], vd, model.pad_mu_scale[p], model.pad_slope[p],
+            model.pad_decay[p],
+        )  # fmt: skip
+        v_io[i] = v + dt * model.inv_mass[i] * f
 
 
 @wp.kernel
@@ -112,11 +106,7 @@ def drift(
 
 @wp.kernel
 def spring_forces(
-    # Model:
-    k_diag: wp.array[Any],
-    nbr_start: wp.array[wp.int32],
-    nbr_index: wp.array[wp.int32],
-    nbr_stiffness: wp.array[Any],
+    model: Any,
     # State in:
     u_in: wp.array[Any],
     # State out:
@@ -124,21 +114,13 @@ def spring_forces(
 ):
     """Elastic force F_s(u) on every patch [N] (first-same-as-last cache of the Strang scheme)."""
     i = wp.tid()
-    force_out[i] = spring_force(i, u_in, k_diag, nbr_start, nbr_index, nbr_stiffness)
+    force_out[i] = spring_force(i, u_in, model)
 
 
 @wp.kernel
 def strang_advance(
-    # Model:
-    patch_pad: wp.array[wp.int32],
-    inv_mass: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
+    model: Any,
+    # Control:
     dt: Any,
     tol: Any,
     first: int,
@@ -154,10 +136,10 @@ def strang_advance(
     Afterwards ``v_io`` holds the staggered velocity w; follow with :func:`spring_forces` at the new u.
     """
     i = wp.tid()
-    p = patch_pad[i]
+    p = model.patch_pad[i]
     v = strang_velocity(
-        first, v_io[i], force_in[i], dt, inv_mass[i], damping[i], normal_force[i], pad_omega[p] * radius[i],
-        pad_mu_scale[p], pad_slope[p], pad_decay[p], tol,
+        first, v_io[i], force_in[i], dt, model.inv_mass[i], model.damping[i], model.normal_force[i],
+        model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
     )  # fmt: skip
     v_io[i] = v
     u_io[i] = u_io[i] + dt * v
@@ -165,16 +147,8 @@ def strang_advance(
 
 @wp.kernel
 def strang_close(
-    # Model:
-    patch_pad: wp.array[wp.int32],
-    inv_mass: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
+    model: Any,
+    # Control:
     dt: Any,
     tol: Any,
     # State in:
@@ -186,91 +160,68 @@ def strang_close(
     """Synchronous velocity from the staggered w and F_s(uₙ) (:func:`~aca_warp.kernels.physics.strang_close_velocity`;
     may be in place)."""
     i = wp.tid()
-    p = patch_pad[i]
+    p = model.patch_pad[i]
     v_out[i] = strang_close_velocity(
-        v_in[i], force_in[i], dt, inv_mass[i], damping[i], normal_force[i], pad_omega[p] * radius[i],
-        pad_mu_scale[p], pad_slope[p], pad_decay[p], tol,
+        v_in[i], force_in[i], dt, model.inv_mass[i], model.damping[i], model.normal_force[i],
+        model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
     )  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------------------- recording
 
 
+@wp.func
+def sample_flagged(rec: Any, conditional: int) -> bool:
+    """Whether a sample is taken now: always, or with ``conditional`` only when ``rec``'s counters flag one."""
+    return conditional == 0 or rec.counters[RECORD_FLAG] != 0
+
+
 @wp.kernel
 def record_globals(
-    # Model:
-    pad_patch_start: wp.array[wp.int32],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
-    pad_mu_pad: wp.array[Any],
-    pad_load: wp.array[Any],
-    pad_matrix_force: wp.array[Any],
-    pad_matrix_radius: wp.array[Any],
-    inv_mass: wp.array[Any],
-    k_t: wp.array[Any],
-    x: wp.array[Any],
-    y: wp.array[Any],
+    model: Any,
+    rec: Any,
+    # Control:
     conditional: int,
     threads: int,
     # State in:
     u_in: wp.array[Any],
     v_in: wp.array[Any],
-    # Recorder:
-    counters: wp.array[wp.int32],
-    globals_out: wp.array3d[wp.float64],
-    watch_bound: wp.array[wp.float64],
-    fault_out: wp.array2d[wp.int32],
-    fault_value_out: wp.array[wp.float64],
 ):
-    """Per pad (one block, ``launch_tiled``): the sample ``counters[0]`` into globals row ``counters[1]``
-    (:func:`record_pad`); with ``conditional``, only when ``counters[3]`` flags a sample."""
+    """Per pad (one block, ``launch_tiled``): the sample of the recorder's sample index into its next globals row
+    (:func:`record_pad`), when one is taken (:func:`sample_flagged`)."""
     pad, lane = wp.tid()
-    if conditional != 0 and counters[3] == 0:
+    if not sample_flagged(rec, conditional):
         return
-    record_pad(
-        pad, lane, threads, counters[1], counters[0], pad_patch_start, normal_force, radius, pad_omega, pad_mu_scale,
-        pad_slope, pad_decay, pad_mu_pad, pad_load, pad_matrix_force, pad_matrix_radius, inv_mass, k_t, x, y, u_in,
-        v_in, globals_out, watch_bound, fault_out, fault_value_out,
-    )  # fmt: skip
+    record_pad(pad, lane, threads, rec.counters[GLOBAL_ROWS], rec.counters[SAMPLE_INDEX], model, u_in, v_in, rec)
 
 
 @wp.kernel
 def record_patches(
-    first: int,
-    last: int,
-    every: int,
+    rec: Any,
     conditional: int,
     # State in:
     u_in: wp.array[Any],
     v_in: wp.array[Any],
-    # Recorder:
-    counters: wp.array[wp.int32],
-    velocity_out: wp.array2d[Any],
-    displacement_out: wp.array2d[Any],
 ):
     """Copy u̇ (and u, when its buffer has rows) of every patch into the per-patch buffers when due."""
     i = wp.tid()
-    if conditional != 0 and counters[3] == 0:
+    if not sample_flagged(rec, conditional):
         return
-    if not patch_sample_due(counters[0], first, last, every):
+    if not patch_sample_due(rec, rec.counters[SAMPLE_INDEX]):
         return
-    store_patch_sample(velocity_out, displacement_out, counters[2], i, v_in[i], u_in[i])
+    store_patch_sample(rec, rec.counters[PATCH_ROWS], i, v_in[i], u_in[i])
 
 
 @wp.kernel
-def advance_counters(first: int, last: int, every: int, conditional: int, counters: wp.array[wp.int32]):
+def advance_counters(rec: Any, conditional: int):
     """After a sample: next sample index and buffer rows (one thread)."""
-    if conditional != 0 and counters[3] == 0:
+    if not sample_flagged(rec, conditional):
         return
-    k = counters[0]
-    if patch_sample_due(k, first, last, every):
-        counters[2] = counters[2] + 1
-    counters[0] = k + 1
-    counters[1] = counters[1] + 1
+    k = rec.counters[SAMPLE_INDEX]
+    if patch_sample_due(rec, k):
+        rec.counters[PATCH_ROWS] = rec.counters[PATCH_ROWS] + 1
+    rec.counters[SAMPLE_INDEX] = k + 1
+    rec.counters[GLOBAL_ROWS] = rec.counters[GLOBAL_ROWS] + 1
 
 
 # ---------------------------------------------------------------------------------------------- growth
@@ -284,98 +235,48 @@ def tick(step: wp.array[wp.int64]):
 
 @wp.kernel
 def grow_patches(
-    # Model:
-    patch_pad: wp.array[wp.int32],
-    pad_growth: wp.array[Any],
-    pad_k_t: wp.array[Any],
-    pad_k_n: wp.array[Any],
-    pad_mass_per_area: wp.array[Any],
-    pad_zeta: wp.array[Any],
+    model: Any,
     # Control:
     step: wp.array[wp.int64],
     every: int,
-    # Model in/out:
-    area_io: wp.array[Any],
-    sqrt_area_out: wp.array[Any],
-    inv_mass_out: wp.array[Any],
-    k_t_out: wp.array[Any],
-    k_n_out: wp.array[Any],
-    damping_out: wp.array[Any],
+    coupling: int,
 ):
-    """One growth event for every patch (:func:`grow_patch`) when an event is due (:func:`growth_due`)."""
+    """The per-patch part of a growth event, when one is due (:func:`growth_due`): ``coupling`` = 0, every patch
+    grows (:func:`grow_patch`; the model's areas, masses, stiffnesses and dampings); ``coupling`` = 1, the coupling
+    stiffnesses at the new areas (:func:`patch_coupling`; k_ij and k_diag), a launch of their own because they read
+    the neighbours' new √A."""
     i = wp.tid()
     if not growth_due(step, every):
         return
-    grow_patch(
-        i, patch_pad[i], pad_growth, pad_k_t, pad_k_n, pad_mass_per_area, pad_zeta, area_io, sqrt_area_out,
-        inv_mass_out, k_t_out, k_n_out, damping_out,
-    )  # fmt: skip
-
-
-@wp.kernel
-def coupling_stiffness(
-    # Model:
-    patch_pad: wp.array[wp.int32],
-    sqrt_area: wp.array[Any],
-    nbr_start: wp.array[wp.int32],
-    nbr_index: wp.array[wp.int32],
-    nbr_inv_dist: wp.array[Any],
-    pad_kc: wp.array[Any],
-    k_t: wp.array[Any],
-    # Control:
-    step: wp.array[wp.int64],
-    every: int,
-    # Model out:
-    nbr_stiffness_out: wp.array[Any],
-    k_diag_out: wp.array[Any],
-):
-    """Coupling stiffnesses of every patch (:func:`patch_coupling`) when an event is due (:func:`growth_due`)."""
-    i = wp.tid()
-    if not growth_due(step, every):
-        return
-    patch_coupling(
-        i, patch_pad[i], sqrt_area, nbr_start, nbr_index, nbr_inv_dist, pad_kc, k_t, nbr_stiffness_out, k_diag_out
-    )
+    if coupling == 0:
+        grow_patch(i, model.patch_pad[i], model)
+    else:
+        patch_coupling(i, model.patch_pad[i], model)
 
 
 @wp.kernel
 def contact_flat(
-    # Model:
-    pad_patch_start: wp.array[wp.int32],
-    k_n: wp.array[Any],
-    height: wp.array[Any],
-    area: wp.array[Any],
-    radius: wp.array[Any],
-    pad_area: wp.array[wp.float64],
-    pad_moment: wp.array[wp.float64],
-    pad_k_m: wp.array[wp.float64],
-    pad_load: wp.array[Any],
+    model: Any,
     # Control:
     step: wp.array[wp.int64],
     every: int,
     threads: int,
-    # Contact in/out:
-    pad_gap: wp.array[wp.float64],
-    normal_force_out: wp.array[Any],
-    pad_matrix_force_out: wp.array[Any],
-    pad_matrix_radius_out: wp.array[Any],
 ):
-    """:func:`contact_block` for every pad (one thread block each) when an event is due (:func:`growth_due`)."""
+    """:func:`contact_block` for every pad (one thread block each) when an event is due (:func:`growth_due`): writes
+    the model's normal forces, matrix forces and radii and gaps."""
     pad, lane = wp.tid()
     if not growth_due(step, every):
         return
     g = contact_block(
-        pad, lane, threads, pad_patch_start, k_n, height, area, radius, pad_area, pad_moment, pad_k_m, pad_load,
-        pad_gap[pad], pad_patch_start[pad], pad_patch_start[pad + 1], True, normal_force_out, pad_matrix_force_out,
-        pad_matrix_radius_out,
-    )  # fmt: skip
+        pad, lane, threads, model, model.pad_gap[pad], model.pad_patch_start[pad], model.pad_patch_start[pad + 1], True
+    )
     if lane == 0:
-        pad_gap[pad] = g  # every thread read the old gap: the reductions in contact_block are block barriers
+        model.pad_gap[pad] = g  # every thread read the old gap: the reductions in contact_block are block barriers
 
 
 # ---------------------------------------------------------------------------------------------- overloads
 
 precision_overloads(
-    euler_velocity, drift, spring_forces, strang_advance, strang_close,
-    record_globals, record_patches, grow_patches, coupling_stiffness, contact_flat,
+    euler_velocity, drift, spring_forces, strang_advance, strang_close, record_globals, record_patches,
+    advance_counters, grow_patches, contact_flat, model=HFModel, rec=HFRecorder,
 )  # fmt: skip

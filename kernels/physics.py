@@ -17,8 +17,10 @@ Equation of motion of patch i (paper §2.1.2, docs/model.md §2.2), u along the 
 * samples: a patch's terms of a sample (:func:`patch_sample`), the block sums, the globals row
   (:func:`write_globals`), the watchdog and the per-patch histories (:func:`record_pad` puts them together).
 
-Functions are generic in the state precision T (float32 or float64 arguments; sample sums in float64); SI units:
-velocities in m/s, forces in N, masses in kg, times in s.
+Functions are generic in the state precision T (float32 or float64 arguments; sample sums in float64); those that read
+the model's or the recorder's arrays take them as one struct, ``model`` (:data:`~aca_warp.kernels.hf_types.HFModel`)
+or ``rec`` (:data:`~aca_warp.kernels.hf_types.HFRecorder`). SI units: velocities in m/s, forces in N, masses in kg,
+times in s.
 """
 
 from __future__ import annotations
@@ -115,15 +117,9 @@ def friction_substep(
 
 
 @wp.func
-def spring_force(
-    i: int,
-    u: wp.array[Any],
-    k_diag: wp.array[Any],
-    nbr_start: wp.array[wp.int32],
-    nbr_index: wp.array[wp.int32],
-    nbr_stiffness: wp.array[Any],
-):
-    """Elastic force on patch i: Σ_j k_ij u_j − (k_T,i + Σ_j k_ij) u_i [N].
+def spring_force(i: int, u: wp.array[Any], model: Any):
+    """Elastic force on patch i: Σ_j k_ij u_j − (k_T,i + Σ_j k_ij) u_i [N] (``model``: an
+    :data:`~aca_warp.kernels.hf_types.HFModel`, its CSR and k_diag).
 
     Two partial sums break the dependency chain of the gather (about 30 % faster on the CPU): the even links of the
     row into the first, the odd ones into the second; the order of summation is fixed, so results stay
@@ -131,15 +127,15 @@ def spring_force(
     """
     a0 = u[i] - u[i]
     a1 = a0
-    e = nbr_start[i]
-    end = nbr_start[i + 1]
+    e = model.nbr_start[i]
+    end = model.nbr_start[i + 1]
     while e + 1 < end:
-        a0 += nbr_stiffness[e] * u[nbr_index[e]]
-        a1 += nbr_stiffness[e + 1] * u[nbr_index[e + 1]]
+        a0 += model.nbr_stiffness[e] * u[model.nbr_index[e]]
+        a1 += model.nbr_stiffness[e + 1] * u[model.nbr_index[e + 1]]
         e += 2
     if e < end:
-        a0 += nbr_stiffness[e] * u[nbr_index[e]]
-    return (a0 + a1) - k_diag[i] * u[i]
+        a0 += model.nbr_stiffness[e] * u[model.nbr_index[e]]
+    return (a0 + a1) - model.k_diag[i] * u[i]
 
 
 @wp.func
@@ -188,33 +184,20 @@ def strang_close_velocity(
 
 
 @wp.func
-def grow_patch(
-    i: int,
-    p: int,
-    pad_growth: wp.array[Any],
-    pad_k_t: wp.array[Any],
-    pad_k_n: wp.array[Any],
-    pad_mass_per_area: wp.array[Any],
-    pad_zeta: wp.array[Any],
-    area_io: wp.array[Any],
-    sqrt_area_out: wp.array[Any],
-    inv_mass_out: wp.array[Any],
-    k_t_out: wp.array[Any],
-    k_n_out: wp.array[Any],
-    damping_out: wp.array[Any],
-):
-    """One growth event of patch i of pad p (paper Eq. 10): A ← A + g √A, then m, k_T, k_N, c follow the area."""
-    a = area_io[i]
-    a = a + pad_growth[p] * wp.sqrt(a)
+def grow_patch(i: int, p: int, model: Any):
+    """One growth event of patch i of pad p (paper Eq. 10): A ← A + g √A, then m, k_T, k_N, c follow the area
+    (written into ``model``'s arrays; g its ``pad_growth``)."""
+    a = model.area[i]
+    a = a + model.pad_growth[p] * wp.sqrt(a)
     s = wp.sqrt(a)
-    m = pad_mass_per_area[p] * a
-    kt = pad_k_t[p] * s
-    area_io[i] = a
-    sqrt_area_out[i] = s
-    inv_mass_out[i] = type(a)(1.0) / m
-    k_t_out[i] = kt
-    k_n_out[i] = pad_k_n[p] * s
-    damping_out[i] = type(a)(2.0) * pad_zeta[p] * wp.sqrt(kt * m)
+    m = model.pad_mass_per_area[p] * a
+    kt = model.pad_k_t[p] * s
+    model.area[i] = a
+    model.sqrt_area[i] = s
+    model.inv_mass[i] = type(a)(1.0) / m
+    model.k_t[i] = kt
+    model.k_n[i] = model.pad_k_n[p] * s
+    model.damping[i] = type(a)(2.0) * model.pad_zeta[p] * wp.sqrt(kt * m)
 
 
 @wp.func
@@ -224,26 +207,16 @@ def link_stiffness(ki: Any, sqrt_area_j: Any, inv_dist: Any):
 
 
 @wp.func
-def patch_coupling(
-    i: int,
-    p: int,
-    sqrt_area: wp.array[Any],
-    nbr_start: wp.array[wp.int32],
-    nbr_index: wp.array[wp.int32],
-    nbr_inv_dist: wp.array[Any],
-    pad_kc: wp.array[Any],
-    k_t: wp.array[Any],
-    nbr_stiffness_out: wp.array[Any],
-    k_diag_out: wp.array[Any],
-):
-    """k_ij (:func:`link_stiffness`) for every link of patch i of pad p [N/m] and k_T,i + Σ_j k_ij."""
-    ki = pad_kc[p] * sqrt_area[i]
-    d = k_t[i]
-    for e in range(nbr_start[i], nbr_start[i + 1]):
-        k = link_stiffness(ki, sqrt_area[nbr_index[e]], nbr_inv_dist[e])
-        nbr_stiffness_out[e] = k
+def patch_coupling(i: int, p: int, model: Any):
+    """k_ij (:func:`link_stiffness`) for every link of patch i of pad p [N/m] and k_T,i + Σ_j k_ij, into ``model``'s
+    ``nbr_stiffness`` and ``k_diag``."""
+    ki = model.pad_kc[p] * model.sqrt_area[i]
+    d = model.k_t[i]
+    for e in range(model.nbr_start[i], model.nbr_start[i + 1]):
+        k = link_stiffness(ki, model.sqrt_area[model.nbr_index[e]], model.nbr_inv_dist[e])
+        model.nbr_stiffness[e] = k
         d += k
-    k_diag_out[i] = d
+    model.k_diag[i] = d
 
 
 # ---------------------------------------------------------------------------------------------- contact
@@ -251,25 +224,7 @@ def patch_coupling(
 
 @wp.func
 def contact_block(
-    pad: int,
-    lane: int,
-    threads: int,
-    pad_patch_start: wp.array[wp.int32],
-    k_n: wp.array[Any],
-    height: wp.array[Any],
-    area: wp.array[Any],
-    radius: wp.array[Any],
-    pad_area: wp.array[wp.float64],
-    pad_moment: wp.array[wp.float64],
-    pad_k_m: wp.array[wp.float64],
-    pad_load: wp.array[Any],
-    gap: wp.float64,
-    out_start: int,
-    out_end: int,
-    writer: bool,
-    normal_force_out: wp.array[Any],
-    pad_matrix_force_out: wp.array[Any],
-    pad_matrix_radius_out: wp.array[Any],
+    pad: int, lane: int, threads: int, model: Any, gap: wp.float64, out_start: int, out_end: int, writer: bool
 ) -> wp.float64:
     """Re-solve the normal forces of one pad on a flat matrix at elevation 0 (one thread block per pad).
 
@@ -283,35 +238,37 @@ def contact_block(
     sees the same values and takes the same branches (the block-wide reductions stay outside per-thread code).
     Every thread of the block must call it (block-wide reductions inside).
 
-    ``gap``: the previous gap g [m] (the warm start); returns the new one (unchanged when the load is 0), which the
-    caller stores. Writes the normal forces of the patches ``out_start`` … ``out_end − 1`` only (global indices;
-    the pad's whole range on the general path, a block's own part in a cluster, where every block of the cluster
-    solves the same contact redundantly) and, when ``writer``, the pad's matrix force and radius.
+    ``model``: the pad's :data:`~aca_warp.kernels.hf_types.HFModel` (its patch stiffnesses k_N, heights, areas and
+    radii, the pad's area, first moment, matrix stiffness and load). ``gap``: the previous gap g [m] (the warm
+    start); returns the new one (unchanged when the load is 0), which the caller stores. Writes the model's normal
+    forces of the patches ``out_start`` … ``out_end − 1`` only (global indices; the pad's whole range on the
+    general path, a block's own part in a cluster, where every block of the cluster solves the same contact
+    redundantly) and, when ``writer``, the pad's matrix force and radius.
     """
-    s = pad_patch_start[pad]
-    e = pad_patch_start[pad + 1]
+    s = model.pad_patch_start[pad]
+    e = model.pad_patch_start[pad + 1]
     zero = wp.float64(0.0)
-    load = wp.float64(pad_load[pad])
+    load = wp.float64(model.pad_load[pad])
     covered = zero
     moment = zero
     hmin = zero
     ktot = zero
     i = s + lane
     while i < e:
-        covered += wp.float64(area[i])
-        moment += wp.float64(area[i] * radius[i])
-        hmin = wp.min(hmin, wp.float64(height[i]))
-        ktot += wp.float64(k_n[i])
+        covered += wp.float64(model.area[i])
+        moment += wp.float64(model.area[i] * model.radius[i])
+        hmin = wp.min(hmin, wp.float64(model.height[i]))
+        ktot += wp.float64(model.k_n[i])
         i += threads
     covered = wp.tile_sum(wp.tile(covered))[0]
     moment = wp.tile_sum(wp.tile(moment))[0]
     hmin = wp.tile_min(wp.tile(hmin))[0]
     ktot = wp.tile_sum(wp.tile(ktot))[0]
-    free = wp.max(pad_area[pad] - covered, zero)
-    km = pad_k_m[pad] * free
+    free = wp.max(model.pad_area[pad] - covered, zero)
+    km = model.pad_k_m[pad] * free
     ktot += km
     if free > zero and lane == 0 and writer:
-        pad_matrix_radius_out[pad] = type(pad_load[pad])((pad_moment[pad] - moment) / free)
+        model.pad_matrix_radius[pad] = type(model.pad_load[pad])((model.pad_moment[pad] - moment) / free)
     g = gap
     if load > zero:
         for it in range(200):
@@ -319,10 +276,10 @@ def contact_block(
             kp = zero
             i = s + lane
             while i < e:
-                d = wp.float64(height[i]) - g
+                d = wp.float64(model.height[i]) - g
                 if d > zero:
-                    fp += wp.float64(k_n[i]) * d
-                    kp += wp.float64(k_n[i])
+                    fp += wp.float64(model.k_n[i]) * d
+                    kp += wp.float64(model.k_n[i])
                 i += threads
             f = km * wp.max(-g, zero) + wp.tile_sum(wp.tile(fp))[0]
             kact = wp.tile_sum(wp.tile(kp))[0]
@@ -343,14 +300,14 @@ def contact_block(
     while i < out_end:
         f_i = zero
         if load > zero:
-            f_i = wp.float64(k_n[i]) * wp.max(wp.float64(height[i]) - g, zero)
-        normal_force_out[i] = type(pad_load[pad])(f_i)
+            f_i = wp.float64(model.k_n[i]) * wp.max(wp.float64(model.height[i]) - g, zero)
+        model.normal_force[i] = type(model.pad_load[pad])(f_i)
         i += threads
     if lane == 0 and writer:
         if load > zero:
-            pad_matrix_force_out[pad] = type(pad_load[pad])(km * wp.max(-g, zero))
+            model.pad_matrix_force[pad] = type(model.pad_load[pad])(km * wp.max(-g, zero))
         else:
-            pad_matrix_force_out[pad] = type(pad_load[pad])(0.0)
+            model.pad_matrix_force[pad] = type(model.pad_load[pad])(0.0)
     return g
 
 
@@ -393,7 +350,7 @@ def block_sums(s: SampleSums):
 
 @wp.func
 def write_globals(
-    globals_out: wp.array3d[wp.float64],
+    rec: Any,
     row: int,
     pad: int,
     s: SampleSums,
@@ -403,8 +360,9 @@ def write_globals(
     matrix_radius: Any,
     load: Any,
 ):
-    """Write one pad's sample row: μ, torque [N m], friction radius [m], Σu̇, Σ|u̇| [m/s], friction centroid [m]
-    from the pad's :data:`SampleSums` ``s`` and the matrix's Coulomb friction μ_pad F_m sign(ω) at radius r_m.
+    """Write one pad's sample row into ``rec.globals``: μ, torque [N m], friction radius [m], Σu̇, Σ|u̇| [m/s],
+    friction centroid [m] from the pad's :data:`SampleSums` ``s`` and the matrix's Coulomb friction μ_pad F_m sign(ω)
+    at radius r_m.
 
     μ = (Σ F_i + μ_pad F_m sign ω)/F_N (0 without load); friction radius r_eff = T / total friction force (matrix
     included); friction centroid = |Σ F_i r⃗_i| / |Σ F_i|, the distance from the disc axis of the centroid of the
@@ -420,15 +378,15 @@ def write_globals(
         mu = ftot / wp.float64(load)
     if ftot != wp.float64(0.0):
         reff = ttot / ftot
-    globals_out[row, pad, 0] = mu
-    globals_out[row, pad, 1] = ttot
-    globals_out[row, pad, 2] = reff
-    globals_out[row, pad, 3] = s[2]
-    globals_out[row, pad, 4] = s[3]
+    rec.globals[row, pad, 0] = mu
+    rec.globals[row, pad, 1] = ttot
+    rec.globals[row, pad, 2] = reff
+    rec.globals[row, pad, 3] = s[2]
+    rec.globals[row, pad, 4] = s[3]
     centroid = wp.float64(0.0)
     if fsum != wp.float64(0.0):
         centroid = wp.sqrt(s[4] * s[4] + s[5] * s[5]) / wp.abs(fsum)
-    globals_out[row, pad, 5] = centroid
+    rec.globals[row, pad, 5] = centroid
 
 
 @wp.func
@@ -440,47 +398,35 @@ def energy_speed2(v: Any, u: Any, k_t: Any, inv_mass: Any) -> wp.float64:
 
 
 @wp.func
-def flag_fault(
-    fault_out: wp.array2d[wp.int32],
-    fault_value_out: wp.array[wp.float64],
-    pad: int,
-    k: int,
-    broken: bool,
-    bad: int,
-    runaway: int,
-    n: int,
-    value: wp.float64,
-):
-    """The pad's first fault at sample k (fault_out[pad] = [patch, sample, kind], kept once set): kind 0 when
+def flag_fault(rec: Any, pad: int, k: int, broken: bool, bad: int, runaway: int, n: int, value: wp.float64):
+    """The pad's first fault at sample k (rec.fault[pad] = [patch, sample, kind], kept once set): kind 0 when
     ``broken`` (a non-finite u or u̇; ``bad`` its first patch), else kind 1 when ``runaway`` < ``n`` (a patch whose
-    energy speed √(:func:`energy_speed2`) = ``value`` [m/s] exceeds the pad's bound; fault_value_out[pad] = value)."""
-    if fault_out[pad, 0] >= 0:
+    energy speed √(:func:`energy_speed2`) = ``value`` [m/s] exceeds the pad's bound; rec.fault_value[pad] = value)."""
+    if rec.fault[pad, 0] >= 0:
         return
     if broken:
-        fault_out[pad, 0] = bad
-        fault_out[pad, 1] = k
-        fault_out[pad, 2] = 0
+        rec.fault[pad, 0] = bad
+        rec.fault[pad, 1] = k
+        rec.fault[pad, 2] = 0
     elif runaway < n:
-        fault_out[pad, 0] = runaway
-        fault_out[pad, 1] = k
-        fault_out[pad, 2] = 1
-        fault_value_out[pad] = value
+        rec.fault[pad, 0] = runaway
+        rec.fault[pad, 1] = k
+        rec.fault[pad, 2] = 1
+        rec.fault_value[pad] = value
 
 
 @wp.func
-def patch_sample_due(k: int, first: int, last: int, every: int) -> bool:
-    """Whether global sample k also records per-patch histories (window [first, last], every n-th)."""
-    return k >= first and k <= last and (k - first) % every == 0
+def patch_sample_due(rec: Any, k: int) -> bool:
+    """Whether global sample k also records per-patch histories (``rec``'s window [first, last], every n-th)."""
+    return k >= rec.first and k <= rec.last and (k - rec.first) % rec.every == 0
 
 
 @wp.func
-def store_patch_sample(
-    velocity_out: wp.array2d[Any], displacement_out: wp.array2d[Any], row: int, g: int, v: Any, u: Any
-):
-    """Patch g's u̇ (and u, when its buffer has rows) into row ``row`` of the per-patch histories."""
-    velocity_out[row, g] = v
-    if displacement_out.shape[0] > 0:
-        displacement_out[row, g] = u
+def store_patch_sample(rec: Any, row: int, g: int, v: Any, u: Any):
+    """Patch g's u̇ (and u, when its buffer has rows) into row ``row`` of ``rec``'s per-patch histories."""
+    rec.velocity[row, g] = v
+    if rec.displacement.shape[0] > 0:
+        rec.displacement[row, g] = u
 
 
 @wp.func
@@ -490,44 +436,27 @@ def record_pad(
     threads: int,
     row: int,
     k: int,
-    # Model:
-    pad_patch_start: wp.array[wp.int32],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
-    pad_mu_pad: wp.array[Any],
-    pad_load: wp.array[Any],
-    pad_matrix_force: wp.array[Any],
-    pad_matrix_radius: wp.array[Any],
-    inv_mass: wp.array[Any],
-    k_t: wp.array[Any],
-    x: wp.array[Any],
-    y: wp.array[Any],
+    model: Any,
     # State in:
     u_in: wp.array[Any],
     v_in: wp.array[Any],
-    # Recorder:
-    globals_out: wp.array3d[wp.float64],
-    watch_bound: wp.array[wp.float64],
-    fault_out: wp.array2d[wp.int32],
-    fault_value_out: wp.array[wp.float64],
+    rec: Any,
 ):
-    """Sample k of pad ``pad`` (lane ``lane`` of its block of ``threads``) into globals row ``row``
-    (:func:`write_globals`); flags the first faulty patch (:func:`flag_fault`).
+    """Sample k of pad ``pad`` (lane ``lane`` of its block of ``threads``) of the state (``u_in``, ``v_in``) of
+    ``model`` (an :data:`~aca_warp.kernels.hf_types.HFModel`) into globals row ``row`` of ``rec`` (an
+    :data:`~aca_warp.kernels.hf_types.HFRecorder`, :func:`write_globals`); flags the first faulty patch
+    (:func:`flag_fault`).
 
     Each of the block's ``threads`` lanes sums the patches lane, lane + threads, … in float64 (:func:`patch_sample`),
     and the block adds the lanes' sums; with one lane (a CPU block) that is the sum in patch order. Watchdog: a
-    non-finite u or u̇, or a patch whose energy speed exceeds ``watch_bound[pad]`` [m/s]; "first" is the lowest
+    non-finite u or u̇, or a patch whose energy speed exceeds ``rec.watch_bound[pad]`` [m/s]; "first" is the lowest
     patch index.
     """
-    a = pad_patch_start[pad]
-    n = pad_patch_start[pad + 1] - a
+    a = model.pad_patch_start[pad]
+    n = model.pad_patch_start[pad + 1] - a
     sums = SampleSums()
-    omega = pad_omega[pad]
-    bound2 = watch_bound[pad] * watch_bound[pad]
+    omega = model.pad_omega[pad]
+    bound2 = rec.watch_bound[pad] * rec.watch_bound[pad]
     runaway = n  # the lane's first patch beyond the bound (n: none)
     broken = n  # the lane's first patch with a non-finite u or u̇ (n: none)
     i = lane
@@ -535,9 +464,10 @@ def record_pad(
         g = a + i
         v = v_in[g]
         sums += patch_sample(
-            v, normal_force[g], radius[g], x[g], y[g], omega, pad_mu_scale[pad], pad_slope[pad], pad_decay[pad]
-        )
-        if energy_speed2(v, u_in[g], k_t[g], inv_mass[g]) > bound2 and runaway == n:
+            v, model.normal_force[g], model.radius[g], model.x[g], model.y[g], omega, model.pad_mu_scale[pad],
+            model.pad_slope[pad], model.pad_decay[pad],
+        )  # fmt: skip
+        if energy_speed2(v, u_in[g], model.k_t[g], model.inv_mass[g]) > bound2 and runaway == n:
             runaway = i
         if broken == n and not (wp.isfinite(v) and wp.isfinite(wp.float64(u_in[g]))):
             broken = i
@@ -548,11 +478,11 @@ def record_pad(
     if lane != 0:
         return
     write_globals(
-        globals_out, row, pad, sums, omega, pad_mu_pad[pad], pad_matrix_force[pad], pad_matrix_radius[pad],
-        pad_load[pad],
+        rec, row, pad, sums, omega, model.pad_mu_pad[pad], model.pad_matrix_force[pad],
+        model.pad_matrix_radius[pad], model.pad_load[pad],
     )  # fmt: skip
     value = wp.float64(0.0)
     if runaway < n:
         g = a + runaway
-        value = wp.sqrt(energy_speed2(v_in[g], u_in[g], k_t[g], inv_mass[g]))
-    flag_fault(fault_out, fault_value_out, pad, k, broken < n, broken, runaway, n, value)
+        value = wp.sqrt(energy_speed2(v_in[g], u_in[g], model.k_t[g], model.inv_mass[g]))
+    flag_fault(rec, pad, k, broken < n, broken, runaway, n, value)

@@ -92,7 +92,7 @@ BOXES = {
         9,
         LF,
         "LF automaton",
-        "lf.solver.LFSimulation\n(0.01 s steps), kernels/lf.py",
+        "lf.solver.LFSimulation\n(0.01 s steps), kernels/lf_*.py",
     ),
     "lf_file": (
         15,

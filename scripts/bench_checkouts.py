@@ -7,8 +7,9 @@ checkout runs in its own Python process (its own package view and kernel cache, 
 timed runs over ``--window`` [s] of simulated time. The checkouts alternate case by case (first, second, first,
 …), so drifts of the machine's clock or load hit both alike. Reported per case and checkout: the best and the
 median wall time of the stepping loop [s] (``RunResult.wall_time``, graph captures excluded), µs per accepted
-step, and the ratio second/first of the best times. JSON into ``--out``; ``--cache`` keeps the two checkouts'
-kernel caches for a later call (e.g. the cases split over two calls). Examples::
+step, and the ratio second/first of the best times. JSON into ``--out``, rewritten after every row (a run stopped
+at a time limit keeps the rows it finished); ``--cache`` keeps the two checkouts' kernel caches for a later call (e.g.
+the cases split over two calls). Examples::
 
     python scripts/bench_checkouts.py OLD NEW --out $OUT/bench --device cuda:0 --cache /tmp/bench_cache
     python scripts/bench_checkouts.py OLD NEW --out /tmp/bench --device cpu --pads 1 --window 2e-6 --repeats 1
@@ -108,13 +109,13 @@ def main(argv: list[str] | None = None) -> int:
                     row = {"case": name, "precision": precision, "pads": pads, "first": got[0], "second": got[1]}
                     row["ratio"] = got[1]["wall_best"] / got[0]["wall_best"]
                     rows.append(row)
+                    report = {"first": str(args.first.resolve()), "second": str(args.second.resolve()), "rows": rows}
+                    (args.out / "bench_checkouts.json").write_text(json.dumps(report, indent=1))  # after every row
                     print(
                         f"{name:17s} {precision} pads={pads:5d}: {got[0]['us_per_step']:9.3f} -> "
                         f"{got[1]['us_per_step']:9.3f} us/step (second/first {row['ratio']:.3f})",
                         flush=True,
                     )
-    report = {"first": str(args.first.resolve()), "second": str(args.second.resolve()), "rows": rows}
-    (args.out / "bench_checkouts.json").write_text(json.dumps(report, indent=1))
     return 0
 
 

@@ -4,15 +4,17 @@ A restructuring must not change results: this script runs, from each checkout's 
 
 * ``hf hf1 --duration 2e-5``            (the paper's HF1 pad, 20 µs)
 * ``hf varying_area --duration 1e-5``   (growing patches, 10 µs)
+* ``hf hf1 --integrator adaptive``      (100 µs at tolerance 1e-5; on the CPU the on-chip adaptive engine)
 * ``lf multiscale``                     (the LF automaton over the whole load procedure)
 * ``sweep aca_warp/data/sweep_hf1.toml`` (24 hf1 pads in 5 shards, 10 µs, in this process)
 * ``sweep`` of pads of unequal size     (2 friction factors × 2 layouts × 3 patch counts, shards of 4)
 
-and reports, per job, every dataset that differs (shape, dtype or any bit) and the root attributes that differ
-(wall times, versions and similar provenance are listed separately as expected differences); a sweep's shard files
-are compared file by file, and its pads one by one (rows found through ``/pads/index``, so that the comparison holds
-when the two checkouts cut the pads into shards differently). Exit code 0 when every dataset (every pad of a sweep)
-is bit-identical.
+(opt-in with ``--jobs``, ``EXTRA_JOBS``: the on-chip strang engine, the general adaptive engine, growth on every
+engine, both Euler schemes) and reports, per job, every dataset that differs (shape, dtype or any bit) and the root
+attributes that differ (wall times, versions and similar provenance are listed separately as expected differences);
+a sweep's shard files are compared file by file, and its pads one by one (rows found through ``/pads/index``, so
+that the comparison holds when the two checkouts cut the pads into shards differently). Exit code 0 when every
+dataset (every pad of a sweep) is bit-identical.
 
 Each checkout is imported as it is on disk: a temporary folder holds a package ``aca_warp`` whose entries link
 to the checkout's ``aca_warp/`` with ``kernels`` linked to the checkout's ``kernels/`` (the layout an install
@@ -22,6 +24,9 @@ Usage::
 
     git worktree add /tmp/base <commit>
     python scripts/compare_checkouts.py /tmp/base . --out /tmp/cmp [--jobs hf1 varying_area lf]
+
+``--cache DIR`` keeps the two checkouts' kernel caches (DIR/cache0, DIR/cache1) for later calls, so that an unchanged
+first checkout compiles once.
 """
 
 from __future__ import annotations
@@ -59,6 +64,21 @@ precision = "fp32"
 "patches.seed" = [1, 2]
 "patches.count" = [60, 200, 120]
 """
+# opt-in jobs (--jobs): the engines and integrators the default jobs leave out on the CPU
+EXTRA_JOBS = {
+    "hf1_onchip": ["hf", "hf1", "--duration", "2e-5", "--engine", "onchip", "--record-patches", "velocity,displacement"]
+    + ["--no-progress"],
+    "varying_area_onchip": ["hf", "varying_area", "--duration", "1e-5", "--engine", "onchip", "--no-progress"],
+    "hf1_adaptive_general": ["hf", "hf1", "--duration", "1e-4", "--integrator", "adaptive", "--tolerance", "1e-5"]
+    + ["--engine", "general", "--record-patches", "velocity", "--no-progress"],
+    "varying_area_adaptive": ["hf", "varying_area", "--duration", "1e-5", "--integrator", "adaptive"]
+    + ["--tolerance", "1e-5", "--no-progress"],
+    "varying_area_adaptive_general": ["hf", "varying_area", "--duration", "1e-5", "--integrator", "adaptive"]
+    + ["--tolerance", "1e-5", "--engine", "general", "--no-progress"],
+    "hf1_euler": ["hf", "hf1", "--duration", "2e-6", "--integrator", "symplectic-euler", "--dt", "2e-10"]
+    + ["--no-progress"],
+    "hf1_imex": ["hf", "hf1", "--duration", "2e-5", "--integrator", "implicit-friction", "--no-progress"],
+}
 # root attributes that describe the machine, the package or the wall clock, not the results
 PROVENANCE = {
     "versions",
@@ -203,14 +223,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("first", type=Path, help="first checkout (e.g. a worktree of the old commit)")
     ap.add_argument("second", type=Path, help="second checkout")
     ap.add_argument("--out", type=Path, required=True, help="folder for the run files and report.json")
-    ap.add_argument("--jobs", nargs="+", choices=sorted(JOBS), default=list(JOBS), help="jobs to run (default: all)")
+    ap.add_argument(
+        "--jobs", nargs="+", choices=sorted(JOBS | EXTRA_JOBS), default=list(JOBS), help="jobs to run (default: JOBS)"
+    )
+    ap.add_argument("--cache", type=Path, default=None, help="kernel caches kept here (default: a temporary folder)")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     report: dict[str, dict] = {}
     with tempfile.TemporaryDirectory() as tmp:
         views = [package_view(c.resolve(), Path(tmp) / f"v{i}") for i, c in enumerate((args.first, args.second))]
         for job in args.jobs:
-            sweep = JOBS[job][0] == "sweep"
+            spec = (JOBS | EXTRA_JOBS)[job]
+            sweep = spec[0] == "sweep"
             if job == "sweep_sizes":
                 (args.out / "sweep_sizes.toml").write_text(SWEEP_SIZES)
             outs = [args.out / (f"{job}_{i}" if sweep else f"{job}_{i}.h5") for i in (0, 1)]
@@ -218,8 +242,8 @@ def main(argv: list[str] | None = None) -> int:
                 if path.is_dir():
                     shutil.rmtree(path)
                 path.unlink(missing_ok=True)
-                cli = [arg.format(out=args.out.resolve()) for arg in JOBS[job]]
-                run_job(view, cli + (["--quiet"] if sweep else []), path, Path(tmp) / f"cache{i}")
+                cli = [arg.format(out=args.out.resolve()) for arg in spec]
+                run_job(view, cli + (["--quiet"] if sweep else []), path, (args.cache or Path(tmp)) / f"cache{i}")
             report[job] = r = compare_sweeps(*outs) if sweep else compare(*outs)
             print(f"{job}: " + (sweep_line(r) if sweep else file_line(r)))
     (args.out / "report.json").write_text(json.dumps(report, indent=1))

@@ -41,6 +41,7 @@ class Growth:
         # int64 (1,): the completed steps (fixed step) or the event flag (adaptive)
         self.step = wp.zeros(1, dtype=wp.int64, device=model.device)
         self.due = (self.step, self.every if self.counted else 0)  # growth_due with every = 0 reads the flag
+        self.kernel_model = model.struct(self.per_event)
 
     def saved(self) -> dict[str, wp.array]:
         """What a checkpoint holds: the step count (fixed step) or the event flag (adaptive)."""
@@ -49,29 +50,12 @@ class Growth:
     def launch(self) -> None:
         """Count one step (fixed step); when an event is due, grow the areas, update the stiffnesses and re-solve
         the contact."""
-        m, dev, due = self.model, self.model.device, self.due
-        wp.launch(
-            K.grow_patches,
-            dim=m.patch_count,
-            device=dev,
-            inputs=[m.patch_pad, self.per_event, m.pad_k_t, m.pad_k_n, m.pad_mass_per_area, m.pad_zeta, *due]
-            + [m.area, m.sqrt_area, m.inv_mass, m.k_t, m.k_n, m.damping],
-        )
-        wp.launch(
-            K.coupling_stiffness,
-            dim=m.patch_count,
-            device=dev,
-            inputs=[m.patch_pad, m.sqrt_area, m.nbr_start, m.nbr_index, m.nbr_inv_dist, m.pad_kc, m.k_t, *due]
-            + [m.nbr_stiffness, m.k_diag],
-        )
+        m, dev, km = self.model, self.model.device, self.kernel_model
+        for coupling in (0, 1):  # the areas, then the stiffnesses at the new areas
+            wp.launch(K.grow_patches, dim=m.patch_count, device=dev, inputs=[km, *self.due, coupling])
+        threads = block_threads(dev, CONTACT_BLOCK)
         wp.launch_tiled(
-            K.contact_flat,
-            dim=[m.pad_count],
-            block_dim=CONTACT_BLOCK,
-            device=dev,
-            inputs=[m.pad_patch_start, m.k_n, m.height, m.area, m.radius, m.pad_area, m.pad_moment, m.pad_k_m]
-            + [m.pad_load, *due, block_threads(dev, CONTACT_BLOCK), m.pad_gap]
-            + [m.normal_force, m.pad_matrix_force, m.pad_matrix_radius],
+            K.contact_flat, dim=[m.pad_count], block_dim=CONTACT_BLOCK, device=dev, inputs=[km, *self.due, threads]
         )
         if self.counted:
             wp.launch(K.tick, dim=1, device=dev, inputs=[self.step])

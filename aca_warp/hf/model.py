@@ -21,6 +21,7 @@ from aca_warp.hf import limits
 from aca_warp.hf.contact import ContactSolution, solve_scene_contact
 from aca_warp.kernels import hf as hf_kernels
 from aca_warp.kernels import neighbours as neighbours_kernels
+from aca_warp.kernels.hf_types import HFModel
 from aca_warp.kernels.neighbours import build_neighbours
 from aca_warp.scene import Scene
 
@@ -53,6 +54,7 @@ class PadModel:
     contacts: list[ContactSolution]
     nbr_count: int
     arrays: dict[str, wp.array] = field(default_factory=dict)
+    _struct: Any = field(default=None, repr=False)
 
     def __getattr__(self, name: str) -> wp.array:
         try:
@@ -85,9 +87,15 @@ class PadModel:
         """``"fp32"`` or ``"fp64"``."""
         return "fp64" if self.dtype == wp.float64 else "fp32"
 
-    def args(self, names: tuple[str, ...]) -> list[wp.array]:
-        """The arrays ``names``, in that order (a kernel's model arguments)."""
-        return [self.arrays[k] for k in names]
+    def struct(self, pad_growth: wp.array | None = None) -> Any:
+        """The kernels' parameter group of this model (:data:`~aca_warp.kernels.hf_types.HFModel`), built once and
+        kept; with ``pad_growth`` (the area increment per growth event of an engine's step, shape (pads,)) a new one
+        that holds it."""
+        if pad_growth is not None:
+            return HFModel.of(self.dtype, {**self.arrays, "pad_growth": pad_growth})
+        if self._struct is None:
+            self._struct = HFModel.of(self.dtype, self.arrays)
+        return self._struct
 
     def host(self, name: str) -> np.ndarray:
         """A copy of a model array on the host (``numpy()`` of a CPU array is a view of the live array)."""

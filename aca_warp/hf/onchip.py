@@ -14,6 +14,7 @@ and the CUDA compiler may contract differently, so results agree to rounding.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import warp as wp
 
@@ -35,40 +36,10 @@ from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 from aca_warp.kernels.hf_onchip import onchip_kernel
 
-__all__ = ["OnchipEngine", "choose_engine", "growth_arguments"]
+__all__ = ["OnchipEngine", "choose_engine"]
 
 _PATCH_BUFFER_BYTES = 256 * 2**20  # cap of the per-patch history buffers of one launch
 _STEPS_PER_LAUNCH = 20_000  # default: sample intervals per launch fill about this many steps
-# model arrays the on-chip growth reads and writes, in the kernels' argument order (float64 ones in _GROWTH_F64)
-GROWTH_ARRAYS = (
-    "area", "sqrt_area", "k_n", "height", "nbr_inv_dist", "pad_kc", "pad_growth", "pad_k_t", "pad_k_n",
-    "pad_mass_per_area", "pad_zeta", "pad_area", "pad_moment", "pad_k_m", "pad_gap",
-)  # fmt: skip
-_GROWTH_F64 = frozenset({"pad_area", "pad_moment", "pad_k_m", "pad_gap"})
-# model arrays of the launch before the growth arrays, in the argument order of both on-chip kernels
-MODEL_ARRAYS = (
-    "pad_patch_start", "inv_mass", "k_diag", "damping", "normal_force", "radius", "nbr_start", "nbr_index",
-    "nbr_stiffness", "pad_omega", "pad_mu_scale", "pad_slope", "pad_decay", "pad_mu_pad", "pad_load",
-    "pad_matrix_force", "pad_matrix_radius", "k_t", "x", "y",
-)  # fmt: skip
-
-
-def growth_arguments(model: PadModel, per_event: wp.array | None) -> list[wp.array]:
-    """The growth arguments of an on-chip kernel, in its order: the model's arrays with ``per_event`` (the area
-    increment per event) as ``pad_growth``, or, for a model that does not grow (``per_event`` None), empty typed
-    arrays (not read)."""
-    if per_event is None:
-        return [
-            wp.empty(0, dtype=wp.float64 if k in _GROWTH_F64 else model.dtype, device=model.device)
-            for k in GROWTH_ARRAYS
-        ]
-    arrays = {**model.arrays, "pad_growth": per_event}
-    return [arrays[k] for k in GROWTH_ARRAYS]
-
-
-def model_arguments(model: PadModel) -> list[wp.array]:
-    """The model arguments of an on-chip kernel before its growth arguments, in its order (:data:`MODEL_ARRAYS`)."""
-    return model.args(MODEL_ARRAYS)
 
 
 def cluster_size(model: PadModel, cluster: int | None, split_fits_csr: bool | None = None) -> int:
@@ -173,7 +144,7 @@ class OnchipEngine(OnchipLaunches):
                 f"{dev.name} cannot launch a cluster of {cluster} blocks of {self.block_dim} threads per pad"
             )
         self.stages = run_stages(model, self.recorder, "strang:onchip")
-        self.grown = self._growth_arrays()
+        self.kernel_model = self._kernel_model()
         self.cause = fault_cause(self.estimate, "strang", self.h)
         self.solver.prepare(state)
 
@@ -185,14 +156,14 @@ class OnchipEngine(OnchipLaunches):
         per_row = (int(probe.want_v) + int(probe.want_u)) * self.model.patch_count * itemsize(self.model)
         return max(1, min(spl, _PATCH_BUFFER_BYTES // per_row)) if per_row else spl
 
-    def _growth_arrays(self) -> list[wp.array]:
-        """The kernel's growth arguments (:func:`growth_arguments`) with the increment per event of step h."""
+    def _kernel_model(self) -> Any:
+        """The kernel's model struct, for a growing model with the increment per event of step h."""
         m = self.model
         if "pad_growth" in m.arrays:
             self.growth_every, per_event = growth_events(m, self.h)
-            return growth_arguments(m, per_event)
-        self.growth_every = 1  # the growth arguments are not read
-        return growth_arguments(m, None)
+            return m.struct(per_event)
+        self.growth_every = 1  # the growth fields are not read
+        return m.struct()
 
     # -- the Engine protocol
 
@@ -216,11 +187,11 @@ class OnchipEngine(OnchipLaunches):
 
     def _launch(self, done: int, samples: int, k_next: int, rows: int, prows: int) -> None:
         """One launch of ``samples`` sample intervals after ``done`` of them, rows counted from the recorder's."""
-        m, s, rec, T = self.model, self.state, self.recorder, self.model.dtype
+        s, rec, T = self.state, self.recorder, self.model.dtype
         self.launch_kernel(
             [
-                *model_arguments(m),
-                *self.grown,
+                self.kernel_model,
+                rec.struct,
                 self.growth_every,
                 done * self.sps % self.growth_every,  # steps so far (growth events count from the run's start)
                 self.threads,
@@ -232,17 +203,8 @@ class OnchipEngine(OnchipLaunches):
                 k_next,
                 rows,
                 prows,
-                rec.first,
-                rec.last,
-                rec.every,
                 s.u,
                 s.v,
                 s.force,
-                rec.globals,
-                rec.watch_bound,
-                rec.fault,
-                rec.fault_value,
-                rec.velocity,
-                rec.displacement,
             ],
         )

@@ -23,7 +23,7 @@ from aca_warp.hf import adaptive
 from aca_warp.hf.engine import EngineSetup, EngineTuning, Progress, fault_cause, run_stages
 from aca_warp.hf.general import Growth
 from aca_warp.hf.model import PadModel
-from aca_warp.hf.onchip import OnchipLaunches, cluster_size, growth_arguments, model_arguments
+from aca_warp.hf.onchip import OnchipLaunches, cluster_size
 from aca_warp.hf.onchip_layout import adaptive_shared_bytes, pad_sizes, smem_limit, unsupported
 from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import HFSolver, grown_arrays
@@ -110,7 +110,7 @@ class OnchipAdaptiveEngine(OnchipLaunches):
         # the event times and the increment per event (its flag and launches are the general engine's, unused here)
         self.growth = Growth(model, None) if "pad_growth" in model.arrays else None
         self.stepper = adaptive.AdaptiveStepper(model, state, self.solver, self.recorder, self.t_end, self.growth)
-        self.grown = growth_arguments(model, None if self.growth is None else self.growth.per_event)
+        self.kernel_model = model.struct(None if self.growth is None else self.growth.per_event)
         self.stages = run_stages(model, self.recorder, "adaptive:onchip")
         self.cause = fault_cause(self.estimate, "adaptive", None)
 
@@ -145,16 +145,7 @@ class OnchipAdaptiveEngine(OnchipLaunches):
 
     def _launch(self, samples: int, k_next: int, rows: int, prows: int) -> None:
         """One launch of ``samples`` sample intervals, rows counted from the recorder's."""
-        m, s, rec, st = self.model, self.state, self.recorder, self.stepper
-        f64 = wp.float64
+        s, rec, st = self.state, self.recorder, self.stepper
         self.launch_kernel(
-            [
-                *model_arguments(m), *self.grown,
-                st.coeff, st.err_coeff, st.u_scale, st.v_scale, st.tol, f64(st.h_max), f64(adaptive.MIN_STEP),
-                f64(self.record.sample_dt), f64(st.interval), f64(self.t_end),
-                self.threads, samples, k_next, rows, prows, rec.first, rec.last, rec.every,
-                s.u, s.v, st.ku, st.kv, st.stage_u[0], st.stage_v[0], st.stage_u[1], st.stage_v[1],
-                st.ctl, st.mode, st.stats, st.done,
-                rec.globals, rec.watch_bound, rec.fault, rec.fault_value, rec.velocity, rec.displacement,
-            ],
-        )  # fmt: skip
+            [self.kernel_model, rec.struct, st.struct, self.threads, samples, k_next, rows, prows, s.u, s.v]
+        )

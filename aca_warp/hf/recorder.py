@@ -21,6 +21,7 @@ from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import WATCHDOG_FACTOR
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
+from aca_warp.kernels.hf_types import HFRecorder
 from aca_warp.kernels.physics import N_GLOBAL
 from aca_warp.scene import Record
 
@@ -119,13 +120,6 @@ class Chunk:
         )
 
 
-# model arrays of the sample kernel (kernels.hf.record_globals), in its argument order
-SAMPLE_ARRAYS = (
-    "pad_patch_start", "normal_force", "radius", "pad_omega", "pad_mu_scale", "pad_slope", "pad_decay", "pad_mu_pad",
-    "pad_load", "pad_matrix_force", "pad_matrix_radius", "inv_mass", "k_t", "x", "y",
-)  # fmt: skip
-
-
 class Recorder:
     """Device buffers and launches for the global outputs and per-patch histories."""
 
@@ -156,6 +150,10 @@ class Recorder:
         self.velocity = wp.zeros((prow, n), dtype=T, device=dev)
         self.displacement = wp.zeros((prow if self.want_u else 0, n), dtype=T, device=dev)
         self.sample_index = 0
+        names = ("counters", "globals", "watch_bound", "fault", "fault_value", "velocity", "displacement")
+        names += ("first", "last", "every")
+        # the kernels' parameter group (its arrays change in place only: graphs keep it)
+        self.struct = HFRecorder.of(T, {k: getattr(self, k) for k in names})
 
     def due(self, k: int) -> bool:
         """Whether global sample k also records per-patch histories (``patch_sample_due`` of kernels.physics)."""
@@ -179,35 +177,18 @@ class Recorder:
 
     def launch(self, u: wp.array, v: wp.array, conditional: bool) -> None:
         """Record one sample of (u, u̇) (conditional: only when the adaptive controller landed on a sample)."""
-        m, c = self.model, int(conditional)
+        m, c, rec = self.model, int(conditional), self.struct
+        threads = block_threads(m.device, RECORD_BLOCK)
         wp.launch_tiled(
             K.record_globals,
             dim=[m.pad_count],
             block_dim=RECORD_BLOCK,
             device=m.device,
-            inputs=[
-                *m.args(SAMPLE_ARRAYS),
-                c,
-                block_threads(m.device, RECORD_BLOCK),
-                u,
-                v,
-                self.counters,
-                self.globals,
-                self.watch_bound,
-                self.fault,
-                self.fault_value,
-            ],
+            inputs=[m.struct(), rec, c, threads, u, v],
         )
         if self.patch_stage:
-            wp.launch(
-                K.record_patches,
-                dim=m.patch_count,
-                device=m.device,
-                inputs=[self.first, self.last, self.every, c, u, v, self.counters, self.velocity, self.displacement],
-            )
-        wp.launch(
-            K.advance_counters, dim=1, device=m.device, inputs=[self.first, self.last, self.every, c, self.counters]
-        )
+            wp.launch(K.record_patches, dim=m.patch_count, device=m.device, inputs=[rec, c, u, v])
+        wp.launch(K.advance_counters, dim=1, device=m.device, inputs=[rec, c])
 
     def flush(self) -> tuple[Chunk, np.ndarray]:
         """Copy the recorded rows to the host and reset the buffers; returns the chunk and the fault table."""

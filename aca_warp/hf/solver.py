@@ -79,14 +79,6 @@ def grown_arrays(model: PadModel) -> dict[str, wp.array]:
     return {f"model/{k}": model.arrays[k] for k in GROWTH_MUTABLE}
 
 
-# model arrays of the stepping kernels (kernels.hf), in their argument order: with the coupling gather
-# (euler_velocity) and without (strang_advance, strang_close)
-STEP_ARRAYS = (
-    "patch_pad", "inv_mass", "k_diag", "damping", "normal_force", "radius", "nbr_start", "nbr_index", "nbr_stiffness",
-    "pad_omega", "pad_mu_scale", "pad_slope", "pad_decay",
-)  # fmt: skip
-LOCAL_STEP_ARRAYS = tuple(k for k in STEP_ARRAYS if k not in ("k_diag", "nbr_start", "nbr_index", "nbr_stiffness"))
-
 STICKING_FACTOR = 1.0 / 3.0  # largest |R| of strang's friction step on a sticking patch (sticking bound below)
 
 
@@ -262,8 +254,7 @@ class HFSolver:
             raise SceneError(f"dt must be a positive number of seconds, got {self.dt}")
         if integrator != "adaptive" and not force:  # adaptive: dt is only its first trial
             step_refusal(self.estimate, integrator, self.dt)
-        self.model_args = model.args(STEP_ARRAYS)
-        self.local_args = model.args(LOCAL_STEP_ARRAYS)
+        self.kernel_model = model.struct()  # the model's arrays as one kernel argument
         self._v_sync: wp.array | None = None
 
     def _launch(self, kernel: Any, inputs: list, dim: int | None = None) -> None:
@@ -271,8 +262,7 @@ class HFSolver:
 
     def prepare(self, state: HFState) -> None:
         """Fill the spring-force cache F_s(u) of a state (Strang and adaptive schemes)."""
-        m = self.model
-        self._launch(K.spring_forces, [m.k_diag, m.nbr_start, m.nbr_index, m.nbr_stiffness, state.u, state.force])
+        self._launch(K.spring_forces, [self.kernel_model, state.u, state.force])
 
     def step(self, state: HFState, dt: float, *, first: bool = False) -> None:
         """One fixed step of every pad (graph-capturable: two launches, no host reads).
@@ -284,10 +274,10 @@ class HFSolver:
         h = self.T(dt)
         if self.integrator in ("symplectic-euler", "implicit-friction"):
             implicit = int(self.integrator == "implicit-friction")
-            self._launch(K.euler_velocity, [*self.model_args, h, self.newton_tol, implicit, state.u, state.v])
+            self._launch(K.euler_velocity, [self.kernel_model, h, self.newton_tol, implicit, state.u, state.v])
             self._launch(K.drift, [h, state.v, state.u])
         elif self.integrator == "strang":
-            args = [*self.local_args, h, self.newton_tol, int(first), state.force, state.u, state.v]
+            args = [self.kernel_model, h, self.newton_tol, int(first), state.force, state.u, state.v]
             self._launch(K.strang_advance, args)
             self.prepare(state)
         else:
@@ -300,11 +290,12 @@ class HFSolver:
         if self._v_sync is None:
             self._v_sync = wp.zeros_like(state.v)
         self._launch(
-            K.strang_close, [*self.local_args, self.T(dt), self.newton_tol, state.force, state.v, self._v_sync]
+            K.strang_close, [self.kernel_model, self.T(dt), self.newton_tol, state.force, state.v, self._v_sync]
         )
         return self._v_sync
 
     def finish(self, state: HFState, dt: float) -> None:
         """Bring a staggered strang state back to synchronous velocities (no-op for other schemes)."""
         if self.integrator == "strang":
-            self._launch(K.strang_close, [*self.local_args, self.T(dt), self.newton_tol, state.force, state.v, state.v])
+            args = [self.kernel_model, self.T(dt), self.newton_tol, state.force, state.v, state.v]
+            self._launch(K.strang_close, args)

@@ -56,7 +56,7 @@ from aca_warp.common.files import (
     versions,
 )
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
-from aca_warp.kernels.lf import H_NAMES, H_UNITS
+from aca_warp.kernels.lf_record import H_NAMES, H_UNITS
 from aca_warp.lf.scene import lf_scene_to_dict
 from aca_warp.lf.solver import LFSimulation
 from aca_warp.scene import Friction, Material, Matrix, Pad, Patches, Scene
