@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from aca_warp import __version__
 from aca_warp.common import interrupts
@@ -28,6 +30,17 @@ written; disk full or file-size limit during the run: the .partial keeps its las
 """
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse's parser that reads a negative number in any notation (``-1e-4``, ``-.5``, ``-3``) as a value, not as
+    an option: ``--duration -1e-4`` then meets the option's own check ("must be positive") like ``--duration=-1e-4``,
+    instead of "expected one argument". No ``aca-warp`` option looks like a negative number. The command's
+    subparsers are of this class too (argparse gives them the class of their parent)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``aca-warp``."""
     from aca_warp.analysis.commands import add_parsers as add_analysis
@@ -36,7 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
     from aca_warp.lf.commands import add_parsers as add_lf
     from aca_warp.sweep.commands import add_parsers as add_sweep
 
-    p = argparse.ArgumentParser(
+    p = Parser(
         prog="aca-warp",
         description="Abstract Cellular Automaton of the brake pad-disc "
         "boundary layer (Merlis & Ostermeyer 2019) in NVIDIA Warp.",

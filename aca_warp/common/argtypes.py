@@ -21,7 +21,7 @@ def positive(text: str) -> float:
     """A finite float > 0."""
     v = number(text)
     if not v > 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be positive (> 0), got {text!r}")
     return v
 
 
