@@ -175,24 +175,35 @@ LEAKAGE_BINS = 2
 """Figures and the ``analyze`` summary leave out the lowest bins f < LEAKAGE_BINS·Δf (see :func:`leakage_floor`)."""
 
 
-def leakage_floor(freq: np.ndarray) -> float:
+def bin_width(freq: np.ndarray, attrs: Any = None) -> float:
+    """Δf [Hz] of a spectrum's bins ``freq``: 1 / (``samples`` × ``sample_interval``) where ``attrs`` (a group's
+    attributes) hold both, as a band of a spectrum does (it may hold one bin only), else freq[1] − freq[0] (0 for a
+    single bin)."""
+    if attrs is not None and "samples" in attrs and "sample_interval" in attrs:
+        n, dt = float(attrs["samples"]), float(attrs["sample_interval"])
+        if n > 0 and dt > 0:
+            return 1.0 / (n * dt)
+    freq = np.asarray(freq, dtype=np.float64)
+    return float(freq[1] - freq[0]) if freq.size > 1 else 0.0
+
+
+def leakage_floor(freq: np.ndarray, attrs: Any = None) -> float:
     """Lowest frequency [Hz] the figures show and the ``analyze`` summary names: max(10 Hz, 2 Δf).
 
-    ``freq``: a uniform frequency grid (Hz, any start), Δf = freq[1] − freq[0]. A periodic Hann window over the
-    whole record puts the record's mean into bins 0 and 1 (bin 1 at half its height); on a short record bin 1
-    lies inside the band, and there every patch's velocity spectrum holds its mean with one common phase, which
-    makes S(f) ≈ 1 without any oscillation. 10 Hz is the paper's floor (Fig. 10).
+    ``freq``: a uniform frequency grid (Hz, any start); Δf from :func:`bin_width` (``attrs``: the attributes of the
+    group ``freq`` belongs to). A periodic Hann window over the whole record puts the record's mean into bins 0 and
+    1 (bin 1 at half its height); on a short record bin 1 lies inside the band, and there every patch's velocity
+    spectrum holds its mean with one common phase, which makes S(f) ≈ 1 without any oscillation. 10 Hz is the
+    paper's floor (Fig. 10).
     """
-    freq = np.asarray(freq, dtype=np.float64)
-    df = float(freq[1] - freq[0]) if freq.size > 1 else 0.0
-    return max(DEFAULT_FLOOR_HZ, LEAKAGE_BINS * df)
+    return max(DEFAULT_FLOOR_HZ, LEAKAGE_BINS * bin_width(freq, attrs))
 
 
-def shown_bins(freq: np.ndarray) -> np.ndarray:
+def shown_bins(freq: np.ndarray, attrs: Any = None) -> np.ndarray:
     """Boolean mask of the bins of ``freq`` at or above :func:`leakage_floor` (bin 2 itself is kept whatever the
     rounding of freq[1] − freq[0])."""
     freq = np.asarray(freq, dtype=np.float64)
-    return freq >= leakage_floor(freq) * (1.0 - 1e-9)
+    return freq >= leakage_floor(freq, attrs) * (1.0 - 1e-9)
 
 
 def sync_excess(sync: Group) -> dict[str, Any] | None:
@@ -203,9 +214,9 @@ def sync_excess(sync: Group) -> dict[str, Any] | None:
     over the shown bins; ``band`` [Hz] (the stored band, its lower edge raised to the floor) and ``floor`` [Hz].
     """
     freq, S, s0 = (np.asarray(sync[k], dtype=np.float64) for k in ("freq", "S", "S_null"))
-    floor = leakage_floor(freq)
+    floor = leakage_floor(freq, sync.attrs)
     band = np.asarray(sync.attrs.get("band", [freq[0], freq[-1]]), dtype=np.float64)
-    shown = shown_bins(freq) & (freq >= float(band[0]))
+    shown = shown_bins(freq, sync.attrs) & (freq >= float(band[0]))
     valid = shown & np.isfinite(S)
     if not valid.any():
         return None

@@ -483,7 +483,13 @@ def plot_sync(path: str | Path, outdir: str | Path, **options: Any) -> list[Path
         assert g is not None
         a = g.attrs
         f, S, phi, s0, rw = (g[k] for k in ("freq", "S", "Phi", "S_null", "R_w"))
-        df, floor, shown = float(f[1] - f[0]), report.leakage_floor(f), report.shown_bins(f)
+        df, floor, shown = report.bin_width(f, a), report.leakage_floor(f, a), report.shown_bins(f, a)
+        if np.count_nonzero(shown) < 2:
+            raise SceneError(
+                f"the Synchronization Index holds {np.count_nonzero(shown)} frequency bin(s) at or above "
+                f"{floor:.4g} Hz (Δf = {df:.4g} Hz): too few to draw; record longer (Δf = 1 / record length) or "
+                "widen the band (analyze --freq-min/--freq-max)"
+            )
         f, S, phi, s0, rw = (x[shown] for x in (f, S, phi, s0, rw))
         valid = np.isfinite(S)
         above = valid & (S > s0)
