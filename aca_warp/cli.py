@@ -26,7 +26,8 @@ Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad inp
 3 the run stopped on a fault or an unphysical result (the file holds everything before it, marked incomplete),
 4 the output cannot be written (read-only or full file system, no permission: found before the run, nothing
 written; disk full or file-size limit during the run: the .partial keeps its last checkpoint),
-130 interrupted by Ctrl-C, 143 by SIGTERM (the file closed and marked incomplete; docs/faults.md).
+130 interrupted by Ctrl-C, 143 by SIGTERM (the file closed and marked incomplete; hf/lf --resume continues it
+from its last checkpoint, or from its start if it has none; docs/faults.md).
 """
 
 
@@ -129,7 +130,7 @@ def _run_file_state(path: Path, kind: str) -> str:
     final = path.with_name(path.name.removesuffix(".partial"))
     part = partial_path(final)
     if part.exists():  # interrupted before the file was closed (or a killed run's file)
-        return f"{part} was left as it was (continue it with 'aca-warp {kind} --resume {final}' if it has a checkpoint)"
+        return f"{part} was left as it was (continue it with 'aca-warp {kind} --resume {final}')"
     if not final.exists():
         return "nothing was written"
     try:
@@ -150,7 +151,7 @@ def _run_file_state(path: Path, kind: str) -> str:
     then = (
         f"continue it from its checkpoint at t = {at:.6g} s with 'aca-warp {kind} --resume {final}'"
         if resumable
-        else "no checkpoint to resume from (run with --checkpoint-interval for one)"
+        else f"continue it with 'aca-warp {kind} --resume {final}' (it has no checkpoint yet: from t = 0)"
     )
     return f"{final} keeps the samples {upto}, marked incomplete; {then}"
 

@@ -19,7 +19,6 @@ from typing import Any
 import h5py
 import numpy as np
 
-from aca_warp.common.checkpoint import has_checkpoint
 from aca_warp.common.errors import AcaError, SceneError, StorageError, option
 
 # why a folder cannot take a new file, by errno (the probe and the lock file; docs/faults.md "Output folders")
@@ -300,6 +299,15 @@ def resume_hint(kind: str, path: str | Path) -> str:
     return option(f"{function}({str(path)!r})", f"'aca-warp {kind} --resume {path}'")
 
 
+def resume_advice(kind: str, path: Path, checkpoint_time: float | None) -> str:
+    """What to do with the ``.partial`` of the ``kind`` run (``hf`` or ``lf``) of ``path`` that a storage failure
+    left as it was at its last checkpoint (``checkpoint_time`` [s]; None: it has none yet, the run starts again)."""
+    then = f"make room, then continue with {resume_hint(kind, path)}"
+    if checkpoint_time is None:
+        return f"it has no checkpoint: {then} (from t = 0)"
+    return f"it keeps its checkpoint at t = {checkpoint_time:.6g} s: {then}"
+
+
 def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
     """Refuse to clobber an existing file (or a killed run's ``NAME.partial``) unless ``overwrite``, and an output
     that a live process writes (:class:`OutputLock`) in any case; the name must name a file
@@ -349,7 +357,8 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     """(run file, its ``.partial``) of the run ``path`` names: ``NAME``, ``NAME.partial`` or a stopped ``NAME``.
 
     A killed run left ``NAME.partial``; a run stopped by Ctrl-C or a fault was moved to ``NAME`` (incomplete)
-    and keeps its checkpoint. Raises SceneError when there is nothing to resume.
+    and keeps its checkpoint, if it had one (without, it is resumed from its start). Raises SceneError when there
+    is nothing to resume.
     """
     p = Path(path)
     if p.name.endswith(".partial"):
@@ -365,16 +374,10 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     try:
         with open_h5(final, "run file") as f:
             complete = bool(f.attrs.get("complete", False))
-            resumable = has_checkpoint(f)
     except (OSError, RuntimeError, KeyError, ValueError) as e:
         raise SceneError(f"cannot read run file {final}: {e}") from None
     if complete:
         raise SceneError(f"{final} is a complete run; nothing to resume")
-    if not resumable:
-        raise SceneError(
-            f"{final} holds no checkpoint (run without {option('checkpoint_interval', '--checkpoint-interval')}); "
-            f"{option('run it again with run_scene', 'repeat it with aca-warp rerun')}"
-        )
     return final, part
 
 

@@ -18,9 +18,9 @@ from typing import TypeVar
 import warp as wp
 
 from aca_warp.common import interrupts, plausible
-from aca_warp.common.checkpoint import Checkpoint, has_checkpoint
+from aca_warp.common.checkpoint import Checkpoint
 from aca_warp.common.errors import SceneError, option
-from aca_warp.common.files import OutputLock, check_output_path, check_room, find_resumable, open_h5, reading
+from aca_warp.common.files import OutputLock, check_output_path, check_room, find_resumable
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
@@ -122,10 +122,11 @@ def run_scene(
     1e-8 s) on ``device`` in ``precision`` and write the run file ``output``.
 
     Everything is validated before the simulation starts. A fault or an interrupt (Ctrl-C) still leaves a
-    readable file holding every sample up to that point, marked ``complete = False``. With
-    ``options.checkpoint_interval`` the file also keeps the solver state of the last checkpoint, so that a killed
-    run continues with :func:`resume_run`. The file stores the options with the duration and the engine resolved.
-    ``announce`` receives the :class:`RunPlan` once everything is validated, just before the run starts.
+    readable file holding every sample up to that point, marked ``complete = False``. The file also keeps the
+    solver state of the last checkpoint (``options.checkpoint_interval``: automatic by default, 0 for none), so that
+    a stopped or killed run continues with :func:`resume_run`. The file stores the options with the duration and
+    the engine resolved. ``announce`` receives the :class:`RunPlan` once everything is validated, just before the
+    run starts.
     """
     options = options or RunOptions()
     lock = OutputLock.acquire(output, what=busy())  # held from here until the file has its final name
@@ -242,9 +243,11 @@ def resume_run(
     checkpoint_interval: float | None = None,
     device: str | None = None,
 ) -> tuple[RunResult, Path]:
-    """Continue the run ``path`` (``NAME`` or ``NAME.partial``) from its last checkpoint; returns the result and
+    """Continue the run ``path`` (``NAME`` or ``NAME.partial``) from its last checkpoint, or from its start when it
+    has none (stopped before its first checkpoint, or run with ``checkpoint_interval=0``); returns the result and
     the final file name. Same scene, options, precision and device as the run (``device`` overrides it: then the
-    result is no longer bit-identical). The finished file equals an uninterrupted run's."""
+    result is no longer bit-identical; ``checkpoint_interval`` replaces the run's). The finished file equals an
+    uninterrupted run's."""
     from aca_warp.hf.rerun import read_settings
 
     final, part = find_resumable(path)
@@ -253,9 +256,6 @@ def resume_run(
         final, part = find_resumable(path)  # again, now that no other process can move it
         src = part if part.exists() else final
         s = read_settings(src)
-        with reading(src, "run file"), open_h5(src, "run file") as f:
-            if not has_checkpoint(f):
-                raise SceneError(f"{src} holds no checkpoint (run without checkpoint_interval); use 'aca-warp rerun'")
         model = build_model([s.scene], device=device or s.device, precision=s.precision)
         state = initial_state(model)
         options = s.options
