@@ -192,6 +192,13 @@ def _hf_scene(args: argparse.Namespace) -> tuple[Any, float]:
             raise SceneError(f"{args.scene} is an LF run file: name a snapshot with --snapshot NAME")
         scene = scene_from_snapshot(args.scene, args.snapshot, allow_implausible=args.allow_implausible)
     else:
+        from aca_warp.lf.scene import LF_PRESETS
+
+        if args.scene in LF_PRESETS and not Path(args.scene).exists():
+            raise SceneError(
+                f"{args.scene!r} is an LF scene: run it with 'aca-warp lf {args.scene} -o LF.h5', then HF on one of "
+                f"its snapshots with 'aca-warp hf LF.h5 --snapshot app1_start -o RUN.h5'"
+            )
         scene = load_scene(args.scene, allow_implausible=args.allow_implausible)
     rec = scene.record
     changes = _record_changes(args)
