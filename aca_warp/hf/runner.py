@@ -20,7 +20,7 @@ import warp as wp
 from aca_warp.common import interrupts, plausible
 from aca_warp.common.checkpoint import Checkpoint
 from aca_warp.common.errors import SceneError, option
-from aca_warp.common.files import OutputLock, check_output_path, check_room, find_resumable
+from aca_warp.common.files import OutputLock, check_output_path, check_room, find_resumable, machine
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
@@ -157,8 +157,7 @@ def run_scene(
             attrs={
                 "integrator": options.integrator,
                 "precision": precision,
-                "device": str(model.device),
-                "device_name": model.device.name,
+                **machine(model.device),  # device, device_name, host, platform: as an LF file names them
                 "run_options": options.to_json(),
             },
         )

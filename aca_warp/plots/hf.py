@@ -19,12 +19,12 @@ from aca_warp.analysis import report
 from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run_file, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
 from aca_warp.common.errors import SceneError, option
+from aca_warp.plots.figure import device_text, whole
 from aca_warp.plots.figure import envelope as _envelope
 from aca_warp.plots.figure import finish as _finish
 from aca_warp.plots.figure import new_figure as _figure
 from aca_warp.plots.figure import pad_outline as _pad_outline
 from aca_warp.plots.figure import save as _save
-from aca_warp.plots.figure import whole
 
 FIGURES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
 """Figure names accepted by :func:`~aca_warp.plots.plot_run` (``which``) and ``aca-warp plot --only``."""
@@ -56,11 +56,10 @@ class _Run:
 
     @property
     def footer(self) -> str:
-        a = {k: run_attr(self.f, k, "?") for k in ("integrator", "precision", "device", "device_name", "status")}
-        device = a["device"] if a["device_name"] in ("?", a["device"]) else f"{a['device']} ({a['device_name']})"
+        a = {k: run_attr(self.f, k, "?") for k in ("integrator", "precision", "status")}
         return (
             f"{self.path.name} · scene {self.name} · integrator {a['integrator']} · precision {a['precision']} · "
-            f"device {device} · run {a['status']}"
+            f"device {device_text(self.f)} · run {a['status']}"
         )
 
     def group(self, name: str, compute: Callable[[], Group | None]) -> Group | None:
