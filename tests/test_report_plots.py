@@ -373,3 +373,49 @@ def test_plot_of_a_ten_sample_run(tmp_path):
     files = plots.plot_run(path, tmp_path / "fig", frames=2, log=notes.append)
     assert [n.split(":")[0] for n in notes] == ["skipped sync"]
     assert {p.stem.removeprefix("short_") for p in files} == {"patch_map", "global", "spectra", "stft", "cwt"}
+
+
+def test_the_animation_footer_is_readable_in_its_frame(runs):
+    """The GIF's frames are 512 × 288 px; its footer (what the run is, the device) has letters of at least 7 px and
+    lies wholly inside the frame, clear of the map's x label."""
+    from matplotlib.text import Text
+
+    from aca_warp.plots.hf import GIF_DPI, _Run, animation_figure
+
+    with _Run(runs["patches"]) as run:
+        fig, _, count = animation_figure(run, None, None, 3)
+        footer = run.footer
+    assert count == 3
+    fig.canvas.draw()
+    w, h = fig.canvas.get_width_height()
+    assert (w, h) == (512, 288)
+    renderer = fig.canvas.get_renderer()
+    (foot,) = [t for t in fig.findobj(Text) if t.get_text().startswith("marker area")]
+    assert foot.get_fontsize() * GIF_DPI / 72 >= 7.0
+    box = foot.get_window_extent(renderer)
+    assert 0 <= box.x0 and box.x1 <= w and 0 <= box.y0 and box.y1 <= h
+    assert " ".join(foot.get_text().split()) == " ".join(f"marker area ∝ patch area · {footer}".split())
+    xlabel = fig.axes[0].xaxis.label.get_window_extent(renderer)
+    assert box.y1 <= xlabel.y0
+
+
+def test_default_patch_map_instants_are_evenly_spaced_when_decimated(runs, tmp_path):
+    """Per-patch histories of every 3rd sample: the default instants stay evenly spaced (a whole number of the
+    record's intervals), and the caption gives that spacing against the quarter period it stands for."""
+    from aca_warp.plots.hf import _patch_rows, _Run
+
+    path = _copy(runs["patches"], tmp_path)
+    with h5py.File(path, "r+") as f:
+        for name in ("time", "velocity"):
+            data, attrs = f[f"patches/{name}"][::3], dict(f[f"patches/{name}"].attrs)
+            del f[f"patches/{name}"]
+            f.create_dataset(f"patches/{name}", data=data).attrs.update(attrs)
+    with _Run(path) as run:
+        rows, how = _patch_rows(run, None)
+        pt, fp = run.f["patches/time"][()], run.first_peak()
+    gaps = np.diff(pt[rows])
+    assert rows.size == 4 and rows[-1] == pt.size - 1 and np.allclose(gaps, gaps[0], rtol=1e-9, atol=0)
+    quarter = 0.25 / fp
+    assert abs(gaps[0] - quarter) <= 0.5 * 3e-7 + 1e-12
+    if abs(gaps[0] - quarter) > 0.02 * quarter:
+        assert f"{gaps[0] * 1e6:.4g} µs apart" in how and f"{quarter * 1e6:.4g} µs" in how
