@@ -419,3 +419,21 @@ def test_default_patch_map_instants_are_evenly_spaced_when_decimated(runs, tmp_p
     assert abs(gaps[0] - quarter) <= 0.5 * 3e-7 + 1e-12
     if abs(gaps[0] - quarter) > 0.02 * quarter:
         assert f"{gaps[0] * 1e6:.4g} µs apart" in how and f"{quarter * 1e6:.4g} µs" in how
+
+
+def test_analyze_of_an_interrupted_run_says_where_its_record_ends(runs, tmp_path, capsys):
+    """An incomplete run (here cut to its first 500 samples and marked interrupted): the summary says the record
+    ends early, where, and of what duration; a complete run's summary says nothing of it."""
+    path = _copy(runs["globals"], tmp_path)
+    assert _cli(["analyze", str(path), "--no-sync"]) == 0
+    assert "ends early" not in capsys.readouterr().out
+    with h5py.File(path, "r+") as f:
+        for d in f["global"].values():
+            d.resize(500, axis=0)
+        f.attrs["complete"] = False
+        f.attrs["status"] = "interrupted by the user"
+        end = float(f["global/time"][-1])
+    assert _cli(["analyze", str(path), "--no-sync"]) == 0
+    out = capsys.readouterr().out
+    assert f"the run is incomplete (interrupted by the user): its record ends early, at t = {end:.4g} s of the " in out
+    assert "0.0001 s asked" in out

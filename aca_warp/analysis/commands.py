@@ -179,6 +179,9 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             stft_window_s=args.stft_window,
         )
     parts = [f"{args.run}: /analysis written ({', '.join(groups)})"]
+    early = record_ends_early(args.run)
+    if early:
+        parts.append(early)
     peaks = groups["peaks"].attrs
     if "first_velocity_peak_frequency" in peaks:
         parts.append(f"first velocity-spectrum peak {peaks['first_velocity_peak_frequency'] / 1e3:.4g} kHz")
@@ -245,6 +248,27 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if not files:
         raise SceneError(f"no figure could be made from {args.run}")
     return 0
+
+
+def record_ends_early(path: str) -> str | None:
+    """For a run that did not complete (interrupted, stopped on a fault, killed), where its record ends against the
+    duration asked, in words; None for a complete run."""
+    import json
+
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        if bool(f.attrs.get("complete", True)):
+            return None
+        t = f["global/time"]
+        end = float(t[-1]) if t.shape[0] else 0.0
+        try:
+            asked = json.loads(f.attrs["run_options"])["duration"]
+        except (KeyError, TypeError, ValueError):
+            asked = None
+        status = str(f.attrs.get("status", "incomplete"))
+    of = "" if asked is None else f" of the {float(asked):.4g} s asked"
+    return f"the run is incomplete ({status}): its record ends early, at t = {end:.4g} s{of}, and so does the analysis"
 
 
 def check_writable_file(path: str) -> None:
