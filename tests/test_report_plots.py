@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import json
 import math
 import shutil
 
@@ -437,3 +438,43 @@ def test_analyze_of_an_interrupted_run_says_where_its_record_ends(runs, tmp_path
     out = capsys.readouterr().out
     assert f"the run is incomplete (interrupted by the user): its record ends early, at t = {end:.4g} s of the " in out
     assert "0.0001 s asked" in out
+
+
+def test_one_pad_of_a_sweep_shard(tmp_path, capsys):
+    """analyze/plot of a sweep shard: without --pad one line naming --pad and the shard's pads; with --pad K the
+    pad's run file SHARD_padK.h5 (its global series and scene) gets its /analysis, plot draws its global figures
+    (the per-patch ones skipped: a shard holds no per-patch data), and rerun of that file repeats the pad. rerun of
+    the shard itself says what to do instead."""
+    from aca_warp.cli import main
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(
+        '[sweep]\nbase = "hf1"\nshard_size = 3\n[run]\nduration = 2e-5\nprecision = "fp32"\n'
+        '[base.patches]\ncount = 12\n[parameters]\n"friction.M" = [0.7, 0.8, 0.9]\n'
+    )
+    assert main(["sweep", str(spec), "-o", str(tmp_path / "sw"), "--workers", "0", "--quiet"]) == 0
+    shard = tmp_path / "sw" / "shard-00000.h5"
+    capsys.readouterr()
+    for argv, said in (
+        (["analyze", str(shard)], "is a sweep shard of pads 0-2: analyze one of them with --pad K"),
+        (["plot", str(shard), "-o", str(tmp_path / "f")], "is a sweep shard of pads 0-2: plot one of them with --pad"),
+        (["analyze", str(shard), "--pad", "3"], "holds pads 0-2; pad 3 is not one of them"),
+        (["rerun", str(shard), "-o", str(tmp_path / "r.h5")], "is a sweep shard (pads 0-2), not a run"),
+    ):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and said in err[0], err
+    assert not (tmp_path / "f").exists() and not (tmp_path / "r.h5").exists()
+    assert main(["analyze", str(shard), "--pad", "1"]) == 0
+    pad = tmp_path / "sw" / "shard-00000_pad1.h5"
+    assert f"{pad} (pad 1 of {shard}): /analysis written" in capsys.readouterr().out
+    with h5py.File(shard, "r") as s, h5py.File(pad, "r") as p:
+        assert np.array_equal(p["global/mu"][()], s["global/mu"][1]) and "analysis/spectra" in p
+        assert json.loads(p.attrs["scene"])["friction"]["M"] == 0.8 and p.attrs["complete"]
+    assert main(["plot", str(shard), "--pad", "1", "-o", str(tmp_path / "f"), "--only", "global", "spectra"]) == 0
+    names = sorted(f.name for f in (tmp_path / "f").iterdir())
+    assert names == [f"shard-00000_pad1_{n}.{e}" for n in ("global", "spectra") for e in ("pdf", "png")]
+    again = tmp_path / "again.h5"
+    assert main(["rerun", str(pad), "-o", str(again), "--no-progress"]) == 0
+    with h5py.File(again, "r") as a, h5py.File(pad, "r") as p:
+        assert np.allclose(a["global/mu"][()], p["global/mu"][()], rtol=1e-5)
