@@ -29,8 +29,6 @@ from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
-
 HF_SCENE = """
 [scene]
 name = "corrupt"
@@ -96,9 +94,7 @@ COMMANDS = {
 
 
 def env() -> dict[str, str]:
-    e = dict(os.environ)
-    e.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
-    return e
+    return dict(os.environ)
 
 
 def build_inputs(root: Path) -> dict[str, Path]:

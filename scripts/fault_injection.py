@@ -53,8 +53,6 @@ import numpy as np
 
 from aca_warp.common.files import host_cpu
 
-REPO = Path(__file__).resolve().parent.parent
-
 HF_SCENE = """
 [scene]
 name = "fi-hf"
@@ -175,9 +173,7 @@ def workloads(root: Path, quick: bool) -> list[Workload]:
 
 
 def env() -> dict[str, str]:
-    e = dict(os.environ)
-    e.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
-    return e
+    return dict(os.environ)
 
 
 def cli(args: list[str], cwd: Path, limit: int | None = None) -> subprocess.Popen:

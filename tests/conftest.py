@@ -1,24 +1,21 @@
-"""Shared test setup: Warp kernel cache, quiet Warp, the devices to test on, one kernel load per session.
+"""Shared test setup: quiet Warp, the devices to test on, one kernel load per session.
 
-``WARP_CACHE_PATH`` is set before anything imports warp, so that compiled kernels land in the git-ignored
-``<repo>/.warp_cache`` and are reused between runs. Tests that take a ``device`` argument are run once per
-entry of :data:`DEVICES` ("cpu", plus "cuda:0" where a CUDA device is present).
+Kernels compile into Warp's own kernel cache, the one ``aca-warp`` uses (``~/.cache/warp/<version>``, or
+``WARP_CACHE_PATH``): compiled once per machine and Warp version, by the tests or the command line, for every
+checkout. Tests that take a ``device`` argument are run once per entry of :data:`DEVICES` ("cpu", plus "cuda:0"
+where a CUDA device is present).
 """
 
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
-os.environ.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
-
-import warp as wp  # noqa: E402  (must follow the cache path)
+import warp as wp
 
 if hasattr(wp, "LOG_WARNING") and hasattr(wp.config, "log_level"):
     wp.config.log_level = wp.LOG_WARNING
 
-import pytest  # noqa: E402
+import pytest
 
 # ACA_WARP_TEST_DEVICES="cuda:0" restricts the device-parametrised tests (e.g. on a GPU machine whose Warp
 # build cannot compile CPU kernels); run them there with `-k cuda`.

@@ -14,9 +14,6 @@ import h5py
 
 from aca_warp.common.checkpoint import has_checkpoint
 
-REPO = Path(__file__).resolve().parent.parent
-
-
 # ``aca_warp.cli`` with its automatic checkpoints from the first chunk or step end on (not after 30 s of wall time)
 AUTO_AT_ONCE = (
     "-c",
@@ -33,7 +30,6 @@ def kill_after_first_checkpoint(
     asserts that the run was still going then and died by the signal. ``poll`` [s]. The file is read while the run
     is stopped (SIGSTOP), so the kill comes before the run can write anything more."""
     env = {**os.environ, "HDF5_USE_FILE_LOCKING": "FALSE"}
-    env.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
     proc = subprocess.Popen([sys.executable, *python, *args], env=env, stderr=subprocess.PIPE)
     deadline = time.monotonic() + 120
     checkpointed = False
