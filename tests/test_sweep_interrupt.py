@@ -11,13 +11,14 @@ from pathlib import Path
 import pytest
 from procs import assert_same_datasets, cli, env, error_lines, start
 
-# 6 pads of 25 patches in 3 shards of 2; 2 ms simulated (about a second of stepping per shard on one core)
+# 6 pads of 25 patches in 3 shards of 2; 1 ms simulated (about half a second of stepping per shard on one core; the
+# signal comes while a shard runs, found by polling its .partial every 5 ms)
 SPEC = """[sweep]
 base = "hf1"
 shard_size = 2
 name = "interrupt"
 [run]
-duration = 2e-3
+duration = 1e-3
 precision = "fp32"
 sample_dt = 1e-5
 [base.patches]
