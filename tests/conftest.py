@@ -32,13 +32,26 @@ def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
         metafunc.parametrize("device", DEVICES)
 
 
-@pytest.fixture(scope="session", autouse=True)
-def _load_kernels() -> None:
-    """Load (compile or fetch from the cache) the kernel modules once per device, before any test runs."""
-    import aca_warp.kernels.hf
-    import aca_warp.kernels.neighbours
+def _load(names: tuple[str, ...]) -> None:
+    """Load (compile, or fetch from the kernel cache) the kernel modules ``aca_warp.kernels.<name>`` on every device."""
+    import importlib
 
     wp.init()
-    for dev in DEVICES:
-        wp.load_module(aca_warp.kernels.hf, device=dev)
-        wp.load_module(aca_warp.kernels.neighbours, device=dev)
+    for name in names:
+        module = importlib.import_module(f"aca_warp.kernels.{name}")
+        for dev in DEVICES:
+            wp.load_module(module, device=dev)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Under pytest-xdist, compile the kernel modules many tests load once, in the controller before its workers
+    start: on an empty kernel cache every worker would otherwise compile them at the same time (the workers then
+    fetch them from the cache)."""
+    if getattr(config, "workerinput", None) is None and getattr(config.option, "numprocesses", None):
+        _load(("hf", "neighbours", "hf_adaptive", "lf"))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _load_kernels() -> None:
+    """Load the kernel modules nearly every test uses once per device, before any test runs."""
+    _load(("hf", "neighbours"))
