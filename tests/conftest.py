@@ -44,10 +44,14 @@ def _load(names: tuple[str, ...]) -> None:
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """Under pytest-xdist, compile the kernel modules many tests load once, in the controller before its workers
-    start: on an empty kernel cache every worker would otherwise compile them at the same time (the workers then
-    fetch them from the cache)."""
+    """Under pytest-xdist (``-n``): every test file runs on one worker (``--dist loadfile`` in place of the default
+    ``load``), so that a module's shared runs (its module-scoped fixtures) are made once, not once per worker; and
+    the kernel modules many tests load compile once, here in the controller before the workers start (on an empty
+    kernel cache every worker would otherwise compile them at the same time; the workers fetch them from the
+    cache)."""
     if getattr(config, "workerinput", None) is None and getattr(config.option, "numprocesses", None):
+        if getattr(config.option, "dist", None) == "load":
+            config.option.dist = "loadfile"
         _load(("hf", "neighbours", "hf_adaptive", "lf"))
 
 
