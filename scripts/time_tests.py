@@ -60,6 +60,7 @@ def run(args: argparse.Namespace) -> dict:
         if args.cold:
             env["WARP_CACHE_PATH"] = str(Path(tmp) / "warp_cache")
         command = [python, "-m", "pytest", "-q", "-n", args.n, "tests"]
+        started = time.strftime("%Y-%m-%d %H:%M")
         load_before, cpu0, t0 = os.getloadavg(), cpu_of_children(), time.perf_counter()
         done = subprocess.run(command, cwd=clone, env=env, capture_output=True, text=True, timeout=args.timeout)
         wall, cpu, load_after = time.perf_counter() - t0, cpu_of_children() - cpu0, os.getloadavg()
@@ -68,7 +69,7 @@ def run(args: argparse.Namespace) -> dict:
     return {
         "command": f"python3 -m pytest -q -n {args.n} tests",
         "commit": commit,
-        "date": time.strftime("%Y-%m-%d %H:%M"),
+        "date": started,
         "machine": _machine(),
         "cores": os.cpu_count(),
         "kernel_cache": "cold (empty)" if args.cold else "warm (Warp's cache of this machine)",
