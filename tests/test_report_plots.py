@@ -347,18 +347,17 @@ def test_analyze_summary_uses_the_figures_band(runs, tmp_path, capsys):
 
 def test_a_one_bin_band_names_its_floor_and_plots_no_sync(runs, tmp_path, capsys):
     """A band holding one frequency bin: the summary's floor 2 Δf is the record's (Δf = 1 / (N dt) ≈ 10 kHz, not
-    the 10 Hz of a band without a second bin), and plot skips the Synchronization Index with a note instead of an
-    IndexError; asked for with others, it is refused and nothing is left behind."""
+    the 10 Hz of a band without a second bin), and the Synchronization Index figure is refused with the note plot
+    prints when it skips it (instead of an IndexError); asked for with others, nothing is left behind."""
     path = _copy(runs["patches"], tmp_path)
     assert _cli(["analyze", str(path), "--freq-min", "95e3", "--freq-max", "105e3"]) == 0
     with h5py.File(path, "r") as f:
         assert f["analysis/sync/freq"].shape == (1,)
         n, dt = f["analysis/sync"].attrs["samples"], f["analysis/sync"].attrs["sample_interval"]
     assert f"max(10 Hz, 2 df) = {2 / (n * dt) / 1e3:.4g} kHz" in capsys.readouterr().out
-    notes = []
-    files = plots.plot_run(path, tmp_path / "fig", which=None, frames=2, log=notes.append)
-    assert [n for n in notes if n.startswith("skipped sync")] and "too few to draw" in " ".join(notes)
-    assert files and not any("sync" in p.name for p in files)
+    with pytest.raises(SceneError, match="holds 1 frequency bin.* too few to draw"):  # skipped with this note
+        plots.plot_sync(path, tmp_path / "fig")
+    assert not (tmp_path / "fig").exists()
     with pytest.raises(SceneError, match="sync: the Synchronization Index holds 1 frequency bin"):
         plots.plot_run(path, tmp_path / "fig2", which=["global", "sync"])
     assert not (tmp_path / "fig2").exists() or not any((tmp_path / "fig2").iterdir())
