@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common import plausible
+from aca_warp.common.bounds import check_h5, read_toml
 from aca_warp.common.errors import SceneError
 
 if sys.version_info >= (3, 11):
@@ -401,6 +402,7 @@ def read_patch_file(path: str | Path) -> Patches:
         raise SceneError(f"patch file not found: {p}")
     try:
         with h5py.File(p, "r") as f:
+            check_h5(f, p, "patch file")  # links, declared sizes, numbers: before anything is read
             missing = [k for k in ("x", "y", "area", "height") if k not in f]
             if missing:
                 raise SceneError(f"patch file {p} lacks dataset(s) {', '.join(missing)}")
@@ -808,9 +810,7 @@ def load_scene(spec: str | Path, *, allow_implausible: bool = False) -> Scene:
     if not p.is_file():
         raise SceneError(f"scene {s!r} is neither a preset ({', '.join(PRESETS)}) nor an existing TOML file")
     try:
-        doc = tomllib.loads(p.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise SceneError(f"cannot parse {p}: {e}") from None
+        doc = read_toml(p, "scene file")
     except OSError as e:
         raise SceneError(f"cannot read scene file {p}: {e.strerror}") from None
     if not doc:

@@ -1,6 +1,8 @@
 """Warp kernels of aca_warp, one module per stage, each kernel beside its thin launch wrapper.
 
-Shipped as the subpackage ``aca_warp.kernels`` (see pyproject.toml). Every module sets
+Shipped as the subpackage ``aca_warp.kernels`` (see pyproject.toml). The physics that the HF engines' kernels share
+are Warp functions with one home each in ``physics`` (friction law and sub-step, per-patch terms, contact, sample
+sums). Every module sets
 ``enable_backward=False``; kernel parameters come in the groups model, control (steps, tolerances, counters),
 state in, state out. Kernels generic in the state precision T (``Any`` in their annotations) get their float32
 and float64 overloads from :func:`precision_overloads`.

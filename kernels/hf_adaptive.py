@@ -24,7 +24,7 @@ from typing import Any
 
 import warp as wp
 from aca_warp.kernels import precision_overloads
-from aca_warp.kernels.hf import friction_coefficient, friction_pair, spring_force
+from aca_warp.kernels.physics import friction_pair, patch_force, spring_force
 
 wp.set_module_options({"enable_backward": False})
 
@@ -71,7 +71,7 @@ def lane_spring_force(
     nbr_index: wp.array[wp.int32],
     nbr_stiffness: wp.array[Any],
 ):
-    """Elastic force on patch i [N] (:func:`~aca_warp.kernels.hf.spring_force`) from the ``threads`` lanes of its
+    """Elastic force on patch i [N] (:func:`~aca_warp.kernels.physics.spring_force`) from the ``threads`` lanes of its
     block: each lane sums every ``threads``-th link, the block adds the lanes' sums. One lane (a CPU block) sums
     as ``spring_force`` does, so CPU results do not depend on the block size; on CUDA the links of a patch are read
     in parallel instead of in one dependent chain."""
@@ -84,28 +84,6 @@ def lane_spring_force(
         part += nbr_stiffness[e] * u[nbr_index[e]]
         e += threads
     return wp.tile_sum(wp.tile(part))[0] - k_diag[i] * u[i]
-
-
-@wp.func
-def acceleration(
-    i: int,
-    p: int,
-    fs: Any,
-    v: Any,
-    inv_mass: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
-):
-    """v̇_i = (F_s,i − c_i v + F_N,i f(ω r_i − v)) / m_i [m/s²] at elastic force ``fs`` [N] and velocity ``v``."""
-    ff = normal_force[i] * friction_coefficient(
-        pad_omega[p] * radius[i] - v, pad_mu_scale[p], pad_slope[p], pad_decay[p]
-    )
-    return inv_mass[i] * (fs + ff - damping[i] * v)
 
 
 @wp.func
@@ -157,12 +135,13 @@ def stage_k(
     u_next: wp.array[Any],
     v_next: wp.array[Any],
 ):
-    """Patch i's (of pad p) k_s = (u̇, v̇) from its elastic force ``fs`` [N] and velocity at the stage state and,
-    for 0 < s < 6, its next stage state y_{s+1} at trial step ``h`` [s] into ``u_next``/``v_next``."""
+    """Patch i's (of pad p) k_s = (u̇, v̇), v̇ = F/m (:func:`~aca_warp.kernels.physics.patch_force`), from its elastic
+    force ``fs`` [N] and velocity at the stage state and, for 0 < s < 6, its next stage state y_{s+1} at trial step
+    ``h`` [s] into ``u_next``/``v_next``."""
     v = v_stage[i]
     ku[stage, i] = v
-    kv[stage, i] = acceleration(
-        i, p, fs, v, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay
+    kv[stage, i] = inv_mass[i] * patch_force(
+        fs, v, damping[i], normal_force[i], pad_omega[p] * radius[i], pad_mu_scale[p], pad_slope[p], pad_decay[p]
     )
     if stage > 0 and stage + 1 < STAGES:
         stage_state_h(i, stage + 1, coeff, h, u_in, v_in, ku, kv, u_next, v_next)

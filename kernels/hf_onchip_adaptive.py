@@ -8,7 +8,7 @@ threads and blocks), the pad's error as a maximum over its blocks (each block's 
 shared table), the step decision (:func:`~aca_warp.kernels.hf_adaptive.pi_decide`), taken alike by thread 0 of
 every block on its own copy of the pad's control (block 0 writes it to ``ctl``/``mode`` for the host and the
 checkpoints), the commit and the next trial's first stage state. On landing, block 0 records the
-sample (:func:`~aca_warp.kernels.hf.record_pad`, the per-patch histories) and opens the next interval; a growing
+sample (:func:`~aca_warp.kernels.physics.record_pad`, the per-patch histories) and opens the next interval; a growing
 pad also lands on its growth events and grows there (the factory's ``growth``). Every block
 keeps the pad's stage displacements in shared memory, two rows (odd and even stages), and each new stage
 displacement is stored into every block of the cluster (distributed shared memory, released and acquired by the
@@ -29,7 +29,6 @@ from functools import cache
 from typing import Any
 
 import warp as wp
-from aca_warp.kernels.hf import contact_block, grow_patch, patch_coupling, patch_sample_due, record_pad, spring_force
 from aca_warp.kernels.hf_adaptive import (
     C_TARGET,
     C_TRIAL,
@@ -47,6 +46,16 @@ from aca_warp.kernels.hf_adaptive import (
     stage_k,
     stage_state_h,
     store_control,
+)
+from aca_warp.kernels.hf_onchip_gather import tile_gather
+from aca_warp.kernels.physics import (
+    contact_block,
+    grow_patch,
+    patch_coupling,
+    patch_sample_due,
+    record_pad,
+    spring_force,
+    store_patch_sample,
 )
 from aca_warp.kernels.tiles import (
     block_sync,
@@ -132,6 +141,7 @@ def onchip_dp5_kernel(
     put_ek = tile_store_1d(dtype, max(emax, 1))
     get_ek = tile_load_1d(dtype, max(emax, 1))
     pad_sync = block_sync if cluster == 1 else cluster_sync  # (a one-block "cluster" barrier would be dearer)
+    links_sum = tile_gather(T, nmax, max(emax, 1), emax > 0, 1, 2)  # the neighbour sums, two links per pass
 
     @wp.func
     def share(us: wp.tile[T, 2, NMAX], row: int, i: int, x: T, q0: int, dq: int):
@@ -272,44 +282,6 @@ def onchip_dp5_kernel(
         )  # fmt: skip
         pad_sync()  # the sample reads every new normal force, k_0 the new stiffnesses
         return gap
-
-    @wp.func
-    def gather(
-        g: int,
-        a: int,
-        base: int,
-        row: int,
-        us: wp.tile[T, 2, NMAX],
-        sidx: wp.tile[wp.int16, EMAX],
-        sk: wp.tile[T, EMAX],
-        k_diag: wp.array[T],
-        nbr_start: wp.array[wp.int32],
-        nbr_index: wp.array[wp.int32],
-        nbr_stiffness: wp.array[T],
-    ):
-        """Elastic force on patch g [N] from the stage displacements in row ``row`` of the shared copy: the two
-        partial sums of :func:`~aca_warp.kernels.hf.spring_force` in its order (``base``: the block's first link)."""
-        a0 = T(0.0)
-        a1 = T(0.0)
-        e = nbr_start[g]
-        end = nbr_start[g + 1]
-        if wp.static(emax > 0):
-            p = e - base
-            pe = end - base
-            while p + 1 < pe:
-                a0 += get_ek(sk, p) * get_u(us, row, int(get_ei(sidx, p)))
-                a1 += get_ek(sk, p + 1) * get_u(us, row, int(get_ei(sidx, p + 1)))
-                p += 2
-            if p < pe:
-                a0 += get_ek(sk, p) * get_u(us, row, int(get_ei(sidx, p)))
-        else:
-            while e + 1 < end:
-                a0 += nbr_stiffness[e] * get_u(us, row, nbr_index[e] - a)
-                a1 += nbr_stiffness[e + 1] * get_u(us, row, nbr_index[e + 1] - a)
-                e += 2
-            if e < end:
-                a0 += nbr_stiffness[e] * get_u(us, row, nbr_index[e] - a)
-        return (a0 + a1) - k_diag[g] * get_u(us, row, g - a)
 
     @wp.func
     def lane_gather(
@@ -477,7 +449,12 @@ def onchip_dp5_kernel(
                     if wp.static(lanes == 1):
                         g = lo + lane
                         while g < hi:
-                            fs = gather(g, a, base, row, us, sidx, sk, k_diag, nbr_start, nbr_index, nbr_stiffness)
+                            first_link = nbr_start[g]  # the links in spring_force's order (tile_gather)
+                            links, _p = links_sum(
+                                first_link, nbr_start[g + 1], first_link - base, row, a, us, sidx, sk, nbr_index,
+                                nbr_stiffness,
+                            )  # fmt: skip
+                            fs = links - k_diag[g] * get_u(us, row, g - a)
                             un = T(0.0)  # the next stage displacement (none after the last stage)
                             if row == 1:
                                 stage_k(
@@ -607,9 +584,7 @@ def onchip_dp5_kernel(
                     if patch_sample_due(k, first, last, every):
                         g = lo + lane
                         while g < hi:
-                            velocity_out[prow, g] = v_io[g]
-                            if displacement_out.shape[0] > 0:
-                                displacement_out[prow, g] = u_io[g]
+                            store_patch_sample(velocity_out, displacement_out, prow, g, v_io[g], u_io[g])
                             g += threads
                         prow += 1
                 if lane == 0:

@@ -15,7 +15,10 @@ Random numbers: a stateless counter hash keyed by (seed, step, element, stream),
 
 from __future__ import annotations
 
+from typing import Any
+
 import warp as wp
+from aca_warp.kernels.physics import friction_coefficient
 from aca_warp.kernels.tiles import block_add, block_sync, tile_store_1d
 
 wp.set_module_options({"enable_backward": False})
@@ -166,9 +169,30 @@ def uniform64(seed: wp.uint64, step: wp.uint64, idx: wp.uint64, stream: wp.uint6
 
 
 @wp.func
+def polar(x: wp.float64, y: wp.float64) -> wp.vec2d:
+    """(r [m], φ [rad]) of a point in the pad frame: r = √(x² + y²), φ = atan2(−x, y)."""
+    return wp.vec2d(wp.sqrt(x * x + y * y), wp.atan2(-x, y))
+
+
+@wp.func
+def disc_radius(area: wp.float64) -> wp.float64:
+    """Radius a = √(A/π) [m] of a round patch of area A [m²]."""
+    return wp.sqrt(area / wp.float64(wp.pi))
+
+
+@wp.func
+def overlaps(x: wp.float64, y: wp.float64, a: wp.float64, xo: wp.float64, yo: wp.float64, ao: wp.float64) -> bool:
+    """Whether the discs of radius a at (x, y) and ao at (xo, yo) overlap [m]."""
+    dx = x - xo
+    dy = y - yo
+    return dx * dx + dy * dy < (a + ao) * (a + ao)
+
+
+@wp.func
 def cell_of(p: LFParams, x: wp.float64, y: wp.float64) -> wp.int32:
-    r = wp.sqrt(x * x + y * y)
-    phi = wp.atan2(-x, y)
+    rp = polar(x, y)
+    r = rp[0]
+    phi = rp[1]
     k = wp.clamp(wp.int32(wp.floor((r - p.r_in) / p.dr)), 0, p.n_r - 1)
     j = wp.clamp(wp.int32(wp.floor((phi + p.half) / p.dphi)), 0, p.n_t - 1)
     return k * p.n_t + j
@@ -176,15 +200,11 @@ def cell_of(p: LFParams, x: wp.float64, y: wp.float64) -> wp.int32:
 
 @wp.func
 def eq4(p: LFParams, v: wp.float64) -> wp.float64:
-    """Patch friction coefficient: paper Eq. 4 at sliding speed v, or the Coulomb value."""
+    """Patch friction coefficient: paper Eq. 4 at sliding speed v (the HF engines' law,
+    :func:`~aca_warp.kernels.physics.friction_coefficient`), or the Coulomb value."""
     if p.coulomb != 0:
         return p.mu_coulomb
-    return (
-        p.M
-        / wp.float64(wp.pi)
-        * wp.atan(p.slope * v)
-        * (wp.float64(1.0) / (p.decay * wp.abs(v) + wp.float64(1.0)) + wp.float64(1.0))
-    )
+    return friction_coefficient(v, p.M / wp.float64(wp.pi), p.slope, p.decay)
 
 
 @wp.func
@@ -239,7 +259,7 @@ def bin_patches(
     e = cell_of(p, x[i], y[i])
     patch_cell_out[i] = e
     wp.atomic_add(cell_cover_out, e, area[i])
-    wp.atomic_add(cell_chord_out, e, wp.float64(2.0) * wp.sqrt(area[i] / wp.float64(wp.pi)))
+    wp.atomic_add(cell_chord_out, e, wp.float64(2.0) * disc_radius(area[i]))
 
 
 @wp.func
@@ -490,6 +510,15 @@ def disc_temperature(
         ring_bulge_out[k] = p.kappa_d * p.alpha_d * p.d_d * (ring_T[k] - p.T_amb)
 
 
+@wp.func
+def implicit_temperature(
+    c_dt: wp.float64, T: wp.float64, q: wp.float64, g_d: wp.float64, T_d: wp.float64, g_b: wp.float64, T_b: wp.float64
+) -> wp.float64:
+    """Backward Euler of C dT/dt = q + g_d (T_d − T) + g_b (T_b − T): the new temperature [K] from ``c_dt`` = C/Δt
+    [W/K], the heat input q [W] and the conductances to the disc ring (g_d, at T_d) and the bulk (g_b, at T_b)."""
+    return (c_dt * T + q + g_d * T_d + g_b * T_b) / (c_dt + g_d + g_b)
+
+
 @wp.kernel
 def pad_temperature(
     p: LFParams,
@@ -527,7 +556,7 @@ def pad_temperature(
         g_b = p.k_p * A / p.L_b
         Td = ring_T[t / p.n_t]
         q = (wp.float64(1.0) - p.gamma_disc) * cell_power[t]
-        cell_T[t] = (C / dt * cell_T[t] + q + g_d * Td + g_b * p.T_amb) / (C / dt + g_d + g_b)
+        cell_T[t] = implicit_temperature(C / dt, cell_T[t], q, g_d, Td, g_b, p.T_amb)
         return
     i = t - n_cells
     if alive[i] == 0:
@@ -537,14 +566,21 @@ def pad_temperature(
     C = p.rho_p * p.c_p * A * p.t_eff
     g_d = wp.float64(0.0)
     if patch_fn[i] > wp.float64(0.0):
-        g_d = wp.float64(4.0) * p.k_d * wp.sqrt(A / wp.float64(wp.pi))
+        g_d = wp.float64(4.0) * p.k_d * disc_radius(A)
     g_b = p.k_p * A / p.L_b
     Td = ring_T[e / p.n_t]
     q = (wp.float64(1.0) - p.gamma_disc) * patch_power[i]
-    patch_T[i] = (C / dt * patch_T[i] + q + g_d * Td + g_b * cell_T[e]) / (C / dt + g_d + g_b)
+    patch_T[i] = implicit_temperature(C / dt, patch_T[i], q, g_d, Td, g_b, cell_T[e])
 
 
 # ----------------------------------------------------------------------------------------------- wear
+
+
+@wp.func
+def wear_depth(p: LFParams, k_e: wp.float64, T: wp.float64, power: wp.float64, a: wp.float64) -> wp.float64:
+    """Energy wear depth of one step, Δz = k_E f(T) P Δt / a [m] (wear constant k_E [m³/J], friction power P [W] on
+    the area a [m²])."""
+    return k_e * wear_factor(p, T) * power * p.dt / a
 
 
 @wp.kernel
@@ -590,7 +626,7 @@ def wear(
             free = wp.max(cell_area[t] - cell_cover[t], zero)
             if pw <= zero or free <= zero:
                 continue
-            dz = p.wear_m * wear_factor(p, cell_T[t]) * pw * p.dt / free
+            dz = wear_depth(p, p.wear_m, cell_T[t], pw, free)
             cell_z[t] = cell_z[t] - dz
             m = p.rho_m * dz * free
             wp.atomic_add(cell_src, t, p.f_ret * m)
@@ -604,7 +640,7 @@ def wear(
         if pw <= zero:
             continue
         A = area[i]
-        dz = wp.min(p.wear_p * wear_factor(p, patch_T[i]) * pw * p.dt / A, thick[i])
+        dz = wp.min(wear_depth(p, p.wear_p, patch_T[i], pw, A), thick[i])
         thick[i] = thick[i] - dz
         top[i] = top[i] - dz
         m = p.rho_patch * dz * A
@@ -712,7 +748,7 @@ def capture_gather(
     e = patch_cell[i]
     c = cell_chord[e]
     if c > wp.float64(0.0):
-        mcap[i] = mcap[i] + cell_capture[e] * (wp.float64(2.0) * wp.sqrt(area[i] / wp.float64(wp.pi))) / c
+        mcap[i] = mcap[i] + cell_capture[e] * (wp.float64(2.0) * disc_radius(area[i])) / c
 
 
 # ----------------------------------------------------------------------------------------------- life cycle
@@ -721,8 +757,9 @@ def capture_gather(
 @wp.func
 def clamp_inside(p: LFParams, x: wp.float64, y: wp.float64, a: wp.float64) -> wp.vec2d:
     """Move a disc of radius a centred at (x, y) the least amount radially/angularly to lie inside the pad."""
-    r = wp.sqrt(x * x + y * y)
-    phi = wp.atan2(-x, y)
+    rp = polar(x, y)
+    r = rp[0]
+    phi = rp[1]
     r_out = p.r_in + p.dr * wp.float64(p.n_r)
     r = wp.clamp(r, p.r_in + a, r_out - a)
     lim = p.half - wp.asin(wp.min(a / r, wp.float64(1.0)))
@@ -790,7 +827,7 @@ def life_cycle(
             death_area[slot] = A
         A = wp.float64(0.0)
     else:
-        xy = clamp_inside(p, x[i], y[i], wp.sqrt(A / wp.float64(wp.pi)))
+        xy = clamp_inside(p, x[i], y[i], disc_radius(A))
         x[i] = xy[0]
         y[i] = xy[1]
     area[i] = A
@@ -816,15 +853,12 @@ def merge_target(
     target_out[i] = -1
     if alive[i] == 0:
         return
-    ai = wp.sqrt(area[i] / wp.float64(wp.pi))
+    ai = disc_radius(area[i])
     best = wp.int32(-1)
     for q in range(nbr_start[i], nbr_start[i + 1]):
         j = nbr_index[q]
         if j < i and alive[j] != 0 and (best < 0 or j < best):
-            aj = wp.sqrt(area[j] / wp.float64(wp.pi))
-            dx = x[i] - x[j]
-            dy = y[i] - y[j]
-            if dx * dx + dy * dy < (ai + aj) * (ai + aj):
+            if overlaps(x[i], y[i], ai, x[j], y[j], disc_radius(area[j])):
                 best = j
     target_out[i] = best
 
@@ -885,7 +919,7 @@ def merge_apply(
         stop = stop * (cap / A)
         sT = sT * (cap / A)
         A = cap
-    xy = clamp_inside(p, sx / A, sy / A, wp.sqrt(A / wp.float64(wp.pi)))
+    xy = clamp_inside(p, sx / A, sy / A, disc_radius(A))
     x[i] = xy[0]
     y[i] = xy[1]
     area[i] = A
@@ -945,7 +979,7 @@ def birth_want(
     step = wp.uint64(glob[G_STEP])
     if uniform64(p.seed, step, wp.uint64(e), wp.uint64(2)) >= p.p_birth:
         return
-    a0 = wp.sqrt(p.A0 / wp.float64(wp.pi))
+    a0 = disc_radius(p.A0)
     k = e / p.n_t
     j = e - k * p.n_t
     r = cell_r[e]
@@ -960,12 +994,8 @@ def birth_want(
     xy = clamp_inside(p, bx, by, a0)
     q = wp.vec3d(xy[0], xy[1], wp.float64(0.0))
     for i in wp.hash_grid_query(grid, q, query_radius):
-        if alive[i] != 0:
-            ai = wp.sqrt(area[i] / wp.float64(wp.pi))
-            dx = x[i] - xy[0]
-            dy = y[i] - xy[1]
-            if dx * dx + dy * dy < (ai + a0) * (ai + a0):
-                return
+        if alive[i] != 0 and overlaps(x[i], y[i], disc_radius(area[i]), xy[0], xy[1], a0):
+            return
     want_out[e] = 1
     birth_xy_out[e] = xy
 
@@ -1143,6 +1173,12 @@ def positions3(
         pos_out[i] = park
 
 
+@wp.func
+def candidate(i: int, j: int, alive: wp.array[wp.int32], pos: wp.array[wp.vec3d], radius: wp.float64) -> bool:
+    """Whether patch j (a hash-grid hit) is a merge candidate of patch i: another alive patch within ``radius``."""
+    return j != i and alive[j] != 0 and wp.length_sq(pos[j] - pos[i]) <= radius * radius
+
+
 @wp.kernel
 def count_candidates(
     grid: wp.uint64,
@@ -1158,7 +1194,7 @@ def count_candidates(
         return
     n = int(0)
     for j in wp.hash_grid_query(grid, pos[i], radius):
-        if j != i and alive[j] != 0 and wp.length_sq(pos[j] - pos[i]) <= radius * radius:
+        if candidate(i, j, alive, pos, radius):
             n += 1
     count_out[i] = n
 
@@ -1179,7 +1215,7 @@ def fill_candidates(
     a = start[i]
     k = a
     for j in wp.hash_grid_query(grid, pos[i], radius):
-        if j != i and alive[j] != 0 and wp.length_sq(pos[j] - pos[i]) <= radius * radius:
+        if candidate(i, j, alive, pos, radius):
             # insertion sort keeps the row ordered whatever order the grid returns
             q = k
             while q > a and index_out[q - 1] > j:
@@ -1206,14 +1242,12 @@ def compact_map(alive: wp.array[wp.int32], rank: wp.array[wp.int32], dst_out: wp
 
 
 @wp.kernel
-def scatter_f64(dst: wp.array[wp.int32], src: wp.array[wp.float64], out: wp.array[wp.float64]):
+def scatter(dst: wp.array[wp.int32], src: wp.array[Any], out: wp.array[Any]):
+    """out[dst[i]] = src[i] where dst[i] ≥ 0 (compaction; dim = P)."""
     i = wp.tid()
     if dst[i] >= 0:
         out[dst[i]] = src[i]
 
 
-@wp.kernel
-def scatter_i32(dst: wp.array[wp.int32], src: wp.array[wp.int32], out: wp.array[wp.int32]):
-    i = wp.tid()
-    if dst[i] >= 0:
-        out[dst[i]] = src[i]
+for _t in (wp.float64, wp.int32):
+    wp.overload(scatter, {"dst": wp.array[wp.int32], "src": wp.array[_t], "out": wp.array[_t]})

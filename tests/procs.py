@@ -8,6 +8,8 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import h5py
@@ -39,7 +41,7 @@ def nine_patch_scene(*, increment: float, interval: float, sample_dt: float, dur
 # runs ``aca_warp.cli`` with RLIMIT_FSIZE = argv[1] bytes and SIGXFSZ ignored (writes past it fail with EFBIG)
 LIMITED = (
     "import resource, signal, sys; lim = int(sys.argv[1]); signal.signal(signal.SIGXFSZ, signal.SIG_IGN); "
-    "resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim)); from aca_warp.cli import main; sys.exit(main(sys.argv[2:]))"
+    "resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim)); from aca_warp.cli import run; run(sys.argv[2:])"
 )
 
 
@@ -91,6 +93,20 @@ def start(args: list[str], **extra: str) -> subprocess.Popen:
         stderr=subprocess.PIPE,
         text=True,
     )
+
+
+@contextmanager
+def started(args: list[str], **extra: str) -> Iterator[subprocess.Popen]:
+    """:func:`start` for the body; killed (if still running) and its pipes closed after it."""
+    proc = start(args, **extra)
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()
 
 
 def wait_for(path: Path, proc: subprocess.Popen, *, poll: float = 0.0005, timeout: float = 120.0) -> None:

@@ -227,3 +227,46 @@ def test_closed_on_failure_closes_and_names_the_file(tmp_path: Path) -> None:
         pass
     assert f.id.valid
     f.close()
+
+
+def test_analysis_of_a_stopped_run_is_dropped_by_its_resume(tmp_path, monkeypatch) -> None:
+    """`analyze` of a stopped run records the samples and time range it describes (/analysis `samples`,
+    `time_range`); resuming the run drops that /analysis (before: it survived and described 0.58 of 2 ms of the
+    finished file); a stored analysis that does not fit the file's samples is not used by the figures."""
+    from procs import small_scene_toml
+
+    from aca_warp.analysis import report
+    from aca_warp.hf import runner
+
+    (tmp_path / "s.toml").write_text(small_scene_toml("stale", count=10, duration=4.0e-6, sample_dt=1.0e-7))
+    out = tmp_path / "run.h5"
+    real = runner.run_hf
+
+    def stop_at_second(*args, on_checkpoint=None, **kw):
+        seen = []
+
+        def ckpt(c):
+            on_checkpoint(c)
+            seen.append(c)
+            if len(seen) == 2:
+                raise KeyboardInterrupt
+
+        return real(*args, on_checkpoint=ckpt, **kw)
+
+    monkeypatch.setattr(runner, "run_hf", stop_at_second)
+    argv = ["hf", str(tmp_path / "s.toml"), "-o", str(out), "--no-progress", "--checkpoint-interval", "1e-6"]
+    assert main(argv) == 130
+    monkeypatch.undo()
+    report.analyze_run(out, sync=False)
+    with h5py.File(out, "r") as f:
+        n, t = f["global/time"].shape[0], f["global/time"][()]
+        a = f["analysis"].attrs
+        assert a["samples"] == n < 41 and list(a["time_range"]) == [t[0], t[-1]] and not a["run_complete"]
+        assert report.stored(f, "spectra")
+    with h5py.File(out, "r+") as f:
+        f["analysis"].attrs["samples"] = n + 1  # as an analysis of other samples
+    with h5py.File(out, "r") as f:
+        assert not report.stored(f, "spectra")
+    assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
+    with h5py.File(out, "r") as f:
+        assert f.attrs["complete"] and f["global/time"].shape == (41,) and "analysis" not in f

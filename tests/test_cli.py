@@ -64,7 +64,11 @@ def test_only_what_is_asked_is_recorded(scene_file, tmp_path):
         (["hf", "nope", "-o", "{out}"], "neither a preset"),
         (["hf", "multiscale", "-o", "{out}"], "is an LF scene: run it with 'aca-warp lf multiscale -o LF.h5'"),
         (["lf", "hf1", "-o", "{out}"], "is an HF scene: run it with 'aca-warp hf hf1 -o RUN.h5'"),
-        (["hf", "{scene}", "-o", "{out}", "--integrator", "symplectic-euler", "--dt", "1e-6"], "stable-step"),
+        (
+            ["hf", "{scene}", "-o", "{out}", "--integrator", "symplectic-euler", "--dt", "1e-6", "--sample-dt", "1e-6"],
+            "stable-step",
+        ),
+        (["hf", "{scene}", "-o", "{out}", "--dt", "1e-6"], "shorter than the step"),
         (["hf", "{scene}", "-o", "{out}", "--sample-dt", "1e-3"], "exceeds the duration"),
         (["hf", "{scene}", "-o", "{out}", "--record-patches", "pressure"], "unknown variable"),
         (["hf", "{scene}", "-o", "{out}", "--device", "cuda:7"], "device"),

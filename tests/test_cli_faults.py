@@ -214,7 +214,7 @@ def test_rerun_file_size_limit_then_resume(tmp_path: Path, refs) -> None:
     r = cli(["rerun", str(ref), "-o", str(out), "--no-progress", "--checkpoint-interval", "1e-4"], limit=1_300_000)
     lines = error_lines(r.stderr)
     assert r.returncode == 4 and len(lines) == 1, r.stderr
-    assert "file size limit reached" in lines[0] and f"continue with 'aca-warp hf --resume {out}'" in lines[0]
+    assert "file size limit reached" in lines[0] and f"with 'aca-warp hf --resume {out}'" in lines[0]
     assert (tmp_path / "again.h5.partial").exists() and not out.exists()
     assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
     assert_same_datasets(out, ref)
@@ -486,3 +486,29 @@ def test_python_api_names_parameters_and_the_cli_flags(tmp_path, capsys, runs) -
     err = one_line(capsys)
     assert len(err) == 1 and "pass --overwrite to replace it" in err[0] and "overwrite=True" not in err[0]
     assert out.read_bytes() == b"precious"
+
+
+# a signal while the process cleans up after the command: sent by an atexit hook, registered first so that it runs last
+AT_EXIT = (
+    "import atexit, os, runpy, sys; sig = int(sys.argv[1]); "
+    "atexit.register(lambda: os.kill(os.getpid(), sig)); "
+    "sys.argv = ['aca-warp', *sys.argv[2:]]; runpy.run_module('aca_warp.cli', run_name='__main__')"
+)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_while_the_process_exits(tmp_path: Path, sig: int) -> None:
+    """A SIGINT or SIGTERM after the command's work, while the process runs its exit clean-ups (the window of
+    ≈ 0.5 s of interpreter shutdown in which it used to die with −2 or −15, or exit 143 without a word): exit
+    128 + signal and one line saying the command had ended and with which code; the run file complete."""
+    (tmp_path / "s.toml").write_text(small_scene_toml("late", count=10, duration=2.0e-6))
+    out = tmp_path / "run.h5"
+    args = ["hf", str(tmp_path / "s.toml"), "-o", str(out), "--no-progress"]
+    r = subprocess.run([sys.executable, "-c", AT_EXIT, str(int(sig)), *args], env=env(), capture_output=True, text=True)
+    lines = error_lines(r.stderr)
+    assert r.returncode == 128 + sig and len(lines) == 1, (r.returncode, r.stderr)
+    name = "SIGTERM" if sig == signal.SIGTERM else "Ctrl-C"
+    assert lines[0].startswith(f"aca-warp: interrupted ({name}) as it exited, after the command ended with exit code 0")
+    assert r.stdout.startswith(f"{out}: 21 samples")
+    with h5py.File(out, "r") as f:
+        assert f.attrs["complete"]

@@ -158,8 +158,8 @@ def test_lf_resume_of_bad_files(tmp_path, capsys):
         f.attrs["scene"] = "{"
     for argv, message in (
         (["lf", "--resume", str(junk)], "cannot open"),
-        (["lf", "--resume", str(hf_like)], "incomplete or damaged"),
-        (["rerun", str(hf_like), "-o", str(tmp_path / "r.h5")], "incomplete or damaged"),
+        (["lf", "--resume", str(hf_like)], "attribute 'scene' is not valid JSON"),
+        (["rerun", str(hf_like), "-o", str(tmp_path / "r.h5")], "attribute 'scene' is not valid JSON"),
     ):
         capsys.readouterr()
         assert main(argv) == 2, argv

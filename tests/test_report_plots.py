@@ -110,7 +110,7 @@ def test_analyze_writes_every_group_with_units(runs, tmp_path):
     assert set(groups) == {"spectra", "patch_spectrum", "stft", "cwt", "sync", "peaks", "saturation"}
     with h5py.File(path, "r") as f:
         a = f["analysis"]
-        assert set(a) == set(groups) and report._TMP_GROUP not in f
+        assert set(a) == set(groups) and report.TMP_GROUP not in f
         units = {}
         a.visititems(lambda n, o: units.__setitem__(n, o.attrs.get("unit")) if isinstance(o, h5py.Dataset) else None)
         assert units and all(u is not None for u in units.values()), units
@@ -203,7 +203,7 @@ def test_a_failed_write_keeps_the_previous_analysis(runs, tmp_path, monkeypatch)
         analyze_run(path, freq_range=(1e3, 1e5))
     _assert_same(before, _snapshot(path))
     with h5py.File(path, "r") as f:
-        assert report._TMP_GROUP not in f
+        assert report.TMP_GROUP not in f
 
 
 @pytest.mark.parametrize(

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import warp as wp
-from aca_warp.kernels.hf import contact_block, contact_flat
+from aca_warp.kernels.hf import contact_flat
+from aca_warp.kernels.physics import contact_block
 from procs import nine_patch_scene
 
 from aca_warp.scene import Scene

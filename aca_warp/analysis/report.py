@@ -30,6 +30,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from aca_warp.common.bounds import check_h5, json_attribute
 from aca_warp.common.errors import SceneError
 from aca_warp.common.files import attr_value
 
@@ -68,7 +69,7 @@ PEAK_FLOOR_HZ = 1.0e3
 
 RULES = ("relative", "snr")
 GROUP = "analysis"
-_TMP_GROUP = "_analysis_new"
+TMP_GROUP = "_analysis_new"
 
 
 # ----------------------------------------------------------------------------------------- run files
@@ -96,10 +97,19 @@ def check_run_file(f: h5py.File, name: str | Path = "") -> None:
         missing.append("root attribute 'scene'")
     if missing:
         raise SceneError(f"{where}not an aca_warp run file (lacks {', '.join(missing)})")
+    if not isinstance(json_attribute(f.attrs["scene"], f"{where}attribute 'scene'"), dict):
+        raise SceneError(f"{where}attribute 'scene' is not a JSON object (a crafted or damaged file)")
+    for k in ("global/time", *(f"global/{k}" for k in GLOBAL_OUTPUTS), "patches/x", "patches/y", "patches/area"):
+        if k in f and not isinstance(f[k], h5py.Dataset):
+            raise SceneError(f"{where}/{k} is a {type(f[k]).__name__.lower()}, not a dataset")
     n = f["global/time"].shape
     for k in (k for k in GLOBAL_OUTPUTS if f"global/{k}" in f):
         if f[f"global/{k}"].shape != n or len(n) != 1:
             raise SceneError(f"{where}/global/{k} has shape {f[f'global/{k}'].shape}, /global/time {n}")
+    m = f["patches/x"].shape
+    for k in ("x", "y", "area"):
+        if f[f"patches/{k}"].shape != m or len(m) != 1:
+            raise SceneError(f"{where}/patches/{k} has shape {f[f'patches/{k}'].shape}, expected one value per patch")
     if n[0] < 8:
         raise SceneError(f"{where}the run holds {n[0]} samples; the analysis needs at least 8")
     if "patches/velocity" in f:
@@ -123,6 +133,7 @@ def open_run_file(path: str | Path, mode: str = "r") -> h5py.File:
         detail = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise SceneError(f"cannot open {p}{what}: {detail}") from None
     try:
+        check_h5(f, p, "run file")  # links, declared sizes, numbers: before anything is read
         if _decode(f.attrs.get("kind")) == "lf":
             raise SceneError(
                 f"{p} is an LF run file: the analysis applies to HF run files (aca-warp hf); "
@@ -485,9 +496,23 @@ def read_group(g: h5py.Group) -> Group:
     return out
 
 
+def analysis_fits(f: h5py.File) -> bool:
+    """Whether the file's ``/analysis`` describes its samples as they are now: its ``samples`` attribute equals the
+    length of ``/global/time`` (an analysis written before that attribute: the run was complete then as now)."""
+    g = f[GROUP]
+    if "samples" in g.attrs:
+        return int(g.attrs["samples"]) == f["global/time"].shape[0]
+    return bool(g.attrs.get("run_complete", False)) == bool(run_attr(f, "complete", False))
+
+
+def stored(f: h5py.File, name: str) -> bool:
+    """Whether the file holds ``/analysis/<name>`` and it still fits the samples (:func:`analysis_fits`)."""
+    return f"{GROUP}/{name}" in f and analysis_fits(f)
+
+
 def analysis_group(f: h5py.File, name: str, compute: Callable[[], Group | None]) -> Group | None:
-    """``/analysis/<name>`` from the file when present, else ``compute()`` (nothing is written)."""
-    if f"{GROUP}/{name}" in f:
+    """``/analysis/<name>`` from the file when :func:`stored`, else ``compute()`` (nothing is written)."""
+    if stored(f, name):
         return read_group(f[f"{GROUP}/{name}"])
     return compute()
 
@@ -507,24 +532,24 @@ def write_analysis(f: h5py.File, groups: dict[str, Group], attrs: dict[str, Any]
     need = sum(np.asarray(d).nbytes + 4096 for g in groups.values() for d, _ in g.datasets.values())
     try:
         guard.reserve(need)
-        if _TMP_GROUP in f:
-            del f[_TMP_GROUP]
+        if TMP_GROUP in f:
+            del f[TMP_GROUP]
         try:
-            tmp = f.create_group(_TMP_GROUP)
+            tmp = f.create_group(TMP_GROUP)
             for k, v in attrs.items():
                 tmp.attrs[k] = _attr_value(v)
             for name, group in groups.items():
                 _write_group(tmp, name, group)
         except BaseException:
             try:
-                if _TMP_GROUP in f:
-                    del f[_TMP_GROUP]
+                if TMP_GROUP in f:
+                    del f[TMP_GROUP]
             finally:
                 raise
         with deferred():
             if GROUP in f:
                 del f[GROUP]
-            f.move(_TMP_GROUP, GROUP)
+            f.move(TMP_GROUP, GROUP)
             guard.flush()
     except Exception as e:  # a StorageError of the reservation, or an OSError/RuntimeError of HDF5
         code = storage_errno(e)
@@ -562,6 +587,10 @@ def analyze_run(
 ) -> dict[str, Group]:
     """Analyse a run file and (re)write its ``/analysis`` group; returns the groups written.
 
+    The run file's output lock (``RUN.h5.lock`` and its identity, :class:`~aca_warp.common.files.OutputLock`) is
+    held throughout, so a run that another process still writes or resumes is refused, and ``/analysis`` records
+    the samples it describes (``samples``, ``time_range`` [s]; a resumed run drops it).
+
     Args:
         path: Run file written by ``aca-warp hf`` / :func:`aca_warp.hf.runner.run_scene`.
         freq_range: ``(fmin, fmax)`` [Hz] of the Synchronization Index, the CWT and the peak search; a None
@@ -584,40 +613,49 @@ def analyze_run(
         workers: Threads of ``scipy.fft`` (-1: all CPUs).
 
     Raises:
-        SceneError: The file is missing, not an HDF5 run file, not writable, or an option is invalid;
-            the file is then left unchanged.
+        SceneError: The file is missing, not an HDF5 run file, not writable, written by another process, or an
+            option is invalid; the file is then left unchanged.
     """
+    from aca_warp.common.files import locked_output
+
     _check_options(rule, eta, snr, n_bins)
-    band = _checked_band(path, freq_range)
     index = {"rule": rule, "eta": eta, "snr": snr, "n_bins": n_bins, "null_trials": null_trials}
-    with open_run_file(path, "r+") as f:
-        groups: dict[str, Group] = {"spectra": compute_spectra(f)}
-        if sync:
-            groups.update(_patch_velocity_groups(f, band, index, max_bytes, workers))
-        groups["stft"] = compute_stft(f, window_s=stft_window_s)
-        groups["cwt"] = compute_cwt(f, freqs=cwt_freqs, freq_range=band, count=cwt_count, columns=cwt_columns)
-        groups["peaks"] = compute_peaks(groups["spectra"], groups.get("patch_spectrum"), freq_range=band)
-        groups["saturation"] = compute_saturation(f)
-        parameters = {
-            "freq_range": list(band) if band else None,
-            "sync": sync,
-            "rule": rule,
-            "eta": eta,
-            "snr": snr,
-            "n_bins": n_bins,
-            "stft_window_s": stft_window_s,
-            "cwt_count": cwt_count,
-            "cwt_columns": cwt_columns,
-            "null_trials": null_trials,
-        }
-        attrs = {
-            "created_by": "aca_warp.analysis.report.analyze_run",
-            "aca_warp_version": _package_version(),
-            "parameters": parameters,
-            "run_complete": bool(run_attr(f, "complete", False)),
-            "groups": json.dumps(sorted(groups)),
-        }
-        write_analysis(f, groups, attrs)
+    busy = "wait for it to finish or stop it (analyze writes /analysis into the run file)"
+    with locked_output(path, what=busy) as lock:
+        if Path(path).is_file():  # a missing file: open_run_file's message
+            lock.own(path, what=busy)
+        band = _checked_band(path, freq_range)
+        with open_run_file(path, "r+") as f:
+            groups: dict[str, Group] = {"spectra": compute_spectra(f)}
+            if sync:
+                groups.update(_patch_velocity_groups(f, band, index, max_bytes, workers))
+            groups["stft"] = compute_stft(f, window_s=stft_window_s)
+            groups["cwt"] = compute_cwt(f, freqs=cwt_freqs, freq_range=band, count=cwt_count, columns=cwt_columns)
+            groups["peaks"] = compute_peaks(groups["spectra"], groups.get("patch_spectrum"), freq_range=band)
+            groups["saturation"] = compute_saturation(f)
+            parameters = {
+                "freq_range": list(band) if band else None,
+                "sync": sync,
+                "rule": rule,
+                "eta": eta,
+                "snr": snr,
+                "n_bins": n_bins,
+                "stft_window_s": stft_window_s,
+                "cwt_count": cwt_count,
+                "cwt_columns": cwt_columns,
+                "null_trials": null_trials,
+            }
+            t = f["global/time"]
+            attrs = {
+                "created_by": "aca_warp.analysis.report.analyze_run",
+                "aca_warp_version": _package_version(),
+                "parameters": parameters,
+                "run_complete": bool(run_attr(f, "complete", False)),
+                "samples": int(t.shape[0]),
+                "time_range": [float(t[0]), float(t[-1])],
+                "groups": json.dumps(sorted(groups)),
+            }
+            write_analysis(f, groups, attrs)
     return groups
 
 

@@ -150,15 +150,15 @@ def closed_on_failure(
 ) -> Iterator[None]:
     """Close ``f`` if the body raises (a resume must not leave the partial file open); ``close`` replaces
     ``f.close`` (:meth:`~aca_warp.common.storage.GuardedFile.abandon`: a failed resume writes nothing). With
-    ``scene_error``, the errors of a malformed file (KeyError, ValueError, TypeError, OSError, RuntimeError)
-    become one SceneError naming ``path``."""
+    ``scene_error``, the errors of a malformed file (KeyError, ValueError, TypeError, OSError, RuntimeError, and
+    AttributeError: a group where a dataset belongs) become one SceneError naming ``path``."""
     close = close or f.close
     try:
         yield
     except AcaError:  # already one line
         close()
         raise
-    except (KeyError, ValueError, TypeError, OSError, RuntimeError) as e:
+    except (KeyError, ValueError, TypeError, OSError, RuntimeError, AttributeError) as e:
         close()
         if not scene_error:
             raise

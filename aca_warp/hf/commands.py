@@ -62,8 +62,8 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "--dt",
         type=positive,
         metavar="S",
-        help=f"fixed step [s] (default {DEFAULT_DT:g}; shortened to fit the sample interval); "
-        "initial step of 'adaptive'",
+        help=f"fixed step [s] (default {DEFAULT_DT:g}; shortened so that whole steps fit the sample interval, which "
+        "may not be shorter than it); initial step of 'adaptive'",
     )
     hf.add_argument(
         "--tolerance",
@@ -317,7 +317,9 @@ def _add_rerun(sub: Any) -> None:
         "rerun",
         help="repeat a run from its run file (HF or LF: scene, patches, integrator, precision, device)",
         description="Repeat the run stored in RUN.h5 into NEW.h5: same scene (patches from the file), integrator, "
-        "run options, precision and device. On the same device and precision the samples are bit-identical.",
+        "run options, precision and device. On the same device and precision the samples are bit-identical. "
+        "Stored options that relax a check (force, the watchdog off, accept_unphysical, allow_implausible) are "
+        "applied and named on stderr; the size limits hold unless --force is given here.",
     )
     p.add_argument("run", metavar="RUN.h5", help="run file to repeat")
     p.add_argument("-o", "--output", required=True, metavar="NEW.h5", help="run file to write")
@@ -325,6 +327,12 @@ def _add_rerun(sub: Any) -> None:
     add_checkpoint_arguments(p, "solver")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="repeat a run beyond the size limits (1e10 steps, 50 GB of samples, the free space, a sample interval "
+        "shorter than the step); a force stored in the run file does not lift them",
+    )
     p.set_defaults(handler=_cmd_rerun)
 
 
@@ -344,7 +352,7 @@ def _cmd_rerun(args: argparse.Namespace) -> int:
 
     from aca_warp.analysis.pads import shard_pads
     from aca_warp.common.files import check_output_path, version_changes
-    from aca_warp.hf.rerun import read_settings
+    from aca_warp.hf.rerun import read_settings, relaxed_checks
     from aca_warp.hf.runner import run_scene
 
     pads = shard_pads(args.run)
@@ -368,6 +376,9 @@ def _cmd_rerun(args: argparse.Namespace) -> int:
     changed = version_changes(s.versions)
     if changed:
         print(f"aca-warp: note: versions differ from the run's: {', '.join(changed)}", file=sys.stderr)
+    relaxed = relaxed_checks(s)
+    if relaxed:
+        print(f"aca-warp: note: {args.run} stores, and the rerun applies: {'; '.join(relaxed)}", file=sys.stderr)
     options = s.options
     if args.checkpoint_interval is not None:
         options = dataclasses.replace(options, checkpoint_interval=args.checkpoint_interval)
@@ -379,6 +390,7 @@ def _cmd_rerun(args: argparse.Namespace) -> int:
         precision=s.precision,
         overwrite=args.overwrite,
         progress=not args.no_progress,
+        force_limits=args.force,
     )
     line = f"{args.output}: rerun of {args.run}, {result.steps} steps over {result.sim_time:.4g} s"
     if result.fault is not None:

@@ -20,14 +20,11 @@ import warp as wp
 
 from aca_warp.common.devices import block_threads
 from aca_warp.hf import adaptive
-from aca_warp.hf.engine import EngineTuning, Progress
+from aca_warp.hf.engine import EngineSetup, Progress, fault_cause, run_stages
 from aca_warp.hf.model import PadModel
-from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import CONTACT_BLOCK, HFSolver, grown_arrays, growth_events, growth_interval
-from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
-from aca_warp.scene import Record
 
 
 class Growth:
@@ -85,15 +82,9 @@ class GeneralEngine:
 
     blocks_per_pad = 1
 
-    def __init__(
-        self,
-        model: PadModel,
-        state: HFState,
-        options: RunOptions,
-        record: Record,
-        n_samples: int,
-        tuning: EngineTuning,
-    ) -> None:
+    def __init__(self, setup: EngineSetup) -> None:
+        model, state, options, record = setup.model, setup.state, setup.options, setup.record
+        n_samples, tuning = setup.n_samples, setup.tuning
         self.model, self.state, self.record, self.n_samples = model, state, record, n_samples
         self.use_graph = tuning.use_graph
         integrator = options.integrator
@@ -105,24 +96,13 @@ class GeneralEngine:
         self.h = record.sample_dt / self.sps
         self.block = max(1, min(n_samples, tuning.max_graph_steps // self.sps))
         self.recorder = Recorder(model, record, (adaptive.ROWS if self.adaptive else self.block) + 1, n_samples)
-        self.stages = [
-            "contact",
-            "neighbours" if model.has_coupling else "no-coupling",
-            f"step:{integrator}",
-            "record:globals",
-        ] + (["record:patches"] if self.recorder.patch_stage else [])
-        limit = self.estimate.limit(integrator)
-        self.cause = (
-            f"step {self.h:.3g} s beyond the stable estimate {limit:.3g} s"
-            if self.h > limit
-            else "extreme scene parameters (check loads, areas, speeds)"
-        )
+        self.stages = run_stages(model, self.recorder, integrator)
+        self.cause = fault_cause(self.estimate, integrator, self.h)
         if integrator == "strang":
             self.solver.prepare(state)
         self.started = False
         self.growth = None
         if growing:
-            self.stages.append("growth")
             self.growth = Growth(model, None if self.adaptive else self.h)
         self.stepper = None
         if self.adaptive:

@@ -20,11 +20,11 @@ The CSR offsets stay 32-bit: a scene that needs more than 2^31 − 1 links needs
 from __future__ import annotations
 
 import math
-import os
 from typing import Any
 
 import numpy as np
 
+from aca_warp.common.bounds import available_memory
 from aca_warp.common.errors import SceneError
 
 INT32_MAX = 2**31 - 1
@@ -42,24 +42,6 @@ def check_int32(name: str, value: int | float, hint: str) -> None:
     if value > INT32_MAX:
         shown = str(value) if isinstance(value, int) else f"{value:.3g}"
         raise SceneError(f"{name} = {shown} exceeds {INT32_MAX} (2^31 - 1, the kernels count it in int32); {hint}")
-
-
-def available_memory(device: Any) -> int:
-    """Bytes a model may use: the free memory of a CUDA device, or the host's available memory (MemAvailable)."""
-    if getattr(device, "is_cuda", False):
-        free = getattr(device, "free_memory", None)
-        if free:
-            return int(free)
-    try:
-        for line in open("/proc/meminfo").read().splitlines():  # noqa: SIM115
-            if line.startswith("MemAvailable:"):
-                return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    try:
-        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):
-        return 2**62  # unknown: do not refuse
 
 
 def links_lower_bound(x: np.ndarray, y: np.ndarray, pad_of: np.ndarray, radius: np.ndarray) -> int:

@@ -25,7 +25,7 @@ import warp as wp
 
 from aca_warp.common.checkpoint import Checkpoint, CheckpointClock
 from aca_warp.common.errors import SceneError, SimulationFault, option
-from aca_warp.hf.engine import Engine, EngineTuning, Progress
+from aca_warp.hf.engine import Engine, EngineSetup, EngineTuning, Progress
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Chunk, check_run, fault_from, watchdog_bound
@@ -93,17 +93,18 @@ def make_engine(
     """The engine ``options.engine`` resolves to (:func:`~aca_warp.hf.onchip.choose_engine`)."""
     from aca_warp.hf.onchip_layout import choose_engine
 
+    setup = EngineSetup(model, state, options, record, n_samples, tuning)
     if choose_engine(model, options.engine, options.integrator) == "onchip":
         if options.integrator == "adaptive":
             from aca_warp.hf.onchip_adaptive import OnchipAdaptiveEngine
 
-            return OnchipAdaptiveEngine(model, state, options, record, n_samples, tuning)
+            return OnchipAdaptiveEngine(setup)
         from aca_warp.hf.onchip import OnchipEngine
 
-        return OnchipEngine(model, state, options, record, n_samples, tuning)
+        return OnchipEngine(setup)
     from aca_warp.hf.general import GeneralEngine
 
-    return GeneralEngine(model, state, options, record, n_samples, tuning)
+    return GeneralEngine(setup)
 
 
 def restore(saved: dict[str, wp.array], ckpt: Checkpoint) -> None:

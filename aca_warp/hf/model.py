@@ -84,6 +84,10 @@ class PadModel:
         """``"fp32"`` or ``"fp64"``."""
         return "fp64" if self.dtype == wp.float64 else "fp32"
 
+    def args(self, names: tuple[str, ...]) -> list[wp.array]:
+        """The arrays ``names``, in that order (a kernel's model arguments)."""
+        return [self.arrays[k] for k in names]
+
     def host(self, name: str) -> np.ndarray:
         """A copy of a model array on the host (``numpy()`` of a CPU array is a view of the live array)."""
         return self.arrays[name].numpy().copy()

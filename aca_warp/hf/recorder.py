@@ -15,12 +15,13 @@ import numpy as np
 import warp as wp
 
 from aca_warp.common.devices import block_threads
-from aca_warp.common.errors import SceneError, SimulationFault
+from aca_warp.common.errors import SceneError, SimulationFault, option
 from aca_warp.hf.limits import check_int32
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import WATCHDOG_FACTOR, check_interval
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
+from aca_warp.kernels.physics import N_GLOBAL
 from aca_warp.scene import Record
 
 GLOBAL_NAMES = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity", "friction_centroid")
@@ -45,6 +46,18 @@ def check_run(duration: float, record: Record, checkpoint_every: float | None = 
     # the kernels take the decimation as an int32 (a wrapped value divides by zero: SIGFPE)
     check_int32("record.decimation", record.decimation, f"any value above {n_samples} records one row only")
     return n_samples
+
+
+def check_sample_step(sample_dt: float, dt: float, anyway: str = "") -> None:
+    """Refuse a sample interval [s] shorter than the step ``dt`` [s] that was asked for (or the default): the run
+    would shrink every step to the sample interval, silently multiplying the steps (``record.sample_dt = 1e-12``
+    turned a 1e-8 s step into 1e-12 s and a run of hours). ``anyway`` names the override, if there is one."""
+    if sample_dt < dt * (1 - 1e-9):
+        raise SceneError(
+            f"record.sample_dt = {sample_dt:g} s is shorter than the step {dt:g} s: every step would shrink to the "
+            f"sample interval ({dt / sample_dt:.3g} times the steps); choose a sample interval of at least the step "
+            f"(seconds) or ask for that step ({option('dt', '--dt')})" + (f"; {anyway}" if anyway else "")
+        )
 
 
 def watchdog_bound(model: PadModel, state: HFState, factor: float = WATCHDOG_FACTOR) -> np.ndarray:
@@ -106,6 +119,13 @@ class Chunk:
         )
 
 
+# model arrays of the sample kernel (kernels.hf.record_globals), in its argument order
+SAMPLE_ARRAYS = (
+    "pad_patch_start", "normal_force", "radius", "pad_omega", "pad_mu_scale", "pad_slope", "pad_decay", "pad_mu_pad",
+    "pad_load", "pad_matrix_force", "pad_matrix_radius", "inv_mass", "k_t", "x", "y",
+)  # fmt: skip
+
+
 class Recorder:
     """Device buffers and launches for the global outputs and per-patch histories."""
 
@@ -126,7 +146,7 @@ class Recorder:
         prow = rows if (self.want_v or self.want_u) else 0
         n = model.patch_count if prow else 0
         self.counters = wp.zeros(4, dtype=wp.int32, device=dev)
-        self.globals = wp.zeros((rows, model.pad_count, K.N_GLOBAL), dtype=wp.float64, device=dev)
+        self.globals = wp.zeros((rows, model.pad_count, N_GLOBAL), dtype=wp.float64, device=dev)
         # watchdog: [patch, sample, kind] of the first fault per pad (kind 0 non-finite, 1 beyond watch_bound)
         table = np.full((model.pad_count, 3), -1, np.int32)
         table[:, 2] = 0
@@ -138,7 +158,7 @@ class Recorder:
         self.sample_index = 0
 
     def due(self, k: int) -> bool:
-        """Whether global sample k also records per-patch histories (``patch_sample_due`` of kernels.hf)."""
+        """Whether global sample k also records per-patch histories (``patch_sample_due`` of kernels.physics)."""
         return self.first <= k <= self.last and (k - self.first) % self.every == 0
 
     def kernel_rows(self) -> tuple[int, int, int]:
@@ -166,21 +186,7 @@ class Recorder:
             block_dim=RECORD_BLOCK,
             device=m.device,
             inputs=[
-                m.pad_patch_start,
-                m.normal_force,
-                m.radius,
-                m.pad_omega,
-                m.pad_mu_scale,
-                m.pad_slope,
-                m.pad_decay,
-                m.pad_mu_pad,
-                m.pad_load,
-                m.pad_matrix_force,
-                m.pad_matrix_radius,
-                m.inv_mass,
-                m.k_t,
-                m.x,
-                m.y,
+                *m.args(SAMPLE_ARRAYS),
                 c,
                 block_threads(m.device, RECORD_BLOCK),
                 u,

@@ -49,11 +49,12 @@ from aca_warp.common.errors import AcaError, SceneError, option
 from aca_warp.common.files import (
     OutputLock,
     check_output_path,
+    create_h5,
     from_h5py,
     new_path,
     open_h5,
     partial_path,
-    resume_advice,
+    recovery,
     versions,
 )
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
@@ -62,6 +63,36 @@ from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS, Chunk
 from aca_warp.scene import Scene, scene_to_dict
 
 RAW_CACHE = 64 * 2**20  # bytes of HDF5 chunk cache: appended rows of wide per-patch histories stay cached
+SERIES_CHUNK = 4096  # samples per chunk of /global/* and /patches/time
+HISTORY_CHUNK = (1024, 64)  # (samples, patches) per chunk of the per-patch histories (patches: at most 64)
+# what else a file holds, on disk: object headers, chunk index nodes, the two checkpoint slots (measured by
+# scripts/file_size.py: docs/faults.md, "Output folders")
+HEADER_BYTES = 64 * 1024
+BYTES_PER_CHUNK = 128
+CHECKPOINT_BYTES_PER_PATCH = 2 * 16 * 8
+
+
+def file_bytes(
+    samples: int, rows: int, patches: int, histories: int, item: int, *, cells: int, checkpoints: bool
+) -> int:
+    """Bytes the run file takes on disk when it ends [B]: ``samples`` global samples, ``rows`` rows of
+    ``histories`` per-patch histories (velocity, displacement) of ``patches`` patches in ``item``-byte values,
+    ``cells`` matrix cells, with or without checkpoint slots. HDF5 allocates chunks whole, so the series round up to
+    :data:`SERIES_CHUNK` samples and the histories to :data:`HISTORY_CHUNK` (a 40-patch history takes 64 columns),
+    and a deleted checkpoint leaves its space in the file."""
+
+    def up(n: int, k: int) -> int:
+        return -(-n // k) * k
+
+    width = min(patches, HISTORY_CHUNK[1])
+    series = (1 + len(GLOBAL_NAMES)) * up(samples, SERIES_CHUNK) * 8
+    history = up(rows, SERIES_CHUNK) * 8 if rows else 0
+    history += histories * up(rows, HISTORY_CHUNK[0]) * up(patches, width) * item if rows else 0
+    chunks = (1 + len(GLOBAL_NAMES)) * up(samples, SERIES_CHUNK) // SERIES_CHUNK
+    if rows:
+        chunks += histories * (up(rows, HISTORY_CHUNK[0]) // HISTORY_CHUNK[0]) * (up(patches, width) // width)
+    fixed = 7 * patches * 8 + 3 * cells * 8 + (CHECKPOINT_BYTES_PER_PATCH * patches if checkpoints else 0)
+    return series + history + fixed + chunks * BYTES_PER_CHUNK + HEADER_BYTES
 
 
 def busy() -> str:
@@ -86,7 +117,6 @@ class RunWriter:
         self.lock = lock or OutputLock.acquire(path, what=busy())
         self.pad = pad
         self.model = model
-        self.checkpoint_time: float | None = None
         a, b = (int(x) for x in model.pad_patch_start_host[pad : pad + 2])
         self.slice = slice(a, b)
         self.flush_each_chunk = True
@@ -95,8 +125,7 @@ class RunWriter:
         try:
             self.path = check_output_path(path, overwrite=overwrite)
             self.partial = partial_path(self.path)
-            tmp.unlink(missing_ok=True)  # left by a run killed while creating its file (we hold the lock)
-            self.f = h5py.File(tmp, "w", rdcc_nbytes=RAW_CACHE)
+            self.f = create_h5(tmp, self.lock, rdcc_nbytes=RAW_CACHE)  # a leftover .new is replaced, a link refused
             self.out = GuardedFile(self.f, self.partial, raw_cache=RAW_CACHE)
             self._write_header(model.scenes[pad], attrs or {})
             self.out.flush()
@@ -106,7 +135,8 @@ class RunWriter:
                 self.out.abandon()
             elif getattr(self, "f", None) is not None:
                 self.f.close()
-            tmp.unlink(missing_ok=True)
+            if getattr(self, "f", None) is not None:
+                tmp.unlink(missing_ok=True)
             self.lock.release()
             code = storage_errno(e)
             if code is not None:
@@ -125,7 +155,7 @@ class RunWriter:
             f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
         g = f.create_group("global")
         for name, unit in (("time", "s"), *zip(GLOBAL_NAMES, GLOBAL_UNITS, strict=True)):
-            d = g.create_dataset(name, shape=(0,), maxshape=(None,), dtype="f8", chunks=(4096,))
+            d = g.create_dataset(name, shape=(0,), maxshape=(None,), dtype="f8", chunks=(SERIES_CHUNK,))
             d.attrs["unit"] = unit
         p = f.create_group("patches")
         mass = scene.material.mass_per_area * scene.patches.area
@@ -212,9 +242,13 @@ class RunWriter:
                     d[d.shape[0] - 1]
             if "final" in f["patches"]:
                 del f["patches"]["final"]
+            from aca_warp.analysis.report import GROUP, TMP_GROUP
+
+            for name in (GROUP, TMP_GROUP):  # an analysis of the samples as they were no longer describes the file
+                if name in f:
+                    del f[name]
         # a run resumed from a checkpoint keeps flushing at checkpoints only; one started again, at every chunk
         self.flush_each_chunk = ckpt is None
-        self.checkpoint_time = None if ckpt is None else ckpt.sim_time
         resumed = (
             "started again from t = 0 (no checkpoint)"
             if ckpt is None
@@ -241,13 +275,12 @@ class RunWriter:
         ckpt.rows = self.rows()
         self.out.reserve(checkpoint_room(self.f, ckpt))
         write_checkpoint(self.f, ckpt, flush=self.out.flush)
-        self.checkpoint_time = ckpt.sim_time
 
     def _patch_dataset(self, name: str, unit: str, width: int, dtype: Any) -> h5py.Dataset:
         if name not in self._patch_ds:
             shape = (0,) if width == 0 else (0, width)
             # narrow in patches, long in time: an analysis reads column blocks of patches in one pass
-            chunks = (4096,) if width == 0 else (1024, min(width, 64))
+            chunks = (SERIES_CHUNK,) if width == 0 else (HISTORY_CHUNK[0], min(width, HISTORY_CHUNK[1]))
             d = self.f["patches"].create_dataset(
                 name, shape=shape, maxshape=(None, *shape[1:]), dtype=dtype, chunks=chunks
             )
@@ -300,7 +333,7 @@ class RunWriter:
             self.abandon()
             code = storage_errno(e)
             if code is not None:
-                raise storage_error(code, self.partial, resume_advice("hf", self.path, self.checkpoint_time)) from None
+                raise storage_error(code, self.partial, f"make room, then {recovery(self.path)}") from None
             raise
         self.lock.release()
         return self.path
@@ -323,8 +356,8 @@ class RunWriter:
             return None
         self.abandon()
         if code is None:  # HDF5 failed to write (a damaged file): nothing more goes into it
-            return write_failed(error, self.partial, resume_advice("hf", self.path, self.checkpoint_time))
-        return storage_error(code, self.partial, resume_advice("hf", self.path, self.checkpoint_time))
+            return write_failed(error, self.partial, f"make room, then {recovery(self.path)}")
+        return storage_error(code, self.partial, f"make room, then {recovery(self.path)}")
 
 
 def read_run(path: str | Path) -> dict[str, Any]:

@@ -79,6 +79,14 @@ def grown_arrays(model: PadModel) -> dict[str, wp.array]:
     return {f"model/{k}": model.arrays[k] for k in GROWTH_MUTABLE}
 
 
+# model arrays of the stepping kernels (kernels.hf), in their argument order: with the coupling gather
+# (euler_velocity) and without (strang_advance, strang_close)
+STEP_ARRAYS = (
+    "patch_pad", "inv_mass", "k_diag", "damping", "normal_force", "radius", "nbr_start", "nbr_index", "nbr_stiffness",
+    "pad_omega", "pad_mu_scale", "pad_slope", "pad_decay",
+)  # fmt: skip
+LOCAL_STEP_ARRAYS = tuple(k for k in STEP_ARRAYS if k not in ("k_diag", "nbr_start", "nbr_index", "nbr_stiffness"))
+
 STICKING_FACTOR = 1.0 / 3.0  # largest |R| of strang's friction step on a sticking patch (sticking bound below)
 
 
@@ -260,33 +268,8 @@ class HFSolver:
             raise SceneError(f"dt must be a positive number of seconds, got {self.dt}")
         if integrator != "adaptive" and not force:  # adaptive: dt is only its first trial
             step_refusal(self.estimate, integrator, self.dt)
-        m = model
-        self.model_args = [
-            m.patch_pad,
-            m.inv_mass,
-            m.k_diag,
-            m.damping,
-            m.normal_force,
-            m.radius,
-            m.nbr_start,
-            m.nbr_index,
-            m.nbr_stiffness,
-            m.pad_omega,
-            m.pad_mu_scale,
-            m.pad_slope,
-            m.pad_decay,
-        ]
-        self.local_args = [
-            m.patch_pad,
-            m.inv_mass,
-            m.damping,
-            m.normal_force,
-            m.radius,
-            m.pad_omega,
-            m.pad_mu_scale,
-            m.pad_slope,
-            m.pad_decay,
-        ]
+        self.model_args = model.args(STEP_ARRAYS)
+        self.local_args = model.args(LOCAL_STEP_ARRAYS)
         self._v_sync: wp.array | None = None
 
     def _launch(self, kernel: Any, inputs: list, dim: int | None = None) -> None:
@@ -305,15 +288,13 @@ class HFSolver:
         :meth:`finish` closes back to the synchronous velocity; :meth:`velocity` gives it at any step.
         """
         h = self.T(dt)
-        if self.integrator == "symplectic-euler":
-            self._launch(K.euler_velocity, [*self.model_args, h, state.u, state.v])
-            self._launch(K.drift, [h, state.v, state.u])
-        elif self.integrator == "implicit-friction":
-            self._launch(K.implicit_velocity, [*self.model_args, h, self.newton_tol, state.u, state.v])
+        if self.integrator in ("symplectic-euler", "implicit-friction"):
+            implicit = int(self.integrator == "implicit-friction")
+            self._launch(K.euler_velocity, [*self.model_args, h, self.newton_tol, implicit, state.u, state.v])
             self._launch(K.drift, [h, state.v, state.u])
         elif self.integrator == "strang":
-            kernel = K.strang_open if first else K.strang_step
-            self._launch(kernel, [*self.local_args, h, self.newton_tol, state.force, state.u, state.v])
+            args = [*self.local_args, h, self.newton_tol, int(first), state.force, state.u, state.v]
+            self._launch(K.strang_advance, args)
             self.prepare(state)
         else:
             raise SceneError("the adaptive integrator steps each pad on its own; use run_hf")

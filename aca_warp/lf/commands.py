@@ -101,10 +101,10 @@ def read_lf_settings(path: str | Path) -> dict[str, Any]:
     """What an LF run file says about how it was made: ``scene`` (rebuilt from the stored JSON, initial patches
     from /initial_patches), ``duration`` [s] or None, ``checkpoint_interval`` [s] or None, ``graph``, ``device``,
     ``versions``, ``complete``. SceneError with one line when the file cannot be rerun."""
-    import json
 
     import numpy as np
 
+    from aca_warp.common.bounds import json_attribute
     from aca_warp.common.errors import SceneError
     from aca_warp.common.files import open_h5, reading
     from aca_warp.lf.scene import lf_scene_from_dict
@@ -115,8 +115,8 @@ def read_lf_settings(path: str | Path) -> dict[str, Any]:
         try:
             if f.attrs.get("kind") != "lf":
                 raise SceneError(f"{p} is not an LF run file (no kind = 'lf' attribute)")
-            doc = json.loads(f.attrs["scene"])
-            run = json.loads(f.attrs["lf_run"]) if "lf_run" in f.attrs else {}
+            doc = json_attribute(f.attrs["scene"], f"{p}: attribute 'scene'")
+            run = json_attribute(f.attrs["lf_run"], f"{p}: attribute 'lf_run'") if "lf_run" in f.attrs else {}
             scene = lf_scene_from_dict(doc, name=str(doc.get("scene", {}).get("name", p.stem)))
             if "initial_patches" in f:
                 g = f["initial_patches"]
@@ -133,7 +133,9 @@ def read_lf_settings(path: str | Path) -> dict[str, Any]:
                 "checkpoint_interval": None if ci is None else float(ci),
                 "graph": run.get("graph"),
                 "device": str(f.attrs["device"]),
-                "versions": json.loads(f.attrs["versions"]) if "versions" in f.attrs else {},
+                "versions": json_attribute(f.attrs["versions"], f"{p}: attribute 'versions'")
+                if "versions" in f.attrs
+                else {},
                 "complete": bool(f.attrs.get("complete", False)),
             }
         except SceneError as e:
@@ -152,15 +154,12 @@ def resume_lf(
     import json
     import os
 
-    from aca_warp.common.files import OutputLock, find_resumable
+    from aca_warp.common.files import lock_resumable
     from aca_warp.lf.io import LFRunWriter
     from aca_warp.lf.solver import LFSimulation
 
-    final, part = find_resumable(path)
-    lock = OutputLock.acquire(final, what="it cannot be resumed while it runs")
+    final, part, src, lock = lock_resumable(path)
     try:
-        final, part = find_resumable(path)  # again, now that no other process can move it
-        src = part if part.exists() else final
         s = read_lf_settings(src)
         sim = LFSimulation(s["scene"], device=device or s["device"], duration=s["duration"], graph=s["graph"])
         if src == final:

@@ -34,6 +34,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from aca_warp.common.bounds import json_attribute
 from aca_warp.common.checkpoint import (
     checkpoint_room,
     closed_on_failure,
@@ -46,14 +47,14 @@ from aca_warp.common.errors import AcaError, SceneError, option
 from aca_warp.common.files import (
     OutputLock,
     check_output_path,
+    create_h5,
     from_h5py,
     machine,
     new_path,
     open_h5,
     partial_path,
     reading,
-    resume_advice,
-    resume_hint,
+    recovery,
     versions,
 )
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
@@ -90,13 +91,11 @@ class LFRunWriter:
         self.lock = lock or OutputLock.acquire(path, what=busy())
         self.sim = sim
         self.rows = 0
-        self.checkpoint_time: float | None = None
         tmp = new_path(partial_path(path))
         try:
             self.path = check_lf_output(path, overwrite=overwrite)
             self.partial = self.path.with_name(self.path.name + ".partial")
-            tmp.unlink(missing_ok=True)  # left by a run killed while creating its file (we hold the lock)
-            self.f = h5py.File(tmp, "w")
+            self.f = create_h5(tmp, self.lock)  # a leftover .new is replaced, a link refused
             self.out = GuardedFile(self.f, self.partial)
             self._write_header(run)
             self.out.flush()
@@ -106,7 +105,8 @@ class LFRunWriter:
                 self.out.abandon()
             elif getattr(self, "f", None) is not None:
                 self.f.close()
-            tmp.unlink(missing_ok=True)
+            if getattr(self, "f", None) is not None:
+                tmp.unlink(missing_ok=True)
             self.lock.release()
             code = storage_errno(e)
             if code is not None:
@@ -183,7 +183,6 @@ class LFRunWriter:
             with closed_on_failure(f, self.partial, scene_error=False, close=self.out.abandon):
                 sim.restore(ckpt, hist)
         self.rows = rows
-        self.checkpoint_time = None if ckpt is None else ckpt.sim_time
         resumed = (
             "started again from t = 0 (no checkpoint)"
             if ckpt is None
@@ -232,7 +231,6 @@ class LFRunWriter:
         ckpt.rows = {"global": self.rows}
         self.out.reserve(checkpoint_room(self.f, ckpt))
         write_checkpoint(self.f, ckpt, flush=self.out.flush)
-        self.checkpoint_time = ckpt.sim_time
 
     def close(self, *, complete: bool, status: str, attrs: dict[str, Any] | None = None) -> Path:
         """Write the rest of the time series and the closing attributes, close, move the file to its final name
@@ -260,7 +258,7 @@ class LFRunWriter:
             self.abandon()
             code = storage_errno(e)
             if code is not None:
-                raise storage_error(code, self.partial, resume_advice("lf", self.path, self.checkpoint_time)) from None
+                raise storage_error(code, self.partial, f"make room, then {recovery(self.path)}") from None
             raise
         self.lock.release()
         return self.path
@@ -281,8 +279,8 @@ class LFRunWriter:
             return None
         self.abandon()
         if code is None:  # HDF5 failed to write (a damaged file): nothing more goes into it
-            return write_failed(error, self.partial, resume_advice("lf", self.path, self.checkpoint_time))
-        return storage_error(code, self.partial, resume_advice("lf", self.path, self.checkpoint_time))
+            return write_failed(error, self.partial, f"make room, then {recovery(self.path)}")
+        return storage_error(code, self.partial, f"make room, then {recovery(self.path)}")
 
 
 def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:
@@ -290,9 +288,8 @@ def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:
     part = partial_path(path)
     if part.exists() and not overwrite and not Path(path).is_dir():
         raise SceneError(
-            f"{part} exists (an unfinished LF run); continue it with "
-            f"{resume_hint('lf', path)} or pass "
-            f"{option('overwrite=True', '--overwrite')}"
+            f"{part} exists (an unfinished LF run): {recovery(path)}; or pass "
+            f"{option('overwrite=True', '--overwrite')} to replace it"
         )
     return check_output_path(path, overwrite=overwrite)
 
@@ -333,7 +330,7 @@ def read_snapshot(path: str | Path, name: str) -> dict[str, Any]:
         out: dict[str, Any] = {part: {k: g[part][k][()] for k in g[part]} for part in ("patches", "matrix", "rings")}
         out["attrs"] = {k: (v.item() if hasattr(v, "item") else v) for k, v in g.attrs.items()}
         try:
-            out["scene"] = json.loads(f.attrs["scene"])
+            out["scene"] = json_attribute(f.attrs["scene"], f"{path}: attribute 'scene'")
         except (KeyError, TypeError, ValueError) as e:
             raise SceneError(f"{path}: the stored LF scene is missing or damaged ({type(e).__name__}: {e})") from None
     return out

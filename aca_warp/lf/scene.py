@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common import plausible
+from aca_warp.common.bounds import read_toml
 from aca_warp.common.errors import SceneError
 from aca_warp.scene import (
     GENERATOR_KINDS,
@@ -439,9 +440,7 @@ def load_lf_scene(spec: str | Path, overrides: dict | None = None, *, allow_impl
         if not p.is_file():
             raise SceneError(f"LF scene {s!r} is neither a preset ({', '.join(LF_PRESETS)}) nor an existing TOML file")
         try:
-            doc = tomllib.loads(p.read_text())
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-            raise SceneError(f"cannot parse {p}: {e}") from None
+            doc = read_toml(p, "LF scene file")
         except OSError as e:
             raise SceneError(f"cannot read LF scene file {p}: {e.strerror}") from None
         if not doc:

@@ -382,12 +382,12 @@ class LFSimulation:
         tmp = wp.zeros(P, dtype=wp.float64, device=self.device)
         for name in ("x", "y", "area", "thick", "top", "temp", "mcap", "age", "patch_fn", "patch_power"):
             tmp.fill_(self.scene.lf.T_amb if name == "temp" else 0.0)
-            self._launch(K.scatter_f64, P, [dst, getattr(self, name), tmp])
+            self._launch(K.scatter, P, [dst, getattr(self, name), tmp])
             wp.copy(getattr(self, name), tmp)
         tmpi = wp.zeros(P, dtype=wp.int32, device=self.device)
         for name in ("alive", "patch_cell"):
             tmpi.zero_()
-            self._launch(K.scatter_i32, P, [dst, getattr(self, name), tmpi])
+            self._launch(K.scatter, P, [dst, getattr(self, name), tmpi])
             wp.copy(getattr(self, name), tmpi)
         self.dirty = True
 

@@ -32,8 +32,9 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from aca_warp.analysis.report import has_patch_velocity
+from aca_warp.analysis.report import has_patch_velocity, stored
 from aca_warp.common.errors import SceneError
+from aca_warp.common.links import LinkError
 from aca_warp.plots import lf as plots_lf
 from aca_warp.plots.hf import (
     FIGURES,
@@ -85,7 +86,7 @@ def _absent_figures(path: str | Path, names: list[str], which: Sequence[str] | N
     ``/analysis/sync`` is stored); :class:`SceneError` when ``which`` named one of them."""
     with _Run(path) as run:
         patches = has_patch_velocity(run.f)
-        stored_sync = "analysis/sync" in run.f
+        stored_sync = stored(run.f, "sync")
     needs = {"patch_map": patches, "animation": patches, "sync": patches or stored_sync}
     absent = [n for n in names if not needs.get(n, True)]
     if absent and which is not None:
@@ -115,7 +116,8 @@ def plot_run(
     Figures whose data are absent (per-patch velocities for ``patch_map``, ``sync``, ``animation``; a
     record too short for a transform, a Synchronization Index of fewer than two bins) are skipped with a message to
     ``log`` when ``which`` is None; a figure named in ``which`` that cannot be made raises :class:`SceneError`, and
-    the figures this call wrote before it are removed again (all or nothing).
+    the figures this call wrote before it are removed again (all or nothing). A link planted where a figure's
+    temporary file goes (:class:`~aca_warp.common.links.LinkError`) stops the call in either case.
 
     Args:
         path: Run file.
@@ -158,6 +160,9 @@ def plot_run(
             if which is not None:  # a figure asked for: all or nothing
                 for written in files:
                     written.unlink(missing_ok=True)
+            if isinstance(e, LinkError):  # a planted link stops the call, whatever was asked
+                raise
+            if which is not None:
                 raise SceneError(f"{name}: {e}") from None
             if log:
                 log(f"skipped {name}: {e}")

@@ -14,9 +14,10 @@ import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
+from matplotlib.animation import PillowWriter
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
@@ -57,13 +58,19 @@ def finish(fig: Figure, caption: str, footer: str) -> None:
 
 
 @contextmanager
-def whole(path: Path) -> Iterator[Path]:
-    """Yield a temporary name next to ``path`` (hidden, same suffix, so writers pick the format from it) and move
-    the file written there to ``path`` when the body ends; on any failure or interrupt the temporary file is
-    removed. A figure file is never half written."""
+def whole(path: Path) -> Iterator[BinaryIO]:
+    """Yield a file open for writing under a temporary name next to ``path`` (hidden, same suffix; its ``name`` is
+    that path) and move it to ``path`` when the body ends; on any failure or interrupt the temporary file is
+    removed. A figure file is never half written. The temporary file is created exclusively and never through a
+    link (:func:`~aca_warp.common.links.create_new`: a link planted there is refused) and written through this
+    descriptor only, so nothing another user plants in the folder is followed."""
+    from aca_warp.common.links import create_new
+
     tmp = path.with_name(f".{path.stem}.partial{path.suffix}")
+    fh = open(tmp, "wb", opener=lambda name, flags: create_new(Path(name), "temporary figure"))  # noqa: SIM115
     try:
-        yield tmp
+        with fh:
+            yield fh
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
@@ -74,11 +81,23 @@ def save(fig: Figure, outdir: Path, stem: str) -> list[Path]:
     (:func:`whole`); returns both paths."""
     outdir.mkdir(parents=True, exist_ok=True)
     files = [outdir / f"{stem}.png", outdir / f"{stem}.pdf"]
-    with whole(files[0]) as tmp:
-        fig.savefig(tmp, dpi=DPI)
-    with whole(files[1]) as tmp:
-        fig.savefig(tmp)
+    with whole(files[0]) as fh:
+        fig.savefig(fh, format="png", dpi=DPI)
+    with whole(files[1]) as fh:
+        fig.savefig(fh, format="pdf")
     return files
+
+
+class GifInto(PillowWriter):
+    """Matplotlib's Pillow GIF writer, writing into an open file (:func:`whole`) instead of reopening a name."""
+
+    def __init__(self, fh: BinaryIO, fps: int) -> None:
+        super().__init__(fps=fps)
+        self.fh = fh
+
+    def finish(self) -> None:
+        self.outfile = self.fh  # Pillow takes the format from the file's name (.gif)
+        super().finish()
 
 
 def envelope(t: np.ndarray, y: np.ndarray, points: int = 4000) -> tuple[np.ndarray, np.ndarray, int]:

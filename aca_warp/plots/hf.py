@@ -20,7 +20,7 @@ from aca_warp.analysis import report
 from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run_file, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
 from aca_warp.common.errors import SceneError, option
-from aca_warp.plots.figure import device_text, whole
+from aca_warp.plots.figure import GifInto, device_text, whole
 from aca_warp.plots.figure import envelope as _envelope
 from aca_warp.plots.figure import finish as _finish
 from aca_warp.plots.figure import new_figure as _figure
@@ -86,7 +86,7 @@ class _Run:
 
     def band_top(self) -> float:
         """Top of the analysis band [Hz]: /analysis/sync's band, else min(200 kHz, Nyquist)."""
-        if "analysis/sync" in self.f:
+        if report.stored(self.f, "sync"):
             return float(np.asarray(self.f["analysis/sync"].attrs["band"])[1])
         dt = report.sample_interval(self.f["global/time"][()])
         return min(report.DEFAULT_BAND_TOP, 0.5 / dt)
@@ -291,8 +291,8 @@ def animate_patch_map(
         out = Path(outdir)
         out.mkdir(parents=True, exist_ok=True)
         gif = out / f"{run.path.stem}_patch_map.gif"
-        with whole(gif) as tmp:
-            anim.save(tmp, writer=animation.PillowWriter(fps=fps), dpi=GIF_DPI)
+        with whole(gif) as fh:
+            anim.save(fh.name, writer=GifInto(fh, fps), dpi=GIF_DPI)
         return [gif]
 
 
@@ -495,7 +495,7 @@ def plot_sync(path: str | Path, outdir: str | Path, **options: Any) -> list[Path
     ``options`` (keywords of :func:`aca_warp.analysis.report.compute_patch_velocity`).
     """
     with _Run(path) as run:
-        if "analysis/sync" not in run.f:
+        if not report.stored(run.f, "sync"):
             _require_patch_velocity(run, "Synchronization Index")
         g = run.group("sync", lambda: report.compute_sync(run.f, **options))
         assert g is not None

@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 import uuid
 from typing import Any
 
+from aca_warp.common.links import private_dir
 from aca_warp.sweep.manifest import _Book, _one_line
 from aca_warp.sweep.overlap import ShardCancelled, ShardContext, stop_event, stop_sweep
 from aca_warp.sweep.shard import run_shard
@@ -57,10 +59,13 @@ def local_cluster(device: str, workers: int | None = None, *, per_gpu: int = 1) 
     ``workers`` of them spread over the GPUs in turn, if given) or, for ``cpu``, ``workers`` of them (default one
     per core). Returns (cluster, device seen by workers).
 
-    Scheduler, nannies and workers listen on 127.0.0.1 only and serve no dashboard: a Dask worker executes
-    whatever pickled function reaches it, so nothing of a local cluster may be reachable from another host.
-    Other hosts join only through an external scheduler (``--scheduler``; docs/sweeps.md, "Security"). The
-    worker processes ignore SIGINT (the client stops them)."""
+    Scheduler, nannies and workers listen on 127.0.0.1 only, serve no dashboard and speak TLS with mutual
+    authentication under credentials made for this cluster alone (:func:`cluster_security`): a Dask worker executes
+    whatever pickled function reaches it, so nothing of a local cluster may be reachable from another host, nor
+    usable by another local user (a client without the credentials cannot complete a handshake on any of its
+    ports); their work folders live in the user's private folder, not in the shared temporary folder. Other hosts
+    join only through an external scheduler (``--scheduler``; docs/sweeps.md, "Security").
+    The worker processes ignore SIGINT (the client stops them)."""
     import logging
 
     from distributed import Nanny, Scheduler, SpecCluster
@@ -76,7 +81,10 @@ def local_cluster(device: str, workers: int | None = None, *, per_gpu: int = 1) 
         n = workers or per_gpu * len(ords)
         envs = [{"CUDA_VISIBLE_DEVICES": names[ords[i % len(ords)]]} for i in range(n)]
         worker_device = "cuda:0"
-    # every process on loopback: a Dask worker runs the pickled functions sent to it, unauthenticated
+    # every process on loopback and behind TLS with this cluster's own credentials: a Dask worker runs the pickled
+    # functions sent to it
+    security = cluster_security()
+    scratch = str(private_dir("dask"))  # Dask's work folders and their lock files: not in the shared /tmp
     opts = {
         "nthreads": 1,
         "memory_limit": 0,
@@ -85,18 +93,43 @@ def local_cluster(device: str, workers: int | None = None, *, per_gpu: int = 1) 
         "dashboard": False,
         "dashboard_address": f"{LOOPBACK}:0",
         "preload": [_WORKER_PRELOAD],
+        "security": security,
+        "protocol": "tls",
+        "local_directory": scratch,
     }
     spec = {f"w{i}": {"cls": Nanny, "options": {**opts, "env": env}} for i, env in enumerate(envs)}
+    scheduler = {
+        "dashboard": False,
+        "dashboard_address": f"{LOOPBACK}:0",
+        "host": LOOPBACK,
+        "protocol": "tls",
+        "local_directory": scratch,
+    }
     cluster = SpecCluster(
         workers=spec,
-        scheduler={
-            "cls": Scheduler,
-            "options": {"dashboard": False, "dashboard_address": f"{LOOPBACK}:0", "host": LOOPBACK},
-        },
+        scheduler={"cls": Scheduler, "options": {**scheduler, "security": security}},
+        security=security,
         silence_logs=logging.ERROR,
         name="aca-warp-sweep",
     )
     return cluster, worker_device
+
+
+def cluster_security() -> Any:
+    """TLS credentials for one local cluster (``distributed.Security.temporary()``): a key and self-signed
+    certificate made in memory for this sweep call, given to its scheduler, nannies, workers and client only (the
+    worker processes receive them from their nanny through a pipe, not a file), with encryption required. A
+    connection without them fails the TLS handshake, so another user of the host can neither connect to the
+    cluster's ports nor run a task on its workers. Needs ``cryptography`` (the ``sweep`` extra)."""
+    from distributed import Security
+
+    try:
+        return Security.temporary()
+    except ImportError:
+        raise SweepError(
+            "a local Dask cluster is secured with TLS, which needs the cryptography package: "
+            "pip install 'aca-warp[sweep]' (or cryptography), or run with --workers 0"
+        ) from None
 
 
 def warm_workers(client: Any, device: str) -> dict[str, float]:
@@ -192,7 +225,13 @@ def _run_on_dask(
             client = Client(cluster)
             sharing = _max_sharing(cluster, device)
         else:
-            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+            if not scheduler.startswith("tls://"):
+                print(
+                    f"aca-warp: note: {scheduler} is not a tls:// address: that cluster is not authenticated, anyone "
+                    "who reaches its scheduler runs code on its workers (docs/sweeps.md, Security)",
+                    file=sys.stderr,
+                )
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)  # TLS settings, if any, from Dask's configuration
             worker_device = "cuda:0" if device == "cuda" else device
             sharing = 1
         book.result.workers = len(client.scheduler_info(n_workers=-1)["workers"])

@@ -19,7 +19,7 @@ one HDF5 file per shard. A rerun in the same DIR skips finished shards and redoe
 Examples:
   aca-warp sweep aca_warp/data/sweep_hf1.toml -o sweep_out --workers 2            # two CPU worker processes
   aca-warp sweep aca_warp/data/sweep_hf1.toml -o sweep_out --device cuda          # two workers per GPU
-  aca-warp sweep aca_warp/data/sweep_hf1.toml -o sweep_out --device cuda --scheduler tcp://host:8786
+  aca-warp sweep aca_warp/data/sweep_hf1.toml -o sweep_out --device cuda --scheduler tls://host:8786
 Exit codes: 0 every shard finished, 2 bad input, 3 some shard stopped on a fault or failed (rerun to retry),
 4 a shard file could not be written (disk full), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM); after an
 interrupt the manifest marks the shards that were running "interrupted" and a rerun finishes them.
@@ -54,7 +54,14 @@ def add_parsers(sub: Any) -> None:
         metavar="N",
         help="local Dask workers (default: one per GPU, or one per CPU core for cpu); 0 runs in this process",
     )
-    g.add_argument("--scheduler", metavar="ADDRESS", help="use the Dask cluster at this scheduler address")
+    g.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="use the Dask cluster at this scheduler address: tls://HOST:PORT with your own TLS certificates in "
+        "Dask's configuration (distributed.comm.tls.*); a plain tcp:// address is accepted but is NOT "
+        "authenticated: anyone who can reach that scheduler runs code on its workers (docs/sweeps.md, Security). "
+        "Without it the local cluster listens on 127.0.0.1 only, behind TLS with credentials of its own",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace a different sweep in DIR")
     p.add_argument("--duration", type=positive, metavar="S", help="simulated time per pad [s] (default: the spec's)")
     p.add_argument("--integrator", choices=INTEGRATORS, help="time integrator (default: the spec's, else strang)")

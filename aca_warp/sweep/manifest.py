@@ -28,12 +28,15 @@ SHARD_STATES = ("pending", "queued", "done", "fault", "failed", "interrupted")
 
 
 def _write_json(path: Path, doc: dict) -> None:
-    """Write ``doc`` to ``path`` atomically (a temporary file, then a rename); a full device keeps the old one."""
+    """Write ``doc`` to ``path`` atomically (a temporary file, created exclusively and never through a link, then a
+    rename); a full device keeps the old one."""
+    from aca_warp.common.links import create_new
     from aca_warp.common.storage import storage_errno, storage_error
 
     tmp = path.with_name(path.name + ".tmp")
     try:
-        tmp.write_text(json.dumps(doc, indent=1, default=str))
+        with os.fdopen(create_new(tmp, "temporary manifest"), "w") as fh:
+            fh.write(json.dumps(doc, indent=1, default=str))
         os.replace(tmp, path)
     except OSError as e:
         tmp.unlink(missing_ok=True)
@@ -48,9 +51,14 @@ def read_manifest(out_dir: str | Path) -> dict | None:
     p = Path(out_dir) / MANIFEST
     if not p.is_file():
         return None
+    from aca_warp.common.bounds import check_nesting
+    from aca_warp.common.errors import SceneError
+
     try:
-        return json.loads(p.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        text = p.read_text()
+        check_nesting(text, str(p))
+        return json.loads(text)
+    except (json.JSONDecodeError, UnicodeDecodeError, SceneError) as e:
         raise SweepError(f"{p} is not a sweep manifest ({e}); remove it or pass --overwrite") from None
 
 
@@ -230,8 +238,8 @@ def load_sweep(out_dir: str | Path) -> dict[str, Any]:
     (key -> (pads,)), ``pad_index`` (pads,), ``manifest``. Shards with different sample counts (a fault) are
     padded with NaN.
     """
-    import h5py
-
+    from aca_warp.common.errors import SceneError
+    from aca_warp.common.files import open_h5
     from aca_warp.hf.recorder import GLOBAL_NAMES
 
     d = Path(out_dir)
@@ -243,7 +251,7 @@ def load_sweep(out_dir: str | Path) -> dict[str, Any]:
         if s["state"] not in ("done", "fault"):
             continue
         try:
-            with h5py.File(d / s["file"], "r") as f:
+            with open_h5(d / s["file"], "shard", text=("parameters",)) as f:  # links, declared sizes checked first
                 parts.append(
                     {
                         "time": f["global/time"][()],
@@ -252,6 +260,8 @@ def load_sweep(out_dir: str | Path) -> dict[str, Any]:
                         "pad_index": f["pads/index"][()],
                     }
                 )
+        except SceneError as e:
+            raise SweepError(f"{e}; remove it and rerun the sweep") from None
         except (OSError, RuntimeError, KeyError, ValueError, TypeError) as e:  # missing, truncated or damaged
             raise SweepError(
                 f"cannot read shard {d / s['file']} ({type(e).__name__}: {e}); remove it and rerun the sweep"

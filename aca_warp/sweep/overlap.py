@@ -15,16 +15,16 @@ import fcntl
 import os
 import queue
 import re
-import tempfile
 import threading
 import time
 import types
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from aca_warp.common.links import open_lock_file, private_dir
 
 
 class ShardCancelled(BaseException):
@@ -145,9 +145,10 @@ class KernelTurn:
       recorded into the graph; and the CPU kernels of one Warp module find their tile memory through one static
       pointer, which concurrent launches overwrite. :meth:`enter` waits for the lock.
     * Processes that share a GPU (two Dask workers per GPU): a file lock named after the GPU (host-local, in the
-      temporary folder), taken by :meth:`first_chunk` after the run's first chunk and dropped when the run ends.
-      The next shard's model build, run set-up and first launch therefore overlap the current shard's run (the
-      GPU time-slices between the two processes); the rest of the runs alternate.
+      user's private folder, :func:`~aca_warp.common.links.private_dir`: another user cannot hold it), taken by
+      :meth:`first_chunk` after the run's first chunk and dropped when the run ends. The next shard's model build,
+      run set-up and first launch therefore overlap the current shard's run (the GPU time-slices between the two
+      processes); the rest of the runs alternate.
 
     Neither decides what a kernel computes (pads of a shard are one batch wherever it runs), only when it runs.
     """
@@ -179,10 +180,10 @@ class KernelTurn:
         if not self.processes or self.fd is not None:
             return
         key = self.device.uuid or self.device.pci_bus_id or str(self.device)
-        path = Path(tempfile.gettempdir()) / f"aca-warp-kernel-{re.sub(r'[^A-Za-z0-9_.-]', '_', key)}.lock"
         t = time.perf_counter()
-        try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+        try:  # in the user's private folder (0700), created 0600, never through a link
+            path = private_dir("kernel") / f"{re.sub(r'[^A-Za-z0-9_.-]', '_', key)}.lock"
+            fd = open_lock_file(path, "GPU turn lock", 0o600)
         except OSError:
             self.processes = False  # no turn across processes: the runs share the GPU as they come
             return

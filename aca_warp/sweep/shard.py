@@ -101,20 +101,20 @@ the run began and ended [s]."""
 
 
 def _create_shard_file(
-    tmp: Path, partial: Path, spec: SweepSpec, index: int, scenes: list[Scene], dev: Any, n_samples: int
+    tmp: Path, partial: Path, lock: Any, spec: SweepSpec, index: int, scenes: list[Scene], dev: Any, n_samples: int
 ) -> tuple[Any, Any]:
-    """Create the shard file at ``tmp`` with its header, datasets and parameters, flush it and rename it to
-    ``partial``; returns (h5py file, :class:`~aca_warp.common.storage.GuardedFile`)."""
+    """Create the shard file at ``tmp`` (for the holder of ``lock``, :func:`~aca_warp.common.files.create_h5`) with
+    its header, datasets and parameters, flush it and rename it to ``partial``; returns (h5py file,
+    :class:`~aca_warp.common.storage.GuardedFile`)."""
     import h5py
 
-    from aca_warp.common.files import versions
+    from aca_warp.common.files import create_h5, versions
     from aca_warp.common.storage import GuardedFile
     from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS
 
     start, stop = spec.shard_range(index)
     n = stop - start
-    tmp.unlink(missing_ok=True)
-    f = h5py.File(tmp, "w")
+    f = create_h5(tmp, lock)
     out = GuardedFile(f, partial)
     try:
         attrs = {
@@ -240,7 +240,7 @@ def run_shard(
     try:
         ctx.check()
         with clock("write"):
-            f, out = _create_shard_file(tmp, partial, spec, index, scenes, dev, n_samples)
+            f, out = _create_shard_file(tmp, partial, lock, spec, index, scenes, dev, n_samples)
         write = _chunk_writer(f, out, stop - start)
         writer = ChunkWriter(write) if ctx.overlap else None
         run = _run_batches(spec, scenes, dev, cap, ctx, clock, turn, writer.put if writer else write, start)

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common.bounds import read_toml
 from aca_warp.common.errors import AcaError, SceneError
 from aca_warp.scene import (
     PRESETS,
@@ -252,9 +253,9 @@ def load_spec(source: str | Path | dict, *, base_dir: Path | None = None, **over
         if not p.is_file():
             raise SweepError(f"sweep spec {p} not found")
         try:
-            doc = tomllib.loads(p.read_text())
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-            raise SweepError(f"cannot parse {p}: {e}") from None
+            doc = read_toml(p, "sweep spec")
+        except SceneError as e:
+            raise SweepError(str(e)) from None
         base_dir = p.resolve().parent
     for table in doc:
         if table not in ("sweep", "run", "base", "parameters"):
@@ -297,14 +298,14 @@ def _base_doc(doc: dict, base_dir: Path) -> tuple[dict, Path, str]:
     if not p.is_file():
         raise SweepError(f"sweep.base {base!r} is neither a preset ({', '.join(PRESETS)}) nor a TOML file")
     try:
-        return _merge(tomllib.loads(p.read_text()), inline), p.parent, p.stem
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise SweepError(f"cannot parse the base scene {p}: {e}") from None
+        return _merge(read_toml(p, "base scene"), inline), p.parent, p.stem
+    except SceneError as e:
+        raise SweepError(f"the base scene: {e}") from None
 
 
 def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
     from aca_warp.hf.model import PRECISIONS
-    from aca_warp.hf.options import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
+    from aca_warp.hf.options import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
 
     sw, run = doc["sweep"], doc["run"]
     base_doc, scene_dir, base_name = _base_doc(doc, base_dir)
@@ -342,10 +343,11 @@ def _resolve(doc: dict, base_dir: Path) -> SweepSpec:
     tolerance = num("tolerance", DEFAULT_TOLERANCE)
     sample_dt = num("sample_dt", base.record.sample_dt)
     try:
-        from aca_warp.hf.recorder import check_run
+        from aca_warp.hf.recorder import check_run, check_sample_step
 
         base = base.replace(duration=duration, record=dataclasses.replace(base.record, sample_dt=sample_dt))
         check_run(duration, base.record)
+        check_sample_step(sample_dt, DEFAULT_DT if dt is None else dt)
     except SceneError as e:
         raise SweepError(f"run settings: {e}") from None
     if dt is not None and not duration / dt <= MAX_STEPS:

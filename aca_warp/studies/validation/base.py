@@ -1,10 +1,11 @@
 """What every part of the validation study shares: settings, the registries of experiments and rows, and the
-helpers that turn saved per-pad results into intervals over seeds and verdicts.
+helpers that turn saved per-pad results into intervals over seeds.
 
-:mod:`~aca_warp.studies.validation.hf_rows` (§3.1), :mod:`~aca_warp.studies.validation.area` (§3.2),
-:mod:`~aca_warp.studies.validation.multiscale` (§3.3, §4) and :mod:`~aca_warp.studies.validation.causes` (the
-candidate causes of open verdicts) register their experiments and rows here;
-:mod:`~aca_warp.studies.validation.experiments` runs them and :mod:`~aca_warp.studies.validation.cli` writes the table.
+:mod:`~aca_warp.studies.validation.hf_experiments` (§3.1), :mod:`~aca_warp.studies.validation.area` (§3.2) and
+:mod:`~aca_warp.studies.validation.multiscale` (§3.3, §4) register their experiments here, the row modules
+(``hf_patterns``, ``hf_peaks``, ``hf_sync``, ``area_rows``, ``multiscale_rows``, ``appendix``) their rows;
+:mod:`~aca_warp.studies.validation.experiments` runs them and :mod:`~aca_warp.studies.validation.cli` writes the
+results and the table; the verdicts are in :mod:`~aca_warp.studies.validation.verdicts`.
 """
 
 from __future__ import annotations
@@ -18,21 +19,9 @@ from typing import Any
 import numpy as np
 
 from aca_warp.studies.report import clean
+from aca_warp.studies.validation.verdicts import FAILED, NOT_MEASURED
 
 MM2 = 1.0e-6  # m² per mm²
-
-CRITERIA = {
-    "value": "reproduced when the whole 95 % interval of the mean lies within the paper's value ± the tolerance; "
-    "partly when the mean does; not reproduced otherwise",
-    "direction": "reproduced when the 95 % interval of the paired difference over seeds excludes 0 on the paper's "
-    "side for every part of the statement; partly when some parts (or only the primary measure) do; not "
-    "reproduced when none does (an interval containing 0 is no evidence either way)",
-    "equal": "reproduced when the 95 % interval of the paired difference contains 0 and lies within ± the margin; "
-    "partly when it contains 0 but reaches beyond the margin; not reproduced when it excludes 0",
-    "threshold": "reproduced when the whole 95 % interval lies on the paper's side of the threshold; partly when the "
-    "mean does; not reproduced otherwise",
-}
-
 
 # ------------------------------------------------------------------------------------------------ settings
 
@@ -43,12 +32,12 @@ class Config:
 
     Attributes:
         device: Warp device ("cpu", "cuda:0").
-        precision: "fp64" or "fp32".
         engine: "auto", "general" or "onchip".
         seeds: Pads per experiment (seeds first_seed … first_seed + seeds − 1).
         first_seed: Seed of pad 0 (1: the presets' own layout).
         patches: Patches per pad; None: the preset's count (1758). Fewer sit on a sector of the pad.
-        dt: Time step [s] (strang).
+        dt: Time step [s] for every experiment instead of :data:`~aca_warp.studies.validation.settings.STEPPING`'s.
+        precision: "fp32" or "fp64" for every experiment instead of the stepping table's.
         sample_dt: Sampling interval of the global outputs [s].
         decimation: Per-patch velocities every ``decimation`` global samples (Nyquist 1/(2·dt_p)).
         window: Measurement window at the end of a run [s] (per-patch record; spectra resolve 1/window).
@@ -56,8 +45,13 @@ class Config:
         settle_safety: Factor on the predicted time to saturation.
         sync_band: (fmin, fmax) of S(f) [Hz]; fmax is lowered to 0.9 Nyquist of the per-patch record.
         quick: The reduced CPU variant (named in the table).
-        growth_speedup: Compression of the varying-area growth (§3.2): the increment of Eq. 10 × this, the run
-            ÷ this, so the areas follow the same path in a shorter time (1: the paper's 0.36 s).
+        growth_speedup: Compression of the varying-area growth of the ``va`` variants (§3.2): the increment of
+            Eq. 10 × this, the run ÷ this, so the areas follow the same path in a shorter time (``va_full`` runs
+            the paper's 0.36 s).
+        paper_length: Length of the from-rest runs at the paper's length [s] (0.36 s: the varying-area run,
+            "about as long as HF1").
+        track_windows: Per-patch windows of those runs over time (f1, neighbour correlation, S per window).
+        track_window: Length of each such window [s].
         state_patches: Patches per LF state of the multi-timescale experiments (a sector of the state, §3.3);
             None: ``patches`` (None: the whole state).
         lf_dir: Folder of the LF runs of the multi-timescale experiments (§3.3); not part of the run key.
@@ -65,12 +59,12 @@ class Config:
     """
 
     device: str = "cpu"
-    precision: str = "fp64"
     engine: str = "auto"
     seeds: int = 8
     first_seed: int = 1
     patches: int | None = None
-    dt: float = 1.0e-8
+    dt: float | None = None
+    precision: str | None = None
     sample_dt: float = 1.0e-6
     decimation: int = 3
     window: float = 20.0e-3
@@ -79,6 +73,9 @@ class Config:
     sync_band: tuple[float, float] = (1.0e3, 150.0e3)
     quick: bool = False
     growth_speedup: float = 10.0
+    paper_length: float = 0.36
+    track_windows: int = 8
+    track_window: float = 5.0e-3
     state_patches: int | None = None
     lf_dir: str | None = None
     workers: int = 1
@@ -90,9 +87,25 @@ class Config:
             d.pop(k)
         return clean(d)
 
+    def stepping(self, kind: str) -> Any:
+        """The :class:`~aca_warp.studies.validation.settings.Stepping` of experiments of ``kind``."""
+        from aca_warp.studies.validation.settings import stepping
+
+        return stepping(kind, self.quick, self.dt, self.precision)
+
 
 FULL = Config()
-QUICK = Config(seeds=3, patches=150, dt=1.0e-7, window=8.0e-3, quick=True, growth_speedup=20.0, state_patches=60)
+QUICK = Config(
+    seeds=3,
+    patches=150,
+    window=8.0e-3,
+    quick=True,
+    growth_speedup=20.0,
+    paper_length=0.03,
+    track_windows=4,
+    track_window=2.0e-3,
+    state_patches=60,
+)
 
 
 # ------------------------------------------------------------------------------------------------ processes
@@ -150,11 +163,16 @@ class Experiment:
             when empty).
         window_scale: Measurement window of a ``"saturated"`` run as a multiple of the configured window.
         window_start: Start of the per-patch record of a ``"window"`` run [s].
-        growth_speedup: Growth compression of a growing scene; None: the configured one × ``growth_clock``.
-        growth_clock: Factor on the configured growth compression (the growth-clock variant).
+        growth_speedup: Growth compression of a growing scene; None: the configured one (``va`` and its variants;
+            1: the paper's clock).
         schedule_bar: Application pressures [bar] of the LF schedule in order (None: the preset's).
+        tracks: Run for the paper's length (``Config.paper_length``) and analyse, besides the final window, the
+            per-patch windows of ``Config.track_windows`` over the run (f1, neighbour correlation and S over time).
+        batch: Experiments with the same batch name run as one batch of pads (one run, one kernel; the run as long
+            as its longest member's plan, the step the smallest of their bounds), each analysed on its own.
+        stepping: Key of :data:`~aca_warp.studies.validation.settings.STEPPING` (integrator, step, precision).
         quick: Run in the quick CPU variant too (False: only in the full variant or when named with --only).
-        opt_in: Run only when named with --only or switched on (e.g. --full-varying-area).
+        opt_in: Run only when named with --only.
     """
 
     name: str
@@ -171,15 +189,18 @@ class Experiment:
     window_scale: float = 1.0
     window_start: float | None = None
     growth_speedup: float | None = None
-    growth_clock: float = 1.0
     schedule_bar: tuple[float, ...] | None = None
+    tracks: bool = False
+    batch: str | None = None
+    stepping: str = "hf"
     quick: bool = True
     opt_in: bool = False
 
     def key(self) -> dict[str, Any]:
         """The definition as it decides the result (for checkpoint reuse; fields at their defaults beyond the
         original eight are left out, so that results saved before they existed still match)."""
-        d = {k: v for k, v in dataclasses.asdict(self).items() if k not in ("builder", "quick", "opt_in")}
+        skip = ("builder", "quick", "opt_in", "batch")
+        d = {k: v for k, v in dataclasses.asdict(self).items() if k not in skip}
         defaults = {f.name: f.default for f in dataclasses.fields(self) if f.name not in _ORIGINAL_KEYS}
         return {k: v for k, v in d.items() if k in _ORIGINAL_KEYS or v != defaults.get(k)}
 
@@ -215,7 +236,7 @@ class Row:
         section: Where the paper says it (section/figure).
         statement: The statement, quoted briefly.
         paper: The paper's value or claim.
-        kind: Key of :data:`CRITERIA` (how the verdict is decided).
+        kind: Key of :data:`~aca_warp.studies.validation.verdicts.CRITERIA` (how the verdict is decided).
         experiments: Experiments the row needs.
         measure: ``(results, config) -> RowValue``; results maps experiment name -> saved result (JSON dict).
         criterion: The row's own tolerance or threshold, in words.
@@ -254,8 +275,9 @@ def register_row(row: Row) -> Row:
 # ------------------------------------------------------------------------------------------------ row helpers
 
 
-USABLE = ("saturated", "linear phase")
-"""Pad statuses that enter rows: saturated, or analysed over a fixed window of a ``"window"`` experiment."""
+USABLE = ("saturated", "linear phase", "LF state")
+"""Pad statuses that enter rows: saturated, analysed over a fixed window of a ``"window"`` experiment, or an LF
+state's facts (``multiscale.lf_facts``)."""
 
 
 def usable(res: dict[str, Any] | None, member: str | None = None) -> list[dict[str, Any]]:
@@ -327,71 +349,6 @@ def interval(v: np.ndarray, spec: str = ".3g", scale: float = 1.0, unit: str = "
     return f"{format(e.mean, spec)} [{format(e.mean_low, spec)}, {format(e.mean_high, spec)}]{u} (n = {v.size})"
 
 
-def ci(v: np.ndarray) -> tuple[float, float, float]:
-    """(mean, low, high) of the 95 % t-interval; NaN interval for fewer than two values."""
-    from aca_warp.analysis.measures import ensemble_interval
-
-    v = np.asarray(v, dtype=np.float64)
-    v = v[np.isfinite(v)]
-    if v.size == 0:
-        return (float("nan"),) * 3
-    e = ensemble_interval(v)
-    return float(e.mean), float(e.mean_low), float(e.mean_high)
-
-
-def side(v: np.ndarray, sign: float = 1.0) -> int:
-    """+1 when the 95 % interval of the mean of ``sign``·v lies above 0, −1 when below, 0 otherwise."""
-    m, lo, hi = ci(sign * np.asarray(v, dtype=np.float64))
-    if not math.isfinite(lo):
-        return 0
-    return 1 if lo > 0 else (-1 if hi < 0 else 0)
-
-
-def direction_verdict(parts: list[int], secondary: list[int] | None = None) -> str:
-    """Verdict of a directional statement from its parts' :func:`side` (+1: the paper's side) (:data:`CRITERIA`).
-
-    ``secondary``: sides of further measures of a one-part statement; one significantly opposite makes a
-    reproduced primary only "partly", one on the paper's side lifts a non-significant primary to "partly".
-    """
-    sec = secondary or []
-    if parts and all(p == 1 for p in parts):
-        return "partly" if any(s == -1 for s in sec) else "reproduced"
-    if any(p == 1 for p in parts) or (parts == [0] and any(s == 1 for s in sec)):
-        return "partly"
-    return "not reproduced"
-
-
-def value_verdict(v: np.ndarray, paper: float, tol: float) -> str:
-    """Verdict of a value within ``paper`` ± ``tol`` (:data:`CRITERIA`)."""
-    m, lo, hi = ci(v)
-    if not math.isfinite(m):
-        return "not measured"
-    if math.isfinite(lo) and paper - tol <= lo and hi <= paper + tol:
-        return "reproduced"
-    return "partly" if abs(m - paper) <= tol else "not reproduced"
-
-
-def threshold_verdict(v: np.ndarray, limit: float, below: bool) -> str:
-    """Verdict of a value on the paper's side of ``limit`` (below it when ``below``) (:data:`CRITERIA`)."""
-    m, lo, hi = ci(v)
-    if not math.isfinite(m):
-        return "not measured"
-    whole = (hi <= limit) if below else (lo >= limit)
-    if math.isfinite(lo) and whole:
-        return "reproduced"
-    return "partly" if (m <= limit if below else m >= limit) else "not reproduced"
-
-
-def equal_verdict(d: np.ndarray, margin: float) -> str:
-    """Verdict of "not significantly different" with an equivalence ``margin`` (:data:`CRITERIA`)."""
-    m, lo, hi = ci(d)
-    if not math.isfinite(lo):
-        return "not measured"
-    if lo > 0 or hi < 0:
-        return "not reproduced"
-    return "reproduced" if -margin <= lo and hi <= margin else "partly"
-
-
 def tables(res: dict[str, Any] | None, rule: str, which: str = "table") -> dict[int, Any]:
     """Seed -> ``PrevalenceTable`` of S at equal Φ of the usable pads."""
     from aca_warp.analysis.measures import PrevalenceTable
@@ -428,12 +385,6 @@ def _need(results: dict[str, dict], names: tuple[str, ...], n: int = 2) -> str |
     return ("needs " + ", ".join(short)) if short else None
 
 
-def _all_of(verdicts: list[str]) -> str:
-    if all(v == "reproduced" for v in verdicts):
-        return "reproduced"
-    return "not reproduced" if all(v == "not reproduced" for v in verdicts) else "partly"
-
-
 # ------------------------------------------------------------------------------------------------ the table
 
 
@@ -453,12 +404,35 @@ def evaluate_rows(results: dict[str, dict], cfg: Config, rows: list[Row] | None 
         have = [k for k in row.experiments if len(usable(results.get(k))) >= 2]
         if len(have) < need:
             missing = _need(results, row.experiments) or ""
-            entry.update(value="–", verdict="not measured", notes=missing)
+            entry.update(value="–", verdict=NOT_MEASURED, notes=missing)
         else:
             try:
                 v = row.measure(results, cfg)
                 entry.update(value=v.value, verdict=v.verdict, notes=v.notes)
             except Exception as e:  # noqa: BLE001 (one failing row must not take the table with it)
-                entry.update(value="–", verdict="failed", notes=f"{type(e).__name__}: {e}")
+                entry.update(value="–", verdict=FAILED, notes=f"{type(e).__name__}: {e}")
         out.append(entry)
     return out
+
+
+def seed_map(res: dict[str, Any] | None, key: str) -> dict[int, float]:
+    """Seed -> a measure (dotted key) over the usable pads of ``res``."""
+    return by_seed(res, lambda p: _get(p, key))
+
+
+def ratio_interval(d: np.ndarray) -> str:
+    """exp of the interval of a mean log ratio: "×1.23 [1.1, 1.4]"."""
+    from aca_warp.studies.validation.verdicts import ci
+
+    m, lo, hi = ci(d)
+    if not math.isfinite(m):
+        return "–"
+    return (
+        f"×{math.exp(m):.3g} [{math.exp(lo):.3g}, {math.exp(hi):.3g}]" if math.isfinite(lo) else f"×{math.exp(m):.3g}"
+    )
+
+
+def each(results: dict[str, dict], names: tuple[str, ...], key: str, spec: str = ".3g", scale: float = 1.0,
+         unit: str = "") -> str:  # fmt: skip
+    """ "name: interval; …" of a measure over the experiments ``names``."""
+    return "; ".join(f"{n}: {interval(values(results.get(n), key), spec, scale, unit)}" for n in names)

@@ -1,26 +1,23 @@
 """The candidate causes of the open verdicts, run as experiments: does a change move a verdict?
 
-Every row whose verdict is *not reproduced* or *partly* is evaluated again under each **variant** that applies to
-it, and the page shows, statement by statement, which change moves which verdict. A variant either replaces
-experiments by others that differ in one respect (``substitute``: the same seeds and layouts, one setting
-changed) or changes the analysis of the same runs (``transform``):
+Every row whose verdict is *not reproduced*, *partly*, *significant but negligible* or *undetermined* is evaluated
+again under each **variant** that applies to it, and the page shows, statement by statement, which change moves
+which verdict. A variant either replaces experiments by others that differ in one respect (``substitute``: the same
+seeds and layouts, one setting changed) or changes the analysis of the same runs (``transform``):
 
+* **initial state** — from rest at the paper's length (``hf*_rest``: 0.36 s; ``va_full_rest``), and for §3.3 from
+  rest (``ms_*_rest``, opt-in); this variant is also shown beside every row of the main table
+  (:func:`beside_rest`), since which state the paper's figures show is not stated;
 * **run length** — the linear phase: the presets from rest for 4 ms, analysed over 0.2–4 ms unsaturated, as the
-  single-run study of results_hf.md (``hf*_lin``); for §3.3 every LF state from rest for 2 ms, analysed over
-  0.5–2 ms (``ms_lin``), as results_multiscale_hf.md;
-* **initial state** — from rest instead of equilibrium + perturbation (``hf1_rest``, ``hf2_rest``, ``va_rest``,
-  ``ms_*_rest``);
-* **height spread** — every patch height 3 µm (the ``*_equal`` presets: ``hf*_equal``, ``va_equal``);
-* **single-run conditions** — equal heights, from rest and the 4 ms linear-phase window together (``hf*_equal_lin``):
-  what the single runs of results_hf.md had;
-* **growth clock** — the varying-area growth 3 × faster (``va_clock``) and, with ``--full-varying-area``, at the
-  paper's clock (``va_full``);
+  single-run study of results_hf.md (``hf*_lin``); for §3.3 every LF state from rest for 2 ms (``ms_lin``);
+* **height spread** — every patch height 3 µm (``hf*_equal``; for §3.2 ``va_equal``, compressed as ``va``);
+* **single-run conditions** — equal heights, from rest and the 4 ms window together (``hf*_equal_lin``);
+* **growth clock** — the varying-area growth compressed × ``Config.growth_speedup`` (``va``);
 * **Φ rule** — the ``snr`` rule (κ = 5) as the primary rule instead of ``relative`` (η = 0.1), for rows built on
   S and Φ;
 * **STFT window** — the STFT maximum over windows of 2^13 … 2^17 samples instead of 2^12 (rows built on it);
 * **seeds** — the first and the second half of the seeds alone (is the verdict carried by a few seeds?).
 
-The load history (§3.3) is a statement of the paper, so its experiment (``ms_order``) has its own row.
 A variant applies to a row when it replaces every experiment of the row (so that nothing is compared across
 settings) or, for an analysis variant, when the row is built on what it changes (``Row.uses``).
 """
@@ -32,43 +29,20 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from aca_warp.studies.validation.base import (
-    EXPERIMENTS,
-    ROWS,
-    Config,
-    Experiment,
-    Row,
-    evaluate_rows,
-    register_experiment,
+from aca_warp.studies.validation.base import ROWS, Config, Row, evaluate_rows
+from aca_warp.studies.validation.hf_experiments import PRESETS
+from aca_warp.studies.validation.verdicts import (
+    FAILED,
+    NEGLIGIBLE,
+    NOT_COMPARABLE,
+    NOT_MEASURED,
+    NOT_REPRODUCED,
+    PARTLY,
+    REPRODUCED,
+    UNDETERMINED,
 )
 
-PRESETS = ("hf1", "hf2", "hf3", "hf4")
-OPEN = ("not reproduced", "partly")  # the verdicts whose causes are tested
-LIN_DURATION = 4.0e-3  # s: the single runs of results_hf.md (4 ms from rest, per-patch velocities from 0.2 ms)
-LIN_START = 0.2e-3
-
-
-# ------------------------------------------------------------------------------------------------ experiments
-
-
-def _experiments() -> tuple[Experiment, ...]:
-    out = []
-    for p in PRESETS:
-        up = p.upper()
-        out.append(Experiment(f"{p}_lin", "§3.1", f"{up} from rest for 4 ms, analysed over 0.2–4 ms unsaturated "
-                              "(run-length variant: the single run's window)", p, initial="rest", kind="window",
-                              duration=LIN_DURATION, window_start=LIN_START))  # fmt: skip
-        out.append(Experiment(f"{p}_equal", "§3.1", f"{up} with every height 3 µm (preset {p}_equal; height-spread "
-                              "variant)", f"{p}_equal", quick=False, opt_in=p in ("hf3", "hf4")))  # fmt: skip
-        out.append(Experiment(f"{p}_equal_lin", "§3.1", f"{up} with equal heights from rest for 4 ms, over 0.2–4 ms "
-                              "(the single runs' conditions)", f"{p}_equal", initial="rest", kind="window",
-                              duration=LIN_DURATION, window_start=LIN_START))  # fmt: skip
-    out.append(Experiment("hf2_rest", "§3.1", "HF2 started from rest (initial-state variant)", "hf2",
-                          initial="rest", quick=False))  # fmt: skip
-    return tuple(out)
-
-
-CAUSE_EXPERIMENTS = _experiments()
+OPEN = (NOT_REPRODUCED, PARTLY, NEGLIGIBLE, UNDETERMINED)  # the verdicts whose causes are tested
 
 
 # ------------------------------------------------------------------------------------------------ variants
@@ -95,7 +69,7 @@ class Variant:
     def applies(self, row: Row) -> bool:
         """Whether the variant changes something the row depends on, and only that."""
         if self.substitute:
-            return set(row.experiments) <= {a for a, _ in self.substitute}
+            return bool(row.experiments) and set(row.experiments) <= {a for a, _ in self.substitute}
         if self.needs is not None:
             return self.needs in row.uses
         return True
@@ -155,24 +129,27 @@ def _sub(names: tuple[str, ...], suffix: str) -> tuple[tuple[str, str], ...]:
     return tuple((n, f"{n}{suffix}") for n in names)
 
 
+REST_VARIANTS = (
+    ("initial state", "from rest, paper length", tuple((p, f"{p}_rest") for p in PRESETS)),
+    ("initial state", "from rest, paper's clock", (("va_full", "va_full_rest"),)),
+)
+
+
 def variants(cfg: Config) -> list[Variant]:
     """Every variant, in the order of the summary's columns."""
     from aca_warp.studies.validation.multiscale import MAIN as ms
 
     half = cfg.seeds // 2
     out = [
+        *(Variant(c, label, sub) for c, label, sub in REST_VARIANTS),
+        Variant("initial state", "from rest", _sub(ms, "_rest")),
         Variant("run length", "linear phase: 4 ms from rest, 0.2–4 ms", _sub(PRESETS, "_lin")),
         Variant("run length", "linear phase: 2 ms from rest, 0.5–2 ms", tuple((n, "ms_lin") for n in ms)),
-        Variant("initial state", "from rest", (("hf1", "hf1_rest"), ("hf2", "hf2_rest"))),
-        Variant("initial state", "from rest", (("va", "va_rest"),)),
-        Variant("initial state", "from rest", _sub(ms, "_rest")),
         Variant("height spread", "equal heights (3 µm)", _sub(PRESETS, "_equal")),
-        Variant("height spread", "equal heights (3 µm)", (("va", "va_equal"),)),
+        Variant("height spread", f"equal heights, growth compressed × {cfg.growth_speedup:g}",
+                (("va_full", "va_equal"),)),
         Variant("single-run conditions", "equal heights, rest, 0.2–4 ms", _sub(PRESETS, "_equal_lin")),
-        Variant("growth clock", "growth 3 × faster", (("va", "va_clock"),)),
-        Variant("growth clock", "the paper's clock (0.36 s)", (("va", "va_full"),)),
-        Variant("growth clock", f"compressed × {cfg.growth_speedup:g} (va, when va_full is the rows' source)",
-                (("va", "va_compressed"),)),
+        Variant("growth clock", f"compressed × {cfg.growth_speedup:g}", (("va_full", "va"),)),
         Variant("Φ rule", "snr rule (κ = 5)", transform=snr_rule, needs="sync"),
         *(Variant("STFT window", f"2^{k} samples", transform=stft_window(2**k), needs="stft") for k in range(13, 18)),
         Variant("seeds", f"seeds {cfg.first_seed}–{cfg.first_seed + half - 1}",
@@ -180,6 +157,22 @@ def variants(cfg: Config) -> list[Variant]:
         Variant("seeds", f"seeds {cfg.first_seed + half}–{cfg.first_seed + cfg.seeds - 1}",
                 transform=seed_half(False, cfg.seeds, cfg.first_seed)),
     ]  # fmt: skip
+    return out
+
+
+def beside_rest(results: dict[str, dict], cfg: Config, rows: list[Row] | None = None) -> list[dict[str, Any] | None]:
+    """Every row evaluated from rest at the paper's length (the §3.1 presets' ``hf*_rest``, §3.2's
+    ``va_full_rest``), or None where that variant does not apply or was not run."""
+    out: list[dict[str, Any] | None] = []
+    for row in ROWS if rows is None else rows:
+        entry = None
+        for cause, label, sub in REST_VARIANTS:
+            v = Variant(cause, label, sub)
+            if v.applies(row) and all(b in results for a, b in sub if a in row.experiments):
+                entry = evaluate_rows(v.results(results), cfg, [row])[0]
+                entry["variant"] = label
+                break
+        out.append(entry)
     return out
 
 
@@ -199,7 +192,7 @@ def evaluate_causes(results: dict[str, dict], cfg: Config, rows: list[dict[str, 
             if v.substitute and all(results.get(a) is results.get(b) for a, b in v.substitute):
                 continue  # the variant is what the row already reads (va_full as the rows' source)
             e = evaluate_rows(v.results(results), cfg, [row])[0]
-            if v.transform is not None and e["verdict"] == "not measured":
+            if v.transform is not None and e["verdict"] == NOT_MEASURED:
                 continue  # an analysis the runs cannot give (a window longer than the record, a half of 1 seed)
             out.append(
                 {
@@ -212,25 +205,35 @@ def evaluate_causes(results: dict[str, dict], cfg: Config, rows: list[dict[str, 
                     "value": e["value"],
                     "verdict": e["verdict"],
                     "notes": e["notes"],
-                    "moved": e["verdict"] not in (main["verdict"], "not measured", "failed"),
+                    "moved": e["verdict"] not in (main["verdict"], NOT_MEASURED, FAILED),
                 }
             )
     return out
 
 
-SHORT = {"reproduced": "✓", "partly": "~", "not reproduced": "✗", "not measured": "·", "failed": "!"}
+SHORT = {
+    REPRODUCED: "✓",
+    PARTLY: "~",
+    NOT_REPRODUCED: "✗",
+    NEGLIGIBLE: "≈",
+    UNDETERMINED: "?",
+    NOT_COMPARABLE: "n/c",
+    NOT_MEASURED: "·",
+    FAILED: "!",
+}
 
 
 def cause_summary(causes: list[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
     """(header, rows) of the summary: one row per open statement, one column per cause; a cell lists the
-    variants' verdicts (✓ reproduced, ~ partly, ✗ not reproduced, · not measured), in bold where it moved."""
+    variants' verdicts (✓ reproduced, ~ partly, ✗ not reproduced, ≈ significant but negligible, ? undetermined,
+    · not measured), in bold where it moved."""
     order = list(dict.fromkeys(c["cause"] for c in causes))
     by_row: dict[tuple[str, str], dict[str, list[str]]] = {}
     mains: dict[tuple[str, str], str] = {}
     for c in causes:
         key = (c["section"], c["statement"])
         mains[key] = c["main_verdict"]
-        mark = SHORT.get(c["verdict"], "?")
+        mark = SHORT.get(c["verdict"], c["verdict"])
         cell = f"**{mark}**" if c["moved"] else mark
         by_row.setdefault(key, {}).setdefault(c["cause"], []).append(f"{c['variant']}: {cell}")
     header = ["§", "statement", "main", *order]
@@ -239,11 +242,3 @@ def cause_summary(causes: list[dict[str, Any]]) -> tuple[list[str], list[list[st
         for (sec, st), cells in by_row.items()
     ]
     return header, rows
-
-
-def register() -> None:
-    """Register the cause experiments (once; §3.2/§3.3 register theirs with their rows)."""
-    if CAUSE_EXPERIMENTS[0].name in EXPERIMENTS:
-        return
-    for exp in CAUSE_EXPERIMENTS:
-        register_experiment(exp)

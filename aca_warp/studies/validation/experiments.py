@@ -1,11 +1,13 @@
-"""Running an experiment (stages 3, 4 and 6 of :mod:`aca_warp.studies.validation`): its preparation (scenes,
-host contact solves, predicted growth rates, plan), the run through the one run loop with a sink that keeps the
-records, the saturation of every pad, the analysis of the common segment, and the checkpoints (``result.json``,
-``arrays.npz``) that a rerun with the same settings reuses.
+"""Running experiments (stages 3, 4 and 6 of :mod:`aca_warp.studies.validation`): their preparation (scenes, host
+contact solves, predicted growth rates, plan), batches of experiments run as one, the run in segments through the
+one run loop with a sink that keeps the records, the saturation of every pad, the analysis of the common segment
+(and of the track windows), and the checkpoints (``result.json``, ``arrays.npz``) that a rerun with the same
+settings reuses.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from dataclasses import dataclass
@@ -15,151 +17,46 @@ from typing import Any
 import numpy as np
 
 from aca_warp.studies.report import Log, clean
-from aca_warp.studies.validation.base import USABLE, Config, Experiment, map_pads, pad_member
-from aca_warp.studies.validation.measures import pad_measures
-from aca_warp.studies.validation.plan import Plan, experiment_scene, plan_run, predicted_sigma, step_seconds
-
-# ------------------------------------------------------------------------------------------------ saturation
-
-
-def pad_saturation(time: np.ndarray, glob: np.ndarray, window_end: float, window: float) -> dict[str, Any]:
-    """Saturation of one pad (``record_saturation``: Σ|u̇| by window means, μ by standard deviations over N/64
-    windows) as plain figures. ``status``: "saturated" (Σ|u̇| grows, then settles early enough: the analysed part
-    starts at least half a window before ``window_end``), "not saturated", "no growth phase" (settled without
-    growing: not the instability's saturated state) or "saturated too late".
-    """
-    from aca_warp.analysis.saturation import record_saturation
-
-    out = record_saturation(time, glob[:, 0], glob[:, 4]).figures()
-    if out["status"] == "saturated" and out["t_start"] > window_end - 0.5 * window:
-        out["status"] = "saturated too late"
-    return out
-
+from aca_warp.studies.validation.base import USABLE, Config, Experiment, pad_member
+from aca_warp.studies.validation.plan import Plan, experiment_scene, plan_run, predicted_sigma
 
 # ------------------------------------------------------------------------------------------------ running
 
 
 class Collector:
-    """Sink of the run loop: keeps the global outputs (float64) and the per-patch velocities (float32)."""
+    """Sink of the run loop over the segments of a run: keeps the global outputs (float64) and the per-patch
+    velocities (float32) with times from the run's start (:meth:`segment` sets the offset of the next segment)."""
 
     def __init__(self) -> None:
         self.time: list[np.ndarray] = []
         self.globals: list[np.ndarray] = []
         self.patch_time: list[np.ndarray] = []
         self.velocity: list[np.ndarray] = []
+        self.offset = 0.0
+        self.skip = 0
+
+    def segment(self, start: float) -> None:
+        """The next chunks belong to a segment starting at ``start`` [s]; its first global sample repeats the last
+        one of the segment before (every run records its start) and is dropped."""
+        self.offset, self.skip = start, int(bool(self.time))
 
     def __call__(self, chunk: Any) -> None:
-        self.time.append(chunk.time)
-        self.globals.append(np.asarray(chunk.globals, dtype=np.float64))
+        k, self.skip = self.skip, 0 if len(chunk.time) else self.skip
+        self.time.append(chunk.time[k:] + self.offset)
+        self.globals.append(np.asarray(chunk.globals[k:], dtype=np.float64))
         if chunk.velocity is not None and len(chunk.patch_time):
-            self.patch_time.append(chunk.patch_time)
+            self.patch_time.append(chunk.patch_time + self.offset)
             self.velocity.append(np.asarray(chunk.velocity, dtype=np.float32))
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(time (N,), globals (N, pads, 5), patch time (M,), velocity (M, patches))."""
+        """(time (N,), globals (N, pads, 6), patch time (M,), velocity (M, patches))."""
 
         def cat(parts: list[np.ndarray], empty: tuple[int, ...]) -> np.ndarray:
             return np.concatenate(parts) if parts else np.zeros(empty)
 
         v = cat(self.velocity, (0, 0)).astype(np.float32, copy=False)
         self.velocity.clear()
-        return cat(self.time, (0,)), cat(self.globals, (0, 0, 5)), cat(self.patch_time, (0,)), v
-
-
-def analysis_segment(sat: list[dict[str, Any]], patch_time: np.ndarray) -> int | None:
-    """First per-patch sample of the common analysis segment: the latest saturated start of the usable pads (no
-    earlier than the window); None when no pad is usable."""
-    starts = [s["t_start"] for s in sat if s["status"] == "saturated"]
-    if not starts or patch_time.size == 0:
-        return None
-    return int(np.searchsorted(patch_time, max(starts) - 1e-12))
-
-
-def analyse_batch(
-    scenes: list[Any],
-    time: np.ndarray,
-    glob: np.ndarray,
-    ptime: np.ndarray,
-    vel: np.ndarray,
-    plan: Plan,
-    cfg: Config,
-    kind: str = "saturated",
-    members: list[str | None] | None = None,
-) -> tuple[list[dict[str, Any]], dict[str, np.ndarray], dict[str, Any]]:
-    """Saturation of every pad, the common segment, and the measures of each usable pad.
-
-    ``kind`` "saturated": the segment starts at the latest saturated start of the usable pads, the others are not
-    analysed; "window": every pad is analysed over the whole per-patch record, saturated or not (status
-    "linear phase"; the detector's verdict is kept as ``detector_status``). Pads are analysed in ``cfg.workers``
-    processes. Returns (pads, arrays, segment): one dict per pad (seed, member, status, saturation figures,
-    measures), the arrays for ``arrays.npz`` (stacked over the analysed pads, their indices in "pad"), and the
-    segment's start, length and resolution.
-    """
-    window = plan.patch_samples * cfg.sample_dt * cfg.decimation
-    sat = [pad_saturation(time, glob[:, p], plan.duration, window) for p in range(len(scenes))]
-    if kind == "window":
-        for s in sat:
-            s.update(
-                detector_status=s["status"], status="linear phase", t_start=float(ptime[0]) if ptime.size else None
-            )
-        k0 = 0 if ptime.size else None
-    else:
-        k0 = analysis_segment(sat, ptime)
-    pads: list[dict[str, Any]] = []
-    segment: dict[str, Any] = {"start_s": None, "samples": 0}
-    jobs: list[tuple[int, tuple]] = []
-    start = np.concatenate([[0], np.cumsum([s.patches.count for s in scenes])])
-    if k0 is not None:
-        m = ptime.size - k0 - 1  # one short: the global segment (m·decimation samples) must end inside the record
-        j0 = int(round(ptime[k0] / cfg.sample_dt))
-        segment = {"start_s": float(ptime[k0]), "samples": m, "seconds": m * cfg.sample_dt * cfg.decimation}
-        segment["resolution_hz"] = 1.0 / segment["seconds"]
-    for p, s in enumerate(scenes):
-        a, b = int(start[p]), int(start[p + 1])
-        entry: dict[str, Any] = {"seed": s.initial.seed, "patches": b - a, **sat[p]}
-        if members is not None and members[p] is not None:
-            entry["member"] = members[p]
-        pads.append(entry)
-        if sat[p]["status"] in USABLE and k0 is not None:
-            gseg = glob[j0 : j0 + m * cfg.decimation, p]
-            jobs.append((p, (gseg, vel[k0 : k0 + m, a:b], (s.patches.x, s.patches.y), cfg)))
-    arrays: dict[str, list] = {}
-    for (p, _), (scal, arr) in zip(jobs, map_pads(_pad_job, [j for _, j in jobs], cfg.workers), strict=True):
-        if isinstance(scal, str):  # the pad is reported, never silently used
-            pads[p]["status"] = f"analysis failed: {scal}"
-            continue
-        pads[p]["measures"] = scal
-        for k, v in arr.items():
-            arrays.setdefault(k, []).append(v)
-        arrays.setdefault("pad", []).append(p)
-    return pads, {k: np.asarray(v) for k, v in arrays.items()}, segment
-
-
-def _pad_job(args: tuple) -> tuple[Any, Any]:
-    """:func:`pad_measures` of one pad; ("ErrorType: message", None) when its analysis fails."""
-    try:
-        return pad_measures(*args)
-    except (ValueError, FloatingPointError, IndexError) as e:
-        return f"{type(e).__name__}: {e}", None
-
-
-def pad_facts(scenes: list[Any], contacts: list[Any], sigma: list[np.ndarray]) -> list[dict[str, Any]]:
-    """Per pad: patches in contact, matrix load share, mean area, predicted σ min / median / max [1/s]."""
-    out = []
-    for p, (s, c) in enumerate(zip(scenes, contacts, strict=True)):
-        out.append(
-            {
-                "patches": int(s.patches.count),
-                "in_contact": int(np.count_nonzero(c.patch_force > 0)),
-                "matrix_share": float(c.matrix_force.sum() / s.normal_force) if s.normal_force > 0 else 0.0,
-                "mean_area_m2": float(s.patches.area.mean()),
-                "sigma_min": float(sigma[p].min()),
-                "sigma_median": float(np.median(sigma[p])),
-                "sigma_max": float(sigma[p].max()),
-                "normal_force_N": float(s.normal_force),
-            }
-        )
-    return out
+        return cat(self.time, (0,)), cat(self.globals, (0, 0, 6)), cat(self.patch_time, (0,)), v
 
 
 @dataclass
@@ -178,16 +75,10 @@ class Prepared:
     def patch_count(self) -> int:
         return sum(s.patches.count for s in self.scenes)
 
-    def cost_patches(self, cfg: Config) -> int:
-        """Patches that set the step time: on CUDA pads × the largest pad (blocks are sized for it), else all."""
-        if cfg.device == "cpu":
-            return self.patch_count
-        return len(self.scenes) * max(s.patches.count for s in self.scenes)
-
-    def estimate(self, cfg: Config, calibration: dict[str, float]) -> float:
-        """Estimated wall seconds of the run (stepping only; see :func:`step_seconds`)."""
-        growth = self.exp.kind == "growth"
-        return self.plan.steps * step_seconds(cfg, self.cost_patches(cfg), calibration, growth)
+    def replanned(self, duration: float, cfg: Config) -> Prepared:
+        """The same experiment planned for ``duration`` [s] (the length of the batch it runs in)."""
+        plan = plan_run(self.exp, self.scenes, self.contacts, self.sigma, cfg, self.members, duration=duration)
+        return dataclasses.replace(self, plan=plan)
 
 
 def prepare(exp: Experiment, cfg: Config) -> Prepared:
@@ -203,69 +94,151 @@ def prepare(exp: Experiment, cfg: Config) -> Prepared:
     return Prepared(exp, scenes, contacts, sigma, plan, members)
 
 
-def run_experiment(
-    prep: Prepared,
+@dataclass
+class Batch:
+    """Experiments run as one batch of pads: one model, one run as long as the longest member's plan (each member
+    replanned to it), the step the stepping's rule over all pads; each member is analysed and saved on its own."""
+
+    name: str
+    members: list[Prepared]
+
+    @property
+    def scenes(self) -> list[Any]:
+        return [s for p in self.members for s in p.scenes]
+
+    @property
+    def plan(self) -> Plan:
+        """The run's plan (every member's covers the same run; the segments are the union of the members')."""
+        return self.members[0].plan
+
+    @property
+    def stepping_kind(self) -> str:
+        return self.members[0].exp.stepping
+
+    @property
+    def growth(self) -> bool:
+        return self.members[0].exp.kind == "growth"
+
+
+def make_batch(name: str, preps: list[Prepared], cfg: Config) -> Batch:
+    """The batch of ``preps``: every member replanned to the longest duration. Members must share their kind,
+    stepping and per-patch windows (ValueError otherwise: a batch is one run)."""
+    if len({(p.exp.kind, p.exp.stepping, p.exp.tracks, p.exp.window_scale) for p in preps}) > 1:
+        raise ValueError(f"batch {name}: its experiments differ in kind, stepping, tracks or window")
+    duration = max(p.plan.duration for p in preps)
+    members = [p if p.plan.duration == duration else p.replanned(duration, cfg) for p in preps]
+    return Batch(name, members)
+
+
+def run_segments(
+    model: Any, state: Any, plan: Plan, cfg: Config, step: Any, dt: float, sink: Collector,
+    probe: Any = None,
+) -> tuple[Any, list[Any]]:  # fmt: skip
+    """Step ``model`` from ``state`` through the plan's segments (``run_engine`` per segment, per-patch velocities
+    recorded where the segment says), every chunk to ``sink``. ``probe(result) -> bool``, called after the first
+    segment, may stop the run (False). Returns (the last segment's result, every segment's result)."""
+    from aca_warp.scene import Record
+    from aca_warp.studies.runs import run_engine
+
+    results = []
+    for a, b, patches in plan.segments:
+        record = Record(
+            sample_dt=cfg.sample_dt, patches=("velocity",) if patches else (), decimation=cfg.decimation
+        )  # fmt: skip
+        sink.segment(a)
+        res = run_engine(
+            model, state, engine=cfg.engine, duration=b - a, integrator=step.integrator, dt=dt, record=record,
+            sink=sink, force=step.force,
+        )  # fmt: skip
+        results.append(res)
+        if not res.complete or (probe is not None and len(results) == 1 and not probe(res)):
+            break
+    return results[-1], results
+
+
+def split_segments(plan: Plan, first: float) -> Plan:
+    """The plan with its first segment cut at ``first`` [s] (a probe of the step time), when it is longer."""
+    a, b, patches = plan.segments[0]
+    if b - a <= 2.0 * first:
+        return plan
+    return dataclasses.replace(plan, segments=((a, a + first, patches), (a + first, b, patches), *plan.segments[1:]))
+
+
+def run_batch(
+    batch: Batch,
     cfg: Config,
     out: Path,
     log: Log,
-    calibration: dict[str, float],
+    costs: Any,
     budget: float | None,
     keep_records: bool = False,
-) -> dict[str, Any]:
-    """Run, analyse and save one prepared experiment (package docstring); returns its result dict.
+) -> dict[str, dict[str, Any]]:
+    """Run, analyse and save one batch; returns its members' result dicts by name.
 
-    A run the ``budget`` [s of wall time left] cannot hold is not started: the result says so.
+    A batch the ``budget`` [s of wall time left] cannot hold by its estimate is not started; a batch whose first
+    segment (a probe of its step time, on a non-growing batch) projects beyond the budget is stopped there. Its
+    members' results say so.
     """
     from aca_warp.hf.solver import stable_step
-    from aca_warp.studies.runs import batch_at_start, run_engine
+    from aca_warp.studies.runs import batch_at_start
 
     t0 = time.perf_counter()
-    exp, scenes, plan = prep.exp, prep.scenes, prep.plan
-    est = prep.estimate(cfg, calibration)
+    scenes, plan = batch.scenes, batch.plan
+    step = cfg.stepping(batch.stepping_kind)
+    model, state = batch_at_start(scenes, cfg.device, step.precision)
+    bound = stable_step(model).sticking
+    dt = step.step(bound)
+    steps = plan.steps(dt, cfg.sample_dt)
+    est = costs.estimate(batch, cfg, bound)
     sizes = sorted({s.patches.count for s in scenes})
+    names = ", ".join(p.exp.name for p in batch.members)
     log(
-        f"{exp.name}: {len(scenes)} pads × {'/'.join(map(str, sizes))} patches, {exp.initial}, {exp.kind} run "
-        f"{plan.duration * 1e3:.1f} ms (settle {plan.settle * 1e3:.1f} ms; per-patch window "
-        f"{plan.patch_samples * cfg.sample_dt * cfg.decimation * 1e3:.1f} ms) = {plan.steps:,} steps; per-patch "
-        f"record {plan.velocity_bytes / 2**20:.0f} MiB; estimated {est:.0f} s"
+        f"{batch.name} ({names}): {len(scenes)} pads × {'/'.join(map(str, sizes))} patches, run "
+        f"{plan.duration * 1e3:.1f} ms in {len(plan.segments)} segment(s), {len(plan.tracks)} track window(s); "
+        f"per-patch record {sum(p.plan.velocity_bytes for p in batch.members) / 2**20:.0f} MiB; {step.describe()}: "
+        f"dt {dt:.3g} s (sticking bound {bound:.3g} s), {steps:,} steps, estimated {est:.0f} s"
     )
-    result = _result_head(exp, cfg, plan, pad_facts(scenes, prep.contacts, prep.sigma), est)
+    heads = {p.exp.name: _result_head(p, cfg, est) for p in batch.members}
     if budget is not None and est > budget:
-        log(f"{exp.name}: not run: estimated {est:.0f} s exceeds the {budget:.0f} s left of --max-wall")
-        return {**result, "status": "skipped (--max-wall)"}
-    model, state = batch_at_start(scenes, cfg.device, cfg.precision)
-    # strang's step must resolve sticking (docs/stability.md): the configured step or 0.9 × that bound; the quick
-    # variant keeps its coarse step, forced (a smoke check, named as such in the table)
-    dt = cfg.dt if cfg.quick else min(cfg.dt, 0.9 * stable_step(model).sticking)
-    if dt < cfg.dt:
-        log(f"{exp.name}: step {dt:.3g} s (strang's sticking bound), not {cfg.dt:.3g} s")
+        log(f"{batch.name}: not run: estimated {est:.0f} s exceeds the {budget:.0f} s left of the budget")
+        return {n: {**h, "status": "skipped (budget)"} for n, h in heads.items()}
+    projection: dict[str, float] = {}
+
+    def probe(res: Any) -> bool:
+        per = res.wall_time / max(res.steps, 1)
+        projection.update(per_step=per, total=per * steps)
+        left = None if budget is None else budget - (time.perf_counter() - t0)
+        log(f"{batch.name}: probe {res.steps:,} steps at {per * 1e6:.2f} µs/step: {per * steps:.0f} s projected")
+        return left is None or per * steps <= left
+
+    probe_s = cfg.sample_dt * max(1, round(min(5.0e-4, 0.05 * plan.duration) / cfg.sample_dt))  # whole samples
+    run_plan = plan if batch.growth else split_segments(plan, probe_s)
     sink = Collector()
-    res = run_engine(
-        model,
-        state,
-        engine=cfg.engine,
-        duration=plan.duration,
-        integrator="strang",
-        dt=dt,
-        record=plan.record,
-        sink=sink,
-        force=cfg.quick,
-    )
-    result["run"] = _run_facts(res, model, cfg)
-    per = res.wall_time / max(res.steps, 1)
-    grown = "growth" if exp.kind == "growth" else "fixed"
-    calibration[f"per_patch_{grown}"] = per / prep.cost_patches(cfg)
-    calibration[f"floor_{grown}"] = per if cfg.device != "cpu" else 0.0
+    last, parts = run_segments(model, state, run_plan, cfg, step, dt, sink, probe if not batch.growth else None)
+    if "total" in projection and len(parts) == 1 and len(run_plan.segments) > 1 and last.complete:
+        log(f"{batch.name}: stopped after the probe: {projection['total']:.0f} s projected exceeds the budget")
+        return {n: {**h, "status": "skipped (budget)", "probe_us_per_step": 1e6 * projection["per_step"]}
+                for n, h in heads.items()}  # fmt: skip
+    facts = _run_facts(parts, model, cfg, step, bound)
+    costs.calibrate(batch, cfg, facts["us_per_step"] * 1e-6)
     del model, state
     log(
-        f"{exp.name}: {'complete' if res.complete else 'stopped: ' + str(res.fault)} in {res.wall_time:.1f} s "
-        f"({res.steps / max(res.wall_time, 1e-9):,.0f} steps/s, {per * 1e6:.2f} µs/step, "
-        f"compile {res.compile_time:.1f} s)"
+        f"{batch.name}: {'complete' if facts['complete'] else 'stopped: ' + str(facts['fault'])} in "
+        f"{facts['wall_s']:.1f} s ({facts['us_per_step']:.2f} µs/step at dt = {facts['dt']:.3g} s, compile "
+        f"{facts['compile_s']:.1f} s)"
     )
-    t, g, pt, v = sink.arrays()
+    records = sink.arrays()
     del sink
-    result["total_s"] = time.perf_counter() - t0
-    return finish_experiment(prep, cfg, out, log, result, (t, g, pt, v), keep_records)
+    out_results, pad0, patch0 = {}, 0, 0
+    share = (time.perf_counter() - t0) / len(batch.members)  # the batch's setup and run, shared by its members
+    for prep in batch.members:
+        n, m = len(prep.scenes), prep.patch_count
+        t, g, pt, v = records
+        mine = (t, g[:, pad0 : pad0 + n], pt, v[:, patch0 : patch0 + m])
+        result = {**heads[prep.exp.name], "run": facts, "total_s": share}
+        out_results[prep.exp.name] = finish_experiment(prep, cfg, out, log, result, mine, keep_records)
+        pad0, patch0 = pad0 + n, patch0 + m
+    return out_results
 
 
 def finish_experiment(
@@ -279,6 +252,8 @@ def finish_experiment(
 ) -> dict[str, Any]:
     """Analyse the records (time, globals, patch time, velocity) of a run and save the result (and, with
     ``keep_records``, the records themselves as ``records.npz``, for :func:`reanalyse`)."""
+    from aca_warp.studies.validation.analysis import analyse_batch
+
     t, g, pt, v = records
     name = prep.exp.name
     ta = time.perf_counter()
@@ -287,7 +262,7 @@ def finish_experiment(
 
         pads, arrays, segment = analyse_growth(prep.scenes, t, g, prep.plan, cfg)
     else:
-        pads, arrays, segment = analyse_batch(prep.scenes, t, g, pt, v, prep.plan, cfg, prep.exp.kind, prep.members)
+        pads, arrays, segment = analyse_batch(prep, t, g, pt, v, cfg)
     result["pads"] = pad_facts(prep.scenes, prep.contacts, prep.sigma)
     for entry, facts in zip(pads, result["pads"], strict=True):
         facts.update(entry)
@@ -312,15 +287,38 @@ def reanalyse(prep: Prepared, cfg: Config, out: Path, log: Log) -> dict[str, Any
     result = json.loads(res.read_text())
     if result.get("experiment") != clean(prep.exp.key()) or result.get("config") != cfg.run_key():
         return None
+    duration = (result.get("plan") or {}).get("duration_s")
+    if duration is not None and abs(duration - prep.plan.duration) > 1e-12:
+        prep = prep.replanned(duration, cfg)  # it ran in a batch as long as its longest member
     with np.load(path) as d:
         records = (d["time"], d["globals"], d["patch_time"], d["velocity"])
     log(f"{prep.exp.name}: analysing the kept records again")
     return finish_experiment(prep, cfg, out, log, result, records, keep_records=False)
 
 
-def _result_head(exp: Experiment, cfg: Config, plan: Plan, facts: list[dict], est: float) -> dict[str, Any]:
+def pad_facts(scenes: list[Any], contacts: list[Any], sigma: list[np.ndarray]) -> list[dict[str, Any]]:
+    """Per pad: patches in contact, matrix load share, mean area, predicted σ min / median / max [1/s]."""
+    out = []
+    for p, (s, c) in enumerate(zip(scenes, contacts, strict=True)):
+        out.append(
+            {
+                "patches": int(s.patches.count),
+                "in_contact": int(np.count_nonzero(c.patch_force > 0)),
+                "matrix_share": float(c.matrix_force.sum() / s.normal_force) if s.normal_force > 0 else 0.0,
+                "mean_area_m2": float(s.patches.area.mean()),
+                "sigma_min": float(sigma[p].min()),
+                "sigma_median": float(np.median(sigma[p])),
+                "sigma_max": float(sigma[p].max()),
+                "normal_force_N": float(s.normal_force),
+            }
+        )
+    return out
+
+
+def _result_head(prep: Prepared, cfg: Config, est: float) -> dict[str, Any]:
+    plan = prep.plan
     return {
-        "experiment": exp.key(),
+        "experiment": prep.exp.key(),
         "config": cfg.run_key(),
         "plan": {
             "duration_s": plan.duration,
@@ -330,26 +328,34 @@ def _result_head(exp: Experiment, cfg: Config, plan: Plan, facts: list[dict], es
             "sigma_q25": plan.sigma_q25,
             "window_start_s": plan.window_start,
             "patch_samples": plan.patch_samples,
-            "steps": plan.steps,
+            "tracks_s": [list(w) for w in plan.tracks],
             "velocity_bytes": plan.velocity_bytes,
             "estimate_s": est,
         },
-        "pads": facts,
+        "pads": pad_facts(prep.scenes, prep.contacts, prep.sigma),
     }
 
 
-def _run_facts(res: Any, model: Any, cfg: Config) -> dict[str, Any]:
+def _run_facts(parts: list[Any], model: Any, cfg: Config, step: Any, bound: float) -> dict[str, Any]:
+    """What the segments of a run did together: completeness, steps, wall and compile time, the step."""
     from aca_warp.common.files import machine
 
+    last = parts[-1]
+    steps = sum(int(r.steps) for r in parts)
+    wall = sum(float(r.wall_time) for r in parts)
     return {
-        "complete": bool(res.complete),
-        "fault": None if res.fault is None else str(res.fault),
-        "steps": int(res.steps),
-        "wall_s": float(res.wall_time),
-        "compile_s": float(res.compile_time),
-        "us_per_step": 1e6 * res.wall_time / max(res.steps, 1),
-        "blocks_per_pad": int(res.blocks_per_pad),
-        "stages": list(res.stages),
+        "complete": bool(last.complete),
+        "fault": None if last.fault is None else str(last.fault),
+        "steps": steps,
+        "wall_s": wall,
+        "compile_s": sum(float(r.compile_time) for r in parts),
+        "us_per_step": 1e6 * wall / max(steps, 1),
+        "dt": float(last.dt),
+        "sticking_bound": float(bound),
+        "stepping": dataclasses.asdict(step),
+        "segments": len(parts),
+        "blocks_per_pad": int(last.blocks_per_pad),
+        "stages": list(last.stages),
         "device": machine(model.device),
         "engine": cfg.engine,
     }

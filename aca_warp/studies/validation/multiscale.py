@@ -37,20 +37,11 @@ from aca_warp.studies.validation.base import (
     EXPERIMENTS,
     Config,
     Experiment,
-    Row,
-    RowValue,
     _get,
-    by_seed,
-    ci,
-    direction_verdict,
-    interval,
     map_pads,
     member_result,
     pad_member,
-    paired,
     register_experiment,
-    register_row,
-    side,
 )
 
 STATES = ("app1_start", "app1_end", "app2_start", "app2_end", "app3_start", "app3_end", "app4_start", "app4_end")
@@ -111,31 +102,33 @@ def lf_path(cfg: Config, seed: int, schedule_bar: tuple[float, ...] | None) -> P
     return Path(cfg.lf_dir) / f"lf_{length}_{sched}_seed{seed}.h5"
 
 
-def _run_lf_job(job: tuple[int, tuple[float, ...] | None, tuple[float, float] | None, str]) -> float:
-    """One LF run on the CPU into a temporary file renamed when complete; returns its wall time [s]. In a worker
-    process CUDA is hidden before Warp starts (the run needs none, and a context per worker would hold GPU memory)."""
+def _run_lf_job(job: tuple[int, tuple[float, ...] | None, tuple[float, float] | None, str, str]) -> float:
+    """One LF run on ``device`` (the job's last entry) into a temporary file renamed when complete; returns its wall
+    time [s]. In a worker process CUDA is hidden before Warp starts (a CPU run needs none, and a context per worker
+    would hold GPU memory)."""
     import multiprocessing
     import os
     import sys
     import time
 
-    if multiprocessing.current_process().name != "MainProcess" and "warp" not in sys.modules:
+    seed, schedule, durations, path, device = job
+    if device == "cpu" and multiprocessing.current_process().name != "MainProcess" and "warp" not in sys.modules:
         os.environ["CUDA_VISIBLE_DEVICES"] = ""
     from aca_warp.lf.commands import run_lf
     from aca_warp.studies.report import init_warp
 
     init_warp()
-    seed, schedule, durations, path = job
     tmp = Path(path).with_suffix(".tmp.h5")
     t0 = time.perf_counter()
-    run_lf(lf_scene(seed, schedule, durations), tmp, device="cpu", overwrite=True, progress=False)
+    run_lf(lf_scene(seed, schedule, durations), tmp, device=device, overwrite=True, progress=False)
     tmp.replace(path)
     return time.perf_counter() - t0
 
 
-def lf_jobs(names: list[str], cfg: Config, first_only: bool = False) -> list[tuple[int, Any, Any, str]]:
-    """The LF runs the experiments ``names`` need that are not on disk yet (seed, schedule, durations, path)."""
-    jobs: dict[str, tuple[int, Any, Any, str]] = {}
+def lf_jobs(names: list[str], cfg: Config, first_only: bool = False) -> list[tuple[int, Any, Any, str, str]]:
+    """The LF runs the experiments ``names`` need that are not on disk yet (seed, schedule, durations, path,
+    device: the HF device, since a CUDA machine need not build CPU kernels)."""
+    jobs: dict[str, tuple[int, Any, Any, str, str]] = {}
     for name in names:
         exp = EXPERIMENTS[name]
         if exp.builder is not state_scene:
@@ -144,21 +137,72 @@ def lf_jobs(names: list[str], cfg: Config, first_only: bool = False) -> list[tup
             seed = cfg.first_seed + k
             path = lf_path(cfg, seed, exp.schedule_bar)
             if not path.is_file():
-                jobs[str(path)] = (seed, exp.schedule_bar, QUICK_DURATIONS if cfg.quick else None, str(path))
+                durations = QUICK_DURATIONS if cfg.quick else None
+                jobs[str(path)] = (seed, exp.schedule_bar, durations, str(path), cfg.device)
     return list(jobs.values())
 
 
 def ensure_lf(names: list[str], cfg: Config, log: Any, first_only: bool = False) -> None:
-    """Run the missing LF runs of ``names`` on the CPU: the first in this process (it compiles the LF kernels),
-    the others in up to ``cfg.workers`` processes."""
+    """Run the missing LF runs of ``names``: on a CUDA device one after the other in this process (2–3 s each on an
+    H100); on the CPU the first in this process (it compiles the LF kernels), the others in up to ``cfg.workers``
+    processes."""
     jobs = lf_jobs(names, cfg, first_only)
     if not jobs:
         return
     Path(cfg.lf_dir).mkdir(parents=True, exist_ok=True)
-    log(f"LF: {len(jobs)} run(s) of the multiscale schedule{' (quick)' if cfg.quick else ''} on the CPU")
-    walls = [_run_lf_job(jobs[0])]
-    walls += map_pads(_run_lf_job, jobs[1:], min(cfg.workers, len(jobs) - 1))
+    log(f"LF: {len(jobs)} run(s) of the multiscale schedule{' (quick)' if cfg.quick else ''} on {cfg.device}")
+    if cfg.device != "cpu":
+        walls = [_run_lf_job(j) for j in jobs]
+    else:
+        walls = [_run_lf_job(jobs[0])]
+        walls += map_pads(_run_lf_job, jobs[1:], min(cfg.workers, len(jobs) - 1))
     log(f"LF: done ({', '.join(f'{w:.1f}' for w in walls)} s each)")
+
+
+def cap_frequency(cfg: Config) -> float:
+    """The isolated-patch frequency of the LF automaton's largest patch, √(K_T √A_max / (m″ A_max)) / 2π [Hz]: LF
+    states whose patches grew to the cap oscillate there."""
+    from aca_warp.lf.scene import load_lf_scene
+
+    s = load_lf_scene("multiscale")
+    a, m = s.lf.A_max, s.material
+    return float(math.sqrt(m.K_T * math.sqrt(a) / (m.mass_per_area * a)) / (2.0 * math.pi))
+
+
+COVERAGE_TOLERANCE = 0.5e-3  # m: a patch of one state lies on a patch of another when their centres are this close
+
+
+def coverage_match(a: Any, b: Any) -> float:
+    """Area-weighted share of state a's patches whose centre lies within :data:`COVERAGE_TOLERANCE` of a patch of
+    state b (the same place in both coverages)."""
+    from scipy.spatial import cKDTree
+
+    pa, pb = a.patches, b.patches
+    d, _ = cKDTree(np.column_stack([pb.x, pb.y])).query(np.column_stack([pa.x, pa.y]))
+    return float(np.sum(pa.area[d <= COVERAGE_TOLERANCE]) / np.sum(pa.area))
+
+
+def lf_facts(cfg: Config) -> dict[str, Any]:
+    """The LF states of every seed as a result ({"pads": [...]}, one entry per seed, status "LF state"): per state
+    the patches, the total patch area [m²] and the normal force [N]; the coverage of app3_start against app2_end
+    (the claim of §3.3), app3_end and app2_start (``match_*``, :func:`coverage_match`); and the cap frequency."""
+    from aca_warp.lf.io import scene_from_snapshot
+
+    pads = []
+    for k in range(cfg.seeds):
+        seed = cfg.first_seed + k
+        path = lf_path(cfg, seed, None)
+        if not path.is_file():
+            continue
+        states = {s: scene_from_snapshot(path, s) for s in STATES}
+        m: dict[str, Any] = {"states": {s: {"patches": sc.patches.count, "area": float(sc.patches.area.sum()),
+                                            "force": float(sc.normal_force)} for s, sc in states.items()}}  # fmt: skip
+        a3 = states["app3_start"]
+        for other in ("app2_end", "app3_end", "app2_start"):
+            m[f"match_{other}"] = coverage_match(a3, states[other])
+            m[f"match_back_{other}"] = coverage_match(states[other], a3)
+        pads.append({"seed": seed, "status": "LF state", "measures": m})
+    return {"pads": pads, "cap_frequency_hz": cap_frequency(cfg), "status": "done"}
 
 
 # ------------------------------------------------------------------------------------------------ HF scenes
@@ -211,13 +255,13 @@ def state_scene(exp: Experiment, k: int, cfg: Config) -> Any:
 
 def _ms(name: str, description: str, members: tuple[str, ...], **kw: Any) -> Experiment:
     return Experiment(name, "§3.3", description, "multiscale", builder=state_scene, members=members,
-                      window_scale=0.5, **kw)  # fmt: skip
+                      window_scale=0.5, stepping="lf_states", **kw)  # fmt: skip
 
 
 MS_EXPERIMENTS = (
     *(_ms(g, f"LF states {', '.join(m)} (one pad per state and LF seed)", m) for g, m in GROUPS.items()),
-    *(_ms(f"{g}_rest", f"as {g}, HF started from rest (initial-state variant)", m, initial="rest", quick=False)
-      for g, m in GROUPS.items()),
+    *(_ms(f"{g}_rest", f"as {g}, HF started from rest (initial-state variant)", m, initial="rest", quick=False,
+          opt_in=True) for g, m in GROUPS.items()),
     _ms("ms_order", "LF schedule 10 / 5 / 30 / 15 bar: the low-load application (app2) right after the 10-bar one "
         "(load-history variant)", ("app2_start",), schedule_bar=ORDER_BAR),
     _ms("ms_lin", "every state from rest for 2 ms, analysed over 0.5–2 ms unsaturated (the single run's window; "
@@ -225,174 +269,13 @@ MS_EXPERIMENTS = (
 )  # fmt: skip
 
 
-# ------------------------------------------------------------------------------------------------ rows
-
-
-def state_values(results: dict[str, dict], names: tuple[str, ...], state: str, key: str) -> dict[int, float]:
-    """Seed -> a pad measure (dotted key) of ``state`` over the experiments ``names``."""
-    return by_seed(member_result(results, names, state), lambda p: _get(p, key))
-
-
-def _per_state(results: dict[str, dict], names: tuple[str, ...], key: str) -> dict[str, dict[int, float]]:
-    return {s: state_values(results, names, s, key) for s in STATES}
-
-
-def _state_line(per: dict[str, dict[int, float]], spec: str = ".3g", scale: float = 1.0, unit: str = "") -> str:
-    return "; ".join(f"{s} {interval(np.array(list(v.values())), spec, scale, unit)}" for s, v in per.items() if v)
-
-
-def largest_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    """ln std μ at app3_start minus ln of the largest std μ of the other states, per seed."""
-    per = _per_state(results, MAIN, "mu_std")
-    a3 = per["app3_start"]
-    d, top = [], {}
-    for seed, v in a3.items():
-        others = {s: per[s][seed] for s in STATES if s != "app3_start" and seed in per[s]}
-        if len(others) < 2:
-            continue
-        d.append(math.log(v / max(others.values())))
-        best = max({**others, "app3_start": v}.items(), key=lambda kv: kv[1])[0]
-        top[best] = top.get(best, 0) + 1
-    app3 = paired(per["app3_start"], per["app3_end"])
-    return RowValue(
-        f"ln(std μ at app3_start / largest std μ of the other states): {interval(np.array(d))}",
-        direction_verdict([side(np.array(d))]),
-        f"std μ over the saturated segment per state: {_state_line(per)}; the largest per seed: "
-        f"{', '.join(f'{k} ×{v}' for k, v in sorted(top.items(), key=lambda kv: -kv[1]))}; app3_start − app3_end "
-        f"{interval(app3)}",
-    )
-
-
-def high_sync_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    """Top-1 % S − S_null at app3_start against the mean of the other states (and against app2_end)."""
-    per = _per_state(results, MAIN, "sync_relative.top_excess")
-    a3 = per["app3_start"]
-    d = []
-    for seed, v in a3.items():
-        others = [per[s][seed] for s in STATES if s != "app3_start" and seed in per[s]]
-        if len(others) >= 2:
-            d.append(v - float(np.mean(others)))
-    d = np.array(d)
-    vs_prev = paired(a3, per["app2_end"])
-    return RowValue(
-        f"top-1 % S − S_null at app3_start − mean of the other states: {interval(d)}",
-        direction_verdict([side(d)], [side(vs_prev)]),
-        f"top-1 % S − S_null per state (relative rule): {_state_line(per)}; app3_start − app2_end (the same "
-        f"coverage at the high load) {interval(vs_prev)}",
-    )
-
-
-def prevalence_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    """Mean Φ of the synchronised bins (S − S_null > 0.05) at app3_end minus at app3_start; and as a share of
-    the patches."""
-    per = _per_state(results, MAIN, "sync_relative.phi_sync")
-    share = _per_state(results, MAIN, "sync_relative.phi_sync_share")
-    d = paired(per["app3_end"], per["app3_start"])
-    ds = paired(share["app3_end"], share["app3_start"])
-    return RowValue(
-        f"Δ mean Φ of the synchronised bins, app3_end − app3_start: {interval(d)}",
-        direction_verdict([side(d)], [side(ds)]),
-        f"synchronised: S − S_null > {SYNC_EXCESS:g} (relative rule); Φ as a share of the state's patches "
-        f"{interval(ds)}; mean Φ per state: {_state_line(per)}",
-    )
-
-
-def clustering_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    """Spearman ρ of the neighbours' phase coherence C(f) against Φ(f) at app3_end."""
-    per = _per_state(results, MAIN, "sync_relative.cluster_phi_rho")
-    rho = np.array(list(per["app3_end"].values()))
-    others = np.array([v for s, d in per.items() if s != "app3_end" for v in d.values()])
-    m, lo, hi = ci(others)
-    return RowValue(
-        f"ρ(C_neighbours(f), Φ(f)) at app3_end: {interval(rho)}",
-        direction_verdict([side(rho)]),
-        f"C(f) = amplitude-weighted cos(φ_i − φ_j) of patches within 5 mm, Spearman over the bins with Φ ≥ 2; per "
-        f"state: {_state_line(per)}; all other states pooled {m:.3g} [{lo:.3g}, {hi:.3g}]",
-    )
-
-
-def agreement_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    """``spectral_agreement`` (S·Φ against |μ(f)|, 20–80 kHz) per seed, mean over the states."""
-    per = _per_state(results, MAIN, "sync_relative.agreement")
-    seeds = sorted({s for v in per.values() for s in v})
-    mean = np.array([np.mean([v[s] for v in per.values() if s in v]) for s in seeds])
-    snr = _per_state(results, MAIN, "sync_snr.agreement")
-    snr_mean = np.array([np.mean([v[s] for v in snr.values() if s in v]) for s in seeds])
-    return RowValue(
-        f"ρ = Spearman(S·Φ, |μ(f)|/μ̄) over 20–80 kHz, mean over the states: {interval(mean)}",
-        direction_verdict([side(mean)], [side(snr_mean)]),
-        f"per state: {_state_line(per)}; snr rule, mean over the states {interval(snr_mean)}",
-    )
-
-
-def band_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    """The first velocity peak of every state within 20–80 kHz (its interval over seeds)."""
-    per = _per_state(results, MAIN, "f1")
-    mu = _per_state(results, MAIN, "mu_peak_hz")
-    inside, means = [], []
-    for v in per.values():
-        m, lo, hi = ci(np.array(list(v.values())))
-        if math.isfinite(m):
-            means.append(BAND[0] <= m <= BAND[1])
-            inside.append(math.isfinite(lo) and BAND[0] <= lo and hi <= BAND[1])
-    if inside and all(inside):
-        verdict = "reproduced"
-    elif means and sum(means) >= len(means) / 2:
-        verdict = "partly"
-    else:
-        verdict = "not reproduced"
-    return RowValue(
-        f"states with the interval of the first peak inside 20–80 kHz: {sum(inside)} of {len(inside)}",
-        verdict,
-        f"first velocity peak per state: {_state_line(per, '.1f', 1e-3, 'kHz')}; largest μ peak (≥ 5 kHz): "
-        f"{_state_line(mu, '.1f', 1e-3, 'kHz')}",
-    )
-
-
-def history_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    """ln std μ at app3_start (5 bar after 30 bar) minus at the 5-bar start after 10 bar (ms_order), by seed."""
-    after_high = state_values(results, ("ms_app3",), "app3_start", "mu_std")
-    after_low = state_values(results, ("ms_order",), "app2_start", "mu_std")
-    d = paired({s: math.log(v) for s, v in after_high.items()}, {s: math.log(v) for s, v in after_low.items()})
-    top = paired(
-        state_values(results, ("ms_app3",), "app3_start", "sync_relative.top_excess"),
-        state_values(results, ("ms_order",), "app2_start", "sync_relative.top_excess"),
-    )
-    return RowValue(
-        f"ln(std μ after 30 bar / after 10 bar) at the 5-bar application's start: {interval(d)}",
-        direction_verdict([side(d)], [side(top)]),
-        f"std μ after 30 bar {interval(np.array(list(after_high.values())))}, after 10 bar "
-        f"{interval(np.array(list(after_low.values())))}; Δ top-1 % S − S_null {interval(top)}",
-    )
-
-
-MS_ROWS = (
-    Row("§3.3, Fig. 13", "μ oscillates with the greatest amplitudes at the start of application 3", "app3_start "
-        "largest", "direction", MAIN, largest_row, "ln ratio > 0"),
-    Row("§3.3, Fig. 13", "individual high-valued S at the start of application 3", "high S at app3_start",
-        "direction", MAIN, high_sync_row, "Δ > 0", uses=("sync",)),
-    Row("§3.3, Fig. 13", "at the end of application 3: medium to high S with increased prevalence",
-        "Φ(app3_end) > Φ(app3_start)", "direction", MAIN, prevalence_row, "Δ > 0", uses=("sync",)),
-    Row("§3.3, Fig. 13", "end of application 3: local clustering correlates with the number of patches in S",
-        "ρ > 0", "direction", MAIN, clustering_row, "ρ > 0", uses=("sync",)),
-    Row("§3.3", "μ-spectrum peaks at the frequencies of high and prevalent S", "agreement > 0", "direction", MAIN,
-        agreement_row, "ρ > 0", uses=("sync",)),
-    Row("§4", "the characteristic HF behaviour lies within 20–80 kHz", "20–80 kHz", "threshold", MAIN, band_row,
-        "every state's first-peak interval inside 20–80 kHz"),
-    Row("§3.3, §4", "a low-load application right after a high-load one oscillates more (load history)",
-        "after 30 bar > after 10 bar", "direction", ("ms_app3", "ms_order"), history_row, "ln ratio > 0"),
-)  # fmt: skip
-
-
 def register() -> None:
-    """Register the §3.3 experiments of the rows (the state groups and ``ms_order``) and the rows (once)."""
+    """Register the §3.3 experiments of the rows (the state groups and ``ms_order``; once)."""
     if MAIN[0] in EXPERIMENTS:
         return
     for exp in MS_EXPERIMENTS:
         if exp.name in (*MAIN, "ms_order"):
             register_experiment(exp)
-    for row in MS_ROWS:
-        register_row(row)
 
 
 def register_variants() -> None:

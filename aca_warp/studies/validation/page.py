@@ -1,7 +1,8 @@
-"""The generated part of docs/validation.md: the table of the paper's statements, which change moves which
-verdict, the §3.2 growth runs and the §3.3 LF states, the experiments (runs, saturation, pads not used), the
-initial-state comparison and the §3.1 STFT maxima, under a header naming the command, machine, versions and
-settings that produced it.
+"""The generated part of docs/validation.md: the table of the paper's statements (each also from rest at the
+paper's length, beside it), the runs from rest over time, which change moves which verdict, the §3.2 growth runs
+and the §3.3 LF states, the experiments (runs, saturation, pads not used), the initial-state comparison and the §3.1
+STFT maxima, under a header naming the command, machine, versions and settings that produced it. Everything is
+rendered from the results alone (``results.json``), so the section can be rebuilt without running anything.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from aca_warp.studies.validation import area as validation_area
 from aca_warp.studies.validation import causes as validation_causes
 from aca_warp.studies.validation import multiscale as validation_multiscale
 from aca_warp.studies.validation.base import EXPERIMENTS, USABLE, Experiment, interval, usable, values
+from aca_warp.studies.validation.verdicts import CRITERIA
 
 
 def _range(v: list[float | None], scale: float = 1.0, spec: str = ".3g") -> str:
@@ -33,7 +35,7 @@ def experiment_rows(results: dict[str, dict]) -> list[list[str]]:
         if not res or "plan" not in res:
             rows.append([name, exp.description, res.get("status", "not run") if res else "not run", *["–"] * 7])
             continue
-        pads, plan, run = res.get("pads", []), res["plan"], res.get("run") or {}
+        pads, run = res.get("pads", []), res.get("run") or {}
         ok = usable(res)
         grow = np.array([p["growth_rate"] for p in ok if p.get("growth_rate") is not None])
         seg = res.get("segment") or {}
@@ -44,7 +46,8 @@ def experiment_rows(results: dict[str, dict]) -> list[list[str]]:
                 f"{len(ok)} / {len(pads)}" + ("" if res.get("status") == "done" else f" ({res.get('status')})"),
                 _contact_text(pads),
                 _run_text(exp, res),
-                f"{plan['steps']:,}; {fmt(run.get('wall_s'), '.0f')} s, {fmt(run.get('us_per_step'), '.3g')} µs/step",
+                f"{run.get('steps', 0):,} at {fmt(run.get('dt'), '.3g')} s; {fmt(run.get('wall_s'), '.0f')} s, "
+                f"{fmt(run.get('us_per_step'), '.3g')} µs/step",
                 " / ".join(
                     _range([p[k] for p in pads], spec=".0f") for k in ("sigma_min", "sigma_median", "sigma_max")
                 ),
@@ -93,7 +96,7 @@ EXPERIMENT_HEADER = [
     "pads used / seeds",
     "patches per pad",
     "start; run (predicted settling + window)",
-    "steps; wall",
+    "steps at dt; wall (the batch's)",
     "predicted σ_i min / median / max [1/s] (mean over pads)",
     "measured σ on Σ|u̇| [1/s]",
     "t_s Σ|u̇| / μ [ms], mean (range)",
@@ -125,9 +128,10 @@ def initial_state_rows(results: dict[str, dict]) -> list[list[str]]:
             [label, *(interval(_pad_values(results.get(n), key), ".3g", scale, unit) for n in ("hf1", "hf1_rest"))]
         )
     for key, label, scale, unit in (
-        ("f1", "first velocity peak", 1e-3, "kHz"),
+        ("f1", "first velocity peak (Σu̇)", 1e-3, "kHz"),
         ("sync_relative.median_excess_phi10", "median S − S_null (Φ ≥ 10)", 1.0, ""),
         ("corr_near", "C of the directions of motion of coupled neighbours (≤ 5 mm)", 1.0, ""),
+        ("patch_spacing", "patch spacing (median nearest-neighbour distance)", 1e3, "mm"),
         ("corr_zero", "distance where that C falls to 0", 1e3, "mm"),
         ("corr_f1_near", "C of the phases at f1 of coupled neighbours", 1.0, ""),
     ):
@@ -195,41 +199,55 @@ def cause_lines(causes: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
+def verdict_counts(rows: list[dict[str, Any]]) -> str:
+    """How many rows carry each verdict, in one sentence."""
+    counts: dict[str, int] = {}
+    for r in rows:
+        counts[r["verdict"]] = counts.get(r["verdict"], 0) + 1
+    return f"{len(rows)} statements: " + ", ".join(f"{n} {v}" for v, n in counts.items()) + "."
+
+
+def statement_rows(rows: list[dict[str, Any]], rest: list[dict[str, Any] | None]) -> list[list[str]]:
+    """The main table's lines: the row, and beside it the same measure from rest at the paper's length."""
+    out = []
+    for r, b in zip(rows, rest, strict=True):
+        beside = "–" if b is None else f"**{b['verdict']}**: {b['value']}"
+        out.append([r["section"], r["statement"], r["value"], r["paper"], f"**{r['verdict']}** ({r['kind']}: "
+                    f"{r['criterion']})", beside, ", ".join(r["experiments"]), r["notes"]])  # fmt: skip
+    return out
+
+
+def criteria_lines() -> list[str]:
+    return [f"* **{k}**: {v}." for k, v in CRITERIA.items()]
+
+
 def render(
     results: dict[str, dict],
     rows: list[dict[str, Any]],
     meta: dict[str, Any],
     causes: list[dict[str, Any]] | None = None,
+    rest: list[dict[str, Any] | None] | None = None,
 ) -> list[str]:
     """The generated part of docs/validation.md."""
-    lines = [
+    from aca_warp.studies.validation import tracks as validation_tracks
+
+    rest = rest if rest is not None else [None] * len(rows)
+    header = ["§", "statement", "ours: mean [95 % interval] (n seeds)", "paper", "verdict (criterion)",
+              "from rest, paper length", "experiments", "notes"]  # fmt: skip
+    return [
         *_header_lines(meta),
         "",
         "### The paper's statements",
         "",
-        *md_table(
-            [
-                "§",
-                "statement",
-                "ours: mean [95 % interval] (n seeds)",
-                "paper",
-                "verdict (criterion)",
-                "experiments",
-                "notes",
-            ],
-            [
-                [
-                    r["section"],
-                    r["statement"],
-                    r["value"],
-                    r["paper"],
-                    f"**{r['verdict']}** ({r['kind']}: {r['criterion']})",
-                    ", ".join(r["experiments"]),
-                    r["notes"],
-                ]
-                for r in rows
-            ],
-        ),  # fmt: skip
+        verdict_counts(rows) + " Criteria:",
+        "",
+        *criteria_lines(),
+        "",
+        *md_table(header, statement_rows(rows, rest)),
+        "",
+        "### From rest to the paper's length: the first peak, the neighbours' correlation and S over time",
+        "",
+        *validation_tracks.track_lines(results),
         "",
         "### Which change moves which verdict",
         "",
@@ -251,21 +269,24 @@ def render(
         "",
         *pad_notes(results),
         "",
-        "### Initial state: equilibrium + perturbation (hf1) against rest (hf1_rest)",
+        "### Initial state: equilibrium + perturbation (hf1) against rest at the paper's length (hf1_rest)",
         "",
-        *md_table(["measure", "hf1 (equilibrium)", "hf1_rest (rest)"], initial_state_rows(results)),
+        *md_table(
+            ["measure", "hf1 (equilibrium, saturated)", "hf1_rest (rest, paper length)"], initial_state_rows(results)
+        ),  # fmt: skip
         "",
-        "### §3.1: STFT maximum of μ/μ̄ over the saturated segment (Fig. 10's normalisation; the paper gives "
+        "### §3.1: STFT maximum of μ/μ̄ over the saturated span (Fig. 10's normalisation; the paper gives "
         "≈ 0.004 at 69.1 kHz for §3.2 only)",
         "",
         *stft_lines(results),
     ]
-    return lines
 
 
 def _header_lines(meta: dict[str, Any]) -> list[str]:
     """The opening of the generated page: the variant (quick or full), the command, machine, versions and wall
     time that produced it, and the settings of its runs."""
+    from aca_warp.studies.validation.settings import QUICK_STEPPING, STEPPING
+
     cfg = meta["config"]
     variant = (
         "**QUICK variant (reduced CPU smoke check: small pads, short windows, few seeds, a coarser step) — not the "
@@ -275,21 +296,34 @@ def _header_lines(meta: dict[str, Any]) -> list[str]:
     )
     dtp = cfg["sample_dt"] * cfg["decimation"]
     cut = cfg.get("state_patches") or cfg["patches"]
+    stepping = (
+        f"every experiment {QUICK_STEPPING.describe()}"
+        if cfg["quick"]
+        else "; ".join(f"{k}: {s.describe()}" for k, s in STEPPING.items())
+    )
+    over = ", ".join(f"{k} = {cfg[k]}" for k in ("dt", "precision") if cfg.get(k) is not None)
+    if not meta.get("complete", True):
+        variant += (
+            " **Incomplete: the run stopped before its last batch (the results file is written after every batch); "
+            "experiments not run read not run.**"
+        )
     return [
         variant,
         "",
         f"Produced by `{meta['command']}` on {meta['created']}, {meta['machine']}; "
         f"Warp {meta['versions'].get('warp-lang')}, aca-warp {meta['versions'].get('aca-warp')}; "
         f"wall time {meta['wall_s']:.0f} s (the experiments' runs and analyses, from their checkpoints: "
-        f"{meta.get('experiments_s', 0.0):.0f} s).",
+        f"{meta.get('experiments_s', 0.0):.0f} s). Rebuilt from `{meta.get('results', 'results.json')}` by "
+        "`python3 scripts/validation.py --report RESULTS --page PAGE`.",
         "",
         f"Settings: {cfg['seeds']} seeds from {cfg['first_seed']}; {cfg['patches'] or 'the preset’s'} patches per pad; "
-        f"strang, dt = {cfg['dt']:g} s, {cfg['precision']}; global outputs every {cfg['sample_dt']:g} s, per-patch "
-        f"velocities every {dtp:g} s (Nyquist {0.5 / dtp / 1e3:.0f} kHz) over the last {cfg['window'] * 1e3:g} ms; "
-        f"initial velocity perturbation {cfg['perturbation']:g} m/s; settling factor {cfg['settle_safety']:g}; "
-        f"S(f) over {cfg['sync_band'][0] / 1e3:g}–{cfg['sync_band'][1] / 1e3:g} kHz. §3.2: the varying-area "
-        f"growth compressed × {cfg['growth_speedup']:g} ({0.36 / cfg['growth_speedup'] * 1e3:g} ms; `va_full` at "
-        f"the paper's 0.36 s only with --full-varying-area, and then the rows' source). §3.3: the LF "
-        f"{'quick ' if cfg['quick'] else ''}schedule per seed on the CPU, every state "
+        f"stepping {stepping}{f' (overridden: {over})' if over else ''}; global outputs every {cfg['sample_dt']:g} s, "
+        f"per-patch velocities every {dtp:g} s (Nyquist {0.5 / dtp / 1e3:.0f} kHz) over the last "
+        f"{cfg['window'] * 1e3:g} ms; initial velocity perturbation {cfg['perturbation']:g} m/s; settling factor "
+        f"{cfg['settle_safety']:g}; S(f) over {cfg['sync_band'][0] / 1e3:g}–{cfg['sync_band'][1] / 1e3:g} kHz; runs "
+        f"from rest {cfg['paper_length'] * 1e3:g} ms with {cfg['track_windows']} track windows of "
+        f"{cfg['track_window'] * 1e3:g} ms. §3.2: `va_full` at the paper's clock (the growth compressed × "
+        f"{0.36 / cfg['paper_length']:g} where the paper length is shorter), the compressed `va` × "
+        f"{cfg['growth_speedup']:g}. §3.3: the LF {'quick ' if cfg['quick'] else ''}schedule per seed, every state "
         f"{f'cut to about {cut} patches' if cut else 'whole'}, a window of half the above.",
     ]

@@ -92,7 +92,7 @@ def experiment_scene(exp: Experiment, k: int, cfg: Config) -> Any:
     )
     growth, duration = base.growth, base.duration
     if growth is not None:  # the same area path in 1/speedup of the time (docs/validation.md, §3.2)
-        speed = exp.growth_speedup or cfg.growth_speedup * exp.growth_clock
+        speed = growth_speed(exp, cfg, base.duration)
         growth = dataclasses.replace(growth, increment=growth.increment * speed)
         duration = base.duration / speed
     origin = dict(base.origin)  # the scene as a table of tables, naming the generator that draws these patches
@@ -118,6 +118,14 @@ def experiment_scene(exp: Experiment, k: int, cfg: Config) -> Any:
     )
 
 
+def growth_speed(exp: Experiment, cfg: Config, duration: float) -> float:
+    """Compression of a growing scene of ``duration`` [s] (the preset's 0.36 s): the experiment's own speedup or the
+    configured one, at least ``duration / cfg.paper_length`` (1 in the full variant; the quick variant's paper
+    length is shorter)."""
+    own = exp.growth_speedup if exp.growth_speedup is not None else cfg.growth_speedup
+    return max(own, duration / cfg.paper_length)
+
+
 # ------------------------------------------------------------------------------------------------ plan
 
 
@@ -125,17 +133,21 @@ def experiment_scene(exp: Experiment, k: int, cfg: Config) -> Any:
 class Plan:
     """How long an experiment runs and what it records.
 
+    The run is stepped in **segments** (``run_engine`` calls on the same model and state, one after the other): the
+    per-patch velocities are recorded only in the segments that hold a window of them, so the host receives no
+    per-patch samples between the windows.
+
     Attributes:
         duration: Simulated time [s].
         settle: Predicted time to saturation of the slowest member [s] (0 for a window run).
         v0: Initial velocity amplitude the growth starts from [m/s].
         v_sat: Saturated velocity amplitude (the disc speed at the mean radius) [m/s].
         sigma_q25: 25th percentile of the predicted σ_i over the slowest member's pads [1/s].
-        record: The ``Record`` (global outputs every sample_dt, per-patch velocities over the window).
-        window_start: Time of the first per-patch sample [s].
-        patch_samples: Per-patch samples per patch.
-        steps: Time steps of the run.
-        velocity_bytes: Host memory of the float32 per-patch record [bytes].
+        window_start: Time of the first per-patch sample of the final window [s] (the run's end when none).
+        patch_samples: Per-patch samples per patch of the final window.
+        segments: (start, end, per-patch record) [s] of the run's segments, in order, covering [0, duration].
+        tracks: (start, end) [s] of the per-patch windows over the run (``Experiment.tracks``), before the final one.
+        velocity_bytes: Host memory of the float32 per-patch record of all windows [bytes].
     """
 
     duration: float
@@ -143,11 +155,29 @@ class Plan:
     v0: float
     v_sat: float
     sigma_q25: float
-    record: Any
     window_start: float
     patch_samples: int
-    steps: int
+    segments: tuple[tuple[float, float, bool], ...]
+    tracks: tuple[tuple[float, float], ...]
     velocity_bytes: int
+
+    def record(self, cfg: Config) -> Any:
+        """The ``Record`` of the run stepped in one go instead of in segments: the global outputs every
+        ``cfg.sample_dt``, the per-patch velocities every ``cfg.decimation`` samples from the final window's start
+        (none for a growing run)."""
+        from aca_warp.scene import Record
+
+        if self.patch_samples == 0:
+            return Record(sample_dt=cfg.sample_dt)
+        end = self.duration * (1 + 1e-9)
+        return Record(sample_dt=cfg.sample_dt, patches=("velocity",), window=(self.window_start, end),
+                      decimation=cfg.decimation)  # fmt: skip
+
+    def steps(self, dt: float, sample_dt: float) -> int:
+        """Time steps of the run at the step ``dt`` [s] as the run fits it to the sample interval [s]."""
+        from aca_warp.hf.solver import fitted_step
+
+        return int(round(self.duration / fitted_step(dt, sample_dt)))
 
 
 def predicted_sigma(scenes: list[Any], contacts: list[Any]) -> list[np.ndarray]:
@@ -168,24 +198,11 @@ def start_amplitude(scenes: list[Any], contacts: list[Any]) -> float:
     return float(np.median(np.concatenate(amps)))
 
 
-def plan_run(
-    exp: Experiment,
-    scenes: list[Any],
-    contacts: list[Any],
-    sigma: list[np.ndarray],
-    cfg: Config,
-    members: list[str | None] | None = None,
-) -> Plan:
-    """Run length from the predicted growth (package docstring, stage 2) and the recording of the window.
-
-    The predicted settling time is taken per member (e.g. per LF state, pooled over its seeds) and the run sized
-    by the slowest; an experiment without members is one member. A ``"window"`` run has its fixed duration and
-    records the patches from ``window_start``; a ``"growth"`` run has its scene's (compressed) duration and
-    records the global outputs only (its settle is the predicted first saturation, for the analysis).
-    """
-    from aca_warp.scene import Record
-
-    members = members or [None] * len(scenes)
+def predicted_settle(
+    exp: Experiment, scenes: list[Any], contacts: list[Any], sigma: list[np.ndarray], cfg: Config,
+    members: list[str | None],
+) -> tuple[float, float, float, float]:  # fmt: skip
+    """(settle [s], v0 [m/s], v_sat [m/s], σ_25 [1/s]) of the slowest member (package docstring, stage 2)."""
     v_sat = float(np.median([s.sliding_speed for s in scenes]))
     slowest = (0.0, float("nan"), float("nan"))  # (settle, v0, σ_25) of the slowest member
     for m in dict.fromkeys(members):
@@ -196,75 +213,99 @@ def plan_run(
         pos = np.concatenate([sigma[i][sigma[i] > 0] for i in idx])
         q25 = float(np.percentile(pos, 25)) if pos.size else float("nan")
         if not (v0 > 0 and q25 > 0):
-            if exp.duration is None and exp.kind == "saturated":
+            if exp.duration is None and exp.kind == "saturated" and not exp.tracks:
                 raise ValueError(f"{exp.name}: no growth to plan for{f' ({m})' if m else ''} (v0 = {v0:g} m/s, "
                                  f"σ_25 = {q25:g} 1/s)")  # fmt: skip
             continue
         settle = cfg.settle_safety * max(math.log(v_sat / v0), 1.0) / q25
         if settle >= slowest[0]:
             slowest = (settle, v0, q25)
-    settle, v0, q25 = slowest
-    dtp = cfg.sample_dt * cfg.decimation
+    return slowest[0], slowest[1], v_sat, slowest[2]
+
+
+def natural_duration(exp: Experiment, scenes: list[Any], settle: float, cfg: Config) -> float:
+    """The run length an experiment asks for on its own [s]: the growing scene's (compressed) duration, the fixed
+    duration, the paper's length for a tracked run, or max(settle, window) + window (at least one window of
+    settling: μ's detector, 64 windows over the record, needs both parts)."""
     if exp.kind == "growth":
-        duration = exp.duration if exp.duration is not None else float(scenes[0].duration)
-    elif exp.kind == "window":
-        if exp.duration is None or exp.window_start is None:
-            raise ValueError(f"{exp.name}: a window experiment needs duration and window_start")
-        duration = exp.duration
-    else:  # at least one window of settling: μ's detector (64 windows over the record) needs both parts
-        win = cfg.window * exp.window_scale
-        duration = exp.duration if exp.duration is not None else max(settle, win) + win
+        return exp.duration if exp.duration is not None else float(scenes[0].duration)
+    if exp.duration is not None:
+        return exp.duration
+    if exp.tracks:
+        return cfg.paper_length
+    win = cfg.window * exp.window_scale
+    return max(settle, win) + win
+
+
+def track_windows(duration: float, final_start: float, cfg: Config) -> tuple[tuple[float, float], ...]:
+    """``cfg.track_windows`` per-patch windows of ``cfg.track_window`` [s] before the final window, their starts
+    spaced geometrically from 2 windows' length to the final window's start (early windows resolve the release from
+    rest, later ones the approach to the paper's length), on the per-patch grid."""
+    dtp = cfg.sample_dt * cfg.decimation
+    n, w = cfg.track_windows, cfg.track_window
+    last = final_start - w
+    first = 2.0 * w
+    if n < 1 or last <= first:
+        return ()
+    starts = np.geomspace(first, last, n) if n > 1 else np.array([last])
+    starts = np.round(starts / dtp) * dtp
+    return tuple((float(a), float(a + w)) for a in starts)
+
+
+def plan_run(
+    exp: Experiment,
+    scenes: list[Any],
+    contacts: list[Any],
+    sigma: list[np.ndarray],
+    cfg: Config,
+    members: list[str | None] | None = None,
+    duration: float | None = None,
+) -> Plan:
+    """Run length from the predicted growth (package docstring, stage 2), the per-patch windows and the segments.
+
+    The predicted settling time is taken per member (e.g. per LF state, pooled over its seeds) and the run sized
+    by the slowest; an experiment without members is one member. ``duration`` [s] replaces the experiment's own
+    length (a batch runs as long as its longest member). A ``"window"`` run records the patches from
+    ``window_start``; a ``"growth"`` run records the global outputs only (its settle is the predicted first
+    saturation, for the analysis); a ``"saturated"`` run records the patches over the last window and, with
+    ``tracks``, over the track windows.
+    """
+    members = members or [None] * len(scenes)
+    settle, v0, v_sat, q25 = predicted_settle(exp, scenes, contacts, sigma, cfg, members)
+    dtp = cfg.sample_dt * cfg.decimation
+    if duration is None:
+        duration = natural_duration(exp, scenes, settle, cfg)
     n_samples = int(math.ceil(duration / cfg.sample_dt - 1e-9))
     n_dur = n_samples * cfg.sample_dt
+    tracks: tuple[tuple[float, float], ...] = ()
     if exp.kind == "growth":
-        record, j0, n_win = Record(sample_dt=cfg.sample_dt), n_samples, 0
+        n_win, j0 = 0, n_samples
+        windows: list[tuple[float, float]] = []
     else:
-        span = duration - exp.window_start if exp.kind == "window" else cfg.window * exp.window_scale
+        span = n_dur - exp.window_start if exp.kind == "window" else cfg.window * exp.window_scale
         n_win = min(max(16, int(round(span / dtp))), (n_samples // cfg.decimation) + 1)
         j0 = n_samples - (n_win - 1) * cfg.decimation
-        record = Record(
-            sample_dt=cfg.sample_dt,
-            patches=("velocity",),
-            window=(j0 * cfg.sample_dt, n_samples * cfg.sample_dt * (1 + 1e-9)),
-            decimation=cfg.decimation,
-        )
+        if exp.tracks:
+            tracks = track_windows(n_dur, j0 * cfg.sample_dt, cfg)
+        windows = [*tracks, (j0 * cfg.sample_dt, n_dur)]
+    segments, t = [], 0.0
+    for a, b in windows:
+        if a > t + 0.5 * cfg.sample_dt:
+            segments.append((t, a, False))
+        segments.append((a, b, True))
+        t = b
+    if t < n_dur - 0.5 * cfg.sample_dt:
+        segments.append((t, n_dur, False))
+    samples = sum(int(round((b - a) / dtp)) + 1 for a, b in windows)
     return Plan(
         duration=n_dur,
         settle=settle if exp.kind != "window" else 0.0,
         v0=v0,
         v_sat=v_sat,
         sigma_q25=q25,
-        record=record,
         window_start=j0 * cfg.sample_dt,
         patch_samples=n_win,
-        steps=int(round(n_dur / cfg.dt)),
-        velocity_bytes=4 * n_win * sum(sc.patches.count for sc in scenes),
+        segments=tuple(segments),
+        tracks=tracks,
+        velocity_bytes=4 * samples * sum(sc.patches.count for sc in scenes),
     )
-
-
-GROWTH_FLOOR_S = {"fp32": 2.7e-6, "fp64": 3.9e-6}
-"""Seconds per step of a batch of growing pads that fits one wave on an H100 (on-chip engine, growth in the kernel,
-a cluster of 8 blocks per pad): 2.7 µs measured in fp32 for one varying_area pad (an event every 20 steps;
-``default_cluster``'s docstring, docs/onchip.md); fp64 estimated as 1.45 × that, the fp64/fp32 ratio of one
-non-growing hf1 pad on 8 blocks (2.6 / 1.8 µs, docs/onchip.md)."""
-
-
-def step_seconds(cfg: Config, total_patches: int, calibration: dict[str, float], growth: bool = False) -> float:
-    """Estimated wall seconds per time step of a batch of ``total_patches`` patches (on CUDA: pads × the largest
-    pad's patches, since every block's tiles are sized for the largest pad of the batch).
-
-    ``calibration`` (seconds per step per patch, measured by earlier experiments of the same kind — growing or
-    not — on this device) when present; otherwise: CPU ≈ 1e7 patch-steps/s (general engine, 2-core AMD EPYC,
-    measured with 400–600 patches); CUDA (on-chip engine, H100,
-    docs/benchmarks/onchip_h100/cluster_waves_default.md) ≈ max(3.4 µs, n/8e9 s) in fp64 and max(2.7 µs,
-    n/1.2e10 s) in fp32 — a batch below about 30 000 patches is latency-bound; growing pads at least
-    :data:`GROWTH_FLOOR_S`.
-    """
-    kind = "growth" if growth else "fixed"
-    if f"per_patch_{kind}" in calibration:
-        per_step = calibration[f"per_patch_{kind}"] * total_patches
-        return per_step if cfg.device == "cpu" else max(per_step, calibration.get(f"floor_{kind}", 0.0))
-    if cfg.device == "cpu":
-        return total_patches / 1.0e7
-    fixed = max(3.4e-6, total_patches / 8.0e9) if cfg.precision == "fp64" else max(2.7e-6, total_patches / 1.2e10)
-    return max(fixed, GROWTH_FLOOR_S[cfg.precision]) if growth else fixed
