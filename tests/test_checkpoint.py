@@ -153,7 +153,7 @@ def test_a_default_run_resumes_after_ctrl_c(scene_file: Path, tmp_path: Path, mo
     monkeypatch.setattr(checkpoint, "AUTO_WALL_S", 0.0)
     for stop_at_first_chunk, flags, said in (
         (False, [], "continue it from its checkpoint at t = "),
-        (True, [], "(it has no checkpoint yet: from t = 0)"),
+        (True, [], "continue it from t = 0 with 'aca-warp hf --resume"),
     ):
         out = tmp_path / f"run{len(flags)}{stop_at_first_chunk}.h5"
         capsys.readouterr()
