@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import signal
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from aca_warp import __version__
 from aca_warp.common import interrupts
@@ -26,8 +27,20 @@ Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad inp
 3 the run stopped on a fault or an unphysical result (the file holds everything before it, marked incomplete),
 4 the output cannot be written (read-only or full file system, no permission: found before the run, nothing
 written; disk full or file-size limit during the run: the .partial keeps its last checkpoint),
-130 interrupted by Ctrl-C, 143 by SIGTERM (the file closed and marked incomplete; docs/faults.md).
+130 interrupted by Ctrl-C, 143 by SIGTERM (the file closed and marked incomplete; hf/lf --resume continues it
+from its last checkpoint, or from its start if it has none; docs/faults.md).
 """
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse's parser that reads a negative number in any notation (``-1e-4``, ``-.5``, ``-3``) as a value, not as
+    an option: ``--duration -1e-4`` then meets the option's own check ("must be positive") like ``--duration=-1e-4``,
+    instead of "expected one argument". No ``aca-warp`` option looks like a negative number. The command's
+    subparsers are of this class too (argparse gives them the class of their parent)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -38,7 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
     from aca_warp.lf.commands import add_parsers as add_lf
     from aca_warp.sweep.commands import add_parsers as add_sweep
 
-    p = argparse.ArgumentParser(
+    p = Parser(
         prog="aca-warp",
         description="Abstract Cellular Automaton of the brake pad-disc "
         "boundary layer (Merlis & Ostermeyer 2019) in NVIDIA Warp.",

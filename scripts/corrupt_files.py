@@ -39,8 +39,6 @@ from typing import Any
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
-
 HF_SCENE = """
 [scene]
 name = "corrupt"
@@ -106,9 +104,7 @@ COMMANDS = {
 
 
 def env() -> dict[str, str]:
-    e = dict(os.environ)
-    e.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
-    return e
+    return dict(os.environ)
 
 
 def build_inputs(root: Path) -> dict[str, Path]:

@@ -17,8 +17,6 @@ import numpy as np
 
 from aca_warp.scene import Friction, Growth, Initial, Pad, Patches, Record, Scene
 
-REPO = Path(__file__).resolve().parent.parent
-
 
 def nine_patch_scene(*, increment: float, interval: float, sample_dt: float, duration: float) -> Scene:
     """9 HF1-size patches on a 1.5 mm grid sharing 20 N with the matrix, sliding at 10 m/s (seeded areas and
@@ -76,10 +74,8 @@ def small_scene_toml(
 
 
 def env(**extra: str) -> dict[str, str]:
-    """The environment of a subprocess: the repository's kernel cache, plus ``extra``."""
-    e = {**os.environ, **extra}
-    e.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
-    return e
+    """The environment of a subprocess: this one's (the same kernel cache), plus ``extra``."""
+    return {**os.environ, **extra}
 
 
 def cli(args: list[str], *, limit: int | None = None, **extra: str) -> subprocess.CompletedProcess:

@@ -235,7 +235,7 @@ def test_block_kernels_with_cpu_fibers_match_one_thread_blocks():
     try:
         for fibers in (False, True):
             wp.config.enable_cpu_blocks = fibers
-            sim = LFSimulation(_scene(cell=4.0e-5), device="cpu", duration=0.3)
+            sim = LFSimulation(_scene(cell=4.0e-5), device="cpu", duration=0.15)
             assert sim.n_t > LF_BLOCK and sim.threads == (LF_BLOCK if fibers else 1)
             sim.run()
             runs.append((sim.patches_host(), sim.hist.numpy(), sim.cell_store.numpy()))

@@ -96,7 +96,8 @@ def cases(made: dict[str, Path], d: Path) -> dict[str, tuple[Path, list[str]]]:
         "sweep shard lock": (d / "sw" / "shard-00000.h5.lock", sweep),
         "plot figure": (d / "figs" / ".run_global.partial.png", ["plot", str(run), "-o", str(d / "figs")]),
         "plot --only": (
-            d / "figs" / ".run_global.partial.png", ["plot", str(run), "-o", str(d / "figs"), "--only", "global"]
+            d / "figs" / ".run_global.partial.png",
+            ["plot", str(run), "-o", str(d / "figs"), "--only", "patch_map", "global"],
         ),
     }  # fmt: skip
 
@@ -111,7 +112,7 @@ NAMES = [
 def test_planted_link_is_refused(name: str, made, tmp_path: Path, capsys) -> None:
     """A link at NAME.lock (hf, lf, rerun, --resume, analyze), NAME.partial.new, DIR/manifest.json.lock and .tmp,
     DIR/shard-NNNNN.h5.lock or figs/.STEM.partial.png: one line, exit 2; the victim and the link unchanged; no
-    output written."""
+    output written (plot --only: the figures it made before are removed again, all or nothing)."""
     d = tmp_path / "work"
     link, argv = cases(made, d)[name]
     victim = tmp_path / "victim.txt"
@@ -125,8 +126,9 @@ def test_planted_link_is_refused(name: str, made, tmp_path: Path, capsys) -> Non
     untouched(victim, before, link)
     assert not (d / "out.h5").exists() and not (d / "new.h5").exists() and not (d / "lf.h5").exists()
     assert not any(p.name.endswith(".partial") for p in d.rglob("*")), sorted(d.rglob("*"))
-    if name.startswith("plot"):  # figures made before it stay (patch_map), none of global
+    if name.startswith("plot"):  # none of global; the figures made before it (patch_map) stay unless asked for
         assert not list((d / "figs").glob("run_global.*"))
+        assert len(list((d / "figs").glob("run_patch_map.*"))) == (0 if "--only" in argv else 2)
 
 
 def test_hard_link_lock_is_refused(tmp_path: Path) -> None:

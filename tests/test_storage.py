@@ -48,23 +48,22 @@ def test_hf_file_size_limit_then_resume(tmp_path: Path, capsys: pytest.CaptureFi
 
 
 def test_advice_after_a_file_size_stop_is_one_and_true(tmp_path: Path) -> None:
-    """A checkpointed run stopped by a file-size limit before its first checkpoint: the stop, a `--resume` and a new
-    run onto the same name give the same advice, that the run stopped before its first checkpoint and how to repeat
-    it from its file (before: `--resume` said it ran without checkpoint_interval, and the suggested rerun pointed back
-    to `--resume`); following it finishes the run, equal to an uninterrupted one."""
+    """A checkpointed run stopped by a file-size limit before its first checkpoint: the stop and a new run onto the
+    same name give the same advice, that the run stopped before its first checkpoint and that `--resume` starts it
+    again from t = 0 (before: `--resume` said it ran without checkpoint_interval, and the suggested rerun pointed
+    back to `--resume`); following it finishes the run, equal to an uninterrupted one."""
     scene = tmp_path / "s.toml"
     scene.write_text(HF_SCENE)
     out = tmp_path / "run.h5"
     args = ["hf", str(scene), "-o", str(out), "--no-progress"]
     r = cli([*args, "--checkpoint-interval", "1e-4"], limit=200_000)
     assert r.returncode == 4, r.stderr
-    advice = f"repeat it with 'aca-warp rerun {out}.partial -o {out} --overwrite' (it holds no checkpoint: it stopped "
-    advice += "before its first one)"
+    advice = f"continue it from t = 0 with 'aca-warp hf --resume {out}' (it holds no checkpoint: it stopped before "
+    advice += "its first one)"
     assert error_lines(r.stderr)[0].endswith("make room, then " + advice), r.stderr
-    for argv in (["hf", "--resume", str(out), "--no-progress"], args):
-        r = cli(argv)
-        assert r.returncode == 2 and advice in error_lines(r.stderr)[0], r.stderr
-    r = cli(["rerun", f"{out}.partial", "-o", str(out), "--overwrite", "--no-progress"])
+    r = cli(args)
+    assert r.returncode == 2 and advice in error_lines(r.stderr)[0], r.stderr
+    r = cli(["hf", "--resume", str(out), "--no-progress"])
     assert r.returncode == 0, r.stderr
     assert main([*args[:3], str(tmp_path / "ref.h5"), "--no-progress"]) == 0
     assert_same_datasets(out, tmp_path / "ref.h5")

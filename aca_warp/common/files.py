@@ -388,10 +388,10 @@ def resume_hint(kind: str, path: str | Path) -> str:
 
 def recovery(path: str | Path) -> str:
     """What to do with the unfinished run ``path`` (``NAME``, or ``NAME.partial``), true of its file as it is now:
-    continue it from its checkpoint (``--resume``), or, when it holds none (it ran without checkpoints, or stopped
-    before its first), repeat it from the settings the file stores (``rerun``, into the same name). The one piece of
-    advice of every message that leaves a run unfinished: a storage failure, an interrupt, a refused resume, an
-    output whose ``.partial`` is in the way."""
+    continue it with ``--resume``, from its checkpoint, or from t = 0 when it holds none (it ran without checkpoints,
+    or stopped before its first: :func:`~aca_warp.hf.runner.resume_run` then starts it again). The one piece of
+    advice of every message that leaves a run unfinished: a storage failure, an interrupt, an output whose
+    ``.partial`` is in the way."""
     p = Path(path)
     final = p.with_name(p.name.removesuffix(".partial"))
     part = partial_path(final)
@@ -406,11 +406,8 @@ def recovery(path: str | Path) -> str:
         return f"{src.name} cannot be read back (empty or damaged): run its scene again"
     if at is not None:
         return f"continue it from its checkpoint at t = {at:.6g} s with {resume_hint(kind, final)}"
-    why = "it stopped before its first one" if interval else "it ran without checkpoints"
-    target, extra = (final, " --overwrite") if src == part else (final.with_name(f"{final.stem}-rerun.h5"), "")
-    reader = "read_lf_settings" if kind == "lf" else "read_settings"
-    again = option(f"the settings {reader}({str(src)!r}) returns", f"'aca-warp rerun {src} -o {target}{extra}'")
-    return f"repeat it with {again} (it holds no checkpoint: {why})"
+    why = "it ran without checkpoints" if interval == 0 else "it stopped before its first one"
+    return f"continue it from t = 0 with {resume_hint(kind, final)} (it holds no checkpoint: {why})"
 
 
 def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
@@ -473,7 +470,8 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     """(run file, its ``.partial``) of the run ``path`` names: ``NAME``, ``NAME.partial`` or a stopped ``NAME``.
 
     A killed run left ``NAME.partial``; a run stopped by Ctrl-C or a fault was moved to ``NAME`` (incomplete)
-    and keeps its checkpoint. Raises SceneError when there is nothing to resume.
+    and keeps its checkpoint, if it had one (without, it is resumed from its start). Raises SceneError when there
+    is nothing to resume.
     """
     p = Path(path)
     if p.name.endswith(".partial"):
@@ -489,24 +487,13 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     try:
         with open_h5(final, "run file") as f:
             complete = bool(f.attrs.get("complete", False))
-            resumable = has_checkpoint(f)
     except AcaError:
         raise
     except (OSError, RuntimeError, KeyError, ValueError) as e:
         raise SceneError(f"cannot read run file {final}: {e}") from None
     if complete:
         raise SceneError(f"{final} is a complete run; nothing to resume")
-    if not resumable:
-        raise SceneError(f"{final} cannot be resumed: {recovery(final)}")
     return final, part
-
-
-def require_checkpoint(src: Path) -> None:
-    """Refuse to resume the run file ``src`` when it holds no checkpoint, with :func:`recovery`'s advice."""
-    with reading(src, "run file"), open_h5(src, "run file") as f:
-        resumable = has_checkpoint(f)
-    if not resumable:
-        raise SceneError(f"{src} cannot be resumed: {recovery(src)}")
 
 
 def lock_resumable(path: str | Path) -> tuple[Path, Path, Path, OutputLock]:

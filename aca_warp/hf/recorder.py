@@ -18,7 +18,7 @@ from aca_warp.common.devices import block_threads
 from aca_warp.common.errors import SceneError, SimulationFault, option
 from aca_warp.hf.limits import check_int32
 from aca_warp.hf.model import PadModel
-from aca_warp.hf.options import WATCHDOG_FACTOR
+from aca_warp.hf.options import WATCHDOG_FACTOR, check_interval
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 from aca_warp.kernels.hf_types import HFRecorder
@@ -31,13 +31,13 @@ RECORD_BLOCK = 256  # threads per pad of the global outputs' sums on CUDA (one o
 
 
 def check_run(duration: float, record: Record, checkpoint_every: float | None = None) -> int:
-    """Validate a run's duration [s], sample interval and checkpoint interval [s]; returns the number of samples."""
+    """Validate a run's duration [s], sample interval and checkpoint interval [s] (None: automatic, 0: none); returns
+    the number of samples."""
     if not (duration > 0 and math.isfinite(duration)):
         raise SceneError(f"duration must be a positive number of seconds, got {duration}")
     if record.sample_dt > duration * (1 + 1e-12):
         raise SceneError(f"sample interval {record.sample_dt:g} s exceeds the duration {duration:g} s")
-    if checkpoint_every is not None and not (checkpoint_every > 0 and math.isfinite(checkpoint_every)):
-        raise SceneError(f"checkpoint interval must be a positive number of seconds, got {checkpoint_every}")
+    check_interval(checkpoint_every)
     n_samples = max(1, round(duration / record.sample_dt))
     if n_samples > 2**31 - 2:  # the recorder counts samples in int32
         raise SceneError(

@@ -14,9 +14,10 @@ Root attributes: ``scene`` (JSON), ``integrator``, ``run_options`` (JSON, :class
 ``predicted_growth_rate_min``, ``_median``, ``_max`` [1/s] (absent in files of earlier versions), ``complete``
 (bool), ``status``, and for a stopped run ``fault``. The file is written as ``NAME.partial`` and renamed to ``NAME``
 when the run ends, completed or not (then ``complete = False`` and ``status`` says why): the final name never holds
-a file that is half written. A killed process leaves only the ``.partial`` file behind; with checkpoints it holds
-everything up to the last checkpoint and ``aca-warp hf --resume`` continues it. Neither ``NAME`` nor a leftover
-``NAME.partial`` is replaced without ``overwrite``.
+a file that is half written. A killed process leaves only the ``.partial`` file behind: it holds everything up to
+the last checkpoint (automatic by default, :class:`~aca_warp.common.checkpoint.CheckpointClock`) and
+``aca-warp hf --resume`` continues it from there, or from the start when the run had no checkpoint yet. Neither
+``NAME`` nor a leftover ``NAME.partial`` is replaced without ``overwrite``.
 
 One writer per output: a writer holds ``NAME.lock`` (:class:`~aca_warp.common.files.OutputLock`) from before it
 looks at ``NAME`` until the file has its final name, so a second run, an ``--overwrite`` or a ``--resume`` of the
@@ -40,6 +41,7 @@ from aca_warp.common.checkpoint import (
     checkpoint_room,
     closed_on_failure,
     drop_checkpoint,
+    has_checkpoint,
     read_checkpoint,
     write_checkpoint,
 )
@@ -115,7 +117,6 @@ class RunWriter:
         self.lock = lock or OutputLock.acquire(path, what=busy())
         self.pad = pad
         self.model = model
-        self.checkpoint_time: float | None = None
         a, b = (int(x) for x in model.pad_patch_start_host[pad : pad + 2])
         self.slice = slice(a, b)
         self.flush_each_chunk = True
@@ -193,10 +194,11 @@ class RunWriter:
     @classmethod
     def reopen(
         cls, partial: str | Path, model: PadModel, *, pad: int = 0, lock: OutputLock
-    ) -> tuple[RunWriter, Checkpoint]:
+    ) -> tuple[RunWriter, Checkpoint | None]:
         """Open a killed or stopped run's ``NAME.partial`` to continue it (``lock``: the lock of ``NAME``, held; the
         caller releases it when this fails): read its checkpoint, truncate the sample datasets to the checkpoint's
-        rows and mark the file running again."""
+        rows (to none without a checkpoint: the run starts again; the checkpoint is then None) and mark the file
+        running again."""
         self = cls.__new__(cls)
         self.lock = lock
         self.partial = Path(partial)
@@ -219,19 +221,21 @@ class RunWriter:
             raise
         return self, ckpt
 
-    def _truncate_to_checkpoint(self) -> Checkpoint:
-        """Read the checkpoint, cut the sample datasets back to its rows, mark the file running (reopen)."""
+    def _truncate_to_checkpoint(self) -> Checkpoint | None:
+        """Read the checkpoint, cut the sample datasets back to its rows (to none without one), mark the file
+        running (reopen)."""
         f = self.f
         self.out = GuardedFile(f, self.partial, raw_cache=RAW_CACHE)
         with closed_on_failure(f, self.partial, close=self.out.abandon):
-            ckpt = read_checkpoint(f, str(self.partial))
+            ckpt = read_checkpoint(f, str(self.partial)) if has_checkpoint(f) else None
+            rows = {"global": 0, "patches": 0} if ckpt is None else ckpt.rows
             for name in ("time", *GLOBAL_NAMES):
-                f["global"][name].resize(ckpt.rows["global"], axis=0)
+                f["global"][name].resize(rows["global"], axis=0)
             self._patch_ds = {}
             for name in ("time", "velocity", "displacement"):
                 if name in f["patches"]:
                     self._patch_ds[name] = f["patches"][name]
-                    self._patch_ds[name].resize(ckpt.rows["patches"], axis=0)
+                    self._patch_ds[name].resize(rows["patches"], axis=0)
             # read the last kept row of every sample dataset: a damaged chunk index shows up here, not mid-run
             for d in (*(f["global"][name] for name in ("time", *GLOBAL_NAMES)), *self._patch_ds.values()):
                 if d.shape[0]:
@@ -243,11 +247,16 @@ class RunWriter:
             for name in (GROUP, TMP_GROUP):  # an analysis of the samples as they were no longer describes the file
                 if name in f:
                     del f[name]
-        self.flush_each_chunk = False  # a resumed run keeps checkpointing: flush at checkpoints only
-        self.checkpoint_time = ckpt.sim_time
+        # a run resumed from a checkpoint keeps flushing at checkpoints only; one started again, at every chunk
+        self.flush_each_chunk = ckpt is None
+        resumed = (
+            "started again from t = 0 (no checkpoint)"
+            if ckpt is None
+            else f"resumed from the checkpoint at t = {ckpt.sim_time:.6g} s"
+        )
         try:
             f.attrs["complete"] = False
-            f.attrs["status"] = f"running (resumed from the checkpoint at t = {ckpt.sim_time:.6g} s)"
+            f.attrs["status"] = f"running ({resumed})"
             self.out.flush()
         except BaseException:
             self.out.abandon()
@@ -266,7 +275,6 @@ class RunWriter:
         ckpt.rows = self.rows()
         self.out.reserve(checkpoint_room(self.f, ckpt))
         write_checkpoint(self.f, ckpt, flush=self.out.flush)
-        self.checkpoint_time = ckpt.sim_time
 
     def _patch_dataset(self, name: str, unit: str, width: int, dtype: Any) -> h5py.Dataset:
         if name not in self._patch_ds:

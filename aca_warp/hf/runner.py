@@ -20,7 +20,7 @@ import warp as wp
 from aca_warp.common import interrupts, plausible
 from aca_warp.common.checkpoint import Checkpoint
 from aca_warp.common.errors import SceneError, option
-from aca_warp.common.files import OutputLock, check_output_path, check_room, lock_resumable, require_checkpoint
+from aca_warp.common.files import OutputLock, check_output_path, check_room, lock_resumable, machine
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
@@ -136,11 +136,12 @@ def run_scene(
     1e-8 s) on ``device`` in ``precision`` and write the run file ``output``.
 
     Everything is validated before the simulation starts. A fault or an interrupt (Ctrl-C) still leaves a
-    readable file holding every sample up to that point, marked ``complete = False``. With
-    ``options.checkpoint_interval`` the file also keeps the solver state of the last checkpoint, so that a killed
-    run continues with :func:`resume_run`. The file stores the options with the duration and the engine resolved.
-    ``announce`` receives the :class:`RunPlan` once everything is validated, just before the run starts.
-    ``force_limits`` lifts the size limits and the free-space check (:func:`plan_run`; None: ``options.force``).
+    readable file holding every sample up to that point, marked ``complete = False``. The file also keeps the
+    solver state of the last checkpoint (``options.checkpoint_interval``: automatic by default, 0 for none), so that
+    a stopped or killed run continues with :func:`resume_run`. The file stores the options with the duration and
+    the engine resolved. ``announce`` receives the :class:`RunPlan` once everything is validated, just before the
+    run starts. ``force_limits`` lifts the size limits and the free-space check (:func:`plan_run`; None:
+    ``options.force``).
     """
     options = options or RunOptions()
     lock = OutputLock.acquire(output, what=busy())  # held from here until the file has its final name
@@ -171,8 +172,7 @@ def run_scene(
             attrs={
                 "integrator": options.integrator,
                 "precision": precision,
-                "device": str(model.device),
-                "device_name": model.device.name,
+                **machine(model.device),  # device, device_name, host, platform: as an LF file names them
                 "run_options": options.to_json(),
             },
         )
@@ -257,15 +257,16 @@ def resume_run(
     checkpoint_interval: float | None = None,
     device: str | None = None,
 ) -> tuple[RunResult, Path]:
-    """Continue the run ``path`` (``NAME`` or ``NAME.partial``) from its last checkpoint; returns the result and
+    """Continue the run ``path`` (``NAME`` or ``NAME.partial``) from its last checkpoint, or from its start when it
+    has none (stopped before its first checkpoint, or run with ``checkpoint_interval=0``); returns the result and
     the final file name. Same scene, options, precision and device as the run (``device`` overrides it: then the
-    result is no longer bit-identical). The finished file equals an uninterrupted run's."""
+    result is no longer bit-identical; ``checkpoint_interval`` replaces the run's). The finished file equals an
+    uninterrupted run's."""
     from aca_warp.hf.rerun import read_settings
 
     final, part, src, lock = lock_resumable(path)
     try:
         s = read_settings(src)
-        require_checkpoint(src)
         model = build_model([s.scene], device=device or s.device, precision=s.precision)
         state = initial_state(model)
         options = s.options

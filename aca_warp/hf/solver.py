@@ -148,41 +148,53 @@ def fitted_step(dt: float, sample_dt: float) -> float:
     return sample_dt / max(1, math.ceil(sample_dt / dt - 1e-9))
 
 
-def step_refusal(estimate: StepEstimate, integrator: str, h: float) -> None:
-    """Raise :class:`StabilityError` when the fixed step ``h`` [s] exceeds what ``integrator`` allows: the explicit
-    bound (symplectic Euler) or the springs' (every other scheme), then for strang the sticking bound."""
+def step_problem(estimate: StepEstimate, integrator: str, h: float) -> tuple[str, str, str] | None:
+    """What is wrong with the fixed step ``h`` [s] for ``integrator``, or None: beyond the explicit bound (symplectic
+    Euler) or the springs' (every other scheme), then for strang beyond the sticking bound. Returns (the problem, what
+    to do instead, what a forced run then risks), each in words."""
     limit = estimate.explicit if integrator == "symplectic-euler" else estimate.spring
+    dt, force = option("dt", "--dt"), option("force=True", "--force")
     if h > limit:
-        dt, force = option("dt", "--dt"), option("force=True", "--force")
         adaptive = option("integrator='adaptive'", "--integrator adaptive")
         hint = (
             f"choose a smaller {dt}, an implicit-friction integrator (strang, implicit-friction), or {force}"
             if h <= estimate.spring
             else f"choose a smaller {dt} (the springs bound every fixed-step scheme), {adaptive}, or {force}"
         )
-        raise StabilityError(
+        return (
             f"dt = {h:.3g} s exceeds the stable-step estimate {limit:.3g} s of {integrator} "
-            f"(springs {estimate.spring:.3g} s, friction slope {estimate.friction:.3g} s); {hint}"
+            f"(springs {estimate.spring:.3g} s, friction slope {estimate.friction:.3g} s)",
+            hint,
+            "the run may diverge (the watchdog then stops it) and mu is not accurate",
         )
     if integrator == "strang" and h > estimate.sticking:
         implicit = option("integrator='implicit-friction'", "--integrator implicit-friction")
-        raise StabilityError(
+        return (
             f"dt = {h:.3g} s does not resolve sticking for strang: h (c + F_N max|f'|)/m = "
             f"{4.0 * h / estimate.sticking:.3g} > 4 (its friction step then flips the sign of a sticking patch's "
-            f"velocity each step); choose {option('dt', '--dt')} <= {estimate.sticking:.3g} s or "
-            f"{implicit}, or "
-            f"{option('force=True', '--force')}"
+            "velocity each step)",
+            f"choose {dt} <= {estimate.sticking:.3g} s or {implicit}, or {force}",
+            "near sticking the friction chatters and mu is not accurate",
         )
+    return None
+
+
+def step_refusal(estimate: StepEstimate, integrator: str, h: float) -> None:
+    """Raise :class:`StabilityError` when the fixed step ``h`` [s] exceeds what ``integrator`` allows
+    (:func:`step_problem`)."""
+    problem = step_problem(estimate, integrator, h)
+    if problem is not None:
+        raise StabilityError(f"{problem[0]}; {problem[1]}")
 
 
 def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
     """Check a run's step before anything is written; returns the stable-step estimate.
 
     The bound is checked for the step the run takes (:func:`fitted_step`), not the one asked for. Beyond it a
-    :class:`StabilityError` (exit 2), or with ``options.force`` a warning when strang does not resolve sticking
-    (the explicit bounds stay silent when forced, as before). Steps per sample interval and per growth interval
-    (adaptive: growth events of the run) are checked against int32 (the kernels count them so). ``options``:
-    :class:`~aca_warp.hf.options.RunOptions`.
+    :class:`StabilityError` (exit 2), or with ``options.force`` a warning that says what the forced step risks
+    (:func:`step_problem`: the explicit and spring bounds, strang's sticking bound). Steps per sample interval and
+    per growth interval (adaptive: growth events of the run) are checked against int32 (the kernels count them so).
+    ``options``: :class:`~aca_warp.hf.options.RunOptions`.
     """
     from aca_warp.hf.limits import check_int32
     from aca_warp.hf.sanity import warn
@@ -208,11 +220,10 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
             )
     if not options.force:
         step_refusal(est, options.integrator, h)
-    elif options.integrator == "strang" and est.sticking < h <= est.spring:
-        warn(
-            f"dt = {h:.3g} s does not resolve sticking for strang (h (c + F_N max|f'|)/m = {4.0 * h / est.sticking:.3g}"
-            " > 4); running as forced: near sticking the friction chatters and mu is not accurate"
-        )
+    else:
+        problem = step_problem(est, options.integrator, h)
+        if problem is not None:
+            warn(f"{problem[0]}; running as forced: {problem[2]}")
     return est
 
 

@@ -10,17 +10,18 @@ Layout of an LF run file (docs/lf_model.md "Run file")::
     /snapshots/NAME/rings/radius, temperature, bulge                                               (R,)
     /calibration/death_age, death_area                                                             (deaths,)
     /initial_patches/x, y, area, height                                               (n0,)  initial patches
-    /checkpoint/...                  only while a run with --checkpoint-interval is unfinished
+    /checkpoint/...                  only while a run is unfinished, after its first checkpoint
 
 Every dataset has a ``unit`` attribute; snapshot groups carry ``time``, ``normal_force``, ``angular_velocity``,
-``gap`` and ``height_shift`` attributes. Root attributes: ``scene`` (JSON, :func:`lf_scene_to_dict`),
-``kind = "lf"``, ``lf_run`` (JSON: ``duration`` [s] or null for the whole schedule, ``checkpoint_interval``
-[s] or null, ``graph``), ``device``, ``versions``, ``complete``, ``status``, ``steps``, ``wall_time``. The file is
-written as ``NAME.partial`` and renamed when the run ends. /global grows at checkpoints (and at the end), so a
-killed checkpointed run's ``.partial`` holds every row up to its last checkpoint; ``aca-warp lf --resume``
-continues it (:meth:`LFRunWriter.reopen`) and ``aca-warp rerun`` repeats a finished one. As for HF run files, one
-writer holds ``NAME.lock`` while it writes, the ``.partial`` is created as ``NAME.partial.new`` and renamed once
-its header is on disk, and a full device leaves it as it was at its last flush (:mod:`aca_warp.common.storage`).
+``gap`` and ``height_shift`` attributes. Root attributes: ``scene`` (JSON, :func:`lf_scene_to_dict`), ``kind =
+"lf"``, ``lf_run`` (JSON: ``duration`` [s] or null for the whole schedule, ``checkpoint_interval`` [s], 0 for none
+or null for automatic, ``graph``), ``device``, ``versions``, ``complete``, ``status``, ``steps``, ``wall_time``. The
+file is written as ``NAME.partial`` and renamed when the run ends. /global grows at checkpoints (and at the end), so
+a killed run's ``.partial`` holds every row up to its last checkpoint; ``aca-warp lf --resume`` continues it from
+there, or from its start when it has none (:meth:`LFRunWriter.reopen`) and ``aca-warp rerun`` repeats a finished
+one. As for HF run files, one writer holds ``NAME.lock`` while it writes, the ``.partial`` is created as
+``NAME.partial.new`` and renamed once its header is on disk, and a full device leaves it as it was at its last flush
+(:mod:`aca_warp.common.storage`).
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from aca_warp.common.checkpoint import (
     checkpoint_room,
     closed_on_failure,
     drop_checkpoint,
+    has_checkpoint,
     read_checkpoint,
     write_checkpoint,
 )
@@ -89,7 +91,6 @@ class LFRunWriter:
         self.lock = lock or OutputLock.acquire(path, what=busy())
         self.sim = sim
         self.rows = 0
-        self.checkpoint_time: float | None = None
         tmp = new_path(partial_path(path))
         try:
             self.path = check_lf_output(path, overwrite=overwrite)
@@ -144,7 +145,8 @@ class LFRunWriter:
     def reopen(cls, partial: str | Path, sim: LFSimulation, *, lock: OutputLock) -> LFRunWriter:
         """Open a killed or stopped LF run's ``NAME.partial`` to continue it (``lock``: the lock of ``NAME``, held;
         the caller releases it when this fails): restore ``sim`` from its checkpoint, cut /global back to the
-        checkpoint's rows, drop the snapshots taken after it, mark it running again."""
+        checkpoint's rows, drop the snapshots taken after it, mark it running again. Without a checkpoint ``sim``
+        starts from the beginning: /global and the snapshots are emptied."""
         self = cls.__new__(cls)
         self.lock = lock
         self.partial = Path(partial)
@@ -157,9 +159,9 @@ class LFRunWriter:
         f = self.f
         self.out = GuardedFile(f, self.partial)
         with closed_on_failure(f, self.partial, close=self.out.abandon):
-            ckpt = read_checkpoint(f, str(self.partial))
-            rows = int(ckpt.rows["global"])
-            if rows != int(ckpt.counters["step_index"]):
+            ckpt = read_checkpoint(f, str(self.partial)) if has_checkpoint(f) else None  # None: from the start
+            rows = 0 if ckpt is None else int(ckpt.rows["global"])
+            if ckpt is not None and rows != int(ckpt.counters["step_index"]):
                 raise ValueError(f"{rows} rows of /global for step {ckpt.counters['step_index']}")
             g = f["global"]
             for name in ("time", *H_NAMES):
@@ -168,20 +170,27 @@ class LFRunWriter:
                 g[name].resize(rows, axis=0)
             hist = np.column_stack([g[name][()] for name in H_NAMES]) if rows else None
             keep = [n for n, s in sim.table.snapshots if s < rows]
-            if len(keep) != int(ckpt.counters["snapshots"]) or not set(keep) <= set(f["snapshots"]):
+            if len(keep) != (0 if ckpt is None else int(ckpt.counters["snapshots"])) or not set(keep) <= set(
+                f["snapshots"]
+            ):
                 raise ValueError("the snapshots do not match the checkpoint")
             for name in list(f["snapshots"]):
                 if name not in keep:
                     del f["snapshots"][name]  # taken after the checkpoint: the resumed run takes it again
             if "calibration" in f:
                 del f["calibration"]  # written when a stopped run was closed; rewritten at the end
-        with closed_on_failure(f, self.partial, scene_error=False, close=self.out.abandon):
-            sim.restore(ckpt, hist)
+        if ckpt is not None:
+            with closed_on_failure(f, self.partial, scene_error=False, close=self.out.abandon):
+                sim.restore(ckpt, hist)
         self.rows = rows
-        self.checkpoint_time = ckpt.sim_time
+        resumed = (
+            "started again from t = 0 (no checkpoint)"
+            if ckpt is None
+            else f"resumed from the checkpoint at t = {ckpt.sim_time:.6g} s"
+        )
         try:
             f.attrs["complete"] = False
-            f.attrs["status"] = f"running (resumed from the checkpoint at t = {ckpt.sim_time:.6g} s)"
+            f.attrs["status"] = f"running ({resumed})"
             self.out.flush()
         except BaseException as e:
             self.out.abandon()
@@ -222,7 +231,6 @@ class LFRunWriter:
         ckpt.rows = {"global": self.rows}
         self.out.reserve(checkpoint_room(self.f, ckpt))
         write_checkpoint(self.f, ckpt, flush=self.out.flush)
-        self.checkpoint_time = ckpt.sim_time
 
     def close(self, *, complete: bool, status: str, attrs: dict[str, Any] | None = None) -> Path:
         """Write the rest of the time series and the closing attributes, close, move the file to its final name

@@ -24,6 +24,7 @@ from aca_warp.common.bounds import read_toml
 from aca_warp.common.errors import SceneError
 from aca_warp.scene import (
     GENERATOR_KINDS,
+    PRESETS,
     Friction,
     Material,
     Pad,
@@ -432,6 +433,10 @@ def load_lf_scene(spec: str | Path, overrides: dict | None = None, *, allow_impl
         name = s
     else:
         p = Path(s)
+        if not p.is_file() and s in PRESETS:
+            raise SceneError(
+                f"{s!r} is an HF scene: run it with 'aca-warp hf {s} -o RUN.h5'; LF presets: {', '.join(LF_PRESETS)}"
+            )
         if not p.is_file():
             raise SceneError(f"LF scene {s!r} is neither a preset ({', '.join(LF_PRESETS)}) nor an existing TOML file")
         try:

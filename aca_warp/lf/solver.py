@@ -20,9 +20,10 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from aca_warp.common.checkpoint import Checkpoint
+from aca_warp.common.checkpoint import Checkpoint, CheckpointClock
 from aca_warp.common.devices import block_threads, init_warp, load_kernels
 from aca_warp.common.errors import SceneError
+from aca_warp.hf.options import check_interval
 from aca_warp.kernels import lf_contact, lf_patches, lf_record, lf_thermal, lf_wear
 from aca_warp.kernels.lf_record import H_COUNT, H_COVER, H_MU, H_NAMES, H_SIZE
 from aca_warp.kernels.lf_types import (
@@ -374,18 +375,16 @@ class LFSimulation:
     ) -> float:
         """Run ``steps`` steps (default: to the end of the schedule), calling ``on_snapshot`` at snapshot steps.
 
-        With ``checkpoint_every`` [s of simulated time] and ``on_checkpoint``, the first step end at or past each
-        multiple of it (after that step's snapshots; not at the end of the schedule) calls ``on_checkpoint(self)``
-        (:meth:`checkpoint_state` gives what to keep). Returns the wall time of the stepping [s] (the first step,
-        which loads the kernels, is included).
+        With ``on_checkpoint``, the step ends that ``checkpoint_every`` names (:class:`CheckpointClock`: None
+        automatic, else every that many seconds of simulated time, 0 none; after that step's snapshots; not at the
+        end of the schedule) call ``on_checkpoint(self)`` (:meth:`checkpoint_state` gives what to keep). Returns
+        the wall time of the stepping [s] (the first step, which loads the kernels, is included).
         """
         end = self.table.steps if steps is None else min(self.step_index + steps, self.table.steps)
         snaps = dict((s, n) for n, s in self.table.snapshots)
         dt = self.scene.lf.dt
-        every = checkpoint_every if on_checkpoint is not None else None
-        if every is not None and not (math.isfinite(every) and every > 0):
-            raise SceneError(f"checkpoint interval must be a positive number of seconds, got {every}")
-        next_ckpt = math.inf if every is None else (math.floor(self.step_index * dt / every + 1e-9) + 1) * every
+        check_interval(checkpoint_every)
+        clock = CheckpointClock(checkpoint_every if on_checkpoint is not None else 0.0, self.step_index * dt)
         t0 = time.perf_counter()
         last = t0
         while self.step_index < end:
@@ -395,9 +394,8 @@ class LFSimulation:
                 for name, si in self.table.snapshots:
                     if si == s:
                         on_snapshot(name, self)
-            if self.step_index * dt >= next_ckpt * (1 - 1e-12) and self.step_index < self.table.steps:
-                on_checkpoint(self)  # type: ignore[misc]
-                next_ckpt = (math.floor(self.step_index * dt / every + 1e-9) + 1) * every  # type: ignore[operator]
+            if self.step_index < self.table.steps and clock.due(self.step_index * dt):
+                clock.write(lambda: on_checkpoint(self), self.step_index * dt)  # type: ignore[misc]
             if progress and sys.stdout.isatty() and time.perf_counter() - last > 2.0:
                 last = time.perf_counter()
                 h = self.hist.numpy()[s]

@@ -114,8 +114,10 @@ def plot_run(
     its panels); ``times`` and ``frames`` apply to HF run files only, ``quantity`` and ``snapshots`` to LF ones.
 
     Figures whose data are absent (per-patch velocities for ``patch_map``, ``sync``, ``animation``; a
-    record too short for a transform) are skipped with a message to ``log`` when ``which`` is None; a
-    figure named in ``which`` that cannot be made raises :class:`SceneError` before anything is written.
+    record too short for a transform, a Synchronization Index of fewer than two bins) are skipped with a message to
+    ``log`` when ``which`` is None; a figure named in ``which`` that cannot be made raises :class:`SceneError`, and
+    the figures this call wrote before it are removed again (all or nothing). A link planted where a figure's
+    temporary file goes (:class:`~aca_warp.common.links.LinkError`) stops the call in either case.
 
     Args:
         path: Run file.
@@ -155,8 +157,13 @@ def plot_run(
         try:
             files += makers[name]()
         except SceneError as e:
-            if which is not None or isinstance(e, LinkError):
+            if which is not None:  # a figure asked for: all or nothing
+                for written in files:
+                    written.unlink(missing_ok=True)
+            if isinstance(e, LinkError):  # a planted link stops the call, whatever was asked
                 raise
+            if which is not None:
+                raise SceneError(f"{name}: {e}") from None
             if log:
                 log(f"skipped {name}: {e}")
     return files

@@ -14,7 +14,7 @@ import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 import numpy as np
 from matplotlib.animation import PillowWriter
@@ -25,6 +25,18 @@ WIDTH = 9.0  # in
 DPI = 150
 CAPTION_PT = 8.0
 FOOTER_PT = 6.5
+
+
+def device_text(f: Any) -> str:
+    """The device that made a run file, for a footer, the same for HF and LF files: ``cpu (Intel(R) Xeon(R)
+    Processor, 2 cores)`` (the host's processor, attribute ``host``) or ``cuda:0 (NVIDIA H100 80GB HBM3)``
+    (``device_name``); the bare alias where the file names nothing more (files of earlier versions)."""
+    from aca_warp.analysis.report import run_attr
+
+    device, name, host = (str(run_attr(f, k, "?")) for k in ("device", "device_name", "host"))
+    if device.startswith("cpu") and host != "?":
+        return f"{device} ({host})"
+    return device if name in ("?", device, "CPU") or device.startswith("cpu") else f"{device} ({name})"
 
 
 def new_figure(height: float, width: float = WIDTH) -> Figure:

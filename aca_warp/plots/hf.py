@@ -4,6 +4,7 @@ and :func:`~aca_warp.plots.plot_run`, which makes them all, are in :mod:`aca_war
 from __future__ import annotations
 
 import math
+import textwrap
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -19,7 +20,7 @@ from aca_warp.analysis import report
 from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run_file, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
 from aca_warp.common.errors import SceneError, option
-from aca_warp.plots.figure import GifInto, whole
+from aca_warp.plots.figure import GifInto, device_text, whole
 from aca_warp.plots.figure import envelope as _envelope
 from aca_warp.plots.figure import finish as _finish
 from aca_warp.plots.figure import new_figure as _figure
@@ -27,6 +28,9 @@ from aca_warp.plots.figure import pad_outline as _pad_outline
 from aca_warp.plots.figure import save as _save
 
 FIGURES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
+GIF_DPI = 80  # the animation's resolution: 6.4 x 3.6 in frames are 512 x 288 px
+GIF_FOOTER_PT = 7.0  # the animation's footer [pt]: 7.8 px letters in its 512 x 288 px frames (80 dpi)
+GIF_FOOTER_CHARS = 100  # ... wrapped to lines this long, which fit the frame's width
 """Figure names accepted by :func:`~aca_warp.plots.plot_run` (``which``) and ``aca-warp plot --only``."""
 
 WITH_DISC = "#d62728"
@@ -56,11 +60,10 @@ class _Run:
 
     @property
     def footer(self) -> str:
-        a = {k: run_attr(self.f, k, "?") for k in ("integrator", "precision", "device", "device_name", "status")}
-        device = a["device"] if a["device_name"] in ("?", a["device"]) else f"{a['device']} ({a['device_name']})"
+        a = {k: run_attr(self.f, k, "?") for k in ("integrator", "precision", "status")}
         return (
             f"{self.path.name} · scene {self.name} · integrator {a['integrator']} · precision {a['precision']} · "
-            f"device {device} · run {a['status']}"
+            f"device {device_text(self.f)} · run {a['status']}"
         )
 
     def group(self, name: str, compute: Callable[[], Group | None]) -> Group | None:
@@ -144,13 +147,18 @@ def _patch_rows(run: _Run, times: Sequence[float] | None, count: int = 4) -> tup
         rows = np.unique(np.abs(pt[None, :] - times[:, None]).argmin(axis=1))
         return rows, "Instants as requested (nearest recorded sample)."
     fp = run.first_peak()
-    if fp is not None and 0.75 / fp < pt[-1] - pt[0]:
-        want = pt[-1] - np.array([0.75, 0.5, 0.25, 0.0])[-count:] / fp
-        rows = np.unique(np.abs(pt[None, :] - want[:, None]).argmin(axis=1))
-        if rows.size == count:
+    if fp is not None and pt.size > 1 and 0.75 / fp < pt[-1] - pt[0]:
+        dt = (pt[-1] - pt[0]) / (pt.size - 1)  # the per-patch record's spacing (every decimation-th sample)
+        step = max(1, round(0.25 / fp / dt))  # rows per quarter period: evenly spaced instants whatever dt is
+        rows = pt.size - 1 - step * np.arange(count)[::-1]
+        if rows[0] >= 0:
+            quarter = f"a quarter period of the first velocity-spectrum peak ({fp / 1e3:.4g} kHz"
+            spacing = step * dt
+            if abs(spacing - 0.25 / fp) <= 0.02 * 0.25 / fp:
+                return rows, f"Default instants: {quarter}) apart, at the end of the per-patch record."
             return rows, (
-                f"Default instants: quarter periods of the first velocity-spectrum peak ({fp / 1e3:.4g} kHz) "
-                "at the end of the per-patch record."
+                f"Default instants: {spacing * 1e6:.4g} µs apart at the end of the per-patch record, the whole number "
+                f"of its sample intervals ({dt * 1e6:.4g} µs) nearest to {quarter}: {0.25e6 / fp:.4g} µs)."
             )
     rows = np.unique(np.linspace(0, pt.size - 1, count).round().astype(int))
     return rows, "Default instants: evenly spaced over the per-patch record."
@@ -268,7 +276,7 @@ def animate_patch_map(
     frames: int = 40,
     fps: int = 10,
 ) -> list[Path]:
-    """GIF of the patch coverage state (colours as in :func:`plot_patch_map`) over [t0, t1].
+    """GIF of the patch coverage state (colours as in :func:`plot_patch_map`) over [t0, t1], 512 × 288 px.
 
     Default window: the last two periods of the first velocity-spectrum peak, else the whole per-patch
     record; ``frames`` evenly spaced recorded samples. Needs Pillow (matplotlib's ``PillowWriter``).
@@ -278,49 +286,59 @@ def animate_patch_map(
     if not animation.writers.is_available("pillow"):
         raise SceneError("the animation needs Pillow (pip install pillow); it is not installed")
     with _Run(path) as run:
-        _require_patch_velocity(run, "animation")
-        pt = run.f["patches/time"][()]
-        fp = run.first_peak()
-        if t0 is None and t1 is None and fp is not None and 2.0 / fp < pt[-1] - pt[0]:
-            t0, t1 = pt[-1] - 2.0 / fp, pt[-1]
-        t0 = pt[0] if t0 is None else t0
-        t1 = pt[-1] if t1 is None else t1
-        if not (pt[0] - 1e-12 <= t0 < t1 <= pt[-1] + 1e-12):
-            raise SceneError(f"animation window {t0:g}-{t1:g} s is not inside the record {pt[0]:g}-{pt[-1]:g} s")
-        i0, i1 = int(np.searchsorted(pt, t0 - 1e-12)), int(np.searchsorted(pt, t1 + 1e-12)) - 1
-        rows = np.unique(np.linspace(i0, i1, max(2, frames)).round().astype(int))
-        vel = run.f["patches/velocity"][rows[0] : rows[-1] + 1, :][rows - rows[0]]
-        x, y = 1e3 * run.f["patches/x"][()], 1e3 * run.f["patches/y"][()]
-        area = run.f["patches/area"][()]
-        fig = Figure(figsize=(6.4, 3.6), dpi=80, layout="constrained")
-        FigureCanvasAgg(fig)
-        ax = fig.add_subplot()
-        _map_axes(ax, _pad_outline(run.scene), x, y)
-        sc = ax.scatter(x, y, s=1.0, c=list(_colours(vel[0])), linewidths=0)
-
-        def caption(k: int) -> str:
-            return f"{run.name}: t = {pt[rows[k]] * 1e6:.5g} µs (red: u̇ > 0 with the disc, blue: u̇ < 0 against it)"
-
-        title = ax.set_title(caption(0), fontsize=8)  # before the layout is frozen: room for the title
-        fig.text(0.01, 0.005, f"marker area ∝ patch area · {run.footer}", fontsize=5, color="0.35")
-        sc.set_sizes(_marker_scale(ax, fig, x, y, area) * area / area.max())
-        fig.set_layout_engine("none")  # freeze the layout drawn by _marker_scale: frames only recolour
-        # Animation.save() redraws the canvas for display and again for the writer; this figure is never
-        # displayed, so its (private) canvas skips the first draw.
-        fig.canvas.draw_idle = lambda *args, **kwargs: None
-
-        def update(k: int) -> tuple[Any, ...]:
-            sc.set_color(list(_colours(vel[k])))
-            title.set_text(caption(k))
-            return sc, title
-
-        anim = animation.FuncAnimation(fig, update, frames=len(rows), blit=False, repeat=False)
+        fig, update, count = animation_figure(run, t0, t1, frames)
+        anim = animation.FuncAnimation(fig, update, frames=count, blit=False, repeat=False)
         out = Path(outdir)
         out.mkdir(parents=True, exist_ok=True)
         gif = out / f"{run.path.stem}_patch_map.gif"
         with whole(gif) as fh:
-            anim.save(fh.name, writer=GifInto(fh, fps), dpi=80)
+            anim.save(fh.name, writer=GifInto(fh, fps), dpi=GIF_DPI)
         return [gif]
+
+
+def animation_figure(
+    run: _Run, t0: float | None, t1: float | None, frames: int
+) -> tuple[Figure, Callable[[int], tuple[Any, ...]], int]:
+    """The animation's figure (6.4 × 3.6 in at :data:`GIF_DPI`: 512 × 288 px, its layout frozen), the function that
+    draws frame k into it, and the number of frames (:func:`animate_patch_map`)."""
+    _require_patch_velocity(run, "animation")
+    pt = run.f["patches/time"][()]
+    fp = run.first_peak()
+    if t0 is None and t1 is None and fp is not None and 2.0 / fp < pt[-1] - pt[0]:
+        t0, t1 = pt[-1] - 2.0 / fp, pt[-1]
+    t0 = pt[0] if t0 is None else t0
+    t1 = pt[-1] if t1 is None else t1
+    if not (pt[0] - 1e-12 <= t0 < t1 <= pt[-1] + 1e-12):
+        raise SceneError(f"animation window {t0:g}-{t1:g} s is not inside the record {pt[0]:g}-{pt[-1]:g} s")
+    i0, i1 = int(np.searchsorted(pt, t0 - 1e-12)), int(np.searchsorted(pt, t1 + 1e-12)) - 1
+    rows = np.unique(np.linspace(i0, i1, max(2, frames)).round().astype(int))
+    vel = run.f["patches/velocity"][rows[0] : rows[-1] + 1, :][rows - rows[0]]
+    x, y = 1e3 * run.f["patches/x"][()], 1e3 * run.f["patches/y"][()]
+    area = run.f["patches/area"][()]
+    fig = Figure(figsize=(6.4, 3.6), dpi=GIF_DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    _map_axes(ax, _pad_outline(run.scene), x, y)
+    sc = ax.scatter(x, y, s=1.0, c=list(_colours(vel[0])), linewidths=0)
+
+    def caption(k: int) -> str:
+        return f"{run.name}: t = {pt[rows[k]] * 1e6:.5g} µs (red: u̇ > 0 with the disc, blue: u̇ < 0 against it)"
+
+    title = ax.set_title(caption(0), fontsize=8)  # before the layout is frozen: room for the title
+    footer = textwrap.wrap(f"marker area ∝ patch area · {run.footer}", GIF_FOOTER_CHARS, break_on_hyphens=False)
+    fig.supxlabel("\n".join(footer), x=0.01, ha="left", fontsize=GIF_FOOTER_PT, color="0.35")  # in the layout
+    sc.set_sizes(_marker_scale(ax, fig, x, y, area) * area / area.max())
+    fig.set_layout_engine("none")  # freeze the layout drawn by _marker_scale: frames only recolour
+    # Animation.save() redraws the canvas for display and again for the writer; this figure is never
+    # displayed, so its (private) canvas skips the first draw.
+    fig.canvas.draw_idle = lambda *args, **kwargs: None
+
+    def update(k: int) -> tuple[Any, ...]:
+        sc.set_color(list(_colours(vel[k])))
+        title.set_text(caption(k))
+        return sc, title
+
+    return fig, update, len(rows)
 
 
 # ------------------------------------------------------------------------------------------- globals
@@ -483,7 +501,13 @@ def plot_sync(path: str | Path, outdir: str | Path, **options: Any) -> list[Path
         assert g is not None
         a = g.attrs
         f, S, phi, s0, rw = (g[k] for k in ("freq", "S", "Phi", "S_null", "R_w"))
-        df, floor, shown = float(f[1] - f[0]), report.leakage_floor(f), report.shown_bins(f)
+        df, floor, shown = report.bin_width(f, a), report.leakage_floor(f, a), report.shown_bins(f, a)
+        if np.count_nonzero(shown) < 2:
+            raise SceneError(
+                f"the Synchronization Index holds {np.count_nonzero(shown)} frequency bin(s) at or above "
+                f"{floor:.4g} Hz (Δf = {df:.4g} Hz): too few to draw; record longer (Δf = 1 / record length) or "
+                "widen the band (analyze --freq-min/--freq-max)"
+            )
         f, S, phi, s0, rw = (x[shown] for x in (f, S, phi, s0, rw))
         valid = np.isfinite(S)
         above = valid & (S > s0)

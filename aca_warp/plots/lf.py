@@ -35,7 +35,7 @@ from matplotlib.figure import Figure
 from aca_warp.analysis.report import run_attr
 from aca_warp.common.errors import SceneError
 from aca_warp.common.files import open_h5
-from aca_warp.plots.figure import WIDTH, envelope, finish, new_figure, pad_outline, save
+from aca_warp.plots.figure import WIDTH, device_text, envelope, finish, new_figure, pad_outline, save
 
 LF_FIGURES = ("lf_global", "lf_population", "lf_patch_map")
 """LF figure names accepted by :func:`plot_lf_run` (``which``) and ``aca-warp plot --only``."""
@@ -93,12 +93,11 @@ class _LFRun:
 
     @property
     def footer(self) -> str:
-        a = {k: run_attr(self.f, k, "?") for k in ("precision", "device", "device_name", "status")}
-        device = a["device"] if a["device_name"] in ("?", a["device"]) else f"{a['device']} ({a['device_name']})"
+        a = {k: run_attr(self.f, k, "?") for k in ("precision", "status")}
         dt = self.scene.get("lf", {}).get("dt", "?")
         return (
             f"{self.path.name} · scene {self.name} · LF automaton, Δt = {dt} s · precision {a['precision']} · "
-            f"device {device} · run {a['status']}"
+            f"device {device_text(self.f)} · run {a['status']}"
         )
 
     def snapshots(self) -> list[str]:

@@ -155,6 +155,45 @@ def _have_dask() -> bool:
     return importlib.util.find_spec("distributed") is not None
 
 
+CONNECT_TIMEOUT_S = 10.0  # how long a sweep waits for the scheduler at --scheduler to answer [s]
+
+
+def check_scheduler(address: str, timeout: float | None = None) -> None:
+    """Connect once to the Dask scheduler at ``address`` (with the client's TLS settings from Dask's configuration)
+    and close again, before a sweep writes anything: :class:`SweepError` with one line for an address Dask cannot
+    parse or a scheduler that does not answer within ``timeout`` [s] (default :data:`CONNECT_TIMEOUT_S`)."""
+    import asyncio
+    from concurrent.futures import ThreadPoolExecutor
+
+    try:
+        from distributed.comm import connect
+        from distributed.security import Security
+    except ImportError:
+        raise SweepError("Dask is not installed: pip install 'aca-warp[sweep]' (or dask[distributed])") from None
+
+    timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
+
+    async def probe() -> None:
+        comm = await connect(address, timeout=timeout, **Security().get_connection_args("client"))
+        await comm.close()
+
+    pool = ThreadPoolExecutor(1, thread_name_prefix="aca-warp-probe")  # its own event loop, whoever calls
+    try:
+        pool.submit(asyncio.run, probe()).result()
+    except ValueError as e:
+        raise SweepError(
+            f"--scheduler {address!r} is not a Dask scheduler address ({e}); e.g. tcp://HOST:8786"
+        ) from None
+    except OSError as e:
+        why = "" if "Timed out" in str(e) else f" ({e})"
+        raise SweepError(
+            f"no Dask scheduler answered at {address} within {timeout:g} s{why}; start it (dask scheduler) or check "
+            "the address"
+        ) from None
+    finally:
+        pool.shutdown(wait=False)
+
+
 WORKERS_PER_GPU = 2  # local Dask workers per GPU in the overlapped path (one runs while the other builds)
 
 
@@ -198,7 +237,7 @@ def _run_on_dask(
                     "who reaches its scheduler runs code on its workers (docs/sweeps.md, Security)",
                     file=sys.stderr,
                 )
-            client = Client(scheduler)  # TLS settings, if any, from Dask's configuration
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)  # TLS settings, if any, from Dask's configuration
             worker_device = "cuda:0" if device == "cuda" else device
             sharing = 1
         book.result.workers = len(client.scheduler_info(n_workers=-1)["workers"])

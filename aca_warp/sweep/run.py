@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from aca_warp.common.errors import StorageError
-from aca_warp.sweep.cluster import WORKERS_PER_GPU, _have_dask, _run_on_dask, cuda_ordinals
+from aca_warp.sweep.cluster import WORKERS_PER_GPU, _have_dask, _run_on_dask, check_scheduler, cuda_ordinals
 from aca_warp.sweep.manifest import MANIFEST, SweepResult, _Book, _one_line, prepare_dir
 from aca_warp.sweep.overlap import ShardCancelled, ShardContext
 from aca_warp.sweep.prepare import Preparer
@@ -46,7 +46,9 @@ def run_sweep(
     (``workers`` processes; default :data:`WORKERS_PER_GPU` per GPU of ``device`` with ``overlap``, else one, or
     one per CPU core for ``cpu``), or the cluster at ``scheduler`` is used (its workers run on ``device``: ``cuda``
     there means each worker's first visible GPU), or an open Dask ``client`` (``device`` as for a scheduler; see
-    :func:`local_cluster`). ``overlap`` (default): file writes, and on Dask model builds, overlap the kernels (in this
+    :func:`local_cluster`; a scheduler that does not answer within :data:`~aca_warp.sweep.cluster.CONNECT_TIMEOUT_S`
+    is refused before anything is written). ``overlap`` (default): file writes, and on Dask model builds, overlap
+    the kernels (in this
     process: :data:`PIPELINE_DEPTH` shard tasks in threads, each one's Warp work in its turn; on Dask: two worker
     processes per GPU; both: a writer thread per shard and the device taken in turns, :class:`KernelTurn`); False:
     the serial path, same results bit for bit. ``prepare``: processes that make the shards' scenes ahead of their
@@ -62,6 +64,8 @@ def run_sweep(
         cuda_ordinals(device)  # validate before anything is written
     if out.exists() and not out.is_dir():
         raise SweepError(f"{out} exists and is not a directory")
+    if scheduler is not None and client is None:
+        check_scheduler(scheduler)  # a bad address or no answer: one line, nothing written
     out.mkdir(parents=True, exist_ok=True)
     from aca_warp.common.files import locked_output
 
