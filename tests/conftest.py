@@ -52,7 +52,7 @@ def pytest_configure(config: pytest.Config) -> None:
     if getattr(config, "workerinput", None) is None and getattr(config.option, "numprocesses", None):
         if getattr(config.option, "dist", None) == "load":
             config.option.dist = "loadfile"
-        _load(("hf", "neighbours", "hf_adaptive", "lf"))
+        _load(("hf", "neighbours", "hf_adaptive", "lf_contact", "lf_thermal", "lf_wear", "lf_patches", "lf_record"))
 
 
 @pytest.fixture(scope="session", autouse=True)
