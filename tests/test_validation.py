@@ -77,9 +77,29 @@ def test_plan_follows_the_predicted_growth_and_aligns_the_window():
     # the segments cover the run in order, per-patch ones exactly at the track windows and the final window
     assert rest.segments[0][0] == 0.0 and rest.segments[-1][1] == pytest.approx(rest.duration)
     assert all(a[1] == pytest.approx(b[0]) for a, b in zip(rest.segments[:-1], rest.segments[1:], strict=True))
-    assert [s[:2] for s in rest.segments if s[2]] == [*rest.tracks, (rest.window_start, rest.duration)]
+    patch_segments = [s[:2] for s in rest.segments if s[2]]
+    assert np.allclose(patch_segments, [*rest.tracks, (rest.window_start, rest.duration)], rtol=0, atol=1e-12)
     starts = [a for a, _ in rest.tracks]
     assert starts == sorted(starts) and starts[0] == pytest.approx(2 * cfg.track_window, abs=dtp)
+
+
+def test_segments_are_whole_samples_on_one_clock():
+    """Every segment of a from-rest plan with track windows (the full variant's settings) is at least one sample
+    long, on whole samples, and starts exactly where the one before ends: a window that rounding brought within a
+    sample of the next (a segment of 0.9999996 samples) was refused by the run loop."""
+    from aca_warp.hf.recorder import check_run
+    from aca_warp.scene import Record
+
+    for cfg in (VB.Config(seeds=1, patches=60), VB.Config(seeds=1, patches=60, window=3e-3)):
+        for name in ("hf1_rest", "hf2_rest", "hf1"):
+            plan = VE.prepare(VB.EXPERIMENTS[name], cfg).plan
+            seg = plan.segments
+            assert seg[0][0] == 0.0 and seg[-1][1] == plan.duration
+            assert all(a[1] == b[0] for a, b in zip(seg[:-1], seg[1:], strict=True))
+            for a, b, _ in seg:
+                n = (b - a) / cfg.sample_dt
+                assert n >= 1.0 - 1e-9 and abs(n - round(n)) < 1e-6
+                assert check_run(b - a, Record(sample_dt=cfg.sample_dt)) == round(n)  # the run loop takes it
 
 
 def test_a_batch_runs_as_long_as_its_longest_member_and_refuses_mixed_kinds():

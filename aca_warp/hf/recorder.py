@@ -35,7 +35,8 @@ def check_run(duration: float, record: Record, checkpoint_every: float | None = 
     the number of samples."""
     if not (duration > 0 and math.isfinite(duration)):
         raise SceneError(f"duration must be a positive number of seconds, got {duration}")
-    if record.sample_dt > duration * (1 + 1e-12):
+    # 1e-9: a duration made as the difference of two times (a run in segments) is a whole number of samples to ~1e-10
+    if record.sample_dt > duration * (1 + 1e-9):
         raise SceneError(f"sample interval {record.sample_dt:g} s exceeds the duration {duration:g} s")
     check_interval(checkpoint_every)
     n_samples = max(1, round(duration / record.sample_dt))

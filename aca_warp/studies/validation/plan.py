@@ -288,14 +288,19 @@ def plan_run(
         if exp.tracks:
             tracks = track_windows(n_dur, j0 * cfg.sample_dt, cfg)
         windows = [*tracks, (j0 * cfg.sample_dt, n_dur)]
-    segments, t = [], 0.0
+    # segment bounds on whole samples (a segment is at least one sample long), windows that would overlap the one
+    # before start where it ends: the run's clock and the sink's offsets stay the same
+    segments, t = [], 0
     for a, b in windows:
-        if a > t + 0.5 * cfg.sample_dt:
-            segments.append((t, a, False))
-        segments.append((a, b, True))
-        t = b
-    if t < n_dur - 0.5 * cfg.sample_dt:
-        segments.append((t, n_dur, False))
+        ia, ib = max(int(round(a / cfg.sample_dt)), t), int(round(b / cfg.sample_dt))
+        if ib <= ia:
+            continue
+        if ia > t:
+            segments.append((t * cfg.sample_dt, ia * cfg.sample_dt, False))
+        segments.append((ia * cfg.sample_dt, ib * cfg.sample_dt, True))
+        t = ib
+    if t < n_samples:
+        segments.append((t * cfg.sample_dt, n_dur, False))
     samples = sum(int(round((b - a) / dtp)) + 1 for a, b in windows)
     return Plan(
         duration=n_dur,
