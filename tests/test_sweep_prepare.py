@@ -125,7 +125,8 @@ def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
         deadline = time.monotonic() + 60
         while not (kids := _pool_processes(before)) and time.monotonic() < deadline:
             time.sleep(0.05)
-        time.sleep(1.0)  # inside the preparation
+        # killed as soon as it exists: a spawned process needs seconds to import and place 6000 patches, so the kill
+        # lands before the preparation can finish on any machine (a fixed wait of 1 s did not on a fast idle one)
         assert kids and not prep.poll(0)
         for k in kids:
             k.kill()
