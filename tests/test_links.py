@@ -179,3 +179,26 @@ def test_private_dir_refuses_a_folder_of_another_owner(tmp_path: Path, monkeypat
     (tmp_path / "aca-warp").symlink_to(tmp_path / "elsewhere")
     with pytest.raises(OSError, match="not a folder of this user"):
         links.private_dir("kernel")
+
+
+def test_lock_file_removed_by_its_holder_while_opened_is_opened_anew(tmp_path: Path, monkeypatch) -> None:
+    """A lock file its holder removes (a release, or another writer's sweep of stale identity locks) between our open
+    and the check has no name left: it is opened anew, not refused as a hard link (a concurrent overlapped sweep and
+    a second test process sharing the private lock folder hit this)."""
+    lp = tmp_path / "x.lock"
+    lp.write_text("")
+    real_open, calls = os.open, []
+
+    def racing_open(path, flags, mode=0o777, **kw):
+        fd = real_open(path, flags, mode, **kw)
+        if not calls:
+            calls.append(path)
+            os.unlink(path)  # the holder's release lands between the open and the check
+        return fd
+
+    monkeypatch.setattr(links.os, "open", racing_open)
+    fd = links.open_lock_file(lp)
+    try:
+        assert calls == [lp] and os.fstat(fd).st_nlink == 1 and lp.exists()
+    finally:
+        os.close(fd)

@@ -47,18 +47,23 @@ def open_lock_file(path: Path, what: str = "lock file", mode: int = 0o644) -> in
     """Open (or create) the lock file ``path`` read-write without following a link; returns the descriptor.
 
     Refused (:func:`link_refusal`): a symbolic link, anything but a regular file, a file with more than one name
-    (a hard link to another file). Other OSErrors pass through (the caller names the folder)."""
-    try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | os.O_NONBLOCK | NOFOLLOW, mode)
-    except OSError as e:
-        if e.errno == errno.ELOOP:
-            raise link_refusal(path, what) from None
-        raise
-    st = os.fstat(fd)
-    if not stat.S_ISREG(st.st_mode) or st.st_nlink != 1:
-        os.close(fd)
-        raise link_refusal(path, what)
-    return fd
+    (a hard link to another file). A file with no name left (its holder removed it between this open and the check,
+    as a release does) is opened anew. Other OSErrors pass through (the caller names the folder)."""
+    while True:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | os.O_NONBLOCK | NOFOLLOW, mode)
+        except OSError as e:
+            if e.errno == errno.ELOOP:
+                raise link_refusal(path, what) from None
+            raise
+        st = os.fstat(fd)
+        if stat.S_ISREG(st.st_mode) and st.st_nlink == 0:  # its holder removed it after our open: open anew
+            os.close(fd)
+            continue
+        if not stat.S_ISREG(st.st_mode) or st.st_nlink != 1:
+            os.close(fd)
+            raise link_refusal(path, what)
+        return fd
 
 
 def clear_name(path: Path, what: str) -> None:
