@@ -100,3 +100,20 @@ def test_signal_marks_running_shards_and_rerun_finishes(
     assert not list(out.glob("*.partial"))
     for i in range(3):
         assert_same_datasets(ref / f"shard-0000{i}.h5", out / f"shard-0000{i}.h5")
+
+
+def test_sync_cancel_error_of_distributed_is_dropped(caplog) -> None:
+    """distributed's NameError when an interrupted ``sync`` call is cancelled (tornado logs it as a callback
+    exception, seen on a SIGTERM-stopped Dask sweep) is filtered out of the client's log; other tornado errors stay."""
+    import logging
+
+    from aca_warp.sweep.cluster import _drop_sync_cancel_errors
+
+    _drop_sync_cancel_errors()
+    _drop_sync_cancel_errors()  # once only
+    log = logging.getLogger("tornado.application")
+    assert len(log.filters) == len(set(log.filters))
+    with caplog.at_level(logging.ERROR, logger="tornado.application"):
+        log.error("Exception in callback functools.partial(<function sync.<locals>.cancel at 0x7f45569b3100>)")
+        log.error("Exception in callback something else")
+    assert [r.getMessage() for r in caplog.records] == ["Exception in callback something else"]

@@ -197,6 +197,23 @@ def check_scheduler(address: str, timeout: float | None = None) -> None:
 WORKERS_PER_GPU = 2  # local Dask workers per GPU in the overlapped path (one runs while the other builds)
 
 
+def _not_sync_cancel_error(record: Any) -> bool:
+    """Logging filter: False for distributed's own error when a ``sync`` call that a signal interrupted is cancelled
+    (``NameError: cannot access free variable 'future'`` in ``distributed.utils.sync.<locals>.cancel``, logged by
+    tornado as "Exception in callback functools.partial(<function sync.<locals>.cancel ...>)"): harmless, since the
+    sweep stops anyway, and not the one line a stopped sweep prints."""
+    return "sync.<locals>.cancel" not in record.getMessage()
+
+
+def _drop_sync_cancel_errors() -> None:
+    """Filter those records (:func:`_not_sync_cancel_error`) out of tornado's callback log in this process."""
+    import logging
+
+    log = logging.getLogger("tornado.application")
+    if _not_sync_cancel_error not in log.filters:
+        log.addFilter(_not_sync_cancel_error)
+
+
 def _run_on_dask(
     book: _Book,
     args: tuple,
@@ -216,6 +233,7 @@ def _run_on_dask(
         raise SweepError(
             "Dask is not installed: pip install 'aca-warp[sweep]' (or dask[distributed]), or run with --workers 0"
         ) from None
+    _drop_sync_cancel_errors()
     cluster = None
     own_client = client is None
     futures: dict[Any, int] = {}
