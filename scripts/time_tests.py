@@ -8,9 +8,12 @@ system's packages with the clone installed (``pip install --no-deps -e .``: the 
 time of the suite and every process it waited for (user + sys: the figure that does not depend on what else loads
 the machine), the machine, the date, the load average before and after, and whether Warp's kernel cache was warm
 (the one ``aca-warp`` and the tests share, ``~/.cache/warp`` or ``WARP_CACHE_PATH``) or, with ``--cold``, an empty
-one (kernels compiled on the way, as on a new machine or after a Warp upgrade). Examples::
+one (kernels compiled on the way, as on a new machine or after a Warp upgrade). With ``--durations N`` pytest also
+times every test (``--durations=0``): the N slowest tests and the N files of the largest total are listed (the time a
+file takes sets when its worker can finish: every file runs on one worker). Examples::
 
-    python3 scripts/time_tests.py --json docs/benchmarks/test_suite.json --markdown docs/benchmarks/test_suite.md
+    python3 scripts/time_tests.py --durations 15 --json docs/benchmarks/test_suite.json \
+        --markdown docs/benchmarks/test_suite.md
     python3 scripts/time_tests.py --cold -n 2          # a new machine's first run, two workers
 """
 
@@ -45,6 +48,23 @@ def counts(text: str) -> dict[str, int]:
     return found
 
 
+def durations(text: str, n: int) -> dict[str, list]:
+    """The ``n`` slowest tests (setup + call + teardown [s]) and the ``n`` files of the largest total [s], from
+    pytest's ``--durations=0`` section."""
+    per_test: dict[str, float] = {}
+    for seconds, test in re.findall(r"^(\d+\.\d+)s (?:setup|call|teardown) +(\S+)", text, flags=re.MULTILINE):
+        per_test[test] = per_test.get(test, 0.0) + float(seconds)
+    per_file: dict[str, float] = {}
+    for test, seconds in per_test.items():
+        per_file[test.split("::")[0]] = per_file.get(test.split("::")[0], 0.0) + seconds
+    slowest = sorted(per_test.items(), key=lambda kv: -kv[1])[:n]
+    files = sorted(per_file.items(), key=lambda kv: -kv[1])[:n]
+    return {
+        "slowest_tests": [[t, round(s, 2)] for t, s in slowest],
+        "slowest_files": [[f, round(s, 2)] for f, s in files],
+    }
+
+
 def run(args: argparse.Namespace) -> dict:
     """Clone, install, run the suite; the figures of the run."""
     with tempfile.TemporaryDirectory(prefix="aca_warp_suite_") as tmp:
@@ -60,9 +80,12 @@ def run(args: argparse.Namespace) -> dict:
         if args.cold:
             env["WARP_CACHE_PATH"] = str(Path(tmp) / "warp_cache")
         command = [python, "-m", "pytest", "-q", "-n", args.n, "tests"]
+        timing = ["--durations=0"] if args.durations else []
         started = time.strftime("%Y-%m-%d %H:%M")
         load_before, cpu0, t0 = os.getloadavg(), cpu_of_children(), time.perf_counter()
-        done = subprocess.run(command, cwd=clone, env=env, capture_output=True, text=True, timeout=args.timeout)
+        done = subprocess.run(
+            command + timing, cwd=clone, env=env, capture_output=True, text=True, timeout=args.timeout
+        )
         wall, cpu, load_after = time.perf_counter() - t0, cpu_of_children() - cpu0, os.getloadavg()
     if done.returncode not in (0, 1):
         sys.stderr.write(done.stdout[-3000:] + done.stderr[-3000:])
@@ -79,6 +102,7 @@ def run(args: argparse.Namespace) -> dict:
         "cpu_s": cpu,
         "load_before": load_before[0],
         "load_after": load_after[0],
+        **(durations(done.stdout, args.durations) if args.durations else {}),
     }
 
 
@@ -96,6 +120,10 @@ def markdown(r: dict) -> str:
     def minutes(s: float) -> str:
         return f"{int(s // 60)} min {s % 60:.0f} s"
 
+    def table(title: str, rows: list) -> str:
+        lines = "".join(f"| `{name}` | {seconds:.1f} |\n" for name, seconds in rows)
+        return f"\n| {title} | s |\n|---|---|\n{lines}"
+
     return (
         "# Test suite: count and time\n\n"
         f"`{r['command']}` on a fresh clone (commit {r['commit']}), {r['date']}, on {r['machine']}; kernel cache "
@@ -104,6 +132,14 @@ def markdown(r: dict) -> str:
         "| passed | skipped | failed | wall | CPU (user + sys) |\n|---|---|---|---|---|\n"
         f"| {r['passed']} | {r['skipped']} | {r['failed'] + r['errors']} | {minutes(r['wall_s'])} | "
         f"{minutes(r['cpu_s'])} |\n"
+        + (
+            "\nTime of each test (setup + call + teardown; under `-n` the workers share the cores, so a test takes "
+            "longer than alone) and of each file (its tests together, on one worker):\n"
+            + table("slowest tests", r["slowest_tests"])
+            + table("slowest files", r["slowest_files"])
+            if r.get("slowest_tests")
+            else ""
+        )
     )
 
 
@@ -112,6 +148,7 @@ def main() -> int:
     p.add_argument("--cold", action="store_true", help="an empty kernel cache (kernels compiled during the run)")
     p.add_argument("-n", default="auto", help="pytest-xdist workers (default auto: one per core)")
     p.add_argument("--timeout", type=float, default=3600.0, help="give up after this many seconds (default 3600)")
+    p.add_argument("--durations", type=int, default=0, metavar="N", help="list the N slowest tests and files")
     p.add_argument("--json", type=Path)
     p.add_argument("--markdown", type=Path)
     args = p.parse_args()
