@@ -3,13 +3,14 @@
 
 Builds :func:`aca_warp.kernels.hf_onchip.onchip_kernel` (``--kernel strang``) or
 :func:`aca_warp.kernels.hf_onchip_adaptive.onchip_dp5_kernel` (``--kernel adaptive``, with the lanes and block size
-the on-chip adaptive engine picks on CUDA) for one pad size, compiles each configuration to an sm_90 cubin with
-Warp's NVRTC (``wp.compile_aot_module``; no CUDA driver needed) and reads from the cubin's ``.nv.info`` attributes
-the registers per thread (EIATTR_REGCOUNT) and the stack frame per thread in bytes (EIATTR_FRAME_SIZE: registers
-spilled to local memory and local arrays), and the size of the kernel's machine code (its ``.text`` section, 16 bytes
-per sm_90 instruction). A frame > 0 in a kernel that runs millions of steps means spill traffic in the step loop
-(docs/onchip.md, "Growing pads"). Two versions of the kernels that give the same three numbers in every
-configuration compiled to the same code up to the order of instructions.
+the on-chip adaptive engine picks on CUDA) for one pad size, compiles each configuration to an sm_90 cubin with Warp's
+NVRTC (``wp.compile_aot_module``, into Warp's kernel cache, so a configuration compiles once per machine; no CUDA
+driver needed) and reads from the cubin's ``.nv.info`` attributes the registers per thread (EIATTR_REGCOUNT) and the
+stack frame per thread in bytes (EIATTR_FRAME_SIZE: registers spilled to local memory and local arrays), and the size
+of the kernel's machine code (its ``.text`` section, 16 bytes per sm_90 instruction). A frame > 0 in a kernel that
+runs millions of steps means spill traffic in the step loop (docs/onchip.md, "Growing pads"). Two versions of the
+kernels that give the same three numbers in every configuration compiled to the same code up to the order of
+instructions.
 
 The register file of an SM is split over four schedulers of 16 384 registers each: a block of B threads gets at
 most 16384 / (32 · ceil(B / 128)) registers per thread (rounded down to 8): 128 for B = 385…512, 168 for B = 384.
@@ -27,7 +28,6 @@ import argparse
 import json
 import struct
 import sys
-import tempfile
 from pathlib import Path
 
 H100_SMEM_PER_BLOCK = 232448  # opt-in shared memory per block of an H100 / H200 (227 KB)
@@ -96,26 +96,25 @@ def main(argv: list[str] | None = None) -> int:
     from aca_warp.scene import preset
 
     rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for prec in args.precisions:
-            model = build_model([preset(args.preset)], device="cpu", precision=prec)
-            for k in args.clusters:
-                for growth in (False, True):
-                    configs = (_strang if args.kernel == "strang" else _adaptive)(model, k, growth, args)
-                    for row, kernel in configs:
-                        out = Path(tmp) / f"{prec}_{k}_{int(growth)}_{row['block_dim']}"
-                        wp.compile_aot_module(kernel.module, arch=90, module_dir=out, use_ptx=False)
-                        info = cubin_info(next(out.glob("*.cubin")))
-                        row = {"kernel": args.kernel, "precision": prec, "cluster": k, "growth": growth, **row, **info}
-                        rows.append(row)
-                        print(
-                            f"{args.kernel} {prec} K={k} {'growth   ' if growth else 'no growth'} "
-                            f"block {row['block_dim']:4d} CSR {'on chip' if row['csr_shared'] else 'global '}"
-                            + (f" lanes {row['lanes']}" if "lanes" in row else "")
-                            + f": {info.get('registers', '?')} registers, stack frame {info.get('frame_bytes', 0)} B, "
-                            f"code {info.get('text_bytes', 0)} B",
-                            flush=True,
-                        )
+    for prec in args.precisions:
+        model = build_model([preset(args.preset)], device="cpu", precision=prec)
+        for k in args.clusters:
+            for growth in (False, True):
+                configs = (_strang if args.kernel == "strang" else _adaptive)(model, k, growth, args)
+                for row, kernel in configs:
+                    # into Warp's kernel cache, keyed by the module's hash: a configuration compiles once per machine
+                    cubin = wp.compile_aot_module(kernel.module, arch=90, use_ptx=False)[-1]
+                    info = cubin_info(Path(cubin))
+                    row = {"kernel": args.kernel, "precision": prec, "cluster": k, "growth": growth, **row, **info}
+                    rows.append(row)
+                    print(
+                        f"{args.kernel} {prec} K={k} {'growth   ' if growth else 'no growth'} "
+                        f"block {row['block_dim']:4d} CSR {'on chip' if row['csr_shared'] else 'global '}"
+                        + (f" lanes {row['lanes']}" if "lanes" in row else "")
+                        + f": {info.get('registers', '?')} registers, stack frame {info.get('frame_bytes', 0)} B, "
+                        f"code {info.get('text_bytes', 0)} B",
+                        flush=True,
+                    )
     if args.json:
         meta = {"preset": args.preset, "warp_version": wp.__version__, "arch": "sm_90", "rows": rows}
         args.json.write_text(json.dumps(meta, indent=1))
