@@ -165,12 +165,18 @@ def test_prepared_shards_on_dask(tmp_path: Path) -> None:
     assert np.isfinite(a["mu"]).all()
 
 
-def test_bench_script_runs_every_configuration(tmp_path: Path) -> None:
+def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """scripts/bench_sweep.py on the CPU with tiny settings and this checkout as its own baseline: the new path
     overlapped and sequential, the baseline overlapped, each in a process that imported the code it names; rates and
-    ratios from the shards' own timings."""
+    ratios from the shards' own timings. The children share the tests' kernel cache (the script gives each code its
+    own, empty one where WARP_CACHE_PATH is unset: kernels compiled twice, for identical code)."""
     pytest.importorskip("distributed")
+    import warp as wp
     from scriptload import load_script
+
+    cache = Path(wp.config.kernel_cache_dir)  # WARP_CACHE_PATH/<Warp version>
+    assert cache.name == wp.config.version, cache
+    monkeypatch.setenv("WARP_CACHE_PATH", str(cache.parent))
 
     bench = load_script("bench_sweep")
     repo = Path(bench.__file__).resolve().parent.parent
