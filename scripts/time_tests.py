@@ -10,7 +10,8 @@ the machine), the machine, the date, the load average before and after, and whet
 (the one ``aca-warp`` and the tests share, ``~/.cache/warp`` or ``WARP_CACHE_PATH``) or, with ``--cold``, an empty
 one (kernels compiled on the way, as on a new machine or after a Warp upgrade). With ``--durations N`` pytest also
 times every test (``--durations=0``): the N slowest tests and the N files of the largest total are listed (the time a
-file takes sets when its worker can finish: every file runs on one worker). Examples::
+file takes sets when its worker can finish: every file runs on one worker), and every file's total is kept in the JSON,
+from which the tests' conftest.py orders the files, longest first. Examples::
 
     python3 scripts/time_tests.py --durations 15 --json docs/benchmarks/test_suite.json \
         --markdown docs/benchmarks/test_suite.md
@@ -48,9 +49,10 @@ def counts(text: str) -> dict[str, int]:
     return found
 
 
-def durations(text: str, n: int) -> dict[str, list]:
-    """The ``n`` slowest tests (setup + call + teardown [s]) and the ``n`` files of the largest total [s], from
-    pytest's ``--durations=0`` section."""
+def durations(text: str, n: int) -> dict:
+    """The ``n`` slowest tests (setup + call + teardown [s]), the ``n`` files of the largest total [s] and every
+    file's total (``file_seconds``: the order in which tests/conftest.py hands files to the workers), from pytest's
+    ``--durations=0`` section."""
     per_test: dict[str, float] = {}
     for seconds, test in re.findall(r"^(\d+\.\d+)s (?:setup|call|teardown) +(\S+)", text, flags=re.MULTILINE):
         per_test[test] = per_test.get(test, 0.0) + float(seconds)
@@ -62,6 +64,7 @@ def durations(text: str, n: int) -> dict[str, list]:
     return {
         "slowest_tests": [[t, round(s, 2)] for t, s in slowest],
         "slowest_files": [[f, round(s, 2)] for f, s in files],
+        "file_seconds": {f: round(s, 2) for f, s in sorted(per_file.items(), key=lambda kv: -kv[1])},
     }
 
 

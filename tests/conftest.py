@@ -8,7 +8,9 @@ where a CUDA device is present).
 
 from __future__ import annotations
 
+import json
 import os
+from pathlib import Path
 
 import warp as wp
 
@@ -43,16 +45,36 @@ def _load(names: tuple[str, ...]) -> None:
             wp.load_module(module, device=dev)
 
 
+# Every test file's time in the last measured suite [s] (scripts/time_tests.py --durations): the order of the files
+SUITE_TIMES = Path(__file__).resolve().parent.parent / "docs" / "benchmarks" / "test_suite.json"
+
+
 def pytest_configure(config: pytest.Config) -> None:
     """Under pytest-xdist (``-n``): every test file runs on one worker (``--dist loadfile`` in place of the default
-    ``load``), so that a module's shared runs (its module-scoped fixtures) are made once, not once per worker; and
-    the kernel modules many tests load compile once, here in the controller before the workers start (on an empty
-    kernel cache every worker would otherwise compile them at the same time; the workers fetch them from the
-    cache)."""
+    ``load``), so that a module's shared runs (its module-scoped fixtures) are made once, not once per worker; the
+    files are handed out in the order of the collection (:func:`pytest_collection_modifyitems`: longest first), not
+    by their number of tests; and the kernel modules many tests load compile once, here in the controller before the
+    workers start (on an empty kernel cache every worker would otherwise compile them at the same time; the workers
+    fetch them from the cache)."""
     if getattr(config, "workerinput", None) is None and getattr(config.option, "numprocesses", None):
         if getattr(config.option, "dist", None) == "load":
             config.option.dist = "loadfile"
+        if hasattr(config.option, "loadscopereorder"):
+            config.option.loadscopereorder = False
         _load(("hf", "neighbours", "hf_adaptive", "lf_contact", "lf_thermal", "lf_wear", "lf_patches", "lf_record"))
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """In a pytest-xdist worker: the test files in decreasing time of the last measured suite (:data:`SUITE_TIMES`;
+    files it lacks last, in their own order; the tests of a file keep theirs), so that a long file starts early
+    instead of running alone at the end while the other workers are idle (greedy longest-first scheduling)."""
+    if getattr(config, "workerinput", None) is None:
+        return
+    try:
+        seconds = json.loads(SUITE_TIMES.read_text()).get("file_seconds", {})
+    except (OSError, ValueError):
+        return
+    items.sort(key=lambda item: -float(seconds.get(item.nodeid.split("::")[0], 0.0)))
 
 
 @pytest.fixture(scope="session", autouse=True)
