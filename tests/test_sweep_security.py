@@ -24,12 +24,33 @@ pytest.importorskip("distributed")
 
 PROBE_S = 4.0  # how long a plain client or RPC may take to get through [s] (on loopback it takes milliseconds)
 # The sweep must outlive the probe, which takes all of PROBE_S at the HTTP ports (they never answer a Dask
-# handshake): one shard of 60 ms of 25 patches, about 20 s of one worker at load 3 on the 2-core machine (eight shards
-# of 2 ms, as before, ended while the probe ran once the kernels were cached); the other worker stays idle.
+# handshake): one shard of 25 patches (the other worker stays idle) whose simulated time takes RUN_S of stepping at the
+# pace measured here just before (:func:`run_duration`; a fixed duration is minutes on a loaded machine and, on a fast
+# idle one, may end while the probe runs, as eight shards of 2 ms once did), and at least MIN_DURATION_S.
+RUN_S = 15.0
+MIN_DURATION_S = 2e-2
 SPEC = (
-    '[sweep]\nbase = "hf1"\nshard_size = 1\n[run]\nduration = 6e-2\nprecision = "fp32"\n'
+    '[sweep]\nbase = "hf1"\nshard_size = 1\n[run]\nduration = {duration:.3g}\nprecision = "fp32"\n'
     '[base.patches]\ncount = 25\n[parameters]\n"friction.M" = [0.8]\n'
 )
+
+
+def run_duration() -> float:
+    """The simulated time [s] of SPEC's pad that takes about RUN_S of stepping on one core of this machine now: its
+    pace measured by 1 ms in this process (graph captures excluded), at least MIN_DURATION_S."""
+    import tomllib
+
+    from aca_warp.hf.loop import run_hf
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.options import RunOptions
+    from aca_warp.hf.state import initial_state
+    from aca_warp.sweep import load_spec
+
+    spec = load_spec(tomllib.loads(SPEC.format(duration=1e-3)))
+    model = build_model(spec.scenes([0]), device="cpu", precision=spec.precision)
+    options = RunOptions(duration=1e-3, integrator=spec.integrator, dt=spec.dt, tolerance=spec.tolerance)
+    res = run_hf(model, initial_state(model), options, record=spec.base.record)
+    return max(MIN_DURATION_S, RUN_S * 1e-3 / res.wall_time)
 
 
 def listening(pid: int) -> set[tuple[int, str, int]]:
@@ -96,7 +117,7 @@ async def probe(addresses: list[str]) -> tuple[dict[str, str], dict[str, str]]:
 
 
 def test_plain_client_cannot_use_a_running_sweep(tmp_path: Path) -> None:
-    (tmp_path / "spec.toml").write_text(SPEC)
+    (tmp_path / "spec.toml").write_text(SPEC.format(duration=run_duration()))
     out = tmp_path / "out"
     (tmp_path / "tmp").mkdir()
     (tmp_path / "run").mkdir(mode=0o700)
