@@ -13,14 +13,15 @@ from procs import assert_same_datasets, error_lines, start
 
 from aca_warp.cli import main
 
-# 6 pads of 25 patches in 3 shards of 2; 1 ms simulated (about half a second of stepping per shard on one core; the
-# signal comes while a shard runs, found by polling its .partial every 5 ms)
+# 6 pads of 25 patches in 3 shards of 2; 0.5 ms simulated (about a quarter of a second of stepping per shard on one
+# idle core, 50 times the polling interval; the signal comes while a shard runs, found by polling its .partial every
+# 5 ms)
 SPEC = """[sweep]
 base = "hf1"
 shard_size = 2
 name = "interrupt"
 [run]
-duration = 1e-3
+duration = 5e-4
 precision = "fp32"
 sample_dt = 1e-5
 [base.patches]
