@@ -23,11 +23,19 @@ HF_SCENE = small_scene_toml(
 # the second row begins (t = 512 µs), after the checkpoint at 500 µs; the whole file is 1.6 MB
 
 
-def test_hf_file_size_limit_then_resume(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+@pytest.fixture(scope="module")
+def hf_reference(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The uninterrupted run of HF_SCENE, which the limited and resumed runs of this module must equal."""
+    d = tmp_path_factory.mktemp("hf_reference")
+    (d / "s.toml").write_text(HF_SCENE)
+    assert main(["hf", str(d / "s.toml"), "-o", str(d / "ref.h5"), "--no-progress"]) == 0
+    return d / "ref.h5"
+
+
+def test_hf_file_size_limit_then_resume(tmp_path: Path, hf_reference: Path) -> None:
     scene = tmp_path / "s.toml"
     scene.write_text(HF_SCENE)
-    ref = tmp_path / "ref.h5"
-    assert main(["hf", str(scene), "-o", str(ref), "--no-progress"]) == 0
+    ref = hf_reference
     out = tmp_path / "run.h5"
     r = cli(["hf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "1e-4"], limit=1_300_000)
     lines = error_lines(r.stderr)
@@ -47,7 +55,7 @@ def test_hf_file_size_limit_then_resume(tmp_path: Path, capsys: pytest.CaptureFi
     assert r.returncode == 4 and len(lines) == 1 and "no checkpoint" in lines[0], r.stderr
 
 
-def test_advice_after_a_file_size_stop_is_one_and_true(tmp_path: Path) -> None:
+def test_advice_after_a_file_size_stop_is_one_and_true(tmp_path: Path, hf_reference: Path) -> None:
     """A checkpointed run stopped by a file-size limit before its first checkpoint: the stop and a new run onto the
     same name give the same advice, that the run stopped before its first checkpoint and that `--resume` starts it
     again from t = 0 (before: `--resume` said it ran without checkpoint_interval, and the suggested rerun pointed
@@ -65,8 +73,7 @@ def test_advice_after_a_file_size_stop_is_one_and_true(tmp_path: Path) -> None:
     assert r.returncode == 2 and advice in error_lines(r.stderr)[0], r.stderr
     r = cli(["hf", "--resume", str(out), "--no-progress"])
     assert r.returncode == 0, r.stderr
-    assert main([*args[:3], str(tmp_path / "ref.h5"), "--no-progress"]) == 0
-    assert_same_datasets(out, tmp_path / "ref.h5")
+    assert_same_datasets(out, hf_reference)
 
 
 def test_lf_file_size_limit_then_resume(tmp_path: Path) -> None:
