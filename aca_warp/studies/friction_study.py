@@ -1,0 +1,440 @@
+"""Friction sub-steps at large steps and an error-controlled default: the measurements behind
+docs/friction_step.md (a NumPy prototype on the package's own equations; nothing here runs in the kernels).
+
+Parts (``--parts``, each writes ``OUT/<part>.json``):
+
+* ``single`` — one isolated patch: the sub-steps' stability functions, a sticking patch held under a frozen spring
+  force at hγ = 1, 4, 40, 1000 (:func:`~aca_warp.studies.friction_analysis.hold`), and the stick-slip cycle of an
+  isolated patch at 0.5 m/s against SciPy Radau at rtol 1e-11 for every split scheme and step.
+* ``fixed`` — hf1 sectors (``--patches``, ``--seeds``; the validation's ``reduced_pad``) from equilibrium + 0.01 m/s
+  over ``--duration``: every scheme of ``--schemes`` at every step of ``--steps``, the statistics of the last
+  ``--window`` against the package's ``strang`` at ``--ref-dt`` (fp64), beside the same reference run from a start
+  perturbed by 1e-9 m/s (the floor: an equally exact trajectory) and the spread between the seeds.
+* ``controlled`` — the composite (:class:`~aca_warp.studies.friction_control.Composite`) on the same pads, pad by
+  pad, at every ``--tol-i``: steps, spring and friction evaluations, the same statistics errors.
+* ``sliding`` — hf1 (the whole pad, from its default start) over 1 ms: μ(t) of the composite (mode E with landing
+  and with dense output) and of SciPy DOP853 at rtol 1e-6 against SciPy DOP853 at rtol 1e-11, with their
+  evaluation counts.
+
+Run files of the fixed-step runs are cached in ``OUT/fixed/`` and the references in ``OUT/ref_*.npz``: a rerun
+redoes only what is missing. Examples::
+
+    python3 scripts/friction_schemes.py --out OUT                  # everything, 4 seeds × 150 patches × 30 ms
+    python3 scripts/friction_schemes.py --quick --out OUT          # CPU smoke run (a few minutes)
+    python3 scripts/friction_schemes.py --parts single --out OUT
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from aca_warp.studies import friction_analysis as fa
+from aca_warp.studies import friction_schemes as fs
+from aca_warp.studies.friction_stats import (
+    SAMPLE_DT,
+    compare,
+    reference_run,
+    sector_scenes,
+    seed_spread,
+    statistics,
+    twin_scenes,
+)
+from aca_warp.studies.report import Log, clean, command_line, md_table, write_json
+
+PARTS = ("single", "fixed", "stability", "controlled", "sliding")
+SCHEMES = ("strang-mid", "strang-sdirk2", "forced-mid", "forced-be", "forced-sdirk2", "forced-trbdf2")
+STEPS = (1e-7, 2.5e-7, 5e-7, 1e-6)
+HGAMMA = (1.0, 4.0, 40.0, 1000.0)
+CYCLE_STEPS = (5e-8, 2e-7, 5e-7, 2e-6)
+CYCLE_SPEED = 0.5  # m/s: the isolated patch's disc speed (the package's stickslip scene)
+TOL_I = (1e-3, 3e-3, 1e-2)
+QUICK = {"seeds": 2, "patches": 60, "duration": 4e-3, "window": 2e-3, "steps": (2.5e-7, 1e-6), "tol_i": (3e-3,)}
+
+
+def part_single(args: argparse.Namespace, log: Log) -> dict[str, Any]:
+    """Stability functions, the hold test and the isolated patch's cycle (module docstring)."""
+    pads = fs.load_pads(sector_scenes(1, args.patches))
+    i = int(np.argsort(pads.m)[pads.n // 2])  # the median patch
+    p1 = fa.isolated(pads, i)
+    out: dict[str, Any] = {
+        "patch": {"index": i, "m": p1.m[0], "k_t": p1.kt[0], "normal_force": p1.fn[0], "gamma": p1.gamma_max()[0]},
+        "R": {m: {str(z): fs.stability_function(m, -z).real for z in HGAMMA} for m in fs.METHODS},
+        "hold": [fa.hold(p1, m, z) for m in fs.METHODS for z in HGAMMA],
+    }
+    pc = fa.isolated(pads, i, speed=CYCLE_SPEED)
+    duration = 2e-4 if not args.quick else 6e-5
+    t0 = time.perf_counter()
+    ref = fa.cycle_reference(pc, duration, 1e-8)
+    mref = fa.cycle_measures(pc, ref, duration / 4)
+    log(f"isolated patch at {CYCLE_SPEED} m/s: Radau reference in {time.perf_counter() - t0:.1f} s: {mref}")
+    rows = []
+    for name in args.schemes:
+        for h in CYCLE_STEPS if not args.quick else CYCLE_STEPS[1:]:
+            r = fa.limit_cycle(pc, fs.Scheme.parse(name), h, duration)
+            m = fa.cycle_measures(pc, r, duration / 4)
+            rows.append(
+                {
+                    "scheme": name,
+                    "h": h,
+                    "hgamma": h * pc.gamma_max()[0],
+                    "period": m["period"] / mref["period"] - 1.0,
+                    "amplitude": m["amplitude"] / mref["amplitude"] - 1.0,
+                    "mu_mean": m["mu_mean"] - mref["mu_mean"],
+                    "stick_share": m["stick_share"],
+                    "chatter": r["chatter"],
+                    "evals_per_step": r["evals_per_step"],
+                }
+            )
+    out["cycle"] = {"speed": CYCLE_SPEED, "duration": duration, "reference": mref, "rows": rows}
+    return out
+
+
+def references(args: argparse.Namespace, scenes: list[Any], log: Log) -> tuple[dict, dict, dict]:
+    """Statistics of the reference run and of its twin (another start of the same pads), and run information."""
+    from aca_warp.analysis.saturation import saturation
+
+    out = Path(args.out)
+    main, info = reference_run(scenes, args.ref_dt, args.duration, args.window, cache=out / "ref_main.npz", log=log)
+    twin, tinfo = reference_run(
+        twin_scenes(scenes), args.ref_dt, args.duration, args.window, cache=out / "ref_twin.npz", log=log
+    )
+    sat = [saturation(main.time, main.sum_abs_velocity[:, p], statistic="mean").t_s for p in range(len(scenes))]
+    vd, start = vd_start(scenes)
+    s_main, s_twin = statistics(main, args.window, vd, start), statistics(twin, args.window, vd, start)
+    info = {**info, "saturated_from_s": sat, "twin_wall_s": tinfo["wall_s"], "twin_seeds": tinfo["seeds"]}
+    return s_main, s_twin, info
+
+
+def vd_start(scenes: list[Any]) -> tuple[np.ndarray, np.ndarray]:
+    """Disc speed at every patch [m/s] and the pads' patch offsets of a batch of scenes."""
+    pads = fs.load_pads(scenes)
+    return pads.vd, pads.start
+
+
+def part_fixed(args: argparse.Namespace, log: Log) -> dict[str, Any]:
+    """Every scheme at every fixed step on the sectors, statistics errors against the reference."""
+    scenes = sector_scenes(args.seeds, args.patches)
+    s_ref, s_twin, info = references(args, scenes, log)
+    pads = fs.load_pads(scenes)
+    folder = Path(args.out) / "fixed"
+    folder.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for dt in args.steps:
+        for name in args.schemes:
+            path = folder / f"{name}_{dt:g}.json"
+            if path.exists() and json.loads(path.read_text()).get("duration", args.duration) == args.duration:
+                doc = json.loads(path.read_text())
+            else:
+                t0 = time.perf_counter()
+                r = fs.run_fixed(pads, fs.Scheme.parse(name), dt, args.duration, SAMPLE_DT, patch_window=args.window)
+                doc = {k: v for k, v in r.items() if k != "record"}
+                doc |= {"scheme": name, "wall_s": time.perf_counter() - t0, "duration": args.duration}
+                doc["stats"] = statistics(r["record"], args.window, pads.vd, pads.start)
+                write_json(path, clean(doc))
+                doc = json.loads(path.read_text())
+            errors = compare(doc["stats"], s_ref)
+            log(f"{name} at {dt:g} s: {fmt_errors(errors)} ({doc['wall_s']:.0f} s)")
+            rows.append({k: doc[k] for k in ("scheme", "dt", "steps", "evals_per_step", "chatter", "wall_s")} | errors)
+    return {
+        "reference": info,
+        "reference_stats": s_ref,
+        "floor": compare(s_twin, s_ref),
+        "seed_spread": seed_spread(s_ref),
+        "rows": rows,
+    }
+
+
+def part_stability(args: argparse.Namespace, log: Log) -> dict[str, Any]:
+    """The split schemes at 0.95 × the exact spring bound 2/ω_max on the sectors and on one whole hf1 pad: bounded or
+    not, the largest patch speed over the disc speed, μ mean and standard deviation of the last window, chatter."""
+    rows = []
+    for what, scenes in (("sector", sector_scenes(args.seeds, args.patches)), ("pad", sector_scenes(1, None))):
+        if what == "pad" and args.quick:
+            continue
+        pads = fs.load_pads(scenes)
+        bound = 2.0 / pads.omega_max()
+        h = 0.95 * bound
+        for name in STABILITY_SCHEMES:
+            t0 = time.perf_counter()
+            r = fs.run_fixed(pads, fs.Scheme.parse(name), h, args.duration, h)
+            rec, n = r["record"], round(args.window / h)
+            vmax = float(np.nanmax(np.abs(rec.sum_abs_velocity[-n:]))) if r["finite"] else math.inf
+            rows.append(
+                {
+                    "what": what, "patches": pads.n, "scheme": name, "spring_bound": bound, "h": r["dt"],
+                    "hgamma_max": float(r["dt"] * pads.gamma_max().max()), "finite": r["finite"],
+                    "mu_mean": rec.mu[-n:].mean(axis=0) if r["finite"] else None,
+                    "mu_std": rec.mu[-n:].std(axis=0) if r["finite"] else None,
+                    "sum_abs_velocity_max_over_n_vd": vmax / float(np.abs(pads.vd).max() * pads.n / pads.pads),
+                    "chatter": r["chatter"], "evals_per_step": r["evals_per_step"],
+                    "wall_s": time.perf_counter() - t0,
+                }
+            )  # fmt: skip
+            log(f"stability {what} {name} at {h:.3g} s (0.95 × 2/ω_max): finite {r['finite']}")
+    return {"rows": rows}
+
+
+STABILITY_SCHEMES = ("strang-mid", "forced-mid", "forced-sdirk2")
+
+
+def fmt_errors(e: dict[str, Any]) -> str:
+    """One line of the main statistics errors."""
+    if not e.get("finite", False):
+        return "not finite"
+    return (
+        f"mu mean {e['mu_mean']:+.2%}, mu std {e['mu_std']:+.1%}, sum|v| {e['abs_velocity_mean']:+.2%}, "
+        f"peak {e['ensemble_velocity_peak_hz']:+.2%}, spectra {e['mu_bands']:.3f}/{e['velocity_bands']:.3f}"
+    )
+
+
+def part_controlled(args: argparse.Namespace, log: Log) -> dict[str, Any]:
+    """The composite on every pad of the sectors at every tol_i; statistics errors and work."""
+    from aca_warp.studies.friction_control import Composite
+
+    scenes = sector_scenes(args.seeds, args.patches)
+    s_ref, _, info = references(args, scenes, log)
+    pads = fs.load_pads(scenes)
+    rows = []
+    for tol_i in args.tol_i:
+        for modes in args.modes:
+            recs, counts, wall = [], [], 0.0
+            for p in range(pads.pads):
+                c = Composite(pads.subset([p]), tol_e=args.tol_e, tol_i=tol_i, modes=modes, patch_window=args.window)
+                t0 = time.perf_counter()
+                recs.append(c.run(args.duration))
+                wall += time.perf_counter() - t0
+                counts.append(c.counts)
+            rec = fs.Record(
+                recs[0].time, *(np.concatenate([getattr(r, k) for r in recs], axis=1) for k in
+                                ("mu", "sum_velocity", "sum_abs_velocity", "velocity")), recs[0].patch_first,
+            )  # fmt: skip
+            errors = compare(statistics(rec, args.window, pads.vd, pads.start), s_ref)
+            steps = [c.accepted["E"] + c.accepted["I"] for c in counts]
+            row = {
+                "tol_e": args.tol_e,
+                "tol_i": tol_i,
+                "modes": modes,
+                "steps_per_pad": float(np.mean(steps)),
+                "rejected_per_pad": float(np.mean([c.rejected["E"] + c.rejected["I"] for c in counts])),
+                "accepted_E": float(np.mean([c.accepted["E"] for c in counts])),
+                "accepted_I": float(np.mean([c.accepted["I"] for c in counts])),
+                "time_E_s": float(np.mean([c.time["E"] for c in counts])),
+                "gathers_per_pad": float(np.mean([c.gathers for c in counts])),
+                "evals_per_patch": float(np.mean([c.evals for c in counts])),
+                "switches": float(np.mean([c.switches for c in counts])),
+                "mean_step_I": float(np.mean([c.time["I"] / max(c.accepted["I"], 1) for c in counts])),
+                "wall_s": wall,
+                "strang_steps": round(args.duration / args.ref_dt),
+            } | errors
+            log(f"composite {modes} tol_i {tol_i:g}: {row['steps_per_pad']:.0f} steps/pad, "
+                f"{row['gathers_per_pad']:.0f} gathers/pad; {fmt_errors(errors)}")  # fmt: skip
+            rows.append(row)
+    return {"reference": info, "rows": rows}
+
+
+def part_sliding(args: argparse.Namespace, log: Log) -> dict[str, Any]:
+    """hf1 over 1 ms from its default start: μ errors and evaluation counts (module docstring)."""
+    from aca_warp.hf.reference import ReferenceODE
+    from aca_warp.studies.friction_control import Composite
+    from aca_warp.studies.runs import batch_at_start
+    from aca_warp.studies.time_to_solution import make_scene
+
+    duration = 1e-3 if not args.quick else 2e-4
+    scene = make_scene("hf1")
+    pads = fs.load_pads([scene])
+    model, _ = batch_at_start([scene], "cpu", "fp64")
+    ode = ReferenceODE(model)
+    times = np.arange(round(duration / SAMPLE_DT) + 1) * SAMPLE_DT
+    ref = ode.solve(times, method="DOP853", rtol=1e-11, u0=pads.u0, v0=pads.v0)
+    mu_ref = ode.globals(ref.u, ref.v)["mu"]
+    log(f"hf1 sliding: DOP853 rtol 1e-11 reference in {ref.wall_time:.1f} s")
+    rows = []
+    for rtol in (1e-6,):
+        sol = ode.solve(times, method="DOP853", rtol=rtol, u0=pads.u0, v0=pads.v0)
+        err = float(np.abs(ode.globals(sol.u, sol.v)["mu"] - mu_ref).max())
+        rows.append({"solver": f"SciPy DOP853 rtol {rtol:g}", "evaluations": sol.nfev, "mu_error": err,
+                     "wall_s": sol.wall_time})  # fmt: skip
+    for dense in (False, True):
+        for tol in (1e-5, 3e-5):
+            c = Composite(pads, tol_e=tol, tol_i=args.tol_i[0], dense=dense)
+            t0 = time.perf_counter()
+            rec = c.run(duration)
+            rows.append(
+                {
+                    "solver": f"composite, DP5 tol {tol:g}, {'dense output' if dense else 'landing on samples'}",
+                    "evaluations": c.counts.gathers,
+                    "mu_error": float(np.abs(rec.mu[:, 0] - mu_ref).max()),
+                    "accepted": c.counts.accepted,
+                    "rejected": c.counts.rejected,
+                    "switches": c.counts.switches,
+                    "wall_s": time.perf_counter() - t0,
+                }
+            )
+            log(f"{rows[-1]['solver']}: {rows[-1]['evaluations']} evaluations, μ error {rows[-1]['mu_error']:.2g}")
+    return {"duration": duration, "patches": pads.n, "rows": rows}
+
+
+# ------------------------------------------------------------------------------------------------ report
+
+
+def pct(x: Any, digits: int = 2) -> str:
+    """A relative error as a signed percentage ("–" for None)."""
+    return "–" if x is None else f"{100.0 * x:+.{digits}f} %"
+
+
+def report(folder: Path) -> list[str]:
+    """Markdown tables of the result JSONs in ``folder`` (the parts that exist), for docs/friction_step.md."""
+    out: list[str] = []
+    load = lambda name: json.loads((folder / f"{name}.json").read_text())  # noqa: E731
+    if (folder / "single.json").exists():
+        d = load("single")
+        out += ["**Stability functions** R(−hγ) of the sub-steps (a slip deviation is multiplied by R per step):", ""]
+        out += md_table(["sub-step", *(f"hγ = {z:g}" for z in HGAMMA)],
+                        [[m, *(f"{d['R'][m][str(z)]:+.3g}" for z in HGAMMA)] for m in fs.METHODS])  # fmt: skip
+        out += ["", "**Hold test** (slip after steps 1, 2, 3 and 6 over the static slip s*; friction evaluations per "
+                "step):", ""]  # fmt: skip
+        rows = []
+        for r in d["hold"]:
+            q = [x / r["static_slip"] for x in r["slips"]]
+            rows.append([r["method"], f"{r['hgamma']:g}", *(f"{q[k]:.3f}" for k in (0, 1, 2, 5)),
+                         f"{r['evals_per_step']:.1f}"])  # fmt: skip
+        out += md_table(["sub-step", "hγ", "s₁/s*", "s₂/s*", "s₃/s*", "s₆/s*", "evals/step"], rows)
+        c = d["cycle"]
+        ref = c["reference"]
+        out += ["", f"**Isolated patch at {c['speed']:g} m/s** (against Radau rtol 1e-11: period "
+                f"{ref['period'] * 1e6:.3f} µs, amplitude {ref['amplitude'] * 1e9:.1f} nm, mean f "
+                f"{ref['mu_mean']:.4f}, static share {ref['stick_share']:.3f}):", ""]  # fmt: skip
+        out += md_table(["scheme", "h [s]", "hγ", "period", "amplitude", "Δ mean f", "evals/step"],
+                        [[r["scheme"], f"{r['h']:g}", f"{r['hgamma']:.1f}", pct(r["period"]), pct(r["amplitude"]),
+                          f"{r['mu_mean']:+.2e}", f"{r['evals_per_step']:.1f}"] for r in c["rows"]])  # fmt: skip
+    if (folder / "fixed.json").exists():
+        d = load("fixed")
+        sp, fl = d["seed_spread"], d["floor"]
+        st = d["settings"]
+        out += ["", f"**Fixed steps, {st['seeds']} × {st['patches']}-patch hf1 sectors, {st['duration'] * 1e3:g} ms, "
+                f"statistics of the last {st['window'] * 1e3:g} ms** (ensemble errors against strang at "
+                f"{st['ref_dt']:g} s; spectra: rms of log10 of the band ratio):", ""]  # fmt: skip
+        head = ["scheme", "h [s]", "steps", "evals/step", "zig-zag", "μ mean", "μ std", "Σ|u̇|", "Σu̇ peak",
+                "μ spec.", "Σu̇ spec.", "patch spec.", "static share", "mean ΔS"]  # fmt: skip
+
+        def row(name: str, e: dict[str, Any], extra: list[str]) -> list[str]:
+            if not e.get("finite", False):
+                return [name, *extra, *["not finite"] * 9]
+            return [name, *extra, pct(e["mu_mean"]), pct(e["mu_std"], 1), pct(e["abs_velocity_mean"]),
+                    pct(e["ensemble_velocity_peak_hz"]), f"{e['mu_bands']:.3f}", f"{e['velocity_bands']:.3f}",
+                    f"{e.get('patch_bands', math.nan):.3f}", pct(e.get("stick_share"), 1),
+                    f"{e.get('sync', math.nan):.3f}"]  # fmt: skip
+
+        rows = [row("twin (another start, same pads)", fl, ["1e-08", "", "", ""])]
+        for r in sorted(d["rows"], key=lambda r: (-r["dt"], r["scheme"])):
+            rows.append(row(r["scheme"], r, [f"{r['dt']:g}", f"{r['steps']:d}", f"{r['evals_per_step']:.2f}",
+                                             f"{r['chatter']:.3f}"]))  # fmt: skip
+        out += md_table(head, rows)
+        out += ["", "Spread between the seeds (relative standard deviation; 95 % half-width of the ensemble mean): "
+                + ", ".join(f"{k} {sp[k]:.2%} ({sp[k + '_ci95']:.2%})" for k in
+                            ("mu_mean", "mu_std", "abs_velocity_mean", "velocity_peak_hz")) + "."]  # fmt: skip
+    if (folder / "stability.json").exists():
+        d = load("stability")
+        out += ["", "**At the spring bound** (0.95 × 2/ω_max, ω_max the exact largest network frequency):", ""]
+        out += md_table(["pads", "scheme", "h [s]", "hγ max", "bounded", "μ mean", "μ std", "zig-zag"],
+                        [[f"{r['what']} ({r['patches']} patches)", r["scheme"], f"{r['h']:.3g}",
+                          f"{r['hgamma_max']:.0f}", "yes" if r["finite"] else "no",
+                          "–" if r["mu_mean"] is None else f"{np.mean(r['mu_mean']):.4f}",
+                          "–" if r["mu_std"] is None else f"{np.mean(r['mu_std']):.4f}", f"{r['chatter']:.3f}"]
+                         for r in d["rows"]])  # fmt: skip
+    if (folder / "controlled.json").exists():
+        d = load("controlled")
+        out += ["", "**Error-controlled composite** on the same sectors (per pad; statistics errors as above):", ""]
+        out += md_table(["modes", "tol_i", "steps/pad", "rejected", "E steps", "I steps", "mean I step [s]",
+                         "gathers/pad", "evals/patch", "× fewer steps than strang", "μ mean", "μ std", "Σ|u̇|",
+                         "Σu̇ peak", "Σu̇ spec.", "patch spec.", "mean ΔS"],
+                        [[r["modes"], f"{r['tol_i']:g}", f"{r['steps_per_pad']:.0f}", f"{r['rejected_per_pad']:.0f}",
+                          f"{r['accepted_E']:.0f}", f"{r['accepted_I']:.0f}", f"{r['mean_step_I']:.3g}",
+                          f"{r['gathers_per_pad']:.0f}", f"{r['evals_per_patch']:.0f}",
+                          f"{r['strang_steps'] / r['steps_per_pad']:.1f}", pct(r.get("mu_mean")),
+                          pct(r.get("mu_std"), 1), pct(r.get("abs_velocity_mean")),
+                          pct(r.get("ensemble_velocity_peak_hz")), f"{r.get('velocity_bands', math.nan):.3f}",
+                          f"{r.get('patch_bands', math.nan):.3f}", f"{r.get('sync', math.nan):.3f}"]
+                         for r in d["rows"]])  # fmt: skip
+    if (folder / "sliding.json").exists():
+        d = load("sliding")
+        out += ["", f"**Sliding**: hf1 ({d['patches']} patches) from its start over {d['duration'] * 1e3:g} ms, "
+                "max |μ − μ_ref| against DOP853 rtol 1e-11:", ""]  # fmt: skip
+        out += md_table(
+            ["solver", "right-hand-side evaluations", "μ error"],
+            [[r["solver"], f"{r['evaluations']}", f"{r['mu_error']:.2g}"] for r in d["rows"]],
+        )
+    return out
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="friction_schemes.py",
+        description="Friction sub-steps at large steps and an error-controlled default: a NumPy prototype on the "
+        "package's HF equations (docs/friction_step.md). Writes OUT/<part>.json.",
+    )
+    ap.add_argument("--out", required=True, help="result folder (JSON, cached reference runs)")
+    ap.add_argument("--report", action="store_true", help="print the markdown tables of OUT's JSONs, run nothing")
+    ap.add_argument("--parts", nargs="+", default=list(PARTS), choices=PARTS, help="what to measure (default all)")
+    ap.add_argument("--quick", action="store_true", help=f"a CPU smoke run: {QUICK}")
+    ap.add_argument("--seeds", type=int, default=4, help="pads (seeds 1 …) of the sector ensemble (default 4)")
+    ap.add_argument("--patches", type=int, default=150, help="patches per sector (default 150)")
+    ap.add_argument("--duration", type=float, default=30e-3, help="simulated time [s] (default 0.03)")
+    ap.add_argument("--window", type=float, default=10e-3, help="statistics over the last WINDOW s (default 0.01)")
+    ap.add_argument("--ref-dt", type=float, default=1e-8, help="step of the strang reference [s] (default 1e-8)")
+    ap.add_argument("--schemes", nargs="+", default=list(SCHEMES), help="split schemes: strang-<m> / forced-<m>")
+    ap.add_argument("--steps", nargs="+", type=float, default=list(STEPS), help="fixed steps [s]")
+    ap.add_argument("--tol-e", type=float, default=1e-5, help="mode E (DP5) tolerance (default 1e-5)")
+    ap.add_argument("--tol-i", nargs="+", type=float, default=list(TOL_I), help="mode I tolerances")
+    ap.add_argument("--modes", nargs="+", default=["EI"], help="composite modes: EI (switching), I (I only)")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    args = build_parser().parse_args(argv)
+    if args.report:
+        print("\n".join(report(Path(args.out))))
+        return 0
+    if args.quick:
+        for k, v in QUICK.items():
+            setattr(args, k, v)
+    for name in args.schemes:
+        try:
+            fs.Scheme.parse(name)
+        except ValueError as e:
+            print(f"friction_schemes.py: {e}", file=sys.stderr)
+            return 2
+    if not (0 < args.window <= args.duration) or args.seeds < 1 or args.patches < 2:
+        print("friction_schemes.py: need 0 < --window <= --duration, --seeds >= 1, --patches >= 2", file=sys.stderr)
+        return 2
+    from aca_warp.studies.report import init_warp
+
+    wp = init_warp()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    log = Log()
+    parts = {"single": part_single, "fixed": part_fixed, "stability": part_stability, "controlled": part_controlled,
+             "sliding": part_sliding}  # fmt: skip
+    from aca_warp.common.files import machine
+
+    for name in args.parts:
+        t0 = time.perf_counter()
+        doc = parts[name](args, log)
+        doc |= {
+            "command": command_line("friction_schemes.py", argv),
+            "machine": machine(wp.get_device("cpu")),
+            "wall_s": time.perf_counter() - t0,
+            "settings": {k: getattr(args, k) for k in ("seeds", "patches", "duration", "window", "ref_dt", "quick")},
+        }
+        write_json(out / f"{name}.json", clean(doc))
+        log(f"{name}: {out / (name + '.json')} ({doc['wall_s']:.0f} s)")
+    return 0 if math.isfinite(log.elapsed()) else 1
