@@ -30,7 +30,15 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.studies.friction_schemes import STATIC_SLIP, Pads, Record, friction, friction_pair, substep
+from aca_warp.studies.friction_schemes import (
+    STATIC_SLIP,
+    Pads,
+    Record,
+    friction,
+    friction_pair,
+    substep,
+    substep_with_error,
+)
 
 DP5_A = (
     (),
@@ -65,15 +73,16 @@ class Control:
     rejected_n: int = 0
     keep_cut: bool = False
 
-    def decide(self, err: float, h: float, order: int, h_max: float) -> bool:
+    def decide(self, err: float, h: float, order: int, h_max: float, accept: float | None = None) -> bool:
         """Accept or reject a trial of step h [s] with scaled error ``err``; set the next desired step (PI,
-        Gustafsson, exponents 0.7/order and 0.4/order). Returns True on acceptance."""
+        Gustafsson, exponents 0.7/order and 0.4/order). ``accept``: the scaled error that decides acceptance
+        (default ``err``); ``err`` then only sizes the next step. Returns True on acceptance."""
         if not math.isfinite(err):
             err = 1.0e10
         e = max(err, 1.0e-10)
-        if err <= 1.0:
+        if (err if accept is None else accept) <= 1.0:
             fac = 0.9 * e ** (-0.7 / order) * self.err ** (0.4 / order)
-            fac = min(max(fac, 0.2), 1.0 if self.rejected else 5.0)
+            fac = min(max(fac, 0.2), 1.0 if self.rejected or err > 1.0 else 5.0)
             self.rejected = False
             if h >= self.want or not self.keep_cut:
                 self.err = max(e, 1.0e-4)
@@ -132,11 +141,14 @@ class Composite:
         modes: str = "EI",
         h_spring: float | None = None,
         patch_window: float = 0.0,
+        norm: str = "rms",
+        friction_error: bool = True,
     ) -> None:
         if pads.pads != 1:
             raise ValueError("the composite prototype steps one pad")
         self.p, self.tol_e, self.tol_i, self.method, self.dense = pads, tol_e, tol_i, method, dense
         self.sample_dt, self.modes, self.patch_window = sample_dt, modes, patch_window
+        self.norm, self.friction_error = norm, friction_error
         self.U, self.V = scales(pads)
         spring = 2.0 / pads.omega_max() if h_spring is None else h_spring
         self.h_max_i = min(sample_dt, SPRING_SAFETY * spring)
@@ -214,18 +226,22 @@ class Composite:
         while t < target * (1.0 - 1e-13):
             h = trial_step(ctl.want, t, target)
             span = 0.5 * h if st["h_prev"] is None else 0.5 * (st["h_prev"] + h)
-            w = substep(p, self.method, st["w"], span, st["F"], self.evals)
+            if self.friction_error:
+                w, ef = substep_with_error(p, self.method, st["w"], span, st["F"], self.evals)
+            else:
+                w, ef = substep(p, self.method, st["w"], span, st["F"], self.evals), 0.0
             un = st["u"] + h * w
             fn = -(p.K @ un)
             self.counts.gathers += 1
-            if st["F_prev"] is None:
-                err = 0.0  # the first step after opening has no history: accepted, the controller grows from it
-            else:
+            es = np.zeros(p.n)
+            if st["F_prev"] is not None:  # the first step after opening has no spring history
                 hp = st["h_prev"]
                 dd = ((fn - st["F"]) / h - (st["F"] - st["F_prev"]) / hp) * (2.0 / (h + hp))
-                ev = h**3 / 12.0 * np.abs(dd) / p.m
-                err = float(np.max(ev / (self.tol_i * self.V)))
-            if ctl.decide(err, h, 3, self.h_max_i):
+                es = h**3 / 12.0 * np.abs(dd) / p.m
+            err_s, err = self.pad_norm(es), self.pad_norm(np.hypot(es, ef))
+            # the merged sub-step's error includes the closing half of the accepted step before, which no shorter
+            # trial reduces: it sizes the next step, the spring part alone decides acceptance
+            if ctl.decide(err, h, 2 if self.friction_error else 3, self.h_max_i, accept=err_s):
                 st.update(u=un, w=w, F_prev=st["F"], F=fn, h_prev=h)
                 t += h
                 self.counts.accepted["I"] += 1
@@ -233,6 +249,11 @@ class Composite:
             else:
                 self.counts.rejected["I"] += 1
         return static, t
+
+    def pad_norm(self, e: np.ndarray) -> float:
+        """Errors e [m/s] (n,) scaled by tol_i V_i, as the pad's rms or maximum."""
+        x = e / (self.tol_i * self.V)
+        return float(np.sqrt(np.mean(x * x)) if self.norm == "rms" else np.max(x))
 
     def open_i(self, u: np.ndarray, v: np.ndarray) -> dict[str, Any]:
         """A staggered state from a synchronous one (the opening half sub-step comes with the first step)."""

@@ -15,6 +15,8 @@ per-patch scalar sub-step Φ_h of the friction/damping velocity equation, vector
 Sub-steps (:data:`METHODS`; each stage one call of :func:`solve`, the kernels' bracketed Newton ``solve_velocity``):
 
 * ``mid``: implicit midpoint (today's ``midpoint_friction``), order 2, A-stable, R(−∞) = −1;
+* ``thmid``: the θ-method with θ = 1/2 (midpoint) while the patch's own friction rate γ = (c + F_N f′)/m at its
+  slip keeps hγ ≤ 6, larger beyond so that |R| ≤ 1/2 at any step (:func:`theta_of`): order 2 where hγ ≤ 6;
 * ``be``: backward Euler, order 1, L-stable;
 * ``sdirk2``: Alexander's 2-stage SDIRK, d = 1 − 1/√2, order 2, L-stable, stiffly accurate; the second stage reuses
   the first stage's slope (Y1 − v)/(d h) instead of evaluating f again;
@@ -36,7 +38,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-METHODS = ("mid", "be", "sdirk2", "trbdf2", "sub4")
+METHODS = ("mid", "thmid", "be", "sdirk2", "trbdf2", "sub4")
 KICKS = ("outside", "inside")
 SDIRK_D = 1.0 - 1.0 / math.sqrt(2.0)  # diagonal of sdirk2 and of both TR-BDF2 stages
 TRBDF2_G = 2.0 - math.sqrt(2.0)  # TR-BDF2's intermediate time fraction
@@ -44,6 +46,7 @@ TRBDF2_C1 = 1.0 / (TRBDF2_G * (2.0 - TRBDF2_G))  # BDF2 weights: y⁺ = c1 Y1 �
 TRBDF2_C0 = (1.0 - TRBDF2_G) ** 2 / (TRBDF2_G * (2.0 - TRBDF2_G))
 NEWTON_TOL = 1.0e-9  # of the step's velocity change (the kernels' fp64 tolerance)
 SUBSTEPS = 4  # sdirk2 sub-steps of ``sub4``
+THETA_RHO = 0.5  # ``thmid`` keeps |R(−hγ)| ≤ this at the patch's own friction rate: θ = 1/2 up to hγ = 6
 STATIC_SLIP = 0.17  # m/s: Eq. 4 rises with the slip below this (its maximum); a patch there holds to the disc
 CHATTER_FLOOR = 1.0e-4 * STATIC_SLIP  # m/s: slip increments below this do not count as chatter
 
@@ -267,11 +270,13 @@ def substep(
     h = np.broadcast_to(np.asarray(h, dtype=np.float64), v.shape)
     if method == "mid":
         return 2.0 * stage(pads, v, 0.5 * h, force, evals) - v
+    if method == "thmid":
+        theta = theta_of(pads, v, h, evals)
+        return v + (stage(pads, v, theta * h, force, evals) - v) / theta
     if method == "be":
         return stage(pads, v, h, force, evals)
     if method == "sdirk2":
-        y1 = stage(pads, v, SDIRK_D * h, force, evals)
-        return stage(pads, v + (1.0 - SDIRK_D) / SDIRK_D * (y1 - v), SDIRK_D * h, force, evals)
+        return sdirk2(pads, v, h, force, evals)[0]
     if method == "trbdf2":
         evals += 1
         y1 = stage(pads, v + SDIRK_D * h * rate(pads, v, force), SDIRK_D * h, force, evals)
@@ -281,6 +286,46 @@ def substep(
             v = substep(pads, "sdirk2", v, h / SUBSTEPS, force, evals)
         return v
     raise ValueError(f"unknown friction sub-step {method!r}; choose from {', '.join(METHODS)}")
+
+
+def theta_of(pads: Pads, v: np.ndarray, h: np.ndarray, evals: np.ndarray) -> np.ndarray:
+    """``thmid``'s θ per patch: 1/2 while h γ ≤ x0 = (1 + ρ)/(1/2 − ρ/2), with γ = (c + F_N f′(v_d − v))/m the
+    friction rate at the patch's slip; beyond, θ = (1 − (1 + ρ)/(hγ))/(1 + ρ), so that R = (1 − (1 − θ)hγ)/(1 + θhγ)
+    stays ≥ −ρ (ρ = THETA_RHO): the damped midpoint. One friction evaluation."""
+    evals += 1
+    x = h * (pads.c + pads.fn * friction_pair(pads, pads.vd - v)[1]) / pads.m
+    rho = THETA_RHO
+    with np.errstate(divide="ignore"):
+        theta = (1.0 - (1.0 + rho) / np.maximum(x, 1e-300)) / (1.0 + rho)
+    return np.clip(theta, 0.5, 1.0)
+
+
+def sdirk2(
+    pads: Pads, v: np.ndarray, h: np.ndarray, force: np.ndarray, evals: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ``sdirk2`` sub-step and its embedded error [m/s]: Y1 = v + d h φ(Y1), x = v + (1 − d)/d (Y1 − v),
+    Y2 = x + d h φ(Y2); the error of the first-order solution v + h φ(Y1) against Y2, d h (φ(Y2) − φ(Y1)) =
+    (Y2 − x) − (Y1 − v) (no further friction evaluation)."""
+    y1 = stage(pads, v, SDIRK_D * h, force, evals)
+    x = v + (1.0 - SDIRK_D) / SDIRK_D * (y1 - v)
+    y2 = stage(pads, x, SDIRK_D * h, force, evals)
+    return y2, (y2 - x) - (y1 - v)
+
+
+def substep_with_error(
+    pads: Pads, method: str, v: np.ndarray, h: np.ndarray, force: np.ndarray, evals: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Φ_h and an estimate of its local error [m/s]: ``sdirk2``'s embedded one; for ``mid`` and ``thmid`` the
+    trapezoidal rule against the step, h (φ(v) + φ(v⁺))/2 − (v⁺ − v), O(h³) where smooth (two friction evaluations,
+    of which the kernels can share φ(v⁺) with the next step)."""
+    h = np.broadcast_to(np.asarray(h, dtype=np.float64), v.shape)
+    if method == "sdirk2":
+        return sdirk2(pads, v, h, force, evals)
+    if method in ("mid", "thmid"):
+        vn = substep(pads, method, v, h, force, evals)
+        evals += 2
+        return vn, 0.5 * h * (rate(pads, v, force) + rate(pads, vn, force)) - (vn - v)
+    raise ValueError(f"no error estimate for the sub-step {method!r} (sdirk2, mid, thmid)")
 
 
 def stability_function(method: str, z: complex) -> complex:
@@ -297,6 +342,10 @@ def stability_function(method: str, z: complex) -> complex:
         return (TRBDF2_C1 * y1 - TRBDF2_C0) / (1.0 - d * z)
     if method == "sub4":
         return stability_function("sdirk2", z / SUBSTEPS) ** SUBSTEPS
+    if method == "thmid":
+        x = max(-z.real, 1e-300)
+        th = min(max((1.0 - (1.0 + THETA_RHO) / x) / (1.0 + THETA_RHO), 0.5), 1.0)
+        return (1.0 + (1.0 - th) * z) / (1.0 - th * z)
     raise ValueError(f"unknown friction sub-step {method!r}")
 
 

@@ -30,13 +30,19 @@ SYNC_BAND = (1.0e3, 150.0e3)  # Hz, the Synchronization Index's band (the valida
 PEAK_FMIN = 20.0e3  # Hz, the velocity-sum peak is searched above this (below it the slow drift of Σu̇)
 
 
-def sector_scenes(seeds: int, patches: int | None, first_seed: int = 1, preset: str = "hf1") -> list[Any]:
+def sector_scenes(
+    seeds: int, patches: int | None, first_seed: int = 1, preset: str = "hf1", speed: float | None = None
+) -> list[Any]:
     """``seeds`` pads of the validation experiment ``preset`` (seeds first_seed …), on a sector of ``patches``
-    patches (None: the whole pad), from equilibrium + 0.01 m/s velocities."""
+    patches (None: the whole pad), from equilibrium + 0.01 m/s velocities; ``speed``: the disc speed at the mean
+    radius [m/s] instead of the preset's (the equilibrium is then that of this speed)."""
     from aca_warp.studies.validation import EXPERIMENTS, Config, experiment_scene
 
     cfg = Config(patches=patches, first_seed=first_seed)
-    return [experiment_scene(EXPERIMENTS[preset], k, cfg) for k in range(seeds)]
+    scenes = [experiment_scene(EXPERIMENTS[preset], k, cfg) for k in range(seeds)]
+    if speed is None:
+        return scenes
+    return [s.replace(name=f"{s.name}_{speed:g}mps", angular_velocity=speed / s.pad.mean_radius) for s in scenes]
 
 
 def twin_scenes(scenes: list[Any]) -> list[Any]:

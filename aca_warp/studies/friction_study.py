@@ -27,6 +27,7 @@ redoes only what is missing. Examples::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import sys
@@ -49,14 +50,16 @@ from aca_warp.studies.friction_stats import (
 )
 from aca_warp.studies.report import Log, clean, command_line, md_table, write_json
 
+SETTINGS = ("seeds", "patches", "duration", "window", "ref_dt", "quick", "speed")  # recorded with every result
 PARTS = ("single", "fixed", "stability", "controlled", "sliding")
-SCHEMES = ("strang-mid", "strang-sdirk2", "forced-mid", "forced-be", "forced-sdirk2", "forced-trbdf2")
+SCHEMES = ("strang-mid", "strang-sdirk2", "forced-mid", "forced-thmid", "forced-be", "forced-sdirk2", "forced-trbdf2")
 STEPS = (1e-7, 2.5e-7, 5e-7, 1e-6)
 HGAMMA = (1.0, 4.0, 40.0, 1000.0)
 CYCLE_STEPS = (5e-8, 2e-7, 5e-7, 2e-6)
 CYCLE_SPEED = 0.5  # m/s: the isolated patch's disc speed (the package's stickslip scene)
-TOL_I = (1e-3, 3e-3, 1e-2)
-QUICK = {"seeds": 2, "patches": 60, "duration": 4e-3, "window": 2e-3, "steps": (2.5e-7, 1e-6), "tol_i": (3e-3,)}
+CONTROLLED = ("I:sdirk2:rms:f:3e-3", "I:mid:rms:f:3e-3")
+QUICK = {"seeds": 2, "patches": 60, "duration": 4e-3, "window": 2e-3, "steps": (2.5e-7, 1e-6),
+         "controlled": ("I:sdirk2:rms:f:3e-3",)}  # fmt: skip
 
 
 def part_single(args: argparse.Namespace, log: Log) -> dict[str, Any]:
@@ -94,7 +97,52 @@ def part_single(args: argparse.Namespace, log: Log) -> dict[str, Any]:
                 }
             )
     out["cycle"] = {"speed": CYCLE_SPEED, "duration": duration, "reference": mref, "rows": rows}
+    out["held"] = part_held(args, log)
     return out
+
+
+# The stated case of tests/test_sanity.py: 40 patches, 20 N, M = 100 (every patch holds to the disc; hγ = 46 at 1e-8 s)
+HELD_SCENE = """
+[scene]
+name = "m100"
+[load]
+normal_force = 20.0
+[disc]
+sliding_speed = 10.0
+[patches]
+count = 40
+area_min = 2.0e-8
+area_max = 8.0e-8
+seed = 4
+height = 3.0e-6
+[initial]
+perturbation = 1.0e-3
+seed = 2
+[friction]
+M = 100.0
+"""
+HELD_STEPS = (1e-8, 1e-9, 2.5e-10)
+
+
+def part_held(args: argparse.Namespace, log: Log) -> dict[str, Any]:
+    """Mean μ over 20 µs (samples every 0.1 µs) of the held case (:data:`HELD_SCENE`) for every scheme and step;
+    the reference is forced-sdirk2 at 2.5e-10 s (the package's implicit-friction gives 55.24, the test's figure)."""
+    import tempfile
+
+    from aca_warp.scene import load_scene
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "m100.toml"
+        path.write_text(HELD_SCENE)
+        pads = fs.load_pads([load_scene(path)])
+    rows = []
+    for name in args.schemes:
+        for h in HELD_STEPS if not args.quick else HELD_STEPS[:1]:
+            r = fs.run_fixed(pads, fs.Scheme.parse(name), h, 2e-5, 1e-7)
+            rows.append({"scheme": name, "h": h, "hgamma": h * float(pads.gamma_max().max()),
+                         "mu_mean": float(np.mean(r["record"].mu))})  # fmt: skip
+    log(f"held case: {len(rows)} runs")
+    return {"rows": rows}
 
 
 def references(args: argparse.Namespace, scenes: list[Any], log: Log) -> tuple[dict, dict, dict]:
@@ -121,7 +169,7 @@ def vd_start(scenes: list[Any]) -> tuple[np.ndarray, np.ndarray]:
 
 def part_fixed(args: argparse.Namespace, log: Log) -> dict[str, Any]:
     """Every scheme at every fixed step on the sectors, statistics errors against the reference."""
-    scenes = sector_scenes(args.seeds, args.patches)
+    scenes = sector_scenes(args.seeds, args.patches, speed=args.speed)
     s_ref, s_twin, info = references(args, scenes, log)
     pads = fs.load_pads(scenes)
     folder = Path(args.out) / "fixed"
@@ -156,7 +204,8 @@ def part_stability(args: argparse.Namespace, log: Log) -> dict[str, Any]:
     """The split schemes at 0.95 × the exact spring bound 2/ω_max on the sectors and on one whole hf1 pad: bounded or
     not, the largest patch speed over the disc speed, μ mean and standard deviation of the last window, chatter."""
     rows = []
-    for what, scenes in (("sector", sector_scenes(args.seeds, args.patches)), ("pad", sector_scenes(1, None))):
+    sectors = sector_scenes(args.seeds, args.patches, speed=args.speed)
+    for what, scenes in (("sector", sectors), ("pad", sector_scenes(1, None, speed=args.speed))):
         if what == "pad" and args.quick:
             continue
         pads = fs.load_pads(scenes)
@@ -182,7 +231,7 @@ def part_stability(args: argparse.Namespace, log: Log) -> dict[str, Any]:
     return {"rows": rows}
 
 
-STABILITY_SCHEMES = ("strang-mid", "forced-mid", "forced-sdirk2")
+STABILITY_SCHEMES = ("strang-mid", "forced-mid", "forced-thmid", "forced-sdirk2")
 
 
 def fmt_errors(e: dict[str, Any]) -> str:
@@ -195,48 +244,65 @@ def fmt_errors(e: dict[str, Any]) -> str:
     )
 
 
+def parse_job(job: str) -> dict[str, Any]:
+    """A composite setting ``MODES:METHOD:NORM:ERRORS:TOL_I`` (e.g. ``I:sdirk2:rms:f:3e-3``): modes (EI
+    switching, I only), mode I's sub-step (sdirk2, mid, thmid), pad norm (rms, max), error parts (f: spring and
+    friction, s: spring only), tol_i."""
+    modes, method, norm, parts, tol = job.split(":")
+    if (
+        modes not in ("EI", "I")
+        or method not in ("sdirk2", "mid", "thmid")
+        or norm not in ("rms", "max")
+        or parts not in "fs"
+    ):
+        raise ValueError(f"bad composite setting {job!r}: MODES:METHOD:NORM:ERRORS:TOL_I, e.g. I:sdirk2:rms:f:3e-3")
+    return {"modes": modes, "method": method, "norm": norm, "friction_error": parts == "f", "tol_i": float(tol)}
+
+
 def part_controlled(args: argparse.Namespace, log: Log) -> dict[str, Any]:
-    """The composite on every pad of the sectors at every tol_i; statistics errors and work."""
+    """The composite on every pad of the sectors for every setting of ``--controlled``; statistics errors and work
+    (each setting cached as OUT/ctl/<setting>.json)."""
     from aca_warp.studies.friction_control import Composite
 
-    scenes = sector_scenes(args.seeds, args.patches)
+    scenes = sector_scenes(args.seeds, args.patches, speed=args.speed)
     s_ref, _, info = references(args, scenes, log)
     pads = fs.load_pads(scenes)
     rows = []
-    for tol_i in args.tol_i:
-        for modes in args.modes:
-            recs, counts, wall = [], [], 0.0
+    for job in args.controlled:
+        path = Path(args.out) / "ctl" / f"{job.replace(':', '_')}.json"
+        if not path.exists():
+            kw = parse_job(job)
+            recs, counts, t0 = [], [], time.perf_counter()
             for p in range(pads.pads):
-                c = Composite(pads.subset([p]), tol_e=args.tol_e, tol_i=tol_i, modes=modes, patch_window=args.window)
-                t0 = time.perf_counter()
+                c = Composite(pads.subset([p]), tol_e=args.tol_e, patch_window=args.window, **kw)
                 recs.append(c.run(args.duration))
-                wall += time.perf_counter() - t0
-                counts.append(c.counts)
+                counts.append(dataclasses.asdict(c.counts))
             rec = fs.Record(
                 recs[0].time, *(np.concatenate([getattr(r, k) for r in recs], axis=1) for k in
                                 ("mu", "sum_velocity", "sum_abs_velocity", "velocity")), recs[0].patch_first,
             )  # fmt: skip
             errors = compare(statistics(rec, args.window, pads.vd, pads.start), s_ref)
-            steps = [c.accepted["E"] + c.accepted["I"] for c in counts]
-            row = {
-                "tol_e": args.tol_e,
-                "tol_i": tol_i,
-                "modes": modes,
-                "steps_per_pad": float(np.mean(steps)),
-                "rejected_per_pad": float(np.mean([c.rejected["E"] + c.rejected["I"] for c in counts])),
-                "accepted_E": float(np.mean([c.accepted["E"] for c in counts])),
-                "accepted_I": float(np.mean([c.accepted["I"] for c in counts])),
-                "time_E_s": float(np.mean([c.time["E"] for c in counts])),
-                "gathers_per_pad": float(np.mean([c.gathers for c in counts])),
-                "evals_per_patch": float(np.mean([c.evals for c in counts])),
-                "switches": float(np.mean([c.switches for c in counts])),
-                "mean_step_I": float(np.mean([c.time["I"] / max(c.accepted["I"], 1) for c in counts])),
-                "wall_s": wall,
-                "strang_steps": round(args.duration / args.ref_dt),
-            } | errors
-            log(f"composite {modes} tol_i {tol_i:g}: {row['steps_per_pad']:.0f} steps/pad, "
-                f"{row['gathers_per_pad']:.0f} gathers/pad; {fmt_errors(errors)}")  # fmt: skip
-            rows.append(row)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            doc = {"job": job, "counts": counts, "errors": errors, "wall_s": time.perf_counter() - t0}
+            write_json(path, clean(doc))
+        doc = json.loads(path.read_text())
+        mean = lambda f, c=doc["counts"]: float(np.mean([f(x) for x in c]))  # noqa: E731
+        row = {
+            "job": job,
+            **parse_job(job),
+            "steps_per_pad": mean(lambda x: x["accepted"]["E"] + x["accepted"]["I"]),
+            "rejected_per_pad": mean(lambda x: x["rejected"]["E"] + x["rejected"]["I"]),
+            "accepted_E": mean(lambda x: x["accepted"]["E"]),
+            "accepted_I": mean(lambda x: x["accepted"]["I"]),
+            "gathers_per_pad": mean(lambda x: x["gathers"]),
+            "evals_per_patch": mean(lambda x: x["evals"]),
+            "mean_step_I": mean(lambda x: x["time"]["I"] / max(x["accepted"]["I"], 1)),
+            "wall_s": doc["wall_s"],
+            "strang_steps": round(args.duration / args.ref_dt),
+        } | doc["errors"]
+        log(f"composite {job}: {row['steps_per_pad']:.0f} steps/pad, {row['gathers_per_pad']:.0f} gathers/pad; "
+            f"{fmt_errors(doc['errors'])}")  # fmt: skip
+        rows.append(row)
     return {"reference": info, "rows": rows}
 
 
@@ -264,7 +330,7 @@ def part_sliding(args: argparse.Namespace, log: Log) -> dict[str, Any]:
                      "wall_s": sol.wall_time})  # fmt: skip
     for dense in (False, True):
         for tol in (1e-5, 3e-5):
-            c = Composite(pads, tol_e=tol, tol_i=args.tol_i[0], dense=dense)
+            c = Composite(pads, tol_e=tol, tol_i=parse_job(args.controlled[0])["tol_i"], dense=dense)
             t0 = time.perf_counter()
             rec = c.run(duration)
             rows.append(
@@ -315,6 +381,23 @@ def report(folder: Path) -> list[str]:
         out += md_table(["scheme", "h [s]", "hγ", "period", "amplitude", "Δ mean f", "evals/step"],
                         [[r["scheme"], f"{r['h']:g}", f"{r['hgamma']:.1f}", pct(r["period"]), pct(r["amplitude"]),
                           f"{r['mu_mean']:+.2e}", f"{r['evals_per_step']:.1f}"] for r in c["rows"]])  # fmt: skip
+        if "held" in d:
+            rows = d["held"]["rows"]
+            ref = next(
+                (r["mu_mean"] for r in rows if r["scheme"] == "forced-sdirk2" and r["h"] == min(HELD_STEPS)), None
+            )
+            out += [
+                "",
+                "**Held case** (40 patches, 20 N, M = 100: every patch holds to the disc; mean μ over 20 µs):",
+                "",
+            ]
+            out += md_table(["scheme", *(f"h = {h:g} s (hγ = {h * rows[0]['hgamma'] / rows[0]['h']:.1f})"
+                                         for h in HELD_STEPS)],
+                            [[name, *(next((f"{r['mu_mean']:.3f}" for r in rows if r["scheme"] == name and r["h"] == h),
+                                           "–") for h in HELD_STEPS)]
+                             for name in dict.fromkeys(r["scheme"] for r in rows)])  # fmt: skip
+            if ref is not None:
+                out += ["", f"(reference: forced-sdirk2 at {min(HELD_STEPS):g} s, μ = {ref:.3f})"]
     if (folder / "fixed.json").exists():
         d = load("fixed")
         sp, fl = d["seed_spread"], d["floor"]
@@ -393,8 +476,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--schemes", nargs="+", default=list(SCHEMES), help="split schemes: strang-<m> / forced-<m>")
     ap.add_argument("--steps", nargs="+", type=float, default=list(STEPS), help="fixed steps [s]")
     ap.add_argument("--tol-e", type=float, default=1e-5, help="mode E (DP5) tolerance (default 1e-5)")
-    ap.add_argument("--tol-i", nargs="+", type=float, default=list(TOL_I), help="mode I tolerances")
-    ap.add_argument("--modes", nargs="+", default=["EI"], help="composite modes: EI (switching), I (I only)")
+    ap.add_argument("--controlled", nargs="+", default=list(CONTROLLED),
+                    help="composite settings MODES:METHOD:NORM:ERRORS:TOL_I (parse_job)")  # fmt: skip
+    ap.add_argument("--speed", type=float, help="disc speed at the mean radius [m/s] (default: the preset's)")
     return ap
 
 
@@ -407,12 +491,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.quick:
         for k, v in QUICK.items():
             setattr(args, k, v)
-    for name in args.schemes:
-        try:
+    try:
+        for name in args.schemes:
             fs.Scheme.parse(name)
-        except ValueError as e:
-            print(f"friction_schemes.py: {e}", file=sys.stderr)
-            return 2
+        for job in args.controlled:
+            parse_job(job)
+    except ValueError as e:
+        print(f"friction_schemes.py: {e}", file=sys.stderr)
+        return 2
     if not (0 < args.window <= args.duration) or args.seeds < 1 or args.patches < 2:
         print("friction_schemes.py: need 0 < --window <= --duration, --seeds >= 1, --patches >= 2", file=sys.stderr)
         return 2
@@ -433,7 +519,7 @@ def main(argv: list[str] | None = None) -> int:
             "command": command_line("friction_schemes.py", argv),
             "machine": machine(wp.get_device("cpu")),
             "wall_s": time.perf_counter() - t0,
-            "settings": {k: getattr(args, k) for k in ("seeds", "patches", "duration", "window", "ref_dt", "quick")},
+            "settings": {k: getattr(args, k) for k in SETTINGS},
         }
         write_json(out / f"{name}.json", clean(doc))
         log(f"{name}: {out / (name + '.json')} ({doc['wall_s']:.0f} s)")
