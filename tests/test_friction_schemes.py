@@ -124,3 +124,21 @@ def test_solve_breaks_the_newton_two_cycle(sector: fs.Pads) -> None:
     assert residual(fs.solve(p, *args, ev)) < 1e-12 and ev[0] < 20
     ev = np.zeros(1)
     assert residual(fs.solve(p, *args, ev, halving=False)) > 1e-3 and ev[0] == 60
+
+
+def test_damped_midpoint(patch: fs.Pads) -> None:
+    """thmid is the midpoint while hγ ≤ 6 and halves a held patch's deviation each step beyond (midpoint: ±0.8 s*)."""
+    for hg in (1.0, 4.0):
+        assert fa.hold(patch, "thmid", hg)["slips"] == pytest.approx(fa.hold(patch, "mid", hg)["slips"], rel=1e-12)
+    for method, lo, hi in (("thmid", 0.4, 0.6), ("mid", 0.95, 1.01)):
+        r = fa.hold(patch, method, 1000.0)
+        dev = np.abs(np.array(r["slips"]) - r["static_slip"])
+        assert np.all((dev[1:] / dev[:-1] > lo) & (dev[1:] / dev[:-1] < hi)), (method, dev)
+
+
+def test_even_steps_land_on_the_sample() -> None:
+    from aca_warp.studies.friction_control import even_step
+
+    h = even_step(3e-7, 0.0, 1e-6)
+    assert h == pytest.approx(2.5e-7) and even_step(1e-6, 2e-7, 1e-6) == pytest.approx(8e-7)
+    assert even_step(5e-7, 0.0, 1e-6) == pytest.approx(5e-7)

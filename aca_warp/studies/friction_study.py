@@ -48,18 +48,28 @@ from aca_warp.studies.friction_stats import (
     statistics,
     twin_scenes,
 )
-from aca_warp.studies.report import Log, clean, command_line, md_table, write_json
+from aca_warp.studies.report import Log, clean, command_line, write_json
 
 SETTINGS = ("seeds", "patches", "duration", "window", "ref_dt", "quick", "speed")  # recorded with every result
 PARTS = ("single", "fixed", "stability", "controlled", "sliding")
 SCHEMES = ("strang-mid", "strang-sdirk2", "forced-mid", "forced-thmid", "forced-be", "forced-sdirk2", "forced-trbdf2")
-STEPS = (1e-7, 2.5e-7, 5e-7, 1e-6)
+FEW_SCHEMES = ("strang-mid", "forced-mid", "forced-thmid", "forced-sdirk2")
+GRID = ((1e-6, SCHEMES), (5e-7, FEW_SCHEMES), (2.5e-7, SCHEMES), (1e-7, FEW_SCHEMES))  # fixed steps [s], schemes
+RUNS = tuple(
+    f"{name}:{dt:g}" for dt, names in GRID for name in names
+)  # fmt: skip
 HGAMMA = (1.0, 4.0, 40.0, 1000.0)
 CYCLE_STEPS = (5e-8, 2e-7, 5e-7, 2e-6)
 CYCLE_SPEED = 0.5  # m/s: the isolated patch's disc speed (the package's stickslip scene)
-CONTROLLED = ("I:sdirk2:rms:f:3e-3", "I:mid:rms:f:3e-3")
-QUICK = {"seeds": 2, "patches": 60, "duration": 4e-3, "window": 2e-3, "steps": (2.5e-7, 1e-6),
-         "controlled": ("I:sdirk2:rms:f:3e-3",)}  # fmt: skip
+CONTROLLED = (
+    "I:thmid:rms:f:1e-2",
+    "I:thmid:rms:f:3e-3",
+    "I:thmid:rms:f:1e-3",
+    "I:sdirk2:rms:f:3e-3",
+    "EI:thmid:rms:f:1e-2",
+)
+QUICK = {"seeds": 2, "patches": 60, "duration": 4e-3, "window": 2e-3, "runs": ("strang-mid:1e-6", "forced-thmid:1e-6"),
+         "controlled": ("I:thmid:rms:f:1e-2",)}  # fmt: skip
 
 
 def part_single(args: argparse.Namespace, log: Log) -> dict[str, Any]:
@@ -175,22 +185,21 @@ def part_fixed(args: argparse.Namespace, log: Log) -> dict[str, Any]:
     folder = Path(args.out) / "fixed"
     folder.mkdir(parents=True, exist_ok=True)
     rows = []
-    for dt in args.steps:
-        for name in args.schemes:
-            path = folder / f"{name}_{dt:g}.json"
-            if path.exists() and json.loads(path.read_text()).get("duration", args.duration) == args.duration:
-                doc = json.loads(path.read_text())
-            else:
-                t0 = time.perf_counter()
-                r = fs.run_fixed(pads, fs.Scheme.parse(name), dt, args.duration, SAMPLE_DT, patch_window=args.window)
-                doc = {k: v for k, v in r.items() if k != "record"}
-                doc |= {"scheme": name, "wall_s": time.perf_counter() - t0, "duration": args.duration}
-                doc["stats"] = statistics(r["record"], args.window, pads.vd, pads.start)
-                write_json(path, clean(doc))
-                doc = json.loads(path.read_text())
-            errors = compare(doc["stats"], s_ref)
-            log(f"{name} at {dt:g} s: {fmt_errors(errors)} ({doc['wall_s']:.0f} s)")
-            rows.append({k: doc[k] for k in ("scheme", "dt", "steps", "evals_per_step", "chatter", "wall_s")} | errors)
+    for name, dt in (parse_run(r) for r in args.runs):
+        path = folder / f"{name}_{dt:g}.json"
+        if path.exists() and json.loads(path.read_text()).get("duration", args.duration) == args.duration:
+            doc = json.loads(path.read_text())
+        else:
+            t0 = time.perf_counter()
+            r = fs.run_fixed(pads, fs.Scheme.parse(name), dt, args.duration, SAMPLE_DT, patch_window=args.window)
+            doc = {k: v for k, v in r.items() if k != "record"}
+            doc |= {"scheme": name, "wall_s": time.perf_counter() - t0, "duration": args.duration}
+            doc["stats"] = statistics(r["record"], args.window, pads.vd, pads.start)
+            write_json(path, clean(doc))
+            doc = json.loads(path.read_text())
+        errors = compare(doc["stats"], s_ref)
+        log(f"{name} at {dt:g} s: {fmt_errors(errors)} ({doc['wall_s']:.0f} s)")
+        rows.append({k: doc[k] for k in ("scheme", "dt", "steps", "evals_per_step", "chatter", "wall_s")} | errors)
     return {
         "reference": info,
         "reference_stats": s_ref,
@@ -232,6 +241,19 @@ def part_stability(args: argparse.Namespace, log: Log) -> dict[str, Any]:
 
 
 STABILITY_SCHEMES = ("strang-mid", "forced-mid", "forced-thmid", "forced-sdirk2")
+
+
+def parse_run(run: str) -> tuple[str, float]:
+    """``SCHEME:DT`` (e.g. ``forced-thmid:2.5e-7``) as (scheme, step [s])."""
+    name, _, dt = run.partition(":")
+    fs.Scheme.parse(name)
+    try:
+        h = float(dt)
+    except ValueError:
+        raise ValueError(f"bad fixed run {run!r}: SCHEME:DT, e.g. forced-thmid:2.5e-7") from None
+    if not h > 0:
+        raise ValueError(f"bad fixed run {run!r}: the step must be > 0 s")
+    return name, h
 
 
 def fmt_errors(e: dict[str, Any]) -> str:
@@ -348,116 +370,6 @@ def part_sliding(args: argparse.Namespace, log: Log) -> dict[str, Any]:
     return {"duration": duration, "patches": pads.n, "rows": rows}
 
 
-# ------------------------------------------------------------------------------------------------ report
-
-
-def pct(x: Any, digits: int = 2) -> str:
-    """A relative error as a signed percentage ("–" for None)."""
-    return "–" if x is None else f"{100.0 * x:+.{digits}f} %"
-
-
-def report(folder: Path) -> list[str]:
-    """Markdown tables of the result JSONs in ``folder`` (the parts that exist), for docs/friction_step.md."""
-    out: list[str] = []
-    load = lambda name: json.loads((folder / f"{name}.json").read_text())  # noqa: E731
-    if (folder / "single.json").exists():
-        d = load("single")
-        out += ["**Stability functions** R(−hγ) of the sub-steps (a slip deviation is multiplied by R per step):", ""]
-        out += md_table(["sub-step", *(f"hγ = {z:g}" for z in HGAMMA)],
-                        [[m, *(f"{d['R'][m][str(z)]:+.3g}" for z in HGAMMA)] for m in fs.METHODS])  # fmt: skip
-        out += ["", "**Hold test** (slip after steps 1, 2, 3 and 6 over the static slip s*; friction evaluations per "
-                "step):", ""]  # fmt: skip
-        rows = []
-        for r in d["hold"]:
-            q = [x / r["static_slip"] for x in r["slips"]]
-            rows.append([r["method"], f"{r['hgamma']:g}", *(f"{q[k]:.3f}" for k in (0, 1, 2, 5)),
-                         f"{r['evals_per_step']:.1f}"])  # fmt: skip
-        out += md_table(["sub-step", "hγ", "s₁/s*", "s₂/s*", "s₃/s*", "s₆/s*", "evals/step"], rows)
-        c = d["cycle"]
-        ref = c["reference"]
-        out += ["", f"**Isolated patch at {c['speed']:g} m/s** (against Radau rtol 1e-11: period "
-                f"{ref['period'] * 1e6:.3f} µs, amplitude {ref['amplitude'] * 1e9:.1f} nm, mean f "
-                f"{ref['mu_mean']:.4f}, static share {ref['stick_share']:.3f}):", ""]  # fmt: skip
-        out += md_table(["scheme", "h [s]", "hγ", "period", "amplitude", "Δ mean f", "evals/step"],
-                        [[r["scheme"], f"{r['h']:g}", f"{r['hgamma']:.1f}", pct(r["period"]), pct(r["amplitude"]),
-                          f"{r['mu_mean']:+.2e}", f"{r['evals_per_step']:.1f}"] for r in c["rows"]])  # fmt: skip
-        if "held" in d:
-            rows = d["held"]["rows"]
-            ref = next(
-                (r["mu_mean"] for r in rows if r["scheme"] == "forced-sdirk2" and r["h"] == min(HELD_STEPS)), None
-            )
-            out += [
-                "",
-                "**Held case** (40 patches, 20 N, M = 100: every patch holds to the disc; mean μ over 20 µs):",
-                "",
-            ]
-            out += md_table(["scheme", *(f"h = {h:g} s (hγ = {h * rows[0]['hgamma'] / rows[0]['h']:.1f})"
-                                         for h in HELD_STEPS)],
-                            [[name, *(next((f"{r['mu_mean']:.3f}" for r in rows if r["scheme"] == name and r["h"] == h),
-                                           "–") for h in HELD_STEPS)]
-                             for name in dict.fromkeys(r["scheme"] for r in rows)])  # fmt: skip
-            if ref is not None:
-                out += ["", f"(reference: forced-sdirk2 at {min(HELD_STEPS):g} s, μ = {ref:.3f})"]
-    if (folder / "fixed.json").exists():
-        d = load("fixed")
-        sp, fl = d["seed_spread"], d["floor"]
-        st = d["settings"]
-        out += ["", f"**Fixed steps, {st['seeds']} × {st['patches']}-patch hf1 sectors, {st['duration'] * 1e3:g} ms, "
-                f"statistics of the last {st['window'] * 1e3:g} ms** (ensemble errors against strang at "
-                f"{st['ref_dt']:g} s; spectra: rms of log10 of the band ratio):", ""]  # fmt: skip
-        head = ["scheme", "h [s]", "steps", "evals/step", "zig-zag", "μ mean", "μ std", "Σ|u̇|", "Σu̇ peak",
-                "μ spec.", "Σu̇ spec.", "patch spec.", "static share", "mean ΔS"]  # fmt: skip
-
-        def row(name: str, e: dict[str, Any], extra: list[str]) -> list[str]:
-            if not e.get("finite", False):
-                return [name, *extra, *["not finite"] * 9]
-            return [name, *extra, pct(e["mu_mean"]), pct(e["mu_std"], 1), pct(e["abs_velocity_mean"]),
-                    pct(e["ensemble_velocity_peak_hz"]), f"{e['mu_bands']:.3f}", f"{e['velocity_bands']:.3f}",
-                    f"{e.get('patch_bands', math.nan):.3f}", pct(e.get("stick_share"), 1),
-                    f"{e.get('sync', math.nan):.3f}"]  # fmt: skip
-
-        rows = [row("twin (another start, same pads)", fl, ["1e-08", "", "", ""])]
-        for r in sorted(d["rows"], key=lambda r: (-r["dt"], r["scheme"])):
-            rows.append(row(r["scheme"], r, [f"{r['dt']:g}", f"{r['steps']:d}", f"{r['evals_per_step']:.2f}",
-                                             f"{r['chatter']:.3f}"]))  # fmt: skip
-        out += md_table(head, rows)
-        out += ["", "Spread between the seeds (relative standard deviation; 95 % half-width of the ensemble mean): "
-                + ", ".join(f"{k} {sp[k]:.2%} ({sp[k + '_ci95']:.2%})" for k in
-                            ("mu_mean", "mu_std", "abs_velocity_mean", "velocity_peak_hz")) + "."]  # fmt: skip
-    if (folder / "stability.json").exists():
-        d = load("stability")
-        out += ["", "**At the spring bound** (0.95 × 2/ω_max, ω_max the exact largest network frequency):", ""]
-        out += md_table(["pads", "scheme", "h [s]", "hγ max", "bounded", "μ mean", "μ std", "zig-zag"],
-                        [[f"{r['what']} ({r['patches']} patches)", r["scheme"], f"{r['h']:.3g}",
-                          f"{r['hgamma_max']:.0f}", "yes" if r["finite"] else "no",
-                          "–" if r["mu_mean"] is None else f"{np.mean(r['mu_mean']):.4f}",
-                          "–" if r["mu_std"] is None else f"{np.mean(r['mu_std']):.4f}", f"{r['chatter']:.3f}"]
-                         for r in d["rows"]])  # fmt: skip
-    if (folder / "controlled.json").exists():
-        d = load("controlled")
-        out += ["", "**Error-controlled composite** on the same sectors (per pad; statistics errors as above):", ""]
-        out += md_table(["modes", "tol_i", "steps/pad", "rejected", "E steps", "I steps", "mean I step [s]",
-                         "gathers/pad", "evals/patch", "× fewer steps than strang", "μ mean", "μ std", "Σ|u̇|",
-                         "Σu̇ peak", "Σu̇ spec.", "patch spec.", "mean ΔS"],
-                        [[r["modes"], f"{r['tol_i']:g}", f"{r['steps_per_pad']:.0f}", f"{r['rejected_per_pad']:.0f}",
-                          f"{r['accepted_E']:.0f}", f"{r['accepted_I']:.0f}", f"{r['mean_step_I']:.3g}",
-                          f"{r['gathers_per_pad']:.0f}", f"{r['evals_per_patch']:.0f}",
-                          f"{r['strang_steps'] / r['steps_per_pad']:.1f}", pct(r.get("mu_mean")),
-                          pct(r.get("mu_std"), 1), pct(r.get("abs_velocity_mean")),
-                          pct(r.get("ensemble_velocity_peak_hz")), f"{r.get('velocity_bands', math.nan):.3f}",
-                          f"{r.get('patch_bands', math.nan):.3f}", f"{r.get('sync', math.nan):.3f}"]
-                         for r in d["rows"]])  # fmt: skip
-    if (folder / "sliding.json").exists():
-        d = load("sliding")
-        out += ["", f"**Sliding**: hf1 ({d['patches']} patches) from its start over {d['duration'] * 1e3:g} ms, "
-                "max |μ − μ_ref| against DOP853 rtol 1e-11:", ""]  # fmt: skip
-        out += md_table(
-            ["solver", "right-hand-side evaluations", "μ error"],
-            [[r["solver"], f"{r['evaluations']}", f"{r['mu_error']:.2g}"] for r in d["rows"]],
-        )
-    return out
-
-
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="friction_schemes.py",
@@ -474,7 +386,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--window", type=float, default=10e-3, help="statistics over the last WINDOW s (default 0.01)")
     ap.add_argument("--ref-dt", type=float, default=1e-8, help="step of the strang reference [s] (default 1e-8)")
     ap.add_argument("--schemes", nargs="+", default=list(SCHEMES), help="split schemes: strang-<m> / forced-<m>")
-    ap.add_argument("--steps", nargs="+", type=float, default=list(STEPS), help="fixed steps [s]")
+    ap.add_argument("--runs", nargs="+", default=list(RUNS), help="fixed-step runs SCHEME:DT (default: the grid)")
     ap.add_argument("--tol-e", type=float, default=1e-5, help="mode E (DP5) tolerance (default 1e-5)")
     ap.add_argument("--controlled", nargs="+", default=list(CONTROLLED),
                     help="composite settings MODES:METHOD:NORM:ERRORS:TOL_I (parse_job)")  # fmt: skip
@@ -486,6 +398,8 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = build_parser().parse_args(argv)
     if args.report:
+        from aca_warp.studies.friction_report import report
+
         print("\n".join(report(Path(args.out))))
         return 0
     if args.quick:
@@ -496,6 +410,8 @@ def main(argv: list[str] | None = None) -> int:
             fs.Scheme.parse(name)
         for job in args.controlled:
             parse_job(job)
+        for run in args.runs:
+            parse_run(run)
     except ValueError as e:
         print(f"friction_schemes.py: {e}", file=sys.stderr)
         return 2
