@@ -1,5 +1,7 @@
 """Markdown tables of the friction-step study's result JSONs (:mod:`aca_warp.studies.friction_study`), for
-docs/friction_step.md: ``python3 scripts/friction_schemes.py --report --out OUT``."""
+docs/friction_step.md: ``python3 scripts/friction_schemes.py --report --out OUT`` prints the tables of one result
+folder; with ``--page docs/friction_step.md`` the tables of OUT's sub-folders :data:`FOLDERS` replace the page's
+generated section."""
 
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.studies.friction_schemes import METHODS
-from aca_warp.studies.report import md_table
+from aca_warp.studies.report import generated_markers, md_table, replace_generated
 
 STAT_HEAD = ["μ mean", "μ std", "Σ|u̇|", "Σu̇ peak (pads)", "Σu̇ peak (ens.)", "μ spec.", "Σu̇ spec.",
              "patch spec.", "static share", "mean ΔS"]  # fmt: skip
@@ -134,3 +136,21 @@ def report(folder: Path) -> list[str]:
             command = OUT_ARG.sub("--out OUT", d["command"])
             out += [*table(d), "", f"(`{command}`; {d['machine']['host']}, shared with other jobs)", ""]
     return out
+
+
+# sub-folders of a result tree, in the page's order, with their section titles
+FOLDERS = {
+    "study": "One patch, the held case, the spring bound, sliding",
+    "hf1": "hf1 sectors, saturated",
+    "ss": "Stick-slip sectors (0.5 m/s)",
+}
+MARKERS = generated_markers("scripts/friction_schemes.py --report --page")
+
+
+def write_page(root: Path, page: Path) -> None:
+    """Replace the generated section of ``page`` with the tables of ``root``'s sub-folders."""
+    body: list[str] = []
+    for name, title in FOLDERS.items():
+        if (root / name).is_dir():
+            body += ["", f"### {title}", "", *report(root / name)]
+    replace_generated(page, body, MARKERS, "Friction sub-step")

@@ -378,6 +378,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--out", required=True, help="result folder (JSON, cached reference runs)")
     ap.add_argument("--report", action="store_true", help="print the markdown tables of OUT's JSONs, run nothing")
+    ap.add_argument("--page", help="with --report: rewrite this page's generated section from OUT/{study,hf1,ss}")
     ap.add_argument("--parts", nargs="+", default=list(PARTS), choices=PARTS, help="what to measure (default all)")
     ap.add_argument("--quick", action="store_true", help=f"a CPU smoke run: {QUICK}")
     ap.add_argument("--seeds", type=int, default=4, help="pads (seeds 1 …) of the sector ensemble (default 4)")
@@ -398,9 +399,12 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = build_parser().parse_args(argv)
     if args.report:
-        from aca_warp.studies.friction_report import report
+        from aca_warp.studies.friction_report import report, write_page
 
-        print("\n".join(report(Path(args.out))))
+        if args.page:
+            write_page(Path(args.out), Path(args.page))
+        else:
+            print("\n".join(report(Path(args.out))))
         return 0
     if args.quick:
         for k, v in QUICK.items():
