@@ -158,7 +158,8 @@ def compare(s: dict[str, Any], ref: dict[str, Any]) -> dict[str, Any]:
             r = np.log10(np.asarray(s[k]) / np.asarray(ref[k]))
             out[k] = float(np.sqrt(np.mean(r * r)))
     if "stick_share" in s and "stick_share" in ref:
-        out["stick_share"] = float(np.mean(s["stick_share"]) / np.mean(ref["stick_share"]) - 1.0)
+        share = float(np.mean(ref["stick_share"]))  # 0 before any patch reaches the static branch
+        out["stick_share"] = float(np.mean(s["stick_share"]) / share - 1.0) if share > 0 else math.nan
         a, b = np.asarray(s["sync"], dtype=float), np.asarray(ref["sync"], dtype=float)
         both = np.isfinite(a) & np.isfinite(b)
         out["sync"] = float(np.mean(np.abs(a - b)[both])) if both.any() else math.nan

@@ -3,25 +3,31 @@ docs/friction_step.md (a NumPy prototype on the package's own equations; nothing
 
 Parts (``--parts``, each writes ``OUT/<part>.json``):
 
-* ``single`` — one isolated patch: the sub-steps' stability functions, a sticking patch held under a frozen spring
-  force at hγ = 1, 4, 40, 1000 (:func:`~aca_warp.studies.friction_analysis.hold`), and the stick-slip cycle of an
-  isolated patch at 0.5 m/s against SciPy Radau at rtol 1e-11 for every split scheme and step.
-* ``fixed`` — hf1 sectors (``--patches``, ``--seeds``; the validation's ``reduced_pad``) from equilibrium + 0.01 m/s
-  over ``--duration``: every scheme of ``--schemes`` at every step of ``--steps``, the statistics of the last
-  ``--window`` against the package's ``strang`` at ``--ref-dt`` (fp64), beside the same reference run from a start
-  perturbed by 1e-9 m/s (the floor: an equally exact trajectory) and the spread between the seeds.
+* ``single`` — one patch: the sub-steps' stability functions; a sticking patch held under a frozen spring force at
+  hγ = 1, 4, 40, 1000 (:func:`~aca_warp.studies.friction_analysis.hold`); the stick-slip cycle of an isolated patch
+  at 0.5 m/s against SciPy Radau at rtol 1e-11 for every scheme of ``--schemes`` and step; the held case
+  (:data:`HELD_SCENE`, every patch held at hγ = 46).
+* ``fixed`` — hf1 sectors (``--seeds`` pads of ``--patches`` patches, the validation's ``reduced_pad``; ``--speed``
+  another disc speed) from equilibrium + 0.01 m/s over ``--duration``: every fixed-step run of ``--runs``
+  (SCHEME:DT), the statistics of the last ``--window`` against the package's ``strang`` at ``--ref-dt`` (fp64),
+  beside the same reference from another draw of the initial velocities (the twin: the floor of a window's
+  statistics) and the spread between the seeds.
+* ``stability`` — the schemes at 0.95 × the exact spring bound on the sectors and on one whole hf1 pad.
 * ``controlled`` — the composite (:class:`~aca_warp.studies.friction_control.Composite`) on the same pads, pad by
-  pad, at every ``--tol-i``: steps, spring and friction evaluations, the same statistics errors.
+  pad, for every setting of ``--controlled`` (:func:`parse_job`): steps, spring and friction evaluations, the same
+  statistics errors.
 * ``sliding`` — hf1 (the whole pad, from its default start) over 1 ms: μ(t) of the composite (mode E with landing
   and with dense output) and of SciPy DOP853 at rtol 1e-6 against SciPy DOP853 at rtol 1e-11, with their
   evaluation counts.
 
-Run files of the fixed-step runs are cached in ``OUT/fixed/`` and the references in ``OUT/ref_*.npz``: a rerun
-redoes only what is missing. Examples::
+The references are cached as ``OUT/ref_*.npz``, the fixed-step runs in ``OUT/fixed/`` and the composite's settings
+in ``OUT/ctl/``: a rerun redoes only what is missing. ``--report`` prints the tables of OUT's JSONs
+(:mod:`aca_warp.studies.friction_report`; with ``--page`` into docs/friction_step.md). Examples::
 
     python3 scripts/friction_schemes.py --out OUT                  # everything, 4 seeds × 150 patches × 30 ms
-    python3 scripts/friction_schemes.py --quick --out OUT          # CPU smoke run (a few minutes)
+    python3 scripts/friction_schemes.py --quick --out OUT          # CPU smoke run (2 seeds × 60 patches × 4 ms)
     python3 scripts/friction_schemes.py --parts single --out OUT
+    python3 scripts/friction_schemes.py --report --out docs/figures/friction_step --page docs/friction_step.md
 """
 
 from __future__ import annotations
