@@ -23,7 +23,7 @@ Memory traffic per step is a model, counted from the arrays each kernel of the s
 neighbour displacements u_j assumed to hit in cache (patches are spatially sorted), per-pad arrays neglected.
 With T the state size (4 or 8 B), n patches and E directed links:
 
-    strang              n (8 + 12 T) + E (4 + T)    strang_step: patch_pad, inv_mass, damping, F_N, r, F_s,
+    strang              n (8 + 12 T) + E (4 + T)    strang_advance: patch_pad, inv_mass, damping, F_N, r, F_s,
                                                     u rw, v rw; spring_forces: nbr_start, k_diag, u, F_s out
     symplectic-euler,   n (8 + 11 T) + E (4 + T)    velocity kernel (patch_pad, nbr_start, k_diag, inv_mass,
     implicit-friction                               damping, F_N, r, u, v rw) + drift (v, u rw)

@@ -1,7 +1,7 @@
 """Command line ``aca-warp COMMAND ...``: the top-level parser and the entry point.
 
 Each command registers its own parser from its package (``add_parsers(sub)`` in aca_warp.hf.commands,
-aca_warp.lf.commands, aca_warp.analysis.commands, aca_warp.sweep, aca_warp.bench) and sets ``handler``; nothing
+aca_warp.lf.commands, aca_warp.analysis.commands, aca_warp.sweep.commands, aca_warp.bench) and sets ``handler``; nothing
 imports this module. Parsing imports no simulation code, so ``--help`` and argument errors answer at once.
 """
 
@@ -9,9 +9,12 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
+import signal
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any, NoReturn
 
 from aca_warp import __version__
 from aca_warp.common import interrupts
@@ -24,8 +27,20 @@ Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad inp
 3 the run stopped on a fault or an unphysical result (the file holds everything before it, marked incomplete),
 4 the output cannot be written (read-only or full file system, no permission: found before the run, nothing
 written; disk full or file-size limit during the run: the .partial keeps its last checkpoint),
-130 interrupted by Ctrl-C, 143 by SIGTERM (the file closed and marked incomplete; docs/faults.md).
+130 interrupted by Ctrl-C, 143 by SIGTERM (the file closed and marked incomplete; hf/lf --resume continues it
+from its last checkpoint, or from its start if it has none; docs/faults.md).
 """
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse's parser that reads a negative number in any notation (``-1e-4``, ``-.5``, ``-3``) as a value, not as
+    an option: ``--duration -1e-4`` then meets the option's own check ("must be positive") like ``--duration=-1e-4``,
+    instead of "expected one argument". No ``aca-warp`` option looks like a negative number. The command's
+    subparsers are of this class too (argparse gives them the class of their parent)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -34,9 +49,9 @@ def build_parser() -> argparse.ArgumentParser:
     from aca_warp.bench import add_parsers as add_bench
     from aca_warp.hf.commands import add_parsers as add_hf
     from aca_warp.lf.commands import add_parsers as add_lf
-    from aca_warp.sweep import add_parsers as add_sweep
+    from aca_warp.sweep.commands import add_parsers as add_sweep
 
-    p = argparse.ArgumentParser(
+    p = Parser(
         prog="aca-warp",
         description="Abstract Cellular Automaton of the brake pad-disc "
         "boundary layer (Merlis & Ostermeyer 2019) in NVIDIA Warp.",
@@ -53,13 +68,30 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``aca-warp`` console script.
+def run(argv: Sequence[str] | None = None) -> NoReturn:
+    """Entry point of the ``aca-warp`` console script: :func:`main`, then the end of the process
+    (:func:`~aca_warp.common.interrupts.exit_process`): a SIGINT or SIGTERM that comes after the command's work, while
+    the process cleans up, ends it with 130 or 143 and one line, never half-way through the clean-up."""
+    code = main(argv, hold=True)
+
+    def late(signum: int, code: int) -> str:
+        name = "SIGTERM" if signum == signal.SIGTERM else "Ctrl-C"
+        return (
+            f"aca-warp: interrupted ({name}) as it exited, after the command ended with exit code {code}; its output "
+            "is as the command left it"
+        )
+
+    interrupts.exit_process(code, late)
+
+
+def main(argv: Sequence[str] | None = None, *, hold: bool = False) -> int:
+    """Run one ``aca-warp`` command in this process; returns its exit code (``hold``: the process ends next, see
+    :func:`run`).
 
     Every error is one ``aca-warp: error:`` line and the error's exit code; SIGINT (Ctrl-C) and SIGTERM end a
     command with one ``aca-warp: interrupted`` line saying what its output holds, exit 130 and 143
     (:mod:`aca_warp.common.interrupts`)."""
-    with interrupts.installed(), command_line():  # from the start: a signal during start-up ends the same way
+    with interrupts.installed(hold=hold), command_line():  # from the start: a signal during start-up ends the same way
         args: argparse.Namespace | None = None
         try:
             args = build_parser().parse_args(argv)
@@ -70,7 +102,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             init_warp()
             _check_output_folder(args)
             code = args.handler(args)
+            interrupts.finished()  # the result is final: a signal from here on is recorded (run() reports it)
         except AcaError as e:
+            interrupts.finished()
             print(f"aca-warp: error: {e}", file=sys.stderr)
             return e.exit_code  # 2 bad input, 3 unphysical, 4 output not writable (docs/faults.md)
         except KeyboardInterrupt as e:
@@ -99,7 +133,7 @@ def _left(args: argparse.Namespace) -> str:
         out = args.resume if getattr(args, "resume", None) else args.output
         if out is None:
             return "nothing was written"
-        return _run_file_state(Path(out), "lf" if cmd == "lf" else "hf")
+        return _run_file_state(Path(out))
     if cmd == "analyze":
         return f"{args.run} is unchanged (an earlier /analysis, if any, is kept)"
     if cmd == "plot":
@@ -109,38 +143,28 @@ def _left(args: argparse.Namespace) -> str:
     return "nothing was written"
 
 
-def _run_file_state(path: Path, kind: str) -> str:
+def _run_file_state(path: Path) -> str:
     """'RUN.h5 keeps …' for an interrupted run: where its samples end and how to continue it."""
-    from aca_warp.common.files import partial_path
+    from aca_warp.common.files import partial_path, recovery
 
     final = path.with_name(path.name.removesuffix(".partial"))
     part = partial_path(final)
     if part.exists():  # interrupted before the file was closed (or a killed run's file)
-        return f"{part} was left as it was (continue it with 'aca-warp {kind} --resume {final}' if it has a checkpoint)"
+        return f"{part} was left as it was: {recovery(final)}"
     if not final.exists():
         return "nothing was written"
     try:
         import h5py
 
-        from aca_warp.common.checkpoint import has_checkpoint
-
         with h5py.File(final, "r") as f:
             if bool(f.attrs.get("complete", False)):
                 return f"{final} is complete"
-            kind = "lf" if f.attrs.get("kind") == "lf" else kind
             t = f["global/time"]
             upto = f"to t = {float(t[-1]):.6g} s" if t.shape[0] else "no sample"
-            resumable = has_checkpoint(f)
-            at = float(f["checkpoint"].attrs.get("sim_time", 0.0)) if resumable else 0.0
     except (OSError, KeyError, ValueError, RuntimeError):
         return f"{final} was written but cannot be read back"
-    then = (
-        f"continue it from its checkpoint at t = {at:.6g} s with 'aca-warp {kind} --resume {final}'"
-        if resumable
-        else "no checkpoint to resume from (run with --checkpoint-interval for one)"
-    )
-    return f"{final} keeps the samples {upto}, marked incomplete; {then}"
+    return f"{final} keeps the samples {upto}, marked incomplete; {recovery(final)}"
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run()

@@ -32,7 +32,7 @@ from xarray.backends import BackendArray
 from xarray.core import indexing
 
 from aca_warp.common.errors import SceneError
-from aca_warp.common.files import attr_value
+from aca_warp.common.files import attr_value, open_h5
 
 EAGER_BYTES = 256 * 2**20
 """Datasets up to this size [bytes] are read at once; larger ones are read lazily."""
@@ -179,10 +179,7 @@ def _open(path: str | Path) -> tuple[h5py.File, str]:
         raise SceneError(f"run file not found: {p}")
     if not h5py.is_hdf5(p):
         raise SceneError(f"{p} is not an HDF5 file (expected a run file written by aca-warp hf, lf or sweep)")
-    try:
-        f = h5py.File(p, "r")
-    except OSError as e:
-        raise SceneError(f"cannot open run file {p}: {e}") from None
+    f = open_h5(p, "run file", text=("parameters",))  # links, declared sizes: checked before anything is read
     kind = _kind(f)
     if kind is None:
         f.close()

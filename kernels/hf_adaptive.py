@@ -12,10 +12,11 @@ In a growing model they land on the growth event times j·interval as well (a ta
 sample and the next event): there the landing sets the event flag that the growth kernels read
 (:func:`~aca_warp.kernels.hf.growth_due` with ``every`` = 0) and every pad evaluates its first stage again.
 
-Per-pad control arrays: float64 ``ctl`` (pads, CTL): t, desired step, previous error (PI), target time, start of
-the interval, trial step; int32 ``mode`` (pads, MODE): landed, needs its first stage, last trial rejected, index of
-the next sample (the target's, or the one after an event target), index of the next growth event; int64 ``stats``
-(pads, 2): accepted and rejected trials.
+The integrator's arrays come to the kernels as one struct, ``dp5`` (:data:`~aca_warp.kernels.hf_types.HFAdaptive`).
+Per-pad control: float64 ``dp5.ctl`` (pads, CTL): t, desired step, previous error (PI), target time, start of the
+interval, trial step; int32 ``dp5.mode`` (pads, MODE): landed, needs its first stage, last trial rejected, index of
+the next sample (the target's, or the one after an event target), index of the next growth event; int64
+``dp5.stats`` (pads, 2): accepted and rejected trials.
 """
 
 from __future__ import annotations
@@ -24,7 +25,9 @@ from typing import Any
 
 import warp as wp
 from aca_warp.kernels import precision_overloads
-from aca_warp.kernels.hf import friction_coefficient, friction_pair, spring_force
+from aca_warp.kernels.hf import RECORD_FLAG
+from aca_warp.kernels.hf_types import HFAdaptive, HFModel, HFRecorder
+from aca_warp.kernels.physics import friction_pair, patch_force, spring_force
 
 wp.set_module_options({"enable_backward": False})
 
@@ -61,74 +64,35 @@ DP5_E = (
 
 
 @wp.func
-def lane_spring_force(
-    i: int,
-    lane: int,
-    threads: int,
-    u: wp.array[Any],
-    k_diag: wp.array[Any],
-    nbr_start: wp.array[wp.int32],
-    nbr_index: wp.array[wp.int32],
-    nbr_stiffness: wp.array[Any],
-):
-    """Elastic force on patch i [N] (:func:`~aca_warp.kernels.hf.spring_force`) from the ``threads`` lanes of its
+def lane_spring_force(i: int, lane: int, threads: int, u: wp.array[Any], model: Any):
+    """Elastic force on patch i [N] (:func:`~aca_warp.kernels.physics.spring_force`) from the ``threads`` lanes of its
     block: each lane sums every ``threads``-th link, the block adds the lanes' sums. One lane (a CPU block) sums
     as ``spring_force`` does, so CPU results do not depend on the block size; on CUDA the links of a patch are read
     in parallel instead of in one dependent chain."""
     if threads == 1:
-        return spring_force(i, u, k_diag, nbr_start, nbr_index, nbr_stiffness)
+        return spring_force(i, u, model)
     part = u[i] - u[i]
-    e = nbr_start[i] + lane
-    end = nbr_start[i + 1]
+    e = model.nbr_start[i] + lane
+    end = model.nbr_start[i + 1]
     while e < end:
-        part += nbr_stiffness[e] * u[nbr_index[e]]
+        part += model.nbr_stiffness[e] * u[model.nbr_index[e]]
         e += threads
-    return wp.tile_sum(wp.tile(part))[0] - k_diag[i] * u[i]
-
-
-@wp.func
-def acceleration(
-    i: int,
-    p: int,
-    fs: Any,
-    v: Any,
-    inv_mass: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
-):
-    """v̇_i = (F_s,i − c_i v + F_N,i f(ω r_i − v)) / m_i [m/s²] at elastic force ``fs`` [N] and velocity ``v``."""
-    ff = normal_force[i] * friction_coefficient(
-        pad_omega[p] * radius[i] - v, pad_mu_scale[p], pad_slope[p], pad_decay[p]
-    )
-    return inv_mass[i] * (fs + ff - damping[i] * v)
+    return wp.tile_sum(wp.tile(part))[0] - model.k_diag[i] * u[i]
 
 
 @wp.func
 def stage_state_h(
-    i: int,
-    stage: int,
-    coeff: wp.array2d[wp.float64],
-    h: wp.float64,
-    u_in: wp.array[Any],
-    v_in: wp.array[Any],
-    ku: wp.array2d[Any],
-    kv: wp.array2d[Any],
-    u_stage: wp.array[Any],
+    i: int, stage: int, dp5: Any, h: wp.float64, u_in: wp.array[Any], v_in: wp.array[Any], u_stage: wp.array[Any],
     v_stage: wp.array[Any],
-):
-    """Patch i's stage state y_s = y_0 + h Σ_{j<s} a_sj k_j at trial step h [s]."""
+):  # fmt: skip
+    """Patch i's stage state y_s = y_0 + h Σ_{j<s} a_sj k_j at trial step h [s] (the stages k_j of ``dp5``)."""
     hh = type(u_in[i])(h)
     du = u_in[i] - u_in[i]
     dv = du
     for j in range(stage):
-        a = type(du)(coeff[stage, j])
-        du += a * ku[j, i]
-        dv += a * kv[j, i]
+        a = type(du)(dp5.coeff[stage, j])
+        du += a * dp5.ku[j, i]
+        dv += a * dp5.kv[j, i]
     u_stage[i] = u_in[i] + hh * du
     v_stage[i] = v_in[i] + hh * dv
 
@@ -139,51 +103,35 @@ def stage_k(
     p: int,
     stage: int,
     fs: Any,
-    inv_mass: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
-    coeff: wp.array2d[wp.float64],
+    model: Any,
+    dp5: Any,
     h: wp.float64,
     u_in: wp.array[Any],
     v_in: wp.array[Any],
     v_stage: wp.array[Any],
-    ku: wp.array2d[Any],
-    kv: wp.array2d[Any],
     u_next: wp.array[Any],
     v_next: wp.array[Any],
 ):
-    """Patch i's (of pad p) k_s = (u̇, v̇) from its elastic force ``fs`` [N] and velocity at the stage state and,
-    for 0 < s < 6, its next stage state y_{s+1} at trial step ``h`` [s] into ``u_next``/``v_next``."""
+    """Patch i's (of pad p) k_s = (u̇, v̇), v̇ = F/m (:func:`~aca_warp.kernels.physics.patch_force`), from its elastic
+    force ``fs`` [N] and velocity at the stage state and, for 0 < s < 6, its next stage state y_{s+1} at trial step
+    ``h`` [s] into ``u_next``/``v_next`` (k_s into the stages of ``dp5``)."""
     v = v_stage[i]
-    ku[stage, i] = v
-    kv[stage, i] = acceleration(
-        i, p, fs, v, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay
-    )
+    dp5.ku[stage, i] = v
+    dp5.kv[stage, i] = model.inv_mass[i] * patch_force(
+        fs, v, model.damping[i], model.normal_force[i], model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p],
+        model.pad_slope[p], model.pad_decay[p],
+    )  # fmt: skip
     if stage > 0 and stage + 1 < STAGES:
-        stage_state_h(i, stage + 1, coeff, h, u_in, v_in, ku, kv, u_next, v_next)
+        stage_state_h(i, stage + 1, dp5, h, u_in, v_in, u_next, v_next)
 
 
 @wp.func
 def stage_state(
-    i: int,
-    p: int,
-    stage: int,
-    coeff: wp.array2d[wp.float64],
-    ctl: wp.array2d[wp.float64],
-    u_in: wp.array[Any],
-    v_in: wp.array[Any],
-    ku: wp.array2d[Any],
-    kv: wp.array2d[Any],
-    u_stage: wp.array[Any],
+    i: int, p: int, stage: int, dp5: Any, u_in: wp.array[Any], v_in: wp.array[Any], u_stage: wp.array[Any],
     v_stage: wp.array[Any],
-):
+):  # fmt: skip
     """Patch i's (of pad p) stage state at the pad's trial step (:func:`stage_state_h`)."""
-    stage_state_h(i, stage, coeff, ctl[p, C_TRIAL], u_in, v_in, ku, kv, u_stage, v_stage)
+    stage_state_h(i, stage, dp5, dp5.ctl[p, C_TRIAL], u_in, v_in, u_stage, v_stage)
 
 
 @wp.func
@@ -191,38 +139,32 @@ def patch_error(
     g: int,
     pad: int,
     h: wp.float64,
-    tol: wp.float64,
-    err_coeff: wp.array[wp.float64],
-    u_scale: wp.array[Any],
-    v_scale: wp.array[Any],
-    radius: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
+    model: Any,
+    dp5: Any,
     u_in: wp.array[Any],
     v_in: wp.array[Any],
     u_new: wp.array[Any],
     v_new: wp.array[Any],
-    ku: wp.array2d[Any],
-    kv: wp.array2d[Any],
 ):
     """Patch g's (of pad ``pad``) scaled error of a trial of step h: max(|e_u| / (tol (U_g + |u|)),
     |e_v| / (tol w_g)) with the friction weight w_g (module docstring); below 1 the patch accepts the trial."""
+    tol = dp5.tol
     eu = wp.float64(0.0)
     ev = wp.float64(0.0)
     for j in range(STAGES):
-        e = err_coeff[j]
-        eu += e * wp.float64(ku[j, g])
-        ev += e * wp.float64(kv[j, g])
-    mu_max = wp.float64(pad_mu_scale[pad]) * wp.float64(3.141592653589793)
+        e = dp5.err_coeff[j]
+        eu += e * wp.float64(dp5.ku[j, g])
+        ev += e * wp.float64(dp5.kv[j, g])
+    mu_max = wp.float64(model.pad_mu_scale[pad]) * wp.float64(3.141592653589793)
     vn = v_new[g]
-    fv, fd = friction_pair(pad_omega[pad] * radius[g] - vn, pad_mu_scale[pad], pad_slope[pad], pad_decay[pad])
-    wv = wp.float64(v_scale[g]) + wp.max(wp.abs(wp.float64(v_in[g])), wp.abs(wp.float64(vn)))
+    fv, fd = friction_pair(
+        model.pad_omega[pad] * model.radius[g] - vn, model.pad_mu_scale[pad], model.pad_slope[pad], model.pad_decay[pad]
+    )
+    wv = wp.float64(dp5.v_scale[g]) + wp.max(wp.abs(wp.float64(v_in[g])), wp.abs(wp.float64(vn)))
     slope = wp.abs(wp.float64(fd))
     if slope * wv > mu_max:
         wv = mu_max / slope
-    su = tol * (wp.float64(u_scale[g]) + wp.max(wp.abs(wp.float64(u_in[g])), wp.abs(wp.float64(u_new[g]))))
+    su = tol * (wp.float64(dp5.u_scale[g]) + wp.max(wp.abs(wp.float64(u_in[g])), wp.abs(wp.float64(u_new[g]))))
     return wp.max(wp.abs(h * eu) / su, wp.abs(h * ev) / (tol * wv))
 
 
@@ -231,24 +173,24 @@ ModeVec = wp.types.vector(length=MODE, dtype=wp.int32)
 
 
 @wp.func
-def load_control(p: int, ctl: wp.array2d[wp.float64], mode: wp.array2d[wp.int32]):
-    """Pad p's rows of ``ctl`` and ``mode`` as vectors."""
+def load_control(p: int, dp5: Any):
+    """Pad p's rows of ``dp5.ctl`` and ``dp5.mode`` as vectors."""
     c = CtlVec()
     m = ModeVec()
     for j in range(CTL):
-        c[j] = ctl[p, j]
+        c[j] = dp5.ctl[p, j]
     for j in range(MODE):
-        m[j] = mode[p, j]
+        m[j] = dp5.mode[p, j]
     return c, m
 
 
 @wp.func
-def store_control(p: int, c: CtlVec, m: ModeVec, ctl: wp.array2d[wp.float64], mode: wp.array2d[wp.int32]):
-    """Vectors ``c`` and ``m`` into pad p's rows of ``ctl`` and ``mode``."""
+def store_control(p: int, c: CtlVec, m: ModeVec, dp5: Any):
+    """Vectors ``c`` and ``m`` into pad p's rows of ``dp5.ctl`` and ``dp5.mode``."""
     for j in range(CTL):
-        ctl[p, j] = c[j]
+        dp5.ctl[p, j] = c[j]
     for j in range(MODE):
-        mode[p, j] = m[j]
+        dp5.mode[p, j] = m[j]
 
 
 @wp.func
@@ -300,33 +242,24 @@ def pi_decide(c: CtlVec, m: ModeVec, err: wp.float64, h_max: wp.float64, h_min: 
 
 
 @wp.func
-def count_trial(p: int, accepted: int, underflow: int, stats: wp.array2d[wp.int64], done: wp.array[wp.int32]):
-    """Pad p's accepted or rejected trial into ``stats``; a step below the minimum into ``done[2]``."""
+def count_trial(p: int, accepted: int, underflow: int, dp5: Any):
+    """Pad p's accepted or rejected trial into ``dp5.stats``; a step below the minimum into ``dp5.done[2]``."""
     if accepted != 0:
-        stats[p, 0] = stats[p, 0] + wp.int64(1)
+        dp5.stats[p, 0] = dp5.stats[p, 0] + wp.int64(1)
     else:
-        stats[p, 1] = stats[p, 1] + wp.int64(1)
+        dp5.stats[p, 1] = dp5.stats[p, 1] + wp.int64(1)
     if underflow != 0:
-        done[2] = 1
+        dp5.done[2] = 1
 
 
 @wp.func
-def pi_control(
-    pad: int,
-    err: wp.float64,
-    h_max: wp.float64,
-    h_min: wp.float64,
-    ctl: wp.array2d[wp.float64],
-    mode: wp.array2d[wp.int32],
-    stats: wp.array2d[wp.int64],
-    done: wp.array[wp.int32],
-) -> int:
-    """:func:`pi_decide` on pad ``pad``'s rows of ``ctl`` and ``mode``, counted in ``stats``; returns 1 when the
-    trial is accepted. ``done[2]`` flags a step below ``h_min`` (the pad cannot go on)."""
-    c, m = load_control(pad, ctl, mode)
-    c, m, accepted, underflow = pi_decide(c, m, err, h_max, h_min)
-    store_control(pad, c, m, ctl, mode)
-    count_trial(pad, accepted, underflow, stats, done)
+def pi_control(pad: int, err: wp.float64, dp5: Any) -> int:
+    """:func:`pi_decide` on pad ``pad``'s rows of ``dp5.ctl`` and ``dp5.mode``, counted in ``dp5.stats``; returns 1
+    when the trial is accepted. ``dp5.done[2]`` flags a step below ``dp5.h_min`` (the pad cannot go on)."""
+    c, m = load_control(pad, dp5)
+    c, m, accepted, underflow = pi_decide(c, m, err, dp5.h_max, dp5.h_min)
+    store_control(pad, c, m, dp5)
+    count_trial(pad, accepted, underflow, dp5)
     return accepted
 
 
@@ -341,14 +274,6 @@ def open_decide(c: CtlVec, m: ModeVec, sample_dt: wp.float64):
     c[C_TRIAL] = wp.min(c[C_H], sample_dt)
     m[M_LANDED] = 0
     return c, m
-
-
-@wp.func
-def open_interval(p: int, sample_dt: wp.float64, ctl: wp.array2d[wp.float64], mode: wp.array2d[wp.int32]):
-    """:func:`open_decide` on pad p's rows of ``ctl`` and ``mode``."""
-    c, m = load_control(p, ctl, mode)
-    c, m = open_decide(c, m, sample_dt)
-    store_control(p, c, m, ctl, mode)
 
 
 @wp.func
@@ -406,87 +331,60 @@ def open_growth_decide(c: CtlVec, m: ModeVec, sample_dt: wp.float64, interval: w
 
 
 @wp.func
-def on_sample(p: int, sample_dt: wp.float64, interval: wp.float64, ctl: wp.array2d[wp.float64],
-              mode: wp.array2d[wp.int32]) -> bool:  # fmt: skip
-    """:func:`at_sample` of pad p's rows of ``ctl`` and ``mode``."""
-    c, m = load_control(p, ctl, mode)
-    return at_sample(c, m, sample_dt, interval)
+def open_next(p: int, dp5: Any):
+    """Pad p, landed, heads for its next target on its rows of ``dp5.ctl`` and ``dp5.mode``:
+    :func:`open_growth_decide` in a growing model (``dp5.interval`` > 0), else :func:`open_decide`."""
+    c, m = load_control(p, dp5)
+    if dp5.interval > wp.float64(0.0):
+        c, m = open_growth_decide(c, m, dp5.sample_dt, dp5.interval)
+    else:
+        c, m = open_decide(c, m, dp5.sample_dt)
+    store_control(p, c, m, dp5)
 
 
 @wp.func
-def on_event(p: int, sample_dt: wp.float64, interval: wp.float64, ctl: wp.array2d[wp.float64],
-             mode: wp.array2d[wp.int32]) -> bool:  # fmt: skip
-    """:func:`at_event` of pad p's rows of ``ctl`` and ``mode``."""
-    c, m = load_control(p, ctl, mode)
-    return at_event(c, m, sample_dt, interval)
-
-
-@wp.func
-def open_growth_interval(
-    p: int, sample_dt: wp.float64, interval: wp.float64, ctl: wp.array2d[wp.float64], mode: wp.array2d[wp.int32]
+def commit_patch(
+    i: int, dp5: Any, u_new: wp.array[Any], v_new: wp.array[Any], u_io: wp.array[Any], v_io: wp.array[Any]
 ):
-    """:func:`open_growth_decide` on pad p's rows of ``ctl`` and ``mode``."""
-    c, m = load_control(p, ctl, mode)
-    c, m = open_growth_decide(c, m, sample_dt, interval)
-    store_control(p, c, m, ctl, mode)
+    """Patch i's accepted trial (``u_new``, ``v_new``) becomes its state; its last stage becomes the next first one
+    (FSAL)."""
+    u_io[i] = u_new[i]
+    v_io[i] = v_new[i]
+    dp5.ku[0, i] = dp5.ku[STAGES - 1, i]
+    dp5.kv[0, i] = dp5.kv[STAGES - 1, i]
 
 
 @wp.kernel
 def dp5_stage(
-    # Model:
-    patch_pad: wp.array[wp.int32],
-    coeff: wp.array2d[wp.float64],
-    # Control:
+    model: Any,
+    dp5: Any,
     stage: int,
-    ctl: wp.array2d[wp.float64],
-    mode: wp.array2d[wp.int32],
     # State in:
     u_in: wp.array[Any],
     v_in: wp.array[Any],
-    ku: wp.array2d[Any],
-    kv: wp.array2d[Any],
     # Stage state out:
     u_stage: wp.array[Any],
     v_stage: wp.array[Any],
 ):
     """The stage state y_s of every patch of a pad that has not landed (:func:`stage_state`)."""
     i = wp.tid()
-    p = patch_pad[i]
-    if mode[p, M_LANDED] != 0:
+    p = model.patch_pad[i]
+    if dp5.mode[p, M_LANDED] != 0:
         return
-    stage_state(i, p, stage, coeff, ctl, u_in, v_in, ku, kv, u_stage, v_stage)
+    stage_state(i, p, stage, dp5, u_in, v_in, u_stage, v_stage)
 
 
 @wp.kernel
 def dp5_eval(
-    # Model:
-    patch_pad: wp.array[wp.int32],
-    inv_mass: wp.array[Any],
-    k_diag: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    radius: wp.array[Any],
-    nbr_start: wp.array[wp.int32],
-    nbr_index: wp.array[wp.int32],
-    nbr_stiffness: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
-    # Control:
+    model: Any,
+    dp5: Any,
     stage: int,
     first: int,
     threads: int,
-    mode: wp.array2d[wp.int32],
     # Stage state in:
     u_stage: wp.array[Any],
     v_stage: wp.array[Any],
-    # Out:
-    ku: wp.array2d[Any],
-    kv: wp.array2d[Any],
-    # Next stage (stage > 0 and stage + 1 < STAGES): y_0, the coefficients and the next stage state's buffers
-    coeff: wp.array2d[wp.float64],
-    ctl: wp.array2d[wp.float64],
+    # Next stage (stage > 0 and stage + 1 < STAGES): y_0 and the next stage state's buffers
     u_in: wp.array[Any],
     v_in: wp.array[Any],
     u_next: wp.array[Any],
@@ -497,154 +395,120 @@ def dp5_eval(
     into ``u_next``/``v_next``, which must not be ``u_stage``/``v_stage``: the neighbours still read those.
     One block of ``threads`` lanes per patch (``launch_tiled``; :func:`lane_spring_force`)."""
     i, lane = wp.tid()
-    p = patch_pad[i]
-    if mode[p, M_LANDED] != 0:
+    p = model.patch_pad[i]
+    if dp5.mode[p, M_LANDED] != 0:
         return
-    if first != 0 and mode[p, M_NEEDK1] == 0:
+    if first != 0 and dp5.mode[p, M_NEEDK1] == 0:
         return
-    fs = lane_spring_force(i, lane, threads, u_stage, k_diag, nbr_start, nbr_index, nbr_stiffness)
+    fs = lane_spring_force(i, lane, threads, u_stage, model)
     if lane != 0:
         return
-    stage_k(
-        i, p, stage, fs, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff,
-        ctl[p, C_TRIAL], u_in, v_in, v_stage, ku, kv, u_next, v_next,
-    )  # fmt: skip
+    stage_k(i, p, stage, fs, model, dp5, dp5.ctl[p, C_TRIAL], u_in, v_in, v_stage, u_next, v_next)
 
 
 @wp.kernel
 def dp5_control(
-    # Model:
-    pad_patch_start: wp.array[wp.int32],
-    radius: wp.array[Any],
-    pad_omega: wp.array[Any],
-    pad_mu_scale: wp.array[Any],
-    pad_slope: wp.array[Any],
-    pad_decay: wp.array[Any],
-    err_coeff: wp.array[wp.float64],
-    u_scale: wp.array[Any],
-    v_scale: wp.array[Any],
+    model: Any,
+    dp5: Any,
     threads: int,
-    tol: wp.float64,
-    h_max: wp.float64,
-    h_min: wp.float64,
-    # State in (y_0, the 5th-order solution = stage 7, the stages):
+    # State in (y_0, the 5th-order solution = stage 7):
     u_in: wp.array[Any],
     v_in: wp.array[Any],
     u_new: wp.array[Any],
     v_new: wp.array[Any],
-    ku: wp.array2d[Any],
-    kv: wp.array2d[Any],
-    # Control in/out:
-    ctl: wp.array2d[wp.float64],
-    mode: wp.array2d[wp.int32],
-    stats: wp.array2d[wp.int64],
-    accepted: wp.array[wp.int32],
-    done: wp.array[wp.int32],
 ):
     """Per pad (one block): the trial's scaled error (maximum over the pad), accept or reject, next step (PI),
-    landing on the target; ``done[1]`` flags a step below ``h_min`` (the pad cannot go on)."""
+    landing on the target; ``dp5.done[2]`` flags a step below ``dp5.h_min`` (the pad cannot go on)."""
     pad, lane = wp.tid()
-    accepted[pad] = 0
-    if mode[pad, M_LANDED] != 0:
+    dp5.accepted[pad] = 0
+    if dp5.mode[pad, M_LANDED] != 0:
         return
-    a = pad_patch_start[pad]
-    n = pad_patch_start[pad + 1] - a
-    h = ctl[pad, C_TRIAL]
+    a = model.pad_patch_start[pad]
+    n = model.pad_patch_start[pad + 1] - a
+    h = dp5.ctl[pad, C_TRIAL]
     part = wp.float64(0.0)
     i = lane
     while i < n:
         g = a + i
-        e = patch_error(g, pad, h, tol, err_coeff, u_scale, v_scale, radius, pad_omega, pad_mu_scale, pad_slope,
-                        pad_decay, u_in, v_in, u_new, v_new, ku, kv)  # fmt: skip
+        e = patch_error(g, pad, h, model, dp5, u_in, v_in, u_new, v_new)
         part = wp.max(part, e)
         i += threads
     err = wp.tile_max(wp.tile(part))[0]
     if lane != 0:
         return
-    accepted[pad] = pi_control(pad, err, h_max, h_min, ctl, mode, stats, done)
+    dp5.accepted[pad] = pi_control(pad, err, dp5)
 
 
 @wp.kernel
 def dp5_commit(
-    patch_pad: wp.array[wp.int32],
-    accepted: wp.array[wp.int32],
+    model: Any,
+    dp5: Any,
     # Trial in:
     u_new: wp.array[Any],
     v_new: wp.array[Any],
-    # State and stages out:
+    # State out:
     u_io: wp.array[Any],
     v_io: wp.array[Any],
-    ku: wp.array2d[Any],
-    kv: wp.array2d[Any],
 ):
-    """An accepted trial becomes the state; its last stage becomes the next first one (FSAL)."""
+    """An accepted trial becomes the state; its last stage becomes the next first one (:func:`commit_patch`)."""
     i = wp.tid()
-    if accepted[patch_pad[i]] == 0:
+    if dp5.accepted[model.patch_pad[i]] == 0:
         return
-    u_io[i] = u_new[i]
-    v_io[i] = v_new[i]
-    ku[0, i] = ku[STAGES - 1, i]
-    kv[0, i] = kv[STAGES - 1, i]
+    commit_patch(i, dp5, u_new, v_new, u_io, v_io)
 
 
 @wp.kernel
 def landing(
     pads: int,
-    sample_dt: wp.float64,
-    interval: wp.float64,
-    t_end: wp.float64,
-    t_stop: wp.array[wp.float64],
-    # Control in/out:
-    ctl: wp.array2d[wp.float64],
-    mode: wp.array2d[wp.int32],
-    done: wp.array[wp.int32],
-    counters: wp.array[wp.int32],
+    dp5: Any,
+    # Recorder and growth flags out:
+    rec: Any,
     event: wp.array[wp.int64],
 ):
     """One thread: when every pad has landed on its target, flag a growth event there (``event[0]``, with every
-    pad's first stage due again; growing models, ``interval`` > 0) and a sample there (``counters[3]``); the growth
-    launches and then the recorder follow in the same iteration, so a sample at an event time sees the grown
-    patches, as on the fixed-step path. Then, unless the run is over or stopped (``done[0]``, ``done[2]``: a step
-    underflow) or the host asked to pause at this sample (``t_stop[0]``; ``done[1]`` waits until it is moved on),
-    open every pad's next interval."""
-    counters[3] = 0
+    pad's first stage due again; growing models, ``dp5.interval`` > 0) and a sample there (the recorder's
+    RECORD_FLAG counter); the growth launches and then the recorder follow in the same iteration, so a sample at an
+    event time sees the grown patches, as on the fixed-step path. Then, unless the run is over or stopped
+    (``dp5.done[0]``, ``dp5.done[2]``: a step underflow) or the host asked to pause at this sample
+    (``dp5.t_stop[0]``; ``dp5.done[1]`` waits until it is moved on), open every pad's next interval."""
+    rec.counters[RECORD_FLAG] = 0
     event[0] = wp.int64(0)
-    if done[0] != 0 or done[2] != 0:
+    if dp5.done[0] != 0 or dp5.done[2] != 0:
         return
-    if done[1] == 0:
+    if dp5.done[1] == 0:
         for p in range(pads):
-            if mode[p, M_LANDED] == 0:
+            if dp5.mode[p, M_LANDED] == 0:
                 return
-        if on_event(0, sample_dt, interval, ctl, mode):
+        c, m = load_control(0, dp5)  # every pad stands on the same target
+        if at_event(c, m, dp5.sample_dt, dp5.interval):
             event[0] = wp.int64(1)
             for p in range(pads):
-                mode[p, M_NEEDK1] = 1  # k_0 (FSAL) was evaluated with the model before the event
-        if not on_sample(0, sample_dt, interval, ctl, mode):
+                dp5.mode[p, M_NEEDK1] = 1  # k_0 (FSAL) was evaluated with the model before the event
+        if not at_sample(c, m, dp5.sample_dt, dp5.interval):
             for p in range(pads):
-                open_growth_interval(p, sample_dt, interval, ctl, mode)
+                open_next(p, dp5)
             return
-        counters[3] = 1
-        if ctl[0, C_TARGET] >= t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
-            done[0] = 1
+        rec.counters[RECORD_FLAG] = 1
+        if dp5.ctl[0, C_TARGET] >= dp5.t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
+            dp5.done[0] = 1
             return
-        if ctl[0, C_TARGET] >= t_stop[0] * (wp.float64(1.0) - wp.float64(1.0e-12)):
-            done[1] = 1
+        if dp5.ctl[0, C_TARGET] >= dp5.t_stop[0] * (wp.float64(1.0) - wp.float64(1.0e-12)):
+            dp5.done[1] = 1
             return
-    elif ctl[0, C_TARGET] >= t_stop[0] * (wp.float64(1.0) - wp.float64(1.0e-12)):
+    elif dp5.ctl[0, C_TARGET] >= dp5.t_stop[0] * (wp.float64(1.0) - wp.float64(1.0e-12)):
         return
-    done[1] = 0
+    dp5.done[1] = 0
     for p in range(pads):
-        if interval > wp.float64(0.0):
-            open_growth_interval(p, sample_dt, interval, ctl, mode)
-        else:
-            open_interval(p, sample_dt, ctl, mode)
+        open_next(p, dp5)
 
 
 @wp.kernel
-def k1_done(mode: wp.array2d[wp.int32]):
+def k1_done(dp5: Any):
     """Per pad: its first stage is evaluated."""
     p = wp.tid()
-    mode[p, M_NEEDK1] = 0
+    dp5.mode[p, M_NEEDK1] = 0
 
 
-precision_overloads(dp5_stage, dp5_eval, dp5_control, dp5_commit)
+precision_overloads(
+    dp5_stage, dp5_eval, dp5_control, dp5_commit, landing, k1_done, model=HFModel, dp5=HFAdaptive, rec=HFRecorder
+)

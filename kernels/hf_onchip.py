@@ -14,10 +14,10 @@ Each block keeps its pad's state in shared memory (Warp tiles with ``storage="sh
 
 Per-patch constants (1/m, c, F_N, r, k_diag) stay in global memory (read-only, cached). Thread ``lane`` owns
 patches lane, lane + B, lane + 2B, … of its pad (B the block size; 1 on the CPU, where Warp runs a block as
-one thread). The arithmetic per patch is that of :mod:`aca_warp.kernels.hf` (``strang_open``,
-``strang_step``, ``spring_forces``, ``strang_close``, ``record_globals``, ``record_patches``; the same
-``wp.func`` s), so on the CPU the results are bit-identical to the general per-step path; on the GPU the
-in-kernel reductions sum in a different order (a tree over threads), so the global outputs differ in the
+one thread). The arithmetic per patch is that of the general path's kernels (:mod:`aca_warp.kernels.hf`): the same
+``wp.func`` s (``strang_velocity``, ``strang_close_velocity``, the gather order of ``spring_force``, the sample
+sums of :mod:`aca_warp.kernels.physics`), so on the CPU the results are bit-identical to the general per-step path;
+on the GPU the in-kernel reductions sum in a different order (a tree over threads), so the global outputs differ in the
 last bits. With a cluster of K blocks per pad (sm_90+), each block owns 1/K of the patches and keeps a full copy
 of ``u`` (:func:`onchip_kernel`).
 
@@ -31,19 +31,28 @@ its barrier-free ``put`` helpers: a ``tile[i] = x`` there made the kernel hang o
 "History: the CUDA hang").
 """
 
-from __future__ import annotations
-
+# Annotations stay eager (no ``from __future__ import annotations``): the kernel made in the factory is typed by the
+# factory's model struct, which string annotations could not see.
 from functools import cache
 from typing import Any
 
 import warp as wp
-from aca_warp.kernels.hf import (
+from aca_warp.kernels.hf_onchip_gather import tile_gather
+from aca_warp.kernels.hf_types import HFModel, HFRecorder
+from aca_warp.kernels.physics import (
+    SampleSums,
+    block_sums,
     contact_block,
-    friction_coefficient,
+    energy_speed2,
+    flag_fault,
     grow_patch,
-    midpoint_friction,
+    link_stiffness,
     patch_coupling,
+    patch_sample,
     patch_sample_due,
+    store_patch_sample,
+    strang_close_velocity,
+    strang_velocity,
     write_globals,
 )
 from aca_warp.kernels.tiles import (
@@ -79,8 +88,8 @@ def readers(g: int, a: int, n: int, k: int, nbr_start: wp.array[wp.int32], nbr_i
 
 
 ABLATIONS = frozenset({"friction", "gather", "sync", "coupling", "contact", "gather_half"})
-# entries per block of a cluster's table of sample sums (float64): Σ F, Σ F r, Σ u̇, Σ|u̇|, Σ u, the runaway patch,
-# the first non-finite patch, its energy speed, Σ F x, Σ F y
+# entries per block of a cluster's table of sample sums (float64): the six SampleSums (kernels.physics), Σ u, the
+# runaway patch, the first non-finite patch, the runaway patch's energy speed
 RED_SLOTS = 10
 
 
@@ -102,7 +111,7 @@ def onchip_kernel(
     ``growth``: patch growth (paper Eq. 10) in the kernel: after every ``growth_every``-th step the block grows
     its patches (``grow_patch``), recomputes their coupling stiffnesses (``patch_coupling``, and the shared copy
     of the CSR) and re-solves the pad's contact (``contact_block``), in the order of the general path's
-    ``grow_patches`` → ``coupling_stiffness`` → ``contact_flat`` after ``strang_step`` (the cached spring force
+    ``grow_patches`` (areas, then stiffnesses) → ``contact_flat`` after ``strang_advance`` (the cached spring force
     keeps the stiffness of before the event, as there). The growth arrays are ignored (may be empty) otherwise.
 
     ``ablate`` (profiling only, ``scripts/profile_onchip.py``; the results are then wrong) drops parts of the
@@ -134,6 +143,8 @@ def onchip_kernel(
     if nmax >= 2**15:
         raise ValueError(f"on-chip pads hold fewer than 32768 patches (int16 neighbour indices), got {nmax}")
     T = dtype
+    Model = HFModel(T)
+    Recorder = HFRecorder(T)
     NMAX = wp.constant(nmax)
     ne = emax if csr_shared else 1
     EMAX = wp.constant(ne)
@@ -172,7 +183,8 @@ def onchip_kernel(
     get_n = tile_load_1d(T, nmax)
     get_u = tile_load_rows(T, 2, nmax)
     get_ei = tile_load_1d(wp.int16, ne)
-    get_ek = tile_load_1d(T, ne)
+    # the neighbour sums (four on-chip links per pass: more shared loads in flight, H100: 8.6 -> 8.3 us)
+    gather = tile_gather(T, nmax, ne, csr_shared, lanes, 4)
     put_red = tile_store_rows_remote(wp.float64, cluster, RED_SLOTS)  # a block's sample sums into block 0's table
     # the barrier of all threads that advance a pad (a plain block barrier for one block: on sm_90 cluster_sync
     # would issue a cluster barrier for a one-block cluster)
@@ -184,22 +196,18 @@ def onchip_kernel(
         g: int,
         w: Any,
         fs: Any,
-        inv_mass: wp.array[T],
-        damping: wp.array[T],
-        normal_force: wp.array[T],
-        radius: wp.array[T],
-        omega: T,
-        half: T,
-        mu_scale: T,
-        slope: T,
-        decay: T,
-        tol: T,
+        model: Any,
+        omega: Any,
+        dt: Any,
+        mu_scale: Any,
+        slope: Any,
+        decay: Any,
+        tol: Any,
     ):
-        """Synchronous velocity of local patch i (global g) from the staggered w and F_s (``strang_close``)."""
-        im = inv_mass[g]
-        return midpoint_friction(
-            get_n(w, i) + half * im * get_n(fs, i), half, T(1.0) / im, damping[g], normal_force[g], omega * radius[g],
-            mu_scale, slope, decay, tol,
+        """Synchronous velocity of local patch i (global g) from the staggered w and F_s (``strang_close_velocity``)."""
+        return strang_close_velocity(
+            get_n(w, i), get_n(fs, i), dt, model.inv_mass[g], model.damping[g], model.normal_force[g],
+            omega * model.radius[g], mu_scale, slope, decay, tol,
         )  # fmt: skip
 
     @wp.kernel(
@@ -210,43 +218,9 @@ def onchip_kernel(
         module_options={"fast_math": fast_math},
     )
     def onchip_strang(
-        # Model:
-        pad_patch_start: wp.array[wp.int32],
-        inv_mass: wp.array[T],
-        k_diag: wp.array[T],
-        damping: wp.array[T],
-        normal_force: wp.array[T],
-        radius: wp.array[T],
-        nbr_start: wp.array[wp.int32],
-        nbr_index: wp.array[wp.int32],
-        nbr_stiffness: wp.array[T],
-        pad_omega: wp.array[T],
-        pad_mu_scale: wp.array[T],
-        pad_slope: wp.array[T],
-        pad_decay: wp.array[T],
-        pad_mu_pad: wp.array[T],
-        pad_load: wp.array[T],
-        pad_matrix_force: wp.array[T],
-        pad_matrix_radius: wp.array[T],
-        k_t: wp.array[T],
-        x: wp.array[T],
-        y: wp.array[T],
-        # Growth (model in/out; empty unless GROWTH):
-        area: wp.array[T],
-        sqrt_area: wp.array[T],
-        k_n: wp.array[T],
-        height: wp.array[T],
-        nbr_inv_dist: wp.array[T],
-        pad_kc: wp.array[T],
-        pad_growth: wp.array[T],
-        pad_k_t: wp.array[T],
-        pad_k_n: wp.array[T],
-        pad_mass_per_area: wp.array[T],
-        pad_zeta: wp.array[T],
-        pad_area: wp.array[wp.float64],
-        pad_moment: wp.array[wp.float64],
-        pad_k_m: wp.array[wp.float64],
-        pad_gap: wp.array[wp.float64],
+        model: Model,  # growth fields read only with growth (pad_growth: the increment per event)
+        rec: Recorder,
+        # Growth:
         growth_every: int,
         growth_step0: int,
         # Stepping:
@@ -260,32 +234,22 @@ def onchip_kernel(
         k0: int,
         row0: int,
         prow0: int,
-        first: int,
-        last: int,
-        every: int,
         # State in/out (staggered w, cached F_s between launches):
         u_io: wp.array[T],
         v_io: wp.array[T],
         force_io: wp.array[T],
-        # Recorder out:
-        globals_out: wp.array3d[wp.float64],
-        watch_bound: wp.array[wp.float64],
-        fault_out: wp.array2d[wp.int32],
-        fault_value_out: wp.array[wp.float64],
-        velocity_out: wp.array2d[T],
-        displacement_out: wp.array2d[T],
     ):
         """Advance pad ``pad`` by ``samples`` × ``steps_per_sample`` strang steps, recording after each sample.
 
-        ``opening`` = 1: the state is synchronous, the first step is the opening half step (``strang_open``).
+        ``opening`` = 1: the state is synchronous, the first step is the opening half step (``strang_velocity``).
         Globals row ``row0 + s`` gets sample ``k0 + s``; per-patch rows start at ``prow0``. With growth, steps are
         counted from ``growth_step0`` (steps done before the launch, modulo ``growth_every``).
         """
         blk, lane = wp.tid()
         pad = blk // CLUSTER
         rank = blk % CLUSTER  # the block's rank in its cluster (clusters are CLUSTER consecutive blocks)
-        a = pad_patch_start[pad]
-        n = pad_patch_start[pad + 1] - a
+        a = model.pad_patch_start[pad]
+        n = model.pad_patch_start[pad + 1] - a
         lo = n * rank // CLUSTER  # this block's patches: lo … hi - 1
         hi = n * (rank + 1) // CLUSTER
         u2 = wp.tile_zeros(shape=(2, NMAX), dtype=T, storage="shared")
@@ -305,7 +269,7 @@ def onchip_kernel(
             count = int(0)
             i = lane
             while i < n:
-                m = readers(a + i, a, n, CLUSTER, nbr_start, nbr_index)
+                m = readers(a + i, a, n, CLUSTER, model.nbr_start, model.nbr_index)
                 if i >= lo and i < hi:
                     put_d(dest, i - lo, m - (m & (1 << rank)))
                 elif (m >> rank) & 1 != 0:
@@ -314,7 +278,7 @@ def onchip_kernel(
             nbytes = wp.tile_sum(wp.tile(count))[0] * TBYTES
         gap = wp.float64(0.0)
         if GROWTH != 0:
-            gap = pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
+            gap = model.pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
         i = lane
         while i < n:  # every block holds all of u
             put_u(u2, 0, i, u_io[a + i])
@@ -334,7 +298,7 @@ def onchip_kernel(
             while q < lane:
                 i = lo + q
                 while i < hi:
-                    m0 += nbr_start[a + i + 1] - nbr_start[a + i]
+                    m0 += model.nbr_start[a + i + 1] - model.nbr_start[a + i]
                     i += threads
                 q += nw
         p0 = nw * m0 + bank  # the thread's first on-chip link slot
@@ -342,21 +306,19 @@ def onchip_kernel(
             p = p0
             i = lo + lane
             while i < hi:
-                for e in range(nbr_start[a + i], nbr_start[a + i + 1]):
-                    put_ei(sidx, p, wp.int16(nbr_index[e] - a))
-                    put_ek(sk, p, nbr_stiffness[e])
+                for e in range(model.nbr_start[a + i], model.nbr_start[a + i + 1]):
+                    put_ei(sidx, p, wp.int16(model.nbr_index[e] - a))
+                    put_ek(sk, p, model.nbr_stiffness[e])
                     p += nw
                 i += threads
         # the whole cluster is set up (tiles zeroed, mbarriers initialised) before any block stores into another
         pad_sync()
 
-        omega = pad_omega[pad]
-        mu_scale = pad_mu_scale[pad]
-        slope = pad_slope[pad]
-        decay = pad_decay[pad]
-        one = T(1.0)
-        half = dt * T(0.5)
-        bound2 = watch_bound[pad] * watch_bound[pad]
+        omega = model.pad_omega[pad]
+        mu_scale = model.pad_mu_scale[pad]
+        slope = model.pad_slope[pad]
+        decay = model.pad_decay[pad]
+        bound2 = rec.watch_bound[pad] * rec.watch_bound[pad]
         cur = int(0)
         nstep = int(0)  # steps of this launch (the phase parity of the mbarrier of u buffer nxt: nstep // 2 % 2)
         prow = prow0
@@ -365,36 +327,19 @@ def onchip_kernel(
         for s in range(samples):
             for _q in range(steps_per_sample):
                 nxt = 1 - cur
-                # friction + kicks + drift (strang_open / strang_step), own patches only
+                # friction + kicks + drift (strang_velocity), own patches only
                 i = lo + lane
                 while i < hi:
                     g = a + i
-                    im = inv_mass[g]
-                    vd = omega * radius[g]
+                    im = model.inv_mass[g]
+                    vd = omega * model.radius[g]
                     if FRICTION == 0:
                         v = get_n(w, i) + dt * im * get_n(fs, i)
-                    elif first_step != 0:
-                        v = midpoint_friction(
-                            get_n(w, i), half, one / im, damping[g], normal_force[g], vd, mu_scale, slope, decay, tol
-                        )
-                        v = v + half * im * get_n(fs, i)
                     else:
-                        kick = half * im * get_n(fs, i)
-                        v = (
-                            midpoint_friction(
-                                get_n(w, i) + kick,
-                                dt,
-                                one / im,
-                                damping[g],
-                                normal_force[g],
-                                vd,
-                                mu_scale,
-                                slope,
-                                decay,
-                                tol,
-                            )
-                            + kick
-                        )
+                        v = strang_velocity(
+                            first_step, get_n(w, i), get_n(fs, i), dt, im, model.damping[g], model.normal_force[g], vd,
+                            mu_scale, slope, decay, tol,
+                        )  # fmt: skip
                     put_n(w, i, v)
                     un = get_u(u2, cur, i) + dt * v
                     if CLUSTER == 1:
@@ -421,45 +366,22 @@ def onchip_kernel(
                     nstep += 1
                 elif SYNC != 0:
                     pad_sync()
-                # spring forces at the new u (spring_force of kernels.hf: same two partial sums, same order)
+                # spring forces at the new u (spring_force of kernels.physics: same two partial sums, same order)
                 p = p0
                 i = lo + lane
                 while i < hi:
                     g = a + i
-                    a0 = T(0.0)
-                    a1 = T(0.0)
-                    e = nbr_start[g]
-                    end = nbr_start[g + 1]
+                    e = model.nbr_start[g]
+                    end = model.nbr_start[g + 1]
                     if GATHER == 0:
                         end = e
                     if wp.static(HALF != 0):  # profiling: the first half of the row's links only
                         row_end = p + nw * (end - e)  # the next row's first on-chip slot
                         end = e + (end - e + 1) // 2
-                    if CSR_SHARED != 0:  # four links per pass: more shared loads in flight (H100: 8.6 -> 8.3 us)
-                        pe = p + nw * (end - e)
-                        while p + 3 * nw < pe:
-                            a0 += get_ek(sk, p) * get_u(u2, nxt, int(get_ei(sidx, p)))
-                            a1 += get_ek(sk, p + nw) * get_u(u2, nxt, int(get_ei(sidx, p + nw)))
-                            a0 += get_ek(sk, p + 2 * nw) * get_u(u2, nxt, int(get_ei(sidx, p + 2 * nw)))
-                            a1 += get_ek(sk, p + 3 * nw) * get_u(u2, nxt, int(get_ei(sidx, p + 3 * nw)))
-                            p += 4 * nw
-                        if p + nw < pe:
-                            a0 += get_ek(sk, p) * get_u(u2, nxt, int(get_ei(sidx, p)))
-                            a1 += get_ek(sk, p + nw) * get_u(u2, nxt, int(get_ei(sidx, p + nw)))
-                            p += 2 * nw
-                        if p < pe:
-                            a0 += get_ek(sk, p) * get_u(u2, nxt, int(get_ei(sidx, p)))
-                            p += nw
-                    else:
-                        while e + 1 < end:
-                            a0 += nbr_stiffness[e] * get_u(u2, nxt, nbr_index[e] - a)
-                            a1 += nbr_stiffness[e + 1] * get_u(u2, nxt, nbr_index[e + 1] - a)
-                            e += 2
-                        if e < end:
-                            a0 += nbr_stiffness[e] * get_u(u2, nxt, nbr_index[e] - a)
+                    links, p = gather(e, end, p, nxt, a, u2, sidx, sk, model.nbr_index, model.nbr_stiffness)
                     if wp.static(HALF != 0):
                         p = row_end
-                    put_n(fs, i, (a0 + a1) - k_diag[g] * get_u(u2, nxt, i))
+                    put_n(fs, i, links - model.k_diag[g] * get_u(u2, nxt, i))
                     i += threads
                 cur = nxt
                 if GROWTH != 0:
@@ -467,10 +389,7 @@ def onchip_kernel(
                     if steps_done % growth_every == 0:  # the same for every thread of the cluster
                         i = lo + lane
                         while i < hi:
-                            grow_patch(
-                                a + i, pad, pad_growth, pad_k_t, pad_k_n, pad_mass_per_area, pad_zeta, area, sqrt_area,
-                                inv_mass, k_t, k_n, damping,
-                            )  # fmt: skip
+                            grow_patch(a + i, pad, model)
                             i += threads
                         pad_sync()  # the links below read the neighbours' new √A, the contact every new area and k_N
                         i = lo + lane
@@ -480,141 +399,91 @@ def onchip_kernel(
                         while i < hi:
                             g = a + i
                             if CSR_SHARED != 0:  # patch_coupling with the neighbour indices from shared memory
-                                ki = pad_kc[pad] * sqrt_area[g]
-                                d = k_t[g]
-                                for e in range(nbr_start[g], nbr_start[g + 1]):
-                                    kij = ki * sqrt_area[a + int(get_ei(sidx, p))] * nbr_inv_dist[e]
-                                    nbr_stiffness[e] = kij
+                                ki = model.pad_kc[pad] * model.sqrt_area[g]
+                                d = model.k_t[g]
+                                for e in range(model.nbr_start[g], model.nbr_start[g + 1]):
+                                    kij = link_stiffness(
+                                        ki, model.sqrt_area[a + int(get_ei(sidx, p))], model.nbr_inv_dist[e]
+                                    )
+                                    model.nbr_stiffness[e] = kij
                                     put_ek(sk, p, kij)
                                     d += kij
                                     p += nw
-                                k_diag[g] = d
+                                model.k_diag[g] = d
                             else:
-                                patch_coupling(
-                                    g, pad, sqrt_area, nbr_start, nbr_index, nbr_inv_dist, pad_kc, k_t, nbr_stiffness,
-                                    k_diag,
-                                )  # fmt: skip
+                                patch_coupling(g, pad, model)
                             i += threads
                         if CONTACT != 0:  # every block solves the pad's contact, keeps its own patches' forces
-                            gap = contact_block(
-                                pad, lane, threads, pad_patch_start, k_n, height, area, radius, pad_area, pad_moment,
-                                pad_k_m, pad_load, gap, a + lo, a + hi, rank == 0, normal_force, pad_matrix_force,
-                                pad_matrix_radius,
-                            )  # fmt: skip
-            # sample: synchronous velocity (strang_close), sums in float64 (record_globals), patch histories
+                            gap = contact_block(pad, lane, threads, model, gap, a + lo, a + hi, rank == 0)
+            # sample: synchronous velocity (strang_close_velocity), the sums of kernels.physics, patch histories
             k = k0 + s
-            due = patch_sample_due(k, first, last, every)
-            fsum = wp.float64(0.0)
-            tsum = wp.float64(0.0)
-            vsum = wp.float64(0.0)
-            vabs = wp.float64(0.0)
-            fxsum = wp.float64(0.0)
-            fysum = wp.float64(0.0)
+            due = patch_sample_due(rec, k)
+            sums = SampleSums()
             usum = wp.float64(0.0)
             runaway = n  # first patch whose energy speed exceeds the watchdog bound (n: none)
             i = lo + lane
             while i < hi:
                 g = a + i
-                im = inv_mass[g]
-                r = radius[g]
-                vs = sync_velocity(i, g, w, fs, inv_mass, damping, normal_force, radius, omega, half, mu_scale,
-                                   slope, decay, tol)  # fmt: skip
+                vs = sync_velocity(i, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
                 uu = get_u(u2, cur, i)
-                f = normal_force[g] * friction_coefficient(omega * r - vs, mu_scale, slope, decay)
-                fsum += wp.float64(f)
-                tsum += wp.float64(f * r)
-                vsum += wp.float64(vs)
-                vabs += wp.float64(wp.abs(vs))
-                fxsum += wp.float64(f * x[g])
-                fysum += wp.float64(f * y[g])
-                ui = wp.float64(uu)
-                usum += ui
-                s2 = wp.float64(vs) * wp.float64(vs) + wp.float64(k_t[g] * im) * ui * ui
-                if s2 > bound2 and runaway == n:
+                sums += patch_sample(
+                    vs, model.normal_force[g], model.radius[g], model.x[g], model.y[g], omega, mu_scale, slope, decay
+                )
+                usum += wp.float64(uu)
+                if energy_speed2(vs, uu, model.k_t[g], model.inv_mass[g]) > bound2 and runaway == n:
                     runaway = i
                 if due:
-                    velocity_out[prow, g] = vs
-                    if displacement_out.shape[0] > 0:
-                        displacement_out[prow, g] = uu
+                    store_patch_sample(rec, prow, g, vs, uu)
                 i += threads
-            fsum = wp.tile_sum(wp.tile(fsum))[0]
-            tsum = wp.tile_sum(wp.tile(tsum))[0]
-            vsum = wp.tile_sum(wp.tile(vsum))[0]
-            vabs = wp.tile_sum(wp.tile(vabs))[0]
-            fxsum = wp.tile_sum(wp.tile(fxsum))[0]
-            fysum = wp.tile_sum(wp.tile(fysum))[0]
+            sums = block_sums(sums)
             usum = wp.tile_sum(wp.tile(usum))[0]
             runaway = wp.tile_min(wp.tile(runaway))[0]
             # the block's fault candidates: its first non-finite patch, or its runaway patch's energy speed
             bad = int(-1)
             value = wp.float64(0.0)
-            if lane == 0 and fault_out[pad, 0] < 0:
-                if not (wp.isfinite(vabs) and wp.isfinite(usum)):
+            if lane == 0 and rec.fault[pad, 0] < 0:
+                if not (wp.isfinite(sums[3]) and wp.isfinite(usum)):
                     for j in range(lo, hi):
                         if bad < 0:
-                            vs = sync_velocity(j, a + j, w, fs, inv_mass, damping, normal_force, radius, omega,
-                                               half, mu_scale, slope, decay, tol)  # fmt: skip
+                            vs = sync_velocity(j, a + j, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
                             if not (wp.isfinite(vs) and wp.isfinite(get_u(u2, cur, j))):
                                 bad = j
                 elif runaway < n:
                     g = a + runaway
-                    vs = sync_velocity(runaway, g, w, fs, inv_mass, damping, normal_force, radius, omega,
-                                       half, mu_scale, slope, decay, tol)  # fmt: skip
-                    ui = wp.float64(get_u(u2, cur, runaway))
-                    value = wp.sqrt(wp.float64(vs) * wp.float64(vs) + wp.float64(k_t[g] * inv_mass[g]) * ui * ui)
+                    vs = sync_velocity(runaway, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
+                    value = wp.sqrt(energy_speed2(vs, get_u(u2, cur, runaway), model.k_t[g], model.inv_mass[g]))
             if CLUSTER > 1:  # block 0 combines the blocks' sums in rank order
                 if lane == 0:
-                    put_red(red, rank, 0, fsum, 0)
-                    put_red(red, rank, 1, tsum, 0)
-                    put_red(red, rank, 2, vsum, 0)
-                    put_red(red, rank, 3, vabs, 0)
-                    put_red(red, rank, 4, usum, 0)
-                    put_red(red, rank, 5, wp.float64(runaway), 0)
-                    put_red(red, rank, 6, wp.float64(bad), 0)
-                    put_red(red, rank, 7, value, 0)
-                    put_red(red, rank, 8, fxsum, 0)
-                    put_red(red, rank, 9, fysum, 0)
+                    for c in range(6):
+                        put_red(red, rank, c, sums[c], 0)
+                    put_red(red, rank, 6, usum, 0)
+                    put_red(red, rank, 7, wp.float64(runaway), 0)
+                    put_red(red, rank, 8, wp.float64(bad), 0)
+                    put_red(red, rank, 9, value, 0)
                 cluster_sync()
                 if lane == 0 and rank == 0:
-                    fsum = wp.float64(0.0)
-                    tsum = wp.float64(0.0)
-                    vsum = wp.float64(0.0)
-                    vabs = wp.float64(0.0)
-                    fxsum = wp.float64(0.0)
-                    fysum = wp.float64(0.0)
+                    sums = SampleSums()
                     usum = wp.float64(0.0)
                     runaway = n
                     bad = -1
                     for q in range(CLUSTER):
-                        fsum += red[q, 0]
-                        tsum += red[q, 1]
-                        vsum += red[q, 2]
-                        vabs += red[q, 3]
-                        usum += red[q, 4]
-                        fxsum += red[q, 8]
-                        fysum += red[q, 9]
-                        rq = int(red[q, 5])
+                        for c in range(6):
+                            sums[c] += red[q, c]
+                        usum += red[q, 6]
+                        rq = int(red[q, 7])
                         if rq < runaway:
                             runaway = rq
-                            value = red[q, 7]
-                        bq = int(red[q, 6])
+                            value = red[q, 9]
+                        bq = int(red[q, 8])
                         if bad < 0 and bq >= 0:
                             bad = bq
             if lane == 0 and rank == 0:
                 write_globals(
-                    globals_out, row0 + s, pad, fsum, tsum, vsum, vabs, fxsum, fysum, omega, pad_mu_pad[pad],
-                    pad_matrix_force[pad], pad_matrix_radius[pad], pad_load[pad],
+                    rec, row0 + s, pad, sums, omega, model.pad_mu_pad[pad], model.pad_matrix_force[pad],
+                    model.pad_matrix_radius[pad], model.pad_load[pad],
                 )  # fmt: skip
-                if fault_out[pad, 0] < 0:
-                    if not (wp.isfinite(vabs) and wp.isfinite(usum)):
-                        fault_out[pad, 0] = bad
-                        fault_out[pad, 1] = k
-                        fault_out[pad, 2] = 0
-                    elif runaway < n:
-                        fault_out[pad, 0] = runaway
-                        fault_out[pad, 1] = k
-                        fault_out[pad, 2] = 1
-                        fault_value_out[pad] = value
+                broken = not (wp.isfinite(sums[3]) and wp.isfinite(usum))
+                flag_fault(rec, pad, k, broken, bad, runaway, n, value)
             if due:
                 prow += 1
         # write back the staggered state and the force cache (own patches)
@@ -627,6 +496,6 @@ def onchip_kernel(
         if CLUSTER > 1:
             cluster_sync()  # no block leaves while another may still address its shared memory (or read the gap)
         if GROWTH != 0 and rank == 0 and lane == 0:
-            pad_gap[pad] = gap
+            model.pad_gap[pad] = gap
 
     return onchip_strang

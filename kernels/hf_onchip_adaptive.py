@@ -8,7 +8,7 @@ threads and blocks), the pad's error as a maximum over its blocks (each block's 
 shared table), the step decision (:func:`~aca_warp.kernels.hf_adaptive.pi_decide`), taken alike by thread 0 of
 every block on its own copy of the pad's control (block 0 writes it to ``ctl``/``mode`` for the host and the
 checkpoints), the commit and the next trial's first stage state. On landing, block 0 records the
-sample (:func:`~aca_warp.kernels.hf.record_pad`, the per-patch histories) and opens the next interval; a growing
+sample (:func:`~aca_warp.kernels.physics.record_pad`, the per-patch histories) and opens the next interval; a growing
 pad also lands on its growth events and grows there (the factory's ``growth``). Every block
 keeps the pad's stage displacements in shared memory, two rows (odd and even stages), and each new stage
 displacement is stored into every block of the cluster (distributed shared memory, released and acquired by the
@@ -29,7 +29,6 @@ from functools import cache
 from typing import Any
 
 import warp as wp
-from aca_warp.kernels.hf import contact_block, grow_patch, patch_coupling, patch_sample_due, record_pad, spring_force
 from aca_warp.kernels.hf_adaptive import (
     C_TARGET,
     C_TRIAL,
@@ -38,6 +37,7 @@ from aca_warp.kernels.hf_adaptive import (
     STAGES,
     at_event,
     at_sample,
+    commit_patch,
     count_trial,
     load_control,
     open_decide,
@@ -47,6 +47,17 @@ from aca_warp.kernels.hf_adaptive import (
     stage_k,
     stage_state_h,
     store_control,
+)
+from aca_warp.kernels.hf_onchip_gather import tile_gather
+from aca_warp.kernels.hf_types import HFAdaptive, HFModel, HFRecorder
+from aca_warp.kernels.physics import (
+    contact_block,
+    grow_patch,
+    patch_coupling,
+    patch_sample_due,
+    record_pad,
+    spring_force,
+    store_patch_sample,
 )
 from aca_warp.kernels.tiles import (
     block_sync,
@@ -108,6 +119,9 @@ def onchip_dp5_kernel(
     if nmax >= 2**15:
         raise ValueError(f"on-chip pads hold fewer than 32768 patches (int16 neighbour indices), got {nmax}")
     T = dtype
+    Model = HFModel(T)
+    Recorder = HFRecorder(T)
+    Adaptive = HFAdaptive(T)
     GATHER = wp.constant(0 if "gather" in ablate else 1)
     RECORD = wp.constant(0 if "record" in ablate else 1)
     SYNC = wp.constant(0 if "sync" in ablate else 1)
@@ -132,6 +146,7 @@ def onchip_dp5_kernel(
     put_ek = tile_store_1d(dtype, max(emax, 1))
     get_ek = tile_load_1d(dtype, max(emax, 1))
     pad_sync = block_sync if cluster == 1 else cluster_sync  # (a one-block "cluster" barrier would be dearer)
+    links_sum = tile_gather(T, nmax, max(emax, 1), emax > 0, 1, 2)  # the neighbour sums, two links per pass
 
     @wp.func
     def share(us: wp.tile[T, 2, NMAX], row: int, i: int, x: T, q0: int, dq: int):
@@ -146,69 +161,55 @@ def onchip_dp5_kernel(
                 q += dq
 
     @wp.func
-    def stage_one(
+    def open_trial(
         lo: int,
         hi: int,
         a: int,
         lane: int,
         threads: int,
         pad: int,
-        coeff: wp.array2d[wp.float64],
+        need_k0: bool,
+        model: Model,
+        dp5: Adaptive,
         h: wp.float64,
         u_io: wp.array[T],
         v_io: wp.array[T],
-        ku: wp.array2d[T],
-        kv: wp.array2d[T],
-        u_b: wp.array[T],
-        v_b: wp.array[T],
         us: wp.tile[T, 2, NMAX],
     ):
-        """The first stage state y_1 of the block's patches lo … hi − 1 (global indices) at trial step ``h`` [s],
-        its displacements shared with every block (row 1)."""
+        """The start of a trial of step ``h`` [s] for the block's patches lo … hi − 1 (global indices, pad from
+        ``a``): with ``need_k0`` their k_0 at the state itself, from the displacements in global memory (the run's
+        first trial, or after a growth event: FSAL's k_0 is of the patches before it); then their first stage state
+        y_1 into buffer b, its displacements shared with every block (row 1)."""
+        if need_k0:
+            g = lo + lane
+            while g < hi:
+                fs = spring_force(g, u_io, model)
+                stage_k(g, pad, 0, fs, model, dp5, h, u_io, v_io, v_io, dp5.u_b, dp5.v_b)
+                g += threads
         g = lo + lane
         while g < hi:
-            stage_state_h(g, 1, coeff, h, u_io, v_io, ku, kv, u_b, v_b)
-            share(us, 1, g - a, u_b[g], 0, 1)
+            stage_state_h(g, 1, dp5, h, u_io, v_io, dp5.u_b, dp5.v_b)
+            share(us, 1, g - a, dp5.u_b[g], 0, 1)
             g += threads
 
     @wp.func
-    def first_stage(
-        lo: int,
-        hi: int,
-        lane: int,
-        threads: int,
-        pad: int,
-        inv_mass: wp.array[T],
-        k_diag: wp.array[T],
-        damping: wp.array[T],
-        normal_force: wp.array[T],
-        radius: wp.array[T],
-        nbr_start: wp.array[wp.int32],
-        nbr_index: wp.array[wp.int32],
-        nbr_stiffness: wp.array[T],
-        pad_omega: wp.array[T],
-        pad_mu_scale: wp.array[T],
-        pad_slope: wp.array[T],
-        pad_decay: wp.array[T],
-        coeff: wp.array2d[wp.float64],
-        h: wp.float64,
-        u_io: wp.array[T],
+    def stage_next(
+        g: int, pad: int, stage: int, row: int, fs: T, model: Model, dp5: Adaptive, h: wp.float64, u_io: wp.array[T],
         v_io: wp.array[T],
-        ku: wp.array2d[T],
-        kv: wp.array2d[T],
-        u_b: wp.array[T],
-        v_b: wp.array[T],
-    ):
-        """k_0 of the block's patches lo … hi − 1 at the state itself (the run's first trial, or after a growth
-        event), from the displacements in global memory."""
-        g = lo + lane
-        while g < hi:
-            fs = spring_force(g, u_io, k_diag, nbr_start, nbr_index, nbr_stiffness)
-            stage_k(
-                g, pad, 0, fs, inv_mass, damping, normal_force, radius, pad_omega, pad_mu_scale, pad_slope,
-                pad_decay, coeff, h, u_io, v_io, v_io, ku, kv, u_b, v_b,
-            )  # fmt: skip
-            g += threads
+    ) -> T:  # fmt: skip
+        """k_s of patch g (elastic force ``fs`` [N]) at its stage state in row ``row``'s buffer (1: b, the odd
+        stages; 0: a, the even ones) and its next stage state into the other buffer; returns the next stage
+        displacement (0 after the last stage)."""
+        un = T(0.0)
+        if row == 1:
+            stage_k(g, pad, stage, fs, model, dp5, h, u_io, v_io, dp5.v_b, dp5.u_a, dp5.v_a)
+            if stage + 1 < STAGES:
+                un = dp5.u_a[g]
+        else:
+            stage_k(g, pad, stage, fs, model, dp5, h, u_io, v_io, dp5.v_a, dp5.u_b, dp5.v_b)
+            if stage + 1 < STAGES:
+                un = dp5.u_b[g]
+        return un
 
     @wp.func
     def grow(
@@ -221,95 +222,25 @@ def onchip_dp5_kernel(
         base: int,
         gap: wp.float64,
         sk: wp.tile[T, EMAX],
-        pad_patch_start: wp.array[wp.int32],
-        inv_mass: wp.array[T],
-        k_diag: wp.array[T],
-        damping: wp.array[T],
-        normal_force: wp.array[T],
-        radius: wp.array[T],
-        nbr_start: wp.array[wp.int32],
-        nbr_index: wp.array[wp.int32],
-        nbr_stiffness: wp.array[T],
-        pad_load: wp.array[T],
-        pad_matrix_force: wp.array[T],
-        pad_matrix_radius: wp.array[T],
-        k_t: wp.array[T],
-        area: wp.array[T],
-        sqrt_area: wp.array[T],
-        k_n: wp.array[T],
-        height: wp.array[T],
-        nbr_inv_dist: wp.array[T],
-        pad_kc: wp.array[T],
-        pad_growth: wp.array[T],
-        pad_k_t: wp.array[T],
-        pad_k_n: wp.array[T],
-        pad_mass_per_area: wp.array[T],
-        pad_zeta: wp.array[T],
-        pad_area: wp.array[wp.float64],
-        pad_moment: wp.array[wp.float64],
-        pad_k_m: wp.array[wp.float64],
+        model: Model,
     ) -> wp.float64:
         """A growth event of the pad (see the factory): its new contact gap [m]; on return every block of the pad has
         its patches' new areas, stiffnesses and normal forces in global memory (a pad barrier follows)."""
         g = lo + lane
         while g < hi:
-            grow_patch(
-                g, pad, pad_growth, pad_k_t, pad_k_n, pad_mass_per_area, pad_zeta, area, sqrt_area, inv_mass, k_t,
-                k_n, damping,
-            )  # fmt: skip
+            grow_patch(g, pad, model)
             g += threads
         pad_sync()  # the links below read the neighbours' new √A, the contact every new area and k_N
         g = lo + lane
         while g < hi:
-            patch_coupling(g, pad, sqrt_area, nbr_start, nbr_index, nbr_inv_dist, pad_kc, k_t, nbr_stiffness, k_diag)
+            patch_coupling(g, pad, model)
             if wp.static(emax > 0):
-                for e in range(nbr_start[g], nbr_start[g + 1]):
-                    put_ek(sk, e - base, nbr_stiffness[e])
+                for e in range(model.nbr_start[g], model.nbr_start[g + 1]):
+                    put_ek(sk, e - base, model.nbr_stiffness[e])
             g += threads
-        gap = contact_block(
-            pad, lane, threads, pad_patch_start, k_n, height, area, radius, pad_area, pad_moment, pad_k_m, pad_load,
-            gap, lo, hi, rank == 0, normal_force, pad_matrix_force, pad_matrix_radius,
-        )  # fmt: skip
+        gap = contact_block(pad, lane, threads, model, gap, lo, hi, rank == 0)
         pad_sync()  # the sample reads every new normal force, k_0 the new stiffnesses
         return gap
-
-    @wp.func
-    def gather(
-        g: int,
-        a: int,
-        base: int,
-        row: int,
-        us: wp.tile[T, 2, NMAX],
-        sidx: wp.tile[wp.int16, EMAX],
-        sk: wp.tile[T, EMAX],
-        k_diag: wp.array[T],
-        nbr_start: wp.array[wp.int32],
-        nbr_index: wp.array[wp.int32],
-        nbr_stiffness: wp.array[T],
-    ):
-        """Elastic force on patch g [N] from the stage displacements in row ``row`` of the shared copy: the two
-        partial sums of :func:`~aca_warp.kernels.hf.spring_force` in its order (``base``: the block's first link)."""
-        a0 = T(0.0)
-        a1 = T(0.0)
-        e = nbr_start[g]
-        end = nbr_start[g + 1]
-        if wp.static(emax > 0):
-            p = e - base
-            pe = end - base
-            while p + 1 < pe:
-                a0 += get_ek(sk, p) * get_u(us, row, int(get_ei(sidx, p)))
-                a1 += get_ek(sk, p + 1) * get_u(us, row, int(get_ei(sidx, p + 1)))
-                p += 2
-            if p < pe:
-                a0 += get_ek(sk, p) * get_u(us, row, int(get_ei(sidx, p)))
-        else:
-            while e + 1 < end:
-                a0 += nbr_stiffness[e] * get_u(us, row, nbr_index[e] - a)
-                a1 += nbr_stiffness[e + 1] * get_u(us, row, nbr_index[e + 1] - a)
-                e += 2
-            if e < end:
-                a0 += nbr_stiffness[e] * get_u(us, row, nbr_index[e] - a)
-        return (a0 + a1) - k_diag[g] * get_u(us, row, g - a)
 
     @wp.func
     def lane_gather(
@@ -321,14 +252,12 @@ def onchip_dp5_kernel(
         us: wp.tile[T, 2, NMAX],
         sidx: wp.tile[wp.int16, EMAX],
         sk: wp.tile[T, EMAX],
-        nbr_start: wp.array[wp.int32],
-        nbr_index: wp.array[wp.int32],
-        nbr_stiffness: wp.array[T],
+        model: Model,
     ):
         """Lane ``sub``'s part of the neighbour sum of patch g: its links sub, sub + LANES, …"""
         part = T(0.0)
-        link = nbr_start[g] + sub
-        end = nbr_start[g + 1]
+        link = model.nbr_start[g] + sub
+        end = model.nbr_start[g + 1]
         if GATHER == 0:
             end = link
         if wp.static(emax > 0):
@@ -337,133 +266,61 @@ def onchip_dp5_kernel(
                 link += LANES
         else:
             while link < end:
-                part += nbr_stiffness[link] * get_u(us, row, nbr_index[link] - a)
+                part += model.nbr_stiffness[link] * get_u(us, row, model.nbr_index[link] - a)
                 link += LANES
         return part
 
     @wp.kernel(enable_backward=False, module="unique", launch_bounds=(block_dim, 1), cluster_dim=cluster)
     def onchip_dp5(
-        # Model:
-        pad_patch_start: wp.array[wp.int32],
-        inv_mass: wp.array[T],
-        k_diag: wp.array[T],
-        damping: wp.array[T],
-        normal_force: wp.array[T],
-        radius: wp.array[T],
-        nbr_start: wp.array[wp.int32],
-        nbr_index: wp.array[wp.int32],
-        nbr_stiffness: wp.array[T],
-        pad_omega: wp.array[T],
-        pad_mu_scale: wp.array[T],
-        pad_slope: wp.array[T],
-        pad_decay: wp.array[T],
-        pad_mu_pad: wp.array[T],
-        pad_load: wp.array[T],
-        pad_matrix_force: wp.array[T],
-        pad_matrix_radius: wp.array[T],
-        k_t: wp.array[T],
-        x: wp.array[T],
-        y: wp.array[T],
-        # Growth (read with ``growth`` only; pad_growth: the increment per event):
-        area: wp.array[T],
-        sqrt_area: wp.array[T],
-        k_n: wp.array[T],
-        height: wp.array[T],
-        nbr_inv_dist: wp.array[T],
-        pad_kc: wp.array[T],
-        pad_growth: wp.array[T],
-        pad_k_t: wp.array[T],
-        pad_k_n: wp.array[T],
-        pad_mass_per_area: wp.array[T],
-        pad_zeta: wp.array[T],
-        pad_area: wp.array[wp.float64],
-        pad_moment: wp.array[wp.float64],
-        pad_k_m: wp.array[wp.float64],
-        pad_gap: wp.array[wp.float64],
-        # Integrator:
-        coeff: wp.array2d[wp.float64],
-        err_coeff: wp.array[wp.float64],
-        u_scale: wp.array[T],
-        v_scale: wp.array[T],
-        tol: wp.float64,
-        h_max: wp.float64,
-        h_min: wp.float64,
-        sample_dt: wp.float64,
-        interval: wp.float64,
-        t_end: wp.float64,
+        model: Model,  # growth fields read only with growth (pad_growth: the increment per event)
+        rec: Recorder,
+        dp5: Adaptive,
         # Control:
         threads: int,
         samples: int,
         k0: int,
         row0: int,
         prow0: int,
-        first: int,
-        last: int,
-        every: int,
         # State in/out:
         u_io: wp.array[T],
         v_io: wp.array[T],
-        # Integrator state in/out (stages, two stage-state buffers, per-pad control):
-        ku: wp.array2d[T],
-        kv: wp.array2d[T],
-        u_a: wp.array[T],
-        v_a: wp.array[T],
-        u_b: wp.array[T],
-        v_b: wp.array[T],
-        ctl: wp.array2d[wp.float64],
-        mode: wp.array2d[wp.int32],
-        stats: wp.array2d[wp.int64],
-        done: wp.array[wp.int32],
-        # Recorder out:
-        globals_out: wp.array3d[wp.float64],
-        watch_bound: wp.array[wp.float64],
-        fault_out: wp.array2d[wp.int32],
-        fault_value_out: wp.array[wp.float64],
-        velocity_out: wp.array2d[T],
-        displacement_out: wp.array2d[T],
     ):
         """Advance pad ``pad`` through ``samples`` sample intervals (its interval is open unless the run is over),
         recording sample ``k0 + s`` into globals row ``row0 + s`` and, when due, per-patch rows from ``prow0``.
 
         Stage states alternate between buffer b (odd stages; shared row 1) and a (even stages, row 0; the
-        5th-order solution y_6 ends in a). The pad stops early when its step falls below ``h_min`` (block 0 sets
-        ``done[2]``); after the run's last sample (target ≥ ``t_end``) it stays landed.
+        5th-order solution y_6 ends in a). The pad stops early when its step falls below ``dp5.h_min`` (block 0 sets
+        ``dp5.done[2]``); after the run's last sample (target ≥ ``dp5.t_end``) it stays landed.
         """
         blk, lane = wp.tid()
         pad = blk // CLUSTER
         rank = blk % CLUSTER
-        a = pad_patch_start[pad]
-        n = pad_patch_start[pad + 1] - a
+        a = model.pad_patch_start[pad]
+        n = model.pad_patch_start[pad + 1] - a
         lo = a + n * rank // CLUSTER  # this block's patches (global indices): lo … hi − 1
         hi = a + n * (rank + 1) // CLUSTER
-        base = nbr_start[lo]  # the block's first link
+        base = model.nbr_start[lo]  # the block's first link
         red = wp.tile_zeros(shape=(2, SLOTS), dtype=wp.float64, storage="shared")
         us = wp.tile_zeros(shape=(2, NMAX), dtype=T, storage="shared")
         sidx = wp.tile_zeros(shape=EMAX, dtype=wp.int16, storage="shared")
         sk = wp.tile_zeros(shape=EMAX, dtype=T, storage="shared")
         if wp.static(emax > 0):
             link = base + lane
-            while link < nbr_start[hi]:
-                put_ei(sidx, link - base, wp.int16(nbr_index[link] - a))
-                put_ek(sk, link - base, nbr_stiffness[link])
+            while link < model.nbr_start[hi]:
+                put_ei(sidx, link - base, wp.int16(model.nbr_index[link] - a))
+                put_ek(sk, link - base, model.nbr_stiffness[link])
                 link += threads
         pad_sync()  # every block's tiles are zeroed before another stores into them
         # Every block keeps the pad's control (clock, steps, mode) and takes the same decisions on it; block 0 also
         # writes it to ctl and mode (the checkpoint's and the host's copy), which no block reads during the launch.
-        c, m = load_control(pad, ctl, mode)
+        c, m = load_control(pad, dp5)
         h = c[C_TRIAL]
         landed = m[M_LANDED]
         gap = wp.float64(0.0)
         if wp.static(growth):
-            gap = pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
-        if landed == 0:
-            if m[M_NEEDK1] != 0:  # k_0 at the state itself (the run's first trial)
-                first_stage(
-                    lo, hi, lane, threads, pad, inv_mass, k_diag, damping, normal_force, radius, nbr_start, nbr_index,
-                    nbr_stiffness, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, ku, kv, u_b,
-                    v_b,
-                )  # fmt: skip
-            stage_one(lo, hi, a, lane, threads, pad, coeff, h, u_io, v_io, ku, kv, u_b, v_b, us)
+            gap = model.pad_gap[pad]  # the contact's warm start, kept here and stored by block 0 at the end
+        if landed == 0:  # k_0 at the state itself when the run starts here
+            open_trial(lo, hi, a, lane, threads, pad, m[M_NEEDK1] != 0, model, dp5, h, u_io, v_io, us)
         m[M_NEEDK1] = 0
         pad_sync()  # every block has read ctl and mode before block 0 writes them
         stop = int(0)
@@ -477,22 +334,13 @@ def onchip_dp5_kernel(
                     if wp.static(lanes == 1):
                         g = lo + lane
                         while g < hi:
-                            fs = gather(g, a, base, row, us, sidx, sk, k_diag, nbr_start, nbr_index, nbr_stiffness)
-                            un = T(0.0)  # the next stage displacement (none after the last stage)
-                            if row == 1:
-                                stage_k(
-                                    g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
-                                    pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_b, ku, kv, u_a, v_a,
-                                )  # fmt: skip
-                                if stage + 1 < STAGES:
-                                    un = u_a[g]
-                            else:
-                                stage_k(
-                                    g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
-                                    pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_a, ku, kv, u_b, v_b,
-                                )  # fmt: skip
-                                if stage + 1 < STAGES:
-                                    un = u_b[g]
+                            first_link = model.nbr_start[g]  # the links in spring_force's order (tile_gather)
+                            links, _p = links_sum(
+                                first_link, model.nbr_start[g + 1], first_link - base, row, a, us, sidx, sk,
+                                model.nbr_index, model.nbr_stiffness,
+                            )  # fmt: skip
+                            fs = links - model.k_diag[g] * get_u(us, row, g - a)
+                            un = stage_next(g, pad, stage, row, fs, model, dp5, h, u_io, v_io)
                             if stage + 1 < STAGES:
                                 share(us, 1 - row, g - a, un, 0, 1)
                             g += threads
@@ -505,28 +353,12 @@ def onchip_dp5_kernel(
                             g = lo + j
                             fsum = T(0.0)
                             if j < own:
-                                fsum = lane_gather(g, a, base, row, sub, us, sidx, sk, nbr_start, nbr_index,
-                                                   nbr_stiffness)  # fmt: skip
+                                fsum = lane_gather(g, a, base, row, sub, us, sidx, sk, model)
                             fsum = total(fsum)
                             un = T(0.0)
                             if sub == 0 and j < own:
-                                fs = fsum - k_diag[g] * get_u(us, row, j + lo - a)
-                                if row == 1:
-                                    stage_k(
-                                        g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
-                                        pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_b, ku, kv, u_a,
-                                        v_a,
-                                    )  # fmt: skip
-                                    if stage + 1 < STAGES:
-                                        un = u_a[g]
-                                else:
-                                    stage_k(
-                                        g, pad, stage, fs, inv_mass, damping, normal_force, radius, pad_omega,
-                                        pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io, v_io, v_a, ku, kv, u_b,
-                                        v_b,
-                                    )  # fmt: skip
-                                    if stage + 1 < STAGES:
-                                        un = u_b[g]
+                                fs = fsum - model.k_diag[g] * get_u(us, row, j + lo - a)
+                                un = stage_next(g, pad, stage, row, fs, model, dp5, h, u_io, v_io)
                             un = first_lane(un)  # the lanes of the patch share its stores into the cluster
                             if j < own and stage + 1 < STAGES:
                                 share(us, 1 - row, j + lo - a, un, sub, LANES)
@@ -538,8 +370,7 @@ def onchip_dp5_kernel(
                 part = wp.float64(0.0)
                 g = lo + lane
                 while g < hi:
-                    e = patch_error(g, pad, h, tol, err_coeff, u_scale, v_scale, radius, pad_omega, pad_mu_scale,
-                                    pad_slope, pad_decay, u_io, v_io, u_a, v_a, ku, kv)  # fmt: skip
+                    e = patch_error(g, pad, h, model, dp5, u_io, v_io, dp5.u_a, dp5.v_a)
                     part = wp.max(part, e)
                     g += threads
                 err = wp.tile_max(wp.tile(part))[0]
@@ -553,10 +384,10 @@ def onchip_dp5_kernel(
                         err = get_red(red, 0, 0)
                         for q in range(1, CLUSTER):
                             err = wp.max(err, get_red(red, 0, q))
-                    c, m, accepted, underflow = pi_decide(c, m, err, h_max, h_min)
+                    c, m, accepted, underflow = pi_decide(c, m, err, dp5.h_max, dp5.h_min)
                     if rank == 0:
-                        store_control(pad, c, m, ctl, mode)
-                        count_trial(pad, accepted, underflow, stats, done)
+                        store_control(pad, c, m, dp5)
+                        count_trial(pad, accepted, underflow, dp5)
                     put_red(red, 1, 0, wp.float64(accepted))
                     put_red(red, 1, 1, wp.float64(underflow))
                     put_red(red, 1, 2, c[C_TRIAL])
@@ -568,13 +399,10 @@ def onchip_dp5_kernel(
                 g = lo + lane
                 while g < hi:
                     if get_red(red, 1, 0) != wp.float64(0.0):  # accepted: y_6 is the state, k_6 the next k_0 (FSAL)
-                        u_io[g] = u_a[g]
-                        v_io[g] = v_a[g]
-                        ku[0, g] = ku[STAGES - 1, g]
-                        kv[0, g] = kv[STAGES - 1, g]
+                        commit_patch(g, dp5, dp5.u_a, dp5.v_a, u_io, v_io)
                     if landed == 0 and stop == 0:
-                        stage_state_h(g, 1, coeff, h, u_io, v_io, ku, kv, u_b, v_b)
-                        share(us, 1, g - a, u_b[g], 0, 1)
+                        stage_state_h(g, 1, dp5, h, u_io, v_io, dp5.u_b, dp5.v_b)
+                        share(us, 1, g - a, dp5.u_b[g], 0, 1)
                     g += threads
                 pad_sync()  # the commit and the next first stage are complete, the flags read before lane 0 rewrites
             if stop == 0:
@@ -582,63 +410,44 @@ def onchip_dp5_kernel(
                 sample = int(1)
                 if wp.static(growth):  # what the pad landed on: an event time, a sample time or both
                     if lane == 0:
-                        put_red(red, 1, 4, wp.float64(int(at_event(c, m, sample_dt, interval))))
-                        put_red(red, 1, 5, wp.float64(int(at_sample(c, m, sample_dt, interval))))
+                        put_red(red, 1, 4, wp.float64(int(at_event(c, m, dp5.sample_dt, dp5.interval))))
+                        put_red(red, 1, 5, wp.float64(int(at_sample(c, m, dp5.sample_dt, dp5.interval))))
                     block_sync()
                     event = int(get_red(red, 1, 4))
                     sample = int(get_red(red, 1, 5))
                     if event != 0:  # before a sample at the same time, which sees the grown patches
-                        gap = grow(
-                            lo, hi, lane, threads, pad, rank, base, gap, sk, pad_patch_start, inv_mass, k_diag,
-                            damping, normal_force, radius, nbr_start, nbr_index, nbr_stiffness, pad_load,
-                            pad_matrix_force, pad_matrix_radius, k_t, area, sqrt_area, k_n, height, nbr_inv_dist,
-                            pad_kc, pad_growth, pad_k_t, pad_k_n, pad_mass_per_area, pad_zeta, pad_area, pad_moment,
-                            pad_k_m,
-                        )  # fmt: skip
+                        gap = grow(lo, hi, lane, threads, pad, rank, base, gap, sk, model)
                 if sample != 0:
                     k = k0 + s
                     if rank == 0 and RECORD != 0:
-                        record_pad(
-                            pad, lane, threads, row0 + s, k, pad_patch_start, normal_force, radius, pad_omega,
-                            pad_mu_scale, pad_slope, pad_decay, pad_mu_pad, pad_load, pad_matrix_force,
-                            pad_matrix_radius, inv_mass, k_t, x, y, u_io, v_io, globals_out, watch_bound, fault_out,
-                            fault_value_out,
-                        )  # fmt: skip
-                    if patch_sample_due(k, first, last, every):
+                        record_pad(pad, lane, threads, row0 + s, k, model, u_io, v_io, rec)
+                    if patch_sample_due(rec, k):
                         g = lo + lane
                         while g < hi:
-                            velocity_out[prow, g] = v_io[g]
-                            if displacement_out.shape[0] > 0:
-                                displacement_out[prow, g] = u_io[g]
+                            store_patch_sample(rec, prow, g, v_io[g], u_io[g])
                             g += threads
                         prow += 1
                 if lane == 0:
-                    if sample == 0 or c[C_TARGET] < t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
+                    if sample == 0 or c[C_TARGET] < dp5.t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
                         if wp.static(growth):
-                            c, m = open_growth_decide(c, m, sample_dt, interval)
+                            c, m = open_growth_decide(c, m, dp5.sample_dt, dp5.interval)
                         else:
-                            c, m = open_decide(c, m, sample_dt)
+                            c, m = open_decide(c, m, dp5.sample_dt)
                         if rank == 0:
-                            store_control(pad, c, m, ctl, mode)
+                            store_control(pad, c, m, dp5)
                     put_red(red, 1, 2, c[C_TRIAL])
                     put_red(red, 1, 3, wp.float64(m[M_LANDED]))
                 block_sync()
                 h = get_red(red, 1, 2)
                 landed = int(get_red(red, 1, 3))
-                if landed == 0:
-                    if event != 0:  # k_0 (FSAL) was evaluated with the patches of before the event
-                        first_stage(
-                            lo, hi, lane, threads, pad, inv_mass, k_diag, damping, normal_force, radius, nbr_start,
-                            nbr_index, nbr_stiffness, pad_omega, pad_mu_scale, pad_slope, pad_decay, coeff, h, u_io,
-                            v_io, ku, kv, u_b, v_b,
-                        )  # fmt: skip
-                    stage_one(lo, hi, a, lane, threads, pad, coeff, h, u_io, v_io, ku, kv, u_b, v_b, us)
+                if landed == 0:  # k_0 again after a growth event
+                    open_trial(lo, hi, a, lane, threads, pad, event != 0, model, dp5, h, u_io, v_io, us)
                 pad_sync()  # the first stage is complete (and shared), the flags read before lane 0 rewrites them
                 s += sample
         if wp.static(cluster > 1):
             cluster_sync()  # no block leaves while another may still store into its shared memory
         if wp.static(growth):
             if rank == 0 and lane == 0:
-                pad_gap[pad] = gap
+                model.pad_gap[pad] = gap
 
     return onchip_dp5

@@ -16,49 +16,38 @@ wp.set_module_options({"enable_backward": False})
 
 
 @wp.kernel
-def _count_neighbours(
-    # Model:
-    grid: wp.uint64,
-    patch_pos: wp.array[wp.vec3d],
-    patch_pad: wp.array[wp.int32],
-    radius: wp.array[wp.float64],
-    # Out:
-    count_out: wp.array[wp.int32],
-):
-    i = wp.tid()
-    p = patch_pos[i]
-    pad = patch_pad[i]
-    r = radius[pad]
-    n = int(0)
-    for j in wp.hash_grid_query(grid, p, r, pad):
-        if j != i and wp.length_sq(patch_pos[j] - p) <= r * r:
-            n += 1
-    count_out[i] = n
-
-
-@wp.kernel
-def _fill_neighbours(
+def _neighbours(
     # Model:
     grid: wp.uint64,
     patch_pos: wp.array[wp.vec3d],
     patch_pad: wp.array[wp.int32],
     radius: wp.array[wp.float64],
     nbr_start: wp.array[wp.int32],
+    fill: int,
     # Out:
+    count_out: wp.array[wp.int32],
     nbr_index_out: wp.array[wp.int32],
     nbr_inv_dist_out: wp.array[wp.float64],
 ):
+    """The neighbours of patch i within its pad's radius, in hash-grid order: ``fill`` = 0, their number into
+    ``count_out``; ``fill`` = 1, their indices and 1/D0 into the CSR row from ``nbr_start[i]``. Both passes take
+    the same hits, so a row holds exactly the links counted for it."""
     i = wp.tid()
     p = patch_pos[i]
     pad = patch_pad[i]
     r = radius[pad]
-    k = nbr_start[i]
+    k = int(0)
+    if fill != 0:
+        k = nbr_start[i]
     for j in wp.hash_grid_query(grid, p, r, pad):
         d2 = wp.length_sq(patch_pos[j] - p)
         if j != i and d2 <= r * r:
-            nbr_index_out[k] = j
-            nbr_inv_dist_out[k] = wp.float64(1.0) / wp.sqrt(d2)
+            if fill != 0:
+                nbr_index_out[k] = j
+                nbr_inv_dist_out[k] = wp.float64(1.0) / wp.sqrt(d2)
             k += 1
+    if fill == 0:
+        count_out[i] = k
 
 
 def build_neighbours(
@@ -99,15 +88,15 @@ def build_neighbours(
     grid = wp.HashGrid(dim, dim, 1, device=device, dtype=wp.float64)
     grid.build(pos_d, cell, groups=pad_d)
     counts = wp.zeros(n + 1, dtype=wp.int32, device=device)
-    wp.launch(_count_neighbours, dim=n, inputs=[grid.id, pos_d, pad_d, rad_d], outputs=[counts], device=device)
+    start = wp.zeros(n + 1, dtype=wp.int32, device=device)
+    model = [grid.id, pos_d, pad_d, rad_d, start]
+    no_links = [wp.empty(0, dtype=wp.int32, device=device), wp.empty(0, dtype=wp.float64, device=device)]
+    wp.launch(_neighbours, dim=n, inputs=[*model, 0], outputs=[counts, *no_links], device=device)
     if check is not None:
         check(int(counts.numpy().astype(np.int64).sum()))  # each count < n fits int32; their sum may not
-    start = wp.zeros(n + 1, dtype=wp.int32, device=device)
     wp.utils.array_scan(counts, start, inclusive=False)
     nnz = int(start.numpy()[-1])
     index = wp.zeros(max(nnz, 1), dtype=wp.int32, device=device)
     inv_d = wp.zeros(max(nnz, 1), dtype=wp.float64, device=device)
-    wp.launch(
-        _fill_neighbours, dim=n, inputs=[grid.id, pos_d, pad_d, rad_d, start], outputs=[index, inv_d], device=device
-    )
+    wp.launch(_neighbours, dim=n, inputs=[*model, 1], outputs=[counts, index, inv_d], device=device)
     return start.numpy(), index.numpy()[:nnz], inv_d.numpy()[:nnz]

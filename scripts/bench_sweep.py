@@ -1,157 +1,420 @@
 #!/usr/bin/env python3
-"""Multi-GPU sweep throughput: the same 2048-pad hf1 sweep on one GPU and on two GPUs through Dask.
+"""Sweep throughput on one and on two GPUs, the new path against a baseline in the same run: wall rate, in-shard rate,
+their ratio, the speedup of two GPUs over one, and every shard's phase times.
 
-For each worker count (default 1 and 2) a local Dask cluster is started (one single-threaded worker process per
-GPU, pinned through ``CUDA_VISIBLE_DEVICES``), the kernels are loaded on every worker (compile or cache), and
-then the sweep runs into a fresh directory. Reported per configuration: cluster start-up, per-worker kernel
-load, sweep wall time, patch-steps/s over the sweep wall time (cluster already up), and the ratio against the
-first configuration. The sweep: hf1 (1758 patches) × friction.M (16 values) × load.normal_force (16) ×
-patches.seed (8) = 2048 pads, ``strang``, fp32, dt = 1e-8 s, 1 µs samples, shards of 256 pads.
+The sweep: ``--pads`` hf1 pads (default 2048: friction.M × load.normal_force × patches.seed, 8 layouts), ``strang``,
+fp32, dt 1e-8 s, 1 µs samples, 1 ms simulated, shards of 256 (``aca-warp sweep --device cuda`` but the shard size).
+Each configuration runs in a child process that imports the code under test (its Dask workers and preparation
+processes inherit it), starts a local Dask cluster as ``aca-warp sweep --device cuda:0[,cuda:1]`` does (loopback only;
+two single-threaded worker processes per GPU, overlapped; ``sequential``: one per GPU, as ``--no-overlap``), runs a
+warm-up sweep of the same pads for 1 µs (kernels compiled or loaded in every worker), then the timed sweep into a
+fresh directory. Configurations:
 
-On a machine with two GPUs (target: ≥ 1.8×)::
+* ``new``: the checkout this script belongs to, with its preparation pool (``--prepare``, default as ``aca-warp
+  sweep``: two processes per GPU, none on the CPU), overlapped, on each of ``--units`` GPUs (CPU worker processes
+  with ``--device cpu``); and once ``sequential`` on the first of ``--units``: the in-shard rate of kernels that do
+  not share their GPU, the reference of the targets;
+* ``baseline`` (with ``--baseline DIR``): the checkout at DIR (e.g. ``git archive <commit> aca_warp kernels | tar -x
+  -C DIR``), overlapped, on each of ``--units``.
 
-    NCCL_NVLS_ENABLE=0 python scripts/bench_sweep.py --device cuda --json bench_sweep.json
+Reported per configuration (JSON, and one Markdown line; with ``--repeat N`` every configuration runs N times, in
+turn, and its run of the shortest wall time is reported, all runs kept in the JSON's ``runs``): the sweep call's wall
+time (cluster start and warm-up not counted), wall rate = patch-steps / wall time, in-shard rate = patch-steps / Σ
+over shards of ``timings.kernel`` (per GPU: each shard runs on one), wall rate / (units × in-shard rate), the same
+against the sequential reference's in-shard rate (target: ≥ 0.9 on one GPU), the speedup over the same code on the
+first of ``--units`` (target: ≥ 1.9 for two GPUs over one), and per phase of a shard task (prepare, prepare_ahead,
+build, setup, kernel, write, task) the median and the total over the shards (and, over repeated runs, the least of
+the medians: ``phase_least_s``). Before the sweeps, per code, the host phases of one shard measured alone in one
+process (``--host-repeat`` times; :func:`host_phases`): the least wall time and the least CPU time of prepare, build
+and setup, which on a machine shared with other work say more than the sweeps' wall times.
 
-Quick CPU check (two worker processes, tiny pads)::
+Two H100s (one GPU and two, the code before as baseline; a few minutes)::
 
-    python scripts/bench_sweep.py --device cpu --workers 1 2 --patches 50 --pads 64 --shard-size 16 --duration 2e-5
+    mkdir -p build/baseline && git archive <commit> aca_warp kernels | tar -x -C build/baseline
+    NCCL_NVLS_ENABLE=0 python scripts/bench_sweep.py --device cuda --units 1 2 --baseline build/baseline
+
+CPU (the host time per shard before and after: 2 shards of 256 hf1 pads, 1 µs simulated, 3 times in turn)::
+
+    python scripts/bench_sweep.py --device cpu --units 1 --pads 512 --duration 1e-6 --repeat 3 --baseline build/baseline
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
+import functools
+import inspect
 import json
 import os
 import shutil
+import statistics
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 os.environ.setdefault("NCCL_NVLS_ENABLE", "0")  # never use NVLink multicast (shared machines)
 
-import numpy as np  # noqa: E402
-import warp as wp  # noqa: E402
-
-wp.config.log_level = wp.LOG_WARNING
-
-from aca_warp.common.files import machine  # noqa: E402
-from aca_warp.sweep import hf1_product_doc, load_spec, local_cluster, run_sweep, warm_workers  # noqa: E402
+WARM_UP_S = 1e-6  # simulated time of the warm-up sweep [s]: one sample, enough to load every kernel in every worker
+PHASES = ("prepare", "prepare_ahead", "build", "setup", "kernel", "write", "task")
+HERE = Path(__file__).resolve().parent
 
 
-def sweep_doc(pads: int, patches: int | None, shard_size: int, duration: float, precision: str) -> dict:
-    """A product sweep of ``pads`` hf1 pads: M × F_N × seed, factors as equal as possible (pads = 2^k best)."""
-    seeds = 8 if pads >= 512 else max(1, min(8, pads // 4))
-    rest = max(1, pads // seeds)
-    n_m = int(np.sqrt(rest))
-    n_f = rest // n_m
-    if n_m * n_f * seeds != pads:
+def sweep_doc(
+    hf1_product_doc: Any, pads: int, patches: int | None, shard: int, duration: float, precision: str
+) -> dict:
+    """A product sweep of ``pads`` hf1 pads: M × F_N × seed, 8 seeds (fewer for tiny sweeps), pads a power of two."""
+    if pads < 1 or pads & (pads - 1):
         raise SystemExit(f"--pads {pads}: choose a power of two (the sweep is a product M x F_N x seed)")
+    seeds = min(8, pads)
+    rest = pads // seeds
+    n_m = 2 ** (rest.bit_length() // 2)
+    n_f = rest // n_m
     return hf1_product_doc(
-        f"bench-{pads}", n_m, n_f, seeds, shard_size=shard_size, duration=duration, precision=precision, patches=patches
+        f"bench-{pads}", n_m, n_f, seeds, shard_size=shard, duration=duration, precision=precision, patches=patches
     )
 
 
-def _parse() -> argparse.Namespace:
-    """The command line."""
+# ----------------------------------------------------------------------------------------------------- child
+
+
+def host_phases(cfg: dict) -> dict:
+    """The host phases of one shard (shard 1 of the sweep) as a shard task has them, in this process, ``cfg["repeat"]``
+    times: the spec and scenes (``prepare``), ``build_model`` and ``initial_state`` (``build``), the run's set-up
+    before its first step (``setup``: checks, stable-step estimate, engine, launch layout); per phase the least wall
+    time and the least CPU time of this process over the repeats [s] (CPU time: the work itself, whatever else the
+    machine runs). The first repeat loads the kernels; the least is the steady state of a warm worker."""
+    import copy
+    import inspect
+
+    import warp as wp
+
+    import aca_warp
+    from aca_warp.common.devices import init_warp
+
+    init_warp()
+    from aca_warp.hf.engine import EngineTuning
+    from aca_warp.hf.loop import _Run
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.options import RunOptions
+    from aca_warp.hf.state import initial_state
+    from aca_warp.sweep import hf1_product_doc, load_spec
+    from aca_warp.sweep import spec as spec_module
+
+    args = (cfg["pads"], cfg["patches"], cfg["shard_size"])
+    spec = load_spec(sweep_doc(hf1_product_doc, *args, cfg["duration"], cfg["precision"]))
+    device = "cpu" if cfg["device"] == "cpu" else "cuda:0"
+    index = min(1, spec.shard_count - 1)
+    resolve = spec_module._resolve
+    unchecked = {"check": False} if "check" in inspect.signature(resolve).parameters else {}  # a task's resolve
+
+    def prepare() -> list:
+        s = resolve(copy.deepcopy(spec.doc), spec.base_dir, **unchecked)
+        a, b = s.shard_range(index)
+        return s.scenes(s.shard_pads(index)) if hasattr(s, "shard_pads") else s.scenes(a, b)
+
+    least: dict[str, list[float]] = {}
+
+    def build(scenes: list) -> tuple:
+        model = build_model(scenes, device=device, precision=spec.precision)
+        return model, initial_state(model)
+
+    def clock(phase: str, fn: Any) -> Any:
+        w, c = time.perf_counter(), time.process_time()
+        out = fn()
+        wp.synchronize_device(device)
+        w, c = time.perf_counter() - w, time.process_time() - c
+        got = least.setdefault(phase, [w, c])
+        got[:] = [min(got[0], w), min(got[1], c)]
+        return out
+
+    options = RunOptions(duration=spec.duration, integrator=spec.integrator, dt=spec.dt, tolerance=spec.tolerance)
+    for _ in range(cfg["repeat"]):
+        scenes = clock("prepare", prepare)
+        model, state = clock("build", functools.partial(build, scenes))
+        run = clock("setup", functools.partial(_Run, model, state, options, spec.base.record, EngineTuning(), None))
+        engine = type(run.engine).__name__
+        del run, model, state
+    return {
+        "code": cfg["code"],
+        "mode": "host",
+        "package": str(Path(aca_warp.__file__).parent),
+        "pads": len(scenes),
+        "engine": engine,
+        "repeats": cfg["repeat"],
+        "wall_s": {p: v[0] for p, v in least.items()},
+        "cpu_s": {p: v[1] for p, v in least.items()},
+    }
+
+
+def child(cfg: dict) -> dict:
+    """One configuration, in a process whose ``aca_warp`` is the code under test: cluster, warm-up, timed sweep (or,
+    for mode ``host``, :func:`host_phases`)."""
+    if cfg["mode"] == "host":
+        return host_phases(cfg)
+    import warp as wp
+
+    import aca_warp
+
+    wp.config.log_level = wp.LOG_WARNING
+    from distributed import Client
+
+    from aca_warp.sweep import hf1_product_doc, load_spec, local_cluster, run_sweep
+
+    args = (cfg["pads"], cfg["patches"], cfg["shard_size"])
+    spec = load_spec(sweep_doc(hf1_product_doc, *args, cfg["duration"], cfg["precision"]))
+    warm = load_spec(sweep_doc(hf1_product_doc, *args, WARM_UP_S, cfg["precision"]))
+    units, cpu = cfg["units"], cfg["device"] == "cpu"
+    device = "cpu" if cpu else ",".join(f"cuda:{i}" for i in range(units))
+    overlap = cfg["mode"] == "overlapped"
+    t0 = time.perf_counter()
+    cluster, worker_device = local_cluster(device, units if cpu else None, per_gpu=2 if overlap else 1)
+    client = Client(cluster)
+    client.wait_for_workers(len(cluster.worker_spec))
+    start_s = time.perf_counter() - t0
+    kwargs: dict[str, Any] = {"device": worker_device, "client": client, "overlap": overlap}
+    prepare = None
+    if "prepare" in inspect.signature(run_sweep).parameters:  # a code with a preparation pool
+        from aca_warp.sweep.run import prepare_processes
+
+        prepare = cfg["prepare"] if cfg["prepare"] is not None else prepare_processes(device, None, True)
+        kwargs["prepare"] = prepare
+    scratch = Path(cfg["dir"])
+    try:
+        t0 = time.perf_counter()
+        run_sweep(warm, scratch / "warm", **kwargs)
+        warm_s = time.perf_counter() - t0
+        res = run_sweep(spec, scratch / "timed", **kwargs)
+    finally:
+        client.close()
+        cluster.close()
+    if res.failed or res.faults:
+        raise SystemExit(f"{cfg['code']}: failed shards {res.failed}, faults {res.faults}")
+    timings = [s["timings"] for s in sorted(res.summaries, key=lambda s: s["index"])]
+    kernel = sum(t["kernel"] for t in timings)
+    in_shard = res.patch_steps / kernel
+    return {
+        **{k: cfg[k] for k in ("code", "units", "mode")},
+        "package": str(Path(aca_warp.__file__).parent),
+        "workers": res.workers,
+        "prepare": prepare,
+        "device_names": sorted({s["device_name"] for s in res.summaries}),
+        "cluster_start_s": start_s,
+        "warm_up_s": warm_s,
+        "wall_s": res.wall_time,
+        "patch_steps": res.patch_steps,
+        "kernel_s": kernel,
+        "wall_rate": res.patch_steps / res.wall_time,
+        "in_shard_rate": in_shard,
+        "wall_over_in_shard": res.patch_steps / res.wall_time / (units * in_shard),
+        "phase_median_s": {p: statistics.median(t.get(p, 0.0) for t in timings) for p in PHASES},
+        "phase_total_s": {p: sum(t.get(p, 0.0) for t in timings) for p in PHASES},
+        "shards": [{"index": s["index"], **s["timings"]} for s in sorted(res.summaries, key=lambda s: s["index"])],
+    }
+
+
+# ---------------------------------------------------------------------------------------------------- parent
+
+
+def run_child(code_dir: Path, cfg: dict, scratch: Path) -> dict:
+    """Run :func:`child` for ``cfg`` in a fresh process that imports the ``aca_warp`` of ``code_dir`` (its Dask
+    workers and preparation processes inherit that path); returns its row."""
+    sys.path.insert(0, str(HERE))
+    from compare_checkouts import package_view
+
+    view = scratch / f"view-{cfg['code']}"
+    if not view.exists():
+        package_view(code_dir, view)
+    out = scratch / f"sweep-{cfg['code']}-{cfg['mode']}-{cfg['units']}"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(view), os.environ.get("PYTHONPATH", "")]).rstrip(":")}
+    if "WARP_CACHE_PATH" not in env:
+        env["WARP_CACHE_PATH"] = str(scratch / f"warp-cache-{cfg['code']}")
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--child", json.dumps({**cfg, "dir": str(out)})]
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=scratch)
+    shutil.rmtree(out, ignore_errors=True)
+    if done.returncode != 0:
+        raise SystemExit(f"{cfg['code']} {cfg['mode']} x{cfg['units']} failed:\n{done.stderr[-3000:]}")
+    row = json.loads(done.stdout.strip().splitlines()[-1])
+    if not row["package"].startswith(str(view)):
+        raise SystemExit(f"the child imported {row['package']}, not the code under test at {code_dir}")
+    return row
+
+
+def configurations(args: argparse.Namespace) -> list[dict]:
+    """The runs: new overlapped on every unit count, new sequential on the first, the baseline overlapped on every."""
+    base = {k: getattr(args, k) for k in ("device", "pads", "patches", "shard_size", "duration", "precision")}
+    runs = [{**base, "code": "new", "mode": "overlapped", "units": u, "prepare": args.prepare} for u in args.units]
+    runs.append({**base, "code": "new", "mode": "sequential", "units": args.units[0], "prepare": args.prepare})
+    if args.baseline:
+        runs += [{**base, "code": "baseline", "mode": "overlapped", "units": u, "prepare": None} for u in args.units]
+    return runs
+
+
+def best_runs(runs: list[dict]) -> list[dict]:
+    """Per configuration (code, mode, units) its run of the shortest wall time, in the order of the first runs, with
+    ``runs`` (how many) and ``phase_least_s``: per phase the least of the runs' medians (on a shared machine, the host
+    time per shard least disturbed by other work)."""
+    best: dict[tuple, dict] = {}
+    least: dict[tuple, dict[str, float]] = {}
+    count: dict[tuple, int] = {}
+    for r in runs:
+        key = (r["code"], r["mode"], r["units"])
+        if key not in best or r["wall_s"] < best[key]["wall_s"]:
+            best[key] = r
+        seen = least.setdefault(key, dict(r["phase_median_s"]))
+        for p, v in r["phase_median_s"].items():
+            seen[p] = min(seen[p], v)
+        count[key] = count.get(key, 0) + 1
+    return [{**r, "phase_least_s": least[k], "runs": count[k]} for k, r in best.items()]
+
+
+def summarise(rows: list[dict]) -> None:
+    """Add to each row its speedup over the same code and mode on the fewest units, and its wall rate against the
+    sequential reference's in-shard rate (kernels alone on their GPU)."""
+    ref = next((r for r in rows if r["code"] == "new" and r["mode"] == "sequential"), None)
+    for r in rows:
+        same = [q for q in rows if q["code"] == r["code"] and q["mode"] == r["mode"]]
+        first = min(same, key=lambda q: q["units"])
+        r["speedup_vs_fewest_units"] = r["wall_rate"] / first["wall_rate"]
+        if ref is not None:
+            r["wall_over_reference_in_shard"] = r["wall_rate"] / (r["units"] * ref["in_shard_rate"])
+
+
+def markdown_line(doc: dict) -> str:
+    """One line: machine, sweep, and per configuration wall time, rates, ratios and median host phases."""
+    unit = "CPU worker" if doc["device"] == "cpu" else "GPU"
+    parts = []
+    for r in doc["results"]:
+        ph = r["phase_least_s"]
+        ahead = f" (+{ph['prepare_ahead']:.2f} ahead)" if ph.get("prepare_ahead") else ""
+        parts.append(
+            f"{r['code']} {r['mode']} on {r['units']} {unit}(s): {r['wall_s']:.1f} s wall, {r['wall_rate']:.3g} "
+            f"patch-steps/s against {r['in_shard_rate']:.3g} in-shard per {unit} "
+            f"({100 * r['wall_over_in_shard']:.0f} %"
+            + (
+                f"; {100 * r['wall_over_reference_in_shard']:.0f} % of the reference"
+                if "wall_over_reference_in_shard" in r
+                else ""
+            )
+            + f"), {r['speedup_vs_fewest_units']:.2f}× its {min(q['units'] for q in doc['results'])}-{unit} rate; "
+            f"per shard (median; least of {r['runs']} run(s)) prepare {ph['prepare']:.2f}{ahead}, build "
+            f"{ph['build']:.2f}, setup {ph['setup']:.2f}, "
+            f"kernel {ph['kernel']:.2f} s"
+        )
+    for h in doc.get("host", []):
+        w, c = h["wall_s"], h["cpu_s"]
+        parts.append(
+            f"{h['code']}: host time per shard (least of {h['repeats']}, wall / CPU) prepare {w['prepare']:.2f} / "
+            f"{c['prepare']:.2f}, build {w['build']:.2f} / {c['build']:.2f}, setup {w['setup']:.2f} / "
+            f"{c['setup']:.2f} s"
+        )
+    s = doc["sweep"]
+    m = doc["machine"]
+    where = m["device_name"] if doc["device"] == "cpu" else f"{m['device_name']} ({m['host']})"
+    return (
+        f"{doc['date']}, {where}, Warp {doc['warp_version']}: {s['pads']} hf1 pads × {s['patches_per_pad']} "
+        f"patches, shards of {s['shard_size']}, {s['duration_s']:g} s, strang {s['precision']}; "
+        + "; ".join(parts)
+        + "."
+    )
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--device", default="cuda", help="cuda (GPUs 0..N-1 for N workers) or cpu (default cuda)")
-    ap.add_argument("--workers", nargs="+", type=int, default=[1, 2], help="worker counts to compare (default 1 2)")
+    ap.add_argument("--device", default="cuda", choices=("cuda", "cpu"), help="cuda (GPUs 0..N-1) or cpu")
+    ap.add_argument("--units", nargs="+", type=int, default=[1, 2], help="GPUs (CPU worker processes) per run")
     ap.add_argument("--pads", type=int, default=2048, help="pads in the sweep (a power of two; default 2048)")
     ap.add_argument("--patches", type=int, help="patches per pad (default: hf1's 1758)")
     ap.add_argument("--shard-size", type=int, default=256, help="pads per shard (default 256)")
     ap.add_argument("--duration", type=float, default=1e-3, help="simulated time per pad [s] (default 1e-3)")
     ap.add_argument("--precision", default="fp32", choices=("fp32", "fp64"))
-    ap.add_argument("--dir", help="scratch folder for the sweep outputs (default: a temporary one, removed)")
-    ap.add_argument("--json", default="bench_sweep.json", help="output JSON file")
-    return ap.parse_args()
-
-
-def _measure(spec, n: int, device_arg: str, scratch: Path) -> dict | None:
-    """Start a local cluster of ``n`` workers, load the kernels on each and run the sweep into ``scratch``/w<n>;
-    the row of times [s] and rates, or None (after a message) when a shard failed or stopped on a fault."""
-    from distributed import Client
-
-    device = "cpu" if device_arg == "cpu" else ",".join(f"cuda:{i}" for i in range(n))
-    t0 = time.perf_counter()
-    cluster, worker_device = local_cluster(device, n)
-    client = Client(cluster)
-    client.wait_for_workers(n)
-    start_s = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    loads = warm_workers(client, worker_device)
-    warm_s = time.perf_counter() - t0
-    out = scratch / f"w{n}"
-    shutil.rmtree(out, ignore_errors=True)
-    try:
-        res = run_sweep(spec, out, device=worker_device, client=client, log=lambda s: print("  " + s, flush=True))
-    finally:
-        client.close()
-        cluster.close()
-    if res.failed or res.faults:
-        print(f"workers={n}: failed shards {res.failed}, faults {res.faults}", file=sys.stderr)
-        return None
-    rate = res.patch_steps / res.wall_time
-    names = sorted({s["device_name"] for s in res.summaries})
-    return {
-        "workers": n,
-        "device": device,
-        "device_names": names,
-        "cluster_start_s": start_s,
-        "kernel_load_s": warm_s,
-        "kernel_load_per_worker_s": loads,
-        "sweep_wall_s": res.wall_time,
-        "patch_steps": res.patch_steps,
-        "patch_steps_per_s": rate,
-        "shard_compile_s": [s["compile_time"] for s in res.summaries],
-        "shard_wall_s": [s["wall_time"] for s in res.summaries],
-        "shard_task_s": [s["task_time"] for s in res.summaries],
-    }
-
-
-def main() -> int:
-    args = _parse()
-    from distributed import Client  # noqa: F401 (fails here, before any work, where Dask is missing)
-
-    spec = load_spec(sweep_doc(args.pads, args.patches, args.shard_size, args.duration, args.precision))
-    scratch = Path(args.dir or tempfile.mkdtemp(prefix="aca_bench_sweep_"))
-    rows = []
-    print(
-        f"sweep: {spec.pad_count} pads x {spec.base.patches.count} patches, {spec.shard_count} shards of "
-        f"{spec.shard_size}, {spec.duration:g} s, {spec.integrator} {spec.precision}",
-        flush=True,
+    ap.add_argument("--prepare", type=int, help="preparation processes of the new code (default: as aca-warp sweep)")
+    ap.add_argument("--baseline", type=Path, help="a checkout of the code to compare against (e.g. the previous main)")
+    ap.add_argument("--repeat", type=int, default=1, help="runs of every configuration, in turn (default 1)")
+    ap.add_argument(
+        "--host-repeat",
+        type=int,
+        default=3,
+        help="repeats of the host phases of one shard per code, in one process (default 3; 0: none)",
     )
-    for n in args.workers:
-        row = _measure(spec, n, args.device, scratch)
-        if row is None:
-            return 3
-        rows.append(row)
-        start_s, warm_s, wall, rate = (
-            row[k] for k in ("cluster_start_s", "kernel_load_s", "sweep_wall_s", "patch_steps_per_s")
-        )
-        print(
-            f"workers={n} ({row['device']}): start {start_s:.1f} s, kernels {warm_s:.1f} s, sweep {wall:.1f} s, "
-            f"{rate:.3g} patch-steps/s, ratio {rate / rows[0]['patch_steps_per_s']:.2f}",
-            flush=True,
-        )
-    base = rows[0]["patch_steps_per_s"]
-    for r in rows:
-        r["ratio_vs_first"] = r["patch_steps_per_s"] / base
+    ap.add_argument("--dir", type=Path, help="scratch folder (default: a temporary one, removed)")
+    ap.add_argument("--json", default="bench_sweep.json", help="output JSON file")
+    ap.add_argument("--md", default="bench_sweep.md", help="output Markdown file (one line)")
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.baseline is not None and not (args.baseline / "aca_warp" / "__init__.py").is_file():
+        ap.error(f"--baseline {args.baseline}: not a checkout of aca_warp (no aca_warp/__init__.py)")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    if args.child:
+        print(json.dumps(child(json.loads(args.child))), flush=True)
+        return 0
+    import warp as wp
+    from distributed import Client  # noqa: F401  (fails here, before any work, where Dask is missing)
+
+    from aca_warp.common.devices import init_warp
+    from aca_warp.common.files import machine
+
+    init_warp()
+    scratch = Path(args.dir or tempfile.mkdtemp(prefix="aca_bench_sweep_"))
+    scratch.mkdir(parents=True, exist_ok=True)
+    codes = {"new": HERE.parent, "baseline": args.baseline}
+    runs, hosts = [], []
+    try:
+        for code in ("new", "baseline") if args.host_repeat else ():  # first: on an idle device
+            if codes[code] is not None:
+                cfg = {**configurations(args)[0], "code": code, "mode": "host", "repeat": args.host_repeat}
+                h = run_child(codes[code].resolve(), cfg, scratch)
+                hosts.append(h)
+                print(
+                    f"{code} host phases of a shard ({h['engine']}): wall {h['wall_s']}, CPU {h['cpu_s']}", flush=True
+                )
+        for rep in range(args.repeat):  # in turn: a slow spell of a shared machine spreads over every configuration
+            for cfg in configurations(args):
+                r = {**run_child(codes[cfg["code"]].resolve(), cfg, scratch), "run": rep + 1}
+                runs.append(r)
+                ph = r["phase_median_s"]
+                print(
+                    f"{r['code']} {r['mode']} x{r['units']} (run {rep + 1}): {r['wall_s']:.2f} s wall, wall rate "
+                    f"{r['wall_rate']:.3g}, in-shard {r['in_shard_rate']:.3g} per unit "
+                    f"({100 * r['wall_over_in_shard']:.0f} %); median per shard: "
+                    + ", ".join(f"{p} {ph[p]:.3f}" for p in PHASES)
+                    + " s",
+                    flush=True,
+                )
+    finally:
+        if not args.dir:
+            shutil.rmtree(scratch, ignore_errors=True)
+    rows = best_runs(runs)
+    summarise(rows)
+    dev = wp.get_device("cpu" if args.device == "cpu" else "cuda:0")
     doc = {
-        "machine": machine(wp.get_device("cpu" if args.device == "cpu" else "cuda:0")),
+        "date": datetime.date.today().isoformat(),
+        "machine": machine(dev),
         "warp_version": wp.__version__,
-        "pads": spec.pad_count,
-        "patches_per_pad": spec.base.patches.count,
-        "shard_size": spec.shard_size,
-        "duration_s": spec.duration,
-        "integrator": spec.integrator,
-        "precision": spec.precision,
+        "device": args.device,
+        "command": " ".join(["scripts/bench_sweep.py", *(sys.argv[1:] if argv is None else argv)]),
+        "sweep": {
+            "pads": args.pads,
+            "patches_per_pad": args.patches or 1758,
+            "shard_size": args.shard_size,
+            "duration_s": args.duration,
+            "precision": args.precision,
+        },
         "results": rows,
+        "runs": runs,
+        "host": hosts,
     }
+    line = markdown_line(doc)
     Path(args.json).write_text(json.dumps(doc, indent=1))
-    if not args.dir:
-        shutil.rmtree(scratch, ignore_errors=True)
-    print(f"wrote {args.json}")
+    Path(args.md).write_text(line + "\n")
+    print(line)
+    print(f"wrote {args.json} and {args.md}")
     return 0
 
 

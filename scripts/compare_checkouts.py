@@ -4,11 +4,17 @@ A restructuring must not change results: this script runs, from each checkout's 
 
 * ``hf hf1 --duration 2e-5``            (the paper's HF1 pad, 20 µs)
 * ``hf varying_area --duration 1e-5``   (growing patches, 10 µs)
+* ``hf hf1 --integrator adaptive``      (100 µs at tolerance 1e-5; on the CPU the on-chip adaptive engine)
 * ``lf multiscale``                     (the LF automaton over the whole load procedure)
+* ``sweep aca_warp/data/sweep_hf1.toml`` (24 hf1 pads in 5 shards, 10 µs, in this process)
+* ``sweep`` of pads of unequal size     (2 friction factors × 2 layouts × 3 patch counts, shards of 4)
 
-and reports, per job, every dataset that differs (shape, dtype or any bit) and the root attributes that differ
-(wall times, versions and similar provenance are listed separately as expected differences). Exit code 0 when
-every dataset is bit-identical.
+(opt-in with ``--jobs``, ``EXTRA_JOBS``: the on-chip strang engine, the general adaptive engine, growth on every
+engine, both Euler schemes) and reports, per job, every dataset that differs (shape, dtype or any bit) and the root
+attributes that differ (wall times, versions and similar provenance are listed separately as expected differences);
+a sweep's shard files are compared file by file, and its pads one by one (rows found through ``/pads/index``, so
+that the comparison holds when the two checkouts cut the pads into shards differently). Exit code 0 when every
+dataset (every pad of a sweep) is bit-identical.
 
 Each checkout is imported as it is on disk: a temporary folder holds a package ``aca_warp`` whose entries link
 to the checkout's ``aca_warp/`` with ``kernels`` linked to the checkout's ``kernels/`` (the layout an install
@@ -18,6 +24,9 @@ Usage::
 
     git worktree add /tmp/base <commit>
     python scripts/compare_checkouts.py /tmp/base . --out /tmp/cmp [--jobs hf1 varying_area lf]
+
+``--cache DIR`` keeps the two checkouts' kernel caches (DIR/cache0, DIR/cache1) for later calls, so that an unchanged
+first checkout compiles once.
 """
 
 from __future__ import annotations
@@ -25,6 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -39,6 +49,35 @@ JOBS = {
     "hf1_adaptive": ["hf", "hf1", "--duration", "1e-4", "--integrator", "adaptive", "--tolerance", "1e-5"]
     + ["--no-progress"],
     "lf": ["lf", "multiscale", "--no-progress"],
+    "sweep": ["sweep", "aca_warp/data/sweep_hf1.toml", "--workers", "0", "--duration", "1e-5", "--shard-size", "5"],
+    "sweep_sizes": ["sweep", "{out}/sweep_sizes.toml", "--workers", "0"],
+}
+# the spec of the job sweep_sizes, written into the output folder
+SWEEP_SIZES = """[sweep]
+base = "hf1"
+shard_size = 4
+[run]
+duration = 2.0e-5
+precision = "fp32"
+[parameters]
+"friction.M" = [0.7, 0.8]
+"patches.seed" = [1, 2]
+"patches.count" = [60, 200, 120]
+"""
+# opt-in jobs (--jobs): the engines and integrators the default jobs leave out on the CPU
+EXTRA_JOBS = {
+    "hf1_onchip": ["hf", "hf1", "--duration", "2e-5", "--engine", "onchip", "--record-patches", "velocity,displacement"]
+    + ["--no-progress"],
+    "varying_area_onchip": ["hf", "varying_area", "--duration", "1e-5", "--engine", "onchip", "--no-progress"],
+    "hf1_adaptive_general": ["hf", "hf1", "--duration", "1e-4", "--integrator", "adaptive", "--tolerance", "1e-5"]
+    + ["--engine", "general", "--record-patches", "velocity", "--no-progress"],
+    "varying_area_adaptive": ["hf", "varying_area", "--duration", "1e-5", "--integrator", "adaptive"]
+    + ["--tolerance", "1e-5", "--no-progress"],
+    "varying_area_adaptive_general": ["hf", "varying_area", "--duration", "1e-5", "--integrator", "adaptive"]
+    + ["--tolerance", "1e-5", "--engine", "general", "--no-progress"],
+    "hf1_euler": ["hf", "hf1", "--duration", "2e-6", "--integrator", "symplectic-euler", "--dt", "2e-10"]
+    + ["--no-progress"],
+    "hf1_imex": ["hf", "hf1", "--duration", "2e-5", "--integrator", "implicit-friction", "--no-progress"],
 }
 # root attributes that describe the machine, the package or the wall clock, not the results
 PROVENANCE = {
@@ -51,6 +90,9 @@ PROVENANCE = {
     "created",
     "device_name",
     "machine",
+    "timings",
+    "task_time",
+    "batch_capacity",
 }
 
 
@@ -101,6 +143,33 @@ def same_bits(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.array_equal(a, b))
 
 
+def compare_sweeps(a: Path, b: Path) -> dict:
+    """Differences between two sweep directories: their pads one by one (``/pads/index`` gives a row's pad; every
+    global output of every pad compared bit for bit) and their shard files (as :func:`compare`)."""
+    names = sorted({p.name for p in a.glob("shard-*.h5")} | {p.name for p in b.glob("shard-*.h5")})
+    rows: list[dict[int, dict[str, np.ndarray]]] = [{}, {}]
+    files: dict[str, dict] = {}
+    for name in names:
+        pair = [a / name, b / name]
+        if all(p.is_file() for p in pair):
+            files[name] = compare(*pair)
+        for side, path in zip(rows, pair, strict=True):
+            if path.is_file():
+                with h5py.File(path, "r") as f:
+                    for r, pad in enumerate(f["pads/index"][()]):
+                        side[int(pad)] = {k: d[r] for k, d in f["global"].items() if d.ndim == 2}
+    both = rows[0].keys() & rows[1].keys()
+    return {
+        "pads": len(both),
+        "pads_missing": sorted(rows[0].keys() ^ rows[1].keys()),
+        "pads_different": sorted(
+            p for p in both if any(not same_bits(v, rows[1][p][k]) for k, v in rows[0][p].items())
+        ),
+        "files": files,
+        "files_only_one": sorted(set(names) - set(files)),
+    }
+
+
 def compare(a: Path, b: Path) -> dict:
     """Differences between two run files: datasets (missing, different) and root attributes."""
     da, db = datasets(a), datasets(b)
@@ -118,34 +187,67 @@ def compare(a: Path, b: Path) -> dict:
     }
 
 
+def same_results(r: dict) -> bool:
+    """Whether a job's report (:func:`compare` or :func:`compare_sweeps`) found every dataset (every pad) equal."""
+    if "pads" in r:
+        return not (r["pads_missing"] or r["pads_different"])
+    return not (r["different"] or r["only_first"] or r["only_second"])
+
+
+def file_line(r: dict) -> str:
+    """One line on a run file's comparison."""
+    return (
+        f"{r['datasets']} datasets, {'bit-identical' if same_results(r) else 'DIFFERENT'}"
+        + (f"; differ: {r['different']}" if r["different"] else "")
+        + (f"; only in first: {r['only_first']}" if r["only_first"] else "")
+        + (f"; only in second: {r['only_second']}" if r["only_second"] else "")
+        + (f"; attributes differ: {r['attrs_different']}" if r["attrs_different"] else "")
+    )
+
+
+def sweep_line(r: dict) -> str:
+    """One line on a sweep's comparison: its pads, then its shard files."""
+    files = [f"{n}: {file_line(f)}" for n, f in r["files"].items() if not same_results(f) or f["attrs_different"]]
+    return (
+        f"{r['pads']} pads, {'bit-identical' if same_results(r) else 'DIFFERENT'}"
+        + (f"; pads differ: {r['pads_different']}" if r["pads_different"] else "")
+        + (f"; pads in one only: {r['pads_missing']}" if r["pads_missing"] else "")
+        + f"; {len(r['files'])} shard files in both"
+        + (f", {len(r['files_only_one'])} in one only" if r["files_only_one"] else "")
+        + (f", of which differ: {'; '.join(files)}" if files else ", bit-identical")
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("first", type=Path, help="first checkout (e.g. a worktree of the old commit)")
     ap.add_argument("second", type=Path, help="second checkout")
     ap.add_argument("--out", type=Path, required=True, help="folder for the run files and report.json")
-    ap.add_argument("--jobs", nargs="+", choices=sorted(JOBS), default=list(JOBS), help="jobs to run (default: all)")
+    ap.add_argument(
+        "--jobs", nargs="+", choices=sorted(JOBS | EXTRA_JOBS), default=list(JOBS), help="jobs to run (default: JOBS)"
+    )
+    ap.add_argument("--cache", type=Path, default=None, help="kernel caches kept here (default: a temporary folder)")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     report: dict[str, dict] = {}
     with tempfile.TemporaryDirectory() as tmp:
         views = [package_view(c.resolve(), Path(tmp) / f"v{i}") for i, c in enumerate((args.first, args.second))]
         for job in args.jobs:
-            files = [args.out / f"{job}_{i}.h5" for i in (0, 1)]
-            for view, path, i in zip(views, files, (0, 1), strict=True):
+            spec = (JOBS | EXTRA_JOBS)[job]
+            sweep = spec[0] == "sweep"
+            if job == "sweep_sizes":
+                (args.out / "sweep_sizes.toml").write_text(SWEEP_SIZES)
+            outs = [args.out / (f"{job}_{i}" if sweep else f"{job}_{i}.h5") for i in (0, 1)]
+            for view, path, i in zip(views, outs, (0, 1), strict=True):
+                if path.is_dir():
+                    shutil.rmtree(path)
                 path.unlink(missing_ok=True)
-                run_job(view, JOBS[job], path, Path(tmp) / f"cache{i}")
-            report[job] = compare(*files)
-            r = report[job]
-            ok = not (r["different"] or r["only_first"] or r["only_second"])
-            print(
-                f"{job}: {r['datasets']} datasets, {'bit-identical' if ok else 'DIFFERENT'}"
-                + (f"; differ: {r['different']}" if r["different"] else "")
-                + (f"; only in first: {r['only_first']}" if r["only_first"] else "")
-                + (f"; only in second: {r['only_second']}" if r["only_second"] else "")
-                + (f"; attributes differ: {r['attrs_different']}" if r["attrs_different"] else "")
-            )
+                cli = [arg.format(out=args.out.resolve()) for arg in spec]
+                run_job(view, cli + (["--quiet"] if sweep else []), path, (args.cache or Path(tmp)) / f"cache{i}")
+            report[job] = r = compare_sweeps(*outs) if sweep else compare(*outs)
+            print(f"{job}: " + (sweep_line(r) if sweep else file_line(r)))
     (args.out / "report.json").write_text(json.dumps(report, indent=1))
-    bad = any(r["different"] or r["only_first"] or r["only_second"] for r in report.values())
+    bad = any(not same_results(r) for r in report.values())
     return 1 if bad else 0
 
 

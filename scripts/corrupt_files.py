@@ -7,12 +7,18 @@ live, the rest drawn at random over the file and its last 4 kB) and cuts it at f
 in a subprocess. Outcomes: ``ok`` (exit 0: the flip hit data the command does not check), ``one line`` (exit 2
 or 4 with exactly one ``aca-warp: error:`` line), ``bad`` (anything else: a traceback, a crash, a hang).
 
+``--crafted`` instead feeds crafted files (well-formed HDF5 or TOML built to break a reader: nested, int and array
+``scene`` attributes, ``/global/mu`` as strings or a compound type, ``/global/time`` a group, a 2-D ``/patches/x``, a
+checkpoint array of another shape, datasets declaring 2^28 or 2^40 rows never written, external and soft links,
+TOML scenes and specs nested 20 000 deep) to every command that reads them; each must end with one line, exit 2.
+
 ``--formats N`` instead reads every dataset and attribute of the HF run after N random single-bit flips, once as
 written (HDF5 ``libver = earliest``, no filters) and once copied with ``libver = "v108"`` (checksummed object
 headers and index nodes) and the Fletcher-32 filter on every dataset: how many flips each format detects.
 
     python scripts/corrupt_files.py --flips 20          # ~10 minutes on the 2-core CPU container
     python scripts/corrupt_files.py --formats 120       # ~2 minutes
+    python scripts/corrupt_files.py --crafted           # 45 runs
 """
 
 from __future__ import annotations
@@ -26,10 +32,12 @@ import subprocess
 import sys
 import tempfile
 from collections import Counter
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
-REPO = Path(__file__).resolve().parent.parent
+import numpy as np
 
 HF_SCENE = """
 [scene]
@@ -96,9 +104,7 @@ COMMANDS = {
 
 
 def env() -> dict[str, str]:
-    e = dict(os.environ)
-    e.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
-    return e
+    return dict(os.environ)
 
 
 def build_inputs(root: Path) -> dict[str, Path]:
@@ -172,6 +178,154 @@ def one(command: str, src: Path, how: str, pos: int, root: Path) -> dict:
     return {"command": command, "how": how, "pos": pos, "exit": code, "outcome": outcome, "last": err.strip()[-300:]}
 
 
+# Crafted files: a run file (or scene, or spec) that is well-formed HDF5 (TOML) but built to break a reader, each
+# with the commands that read it. Every run must end with one ``aca-warp: error:`` line and exit 2.
+DEEP = 20_000  # nesting levels of the deeply nested JSON attribute and TOML arrays
+
+
+def _replace(f: Any, name: str, **kw: Any) -> None:
+    """Replace dataset ``name`` of the open file ``f`` by ``create_dataset(name, **kw)``."""
+    del f[name]
+    f.create_dataset(name, **kw)
+
+
+def _declared(rows: int) -> Callable[[Any], None]:
+    """Every dataset of /global and /patches replaced by a chunked one of the same dtype declaring ``rows`` rows
+    (its other dimensions kept), none of them written: a file of about its old size that declares terabytes."""
+
+    def mutate(f: Any) -> None:
+        names: list[str] = []
+        for g in ("global", "patches"):
+            names += [f"{g}/{k}" for k, d in f[g].items() if hasattr(d, "dtype")]
+        for name in names:
+            d = f[name]
+            shape, dtype = (rows, *d.shape[1:]), d.dtype
+            chunks = (4096, *(min(n, 64) for n in d.shape[1:]))
+            del f[name]
+            f.create_dataset(name, shape=shape, maxshape=(None, *shape[1:]), dtype=dtype, chunks=chunks)
+
+    return mutate
+
+
+def _checkpoint_shape(f: Any) -> None:
+    slot = f[f"checkpoint/slot{int(f['checkpoint'].attrs['active'])}/arrays/state"]
+    n = slot["u"].shape[0]
+    _replace(slot, "u", data=np.zeros(n + 3))
+
+
+def _external(f: Any) -> None:
+    import h5py
+
+    del f["global/mu"]
+    f["global/mu"] = h5py.ExternalLink("/etc/hostname", "/mu")
+
+
+def _soft(f: Any) -> None:
+    import h5py
+
+    del f["global/mu"]
+    f["global/mu"] = h5py.SoftLink("/global/mu")  # a link to itself
+
+
+def _mu_as(dtype: Any) -> Callable[[Any], None]:
+    def mutate(f: Any) -> None:
+        n = f["global/mu"].shape[0]
+        _replace(f, "global/mu", data=np.zeros(n, dtype=dtype))
+
+    return mutate
+
+
+def _time_group(f: Any) -> None:
+    del f["global/time"]
+    f["global"].create_group("time")
+
+
+def _patches_x_2d(f: Any) -> None:
+    x = f["patches/x"][()]
+    _replace(f, "patches/x", data=np.stack([x, x], axis=1))
+
+
+def _attr(name: str, value: Any) -> Callable[[Any], None]:
+    def mutate(f: Any) -> None:
+        f.attrs[name] = value
+
+    return mutate
+
+
+READERS = ("rerun", "analyze", "plot", "hf --resume")
+# case: (mutation of the open file, commands); each command reads its own input (COMMANDS: the finished HF run, or
+# the one stopped at its first checkpoint for hf --resume) and takes its argv from COMMANDS
+CRAFTED: dict[str, tuple[Callable[[Any], None], tuple[str, ...]]] = {
+    "nested scene attribute": (_attr("scene", "[" * DEEP + "]" * DEEP), READERS),
+    "scene attribute an int": (_attr("scene", 7), READERS),
+    "scene attribute an array": (_attr("scene", np.arange(3.0)), READERS),
+    "/global/mu as strings": (_mu_as("S8"), ("analyze", "plot", "hf --resume")),
+    "/global/mu a compound type": (_mu_as([("a", "f8"), ("b", "i4")]), ("analyze", "plot", "hf --resume")),
+    "/global/time a group": (_time_group, ("analyze", "plot", "hf --resume")),
+    "2-D /patches/x": (_patches_x_2d, READERS),
+    "checkpoint array of another shape": (_checkpoint_shape, ("hf --resume",)),
+    "2^28 rows declared": (_declared(2**28), READERS),
+    "2^40 rows declared": (_declared(2**40), READERS),
+    "external link": (_external, READERS),
+    "soft link": (_soft, READERS),
+}
+# TOML inputs nested 20 000 levels deep: (file, argv)
+DEEP_TOML = "x = " + "[" * DEEP + "]" * DEEP + "\n"
+CRAFTED_TOML = {
+    "nested hf scene": ("scene.toml", ["hf", "scene.toml", "-o", "out.h5"]),
+    "nested lf scene": ("lf.toml", ["lf", "lf.toml", "-o", "out.h5"]),
+    "nested sweep spec": ("spec.toml", ["sweep", "spec.toml", "-o", "sweep", "--workers", "0"]),
+}
+
+
+def crafted_trials(inputs: dict[str, Path]) -> list[tuple[str, str, Callable[[Path], list[str]]]]:
+    """(case, command, prepare) for every crafted case and command: ``prepare(folder)`` writes the crafted input
+    into ``folder`` and returns the argv to run there."""
+    import h5py
+
+    out = []
+    for case, (mutate, commands) in CRAFTED.items():
+        for command in commands:
+
+            def prepare(d: Path, mutate: Callable = mutate, command: str = command) -> list[str]:
+                src, name, argv = COMMANDS[command]
+                shutil.copy(inputs[src], d / name)
+                with h5py.File(d / name, "r+") as f:
+                    mutate(f)
+                return list(argv)
+
+            out.append((case, command, prepare))
+    for case, (name, argv) in CRAFTED_TOML.items():
+
+        def prepare_toml(d: Path, name: str = name, argv: list[str] = argv) -> list[str]:
+            text = HF_SCENE if name == "scene.toml" else LF_SCENE if name == "lf.toml" else ""
+            (d / name).write_text(text + ("\n[deep]\n" if name != "spec.toml" else "[sweep]\n") + DEEP_TOML)
+            return list(argv)
+
+        out.append((case, argv[0], prepare_toml))
+    return out
+
+
+def crafted(inputs: dict[str, Path], root: Path) -> list[dict]:
+    """Run every crafted trial in a subprocess; outcomes as :func:`one`'s."""
+    results = []
+    for case, command, prepare in crafted_trials(inputs):
+        d = root / f"crafted-{len(results)}"
+        d.mkdir()
+        argv = prepare(d)
+        r = subprocess.run(
+            [sys.executable, "-m", "aca_warp.cli", *argv], cwd=d, env=env(), capture_output=True, text=True, timeout=600
+        )
+        lines = [x for x in r.stderr.splitlines() if x.strip()]
+        one_line = r.returncode == 2 and len(lines) == 1 and lines[0].startswith("aca-warp: error:")
+        results.append(
+            {"case": case, "command": command, "exit": r.returncode, "outcome": "one line" if one_line else "bad",
+             "last": r.stderr.strip()[-300:]}
+        )  # fmt: skip
+        shutil.rmtree(d, ignore_errors=True)
+    return results
+
+
 READ_ALL = r"""
 import h5py, sys, hashlib
 try:
@@ -238,6 +392,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--flips", type=int, default=20, help="bit flips per command (default 20)")
     p.add_argument("--commands", default=",".join(COMMANDS), help="comma-separated subset of: " + ", ".join(COMMANDS))
     p.add_argument("--formats", type=int, default=0, metavar="N", help="compare detection of N flips by format")
+    p.add_argument("--crafted", action="store_true", help="run the crafted files instead of flips and cuts")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--jobs", type=int, default=2, help="commands run at once (default 2)")
     p.add_argument("--json", type=Path, help="write the results here")
@@ -246,6 +401,15 @@ def main(argv: list[str] | None = None) -> int:
     root = Path(tempfile.mkdtemp(prefix="aca-warp-corrupt-"))
     try:
         inputs = build_inputs(root)
+        if args.crafted:
+            res = crafted(inputs, root)
+            for r in res:
+                print(f"| {r['case']} | {r['command']} | {r['exit']} | {r['outcome']} |")
+                if r["outcome"] == "bad":
+                    print(f"BAD {r['case']} / {r['command']}: {r['last']}")
+            if args.json:
+                args.json.write_text(json.dumps(res, indent=1))
+            return 1 if any(r["outcome"] == "bad" for r in res) else 0
         if args.formats:
             res = formats(inputs["hf"], root, args.formats, rng)
             for label, c in res.items():

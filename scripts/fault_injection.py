@@ -7,9 +7,9 @@ trial, starts it in a subprocess and kills it with SIGKILL after a random delay 
 time, start-up included, so kills land before, during and after the file appears and between and inside
 checkpoints). The recovery then does what a user would:
 
-* HF / LF: ``--resume`` the ``.partial`` (or the stopped file); a run killed before its first checkpoint (``holds
-  no checkpoint``) or before its file existed runs again (``--overwrite``); with probability 1/2 the recovery
-  itself is killed at a random time too (at most ``--max-kills`` kills per trial) and recovered again;
+* HF / LF: ``--resume`` the ``.partial`` (or the stopped file; one killed before its first checkpoint starts again
+  from t = 0); a run killed before its file existed runs again; with probability 1/2 the recovery itself is killed
+  at a random time too (at most ``--max-kills`` kills per trial) and recovered again;
 * sweep: the same command again (a sweep resumes by design).
 
 With ``--signals INT,TERM`` (any of KILL, INT, TERM; default KILL) each kill of an HF or LF run sends one of these
@@ -52,8 +52,6 @@ import h5py
 import numpy as np
 
 from aca_warp.common.files import host_cpu
-
-REPO = Path(__file__).resolve().parent.parent
 
 HF_SCENE = """
 [scene]
@@ -136,7 +134,7 @@ class Workload:
 
 LIMITED = (
     "import resource, signal, sys; lim = int(sys.argv[1]); signal.signal(signal.SIGXFSZ, signal.SIG_IGN); "
-    "resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim)); from aca_warp.cli import main; sys.exit(main(sys.argv[2:]))"
+    "resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim)); from aca_warp.cli import run; run(sys.argv[2:])"
 )
 
 
@@ -175,9 +173,7 @@ def workloads(root: Path, quick: bool) -> list[Workload]:
 
 
 def env() -> dict[str, str]:
-    e = dict(os.environ)
-    e.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
-    return e
+    return dict(os.environ)
 
 
 def cli(args: list[str], cwd: Path, limit: int | None = None) -> subprocess.Popen:
@@ -297,9 +293,6 @@ def recover(
         else:
             code, err = run_to_end(args, cwd)
         t.recoveries.append(what)
-        if w.name != "sweep" and code == 2 and "holds no checkpoint" in err:
-            code, err = run_to_end([*w.start, "-o", str(out), "--overwrite"], cwd)  # killed before a checkpoint
-            t.recoveries.append("rerun --overwrite")
         return code, err
 
 

@@ -1,11 +1,15 @@
 #!/usr/bin/env python3
-"""Registers and stack frame of the on-chip HF kernel, per configuration, without a GPU.
+"""Registers, stack frame and code size of the on-chip HF kernels, per configuration, without a GPU.
 
-Builds :func:`aca_warp.kernels.hf_onchip.onchip_kernel` for one pad size, compiles each configuration to an
-sm_90 cubin with Warp's NVRTC (``wp.compile_aot_module``; no CUDA driver needed) and reads from the cubin's
-``.nv.info`` attributes the registers per thread (EIATTR_REGCOUNT) and the stack frame per thread in bytes
-(EIATTR_FRAME_SIZE: registers spilled to local memory and local arrays). A frame > 0 in a kernel that runs
-millions of steps means spill traffic in the step loop (docs/onchip.md, "Growing pads").
+Builds :func:`aca_warp.kernels.hf_onchip.onchip_kernel` (``--kernel strang``) or
+:func:`aca_warp.kernels.hf_onchip_adaptive.onchip_dp5_kernel` (``--kernel adaptive``, with the lanes and block size
+the on-chip adaptive engine picks on CUDA) for one pad size, compiles each configuration to an sm_90 cubin with
+Warp's NVRTC (``wp.compile_aot_module``; no CUDA driver needed) and reads from the cubin's ``.nv.info`` attributes
+the registers per thread (EIATTR_REGCOUNT) and the stack frame per thread in bytes (EIATTR_FRAME_SIZE: registers
+spilled to local memory and local arrays), and the size of the kernel's machine code (its ``.text`` section, 16 bytes
+per sm_90 instruction). A frame > 0 in a kernel that runs millions of steps means spill traffic in the step loop
+(docs/onchip.md, "Growing pads"). Two versions of the kernels that give the same three numbers in every
+configuration compiled to the same code up to the order of instructions.
 
 The register file of an SM is split over four schedulers of 16 384 registers each: a block of B threads gets at
 most 16384 / (32 · ceil(B / 128)) registers per thread (rounded down to 8): 128 for B = 385…512, 168 for B = 384.
@@ -14,6 +18,7 @@ Example::
 
     python scripts/onchip_registers.py                      # the hf1 pad size, K = 1, 2, 4, 8, with and without growth
     python scripts/onchip_registers.py --blocks 384 512 --clusters 1 --json regs.json
+    python scripts/onchip_registers.py --kernel adaptive --clusters 1 2 --precisions fp64
 """
 
 from __future__ import annotations
@@ -31,7 +36,8 @@ EIATTR_FRAME_SIZE = 0x11
 
 
 def cubin_info(path: Path) -> dict[str, int]:
-    """{"registers", "frame_bytes"} of the (one) kernel in a cubin, from its .nv.info sections."""
+    """{"registers", "frame_bytes", "text_bytes"} of the (one) kernel in a cubin, from its .nv.info and .text
+    sections."""
     d = path.read_bytes()
     if d[:4] != b"\x7fELF":
         raise ValueError(f"{path} is not an ELF cubin")
@@ -42,6 +48,8 @@ def cubin_info(path: Path) -> dict[str, int]:
     out: dict[str, int] = {}
     for sec in secs:
         name = d[names + sec[0] : d.index(b"\0", names + sec[0])].decode()
+        if name.startswith(".text."):
+            out["text_bytes"] = sec[5]
         if not name.startswith(".nv.info"):
             continue
         p, end = sec[4], sec[4] + sec[5]
@@ -64,6 +72,7 @@ def cubin_info(path: Path) -> dict[str, int]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--kernel", choices=["strang", "adaptive"], default="strang", help="which on-chip kernel")
     ap.add_argument("--preset", default="hf1", help="scene preset whose pad size is used (default hf1)")
     ap.add_argument("--clusters", type=int, nargs="+", default=[1, 2, 4, 8], help="blocks per pad (default 1 2 4 8)")
     ap.add_argument("--blocks", type=int, nargs="*", help="threads per block (default: the on-chip engine's choice)")
@@ -82,41 +91,75 @@ def main(argv: list[str] | None = None) -> int:
 
     wp.config.quiet = True
     wp.init()
-    from aca_warp.kernels.hf_onchip import onchip_kernel
 
     from aca_warp.hf.model import build_model
-    from aca_warp.hf.onchip_layout import default_block, pad_sizes, shared_bytes, smem_limit, tile_sizes
     from aca_warp.scene import preset
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for prec in args.precisions:
             model = build_model([preset(args.preset)], device="cpu", precision=prec)
-            dtype = model.dtype
             for k in args.clusters:
                 for growth in (False, True):
-                    for b in args.blocks or [default_block(pad_sizes(model, k)[0], k, growth, prec == "fp64")]:
-                        csr = shared_bytes(model, True, k, b) <= smem_limit(model, args.smem_per_block)
-                        kernel = onchip_kernel(
-                            dtype, *tile_sizes(model, k, b), csr, b, growth=growth, cluster=k, lanes=min(b, 32)
-                        )
-                        kernel.module.options["block_dim"] = b
-                        out = Path(tmp) / f"{prec}_{k}_{int(growth)}_{b}"
+                    configs = (_strang if args.kernel == "strang" else _adaptive)(model, k, growth, args)
+                    for row, kernel in configs:
+                        out = Path(tmp) / f"{prec}_{k}_{int(growth)}_{row['block_dim']}"
                         wp.compile_aot_module(kernel.module, arch=90, module_dir=out, use_ptx=False)
                         info = cubin_info(next(out.glob("*.cubin")))
-                        row = {"precision": prec, "cluster": k, "growth": growth, "block_dim": b, "csr_shared": csr}
-                        row.update(info)
+                        row = {"kernel": args.kernel, "precision": prec, "cluster": k, "growth": growth, **row, **info}
                         rows.append(row)
                         print(
-                            f"{prec} K={k} {'growth   ' if growth else 'no growth'} block {b:4d} "
-                            f"CSR {'on chip' if csr else 'global '}: "
-                            f"{info.get('registers', '?')} registers, stack frame {info.get('frame_bytes', 0)} B",
+                            f"{args.kernel} {prec} K={k} {'growth   ' if growth else 'no growth'} "
+                            f"block {row['block_dim']:4d} CSR {'on chip' if row['csr_shared'] else 'global '}"
+                            + (f" lanes {row['lanes']}" if "lanes" in row else "")
+                            + f": {info.get('registers', '?')} registers, stack frame {info.get('frame_bytes', 0)} B, "
+                            f"code {info.get('text_bytes', 0)} B",
                             flush=True,
                         )
     if args.json:
         meta = {"preset": args.preset, "warp_version": wp.__version__, "arch": "sm_90", "rows": rows}
         args.json.write_text(json.dumps(meta, indent=1))
     return 0
+
+
+def _strang(model, cluster: int, growth: bool, args) -> list:
+    """(row, kernel) of the on-chip strang kernel per block size (default: the engine's choice)."""
+    from aca_warp.kernels.hf_onchip import onchip_kernel
+
+    from aca_warp.hf.onchip_layout import default_block, pad_sizes, shared_bytes, smem_limit, tile_sizes
+
+    out = []
+    fp64 = model.precision == "fp64"
+    for b in args.blocks or [default_block(pad_sizes(model, cluster)[0], cluster, growth, fp64)]:
+        csr = shared_bytes(model, True, cluster, b) <= smem_limit(model, args.smem_per_block)
+        kernel = onchip_kernel(
+            model.dtype, *tile_sizes(model, cluster, b), csr, b, growth=growth, cluster=cluster, lanes=min(b, 32)
+        )
+        kernel.module.options["block_dim"] = b
+        out.append(({"block_dim": b, "csr_shared": csr}, kernel))
+    return out
+
+
+def _adaptive(model, cluster: int, growth: bool, args) -> list:
+    """(row, kernel) of the on-chip adaptive kernel with the lanes per patch and the block size that
+    :func:`aca_warp.hf.onchip_adaptive.layout` picks on CUDA (``--blocks``: those block sizes instead)."""
+    import numpy as np
+    from aca_warp.kernels.hf_onchip_adaptive import onchip_dp5_kernel
+
+    from aca_warp.hf.onchip_adaptive import BLOCK, EVAL_LANES
+    from aca_warp.hf.onchip_layout import adaptive_shared_bytes, pad_sizes, smem_limit
+
+    per_block = -(-int(np.diff(model.pad_patch_start_host).max()) // cluster)
+    lanes = EVAL_LANES if per_block * EVAL_LANES <= BLOCK else 1
+    nmax = -(-pad_sizes(model)[0] // 32) * 32
+    links = -(-pad_sizes(model, cluster)[1] // 32) * 32
+    links = links if adaptive_shared_bytes(model, cluster, links) <= smem_limit(model, args.smem_per_block) else 0
+    out = []
+    for b in args.blocks or [min(BLOCK, -(-per_block * lanes // 32) * 32)]:
+        kernel = onchip_dp5_kernel(model.dtype, cluster, b, lanes, nmax, links, frozenset(), growth)
+        kernel.module.options["block_dim"] = b
+        out.append(({"block_dim": b, "csr_shared": links > 0, "lanes": lanes}, kernel))
+    return out
 
 
 if __name__ == "__main__":

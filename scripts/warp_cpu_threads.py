@@ -7,7 +7,7 @@ Two threads of this process do what two shard tasks of an overlapped sweep would
 build done alone before (every model array, bit for bit), every run with its lone run (every recorded global
 sample); an exception, a difference or a fault counts as a failure. Run twice: ``free`` (the threads call Warp
 whenever they like, as a sweep did when the build was outside the device's turn) and ``turns`` (one lock around
-each build and each run, as ``aca_warp.sweep_overlap.KernelTurn`` holds it now). The pads are those of the
+each build and each run, as ``aca_warp.sweep.overlap.KernelTurn`` holds it now). The pads are those of the
 overlapped-sweep test (hf1, 20 patches, 400 µs at 1 µs samples, fp32, eight seeds × M).
 
     python scripts/warp_cpu_threads.py --seconds 90 --md warp_cpu_threads.md
@@ -48,7 +48,7 @@ class Work:
 
     def __init__(self) -> None:
         self.spec = load_spec(SPEC, base_dir=Path.cwd())
-        self.scenes = self.spec.scenes(0, self.spec.pad_count)
+        self.scenes = self.spec.scenes(range(self.spec.pad_count))
         s = self.spec
         self.options = RunOptions(duration=s.duration, integrator=s.integrator, dt=s.dt, tolerance=s.tolerance)
         self.built = [self.build(i) for i in range(len(self.scenes))]

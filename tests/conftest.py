@@ -1,24 +1,21 @@
-"""Shared test setup: Warp kernel cache, quiet Warp, the devices to test on, one kernel load per session.
+"""Shared test setup: quiet Warp, the devices to test on, one kernel load per session.
 
-``WARP_CACHE_PATH`` is set before anything imports warp, so that compiled kernels land in the git-ignored
-``<repo>/.warp_cache`` and are reused between runs. Tests that take a ``device`` argument are run once per
-entry of :data:`DEVICES` ("cpu", plus "cuda:0" where a CUDA device is present).
+Kernels compile into Warp's own kernel cache, the one ``aca-warp`` uses (``~/.cache/warp/<version>``, or
+``WARP_CACHE_PATH``): compiled once per machine and Warp version, by the tests or the command line, for every
+checkout. Tests that take a ``device`` argument are run once per entry of :data:`DEVICES` ("cpu", plus "cuda:0"
+where a CUDA device is present).
 """
 
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
-os.environ.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
-
-import warp as wp  # noqa: E402  (must follow the cache path)
+import warp as wp
 
 if hasattr(wp, "LOG_WARNING") and hasattr(wp.config, "log_level"):
     wp.config.log_level = wp.LOG_WARNING
 
-import pytest  # noqa: E402
+import pytest
 
 # ACA_WARP_TEST_DEVICES="cuda:0" restricts the device-parametrised tests (e.g. on a GPU machine whose Warp
 # build cannot compile CPU kernels); run them there with `-k cuda`.
@@ -35,13 +32,30 @@ def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
         metafunc.parametrize("device", DEVICES)
 
 
-@pytest.fixture(scope="session", autouse=True)
-def _load_kernels() -> None:
-    """Load (compile or fetch from the cache) the kernel modules once per device, before any test runs."""
-    import aca_warp.kernels.hf
-    import aca_warp.kernels.neighbours
+def _load(names: tuple[str, ...]) -> None:
+    """Load (compile, or fetch from the kernel cache) the kernel modules ``aca_warp.kernels.<name>`` on every device."""
+    import importlib
 
     wp.init()
-    for dev in DEVICES:
-        wp.load_module(aca_warp.kernels.hf, device=dev)
-        wp.load_module(aca_warp.kernels.neighbours, device=dev)
+    for name in names:
+        module = importlib.import_module(f"aca_warp.kernels.{name}")
+        for dev in DEVICES:
+            wp.load_module(module, device=dev)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Under pytest-xdist (``-n``): every test file runs on one worker (``--dist loadfile`` in place of the default
+    ``load``), so that a module's shared runs (its module-scoped fixtures) are made once, not once per worker; and
+    the kernel modules many tests load compile once, here in the controller before the workers start (on an empty
+    kernel cache every worker would otherwise compile them at the same time; the workers fetch them from the
+    cache)."""
+    if getattr(config, "workerinput", None) is None and getattr(config.option, "numprocesses", None):
+        if getattr(config.option, "dist", None) == "load":
+            config.option.dist = "loadfile"
+        _load(("hf", "neighbours", "hf_adaptive", "lf_contact", "lf_thermal", "lf_wear", "lf_patches", "lf_record"))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _load_kernels() -> None:
+    """Load the kernel modules nearly every test uses once per device, before any test runs."""
+    _load(("hf", "neighbours"))

@@ -8,14 +8,14 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import h5py
 import numpy as np
 
 from aca_warp.scene import Friction, Growth, Initial, Pad, Patches, Record, Scene
-
-REPO = Path(__file__).resolve().parent.parent
 
 
 def nine_patch_scene(*, increment: float, interval: float, sample_dt: float, duration: float) -> Scene:
@@ -41,7 +41,7 @@ def nine_patch_scene(*, increment: float, interval: float, sample_dt: float, dur
 # runs ``aca_warp.cli`` with RLIMIT_FSIZE = argv[1] bytes and SIGXFSZ ignored (writes past it fail with EFBIG)
 LIMITED = (
     "import resource, signal, sys; lim = int(sys.argv[1]); signal.signal(signal.SIGXFSZ, signal.SIG_IGN); "
-    "resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim)); from aca_warp.cli import main; sys.exit(main(sys.argv[2:]))"
+    "resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim)); from aca_warp.cli import run; run(sys.argv[2:])"
 )
 
 
@@ -74,10 +74,8 @@ def small_scene_toml(
 
 
 def env(**extra: str) -> dict[str, str]:
-    """The environment of a subprocess: the repository's kernel cache, plus ``extra``."""
-    e = {**os.environ, **extra}
-    e.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
-    return e
+    """The environment of a subprocess: this one's (the same kernel cache), plus ``extra``."""
+    return {**os.environ, **extra}
 
 
 def cli(args: list[str], *, limit: int | None = None, **extra: str) -> subprocess.CompletedProcess:
@@ -95,6 +93,20 @@ def start(args: list[str], **extra: str) -> subprocess.Popen:
         stderr=subprocess.PIPE,
         text=True,
     )
+
+
+@contextmanager
+def started(args: list[str], **extra: str) -> Iterator[subprocess.Popen]:
+    """:func:`start` for the body; killed (if still running) and its pipes closed after it."""
+    proc = start(args, **extra)
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()
 
 
 def wait_for(path: Path, proc: subprocess.Popen, *, poll: float = 0.0005, timeout: float = 120.0) -> None:

@@ -14,16 +14,23 @@ import h5py
 
 from aca_warp.common.checkpoint import has_checkpoint
 
-REPO = Path(__file__).resolve().parent.parent
+# ``aca_warp.cli`` with its automatic checkpoints from the first chunk or step end on (not after 30 s of wall time)
+AUTO_AT_ONCE = (
+    "-c",
+    "import sys; import aca_warp.common.checkpoint as c; c.AUTO_WALL_S = 0.0; from aca_warp.cli import main; "
+    "sys.exit(main(sys.argv[1:]))",
+)
 
 
-def kill_after_first_checkpoint(args: list[str], part: Path, *, poll: float) -> None:
-    """Run ``python -m aca_warp.cli ARGS`` and kill it with SIGKILL as soon as ``part`` (the run's ``.partial``)
-    holds a checkpoint; asserts that the run was still going then and died by the signal. ``poll`` [s]. The file
-    is read while the run is stopped (SIGSTOP), so the kill comes before the run can write anything more."""
+def kill_after_first_checkpoint(
+    args: list[str], part: Path, *, poll: float, python: tuple[str, ...] = ("-m", "aca_warp.cli")
+) -> None:
+    """Run ``python -m aca_warp.cli ARGS`` (``python``: the interpreter's arguments before ``ARGS``, e.g.
+    :data:`AUTO_AT_ONCE`) and kill it with SIGKILL as soon as ``part`` (the run's ``.partial``) holds a checkpoint;
+    asserts that the run was still going then and died by the signal. ``poll`` [s]. The file is read while the run
+    is stopped (SIGSTOP), so the kill comes before the run can write anything more."""
     env = {**os.environ, "HDF5_USE_FILE_LOCKING": "FALSE"}
-    env.setdefault("WARP_CACHE_PATH", str(REPO / ".warp_cache"))
-    proc = subprocess.Popen([sys.executable, "-m", "aca_warp.cli", *args], env=env, stderr=subprocess.PIPE)
+    proc = subprocess.Popen([sys.executable, *python, *args], env=env, stderr=subprocess.PIPE)
     deadline = time.monotonic() + 120
     checkpointed = False
     try:

@@ -124,3 +124,45 @@ def test_docs_name_no_issue_numbers_or_outside_files() -> None:
         if pattern.search(line)
     ]
     assert hits == []
+
+
+def _package_map(text: str) -> set[str]:
+    """Repository paths of the modules the package map of docs/architecture.md names: a ``### `folder/` `` heading,
+    then one table row ``| `module.py` | ... |`` per module."""
+    section = text.split("## Package map", 1)[1].split("\n## ", 1)[0]
+    named: set[str] = set()
+    folder = None
+    for line in section.splitlines():
+        heading = re.match(r"### `([\w/]+/)`", line)
+        row = re.match(r"\| `([\w.]+\.py)` \|", line)
+        if heading:
+            folder = heading.group(1)
+        elif row:
+            assert folder is not None, f"row before any folder heading: {line}"
+            named.add(folder + row.group(1))
+    return named
+
+
+def _needs_a_row(path: Path) -> bool:
+    """Every module but an ``__init__.py`` that holds only its docstring (and the ``__future__`` import)."""
+    if path.name != "__init__.py":
+        return True
+    body = ast.parse(path.read_text()).body
+    docstring = [n for n in body if isinstance(n, ast.Expr) and isinstance(n.value, ast.Constant)]
+    future = [n for n in body if isinstance(n, ast.ImportFrom) and n.module == "__future__"]
+    return len(body) > len(docstring) + len(future)
+
+
+def test_package_map_names_every_module() -> None:
+    """docs/architecture.md has a row for every module of aca_warp/ and kernels/, and no row for a missing one."""
+    named = _package_map((REPO / "docs" / "architecture.md").read_text())
+    files = {str(p.relative_to(REPO)) for root in ("aca_warp", "kernels") for p in (REPO / root).rglob("*.py")}
+    needed = {f for f in files if _needs_a_row(REPO / f)}
+    assert sorted(needed - named) == [], "modules without a row in docs/architecture.md"
+    assert sorted(named - files) == [], "rows of docs/architecture.md without a module"
+
+
+def test_package_map_reader_finds_rows() -> None:
+    text = "## Package map\n\n### `a/`\n\n| module | what |\n|---|---|\n| `b.py` | x |\n\n"
+    text += "### `a/c/`\n\n| `d.py` | y |\n"
+    assert _package_map(text + "\n## Next\n\n### `e/`\n\n| `f.py` | z |\n") == {"a/b.py", "a/c/d.py"}

@@ -9,11 +9,13 @@ import h5py
 import numpy as np
 import pytest
 from procs import small_scene_toml
-from sigkill import kill_after_first_checkpoint
+from sigkill import AUTO_AT_ONCE, kill_after_first_checkpoint
 
 from aca_warp.cli import main
+from aca_warp.common import checkpoint
 from aca_warp.common.checkpoint import has_checkpoint
 from aca_warp.hf import runner
+from aca_warp.hf.runfile import RunWriter
 
 SCENE = small_scene_toml("ckpt", count=40, duration=2.0e-5, perturbation=1.0e-3)
 
@@ -53,23 +55,22 @@ def scene_file(tmp_path: Path) -> Path:
 
 
 def test_sigkill_then_resume_is_bit_identical(scene_file: Path, tmp_path: Path) -> None:
-    """`aca-warp hf --checkpoint-interval` in a subprocess, killed with SIGKILL once the first checkpoint is on
-    disk: only RUN.h5.partial is left, it resumes with `hf --resume`, and the finished file equals an uninterrupted
-    run (no checkpoints) dataset for dataset, bit for bit."""
-    opts = ["--duration", "2e-3", "--sample-dt", "1e-6", "--record-patches", "velocity,displacement", "--no-progress"]
+    """`aca-warp hf` with its default, automatic checkpoints (here from the first chunk on) in a subprocess, killed with
+    SIGKILL once the first checkpoint is on disk: only RUN.h5.partial is left, it resumes with `hf --resume`, and
+    the finished file equals an uninterrupted run (no checkpoints) dataset for dataset, bit for bit."""
+    # 0.5 ms: the first automatic checkpoint comes at the first chunk end (2 µs), the run goes on ~0.5 s after it
+    opts = ["--duration", "5e-4", "--sample-dt", "1e-6", "--record-patches", "velocity,displacement", "--no-progress"]
     ref = tmp_path / "ref.h5"
-    assert main(["hf", str(scene_file), "-o", str(ref), *opts]) == 0
+    assert main(["hf", str(scene_file), "-o", str(ref), *opts, "--no-checkpoint"]) == 0
 
     out = tmp_path / "run.h5"
     part = tmp_path / "run.h5.partial"
-    kill_after_first_checkpoint(
-        ["hf", str(scene_file), "-o", str(out), *opts, "--checkpoint-interval", "1e-4"], part, poll=0.01
-    )
+    kill_after_first_checkpoint(["hf", str(scene_file), "-o", str(out), *opts], part, poll=0.01, python=AUTO_AT_ONCE)
     assert part.exists() and not out.exists()  # never a half-written final file
     with h5py.File(part, "r") as f:
         assert not f.attrs["complete"] and f.attrs["status"] == "running"
         at = float(f["checkpoint"].attrs["sim_time"])
-    assert 0 < at < 2e-3
+    assert 0 < at < 5e-4
     # a new run cannot clobber the unfinished one by accident
     assert main(["hf", str(scene_file), "-o", str(out), *opts]) == 2
 
@@ -122,6 +123,54 @@ def test_interrupted_run_resumes_bit_identical(integrator, extra, dt, engine, tm
         assert has_checkpoint(f) and 4e-6 <= f["checkpoint"].attrs["sim_time"] < 1e-5
     assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
     assert_same_file(out, ref)
+
+
+def test_a_default_run_resumes_after_ctrl_c(scene_file: Path, tmp_path: Path, monkeypatch, capsys) -> None:
+    """Without checkpoint options a run checkpoints automatically (here: AUTO_WALL_S = 0, from the first chunk on);
+    Ctrl-C names the checkpoint and the command that continues the run, which then equals an uninterrupted run.
+    A run stopped before its first checkpoint (the default 30 s of wall time not reached) says so and resumes
+    from its start; --no-checkpoint (or --checkpoint-interval 0) writes none."""
+    opts = ["--no-progress", "--duration", "1e-5", "--record-patches", "velocity"]
+    ref = tmp_path / "ref.h5"
+    assert main(["hf", str(scene_file), "-o", str(ref), *opts, "--checkpoint-interval", "0"]) == 0
+    real, written = runner.run_hf, []
+
+    def interrupted(*args, on_checkpoint=None, sink=None, **kw):
+        def ckpt(c):
+            on_checkpoint(c)
+            written.append(c.sim_time)
+            if len(written) == 1:
+                raise KeyboardInterrupt
+
+        def chunk(c):
+            sink(c)
+            if stop_at_first_chunk:
+                raise KeyboardInterrupt
+
+        return real(*args, on_checkpoint=ckpt, sink=chunk, **kw)
+
+    monkeypatch.setattr(runner, "run_hf", interrupted)
+    monkeypatch.setattr(checkpoint, "AUTO_WALL_S", 0.0)
+    for stop_at_first_chunk, flags, said in (
+        (False, [], "continue it from its checkpoint at t = "),
+        (True, [], "continue it from t = 0 with 'aca-warp hf --resume"),
+    ):
+        out = tmp_path / f"run{len(flags)}{stop_at_first_chunk}.h5"
+        capsys.readouterr()
+        assert main(["hf", str(scene_file), "-o", str(out), *opts, *flags]) == 130
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and said in err[0] and f"'aca-warp hf --resume {out}'" in err[0], err
+        monkeypatch.setattr(runner, "run_hf", real)
+        assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
+        assert "resumed" in capsys.readouterr().out
+        assert_same_file(out, ref)
+        monkeypatch.setattr(runner, "run_hf", interrupted)
+    written.clear()
+    monkeypatch.setattr(runner, "run_hf", real)
+    for flags in (["--no-checkpoint"], ["--checkpoint-interval", "0"]):
+        monkeypatch.setattr(RunWriter, "checkpoint", lambda self, c: written.append(c))
+        assert main(["hf", str(scene_file), "-o", str(tmp_path / "off.h5"), *opts, *flags, "--overwrite"]) == 0
+    assert written == []
 
 
 def test_resume_refusals(scene_file: Path, tmp_path: Path, capsys) -> None:
@@ -178,3 +227,46 @@ def test_closed_on_failure_closes_and_names_the_file(tmp_path: Path) -> None:
         pass
     assert f.id.valid
     f.close()
+
+
+def test_analysis_of_a_stopped_run_is_dropped_by_its_resume(tmp_path, monkeypatch) -> None:
+    """`analyze` of a stopped run records the samples and time range it describes (/analysis `samples`,
+    `time_range`); resuming the run drops that /analysis (before: it survived and described 0.58 of 2 ms of the
+    finished file); a stored analysis that does not fit the file's samples is not used by the figures."""
+    from procs import small_scene_toml
+
+    from aca_warp.analysis import report
+    from aca_warp.hf import runner
+
+    (tmp_path / "s.toml").write_text(small_scene_toml("stale", count=10, duration=4.0e-6, sample_dt=1.0e-7))
+    out = tmp_path / "run.h5"
+    real = runner.run_hf
+
+    def stop_at_second(*args, on_checkpoint=None, **kw):
+        seen = []
+
+        def ckpt(c):
+            on_checkpoint(c)
+            seen.append(c)
+            if len(seen) == 2:
+                raise KeyboardInterrupt
+
+        return real(*args, on_checkpoint=ckpt, **kw)
+
+    monkeypatch.setattr(runner, "run_hf", stop_at_second)
+    argv = ["hf", str(tmp_path / "s.toml"), "-o", str(out), "--no-progress", "--checkpoint-interval", "1e-6"]
+    assert main(argv) == 130
+    monkeypatch.undo()
+    report.analyze_run(out, sync=False)
+    with h5py.File(out, "r") as f:
+        n, t = f["global/time"].shape[0], f["global/time"][()]
+        a = f["analysis"].attrs
+        assert a["samples"] == n < 41 and list(a["time_range"]) == [t[0], t[-1]] and not a["run_complete"]
+        assert report.stored(f, "spectra")
+    with h5py.File(out, "r+") as f:
+        f["analysis"].attrs["samples"] = n + 1  # as an analysis of other samples
+    with h5py.File(out, "r") as f:
+        assert not report.stored(f, "spectra")
+    assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
+    with h5py.File(out, "r") as f:
+        assert f.attrs["complete"] and f["global/time"].shape == (41,) and "analysis" not in f

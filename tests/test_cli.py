@@ -62,7 +62,13 @@ def test_only_what_is_asked_is_recorded(scene_file, tmp_path):
     "argv, message",
     [
         (["hf", "nope", "-o", "{out}"], "neither a preset"),
-        (["hf", "{scene}", "-o", "{out}", "--integrator", "symplectic-euler", "--dt", "1e-6"], "stable-step"),
+        (["hf", "multiscale", "-o", "{out}"], "is an LF scene: run it with 'aca-warp lf multiscale -o LF.h5'"),
+        (["lf", "hf1", "-o", "{out}"], "is an HF scene: run it with 'aca-warp hf hf1 -o RUN.h5'"),
+        (
+            ["hf", "{scene}", "-o", "{out}", "--integrator", "symplectic-euler", "--dt", "1e-6", "--sample-dt", "1e-6"],
+            "stable-step",
+        ),
+        (["hf", "{scene}", "-o", "{out}", "--dt", "1e-6"], "shorter than the step"),
         (["hf", "{scene}", "-o", "{out}", "--sample-dt", "1e-3"], "exceeds the duration"),
         (["hf", "{scene}", "-o", "{out}", "--record-patches", "pressure"], "unknown variable"),
         (["hf", "{scene}", "-o", "{out}", "--device", "cuda:7"], "device"),
@@ -77,6 +83,20 @@ def test_bad_input_is_one_line_and_exit_2(argv, message, scene_file, tmp_path, c
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0] and err[0].startswith("aca-warp: error:")
     assert not out.exists() and not (tmp_path / "run.h5.partial").exists()
+
+
+@pytest.mark.parametrize("spelling", [["--duration", "-1e-4"], ["--duration=-1e-4"], ["--dt", "-.5"]])
+def test_negative_numbers_are_values_refused_as_not_positive(spelling, scene_file, tmp_path, capsys):
+    """A negative number in any notation is read as the option's value, in both spellings, and refused by the
+    option's own check (not "expected one argument"): exit 2, nothing written."""
+    out = tmp_path / "run.h5"
+    with pytest.raises(SystemExit) as e:
+        main(["hf", str(scene_file), "-o", str(out), *spelling])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    value = spelling[-1].split("=")[-1]
+    assert f"must be positive (> 0), got {value!r}" in err and "expected one argument" not in err
+    assert not out.exists()
 
 
 def test_existing_output_needs_overwrite(scene_file, tmp_path, capsys):

@@ -130,43 +130,59 @@ def test_sweep_folder_checked_before_the_spec(tmp_path, capsys) -> None:
     assert listing(tmp_path) == before
 
 
-def read_only(folder: Path, args: list[str]) -> subprocess.CompletedProcess | None:
-    """``aca-warp ARGS`` with ``folder`` read-only: as root (who passes every permission check, so ``chmod`` would
-    not do) through a read-only bind mount in a user namespace; otherwise a folder without write permission.
-    None when neither is possible here."""
+# runs ``aca_warp.cli.main`` on every argv of the JSON list argv[1] in this one process; prints [[code, stderr], ...]
+EACH = (
+    "import contextlib, io, json, sys\nfrom aca_warp.cli import main\nout = []\n"
+    "for argv in json.loads(sys.argv[1]):\n    err = io.StringIO()\n    with contextlib.redirect_stderr(err):\n"
+    "        out.append([main(argv), err.getvalue()])\nprint(json.dumps(out))"
+)
+
+
+def read_only(folder: Path, commands: list[list[str]]) -> list[tuple[int, str]] | None:
+    """Exit code and stderr of each ``aca-warp`` command line of ``commands``, run one after another in one process
+    with ``folder`` read-only: as root (who passes every permission check, so ``chmod`` would not do) through a
+    read-only bind mount in a user namespace; otherwise a folder without write permission. None when neither is
+    possible here."""
+    import json
+
+    argv = [sys.executable, "-c", EACH, json.dumps(commands)]
     if os.geteuid() != 0:
         folder.chmod(0o555)
         try:
             if os.access(folder, os.W_OK):
                 return None
-            return cli(args)
+            r = subprocess.run(argv, env=env(), capture_output=True, text=True, timeout=300)
         finally:
             folder.chmod(0o755)
-    if shutil.which("unshare") is None:
-        return None
-    mount = 'mount --bind "$1" "$1" && mount -o remount,bind,ro "$1" || exit 99; shift; exec "$@"'
-    cmd = ["unshare", "-rm", "sh", "-c", mount, "sh", str(folder), sys.executable, "-m", "aca_warp.cli", *args]
-    r = subprocess.run(cmd, env=env(), capture_output=True, text=True, timeout=300)
-    return None if r.returncode == 99 else r
+    else:
+        if shutil.which("unshare") is None:
+            return None
+        mount = 'mount --bind "$1" "$1" && mount -o remount,bind,ro "$1" || exit 99; shift; exec "$@"'
+        r = subprocess.run(["unshare", "-rm", "sh", "-c", mount, "sh", str(folder), *argv], env=env(),
+                           capture_output=True, text=True, timeout=300)  # fmt: skip
+        if r.returncode == 99:
+            return None
+    assert r.returncode == 0, r.stderr
+    return [(int(code), err) for code, err in json.loads(r.stdout.strip().splitlines()[-1])]
 
 
-@pytest.mark.parametrize("kind", ["hf", "lf", "rerun", "plot", "analyze"])
-def test_read_only_folder(tmp_path, runs, kind) -> None:
-    """Exit 4 and one line before any simulation; the folder as it was (analyze: the run file unchanged)."""
+def test_read_only_folder(tmp_path, runs) -> None:
+    """hf, lf, rerun, plot and analyze with their output folder read-only: exit 4 and one line each, before any
+    simulation; the folder as it was (analyze: the run file unchanged). One process runs the five commands."""
     ro = tmp_path / "ro"
     ro.mkdir()
-    if kind == "analyze":
-        shutil.copy(runs["run"], ro / "run.h5")
-        args = ["analyze", str(ro / "run.h5")]
-    else:
-        args = command(kind, runs, str(ro / ("figs" if kind == "plot" else "run.h5")))
+    shutil.copy(runs["run"], ro / "run.h5")
+    kinds = ["hf", "lf", "rerun", "plot"]
+    commands = [command(k, runs, str(ro / ("figs" if k == "plot" else f"{k}.h5"))) for k in kinds]
+    commands.append(["analyze", str(ro / "run.h5")])
     before = {p: (ro / p).read_bytes() for p in listing(ro)}
-    r = read_only(ro, args)
-    if r is None:
+    results = read_only(ro, commands)
+    if results is None:
         pytest.skip("no way to make a folder read-only here (no user namespaces, and root ignores permissions)")
-    lines = error_lines(r.stderr)
-    assert r.returncode == 4 and len(lines) == 1, r.stderr
-    assert "read-only file system" in lines[0] or "permission denied" in lines[0], lines
+    for kind, (code, err) in zip([*kinds, "analyze"], results, strict=True):
+        lines = error_lines(err)
+        assert code == 4 and len(lines) == 1, (kind, err)
+        assert "read-only file system" in lines[0] or "permission denied" in lines[0], (kind, lines)
     assert {p: (ro / p).read_bytes() for p in listing(ro)} == before
 
 
@@ -198,7 +214,7 @@ def test_rerun_file_size_limit_then_resume(tmp_path: Path, refs) -> None:
     r = cli(["rerun", str(ref), "-o", str(out), "--no-progress", "--checkpoint-interval", "1e-4"], limit=1_300_000)
     lines = error_lines(r.stderr)
     assert r.returncode == 4 and len(lines) == 1, r.stderr
-    assert "file size limit reached" in lines[0] and f"continue with 'aca-warp hf --resume {out}'" in lines[0]
+    assert "file size limit reached" in lines[0] and f"with 'aca-warp hf --resume {out}'" in lines[0]
     assert (tmp_path / "again.h5.partial").exists() and not out.exists()
     assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
     assert_same_datasets(out, ref)
@@ -470,3 +486,29 @@ def test_python_api_names_parameters_and_the_cli_flags(tmp_path, capsys, runs) -
     err = one_line(capsys)
     assert len(err) == 1 and "pass --overwrite to replace it" in err[0] and "overwrite=True" not in err[0]
     assert out.read_bytes() == b"precious"
+
+
+# a signal while the process cleans up after the command: sent by an atexit hook, registered first so that it runs last
+AT_EXIT = (
+    "import atexit, os, runpy, sys; sig = int(sys.argv[1]); "
+    "atexit.register(lambda: os.kill(os.getpid(), sig)); "
+    "sys.argv = ['aca-warp', *sys.argv[2:]]; runpy.run_module('aca_warp.cli', run_name='__main__')"
+)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_while_the_process_exits(tmp_path: Path, sig: int) -> None:
+    """A SIGINT or SIGTERM after the command's work, while the process runs its exit clean-ups (the window of
+    ≈ 0.5 s of interpreter shutdown in which it used to die with −2 or −15, or exit 143 without a word): exit
+    128 + signal and one line saying the command had ended and with which code; the run file complete."""
+    (tmp_path / "s.toml").write_text(small_scene_toml("late", count=10, duration=2.0e-6))
+    out = tmp_path / "run.h5"
+    args = ["hf", str(tmp_path / "s.toml"), "-o", str(out), "--no-progress"]
+    r = subprocess.run([sys.executable, "-c", AT_EXIT, str(int(sig)), *args], env=env(), capture_output=True, text=True)
+    lines = error_lines(r.stderr)
+    assert r.returncode == 128 + sig and len(lines) == 1, (r.returncode, r.stderr)
+    name = "SIGTERM" if sig == signal.SIGTERM else "Ctrl-C"
+    assert lines[0].startswith(f"aca-warp: interrupted ({name}) as it exited, after the command ended with exit code 0")
+    assert r.stdout.startswith(f"{out}: 21 samples")
+    with h5py.File(out, "r") as f:
+        assert f.attrs["complete"]

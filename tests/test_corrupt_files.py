@@ -15,6 +15,7 @@ from pathlib import Path
 import h5py
 import pytest
 from procs import small_scene_toml
+from scriptload import load_script
 from test_lf_checkpoint import SCENE as LF_SCENE
 
 from aca_warp.cli import main
@@ -137,3 +138,21 @@ def test_damaged_sweep_shard(files, tmp_path, capsys) -> None:
     assert load_sweep(d)["mu"].shape[0] == 2
     with h5py.File(d / "shard-00001.h5", "r") as f:
         assert f.attrs["complete"]
+
+
+CORRUPT = load_script("corrupt_files")
+CRAFTED = [(case, command) for case, command, _ in CORRUPT.crafted_trials({})]
+
+
+@pytest.mark.parametrize("index", range(len(CRAFTED)), ids=[f"{c} / {m}" for c, m in CRAFTED])
+def test_crafted_input_gives_one_line(index, files, tmp_path, capsys, monkeypatch) -> None:
+    """Every crafted file of scripts/corrupt_files.py (a `scene` attribute nested 20 000 deep, an int or an array;
+    /global/mu as strings or a compound type; /global/time a group; a 2-D /patches/x; a checkpoint array of
+    another shape; datasets declaring 2^28 or 2^40 rows, never written; an external or a soft link; TOML scenes
+    and specs nested 20 000 deep), fed to each command that reads it: one line, exit 2, nothing written."""
+    case, command, prepare = CORRUPT.crafted_trials(files)[index]
+    monkeypatch.chdir(tmp_path)
+    argv = prepare(tmp_path)
+    one_error_line(capsys, argv)
+    assert not (tmp_path / "out.h5").exists() and not (tmp_path / "sweep").exists()
+    assert not list(tmp_path.glob("*.partial")) and not list(tmp_path.glob("figs/*"))

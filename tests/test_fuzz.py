@@ -23,9 +23,8 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from aca_warp.cli import main
-from aca_warp.scene import _TABLES
+from aca_warp.scene.files import _TABLES
 
-REPO = Path(__file__).resolve().parent.parent
 FUZZ = settings(
     derandomize=True,
     deadline=None,
@@ -225,7 +224,7 @@ def test_not_hdf5_and_subprocess(tmp_path, capsys):
     )
     check_outcome(code, err, out)
     assert code == 2 and "cannot read patch file" in err
-    env = {**os.environ, "WARP_CACHE_PATH": os.environ.get("WARP_CACHE_PATH", str(REPO / ".warp_cache"))}
+    env = dict(os.environ)
     (tmp_path / "broken.toml").write_text("[load\nnormal_force = 1")
     write_patches(tmp_path / "patches.h5", {"x": "nan"})
     (tmp_path / "nan.toml").write_text(toml_text({**BASE, "patches": {"file": "patches.h5"}}))

@@ -156,17 +156,10 @@ def test_lf_resume_of_bad_files(tmp_path, capsys):
     with h5py.File(hf_like, "w") as f:
         f.attrs["kind"] = "lf"
         f.attrs["scene"] = "{"
-    damaged = tmp_path / "dmg.h5"
-    code, err, out = run_lf_cli(lf_text(*_lf()), tmp_path, capsys, "--checkpoint-interval", "0.01")
-    assert code == 0
-    with h5py.File(out, "r+") as f:  # a stopped run whose checkpoint lost an array
-        f.attrs["complete"] = False
-    out.rename(damaged)
     for argv, message in (
         (["lf", "--resume", str(junk)], "cannot open"),
-        (["lf", "--resume", str(hf_like)], "incomplete or damaged"),
-        (["lf", "--resume", str(damaged)], "no checkpoint"),
-        (["rerun", str(hf_like), "-o", str(tmp_path / "r.h5")], "incomplete or damaged"),
+        (["lf", "--resume", str(hf_like)], "attribute 'scene' is not valid JSON"),
+        (["rerun", str(hf_like), "-o", str(tmp_path / "r.h5")], "attribute 'scene' is not valid JSON"),
     ):
         capsys.readouterr()
         assert main(argv) == 2, argv

@@ -281,6 +281,7 @@ def test_device_contact_resolve_with_spread_heights():
     on either side of the root; patches out of contact get exactly 0."""
     import warp as wp
     from aca_warp.kernels.hf import contact_flat
+    from aca_warp.kernels.hf_types import HFModel
 
     from aca_warp.hf.model import build_model
 
@@ -289,7 +290,6 @@ def test_device_contact_resolve_with_spread_heights():
     m = model.arrays
     k, h = scene_elements(s)
     win = load_window(s)
-    names = ("pad_patch_start", "k_n", "height", "area", "radius", "pad_area", "pad_moment", "pad_k_m", "pad_load")
     for load in (1e-3, 2.0, 0.3 * win.all_in_contact, 1.02 * win.all_in_contact, 0.5 * win.matrix_contact, 3e4):
         for warm in (-5e-6, 3.4e-6, 10e-6):  # left of every root, inside the heights, right of every root
             m["pad_load"].assign(np.array([load]))
@@ -297,12 +297,15 @@ def test_device_contact_resolve_with_spread_heights():
             fn = wp.zeros_like(m["normal_force"])
             mf = wp.zeros_like(m["pad_matrix_force"])
             mr = wp.zeros_like(m["pad_matrix_radius"])
+            km = HFModel.of(
+                wp.float64, {**m, "pad_gap": gap, "normal_force": fn, "pad_matrix_force": mf, "pad_matrix_radius": mr}
+            )
             wp.launch_tiled(
                 contact_flat,
                 dim=[1],
                 block_dim=1,
                 device="cpu",
-                inputs=[*(m[n] for n in names), wp.zeros(1, dtype=wp.int64, device="cpu"), 1, 1, gap, fn, mf, mr],
+                inputs=[km, wp.zeros(1, dtype=wp.int64, device="cpu"), 1, 1],
             )
             ref = solve_scene_contact(s.replace(normal_force=load))
             assert gap.numpy()[0] == pytest.approx(ref.gap, rel=1e-12, abs=1e-20)

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 import warp as wp
-from aca_warp.kernels import hf as K
+from aca_warp.kernels.physics import friction_substep
 from scipy.integrate import solve_ivp
 
 from aca_warp.common.errors import SceneError, SimulationFault, StabilityError
@@ -368,12 +368,12 @@ def test_friction_solve_fp32_residual():
 
 
 def _midpoint_kernel_for(T):
-    """A kernel applying kernels.hf.midpoint_friction to 0.05 mm² patches with F_N = 1 N at 10 m/s."""
+    """A kernel applying kernels.physics.friction_substep to 0.05 mm² patches with F_N = 1 N at 10 m/s."""
 
     @wp.kernel(enable_backward=False, module="unique")
     def kernel(v_in: wp.array(dtype=T), dt: T, tol: T, v_out: wp.array(dtype=T)):
         i = wp.tid()
-        v_out[i] = K.midpoint_friction(
+        v_out[i] = friction_substep(
             v_in[i], dt, T(37.5 * 5e-8), T(0.0), T(1.0), T(10.0), T(0.8 / 3.141592653589793), T(200.0), T(0.25), tol
         )
 
@@ -381,6 +381,54 @@ def _midpoint_kernel_for(T):
 
 
 _midpoint_kernel = {T: _midpoint_kernel_for(T) for T in (wp.float32, wp.float64)}
+
+
+@wp.kernel(enable_backward=False, module="unique")
+def _substep_kernel(
+    v_in: wp.array(dtype=wp.float64),
+    dt: wp.array(dtype=wp.float64),
+    m: wp.array(dtype=wp.float64),
+    c: wp.array(dtype=wp.float64),
+    fn: wp.array(dtype=wp.float64),
+    vd: wp.array(dtype=wp.float64),
+    v_out: wp.array(dtype=wp.float64),
+):
+    i = wp.tid()
+    v_out[i] = friction_substep(
+        v_in[i], dt[i], m[i], c[i], fn[i], vd[i], wp.float64(0.8 / 3.141592653589793), wp.float64(200.0),
+        wp.float64(0.25), wp.float64(1e-12),
+    )  # fmt: skip
+
+
+def test_friction_substep_solves_the_implicit_midpoint_equation():
+    """friction_substep returns 2 v_m − v where v_m solves m (v_m − v) = dt/2 (F_N f(v_d − v_m) − c v_m), found here
+    by SciPy's brentq on the same equation, from sliding to sticking and from small steps to steps 1000× the
+    friction relaxation time m / (F_N max|f′|) (where the solve must bisect)."""
+    from scipy.optimize import brentq
+
+    rng = np.random.default_rng(3)
+    n = 200
+    m = 37.5 * rng.uniform(2e-8, 8e-8, n)  # kg: 2-8e-8 m² at 37.5 kg/m²
+    fn = rng.uniform(0.1, 5.0, n)
+    relax = m / (fn * 0.8 / np.pi * 200.0 * 2.0)  # m / (F_N max|f'|), f'(0) = 2 (M/π) a
+    dt = relax * 10.0 ** rng.uniform(-3, 3, n)
+    c = rng.uniform(0.0, 1e-3, n)
+    vd = rng.uniform(0.0, 20.0, n)
+    v = vd + rng.uniform(-0.05, 0.05, n) * np.where(rng.uniform(size=n) < 0.5, 1.0, 100.0)
+    arrays = [wp.array(a, dtype=wp.float64, device="cpu") for a in (v, dt, m, c, fn, vd)]
+    out = wp.zeros(n, dtype=wp.float64, device="cpu")
+    wp.launch(_substep_kernel, dim=n, inputs=arrays, outputs=[out], device="cpu")
+    got = out.numpy()
+    for i in range(n):
+        h = 0.5 * dt[i]
+
+        def g(vm, i=i, h=h):
+            return m[i] * (vm - v[i]) - h * (fn[i] * friction_eq4(vd[i] - vm) - c[i] * vm)
+
+        bound = (abs(v[i]) + h * fn[i] * 0.8 / m[i] + 1.0) * 2.0
+        vm = brentq(g, -bound, bound, xtol=1e-15, rtol=1e-15)
+        scale = abs(v[i] - (2.0 * vm - v[i])) + 1e-12 * abs(v[i]) + 1e-15
+        assert abs(got[i] - (2.0 * vm - v[i])) <= 1e-8 * scale + 1e-13, (i, got[i], 2.0 * vm - v[i])
 
 
 def test_equilibrium_start_stays_at_rest():

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from aca_warp.studies import hf_study
+from aca_warp.studies.hf_study.base import fit_power_law, isolated_frequency
+from aca_warp.studies.hf_study.cli import main
 
 
 def test_fit_power_law():
@@ -19,10 +20,10 @@ def test_fit_power_law():
     import numpy as np
 
     a = np.array([5e-8, 1.25e-7, 3e-7, 6e-7, 1.25e-6])
-    fit = hf_study.fit_power_law(a, 2.0 * a**-0.25)
+    fit = fit_power_law(a, 2.0 * a**-0.25)
     assert fit["exponent"] == pytest.approx(-0.25, abs=1e-12)
     assert fit["stderr"] == pytest.approx(0.0, abs=1e-9)
-    two = hf_study.fit_power_law(a[:2], np.array([73e3, 60e3]))
+    two = fit_power_law(a[:2], np.array([73e3, 60e3]))
     assert math.isfinite(two["exponent"]) and two["stderr"] is None
 
 
@@ -33,12 +34,12 @@ def test_isolated_frequency():
 
     from aca_warp.scene import Material
 
-    assert hf_study.isolated_frequency(5e-8, Material()) == pytest.approx(75.2e3, rel=2e-3)
-    assert hf_study.isolated_frequency(1.25e-6) == pytest.approx(33.6e3, rel=2e-3)
-    both = hf_study.isolated_frequency(np.array([5e-8, 1.25e-6]))
-    np.testing.assert_allclose(both, [hf_study.isolated_frequency(5e-8), hf_study.isolated_frequency(1.25e-6)])
+    assert isolated_frequency(5e-8, Material()) == pytest.approx(75.2e3, rel=2e-3)
+    assert isolated_frequency(1.25e-6) == pytest.approx(33.6e3, rel=2e-3)
+    both = isolated_frequency(np.array([5e-8, 1.25e-6]))
+    np.testing.assert_allclose(both, [isolated_frequency(5e-8), isolated_frequency(1.25e-6)])
     stiffer = Material(K_T=4 * Material().K_T)
-    assert hf_study.isolated_frequency(5e-8, stiffer) == pytest.approx(2 * hf_study.isolated_frequency(5e-8))
+    assert isolated_frequency(5e-8, stiffer) == pytest.approx(2 * isolated_frequency(5e-8))
 
 
 def test_script_help():
@@ -51,7 +52,7 @@ def test_script_help():
 def test_tiny_study(tmp_path, capsys):
     """Four presets with 30 patches and two sweep points: summaries, page and figures are written."""
     out = tmp_path / "study"
-    rc = hf_study.main(
+    rc = main(
         [
             "--device", "cpu", "--quick", "--duration", "1.2e-4", "--transient", "2e-5", "--dt", "2e-8",
             "--patches", "30", "--sweep-areas", "0.05", "1.25", "--figures", "spectra", "sync",

@@ -10,7 +10,9 @@ import copy
 
 import numpy as np
 import pytest
-from aca_warp.kernels import lf as K
+from aca_warp.kernels.lf_record import H_LOAD, H_PASSES, H_SIZE
+from aca_warp.kernels.lf_types import G_LOAD, LF_BLOCK, LFCells, LFRings
+from aca_warp.kernels.lf_wear import debris_sweep
 
 from aca_warp.hf.contact import solve_contact, solve_scene_contact
 from aca_warp.lf.scene import lf_scene_from_dict, step_table
@@ -95,7 +97,7 @@ def test_contact_force_balance_matches_exact_solve():
     sim.run(30)
     sim.resolve()
     g = sim.glob.numpy()
-    load = g[K.G_LOAD]
+    load = g[G_LOAD]
     fn_cells, fn_patch = sim.cell_fn.numpy(), sim.patch_fn.numpy()[sim.alive.numpy() != 0]
     assert fn_cells.sum() + fn_patch.sum() == pytest.approx(load, rel=1e-11)
     # independent reference: the exact piecewise-linear solve of aca_warp.hf.contact on the same springs
@@ -233,8 +235,8 @@ def test_block_kernels_with_cpu_fibers_match_one_thread_blocks():
     try:
         for fibers in (False, True):
             wp.config.enable_cpu_blocks = fibers
-            sim = LFSimulation(_scene(cell=4.0e-5), device="cpu", duration=0.3)
-            assert sim.n_t > K.LF_BLOCK and sim.threads == (K.LF_BLOCK if fibers else 1)
+            sim = LFSimulation(_scene(cell=4.0e-5), device="cpu", duration=0.15)
+            assert sim.n_t > LF_BLOCK and sim.threads == (LF_BLOCK if fibers else 1)
             sim.run()
             runs.append((sim.patches_host(), sim.hist.numpy(), sim.cell_store.numpy()))
     finally:
@@ -243,12 +245,12 @@ def test_block_kernels_with_cpu_fibers_match_one_thread_blocks():
     assert len(pa["x"]) == len(pb["x"]) and np.any(sa > 0)
     for k in pa:
         np.testing.assert_allclose(pa[k], pb[k], rtol=1e-9, atol=1e-18)
-    cols = [k for k in range(K.H_SIZE) if k != K.H_PASSES]  # sums in another order may need one pass more or less
+    cols = [k for k in range(H_SIZE) if k != H_PASSES]  # sums in another order may need one pass more or less
     np.testing.assert_allclose(ha[:, cols], hb[:, cols], rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(sa, sb, rtol=1e-9, atol=1e-21)
     # the contact solve stops at the rounding floor instead of running all lf.contact_iterations (40) passes
-    loaded = ha[:, K.H_LOAD] > 0
-    assert np.all(ha[loaded, K.H_PASSES] >= 2) and ha[:, K.H_PASSES].max() <= 6 and hb[:, K.H_PASSES].max() <= 6
+    loaded = ha[:, H_LOAD] > 0
+    assert np.all(ha[loaded, H_PASSES] >= 2) and ha[:, H_PASSES].max() <= 6 and hb[:, H_PASSES].max() <= 6
 
 
 @pytest.mark.parametrize("fibers", [False, True])
@@ -259,7 +261,7 @@ def test_debris_sweep_matches_a_serial_reference(fibers):
 
     sim = LFSimulation(_scene(cell=4.0e-5), device="cpu", duration=0.1)
     p, R, T = sim.params, sim.n_r, sim.n_t
-    assert T > K.LF_BLOCK
+    assert T > LF_BLOCK
     rng = np.random.default_rng(5)
     C = R * T
     area = rng.uniform(1e-9, 2e-9, C)
@@ -272,14 +274,16 @@ def test_debris_sweep_matches_a_serial_reference(fibers):
            dict(area=area, cover=cover, chord=chord, fn=fn, src=src, store=store).items()}  # fmt: skip
     cap = wp.zeros(C, dtype=wp.float64, device="cpu")
     emit = wp.zeros(R, dtype=wp.float64, device="cpu")
+    cells, rings = LFCells(), LFRings()
+    for k, v in arr.items():
+        setattr(cells, k, v)
+    cells.capture, rings.emit = cap, emit
     old = wp.config.enable_cpu_blocks
     try:
         wp.config.enable_cpu_blocks = fibers
         wp.launch_tiled(
-            K.debris_sweep, dim=[R], block_dim=K.LF_BLOCK, device="cpu",
-            inputs=[p, K.LF_BLOCK if fibers else 1, arr["area"], arr["cover"], arr["chord"], arr["fn"], arr["src"],
-                    arr["store"], cap, emit],
-        )  # fmt: skip
+            debris_sweep, dim=[R], block_dim=LF_BLOCK, device="cpu", inputs=[p, LF_BLOCK if fibers else 1, cells, rings]
+        )
     finally:
         wp.config.enable_cpu_blocks = old
     want_cap, want_store, want_emit = np.zeros(C), store.copy(), np.zeros(R)

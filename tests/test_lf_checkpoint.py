@@ -12,7 +12,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from sigkill import kill_after_first_checkpoint
+from sigkill import AUTO_AT_ONCE, kill_after_first_checkpoint
 
 from aca_warp.cli import main
 from aca_warp.common.checkpoint import has_checkpoint
@@ -93,17 +93,18 @@ def scene_file(tmp_path: Path, first: float) -> Path:
 
 
 def test_sigkill_then_resume_is_bit_identical(tmp_path: Path) -> None:
-    """`aca-warp lf --checkpoint-interval` in a subprocess, killed with SIGKILL once the first checkpoint is in the
-    .partial: only LF.h5.partial is left, a new run refuses to clobber it, `lf --resume LF.h5.partial` finishes it,
-    and the file equals an uninterrupted run (no checkpoints) dataset for dataset, bit for bit."""
+    """`aca-warp lf` with its default, automatic checkpoints (here from the first step on) in a subprocess, killed
+    with SIGKILL once the first checkpoint is in the .partial: only LF.h5.partial is left, a new run refuses to
+    clobber it, `lf --resume LF.h5.partial` finishes it, and the file equals an uninterrupted run (no checkpoints)
+    dataset for dataset, bit for bit."""
     scene = scene_file(tmp_path, 12.0)  # 1250 steps, ~1 s of stepping
     ref = tmp_path / "ref.h5"
-    assert main(["lf", str(scene), "-o", str(ref), "--no-progress"]) == 0
+    assert main(["lf", str(scene), "-o", str(ref), "--no-progress", "--no-checkpoint"]) == 0
 
     out = tmp_path / "run.h5"
     part = tmp_path / "run.h5.partial"
     kill_after_first_checkpoint(
-        ["lf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "0.3"], part, poll=0.005
+        ["lf", str(scene), "-o", str(out), "--no-progress"], part, poll=0.005, python=AUTO_AT_ONCE
     )
     assert part.exists() and not out.exists()  # never a half-written final file
     with h5py.File(part, "r") as f:
@@ -156,8 +157,9 @@ def test_interrupted_run_resumes_and_reruns_bit_identical(tmp_path: Path, monkey
 
 
 def test_lf_output_and_resume_refusals(tmp_path: Path, capsys) -> None:
-    """Existing output without --overwrite, an unfinished .partial, --resume with options, a complete run, no
-    checkpoint: exit 2 with one line each, files untouched; --overwrite replaces."""
+    """Existing output without --overwrite, an unfinished .partial, --resume with options, a complete run: exit 2
+    with one line each, files untouched; a stopped run without a checkpoint resumes from its start; --overwrite
+    replaces."""
     scene = scene_file(tmp_path, 0.1)
     done = tmp_path / "done.h5"
     assert main(["lf", str(scene), "-o", str(done), "--no-progress"]) == 0
@@ -166,7 +168,7 @@ def test_lf_output_and_resume_refusals(tmp_path: Path, capsys) -> None:
     (tmp_path / "half.h5.partial").write_bytes(b"")
     cases = [
         (["lf", str(scene), "-o", str(done)], "pass --overwrite"),
-        (["lf", str(scene), "-o", str(tmp_path / "half.h5")], "lf --resume"),
+        (["lf", str(scene), "-o", str(tmp_path / "half.h5")], "cannot be read back (empty or damaged)"),
         (["lf", "--resume", str(done)], "complete run"),
         (["lf", "--resume", str(done), "--seed", "3"], "drop --seed"),
         (["lf", "--resume", str(tmp_path / "none.h5")], "nothing to resume"),
@@ -184,11 +186,25 @@ def test_lf_output_and_resume_refusals(tmp_path: Path, capsys) -> None:
     with pytest.raises(SceneError, match="checkpoint interval"):
         run_lf(load_lf_scene(scene), tmp_path / "x.h5", checkpoint_interval=float("nan"))
     assert not (tmp_path / "x.h5").exists() and not (tmp_path / "x.h5.partial").exists()
-    # a stopped run without checkpoints cannot resume
+    # a stopped run without a checkpoint resumes from its start, snapshots and all
+    same = tmp_path / "same.h5"
+    same.write_bytes(before)
     with h5py.File(done, "r+") as f:
         f.attrs["complete"] = False
-    assert main(["lf", "--resume", str(done)]) == 2
-    assert "no checkpoint" in capsys.readouterr().err
+    assert main(["lf", "--resume", str(done), "--no-progress"]) == 0
+    assert_same_lf_file(done, same)
     assert main(["lf", str(scene), "-o", str(done), "--no-progress", "--overwrite"]) == 0
     with h5py.File(done, "r") as f:
         assert f.attrs["complete"]
+
+
+def test_a_duration_past_the_schedule_is_noted(tmp_path: Path, capsys) -> None:
+    """--duration beyond the end of the scene's schedule runs (the pad unloaded, the disc at rest) with one note
+    naming how far past the schedule it goes."""
+    scene = scene_file(tmp_path, 0.1)  # schedule 0.6 s
+    out = tmp_path / "long.h5"
+    assert main(["lf", str(scene), "-o", str(out), "--no-progress", "--duration", "0.7"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("aca-warp: note: the run's 0.7 s go 0.1 s past the end"), err
+    with h5py.File(out, "r") as f:
+        assert f["global/time"].shape == (70,) and f.attrs["complete"]

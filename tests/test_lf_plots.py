@@ -12,9 +12,10 @@ import h5py
 import numpy as np
 import pytest
 
-from aca_warp import plots, plots_lf
+from aca_warp import plots
 from aca_warp.analysis.commands import FIGURE_NAMES, LF_FIGURE_NAMES, LF_QUANTITIES, add_parsers
 from aca_warp.common.errors import SceneError
+from aca_warp.plots import lf as plots_lf
 
 DOC = {
     "scene": {"name": "tiny"},
@@ -157,3 +158,15 @@ def test_analyze_refuses_an_lf_file_in_one_line(lf_run, capsys):
     lines = capsys.readouterr().out.strip().splitlines()
     assert len(lines) == 1 and "HF run files" in lines[0] and f"aca-warp plot {lf_run}" in lines[0], lines
     assert hashlib.sha256(lf_run.read_bytes()).hexdigest() == before
+
+
+def test_hf_and_lf_footers_name_the_processor_alike(lf_run, hf_run):
+    """Both footers name the CPU the run ran on the same way: "device cpu (<processor>, <n> cores)"."""
+    from aca_warp.common.files import host_cpu
+    from aca_warp.plots.hf import _Run
+
+    want = f" · device cpu ({host_cpu()}) · "
+    with _Run(hf_run) as run:
+        assert want in run.footer, run.footer
+    with plots_lf._LFRun(lf_run) as run:
+        assert want in run.footer, run.footer

@@ -145,3 +145,28 @@ def test_step_counts_beyond_int32(tmp_path, capsys) -> None:
     assert code == 2 and len(err) == 1 and "record.sample_dt = 0.01 s — beyond 0.001 s" in err[0]
     code, err = run_cli(capsys, [*argv, "--allow-implausible"])
     assert code == 2 and len(err) == 1 and "steps per sample interval = 10000000000 exceeds 2147483647" in err[0]
+
+
+def test_sample_interval_shorter_than_the_step(tmp_path, capsys) -> None:
+    """A sample interval below the step: `[record] sample_dt = 5e-10` (with the default 1e-8 s step), `--sample-dt
+    5e-10` and a sweep's `run.sample_dt = 5e-10`: one line each, nothing written (before: the step shrank to the
+    sample interval, 20 or 1e4 times the steps; sample_dt = 1e-12 hung); `[record] sample_dt = 1e-12`, with or
+    without that step asked for (`--dt 1e-12`: 2e8 samples), is refused as implausible (below 1e-10 s,
+    docs/scenes.md) unless --allow-implausible."""
+    out = ["-o", str(tmp_path / "run.h5"), "--no-progress"]
+    for name, sample_dt in (("short", 5.0e-10), ("tiny", 1.0e-12), ("ok", 1.0e-7)):
+        (tmp_path / f"{name}.toml").write_text(small_scene_toml(name, count=10, duration=2.0e-4, sample_dt=sample_dt))
+    spec = tmp_path / "spec.toml"
+    spec.write_text(
+        '[sweep]\nbase = "hf1"\n[run]\nsample_dt = 5e-10\nduration = 1e-6\n[parameters]\n"friction.M" = [0.6]'
+    )
+    for argv, message in (
+        (["hf", str(tmp_path / "short.toml"), *out], "record.sample_dt = 5e-10 s is shorter than the step 1e-08 s"),
+        (["hf", str(tmp_path / "ok.toml"), "--sample-dt", "5e-10", *out], "5e-10 s is shorter than the step 1e-08"),
+        (["sweep", str(spec), "-o", str(tmp_path / "sweep"), "--workers", "0"], "5e-10 s is shorter than the step"),
+        (["hf", str(tmp_path / "tiny.toml"), *out], "record.sample_dt = 1e-12 s — below 1e-10 s"),
+        (["hf", str(tmp_path / "tiny.toml"), *out, "--dt", "1e-12"], "record.sample_dt = 1e-12 s — below 1e-10 s"),
+    ):
+        code, err = run_cli(capsys, argv)
+        assert code == 2 and len(err) == 1 and message in err[0], (argv, err)
+        assert no_output(tmp_path) and not (tmp_path / "sweep").exists()

@@ -194,3 +194,44 @@ def test_scene_with_single_patch_model(device):
     assert model.host("nbr_start").tolist() == [0, 0]
     assert model.host("k_t")[0] == pytest.approx(1.87e9 * np.sqrt(5e-8), rel=1e-12)
     assert 1.0 / model.host("inv_mass")[0] == pytest.approx(37.5 * 5e-8, rel=1e-12)
+
+
+def unshared_coupling(scenes, device):
+    """The batch's CSR, k_ij and Σ_j k_ij computed without sharing layouts: one search over every pad, k_ij per link,
+    row sums over the whole batch (the arithmetic build_model must reproduce bit for bit)."""
+    x = np.concatenate([s.patches.x for s in scenes])
+    y = np.concatenate([s.patches.y for s in scenes])
+    sq = np.sqrt(np.concatenate([s.patches.area for s in scenes]))
+    pad = np.repeat(np.arange(len(scenes), dtype=np.int32), [s.patches.count for s in scenes])
+    radius = np.array([s.material.coupling_radius for s in scenes])
+    start, index, inv_d = build_neighbours(x, y, pad, radius, device)
+    rows = np.repeat(np.arange(len(x)), np.diff(start))
+    kc = np.array([s.material.K_C for s in scenes])[pad[rows]]
+    k_ij = kc * sq[rows] * sq[index] * inv_d
+    return start, index, inv_d, k_ij, np.bincount(rows, k_ij, minlength=len(x))
+
+
+def test_shared_layouts_build_the_same_arrays(device):
+    """Pads that share a layout (a sweep's pads differing in load, K_T, friction) share one neighbour search; the
+    batch's lists, 1/D0, k_ij and k_diag equal those of a search over every pad, bit for bit, with pads of other
+    coupling radii, K_C and patch counts mixed in (the largest radius sets the search's cells for all)."""
+    a, b, c = network_scene(3, 60), network_scene(4, 45), network_scene(5, 60)
+    wide = Material(coupling_radius=7e-3)
+    scenes = [
+        a,
+        b,
+        a.replace(normal_force=7.0),
+        c.replace(material=wide),
+        a.replace(material=Material(K_C=9e8)),
+        b.replace(material=Material(K_T=2e9), normal_force=3.0),
+        a,
+        c,
+    ]
+    model = build_model(scenes, device=device, precision="fp64")
+    start, index, inv_d, k_ij, k_sum = unshared_coupling(scenes, device)
+    assert model.nnz == len(index) > 0
+    for name, want in (("nbr_start", start), ("nbr_index", index), ("nbr_inv_dist", inv_d), ("nbr_stiffness", k_ij)):
+        got = model.host(name)
+        assert got.tobytes() == want.astype(got.dtype).tobytes(), name
+    k_t = np.concatenate([s.material.K_T * np.sqrt(s.patches.area) for s in scenes])
+    assert model.host("k_diag").tobytes() == (k_t + k_sum).tobytes()

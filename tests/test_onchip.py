@@ -417,7 +417,8 @@ def test_cluster_refused_where_it_cannot_run():
 def test_register_report_respects_launch_bounds(tmp_path):
     """scripts/onchip_registers.py compiles the on-chip kernel to an sm_90 cubin with NVRTC (no GPU) and reads its
     registers and stack frame: the block size's register cap holds (65 536 registers per SM over four schedulers:
-    ≤ 128 per thread at 512 threads, ≤ 168 at 384), and the kernel without growth does not spill at 512."""
+    ≤ 128 per thread at 512 threads, ≤ 168 at 384), the kernel without growth does not spill at 512, and the growing
+    kernel spills no more at 384 threads (more registers) than at 512."""
     import json
 
     from tests.scriptload import load_script
@@ -433,7 +434,7 @@ def test_register_report_respects_launch_bounds(tmp_path):
     for (_growth, block), r in rows.items():
         assert 0 < r["registers"] <= {384: 168, 512: 128}[block]
     assert rows[(False, 512)]["frame_bytes"] == 0
-    assert rows[(True, 384)]["frame_bytes"] < rows[(True, 512)]["frame_bytes"]
+    assert rows[(True, 384)]["frame_bytes"] <= rows[(True, 512)]["frame_bytes"]
 
 
 @wp.kernel(enable_backward=False, module="unique")

@@ -5,12 +5,13 @@ not matter), whatever HDF5_USE_FILE_LOCKING says; and a run file is readable fro
 from __future__ import annotations
 
 import json
+import os
 import signal
 from pathlib import Path
 
 import h5py
 import pytest
-from procs import cli, error_lines, resume, small_scene_toml, start, stop, wait_for
+from procs import cli, error_lines, resume, small_scene_toml, start, started, stop, wait_for
 
 from aca_warp.cli import main
 from aca_warp.common.errors import SceneError
@@ -106,6 +107,41 @@ def test_live_hf_run_is_not_replaced_or_resumed(tmp_path, locking, capsys, monke
     assert not part.exists() and not lock_path(out).exists()
 
 
+@pytest.mark.parametrize("locking", ["TRUE", "FALSE"])
+def test_aliases_of_a_live_run_are_refused(tmp_path, locking, capsys, monkeypatch) -> None:
+    """One writer per file, not per name: while `hf` runs (held with SIGSTOP), `hf --resume` and `analyze` through a
+    symbolic link or a hard link of its live `.partial`, or of the `.partial` moved to another name, are refused with
+    one line naming the holder, with HDF5's own locking on or off; the live file is unchanged and the run completes."""
+    scene = tmp_path / "s.toml"
+    scene.write_text(SCENE)
+    out = tmp_path / "run.h5"
+    part = tmp_path / "run.h5.partial"
+    with started(["hf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "5e-5"]) as first:
+        wait_for(part, first)
+        stop(first)
+        before = part.read_bytes()
+        monkeypatch.setenv("HDF5_USE_FILE_LOCKING", locking)
+        (tmp_path / "sym.h5.partial").symlink_to(part)
+        os.link(part, tmp_path / "hard.h5.partial")
+        for alias in ("sym.h5", "hard.h5"):
+            refused(capsys, ["hf", "--resume", str(tmp_path / alias), "--no-progress"], first.pid)
+            refused(capsys, ["analyze", str(tmp_path / f"{alias}.partial")], first.pid)
+        for argv in (["hf", "--resume", str(tmp_path / "hard.h5")], ["analyze", str(tmp_path / "sym.h5.partial")]):
+            r = cli(argv, HDF5_USE_FILE_LOCKING=locking)  # a process: HDF5 reads the variable when it starts
+            assert r.returncode == 2 and f"pid {first.pid}" in error_lines(r.stderr)[0], r.stderr
+        (tmp_path / "sym.h5.partial").unlink()
+        (tmp_path / "hard.h5.partial").unlink()
+        os.replace(part, tmp_path / "moved.h5.partial")
+        refused(capsys, ["hf", "--resume", str(tmp_path / "moved.h5"), "--no-progress"], first.pid)
+        os.replace(tmp_path / "moved.h5.partial", part)
+        assert part.read_bytes() == before and not out.exists()
+        resume(first)
+        assert first.wait(timeout=120) == 0, first.stderr.read()
+    with h5py.File(out, "r") as f:
+        assert f.attrs["complete"] and f["global/mu"].shape == (201,)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.h5", "s.toml"]
+
+
 def test_live_lf_run_and_sweep_are_not_replaced(tmp_path: Path, capsys) -> None:
     """The same for `lf` (`--overwrite` and `lf --resume` refused while it runs) and for a second `sweep` into the
     folder of a running one (with and without `--overwrite`)."""
@@ -158,18 +194,39 @@ def test_kill_right_after_the_file_appears(tmp_path: Path, command: str) -> None
     out = tmp_path / "run.h5"
     part = tmp_path / "run.h5.partial"
     for _ in range(3):
-        proc = start([command, str(scene), "-o", str(out), "--no-progress", "--overwrite"])
-        try:
+        with started([command, str(scene), "-o", str(out), "--no-progress", "--overwrite"]) as proc:
             wait_for(part, proc, poll=0.0)
             proc.send_signal(signal.SIGKILL)
             proc.wait(timeout=30)
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
-            proc.stdout.close()
-            proc.stderr.close()
         assert proc.returncode == -signal.SIGKILL
         with h5py.File(part, "r") as f:
             assert f.attrs["status"] == "running" and not f.attrs["complete"] and "global" in f
     assert lock_path(out).exists()  # left by the killed run, unlocked: each next run above took it over
+
+
+def test_identity_lock_in_process(tmp_path: Path, monkeypatch) -> None:
+    """The identity lock of a file lives in the user's private folder (0700): a second owner of the same file under
+    another name (a hard link) is refused, naming the holder; release removes the lock file; lock files of dead
+    writers are removed when another file is locked, a live one is kept."""
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path / "run"))
+    (tmp_path / "run").mkdir(mode=0o700)
+    data = tmp_path / "a.h5.partial"
+    data.write_bytes(b"x")
+    os.link(data, tmp_path / "b.h5.partial")
+    a = OutputLock.acquire(tmp_path / "a.h5")
+    a.own(data)
+    folder = tmp_path / "run" / "aca-warp" / "files"
+    assert oct(folder.stat().st_mode & 0o777) == "0o700" and len(list(folder.iterdir())) == 1
+    b = OutputLock.acquire(tmp_path / "b.h5")
+    with pytest.raises(SceneError, match=r"b.h5.partial is being written by pid \d+"):
+        b.own(tmp_path / "b.h5.partial")
+    b.release()
+    (folder / "0-1.lock").write_text("999999 elsewhere aca-warp hf\n")  # as a killed writer leaves it
+    other = tmp_path / "c.h5.partial"
+    other.write_bytes(b"y")
+    c = OutputLock.acquire(tmp_path / "c.h5")
+    c.own(other)
+    assert len(list(folder.iterdir())) == 2 and not (folder / "0-1.lock").exists()  # a's and c's
+    a.release()
+    c.release()
+    assert list(folder.iterdir()) == []

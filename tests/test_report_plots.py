@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import json
 import math
 import shutil
 
@@ -109,7 +110,7 @@ def test_analyze_writes_every_group_with_units(runs, tmp_path):
     assert set(groups) == {"spectra", "patch_spectrum", "stft", "cwt", "sync", "peaks", "saturation"}
     with h5py.File(path, "r") as f:
         a = f["analysis"]
-        assert set(a) == set(groups) and report._TMP_GROUP not in f
+        assert set(a) == set(groups) and report.TMP_GROUP not in f
         units = {}
         a.visititems(lambda n, o: units.__setitem__(n, o.attrs.get("unit")) if isinstance(o, h5py.Dataset) else None)
         assert units and all(u is not None for u in units.values()), units
@@ -202,7 +203,7 @@ def test_a_failed_write_keeps_the_previous_analysis(runs, tmp_path, monkeypatch)
         analyze_run(path, freq_range=(1e3, 1e5))
     _assert_same(before, _snapshot(path))
     with h5py.File(path, "r") as f:
-        assert report._TMP_GROUP not in f
+        assert report.TMP_GROUP not in f
 
 
 @pytest.mark.parametrize(
@@ -342,3 +343,137 @@ def test_analyze_summary_uses_the_figures_band(runs, tmp_path, capsys):
     assert f"over {2 * df / 1e3:.4g}-200 kHz" in out and "leakage of the mean" in out
     above = np.count_nonzero((S > s0)[shown & np.isfinite(S)])
     assert f"S > S_null in {above} of {np.count_nonzero(shown & np.isfinite(S))} bins" in out
+
+
+def test_a_one_bin_band_names_its_floor_and_plots_no_sync(runs, tmp_path, capsys):
+    """A band holding one frequency bin: the summary's floor 2 Δf is the record's (Δf = 1 / (N dt) ≈ 10 kHz, not
+    the 10 Hz of a band without a second bin), and the Synchronization Index figure is refused with the note plot
+    prints when it skips it (instead of an IndexError); asked for with others, nothing is left behind."""
+    path = _copy(runs["patches"], tmp_path)
+    assert _cli(["analyze", str(path), "--freq-min", "95e3", "--freq-max", "105e3"]) == 0
+    with h5py.File(path, "r") as f:
+        assert f["analysis/sync/freq"].shape == (1,)
+        n, dt = f["analysis/sync"].attrs["samples"], f["analysis/sync"].attrs["sample_interval"]
+    assert f"max(10 Hz, 2 df) = {2 / (n * dt) / 1e3:.4g} kHz" in capsys.readouterr().out
+    with pytest.raises(SceneError, match="holds 1 frequency bin.* too few to draw"):  # skipped with this note
+        plots.plot_sync(path, tmp_path / "fig")
+    assert not (tmp_path / "fig").exists()
+    with pytest.raises(SceneError, match="sync: the Synchronization Index holds 1 frequency bin"):
+        plots.plot_run(path, tmp_path / "fig2", which=["global", "sync"])
+    assert not (tmp_path / "fig2").exists() or not any((tmp_path / "fig2").iterdir())
+
+
+def test_plot_of_a_ten_sample_run(tmp_path):
+    """A run of 10 samples with per-patch velocities: every figure it supports is made, the Synchronization Index
+    (no bin above 2 Δf) skipped with a note; no traceback."""
+    path = tmp_path / "short.h5"
+    scene = _small_scene(patches=()).replace(duration=9e-6, record=Record(sample_dt=1e-6, patches=("velocity",)))
+    run_scene(scene, path, RunOptions(dt=2e-8), device="cpu")
+    notes = []
+    files = plots.plot_run(path, tmp_path / "fig", frames=2, log=notes.append)
+    assert [n.split(":")[0] for n in notes] == ["skipped sync"]
+    assert {p.stem.removeprefix("short_") for p in files} == {"patch_map", "global", "spectra", "stft", "cwt"}
+
+
+def test_the_animation_footer_is_readable_in_its_frame(runs):
+    """The GIF's frames are 512 × 288 px; its footer (what the run is, the device) has letters of at least 7 px and
+    lies wholly inside the frame, clear of the map's x label."""
+    from matplotlib.text import Text
+
+    from aca_warp.plots.hf import GIF_DPI, _Run, animation_figure
+
+    with _Run(runs["patches"]) as run:
+        fig, _, count = animation_figure(run, None, None, 3)
+        footer = run.footer
+    assert count == 3
+    fig.canvas.draw()
+    w, h = fig.canvas.get_width_height()
+    assert (w, h) == (512, 288)
+    renderer = fig.canvas.get_renderer()
+    (foot,) = [t for t in fig.findobj(Text) if t.get_text().startswith("marker area")]
+    assert foot.get_fontsize() * GIF_DPI / 72 >= 7.0
+    box = foot.get_window_extent(renderer)
+    assert 0 <= box.x0 and box.x1 <= w and 0 <= box.y0 and box.y1 <= h
+    assert " ".join(foot.get_text().split()) == " ".join(f"marker area ∝ patch area · {footer}".split())
+    xlabel = fig.axes[0].xaxis.label.get_window_extent(renderer)
+    assert box.y1 <= xlabel.y0
+
+
+def test_default_patch_map_instants_are_evenly_spaced_when_decimated(runs, tmp_path):
+    """Per-patch histories of every 3rd sample: the default instants stay evenly spaced (a whole number of the
+    record's intervals), and the caption gives that spacing against the quarter period it stands for."""
+    from aca_warp.plots.hf import _patch_rows, _Run
+
+    path = _copy(runs["patches"], tmp_path)
+    with h5py.File(path, "r+") as f:
+        for name in ("time", "velocity"):
+            data, attrs = f[f"patches/{name}"][::3], dict(f[f"patches/{name}"].attrs)
+            del f[f"patches/{name}"]
+            f.create_dataset(f"patches/{name}", data=data).attrs.update(attrs)
+    with _Run(path) as run:
+        rows, how = _patch_rows(run, None)
+        pt, fp = run.f["patches/time"][()], run.first_peak()
+    gaps = np.diff(pt[rows])
+    assert rows.size == 4 and rows[-1] == pt.size - 1 and np.allclose(gaps, gaps[0], rtol=1e-9, atol=0)
+    quarter = 0.25 / fp
+    assert abs(gaps[0] - quarter) <= 0.5 * 3e-7 + 1e-12
+    if abs(gaps[0] - quarter) > 0.02 * quarter:
+        assert f"{gaps[0] * 1e6:.4g} µs apart" in how and f"{quarter * 1e6:.4g} µs" in how
+
+
+def test_analyze_of_an_interrupted_run_says_where_its_record_ends(runs, tmp_path, capsys):
+    """An incomplete run (here cut to its first 500 samples and marked interrupted): the summary says the record
+    ends early, where, and of what duration; a complete run's summary says nothing of it."""
+    path = _copy(runs["globals"], tmp_path)
+    assert _cli(["analyze", str(path), "--no-sync"]) == 0
+    assert "ends early" not in capsys.readouterr().out
+    with h5py.File(path, "r+") as f:
+        for d in f["global"].values():
+            d.resize(500, axis=0)
+        f.attrs["complete"] = False
+        f.attrs["status"] = "interrupted by the user"
+        end = float(f["global/time"][-1])
+    assert _cli(["analyze", str(path), "--no-sync"]) == 0
+    out = capsys.readouterr().out
+    assert f"the run is incomplete (interrupted by the user): its record ends early, at t = {end:.4g} s of the " in out
+    assert "0.0001 s asked" in out
+
+
+def test_one_pad_of_a_sweep_shard(tmp_path, capsys):
+    """analyze/plot of a sweep shard: without --pad one line naming --pad and the shard's pads; with --pad K the
+    pad's run file SHARD_padK.h5 (its global series and scene) gets its /analysis, plot draws its global figures
+    (the per-patch ones skipped: a shard holds no per-patch data), and rerun of that file repeats the pad. rerun of
+    the shard itself says what to do instead."""
+    from aca_warp.cli import main
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(
+        '[sweep]\nbase = "hf1"\nshard_size = 3\n[run]\nduration = 2e-5\nprecision = "fp32"\n'
+        '[base.patches]\ncount = 12\n[parameters]\n"friction.M" = [0.7, 0.8, 0.9]\n'
+    )
+    assert main(["sweep", str(spec), "-o", str(tmp_path / "sw"), "--workers", "0", "--quiet"]) == 0
+    shard = tmp_path / "sw" / "shard-00000.h5"
+    capsys.readouterr()
+    for argv, said in (
+        (["analyze", str(shard)], "is a sweep shard of pads 0-2: analyze one of them with --pad K"),
+        (["plot", str(shard), "-o", str(tmp_path / "f")], "is a sweep shard of pads 0-2: plot one of them with --pad"),
+        (["analyze", str(shard), "--pad", "3"], "holds pads 0-2; pad 3 is not one of them"),
+        (["rerun", str(shard), "-o", str(tmp_path / "r.h5")], "is a sweep shard (pads 0-2), not a run"),
+    ):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and said in err[0], err
+    assert not (tmp_path / "f").exists() and not (tmp_path / "r.h5").exists()
+    assert main(["analyze", str(shard), "--pad", "1"]) == 0
+    pad = tmp_path / "sw" / "shard-00000_pad1.h5"
+    assert f"{pad} (pad 1 of {shard}): /analysis written" in capsys.readouterr().out
+    with h5py.File(shard, "r") as s, h5py.File(pad, "r") as p:
+        assert np.array_equal(p["global/mu"][()], s["global/mu"][1]) and "analysis/spectra" in p
+        assert json.loads(p.attrs["scene"])["friction"]["M"] == 0.8 and p.attrs["complete"]
+    assert main(["plot", str(shard), "--pad", "1", "-o", str(tmp_path / "f"), "--only", "global", "spectra"]) == 0
+    names = sorted(f.name for f in (tmp_path / "f").iterdir())
+    assert names == [f"shard-00000_pad1_{n}.{e}" for n in ("global", "spectra") for e in ("pdf", "png")]
+    again = tmp_path / "again.h5"
+    assert main(["rerun", str(pad), "-o", str(again), "--no-progress"]) == 0
+    with h5py.File(again, "r") as a, h5py.File(pad, "r") as p:
+        assert np.allclose(a["global/mu"][()], p["global/mu"][()], rtol=1e-5)

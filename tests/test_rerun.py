@@ -79,3 +79,36 @@ def test_rerun_without_the_patch_file_is_bit_identical(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and all(e.startswith("aca-warp: error:") for e in err)
     assert not (tmp_path / "x.h5").exists() and not (tmp_path / "x.h5.partial").exists()
+
+
+def test_rerun_names_what_it_applies_and_keeps_the_size_limits(tmp_path, capsys):
+    """A run file whose stored options relax checks (force, the watchdog off, allow_implausible) and ask for 1e5 s
+    at 1e-8 s steps (1e13 steps, 1e8 samples): `rerun` names each stored relaxation on stderr and refuses the run
+    with one line, nothing written (before: silently applied, and a 1e13-step run started); the same file asking for
+    2 µs reruns, with the same note."""
+    from procs import small_scene_toml
+
+    (tmp_path / "s.toml").write_text(small_scene_toml("relaxed", count=10, duration=2.0e-6))
+    run = tmp_path / "run.h5"
+    assert main(["hf", str(tmp_path / "s.toml"), "-o", str(run), "--no-progress"]) == 0
+    for duration, code in ((1.0e5, 2), (2.0e-6, 0)):
+        with h5py.File(run, "r+") as f:
+            options = {**json.loads(f.attrs["run_options"]), "force": True, "watchdog_factor": None}
+            f.attrs["run_options"] = json.dumps({**options, "duration": duration})
+            scene = json.loads(f.attrs["scene"])
+            scene["scene"]["allow_implausible"] = True
+            scene["run"]["duration"] = duration
+            scene["record"]["sample_dt"] = 1e-3 if duration > 1 else 1e-7  # 1e8 samples: below the sample limits
+            f.attrs["scene"] = json.dumps(scene)
+        capsys.readouterr()
+        new = tmp_path / f"new-{code}.h5"
+        assert main(["rerun", str(run), "-o", str(new), "--no-progress"]) == code
+        err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("aca-warp:")]
+        note = f"aca-warp: note: {run} stores, and the rerun applies: force ("
+        assert err[0].startswith(note) and "the watchdog off" in err[0] and "allow_implausible" in err[0], err
+        if code == 2:
+            assert len(err) == 2 and "1e+13 steps, more than 1e+10" in err[1] and "--force runs it anyway" in err[1]
+            assert not new.exists() and not new.with_name(new.name + ".partial").exists()
+        else:
+            with h5py.File(new, "r") as f:
+                assert f.attrs["complete"] and json.loads(f.attrs["run_options"])["watchdog_factor"] is None

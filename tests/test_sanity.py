@@ -170,3 +170,21 @@ def test_sticking_bound_formula() -> None:
     with pytest.raises(PhysicsError):
         bad = build_model([s.replace(material=dataclasses.replace(s.material, K_N=1e308), allow_implausible=True)])
         sanity.check_contact(bad, accept=False)
+
+
+def test_options_that_would_do_nothing_or_harm_say_so(tmp_path, capsys) -> None:
+    """--tolerance with a fixed-step integrator is refused (exit 2, nothing written: it has no tolerance); a
+    forced explicit step beyond its stable-step estimate runs with one warning naming the bound, as strang's
+    forced sticking step does."""
+    s = scene_file(tmp_path)
+    common = ["--no-progress", "--duration", "2e-6", "--sample-dt", "2e-7"]
+    out = tmp_path / "tol.h5"
+    code, err = run_cli(capsys, ["hf", str(s), "-o", str(out), *common, "--tolerance", "1e-6"])
+    assert code == 2 and len(err) == 1 and "--tolerance applies to --integrator adaptive only" in err[0], err
+    assert not out.exists()
+    out = tmp_path / "forced.h5"
+    argv = ["hf", str(s), "-o", str(out), *common, "--integrator", "symplectic-euler", "--dt", "2e-7", "--force"]
+    code, err = run_cli(capsys, argv)
+    assert code == 0 and len(err) == 1, err
+    assert "exceeds the stable-step estimate" in err[0] and "of symplectic-euler" in err[0]
+    assert err[0].startswith("aca-warp: warning:") and "running as forced" in err[0]

@@ -47,6 +47,28 @@ def test_hf_file_size_limit_then_resume(tmp_path: Path, capsys: pytest.CaptureFi
     assert r.returncode == 4 and len(lines) == 1 and "no checkpoint" in lines[0], r.stderr
 
 
+def test_advice_after_a_file_size_stop_is_one_and_true(tmp_path: Path) -> None:
+    """A checkpointed run stopped by a file-size limit before its first checkpoint: the stop and a new run onto the
+    same name give the same advice, that the run stopped before its first checkpoint and that `--resume` starts it
+    again from t = 0 (before: `--resume` said it ran without checkpoint_interval, and the suggested rerun pointed
+    back to `--resume`); following it finishes the run, equal to an uninterrupted one."""
+    scene = tmp_path / "s.toml"
+    scene.write_text(HF_SCENE)
+    out = tmp_path / "run.h5"
+    args = ["hf", str(scene), "-o", str(out), "--no-progress"]
+    r = cli([*args, "--checkpoint-interval", "1e-4"], limit=200_000)
+    assert r.returncode == 4, r.stderr
+    advice = f"continue it from t = 0 with 'aca-warp hf --resume {out}' (it holds no checkpoint: it stopped before "
+    advice += "its first one)"
+    assert error_lines(r.stderr)[0].endswith("make room, then " + advice), r.stderr
+    r = cli(args)
+    assert r.returncode == 2 and advice in error_lines(r.stderr)[0], r.stderr
+    r = cli(["hf", "--resume", str(out), "--no-progress"])
+    assert r.returncode == 0, r.stderr
+    assert main([*args[:3], str(tmp_path / "ref.h5"), "--no-progress"]) == 0
+    assert_same_datasets(out, tmp_path / "ref.h5")
+
+
 def test_lf_file_size_limit_then_resume(tmp_path: Path) -> None:
     from test_lf_checkpoint import SCENE
 
@@ -57,7 +79,7 @@ def test_lf_file_size_limit_then_resume(tmp_path: Path) -> None:
     out = tmp_path / "run.h5"
     r = cli(["lf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "0.1"], limit=400_000)
     lines = error_lines(r.stderr)
-    assert r.returncode == 4 and len(lines) == 1 and "keeps its checkpoint" in lines[0], r.stderr
+    assert r.returncode == 4 and len(lines) == 1 and "continue it from its checkpoint" in lines[0], r.stderr
     assert main(["lf", "--resume", str(out), "--no-progress"]) == 0
     assert_same_datasets(out, ref)
 
@@ -104,3 +126,38 @@ def test_guarded_file_reserves_and_trims(tmp_path: Path) -> None:
     assert storage_errno(RuntimeError("file write failed: errno = 28, error message = 'No space'")) == 28
     assert storage_errno(OSError(27, "File too large")) == 27
     assert storage_errno(RuntimeError("errno = 2")) is None
+
+
+def test_free_space_check_asks_for_the_file_as_it_will_be(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The free-space check asks for the file on disk, chunks allocated whole (a 1000-patch history of 201 samples
+    takes a 1024-sample chunk row: 8.7 MB, its samples 1.6 MB), never less than the file (scripts/file_size.py):
+    a folder with room for the samples but not for the file is refused, exit 4, nothing written (before: accepted,
+    and the run met a full device)."""
+    import os
+    import types
+
+    from scriptload import load_script
+
+    from aca_warp.common.errors import StorageError
+    from aca_warp.hf.options import RunOptions
+    from aca_warp.hf.runner import plan_run, run_scene
+    from aca_warp.scene import load_scene
+
+    sizes = load_script("file_size")
+    monkeypatch.setattr(sizes, "CASES", {k: v for k, v in sizes.CASES.items() if "1000" in k or "window" in k})
+    for r in sizes.measure(tmp_path):
+        assert r["file"] <= r["estimate"] <= 1.15 * r["file"] + 64 * 1024, r
+    assert r["recorded"] < r["file"] / 5  # the 1000-patch run: the samples alone are a fifth of its file
+    (tmp_path / "s.toml").write_text(sizes.SCENE.format(**{"count": 1000, "sample_dt": 1e-6, "patches": ["velocity"],
+                                                            "window": "", "duration": 2e-4}))  # fmt: skip
+    scene = load_scene(tmp_path / "s.toml")
+    plan = plan_run(scene, RunOptions())
+    free = (plan.output_bytes + plan.file_bytes) // 2
+    real = os.statvfs
+    monkeypatch.setattr(
+        "aca_warp.common.files.os.statvfs",
+        lambda p: types.SimpleNamespace(f_bavail=free, f_frsize=1, f_blocks=1) if str(p) == str(tmp_path) else real(p),
+    )
+    with pytest.raises(StorageError, match="file will take about 8.7"):
+        run_scene(scene, tmp_path / "full.h5", RunOptions())
+    assert not list(tmp_path.glob("full.h5*"))

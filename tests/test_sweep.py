@@ -96,7 +96,7 @@ def test_pad_equals_hand_built_scene() -> None:
     )
     m = build_model([hand], precision="fp32")
     res = run_hf(m, initial_state(m), RunOptions(duration=4e-6, integrator="strang"), record=hand.record)
-    mb = build_model(s.scenes(9, 12), precision="fp32")
+    mb = build_model(s.scenes(range(9, 12)), precision="fp32")
     rb = run_hf(mb, initial_state(mb), RunOptions(duration=4e-6, integrator="strang"), record=hand.record)
     np.testing.assert_allclose(rb.collect().globals[:, 0], res.collect().globals[:, 0], rtol=1e-6, atol=0)
 
@@ -187,3 +187,25 @@ def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert main(["sweep", str(spec), "-o", str(out), "--workers", "0", "--shard-size", "3"]) == 2
     assert "pass --overwrite" in capsys.readouterr().err
     assert main(["sweep", str(tmp_path / "missing.toml"), "-o", str(out)]) == 2
+
+
+@pytest.mark.parametrize(
+    ("address", "message"),
+    [
+        ("tcp://127.0.0.1:1", "no Dask scheduler answered at tcp://127.0.0.1:1 within 0.5 s"),
+        ("notanaddress", "--scheduler 'notanaddress' is not a Dask scheduler address"),
+    ],
+)
+def test_scheduler_that_does_not_answer(tmp_path: Path, capsys, monkeypatch, address: str, message: str) -> None:
+    """A scheduler address Dask cannot parse, or one where nothing answers within the connect timeout: one line,
+    exit 2, and nothing written (no sweep folder, no manifest)."""
+    from aca_warp.sweep import cluster
+
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT_S", 0.5)
+    spec = tmp_path / "s.toml"
+    spec.write_text('[sweep]\nbase = "hf1"\n[run]\nduration = 2e-6\n[base.patches]\ncount = 12\n')
+    out = tmp_path / "o"
+    assert main(["sweep", str(spec), "-o", str(out), "--scheduler", address, "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("aca-warp: error: ") and message in err[0]
+    assert not out.exists()

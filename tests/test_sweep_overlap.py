@@ -177,12 +177,12 @@ def test_kernel_turn_is_one_at_a_time_and_cancellable() -> None:
 def test_gpu_turn_across_processes_is_a_file_lock(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Two runs on one GPU (a stand-in device; flock conflicts between open files as between processes): the
     second waits after its first chunk until the first ends its turn, or stops when the sweep stops."""
-    monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))  # the user's private folder (tests/test_links.py)
     gpu = types.SimpleNamespace(is_cuda=True, uuid="GPU-test-0", pci_bus_id=None)
     cancel = threading.Event()
     a, b = KernelTurn(gpu, cancel, processes=True), KernelTurn(gpu, cancel, processes=True)
     a.first_chunk()
-    assert a.fd is not None and (tmp_path / "aca-warp-kernel-GPU-test-0.lock").exists()
+    assert a.fd is not None and (tmp_path / "aca-warp" / "kernel" / "GPU-test-0.lock").exists()
     got: list[str] = []
 
     def second() -> None:

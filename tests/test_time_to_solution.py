@@ -135,6 +135,7 @@ def test_json_table_and_page(tmp_path, monkeypatch):
     reached settings, and --report writes it into the page between the markers, keeping the text around."""
     monkeypatch.setattr(tts, "make_scene", lambda name: tiny_scene().replace(name=name))
     monkeypatch.setattr(tts, "STEPS", (1e-8,))
+    monkeypatch.setattr(tts, "REPEATS", 1)  # one timed run per setting (the repeats have their own test)
     argv = ["--scenes", "hf1", "--duration", "1e-5", "--target", "1e-9", "--no-diffrax", "--out", str(tmp_path)]
     assert tts.main(argv) == 0
     doc = json.loads((tmp_path / "tts_cpu.json").read_text())

@@ -6,7 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import warp as wp
-from aca_warp.kernels.hf import contact_block, contact_flat
+from aca_warp.kernels.hf import contact_flat
+from aca_warp.kernels.hf_types import HFModel
+from aca_warp.kernels.physics import contact_block
 from procs import nine_patch_scene
 
 from aca_warp.scene import Scene
@@ -106,33 +108,14 @@ def test_growth_contact_block_threads_agree():
 
 
 @wp.kernel
-def _contact_part(
-    part: int,
-    parts: int,
-    pad_patch_start: wp.array(dtype=wp.int32),
-    k_n: wp.array(dtype=wp.float64),
-    height: wp.array(dtype=wp.float64),
-    area: wp.array(dtype=wp.float64),
-    radius: wp.array(dtype=wp.float64),
-    pad_area: wp.array(dtype=wp.float64),
-    pad_moment: wp.array(dtype=wp.float64),
-    pad_k_m: wp.array(dtype=wp.float64),
-    pad_load: wp.array(dtype=wp.float64),
-    pad_gap: wp.array(dtype=wp.float64),
-    normal_force_out: wp.array(dtype=wp.float64),
-    pad_matrix_force_out: wp.array(dtype=wp.float64),
-    pad_matrix_radius_out: wp.array(dtype=wp.float64),
-    gap_out: wp.array(dtype=wp.float64),
-):
+def _contact_part(part: int, parts: int, model: HFModel(wp.float64), gap_out: wp.array(dtype=wp.float64)):
     """Block ``part`` of ``parts`` of a (one-thread CPU) cluster: the pad's whole contact, its own forces only."""
     pad, lane = wp.tid()
-    s = pad_patch_start[pad]
-    n = pad_patch_start[pad + 1] - s
+    s = model.pad_patch_start[pad]
+    n = model.pad_patch_start[pad + 1] - s
     g = contact_block(
-        pad, lane, 1, pad_patch_start, k_n, height, area, radius, pad_area, pad_moment, pad_k_m, pad_load,
-        pad_gap[pad], s + n * part // parts, s + n * (part + 1) // parts, part == 0, normal_force_out,
-        pad_matrix_force_out, pad_matrix_radius_out,
-    )  # fmt: skip
+        pad, lane, 1, model, model.pad_gap[pad], s + n * part // parts, s + n * (part + 1) // parts, part == 0
+    )
     if lane == 0:
         gap_out[pad * parts + part] = g
 
@@ -148,17 +131,16 @@ def test_contact_block_parts_compose():
     model = build_model([s, s.replace(normal_force=35.0)], device="cpu", precision="fp64")
     m = model.arrays
     m["pad_load"].assign(m["pad_load"].numpy() * 1.3)  # a new load: the contact must move
-    args = [m[k] for k in ("pad_patch_start", "k_n", "height", "area", "radius", "pad_area", "pad_moment",
-                           "pad_k_m", "pad_load")]  # fmt: skip
     gap0 = m["pad_gap"].numpy().copy()
     ref = {k: wp.zeros_like(m[k]) for k in ("normal_force", "pad_matrix_force", "pad_matrix_radius")}
     ref_gap = wp.array(gap0, dtype=wp.float64, device="cpu")
     wp.launch_tiled(
         contact_flat, dim=[model.pad_count], block_dim=1, device="cpu",
-        inputs=[*args, wp.zeros(1, dtype=wp.int64, device="cpu"), 1, 1, ref_gap, ref["normal_force"],
-                ref["pad_matrix_force"], ref["pad_matrix_radius"]],
+        inputs=[HFModel.of(wp.float64, {**m, **ref, "pad_gap": ref_gap}), wp.zeros(1, dtype=wp.int64, device="cpu"),
+                1, 1],
     )  # fmt: skip
     out = {k: wp.full(v.shape, np.nan, dtype=wp.float64, device="cpu") for k, v in ref.items()}
+    parted = HFModel.of(wp.float64, {**m, **out})
     gaps = wp.zeros(model.pad_count * parts, dtype=wp.float64, device="cpu")
     for part in (2, 1, 0):  # the writer last: the others must leave the pad's matrix outputs alone
         if part == 0:  # parts 1 and 2 wrote their own forces and nothing else
@@ -168,10 +150,8 @@ def test_contact_block_parts_compose():
             fn = out["normal_force"].numpy()
             assert np.isnan(fn[own0]).all() and not np.isnan(np.delete(fn, own0)).any()
         wp.launch_tiled(
-            _contact_part, dim=[model.pad_count], block_dim=1, device="cpu",
-            inputs=[part, parts, *args, m["pad_gap"], out["normal_force"], out["pad_matrix_force"],
-                    out["pad_matrix_radius"], gaps],
-        )  # fmt: skip
+            _contact_part, dim=[model.pad_count], block_dim=1, device="cpu", inputs=[part, parts, parted, gaps]
+        )
     np.testing.assert_array_equal(m["pad_gap"].numpy(), gap0)  # the gap is returned, not stored
     g = gaps.numpy().reshape(model.pad_count, parts)
     np.testing.assert_array_equal(g, np.repeat(ref_gap.numpy()[:, None], parts, axis=1))

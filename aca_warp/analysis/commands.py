@@ -21,10 +21,10 @@ FIGURE_NAMES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animat
 """HF figure names of ``plot --only`` (same as ``aca_warp.plots.FIGURES``, kept here to avoid importing Matplotlib)."""
 
 LF_FIGURE_NAMES = ("lf_global", "lf_population", "lf_patch_map")
-"""LF figure names of ``plot --only`` (same as ``aca_warp.plots_lf.LF_FIGURES``)."""
+"""LF figure names of ``plot --only`` (same as ``aca_warp.plots.lf.LF_FIGURES``)."""
 
 LF_QUANTITIES = ("temperature", "thickness", "normal_force", "pressure", "age", "power", "height", "area")
-"""Colour quantities of the LF patch map (``plot --quantity``; keys of ``aca_warp.plots_lf.QUANTITIES``)."""
+"""Colour quantities of the LF patch map (``plot --quantity``; keys of ``aca_warp.plots.lf.QUANTITIES``)."""
 
 ANALYZE_EPILOG = """\
 Writes the group /analysis into RUN.h5, replacing an earlier one (computed first, swapped in at the end: a
@@ -76,7 +76,14 @@ def _add_analyze(subparsers: Any) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=ANALYZE_EPILOG,
     )
-    a.add_argument("run", metavar="RUN.h5", help="HF run file written by 'aca-warp hf'")
+    a.add_argument("run", metavar="RUN.h5", help="HF run file written by 'aca-warp hf', or a sweep shard with --pad")
+    a.add_argument(
+        "--pad",
+        type=int_at_least(0),
+        metavar="K",
+        help="RUN.h5 is a sweep shard: analyse its pad K (the pad's index in the sweep), written with its /analysis "
+        "as the run file SHARD_padK.h5 beside the shard",
+    )
     a.add_argument(
         "--freq-min",
         type=nonneg,
@@ -126,7 +133,16 @@ def _add_plot(subparsers: Any) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=PLOT_EPILOG,
     )
-    p.add_argument("run", metavar="RUN.h5", help="run file written by 'aca-warp hf' or 'aca-warp lf'")
+    p.add_argument(
+        "run", metavar="RUN.h5", help="run file written by 'aca-warp hf' or 'aca-warp lf', or a sweep shard with --pad"
+    )
+    p.add_argument(
+        "--pad",
+        type=int_at_least(0),
+        metavar="K",
+        help="RUN.h5 is a sweep shard: the figures of its pad K (the pad's index in the sweep; its /analysis from "
+        "'analyze SHARD --pad K' where that ran), named SHARD_padK_<figure>",
+    )
     p.add_argument(
         "-o", "--output-dir", required=True, metavar="DIR", help="folder for the figures (created if missing)"
     )
@@ -159,17 +175,24 @@ def _add_plot(subparsers: Any) -> None:
 
 def cmd_analyze(args: argparse.Namespace) -> int:
     """``aca-warp analyze``: write /analysis and print a one-line summary; 0 on success."""
-    from aca_warp.analysis.report import analyze_run
 
     if args.freq_min is not None and args.freq_max is not None and args.freq_min >= args.freq_max:
         raise SceneError(f"--freq-min ({args.freq_min:g} Hz) must be below --freq-max ({args.freq_max:g} Hz)")
     band = None if args.freq_min is None and args.freq_max is None else (args.freq_min, args.freq_max)
+
+    with run_or_pad(args, "analyze", keep=True) as run:
+        return _analyze(args, run, band)
+
+
+def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float | None] | None) -> int:
+    """``aca-warp analyze`` of the run file ``run`` (RUN.h5, or the pad file of a shard's pad)."""
+    from aca_warp.analysis.report import analyze_run
     from aca_warp.common.files import reading
 
-    check_writable_file(args.run)
-    with reading(args.run, "run file"), storage_errors(f"/analysis into {args.run}", "the file keeps its samples"):
+    check_writable_file(run)
+    with reading(run, "run file"), storage_errors(f"/analysis into {run}", "the file keeps its samples"):
         groups = analyze_run(
-            args.run,
+            run,
             freq_range=band,
             sync=not args.no_sync,
             rule=args.rule,
@@ -178,7 +201,12 @@ def cmd_analyze(args: argparse.Namespace) -> int:
             n_bins=args.n_bins,
             stft_window_s=args.stft_window,
         )
-    parts = [f"{args.run}: /analysis written ({', '.join(groups)})"]
+    parts = [f"{run}: /analysis written ({', '.join(groups)})"]
+    if run != args.run:
+        parts[0] = f"{run} (pad {args.pad} of {args.run}): /analysis written ({', '.join(groups)})"
+    early = record_ends_early(run)
+    if early:
+        parts.append(early)
     peaks = groups["peaks"].attrs
     if "first_velocity_peak_frequency" in peaks:
         parts.append(f"first velocity-spectrum peak {peaks['first_velocity_peak_frequency'] / 1e3:.4g} kHz")
@@ -213,7 +241,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 def cmd_plot(args: argparse.Namespace) -> int:
     """``aca-warp plot``: draw the figures and list the files written; 0 on success. The output folder is checked
     first (not a file, writable: exit 4 for a read-only or full file system); a folder this command created is
-    removed again when no figure was written into it; every figure is written whole (``aca_warp.plotting``)."""
+    removed again when no figure was written into it; every figure is written whole (``aca_warp.plots.figure``)."""
     from pathlib import Path
 
     from aca_warp.common.files import check_output_folder, reading
@@ -227,9 +255,13 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
     files: list[Path] = []
     try:
-        with reading(args.run, "run file"), storage_errors(f"figures into {out}", "the figures before it are kept"):
+        with (
+            run_or_pad(args, "plot", keep=False) as run,
+            reading(run, "run file"),
+            storage_errors(f"figures into {out}", "the figures before it are kept"),
+        ):
             files = plot_run(
-                args.run,
+                run,
                 out,
                 which=args.only,
                 times=args.times,
@@ -245,6 +277,56 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if not files:
         raise SceneError(f"no figure could be made from {args.run}")
     return 0
+
+
+@contextmanager
+def run_or_pad(args: argparse.Namespace, command: str, *, keep: bool) -> Iterator[str]:
+    """The run file ``command`` works on: ``args.run``, or for a sweep shard its pad ``args.pad`` as a run file
+    (:mod:`aca_warp.analysis.pads`): with ``keep`` written beside the shard (``SHARD_padK.h5``, analyze), else that
+    file where an earlier ``analyze --pad`` wrote it, or a temporary one (plot). A shard without ``--pad``, or
+    ``--pad`` with a file that is no shard: one line."""
+    import tempfile
+    from pathlib import Path
+
+    from aca_warp.analysis.pads import extracted_from, pad_run_path, shard_pads, shard_refusal, write_pad_run
+
+    pads = shard_pads(args.run)
+    if pads is None:
+        if args.pad is not None:
+            raise SceneError(f"--pad picks a pad of a sweep shard; {args.run} is not one")
+        yield args.run
+        return
+    if args.pad is None:
+        raise shard_refusal(args.run, pads, command)
+    dest = pad_run_path(args.run, args.pad)
+    if keep:
+        yield str(write_pad_run(args.run, args.pad, dest))
+    elif dest.exists() and extracted_from(dest, args.run):
+        yield str(dest)
+    else:
+        with tempfile.TemporaryDirectory() as tmp:
+            yield str(write_pad_run(args.run, args.pad, Path(tmp) / dest.name))
+
+
+def record_ends_early(path: str) -> str | None:
+    """For a run that did not complete (interrupted, stopped on a fault, killed), where its record ends against the
+    duration asked, in words; None for a complete run."""
+    import json
+
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        if bool(f.attrs.get("complete", True)):
+            return None
+        t = f["global/time"]
+        end = float(t[-1]) if t.shape[0] else 0.0
+        try:
+            asked = json.loads(f.attrs["run_options"])["duration"]
+        except (KeyError, TypeError, ValueError):
+            asked = None
+        status = str(f.attrs.get("status", "incomplete"))
+    of = "" if asked is None else f" of the {float(asked):.4g} s asked"
+    return f"the run is incomplete ({status}): its record ends early, at t = {end:.4g} s{of}, and so does the analysis"
 
 
 def check_writable_file(path: str) -> None:

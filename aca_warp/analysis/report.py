@@ -15,7 +15,8 @@
 Everything is computed first and written last, into a temporary group that replaces ``/analysis`` only
 once it is complete: a failure leaves the previous ``/analysis`` (or none) in place. The ``compute_*``
 functions are public so that :mod:`aca_warp.plots` can compute on the fly what a file does not hold
-(:func:`analysis_group`).
+(:func:`analysis_group`). The groups of the per-patch velocities are computed in :mod:`aca_warp.analysis.patch_report`
+and :class:`Group` is defined in :mod:`aca_warp.analysis.groups`; both are importable from here too.
 """
 
 from __future__ import annotations
@@ -23,20 +24,30 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import h5py
 import numpy as np
-import scipy.fft
 
+from aca_warp.common.bounds import check_h5, json_attribute
 from aca_warp.common.errors import SceneError
 from aca_warp.common.files import attr_value
 
+from .groups import DEFAULT_BAND_TOP as DEFAULT_BAND_TOP
+from .groups import Group as Group
+from .groups import has_patch_velocity as has_patch_velocity
+from .groups import sample_interval as sample_interval
+from .patch_report import LEAKAGE_BINS as LEAKAGE_BINS
+from .patch_report import bin_width as bin_width
+from .patch_report import compute_patch_spectrum as compute_patch_spectrum
+from .patch_report import compute_patch_velocity as compute_patch_velocity
+from .patch_report import compute_sync as compute_sync
+from .patch_report import leakage_floor as leakage_floor
+from .patch_report import shown_bins as shown_bins
+from .patch_report import sync_excess as sync_excess
 from .saturation import record_saturation
-from .spectra import DEFAULT_FLOOR_HZ, amplitude_spectrum, complex_spectrum, peak
-from .sync import SyncResult, _patch_groups, sync_index, sync_index_from_signals
+from .spectra import DEFAULT_FLOOR_HZ, amplitude_spectrum, peak
 from .timefreq import cwt_morlet, stft
 
 GLOBAL_OUTPUTS = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity", "friction_centroid")
@@ -53,42 +64,12 @@ LABELS = {
 }
 """Short names of the global outputs for captions and legends."""
 
-DEFAULT_BAND_TOP = 200.0e3
-"""Upper edge of the default analysis band of the Synchronization Index and the CWT [Hz]."""
-
 PEAK_FLOOR_HZ = 1.0e3
 """Velocity and μ peaks are searched above this frequency [Hz] (and above 3 frequency bins)."""
 
 RULES = ("relative", "snr")
 GROUP = "analysis"
-_TMP_GROUP = "_analysis_new"
-
-
-@dataclass
-class Group:
-    """One analysis group in memory: group attributes and datasets with their attributes.
-
-    Attributes:
-        attrs: Attributes of the group (str, numbers, bools, lists of numbers).
-        datasets: name -> (array, attributes); every dataset's attributes include ``unit``.
-    """
-
-    attrs: dict[str, Any] = field(default_factory=dict)
-    datasets: dict[str, tuple[np.ndarray, dict[str, Any]]] = field(default_factory=dict)
-
-    def __getitem__(self, name: str) -> np.ndarray:
-        return self.datasets[name][0]
-
-    def __contains__(self, name: object) -> bool:
-        return name in self.datasets
-
-    def meta(self, name: str) -> dict[str, Any]:
-        """Attributes of dataset ``name``."""
-        return self.datasets[name][1]
-
-    def add(self, name: str, data: Any, unit: str, **attrs: Any) -> None:
-        """Add dataset ``name`` with its ``unit`` and further attributes."""
-        self.datasets[name] = (np.asarray(data), {"unit": unit, **attrs})
+TMP_GROUP = "_analysis_new"
 
 
 # ----------------------------------------------------------------------------------------- run files
@@ -116,10 +97,19 @@ def check_run_file(f: h5py.File, name: str | Path = "") -> None:
         missing.append("root attribute 'scene'")
     if missing:
         raise SceneError(f"{where}not an aca_warp run file (lacks {', '.join(missing)})")
+    if not isinstance(json_attribute(f.attrs["scene"], f"{where}attribute 'scene'"), dict):
+        raise SceneError(f"{where}attribute 'scene' is not a JSON object (a crafted or damaged file)")
+    for k in ("global/time", *(f"global/{k}" for k in GLOBAL_OUTPUTS), "patches/x", "patches/y", "patches/area"):
+        if k in f and not isinstance(f[k], h5py.Dataset):
+            raise SceneError(f"{where}/{k} is a {type(f[k]).__name__.lower()}, not a dataset")
     n = f["global/time"].shape
     for k in (k for k in GLOBAL_OUTPUTS if f"global/{k}" in f):
         if f[f"global/{k}"].shape != n or len(n) != 1:
             raise SceneError(f"{where}/global/{k} has shape {f[f'global/{k}'].shape}, /global/time {n}")
+    m = f["patches/x"].shape
+    for k in ("x", "y", "area"):
+        if f[f"patches/{k}"].shape != m or len(m) != 1:
+            raise SceneError(f"{where}/patches/{k} has shape {f[f'patches/{k}'].shape}, expected one value per patch")
     if n[0] < 8:
         raise SceneError(f"{where}the run holds {n[0]} samples; the analysis needs at least 8")
     if "patches/velocity" in f:
@@ -143,6 +133,7 @@ def open_run_file(path: str | Path, mode: str = "r") -> h5py.File:
         detail = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise SceneError(f"cannot open {p}{what}: {detail}") from None
     try:
+        check_h5(f, p, "run file")  # links, declared sizes, numbers: before anything is read
         if _decode(f.attrs.get("kind")) == "lf":
             raise SceneError(
                 f"{p} is an LF run file: the analysis applies to HF run files (aca-warp hf); "
@@ -153,82 +144,6 @@ def open_run_file(path: str | Path, mode: str = "r") -> h5py.File:
         f.close()
         raise
     return f
-
-
-def sample_interval(time: np.ndarray, what: str = "/global/time") -> float:
-    """Uniform sampling interval of ``time`` [s]; :class:`SceneError` if the samples are not uniform."""
-    time = np.asarray(time, dtype=np.float64)
-    if time.size < 2:
-        raise SceneError(f"{what} holds {time.size} sample(s); need at least 2")
-    dt = (time[-1] - time[0]) / (time.size - 1)
-    if not dt > 0 or np.max(np.abs(np.diff(time) - dt)) > 1e-6 * dt:
-        raise SceneError(f"{what} is not uniformly sampled; the spectra need uniform samples")
-    return float(dt)
-
-
-def has_patch_velocity(f: h5py.File) -> bool:
-    """True when the run recorded per-patch velocities (with at least 8 rows)."""
-    return "patches/velocity" in f and "patches/time" in f and f["patches/velocity"].shape[0] >= 8
-
-
-LEAKAGE_BINS = 2
-"""Figures and the ``analyze`` summary leave out the lowest bins f < LEAKAGE_BINS·Δf (see :func:`leakage_floor`)."""
-
-
-def leakage_floor(freq: np.ndarray) -> float:
-    """Lowest frequency [Hz] the figures show and the ``analyze`` summary names: max(10 Hz, 2 Δf).
-
-    ``freq``: a uniform frequency grid (Hz, any start), Δf = freq[1] − freq[0]. A periodic Hann window over the
-    whole record puts the record's mean into bins 0 and 1 (bin 1 at half its height); on a short record bin 1
-    lies inside the band, and there every patch's velocity spectrum holds its mean with one common phase, which
-    makes S(f) ≈ 1 without any oscillation. 10 Hz is the paper's floor (Fig. 10).
-    """
-    freq = np.asarray(freq, dtype=np.float64)
-    df = float(freq[1] - freq[0]) if freq.size > 1 else 0.0
-    return max(DEFAULT_FLOOR_HZ, LEAKAGE_BINS * df)
-
-
-def shown_bins(freq: np.ndarray) -> np.ndarray:
-    """Boolean mask of the bins of ``freq`` at or above :func:`leakage_floor` (bin 2 itself is kept whatever the
-    rounding of freq[1] − freq[0])."""
-    freq = np.asarray(freq, dtype=np.float64)
-    return freq >= leakage_floor(freq) * (1.0 - 1e-9)
-
-
-def sync_excess(sync: Group) -> dict[str, Any] | None:
-    """Where S(f) exceeds its null level most, over the bins the figures show (f ≥ :func:`leakage_floor`).
-
-    Returns None when no such bin has Φ ≥ 2, else a dict: ``freq`` [Hz], ``S``, ``S_null``, ``Phi`` of the bin
-    with the largest S − S_null; ``above`` (bins with S > S_null) and ``bins`` (bins with Φ ≥ 2), both counted
-    over the shown bins; ``band`` [Hz] (the stored band, its lower edge raised to the floor) and ``floor`` [Hz].
-    """
-    freq, S, s0 = (np.asarray(sync[k], dtype=np.float64) for k in ("freq", "S", "S_null"))
-    floor = leakage_floor(freq)
-    band = np.asarray(sync.attrs.get("band", [freq[0], freq[-1]]), dtype=np.float64)
-    shown = shown_bins(freq) & (freq >= float(band[0]))
-    valid = shown & np.isfinite(S)
-    if not valid.any():
-        return None
-    k = int(np.argmax(np.where(valid, S - s0, -np.inf)))
-    return {
-        "freq": float(freq[k]),
-        "S": float(S[k]),
-        "S_null": float(s0[k]),
-        "Phi": int(sync["Phi"][k]),
-        "above": int(np.count_nonzero(S[valid] > s0[valid])),
-        "bins": int(np.count_nonzero(valid)),
-        "band": (max(floor, float(band[0])), float(band[1])),
-        "floor": floor,
-    }
-
-
-def _band(freq_range: tuple[float, float] | None, nyquist: float, top: float = DEFAULT_BAND_TOP) -> tuple[float, float]:
-    lo, hi = (DEFAULT_FLOOR_HZ, min(top, nyquist)) if freq_range is None else freq_range
-    lo = DEFAULT_FLOOR_HZ if lo is None else float(lo)
-    hi = min(top, nyquist) if hi is None else min(float(hi), nyquist)
-    if not hi > lo:
-        raise SceneError(f"empty frequency band {lo:g}-{hi:g} Hz (the Nyquist frequency is {nyquist:g} Hz)")
-    return lo, hi
 
 
 # ------------------------------------------------------------------------------------------- compute
@@ -285,140 +200,6 @@ def compute_spectra(f: h5py.File) -> Group:
         )
     g.datasets = {"freq": (freq, {"unit": "Hz"}), **g.datasets}
     return g
-
-
-def _band_rows(freq: np.ndarray, band: tuple[float, float]) -> slice:
-    keep = np.flatnonzero((freq >= band[0]) & (freq <= band[1]))
-    if keep.size == 0:
-        raise SceneError(f"no frequency bin inside {band[0]:g}-{band[1]:g} Hz")
-    return slice(int(keep[0]), int(keep[-1]) + 1)
-
-
-def compute_patch_velocity(
-    f: h5py.File,
-    *,
-    sync: bool = True,
-    freq_range: tuple[float, float] | None = None,
-    rule: str = "relative",
-    eta: float = 0.1,
-    snr: float = 5.0,
-    n_bins: int = 180,
-    null_trials: int = 100,
-    max_bytes: int = 1 << 30,
-    workers: int | None = -1,
-) -> tuple[Group | None, Group | None]:
-    """Per-patch velocity analysis: the mean amplitude spectrum and (``sync``) the Synchronization Index.
-
-    One pass over ``/patches/velocity`` in patch-column groups of whole HDF5 chunks computes each patch's
-    Hann complex spectrum (float32 in, complex64 out, 32 columns per FFT, the scaling of
-    ``complex_spectrum``), adds |X_i(f)| to the mean amplitude spectrum and keeps the bins of the
-    Synchronization Index band. When that band array would exceed ``max_bytes``, the Synchronization Index
-    is computed by ``sync_index_from_signals`` instead (further passes, same results). The band defaults
-    to 10 Hz – min(200 kHz, Nyquist).
-
-    Returns:
-        ``(patch_spectrum, sync)``, each None when the run holds no per-patch velocities (``sync`` also
-        when not asked for).
-    """
-    if not has_patch_velocity(f):
-        return None, None
-    v = f["patches/velocity"]
-    dt = sample_interval(f["patches/time"][()], "/patches/time")
-    n, n_patches = v.shape
-    freq_all = scipy.fft.rfftfreq(n, dt)
-    band = _band(freq_range, 0.5 / dt)
-    rows = _band_rows(freq_all, band)
-    keep_band = sync and (rows.stop - rows.start) * n_patches * 8 <= max_bytes
-    total, X = _patch_spectra(v, dt, rows if keep_band else None, max_bytes, workers)
-    patch = Group(
-        attrs={
-            "quantity": "mean over all patches of the one-sided Hann amplitude spectra |X_i(f)| of the per-patch "
-            "velocities (not normalised)",
-            "window": f"periodic Hann window over the per-patch record ({n} samples, {n * dt:.6g} s)",
-            "patches": n_patches,
-            "sample_interval": dt,
-        }
-    )
-    patch.add("freq", freq_all, "Hz")
-    patch.add("mean_amplitude", total / n_patches, "m s-1", signal="/patches/velocity", normalisation="none")
-    if not sync:
-        return patch, None
-    options = {"rule": rule, "eta": eta, "snr": snr, "n_bins": n_bins, "null_trials": null_trials}
-    try:
-        if X is not None:
-            res = sync_index(X, freq=freq_all[rows], **options)
-        else:
-            res = sync_index_from_signals(v, dt, freq_range=band, max_bytes=max_bytes, workers=workers, **options)
-    except ValueError as e:
-        raise SceneError(f"Synchronization Index: {e}") from None
-    del X
-    return patch, _sync_group(res, band, dt, v.shape)
-
-
-def _patch_spectra(
-    v: h5py.Dataset, dt: float, band_rows: slice | None, max_bytes: int, workers: int | None
-) -> tuple[np.ndarray, np.ndarray | None]:
-    """One pass over the per-patch velocities ``v`` (samples, patches) [m/s] sampled every ``dt`` [s].
-
-    Reads patch-column groups of whole HDF5 chunks (at most ``max_bytes`` of float32 each) and computes each
-    patch's Hann complex spectrum, 32 columns per FFT (``complex_spectrum``'s scaling).
-
-    Returns:
-        ``(total, X)``: total, shape (samples // 2 + 1,), the sum over patches of |X_i(f)| [m/s]; X, shape
-        (rows of ``band_rows``, patches), complex64, the spectra's bins ``band_rows``, or None without them.
-    """
-    n, n_patches = v.shape
-    X = None if band_rows is None else np.empty((band_rows.stop - band_rows.start, n_patches), dtype=np.complex64)
-    group = max(1, max_bytes // (4 * n))
-    if v.chunks and v.chunks[1] < n_patches:
-        group = max(1, group // v.chunks[1]) * v.chunks[1]
-    total = np.zeros(n // 2 + 1)  # one entry per bin of the one-sided spectrum
-    for g0, block in _patch_groups(v, group):
-        for c0 in range(0, block.shape[1], 32):
-            x = np.asarray(block[:, c0 : c0 + 32], dtype=np.float32)
-            _, spec = complex_spectrum(x, dt, axis=0, workers=workers)
-            total += np.abs(spec).sum(axis=1, dtype=np.float64)
-            if X is not None:
-                X[:, g0 + c0 : g0 + c0 + spec.shape[1]] = spec[band_rows]
-            del spec
-    return total, X
-
-
-def _sync_group(res: SyncResult, band: tuple[float, float], dt: float, shape: tuple[int, int]) -> Group:
-    """``/analysis/sync`` from the Synchronization Index ``res`` of per-patch velocities of ``shape`` (samples,
-    patches), sampled every ``dt`` [s], over ``band`` [Hz]."""
-    n, n_patches = shape
-    attrs: dict[str, Any] = dict(res.params)
-    attrs.update(
-        signal="/patches/velocity",
-        band=[band[0], band[1]],
-        band_unit="Hz",
-        sample_interval=dt,
-        samples=n,
-        patches=n_patches,
-        spectra="Hann-windowed one-sided complex spectra per patch (float32 in, complex64 out); phase arg X_i(f) "
-        "referenced to the first per-patch sample",
-        definition="paper §2.2 Eqs. 5-9 and Appendix; docs/analysis.md",
-    )
-    g = Group(attrs=attrs)
-    g.add("freq", res.freq, "Hz")
-    g.add("S", res.S, "1", meaning="Synchronization Index, Eq. 9 (NaN where Phi < 2)")
-    g.add("S_AB", res.S_AB, "1", meaning="A/B contribution, Eq. 6")
-    g.add("S_BC", res.S_BC, "1", meaning="B/C contribution, Eq. 8")
-    g.add("Phi", res.Phi.astype(np.int64), "1", meaning=f"patches counted as oscillating ({res.rule} rule)")
-    g.add("S_null", res.S_null, "1", meaning="mean S of Phi uniformly random phases (Monte-Carlo)")
-    g.add("R_w", res.R_w, "1", meaning="|sum_i X_i| / sum_i |X_i| over all patches")
-    return g
-
-
-def compute_patch_spectrum(f: h5py.File, *, max_bytes: int = 1 << 30, workers: int | None = -1) -> Group | None:
-    """Mean over patches of the per-patch velocity amplitude spectra (None without per-patch velocities)."""
-    return compute_patch_velocity(f, sync=False, max_bytes=max_bytes, workers=workers)[0]
-
-
-def compute_sync(f: h5py.File, **options: Any) -> Group | None:
-    """Synchronization Index of the per-patch velocities (keywords of :func:`compute_patch_velocity`)."""
-    return compute_patch_velocity(f, sync=True, **options)[1]
 
 
 def default_stft_window(n: int, dt: float, top: float = DEFAULT_BAND_TOP) -> float:
@@ -715,9 +496,23 @@ def read_group(g: h5py.Group) -> Group:
     return out
 
 
+def analysis_fits(f: h5py.File) -> bool:
+    """Whether the file's ``/analysis`` describes its samples as they are now: its ``samples`` attribute equals the
+    length of ``/global/time`` (an analysis written before that attribute: the run was complete then as now)."""
+    g = f[GROUP]
+    if "samples" in g.attrs:
+        return int(g.attrs["samples"]) == f["global/time"].shape[0]
+    return bool(g.attrs.get("run_complete", False)) == bool(run_attr(f, "complete", False))
+
+
+def stored(f: h5py.File, name: str) -> bool:
+    """Whether the file holds ``/analysis/<name>`` and it still fits the samples (:func:`analysis_fits`)."""
+    return f"{GROUP}/{name}" in f and analysis_fits(f)
+
+
 def analysis_group(f: h5py.File, name: str, compute: Callable[[], Group | None]) -> Group | None:
-    """``/analysis/<name>`` from the file when present, else ``compute()`` (nothing is written)."""
-    if f"{GROUP}/{name}" in f:
+    """``/analysis/<name>`` from the file when :func:`stored`, else ``compute()`` (nothing is written)."""
+    if stored(f, name):
         return read_group(f[f"{GROUP}/{name}"])
     return compute()
 
@@ -737,24 +532,24 @@ def write_analysis(f: h5py.File, groups: dict[str, Group], attrs: dict[str, Any]
     need = sum(np.asarray(d).nbytes + 4096 for g in groups.values() for d, _ in g.datasets.values())
     try:
         guard.reserve(need)
-        if _TMP_GROUP in f:
-            del f[_TMP_GROUP]
+        if TMP_GROUP in f:
+            del f[TMP_GROUP]
         try:
-            tmp = f.create_group(_TMP_GROUP)
+            tmp = f.create_group(TMP_GROUP)
             for k, v in attrs.items():
                 tmp.attrs[k] = _attr_value(v)
             for name, group in groups.items():
                 _write_group(tmp, name, group)
         except BaseException:
             try:
-                if _TMP_GROUP in f:
-                    del f[_TMP_GROUP]
+                if TMP_GROUP in f:
+                    del f[TMP_GROUP]
             finally:
                 raise
         with deferred():
             if GROUP in f:
                 del f[GROUP]
-            f.move(_TMP_GROUP, GROUP)
+            f.move(TMP_GROUP, GROUP)
             guard.flush()
     except Exception as e:  # a StorageError of the reservation, or an OSError/RuntimeError of HDF5
         code = storage_errno(e)
@@ -792,6 +587,10 @@ def analyze_run(
 ) -> dict[str, Group]:
     """Analyse a run file and (re)write its ``/analysis`` group; returns the groups written.
 
+    The run file's output lock (``RUN.h5.lock`` and its identity, :class:`~aca_warp.common.files.OutputLock`) is
+    held throughout, so a run that another process still writes or resumes is refused, and ``/analysis`` records
+    the samples it describes (``samples``, ``time_range`` [s]; a resumed run drops it).
+
     Args:
         path: Run file written by ``aca-warp hf`` / :func:`aca_warp.hf.runner.run_scene`.
         freq_range: ``(fmin, fmax)`` [Hz] of the Synchronization Index, the CWT and the peak search; a None
@@ -814,40 +613,49 @@ def analyze_run(
         workers: Threads of ``scipy.fft`` (-1: all CPUs).
 
     Raises:
-        SceneError: The file is missing, not an HDF5 run file, not writable, or an option is invalid;
-            the file is then left unchanged.
+        SceneError: The file is missing, not an HDF5 run file, not writable, written by another process, or an
+            option is invalid; the file is then left unchanged.
     """
+    from aca_warp.common.files import locked_output
+
     _check_options(rule, eta, snr, n_bins)
-    band = _checked_band(path, freq_range)
     index = {"rule": rule, "eta": eta, "snr": snr, "n_bins": n_bins, "null_trials": null_trials}
-    with open_run_file(path, "r+") as f:
-        groups: dict[str, Group] = {"spectra": compute_spectra(f)}
-        if sync:
-            groups.update(_patch_velocity_groups(f, band, index, max_bytes, workers))
-        groups["stft"] = compute_stft(f, window_s=stft_window_s)
-        groups["cwt"] = compute_cwt(f, freqs=cwt_freqs, freq_range=band, count=cwt_count, columns=cwt_columns)
-        groups["peaks"] = compute_peaks(groups["spectra"], groups.get("patch_spectrum"), freq_range=band)
-        groups["saturation"] = compute_saturation(f)
-        parameters = {
-            "freq_range": list(band) if band else None,
-            "sync": sync,
-            "rule": rule,
-            "eta": eta,
-            "snr": snr,
-            "n_bins": n_bins,
-            "stft_window_s": stft_window_s,
-            "cwt_count": cwt_count,
-            "cwt_columns": cwt_columns,
-            "null_trials": null_trials,
-        }
-        attrs = {
-            "created_by": "aca_warp.analysis.report.analyze_run",
-            "aca_warp_version": _package_version(),
-            "parameters": parameters,
-            "run_complete": bool(run_attr(f, "complete", False)),
-            "groups": json.dumps(sorted(groups)),
-        }
-        write_analysis(f, groups, attrs)
+    busy = "wait for it to finish or stop it (analyze writes /analysis into the run file)"
+    with locked_output(path, what=busy) as lock:
+        if Path(path).is_file():  # a missing file: open_run_file's message
+            lock.own(path, what=busy)
+        band = _checked_band(path, freq_range)
+        with open_run_file(path, "r+") as f:
+            groups: dict[str, Group] = {"spectra": compute_spectra(f)}
+            if sync:
+                groups.update(_patch_velocity_groups(f, band, index, max_bytes, workers))
+            groups["stft"] = compute_stft(f, window_s=stft_window_s)
+            groups["cwt"] = compute_cwt(f, freqs=cwt_freqs, freq_range=band, count=cwt_count, columns=cwt_columns)
+            groups["peaks"] = compute_peaks(groups["spectra"], groups.get("patch_spectrum"), freq_range=band)
+            groups["saturation"] = compute_saturation(f)
+            parameters = {
+                "freq_range": list(band) if band else None,
+                "sync": sync,
+                "rule": rule,
+                "eta": eta,
+                "snr": snr,
+                "n_bins": n_bins,
+                "stft_window_s": stft_window_s,
+                "cwt_count": cwt_count,
+                "cwt_columns": cwt_columns,
+                "null_trials": null_trials,
+            }
+            t = f["global/time"]
+            attrs = {
+                "created_by": "aca_warp.analysis.report.analyze_run",
+                "aca_warp_version": _package_version(),
+                "parameters": parameters,
+                "run_complete": bool(run_attr(f, "complete", False)),
+                "samples": int(t.shape[0]),
+                "time_range": [float(t[0]), float(t[-1])],
+                "groups": json.dumps(sorted(groups)),
+            }
+            write_analysis(f, groups, attrs)
     return groups
 
 

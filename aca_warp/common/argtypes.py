@@ -21,7 +21,7 @@ def positive(text: str) -> float:
     """A finite float > 0."""
     v = number(text)
     if not v > 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be positive (> 0), got {text!r}")
     return v
 
 
@@ -65,3 +65,25 @@ def refuse_with_resume(options: tuple[tuple[str, object, object], ...], what: st
     given = [name for name, value, default in options if value != default]
     if given:
         raise SceneError(f"--resume continues {what} with its own settings; drop {', '.join(given)}")
+
+
+CHECKPOINT_HELP = (
+    "keep the {what} state in the run file every S of simulated time, so that a stopped or killed run can be resumed "
+    "(default: automatic, every 30 s of wall time or less often, costing at most 2%% of the run; 0: none; "
+    "docs/faults.md)"
+)
+
+
+def add_checkpoint_arguments(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--checkpoint-interval S`` (simulated time [s]; 0: none) and ``--no-checkpoint`` (the same as 0), into
+    ``args.checkpoint_interval`` (None: automatic checkpoints, :class:`aca_warp.common.checkpoint.CheckpointClock`);
+    ``what`` names the state kept (e.g. "solver")."""
+    g = parser.add_mutually_exclusive_group()
+    g.add_argument("--checkpoint-interval", type=nonneg, metavar="S", help=CHECKPOINT_HELP.format(what=what))
+    g.add_argument(
+        "--no-checkpoint",
+        dest="checkpoint_interval",
+        action="store_const",
+        const=0.0,
+        help="no checkpoints (--checkpoint-interval 0): a stopped or killed run resumes from its start",
+    )

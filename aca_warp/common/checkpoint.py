@@ -29,6 +29,8 @@ fails with one line, and ``aca-warp rerun`` repeats the run from the start.
 
 from __future__ import annotations
 
+import math
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -148,15 +150,15 @@ def closed_on_failure(
 ) -> Iterator[None]:
     """Close ``f`` if the body raises (a resume must not leave the partial file open); ``close`` replaces
     ``f.close`` (:meth:`~aca_warp.common.storage.GuardedFile.abandon`: a failed resume writes nothing). With
-    ``scene_error``, the errors of a malformed file (KeyError, ValueError, TypeError, OSError, RuntimeError)
-    become one SceneError naming ``path``."""
+    ``scene_error``, the errors of a malformed file (KeyError, ValueError, TypeError, OSError, RuntimeError, and
+    AttributeError: a group where a dataset belongs) become one SceneError naming ``path``."""
     close = close or f.close
     try:
         yield
     except AcaError:  # already one line
         close()
         raise
-    except (KeyError, ValueError, TypeError, OSError, RuntimeError) as e:
+    except (KeyError, ValueError, TypeError, OSError, RuntimeError, AttributeError) as e:
         close()
         if not scene_error:
             raise
@@ -172,3 +174,62 @@ def drop_checkpoint(f: h5py.File) -> None:
     """Remove the checkpoint group (a completed run needs none)."""
     if GROUP in f:
         del f[GROUP]
+
+
+AUTO_WALL_S = 30.0  # automatic checkpoints: at least this much wall time between two [s]
+AUTO_SHARE = 0.02  # ... and at least 1 / AUTO_SHARE times the wall time the last one took
+
+
+def next_multiple(t: float, interval: float) -> float:
+    """The first multiple of ``interval`` after ``t`` [s]; a ``t`` within 1e-9 intervals below a multiple counts as
+    on it (sample times are sums of rounded steps: 9.999999999999999e-05 is the checkpoint at 1e-4, and the next
+    one is 2e-4, not 1e-4 again)."""
+    return (math.floor(t / interval + 1e-9) + 1) * interval
+
+
+class CheckpointClock:
+    """When a run writes its checkpoints, from its ``checkpoint_interval`` [s]:
+
+    * ``None`` (the default of ``aca-warp hf`` and ``lf``): automatic. The first chunk (HF) or step (LF) end at least
+      :data:`AUTO_WALL_S` of wall time after the run started, then after the previous checkpoint, and at least
+      1 / :data:`AUTO_SHARE` times as long as that checkpoint took to write: checkpoints cost at most
+      :data:`AUTO_SHARE` of the run's wall time (``scripts/checkpoint_cost.py`` measures it), and an interrupt loses
+      at most that much work. A run that ends or stops before its first checkpoint resumes from its start.
+    * ``> 0``: the first chunk or step end at or past each multiple of it in simulated time (the HF loop ends its
+      chunks there).
+    * ``0``: none.
+
+    Attributes:
+        count: Checkpoints written.
+        seconds: Wall time spent writing them [s].
+    """
+
+    def __init__(self, interval: float | None, sim_time: float) -> None:
+        self.interval = interval
+        self.count = 0
+        self.seconds = 0.0
+        self.next_sim = next_multiple(sim_time, interval) if interval else math.inf
+        self.next_wall = time.perf_counter() + AUTO_WALL_S if interval is None else math.inf
+
+    @property
+    def bound(self) -> float:
+        """Simulated time [s] a chunk should not run past (the next checkpoint of a fixed interval, else inf)."""
+        return self.next_sim
+
+    def due(self, sim_time: float) -> bool:
+        """Whether a checkpoint is due at this chunk or step end (``sim_time`` [s] reached)."""
+        if self.interval is None:
+            return time.perf_counter() >= self.next_wall
+        return sim_time >= self.next_sim * (1 - 1e-12)
+
+    def write(self, write: Callable[[], None], sim_time: float) -> None:
+        """Run ``write`` (the checkpoint at ``sim_time`` [s]) and set the next one."""
+        t = time.perf_counter()
+        write()
+        took = time.perf_counter() - t
+        self.count += 1
+        self.seconds += took
+        if self.interval is None:
+            self.next_wall = time.perf_counter() + max(AUTO_WALL_S, took / AUTO_SHARE)
+        else:
+            self.next_sim = next_multiple(sim_time, self.interval)

@@ -21,6 +21,7 @@ import numpy as np
 
 from aca_warp.common.checkpoint import has_checkpoint
 from aca_warp.common.errors import AcaError, SceneError, StorageError, option
+from aca_warp.common.links import NOFOLLOW, clear_name, open_lock_file, private_dir
 
 # why a folder cannot take a new file, by errno (the probe and the lock file; docs/faults.md "Output folders")
 UNWRITABLE = {
@@ -48,12 +49,16 @@ def versions() -> dict[str, str]:
 
 def attr_value(value: Any) -> Any:
     """An HDF5 attribute as a Python value: bytes → str, NumPy scalars → Python scalars, text holding a JSON list
-    or object → that object (other text unchanged)."""
+    or object → that object (other text unchanged; nested beyond :data:`~aca_warp.common.bounds.MAX_NESTING`:
+    SceneError)."""
     if isinstance(value, bytes):
         value = value.decode()
     if isinstance(value, np.generic):
         value = value.item()
     if isinstance(value, str) and value[:1] in "[{":
+        from aca_warp.common.bounds import check_nesting
+
+        check_nesting(value, "an attribute")  # a crafted attribute nested 20 000 deep: one line, not a RecursionError
         try:
             return json.loads(value)
         except json.JSONDecodeError:
@@ -103,52 +108,56 @@ class OutputLock:
     :meth:`acquire` checks after locking that the path still names the file it locked (else it lost a race with a
     release and tries again), so two processes never both hold the lock of one name. On NFS ``flock`` is carried
     by byte-range locks (lockd); where a filesystem has no locks at all the output is written unlocked, with a note.
+    The lock file is opened without following a link (:func:`~aca_warp.common.links.open_lock_file`).
+
+    One writer per *file*, not per name: :meth:`own` also locks the identity (device and inode) of the file being
+    written, in the user's private folder (:func:`~aca_warp.common.links.private_dir`), so that a symbolic or hard
+    link of a live file, or the file moved to another name, is refused as a second writer too.
     """
 
     def __init__(self, path: Path, fd: int | None) -> None:
         self.path = path
         self.fd = fd
+        self.identity: list[tuple[Path, int]] = []  # (lock file, fd) of the files this writer owns
 
     @classmethod
     def acquire(cls, path: str | Path, *, what: str = "output") -> OutputLock:
         """Lock ``path`` for writing; :class:`SceneError` naming the holder when another process holds it, one
-        for a path that names a folder (:func:`check_output_name`), :class:`StorageError` (exit 4) when its folder
-        takes no new file (:func:`unwritable`)."""
+        for a path that names a folder (:func:`check_output_name`) or a link planted at ``NAME.lock``,
+        :class:`StorageError` (exit 4) when its folder takes no new file (:func:`unwritable`)."""
         p = check_output_name(path)
         lp = lock_path(p)
-        while True:
-            try:
-                fd = os.open(lp, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-            except FileNotFoundError:
-                raise SceneError(f"output folder {p.parent} does not exist") from None
-            except NotADirectoryError:
-                raise SceneError(f"output folder {p.parent} is not a folder") from None
-            except OSError as e:
-                raise unwritable(p.parent, e) from None
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                holder = _read_holder(fd)
-                os.close(fd)
-                raise SceneError(f"{p} is being written by {holder}; {what}") from None
-            except OSError as e:
-                if e.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL):
-                    os.close(fd)
-                    raise
-                os.close(fd)
-                print(f"aca-warp: note: {lp.parent} has no file locks ({e.strerror}); {p} is written unlocked: "
-                      "make sure no other process writes it", file=sys.stderr)  # fmt: skip
-                return cls(lp, None)
-            try:
-                same = os.path.samestat(os.fstat(fd), os.stat(lp))
-            except FileNotFoundError:
-                same = False
-            if not same:  # the holder released (and removed) it between our open and flock: try again
-                os.close(fd)
-                continue
-            os.ftruncate(fd, 0)
-            os.write(fd, f"{os.getpid()} {socket.gethostname()} {' '.join(sys.argv[:4])[:200]}\n".encode())
-            return cls(lp, fd)
+        try:
+            fd = _take(lp, p, what)
+        except FileNotFoundError:
+            raise SceneError(f"output folder {p.parent} does not exist") from None
+        except NotADirectoryError:
+            raise SceneError(f"output folder {p.parent} is not a folder") from None
+        except OSError as e:
+            raise unwritable(p.parent, e) from None
+        if fd is None:
+            print(f"aca-warp: note: {lp.parent} has no file locks; {p} is written unlocked: "
+                  "make sure no other process writes it", file=sys.stderr)  # fmt: skip
+        return cls(lp, fd)
+
+    def own(self, file: str | Path, *, what: str = "output") -> None:
+        """Lock the identity of ``file`` (the file this writer writes, reached through whatever name):
+        :class:`SceneError` naming the holder when another process writes the same file under another name. Where
+        the user has no private folder, only the name is locked (a note says so)."""
+        st = os.stat(file)
+        try:
+            folder = private_dir("files")
+            lp = folder / f"{st.st_dev:x}-{st.st_ino}.lock"
+            fd = _take(lp, Path(file), what)
+        except AcaError:
+            raise
+        except OSError as e:
+            print(f"aca-warp: note: no private lock folder ({e.strerror or e}); {file} is locked by its name only",
+                  file=sys.stderr)  # fmt: skip
+            return
+        if fd is not None:
+            self.identity.append((lp, fd))
+            _drop_stale(folder, keep=lp)
 
     @property
     def held(self) -> bool:
@@ -156,15 +165,77 @@ class OutputLock:
         return self.fd is not None
 
     def release(self) -> None:
-        """Remove the lock file and drop the lock (idempotent)."""
+        """Remove the lock files and drop the locks (idempotent)."""
+        for lp, fd in self.identity:
+            _drop(lp, fd)
+        self.identity = []
         if self.fd is None:
             return
-        try:
-            os.unlink(self.path)
-        except OSError:
-            pass
-        os.close(self.fd)
+        _drop(self.path, self.fd)
         self.fd = None
+
+
+def _take(lp: Path, p: Path, what: str) -> int | None:
+    """Take ``flock(LOCK_EX | LOCK_NB)`` on the lock file ``lp`` of ``p`` (created if missing, never through a
+    link) and write this process into it; the descriptor, or None on a filesystem without locks. SceneError naming
+    the holder when another process holds it; OSError when the file cannot be created."""
+    while True:
+        fd = open_lock_file(lp)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _read_holder(fd)
+            os.close(fd)
+            raise SceneError(f"{p} is being written by {holder}; {what}") from None
+        except OSError as e:
+            os.close(fd)
+            if e.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL):
+                raise
+            return None
+        try:
+            same = os.path.samestat(os.fstat(fd), os.lstat(lp))
+        except FileNotFoundError:
+            same = False
+        if not same:  # the holder released (and removed) it between our open and flock: try again
+            os.close(fd)
+            continue
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()} {socket.gethostname()} {' '.join(sys.argv[:4])[:200]}\n".encode())
+        return fd
+
+
+def _drop_stale(folder: Path, keep: Path) -> None:
+    """Remove the identity lock files in ``folder`` that no process holds (left by killed writers), ``keep``
+    aside: each is locked first and removed while locked, so a live one is never touched."""
+    for lp in folder.glob("*.lock"):
+        if lp == keep:
+            continue
+        try:
+            fd = open_lock_file(lp)
+        except (AcaError, OSError):
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)  # held by a live writer
+            continue
+        try:
+            stale = os.path.samestat(os.fstat(fd), os.lstat(lp))
+        except FileNotFoundError:  # removed meanwhile by its owner or another sweep of the folder
+            stale = False
+        if stale:
+            _drop(lp, fd)
+        else:
+            os.close(fd)
+
+
+def _drop(lp: Path, fd: int) -> None:
+    """Remove the lock file ``lp`` while still holding its lock, then drop the lock."""
+    try:
+        os.unlink(lp)
+    except OSError:
+        pass
+    os.close(fd)
 
 
 def _read_holder(fd: int) -> str:
@@ -183,7 +254,7 @@ def holder(path: str | Path) -> str | None:
     """Who holds the lock of the output ``path`` ('pid P on HOST (COMMAND)'), or None when no other live process
     does (this process holding it counts as none: :meth:`OutputLock.acquire` guards against itself)."""
     try:
-        fd = os.open(lock_path(path), os.O_RDWR | os.O_CLOEXEC)
+        fd = os.open(lock_path(path), os.O_RDONLY | os.O_CLOEXEC | os.O_NONBLOCK | NOFOLLOW)
     except OSError:
         return None
     try:
@@ -212,6 +283,21 @@ def new_path(partial: str | Path) -> Path:
     """Where a file is created before it is renamed into ``NAME.partial``: ``NAME.partial.new``."""
     p = Path(partial)
     return p.with_name(p.name + ".new")
+
+
+def create_h5(tmp: Path, lock: OutputLock, **kw: Any) -> h5py.File:
+    """Create the HDF5 file ``tmp`` (``NAME.partial.new``) for the writer holding ``lock``: exclusively and never
+    through a link (:func:`~aca_warp.common.links.clear_name`, then HDF5's ``mode="x"``), its identity locked
+    (:meth:`OutputLock.own`). ``kw`` go to ``h5py.File``."""
+    clear_name(tmp, "temporary file")
+    f = h5py.File(tmp, "x", **kw)
+    try:
+        lock.own(tmp)
+    except BaseException:
+        f.close()
+        tmp.unlink(missing_ok=True)
+        raise
+    return f
 
 
 def check_output_name(path: str | Path) -> Path:
@@ -277,9 +363,9 @@ def check_output_folder(path: str | Path) -> Path:
 
 
 def check_room(folder: str | Path, need: float, what: str) -> None:
-    """Refuse a run whose recorded samples alone (``need`` bytes, a lower bound of its file) exceed the space free
-    to this user in ``folder``: :class:`StorageError` (exit 4) before anything is written. ``what`` names the
-    run's options that shrink it. Filesystems without ``statvfs`` figures pass."""
+    """Refuse a run whose file (``need`` bytes on disk, as the run's plan estimates it) exceeds the space free to
+    this user in ``folder``: :class:`StorageError` (exit 4) before anything is written. ``what`` names the run's
+    options that shrink it. Filesystems without ``statvfs`` figures pass."""
     try:
         st = os.statvfs(folder)
     except OSError:
@@ -287,8 +373,8 @@ def check_room(folder: str | Path, need: float, what: str) -> None:
     free = st.f_bavail * st.f_frsize
     if st.f_blocks and need > free:
         err = StorageError(
-            f"the run records about {need / 1e6:.4g} MB but {folder} has {free / 1e6:.4g} MB free; nothing was "
-            f"written: make room, choose another output folder or record less ({what})"
+            f"the run's file will take about {need / 1e6:.4g} MB but {folder} has {free / 1e6:.4g} MB free; nothing "
+            f"was written: make room, choose another output folder or record less ({what})"
         )
         err.errno = errno.ENOSPC  # type: ignore[attr-defined]
         raise err
@@ -298,6 +384,30 @@ def resume_hint(kind: str, path: str | Path) -> str:
     """How to continue the unfinished ``kind`` run (``hf`` or ``lf``) of ``path``, for the reader of the message."""
     function = "resume_run" if kind == "hf" else "resume_lf"
     return option(f"{function}({str(path)!r})", f"'aca-warp {kind} --resume {path}'")
+
+
+def recovery(path: str | Path) -> str:
+    """What to do with the unfinished run ``path`` (``NAME``, or ``NAME.partial``), true of its file as it is now:
+    continue it with ``--resume``, from its checkpoint, or from t = 0 when it holds none (it ran without checkpoints,
+    or stopped before its first: :func:`~aca_warp.hf.runner.resume_run` then starts it again). The one piece of
+    advice of every message that leaves a run unfinished: a storage failure, an interrupt, an output whose
+    ``.partial`` is in the way."""
+    p = Path(path)
+    final = p.with_name(p.name.removesuffix(".partial"))
+    part = partial_path(final)
+    src = part if part.exists() else final
+    try:
+        with open_h5(src, "run file") as f:
+            kind = "lf" if attr_value(f.attrs.get("kind")) == "lf" else "hf"
+            at = float(f["checkpoint"].attrs["sim_time"]) if has_checkpoint(f) else None
+            stored = attr_value(f.attrs.get("lf_run" if kind == "lf" else "run_options", "{}"))
+            interval = stored.get("checkpoint_interval") if isinstance(stored, dict) else None
+    except (AcaError, OSError, RuntimeError, KeyError, ValueError, TypeError):
+        return f"{src.name} cannot be read back (empty or damaged): run its scene again"
+    if at is not None:
+        return f"continue it from its checkpoint at t = {at:.6g} s with {resume_hint(kind, final)}"
+    why = "it ran without checkpoints" if interval == 0 else "it stopped before its first one"
+    return f"continue it from t = 0 with {resume_hint(kind, final)} (it holds no checkpoint: {why})"
 
 
 def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
@@ -316,8 +426,8 @@ def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
     part = partial_path(p)
     if part.exists() and not overwrite:
         raise SceneError(
-            f"{part} exists (an unfinished run); continue it with {resume_hint('hf', p)} or pass "
-            f"{option('overwrite=True', '--overwrite')}"
+            f"{part} exists (an unfinished run): {recovery(p)}; or pass {option('overwrite=True', '--overwrite')} "
+            "to replace it"
         )
     if not p.parent.exists():
         raise SceneError(f"output folder {p.parent} does not exist")
@@ -327,16 +437,27 @@ def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
     return p
 
 
-def open_h5(path: str | Path, what: str) -> h5py.File:
-    """Open an existing HDF5 file read-only; :class:`SceneError` naming ``what`` ("run file", …) when it is missing
-    or cannot be opened."""
+def open_h5(path: str | Path, what: str, *, mode: str = "r", text: tuple[str, ...] = ()) -> h5py.File:
+    """Open an existing HDF5 input (read-only, or ``mode``) and check it before anything is read
+    (:func:`~aca_warp.common.bounds.check_h5`: no soft or external links, declared sizes backed by the file and
+    within memory, numbers outside the groups named in ``text``); :class:`SceneError` naming ``what`` ("run file",
+    …) when it is missing, cannot be opened or fails a check."""
+    from aca_warp.common.bounds import check_h5
+
     p = Path(path)
     if not p.is_file():
         raise SceneError(f"{what} not found: {p}")
     try:
-        return h5py.File(p, "r")
+        f = h5py.File(p, mode)
     except (OSError, RuntimeError) as e:
         raise SceneError(f"cannot open {what} {p}: {str(e).strip().splitlines()[0] if str(e).strip() else e}") from None
+    try:
+        with reading(p, what):
+            check_h5(f, p, what, text=text)
+    except BaseException:
+        f.close()
+        raise
+    return f
 
 
 def version_changes(stored: dict[str, str]) -> list[str]:
@@ -349,7 +470,8 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     """(run file, its ``.partial``) of the run ``path`` names: ``NAME``, ``NAME.partial`` or a stopped ``NAME``.
 
     A killed run left ``NAME.partial``; a run stopped by Ctrl-C or a fault was moved to ``NAME`` (incomplete)
-    and keeps its checkpoint. Raises SceneError when there is nothing to resume.
+    and keeps its checkpoint, if it had one (without, it is resumed from its start). Raises SceneError when there
+    is nothing to resume.
     """
     p = Path(path)
     if p.name.endswith(".partial"):
@@ -365,17 +487,30 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     try:
         with open_h5(final, "run file") as f:
             complete = bool(f.attrs.get("complete", False))
-            resumable = has_checkpoint(f)
+    except AcaError:
+        raise
     except (OSError, RuntimeError, KeyError, ValueError) as e:
         raise SceneError(f"cannot read run file {final}: {e}") from None
     if complete:
         raise SceneError(f"{final} is a complete run; nothing to resume")
-    if not resumable:
-        raise SceneError(
-            f"{final} holds no checkpoint (run without {option('checkpoint_interval', '--checkpoint-interval')}); "
-            f"{option('run it again with run_scene', 'repeat it with aca-warp rerun')}"
-        )
     return final, part
+
+
+def lock_resumable(path: str | Path) -> tuple[Path, Path, Path, OutputLock]:
+    """:func:`find_resumable` under the output lock of the run: (run file, its ``.partial``, the one of them that
+    exists, the lock). The lock also owns that file's identity (:meth:`OutputLock.own`), so a run that another
+    process writes under another name (a link, a hard link, a moved file) is refused too."""
+    final, part = find_resumable(path)
+    what = "it cannot be resumed while it runs"
+    lock = OutputLock.acquire(final, what=what)
+    try:
+        final, part = find_resumable(path)  # again, now that no other process can move it
+        src = part if part.exists() else final
+        lock.own(src, what=what)
+    except BaseException:
+        lock.release()
+        raise
+    return final, part, src, lock
 
 
 def from_h5py(e: BaseException) -> bool:

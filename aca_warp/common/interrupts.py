@@ -14,10 +14,18 @@ interrupt raised while Python runs a finalizer (``__del__``, a weakref callback)
 prints it as "Exception ignored"; :func:`installed` catches it in ``sys.unraisablehook`` instead and raises it again
 a millisecond later (a SIGALRM timer, the command's ``installed`` owns SIGALRM), from ordinary code.
 Without :func:`installed` (the Python API) Python's own SIGINT handling applies and :func:`deferred` defers nothing.
+
+The end of a process: once a command's result is final, :func:`installed` (``hold=True``) leaves SIGINT and SIGTERM
+recorded, not acted on (Python's default handlers would kill the process, or raise, in the middle of the
+interpreter's shutdown, ≈ 0.5 s of clean-ups: exit −15 or −2, or 143 without a word), and :func:`exit_process` runs
+the clean-ups (``atexit``), then ends the process with ``os._exit``: with the command's exit code, or with 128 + the
+signal and one line when a signal came meanwhile.
 """
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import os
 import signal
 import sys
@@ -25,7 +33,7 @@ import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NoReturn
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -42,6 +50,7 @@ class _State:
     raised: bool = False  # the first interrupt has been raised: ignore the rest
     second_exits: bool = False  # ... or end the process at the second one (second_signal_exits)
     last: int | None = None  # the last signal received
+    final: bool = False  # the command's result is final: signals are recorded only (finished())
 
 
 _state = _State()
@@ -53,6 +62,9 @@ def _interrupt(signum: int) -> KeyboardInterrupt:
 
 
 def _handler(signum: int, frame: object) -> None:
+    if _state.final:
+        _late.append(signum)
+        return
     _state.last = signum
     if _state.raised:
         if _state.second_exits:
@@ -97,10 +109,24 @@ def received() -> int | None:
     return _state.last
 
 
+_late: list[int] = []  # signals received after the result was final (finished(), installed(hold=True))
+
+
+def _record(signum: int, frame: object) -> None:
+    _late.append(signum)
+
+
+def finished() -> None:
+    """The command's result is final (its work done, or its error decided): from now on SIGINT and SIGTERM are only
+    recorded, for :func:`exit_process` to report; nothing raises any more."""
+    _state.final = True
+
+
 @contextmanager
-def installed() -> Iterator[None]:
-    """Make SIGINT and SIGTERM raise (module docstring) for the body; the previous handlers come back after it.
-    Does nothing outside the main thread (Python delivers signals to the main thread only)."""
+def installed(*, hold: bool = False) -> Iterator[None]:
+    """Make SIGINT and SIGTERM raise (module docstring) for the body; the previous handlers come back after it,
+    or, with ``hold`` (the process ends next: :func:`exit_process`), handlers that only record a signal. Does nothing
+    outside the main thread (Python delivers signals to the main thread only)."""
     global _state
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -109,6 +135,7 @@ def installed() -> Iterator[None]:
     hook = sys.unraisablehook
     saved = _state
     _state = _State(installed=True)
+    _late.clear()
     try:
         sys.unraisablehook = _unraisable(hook)
         for s in SIGNALS:
@@ -118,9 +145,29 @@ def installed() -> Iterator[None]:
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0.0)
         for s, h in before.items():
-            signal.signal(s, h)
+            signal.signal(s, _record if hold and s in SIGNALS else h)
         sys.unraisablehook = hook
         _state = saved
+
+
+def exit_process(code: int, late: Callable[[int, int], str]) -> NoReturn:
+    """End the process after :func:`installed` (``hold=True``): run the ``atexit`` clean-ups, flush stdout and
+    stderr, and ``os._exit`` with ``code``, or, when SIGINT or SIGTERM came after the result was final, print
+    ``late(signal, code)`` (one line) and exit with 128 + that signal (130, 143). Nothing after the command's work
+    can be cut short by a signal, nor is the interpreter's own teardown run (the operating system frees the rest)."""
+    try:
+        atexit._run_exitfuncs()  # what sys.exit would run first, here with the signals only recorded
+    except BaseException:  # noqa: BLE001  (a clean-up that fails must not change the command's result)
+        pass
+    if _late:
+        signum = signal.SIGTERM if signal.SIGTERM in _late else signal.SIGINT
+        with contextlib.suppress(OSError, ValueError):
+            print(late(signum, code), file=sys.stderr)
+        code = 128 + signum
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):
+            stream.flush()
+    os._exit(code)
 
 
 @contextmanager

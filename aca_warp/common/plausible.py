@@ -84,8 +84,8 @@ RANGES: dict[str, Range] = {
         "s", 0.0, 1.0, "HF runs last milliseconds, the longest study 0.36 s", (1e-6, 0.5), (("ms", 1e-3), ("µs", 1e-6)),
     ),
     "sample_dt": Range(
-        "s", 0.0, 1.0e-3, "HF samples are microseconds apart, 1 MHz resolving the paper's 10-100 kHz lines",
-        (1e-9, 1e-4), (("µs", 1e-6), ("ms", 1e-3), ("ns", 1e-9)),
+        "s", 1.0e-10, 1.0e-3, "HF samples are microseconds apart, 1 MHz resolving the paper's 10-100 kHz lines",
+        (1e-9, 1e-4), (("µs", 1e-6), ("ms", 1e-3), ("ns", 1e-9)), "check the exponent",
     ),
     "hf_step": Range(
         "s", 1.0e-13, 1.0e-5, "HF steps are nanoseconds, 1e-8 s by default", (1e-11, 1e-7),

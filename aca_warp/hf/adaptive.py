@@ -25,6 +25,7 @@ from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import HFSolver
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf_adaptive as KA
+from aca_warp.kernels.hf_types import HFAdaptive
 
 MIN_STEP = 1.0e-15  # s; a pad whose error needs a smaller step stops the run (a fault)
 CONTROL_BLOCK = 256  # threads per pad of the error reduction and step control
@@ -142,6 +143,11 @@ class AdaptiveStepper:
         self.err_coeff = wp.array(np.array(KA.DP5_E), dtype=wp.float64, device=dev)
         self.u_scale, self.v_scale = self._scales()
         self.lanes = eval_lanes(dev, n)
+        # the kernels' parameter group (its arrays change in place only: graphs and checkpoints keep it)
+        names = ("coeff", "err_coeff", "u_scale", "v_scale", "tol", "h_max", "sample_dt", "interval", "t_end")
+        names += ("t_stop", "ctl", "mode", "stats", "accepted", "done", "ku", "kv")
+        stages = {"u_a": self.stage_u[0], "v_a": self.stage_v[0], "u_b": self.stage_u[1], "v_b": self.stage_v[1]}
+        self.struct = HFAdaptive.of(T, {k: getattr(self, k) for k in names} | stages | {"h_min": MIN_STEP})
 
     def _scales(self) -> tuple[wp.array, wp.array]:
         """Per-patch scales of the error norm: U_i = F_N,i M / k_T,i [m], the static deflection under the largest
@@ -200,56 +206,33 @@ class AdaptiveStepper:
         """One iteration: a trial of every pad that has not landed, the landing check and (when every pad has
         landed) a growth event and a sample, as the targets fall."""
         m, s, dev, n = self.model, self.state, self.model.device, self.model.patch_count
-        ctl, mode = self.ctl, self.mode
-        deriv = [m.patch_pad, m.inv_mass, m.k_diag, m.damping, m.normal_force, m.radius, m.nbr_start, m.nbr_index]
-        deriv += [m.nbr_stiffness, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay]
+        km, dp5, lanes = m.struct(), self.struct, self.lanes
         su, sv = self.stage_u, self.stage_v
-        nxt = [self.coeff, ctl, s.u, s.v]
-        k = [self.ku, self.kv]
-        lanes = self.lanes
 
         def evaluate(stage: int, first: int, u: wp.array, v: wp.array, u_next: wp.array, v_next: wp.array) -> None:
-            inputs = [*deriv, stage, first, lanes, mode, u, v, *k, *nxt, u_next, v_next]
+            inputs = [km, dp5, stage, first, lanes, u, v, s.u, s.v, u_next, v_next]
             if lanes > 1:
                 wp.launch_tiled(KA.dp5_eval, dim=[n], block_dim=lanes, device=dev, inputs=inputs)
             else:
                 wp.launch(KA.dp5_eval, dim=(n, 1), device=dev, inputs=inputs)
 
         evaluate(0, 1, s.u, s.v, su[1], sv[1])
-        wp.launch(KA.k1_done, dim=m.pad_count, device=dev, inputs=[mode])
-        wp.launch(
-            KA.dp5_stage,
-            dim=n,
-            device=dev,
-            inputs=[m.patch_pad, self.coeff, 1, ctl, mode, s.u, s.v, *k, su[1], sv[1]],
-        )
+        wp.launch(KA.k1_done, dim=m.pad_count, device=dev, inputs=[dp5])
+        wp.launch(KA.dp5_stage, dim=n, device=dev, inputs=[km, dp5, 1, s.u, s.v, su[1], sv[1]])
         for stage in range(1, KA.STAGES):  # each evaluation also forms its patch's next stage state
             a, b = stage % 2, (stage + 1) % 2
             evaluate(stage, 0, su[a], sv[a], su[b], sv[b])
         u_new, v_new = su[(KA.STAGES - 1) % 2], sv[(KA.STAGES - 1) % 2]
+        threads = block_threads(dev, CONTROL_BLOCK)
         wp.launch_tiled(
             KA.dp5_control,
             dim=[m.pad_count],
             block_dim=CONTROL_BLOCK,
             device=dev,
-            inputs=[m.pad_patch_start, m.radius, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay]
-            + [self.err_coeff, self.u_scale, self.v_scale]
-            + [block_threads(dev, CONTROL_BLOCK), self.tol, wp.float64(self.h_max), wp.float64(MIN_STEP)]
-            + [s.u, s.v, u_new, v_new, self.ku, self.kv, ctl, mode, self.stats, self.accepted, self.done],
+            inputs=[km, dp5, threads, s.u, s.v, u_new, v_new],
         )
-        wp.launch(
-            KA.dp5_commit,
-            dim=n,
-            device=dev,
-            inputs=[m.patch_pad, self.accepted, u_new, v_new, s.u, s.v, self.ku, self.kv],
-        )
-        wp.launch(
-            KA.landing,
-            dim=1,
-            device=dev,
-            inputs=[m.pad_count, wp.float64(self.sample_dt), wp.float64(self.interval), wp.float64(self.t_end)]
-            + [self.t_stop, ctl, mode, self.done, self.rec.counters, self.event],
-        )
+        wp.launch(KA.dp5_commit, dim=n, device=dev, inputs=[km, dp5, u_new, v_new, s.u, s.v])
+        wp.launch(KA.landing, dim=1, device=dev, inputs=[m.pad_count, dp5, self.rec.struct, self.event])
         if self.growth is not None:
             self.growth.launch()
         self.rec.launch(s.u, s.v, conditional=True)

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from aca_warp.common.argtypes import int_at_least, nonneg, positive, refuse_with_resume
+from aca_warp.common.argtypes import add_checkpoint_arguments, int_at_least, nonneg, positive, refuse_with_resume
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.options import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, ENGINES, INTEGRATORS
 
@@ -21,7 +21,8 @@ Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad inp
 3 the run stopped on a fault or an unphysical result (the file holds everything before it, marked incomplete),
 4 the output cannot be written (read-only or full file system, no permission: found before the run, nothing
 written; disk full or file-size limit during the run: the .partial keeps its last checkpoint),
-130 interrupted by Ctrl-C, 143 by SIGTERM (the file closed, marked incomplete, resumable; docs/faults.md).
+130 interrupted by Ctrl-C, 143 by SIGTERM (the file closed and marked incomplete; aca-warp hf --resume RUN.h5
+continues it from its last checkpoint, or from its start if it has none; docs/faults.md).
 Values far outside a brake pad's range are refused as likely unit mistakes unless --allow-implausible.
 """
 
@@ -61,15 +62,15 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "--dt",
         type=positive,
         metavar="S",
-        help=f"fixed step [s] (default {DEFAULT_DT:g}; shortened to fit the sample interval); "
-        "initial step of 'adaptive'",
+        help=f"fixed step [s] (default {DEFAULT_DT:g}; shortened so that whole steps fit the sample interval, which "
+        "may not be shorter than it); initial step of 'adaptive'",
     )
     hf.add_argument(
         "--tolerance",
         type=positive,
-        default=DEFAULT_TOLERANCE,
         metavar="X",
-        help=f"relative error tolerance of 'adaptive' (default {DEFAULT_TOLERANCE:g})",
+        help=f"relative error tolerance of 'adaptive' (default {DEFAULT_TOLERANCE:g}); refused with a fixed-step "
+        "integrator, which has none",
     )
     hf.add_argument("--precision", choices=("fp32", "fp64"), default="fp64", help="state precision (default fp64)")
     hf.add_argument(
@@ -129,18 +130,12 @@ def _add_file_arguments(hf: argparse.ArgumentParser) -> None:
     """``aca-warp hf``: overwriting, progress, checkpoints and resuming."""
     hf.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     hf.add_argument("--no-progress", action="store_true", help="no progress bar")
-    hf.add_argument(
-        "--checkpoint-interval",
-        type=positive,
-        metavar="S",
-        help="keep the solver state in the run file every S of simulated time, so that a killed run can be "
-        "resumed (docs/faults.md)",
-    )
+    add_checkpoint_arguments(hf, "solver")
     hf.add_argument(
         "--resume",
         metavar="RUN.h5",
-        help="continue a killed or stopped run (RUN.h5 or RUN.h5.partial) from its last checkpoint, with the "
-        "run's own scene and settings; the finished file equals an uninterrupted run",
+        help="continue a killed or stopped run (RUN.h5 or RUN.h5.partial) from its last checkpoint (from its start "
+        "if it has none), with the run's own scene and settings; the finished file equals an uninterrupted run",
     )
 
 
@@ -153,13 +148,18 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         return _resume_hf(args)
     if args.scene is None or args.output is None:
         raise SceneError("hf needs SCENE and -o RUN.h5 (or --resume RUN.h5 to continue a run)")
+    if args.tolerance is not None and args.integrator != "adaptive":
+        raise SceneError(
+            f"--tolerance applies to --integrator adaptive only; {args.integrator} takes fixed steps (--dt): drop "
+            "--tolerance or add --integrator adaptive"
+        )
     check_output_path(args.output, overwrite=args.overwrite)
     scene, duration = _hf_scene(args)
     options = RunOptions(
         duration=duration,
         integrator=args.integrator,
         dt=args.dt,
-        tolerance=args.tolerance,
+        tolerance=DEFAULT_TOLERANCE if args.tolerance is None else args.tolerance,
         force=args.force,
         engine=args.engine,
         checkpoint_interval=args.checkpoint_interval,
@@ -192,6 +192,13 @@ def _hf_scene(args: argparse.Namespace) -> tuple[Any, float]:
             raise SceneError(f"{args.scene} is an LF run file: name a snapshot with --snapshot NAME")
         scene = scene_from_snapshot(args.scene, args.snapshot, allow_implausible=args.allow_implausible)
     else:
+        from aca_warp.lf.scene import LF_PRESETS
+
+        if args.scene in LF_PRESETS and not Path(args.scene).exists():
+            raise SceneError(
+                f"{args.scene!r} is an LF scene: run it with 'aca-warp lf {args.scene} -o LF.h5', then HF on one of "
+                f"its snapshots with 'aca-warp hf LF.h5 --snapshot app1_start -o RUN.h5'"
+            )
         scene = load_scene(args.scene, allow_implausible=args.allow_implausible)
     rec = scene.record
     changes = _record_changes(args)
@@ -263,7 +270,7 @@ def _announce(output: str, progress: bool) -> Any:
 
 def _resume_hf(args: argparse.Namespace) -> int:
     """``aca-warp hf --resume RUN.h5``: the run's own settings; only --device, --checkpoint-interval, --no-progress."""
-    from aca_warp.hf.options import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE
+    from aca_warp.hf.options import DEFAULT_INTEGRATOR
     from aca_warp.hf.runner import resume_run
 
     refuse_with_resume(
@@ -277,7 +284,7 @@ def _resume_hf(args: argparse.Namespace) -> int:
             ("--patch-window", args.patch_window, None),
             ("--patch-decimation", args.patch_decimation, None),
             ("--integrator", args.integrator, DEFAULT_INTEGRATOR),
-            ("--tolerance", args.tolerance, DEFAULT_TOLERANCE),
+            ("--tolerance", args.tolerance, None),
             ("--precision", args.precision, "fp64"),
             ("--force", args.force, False),
             ("--accept-unphysical", args.accept_unphysical, False),
@@ -310,14 +317,22 @@ def _add_rerun(sub: Any) -> None:
         "rerun",
         help="repeat a run from its run file (HF or LF: scene, patches, integrator, precision, device)",
         description="Repeat the run stored in RUN.h5 into NEW.h5: same scene (patches from the file), integrator, "
-        "run options, precision and device. On the same device and precision the samples are bit-identical.",
+        "run options, precision and device. On the same device and precision the samples are bit-identical. "
+        "Stored options that relax a check (force, the watchdog off, accept_unphysical, allow_implausible) are "
+        "applied and named on stderr; the size limits hold unless --force is given here.",
     )
     p.add_argument("run", metavar="RUN.h5", help="run file to repeat")
     p.add_argument("-o", "--output", required=True, metavar="NEW.h5", help="run file to write")
     p.add_argument("--device", help="Warp device (default: the one the run used)")
-    p.add_argument("--checkpoint-interval", type=positive, metavar="S", help="checkpoint every S of simulated time")
+    add_checkpoint_arguments(p, "solver")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="repeat a run beyond the size limits (1e10 steps, 50 GB of samples, the free space, a sample interval "
+        "shorter than the step); a force stored in the run file does not lift them",
+    )
     p.set_defaults(handler=_cmd_rerun)
 
 
@@ -335,10 +350,18 @@ def _is_lf(path: str | Path) -> bool:
 def _cmd_rerun(args: argparse.Namespace) -> int:
     import dataclasses
 
+    from aca_warp.analysis.pads import shard_pads
     from aca_warp.common.files import check_output_path, version_changes
-    from aca_warp.hf.rerun import read_settings
+    from aca_warp.hf.rerun import read_settings, relaxed_checks
     from aca_warp.hf.runner import run_scene
 
+    pads = shard_pads(args.run)
+    if pads is not None:
+        raise SceneError(
+            f"{args.run} is a sweep shard (pads {pads[0]}-{pads[1] - 1}), not a run: run its sweep again with "
+            "'aca-warp sweep SPEC -o DIR' (finished shards are skipped; remove this one's file to redo it), or take "
+            f"one pad out as a run file with 'aca-warp analyze {args.run} --pad K' and rerun that"
+        )
     if _is_lf(args.run):
         from aca_warp.lf.commands import rerun_lf
 
@@ -353,6 +376,9 @@ def _cmd_rerun(args: argparse.Namespace) -> int:
     changed = version_changes(s.versions)
     if changed:
         print(f"aca-warp: note: versions differ from the run's: {', '.join(changed)}", file=sys.stderr)
+    relaxed = relaxed_checks(s)
+    if relaxed:
+        print(f"aca-warp: note: {args.run} stores, and the rerun applies: {'; '.join(relaxed)}", file=sys.stderr)
     options = s.options
     if args.checkpoint_interval is not None:
         options = dataclasses.replace(options, checkpoint_interval=args.checkpoint_interval)
@@ -364,6 +390,7 @@ def _cmd_rerun(args: argparse.Namespace) -> int:
         precision=s.precision,
         overwrite=args.overwrite,
         progress=not args.no_progress,
+        force_limits=args.force,
     )
     line = f"{args.output}: rerun of {args.run}, {result.steps} steps over {result.sim_time:.4g} s"
     if result.fault is not None:

@@ -13,8 +13,12 @@ from typing import Protocol
 import warp as wp
 
 from aca_warp.common.errors import SimulationFault
+from aca_warp.hf.model import PadModel
+from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import StepEstimate
+from aca_warp.hf.state import HFState
+from aca_warp.scene import Record
 
 
 @dataclass
@@ -74,6 +78,21 @@ class Engine(Protocol):
         ...
 
 
+def run_stages(model: PadModel, recorder: Recorder, step: str) -> list[str]:
+    """The stages a run file names for an engine stepping ``step`` (e.g. ``strang``, ``adaptive:onchip``)."""
+    stages = ["contact", "neighbours" if model.has_coupling else "no-coupling", f"step:{step}", "record:globals"]
+    stages += ["record:patches"] if recorder.patch_stage else []
+    return stages + (["growth"] if "pad_growth" in model.arrays else [])
+
+
+def fault_cause(estimate: StepEstimate, integrator: str, h: float | None) -> str:
+    """The likely cause of a fault of a run of fixed step ``h`` [s] (None: adaptive), in words."""
+    limit = estimate.limit(integrator)
+    if h is not None and h > limit:
+        return f"step {h:.3g} s beyond the stable estimate {limit:.3g} s"
+    return "extreme scene parameters (check loads, areas, speeds)"
+
+
 @dataclass(frozen=True)
 class EngineTuning:
     """Engine settings that do not change results (general) or only by rounding (on-chip); for benchmarks.
@@ -97,3 +116,27 @@ class EngineTuning:
     cluster: int | None = None
     ablate: frozenset[str] = frozenset()
     fast_math: bool = False
+
+
+@dataclass(frozen=True)
+class EngineSetup:
+    """What an engine is built for (:func:`aca_warp.hf.loop.make_engine`).
+
+    Attributes:
+        model: The pads' model.
+        state: The state the engine advances (in place).
+        options: The run's options.
+        record: What and how often to record.
+        n_samples: Sample intervals of the run.
+        tuning: Engine settings that do not change results.
+        estimate: The model's stable-step estimate when the run has it already (it reads every link of the batch),
+            else None (the engine's solver computes it).
+    """
+
+    model: PadModel
+    state: HFState
+    options: RunOptions
+    record: Record
+    n_samples: int
+    tuning: EngineTuning
+    estimate: StepEstimate | None = None

@@ -20,14 +20,11 @@ import warp as wp
 
 from aca_warp.common.devices import block_threads
 from aca_warp.hf import adaptive
-from aca_warp.hf.engine import EngineTuning, Progress
+from aca_warp.hf.engine import EngineSetup, Progress, fault_cause, run_stages
 from aca_warp.hf.model import PadModel
-from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import CONTACT_BLOCK, HFSolver, grown_arrays, growth_events, growth_interval
-from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
-from aca_warp.scene import Record
 
 
 class Growth:
@@ -44,6 +41,7 @@ class Growth:
         # int64 (1,): the completed steps (fixed step) or the event flag (adaptive)
         self.step = wp.zeros(1, dtype=wp.int64, device=model.device)
         self.due = (self.step, self.every if self.counted else 0)  # growth_due with every = 0 reads the flag
+        self.kernel_model = model.struct(self.per_event)
 
     def saved(self) -> dict[str, wp.array]:
         """What a checkpoint holds: the step count (fixed step) or the event flag (adaptive)."""
@@ -52,29 +50,12 @@ class Growth:
     def launch(self) -> None:
         """Count one step (fixed step); when an event is due, grow the areas, update the stiffnesses and re-solve
         the contact."""
-        m, dev, due = self.model, self.model.device, self.due
-        wp.launch(
-            K.grow_patches,
-            dim=m.patch_count,
-            device=dev,
-            inputs=[m.patch_pad, self.per_event, m.pad_k_t, m.pad_k_n, m.pad_mass_per_area, m.pad_zeta, *due]
-            + [m.area, m.sqrt_area, m.inv_mass, m.k_t, m.k_n, m.damping],
-        )
-        wp.launch(
-            K.coupling_stiffness,
-            dim=m.patch_count,
-            device=dev,
-            inputs=[m.patch_pad, m.sqrt_area, m.nbr_start, m.nbr_index, m.nbr_inv_dist, m.pad_kc, m.k_t, *due]
-            + [m.nbr_stiffness, m.k_diag],
-        )
+        m, dev, km = self.model, self.model.device, self.kernel_model
+        for coupling in (0, 1):  # the areas, then the stiffnesses at the new areas
+            wp.launch(K.grow_patches, dim=m.patch_count, device=dev, inputs=[km, *self.due, coupling])
+        threads = block_threads(dev, CONTACT_BLOCK)
         wp.launch_tiled(
-            K.contact_flat,
-            dim=[m.pad_count],
-            block_dim=CONTACT_BLOCK,
-            device=dev,
-            inputs=[m.pad_patch_start, m.k_n, m.height, m.area, m.radius, m.pad_area, m.pad_moment, m.pad_k_m]
-            + [m.pad_load, *due, block_threads(dev, CONTACT_BLOCK), m.pad_gap]
-            + [m.normal_force, m.pad_matrix_force, m.pad_matrix_radius],
+            K.contact_flat, dim=[m.pad_count], block_dim=CONTACT_BLOCK, device=dev, inputs=[km, *self.due, threads]
         )
         if self.counted:
             wp.launch(K.tick, dim=1, device=dev, inputs=[self.step])
@@ -85,19 +66,15 @@ class GeneralEngine:
 
     blocks_per_pad = 1
 
-    def __init__(
-        self,
-        model: PadModel,
-        state: HFState,
-        options: RunOptions,
-        record: Record,
-        n_samples: int,
-        tuning: EngineTuning,
-    ) -> None:
+    def __init__(self, setup: EngineSetup) -> None:
+        model, state, options, record = setup.model, setup.state, setup.options, setup.record
+        n_samples, tuning = setup.n_samples, setup.tuning
         self.model, self.state, self.record, self.n_samples = model, state, record, n_samples
         self.use_graph = tuning.use_graph
         integrator = options.integrator
-        self.solver = HFSolver(model, integrator, options.dt, force=options.force, tolerance=options.tolerance)
+        self.solver = HFSolver(
+            model, integrator, options.dt, force=options.force, tolerance=options.tolerance, estimate=setup.estimate
+        )
         self.estimate = self.solver.estimate
         self.adaptive = integrator == "adaptive"
         growing = "pad_growth" in model.arrays
@@ -105,24 +82,13 @@ class GeneralEngine:
         self.h = record.sample_dt / self.sps
         self.block = max(1, min(n_samples, tuning.max_graph_steps // self.sps))
         self.recorder = Recorder(model, record, (adaptive.ROWS if self.adaptive else self.block) + 1, n_samples)
-        self.stages = [
-            "contact",
-            "neighbours" if model.has_coupling else "no-coupling",
-            f"step:{integrator}",
-            "record:globals",
-        ] + (["record:patches"] if self.recorder.patch_stage else [])
-        limit = self.estimate.limit(integrator)
-        self.cause = (
-            f"step {self.h:.3g} s beyond the stable estimate {limit:.3g} s"
-            if self.h > limit
-            else "extreme scene parameters (check loads, areas, speeds)"
-        )
+        self.stages = run_stages(model, self.recorder, integrator)
+        self.cause = fault_cause(self.estimate, integrator, self.h)
         if integrator == "strang":
             self.solver.prepare(state)
         self.started = False
         self.growth = None
         if growing:
-            self.stages.append("growth")
             self.growth = Growth(model, None if self.adaptive else self.h)
         self.stepper = None
         if self.adaptive:

@@ -20,11 +20,11 @@ The CSR offsets stay 32-bit: a scene that needs more than 2^31 − 1 links needs
 from __future__ import annotations
 
 import math
-import os
 from typing import Any
 
 import numpy as np
 
+from aca_warp.common.bounds import available_memory
 from aca_warp.common.errors import SceneError
 
 INT32_MAX = 2**31 - 1
@@ -42,24 +42,6 @@ def check_int32(name: str, value: int | float, hint: str) -> None:
     if value > INT32_MAX:
         shown = str(value) if isinstance(value, int) else f"{value:.3g}"
         raise SceneError(f"{name} = {shown} exceeds {INT32_MAX} (2^31 - 1, the kernels count it in int32); {hint}")
-
-
-def available_memory(device: Any) -> int:
-    """Bytes a model may use: the free memory of a CUDA device, or the host's available memory (MemAvailable)."""
-    if getattr(device, "is_cuda", False):
-        free = getattr(device, "free_memory", None)
-        if free:
-            return int(free)
-    try:
-        for line in open("/proc/meminfo").read().splitlines():  # noqa: SIM115
-            if line.startswith("MemAvailable:"):
-                return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    try:
-        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):
-        return 2**62  # unknown: do not refuse
 
 
 def links_lower_bound(x: np.ndarray, y: np.ndarray, pad_of: np.ndarray, radius: np.ndarray) -> int:
@@ -82,8 +64,12 @@ def links_lower_bound(x: np.ndarray, y: np.ndarray, pad_of: np.ndarray, radius: 
     # cell indices, clipped so that a huge coordinate over a tiny cell cannot overflow int64
     kx = np.clip(np.floor(xs / cell), 0, 2.0**40).astype(np.int64)
     ky = np.clip(np.floor(ys / cell), 0, 2.0**40).astype(np.int64)
-    keys = np.stack([np.asarray(pad_of)[ok].astype(np.int64), kx, ky], axis=1)
-    _, counts = np.unique(keys, axis=0, return_counts=True)
+    pads = np.asarray(pad_of)[ok].astype(np.int64)
+    nx, ny = int(kx.max()) + 1, int(ky.max()) + 1
+    if (int(pads.max()) + 1) * nx * ny < 2**62:  # one int64 key per cell: a 1-D sort (a row-wise unique is ~20× slower)
+        _, counts = np.unique((pads * nx + kx) * ny + ky, return_counts=True)
+    else:
+        _, counts = np.unique(np.stack([pads, kx, ky], axis=1), axis=0, return_counts=True)
     counts = counts.astype(np.int64)
     return int(np.sum(counts * (counts - 1)))
 

@@ -23,9 +23,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from aca_warp.common.checkpoint import Checkpoint
+from aca_warp.common.checkpoint import Checkpoint, CheckpointClock
 from aca_warp.common.errors import SceneError, SimulationFault, option
-from aca_warp.hf.engine import Engine, EngineTuning, Progress
+from aca_warp.hf.engine import Engine, EngineSetup, EngineTuning, Progress
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Chunk, check_run, fault_from, watchdog_bound
@@ -52,6 +52,8 @@ class RunResult:
         stages: Names of the stages that ran.
         chunks: Recorded chunks when no sink was given (see :meth:`collect`).
         blocks_per_pad: Thread blocks that advanced each pad (the on-chip engine's cluster size; 1 otherwise).
+        checkpoints: Checkpoints written.
+        checkpoint_time: Wall time spent writing them [s] (part of ``wall_time``).
     """
 
     complete: bool
@@ -66,6 +68,8 @@ class RunResult:
     stages: list[str]
     chunks: list[Chunk] = field(default_factory=list)
     blocks_per_pad: int = 1
+    checkpoints: int = 0
+    checkpoint_time: float = 0.0
 
     def collect(self) -> Chunk:
         """All recorded chunks joined into one."""
@@ -84,22 +88,30 @@ class RunResult:
 
 
 def make_engine(
-    model: PadModel, state: HFState, options: RunOptions, record: Record, n_samples: int, tuning: EngineTuning
+    model: PadModel,
+    state: HFState,
+    options: RunOptions,
+    record: Record,
+    n_samples: int,
+    tuning: EngineTuning,
+    estimate: StepEstimate | None = None,
 ) -> Engine:
-    """The engine ``options.engine`` resolves to (:func:`~aca_warp.hf.onchip.choose_engine`)."""
+    """The engine ``options.engine`` resolves to (:func:`~aca_warp.hf.onchip.choose_engine`); ``estimate``: the model's
+    stable-step estimate, if known (else the engine computes it)."""
     from aca_warp.hf.onchip_layout import choose_engine
 
+    setup = EngineSetup(model, state, options, record, n_samples, tuning, estimate)
     if choose_engine(model, options.engine, options.integrator) == "onchip":
         if options.integrator == "adaptive":
             from aca_warp.hf.onchip_adaptive import OnchipAdaptiveEngine
 
-            return OnchipAdaptiveEngine(model, state, options, record, n_samples, tuning)
+            return OnchipAdaptiveEngine(setup)
         from aca_warp.hf.onchip import OnchipEngine
 
-        return OnchipEngine(model, state, options, record, n_samples, tuning)
+        return OnchipEngine(setup)
     from aca_warp.hf.general import GeneralEngine
 
-    return GeneralEngine(model, state, options, record, n_samples, tuning)
+    return GeneralEngine(setup)
 
 
 def restore(saved: dict[str, wp.array], ckpt: Checkpoint) -> None:
@@ -120,13 +132,6 @@ def restore(saved: dict[str, wp.array], ckpt: Checkpoint) -> None:
                 f"{want}: another scene or precision, or a checkpoint of an older aca_warp?"
             )
         arr.assign(data)
-
-
-def _next_checkpoint(t: float, interval: float) -> float:
-    """The first multiple of ``interval`` after ``t`` [s]; a ``t`` within 1e-9 intervals below a multiple counts as
-    on it (sample times are sums of rounded steps: 9.999999999999999e-05 is the checkpoint at 1e-4, and the next
-    one is 2e-4, not 1e-4 again)."""
-    return (math.floor(t / interval + 1e-9) + 1) * interval
 
 
 def _progress_bar(total: float):  # noqa: ANN202 (tqdm)
@@ -158,9 +163,10 @@ def run_hf(
     ``options.duration`` None means the first scene's duration. Samples go to ``sink`` (or into the result's
     ``chunks``) at every chunk end. ``progress``: a progress bar on stderr when it is a terminal (none in a log).
     A non-finite value, or a patch beyond the watchdog bound (:func:`~aca_warp.hf.recorder.watchdog_bound`), stops
-    the run: the result carries the fault and every sample before it. With ``options.checkpoint_interval`` and
-    ``on_checkpoint``, the first chunk end at or past each multiple of it hands a
-    :class:`~aca_warp.common.checkpoint.Checkpoint` to ``on_checkpoint``; ``resume`` (a checkpoint of the same scene,
+    the run: the result carries the fault and every sample before it. With ``on_checkpoint``, the chunk ends that
+    ``options.checkpoint_interval`` names (:class:`~aca_warp.common.checkpoint.CheckpointClock`: automatic, every
+    interval of simulated time, or none) hand a :class:`~aca_warp.common.checkpoint.Checkpoint` to
+    ``on_checkpoint``; ``resume`` (a checkpoint of the same scene,
     options, device and precision) continues from it with the same arithmetic in the same order, so the samples
     equal an uninterrupted run's bit for bit.
     """
@@ -188,10 +194,10 @@ class _Run:
         self.options = options = options.with_duration(duration)
         # the step (as the run takes it), the int32 step counts and the contact solution, checked once here for
         # every engine; the engines then skip their own check of the step asked for (it is not the step they take)
-        check_step(model, options, record.sample_dt)
+        estimate = check_step(model, options, record.sample_dt)
         check_contact(model, accept=options.accept_unphysical)
         engine_options = dataclasses.replace(options, force=True)
-        self.engine = make_engine(model, state, engine_options, record, self.n_samples, tuning)
+        self.engine = make_engine(model, state, engine_options, record, self.n_samples, tuning, estimate)
         self.rec = rec = self.engine.recorder
         self.mu_bound = mu_bounds(model)
         factor = options.watchdog_factor
@@ -228,8 +234,9 @@ class _Run:
         bar = _progress_bar(self.n_samples * record.sample_dt) if progress and sys.stderr.isatty() else None
         if bar is not None and p.sim_time > 0:
             bar.update(p.sim_time)
-        interval = self.options.checkpoint_interval if on_checkpoint is not None else None
-        next_checkpoint = math.inf if interval is None else _next_checkpoint(p.sim_time, interval)
+        clock = self.clock = CheckpointClock(
+            self.options.checkpoint_interval if on_checkpoint is not None else 0.0, p.sim_time
+        )
         out: list[Chunk] = []
         emit = sink or out.append
         t0 = time.perf_counter()
@@ -237,16 +244,15 @@ class _Run:
         try:
             while fault is None and not p.done:
                 most = self.n_samples
-                if not math.isinf(next_checkpoint):
-                    most = math.ceil(next_checkpoint / record.sample_dt - 1e-9)
+                if not math.isinf(clock.bound):
+                    most = math.ceil(clock.bound / record.sample_dt - 1e-9)
                 p = self.p = engine.advance(p, max(1, most - p.samples))
                 fault = self._chunk(emit)
                 if bar is not None:
                     bar.update(p.sim_time - bar.n)
                     bar.set_postfix_str(f"{p.steps / max(time.perf_counter() - t0, 1e-9):.3g} steps/s")
-                if fault is None and not p.done and p.sim_time >= next_checkpoint * (1 - 1e-12):
-                    on_checkpoint(self._checkpoint())  # type: ignore[misc]
-                    next_checkpoint = _next_checkpoint(p.sim_time, interval)  # type: ignore[arg-type]
+                if fault is None and not p.done and clock.due(p.sim_time):
+                    clock.write(lambda: on_checkpoint(self._checkpoint()), p.sim_time)  # type: ignore[misc]
         finally:
             if bar is not None:
                 bar.close()
@@ -304,4 +310,6 @@ class _Run:
             stages=engine.stages,
             chunks=out,
             blocks_per_pad=engine.blocks_per_pad,
+            checkpoints=self.clock.count,
+            checkpoint_time=self.clock.seconds,
         )

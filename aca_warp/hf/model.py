@@ -8,6 +8,7 @@ Array dtype is the model's precision T (float32 or float64) unless noted. Built 
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -20,6 +21,7 @@ from aca_warp.hf import limits
 from aca_warp.hf.contact import ContactSolution, solve_scene_contact
 from aca_warp.kernels import hf as hf_kernels
 from aca_warp.kernels import neighbours as neighbours_kernels
+from aca_warp.kernels.hf_types import HFModel
 from aca_warp.kernels.neighbours import build_neighbours
 from aca_warp.scene import Scene
 
@@ -52,6 +54,7 @@ class PadModel:
     contacts: list[ContactSolution]
     nbr_count: int
     arrays: dict[str, wp.array] = field(default_factory=dict)
+    _struct: Any = field(default=None, repr=False)
 
     def __getattr__(self, name: str) -> wp.array:
         try:
@@ -84,13 +87,28 @@ class PadModel:
         """``"fp32"`` or ``"fp64"``."""
         return "fp64" if self.dtype == wp.float64 else "fp32"
 
+    def struct(self, pad_growth: wp.array | None = None) -> Any:
+        """The kernels' parameter group of this model (:data:`~aca_warp.kernels.hf_types.HFModel`), built once and
+        kept; with ``pad_growth`` (the area increment per growth event of an engine's step, shape (pads,)) a new one
+        that holds it."""
+        if pad_growth is not None:
+            return HFModel.of(self.dtype, {**self.arrays, "pad_growth": pad_growth})
+        if self._struct is None:
+            self._struct = HFModel.of(self.dtype, self.arrays)
+        return self._struct
+
     def host(self, name: str) -> np.ndarray:
         """A copy of a model array on the host (``numpy()`` of a CPU array is a view of the live array)."""
         return self.arrays[name].numpy().copy()
 
 
 def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precision: str = "fp64") -> PadModel:
-    """Build the device model of a batch of scenes (one pad each): contact solve, neighbours, arrays."""
+    """Build the device model of a batch of scenes (one pad each): contact solve, neighbours, arrays.
+
+    Pads that share a layout (the same patch positions and areas, coupling radius and K_C, as the pads of a sweep
+    that differ in load, speed or friction) share one neighbour search and one computation of their coupling springs
+    (:func:`_coupling`); the arrays are the same bit for bit as when every pad is searched on its own.
+    """
     if not scenes:
         raise SceneError("a batch needs at least one scene")
     if precision not in PRECISIONS:
@@ -112,11 +130,7 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
     n, r_max = len(x), float(radius.max())
     limits.check_model_memory(n, limits.links_lower_bound(x, y, pad_of, radius), dev, r_max, exact=False)
     contacts = [solve_scene_contact(s) for s in scenes]
-    nbr_start, nbr_index, nbr_inv = build_neighbours(
-        x, y, pad_of, radius, dev, check=lambda links: limits.check_model_memory(n, links, dev, r_max, exact=True)
-    )
-    k_ij = _edge_stiffness(scenes, host["sqrt_area"], pad_of, nbr_start, nbr_index, nbr_inv)
-    rows = np.repeat(np.arange(n), np.diff(nbr_start))
+    nbr_start, nbr_index, nbr_inv, k_ij, k_sum = _coupling(scenes, host, start, dev, _NP_DTYPES[T])
     host.update(
         {
             "pad_patch_start": start,
@@ -124,8 +138,8 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
             "nbr_start": nbr_start,
             "nbr_index": nbr_index if len(nbr_index) else np.zeros(1),
             "nbr_inv_dist": nbr_inv if len(nbr_inv) else np.zeros(1),
-            "nbr_stiffness": k_ij,
-            "k_diag": host["k_t"] + np.bincount(rows, k_ij[: len(nbr_index)], minlength=n),
+            "nbr_stiffness": k_ij if len(k_ij) else np.zeros(1),
+            "k_diag": host["k_t"] + k_sum,
         }
     )
     host.update(_pad_arrays(scenes, contacts))
@@ -143,14 +157,83 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
     )
 
 
+def layout_groups(scenes: list[Scene]) -> np.ndarray:
+    """The coupling layout of each pad, shape (pads,) int: pads with equal patch positions and areas, coupling radius
+    and K_C (hence equal neighbour lists and coupling springs) get the same number, numbered by first appearance."""
+    keys: dict[tuple, int] = {}
+    digests: dict[int, bytes] = {}  # per Patches object (the pads of a sweep share them)
+    out = np.empty(len(scenes), dtype=np.int64)
+    for p, s in enumerate(scenes):
+        pt = s.patches
+        if id(pt) not in digests:
+            h = hashlib.blake2b(digest_size=16)
+            for a in (pt.x, pt.y, pt.area):
+                h.update(np.ascontiguousarray(a).tobytes())
+            digests[id(pt)] = h.digest()
+        key = (digests[id(pt)], s.material.coupling_radius, s.material.K_C)
+        out[p] = keys.setdefault(key, len(keys))
+    return out
+
+
+def _coupling(
+    scenes: list[Scene], host: dict[str, np.ndarray], start: np.ndarray, dev: wp.Device, dtype: Any
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The batch's CSR neighbour lists (start (n+1,) int32, index (E,) int32, 1/D0 (E,) [1/m]), coupling springs k_ij
+    (E,) [N/m] (both as ``dtype``, the state precision's NumPy type) and their sum per patch Σ_j k_ij (n,) [N/m]
+    (float64, summed before the springs are rounded to ``dtype``).
+
+    One neighbour search covers one pad of each layout (:func:`layout_groups`) with the batch's cell size (the largest
+    coupling radius) and extent, so that every list is in the order and every 1/D0 has the bits of a search over the
+    whole batch (the hash grid orders a pad's neighbours by cell and index, whatever the other pads); the springs and
+    their row sums (in link order, as ``np.bincount``) are made once per layout; the pads' copies are joined.
+    """
+    n = int(start[-1])
+    group = layout_groups(scenes)
+    first = np.unique(group, return_index=True)[1]  # one pad per layout, in layout order
+    counts = np.diff(start)
+    sub = np.concatenate([np.arange(start[p], start[p + 1]) for p in first])
+    sub_start = np.concatenate([[0], np.cumsum(counts[first])])
+    radius = np.array([scenes[p].material.coupling_radius for p in first])
+    sub_pad = np.repeat(np.arange(len(first), dtype=np.int32), counts[first])
+    shared = len(first) < len(scenes)
+
+    def check(links: int) -> None:  # the batch's links, or a lower bound of them while layouts are shared
+        limits.check_model_memory(n, links, dev, float(radius.max()), exact=not shared)
+
+    s_start, s_index, s_inv = build_neighbours(host["x"][sub], host["y"][sub], sub_pad, radius, dev, check=check)
+    sq = host["sqrt_area"][sub]
+    parts = []  # per layout: (row offsets, pad-local indices, 1/D0, k_ij, row sums of k_ij)
+    for g, p in enumerate(first):
+        a, b = sub_start[g], sub_start[g + 1]
+        st = s_start[a : b + 1]
+        index = s_index[st[0] : st[-1]] - a
+        inv = s_inv[st[0] : st[-1]]
+        rows = np.repeat(np.arange(b - a), np.diff(st))
+        k_ij = scenes[p].material.K_C * sq[a:b][rows] * sq[a:b][index] * inv  # paper Eq. 3, left to right as a batch
+        k_sum = np.bincount(rows, k_ij, minlength=b - a)
+        parts.append((st - st[0], index, inv.astype(dtype), k_ij.astype(dtype), k_sum))
+    links = np.array([len(parts[g][1]) for g in group], dtype=np.int64)
+    if shared:
+        limits.check_model_memory(n, int(links.sum()), dev, float(radius.max()), exact=True)
+    link_start = np.concatenate([[0], np.cumsum(links)])
+    nbr_start = np.concatenate(
+        [parts[g][0][:-1] + link_start[p] for p, g in enumerate(group)] + [link_start[-1:]]
+    ).astype(np.int32)
+    index = np.concatenate([parts[g][1] + start[p] for p, g in enumerate(group)]).astype(np.int32)
+    join = lambda k: np.concatenate([parts[g][k] for g in group])  # noqa: E731
+    return nbr_start, index, join(2), join(3), join(4)
+
+
 _INT32 = wp.int32
 _INT32_NAMES = frozenset({"patch_pad", "pad_patch_start", "nbr_start", "nbr_index"})
 
 
+_NP_DTYPES = {wp.int32: np.int32, wp.float64: np.float64, wp.float32: np.float32}
+
+
 def _device_array(a: np.ndarray, dtype: Any, device: wp.Device) -> wp.array:
     """A host array on ``device`` as ``dtype`` (int32, float64 or the state precision)."""
-    np_dtype = {wp.int32: np.int32, wp.float64: np.float64, wp.float32: np.float32}[dtype]
-    return wp.array(np.ascontiguousarray(a, dtype=np_dtype), dtype=dtype, device=device)
+    return wp.array(np.ascontiguousarray(a, dtype=_NP_DTYPES[dtype]), dtype=dtype, device=device)
 
 
 def _patch_arrays(scenes: list[Scene], counts: np.ndarray) -> dict[str, np.ndarray]:
@@ -213,17 +296,6 @@ def _pad_arrays(scenes: list[Scene], contacts: list[ContactSolution]) -> dict[st
     return out
 
 
-def _edge_stiffness(
-    scenes: list[Scene], sq: np.ndarray, pad_of: np.ndarray, start: np.ndarray, index: np.ndarray, inv_d: np.ndarray
-) -> np.ndarray:
-    """k_ij = K_C √A_i √A_j / D0_ij per CSR link [N/m] (paper Eq. 3); one dummy entry when there are none."""
-    if len(index) == 0:
-        return np.zeros(1)
-    rows = np.repeat(np.arange(len(sq)), np.diff(start))
-    kc = np.array([s.material.K_C for s in scenes])[pad_of[rows]]
-    return kc * sq[rows] * sq[index] * inv_d
-
-
 def _matrix_radius(scene: Scene, contact: ContactSolution) -> float:
     """Radius of the centroid of the matrix normal (hence Coulomb friction) forces [m]."""
     f = contact.matrix_force
@@ -238,4 +310,5 @@ def _matrix_radius(scene: Scene, contact: ContactSolution) -> float:
 def coupling_matrix(model: PadModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Host CSR (start, index, k_ij [N/m]) of the coupling springs at the model's current areas."""
     start = model.host("nbr_start")
-    return start, model.host("nbr_index")[: model.nnz], model.host("nbr_stiffness")[: model.nnz].astype(np.float64)
+    k_ij = model.arrays["nbr_stiffness"].numpy()[: model.nnz].astype(np.float64)  # astype copies
+    return start, model.host("nbr_index")[: model.nnz], k_ij

@@ -14,11 +14,12 @@ and the CUDA compiler may contract differently, so results agree to rounding.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import warp as wp
 
 from aca_warp.common.errors import SceneError
-from aca_warp.hf.engine import EngineTuning, Progress
+from aca_warp.hf.engine import EngineSetup, Progress, fault_cause, run_stages
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.onchip_layout import (
     MAX_CLUSTER,
@@ -29,43 +30,16 @@ from aca_warp.hf.onchip_layout import (
     tile_sizes,
     unsupported,
 )
-from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import HFSolver, grown_arrays, growth_events
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 from aca_warp.kernels.hf_onchip import onchip_kernel
-from aca_warp.scene import Record
 
-__all__ = ["OnchipEngine", "choose_engine", "growth_arguments"]
+__all__ = ["OnchipEngine", "choose_engine"]
 
 _PATCH_BUFFER_BYTES = 256 * 2**20  # cap of the per-patch history buffers of one launch
 _STEPS_PER_LAUNCH = 20_000  # default: sample intervals per launch fill about this many steps
-# model arrays the on-chip growth reads and writes, in the kernel's argument order (float64 ones in _GROWTH_F64)
-_GROWTH_ARRAYS = (
-    "area", "sqrt_area", "k_n", "height", "nbr_inv_dist", "pad_kc", "pad_growth", "pad_k_t", "pad_k_n",
-    "pad_mass_per_area", "pad_zeta", "pad_area", "pad_moment", "pad_k_m", "pad_gap",
-)  # fmt: skip
-_GROWTH_F64 = frozenset({"pad_area", "pad_moment", "pad_k_m", "pad_gap"})
-# model arrays of the launch before the growth arrays, in the kernel's argument order
-_MODEL_ARRAYS = (
-    "pad_patch_start", "inv_mass", "k_diag", "damping", "normal_force", "radius", "nbr_start", "nbr_index",
-    "nbr_stiffness", "pad_omega", "pad_mu_scale", "pad_slope", "pad_decay", "pad_mu_pad", "pad_load",
-    "pad_matrix_force", "pad_matrix_radius", "k_t", "x", "y",
-)  # fmt: skip
-
-
-def growth_arguments(model: PadModel, per_event: wp.array | None) -> list[wp.array]:
-    """The growth arguments of an on-chip kernel, in its order: the model's arrays with ``per_event`` (the area
-    increment per event) as ``pad_growth``, or, for a model that does not grow (``per_event`` None), empty typed
-    arrays (not read)."""
-    if per_event is None:
-        return [
-            wp.empty(0, dtype=wp.float64 if k in _GROWTH_F64 else model.dtype, device=model.device)
-            for k in _GROWTH_ARRAYS
-        ]
-    arrays = {**model.arrays, "pad_growth": per_event}
-    return [arrays[k] for k in _GROWTH_ARRAYS]
 
 
 def cluster_size(model: PadModel, cluster: int | None, split_fits_csr: bool | None = None) -> int:
@@ -85,7 +59,50 @@ def cluster_size(model: PadModel, cluster: int | None, split_fits_csr: bool | No
     return cluster
 
 
-class OnchipEngine:
+class OnchipLaunches:
+    """What both on-chip engines share: sample 0 from the general recorder's kernels, the kernels' modules loaded
+    before the run, the ``started`` counter of the checkpoints, and the recorder rows of a launch."""
+
+    capture_time = 0.0
+    started = False
+    spl: int  # sample intervals per launch at most
+    n_samples: int
+    state: HFState
+    model: PadModel
+    recorder: Recorder
+    kernel: wp.Kernel
+    blocks_per_pad: int
+    block_dim: int
+
+    def begin(self, resume: dict[str, int] | None) -> None:
+        if resume is None:
+            self.recorder.launch(self.state.u, self.state.v, conditional=False)  # sample 0: the initial state
+        else:
+            self.started = bool(resume.get("started", 0))
+        wp.load_module(self.kernel.module, device=self.model.device)
+        wp.load_module(K, device=self.model.device)
+
+    def counters(self) -> dict[str, int]:
+        return {"started": int(self.started)}
+
+    def launch_rows(self, p: Progress, most: int) -> tuple[int, int, int, int]:
+        """(sample intervals of the next launch after ``p``, at most ``most``; the recorder's next sample index,
+        globals row and per-patch row)."""
+        return min(self.spl, self.n_samples - p.samples, most), *self.recorder.kernel_rows()
+
+    def launch_kernel(self, inputs: list) -> None:
+        """Launch the kernel on every pad (``blocks_per_pad`` blocks of ``block_dim`` threads each)."""
+        m = self.model
+        wp.launch_tiled(
+            self.kernel,
+            dim=[m.pad_count * self.blocks_per_pad],
+            block_dim=self.block_dim,
+            device=m.device,
+            inputs=inputs,
+        )
+
+
+class OnchipEngine(OnchipLaunches):
     """The on-chip ``strang`` kernel (:class:`~aca_warp.hf.loop.Engine`); tuning from :class:`EngineTuning`.
 
     ``block_dim``: threads per block (default :func:`~aca_warp.hf.onchip_layout.default_block`); ``csr_shared``:
@@ -95,22 +112,14 @@ class OnchipEngine:
     thread unless ``wp.config.enable_cpu_blocks`` is set (Warp's cooperative CPU fibers, used by the tests).
     """
 
-    capture_time = 0.0
-
-    def __init__(
-        self,
-        model: PadModel,
-        state: HFState,
-        options: RunOptions,
-        record: Record,
-        n_samples: int,
-        tuning: EngineTuning,
-    ) -> None:
+    def __init__(self, setup: EngineSetup) -> None:
+        model, state, options, record = setup.model, setup.state, setup.options, setup.record
+        n_samples, tuning = setup.n_samples, setup.tuning
         why = unsupported(model, options.integrator)
         if why is not None:
             raise SceneError(f"on-chip engine: {why}")
         self.model, self.state, self.record, self.n_samples = model, state, record, n_samples
-        self.solver = HFSolver(model, "strang", options.dt, force=options.force)
+        self.solver = HFSolver(model, "strang", options.dt, force=options.force, estimate=setup.estimate)
         self.estimate = self.solver.estimate
         self.sps = max(1, math.ceil(record.sample_dt / self.solver.dt - 1e-9))
         self.h = record.sample_dt / self.sps
@@ -134,21 +143,10 @@ class OnchipEngine:
             raise SceneError(
                 f"{dev.name} cannot launch a cluster of {cluster} blocks of {self.block_dim} threads per pad"
             )
-        self.stages = [
-            "contact",
-            "neighbours" if model.has_coupling else "no-coupling",
-            "step:strang:onchip",
-            "record:globals",
-        ] + (["record:patches"] if self.recorder.patch_stage else [])
-        self.grown = self._growth_arrays()
-        limit = self.estimate.limit("strang")
-        self.cause = (
-            f"step {self.h:.3g} s beyond the stable estimate {limit:.3g} s"
-            if self.h > limit
-            else "extreme scene parameters (check loads, areas, speeds)"
-        )
+        self.stages = run_stages(model, self.recorder, "strang:onchip")
+        self.kernel_model = self._kernel_model()
+        self.cause = fault_cause(self.estimate, "strang", self.h)
         self.solver.prepare(state)
-        self.started = False
 
     def _samples_per_launch(self, asked: int | None) -> int:
         """Sample intervals per launch: ``asked`` or ~20k steps, at most the run and the history buffer cap."""
@@ -158,41 +156,27 @@ class OnchipEngine:
         per_row = (int(probe.want_v) + int(probe.want_u)) * self.model.patch_count * itemsize(self.model)
         return max(1, min(spl, _PATCH_BUFFER_BYTES // per_row)) if per_row else spl
 
-    def _growth_arrays(self) -> list[wp.array]:
-        """The kernel's growth arguments (:func:`growth_arguments`) with the increment per event of step h."""
+    def _kernel_model(self) -> Any:
+        """The kernel's model struct, for a growing model with the increment per event of step h."""
         m = self.model
         if "pad_growth" in m.arrays:
-            self.stages.append("growth")
             self.growth_every, per_event = growth_events(m, self.h)
-            return growth_arguments(m, per_event)
-        self.growth_every = 1  # the growth arguments are not read
-        return growth_arguments(m, None)
+            return m.struct(per_event)
+        self.growth_every = 1  # the growth fields are not read
+        return m.struct()
 
     # -- the Engine protocol
 
     def saved(self) -> dict[str, wp.array]:
         return grown_arrays(self.model)
 
-    def begin(self, resume: dict[str, int] | None) -> None:
-        if resume is None:
-            self.recorder.launch(self.state.u, self.state.v, conditional=False)  # sample 0 (general kernels)
-        else:
-            self.started = bool(resume.get("started", 0))
-        wp.load_module(self.kernel.module, device=self.model.device)
-        wp.load_module(K, device=self.model.device)
-
     def advance(self, p: Progress, most: int) -> Progress:
-        rec = self.recorder
-        reps = min(self.spl, self.n_samples - p.samples, most)
-        k_next, rows, prows = rec.kernel_rows()
+        reps, k_next, rows, prows = self.launch_rows(p, most)
         self._launch(p.samples, reps, k_next, rows, prows)
         self.started = True
-        rec.kernel_recorded(k_next, rows, prows, reps)
+        self.recorder.kernel_recorded(k_next, rows, prows, reps)
         samples = p.samples + reps
         return Progress(samples, samples * self.sps, 0, samples * self.record.sample_dt, samples >= self.n_samples)
-
-    def counters(self) -> dict[str, int]:
-        return {"started": int(self.started)}
 
     def step_used(self) -> float:
         return self.h
@@ -203,15 +187,11 @@ class OnchipEngine:
 
     def _launch(self, done: int, samples: int, k_next: int, rows: int, prows: int) -> None:
         """One launch of ``samples`` sample intervals after ``done`` of them, rows counted from the recorder's."""
-        m, s, rec, T = self.model, self.state, self.recorder, self.model.dtype
-        wp.launch_tiled(
-            self.kernel,
-            dim=[m.pad_count * self.blocks_per_pad],
-            block_dim=self.block_dim,
-            device=m.device,
-            inputs=[
-                *(getattr(m, k) for k in _MODEL_ARRAYS),
-                *self.grown,
+        s, rec, T = self.state, self.recorder, self.model.dtype
+        self.launch_kernel(
+            [
+                self.kernel_model,
+                rec.struct,
                 self.growth_every,
                 done * self.sps % self.growth_every,  # steps so far (growth events count from the run's start)
                 self.threads,
@@ -223,17 +203,8 @@ class OnchipEngine:
                 k_next,
                 rows,
                 prows,
-                rec.first,
-                rec.last,
-                rec.every,
                 s.u,
                 s.v,
                 s.force,
-                rec.globals,
-                rec.watch_bound,
-                rec.fault,
-                rec.fault_value,
-                rec.velocity,
-                rec.displacement,
             ],
         )

@@ -20,19 +20,15 @@ import warp as wp
 from aca_warp.common.devices import block_threads
 from aca_warp.common.errors import SceneError
 from aca_warp.hf import adaptive
-from aca_warp.hf.engine import EngineTuning, Progress
+from aca_warp.hf.engine import EngineSetup, EngineTuning, Progress, fault_cause, run_stages
 from aca_warp.hf.general import Growth
 from aca_warp.hf.model import PadModel
-from aca_warp.hf.onchip import cluster_size, growth_arguments
+from aca_warp.hf.onchip import OnchipLaunches, cluster_size
 from aca_warp.hf.onchip_layout import adaptive_shared_bytes, pad_sizes, smem_limit, unsupported
-from aca_warp.hf.options import RunOptions
 from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import HFSolver, grown_arrays
-from aca_warp.hf.state import HFState
-from aca_warp.kernels import hf as K
 from aca_warp.kernels import hf_adaptive as KA
 from aca_warp.kernels import hf_onchip_adaptive as KO
-from aca_warp.scene import Record
 
 BLOCK = 512  # most threads per block by default
 # Threads per patch of a stage evaluation on CUDA when a block's patches take at most BLOCK threads that way (else
@@ -85,29 +81,23 @@ def layout(model: PadModel, tuning: EngineTuning) -> tuple[int, int, int, wp.Ker
     raise AssertionError("unreachable")
 
 
-class OnchipAdaptiveEngine:
+class OnchipAdaptiveEngine(OnchipLaunches):
     """The on-chip ``adaptive`` kernel (:class:`~aca_warp.hf.engine.Engine`). Tuning: ``cluster`` blocks per pad
     (default :func:`layout`: 16 for one hf1 pad on an H100/H200, else as the strang engine), ``block_dim`` threads
     per block (default :func:`layout`), ``samples_per_launch`` sample intervals per launch (default
     ``SAMPLES_PER_LAUNCH``), ``ablate`` (profiling only: ``kernels.hf_onchip_adaptive.ABLATIONS``). On the CPU a
     block is one thread unless Warp's CPU fibers are on."""
 
-    capture_time = 0.0
-
-    def __init__(
-        self,
-        model: PadModel,
-        state: HFState,
-        options: RunOptions,
-        record: Record,
-        n_samples: int,
-        tuning: EngineTuning,
-    ) -> None:
+    def __init__(self, setup: EngineSetup) -> None:
+        model, state, options, record = setup.model, setup.state, setup.options, setup.record
+        n_samples, tuning = setup.n_samples, setup.tuning
         why = unsupported(model, "adaptive")
         if why is not None:
             raise SceneError(f"on-chip engine: {why}")
         self.model, self.state, self.record, self.n_samples = model, state, record, n_samples
-        self.solver = HFSolver(model, "adaptive", options.dt, force=options.force, tolerance=options.tolerance)
+        self.solver = HFSolver(
+            model, "adaptive", options.dt, force=options.force, tolerance=options.tolerance, estimate=setup.estimate
+        )
         self.estimate = self.solver.estimate
         spl = SAMPLES_PER_LAUNCH if tuning.samples_per_launch is None else tuning.samples_per_launch
         if spl < 1:
@@ -120,35 +110,18 @@ class OnchipAdaptiveEngine:
         # the event times and the increment per event (its flag and launches are the general engine's, unused here)
         self.growth = Growth(model, None) if "pad_growth" in model.arrays else None
         self.stepper = adaptive.AdaptiveStepper(model, state, self.solver, self.recorder, self.t_end, self.growth)
-        self.grown = growth_arguments(model, None if self.growth is None else self.growth.per_event)
-        self.stages = [
-            "contact",
-            "neighbours" if model.has_coupling else "no-coupling",
-            "step:adaptive:onchip",
-            "record:globals",
-        ] + (["record:patches"] if self.recorder.patch_stage else [])
-        if self.growth is not None:
-            self.stages.append("growth")
-        self.cause = "extreme scene parameters (check loads, areas, speeds)"
-        self.started = False
+        self.kernel_model = model.struct(None if self.growth is None else self.growth.per_event)
+        self.stages = run_stages(model, self.recorder, "adaptive:onchip")
+        self.cause = fault_cause(self.estimate, "adaptive", None)
 
     # -- the Engine protocol
 
     def saved(self) -> dict[str, wp.array]:
         return self.stepper.saved() | grown_arrays(self.model)
 
-    def begin(self, resume: dict[str, int] | None) -> None:
-        if resume is None:
-            self.recorder.launch(self.state.u, self.state.v, conditional=False)  # sample 0: the initial state
-        else:
-            self.started = bool(resume.get("started", 0))
-        wp.load_module(self.kernel.module, device=self.model.device)
-        wp.load_module(K, device=self.model.device)
-
     def advance(self, p: Progress, most: int) -> Progress:
         rec = self.recorder
-        reps = min(self.spl, self.n_samples - p.samples, most)
-        k_next, rows, prows = rec.kernel_rows()
+        reps, k_next, rows, prows = self.launch_rows(p, most)
         self._launch(reps, k_next, rows, prows)
         self.started = True
         mode = self.stepper.mode.numpy()
@@ -164,9 +137,6 @@ class OnchipAdaptiveEngine:
             fault = adaptive.underflow_fault(t)
         return Progress(samples, int(st[:, 0].max()), int(st[:, 1].sum()), t, samples >= self.n_samples, fault)
 
-    def counters(self) -> dict[str, int]:
-        return {"started": int(self.started)}
-
     def step_used(self) -> float:
         return self.stepper.mean_step()
 
@@ -175,22 +145,7 @@ class OnchipAdaptiveEngine:
 
     def _launch(self, samples: int, k_next: int, rows: int, prows: int) -> None:
         """One launch of ``samples`` sample intervals, rows counted from the recorder's."""
-        m, s, rec, st = self.model, self.state, self.recorder, self.stepper
-        f64 = wp.float64
-        wp.launch_tiled(
-            self.kernel,
-            dim=[m.pad_count * self.blocks_per_pad],
-            block_dim=self.block_dim,
-            device=m.device,
-            inputs=[
-                m.pad_patch_start, m.inv_mass, m.k_diag, m.damping, m.normal_force, m.radius, m.nbr_start,
-                m.nbr_index, m.nbr_stiffness, m.pad_omega, m.pad_mu_scale, m.pad_slope, m.pad_decay, m.pad_mu_pad,
-                m.pad_load, m.pad_matrix_force, m.pad_matrix_radius, m.k_t, m.x, m.y, *self.grown,
-                st.coeff, st.err_coeff, st.u_scale, st.v_scale, st.tol, f64(st.h_max), f64(adaptive.MIN_STEP),
-                f64(self.record.sample_dt), f64(st.interval), f64(self.t_end),
-                self.threads, samples, k_next, rows, prows, rec.first, rec.last, rec.every,
-                s.u, s.v, st.ku, st.kv, st.stage_u[0], st.stage_v[0], st.stage_u[1], st.stage_v[1],
-                st.ctl, st.mode, st.stats, st.done,
-                rec.globals, rec.watch_bound, rec.fault, rec.fault_value, rec.velocity, rec.displacement,
-            ],
-        )  # fmt: skip
+        s, rec, st = self.state, self.recorder, self.stepper
+        self.launch_kernel(
+            [self.kernel_model, rec.struct, st.struct, self.threads, samples, k_next, rows, prows, s.u, s.v]
+        )

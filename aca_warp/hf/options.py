@@ -27,6 +27,16 @@ def _positive_or_none(name: str, value: float | None, unit: str) -> None:
         raise SceneError(f"{name} must be a positive number{unit}, got {value!r}")
 
 
+def check_interval(interval: float | None) -> None:
+    """SceneError unless ``interval`` is None (automatic checkpoints), 0 (none) or a positive number of seconds."""
+    number = isinstance(interval, int | float) and not isinstance(interval, bool)
+    if not (interval is None or (number and math.isfinite(interval) and interval >= 0)):
+        raise SceneError(
+            f"checkpoint interval must be a number of seconds >= 0 (0: no checkpoints) or None (automatic), got "
+            f"{interval!r}"
+        )
+
+
 @dataclass(frozen=True)
 class RunOptions:
     """Options of one HF run (all validated on construction; :class:`SceneError` names the bad one).
@@ -40,7 +50,9 @@ class RunOptions:
         force: Run a fixed step beyond the stable-step estimate, or a run beyond the size limits of
             :func:`~aca_warp.hf.runner.plan_run` (step count, recorded bytes).
         engine: ``auto``, ``general`` or ``onchip`` (docs/onchip.md).
-        checkpoint_interval: Simulated time between checkpoints [s]; None: no checkpoints.
+        checkpoint_interval: Simulated time between checkpoints [s]; None (default): automatic, at most
+            :data:`~aca_warp.common.checkpoint.AUTO_SHARE` of the run's wall time; 0: none
+            (:class:`~aca_warp.common.checkpoint.CheckpointClock`).
         watchdog_factor: Watchdog bound in units of the scene's velocity scale; None: only non-finite checks.
         accept_unphysical: Run on, with a warning, where the physical sanity checks (:mod:`aca_warp.hf.sanity`:
             contact solution, μ bound) would stop the run.
@@ -63,7 +75,7 @@ class RunOptions:
             raise SceneError(f"unknown engine {self.engine!r}; choose from {', '.join(ENGINES)}")
         _positive_or_none("duration", self.duration, " of seconds")
         _positive_or_none("dt", self.dt, " of seconds")
-        _positive_or_none("checkpoint_interval", self.checkpoint_interval, " of seconds")
+        check_interval(self.checkpoint_interval)
         _positive_or_none("watchdog_factor", self.watchdog_factor, "")
         if not (isinstance(self.tolerance, int | float) and self.tolerance > 0 and math.isfinite(self.tolerance)):
             raise SceneError(f"tolerance must be a positive number, got {self.tolerance!r}")

@@ -15,12 +15,14 @@ import numpy as np
 import warp as wp
 
 from aca_warp.common.devices import block_threads
-from aca_warp.common.errors import SceneError, SimulationFault
+from aca_warp.common.errors import SceneError, SimulationFault, option
 from aca_warp.hf.limits import check_int32
 from aca_warp.hf.model import PadModel
-from aca_warp.hf.options import WATCHDOG_FACTOR
+from aca_warp.hf.options import WATCHDOG_FACTOR, check_interval
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
+from aca_warp.kernels.hf_types import HFRecorder
+from aca_warp.kernels.physics import N_GLOBAL
 from aca_warp.scene import Record
 
 GLOBAL_NAMES = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity", "friction_centroid")
@@ -29,13 +31,14 @@ RECORD_BLOCK = 256  # threads per pad of the global outputs' sums on CUDA (one o
 
 
 def check_run(duration: float, record: Record, checkpoint_every: float | None = None) -> int:
-    """Validate a run's duration [s], sample interval and checkpoint interval [s]; returns the number of samples."""
+    """Validate a run's duration [s], sample interval and checkpoint interval [s] (None: automatic, 0: none); returns
+    the number of samples."""
     if not (duration > 0 and math.isfinite(duration)):
         raise SceneError(f"duration must be a positive number of seconds, got {duration}")
-    if record.sample_dt > duration * (1 + 1e-12):
+    # 1e-9: a duration made as the difference of two times (a run in segments) is a whole number of samples to ~1e-10
+    if record.sample_dt > duration * (1 + 1e-9):
         raise SceneError(f"sample interval {record.sample_dt:g} s exceeds the duration {duration:g} s")
-    if checkpoint_every is not None and not (checkpoint_every > 0 and math.isfinite(checkpoint_every)):
-        raise SceneError(f"checkpoint interval must be a positive number of seconds, got {checkpoint_every}")
+    check_interval(checkpoint_every)
     n_samples = max(1, round(duration / record.sample_dt))
     if n_samples > 2**31 - 2:  # the recorder counts samples in int32
         raise SceneError(
@@ -45,6 +48,18 @@ def check_run(duration: float, record: Record, checkpoint_every: float | None = 
     # the kernels take the decimation as an int32 (a wrapped value divides by zero: SIGFPE)
     check_int32("record.decimation", record.decimation, f"any value above {n_samples} records one row only")
     return n_samples
+
+
+def check_sample_step(sample_dt: float, dt: float, anyway: str = "") -> None:
+    """Refuse a sample interval [s] shorter than the step ``dt`` [s] that was asked for (or the default): the run
+    would shrink every step to the sample interval, silently multiplying the steps (``record.sample_dt = 1e-12``
+    turned a 1e-8 s step into 1e-12 s and a run of hours). ``anyway`` names the override, if there is one."""
+    if sample_dt < dt * (1 - 1e-9):
+        raise SceneError(
+            f"record.sample_dt = {sample_dt:g} s is shorter than the step {dt:g} s: every step would shrink to the "
+            f"sample interval ({dt / sample_dt:.3g} times the steps); choose a sample interval of at least the step "
+            f"(seconds) or ask for that step ({option('dt', '--dt')})" + (f"; {anyway}" if anyway else "")
+        )
 
 
 def watchdog_bound(model: PadModel, state: HFState, factor: float = WATCHDOG_FACTOR) -> np.ndarray:
@@ -126,7 +141,7 @@ class Recorder:
         prow = rows if (self.want_v or self.want_u) else 0
         n = model.patch_count if prow else 0
         self.counters = wp.zeros(4, dtype=wp.int32, device=dev)
-        self.globals = wp.zeros((rows, model.pad_count, K.N_GLOBAL), dtype=wp.float64, device=dev)
+        self.globals = wp.zeros((rows, model.pad_count, N_GLOBAL), dtype=wp.float64, device=dev)
         # watchdog: [patch, sample, kind] of the first fault per pad (kind 0 non-finite, 1 beyond watch_bound)
         table = np.full((model.pad_count, 3), -1, np.int32)
         table[:, 2] = 0
@@ -136,9 +151,13 @@ class Recorder:
         self.velocity = wp.zeros((prow, n), dtype=T, device=dev)
         self.displacement = wp.zeros((prow if self.want_u else 0, n), dtype=T, device=dev)
         self.sample_index = 0
+        names = ("counters", "globals", "watch_bound", "fault", "fault_value", "velocity", "displacement")
+        names += ("first", "last", "every")
+        # the kernels' parameter group (its arrays change in place only: graphs keep it)
+        self.struct = HFRecorder.of(T, {k: getattr(self, k) for k in names})
 
     def due(self, k: int) -> bool:
-        """Whether global sample k also records per-patch histories (``patch_sample_due`` of kernels.hf)."""
+        """Whether global sample k also records per-patch histories (``patch_sample_due`` of kernels.physics)."""
         return self.first <= k <= self.last and (k - self.first) % self.every == 0
 
     def kernel_rows(self) -> tuple[int, int, int]:
@@ -159,49 +178,18 @@ class Recorder:
 
     def launch(self, u: wp.array, v: wp.array, conditional: bool) -> None:
         """Record one sample of (u, u̇) (conditional: only when the adaptive controller landed on a sample)."""
-        m, c = self.model, int(conditional)
+        m, c, rec = self.model, int(conditional), self.struct
+        threads = block_threads(m.device, RECORD_BLOCK)
         wp.launch_tiled(
             K.record_globals,
             dim=[m.pad_count],
             block_dim=RECORD_BLOCK,
             device=m.device,
-            inputs=[
-                m.pad_patch_start,
-                m.normal_force,
-                m.radius,
-                m.pad_omega,
-                m.pad_mu_scale,
-                m.pad_slope,
-                m.pad_decay,
-                m.pad_mu_pad,
-                m.pad_load,
-                m.pad_matrix_force,
-                m.pad_matrix_radius,
-                m.inv_mass,
-                m.k_t,
-                m.x,
-                m.y,
-                c,
-                block_threads(m.device, RECORD_BLOCK),
-                u,
-                v,
-                self.counters,
-                self.globals,
-                self.watch_bound,
-                self.fault,
-                self.fault_value,
-            ],
+            inputs=[m.struct(), rec, c, threads, u, v],
         )
         if self.patch_stage:
-            wp.launch(
-                K.record_patches,
-                dim=m.patch_count,
-                device=m.device,
-                inputs=[self.first, self.last, self.every, c, u, v, self.counters, self.velocity, self.displacement],
-            )
-        wp.launch(
-            K.advance_counters, dim=1, device=m.device, inputs=[self.first, self.last, self.every, c, self.counters]
-        )
+            wp.launch(K.record_patches, dim=m.patch_count, device=m.device, inputs=[rec, c, u, v])
+        wp.launch(K.advance_counters, dim=1, device=m.device, inputs=[rec, c])
 
     def flush(self) -> tuple[Chunk, np.ndarray]:
         """Copy the recorded rows to the host and reset the buffers; returns the chunk and the fault table."""

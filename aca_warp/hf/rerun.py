@@ -12,7 +12,6 @@ path as ``aca-warp hf`` and, on the same device and precision, gives the same bi
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,8 +20,9 @@ from typing import Any
 import h5py
 import numpy as np
 
+from aca_warp.common.bounds import json_attribute
 from aca_warp.common.errors import SceneError
-from aca_warp.hf.options import RunOptions
+from aca_warp.hf.options import WATCHDOG_FACTOR, RunOptions
 from aca_warp.scene import Friction, Growth, Initial, Material, Matrix, Pad, Patches, Record, Scene
 
 
@@ -48,18 +48,17 @@ class RunSettings:
 
 
 def _json(attrs: Any, key: str, path: Path) -> Any:
+    """The JSON root attribute ``key`` (:func:`~aca_warp.common.bounds.json_attribute`: text, bounded nesting)."""
     if key not in attrs:
         raise SceneError(f"{path} lacks the attribute {key!r}: not an aca-warp run file, or one too old to rerun")
-    v = attrs[key]
-    try:
-        return json.loads(v) if isinstance(v, str) else v
-    except json.JSONDecodeError:
-        raise SceneError(f"{path}: attribute {key!r} is not valid JSON") from None
+    return json_attribute(attrs[key], f"{path}: attribute {key!r}")
 
 
 def scene_from_run(f: h5py.File, path: Path) -> Scene:
     """The scene of an open run file (stored JSON, patches from ``/patches``, matrix from ``/matrix``)."""
     doc = _json(f.attrs, "scene", path)
+    if not isinstance(doc, dict):
+        raise SceneError(f"{path}: attribute 'scene' is not a JSON object (a crafted or damaged file)")
     try:
         patches = Patches(
             *(np.asarray(f["patches"][k][()], dtype=np.float64) for k in ("x", "y", "area", "height")),
@@ -106,6 +105,23 @@ def _options(f: h5py.File, path: Path) -> RunOptions:
     policy = _json(f.attrs, "step_policy", path)
     keys = ("duration", "integrator", "dt", "tolerance", "force", "engine", "checkpoint_interval")
     return RunOptions.from_dict({k: policy[k] for k in keys if k in policy})
+
+
+def relaxed_checks(s: RunSettings) -> list[str]:
+    """The stored options of a run that relax a check, in words (``rerun`` names each one it applies)."""
+    o = s.options
+    out = []
+    if o.force:
+        out.append("force (a step beyond the stable-step estimate or the sticking bound runs, with a warning)")
+    if o.watchdog_factor is None:
+        out.append("the watchdog off (only non-finite values stop the run)")
+    elif o.watchdog_factor != WATCHDOG_FACTOR:
+        out.append(f"a watchdog bound of {o.watchdog_factor:g} x the velocity scale (default {WATCHDOG_FACTOR:g})")
+    if o.accept_unphysical:
+        out.append("accept_unphysical (the physical sanity checks warn instead of stopping the run)")
+    if s.scene.allow_implausible:
+        out.append("allow_implausible (values far outside a brake pad's range are accepted)")
+    return out
 
 
 def read_settings(path: str | Path) -> RunSettings:

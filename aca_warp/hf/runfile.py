@@ -14,9 +14,10 @@ Root attributes: ``scene`` (JSON), ``integrator``, ``run_options`` (JSON, :class
 ``predicted_growth_rate_min``, ``_median``, ``_max`` [1/s] (absent in files of earlier versions), ``complete``
 (bool), ``status``, and for a stopped run ``fault``. The file is written as ``NAME.partial`` and renamed to ``NAME``
 when the run ends, completed or not (then ``complete = False`` and ``status`` says why): the final name never holds
-a file that is half written. A killed process leaves only the ``.partial`` file behind; with checkpoints it holds
-everything up to the last checkpoint and ``aca-warp hf --resume`` continues it. Neither ``NAME`` nor a leftover
-``NAME.partial`` is replaced without ``overwrite``.
+a file that is half written. A killed process leaves only the ``.partial`` file behind: it holds everything up to
+the last checkpoint (automatic by default, :class:`~aca_warp.common.checkpoint.CheckpointClock`) and
+``aca-warp hf --resume`` continues it from there, or from the start when the run had no checkpoint yet. Neither
+``NAME`` nor a leftover ``NAME.partial`` is replaced without ``overwrite``.
 
 One writer per output: a writer holds ``NAME.lock`` (:class:`~aca_warp.common.files.OutputLock`) from before it
 looks at ``NAME`` until the file has its final name, so a second run, an ``--overwrite`` or a ``--resume`` of the
@@ -40,6 +41,7 @@ from aca_warp.common.checkpoint import (
     checkpoint_room,
     closed_on_failure,
     drop_checkpoint,
+    has_checkpoint,
     read_checkpoint,
     write_checkpoint,
 )
@@ -47,11 +49,12 @@ from aca_warp.common.errors import AcaError, SceneError, option
 from aca_warp.common.files import (
     OutputLock,
     check_output_path,
+    create_h5,
     from_h5py,
     new_path,
     open_h5,
     partial_path,
-    resume_hint,
+    recovery,
     versions,
 )
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
@@ -60,22 +63,42 @@ from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS, Chunk
 from aca_warp.scene import Scene, scene_to_dict
 
 RAW_CACHE = 64 * 2**20  # bytes of HDF5 chunk cache: appended rows of wide per-patch histories stay cached
+SERIES_CHUNK = 4096  # samples per chunk of /global/* and /patches/time
+HISTORY_CHUNK = (1024, 64)  # (samples, patches) per chunk of the per-patch histories (patches: at most 64)
+# what else a file holds, on disk: object headers, chunk index nodes, the two checkpoint slots (measured by
+# scripts/file_size.py: docs/faults.md, "Output folders")
+HEADER_BYTES = 64 * 1024
+BYTES_PER_CHUNK = 128
+CHECKPOINT_BYTES_PER_PATCH = 2 * 16 * 8
+
+
+def file_bytes(
+    samples: int, rows: int, patches: int, histories: int, item: int, *, cells: int, checkpoints: bool
+) -> int:
+    """Bytes the run file takes on disk when it ends [B]: ``samples`` global samples, ``rows`` rows of
+    ``histories`` per-patch histories (velocity, displacement) of ``patches`` patches in ``item``-byte values,
+    ``cells`` matrix cells, with or without checkpoint slots. HDF5 allocates chunks whole, so the series round up to
+    :data:`SERIES_CHUNK` samples and the histories to :data:`HISTORY_CHUNK` (a 40-patch history takes 64 columns),
+    and a deleted checkpoint leaves its space in the file."""
+
+    def up(n: int, k: int) -> int:
+        return -(-n // k) * k
+
+    width = min(patches, HISTORY_CHUNK[1])
+    series = (1 + len(GLOBAL_NAMES)) * up(samples, SERIES_CHUNK) * 8
+    history = up(rows, SERIES_CHUNK) * 8 if rows else 0
+    history += histories * up(rows, HISTORY_CHUNK[0]) * up(patches, width) * item if rows else 0
+    chunks = (1 + len(GLOBAL_NAMES)) * up(samples, SERIES_CHUNK) // SERIES_CHUNK
+    if rows:
+        chunks += histories * (up(rows, HISTORY_CHUNK[0]) // HISTORY_CHUNK[0]) * (up(patches, width) // width)
+    fixed = 7 * patches * 8 + 3 * cells * 8 + (CHECKPOINT_BYTES_PER_PATCH * patches if checkpoints else 0)
+    return series + history + fixed + chunks * BYTES_PER_CHUNK + HEADER_BYTES
 
 
 def busy() -> str:
     """The advice of a refusal to write an output that a live process writes."""
     overwrite = option("overwrite=True", "--overwrite")
     return f"wait for it to finish or stop it ({overwrite} does not replace a run in progress)"
-
-
-def hf_advice(path: Path, checkpoint_time: float | None) -> str:
-    """What to do with an HF ``.partial`` left by a storage failure."""
-    if checkpoint_time is None:
-        return f"it holds no checkpoint: make room and run again with {option('overwrite=True', '--overwrite')}"
-    return (
-        f"it keeps its checkpoint at t = {checkpoint_time:.6g} s: make room, then continue with "
-        f"{resume_hint('hf', path)}"
-    )
 
 
 class RunWriter:
@@ -94,7 +117,6 @@ class RunWriter:
         self.lock = lock or OutputLock.acquire(path, what=busy())
         self.pad = pad
         self.model = model
-        self.checkpoint_time: float | None = None
         a, b = (int(x) for x in model.pad_patch_start_host[pad : pad + 2])
         self.slice = slice(a, b)
         self.flush_each_chunk = True
@@ -103,8 +125,7 @@ class RunWriter:
         try:
             self.path = check_output_path(path, overwrite=overwrite)
             self.partial = partial_path(self.path)
-            tmp.unlink(missing_ok=True)  # left by a run killed while creating its file (we hold the lock)
-            self.f = h5py.File(tmp, "w", rdcc_nbytes=RAW_CACHE)
+            self.f = create_h5(tmp, self.lock, rdcc_nbytes=RAW_CACHE)  # a leftover .new is replaced, a link refused
             self.out = GuardedFile(self.f, self.partial, raw_cache=RAW_CACHE)
             self._write_header(model.scenes[pad], attrs or {})
             self.out.flush()
@@ -114,7 +135,8 @@ class RunWriter:
                 self.out.abandon()
             elif getattr(self, "f", None) is not None:
                 self.f.close()
-            tmp.unlink(missing_ok=True)
+            if getattr(self, "f", None) is not None:
+                tmp.unlink(missing_ok=True)
             self.lock.release()
             code = storage_errno(e)
             if code is not None:
@@ -133,7 +155,7 @@ class RunWriter:
             f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
         g = f.create_group("global")
         for name, unit in (("time", "s"), *zip(GLOBAL_NAMES, GLOBAL_UNITS, strict=True)):
-            d = g.create_dataset(name, shape=(0,), maxshape=(None,), dtype="f8", chunks=(4096,))
+            d = g.create_dataset(name, shape=(0,), maxshape=(None,), dtype="f8", chunks=(SERIES_CHUNK,))
             d.attrs["unit"] = unit
         p = f.create_group("patches")
         mass = scene.material.mass_per_area * scene.patches.area
@@ -172,10 +194,11 @@ class RunWriter:
     @classmethod
     def reopen(
         cls, partial: str | Path, model: PadModel, *, pad: int = 0, lock: OutputLock
-    ) -> tuple[RunWriter, Checkpoint]:
+    ) -> tuple[RunWriter, Checkpoint | None]:
         """Open a killed or stopped run's ``NAME.partial`` to continue it (``lock``: the lock of ``NAME``, held; the
         caller releases it when this fails): read its checkpoint, truncate the sample datasets to the checkpoint's
-        rows and mark the file running again."""
+        rows (to none without a checkpoint: the run starts again; the checkpoint is then None) and mark the file
+        running again."""
         self = cls.__new__(cls)
         self.lock = lock
         self.partial = Path(partial)
@@ -198,30 +221,42 @@ class RunWriter:
             raise
         return self, ckpt
 
-    def _truncate_to_checkpoint(self) -> Checkpoint:
-        """Read the checkpoint, cut the sample datasets back to its rows, mark the file running (reopen)."""
+    def _truncate_to_checkpoint(self) -> Checkpoint | None:
+        """Read the checkpoint, cut the sample datasets back to its rows (to none without one), mark the file
+        running (reopen)."""
         f = self.f
         self.out = GuardedFile(f, self.partial, raw_cache=RAW_CACHE)
         with closed_on_failure(f, self.partial, close=self.out.abandon):
-            ckpt = read_checkpoint(f, str(self.partial))
+            ckpt = read_checkpoint(f, str(self.partial)) if has_checkpoint(f) else None
+            rows = {"global": 0, "patches": 0} if ckpt is None else ckpt.rows
             for name in ("time", *GLOBAL_NAMES):
-                f["global"][name].resize(ckpt.rows["global"], axis=0)
+                f["global"][name].resize(rows["global"], axis=0)
             self._patch_ds = {}
             for name in ("time", "velocity", "displacement"):
                 if name in f["patches"]:
                     self._patch_ds[name] = f["patches"][name]
-                    self._patch_ds[name].resize(ckpt.rows["patches"], axis=0)
+                    self._patch_ds[name].resize(rows["patches"], axis=0)
             # read the last kept row of every sample dataset: a damaged chunk index shows up here, not mid-run
             for d in (*(f["global"][name] for name in ("time", *GLOBAL_NAMES)), *self._patch_ds.values()):
                 if d.shape[0]:
                     d[d.shape[0] - 1]
             if "final" in f["patches"]:
                 del f["patches"]["final"]
-        self.flush_each_chunk = False  # a resumed run keeps checkpointing: flush at checkpoints only
-        self.checkpoint_time = ckpt.sim_time
+            from aca_warp.analysis.report import GROUP, TMP_GROUP
+
+            for name in (GROUP, TMP_GROUP):  # an analysis of the samples as they were no longer describes the file
+                if name in f:
+                    del f[name]
+        # a run resumed from a checkpoint keeps flushing at checkpoints only; one started again, at every chunk
+        self.flush_each_chunk = ckpt is None
+        resumed = (
+            "started again from t = 0 (no checkpoint)"
+            if ckpt is None
+            else f"resumed from the checkpoint at t = {ckpt.sim_time:.6g} s"
+        )
         try:
             f.attrs["complete"] = False
-            f.attrs["status"] = f"running (resumed from the checkpoint at t = {ckpt.sim_time:.6g} s)"
+            f.attrs["status"] = f"running ({resumed})"
             self.out.flush()
         except BaseException:
             self.out.abandon()
@@ -240,13 +275,12 @@ class RunWriter:
         ckpt.rows = self.rows()
         self.out.reserve(checkpoint_room(self.f, ckpt))
         write_checkpoint(self.f, ckpt, flush=self.out.flush)
-        self.checkpoint_time = ckpt.sim_time
 
     def _patch_dataset(self, name: str, unit: str, width: int, dtype: Any) -> h5py.Dataset:
         if name not in self._patch_ds:
             shape = (0,) if width == 0 else (0, width)
             # narrow in patches, long in time: an analysis reads column blocks of patches in one pass
-            chunks = (4096,) if width == 0 else (1024, min(width, 64))
+            chunks = (SERIES_CHUNK,) if width == 0 else (HISTORY_CHUNK[0], min(width, HISTORY_CHUNK[1]))
             d = self.f["patches"].create_dataset(
                 name, shape=shape, maxshape=(None, *shape[1:]), dtype=dtype, chunks=chunks
             )
@@ -299,7 +333,7 @@ class RunWriter:
             self.abandon()
             code = storage_errno(e)
             if code is not None:
-                raise storage_error(code, self.partial, hf_advice(self.path, self.checkpoint_time)) from None
+                raise storage_error(code, self.partial, f"make room, then {recovery(self.path)}") from None
             raise
         self.lock.release()
         return self.path
@@ -322,8 +356,8 @@ class RunWriter:
             return None
         self.abandon()
         if code is None:  # HDF5 failed to write (a damaged file): nothing more goes into it
-            return write_failed(error, self.partial, hf_advice(self.path, self.checkpoint_time))
-        return storage_error(code, self.partial, hf_advice(self.path, self.checkpoint_time))
+            return write_failed(error, self.partial, f"make room, then {recovery(self.path)}")
+        return storage_error(code, self.partial, f"make room, then {recovery(self.path)}")
 
 
 def read_run(path: str | Path) -> dict[str, Any]:

@@ -18,15 +18,15 @@ from typing import TypeVar
 import warp as wp
 
 from aca_warp.common import interrupts, plausible
-from aca_warp.common.checkpoint import Checkpoint, has_checkpoint
+from aca_warp.common.checkpoint import Checkpoint
 from aca_warp.common.errors import SceneError, option
-from aca_warp.common.files import OutputLock, check_output_path, check_room, find_resumable, open_h5, reading
+from aca_warp.common.files import OutputLock, check_output_path, check_room, lock_resumable, machine
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
 from aca_warp.hf.options import DEFAULT_DT, RunOptions
-from aca_warp.hf.recorder import check_run
-from aca_warp.hf.runfile import RunWriter, busy
+from aca_warp.hf.recorder import check_run, check_sample_step
+from aca_warp.hf.runfile import RunWriter, busy, file_bytes
 from aca_warp.hf.sanity import check_contact
 from aca_warp.hf.solver import check_step
 from aca_warp.hf.state import HFState, initial_state
@@ -47,6 +47,8 @@ class RunPlan:
         samples: Global samples to record (the initial one included).
         patch_rows: Per-patch history rows to record.
         output_bytes: Bytes the recorded samples take in the run file (uncompressed).
+        file_bytes: Bytes the run file takes on disk (chunks allocated whole, headers, checkpoint slots;
+            :func:`~aca_warp.hf.runfile.file_bytes`): what the free-space check asks for.
     """
 
     steps: int | None
@@ -54,6 +56,7 @@ class RunPlan:
     samples: int
     patch_rows: int
     output_bytes: int
+    file_bytes: int
 
     def describe(self) -> str:
         """One line for the user."""
@@ -68,9 +71,14 @@ def _size(b: float) -> str:
     return f"{b:.0f} B"
 
 
-def plan_run(scene: Scene, options: RunOptions, precision: str = "fp64") -> RunPlan:
+def plan_run(
+    scene: Scene, options: RunOptions, precision: str = "fp64", *, force_limits: bool | None = None
+) -> RunPlan:
     """The :class:`RunPlan` of ``scene`` under ``options`` (``options.duration`` None: the scene's); raises
-    :class:`SceneError` for one beyond :data:`MAX_STEPS` or :data:`MAX_OUTPUT_BYTES` unless ``options.force``."""
+    :class:`SceneError` for one beyond :data:`MAX_STEPS` or :data:`MAX_OUTPUT_BYTES`, or whose sample interval is
+    shorter than its step, unless ``force_limits`` (None: ``options.force``; ``rerun`` passes its own ``--force``,
+    so that a run file's stored ``force`` does not lift these limits)."""
+    forced = options.force if force_limits is None else force_limits
     duration = scene.duration if options.duration is None else options.duration
     rec = scene.record
     n = check_run(duration, rec, options.checkpoint_interval)
@@ -78,8 +86,10 @@ def plan_run(scene: Scene, options: RunOptions, precision: str = "fp64") -> RunP
     if options.dt is not None:
         plausible.check("dt", options.dt, "hf_step", allow=scene.allow_implausible)
     steps = step = None
+    dt = DEFAULT_DT if options.dt is None else options.dt
+    if not forced:
+        check_sample_step(rec.sample_dt, dt, f"{option('force=True', '--force')} runs it anyway")
     if options.integrator != "adaptive":
-        dt = DEFAULT_DT if options.dt is None else options.dt
         sps = max(1, math.ceil(rec.sample_dt / dt - 1e-9))
         steps, step = n * sps, rec.sample_dt / sps
     rows = rec.patch_rows(duration)
@@ -90,8 +100,11 @@ def plan_run(scene: Scene, options: RunOptions, precision: str = "fp64") -> RunP
         )
     item = 4 if precision == "fp32" else 8
     out = (n + 1) * 8 * 7 + rows * (8 + len(rec.patches) * scene.patches.count * item)
-    plan = RunPlan(steps, step, n + 1, rows, out)
-    if options.force:
+    cells = 0 if scene.matrix is None else len(scene.matrix.area)
+    ckpt = options.checkpoint_interval is not None
+    disk = file_bytes(n + 1, rows, scene.patches.count, len(rec.patches), item, cells=cells, checkpoints=ckpt)
+    plan = RunPlan(steps, step, n + 1, rows, out, disk)
+    if forced:
         return plan
     if steps is not None and steps > MAX_STEPS:
         raise SceneError(
@@ -117,25 +130,28 @@ def run_scene(
     overwrite: bool = False,
     progress: bool = False,
     announce: Callable[[RunPlan], None] | None = None,
+    force_limits: bool | None = None,
 ) -> RunResult:
     """Simulate ``scene`` as ``options`` say (default :class:`RunOptions`: the scene's duration, ``strang`` at
     1e-8 s) on ``device`` in ``precision`` and write the run file ``output``.
 
     Everything is validated before the simulation starts. A fault or an interrupt (Ctrl-C) still leaves a
-    readable file holding every sample up to that point, marked ``complete = False``. With
-    ``options.checkpoint_interval`` the file also keeps the solver state of the last checkpoint, so that a killed
-    run continues with :func:`resume_run`. The file stores the options with the duration and the engine resolved.
-    ``announce`` receives the :class:`RunPlan` once everything is validated, just before the run starts.
+    readable file holding every sample up to that point, marked ``complete = False``. The file also keeps the
+    solver state of the last checkpoint (``options.checkpoint_interval``: automatic by default, 0 for none), so that
+    a stopped or killed run continues with :func:`resume_run`. The file stores the options with the duration and
+    the engine resolved. ``announce`` receives the :class:`RunPlan` once everything is validated, just before the
+    run starts. ``force_limits`` lifts the size limits and the free-space check (:func:`plan_run`; None:
+    ``options.force``).
     """
     options = options or RunOptions()
     lock = OutputLock.acquire(output, what=busy())  # held from here until the file has its final name
     try:
         check_output_path(output, overwrite=overwrite)
         options = options.with_duration(scene.duration if options.duration is None else options.duration)
-        plan = plan_run(scene, options, precision)  # bad sample counts, absurd step counts or sizes: refused early
-        if not options.force:
+        plan = plan_run(scene, options, precision, force_limits=force_limits)  # absurd counts or sizes: refused early
+        if not (options.force if force_limits is None else force_limits):
             hint = "a larger sample interval, a shorter patch window or decimation; "
-            check_room(Path(output).parent, plan.output_bytes, hint + f"{option('force=True', '--force')} tries anyway")
+            check_room(Path(output).parent, plan.file_bytes, hint + f"{option('force=True', '--force')} tries anyway")
         model = build_model([scene], device=device, precision=precision)
         state = initial_state(model)
         check_step(model, options, scene.record.sample_dt)  # the step the run takes, the sticking bound
@@ -156,8 +172,7 @@ def run_scene(
             attrs={
                 "integrator": options.integrator,
                 "precision": precision,
-                "device": str(model.device),
-                "device_name": model.device.name,
+                **machine(model.device),  # device, device_name, host, platform: as an LF file names them
                 "run_options": options.to_json(),
             },
         )
@@ -242,20 +257,16 @@ def resume_run(
     checkpoint_interval: float | None = None,
     device: str | None = None,
 ) -> tuple[RunResult, Path]:
-    """Continue the run ``path`` (``NAME`` or ``NAME.partial``) from its last checkpoint; returns the result and
+    """Continue the run ``path`` (``NAME`` or ``NAME.partial``) from its last checkpoint, or from its start when it
+    has none (stopped before its first checkpoint, or run with ``checkpoint_interval=0``); returns the result and
     the final file name. Same scene, options, precision and device as the run (``device`` overrides it: then the
-    result is no longer bit-identical). The finished file equals an uninterrupted run's."""
+    result is no longer bit-identical; ``checkpoint_interval`` replaces the run's). The finished file equals an
+    uninterrupted run's."""
     from aca_warp.hf.rerun import read_settings
 
-    final, part = find_resumable(path)
-    lock = OutputLock.acquire(final, what="it cannot be resumed while it runs")
+    final, part, src, lock = lock_resumable(path)
     try:
-        final, part = find_resumable(path)  # again, now that no other process can move it
-        src = part if part.exists() else final
         s = read_settings(src)
-        with reading(src, "run file"), open_h5(src, "run file") as f:
-            if not has_checkpoint(f):
-                raise SceneError(f"{src} holds no checkpoint (run without checkpoint_interval); use 'aca-warp rerun'")
         model = build_model([s.scene], device=device or s.device, precision=s.precision)
         state = initial_state(model)
         options = s.options

@@ -124,9 +124,10 @@ def stable_step(model: PadModel) -> StepEstimate:
     start, index, kij = coupling_matrix(model)
     n = model.patch_count
     m = 1.0 / model.host("inv_mass").astype(np.float64)
-    rows = np.repeat(np.arange(n), np.diff(start))
+    deg = np.diff(start)
+    rows = np.repeat(np.arange(n), deg)
     ksum = np.bincount(rows, kij, minlength=n)
-    off = np.bincount(rows, kij / np.sqrt(m[rows] * m[index]), minlength=n) if len(kij) else np.zeros(n)
+    off = np.bincount(rows, kij / np.sqrt(np.repeat(m, deg) * m[index]), minlength=n) if len(kij) else np.zeros(n)
     w2 = (model.host("k_t").astype(np.float64) + ksum) / m + off
     slope = np.array([s.friction.max_slope() for s in model.scenes])[model.host("patch_pad")]
     gamma = (model.host("damping").astype(np.float64) + model.host("normal_force").astype(np.float64) * slope) / m
@@ -147,41 +148,53 @@ def fitted_step(dt: float, sample_dt: float) -> float:
     return sample_dt / max(1, math.ceil(sample_dt / dt - 1e-9))
 
 
-def step_refusal(estimate: StepEstimate, integrator: str, h: float) -> None:
-    """Raise :class:`StabilityError` when the fixed step ``h`` [s] exceeds what ``integrator`` allows: the explicit
-    bound (symplectic Euler) or the springs' (every other scheme), then for strang the sticking bound."""
+def step_problem(estimate: StepEstimate, integrator: str, h: float) -> tuple[str, str, str] | None:
+    """What is wrong with the fixed step ``h`` [s] for ``integrator``, or None: beyond the explicit bound (symplectic
+    Euler) or the springs' (every other scheme), then for strang beyond the sticking bound. Returns (the problem, what
+    to do instead, what a forced run then risks), each in words."""
     limit = estimate.explicit if integrator == "symplectic-euler" else estimate.spring
+    dt, force = option("dt", "--dt"), option("force=True", "--force")
     if h > limit:
-        dt, force = option("dt", "--dt"), option("force=True", "--force")
         adaptive = option("integrator='adaptive'", "--integrator adaptive")
         hint = (
             f"choose a smaller {dt}, an implicit-friction integrator (strang, implicit-friction), or {force}"
             if h <= estimate.spring
             else f"choose a smaller {dt} (the springs bound every fixed-step scheme), {adaptive}, or {force}"
         )
-        raise StabilityError(
+        return (
             f"dt = {h:.3g} s exceeds the stable-step estimate {limit:.3g} s of {integrator} "
-            f"(springs {estimate.spring:.3g} s, friction slope {estimate.friction:.3g} s); {hint}"
+            f"(springs {estimate.spring:.3g} s, friction slope {estimate.friction:.3g} s)",
+            hint,
+            "the run may diverge (the watchdog then stops it) and mu is not accurate",
         )
     if integrator == "strang" and h > estimate.sticking:
         implicit = option("integrator='implicit-friction'", "--integrator implicit-friction")
-        raise StabilityError(
+        return (
             f"dt = {h:.3g} s does not resolve sticking for strang: h (c + F_N max|f'|)/m = "
             f"{4.0 * h / estimate.sticking:.3g} > 4 (its friction step then flips the sign of a sticking patch's "
-            f"velocity each step); choose {option('dt', '--dt')} <= {estimate.sticking:.3g} s or "
-            f"{implicit}, or "
-            f"{option('force=True', '--force')}"
+            "velocity each step)",
+            f"choose {dt} <= {estimate.sticking:.3g} s or {implicit}, or {force}",
+            "near sticking the friction chatters and mu is not accurate",
         )
+    return None
+
+
+def step_refusal(estimate: StepEstimate, integrator: str, h: float) -> None:
+    """Raise :class:`StabilityError` when the fixed step ``h`` [s] exceeds what ``integrator`` allows
+    (:func:`step_problem`)."""
+    problem = step_problem(estimate, integrator, h)
+    if problem is not None:
+        raise StabilityError(f"{problem[0]}; {problem[1]}")
 
 
 def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
     """Check a run's step before anything is written; returns the stable-step estimate.
 
     The bound is checked for the step the run takes (:func:`fitted_step`), not the one asked for. Beyond it a
-    :class:`StabilityError` (exit 2), or with ``options.force`` a warning when strang does not resolve sticking
-    (the explicit bounds stay silent when forced, as before). Steps per sample interval and per growth interval
-    (adaptive: growth events of the run) are checked against int32 (the kernels count them so). ``options``:
-    :class:`~aca_warp.hf.options.RunOptions`.
+    :class:`StabilityError` (exit 2), or with ``options.force`` a warning that says what the forced step risks
+    (:func:`step_problem`: the explicit and spring bounds, strang's sticking bound). Steps per sample interval and
+    per growth interval (adaptive: growth events of the run) are checked against int32 (the kernels count them so).
+    ``options``: :class:`~aca_warp.hf.options.RunOptions`.
     """
     from aca_warp.hf.limits import check_int32
     from aca_warp.hf.sanity import warn
@@ -207,16 +220,18 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
             )
     if not options.force:
         step_refusal(est, options.integrator, h)
-    elif options.integrator == "strang" and est.sticking < h <= est.spring:
-        warn(
-            f"dt = {h:.3g} s does not resolve sticking for strang (h (c + F_N max|f'|)/m = {4.0 * h / est.sticking:.3g}"
-            " > 4); running as forced: near sticking the friction chatters and mu is not accurate"
-        )
+    else:
+        problem = step_problem(est, options.integrator, h)
+        if problem is not None:
+            warn(f"{problem[0]}; running as forced: {problem[2]}")
     return est
 
 
 class HFSolver:
-    """Launch wrappers of one integrator for a model; ``step`` advances all pads by one fixed step."""
+    """Launch wrappers of one integrator for a model; ``step`` advances all pads by one fixed step.
+
+    ``estimate``: the model's :func:`stable_step`, when the caller has it already (it reads every link of the batch).
+    """
 
     def __init__(
         self,
@@ -226,12 +241,13 @@ class HFSolver:
         *,
         force: bool = False,
         tolerance: float = DEFAULT_TOLERANCE,
+        estimate: StepEstimate | None = None,
     ) -> None:
         if integrator not in INTEGRATORS:
             raise SceneError(f"unknown integrator {integrator!r}; choose from {', '.join(INTEGRATORS)}")
         self.model = model
         self.integrator = integrator
-        self.estimate = stable_step(model)
+        self.estimate = stable_step(model) if estimate is None else estimate
         self.T = model.dtype
         self.newton_tol = self.T(1.0e-6 if self.T == wp.float32 else 1.0e-9)  # of the velocity increment
         if integrator == "adaptive":
@@ -249,33 +265,7 @@ class HFSolver:
             raise SceneError(f"dt must be a positive number of seconds, got {self.dt}")
         if integrator != "adaptive" and not force:  # adaptive: dt is only its first trial
             step_refusal(self.estimate, integrator, self.dt)
-        m = model
-        self.model_args = [
-            m.patch_pad,
-            m.inv_mass,
-            m.k_diag,
-            m.damping,
-            m.normal_force,
-            m.radius,
-            m.nbr_start,
-            m.nbr_index,
-            m.nbr_stiffness,
-            m.pad_omega,
-            m.pad_mu_scale,
-            m.pad_slope,
-            m.pad_decay,
-        ]
-        self.local_args = [
-            m.patch_pad,
-            m.inv_mass,
-            m.damping,
-            m.normal_force,
-            m.radius,
-            m.pad_omega,
-            m.pad_mu_scale,
-            m.pad_slope,
-            m.pad_decay,
-        ]
+        self.kernel_model = model.struct()  # the model's arrays as one kernel argument
         self._v_sync: wp.array | None = None
 
     def _launch(self, kernel: Any, inputs: list, dim: int | None = None) -> None:
@@ -283,8 +273,7 @@ class HFSolver:
 
     def prepare(self, state: HFState) -> None:
         """Fill the spring-force cache F_s(u) of a state (Strang and adaptive schemes)."""
-        m = self.model
-        self._launch(K.spring_forces, [m.k_diag, m.nbr_start, m.nbr_index, m.nbr_stiffness, state.u, state.force])
+        self._launch(K.spring_forces, [self.kernel_model, state.u, state.force])
 
     def step(self, state: HFState, dt: float, *, first: bool = False) -> None:
         """One fixed step of every pad (graph-capturable: two launches, no host reads).
@@ -294,15 +283,13 @@ class HFSolver:
         :meth:`finish` closes back to the synchronous velocity; :meth:`velocity` gives it at any step.
         """
         h = self.T(dt)
-        if self.integrator == "symplectic-euler":
-            self._launch(K.euler_velocity, [*self.model_args, h, state.u, state.v])
-            self._launch(K.drift, [h, state.v, state.u])
-        elif self.integrator == "implicit-friction":
-            self._launch(K.implicit_velocity, [*self.model_args, h, self.newton_tol, state.u, state.v])
+        if self.integrator in ("symplectic-euler", "implicit-friction"):
+            implicit = int(self.integrator == "implicit-friction")
+            self._launch(K.euler_velocity, [self.kernel_model, h, self.newton_tol, implicit, state.u, state.v])
             self._launch(K.drift, [h, state.v, state.u])
         elif self.integrator == "strang":
-            kernel = K.strang_open if first else K.strang_step
-            self._launch(kernel, [*self.local_args, h, self.newton_tol, state.force, state.u, state.v])
+            args = [self.kernel_model, h, self.newton_tol, int(first), state.force, state.u, state.v]
+            self._launch(K.strang_advance, args)
             self.prepare(state)
         else:
             raise SceneError("the adaptive integrator steps each pad on its own; use run_hf")
@@ -314,11 +301,12 @@ class HFSolver:
         if self._v_sync is None:
             self._v_sync = wp.zeros_like(state.v)
         self._launch(
-            K.strang_close, [*self.local_args, self.T(dt), self.newton_tol, state.force, state.v, self._v_sync]
+            K.strang_close, [self.kernel_model, self.T(dt), self.newton_tol, state.force, state.v, self._v_sync]
         )
         return self._v_sync
 
     def finish(self, state: HFState, dt: float) -> None:
         """Bring a staggered strang state back to synchronous velocities (no-op for other schemes)."""
         if self.integrator == "strang":
-            self._launch(K.strang_close, [*self.local_args, self.T(dt), self.newton_tol, state.force, state.v, state.v])
+            args = [self.kernel_model, self.T(dt), self.newton_tol, state.force, state.v, state.v]
+            self._launch(K.strang_close, args)

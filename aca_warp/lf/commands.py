@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from aca_warp.common.argtypes import positive, refuse_with_resume
+from aca_warp.common.argtypes import add_checkpoint_arguments, positive, refuse_with_resume
 
 EPILOG = """\
 SCENE is the preset multiscale (paper §3.3: 10 s applications at 10/30/5/15 bar, 5 s pauses, 10 m/s, M = 0.8)
@@ -31,18 +31,24 @@ def run_lf(
 ) -> Any:
     """Run an LF scene over its schedule (or ``duration`` [s]) into ``output``; returns the simulation.
 
-    With ``checkpoint_interval`` [s of simulated time] the file keeps the full state of the last checkpoint, so
-    that a killed or stopped run continues with :func:`resume_lf` (docs/faults.md)."""
-    import math
-
-    from aca_warp.common.errors import SceneError
+    A ``duration`` beyond the schedule's end is run (the pad unloaded, the disc at rest) with a note on stderr.
+    The file keeps the full state of the last checkpoint (``checkpoint_interval`` [s of simulated time]; None:
+    automatic, :class:`~aca_warp.common.checkpoint.CheckpointClock`; 0: none), so that a killed or stopped run
+    continues with :func:`resume_lf` (docs/faults.md)."""
     from aca_warp.common.files import OutputLock
+    from aca_warp.hf.options import check_interval
     from aca_warp.lf.io import LFRunWriter, busy, check_lf_output
     from aca_warp.lf.solver import LFSimulation
 
     check_lf_output(output, overwrite=overwrite)
-    if checkpoint_interval is not None and not (math.isfinite(checkpoint_interval) and checkpoint_interval > 0):
-        raise SceneError(f"checkpoint interval must be a positive number of seconds, got {checkpoint_interval}")
+    check_interval(checkpoint_interval)
+    if duration is not None and duration > scene.duration * (1 + 1e-9):
+        print(
+            f"aca-warp: note: the run's {duration:g} s go {duration - scene.duration:.4g} s past the end of the "
+            f"scene's schedule ({scene.duration:g} s): the pad then stands unloaded, the disc at rest (it only cools)",
+            file=sys.stderr,
+            flush=True,
+        )
     lock = OutputLock.acquire(output, what=busy())  # held from here until the file has its final name
     try:
         check_lf_output(output, overwrite=overwrite)
@@ -73,7 +79,7 @@ def _execute(sim: Any, writer: Any, *, progress: bool, checkpoint_interval: floa
             on_snapshot=whole(writer.snapshot),
             progress=progress,
             checkpoint_every=checkpoint_interval,
-            on_checkpoint=None if checkpoint_interval is None else whole(writer.checkpoint),
+            on_checkpoint=whole(writer.checkpoint),
         )
         attrs = {"wall_time": wall, "steps_per_second": sim.step_index / wall}
         with deferred():
@@ -95,10 +101,10 @@ def read_lf_settings(path: str | Path) -> dict[str, Any]:
     """What an LF run file says about how it was made: ``scene`` (rebuilt from the stored JSON, initial patches
     from /initial_patches), ``duration`` [s] or None, ``checkpoint_interval`` [s] or None, ``graph``, ``device``,
     ``versions``, ``complete``. SceneError with one line when the file cannot be rerun."""
-    import json
 
     import numpy as np
 
+    from aca_warp.common.bounds import json_attribute
     from aca_warp.common.errors import SceneError
     from aca_warp.common.files import open_h5, reading
     from aca_warp.lf.scene import lf_scene_from_dict
@@ -109,8 +115,8 @@ def read_lf_settings(path: str | Path) -> dict[str, Any]:
         try:
             if f.attrs.get("kind") != "lf":
                 raise SceneError(f"{p} is not an LF run file (no kind = 'lf' attribute)")
-            doc = json.loads(f.attrs["scene"])
-            run = json.loads(f.attrs["lf_run"]) if "lf_run" in f.attrs else {}
+            doc = json_attribute(f.attrs["scene"], f"{p}: attribute 'scene'")
+            run = json_attribute(f.attrs["lf_run"], f"{p}: attribute 'lf_run'") if "lf_run" in f.attrs else {}
             scene = lf_scene_from_dict(doc, name=str(doc.get("scene", {}).get("name", p.stem)))
             if "initial_patches" in f:
                 g = f["initial_patches"]
@@ -127,7 +133,9 @@ def read_lf_settings(path: str | Path) -> dict[str, Any]:
                 "checkpoint_interval": None if ci is None else float(ci),
                 "graph": run.get("graph"),
                 "device": str(f.attrs["device"]),
-                "versions": json.loads(f.attrs["versions"]) if "versions" in f.attrs else {},
+                "versions": json_attribute(f.attrs["versions"], f"{p}: attribute 'versions'")
+                if "versions" in f.attrs
+                else {},
                 "complete": bool(f.attrs.get("complete", False)),
             }
         except SceneError as e:
@@ -139,21 +147,19 @@ def read_lf_settings(path: str | Path) -> dict[str, Any]:
 def resume_lf(
     path: str | Path, *, progress: bool = False, checkpoint_interval: float | None = None, device: str | None = None
 ) -> tuple[Any, Path]:
-    """Continue the killed or stopped LF run ``path`` (``NAME`` or ``NAME.partial``) from its last checkpoint;
-    returns the simulation and the final file name. Same scene, duration and device as the run (``device``
-    overrides it); on the same CPU the finished file equals an uninterrupted run's, snapshots included."""
+    """Continue the killed or stopped LF run ``path`` (``NAME`` or ``NAME.partial``) from its last checkpoint (from
+    its start when it has none); returns the simulation and the final file name. Same scene, duration and device
+    as the run (``device`` overrides it); on the same CPU the finished file equals an uninterrupted run's,
+    snapshots included."""
     import json
     import os
 
-    from aca_warp.common.files import OutputLock, find_resumable
+    from aca_warp.common.files import lock_resumable
     from aca_warp.lf.io import LFRunWriter
     from aca_warp.lf.solver import LFSimulation
 
-    final, part = find_resumable(path)
-    lock = OutputLock.acquire(final, what="it cannot be resumed while it runs")
+    final, part, src, lock = lock_resumable(path)
     try:
-        final, part = find_resumable(path)  # again, now that no other process can move it
-        src = part if part.exists() else final
         s = read_lf_settings(src)
         sim = LFSimulation(s["scene"], device=device or s["device"], duration=s["duration"], graph=s["graph"])
         if src == final:
@@ -168,7 +174,7 @@ def resume_lf(
             os.replace(part, final)  # not resumed: the stopped run keeps its name
         lock.release()
         raise
-    interval = checkpoint_interval or s["checkpoint_interval"]
+    interval = s["checkpoint_interval"] if checkpoint_interval is None else checkpoint_interval
     if checkpoint_interval is not None:
         run = json.loads(writer.f.attrs["lf_run"])
         writer.f.attrs["lf_run"] = json.dumps({**run, "checkpoint_interval": checkpoint_interval})
@@ -190,7 +196,8 @@ def rerun_lf(run: str | Path, output: str | Path, *, device: str | None, checkpo
         print(f"aca-warp: note: versions differ from the run's: {', '.join(changed)}", file=sys.stderr)
     sim = run_lf(
         s["scene"], output, duration=s["duration"], device=device or s["device"], overwrite=overwrite,
-        progress=progress, graph=s["graph"], checkpoint_interval=checkpoint_interval or s["checkpoint_interval"],
+        progress=progress, graph=s["graph"],
+        checkpoint_interval=s["checkpoint_interval"] if checkpoint_interval is None else checkpoint_interval,
     )  # fmt: skip
     print(_summary(output, sim).replace(": ", f": rerun of {run}, ", 1))
     return 0
@@ -276,16 +283,11 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     p.add_argument("--no-progress", action="store_true", help="no progress lines")
     p.add_argument("--eager", action="store_true", help="no graph capture of the step (debugging)")
-    p.add_argument(
-        "--checkpoint-interval",
-        type=positive,
-        metavar="S",
-        help="keep the full LF state in the file every S of simulated time, so that a killed run can be resumed",
-    )
+    add_checkpoint_arguments(p, "full LF")
     p.add_argument(
         "--resume",
         metavar="LF.h5",
-        help="continue a killed or stopped LF run (LF.h5 or LF.h5.partial) from its last checkpoint, with the "
-        "run's own scene and settings; the finished file equals an uninterrupted run",
+        help="continue a killed or stopped LF run (LF.h5 or LF.h5.partial) from its last checkpoint (from its start "
+        "if it has none), with the run's own scene and settings; the finished file equals an uninterrupted run",
     )
     p.set_defaults(handler=_cmd_lf)

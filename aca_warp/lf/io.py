@@ -10,17 +10,18 @@ Layout of an LF run file (docs/lf_model.md "Run file")::
     /snapshots/NAME/rings/radius, temperature, bulge                                               (R,)
     /calibration/death_age, death_area                                                             (deaths,)
     /initial_patches/x, y, area, height                                               (n0,)  initial patches
-    /checkpoint/...                  only while a run with --checkpoint-interval is unfinished
+    /checkpoint/...                  only while a run is unfinished, after its first checkpoint
 
 Every dataset has a ``unit`` attribute; snapshot groups carry ``time``, ``normal_force``, ``angular_velocity``,
-``gap`` and ``height_shift`` attributes. Root attributes: ``scene`` (JSON, :func:`lf_scene_to_dict`),
-``kind = "lf"``, ``lf_run`` (JSON: ``duration`` [s] or null for the whole schedule, ``checkpoint_interval``
-[s] or null, ``graph``), ``device``, ``versions``, ``complete``, ``status``, ``steps``, ``wall_time``. The file is
-written as ``NAME.partial`` and renamed when the run ends. /global grows at checkpoints (and at the end), so a
-killed checkpointed run's ``.partial`` holds every row up to its last checkpoint; ``aca-warp lf --resume``
-continues it (:meth:`LFRunWriter.reopen`) and ``aca-warp rerun`` repeats a finished one. As for HF run files, one
-writer holds ``NAME.lock`` while it writes, the ``.partial`` is created as ``NAME.partial.new`` and renamed once
-its header is on disk, and a full device leaves it as it was at its last flush (:mod:`aca_warp.common.storage`).
+``gap`` and ``height_shift`` attributes. Root attributes: ``scene`` (JSON, :func:`lf_scene_to_dict`), ``kind =
+"lf"``, ``lf_run`` (JSON: ``duration`` [s] or null for the whole schedule, ``checkpoint_interval`` [s], 0 for none
+or null for automatic, ``graph``), ``device``, ``versions``, ``complete``, ``status``, ``steps``, ``wall_time``. The
+file is written as ``NAME.partial`` and renamed when the run ends. /global grows at checkpoints (and at the end), so
+a killed run's ``.partial`` holds every row up to its last checkpoint; ``aca-warp lf --resume`` continues it from
+there, or from its start when it has none (:meth:`LFRunWriter.reopen`) and ``aca-warp rerun`` repeats a finished
+one. As for HF run files, one writer holds ``NAME.lock`` while it writes, the ``.partial`` is created as
+``NAME.partial.new`` and renamed once its header is on disk, and a full device leaves it as it was at its last flush
+(:mod:`aca_warp.common.storage`).
 """
 
 from __future__ import annotations
@@ -33,10 +34,12 @@ from typing import Any
 import h5py
 import numpy as np
 
+from aca_warp.common.bounds import json_attribute
 from aca_warp.common.checkpoint import (
     checkpoint_room,
     closed_on_failure,
     drop_checkpoint,
+    has_checkpoint,
     read_checkpoint,
     write_checkpoint,
 )
@@ -44,17 +47,18 @@ from aca_warp.common.errors import AcaError, SceneError, option
 from aca_warp.common.files import (
     OutputLock,
     check_output_path,
+    create_h5,
     from_h5py,
     machine,
     new_path,
     open_h5,
     partial_path,
     reading,
-    resume_hint,
+    recovery,
     versions,
 )
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
-from aca_warp.kernels.lf import H_NAMES, H_UNITS
+from aca_warp.kernels.lf_record import H_NAMES, H_UNITS
 from aca_warp.lf.scene import lf_scene_to_dict
 from aca_warp.lf.solver import LFSimulation
 from aca_warp.scene import Friction, Material, Matrix, Pad, Patches, Scene
@@ -64,16 +68,6 @@ def busy() -> str:
     """The advice of a refusal to write an output that a live process writes."""
     overwrite = option("overwrite=True", "--overwrite")
     return f"wait for it to finish or stop it ({overwrite} does not replace a run in progress)"
-
-
-def lf_advice(path: Path, checkpoint_time: float | None) -> str:
-    """What to do with an LF ``.partial`` left by a storage failure."""
-    if checkpoint_time is None:
-        return f"it holds no checkpoint: make room and run again with {option('overwrite=True', '--overwrite')}"
-    return (
-        f"it keeps its checkpoint at t = {checkpoint_time:.6g} s: make room, then continue with "
-        f"{resume_hint('lf', path)}"
-    )
 
 
 _UNITS = {
@@ -97,13 +91,11 @@ class LFRunWriter:
         self.lock = lock or OutputLock.acquire(path, what=busy())
         self.sim = sim
         self.rows = 0
-        self.checkpoint_time: float | None = None
         tmp = new_path(partial_path(path))
         try:
             self.path = check_lf_output(path, overwrite=overwrite)
             self.partial = self.path.with_name(self.path.name + ".partial")
-            tmp.unlink(missing_ok=True)  # left by a run killed while creating its file (we hold the lock)
-            self.f = h5py.File(tmp, "w")
+            self.f = create_h5(tmp, self.lock)  # a leftover .new is replaced, a link refused
             self.out = GuardedFile(self.f, self.partial)
             self._write_header(run)
             self.out.flush()
@@ -113,7 +105,8 @@ class LFRunWriter:
                 self.out.abandon()
             elif getattr(self, "f", None) is not None:
                 self.f.close()
-            tmp.unlink(missing_ok=True)
+            if getattr(self, "f", None) is not None:
+                tmp.unlink(missing_ok=True)
             self.lock.release()
             code = storage_errno(e)
             if code is not None:
@@ -152,7 +145,8 @@ class LFRunWriter:
     def reopen(cls, partial: str | Path, sim: LFSimulation, *, lock: OutputLock) -> LFRunWriter:
         """Open a killed or stopped LF run's ``NAME.partial`` to continue it (``lock``: the lock of ``NAME``, held;
         the caller releases it when this fails): restore ``sim`` from its checkpoint, cut /global back to the
-        checkpoint's rows, drop the snapshots taken after it, mark it running again."""
+        checkpoint's rows, drop the snapshots taken after it, mark it running again. Without a checkpoint ``sim``
+        starts from the beginning: /global and the snapshots are emptied."""
         self = cls.__new__(cls)
         self.lock = lock
         self.partial = Path(partial)
@@ -165,9 +159,9 @@ class LFRunWriter:
         f = self.f
         self.out = GuardedFile(f, self.partial)
         with closed_on_failure(f, self.partial, close=self.out.abandon):
-            ckpt = read_checkpoint(f, str(self.partial))
-            rows = int(ckpt.rows["global"])
-            if rows != int(ckpt.counters["step_index"]):
+            ckpt = read_checkpoint(f, str(self.partial)) if has_checkpoint(f) else None  # None: from the start
+            rows = 0 if ckpt is None else int(ckpt.rows["global"])
+            if ckpt is not None and rows != int(ckpt.counters["step_index"]):
                 raise ValueError(f"{rows} rows of /global for step {ckpt.counters['step_index']}")
             g = f["global"]
             for name in ("time", *H_NAMES):
@@ -176,20 +170,27 @@ class LFRunWriter:
                 g[name].resize(rows, axis=0)
             hist = np.column_stack([g[name][()] for name in H_NAMES]) if rows else None
             keep = [n for n, s in sim.table.snapshots if s < rows]
-            if len(keep) != int(ckpt.counters["snapshots"]) or not set(keep) <= set(f["snapshots"]):
+            if len(keep) != (0 if ckpt is None else int(ckpt.counters["snapshots"])) or not set(keep) <= set(
+                f["snapshots"]
+            ):
                 raise ValueError("the snapshots do not match the checkpoint")
             for name in list(f["snapshots"]):
                 if name not in keep:
                     del f["snapshots"][name]  # taken after the checkpoint: the resumed run takes it again
             if "calibration" in f:
                 del f["calibration"]  # written when a stopped run was closed; rewritten at the end
-        with closed_on_failure(f, self.partial, scene_error=False, close=self.out.abandon):
-            sim.restore(ckpt, hist)
+        if ckpt is not None:
+            with closed_on_failure(f, self.partial, scene_error=False, close=self.out.abandon):
+                sim.restore(ckpt, hist)
         self.rows = rows
-        self.checkpoint_time = ckpt.sim_time
+        resumed = (
+            "started again from t = 0 (no checkpoint)"
+            if ckpt is None
+            else f"resumed from the checkpoint at t = {ckpt.sim_time:.6g} s"
+        )
         try:
             f.attrs["complete"] = False
-            f.attrs["status"] = f"running (resumed from the checkpoint at t = {ckpt.sim_time:.6g} s)"
+            f.attrs["status"] = f"running ({resumed})"
             self.out.flush()
         except BaseException as e:
             self.out.abandon()
@@ -230,7 +231,6 @@ class LFRunWriter:
         ckpt.rows = {"global": self.rows}
         self.out.reserve(checkpoint_room(self.f, ckpt))
         write_checkpoint(self.f, ckpt, flush=self.out.flush)
-        self.checkpoint_time = ckpt.sim_time
 
     def close(self, *, complete: bool, status: str, attrs: dict[str, Any] | None = None) -> Path:
         """Write the rest of the time series and the closing attributes, close, move the file to its final name
@@ -258,7 +258,7 @@ class LFRunWriter:
             self.abandon()
             code = storage_errno(e)
             if code is not None:
-                raise storage_error(code, self.partial, lf_advice(self.path, self.checkpoint_time)) from None
+                raise storage_error(code, self.partial, f"make room, then {recovery(self.path)}") from None
             raise
         self.lock.release()
         return self.path
@@ -279,8 +279,8 @@ class LFRunWriter:
             return None
         self.abandon()
         if code is None:  # HDF5 failed to write (a damaged file): nothing more goes into it
-            return write_failed(error, self.partial, lf_advice(self.path, self.checkpoint_time))
-        return storage_error(code, self.partial, lf_advice(self.path, self.checkpoint_time))
+            return write_failed(error, self.partial, f"make room, then {recovery(self.path)}")
+        return storage_error(code, self.partial, f"make room, then {recovery(self.path)}")
 
 
 def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:
@@ -288,9 +288,8 @@ def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:
     part = partial_path(path)
     if part.exists() and not overwrite and not Path(path).is_dir():
         raise SceneError(
-            f"{part} exists (an unfinished LF run); continue it with "
-            f"{resume_hint('lf', path)} or pass "
-            f"{option('overwrite=True', '--overwrite')}"
+            f"{part} exists (an unfinished LF run): {recovery(path)}; or pass "
+            f"{option('overwrite=True', '--overwrite')} to replace it"
         )
     return check_output_path(path, overwrite=overwrite)
 
@@ -331,7 +330,7 @@ def read_snapshot(path: str | Path, name: str) -> dict[str, Any]:
         out: dict[str, Any] = {part: {k: g[part][k][()] for k in g[part]} for part in ("patches", "matrix", "rings")}
         out["attrs"] = {k: (v.item() if hasattr(v, "item") else v) for k, v in g.attrs.items()}
         try:
-            out["scene"] = json.loads(f.attrs["scene"])
+            out["scene"] = json_attribute(f.attrs["scene"], f"{path}: attribute 'scene'")
         except (KeyError, TypeError, ValueError) as e:
             raise SceneError(f"{path}: the stored LF scene is missing or damaged ({type(e).__name__}: {e})") from None
     return out

@@ -20,18 +20,20 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common import plausible
+from aca_warp.common.bounds import read_toml
 from aca_warp.common.errors import SceneError
 from aca_warp.scene import (
     GENERATOR_KINDS,
+    PRESETS,
     Friction,
     Material,
     Pad,
     Patches,
     PatchGenerator,
-    _finite,
     check_numbers_plausible,
     check_pad_plausible,
 )
+from aca_warp.scene.parts import _finite
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -431,12 +433,14 @@ def load_lf_scene(spec: str | Path, overrides: dict | None = None, *, allow_impl
         name = s
     else:
         p = Path(s)
+        if not p.is_file() and s in PRESETS:
+            raise SceneError(
+                f"{s!r} is an HF scene: run it with 'aca-warp hf {s} -o RUN.h5'; LF presets: {', '.join(LF_PRESETS)}"
+            )
         if not p.is_file():
             raise SceneError(f"LF scene {s!r} is neither a preset ({', '.join(LF_PRESETS)}) nor an existing TOML file")
         try:
-            doc = tomllib.loads(p.read_text())
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-            raise SceneError(f"cannot parse {p}: {e}") from None
+            doc = read_toml(p, "LF scene file")
         except OSError as e:
             raise SceneError(f"cannot read LF scene file {p}: {e.strerror}") from None
         if not doc:

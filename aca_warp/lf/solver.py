@@ -1,4 +1,4 @@
-"""Device state of the LF automaton and the step sequence (one launch per rule; kernels in ``aca_warp.kernels.lf``).
+"""Device state of the LF automaton and the step sequence (one launch per rule; kernels in ``aca_warp.kernels.lf_*``).
 
 One LF step (docs/lf_model.md, "One step, in order"): load from the schedule → bin patches into cells → contact solve
 (Newton on the gap) → friction, powers → temperatures (implicit) → wear → debris sweep → capture → growth,
@@ -20,10 +20,27 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from aca_warp.common.checkpoint import Checkpoint
+from aca_warp.common.checkpoint import Checkpoint, CheckpointClock
 from aca_warp.common.devices import block_threads, init_warp, load_kernels
 from aca_warp.common.errors import SceneError
-from aca_warp.kernels import lf as K
+from aca_warp.hf.options import check_interval
+from aca_warp.kernels import lf_contact, lf_patches, lf_record, lf_thermal, lf_wear
+from aca_warp.kernels.lf_record import H_COUNT, H_COVER, H_MU, H_NAMES, H_SIZE
+from aca_warp.kernels.lf_types import (
+    G_EMITTED,
+    G_GAP,
+    G_LOAD,
+    G_MATRIX_IN,
+    G_OMEGA,
+    G_PATCH_LOST,
+    G_SIZE,
+    G_TOPOLOGY,
+    LF_BLOCK,
+    LFCells,
+    LFParams,
+    LFPatches,
+    LFRings,
+)
 from aca_warp.lf.scene import LFScene, StepTable, step_table
 from aca_warp.scene import Patches, overlapping_pairs
 
@@ -33,6 +50,9 @@ from aca_warp.scene import Patches, overlapping_pairs
 # ~170 empty slots, ~100 µs per candidate kernel on an H100). Half a period away, no query of a pad less than
 # ~120 cells tall visits them.
 _PARK_ROWS = 64
+# the arrays of LFPatches fields named otherwise here (the rest: the field's name)
+_PATCH_ARRAYS = {"fn": "patch_fn", "power": "patch_power", "cell": "patch_cell"}
+_BIRTH_ARRAYS = {"xy": "birth_xy", "slot": "slot_list"}
 # arrays a checkpoint leaves out: constants of the grid and schedule, the history (the run file's /global) and
 # per-step scratch
 _CONSTANT_ARRAYS = ("cell_area", "cell_r", "ring_r", "schedule", "hist", "kh")
@@ -47,7 +67,9 @@ class LFSimulation:
     Per ring (R,): ``ring_r`` [m], ``ring_T`` [K], ``ring_bulge`` [m], ``ring_power`` [W].
     Per patch slot (P,): ``alive``, ``x``, ``y`` [m], ``area`` [m²], ``thick`` t [m], ``top`` free elevation of the
     patch top [m], ``temp`` [K], ``mcap`` [kg], ``age`` [s], ``patch_fn`` [N], ``patch_power`` [W], ``patch_cell``.
-    ``glob`` holds the global scalars (``aca_warp.kernels.lf.G_*``), ``hist`` (steps, H_SIZE) the outputs.
+    ``glob`` holds the global scalars (``aca_warp.kernels.lf_types.G_*``), ``hist`` (steps, H_SIZE) the outputs.
+    The kernels take the cells, rings and patch slots as the structs ``cells``, ``rings`` and ``patches``
+    (:class:`~aca_warp.kernels.lf_types.LFCells` …) of these arrays.
     """
 
     def __init__(
@@ -58,7 +80,7 @@ class LFSimulation:
             self.device = wp.get_device(device)
         except (ValueError, RuntimeError) as e:
             raise SceneError(f"device {device!r} is not available: {e}") from None
-        load_kernels([K], self.device)
+        load_kernels([lf_contact, lf_patches, lf_record, lf_thermal, lf_wear], self.device)
         self.scene = scene
         self.table: StepTable = step_table(scene, duration)
         dr, dphi = self._set_grid()
@@ -84,8 +106,8 @@ class LFSimulation:
         n_t = max(int(round(2.0 * pad.half_span * pad.mean_radius / c.cell)), 1)
         self.n_r, self.n_t = n_r, n_t
         self.n_cells = n_r * n_t
-        self.threads = block_threads(self.device, K.LF_BLOCK)  # threads a block kernel's block runs
-        self.element_blocks = -(-(self.n_cells + c.capacity) // K.LF_BLOCK)  # blocks covering the C + P elements
+        self.threads = block_threads(self.device, LF_BLOCK)  # threads a block kernel's block runs
+        self.element_blocks = -(-(self.n_cells + c.capacity) // LF_BLOCK)  # blocks covering the C + P elements
         self.capacity = c.capacity
         return (pad.r_outer - pad.r_inner) / n_r, 2.0 * pad.half_span / n_t
 
@@ -93,7 +115,7 @@ class LFSimulation:
         """The kernels' ``LFParams``: the grid, the scene's material and friction, and every ``lf`` constant the
         struct has a field for."""
         scene, c, pad = self.scene, self.scene.lf, self.scene.pad
-        p = K.LFParams()
+        p = LFParams()
         vals = dict(
             r_in=pad.r_inner, dr=dr, half=pad.half_span, dphi=dphi, n_r=self.n_r, n_t=self.n_t, dt=c.dt,
             seed=c.seed, K_N=scene.material.K_N, k_m=scene.material.matrix_stiffness, mu_pad=scene.friction.mu_pad,
@@ -166,8 +188,19 @@ class LFSimulation:
         self.park = (0.0, y_mid + _PARK_ROWS * self.cand_radius, 0.0)  # hash-grid point of the empty slots [m]
         sched = np.column_stack([self.table.load, self.table.omega]).astype(np.float64)
         self.schedule = wp.array(sched, dtype=wp.float64, device=dev)
-        self.glob = zf(K.G_SIZE)
-        self.hist = wp.zeros((self.table.steps, K.H_SIZE), dtype=wp.float64, device=dev)
+        self.glob = zf(G_SIZE)
+        self.hist = wp.zeros((self.table.steps, H_SIZE), dtype=wp.float64, device=dev)
+        # the kernels' parameter groups of the state, built once: the arrays change in place (captured graphs keep them)
+        self.cells, self.rings, self.patches = LFCells(), LFRings(), LFPatches()
+        for f in LFCells.vars:
+            setattr(self.cells, f, getattr(self, f"cell_{f}"))
+        for f in LFRings.vars:
+            setattr(self.rings, f, getattr(self, f"ring_{f}"))
+        for f in LFPatches.vars:
+            setattr(self.patches, f, getattr(self, _PATCH_ARRAYS.get(f, f)))
+        self.births = lf_patches.LFBirths()
+        for f in lf_patches.LFBirths.vars:
+            setattr(self.births, f, getattr(self, _BIRTH_ARRAYS.get(f, f)))
 
     # ------------------------------------------------------------------------------------------- set-up
 
@@ -194,54 +227,41 @@ class LFSimulation:
 
     def _launch_blocks(self, kernel: Any, blocks: int, inputs: list) -> None:
         """A block kernel: ``blocks`` thread blocks of LF_BLOCK threads (``wp.launch_tiled``)."""
-        wp.launch_tiled(kernel, dim=[blocks], block_dim=K.LF_BLOCK, inputs=inputs, device=self.device)
+        wp.launch_tiled(kernel, dim=[blocks], block_dim=LF_BLOCK, inputs=inputs, device=self.device)
 
     def rebuild_neighbours(self) -> None:
         """Merge-candidate CSR (alive pairs within ``cand_radius``) and the birth hash grid, from current positions."""
         P = self.capacity
-        self._launch(K.positions3, P, [self.alive, self.x, self.y, wp.vec3d(*self.park), self.pos])
+        self._launch(lf_patches.positions3, P, [self.patches, wp.vec3d(*self.park), self.pos])
         self.grid.build(self.pos, self.cand_radius)
-        self._launch(
-            K.count_candidates, P, [self.grid.id, wp.float64(self.cand_radius), self.alive, self.pos, self.cand_count]
-        )
+        cand = [self.grid.id, wp.float64(self.cand_radius), self.alive, self.pos, self.cand_start]
+        self._launch(lf_patches.candidates, P, [*cand, 0, self.cand_count, self.cand_index])
         wp.utils.array_scan(self.cand_count, self.cand_start[:P], inclusive=False)
-        self._launch(K.set_row_end, 1, [self.cand_count, self.cand_start, P])
+        self._launch(lf_patches.set_row_end, 1, [self.cand_count, self.cand_start, P])
         total = int(self.cand_start.numpy()[P])
         if total > self.cand_index.shape[0]:
             self.cand_index = wp.zeros(int(total * 1.5) + 16, dtype=wp.int32, device=self.device)
             self._graphs.clear()  # the graphs hold the old buffer
-        self._launch(
-            K.fill_candidates,
-            P,
-            [self.grid.id, wp.float64(self.cand_radius), self.alive, self.pos, self.cand_start, self.cand_index],
-        )
+        self._launch(lf_patches.candidates, P, [*cand, 1, self.cand_count, self.cand_index])
         self.dirty = False
         self.rebuilds += 1
 
+    def _bin(self) -> None:
+        """Reset the step's accumulators and bin the patches into the cells."""
+        self._launch(lf_contact.zero_step, self.n_cells, [self.cells, self.rings, self.glob])
+        self._launch(lf_contact.bin_patches, self.capacity, [self.params, self.cells, self.patches])
+
     def _contact_and_friction(self) -> None:
-        p, C, P = self.params, self.n_cells, self.capacity
-        state = [self.cell_z, self.cell_cover, self.ring_bulge, self.alive, self.area, self.top, self.patch_cell]
-        self._launch(K.contact_elements, C + P, [p, C, self.cell_area, *state, self.kh])
+        p, C, P, state = self.params, self.n_cells, self.capacity, (self.cells, self.rings, self.patches)
+        self._launch(lf_contact.contact_elements, C + P, [p, C, *state, self.kh])
         lf = self.scene.lf
-        self._launch_blocks(
-            K.contact_solve, 1, [lf.contact_iterations, wp.float64(lf.contact_tol), self.threads, self.kh, self.glob]
-        )
-        self._launch_blocks(
-            K.friction,
-            self.element_blocks,
-            [p, C, self.threads, self.cell_r, self.kh, self.alive, self.x, self.y, self.patch_cell, self.cell_fn,
-             self.cell_power, self.patch_fn, self.patch_power, self.ring_power, self.glob],
-        )  # fmt: skip
+        tol = wp.float64(lf.contact_tol)
+        self._launch_blocks(lf_contact.contact_solve, 1, [lf.contact_iterations, tol, self.threads, self.kh, self.glob])
+        self._launch_blocks(lf_contact.friction, self.element_blocks, [p, C, self.threads, self.kh, *state, self.glob])
 
     def resolve(self) -> None:
         """Re-bin the patches and re-solve contact and friction at the current load, without advancing time."""
-        p, C, P = self.params, self.n_cells, self.capacity
-        self._launch(K.zero_step, C, [self.cell_cover, self.cell_chord, self.cell_power, self.ring_power, self.glob])
-        self._launch(
-            K.bin_patches,
-            P,
-            [p, self.alive, self.x, self.y, self.area, self.patch_cell, self.cell_cover, self.cell_chord],
-        )
+        self._bin()
         self._contact_and_friction()
 
     def step(self) -> None:
@@ -268,7 +288,7 @@ class LFSimulation:
             self._body(loaded)
             self._seen.add(loaded)
         self.step_index += 1
-        if loaded and int(self.glob.numpy()[K.G_TOPOLOGY]) != 0:
+        if loaded and int(self.glob.numpy()[G_TOPOLOGY]) != 0:
             self.dirty = True
         c = self.scene.lf.compact_every
         if c and self.step_index % c == 0:
@@ -277,13 +297,9 @@ class LFSimulation:
     def _body(self, loaded: bool) -> None:
         """The launches of one step after the neighbourhood rebuild (graph-capturable: no host reads)."""
         p, C, P, R = self.params, self.n_cells, self.capacity, self.n_r
-        self._launch(K.zero_step, C, [self.cell_cover, self.cell_chord, self.cell_power, self.ring_power, self.glob])
-        self._launch(K.set_load, 1, [self.schedule, self.glob])
-        self._launch(
-            K.bin_patches,
-            P,
-            [p, self.alive, self.x, self.y, self.area, self.patch_cell, self.cell_cover, self.cell_chord],
-        )
+        cells, rings, patches = self.cells, self.rings, self.patches
+        self._bin()
+        self._launch(lf_record.set_load, 1, [self.schedule, self.glob])
         if loaded:
             self._contact_and_friction()
         else:
@@ -291,81 +307,37 @@ class LFSimulation:
             self.cell_power.zero_()
             self.patch_fn.zero_()
             self.patch_power.zero_()
-        self._launch(K.disc_temperature, 1, [p, self.ring_r, self.ring_power, self.ring_T, self.ring_bulge, self.work])
-        self._launch(
-            K.pad_temperature,
-            C + P,
-            [p, C, self.cell_area, self.ring_T, self.cell_fn, self.cell_power, self.alive, self.area, self.patch_fn,
-             self.patch_power, self.patch_cell, self.cell_T, self.temp],
-        )  # fmt: skip
+        self._launch(lf_thermal.disc_temperature, 1, [p, rings, self.work])
+        self._launch(lf_thermal.pad_temperature, C + P, [p, C, cells, rings, patches])
         if loaded:
-            self._launch_blocks(
-                K.wear,
-                self.element_blocks,
-                [p, C, self.threads, self.cell_area, self.cell_cover, self.cell_power, self.cell_T, self.alive,
-                 self.area, self.patch_power, self.temp, self.patch_cell, self.cell_z, self.thick, self.top,
-                 self.cell_src, self.glob],
-            )  # fmt: skip
-            self._launch_blocks(
-                K.debris_sweep,
-                R,
-                [p, self.threads, self.cell_area, self.cell_cover, self.cell_chord, self.cell_fn, self.cell_src,
-                 self.cell_store, self.cell_capture, self.ring_emit],
-            )  # fmt: skip
-            self._launch(
-                K.capture_gather,
-                P,
-                [self.alive, self.area, self.patch_cell, self.cell_chord, self.cell_capture, self.mcap],
-            )
-            self._launch(
-                K.life_cycle,
-                P,
-                [p, self.patch_power, self.temp, self.patch_cell, self.alive, self.x, self.y, self.area, self.thick,
-                 self.top, self.mcap, self.age, self.cell_src, self.glob, self.death_count, self.death_age,
-                 self.death_area],
-            )  # fmt: skip
+            self._launch_blocks(lf_wear.wear, self.element_blocks, [p, C, self.threads, cells, patches, self.glob])
+            self._launch_blocks(lf_wear.debris_sweep, R, [p, self.threads, cells, rings])
+            self._launch(lf_wear.capture_gather, P, [cells, patches])
+            deaths = [self.death_count, self.death_age, self.death_area]
+            self._launch(lf_patches.life_cycle, P, [p, cells, patches, self.glob, *deaths])
             self.merge()
             self._birth()
-        self._launch(K.patch_stats, P, [self.alive, self.area, self.temp, self.glob])
-        self._launch(
-            K.record_step,
-            1,
-            [wp.float64(self.scene.pad.area), self.ring_r, self.ring_T, self.ring_emit, self.glob, self.hist],
-        )  # fmt: skip
+        self._launch(lf_record.patch_stats, P, [patches, self.glob])
+        self._launch(lf_record.record_step, 1, [wp.float64(self.scene.pad.area), rings, self.glob, self.hist])
 
     def merge(self) -> None:
         """One merge pass over the candidate CSR: each root absorbs the patches that overlap it (lowest index)."""
-        P = self.capacity
-        self._launch(
-            K.merge_target, P, [self.cand_start, self.cand_index, self.alive, self.x, self.y, self.area, self.target]
-        )
-        self._launch(
-            K.merge_apply,
-            P,
-            [self.params, self.cand_start, self.cand_index, self.target, self.patch_cell, self.alive, self.x, self.y,
-             self.area, self.thick, self.top, self.temp, self.age, self.cell_src, self.glob],
-        )  # fmt: skip
-        self._launch(K.merge_kill, P, [self.target, self.alive, self.area, self.mcap])
+        P, cand = self.capacity, (self.cand_start, self.cand_index)
+        self._launch(lf_patches.merge_target, P, [*cand, self.patches, self.target])
+        merge = [self.params, *cand, self.target, self.cells, self.patches, self.glob]
+        self._launch(lf_patches.merge_apply, P, merge)
+        self._launch(lf_patches.merge_kill, P, [self.target, self.patches])
 
     def _birth(self) -> None:
         p, C, P = self.params, self.n_cells, self.capacity
-        self._launch(
-            K.birth_want,
-            C,
-            [p, self.grid.id, wp.float64(self.birth_radius), self.cell_area, self.cell_r, self.cell_store, self.cell_fn,
-             self.cell_cover, self.alive, self.x, self.y, self.area, self.glob, self.want, self.birth_xy],
-        )  # fmt: skip
-        self._launch(K.free_slots, P, [self.alive, self.free])
+        state = [self.cells, self.patches, self.glob]
+        radius = wp.float64(self.birth_radius)
+        self._launch(lf_patches.birth_want, C, [p, self.grid.id, radius, *state, self.births])
+        self._launch(lf_patches.free_slots, P, [self.patches, self.births])
         wp.utils.array_scan(self.free, self.free_rank, inclusive=False)
-        self._launch(K.free_list, P, [self.free, self.free_rank, self.slot_list])
+        self._launch(lf_patches.free_list, P, [self.births])
         wp.utils.array_scan(self.want, self.want_rank, inclusive=False)
-        self._launch(
-            K.birth_apply,
-            C,
-            [p, self.want, self.want_rank, self.free, self.free_rank, self.slot_list, self.birth_xy, self.cell_z,
-             self.cell_T, self.cell_store, self.alive, self.x, self.y, self.area, self.thick, self.top, self.temp,
-             self.mcap, self.age, self.glob],
-        )  # fmt: skip
+        self._launch(lf_patches.birth_apply, C, [p, self.births, *state])
 
     def compact(self) -> None:
         """Move the alive patches to the front of the slot arrays, keeping their order (prefix sum)."""
@@ -376,17 +348,17 @@ class LFSimulation:
         rank = wp.zeros(P, dtype=wp.int32, device=self.device)
         wp.utils.array_scan(self.alive, rank, inclusive=False)
         dst = wp.zeros(P, dtype=wp.int32, device=self.device)
-        self._launch(K.compact_map, P, [self.alive, rank, dst])
+        self._launch(lf_patches.compact_map, P, [self.alive, rank, dst])
         # in place (scatter to a scratch array, copy back), so captured graphs keep valid buffers
         tmp = wp.zeros(P, dtype=wp.float64, device=self.device)
         for name in ("x", "y", "area", "thick", "top", "temp", "mcap", "age", "patch_fn", "patch_power"):
             tmp.fill_(self.scene.lf.T_amb if name == "temp" else 0.0)
-            self._launch(K.scatter_f64, P, [dst, getattr(self, name), tmp])
+            self._launch(lf_patches.scatter, P, [dst, getattr(self, name), tmp])
             wp.copy(getattr(self, name), tmp)
         tmpi = wp.zeros(P, dtype=wp.int32, device=self.device)
         for name in ("alive", "patch_cell"):
             tmpi.zero_()
-            self._launch(K.scatter_i32, P, [dst, getattr(self, name), tmpi])
+            self._launch(lf_patches.scatter, P, [dst, getattr(self, name), tmpi])
             wp.copy(getattr(self, name), tmpi)
         self.dirty = True
 
@@ -403,18 +375,16 @@ class LFSimulation:
     ) -> float:
         """Run ``steps`` steps (default: to the end of the schedule), calling ``on_snapshot`` at snapshot steps.
 
-        With ``checkpoint_every`` [s of simulated time] and ``on_checkpoint``, the first step end at or past each
-        multiple of it (after that step's snapshots; not at the end of the schedule) calls ``on_checkpoint(self)``
-        (:meth:`checkpoint_state` gives what to keep). Returns the wall time of the stepping [s] (the first step,
-        which loads the kernels, is included).
+        With ``on_checkpoint``, the step ends that ``checkpoint_every`` names (:class:`CheckpointClock`: None
+        automatic, else every that many seconds of simulated time, 0 none; after that step's snapshots; not at the
+        end of the schedule) call ``on_checkpoint(self)`` (:meth:`checkpoint_state` gives what to keep). Returns
+        the wall time of the stepping [s] (the first step, which loads the kernels, is included).
         """
         end = self.table.steps if steps is None else min(self.step_index + steps, self.table.steps)
         snaps = dict((s, n) for n, s in self.table.snapshots)
         dt = self.scene.lf.dt
-        every = checkpoint_every if on_checkpoint is not None else None
-        if every is not None and not (math.isfinite(every) and every > 0):
-            raise SceneError(f"checkpoint interval must be a positive number of seconds, got {every}")
-        next_ckpt = math.inf if every is None else (math.floor(self.step_index * dt / every + 1e-9) + 1) * every
+        check_interval(checkpoint_every)
+        clock = CheckpointClock(checkpoint_every if on_checkpoint is not None else 0.0, self.step_index * dt)
         t0 = time.perf_counter()
         last = t0
         while self.step_index < end:
@@ -424,15 +394,14 @@ class LFSimulation:
                 for name, si in self.table.snapshots:
                     if si == s:
                         on_snapshot(name, self)
-            if self.step_index * dt >= next_ckpt * (1 - 1e-12) and self.step_index < self.table.steps:
-                on_checkpoint(self)  # type: ignore[misc]
-                next_ckpt = (math.floor(self.step_index * dt / every + 1e-9) + 1) * every  # type: ignore[operator]
+            if self.step_index < self.table.steps and clock.due(self.step_index * dt):
+                clock.write(lambda: on_checkpoint(self), self.step_index * dt)  # type: ignore[misc]
             if progress and sys.stdout.isatty() and time.perf_counter() - last > 2.0:
                 last = time.perf_counter()
                 h = self.hist.numpy()[s]
                 print(
-                    f"  t = {(s + 1) * self.scene.lf.dt:7.2f} s  mu {h[K.H_MU]:.3f}  patches {int(h[K.H_COUNT])}  "
-                    f"coverage {h[K.H_COVER]:.3f}",
+                    f"  t = {(s + 1) * self.scene.lf.dt:7.2f} s  mu {h[H_MU]:.3f}  patches {int(h[H_COUNT])}  "
+                    f"coverage {h[H_COVER]:.3f}",
                     flush=True,
                 )
         wp.synchronize_device(self.device)
@@ -507,9 +476,9 @@ class LFSimulation:
     # ------------------------------------------------------------------------------------------- host views
 
     def history(self) -> dict[str, np.ndarray]:
-        """The outputs of the steps done so far, by name (``aca_warp.kernels.lf.H_NAMES``), plus ``time`` [s]."""
+        """The outputs of the steps done so far, by name (``aca_warp.kernels.lf_record.H_NAMES``), plus ``time`` [s]."""
         h = self.hist.numpy()[: self.step_index]
-        out = {n: h[:, k].copy() for k, n in enumerate(K.H_NAMES)}
+        out = {n: h[:, k].copy() for k, n in enumerate(H_NAMES)}
         out["time"] = (np.arange(self.step_index) + 1) * self.scene.lf.dt
         return out
 
@@ -535,9 +504,9 @@ class LFSimulation:
         """This step's debris fluxes [kg]: ``matrix_in`` (retained matrix debris), ``patch_lost``, ``emitted``."""
         g = self.glob.numpy()
         return {
-            "matrix_in": float(g[K.G_MATRIX_IN]),
-            "patch_lost": float(g[K.G_PATCH_LOST]),
-            "emitted": float(g[K.G_EMITTED]),
+            "matrix_in": float(g[G_MATRIX_IN]),
+            "patch_lost": float(g[G_PATCH_LOST]),
+            "emitted": float(g[G_EMITTED]),
         }
 
     def resolve_overlaps(self, passes: int = 20) -> int:
@@ -586,9 +555,9 @@ class LFSimulation:
             },
             "attrs": {
                 "time": self.step_index * self.scene.lf.dt,
-                "normal_force": float(g[K.G_LOAD]),
-                "angular_velocity": float(g[K.G_OMEGA]),
-                "gap": float(g[K.G_GAP] - shift),
+                "normal_force": float(g[G_LOAD]),
+                "angular_velocity": float(g[G_OMEGA]),
+                "gap": float(g[G_GAP] - shift),
                 "height_shift": float(shift),
             },
         }  # fmt: skip

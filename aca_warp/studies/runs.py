@@ -9,7 +9,8 @@ its arguments on unchanged, so a change of the run API is made here and nowhere 
 * :func:`batch_at_start`: ``build_model`` of a batch of scenes (one pad each) and its ``initial_state`` (validation);
 * :func:`run_general`: ``run_hf`` on a model and state, general engine unless named (work_precision,
   time_to_solution);
-* :func:`run_engine`: ``run_hf``, the engine chosen by name, samples to a sink if given (varying_area, validation);
+* :func:`run_engine`: ``run_hf``, the engine chosen by name, samples to a sink if given (varying_area, validation,
+  work_precision_stats);
 * :func:`run_to_file`: ``run_scene``, a scene into a run file (hf_study, multiscale).
 """
 
@@ -88,15 +89,18 @@ def run_engine(
     engine: str,
     duration: float,
     integrator: str,
-    dt: float,
+    dt: float | None,
     record: Record,
     sink: Callable[[Chunk], None] | None = None,
     force: bool = False,
+    tolerance: float | None = None,
 ) -> RunResult:
-    """``run_hf`` for ``duration`` [s] with step ``dt`` [s]; ``engine``: general, onchip or auto. With ``sink``
-    every recorded chunk goes there (the result then holds none); ``force``: a step beyond the stable or the
-    sticking bound runs (with a warning)."""
-    options = RunOptions(engine=engine, duration=duration, integrator=integrator, dt=dt, force=force)
+    """``run_hf`` for ``duration`` [s] with step ``dt`` [s] (None: the integrator's default; an error-controlled
+    integrator's first trial) and ``tolerance`` (None: the default); ``engine``: general, onchip or auto. With
+    ``sink`` every recorded chunk goes there (the result then holds none); ``force``: a step beyond the stable or
+    the sticking bound runs (with a warning)."""
+    tol = {} if tolerance is None else {"tolerance": tolerance}
+    options = RunOptions(engine=engine, duration=duration, integrator=integrator, dt=dt, force=force, **tol)
     return run_hf(model, state, options, record=record, sink=sink)
 
 

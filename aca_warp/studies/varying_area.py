@@ -44,7 +44,7 @@ from aca_warp.hf.recorder import GLOBAL_NAMES
 from aca_warp.hf.solver import GROWTH_MUTABLE, stable_step
 from aca_warp.hf.state import HFState
 from aca_warp.scene import Growth, Record, Scene, preset
-from aca_warp.studies.hf_study import isolated_frequency
+from aca_warp.studies.hf_study.base import isolated_frequency
 from aca_warp.studies.report import (
     add_device,
     add_page_options,

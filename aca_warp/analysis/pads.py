@@ -1,0 +1,137 @@
+"""One pad of a sweep shard as an HF run file: what ``aca-warp analyze/plot SHARD --pad K`` work on.
+
+A shard (``aca-warp sweep``) holds the global outputs of many pads, ``/global/NAME`` (pads, samples), their
+parameters and the sweep's spec, but no per-patch data. :func:`write_pad_run` writes pad ``K`` (its index in the
+sweep) as an ordinary HF run file: its global series, its scene (the spec's base with the pad's parameter values,
+patches and matrix cells from it), the shard's integrator, precision, device and versions, and the run options of
+the sweep, so that ``analyze``, ``plot`` and ``rerun`` take it like any run. Its root attributes ``source_shard``
+and ``pad`` say where it comes from.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from aca_warp.common.errors import SceneError, option
+
+SHARD_FORMAT = "aca_warp.sweep/"  # the start of a shard's ``format`` attribute
+
+
+def shard_pads(path: str | Path) -> tuple[int, int] | None:
+    """The sweep pads [start, stop) a sweep shard holds, or None when ``path`` is no shard (or no HDF5 file)."""
+    try:
+        with h5py.File(path, "r") as f:
+            fmt = f.attrs.get("format", "")
+            if not str(fmt.decode() if isinstance(fmt, bytes) else fmt).startswith(SHARD_FORMAT):
+                return None
+            return int(f.attrs["pad_start"]), int(f.attrs["pad_stop"])
+    except (OSError, KeyError, ValueError, TypeError):
+        return None
+
+
+def pad_run_path(shard: str | Path, pad: int) -> Path:
+    """Where ``analyze SHARD --pad K`` keeps pad ``K``'s run file: ``SHARD_padK.h5`` beside the shard."""
+    p = Path(shard)
+    return p.with_name(f"{p.stem}_pad{pad}.h5")
+
+
+def shard_refusal(path: str | Path, pads: tuple[int, int], command: str) -> SceneError:
+    """The one-line refusal of ``command`` (analyze, plot) given a shard without ``--pad``."""
+    return SceneError(
+        f"{path} is a sweep shard of pads {pads[0]}-{pads[1] - 1}: {command} one of them with "
+        f"{option('pad=K', '--pad K')} (K from {pads[0]} to {pads[1] - 1}, the pad's index in the sweep)"
+    )
+
+
+def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
+    """Write pad ``pad`` (its index in the sweep) of the sweep shard ``shard`` as the HF run file ``dest`` (written
+    whole under a temporary name, then renamed; an earlier extraction of the same pad is replaced, any other file
+    refused). The samples end at the pad's last finite μ (a pad stopped on a fault, or a shard still running)."""
+    from aca_warp.common.files import new_path, reading
+    from aca_warp.hf.options import RunOptions
+    from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS
+    from aca_warp.scene import scene_to_dict
+    from aca_warp.sweep.spec import SweepError, load_spec
+
+    shard, dest = Path(shard), Path(dest)
+    pads = shard_pads(shard)
+    if pads is None:
+        raise SceneError(f"{shard} is not a sweep shard ({option('pad', '--pad')} picks a pad of one)")
+    if not pads[0] <= pad < pads[1]:
+        raise SceneError(f"{shard} holds pads {pads[0]}-{pads[1] - 1}; pad {pad} is not one of them")
+    _check_replaceable(dest, shard)
+    with reading(shard, "sweep shard"), h5py.File(shard, "r") as f:
+        row = pad - pads[0]
+        time = f["global/time"][()]
+        series = {k: f[f"global/{k}"][row, : time.size] for k in GLOBAL_NAMES}
+        end = int(np.flatnonzero(np.isfinite(series["mu"]))[-1]) + 1 if np.isfinite(series["mu"]).any() else 0
+        attrs = {k: _text(f.attrs[k]) for k in ("integrator", "precision", "device", "device_name", "versions")}
+        run, doc, finished = json.loads(_text(f.attrs["run"])), json.loads(_text(f.attrs["spec"])), f.attrs["complete"]
+    try:
+        spec = load_spec(doc, base_dir=_base_dir(shard))
+        scene = spec.scene(pad).replace(duration=float(run["duration"]))
+    except SweepError as e:
+        raise SceneError(f"{shard}: the pad's scene cannot be rebuilt from the shard's spec: {e}") from None
+    options = RunOptions(
+        duration=float(run["duration"]), integrator=run["integrator"], dt=run["dt"], tolerance=run["tolerance"]
+    )
+    complete = bool(finished) and end == time.size
+    tmp = new_path(dest)
+    with h5py.File(tmp, "w") as out:
+        out.attrs.update(attrs)
+        out.attrs.update(
+            scene=json.dumps(scene_to_dict(scene)),
+            scene_name=scene.name,
+            run_options=options.to_json(),
+            complete=complete,
+            status="complete" if complete else f"incomplete in the shard: samples to t = {time[end - 1]:.6g} s",
+            source_shard=str(shard),
+            pad=pad,
+        )
+        out.create_dataset("global/time", data=time[:end]).attrs["unit"] = "s"
+        for name, unit in zip(GLOBAL_NAMES, GLOBAL_UNITS, strict=True):
+            out.create_dataset(f"global/{name}", data=series[name][:end]).attrs["unit"] = unit
+        for name in ("x", "y", "area", "height"):
+            unit = "m2" if name == "area" else "m"
+            out.create_dataset(f"patches/{name}", data=getattr(scene.patches, name)).attrs["unit"] = unit
+        for name in ("area", "radius", "height"):
+            unit = "m2" if name == "area" else "m"
+            out.create_dataset(f"matrix/{name}", data=np.asarray(getattr(scene.matrix, name), np.float64))
+            out[f"matrix/{name}"].attrs["unit"] = unit
+    os.replace(tmp, dest)
+    return dest
+
+
+def extracted_from(dest: str | Path, shard: str | Path) -> bool:
+    """Whether ``dest`` is a pad run file :func:`write_pad_run` extracted from ``shard``."""
+    try:
+        with h5py.File(dest, "r") as f:
+            return _text(f.attrs.get("source_shard", "")) == str(shard)
+    except OSError:
+        return False
+
+
+def _check_replaceable(dest: Path, shard: Path) -> None:
+    """Refuse to replace ``dest`` unless it is an earlier extraction from ``shard``."""
+    if dest.exists() and not extracted_from(dest, shard):
+        raise SceneError(f"{dest} exists and is not a pad extracted from {shard}; move it away")
+
+
+def _base_dir(shard: Path) -> Path:
+    """The folder the sweep's spec resolved its files against (the manifest's ``base_dir``), else the shard's."""
+    from aca_warp.sweep.manifest import MANIFEST
+
+    try:
+        return Path(json.loads((shard.parent / MANIFEST).read_text())["base_dir"])
+    except (OSError, KeyError, ValueError, TypeError):
+        return shard.parent
+
+
+def _text(value: Any) -> Any:
+    return value.decode() if isinstance(value, bytes) else value

@@ -1,0 +1,262 @@
+"""§3.2 rows (varying patch area, Eq. 10, Figs. 10–11), read from ``va_full`` (the paper's clock, from equilibrium
++ the seeded perturbation; the measures: :mod:`~aca_warp.studies.validation.area`)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from aca_warp.studies.validation.area import FIRST_LINE_FRACTION, LINE_BAND, PRIMARY_WINDOW, TONALITY_BAND, VA
+from aca_warp.studies.validation.base import MM2, Config, Row, RowValue, _get, by_seed, interval, register_row, values
+from aca_warp.studies.validation.verdicts import (
+    NOT_COMPARABLE,
+    direction_verdict,
+    effect,
+    effect_text,
+    spread_text,
+    threshold_verdict,
+    value_verdict,
+)
+
+PAPER_PEAK_HZ = 69.1e3  # Fig. 10: the largest STFT peak "around 69.1 kHz"
+PAPER_PEAK_AMPLITUDE = 0.004  # Fig. 10: "normalized to the maximum amplitude of about 0.004"
+PEAK_TOLERANCE = 0.05  # relative, as the §3.1 peaks read off the figures
+HF2_MEAN_AREA = 1.25 * MM2  # Table 1
+AREA_TOLERANCE = 0.10  # "approximates that of HF2": the mean area within 10 %
+MATRIX_START = 0.5  # "a dominating influence" of the matrix at the start: more than half the load
+MATRIX_END = 0.05  # "completely dominated by patch-disc contacts" at the end: the matrix carries below 5 %
+RISE_MARGIN = 0.01  # Δμ of at least 0.01
+LINE_MARGIN = 0.1  # ln f falls by at least 0.1 (10 %)
+DOMINATE_MARGIN = math.log(2.0)  # "significantly greater magnitudes": at least twice the HF part's std
+TONAL_MARGIN = math.log(1.25)
+FLATNESS_MARGIN = 0.05
+GROWTH_MARGIN = math.log(1.25)
+
+
+def _pads(results: dict[str, dict]) -> dict[str, Any] | None:
+    return results.get(VA)
+
+
+def _stft_entry(pad: dict[str, Any], samples: int) -> dict[str, Any] | None:
+    """The STFT maximum of the window of ``samples`` (or of the variant's window, ``stft_window``)."""
+    samples = int(pad.get("stft_window", samples))
+    return next((w for w in pad["measures"].get("stft", []) if w["samples"] == samples), None)
+
+
+def _stft_values(res: dict[str, Any] | None, key: str) -> tuple[np.ndarray, str]:
+    vals = by_seed(res, lambda p: (_stft_entry(p, PRIMARY_WINDOW) or {})[key])
+    windows = {(_stft_entry(p, PRIMARY_WINDOW) or {}).get("window") for p in (res or {}).get("pads", [])
+               if "measures" in p} - {None}  # fmt: skip
+    return np.array(list(vals.values())), "; ".join(sorted(windows))
+
+
+def area_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    res = _pads(results)
+    a = np.array(list(by_seed(res, lambda p: p["end_mean_area_m2"]).values()))
+    lo = np.array(list(by_seed(res, lambda p: p["end_area_range_m2"][0]).values()))
+    hi = np.array(list(by_seed(res, lambda p: p["end_area_range_m2"][1]).values()))
+    return RowValue(
+        f"mean area at the end: {interval(a, '.3g', 1 / MM2, 'mm²')}",
+        value_verdict(a, HF2_MEAN_AREA, AREA_TOLERANCE * HF2_MEAN_AREA),
+        f"areas of Eq. 10 at the run's end; range {interval(lo, '.3g', 1 / MM2)} – {interval(hi, '.3g', 1 / MM2)} "
+        "mm² (HF2: 0.5–2 mm²)",
+    )
+
+
+def contact_end_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    v = np.array(list(by_seed(_pads(results), lambda p: p["end_in_contact"]).values()))
+    return RowValue(
+        f"share of the patches in contact at the end: {interval(v)}",
+        threshold_verdict(v, 1.0, False),
+        "contact solved for the areas of Eq. 10 at the run's end under the HF2 load",
+    )
+
+
+def matrix_start_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    v = np.array(list(by_seed(_pads(results), lambda p: p["matrix_share"]).values()))
+    return RowValue(f"share of the load on the matrix at the start: {interval(v)}", threshold_verdict(v, MATRIX_START,
+                    False), "the contact of the starting areas (hf1's) under the HF2 load")  # fmt: skip
+
+
+def matrix_end_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    res = _pads(results)
+    v = np.array(list(by_seed(res, lambda p: p["end_matrix_share"]).values()))
+    start = np.array(list(by_seed(res, lambda p: p["matrix_share"]).values()))
+    return RowValue(
+        f"share of the load on the matrix at the end: {interval(v)}",
+        threshold_verdict(v, MATRIX_END, True),
+        f"at the start {interval(start)}: the load moves from the matrix to the growing patches",
+    )
+
+
+def rise_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    res = _pads(results)
+    d = values(res, "mu_rise")
+    thirds = np.array(list(by_seed(res, lambda p: p["measures"]["mu_thirds"][2] - p["measures"]["mu_thirds"][0])
+                           .values()))  # fmt: skip
+    means = [interval(np.array(list(by_seed(res, lambda p, i=i: p["measures"]["mu_thirds"][i]).values())), ".4f")
+             for i in range(3)]  # fmt: skip
+    return RowValue(
+        f"Δμ over the analysed record (slope × length): {interval(d, '.3g')}",
+        direction_verdict([effect(d, RISE_MARGIN)], [effect(thirds, RISE_MARGIN)]),
+        f"mean μ by thirds {' → '.join(means)}; last − first third {interval(thirds)}",
+    )
+
+
+def line_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    res = _pads(results)
+    first = -values(res, "line.first_dlnf")
+    dom = -values(res, "line.dominant_dlnf")
+    pred = values(res, "line.predicted_dlnf")
+    falling = [
+        sum(1 for p in (res or {}).get("pads", [])
+            if (p.get("measures") or {}).get("line", {}).get(f"{k}_dlnf_ci", [0, 0])[1] < 0)
+        for k in ("first", "dominant")
+    ]  # fmt: skip
+    win = {p["measures"]["line"]["window_samples"] for p in (res or {}).get("pads", []) if "measures" in p}
+    return RowValue(
+        f"−Δ ln f of the first line over the record: {interval(first)}",
+        direction_verdict([effect(first, LINE_MARGIN)]),
+        f"first line: the lowest peak of Σu̇'s STFT reaching {FIRST_LINE_FRACTION:g} of the window's largest (the "
+        f"primary: the dominant line of μ hops between harmonics); the dominant line {interval(dom)}; isolated-patch "
+        f"prediction Δ ln f = −½ ln(√A(T)/√A(t_s)): {interval(pred)}; pads whose own 95 % interval of the slope lies "
+        f"below 0: first {falling[0]}, dominant {falling[1]}; STFT of {', '.join(str(w) for w in sorted(win))} "
+        f"samples, no overlap, ≥ {LINE_BAND[0] / 1e3:g} kHz",
+    )
+
+
+def peak_frequency_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    res = _pads(results)
+    f, window = _stft_values(res, "frequency")
+    return RowValue(
+        interval(f, ".1f", 1e-3, "kHz"),
+        value_verdict(f, PAPER_PEAK_HZ, PEAK_TOLERANCE * PAPER_PEAK_HZ),
+        f"{window}; every window: {stft_summary(res)}",
+    )
+
+
+def conventions(res: dict[str, Any] | None) -> dict[str, float]:
+    """The STFT maximum of μ under the conventions the paper leaves open, mean over the pads: per window length,
+    one-sided amplitude-true ÷ mean μ (Fig. 8's normalisation), two-sided (half), not normalised (× mean μ), and the
+    raw |FFT| of the Hann-windowed segment (× N/4)."""
+    per: dict[str, list[float]] = {}
+    for p in (res or {}).get("pads", []):
+        for w in (p.get("measures") or {}).get("stft", []):
+            a, n = w["amplitude"], w["samples"]
+            k = f"2^{int(round(math.log2(n)))}"
+            for name, v in ((f"{k} one-sided ÷ μ̄", a), (f"{k} two-sided ÷ μ̄", a / 2),
+                            (f"{k} one-sided, μ itself", a * w.get("mean", float("nan"))),
+                            (f"{k} raw |FFT| ÷ μ̄", a * n / 4)):  # fmt: skip
+                per.setdefault(name, []).append(v)
+    return {k: float(np.mean(v)) for k, v in per.items()}
+
+
+def amplitude_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    res = _pads(results)
+    a, window = _stft_values(res, "amplitude")
+    cands = conventions(res)
+    inside = [k for k, v in cands.items() if abs(math.log(v / PAPER_PEAK_AMPLITUDE)) <= math.log(1.5)] if cands else []
+    return RowValue(
+        f"{interval(a, '.3g')} ({window}, one-sided, ÷ the record's mean μ)",
+        NOT_COMPARABLE,
+        "Unstated: the STFT window, its scaling (amplitude-true or raw), one- or two-sided, and whether μ was divided "
+        f"by its mean; the candidates span {spread_text(cands)}; within a factor 1.5 of 0.004: "
+        f"{', '.join(inside) or 'none'}",
+    )
+
+
+def stft_summary(res: dict[str, Any] | None) -> str:
+    """Per window that fits: the mean STFT maximum and its frequency over the pads."""
+    per: dict[int, list[tuple[float, float]]] = {}
+    for p in (res or {}).get("pads", []):
+        for w in (p.get("measures") or {}).get("stft", []):
+            per.setdefault(w["samples"], []).append((w["amplitude"], w["frequency"]))
+    parts = []
+    for n, v in sorted(per.items()):
+        a, f = np.array(v).T
+        parts.append(f"2^{int(round(math.log2(n)))}: {np.mean(a):.3g} at {np.mean(f) / 1e3:.1f} kHz")
+    return ", ".join(parts) or "–"
+
+
+def dominate_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    res = _pads(results)
+    dc = np.array(list(by_seed(res, lambda p: math.log(_get(p, "mu_mean") / _get(p, "mu_hf_std"))).values()))
+    rise = np.array(list(by_seed(res, lambda p: math.log(_get(p, "mu_rise") / _get(p, "mu_hf_std"))).values()))
+    return RowValue(
+        f"ln(mean μ / std of μ's HF part): {interval(dc)}; ln(Δμ / std of μ's HF part): {interval(rise)}",
+        direction_verdict([effect(dc, DOMINATE_MARGIN), effect(rise, DOMINATE_MARGIN)]),
+        f"HF part: μ less its 1 ms moving mean; its std {interval(values(res, 'mu_hf_std'))}",
+    )
+
+
+def _late_minus_early(res: dict[str, Any] | None, key: str, log: bool = False) -> np.ndarray:
+    def d(p: dict[str, Any]) -> float:
+        v = p["measures"]["tonality"][key]
+        return math.log(v[2] / v[0]) if log else v[2] - v[0]
+
+    return np.array(list(by_seed(res, d).values()))
+
+
+def emergence_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    d = _late_minus_early(_pads(results), "peak_to_median")
+    return RowValue(
+        f"Δ ln(peak/median) of μ's spectrum, last − first third: {interval(d)}",
+        direction_verdict([effect(d, TONAL_MARGIN)]),
+        f"{TONALITY_BAND[0] / 1e3:g}–{TONALITY_BAND[1] / 1e3:g} kHz, linear trend removed per third; "
+        f"{effect_text(d, TONAL_MARGIN)}",
+    )
+
+
+def transition_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    flat = _late_minus_early(_pads(results), "flatness")
+    return RowValue(
+        f"−Δ spectral flatness of μ's spectrum, last − first third: {interval(-flat)}",
+        direction_verdict([effect(flat, FLATNESS_MARGIN, -1.0)]),
+        "flatness: geometric over arithmetic mean of the power (≈ 0.56 for white noise, → 0 for a few lines); "
+        f"{effect_text(flat, FLATNESS_MARGIN, -1.0)}",
+    )
+
+
+def oscillation_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    d = _late_minus_early(_pads(results), "std", log=True)
+    return RowValue(
+        f"ln(std μ last third / first third): {interval(d)}",
+        direction_verdict([effect(d, GROWTH_MARGIN)]),
+        f"std about the linear trend per third; {effect_text(d, GROWTH_MARGIN)}",
+    )
+
+
+VA_ROWS = (
+    Row("§3.2", "the final patch areas approximate HF2's for a run about as long as HF1", "≈ HF2 (1.25 mm²)", "value",
+        (VA,), area_row, f"mean ± {100 * AREA_TOLERANCE:g} %"),
+    Row("§3.2", "under the HF2 load all patches keep contact with the disc through the end", "all in contact",
+        "threshold", (VA,), contact_end_row, "every patch in contact"),
+    Row("§3.2", "at the start the pad-matrix contacts dominate", "matrix dominates", "threshold", (VA,),
+        matrix_start_row, f"matrix share ≥ {MATRIX_START:g}"),
+    Row("§3.2", "the patches take over the load; at the end friction is completely dominated by patch-disc contacts",
+        "patches dominate", "threshold", (VA,), matrix_end_row, f"matrix share ≤ {MATRIX_END:g} at the end"),
+    Row("§3.2, Figs. 10/11", "μ rises as the load moves from the matrix to the growing patches", "rising μ",
+        "direction", (VA,), rise_row, f"Δμ > 0, margin {RISE_MARGIN:g}"),
+    Row("§3.2, Figs. 10/11", "the frequencies of the characteristic peaks fall as the patches grow",
+        "decreasing frequencies", "direction", (VA,), line_row, f"Δ ln f < 0, margin {LINE_MARGIN:g}"),
+    Row("§3.2, Fig. 10", "largest STFT peak of μ", "≈ 69.1 kHz", "value", (VA,), peak_frequency_row,
+        f"± {100 * PEAK_TOLERANCE:g} %", uses=("stft",)),
+    Row("§3.2, Fig. 10", "its amplitude, the STFT's maximum", "≈ 0.004", "not comparable", (VA,), amplitude_row,
+        "window, scaling and normalisation not stated", uses=("stft",)),
+    Row("§3.2, Fig. 10", "μ's DC offset and slow rise have significantly greater magnitudes than its HF oscillations",
+        "much greater", "direction", (VA,), dominate_row, "both ln ratios > 0, margin ln 2"),
+    Row("§3.2, Figs. 10/11", "individual dominant frequencies emerge in μ's spectrum", "emerging lines", "direction",
+        (VA,), emergence_row, "Δ ln(peak/median) > 0, margin ln 1.25"),
+    Row("§3.2", "the friction spectrum goes from stochastic (broad band) to periodic (dominant lines)",
+        "stochastic → periodic", "direction", (VA,), transition_row, f"Δ flatness < 0, margin {FLATNESS_MARGIN:g}"),
+    Row("§3.2, §4", "friction oscillations grow as the patch-disc contacts come to dominate", "growing oscillation",
+        "direction", (VA,), oscillation_row, "ln ratio > 0, margin ln 1.25"),
+)  # fmt: skip
+
+
+def register() -> None:
+    """Register the §3.2 rows."""
+    for row in VA_ROWS:
+        register_row(row)

@@ -1,0 +1,146 @@
+"""The estimated wall time of a validation run: stepping per batch, kernel compilation, LF runs and analysis.
+
+**Stepping** (:func:`step_seconds`). On CUDA the on-chip engine advances every pad of a batch in one thread block or
+a cluster of K blocks (``default_cluster``: K = 8 for ≤ 14 pads, 4 for ≤ 28, 2 for ≤ 66, else 1 on an H100's 132
+SMs), every block sized for the batch's largest pad. A step then takes, per wave of clusters that fit the GPU at
+once (14 of 8, 28 of 4, 66 of 2, 132 of 1),
+
+    a + b · w / K   [µs],   w = ½ N/1758 + ½ L/L_hf1,
+
+N the largest pad's patches and L its neighbour links (L_hf1 = 20 904, hf1's), a and b fitted to one hf1 pad on
+K = 1 … 8 blocks (fp32: 1.8 / 2.57 / 3.78 / 6.30 µs on K = 8 / 4 / 2 / 1; fp64 on K = 2 … 8: 2.62 / 3.45 / 5.95;
+docs/benchmarks/onchip_h100/bench_cluster.md): fp32 a = 1.16, b = 5.14; fp64 a = 1.51, b = 8.88. The batched
+figures of cluster_waves_default.md (64 fp32 pads on pairs 4.63 µs, 132 on one block 7.45, 1024 51.5) follow from
+the waves. Where a block's neighbour lists do not fit its shared memory beside the state (``shared_bytes`` against
+the H100's 227 KiB), the gathers read global memory: b × :data:`OFF_CHIP` (5, from the fp64 LF-state batches of the
+earlier validation on an H200: 8 pads of up to 4329 patches with 31 links each, 25.3 µs per step). Growing pads
+take at least :data:`GROWTH_FLOOR_S`. On the CPU: 1e7 patch-steps/s (general engine, 2-core AMD EPYC).
+
+These are estimates, a factor 2 either way for dense LF states: a run measures each batch's step time on its first
+segment (a probe) before going on, and corrects the later estimates of its kind by what it measured
+(:meth:`Costs.calibrate`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+COEFFICIENTS = {"fp32": (1.16e-6, 5.14e-6), "fp64": (1.51e-6, 8.88e-6)}  # (a, b) [s] of a + b·w/K
+HF1_PATCHES, HF1_LINKS = 1758, 20904
+WAVE = {8: 14, 4: 28, 2: 66, 1: 132}  # clusters of K blocks in one wave on an H100 (cluster_waves_*.md)
+OFF_CHIP = 5.0
+GROWTH_FLOOR_S = {"fp32": 2.7e-6, "fp64": 3.9e-6}
+"""Seconds per step of a batch of growing pads in one wave (on-chip engine, a cluster of 8 blocks per pad): 2.7 µs
+measured in fp32 for one varying_area pad (an event every 20 steps; docs/onchip.md); fp64 1.45 × that, the fp64/fp32
+ratio of one non-growing hf1 pad on 8 blocks."""
+SMEM_BYTES = 227 * 1024  # the H100's shared memory per block (opt-in)
+CPU_PATCH_STEPS = 1.0e7  # patch-steps per second of the general engine on the 2-core AMD EPYC host
+COMPILE_S = 4.0  # s per batch on CUDA: one on-chip module per tile shape (1.7–4.5 s, docs/benchmarks/onchip_h100)
+LF_RUN_S = {"cpu": 11.0, "cuda": 2.5}  # s per LF run of the multiscale schedule (one CPU core; H100: 2.2 s)
+ANALYSIS_S = 1.5  # s per analysed pad of 1758 patches × 6667 per-patch samples on one core
+TRACK_S = 0.6  # s per track window of a 1758-patch pad (5 ms) on one core
+
+
+def links(scene: Any, radius: float = 5.0e-3) -> int:
+    """Neighbour links of a pad (pairs of patches closer than the coupling radius, counted from both ends)."""
+    from scipy.spatial import cKDTree
+
+    p = scene.patches
+    return 2 * len(cKDTree(np.column_stack([p.x, p.y])).query_pairs(radius))
+
+
+def cluster(pads: int) -> int:
+    """Blocks per pad by ``default_cluster``'s rule on an H100 (a pad that must split to fit aside)."""
+    for k in (8, 4, 2):
+        if pads <= WAVE[k]:
+            return k
+    return 1
+
+
+def fits_on_chip(n: int, n_links: int, k: int, precision: str) -> bool:
+    """Whether a block's share of an ``n``-patch pad's neighbour lists fits beside the pad's state (``shared_bytes``
+    without the bank interleaving: u twice, w and F_s per patch, 2 + itemsize bytes per link)."""
+    item = 4 if precision == "fp32" else 8
+    return 4 * n * item + n_links / k * (2 + item) * 1.1 + 8 * 1024 <= SMEM_BYTES
+
+
+def step_seconds(pads: int, n: int, n_links: int, precision: str, growth: bool, device: str) -> float:
+    """Estimated seconds per time step of a batch of ``pads`` pads, the largest of ``n`` patches and ``n_links``
+    links (module docstring); ``device`` "cpu" uses the CPU throughput (total patches ≈ pads × n)."""
+    if device == "cpu":
+        return pads * n / CPU_PATCH_STEPS
+    a, b = COEFFICIENTS[precision]
+    k = cluster(pads)
+    if not fits_on_chip(n, n_links, k, precision):
+        b *= OFF_CHIP
+    w = 0.5 * n / HF1_PATCHES + 0.5 * n_links / HF1_LINKS
+    t = math.ceil(pads / WAVE[k]) * (a + b * w / k)
+    return max(t, GROWTH_FLOOR_S[precision]) if growth else t
+
+
+@dataclass
+class Costs:
+    """Estimates and the calibration a run learns (measured over estimated step time, per stepping kind)."""
+
+    factors: dict[str, float] = field(default_factory=dict)
+
+    def step(self, batch: Any, cfg: Any) -> float:
+        """Estimated seconds per step of ``batch`` (a :class:`~aca_warp.studies.validation.experiments.Batch`)."""
+        scenes = batch.scenes
+        n = max(s.patches.count for s in scenes)
+        n_links = max(links(s) for s in {id(s.patches): s for s in scenes}.values())
+        step = cfg.stepping(batch.stepping_kind)
+        raw = step_seconds(len(scenes), n, n_links, step.precision, batch.growth, cfg.device)
+        return raw * self.factors.get(batch.stepping_kind, 1.0)
+
+    def steps(self, batch: Any, cfg: Any, bound: float | None = None) -> int:
+        """Steps of the batch's run, at the step of its stepping (``bound``: its sticking bound [s], computed on the
+        host when not given)."""
+        step = cfg.stepping(batch.stepping_kind)
+        if step.dt is None and bound is None:
+            bound = sticking_bound(batch.scenes)
+        return batch.plan.steps(step.step(bound if bound is not None else 0.0), cfg.sample_dt)
+
+    def estimate(self, batch: Any, cfg: Any, bound: float | None = None) -> float:
+        """Estimated seconds of stepping of the batch."""
+        return self.steps(batch, cfg, bound) * self.step(batch, cfg)
+
+    def calibrate(self, batch: Any, cfg: Any, measured: float) -> None:
+        """Correct later estimates of the batch's stepping kind by ``measured`` [s per step] over the estimate."""
+        kind = batch.stepping_kind
+        raw = self.step(batch, cfg) / self.factors.get(kind, 1.0)
+        if raw > 0 and measured > 0:
+            self.factors[kind] = measured / raw
+
+
+def sticking_bound(scenes: list[Any]) -> float:
+    """strang's sticking bound of a batch of pads [s], from a host model of them (``stable_step``)."""
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.solver import stable_step
+
+    return stable_step(build_model(scenes, device="cpu", precision="fp64")).sticking
+
+
+def overheads(batches: list[Any], cfg: Any, lf_runs: int) -> dict[str, float]:
+    """Estimated wall seconds beside the stepping: kernel compilation (one module per batch on CUDA), LF runs
+    (sequential on CUDA, over ``cfg.workers`` processes on the CPU) and the pads' analysis (over the workers)."""
+    pads = 0.0
+    for b in batches:
+        for p in b.members:
+            size = sum(s.patches.count for s in p.scenes) / HF1_PATCHES
+            if p.exp.kind == "growth":
+                pads += 0.3 * len(p.scenes)
+            else:
+                pads += size * p.plan.patch_samples / 6667
+                pads += size * len(p.plan.tracks) * TRACK_S / ANALYSIS_S * (cfg.track_window / 5.0e-3)
+    gpu = cfg.device != "cpu"
+    lf = LF_RUN_S["cuda" if gpu else "cpu"] * (4.0 / 11.0 if cfg.quick else 1.0)
+    return {
+        "compile": COMPILE_S * len(batches) if gpu else 0.0,
+        "lf": lf * (lf_runs if gpu else math.ceil(lf_runs / max(cfg.workers, 1))) if lf_runs else 0.0,
+        "analysis": ANALYSIS_S * pads / max(cfg.workers, 1),
+    }

@@ -1,0 +1,472 @@
+"""Statistical work-precision: how coarse may the integrator be before the validation's statistics move?
+
+The validation judges the paper's statements from seed ensembles of saturated runs; what matters there is not the
+pointwise error of one chaotic trajectory but the error of an ensemble's statistics. For every measure the
+validation rests on (μ mean and std, the velocity-sum peak of Fig. 8, the per-patch first peak f1, the μ and
+velocity-sum spectra, S − S_null, Φ, the 5 mm neighbour correlation, growth rates; and for the growing pads μ's
+rise, the falling line, the STFT maximum and the tonality), this study measures the error of the ensemble mean
+against a tight reference ensemble (the same seeds, the same pads) as a function of integrator, step or tolerance
+and precision, relative to the standard deviation between seeds, with the stepping wall time of each setting.
+
+A **regime** is an experiment of the validation (the same scenes, initial states, run lengths and analysis): hf1–hf4
+(equilibrium + 0.01 m/s velocity perturbation, run into saturation, analysed over the last window), ``va``
+(varying_area, growth compressed) and the LF states of §3.3 (``ms_fast``, ``ms_short``, ``ms_mid``, ``ms_app3``:
+groups of LF snapshots; their LF runs are made once in ``OUT/lf``). Every pad of a regime is analysed over the
+same per-patch window by the validation's own per-pad analysis, whether its detector calls it saturated or not,
+so that every setting is measured on the same samples.
+
+A **setting** is ``INTEGRATOR@PRECISIONS[:dt=STEPS][:tol=TOLERANCES]`` (a product), e.g. ``strang@fp32:dt=1e-8,
+5e-7``, ``adaptive@fp64:tol=1e-4``, ``implicit-friction@fp32,fp64:dt=1e-7``; without dt or tol the integrator's
+defaults. Fixed steps run forced (past strang's sticking bound too). Any name of ``aca_warp.hf.options.INTEGRATORS``
+is accepted, and a name that the default grid does not list runs at its defaults in fp32 and fp64. The
+**reference** (``--reference``; strang fp64 at 1e-8 s, --quick 2e-8 s, capped at 0.9 × the regime's sticking
+bound as the validation caps its step) runs first, then the grid, cheapest first.
+
+The statistics and the rule (the 95 % interval of a setting's bias within ± ``--rule`` × the standard deviation
+between seeds for every measure; the cheapest such setting per regime) are in
+:mod:`aca_warp.studies.work_precision_stats_rule`
+(:func:`~aca_warp.studies.work_precision_stats_rule.settings_for`); the figure and the page in
+:mod:`aca_warp.studies.work_precision_stats_report`. Results: one file per regime,
+``OUT/wps_<device>[_quick]_<regime>.json``, rewritten after every run (per pad and measure the values, per setting
+the stepping wall time); a later call with the same settings continues it (runs kept, missing ones added: another
+integrator, or what a time limit cut off). Examples::
+
+    python3 scripts/work_precision_stats.py --quick --out out/wps_quick                     # the CPU variant
+    python3 scripts/work_precision_stats.py --device cuda:0 --seeds 32 --out wps --regimes hf1 hf2
+    python3 scripts/work_precision_stats.py --report wps/wps_cuda0_*.json                       # figure + page
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import itertools
+import math
+import re
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from aca_warp.hf.options import INTEGRATORS
+from aca_warp.studies.report import Log, add_device, add_page_options, clean, command_line, write_json
+from aca_warp.studies.validation.analysis import analyse_batch
+from aca_warp.studies.validation.area import analyse_growth
+from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK, close_pools
+from aca_warp.studies.validation.cli import default_workers
+from aca_warp.studies.validation.experiments import Collector, prepare
+from aca_warp.studies.validation.multiscale import ensure_lf
+from aca_warp.studies.work_precision_stats_rule import DEFAULT_RULE, MEASURES, load_results, measures_of, pad_values
+
+PRECISIONS = ("fp32", "fp64")
+STICKING_MARGIN = 0.9  # the reference step: at most this × strang's sticking bound (the validation's cap)
+REFERENCE = {False: "strang@fp64:dt=1e-8", True: "strang@fp64:dt=2e-8"}
+GRID = {
+    False: (
+        "strang@fp32:dt=1e-8,2e-8,4e-8,8e-8,1.43e-7,2.5e-7,5e-7",
+        "strang@fp64:dt=8e-8,2.5e-7",
+        "adaptive@fp64:tol=1e-3,1e-4",
+        "implicit-friction@fp32:dt=1e-7,2.5e-7,5e-7",
+    ),
+    True: (
+        "strang@fp64:dt=5e-8,1e-7,2.5e-7,5e-7",
+        "strang@fp32:dt=1e-7,5e-7",
+        "adaptive@fp64:tol=1e-3,1e-4",
+        "implicit-friction@fp64:dt=1e-7,2.5e-7",
+    ),
+}
+LEFT_OUT = ("symplectic-euler",)  # not in the default grid: explicit friction, bounded by the friction step
+REGIMES = {
+    False: ("hf1", "hf2", "hf3", "hf4", "va", "ms_fast", "ms_short", "ms_mid", "ms_app3"),
+    True: ("hf1", "hf2", "va", "ms_fast"),
+}
+QUICK_CONFIG = {"seeds": 4, "patches": 60, "state_patches": 60, "window": 4.0e-3}
+PROGRESS_S = 30.0  # s of wall time between progress lines of one run
+
+
+# ------------------------------------------------------------------------------------------------ settings
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One point of the grid: integrator, precision, fixed step [s] and/or tolerance (None: the defaults)."""
+
+    integrator: str
+    precision: str
+    dt: float | None = None
+    tolerance: float | None = None
+
+    @property
+    def label(self) -> str:
+        """``integrator@precision[:dt=…][:tol=…]`` (parses back to this setting)."""
+        parts = [f"dt={self.dt:g}"] if self.dt is not None else []
+        parts += [f"tol={self.tolerance:g}"] if self.tolerance is not None else []
+        return ":".join([f"{self.integrator}@{self.precision}", *parts])
+
+    def cost(self, duration: float) -> float:
+        """Steps a fixed-step run of ``duration`` [s] takes (inf when the step is chosen by error control or is
+        the integrator's default: unknown, run last)."""
+        return duration / self.dt if self.dt is not None and self.tolerance is None else math.inf
+
+
+def parse_setting(spec: str) -> list[Setting]:
+    """The settings of one spec ``NAME@P1[,P2][:dt=V[,V…]][:tol=V[,V…]]`` (module docstring); ValueError names
+    what is wrong."""
+    head, *params = spec.split(":")
+    name, _, precs = head.partition("@")
+    if name not in INTEGRATORS:
+        raise ValueError(f"unknown integrator {name!r} in {spec!r}; choose from {', '.join(INTEGRATORS)}")
+    precisions = precs.split(",") if precs else list(PRECISIONS)
+    bad = [p for p in precisions if p not in PRECISIONS]
+    if bad:
+        raise ValueError(f"unknown precision {', '.join(bad)} in {spec!r}; choose from {', '.join(PRECISIONS)}")
+    axes: dict[str, list[float | None]] = {"dt": [None], "tol": [None]}
+    for p in params:
+        key, _, vals = p.partition("=")
+        if key not in axes or not vals:
+            raise ValueError(f"bad parameter {p!r} in {spec!r}: use dt=V[,V…] or tol=V[,V…]")
+        try:
+            nums = [float(v) for v in vals.split(",")]
+        except ValueError:
+            raise ValueError(f"bad number in {p!r} of {spec!r}") from None
+        if not all(v > 0 and math.isfinite(v) for v in nums):
+            raise ValueError(f"{key} must be positive in {spec!r}")
+        axes[key] = list(nums)
+    return [Setting(name, pr, dt, tol) for pr, dt, tol in itertools.product(precisions, axes["dt"], axes["tol"])]
+
+
+def grid(specs: list[str], integrators: list[str] | None, precisions: list[str] | None) -> list[Setting]:
+    """The settings of ``specs`` (duplicates once), filtered to ``integrators`` and ``precisions`` if given."""
+    out = dict.fromkeys(s for spec in specs for s in parse_setting(spec))
+    return [
+        s
+        for s in out
+        if (not integrators or s.integrator in integrators) and (not precisions or s.precision in precisions)
+    ]
+
+
+def default_grid(quick: bool) -> list[str]:
+    """The default specs: :data:`GRID`, and every other integrator of ``INTEGRATORS`` (but :data:`LEFT_OUT`) at its
+    defaults in both precisions, so that a new integrator enters the study without a change here."""
+    named = {spec.split("@")[0] for spec in GRID[quick]}
+    return [*GRID[quick], *(f"{n}@fp32,fp64" for n in INTEGRATORS if n not in named and n not in LEFT_OUT)]
+
+
+# ------------------------------------------------------------------------------------------------ the validation
+
+
+def regime_config(args: argparse.Namespace) -> Any:
+    """The validation ``Config`` of the study: the validation's full or quick defaults with ``--seeds``,
+    ``--patches``, ``--window`` and the quick variant's smaller sizes (:data:`QUICK_CONFIG`)."""
+    base = dataclasses.replace(QUICK, **QUICK_CONFIG) if args.quick else FULL
+    over = {"seeds": args.seeds, "first_seed": args.first_seed, "patches": args.patches, "window": args.window}
+    over |= {"state_patches": args.patches} if args.patches is not None and args.quick else {}
+    lf = str(Path(args.lf_dir or Path(args.out) / "lf"))
+    workers = args.workers or (1 if args.device == "cpu" else default_workers())
+    over = {k: x for k, x in over.items() if x is not None}
+    return dataclasses.replace(base, device=args.device, engine=args.engine, lf_dir=lf, workers=workers, **over)
+
+
+def prepare_regime(name: str, cfg: Any, duration: float | None, log: Log) -> Any:
+    """The validation's preparation of experiment ``name`` (scenes, contact solves, plan), its LF runs made first
+    when it needs them; a saturated experiment's run lasts ``duration`` [s] when given."""
+    exp = EXPERIMENTS[name]
+    if duration is not None and exp.kind == "saturated":
+        exp = dataclasses.replace(exp, duration=duration)
+    ensure_lf([name], cfg, log)
+    return prepare(exp, cfg)
+
+
+def analyse(prep: Any, cfg: Any, records: tuple[np.ndarray, ...]) -> tuple[list[dict], list[dict | None]]:
+    """Per pad: the validation's analysis (growing pads: ``analyse_growth``; others: ``analyse_batch`` over the
+    whole per-patch window, saturated or not) and its global spectra {"freq", "mu", "velocity"} (None for a growing
+    pad or one not analysed)."""
+    t, g, pt, vel = records
+    if prep.exp.kind == "growth":
+        pads, _, _ = analyse_growth(prep.scenes, t, g, prep.plan, cfg)
+        return pads, [None] * len(pads)
+    every_pad = dataclasses.replace(prep, exp=dataclasses.replace(prep.exp, kind="window"))  # saturated or not
+    pads, arrays, seg = analyse_batch(every_pad, t, g, pt, vel, cfg)
+    spectra: list[dict | None] = [None] * len(pads)
+    if "pad" in arrays:
+        freq = np.fft.rfftfreq(seg["samples"] * cfg.decimation, cfg.sample_dt)
+        for row, p in enumerate(arrays["pad"]):
+            spectra[int(p)] = {
+                "freq": freq, "mu": arrays["spectrum_mu"][row], "velocity": arrays["spectrum_velocity"][row]
+            }  # fmt: skip
+    return pads, spectra
+
+
+# ------------------------------------------------------------------------------------------------ runs
+
+
+class Progress:
+    """Sink of a run: the validation's collector, and a progress line every :data:`PROGRESS_S` seconds."""
+
+    def __init__(self, collector: Any, what: str, duration: float, log: Log) -> None:
+        self.collector, self.what, self.duration, self.log = collector, what, duration, log
+        self.t0 = self.last = time.perf_counter()
+
+    def __call__(self, chunk: Any) -> None:
+        self.collector(chunk)
+        now = time.perf_counter()
+        if now - self.last >= PROGRESS_S and len(chunk.time):
+            self.last = now
+            t = float(chunk.time[-1])
+            self.log(f"  {self.what}: {t * 1e3:.1f} of {self.duration * 1e3:.1f} ms simulated "
+                     f"({100 * t / self.duration:.0f} %, {now - self.t0:.0f} s)")  # fmt: skip
+
+
+def reference_setting(spec: str, model: Any) -> Setting:
+    """The reference of a regime: ``spec`` (one setting), a strang step capped at :data:`STICKING_MARGIN` × the
+    model's sticking bound."""
+    from aca_warp.hf.solver import stable_step
+
+    (s,) = parse_setting(spec)
+    if s.integrator == "strang" and s.dt is not None:
+        s = dataclasses.replace(s, dt=float(f"{min(s.dt, STICKING_MARGIN * stable_step(model).sticking):.3g}"))
+    return s
+
+
+def run_setting(prep: Any, cfg: Any, setting: Setting, role: str, names: list[str], log: Log) -> dict[str, Any]:
+    """One run of the regime's batch with ``setting``, analysed; the row of the result file (``role``: "reference"
+    or "grid")."""
+    from aca_warp.common.errors import SceneError
+    from aca_warp.studies.runs import batch_at_start, run_engine
+
+    row: dict[str, Any] = {"label": setting.label, "role": role, **dataclasses.asdict(setting)}
+    try:
+        model, state = batch_at_start(prep.scenes, cfg.device, setting.precision)
+        sink = Progress(Collector(), f"{prep.exp.name} {setting.label}", prep.plan.duration, log)
+        res = run_engine(
+            model, state, engine=cfg.engine, duration=prep.plan.duration, integrator=setting.integrator,
+            dt=setting.dt, tolerance=setting.tolerance, record=prep.plan.record(cfg), sink=sink,
+            force=setting.dt is not None,
+        )  # fmt: skip
+    except (SceneError, ValueError) as e:  # a setting the integrator refuses (e.g. an fp32 tolerance too tight)
+        log(f"  {setting.label}: refused: {e}")
+        return {**row, "complete": False, "fault": f"refused: {e}", "wall_s": None}
+    row.update(
+        complete=bool(res.complete), fault=None if res.fault is None else str(res.fault), wall_s=res.wall_time,
+        compile_s=res.compile_time, steps=int(res.steps), rejected=int(res.rejected), dt_used=res.dt,
+        engine=res.engine,
+    )  # fmt: skip
+    del model, state
+    if res.complete:
+        pads, spectra = analyse(prep, cfg, sink.collector.arrays())
+        row["values"] = _rounded(pad_values(pads, spectra, names))
+        row["saturated"] = sum(p.get("detector_status", p.get("status")) == "saturated" for p in pads)
+    return row
+
+
+def _rounded(values: dict[str, list[Any]]) -> dict[str, list[Any]]:
+    """The per-pad values to 7 significant digits (the file stays small; far below any difference measured)."""
+
+    def r(x: Any) -> Any:
+        if isinstance(x, list):
+            return [r(y) for y in x]
+        return float(f"{x:.7g}") if isinstance(x, float) and math.isfinite(x) else None
+
+    return {k: r(v) for k, v in values.items()}
+
+
+def measure_regime(
+    name: str, args: argparse.Namespace, cfg: Any, settings: list[Setting], head: dict[str, Any], log: Log
+) -> Path:
+    """Every setting of one regime (the reference first, then the grid cheapest first) into its result file
+    ``OUT/wps_<tag>_<regime>.json``, rewritten after each run. A file of the same regime, pads, settings and
+    reference is continued: its runs are kept, the missing ones added (a run skipped by --max-wall is run again).
+    Raises FileExistsError when the file holds another configuration or machine."""
+    from aca_warp.studies.runs import batch_at_start
+
+    prep = prepare_regime(name, cfg, args.duration, log)
+    names = measures_of(prep.exp.kind)
+    model, _ = batch_at_start(prep.scenes, cfg.device, "fp64")
+    ref = reference_setting(args.reference, model)
+    del model
+    plan = prep.plan
+    reg: dict[str, Any] = {
+        "name": name, "description": prep.exp.description, "kind": prep.exp.kind, "config": cfg.run_key(),
+        "duration_s": plan.duration, "settle_s": plan.settle, "window_start_s": plan.window_start,
+        "pads": [{"seed": s.initial.seed, "member": m, "patches": s.patches.count}
+                 for s, m in zip(prep.scenes, prep.members, strict=True)],
+        "measures": names, "reference": ref.label, "settings": [],
+    }  # fmt: skip
+    path = Path(args.out) / f"wps_{head['tag']}_{name}.json"
+    before = 0.0  # s of wall time earlier calls spent on this file
+    doc = {**{k: v for k, v in head.items() if k != "command"}, "commands": [head["command"]], "regimes": {name: reg}}
+    if path.exists():
+        old = load_results(path)
+        oreg = old["regimes"][name]
+        if old["machine"] != head["machine"] or any(oreg.get(k) != reg[k] for k in CONTINUED):
+            raise FileExistsError(f"{path} holds another run of {name} (machine, pads, settings or reference "
+                                  "differ): choose another --out")  # fmt: skip
+        reg["settings"] = [r for r in oreg["settings"] if not str(r.get("fault")).startswith("not run")]
+        doc["commands"] = [*old["commands"], head["command"]]
+        before = old.get("regime_wall_s") or 0.0
+        log(f"{name}: continuing {path} ({len(reg['settings'])} runs in it)")
+    done = {(r["label"], r["role"]) for r in reg["settings"]}
+    grid_rows = sorted((s for s in settings if s != ref), key=lambda s: s.cost(plan.duration))
+    todo = [(s, role) for s, role in [(ref, "reference"), *((s, "grid") for s in grid_rows)] if (s.label, role)
+            not in done]  # fmt: skip
+    span = "growing" if prep.exp.kind == "growth" else f"window from {plan.window_start * 1e3:.1f} ms"
+    log(f"{name}: {len(prep.scenes)} pads × {sorted({s.patches.count for s in prep.scenes})} patches, "
+        f"{plan.duration * 1e3:.1f} ms ({span}); {len(todo)} runs; "
+        f"reference {ref.label}")  # fmt: skip
+    rref = [r for r in reg["settings"] if r["role"] == "reference" and r.get("steps")]
+    per_step = rref[0]["wall_s"] / rref[0]["steps"] if rref else math.nan
+    t0 = log.elapsed()
+    for k, (s, role) in enumerate(todo, 1):
+        steps = s.cost(plan.duration)
+        est = steps * per_step if math.isfinite(steps * per_step) else 0.0  # unknown: run while time is left
+        if args.max_wall is not None and log.elapsed() + est > args.max_wall:
+            log(f"  {s.label}: not run (--max-wall {args.max_wall:g} s)")
+            reg["settings"].append({"label": s.label, "role": role, **dataclasses.asdict(s), "complete": False,
+                                    "fault": "not run: --max-wall", "wall_s": None})  # fmt: skip
+            continue
+        row = run_setting(prep, cfg, s, role, names, log)
+        reg["settings"].append(row)
+        if role == "reference" and row.get("steps"):
+            per_step = row["wall_s"] / row["steps"]
+        _write(path, doc, before + log.elapsed() - t0)
+        state = "complete" if row.get("complete") else f"stopped: {row.get('fault')}"
+        wall = "–" if row.get("wall_s") is None else f"{row['wall_s']:.3g} s"
+        log(f"{name} [{k}/{len(todo)}] {role} {s.label}: {wall} stepping, {row.get('steps', 0):,} steps, "
+            f"{state}, {row.get('saturated', 0)}/{len(prep.scenes)} pads saturated")  # fmt: skip
+    _write(path, doc, before + log.elapsed() - t0)
+    return path
+
+
+CONTINUED = ("config", "pads", "duration_s", "measures", "reference")
+"""The regime fields that must match for a result file to be continued."""
+
+
+def _write(path: Path, doc: dict[str, Any], seconds: float) -> None:
+    """Write the result file (through a temporary file); ``seconds``: the wall time spent on the regime so far, by
+    every call that wrote the file."""
+    doc["regime_wall_s"] = seconds
+    tmp = path.with_suffix(".json.tmp")
+    write_json(tmp, clean(doc), indent=None)
+    tmp.replace(path)
+
+
+def measure(args: argparse.Namespace, argv: list[str]) -> list[Path]:
+    """Run the study; returns the result files (one per regime)."""
+    import scipy
+    import warp as wp
+
+    from aca_warp.common.files import machine
+
+    log = Log()
+    cfg = regime_config(args)
+    settings = grid(args.grid or default_grid(args.quick), args.integrators, args.precisions)
+    Path(args.out).mkdir(parents=True, exist_ok=True)
+    head: dict[str, Any] = {
+        "tag": re.sub(r"[^A-Za-z0-9]+", "", args.device) + ("_quick" if args.quick else ""),
+        "machine": machine(wp.get_device(args.device)),
+        "versions": {"warp": wp.__version__, "numpy": np.__version__, "scipy": scipy.__version__},
+        "python": sys.version.split()[0],
+        "quick": bool(args.quick),
+        "command": command_line("work_precision_stats.py", argv),
+        "rule": DEFAULT_RULE,
+    }
+    try:
+        paths = [measure_regime(name, args, cfg, settings, head, log) for name in args.regimes]
+    finally:
+        close_pools()
+    log(f"wrote {', '.join(str(p) for p in paths)}")
+    return paths
+
+
+# ------------------------------------------------------------------------------------------------ command line
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of the study."""
+    regimes = [k for k, e in EXPERIMENTS.items() if e.kind in ("saturated", "growth")]
+    ap = argparse.ArgumentParser(
+        description=__doc__.split("Examples::")[0].rstrip() + "\n\nExamples::" + __doc__.split("Examples::")[1],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    add_device(ap)
+    ap.add_argument("--quick", action="store_true", help=f"CPU variant: {QUICK_CONFIG['seeds']} seeds, "
+                    f"{QUICK_CONFIG['patches']}-patch sectors, {QUICK_CONFIG['window'] * 1e3:g} ms window, "
+                    f"regimes {' '.join(REGIMES[True])}, a smaller grid")  # fmt: skip
+    ap.add_argument("--out", default="wps_results", help="folder of the result JSON (and the LF runs, OUT/lf)")
+    ap.add_argument("--regimes", nargs="+", choices=regimes, metavar="REGIME",
+                    help=f"validation experiments to measure (default {' '.join(REGIMES[False])}; --quick "
+                    f"{' '.join(REGIMES[True])}); any of: {' '.join(regimes)}")  # fmt: skip
+    ap.add_argument("--seeds", type=int, help="pads (seeds) per regime (validation default 8; --quick 4)")
+    ap.add_argument("--first-seed", type=int, help="seed of the first pad (1)")
+    ap.add_argument("--patches", type=int, help="patches per pad: a sector (default all; --quick 60)")
+    ap.add_argument("--window", type=float, help="analysis window at the end of a saturated run [s] (20e-3; "
+                    "--quick 4e-3)")  # fmt: skip
+    ap.add_argument("--duration", type=float, help="run length of the saturated regimes [s] (default: the "
+                    "validation's plan, the predicted time to saturation + the window)")  # fmt: skip
+    ap.add_argument(
+        "--grid",
+        nargs="+",
+        metavar="SPEC",
+        help="settings INTEGRATOR@P1[,P2][:dt=V,…][:tol=V,…] "
+        f"(default: {' '.join(default_grid(False))}; --quick: {' '.join(default_grid(True))})",
+    )
+    ap.add_argument("--integrators", nargs="+", choices=INTEGRATORS, help="only these integrators of the grid")
+    ap.add_argument("--precisions", nargs="+", choices=PRECISIONS, help="only these precisions of the grid")
+    ap.add_argument(
+        "--reference",
+        help=f"the reference setting (default {REFERENCE[False]}; --quick "
+        f"{REFERENCE[True]}; a strang step is capped at {STICKING_MARGIN:g} × the sticking bound)",
+    )
+    ap.add_argument("--engine", default="auto", choices=["auto", "general", "onchip"], help="HF engine (auto)")
+    ap.add_argument("--workers", type=int, help="processes that analyse the pads of a run (default: 1 on the "
+                    "CPU, else the CPU count less one, at most 8)")  # fmt: skip
+    ap.add_argument("--lf-dir", help="folder of the LF runs of the LF-state regimes (default OUT/lf)")
+    ap.add_argument("--max-wall", type=float, help="start no run that would end past this wall time [s] (the "
+                    "estimate: the reference's time per step × the steps); written as not run")  # fmt: skip
+    ap.add_argument("--report", nargs="+", metavar="JSON", help="only write the figure(s) and the page from "
+                    "result files")  # fmt: skip
+    ap.add_argument("--rule", type=float, default=DEFAULT_RULE, help="the report's rule: the 95 %% interval of a "
+                    f"setting's bias within ± RULE × σ between seeds ({DEFAULT_RULE:g})")  # fmt: skip
+    ap.add_argument("--measures", nargs="+", choices=list(MEASURES), metavar="MEASURE", help="measures the "
+                    f"report's rule uses (default every one of a regime; any of: {' '.join(MEASURES)})")  # fmt: skip
+    add_page_options(ap, "docs/work_precision_statistics.md", "docs/figures/work_precision_statistics")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Measure (or, with --report, only report); returns 0, or 2 after one line on stderr for bad input."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    ap = build_parser()
+    args = ap.parse_args(argv)
+    if args.report:
+        from aca_warp.studies.work_precision_stats_report import report
+
+        try:
+            report([Path(p) for p in args.report], Path(args.page), Path(args.figures), args.rule, args.measures)
+        except (OSError, ValueError, KeyError) as e:
+            print(f"work_precision_stats: {e}", file=sys.stderr)
+            return 2
+        return 0
+    args.regimes = args.regimes or list(REGIMES[args.quick])
+    args.reference = args.reference or REFERENCE[args.quick]
+    try:
+        if len(parse_setting(args.reference)) != 1:
+            raise ValueError(f"--reference {args.reference!r} names more than one setting")
+        grid(args.grid or [], None, None)
+    except ValueError as e:
+        ap.error(str(e))
+    for name, val, least in (("seeds", args.seeds, 2), ("patches", args.patches, 2), ("workers", args.workers, 1)):
+        if val is not None and val < least:
+            ap.error(f"--{name} must be at least {least}")
+    from aca_warp.studies.report import init_warp
+
+    init_warp()
+    try:
+        measure(args, argv)
+    except FileExistsError as e:
+        print(f"work_precision_stats: {e}", file=sys.stderr)
+        return 2
+    return 0

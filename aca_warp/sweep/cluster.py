@@ -1,0 +1,437 @@
+"""Shards on Dask: a local cluster bound to loopback, or an existing scheduler or client.
+
+:func:`local_cluster` starts single-threaded worker processes (per GPU pinned through ``CUDA_VISIBLE_DEVICES``, two
+per GPU in the overlapped path so that one builds while the other's kernel runs); :func:`_run_on_dask` submits one
+task per shard and records them as they finish; on a stop it marks the shards the workers were executing and
+closes the cluster without its shutdown chatter.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import time
+import uuid
+from collections import deque
+from collections.abc import Callable
+from typing import Any
+
+from aca_warp.common.links import private_dir
+from aca_warp.sweep.manifest import _Book, _one_line
+from aca_warp.sweep.overlap import ShardCancelled, ShardContext, stop_event, stop_sweep
+from aca_warp.sweep.prepare import PreparedShard, Preparer
+from aca_warp.sweep.shard import run_shard
+from aca_warp.sweep.spec import SweepError
+
+
+def cuda_ordinals(device: str) -> list[int]:
+    """GPU ordinals named by ``device``: ``cuda`` (all), ``cuda:1`` or ``cuda:0,cuda:1``."""
+    import warp as wp
+
+    if device == "cuda":
+        n = wp.get_cuda_device_count()
+        if n == 0:
+            raise SweepError("device 'cuda': no CUDA device is available")
+        return list(range(n))
+    out = []
+    for part in device.split(","):
+        part = part.strip()
+        if not part.startswith("cuda:") or not part[5:].isdigit():
+            raise SweepError(f"device {device!r}: expected cpu, cuda, cuda:N or a list cuda:0,cuda:1")
+        out.append(int(part[5:]))
+    return out
+
+
+LOOPBACK = "127.0.0.1"  # the only address a local cluster binds
+
+
+# run in every local worker process as it starts: Ctrl-C in a terminal reaches the whole process group, and the
+# client alone handles it (stops the cluster, marks the manifest); a worker would die with a traceback instead
+# Worker processes: ignore SIGINT (the client stops them), start Warp quietly, and drop the heartbeat errors a
+# worker logs when the scheduler has gone first (a stopped sweep's shutdown; a lost scheduler reaches the client).
+_WORKER_PRELOAD = (
+    "import signal\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\n"
+    "import logging\nlogging.getLogger('distributed.worker').addFilter(\n"
+    "    lambda r: not r.getMessage().startswith('Failed to communicate with scheduler during heartbeat'))\n"
+    "from aca_warp.common.devices import init_warp\ninit_warp()\n"
+)
+
+
+def local_cluster(device: str, workers: int | None = None, *, per_gpu: int = 1) -> Any:
+    """A local Dask cluster: ``per_gpu`` single-threaded worker processes per GPU (``CUDA_VISIBLE_DEVICES`` pinned;
+    ``workers`` of them spread over the GPUs in turn, if given) or, for ``cpu``, ``workers`` of them (default one
+    per core). Returns (cluster, device seen by workers).
+
+    Scheduler, nannies and workers listen on 127.0.0.1 only, serve no dashboard and speak TLS with mutual
+    authentication under credentials made for this cluster alone (:func:`cluster_security`): a Dask worker executes
+    whatever pickled function reaches it, so nothing of a local cluster may be reachable from another host, nor
+    usable by another local user (a client without the credentials cannot complete a handshake on any of its
+    ports); their work folders live in the user's private folder, not in the shared temporary folder. Other hosts
+    join only through an external scheduler (``--scheduler``; docs/sweeps.md, "Security").
+    The worker processes ignore SIGINT (the client stops them)."""
+    import logging
+
+    from distributed import Nanny, Scheduler, SpecCluster
+
+    if device == "cpu":
+        n = workers or os.cpu_count() or 1
+        envs = [{} for _ in range(n)]
+        worker_device = "cpu"
+    else:
+        ords = cuda_ordinals(device)
+        visible = os.environ.get("CUDA_VISIBLE_DEVICES")
+        names = visible.split(",") if visible else [str(i) for i in range(max(ords) + 1)]
+        n = workers or per_gpu * len(ords)
+        envs = [{"CUDA_VISIBLE_DEVICES": names[ords[i % len(ords)]]} for i in range(n)]
+        worker_device = "cuda:0"
+    # every process on loopback and behind TLS with this cluster's own credentials: a Dask worker runs the pickled
+    # functions sent to it
+    security = cluster_security()
+    scratch = str(private_dir("dask"))  # Dask's work folders and their lock files: not in the shared /tmp
+    opts = {
+        "nthreads": 1,
+        "memory_limit": 0,
+        "silence_logs": logging.ERROR,
+        "host": LOOPBACK,
+        "dashboard": False,
+        "dashboard_address": f"{LOOPBACK}:0",
+        "preload": [_WORKER_PRELOAD],
+        "security": security,
+        "protocol": "tls",
+        "local_directory": scratch,
+    }
+    spec = {f"w{i}": {"cls": Nanny, "options": {**opts, "env": env}} for i, env in enumerate(envs)}
+    scheduler = {
+        "dashboard": False,
+        "dashboard_address": f"{LOOPBACK}:0",
+        "host": LOOPBACK,
+        "protocol": "tls",
+        "local_directory": scratch,
+    }
+    cluster = SpecCluster(
+        workers=spec,
+        scheduler={"cls": Scheduler, "options": {**scheduler, "security": security}},
+        security=security,
+        silence_logs=logging.ERROR,
+        name="aca-warp-sweep",
+    )
+    return cluster, worker_device
+
+
+def cluster_security() -> Any:
+    """TLS credentials for one local cluster (``distributed.Security.temporary()``): a key and self-signed
+    certificate made in memory for this sweep call, given to its scheduler, nannies, workers and client only (the
+    worker processes receive them from their nanny through a pipe, not a file), with encryption required. A
+    connection without them fails the TLS handshake, so another user of the host can neither connect to the
+    cluster's ports nor run a task on its workers. Needs ``cryptography`` (the ``sweep`` extra)."""
+    from distributed import Security
+
+    try:
+        return Security.temporary()
+    except ImportError:
+        raise SweepError(
+            "a local Dask cluster is secured with TLS, which needs the cryptography package: "
+            "pip install 'aca-warp[sweep]' (or cryptography), or run with --workers 0"
+        ) from None
+
+
+def warm_workers(client: Any, device: str) -> dict[str, float]:
+    """Load (compile or fetch from the kernel cache) the HF kernel modules on every worker: address -> [s]."""
+    from aca_warp.bench import load_modules
+
+    def load(dev: str) -> float:
+        import warp as wp
+
+        wp.config.log_level = wp.LOG_WARNING
+        return load_modules(wp.get_device(dev))
+
+    return client.run(load, device)
+
+
+def _have_dask() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("distributed") is not None
+
+
+CONNECT_TIMEOUT_S = 10.0  # how long a sweep waits for the scheduler at --scheduler to answer [s]
+
+
+def check_scheduler(address: str, timeout: float | None = None) -> None:
+    """Connect once to the Dask scheduler at ``address`` (with the client's TLS settings from Dask's configuration)
+    and close again, before a sweep writes anything: :class:`SweepError` with one line for an address Dask cannot
+    parse or a scheduler that does not answer within ``timeout`` [s] (default :data:`CONNECT_TIMEOUT_S`)."""
+    import asyncio
+    from concurrent.futures import ThreadPoolExecutor
+
+    try:
+        from distributed.comm import connect
+        from distributed.security import Security
+    except ImportError:
+        raise SweepError("Dask is not installed: pip install 'aca-warp[sweep]' (or dask[distributed])") from None
+
+    timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
+
+    async def probe() -> None:
+        comm = await connect(address, timeout=timeout, **Security().get_connection_args("client"))
+        await comm.close()
+
+    pool = ThreadPoolExecutor(1, thread_name_prefix="aca-warp-probe")  # its own event loop, whoever calls
+    try:
+        pool.submit(asyncio.run, probe()).result()
+    except ValueError as e:
+        raise SweepError(
+            f"--scheduler {address!r} is not a Dask scheduler address ({e}); e.g. tcp://HOST:8786"
+        ) from None
+    except OSError as e:
+        why = "" if "Timed out" in str(e) else f" ({e})"
+        raise SweepError(
+            f"no Dask scheduler answered at {address} within {timeout:g} s{why}; start it (dask scheduler) or check "
+            "the address"
+        ) from None
+    finally:
+        pool.shutdown(wait=False)
+
+
+WORKERS_PER_GPU = 2  # local Dask workers per GPU in the overlapped path (one runs while the other builds)
+
+
+def _not_sync_cancel_error(record: Any) -> bool:
+    """Logging filter: False for distributed's own error when a ``sync`` call that a signal interrupted is cancelled
+    (``NameError: cannot access free variable 'future'`` in ``distributed.utils.sync.<locals>.cancel``, logged by
+    tornado as "Exception in callback functools.partial(<function sync.<locals>.cancel ...>)"): harmless, since the
+    sweep stops anyway, and not the one line a stopped sweep prints."""
+    return "sync.<locals>.cancel" not in record.getMessage()
+
+
+def _drop_sync_cancel_errors() -> None:
+    """Filter those records (:func:`_not_sync_cancel_error`) out of tornado's callback log in this process."""
+    import logging
+
+    log = logging.getLogger("tornado.application")
+    if _not_sync_cancel_error not in log.filters:
+        log.addFilter(_not_sync_cancel_error)
+
+
+def _run_on_dask(
+    book: _Book,
+    args: tuple,
+    device: str,
+    workers: int | None,
+    scheduler: str | None,
+    client: Any,
+    memory_fraction: float,
+    overlap: bool,
+    preparer: Preparer | None = None,
+) -> None:
+    """Run ``book.todo`` as Dask tasks (a local cluster, a scheduler's, or ``client``'s); ``preparer``: the shards'
+    scenes made ahead and sent with the tasks (:func:`_feed`)."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise SweepError(
+            "Dask is not installed: pip install 'aca-warp[sweep]' (or dask[distributed]), or run with --workers 0"
+        ) from None
+    _drop_sync_cancel_errors()
+    cluster = None
+    own_client = client is None
+    futures: dict[Any, int] = {}
+    interrupted = False
+    token = uuid.uuid4().hex  # this call's tasks, for stop_sweep
+    try:
+        if client is not None:
+            worker_device = "cuda:0" if device.startswith("cuda") else device
+            sharing = len(client.scheduler_info(n_workers=-1)["workers"]) if device == "cpu" else 1
+        elif scheduler is None:
+            per_gpu = WORKERS_PER_GPU if overlap else 1
+            cluster, worker_device = local_cluster(device, workers, per_gpu=per_gpu)
+            client = Client(cluster)
+            sharing = _max_sharing(cluster, device)
+        else:
+            if not scheduler.startswith("tls://"):
+                print(
+                    f"aca-warp: note: {scheduler} is not a tls:// address: that cluster is not authenticated, anyone "
+                    "who reaches its scheduler runs code on its workers (docs/sweeps.md, Security)",
+                    file=sys.stderr,
+                )
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)  # TLS settings, if any, from Dask's configuration
+            worker_device = "cuda:0" if device == "cuda" else device
+            sharing = 1
+        book.result.workers = len(client.scheduler_info(n_workers=-1)["workers"])
+        book.say(f"running {len(book.todo)} shard(s) on {book.result.workers} Dask worker(s), device {worker_device}")
+        spec_hash = book.manifest["spec_hash"]
+
+        def submit(i: int, prepared: PreparedShard | None) -> Any:
+            fut = client.submit(
+                shard_task,
+                *args,
+                i,
+                worker_device,
+                memory_fraction=memory_fraction,
+                sharing=sharing,
+                overlap=overlap,
+                token=token,
+                prepared=prepared,
+                key=f"shard-{spec_hash[:12]}-{i}",
+                pure=False,
+            )
+            futures[fut] = i
+            return fut
+
+        _feed(book, submit, preparer, window=2 * book.result.workers)
+    except BaseException:  # KeyboardInterrupt: stop the tasks, mark the shards that were running, close quietly
+        interrupted = True
+        if client is None:
+            book.stopped(set())
+        else:
+            _stop_tasks(client, futures, token, book)
+        raise
+    finally:
+        _close(client if own_client else None, cluster, quiet=interrupted)
+
+
+def shard_task(
+    doc: dict,
+    base_dir: str,
+    out_dir: str,
+    index: int,
+    device: str,
+    *,
+    memory_fraction: float,
+    sharing: int,
+    overlap: bool,
+    token: str,
+    prepared: PreparedShard | None = None,
+) -> dict:
+    """:func:`~aca_warp.sweep.shard.run_shard` as a Dask task that :func:`~aca_warp.sweep.overlap.stop_sweep`
+    (``token``) stops at its next chunk or phase: its ``.partial`` is deleted and ``{"index", "state":
+    "interrupted"}`` returned."""
+    ctx = ShardContext(overlap=overlap, cancel=stop_event(token))
+    try:
+        return run_shard(
+            doc,
+            base_dir,
+            out_dir,
+            index,
+            device,
+            memory_fraction=memory_fraction,
+            sharing=sharing,
+            ctx=ctx,
+            prepared=prepared,
+        )
+    except ShardCancelled:
+        return {"index": index, "state": "interrupted"}
+
+
+def _feed(
+    book: _Book, submit: Callable[[int, PreparedShard | None], Any], preparer: Preparer | None, window: int
+) -> None:
+    """Hand ``book.todo`` to Dask in order (``submit``) and record the tasks as they finish.
+
+    Without a ``preparer`` every shard is submitted at once (its task makes its own scenes). With one, a shard is
+    submitted with its prepared scenes once they are ready and fewer than ``window`` of its tasks are unfinished (so
+    that prepared shards wait in the pool's results, not in the cluster's memory); a shard whose preparation raised
+    (or whose pool process died) is recorded failed, not submitted."""
+    from distributed import as_completed
+
+    todo = deque(book.todo)
+    index: dict[Any, int] = {}
+    running = as_completed()
+    if preparer is not None:
+        preparer.plan(book.todo)
+    while todo or not running.is_empty():
+        handed = []
+        while todo and (preparer is None or (running.count() < window and preparer.poll(todo[0]))):
+            i = todo.popleft()
+            try:
+                prepared = None if preparer is None else preparer.get(i)
+            except Exception as e:  # noqa: BLE001  (recorded as the shard's failure)
+                book.failed(i, _one_line(e))
+                continue
+            fut = submit(i, prepared)
+            index[fut] = i
+            running.add(fut)
+            handed.append(i)
+        if handed:
+            book.queued(handed)
+        finished = [] if running.is_empty() else running.next_batch(block=not todo)
+        for fut in finished:
+            try:
+                summary = fut.result()
+            except Exception as e:  # a worker died (KilledWorker) or the shard raised: record, go on
+                book.failed(index[fut], _one_line(e))
+                continue
+            if summary["state"] != "interrupted":  # (stopped by another client's stop_sweep: left to book.stopped)
+                book.done(index[fut], summary)
+        if todo and not handed and not finished:
+            time.sleep(0.02)  # a preparation, or room in the window, to wait for
+
+
+STOP_WAIT_S = 60.0  # how long a stopped sweep waits for its running tasks to reach their next chunk [s]
+
+
+def _stop_tasks(client: Any, futures: dict[Any, int], token: str, book: _Book) -> None:
+    """A sweep on Dask stops: queued tasks are cancelled, running ones told to stop (they delete their ``.partial``
+    at their next chunk) and waited for, then the manifest is written (:meth:`_Book.stopped`: a shard that finished
+    meanwhile is recorded as its file says)."""
+    from distributed import wait
+
+    running = _running_shards(client, futures)
+    with contextlib.suppress(Exception):
+        client.cancel([f for f, i in futures.items() if i not in running])
+        client.run(stop_sweep, token)
+        wait([f for f, i in futures.items() if i in running], timeout=STOP_WAIT_S)
+    book.stopped(running)
+
+
+def _max_sharing(cluster: Any, device: str) -> int:
+    """Workers of a local cluster that share one device: all of them on the CPU, else the most on one GPU."""
+    if device == "cpu":
+        return len(cluster.workers)
+    seen: dict[str, int] = {}
+    for w in cluster.worker_spec.values():
+        gpu = w["options"].get("env", {}).get("CUDA_VISIBLE_DEVICES", "")
+        seen[gpu] = seen.get(gpu, 0) + 1
+    return max(seen.values(), default=1)
+
+
+def _running_shards(client: Any, futures: dict[Any, int]) -> set[int]:
+    """Shards whose task a worker is executing now (all unfinished ones if the workers cannot be asked)."""
+    keys = {fut.key: i for fut, i in futures.items()}
+
+    def executing(dask_worker: Any) -> list:
+        return [str(ts.key) for ts in dask_worker.state.executing]
+
+    try:
+        running = client.run(executing)
+        return {keys[k] for ks in running.values() for k in ks if k in keys}
+    except Exception:  # noqa: BLE001  (a cluster going down: assume every unfinished shard had begun)
+        return {i for fut, i in futures.items() if not fut.done()}
+
+
+def _close(client: Any, cluster: Any, *, quiet: bool) -> None:
+    """Close a client and a local cluster; ``quiet`` (the sweep was stopped): without the shutdown chatter of workers
+    stopped mid-task, and without raising."""
+    import logging
+
+    if not quiet:
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+        return
+    loggers = [logging.getLogger(n) for n in ("distributed", "tornado", "asyncio")]
+    levels = [q.level for q in loggers]
+    for q in loggers:
+        q.setLevel(logging.CRITICAL + 1)
+    try:
+        if client is not None:
+            with contextlib.suppress(Exception):
+                client.close(timeout=10)
+        if cluster is not None:
+            with contextlib.suppress(Exception):
+                cluster.close(timeout=20)
+    finally:
+        for q, lv in zip(loggers, levels, strict=True):
+            q.setLevel(lv)

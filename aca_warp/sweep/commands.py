@@ -1,0 +1,151 @@
+"""The ``aca-warp sweep`` command: its parser and handler (signals: one line, exit 130 / 143, shards marked
+``interrupted``; the sweep itself is :func:`aca_warp.sweep.run.run_sweep`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from aca_warp.common import interrupts
+from aca_warp.sweep.manifest import MANIFEST, read_manifest
+from aca_warp.sweep.run import run_sweep
+from aca_warp.sweep.spec import SweepError, load_spec
+
+EPILOG = """\
+SPEC is a TOML sweep spec (docs/sweeps.md; example: aca_warp/data/sweep_hf1.toml). DIR receives manifest.json and
+one HDF5 file per shard. A rerun in the same DIR skips finished shards and redoes unfinished ones.
+Examples:
+  aca-warp sweep aca_warp/data/sweep_hf1.toml -o sweep_out --workers 2            # two CPU worker processes
+  aca-warp sweep aca_warp/data/sweep_hf1.toml -o sweep_out --device cuda          # two workers per GPU
+  aca-warp sweep aca_warp/data/sweep_hf1.toml -o sweep_out --device cuda --scheduler tls://host:8786
+Exit codes: 0 every shard finished, 2 bad input, 3 some shard stopped on a fault or failed (rerun to retry),
+4 a shard file could not be written (disk full), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM); after an
+interrupt the manifest marks the shards that were running "interrupted" and a rerun finishes them.
+"""
+
+
+def add_parsers(sub: Any) -> None:
+    """Register ``aca-warp sweep``."""
+    from aca_warp.common.argtypes import fraction, int_at_least, positive
+    from aca_warp.hf.options import INTEGRATORS
+
+    p = sub.add_parser(
+        "sweep",
+        help="run a parameter sweep (many pads, batched, sharded, resumable; Dask for several workers)",
+        description="Expand a TOML sweep spec into pads, run them in shards of batched pads and write one HDF5 "
+        "file per shard plus a manifest. Several GPUs, CPU cores or hosts through Dask distributed.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=EPILOG,
+    )
+    p.add_argument("spec", metavar="SPEC", help="TOML sweep spec")
+    p.add_argument("-o", "--output", required=True, metavar="DIR", help="sweep directory (created if missing)")
+    p.add_argument(
+        "--device", default="cpu", help="cpu (default), cuda (every GPU), cuda:N, or a list such as cuda:0,cuda:1"
+    )
+    p.add_argument(
+        "--shard-size", type=int_at_least(1), metavar="N", help="pads per shard (default: the spec's, else 64)"
+    )
+    g = p.add_mutually_exclusive_group()
+    g.add_argument(
+        "--workers",
+        type=int_at_least(0),
+        metavar="N",
+        help="local Dask workers (default: one per GPU, or one per CPU core for cpu); 0 runs in this process",
+    )
+    g.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="use the Dask cluster at this scheduler address: tls://HOST:PORT with your own TLS certificates in "
+        "Dask's configuration (distributed.comm.tls.*); a plain tcp:// address is accepted but is NOT "
+        "authenticated: anyone who can reach that scheduler runs code on its workers (docs/sweeps.md, Security). "
+        "Without it the local cluster listens on 127.0.0.1 only, behind TLS with credentials of its own",
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace a different sweep in DIR")
+    p.add_argument("--duration", type=positive, metavar="S", help="simulated time per pad [s] (default: the spec's)")
+    p.add_argument("--integrator", choices=INTEGRATORS, help="time integrator (default: the spec's, else strang)")
+    p.add_argument("--precision", choices=("fp32", "fp64"), help="state precision (default: the spec's, else fp64)")
+    p.add_argument("--dt", type=positive, metavar="S", help="fixed step [s] (default: the spec's, else 1e-8)")
+    p.add_argument(
+        "--memory-fraction",
+        type=fraction,
+        default=0.5,
+        metavar="F",
+        help="share of free device memory one batch may use (default 0.5); larger shards are split",
+    )
+    p.add_argument(
+        "--no-overlap",
+        dest="overlap",
+        action="store_false",
+        help="the serial path: one worker per GPU, one shard at a time per worker, writes inline (same results); "
+        "default: model builds and writes overlap the kernels (docs/sweeps.md)",
+    )
+    p.add_argument(
+        "--prepare",
+        type=int_at_least(0),
+        metavar="N",
+        help="processes that make the shards' scenes ahead of their runs (default: 2 per GPU of a local CUDA sweep, "
+        "else 0: each shard task makes its own)",
+    )
+    p.add_argument("--quiet", action="store_true", help="print only the summary")
+    p.set_defaults(handler=_cmd_sweep)
+
+
+def _interrupted_line(out: str, e: KeyboardInterrupt) -> str:
+    """The one line printed when a sweep is stopped by a signal."""
+    what = "terminated (SIGTERM)" if isinstance(e, interrupts.Terminated) else "interrupted"
+    try:
+        m = read_manifest(out)
+    except SweepError:
+        m = None
+    if m is None:
+        return f"aca-warp: {what}; nothing was run"
+    hit = [str(s["index"]) for s in m.get("shards", []) if s.get("state") == "interrupted"]
+    done = sum(s.get("state") in ("done", "fault") for s in m.get("shards", []))
+    shards = f"shard(s) {', '.join(hit)} marked interrupted" if hit else "no shard was running"
+    return (
+        f"aca-warp: {what}; {done} of {len(m.get('shards', []))} shard(s) finished, {shards} in "
+        f"{Path(out) / MANIFEST}; run the same command again to finish the sweep"
+    )
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    spec = load_spec(
+        args.spec,
+        shard_size=args.shard_size,
+        duration=args.duration,
+        integrator=args.integrator,
+        precision=args.precision,
+        dt=args.dt,
+    )
+    log = None if args.quiet else (lambda s: print(s, flush=True))
+    if log:
+        log(
+            f"sweep {spec.name!r}: {spec.pad_count} pads ({', '.join(spec.parameters) or 'base only'}), "
+            f"{spec.shard_count} shard(s) of {spec.shard_size}, {spec.duration:g} s each, "
+            f"{spec.integrator} {spec.precision}, spec hash {spec.hash[:12]}"
+        )
+    try:
+        with interrupts.second_signal_exits():  # the signals are the command line's (aca_warp.cli.main)
+            res = run_sweep(
+                spec,
+                args.output,
+                device=args.device,
+                workers=args.workers,
+                scheduler=args.scheduler,
+                overwrite=args.overwrite,
+                memory_fraction=args.memory_fraction,
+                log=log,
+                overlap=args.overlap,
+                prepare=args.prepare,
+            )
+    except KeyboardInterrupt as e:
+        print(_interrupted_line(args.output, e), file=sys.stderr, flush=True)
+        return interrupts.exit_code(e)
+    rate = res.patch_steps / max(res.wall_time, 1e-12)
+    print(
+        f"{args.output}: {len(res.ran)} shard(s) run, {len(res.skipped)} skipped, {len(res.faults)} stopped on a "
+        f"fault, {len(res.failed)} failed; {res.wall_time:.3g} s wall, {rate:.3g} patch-steps/s overall"
+    )
+    return 3 if res.failed or res.faults else 0

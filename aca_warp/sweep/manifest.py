@@ -1,0 +1,284 @@
+"""The sweep directory: its manifest (written only by the client), the record of a sweep call, and reading results.
+
+:func:`prepare_dir` creates or reopens a directory and verifies every shard's state against its file;
+:class:`_Book` records what a sweep call does (:data:`SHARD_STATES`; docs/sweeps.md, "Manifest states") and writes
+the manifest atomically at every change; :func:`load_sweep` reads the finished shards into one dict.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from aca_warp.sweep.shard import shard_finished, shard_name
+from aca_warp.sweep.spec import FORMAT, SweepError, SweepSpec
+
+MANIFEST = "manifest.json"
+# the states of a shard in the manifest (docs/sweeps.md, "Manifest states")
+SHARD_STATES = ("pending", "queued", "done", "fault", "failed", "interrupted")
+
+
+# ------------------------------------------------------------------------------------------- manifest
+
+
+def _write_json(path: Path, doc: dict) -> None:
+    """Write ``doc`` to ``path`` atomically (a temporary file, created exclusively and never through a link, then a
+    rename); a full device keeps the old one."""
+    from aca_warp.common.links import create_new
+    from aca_warp.common.storage import storage_errno, storage_error
+
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        with os.fdopen(create_new(tmp, "temporary manifest"), "w") as fh:
+            fh.write(json.dumps(doc, indent=1, default=str))
+        os.replace(tmp, path)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        code = storage_errno(e)
+        if code is None:
+            raise
+        raise storage_error(code, path, "it keeps its previous state; make room and run the sweep again") from None
+
+
+def read_manifest(out_dir: str | Path) -> dict | None:
+    """The manifest of a sweep directory, or None when there is none."""
+    p = Path(out_dir) / MANIFEST
+    if not p.is_file():
+        return None
+    from aca_warp.common.bounds import check_nesting
+    from aca_warp.common.errors import SceneError
+
+    try:
+        text = p.read_text()
+        check_nesting(text, str(p))
+        return json.loads(text)
+    except (json.JSONDecodeError, UnicodeDecodeError, SceneError) as e:
+        raise SweepError(f"{p} is not a sweep manifest ({e}); remove it or pass --overwrite") from None
+
+
+def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False) -> dict:
+    """Create or reopen the sweep directory; returns the manifest with every shard's verified state.
+
+    A directory that holds another sweep (different spec hash) is refused unless ``overwrite``, which removes
+    that sweep's manifest and shard files (nothing else). The caller holds the directory's lock
+    (:func:`run_sweep`); a shard still being written by a worker of an earlier sweep is refused.
+    """
+    from aca_warp.common.files import locked_output
+
+    d = Path(out_dir)
+    if d.exists() and not d.is_dir():
+        raise SweepError(f"{d} exists and is not a directory")
+    d.mkdir(parents=True, exist_ok=True)
+    old = read_manifest(d)
+    stray = sorted(d.glob("shard-*.h5*"))
+    if (old is not None and old.get("spec_hash") != spec.hash) or (old is None and stray):
+        if not overwrite:
+            if old is not None:
+                what = f"a different sweep ({old.get('name', '?')!r}, spec hash {str(old.get('spec_hash'))[:12]})"
+            else:
+                what = f"{len(stray)} shard file(s) without a manifest"
+            raise SweepError(
+                f"{d} holds {what}, not this spec (hash {spec.hash[:12]}); "
+                "pass --overwrite to replace it, or choose another output directory"
+            )
+        for p in stray:
+            with locked_output(d / p.name.removesuffix(".partial"), what="it belongs to a sweep that still runs"):
+                p.unlink(missing_ok=True)
+        (d / MANIFEST).unlink(missing_ok=True)
+        old = None
+    shards = []
+    for i in range(spec.shard_count):
+        a, b = spec.shard_range(i)
+        prev = (old or {}).get("shards", [])
+        entry = dict(prev[i]) if i < len(prev) else {}
+        entry.update(index=i, file=shard_name(i), pad_start=a, pad_stop=b)
+        verified = shard_finished(d / shard_name(i), spec.hash, a, b)
+        if verified is None:
+            entry["state"] = "pending"
+            with locked_output(d / shard_name(i), what="a worker of an earlier sweep still runs; stop it first"):
+                (d / (shard_name(i) + ".partial")).unlink(missing_ok=True)
+        elif entry.get("state") != verified:
+            entry["state"] = verified  # the worker finished; the client died before recording it
+        shards.append(entry)
+    manifest = {
+        "format": FORMAT,
+        "name": spec.name,
+        "spec_hash": spec.hash,
+        "spec": spec.doc,
+        "base_dir": str(spec.base_dir),
+        "pads": spec.pad_count,
+        "shard_size": spec.shard_size,
+        "pad_order": "spec" if spec.order is None else "patch_count",
+        "parameters": list(spec.parameters),
+        "run": spec.run_settings(),
+        "shards": shards,
+    }
+    _write_json(d / MANIFEST, manifest)
+    return manifest
+
+
+# ------------------------------------------------------------------------------------------ sweep calls
+
+
+@dataclass
+class SweepResult:
+    """What a sweep call did.
+
+    Attributes:
+        out_dir: The sweep directory.
+        ran: Indices of the shards run by this call, ascending.
+        skipped: Indices of the shards found finished and skipped.
+        failed: Shard index -> error text, for shards that raised (state ``failed``; rerun to retry).
+        faults: Indices of shards whose run stopped on a non-finite value (state ``fault``).
+        wall_time: Wall time of the whole call, cluster start included [s].
+        patch_steps: Patch-steps done by this call.
+        workers: Number of workers used (0: this process).
+        summaries: The summaries of the shards run (:func:`run_shard`), in the order they finished.
+        interrupted: Shards stopped by an interrupt (state ``interrupted``; set before the interrupt is raised).
+    """
+
+    out_dir: Path
+    ran: list[int]
+    skipped: list[int]
+    failed: dict[int, str]
+    faults: list[int]
+    wall_time: float
+    patch_steps: int
+    workers: int
+    summaries: list[dict] = field(default_factory=list)
+    interrupted: list[int] = field(default_factory=list)
+
+
+def _one_line(e: BaseException) -> str:
+    """``Type: first line of the message`` of an error, for the manifest and the log."""
+    text = str(e).strip().splitlines()
+    return f"{type(e).__name__}: {text[0]}" if text else type(e).__name__
+
+
+class _Book:
+    """The client's record of a sweep call: the manifest (written atomically at every change) and the result."""
+
+    def __init__(self, spec: SweepSpec, out: Path, manifest: dict, say: Callable[[str], None]) -> None:
+        self.out, self.manifest, self.say = out, manifest, say
+        self.spec_hash = spec.hash
+        shards = manifest["shards"]
+        self.todo = [s["index"] for s in shards if s["state"] not in ("done", "fault")]
+        skipped = [s["index"] for s in shards if s["state"] in ("done", "fault")]
+        if skipped:
+            say(f"{len(skipped)} of {spec.shard_count} shard(s) already finished, skipped")
+        self.result = SweepResult(out, [], skipped, {}, [], 0.0, 0, 0)
+        self.recorded: set[int] = set()
+
+    def save(self) -> None:
+        _write_json(self.out / MANIFEST, self.manifest)
+
+    def queued(self, indices: list[int]) -> None:
+        for i in indices:
+            self.manifest["shards"][i]["state"] = "queued"
+        self.save()
+
+    def done(self, index: int, summary: dict) -> None:
+        entry = self.manifest["shards"][index]
+        entry.pop("error", None)
+        entry.update({k: v for k, v in summary.items() if k != "index"})
+        self.recorded.add(index)
+        self.result.ran.append(index)
+        self.result.patch_steps += int(summary["patch_steps"])
+        self.result.summaries.append(summary)
+        if summary["state"] == "fault":
+            self.result.faults.append(index)
+        kernel = summary.get("timings", {}).get("kernel") or summary["wall_time"]
+        self.say(
+            f"shard {index}: {summary['pads']} pads, {summary['state']} on {summary['device_name']}, "
+            f"{summary['patch_steps'] / max(kernel, 1e-12):.3g} patch-steps/s"
+        )
+        self.save()
+
+    def failed(self, index: int, error: str) -> None:
+        entry = self.manifest["shards"][index]
+        entry["state"] = "failed"
+        entry["error"] = error
+        self.recorded.add(index)
+        self.result.failed[index] = error
+        self.say(f"shard {index}: failed: {error}")
+        self.save()
+
+    def stopped(self, started: set[int]) -> list[int]:
+        """The sweep stops: shards of this call not recorded are ``interrupted`` (begun), ``pending`` (not begun) or,
+        when their file says so, ``done``/``fault`` (a worker finished it as the stop came); returns the interrupted
+        ones. The manifest is written even if a second signal comes (best effort)."""
+        hit = []
+        for i in self.todo:
+            if i in self.recorded:
+                continue
+            entry = self.manifest["shards"][i]
+            finished = shard_finished(self.out / entry["file"], self.spec_hash, entry["pad_start"], entry["pad_stop"])
+            if finished is not None:
+                entry["state"] = finished
+                self.result.skipped.append(i)  # finished, but its summary was not received: not counted as run
+            elif i in started:
+                entry["state"] = "interrupted"
+                hit.append(i)
+            else:
+                entry["state"] = "pending"
+        self.result.interrupted = hit
+        self.save()
+        return hit
+
+
+def load_sweep(out_dir: str | Path) -> dict[str, Any]:
+    """Read every finished shard of a sweep directory into one dict, pads in global order (rows placed by each
+    file's ``/pads/index``: shards of pads packed by size hold pads from all over the sweep).
+
+    Keys: ``time`` (samples,) [s] of the first shard, the global outputs (pads, samples), ``parameters``
+    (key -> (pads,)), ``pad_index`` (pads,), ``manifest``. Shards with different sample counts (a fault) are
+    padded with NaN.
+    """
+    from aca_warp.common.errors import SceneError
+    from aca_warp.common.files import open_h5
+    from aca_warp.hf.recorder import GLOBAL_NAMES
+
+    d = Path(out_dir)
+    manifest = read_manifest(d)
+    if manifest is None:
+        raise SweepError(f"{d} has no {MANIFEST}: not a sweep directory")
+    parts: list[dict] = []
+    for s in manifest["shards"]:
+        if s["state"] not in ("done", "fault"):
+            continue
+        try:
+            with open_h5(d / s["file"], "shard", text=("parameters",)) as f:  # links, declared sizes checked first
+                parts.append(
+                    {
+                        "time": f["global/time"][()],
+                        **{k: f["global"][k][()] for k in GLOBAL_NAMES},
+                        "parameters": {k: v[()] for k, v in f["parameters"].items()},
+                        "pad_index": f["pads/index"][()],
+                    }
+                )
+        except SceneError as e:
+            raise SweepError(f"{e}; remove it and rerun the sweep") from None
+        except (OSError, RuntimeError, KeyError, ValueError, TypeError) as e:  # missing, truncated or damaged
+            raise SweepError(
+                f"cannot read shard {d / s['file']} ({type(e).__name__}: {e}); remove it and rerun the sweep"
+            ) from None
+    if not parts:
+        raise SweepError(f"{d}: no finished shard yet")
+    width = max(len(p["time"]) for p in parts)
+
+    def pad_cols(a: np.ndarray) -> np.ndarray:
+        return a if a.shape[1] == width else np.pad(a, ((0, 0), (0, width - a.shape[1])), constant_values=np.nan)
+
+    order = np.argsort(np.concatenate([p["pad_index"] for p in parts]), kind="stable")
+    out: dict[str, Any] = {"time": max((p["time"] for p in parts), key=len), "manifest": manifest}
+    for k in GLOBAL_NAMES:
+        out[k] = np.concatenate([pad_cols(p[k]) for p in parts])[order]
+    out["parameters"] = {k: np.concatenate([p["parameters"][k] for p in parts])[order] for k in parts[0]["parameters"]}
+    out["pad_index"] = np.concatenate([p["pad_index"] for p in parts])[order]
+    return out

@@ -1,0 +1,200 @@
+"""Running a sweep: every unfinished shard of a spec, in this process (serial or overlapped threads) or on Dask.
+
+:func:`run_sweep` holds the directory's lock, prepares the manifest and hands the shards to one of three paths:
+:func:`_run_in_process` (one shard after another), :func:`_run_in_process_overlapped` (:data:`PIPELINE_DEPTH`
+shard tasks in threads: one steps while the next prepares its scenes and file, samples written behind the run), or
+:func:`~aca_warp.sweep.cluster._run_on_dask`; on every path a :class:`~aca_warp.sweep.prepare.Preparer` may make the
+shards' scenes ahead in a pool of processes (:func:`prepare_processes`). A ``KeyboardInterrupt`` stops the shards in
+flight, marks them ``interrupted`` and is raised again.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from aca_warp.common.errors import StorageError
+from aca_warp.sweep.cluster import WORKERS_PER_GPU, _have_dask, _run_on_dask, check_scheduler, cuda_ordinals
+from aca_warp.sweep.manifest import MANIFEST, SweepResult, _Book, _one_line, prepare_dir
+from aca_warp.sweep.overlap import ShardCancelled, ShardContext
+from aca_warp.sweep.prepare import Preparer
+from aca_warp.sweep.shard import run_shard, shard_name
+from aca_warp.sweep.spec import SweepError, SweepSpec
+
+
+def run_sweep(
+    spec: SweepSpec,
+    out_dir: str | Path,
+    *,
+    device: str = "cpu",
+    workers: int | None = None,
+    scheduler: str | None = None,
+    overwrite: bool = False,
+    memory_fraction: float = 0.5,
+    log: Callable[[str], None] | None = None,
+    client: Any = None,
+    overlap: bool = True,
+    prepare: int | None = None,
+) -> SweepResult:
+    """Run every unfinished shard of ``spec`` into ``out_dir``.
+
+    ``workers=0`` runs the shards in this process (no Dask). Otherwise a local Dask cluster is started
+    (``workers`` processes; default :data:`WORKERS_PER_GPU` per GPU of ``device`` with ``overlap``, else one, or
+    one per CPU core for ``cpu``), or the cluster at ``scheduler`` is used (its workers run on ``device``: ``cuda``
+    there means each worker's first visible GPU), or an open Dask ``client`` (``device`` as for a scheduler; see
+    :func:`local_cluster`; a scheduler that does not answer within :data:`~aca_warp.sweep.cluster.CONNECT_TIMEOUT_S`
+    is refused before anything is written). ``overlap`` (default): file writes, and on Dask model builds, overlap
+    the kernels (in this
+    process: :data:`PIPELINE_DEPTH` shard tasks in threads, each one's Warp work in its turn; on Dask: two worker
+    processes per GPU; both: a writer thread per shard and the device taken in turns, :class:`KernelTurn`); False:
+    the serial path, same results bit for bit. ``prepare``: processes that make the shards' scenes ahead of their
+    tasks (:mod:`aca_warp.sweep.prepare`; 0: each task makes its own; None: :func:`prepare_processes`), same results
+    bit for bit. The manifest is updated as shards finish. A ``KeyboardInterrupt``
+    (Ctrl-C, or SIGTERM as the CLI maps it) stops the shards in flight, marks them ``interrupted`` in the manifest
+    (the next call runs them) and is raised again.
+    """
+    t0 = time.perf_counter()
+    say = log or (lambda s: None)
+    out = Path(out_dir)
+    if device != "cpu" and scheduler is None and client is None:
+        cuda_ordinals(device)  # validate before anything is written
+    if out.exists() and not out.is_dir():
+        raise SweepError(f"{out} exists and is not a directory")
+    if scheduler is not None and client is None:
+        check_scheduler(scheduler)  # a bad address or no answer: one line, nothing written
+    out.mkdir(parents=True, exist_ok=True)
+    from aca_warp.common.files import locked_output
+
+    # one sweep per directory: held until the last shard is recorded
+    with locked_output(out / MANIFEST, what="wait for that sweep to finish or stop it"):
+        manifest = prepare_dir(spec, out, overwrite=overwrite)
+        book = _Book(spec, out, manifest, say)
+        book.result.workers = 0
+        if book.todo:
+            args = (spec.doc, str(spec.base_dir), str(out.resolve()))
+            if workers is None and scheduler is None and client is None and not _have_dask():
+                say("Dask is not installed (pip install 'aca-warp[sweep]'): running the shards in this process")
+                workers = 0
+            local = scheduler is None and client is None
+            processes = prepare_processes(device, workers, local) if prepare is None else prepare
+            preparer = Preparer(*args[:2], processes, ahead=2 * processes) if processes > 0 else None
+            try:
+                if workers == 0 and local:
+                    dev = device if device == "cpu" else f"cuda:{cuda_ordinals(device)[0]}"
+                    run = _run_in_process_overlapped if overlap else _run_in_process
+                    run(book, args, dev, memory_fraction, preparer)
+                else:
+                    _run_on_dask(book, args, device, workers, scheduler, client, memory_fraction, overlap, preparer)
+            finally:
+                if preparer is not None:
+                    preparer.close()
+        book.result.ran.sort()
+        book.result.wall_time = time.perf_counter() - t0
+        return book.result
+
+
+PREPARE_PER_GPU = 2  # default preparation processes per GPU of a local sweep (prepare_processes)
+
+
+def prepare_processes(device: str, workers: int | None, local: bool) -> int:
+    """Default size of the preparation pool: on CUDA :data:`PREPARE_PER_GPU` per GPU of a local sweep (a cluster
+    this call starts, or this process), at most the cores its workers leave; 0 (each task makes its own scenes) on
+    the CPU, whose cores the workers use, and with a scheduler or client given (their hosts are not known here)."""
+    if device == "cpu" or not local:
+        return 0
+    gpus = len(cuda_ordinals(device))
+    busy = gpus * WORKERS_PER_GPU if workers is None else workers
+    return max(1, min(PREPARE_PER_GPU * gpus, (os.cpu_count() or 1) - busy - 1))
+
+
+def _run_in_process(book: _Book, args: tuple, dev: str, memory_fraction: float, preparer: Preparer | None) -> None:
+    """The serial path: one shard after another in this thread (``preparer``: scenes made ahead)."""
+    running: set[int] = set()
+    if preparer is not None:
+        preparer.plan(book.todo)
+    try:
+        for i in book.todo:
+            running = {i}
+            book.queued([i])
+            try:
+                prepared = None if preparer is None else preparer.get(i)
+                summary = run_shard(*args, i, dev, memory_fraction=memory_fraction, prepared=prepared)
+            except StorageError as e:  # the device is full: the other shards would fail the same way
+                book.failed(i, _one_line(e))
+                book.stopped(set())
+                raise
+            except Exception as e:  # e.g. a pad whose combination of values is invalid: as on a Dask worker
+                (book.out / (shard_name(i) + ".partial")).unlink(missing_ok=True)
+                book.failed(i, _one_line(e))
+                continue
+            book.done(i, summary)
+    except KeyboardInterrupt:  # run_shard has dropped the shard's .partial (or its file finished: adopted)
+        book.stopped(running)
+        raise
+
+
+PIPELINE_DEPTH = 2  # shard tasks at a time in one process (overlapped path): one runs, one prepares and writes
+
+
+def _run_in_process_overlapped(
+    book: _Book, args: tuple, dev: str, memory_fraction: float, preparer: Preparer | None
+) -> None:
+    """The overlapped path in this process: :data:`PIPELINE_DEPTH` shard tasks in threads, kernels in turns
+    (``preparer``: scenes made ahead)."""
+    from concurrent.futures import ThreadPoolExecutor, as_completed, wait
+
+    cancel = threading.Event()
+    ctx = ShardContext(overlap=True, cancel=cancel)
+    started: set[int] = set()
+
+    def task(i: int) -> dict:
+        started.add(i)
+        prepared = None if preparer is None else preparer.get(i, cancel)
+        return run_shard(*args, i, dev, memory_fraction=memory_fraction, ctx=ctx, prepared=prepared)
+
+    if preparer is not None:
+        preparer.plan(book.todo)
+    book.queued(book.todo)
+    pool = ThreadPoolExecutor(max_workers=PIPELINE_DEPTH, thread_name_prefix="aca-warp-shard")
+    futures = {pool.submit(task, i): i for i in book.todo}
+
+    def take(fut: Any) -> BaseException | None:
+        """Record a finished task; returns a storage error or a stop, which end the sweep."""
+        i = futures[fut]
+        try:
+            book.done(i, fut.result())
+        except ShardCancelled as e:
+            return e
+        except StorageError as e:
+            book.failed(i, _one_line(e))
+            return e
+        except Exception as e:
+            (book.out / (shard_name(i) + ".partial")).unlink(missing_ok=True)
+            book.failed(i, _one_line(e))
+        return None
+
+    end: BaseException | None = None
+    try:
+        for fut in as_completed(futures):
+            end = take(fut)
+            if end is not None:
+                break
+    except BaseException as e:  # KeyboardInterrupt in this (the main) thread
+        end = e
+    if end is None:
+        pool.shutdown()
+        return
+    cancel.set()  # the others stop at their next chunk or phase
+    for fut in futures:
+        fut.cancel()
+    wait([f for f in futures if not f.cancelled()])
+    pool.shutdown()
+    for fut, i in futures.items():
+        if fut.done() and not fut.cancelled() and i not in book.recorded:
+            take(fut)
+    book.stopped(started)
+    raise end

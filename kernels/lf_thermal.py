@@ -1,0 +1,114 @@
+"""LF kernels of the temperatures: the disc rings (radial conduction, backward Euler by the Thomas algorithm) and
+their thermal bulge, the pad cells and the patches against their ring and the pad bulk (docs/lf_model.md).
+"""
+
+from __future__ import annotations
+
+import warp as wp
+from aca_warp.kernels.lf_types import LFCells, LFParams, LFPatches, LFRings, disc_radius
+
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.kernel
+def disc_temperature(
+    p: LFParams,
+    # State in/out (the rings' temperatures and bulge):
+    rings: LFRings,
+    work: wp.array[wp.float64],
+):
+    """Backward Euler of the ring temperatures with radial conduction (Thomas algorithm; dim = 1).
+
+    C_k dT_k/dt = γ P_k − h A_k (T_k − T_amb) + G_k−½ (T_k−1 − T_k) + G_k+½ (T_k+1 − T_k);
+    then the thermal bulge Δz_k = κ α d (T_k − T_amb) toward the pad.
+    """
+    n = p.n_r
+    dt = p.dt
+    two_pi = wp.float64(2.0 * wp.pi)
+    # work: [0, n) c' (super-diagonal), [n, 2n) d'; the recurrences carry c'_k−1, d'_k−1 and T_k+1 in registers
+    cp = wp.float64(0.0)
+    dp = wp.float64(0.0)
+    for k in range(n):
+        r = rings.r[k]
+        C = p.rho_d * p.c_d * two_pi * r * p.dr * p.d_d
+        hA = p.h_conv * wp.float64(2.0) * two_pi * r * p.dr
+        g_lo = wp.float64(0.0)
+        g_hi = wp.float64(0.0)
+        if k > 0:
+            g_lo = p.k_d * two_pi * (r - wp.float64(0.5) * p.dr) * p.d_d / p.dr
+        if k < n - 1:
+            g_hi = p.k_d * two_pi * (r + wp.float64(0.5) * p.dr) * p.d_d / p.dr
+        diag = C / dt + hA + g_lo + g_hi
+        rhs = C / dt * rings.T[k] + p.gamma_disc * rings.power[k] + hA * p.T_amb
+        a = -g_lo
+        c = -g_hi
+        if k > 0:
+            m = diag - a * cp
+            cp = c / m
+            dp = (rhs - a * dp) / m
+        else:
+            cp = c / diag
+            dp = rhs / diag
+        work[k] = cp
+        work[n + k] = dp
+    T_next = dp
+    rings.T[n - 1] = T_next
+    for kk in range(n - 1):
+        k = n - 2 - kk
+        T_next = work[n + k] - work[k] * T_next
+        rings.T[k] = T_next
+    for k in range(n):
+        rings.bulge[k] = p.kappa_d * p.alpha_d * p.d_d * (rings.T[k] - p.T_amb)
+
+
+@wp.func
+def implicit_temperature(
+    c_dt: wp.float64, T: wp.float64, q: wp.float64, g_d: wp.float64, T_d: wp.float64, g_b: wp.float64, T_b: wp.float64
+) -> wp.float64:
+    """Backward Euler of C dT/dt = q + g_d (T_d − T) + g_b (T_b − T): the new temperature [K] from ``c_dt`` = C/Δt
+    [W/K], the heat input q [W] and the conductances to the disc ring (g_d, at T_d) and the bulk (g_b, at T_b)."""
+    return (c_dt * T + q + g_d * T_d + g_b * T_b) / (c_dt + g_d + g_b)
+
+
+@wp.kernel
+def pad_temperature(
+    p: LFParams,
+    n_cells: wp.int32,
+    # State in/out (the cells' and patches' temperatures):
+    cells: LFCells,
+    rings: LFRings,
+    patches: LFPatches,
+):
+    """Backward Euler of a pad cell (t < C) or patch (t ≥ C) temperature against its disc ring and the pad bulk.
+
+    Cell: C_e = ρ_p c_p A_e t_eff, heated by (1 − γ) P_e, contact conductance h_pd a_e to the ring while in
+    contact, k_p A_e / L_b to the bulk at T_amb. Patch: C_i = ρ_p c_p A_i t_eff, (1 − γ) P_i, flash
+    (constriction) conductance 4 k_d a_i to the ring while loaded, k_p A_i / L_b to its cell. Cells are
+    updated in the same launch, so a patch couples to its cell's previous temperature (operator split).
+    """
+    t = wp.tid()
+    dt = p.dt
+    if t < n_cells:
+        A = cells.area[t]
+        C = p.rho_p * p.c_p * A * p.t_eff
+        g_d = wp.float64(0.0)
+        if cells.fn[t] > wp.float64(0.0):
+            g_d = p.h_pd * A
+        g_b = p.k_p * A / p.L_b
+        Td = rings.T[t / p.n_t]
+        q = (wp.float64(1.0) - p.gamma_disc) * cells.power[t]
+        cells.T[t] = implicit_temperature(C / dt, cells.T[t], q, g_d, Td, g_b, p.T_amb)
+        return
+    i = t - n_cells
+    if patches.alive[i] == 0:
+        return
+    A = patches.area[i]
+    e = patches.cell[i]
+    C = p.rho_p * p.c_p * A * p.t_eff
+    g_d = wp.float64(0.0)
+    if patches.fn[i] > wp.float64(0.0):
+        g_d = wp.float64(4.0) * p.k_d * disc_radius(A)
+    g_b = p.k_p * A / p.L_b
+    Td = rings.T[e / p.n_t]
+    q = (wp.float64(1.0) - p.gamma_disc) * patches.power[i]
+    patches.temp[i] = implicit_temperature(C / dt, patches.temp[i], q, g_d, Td, g_b, cells.T[e])

@@ -1,0 +1,488 @@
+"""The HF model's physics as Warp functions, one home per term: every engine's kernels call them (the general and
+adaptive kernels, both on-chip kernels), so a change of the model is made here only.
+
+Equation of motion of patch i (paper §2.1.2, docs/model.md §2.2), u along the local disc direction:
+
+    m_i ü_i + c_i u̇_i + k_T,i u_i + Σ_j k_ij (u_i − u_j) = F_N,i f(ω r_i − u̇_i),
+    k_ij = K_C √A_i √A_j / D0_ij,   f(v) = (M/π) atan(a v) (1/(b|v| + 1) + 1)   (Eq. 4, signed).
+
+* friction: the law f (:func:`friction_coefficient`, also the LF automaton's patch friction) and the
+  friction/damping sub-step of a patch over a step (:func:`friction_substep`), which every Strang path, general and
+  on-chip, takes through :func:`strang_velocity` and :func:`strang_close_velocity`;
+* per-patch terms: the coupling gather F_s,i = Σ_j k_ij u_j − k_diag,i u_i (:func:`spring_force`; the on-chip
+  shared-memory gather sums the links in the same order, :mod:`aca_warp.kernels.hf_onchip_gather`), the net force
+  of the explicit schemes (:func:`patch_force`), growth (Eq. 10, :func:`grow_patch`) and the coupling stiffness it
+  changes (Eq. 3, :func:`patch_coupling`);
+* contact: one pad's normal forces on the flat matrix (:func:`contact_block`);
+* samples: a patch's terms of a sample (:func:`patch_sample`), the block sums, the globals row
+  (:func:`write_globals`), the watchdog and the per-patch histories (:func:`record_pad` puts them together).
+
+Functions are generic in the state precision T (float32 or float64 arguments; sample sums in float64); those that read
+the model's or the recorder's arrays take them as one struct, ``model`` (:data:`~aca_warp.kernels.hf_types.HFModel`)
+or ``rec`` (:data:`~aca_warp.kernels.hf_types.HFRecorder`). SI units: velocities in m/s, forces in N, masses in kg,
+times in s.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False})
+
+N_GLOBAL = 6  # mu, torque, friction radius, Σ u̇, Σ|u̇|, friction centroid
+# the float64 sums of a sample: Σ F_i, Σ F_i r_i, Σ u̇_i, Σ |u̇_i|, Σ F_i x_i, Σ F_i y_i
+SampleSums = wp.types.vector(length=6, dtype=wp.float64)
+
+
+# ---------------------------------------------------------------------------------------------- friction
+
+
+@wp.func
+def friction_coefficient(vp: Any, mu_scale: Any, slope: Any, decay: Any):
+    """Signed Eq. 4: f(vp) = mu_scale atan(slope vp)(1/(decay|vp| + 1) + 1), mu_scale = M/π."""
+    one = type(vp)(1.0)
+    return mu_scale * wp.atan(slope * vp) * (one / (decay * wp.abs(vp) + one) + one)
+
+
+@wp.func
+def friction_pair(vp: Any, mu_scale: Any, slope: Any, decay: Any):
+    """(f(vp), df/dvp) of :func:`friction_coefficient`, sharing one atan [1, s/m]."""
+    one = type(vp)(1.0)
+    at = wp.atan(slope * vp)
+    rq = one / (decay * wp.abs(vp) + one)
+    da = slope / (one + slope * slope * vp * vp)
+    return mu_scale * at * (rq + one), mu_scale * (da * (rq + one) - at * decay * wp.sign(vp) * rq * rq)
+
+
+@wp.func
+def solve_velocity(a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any):
+    """Solve a·v − hfn·f(vd − v) = b for v (a > 0, hfn ≥ 0): per-patch implicit friction.
+
+    Works on the increment δ = v − guess, so the convergence test is relative to the size of the step's
+    velocity change (meaningful in fp32 too). |f| ≤ 2 mu_scale π/2 brackets δ in
+    [(r − hfn f_max)/a, (r + hfn f_max)/a], r = b − a·guess; safeguarded Newton (bisection whenever a Newton
+    step would leave the bracket) converges for any step size. It stops at an exact root, or when the
+    Newton step or the bracket is below ``tol`` times (|r| + hfn f_max)/a: a smooth patch costs two
+    friction evaluations per solve.
+    """
+    fmax = mu_scale * type(a)(3.141592653589793)
+    r = b - a * guess
+    lo = (r - hfn * fmax) / a
+    hi = (r + hfn * fmax) / a
+    dtol = tol * (wp.abs(r) + hfn * fmax) / a
+    vp0 = vd - guess
+    zero = a - a
+    d = wp.clamp(zero, lo, hi)
+    for _it in range(60):
+        f, df = friction_pair(vp0 - d, mu_scale, slope, decay)
+        g = a * d - hfn * f - r
+        if g == zero:
+            break
+        if g > zero:
+            hi = d
+        else:
+            lo = d
+        dg = a + hfn * df
+        dn = d - g / dg
+        # Bisect only when Newton would leave the bracket. A step that rounds to d itself (the root found to the
+        # last bit, where d is also a bracket end) is accepted and converges: treating dn == lo/hi as leaving made
+        # ~13 % of fp32 patches on an H100 bisect ~20 times per solve (scripts/profile_onchip.py, docs/onchip.md).
+        if dg <= zero or dn < lo or dn > hi:
+            dn = type(a)(0.5) * (lo + hi)
+        converged = wp.abs(dn - d) <= dtol or hi - lo <= dtol
+        d = dn
+        if converged:
+            break
+    return guess + d
+
+
+@wp.func
+def friction_substep(
+    v: Any, dt: Any, m: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any
+):
+    """The friction/damping sub-step of a patch: m v̇ = F_N f(vd − v) − c v over dt from velocity v, by the
+    implicit midpoint rule (second order, A-stable); returns the velocity after it [m/s].
+
+    Solves m (v_m − v) = dt/2 (F_N f(vd − v_m) − c v_m) for the midpoint velocity (:func:`solve_velocity`),
+    returns 2 v_m − v. ``m`` mass [kg], ``c`` damping [N s/m], ``fn`` normal force [N], ``vd`` disc speed ω r [m/s].
+    """
+    half = type(v)(0.5) * dt
+    vm = solve_velocity(m + half * c, m * v, half * fn, vd, v, mu_scale, slope, decay, tol)
+    return type(v)(2.0) * vm - v
+
+
+# ---------------------------------------------------------------------------------------------- per-patch terms
+
+
+@wp.func
+def spring_force(i: int, u: wp.array[Any], model: Any):
+    """Elastic force on patch i: Σ_j k_ij u_j − (k_T,i + Σ_j k_ij) u_i [N] (``model``: an
+    :data:`~aca_warp.kernels.hf_types.HFModel`, its CSR and k_diag).
+
+    Two partial sums break the dependency chain of the gather (about 30 % faster on the CPU): the even links of the
+    row into the first, the odd ones into the second; the order of summation is fixed, so results stay
+    bit-reproducible, and every gather of the engines sums in this order.
+    """
+    a0 = u[i] - u[i]
+    a1 = a0
+    e = model.nbr_start[i]
+    end = model.nbr_start[i + 1]
+    while e + 1 < end:
+        a0 += model.nbr_stiffness[e] * u[model.nbr_index[e]]
+        a1 += model.nbr_stiffness[e + 1] * u[model.nbr_index[e + 1]]
+        e += 2
+    if e < end:
+        a0 += model.nbr_stiffness[e] * u[model.nbr_index[e]]
+    return (a0 + a1) - model.k_diag[i] * u[i]
+
+
+@wp.func
+def patch_force(fs: Any, v: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any):
+    """Net force on a patch [N]: elastic force ``fs`` + friction F_N f(vd − v) − damping c v, at velocity ``v``
+    [m/s], disc speed ``vd`` = ω r [m/s], normal force ``fn`` [N] and damping ``c`` [N s/m]."""
+    return fs + fn * friction_coefficient(vd - v, mu_scale, slope, decay) - c * v
+
+
+@wp.func
+def strang_velocity(
+    first: int,
+    w: Any,
+    fs: Any,
+    dt: Any,
+    im: Any,
+    c: Any,
+    fn: Any,
+    vd: Any,
+    mu_scale: Any,
+    slope: Any,
+    decay: Any,
+    tol: Any,
+):
+    """Strang's velocity update of one step of a patch, before its drift u ← u + dt v; ``fs`` the cached F_s(uₙ)
+    [N], ``im`` = 1/m [1/kg]. ``first`` ≠ 0, the opening half step from the synchronous velocity ``w``: the
+    friction/damping sub-step over dt/2, then the half kick dt/2 · F_s/m. Otherwise a merged step on the staggered
+    velocity ``w``: kick dt/2, friction/damping sub-step over dt, kick dt/2 (the closing friction half of step n and
+    the opening half of step n+1 are one sub-step). Returns the staggered velocity (the one just before the next
+    half kick)."""
+    half = dt * type(dt)(0.5)
+    if first != 0:
+        return friction_substep(w, half, type(dt)(1.0) / im, c, fn, vd, mu_scale, slope, decay, tol) + half * im * fs
+    kick = half * im * fs
+    return friction_substep(w + kick, dt, type(dt)(1.0) / im, c, fn, vd, mu_scale, slope, decay, tol) + kick
+
+
+@wp.func
+def strang_close_velocity(
+    w: Any, fs: Any, dt: Any, im: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any
+):
+    """The synchronous velocity of a patch from its staggered ``w`` and F_s(uₙ) ``fs``: half kick, then the
+    friction/damping sub-step over dt/2."""
+    half = dt * type(dt)(0.5)
+    return friction_substep(w + half * im * fs, half, type(dt)(1.0) / im, c, fn, vd, mu_scale, slope, decay, tol)
+
+
+@wp.func
+def grow_patch(i: int, p: int, model: Any):
+    """One growth event of patch i of pad p (paper Eq. 10): A ← A + g √A, then m, k_T, k_N, c follow the area
+    (written into ``model``'s arrays; g its ``pad_growth``)."""
+    a = model.area[i]
+    a = a + model.pad_growth[p] * wp.sqrt(a)
+    s = wp.sqrt(a)
+    m = model.pad_mass_per_area[p] * a
+    kt = model.pad_k_t[p] * s
+    model.area[i] = a
+    model.sqrt_area[i] = s
+    model.inv_mass[i] = type(a)(1.0) / m
+    model.k_t[i] = kt
+    model.k_n[i] = model.pad_k_n[p] * s
+    model.damping[i] = type(a)(2.0) * model.pad_zeta[p] * wp.sqrt(kt * m)
+
+
+@wp.func
+def link_stiffness(ki: Any, sqrt_area_j: Any, inv_dist: Any):
+    """k_ij = K_C √A_i √A_j / D0_ij [N/m] (paper Eq. 3) from ``ki`` = K_C √A_i, √A_j and 1/D0_ij."""
+    return ki * sqrt_area_j * inv_dist
+
+
+@wp.func
+def patch_coupling(i: int, p: int, model: Any):
+    """k_ij (:func:`link_stiffness`) for every link of patch i of pad p [N/m] and k_T,i + Σ_j k_ij, into ``model``'s
+    ``nbr_stiffness`` and ``k_diag``."""
+    ki = model.pad_kc[p] * model.sqrt_area[i]
+    d = model.k_t[i]
+    for e in range(model.nbr_start[i], model.nbr_start[i + 1]):
+        k = link_stiffness(ki, model.sqrt_area[model.nbr_index[e]], model.nbr_inv_dist[e])
+        model.nbr_stiffness[e] = k
+        d += k
+    model.k_diag[i] = d
+
+
+# ---------------------------------------------------------------------------------------------- contact
+
+
+@wp.func
+def contact_block(
+    pad: int, lane: int, threads: int, model: Any, gap: wp.float64, out_start: int, out_end: int, writer: bool
+) -> wp.float64:
+    """Re-solve the normal forces of one pad on a flat matrix at elevation 0 (one thread block per pad).
+
+    Σ_i k_N,i max(h_i − g, 0) + k_m a_free max(−g, 0) = F_N by Newton from the left of the root (monotone
+    and exact on a piecewise-linear convex function), warm-started from the previous gap; it stops when the step
+    falls below 1e-15 of the gap or stops being positive (the rounding floor of the block sums; with the first
+    test alone, the re-solve late in the varying-area study cost 7.3 µs per step on the H100 against 1.0 µs after
+    this stop, docs/onchip.md). Launch with
+    ``wp.launch_tiled(dim=[pads], block_dim=B)``; ``threads`` is the block size the device runs (B on CUDA, 1 on
+    the CPU): thread ``lane`` sums patches lane, lane + B, … and the block reduces the sums, so every thread
+    sees the same values and takes the same branches (the block-wide reductions stay outside per-thread code).
+    Every thread of the block must call it (block-wide reductions inside).
+
+    ``model``: the pad's :data:`~aca_warp.kernels.hf_types.HFModel` (its patch stiffnesses k_N, heights, areas and
+    radii, the pad's area, first moment, matrix stiffness and load). ``gap``: the previous gap g [m] (the warm
+    start); returns the new one (unchanged when the load is 0), which the caller stores. Writes the model's normal
+    forces of the patches ``out_start`` … ``out_end − 1`` only (global indices; the pad's whole range on the
+    general path, a block's own part in a cluster, where every block of the cluster solves the same contact
+    redundantly) and, when ``writer``, the pad's matrix force and radius.
+    """
+    s = model.pad_patch_start[pad]
+    e = model.pad_patch_start[pad + 1]
+    zero = wp.float64(0.0)
+    load = wp.float64(model.pad_load[pad])
+    covered = zero
+    moment = zero
+    hmin = zero
+    ktot = zero
+    i = s + lane
+    while i < e:
+        covered += wp.float64(model.area[i])
+        moment += wp.float64(model.area[i] * model.radius[i])
+        hmin = wp.min(hmin, wp.float64(model.height[i]))
+        ktot += wp.float64(model.k_n[i])
+        i += threads
+    covered = wp.tile_sum(wp.tile(covered))[0]
+    moment = wp.tile_sum(wp.tile(moment))[0]
+    hmin = wp.tile_min(wp.tile(hmin))[0]
+    ktot = wp.tile_sum(wp.tile(ktot))[0]
+    free = wp.max(model.pad_area[pad] - covered, zero)
+    km = model.pad_k_m[pad] * free
+    ktot += km
+    if free > zero and lane == 0 and writer:
+        model.pad_matrix_radius[pad] = type(model.pad_load[pad])((model.pad_moment[pad] - moment) / free)
+    g = gap
+    if load > zero:
+        for it in range(200):
+            fp = zero
+            kp = zero
+            i = s + lane
+            while i < e:
+                d = wp.float64(model.height[i]) - g
+                if d > zero:
+                    fp += wp.float64(model.k_n[i]) * d
+                    kp += wp.float64(model.k_n[i])
+                i += threads
+            f = km * wp.max(-g, zero) + wp.tile_sum(wp.tile(fp))[0]
+            kact = wp.tile_sum(wp.tile(kp))[0]
+            if g < zero:
+                kact += km
+            if it == 0 and f < load:
+                g = hmin - load / ktot  # restart left of the root, where every element is compressed
+                continue
+            if kact <= zero:
+                break
+            dg = (f - load) / kact
+            if dg <= zero:  # from the left of the root Newton only moves right: here f = F_N to rounding
+                break
+            g = g + dg
+            if dg <= wp.float64(1.0e-15) * (wp.abs(g) + wp.float64(1.0e-9)):
+                break
+    i = out_start + lane
+    while i < out_end:
+        f_i = zero
+        if load > zero:
+            f_i = wp.float64(model.k_n[i]) * wp.max(wp.float64(model.height[i]) - g, zero)
+        model.normal_force[i] = type(model.pad_load[pad])(f_i)
+        i += threads
+    if lane == 0 and writer:
+        if load > zero:
+            model.pad_matrix_force[pad] = type(model.pad_load[pad])(km * wp.max(-g, zero))
+        else:
+            model.pad_matrix_force[pad] = type(model.pad_load[pad])(0.0)
+    return g
+
+
+# ---------------------------------------------------------------------------------------------- samples
+
+
+@wp.func
+def sign_or_zero(x: Any):
+    """−1, 0 or 1 (``wp.sign`` returns 1 at 0: a disc at rest must give no matrix friction)."""
+    zero = x - x
+    if x > zero:
+        return type(x)(1.0)
+    if x < zero:
+        return type(x)(-1.0)
+    return zero
+
+
+@wp.func
+def patch_sample(v: Any, fn: Any, r: Any, x: Any, y: Any, omega: Any, mu_scale: Any, slope: Any, decay: Any):
+    """One patch's terms of the sample sums at velocity ``v`` [m/s], normal force ``fn`` [N], radius ``r`` and
+    position (``x``, ``y``) [m]: its friction force F = F_N f(ω r − v) [N], F r [N m], v, |v| [m/s], F x, F y [N m]."""
+    f = fn * friction_coefficient(omega * r - v, mu_scale, slope, decay)
+    return SampleSums(
+        wp.float64(f), wp.float64(f * r), wp.float64(v), wp.float64(wp.abs(v)), wp.float64(f * x), wp.float64(f * y)
+    )
+
+
+@wp.func
+def block_sums(s: SampleSums):
+    """The sums of every thread's ``s`` over the block (block-wide reductions: every thread must call it)."""
+    return SampleSums(
+        wp.tile_sum(wp.tile(s[0]))[0],
+        wp.tile_sum(wp.tile(s[1]))[0],
+        wp.tile_sum(wp.tile(s[2]))[0],
+        wp.tile_sum(wp.tile(s[3]))[0],
+        wp.tile_sum(wp.tile(s[4]))[0],
+        wp.tile_sum(wp.tile(s[5]))[0],
+    )
+
+
+@wp.func
+def write_globals(
+    rec: Any,
+    row: int,
+    pad: int,
+    s: SampleSums,
+    omega: Any,
+    mu_pad: Any,
+    matrix_force: Any,
+    matrix_radius: Any,
+    load: Any,
+):
+    """Write one pad's sample row into ``rec.globals``: μ, torque [N m], friction radius [m], Σu̇, Σ|u̇| [m/s],
+    friction centroid [m] from the pad's :data:`SampleSums` ``s`` and the matrix's Coulomb friction μ_pad F_m sign(ω)
+    at radius r_m.
+
+    μ = (Σ F_i + μ_pad F_m sign ω)/F_N (0 without load); friction radius r_eff = T / total friction force (matrix
+    included); friction centroid = |Σ F_i r⃗_i| / |Σ F_i|, the distance from the disc axis of the centroid of the
+    patches' friction forces (the matrix, whose friction does not vibrate and whose cells carry no angular
+    position, is left out; 0 when the patch forces sum to 0)."""
+    fsum = s[0]
+    fm = wp.float64(mu_pad * matrix_force * sign_or_zero(omega))
+    ftot = fsum + fm
+    ttot = s[1] + fm * wp.float64(matrix_radius)
+    mu = wp.float64(0.0)
+    reff = wp.float64(0.0)
+    if wp.float64(load) > wp.float64(0.0):
+        mu = ftot / wp.float64(load)
+    if ftot != wp.float64(0.0):
+        reff = ttot / ftot
+    rec.globals[row, pad, 0] = mu
+    rec.globals[row, pad, 1] = ttot
+    rec.globals[row, pad, 2] = reff
+    rec.globals[row, pad, 3] = s[2]
+    rec.globals[row, pad, 4] = s[3]
+    centroid = wp.float64(0.0)
+    if fsum != wp.float64(0.0):
+        centroid = wp.sqrt(s[4] * s[4] + s[5] * s[5]) / wp.abs(fsum)
+    rec.globals[row, pad, 5] = centroid
+
+
+@wp.func
+def energy_speed2(v: Any, u: Any, k_t: Any, inv_mass: Any) -> wp.float64:
+    """The watchdog's squared energy speed of a patch, s² = u̇² + (k_T/m) u² = 2E/m [m²/s²] (E: its kinetic and
+    own-spring energy), in float64."""
+    ui = wp.float64(u)
+    return wp.float64(v) * wp.float64(v) + wp.float64(k_t * inv_mass) * ui * ui
+
+
+@wp.func
+def flag_fault(rec: Any, pad: int, k: int, broken: bool, bad: int, runaway: int, n: int, value: wp.float64):
+    """The pad's first fault at sample k (rec.fault[pad] = [patch, sample, kind], kept once set): kind 0 when
+    ``broken`` (a non-finite u or u̇; ``bad`` its first patch), else kind 1 when ``runaway`` < ``n`` (a patch whose
+    energy speed √(:func:`energy_speed2`) = ``value`` [m/s] exceeds the pad's bound; rec.fault_value[pad] = value)."""
+    if rec.fault[pad, 0] >= 0:
+        return
+    if broken:
+        rec.fault[pad, 0] = bad
+        rec.fault[pad, 1] = k
+        rec.fault[pad, 2] = 0
+    elif runaway < n:
+        rec.fault[pad, 0] = runaway
+        rec.fault[pad, 1] = k
+        rec.fault[pad, 2] = 1
+        rec.fault_value[pad] = value
+
+
+@wp.func
+def patch_sample_due(rec: Any, k: int) -> bool:
+    """Whether global sample k also records per-patch histories (``rec``'s window [first, last], every n-th)."""
+    return k >= rec.first and k <= rec.last and (k - rec.first) % rec.every == 0
+
+
+@wp.func
+def store_patch_sample(rec: Any, row: int, g: int, v: Any, u: Any):
+    """Patch g's u̇ (and u, when its buffer has rows) into row ``row`` of ``rec``'s per-patch histories."""
+    rec.velocity[row, g] = v
+    if rec.displacement.shape[0] > 0:
+        rec.displacement[row, g] = u
+
+
+@wp.func
+def record_pad(
+    pad: int,
+    lane: int,
+    threads: int,
+    row: int,
+    k: int,
+    model: Any,
+    # State in:
+    u_in: wp.array[Any],
+    v_in: wp.array[Any],
+    rec: Any,
+):
+    """Sample k of pad ``pad`` (lane ``lane`` of its block of ``threads``) of the state (``u_in``, ``v_in``) of
+    ``model`` (an :data:`~aca_warp.kernels.hf_types.HFModel`) into globals row ``row`` of ``rec`` (an
+    :data:`~aca_warp.kernels.hf_types.HFRecorder`, :func:`write_globals`); flags the first faulty patch
+    (:func:`flag_fault`).
+
+    Each of the block's ``threads`` lanes sums the patches lane, lane + threads, … in float64 (:func:`patch_sample`),
+    and the block adds the lanes' sums; with one lane (a CPU block) that is the sum in patch order. Watchdog: a
+    non-finite u or u̇, or a patch whose energy speed exceeds ``rec.watch_bound[pad]`` [m/s]; "first" is the lowest
+    patch index.
+    """
+    a = model.pad_patch_start[pad]
+    n = model.pad_patch_start[pad + 1] - a
+    sums = SampleSums()
+    omega = model.pad_omega[pad]
+    bound2 = rec.watch_bound[pad] * rec.watch_bound[pad]
+    runaway = n  # the lane's first patch beyond the bound (n: none)
+    broken = n  # the lane's first patch with a non-finite u or u̇ (n: none)
+    i = lane
+    while i < n:
+        g = a + i
+        v = v_in[g]
+        sums += patch_sample(
+            v, model.normal_force[g], model.radius[g], model.x[g], model.y[g], omega, model.pad_mu_scale[pad],
+            model.pad_slope[pad], model.pad_decay[pad],
+        )  # fmt: skip
+        if energy_speed2(v, u_in[g], model.k_t[g], model.inv_mass[g]) > bound2 and runaway == n:
+            runaway = i
+        if broken == n and not (wp.isfinite(v) and wp.isfinite(wp.float64(u_in[g]))):
+            broken = i
+        i += threads
+    sums = block_sums(sums)
+    runaway = wp.tile_min(wp.tile(runaway))[0]
+    broken = wp.tile_min(wp.tile(broken))[0]
+    if lane != 0:
+        return
+    write_globals(
+        rec, row, pad, sums, omega, model.pad_mu_pad[pad], model.pad_matrix_force[pad],
+        model.pad_matrix_radius[pad], model.pad_load[pad],
+    )  # fmt: skip
+    value = wp.float64(0.0)
+    if runaway < n:
+        g = a + runaway
+        value = wp.sqrt(energy_speed2(v_in[g], u_in[g], model.k_t[g], model.inv_mass[g]))
+    flag_fault(rec, pad, k, broken < n, broken, runaway, n, value)

@@ -1,0 +1,195 @@
+"""Shards prepared ahead in a pool of processes: the same results as tasks that prepare their own shards, on every
+path (serial, overlapped threads, Dask), and a failed preparation is its shard's failure, never a hang."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import threading
+import time
+from concurrent.futures.process import BrokenProcessPool
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import psutil
+import pytest
+
+from aca_warp.hf.recorder import GLOBAL_NAMES
+from aca_warp.sweep import load_spec, load_sweep, run_sweep
+from aca_warp.sweep.prepare import Preparer, prepare_shard
+
+# 2 M x 2 seeds x 2 loads = 8 pads of 20 patches in 3 shards (the last of 2 pads); 3 µs simulated
+SMALL = {
+    "sweep": {"base": "hf1", "shard_size": 3, "name": "small"},
+    "run": {"duration": 3e-6, "precision": "fp32"},
+    "base": {"patches": {"count": 20}},
+    "parameters": {
+        "friction.M": [0.6, 0.8],
+        "patches.seed": [1, 2],
+        "load.normal_force": [300.0, 450.0],
+    },
+}
+
+
+def _spec(tmp_path: Path | None = None) -> object:
+    """The small sweep; with ``tmp_path``, its base scene a TOML file there (base.toml) instead of the preset."""
+    doc = json.loads(json.dumps(SMALL))
+    if tmp_path is not None:
+        (tmp_path / "base.toml").write_text(resources.files("aca_warp.data").joinpath("hf1.toml").read_text())
+        doc["sweep"]["base"] = "base.toml"
+    return load_spec(doc, base_dir=tmp_path or Path.cwd())
+
+
+def _outputs(d: Path) -> dict:
+    s = load_sweep(d)
+    return {k: s[k] for k in ("time", "pad_index", *GLOBAL_NAMES)}
+
+
+def _in_time(fn, seconds: float = 180.0):
+    """``fn()`` in a thread; fails the test (instead of hanging it) when it has not returned within ``seconds``."""
+    out: dict = {}
+
+    def call() -> None:
+        try:
+            out["value"] = fn()
+        except BaseException as e:  # noqa: BLE001  (raised again in the test's thread)
+            out["error"] = e
+
+    t = threading.Thread(target=call, daemon=True)
+    t.start()
+    t.join(seconds)
+    assert not t.is_alive(), f"still running after {seconds} s"
+    if "error" in out:
+        raise out["error"]
+    return out["value"]
+
+
+@pytest.mark.parametrize("overlap", [False, True])
+def test_prepared_shards_give_the_same_files(tmp_path: Path, overlap: bool) -> None:
+    """In this process, serial and overlapped: shards prepared by a pool of two processes give every output of every
+    pad bit for bit as shards that prepare themselves; their timings say what the pool spent (prepare_ahead)."""
+    spec = _spec()
+    runs = {}
+    for prepare in (0, 2):
+        out = tmp_path / f"p{prepare}"
+        res = run_sweep(spec, out, workers=0, overlap=overlap, prepare=prepare)
+        assert res.ran == [0, 1, 2] and not res.failed
+        assert all(("prepare_ahead" in s["timings"]) == (prepare > 0) for s in res.summaries)
+        runs[prepare] = _outputs(out)
+    for k, v in runs[0].items():
+        assert v.tobytes() == runs[2][k].tobytes(), k
+
+
+def test_prepare_shard_equals_the_spec() -> None:
+    """A prepared shard holds the spec's pads and scenes for it (patches shared between pads of one layout)."""
+    spec = _spec()
+    p = prepare_shard(spec.doc, str(spec.base_dir), 1)
+    assert p.index == 1 and p.pads.tolist() == [3, 4, 5] and p.spec.hash == spec.hash
+    want = spec.scenes([3, 4, 5])
+    for got, ref in zip(p.scenes, want, strict=True):
+        assert got.patches.x.tobytes() == ref.patches.x.tobytes() and got.normal_force == ref.normal_force
+    assert p.scenes[1].patches is p.scenes[2].patches  # pads 4 and 5: seed 1
+
+
+@pytest.mark.parametrize("prepare", [0, 1])
+def test_failed_preparation_fails_its_shards(tmp_path: Path, prepare: int) -> None:
+    """The base scene file vanishes after the spec was read: every shard's preparation raises (in the pool, or in the
+    task), every shard is recorded failed with that error, and the sweep returns (no hang)."""
+    spec = _spec(tmp_path)
+    (tmp_path / "base.toml").unlink()
+    res = _in_time(lambda: run_sweep(spec, tmp_path / "out", workers=0, prepare=prepare))
+    assert sorted(res.failed) == [0, 1, 2] and res.ran == []
+    assert all("neither a preset" in e for e in res.failed.values()), res.failed
+    manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
+    assert [s["state"] for s in manifest["shards"]] == ["failed"] * 3
+
+
+def _pool_processes(before: set[int] = frozenset()) -> list[psutil.Process]:
+    """The pool's worker processes among this process's children (not multiprocessing's resource tracker), leaving
+    out the children in ``before`` (processes of earlier tests in this worker, e.g. Dask's, are spawned too)."""
+    return [p for p in psutil.Process().children() if p.pid not in before and "spawn_main" in " ".join(p.cmdline())]
+
+
+def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
+    """A pool process killed while it prepares a shard: waiting for that shard raises (BrokenProcessPool) instead of
+    waiting for ever."""
+    doc = json.loads(json.dumps(SMALL))
+    doc["base"]["patches"] = {"count": 6000, "area_min": 2e-9, "area_max": 4e-9}  # seconds of placement per layout
+    doc["sweep"]["shard_size"] = 8
+    spec = load_spec(doc, base_dir=Path.cwd())
+    before = {p.pid for p in psutil.Process().children()}
+    prep = Preparer(spec.doc, str(spec.base_dir), processes=1, ahead=1)
+    try:
+        prep.plan([0])
+        deadline = time.monotonic() + 60
+        while not (kids := _pool_processes(before)) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        # killed as soon as it exists: a spawned process needs seconds to import and place 6000 patches, so the kill
+        # lands before the preparation can finish on any machine (a fixed wait of 1 s did not on a fast idle one)
+        assert kids and not prep.poll(0)
+        for k in kids:
+            k.kill()
+        with pytest.raises(BrokenProcessPool):
+            _in_time(lambda: prep.get(0), 60)
+    finally:
+        prep.close()
+
+
+def test_prepared_shards_on_dask(tmp_path: Path) -> None:
+    """On two Dask workers, shards prepared by the client's pool and sent with their tasks give the serial path's
+    outputs bit for bit; a failed preparation is the shard's failure there too."""
+    pytest.importorskip("distributed")
+    from distributed import Client
+
+    from aca_warp.sweep import local_cluster
+
+    spec = _spec(tmp_path)
+    run_sweep(spec, tmp_path / "serial", workers=0, overlap=False)
+    cluster, device = local_cluster("cpu", 2)
+    client = Client(cluster)
+    try:
+        res = _in_time(lambda: run_sweep(spec, tmp_path / "dask", device=device, client=client, prepare=1))
+        assert res.ran == [0, 1, 2] and not res.failed
+        assert all("prepare_ahead" in s["timings"] for s in res.summaries)
+        a, b = _outputs(tmp_path / "serial"), _outputs(tmp_path / "dask")
+        for k, v in a.items():
+            assert v.tobytes() == b[k].tobytes(), k
+        shutil.copy(tmp_path / "base.toml", tmp_path / "kept.toml")
+        (tmp_path / "base.toml").unlink()
+        res = _in_time(lambda: run_sweep(spec, tmp_path / "gone", device=device, client=client, prepare=1))
+        assert sorted(res.failed) == [0, 1, 2] and all("neither a preset" in e for e in res.failed.values())
+    finally:
+        client.close()
+        cluster.close()
+    assert np.isfinite(a["mu"]).all()
+
+
+def test_bench_script_runs_every_configuration(tmp_path: Path) -> None:
+    """scripts/bench_sweep.py on the CPU with tiny settings and this checkout as its own baseline: the new path
+    overlapped and sequential, the baseline overlapped, each in a process that imported the code it names; rates and
+    ratios from the shards' own timings."""
+    pytest.importorskip("distributed")
+    from scriptload import load_script
+
+    bench = load_script("bench_sweep")
+    repo = Path(bench.__file__).resolve().parent.parent
+    out, md = tmp_path / "b.json", tmp_path / "b.md"
+    argv = ["--device", "cpu", "--units", "1", "--pads", "8", "--patches", "12", "--shard-size", "4"]
+    argv += ["--duration", "3e-6", "--baseline", str(repo), "--prepare", "1", "--json", str(out), "--md", str(md)]
+    assert bench.main([*argv, "--dir", str(tmp_path / "w")]) == 0
+    doc = json.loads(out.read_text())
+    rows = {(r["code"], r["mode"]): r for r in doc["results"]}
+    assert set(rows) == {("new", "overlapped"), ("new", "sequential"), ("baseline", "overlapped")}
+    for r in rows.values():
+        assert r["patch_steps"] == 8 * 12 * 300 and r["package"].startswith(str(tmp_path / "w"))
+        assert r["in_shard_rate"] == pytest.approx(r["patch_steps"] / sum(s["kernel"] for s in r["shards"]))
+        assert r["wall_over_in_shard"] == pytest.approx(r["wall_rate"] / r["in_shard_rate"])
+        assert set(r["phase_median_s"]) == set(bench.PHASES) == set(r["phase_least_s"]) and r["runs"] == 1
+        assert r["phase_median_s"]["kernel"] > 0
+    hosts = {h["code"]: h for h in doc["host"]}
+    assert set(hosts) == {"new", "baseline"} and all(h["repeats"] == 3 and h["pads"] == 4 for h in hosts.values())
+    assert all(0 < h["cpu_s"][p] and 0 < h["wall_s"][p] for h in hosts.values() for p in ("prepare", "build", "setup"))
+    new = rows[("new", "overlapped")]
+    assert new["prepare"] == 1 and new["phase_total_s"]["prepare_ahead"] > 0
+    assert len(md.read_text().splitlines()) == 1 and "baseline overlapped on 1 CPU worker" in md.read_text()

@@ -1,0 +1,269 @@
+"""The validation's verdicts and per-pad measures on inputs with known answers (``aca_warp.studies.validation``:
+verdicts, measures, sync_measures, the rows' decisions), no runs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from aca_warp.studies.validation import base as VB
+from aca_warp.studies.validation import measures as VM
+from aca_warp.studies.validation import sync_measures as VS
+from aca_warp.studies.validation import verdicts as V
+
+# ------------------------------------------------------------------------------------------------ verdicts
+
+
+def _around(mean: float, spread: float, n: int = 8, seed: int = 0) -> np.ndarray:
+    x = np.random.default_rng(seed).normal(0.0, 1.0, n)
+    return mean + spread * (x - x.mean()) / x.std(ddof=1)
+
+
+def test_equivalence_reproduced_inside_the_margin_even_when_the_interval_excludes_zero():
+    inside = _around(0.021, 0.002)  # [0.019, 0.023]: excludes 0, inside ± 0.05 (the old rule said not reproduced)
+    assert V.side(inside) == 1 and V.equivalence_verdict(inside, 0.05) == V.REPRODUCED
+    assert V.equivalence_verdict(_around(0.04, 0.03), 0.05) == V.PARTLY  # straddles the margin
+    assert V.equivalence_verdict(_around(0.12, 0.01), 0.05) == V.NOT_REPRODUCED  # wholly beyond it
+    assert V.equivalence_verdict(_around(-0.12, 0.01), 0.05) == V.NOT_REPRODUCED
+
+
+def test_direction_carries_the_effect_against_the_margin():
+    small, large, none = _around(0.005, 0.002), _around(0.2, 0.02), _around(0.0, 0.5)
+    assert V.effect(small, 0.05) == V.SMALL and V.effect(large, 0.05) == V.AGREES
+    assert V.effect(none, 0.05) == V.NONE and V.effect(-large, 0.05) == V.OPPOSITE
+    assert V.effect(-large, 0.05, sign=-1.0) == V.AGREES
+    assert V.direction_verdict([V.effect(small, 0.05)]) == V.NEGLIGIBLE  # significant but negligible
+    assert V.direction_verdict([V.effect(large, 0.05)]) == V.REPRODUCED
+    assert V.direction_verdict([V.AGREES, V.SMALL]) == V.PARTLY
+    assert V.direction_verdict([V.AGREES, V.NONE]) == V.PARTLY
+    assert V.direction_verdict([V.NONE]) == V.NOT_REPRODUCED
+    assert (
+        V.direction_verdict([V.NONE], [V.AGREES]) == V.PARTLY
+        and V.direction_verdict([V.AGREES], [V.OPPOSITE]) == V.PARTLY
+    )
+    assert "against the margin 0.05" in V.effect_text(small, 0.05)
+
+
+def test_rules_in_opposite_directions_are_undetermined():
+    up, down, flat = _around(0.1, 0.01), _around(-0.1, 0.01), _around(0.0, 0.3)
+    assert V.rules_verdict(V.NOT_REPRODUCED, down, up) == V.UNDETERMINED
+    assert V.rules_verdict(V.REPRODUCED, up, flat) == V.REPRODUCED  # the snr rule not significant: no conflict
+    assert V.rules_verdict(V.REPRODUCED, up, up) == V.REPRODUCED
+
+
+def test_value_and_threshold_verdicts():
+    near = 73e3 + _around(0.0, 200.0)
+    assert V.value_verdict(near, 73e3, 3.65e3) == V.REPRODUCED
+    assert V.value_verdict(np.array([70e3, 76.5e3]), 73e3, 3.65e3) == V.PARTLY
+    assert V.value_verdict(near + 10e3, 73e3, 3.65e3) == V.NOT_REPRODUCED
+    assert V.threshold_verdict(np.array([0.6, 0.7, 0.65]), 0.5, below=False) == V.REPRODUCED
+    assert V.threshold_verdict(np.array([0.3, 0.35]), 0.5, below=False) == V.NOT_REPRODUCED
+    assert "×2" in V.spread_text({"a": 1.0, "b": 2.0})
+
+
+# ------------------------------------------------------------------------------------------------ rows
+
+
+def _pad(seed: int, measures: dict, **extra) -> dict:
+    return {"seed": seed, "status": "saturated", "measures": measures, "patches": 100, **extra}
+
+
+def test_the_first_peak_rows_read_the_velocity_sum():
+    rows = {r.statement: r for r in VB.ROWS}
+    row = rows["HF2: first velocity-spectrum peak"]
+    pads = [
+        _pad(
+            s,
+            {
+                "f1": 33.2e3 + 50 * s,
+                "f1_first_half": 33.2e3,
+                "f1_periodogram": 33.0e3,
+                "f1_is_first": True,
+                "f1_patch": {"0p02": 33e3, "0p05": 34e3, "0p1": 39.7e3, "0p25": 41e3},
+            },
+        )
+        for s in range(1, 9)
+    ]
+    v = row.measure({"hf2": {"pads": pads}}, VB.Config())
+    assert v.verdict == V.REPRODUCED and v.value.startswith("33.4")
+    assert "per-patch mean spectrum at 0.1 39.7" in v.notes and "in 8 of 8 pads" in v.notes
+    for p in pads:  # the per-patch reading would have failed it; the row does not read it
+        p["measures"]["f1"] = 39.7e3
+    assert row.measure({"hf2": {"pads": pads}}, VB.Config()).verdict == V.NOT_REPRODUCED
+
+
+def test_patterns_need_co_moving_groups_in_hf2():
+    """Neighbours moving against each other and groups below the patch spacing: no larger, better-defined patterns,
+    however the two presets differ."""
+    row = next(r for r in VB.ROWS if r.statement.startswith("larger patches: larger, better-defined"))
+
+    def res(c: float, size: float) -> dict:
+        return {"pads": [_pad(s, {"corr_near": c + 0.001 * s, "corr_zero": size + 1e-5 * s, "patch_spacing": 2.5e-3})
+                         for s in range(1, 9)]}  # fmt: skip
+
+    apart = {"hf1": res(-0.033, 0.0), "hf2": res(-0.047, 0.7e-3)}
+    assert row.measure(apart, VB.Config()).verdict == V.NOT_REPRODUCED
+    groups = {"hf1": res(0.05, 2e-3), "hf2": res(0.4, 8e-3)}
+    assert row.measure(groups, VB.Config()).verdict == V.REPRODUCED
+
+
+def test_stft_amplitude_is_not_comparable_and_shows_the_conventions():
+    row = next(r for r in VB.ROWS if r.statement == "its amplitude, the STFT's maximum")
+    pads = [{"seed": s, "status": "saturated", "end_mean_area_m2": 1.2e-6,
+             "measures": {"stft": [{"window": "w", "samples": 4096, "amplitude": 0.003, "frequency": 6.9e4,
+                                    "mean": 0.5}]}} for s in (1, 2, 3)]  # fmt: skip
+    v = row.measure({"va_full": {"pads": pads}}, VB.Config())
+    assert v.verdict == V.NOT_COMPARABLE
+    assert "2^12 raw |FFT| ÷ μ̄: 3.07" in v.notes and "2^12 two-sided ÷ μ̄: 0.0015" in v.notes
+
+
+def test_the_band_row_counts_mu_peaks_and_flags_the_area_cap():
+    from aca_warp.studies.validation import multiscale as VMS
+
+    row = next(r for r in VB.ROWS if r.statement.startswith("the characteristic friction and synchronisation"))
+    groups = {}
+    for g, members in VMS.GROUPS.items():
+        groups[g] = {"pads": [_pad(s, {"f1": 25.1e3 + s, "mu_peak_hz": 100e3 + s}, member=m) for m in members
+                              for s in range(1, 5)]}  # fmt: skip
+    groups["lf_states"] = {"pads": [], "cap_frequency_hz": 25.1e3}
+    v = row.measure(groups, VB.Config())
+    assert v.verdict == V.PARTLY and "with μ's largest peak inside: 0 of 8" in v.value
+    assert "states there app1_start" in v.notes
+
+
+@pytest.mark.parametrize("case", [1, 2, 3, 4])
+def test_table_a2_rows(case):
+    row = next(r for r in VB.ROWS if r.statement.startswith(f"case {case} "))
+    assert VB.evaluate_rows({}, VB.Config(), [row])[0]["verdict"] == V.REPRODUCED
+
+
+# ------------------------------------------------------------------------------------------------ measures
+
+
+def _globals(t: np.ndarray, mu: np.ndarray, vsum: np.ndarray, radius: np.ndarray | None = None) -> np.ndarray:
+    g = np.zeros((t.size, 6))
+    g[:, 0], g[:, 1] = mu, mu * 0.1
+    g[:, 2] = 0.1 if radius is None else radius
+    g[:, 3], g[:, 4] = vsum, 10.0 + np.abs(vsum)
+    return g
+
+
+def test_velocity_sum_peak_of_a_synthetic_record():
+    """Σu̇: a line at 33.2 kHz, a weaker harmonic at 66.4 kHz and broad-band noise: the primary reads 33.2 kHz."""
+    rng = np.random.default_rng(1)
+    dt, n = 1e-6, 20000
+    t = np.arange(n) * dt
+    v = np.sin(2 * np.pi * 33.2e3 * t) + 0.6 * np.sin(2 * np.pi * 66.4e3 * t) + 0.3 * rng.normal(size=n)
+    out = VM.velocity_sum_peaks(_globals(t, 0.5 + 0.001 * v, v), dt, 1e3)
+    assert out["f1"] == pytest.approx(33.2e3, rel=0.005) and out["f1_first_half"] == pytest.approx(33.2e3, rel=0.005)
+    assert out["f1_is_first"] and out["sum_resolution_hz"] == pytest.approx(200.0)
+    v2 = 0.6 * np.sin(2 * np.pi * 33.2e3 * t) + np.sin(2 * np.pi * 66.4e3 * t) + 0.05 * rng.normal(size=n)
+    out2 = VM.velocity_sum_peaks(_globals(t, 0.5 + 0.001 * v2, v2), dt, 1e3)
+    assert out2["f1"] == pytest.approx(66.4e3, rel=0.005) and not out2["f1_is_first"]  # the harmonic is larger
+    assert out2["f1_first_half"] == pytest.approx(33.2e3, rel=0.005)
+
+
+def test_per_patch_first_peak_depends_on_the_threshold():
+    f = np.arange(1e3, 150e3, 100.0)
+    amp = 0.04 * np.exp(-(((f - 33e3) / 300) ** 2)) + np.exp(-(((f - 41e3) / 300) ** 2)) + 1e-4
+    out = VM.patch_first_peaks(f, amp, 1e3)
+    assert out["0p02"] == pytest.approx(33e3, abs=100) and out["0p05"] == pytest.approx(41e3, abs=100)
+
+
+def test_coherence_of_the_velocity_sum_with_mu():
+    rng = np.random.default_rng(2)
+    dt, n = 1e-6, 32768
+    t = np.arange(n) * dt
+    line = np.sin(2 * np.pi * 70e3 * t)
+    together = VM.coherence_measures(_globals(t, 0.5 + 0.01 * line + 0.002 * rng.normal(size=n),
+                                              line + 0.2 * rng.normal(size=n)), dt, 70e3)  # fmt: skip
+    apart = VM.coherence_measures(_globals(t, 0.5 + 0.01 * rng.normal(size=n), line + 0.2 * rng.normal(size=n)), dt,
+                                  70e3)  # fmt: skip
+    assert together["coherence_f1"] > 0.9 and apart["coherence_f1"] < 0.3
+
+
+def test_radial_imbalance_follows_the_friction_radius():
+    rng = np.random.default_rng(3)
+    m, n, dec = 3000, 50, 3
+    r = rng.uniform(0.08, 0.12, n)
+    s = np.sin(2 * np.pi * np.arange(m) / 37.0)
+    v = (s[:, None] * (r - r.mean())[None, :] * 100.0 + 0.1 * rng.normal(size=(m, n))).astype(np.float32)
+    g = np.zeros((m * dec, 6))
+    g[:, 0] = 0.5 + 0.001 * rng.normal(size=m * dec)
+    g[::dec, 2] = 0.1 + 1e-4 * s
+    g[::dec, 1] = g[::dec, 0] * 12.0 * g[::dec, 2]
+    out = VS.radial_measures(g, v, r, dec)
+    assert out["radial_rho_radius"] > 0.8 and out["radial_rho_torque"] > out["radial_rho_mu"]
+    out_neg = VS.radial_measures(g, -v, r, dec)
+    assert out_neg["radial_rho_radius"] < -0.8
+
+
+def test_permutation_leaves_s_and_changes_the_neighbours_coherence():
+    rng = np.random.default_rng(4)
+    n, f = 200, 40
+    x, y = rng.uniform(0, 0.05, n), rng.uniform(0, 0.02, n)
+    phase = (x > 0.025)[None, :] * np.pi + 0.1 * rng.normal(size=(f, n))  # two halves in antiphase: islands
+    X = np.exp(1j * phase) * rng.uniform(0.5, 1.0, (f, n))
+    freq = np.linspace(20e3, 80e3, f)
+    from aca_warp.analysis.measures import neighbour_coherence
+
+    c = neighbour_coherence(x, y, X, VS.COUPLING_RADIUS)
+    out = VS.permutation_measures(X, freq, x, y, c)
+    assert out["perm_max_dS"] == 0.0
+    assert out["perm_coherence"] > 0.8 and out["perm_coherence"] - out["perm_coherence_permuted"] > 0.2
+
+
+def test_peak_features_of_synthetic_sync_spectra():
+    f = np.arange(1e3, 150e3, 100.0)
+    f1 = 33e3
+    null = np.full(f.size, 0.1)
+    S = np.where((f >= 0.9 * f1) & (f <= 2 * f1), 0.4, 0.12)  # synchronised over the first peak and its plateau
+    phi = np.where((f >= 0.9 * f1) & (f <= 2 * f1), 80, 30).astype(np.int64)
+    mu = np.full(f.size, 1e-4)
+    for fp in (90e3, 110e3, 130e3):  # μ peaks above 2 f1 where S is at its null level
+        mu[np.argmin(np.abs(f - fp))] = 1e-2
+    out = VS.peak_features(f, S, null, phi, mu, f1)
+    assert out["excess_peak_plateau"] == pytest.approx(0.28)
+    assert out["f_sync"] == pytest.approx(0.9 * f1, abs=300)
+    assert out["mu_hf_peaks"] == 3 and out["mu_hf_unmatched"] == 1.0 and out["mu_hf_phi_ratio"] == 1.0
+    assert out["mu_peaks_synced"] == 0.0 and 0.2 < out["mu_peaks_synced_chance"] < 0.3
+    bands = VS.band_summaries(f, S, null, phi, f1)
+    assert bands["spread"] > bands["spread_all"] > 0 and bands["prevalence_all"] < bands["prevalence"]
+
+
+def test_table_rows_and_every_registered_row_has_a_known_kind():
+    assert len(VB.ROWS) >= 45
+    assert {r.kind for r in VB.ROWS} <= set(V.CRITERIA)
+    assert len({(r.section, r.statement) for r in VB.ROWS}) == len(VB.ROWS)
+    assert math.isclose(VS.SYNC_EXCESS, 0.05)
+
+
+# ------------------------------------------------------------------------------------------------ settings and cost
+
+
+def test_stepping_takes_the_bound_rule_the_cap_or_an_override():
+    from aca_warp.studies.validation import settings as VSet
+
+    hf = VSet.STEPPING["hf"]
+    assert hf.step(8.8e-8) == pytest.approx(0.9 * 8.8e-8)  # accepted without force: below strang's bound
+    assert hf.step(9.65e-8) == hf.step(1.9e-7) == 8e-8  # larger bounds: capped at the step the statistics were checked
+    assert VB.Config().stepping("growth").step(1.34e-8) == pytest.approx(1.206e-8)
+    assert VB.Config(dt=5e-9, precision="fp64").stepping("hf").step(9.65e-8) == 5e-9
+    quick = VB.Config(quick=True).stepping("lf_states")
+    assert quick.dt == 1e-7 and quick.force and "forced" in quick.describe()
+
+
+def test_cost_model_follows_the_measured_waves_and_the_shared_memory():
+    from aca_warp.studies.validation import cost as VC
+
+    one = VC.step_seconds(14, 1758, 20904, "fp32", False, "cuda:0")
+    assert one == pytest.approx(1.16e-6 + 5.14e-6 / 8)  # one wave of clusters of 8
+    assert VC.step_seconds(64, 1758, 20904, "fp32", False, "cuda:0") == pytest.approx(1.16e-6 + 5.14e-6 / 2)
+    assert VC.step_seconds(264, 1758, 20904, "fp32", False, "cuda:0") == pytest.approx(2 * (1.16e-6 + 5.14e-6))
+    assert VC.fits_on_chip(1758, 20904, 1, "fp32") and not VC.fits_on_chip(4329, 31 * 4329, 4, "fp64")
+    dense = VC.step_seconds(8, 4329, 31 * 4329, "fp64", False, "cuda:0")
+    assert dense > 4 * VC.step_seconds(8, 1758, 20904, "fp64", False, "cuda:0")  # lists off chip
+    assert VC.step_seconds(1, 1758, 20904, "fp32", True, "cuda:0") == VC.GROWTH_FLOOR_S["fp32"]
+    assert VC.step_seconds(2, 500, 100, "fp64", False, "cpu") == pytest.approx(1000 / VC.CPU_PATCH_STEPS)
