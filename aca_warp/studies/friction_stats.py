@@ -36,7 +36,8 @@ def sector_scenes(
     """``seeds`` pads of the validation experiment ``preset`` (seeds first_seed …), on a sector of ``patches``
     patches (None: the whole pad), from equilibrium + 0.01 m/s velocities; ``speed``: the disc speed at the mean
     radius [m/s] instead of the preset's (the equilibrium is then that of this speed)."""
-    from aca_warp.studies.validation import EXPERIMENTS, Config, experiment_scene
+    from aca_warp.studies.validation.base import EXPERIMENTS, Config
+    from aca_warp.studies.validation.plan import experiment_scene
 
     cfg = Config(patches=patches, first_seed=first_seed)
     scenes = [experiment_scene(EXPERIMENTS[preset], k, cfg) for k in range(seeds)]
