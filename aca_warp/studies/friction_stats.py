@@ -67,28 +67,51 @@ def reference_run(
             log(f"reference from {cache}")
             rec = Record(d["time"], d["mu"], d["sum_velocity"], d["sum_abs_velocity"], d["velocity"], int(d["first"]))
             return rec, json.loads(str(d["info"]))
-    from aca_warp.scene import Record as SceneRecord
-    from aca_warp.studies.runs import batch_at_start, run_general
-
-    model, state = batch_at_start(scenes, "cpu", "fp64")
     log(f"package strang at {dt:g} s over {duration * 1e3:g} ms, {len(scenes)} pads (seeds {key['seeds']})")
-    record = SceneRecord(SAMPLE_DT, patches=("velocity",), window=(duration - window - 0.5 * SAMPLE_DT, math.inf))
-    res = run_general(model, state, duration=duration, integrator="strang", dt=dt, record=record)
-    if not res.complete:
-        raise RuntimeError(f"reference run stopped: {res.fault}")
-    g = res.collect()
-    first = len(g.time) - len(g.patch_time)
-    rec = Record(
-        g.time.astype(np.float64), *(g.globals[:, :, j].astype(np.float64) for j in (0, 3, 4)),
-        g.velocity.astype(np.float64), first,
-    )  # fmt: skip
-    info = {"wall_s": res.wall_time, "steps": res.steps, "dt": dt, "seeds": key["seeds"]}
+    rec, info = package_run(scenes, "strang", duration, window, dt=dt)
+    info["seeds"] = key["seeds"]
     if cache is not None:
         cache.parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(
             cache, key=json.dumps(key), info=json.dumps(info), time=rec.time, mu=rec.mu,
-            sum_velocity=rec.sum_velocity, sum_abs_velocity=rec.sum_abs_velocity, velocity=rec.velocity, first=first,
+            sum_velocity=rec.sum_velocity, sum_abs_velocity=rec.sum_abs_velocity, velocity=rec.velocity,
+            first=rec.patch_first,
         )  # fmt: skip
+    return rec, info
+
+
+def package_run(
+    scenes: list[Any],
+    integrator: str,
+    duration: float,
+    window: float,
+    *,
+    dt: float | None = None,
+    tolerance: float | None = None,
+    precision: str = "fp64",
+) -> tuple[Record, dict[str, Any]]:
+    """A run of the package (general engine on the CPU) of ``scenes`` as one batch with ``integrator`` at step
+    ``dt`` [s] (forced past the stable-step estimate) or ``tolerance`` (None: its default) over ``duration`` [s]:
+    samples every SAMPLE_DT, per-patch velocities over the last ``window`` [s] (0: none). Returns the record and
+    {wall_s (stepping), steps, dt, integrator}."""
+    from aca_warp.scene import Record as SceneRecord
+    from aca_warp.studies.runs import batch_at_start, run_engine
+
+    model, state = batch_at_start(scenes, "cpu", precision)
+    patches = ("velocity",) if window > 0 else ()
+    record = SceneRecord(SAMPLE_DT, patches=patches, window=(duration - window - 0.5 * SAMPLE_DT, math.inf))
+    res = run_engine(
+        model, state, engine="general", duration=duration, integrator=integrator, dt=dt, record=record,
+        force=dt is not None, tolerance=tolerance,
+    )  # fmt: skip
+    if not res.complete:
+        raise RuntimeError(f"{integrator} run stopped: {res.fault}")
+    g = res.collect()
+    first = len(g.time) - len(g.patch_time)
+    velocity = g.velocity.astype(np.float64) if window > 0 else None
+    sums = (g.globals[:, :, j].astype(np.float64) for j in (0, 3, 4))
+    rec = Record(g.time.astype(np.float64), *sums, velocity, first)
+    info = {"wall_s": res.wall_time, "steps": res.steps, "dt": dt, "integrator": integrator}
     return rec, info
 
 
