@@ -105,8 +105,8 @@ def _add_safety_arguments(hf: argparse.ArgumentParser) -> None:
     hf.add_argument(
         "--force",
         action="store_true",
-        help="run a step beyond the stable-step estimate, a strang step that does not resolve sticking (warns), "
-        "or a run beyond the size limits (1e10 steps, 50 GB of samples)",
+        help="run a step beyond the stable-step estimate (warns), or a run beyond the size limits (1e10 steps, "
+        "50 GB of samples)",
     )
     hf.add_argument(
         "--accept-unphysical",

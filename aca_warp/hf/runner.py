@@ -154,7 +154,7 @@ def run_scene(
             check_room(Path(output).parent, plan.file_bytes, hint + f"{option('force=True', '--force')} tries anyway")
         model = build_model([scene], device=device, precision=precision)
         state = initial_state(model)
-        check_step(model, options, scene.record.sample_dt)  # the step the run takes, the sticking bound
+        check_step(model, options, scene.record.sample_dt)  # the step the run takes
         check_contact(model, accept=options.accept_unphysical)  # exit 3 before a file exists
         options = dataclasses.replace(options, engine=choose_engine(model, options.engine, options.integrator))
     except BaseException:

@@ -17,10 +17,10 @@ so that every setting is measured on the same samples.
 
 A **setting** is ``INTEGRATOR@PRECISIONS[:dt=STEPS][:tol=TOLERANCES]`` (a product), e.g. ``strang@fp32:dt=1e-8,
 5e-7``, ``adaptive@fp64:tol=1e-4``, ``implicit-friction@fp32,fp64:dt=1e-7``; without dt or tol the integrator's
-defaults. Fixed steps run forced (past strang's sticking bound too). Any name of ``aca_warp.hf.options.INTEGRATORS``
+defaults. Fixed steps run forced (past the spring bound too). Any name of ``aca_warp.hf.options.INTEGRATORS``
 is accepted, and a name that the default grid does not list runs at its defaults in fp32 and fp64. The
-**reference** (``--reference``; strang fp64 at 1e-8 s, --quick 2e-8 s, capped at 0.9 × the regime's sticking
-bound as the validation caps its step) runs first, then the grid, cheapest first.
+**reference** (``--reference``; strang fp64 at 1e-8 s, --quick 2e-8 s, capped at 0.9 × the regime's friction
+step, h γ_max = 4, as the validation caps its own) runs first, then the grid, cheapest first.
 
 The statistics and the rule (the 95 % interval of a setting's bias within ± ``--rule`` × the standard deviation
 between seeds for every measure; the cheapest such setting per regime) are in
@@ -62,7 +62,7 @@ from aca_warp.studies.validation.multiscale import ensure_lf
 from aca_warp.studies.work_precision_stats_rule import DEFAULT_RULE, MEASURES, load_results, measures_of, pad_values
 
 PRECISIONS = ("fp32", "fp64")
-STICKING_MARGIN = 0.9  # the reference step: at most this × strang's sticking bound (the validation's cap)
+REFERENCE_MARGIN = 0.9  # the reference step: at most this × the regime's friction step (the validation's cap)
 REFERENCE = {False: "strang@fp64:dt=1e-8", True: "strang@fp64:dt=2e-8"}
 GRID = {
     False: (
@@ -221,13 +221,14 @@ class Progress:
 
 
 def reference_setting(spec: str, model: Any) -> Setting:
-    """The reference of a regime: ``spec`` (one setting), a strang step capped at :data:`STICKING_MARGIN` × the
-    model's sticking bound."""
+    """The reference of a regime: ``spec`` (one setting), a strang step capped at :data:`REFERENCE_MARGIN` × the
+    model's friction step (:func:`~aca_warp.studies.validation.settings.friction_step`, h γ_max = 4)."""
     from aca_warp.hf.solver import stable_step
+    from aca_warp.studies.validation.settings import friction_step
 
     (s,) = parse_setting(spec)
     if s.integrator == "strang" and s.dt is not None:
-        s = dataclasses.replace(s, dt=float(f"{min(s.dt, STICKING_MARGIN * stable_step(model).sticking):.3g}"))
+        s = dataclasses.replace(s, dt=float(f"{min(s.dt, REFERENCE_MARGIN * friction_step(stable_step(model))):.3g}"))
     return s
 
 
@@ -418,7 +419,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument(
         "--reference",
         help=f"the reference setting (default {REFERENCE[False]}; --quick "
-        f"{REFERENCE[True]}; a strang step is capped at {STICKING_MARGIN:g} × the sticking bound)",
+        f"{REFERENCE[True]}; a strang step is capped at {REFERENCE_MARGIN:g} × the friction step)",
     )
     ap.add_argument("--engine", default="auto", choices=["auto", "general", "onchip"], help="HF engine (auto)")
     ap.add_argument("--workers", type=int, help="processes that analyse the pads of a run (default: 1 on the "
