@@ -25,7 +25,7 @@ import h5py
 import numpy as np
 
 from aca_warp.common import interrupts
-from aca_warp.common.checkpoint import Checkpoint
+from aca_warp.common.checkpoint import Checkpoint, checkpoint_room, has_checkpoint, read_checkpoint, write_checkpoint
 from aca_warp.common.errors import AcaError, SceneError, option
 from aca_warp.common.files import OutputLock, create_h5, from_h5py, lock_resumable, new_path, partial_path, recovery
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
@@ -138,6 +138,16 @@ class RunFileWriter(ABC):
             if code is not None:
                 raise storage_error(code, self.partial, "it was not changed; make room and resume again") from None
             raise
+
+    def _stored_checkpoint(self) -> Checkpoint | None:
+        """The checkpoint of a reopened file, or None when it holds none."""
+        return read_checkpoint(self.f, str(self.partial)) if has_checkpoint(self.f) else None
+
+    def _store_checkpoint(self, ckpt: Checkpoint) -> None:
+        """Write ``ckpt`` into the file's inactive checkpoint slot, its room reserved first
+        (:func:`~aca_warp.common.checkpoint.write_checkpoint`: flush, flip, flush)."""
+        self.out.reserve(checkpoint_room(self.f, ckpt))
+        write_checkpoint(self.f, ckpt, flush=self.out.flush)
 
     @abstractmethod
     def _write_closing(self, complete: bool, status: str, attrs: dict[str, Any]) -> None:

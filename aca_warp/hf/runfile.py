@@ -32,12 +32,8 @@ import numpy as np
 
 from aca_warp.common.checkpoint import (
     Checkpoint,
-    checkpoint_room,
     closed_on_failure,
     drop_checkpoint,
-    has_checkpoint,
-    read_checkpoint,
-    write_checkpoint,
 )
 from aca_warp.common.files import OutputLock, check_output_path, open_h5, versions
 from aca_warp.common.runfile import RunFileWriter, write_attrs
@@ -183,7 +179,7 @@ class RunWriter(RunFileWriter):
         running (reopen)."""
         f = self.f
         with closed_on_failure(f, self.partial, close=self.out.abandon):
-            ckpt = read_checkpoint(f, str(self.partial)) if has_checkpoint(f) else None
+            ckpt = self._stored_checkpoint()
             rows = {"global": 0, "patches": 0} if ckpt is None else ckpt.rows
             for name in ("time", *GLOBAL_NAMES):
                 f["global"][name].resize(rows["global"], axis=0)
@@ -218,8 +214,7 @@ class RunWriter(RunFileWriter):
         at checkpoints, so that what is on disk always fits the last one (:mod:`aca_warp.common.checkpoint`)."""
         self.flush_each_chunk = False
         ckpt.rows = self.rows()
-        self.out.reserve(checkpoint_room(self.f, ckpt))
-        write_checkpoint(self.f, ckpt, flush=self.out.flush)
+        self._store_checkpoint(ckpt)
 
     def _patch_dataset(self, name: str, unit: str, width: int, dtype: Any) -> h5py.Dataset:
         if name not in self._patch_ds:

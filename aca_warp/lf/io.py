@@ -33,12 +33,8 @@ import numpy as np
 
 from aca_warp.common.bounds import json_attribute
 from aca_warp.common.checkpoint import (
-    checkpoint_room,
     closed_on_failure,
     drop_checkpoint,
-    has_checkpoint,
-    read_checkpoint,
-    write_checkpoint,
 )
 from aca_warp.common.errors import SceneError, option
 from aca_warp.common.files import (
@@ -118,7 +114,7 @@ class LFRunWriter(RunFileWriter):
         self.sim = sim
         f = self.f
         with closed_on_failure(f, self.partial, close=self.out.abandon):
-            ckpt = read_checkpoint(f, str(self.partial)) if has_checkpoint(f) else None  # None: from the start
+            ckpt = self._stored_checkpoint()  # None: from the start
             rows = 0 if ckpt is None else int(ckpt.rows["global"])
             if ckpt is not None and rows != int(ckpt.counters["step_index"]):
                 raise ValueError(f"{rows} rows of /global for step {ckpt.counters['step_index']}")
@@ -174,8 +170,7 @@ class LFRunWriter(RunFileWriter):
         self._append_rows()
         ckpt = sim.checkpoint_state()
         ckpt.rows = {"global": self.rows}
-        self.out.reserve(checkpoint_room(self.f, ckpt))
-        write_checkpoint(self.f, ckpt, flush=self.out.flush)
+        self._store_checkpoint(ckpt)
 
     def _write_closing(self, complete: bool, status: str, attrs: dict[str, Any]) -> None:
         """The rest of the time series, the calibration data and the closing attributes (a complete run drops its
