@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import warp as wp
 from aca_warp.kernels.physics import friction_substep
+from procs import nine_patch_scene
 from scipy.integrate import solve_ivp
 
 from aca_warp.common.errors import SceneError, SimulationFault, StabilityError
@@ -141,19 +142,14 @@ NET_LOAD = 20.0  # N: ≈ 12.8 N on 9 HF1-size patches at full height, the rest 
 
 def network_scene(load=NET_LOAD, perturbation=0.05, sample_dt=1e-7, duration=2e-5) -> Scene:
     """9 HF1-size patches on a 1.5 mm grid near r = 0.13 m (one 4.5 mm off, coupled to only some), M = 0.8."""
-    pos = [(i * 1.5e-3, 0.13 + j * 1.5e-3) for i in (-1, 0, 1) for j in (-1, 0, 1)]
-    pos[4] = (4.5e-3, 0.13)
-    area = np.random.default_rng(2).uniform(2e-8, 8e-8, len(pos))
-    patches = Patches(np.array([p[0] for p in pos]), np.array([p[1] for p in pos]), area, np.full(len(pos), 3e-6))
-    return Scene(
-        name="network",
-        pad=Pad(),
-        patches=patches,
-        friction=Friction(M=0.8),
+    return nine_patch_scene(
+        "network",
+        sample_dt=sample_dt,
+        duration=duration,
+        patches=("velocity", "displacement"),
+        centre_off=True,
         normal_force=load,
         initial=Initial(perturbation=perturbation, seed=3),
-        record=Record(sample_dt=sample_dt, patches=("velocity", "displacement")),
-        duration=duration,
     )
 
 

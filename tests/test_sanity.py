@@ -10,6 +10,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from procs import small_scene_toml
 
 from aca_warp.cli import main
 from aca_warp.common.errors import PhysicsError
@@ -20,32 +21,13 @@ from aca_warp.hf.options import RunOptions
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import PRESETS, Friction, load_scene, preset
 
-BASE = """
-[scene]
-name = "sane"
-[load]
-normal_force = 20.0
-[disc]
-sliding_speed = 10.0
-[patches]
-count = 40
-area_min = 2.0e-8
-area_max = 8.0e-8
-seed = 4
-{height}
-[initial]
-perturbation = 1.0e-3
-seed = 2
-[record]
-sample_dt = 1.0e-7
-[run]
-duration = 2.0e-6
-"""
 
-
-def scene_file(tmp_path: Path, extra: str = "", height: str = "height = 3.0e-6") -> Path:
+def scene_file(tmp_path: Path, extra: str = "", height: float = 3.0e-6) -> Path:
+    """40 HF1-size patches of ``height`` [m], perturbed, over 2 µs; ``extra``: TOML text appended."""
     p = tmp_path / "s.toml"
-    p.write_text(BASE.format(height=height) + extra)
+    p.write_text(
+        small_scene_toml("sane", count=40, perturbation=1.0e-3, tables={"patches": {"height": height}}) + extra
+    )
     return p
 
 
@@ -58,9 +40,9 @@ def run_cli(capsys, argv: list[str]) -> tuple[int, list[str]]:
 @pytest.mark.parametrize(
     ("extra", "height", "message"),
     [
-        ("[material]\nK_N = 1e308\n", "height = 3.0e-6", "the normal forces sum to 0 N for a clamp force of 20 N"),
-        ("[material]\nK_N = 1e20\n", "height = 3.0e-6", "relative error 1.2e-05 > 1e-06"),
-        ("", "height = 1.0e6", "heights up to 1e+06 m are beyond what float64 resolves"),
+        ("[material]\nK_N = 1e308\n", 3.0e-6, "the normal forces sum to 0 N for a clamp force of 20 N"),
+        ("[material]\nK_N = 1e20\n", 3.0e-6, "relative error 1.2e-05 > 1e-06"),
+        ("", 1.0e6, "heights up to 1e+06 m are beyond what float64 resolves"),
     ],
     ids=["K_N-1e308", "K_N-1e20", "heights-1e6"],
 )
