@@ -70,12 +70,12 @@ class Stepping:
 
 STEPPING: dict[str, Stepping] = {
     "hf": Stepping(
-        dt=1.0e-7,
-        reason="the §3.1 presets, the area sweep and their variants: on 4 saturated 150-patch hf1 sectors over 30 ms "
-        "the forced damped midpoint at 1e-7 s (NumPy prototype, fp64) moves μ mean by +0.01 %, μ std by +0.3 %, "
-        "Σ|u̇| by −0.07 % and the velocity-sum peak by +0.01 % against strang at 1e-8 s, each within a quarter of "
-        "the spread between seeds (0.13 %, 3.1 %, 1.2 %, 1.7 %; docs/friction_step.md); 10 steps per µs sample; "
-        "fp32 also keeps the neighbour lists on chip",
+        dt=5.0e-8,
+        reason="the §3.1 presets, the area sweep and their variants: the statistical work-precision on one H200 (32 "
+        "saturated hf1 and hf2 pads each, 30 ms, a 10 ms window; docs/work_precision_statistics.md) keeps every "
+        "validation measure within a quarter of the spread between seeds with strang fp32 at 5e-8 s and at no "
+        "coarser step (at 1e-7 s the velocity-sum peak moves in hf1, μ std and S − S_null in hf2); 20 steps per "
+        "µs sample; fp32 also keeps the neighbour lists on chip",
     ),
     "growth": Stepping(
         reason="the varying-area growth (§3.2): 0.9 × the friction step at the start, 1.34e-8 s, gives 1.2e-8 s "
