@@ -20,17 +20,6 @@ from aca_warp import __version__
 from aca_warp.common import interrupts
 from aca_warp.common.errors import AcaError, command_line
 
-EPILOG = """\
-SCENE is a preset (hf1, hf2, hf3, hf4, varying_area) or a TOML scene file (docs/scenes.md).
-Example:  aca-warp hf hf1 --duration 1e-3 -o run.h5
-Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad input (nothing written),
-3 the run stopped on a fault or an unphysical result (the file holds everything before it, marked incomplete),
-4 the output cannot be written (read-only or full file system, no permission: found before the run, nothing
-written; disk full or file-size limit during the run: the .partial keeps its last checkpoint),
-130 interrupted by Ctrl-C, 143 by SIGTERM (the file closed and marked incomplete; hf/lf --resume continues it
-from its last checkpoint, or from its start if it has none; docs/faults.md).
-"""
-
 
 class Parser(argparse.ArgumentParser):
     """argparse's parser that reads a negative number in any notation (``-1e-4``, ``-.5``, ``-3``) as a value, not as
@@ -48,6 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     from aca_warp.analysis.commands import add_parsers as add_analysis
     from aca_warp.bench import add_parsers as add_bench
     from aca_warp.hf.commands import add_parsers as add_hf
+    from aca_warp.hf.commands import run_epilog
     from aca_warp.lf.commands import add_parsers as add_lf
     from aca_warp.sweep.commands import add_parsers as add_sweep
 
@@ -56,7 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Abstract Cellular Automaton of the brake pad-disc "
         "boundary layer (Merlis & Ostermeyer 2019) in NVIDIA Warp.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog=EPILOG,
+        epilog=run_epilog("hf/lf --resume"),
     )
     p.add_argument("--version", action="version", version=f"aca-warp {__version__}")
     p.add_argument(

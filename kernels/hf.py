@@ -24,11 +24,11 @@ from aca_warp.kernels.physics import (
     patch_force,
     patch_sample_due,
     record_pad,
-    solve_velocity,
     spring_force,
     store_patch_sample,
     strang_close_velocity,
     strang_velocity,
+    theta_substep,
 )
 
 wp.set_module_options({"enable_backward": False})
@@ -70,19 +70,18 @@ def euler_velocity(
 ):
     """The velocity half of both Euler schemes. ``implicit`` = 0, symplectic Euler (explicit friction):
     v ← v + dt/m (F_s(u) + F_N f(ωr − v) − c v). Otherwise IMEX Euler: m(v⁺ − v) = dt (F_s(u) + F_N f(ωr − v⁺) − c v⁺),
-    Newton per patch (:func:`~aca_warp.kernels.physics.solve_velocity`, relative tolerance ``tol``)."""
+    the θ-method step with θ = 1 (backward Euler, :func:`~aca_warp.kernels.physics.theta_substep`, relative
+    tolerance ``tol``)."""
     i = wp.tid()
     p = model.patch_pad[i]
     v = v_io[i]
     fs = spring_force(i, u_in, model)
     vd = model.pad_omega[p] * model.radius[i]
     if implicit != 0:
-        m = type(v)(1.0) / model.inv_mass[i]
-        a = m + dt * model.damping[i]
-        b = m * v + dt * fs
-        v_io[i] = solve_velocity(
-            a, b, dt * model.normal_force[i], vd, v, model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol
-        )
+        v_io[i] = theta_substep(
+            v, dt, type(v)(1.0), type(v)(1.0) / model.inv_mass[i], model.damping[i], model.normal_force[i], fs, vd,
+            model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
+        )  # fmt: skip
     else:
         f = patch_force(
             fs, v, model.damping[i], model.normal_force[i], vd, model.pad_mu_scale[p], model.pad_slope[p],

@@ -6,9 +6,11 @@ Equation of motion of patch i (paper §2.1.2, docs/model.md §2.2), u along the 
     m_i ü_i + c_i u̇_i + k_T,i u_i + Σ_j k_ij (u_i − u_j) = F_N,i f(ω r_i − u̇_i),
     k_ij = K_C √A_i √A_j / D0_ij,   f(v) = (M/π) atan(a v) (1/(b|v| + 1) + 1)   (Eq. 4, signed).
 
-* friction: the law f (:func:`friction_coefficient`, also the LF automaton's patch friction) and the
-  friction/damping sub-step of a patch over a step (:func:`friction_substep`), which every Strang path, general and
-  on-chip, takes through :func:`strang_velocity` and :func:`strang_close_velocity`;
+* friction: the law f (:func:`friction_coefficient`, also the LF automaton's patch friction), the per-patch
+  implicit solve (:func:`solve_velocity`), the θ-method step of a patch's forced friction equation
+  (:func:`theta_substep`; backward Euler for ``implicit-friction``) and the damped-midpoint friction sub-step
+  (:func:`friction_substep`), which every Strang path, general and on-chip, takes through :func:`strang_velocity`
+  and :func:`strang_close_velocity`;
 * per-patch terms: the coupling gather F_s,i = Σ_j k_ij u_j − k_diag,i u_i (:func:`spring_force`; the on-chip
   shared-memory gather sums the links in the same order, :mod:`aca_warp.kernels.hf_onchip_gather`), the net force
   of the explicit schemes (:func:`patch_force`), growth (Eq. 10, :func:`grow_patch`) and the coupling stiffness it
@@ -62,10 +64,12 @@ def solve_velocity(a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any,
 
     Works on the increment δ = v − guess, so the convergence test is relative to the size of the step's
     velocity change (meaningful in fp32 too). |f| ≤ 2 mu_scale π/2 brackets δ in
-    [(r − hfn f_max)/a, (r + hfn f_max)/a], r = b − a·guess; safeguarded Newton (bisection whenever a Newton
-    step would leave the bracket) converges for any step size. It stops at an exact root, or when the
-    Newton step or the bracket is below ``tol`` times (|r| + hfn f_max)/a: a smooth patch costs two
-    friction evaluations per solve.
+    [(r − hfn f_max)/a, (r + hfn f_max)/a], r = b − a·guess. Safeguarded Newton, ``rtsafe`` of Numerical Recipes:
+    it bisects when a Newton step would leave the bracket or when it is longer than half the step before the last
+    one. Without the second rule Newton can settle, at hγ ≳ 10, into a 2-cycle across the steep part of Eq. 4 that
+    stays inside the bracket and never shrinks it (docs/friction_step.md §2). It stops at an exact root, or when the
+    step or the bracket is below ``tol`` times (|r| + hfn f_max)/a: a smooth patch costs two friction evaluations
+    per solve.
     """
     fmax = mu_scale * type(a)(3.141592653589793)
     r = b - a * guess
@@ -74,7 +78,10 @@ def solve_velocity(a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any,
     dtol = tol * (wp.abs(r) + hfn * fmax) / a
     vp0 = vd - guess
     zero = a - a
+    half = type(a)(0.5)
     d = wp.clamp(zero, lo, hi)
+    last = type(a)(2.0) * (hi - lo)  # the last two step lengths; twice the bracket lets any first steps pass
+    before = last
     for _it in range(60):
         f, df = friction_pair(vp0 - d, mu_scale, slope, decay)
         g = a * d - hfn * f - r
@@ -86,12 +93,16 @@ def solve_velocity(a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any,
             lo = d
         dg = a + hfn * df
         dn = d - g / dg
-        # Bisect only when Newton would leave the bracket. A step that rounds to d itself (the root found to the
-        # last bit, where d is also a bracket end) is accepted and converges: treating dn == lo/hi as leaving made
-        # ~13 % of fp32 patches on an H100 bisect ~20 times per solve (scripts/profile_onchip.py, docs/onchip.md).
-        if dg <= zero or dn < lo or dn > hi:
-            dn = type(a)(0.5) * (lo + hi)
-        converged = wp.abs(dn - d) <= dtol or hi - lo <= dtol
+        # Bisect only when Newton would leave the bracket or does not halve its steps every second iteration. A step
+        # that rounds to d itself (the root found to the last bit, where d is also a bracket end) is accepted and
+        # converges: treating dn == lo/hi as leaving made ~13 % of fp32 patches on an H100 bisect ~20 times per solve
+        # (scripts/profile_onchip.py, docs/onchip.md).
+        if dg <= zero or dn < lo or dn > hi or wp.abs(dn - d) > half * before:
+            dn = half * (lo + hi)
+        step = wp.abs(dn - d)
+        converged = step <= dtol or hi - lo <= dtol
+        before = last
+        last = step
         d = dn
         if converged:
             break
@@ -99,18 +110,40 @@ def solve_velocity(a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any,
 
 
 @wp.func
-def friction_substep(
-    v: Any, dt: Any, m: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any
-):
-    """The friction/damping sub-step of a patch: m v̇ = F_N f(vd − v) − c v over dt from velocity v, by the
-    implicit midpoint rule (second order, A-stable); returns the velocity after it [m/s].
+def theta_substep(
+    v: Any, h: Any, theta: Any, m: Any, c: Any, fn: Any, force: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any,
+    tol: Any,
+):  # fmt: skip
+    """The θ-method over h [s] of a patch's forced friction/damping equation m v̇ = F + F_N f(vd − v) − c v, with the
+    force ``force`` = F [N] frozen: V = v + θh φ(V) (:func:`solve_velocity`), returns v + (V − v)/θ [m/s]. θ = 1 is
+    backward Euler (V itself); θ = ½ the implicit midpoint. ``m`` mass [kg], ``c`` damping [N s/m], ``fn`` normal
+    force [N], ``vd`` disc speed ω r [m/s]. Written as V + (V − v)(1/θ − 1), which is V itself at θ = 1."""
+    th = theta * h
+    vm = solve_velocity(m + th * c, m * v + th * force, th * fn, vd, v, mu_scale, slope, decay, tol)
+    return vm + (vm - v) * (type(v)(1.0) / theta - type(v)(1.0))
 
-    Solves m (v_m − v) = dt/2 (F_N f(vd − v_m) − c v_m) for the midpoint velocity (:func:`solve_velocity`),
-    returns 2 v_m − v. ``m`` mass [kg], ``c`` damping [N s/m], ``fn`` normal force [N], ``vd`` disc speed ω r [m/s].
+
+@wp.func
+def friction_substep(
+    v: Any, h: Any, m: Any, c: Any, fn: Any, force: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any
+):
+    """The friction sub-step of every Strang path: a damped implicit midpoint over h [s] of m v̇ = F + F_N f(vd − v)
+    − c v from velocity v [m/s], with the spring force F = ``force`` [N] frozen inside the solve (docs/numerics.md,
+    docs/friction_step.md §6.1).
+
+    :func:`theta_substep` with θ = ½ (the implicit midpoint, second order) while h γ ≤ 6, γ = (c + F_N f′(vd − v))/m
+    the patch's own friction rate at its slip; beyond, θ = (1 − 1.5/(hγ))/1.5, so that the stability function
+    R(−hγ) stays ≥ −½: a held patch's chatter about its static slip halves every step instead of alternating without
+    decay (R → −1 of the plain midpoint). With F inside, a patch held at h γ ≫ 1 lands on its sticking manifold
+    F + F_N f(vd − v) − c v = 0, so its recorded friction force is its static friction.
     """
-    half = type(v)(0.5) * dt
-    vm = solve_velocity(m + half * c, m * v, half * fn, vd, v, mu_scale, slope, decay, tol)
-    return type(v)(2.0) * vm - v
+    one = type(v)(1.0)
+    f0, df0 = friction_pair(vd - v, mu_scale, slope, decay)
+    x = h * (c + fn * df0) / m
+    theta = type(v)(0.5)
+    if x > type(v)(6.0):
+        theta = wp.min((one - type(v)(1.5) / x) / type(v)(1.5), one)
+    return theta_substep(v, h, theta, m, c, fn, force, vd, mu_scale, slope, decay, tol)
 
 
 # ---------------------------------------------------------------------------------------------- per-patch terms
@@ -161,26 +194,24 @@ def strang_velocity(
     tol: Any,
 ):
     """Strang's velocity update of one step of a patch, before its drift u ← u + dt v; ``fs`` the cached F_s(uₙ)
-    [N], ``im`` = 1/m [1/kg]. ``first`` ≠ 0, the opening half step from the synchronous velocity ``w``: the
-    friction/damping sub-step over dt/2, then the half kick dt/2 · F_s/m. Otherwise a merged step on the staggered
-    velocity ``w``: kick dt/2, friction/damping sub-step over dt, kick dt/2 (the closing friction half of step n and
-    the opening half of step n+1 are one sub-step). Returns the staggered velocity (the one just before the next
-    half kick)."""
-    half = dt * type(dt)(0.5)
+    [N], ``im`` = 1/m [1/kg]. The spring force is frozen inside the friction sub-step (:func:`friction_substep`, the
+    "forced" splitting: kick and friction at fixed u against the drift). ``first`` ≠ 0, the opening half step from
+    the synchronous velocity ``w``: the sub-step over dt/2. Otherwise a merged step on the staggered velocity ``w``:
+    the sub-step over dt (the closing half of step n and the opening half of step n+1 are one sub-step). Returns the
+    staggered velocity (the drift velocity of the step)."""
+    h = dt
     if first != 0:
-        return friction_substep(w, half, type(dt)(1.0) / im, c, fn, vd, mu_scale, slope, decay, tol) + half * im * fs
-    kick = half * im * fs
-    return friction_substep(w + kick, dt, type(dt)(1.0) / im, c, fn, vd, mu_scale, slope, decay, tol) + kick
+        h = dt * type(dt)(0.5)
+    return friction_substep(w, h, type(dt)(1.0) / im, c, fn, fs, vd, mu_scale, slope, decay, tol)
 
 
 @wp.func
 def strang_close_velocity(
     w: Any, fs: Any, dt: Any, im: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any
 ):
-    """The synchronous velocity of a patch from its staggered ``w`` and F_s(uₙ) ``fs``: half kick, then the
-    friction/damping sub-step over dt/2."""
-    half = dt * type(dt)(0.5)
-    return friction_substep(w + half * im * fs, half, type(dt)(1.0) / im, c, fn, vd, mu_scale, slope, decay, tol)
+    """The synchronous velocity of a patch from its staggered ``w`` and F_s(uₙ) ``fs``: the friction sub-step over
+    dt/2 with F_s(uₙ) frozen inside."""
+    return friction_substep(w, dt * type(dt)(0.5), type(dt)(1.0) / im, c, fn, fs, vd, mu_scale, slope, decay, tol)
 
 
 @wp.func

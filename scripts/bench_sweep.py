@@ -321,6 +321,14 @@ def markdown_line(doc: dict) -> str:
     )
 
 
+def write_outputs(doc: dict, line: str, json_path: str, md_path: str) -> None:
+    """``doc`` into ``json_path``, the Markdown ``line`` into ``md_path``; the line and the two names printed."""
+    Path(json_path).write_text(json.dumps(doc, indent=1))
+    Path(md_path).write_text(line + "\n")
+    print(line)
+    print(f"wrote {json_path} and {md_path}")
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cuda", choices=("cuda", "cpu"), help="cuda (GPUs 0..N-1) or cpu")
@@ -410,11 +418,7 @@ def main(argv: list[str] | None = None) -> int:
         "runs": runs,
         "host": hosts,
     }
-    line = markdown_line(doc)
-    Path(args.json).write_text(json.dumps(doc, indent=1))
-    Path(args.md).write_text(line + "\n")
-    print(line)
-    print(f"wrote {args.json} and {args.md}")
+    write_outputs(doc, markdown_line(doc), args.json, args.md)
     return 0
 
 

@@ -38,58 +38,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from small_scenes import small_lf_scene_toml, small_scene_toml, three_applications
 
-HF_SCENE = """
-[scene]
-name = "corrupt"
-[load]
-normal_force = 20.0
-[disc]
-sliding_speed = 10.0
-[patches]
-count = 40
-area_min = 2.0e-8
-area_max = 8.0e-8
-height = 3.0e-6
-seed = 4
-[record]
-sample_dt = 1.0e-6
-patches = ["velocity"]
-[run]
-duration = 2.0e-4
-"""
-
-LF_SCENE = """
-[scene]
-name = "corrupt-lf"
-[pad]
-r_inner = 0.100
-r_outer = 0.110
-span_deg = 8.0
-[patches]
-count = 60
-area_min = 2e-8
-area_max = 8e-8
-height = 3e-6
-seed = 3
-[lf]
-capacity = 512
-p_birth = 1.0
-[snapshots]
-applications = true
-[[schedule]]
-kind = "application"
-duration = 1.0
-normal_force = 300.0
-ramp = 0.05
-[[schedule]]
-kind = "pause"
-duration = 0.1
-[[schedule]]
-kind = "application"
-duration = 0.4
-normal_force = 100.0
-"""
+HF_SCENE = small_scene_toml("corrupt", count=40, duration=2.0e-4, sample_dt=1.0e-6, patches=("velocity",))
+LF_SCENE = small_lf_scene_toml(
+    "corrupt-lf", three_applications(1.0), lf={"p_birth": 1.0}, snapshots={"applications": True}
+)
 
 # command: (input, file name in the trial folder, argv)
 COMMANDS = {
@@ -107,14 +61,17 @@ def env() -> dict[str, str]:
     return dict(os.environ)
 
 
-def build_inputs(root: Path) -> dict[str, Path]:
-    """The four input files (in this process; the stopped ones by an interrupt at the first checkpoint)."""
+def build_inputs(
+    root: Path, hf_scene: str = HF_SCENE, lf_scene: str = LF_SCENE, hf_interval: float = 5e-5
+) -> dict[str, Path]:
+    """The four input files from the scene texts ``hf_scene`` and ``lf_scene`` (in this process; the stopped ones by
+    an interrupt at the first checkpoint: every ``hf_interval`` [s] of an HF run, 0.2 s of an LF run)."""
     from aca_warp.cli import main
     from aca_warp.hf import runner
     from aca_warp.lf import io as lf_io
 
-    (root / "hf.toml").write_text(HF_SCENE)
-    (root / "lf.toml").write_text(LF_SCENE)
+    (root / "hf.toml").write_text(hf_scene)
+    (root / "lf.toml").write_text(lf_scene)
     out = {k: root / f"{k}.h5" for k in ("hf", "hf_stopped", "lf", "lf_stopped")}
     assert main(["hf", str(root / "hf.toml"), "-o", str(out["hf"]), "--no-progress"]) == 0
     assert main(["lf", str(root / "lf.toml"), "-o", str(out["lf"]), "--no-progress"]) == 0
@@ -134,7 +91,7 @@ def build_inputs(root: Path) -> dict[str, Path]:
     runner.run_hf, lf_io.LFRunWriter.checkpoint = hf_once, lf_once
     try:
         args = ["--no-progress", "--checkpoint-interval"]
-        assert main(["hf", str(root / "hf.toml"), "-o", str(out["hf_stopped"]), *args, "5e-5"]) == 130
+        assert main(["hf", str(root / "hf.toml"), "-o", str(out["hf_stopped"]), *args, str(hf_interval)]) == 130
         assert main(["lf", str(root / "lf.toml"), "-o", str(out["lf_stopped"]), *args, "0.2"]) == 130
     finally:
         runner.run_hf, lf_io.LFRunWriter.checkpoint = real_hf, real_lf

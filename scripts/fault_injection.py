@@ -45,71 +45,28 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import h5py
 import numpy as np
+from small_scenes import small_lf_scene_toml, small_scene_toml, three_applications
 
 from aca_warp.common.files import host_cpu
 
-HF_SCENE = """
-[scene]
-name = "fi-hf"
-[load]
-normal_force = 20.0
-[disc]
-sliding_speed = 10.0
-[patches]
-count = 40
-area_min = 2.0e-8
-area_max = 8.0e-8
-height = 3.0e-6
-seed = 4
-[initial]
-perturbation = 1.0e-3
-seed = 2
-[record]
-sample_dt = 1.0e-6
-patches = ["velocity", "displacement"]
-[run]
-duration = {duration}
-"""
 
-LF_SCENE = """
-[scene]
-name = "fi-lf"
-[pad]
-r_inner = 0.100
-r_outer = 0.110
-span_deg = 8.0
-[patches]
-count = 60
-area_min = 2e-8
-area_max = 8e-8
-height = 3e-6
-seed = 3
-[lf]
-capacity = 512
-wear_m = 2e-12
-p_birth = 1.0
-p_store = 0.3
-compact_every = 25
-[snapshots]
-applications = true
-[[schedule]]
-kind = "application"
-duration = {duration}
-normal_force = 300.0
-ramp = 0.05
-[[schedule]]
-kind = "pause"
-duration = 0.1
-[[schedule]]
-kind = "application"
-duration = 0.4
-normal_force = 100.0
-"""
+def hf_scene(duration: float, patches: tuple[str, ...] = ("velocity", "displacement")) -> str:
+    """The HF workload: 40 patches, perturbed, per-patch ``patches`` histories over ``duration`` [s]."""
+    return small_scene_toml("fi-hf", count=40, duration=duration, sample_dt=1.0e-6, patches=patches, perturbation=1e-3)
+
+
+def lf_scene(first: float) -> str:
+    """The LF workload: births, stores and merges, snapshots at every application; 300 N for ``first`` [s] first."""
+    lf = {"wear_m": 2e-12, "p_birth": 1.0, "p_store": 0.3, "compact_every": 25}
+    return small_lf_scene_toml("fi-lf", three_applications(first), lf=lf, snapshots={"applications": True})
+
 
 SWEEP_SPEC = """
 [sweep]
@@ -158,11 +115,11 @@ class Trial:
 def workloads(root: Path, quick: bool) -> list[Workload]:
     """The three workloads, their scene files written into ``root``."""
     hf = root / "hf.toml"
-    hf.write_text(HF_SCENE.format(duration="5e-4" if quick else "2e-3"))
+    hf.write_text(hf_scene(5e-4 if quick else 2e-3))
     lf = root / "lf.toml"
-    lf.write_text(LF_SCENE.format(duration="1.0" if quick else "4.0"))
+    lf.write_text(lf_scene(1.0 if quick else 4.0))
     base = root / "base.toml"
-    base.write_text(HF_SCENE.format(duration="1e-4").replace('patches = ["velocity", "displacement"]\n', ""))
+    base.write_text(hf_scene(1e-4, patches=()))
     spec = root / "spec.toml"
     spec.write_text(SWEEP_SPEC.format(duration="1e-4" if quick else "3e-4"))
     return [
@@ -310,6 +267,22 @@ def kill(
     return killed, code, err
 
 
+@contextmanager
+def reported(t: Trial, cwd: Path) -> Iterator[None]:
+    """The frame of one trial working in ``cwd`` (made here): an exception of the body is ``t``'s error (the harness
+    reports, it does not stop); ``t.seconds`` is the time it took; an identical trial's folder is removed."""
+    t0 = time.perf_counter()
+    cwd.mkdir()
+    try:
+        yield
+    except Exception as e:  # noqa: BLE001
+        t.outcome, t.detail = "error", f"{type(e).__name__}: {e}"
+    finally:
+        t.seconds = round(time.perf_counter() - t0, 2)
+        if t.outcome == "identical":
+            shutil.rmtree(cwd, ignore_errors=True)
+
+
 def trial(
     w: Workload,
     root: Path,
@@ -320,10 +293,8 @@ def trial(
     signals: list[str],
 ) -> Trial:
     t = Trial(w.name)
-    t0 = time.perf_counter()
     cwd = root / f"trial-{w.name}-{rng.randrange(10**9)}"
-    cwd.mkdir()
-    try:
+    with reported(t, cwd):
         delay = rng.uniform(0.0, budget)
         t.delays.append(round(delay, 3))
         killed, code, err = kill(t, w, [*w.start, "-o", str(cwd / w.output)], cwd, delay, rng, signals)
@@ -332,12 +303,6 @@ def trial(
         else:
             t.recoveries.append("finished before the kill")
         compare(t, w, cwd, ref, code, err)
-    except Exception as e:  # noqa: BLE001  (the harness reports, it does not stop)
-        t.outcome, t.detail = "error", f"{type(e).__name__}: {e}"
-    finally:
-        t.seconds = round(time.perf_counter() - t0, 2)
-        if t.outcome == "identical":
-            shutil.rmtree(cwd, ignore_errors=True)
     return t
 
 
@@ -363,10 +328,8 @@ def output_size(w: Workload, cwd: Path) -> int:
 def limit_trial(w: Workload, root: Path, ref: dict[str, bytes], limit: int, rng: random.Random) -> Trial:
     """Run ``w`` under a file-size limit of ``limit`` bytes, then recover it without the limit and compare."""
     t = Trial(w.name, limit=limit)
-    t0 = time.perf_counter()
     cwd = root / f"limit-{w.name}-{limit}"
-    cwd.mkdir()
-    try:
+    with reported(t, cwd):
         code, err = run_to_end([*w.start, "-o", str(cwd / w.output)], cwd, limit)
         t.stopped = code
         lines = [x for x in err.splitlines() if x.strip() and not x.startswith("Warp ")]
@@ -375,12 +338,6 @@ def limit_trial(w: Workload, root: Path, ref: dict[str, bytes], limit: int, rng:
         else:
             code, err = recover(w, cwd, t, rng, 0.0, 0, ["KILL"]) if code == 4 else (0, "")
             compare(t, w, cwd, ref, code, err)
-    except Exception as e:  # noqa: BLE001  (the harness reports, it does not stop)
-        t.outcome, t.detail = "error", f"{type(e).__name__}: {e}"
-    finally:
-        t.seconds = round(time.perf_counter() - t0, 2)
-        if t.outcome == "identical":
-            shutil.rmtree(cwd, ignore_errors=True)
     return t
 
 

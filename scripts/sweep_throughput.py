@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import json
 import math
 import os
 import shutil
@@ -43,6 +42,7 @@ from typing import Any
 os.environ.setdefault("NCCL_NVLS_ENABLE", "0")  # never use NVLink multicast (shared machines)
 
 import warp as wp  # noqa: E402
+from bench_sweep import write_outputs  # noqa: E402
 
 from aca_warp.common.devices import init_warp  # noqa: E402
 from aca_warp.common.files import machine  # noqa: E402
@@ -229,11 +229,7 @@ def main() -> int:
     if set(by) == set(MODES):
         doc["target_ratio"] = by["overlapped"]["wall_rate"] / by["sequential"]["in_shard_rate"]
         doc["overlapped_over_sequential_wall"] = by["overlapped"]["wall_rate"] / by["sequential"]["wall_rate"]
-    line = markdown_line(doc)
-    Path(args.json).write_text(json.dumps(doc, indent=1))
-    Path(args.md).write_text(line + "\n")
-    print(line)
-    print(f"wrote {args.json} and {args.md}")
+    write_outputs(doc, markdown_line(doc), args.json, args.md)
     return 0
 
 

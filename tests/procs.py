@@ -1,5 +1,5 @@
 """Shared by the tests: ``aca-warp`` in a subprocess (optionally under a file-size limit), stopped, killed; small
-scenes."""
+scenes (``scripts/small_scenes.py``)."""
 
 from __future__ import annotations
 
@@ -11,30 +11,55 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
+from scriptload import load_script
 
 from aca_warp.scene import Friction, Growth, Initial, Pad, Patches, Record, Scene
 
+_scenes = load_script("small_scenes")
+small_scene_toml = _scenes.small_scene_toml
+small_lf_scene_toml = _scenes.small_lf_scene_toml
+three_applications = _scenes.three_applications
 
-def nine_patch_scene(*, increment: float, interval: float, sample_dt: float, duration: float) -> Scene:
-    """9 HF1-size patches on a 1.5 mm grid sharing 20 N with the matrix, sliding at 10 m/s (seeded areas and
-    initial perturbation), growing by ``increment`` [m] · √A every ``interval`` [s]; samples every ``sample_dt``
-    [s] over ``duration`` [s]."""
+
+def nine_patch_scene(
+    name: str = "grow",
+    *,
+    sample_dt: float,
+    duration: float,
+    increment: float | None = None,
+    interval: float = 0.0,
+    patches: tuple[str, ...] = (),
+    centre_off: bool = False,
+    **fields: Any,
+) -> Scene:
+    """9 HF1-size patches on a 1.5 mm grid at r = 0.13 m (seeded areas, 3 µm; ``centre_off``: the middle one moved
+    4.5 mm off the grid, coupled to only some), M = 0.8, sharing 20 N with the matrix, sliding at 10 m/s, from a
+    seeded initial perturbation of 0.05 m/s; samples every ``sample_dt`` [s] over ``duration`` [s] (``patches``: the
+    per-patch histories recorded); growing by ``increment`` [m] · √A every ``interval`` [s] when ``increment`` is
+    given. ``fields``: other Scene fields, or these replaced (``normal_force``, ``angular_velocity``, ``initial``)."""
     pos = [(i * 1.5e-3, 0.13 + j * 1.5e-3) for i in (-1, 0, 1) for j in (-1, 0, 1)]
+    if centre_off:
+        pos[4] = (4.5e-3, 0.13)
     area = np.random.default_rng(2).uniform(2e-8, 8e-8, len(pos))
     p = Patches(np.array([q[0] for q in pos]), np.array([q[1] for q in pos]), area, np.full(len(pos), 3e-6))
+    growth = None if increment is None else Growth(increment=increment, interval=interval)
     return Scene(
-        name="grow",
-        pad=Pad(),
-        patches=p,
-        friction=Friction(M=0.8),
-        normal_force=20.0,
-        initial=Initial(perturbation=0.05, seed=3),
-        record=Record(sample_dt=sample_dt),
-        growth=Growth(increment=increment, interval=interval),
-        duration=duration,
+        **{
+            "name": name,
+            "pad": Pad(),
+            "patches": p,
+            "friction": Friction(M=0.8),
+            "normal_force": 20.0,
+            "initial": Initial(perturbation=0.05, seed=3),
+            "record": Record(sample_dt=sample_dt, patches=patches),
+            "growth": growth,
+            "duration": duration,
+            **fields,
+        }
     )
 
 
@@ -43,34 +68,6 @@ LIMITED = (
     "import resource, signal, sys; lim = int(sys.argv[1]); signal.signal(signal.SIGXFSZ, signal.SIG_IGN); "
     "resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim)); from aca_warp.cli import run; run(sys.argv[2:])"
 )
-
-
-def small_scene_toml(
-    name: str = "small",
-    *,
-    count: int = 60,
-    duration: float = 2.0e-6,
-    sample_dt: float = 1.0e-7,
-    patches: tuple[str, ...] = (),
-    perturbation: float | None = None,
-    disc: bool = True,
-    tables: dict[str, dict] | None = None,
-) -> str:
-    """A small HF scene file: ``count`` HF1-size patches (seed 4, 3 µm), 20 N, samples every ``sample_dt`` [s] for
-    ``duration`` [s]; ``patches``: the per-patch histories recorded; ``perturbation``: a seeded initial velocity
-    perturbation [m/s] (seed 2); ``disc``: the disc at 10 m/s stated; ``tables`` ({table: {key: value}}): keys
-    replaced or added."""
-    doc: dict[str, dict] = {"scene": {"name": name}, "load": {"normal_force": 20.0}}
-    if disc:
-        doc["disc"] = {"sliding_speed": 10.0}
-    doc["patches"] = {"count": count, "area_min": 2.0e-8, "area_max": 8.0e-8, "height": 3.0e-6, "seed": 4}
-    if perturbation is not None:
-        doc["initial"] = {"perturbation": perturbation, "seed": 2}
-    doc["record"] = {"sample_dt": sample_dt, **({"patches": list(patches)} if patches else {})}
-    doc["run"] = {"duration": duration}
-    for t, kv in (tables or {}).items():
-        doc.setdefault(t, {}).update(kv)
-    return "".join(f"[{t}]\n" + "".join(f"{k} = {v!r}\n" for k, v in kv.items()) for t, kv in doc.items())
 
 
 def env(**extra: str) -> dict[str, str]:
@@ -163,3 +160,36 @@ def assert_same_datasets(a: Path, b: Path) -> None:
     for k in da:
         assert da[k].dtype == db[k].dtype and da[k].shape == db[k].shape, k
         assert da[k].tobytes() == db[k].tobytes(), k
+
+
+def assert_same_run_file(a: Path, b: Path, keys: tuple[str, ...]) -> None:
+    """Same datasets (:func:`assert_same_datasets`) and the same root attributes ``keys``; both complete, without a
+    checkpoint."""
+    assert_same_datasets(a, b)
+    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
+        for key in keys:
+            assert fa.attrs[key] == fb.attrs[key], key
+        assert fa.attrs["complete"] and fb.attrs["complete"]
+        assert "checkpoint" not in fa and "checkpoint" not in fb
+
+
+def assert_refused(capsys: Any, cases: list[tuple[list[str], str]]) -> None:
+    """Each ``aca-warp ARGV`` of ``cases`` (in this process; ``capsys``: pytest's fixture) exits 2 with one line on
+    stderr that holds its message."""
+    from aca_warp.cli import main
+
+    for argv, message in cases:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], (argv, err)
+
+
+def small_sweep_doc(name: str, *, count: int, duration: float, parameters: dict[str, Any]) -> dict[str, Any]:
+    """A sweep spec (as for :func:`~aca_warp.sweep.load_spec`) over hf1 pads of ``count`` patches, shards of 3 pads,
+    ``duration`` [s] in fp32; ``parameters``: the spec's [parameters] table."""
+    return {
+        "sweep": {"base": "hf1", "shard_size": 3, "name": name},
+        "run": {"duration": duration, "precision": "fp32"},
+        "base": {"patches": {"count": count}},
+        "parameters": parameters,
+    }

@@ -12,7 +12,10 @@ SCRIPTS = Path(__file__).resolve().parent.parent / "scripts"
 
 
 def load_script(name: str) -> ModuleType:
-    """``scripts/<name>.py`` as a fresh module named ``name``."""
+    """``scripts/<name>.py`` as a fresh module named ``name``; ``scripts/`` on ``sys.path``, as when a script runs, so
+    that the scripts import one another."""
+    if str(SCRIPTS) not in sys.path:
+        sys.path.append(str(SCRIPTS))
     spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module  # dataclasses look their module up while the script runs

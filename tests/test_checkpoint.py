@@ -6,9 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import h5py
-import numpy as np
 import pytest
-from procs import small_scene_toml
+from procs import assert_refused, assert_same_run_file, small_scene_toml
 from sigkill import AUTO_AT_ONCE, kill_after_first_checkpoint
 
 from aca_warp.cli import main
@@ -26,25 +25,10 @@ interval = 3.0e-7
 """
 
 
-def datasets(path: Path) -> dict[str, np.ndarray]:
-    """Every dataset of an HDF5 file by path."""
-    out: dict[str, np.ndarray] = {}
-    with h5py.File(path, "r") as f:
-        f.visititems(lambda n, o: out.__setitem__(n, o[()]) if isinstance(o, h5py.Dataset) else None)
-    return out
-
-
 def assert_same_file(a: Path, b: Path) -> None:
-    """Same dataset names, shapes, dtypes and bits; both complete; the same step counts."""
-    da, db = datasets(a), datasets(b)
-    assert sorted(da) == sorted(db)
-    for k in da:
-        assert da[k].dtype == db[k].dtype and da[k].shape == db[k].shape, k
-        assert da[k].tobytes() == db[k].tobytes(), k
-    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
-        for key in ("complete", "steps", "rejected_steps", "sim_time", "scene", "stages", "dt"):
-            assert fa.attrs[key] == fb.attrs[key], key  # (run_options differ: the checkpoint interval)
-        assert "checkpoint" not in fa and "checkpoint" not in fb
+    """Same dataset names, shapes, dtypes and bits; both complete; the same step counts (run_options differ: the
+    checkpoint interval)."""
+    assert_same_run_file(a, b, ("steps", "rejected_steps", "sim_time", "scene", "stages", "dt"))
 
 
 @pytest.fixture
@@ -187,10 +171,7 @@ def test_resume_refusals(scene_file: Path, tmp_path: Path, capsys) -> None:
         (["hf", "--resume", str(done), "-o", str(tmp_path / "x.h5")], "drop -o"),
         (["hf", str(scene_file)], "needs SCENE and -o"),
     ]
-    for argv, message in cases:
-        assert main(argv) == 2, argv
-        err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and message in err[0], (argv, err)
+    assert_refused(capsys, cases)
     assert done.read_bytes() == before
     # an incomplete run without checkpoints
     part = tmp_path / "bare.h5.partial"

@@ -28,7 +28,7 @@ from pathlib import Path
 import h5py
 import pytest
 from procs import assert_same_datasets, cli, datasets, env, error_lines, small_scene_toml
-from test_lf_checkpoint import SCENE as LF_SCENE
+from test_lf_checkpoint import lf_scene
 from test_storage import HF_SCENE
 
 from aca_warp.cli import main
@@ -52,7 +52,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Scene files and a small HF run file (with per-patch velocities) shared by the tests of this module."""
     d = tmp_path_factory.mktemp("runs")
     (d / "small.toml").write_text(SMALL)
-    (d / "lf.toml").write_text(LF_SCENE.format(first=0.2))
+    (d / "lf.toml").write_text(lf_scene(0.2))
     (d / "long.toml").write_text(HF_SCENE)
     assert main(["hf", str(d / "small.toml"), "-o", str(d / "small.h5"), "--no-progress"]) == 0
     assert main(["hf", str(d / "long.toml"), "-o", str(d / "long.h5"), "--duration", "2e-4", "--no-progress"]) == 0
@@ -65,7 +65,7 @@ def refs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     interrupted, limited and resumed ones."""
     d = tmp_path_factory.mktemp("refs")
     (d / "hf.toml").write_text(HF_SCENE)
-    (d / "lf.toml").write_text(LF_SCENE.format(first=1.0))
+    (d / "lf.toml").write_text(lf_scene(1.0))
     assert main(["hf", str(d / "hf.toml"), "-o", str(d / "hf.h5"), "--no-progress"]) == 0
     assert main(["lf", str(d / "lf.toml"), "-o", str(d / "lf.h5"), "--no-progress"]) == 0
     return {"hf_scene": d / "hf.toml", "hf": d / "hf.h5", "lf_scene": d / "lf.toml", "lf": d / "lf.h5"}
@@ -416,7 +416,7 @@ def test_lf_unit_mistakes_are_named(tmp_path, capsys) -> None:
         ("normal_force = 300.0", "normal_force = 3e7", "schedule[0].normal_force = 3e+07 N — beyond"),
         ("[lf]", "[lf]\ndt = 1e-8", "lf.dt = 1e-08 s — below 1e-05 s"),
     ):
-        s.write_text(LF_SCENE.format(first=0.2).replace(old, new, 1))
+        s.write_text(lf_scene(0.2).replace(old, new, 1))
         assert main(["lf", str(s), "-o", str(tmp_path / "lf.h5"), "--no-progress"]) == 2
         err = one_line(capsys)
         assert len(err) == 1 and message in err[0] and "--allow-implausible" in err[0], err

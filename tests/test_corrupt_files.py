@@ -16,11 +16,9 @@ import h5py
 import pytest
 from procs import small_scene_toml
 from scriptload import load_script
-from test_lf_checkpoint import SCENE as LF_SCENE
+from test_lf_checkpoint import lf_scene
 
 from aca_warp.cli import main
-from aca_warp.hf import runner
-from aca_warp.lf import io as lf_io
 from aca_warp.sweep import SweepError, load_sweep
 
 HF_SCENE = small_scene_toml("corrupt", count=30, duration=3.0e-5, patches=("velocity",))
@@ -58,33 +56,7 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """A finished HF run (per-patch velocities), an HF run stopped at its first checkpoint, a finished LF run with
     snapshots and an LF run stopped at its first checkpoint, a finished two-shard sweep."""
     d = tmp_path_factory.mktemp("corrupt")
-    (d / "hf.toml").write_text(HF_SCENE)
-    (d / "lf.toml").write_text(LF_SCENE.format(first=0.6))
-    out = {"hf": d / "hf.h5", "hf_stopped": d / "hf_stopped.h5", "lf": d / "lf.h5", "lf_stopped": d / "lf_stopped.h5"}
-    assert main(["hf", str(d / "hf.toml"), "-o", str(out["hf"]), "--no-progress"]) == 0
-    assert main(["lf", str(d / "lf.toml"), "-o", str(out["lf"]), "--no-progress"]) == 0
-    mp = pytest.MonkeyPatch()
-    real_hf, real_lf = runner.run_hf, lf_io.LFRunWriter.checkpoint
-
-    def hf_once(*args, on_checkpoint=None, **kw):
-        def ckpt(c):
-            on_checkpoint(c)
-            raise KeyboardInterrupt
-
-        return real_hf(*args, on_checkpoint=ckpt, **kw)
-
-    def lf_once(self, sim):
-        real_lf(self, sim)
-        raise KeyboardInterrupt
-
-    mp.setattr(runner, "run_hf", hf_once)
-    mp.setattr(lf_io.LFRunWriter, "checkpoint", lf_once)
-    try:
-        args = ["--no-progress", "--checkpoint-interval"]
-        assert main(["hf", str(d / "hf.toml"), "-o", str(out["hf_stopped"]), *args, "1e-5"]) == 130
-        assert main(["lf", str(d / "lf.toml"), "-o", str(out["lf_stopped"]), *args, "0.2"]) == 130
-    finally:
-        mp.undo()
+    out = CORRUPT.build_inputs(d, HF_SCENE, lf_scene(0.6), hf_interval=1e-5)
     spec = d / "spec.toml"
     spec.write_text(
         '[sweep]\nbase = "hf1"\nshard_size = 1\n[run]\nduration = 1e-6\nprecision = "fp32"\n'

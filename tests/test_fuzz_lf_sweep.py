@@ -14,7 +14,8 @@ import tempfile
 from pathlib import Path
 
 import h5py
-from hypothesis import HealthCheck, example, given, settings
+import test_fuzz
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from test_fuzz import FLOATS, INTS, toml_text, toml_value
 
@@ -22,13 +23,7 @@ from aca_warp.cli import main
 from aca_warp.lf.scene import _SEGMENT_KEYS
 from aca_warp.lf.scene import _TABLES as LF_TABLES
 
-FUZZ = settings(
-    derandomize=True,
-    deadline=None,
-    database=None,
-    max_examples=40,
-    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
-)
+FUZZ = settings(test_fuzz.FUZZ, max_examples=40)
 
 # ------------------------------------------------------------------------------------------------ LF
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import h5py
 import pytest
-from procs import cli, error_lines, resume, small_scene_toml, start, started, stop, wait_for
+from procs import cli, error_lines, resume, small_lf_scene_toml, small_scene_toml, started, stop, wait_for
 
 from aca_warp.cli import main
 from aca_warp.common.errors import SceneError
@@ -19,26 +19,7 @@ from aca_warp.common.files import OutputLock, lock_path
 
 SCENE = small_scene_toml("lock", count=40, duration=2.0e-4, sample_dt=1.0e-6)
 
-LF_SCENE = """
-[scene]
-name = "lflock"
-[pad]
-r_inner = 0.100
-r_outer = 0.110
-span_deg = 8.0
-[patches]
-count = 60
-area_min = 2e-8
-area_max = 8e-8
-height = 3e-6
-seed = 3
-[lf]
-capacity = 512
-[[schedule]]
-kind = "application"
-duration = 0.3
-normal_force = 300.0
-"""
+LF_SCENE = small_lf_scene_toml("lflock", [{"kind": "application", "duration": 0.3, "normal_force": 300.0}])
 
 
 def test_lock_in_process(tmp_path: Path) -> None:
@@ -79,8 +60,7 @@ def test_live_hf_run_is_not_replaced_or_resumed(tmp_path, locking, capsys, monke
     out = tmp_path / "run.h5"
     part = tmp_path / "run.h5.partial"
     args = ["hf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "5e-5"]
-    first = start(args)
-    try:
+    with started(args) as first:
         wait_for(part, first)
         stop(first)
         before = part.read_bytes()
@@ -96,12 +76,6 @@ def test_live_hf_run_is_not_replaced_or_resumed(tmp_path, locking, capsys, monke
         assert part.read_bytes() == before and not out.exists()
         resume(first)
         assert first.wait(timeout=120) == 0, first.stderr.read()
-    finally:
-        if first.poll() is None:
-            first.kill()
-            first.wait()
-        first.stdout.close()
-        first.stderr.close()
     with h5py.File(out, "r") as f:
         assert f.attrs["complete"] and f["global/mu"].shape == (201,)
     assert not part.exists() and not lock_path(out).exists()
@@ -148,22 +122,21 @@ def test_live_lf_run_and_sweep_are_not_replaced(tmp_path: Path, capsys) -> None:
     scene = tmp_path / "lf.toml"
     scene.write_text(LF_SCENE)
     out = tmp_path / "lf.h5"
-    first = start(["lf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "0.05"])
+    lf = ["lf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "0.05"]
     spec = tmp_path / "spec.toml"
     spec.write_text(
         '[sweep]\nbase = "hf1"\nshard_size = 1\n[run]\nduration = 2e-5\nprecision = "fp32"\n'
         '[base.patches]\ncount = 25\n[parameters]\n"friction.M" = [0.6, 0.7, 0.8]\n'
     )
     sweep_dir = tmp_path / "sweep"
-    sweep = None
-    try:
+    with started(lf) as first:
         wait_for(out.with_name("lf.h5.partial"), first)
         stop(first)
         for argv in (["lf", str(scene), "-o", str(out), "--overwrite"], ["lf", "--resume", str(out)]):
             refused(capsys, argv, first.pid)
         resume(first)
         assert first.wait(timeout=120) == 0, first.stderr.read()
-        sweep = start(["sweep", str(spec), "-o", str(sweep_dir), "--workers", "0", "--quiet"])
+    with started(["sweep", str(spec), "-o", str(sweep_dir), "--workers", "0", "--quiet"]) as sweep:
         wait_for(sweep_dir / "manifest.json", sweep)
         stop(sweep)
         manifest = (sweep_dir / "manifest.json").read_text()
@@ -172,14 +145,6 @@ def test_live_lf_run_and_sweep_are_not_replaced(tmp_path: Path, capsys) -> None:
         assert (sweep_dir / "manifest.json").read_text() == manifest
         resume(sweep)
         assert sweep.wait(timeout=120) == 0, sweep.stderr.read()
-    finally:
-        for p in (first, sweep):
-            if p is not None:
-                if p.poll() is None:
-                    p.kill()
-                    p.wait()
-                p.stdout.close()
-                p.stderr.close()
     with h5py.File(out, "r") as f:
         assert f.attrs["complete"]
     assert [s["state"] for s in json.loads((sweep_dir / "manifest.json").read_text())["shards"]] == ["done"] * 3

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import h5py
 import numpy as np
+from procs import datasets
 
 from aca_warp.cli import main
 from aca_warp.hf.rerun import read_settings
@@ -33,13 +33,6 @@ decimation = 2
 [run]
 duration = 5.0e-6
 """
-
-
-def datasets(path: Path) -> dict[str, np.ndarray]:
-    out: dict[str, np.ndarray] = {}
-    with h5py.File(path, "r") as f:
-        f.visititems(lambda n, o: out.__setitem__(n, o[()]) if isinstance(o, h5py.Dataset) else None)
-    return out
 
 
 def test_rerun_without_the_patch_file_is_bit_identical(tmp_path, capsys):

@@ -440,24 +440,21 @@ def test_missing_patch_file(tmp_path):
         read_patch_file(tmp_path / "absent.h5")
 
 
-def test_patch_file_lacking_a_dataset(tmp_path):
-    """A patch file without a ``height`` dataset names the missing dataset."""
+@pytest.mark.parametrize(
+    ("height", "match"),
+    [(None, r"lacks dataset\(s\) height"), (np.full(5, 3e-6), "equal lengths")],
+    ids=["lacking-height", "unequal-lengths"],
+)
+def test_malformed_patch_file(tmp_path, height, match):
+    """A patch file without a ``height`` dataset names the missing dataset; datasets of unequal length are
+    refused."""
     p = small_patches()
     with h5py.File(tmp_path / "p.h5", "w") as f:
         for k in ("x", "y", "area"):
             f.create_dataset(k, data=getattr(p, k))
-    with pytest.raises(SceneError, match=r"lacks dataset\(s\) height"):
-        read_patch_file(tmp_path / "p.h5")
-
-
-def test_patch_file_with_unequal_arrays(tmp_path):
-    """Datasets of unequal length in a patch file are refused."""
-    p = small_patches()
-    with h5py.File(tmp_path / "p.h5", "w") as f:
-        for k in ("x", "y", "area"):
-            f.create_dataset(k, data=getattr(p, k))
-        f.create_dataset("height", data=np.full(5, 3e-6))
-    with pytest.raises(SceneError, match="equal lengths"):
+        if height is not None:
+            f.create_dataset("height", data=height)
+    with pytest.raises(SceneError, match=match):
         read_patch_file(tmp_path / "p.h5")
 
 

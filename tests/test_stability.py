@@ -223,20 +223,16 @@ def test_implicit_schemes_spring_limit(integrator):
 
 @pytest.mark.parametrize("factor", [10.0, 50.0])
 def test_implicit_friction_far_past_the_friction_limit(factor):
-    """At 10× and 50× estimate.friction (still < 0.9 × estimate.spring) implicit-friction and strang stay bounded
-    for 1e5 steps, where symplectic-euler is refused and, forced, chatters far beyond the bound. (strang is refused
-    there too, as not resolving sticking (estimate.sticking = 2 × estimate.friction), and runs bounded when forced.)"""
+    """At 10× and 50× estimate.friction (still < 0.9 × estimate.spring) implicit-friction and strang are accepted
+    and stay bounded for 1e5 steps, where symplectic-euler is refused and, forced, chatters far beyond the bound."""
     scene = friction_scene()
     model = build_model([scene])
     est = stable_step(model)
     dt = factor * est.friction
     assert dt < 0.9 * est.spring
     for integrator in ("implicit-friction", "strang"):
-        res, c, bound = long_run(scene, integrator, dt, force=integrator == "strang")
+        res, c, bound = long_run(scene, integrator, dt)
         assert_bounded(res, c, bound)
-    with pytest.raises(StabilityError, match="does not resolve sticking for strang"):
-        opts = RunOptions(duration=100 * dt, integrator="strang", dt=dt)
-        run_hf(model, initial_state(model), opts, record=Record(sample_dt=10 * dt))
     with pytest.raises(StabilityError, match="friction slope"):
         run_hf(model, initial_state(model), RunOptions(duration=100 * dt, integrator="symplectic-euler", dt=dt))
     res, c, bound = long_run(scene, "symplectic-euler", dt, steps=10_000, force=True)

@@ -77,10 +77,10 @@ def test_advice_after_a_file_size_stop_is_one_and_true(tmp_path: Path, hf_refere
 
 
 def test_lf_file_size_limit_then_resume(tmp_path: Path) -> None:
-    from test_lf_checkpoint import SCENE
+    from test_lf_checkpoint import lf_scene
 
     scene = tmp_path / "lf.toml"
-    scene.write_text(SCENE.format(first=1.0))
+    scene.write_text(lf_scene(1.0))
     ref = tmp_path / "ref.h5"
     assert main(["lf", str(scene), "-o", str(ref), "--no-progress"]) == 0
     out = tmp_path / "run.h5"

@@ -11,6 +11,7 @@ import h5py
 import numpy as np
 import psutil
 import pytest
+from procs import small_sweep_doc
 
 from aca_warp.cli import main
 from aca_warp.hf.loop import run_hf
@@ -22,16 +23,16 @@ from aca_warp.scene import Friction, PatchGenerator, preset
 from aca_warp.sweep import SweepError, load_spec, load_sweep, run_sweep
 
 # 2 M x 3 loads x 2 seeds = 12 pads of 25 patches, 4 shards of 3; 4 µs simulated (5 samples).
-TINY = {
-    "sweep": {"base": "hf1", "shard_size": 3, "name": "tiny"},
-    "run": {"duration": 4e-6, "precision": "fp32"},
-    "base": {"patches": {"count": 25}},
-    "parameters": {
+TINY = small_sweep_doc(
+    "tiny",
+    count=25,
+    duration=4e-6,
+    parameters={
         "friction.M": [0.6, 0.8],
         "load.normal_force": {"linspace": [300.0, 500.0, 3]},
         "patches.seed": {"range": [1, 3]},
     },
-}
+)
 
 
 def _spec(**changes):

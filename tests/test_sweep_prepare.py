@@ -14,22 +14,19 @@ from pathlib import Path
 import numpy as np
 import psutil
 import pytest
+from procs import small_sweep_doc
 
 from aca_warp.hf.recorder import GLOBAL_NAMES
 from aca_warp.sweep import load_spec, load_sweep, run_sweep
 from aca_warp.sweep.prepare import Preparer, prepare_shard
 
 # 2 M x 2 seeds x 2 loads = 8 pads of 20 patches in 3 shards (the last of 2 pads); 3 µs simulated
-SMALL = {
-    "sweep": {"base": "hf1", "shard_size": 3, "name": "small"},
-    "run": {"duration": 3e-6, "precision": "fp32"},
-    "base": {"patches": {"count": 20}},
-    "parameters": {
-        "friction.M": [0.6, 0.8],
-        "patches.seed": [1, 2],
-        "load.normal_force": [300.0, 450.0],
-    },
-}
+SMALL = small_sweep_doc(
+    "small",
+    count=20,
+    duration=3e-6,
+    parameters={"friction.M": [0.6, 0.8], "patches.seed": [1, 2], "load.normal_force": [300.0, 450.0]},
+)
 
 
 def _spec(tmp_path: Path | None = None) -> object:

@@ -9,30 +9,18 @@ import math
 
 import numpy as np
 import pytest
+from procs import nine_patch_scene
 
 from aca_warp.hf.model import build_model
 from aca_warp.hf.reference import ReferenceODE
 from aca_warp.hf.state import initial_state
-from aca_warp.scene import Friction, Initial, Pad, Patches, Record, Scene
+from aca_warp.scene import Scene
 from aca_warp.studies import time_to_solution as tts
 
 
 def tiny_scene(speed: float = 10.0) -> Scene:
     """9 HF1-size patches on a 1.5 mm grid at r = 0.13 m, perturbed from rest."""
-    pos = [(i * 1.5e-3, 0.13 + j * 1.5e-3) for i in (-1, 0, 1) for j in (-1, 0, 1)]
-    area = np.random.default_rng(2).uniform(2e-8, 8e-8, len(pos))
-    p = Patches(np.array([q[0] for q in pos]), np.array([q[1] for q in pos]), area, np.full(len(pos), 3e-6))
-    return Scene(
-        name="tiny",
-        pad=Pad(),
-        patches=p,
-        friction=Friction(M=0.8),
-        normal_force=20.0,
-        angular_velocity=speed / 0.13,
-        initial=Initial(perturbation=0.05, seed=3),
-        record=Record(sample_dt=1e-6),
-        duration=2e-5,
-    )
+    return nine_patch_scene("tiny", sample_dt=1e-6, duration=2e-5, angular_velocity=speed / 0.13)
 
 
 def tiny_ode() -> tuple[ReferenceODE, np.ndarray, np.ndarray]:

@@ -259,6 +259,22 @@ def test_committed_page_is_rendered_from_the_committed_results():
     assert len(rows) == len(VB.ROWS) >= 45
 
 
+def test_page_states_the_stepping_its_results_ran_with():
+    """The page's settings line reads the stepping from the results file, not from today's table, and the run key
+    carries the stepping, so results of another stepping or friction scheme are neither described nor reused as
+    this run's."""
+    from aca_warp.studies.validation.page import _header_lines
+    from aca_warp.studies.validation.settings import STEPPING
+
+    repo = Path(__file__).resolve().parent.parent
+    meta = json.loads((repo / "docs" / "validation" / "results.json").read_text())["meta"]
+    meta["config"]["stepping"] = {"hf": "strang, dt = 3.3e-08 s, fp64"}
+    assert "stepping hf: strang, dt = 3.3e-08 s, fp64;" in "\n".join(_header_lines(meta))
+    key = VB.FULL.run_key()
+    assert key["stepping"] == {kind: VB.FULL.stepping(kind).describe() for kind in STEPPING}
+    assert key != {**key, "stepping": meta["config"]["stepping"]}
+
+
 def test_script_help_and_list():
     script = Path(__file__).resolve().parent.parent / "scripts" / "validation.py"
     out = subprocess.run([sys.executable, str(script), "--help"], capture_output=True, text=True, check=True).stdout

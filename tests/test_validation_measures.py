@@ -243,13 +243,17 @@ def test_table_rows_and_every_registered_row_has_a_known_kind():
 # ------------------------------------------------------------------------------------------------ settings and cost
 
 
-def test_stepping_takes_the_bound_rule_the_cap_or_an_override():
+def test_stepping_takes_the_fixed_step_the_friction_step_rule_the_cap_or_an_override():
+    from aca_warp.hf.solver import StepEstimate
     from aca_warp.studies.validation import settings as VSet
 
     hf = VSet.STEPPING["hf"]
-    assert hf.step(8.8e-8) == pytest.approx(0.9 * 8.8e-8)  # accepted without force: below strang's bound
-    assert hf.step(9.65e-8) == hf.step(1.9e-7) == 8e-8  # larger bounds: capped at the step the statistics were checked
-    assert VB.Config().stepping("growth").step(1.34e-8) == pytest.approx(1.206e-8)
+    assert hf.step(8.8e-8) == hf.step(1.9e-7) == 1e-7  # the measured step, whatever the friction step
+    growth = VB.Config().stepping("growth")
+    assert growth.step(1.34e-8) == pytest.approx(1.206e-8)  # 0.9 × the friction step
+    assert growth.step(1.9e-7) == 8e-8  # capped
+    # the friction step is h γ_max = 4: twice the explicit friction estimate 2/γ_max
+    assert VSet.friction_step(StepEstimate(spring=2e-6, friction=4.82e-8, explicit=4.8e-8)) == pytest.approx(9.64e-8)
     assert VB.Config(dt=5e-9, precision="fp64").stepping("hf").step(9.65e-8) == 5e-9
     quick = VB.Config(quick=True).stepping("lf_states")
     assert quick.dt == 1e-7 and quick.force and "forced" in quick.describe()

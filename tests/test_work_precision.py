@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from procs import nine_patch_scene
 
 from aca_warp.analysis.spectra import amplitude_spectrum
 from aca_warp.hf.loop import run_hf
@@ -16,7 +17,7 @@ from aca_warp.hf.model import build_model
 from aca_warp.hf.options import RunOptions
 from aca_warp.hf.reference import ReferenceODE
 from aca_warp.hf.state import initial_state
-from aca_warp.scene import Friction, Initial, Pad, Patches, Record, Scene
+from aca_warp.scene import Initial, Record, Scene
 from aca_warp.studies import work_precision as wp_study
 from aca_warp.studies import work_precision_report as wp_report
 from aca_warp.studies import work_precision_states as wp_states
@@ -24,20 +25,7 @@ from aca_warp.studies import work_precision_states as wp_states
 
 def tiny_scene(speed=10.0, load=20.0) -> Scene:
     """9 HF1-size patches on a 1.5 mm grid at r = 0.13 m, sharing ``load`` with the matrix, perturbed."""
-    pos = [(i * 1.5e-3, 0.13 + j * 1.5e-3) for i in (-1, 0, 1) for j in (-1, 0, 1)]
-    area = np.random.default_rng(2).uniform(2e-8, 8e-8, len(pos))
-    p = Patches(np.array([q[0] for q in pos]), np.array([q[1] for q in pos]), area, np.full(len(pos), 3e-6))
-    return Scene(
-        name="tiny",
-        pad=Pad(),
-        patches=p,
-        friction=Friction(M=0.8),
-        normal_force=load,
-        angular_velocity=speed / 0.13,
-        initial=Initial(perturbation=0.05, seed=3),
-        record=Record(sample_dt=1e-6),
-        duration=2e-5,
-    )
+    return nine_patch_scene("tiny", sample_dt=1e-6, duration=2e-5, normal_force=load, angular_velocity=speed / 0.13)
 
 
 def test_statistics_errors():

@@ -5,6 +5,7 @@ CPU end to end."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
@@ -52,9 +53,10 @@ def test_compare_known_ensemble():
 
 
 def _setting(label: str, role: str, wall: float, values: dict, complete: bool = True) -> dict:
-    name, _, rest = label.partition("@")
-    return {"label": label, "role": role, "integrator": name, "precision": rest.split(":")[0], "wall_s": wall,
-            "complete": complete, "values": values if complete else None, "steps": 1}  # fmt: skip
+    """A row of a result file as the study writes it."""
+    (setting,) = wps.parse_setting(label)
+    return {"label": label, "role": role, **dataclasses.asdict(setting), "wall_s": wall, "complete": complete,
+            "values": values if complete else None, "steps": 1}  # fmt: skip
 
 
 T29 = scipy.stats.t.ppf(0.975, 29)
@@ -92,36 +94,146 @@ def synthetic_regime(seeds: int = 30) -> dict:
 
 
 def test_verdicts_are_an_equivalence_test():
-    """keeps: the 95 % interval of the bias within ± rule·σ; moves: wholly beyond; undecided: across; an incomplete
-    run keeps nothing."""
+    """keeps: the 95 % interval of the bias within ± rule·σ; moves: wholly beyond; between them the strict
+    criterion leaves the measure undecided, the resolution criterion keeps it within resolution when the estimate
+    is within ± rule·σ (noisy: bias 0, sd(d) = σ); an incomplete run keeps nothing."""
     reg = synthetic_regime()
     cheap, noisy, mid, dear, fast = reg["settings"][1:]
     c = rule.compare_setting(reg, mid, "mu_std")
     assert c.ratio == pytest.approx(0.1) and c.bound_ratio == pytest.approx(0.1 + 0.2 * T29 / math.sqrt(30))
-    assert [rule.verdict(reg, s, "mu_std", 0.25) for s in (cheap, noisy, mid, dear, fast)] == [
+    assert c.bound90 / c.sigma == pytest.approx(0.1 + 0.2 * scipy.stats.t.ppf(0.95, 29) / math.sqrt(30))
+    assert rule.compare_setting(reg, noisy, "mu_std").sd_ratio == pytest.approx(1.0)
+    settings = (cheap, noisy, mid, dear, fast)
+    assert [rule.verdict(reg, s, "mu_std", 0.25, "strict") for s in settings] == [
         "moves", "undecided", "keeps", "keeps", "no run"]  # fmt: skip
+    assert [rule.verdict(reg, s, "mu_std", 0.25) for s in settings] == [
+        "moves", "within resolution", "keeps", "keeps", "no run"]  # fmt: skip
     assert rule.verdict(reg, dear, "phi", 0.25) == "moves" and rule.verdict(reg, dear, "phi", 0.31) == "keeps"
-    assert rule.verdict(reg, noisy, "mu_std", 0.4) == "keeps"  # bound 0.373
+    assert rule.verdict(reg, noisy, "mu_std", 0.4, "strict") == "keeps"  # bound 0.373
     assert rule.verdict(reg, reg["settings"][0], "phi", 0.0) == "keeps"
+    with pytest.raises(KeyError):
+        rule.verdict(reg, noisy, "mu_std", 0.25, "loose")
+
+
+def _orthogonal(rng: np.random.Generator, seeds: int, against: list[np.ndarray]) -> np.ndarray:
+    """Values of mean 0 and sample standard deviation 1, uncorrelated with every array of ``against``."""
+    z = rng.normal(0.0, 1.0, seeds)
+    z -= z.mean()
+    for a in against:
+        a0 = a - a.mean()
+        z -= (z @ a0) / (a0 @ a0) * a0
+    return z / z.std(ddof=1)
+
+
+def parted_regime(seeds: int = 32) -> dict:
+    """The saturated state's case: one measure (S − S_null) whose runs part from the reference's. Reference r (mean
+    0, σ 1); ``twin`` (strang fp32 at the reference's step: as exact, its runs parted) and ``cheap`` have values
+    uncorrelated with r of equal spread and the same mean, so d has mean 0 and sd √2 σ exactly; ``wide`` scatters
+    twice as far (sd(d) = √5 σ); ``biased`` is as ``cheap`` + 0.3 σ."""
+    rng = np.random.default_rng(11)
+    r = _orthogonal(rng, seeds, [])
+    x = _orthogonal(rng, seeds, [r])
+    y = _orthogonal(rng, seeds, [r, x])
+
+    def vals(v: np.ndarray) -> dict:
+        return {"sync_excess": v.tolist()}
+
+    return {
+        "name": "parted", "description": "synthetic", "kind": "saturated", "measures": ["sync_excess"],
+        "pads": [{"seed": s + 1, "member": None, "patches": 10} for s in range(seeds)],
+        "config": {"perturbation": 0.01}, "duration_s": 0.03, "window_start_s": 0.02,
+        "settings": [
+            _setting("strang@fp64:dt=1e-08", "reference", 30.0, vals(r)),
+            _setting("strang@fp32:dt=5e-07", "grid", 1.0, vals(x + 0.3)),
+            _setting("implicit-friction@fp32:dt=5e-07", "grid", 1.5, vals(2 * y)),
+            _setting("strang@fp32:dt=8e-08", "grid", 8.0, vals(x)),
+            _setting("strang@fp32:dt=1e-08", "grid", 13.0, vals(y)),
+        ],
+    }  # fmt: skip
+
+
+def test_an_exact_twin_keeps_within_resolution():
+    """Runs that have parted give sd(d) = √2 σ: at 32 seeds the 95 % bound of even an exact setting is
+    t √2/√32 = 0.51 σ, so the strict criterion keeps nothing and picks the reference; the resolution criterion
+    (the default) keeps the exact settings within resolution and picks the cheapest of them; a setting that
+    scatters wider than the floor or whose estimate lies beyond ¼ σ stays undecided."""
+    doc = {"regimes": {"parted": parted_regime()}}
+    reg = doc["regimes"]["parted"]
+    biased, wide, cheap, twin = reg["settings"][1:]
+    c = rule.compare_setting(reg, twin, "sync_excess")
+    floor = scipy.stats.t.ppf(0.975, 31) * math.sqrt(2 / 32)
+    assert c.sd_ratio == pytest.approx(math.sqrt(2)) and c.bound_ratio == pytest.approx(floor)
+    assert rule.resolution_floor(32) == pytest.approx(floor) and floor > 0.5
+    assert rule.settings_for(doc, "parted").setting == "strang@fp32:dt=8e-08"  # the old rule: the reference
+    assert rule.settings_for(doc, "parted", criterion="strict").setting == "strang@fp64:dt=1e-08"
+    assert rule.settings_for(doc, "parted", criterion="tost").setting == "strang@fp64:dt=1e-08"
+    assert [rule.verdict(reg, s, "sync_excess", 0.25) for s in (biased, wide, cheap, twin)] == [
+        "undecided", "undecided", "within resolution", "within resolution"]  # fmt: skip
+    assert rule.compare_setting(reg, wide, "sync_excess").sd_ratio == pytest.approx(math.sqrt(5))
+    ch = rule.settings_for(doc, "parted")
+    assert ch.verdicts == {"sync_excess": "within resolution"} and ch.passing[:2] == [
+        "strang@fp32:dt=8e-08", "strang@fp32:dt=1e-08"]  # fmt: skip
+    assert ch.fails == {"strang@fp32:dt=5e-07": ["sync_excess"], "implicit-friction@fp32:dt=5e-07": ["sync_excess"]}
+    assert ch.binding == ["sync_excess"]
+
+
+def test_twin_criterion_takes_the_floor_from_the_twin():
+    """The twin is the grid setting that differs from the reference in precision only. A twin that keeps its
+    pairing (sd(d) = 0.3 σ) sets a floor the parted setting (sd(d) = √2 σ) exceeds: undecided under "twin", within
+    resolution under "resolution"; without a twin run the "twin" criterion keeps only what "strict" keeps."""
+    doc = {"regimes": {"parted": parted_regime()}}
+    reg = doc["regimes"]["parted"]
+    twin = reg["settings"][-1]
+    r = np.array(reg["settings"][0]["values"]["sync_excess"])
+    twin["values"]["sync_excess"] = (r + 0.3 * np.array(twin["values"]["sync_excess"])).tolist()
+    assert rule.twin_of(reg) is twin
+    assert rule.compare_setting(reg, twin, "sync_excess").sd_ratio == pytest.approx(0.3)
+    cheap = reg["settings"][3]
+    assert rule.verdict(reg, cheap, "sync_excess", 0.25, "twin") == "undecided"
+    assert rule.verdict(reg, cheap, "sync_excess", 0.25, "resolution") == "within resolution"
+    assert rule.settings_for(doc, "parted", criterion="twin").setting == "strang@fp32:dt=1e-08"
+    twin["precision"] = "fp64"  # no twin left
+    assert rule.twin_of(reg) is None
+    assert rule.verdict(reg, cheap, "sync_excess", 0.25, "twin") == "undecided"
+
+
+def test_resolution_figures():
+    """The floor factor is the one-sided 95 % variance ratio of two ensembles; seeds_needed is the least n whose
+    95 % half-width t·sd(d)/√n reaches the rule (≈ 126 for sd(d) = √2 σ, the number the strict rule needs for a
+    parted measure); keep_chance is the normal probability of an estimate within ± rule σ."""
+    assert rule.floor_factor(32) == pytest.approx(math.sqrt(scipy.stats.f.ppf(0.95, 31, 31)))
+    for ratio in (0.1, 1.0, math.sqrt(2)):
+        n = rule.seeds_needed(ratio)
+        assert scipy.stats.t.ppf(0.975, n - 1) * ratio / math.sqrt(n) <= 0.25
+        assert n == 2 or scipy.stats.t.ppf(0.975, n - 2) * ratio / math.sqrt(n - 1) > 0.25
+    assert rule.seeds_needed(math.sqrt(2)) == 126 and rule.seeds_needed(0.0) == 2
+    assert rule.seeds_needed(math.nan) is None and rule.seeds_needed(1e4, limit=1000) is None
+    assert rule.keep_chance(32, 0.0) == pytest.approx(scipy.stats.norm.cdf(1) - scipy.stats.norm.cdf(-1))
+    assert rule.keep_chance(32, 0.25) == pytest.approx(scipy.stats.norm.cdf(0) - scipy.stats.norm.cdf(-2))
 
 
 def test_rule_picks_the_cheapest_setting_that_keeps_every_measure():
-    """mid is the cheapest setting that keeps both (cheap moves μ std, noisy leaves it undecided); μ std binds it;
-    a tighter rule leaves the reference, a looser one takes the cheaper settings; one measure alone its cheapest;
-    an incomplete run is never chosen."""
+    """Strictly, mid is the cheapest setting that keeps both (cheap moves μ std, noisy leaves it undecided); μ std
+    binds it; a tighter rule leaves the reference, a looser one takes the cheaper settings; one measure alone its
+    cheapest; an incomplete run is never chosen. Within resolution noisy keeps μ std too and is picked."""
     doc = {"regimes": {"syn": synthetic_regime()}}
-    ch = rule.settings_for(doc, "syn")
+    ch = rule.settings_for(doc, "syn", criterion="strict")
     assert ch.setting == "strang@fp32:dt=1e-07" and ch.wall_s == 2.0 and ch.speedup == pytest.approx(5.0)
     assert ch.passing == ["strang@fp32:dt=1e-07", "strang@fp64:dt=1e-08"]
     assert ch.cheapest == {"mu_std": "strang@fp32:dt=1e-07", "phi": "strang@fp32:dt=5e-07"}
-    assert rule.settings_for(doc, "syn", rule=0.1).setting == "strang@fp64:dt=1e-08"
-    assert rule.settings_for(doc, "syn", rule=0.4).setting == "adaptive@fp64:tol=0.001"
-    assert rule.settings_for(doc, "syn", rule=0.6).setting == "strang@fp32:dt=5e-07"
+    assert ch.binding == ["mu_std"] and ch.verdicts == {"mu_std": "keeps", "phi": "keeps"}
+    assert rule.settings_for(doc, "syn", rule=0.1, criterion="strict").setting == "strang@fp64:dt=1e-08"
+    assert rule.settings_for(doc, "syn", rule=0.4, criterion="strict").setting == "adaptive@fp64:tol=0.001"
+    assert rule.settings_for(doc, "syn", rule=0.6, criterion="strict").setting == "strang@fp32:dt=5e-07"
     assert rule.settings_for(doc, "syn", ["phi"]).setting == "strang@fp32:dt=5e-07"
+    res = rule.settings_for(doc, "syn")
+    assert res.setting == "adaptive@fp64:tol=0.001" and res.verdicts["mu_std"] == "within resolution"
     with pytest.raises(KeyError):
         rule.settings_for(doc, "syn", ["f1"])
     with pytest.raises(KeyError):
         rule.settings_for(doc, "other")
+    with pytest.raises(KeyError):
+        rule.settings_for(doc, "syn", criterion="loose")
 
 
 def test_members_take_the_worst():
@@ -136,6 +248,10 @@ def test_members_take_the_worst():
     assert c.member == "s2" and c.n == 10
     assert c.sigma == pytest.approx(ref_a.std(ddof=1), rel=1e-12)
     assert c.error == pytest.approx(np.mean(mid["values"]["mu_std"][10:]) - ref_a.mean(), rel=1e-9)
+    noisy = reg["settings"][2]  # within resolution in each member; one member moved makes the regime's verdict move
+    assert rule.verdict(reg, noisy, "mu_std", 0.25) == "within resolution"
+    noisy["values"]["mu_std"] = [x + (5.0 if i >= 10 else 0.0) for i, x in enumerate(noisy["values"]["mu_std"])]
+    assert rule.verdict(reg, noisy, "mu_std", 0.25) == "moves"
 
 
 def test_grid_syntax_and_new_integrators(monkeypatch):
@@ -191,8 +307,10 @@ def test_pad_measures_read_from_the_validation_pad():
 
 
 def test_report_page_from_a_synthetic_result(tmp_path):
-    """The page names the machine and the choice, gives every setting's error/σ with its bound and verdict, and
-    the cheapest setting per measure; the figure is written; a regime named in two files is refused."""
+    """The page names the machine, the floor and the choice with the other criteria's beside it, gives every
+    setting's error/σ with its bound and verdict (≈: within resolution), sd(d)/σ with the seeds the strict rule
+    would need, and the cheapest setting per measure; the figure is written; a regime named in two files is
+    refused."""
     doc = {
         "machine": {"device": "cpu", "device_name": "CPU", "host": "Test CPU, 2 cores"},
         "tag": "cpu_quick", "quick": True, "commands": ["python3 scripts/work_precision_stats.py --quick"],
@@ -202,20 +320,29 @@ def test_report_page_from_a_synthetic_result(tmp_path):
     path.write_text(json.dumps(doc))
     page, figs = tmp_path / "docs" / "page.md", tmp_path / "docs" / "fig"
     page.parent.mkdir()
-    wps_report.report([path], page, figs, 0.25, None)
+    wps_report.report([path], page, figs, 0.25, None, "resolution")
     text = page.read_text()
     assert "Test CPU, 2 cores" in text and "(the quick CPU variant)" in text
+    assert "With 30 seeds the resolution floor t₀.₉₇₅ √2 σ/√n is 0.53 σ" in text
     assert (
-        "| syn | 30 × 10 | 30.0 ms | `strang@fp64:dt=1e-08` (10 s) | `strang@fp32:dt=1e-07` | 2 | 5 | μ std |" in text
+        "| syn | 30 × 10 | 30.0 ms | `strang@fp64:dt=1e-08` (10 s) | `adaptive@fp64:tol=0.001` | 1.5 | 6.7 | μ std | "
+        "μ std |" in text
     )
+    assert "| syn | 30 × 10 | `adaptive@fp64:tol=0.001` (6.7×) | `strang@fp32:dt=1e-07` (5×) |" in text
+    assert "`strang@fp32:dt=5e-07` (μ std 0.5 σ)" in text and "the strict criterion would need 64 seeds" in text
     assert "| `strang@fp32:dt=5e-07` | 1 | 10 | **0.5 (0.5)** | 0 (0) ✓ | no |" in text
-    assert "| `adaptive@fp64:tol=0.001` | 1.5 | 6.7 | < 0.001 (0.37) | 0 (0) ✓ | no |" in text
+    assert "| `adaptive@fp64:tol=0.001` | 1.5 | 6.7 | < 0.001 (0.37) ≈ | 0 (0) ✓ | yes |" in text
     assert "| `strang@fp32:dt=1e-07` | 2 | 5 | 0.1 (0.17) ✓ | 0 (0) ✓ | yes |" in text
     assert "| `implicit-friction@fp32:dt=5e-07` | 0.5 | 20 | – | – | no (incomplete) |" in text
+    assert (
+        "| μ std | 1 | -0.4141 | 0.836 | 0.312 | 30 | – | 0–1 | – | 2–64 | `adaptive@fp64:tol=0.001` (1.5 s) |" in text
+    )
     assert "`strang@fp32:dt=5e-07` (1 s) |" in text  # Φ: the cheapest setting keeping it
+    wps_report.report([path], page, figs, 0.25, None, "strict")
+    assert "`strang@fp32:dt=1e-07` | 2 | 5 | μ std | – |" in page.read_text()
     assert (figs / "wps_cpu_quick.png").stat().st_size > 10_000
     with pytest.raises(ValueError, match="both"):
-        wps_report.report([path, path], page, figs, 0.25, None)
+        wps_report.report([path, path], page, figs, 0.25, None, "resolution")
 
 
 def test_bad_input_exits_2(capsys):
@@ -231,8 +358,9 @@ def test_bad_input_exits_2(capsys):
 def test_tiny_run_end_to_end(tmp_path, capsys):
     """Two 10-patch hf1 sectors for 1 ms (linear growth: not chaotic yet): strang at 1e-8 s stays within 1e-3 σ of
     the 2e-8 s reference, at 5e-7 s forced it moves the measures by more than 0.1 σ; the file holds every pad's
-    value. A second call with another grid continues the file (the reference kept, not rerun); a call with other
-    pads is refused."""
+    value. A second call with another grid continues the file (the reference kept, not rerun), also when the file
+    was made on another host with the same device (each run records its host); a call with other pads or on
+    another device is refused."""
     out = tmp_path / "wps"
     argv = ["--quick", "--regimes", "hf1", "--seeds", "2", "--patches", "10", "--duration", "1e-3", "--window",
             "5e-4", "--out", str(out)]  # fmt: skip
@@ -248,14 +376,22 @@ def test_tiny_run_end_to_end(tmp_path, capsys):
     assert max(fine) < 1e-3, fine
     coarse = [rule.compare_setting(reg, reg["settings"][1], m).ratio for m in ("mu_std", "f1", "phi", "top_excess")]
     assert max(coarse) > 0.1, coarse
+    moved = json.loads(path.read_text())  # the file made on another host with the same device: continued
+    moved["machine"]["host"] = "Other host"
+    path.write_text(json.dumps(moved))
     assert wps.main([*argv, "--grid", "implicit-friction@fp64:dt=2.5e-7"]) == 0
     doc = json.loads(path.read_text())
+    assert doc["machine"]["host"] == "Other host" and doc["regimes"]["hf1"]["settings"][-1]["host"] != "Other host"
     again = doc["regimes"]["hf1"]["settings"]
     assert [s["label"] for s in again] == [*(s["label"] for s in reg["settings"]), "implicit-friction@fp64:dt=2.5e-07"]
     assert again[0] == reg["settings"][0] and len(doc["commands"]) == 2
     assert doc["regime_wall_s"] > first["regime_wall_s"] + again[-1]["wall_s"]
     capsys.readouterr()
     assert wps.main([*argv[:4], "3", *argv[5:], "--grid", "strang@fp64:dt=5e-7"]) == 2
+    assert "choose another --out" in capsys.readouterr().err
+    doc["machine"]["device_name"] = "Other device"
+    path.write_text(json.dumps(doc))
+    assert wps.main([*argv, "--grid", "strang@fp64:dt=5e-7"]) == 2
     assert "choose another --out" in capsys.readouterr().err
 
 
@@ -272,7 +408,7 @@ def test_committed_page_is_what_the_report_writes():
     assert names, "the page names no result file"
     docs = [rule.load_results(repo / n) for n in names]
     tags = list(dict.fromkeys(d["tag"] for d in docs))
-    body = wps_report.render(docs, names, [folder / f"wps_{t}.png" for t in tags], page, 0.25, None)
+    body = wps_report.render(docs, names, [folder / f"wps_{t}.png" for t in tags], page, 0.25, None, "resolution")
     begin, end = wps_report.generated_markers(wps_report.MARKER)
     assert text.split(begin, 1)[1].split(end, 1)[0] == "\n" + "\n".join(body) + "\n"
     for t in tags:

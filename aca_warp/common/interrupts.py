@@ -187,6 +187,17 @@ def deferred() -> Iterator[None]:
         raise _interrupt(signum)
 
 
+def undivided(call: Callable[..., None]) -> Callable[..., None]:
+    """``call`` run whole (:func:`deferred`): a SIGINT or SIGTERM that arrives during it is raised after it (a
+    writer's append, whose datasets keep equal lengths; a checkpoint; a snapshot)."""
+
+    def run(*args: Any) -> None:
+        with deferred():
+            call(*args)
+
+    return run
+
+
 @contextmanager
 def second_signal_exits() -> Iterator[None]:
     """In the body, a signal that comes while the first interrupt is being handled ends the process at once with

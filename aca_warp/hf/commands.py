@@ -14,17 +14,25 @@ from aca_warp.common.argtypes import add_checkpoint_arguments, int_at_least, non
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.options import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, ENGINES, INTEGRATORS
 
-EPILOG = """\
+
+def run_epilog(resume: str) -> str:
+    """The help epilog of ``aca-warp`` and ``aca-warp hf``: SCENE, an example, the units and the exit codes;
+    ``resume``: the command that continues an interrupted run (docs/faults.md)."""
+    return f"""\
 SCENE is a preset (hf1, hf2, hf3, hf4, varying_area) or a TOML scene file (docs/scenes.md).
 Example:  aca-warp hf hf1 --duration 1e-3 -o run.h5
 Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad input (nothing written),
 3 the run stopped on a fault or an unphysical result (the file holds everything before it, marked incomplete),
 4 the output cannot be written (read-only or full file system, no permission: found before the run, nothing
 written; disk full or file-size limit during the run: the .partial keeps its last checkpoint),
-130 interrupted by Ctrl-C, 143 by SIGTERM (the file closed and marked incomplete; aca-warp hf --resume RUN.h5
+130 interrupted by Ctrl-C, 143 by SIGTERM (the file closed and marked incomplete; {resume}
 continues it from its last checkpoint, or from its start if it has none; docs/faults.md).
-Values far outside a brake pad's range are refused as likely unit mistakes unless --allow-implausible.
 """
+
+
+EPILOG = run_epilog("aca-warp hf --resume RUN.h5") + (
+    "Values far outside a brake pad's range are refused as likely unit mistakes unless --allow-implausible.\n"
+)
 
 
 def add_parsers(sub: Any) -> None:
@@ -105,8 +113,8 @@ def _add_safety_arguments(hf: argparse.ArgumentParser) -> None:
     hf.add_argument(
         "--force",
         action="store_true",
-        help="run a step beyond the stable-step estimate, a strang step that does not resolve sticking (warns), "
-        "or a run beyond the size limits (1e10 steps, 50 GB of samples)",
+        help="run a step beyond the stable-step estimate (warns), or a run beyond the size limits (1e10 steps, "
+        "50 GB of samples)",
     )
     hf.add_argument(
         "--accept-unphysical",

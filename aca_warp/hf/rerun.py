@@ -112,7 +112,7 @@ def relaxed_checks(s: RunSettings) -> list[str]:
     o = s.options
     out = []
     if o.force:
-        out.append("force (a step beyond the stable-step estimate or the sticking bound runs, with a warning)")
+        out.append("force (a step beyond the stable-step estimate runs, with a warning)")
     if o.watchdog_factor is None:
         out.append("the watchdog off (only non-finite values stop the run)")
     elif o.watchdog_factor != WATCHDOG_FACTOR:

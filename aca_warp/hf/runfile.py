@@ -13,23 +13,17 @@ Root attributes: ``scene`` (JSON), ``integrator``, ``run_options`` (JSON, :class
 ``precision``, ``device``, ``versions`` (JSON), ``stages`` (JSON list), ``stable_step`` (JSON),
 ``predicted_growth_rate_min``, ``_median``, ``_max`` [1/s] (absent in files of earlier versions), ``complete``
 (bool), ``status``, and for a stopped run ``fault``. The file is written as ``NAME.partial`` and renamed to ``NAME``
-when the run ends, completed or not (then ``complete = False`` and ``status`` says why): the final name never holds
-a file that is half written. A killed process leaves only the ``.partial`` file behind: it holds everything up to
-the last checkpoint (automatic by default, :class:`~aca_warp.common.checkpoint.CheckpointClock`) and
-``aca-warp hf --resume`` continues it from there, or from the start when the run had no checkpoint yet. Neither
-``NAME`` nor a leftover ``NAME.partial`` is replaced without ``overwrite``.
-
-One writer per output: a writer holds ``NAME.lock`` (:class:`~aca_warp.common.files.OutputLock`) from before it
-looks at ``NAME`` until the file has its final name, so a second run, an ``--overwrite`` or a ``--resume`` of the
-same name is refused while it runs. The file is created as ``NAME.partial.new``, its header written and flushed,
-and only then renamed to ``NAME.partial``: a ``.partial`` is a readable HDF5 file from the moment it exists. On a
-full device the file is abandoned as it was at its last flush (:mod:`aca_warp.common.storage`).
+when the run ends, completed or not (then ``complete = False`` and ``status`` says why). A killed process leaves
+only the ``.partial`` file behind: it holds everything up to the last checkpoint (automatic by default,
+:class:`~aca_warp.common.checkpoint.CheckpointClock`) and ``aca-warp hf --resume`` continues it from there, or from
+the start when the run had no checkpoint yet. Neither ``NAME`` nor a leftover ``NAME.partial`` is replaced without
+``overwrite``. The lock, the ``.partial`` and the full device are handled as for every run file
+(:mod:`aca_warp.common.runfile`).
 """
 
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any
 
@@ -38,31 +32,16 @@ import numpy as np
 
 from aca_warp.common.checkpoint import (
     Checkpoint,
-    checkpoint_room,
     closed_on_failure,
     drop_checkpoint,
-    has_checkpoint,
-    read_checkpoint,
-    write_checkpoint,
 )
-from aca_warp.common.errors import AcaError, SceneError, option
-from aca_warp.common.files import (
-    OutputLock,
-    check_output_path,
-    create_h5,
-    from_h5py,
-    new_path,
-    open_h5,
-    partial_path,
-    recovery,
-    versions,
-)
-from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
+from aca_warp.common.files import OutputLock, check_output_path, open_h5, versions
+from aca_warp.common.runfile import RunFileWriter, write_attrs
+from aca_warp.common.storage import storage_errno, storage_error
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS, Chunk
 from aca_warp.scene import Scene, scene_to_dict
 
-RAW_CACHE = 64 * 2**20  # bytes of HDF5 chunk cache: appended rows of wide per-patch histories stay cached
 SERIES_CHUNK = 4096  # samples per chunk of /global/* and /patches/time
 HISTORY_CHUNK = (1024, 64)  # (samples, patches) per chunk of the per-patch histories (patches: at most 64)
 # what else a file holds, on disk: object headers, chunk index nodes, the two checkpoint slots (measured by
@@ -95,14 +74,10 @@ def file_bytes(
     return series + history + fixed + chunks * BYTES_PER_CHUNK + HEADER_BYTES
 
 
-def busy() -> str:
-    """The advice of a refusal to write an output that a live process writes."""
-    overwrite = option("overwrite=True", "--overwrite")
-    return f"wait for it to finish or stop it ({overwrite} does not replace a run in progress)"
-
-
-class RunWriter:
+class RunWriter(RunFileWriter):
     """Streams one pad's recorded samples into an HDF5 run file (``pad`` selects it from a batch)."""
+
+    RAW_CACHE = 64 * 2**20  # bytes of HDF5 chunk cache: appended rows of wide per-patch histories stay cached
 
     def __init__(
         self,
@@ -114,34 +89,23 @@ class RunWriter:
         attrs: dict[str, Any] | None = None,
         lock: OutputLock | None = None,
     ) -> None:
-        self.lock = lock or OutputLock.acquire(path, what=busy())
+        self._select(model, pad)
+        self._create(
+            path,
+            check_output_path,
+            overwrite=overwrite,
+            lock=lock,
+            header=lambda: self._write_header(model.scenes[pad], attrs or {}),
+        )
+
+    def _select(self, model: PadModel, pad: int) -> None:
+        """Write the pad ``pad`` of ``model``."""
         self.pad = pad
         self.model = model
         a, b = (int(x) for x in model.pad_patch_start_host[pad : pad + 2])
         self.slice = slice(a, b)
         self.flush_each_chunk = True
         self._patch_ds: dict[str, h5py.Dataset] = {}
-        tmp = new_path(partial_path(path))
-        try:
-            self.path = check_output_path(path, overwrite=overwrite)
-            self.partial = partial_path(self.path)
-            self.f = create_h5(tmp, self.lock, rdcc_nbytes=RAW_CACHE)  # a leftover .new is replaced, a link refused
-            self.out = GuardedFile(self.f, self.partial, raw_cache=RAW_CACHE)
-            self._write_header(model.scenes[pad], attrs or {})
-            self.out.flush()
-            os.replace(tmp, self.partial)  # readable from the moment it has this name
-        except BaseException as e:
-            if getattr(self, "out", None) is not None:
-                self.out.abandon()
-            elif getattr(self, "f", None) is not None:
-                self.f.close()
-            if getattr(self, "f", None) is not None:
-                tmp.unlink(missing_ok=True)
-            self.lock.release()
-            code = storage_errno(e)
-            if code is not None:
-                raise storage_error(code, tmp, "nothing was written") from None
-            raise
 
     def _write_header(self, scene: Scene, attrs: dict[str, Any]) -> None:
         """Attributes, empty sample datasets, the patch set and the matrix cells."""
@@ -151,8 +115,7 @@ class RunWriter:
         f.attrs["versions"] = json.dumps(versions())
         f.attrs["complete"] = False
         f.attrs["status"] = "running"
-        for k, v in attrs.items():
-            f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
+        write_attrs(f, attrs)
         g = f.create_group("global")
         for name, unit in (("time", "s"), *zip(GLOBAL_NAMES, GLOBAL_UNITS, strict=True)):
             d = g.create_dataset(name, shape=(0,), maxshape=(None,), dtype="f8", chunks=(SERIES_CHUNK,))
@@ -200,18 +163,8 @@ class RunWriter:
         rows (to none without a checkpoint: the run starts again; the checkpoint is then None) and mark the file
         running again."""
         self = cls.__new__(cls)
-        self.lock = lock
-        self.partial = Path(partial)
-        self.path = self.partial.with_name(self.partial.name.removesuffix(".partial"))
-        self.pad = pad
-        self.model = model
-        a, b = (int(x) for x in model.pad_patch_start_host[pad : pad + 2])
-        self.slice = slice(a, b)
-        self.flush_each_chunk = True
-        try:
-            self.f = h5py.File(self.partial, "r+", rdcc_nbytes=RAW_CACHE)
-        except (OSError, RuntimeError) as e:
-            raise SceneError(f"cannot open {self.partial} to resume it: {e}") from None
+        self._open_partial(partial, lock)
+        self._select(model, pad)
         try:
             ckpt = self._truncate_to_checkpoint()
         except BaseException as e:
@@ -225,9 +178,8 @@ class RunWriter:
         """Read the checkpoint, cut the sample datasets back to its rows (to none without one), mark the file
         running (reopen)."""
         f = self.f
-        self.out = GuardedFile(f, self.partial, raw_cache=RAW_CACHE)
         with closed_on_failure(f, self.partial, close=self.out.abandon):
-            ckpt = read_checkpoint(f, str(self.partial)) if has_checkpoint(f) else None
+            ckpt = self._stored_checkpoint()
             rows = {"global": 0, "patches": 0} if ckpt is None else ckpt.rows
             for name in ("time", *GLOBAL_NAMES):
                 f["global"][name].resize(rows["global"], axis=0)
@@ -249,18 +201,7 @@ class RunWriter:
                     del f[name]
         # a run resumed from a checkpoint keeps flushing at checkpoints only; one started again, at every chunk
         self.flush_each_chunk = ckpt is None
-        resumed = (
-            "started again from t = 0 (no checkpoint)"
-            if ckpt is None
-            else f"resumed from the checkpoint at t = {ckpt.sim_time:.6g} s"
-        )
-        try:
-            f.attrs["complete"] = False
-            f.attrs["status"] = f"running ({resumed})"
-            self.out.flush()
-        except BaseException:
-            self.out.abandon()
-            raise
+        self._mark_running(ckpt)
         return ckpt
 
     def rows(self) -> dict[str, int]:
@@ -273,8 +214,7 @@ class RunWriter:
         at checkpoints, so that what is on disk always fits the last one (:mod:`aca_warp.common.checkpoint`)."""
         self.flush_each_chunk = False
         ckpt.rows = self.rows()
-        self.out.reserve(checkpoint_room(self.f, ckpt))
-        write_checkpoint(self.f, ckpt, flush=self.out.flush)
+        self._store_checkpoint(ckpt)
 
     def _patch_dataset(self, name: str, unit: str, width: int, dtype: Any) -> h5py.Dataset:
         if name not in self._patch_ds:
@@ -310,54 +250,20 @@ class RunWriter:
         if self.flush_each_chunk:
             self.out.flush()
 
-    def close(self, *, complete: bool, status: str, attrs: dict[str, Any] | None = None) -> Path:
-        """Write the closing attributes, close, move the file to its final name and release the output. A failure
-        abandons the file as it was at its last flush (a storage failure raises a one-line StorageError)."""
-        try:
-            f = self.f
-            f.attrs["complete"] = complete
-            f.attrs["status"] = status
-            for k, v in (attrs or {}).items():
-                f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
-            if complete:
-                drop_checkpoint(f)
-            if self.model.scenes[self.pad].growth is not None:
-                fin = f["patches"].create_group("final")
-                for name, unit in (("area", "m2"), ("normal_force", "N")):
-                    data = self.model.host(name)[self.slice].astype(np.float64)
-                    self.out.reserve(data.nbytes)
-                    fin.create_dataset(name, data=data).attrs["unit"] = unit
-            self.out.close()
-            os.replace(self.partial, self.path)
-        except BaseException as e:
-            self.abandon()
-            code = storage_errno(e)
-            if code is not None:
-                raise storage_error(code, self.partial, f"make room, then {recovery(self.path)}") from None
-            raise
-        self.lock.release()
-        return self.path
-
-    def abandon(self) -> None:
-        """Leave the ``.partial`` as it was at its last flush (after a failure) and release the output."""
-        self.out.abandon()
-        self.lock.release()
-
-    def finish(self, error: BaseException, status: str) -> BaseException | None:
-        """Close the file after ``error`` stopped the run: marked incomplete with ``status``, or abandoned when
-        ``error`` is a storage failure. Returns the exception to raise instead of ``error`` (a one-line
-        :class:`~aca_warp.common.errors.StorageError`), or None to raise ``error`` itself."""
-        code = storage_errno(error)
-        if code is None and not from_h5py(error):
-            try:
-                self.close(complete=False, status=status)
-            except AcaError as e:
-                return e
-            return None
-        self.abandon()
-        if code is None:  # HDF5 failed to write (a damaged file): nothing more goes into it
-            return write_failed(error, self.partial, f"make room, then {recovery(self.path)}")
-        return storage_error(code, self.partial, f"make room, then {recovery(self.path)}")
+    def _write_closing(self, complete: bool, status: str, attrs: dict[str, Any]) -> None:
+        """The closing attributes; a complete run drops its checkpoint; a growing scene's final areas and forces."""
+        f = self.f
+        f.attrs["complete"] = complete
+        f.attrs["status"] = status
+        write_attrs(f, attrs)
+        if complete:
+            drop_checkpoint(f)
+        if self.model.scenes[self.pad].growth is not None:
+            fin = f["patches"].create_group("final")
+            for name, unit in (("area", "m2"), ("normal_force", "N")):
+                data = self.model.host(name)[self.slice].astype(np.float64)
+                self.out.reserve(data.nbytes)
+                fin.create_dataset(name, data=data).attrs["unit"] = unit
 
 
 def read_run(path: str | Path) -> dict[str, Any]:

@@ -9,30 +9,28 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TypeVar
 
 import warp as wp
 
 from aca_warp.common import interrupts, plausible
 from aca_warp.common.checkpoint import Checkpoint
 from aca_warp.common.errors import SceneError, option
-from aca_warp.common.files import OutputLock, check_output_path, check_room, lock_resumable, machine
+from aca_warp.common.files import OutputLock, check_output_path, check_room, machine
+from aca_warp.common.runfile import busy, reopen_resumable
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
 from aca_warp.hf.options import DEFAULT_DT, RunOptions
 from aca_warp.hf.recorder import check_run, check_sample_step
-from aca_warp.hf.runfile import RunWriter, busy, file_bytes
+from aca_warp.hf.runfile import RunWriter, file_bytes
 from aca_warp.hf.sanity import check_contact
 from aca_warp.hf.solver import check_step
 from aca_warp.hf.state import HFState, initial_state
 from aca_warp.scene import Scene
 
-T = TypeVar("T")
 MAX_STEPS = 1.0e10  # steps of one run without force=True (≈ 5 h of the fastest on-chip pad, months on a CPU)
 MAX_OUTPUT_BYTES = 50.0e9  # bytes of recorded samples of one run without force=True
 
@@ -154,7 +152,7 @@ def run_scene(
             check_room(Path(output).parent, plan.file_bytes, hint + f"{option('force=True', '--force')} tries anyway")
         model = build_model([scene], device=device, precision=precision)
         state = initial_state(model)
-        check_step(model, options, scene.record.sample_dt)  # the step the run takes, the sticking bound
+        check_step(model, options, scene.record.sample_dt)  # the step the run takes
         check_contact(model, accept=options.accept_unphysical)  # exit 3 before a file exists
         options = dataclasses.replace(options, engine=choose_engine(model, options.engine, options.integrator))
     except BaseException:
@@ -163,25 +161,23 @@ def run_scene(
     if announce is not None:
         announce(plan)
 
-    def open_writer() -> RunWriter:
-        return RunWriter(
-            output,
-            model,
-            overwrite=overwrite,
-            lock=lock,
-            attrs={
-                "integrator": options.integrator,
-                "precision": precision,
-                **machine(model.device),  # device, device_name, host, platform: as an LF file names them
-                "run_options": options.to_json(),
-            },
-        )
-
-    return _execute(open_writer, model, state, options, progress=progress)
+    writer = RunWriter(
+        output,
+        model,
+        overwrite=overwrite,
+        lock=lock,
+        attrs={
+            "integrator": options.integrator,
+            "precision": precision,
+            **machine(model.device),  # device, device_name, host, platform: as an LF file names them
+            "run_options": options.to_json(),
+        },
+    )
+    return _execute(writer, model, state, options, progress=progress)
 
 
 def _execute(
-    open_writer: Callable[[], RunWriter],
+    writer: RunWriter,
     model: PadModel,
     state: HFState,
     options: RunOptions,
@@ -189,19 +185,17 @@ def _execute(
     progress: bool,
     resume: Checkpoint | None = None,
 ) -> RunResult:
-    """Run into the writer ``open_writer()`` returns; close it complete, stopped, interrupted or failed (a storage
+    """Run into ``writer``; close it complete, stopped, interrupted or failed (a storage
     failure leaves the ``.partial`` as it was at its last checkpoint and raises a one-line StorageError). Appends,
     checkpoints and the closing are not interrupted half-way (:func:`aca_warp.common.interrupts.deferred`)."""
-    writer = None
-    try:
-        writer = open_writer()
+    with writer.closed_when_stopped():
         result = run_hf(
             model,
             state,
             options,
-            sink=_whole(writer.write),
+            sink=interrupts.undivided(writer.write),
             progress=progress,
-            on_checkpoint=_whole(writer.checkpoint),
+            on_checkpoint=interrupts.undivided(writer.checkpoint),
             resume=resume,
         )
         status = "complete" if result.complete else f"stopped: {result.fault}"
@@ -221,33 +215,8 @@ def _execute(
                     "fault": "" if result.fault is None else str(result.fault),
                 },
             )
-    except BaseException as e:
-        if writer is None or not writer.lock.held:  # not opened, or closed (close raised its own error)
-            raise
-        status = interrupted_status(e) if isinstance(e, KeyboardInterrupt) else "failed"
-        with interrupts.deferred():
-            replacement = writer.finish(e, status)
-        if replacement is not None:
-            raise replacement from None
-        raise
     wp.synchronize_device(model.device)
     return result
-
-
-def _whole(write: Callable[[T], None]) -> Callable[[T], None]:
-    """``write`` run whole: a SIGINT or SIGTERM that arrives during it is raised after it (the datasets it appends
-    to keep equal lengths)."""
-
-    def call(item: T) -> None:
-        with interrupts.deferred():
-            write(item)
-
-    return call
-
-
-def interrupted_status(e: BaseException) -> str:
-    """The ``status`` of a run file stopped by ``e``, a KeyboardInterrupt: Ctrl-C or SIGTERM."""
-    return "interrupted (SIGTERM)" if isinstance(e, interrupts.Terminated) else "interrupted by the user"
 
 
 def resume_run(
@@ -264,26 +233,17 @@ def resume_run(
     uninterrupted run's."""
     from aca_warp.hf.rerun import read_settings
 
-    final, part, src, lock = lock_resumable(path)
-    try:
+    def prepare(src: Path) -> tuple[PadModel, HFState, RunOptions]:
         s = read_settings(src)
         model = build_model([s.scene], device=device or s.device, precision=s.precision)
-        state = initial_state(model)
         options = s.options
         if checkpoint_interval is not None:
             options = dataclasses.replace(options, checkpoint_interval=checkpoint_interval)
-        if src == final:
-            os.replace(final, part)  # a stopped run goes back to being written
-    except BaseException:
-        lock.release()
-        raise
-    try:
-        writer, ckpt = RunWriter.reopen(part, model, lock=lock)
-    except BaseException:
-        if src == final and part.exists() and not final.exists():
-            os.replace(part, final)  # not resumed: the stopped run keeps its name
-        lock.release()
-        raise
+        return model, initial_state(model), options
+
+    (model, state, options), (writer, ckpt), final = reopen_resumable(
+        path, prepare, lambda prepared, part, lock: RunWriter.reopen(part, prepared[0], lock=lock)
+    )
     if checkpoint_interval is not None:
         writer.f.attrs["run_options"] = options.to_json()
-    return _execute(lambda: writer, model, state, options, progress=progress, resume=ckpt), final
+    return _execute(writer, model, state, options, progress=progress, resume=ckpt), final

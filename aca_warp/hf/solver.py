@@ -5,10 +5,14 @@ Integrators (:data:`~aca_warp.hf.options.INTEGRATORS`):
 * ``symplectic-euler``: explicit; v ← v + dt/m (F_s(u) + F_N f(ωr − v) − c v), u ← u + dt v. Its step is
   bounded by the spring network *and* the friction slope at zero sliding speed (:func:`stable_step`).
 * ``implicit-friction``: IMEX Euler; the friction and damping act on the new velocity, solved per patch by
-  safeguarded Newton (no global solve); only the spring network bounds the step.
-* ``strang``: second order; Strang splitting of friction/damping (implicit midpoint, per patch) and the
-  springs (velocity Verlet). Consecutive friction half steps are merged, so a step costs one spring
-  evaluation and one implicit solve; between steps the velocity is staggered and synchronised for output.
+  safeguarded Newton (no global solve); only the spring network bounds the step. Its velocity step is the
+  θ-method with θ = 1 (backward Euler) of :mod:`aca_warp.kernels.physics`, the per-patch solve that ``strang``
+  takes with its own θ.
+* ``strang``: second order; a Strang splitting of "spring force + friction + damping at fixed u" (a damped
+  implicit midpoint per patch with the spring force frozen inside its solve) against the drift u̇ = v.
+  Consecutive half steps are merged, so a step costs one spring evaluation and one implicit solve; between steps
+  the velocity is staggered and synchronised for output. Only the spring network bounds its step
+  (docs/numerics.md).
 * ``adaptive``: per pad, the explicit Dormand–Prince 5(4) pair with its embedded error estimate in a
   friction-weighted norm and a PI step controller on the device (:mod:`aca_warp.hf.adaptive`); ``dt`` is its first
   trial step.
@@ -79,44 +83,34 @@ def grown_arrays(model: PadModel) -> dict[str, wp.array]:
     return {f"model/{k}": model.arrays[k] for k in GROWTH_MUTABLE}
 
 
-STICKING_FACTOR = 1.0 / 3.0  # largest |R| of strang's friction step on a sticking patch (sticking bound below)
-
-
 @dataclass(frozen=True)
 class StepEstimate:
-    """Stable-step estimate of the explicit parts of the schemes, and the step that resolves sticking [s].
+    """Stable-step estimate of the explicit parts of the schemes [s].
 
     Attributes:
         spring: 2/ω_max with ω_max² bounded by Gershgorin on M^-1/2 K M^-1/2 (springs alone).
         friction: min 2 m_i / (c_i + F_N,i max|f'|) (friction slope at zero sliding speed, explicit).
         explicit: Largest h with h²ω_i² < 4 − 2hγ_i for every patch (symplectic Euler with explicit friction).
-        sticking: min 4 m_i / (c_i + F_N,i max|f'|): the largest h at which strang's implicit-midpoint friction
-            step still damps a sticking patch. Near sticking (sliding speed 0, where Eq. 4 is steepest) friction
-            pulls u̇ to ωr at the rate γ_i = (c_i + F_N,i max|f'|)/m_i; the midpoint step multiplies the deviation by
-            R = (1 − hγ/2)/(1 + hγ/2), which turns negative for hγ > 2 (the deviation flips sign each step: chatter)
-            and tends to −1 as hγ grows (undamped chatter). hγ ≤ 4 keeps |R| ≤ 1/3. Measured (200 patches of
-            2–8e-8 m², M = 100, 0.1 ms): mean μ 32.43 at hγ = 1.75, 28.0 at 5.25, 0.89 at 17.5, −36.9 at 175,
-            against 33.16 from implicit-friction at every step (backward Euler friction: R = 1/(1 + hγ) ∈ (0, 1),
-            no such bound).
+
+    The implicit per-patch friction solves of ``implicit-friction`` and ``strang`` bound nothing: ``strang``'s
+    damped midpoint keeps a held patch's chatter decaying at any h γ (docs/numerics.md), so only ``spring`` bounds
+    their step.
     """
 
     spring: float
     friction: float
     explicit: float
-    sticking: float = math.inf
 
     def limit(self, integrator: str) -> float:
-        """The bound that applies to ``integrator`` [s]: ``explicit`` for symplectic Euler, the smaller of
-        ``spring`` and ``sticking`` for strang, ``spring`` for implicit-friction (and adaptive's largest step)."""
+        """The bound that applies to ``integrator`` [s]: ``explicit`` for symplectic Euler, ``spring`` for every
+        other scheme (and adaptive's largest step)."""
         if integrator == "symplectic-euler":
             return self.explicit
-        if integrator == "strang":
-            return min(self.spring, self.sticking)
         return self.spring
 
     def as_dict(self) -> dict[str, float]:
         """The estimate as stored in run files (``stable_step`` attribute) [s]."""
-        return {"spring": self.spring, "friction": self.friction, "explicit": self.explicit, "sticking": self.sticking}
+        return {"spring": self.spring, "friction": self.friction, "explicit": self.explicit}
 
 
 def stable_step(model: PadModel) -> StepEstimate:
@@ -138,7 +132,6 @@ def stable_step(model: PadModel) -> StepEstimate:
         spring=float(2.0 / np.sqrt(w2.max())),
         friction=float(friction),
         explicit=float(h_explicit.min()),
-        sticking=float((1.0 + STICKING_FACTOR) / (1.0 - STICKING_FACTOR) * friction),  # hγ ≤ 4
     )
 
 
@@ -150,8 +143,8 @@ def fitted_step(dt: float, sample_dt: float) -> float:
 
 def step_problem(estimate: StepEstimate, integrator: str, h: float) -> tuple[str, str, str] | None:
     """What is wrong with the fixed step ``h`` [s] for ``integrator``, or None: beyond the explicit bound (symplectic
-    Euler) or the springs' (every other scheme), then for strang beyond the sticking bound. Returns (the problem, what
-    to do instead, what a forced run then risks), each in words."""
+    Euler) or the springs' (every other scheme). Returns (the problem, what to do instead, what a forced run then
+    risks), each in words."""
     limit = estimate.explicit if integrator == "symplectic-euler" else estimate.spring
     dt, force = option("dt", "--dt"), option("force=True", "--force")
     if h > limit:
@@ -166,15 +159,6 @@ def step_problem(estimate: StepEstimate, integrator: str, h: float) -> tuple[str
             f"(springs {estimate.spring:.3g} s, friction slope {estimate.friction:.3g} s)",
             hint,
             "the run may diverge (the watchdog then stops it) and mu is not accurate",
-        )
-    if integrator == "strang" and h > estimate.sticking:
-        implicit = option("integrator='implicit-friction'", "--integrator implicit-friction")
-        return (
-            f"dt = {h:.3g} s does not resolve sticking for strang: h (c + F_N max|f'|)/m = "
-            f"{4.0 * h / estimate.sticking:.3g} > 4 (its friction step then flips the sign of a sticking patch's "
-            "velocity each step)",
-            f"choose {dt} <= {estimate.sticking:.3g} s or {implicit}, or {force}",
-            "near sticking the friction chatters and mu is not accurate",
         )
     return None
 
@@ -192,7 +176,7 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
 
     The bound is checked for the step the run takes (:func:`fitted_step`), not the one asked for. Beyond it a
     :class:`StabilityError` (exit 2), or with ``options.force`` a warning that says what the forced step risks
-    (:func:`step_problem`: the explicit and spring bounds, strang's sticking bound). Steps per sample interval and
+    (:func:`step_problem`: the explicit and spring bounds). Steps per sample interval and
     per growth interval (adaptive: growth events of the run) are checked against int32 (the kernels count them so).
     ``options``: :class:`~aca_warp.hf.options.RunOptions`.
     """
@@ -279,7 +263,7 @@ class HFSolver:
         """One fixed step of every pad (graph-capturable: two launches, no host reads).
 
         ``strang`` keeps a staggered velocity between steps: ``first`` opens from the synchronous state
-        (friction dt/2, kick, drift), later steps are merged (kick, friction dt, kick, drift), and
+        (forced friction sub-step over dt/2, drift), later steps are merged (sub-step over dt, drift), and
         :meth:`finish` closes back to the synchronous velocity; :meth:`velocity` gives it at any step.
         """
         h = self.T(dt)

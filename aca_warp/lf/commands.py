@@ -36,8 +36,9 @@ def run_lf(
     automatic, :class:`~aca_warp.common.checkpoint.CheckpointClock`; 0: none), so that a killed or stopped run
     continues with :func:`resume_lf` (docs/faults.md)."""
     from aca_warp.common.files import OutputLock
+    from aca_warp.common.runfile import busy
     from aca_warp.hf.options import check_interval
-    from aca_warp.lf.io import LFRunWriter, busy, check_lf_output
+    from aca_warp.lf.io import LFRunWriter, check_lf_output
     from aca_warp.lf.solver import LFSimulation
 
     check_lf_output(output, overwrite=overwrite)
@@ -64,35 +65,18 @@ def run_lf(
 def _execute(sim: Any, writer: Any, *, progress: bool, checkpoint_interval: float | None) -> Any:
     """Run ``sim`` to the end of its schedule into ``writer``; close the file complete, interrupted or failed (a
     storage failure leaves the ``.partial`` as it was at its last checkpoint and raises a one-line StorageError)."""
-    from aca_warp.common.interrupts import deferred
-    from aca_warp.hf.runner import interrupted_status
+    from aca_warp.common.interrupts import deferred, undivided
 
-    def whole(write: Any) -> Any:  # a signal during a write is raised after it (aca_warp.common.interrupts)
-        def call(*args: Any) -> None:
-            with deferred():
-                write(*args)
-
-        return call
-
-    try:
+    with writer.closed_when_stopped():
         wall = sim.run(
-            on_snapshot=whole(writer.snapshot),
+            on_snapshot=undivided(writer.snapshot),
             progress=progress,
             checkpoint_every=checkpoint_interval,
-            on_checkpoint=whole(writer.checkpoint),
+            on_checkpoint=undivided(writer.checkpoint),
         )
         attrs = {"wall_time": wall, "steps_per_second": sim.step_index / wall}
         with deferred():
             writer.close(complete=True, status="complete", attrs=attrs)
-    except BaseException as e:
-        if not writer.lock.held:  # closed already (close raised its own error)
-            raise
-        status = interrupted_status(e) if isinstance(e, KeyboardInterrupt) else "failed"
-        with deferred():
-            replacement = writer.finish(e, status)
-        if replacement is not None:
-            raise replacement from None
-        raise
     sim.wall_time = wall
     return sim
 
@@ -152,28 +136,18 @@ def resume_lf(
     as the run (``device`` overrides it); on the same CPU the finished file equals an uninterrupted run's,
     snapshots included."""
     import json
-    import os
 
-    from aca_warp.common.files import lock_resumable
+    from aca_warp.common.runfile import reopen_resumable
     from aca_warp.lf.io import LFRunWriter
     from aca_warp.lf.solver import LFSimulation
 
-    final, part, src, lock = lock_resumable(path)
-    try:
+    def prepare(src: Path) -> tuple[dict[str, Any], Any]:
         s = read_lf_settings(src)
-        sim = LFSimulation(s["scene"], device=device or s["device"], duration=s["duration"], graph=s["graph"])
-        if src == final:
-            os.replace(final, part)  # a stopped run goes back to being written
-    except BaseException:
-        lock.release()
-        raise
-    try:
-        writer = LFRunWriter.reopen(part, sim, lock=lock)
-    except BaseException:
-        if src == final and part.exists() and not final.exists():
-            os.replace(part, final)  # not resumed: the stopped run keeps its name
-        lock.release()
-        raise
+        return s, LFSimulation(s["scene"], device=device or s["device"], duration=s["duration"], graph=s["graph"])
+
+    (s, sim), writer, final = reopen_resumable(
+        path, prepare, lambda prepared, part, lock: LFRunWriter.reopen(part, prepared[1], lock=lock)
+    )
     interval = s["checkpoint_interval"] if checkpoint_interval is None else checkpoint_interval
     if checkpoint_interval is not None:
         run = json.loads(writer.f.attrs["lf_run"])

@@ -19,15 +19,12 @@ or null for automatic, ``graph``), ``device``, ``versions``, ``complete``, ``sta
 file is written as ``NAME.partial`` and renamed when the run ends. /global grows at checkpoints (and at the end), so
 a killed run's ``.partial`` holds every row up to its last checkpoint; ``aca-warp lf --resume`` continues it from
 there, or from its start when it has none (:meth:`LFRunWriter.reopen`) and ``aca-warp rerun`` repeats a finished
-one. As for HF run files, one writer holds ``NAME.lock`` while it writes, the ``.partial`` is created as
-``NAME.partial.new`` and renamed once its header is on disk, and a full device leaves it as it was at its last flush
-(:mod:`aca_warp.common.storage`).
+one. The lock, the ``.partial`` and a full device are handled as for every run file (:mod:`aca_warp.common.runfile`).
 """
 
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any
 
@@ -36,39 +33,25 @@ import numpy as np
 
 from aca_warp.common.bounds import json_attribute
 from aca_warp.common.checkpoint import (
-    checkpoint_room,
     closed_on_failure,
     drop_checkpoint,
-    has_checkpoint,
-    read_checkpoint,
-    write_checkpoint,
 )
-from aca_warp.common.errors import AcaError, SceneError, option
+from aca_warp.common.errors import SceneError, option
 from aca_warp.common.files import (
     OutputLock,
     check_output_path,
-    create_h5,
-    from_h5py,
     machine,
-    new_path,
     open_h5,
     partial_path,
     reading,
     recovery,
     versions,
 )
-from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
+from aca_warp.common.runfile import RunFileWriter, write_attrs
 from aca_warp.kernels.lf_record import H_NAMES, H_UNITS
 from aca_warp.lf.scene import lf_scene_to_dict
 from aca_warp.lf.solver import LFSimulation
 from aca_warp.scene import Friction, Material, Matrix, Pad, Patches, Scene
-
-
-def busy() -> str:
-    """The advice of a refusal to write an output that a live process writes."""
-    overwrite = option("overwrite=True", "--overwrite")
-    return f"wait for it to finish or stop it ({overwrite} does not replace a run in progress)"
-
 
 _UNITS = {
     "x": "m", "y": "m", "area": "m2", "height": "m", "thickness": "m", "normal_force": "N", "temperature": "K",
@@ -76,7 +59,7 @@ _UNITS = {
 }  # fmt: skip
 
 
-class LFRunWriter:
+class LFRunWriter(RunFileWriter):
     """Writes an LF run file: snapshots as they come, the global time series and calibration data at the end."""
 
     def __init__(
@@ -88,30 +71,9 @@ class LFRunWriter:
         run: dict[str, Any] | None = None,
         lock: OutputLock | None = None,
     ) -> None:
-        self.lock = lock or OutputLock.acquire(path, what=busy())
         self.sim = sim
         self.rows = 0
-        tmp = new_path(partial_path(path))
-        try:
-            self.path = check_lf_output(path, overwrite=overwrite)
-            self.partial = self.path.with_name(self.path.name + ".partial")
-            self.f = create_h5(tmp, self.lock)  # a leftover .new is replaced, a link refused
-            self.out = GuardedFile(self.f, self.partial)
-            self._write_header(run)
-            self.out.flush()
-            os.replace(tmp, self.partial)  # readable from the moment it has this name
-        except BaseException as e:
-            if getattr(self, "out", None) is not None:
-                self.out.abandon()
-            elif getattr(self, "f", None) is not None:
-                self.f.close()
-            if getattr(self, "f", None) is not None:
-                tmp.unlink(missing_ok=True)
-            self.lock.release()
-            code = storage_errno(e)
-            if code is not None:
-                raise storage_error(code, tmp, "nothing was written") from None
-            raise
+        self._create(path, check_lf_output, overwrite=overwrite, lock=lock, header=lambda: self._write_header(run))
 
     def _write_header(self, run: dict[str, Any] | None) -> None:
         """Attributes, the initial patches and the empty /global datasets."""
@@ -148,18 +110,11 @@ class LFRunWriter:
         checkpoint's rows, drop the snapshots taken after it, mark it running again. Without a checkpoint ``sim``
         starts from the beginning: /global and the snapshots are emptied."""
         self = cls.__new__(cls)
-        self.lock = lock
-        self.partial = Path(partial)
-        self.path = self.partial.with_name(self.partial.name.removesuffix(".partial"))
+        self._open_partial(partial, lock)
         self.sim = sim
-        try:
-            self.f = h5py.File(self.partial, "r+")
-        except (OSError, RuntimeError) as e:
-            raise SceneError(f"cannot open {self.partial} to resume it: {e}") from None
         f = self.f
-        self.out = GuardedFile(f, self.partial)
         with closed_on_failure(f, self.partial, close=self.out.abandon):
-            ckpt = read_checkpoint(f, str(self.partial)) if has_checkpoint(f) else None  # None: from the start
+            ckpt = self._stored_checkpoint()  # None: from the start
             rows = 0 if ckpt is None else int(ckpt.rows["global"])
             if ckpt is not None and rows != int(ckpt.counters["step_index"]):
                 raise ValueError(f"{rows} rows of /global for step {ckpt.counters['step_index']}")
@@ -183,21 +138,7 @@ class LFRunWriter:
             with closed_on_failure(f, self.partial, scene_error=False, close=self.out.abandon):
                 sim.restore(ckpt, hist)
         self.rows = rows
-        resumed = (
-            "started again from t = 0 (no checkpoint)"
-            if ckpt is None
-            else f"resumed from the checkpoint at t = {ckpt.sim_time:.6g} s"
-        )
-        try:
-            f.attrs["complete"] = False
-            f.attrs["status"] = f"running ({resumed})"
-            self.out.flush()
-        except BaseException as e:
-            self.out.abandon()
-            code = storage_errno(e)
-            if code is not None:
-                raise storage_error(code, self.partial, "it was not changed; make room and resume again") from None
-            raise
+        self._mark_running(ckpt)
         return self
 
     def _append_rows(self) -> None:
@@ -229,58 +170,24 @@ class LFRunWriter:
         self._append_rows()
         ckpt = sim.checkpoint_state()
         ckpt.rows = {"global": self.rows}
-        self.out.reserve(checkpoint_room(self.f, ckpt))
-        write_checkpoint(self.f, ckpt, flush=self.out.flush)
+        self._store_checkpoint(ckpt)
 
-    def close(self, *, complete: bool, status: str, attrs: dict[str, Any] | None = None) -> Path:
-        """Write the rest of the time series and the closing attributes, close, move the file to its final name
-        and release the output (a complete run drops its checkpoint; a stopped one keeps it for ``aca-warp lf
-        --resume``). A failure abandons the file as it was at its last flush (a storage failure raises a one-line
-        StorageError)."""
-        try:
-            f = self.f
-            self._append_rows()
-            n = min(int(self.sim.death_count.numpy()[0]), self.sim.death_age.shape[0])
-            self.out.reserve(16 * n)
-            c = f.create_group("calibration")
-            c.create_dataset("death_age", data=self.sim.death_age.numpy()[:n]).attrs["unit"] = "s"
-            c.create_dataset("death_area", data=self.sim.death_area.numpy()[:n]).attrs["unit"] = "m2"
-            f.attrs["complete"] = complete
-            f.attrs["status"] = status
-            f.attrs["steps"] = self.sim.step_index
-            if complete:
-                drop_checkpoint(f)
-            for k, v in (attrs or {}).items():
-                f.attrs[k] = v if isinstance(v, (str, int, float, bool, np.number)) else json.dumps(v)
-            self.out.close()
-            os.replace(self.partial, self.path)
-        except BaseException as e:
-            self.abandon()
-            code = storage_errno(e)
-            if code is not None:
-                raise storage_error(code, self.partial, f"make room, then {recovery(self.path)}") from None
-            raise
-        self.lock.release()
-        return self.path
-
-    def abandon(self) -> None:
-        """Leave the ``.partial`` as it was at its last flush (after a failure) and release the output."""
-        self.out.abandon()
-        self.lock.release()
-
-    def finish(self, error: BaseException, status: str) -> BaseException | None:
-        """Close the file after ``error`` stopped the run (as :meth:`aca_warp.hf.runfile.RunWriter.finish`)."""
-        code = storage_errno(error)
-        if code is None and not from_h5py(error):
-            try:
-                self.close(complete=False, status=status)
-            except AcaError as e:
-                return e
-            return None
-        self.abandon()
-        if code is None:  # HDF5 failed to write (a damaged file): nothing more goes into it
-            return write_failed(error, self.partial, f"make room, then {recovery(self.path)}")
-        return storage_error(code, self.partial, f"make room, then {recovery(self.path)}")
+    def _write_closing(self, complete: bool, status: str, attrs: dict[str, Any]) -> None:
+        """The rest of the time series, the calibration data and the closing attributes (a complete run drops its
+        checkpoint; a stopped one keeps it for ``aca-warp lf --resume``)."""
+        f = self.f
+        self._append_rows()
+        n = min(int(self.sim.death_count.numpy()[0]), self.sim.death_age.shape[0])
+        self.out.reserve(16 * n)
+        c = f.create_group("calibration")
+        c.create_dataset("death_age", data=self.sim.death_age.numpy()[:n]).attrs["unit"] = "s"
+        c.create_dataset("death_area", data=self.sim.death_area.numpy()[:n]).attrs["unit"] = "m2"
+        f.attrs["complete"] = complete
+        f.attrs["status"] = status
+        f.attrs["steps"] = self.sim.step_index
+        if complete:
+            drop_checkpoint(f)
+        write_attrs(f, attrs)
 
 
 def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:

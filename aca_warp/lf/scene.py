@@ -11,16 +11,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import sys
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from aca_warp.common import plausible
-from aca_warp.common.bounds import read_toml
 from aca_warp.common.errors import SceneError
 from aca_warp.scene import (
     GENERATOR_KINDS,
@@ -32,13 +29,10 @@ from aca_warp.scene import (
     PatchGenerator,
     check_numbers_plausible,
     check_pad_plausible,
+    preset_document,
+    read_scene_toml,
 )
 from aca_warp.scene.parts import _finite
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 LF_PRESETS = ("multiscale",)
 # size limits (refused with one line before anything is allocated; int32 indices on the device)
@@ -429,7 +423,7 @@ def load_lf_scene(spec: str | Path, overrides: dict | None = None, *, allow_impl
     ``allow_implausible`` as the key ``[scene] allow_implausible``."""
     s = str(spec)
     if s in LF_PRESETS:
-        doc = tomllib.loads(resources.files("aca_warp.data").joinpath(f"{s}.toml").read_text())
+        doc = preset_document(s)
         name = s
     else:
         p = Path(s)
@@ -439,10 +433,7 @@ def load_lf_scene(spec: str | Path, overrides: dict | None = None, *, allow_impl
             )
         if not p.is_file():
             raise SceneError(f"LF scene {s!r} is neither a preset ({', '.join(LF_PRESETS)}) nor an existing TOML file")
-        try:
-            doc = read_toml(p, "LF scene file")
-        except OSError as e:
-            raise SceneError(f"cannot read LF scene file {p}: {e.strerror}") from None
+        doc = read_scene_toml(p, "LF scene file")
         if not doc:
             raise SceneError(f"LF scene file {p} is empty; start from the preset file aca_warp/data/multiscale.toml")
         name = p.stem

@@ -178,6 +178,15 @@ def scene_from_dict(
         raise SceneError(f"invalid scene value: {e}") from None
 
 
+def read_scene_toml(p: Path, what: str) -> dict:
+    """The TOML document of the scene file ``p`` (a ``what`` such as "LF scene file") as
+    :func:`~aca_warp.common.bounds.read_toml` reads it; one SceneError line when it cannot be read."""
+    try:
+        return read_toml(p, what)
+    except OSError as e:
+        raise SceneError(f"cannot read {what} {p}: {e.strerror}") from None
+
+
 def load_scene(spec: str | Path, *, allow_implausible: bool = False) -> Scene:
     """A preset name (:data:`PRESETS`) or the path of a TOML scene file (``allow_implausible``: as the scene key)."""
     s = str(spec)
@@ -189,10 +198,7 @@ def load_scene(spec: str | Path, *, allow_implausible: bool = False) -> Scene:
         raise SceneError(f"scene {s!r} is a folder; give a preset ({', '.join(PRESETS)}) or a TOML scene file")
     if not p.is_file():
         raise SceneError(f"scene {s!r} is neither a preset ({', '.join(PRESETS)}) nor an existing TOML file")
-    try:
-        doc = read_toml(p, "scene file")
-    except OSError as e:
-        raise SceneError(f"cannot read scene file {p}: {e.strerror}") from None
+    doc = read_scene_toml(p, "scene file")
     if not doc:
         raise SceneError(
             f"scene file {p} is empty (no table, no key): it would silently run the defaults; start from a preset "
@@ -205,8 +211,12 @@ def preset(name: str) -> Scene:
     """The built-in scene ``name`` (files ``aca_warp/data/<name>.toml``; docs/model.md §2.9)."""
     if name not in PRESETS:
         raise SceneError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
-    text = resources.files("aca_warp.data").joinpath(f"{name}.toml").read_text()
-    return scene_from_dict(tomllib.loads(text), name=name)
+    return scene_from_dict(preset_document(name), name=name)
+
+
+def preset_document(name: str) -> dict:
+    """The TOML document of the packaged scene file ``aca_warp/data/<name>.toml`` (an HF or LF preset)."""
+    return tomllib.loads(resources.files("aca_warp.data").joinpath(f"{name}.toml").read_text())
 
 
 def scene_to_dict(scene: Scene) -> dict:

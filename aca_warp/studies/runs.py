@@ -76,7 +76,7 @@ def run_general(
 ) -> RunResult:
     """``run_hf`` for ``duration`` [s] on ``engine`` (general, onchip, auto): ``adaptive`` with ``tolerance``, a
     fixed-step integrator with ``dt`` [s] (forced: the work-precision study measures the error of every step, those
-    that do not resolve sticking too)."""
+    beyond the stable-step estimate too)."""
     kw = {"tolerance": tolerance} if integrator == "adaptive" else {"dt": dt, "force": integrator != "symplectic-euler"}
     options = RunOptions(duration=duration, integrator=integrator, engine=engine, **kw)
     return run_hf(model, state, options, record=record)
@@ -97,8 +97,8 @@ def run_engine(
 ) -> RunResult:
     """``run_hf`` for ``duration`` [s] with step ``dt`` [s] (None: the integrator's default; an error-controlled
     integrator's first trial) and ``tolerance`` (None: the default); ``engine``: general, onchip or auto. With
-    ``sink`` every recorded chunk goes there (the result then holds none); ``force``: a step beyond the stable or
-    the sticking bound runs (with a warning)."""
+    ``sink`` every recorded chunk goes there (the result then holds none); ``force``: a step beyond the stable-step
+    estimate runs (with a warning)."""
     tol = {} if tolerance is None else {"tolerance": tolerance}
     options = RunOptions(engine=engine, duration=duration, integrator=integrator, dt=dt, force=force, **tol)
     return run_hf(model, state, options, record=record, sink=sink)

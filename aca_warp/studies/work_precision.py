@@ -100,9 +100,22 @@ class Spec:
 SLIDING_STEPS = ((1e-7, 3e-8, 1e-8, 3e-9), (3e-8, 1e-8, 3e-9))
 STICK_STEPS = ((3e-8, 1e-8, 3e-9, 1e-9), (1e-8, 3e-9, 1e-9))
 FINE_STEPS = ((1e-8, 3e-9, 1e-9), (1e-8, 3e-9, 1e-9))
+
+
+def _from_rest(preset: str) -> Spec:
+    """``preset`` from rest, sliding at 10 m/s with linear growth."""
+    return Spec(f"{preset} from rest (sliding at 10 m/s, linear growth)", "sliding", (1e-3, 2e-4), SLIDING_STEPS)
+
+
+def _saturated(preset: str) -> Spec:
+    """``preset`` saturated: from equilibrium plus a perturbation; no spectral errors (a chaotic state)."""
+    what = f"{preset} saturated (from equilibrium + perturbation)"
+    return Spec(what, "saturated", (1e-4, 1e-4), FINE_STEPS, (1e-3, 2e-4), spectra=False)
+
+
 SPECS = {
-    "hf1": Spec("hf1 from rest (sliding at 10 m/s, linear growth)", "sliding", (1e-3, 2e-4), SLIDING_STEPS),
-    "hf2": Spec("hf2 from rest (sliding at 10 m/s, linear growth)", "sliding", (1e-3, 2e-4), SLIDING_STEPS),
+    "hf1": _from_rest("hf1"),
+    "hf2": _from_rest("hf2"),
     "stickslip": Spec(
         "hf1 at 0.5 m/s from rest: patches reach sticking within 0.1 ms", "stick-slip", (5e-4, 1e-4), STICK_STEPS
     ),
@@ -120,22 +133,8 @@ SPECS = {
         (5e-4, 1e-4),
         spectra=False,
     ),  # fmt: skip
-    "hf1_sat": Spec(
-        "hf1 saturated (from equilibrium + perturbation)",
-        "saturated",
-        (1e-4, 1e-4),
-        FINE_STEPS,
-        (1e-3, 2e-4),
-        spectra=False,
-    ),  # fmt: skip
-    "hf3_sat": Spec(
-        "hf3 saturated (from equilibrium + perturbation)",
-        "saturated",
-        (1e-4, 1e-4),
-        FINE_STEPS,
-        (1e-3, 2e-4),
-        spectra=False,
-    ),  # fmt: skip
+    "hf1_sat": _saturated("hf1"),
+    "hf3_sat": _saturated("hf3"),
 }
 SCENES = tuple(SPECS)
 

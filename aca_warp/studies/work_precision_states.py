@@ -26,11 +26,11 @@ SAMPLE_DT = 1.0e-6  # s, sample interval of the study's records
 STICK_SPEED = 0.5  # m/s at the mean radius 0.13 m
 SAT_PERTURBATION = 1.0e-2  # m/s, velocity perturbation about equilibrium of the saturated states
 SAT_SEED = 1
-SPIN_DT = 5.0e-8  # s, strang step of the spin-up runs (0.3 of hf1's sticking bound 1.65e-7 s)
+SPIN_DT = 5.0e-8  # s, strang step of the spin-up runs (0.3 of hf1's friction step 1.65e-7 s)
 SPIN = {"hf1_sat": ("hf1", 20.0e-3), "hf3_sat": ("hf3", 40.0e-3)}  # preset, run length [s]
 VA_SPEEDUP = 100.0  # varying_area growth ×100: the paper's 0.36 s of growth in 3.6 ms
 VA_GROW = 2.0e-3  # s of compressed growth before va_late is frozen (0.2 s of the paper's growth)
-VA_DT = 1.0e-8  # s, strang step of the growth run (within varying_area's sticking bound 1.4e-8 s)
+VA_DT = 1.0e-8  # s, strang step of the growth run (within varying_area's friction step 1.4e-8 s)
 SPIN_SAMPLES = 400  # samples of a spin-up record (the saturation detector needs ≥ 64)
 
 
@@ -84,12 +84,13 @@ def _verdict(res: Any) -> Any:
 
 
 def _saturate(scene: Scene, duration: float, device: str) -> Start:
-    """Run ``scene`` for ``duration`` [s] with strang at SPIN_DT (at most half its sticking bound); the state at the
-    end and the saturation detector's verdict on Σ|u̇|."""
+    """Run ``scene`` for ``duration`` [s] with strang at SPIN_DT (at most half its friction step, h γ_max = 2); the
+    state at the end and the saturation detector's verdict on Σ|u̇|."""
     from aca_warp.hf.solver import stable_step
+    from aca_warp.studies.validation.settings import friction_step
 
     model, state = batch_at_start([scene], device, "fp64")
-    dt = min(SPIN_DT, 0.5 * stable_step(model).sticking)
+    dt = min(SPIN_DT, 0.5 * friction_step(stable_step(model)))
     rec = Record(sample_dt=duration / SPIN_SAMPLES)
     res = run_engine(model, state, engine="auto", duration=duration, integrator="strang", dt=dt, record=rec)
     if not res.complete:

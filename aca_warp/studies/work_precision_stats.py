@@ -17,13 +17,14 @@ so that every setting is measured on the same samples.
 
 A **setting** is ``INTEGRATOR@PRECISIONS[:dt=STEPS][:tol=TOLERANCES]`` (a product), e.g. ``strang@fp32:dt=1e-8,
 5e-7``, ``adaptive@fp64:tol=1e-4``, ``implicit-friction@fp32,fp64:dt=1e-7``; without dt or tol the integrator's
-defaults. Fixed steps run forced (past strang's sticking bound too). Any name of ``aca_warp.hf.options.INTEGRATORS``
+defaults. Fixed steps run forced (past the spring bound too). Any name of ``aca_warp.hf.options.INTEGRATORS``
 is accepted, and a name that the default grid does not list runs at its defaults in fp32 and fp64. The
-**reference** (``--reference``; strang fp64 at 1e-8 s, --quick 2e-8 s, capped at 0.9 × the regime's sticking
-bound as the validation caps its step) runs first, then the grid, cheapest first.
+**reference** (``--reference``; strang fp64 at 1e-8 s, --quick 2e-8 s, capped at 0.9 × the regime's friction
+step, h γ_max = 4, as the validation caps its own) runs first, then the grid, cheapest first.
 
-The statistics and the rule (the 95 % interval of a setting's bias within ± ``--rule`` × the standard deviation
-between seeds for every measure; the cheapest such setting per regime) are in
+The statistics and the rule (a setting's bias within ± ``--rule`` × the standard deviation between seeds for every
+measure, as ``--criterion`` counts it: proven by the 95 % interval, or within the resolution of the ensemble; the
+cheapest such setting per regime) are in
 :mod:`aca_warp.studies.work_precision_stats_rule`
 (:func:`~aca_warp.studies.work_precision_stats_rule.settings_for`); the figure and the page in
 :mod:`aca_warp.studies.work_precision_stats_report`. Results: one file per regime,
@@ -59,10 +60,18 @@ from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK, close_poo
 from aca_warp.studies.validation.cli import default_workers
 from aca_warp.studies.validation.experiments import Collector, prepare
 from aca_warp.studies.validation.multiscale import ensure_lf
-from aca_warp.studies.work_precision_stats_rule import DEFAULT_RULE, MEASURES, load_results, measures_of, pad_values
+from aca_warp.studies.work_precision_stats_rule import (
+    CRITERIA,
+    DEFAULT_CRITERION,
+    DEFAULT_RULE,
+    MEASURES,
+    load_results,
+    measures_of,
+    pad_values,
+)
 
 PRECISIONS = ("fp32", "fp64")
-STICKING_MARGIN = 0.9  # the reference step: at most this × strang's sticking bound (the validation's cap)
+REFERENCE_MARGIN = 0.9  # the reference step: at most this × the regime's friction step (the validation's cap)
 REFERENCE = {False: "strang@fp64:dt=1e-8", True: "strang@fp64:dt=2e-8"}
 GRID = {
     False: (
@@ -221,13 +230,14 @@ class Progress:
 
 
 def reference_setting(spec: str, model: Any) -> Setting:
-    """The reference of a regime: ``spec`` (one setting), a strang step capped at :data:`STICKING_MARGIN` × the
-    model's sticking bound."""
+    """The reference of a regime: ``spec`` (one setting), a strang step capped at :data:`REFERENCE_MARGIN` × the
+    model's friction step (:func:`~aca_warp.studies.validation.settings.friction_step`, h γ_max = 4)."""
     from aca_warp.hf.solver import stable_step
+    from aca_warp.studies.validation.settings import friction_step
 
     (s,) = parse_setting(spec)
     if s.integrator == "strang" and s.dt is not None:
-        s = dataclasses.replace(s, dt=float(f"{min(s.dt, STICKING_MARGIN * stable_step(model).sticking):.3g}"))
+        s = dataclasses.replace(s, dt=float(f"{min(s.dt, REFERENCE_MARGIN * friction_step(stable_step(model))):.3g}"))
     return s
 
 
@@ -278,8 +288,9 @@ def measure_regime(
 ) -> Path:
     """Every setting of one regime (the reference first, then the grid cheapest first) into its result file
     ``OUT/wps_<tag>_<regime>.json``, rewritten after each run. A file of the same regime, pads, settings and
-    reference is continued: its runs are kept, the missing ones added (a run skipped by --max-wall is run again).
-    Raises FileExistsError when the file holds another configuration or machine."""
+    reference is continued: its runs are kept, the missing ones added (a run skipped by --max-wall is run again),
+    on the same kind of device (:data:`CONTINUED`; another host with it is accepted, each run records its host).
+    Raises FileExistsError when the file holds another configuration or device."""
     from aca_warp.studies.runs import batch_at_start
 
     prep = prepare_regime(name, cfg, args.duration, log)
@@ -301,9 +312,12 @@ def measure_regime(
     if path.exists():
         old = load_results(path)
         oreg = old["regimes"][name]
-        if old["machine"] != head["machine"] or any(oreg.get(k) != reg[k] for k in CONTINUED):
-            raise FileExistsError(f"{path} holds another run of {name} (machine, pads, settings or reference "
+        if old["machine"]["device_name"] != head["machine"]["device_name"] or any(
+            oreg.get(k) != reg[k] for k in CONTINUED
+        ):
+            raise FileExistsError(f"{path} holds another run of {name} (device, pads, settings or reference "
                                   "differ): choose another --out")  # fmt: skip
+        doc["machine"] = old["machine"]
         reg["settings"] = [r for r in oreg["settings"] if not str(r.get("fault")).startswith("not run")]
         doc["commands"] = [*old["commands"], head["command"]]
         before = old.get("regime_wall_s") or 0.0
@@ -327,7 +341,7 @@ def measure_regime(
             reg["settings"].append({"label": s.label, "role": role, **dataclasses.asdict(s), "complete": False,
                                     "fault": "not run: --max-wall", "wall_s": None})  # fmt: skip
             continue
-        row = run_setting(prep, cfg, s, role, names, log)
+        row = run_setting(prep, cfg, s, role, names, log) | {"host": head["machine"]["host"]}
         reg["settings"].append(row)
         if role == "reference" and row.get("steps"):
             per_step = row["wall_s"] / row["steps"]
@@ -341,7 +355,8 @@ def measure_regime(
 
 
 CONTINUED = ("config", "pads", "duration_s", "measures", "reference")
-"""The regime fields that must match for a result file to be continued."""
+"""The regime fields that must match for a result file to be continued (with the device's name: the GPU model, or
+on the CPU the host)."""
 
 
 def _write(path: Path, doc: dict[str, Any], seconds: float) -> None:
@@ -418,7 +433,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument(
         "--reference",
         help=f"the reference setting (default {REFERENCE[False]}; --quick "
-        f"{REFERENCE[True]}; a strang step is capped at {STICKING_MARGIN:g} × the sticking bound)",
+        f"{REFERENCE[True]}; a strang step is capped at {REFERENCE_MARGIN:g} × the friction step)",
     )
     ap.add_argument("--engine", default="auto", choices=["auto", "general", "onchip"], help="HF engine (auto)")
     ap.add_argument("--workers", type=int, help="processes that analyse the pads of a run (default: 1 on the "
@@ -428,8 +443,11 @@ def build_parser() -> argparse.ArgumentParser:
                     "estimate: the reference's time per step × the steps); written as not run")  # fmt: skip
     ap.add_argument("--report", nargs="+", metavar="JSON", help="only write the figure(s) and the page from "
                     "result files")  # fmt: skip
-    ap.add_argument("--rule", type=float, default=DEFAULT_RULE, help="the report's rule: the 95 %% interval of a "
-                    f"setting's bias within ± RULE × σ between seeds ({DEFAULT_RULE:g})")  # fmt: skip
+    ap.add_argument("--rule", type=float, default=DEFAULT_RULE, help="the report's rule: a setting's bias within "
+                    f"± RULE × σ between seeds ({DEFAULT_RULE:g})")  # fmt: skip
+    ap.add_argument("--criterion", default=DEFAULT_CRITERION, choices=list(CRITERIA), help="what the report's rule "
+                    f"counts as keeping a measure (default {DEFAULT_CRITERION}): "
+                    + "; ".join(f"{k}: {v}" for k, v in CRITERIA.items()).replace("%", "%%"))  # fmt: skip
     ap.add_argument("--measures", nargs="+", choices=list(MEASURES), metavar="MEASURE", help="measures the "
                     f"report's rule uses (default every one of a regime; any of: {' '.join(MEASURES)})")  # fmt: skip
     add_page_options(ap, "docs/work_precision_statistics.md", "docs/figures/work_precision_statistics")
@@ -445,7 +463,8 @@ def main(argv: list[str] | None = None) -> int:
         from aca_warp.studies.work_precision_stats_report import report
 
         try:
-            report([Path(p) for p in args.report], Path(args.page), Path(args.figures), args.rule, args.measures)
+            report([Path(p) for p in args.report], Path(args.page), Path(args.figures), args.rule, args.measures,
+                   args.criterion)  # fmt: skip
         except (OSError, ValueError, KeyError) as e:
             print(f"work_precision_stats: {e}", file=sys.stderr)
             return 2

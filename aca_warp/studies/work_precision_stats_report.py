@@ -13,13 +13,19 @@ from typing import Any
 
 from aca_warp.studies.report import fmt, generated_markers, md_table, replace_generated, save_figure
 from aca_warp.studies.work_precision_stats_rule import (
+    CRITERIA,
     MEASURES,
     Choice,
     compare_setting,
+    keep_chance,
     load_results,
     reference_of,
+    resolution_floor,
+    seeds_needed,
     settings_for,
+    twin_of,
     usable,
+    verdict,
 )
 
 MARKERS = {"strang@fp32": "o", "strang@fp64": "s", "adaptive@fp64": "^", "adaptive@fp32": "v"}
@@ -27,6 +33,7 @@ OTHER_MARKERS = ("D", "P", "X", "*", "h", "<", ">")
 RATIO_FLOOR = 1.0e-3  # error/σ below this is drawn at it (log axis)
 TITLE = "Statistical work-precision: integrator settings for the validation's statistics"
 MARKER = "scripts/work_precision_stats.py --report"  # the generated section's marker on the page
+NEAREST = 6  # cheaper settings the results in words name per regime (those nearest the pick in wall time)
 
 
 def machine_text(doc: dict[str, Any]) -> str:
@@ -44,9 +51,10 @@ def _marker(family: str, families: list[str]) -> str:
     return MARKERS.get(family) or OTHER_MARKERS[others.index(family) % len(OTHER_MARKERS)]
 
 
-def regime_figure(docs: Sequence[dict[str, Any]], folder: Path, stem: str, rule: float) -> Path:
+def regime_figure(docs: Sequence[dict[str, Any]], folder: Path, stem: str, rule: float, criterion: str) -> Path:
     """One panel per regime: error/σ of every measure against the stepping wall time of every completed grid
-    setting (one marker per integrator and precision, filled where the setting keeps the measure; one colour per
+    setting (one marker per integrator and precision, filled where the setting keeps the measure, half filled where
+    it keeps it within resolution; one colour per
     measure; a line through the steps or tolerances of one integrator and precision), the rule, the reference's
     wall time and the chosen setting's. Returns the PNG's path."""
     from matplotlib import colormaps
@@ -69,19 +77,19 @@ def regime_figure(docs: Sequence[dict[str, Any]], folder: Path, stem: str, rule:
         for m in reg["measures"]:
             for fam in families:
                 pts = sorted(
-                    (s["wall_s"], max(c.ratio, RATIO_FLOOR), c.verdict(rule) == "keeps")
+                    (s["wall_s"], max(c.ratio, RATIO_FLOOR), verdict(reg, s, m, rule, criterion))
                     for s in grid if _family(s) == fam for c in [compare_setting(reg, s, m)] if math.isfinite(c.ratio)
                 )  # fmt: skip
                 if not pts:
                     continue
                 x, y, keeps = zip(*pts, strict=True)
                 ax.plot(x, y, "-", color=colours[m], lw=0.7, alpha=0.6)
-                for xi, yi, k in pts:
-                    ax.plot([xi], [yi], _marker(fam, families), color=colours[m], ms=4.5,
-                            mfc=colours[m] if k else "none")  # fmt: skip
+                for xi, yi, v in pts:
+                    fill = {"keeps": "full", "within resolution": "left"}.get(v, "none")
+                    ax.plot([xi], [yi], _marker(fam, families), color=colours[m], ms=4.5, fillstyle=fill)
                 seen.setdefault(m, Line2D([], [], color=colours[m], lw=2))
         ax.axhline(rule, color="k", lw=1.0, ls="--")
-        ax.axvline(settings_for(doc, name, rule=rule).wall_s, color="0.3", lw=1.0, ls=":")
+        ax.axvline(settings_for(doc, name, rule=rule, criterion=criterion).wall_s, color="0.3", lw=1.0, ls=":")
         ax.axvline(reference_of(reg)["wall_s"], color="0.7", lw=1.5)
         ax.set(xscale="log", yscale="log", xlabel="stepping wall time [s]", ylabel="error of the mean / σ seeds")
         pads = reg["pads"]
@@ -107,8 +115,9 @@ def _small(x: float) -> str:
     return "0" if x == 0 else f"< {RATIO_FLOOR:g}" if x < RATIO_FLOOR else f"{x:.2g}"
 
 
-def _cell(reg: dict[str, Any], setting: dict[str, Any], measure: str, rule: float) -> str:
-    """error/σ (bound/σ) with ✓ where the setting keeps the measure, bold where it moves it."""
+def _cell(reg: dict[str, Any], setting: dict[str, Any], measure: str, rule: float, criterion: str) -> str:
+    """error/σ (bound/σ) with ✓ where the setting keeps the measure, ≈ where it keeps it within resolution, bold
+    where it moves it."""
     if setting["role"] == "reference":
         return "0"
     if not usable(setting):
@@ -117,32 +126,51 @@ def _cell(reg: dict[str, Any], setting: dict[str, Any], measure: str, rule: floa
     if not math.isfinite(c.ratio):
         return "–"
     text = f"{_small(c.ratio)} ({_small(c.bound_ratio)})"
-    v = c.verdict(rule)
-    return f"{text} ✓" if v == "keeps" else (f"**{text}**" if v == "moves" else text)
+    v = verdict(reg, setting, measure, rule, criterion)
+    return {"keeps": f"{text} ✓", "within resolution": f"{text} ≈", "moves": f"**{text}**"}.get(v, text)
 
 
-def setting_table(reg: dict[str, Any], rule: float, measures: Sequence[str]) -> list[str]:
+def setting_table(reg: dict[str, Any], rule: float, measures: Sequence[str], criterion: str) -> list[str]:
     """Rows: every setting (the reference first, then the grid as run); columns: stepping wall time, the reference's
     over it, per measure error/σ with the bound (:func:`_cell`), whether it keeps every measure."""
     ref = reference_of(reg)
     head = ["setting", "wall [s]", "× ref", *(MEASURES[m].label for m in measures), "keeps all"]
     rows = []
-    passing = set(settings_for({"regimes": {"r": reg}}, "r", measures, rule).passing)
+    passing = set(settings_for({"regimes": {"r": reg}}, "r", measures, rule, criterion).passing)
+    twin = twin_of(reg)
     for s in reg["settings"]:
         wall = s.get("wall_s")
         speed = ref["wall_s"] / wall if wall else math.nan
         ok = "yes" if s["label"] in passing and usable(s) else "no"
         if not usable(s):
             ok = f"no ({s.get('fault') or 'incomplete'})"
-        label = f"`{s['label']}`" + (" (reference)" if s["role"] == "reference" else "")
-        rows.append([label, fmt(wall), fmt(speed, ".2g"), *(_cell(reg, s, m, rule) for m in measures), ok])
+        role = " (reference)" if s["role"] == "reference" else " (twin)" if twin is not None and s is twin else ""
+        rows.append([f"`{s['label']}`{role}", fmt(wall), fmt(speed, ".2g"),
+                     *(_cell(reg, s, m, rule, criterion) for m in measures), ok])  # fmt: skip
     return md_table(head, rows)
+
+
+def _grid_sd(reg: dict[str, Any], measure: str) -> list[float]:
+    """sd(d)/σ of ``measure`` for every completed grid setting."""
+    grid = [s for s in reg["settings"] if s["role"] == "grid" and usable(s)]
+    return [r for s in grid for r in [compare_setting(reg, s, measure).sd_ratio] if math.isfinite(r)]
+
+
+def _span(values: Sequence[Any], spec: str = ".2g") -> str:
+    """min–max of ``values`` (one value alone; – for none)."""
+    known = [v for v in values if v is not None]
+    if not known:
+        return "–"
+    lo, hi = fmt(min(known), spec), fmt(max(known), spec)
+    return lo if lo == hi else f"{lo}–{hi}"
 
 
 def reference_table(reg: dict[str, Any], choice: Choice) -> list[str]:
     """Per measure: unit, the reference ensemble's mean, σ between seeds, the 95 % half-width of its mean, seeds
-    (of the member with the largest σ), and the cheapest setting that keeps it."""
+    (of the member with the largest σ), sd(d)/σ of the reference's twin and over the grid, the seeds the strict rule
+    would need with them, and the cheapest setting that keeps the measure."""
     ref = reference_of(reg)
+    twin = twin_of(reg)
     walls = {s["label"]: s["wall_s"] for s in reg["settings"] if s.get("wall_s") is not None}
     rows = []
     for m in choice.measures:
@@ -151,9 +179,15 @@ def reference_table(reg: dict[str, Any], choice: Choice) -> list[str]:
         mean = fmt(c.reference_mean, ".4g") + (" (band mean)" if unit == "log10" else "")
         member = f" ({c.member})" if c.member else ""
         cheap = choice.cheapest[m]
+        tw = compare_setting(reg, twin, m).sd_ratio if twin is not None else math.nan
+        grid = _grid_sd(reg, m)
+        need_twin = seeds_needed(tw, choice.rule) if math.isfinite(tw) else None
         rows.append([MEASURES[m].label + member, unit, mean, fmt(c.sigma, ".3g"), fmt(c.half_width, ".3g"),
-                     str(c.n), f"`{cheap}` ({fmt(walls[cheap])} s)"])  # fmt: skip
-    head = ["measure", "unit", "reference mean", "σ seeds", "95 % half-width", "seeds", "cheapest setting keeping it"]
+                     str(c.n), fmt(tw, ".2g"), _span(grid), fmt(need_twin),
+                     _span([seeds_needed(r, choice.rule) for r in grid], "d"),
+                     f"`{cheap}` ({fmt(walls[cheap])} s)"])  # fmt: skip
+    head = ["measure", "unit", "reference mean", "σ seeds", "95 % half-width", "seeds", "sd(d)/σ twin", "sd(d)/σ grid",
+            "seeds strict: twin", "seeds strict: grid", "cheapest setting keeping it"]  # fmt: skip
     return md_table(head, rows)
 
 
@@ -161,22 +195,38 @@ def _measures(reg: dict[str, Any], measures: Sequence[str] | None) -> list[str]:
     return [m for m in (measures or reg["measures"]) if m in reg["measures"]]
 
 
-def summary_table(docs: Sequence[dict[str, Any]], rule: float, measures: Sequence[str] | None) -> list[str]:
-    """One row per regime: pads, run, reference, the chosen setting, its wall time and speed-up, and the measures
-    that bind the choice (those no cheaper setting keeps)."""
+def _pads(reg: dict[str, Any]) -> str:
+    sizes = sorted({p["patches"] for p in reg["pads"]})
+    return f"{len(reg['pads'])} × {sizes[0]}" + (f"–{sizes[-1]}" if len(sizes) > 1 else "")
+
+
+def summary_table(docs: Sequence[dict[str, Any]], rule: float, measures: Sequence[str] | None,
+                  criterion: str) -> list[str]:  # fmt: skip
+    """One row per regime: pads, run, reference, the chosen setting, its wall time and speed-up, the measures that
+    bind the choice (each the only one a cheaper setting does not keep) and those it keeps only within resolution."""
     rows = []
     for doc in docs:
         for name, reg in doc["regimes"].items():
-            ch = settings_for(doc, name, _measures(reg, measures), rule)
-            sizes = sorted({p["patches"] for p in reg["pads"]})
-            pads = f"{len(reg['pads'])} × {sizes[0]}" + (f"–{sizes[-1]}" if len(sizes) > 1 else "")
+            ch = settings_for(doc, name, _measures(reg, measures), rule, criterion)
             ref = reference_of(reg)
-            binding = [MEASURES[m].label for m in ch.measures if ch.cheapest[m] == ch.setting]
-            rows.append([name, pads, f"{reg['duration_s'] * 1e3:.1f} ms", f"`{ref['label']}` ({fmt(ref['wall_s'])} s)",
-                         f"`{ch.setting}`", fmt(ch.wall_s), fmt(ch.speedup, ".2g"), ", ".join(binding)])  # fmt: skip
+            within = [MEASURES[m].label for m, v in ch.verdicts.items() if v == "within resolution"]
+            rows.append([name, _pads(reg), f"{reg['duration_s'] * 1e3:.1f} ms",
+                         f"`{ref['label']}` ({fmt(ref['wall_s'])} s)", f"`{ch.setting}`", fmt(ch.wall_s),
+                         fmt(ch.speedup, ".2g"),
+                         ", ".join(MEASURES[m].label for m in ch.binding), ", ".join(within) or "–"])  # fmt: skip
     head = ["regime", "pads × patches", "run", "reference (wall)", "rule picks", "wall [s]", "speed-up",
-            "binding measures"]  # fmt: skip
+            "binding measures", "kept within resolution only"]  # fmt: skip
     return md_table(head, rows)
+
+
+def candidates_table(docs: Sequence[dict[str, Any]], rule: float, measures: Sequence[str] | None) -> list[str]:
+    """One row per regime, one column per criterion of the rule: the setting it picks and its speed-up."""
+    rows = []
+    for doc in docs:
+        for name, reg in doc["regimes"].items():
+            picks = [settings_for(doc, name, _measures(reg, measures), rule, c) for c in CRITERIA]
+            rows.append([name, _pads(reg), *(f"`{ch.setting}` ({fmt(ch.speedup, '.2g')}×)" for ch in picks)])
+    return md_table(["regime", "pads × patches", *(f"`{c}`" for c in CRITERIA)], rows)
 
 
 def measure_table(docs: Sequence[dict[str, Any]]) -> list[str]:
@@ -186,20 +236,88 @@ def measure_table(docs: Sequence[dict[str, Any]]) -> list[str]:
     return md_table(["name", "label", "unit", "what"], rows)
 
 
+def _seeds(reg: dict[str, Any]) -> int:
+    """Seeds per member (the pads of a regime without members)."""
+    return len(reg["pads"]) // max(1, len({p.get("member") for p in reg["pads"]}))
+
+
+def resolution_text(n: int, rule: float) -> str:
+    """The resolution floor and what the resolution criterion does at ``n`` seeds, in words."""
+    chance = [f"{100 * keep_chance(n, k * rule, rule):.0f} %" for k in range(4)]
+    return (
+        f"With {n} seeds the resolution floor t₀.₉₇₅ √2 σ/√n is {resolution_floor(n):.2f} σ: the 95 % interval of "
+        f"an exact setting whose runs have parted from the reference's reaches that far, so the strict criterion "
+        f"cannot keep such a measure at {rule:g} σ. The resolution criterion keeps it when the estimate of the bias "
+        f"lies within ± {rule:g} σ: for such a measure with probability {chance[0]} when the setting is exact, "
+        f"{chance[1]} when its bias is {rule:g} σ, {chance[2]} at {2 * rule:g} σ and {chance[3]} at {3 * rule:g} σ "
+        f"(normal approximation)."
+    )
+
+
+def regime_results(doc: dict[str, Any], name: str, rule: float, measures: Sequence[str] | None,
+                   criterion: str) -> str:  # fmt: skip
+    """What the rule says for one regime, in words: the pick with its wall time and speed-up, every setting that
+    passes, what each cheaper setting does not keep, the measures kept only within resolution with the seeds the
+    strict rule would need, the runs a time limit cut, and the other criteria's picks."""
+    reg = doc["regimes"][name]
+    use = _measures(reg, measures)
+    ch = settings_for(doc, name, use, rule, criterion)
+    ref = reference_of(reg)
+    walls = {s["label"]: s["wall_s"] for s in reg["settings"] if s.get("wall_s") is not None}
+    ran = [s for s in reg["settings"] if usable(s)]
+    cut = [s["label"] for s in reg["settings"] if str(s.get("fault")).startswith("not run")]
+    out = [f"**{name}** ({_pads(reg)} patches, {len(ran)} of {len(reg['settings'])} settings run"]
+    out[0] += f"; not run, cut by the call's time limit: {', '.join(f'`{c}`' for c in cut)})." if cut else ")."
+    if ch.setting == ref["label"]:
+        out.append(f"The rule keeps the reference `{ref['label']}` ({fmt(ref['wall_s'])} s).")
+    else:
+        passing = ", ".join(f"`{p}` ({fmt(walls[p])} s)" for p in ch.passing)
+        out.append(f"The rule picks `{ch.setting}`: {fmt(ch.wall_s)} s of stepping against the reference's "
+                   f"{fmt(ref['wall_s'])} s, {fmt(ch.speedup, '.2g')}× faster. Every setting that keeps every "
+                   f"measure, cheapest first: {passing}.")  # fmt: skip
+    settings = {s["label"]: s for s in ran}
+    fails = []
+    for label, names in list(ch.fails.items())[-NEAREST:]:
+        errs = [f"{MEASURES[m].label} {_small(compare_setting(reg, settings[label], m).ratio)} σ" for m in names]
+        fails.append(f"`{label}` ({', '.join(errs)})")
+    if fails:
+        out.append(f"The {min(NEAREST, len(fails))} cheaper settings nearest in wall time, cheapest first, and the "
+                   "measures each does not keep (with its error): "
+                   + "; ".join(fails) + ".")  # fmt: skip
+    within = [m for m, v in ch.verdicts.items() if v == "within resolution"]
+    if within:
+        parts = []
+        for m in within:
+            c = compare_setting(reg, next(s for s in reg["settings"] if s["label"] == ch.setting), m)
+            need = seeds_needed(c.sd_ratio, rule)
+            parts.append(f"{MEASURES[m].label} (error {_small(c.ratio)} σ, bound {_small(c.bound_ratio)} σ, sd(d) "
+                         f"{c.sd_ratio:.2g} σ: the strict criterion would need {fmt(need)} seeds)")  # fmt: skip
+        out.append("It keeps within resolution only, undecided by the strict criterion: " + "; ".join(parts) + ".")
+    others = [(c, settings_for(doc, name, use, rule, c)) for c in CRITERIA if c != criterion]
+    out.append("The other criteria pick " + ", ".join(f"`{o.setting}` ({c})" for c, o in others) + ".")
+    return " ".join(out)
+
+
 def render(docs: Sequence[dict[str, Any]], names: Sequence[str], figures: Sequence[Path], page: Path, rule: float,
-           measures: Sequence[str] | None) -> list[str]:  # fmt: skip
+           measures: Sequence[str] | None, criterion: str) -> list[str]:  # fmt: skip
     """The generated section of the page (``names``: the result files, as the page links them)."""
     lines: list[str] = []
     for tag in dict.fromkeys(d["tag"] for d in docs):
         group = [(d, n) for d, n in zip(docs, names, strict=True) if d["tag"] == tag]
         commands = dict.fromkeys(c for d, _ in group for c in d["commands"])
+        seeds = sorted({_seeds(reg) for d, _ in group for reg in d["regimes"].values()})
         lines += [
             f"Results on **{machine_text(group[0][0])}**{' (the quick CPU variant)' if group[0][0]['quick'] else ''}: "
             + ", ".join(f"`{n}`" for _, n in group) + " from " + "; ".join(f"`{c}`" for c in commands) + ". Rule: "
-            f"the 95 % interval of a setting's bias within ± {rule:g} × σ between seeds.",
+            f"± {rule:g} × σ between seeds, criterion `{criterion}` ({CRITERIA[criterion]}). "
+            + " ".join(resolution_text(n, rule) for n in seeds),
+            "",
+            *(f"* {regime_results(d, r, rule, measures, criterion)}" for d, _ in group for r in d["regimes"]),
             "",
         ]  # fmt: skip
-    lines += ["### The settings the rule picks", "", *summary_table(docs, rule, measures), ""]
+    lines += ["### The settings the rule picks", "", *summary_table(docs, rule, measures, criterion), ""]
+    lines += ["### The criteria side by side", "", "The setting each criterion picks (speed-up over the reference):",
+              "", *candidates_table(docs, rule, measures), ""]  # fmt: skip
     lines += ["### Measures", "", *measure_table(docs), ""]
     for fig in figures:
         lines += [
@@ -207,8 +325,9 @@ def render(docs: Sequence[dict[str, Any]], names: Sequence[str], figures: Sequen
             "",
             f"*Per regime, error of the ensemble mean / σ between seeds against stepping wall time: one colour per "
             f"measure, one marker per integrator and precision (a line through its steps or tolerances), filled "
-            f"where the setting keeps the measure; dashed: the rule ({rule:g}); grey line: the reference's wall "
-            f"time; dotted: the setting the rule picks. Errors below {RATIO_FLOOR:g} σ are drawn at {RATIO_FLOOR:g}.*",
+            f"where the setting keeps the measure, half filled where it keeps it within resolution; dashed: the rule "
+            f"({rule:g}); grey line: the reference's wall time; dotted: the setting the rule picks. Errors below "
+            f"{RATIO_FLOOR:g} σ are drawn at {RATIO_FLOOR:g}.*",
             "",
         ]
     for doc in docs:
@@ -224,20 +343,24 @@ def render(docs: Sequence[dict[str, Any]], names: Sequence[str], figures: Sequen
                 f"saturation detector calls saturated: {reference_of(reg).get('saturated', '–')} of "
                 f"{len(reg['pads'])} in the reference; {fmt(doc.get('regime_wall_s'), '.0f')} s of wall time in "
                 f"all (runs, analysis, compilation). Per setting and measure: error/σ (the upper end of the 95 % "
-                f"interval of |bias|/σ); ✓ keeps (bound ≤ {rule:g}), **bold** moves (the whole interval beyond "
-                f"{rule:g}), plain: undecided.",
+                f"interval of |bias|/σ); ✓ keeps (bound ≤ {rule:g}), ≈ keeps within resolution, **bold** moves (the "
+                f"whole interval beyond {rule:g}), plain: undecided.",
                 "",
-                *setting_table(reg, rule, use),
+                *setting_table(reg, rule, use, criterion),
                 "",
-                "The reference ensemble, and per measure the cheapest setting that keeps it:",
+                "The reference ensemble; per measure sd(d)/σ of the reference's twin (the grid setting that differs "
+                "from it in precision only) and over the grid, the seeds the strict criterion would need with that "
+                f"sd(d) for an unbiased setting (t₀.₉₇₅ sd(d)/√n ≤ {rule:g} σ), and the cheapest setting that keeps "
+                "the measure:",
                 "",
-                *reference_table(reg, settings_for(doc, name, use, rule)),
+                *reference_table(reg, settings_for(doc, name, use, rule, criterion)),
                 "",
             ]
     return lines
 
 
-def report(paths: Sequence[Path], page: Path, figures: Path, rule: float, measures: Sequence[str] | None) -> None:
+def report(paths: Sequence[Path], page: Path, figures: Path, rule: float, measures: Sequence[str] | None,
+           criterion: str) -> None:  # fmt: skip
     """The figure of each machine (``wps_<tag>.png``: the files' device and variant) and the page's generated section
     from the result files ``paths``; a regime given twice for one machine is an error."""
     docs = [load_results(p) for p in paths]
@@ -248,11 +371,11 @@ def report(paths: Sequence[Path], page: Path, figures: Path, rule: float, measur
                 raise ValueError(f"regime {name} is in both {seen[d['tag'], name]} and {p}")
             seen[d["tag"], name] = p
     tags = list(dict.fromkeys(d["tag"] for d in docs))
-    figs = [regime_figure([d for d in docs if d["tag"] == t], figures, t, rule) for t in tags]
+    figs = [regime_figure([d for d in docs if d["tag"] == t], figures, t, rule, criterion) for t in tags]
     try:
         names = [p.resolve().relative_to(page.resolve().parent.parent).as_posix() for p in paths]
     except ValueError:
         names = [p.name for p in paths]
-    body = render(docs, names, figs, page, rule, measures)
+    body = render(docs, names, figs, page, rule, measures, criterion)
     replace_generated(page, body, generated_markers(MARKER), TITLE)
     print(f"wrote {page} and {', '.join(str(f) for f in figs)}")

@@ -9,27 +9,39 @@ the mean amplitude in :data:`BAND_WIDTH` bands over :data:`SPECTRUM_BAND`).
 **Statistics** (:func:`compare`): for one measure, the reference ensemble x_ref (one value per seed) and the
 ensemble of a setting x (the same seeds, the same pads), with d = x − x_ref per seed:
 
-* error = |mean(d)| = |mean(x) − mean(x_ref)|, the error of the setting's ensemble mean;
+* error = |mean(d)| = |mean(x) − mean(x_ref)|, the error of the setting's ensemble mean (the paired estimate of
+  its bias);
 * σ = the standard deviation of x_ref between seeds (ddof 1), and the 95 % half-width of its mean
-  t(0.975, n − 1) σ / √n (``ensemble_interval``);
+  t(0.975, n − 1) σ / √n (as ``aca_warp.analysis.measures.ensemble_interval`` gives it);
 * the standard error of the error, sd(d) / √n: a chaotic run parts from the reference's soon after it saturates,
   so part of any error is the sampling noise of two different trajectories over a finite window, not a bias of
-  the integrator; ``bound`` = error + t(0.975, n − 1) sd(d)/√n is the upper end of the 95 % interval of the bias;
+  the integrator; ``bound`` = error + t(0.975, n − 1) sd(d)/√n is the upper end of the 95 % interval of the bias
+  (``bound90`` with t(0.95, n − 1): the 90 % interval of a two one-sided test);
 * for a vector measure every figure is the root mean square over the components (bands), the bound over the
   components' bounds.
 
 A regime whose pads have members (the LF states) is compared member by member; the regime's figure is the member
-with the largest bound/σ.
+with the largest bound/σ, its verdict the worst of the members'.
 
-**Rule** (:func:`settings_for`), an equivalence test as the validation's "equal" criterion: a setting **keeps** a
-measure when the 95 % interval of its bias lies within ± ``rule`` · σ (bound ≤ ``rule`` · σ), **moves** it when
-the interval lies wholly beyond (error − t sd(d)/√n > ``rule`` · σ), and is **undecided** otherwise (too few seeds
-to tell). The rule picks the setting of least stepping wall time that keeps every measure asked for; the
+**Resolution floor**: runs of two equally exact settings that have parted give d of standard deviation up to √2 σ
+(no pairing left, equal spread), so the 95 % interval of an exact setting's bias has the half-width
+t(0.975, n − 1) √2 σ/√n (:func:`resolution_floor`): 0.51 σ with 32 seeds. No setting can be shown within ¼ σ
+below it; :func:`seeds_needed` gives the seeds at which a measure's observed sd(d) would allow it.
+
+**Rule** (:func:`settings_for`): a setting **keeps** a measure when the 95 % interval of its bias lies within
+± ``rule`` · σ, **moves** it when the interval lies wholly beyond (error − t sd(d)/√n > ``rule`` · σ). Between the
+two, the ``criterion`` (:data:`CRITERIA`) decides: ``resolution`` (the default) calls the measure **kept within
+resolution** when the estimate of the bias is within ± ``rule`` · σ and the interval is no wider than the floor's
+(sd(d)² ≤ 2 σ² F(0.95; n − 1, n − 1): d's variance not significantly larger than two independent draws of the
+reference ensemble give), **undecided** otherwise; ``twin`` takes the floor from the measured sd(d) of the
+reference's twin (:func:`twin_of`); ``strict`` keeps only what the 95 % interval proves; ``tost`` what the 90 %
+interval proves. The rule picks the setting of least stepping wall time that keeps every measure asked for; the
 reference always does (and is the pick when no other setting does).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -43,6 +55,18 @@ BAND_WIDTH = 5.0e3  # Hz
 PEAK_FMIN = 5.0e3  # Hz: lowest frequency of the velocity-sum peak (as the μ peak of ``mu_measures``)
 STFT_SAMPLES = 2**12  # the STFT window of the varying-area rows
 DEFAULT_RULE = 0.25  # error ≤ ¼ of the standard deviation between seeds
+CRITERIA = {
+    "resolution": "95 % interval within ± rule·σ, or else the bias estimate within ± rule·σ and sd(d) no larger "
+    "than the floor √2 σ allows",
+    "twin": "95 % interval within ± rule·σ, or else the bias estimate within ± rule·σ and sd(d) no larger than the "
+    "twin's allows",
+    "strict": "95 % interval within ± rule·σ",
+    "tost": "90 % interval within ± rule·σ (two one-sided tests at 5 %)",
+}
+"""What each criterion of the rule counts as keeping a measure (module docstring)."""
+DEFAULT_CRITERION = "resolution"
+FLOOR_LEVEL = 0.95  # level of the variance-ratio test of sd(d) against the floor
+ORDER = ("moves", "undecided", "within resolution", "keeps")  # verdicts, worst first
 
 
 # ------------------------------------------------------------------------------------------------ measures
@@ -193,6 +217,7 @@ class Comparison:
         paired_se: Standard error of the mean paired difference, sd(x − x_ref)/√n (rms over components).
         bound: Upper end of the 95 % interval of |bias|: error + t sd/√n (rms over components).
         low: Lower end, max(0, error − t sd/√n) (rms over components).
+        bound90: Upper end of the 90 % interval of |bias| (rms over components).
         member: The member (LF state) it belongs to, or None.
     """
 
@@ -204,6 +229,7 @@ class Comparison:
     paired_se: float
     bound: float
     low: float
+    bound90: float
     member: str | None = None
 
     @property
@@ -216,11 +242,75 @@ class Comparison:
         """bound / σ: the largest bias in units of σ that the 95 % interval allows."""
         return self.bound / self.sigma if self.sigma > 0 else math.nan
 
-    def verdict(self, rule: float) -> str:
-        """ "keeps" (bound ≤ rule·σ), "moves" (low > rule·σ) or "undecided" (module docstring; NaN: undecided)."""
-        if self.bound_ratio <= rule:
+    @property
+    def sd_ratio(self) -> float:
+        """sd(d) / σ: how far the setting's seeds scatter about the reference's (√2 once the runs have parted)."""
+        return self.paired_se * math.sqrt(self.n) / self.sigma if self.sigma > 0 else math.nan
+
+    def verdict(self, rule: float, criterion: str = "resolution", twin: Comparison | None = None) -> str:
+        """ "keeps", "within resolution", "undecided" or "moves" under ``criterion`` (:data:`CRITERIA`; module
+        docstring); ``twin``: the reference's twin on the same seeds (criterion "twin"; None: no floor, as
+        "strict"). NaN figures: undecided."""
+        if criterion not in CRITERIA:
+            raise KeyError(f"no criterion {criterion!r} (choose from {', '.join(CRITERIA)})")
+        bound = self.bound90 if criterion == "tost" else self.bound
+        if self.sigma > 0 and bound <= rule * self.sigma:
             return "keeps"
-        return "moves" if self.sigma > 0 and self.low > rule * self.sigma else "undecided"
+        if not self.sigma > 0:
+            return "undecided"
+        if self.low > rule * self.sigma:
+            return "moves"
+        floor = {"resolution": math.sqrt(2.0), "twin": twin.sd_ratio if twin is not None else math.nan}
+        if self.ratio <= rule and self.sd_ratio <= floor.get(criterion, math.nan) * floor_factor(self.n):
+            return "within resolution"
+        return "undecided"
+
+
+def floor_factor(n: int) -> float:
+    """How much larger than the floor's a sample sd(d) of ``n`` seeds may be: √F(:data:`FLOOR_LEVEL`; n − 1, n − 1)
+    (the one-sided variance-ratio test of two ensembles of n seeds; 1.35 at n = 32)."""
+    import scipy.stats
+
+    return math.sqrt(float(scipy.stats.f.ppf(FLOOR_LEVEL, n - 1, n - 1))) if n >= 2 else math.nan
+
+
+@functools.lru_cache(maxsize=4096)
+def _t(n: int, level: float = 0.95) -> float:
+    """The two-sided ``level`` quantile of Student's t with n − 1 degrees of freedom (the half-width of a mean's
+    interval over n seeds in units of sd/√n)."""
+    import scipy.stats
+
+    return float(scipy.stats.t.ppf(0.5 + level / 2.0, n - 1))
+
+
+def resolution_floor(n: int) -> float:
+    """The 95 % half-width of an exact setting's bias in units of σ once its runs have parted from the
+    reference's (sd(d) = √2 σ): t(0.975, n − 1) √2 / √n."""
+    return _t(n) * math.sqrt(2.0 / n) if n >= 2 else math.nan
+
+
+def seeds_needed(sd_ratio: float, rule: float = DEFAULT_RULE, limit: int = 100_000) -> int | None:
+    """The least number of seeds at which the 95 % half-width t(0.975, n − 1) · sd(d)/√n of an unbiased setting
+    whose sd(d) is ``sd_ratio`` σ falls to ``rule`` σ: the seeds the strict rule needs to keep the measure at all
+    (None past ``limit`` or for a ratio that is not finite)."""
+    if not math.isfinite(sd_ratio) or sd_ratio < 0:
+        return None
+    n = max(2, math.ceil((1.959963984540054 * sd_ratio / rule) ** 2))  # the normal quantile: t is larger
+    while _t(n) * sd_ratio / math.sqrt(n) > rule:
+        n += 1
+        if n > limit:
+            return None
+    return n
+
+
+def keep_chance(n: int, bias: float, rule: float = DEFAULT_RULE) -> float:
+    """Probability that an estimate of the bias lies within ± ``rule`` σ for a setting of true bias ``bias`` σ whose
+    runs have parted from the reference's (sd(d) = √2 σ), over ``n`` seeds (normal approximation): how often the
+    "resolution" criterion keeps such a measure."""
+    from scipy.stats import norm
+
+    se = math.sqrt(2.0 / n)
+    return float(norm.cdf((rule - bias) / se) - norm.cdf((-rule - bias) / se))
 
 
 def _rms(x: np.ndarray) -> float:
@@ -231,8 +321,6 @@ def compare(reference: Any, values: Any, member: str | None = None) -> Compariso
     """:class:`Comparison` of per-seed ``values`` against ``reference`` (each shape (seeds,) or (seeds, components),
     NaN where missing; the same seed in the same row). A seed counts when both have every component that at least
     half of the seeds have; fewer than two seeds give NaN figures."""
-    from aca_warp.analysis.measures import ensemble_interval
-
     ref = np.asarray(reference, dtype=np.float64)
     val = np.asarray(values, dtype=np.float64)
     if ref.shape != val.shape:
@@ -243,20 +331,21 @@ def compare(reference: Any, values: Any, member: str | None = None) -> Compariso
     rows = both[:, cols].all(axis=1) if cols.any() else np.zeros(ref2.shape[0], bool)
     n = int(rows.sum())
     if n < 2:
-        return Comparison(n, *([math.nan] * 7), member=member)
+        return Comparison(n, *([math.nan] * 8), member=member)
     r, v = ref2[rows][:, cols], val2[rows][:, cols]
-    e = ensemble_interval(r)
-    d = ensemble_interval(v - r)  # its mean is the signed error, its half-width t·sd/√n
-    err, half = np.abs(d.mean), d.mean_high - d.mean
+    sigma, d = r.std(axis=0, ddof=1), v - r
+    err, se = np.abs(d.mean(axis=0)), d.std(axis=0, ddof=1) / math.sqrt(n)  # the error and its standard error
+    half = _t(n) * se
     return Comparison(
         n=n,
-        reference_mean=float(np.mean(e.mean)),
+        reference_mean=float(np.mean(r)),
         error=_rms(err),
-        sigma=_rms(e.std),
-        half_width=_rms(e.mean_high - e.mean),
-        paired_se=_rms(d.std / math.sqrt(n)),
+        sigma=_rms(sigma),
+        half_width=_rms(_t(n) * sigma / math.sqrt(n)),
+        paired_se=_rms(se),
         bound=_rms(err + half),
         low=_rms(np.maximum(err - half, 0.0)),
+        bound90=_rms(err + _t(n, 0.90) * se),
         member=member,
     )
 
@@ -269,15 +358,23 @@ def _members(regime: dict[str, Any]) -> dict[str | None, list[int]]:
     return out
 
 
-def compare_setting(regime: dict[str, Any], setting: dict[str, Any], measure: str) -> Comparison:
-    """``setting`` against the regime's reference for ``measure``: the member with the largest bound/σ (a member
-    whose figure is not defined counts as the worst)."""
+def member_comparisons(regime: dict[str, Any], setting: dict[str, Any], measure: str) -> list[Comparison]:
+    """``setting`` against the regime's reference for ``measure``, one :class:`Comparison` per member (one for a
+    regime without members)."""
     ref = reference_of(regime)
-    worst: Comparison | None = None
+    out = []
     for member, idx in _members(regime).items():
         a = [ref["values"][measure][i] for i in idx]
         b = [setting["values"][measure][i] for i in idx] if setting.get("values") else [math.nan] * len(idx)
-        c = compare(_matrix(a), _matrix(b), member)
+        out.append(compare(_matrix(a), _matrix(b), member))
+    return out
+
+
+def compare_setting(regime: dict[str, Any], setting: dict[str, Any], measure: str) -> Comparison:
+    """``setting`` against the regime's reference for ``measure``: the member with the largest bound/σ (a member
+    whose figure is not defined counts as the worst)."""
+    worst: Comparison | None = None
+    for c in member_comparisons(regime, setting, measure):
         if worst is None or not (c.bound_ratio <= worst.bound_ratio):  # NaN beats every number
             worst = c
     assert worst is not None
@@ -306,14 +403,36 @@ def usable(setting: dict[str, Any]) -> bool:
     return bool(setting.get("complete")) and bool(setting.get("values"))
 
 
-def verdict(regime: dict[str, Any], setting: dict[str, Any], measure: str, rule: float) -> str:
-    """ "keeps", "moves" or "undecided" (:meth:`Comparison.verdict`); the reference keeps, a run that did not
-    complete keeps nothing ("no run")."""
+def twin_of(regime: dict[str, Any]) -> dict[str, Any] | None:
+    """The reference's twin: the completed grid setting of the reference's integrator, step and tolerance in the
+    other precision (as exact as the reference; its runs part from the reference's by rounding alone), or None."""
+    ref = reference_of(regime)
+    key = (ref.get("integrator"), ref.get("dt"), ref.get("tolerance"))
+    twins = [s for s in regime["settings"] if s["role"] == "grid" and usable(s)
+             and (s.get("integrator"), s.get("dt"), s.get("tolerance")) == key
+             and s.get("precision") != ref.get("precision")]  # fmt: skip
+    return twins[0] if twins else None
+
+
+def verdict(
+    regime: dict[str, Any], setting: dict[str, Any], measure: str, rule: float, criterion: str = DEFAULT_CRITERION
+) -> str:
+    """ "keeps", "within resolution", "undecided" or "moves" (:meth:`Comparison.verdict`; of a regime with members
+    the worst member's); the reference keeps, a run that did not complete keeps nothing ("no run")."""
     if setting["role"] == "reference":
         return "keeps"
     if not usable(setting):
         return "no run"
-    return compare_setting(regime, setting, measure).verdict(rule)
+    twin = twin_of(regime) if criterion == "twin" else None
+    twins = member_comparisons(regime, twin, measure) if twin is not None else None
+    own = member_comparisons(regime, setting, measure)
+    verdicts = [c.verdict(rule, criterion, twins[k] if twins else None) for k, c in enumerate(own)]
+    return min(verdicts, key=ORDER.index)
+
+
+def kept(v: str) -> bool:
+    """A verdict that counts as keeping the measure."""
+    return v in ("keeps", "within resolution")
 
 
 # ------------------------------------------------------------------------------------------------ the rule
@@ -332,6 +451,9 @@ class Choice:
         passing: Labels of every setting that keeps them all, cheapest first.
         cheapest: Per measure, the cheapest setting that keeps it (the dearest of these sets the choice).
         rule: The fraction of σ.
+        criterion: What counts as keeping (:data:`CRITERIA`).
+        verdicts: Per measure, the chosen setting's verdict.
+        fails: Per completed setting cheaper than the chosen one, cheapest first, the measures it does not keep.
     """
 
     regime: str
@@ -342,6 +464,14 @@ class Choice:
     passing: list[str] = field(default_factory=list)
     cheapest: dict[str, str] = field(default_factory=dict)
     rule: float = DEFAULT_RULE
+    criterion: str = DEFAULT_CRITERION
+    verdicts: dict[str, str] = field(default_factory=dict)
+    fails: dict[str, list[str]] = field(default_factory=dict)
+
+    @property
+    def binding(self) -> list[str]:
+        """The measures that bind the choice: each the only one a cheaper setting does not keep."""
+        return [m for m in self.measures if [m] in self.fails.values()]
 
     @property
     def speedup(self) -> float:
@@ -363,11 +493,14 @@ def settings_for(
     regime: str,
     measures: Sequence[str] | None = None,
     rule: float = DEFAULT_RULE,
+    criterion: str = DEFAULT_CRITERION,
 ) -> Choice:
     """The cheapest setting of ``regime`` in a result file that keeps every one of ``measures`` (None: every measure
-    of the regime) within ``rule`` × the standard deviation between seeds (module docstring). Raises KeyError for
-    a regime or measure the file does not hold."""
+    of the regime) within ``rule`` × the standard deviation between seeds, as ``criterion`` counts keeping (module
+    docstring). Raises KeyError for a regime, measure or criterion the file or rule does not hold."""
     doc = load_results(results)
+    if criterion not in CRITERIA:
+        raise KeyError(f"no criterion {criterion!r} (choose from {', '.join(CRITERIA)})")
     if regime not in doc["regimes"]:
         raise KeyError(f"no regime {regime!r} in the results (has {', '.join(doc['regimes'])})")
     reg = doc["regimes"][regime]
@@ -375,13 +508,15 @@ def settings_for(
     unknown = [m for m in names if m not in reg["measures"]]
     if unknown:
         raise KeyError(f"regime {regime!r} has no measure {', '.join(unknown)} (has {', '.join(reg['measures'])})")
-    cands = sorted((s for s in reg["settings"] if s.get("wall_s") is not None), key=lambda s: s["wall_s"])
-    keeps = {s["label"]: {m for m in names if verdict(reg, s, m, rule) == "keeps"} for s in cands}
-    passing = [s for s in cands if keeps[s["label"]] == set(names)]
-    cheapest = {m: next(s["label"] for s in cands if m in keeps[s["label"]]) for m in names}
     ref = reference_of(reg)
     if not usable(ref) or ref.get("wall_s") is None:
         raise ValueError(f"the reference of regime {regime!r} did not complete: {ref.get('fault')}")
+    cands = sorted((s for s in reg["settings"] if s.get("wall_s") is not None), key=lambda s: s["wall_s"])
+    verdicts = {s["label"]: {m: verdict(reg, s, m, rule, criterion) for m in names} for s in cands}
+    passing = [s for s in cands if all(kept(v) for v in verdicts[s["label"]].values())]
+    cheapest = {m: next(s["label"] for s in cands if kept(verdicts[s["label"]][m])) for m in names}
     best = passing[0]
+    cheaper = [s["label"] for s in cands[: cands.index(best)] if usable(s)]
+    fails = {s: [m for m, v in verdicts[s].items() if not kept(v)] for s in cheaper}
     return Choice(regime, best["label"], best["wall_s"], ref["wall_s"], names, [s["label"] for s in passing],
-                  cheapest, rule)  # fmt: skip
+                  cheapest, rule, criterion, verdicts[best["label"]], fails)  # fmt: skip

@@ -14,9 +14,7 @@ import hashlib
 import itertools
 import json
 import math
-import sys
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -31,15 +29,10 @@ from aca_warp.scene import (
     Pad,
     PatchGenerator,
     Scene,
+    preset_document,
     scene_from_dict,
     scene_to_dict,
 )
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
-
 
 FORMAT = "aca_warp.sweep/1"
 MODES = ("product", "zip")
@@ -305,8 +298,7 @@ def _base_doc(doc: dict, base_dir: Path) -> tuple[dict, Path, str]:
     if not isinstance(base, str):
         raise SweepError(f"sweep.base must be a preset name or a TOML scene path, got {base!r}")
     if base in PRESETS:
-        text = resources.files("aca_warp.data").joinpath(f"{base}.toml").read_text()
-        return _merge(tomllib.loads(text), inline), base_dir, base
+        return _merge(preset_document(base), inline), base_dir, base
     p = Path(base)
     if not p.is_absolute():
         p = base_dir / p

@@ -81,10 +81,15 @@ class Config:
     workers: int = 1
 
     def run_key(self) -> dict[str, Any]:
-        """The settings that decide a run's result (device, engine, LF folder and workers left out)."""
+        """The settings that decide a run's result (device, engine, LF folder and workers left out), with the
+        stepping of each kind of experiment as it describes itself, so that results made under another stepping
+        table or friction scheme are not taken for this run's."""
+        from aca_warp.studies.validation.settings import STEPPING
+
         d = dataclasses.asdict(self)
         for k in ("device", "engine", "lf_dir", "workers"):
             d.pop(k)
+        d["stepping"] = {kind: self.stepping(kind).describe() for kind in STEPPING}
         return clean(d)
 
     def stepping(self, kind: str) -> Any:

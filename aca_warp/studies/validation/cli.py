@@ -19,7 +19,7 @@ import numpy as np
 from aca_warp.studies.report import Log, command_line, generated_markers, replace_generated
 from aca_warp.studies.validation import multiscale as validation_multiscale
 from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK, ROWS, Config, Experiment, close_pools
-from aca_warp.studies.validation.cost import Costs, overheads, sticking_bound
+from aca_warp.studies.validation.cost import Costs, batch_friction_step, overheads
 from aca_warp.studies.validation.experiments import (
     Prepared,
     load_result,
@@ -139,7 +139,7 @@ def dry_run(names: list[str], cfg: Config, log: Log) -> float:
     for key, members in batches_of(names):
         batch = make_batch(key, [dry_prepare(EXPERIMENTS[n], cfg, log) for n in members], cfg)
         batches.append(batch)
-        bound = sticking_bound(batch.scenes)
+        bound = batch_friction_step(batch.scenes)
         step = cfg.stepping(batch.stepping_kind)
         steps = costs.steps(batch, cfg, bound)
         per = costs.step(batch, cfg)
@@ -150,7 +150,7 @@ def dry_run(names: list[str], cfg: Config, log: Log) -> float:
         log(
             f"{key} ({', '.join(members)}): {len(batch.scenes)} pads × {'/'.join(map(str, sizes))} patches; σ_i "
             f"min/median/max {sig[0]:.0f}/{sig[1]:.0f}/{sig[2]:.0f} 1/s; run {p.duration * 1e3:.1f} ms in "
-            f"{len(p.segments)} segment(s); sticking bound {bound:.3g} s, {step.describe()}: dt {step.step(bound):.3g} "
+            f"{len(p.segments)} segment(s); friction step {bound:.3g} s, {step.describe()}: dt {step.step(bound):.3g} "
             f"s, {steps:,} steps at {per * 1e6:.2f} µs/step = {steps * per:.0f} s on {cfg.device}; per-patch record "
             f"{sum(m.plan.velocity_bytes for m in batch.members) / 2**20:.0f} MiB"
         )

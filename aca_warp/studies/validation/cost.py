@@ -98,11 +98,11 @@ class Costs:
         return raw * self.factors.get(batch.stepping_kind, 1.0)
 
     def steps(self, batch: Any, cfg: Any, bound: float | None = None) -> int:
-        """Steps of the batch's run, at the step of its stepping (``bound``: its sticking bound [s], computed on the
-        host when not given)."""
+        """Steps of the batch's run, at the step of its stepping (``bound``: its friction step [s],
+        :func:`~aca_warp.studies.validation.settings.friction_step`, computed on the host when not given)."""
         step = cfg.stepping(batch.stepping_kind)
         if step.dt is None and bound is None:
-            bound = sticking_bound(batch.scenes)
+            bound = batch_friction_step(batch.scenes)
         return batch.plan.steps(step.step(bound if bound is not None else 0.0), cfg.sample_dt)
 
     def estimate(self, batch: Any, cfg: Any, bound: float | None = None) -> float:
@@ -117,12 +117,14 @@ class Costs:
             self.factors[kind] = measured / raw
 
 
-def sticking_bound(scenes: list[Any]) -> float:
-    """strang's sticking bound of a batch of pads [s], from a host model of them (``stable_step``)."""
+def batch_friction_step(scenes: list[Any]) -> float:
+    """The friction step of a batch of pads [s] (:func:`~aca_warp.studies.validation.settings.friction_step`), from
+    a host model of them (``stable_step``)."""
     from aca_warp.hf.model import build_model
     from aca_warp.hf.solver import stable_step
+    from aca_warp.studies.validation.settings import friction_step
 
-    return stable_step(build_model(scenes, device="cpu", precision="fp64")).sticking
+    return friction_step(stable_step(build_model(scenes, device="cpu", precision="fp64")))
 
 
 def overheads(batches: list[Any], cfg: Any, lf_runs: int) -> dict[str, float]:

@@ -181,12 +181,13 @@ def run_batch(
     """
     from aca_warp.hf.solver import stable_step
     from aca_warp.studies.runs import batch_at_start
+    from aca_warp.studies.validation.settings import friction_step
 
     t0 = time.perf_counter()
     scenes, plan = batch.scenes, batch.plan
     step = cfg.stepping(batch.stepping_kind)
     model, state = batch_at_start(scenes, cfg.device, step.precision)
-    bound = stable_step(model).sticking
+    bound = friction_step(stable_step(model))
     dt = step.step(bound)
     steps = plan.steps(dt, cfg.sample_dt)
     est = costs.estimate(batch, cfg, bound)
@@ -196,7 +197,7 @@ def run_batch(
         f"{batch.name} ({names}): {len(scenes)} pads × {'/'.join(map(str, sizes))} patches, run "
         f"{plan.duration * 1e3:.1f} ms in {len(plan.segments)} segment(s), {len(plan.tracks)} track window(s); "
         f"per-patch record {sum(p.plan.velocity_bytes for p in batch.members) / 2**20:.0f} MiB; {step.describe()}: "
-        f"dt {dt:.3g} s (sticking bound {bound:.3g} s), {steps:,} steps, estimated {est:.0f} s"
+        f"dt {dt:.3g} s (friction step {bound:.3g} s), {steps:,} steps, estimated {est:.0f} s"
     )
     heads = {p.exp.name: _result_head(p, cfg, est) for p in batch.members}
     if budget is not None and est > budget:
@@ -351,7 +352,7 @@ def _run_facts(parts: list[Any], model: Any, cfg: Config, step: Any, bound: floa
         "compile_s": sum(float(r.compile_time) for r in parts),
         "us_per_step": 1e6 * wall / max(steps, 1),
         "dt": float(last.dt),
-        "sticking_bound": float(bound),
+        "friction_step": float(bound),
         "stepping": dataclasses.asdict(step),
         "segments": len(parts),
         "blocks_per_pad": int(last.blocks_per_pad),

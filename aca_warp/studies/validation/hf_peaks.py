@@ -211,34 +211,33 @@ def plateau_row(results: dict[str, dict], cfg: Config) -> RowValue:
     )
 
 
-def overlap_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    texts, vals = per_preset(results, lambda p: _get(p, "overlap_mu_torque"))
+def _limit_row(
+    results: dict[str, dict], key: str, label: str, limit: float, above: bool, note: str, contrast: str
+) -> RowValue:
+    """``label`` and the value of ``key`` per preset, each against ``limit`` (:func:`threshold_verdict`, ``above``);
+    ``note`` and the value of ``contrast`` per preset."""
+    texts, vals = per_preset(results, lambda p: _get(p, key))
     return RowValue(
-        "D(μ, torque) " + "; ".join(texts),
-        all_of([threshold_verdict(v, OVERLAP_LIMIT, True) for v in vals.values()]),
-        "D = mean |ln a − ln b| over 1–200 kHz; for contrast D(μ, friction radius) "
-        + each(results, PRESETS, "overlap_mu_radius", ".2g"),
+        f"{label} " + "; ".join(texts),
+        all_of([threshold_verdict(v, limit, above) for v in vals.values()]),
+        f"{note} " + each(results, PRESETS, contrast, ".2g"),
     )
+
+
+def overlap_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    note = "D = mean |ln a − ln b| over 1–200 kHz; for contrast D(μ, friction radius)"
+    return _limit_row(results, "overlap_mu_torque", "D(μ, torque)", OVERLAP_LIMIT, True, note, "overlap_mu_radius")
 
 
 def shared_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    texts, vals = per_preset(results, lambda p: _get(p, "shared_fraction"))
-    return RowValue(
-        "share of μ's peaks " + "; ".join(texts),
-        all_of([threshold_verdict(v, SHARED_LIMIT, False) for v in vals.values()]),
-        "peaks ≥ 4× their surroundings, within 2 bins, 1–200 kHz; chance "
-        + each(results, PRESETS, "shared_chance", ".2g"),
-    )
+    note = "peaks ≥ 4× their surroundings, within 2 bins, 1–200 kHz; chance"
+    return _limit_row(results, "shared_fraction", "share of μ's peaks", SHARED_LIMIT, False, note, "shared_chance")
 
 
 def shared_velocity_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    texts, vals = per_preset(results, lambda p: _get(p, "shared_in_velocity"))
-    return RowValue(
-        "share of the peaks shared by μ, torque and radius also in the velocity spectrum " + "; ".join(texts),
-        all_of([threshold_verdict(v, SHARED_LIMIT, False) for v in vals.values()]),
-        "within 2 bins, 1–200 kHz; chance of a μ peak meeting a velocity peak "
-        + each(results, PRESETS, "shared_in_velocity_chance", ".2g"),
-    )
+    label = "share of the peaks shared by μ, torque and radius also in the velocity spectrum"
+    note = "within 2 bins, 1–200 kHz; chance of a μ peak meeting a velocity peak"
+    return _limit_row(results, "shared_in_velocity", label, SHARED_LIMIT, False, note, "shared_in_velocity_chance")
 
 
 def _rules(results: dict[str, dict], key: str) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:

@@ -285,8 +285,6 @@ def render(
 def _header_lines(meta: dict[str, Any]) -> list[str]:
     """The opening of the generated page: the variant (quick or full), the command, machine, versions and wall
     time that produced it, and the settings of its runs."""
-    from aca_warp.studies.validation.settings import QUICK_STEPPING, STEPPING
-
     cfg = meta["config"]
     variant = (
         "**QUICK variant (reduced CPU smoke check: small pads, short windows, few seeds, a coarser step) — not the "
@@ -296,10 +294,11 @@ def _header_lines(meta: dict[str, Any]) -> list[str]:
     )
     dtp = cfg["sample_dt"] * cfg["decimation"]
     cut = cfg.get("state_patches") or cfg["patches"]
+    steps = cfg.get("stepping") or {}  # as the run described it (the code's table may have changed since)
     stepping = (
-        f"every experiment {QUICK_STEPPING.describe()}"
-        if cfg["quick"]
-        else "; ".join(f"{k}: {s.describe()}" for k, s in STEPPING.items())
+        f"every experiment {next(iter(steps.values()))}"
+        if cfg["quick"] and steps
+        else "; ".join(f"{k}: {text}" for k, text in steps.items()) or "not recorded"
     )
     over = ", ".join(f"{k} = {cfg[k]}" for k in ("dt", "precision") if cfg.get(k) is not None)
     if not meta.get("complete", True):

@@ -1,0 +1,537 @@
+"""Per-patch friction sub-steps for large steps: a NumPy prototype on the package's own HF equations.
+
+Each patch obeys m ü + c u̇ + k_T u + Σ k_ij (u − u_j) = F_N f(ω r − u̇) (docs/model.md §2.2). The split
+integrators here advance y = (u, u̇) of a batch of pads with one spring evaluation F_s(u) = −K u per step and a
+per-patch scalar sub-step Φ_h of the friction/damping velocity equation, vectorised over the patches:
+
+* ``kicks="outside"`` is the package's ``strang``: Φ_h solves m v̇ = F_N f(v_d − v) − c v; the spring force enters
+  as two half kicks around it (velocity Verlet).
+* ``kicks="inside"`` (forced friction): Φ_h solves m v̇ = F_s(u) + F_N f(v_d − v) − c v with F_s(u) frozen over the
+  sub-step (Strang splitting of "kick + friction" at fixed u against the drift u̇ = v). The merged step is
+  w ← Φ_h[F_s(u)](w), u ← u + h w: the cost of ``strang`` (one spring evaluation, one sub-step), and the spring
+  force is inside the implicit solve, so at h γ ≫ 1 an L-stable sub-step puts a sticking patch on its sticking
+  manifold F_s + F_N f(v_d − v) − c v = 0 with the right static friction force.
+
+Sub-steps (:data:`METHODS`; each stage one call of :func:`solve`, the kernels' bracketed Newton ``solve_velocity``):
+
+* ``mid``: implicit midpoint (today's ``midpoint_friction``), order 2, A-stable, R(−∞) = −1;
+* ``thmid``: the θ-method with θ = 1/2 (midpoint) while the patch's own friction rate γ = (c + F_N f′)/m at its
+  slip keeps hγ ≤ 6, larger beyond so that |R| ≤ 1/2 at any step (:func:`theta_of`): order 2 where hγ ≤ 6;
+* ``be``: backward Euler, order 1, L-stable;
+* ``sdirk2``: Alexander's 2-stage SDIRK, d = 1 − 1/√2, order 2, L-stable, stiffly accurate; the second stage reuses
+  the first stage's slope (Y1 − v)/(d h) instead of evaluating f again;
+* ``trbdf2``: TR-BDF2 with γ = 2 − √2 (trapezoid to t + γh, then BDF2), order 2, L-stable, stiffly accurate; one
+  explicit friction evaluation plus two solves;
+* ``sub4``: four ``sdirk2`` sub-steps of h/4 (an accurate sub-flow, to separate the splitting error from the
+  sub-step's).
+
+Scenes, models and neighbour lists come from the package (:func:`load_pads`: ``build_model`` and the SciPy
+reference :class:`~aca_warp.hf.reference.ReferenceODE`), so the equations and parameters are exactly the package's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+METHODS = ("mid", "thmid", "be", "sdirk2", "trbdf2", "sub4")
+KICKS = ("outside", "inside")
+SDIRK_D = 1.0 - 1.0 / math.sqrt(2.0)  # diagonal of sdirk2 and of both TR-BDF2 stages
+TRBDF2_G = 2.0 - math.sqrt(2.0)  # TR-BDF2's intermediate time fraction
+TRBDF2_C1 = 1.0 / (TRBDF2_G * (2.0 - TRBDF2_G))  # BDF2 weights: y⁺ = c1 Y1 − c0 y + d h φ(y⁺)
+TRBDF2_C0 = (1.0 - TRBDF2_G) ** 2 / (TRBDF2_G * (2.0 - TRBDF2_G))
+NEWTON_TOL = 1.0e-9  # of the step's velocity change (the kernels' fp64 tolerance)
+SUBSTEPS = 4  # sdirk2 sub-steps of ``sub4``
+THETA_RHO = 0.5  # ``thmid`` keeps |R(−hγ)| ≤ this at the patch's own friction rate: θ = 1/2 up to hγ = 6
+STATIC_SLIP = 0.17  # m/s: Eq. 4 rises with the slip below this (its maximum); a patch there holds to the disc
+CHATTER_FLOOR = 1.0e-4 * STATIC_SLIP  # m/s: slip increments below this do not count as chatter
+
+
+# ---------------------------------------------------------------------------------------------------- pads
+
+
+@dataclass
+class Pads:
+    """A batch of pads as flat patch arrays (pads contiguous), float64.
+
+    Attributes:
+        m, c, fn, vd, kt: Mass [kg], damping [N s/m], normal force [N], disc speed ω r [m/s], k_T [N/m]; (n,).
+        K: Stiffness matrix, F_s(u) = −K u [N/m], CSR (n, n), block-diagonal over the pads.
+        start: Patch offsets of the pads, (P + 1,).
+        M, slope, decay: Eq. 4's factor [1], regularisation slope and decay [s/m] (shared by the batch).
+        load: Clamp force of each pad [N], (P,).
+        coulomb: Matrix friction μ_pad F_m sign ω of each pad [N], (P,).
+        u0, v0: Start state [m], [m/s], (n,).
+        names: Scene names, (P,).
+    """
+
+    m: np.ndarray
+    c: np.ndarray
+    fn: np.ndarray
+    vd: np.ndarray
+    kt: np.ndarray
+    K: sp.csr_matrix
+    start: np.ndarray
+    M: float
+    slope: float
+    decay: float
+    load: np.ndarray
+    coulomb: np.ndarray
+    u0: np.ndarray
+    v0: np.ndarray
+    names: list[str] = field(default_factory=list)
+
+    @property
+    def n(self) -> int:
+        return len(self.m)
+
+    @property
+    def pads(self) -> int:
+        return len(self.start) - 1
+
+    @property
+    def pad_of(self) -> np.ndarray:
+        return np.repeat(np.arange(self.pads), np.diff(self.start))
+
+    def gamma_max(self) -> np.ndarray:
+        """γ_i = (c_i + F_N,i f′(0))/m_i [1/s], the friction rate of a sticking patch, (n,)."""
+        return (self.c + self.fn * 2.0 * self.slope * self.M / math.pi) / self.m
+
+    def omega_max(self) -> float:
+        """The largest angular frequency of the undamped spring network [rad/s] (sparse eigenvalue of M⁻¹ᐟ² K M⁻¹ᐟ²)."""
+        from scipy.sparse.linalg import eigsh
+
+        s = sp.diags(1.0 / np.sqrt(self.m))
+        a = (s @ self.K @ s).tocsc()
+        if self.n <= 400:
+            return float(math.sqrt(np.linalg.eigvalsh(a.toarray()).max()))
+        return float(math.sqrt(eigsh(a, k=1, which="LA", return_eigenvectors=False)[0]))
+
+    def subset(self, pads: list[int]) -> Pads:
+        """The pads ``pads`` of this batch as a batch of their own."""
+        idx = np.concatenate([np.arange(self.start[p], self.start[p + 1]) for p in pads])
+        counts = np.diff(self.start)[pads]
+        return Pads(
+            self.m[idx], self.c[idx], self.fn[idx], self.vd[idx], self.kt[idx], self.K[idx][:, idx].tocsr(),
+            np.concatenate([[0], np.cumsum(counts)]), self.M, self.slope, self.decay, self.load[pads],
+            self.coulomb[pads], self.u0[idx], self.v0[idx], [self.names[p] for p in pads],
+        )  # fmt: skip
+
+
+def load_pads(scenes: list[Any], device: str = "cpu") -> Pads:
+    """The pads of ``scenes`` (one pad each) with their start states, built by the package (``build_model``,
+    ``initial_state``) and read through :class:`~aca_warp.hf.reference.ReferenceODE`."""
+    from aca_warp.hf.reference import ReferenceODE
+    from aca_warp.studies.runs import batch_at_start
+
+    parts = []
+    for scene in scenes:
+        model, state = batch_at_start([scene], device, "fp64")
+        ode = ReferenceODE(model)
+        u, v = (x.astype(np.float64) for x in state.numpy())
+        parts.append((ode, u, v, scene.name, model.host("k_t").astype(np.float64)))
+    o0 = parts[0][0]
+    if any((o.M, o.slope, o.decay) != (o0.M, o0.slope, o0.decay) for o, *_ in parts):
+        raise ValueError("the pads of a batch need one friction law")
+    cat = lambda f: np.concatenate([f(p) for p in parts])  # noqa: E731
+    return Pads(
+        m=cat(lambda p: p[0].m),
+        c=cat(lambda p: p[0].c),
+        fn=cat(lambda p: p[0].fn),
+        vd=cat(lambda p: p[0].vd),
+        kt=cat(lambda p: p[4]),
+        K=sp.block_diag([p[0].K for p in parts], format="csr"),
+        start=np.concatenate([[0], np.cumsum([p[0].n for p in parts])]),
+        M=o0.M,
+        slope=o0.slope,
+        decay=o0.decay,
+        load=np.array([p[0].load for p in parts], dtype=np.float64),
+        coulomb=np.array([p[0].mu_pad * p[0].f_matrix * np.sign(p[0].omega) for p in parts]),
+        u0=cat(lambda p: p[1]),
+        v0=cat(lambda p: p[2]),
+        names=[p[3] for p in parts],
+    )
+
+
+# ------------------------------------------------------------------------------------------------ friction
+
+
+def friction(pads: Pads, s: np.ndarray) -> np.ndarray:
+    """Signed Eq. 4, f(s), for sliding speeds s [m/s]."""
+    return pads.M / math.pi * np.arctan(pads.slope * s) * (1.0 / (pads.decay * np.abs(s) + 1.0) + 1.0)
+
+
+def friction_pair(pads: Pads, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(f(s), df/ds [s/m]) sharing one atan (the kernels' ``friction_pair``)."""
+    at = np.arctan(pads.slope * s)
+    rq = 1.0 / (pads.decay * np.abs(s) + 1.0)
+    da = pads.slope / (1.0 + (pads.slope * s) ** 2)
+    k = pads.M / math.pi
+    return k * at * (rq + 1.0), k * (da * (rq + 1.0) - at * pads.decay * np.sign(s) * rq * rq)
+
+
+def solve(
+    pads: Pads,
+    a: np.ndarray,
+    b: np.ndarray,
+    hfn: np.ndarray,
+    guess: np.ndarray,
+    evals: np.ndarray,
+    *,
+    halving: bool = True,
+) -> np.ndarray:
+    """Solve a v − hfn f(v_d − v) = b per patch (a > 0, hfn ≥ 0): the kernels' ``solve_velocity``, vectorised, with
+    one more safeguard.
+
+    Newton on δ = v − guess inside the bracket [(r − hfn M)/a, (r + hfn M)/a], r = b − a·guess, bisecting where a
+    Newton step would leave it; stops per patch when the step or the bracket is below NEWTON_TOL (|r| + hfn M)/a.
+    The added safeguard (``rtsafe`` of Numerical Recipes): from the third iteration on, a Newton step longer than
+    half the step before the last one bisects instead. Without it, at hγ ≳ 10 Newton can settle into a 2-cycle
+    across the steep part of Eq. 4 that stays inside the bracket and never shrinks it (:data:`CYCLE_CASE`); the
+    kernels' version then returns after 60 iterations with an error of up to the bracket width (``halving=False``
+    is the kernels' algorithm). Adds the friction evaluations of every patch to ``evals`` (n,); patches that have
+    converged drop out of the arrays.
+    """
+    r = b - a * guess
+    hm = hfn * pads.M
+    lo = (r - hm) / a
+    hi = (r + hm) / a
+    tol = NEWTON_TOL * (np.abs(r) + hm) / a
+    s0 = pads.vd - guess
+    d = np.clip(0.0, lo, hi)
+    out = d.copy()
+    last = np.full_like(d, np.inf)  # the last step and the one before [m/s]
+    before = last.copy()
+    act: np.ndarray | None = None  # indices of the patches still iterating (None: all)
+    for _ in range(60):
+        vd = s0 - d
+        f, df = friction_pair(pads, vd)
+        g = a * d - hfn * f - r
+        if act is None:
+            evals += 1
+        else:
+            evals[act] += 1
+        pos = g > 0.0
+        hi = np.where(pos, d, hi)
+        lo = np.where(pos, lo, d)
+        dg = a + hfn * df
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dn = d - g / dg
+        ok = (dg > 0.0) & (dn >= lo) & (dn <= hi)
+        if halving:
+            ok &= np.abs(dn - d) <= 0.5 * before
+        dn = np.where(ok, dn, 0.5 * (lo + hi))
+        dn = np.where(g == 0.0, d, dn)
+        done = (g == 0.0) | (np.abs(dn - d) <= tol) | (hi - lo <= tol)
+        before, last = last, np.abs(dn - d)
+        if act is None:
+            out = dn.copy()
+        else:
+            out[act] = dn
+        if done.all():
+            break
+        keep = np.flatnonzero(~done)
+        act = keep if act is None else act[keep]
+        a, r, hfn, s0, lo, hi, tol, d = a[keep], r[keep], hfn[keep], s0[keep], lo[keep], hi[keep], tol[keep], dn[keep]
+        last, before = last[keep], before[keep]
+    return guess + out
+
+
+# A solve on which the kernels' Newton (without the step-halving safeguard) 2-cycles: hf1 sector seed 1, patch 30,
+# forced-sdirk2 at 1e-6 s, second stage of step 3214 (a [kg], b [kg m/s], hfn [N s], guess [m/s], v_d [m/s]).
+CYCLE_CASE = {
+    "a": 7.631056032890043e-07,
+    "b": 6.656976158055828e-06,
+    "hfn": 8.540002729610647e-08,
+    "guess": 7.839064377625342,
+    "vd": 8.69403734446907,
+}
+
+
+def stage(pads: Pads, x: np.ndarray, theta_h: np.ndarray, force: np.ndarray, evals: np.ndarray) -> np.ndarray:
+    """One implicit stage: V with m (V − x) = θh (F + F_N f(v_d − V) − c V) [m/s]; ``theta_h`` θh [s]."""
+    return solve(pads, pads.m + theta_h * pads.c, pads.m * x + theta_h * force, theta_h * pads.fn, x, evals)
+
+
+def rate(pads: Pads, v: np.ndarray, force: np.ndarray) -> np.ndarray:
+    """φ(v) = (F + F_N f(v_d − v) − c v)/m [m/s²]."""
+    return (force + pads.fn * friction(pads, pads.vd - v) - pads.c * v) / pads.m
+
+
+def substep(
+    pads: Pads, method: str, v: np.ndarray, h: np.ndarray | float, force: np.ndarray, evals: np.ndarray
+) -> np.ndarray:
+    """Φ_h: the velocity after h [s] of m v̇ = F + F_N f(v_d − v) − c v by ``method`` (:data:`METHODS`), F [N]
+    frozen; adds friction evaluations to ``evals``."""
+    h = np.broadcast_to(np.asarray(h, dtype=np.float64), v.shape)
+    if method == "mid":
+        return 2.0 * stage(pads, v, 0.5 * h, force, evals) - v
+    if method == "thmid":
+        theta = theta_of(pads, v, h, evals)
+        return v + (stage(pads, v, theta * h, force, evals) - v) / theta
+    if method == "be":
+        return stage(pads, v, h, force, evals)
+    if method == "sdirk2":
+        return sdirk2(pads, v, h, force, evals)[0]
+    if method == "trbdf2":
+        evals += 1
+        y1 = stage(pads, v + SDIRK_D * h * rate(pads, v, force), SDIRK_D * h, force, evals)
+        return stage(pads, TRBDF2_C1 * y1 - TRBDF2_C0 * v, SDIRK_D * h, force, evals)
+    if method == "sub4":
+        for _ in range(SUBSTEPS):
+            v = substep(pads, "sdirk2", v, h / SUBSTEPS, force, evals)
+        return v
+    raise ValueError(f"unknown friction sub-step {method!r}; choose from {', '.join(METHODS)}")
+
+
+def theta_of(pads: Pads, v: np.ndarray, h: np.ndarray, evals: np.ndarray) -> np.ndarray:
+    """``thmid``'s θ per patch: 1/2 while h γ ≤ x0 = (1 + ρ)/(1/2 − ρ/2), with γ = (c + F_N f′(v_d − v))/m the
+    friction rate at the patch's slip; beyond, θ = (1 − (1 + ρ)/(hγ))/(1 + ρ), so that R = (1 − (1 − θ)hγ)/(1 + θhγ)
+    stays ≥ −ρ (ρ = THETA_RHO): the damped midpoint. One friction evaluation."""
+    evals += 1
+    x = h * (pads.c + pads.fn * friction_pair(pads, pads.vd - v)[1]) / pads.m
+    rho = THETA_RHO
+    with np.errstate(divide="ignore"):
+        theta = (1.0 - (1.0 + rho) / np.maximum(x, 1e-300)) / (1.0 + rho)
+    return np.clip(theta, 0.5, 1.0)
+
+
+def sdirk2(
+    pads: Pads, v: np.ndarray, h: np.ndarray, force: np.ndarray, evals: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ``sdirk2`` sub-step and its embedded error [m/s]: Y1 = v + d h φ(Y1), x = v + (1 − d)/d (Y1 − v),
+    Y2 = x + d h φ(Y2); the error of the first-order solution v + h φ(Y1) against Y2, d h (φ(Y2) − φ(Y1)) =
+    (Y2 − x) − (Y1 − v) (no further friction evaluation)."""
+    y1 = stage(pads, v, SDIRK_D * h, force, evals)
+    x = v + (1.0 - SDIRK_D) / SDIRK_D * (y1 - v)
+    y2 = stage(pads, x, SDIRK_D * h, force, evals)
+    return y2, (y2 - x) - (y1 - v)
+
+
+def substep_with_error(
+    pads: Pads, method: str, v: np.ndarray, h: np.ndarray, force: np.ndarray, evals: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Φ_h and an estimate of its local error [m/s]: ``sdirk2``'s embedded one; for ``mid`` and ``thmid`` the
+    trapezoidal rule against the step, h (φ(v) + φ(v⁺))/2 − (v⁺ − v), O(h³) where smooth (two friction evaluations,
+    of which the kernels can share φ(v⁺) with the next step)."""
+    h = np.broadcast_to(np.asarray(h, dtype=np.float64), v.shape)
+    if method == "sdirk2":
+        return sdirk2(pads, v, h, force, evals)
+    if method in ("mid", "thmid"):
+        vn = substep(pads, method, v, h, force, evals)
+        evals += 2
+        return vn, 0.5 * h * (rate(pads, v, force) + rate(pads, vn, force)) - (vn - v)
+    raise ValueError(f"no error estimate for the sub-step {method!r} (sdirk2, mid, thmid)")
+
+
+def stability_function(method: str, z: complex) -> complex:
+    """R(z) of a sub-step on v̇ = λ v, z = hλ (closed forms; ``sub4`` is R_sdirk2(z/4)⁴)."""
+    d = SDIRK_D
+    if method == "mid":
+        return (1.0 + z / 2.0) / (1.0 - z / 2.0)
+    if method == "be":
+        return 1.0 / (1.0 - z)
+    if method == "sdirk2":
+        return (1.0 + (1.0 - 2.0 * d) * z) / (1.0 - d * z) ** 2
+    if method == "trbdf2":
+        y1 = (1.0 + d * z) / (1.0 - d * z)
+        return (TRBDF2_C1 * y1 - TRBDF2_C0) / (1.0 - d * z)
+    if method == "sub4":
+        return stability_function("sdirk2", z / SUBSTEPS) ** SUBSTEPS
+    if method == "thmid":
+        x = max(-z.real, 1e-300)
+        th = min(max((1.0 - (1.0 + THETA_RHO) / x) / (1.0 + THETA_RHO), 0.5), 1.0)
+        return (1.0 + (1.0 - th) * z) / (1.0 - th * z)
+    raise ValueError(f"unknown friction sub-step {method!r}")
+
+
+# --------------------------------------------------------------------------------------------- integrator
+
+
+@dataclass(frozen=True)
+class Scheme:
+    """A split integrator: friction sub-step ``method`` (:data:`METHODS`), spring kicks ``outside`` the sub-step
+    (today's ``strang`` with ``mid``) or ``inside`` it (:data:`KICKS`)."""
+
+    method: str
+    kicks: str
+
+    @property
+    def name(self) -> str:
+        return f"{'strang' if self.kicks == 'outside' else 'forced'}-{self.method}"
+
+    @classmethod
+    def parse(cls, name: str) -> Scheme:
+        """``strang-<method>`` or ``forced-<method>``."""
+        head, _, method = name.partition("-")
+        kicks = {"strang": "outside", "forced": "inside"}.get(head)
+        if kicks is None or method not in METHODS:
+            raise ValueError(f"unknown scheme {name!r}: strang-<m> or forced-<m>, m in {', '.join(METHODS)}")
+        return cls(method, kicks)
+
+
+class SplitStepper:
+    """Fixed or per-pad steps of a :class:`Scheme` on a batch of pads (staggered velocity between steps).
+
+    State: u [m], the staggered velocity w [m/s] (the drift velocity of the last step), the spring force
+    F = F_s(u) [N], and ``evals`` (friction evaluations per patch) and ``gathers`` (spring evaluations). Chatter
+    counters: ``held`` counts patch-steps whose drift slip v_d − w stays below STATIC_SLIP in size over three
+    consecutive steps, ``flips`` those among them whose slip zig-zags (its two increments of opposite sign, each
+    above CHATTER_FLOOR): the period-2 oscillation of a sub-step with R(−∞) = −1 (a smooth slip changes the sign of
+    its increment only at its extrema).
+    """
+
+    def __init__(self, pads: Pads, scheme: Scheme) -> None:
+        self.pads, self.scheme = pads, scheme
+        self.u = pads.u0.copy()
+        self.w = pads.v0.copy()
+        self.force = -(pads.K @ self.u)
+        self.evals = np.zeros(pads.n)
+        self.gathers = 1
+        self.open_h: np.ndarray | None = None  # the step of the last drift, per patch (None: synchronous)
+        self.held = 0
+        self.flips = 0
+        self._slip: np.ndarray | None = None  # the drift slip one step back
+
+    def _phi(self, v: np.ndarray, h: np.ndarray, force: np.ndarray) -> np.ndarray:
+        """Φ_h with the scheme's kicks: inside (F frozen in the solve) or outside (kick h/2, Φ, kick h/2)."""
+        if self.scheme.kicks == "inside":
+            return substep(self.pads, self.scheme.method, v, h, force, self.evals)
+        kick = 0.5 * h * force / self.pads.m
+        return substep(self.pads, self.scheme.method, v + kick, h, np.zeros_like(v), self.evals) + kick
+
+    def step(self, h: np.ndarray) -> None:
+        """Advance every patch by its step h [s] (n,): the closing half of the last step and the opening half of
+        this one merged into one sub-step over (h_last + h)/2, then the drift and one spring evaluation."""
+        span = 0.5 * h if self.open_h is None else 0.5 * (self.open_h + h)
+        w_old = self.w
+        if self.scheme.kicks == "outside" and self.open_h is not None:
+            # kick by the last step's closing half and this step's opening half around the friction sub-step
+            k1 = 0.5 * self.open_h * self.force / self.pads.m
+            k2 = 0.5 * h * self.force / self.pads.m
+            zero = np.zeros_like(self.w)
+            self.w = substep(self.pads, self.scheme.method, self.w + k1, span, zero, self.evals) + k2
+        elif self.scheme.kicks == "outside":  # opening from a synchronous state: friction h/2, then kick h/2
+            zero = np.zeros_like(self.w)
+            self.w = substep(self.pads, self.scheme.method, self.w, span, zero, self.evals)
+            self.w = self.w + 0.5 * h * self.force / self.pads.m
+        else:
+            self.w = substep(self.pads, self.scheme.method, self.w, span, self.force, self.evals)
+        if self.open_h is not None:
+            s0, s1 = self.pads.vd - w_old, self.pads.vd - self.w
+            if self._slip is not None:
+                sm = self._slip
+                held = (np.abs(sm) < STATIC_SLIP) & (np.abs(s0) < STATIC_SLIP) & (np.abs(s1) < STATIC_SLIP)
+                d0, d1 = s0 - sm, s1 - s0
+                zig = (d0 * d1 < 0.0) & (np.minimum(np.abs(d0), np.abs(d1)) > CHATTER_FLOOR)
+                self.held += int(held.sum())
+                self.flips += int((held & zig).sum())
+            self._slip = s0
+        self.u = self.u + h * self.w
+        self.force = -(self.pads.K @ self.u)
+        self.gathers += 1
+        self.open_h = h
+
+    def velocity(self) -> np.ndarray:
+        """The synchronous velocity [m/s] (closing half sub-step from the staggered state; costs evaluations)."""
+        if self.open_h is None:
+            return self.w.copy()
+        h = self.open_h
+        if self.scheme.kicks == "inside":
+            return substep(self.pads, self.scheme.method, self.w, 0.5 * h, self.force, self.evals)
+        kick = 0.5 * h * self.force / self.pads.m
+        return substep(self.pads, self.scheme.method, self.w + kick, 0.5 * h, np.zeros_like(self.w), self.evals)
+
+    def synchronise(self) -> None:
+        """Close the staggered state (w becomes the synchronous velocity); the next step opens afresh."""
+        self.w = self.velocity()
+        self.open_h = None
+
+
+def pad_globals(pads: Pads, v: np.ndarray) -> dict[str, np.ndarray]:
+    """μ, Σu̇ [m/s] and Σ|u̇| [m/s] of every pad at patch velocities v (n,) (docs/model.md §2.8), each (P,)."""
+    f = pads.fn * friction(pads, pads.vd - v)
+    seg = pads.start[:-1]
+    return {
+        "mu": (np.add.reduceat(f, seg) + pads.coulomb) / pads.load,
+        "sum_velocity": np.add.reduceat(v, seg),
+        "sum_abs_velocity": np.add.reduceat(np.abs(v), seg),
+    }
+
+
+@dataclass
+class Record:
+    """Sampled pad globals: ``time`` (N,) [s], ``mu``, ``sum_velocity``, ``sum_abs_velocity`` (N, P) [1, m/s, m/s];
+    per-patch velocities ``velocity`` (N − patch_first, n) [m/s] from sample ``patch_first`` on (None: not kept)."""
+
+    time: np.ndarray
+    mu: np.ndarray
+    sum_velocity: np.ndarray
+    sum_abs_velocity: np.ndarray
+    velocity: np.ndarray | None = None
+    patch_first: int = 0
+
+    @classmethod
+    def empty(cls, samples: int, pads: Pads, sample_dt: float, patch_window: float = 0.0) -> Record:
+        """A record of ``samples`` samples of ``pads``, per-patch velocities over the last ``patch_window`` [s]."""
+        z = lambda: np.full((samples, pads.pads), np.nan)  # noqa: E731
+        rows = min(samples, round(patch_window / sample_dt) + 1) if patch_window > 0 else 0
+        vel = np.full((rows, pads.n), np.nan) if rows else None
+        return cls(np.arange(samples) * sample_dt, z(), z(), z(), vel, samples - rows)
+
+    def put(self, k: int, pads: Pads, v: np.ndarray) -> None:
+        """Sample k from the synchronous patch velocities v (n,) [m/s]."""
+        g = pad_globals(pads, v)
+        self.mu[k], self.sum_velocity[k], self.sum_abs_velocity[k] = g["mu"], g["sum_velocity"], g["sum_abs_velocity"]
+        if self.velocity is not None and k >= self.patch_first:
+            self.velocity[k - self.patch_first] = v
+
+
+def run_fixed(
+    pads: Pads,
+    scheme: Scheme,
+    dt: float,
+    duration: float,
+    sample_dt: float,
+    *,
+    patch_window: float = 0.0,
+    progress: Any = None,
+) -> dict[str, Any]:
+    """Run ``scheme`` at the fixed step dt [s] (shortened to fit the sample interval) for ``duration`` [s];
+    samples every ``sample_dt`` [s] (synchronous velocities), per-patch velocities over the last ``patch_window``
+    [s]. Returns the :class:`Record`, the step, the steps, and
+    friction evaluations per patch per step (recording closes excluded) and per simulated ms."""
+    per = max(1, math.ceil(sample_dt / dt - 1e-9))
+    h = sample_dt / per
+    samples = round(duration / sample_dt)
+    rec = Record.empty(samples + 1, pads, sample_dt, patch_window)
+    st = SplitStepper(pads, scheme)
+    rec.put(0, pads, st.w)
+    hh = np.full(pads.n, h)
+    close_evals = 0.0
+    for k in range(1, samples + 1):
+        for _ in range(per):
+            st.step(hh)
+        before = st.evals.sum()
+        v = st.velocity()
+        close_evals += st.evals.sum() - before
+        rec.put(k, pads, v)
+        if not np.all(np.isfinite(v)):
+            break
+        if progress is not None and k % 2000 == 0:
+            progress(k, samples)
+    steps = samples * per
+    run_evals = (st.evals.sum() - close_evals) / pads.n
+    return {
+        "record": rec,
+        "dt": h,
+        "steps": steps,
+        "evals_per_step": run_evals / steps,
+        "gathers": st.gathers,
+        "chatter": st.flips / max(st.held, 1),
+        "finite": bool(np.all(np.isfinite(rec.mu))),
+    }

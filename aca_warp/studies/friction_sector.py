@@ -1,0 +1,145 @@
+"""The package's integrators on saturated hf1 sectors: statistics and wall time against a fixed fine step
+(docs/friction_step.md, "The kernels on a saturated sector").
+
+The pads are the validation's ``reduced_pad`` sectors of hf1 (``--seeds`` pads of ``--patches`` patches, from
+equilibrium + N(0, (0.01 m/s)²) velocities, :func:`~aca_warp.studies.friction_stats.sector_scenes`), run as one
+batch on the general engine on the CPU over ``--duration``. Every setting of ``--runs`` (``INTEGRATOR:DT`` for a
+fixed step, forced past the stable-step estimate; ``INTEGRATOR:tol=TOL``; or ``INTEGRATOR`` at its defaults) is
+compared with ``--reference`` over the last ``--window``: the ensemble means of μ mean, μ std, mean Σ|u̇| and the
+velocity-sum peak (:func:`~aca_warp.studies.friction_stats.statistics`, ``compare``), the steps and the wall time of
+the stepping loop. Examples::
+
+    python3 scripts/friction_step_sector.py --out docs/figures/friction_step/sector_cpu.json
+    python3 scripts/friction_step_sector.py --quick --out OUT/quick.json          # a smoke run of a minute
+    python3 scripts/friction_step_sector.py --report docs/figures/friction_step/sector_cpu.json \
+        --page docs/friction_step.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from aca_warp.studies.report import Log, command_line, generated_markers, md_table, replace_generated, write_json
+
+SCRIPT = "friction_step_sector.py"
+RUNS = ("strang:1e-7", "strang:2.5e-7", "strang:5e-7", "strang:1e-6")
+REFERENCE = "strang:1e-8"
+MEASURES = ("mu_mean", "mu_std", "abs_velocity_mean", "velocity_peak_hz")
+LABELS = {"mu_mean": "μ mean", "mu_std": "μ std", "abs_velocity_mean": "Σ|u̇| mean", "velocity_peak_hz": "Σu̇ peak"}
+
+
+def parse_run(spec: str) -> dict[str, Any]:
+    """``INTEGRATOR``, ``INTEGRATOR:DT`` [s] or ``INTEGRATOR:tol=TOL`` as package_run's keywords."""
+    from aca_warp.hf.options import INTEGRATORS
+
+    name, _, rest = spec.partition(":")
+    if name not in INTEGRATORS:
+        raise ValueError(f"unknown integrator {name!r} in {spec!r}; choose from {', '.join(INTEGRATORS)}")
+    if not rest:
+        return {"integrator": name}
+    if rest.startswith("tol="):
+        return {"integrator": name, "tolerance": float(rest[4:])}
+    return {"integrator": name, "dt": float(rest)}
+
+
+def run_all(args: argparse.Namespace, log: Log) -> dict[str, Any]:
+    """The reference and every run of ``args.runs`` on the sectors; their statistics and errors."""
+    from aca_warp.studies.friction_stats import compare, package_run, sector_scenes, statistics
+
+    scenes = sector_scenes(args.seeds, args.patches)
+    rows = []
+    ref_stats: dict[str, Any] | None = None
+    for spec in [args.reference, *args.runs]:
+        log(f"{spec}: {len(scenes)} pads × {args.patches} patches, {args.duration * 1e3:g} ms")
+        rec, info = package_run(scenes, duration=args.duration, window=0.0, precision=args.precision, **parse_run(spec))
+        stats = statistics(rec, args.window, np.zeros(0), np.zeros(0, dtype=int))
+        ref_stats = stats if ref_stats is None else ref_stats
+        row = {"run": spec, "wall_s": info["wall_s"], "steps": info["steps"]}
+        row |= {"stats": {k: np.asarray(stats[k]).tolist() for k in MEASURES} if stats["finite"] else None}
+        row |= {"errors": compare(stats, ref_stats)}
+        log(f"  {info['wall_s']:.1f} s, {info['steps']} steps; errors " + _errors_line(row["errors"]))
+        rows.append(row)
+    return {"reference": args.reference, "runs": rows}
+
+
+def _errors_line(err: dict[str, Any]) -> str:
+    if not err.get("finite", False):
+        return "not finite"
+    return ", ".join(f"{LABELS[k]} {100 * err[k]:+.2f} %" for k in MEASURES)
+
+
+def report(doc: dict[str, Any]) -> list[str]:
+    """The page's table of a result file."""
+    ref = doc["runs"][0]
+    head = ["run", "steps", "wall [s]", "× faster", *(LABELS[k] for k in MEASURES)]
+    rows = []
+    for r in doc["runs"]:
+        e = r["errors"]
+        errs = [f"{100 * e[k]:+.2f} %" if e.get("finite") else "–" for k in MEASURES]
+        rows.append(
+            [f"`{r['run']}`", f"{r['steps']:,}", f"{r['wall_s']:.1f}", f"{ref['wall_s'] / r['wall_s']:.1f}", *errs]
+        )
+    s = doc["setup"]
+    lines = [
+        f"{s['seeds']} hf1 sector(s) × {s['patches']} patches (the validation's reduced pad, seeds from 1), "
+        f"{s['duration'] * 1e3:g} ms from equilibrium + 0.01 m/s, {s['precision']}, general engine on the CPU; "
+        f"statistics of the last {s['window'] * 1e3:g} ms against `{doc['reference']}` (ensemble means; the "
+        "velocity-sum peak above 20 kHz):",
+        "",
+        *md_table(head, rows),
+        "",
+        f"(`{s['command']}`; {s['machine']})",
+    ]
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--seeds", type=int, default=1, help="pads (seeds 1 …; default 1)")
+    ap.add_argument("--patches", type=int, default=150, help="patches per sector (default 150)")
+    ap.add_argument("--duration", type=float, default=30e-3, help="run length [s] (default 30e-3)")
+    ap.add_argument("--window", type=float, default=10e-3, help="statistics over the last WINDOW [s] (default 10e-3)")
+    ap.add_argument("--precision", choices=("fp32", "fp64"), default="fp64")
+    ap.add_argument("--reference", default=REFERENCE, help=f"the reference run (default {REFERENCE})")
+    ap.add_argument("--runs", nargs="+", default=list(RUNS), help="INTEGRATOR[:DT | :tol=TOL] (default the grid)")
+    ap.add_argument("--quick", action="store_true", help="1 pad × 60 patches × 4 ms, window 2 ms: a smoke run")
+    ap.add_argument("--out", type=Path, help="result JSON")
+    ap.add_argument("--report", type=Path, help="print the table of this result JSON (with --page: into the page)")
+    ap.add_argument("--page", type=Path, help="docs page whose generated section --report rewrites")
+    args = ap.parse_args(argv)
+    if args.report is not None:
+        lines = report(json.loads(args.report.read_text()))
+        if args.page is not None:
+            replace_generated(args.page, lines, generated_markers(f"scripts/{SCRIPT} --report"), "Friction step")
+        print("\n".join(lines))
+        return 0
+    if args.out is None:
+        print(f"{SCRIPT}: error: --out is required (or --report)", file=sys.stderr)
+        return 2
+    try:
+        for spec in [args.reference, *args.runs]:
+            parse_run(spec)
+    except ValueError as e:
+        print(f"{SCRIPT}: error: {e}", file=sys.stderr)
+        return 2
+    if args.quick:
+        args.patches, args.duration, args.window = 60, 4e-3, 2e-3
+    from aca_warp.common.files import machine
+    from aca_warp.studies.report import init_warp
+
+    wp = init_warp()
+    log = Log()
+    doc = run_all(args, log)
+    setup = {k: getattr(args, k) for k in ("seeds", "patches", "duration", "window", "precision")}
+    setup |= {"command": command_line(SCRIPT, sys.argv[1:] if argv is None else argv)}
+    setup |= {"machine": machine(wp.get_device("cpu"))["host"] + " (shared with other jobs)"}
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    write_json(args.out, {"setup": setup, **doc})
+    print("\n".join(report({"setup": setup, **doc})))
+    return 0

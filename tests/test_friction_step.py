@@ -1,0 +1,103 @@
+"""The friction sub-step of the kernels (kernels/physics.py, docs/friction_step.md §6): the per-patch solve's
+step-halving safeguard, the damped midpoint on a held patch, and strang bounded at 0.95 × the exact spring bound of
+an hf1 sector. The held case (M = 100) is in tests/test_sanity.py, the sub-step's equation against brentq and the
+second order of strang in tests/test_hf_numerics.py, general against on-chip in tests/test_onchip.py."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import warp as wp
+from aca_warp.kernels.physics import friction_substep, solve_velocity
+from scipy.optimize import brentq
+
+from aca_warp.hf.loop import EngineTuning, run_hf
+from aca_warp.hf.options import RunOptions
+from aca_warp.scene import Record
+from aca_warp.studies import friction_schemes as fs
+
+# hf1's Eq. 4 (M, slope a, decay b)
+M, SLOPE, DECAY = 0.8, 200.0, 0.25
+
+
+def eq4(s: float) -> float:
+    return M / math.pi * math.atan(SLOPE * s) * (1.0 / (DECAY * abs(s) + 1.0) + 1.0)
+
+
+@wp.kernel(enable_backward=False, module="unique")
+def _solve_kernel(p: wp.array(dtype=wp.float64), mu_scale: wp.float64, out: wp.array(dtype=wp.float64)):
+    out[0] = solve_velocity(
+        p[0], p[1], p[2], p[3], p[4], mu_scale, wp.float64(SLOPE), wp.float64(DECAY), wp.float64(1e-9)
+    )
+
+
+def test_solve_breaks_the_newton_two_cycle() -> None:
+    """On CYCLE_CASE (a solve of a saturated hf1 sector at 1e-6 s) Newton without the step-halving rule alternates
+    between slips +0.053 and −0.0996 m/s inside its bracket for all 60 iterations and returns an iterate far from
+    the root; solve_velocity with the rule returns the root."""
+    c = fs.CYCLE_CASE
+    p = wp.array([c["a"], c["b"], c["hfn"], c["vd"], c["guess"]], dtype=wp.float64, device="cpu")
+    out = wp.zeros(1, dtype=wp.float64, device="cpu")
+    wp.launch(_solve_kernel, dim=1, inputs=[p, M / math.pi], outputs=[out], device="cpu")
+
+    def g(v: float) -> float:
+        return c["a"] * v - c["hfn"] * eq4(c["vd"] - v) - c["b"]
+
+    root = brentq(g, c["vd"] - 1.0, c["vd"] + 1.0, xtol=1e-15, rtol=1e-15)
+    scale = c["hfn"] * M / c["a"]  # the bracket's half width [m/s]
+    assert abs(float(out.numpy()[0]) - root) < 1e-8 * scale
+
+
+@wp.kernel(enable_backward=False, module="unique")
+def _hold_kernel(v: wp.array(dtype=wp.float64), h: wp.float64, p: wp.array(dtype=wp.float64), mu_scale: wp.float64):
+    for k in range(v.shape[0] - 1):
+        v[k + 1] = friction_substep(
+            v[k], h, p[0], p[1], p[2], p[3], p[4], mu_scale, wp.float64(SLOPE), wp.float64(DECAY), wp.float64(1e-12)
+        )
+
+
+def test_held_patch_chatter_halves_every_step() -> None:
+    """A patch held under a frozen spring force −F_N M/2 (its static slip s*, where F + F_N f(s*) − c v = 0), started
+    1 mm/s off s*: at h γ = 1000 the damped midpoint multiplies the deviation by −1/2 every step (the implicit
+    midpoint: by ≈ −1, chatter without decay); at h γ = 1 it converges monotonically, as the midpoint does."""
+    m, c, fn, vd = 37.5 * 5e-8, 1e-4, 1.0, 10.0
+    force = -0.5 * fn * M
+    static = brentq(lambda s: force + fn * eq4(s) - c * (vd - s), -0.1, 0.1, xtol=1e-16)
+    gamma = (c + fn * 2.0 * M / math.pi * SLOPE) / m
+    params = wp.array([m, c, fn, force, vd], dtype=wp.float64, device="cpu")
+    for hg, lo, hi in ((1000.0, -0.6, -0.4), (1.0, 0.0, 1.0)):
+        v = wp.array(np.full(8, vd - static - 1e-3), dtype=wp.float64, device="cpu")
+        wp.launch(_hold_kernel, dim=1, inputs=[v, hg / gamma, params, M / math.pi], device="cpu")
+        dev = (vd - v.numpy()) - static
+        ratio = dev[1:] / dev[:-1]
+        assert np.all((ratio > lo) & (ratio < hi)), (hg, ratio)
+
+
+@pytest.fixture(scope="module")
+def sector():
+    """One 60-patch hf1 sector (the validation's reduced pad, seed 1) at equilibrium + 0.01 m/s, and its exact
+    spring bound 2/ω_max [s] (largest eigenvalue of M⁻¹ᐟ² K M⁻¹ᐟ²)."""
+    from aca_warp.studies.friction_stats import sector_scenes
+
+    scenes = sector_scenes(1, 60)
+    return scenes[0], 2.0 / fs.load_pads(scenes).omega_max()
+
+
+def test_strang_bounded_at_the_spring_bound(sector) -> None:
+    """strang at 0.95 × the exact spring bound (h γ up to ≈ 100 at zero slip, forced past the Gershgorin estimate)
+    runs 3 ms of an hf1 sector bounded: no fault, |μ| ≤ M, every patch velocity within ±(v_d + 20 m/s)."""
+    from aca_warp.studies.runs import batch_at_start
+
+    scene, bound = sector
+    model, state = batch_at_start([scene], "cpu", "fp64")
+    h = 0.95 * bound
+    rec = Record(sample_dt=100 * h, patches=("velocity",))
+    opts = RunOptions(duration=1200 * h, integrator="strang", dt=h, force=True, engine="general")
+    res = run_hf(model, state, opts, record=rec, tuning=EngineTuning(max_graph_steps=200))
+    assert res.complete and res.fault is None
+    out = res.collect()
+    assert np.all(np.abs(out.globals[:, 0, 0]) <= M)
+    vd = scene.angular_velocity * np.hypot(scene.patches.x, scene.patches.y)
+    assert np.all(np.abs(out.velocity) < vd.max() + 20.0)
