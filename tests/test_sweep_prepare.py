@@ -62,20 +62,27 @@ def _in_time(fn, seconds: float = 180.0):
     return out["value"]
 
 
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    """The outputs of the small sweep run serially by shards that prepare themselves: the reference of this module
+    (overlapped shards give the same files: test_sweep_overlap.py)."""
+    out = tmp_path_factory.mktemp("prepare") / "serial"
+    res = run_sweep(_spec(), out, workers=0, overlap=False, prepare=0)
+    assert res.ran == [0, 1, 2] and not res.failed
+    assert not any("prepare_ahead" in s["timings"] for s in res.summaries)
+    return _outputs(out)
+
+
 @pytest.mark.parametrize("overlap", [False, True])
-def test_prepared_shards_give_the_same_files(tmp_path: Path, overlap: bool) -> None:
+def test_prepared_shards_give_the_same_files(tmp_path: Path, serial: dict, overlap: bool) -> None:
     """In this process, serial and overlapped: shards prepared by a pool of two processes give every output of every
     pad bit for bit as shards that prepare themselves; their timings say what the pool spent (prepare_ahead)."""
-    spec = _spec()
-    runs = {}
-    for prepare in (0, 2):
-        out = tmp_path / f"p{prepare}"
-        res = run_sweep(spec, out, workers=0, overlap=overlap, prepare=prepare)
-        assert res.ran == [0, 1, 2] and not res.failed
-        assert all(("prepare_ahead" in s["timings"]) == (prepare > 0) for s in res.summaries)
-        runs[prepare] = _outputs(out)
-    for k, v in runs[0].items():
-        assert v.tobytes() == runs[2][k].tobytes(), k
+    res = run_sweep(_spec(), tmp_path / "p2", workers=0, overlap=overlap, prepare=2)
+    assert res.ran == [0, 1, 2] and not res.failed
+    assert all("prepare_ahead" in s["timings"] for s in res.summaries)
+    prepared = _outputs(tmp_path / "p2")
+    for k, v in serial.items():
+        assert v.tobytes() == prepared[k].tobytes(), k
 
 
 def test_prepare_shard_equals_the_spec() -> None:
@@ -133,23 +140,23 @@ def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
         prep.close()
 
 
-def test_prepared_shards_on_dask(tmp_path: Path) -> None:
+def test_prepared_shards_on_dask(tmp_path: Path, serial: dict) -> None:
     """On two Dask workers, shards prepared by the client's pool and sent with their tasks give the serial path's
-    outputs bit for bit; a failed preparation is the shard's failure there too."""
+    outputs bit for bit (the base scene from a file holding the preset); a failed preparation is the shard's failure
+    there too."""
     pytest.importorskip("distributed")
     from distributed import Client
 
     from aca_warp.sweep import local_cluster
 
     spec = _spec(tmp_path)
-    run_sweep(spec, tmp_path / "serial", workers=0, overlap=False)
     cluster, device = local_cluster("cpu", 2)
     client = Client(cluster)
     try:
         res = _in_time(lambda: run_sweep(spec, tmp_path / "dask", device=device, client=client, prepare=1))
         assert res.ran == [0, 1, 2] and not res.failed
         assert all("prepare_ahead" in s["timings"] for s in res.summaries)
-        a, b = _outputs(tmp_path / "serial"), _outputs(tmp_path / "dask")
+        a, b = serial, _outputs(tmp_path / "dask")
         for k, v in a.items():
             assert v.tobytes() == b[k].tobytes(), k
         shutil.copy(tmp_path / "base.toml", tmp_path / "kept.toml")
