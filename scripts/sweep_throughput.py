@@ -3,8 +3,8 @@
 
 One product sweep of hf1 pads (friction.M × load.normal_force × patches.seed, ``strang``, dt 1e-8 s) runs twice into
 fresh directories on the device given: once ``sequential`` (one shard after another: build, run, write) and once
-``overlapped`` (while one shard steps, the next prepares its scenes and file, on Dask also builds its model; samples
-written behind the run; docs/sweeps.md, "Overlap"). Reported per mode:
+``overlapped`` (while one shard steps, the next waits ready and the last finishes its file, samples written behind
+the run; docs/sweeps.md, "Overlap"). Reported per mode:
 
 * in-shard rate: patch-steps / seconds inside stepping, summed over the shards (``timings.kernel`` of each shard:
   the run loop less its sink; no model building, set-up or writing);
@@ -13,8 +13,8 @@ written behind the run; docs/sweeps.md, "Overlap"). Reported per mode:
 * ratio: the overlapped wall rate against the sequential in-shard rate (the kernel alone; target ≥ 0.9), and each
   mode's wall rate against its own in-shard rate.
 
-Paths: on CUDA a local Dask cluster on the one GPU (overlapped: two worker processes that take the kernel in turns;
-sequential: one), as ``aca-warp sweep --device cuda:N`` runs; on the CPU this process (overlapped: two shard tasks in
+Paths: on CUDA a local Dask cluster on the one GPU (one worker process; overlapped: two shard tasks in its threads
+that take the GPU in turns), as ``aca-warp sweep --device cuda:N`` runs; on the CPU this process (overlapped: two shard tasks in
 threads), as ``--workers 0``; ``--path`` chooses. Writes JSON and one Markdown line.
 
 One H100 (2048 hf1 pads of 1758 patches in 8 shards of 256, 2 ms simulated each; a few minutes)::
@@ -46,7 +46,7 @@ from bench_sweep import write_outputs  # noqa: E402
 
 from aca_warp.common.devices import init_warp  # noqa: E402
 from aca_warp.common.files import machine  # noqa: E402
-from aca_warp.sweep import WORKERS_PER_GPU, SweepSpec, hf1_product_doc, load_spec, local_cluster, run_sweep  # noqa: E402
+from aca_warp.sweep import PIPELINE_DEPTH, SweepSpec, hf1_product_doc, load_spec, local_cluster, run_sweep  # noqa: E402
 
 # (pads, patches per pad, shard size, duration [s]) when not given: the GPU figure's sweep, and a tiny CPU one
 DEFAULTS = {"cuda": (2048, None, 256, 2e-3), "cpu": (16, 40, 4, 1.5e-3)}
@@ -85,8 +85,8 @@ class Runner:
             from distributed import Client
 
             t0 = time.perf_counter()
-            per_gpu = WORKERS_PER_GPU if self.overlap else 1
-            self.cluster, self.worker_device = local_cluster(device, 1 if device == "cpu" else None, per_gpu=per_gpu)
+            threads = PIPELINE_DEPTH if self.overlap else 1
+            self.cluster, self.worker_device = local_cluster(device, 1 if device == "cpu" else None, threads=threads)
             self.client = Client(self.cluster)
             self.client.wait_for_workers(len(self.cluster.worker_spec))
             self.start_s = time.perf_counter() - t0

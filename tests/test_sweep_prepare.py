@@ -11,6 +11,7 @@ from concurrent.futures.process import BrokenProcessPool
 from importlib import resources
 from pathlib import Path
 
+import h5py
 import numpy as np
 import psutil
 import pytest
@@ -64,18 +65,85 @@ def _in_time(fn, seconds: float = 180.0):
 
 @pytest.mark.parametrize("overlap", [False, True])
 def test_prepared_shards_give_the_same_files(tmp_path: Path, overlap: bool) -> None:
-    """In this process, serial and overlapped: shards prepared by a pool of two processes give every output of every
-    pad bit for bit as shards that prepare themselves; their timings say what the pool spent (prepare_ahead)."""
+    """In this process, serial and overlapped: a pool of two processes (the shards it has ready when their turn
+    comes; the others, the first among them, are prepared by their tasks) gives every output of every pad bit for bit
+    as shards that prepare themselves; without a pool nothing is prepared ahead."""
     spec = _spec()
     runs = {}
     for prepare in (0, 2):
         out = tmp_path / f"p{prepare}"
         res = run_sweep(spec, out, workers=0, overlap=overlap, prepare=prepare)
         assert res.ran == [0, 1, 2] and not res.failed
-        assert all(("prepare_ahead" in s["timings"]) == (prepare > 0) for s in res.summaries)
+        for s in res.summaries:  # a shard prepared ahead is uploaded, one prepared in its task built
+            assert ("upload" in s["timings"]) == ("prepare_ahead" in s["timings"]) != ("build" in s["timings"])
+        assert prepare > 0 or all("prepare_ahead" not in s["timings"] for s in res.summaries)
         runs[prepare] = _outputs(out)
     for k, v in runs[0].items():
         assert v.tobytes() == runs[2][k].tobytes(), k
+
+
+def test_host_model_is_the_built_model() -> None:
+    """A batch's model made on the host (neighbours searched on the run's device, the CPU here) holds every array of
+    the model build_model makes, bit for bit, and the run's checks made from it equal those made from the device
+    model (also with the initial state in equilibrium)."""
+    from aca_warp.hf.loop import preflight
+    from aca_warp.hf.model import build_model, host_model, upload
+    from aca_warp.hf.state import initial_state
+    from aca_warp.sweep.prepare import run_options
+
+    doc = json.loads(json.dumps(SMALL))
+    doc["base"]["initial"] = {"state": "equilibrium", "perturbation": 0.01, "seed": 4}
+    spec = load_spec(doc, base_dir=Path.cwd())
+    scenes = spec.scenes(spec.shard_pads(0))
+    built = build_model(scenes, device="cpu", precision="fp32")
+    host = host_model(scenes, device="cpu", precision="fp32")
+    assert set(host.arrays) == set(built.arrays) and host.nbr_count == built.nnz
+    for k, a in built.arrays.items():
+        assert host.arrays[k].dtype == a.numpy().dtype and host.arrays[k].tobytes() == a.numpy().tobytes(), k
+    up = upload(host, "cpu")
+    view = upload(host, "cpu", copy=False)
+    assert view.arrays["nbr_index"].ptr == host.arrays["nbr_index"].ctypes.data  # the host arrays themselves
+    s_built, s_view = initial_state(built), initial_state(view)
+    for a, b in zip(s_built.numpy(), s_view.numpy(), strict=True):
+        assert a.tobytes() == b.tobytes() and np.any(a != 0)
+    options = run_options(spec)
+    c_built = preflight(built, s_built, options, spec.base.record)
+    c_view = preflight(view, s_view, options, spec.base.record)
+    assert c_built.estimate == c_view.estimate
+    assert c_built.mu_bound.tobytes() == c_view.mu_bound.tobytes()
+    assert c_built.watch_bound.tobytes() == c_view.watch_bound.tobytes()
+    assert all(up.arrays[k].numpy().tobytes() == a.numpy().tobytes() for k, a in built.arrays.items())
+
+
+@pytest.mark.parametrize("memory_fraction", [0.5, 1e-12], ids=["one-batch", "a-batch-per-pad"])
+def test_prepared_batches_give_the_task_s_own_file(tmp_path: Path, memory_fraction: float) -> None:
+    """A shard prepared with its batches (models, initial states and checks made on the host) gives the file of a
+    task that builds them itself: every dataset and attribute bit for bit but the timings; its task uploads them
+    instead of building, also when every pad is its own batch."""
+    from procs import assert_same_datasets
+
+    from aca_warp.sweep.prepare import prepare_shard
+    from aca_warp.sweep.shard import run_shard
+
+    spec = _spec()
+    prepared = prepare_shard(spec.doc, str(spec.base_dir), 1, device="cpu", memory_fraction=memory_fraction)
+    assert [(b.start, b.stop) for b in prepared.batches] == (
+        [(0, 3)] if memory_fraction == 0.5 else [(0, 1), (1, 2), (2, 3)]
+    )
+    summaries = {}
+    for name, given in (("own", None), ("prepared", prepared)):
+        (tmp_path / name).mkdir()
+        args = (spec.doc, str(spec.base_dir), str(tmp_path / name), 1, "cpu")
+        summaries[name] = run_shard(*args, memory_fraction=memory_fraction, prepared=given)["timings"]
+    assert "upload" in summaries["prepared"] and "build" not in summaries["prepared"]
+    assert "build" in summaries["own"] and "upload" not in summaries["own"]
+    a, b = tmp_path / "own" / "shard-00001.h5", tmp_path / "prepared" / "shard-00001.h5"
+    assert_same_datasets(a, b)
+    times = {"timings", "wall_time", "compile_time"}
+    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
+        assert {k: str(v) for k, v in fa.attrs.items() if k not in times} == {
+            k: str(v) for k, v in fb.attrs.items() if k not in times
+        }
 
 
 def test_prepare_shard_equals_the_spec() -> None:
