@@ -14,8 +14,8 @@ the run; docs/sweeps.md, "Overlap"). Reported per mode:
   mode's wall rate against its own in-shard rate.
 
 Paths: on CUDA a local Dask cluster on the one GPU (one worker process; overlapped: two shard tasks in its threads
-that take the GPU in turns), as ``aca-warp sweep --device cuda:N`` runs; on the CPU this process (overlapped: two shard tasks in
-threads), as ``--workers 0``; ``--path`` chooses. Writes JSON and one Markdown line.
+that take the GPU in turns), as ``aca-warp sweep --device cuda:N`` runs; on the CPU this process (overlapped: two
+shard tasks in threads), as ``--workers 0``; ``--path`` chooses. Writes JSON and one Markdown line.
 
 One H100 (2048 hf1 pads of 1758 patches in 8 shards of 256, 2 ms simulated each; a few minutes)::
 

@@ -244,8 +244,8 @@ def test_throughput_script_reports_both_modes(tmp_path: Path, monkeypatch: pytes
     assert len(md.read_text().splitlines()) == 1 and "overlapped wall / sequential in-shard" in md.read_text()
 
 
-# 8 pads of 25 patches in 4 shards of 2; 0.4 ms in steps of 20 ns, 2 µs samples: tenths of a second of stepping per shard on
-# one core, long beside a shard's upload
+# 8 pads of 25 patches in 4 shards of 2; 0.4 ms in steps of 20 ns, 2 µs samples: tenths of a second of stepping per
+# shard on one core, long beside a shard's upload
 PIPELINE = {
     "sweep": {"base": "hf1", "shard_size": 2, "name": "pipeline"},
     "run": {"duration": 4e-4, "precision": "fp32", "sample_dt": 2e-6, "dt": 2e-8},
