@@ -214,36 +214,6 @@ def test_gpu_turn_across_processes_is_a_file_lock(tmp_path: Path, monkeypatch: p
         os.close(other)
 
 
-def test_throughput_script_reports_both_modes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """scripts/sweep_throughput.py with tiny settings: both modes, rates from the shards' own timings."""
-    import json
-    import sys
-
-    from scriptload import load_script
-
-    st = load_script("sweep_throughput")
-    for pads in (1, 2, 16, 2048):
-        doc = st.sweep_doc(pads, 10, 4, 1e-5, "fp32")
-        assert len(load_spec(doc).parameters["friction.M"]) == pads
-    with pytest.raises(SystemExit, match="power of two"):
-        st.sweep_doc(12, 10, 4, 1e-5, "fp32")
-    out, md = tmp_path / "t.json", tmp_path / "t.md"
-    argv = ["sweep_throughput.py", "--device", "cpu", "--pads", "4", "--patches", "12", "--shard-size", "2"]
-    argv += ["--duration", "5e-5", "--json", str(out), "--md", str(md), "--dir", str(tmp_path / "w")]
-    monkeypatch.setattr(sys, "argv", argv)
-    assert st.main() == 0
-    doc = json.loads(out.read_text())
-    rows = {r["mode"]: r for r in doc["results"]}
-    assert set(rows) == {"sequential", "overlapped"} and doc["path"] == "inprocess"
-    for r in rows.values():
-        assert r["patch_steps"] == 4 * 12 * 5000
-        assert r["kernel_s"] == pytest.approx(sum(s["kernel"] for s in r["shards"]))
-        assert r["in_shard_rate"] == pytest.approx(r["patch_steps"] / r["kernel_s"])
-        assert r["wall_rate"] == pytest.approx(r["patch_steps"] / r["wall_s"]) and r["kernel_s"] < r["wall_s"]
-    assert doc["target_ratio"] == pytest.approx(rows["overlapped"]["wall_rate"] / rows["sequential"]["in_shard_rate"])
-    assert len(md.read_text().splitlines()) == 1 and "overlapped wall / sequential in-shard" in md.read_text()
-
-
 # 8 pads of 25 patches in 4 shards of 2; 0.4 ms in steps of 20 ns, 2 µs samples: tenths of a second of stepping per
 # shard on one core, long beside a shard's upload
 PIPELINE = {

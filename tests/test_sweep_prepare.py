@@ -171,9 +171,10 @@ def test_failed_preparation_fails_its_shards(tmp_path: Path, prepare: int) -> No
 
 
 def _pool_processes(before: set[int] = frozenset()) -> list[psutil.Process]:
-    """The pool's worker processes among this process's children (not multiprocessing's resource tracker), leaving
-    out the children in ``before`` (processes of earlier tests in this worker, e.g. Dask's, are spawned too)."""
-    return [p for p in psutil.Process().children() if p.pid not in before and "spawn_main" in " ".join(p.cmdline())]
+    """The pool's worker processes: the children of this process's fork server (the pool forks them there), leaving
+    out the processes in ``before`` (pools of earlier tests in this worker)."""
+    servers = [p for p in psutil.Process().children() if "forkserver" in " ".join(p.cmdline())]
+    return [c for s in servers for c in s.children() if c.pid not in before]
 
 
 def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
@@ -183,7 +184,7 @@ def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
     doc["base"]["patches"] = {"count": 6000, "area_min": 2e-9, "area_max": 4e-9}  # seconds of placement per layout
     doc["sweep"]["shard_size"] = 8
     spec = load_spec(doc, base_dir=Path.cwd())
-    before = {p.pid for p in psutil.Process().children()}
+    before = {p.pid for p in psutil.Process().children(recursive=True)}
     prep = Preparer(spec.doc, str(spec.base_dir), processes=1, ahead=1)
     try:
         prep.plan([0])
@@ -202,8 +203,8 @@ def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
 
 
 def test_prepared_shards_on_dask(tmp_path: Path) -> None:
-    """On two Dask workers, shards prepared by the client's pool and sent with their tasks give the serial path's
-    outputs bit for bit; a failed preparation is the shard's failure there too."""
+    """On two Dask workers, shards prepared by the client's pool (models made on the host) and sent with their tasks
+    give the serial path's outputs bit for bit; a failed preparation is the shard's failure there too."""
     pytest.importorskip("distributed")
     from distributed import Client
 
@@ -216,7 +217,8 @@ def test_prepared_shards_on_dask(tmp_path: Path) -> None:
     try:
         res = _in_time(lambda: run_sweep(spec, tmp_path / "dask", device=device, client=client, prepare=1))
         assert res.ran == [0, 1, 2] and not res.failed
-        assert all("prepare_ahead" in s["timings"] for s in res.summaries)
+        for s in res.summaries:  # prepared ahead (and uploaded) or, not ready when a worker would wait, in the task
+            assert ("upload" in s["timings"]) == ("prepare_ahead" in s["timings"]) != ("build" in s["timings"])
         a, b = _outputs(tmp_path / "serial"), _outputs(tmp_path / "dask")
         for k, v in a.items():
             assert v.tobytes() == b[k].tobytes(), k
@@ -233,7 +235,8 @@ def test_prepared_shards_on_dask(tmp_path: Path) -> None:
 def test_bench_script_runs_every_configuration(tmp_path: Path) -> None:
     """scripts/bench_sweep.py on the CPU with tiny settings and this checkout as its own baseline: the new path
     overlapped and sequential, the baseline overlapped, each in a process that imported the code it names; rates and
-    ratios from the shards' own timings."""
+    ratios from the shards' own timings; the device's time line (start, busy, idle, tail) adds up to the wall time;
+    the host phases include the pool's work and the turn's (upload, set-up with the checks given)."""
     pytest.importorskip("distributed")
     from scriptload import load_script
 
@@ -252,9 +255,19 @@ def test_bench_script_runs_every_configuration(tmp_path: Path) -> None:
         assert r["wall_over_in_shard"] == pytest.approx(r["wall_rate"] / r["in_shard_rate"])
         assert set(r["phase_median_s"]) == set(bench.PHASES) == set(r["phase_least_s"]) and r["runs"] == 1
         assert r["phase_median_s"]["kernel"] > 0
+        devices = r["timeline"]["devices"]  # one worker process: its device's time adds up to the call's
+        assert len(devices) == 1 and sum(d["shards"] for d in devices.values()) == 2
+        for d in devices.values():
+            assert d["start"] + d["busy"] + d["idle"] + d["tail"] == pytest.approx(r["wall_s"])
+            assert min(d["start"], d["busy"], d["idle"], d["tail"]) >= 0
+        for sh in r["timeline"]["shards"]:
+            assert 0 <= sh["turn"][0] <= sh["phases"]["kernel"][0] < sh["turn"][1] <= r["wall_s"]
     hosts = {h["code"]: h for h in doc["host"]}
     assert set(hosts) == {"new", "baseline"} and all(h["repeats"] == 3 and h["pads"] == 4 for h in hosts.values())
-    assert all(0 < h["cpu_s"][p] and 0 < h["wall_s"][p] for h in hosts.values() for p in ("prepare", "build", "setup"))
+    phases = ("prepare", "build", "setup", "pool", "upload", "setup_checked")
+    assert all(0 < h["cpu_s"][p] and 0 < h["wall_s"][p] for h in hosts.values() for p in phases)
     new = rows[("new", "overlapped")]
-    assert new["prepare"] == 1 and new["phase_total_s"]["prepare_ahead"] > 0
-    assert len(md.read_text().splitlines()) == 1 and "baseline overlapped on 1 CPU worker" in md.read_text()
+    assert new["prepare"] == 1 and new["workers"] == 1
+    text = md.read_text()
+    assert len(text.splitlines()) == 1 and "baseline overlapped on 1 CPU worker" in text
+    assert "idle between turns" in text
