@@ -14,6 +14,7 @@ import os
 import sys
 import time
 import uuid
+import warnings
 from collections import deque
 from collections.abc import Callable
 from typing import Any
@@ -261,19 +262,21 @@ def _run_on_dask(
         spec_hash = book.manifest["spec_hash"]
 
         def submit(i: int, prepared: PreparedShard | None) -> Any:
-            fut = client.submit(
-                shard_task,
-                *args,
-                i,
-                worker_device,
-                memory_fraction=memory_fraction,
-                sharing=sharing,
-                overlap=overlap,
-                token=token,
-                prepared=prepared,
-                key=f"shard-{spec_hash[:12]}-{i}",
-                pure=False,
-            )
+            with warnings.catch_warnings():  # a prepared shard is its models (~90 MB for 256 hf1 pads): by design
+                warnings.filterwarnings("ignore", message="Sending large graph", category=UserWarning)
+                fut = client.submit(
+                    shard_task,
+                    *args,
+                    i,
+                    worker_device,
+                    memory_fraction=memory_fraction,
+                    sharing=sharing,
+                    overlap=overlap,
+                    token=token,
+                    prepared=prepared,
+                    key=f"shard-{spec_hash[:12]}-{i}",
+                    pure=False,
+                )
             futures[fut] = i
             return fut
 
