@@ -42,7 +42,9 @@ class ChunkWriter:
 
     :meth:`put` takes a chunk ``(b0, b1, chunk)`` (pads [b0, b1) of the shard). Consecutive chunks of one batch are
     joined until they hold ``rows`` samples (the HDF5 chunk length of the shard's datasets) or ``limit`` bytes, so
-    that an engine that flushes a few samples at a time costs few HDF5 calls and few thread hand-overs; then they
+    that an engine that flushes a few samples at a time costs few HDF5 calls and few thread hand-overs, while an
+    engine that flushes large chunks (the on-chip one: a launch's samples of every pad, 2 MB for 256 pads) has each
+    written as it comes, beside its own run, rather than all at the end, beside the next shard's start; then they
     go to the thread as one write, waiting while ``depth`` writes wait already. :meth:`close` writes the rest and
     waits. The first error of a write ends the writing: nothing more is written, writes still queued are dropped (the
     run is not held up by a full queue), and the error is raised by the next :meth:`put` or by :meth:`close`, so that
@@ -50,9 +52,7 @@ class ChunkWriter:
     wall-clock times (``time.time()``) the first write began and the last one ended [s].
     """
 
-    def __init__(
-        self, write: Callable[[Any], None], *, depth: int = 4, rows: int = 4096, limit: int = 32 * 2**20
-    ) -> None:
+    def __init__(self, write: Callable[[Any], None], *, depth: int = 4, rows: int = 4096, limit: int = 2**20) -> None:
         self._write = write
         self._queue: queue.Queue = queue.Queue(maxsize=depth)
         self._rows, self._limit = rows, limit

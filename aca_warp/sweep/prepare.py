@@ -32,15 +32,18 @@ from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from aca_warp.hf.loop import Preflight
-from aca_warp.hf.model import HostModel
-from aca_warp.hf.options import RunOptions
 from aca_warp.scene import Scene
 from aca_warp.sweep.overlap import ShardCancelled
 from aca_warp.sweep.spec import SweepSpec, _resolve
+
+if TYPE_CHECKING:  # the command line's parser imports this module: no Warp until a sweep runs
+    from aca_warp.hf.loop import Preflight
+    from aca_warp.hf.model import HostModel
+    from aca_warp.hf.options import RunOptions
 
 # -------------------------------------------------------------------------------------------- memory
 
@@ -91,6 +94,8 @@ def shard_capacity(scenes: list[Scene], precision: str, device: str, fraction: f
 def run_options(spec: SweepSpec) -> RunOptions:
     """The options every pad of the sweep runs with (engine auto: the on-chip kernel on CUDA where the model allows
     it, else the general one)."""
+    from aca_warp.hf.options import RunOptions
+
     return RunOptions(duration=spec.duration, integrator=spec.integrator, dt=spec.dt, tolerance=spec.tolerance)
 
 
@@ -178,6 +183,17 @@ def prepare_batch(spec: SweepSpec, scenes: list[Scene], start: int, stop: int, d
     return PreparedBatch(start, stop, host, u, v, checked)
 
 
+# what a pool process runs, imported by the fork server (Warp's module, not its runtime: nothing is started there)
+_PRELOAD = [
+    __name__,
+    "aca_warp.hf.loop",
+    "aca_warp.hf.model",
+    "aca_warp.hf.state",
+    "aca_warp.kernels.neighbours",
+    "scipy.spatial",
+]
+
+
 def _start_process(device: str | None) -> None:
     """In a pool process: Ctrl-C reaches the whole process group, the client alone handles it; with ``device``, Warp
     started and the neighbour search's kernels loaded there before the first shard."""
@@ -217,7 +233,7 @@ class Preparer:
         )
         self.ahead = max(1, ahead)
         context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload([__name__])  # imported once by this process's fork server, not per process
+        context.set_forkserver_preload(_PRELOAD)  # imported once by this process's fork server, not per process
         self.pool = ProcessPoolExecutor(
             max_workers=max(1, processes), mp_context=context, initializer=_start_process, initargs=(device,)
         )
