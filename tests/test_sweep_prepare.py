@@ -204,8 +204,13 @@ def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
 
 def test_prepared_shards_on_dask(tmp_path: Path) -> None:
     """On two Dask workers, shards prepared by the client's pool (models made on the host) and sent with their tasks
-    give the serial path's outputs bit for bit; a failed preparation is the shard's failure there too."""
+    give the serial path's outputs bit for bit, without Dask's warning about large task graphs (a prepared shard of
+    256 hf1 pads is ~90 MB; here the warning's threshold is 1 byte, so that every task would raise it); a failed
+    preparation is the shard's failure there too."""
     pytest.importorskip("distributed")
+    import warnings
+
+    import dask
     from distributed import Client
 
     from aca_warp.sweep import local_cluster
@@ -215,7 +220,11 @@ def test_prepared_shards_on_dask(tmp_path: Path) -> None:
     cluster, device = local_cluster("cpu", 2)
     client = Client(cluster)
     try:
-        res = _in_time(lambda: run_sweep(spec, tmp_path / "dask", device=device, client=client, prepare=1))
+        big = {"distributed.admin.large-graph-warning-threshold": "1B"}
+        with dask.config.set(big), warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            res = _in_time(lambda: run_sweep(spec, tmp_path / "dask", device=device, client=client, prepare=1))
+        assert not [w for w in said if "large graph" in str(w.message)]
         assert res.ran == [0, 1, 2] and not res.failed
         for s in res.summaries:  # prepared ahead (and uploaded) or, not ready when a worker would wait, in the task
             assert ("upload" in s["timings"]) == ("prepare_ahead" in s["timings"]) != ("build" in s["timings"])
