@@ -34,7 +34,8 @@ measured alone in one process (``--host-repeat`` times; :func:`host_phases`): th
 time of prepare, build and setup, and for a code with a preparation of models on the host, the pool's work per shard
 (``pool``: scenes, host model, initial state, checks) and what is left to the device's turn (``upload``, and
 ``setup_checked``: the run's set-up with the checks given), which on a machine shared with other work say more than
-the sweeps' wall times.
+the sweeps' wall times. The JSON and the Markdown line are written after every run (the JSON's ``partial`` true until
+the last), so that a command stopped by a time limit leaves what it measured.
 
 Two H200s (one GPU and two, the code before as baseline; a few minutes)::
 
@@ -382,12 +383,15 @@ def markdown_line(doc: dict) -> str:
     )
 
 
-def write_outputs(doc: dict, line: str, json_path: str, md_path: str) -> None:
-    """``doc`` into ``json_path``, the Markdown ``line`` into ``md_path``; the line and the two names printed."""
-    Path(json_path).write_text(json.dumps(doc, indent=1))
-    Path(md_path).write_text(line + "\n")
-    print(line)
-    print(f"wrote {json_path} and {md_path}")
+def write_outputs(doc: dict, args: argparse.Namespace) -> None:
+    """``doc`` into ``--json``, its Markdown line into ``--md``; the line and the two names printed, unless ``doc``
+    is ``partial`` (written after every run, so that a run stopped by a time limit leaves what it measured)."""
+    line = markdown_line(doc)
+    Path(args.json).write_text(json.dumps(doc, indent=1))
+    Path(args.md).write_text(line + "\n")
+    if not doc.get("partial"):
+        print(line)
+        print(f"wrote {args.json} and {args.md}")
 
 
 def device_time(devices: dict) -> str:
@@ -433,11 +437,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.child:
         print(json.dumps(child(json.loads(args.child))), flush=True)
         return 0
-    import warp as wp
     from distributed import Client  # noqa: F401  (fails here, before any work, where Dask is missing)
 
     from aca_warp.common.devices import init_warp
-    from aca_warp.common.files import machine
 
     init_warp()
     scratch = Path(args.dir or tempfile.mkdtemp(prefix="aca_bench_sweep_"))
@@ -467,18 +469,30 @@ def main(argv: list[str] | None = None) -> int:
                     + device_time(r["timeline"]["devices"]),
                     flush=True,
                 )
+                write_outputs(document(args, runs, hosts, argv, done=False), args)
     finally:
         if not args.dir:
             shutil.rmtree(scratch, ignore_errors=True)
+    write_outputs(document(args, runs, hosts, argv, done=True), args)
+    return 0
+
+
+def document(args: argparse.Namespace, runs: list[dict], hosts: list[dict], argv: list[str] | None, done: bool) -> dict:
+    """The JSON document of the runs so far (``done``: all of them; else ``partial`` is true)."""
+    import warp as wp
+
+    from aca_warp.common.files import machine
+
     rows = best_runs(runs)
     summarise(rows)
     dev = wp.get_device("cpu" if args.device == "cpu" else "cuda:0")
-    doc = {
+    return {
         "date": datetime.date.today().isoformat(),
         "machine": machine(dev),
         "warp_version": wp.__version__,
         "device": args.device,
         "command": " ".join(["scripts/bench_sweep.py", *(sys.argv[1:] if argv is None else argv)]),
+        **({} if done else {"partial": True}),
         "sweep": {
             "pads": args.pads,
             "patches_per_pad": args.patches or 1758,
@@ -490,8 +504,6 @@ def main(argv: list[str] | None = None) -> int:
         "runs": runs,
         "host": hosts,
     }
-    write_outputs(doc, markdown_line(doc), args.json, args.md)
-    return 0
 
 
 if __name__ == "__main__":

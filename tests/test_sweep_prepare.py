@@ -258,6 +258,7 @@ def test_bench_script_runs_every_configuration(tmp_path: Path) -> None:
     doc = json.loads(out.read_text())
     rows = {(r["code"], r["mode"]): r for r in doc["results"]}
     assert set(rows) == {("new", "overlapped"), ("new", "sequential"), ("baseline", "overlapped")}
+    assert "partial" not in doc  # written after every run, whole at the end
     for r in rows.values():
         assert r["patch_steps"] == 8 * 12 * 300 and r["package"].startswith(str(tmp_path / "w"))
         assert r["in_shard_rate"] == pytest.approx(r["patch_steps"] / sum(s["kernel"] for s in r["shards"]))
