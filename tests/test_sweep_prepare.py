@@ -170,6 +170,20 @@ def test_failed_preparation_fails_its_shards(tmp_path: Path, prepare: int) -> No
     assert [s["state"] for s in manifest["shards"]] == ["failed"] * 3
 
 
+def test_pool_without_the_device_makes_scenes_only() -> None:
+    """A pool process that cannot start Warp on the device it was given (here a GPU this machine does not have; on
+    a GPU host, one in exclusive-process mode held by its worker) prepares the scenes and leaves the models to the
+    task, instead of failing every shard."""
+    spec = _spec()
+    prep = Preparer(spec.doc, str(spec.base_dir), processes=1, ahead=1, device="cuda:7")
+    try:
+        prep.plan([1])
+        got = _in_time(lambda: prep.get(1), 120)
+    finally:
+        prep.close()
+    assert got.index == 1 and len(got.scenes) == 3 and got.batches == [] and got.capacity == 0
+
+
 def _pool_processes(before: set[int] = frozenset()) -> list[psutil.Process]:
     """The pool's worker processes: the children of this process's fork server (the pool forks them there), leaving
     out the processes in ``before`` (pools of earlier tests in this worker)."""

@@ -160,7 +160,7 @@ def prepare_shard(
     pads = spec.shard_pads(index)
     scenes = spec.scenes(pads)
     cap, batches = 0, []
-    if device is not None:
+    if device is not None and device not in _UNUSABLE:
         cap = shard_capacity(scenes, spec.precision, device, memory_fraction, sharing)
         batches = [
             prepare_batch(spec, scenes, b0, min(b0 + cap, len(scenes)), device) for b0 in range(0, len(scenes), cap)
@@ -194,9 +194,13 @@ _PRELOAD = [
 ]
 
 
+_UNUSABLE: set[str] = set()  # devices this pool process could not start Warp on: it makes scenes only
+
+
 def _start_process(device: str | None) -> None:
     """In a pool process: Ctrl-C reaches the whole process group, the client alone handles it; with ``device``, Warp
-    started and the neighbour search's kernels loaded there before the first shard."""
+    started and the neighbour search's kernels loaded there before the first shard. A device this process cannot use
+    (a GPU in exclusive-process mode, held by its worker) is left to the tasks: this process makes scenes only."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if device is not None:
         from aca_warp.common.devices import init_warp, load_kernels
@@ -204,7 +208,10 @@ def _start_process(device: str | None) -> None:
         init_warp()  # before any import that starts Warp: quietly
         from aca_warp.kernels import neighbours
 
-        load_kernels([neighbours], device)
+        try:
+            load_kernels([neighbours], device)
+        except Exception:  # noqa: BLE001  (no context there: the tasks build their models)
+            _UNUSABLE.add(device)
 
 
 class Preparer:
