@@ -1,14 +1,15 @@
 #!/usr/bin/env python3
 """Sweep throughput on one and on two GPUs, the new path against a baseline in the same run: wall rate, in-shard rate,
-their ratio, the speedup of two GPUs over one, and every shard's phase times.
+their ratio, the speedup of two GPUs over one, every shard's phase times and the devices' time lines.
 
 The sweep: ``--pads`` hf1 pads (default 2048: friction.M × load.normal_force × patches.seed, 8 layouts), ``strang``,
 fp32, dt 1e-8 s, 1 µs samples, 1 ms simulated, shards of 256 (``aca-warp sweep --device cuda`` but the shard size).
 Each configuration runs in a child process that imports the code under test (its Dask workers and preparation
-processes inherit it), starts a local Dask cluster as ``aca-warp sweep --device cuda:0[,cuda:1]`` does (loopback only;
-two single-threaded worker processes per GPU, overlapped; ``sequential``: one per GPU, as ``--no-overlap``), runs a
-warm-up sweep of the same pads for 1 µs (kernels compiled or loaded in every worker), then the timed sweep into a
-fresh directory. Configurations:
+processes inherit it), starts a local Dask cluster as that code's ``aca-warp sweep --device cuda:0[,cuda:1]`` does
+(loopback only; this code: one worker process per GPU with two shard tasks in its threads, overlapped, or one,
+``sequential``, as ``--no-overlap``; a code from before it: two single-threaded workers per GPU overlapped, one
+sequential), runs a warm-up sweep of the same pads for 1 µs (kernels compiled or loaded in every worker; the pool's
+fork server started), then the timed sweep into a fresh directory. Configurations:
 
 * ``new``: the checkout this script belongs to, with its preparation pool (``--prepare``, default as ``aca-warp
   sweep``: two processes per GPU, none on the CPU), overlapped, on each of ``--units`` GPUs (CPU worker processes
@@ -23,12 +24,20 @@ time (cluster start and warm-up not counted), wall rate = patch-steps / wall tim
 over shards of ``timings.kernel`` (per GPU: each shard runs on one), wall rate / (units × in-shard rate), the same
 against the sequential reference's in-shard rate (target: ≥ 0.9 on one GPU), the speedup over the same code on the
 first of ``--units`` (target: ≥ 1.9 for two GPUs over one), and per phase of a shard task (prepare, prepare_ahead,
-build, setup, kernel, write, task) the median and the total over the shards (and, over repeated runs, the least of
-the medians: ``phase_least_s``). Before the sweeps, per code, the host phases of one shard measured alone in one
-process (``--host-repeat`` times; :func:`host_phases`): the least wall time and the least CPU time of prepare, build
-and setup, which on a machine shared with other work say more than the sweeps' wall times.
+upload, build, setup, kernel, write, task) the median and the total over the shards (and, over repeated runs, the
+least of the medians: ``phase_least_s``). ``timeline``: every shard's phases on the sweep call's clock (seconds from
+its start; ``timings.spans``, or for a code without them its run's start and end) and, per worker process (one per
+GPU in this code), its device time: ``start`` (the call's start to its first shard's turn: upload or build),
+``busy`` (the turns, to each run's end), ``idle`` (between one run's end and the next turn), ``tail`` (the last run's
+end to the call's end: the last file and the manifest). Before the sweeps, per code, the host phases of one shard
+measured alone in one process (``--host-repeat`` times; :func:`host_phases`): the least wall time and the least CPU
+time of prepare, build and setup, and for a code with a preparation of models on the host, the pool's work per shard
+(``pool``: scenes, host model, initial state, checks) and what is left to the device's turn (``upload``, and
+``setup_checked``: the run's set-up with the checks given), which on a machine shared with other work say more than
+the sweeps' wall times. The JSON and the Markdown line are written after every run (the JSON's ``partial`` true until
+the last), so that a command stopped by a time limit leaves what it measured.
 
-Two H100s (one GPU and two, the code before as baseline; a few minutes)::
+Two H200s (one GPU and two, the code before as baseline; a few minutes)::
 
     mkdir -p build/baseline && git archive <commit> aca_warp kernels | tar -x -C build/baseline
     NCCL_NVLS_ENABLE=0 python scripts/bench_sweep.py --device cuda --units 1 2 --baseline build/baseline
@@ -58,7 +67,8 @@ from typing import Any
 os.environ.setdefault("NCCL_NVLS_ENABLE", "0")  # never use NVLink multicast (shared machines)
 
 WARM_UP_S = 1e-6  # simulated time of the warm-up sweep [s]: one sample, enough to load every kernel in every worker
-PHASES = ("prepare", "prepare_ahead", "build", "setup", "kernel", "write", "task")
+PHASES = ("prepare", "prepare_ahead", "upload", "build", "setup", "kernel", "write", "task")
+TURN = ("upload", "build", "setup", "kernel")  # the phases of a shard's turn on its device
 HERE = Path(__file__).resolve().parent
 
 
@@ -87,6 +97,7 @@ def host_phases(cfg: dict) -> dict:
     time and the least CPU time of this process over the repeats [s] (CPU time: the work itself, whatever else the
     machine runs). The first repeat loads the kernels; the least is the steady state of a warm worker."""
     import copy
+    import importlib
     import inspect
 
     import warp as wp
@@ -121,6 +132,13 @@ def host_phases(cfg: dict) -> dict:
         model = build_model(scenes, device=device, precision=spec.precision)
         return model, initial_state(model)
 
+    def uploaded(batch: Any) -> tuple:
+        from aca_warp.hf.model import upload
+        from aca_warp.hf.state import state_from_host
+
+        model = upload(batch.model, device)
+        return model, state_from_host(model, batch.u, batch.v)
+
     def clock(phase: str, fn: Any) -> Any:
         w, c = time.perf_counter(), time.process_time()
         out = fn()
@@ -131,12 +149,20 @@ def host_phases(cfg: dict) -> dict:
         return out
 
     options = RunOptions(duration=spec.duration, integrator=spec.integrator, dt=spec.dt, tolerance=spec.tolerance)
+    record, tuning = spec.base.record, EngineTuning()
+    pool = importlib.import_module("aca_warp.sweep.prepare")
     for _ in range(cfg["repeat"]):
         scenes = clock("prepare", prepare)
         model, state = clock("build", functools.partial(build, scenes))
-        run = clock("setup", functools.partial(_Run, model, state, options, spec.base.record, EngineTuning(), None))
+        run = clock("setup", functools.partial(_Run, model, state, options, record, tuning, None))
         engine = type(run.engine).__name__
         del run, model, state
+        if hasattr(pool, "prepare_batch"):  # models made on the host by the pool: its work, and the turn's
+            made = clock("pool", lambda: pool.prepare_shard(spec.doc, str(spec.base_dir), index, device=device))
+            batch = made.batches[0]
+            model, state = clock("upload", functools.partial(uploaded, batch))
+            run = clock("setup_checked", lambda: _Run(model, state, options, record, tuning, None, batch.checked))  # noqa: B023
+            del run, model, state, made, batch
     return {
         "code": cfg["code"],
         "mode": "host",
@@ -170,7 +196,13 @@ def child(cfg: dict) -> dict:
     device = "cpu" if cpu else ",".join(f"cuda:{i}" for i in range(units))
     overlap = cfg["mode"] == "overlapped"
     t0 = time.perf_counter()
-    cluster, worker_device = local_cluster(device, units if cpu else None, per_gpu=2 if overlap else 1)
+    workers = units if cpu else None
+    if "threads" in inspect.signature(local_cluster).parameters:  # one worker per GPU, shard tasks in its threads
+        from aca_warp.sweep import PIPELINE_DEPTH
+
+        cluster, worker_device = local_cluster(device, workers, threads=PIPELINE_DEPTH if overlap else 1)
+    else:  # a code from before: two single-threaded workers per GPU overlapped
+        cluster, worker_device = local_cluster(device, workers, per_gpu=2 if overlap else 1)
     client = Client(cluster)
     client.wait_for_workers(len(cluster.worker_spec))
     start_s = time.perf_counter() - t0
@@ -186,6 +218,7 @@ def child(cfg: dict) -> dict:
         t0 = time.perf_counter()
         run_sweep(warm, scratch / "warm", **kwargs)
         warm_s = time.perf_counter() - t0
+        called = time.time()
         res = run_sweep(spec, scratch / "timed", **kwargs)
     finally:
         client.close()
@@ -212,7 +245,34 @@ def child(cfg: dict) -> dict:
         "phase_median_s": {p: statistics.median(t.get(p, 0.0) for t in timings) for p in PHASES},
         "phase_total_s": {p: sum(t.get(p, 0.0) for t in timings) for p in PHASES},
         "shards": [{"index": s["index"], **s["timings"]} for s in sorted(res.summaries, key=lambda s: s["index"])],
+        "timeline": timeline(res.summaries, called, res.wall_time),
     }
+
+
+def timeline(summaries: list[dict], called: float, wall: float) -> dict:
+    """Every shard's phases on the sweep call's clock ([start, end] in seconds from ``called``, the wall-clock time
+    the call began) and per worker process its device's time: start, busy, idle, tail [s] (module docstring)."""
+    shards, turns = [], {}
+    for s in sorted(summaries, key=lambda s: s["index"]):
+        t = s["timings"]
+        spans = t.get("spans") or {"kernel": [t["run_start"], t["run_end"]]}  # a code without spans: its runs
+        phases = {k: [a - called, b - called] for k, (a, b) in spans.items()}
+        turn = [min(phases[k][0] for k in TURN if k in phases), phases["kernel"][1]]
+        where = str(s.get("process", "?"))
+        shards.append({"index": s["index"], "process": where, "turn": turn, "phases": phases})
+        turns.setdefault(where, []).append(turn)
+    devices = {}
+    for where, spans in turns.items():
+        spans.sort()
+        idle = sum(max(0.0, b[0] - a[1]) for a, b in zip(spans, spans[1:], strict=False))
+        devices[where] = {
+            "shards": len(spans),
+            "start": spans[0][0],
+            "busy": sum(b - a for a, b in spans),
+            "idle": idle,
+            "tail": wall - max(b for _, b in spans),
+        }
+    return {"shards": shards, "devices": devices}
 
 
 # ---------------------------------------------------------------------------------------------------- parent
@@ -299,16 +359,18 @@ def markdown_line(doc: dict) -> str:
                 else ""
             )
             + f"), {r['speedup_vs_fewest_units']:.2f}× its {min(q['units'] for q in doc['results'])}-{unit} rate; "
-            f"per shard (median; least of {r['runs']} run(s)) prepare {ph['prepare']:.2f}{ahead}, build "
-            f"{ph['build']:.2f}, setup {ph['setup']:.2f}, "
-            f"kernel {ph['kernel']:.2f} s"
+            f"per shard (median; least of {r['runs']} run(s)) prepare {ph['prepare']:.2f}{ahead}, "
+            + (f"upload {ph['upload']:.2f}, " if ph.get("upload") else "")
+            + f"build {ph['build']:.2f}, setup {ph['setup']:.2f}, kernel {ph['kernel']:.2f} s"
+            + device_time(r["timeline"]["devices"])
         )
     for h in doc.get("host", []):
         w, c = h["wall_s"], h["cpu_s"]
+        phases = [p for p in ("prepare", "build", "setup", "pool", "upload", "setup_checked") if p in w]
         parts.append(
-            f"{h['code']}: host time per shard (least of {h['repeats']}, wall / CPU) prepare {w['prepare']:.2f} / "
-            f"{c['prepare']:.2f}, build {w['build']:.2f} / {c['build']:.2f}, setup {w['setup']:.2f} / "
-            f"{c['setup']:.2f} s"
+            f"{h['code']}: host time per shard (least of {h['repeats']}, wall / CPU) "
+            + ", ".join(f"{p} {w[p]:.2f} / {c[p]:.2f}" for p in phases)
+            + " s"
         )
     s = doc["sweep"]
     m = doc["machine"]
@@ -321,12 +383,25 @@ def markdown_line(doc: dict) -> str:
     )
 
 
-def write_outputs(doc: dict, line: str, json_path: str, md_path: str) -> None:
-    """``doc`` into ``json_path``, the Markdown ``line`` into ``md_path``; the line and the two names printed."""
-    Path(json_path).write_text(json.dumps(doc, indent=1))
-    Path(md_path).write_text(line + "\n")
-    print(line)
-    print(f"wrote {json_path} and {md_path}")
+def write_outputs(doc: dict, args: argparse.Namespace) -> None:
+    """``doc`` into ``--json``, its Markdown line into ``--md``; the line and the two names printed, unless ``doc``
+    is ``partial`` (written after every run, so that a run stopped by a time limit leaves what it measured)."""
+    line = markdown_line(doc)
+    Path(args.json).write_text(json.dumps(doc, indent=1))
+    Path(args.md).write_text(line + "\n")
+    if not doc.get("partial"):
+        print(line)
+        print(f"wrote {args.json} and {args.md}")
+
+
+def device_time(devices: dict) -> str:
+    """The devices' time of a configuration in words: per worker process (one per GPU), summed over them."""
+    n = len(devices)
+    total = {k: sum(d[k] for d in devices.values()) for k in ("start", "idle", "tail")}
+    return (
+        f"; {n} worker process(es): before the first turn {total['start'] / n:.2f} s, idle between turns "
+        f"{total['idle'] / n:.2f} s, after the last run {total['tail'] / n:.2f} s (mean per process)"
+    )
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -362,11 +437,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.child:
         print(json.dumps(child(json.loads(args.child))), flush=True)
         return 0
-    import warp as wp
     from distributed import Client  # noqa: F401  (fails here, before any work, where Dask is missing)
 
     from aca_warp.common.devices import init_warp
-    from aca_warp.common.files import machine
 
     init_warp()
     scratch = Path(args.dir or tempfile.mkdtemp(prefix="aca_bench_sweep_"))
@@ -392,21 +465,34 @@ def main(argv: list[str] | None = None) -> int:
                     f"{r['wall_rate']:.3g}, in-shard {r['in_shard_rate']:.3g} per unit "
                     f"({100 * r['wall_over_in_shard']:.0f} %); median per shard: "
                     + ", ".join(f"{p} {ph[p]:.3f}" for p in PHASES)
-                    + " s",
+                    + " s"
+                    + device_time(r["timeline"]["devices"]),
                     flush=True,
                 )
+                write_outputs(document(args, runs, hosts, argv, done=False), args)
     finally:
         if not args.dir:
             shutil.rmtree(scratch, ignore_errors=True)
+    write_outputs(document(args, runs, hosts, argv, done=True), args)
+    return 0
+
+
+def document(args: argparse.Namespace, runs: list[dict], hosts: list[dict], argv: list[str] | None, done: bool) -> dict:
+    """The JSON document of the runs so far (``done``: all of them; else ``partial`` is true)."""
+    import warp as wp
+
+    from aca_warp.common.files import machine
+
     rows = best_runs(runs)
     summarise(rows)
     dev = wp.get_device("cpu" if args.device == "cpu" else "cuda:0")
-    doc = {
+    return {
         "date": datetime.date.today().isoformat(),
         "machine": machine(dev),
         "warp_version": wp.__version__,
         "device": args.device,
         "command": " ".join(["scripts/bench_sweep.py", *(sys.argv[1:] if argv is None else argv)]),
+        **({} if done else {"partial": True}),
         "sweep": {
             "pads": args.pads,
             "patches_per_pad": args.patches or 1758,
@@ -418,8 +504,6 @@ def main(argv: list[str] | None = None) -> int:
         "runs": runs,
         "host": hosts,
     }
-    write_outputs(doc, markdown_line(doc), args.json, args.md)
-    return 0
 
 
 if __name__ == "__main__":

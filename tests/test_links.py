@@ -143,7 +143,7 @@ def test_hard_link_lock_is_refused(tmp_path: Path) -> None:
 
 def test_kernel_turn_lock_is_private(tmp_path: Path, monkeypatch) -> None:
     """The GPU turn lock of processes that share a GPU: in the user's private folder (0700), created 0600, not in
-    the shared temporary folder; a link planted there is refused, never followed."""
+    the shared temporary folder; a link planted there is refused, never followed (and the turn not held)."""
     from aca_warp.sweep.overlap import KernelTurn
 
     monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path / "run"))
@@ -152,7 +152,7 @@ def test_kernel_turn_lock_is_private(tmp_path: Path, monkeypatch) -> None:
     monkeypatch.setattr("tempfile.tempdir", str(tmp_path / "tmp"))  # the shared temporary folder, where it was
     gpu = types.SimpleNamespace(is_cuda=True, uuid="GPU-1234", pci_bus_id=None)
     turn = KernelTurn(gpu, None, processes=True)
-    turn.first_chunk()
+    turn.enter()
     try:
         assert turn.fd is not None
         folder = tmp_path / "run" / "aca-warp" / "kernel"
@@ -165,10 +165,10 @@ def test_kernel_turn_lock_is_private(tmp_path: Path, monkeypatch) -> None:
     lock.unlink()
     victim = tmp_path / "victim.txt"
     before = plant(lock, victim)
+    refused = KernelTurn(types.SimpleNamespace(is_cuda=True, uuid="GPU-1234", pci_bus_id=None), None, processes=True)
     with pytest.raises(links.LinkError):
-        KernelTurn(
-            types.SimpleNamespace(is_cuda=True, uuid="GPU-1234", pci_bus_id=None), None, processes=True
-        ).first_chunk()
+        refused.enter()
+    assert not refused.locked and not refused.lock.locked()
     untouched(victim, before, lock)
 
 

@@ -31,9 +31,9 @@ def _attrs(path: Path) -> dict:
         return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in f.attrs.items() if k not in _TIMES}
 
 
-def _assert_same_files(a: Path, b: Path) -> None:
+def _assert_same_files(a: Path, b: Path, shards: int = 3) -> None:
     names = sorted(p.name for p in a.glob("shard-*.h5"))
-    assert names == sorted(p.name for p in b.glob("shard-*.h5")) and len(names) == 3
+    assert names == sorted(p.name for p in b.glob("shard-*.h5")) and len(names) == shards
     for n in names:
         assert_same_datasets(a / n, b / n)
         assert _attrs(a / n) == _attrs(b / n), n
@@ -181,72 +181,101 @@ def test_kernel_turn_is_one_at_a_time_and_cancellable() -> None:
     a.exit()
     cancel.clear()
     b.enter()  # free again
-    b.first_chunk()  # CPU: no turn across processes
-    assert b.fd is None
+    assert b.fd is None  # CPU: no turn across processes
     b.exit()
 
 
 def test_gpu_turn_across_processes_is_a_file_lock(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Two runs on one GPU (a stand-in device; flock conflicts between open files as between processes): the
-    second waits after its first chunk until the first ends its turn, or stops when the sweep stops."""
+    """A turn on a GPU (a stand-in device) holds the GPU's lock file, which another process (here: another open
+    file, as flock sees one) cannot take until the turn ends; a turn that waits for that lock stops when the sweep
+    stops, and gives the process's own turn back."""
+    import fcntl
+    import os
+
     monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))  # the user's private folder (tests/test_links.py)
     gpu = types.SimpleNamespace(is_cuda=True, uuid="GPU-test-0", pci_bus_id=None)
     cancel = threading.Event()
-    a, b = KernelTurn(gpu, cancel, processes=True), KernelTurn(gpu, cancel, processes=True)
-    a.first_chunk()
-    assert a.fd is not None and (tmp_path / "aca-warp" / "kernel" / "GPU-test-0.lock").exists()
-    got: list[str] = []
+    a = KernelTurn(gpu, cancel, processes=True)
+    a.enter()
+    path = tmp_path / "aca-warp" / "kernel" / "GPU-test-0.lock"
+    assert a.fd is not None and path.exists()
+    other = os.open(path, os.O_RDWR)  # another process's view of the lock
+    try:
+        with pytest.raises(BlockingIOError):
+            fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        a.exit()
+        fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)  # free once the turn ended
+        b = KernelTurn(gpu, cancel, processes=True)
+        got: list[str] = []
 
-    def second() -> None:
-        try:
-            b.first_chunk()
-            got.append("turn")
-        except ShardCancelled:
-            got.append("cancelled")
+        def second() -> None:
+            try:
+                b.enter()
+                got.append("turn")
+            except ShardCancelled:
+                got.append("cancelled")
 
-    t = threading.Thread(target=second)
-    t.start()
-    time.sleep(0.2)
-    assert got == []  # a's run holds the GPU
-    a.exit()
-    t.join(5)
-    assert got == ["turn"] and b.fd is not None
-    held, b = b, KernelTurn(gpu, cancel, processes=True)  # a third run waits behind it, and stops with the sweep
-    t = threading.Thread(target=second)
-    t.start()
-    time.sleep(0.1)
-    assert got == ["turn"]
-    cancel.set()
-    t.join(5)
-    assert got == ["turn", "cancelled"] and b.fd is None
-    held.exit()
+        t = threading.Thread(target=second)
+        t.start()
+        time.sleep(0.2)
+        assert got == []  # the other process holds the GPU
+        cancel.set()
+        t.join(5)
+        assert got == ["cancelled"] and b.fd is None and not b.locked and not b.lock.locked()
+    finally:
+        os.close(other)
 
 
-def test_throughput_script_reports_both_modes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """scripts/sweep_throughput.py with tiny settings: both modes, rates from the shards' own timings."""
-    import json
-    import sys
+# 8 pads of 25 patches in 4 shards of 2; 0.4 ms in steps of 20 ns, 2 µs samples: tenths of a second of stepping per
+# shard on one core, long beside a shard's upload
+PIPELINE = {
+    "sweep": {"base": "hf1", "shard_size": 2, "name": "pipeline"},
+    "run": {"duration": 4e-4, "precision": "fp32", "sample_dt": 2e-6, "dt": 2e-8},
+    "base": {"patches": {"count": 25}},
+    "parameters": {"friction.M": [0.6, 0.7, 0.8, 0.9], "patches.seed": [1, 2]},
+}
 
-    from scriptload import load_script
 
-    st = load_script("sweep_throughput")
-    for pads in (1, 2, 16, 2048):
-        doc = st.sweep_doc(pads, 10, 4, 1e-5, "fp32")
-        assert len(load_spec(doc).parameters["friction.M"]) == pads
-    with pytest.raises(SystemExit, match="power of two"):
-        st.sweep_doc(12, 10, 4, 1e-5, "fp32")
-    out, md = tmp_path / "t.json", tmp_path / "t.md"
-    argv = ["sweep_throughput.py", "--device", "cpu", "--pads", "4", "--patches", "12", "--shard-size", "2"]
-    argv += ["--duration", "5e-5", "--json", str(out), "--md", str(md), "--dir", str(tmp_path / "w")]
-    monkeypatch.setattr(sys, "argv", argv)
-    assert st.main() == 0
-    doc = json.loads(out.read_text())
-    rows = {r["mode"]: r for r in doc["results"]}
-    assert set(rows) == {"sequential", "overlapped"} and doc["path"] == "inprocess"
-    for r in rows.values():
-        assert r["patch_steps"] == 4 * 12 * 5000
-        assert r["kernel_s"] == pytest.approx(sum(s["kernel"] for s in r["shards"]))
-        assert r["in_shard_rate"] == pytest.approx(r["patch_steps"] / r["kernel_s"])
-        assert r["wall_rate"] == pytest.approx(r["patch_steps"] / r["wall_s"]) and r["kernel_s"] < r["wall_s"]
-    assert doc["target_ratio"] == pytest.approx(rows["overlapped"]["wall_rate"] / rows["sequential"]["in_shard_rate"])
-    assert len(md.read_text().splitlines()) == 1 and "overlapped wall / sequential in-shard" in md.read_text()
+def test_pipeline_overlaps_preparation_and_writing_with_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The overlapped path with a preparation pool, in this process, from the phase times every shard records: the
+    shards the pool made were made while an earlier shard was on the device and were ready when it came free; a
+    shard's turn on the device (upload, set-up, run) began as soon as the one before had run; the last writes of a
+    shard went on during the next one's turn (every write made slow here); the files equal the sequential path's."""
+    import aca_warp.sweep.shard as shard
+    from aca_warp.sweep.prepare import Preparer
+
+    spec = load_spec(PIPELINE, base_dir=Path.cwd())
+    warm = Preparer(spec.doc, str(spec.base_dir), 1, 1, device="cpu")  # this process's fork server, started once
+    warm.get(0)
+    warm.close()
+    seq = tmp_path / "seq"
+    run_sweep(spec, seq, workers=0, overlap=False, prepare=0)
+    made = shard._chunk_writer
+
+    def slow(*args):
+        write = made(*args)
+
+        def slowly(item):
+            time.sleep(0.15)
+            write(item)
+
+        return slowly
+
+    monkeypatch.setattr(shard, "_chunk_writer", slow)
+    r = run_sweep(spec, tmp_path / "ovl", workers=0, overlap=True, prepare=1)
+    assert r.ran == [0, 1, 2, 3] and not r.failed, (r.ran, r.failed)
+    _assert_same_files(seq, tmp_path / "ovl", 4)
+    t = {s["index"]: s["timings"] for s in r.summaries}
+    span = {i: t[i]["spans"] for i in t}
+    order = sorted(t, key=lambda i: span[i]["kernel"][0])  # the runs, in the order the device took them
+    ahead = [i for i in order[1:] if "upload" in t[i]]
+    assert len(ahead) >= 2, {i: sorted(t[i]) for i in t}  # the pool kept ahead of all but the first shard or two
+    for k, i in enumerate(order[1:]):
+        before = order[k]
+        turn = span[i]["upload" if i in ahead else "build"][0]  # the device's turn of shard i began
+        assert span[before]["kernel"][1] <= turn  # one shard on the device at a time
+        assert span[before]["write"][1] > turn  # the file of the one before still written meanwhile
+        if i in ahead:
+            assert span[i]["prepare_ahead"][0] < span[before]["kernel"][1]  # made while an earlier shard ran
+            assert span[i]["prepare_ahead"][1] <= span[before]["kernel"][1]  # ready when the device came free
+            assert turn - span[before]["kernel"][1] < 0.25  # taken at once (a thread's wake-up on a busy machine)

@@ -11,6 +11,7 @@ from concurrent.futures.process import BrokenProcessPool
 from importlib import resources
 from pathlib import Path
 
+import h5py
 import numpy as np
 import psutil
 import pytest
@@ -62,27 +63,87 @@ def _in_time(fn, seconds: float = 180.0):
     return out["value"]
 
 
-@pytest.fixture(scope="module")
-def serial(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    """The outputs of the small sweep run serially by shards that prepare themselves: the reference of this module
-    (overlapped shards give the same files: test_sweep_overlap.py)."""
-    out = tmp_path_factory.mktemp("prepare") / "serial"
-    res = run_sweep(_spec(), out, workers=0, overlap=False, prepare=0)
-    assert res.ran == [0, 1, 2] and not res.failed
-    assert not any("prepare_ahead" in s["timings"] for s in res.summaries)
-    return _outputs(out)
-
-
 @pytest.mark.parametrize("overlap", [False, True])
-def test_prepared_shards_give_the_same_files(tmp_path: Path, serial: dict, overlap: bool) -> None:
-    """In this process, serial and overlapped: shards prepared by a pool of two processes give every output of every
-    pad bit for bit as shards that prepare themselves; their timings say what the pool spent (prepare_ahead)."""
-    res = run_sweep(_spec(), tmp_path / "p2", workers=0, overlap=overlap, prepare=2)
-    assert res.ran == [0, 1, 2] and not res.failed
-    assert all("prepare_ahead" in s["timings"] for s in res.summaries)
-    prepared = _outputs(tmp_path / "p2")
-    for k, v in serial.items():
-        assert v.tobytes() == prepared[k].tobytes(), k
+def test_prepared_shards_give_the_same_files(tmp_path: Path, overlap: bool) -> None:
+    """In this process, serial and overlapped: a pool of two processes (the shards it has ready when their turn
+    comes; the others, the first among them, are prepared by their tasks) gives every output of every pad bit for bit
+    as shards that prepare themselves; without a pool nothing is prepared ahead."""
+    spec = _spec()
+    runs = {}
+    for prepare in (0, 2):
+        out = tmp_path / f"p{prepare}"
+        res = run_sweep(spec, out, workers=0, overlap=overlap, prepare=prepare)
+        assert res.ran == [0, 1, 2] and not res.failed
+        for s in res.summaries:  # a shard prepared ahead is uploaded, one prepared in its task built
+            assert ("upload" in s["timings"]) == ("prepare_ahead" in s["timings"]) != ("build" in s["timings"])
+        assert prepare > 0 or all("prepare_ahead" not in s["timings"] for s in res.summaries)
+        runs[prepare] = _outputs(out)
+    for k, v in runs[0].items():
+        assert v.tobytes() == runs[2][k].tobytes(), k
+
+
+def test_host_model_is_the_built_model() -> None:
+    """A batch's model made on the host (neighbours searched on the run's device, the CPU here) holds every array of
+    the model build_model makes, bit for bit, and the run's checks made from it equal those made from the device
+    model (also with the initial state in equilibrium)."""
+    from aca_warp.hf.loop import preflight
+    from aca_warp.hf.model import build_model, host_model, upload
+    from aca_warp.hf.state import initial_state
+    from aca_warp.sweep.prepare import run_options
+
+    doc = json.loads(json.dumps(SMALL))
+    doc["base"]["initial"] = {"state": "equilibrium", "perturbation": 0.01, "seed": 4}
+    spec = load_spec(doc, base_dir=Path.cwd())
+    scenes = spec.scenes(spec.shard_pads(0))
+    built = build_model(scenes, device="cpu", precision="fp32")
+    host = host_model(scenes, device="cpu", precision="fp32")
+    assert set(host.arrays) == set(built.arrays) and host.nbr_count == built.nnz
+    for k, a in built.arrays.items():
+        assert host.arrays[k].dtype == a.numpy().dtype and host.arrays[k].tobytes() == a.numpy().tobytes(), k
+    up = upload(host, "cpu")
+    view = upload(host, "cpu", copy=False)
+    assert view.arrays["nbr_index"].ptr == host.arrays["nbr_index"].ctypes.data  # the host arrays themselves
+    s_built, s_view = initial_state(built), initial_state(view)
+    for a, b in zip(s_built.numpy(), s_view.numpy(), strict=True):
+        assert a.tobytes() == b.tobytes() and np.any(a != 0)
+    options = run_options(spec)
+    c_built = preflight(built, s_built, options, spec.base.record)
+    c_view = preflight(view, s_view, options, spec.base.record)
+    assert c_built.estimate == c_view.estimate
+    assert c_built.mu_bound.tobytes() == c_view.mu_bound.tobytes()
+    assert c_built.watch_bound.tobytes() == c_view.watch_bound.tobytes()
+    assert all(up.arrays[k].numpy().tobytes() == a.numpy().tobytes() for k, a in built.arrays.items())
+
+
+@pytest.mark.parametrize("memory_fraction", [0.5, 1e-12], ids=["one-batch", "a-batch-per-pad"])
+def test_prepared_batches_give_the_task_s_own_file(tmp_path: Path, memory_fraction: float) -> None:
+    """A shard prepared with its batches (models, initial states and checks made on the host) gives the file of a
+    task that builds them itself: every dataset and attribute bit for bit but the timings; its task uploads them
+    instead of building, also when every pad is its own batch."""
+    from procs import assert_same_datasets
+
+    from aca_warp.sweep.prepare import prepare_shard
+    from aca_warp.sweep.shard import run_shard
+
+    spec = _spec()
+    prepared = prepare_shard(spec.doc, str(spec.base_dir), 1, device="cpu", memory_fraction=memory_fraction)
+    assert [(b.start, b.stop) for b in prepared.batches] == (
+        [(0, 3)] if memory_fraction == 0.5 else [(0, 1), (1, 2), (2, 3)]
+    )
+    summaries = {}
+    for name, given in (("own", None), ("prepared", prepared)):
+        (tmp_path / name).mkdir()
+        args = (spec.doc, str(spec.base_dir), str(tmp_path / name), 1, "cpu")
+        summaries[name] = run_shard(*args, memory_fraction=memory_fraction, prepared=given)["timings"]
+    assert "upload" in summaries["prepared"] and "build" not in summaries["prepared"]
+    assert "build" in summaries["own"] and "upload" not in summaries["own"]
+    a, b = tmp_path / "own" / "shard-00001.h5", tmp_path / "prepared" / "shard-00001.h5"
+    assert_same_datasets(a, b)
+    times = {"timings", "wall_time", "compile_time"}
+    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
+        assert {k: str(v) for k, v in fa.attrs.items() if k not in times} == {
+            k: str(v) for k, v in fb.attrs.items() if k not in times
+        }
 
 
 def test_prepare_shard_equals_the_spec() -> None:
@@ -109,10 +170,25 @@ def test_failed_preparation_fails_its_shards(tmp_path: Path, prepare: int) -> No
     assert [s["state"] for s in manifest["shards"]] == ["failed"] * 3
 
 
+def test_pool_without_the_device_makes_scenes_only() -> None:
+    """A pool process that cannot start Warp on the device it was given (here a GPU this machine does not have; on
+    a GPU host, one in exclusive-process mode held by its worker) prepares the scenes and leaves the models to the
+    task, instead of failing every shard."""
+    spec = _spec()
+    prep = Preparer(spec.doc, str(spec.base_dir), processes=1, ahead=1, device="cuda:7")
+    try:
+        prep.plan([1])
+        got = _in_time(lambda: prep.get(1), 120)
+    finally:
+        prep.close()
+    assert got.index == 1 and len(got.scenes) == 3 and got.batches == [] and got.capacity == 0
+
+
 def _pool_processes(before: set[int] = frozenset()) -> list[psutil.Process]:
-    """The pool's worker processes among this process's children (not multiprocessing's resource tracker), leaving
-    out the children in ``before`` (processes of earlier tests in this worker, e.g. Dask's, are spawned too)."""
-    return [p for p in psutil.Process().children() if p.pid not in before and "spawn_main" in " ".join(p.cmdline())]
+    """The pool's worker processes: the children of this process's fork server (the pool forks them there), leaving
+    out the processes in ``before`` (pools of earlier tests in this worker)."""
+    servers = [p for p in psutil.Process().children() if "forkserver" in " ".join(p.cmdline())]
+    return [c for s in servers for c in s.children() if c.pid not in before]
 
 
 def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
@@ -122,7 +198,7 @@ def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
     doc["base"]["patches"] = {"count": 6000, "area_min": 2e-9, "area_max": 4e-9}  # seconds of placement per layout
     doc["sweep"]["shard_size"] = 8
     spec = load_spec(doc, base_dir=Path.cwd())
-    before = {p.pid for p in psutil.Process().children()}
+    before = {p.pid for p in psutil.Process().children(recursive=True)}
     prep = Preparer(spec.doc, str(spec.base_dir), processes=1, ahead=1)
     try:
         prep.plan([0])
@@ -140,23 +216,33 @@ def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
         prep.close()
 
 
-def test_prepared_shards_on_dask(tmp_path: Path, serial: dict) -> None:
-    """On two Dask workers, shards prepared by the client's pool and sent with their tasks give the serial path's
-    outputs bit for bit (the base scene from a file holding the preset); a failed preparation is the shard's failure
-    there too."""
+def test_prepared_shards_on_dask(tmp_path: Path) -> None:
+    """On two Dask workers, shards prepared by the client's pool (models made on the host) and sent with their tasks
+    give the serial path's outputs bit for bit, without Dask's warning about large task graphs (a prepared shard of
+    256 hf1 pads is ~90 MB; here the warning's threshold is 1 byte, so that every task would raise it); a failed
+    preparation is the shard's failure there too."""
     pytest.importorskip("distributed")
+    import warnings
+
+    import dask
     from distributed import Client
 
     from aca_warp.sweep import local_cluster
 
     spec = _spec(tmp_path)
+    run_sweep(spec, tmp_path / "serial", workers=0, overlap=False)
     cluster, device = local_cluster("cpu", 2)
     client = Client(cluster)
     try:
-        res = _in_time(lambda: run_sweep(spec, tmp_path / "dask", device=device, client=client, prepare=1))
+        big = {"distributed.admin.large-graph-warning-threshold": "1B"}
+        with dask.config.set(big), warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            res = _in_time(lambda: run_sweep(spec, tmp_path / "dask", device=device, client=client, prepare=1))
+        assert not [w for w in said if "large graph" in str(w.message)]
         assert res.ran == [0, 1, 2] and not res.failed
-        assert all("prepare_ahead" in s["timings"] for s in res.summaries)
-        a, b = serial, _outputs(tmp_path / "dask")
+        for s in res.summaries:  # prepared ahead (and uploaded) or, not ready when a worker would wait, in the task
+            assert ("upload" in s["timings"]) == ("prepare_ahead" in s["timings"]) != ("build" in s["timings"])
+        a, b = _outputs(tmp_path / "serial"), _outputs(tmp_path / "dask")
         for k, v in a.items():
             assert v.tobytes() == b[k].tobytes(), k
         shutil.copy(tmp_path / "base.toml", tmp_path / "kept.toml")
@@ -172,8 +258,10 @@ def test_prepared_shards_on_dask(tmp_path: Path, serial: dict) -> None:
 def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """scripts/bench_sweep.py on the CPU with tiny settings and this checkout as its own baseline: the new path
     overlapped and sequential, the baseline overlapped, each in a process that imported the code it names; rates and
-    ratios from the shards' own timings. The children share the tests' kernel cache (the script gives each code its
-    own, empty one where WARP_CACHE_PATH is unset: kernels compiled twice, for identical code)."""
+    ratios from the shards' own timings; the device's time line (start, busy, idle, tail) adds up to the wall time;
+    the host phases include the pool's work and the turn's (upload, set-up with the checks given). The children share
+    the tests' kernel cache (the script gives each code its own, empty one where WARP_CACHE_PATH is unset: kernels
+    compiled twice, for identical code)."""
     pytest.importorskip("distributed")
     import warp as wp
     from scriptload import load_script
@@ -191,15 +279,26 @@ def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pyte
     doc = json.loads(out.read_text())
     rows = {(r["code"], r["mode"]): r for r in doc["results"]}
     assert set(rows) == {("new", "overlapped"), ("new", "sequential"), ("baseline", "overlapped")}
+    assert "partial" not in doc  # written after every run, whole at the end
     for r in rows.values():
         assert r["patch_steps"] == 8 * 12 * 300 and r["package"].startswith(str(tmp_path / "w"))
         assert r["in_shard_rate"] == pytest.approx(r["patch_steps"] / sum(s["kernel"] for s in r["shards"]))
         assert r["wall_over_in_shard"] == pytest.approx(r["wall_rate"] / r["in_shard_rate"])
         assert set(r["phase_median_s"]) == set(bench.PHASES) == set(r["phase_least_s"]) and r["runs"] == 1
         assert r["phase_median_s"]["kernel"] > 0
+        devices = r["timeline"]["devices"]  # one worker process: its device's time adds up to the call's
+        assert len(devices) == 1 and sum(d["shards"] for d in devices.values()) == 2
+        for d in devices.values():
+            assert d["start"] + d["busy"] + d["idle"] + d["tail"] == pytest.approx(r["wall_s"])
+            assert min(d["start"], d["busy"], d["idle"], d["tail"]) >= 0
+        for sh in r["timeline"]["shards"]:
+            assert 0 <= sh["turn"][0] <= sh["phases"]["kernel"][0] < sh["turn"][1] <= r["wall_s"]
     hosts = {h["code"]: h for h in doc["host"]}
     assert set(hosts) == {"new", "baseline"} and all(h["repeats"] == 3 and h["pads"] == 4 for h in hosts.values())
-    assert all(0 < h["cpu_s"][p] and 0 < h["wall_s"][p] for h in hosts.values() for p in ("prepare", "build", "setup"))
+    phases = ("prepare", "build", "setup", "pool", "upload", "setup_checked")
+    assert all(0 < h["cpu_s"][p] and 0 < h["wall_s"][p] for h in hosts.values() for p in phases)
     new = rows[("new", "overlapped")]
-    assert new["prepare"] == 1 and new["phase_total_s"]["prepare_ahead"] > 0
-    assert len(md.read_text().splitlines()) == 1 and "baseline overlapped on 1 CPU worker" in md.read_text()
+    assert new["prepare"] == 1 and new["workers"] == 1
+    text = md.read_text()
+    assert len(text.splitlines()) == 1 and "baseline overlapped on 1 CPU worker" in text
+    assert "idle between turns" in text

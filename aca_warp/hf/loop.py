@@ -157,6 +157,7 @@ def run_hf(
     on_checkpoint: Callable[[Checkpoint], None] | None = None,
     resume: Checkpoint | None = None,
     tuning: EngineTuning | None = None,
+    checked: Preflight | None = None,
 ) -> RunResult:
     """Advance all pads of ``model`` from ``state`` as ``options`` say, recording as ``record`` says.
 
@@ -168,12 +169,46 @@ def run_hf(
     interval of simulated time, or none) hand a :class:`~aca_warp.common.checkpoint.Checkpoint` to
     ``on_checkpoint``; ``resume`` (a checkpoint of the same scene,
     options, device and precision) continues from it with the same arithmetic in the same order, so the samples
-    equal an uninterrupted run's bit for bit.
+    equal an uninterrupted run's bit for bit. ``checked``: :func:`preflight` of this model, state, options and
+    record, made beforehand (e.g. in another process, on the model's host arrays); None: made here.
     """
     t_compile = time.perf_counter()
-    run = _Run(model, state, options, record or model.scenes[0].record, tuning or EngineTuning(), resume)
+    record = record or model.scenes[0].record
+    run = _Run(model, state, options, record, tuning or EngineTuning(), resume, checked)
     compile_time = time.perf_counter() - t_compile
     return run.loop(sink, progress, on_checkpoint, compile_time)
+
+
+@dataclass(frozen=True)
+class Preflight:
+    """What a run checks and derives before its first step from its model, initial state and options
+    (:func:`preflight`): host work that reads every patch and link of the batch.
+
+    Attributes:
+        estimate: The model's stable-step estimate.
+        mu_bound: Largest |μ| each pad can reach (:func:`~aca_warp.hf.sanity.mu_bounds`), shape (pads,).
+        watch_bound: The watchdog's bound per pad (:func:`~aca_warp.hf.recorder.watchdog_bound`; +inf when off)
+            [m/s], shape (pads,).
+    """
+
+    estimate: StepEstimate
+    mu_bound: np.ndarray
+    watch_bound: np.ndarray
+
+
+def preflight(model: PadModel, state: HFState, options: RunOptions, record: Record) -> Preflight:
+    """The checks of a run before anything is written, and their results: the step (as the run takes it) and the
+    int32 step counts (:func:`~aca_warp.hf.solver.check_step`), the contact solution
+    (:func:`~aca_warp.hf.sanity.check_contact`), the μ bound and the watchdog's bound. Reads only the model's and
+    state's values, so a model on the host (:func:`~aca_warp.hf.model.upload` with ``copy=False``) gives what its
+    copy on a device gives."""
+    duration = model.scenes[0].duration if options.duration is None else options.duration
+    options = options.with_duration(duration)
+    estimate = check_step(model, options, record.sample_dt)
+    check_contact(model, accept=options.accept_unphysical)
+    factor = options.watchdog_factor
+    bounds = np.full(model.pad_count, np.inf) if factor is None else watchdog_bound(model, state, factor)
+    return Preflight(estimate, mu_bounds(model), bounds)
 
 
 class _Run:
@@ -187,21 +222,19 @@ class _Run:
         record: Record,
         tuning: EngineTuning,
         resume: Checkpoint | None,
+        checked: Preflight | None = None,
     ) -> None:
         self.model, self.record = model, record
         duration = model.scenes[0].duration if options.duration is None else options.duration
         self.n_samples = check_run(duration, record, options.checkpoint_interval)
         self.options = options = options.with_duration(duration)
-        # the step (as the run takes it), the int32 step counts and the contact solution, checked once here for
-        # every engine; the engines then skip their own check of the step asked for (it is not the step they take)
-        estimate = check_step(model, options, record.sample_dt)
-        check_contact(model, accept=options.accept_unphysical)
+        checked = preflight(model, state, options, record) if checked is None else checked
+        # the engines skip their own check of the step asked for (it is not the step they take)
         engine_options = dataclasses.replace(options, force=True)
-        self.engine = make_engine(model, state, engine_options, record, self.n_samples, tuning, estimate)
+        self.engine = make_engine(model, state, engine_options, record, self.n_samples, tuning, checked.estimate)
         self.rec = rec = self.engine.recorder
-        self.mu_bound = mu_bounds(model)
-        factor = options.watchdog_factor
-        self.bounds = np.full(model.pad_count, np.inf) if factor is None else watchdog_bound(model, state, factor)
+        self.mu_bound = checked.mu_bound
+        self.bounds = checked.watch_bound
         rec.watch_bound.assign(self.bounds)
         self.saved = {
             "state/u": state.u,

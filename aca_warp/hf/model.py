@@ -102,23 +102,64 @@ class PadModel:
         return self.arrays[name].numpy().copy()
 
 
-def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precision: str = "fp64") -> PadModel:
-    """Build the device model of a batch of scenes (one pad each): contact solve, neighbours, arrays.
+@dataclass
+class HostModel:
+    """A batch's model before it is on a device: every array of :class:`PadModel` as a NumPy array of the type its
+    device array has (the state precision T, float64 or int32), with the same names and shapes; picklable, so that
+    another process can make it (:func:`host_model`) and this one put it on the device (:func:`upload`).
 
-    Pads that share a layout (the same patch positions and areas, coupling radius and K_C, as the pads of a sweep
-    that differ in load, speed or friction) share one neighbour search and one computation of their coupling springs
+    Attributes:
+        scenes: One scene per pad.
+        precision: ``"fp32"`` or ``"fp64"``.
+        pad_patch_start: Patch offsets of the pads, shape (pads + 1,) int32.
+        contacts: The contact solution of every pad.
+        nbr_count: Directed neighbour links of the batch.
+        arrays: Name -> host array.
+    """
+
+    scenes: list[Scene]
+    precision: str
+    pad_patch_start: np.ndarray
+    contacts: list[ContactSolution]
+    nbr_count: int
+    arrays: dict[str, np.ndarray]
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the arrays [B]."""
+        return int(sum(a.nbytes for a in self.arrays.values()))
+
+
+def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precision: str = "fp64") -> PadModel:
+    """Build the device model of a batch of scenes (one pad each): contact solve, neighbours, arrays
+    (:func:`host_model` on ``device``, then :func:`upload` to it)."""
+    return upload(host_model(scenes, device=device, precision=precision), device)
+
+
+def _device(device: str | wp.Device) -> wp.Device:
+    init_warp()
+    try:
+        return wp.get_device(device)
+    except (ValueError, RuntimeError) as e:
+        raise SceneError(f"device {device!r} is not available: {e}") from None
+
+
+def host_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precision: str = "fp64") -> HostModel:
+    """The model of a batch of scenes on the host: contact solve, neighbours, arrays as NumPy.
+
+    ``device``: where the neighbour search runs (its hash-grid kernel) and whose memory must hold the model (the
+    limits are checked against it); a model made here for a device equals, bit for bit, the one
+    :func:`build_model` makes on a device of the same kind (CPU, or a CUDA device of the same model). Pads that share
+    a layout (the same patch positions and areas, coupling radius and K_C, as the pads of a sweep that differ in
+    load, speed or friction) share one neighbour search and one computation of their coupling springs
     (:func:`_coupling`); the arrays are the same bit for bit as when every pad is searched on its own.
     """
     if not scenes:
         raise SceneError("a batch needs at least one scene")
     if precision not in PRECISIONS:
         raise SceneError(f"precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
-    init_warp()
-    try:
-        dev = wp.get_device(device)
-    except (ValueError, RuntimeError) as e:
-        raise SceneError(f"device {device!r} is not available: {e}") from None
-    load_kernels([neighbours_kernels, hf_kernels], dev)
+    dev = _device(device)
+    load_kernels([neighbours_kernels], dev)
     T = PRECISIONS[precision]
     counts = np.array([s.patches.count for s in scenes])
     limits.check_int32("the patches of the batch", int(counts.sum()), "run fewer or smaller pads")
@@ -144,15 +185,28 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
     )
     host.update(_pad_arrays(scenes, contacts))
     wide = {"pad_area", "pad_moment", "pad_k_m", "pad_gap"}  # float64 whatever the precision (the growth re-solve)
-    arrays = {k: _device_array(a, _INT32 if k in _INT32_NAMES else wp.float64 if k in wide else T, dev)
-              for k, a in host.items()}  # fmt: skip
+    kind = lambda k: _INT32 if k in _INT32_NAMES else wp.float64 if k in wide else T  # noqa: E731
+    arrays = {k: np.ascontiguousarray(a, dtype=_NP_DTYPES[kind(k)]) for k, a in host.items()}
+    return HostModel(list(scenes), precision, start, contacts, len(nbr_index), arrays)
+
+
+def upload(host: HostModel, device: str | wp.Device, *, copy: bool = True) -> PadModel:
+    """Put a :class:`HostModel` on ``device`` (its HF kernels loaded); ``copy=False`` on the CPU: the model's arrays
+    are the host arrays themselves (a model to read, e.g. for the checks before a run, not to run)."""
+    dev = _device(device)
+    if not copy and not dev.is_cpu:
+        raise SceneError("a model shares the host arrays only on the CPU")
+    if copy:
+        load_kernels([hf_kernels], dev)
+    T = PRECISIONS[host.precision]
+    arrays = {k: wp.array(a, dtype=_WP_DTYPES[a.dtype.type], device=dev, copy=copy) for k, a in host.arrays.items()}
     return PadModel(
-        scenes=list(scenes),
+        scenes=list(host.scenes),
         device=dev,
         dtype=T,
-        pad_patch_start_host=start,
-        contacts=contacts,
-        nbr_count=len(nbr_index),
+        pad_patch_start_host=host.pad_patch_start,
+        contacts=host.contacts,
+        nbr_count=host.nbr_count,
         arrays=arrays,
     )
 
@@ -229,11 +283,7 @@ _INT32_NAMES = frozenset({"patch_pad", "pad_patch_start", "nbr_start", "nbr_inde
 
 
 _NP_DTYPES = {wp.int32: np.int32, wp.float64: np.float64, wp.float32: np.float32}
-
-
-def _device_array(a: np.ndarray, dtype: Any, device: wp.Device) -> wp.array:
-    """A host array on ``device`` as ``dtype`` (int32, float64 or the state precision)."""
-    return wp.array(np.ascontiguousarray(a, dtype=_NP_DTYPES[dtype]), dtype=dtype, device=device)
+_WP_DTYPES = {v: k for k, v in _NP_DTYPES.items()}
 
 
 def _patch_arrays(scenes: list[Scene], counts: np.ndarray) -> dict[str, np.ndarray]:

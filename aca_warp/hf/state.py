@@ -55,9 +55,15 @@ def initial_state(model: PadModel) -> HFState:
             v[a:b] += dv
         if du is not None:
             u[a:b] += du
+    return state_from_host(model, u, v)
+
+
+def state_from_host(model: PadModel, u: np.ndarray, v: np.ndarray) -> HFState:
+    """A state on the model's device from displacements ``u`` [m] and velocities ``v`` [m/s] on the host, shape
+    (patch_count,), rounded to the model's precision; the force cache zero (a run fills it)."""
     np_t = np.float32 if model.dtype == wp.float32 else np.float64
     mk = lambda a: wp.array(a.astype(np_t), dtype=model.dtype, device=model.device)  # noqa: E731
-    return HFState(u=mk(u), v=mk(v), force=mk(np.zeros(n)))
+    return HFState(u=mk(u), v=mk(v), force=mk(np.zeros(model.patch_count)))
 
 
 def perturbations(initial: Initial, n: int) -> tuple[np.ndarray | None, np.ndarray | None]:

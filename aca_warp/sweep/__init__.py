@@ -4,7 +4,7 @@ resumable; the ``aca-warp sweep`` command.
 A sweep spec (``docs/sweeps.md``) names a base scene (a preset, a TOML scene file, or inline tables) and grids
 or lists of scene parameters (``friction.M``, ``load.normal_force``, ``disc.sliding_speed``, ``patches.seed``,
 ``patches.area_min``, ``material.K_C``, ...), combined as a Cartesian product or zipped. Every combination is
-one pad. Pads are cut into shards of a fixed size; each shard is one batched HF run (one :func:`build_model`,
+one pad. Pads are cut into shards of a fixed size; each shard is one batched HF run (one model,
 one :func:`aca_warp.hf.loop.run_hf` with the engine ``auto``: the on-chip kernel on CUDA, else the general one;
 split only when the estimated device memory says the batch does not fit) and one HDF5 file::
 
@@ -36,17 +36,15 @@ The code lives in modules of one concern each, re-exported here (``from aca_warp
 
 from __future__ import annotations
 
-from aca_warp.sweep.cluster import LOOPBACK, WORKERS_PER_GPU, cuda_ordinals, local_cluster, warm_workers
+from aca_warp.sweep.cluster import LOOPBACK, cuda_ordinals, local_cluster, warm_workers
 from aca_warp.sweep.commands import add_parsers
 from aca_warp.sweep.manifest import MANIFEST, SHARD_STATES, SweepResult, load_sweep, prepare_dir, read_manifest
-from aca_warp.sweep.overlap import ChunkWriter, KernelTurn, ShardCancelled, ShardContext
-from aca_warp.sweep.run import PIPELINE_DEPTH, run_sweep
+from aca_warp.sweep.overlap import PIPELINE_DEPTH, ChunkWriter, KernelTurn, ShardCancelled, ShardContext
+from aca_warp.sweep.prepare import batch_capacity, device_memory, pad_bytes
+from aca_warp.sweep.run import run_sweep
 from aca_warp.sweep.shard import (
     TIMING_DOC,
     TIMING_PHASES,
-    batch_capacity,
-    device_memory,
-    pad_bytes,
     run_shard,
     shard_finished,
     shard_name,
@@ -81,7 +79,6 @@ __all__ = [
     "SHARD_STATES",
     "TIMING_DOC",
     "TIMING_PHASES",
-    "WORKERS_PER_GPU",
     "ChunkWriter",
     "KernelTurn",
     "ShardCancelled",

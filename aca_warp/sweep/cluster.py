@@ -1,8 +1,9 @@
 """Shards on Dask: a local cluster bound to loopback, or an existing scheduler or client.
 
-:func:`local_cluster` starts single-threaded worker processes (per GPU pinned through ``CUDA_VISIBLE_DEVICES``, two
-per GPU in the overlapped path so that one builds while the other's kernel runs); :func:`_run_on_dask` submits one
-task per shard and records them as they finish; on a stop it marks the shards the workers were executing and
+:func:`local_cluster` starts worker processes (one per GPU, pinned through ``CUDA_VISIBLE_DEVICES``, with
+:data:`~aca_warp.sweep.overlap.PIPELINE_DEPTH` threads in the overlapped path: one shard runs while the next waits
+ready and the last finishes its file); :func:`_run_on_dask` hands them the shards, prepared ahead where a pool does
+(:func:`_feed`), and records them as they finish; on a stop it marks the shards the workers were executing and
 closes the cluster without its shutdown chatter.
 """
 
@@ -13,13 +14,14 @@ import os
 import sys
 import time
 import uuid
+import warnings
 from collections import deque
 from collections.abc import Callable
 from typing import Any
 
 from aca_warp.common.links import private_dir
 from aca_warp.sweep.manifest import _Book, _one_line
-from aca_warp.sweep.overlap import ShardCancelled, ShardContext, stop_event, stop_sweep
+from aca_warp.sweep.overlap import PIPELINE_DEPTH, ShardCancelled, ShardContext, stop_event, stop_sweep
 from aca_warp.sweep.prepare import PreparedShard, Preparer
 from aca_warp.sweep.shard import run_shard
 from aca_warp.sweep.spec import SweepError
@@ -58,10 +60,10 @@ _WORKER_PRELOAD = (
 )
 
 
-def local_cluster(device: str, workers: int | None = None, *, per_gpu: int = 1) -> Any:
-    """A local Dask cluster: ``per_gpu`` single-threaded worker processes per GPU (``CUDA_VISIBLE_DEVICES`` pinned;
-    ``workers`` of them spread over the GPUs in turn, if given) or, for ``cpu``, ``workers`` of them (default one
-    per core). Returns (cluster, device seen by workers).
+def local_cluster(device: str, workers: int | None = None, *, threads: int = 1) -> Any:
+    """A local Dask cluster of worker processes with ``threads`` threads each: one per GPU (``CUDA_VISIBLE_DEVICES``
+    pinned; ``workers`` of them spread over the GPUs in turn, if given) or, for ``cpu``, ``workers`` of them (default
+    one per core). Returns (cluster, device seen by workers).
 
     Scheduler, nannies and workers listen on 127.0.0.1 only, serve no dashboard and speak TLS with mutual
     authentication under credentials made for this cluster alone (:func:`cluster_security`): a Dask worker executes
@@ -82,7 +84,7 @@ def local_cluster(device: str, workers: int | None = None, *, per_gpu: int = 1) 
         ords = cuda_ordinals(device)
         visible = os.environ.get("CUDA_VISIBLE_DEVICES")
         names = visible.split(",") if visible else [str(i) for i in range(max(ords) + 1)]
-        n = workers or per_gpu * len(ords)
+        n = workers or len(ords)
         envs = [{"CUDA_VISIBLE_DEVICES": names[ords[i % len(ords)]]} for i in range(n)]
         worker_device = "cuda:0"
     # every process on loopback and behind TLS with this cluster's own credentials: a Dask worker runs the pickled
@@ -90,7 +92,7 @@ def local_cluster(device: str, workers: int | None = None, *, per_gpu: int = 1) 
     security = cluster_security()
     scratch = str(private_dir("dask"))  # Dask's work folders and their lock files: not in the shared /tmp
     opts = {
-        "nthreads": 1,
+        "nthreads": threads,
         "memory_limit": 0,
         "silence_logs": logging.ERROR,
         "host": LOOPBACK,
@@ -194,9 +196,6 @@ def check_scheduler(address: str, timeout: float | None = None) -> None:
         pool.shutdown(wait=False)
 
 
-WORKERS_PER_GPU = 2  # local Dask workers per GPU in the overlapped path (one runs while the other builds)
-
-
 def _not_sync_cancel_error(record: Any) -> bool:
     """Logging filter: False for distributed's own error when a ``sync`` call that a signal interrupted is cancelled
     (``NameError: cannot access free variable 'future'`` in ``distributed.utils.sync.<locals>.cancel``, logged by
@@ -224,9 +223,11 @@ def _run_on_dask(
     memory_fraction: float,
     overlap: bool,
     preparer: Preparer | None = None,
+    sharing: int = 1,
 ) -> None:
-    """Run ``book.todo`` as Dask tasks (a local cluster, a scheduler's, or ``client``'s); ``preparer``: the shards'
-    scenes made ahead and sent with the tasks (:func:`_feed`)."""
+    """Run ``book.todo`` as Dask tasks (a local cluster, a scheduler's, or ``client``'s); ``preparer``: the shards
+    made ahead and sent with the tasks (:func:`_feed`); ``sharing``: tasks that may hold a device's memory at once
+    (:func:`device_sharing`)."""
     try:
         from distributed import Client
     except ImportError:
@@ -242,12 +243,9 @@ def _run_on_dask(
     try:
         if client is not None:
             worker_device = "cuda:0" if device.startswith("cuda") else device
-            sharing = len(client.scheduler_info(n_workers=-1)["workers"]) if device == "cpu" else 1
         elif scheduler is None:
-            per_gpu = WORKERS_PER_GPU if overlap else 1
-            cluster, worker_device = local_cluster(device, workers, per_gpu=per_gpu)
+            cluster, worker_device = local_cluster(device, workers, threads=PIPELINE_DEPTH if overlap else 1)
             client = Client(cluster)
-            sharing = _max_sharing(cluster, device)
         else:
             if not scheduler.startswith("tls://"):
                 print(
@@ -257,29 +255,32 @@ def _run_on_dask(
                 )
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)  # TLS settings, if any, from Dask's configuration
             worker_device = "cuda:0" if device == "cuda" else device
-            sharing = 1
-        book.result.workers = len(client.scheduler_info(n_workers=-1)["workers"])
+        info = client.scheduler_info(n_workers=-1)["workers"]
+        book.result.workers = len(info)
+        threads = sum(int(w.get("nthreads", 1)) for w in info.values())
         book.say(f"running {len(book.todo)} shard(s) on {book.result.workers} Dask worker(s), device {worker_device}")
         spec_hash = book.manifest["spec_hash"]
 
         def submit(i: int, prepared: PreparedShard | None) -> Any:
-            fut = client.submit(
-                shard_task,
-                *args,
-                i,
-                worker_device,
-                memory_fraction=memory_fraction,
-                sharing=sharing,
-                overlap=overlap,
-                token=token,
-                prepared=prepared,
-                key=f"shard-{spec_hash[:12]}-{i}",
-                pure=False,
-            )
+            with warnings.catch_warnings():  # a prepared shard is its models (~90 MB for 256 hf1 pads): by design
+                warnings.filterwarnings("ignore", message="Sending large graph", category=UserWarning)
+                fut = client.submit(
+                    shard_task,
+                    *args,
+                    i,
+                    worker_device,
+                    memory_fraction=memory_fraction,
+                    sharing=sharing,
+                    overlap=overlap,
+                    token=token,
+                    prepared=prepared,
+                    key=f"shard-{spec_hash[:12]}-{i}",
+                    pure=False,
+                )
             futures[fut] = i
             return fut
 
-        _feed(book, submit, preparer, window=2 * book.result.workers)
+        _feed(book, submit, preparer, workers=book.result.workers, threads=threads)
     except BaseException:  # KeyboardInterrupt: stop the tasks, mark the shards that were running, close quietly
         interrupted = True
         if client is None:
@@ -325,30 +326,44 @@ def shard_task(
 
 
 def _feed(
-    book: _Book, submit: Callable[[int, PreparedShard | None], Any], preparer: Preparer | None, window: int
+    book: _Book,
+    submit: Callable[[int, PreparedShard | None], Any],
+    preparer: Preparer | None,
+    workers: int,
+    threads: int,
 ) -> None:
     """Hand ``book.todo`` to Dask in order (``submit``) and record the tasks as they finish.
 
-    Without a ``preparer`` every shard is submitted at once (its task makes its own scenes). With one, a shard is
-    submitted with its prepared scenes once they are ready and fewer than ``window`` of its tasks are unfinished (so
-    that prepared shards wait in the pool's results, not in the cluster's memory); a shard whose preparation raised
-    (or whose pool process died) is recorded failed, not submitted."""
+    Without a ``preparer`` every shard is submitted at once (its task prepares it). With one (planned for
+    ``book.todo`` already), a shard is submitted
+    while fewer tasks than the cluster's ``threads`` are unfinished (so that prepared shards wait in the pool's
+    results, not in the cluster's memory): with its preparation once that is ready, or, when fewer tasks than
+    ``workers`` are unfinished (a worker would wait: at the start, or when the pool falls behind), at once and
+    unprepared (its task prepares it). A shard whose preparation raised (or whose pool process died) is recorded
+    failed, not submitted."""
     from distributed import as_completed
 
     todo = deque(book.todo)
     index: dict[Any, int] = {}
     running = as_completed()
-    if preparer is not None:
-        preparer.plan(book.todo)
     while todo or not running.is_empty():
         handed = []
-        while todo and (preparer is None or (running.count() < window and preparer.poll(todo[0]))):
-            i = todo.popleft()
-            try:
-                prepared = None if preparer is None else preparer.get(i)
-            except Exception as e:  # noqa: BLE001  (recorded as the shard's failure)
-                book.failed(i, _one_line(e))
-                continue
+        while todo and (preparer is None or running.count() < threads):
+            i = todo[0]
+            prepared = None
+            if preparer is not None:
+                if preparer.poll(i):
+                    try:
+                        prepared = preparer.get(i)
+                    except Exception as e:  # noqa: BLE001  (recorded as the shard's failure)
+                        todo.popleft()
+                        book.failed(i, _one_line(e))
+                        continue
+                elif running.count() < workers:
+                    preparer.forget(i)
+                else:
+                    break
+            todo.popleft()
             fut = submit(i, prepared)
             index[fut] = i
             running.add(fut)
@@ -365,7 +380,7 @@ def _feed(
             if summary["state"] != "interrupted":  # (stopped by another client's stop_sweep: left to book.stopped)
                 book.done(index[fut], summary)
         if todo and not handed and not finished:
-            time.sleep(0.02)  # a preparation, or room in the window, to wait for
+            time.sleep(0.005)  # a preparation, or room among the threads, to wait for
 
 
 STOP_WAIT_S = 60.0  # how long a stopped sweep waits for its running tasks to reach their next chunk [s]
@@ -385,15 +400,21 @@ def _stop_tasks(client: Any, futures: dict[Any, int], token: str, book: _Book) -
     book.stopped(running)
 
 
-def _max_sharing(cluster: Any, device: str) -> int:
-    """Workers of a local cluster that share one device: all of them on the CPU, else the most on one GPU."""
+def device_sharing(device: str, workers: int | None, scheduler: str | None, client: Any) -> int:
+    """Shard tasks whose models may share one device's memory at once (:func:`~aca_warp.sweep.prepare.batch_capacity`
+    splits it that many ways): on the CPU every worker of the cluster (local: ``workers``, default one per core; a
+    client's: its workers); on GPUs the local workers per GPU (one, unless ``workers`` asks for more than there are
+    GPUs); one in this process (``workers=0``) and on a scheduler's cluster (one worker per GPU)."""
+    if workers == 0 and scheduler is None and client is None:
+        return 1
+    if client is not None:
+        return len(client.scheduler_info(n_workers=-1)["workers"]) if device == "cpu" else 1
+    if scheduler is not None:
+        return 1
     if device == "cpu":
-        return len(cluster.workers)
-    seen: dict[str, int] = {}
-    for w in cluster.worker_spec.values():
-        gpu = w["options"].get("env", {}).get("CUDA_VISIBLE_DEVICES", "")
-        seen[gpu] = seen.get(gpu, 0) + 1
-    return max(seen.values(), default=1)
+        return workers or os.cpu_count() or 1
+    gpus = len(cuda_ordinals(device))
+    return -(-(workers or gpus) // gpus)
 
 
 def _running_shards(client: Any, futures: dict[Any, int]) -> set[int]:

@@ -18,7 +18,7 @@ SPEC is a TOML sweep spec (docs/sweeps.md; example: aca_warp/data/sweep_hf1.toml
 one HDF5 file per shard. A rerun in the same DIR skips finished shards and redoes unfinished ones.
 Examples:
   aca-warp sweep aca_warp/data/sweep_hf1.toml -o sweep_out --workers 2            # two CPU worker processes
-  aca-warp sweep aca_warp/data/sweep_hf1.toml -o sweep_out --device cuda          # two workers per GPU
+  aca-warp sweep aca_warp/data/sweep_hf1.toml -o sweep_out --device cuda          # one worker per GPU
   aca-warp sweep aca_warp/data/sweep_hf1.toml -o sweep_out --device cuda --scheduler tls://host:8786
 Exit codes: 0 every shard finished, 2 bad input, 3 some shard stopped on a fault or failed (rerun to retry),
 4 a shard file could not be written (disk full), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM); after an
@@ -78,15 +78,16 @@ def add_parsers(sub: Any) -> None:
         "--no-overlap",
         dest="overlap",
         action="store_false",
-        help="the serial path: one worker per GPU, one shard at a time per worker, writes inline (same results); "
-        "default: model builds and writes overlap the kernels (docs/sweeps.md)",
+        help="the serial path: one shard at a time per worker, writes inline (same results); default: two shard "
+        "tasks per worker take the device in turns, the next one waiting ready, writes behind the runs "
+        "(docs/sweeps.md)",
     )
     p.add_argument(
         "--prepare",
         type=int_at_least(0),
         metavar="N",
-        help="processes that make the shards' scenes ahead of their runs (default: 2 per GPU of a local CUDA sweep, "
-        "else 0: each shard task makes its own)",
+        help="processes that make the shards ahead of their runs: scenes, models on the host, initial states and "
+        "checks (default: 2 per GPU of a local CUDA sweep, else 0: each shard task makes its own)",
     )
     p.add_argument("--quiet", action="store_true", help="print only the summary")
     p.set_defaults(handler=_cmd_sweep)

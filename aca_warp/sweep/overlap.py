@@ -2,11 +2,11 @@
 and the cancel event of a stopping sweep.
 
 :class:`ChunkWriter` writes a shard's recorded chunks to its HDF5 file in a thread while the run goes on;
-:class:`KernelTurn` gives one shard at a time the device's kernels (threads of one process, and processes that share
-a GPU), so that the next shard's scenes, file and writes (across processes on a GPU: also its model build) run
-beside the current shard's kernel; :class:`ShardContext` says how a shard task runs and carries the event that stops
-it (:class:`ShardCancelled`). None of them decides what a kernel computes: results are the same bit for bit with or
-without them.
+:class:`KernelTurn` gives one shard at a time the device (the :data:`PIPELINE_DEPTH` shard tasks of a process, and
+processes that share a GPU), from putting its model there to the end of its run, so that the next shard waits ready
+and the last one's file is finished beside the current run; :class:`ShardContext` says how a shard task runs and
+carries the event that stops it (:class:`ShardCancelled`). None of them decides what a kernel computes: results are
+the same bit for bit with or without them.
 """
 
 from __future__ import annotations
@@ -26,6 +26,8 @@ import numpy as np
 
 from aca_warp.common.links import open_lock_file, private_dir
 
+PIPELINE_DEPTH = 2  # shard tasks at a time per device in the overlapped path: one runs, one waits ready or writes
+
 
 class ShardCancelled(BaseException):
     """Raised inside a shard task when its sweep stops (Ctrl-C, SIGTERM, a full disk): the shard is left unfinished
@@ -40,16 +42,17 @@ class ChunkWriter:
 
     :meth:`put` takes a chunk ``(b0, b1, chunk)`` (pads [b0, b1) of the shard). Consecutive chunks of one batch are
     joined until they hold ``rows`` samples (the HDF5 chunk length of the shard's datasets) or ``limit`` bytes, so
-    that an engine that flushes a few samples at a time costs few HDF5 calls and few thread hand-overs; then they
+    that an engine that flushes a few samples at a time costs few HDF5 calls and few thread hand-overs, while an
+    engine that flushes large chunks (the on-chip one: a launch's samples of every pad, 2 MB for 256 pads) has each
+    written as it comes, beside its own run, rather than all at the end, beside the next shard's start; then they
     go to the thread as one write, waiting while ``depth`` writes wait already. :meth:`close` writes the rest and
     waits. The first error of a write ends the writing: nothing more is written, writes still queued are dropped (the
     run is not held up by a full queue), and the error is raised by the next :meth:`put` or by :meth:`close`, so that
-    it stops the run in the shard's own thread. :attr:`seconds` is the time spent writing.
+    it stops the run in the shard's own thread. :attr:`seconds` is the time spent writing, :attr:`span` the
+    wall-clock times (``time.time()``) the first write began and the last one ended [s].
     """
 
-    def __init__(
-        self, write: Callable[[Any], None], *, depth: int = 4, rows: int = 4096, limit: int = 32 * 2**20
-    ) -> None:
+    def __init__(self, write: Callable[[Any], None], *, depth: int = 4, rows: int = 4096, limit: int = 2**20) -> None:
         self._write = write
         self._queue: queue.Queue = queue.Queue(maxsize=depth)
         self._rows, self._limit = rows, limit
@@ -58,6 +61,7 @@ class ChunkWriter:
         self._drop = False
         self.error: BaseException | None = None
         self.seconds = 0.0
+        self.span: list[float] = []
         self._thread = threading.Thread(target=self._loop, name="aca-warp-shard-writer", daemon=True)
         self._thread.start()
 
@@ -67,12 +71,13 @@ class ChunkWriter:
             if item is _STOP:
                 return
             if self.error is None and not self._drop:
-                t = time.perf_counter()
+                t, began = time.perf_counter(), time.time()
                 try:
                     self._write(item)
                 except BaseException as e:  # noqa: BLE001  (handed to the shard's thread by put/close)
                     self.error = e
                 self.seconds += time.perf_counter() - t
+                self.span = [self.span[0] if self.span else began, time.time()]
 
     def _raise(self) -> None:
         if self.error is not None:
@@ -135,22 +140,22 @@ _TURN_LOCKS_GUARD = threading.Lock()
 
 
 class KernelTurn:
-    """A shard's turn on its device in the overlapped path: one shard's Warp work at a time, others prepare meanwhile.
+    """A shard's turn on its device: one shard's Warp work at a time, from putting its model on the device to the end
+    of its run; the others wait ready (their models made on the host) or finish their files meanwhile.
 
-    * Shard tasks of one process (threads): a lock per device, held from the model build to the end of the run, so
-      that one task at a time does Warp work on the device. CUDA: build and run share the device's one stream, where
-      the build's host syncs would wait behind the running kernel. CPU: Warp's CPU runtime is not safe for two
+    * Shard tasks of one process (threads): a lock per device. CUDA: the device's one stream would order another
+      task's copies and launches behind the running kernel anyway (each of its host synchronisations waiting for a
+      launch to end), and a turn keeps the stream's work one shard's. CPU: Warp's CPU runtime is not safe for two
       threads at once: the general engine captures its steps in a CPU graph, and an array allocation or a launch of
       another thread during that capture fails (``'NoneType' object has no attribute 'track_array'``) or would be
       recorded into the graph; and the CPU kernels of one Warp module find their tile memory through one static
-      pointer, which concurrent launches overwrite. :meth:`enter` waits for the lock.
-    * Processes that share a GPU (two Dask workers per GPU): a file lock named after the GPU (host-local, in the
-      user's private folder, :func:`~aca_warp.common.links.private_dir`: another user cannot hold it), taken by
-      :meth:`first_chunk` after the run's first chunk and dropped when the run ends. The next shard's model build,
-      run set-up and first launch therefore overlap the current shard's run (the GPU time-slices between the two
-      processes); the rest of the runs alternate.
+      pointer, which concurrent launches overwrite.
+    * Processes that share a GPU (more workers than GPUs, or a cluster's workers started so): also a file lock named
+      after the GPU (host-local, in the user's private folder, :func:`~aca_warp.common.links.private_dir`: another
+      user cannot hold it), so that their runs alternate instead of time-slicing the GPU.
 
-    Neither decides what a kernel computes (pads of a shard are one batch wherever it runs), only when it runs.
+    :meth:`enter` waits for both (polled: a stopping sweep is not held up). Neither decides what a kernel computes
+    (pads of a shard are one batch wherever it runs), only when it runs.
     """
 
     def __init__(self, device: Any, cancel: threading.Event | None, *, processes: bool) -> None:
@@ -164,44 +169,50 @@ class KernelTurn:
         self.waited = 0.0  # seconds spent waiting for a turn
 
     def enter(self) -> None:
-        """Wait for this process's turn on the device (idempotent); raises :class:`ShardCancelled` on a stop."""
+        """Wait for the device's turn (idempotent); raises :class:`ShardCancelled` on a stop."""
         if self.locked:
             return
         t = time.perf_counter()
         while not self.lock.acquire(timeout=0.05):
-            if self.cancel is not None and self.cancel.is_set():
-                raise ShardCancelled()
+            self._check()
         self.locked = True
+        try:
+            if self.processes:
+                self._file_lock()
+        except BaseException:
+            self.exit()
+            raise
         self.waited += time.perf_counter() - t
 
-    def first_chunk(self) -> None:
-        """After a run's first chunk: wait for the GPU's turn among processes (idempotent; CPU: nothing); raises
-        :class:`ShardCancelled` on a stop."""
-        if not self.processes or self.fd is not None:
-            return
+    def _check(self) -> None:
+        if self.cancel is not None and self.cancel.is_set():
+            raise ShardCancelled()
+
+    def _file_lock(self) -> None:
+        """The GPU's turn among processes: its lock file, created 0600 in the private folder, never through a link."""
         key = self.device.uuid or self.device.pci_bus_id or str(self.device)
-        t = time.perf_counter()
-        try:  # in the user's private folder (0700), created 0600, never through a link
+        try:
             path = private_dir("kernel") / f"{re.sub(r'[^A-Za-z0-9_.-]', '_', key)}.lock"
             fd = open_lock_file(path, "GPU turn lock", 0o600)
         except OSError:
             self.processes = False  # no turn across processes: the runs share the GPU as they come
             return
-        while True:  # polled, so that a stopping sweep is not held up by another process's run
+        while True:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                break
+                self.fd = fd
+                return
             except BlockingIOError:
-                if self.cancel is not None and self.cancel.is_set():
+                try:
+                    self._check()
+                except ShardCancelled:
                     os.close(fd)
-                    raise ShardCancelled() from None
+                    raise
                 time.sleep(0.01)
             except OSError:
                 os.close(fd)
                 self.processes = False
                 return
-        self.fd = fd
-        self.waited += time.perf_counter() - t
 
     def exit(self) -> None:
         """End the turn (idempotent)."""
@@ -234,9 +245,9 @@ class ShardContext:
     """How a shard task runs (:func:`run_shard`).
 
     Attributes:
-        overlap: The overlapped path: chunks written behind the run by a :class:`ChunkWriter`, kernels taken in
-            turns (:class:`KernelTurn`) so that other tasks of the process, and other processes on the GPU, build
-            meanwhile. False: the serial path (writes inline, no turns).
+        overlap: The overlapped path: chunks written behind the run by a :class:`ChunkWriter`, the device taken in
+            turns (:class:`KernelTurn`) by the tasks of the process (and processes on the GPU). False: the serial
+            path (writes inline, no turns).
         cancel: Set to stop the task at its next chunk or phase (:class:`ShardCancelled`).
         processes: Take turns with other processes on the same GPU (overlap only).
     """

@@ -1,28 +1,38 @@
-"""Shards prepared ahead of their runs: a shard's spec and scenes made in a pool of CPU processes and handed to the
-task that runs it.
+"""Shards prepared ahead of their runs: a shard's spec, scenes and models made in a pool of CPU processes and handed
+to the task that runs it.
 
-The first phase of a shard task, :func:`prepare_shard` (the spec resolved, the pads' scenes made: patch layouts
-generated, placed and checked), needs NumPy and no Warp device. :class:`Preparer` runs it in a pool of processes
-ahead of the runs, so that the GPU workers only build, set up, step and write: while shard k steps, the scenes of the
-next shards are made beside it (a sweep whose pads each have a layout of their own spends seconds per shard on them,
-pure Python). The pool's processes are started fresh (``spawn``), ignore SIGINT (the client stops the sweep) and
-never use Warp (whose CPU runtime is not safe for threads; processes keep it apart anyway). A preparation that
-raises, or a pool process that dies, fails its shard with that error: no task waits for it for ever. The prepared
-scenes are the ones the task would make itself, so results are the same bit for bit.
+Everything a shard task does before its kernel, but putting arrays on the device, needs the host: the spec resolved,
+the pads' scenes (patch layouts generated, placed and checked), each batch's model as NumPy arrays
+(:func:`~aca_warp.hf.model.host_model`: contact solve, neighbour lists, coupling springs), its initial state and the
+run's checks (:func:`~aca_warp.hf.loop.preflight`: the stable-step estimate, the μ and watchdog bounds).
+:func:`prepare_shard` does it; :class:`Preparer` runs it in a pool of processes ahead of the runs, so that a GPU
+worker only uploads, steps and hands samples to its writer while the next shards are made beside it.
+
+The neighbour search is a Warp kernel, and a CUDA device and the CPU round its distances differently, so a pool that
+makes models runs that search on a device of the run's kind (``device``: the CPU, or a GPU of the sweep); the models
+are then the ones the task would build itself, bit for bit, and so are the results. The pool's processes are forked
+from this process's fork server (``forkserver``: a fresh process that imported this module once, never Warp's
+runtime started, so that a pool starts in a fraction of a second after the first), ignore SIGINT (the client stops
+the sweep) and start Warp themselves (a process of its own: Warp's CPU runtime is not safe for threads). A
+preparation that raises, or a pool process that dies, fails its shard with that error: no task waits for it for
+ever.
 """
 
 from __future__ import annotations
 
 import copy
+import functools
 import multiprocessing
+import os
 import signal
 import threading
 import time
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -30,10 +40,87 @@ from aca_warp.scene import Scene
 from aca_warp.sweep.overlap import ShardCancelled
 from aca_warp.sweep.spec import SweepSpec, _resolve
 
+if TYPE_CHECKING:  # the command line's parser imports this module: no Warp until a sweep runs
+    from aca_warp.hf.loop import Preflight
+    from aca_warp.hf.model import HostModel
+    from aca_warp.hf.options import RunOptions
+
+# -------------------------------------------------------------------------------------------- memory
+
+
+def pad_bytes(scene: Scene, precision: str) -> int:
+    """Estimated device bytes of one pad in a batch (model, state, solver scratch, CSR, recorder) [B].
+
+    Per patch: 10 model arrays and ``patch_pad`` (10 T + 4), state u, u̇, force and the synchronous velocity
+    (4 T), adaptive trial buffers (5 T); per directed link: index, inverse distance, stiffness (4 + 2 T); per
+    pad: 257 recorded rows × 5 float64. Doubled for the neighbour build's temporaries and allocator slack.
+    """
+    from scipy.spatial import cKDTree
+
+    t = 4 if precision == "fp32" else 8
+    p = scene.patches
+    links = 2 * len(cKDTree(np.column_stack([p.x, p.y])).query_pairs(scene.material.coupling_radius))
+    per_patch = 10 * t + 4 + 4 * t + 5 * t + 4
+    return int(2 * (p.count * per_patch + links * (4 + 2 * t) + 257 * 5 * 8))
+
+
+def device_memory(device: str) -> int:
+    """Free memory of a Warp device (CUDA: free device memory; CPU: available host memory) [B]."""
+    import warp as wp
+
+    dev = wp.get_device(device)
+    if dev.is_cuda:
+        return int(dev.free_memory)
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):  # pragma: no cover
+        return int(dev.total_memory or 8 * 2**30)
+
+
+def batch_capacity(scene: Scene, precision: str, device: str, *, fraction: float = 0.5, sharing: int = 1) -> int:
+    """How many pads like ``scene`` fit in ``fraction`` of the device's free memory, split ``sharing`` ways."""
+    return max(1, int(fraction * device_memory(device) / max(1, sharing) / pad_bytes(scene, precision)))
+
+
+def shard_capacity(scenes: list[Scene], precision: str, device: str, fraction: float, sharing: int) -> int:
+    """Pads per batch of a shard of ``scenes`` (:func:`batch_capacity` of its largest pad)."""
+    largest = max(scenes, key=lambda s: s.patches.count)
+    return batch_capacity(largest, precision, device, fraction=fraction, sharing=sharing)
+
+
+# --------------------------------------------------------------------------------------------- shards
+
+
+def run_options(spec: SweepSpec) -> RunOptions:
+    """The options every pad of the sweep runs with (engine auto: the on-chip kernel on CUDA where the model allows
+    it, else the general one)."""
+    from aca_warp.hf.options import RunOptions
+
+    return RunOptions(duration=spec.duration, integrator=spec.integrator, dt=spec.dt, tolerance=spec.tolerance)
+
+
+@dataclass
+class PreparedBatch:
+    """One batch of a prepared shard, ready to be put on the device.
+
+    Attributes:
+        start, stop: The batch is the shard's pads [start, stop) (rows of its file).
+        model: The batch's model on the host.
+        u, v: Initial displacements [m] and velocities [m/s] in the model's precision, shape (patches,).
+        checked: The run's checks and bounds, made from the host model.
+    """
+
+    start: int
+    stop: int
+    model: HostModel
+    u: np.ndarray
+    v: np.ndarray
+    checked: Preflight
+
 
 @dataclass
 class PreparedShard:
-    """What a shard task needs before it builds its model.
+    """What a shard task needs before it puts its batches on the device.
 
     Attributes:
         index: The shard.
@@ -41,6 +128,9 @@ class PreparedShard:
         pads: Global indices of the shard's pads, in its row order, shape (pads,).
         scenes: The pads' scenes (pads of one layout share its :class:`~aca_warp.scene.Patches`).
         seconds: Time the preparation took [s].
+        span: Wall-clock times (``time.time()``) the preparation began and ended [s].
+        capacity: Pads per batch the batches were cut for (0: no batches made; the task builds its models).
+        batches: The shard's batches, in row order (empty: the task builds them).
     """
 
     index: int
@@ -48,36 +138,111 @@ class PreparedShard:
     pads: np.ndarray
     scenes: list[Scene]
     seconds: float
+    span: tuple[float, float] = (0.0, 0.0)
+    capacity: int = 0
+    batches: list[PreparedBatch] = field(default_factory=list)
 
 
-def prepare_shard(doc: dict, base_dir: str, index: int) -> PreparedShard:
-    """Resolve the spec ``doc`` (overrides applied) and make the scenes of shard ``index``."""
-    t = time.perf_counter()
+def prepare_shard(
+    doc: dict,
+    base_dir: str,
+    index: int,
+    *,
+    device: str | None = None,
+    memory_fraction: float = 0.5,
+    sharing: int = 1,
+) -> PreparedShard:
+    """Resolve the spec ``doc`` (overrides applied) and make the scenes of shard ``index``; with ``device`` (the run's
+    device, or one of its kind: the neighbour search runs there) also its batches (:func:`prepare_batch`), cut by
+    the capacity of ``device`` (:func:`shard_capacity`)."""
+    t, began = time.perf_counter(), time.time()
     spec = _resolve(copy.deepcopy(doc), Path(base_dir), check=False)
     pads = spec.shard_pads(index)
     scenes = spec.scenes(pads)
-    return PreparedShard(index, spec, pads, scenes, time.perf_counter() - t)
+    cap, batches = 0, []
+    if device is not None and device not in _UNUSABLE:
+        cap = shard_capacity(scenes, spec.precision, device, memory_fraction, sharing)
+        batches = [
+            prepare_batch(spec, scenes, b0, min(b0 + cap, len(scenes)), device) for b0 in range(0, len(scenes), cap)
+        ]
+    return PreparedShard(index, spec, pads, scenes, time.perf_counter() - t, (began, time.time()), cap, batches)
 
 
-def _ignore_sigint() -> None:
-    """In a pool process: Ctrl-C reaches the whole process group; the client alone handles it."""
+def prepare_batch(spec: SweepSpec, scenes: list[Scene], start: int, stop: int, device: str) -> PreparedBatch:
+    """The batch of ``scenes[start:stop]`` on the host: its model (neighbours searched on ``device``), initial state
+    and the run's checks, made from host arrays that the device copy will hold bit for bit."""
+    from aca_warp.hf.loop import preflight
+    from aca_warp.hf.model import host_model, upload
+    from aca_warp.hf.state import initial_state
+
+    host = host_model(scenes[start:stop], device=device, precision=spec.precision)
+    view = upload(host, "cpu", copy=False)  # the host arrays as a model, for the NumPy work that reads one
+    state = initial_state(view)
+    checked = preflight(view, state, run_options(spec), spec.base.record)
+    u, v = (a.copy() for a in state.numpy())
+    return PreparedBatch(start, stop, host, u, v, checked)
+
+
+# what a pool process runs, imported by the fork server (Warp's module, not its runtime: nothing is started there)
+_PRELOAD = [
+    __name__,
+    "aca_warp.hf.loop",
+    "aca_warp.hf.model",
+    "aca_warp.hf.state",
+    "aca_warp.kernels.neighbours",
+    "scipy.spatial",
+]
+
+
+_UNUSABLE: set[str] = set()  # devices this pool process could not start Warp on: it makes scenes only
+
+
+def _start_process(device: str | None) -> None:
+    """In a pool process: Ctrl-C reaches the whole process group, the client alone handles it; with ``device``, Warp
+    started and the neighbour search's kernels loaded there before the first shard. A device this process cannot use
+    (a GPU in exclusive-process mode, held by its worker) is left to the tasks: this process makes scenes only."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if device is not None:
+        from aca_warp.common.devices import init_warp, load_kernels
+
+        init_warp()  # before any import that starts Warp: quietly
+        from aca_warp.kernels import neighbours
+
+        try:
+            load_kernels([neighbours], device)
+        except Exception:  # noqa: BLE001  (no context there: the tasks build their models)
+            _UNUSABLE.add(device)
 
 
 class Preparer:
-    """A pool of ``processes`` CPU processes that prepares the shards of one sweep call (:func:`prepare_shard`), at
-    most ``ahead`` of them at a time beyond those taken.
+    """A pool of ``processes`` CPU processes that prepares the shards of one sweep call (:func:`prepare_shard`; with
+    ``device``, their models too), at most ``ahead`` of them at a time beyond those taken.
 
     :meth:`plan` names the shards in the order they will be taken; :meth:`get` waits for one (starting it now if it
-    had not started) and returns it or raises its error; :meth:`poll` says whether one is ready without waiting.
+    had not started) and returns it or raises its error; :meth:`poll` says whether one is ready without waiting;
+    :meth:`take` waits while the device has work, else leaves the shard to its task; :meth:`forget` drops one.
     Safe to use from several threads. :meth:`close` cancels what has not started.
     """
 
-    def __init__(self, doc: dict, base_dir: str, processes: int, ahead: int) -> None:
-        self.args = (doc, base_dir)
+    def __init__(
+        self,
+        doc: dict,
+        base_dir: str,
+        processes: int,
+        ahead: int,
+        *,
+        device: str | None = None,
+        memory_fraction: float = 0.5,
+        sharing: int = 1,
+    ) -> None:
+        self.prepare = functools.partial(
+            prepare_shard, doc, base_dir, device=device, memory_fraction=memory_fraction, sharing=sharing
+        )
         self.ahead = max(1, ahead)
+        context = multiprocessing.get_context("forkserver")
+        context.set_forkserver_preload(_PRELOAD)  # imported once by this process's fork server, not per process
         self.pool = ProcessPoolExecutor(
-            max_workers=max(1, processes), mp_context=multiprocessing.get_context("spawn"), initializer=_ignore_sigint
+            max_workers=max(1, processes), mp_context=context, initializer=_start_process, initargs=(device,)
         )
         self.waiting: deque[int] = deque()
         self.futures: dict[int, Future] = {}
@@ -92,19 +257,29 @@ class Preparer:
     def _top_up(self) -> None:
         while self.waiting and len(self.futures) < self.ahead:
             i = self.waiting.popleft()
-            self.futures[i] = self.pool.submit(prepare_shard, *self.args, i)
+            self.futures[i] = self.pool.submit(self.prepare, i)
 
     def _future(self, index: int) -> Future:
         with self.lock:
             if index not in self.futures:  # asked for out of turn: start it now
                 if index in self.waiting:
                     self.waiting.remove(index)
-                self.futures[index] = self.pool.submit(prepare_shard, *self.args, index)
+                self.futures[index] = self.pool.submit(self.prepare, index)
             return self.futures[index]
 
     def poll(self, index: int) -> bool:
         """Whether shard ``index``'s preparation has finished (successfully or not)."""
         return self._future(index).done()
+
+    def forget(self, index: int) -> None:
+        """Drop shard ``index``: its task prepares it itself (a preparation under way finishes unused)."""
+        with self.lock:
+            if index in self.waiting:
+                self.waiting.remove(index)
+            fut = self.futures.pop(index, None)
+            if fut is not None:
+                fut.cancel()
+            self._top_up()
 
     def get(self, index: int, cancel: threading.Event | None = None) -> PreparedShard:
         """Shard ``index``, prepared: waits for it; raises its error, or :class:`ShardCancelled` when ``cancel`` is
@@ -121,6 +296,19 @@ class Preparer:
             with self.lock:
                 self.futures.pop(index, None)
                 self._top_up()
+
+    def take(self, index: int, idle: Callable[[], bool], cancel: threading.Event | None = None) -> PreparedShard | None:
+        """Shard ``index`` prepared, waiting for it while ``idle()`` is False (the device has other work); None once
+        it is not ready and ``idle()`` is True: the shard is then dropped (:meth:`forget`) and its task prepares it,
+        rather than leave the device waiting. Raises as :meth:`get`."""
+        while not self.poll(index):
+            if idle():
+                self.forget(index)
+                return None
+            if cancel is not None and cancel.is_set():
+                raise ShardCancelled()
+            time.sleep(0.005)
+        return self.get(index, cancel)
 
     def close(self) -> None:
         """Cancel the preparations not begun and let the pool's processes go (they finish the one in hand)."""

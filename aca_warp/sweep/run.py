@@ -2,10 +2,12 @@
 
 :func:`run_sweep` holds the directory's lock, prepares the manifest and hands the shards to one of three paths:
 :func:`_run_in_process` (one shard after another), :func:`_run_in_process_overlapped` (:data:`PIPELINE_DEPTH`
-shard tasks in threads: one steps while the next prepares its scenes and file, samples written behind the run), or
-:func:`~aca_warp.sweep.cluster._run_on_dask`; on every path a :class:`~aca_warp.sweep.prepare.Preparer` may make the
-shards' scenes ahead in a pool of processes (:func:`prepare_processes`). A ``KeyboardInterrupt`` stops the shards in
-flight, marks them ``interrupted`` and is raised again.
+shard tasks in threads: one steps while the next waits ready and the last finishes its file, samples written behind
+the run), or :func:`~aca_warp.sweep.cluster._run_on_dask` (the same threads in every worker process, one per GPU); on
+every path a :class:`~aca_warp.sweep.prepare.Preparer` may make the shards ahead in a pool of processes
+(:func:`prepare_processes`): scenes, models on the host, initial states and the runs' checks, so that a task only
+uploads, runs and writes. A ``KeyboardInterrupt`` stops the shards in flight, marks them ``interrupted`` and is
+raised again.
 """
 
 from __future__ import annotations
@@ -18,10 +20,10 @@ from pathlib import Path
 from typing import Any
 
 from aca_warp.common.errors import StorageError
-from aca_warp.sweep.cluster import WORKERS_PER_GPU, _have_dask, _run_on_dask, check_scheduler, cuda_ordinals
+from aca_warp.sweep.cluster import _have_dask, _run_on_dask, check_scheduler, cuda_ordinals, device_sharing
 from aca_warp.sweep.manifest import MANIFEST, SweepResult, _Book, _one_line, prepare_dir
-from aca_warp.sweep.overlap import ShardCancelled, ShardContext
-from aca_warp.sweep.prepare import Preparer
+from aca_warp.sweep.overlap import PIPELINE_DEPTH, ShardCancelled, ShardContext
+from aca_warp.sweep.prepare import PreparedShard, Preparer
 from aca_warp.sweep.shard import run_shard, shard_name
 from aca_warp.sweep.spec import SweepError, SweepSpec
 
@@ -43,19 +45,19 @@ def run_sweep(
     """Run every unfinished shard of ``spec`` into ``out_dir``.
 
     ``workers=0`` runs the shards in this process (no Dask). Otherwise a local Dask cluster is started
-    (``workers`` processes; default :data:`WORKERS_PER_GPU` per GPU of ``device`` with ``overlap``, else one, or
-    one per CPU core for ``cpu``), or the cluster at ``scheduler`` is used (its workers run on ``device``: ``cuda``
-    there means each worker's first visible GPU), or an open Dask ``client`` (``device`` as for a scheduler; see
-    :func:`local_cluster`; a scheduler that does not answer within :data:`~aca_warp.sweep.cluster.CONNECT_TIMEOUT_S`
-    is refused before anything is written). ``overlap`` (default): file writes, and on Dask model builds, overlap
-    the kernels (in this
-    process: :data:`PIPELINE_DEPTH` shard tasks in threads, each one's Warp work in its turn; on Dask: two worker
-    processes per GPU; both: a writer thread per shard and the device taken in turns, :class:`KernelTurn`); False:
-    the serial path, same results bit for bit. ``prepare``: processes that make the shards' scenes ahead of their
-    tasks (:mod:`aca_warp.sweep.prepare`; 0: each task makes its own; None: :func:`prepare_processes`), same results
-    bit for bit. The manifest is updated as shards finish. A ``KeyboardInterrupt``
-    (Ctrl-C, or SIGTERM as the CLI maps it) stops the shards in flight, marks them ``interrupted`` in the manifest
-    (the next call runs them) and is raised again.
+    (``workers`` processes; default one per GPU of ``device``, or one per CPU core for ``cpu``), or the cluster at
+    ``scheduler`` is used (its workers run on ``device``: ``cuda`` there means each worker's first visible GPU), or
+    an open Dask ``client`` (``device`` as for a scheduler; see :func:`local_cluster`; a scheduler that does not
+    answer within :data:`~aca_warp.sweep.cluster.CONNECT_TIMEOUT_S` is refused before anything is written).
+    ``overlap`` (default): :data:`PIPELINE_DEPTH` shard tasks at a time in this process or in each local worker
+    (threads), taking the device in turns (:class:`KernelTurn`), each writing its samples behind its run (a writer
+    thread), so that one shard runs while the next waits ready and the last finishes its file; False: the serial
+    path (one task per process, writes inline), same results bit for bit. ``prepare``: processes that make the
+    shards ahead of their tasks (:mod:`aca_warp.sweep.prepare`: scenes and, where the neighbour search can run on a
+    device of the run's kind here (:func:`prepare_device`), models on the host, initial states and the runs'
+    checks; 0: each task makes its own; None: :func:`prepare_processes`), same results bit for bit. The manifest is
+    updated as shards finish. A ``KeyboardInterrupt`` (Ctrl-C, or SIGTERM as the CLI maps it) stops the shards in
+    flight, marks them ``interrupted`` in the manifest (the next call runs them) and is raised again.
     """
     t0 = time.perf_counter()
     say = log or (lambda s: None)
@@ -81,14 +83,20 @@ def run_sweep(
                 workers = 0
             local = scheduler is None and client is None
             processes = prepare_processes(device, workers, local) if prepare is None else prepare
-            preparer = Preparer(*args[:2], processes, ahead=2 * processes) if processes > 0 else None
+            sharing = device_sharing(device, workers, scheduler, client)
+            preparer = None
+            if processes > 0:
+                made = {"device": prepare_device(device, local), "memory_fraction": memory_fraction, "sharing": sharing}
+                preparer = Preparer(*args[:2], processes, ahead=2 * processes, **made)
+                preparer.plan(book.todo)  # the pool starts now, beside a local cluster's start
             try:
                 if workers == 0 and local:
                     dev = device if device == "cpu" else f"cuda:{cuda_ordinals(device)[0]}"
                     run = _run_in_process_overlapped if overlap else _run_in_process
                     run(book, args, dev, memory_fraction, preparer)
                 else:
-                    _run_on_dask(book, args, device, workers, scheduler, client, memory_fraction, overlap, preparer)
+                    job = (book, args, device, workers, scheduler, client, memory_fraction, overlap, preparer, sharing)
+                    _run_on_dask(*job)
             finally:
                 if preparer is not None:
                     preparer.close()
@@ -102,26 +110,47 @@ PREPARE_PER_GPU = 2  # default preparation processes per GPU of a local sweep (p
 
 def prepare_processes(device: str, workers: int | None, local: bool) -> int:
     """Default size of the preparation pool: on CUDA :data:`PREPARE_PER_GPU` per GPU of a local sweep (a cluster
-    this call starts, or this process), at most the cores its workers leave; 0 (each task makes its own scenes) on
+    this call starts, or this process), at most the cores its workers leave; 0 (each task makes its own shard) on
     the CPU, whose cores the workers use, and with a scheduler or client given (their hosts are not known here)."""
     if device == "cpu" or not local:
         return 0
     gpus = len(cuda_ordinals(device))
-    busy = gpus * WORKERS_PER_GPU if workers is None else workers
+    busy = gpus if workers is None else workers
     return max(1, min(PREPARE_PER_GPU * gpus, (os.cpu_count() or 1) - busy - 1))
+
+
+def prepare_device(device: str, local: bool) -> str | None:
+    """Where a preparation pool searches the neighbours of the models it makes (a device of the run's kind, so that
+    they are the task's own bit for bit): the CPU for a CPU sweep, the first GPU of a local CUDA sweep, this host's
+    first GPU for a cluster's (the workers' GPUs are taken to be of its model); None where this host has no GPU (the
+    pool makes the scenes only, the tasks their models)."""
+    if device == "cpu":
+        return "cpu"
+    if local:
+        return f"cuda:{cuda_ordinals(device)[0]}"
+    import warp as wp
+
+    from aca_warp.common.devices import init_warp
+
+    init_warp()
+    return "cuda:0" if wp.get_cuda_device_count() > 0 else None
+
+
+def _take(preparer: Preparer | None, i: int, idle: Callable[[], bool], cancel: Any = None) -> PreparedShard | None:
+    """Shard ``i`` as the pool prepared it, or None (its task prepares it) when there is no pool, or when it is not
+    ready and ``idle()`` says the device would wait for it (:meth:`Preparer.take`)."""
+    return None if preparer is None else preparer.take(i, idle, cancel)
 
 
 def _run_in_process(book: _Book, args: tuple, dev: str, memory_fraction: float, preparer: Preparer | None) -> None:
     """The serial path: one shard after another in this thread (``preparer``: scenes made ahead)."""
     running: set[int] = set()
-    if preparer is not None:
-        preparer.plan(book.todo)
     try:
         for i in book.todo:
             running = {i}
             book.queued([i])
             try:
-                prepared = None if preparer is None else preparer.get(i)
+                prepared = _take(preparer, i, lambda: True)  # nothing else runs: ready, or prepared in the task
                 summary = run_shard(*args, i, dev, memory_fraction=memory_fraction, prepared=prepared)
             except StorageError as e:  # the device is full: the other shards would fail the same way
                 book.failed(i, _one_line(e))
@@ -137,27 +166,37 @@ def _run_in_process(book: _Book, args: tuple, dev: str, memory_fraction: float, 
         raise
 
 
-PIPELINE_DEPTH = 2  # shard tasks at a time in one process (overlapped path): one runs, one prepares and writes
-
-
 def _run_in_process_overlapped(
     book: _Book, args: tuple, dev: str, memory_fraction: float, preparer: Preparer | None
 ) -> None:
-    """The overlapped path in this process: :data:`PIPELINE_DEPTH` shard tasks in threads, kernels in turns
-    (``preparer``: scenes made ahead)."""
+    """The overlapped path in this process: :data:`PIPELINE_DEPTH` shard tasks in threads, the device in turns
+    (``preparer``: shards made ahead; one that is not ready when no other task is under way is made by its task)."""
     from concurrent.futures import ThreadPoolExecutor, as_completed, wait
 
     cancel = threading.Event()
     ctx = ShardContext(overlap=True, cancel=cancel)
     started: set[int] = set()
+    active: set[int] = set()  # tasks that hold their shard and have not finished
+    guard = threading.Lock()
 
     def task(i: int) -> dict:
         started.add(i)
-        prepared = None if preparer is None else preparer.get(i, cancel)
-        return run_shard(*args, i, dev, memory_fraction=memory_fraction, ctx=ctx, prepared=prepared)
 
-    if preparer is not None:
-        preparer.plan(book.todo)
+        def idle() -> bool:  # no other task under way: claim the device for this one, prepared here
+            with guard:
+                if not active:
+                    active.add(i)
+                return i in active
+
+        try:
+            prepared = _take(preparer, i, idle, cancel)
+            with guard:
+                active.add(i)
+            return run_shard(*args, i, dev, memory_fraction=memory_fraction, ctx=ctx, prepared=prepared)
+        finally:
+            with guard:
+                active.discard(i)
+
     book.queued(book.todo)
     pool = ThreadPoolExecutor(max_workers=PIPELINE_DEPTH, thread_name_prefix="aca-warp-shard")
     futures = {pool.submit(task, i): i for i in book.todo}

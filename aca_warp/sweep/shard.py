@@ -1,9 +1,10 @@
-"""One shard task: its scenes, batched HF run(s) and HDF5 file (the function a Dask worker runs).
+"""One shard task: its batched HF run(s) and HDF5 file (the function a Dask worker runs).
 
-:func:`run_shard` builds the shard's pads as one batch (several when the memory estimate, :func:`batch_capacity`,
-says they do not fit), runs them, streams the samples into ``shard-NNNNN.h5.partial`` (inline, or behind the run
-through a :class:`~aca_warp.sweep.overlap.ChunkWriter`) and renames the file when done. :func:`shard_finished` tells
-a finished shard file from one to run again.
+:func:`run_shard` takes the shard's batches prepared on the host (:mod:`aca_warp.sweep.prepare`) and puts them on the
+device, or builds them itself (the shard's pads as one batch, several when the memory estimate,
+:func:`~aca_warp.sweep.prepare.batch_capacity`, says they do not fit), runs them, streams the samples into
+``shard-NNNNN.h5.partial`` (inline, or behind the run through a :class:`~aca_warp.sweep.overlap.ChunkWriter`) and
+renames the file when done. :func:`shard_finished` tells a finished shard file from one to run again.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import os
 import time
 import traceback
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -22,45 +24,8 @@ import numpy as np
 
 from aca_warp.scene import Scene
 from aca_warp.sweep.overlap import ChunkWriter, KernelTurn, ShardCancelled, ShardContext
-from aca_warp.sweep.prepare import PreparedShard, prepare_shard
+from aca_warp.sweep.prepare import PreparedBatch, PreparedShard, prepare_shard, run_options, shard_capacity
 from aca_warp.sweep.spec import FORMAT, PARAMETERS, SweepSpec
-
-# -------------------------------------------------------------------------------------------- memory
-
-
-def pad_bytes(scene: Scene, precision: str) -> int:
-    """Estimated device bytes of one pad in a batch (model, state, solver scratch, CSR, recorder) [B].
-
-    Per patch: 10 model arrays and ``patch_pad`` (10 T + 4), state u, u̇, force and the synchronous velocity
-    (4 T), adaptive trial buffers (5 T); per directed link: index, inverse distance, stiffness (4 + 2 T); per
-    pad: 257 recorded rows × 5 float64. Doubled for the neighbour build's temporaries and allocator slack.
-    """
-    from scipy.spatial import cKDTree
-
-    t = 4 if precision == "fp32" else 8
-    p = scene.patches
-    links = 2 * len(cKDTree(np.column_stack([p.x, p.y])).query_pairs(scene.material.coupling_radius))
-    per_patch = 10 * t + 4 + 4 * t + 5 * t + 4
-    return int(2 * (p.count * per_patch + links * (4 + 2 * t) + 257 * 5 * 8))
-
-
-def device_memory(device: str) -> int:
-    """Free memory of a Warp device (CUDA: free device memory; CPU: available host memory) [B]."""
-    import warp as wp
-
-    dev = wp.get_device(device)
-    if dev.is_cuda:
-        return int(dev.free_memory)
-    try:
-        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):  # pragma: no cover
-        return int(dev.total_memory or 8 * 2**30)
-
-
-def batch_capacity(scene: Scene, precision: str, device: str, *, fraction: float = 0.5, sharing: int = 1) -> int:
-    """How many pads like ``scene`` fit in ``fraction`` of the device's free memory, split ``sharing`` ways."""
-    return max(1, int(fraction * device_memory(device) / max(1, sharing) / pad_bytes(scene, precision)))
-
 
 # ---------------------------------------------------------------------------------------------- shard
 
@@ -71,26 +36,38 @@ def shard_name(index: int) -> str:
 
 
 class _Clock:
-    """Seconds per phase of a shard task, summed; ``with clock("build"): ...``."""
+    """Seconds per phase of a shard task, summed, and the wall-clock time (``time.time()``) each phase first began
+    and last ended (:attr:`spans`); ``with clock("build"): ...``."""
 
     def __init__(self) -> None:
         self.s: dict[str, float] = {}
+        self.spans: dict[str, list[float]] = {}
 
     def add(self, phase: str, seconds: float) -> None:
         self.s[phase] = self.s.get(phase, 0.0) + seconds
 
+    def span(self, phase: str, began: float, ended: float) -> None:
+        got = self.spans.get(phase)
+        self.spans[phase] = [began, ended] if got is None else [min(got[0], began), max(got[1], ended)]
+
     @contextlib.contextmanager
     def __call__(self, phase: str) -> Iterator[None]:
-        t = time.perf_counter()
+        t, began = time.perf_counter(), time.time()
         try:
             yield
         finally:
             self.add(phase, time.perf_counter() - t)
+            self.span(phase, began, time.time())
+
+    def timings(self, **extra: float) -> dict:
+        """The seconds per phase, ``extra`` and the spans (:data:`TIMING_DOC`)."""
+        return {**self.s, **extra, "spans": {k: list(v) for k, v in self.spans.items()}}
 
 
 TIMING_PHASES = (
     "prepare",
     "prepare_ahead",
+    "upload",
     "build",
     "setup",
     "kernel",
@@ -103,15 +80,17 @@ TIMING_PHASES = (
 )
 TIMING_DOC = """Seconds per phase of a shard task:
 prepare: the spec and the shard's scenes (taken as prepared ahead: almost nothing) and the memory estimate;
-prepare_ahead: present when a preparation pool made the spec and scenes before the task began, the time it took
-there (not part of the task); build: build_model and initial_state (contact solve, neighbour lists,
-device arrays); setup: run_hf before its first step (checks, engine, launch layout; RunResult.compile_time);
-kernel: the run loop less the time in the sink (steps, recording, flushing to the host); sink: time inside the
-sink (serial: the HDF5 writes; overlapped: handing chunks to the writer, and the wait for the GPU's turn);
-write: header and chunk writes (overlapped: in the writer thread, beside the run); turn_wait: waiting for the
-device's turn; write_wait: waiting after the run for the writer to finish; close: final attributes, close and
-rename (not in the file's own copy); task: the whole task. run_start, run_end: wall-clock time (time.time()) when
-the run began and ended [s]."""
+prepare_ahead: present when a preparation pool made the shard before the task began, the time it took there (not
+part of the task); upload: putting prepared batches (models and initial states) on the device; build: build_model
+and initial_state in the task (contact solve, neighbour lists, device arrays), when the shard was not prepared;
+setup: run_hf before its first step (checks unless prepared, engine, launch layout; RunResult.compile_time);
+kernel: the run loop less the time in the sink (steps, recording, flushing to the host); sink: time inside the sink
+(serial: the HDF5 writes; overlapped: handing chunks to the writer); write: header and chunk writes (overlapped: in
+the writer thread, beside the run); turn_wait: waiting for the device's turn; write_wait: waiting after the run for
+the writer to finish; close: final attributes, close and rename (not in the file's own copy); task: the whole task.
+run_start, run_end: wall-clock time (time.time()) when the run began and ended [s]. spans: per phase the wall-clock
+times it first began and last ended, [start, end] [s] (prepare_ahead: in the pool; write: the first and last write;
+setup and kernel: of the run calls), so that shards' phases on one device can be laid on one time line."""
 
 
 def _create_shard_file(
@@ -222,23 +201,25 @@ def run_shard(
 ) -> dict:
     """Run shard ``index`` of the spec ``doc`` (already resolved, overrides applied) and write its file.
 
-    This is the task a Dask worker runs; it rebuilds the spec from ``doc`` and makes the shard's scenes
-    (:func:`~aca_warp.sweep.prepare.prepare_shard`; cheap, deterministic), or takes them ``prepared`` ahead by a
-    :class:`~aca_warp.sweep.prepare.Preparer`; runs the shard's pads as one batch (several when the memory estimate
-    says they do not fit), streams the samples into ``shard-NNNNN.h5.partial`` and renames it when done.
-    ``overlap``: write the samples behind the run (a :class:`ChunkWriter` thread) and take the device in turns
-    (:class:`KernelTurn`), so that several tasks of one process overlap their scenes and writes, and several
-    processes on one GPU also their model builds, with each other's kernels (``ctx`` overrides it, with a cancel
-    event). Same results either way. Returns a summary for the manifest, with the time per phase (``timings``,
-    :data:`TIMING_DOC`).
+    This is the task a Dask worker runs. ``prepared`` (by a :class:`~aca_warp.sweep.prepare.Preparer`): the shard's
+    spec and scenes, and its batches made on the host, which the task puts on the device as they are (when they are
+    no larger than the device holds now: :func:`~aca_warp.sweep.prepare.shard_capacity`); otherwise the task
+    resolves the spec and makes the scenes (:func:`~aca_warp.sweep.prepare.prepare_shard`; cheap, deterministic)
+    and builds its batches itself. The shard's pads run as one batch (several when the memory estimate says they
+    do not fit); the samples stream into ``shard-NNNNN.h5.partial``, renamed when done. ``overlap``: write the
+    samples behind the run (a :class:`ChunkWriter` thread) and take the device in turns (:class:`KernelTurn`,
+    from the first upload or build to the end of the run), so that the tasks of a process overlap their waiting and
+    writing with each other's runs (``ctx`` overrides it, with a cancel event). Same results either way. Returns a
+    summary for the manifest, with the time per phase (``timings``, :data:`TIMING_DOC`).
     """
     import warp as wp
 
+    from aca_warp.common.devices import init_warp
     from aca_warp.common.files import OutputLock, new_path
     from aca_warp.common.storage import storage_errno, storage_error
 
     ctx = ctx or ShardContext(overlap=overlap)
-    wp.config.log_level = wp.LOG_WARNING
+    init_warp()
     clock = _Clock()
     t_start = time.perf_counter()
     ctx.check()
@@ -247,12 +228,15 @@ def run_shard(
             prepared = prepare_shard(doc, base_dir, index)
         else:
             clock.add("prepare_ahead", prepared.seconds)
+            clock.span("prepare_ahead", *prepared.span)
         if prepared.index != index:
             raise ValueError(f"shard {index} was handed the scenes of shard {prepared.index}")
         spec, pads, scenes = prepared.spec, prepared.pads, prepared.scenes
         dev = wp.get_device(device)
-        largest = max(scenes, key=lambda s: s.patches.count)
-        cap = batch_capacity(largest, spec.precision, device, fraction=memory_fraction, sharing=sharing)
+        cap = shard_capacity(scenes, spec.precision, device, memory_fraction, sharing)
+        fits = prepared.batches and max(b.stop - b.start for b in prepared.batches) <= cap
+        batches = prepared.batches if fits else []
+        cap = prepared.capacity if batches else cap
     final = Path(out_dir) / shard_name(index)
     partial = final.with_name(final.name + ".partial")
     n_samples = max(1, round(spec.duration / spec.base.record.sample_dt)) + 1
@@ -266,10 +250,11 @@ def run_shard(
             f, out = _create_shard_file(tmp, partial, lock, spec, index, scenes, dev, n_samples)
         write = _chunk_writer(f, out, len(pads))
         writer = ChunkWriter(write) if ctx.overlap else None
-        run = _run_batches(spec, scenes, dev, cap, ctx, clock, turn, writer.put if writer else write, pads)
+        work = _Work(spec, dev, ctx, clock, turn, writer.put if writer else write)
+        run = _run_batches(work, scenes, batches, cap, pads)
         _end_run(turn, writer, clock)
         clock.add("task", time.perf_counter() - t_start)
-        timings = {**clock.s, "run_start": run["run_start"], "run_end": run["run_end"]}
+        timings = clock.timings(run_start=run["run_start"], run_end=run["run_end"])
         with clock("close"):
             for k, v in run["attrs"].items():
                 f.attrs[k] = v
@@ -295,6 +280,7 @@ def run_shard(
             turn.exit()
         lock.release()
     timings["close"] = clock.s["close"]
+    timings["spans"]["close"] = clock.spans["close"]
     timings["task"] = time.perf_counter() - t_start
     return _summary(index, dev, final.name, scenes, run, timings)
 
@@ -308,16 +294,19 @@ def _end_run(turn: KernelTurn | None, writer: ChunkWriter | None, clock: _Clock)
         with clock("write_wait"):
             writer.close()
         clock.add("write", writer.seconds)
+        if writer.span:
+            clock.span("write", *writer.span)
     else:
         clock.add("write", clock.s.get("sink", 0.0))
 
 
 def _summary(index: int, dev: Any, file: str, scenes: list[Scene], run: dict, timings: dict) -> dict:
-    """The manifest entry of a finished shard (:func:`run_shard`)."""
+    """The manifest entry of a finished shard (:func:`run_shard`); ``process``: the id of the process that ran it."""
     return {
         "index": index,
         "device": str(dev),
         "device_name": dev.name,
+        "process": os.getpid(),
         "batches": run["batches"],
         "state": "done" if run["fault"] is None else "fault",
         "file": file,
@@ -332,28 +321,33 @@ def _summary(index: int, dev: Any, file: str, scenes: list[Scene], run: dict, ti
     }
 
 
-def _run_batches(
-    spec: SweepSpec,
-    scenes: list[Scene],
-    dev: Any,
-    cap: int,
-    ctx: ShardContext,
-    clock: _Clock,
-    turn: KernelTurn | None,
-    emit: Callable[[tuple[int, int, Any]], None],
-    pads: np.ndarray,
-) -> dict:
-    """Build and run the shard's pads (global indices ``pads``) in batches of at most ``cap``; every recorded chunk
-    goes to ``emit`` as ``(b0, b1, chunk)``. Returns the run's attributes for the file and its figures for the
-    summary."""
+@dataclass
+class _Work:
+    """What every batch of a shard task runs with: the sweep, the device, the task's context, clock and turn, and
+    where recorded chunks go (``emit((b0, b1, chunk))``)."""
+
+    spec: SweepSpec
+    dev: Any
+    ctx: ShardContext
+    clock: _Clock
+    turn: KernelTurn | None
+    emit: Callable[[tuple[int, int, Any]], None]
+
+
+def _run_batches(work: _Work, scenes: list[Scene], prepared: list[PreparedBatch], cap: int, pads: np.ndarray) -> dict:
+    """Run the shard's pads (global indices ``pads``): the ``prepared`` batches, or batches of at most ``cap`` pads
+    built here; every recorded chunk goes to ``work.emit`` as ``(b0, b1, chunk)``. Returns the run's attributes for
+    the file and its figures for the summary."""
     steps, wall, compile_time, batches = 0, 0.0, 0.0, 0
     engines: set[str] = set()
     fault = None
     dt_used = math.nan
     run_start = run_end = math.nan
-    for b0 in range(0, len(scenes), cap):
-        b1 = min(b0 + cap, len(scenes))
-        res, began = _run_batch(spec, scenes[b0:b1], b0, dev, ctx, clock, turn, emit)
+    ranges = [(b.start, b.stop) for b in prepared] or [
+        (b0, min(b0 + cap, len(scenes))) for b0 in range(0, len(scenes), cap)
+    ]
+    for k, (b0, b1) in enumerate(ranges):
+        res, began = _run_batch(work, scenes[b0:b1], b0, prepared[k] if prepared else None)
         run_start = began if math.isnan(run_start) else run_start
         run_end = time.time()
         batches += 1
@@ -395,49 +389,47 @@ def _pad_list(pads: np.ndarray) -> str:
     return shown + (f", ... ({len(pads)} pads)" if len(pads) > 8 else "")
 
 
-def _run_batch(
-    spec: SweepSpec,
-    scenes: list[Scene],
-    b0: int,
-    dev: Any,
-    ctx: ShardContext,
-    clock: _Clock,
-    turn: KernelTurn | None,
-    emit: Callable[[tuple[int, int, Any]], None],
-) -> tuple[Any, float]:
-    """Build and run one batch (the shard's pads [b0, b0 + len(scenes))) in its turn on the device; returns the
-    :class:`~aca_warp.hf.loop.RunResult` and the wall-clock time its run began (``time.time()``) [s]. Clock:
-    ``build``, ``setup``, ``kernel`` (the run less its sink), ``sink``."""
+def _run_batch(work: _Work, scenes: list[Scene], b0: int, prepared: PreparedBatch | None) -> tuple[Any, float]:
+    """Put one batch (the shard's pads [b0, b0 + len(scenes))) on the device in its turn, as ``prepared`` or built
+    here, and run it; returns the :class:`~aca_warp.hf.loop.RunResult` and the wall-clock time its run began
+    (``time.time()``) [s]. Clock: ``turn_wait`` (its span), ``upload`` or ``build``, ``setup``, ``kernel`` (the run
+    less its sink), ``sink``."""
     from aca_warp.hf.loop import run_hf
-    from aca_warp.hf.model import build_model
-    from aca_warp.hf.options import RunOptions
-    from aca_warp.hf.state import initial_state
+    from aca_warp.hf.model import build_model, upload
+    from aca_warp.hf.state import initial_state, state_from_host
 
+    spec, dev, ctx, clock, turn = work.spec, work.dev, work.ctx, work.clock, work.turn
     b1 = b0 + len(scenes)
     ctx.check()
     if turn is not None:
-        turn.enter()  # the build is Warp work too: see KernelTurn
-    with clock("build"):
-        model = build_model(scenes, device=dev, precision=spec.precision)
-        state = initial_state(model)
+        waiting = time.time()
+        turn.enter()
+        clock.span("turn_wait", waiting, time.time())
+    if prepared is None:
+        with clock("build"):
+            model = build_model(scenes, device=dev, precision=spec.precision)
+            state = initial_state(model)
+    else:
+        with clock("upload"):
+            model = upload(prepared.model, dev)
+            state = state_from_host(model, prepared.u, prepared.v)
 
     def sink(chunk: Any) -> None:
         t = time.perf_counter()
         ctx.check()
-        if turn is not None:
-            turn.first_chunk()
-        emit((b0, b1, chunk))
+        work.emit((b0, b1, chunk))
         clock.add("sink", time.perf_counter() - t)
 
-    options = RunOptions(
-        duration=spec.duration, integrator=spec.integrator, dt=spec.dt, tolerance=spec.tolerance
-    )  # engine auto: the on-chip kernel on CUDA where the model allows it, else the general one
     sink_before = clock.s.get("sink", 0.0)
     began = time.time()
-    res = run_hf(model, state, options, record=spec.base.record, sink=sink)
+    checked = None if prepared is None else prepared.checked
+    res = run_hf(model, state, run_options(spec), record=spec.base.record, sink=sink, checked=checked)
+    ended = time.time()
     del model, state  # freed within the turn
     clock.add("setup", res.compile_time)
     clock.add("kernel", max(0.0, res.wall_time - (clock.s.get("sink", 0.0) - sink_before)))
+    clock.span("setup", began, began + res.compile_time)
+    clock.span("kernel", began + res.compile_time, ended)
     return res, began
 
 
