@@ -49,6 +49,11 @@ def counts(text: str) -> dict[str, int]:
     return found
 
 
+def failures(text: str) -> list[str]:
+    """The ids of the tests that failed or errored, from pytest's short summary (``-ra``)."""
+    return re.findall(r"^(?:FAILED|ERROR) (\S+)", text, flags=re.MULTILINE)
+
+
 def durations(text: str, n: int) -> dict:
     """The ``n`` slowest tests (setup + call + teardown [s]), the ``n`` files of the largest total [s] and every
     file's total (``file_seconds``: the order in which tests/conftest.py hands files to the workers), from pytest's
@@ -90,7 +95,7 @@ def run(args: argparse.Namespace) -> dict:
             command + timing, cwd=clone, env=env, capture_output=True, text=True, timeout=args.timeout
         )
         wall, cpu, load_after = time.perf_counter() - t0, cpu_of_children() - cpu0, os.getloadavg()
-    if done.returncode not in (0, 1):
+    if done.returncode != 0:
         sys.stderr.write(done.stdout[-3000:] + done.stderr[-3000:])
     return {
         "command": f"python3 -m pytest -q -n {args.n} tests",
@@ -101,6 +106,7 @@ def run(args: argparse.Namespace) -> dict:
         "kernel_cache": "cold (empty)" if args.cold else "warm (Warp's cache of this machine)",
         "exit_code": done.returncode,
         **counts(done.stdout),
+        "failures": failures(done.stdout),
         "wall_s": wall,
         "cpu_s": cpu,
         "load_before": load_before[0],
@@ -135,6 +141,7 @@ def markdown(r: dict) -> str:
         "| passed | skipped | failed | wall | CPU (user + sys) |\n|---|---|---|---|---|\n"
         f"| {r['passed']} | {r['skipped']} | {r['failed'] + r['errors']} | {minutes(r['wall_s'])} | "
         f"{minutes(r['cpu_s'])} |\n"
+        + ("\nFailed: " + ", ".join(f"`{t}`" for t in r["failures"]) + "\n" if r.get("failures") else "")
         + (
             "\nTime of each test (setup + call + teardown; under `-n` the workers share the cores, so a test takes "
             "longer than alone) and of each file (its tests together, on one worker):\n"
