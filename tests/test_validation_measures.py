@@ -248,7 +248,7 @@ def test_stepping_takes_the_fixed_step_the_friction_step_rule_the_cap_or_an_over
     from aca_warp.studies.validation import settings as VSet
 
     hf = VSet.STEPPING["hf"]
-    assert hf.step(8.8e-8) == hf.step(1.9e-7) == 1e-7  # the measured step, whatever the friction step
+    assert hf.step(8.8e-8) == hf.step(1.9e-7) == 5e-8  # the measured step, whatever the friction step
     growth = VB.Config().stepping("growth")
     assert growth.step(1.34e-8) == pytest.approx(1.206e-8)  # 0.9 × the friction step
     assert growth.step(1.9e-7) == 8e-8  # capped
