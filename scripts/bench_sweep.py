@@ -180,6 +180,8 @@ def child(cfg: dict) -> dict:
     for mode ``host``, :func:`host_phases`)."""
     if cfg["mode"] == "host":
         return host_phases(cfg)
+    if cfg.get("command"):
+        return command_sweep(cfg)
     import warp as wp
 
     import aca_warp
@@ -246,6 +248,41 @@ def child(cfg: dict) -> dict:
         "phase_total_s": {p: sum(t.get(p, 0.0) for t in timings) for p in PHASES},
         "shards": [{"index": s["index"], **s["timings"]} for s in sorted(res.summaries, key=lambda s: s["index"])],
         "timeline": timeline(res.summaries, called, res.wall_time),
+    }
+
+
+def command_sweep(cfg: dict) -> dict:
+    """The sweep as ``aca-warp sweep`` runs it: one ``run_sweep`` call that starts its preparation pool, then its own
+    local cluster (its default workers), then hands out the shards; timed from the call's start (the pool's head
+    start beside the cluster's start is inside it). Run in a process of its own after the configuration's warm-up
+    (the kernels are in the disk cache then: loaded, not compiled; the pool's fork server starts in the call)."""
+    import inspect
+
+    import aca_warp
+    from aca_warp.sweep import hf1_product_doc, load_spec, run_sweep
+
+    spec = load_spec(
+        sweep_doc(hf1_product_doc, cfg["pads"], cfg["patches"], cfg["shard_size"], cfg["duration"], cfg["precision"])
+    )
+    units, cpu = cfg["units"], cfg["device"] == "cpu"
+    device = "cpu" if cpu else ",".join(f"cuda:{i}" for i in range(units))
+    kwargs: dict[str, Any] = {"device": device, "workers": units if cpu else None, "overlap": True}
+    if "prepare" in inspect.signature(run_sweep).parameters:
+        kwargs["prepare"] = cfg["prepare"]
+    called = time.time()
+    res = run_sweep(spec, Path(cfg["dir"]) / "command", **kwargs)
+    if res.failed or res.faults:
+        raise SystemExit(f"{cfg['code']} command: failed shards {res.failed}, faults {res.faults}")
+    line = timeline(res.summaries, called, res.wall_time)
+    first: dict[str, dict] = {}
+    for s in sorted(res.summaries, key=lambda s: s["timings"]["run_start"]):
+        first.setdefault(str(s.get("process", "?")), s["timings"])
+    return {
+        "package": str(Path(aca_warp.__file__).parent),
+        "command_wall_s": res.wall_time,
+        "command_rate": res.patch_steps / res.wall_time,
+        "command_first_prepared": sum("upload" in t for t in first.values()),
+        "command_timeline": line,
     }
 
 
@@ -338,6 +375,8 @@ def summarise(rows: list[dict]) -> None:
         same = [q for q in rows if q["code"] == r["code"] and q["mode"] == r["mode"]]
         first = min(same, key=lambda q: q["units"])
         r["speedup_vs_fewest_units"] = r["wall_rate"] / first["wall_rate"]
+        if "command_rate" in r and "command_rate" in first:
+            r["command_speedup_vs_fewest_units"] = r["command_rate"] / first["command_rate"]
         if ref is not None:
             r["wall_over_reference_in_shard"] = r["wall_rate"] / (r["units"] * ref["in_shard_rate"])
 
@@ -363,6 +402,13 @@ def markdown_line(doc: dict) -> str:
             + (f"upload {ph['upload']:.2f}, " if ph.get("upload") else "")
             + f"build {ph['build']:.2f}, setup {ph['setup']:.2f}, kernel {ph['kernel']:.2f} s"
             + device_time(r["timeline"]["devices"])
+            + (
+                f"; the whole call as the command runs it (pool, cluster start, shards): {r['command_wall_s']:.1f} s, "
+                f"{r['command_speedup_vs_fewest_units']:.2f}× its fewest-{unit} rate, first shard prepared ahead "
+                f"on {r['command_first_prepared']} of {len(r['command_timeline']['devices'])} worker(s)"
+                if "command_speedup_vs_fewest_units" in r
+                else ""
+            )
         )
     for h in doc.get("host", []):
         w, c = h["wall_s"], h["cpu_s"]
@@ -458,6 +504,8 @@ def main(argv: list[str] | None = None) -> int:
         for rep in range(args.repeat):  # in turn: a slow spell of a shared machine spreads over every configuration
             for cfg in configurations(args):
                 r = {**run_child(codes[cfg["code"]].resolve(), cfg, scratch), "run": rep + 1}
+                if cfg["mode"] == "overlapped":  # the whole call, as the command runs it (its own cluster and pool)
+                    r.update(run_child(codes[cfg["code"]].resolve(), {**cfg, "command": True}, scratch))
                 runs.append(r)
                 ph = r["phase_median_s"]
                 print(

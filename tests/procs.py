@@ -193,3 +193,11 @@ def small_sweep_doc(name: str, *, count: int, duration: float, parameters: dict[
         "base": {"patches": {"count": count}},
         "parameters": parameters,
     }
+
+
+def gated(gate: str, fn: Any, *args: Any) -> Any:
+    """``fn(*args)`` once the file ``gate`` exists (at most 120 s later): work of a pool process held back by a test."""
+    deadline = time.monotonic() + 120.0
+    while not Path(gate).exists() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return fn(*args)

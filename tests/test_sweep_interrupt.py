@@ -73,19 +73,25 @@ def test_signal_marks_running_shards_and_rerun_finishes(
     tmp_path: Path, reference: tuple[Path, Path], sig: int, code: int, word: str, mode: list[str], capsys
 ) -> None:
     spec, ref = reference
-    out = tmp_path / "out"
-    args = ["sweep", str(spec), "-o", str(out), "--quiet", *mode]
-    proc = start(args)
-    _wait_for_running_shard(out, proc)
-    proc.send_signal(sig)
-    stdout, stderr = proc.communicate(timeout=120)
-    assert proc.returncode == code, stderr
-    lines = error_lines(stderr)
-    assert len(lines) == 1, stderr  # no traceback, no Dask shutdown chatter
-    assert lines[0].startswith(f"aca-warp: {word};") and "run the same command again" in lines[0]
-    assert "Traceback" not in stderr and "Traceback" not in stdout
-
-    states = _states(out)
+    for attempt in range(3):
+        out = tmp_path / f"out{attempt}"
+        args = ["sweep", str(spec), "-o", str(out), "--quiet", *mode]
+        proc = start(args)
+        _wait_for_running_shard(out, proc)
+        proc.send_signal(sig)
+        stdout, stderr = proc.communicate(timeout=120)
+        assert proc.returncode == code, stderr
+        lines = error_lines(stderr)
+        assert len(lines) == 1, stderr  # no traceback, no Dask shutdown chatter
+        assert lines[0].startswith(f"aca-warp: {word};") and "run the same command again" in lines[0]
+        assert "Traceback" not in stderr and "Traceback" not in stdout
+        states = _states(out)
+        # the signal came after the shards that ran had finished (on two Dask workers the first two run side by
+        # side, and on a loaded machine the second may end between the first's end and the signal): nothing was
+        # left to interrupt, and nothing was; the check needs a signal during a run, so it is made again
+        if "interrupted" in states or set(states) - {"done", "pending"}:
+            break
+        assert "marked interrupted" not in lines[0], lines[0]
     assert "interrupted" in states and "queued" not in states, states
     assert set(states) <= {"done", "interrupted", "pending"}, states
     hit = [i for i, s in enumerate(states) if s == "interrupted"]

@@ -15,7 +15,7 @@ import h5py
 import numpy as np
 import psutil
 import pytest
-from procs import small_sweep_doc
+from procs import gated, small_sweep_doc
 
 from aca_warp.hf.recorder import GLOBAL_NAMES
 from aca_warp.sweep import load_spec, load_sweep, run_sweep
@@ -253,6 +253,50 @@ def test_prepared_shards_on_dask(tmp_path: Path) -> None:
         client.close()
         cluster.close()
     assert np.isfinite(a["mu"]).all()
+
+
+@pytest.mark.parametrize("pool", ["ahead", "behind"])
+def test_head_start_prepares_every_worker_s_first_shard(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, pool: str
+) -> None:
+    """A sweep that starts its own cluster starts its pool first: when the pool has the first shards ready by the
+    time the workers are (held here until it has), the first shard of every worker is uploaded, not built; when it
+    has not (its work held back until the sweep ends), every worker builds its first shard rather than wait."""
+    pytest.importorskip("distributed")
+    import functools
+
+    from aca_warp.sweep import cluster
+
+    gate = tmp_path / "gate"
+    if pool == "ahead":
+        gate.touch()
+    made = Preparer.__init__
+
+    def held(self: Preparer, *args, **kwargs) -> None:
+        made(self, *args, **kwargs)
+        self.prepare = functools.partial(gated, str(gate), self.prepare)
+
+    fed = cluster._feed
+
+    def feed(book, submit, preparer, **kwargs) -> None:
+        if pool == "ahead":  # the cluster took as long as the pool needed for the first shard of each worker
+            for i in (0, 1):
+                _in_time(lambda i=i: preparer._future(i).result(), 120)
+        fed(book, submit, preparer, **kwargs)
+
+    monkeypatch.setattr(Preparer, "__init__", held)
+    monkeypatch.setattr(cluster, "_feed", feed)
+    try:
+        res = _in_time(lambda: run_sweep(_spec(), tmp_path / "out", device="cpu", workers=2, prepare=2))
+    finally:
+        gate.touch()  # lets the held pool processes finish
+    assert res.ran == [0, 1, 2] and not res.failed
+    first: dict[str, dict] = {}
+    for s in sorted(res.summaries, key=lambda s: s["timings"]["run_start"]):
+        first.setdefault(s["process"], s["timings"])
+    assert len(first) == 2
+    phase = "upload" if pool == "ahead" else "build"
+    assert all(phase in t for t in first.values()), [sorted(t) for t in first.values()]
 
 
 def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

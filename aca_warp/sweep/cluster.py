@@ -255,6 +255,10 @@ def _run_on_dask(
                 )
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)  # TLS settings, if any, from Dask's configuration
             worker_device = "cuda:0" if device == "cuda" else device
+        if cluster is not None and preparer is not None:
+            # the workers load their kernels before the first shard is handed out: the pool's head start (begun
+            # beside the cluster's start) grows by that time, and the first turns no longer include it
+            warm_workers(client, worker_device)
         info = client.scheduler_info(n_workers=-1)["workers"]
         book.result.workers = len(info)
         threads = sum(int(w.get("nthreads", 1)) for w in info.values())
