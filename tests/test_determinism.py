@@ -99,8 +99,12 @@ def test_repeated_runs_are_bit_identical(integrator):
 
 
 @pytest.mark.parametrize("integrator", INTEGRATORS)
-def test_graph_and_eager_are_bit_identical(integrator):
-    """Replaying captured graphs gives exactly what eager launches give."""
+def test_graph_and_eager_are_bit_identical(integrator, monkeypatch):
+    """Replaying captured graphs gives exactly what eager launches give (every graph captured: on the CPU a short
+    run would otherwise launch eagerly, :func:`test_cpu_captures_only_graphs_that_pay`)."""
+    from aca_warp.hf import general
+
+    monkeypatch.setattr(general, "CPU_CAPTURE_REPLAYS", 0)
     c1, (u1, v1), r1 = run([scene_a()], integrator, use_graph=True)
     c2, (u2, v2), r2 = run([scene_a()], integrator, use_graph=False)
     assert_identical(c1, c2)
@@ -209,3 +213,22 @@ def test_continuing_a_run_matches_one_long_run():
     np.testing.assert_allclose(st.numpy()[0], u, rtol=1e-9, atol=1e-18)
     np.testing.assert_allclose(st.numpy()[1], v, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(c2.globals[-1], c_long.globals[-1], rtol=1e-9)
+
+
+def test_cpu_captures_only_graphs_that_pay():
+    """On the CPU a graph is captured only when it will be replayed CPU_CAPTURE_REPLAYS times or more (known for
+    fixed steps, counted for the adaptive runs); on a GPU always."""
+    from types import SimpleNamespace
+
+    from aca_warp.hf.general import CPU_CAPTURE_REPLAYS, GeneralEngine
+
+    def engine(cpu: bool) -> SimpleNamespace:
+        return SimpleNamespace(model=SimpleNamespace(device=SimpleNamespace(is_cpu=cpu)), graphs={}, _eager_uses={})
+
+    pays = GeneralEngine._capture_pays
+    cpu, gpu = engine(True), engine(False)
+    assert pays(gpu, 4, 1) and pays(gpu, 4, None)
+    assert not pays(cpu, 4, CPU_CAPTURE_REPLAYS - 1) and pays(cpu, 4, CPU_CAPTURE_REPLAYS)
+    assert [pays(cpu, 7, None) for _ in range(CPU_CAPTURE_REPLAYS + 1)] == [False] * CPU_CAPTURE_REPLAYS + [True]
+    cpu.graphs[5] = object()
+    assert pays(cpu, 5, 0)  # captured already: replayed whatever is left
