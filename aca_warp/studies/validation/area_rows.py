@@ -14,7 +14,6 @@ from aca_warp.studies.validation.verdicts import (
     NOT_COMPARABLE,
     direction_verdict,
     effect,
-    effect_text,
     spread_text,
     threshold_verdict,
     value_verdict,
@@ -200,31 +199,29 @@ def _late_minus_early(res: dict[str, Any] | None, key: str, log: bool = False) -
 
 
 def emergence_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    d = _late_minus_early(_pads(results), "peak_to_median")
-    return RowValue(
-        f"Δ ln(peak/median) of μ's spectrum, last − first third: {interval(d)}",
-        direction_verdict([effect(d, TONAL_MARGIN)]),
-        f"{TONALITY_BAND[0] / 1e3:g}–{TONALITY_BAND[1] / 1e3:g} kHz, linear trend removed per third; "
-        f"{effect_text(d, TONAL_MARGIN)}",
+    return RowValue.direction(
+        "Δ ln(peak/median) of μ's spectrum, last − first third",
+        _late_minus_early(_pads(results), "peak_to_median"),
+        TONAL_MARGIN,
+        f"{TONALITY_BAND[0] / 1e3:g}–{TONALITY_BAND[1] / 1e3:g} kHz, linear trend removed per third",
     )
 
 
 def transition_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    flat = _late_minus_early(_pads(results), "flatness")
-    return RowValue(
-        f"−Δ spectral flatness of μ's spectrum, last − first third: {interval(-flat)}",
-        direction_verdict([effect(flat, FLATNESS_MARGIN, -1.0)]),
-        "flatness: geometric over arithmetic mean of the power (≈ 0.56 for white noise, → 0 for a few lines); "
-        f"{effect_text(flat, FLATNESS_MARGIN, -1.0)}",
+    return RowValue.direction(
+        "−Δ spectral flatness of μ's spectrum, last − first third",
+        -_late_minus_early(_pads(results), "flatness"),
+        FLATNESS_MARGIN,
+        "flatness: geometric over arithmetic mean of the power (≈ 0.56 for white noise, → 0 for a few lines)",
     )
 
 
 def oscillation_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    d = _late_minus_early(_pads(results), "std", log=True)
-    return RowValue(
-        f"ln(std μ last third / first third): {interval(d)}",
-        direction_verdict([effect(d, GROWTH_MARGIN)]),
-        f"std about the linear trend per third; {effect_text(d, GROWTH_MARGIN)}",
+    return RowValue.direction(
+        "ln(std μ last third / first third)",
+        _late_minus_early(_pads(results), "std", log=True),
+        GROWTH_MARGIN,
+        "std about the linear trend per third",
     )
 
 

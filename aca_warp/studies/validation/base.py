@@ -19,7 +19,14 @@ from typing import Any
 import numpy as np
 
 from aca_warp.studies.report import clean
-from aca_warp.studies.validation.verdicts import FAILED, NOT_MEASURED
+from aca_warp.studies.validation.verdicts import (
+    FAILED,
+    NOT_MEASURED,
+    direction_verdict,
+    effect,
+    effect_text,
+    rules_verdict,
+)
 
 MM2 = 1.0e-6  # m² per mm²
 
@@ -231,6 +238,29 @@ class RowValue:
     value: str
     verdict: str
     notes: str = ""
+
+    @classmethod
+    def direction(
+        cls,
+        what: str,
+        d: np.ndarray,
+        margin: float,
+        before: str = "",
+        after: str = "",
+        *,
+        sign: float = 1.0,
+        snr: np.ndarray | None = None,
+    ) -> RowValue:
+        """The row of one directional effect ``d`` (one value per seed): the value "``what``: interval of d"; the
+        verdict of ``sign``·d against ``margin`` (:func:`~aca_warp.studies.validation.verdicts.direction_verdict`),
+        with ``snr`` (the same measure under the snr rule of Φ) undetermined where the two rules disagree
+        (``rules_verdict``); the notes ``before``, how the mean effect compares with the margin, ``after`` (joined by
+        "; ", the empty ones left out)."""
+        verdict = direction_verdict([effect(d, margin, sign)])
+        if snr is not None:
+            verdict = rules_verdict(verdict, d, snr, sign)
+        notes = "; ".join(t for t in (before, effect_text(d, margin, sign), after) if t)
+        return cls(f"{what}: {interval(d)}", verdict, notes)
 
 
 @dataclass(frozen=True)

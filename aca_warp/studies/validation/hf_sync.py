@@ -62,11 +62,13 @@ def spread_row_for(a: str, b: str):  # noqa: ANN201
         rel, snr = _ruled(results, a, b, "spread_all")
         own = _diff(results, a, b, "sync_relative.spread")
         band = _diff(results, a, b, "sync_relative.spread_band")
-        return RowValue(
-            f"Δ spread {a} − {b} over 1–150 kHz (relative rule): {interval(rel)}",
-            rules_verdict(direction_verdict([effect(rel, SPREAD_MARGIN)]), rel, snr),
-            f"spread = share of the bins with S − S_null > 0.05; {effect_text(rel, SPREAD_MARGIN)}; snr rule "
-            f"{interval(snr)}; over each pad's [f1/8, 2 f1] {interval(own)}; over 20–80 kHz {interval(band)}",
+        return RowValue.direction(
+            f"Δ spread {a} − {b} over 1–150 kHz (relative rule)",
+            rel,
+            SPREAD_MARGIN,
+            "spread = share of the bins with S − S_null > 0.05",
+            f"snr rule {interval(snr)}; over each pad's [f1/8, 2 f1] {interval(own)}; over 20–80 kHz {interval(band)}",
+            snr=snr,
         )
 
     return measure
@@ -76,11 +78,12 @@ def prevalence_row(results: dict[str, dict], cfg: Config) -> RowValue:
     rel = paired(*(_share(results, n, "sync_relative.prevalence_all") for n in ("hf2", "hf1")))
     snr = paired(*(_share(results, n, "sync_snr.prevalence_all") for n in ("hf2", "hf1")))
     own = paired(*(_share(results, n, "sync_relative.prevalence") for n in ("hf2", "hf1")))
-    return RowValue(
-        f"Δ mean Φ/patches hf2 − hf1 over 1–150 kHz (relative rule): {interval(rel)}",
-        rules_verdict(direction_verdict([effect(rel, PREVALENCE_MARGIN)]), rel, snr),
-        f"{effect_text(rel, PREVALENCE_MARGIN)}; snr rule {interval(snr)}; over each pad's [f1/8, 2 f1] "
-        f"{interval(own)}",
+    return RowValue.direction(
+        "Δ mean Φ/patches hf2 − hf1 over 1–150 kHz (relative rule)",
+        rel,
+        PREVALENCE_MARGIN,
+        after=f"snr rule {interval(snr)}; over each pad's [f1/8, 2 f1] {interval(own)}",
+        snr=snr,
     )
 
 
@@ -96,10 +99,8 @@ def _equal(results: dict[str, dict], a: str, b: str) -> tuple[np.ndarray, np.nda
 def lower_m_row(a: str, b: str):  # noqa: ANN201
     def measure(results: dict[str, dict], cfg: Config) -> RowValue:
         rel, snr, classes, notes = _equal(results, a, b)
-        return RowValue(
-            f"Δ(S − S_null) at equal Φ {a} − {b}: {interval(rel)}",
-            rules_verdict(direction_verdict([effect(rel, S_MARGIN)]), rel, snr),
-            f"{effect_text(rel, S_MARGIN)}; {notes}; {classes}",
+        return RowValue.direction(
+            f"Δ(S − S_null) at equal Φ {a} − {b}", rel, S_MARGIN, after=f"{notes}; {classes}", snr=snr
         )
 
     return measure
@@ -130,11 +131,13 @@ def interaction(results: dict[str, dict], which: str = "table", rule: str = "rel
 
 def less_for_large_row(results: dict[str, dict], cfg: Config) -> RowValue:
     rel, snr = -interaction(results), -interaction(results, rule="snr")
-    return RowValue(
-        f"(hf3 − hf1) − (hf4 − hf2) at equal Φ: {interval(rel)}",
-        rules_verdict(direction_verdict([effect(rel, S_MARGIN)]), rel, snr),
-        f"{effect_text(rel, S_MARGIN)}; snr rule {interval(snr)}; small patches "
-        f"{interval(equal_phi(results, 'hf3', 'hf1')[0])}, large {interval(equal_phi(results, 'hf4', 'hf2')[0])}",
+    return RowValue.direction(
+        "(hf3 − hf1) − (hf4 − hf2) at equal Φ",
+        rel,
+        S_MARGIN,
+        after=f"snr rule {interval(snr)}; small patches {interval(equal_phi(results, 'hf3', 'hf1')[0])}, large "
+        f"{interval(equal_phi(results, 'hf4', 'hf2')[0])}",
+        snr=snr,
     )
 
 

@@ -34,7 +34,6 @@ from aca_warp.studies.validation.verdicts import (
     REPRODUCED,
     direction_verdict,
     effect,
-    effect_text,
     rules_verdict,
     spread_text,
     threshold_verdict,
@@ -163,11 +162,11 @@ def less_defined_row(results: dict[str, dict], cfg: Config) -> RowValue:
     for name in ("hf1", "hf2"):
         for k, v in by_seed(results.get(name), lambda p: _get(p, "corr_near")).items():
             hf.setdefault(k, []).append(v)
-    d = paired({k: float(np.mean(v)) for k, v in hf.items()}, ms)
-    return RowValue(
-        f"C of coupled neighbours, HF1/HF2 mean − the LF states' mean: {interval(d)}",
-        direction_verdict([effect(d, S_MARGIN)]),
-        f"{effect_text(d, S_MARGIN)}; hf1 {interval(values(results.get('hf1'), 'corr_near'))}, hf2 "
+    return RowValue.direction(
+        "C of coupled neighbours, HF1/HF2 mean − the LF states' mean",
+        paired({k: float(np.mean(v)) for k, v in hf.items()}, ms),
+        S_MARGIN,
+        after=f"hf1 {interval(values(results.get('hf1'), 'corr_near'))}, hf2 "
         f"{interval(values(results.get('hf2'), 'corr_near'))}",
     )
 
@@ -207,10 +206,13 @@ def high_sync_row(results: dict[str, dict], cfg: Config) -> RowValue:
                 d.append(v - float(np.mean(others)))
         out[rule] = (np.array(d), per)
     d, per = out["relative"]
-    return RowValue(
-        f"top-1 % S − S_null at app3_start − mean of the other states: {interval(d)}",
-        rules_verdict(direction_verdict([effect(d, S_MARGIN)]), d, out["snr"][0]),
-        f"{effect_text(d, S_MARGIN)}; snr rule {interval(out['snr'][0])}; per state (relative): {state_line(per)}",
+    snr = out["snr"][0]
+    return RowValue.direction(
+        "top-1 % S − S_null at app3_start − mean of the other states",
+        d,
+        S_MARGIN,
+        after=f"snr rule {interval(snr)}; per state (relative): {state_line(per)}",
+        snr=snr,
     )
 
 
@@ -279,12 +281,12 @@ def early_row(results: dict[str, dict], cfg: Config) -> RowValue:
                 diffs.append(abs(math.log(a / own)) - abs(math.log(a / prev)))
         if diffs:
             d.append(float(np.mean(diffs)))
-    d = np.array(d)
-    return RowValue(
-        f"|ln f1(start/own end)| − |ln f1(start/previous end)|, applications 2–4: {interval(d)}",
-        direction_verdict([effect(d, S_MARGIN)]),
-        f"> 0: an application's first velocity peak lies nearer the previous coverage's than its own end's; "
-        f"{effect_text(d, S_MARGIN)}; first peaks per state: {state_line(per, '.1f', 1e-3, 'kHz')}",
+    return RowValue.direction(
+        "|ln f1(start/own end)| − |ln f1(start/previous end)|, applications 2–4",
+        np.array(d),
+        S_MARGIN,
+        "> 0: an application's first velocity peak lies nearer the previous coverage's than its own end's",
+        f"first peaks per state: {state_line(per, '.1f', 1e-3, 'kHz')}",
     )
 
 
