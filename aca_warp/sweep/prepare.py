@@ -32,7 +32,7 @@ from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -224,20 +224,11 @@ class Preparer:
     Safe to use from several threads. :meth:`close` cancels what has not started.
     """
 
-    def __init__(
-        self,
-        doc: dict,
-        base_dir: str,
-        processes: int,
-        ahead: int,
-        *,
-        device: str | None = None,
-        memory_fraction: float = 0.5,
-        sharing: int = 1,
-    ) -> None:
-        self.prepare = functools.partial(
-            prepare_shard, doc, base_dir, device=device, memory_fraction=memory_fraction, sharing=sharing
-        )
+    def __init__(self, doc: dict, base_dir: str, processes: int, ahead: int, **shard_options: Any) -> None:
+        """``shard_options``: the keyword arguments of :func:`prepare_shard` (``device``, ``memory_fraction``,
+        ``sharing``), with its defaults."""
+        device = shard_options.get("device")
+        self.prepare = functools.partial(prepare_shard, doc, base_dir, **shard_options)
         self.ahead = max(1, ahead)
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(_PRELOAD)  # imported once by this process's fork server, not per process
