@@ -4,7 +4,8 @@
 The pads are the validation's ``reduced_pad`` sectors of hf1 (``--seeds`` pads of ``--patches`` patches, from
 equilibrium + N(0, (0.01 m/s)²) velocities, :func:`~aca_warp.studies.friction_stats.sector_scenes`), run as one
 batch on the general engine on the CPU over ``--duration``. Every setting of ``--runs`` (``INTEGRATOR:DT`` for a
-fixed step, forced past the stable-step estimate; ``INTEGRATOR:tol=TOL``; or ``INTEGRATOR`` at its defaults) is
+fixed step, forced past the stable-step estimate; ``INTEGRATOR:tol=TOL``, the tolerance of ``adaptive`` or the split
+tolerance of ``controlled`` and ``auto``; or ``INTEGRATOR`` at its defaults) is
 compared with ``--reference`` over the last ``--window``: the ensemble means of μ mean, μ std, mean Σ|u̇| and the
 velocity-sum peak (:func:`~aca_warp.studies.friction_stats.statistics`, ``compare``), the steps and the wall time of
 the stepping loop. Examples::
@@ -35,7 +36,8 @@ LABELS = {"mu_mean": "μ mean", "mu_std": "μ std", "abs_velocity_mean": "Σ|u̇
 
 
 def parse_run(spec: str) -> dict[str, Any]:
-    """``INTEGRATOR``, ``INTEGRATOR:DT`` [s] or ``INTEGRATOR:tol=TOL`` as package_run's keywords."""
+    """``INTEGRATOR``, ``INTEGRATOR:DT`` [s] or ``INTEGRATOR:tol=TOL`` as package_run's keywords (TOL: the
+    ``tolerance`` of ``adaptive``, the ``split_tolerance`` of ``controlled`` and ``auto``)."""
     from aca_warp.hf.options import INTEGRATORS
 
     name, _, rest = spec.partition(":")
@@ -44,7 +46,8 @@ def parse_run(spec: str) -> dict[str, Any]:
     if not rest:
         return {"integrator": name}
     if rest.startswith("tol="):
-        return {"integrator": name, "tolerance": float(rest[4:])}
+        key = "tolerance" if name == "adaptive" else "split_tolerance"
+        return {"integrator": name, key: float(rest[4:])}
     return {"integrator": name, "dt": float(rest)}
 
 
