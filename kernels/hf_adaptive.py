@@ -200,6 +200,18 @@ def store_control(p: int, c: CtlVec, m: ModeVec, dp5: Any):
 
 
 @wp.func
+def advance_clock(c: CtlVec, m: ModeVec, h: wp.float64):
+    """An accepted step h [s] moves the pad's clock ``c[C_T]``; within a rounding share of its target it stands on
+    the target, landed: (c, m) after."""
+    t = c[C_T] + h
+    if t >= c[C_TARGET] * (wp.float64(1.0) - wp.float64(1.0e-13)):
+        t = c[C_TARGET]
+        m[M_LANDED] = 1
+    c[C_T] = t
+    return c, m
+
+
+@wp.func
 def pi_decide(c: CtlVec, m: ModeVec, err: wp.float64, h_max: wp.float64, h_min: wp.float64):
     """Accept or reject a trial of scaled error ``err`` of a pad with control ``c`` and mode ``m``, choose its
     next step (PI) and land it on its target: (c, m, accepted, below h_min) after the decision."""
@@ -224,11 +236,8 @@ def pi_decide(c: CtlVec, m: ModeVec, err: wp.float64, h_max: wp.float64, h_min: 
             want = h * fac
         else:  # a step cut short to land says nothing against the desired one
             want = wp.max(want, h * fac)
-        t = t + h
-        if t >= target * (wp.float64(1.0) - wp.float64(1.0e-13)):
-            t = target
-            m[M_LANDED] = 1
-        c[C_T] = t
+        c, m = advance_clock(c, m, h)
+        t = c[C_T]
     else:
         fac = wp.clamp(wp.float64(0.9) * wp.pow(e, wp.float64(-0.2)), wp.float64(0.2), wp.float64(1.0))
         m[M_REJECTED] = 1

@@ -46,6 +46,7 @@ from aca_warp.kernels.hf_adaptive import (
     M_SWITCH,
     CtlVec,
     ModeVec,
+    advance_clock,
     count_trial,
     even_step,
     load_control,
@@ -87,11 +88,8 @@ def split_decide(c: CtlVec, m: ModeVec, err: wp.float64, err_s: wp.float64, h_ma
         accepted = 1
         c[C_ERR] = wp.max(e, wp.float64(1.0e-4))
         c[C_HPREV] = h
-        t = t + h
-        if t >= c[C_TARGET] * (wp.float64(1.0) - wp.float64(1.0e-13)):
-            t = c[C_TARGET]
-            m[M_LANDED] = 1
-        c[C_T] = t
+        c, m = advance_clock(c, m, h)
+        t = c[C_T]
     else:
         want = h * wp.clamp(wp.float64(0.9) * wp.pow(e, wp.float64(-0.5)), wp.float64(0.2), wp.float64(1.0))
         m[M_REJECTED] = 1

@@ -27,6 +27,12 @@ ENGINES = ("auto", "onchip", "general")
 WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (recorder.watchdog_bound)
 
 
+def tolerance_keyword(integrator: str) -> str:
+    """The option a study's single tolerance ``tol=`` sets for ``integrator``: ``tolerance`` for ``adaptive``,
+    ``split_tolerance`` for ``controlled`` and ``auto`` (whose pair keeps its default)."""
+    return "tolerance" if integrator == "adaptive" else "split_tolerance"
+
+
 def _positive_or_none(name: str, value: float | None, unit: str) -> None:
     if value is not None and not (isinstance(value, int | float) and value > 0 and math.isfinite(value)):
         raise SceneError(f"{name} must be a positive number{unit}, got {value!r}")

@@ -23,7 +23,7 @@ import numpy as np
 
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
-from aca_warp.hf.options import DEFAULT_INTEGRATOR, RunOptions
+from aca_warp.hf.options import DEFAULT_INTEGRATOR, STEP_CONTROLLED, RunOptions
 from aca_warp.hf.recorder import Chunk
 from aca_warp.hf.runner import run_scene
 from aca_warp.hf.state import HFState, initial_state
@@ -74,10 +74,14 @@ def run_general(
     tolerance: float | None = None,
     engine: str = "general",
 ) -> RunResult:
-    """``run_hf`` for ``duration`` [s] on ``engine`` (general, onchip, auto): ``adaptive`` with ``tolerance``, a
-    fixed-step integrator with ``dt`` [s] (forced: the work-precision study measures the error of every step, those
-    beyond the stable-step estimate too)."""
-    kw = {"tolerance": tolerance} if integrator == "adaptive" else {"dt": dt, "force": integrator != "symplectic-euler"}
+    """``run_hf`` for ``duration`` [s] on ``engine`` (general, onchip, auto): a step-controlled integrator
+    (``adaptive``, ``controlled``, ``auto``) with ``tolerance`` (the explicit pair's), a fixed-step integrator with
+    ``dt`` [s] (forced: the work-precision study measures the error of every step, those beyond the stable-step
+    estimate too)."""
+    if integrator in STEP_CONTROLLED:
+        kw: dict = {"tolerance": tolerance}
+    else:
+        kw = {"dt": dt, "force": integrator != "symplectic-euler"}
     options = RunOptions(duration=duration, integrator=integrator, engine=engine, **kw)
     return run_hf(model, state, options, record=record)
 
