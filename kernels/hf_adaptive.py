@@ -14,9 +14,13 @@ sample and the next event): there the landing sets the event flag that the growt
 
 The integrator's arrays come to the kernels as one struct, ``dp5`` (:data:`~aca_warp.kernels.hf_types.HFAdaptive`).
 Per-pad control: float64 ``dp5.ctl`` (pads, CTL): t, desired step, previous error (PI), target time, start of the
-interval, trial step; int32 ``dp5.mode`` (pads, MODE): landed, needs its first stage, last trial rejected, index of
-the next sample (the target's, or the one after an event target), index of the next growth event; int64
-``dp5.stats`` (pads, 2): accepted and rejected trials.
+interval, trial step, the last accepted step (the split step's h_prev; 0: none since the state was synchronous);
+int32 ``dp5.mode`` (pads, MODE): landed, needs its first stage (a split-step pad: its spring history is not valid),
+last trial rejected, index of the next sample (the target's, or the one after an event target), index of the next
+growth event, steps with the split step (:mod:`aca_warp.kernels.hf_controlled`) instead of the pair, a patch was on
+the static branch at an accepted step of the interval, calm intervals in a row (none on it), changes integrator at
+this sample; int64 ``dp5.stats`` (pads, 2): accepted and rejected trials. The kernels here act on the pads that step
+with the pair only.
 """
 
 from __future__ import annotations
@@ -32,11 +36,13 @@ from aca_warp.kernels.physics import friction_pair, patch_force, spring_force
 wp.set_module_options({"enable_backward": False})
 
 # ctl columns (float64)
-C_T, C_H, C_ERR, C_TARGET, C_START, C_TRIAL = 0, 1, 2, 3, 4, 5
-CTL = 6
+C_T, C_H, C_ERR, C_TARGET, C_START, C_TRIAL, C_HPREV = 0, 1, 2, 3, 4, 5, 6
+CTL = 7
 # mode columns (int32)
-M_LANDED, M_NEEDK1, M_REJECTED, M_SAMPLE, M_EVENT = 0, 1, 2, 3, 4
-MODE = 5
+M_LANDED, M_NEEDK1, M_REJECTED, M_SAMPLE, M_EVENT, M_SPLIT, M_STATIC, M_CALM, M_SWITCH = 0, 1, 2, 3, 4, 5, 6, 7, 8
+MODE = 9
+STATIC_SLIP = 0.17  # m/s: Eq. 4 peaks here; a patch slipping less is on its static branch (sticking)
+RELEASE = 50  # calm sample intervals in a row before a pad of ``auto`` returns from the split step to the pair
 # an event within this share of the shorter of the sample and event intervals from a sample time is at that time
 # (j·interval and k·sample_dt of the same instant differ by a few rounding units)
 EVENT_MERGE = 1.0e-9
@@ -194,6 +200,18 @@ def store_control(p: int, c: CtlVec, m: ModeVec, dp5: Any):
 
 
 @wp.func
+def advance_clock(c: CtlVec, m: ModeVec, h: wp.float64):
+    """An accepted step h [s] moves the pad's clock ``c[C_T]``; within a rounding share of its target it stands on
+    the target, landed: (c, m) after."""
+    t = c[C_T] + h
+    if t >= c[C_TARGET] * (wp.float64(1.0) - wp.float64(1.0e-13)):
+        t = c[C_TARGET]
+        m[M_LANDED] = 1
+    c[C_T] = t
+    return c, m
+
+
+@wp.func
 def pi_decide(c: CtlVec, m: ModeVec, err: wp.float64, h_max: wp.float64, h_min: wp.float64):
     """Accept or reject a trial of scaled error ``err`` of a pad with control ``c`` and mode ``m``, choose its
     next step (PI) and land it on its target: (c, m, accepted, below h_min) after the decision."""
@@ -218,11 +236,8 @@ def pi_decide(c: CtlVec, m: ModeVec, err: wp.float64, h_max: wp.float64, h_min: 
             want = h * fac
         else:  # a step cut short to land says nothing against the desired one
             want = wp.max(want, h * fac)
-        t = t + h
-        if t >= target * (wp.float64(1.0) - wp.float64(1.0e-13)):
-            t = target
-            m[M_LANDED] = 1
-        c[C_T] = t
+        c, m = advance_clock(c, m, h)
+        t = c[C_T]
     else:
         fac = wp.clamp(wp.float64(0.9) * wp.pow(e, wp.float64(-0.2)), wp.float64(0.2), wp.float64(1.0))
         m[M_REJECTED] = 1
@@ -331,6 +346,22 @@ def open_growth_decide(c: CtlVec, m: ModeVec, sample_dt: wp.float64, interval: w
 
 
 @wp.func
+def even_step(want: wp.float64, t: wp.float64, target: wp.float64) -> wp.float64:
+    """The split step's next trial [s]: the rest of the interval from t to the target in equal steps no longer than
+    ``want``, rest / ⌈rest / want⌉ (cutting one step short to land repeats a long-short pattern every interval,
+    which pumps the pad's highest network mode: docs/friction_step.md §5.1)."""
+    rest = target - t
+    k = wp.ceil(rest / want - wp.float64(1.0e-9))
+    return rest / wp.max(k, wp.float64(1.0))
+
+
+@wp.func
+def pair_active(p: int, dp5: Any) -> bool:
+    """Whether pad p takes a trial of the explicit pair in this iteration (not landed, not on the split step)."""
+    return dp5.mode[p, M_LANDED] == 0 and dp5.mode[p, M_SPLIT] == 0
+
+
+@wp.func
 def open_next(p: int, dp5: Any):
     """Pad p, landed, heads for its next target on its rows of ``dp5.ctl`` and ``dp5.mode``:
     :func:`open_growth_decide` in a growing model (``dp5.interval`` > 0), else :func:`open_decide`."""
@@ -339,7 +370,31 @@ def open_next(p: int, dp5: Any):
         c, m = open_growth_decide(c, m, dp5.sample_dt, dp5.interval)
     else:
         c, m = open_decide(c, m, dp5.sample_dt)
+    if m[M_SPLIT] != 0:
+        c[C_TRIAL] = even_step(c[C_H], c[C_START], c[C_TARGET])
     store_control(p, c, m, dp5)
+
+
+@wp.func
+def mark_static(i: int, p: int, v: Any, model: Any, dp5: Any):
+    """Flag pad p (``M_STATIC``) when patch i at velocity v [m/s] is on the static branch, |ω r − v| < STATIC_SLIP."""
+    if wp.abs(model.pad_omega[p] * model.radius[i] - v) < type(v)(STATIC_SLIP):
+        dp5.mode[p, M_STATIC] = 1
+
+
+@wp.func
+def switch_decide(m: ModeVec) -> ModeVec:
+    """At a sample, a pad of ``auto`` with mode ``m``: count its calm intervals (no patch on the static branch) and
+    flag a change of integrator (``M_SWITCH``): the pair → the split step once a patch touched the static branch,
+    back after RELEASE calm intervals."""
+    calm = m[M_CALM] + 1
+    if m[M_STATIC] != 0:
+        calm = 0
+    if (m[M_SPLIT] == 0 and m[M_STATIC] != 0) or (m[M_SPLIT] != 0 and calm >= RELEASE):
+        m[M_SWITCH] = 1
+    m[M_CALM] = calm
+    m[M_STATIC] = 0
+    return m
 
 
 @wp.func
@@ -369,7 +424,7 @@ def dp5_stage(
     """The stage state y_s of every patch of a pad that has not landed (:func:`stage_state`)."""
     i = wp.tid()
     p = model.patch_pad[i]
-    if dp5.mode[p, M_LANDED] != 0:
+    if not pair_active(p, dp5):
         return
     stage_state(i, p, stage, dp5, u_in, v_in, u_stage, v_stage)
 
@@ -396,7 +451,7 @@ def dp5_eval(
     One block of ``threads`` lanes per patch (``launch_tiled``; :func:`lane_spring_force`)."""
     i, lane = wp.tid()
     p = model.patch_pad[i]
-    if dp5.mode[p, M_LANDED] != 0:
+    if not pair_active(p, dp5):
         return
     if first != 0 and dp5.mode[p, M_NEEDK1] == 0:
         return
@@ -420,6 +475,8 @@ def dp5_control(
     """Per pad (one block): the trial's scaled error (maximum over the pad), accept or reject, next step (PI),
     landing on the target; ``dp5.done[2]`` flags a step below ``dp5.h_min`` (the pad cannot go on)."""
     pad, lane = wp.tid()
+    if dp5.mode[pad, M_SPLIT] != 0:
+        return
     dp5.accepted[pad] = 0
     if dp5.mode[pad, M_LANDED] != 0:
         return
@@ -450,11 +507,15 @@ def dp5_commit(
     u_io: wp.array[Any],
     v_io: wp.array[Any],
 ):
-    """An accepted trial becomes the state; its last stage becomes the next first one (:func:`commit_patch`)."""
+    """An accepted trial becomes the state; its last stage becomes the next first one (:func:`commit_patch`). With
+    ``dp5.switching``, a patch on the static branch flags its pad (:func:`mark_static`)."""
     i = wp.tid()
-    if dp5.accepted[model.patch_pad[i]] == 0:
+    p = model.patch_pad[i]
+    if dp5.mode[p, M_SPLIT] != 0 or dp5.accepted[p] == 0:
         return
     commit_patch(i, dp5, u_new, v_new, u_io, v_io)
+    if dp5.switching != 0:
+        mark_static(i, p, v_new[i], model, dp5)
 
 
 @wp.kernel
@@ -468,7 +529,8 @@ def landing(
     """One thread: when every pad has landed on its target, flag a growth event there (``event[0]``, with every
     pad's first stage due again; growing models, ``dp5.interval`` > 0) and a sample there (the recorder's
     RECORD_FLAG counter); the growth launches and then the recorder follow in the same iteration, so a sample at an
-    event time sees the grown patches, as on the fixed-step path. Then, unless the run is over or stopped
+    event time sees the grown patches, as on the fixed-step path. At a sample of ``auto`` (``dp5.switching``),
+    every pad's change of integrator is decided (:func:`switch_decide`). Then, unless the run is over or stopped
     (``dp5.done[0]``, ``dp5.done[2]``: a step underflow) or the host asked to pause at this sample
     (``dp5.t_stop[0]``; ``dp5.done[1]`` waits until it is moved on), open every pad's next interval."""
     rec.counters[RECORD_FLAG] = 0
@@ -489,6 +551,10 @@ def landing(
                 open_next(p, dp5)
             return
         rec.counters[RECORD_FLAG] = 1
+        if dp5.switching != 0:
+            for p in range(pads):
+                cp, mp = load_control(p, dp5)
+                store_control(p, cp, switch_decide(mp), dp5)
         if dp5.ctl[0, C_TARGET] >= dp5.t_end * (wp.float64(1.0) - wp.float64(1.0e-12)):
             dp5.done[0] = 1
             return
@@ -504,9 +570,10 @@ def landing(
 
 @wp.kernel
 def k1_done(dp5: Any):
-    """Per pad: its first stage is evaluated."""
+    """Per pad of the pair: its first stage is evaluated."""
     p = wp.tid()
-    dp5.mode[p, M_NEEDK1] = 0
+    if dp5.mode[p, M_SPLIT] == 0:
+        dp5.mode[p, M_NEEDK1] = 0
 
 
 precision_overloads(

@@ -108,6 +108,14 @@ class HFAdaptive:
     int32: run over, waiting at ``t_stop``, step underflow. ``ku``, ``kv`` (S, n): the stages k_s = (u̇, v̇);
     ``u_a``, ``v_a`` (n,): the even stages' states (y_6, the 5th-order solution, last), ``u_b``, ``v_b``: the odd
     stages'.
+
+    The error-controlled split step (``controlled``, and ``auto``'s sticking mode; ``aca_warp.kernels.hf_controlled``)
+    shares the per-pad control and the landing; its pads are flagged in ``mode`` and its trial state is ``u_a``,
+    ``v_a`` (displacement, staggered velocity). ``tol_i``: its tolerance; ``h_max_i`` [s]: its largest step;
+    ``switching``: 1 when pads change between the explicit pair and the split step at samples (``auto``).
+    Per patch (n,): ``force_prev`` [N], the spring force of the accepted step before the state's (``state.force``);
+    ``force_new`` [N], the spring force at the trial state; ``err_f`` [m/s], the sub-step's local error; ``v_rec``
+    [m/s], the synchronous velocity a sample records.
     """
 
     coeff: wp.array2d[wp.float64]
@@ -132,3 +140,10 @@ class HFAdaptive:
     v_a: wp.array[Any]
     u_b: wp.array[Any]
     v_b: wp.array[Any]
+    tol_i: wp.float64
+    h_max_i: wp.float64
+    switching: int
+    force_prev: wp.array[Any]
+    force_new: wp.array[Any]
+    err_f: wp.array[Any]
+    v_rec: wp.array[Any]

@@ -70,14 +70,17 @@ def test_sigkill_then_resume_is_bit_identical(scene_file: Path, tmp_path: Path) 
         ("adaptive", "", None, "onchip"),
         ("symplectic-euler", GROWTH, 5e-9, "general"),
         ("strang", GROWTH, 1e-8, "onchip"),
+        ("controlled", GROWTH, None, "general"),
+        ("auto", "", None, "general"),
     ],
-    ids=["adaptive", "onchip-adaptive", "growth", "onchip-growth"],
+    ids=["adaptive", "onchip-adaptive", "growth", "onchip-growth", "controlled-growth", "auto"],
 )
 def test_interrupted_run_resumes_bit_identical(integrator, extra, dt, engine, tmp_path, monkeypatch) -> None:
     """Ctrl-C after the second checkpoint (the file is moved to RUN.h5, incomplete, checkpoint kept): `--resume
     RUN.h5` finishes it equal to an uninterrupted run, for the adaptive controller (clock, step counters), for
     patch growth (areas, normal forces, k_ij and the diagonal rewritten on the device), and on the on-chip engine
-    (its staggered state and in-kernel growth between launches; its adaptive kernel's clocks and stages)."""
+    (its staggered state and in-kernel growth between launches; its adaptive kernel's clocks and stages); for the
+    error-controlled split step (its step history and the spring forces of its last two steps) and auto."""
     scene = tmp_path / "s.toml"
     scene.write_text(SCENE + extra)
     opts = ["--integrator", integrator, "--no-progress", "--duration", "1e-5", "--record-patches", "velocity"]

@@ -219,12 +219,17 @@ def test_version_and_quiet_start(scene_file, tmp_path):
 def test_absurd_runs_are_refused_before_anything_is_written(scene_file, tmp_path, capsys):
     """A duration typed in the wrong unit, a step of 1e-20 s or an output of terabytes: one line, exit 2, no file,
     first as implausible values (the unit named), and with --allow-implausible by the size limits; --force lifts the
-    limits (checked with the step count only: the plan passes)."""
+    limits (checked with the step count only: the plan passes). The step count is a fixed-step integrator's."""
     out = tmp_path / "run.h5"
+    strang = ["--integrator", "strang"]
     for extra, message, limit in (
         (["--duration", "1e3"], "did you mean µs? (1000 µs = 0.001 s)", "more than a run records"),
-        (["--duration", "50", "--dt", "1e-10"], "run.duration = 50 s — beyond 1 s", "5e+11 steps, more than 1e+10"),
-        (["--dt", "1e-20"], "dt = 1e-20 s — below 1e-13 s", "steps, more than 1e+10"),
+        (
+            ["--duration", "50", "--dt", "1e-10", *strang],
+            "run.duration = 50 s — beyond 1 s",
+            "5e+11 steps, more than 1e+10",
+        ),
+        (["--dt", "1e-20", *strang], "dt = 1e-20 s — below 1e-13 s", "steps, more than 1e+10"),
         (["--duration", "1e1", "--sample-dt", "1e-8", "--record-patches", "velocity"], "beyond 1 s", "more than 50 GB"),
     ):
         for allow, expected in (([], message), (["--allow-implausible"], limit)):
@@ -233,6 +238,6 @@ def test_absurd_runs_are_refused_before_anything_is_written(scene_file, tmp_path
             assert len(err) == 1 and expected in err[0], err
             assert not out.exists() and not out.with_name("run.h5.partial").exists()
     scene = load_scene(str(scene_file), allow_implausible=True)
-    plan = runner.plan_run(scene, runner.RunOptions(duration=50.0, dt=1e-10, force=True))
+    plan = runner.plan_run(scene, runner.RunOptions(duration=50.0, integrator="strang", dt=1e-10, force=True))
     assert plan.steps == 500_000_000_000 and plan.samples == 500_000_001
     assert plan.describe() == "5e+11 steps of 1e-10 s, 5e+08 samples, about 28 GB to record"

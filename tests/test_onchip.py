@@ -57,11 +57,16 @@ def _both(device: str, precision: str, fibers: bool = False, **onchip_kw):
         model = build_model(_scenes(), device=device, precision=precision)
         state = initial_state(model)
         if engine == "general":
-            res = run_hf(model, state, RunOptions(duration=2e-6, dt=1e-8, engine="general"))
+            res = run_hf(model, state, RunOptions(integrator="strang", duration=2e-6, dt=1e-8, engine="general"))
         else:
             with _cpu_fibers(fibers):
                 tuning = EngineTuning(samples_per_launch=3, **onchip_kw)
-                res = run_hf(model, state, RunOptions(duration=2e-6, dt=1e-8, engine="onchip"), tuning=tuning)
+                res = run_hf(
+                    model,
+                    state,
+                    RunOptions(integrator="strang", duration=2e-6, dt=1e-8, engine="onchip"),
+                    tuning=tuning,
+                )
         assert res.complete and res.steps == 200
         out[engine] = (res.collect(), *state.numpy())
     return out["general"], out["onchip"]
@@ -116,10 +121,12 @@ def _grown(device: str, precision: str, engine: str, fibers: bool = False, **onc
     area0 = model.host("area")
     with _cpu_fibers(fibers):
         if engine == "general":
-            res = run_hf(model, state, RunOptions(duration=2e-6, dt=1e-8, engine="general"))
+            res = run_hf(model, state, RunOptions(integrator="strang", duration=2e-6, dt=1e-8, engine="general"))
         else:
             tuning = EngineTuning(samples_per_launch=3, **onchip_kw)
-            res = run_hf(model, state, RunOptions(duration=2e-6, dt=1e-8, engine="onchip"), tuning=tuning)
+            res = run_hf(
+                model, state, RunOptions(integrator="strang", duration=2e-6, dt=1e-8, engine="onchip"), tuning=tuning
+            )
     assert res.complete and res.steps == 200 and "growth" in res.stages
     keys = ("area", "k_t", "damping", "nbr_stiffness", "k_diag", "normal_force", "pad_matrix_force", "pad_gap")
     arrays = {k: model.host(k) for k in keys}
@@ -163,19 +170,19 @@ def test_onchip_growth_multithread_block_cpu_fibers(precision, block, csr):
 def test_engine_choice_and_refusals(device):
     s = preset("hf1").replace(record=Record(sample_dt=1e-7))
     model = build_model([s], device=device, precision="fp32")
-    assert choose_engine(model, "auto") == ("onchip" if device != "cpu" else "general")
-    assert choose_engine(model, "onchip") == "onchip"
-    assert choose_engine(model, "general") == "general"
+    assert choose_engine(model, "auto", "strang") == ("onchip" if device != "cpu" else "general")
+    assert choose_engine(model, "onchip", "strang") == "onchip"
+    assert choose_engine(model, "general", "strang") == "general"
     assert choose_engine(model, "auto", "implicit-friction") == "general"
     assert choose_engine(model, "auto", "adaptive") == "onchip"
     with pytest.raises(SceneError, match="strang and adaptive"):
         choose_engine(model, "onchip", "implicit-friction")
     with pytest.raises(SceneError, match="unknown engine"):
-        choose_engine(model, "fast")
+        choose_engine(model, "fast", "strang")
     grow = build_model([s.replace(growth=Growth(increment=1e-9, interval=1e-6))], device=device, precision="fp32")
-    assert choose_engine(grow, "auto") == ("onchip" if device != "cpu" else "general")
-    assert choose_engine(grow, "onchip") == "onchip"
-    res = run_hf(model, initial_state(model), RunOptions(engine="onchip", duration=2e-7, dt=1e-8))
+    assert choose_engine(grow, "auto", "strang") == ("onchip" if device != "cpu" else "general")
+    assert choose_engine(grow, "onchip", "strang") == "onchip"
+    res = run_hf(model, initial_state(model), RunOptions(integrator="strang", engine="onchip", duration=2e-7, dt=1e-8))
     assert "step:strang:onchip" in res.stages and res.steps == 20
 
 
@@ -188,13 +195,17 @@ def test_onchip_fault_matches_general(device):
         dt = 1e-5
         assert dt > 4.0 * stable_step(model).spring
         if engine == "general":
-            res = run_hf(model, initial_state(model), RunOptions(engine=engine, duration=4e-3, dt=dt, force=True))
+            res = run_hf(
+                model,
+                initial_state(model),
+                RunOptions(integrator="strang", engine=engine, duration=4e-3, dt=dt, force=True),
+            )
         else:  # on the CPU with 64 fiber threads per block: the in-block min/sums find the same first patch
             with _cpu_fibers(device == "cpu"):
                 res = run_hf(
                     model,
                     initial_state(model),
-                    RunOptions(engine="onchip", duration=4e-3, dt=dt, force=True),
+                    RunOptions(integrator="strang", engine="onchip", duration=4e-3, dt=dt, force=True),
                     tuning=EngineTuning(block_dim=64),
                 )
         assert not res.complete
@@ -231,7 +242,7 @@ def test_ablations_for_profiling(device):
         res = run_hf(
             model,
             initial_state(model),
-            RunOptions(engine="onchip", duration=2e-7, dt=1e-8),
+            RunOptions(integrator="strang", engine="onchip", duration=2e-7, dt=1e-8),
             tuning=EngineTuning(ablate=frozenset(abl)),
         )
         mus[abl] = res.collect().globals[-1, 0, 0]
@@ -243,7 +254,7 @@ def test_ablations_for_profiling(device):
         res = run_hf(
             model,
             initial_state(model),
-            RunOptions(engine="onchip", duration=2e-7, dt=1e-8),
+            RunOptions(integrator="strang", engine="onchip", duration=2e-7, dt=1e-8),
             tuning=EngineTuning(ablate=frozenset({"gather_half"}), csr_shared=csr),
         )
         half[csr] = res.collect().globals[-1, 0]
@@ -252,7 +263,7 @@ def test_ablations_for_profiling(device):
         run_hf(
             model,
             initial_state(model),
-            RunOptions(engine="onchip", duration=2e-7, dt=1e-8),
+            RunOptions(integrator="strang", engine="onchip", duration=2e-7, dt=1e-8),
             tuning=EngineTuning(ablate=frozenset({"springs"})),
         )
 
@@ -270,7 +281,7 @@ def test_growth_ablations_for_profiling(device):
         run_hf(
             model,
             initial_state(model),
-            RunOptions(engine="onchip", duration=4e-7, dt=1e-8),
+            RunOptions(integrator="strang", engine="onchip", duration=4e-7, dt=1e-8),
             tuning=EngineTuning(ablate=frozenset(abl)),
         )
         assert np.all(model.host("area") > before["area"])
@@ -310,7 +321,7 @@ def test_onchip_growth_fuzzed_small_pads(n, seed, load, increment, M, speed, pre
     for engine in ("general", "onchip"):
         model = build_model([scene], device="cpu", precision=precision)
         state = initial_state(model)
-        res = run_hf(model, state, RunOptions(duration=4e-7, dt=1e-8, engine=engine))
+        res = run_hf(model, state, RunOptions(integrator="strang", duration=4e-7, dt=1e-8, engine=engine))
         assert res.complete and res.steps == 40
         keys = ("area", "nbr_stiffness", "normal_force", "pad_matrix_force", "pad_gap")
         out.append((res.collect().globals, *state.numpy(), *(model.host(k) for k in keys)))
@@ -405,11 +416,11 @@ def test_cluster_refused_where_it_cannot_run():
             run_hf(
                 model,
                 initial_state(model),
-                RunOptions(engine="onchip", duration=1e-7, dt=1e-8),
+                RunOptions(integrator="strang", engine="onchip", duration=1e-7, dt=1e-8),
                 tuning=EngineTuning(cluster=k),
             )
     res = run_hf(
-        model, initial_state(model), RunOptions(engine="onchip", duration=1e-7, dt=1e-8)
+        model, initial_state(model), RunOptions(integrator="strang", engine="onchip", duration=1e-7, dt=1e-8)
     )  # cluster=None: 1 on the CPU
     assert res.complete and res.steps == 10
 

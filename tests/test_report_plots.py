@@ -367,7 +367,7 @@ def test_plot_of_a_ten_sample_run(tmp_path):
     (no bin above 2 Δf) skipped with a note; no traceback."""
     path = tmp_path / "short.h5"
     scene = _small_scene(patches=()).replace(duration=9e-6, record=Record(sample_dt=1e-6, patches=("velocity",)))
-    run_scene(scene, path, RunOptions(dt=2e-8), device="cpu")
+    run_scene(scene, path, RunOptions(integrator="strang", dt=2e-8), device="cpu")
     notes = []
     files = plots.plot_run(path, tmp_path / "fig", frames=2, log=notes.append)
     assert [n.split(":")[0] for n in notes] == ["skipped sync"]

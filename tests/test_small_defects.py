@@ -52,10 +52,20 @@ def test_stable_step_checked_as_taken() -> None:
     dt = 1.5 * spring
     taken = fitted_step(dt, 0.5 * spring)
     assert taken == 0.5 * spring
-    res = run_hf(model, initial_state(model), RunOptions(duration=20 * spring, dt=dt), record=Record(0.5 * spring))
+    res = run_hf(
+        model,
+        initial_state(model),
+        RunOptions(integrator="strang", duration=20 * spring, dt=dt),
+        record=Record(0.5 * spring),
+    )
     assert res.complete and res.dt == taken
     with pytest.raises(StabilityError, match=f"dt = {dt:.3g} s exceeds the stable-step estimate"):
-        run_hf(model, initial_state(model), RunOptions(duration=20 * dt, dt=dt), record=Record(sample_dt=2 * dt))
+        run_hf(
+            model,
+            initial_state(model),
+            RunOptions(integrator="strang", duration=20 * dt, dt=dt),
+            record=Record(sample_dt=2 * dt),
+        )
 
 
 def test_sweep_pad_count_printed_exactly() -> None:

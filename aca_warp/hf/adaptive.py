@@ -8,10 +8,16 @@ sample time (samples are exact states, no interpolation); one replay of the capt
 iterations, each one trial per pad. In a growing model they land on every growth event time j·interval as well,
 where the growth launches run for all pads inside the graph. Choice and measurements: docs/numerics.md and
 docs/work_precision.md.
+
+The same stepper runs ``controlled``, the error-controlled split step (strang's forced damped midpoint with its own
+step per pad, :mod:`aca_warp.kernels.hf_controlled`), and ``auto``, where every pad takes the pair while all its
+patches slide and the split step once one sticks (docs/friction_step.md §5–6): both share the per-pad clocks,
+accept/reject, landing, growth events and checkpointed control; a per-pad flag says which trial a pad takes.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Protocol
 
 import numpy as np
@@ -25,6 +31,7 @@ from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import HFSolver
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf_adaptive as KA
+from aca_warp.kernels import hf_controlled as KC
 from aca_warp.kernels.hf_types import HFAdaptive
 
 MIN_STEP = 1.0e-15  # s; a pad whose error needs a smaller step stops the run (a fault)
@@ -33,6 +40,7 @@ EVAL_LANES = 32  # threads per patch of a stage evaluation on CUDA, for small ba
 LANE_THREADS_PER_SM = 1024  # lanes only while patches × EVAL_LANES ≤ this × the device's SMs (else one per patch)
 ITERATIONS = 128  # trials (or strang steps) per pad per graph replay
 ROWS = 256  # sample rows the recorder holds between flushes (more than one replay can land)
+SPRING_SAFETY = 0.9  # the split step stays below this share of the spring bound (StepEstimate.spring)
 
 
 class GrowthEvents(Protocol):
@@ -96,8 +104,10 @@ def underflow_fault(t: float) -> SimulationFault:
 
 
 class AdaptiveStepper:
-    """Device state and launches of the per-pad DP5 integrator for one model (general engine); ``growth``: the
-    growth events of a growing model (their flag set by the landing, their launches between it and the recorder)."""
+    """Device state and launches of the per-pad step-controlled integrators for one model (general engine): the
+    solver's ``adaptive`` (DP5 on every pad), ``controlled`` (the split step on every pad) or ``auto`` (DP5 until a
+    patch sticks, then the split step); ``growth``: the growth events of a growing model (their flag set by the
+    landing, their launches between it and the recorder)."""
 
     def __init__(
         self,
@@ -113,8 +123,13 @@ class AdaptiveStepper:
         self.sample_dt = recorder.sample_dt
         self.interval = 0.0 if growth is None else growth.interval
         self.t_end = t_end
+        integrator = solver.integrator
+        self.pair = integrator in ("adaptive", "auto")  # pads may take DP5 trials
+        self.split = integrator in ("controlled", "auto")  # pads may take split-step trials
         self.tol = wp.float64(solver.tolerance)
+        self.tol_i = wp.float64(solver.split_tolerance)
         self.h_max = self.sample_dt  # steps land on every sample: none is longer
+        self.h_max_i = wp.float64(min(self.sample_dt, SPRING_SAFETY * solver.estimate.spring))
         target = first_target(self.sample_dt, self.interval)
         self.h_start = min(solver.dt, target)  # the PI controller grows it up to 5× per accepted step
         ctl = np.zeros((P, KA.CTL))
@@ -126,6 +141,9 @@ class AdaptiveStepper:
         mode[:, KA.M_NEEDK1] = 1
         mode[:, KA.M_SAMPLE] = 1
         mode[:, KA.M_EVENT] = 1
+        if not self.pair:  # every pad on the split step from the start: equal steps to the first target
+            mode[:, KA.M_SPLIT] = 1
+            ctl[:, KA.C_TRIAL] = target / max(1, math.ceil(target / self.h_start - 1e-9))
         self.ctl = wp.array(ctl, dtype=wp.float64, device=dev)
         self.mode = wp.array(mode, dtype=wp.int32, device=dev)
         self.stats = wp.zeros((P, 2), dtype=wp.int64, device=dev)
@@ -145,9 +163,17 @@ class AdaptiveStepper:
         self.lanes = eval_lanes(dev, n)
         # the kernels' parameter group (its arrays change in place only: graphs and checkpoints keep it)
         names = ("coeff", "err_coeff", "u_scale", "v_scale", "tol", "h_max", "sample_dt", "interval", "t_end")
-        names += ("t_stop", "ctl", "mode", "stats", "accepted", "done", "ku", "kv")
+        names += ("t_stop", "ctl", "mode", "stats", "accepted", "done", "ku", "kv", "tol_i", "h_max_i")
         stages = {"u_a": self.stage_u[0], "v_a": self.stage_v[0], "u_b": self.stage_u[1], "v_b": self.stage_v[1]}
-        self.struct = HFAdaptive.of(T, {k: getattr(self, k) for k in names} | stages | {"h_min": MIN_STEP})
+        split = {}
+        if self.split:
+            # per patch: F_{n-1}, the trial's F⁺ and sub-step error, the recorded synchronous velocity
+            split = {k: wp.zeros(n, dtype=T, device=dev) for k in ("force_prev", "force_new", "err_f", "v_rec")}
+            solver.prepare(state)  # F_n at the start state (a resumed run restores it)
+        self.split_arrays = split
+        fields = {k: getattr(self, k) for k in names} | stages | split
+        fields |= {"h_min": MIN_STEP, "switching": int(self.pair and self.split)}
+        self.struct = HFAdaptive.of(T, fields)
 
     def _scales(self) -> tuple[wp.array, wp.array]:
         """Per-patch scales of the error norm: U_i = F_N,i M / k_T,i [m], the static deflection under the largest
@@ -170,8 +196,9 @@ class AdaptiveStepper:
         return (wp.array(a, dtype=m.dtype, device=m.device) for a in (u, v))
 
     def saved(self) -> dict[str, wp.array]:
-        """Arrays a checkpoint holds: the clocks, modes, counters and the first stage (FSAL)."""
-        return {
+        """Arrays a checkpoint holds: the clocks, modes, counters, the first stage (FSAL) and, with the split step, the
+        spring force of the step before (F_n is the state's)."""
+        out = {
             "adaptive/ctl": self.ctl,
             "adaptive/mode": self.mode,
             "adaptive/stats": self.stats,
@@ -179,6 +206,9 @@ class AdaptiveStepper:
             "adaptive/ku": self.ku,
             "adaptive/kv": self.kv,
         }
+        if self.split:
+            out["adaptive/force_prev"] = self.split_arrays["force_prev"]
+        return out
 
     def stop_after(self, samples: int) -> None:
         """Let the next replays run at most to sample ``samples`` (the run loop's chunk end)."""
@@ -202,9 +232,47 @@ class AdaptiveStepper:
         n = int(self.stats.numpy()[:, 0].max())
         return float(self.ctl.numpy()[:, KA.C_START].min()) / n if n else self.h_start
 
+    def finish(self) -> None:
+        """Leave the state synchronous: the split pads' staggered velocity closed."""
+        if self.split:
+            m, s = self.model, self.state
+            args = [m.struct(), self.struct, self.solver.newton_tol, s.force, s.v]
+            wp.launch(KC.split_finish, dim=m.patch_count, device=m.device, inputs=args)
+
     def body(self) -> None:
         """One iteration: a trial of every pad that has not landed, the landing check and (when every pad has
         landed) a growth event and a sample, as the targets fall."""
+        m, s, dev = self.model, self.state, self.model.device
+        if self.pair:
+            self._pair_trial()
+        if self.split:
+            self._split_trial()
+        wp.launch(KA.landing, dim=1, device=dev, inputs=[m.pad_count, self.struct, self.rec.struct, self.event])
+        if self.growth is not None:
+            self.growth.launch()
+        if not self.split:
+            self.rec.launch(s.u, s.v, conditional=True)
+            return
+        args = [m.struct(), self.struct, self.solver.newton_tol, self.rec.struct, self.event, s.u, s.force, s.v]
+        wp.launch(KC.split_sample, dim=m.patch_count, device=dev, inputs=args)
+        if self.pair:
+            wp.launch(KC.switch_done, dim=m.pad_count, device=dev, inputs=[self.struct])
+        self.rec.launch(s.u, self.split_arrays["v_rec"], conditional=True)
+
+    def _split_trial(self) -> None:
+        """A split-step trial of every pad on it that has not landed: sub-step and drift, gather, control, commit."""
+        m, s, dev, n = self.model, self.state, self.model.device, self.model.patch_count
+        km, ctl = m.struct(), self.struct
+        wp.launch(KC.split_trial, dim=n, device=dev, inputs=[km, ctl, self.solver.newton_tol, s.u, s.v, s.force])
+        wp.launch(KC.split_gather, dim=n, device=dev, inputs=[km, ctl])
+        threads = block_threads(dev, CONTROL_BLOCK)
+        wp.launch_tiled(
+            KC.split_control, dim=[m.pad_count], block_dim=CONTROL_BLOCK, device=dev, inputs=[km, ctl, threads, s.force]
+        )
+        wp.launch(KC.split_commit, dim=n, device=dev, inputs=[km, ctl, s.force, s.u, s.v])
+
+    def _pair_trial(self) -> None:
+        """A DP5 trial of every pad on the pair that has not landed: seven stages, control, commit."""
         m, s, dev, n = self.model, self.state, self.model.device, self.model.patch_count
         km, dp5, lanes = m.struct(), self.struct, self.lanes
         su, sv = self.stage_u, self.stage_v
@@ -232,7 +300,3 @@ class AdaptiveStepper:
             inputs=[km, dp5, threads, s.u, s.v, u_new, v_new],
         )
         wp.launch(KA.dp5_commit, dim=n, device=dev, inputs=[km, dp5, u_new, v_new, s.u, s.v])
-        wp.launch(KA.landing, dim=1, device=dev, inputs=[m.pad_count, dp5, self.rec.struct, self.event])
-        if self.growth is not None:
-            self.growth.launch()
-        self.rec.launch(s.u, s.v, conditional=True)

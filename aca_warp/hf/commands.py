@@ -12,7 +12,15 @@ from typing import Any
 
 from aca_warp.common.argtypes import add_checkpoint_arguments, int_at_least, nonneg, positive, refuse_with_resume
 from aca_warp.common.errors import SceneError
-from aca_warp.hf.options import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, ENGINES, INTEGRATORS
+from aca_warp.hf.options import (
+    DEFAULT_DT,
+    DEFAULT_INTEGRATOR,
+    DEFAULT_SPLIT_TOLERANCE,
+    DEFAULT_TOLERANCE,
+    ENGINES,
+    INTEGRATORS,
+    STEP_CONTROLLED,
+)
 
 
 def run_epilog(resume: str) -> str:
@@ -64,21 +72,31 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "--integrator",
         choices=INTEGRATORS,
         default=DEFAULT_INTEGRATOR,
-        help=f"time integrator (default {DEFAULT_INTEGRATOR}); see docs/numerics.md",
+        help=f"time integrator (default {DEFAULT_INTEGRATOR}); step-controlled per pad: adaptive (explicit DP5), "
+        "controlled (strang's step with an error-controlled step), auto (adaptive while every patch slides, "
+        "controlled once a patch sticks); see docs/numerics.md",
     )
     hf.add_argument(
         "--dt",
         type=positive,
         metavar="S",
         help=f"fixed step [s] (default {DEFAULT_DT:g}; shortened so that whole steps fit the sample interval, which "
-        "may not be shorter than it); initial step of 'adaptive'",
+        "may not be shorter than it); first trial step of adaptive, controlled and auto",
     )
     hf.add_argument(
         "--tolerance",
         type=positive,
         metavar="X",
-        help=f"relative error tolerance of 'adaptive' (default {DEFAULT_TOLERANCE:g}); refused with a fixed-step "
-        "integrator, which has none",
+        help=f"relative error tolerance of the explicit pair: adaptive, and auto while a pad slides (default "
+        f"{DEFAULT_TOLERANCE:g}); refused with the other integrators",
+    )
+    hf.add_argument(
+        "--split-tolerance",
+        type=positive,
+        metavar="X",
+        help=f"tolerance of the error-controlled split step: controlled, and auto once a patch sticks (default "
+        f"{DEFAULT_SPLIT_TOLERANCE:g}: the rms over a pad of each step's local velocity errors, relative to the "
+        "patches' velocity scales); refused with the other integrators",
     )
     hf.add_argument("--precision", choices=("fp32", "fp64"), default="fp64", help="state precision (default fp64)")
     hf.add_argument(
@@ -156,11 +174,16 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         return _resume_hf(args)
     if args.scene is None or args.output is None:
         raise SceneError("hf needs SCENE and -o RUN.h5 (or --resume RUN.h5 to continue a run)")
-    if args.tolerance is not None and args.integrator != "adaptive":
-        raise SceneError(
-            f"--tolerance applies to --integrator adaptive only; {args.integrator} takes fixed steps (--dt): drop "
-            "--tolerance or add --integrator adaptive"
-        )
+    for flag, value, takes in (
+        ("--tolerance", args.tolerance, ("adaptive", "auto")),
+        ("--split-tolerance", args.split_tolerance, ("controlled", "auto")),
+    ):
+        if value is not None and args.integrator not in takes:
+            kind = "chooses its steps otherwise" if args.integrator in STEP_CONTROLLED else "takes fixed steps (--dt)"
+            raise SceneError(
+                f"{flag} applies to --integrator {' or '.join(takes)} only; {args.integrator} {kind}: drop {flag} "
+                f"or choose one of those"
+            )
     check_output_path(args.output, overwrite=args.overwrite)
     scene, duration = _hf_scene(args)
     options = RunOptions(
@@ -168,6 +191,7 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         integrator=args.integrator,
         dt=args.dt,
         tolerance=DEFAULT_TOLERANCE if args.tolerance is None else args.tolerance,
+        split_tolerance=DEFAULT_SPLIT_TOLERANCE if args.split_tolerance is None else args.split_tolerance,
         force=args.force,
         engine=args.engine,
         checkpoint_interval=args.checkpoint_interval,
@@ -293,6 +317,7 @@ def _resume_hf(args: argparse.Namespace) -> int:
             ("--patch-decimation", args.patch_decimation, None),
             ("--integrator", args.integrator, DEFAULT_INTEGRATOR),
             ("--tolerance", args.tolerance, None),
+            ("--split-tolerance", args.split_tolerance, None),
             ("--precision", args.precision, "fp64"),
             ("--force", args.force, False),
             ("--accept-unphysical", args.accept_unphysical, False),

@@ -22,6 +22,7 @@ from aca_warp.common.devices import block_threads
 from aca_warp.hf import adaptive
 from aca_warp.hf.engine import EngineSetup, Progress, fault_cause, run_stages
 from aca_warp.hf.model import PadModel
+from aca_warp.hf.options import STEP_CONTROLLED
 from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import CONTACT_BLOCK, HFSolver, grown_arrays, growth_events, growth_interval
 from aca_warp.kernels import hf as K
@@ -77,10 +78,16 @@ class GeneralEngine:
         self.use_graph = tuning.use_graph
         integrator = options.integrator
         self.solver = HFSolver(
-            model, integrator, options.dt, force=options.force, tolerance=options.tolerance, estimate=setup.estimate
+            model,
+            integrator,
+            options.dt,
+            force=options.force,
+            tolerance=options.tolerance,
+            split_tolerance=options.split_tolerance,
+            estimate=setup.estimate,
         )
         self.estimate = self.solver.estimate
-        self.adaptive = integrator == "adaptive"
+        self.adaptive = integrator in STEP_CONTROLLED
         growing = "pad_growth" in model.arrays
         self.sps = max(1, math.ceil(record.sample_dt / self.solver.dt - 1e-9))
         self.h = record.sample_dt / self.sps
@@ -137,7 +144,9 @@ class GeneralEngine:
         return self.stepper.mean_step() if self.stepper is not None else self.h
 
     def finish(self) -> None:
-        if not self.adaptive and self.started:
+        if self.stepper is not None:
+            self.stepper.finish()
+        elif self.started:
             self.solver.finish(self.state, self.h)
 
     # -- stepping

@@ -14,7 +14,7 @@ import warp as wp
 from aca_warp.common.devices import block_threads
 from aca_warp.common.errors import SceneError, option
 from aca_warp.hf.model import PadModel
-from aca_warp.hf.options import DEFAULT_INTEGRATOR, ENGINES
+from aca_warp.hf.options import ENGINES
 from aca_warp.kernels.hf_onchip import RED_SLOTS
 
 MAX_BLOCK = 1024  # threads per block
@@ -163,7 +163,7 @@ def block_config(
     return block_dim, threads, fits if csr_shared is None else bool(csr_shared)
 
 
-def unsupported(model: PadModel, integrator: str = DEFAULT_INTEGRATOR) -> str | None:
+def unsupported(model: PadModel, integrator: str) -> str | None:
     """Why the on-chip engine cannot run this model with ``integrator`` (None when it can): ``strang`` keeps a pad in
     shared memory; ``adaptive`` keeps a pad's stage displacements there (:func:`adaptive_shared_bytes`)."""
     if integrator == "adaptive":
@@ -182,7 +182,7 @@ def unsupported(model: PadModel, integrator: str = DEFAULT_INTEGRATOR) -> str | 
     return None
 
 
-def choose_engine(model: PadModel, engine: str, integrator: str = DEFAULT_INTEGRATOR) -> str:
+def choose_engine(model: PadModel, engine: str, integrator: str) -> str:
     """Resolve ``engine`` (auto, onchip, general) for a model; ``onchip`` on an unsupported model is an error.
 
     ``auto`` picks ``onchip`` on CUDA when the model allows it (faster there, docs/onchip.md), growing models

@@ -14,12 +14,23 @@ from typing import Any
 
 from aca_warp.common.errors import SceneError
 
-INTEGRATORS = ("symplectic-euler", "implicit-friction", "strang", "adaptive")
+INTEGRATORS = ("symplectic-euler", "implicit-friction", "strang", "adaptive", "controlled", "auto")
+# integrators that choose their own steps per pad (dt is only the first trial)
+STEP_CONTROLLED = ("adaptive", "controlled", "auto")
 DEFAULT_INTEGRATOR = "strang"
 DEFAULT_DT = 1.0e-8  # s
 DEFAULT_TOLERANCE = 1.0e-5  # adaptive: μ errors ≤ 1e-7 on hf1 and stick-slip (docs/time_to_solution.md)
+# controlled: the rms over a pad of the per-patch local velocity errors of a step, relative to the patch's velocity
+# scale V_i; 1e-2 meets the saturated-statistics targets on hf1 sectors (docs/friction_step.md §5.2)
+DEFAULT_SPLIT_TOLERANCE = 1.0e-2
 ENGINES = ("auto", "onchip", "general")
 WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (recorder.watchdog_bound)
+
+
+def tolerance_keyword(integrator: str) -> str:
+    """The option a study's single tolerance ``tol=`` sets for ``integrator``: ``tolerance`` for ``adaptive``,
+    ``split_tolerance`` for ``controlled`` and ``auto`` (whose pair keeps its default)."""
+    return "tolerance" if integrator == "adaptive" else "split_tolerance"
 
 
 def _positive_or_none(name: str, value: float | None, unit: str) -> None:
@@ -45,8 +56,10 @@ class RunOptions:
         duration: Simulated time [s]; None: the scene's own duration.
         integrator: One of :data:`INTEGRATORS` (docs/numerics.md).
         dt: Fixed step [s] (shortened so that whole steps fit a sample interval); None: :data:`DEFAULT_DT`.
-            For ``adaptive`` the first trial step.
-        tolerance: Relative tolerance of the adaptive integrator [1].
+            For the step-controlled integrators (:data:`STEP_CONTROLLED`) the first trial step.
+        tolerance: Relative tolerance of the explicit pair: ``adaptive`` and the sliding mode of ``auto`` [1].
+        split_tolerance: Tolerance of the error-controlled split step: ``controlled`` and the sticking mode of
+            ``auto`` [1] (the rms over a pad of each patch's local velocity error over its velocity scale V_i).
         force: Run a fixed step beyond the stable-step estimate, or a run beyond the size limits of
             :func:`~aca_warp.hf.runner.plan_run` (step count, recorded bytes).
         engine: ``auto``, ``general`` or ``onchip`` (docs/onchip.md).
@@ -62,6 +75,7 @@ class RunOptions:
     integrator: str = DEFAULT_INTEGRATOR
     dt: float | None = None
     tolerance: float = DEFAULT_TOLERANCE
+    split_tolerance: float = DEFAULT_SPLIT_TOLERANCE
     force: bool = False
     engine: str = "auto"
     checkpoint_interval: float | None = None
@@ -77,8 +91,10 @@ class RunOptions:
         _positive_or_none("dt", self.dt, " of seconds")
         check_interval(self.checkpoint_interval)
         _positive_or_none("watchdog_factor", self.watchdog_factor, "")
-        if not (isinstance(self.tolerance, int | float) and self.tolerance > 0 and math.isfinite(self.tolerance)):
-            raise SceneError(f"tolerance must be a positive number, got {self.tolerance!r}")
+        for name in ("tolerance", "split_tolerance"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and value > 0 and math.isfinite(value)):
+                raise SceneError(f"{name} must be a positive number, got {value!r}")
 
     def with_duration(self, duration: float) -> RunOptions:
         """A copy with ``duration`` [s] set."""

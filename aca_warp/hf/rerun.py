@@ -5,7 +5,7 @@ patches, duration, device).
 
 A run file holds everything a run depends on (docs/run_files.md): the scene as JSON (every constant, the
 record settings, the duration), the patch arrays in ``/patches`` and the matrix cells in ``/matrix`` (so the
-original patch file is not needed), the run options (integrator, step, tolerance, engine), the precision, the
+original patch file is not needed), the run options (integrator, step, tolerances, engine), the precision, the
 device and the package versions. :func:`read_settings` rebuilds the scene from them; the rerun uses the same code
 path as ``aca-warp hf`` and, on the same device and precision, gives the same bits.
 """

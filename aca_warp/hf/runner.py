@@ -23,7 +23,7 @@ from aca_warp.common.runfile import busy, reopen_resumable
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
-from aca_warp.hf.options import DEFAULT_DT, RunOptions
+from aca_warp.hf.options import DEFAULT_DT, STEP_CONTROLLED, RunOptions
 from aca_warp.hf.recorder import check_run, check_sample_step
 from aca_warp.hf.runfile import RunWriter, file_bytes
 from aca_warp.hf.sanity import check_contact
@@ -87,7 +87,7 @@ def plan_run(
     dt = DEFAULT_DT if options.dt is None else options.dt
     if not forced:
         check_sample_step(rec.sample_dt, dt, f"{option('force=True', '--force')} runs it anyway")
-    if options.integrator != "adaptive":
+    if options.integrator not in STEP_CONTROLLED:
         sps = max(1, math.ceil(rec.sample_dt / dt - 1e-9))
         steps, step = n * sps, rec.sample_dt / sps
     rows = rec.patch_rows(duration)

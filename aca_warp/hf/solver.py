@@ -16,6 +16,10 @@ Integrators (:data:`~aca_warp.hf.options.INTEGRATORS`):
 * ``adaptive``: per pad, the explicit Dormand–Prince 5(4) pair with its embedded error estimate in a
   friction-weighted norm and a PI step controller on the device (:mod:`aca_warp.hf.adaptive`); ``dt`` is its first
   trial step.
+* ``controlled``: ``strang``'s step with its own step per pad from an error estimate of the springs' and the
+  friction sub-step's local errors (:mod:`aca_warp.kernels.hf_controlled`); ``dt`` is its first trial step.
+* ``auto``: per pad, ``adaptive`` while every patch slides and ``controlled`` once a patch sticks
+  (:mod:`aca_warp.hf.adaptive`).
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ import warp as wp
 
 from aca_warp.common.errors import SceneError, StabilityError, option
 from aca_warp.hf.model import PadModel, coupling_matrix
-from aca_warp.hf.options import DEFAULT_DT, DEFAULT_TOLERANCE, INTEGRATORS
+from aca_warp.hf.options import DEFAULT_DT, DEFAULT_SPLIT_TOLERANCE, DEFAULT_TOLERANCE, INTEGRATORS, STEP_CONTROLLED
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 
@@ -183,9 +187,16 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
     from aca_warp.hf.limits import check_int32
     from aca_warp.hf.sanity import warn
 
-    solver = HFSolver(model, options.integrator, options.dt, force=True, tolerance=options.tolerance)
+    solver = HFSolver(
+        model,
+        options.integrator,
+        options.dt,
+        force=True,
+        tolerance=options.tolerance,
+        split_tolerance=options.split_tolerance,
+    )
     est = solver.estimate
-    if options.integrator == "adaptive":  # its steps are not counted; its growth events are (their index)
+    if options.integrator in STEP_CONTROLLED:  # their steps are not counted; their growth events are (the index)
         for scene in model.scenes:
             if scene.growth is not None and options.duration is not None:
                 events = options.duration / scene.growth.interval
@@ -215,6 +226,8 @@ class HFSolver:
     """Launch wrappers of one integrator for a model; ``step`` advances all pads by one fixed step.
 
     ``estimate``: the model's :func:`stable_step`, when the caller has it already (it reads every link of the batch).
+    ``tolerance``: the explicit pair's (``adaptive``, ``auto``), ``split_tolerance`` the split step's (``controlled``,
+    ``auto``).
     """
 
     def __init__(
@@ -225,6 +238,7 @@ class HFSolver:
         *,
         force: bool = False,
         tolerance: float = DEFAULT_TOLERANCE,
+        split_tolerance: float = DEFAULT_SPLIT_TOLERANCE,
         estimate: StepEstimate | None = None,
     ) -> None:
         if integrator not in INTEGRATORS:
@@ -234,20 +248,21 @@ class HFSolver:
         self.estimate = stable_step(model) if estimate is None else estimate
         self.T = model.dtype
         self.newton_tol = self.T(1.0e-6 if self.T == wp.float32 else 1.0e-9)  # of the velocity increment
-        if integrator == "adaptive":
-            if not (tolerance > 0 and math.isfinite(tolerance)):
-                raise SceneError(f"tolerance must be a positive number, got {tolerance}")
+        for name, value in (("tolerance", tolerance), ("split_tolerance", split_tolerance)):
+            if not (value > 0 and math.isfinite(value)):
+                raise SceneError(f"{name} must be a positive number, got {value}")
+        self.tolerance, self.split_tolerance = tolerance, split_tolerance
+        if integrator in ("adaptive", "auto"):
             if self.T == wp.float32 and tolerance < FP32_MIN_TOLERANCE:
                 fp64 = option("precision='fp64'", "--precision fp64")
                 raise SceneError(
                     f"tolerance {tolerance:g} is below what fp32 state can resolve (>= {FP32_MIN_TOLERANCE:g}); "
                     f"use {fp64} or a looser tolerance"
                 )
-            self.tolerance = tolerance
-        self.dt = (ADAPTIVE_FIRST_STEP if integrator == "adaptive" else DEFAULT_DT) if dt is None else dt
+        self.dt = (ADAPTIVE_FIRST_STEP if integrator in STEP_CONTROLLED else DEFAULT_DT) if dt is None else dt
         if not (self.dt > 0 and math.isfinite(self.dt)):
             raise SceneError(f"dt must be a positive number of seconds, got {self.dt}")
-        if integrator != "adaptive" and not force:  # adaptive: dt is only its first trial
+        if integrator not in STEP_CONTROLLED and not force:  # there dt is only the first trial
             step_refusal(self.estimate, integrator, self.dt)
         self.kernel_model = model.struct()  # the model's arrays as one kernel argument
         self._v_sync: wp.array | None = None
@@ -276,7 +291,7 @@ class HFSolver:
             self._launch(K.strang_advance, args)
             self.prepare(state)
         else:
-            raise SceneError("the adaptive integrator steps each pad on its own; use run_hf")
+            raise SceneError(f"the {self.integrator} integrator steps each pad on its own; use run_hf")
 
     def velocity(self, state: HFState, dt: float) -> wp.array:
         """The synchronous patch velocities [m/s] (for strang computed from the staggered state)."""

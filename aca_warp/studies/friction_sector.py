@@ -4,15 +4,18 @@
 The pads are the validation's ``reduced_pad`` sectors of hf1 (``--seeds`` pads of ``--patches`` patches, from
 equilibrium + N(0, (0.01 m/s)²) velocities, :func:`~aca_warp.studies.friction_stats.sector_scenes`), run as one
 batch on the general engine on the CPU over ``--duration``. Every setting of ``--runs`` (``INTEGRATOR:DT`` for a
-fixed step, forced past the stable-step estimate; ``INTEGRATOR:tol=TOL``; or ``INTEGRATOR`` at its defaults) is
+fixed step, forced past the stable-step estimate; ``INTEGRATOR:tol=TOL``, the tolerance of ``adaptive`` or the split
+tolerance of ``controlled`` and ``auto``; or ``INTEGRATOR`` at its defaults) is
 compared with ``--reference`` over the last ``--window``: the ensemble means of μ mean, μ std, mean Σ|u̇| and the
 velocity-sum peak (:func:`~aca_warp.studies.friction_stats.statistics`, ``compare``), the steps and the wall time of
 the stepping loop. Examples::
 
     python3 scripts/friction_step_sector.py --out docs/figures/friction_step/sector_cpu.json
     python3 scripts/friction_step_sector.py --quick --out OUT/quick.json          # a smoke run of a minute
+    python3 scripts/friction_step_sector.py --runs controlled controlled:tol=3e-3 auto adaptive strang:1e-7 \
+        --out docs/figures/friction_step/sector_controlled_cpu.json
     python3 scripts/friction_step_sector.py --report docs/figures/friction_step/sector_cpu.json \
-        --page docs/friction_step.md
+        docs/figures/friction_step/sector_controlled_cpu.json --page docs/friction_step.md
 """
 
 from __future__ import annotations
@@ -35,8 +38,9 @@ LABELS = {"mu_mean": "μ mean", "mu_std": "μ std", "abs_velocity_mean": "Σ|u̇
 
 
 def parse_run(spec: str) -> dict[str, Any]:
-    """``INTEGRATOR``, ``INTEGRATOR:DT`` [s] or ``INTEGRATOR:tol=TOL`` as package_run's keywords."""
-    from aca_warp.hf.options import INTEGRATORS
+    """``INTEGRATOR``, ``INTEGRATOR:DT`` [s] or ``INTEGRATOR:tol=TOL`` as package_run's keywords (TOL: the
+    ``tolerance`` of ``adaptive``, the ``split_tolerance`` of ``controlled`` and ``auto``)."""
+    from aca_warp.hf.options import INTEGRATORS, tolerance_keyword
 
     name, _, rest = spec.partition(":")
     if name not in INTEGRATORS:
@@ -44,7 +48,7 @@ def parse_run(spec: str) -> dict[str, Any]:
     if not rest:
         return {"integrator": name}
     if rest.startswith("tol="):
-        return {"integrator": name, "tolerance": float(rest[4:])}
+        return {"integrator": name, tolerance_keyword(name): float(rest[4:])}
     return {"integrator": name, "dt": float(rest)}
 
 
@@ -110,11 +114,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", nargs="+", default=list(RUNS), help="INTEGRATOR[:DT | :tol=TOL] (default the grid)")
     ap.add_argument("--quick", action="store_true", help="1 pad × 60 patches × 4 ms, window 2 ms: a smoke run")
     ap.add_argument("--out", type=Path, help="result JSON")
-    ap.add_argument("--report", type=Path, help="print the table of this result JSON (with --page: into the page)")
+    ap.add_argument(
+        "--report", type=Path, nargs="+", help="print the tables of these result JSONs (with --page: into the page)"
+    )
     ap.add_argument("--page", type=Path, help="docs page whose generated section --report rewrites")
     args = ap.parse_args(argv)
     if args.report is not None:
-        lines = report(json.loads(args.report.read_text()))
+        lines = [line for path in args.report for line in [*report(json.loads(path.read_text())), ""]][:-1]
         if args.page is not None:
             replace_generated(args.page, lines, generated_markers(f"scripts/{SCRIPT} --report"), "Friction step")
         print("\n".join(lines))

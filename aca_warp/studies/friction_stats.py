@@ -88,10 +88,12 @@ def package_run(
     *,
     dt: float | None = None,
     tolerance: float | None = None,
+    split_tolerance: float | None = None,
     precision: str = "fp64",
 ) -> tuple[Record, dict[str, Any]]:
     """A run of the package (general engine on the CPU) of ``scenes`` as one batch with ``integrator`` at step
-    ``dt`` [s] (forced past the stable-step estimate) or ``tolerance`` (None: its default) over ``duration`` [s]:
+    ``dt`` [s] (forced past the stable-step estimate) or ``tolerance``/``split_tolerance`` (None: the defaults)
+    over ``duration`` [s]:
     samples every SAMPLE_DT, per-patch velocities over the last ``window`` [s] (0: none). Returns the record and
     {wall_s (stepping), steps, dt, integrator}."""
     from aca_warp.scene import Record as SceneRecord
@@ -102,7 +104,7 @@ def package_run(
     record = SceneRecord(SAMPLE_DT, patches=patches, window=(duration - window - 0.5 * SAMPLE_DT, math.inf))
     res = run_engine(
         model, state, engine="general", duration=duration, integrator=integrator, dt=dt, record=record,
-        force=dt is not None, tolerance=tolerance,
+        force=dt is not None, tolerance=tolerance, split_tolerance=split_tolerance,
     )  # fmt: skip
     if not res.complete:
         raise RuntimeError(f"{integrator} run stopped: {res.fault}")

@@ -23,7 +23,7 @@ import numpy as np
 
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
-from aca_warp.hf.options import DEFAULT_INTEGRATOR, RunOptions
+from aca_warp.hf.options import DEFAULT_INTEGRATOR, STEP_CONTROLLED, RunOptions
 from aca_warp.hf.recorder import Chunk
 from aca_warp.hf.runner import run_scene
 from aca_warp.hf.state import HFState, initial_state
@@ -74,10 +74,14 @@ def run_general(
     tolerance: float | None = None,
     engine: str = "general",
 ) -> RunResult:
-    """``run_hf`` for ``duration`` [s] on ``engine`` (general, onchip, auto): ``adaptive`` with ``tolerance``, a
-    fixed-step integrator with ``dt`` [s] (forced: the work-precision study measures the error of every step, those
-    beyond the stable-step estimate too)."""
-    kw = {"tolerance": tolerance} if integrator == "adaptive" else {"dt": dt, "force": integrator != "symplectic-euler"}
+    """``run_hf`` for ``duration`` [s] on ``engine`` (general, onchip, auto): a step-controlled integrator
+    (``adaptive``, ``controlled``, ``auto``) with ``tolerance`` (the explicit pair's), a fixed-step integrator with
+    ``dt`` [s] (forced: the work-precision study measures the error of every step, those beyond the stable-step
+    estimate too)."""
+    if integrator in STEP_CONTROLLED:
+        kw: dict = {"tolerance": tolerance}
+    else:
+        kw = {"dt": dt, "force": integrator != "symplectic-euler"}
     options = RunOptions(duration=duration, integrator=integrator, engine=engine, **kw)
     return run_hf(model, state, options, record=record)
 
@@ -94,12 +98,14 @@ def run_engine(
     sink: Callable[[Chunk], None] | None = None,
     force: bool = False,
     tolerance: float | None = None,
+    split_tolerance: float | None = None,
 ) -> RunResult:
     """``run_hf`` for ``duration`` [s] with step ``dt`` [s] (None: the integrator's default; an error-controlled
-    integrator's first trial) and ``tolerance`` (None: the default); ``engine``: general, onchip or auto. With
+    integrator's first trial), ``tolerance`` and ``split_tolerance`` (None: the defaults;
+    :class:`~aca_warp.hf.options.RunOptions`); ``engine``: general, onchip or auto. With
     ``sink`` every recorded chunk goes there (the result then holds none); ``force``: a step beyond the stable-step
     estimate runs (with a warning)."""
-    tol = {} if tolerance is None else {"tolerance": tolerance}
+    tol = {k: v for k, v in (("tolerance", tolerance), ("split_tolerance", split_tolerance)) if v is not None}
     options = RunOptions(engine=engine, duration=duration, integrator=integrator, dt=dt, force=force, **tol)
     return run_hf(model, state, options, record=record, sink=sink)
 

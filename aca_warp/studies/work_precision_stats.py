@@ -17,10 +17,12 @@ so that every setting is measured on the same samples.
 
 A **setting** is ``INTEGRATOR@PRECISIONS[:dt=STEPS][:tol=TOLERANCES]`` (a product), e.g. ``strang@fp32:dt=1e-8,
 5e-7``, ``adaptive@fp64:tol=1e-4``, ``implicit-friction@fp32,fp64:dt=1e-7``; without dt or tol the integrator's
-defaults. Fixed steps run forced (past the spring bound too). Any name of ``aca_warp.hf.options.INTEGRATORS``
-is accepted, and a name that the default grid does not list runs at its defaults in fp32 and fp64. The
-**reference** (``--reference``; strang fp64 at 1e-8 s, --quick 2e-8 s, capped at 0.9 × the regime's friction
-step, h γ_max = 4, as the validation caps its own) runs first, then the grid, cheapest first.
+defaults (``tol``: the tolerance of ``adaptive``, the split tolerance of ``controlled`` and ``auto``,
+:func:`~aca_warp.hf.options.tolerance_keyword`). Fixed steps run forced (past the spring bound too). Any name of
+``aca_warp.hf.options.INTEGRATORS`` is accepted, and a name that the default grid does not list runs at its
+defaults in fp32 and fp64. The **reference** (``--reference``; strang fp64 at 1e-8 s, --quick 2e-8 s, capped at
+0.9 × the regime's friction step, h γ_max = 4, as the validation caps its own) runs first, then the grid, cheapest
+first.
 
 The statistics and the rule (a setting's bias within ± ``--rule`` × the standard deviation between seeds for every
 measure, as ``--criterion`` counts it: proven by the 95 % interval, or within the resolution of the ensemble; the
@@ -52,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.hf.options import INTEGRATORS
+from aca_warp.hf.options import INTEGRATORS, tolerance_keyword
 from aca_warp.studies.report import Log, add_device, add_page_options, clean, command_line, write_json
 from aca_warp.studies.validation.analysis import analyse_batch
 from aca_warp.studies.validation.area import analyse_growth
@@ -253,8 +255,8 @@ def run_setting(prep: Any, cfg: Any, setting: Setting, role: str, names: list[st
         sink = Progress(Collector(), f"{prep.exp.name} {setting.label}", prep.plan.duration, log)
         res = run_engine(
             model, state, engine=cfg.engine, duration=prep.plan.duration, integrator=setting.integrator,
-            dt=setting.dt, tolerance=setting.tolerance, record=prep.plan.record(cfg), sink=sink,
-            force=setting.dt is not None,
+            dt=setting.dt, record=prep.plan.record(cfg), sink=sink, force=setting.dt is not None,
+            **{tolerance_keyword(setting.integrator): setting.tolerance},
         )  # fmt: skip
     except (SceneError, ValueError) as e:  # a setting the integrator refuses (e.g. an fp32 tolerance too tight)
         log(f"  {setting.label}: refused: {e}")
