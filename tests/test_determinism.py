@@ -70,7 +70,7 @@ def run(scenes, integrator, *, use_graph=True, device="cpu"):
     """Run a batch from its initial state for 5 µs; returns the collected chunk and the final (u, v)."""
     model = build_model(scenes, device=device, precision="fp64")
     state = initial_state(model)
-    kw = {"tolerance": 1e-6} if integrator == "adaptive" else {"dt": DT[integrator]}
+    kw = {"tolerance": 1e-6} if integrator == "adaptive" else {"dt": DT[integrator]} if integrator in DT else {}
     tuning = EngineTuning(use_graph=use_graph, max_graph_steps=GRAPH_STEPS)
     res = run_hf(model, state, RunOptions(duration=5e-6, integrator=integrator, **kw), tuning=tuning)
     assert res.complete
