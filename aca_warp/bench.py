@@ -65,16 +65,17 @@ PEAK_TABLE: tuple[tuple[str, float, str], ...] = (
 _STREAM_CACHE: dict[str, float] = {}
 
 
-def bytes_per_step(integrator: str, patches: int, links: int, precision: str) -> int:
-    """Modelled device-memory traffic of one step of all pads [B] (module docstring: the count)."""
+def bytes_per_step(integrator: str, patches: int, links: int, precision: str) -> int | None:
+    """Modelled device-memory traffic of one step of all pads [B] (module docstring: the count); None for the
+    integrators whose step mixes kinds of trial (``controlled``, ``auto``: no model of their traffic)."""
     t = 4 if precision == "fp32" else 8
     per_patch = {
         "strang": 8 + 12 * t,
         "symplectic-euler": 8 + 11 * t,
         "implicit-friction": 8 + 11 * t,
         "adaptive": 12 + 27 * t,
-    }[integrator]
-    return int(patches * per_patch + links * (4 + t))
+    }.get(integrator)
+    return None if per_patch is None else int(patches * per_patch + links * (4 + t))
 
 
 def cpu_stream_bandwidth(nbytes: int = 128 * 2**20, repeats: int = 3) -> float:

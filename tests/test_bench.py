@@ -146,3 +146,11 @@ def test_ncu_onchip_normalises_one_launch(tmp_path: Path) -> None:
     short.write_text("\n".join([head, *rows[:2]]))
     for bad in (two, short, tmp_path / "missing.csv"):
         assert ncu.main(["--steps", "1", "--patches", "1", str(bad)]) == 2
+
+
+def test_bench_row_of_a_step_controlled_split_integrator_has_no_traffic_model():
+    """controlled and auto mix kinds of trial: no modelled traffic (None), where a KeyError stopped the bench."""
+    from aca_warp.bench import bytes_per_step
+
+    assert bytes_per_step("strang", 10, 20, "fp32") == 10 * (8 + 48) + 20 * 8
+    assert bytes_per_step("controlled", 10, 20, "fp32") is None and bytes_per_step("auto", 10, 20, "fp64") is None

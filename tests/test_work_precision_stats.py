@@ -413,3 +413,11 @@ def test_committed_page_is_what_the_report_writes():
     assert text.split(begin, 1)[1].split(end, 1)[0] == "\n" + "\n".join(body) + "\n"
     for t in tags:
         assert (folder / f"wps_{t}.png").is_file()
+
+
+def test_a_result_file_continues_across_a_change_of_the_validation_stepping():
+    """The regime's config is compared without the validation's stepping table (the grid sets the steps)."""
+    from aca_warp.studies.work_precision_stats import _without_stepping
+
+    key = {"seeds": 32, "window": 0.01, "stepping": {"hf": "strang, dt = 1e-07 s, fp32"}}
+    assert _without_stepping(key) == {"seeds": 32, "window": 0.01} == _without_stepping({**key, "stepping": {}})
