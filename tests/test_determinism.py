@@ -16,7 +16,15 @@ from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Material, Pad, Patches, Record, Scene
 
 FIXED_STEP = [i for i in INTEGRATORS if i != "adaptive"]
-DT = {"symplectic-euler": 5e-9, "implicit-friction": 1e-8, "strang": 1e-8, "adaptive": None}
+# the fixed step, or the tolerances of the step-controlled integrators
+SETTINGS = {
+    "symplectic-euler": {"dt": 5e-9},
+    "implicit-friction": {"dt": 1e-8},
+    "strang": {"dt": 1e-8},
+    "adaptive": {"tolerance": 1e-6},
+    "controlled": {"split_tolerance": 1e-3},
+    "auto": {"tolerance": 1e-6, "split_tolerance": 1e-3},
+}
 GRAPH_STEPS = 200  # short graphs: graph capture is the slow part on the CPU
 
 
@@ -70,7 +78,7 @@ def run(scenes, integrator, *, use_graph=True, device="cpu"):
     """Run a batch from its initial state for 5 µs; returns the collected chunk and the final (u, v)."""
     model = build_model(scenes, device=device, precision="fp64")
     state = initial_state(model)
-    kw = {"tolerance": 1e-6} if integrator == "adaptive" else {"dt": DT[integrator]} if integrator in DT else {}
+    kw = SETTINGS[integrator]
     tuning = EngineTuning(use_graph=use_graph, max_graph_steps=GRAPH_STEPS)
     res = run_hf(model, state, RunOptions(duration=5e-6, integrator=integrator, **kw), tuning=tuning)
     assert res.complete
