@@ -89,3 +89,14 @@ def test_readme_links_name_files_of_the_repository() -> None:
     assert targets
     missing = [t for t in targets if t and not (REPO / t).exists()]
     assert missing == []
+
+
+def test_quickstart_timing_runs_the_readme_command():
+    """scripts/time_quickstart.py times the README's quick-start command as written: the install, then the main
+    job (the command's last part, which writes a run file)."""
+    from scriptload import load_script
+
+    qs = load_script("time_quickstart")
+    command = qs.quickstart_command((Path(__file__).resolve().parent.parent / "README.md").read_text())
+    setup, job = command.rsplit(" && ", 1)
+    assert 'pip install -e ".[test]"' in setup and job.startswith("aca-warp hf ") and " -o " in job
