@@ -163,10 +163,10 @@ class GeneralEngine:
 
     def _capture_pays(self, reps: int, uses_left: int | None) -> bool:
         """Whether to capture the graph of ``reps`` bodies now: always on a GPU; on the CPU only once it will be
-        replayed at least :data:`CPU_CAPTURE_REPLAYS` times (``uses_left``, the replays still to come, when the run
-        knows it; else from the count of eager uses so far). A CPU capture costs about as much as eight eager runs
-        of the bodies it records (0.10–0.16 s for an hf1 pad), so a short run is faster launched eagerly; the
-        kernels and their order are the same either way, and so are the results."""
+        replayed at least :data:`CPU_CAPTURE_REPLAYS` times (``uses_left``, the replays still to come with this one,
+        when the run knows it; else from the count of eager uses so far). A CPU capture costs about as much as eight
+        eager runs of the bodies it records (0.10–0.16 s for an hf1 pad), so a short run is faster launched eagerly;
+        the kernels and their order are the same either way, and so are the results."""
         if not self.model.device.is_cpu or reps in self.graphs:
             return True
         if uses_left is not None:
@@ -175,18 +175,14 @@ class GeneralEngine:
         return self._eager_uses[reps] > CPU_CAPTURE_REPLAYS
 
     def _replay(self, reps: int, uses_left: int | None = None) -> None:
-        """Run ``reps`` bodies: from a captured graph (one per count) where capturing pays
+        """Run ``reps`` bodies: from a captured graph (one per count) where graphs are used and capturing pays
         (:meth:`_capture_pays`), else eagerly; the first (opening) one eagerly."""
-        if not self.use_graph:
-            for _ in range(reps):
-                self.body()
-            return
         if not self.started and not self.adaptive:  # the opening step differs from the rest: run it eagerly
             self.body()
             reps -= 1
             if reps == 0:
                 return
-        if not self._capture_pays(reps, uses_left):
+        if not (self.use_graph and self._capture_pays(reps, uses_left)):
             for _ in range(reps):
                 self.body()
             return
