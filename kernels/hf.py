@@ -144,6 +144,16 @@ def strang_advance(
     u_io[i] = u_io[i] + dt * v
 
 
+@wp.func
+def patch_close_velocity(i: int, p: int, w: Any, force: Any, dt: Any, model: Any, tol: Any):
+    """Patch i's (pad p) synchronous velocity [m/s] from its staggered w and F_s(uₙ) ``force`` [N] after a step
+    ``dt`` [s]: :func:`~aca_warp.kernels.physics.strang_close_velocity` with the patch's parameters from ``model``."""
+    return strang_close_velocity(
+        w, force, dt, model.inv_mass[i], model.damping[i], model.normal_force[i],
+        model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
+    )  # fmt: skip
+
+
 @wp.kernel
 def strang_close(
     model: Any,
@@ -159,11 +169,7 @@ def strang_close(
     """Synchronous velocity from the staggered w and F_s(uₙ) (:func:`~aca_warp.kernels.physics.strang_close_velocity`;
     may be in place)."""
     i = wp.tid()
-    p = model.patch_pad[i]
-    v_out[i] = strang_close_velocity(
-        v_in[i], force_in[i], dt, model.inv_mass[i], model.damping[i], model.normal_force[i],
-        model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
-    )  # fmt: skip
+    v_out[i] = patch_close_velocity(i, model.patch_pad[i], v_in[i], force_in[i], dt, model, tol)
 
 
 # ---------------------------------------------------------------------------------------------- recording

@@ -29,7 +29,7 @@ from typing import Any
 
 import warp as wp
 from aca_warp.kernels import precision_overloads
-from aca_warp.kernels.hf import RECORD_FLAG
+from aca_warp.kernels.hf import RECORD_FLAG, patch_close_velocity
 from aca_warp.kernels.hf_adaptive import (
     C_ERR,
     C_H,
@@ -54,7 +54,7 @@ from aca_warp.kernels.hf_adaptive import (
     store_control,
 )
 from aca_warp.kernels.hf_types import HFAdaptive, HFModel, HFRecorder
-from aca_warp.kernels.physics import friction_substep, patch_force, spring_force, strang_close_velocity
+from aca_warp.kernels.physics import friction_substep, patch_force, spring_force
 
 wp.set_module_options({"enable_backward": False})
 
@@ -129,10 +129,7 @@ def patch_close(i: int, p: int, w: Any, force: Any, dp5: Any, model: Any, tol: A
     hp = dp5.ctl[p, C_HPREV]
     if hp <= wp.float64(0.0):
         return w
-    return strang_close_velocity(
-        w, force, type(w)(hp), model.inv_mass[i], model.damping[i], model.normal_force[i],
-        model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
-    )  # fmt: skip
+    return patch_close_velocity(i, p, w, force, type(w)(hp), model, tol)
 
 
 @wp.kernel
