@@ -14,7 +14,6 @@ run of the main job, the machine, the date and the commit. Examples::
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import re
 import subprocess
@@ -23,7 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from time_tests import REPO, _machine
+from time_tests import REPO, _machine, report
 
 
 def quickstart_command(readme: str) -> str:
@@ -82,12 +81,7 @@ def main() -> int:
     p.add_argument("--json", type=Path)
     p.add_argument("--markdown", type=Path)
     args = p.parse_args()
-    r = run(args.timeout)
-    print(json.dumps(r, indent=1))
-    if args.json:
-        args.json.write_text(json.dumps(r, indent=1) + "\n")
-    if args.markdown:
-        args.markdown.write_text(markdown(r))
+    report(run(args.timeout), markdown, args.json, args.markdown)
     return 0
 
 

@@ -29,6 +29,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -153,6 +154,15 @@ def markdown(r: dict) -> str:
     )
 
 
+def report(r: dict, page: Callable[[dict], str], json_path: Path | None, markdown_path: Path | None) -> None:
+    """Print the figures ``r``; write them as JSON and, made by ``page``, as Markdown where paths are given."""
+    print(json.dumps(r, indent=1))
+    if json_path:
+        json_path.write_text(json.dumps(r, indent=1) + "\n")
+    if markdown_path:
+        markdown_path.write_text(page(r))
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--cold", action="store_true", help="an empty kernel cache (kernels compiled during the run)")
@@ -163,11 +173,7 @@ def main() -> int:
     p.add_argument("--markdown", type=Path)
     args = p.parse_args()
     r = run(args)
-    print(json.dumps(r, indent=1))
-    if args.json:
-        args.json.write_text(json.dumps(r, indent=1) + "\n")
-    if args.markdown:
-        args.markdown.write_text(markdown(r))
+    report(r, markdown, args.json, args.markdown)
     return 0 if r["exit_code"] == 0 else 1
 
 
