@@ -77,15 +77,7 @@ class GeneralEngine:
         self.model, self.state, self.record, self.n_samples = model, state, record, n_samples
         self.use_graph = tuning.use_graph
         integrator = options.integrator
-        self.solver = HFSolver(
-            model,
-            integrator,
-            options.dt,
-            force=options.force,
-            tolerance=options.tolerance,
-            split_tolerance=options.split_tolerance,
-            estimate=setup.estimate,
-        )
+        self.solver = HFSolver.for_run(model, options, setup.estimate)
         self.estimate = self.solver.estimate
         self.adaptive = integrator in STEP_CONTROLLED
         growing = "pad_growth" in model.arrays

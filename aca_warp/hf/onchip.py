@@ -119,7 +119,7 @@ class OnchipEngine(OnchipLaunches):
         if why is not None:
             raise SceneError(f"on-chip engine: {why}")
         self.model, self.state, self.record, self.n_samples = model, state, record, n_samples
-        self.solver = HFSolver(model, "strang", options.dt, force=options.force, estimate=setup.estimate)
+        self.solver = HFSolver.for_run(model, options, setup.estimate)
         self.estimate = self.solver.estimate
         self.sps = max(1, math.ceil(record.sample_dt / self.solver.dt - 1e-9))
         self.h = record.sample_dt / self.sps

@@ -95,9 +95,7 @@ class OnchipAdaptiveEngine(OnchipLaunches):
         if why is not None:
             raise SceneError(f"on-chip engine: {why}")
         self.model, self.state, self.record, self.n_samples = model, state, record, n_samples
-        self.solver = HFSolver(
-            model, "adaptive", options.dt, force=options.force, tolerance=options.tolerance, estimate=setup.estimate
-        )
+        self.solver = HFSolver.for_run(model, options, setup.estimate)
         self.estimate = self.solver.estimate
         spl = SAMPLES_PER_LAUNCH if tuning.samples_per_launch is None else tuning.samples_per_launch
         if spl < 1:

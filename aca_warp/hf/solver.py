@@ -33,7 +33,14 @@ import warp as wp
 
 from aca_warp.common.errors import SceneError, StabilityError, option
 from aca_warp.hf.model import PadModel, coupling_matrix
-from aca_warp.hf.options import DEFAULT_DT, DEFAULT_SPLIT_TOLERANCE, DEFAULT_TOLERANCE, INTEGRATORS, STEP_CONTROLLED
+from aca_warp.hf.options import (
+    DEFAULT_DT,
+    DEFAULT_SPLIT_TOLERANCE,
+    DEFAULT_TOLERANCE,
+    INTEGRATORS,
+    STEP_CONTROLLED,
+    RunOptions,
+)
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 
@@ -187,14 +194,7 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
     from aca_warp.hf.limits import check_int32
     from aca_warp.hf.sanity import warn
 
-    solver = HFSolver(
-        model,
-        options.integrator,
-        options.dt,
-        force=True,
-        tolerance=options.tolerance,
-        split_tolerance=options.split_tolerance,
-    )
+    solver = HFSolver.for_run(model, options, force=True)
     est = solver.estimate
     if options.integrator in STEP_CONTROLLED:  # their steps are not counted; their growth events are (the index)
         for scene in model.scenes:
@@ -266,6 +266,22 @@ class HFSolver:
             step_refusal(self.estimate, integrator, self.dt)
         self.kernel_model = model.struct()  # the model's arrays as one kernel argument
         self._v_sync: wp.array | None = None
+
+    @classmethod
+    def for_run(
+        cls, model: PadModel, options: RunOptions, estimate: StepEstimate | None = None, *, force: bool | None = None
+    ) -> HFSolver:
+        """The solver of a run with ``options``: its integrator, dt, tolerances and force (``force``, when given,
+        in place of ``options.force``)."""
+        return cls(
+            model,
+            options.integrator,
+            options.dt,
+            force=options.force if force is None else force,
+            tolerance=options.tolerance,
+            split_tolerance=options.split_tolerance,
+            estimate=estimate,
+        )
 
     def _launch(self, kernel: Any, inputs: list, dim: int | None = None) -> None:
         wp.launch(kernel, dim=self.model.patch_count if dim is None else dim, inputs=inputs, device=self.model.device)

@@ -66,6 +66,12 @@ class _Run:
             f"device {device_text(self.f)} · run {a['status']}"
         )
 
+    def save(self, fig: Figure, caption: str, outdir: str | Path, name: str) -> list[Path]:
+        """Finish ``fig`` with ``caption`` above the run's footer and write it as ``outdir/STEM_name.png`` and
+        ``.pdf`` (STEM: the run file's stem); returns both paths."""
+        _finish(fig, caption, self.footer)
+        return _save(fig, Path(outdir), f"{self.path.stem}_{name}")
+
     def group(self, name: str, compute: Callable[[], Group | None]) -> Group | None:
         return analysis_group(self.f, name, compute)
 
@@ -371,8 +377,7 @@ def plot_global(path: str | Path, outdir: str | Path) -> list[Path]:
             "and Σ|u̇|, the sum of the absolute patch velocities in the pad frame. Raw values, not normalised; "
             f"{t.size} samples at {report.sample_interval(t):.4g} s, drawn {drawn}."
         )
-        _finish(fig, caption, run.footer)
-        return _save(fig, Path(outdir), f"{run.path.stem}_global")
+        return run.save(fig, caption, outdir, "global")
 
 
 # ------------------------------------------------------------------------------------------- spectra
@@ -475,8 +480,7 @@ def plot_spectra(path: str | Path, outdir: str | Path) -> list[Path]:
             + f" Dropped: f < max(10 Hz, 2 Δf) = {floor:.4g} Hz (bin 1 holds the window's leakage of the mean). "
             "Log axes; the largest value per logarithmic frequency bin is drawn." + peak_text
         )
-        _finish(fig, caption, run.footer)
-        return _save(fig, Path(outdir), f"{run.path.stem}_spectra")
+        return run.save(fig, caption, outdir, "spectra")
 
 
 # ---------------------------------------------------------------------------------------------- sync
@@ -563,8 +567,7 @@ def plot_sync(path: str | Path, outdir: str | Path, **options: Any) -> list[Path
             f"window's leakage of the mean). {np.count_nonzero(valid)} of {f.size} bins shown have Φ ≥ 2, "
             f"{np.count_nonzero(above)} with S > S_null."
         )
-        _finish(fig, caption, run.footer)
-        return _save(fig, Path(outdir), f"{run.path.stem}_sync")
+        return run.save(fig, caption, outdir, "sync")
 
 
 # -------------------------------------------------------------------------------------- STFT and CWT
@@ -612,8 +615,7 @@ def plot_stft(path: str | Path, outdir: str | Path) -> list[Path]:
             f"map shown, |S| = {peak:.4g} at {freq[i_f] / 1e3:.4g} kHz, t = {times[i_t] * 1e3:.4g} ms; "
             f"f < {DEFAULT_FLOOR_HZ:g} Hz omitted, shown up to {freq[-1] / 1e3:.4g} kHz."
         )
-        _finish(fig, caption, run.footer)
-        return _save(fig, Path(outdir), f"{run.path.stem}_stft")
+        return run.save(fig, caption, outdir, "stft")
 
 
 def plot_cwt(path: str | Path, outdir: str | Path) -> list[Path]:
@@ -643,5 +645,4 @@ def plot_cwt(path: str | Path, outdir: str | Path) -> list[Path]:
             f"t = {times[i_t] * 1e3:.4g} ms; {freq.size} log-spaced frequencies "
             f"{freq[0] / 1e3:.3g}–{freq[-1] / 1e3:.4g} kHz."
         )
-        _finish(fig, caption, run.footer)
-        return _save(fig, Path(outdir), f"{run.path.stem}_cwt")
+        return run.save(fig, caption, outdir, "cwt")

@@ -1,5 +1,6 @@
-"""What the studies share: Warp set-up, progress lines, the command that reproduces a study, number formats,
-markdown tables, JSON files, the generated section of a docs page and figures saved as PNG + PDF.
+"""What the studies share: Warp set-up, the measure-or-report command line, progress lines, the command that
+reproduces a study, number formats, markdown tables, JSON files, the generated section of a docs page and figures
+saved as PNG + PDF.
 
 Figures are built on ``matplotlib.figure.Figure`` with the Agg canvas (as in :mod:`aca_warp.plots`): pyplot's
 global state and an interactive backend of the caller (a notebook) are never touched.
@@ -11,8 +12,9 @@ import argparse
 import json
 import math
 import shlex
+import sys
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -46,6 +48,26 @@ def add_page_options(parser: argparse.ArgumentParser, page: str, figures: str) -
     """``--page`` (docs page whose generated section a report rewrites) and ``--figures`` (its figure folder)."""
     parser.add_argument("--page", default=page, help=f"docs page whose generated section is rewritten ({page})")
     parser.add_argument("--figures", default=figures, help=f"figure folder ({figures})")
+
+
+def measure_or_report(
+    parser: argparse.ArgumentParser,
+    argv: Sequence[str] | None,
+    report: Callable[[argparse.Namespace], object],
+    measure: Callable[[argparse.Namespace, list[str]], object],
+) -> int:
+    """The command line of a study that measures, or with ``--report`` only writes its page from result files:
+    parses ``argv`` (``sys.argv[1:]`` when None) with ``parser``, then ``report(args)``; else Warp is initialised
+    (:func:`init_warp`) and ``measure(args, argv)`` runs (``argv`` for the results' :func:`command_line`).
+    Returns 0."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(argv)
+    if args.report:
+        report(args)
+        return 0
+    init_warp()
+    measure(args, argv)
+    return 0
 
 
 def command_line(script: str, argv: Sequence[str]) -> str:

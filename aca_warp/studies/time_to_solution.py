@@ -55,6 +55,7 @@ from aca_warp.studies.report import (
     fmt,
     generated_markers,
     md_table,
+    measure_or_report,
     replace_generated,
     write_json,
 )
@@ -383,12 +384,15 @@ def estimate(args: argparse.Namespace) -> float:
 
 
 def measure(args: argparse.Namespace, argv: list[str]) -> Path:
-    """Run the benchmark on --device; writes ``OUT/tts_<device>.json`` and prints the markdown table."""
+    """Run the benchmark on --device (--pads by default 64 on CUDA, none on the CPU); writes
+    ``OUT/tts_<device>.json`` and prints the markdown table."""
     import scipy
     import warp as wp
 
     from aca_warp.common.files import machine
 
+    if args.pads is None:
+        args.pads = 64 if args.device.startswith("cuda") else 0
     t0 = time.perf_counter()
 
     def log(msg: str) -> None:
@@ -534,18 +538,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Measure (or, with --report, only report); returns 0."""
-    from aca_warp.studies.report import init_warp
-
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
-    if args.report:
-        report(args.report, Path(args.page))
-        return 0
-    if args.pads is None:
-        args.pads = 64 if args.device.startswith("cuda") else 0
-    init_warp()
-    measure(args, argv)
-    return 0
+    return measure_or_report(build_parser(), argv, lambda args: report(args.report, Path(args.page)), measure)
 
 
 if __name__ == "__main__":

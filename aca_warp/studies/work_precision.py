@@ -58,7 +58,7 @@ from aca_warp.analysis.sync import sync_index_from_signals
 from aca_warp.hf.options import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
 from aca_warp.hf.reference import SCIPY_METHODS, ReferenceODE
 from aca_warp.scene import Record
-from aca_warp.studies.report import add_device, add_page_options, command_line, write_json
+from aca_warp.studies.report import add_device, add_page_options, command_line, measure_or_report, write_json
 from aca_warp.studies.runs import model_from_state, run_general
 from aca_warp.studies.work_precision_states import SAMPLE_DT, SAT_SEED, VA_GROW, VA_SPEEDUP, Start, start_state
 
@@ -474,12 +474,19 @@ class Study:
 
 
 def measure(args: argparse.Namespace, argv: list[str]) -> Path:
-    """Measure every --scenes on --device; writes and returns ``OUT/wp_<device>_<scenes>.json``."""
+    """Measure every --scenes on --device (the defaults of the options that depend on --quick filled in); writes
+    and returns ``OUT/wp_<device>_<scenes>.json``."""
     import scipy
     import warp as wp
 
     from aca_warp.common.files import machine
 
+    if args.quick and args.patches is None:
+        args.patches = QUICK_PATCHES
+    args.long_ref_dt = args.long_ref_dt or 2.5e-9
+    args.scipy_cap = args.scipy_cap or (5.0 if args.quick else 30.0)
+    args.scipy_cap_long = args.scipy_cap_long or (10.0 if args.quick else 60.0)
+    print(f"default integrator {DEFAULT_INTEGRATOR}, dt {DEFAULT_DT:g} s, tolerance {DEFAULT_TOLERANCE:g}", flush=True)
     dev = wp.get_device(args.device)
     t0 = time.perf_counter()
     results = []
@@ -546,26 +553,16 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+def report(args: argparse.Namespace) -> None:
+    """Figures and the docs page from the result JSONs of --report."""
+    from aca_warp.studies.work_precision_report import report as write_report
+
+    write_report(args.report, Path(args.page), Path(args.figures))
+
+
 def main(argv: list[str] | None = None) -> int:
     """Measure (or, with --report, only report); returns 0."""
-    from aca_warp.studies.report import init_warp
-
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
-    if args.report:
-        from aca_warp.studies.work_precision_report import report
-
-        report(args.report, Path(args.page), Path(args.figures))
-        return 0
-    if args.quick and args.patches is None:
-        args.patches = QUICK_PATCHES
-    args.long_ref_dt = args.long_ref_dt or 2.5e-9
-    args.scipy_cap = args.scipy_cap or (5.0 if args.quick else 30.0)
-    args.scipy_cap_long = args.scipy_cap_long or (10.0 if args.quick else 60.0)
-    init_warp()
-    print(f"default integrator {DEFAULT_INTEGRATOR}, dt {DEFAULT_DT:g} s, tolerance {DEFAULT_TOLERANCE:g}", flush=True)
-    measure(args, argv)
-    return 0
+    return measure_or_report(build_parser(), argv, report, measure)
 
 
 if __name__ == "__main__":
