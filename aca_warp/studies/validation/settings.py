@@ -4,9 +4,8 @@ Every experiment names one entry of :data:`STEPPING` (``Experiment.stepping``); 
 the entry's integrator and precision, and with its fixed step or, when the entry gives none, ``bound_fraction``
 × the batch's friction step (:func:`friction_step`: the step at which h γ_max = 4, γ_max = (c + F_N max|f′|)/m the
 fastest friction relaxation of its patches), capped at ``dt_max``. No stability bound of ``strang`` depends on it
-(only the springs bound its step); it is the resolution of the friction relaxation at which the growth and
-LF-state runs were made, until the statistical work-precision rule (docs/work_precision_statistics.md) measures
-those regimes with the forced damped-midpoint sub-step. The run then shortens the step to a whole number of steps
+(only the springs bound its step); it is the resolution of the friction relaxation at which the LF-state runs are
+made, which the statistical work-precision rule (docs/work_precision_statistics.md) does not let coarsen. The run then shortens the step to a whole number of steps
 per sample interval (``fitted_step``). ``--dt`` and ``--precision`` replace the table's values for every
 experiment.
 
@@ -74,17 +73,25 @@ STEPPING: dict[str, Stepping] = {
         reason="the §3.1 presets, the area sweep and their variants: the statistical work-precision on one H200 (32 "
         "saturated hf1 and hf2 pads each, 30 ms, a 10 ms window; docs/work_precision_statistics.md) keeps every "
         "validation measure within a quarter of the spread between seeds with strang fp32 at 5e-8 s and at no "
-        "coarser step (at 1e-7 s the velocity-sum peak moves in hf1, μ std and S − S_null in hf2); 20 steps per "
-        "µs sample; fp32 also keeps the neighbour lists on chip",
+        "coarser step (at 1e-7 s the velocity-sum peak moves in hf1, μ std and S − S_null in hf2); hf4 keeps every "
+        "measure up to 5e-7 s; in hf3 (no pad saturated in 30 ms) fp32 at every step from 1e-8 s moves S − S_null "
+        "by 0.29–0.33 σ against fp64, just past the quarter; 20 steps per µs sample; fp32 also keeps the neighbour "
+        "lists on chip",
     ),
     "growth": Stepping(
-        reason="the varying-area growth (§3.2): 0.9 × the friction step at the start, 1.34e-8 s, gives 1.2e-8 s "
-        "(84 steps per µs sample, 3.0e7 steps at the paper's 0.36 s); fp32 as the on-chip varying-area record of "
-        "results_varying_area_onchip.md"
+        dt=5.0e-8,
+        reason="the varying-area growth (§3.2): the statistical work-precision on one H200 (32 va pads, growth "
+        "compressed × 10, 36 ms, against strang fp32 at 1e-8 s; docs/work_precision_statistics.md) keeps every "
+        "growth measure within a quarter of the spread between seeds at 5e-8 s (at 1e-7 s the STFT maximum's "
+        "frequency leaves the resolution, at 5e-7 s the first line's fall); the paper-clock record (0.36 s) grows "
+        "10× slower through the same saturated stick-slip, so it takes the same step: 20 steps per µs sample, "
+        "7.2e6 steps, where 0.9 × the friction step (1.2e-8 s) took 3.0e7; fp32 as the on-chip record",
     ),
     "lf_states": Stepping(
         reason="the HF pads on the LF states (§3.3): their friction steps lie at 1.5e-8 … 4.1e-7 s (patches carrying "
-        "large loads at the high-pressure applications), so a batch runs at 0.9 × its smallest; fp32 keeps the "
+        "large loads at the high-pressure applications), so a batch runs at 0.9 × its smallest; the statistical "
+        "work-precision on one H200 (32 app2_start pads, 20 ms) lets no coarser step through: against fp64 at 1e-8 s "
+        "fp32 at 2e-8 s moves the growth rate by 0.27 σ, at 5e-8 s the velocity-sum peak by 0.4 σ; fp32 keeps the "
         "dense states' neighbour lists (up to 31 links per patch) on chip where fp64 does not"
     ),
 }

@@ -1,0 +1,94 @@
+#!/usr/bin/env python3
+"""Time the varying-area record through the command line at several fixed steps.
+
+Runs ``aca-warp hf varying_area --duration D --dt STEP --precision fp32 --device DEV -o OUT/va_STEP.h5`` once per
+step (each in its own process, as a user runs it, kernels cached after the first) and writes the wall time of each
+command with the run's summary line to ``OUT/time_varying_area.json`` and a Markdown table beside it. Which step the
+statistics allow is the statistical work-precision's question (docs/work_precision_statistics.md, regime ``va``);
+this script only measures what each step costs. Example (one GPU; the paper's record is 0.36 s)::
+
+    python3 scripts/time_varying_area.py --device cuda:0 --steps 1e-7 2.5e-7 5e-7 --out out/va_time
+    python3 scripts/time_varying_area.py --dry-run --steps 5e-8        # print the commands only
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import subprocess
+import time
+from pathlib import Path
+
+
+def command(step: float, duration: float, device: str, out: Path) -> list[str]:
+    """The command line timed for one step [s]."""
+    return [
+        "aca-warp", "hf", "varying_area", "--duration", f"{duration:g}", "--dt", f"{step:g}",
+        "--precision", "fp32", "--device", device, "--overwrite", "-o", str(out / f"va_{step:g}.h5"),
+    ]  # fmt: skip
+
+
+def time_one(cmd: list[str]) -> dict:
+    """Wall time [s], exit code and the last output line of one command."""
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    lines = (proc.stdout + proc.stderr).strip().splitlines()
+    return {
+        "command": " ".join(cmd),
+        "wall_s": round(wall, 2),
+        "exit": proc.returncode,
+        "summary": lines[-1] if lines else "",
+    }
+
+
+def markdown(doc: dict) -> str:
+    """The table of ``doc`` (one row per step)."""
+    rows = [f"| {r['step_s']:g} | {r['wall_s']:.1f} | {r['exit']} | {r['summary']} |" for r in doc["rows"]]
+    head = [
+        f"# Varying-area record through the CLI ({doc['duration_s']:g} s)",
+        "",
+        f"{doc['date']}, {doc['machine']}, device {doc['device']}; written by `python3 scripts/time_varying_area.py`.",
+        "",
+        "| step [s] | wall [s] | exit | summary |",
+        "|---|---|---|---|",
+    ]
+    return "\n".join(head + rows) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--device", default="cuda:0", help="Warp device of the runs (default cuda:0)")
+    ap.add_argument("--steps", type=float, nargs="+", default=[1e-7, 2.5e-7, 5e-7], metavar="S",
+                    help="fixed steps to time [s] (default 1e-7 2.5e-7 5e-7)")  # fmt: skip
+    ap.add_argument("--duration", type=float, default=0.36, metavar="S", help="record length [s] (default 0.36)")
+    ap.add_argument("--out", default="out/va_time", help="folder of the run files and the results")
+    ap.add_argument("--dry-run", action="store_true", help="print the commands and exit")
+    args = ap.parse_args(argv)
+    if not all(s > 0 for s in args.steps) or args.duration <= 0:
+        ap.error("steps and duration must be positive")
+    out = Path(args.out)
+    cmds = [command(s, args.duration, args.device, out) for s in args.steps]
+    if args.dry_run:
+        print("\n".join(" ".join(c) for c in cmds))
+        return 0
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for step, cmd in zip(args.steps, cmds, strict=True):
+        rows.append({"step_s": step} | time_one(cmd))
+        print(f"dt {step:g} s: {rows[-1]['wall_s']:.1f} s  {rows[-1]['summary']}", flush=True)
+    doc = {
+        "date": time.strftime("%Y-%m-%d %H:%M"),
+        "machine": f"{platform.node()} ({platform.processor() or platform.machine()})",
+        "device": args.device,
+        "duration_s": args.duration,
+        "rows": rows,
+    }
+    (out / "time_varying_area.json").write_text(json.dumps(doc, indent=1) + "\n")
+    (out / "time_varying_area.md").write_text(markdown(doc))
+    return 0 if all(r["exit"] == 0 for r in rows) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
