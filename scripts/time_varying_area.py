@@ -20,6 +20,8 @@ import subprocess
 import time
 from pathlib import Path
 
+from aca_warp.cli import Parser
+
 
 def command(step: float, duration: float, device: str, out: Path) -> list[str]:
     """The command line timed for one step [s]."""
@@ -58,7 +60,7 @@ def markdown(doc: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cuda:0", help="Warp device of the runs (default cuda:0)")
     ap.add_argument("--steps", type=float, nargs="+", default=[1e-7, 2.5e-7, 5e-7], metavar="S",
                     help="fixed steps to time [s] (default 1e-7 2.5e-7 5e-7)")  # fmt: skip

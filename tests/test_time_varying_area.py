@@ -1,0 +1,39 @@
+"""scripts/time_varying_area.py: the commands it times and its refusal of bad input (no run here)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parent.parent / "scripts" / "time_varying_area.py"
+
+
+def load():
+    spec = importlib.util.spec_from_file_location("time_varying_area", SCRIPT)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_dry_run_prints_one_command_per_step(capsys):
+    assert load().main(["--dry-run", "--steps", "5e-8", "2.5e-7", "--duration", "0.01", "--device", "cpu"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 2
+    assert lines[0].startswith("aca-warp hf varying_area --duration 0.01 --dt 5e-08 --precision fp32 --device cpu")
+    assert "--dt 2.5e-07" in lines[1] and lines[1].endswith("va_2.5e-07.h5")
+
+
+@pytest.mark.parametrize("argv", [["--steps", "-1e-7"], ["--duration", "0"]])
+def test_bad_input_is_one_line_exit_2(argv, capsys):
+    with pytest.raises(SystemExit) as e:
+        load().main(["--dry-run", *argv])
+    assert e.value.code == 2
+    assert "must be positive" in capsys.readouterr().err
+
+
+def test_markdown_has_a_row_per_step():
+    doc = {"date": "d", "machine": "m", "device": "cuda:0", "duration_s": 0.36,
+           "rows": [{"step_s": 1e-7, "wall_s": 46.6, "exit": 0, "summary": "ok"}]}  # fmt: skip
+    assert "| 1e-07 | 46.6 | 0 | ok |" in load().markdown(doc)
