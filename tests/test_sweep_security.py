@@ -21,7 +21,7 @@ from pathlib import Path
 
 import psutil
 import pytest
-from procs import error_lines, started
+from procs import error_lines, started, wait_for
 
 dask = pytest.importorskip("dask")
 pytest.importorskip("distributed")
@@ -144,6 +144,7 @@ def test_plain_client_cannot_use_a_running_sweep(tmp_path: Path) -> None:
         assert all(v.startswith("refused") for v in clients.values()), clients
         assert all(v.startswith("refused") for v in rpcs.values()), rpcs
         assert list((tmp_path / "tmp").iterdir()) == []  # while it runs, too
+        wait_for(out / "shard-00000.h5.partial", sweep)  # its shard begun (long since, but on a loaded machine)
         sweep.send_signal(signal.SIGTERM)
         _, err = sweep.communicate(timeout=120)
         assert sweep.returncode == 143, err
