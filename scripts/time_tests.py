@@ -11,11 +11,15 @@ the machine), the machine, the date, the load average before and after, and whet
 one (kernels compiled on the way, as on a new machine or after a Warp upgrade). With ``--durations N`` pytest also
 times every test (``--durations=0``): the N slowest tests and the N files of the largest total are listed (the time a
 file takes sets when its worker can finish: every file runs on one worker), and every file's total is kept in the JSON,
-from which the tests' conftest.py orders the files, longest first. Examples::
+from which the tests' conftest.py orders the files, longest first. With ``--beside`` a second fresh clone runs the
+same command at the same moment (both started together, each with its own virtual environment): the suite as it
+runs on a machine that another suite (another CI job, a second checkout) shares; the timed suite's wall and CPU time
+are reported as before, the other's under ``beside``. Examples::
 
     python3 scripts/time_tests.py --durations 15 --json docs/benchmarks/test_suite.json \
         --markdown docs/benchmarks/test_suite.md
     python3 scripts/time_tests.py --cold -n 2          # a new machine's first run, two workers
+    python3 scripts/time_tests.py --beside             # with a second copy of the suite running beside it
 """
 
 from __future__ import annotations
@@ -24,7 +28,6 @@ import argparse
 import json
 import os
 import re
-import resource
 import subprocess
 import sys
 import tempfile
@@ -33,12 +36,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-
-
-def cpu_of_children() -> float:
-    """CPU time [s] (user + sys) of every child process waited for so far."""
-    r = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return r.ru_utime + r.ru_stime
 
 
 def counts(text: str) -> dict[str, int]:
@@ -74,30 +71,81 @@ def durations(text: str, n: int) -> dict:
     }
 
 
+def _clone(tmp: Path, name: str, args: argparse.Namespace) -> tuple[Path, str, list[str], dict[str, str]]:
+    """A fresh clone of this checkout's HEAD under ``tmp/name`` with its virtual environment; (clone, commit, the
+    suite's command, its environment)."""
+    clone = tmp / name
+    subprocess.run(["git", "clone", "--quiet", "--no-hardlinks", str(REPO), str(clone)], check=True)
+    commit = subprocess.run(["git", "-C", str(clone), "rev-parse", "--short", "HEAD"], check=True,
+                            capture_output=True, text=True).stdout.strip()  # fmt: skip
+    venv = clone / ".venv"
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
+    python = str(venv / "bin" / "python")
+    subprocess.run([python, "-m", "pip", "install", "-q", "--no-deps", "-e", str(clone)], check=True)
+    env = {**os.environ, "PATH": f"{venv / 'bin'}{os.pathsep}{os.environ.get('PATH', '')}"}
+    if args.cold:
+        env["WARP_CACHE_PATH"] = str(tmp / "warp_cache")
+    command = [python, "-m", "pytest", "-q", "-n", args.n, "tests"] + (["--durations=0"] if args.durations else [])
+    return clone, commit, command, env
+
+
+def _suites(runs: list[tuple[Path, list[str], dict[str, str]]], timeout: float) -> list[dict]:
+    """Start every (folder, command, environment) of ``runs`` at the same moment and wait for all; per run its exit
+    code, output (stdout and stderr), wall time [s] and CPU time [s] (user + sys of the command and every process it
+    waited for: ``os.wait4``'s resource use, the figure that does not depend on what else loads the machine)."""
+    logs = [tempfile.TemporaryFile("w+") for _ in runs]
+    t0 = time.perf_counter()
+    procs = [subprocess.Popen(cmd, cwd=cwd, env=env, stdout=log, stderr=subprocess.STDOUT, text=True)
+             for (cwd, cmd, env), log in zip(runs, logs, strict=True)]  # fmt: skip
+    out: list[dict] = [{} for _ in runs]
+    waiting = {p.pid: k for k, p in enumerate(procs)}
+    deadline = t0 + timeout
+    while waiting:
+        pid, status, usage = os.wait4(-1, os.WNOHANG)
+        if pid == 0:
+            if time.perf_counter() > deadline:
+                for k in waiting.values():
+                    procs[k].kill()
+                deadline = float("inf")  # the killed ones are reaped on the next turns
+            time.sleep(0.2)
+            continue
+        if pid not in waiting:
+            continue
+        k = waiting.pop(pid)
+        procs[k].returncode = os.waitstatus_to_exitcode(status)
+        out[k] = {
+            "exit_code": procs[k].returncode,
+            "wall_s": time.perf_counter() - t0,
+            "cpu_s": usage.ru_utime + usage.ru_stime,
+        }
+    for k, log in enumerate(logs):
+        log.seek(0)
+        out[k]["output"] = log.read()
+        log.close()
+    return out
+
+
 def run(args: argparse.Namespace) -> dict:
-    """Clone, install, run the suite; the figures of the run."""
+    """Clone, install, run the suite (with ``--beside``: a second clone's suite started at the same moment); the
+    figures of the run."""
     with tempfile.TemporaryDirectory(prefix="aca_warp_suite_") as tmp:
-        clone = Path(tmp) / "aca_warp"
-        subprocess.run(["git", "clone", "--quiet", "--no-hardlinks", str(REPO), str(clone)], check=True)
-        commit = subprocess.run(["git", "-C", str(clone), "rev-parse", "--short", "HEAD"], check=True,
-                                capture_output=True, text=True).stdout.strip()  # fmt: skip
-        venv = clone / ".venv"
-        subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
-        python = str(venv / "bin" / "python")
-        subprocess.run([python, "-m", "pip", "install", "-q", "--no-deps", "-e", str(clone)], check=True)
-        env = {**os.environ, "PATH": f"{venv / 'bin'}{os.pathsep}{os.environ.get('PATH', '')}"}
-        if args.cold:
-            env["WARP_CACHE_PATH"] = str(Path(tmp) / "warp_cache")
-        command = [python, "-m", "pytest", "-q", "-n", args.n, "tests"]
-        timing = ["--durations=0"] if args.durations else []
+        clone, commit, command, env = _clone(Path(tmp), "aca_warp", args)
+        runs = [(clone, command, env)]
+        if args.beside:
+            other, _, other_command, other_env = _clone(Path(tmp), "beside", args)
+            runs.append((other, other_command, other_env))
         started = time.strftime("%Y-%m-%d %H:%M")
-        load_before, cpu0, t0 = os.getloadavg(), cpu_of_children(), time.perf_counter()
-        done = subprocess.run(
-            command + timing, cwd=clone, env=env, capture_output=True, text=True, timeout=args.timeout
-        )
-        wall, cpu, load_after = time.perf_counter() - t0, cpu_of_children() - cpu0, os.getloadavg()
-    if done.returncode != 0:
-        sys.stderr.write(done.stdout[-3000:] + done.stderr[-3000:])
+        load_before = os.getloadavg()
+        done = _suites(runs, args.timeout)
+        load_after = os.getloadavg()
+    timed = done[0]
+    if timed["exit_code"] != 0:
+        sys.stderr.write(timed["output"][-6000:])
+    beside = {}
+    if args.beside:
+        b = done[1]
+        beside = {"beside": {"exit_code": b["exit_code"], **counts(b["output"]), "wall_s": b["wall_s"],
+                             "cpu_s": b["cpu_s"]}}  # fmt: skip
     return {
         "command": f"python3 -m pytest -q -n {args.n} tests",
         "commit": commit,
@@ -105,14 +153,15 @@ def run(args: argparse.Namespace) -> dict:
         "machine": _machine(),
         "cores": os.cpu_count(),
         "kernel_cache": "cold (empty)" if args.cold else "warm (Warp's cache of this machine)",
-        "exit_code": done.returncode,
-        **counts(done.stdout),
-        "failures": failures(done.stdout),
-        "wall_s": wall,
-        "cpu_s": cpu,
+        "exit_code": timed["exit_code"],
+        **counts(timed["output"]),
+        "failures": failures(timed["output"]),
+        "wall_s": timed["wall_s"],
+        "cpu_s": timed["cpu_s"],
         "load_before": load_before[0],
         "load_after": load_after[0],
-        **(durations(done.stdout, args.durations) if args.durations else {}),
+        **beside,
+        **(durations(timed["output"], args.durations) if args.durations else {}),
     }
 
 
@@ -144,6 +193,13 @@ def markdown(r: dict) -> str:
         f"{minutes(r['cpu_s'])} |\n"
         + ("\nFailed: " + ", ".join(f"`{t}`" for t in r["failures"]) + "\n" if r.get("failures") else "")
         + (
+            f"\nBeside a second copy of the suite (a fresh clone of the same commit, started at the same moment): "
+            f"that one {r['beside']['passed']} passed, {r['beside']['failed'] + r['beside']['errors']} failed, "
+            f"{minutes(r['beside']['wall_s'])} wall, {minutes(r['beside']['cpu_s'])} CPU.\n"
+            if r.get("beside")
+            else ""
+        )
+        + (
             "\nTime of each test (setup + call + teardown; under `-n` the workers share the cores, so a test takes "
             "longer than alone) and of each file (its tests together, on one worker):\n"
             + table("slowest tests", r["slowest_tests"])
@@ -163,7 +219,7 @@ def report(r: dict, page: Callable[[dict], str], json_path: Path | None, markdow
         markdown_path.write_text(page(r))
 
 
-def main() -> int:
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--cold", action="store_true", help="an empty kernel cache (kernels compiled during the run)")
     p.add_argument("-n", default="auto", help="pytest-xdist workers (default auto: one per core)")
@@ -171,7 +227,16 @@ def main() -> int:
     p.add_argument("--durations", type=int, default=0, metavar="N", help="list the N slowest tests and files")
     p.add_argument("--json", type=Path)
     p.add_argument("--markdown", type=Path)
-    args = p.parse_args()
+    p.add_argument(
+        "--beside",
+        action="store_true",
+        help="a second fresh clone runs the same suite at the same moment (shared cores)",
+    )
+    return p.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
     r = run(args)
     report(r, markdown, args.json, args.markdown)
     return 0 if r["exit_code"] == 0 else 1

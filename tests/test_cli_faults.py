@@ -29,7 +29,7 @@ import h5py
 import pytest
 from procs import assert_same_datasets, cli, datasets, env, error_lines, small_scene_toml
 from test_lf_checkpoint import lf_scene
-from test_storage import HF_SCENE
+from test_storage import HF_DT, HF_SCENE
 
 from aca_warp.cli import main
 from aca_warp.common.errors import SceneError
@@ -55,7 +55,9 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     (d / "lf.toml").write_text(lf_scene(0.2))
     (d / "long.toml").write_text(HF_SCENE)
     assert main(["hf", str(d / "small.toml"), "-o", str(d / "small.h5"), "--no-progress"]) == 0
-    assert main(["hf", str(d / "long.toml"), "-o", str(d / "long.h5"), "--duration", "2e-4", "--no-progress"]) == 0
+    assert (
+        main(["hf", str(d / "long.toml"), "-o", str(d / "long.h5"), "--duration", "2e-4", "--no-progress", *HF_DT]) == 0
+    )
     return {"hf": d / "small.toml", "lf": d / "lf.toml", "run": d / "small.h5", "long": d / "long.h5"}
 
 
@@ -66,7 +68,7 @@ def refs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("refs")
     (d / "hf.toml").write_text(HF_SCENE)
     (d / "lf.toml").write_text(lf_scene(1.0))
-    assert main(["hf", str(d / "hf.toml"), "-o", str(d / "hf.h5"), "--no-progress"]) == 0
+    assert main(["hf", str(d / "hf.toml"), "-o", str(d / "hf.h5"), "--no-progress", *HF_DT]) == 0
     assert main(["lf", str(d / "lf.toml"), "-o", str(d / "lf.h5"), "--no-progress"]) == 0
     return {"hf_scene": d / "hf.toml", "hf": d / "hf.h5", "lf_scene": d / "lf.toml", "lf": d / "lf.h5"}
 
@@ -320,7 +322,7 @@ def test_interrupt_then_resume(tmp_path: Path, refs, kind: str, sig: int) -> Non
         args = ["lf", str(refs["lf_scene"]), "-o", str(out), "--checkpoint-interval", "0.05", "--no-progress"]
     else:
         ref = refs["hf"]
-        first = ["hf", str(refs["hf_scene"])] if kind == "hf" else ["rerun", str(ref)]
+        first = ["hf", str(refs["hf_scene"]), *HF_DT] if kind == "hf" else ["rerun", str(ref)]
         args = [*first, "-o", str(out), "--checkpoint-interval", "5e-5", "--no-progress"]
     part = tmp_path / "run.h5.partial"
     code, lines = interrupt_when(start(args), lambda: part.exists() and has_checkpoint(part), sig)

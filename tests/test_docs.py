@@ -100,3 +100,37 @@ def test_quickstart_timing_runs_the_readme_command():
     command = qs.quickstart_command((Path(__file__).resolve().parent.parent / "README.md").read_text())
     setup, job = command.rsplit(" && ", 1)
     assert 'pip install -e ".[test]"' in setup and job.startswith("aca-warp hf ") and " -o " in job
+
+
+def test_suite_timing_beside_a_second_suite(tmp_path: Path) -> None:
+    """scripts/time_tests.py --beside starts a second suite at the same moment as the timed one and reports both:
+    each run's own exit code, output, wall and CPU time (here two small commands burning 0.4 s and 0.05 s of CPU,
+    started together); the Markdown names the second suite's figures."""
+    from scriptload import load_script
+
+    tt = load_script("time_tests")
+    assert tt.parse_args(["--beside", "-n", "2"]).beside and not tt.parse_args([]).beside
+    burn = "import time\nt = time.process_time()\nwhile time.process_time() - t < {s}: pass\nprint('{n} passed')\n"
+    runs = [
+        (tmp_path, [sys.executable, "-c", burn.format(s=0.4, n=3)], dict(os.environ)),
+        (tmp_path, [sys.executable, "-c", burn.format(s=0.05, n=1) + "raise SystemExit(1)"], dict(os.environ)),
+    ]
+    timed, other = tt._suites(runs, 120.0)
+    assert (timed["exit_code"], other["exit_code"]) == (0, 1)
+    assert tt.counts(timed["output"])["passed"] == 3 and tt.counts(other["output"])["passed"] == 1
+    assert timed["cpu_s"] >= 0.4 > other["cpu_s"] >= 0.05  # each its own process tree's CPU time
+    assert timed["wall_s"] > 0 and other["wall_s"] > 0
+    r = {
+        "command": "python3 -m pytest -q -n auto tests", "commit": "abc1234", "date": "2026-01-01 00:00",
+        "machine": "a test machine", "kernel_cache": "warm", "load_before": 0.1, "load_after": 2.0,
+        "passed": 3, "skipped": 0, "failed": 0, "errors": 0, "failures": [], "wall_s": 200.0, "cpu_s": 280.0,
+        "beside": {"exit_code": 0, "passed": 990, "skipped": 1, "failed": 0, "errors": 0, "wall_s": 290.0,
+                   "cpu_s": 281.0},
+    }  # fmt: skip
+    page = tt.markdown(r)
+    assert "| 3 | 0 | 0 | 3 min 20 s | 4 min 40 s |" in page
+    assert (
+        "Beside a second copy of the suite" in page and "990 passed, 0 failed, 4 min 50 s wall, 4 min 41 s CPU" in page
+    )
+    del r["beside"]
+    assert "Beside" not in tt.markdown(r)

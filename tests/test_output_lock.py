@@ -50,11 +50,11 @@ def refused(capsys: pytest.CaptureFixture, argv: list[str], pid: int) -> None:
     assert f"is being written by pid {pid}" in lines[0], lines
 
 
-@pytest.mark.parametrize("locking", ["TRUE", "FALSE"])
-def test_live_hf_run_is_not_replaced_or_resumed(tmp_path, locking, capsys, monkeypatch) -> None:
+def test_live_hf_run_is_not_replaced_or_resumed(tmp_path, capsys, monkeypatch) -> None:
     """While `hf` runs (held with SIGSTOP), a second `hf --overwrite` on the same output, an `hf` without it and an
-    `hf --resume` are refused with one line naming the holder, with HDF5's own locking on or off; nothing of the live
-    `.partial` changes; the first run then finishes into a complete, readable file."""
+    `hf --resume` are refused with one line naming the holder, with HDF5's own locking on and off (both against the
+    same live run); nothing of the live `.partial` changes; the first run then finishes into a complete, readable
+    file."""
     scene = tmp_path / "s.toml"
     scene.write_text(SCENE)
     out = tmp_path / "run.h5"
@@ -64,16 +64,17 @@ def test_live_hf_run_is_not_replaced_or_resumed(tmp_path, locking, capsys, monke
         wait_for(part, first)
         stop(first)
         before = part.read_bytes()
-        monkeypatch.setenv("HDF5_USE_FILE_LOCKING", locking)
-        for argv in (
-            ["hf", str(scene), "-o", str(out), "--overwrite", "--no-progress"],
-            ["hf", str(scene), "-o", str(out), "--no-progress"],
-            ["hf", "--resume", str(out), "--no-progress"],
-        ):
-            refused(capsys, argv, first.pid)
-        r = cli(["hf", "--resume", str(out), "--no-progress"], HDF5_USE_FILE_LOCKING=locking)  # a process too
-        assert r.returncode == 2 and f"pid {first.pid}" in error_lines(r.stderr)[0], r.stderr
-        assert part.read_bytes() == before and not out.exists()
+        for locking in ("TRUE", "FALSE"):
+            monkeypatch.setenv("HDF5_USE_FILE_LOCKING", locking)
+            for argv in (
+                ["hf", str(scene), "-o", str(out), "--overwrite", "--no-progress"],
+                ["hf", str(scene), "-o", str(out), "--no-progress"],
+                ["hf", "--resume", str(out), "--no-progress"],
+            ):
+                refused(capsys, argv, first.pid)
+            r = cli(["hf", "--resume", str(out), "--no-progress"], HDF5_USE_FILE_LOCKING=locking)  # a process too
+            assert r.returncode == 2 and f"pid {first.pid}" in error_lines(r.stderr)[0], (locking, r.stderr)
+            assert part.read_bytes() == before and not out.exists()
         resume(first)
         assert first.wait(timeout=120) == 0, first.stderr.read()
     with h5py.File(out, "r") as f:
@@ -81,11 +82,11 @@ def test_live_hf_run_is_not_replaced_or_resumed(tmp_path, locking, capsys, monke
     assert not part.exists() and not lock_path(out).exists()
 
 
-@pytest.mark.parametrize("locking", ["TRUE", "FALSE"])
-def test_aliases_of_a_live_run_are_refused(tmp_path, locking, capsys, monkeypatch) -> None:
+def test_aliases_of_a_live_run_are_refused(tmp_path, capsys, monkeypatch) -> None:
     """One writer per file, not per name: while `hf` runs (held with SIGSTOP), `hf --resume` and `analyze` through a
     symbolic link or a hard link of its live `.partial`, or of the `.partial` moved to another name, are refused with
-    one line naming the holder, with HDF5's own locking on or off; the live file is unchanged and the run completes."""
+    one line naming the holder, with HDF5's own locking on and off (both against the same live run); the live file is
+    unchanged and the run completes."""
     scene = tmp_path / "s.toml"
     scene.write_text(SCENE)
     out = tmp_path / "run.h5"
@@ -94,21 +95,22 @@ def test_aliases_of_a_live_run_are_refused(tmp_path, locking, capsys, monkeypatc
         wait_for(part, first)
         stop(first)
         before = part.read_bytes()
-        monkeypatch.setenv("HDF5_USE_FILE_LOCKING", locking)
-        (tmp_path / "sym.h5.partial").symlink_to(part)
-        os.link(part, tmp_path / "hard.h5.partial")
-        for alias in ("sym.h5", "hard.h5"):
-            refused(capsys, ["hf", "--resume", str(tmp_path / alias), "--no-progress"], first.pid)
-            refused(capsys, ["analyze", str(tmp_path / f"{alias}.partial")], first.pid)
-        for argv in (["hf", "--resume", str(tmp_path / "hard.h5")], ["analyze", str(tmp_path / "sym.h5.partial")]):
-            r = cli(argv, HDF5_USE_FILE_LOCKING=locking)  # a process: HDF5 reads the variable when it starts
-            assert r.returncode == 2 and f"pid {first.pid}" in error_lines(r.stderr)[0], r.stderr
-        (tmp_path / "sym.h5.partial").unlink()
-        (tmp_path / "hard.h5.partial").unlink()
-        os.replace(part, tmp_path / "moved.h5.partial")
-        refused(capsys, ["hf", "--resume", str(tmp_path / "moved.h5"), "--no-progress"], first.pid)
-        os.replace(tmp_path / "moved.h5.partial", part)
-        assert part.read_bytes() == before and not out.exists()
+        for locking in ("TRUE", "FALSE"):
+            monkeypatch.setenv("HDF5_USE_FILE_LOCKING", locking)
+            (tmp_path / "sym.h5.partial").symlink_to(part)
+            os.link(part, tmp_path / "hard.h5.partial")
+            for alias in ("sym.h5", "hard.h5"):
+                refused(capsys, ["hf", "--resume", str(tmp_path / alias), "--no-progress"], first.pid)
+                refused(capsys, ["analyze", str(tmp_path / f"{alias}.partial")], first.pid)
+            for argv in (["hf", "--resume", str(tmp_path / "hard.h5")], ["analyze", str(tmp_path / "sym.h5.partial")]):
+                r = cli(argv, HDF5_USE_FILE_LOCKING=locking)  # a process: HDF5 reads the variable when it starts
+                assert r.returncode == 2 and f"pid {first.pid}" in error_lines(r.stderr)[0], (locking, r.stderr)
+            (tmp_path / "sym.h5.partial").unlink()
+            (tmp_path / "hard.h5.partial").unlink()
+            os.replace(part, tmp_path / "moved.h5.partial")
+            refused(capsys, ["hf", "--resume", str(tmp_path / "moved.h5"), "--no-progress"], first.pid)
+            os.replace(tmp_path / "moved.h5.partial", part)
+            assert part.read_bytes() == before and not out.exists()
         resume(first)
         assert first.wait(timeout=120) == 0, first.stderr.read()
     with h5py.File(out, "r") as f:

@@ -93,7 +93,7 @@ def test_signal_marks_running_shards_and_rerun_finishes(
             break
         assert "marked interrupted" not in lines[0], lines[0]
     assert "interrupted" in states and "queued" not in states, states
-    assert set(states) <= {"done", "interrupted", "pending"}, states
+    assert set(states) <= {"done", "interrupted", "pending"}, (states, (out / "manifest.json").read_text())
     hit = [i for i, s in enumerate(states) if s == "interrupted"]
     assert f"shard(s) {', '.join(map(str, hit))} marked interrupted" in lines[0]
     assert not list(out.glob("*.partial"))  # a stopped shard deletes its file (Dask workers too)

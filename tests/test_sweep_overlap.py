@@ -14,11 +14,12 @@ from procs import assert_same_datasets
 
 from aca_warp.sweep import ChunkWriter, KernelTurn, ShardCancelled, load_spec, run_sweep
 
-# 8 pads of 20 patches in 3 shards (3, 3, 2 pads); 400 µs at 1 µs samples: 401 samples, more than one recorder
-# chunk, so that the writer joins chunks and the time axis is appended several times
+# 8 pads of 20 patches in 3 shards (3, 3, 2 pads); 40 µs at 0.1 µs samples: 401 samples in 16 recorder chunks (the
+# CPU engine's chunk is a graph of at most 256 steps: 25 samples of 10 steps), so that the writer joins chunks and the
+# time axis is appended several times
 SPEC = {
     "sweep": {"base": "hf1", "shard_size": 3, "name": "overlap"},
-    "run": {"duration": 4e-4, "precision": "fp32", "sample_dt": 1e-6},
+    "run": {"duration": 4e-5, "precision": "fp32", "sample_dt": 1e-7},
     "base": {"patches": {"count": 20}},
     "parameters": {"friction.M": [0.6, 0.9], "patches.seed": {"range": [1, 5]}},
 }

@@ -300,12 +300,14 @@ def test_head_start_prepares_every_worker_s_first_shard(
 
 
 def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """scripts/bench_sweep.py on the CPU with tiny settings and this checkout as its own baseline: the new path
-    overlapped and sequential, the baseline overlapped, each in a process that imported the code it names; rates and
-    ratios from the shards' own timings; the device's time line (start, busy, idle, tail) adds up to the wall time;
-    the host phases include the pool's work and the turn's (upload, set-up with the checks given). The children share
-    the tests' kernel cache (the script gives each code its own, empty one where WARP_CACHE_PATH is unset: kernels
-    compiled twice, for identical code)."""
+    """scripts/bench_sweep.py on the CPU with tiny settings: the new path overlapped (and as the command runs it) and
+    sequential, each in a process that imported the code it names; rates and ratios from the shards' own timings; the
+    device's time line (start, busy, idle, tail) adds up to the wall time; the host phases include the pool's work and
+    the turn's (upload, set-up with the checks given). With ``--baseline`` the same configurations run for a second
+    checkout (here this one): its runs are listed, and its processes import the code of that checkout (a package view
+    of it; checked on its host-phase process, the cheapest: the sweeps of the baseline run the same functions as the
+    new code's, in the same way). The children share the tests' kernel cache (the script gives each code its own,
+    empty one where WARP_CACHE_PATH is unset: kernels compiled twice, for identical code)."""
     pytest.importorskip("distributed")
     import warp as wp
     from scriptload import load_script
@@ -318,11 +320,11 @@ def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pyte
     repo = Path(bench.__file__).resolve().parent.parent
     out, md = tmp_path / "b.json", tmp_path / "b.md"
     argv = ["--device", "cpu", "--units", "1", "--pads", "8", "--patches", "12", "--shard-size", "4"]
-    argv += ["--duration", "3e-6", "--baseline", str(repo), "--prepare", "1", "--json", str(out), "--md", str(md)]
+    argv += ["--duration", "3e-6", "--prepare", "1", "--json", str(out), "--md", str(md)]
     assert bench.main([*argv, "--dir", str(tmp_path / "w")]) == 0
     doc = json.loads(out.read_text())
     rows = {(r["code"], r["mode"]): r for r in doc["results"]}
-    assert set(rows) == {("new", "overlapped"), ("new", "sequential"), ("baseline", "overlapped")}
+    assert set(rows) == {("new", "overlapped"), ("new", "sequential")}
     assert "partial" not in doc  # written after every run, whole at the end
     for r in rows.values():
         assert r["patch_steps"] == 8 * 12 * 300 and r["package"].startswith(str(tmp_path / "w"))
@@ -337,12 +339,24 @@ def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pyte
             assert min(d["start"], d["busy"], d["idle"], d["tail"]) >= 0
         for sh in r["timeline"]["shards"]:
             assert 0 <= sh["turn"][0] <= sh["phases"]["kernel"][0] < sh["turn"][1] <= r["wall_s"]
-    hosts = {h["code"]: h for h in doc["host"]}
-    assert set(hosts) == {"new", "baseline"} and all(h["repeats"] == 3 and h["pads"] == 4 for h in hosts.values())
+    (host,) = doc["host"]
+    assert host["code"] == "new" and host["repeats"] == 3 and host["pads"] == 4
     phases = ("prepare", "build", "setup", "pool", "upload", "setup_checked")
-    assert all(0 < h["cpu_s"][p] and 0 < h["wall_s"][p] for h in hosts.values() for p in phases)
+    assert all(0 < host["cpu_s"][p] and 0 < host["wall_s"][p] for p in phases)
     new = rows[("new", "overlapped")]
-    assert new["prepare"] == 1 and new["workers"] == 1
+    assert new["prepare"] == 1 and new["workers"] == 1 and new["command_wall_s"] > 0
     text = md.read_text()
-    assert len(text.splitlines()) == 1 and "baseline overlapped on 1 CPU worker" in text
-    assert "idle between turns" in text
+    assert len(text.splitlines()) == 1 and "new sequential on 1 CPU worker" in text
+    assert "idle between turns" in text and "the whole call as the command runs it" in text
+    # --baseline: its configurations, and its processes import that checkout's code
+    args = bench.parse_args([*argv, "--baseline", str(repo)])
+    runs = bench.configurations(args)
+    assert [(c["code"], c["mode"], c["units"]) for c in runs] == [
+        ("new", "overlapped", 1), ("new", "sequential", 1), ("baseline", "overlapped", 1)
+    ]  # fmt: skip
+    assert runs[2]["prepare"] is None  # a baseline runs with its own default pool
+    scratch = tmp_path / "b"
+    scratch.mkdir()
+    h = bench.run_child(repo, {**runs[0], "code": "baseline", "mode": "host", "repeat": 1}, scratch)
+    assert h["code"] == "baseline" and h["package"] == str(scratch / "view-baseline" / "aca_warp")
+    assert all(0 < h["cpu_s"][p] for p in phases)

@@ -140,9 +140,11 @@ def test_measure_and_report_end_to_end(tmp_path, tiny_study):
     assert start.info.get("cached", "").endswith("state_hf1_sat_9.npz")
     u0 = np.load(tmp_path / "state_hf1_sat_9.npz")["u"]
     np.testing.assert_array_equal(start.u, u0)
-    # report: a second "device" merged into one page that keeps the hand-written text
+    # report: a second "device" (its stickslip scene only: one figure fewer to draw) merged into one page that keeps
+    # the hand-written text
     other = json.loads(path.read_text())
     other["machine"]["device"], other["machine"]["device_name"] = "cuda:0", "Fake GPU"
+    other["scenes"] = [sc for sc in other["scenes"] if sc["scene"] == "stickslip"]
     p2 = tmp_path / "gpu.json"
     p2.write_text(json.dumps(other))
     page = tmp_path / "page.md"
@@ -154,6 +156,9 @@ def test_measure_and_report_end_to_end(tmp_path, tiny_study):
     assert "Cheapest setting that reaches a μ error" in text and "at the floor or within" in text
     assert (tmp_path / "fig" / "wp_hf1_sat_cpu_quick.png").exists()
     assert (tmp_path / "fig" / "wp_stickslip_cuda0_quick.pdf").exists()
+    assert sorted(f.stem for f in (tmp_path / "fig").glob("*.png")) == [
+        "wp_hf1_sat_cpu_quick", "wp_stickslip_cpu_quick", "wp_stickslip_cuda0_quick"
+    ]  # fmt: skip
 
 
 def test_summary_picks_the_cheapest_that_reaches():

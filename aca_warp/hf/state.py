@@ -5,8 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 import warp as wp
 
 from aca_warp.hf.model import PadModel, coupling_matrix
@@ -83,6 +81,9 @@ def perturbations(initial: Initial, n: int) -> tuple[np.ndarray | None, np.ndarr
 
 def _equilibrium(model: PadModel) -> np.ndarray:
     """Static displacement with u̇ = 0: sparse solve of (diag k_T + L) u = F_N f(ω r)."""
+    import scipy.sparse as sp  # here, not at the top: a run from rest needs no SciPy (0.3 s of every start-up)
+    import scipy.sparse.linalg as spla
+
     start, index, kij = coupling_matrix(model)
     n = model.patch_count
     rows = np.repeat(np.arange(n), np.diff(start))
