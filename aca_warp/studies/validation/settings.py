@@ -5,9 +5,9 @@ the entry's integrator and precision, and with its fixed step or, when the entry
 × the batch's friction step (:func:`friction_step`: the step at which h γ_max = 4, γ_max = (c + F_N max|f′|)/m the
 fastest friction relaxation of its patches), capped at ``dt_max``. No stability bound of ``strang`` depends on it
 (only the springs bound its step); it is the resolution of the friction relaxation at which the LF-state runs are
-made, which the statistical work-precision rule (docs/work_precision_statistics.md) does not let coarsen. The run then shortens the step to a whole number of steps
-per sample interval (``fitted_step``). ``--dt`` and ``--precision`` replace the table's values for every
-experiment.
+made, which the statistical work-precision rule (docs/work_precision_statistics.md) does not let coarsen. The run
+then shortens the step to a whole number of steps per sample interval (``fitted_step``). ``--dt`` and
+``--precision`` replace the table's values for every experiment.
 
 Friction steps of the presets at their start: hf1 9.65e-8 s, hf2 9.50e-8 s, hf3 1.93e-7 s, hf4 1.90e-7 s,
 varying_area 1.34e-8 s (hf1's patches under the HF2 load: a few patches carry large loads at the start), LF states
