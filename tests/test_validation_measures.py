@@ -249,9 +249,10 @@ def test_stepping_takes_the_fixed_step_the_friction_step_rule_the_cap_or_an_over
 
     hf = VSet.STEPPING["hf"]
     assert hf.step(8.8e-8) == hf.step(1.9e-7) == 5e-8  # the measured step, whatever the friction step
-    growth = VB.Config().stepping("growth")
-    assert growth.step(1.34e-8) == pytest.approx(1.206e-8)  # 0.9 × the friction step
-    assert growth.step(1.9e-7) == 8e-8  # capped
+    assert VB.Config().stepping("growth").step(1.34e-8) == 5e-8  # the measured step for the growing pads too
+    lf = VB.Config().stepping("lf_states")
+    assert lf.step(1.34e-8) == pytest.approx(1.206e-8)  # 0.9 × the friction step
+    assert lf.step(1.9e-7) == 8e-8  # capped
     # the friction step is h γ_max = 4: twice the explicit friction estimate 2/γ_max
     assert VSet.friction_step(StepEstimate(spring=2e-6, friction=4.82e-8, explicit=4.8e-8)) == pytest.approx(9.64e-8)
     assert VB.Config(dt=5e-9, precision="fp64").stepping("hf").step(9.65e-8) == 5e-9
