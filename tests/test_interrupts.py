@@ -63,6 +63,34 @@ def test_deferred_raises_at_its_end_and_later_signals_are_ignored() -> None:
     assert steps == ["body finished", "clean-up finished"]
 
 
+def test_another_threads_deferred_neither_holds_back_nor_takes_the_interrupt() -> None:
+    """A writer thread inside ``deferred`` while the signal comes: the command's thread is interrupted at once, and
+    the writer's body ends normally (it is never cut by a signal) without the interrupt raised in it."""
+    import threading
+
+    inside, release, outcome = threading.Event(), threading.Event(), []
+
+    def writer() -> None:
+        try:
+            with interrupts.deferred():
+                inside.set()
+                release.wait(5)
+            outcome.append("finished")
+        except KeyboardInterrupt:
+            outcome.append("interrupted in the writer")
+
+    with interrupts.installed():
+        t = threading.Thread(target=writer)
+        t.start()
+        inside.wait(5)
+        with pytest.raises(interrupts.Terminated):
+            os.kill(os.getpid(), signal.SIGTERM)
+            _ordinary_code(0.5)
+        release.set()
+        t.join(5)
+    assert outcome == ["finished"]
+
+
 SECOND = """
 import os, signal, sys, time
 from aca_warp.common import interrupts

@@ -173,8 +173,10 @@ def exit_process(code: int, late: Callable[[int, int], str]) -> NoReturn:
 @contextmanager
 def deferred() -> Iterator[None]:
     """Run the body without being interrupted half-way: a SIGINT or SIGTERM that arrives meanwhile is raised when
-    the body has finished (not when it raised an error of its own: that error ends the command anyway)."""
-    if not _state.installed:
+    the body has finished (not when it raised an error of its own: that error ends the command anyway). Only the
+    main thread defers: Python raises a signal's exception there and nowhere else, so another thread's body is never
+    cut by it, and an interrupt deferred for another thread would be raised in that thread, not the command's."""
+    if not _state.installed or threading.current_thread() is not threading.main_thread():
         yield
         return
     _state.depth += 1
