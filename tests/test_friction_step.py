@@ -95,7 +95,7 @@ def test_strang_bounded_at_the_spring_bound(sector) -> None:
     h = 0.95 * bound
     rec = Record(sample_dt=100 * h, patches=("velocity",))
     opts = RunOptions(duration=1200 * h, integrator="strang", dt=h, force=True, engine="general")
-    res = run_hf(model, state, opts, record=rec, tuning=EngineTuning(max_graph_steps=200))
+    res = run_hf(model, state, opts, record=rec, tuning=EngineTuning(max_graph_steps=32))
     assert res.complete and res.fault is None
     out = res.collect()
     assert np.all(np.abs(out.globals[:, 0, 0]) <= M)

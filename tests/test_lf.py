@@ -10,7 +10,7 @@ import copy
 
 import numpy as np
 import pytest
-from aca_warp.kernels.lf_record import H_LOAD, H_PASSES, H_SIZE
+from aca_warp.kernels.lf_record import H_COUNT, H_LOAD, H_PASSES, H_SIZE
 from aca_warp.kernels.lf_types import G_LOAD, LF_BLOCK, LFCells, LFRings
 from aca_warp.kernels.lf_wear import debris_sweep
 
@@ -225,32 +225,36 @@ def test_graph_replay_equals_eager(device):
 def test_block_kernels_with_cpu_fibers_match_one_thread_blocks():
     """The block kernels (contact solve, debris sweep) with Warp's cooperative CPU fibers (256 threads, real
     barriers) against one-thread CPU blocks, on a grid whose rings have more cells than a block (n_t > LF_BLOCK:
-    the sweep walks several chunks): equal to rounding (the contact sums are reduced in a different order). On
-    this 5.9e4-cell grid the serial sums once sat above the 1e-13 tolerance for good (40 passes before the
-    solve stopped at the rounding floor)."""
+    the sweep walks several chunks): equal to rounding (the contact sums are reduced in a different order) over the
+    8 steps in which the patches wear away (the ramp, every death, debris stored; the fibre run costs ~0.4 s a step,
+    the one-thread run ~5 ms). On this 5.9e4-cell grid the serial sums once sat above the 1e-13 tolerance for good
+    (40 passes before the solve stopped at the rounding floor): the one-thread run goes on to 15 steps (7 of them
+    on the bare matrix) for the passes."""
     import warp as wp
 
     runs = []
     old = wp.config.enable_cpu_blocks
     try:
-        for fibers in (False, True):
+        for fibers, duration in ((False, 0.08), (True, 0.08), (False, 0.15)):
             wp.config.enable_cpu_blocks = fibers
-            sim = LFSimulation(_scene(cell=4.0e-5), device="cpu", duration=0.15)
+            sim = LFSimulation(_scene(cell=4.0e-5), device="cpu", duration=duration)
             assert sim.n_t > LF_BLOCK and sim.threads == (LF_BLOCK if fibers else 1)
             sim.run()
             runs.append((sim.patches_host(), sim.hist.numpy(), sim.cell_store.numpy()))
     finally:
         wp.config.enable_cpu_blocks = old
-    (pa, ha, sa), (pb, hb, sb) = runs
-    assert len(pa["x"]) == len(pb["x"]) and np.any(sa > 0)
+    (pa, ha, sa), (pb, hb, sb), (pc, hc, _) = runs
+    assert len(pa["x"]) == len(pb["x"]) == 0 < int(ha[0, H_COUNT]) and np.any(sa > 0)  # every patch has died
     for k in pa:
         np.testing.assert_allclose(pa[k], pb[k], rtol=1e-9, atol=1e-18)
     cols = [k for k in range(H_SIZE) if k != H_PASSES]  # sums in another order may need one pass more or less
     np.testing.assert_allclose(ha[:, cols], hb[:, cols], rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(sa, sb, rtol=1e-9, atol=1e-21)
+    np.testing.assert_array_equal(hc[: len(ha)], ha)  # the longer run begins as the shorter
     # the contact solve stops at the rounding floor instead of running all lf.contact_iterations (40) passes
-    loaded = ha[:, H_LOAD] > 0
-    assert np.all(ha[loaded, H_PASSES] >= 2) and ha[:, H_PASSES].max() <= 6 and hb[:, H_PASSES].max() <= 6
+    loaded = hc[:, H_LOAD] > 0
+    assert hc.shape[0] == 15 and np.all(hc[loaded, H_PASSES] >= 2) and hc[:, H_PASSES].max() <= 6
+    assert hb[:, H_PASSES].max() <= 6
 
 
 @pytest.mark.parametrize("fibers", [False, True])

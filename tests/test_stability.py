@@ -34,7 +34,8 @@ from aca_warp.hf.solver import stable_step
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Material, Pad, Patches, Record, Scene
 
-GRAPH_STEPS = 200  # short graphs: graph capture is the slow part on the CPU
+GRAPH_STEPS = 32  # short graphs: a CPU capture costs more per step the longer the graph (5000 steps of 30 patches
+# sampled every 10 steps: 0.08 s of CPU in graphs of 32 steps, 0.38 s in graphs of 256)
 STEPS = 100_000
 SAMPLE_EVERY = 100  # steps per recorded sample in the long runs
 
@@ -300,27 +301,29 @@ def balance_residual(scene: Scene, integrator: str, dt: float, duration: float =
 
 
 @pytest.mark.parametrize(
-    ("speed", "integrator", "order", "rel_bound"),
+    ("speed", "integrator", "order", "rel_bound", "duration"),
     [
-        (10.0, "strang", 2, 1e-6),
-        (10.0, "symplectic-euler", 1, 1e-3),
-        (0.01, "strang", 2, 1e-2),
-        (0.01, "implicit-friction", 1, 2e-3),
+        (10.0, "strang", 2, 1e-6, 1e-5),
+        (10.0, "symplectic-euler", 1, 1e-3, 1e-5),
+        (0.01, "strang", 2, 1e-2, 2e-5),
+        (0.01, "implicit-friction", 1, 2e-3, 2e-5),
     ],
     ids=["sliding-strang", "sliding-euler", "stick-slip-strang", "stick-slip-imex"],
 )
-def test_energy_balance_closes(speed, integrator, order, rel_bound):
-    """With friction (M = 0.8) and damping (ζ = 0.02), E(t) − E(0) = W_friction − W_damping over 20 µs: the
+def test_energy_balance_closes(speed, integrator, order, rel_bound, duration):
+    """With friction (M = 0.8) and damping (ζ = 0.02), E(t) − E(0) = W_friction − W_damping over 10 or 20 µs: the
     residual (max over time) is small against the friction work and falls as dt^order from 2 ns to 1 ns.
 
-    ``sliding``: disc at 10 m/s (no zero crossing of the sliding speed); ``stick-slip``: 1 cm/s disc with
-    0.05 m/s velocity perturbations, so the sliding speed crosses zero where friction is stiffest."""
+    ``sliding``: disc at 10 m/s (no zero crossing of the sliding speed), 10 µs (its largest residual comes within
+    them: the ratios are those of 20 µs); ``stick-slip``: 1 cm/s disc with 0.05 m/s velocity perturbations, so the
+    sliding speed crosses zero where friction is stiffest, 20 µs (the friction work of a shorter run is too small
+    for the bound)."""
     scene = friction_scene(
         material=Material(damping_ratio=0.02),
         initial=Initial(perturbation=0.05, seed=1),
     ).replace(angular_velocity=speed / 0.13)
-    r_coarse, w_f, w_d = balance_residual(scene, integrator, 2e-9)
-    r_fine, w_f2, _ = balance_residual(scene, integrator, 1e-9)
+    r_coarse, w_f, w_d = balance_residual(scene, integrator, 2e-9, duration)
+    r_fine, w_f2, _ = balance_residual(scene, integrator, 1e-9, duration)
     assert w_f > 0 and w_d > 0 and w_f2 == pytest.approx(w_f, rel=1e-2)
     assert r_coarse / abs(w_f) < rel_bound
     ratio = r_coarse / r_fine

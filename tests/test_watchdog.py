@@ -74,7 +74,7 @@ def test_runaway_is_caught_before_it_turns_non_finite():
     dt = 3.0 * stable_step(model).spring
     rec = Record(sample_dt=10 * dt, patches=("velocity",))
     options = RunOptions(duration=20000 * dt, integrator="strang", dt=dt, force=True)
-    kw = dict(record=rec, tuning=EngineTuning(max_graph_steps=200))
+    kw = dict(record=rec, tuning=EngineTuning(max_graph_steps=32))
     res = run_hf(model, initial_state(model), options, **kw)
     f = res.fault
     assert isinstance(f, SimulationFault) and not res.complete
