@@ -144,8 +144,10 @@ def run(args: argparse.Namespace) -> dict:
     beside = {}
     if args.beside:
         b = done[1]
-        beside = {"beside": {"exit_code": b["exit_code"], **counts(b["output"]), "wall_s": b["wall_s"],
-                             "cpu_s": b["cpu_s"]}}  # fmt: skip
+        if b["exit_code"] != 0:
+            sys.stderr.write(b["output"][-6000:])
+        beside = {"beside": {"exit_code": b["exit_code"], **counts(b["output"]), "failures": failures(b["output"]),
+                             "wall_s": b["wall_s"], "cpu_s": b["cpu_s"]}}  # fmt: skip
     return {
         "command": f"python3 -m pytest -q -n {args.n} tests",
         "commit": commit,
@@ -195,7 +197,9 @@ def markdown(r: dict) -> str:
         + (
             f"\nBeside a second copy of the suite (a fresh clone of the same commit, started at the same moment): "
             f"that one {r['beside']['passed']} passed, {r['beside']['failed'] + r['beside']['errors']} failed, "
-            f"{minutes(r['beside']['wall_s'])} wall, {minutes(r['beside']['cpu_s'])} CPU.\n"
+            f"{minutes(r['beside']['wall_s'])} wall, {minutes(r['beside']['cpu_s'])} CPU"
+            + "".join(f"; failed there: `{t}`" for t in r["beside"].get("failures", []))
+            + ".\n"
             if r.get("beside")
             else ""
         )
