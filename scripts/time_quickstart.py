@@ -22,7 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from time_tests import REPO, _machine, report
+from time_tests import _machine, fresh_clone, report
 
 
 def quickstart_command(readme: str) -> str:
@@ -43,10 +43,7 @@ def _timed(command: str, cwd: Path, env: dict[str, str], timeout: float) -> floa
 def run(timeout: float) -> dict:
     """Clone, run the quick start, run its main job again; the figures."""
     with tempfile.TemporaryDirectory(prefix="aca_warp_quickstart_") as tmp:
-        clone = Path(tmp) / "aca_warp"
-        subprocess.run(["git", "clone", "--quiet", "--no-hardlinks", str(REPO), str(clone)], check=True)
-        commit = subprocess.run(["git", "-C", str(clone), "rev-parse", "--short", "HEAD"], check=True,
-                                capture_output=True, text=True).stdout.strip()  # fmt: skip
+        clone, commit = fresh_clone(Path(tmp), "aca_warp")
         command = quickstart_command((clone / "README.md").read_text())
         setup, job = command.rsplit(" && ", 1)
         env = {**os.environ, "WARP_CACHE_PATH": str(Path(tmp) / "warp-cache")}

@@ -71,13 +71,19 @@ def durations(text: str, n: int) -> dict:
     }
 
 
-def _clone(tmp: Path, name: str, args: argparse.Namespace) -> tuple[Path, str, list[str], dict[str, str]]:
-    """A fresh clone of this checkout's HEAD under ``tmp/name`` with its virtual environment; (clone, commit, the
-    suite's command, its environment)."""
+def fresh_clone(tmp: Path, name: str) -> tuple[Path, str]:
+    """A fresh clone of this checkout's HEAD under ``tmp/name``; (clone, its short commit)."""
     clone = tmp / name
     subprocess.run(["git", "clone", "--quiet", "--no-hardlinks", str(REPO), str(clone)], check=True)
     commit = subprocess.run(["git", "-C", str(clone), "rev-parse", "--short", "HEAD"], check=True,
                             capture_output=True, text=True).stdout.strip()  # fmt: skip
+    return clone, commit
+
+
+def _clone(tmp: Path, name: str, args: argparse.Namespace) -> tuple[Path, str, list[str], dict[str, str]]:
+    """A fresh clone (:func:`fresh_clone`) with its virtual environment; (clone, commit, the suite's command, its
+    environment)."""
+    clone, commit = fresh_clone(tmp, name)
     venv = clone / ".venv"
     subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
     python = str(venv / "bin" / "python")
@@ -138,16 +144,8 @@ def run(args: argparse.Namespace) -> dict:
         load_before = os.getloadavg()
         done = _suites(runs, args.timeout)
         load_after = os.getloadavg()
-    timed = done[0]
-    if timed["exit_code"] != 0:
-        sys.stderr.write(timed["output"][-6000:])
-    beside = {}
-    if args.beside:
-        b = done[1]
-        if b["exit_code"] != 0:
-            sys.stderr.write(b["output"][-6000:])
-        beside = {"beside": {"exit_code": b["exit_code"], **counts(b["output"]), "failures": failures(b["output"]),
-                             "wall_s": b["wall_s"], "cpu_s": b["cpu_s"]}}  # fmt: skip
+    figures = [_figures(d) for d in done]
+    beside = {"beside": figures[1]} if args.beside else {}
     return {
         "command": f"python3 -m pytest -q -n {args.n} tests",
         "commit": commit,
@@ -155,16 +153,22 @@ def run(args: argparse.Namespace) -> dict:
         "machine": _machine(),
         "cores": os.cpu_count(),
         "kernel_cache": "cold (empty)" if args.cold else "warm (Warp's cache of this machine)",
-        "exit_code": timed["exit_code"],
-        **counts(timed["output"]),
-        "failures": failures(timed["output"]),
-        "wall_s": timed["wall_s"],
-        "cpu_s": timed["cpu_s"],
+        **figures[0],
         "load_before": load_before[0],
         "load_after": load_after[0],
         **beside,
-        **(durations(timed["output"], args.durations) if args.durations else {}),
+        **(durations(done[0]["output"], args.durations) if args.durations else {}),
     }
+
+
+def _figures(done: dict) -> dict:
+    """Exit code, counts, failed tests, wall and CPU time of one suite's run (its output's tail on stderr when it
+    failed)."""
+    if done["exit_code"] != 0:
+        sys.stderr.write(done["output"][-6000:])
+    out = done["output"]
+    return {"exit_code": done["exit_code"], **counts(out), "failures": failures(out), "wall_s": done["wall_s"],
+            "cpu_s": done["cpu_s"]}  # fmt: skip
 
 
 def _machine() -> str:

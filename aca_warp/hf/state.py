@@ -81,7 +81,7 @@ def perturbations(initial: Initial, n: int) -> tuple[np.ndarray | None, np.ndarr
 
 def _equilibrium(model: PadModel) -> np.ndarray:
     """Static displacement with u̇ = 0: sparse solve of (diag k_T + L) u = F_N f(ω r)."""
-    import scipy.sparse as sp  # here, not at the top: a run from rest needs no SciPy (0.3 s of every start-up)
+    import scipy.sparse as sp  # here, not at the top: a run from rest needs no SciPy (≈ 0.2 s CPU of every start-up)
     import scipy.sparse.linalg as spla
 
     start, index, kij = coupling_matrix(model)
