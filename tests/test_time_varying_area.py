@@ -2,19 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
-
-SCRIPT = Path(__file__).resolve().parent.parent / "scripts" / "time_varying_area.py"
+from scriptload import load_script
 
 
 def load():
-    spec = importlib.util.spec_from_file_location("time_varying_area", SCRIPT)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("time_varying_area")
 
 
 def test_dry_run_prints_one_command_per_step(capsys):
