@@ -136,3 +136,40 @@ def test_sweep_command_raises_an_interrupt_from_a_finalizer(tmp_path: Path, monk
     assert code == 143, err
     assert ran == []
     assert err.startswith("aca-warp: terminated (SIGTERM);") and "Exception ignored" not in err
+
+
+def test_an_interrupt_swallowed_as_the_command_ends_is_not_lost(tmp_path: Path, monkeypatch, capsys) -> None:
+    """A SIGTERM swallowed in a finalizer at the very end of a command's work (before it is raised again) still
+    ends the command as interrupted: exit 143 and the one ``interrupted`` line, not exit 0."""
+    import aca_warp.plots as plots
+    from aca_warp.cli import main
+
+    def plot_run(*args, **kwargs):
+        obj = _SignalsInFinalizer(signal.SIGTERM)
+        del obj  # the finalizer runs here (no gc.collect: it would outlast the millisecond of the redelivery)
+        return [tmp_path / "figure.png"]  # at once: the redelivery timer has not fired yet
+
+    monkeypatch.setattr(plots, "plot_run", plot_run)
+    run = tmp_path / "run.h5"
+    run.write_bytes(b"")
+    code = main(["plot", str(run), "-o", str(tmp_path / "figs")])
+    err = capsys.readouterr().err
+    assert code == 143, err
+    assert err.startswith("aca-warp: interrupted (SIGTERM);") and "Exception ignored" not in err
+
+
+def test_an_interrupt_a_finalizer_swallowed_as_a_command_fails_is_reported_at_exit() -> None:
+    """The same interrupt when the command ends with an error instead, its handlers left at once (the process ends
+    next): recorded as a signal that came as it exited, for the exit's one line and 128 + the signal."""
+    before = {s: signal.getsignal(s) for s in interrupts.SIGNALS}
+    with interrupts.installed(hold=True):
+        obj = _SignalsInFinalizer(signal.SIGINT)
+        del obj
+        interrupts.finished()  # what the command line does once its error is decided
+    try:
+        _ordinary_code(0.05)
+        assert interrupts._late == [signal.SIGINT]
+    finally:
+        interrupts._late.clear()
+        for s, handler in before.items():
+            signal.signal(s, handler)

@@ -12,7 +12,9 @@ inside :func:`second_signal_exits`, for a clean-up that may wait long (a sweep w
 second signal ends the process at once. An
 interrupt raised while Python runs a finalizer (``__del__``, a weakref callback) is swallowed there by Python, which
 prints it as "Exception ignored"; :func:`installed` catches it in ``sys.unraisablehook`` instead and raises it again
-a millisecond later (a SIGALRM timer, the command's ``installed`` owns SIGALRM), from ordinary code.
+a millisecond later (a SIGALRM timer, the command's ``installed`` owns SIGALRM), from ordinary code; a command whose
+work ends within that millisecond raises it at its end (:func:`raise_withheld`), or, when it ends with an error,
+reports it as a signal that came as it exited (:func:`finished`).
 Without :func:`installed` (the Python API) Python's own SIGINT handling applies and :func:`deferred` defers nothing.
 
 The end of a process: once a command's result is final, :func:`installed` (``hold=True``) leaves SIGINT and SIGTERM
@@ -51,6 +53,7 @@ class _State:
     second_exits: bool = False  # ... or end the process at the second one (second_signal_exits)
     last: int | None = None  # the last signal received
     final: bool = False  # the command's result is final: signals are recorded only (finished())
+    withheld: bool = False  # a finalizer swallowed the interrupt: it is raised again in a millisecond (_unraisable)
 
 
 _state = _State()
@@ -78,6 +81,7 @@ def _handler(signum: int, frame: object) -> None:
 
 def _again(signum: int, frame: object) -> None:
     """SIGALRM: deliver the interrupt a finalizer swallowed (:func:`_unraisable`)."""
+    _state.withheld = False
     if _state.last is not None:
         _handler(_state.last, frame)
 
@@ -90,6 +94,7 @@ def _unraisable(previous: Callable[[Any], object]) -> Callable[[Any], None]:
             # it never reached the command: raise it again in a millisecond (SIGALRM, :func:`_again`), from
             # ordinary code; nothing here may block or run Python code that a signal could interrupt
             _state.raised = False
+            _state.withheld = True
             signal.setitimer(signal.ITIMER_REAL, 1e-3)
             return
         previous(u)
@@ -118,8 +123,26 @@ def _record(signum: int, frame: object) -> None:
 
 def finished() -> None:
     """The command's result is final (its work done, or its error decided): from now on SIGINT and SIGTERM are only
-    recorded, for :func:`exit_process` to report; nothing raises any more."""
-    _state.final = True
+    recorded, for :func:`exit_process` to report; nothing raises any more. An interrupt a finalizer swallowed and
+    not yet raised again (:func:`raise_withheld`) is recorded the same way."""
+    _state.final = True  # first: a redelivery that runs from here on only records its signal
+    if not _state.installed:
+        return
+    signal.setitimer(signal.ITIMER_REAL, 0.0)
+    if _state.withheld and _state.last is not None:
+        _state.withheld = False
+        _late.append(_state.last)
+
+
+def raise_withheld() -> None:
+    """Raise now the interrupt a finalizer swallowed while it waits for its millisecond (:func:`_unraisable`): a
+    command whose work ended meanwhile ends as interrupted instead of losing the signal. Nothing without one."""
+    if not _state.installed:
+        return
+    signal.setitimer(signal.ITIMER_REAL, 0.0)
+    if _state.withheld and _state.last is not None:  # (a redelivery that ran meanwhile cleared it and raised)
+        _state.withheld = False
+        _handler(_state.last, None)
 
 
 @contextmanager
