@@ -92,7 +92,7 @@ def main(argv: Sequence[str] | None = None, *, hold: bool = False) -> int:
             init_warp()
             _check_output_folder(args)
             code = args.handler(args)
-            interrupts.raise_withheld()  # an interrupt a finalizer swallowed at the very end of the work
+            interrupts.raise_lost(succeeded=code == 0)  # an interrupt swallowed beyond our code: not lost
             interrupts.finished()  # the result is final: a signal from here on is recorded (run() reports it)
         except AcaError as e:
             interrupts.finished()

@@ -173,3 +173,25 @@ def test_an_interrupt_a_finalizer_swallowed_as_a_command_fails_is_reported_at_ex
         interrupts._late.clear()
         for s, handler in before.items():
             signal.signal(s, handler)
+
+
+def test_an_interrupt_dropped_by_other_code_still_ends_a_command_as_interrupted(tmp_path: Path, monkeypatch, capsys):
+    """An interrupt that code beyond ours caught and dropped (the work then succeeded): exit 143, one line."""
+    import aca_warp.plots as plots
+    from aca_warp.cli import main
+
+    def plot_run(*args, **kwargs):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            _ordinary_code()
+        except BaseException:  # noqa: BLE001  (what a careless library might do)
+            pass
+        return [tmp_path / "figure.png"]
+
+    monkeypatch.setattr(plots, "plot_run", plot_run)
+    run = tmp_path / "run.h5"
+    run.write_bytes(b"")
+    code = main(["plot", str(run), "-o", str(tmp_path / "figs")])
+    err = capsys.readouterr().err
+    assert code == 143, err
+    assert err.startswith("aca-warp: interrupted (SIGTERM);")

@@ -13,7 +13,7 @@ second signal ends the process at once. An
 interrupt raised while Python runs a finalizer (``__del__``, a weakref callback) is swallowed there by Python, which
 prints it as "Exception ignored"; :func:`installed` catches it in ``sys.unraisablehook`` instead and raises it again
 a millisecond later (a SIGALRM timer, the command's ``installed`` owns SIGALRM), from ordinary code; a command whose
-work ends within that millisecond raises it at its end (:func:`raise_withheld`), or, when it ends with an error,
+work ends within that millisecond raises it at its end (:func:`raise_lost`), or, when it ends with an error,
 reports it as a signal that came as it exited (:func:`finished`).
 Without :func:`installed` (the Python API) Python's own SIGINT handling applies and :func:`deferred` defers nothing.
 
@@ -124,7 +124,7 @@ def _record(signum: int, frame: object) -> None:
 def finished() -> None:
     """The command's result is final (its work done, or its error decided): from now on SIGINT and SIGTERM are only
     recorded, for :func:`exit_process` to report; nothing raises any more. An interrupt a finalizer swallowed and
-    not yet raised again (:func:`raise_withheld`) is recorded the same way."""
+    not yet raised again (:func:`raise_lost`) is recorded the same way."""
     _state.final = True  # first: a redelivery that runs from here on only records its signal
     if not _state.installed:
         return
@@ -134,15 +134,19 @@ def finished() -> None:
         _late.append(_state.last)
 
 
-def raise_withheld() -> None:
-    """Raise now the interrupt a finalizer swallowed while it waits for its millisecond (:func:`_unraisable`): a
-    command whose work ended meanwhile ends as interrupted instead of losing the signal. Nothing without one."""
+def raise_lost(*, succeeded: bool) -> None:
+    """Raise now an interrupt the command's work never saw: one a finalizer swallowed that still waits for its
+    millisecond (:func:`_unraisable`), or, after work that ``succeeded``, one already raised that code beyond ours
+    caught and dropped (C code that clears any error). The command then ends as interrupted instead of losing the
+    signal. Nothing without one."""
     if not _state.installed:
         return
     signal.setitimer(signal.ITIMER_REAL, 0.0)
     if _state.withheld and _state.last is not None:  # (a redelivery that ran meanwhile cleared it and raised)
         _state.withheld = False
         _handler(_state.last, None)
+    if succeeded and _state.raised and _state.last is not None:
+        raise _interrupt(_state.last)
 
 
 @contextmanager
