@@ -19,7 +19,7 @@ from procs import gated, small_sweep_doc
 
 from aca_warp.hf.recorder import GLOBAL_NAMES
 from aca_warp.sweep import load_spec, load_sweep, run_sweep
-from aca_warp.sweep.prepare import Preparer, prepare_shard
+from aca_warp.sweep.prepare import PreparedShard, Preparer, SpooledShard, prepare_shard
 
 # 2 M x 2 seeds x 2 loads = 8 pads of 20 patches in 3 shards (the last of 2 pads); 3 µs simulated
 SMALL = small_sweep_doc(
@@ -186,6 +186,62 @@ def test_pool_without_the_device_makes_scenes_only() -> None:
     assert got.index == 1 and len(got.scenes) == 3 and got.batches == [] and got.capacity == 0
 
 
+def _same_shard(a: PreparedShard, b: PreparedShard) -> None:
+    assert a.index == b.index and a.pads.tolist() == b.pads.tolist() and len(a.batches) == len(b.batches)
+    for x, y in zip(a.scenes, b.scenes, strict=True):
+        assert x.patches.x.tobytes() == y.patches.x.tobytes() and x.normal_force == y.normal_force
+    for x, y in zip(a.batches, b.batches, strict=True):
+        assert sorted(x.model.arrays) == sorted(y.model.arrays)
+        assert all(x.model.arrays[k].tobytes() == y.model.arrays[k].tobytes() for k in x.model.arrays)
+        assert x.u.tobytes() == y.u.tobytes() and x.v.tobytes() == y.v.tobytes()
+
+
+def test_spooled_shard_is_the_prepared_shard(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With a spool, the pool leaves a prepared shard in a file only this user can read, in a folder only this user
+    can enter; loading it gives the shard bit for bit and removes the file; closing removes the folder (and the
+    files no task took), and the folder a killed sweep left is removed by the next one. A spool that cannot take the
+    file (gone here; full on a real machine) leaves the shard to travel by value."""
+    import os
+    import stat
+    import subprocess
+    import sys
+
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))
+    base = tmp_path / "aca-warp" / "sweep"
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    base.mkdir(parents=True, mode=0o700)
+    stale = base / f"spool-{int(dead.stdout)}-left"
+    stale.mkdir()
+    (stale / "shard-00001.pkl").write_bytes(b"x" * 100)
+    spec = _spec()
+    ref = prepare_shard(spec.doc, str(spec.base_dir), 1, device="cpu")
+    prep = Preparer(spec.doc, str(spec.base_dir), processes=1, ahead=2, spool=True, device="cpu")
+    try:
+        assert not stale.exists()
+        folder = Path(prep.spool)
+        assert folder.parent == base and stat.S_IMODE(folder.stat().st_mode) == 0o700
+        prep.plan([1, 2])
+        got = _in_time(lambda: prep.get(1), 120)
+        assert isinstance(got, SpooledShard) and got.index == 1
+        assert stat.S_IMODE(os.stat(got.path).st_mode) == 0o600 and Path(got.path).parent == folder
+        _same_shard(got.load(), ref)
+        assert not Path(got.path).exists()
+        _in_time(lambda: prep._future(2).result(), 120)  # shard 2's file: never taken
+        assert len(list(folder.iterdir())) == 1
+    finally:
+        prep.close()
+    assert not folder.exists()
+    prep = Preparer(spec.doc, str(spec.base_dir), processes=1, ahead=1, spool=True, device="cpu")
+    try:
+        shutil.rmtree(prep.spool)
+        prep.plan([1])
+        got = _in_time(lambda: prep.get(1), 120)
+    finally:
+        prep.close()
+    assert isinstance(got, PreparedShard)
+    _same_shard(got, ref)
+
+
 def _pool_processes(before: set[int] = frozenset()) -> list[psutil.Process]:
     """The pool's worker processes: the children of this process's fork server (the pool forks them there), leaving
     out the processes in ``before`` (pools of earlier tests in this worker)."""
@@ -280,11 +336,21 @@ def test_head_start_prepares_every_worker_s_first_shard(
 
     fed = cluster._feed
 
+    handed: list[str] = []
+
     def feed(book, submit, preparer, **kwargs) -> None:
         if pool == "ahead":  # the cluster took as long as the pool needed for the first shard of each worker
             for i in (0, 1):
                 _in_time(lambda i=i: preparer._future(i).result(), 120)
-        fed(book, submit, preparer, **kwargs)
+
+        def recorded(i, prepared):
+            handed.append(type(prepared).__name__)
+            return submit(i, prepared)
+
+        fed(book, recorded, preparer, **kwargs)
+        spools.append(preparer.spool)
+
+    spools: list[str] = []
 
     monkeypatch.setattr(Preparer, "__init__", held)
     monkeypatch.setattr(cluster, "_feed", feed)
@@ -299,6 +365,9 @@ def test_head_start_prepares_every_worker_s_first_shard(
     assert len(first) == 2
     phase = "upload" if pool == "ahead" else "build"
     assert all(phase in t for t in first.values()), [sorted(t) for t in first.values()]
+    # a local cluster's workers are handed the prepared shards' files, not the shards; the spool is gone after
+    assert handed[:2] == (["SpooledShard"] * 2 if pool == "ahead" else ["NoneType"] * 2), handed
+    assert "PreparedShard" not in handed and spools and not Path(spools[0]).exists()
 
 
 def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -22,7 +22,7 @@ from typing import Any
 from aca_warp.common.links import private_dir
 from aca_warp.sweep.manifest import _Book, _one_line
 from aca_warp.sweep.overlap import PIPELINE_DEPTH, ShardCancelled, ShardContext, stop_event, stop_sweep
-from aca_warp.sweep.prepare import PreparedShard, Preparer
+from aca_warp.sweep.prepare import PreparedShard, Preparer, SpooledShard
 from aca_warp.sweep.shard import run_shard
 from aca_warp.sweep.spec import SweepError
 
@@ -265,8 +265,8 @@ def _run_on_dask(
         book.say(f"running {len(book.todo)} shard(s) on {book.result.workers} Dask worker(s), device {worker_device}")
         spec_hash = book.manifest["spec_hash"]
 
-        def submit(i: int, prepared: PreparedShard | None) -> Any:
-            with warnings.catch_warnings():  # a prepared shard is its models (~90 MB for 256 hf1 pads): by design
+        def submit(i: int, prepared: PreparedShard | SpooledShard | None) -> Any:
+            with warnings.catch_warnings():  # a shard prepared by value is its models (~100 MB for 256 hf1 pads)
                 warnings.filterwarnings("ignore", message="Sending large graph", category=UserWarning)
                 fut = client.submit(
                     shard_task,
@@ -307,7 +307,7 @@ def shard_task(
     sharing: int,
     overlap: bool,
     token: str,
-    prepared: PreparedShard | None = None,
+    prepared: PreparedShard | SpooledShard | None = None,
 ) -> dict:
     """:func:`~aca_warp.sweep.shard.run_shard` as a Dask task that :func:`~aca_warp.sweep.overlap.stop_sweep`
     (``token``) stops at its next chunk or phase: its ``.partial`` is deleted and ``{"index", "state":
@@ -331,7 +331,7 @@ def shard_task(
 
 def _feed(
     book: _Book,
-    submit: Callable[[int, PreparedShard | None], Any],
+    submit: Callable[[int, PreparedShard | SpooledShard | None], Any],
     preparer: Preparer | None,
     workers: int,
     threads: int,

@@ -16,15 +16,26 @@ runtime started, so that a pool starts in a fraction of a second after the first
 the sweep) and start Warp themselves (a process of its own: Warp's CPU runtime is not safe for threads). A
 preparation that raises, or a pool process that dies, fails its shard with that error: no task waits for it for
 ever.
+
+A prepared shard is mostly its models (≈ 100 MB for 256 hf1 pads of 1758 patches). For the workers of a local
+cluster the pool leaves it in a file of a spool folder only this user can enter (:class:`SpooledShard`), and the
+task reads it there, rather than have it pickled into the client, sent through the scheduler to the worker over the
+cluster's encrypted connections and unpickled there (0.53–0.66 s for 256 hf1 pads against 0.08–0.16 s from the
+file on this project's 2-core CPU container, ``scripts/bench_spool.py``); a shard that cannot be written there (no
+room) travels by value as before.
 """
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import functools
 import multiprocessing
 import os
+import pickle
+import shutil
 import signal
+import tempfile
 import threading
 import time
 from collections import deque
@@ -36,6 +47,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from aca_warp.common.errors import SceneError
+from aca_warp.common.links import create_new, private_dir
 from aca_warp.scene import Scene
 from aca_warp.sweep.overlap import ShardCancelled
 from aca_warp.sweep.spec import SweepSpec, _resolve
@@ -143,6 +156,32 @@ class PreparedShard:
     batches: list[PreparedBatch] = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class SpooledShard:
+    """A prepared shard left by the pool in a file of its spool folder (:class:`Preparer` with ``spool``): what a
+    local Dask worker is handed instead of the shard's models; the task reads them from the file (:meth:`load`).
+
+    Attributes:
+        index: The shard.
+        path: The file (a pickle of the :class:`PreparedShard`, mode 0600, in a folder only this user can enter).
+    """
+
+    index: int
+    path: str
+
+    def load(self) -> PreparedShard:
+        """The prepared shard; the file is removed."""
+        try:
+            with open(self.path, "rb") as f:
+                prepared = pickle.load(f)
+        finally:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(self.path)
+        if not isinstance(prepared, PreparedShard) or prepared.index != self.index:
+            raise ValueError(f"{self.path} does not hold shard {self.index}")
+        return prepared
+
+
 def prepare_shard(
     doc: dict,
     base_dir: str,
@@ -197,6 +236,46 @@ _PRELOAD = [
 _UNUSABLE: set[str] = set()  # devices this pool process could not start Warp on: it makes scenes only
 
 
+def _spooled(prepare: Callable[[int], PreparedShard], spool: str, index: int) -> PreparedShard | SpooledShard:
+    """In a pool process: shard ``index`` prepared and written to a new file in ``spool``; the shard itself when the
+    file cannot be written (no room, the folder gone): it then travels by value."""
+    prepared = prepare(index)
+    path = Path(spool) / f"shard-{index:05d}-{os.getpid()}-{time.monotonic_ns()}.pkl"
+    try:
+        with os.fdopen(create_new(path, "prepared shard", mode=0o600), "wb") as f:
+            pickle.dump(prepared, f, protocol=pickle.HIGHEST_PROTOCOL)
+    except (OSError, SceneError):
+        with contextlib.suppress(OSError):
+            path.unlink()
+        return prepared
+    return SpooledShard(index, str(path))
+
+
+SPOOL_PREFIX = "spool-"
+
+
+def _spool_folder() -> str:
+    """A new spool folder for this process's sweep, in the user's private folder (``sweep/spool-PID-*``); those of
+    sweeps whose process is gone (killed) are removed first."""
+    base = private_dir("sweep")
+    for old in base.glob(f"{SPOOL_PREFIX}*"):
+        pid = old.name.removeprefix(SPOOL_PREFIX).split("-")[0]
+        if pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(old, ignore_errors=True)
+    return tempfile.mkdtemp(prefix=f"{SPOOL_PREFIX}{os.getpid()}-", dir=base)
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` exists."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 def _start_process(device: str | None) -> None:
     """In a pool process: Ctrl-C reaches the whole process group, the client alone handles it; with ``device``, Warp
     started and the neighbour search's kernels loaded there before the first shard. A device this process cannot use
@@ -219,16 +298,24 @@ class Preparer:
     ``device``, their models too), at most ``ahead`` of them at a time beyond those taken.
 
     :meth:`plan` names the shards in the order they will be taken; :meth:`get` waits for one (starting it now if it
-    had not started) and returns it or raises its error; :meth:`poll` says whether one is ready without waiting;
+    had not started) and returns it (with ``spool``: a :class:`SpooledShard` where its file could be written) or
+    raises its error; :meth:`poll` says whether one is ready without waiting;
     :meth:`take` waits while the device has work, else leaves the shard to its task; :meth:`forget` drops one.
     Safe to use from several threads. :meth:`close` cancels what has not started.
     """
 
-    def __init__(self, doc: dict, base_dir: str, processes: int, ahead: int, **shard_options: Any) -> None:
-        """``shard_options``: the keyword arguments of :func:`prepare_shard` (``device``, ``memory_fraction``,
-        ``sharing``), with its defaults."""
+    def __init__(
+        self, doc: dict, base_dir: str, processes: int, ahead: int, *, spool: bool = False, **shard_options: Any
+    ) -> None:
+        """``spool``: leave the prepared shards in files of a private spool folder (:class:`SpooledShard`; for the
+        workers of a local cluster), removed with the folder by :meth:`close`; ``shard_options``: the keyword
+        arguments of :func:`prepare_shard` (``device``, ``memory_fraction``, ``sharing``), with its defaults."""
         device = shard_options.get("device")
-        self.prepare = functools.partial(prepare_shard, doc, base_dir, **shard_options)
+        self.spool = _spool_folder() if spool else None
+        made = functools.partial(prepare_shard, doc, base_dir, **shard_options)
+        self.prepare: Callable[[int], PreparedShard | SpooledShard] = (
+            made if self.spool is None else functools.partial(_spooled, made, self.spool)
+        )
         self.ahead = max(1, ahead)
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(_PRELOAD)  # imported once by this process's fork server, not per process
@@ -272,7 +359,7 @@ class Preparer:
                 fut.cancel()
             self._top_up()
 
-    def get(self, index: int, cancel: threading.Event | None = None) -> PreparedShard:
+    def get(self, index: int, cancel: threading.Event | None = None) -> PreparedShard | SpooledShard:
         """Shard ``index``, prepared: waits for it; raises its error, or :class:`ShardCancelled` when ``cancel`` is
         set while it waits."""
         fut = self._future(index)
@@ -288,7 +375,9 @@ class Preparer:
                 self.futures.pop(index, None)
                 self._top_up()
 
-    def take(self, index: int, idle: Callable[[], bool], cancel: threading.Event | None = None) -> PreparedShard | None:
+    def take(
+        self, index: int, idle: Callable[[], bool], cancel: threading.Event | None = None
+    ) -> PreparedShard | SpooledShard | None:
         """Shard ``index`` prepared, waiting for it while ``idle()`` is False (the device has other work); None once
         it is not ready and ``idle()`` is True: the shard is then dropped (:meth:`forget`) and its task prepares it,
         rather than leave the device waiting. Raises as :meth:`get`."""
@@ -302,7 +391,10 @@ class Preparer:
         return self.get(index, cancel)
 
     def close(self) -> None:
-        """Cancel the preparations not begun and let the pool's processes go (they finish the one in hand)."""
+        """Cancel the preparations not begun and let the pool's processes go (they finish the one in hand, whose file
+        then cannot be written: it is dropped); the spool folder is removed with the files no task took."""
         with self.lock:
             self.waiting.clear()
         self.pool.shutdown(wait=False, cancel_futures=True)
+        if self.spool is not None:
+            shutil.rmtree(self.spool, ignore_errors=True)

@@ -87,7 +87,8 @@ def run_sweep(
             preparer = None
             if processes > 0:
                 made = {"device": prepare_device(device, local), "memory_fraction": memory_fraction, "sharing": sharing}
-                preparer = Preparer(*args[:2], processes, ahead=2 * processes, **made)
+                spool = local and workers != 0  # a local cluster's workers read the prepared shards from files
+                preparer = Preparer(*args[:2], processes, ahead=2 * processes, spool=spool, **made)
                 preparer.plan(book.todo)  # the pool starts now, beside a local cluster's start
             try:
                 if workers == 0 and local:

@@ -24,7 +24,14 @@ import numpy as np
 
 from aca_warp.scene import Scene
 from aca_warp.sweep.overlap import ChunkWriter, KernelTurn, ShardCancelled, ShardContext
-from aca_warp.sweep.prepare import PreparedBatch, PreparedShard, prepare_shard, run_options, shard_capacity
+from aca_warp.sweep.prepare import (
+    PreparedBatch,
+    PreparedShard,
+    SpooledShard,
+    prepare_shard,
+    run_options,
+    shard_capacity,
+)
 from aca_warp.sweep.spec import FORMAT, PARAMETERS, SweepSpec
 
 # ---------------------------------------------------------------------------------------------- shard
@@ -197,13 +204,14 @@ def run_shard(
     sharing: int = 1,
     overlap: bool = False,
     ctx: ShardContext | None = None,
-    prepared: PreparedShard | None = None,
+    prepared: PreparedShard | SpooledShard | None = None,
 ) -> dict:
     """Run shard ``index`` of the spec ``doc`` (already resolved, overrides applied) and write its file.
 
-    This is the task a Dask worker runs. ``prepared`` (by a :class:`~aca_warp.sweep.prepare.Preparer`): the shard's
-    spec and scenes, and its batches made on the host, which the task puts on the device as they are (when they are
-    no larger than the device holds now: :func:`~aca_warp.sweep.prepare.shard_capacity`); otherwise the task
+    This is the task a Dask worker runs. ``prepared`` (by a :class:`~aca_warp.sweep.prepare.Preparer`, or its file:
+    a :class:`~aca_warp.sweep.prepare.SpooledShard`): the shard's spec and scenes, and its batches made on the host,
+    which the task puts on the device as they are (when they are no larger than the device holds now:
+    :func:`~aca_warp.sweep.prepare.shard_capacity`); otherwise the task
     resolves the spec and makes the scenes (:func:`~aca_warp.sweep.prepare.prepare_shard`; cheap, deterministic)
     and builds its batches itself. The shard's pads run as one batch (several when the memory estimate says they
     do not fit); the samples stream into ``shard-NNNNN.h5.partial``, renamed when done. ``overlap``: write the
@@ -224,6 +232,8 @@ def run_shard(
     t_start = time.perf_counter()
     ctx.check()
     with clock("prepare"):
+        if isinstance(prepared, SpooledShard):
+            prepared = prepared.load()  # left in its file by the pool (a local cluster's worker)
         if prepared is None:
             prepared = prepare_shard(doc, base_dir, index)
         else:
