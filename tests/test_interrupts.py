@@ -138,18 +138,30 @@ def test_sweep_command_raises_an_interrupt_from_a_finalizer(tmp_path: Path, monk
     assert err.startswith("aca-warp: terminated (SIGTERM);") and "Exception ignored" not in err
 
 
-def test_an_interrupt_swallowed_as_the_command_ends_is_not_lost(tmp_path: Path, monkeypatch, capsys) -> None:
-    """A SIGTERM swallowed in a finalizer at the very end of a command's work (before it is raised again) still
-    ends the command as interrupted: exit 143 and the one ``interrupted`` line, not exit 0."""
+def _finalizer_at_the_end(tmp_path: Path) -> list[Path]:
+    obj = _SignalsInFinalizer(signal.SIGTERM)
+    del obj  # the finalizer runs here (no gc.collect: it would outlast the millisecond of the redelivery)
+    return [tmp_path / "figure.png"]  # at once: the redelivery timer has not fired yet
+
+
+def _dropped_by_other_code(tmp_path: Path) -> list[Path]:
+    try:
+        os.kill(os.getpid(), signal.SIGTERM)
+        _ordinary_code()
+    except BaseException:  # noqa: BLE001  (what a careless library might do)
+        pass
+    return [tmp_path / "figure.png"]
+
+
+@pytest.mark.parametrize("work", [_finalizer_at_the_end, _dropped_by_other_code], ids=["finalizer", "dropped"])
+def test_an_interrupt_the_work_never_saw_still_ends_the_command(tmp_path: Path, monkeypatch, capsys, work) -> None:
+    """A SIGTERM swallowed in a finalizer at the very end of a command's work (before it is raised again), or caught
+    and dropped by code beyond ours while the work then succeeds: the command still ends as interrupted, exit 143 and
+    the one ``interrupted`` line, not exit 0."""
     import aca_warp.plots as plots
     from aca_warp.cli import main
 
-    def plot_run(*args, **kwargs):
-        obj = _SignalsInFinalizer(signal.SIGTERM)
-        del obj  # the finalizer runs here (no gc.collect: it would outlast the millisecond of the redelivery)
-        return [tmp_path / "figure.png"]  # at once: the redelivery timer has not fired yet
-
-    monkeypatch.setattr(plots, "plot_run", plot_run)
+    monkeypatch.setattr(plots, "plot_run", lambda *args, **kwargs: work(tmp_path))
     run = tmp_path / "run.h5"
     run.write_bytes(b"")
     code = main(["plot", str(run), "-o", str(tmp_path / "figs")])
@@ -173,25 +185,3 @@ def test_an_interrupt_a_finalizer_swallowed_as_a_command_fails_is_reported_at_ex
         interrupts._late.clear()
         for s, handler in before.items():
             signal.signal(s, handler)
-
-
-def test_an_interrupt_dropped_by_other_code_still_ends_a_command_as_interrupted(tmp_path: Path, monkeypatch, capsys):
-    """An interrupt that code beyond ours caught and dropped (the work then succeeded): exit 143, one line."""
-    import aca_warp.plots as plots
-    from aca_warp.cli import main
-
-    def plot_run(*args, **kwargs):
-        try:
-            os.kill(os.getpid(), signal.SIGTERM)
-            _ordinary_code()
-        except BaseException:  # noqa: BLE001  (what a careless library might do)
-            pass
-        return [tmp_path / "figure.png"]
-
-    monkeypatch.setattr(plots, "plot_run", plot_run)
-    run = tmp_path / "run.h5"
-    run.write_bytes(b"")
-    code = main(["plot", str(run), "-o", str(tmp_path / "figs")])
-    err = capsys.readouterr().err
-    assert code == 143, err
-    assert err.startswith("aca-warp: interrupted (SIGTERM);")
