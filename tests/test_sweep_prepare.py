@@ -225,7 +225,7 @@ def test_spooled_shard_is_the_prepared_shard(tmp_path: Path, monkeypatch: pytest
         assert isinstance(got, SpooledShard) and got.index == 1
         assert stat.S_IMODE(os.stat(got.path).st_mode) == 0o600 and Path(got.path).parent == folder
         _same_shard(got.load(), ref)
-        assert not Path(got.path).exists()
+        assert not Path(got.path).exists() and got.load() is None  # a task run again prepares the shard itself
         _in_time(lambda: prep._future(2).result(), 120)  # shard 2's file: never taken
         assert len(list(folder.iterdir())) == 1
     finally:
@@ -240,6 +240,12 @@ def test_spooled_shard_is_the_prepared_shard(tmp_path: Path, monkeypatch: pytest
         prep.close()
     assert isinstance(got, PreparedShard)
     _same_shard(got, ref)
+    from aca_warp.sweep.shard import run_shard
+
+    gone = SpooledShard(1, str(tmp_path / "taken.pkl"))  # a task run again after its worker died: it builds itself
+    (tmp_path / "out").mkdir()
+    summary = run_shard(spec.doc, str(spec.base_dir), str(tmp_path / "out"), 1, "cpu", prepared=gone)
+    assert summary["state"] == "done" and "build" in summary["timings"]
 
 
 def _pool_processes(before: set[int] = frozenset()) -> list[psutil.Process]:

@@ -169,11 +169,14 @@ class SpooledShard:
     index: int
     path: str
 
-    def load(self) -> PreparedShard:
-        """The prepared shard; the file is removed."""
+    def load(self) -> PreparedShard | None:
+        """The prepared shard; the file is removed. None when the file is gone (read by an earlier try of the task,
+        whose worker then died and Dask ran it again): the task then prepares the shard itself, to the same result."""
         try:
             with open(self.path, "rb") as f:
                 prepared = pickle.load(f)
+        except FileNotFoundError:
+            return None
         finally:
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(self.path)

@@ -233,7 +233,7 @@ def run_shard(
     ctx.check()
     with clock("prepare"):
         if isinstance(prepared, SpooledShard):
-            prepared = prepared.load()  # left in its file by the pool (a local cluster's worker)
+            prepared = prepared.load()  # left in its file by the pool (a local cluster's worker); None: gone
         if prepared is None:
             prepared = prepare_shard(doc, base_dir, index)
         else:
