@@ -262,8 +262,8 @@ def contact_block(
     Σ_i k_N,i max(h_i − g, 0) + k_m a_free max(−g, 0) = F_N by Newton from the left of the root (monotone
     and exact on a piecewise-linear convex function), warm-started from the previous gap; it stops when the step
     falls below 1e-15 of the gap or stops being positive (the rounding floor of the block sums; with the first
-    test alone, the re-solve late in the varying-area study cost 7.3 µs per step on the H100 against 1.0 µs after
-    this stop, docs/onchip.md). Launch with
+    test alone, the re-solve late in the varying-area study cost 7.3 µs per step on the H100 against 1.0 µs with
+    the second, docs/onchip.md). Launch with
     ``wp.launch_tiled(dim=[pads], block_dim=B)``; ``threads`` is the block size the device runs (B on CUDA, 1 on
     the CPU): thread ``lane`` sums patches lane, lane + B, … and the block reduces the sums, so every thread
     sees the same values and takes the same branches (the block-wide reductions stay outside per-thread code).
