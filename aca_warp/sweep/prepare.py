@@ -394,8 +394,9 @@ class Preparer:
         return self.get(index, cancel)
 
     def close(self) -> None:
-        """Cancel the preparations not begun and let the pool's processes go (they finish the one in hand, whose file
-        then cannot be written: it is dropped); the spool folder is removed with the files no task took."""
+        """Cancel the preparations not begun and let the pool's processes go (they finish the one in hand, unused);
+        the spool folder is removed with the files no task took (one written into it meanwhile keeps it until the
+        next sweep, which removes the folders of processes that are gone)."""
         with self.lock:
             self.waiting.clear()
         self.pool.shutdown(wait=False, cancel_futures=True)
