@@ -87,9 +87,10 @@ def main(argv: Sequence[str] | None = None, *, hold: bool = False) -> int:
             args = build_parser().parse_args(argv)
             if args.verbose:
                 os.environ["ACA_WARP_VERBOSE"] = "1"
-            from aca_warp.common.devices import init_warp
+            if getattr(args, "uses_warp", True):  # analyze and plot read files only: no Warp to start
+                from aca_warp.common.devices import init_warp
 
-            init_warp()
+                init_warp()
             _check_output_folder(args)
             code = args.handler(args)
             interrupts.raise_lost(succeeded=code == 0)  # an interrupt swallowed beyond our code: not lost

@@ -104,13 +104,18 @@ def test_nothing_imports_the_cli() -> None:
 
 
 def test_help_loads_no_simulation_code() -> None:
-    """Building the whole parser imports neither Warp nor SciPy nor h5py (``--help`` answers at once)."""
+    """Building the whole parser imports neither Warp nor SciPy nor h5py nor the sweep's code (``--help`` answers at
+    once); an HF run's modules and a scene's checks (equal heights: no height law to draw) import no SciPy (it costs
+    every ``aca-warp hf`` and ``lf`` process ≈ 0.4 s of CPU to start)."""
     code = (
         "import sys, aca_warp.cli as c; c.build_parser(); "
-        "print(sorted(m for m in ('warp', 'scipy', 'h5py', 'matplotlib') if m in sys.modules))"
+        "print(sorted(m for m in ('warp', 'scipy', 'h5py', 'matplotlib', 'aca_warp.sweep.run') if m in sys.modules)); "
+        "import aca_warp.hf.runner, aca_warp.hf.general, aca_warp.hf.onchip, aca_warp.hf.rerun, aca_warp.lf.solver; "
+        "from aca_warp.scene import preset; preset('hf1_equal'); "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] == 'scipy'))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.strip() == "[]"
+    assert out.split() == ["[]", "[]"], out
 
 
 def test_docs_name_no_issue_numbers_or_outside_files() -> None:

@@ -216,6 +216,20 @@ def test_version_and_quiet_start(scene_file, tmp_path):
     assert len(done.stdout.strip().splitlines()) == 1 and "samples over" in done.stdout
 
 
+def test_only_simulations_start_warp(tmp_path, monkeypatch, capsys):
+    """analyze and plot read and write files only: the command line starts no Warp for them (≈ 0.3 s of CPU per
+    process); hf does, before its handler (even one that is refused)."""
+    from aca_warp.common import devices
+
+    started = []
+    monkeypatch.setattr(devices, "init_warp", lambda: started.append(True))
+    missing = str(tmp_path / "missing.h5")
+    assert main(["analyze", missing]) == 2 and main(["plot", missing, "-o", str(tmp_path / "figs")]) == 2
+    assert started == []
+    assert main(["hf", "--resume", missing]) == 2 and started == [True]
+    capsys.readouterr()
+
+
 def test_absurd_runs_are_refused_before_anything_is_written(scene_file, tmp_path, capsys):
     """A duration typed in the wrong unit, a step of 1e-20 s or an output of terabytes: one line, exit 2, no file,
     first as implausible values (the unit named), and with --allow-implausible by the size limits; --force lifts the

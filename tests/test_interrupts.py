@@ -115,7 +115,7 @@ def test_second_signal_exits_at_once() -> None:
 
 def test_sweep_command_raises_an_interrupt_from_a_finalizer(tmp_path: Path, monkeypatch, capsys) -> None:
     """A SIGTERM whose interrupt Python swallowed in a finalizer still stops the sweep (exit 143, one line)."""
-    import aca_warp.sweep.commands as sweep_commands
+    import aca_warp.sweep.run as sweep_run  # the command imports run_sweep from there when it runs
     from aca_warp.cli import main
 
     ran = []
@@ -128,7 +128,7 @@ def test_sweep_command_raises_an_interrupt_from_a_finalizer(tmp_path: Path, monk
         ran.append("finished")  # not reached: the interrupt is raised again
         raise AssertionError("the sweep ran to its end")
 
-    monkeypatch.setattr(sweep_commands, "run_sweep", run_sweep)
+    monkeypatch.setattr(sweep_run, "run_sweep", run_sweep)
     spec = tmp_path / "spec.toml"
     spec.write_text('[sweep]\nbase = "hf1"\n[run]\nduration = 1e-4\n[parameters]\n"friction.M" = [0.6]\n')
     code = main(["sweep", str(spec), "-o", str(tmp_path / "out"), "--workers", "0", "--quiet"])

@@ -3,7 +3,8 @@
 ``add_parsers(sub)`` adds both to the ``add_subparsers`` object of the main parser; each sets
 ``handler`` (``set_defaults``), a function of the parsed arguments that returns the exit code and
 raises :class:`aca_warp.common.errors.AcaError` subclasses for bad input (the main CLI prints one line and
-exits 2). Heavy imports (SciPy, Matplotlib) happen inside the handlers, so ``--help`` stays fast.
+exits 2). Heavy imports (SciPy, Matplotlib) happen inside the handlers, so ``--help`` stays fast. Both read and
+write files only: they set ``uses_warp=False``, and the command line starts no Warp for them.
 """
 
 from __future__ import annotations
@@ -118,7 +119,7 @@ def _add_analyze(subparsers: Any) -> None:
         help="do not read the per-patch velocities: no Synchronization Index and no mean per-patch spectrum "
         "(the slow part); the velocity peak then comes from the sum-of-velocities spectrum",
     )
-    a.set_defaults(handler=cmd_analyze)
+    a.set_defaults(handler=cmd_analyze, uses_warp=False)
 
 
 def _add_plot(subparsers: Any) -> None:
@@ -170,7 +171,7 @@ def _add_plot(subparsers: Any) -> None:
     p.add_argument(
         "--snapshots", nargs="+", metavar="NAME", help="LF patch map panels (default: every snapshot, in time order)"
     )
-    p.set_defaults(handler=cmd_plot)
+    p.set_defaults(handler=cmd_plot, uses_warp=False)
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:

@@ -18,6 +18,11 @@ from aca_warp.common.errors import SceneError
 DEFAULT_BAND_TOP = 200.0e3
 """Upper edge of the default analysis band of the Synchronization Index and the CWT [Hz]."""
 
+GROUP = "analysis"
+"""The group of a run file that holds its analysis (``aca-warp analyze``); a resumed run drops it."""
+TMP_GROUP = "_analysis_new"
+"""Where an analysis is written before it replaces :data:`GROUP` whole."""
+
 
 @dataclass
 class Group:

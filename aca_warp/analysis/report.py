@@ -35,6 +35,7 @@ from aca_warp.common.errors import SceneError
 from aca_warp.common.files import attr_value
 
 from .groups import DEFAULT_BAND_TOP as DEFAULT_BAND_TOP
+from .groups import GROUP, TMP_GROUP
 from .groups import Group as Group
 from .groups import has_patch_velocity as has_patch_velocity
 from .groups import sample_interval as sample_interval
@@ -68,8 +69,6 @@ PEAK_FLOOR_HZ = 1.0e3
 """Velocity and μ peaks are searched above this frequency [Hz] (and above 3 frequency bins)."""
 
 RULES = ("relative", "snr")
-GROUP = "analysis"
-TMP_GROUP = "_analysis_new"
 
 
 # ----------------------------------------------------------------------------------------- run files

@@ -35,7 +35,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-import scipy.fft
 
 from aca_warp.scene import Friction, Material
 
@@ -132,6 +131,8 @@ def dominant_frequency(time: np.ndarray, signal: np.ndarray) -> float:
     2 sin(πfΔt) relative to the oscillation, so the oscillation of a growing record is found. For a batch
     (N, P) the median over at most 32 evenly spaced columns is returned. Bins below 3 are ignored.
     """
+    import scipy.fft  # here, not at the top: every HF run writes scene_growth_rate, which needs no FFT (≈ 0.4 s CPU)
+
     time, x = _check_record(time, signal)
     if time.size < 9:
         raise ValueError(f"need at least 9 samples to find a dominant frequency, got {time.size}")

@@ -194,7 +194,7 @@ class RunWriter(RunFileWriter):
                     d[d.shape[0] - 1]
             if "final" in f["patches"]:
                 del f["patches"]["final"]
-            from aca_warp.analysis.report import GROUP, TMP_GROUP
+            from aca_warp.analysis.groups import GROUP, TMP_GROUP
 
             for name in (GROUP, TMP_GROUP):  # an analysis of the samples as they were no longer describes the file
                 if name in f:

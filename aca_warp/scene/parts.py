@@ -482,19 +482,40 @@ class Scene:
 
 
 def overlapping_pairs(p: Patches) -> np.ndarray:
-    """Index pairs (i < j) of patches whose discs overlap, shape (k, 2), sorted."""
-    from scipy.spatial import cKDTree
+    """Index pairs (i < j) of patches whose discs overlap, shape (k, 2), sorted.
 
+    Candidates come from square cells of width 2·max(radius) (a disc overlaps only discs of its own and the eight
+    surrounding cells; NumPy only: the command line's start-up imports no SciPy for it), each then kept where the
+    centre distance is below the sum of the radii."""
     pts = np.column_stack([p.x, p.y])
     rad = p.radius
-    tree = cKDTree(pts)
-    cand = tree.query_pairs(2.0 * rad.max(), output_type="ndarray")
-    if len(cand) == 0:
-        return np.zeros((0, 2), dtype=np.int64)
-    d = np.hypot(*(pts[cand[:, 0]] - pts[cand[:, 1]]).T)
-    hit = cand[d < rad[cand[:, 0]] + rad[cand[:, 1]]]
+    i, j = _close_pairs(pts, 2.0 * float(rad.max()) * (1.0 + 1e-9)) if len(rad) > 1 else (np.zeros(0, np.int64),) * 2
+    d = np.hypot(*(pts[i] - pts[j]).T)
+    hit = np.column_stack([i, j])[d < rad[i] + rad[j]]
     hit = np.sort(hit, axis=1)
     return hit[np.lexsort((hit[:, 1], hit[:, 0]))]
+
+
+def _close_pairs(pts: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair (i, j), i != j, once, of points (n, 2) [m] in the same or adjacent square cells of width ``cell``
+    [m]: a superset of the pairs closer than ``cell``. Returns the index arrays (i, j)."""
+    c = np.floor((pts - pts.min(axis=0)) / cell).astype(np.int64)
+    rows = int(c[:, 1].max()) + 3  # a key per cell; rows apart from the last row's neighbours
+    key = c[:, 0] * rows + c[:, 1] + 1
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    firsts, seconds = [], []
+    for dx, dy in ((0, 0), (1, -1), (1, 0), (1, 1), (0, 1)):  # half the neighbourhood: each pair of cells once
+        target = key + dx * rows + dy
+        lo = np.searchsorted(sorted_key, target, side="left")
+        count = np.searchsorted(sorted_key, target, side="right") - lo
+        first = np.repeat(np.arange(len(key)), count)
+        start = np.repeat(lo - np.cumsum(count) + count, count)
+        second = order[start + np.arange(int(count.sum()))]
+        keep = first < second if (dx, dy) == (0, 0) else np.ones(len(first), dtype=bool)  # a cell with itself
+        firsts.append(first[keep])
+        seconds.append(second[keep])
+    return np.concatenate(firsts), np.concatenate(seconds)
 
 
 def check_pad_plausible(pad: Pad) -> None:

@@ -22,7 +22,8 @@ shard. A rerun skips a shard only when the manifest *and* the file agree that it
 hash; everything else (a ``.partial`` left by a killed worker, a missing or foreign file, a shard marked
 ``interrupted``) is run again.
 
-The code lives in modules of one concern each, re-exported here (``from aca_warp.sweep import run_sweep`` etc.):
+The code lives in modules of one concern each, re-exported here (``from aca_warp.sweep import run_sweep`` etc.; each
+loaded when one of its names is first used):
 
 * :mod:`aca_warp.sweep.spec`: the spec, its pads and hash (:func:`load_spec`, :class:`SweepSpec`);
 * :mod:`aca_warp.sweep.shard`: one shard task and its file (:func:`run_shard`, :func:`shard_finished`);
@@ -36,72 +37,59 @@ The code lives in modules of one concern each, re-exported here (``from aca_warp
 
 from __future__ import annotations
 
-from aca_warp.sweep.cluster import LOOPBACK, cuda_ordinals, local_cluster, warm_workers
-from aca_warp.sweep.commands import add_parsers
-from aca_warp.sweep.manifest import MANIFEST, SHARD_STATES, SweepResult, load_sweep, prepare_dir, read_manifest
-from aca_warp.sweep.overlap import PIPELINE_DEPTH, ChunkWriter, KernelTurn, ShardCancelled, ShardContext
-from aca_warp.sweep.prepare import batch_capacity, device_memory, pad_bytes
-from aca_warp.sweep.run import run_sweep
-from aca_warp.sweep.shard import (
-    TIMING_DOC,
-    TIMING_PHASES,
-    run_shard,
-    shard_finished,
-    shard_name,
-)
-from aca_warp.sweep.spec import (
-    DEFAULT_SHARD_SIZE,
-    FORMAT,
-    MAX_PADS,
-    MAX_STEPS,
-    MODES,
-    PACKINGS,
-    PARAMETERS,
-    SweepError,
-    SweepSpec,
-    apply_parameters,
-    hf1_product_doc,
-    load_spec,
-    pack_order,
-)
+from importlib import import_module
+from typing import Any
 
-__all__ = [
-    "DEFAULT_SHARD_SIZE",
-    "FORMAT",
-    "LOOPBACK",
-    "MANIFEST",
-    "MAX_PADS",
-    "MAX_STEPS",
-    "MODES",
-    "PACKINGS",
-    "PARAMETERS",
-    "PIPELINE_DEPTH",
-    "SHARD_STATES",
-    "TIMING_DOC",
-    "TIMING_PHASES",
-    "ChunkWriter",
-    "KernelTurn",
-    "ShardCancelled",
-    "ShardContext",
-    "SweepError",
-    "SweepResult",
-    "SweepSpec",
-    "add_parsers",
-    "apply_parameters",
-    "hf1_product_doc",
-    "batch_capacity",
-    "cuda_ordinals",
-    "device_memory",
-    "load_spec",
-    "load_sweep",
-    "pack_order",
-    "local_cluster",
-    "pad_bytes",
-    "prepare_dir",
-    "read_manifest",
-    "run_shard",
-    "run_sweep",
-    "shard_finished",
-    "shard_name",
-    "warm_workers",
-]
+# public name -> its module, imported when the name is first used: ``import aca_warp.sweep`` (as the command line's
+# parser does for every command) loads no sweep code, Dask or Warp
+_PUBLIC = {
+    "LOOPBACK": "aca_warp.sweep.cluster",
+    "cuda_ordinals": "aca_warp.sweep.cluster",
+    "local_cluster": "aca_warp.sweep.cluster",
+    "warm_workers": "aca_warp.sweep.cluster",
+    "add_parsers": "aca_warp.sweep.commands",
+    "MANIFEST": "aca_warp.sweep.manifest",
+    "SHARD_STATES": "aca_warp.sweep.manifest",
+    "SweepResult": "aca_warp.sweep.manifest",
+    "load_sweep": "aca_warp.sweep.manifest",
+    "prepare_dir": "aca_warp.sweep.manifest",
+    "read_manifest": "aca_warp.sweep.manifest",
+    "PIPELINE_DEPTH": "aca_warp.sweep.overlap",
+    "ChunkWriter": "aca_warp.sweep.overlap",
+    "KernelTurn": "aca_warp.sweep.overlap",
+    "ShardCancelled": "aca_warp.sweep.overlap",
+    "ShardContext": "aca_warp.sweep.overlap",
+    "batch_capacity": "aca_warp.sweep.prepare",
+    "device_memory": "aca_warp.sweep.prepare",
+    "pad_bytes": "aca_warp.sweep.prepare",
+    "run_sweep": "aca_warp.sweep.run",
+    "TIMING_DOC": "aca_warp.sweep.shard",
+    "TIMING_PHASES": "aca_warp.sweep.shard",
+    "run_shard": "aca_warp.sweep.shard",
+    "shard_finished": "aca_warp.sweep.shard",
+    "shard_name": "aca_warp.sweep.shard",
+    "DEFAULT_SHARD_SIZE": "aca_warp.sweep.spec",
+    "FORMAT": "aca_warp.sweep.spec",
+    "MAX_PADS": "aca_warp.sweep.spec",
+    "MAX_STEPS": "aca_warp.sweep.spec",
+    "MODES": "aca_warp.sweep.spec",
+    "PACKINGS": "aca_warp.sweep.spec",
+    "PARAMETERS": "aca_warp.sweep.spec",
+    "SweepError": "aca_warp.sweep.spec",
+    "SweepSpec": "aca_warp.sweep.spec",
+    "apply_parameters": "aca_warp.sweep.spec",
+    "hf1_product_doc": "aca_warp.sweep.spec",
+    "load_spec": "aca_warp.sweep.spec",
+    "pack_order": "aca_warp.sweep.spec",
+}
+__all__ = sorted(_PUBLIC)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _PUBLIC:
+        return getattr(import_module(_PUBLIC[name]), name)
+    raise AttributeError(f"module 'aca_warp.sweep' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_PUBLIC))

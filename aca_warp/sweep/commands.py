@@ -9,9 +9,6 @@ from pathlib import Path
 from typing import Any
 
 from aca_warp.common import interrupts
-from aca_warp.sweep.manifest import MANIFEST, read_manifest
-from aca_warp.sweep.run import run_sweep
-from aca_warp.sweep.spec import SweepError, load_spec
 
 EPILOG = """\
 SPEC is a TOML sweep spec (docs/sweeps.md; example: aca_warp/data/sweep_hf1.toml). DIR receives manifest.json and
@@ -95,6 +92,9 @@ def add_parsers(sub: Any) -> None:
 
 def _interrupted_line(out: str, e: KeyboardInterrupt) -> str:
     """The one line printed when a sweep is stopped by a signal."""
+    from aca_warp.sweep.manifest import MANIFEST, read_manifest
+    from aca_warp.sweep.spec import SweepError
+
     what = "terminated (SIGTERM)" if isinstance(e, interrupts.Terminated) else "interrupted"
     try:
         m = read_manifest(out)
@@ -112,6 +112,9 @@ def _interrupted_line(out: str, e: KeyboardInterrupt) -> str:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
+    from aca_warp.sweep.run import run_sweep
+    from aca_warp.sweep.spec import load_spec
+
     spec = load_spec(
         args.spec,
         shard_size=args.shard_size,
