@@ -4,10 +4,9 @@ uninterrupted run and writes the counts as JSON and Markdown; a corrupted recove
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
-from scriptload import SCRIPTS, load_script
+import pytest
+from scriptload import load_script
 
 
 def test_quick_hf_trial(tmp_path) -> None:
@@ -67,6 +66,9 @@ def test_a_different_output_is_reported(tmp_path) -> None:
     assert fi.datasets(a) != fi.datasets(b) and fi.datasets(a) == fi.datasets(a)
 
 
-def test_help() -> None:
-    r = subprocess.run([sys.executable, str(SCRIPTS / "fault_injection.py"), "--help"], capture_output=True, text=True)
-    assert r.returncode == 0 and "--quick" in r.stdout and "SIGKILL" in r.stdout
+def test_help(capsys) -> None:
+    """The script's help (loaded as the script, run in this process)."""
+    with pytest.raises(SystemExit) as done:
+        load_script("fault_injection").main(["--help"])
+    out = capsys.readouterr().out
+    assert done.value.code == 0 and "--quick" in out and "SIGKILL" in out

@@ -5,11 +5,9 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
-from pathlib import Path
 
 import pytest
+from scriptload import load_script
 
 from aca_warp.studies.hf_study.base import fit_power_law, isolated_frequency
 from aca_warp.studies.hf_study.cli import main
@@ -42,11 +40,12 @@ def test_isolated_frequency():
     assert isolated_frequency(5e-8, stiffer) == pytest.approx(2 * isolated_frequency(5e-8))
 
 
-def test_script_help():
-    """``scripts/hf_study.py`` is the study's command line."""
-    script = Path(__file__).resolve().parent.parent / "scripts" / "hf_study.py"
-    out = subprocess.run([sys.executable, str(script), "--help"], capture_output=True, text=True, check=True).stdout
-    assert "--sweep-areas" in out and "--archive" in out
+def test_script_help(capsys):
+    """``scripts/hf_study.py`` (loaded as the script, run in this process) is the study's command line."""
+    with pytest.raises(SystemExit) as done:
+        load_script("hf_study").main(["--help"])
+    out = capsys.readouterr().out
+    assert done.value.code == 0 and "--sweep-areas" in out and "--archive" in out
 
 
 def test_tiny_study(tmp_path, capsys):

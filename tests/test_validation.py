@@ -6,12 +6,11 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from scriptload import load_script
 
 from aca_warp.studies.validation import analysis as VAN
 from aca_warp.studies.validation import base as VB
@@ -275,11 +274,15 @@ def test_page_states_the_stepping_its_results_ran_with():
     assert key != {**key, "stepping": meta["config"]["stepping"]}
 
 
-def test_script_help_and_list():
-    script = Path(__file__).resolve().parent.parent / "scripts" / "validation.py"
-    out = subprocess.run([sys.executable, str(script), "--help"], capture_output=True, text=True, check=True).stdout
-    assert "--max-wall" in out and "--only" in out and "--quick" in out
-    listed = subprocess.run([sys.executable, str(script), "--list"], capture_output=True, text=True, check=True).stdout
+def test_script_help_and_list(capsys):
+    """``scripts/validation.py`` (loaded as the script, run in this process): its help and its list of experiments."""
+    script = load_script("validation")
+    with pytest.raises(SystemExit) as done:
+        script.main(["--help"])
+    out = capsys.readouterr().out
+    assert done.value.code == 0 and "--max-wall" in out and "--only" in out and "--quick" in out
+    assert script.main(["--list"]) == 0
+    listed = capsys.readouterr().out
     assert all(f"experiment {n}" in listed for n in VB.EXPERIMENTS)
 
 
