@@ -86,6 +86,35 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     gc.freeze()
 
 
+@pytest.fixture(scope="session")
+def references(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Uninterrupted runs that the limited, interrupted and resumed runs of several test files (test_storage.py,
+    test_cli_faults.py) must equal, read only: HF (``procs.HF_SCENE``, 1 ms, 40 patches with per-patch histories;
+    ``hf_scene``, ``hf``) and LF (test_lf_checkpoint's pad, first applied for 1 s; ``lf_scene``, ``lf``). Made once
+    per test session: under pytest-xdist in the folder the workers share, by the first worker that asks (a second
+    waits for its lock, then reads them)."""
+    import fcntl
+
+    from procs import HF_DT, HF_SCENE
+    from test_lf_checkpoint import lf_scene
+
+    from aca_warp.cli import main
+
+    base = tmp_path_factory.getbasetemp()
+    d = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "references"
+    d.mkdir(exist_ok=True)
+    paths = {"hf_scene": d / "hf.toml", "hf": d / "hf.h5", "lf_scene": d / "lf.toml", "lf": d / "lf.h5"}
+    with open(d / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (d / "made").exists():
+            paths["hf_scene"].write_text(HF_SCENE)
+            paths["lf_scene"].write_text(lf_scene(1.0))
+            assert main(["hf", str(paths["hf_scene"]), "-o", str(paths["hf"]), "--no-progress", *HF_DT]) == 0
+            assert main(["lf", str(paths["lf_scene"]), "-o", str(paths["lf"]), "--no-progress"]) == 0
+            (d / "made").touch()
+    return paths
+
+
 @pytest.fixture(scope="session", autouse=True)
 def _load_kernels() -> None:
     """Load the kernel modules nearly every test uses once per device, before any test runs."""

@@ -25,6 +25,16 @@ small_lf_scene_toml = _scenes.small_lf_scene_toml
 three_applications = _scenes.three_applications
 
 
+# the HF reference scene of the file-size, interrupt and resume tests (tests/test_storage.py, test_cli_faults.py):
+# 2001 samples: the per-patch histories fill 2 chunk rows of 1024 samples (327 kB each); 1.3 MB stops the run when
+# the second row begins (t = 512 µs), after the checkpoint at 500 µs; the whole file is 1.6 MB
+HF_SCENE = small_scene_toml(
+    "full", count=40, duration=1.0e-3, sample_dt=5.0e-7, perturbation=1.0e-3, patches=("velocity", "displacement")
+)
+HF_DT = ["--dt", "5e-8"]  # HF_SCENE's step [s] (strang, well inside its stable step): what is written does not depend
+# on it, and the runs take a fifth of the default 1e-8 s
+
+
 def nine_patch_scene(
     name: str = "grow",
     *,

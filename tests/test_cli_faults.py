@@ -27,9 +27,8 @@ from pathlib import Path
 
 import h5py
 import pytest
-from procs import assert_same_datasets, cli, datasets, env, error_lines, small_scene_toml
+from procs import HF_DT, HF_SCENE, assert_same_datasets, cli, datasets, env, error_lines, small_scene_toml
 from test_lf_checkpoint import lf_scene
-from test_storage import HF_DT, HF_SCENE
 
 from aca_warp.cli import main
 from aca_warp.common.errors import SceneError
@@ -59,18 +58,6 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         main(["hf", str(d / "long.toml"), "-o", str(d / "long.h5"), "--duration", "2e-4", "--no-progress", *HF_DT]) == 0
     )
     return {"hf": d / "small.toml", "lf": d / "lf.toml", "run": d / "small.h5", "long": d / "long.h5"}
-
-
-@pytest.fixture(scope="module")
-def refs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """Uninterrupted HF (HF_SCENE, 1 ms, 40 patches with per-patch histories) and LF runs, the references of the
-    interrupted, limited and resumed ones."""
-    d = tmp_path_factory.mktemp("refs")
-    (d / "hf.toml").write_text(HF_SCENE)
-    (d / "lf.toml").write_text(lf_scene(1.0))
-    assert main(["hf", str(d / "hf.toml"), "-o", str(d / "hf.h5"), "--no-progress", *HF_DT]) == 0
-    assert main(["lf", str(d / "lf.toml"), "-o", str(d / "lf.h5"), "--no-progress"]) == 0
-    return {"hf_scene": d / "hf.toml", "hf": d / "hf.h5", "lf_scene": d / "lf.toml", "lf": d / "lf.h5"}
 
 
 def command(kind: str, runs: dict[str, Path], out: str) -> list[str]:
@@ -208,10 +195,10 @@ def test_too_little_space_is_refused_before_the_run(tmp_path, capsys, runs, monk
 # -------------------------------------------------------------------------------- file-size limit mid-run
 
 
-def test_rerun_file_size_limit_then_resume(tmp_path: Path, refs) -> None:
+def test_rerun_file_size_limit_then_resume(tmp_path: Path, references) -> None:
     """rerun under a file-size limit: exit 4, one line, the .partial kept at its checkpoint; --resume then
     finishes it bit-identical to the run it repeats (the limit as in test_storage.py)."""
-    ref = refs["hf"]
+    ref = references["hf"]
     out = tmp_path / "again.h5"
     r = cli(["rerun", str(ref), "-o", str(out), "--no-progress", "--checkpoint-interval", "1e-4"], limit=1_300_000)
     lines = error_lines(r.stderr)
@@ -312,17 +299,17 @@ def assert_interrupted(code: int, lines: list[str], sig: int) -> None:
     [("hf", signal.SIGINT), ("hf", signal.SIGTERM), ("rerun", signal.SIGINT), ("lf", signal.SIGTERM)],
     ids=["hf-SIGINT", "hf-SIGTERM", "rerun-SIGINT", "lf-SIGTERM"],
 )
-def test_interrupt_then_resume(tmp_path: Path, refs, kind: str, sig: int) -> None:
+def test_interrupt_then_resume(tmp_path: Path, references, kind: str, sig: int) -> None:
     """Interrupted after its first checkpoint: one line naming what the file keeps and how to continue, exit
     128 + signal, the file closed and marked incomplete (no .partial, no lock); --resume finishes it with the bits
     of the uninterrupted run."""
     out = tmp_path / "run.h5"
     if kind == "lf":
-        ref = refs["lf"]
-        args = ["lf", str(refs["lf_scene"]), "-o", str(out), "--checkpoint-interval", "0.05", "--no-progress"]
+        ref = references["lf"]
+        args = ["lf", str(references["lf_scene"]), "-o", str(out), "--checkpoint-interval", "0.05", "--no-progress"]
     else:
-        ref = refs["hf"]
-        first = ["hf", str(refs["hf_scene"]), *HF_DT] if kind == "hf" else ["rerun", str(ref)]
+        ref = references["hf"]
+        first = ["hf", str(references["hf_scene"]), *HF_DT] if kind == "hf" else ["rerun", str(ref)]
         args = [*first, "-o", str(out), "--checkpoint-interval", "5e-5", "--no-progress"]
     part = tmp_path / "run.h5.partial"
     code, lines = interrupt_when(start(args), lambda: part.exists() and has_checkpoint(part), sig)

@@ -11,33 +11,16 @@ from pathlib import Path
 
 import h5py
 import pytest
-from procs import assert_same_datasets, cli, error_lines, small_scene_toml
+from procs import HF_DT, HF_SCENE, assert_same_datasets, cli, error_lines
 
 from aca_warp.cli import main
 from aca_warp.common.storage import GuardedFile, storage_errno
 
-HF_SCENE = small_scene_toml(
-    "full", count=40, duration=1.0e-3, sample_dt=5.0e-7, perturbation=1.0e-3, patches=("velocity", "displacement")
-)
-# 2001 samples: the per-patch histories fill 2 chunk rows of 1024 samples (327 kB each); 1.3 MB stops the run when
-# the second row begins (t = 512 µs), after the checkpoint at 500 µs; the whole file is 1.6 MB
-HF_DT = ["--dt", "5e-8"]  # HF_SCENE's step [s] (strang, well inside its stable step): what is written does not depend
-# on it, and the runs take a fifth of the default 1e-8 s
 
-
-@pytest.fixture(scope="module")
-def hf_reference(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The uninterrupted run of HF_SCENE, which the limited and resumed runs of this module must equal."""
-    d = tmp_path_factory.mktemp("hf_reference")
-    (d / "s.toml").write_text(HF_SCENE)
-    assert main(["hf", str(d / "s.toml"), "-o", str(d / "ref.h5"), "--no-progress", *HF_DT]) == 0
-    return d / "ref.h5"
-
-
-def test_hf_file_size_limit_then_resume(tmp_path: Path, hf_reference: Path) -> None:
+def test_hf_file_size_limit_then_resume(tmp_path: Path, references: dict[str, Path]) -> None:
     scene = tmp_path / "s.toml"
     scene.write_text(HF_SCENE)
-    ref = hf_reference
+    ref = references["hf"]
     out = tmp_path / "run.h5"
     r = cli(
         ["hf", str(scene), "-o", str(out), "--no-progress", *HF_DT, "--checkpoint-interval", "1e-4"], limit=1_300_000
@@ -59,7 +42,7 @@ def test_hf_file_size_limit_then_resume(tmp_path: Path, hf_reference: Path) -> N
     assert r.returncode == 4 and len(lines) == 1 and "no checkpoint" in lines[0], r.stderr
 
 
-def test_advice_after_a_file_size_stop_is_one_and_true(tmp_path: Path, hf_reference: Path, capsys) -> None:
+def test_advice_after_a_file_size_stop_is_one_and_true(tmp_path: Path, references: dict[str, Path], capsys) -> None:
     """A checkpointed run stopped by a file-size limit before its first checkpoint: the stop and a new run onto the
     same name give the same advice, that the run stopped before its first checkpoint and that `--resume` starts it
     again from t = 0 (before: `--resume` said it ran without checkpoint_interval, and the suggested rerun pointed
@@ -79,16 +62,12 @@ def test_advice_after_a_file_size_stop_is_one_and_true(tmp_path: Path, hf_refere
     err = error_lines(capsys.readouterr().err)
     assert len(err) == 1 and advice in err[0], err
     assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
-    assert_same_datasets(out, hf_reference)
+    assert_same_datasets(out, references["hf"])
 
 
-def test_lf_file_size_limit_then_resume(tmp_path: Path) -> None:
-    from test_lf_checkpoint import lf_scene
-
-    scene = tmp_path / "lf.toml"
-    scene.write_text(lf_scene(1.0))
-    ref = tmp_path / "ref.h5"
-    assert main(["lf", str(scene), "-o", str(ref), "--no-progress"]) == 0
+def test_lf_file_size_limit_then_resume(tmp_path: Path, references: dict[str, Path]) -> None:
+    scene = references["lf_scene"]
+    ref = references["lf"]
     out = tmp_path / "run.h5"
     r = cli(["lf", str(scene), "-o", str(out), "--no-progress", "--checkpoint-interval", "0.1"], limit=400_000)
     lines = error_lines(r.stderr)
