@@ -187,10 +187,11 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 
 def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float | None] | None) -> int:
     """``aca-warp analyze`` of the run file ``run`` (RUN.h5, or the pad file of a shard's pad)."""
-    from aca_warp.analysis.report import analyze_run
     from aca_warp.common.files import reading
 
-    check_writable_file(run)
+    check_writable_file(run)  # first: a refusal imports no analysis code (SciPy)
+    from aca_warp.analysis.report import analyze_run
+
     with reading(run, "run file"), storage_errors(f"/analysis into {run}", "the file keeps its samples"):
         groups = analyze_run(
             run,
@@ -246,10 +247,10 @@ def cmd_plot(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from aca_warp.common.files import check_output_folder, reading
-    from aca_warp.plots import plot_run
 
-    out = check_output_folder(args.output_dir)
+    out = check_output_folder(args.output_dir)  # first: a refusal imports no plotting code (Matplotlib)
     created = not out.exists()
+    from aca_warp.plots import plot_run
 
     def note(message: str) -> None:
         print(f"aca-warp plot: {message}", file=sys.stderr)
