@@ -13,8 +13,7 @@ The package map is in docs/architecture.md.
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import Any
+from aca_warp.common.lazy import lazy_names
 
 __version__ = "0.1.0"
 
@@ -38,11 +37,4 @@ _PUBLIC = {
 __all__ = sorted(_PUBLIC)
 
 
-def __getattr__(name: str) -> Any:
-    if name in _PUBLIC:
-        return getattr(import_module(_PUBLIC[name]), name)
-    raise AttributeError(f"module 'aca_warp' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_PUBLIC))
+__getattr__, __dir__ = lazy_names(__name__, _PUBLIC)

@@ -5,8 +5,7 @@ The names below load their modules (and SciPy) when first used, so that the comm
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import Any
+from aca_warp.common.lazy import lazy_names
 
 _MODULES = {
     "measures": (
@@ -26,11 +25,8 @@ _MODULES = {
     ),
     "timefreq": ("cwt_morlet", "stft"),
 }  # fmt: skip
-_PUBLIC = {name: module for module, names in _MODULES.items() for name in names}
+_PUBLIC = {name: f"{__name__}.{module}" for module, names in _MODULES.items() for name in names}
 __all__ = sorted(_PUBLIC)
 
 
-def __getattr__(name: str) -> Any:
-    if name in _PUBLIC:
-        return getattr(import_module(f"{__name__}.{_PUBLIC[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_names(__name__, _PUBLIC)

@@ -37,59 +37,25 @@ loaded when one of its names is first used):
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import Any
+from aca_warp.common.lazy import lazy_names
 
-# public name -> its module, imported when the name is first used: ``import aca_warp.sweep`` (as the command line's
-# parser does for every command) loads no sweep code, Dask or Warp
-_PUBLIC = {
-    "LOOPBACK": "aca_warp.sweep.cluster",
-    "cuda_ordinals": "aca_warp.sweep.cluster",
-    "local_cluster": "aca_warp.sweep.cluster",
-    "warm_workers": "aca_warp.sweep.cluster",
-    "add_parsers": "aca_warp.sweep.commands",
-    "MANIFEST": "aca_warp.sweep.manifest",
-    "SHARD_STATES": "aca_warp.sweep.manifest",
-    "SweepResult": "aca_warp.sweep.manifest",
-    "load_sweep": "aca_warp.sweep.manifest",
-    "prepare_dir": "aca_warp.sweep.manifest",
-    "read_manifest": "aca_warp.sweep.manifest",
-    "PIPELINE_DEPTH": "aca_warp.sweep.overlap",
-    "ChunkWriter": "aca_warp.sweep.overlap",
-    "KernelTurn": "aca_warp.sweep.overlap",
-    "ShardCancelled": "aca_warp.sweep.overlap",
-    "ShardContext": "aca_warp.sweep.overlap",
-    "batch_capacity": "aca_warp.sweep.prepare",
-    "device_memory": "aca_warp.sweep.prepare",
-    "pad_bytes": "aca_warp.sweep.prepare",
-    "run_sweep": "aca_warp.sweep.run",
-    "TIMING_DOC": "aca_warp.sweep.shard",
-    "TIMING_PHASES": "aca_warp.sweep.shard",
-    "run_shard": "aca_warp.sweep.shard",
-    "shard_finished": "aca_warp.sweep.shard",
-    "shard_name": "aca_warp.sweep.shard",
-    "DEFAULT_SHARD_SIZE": "aca_warp.sweep.spec",
-    "FORMAT": "aca_warp.sweep.spec",
-    "MAX_PADS": "aca_warp.sweep.spec",
-    "MAX_STEPS": "aca_warp.sweep.spec",
-    "MODES": "aca_warp.sweep.spec",
-    "PACKINGS": "aca_warp.sweep.spec",
-    "PARAMETERS": "aca_warp.sweep.spec",
-    "SweepError": "aca_warp.sweep.spec",
-    "SweepSpec": "aca_warp.sweep.spec",
-    "apply_parameters": "aca_warp.sweep.spec",
-    "hf1_product_doc": "aca_warp.sweep.spec",
-    "load_spec": "aca_warp.sweep.spec",
-    "pack_order": "aca_warp.sweep.spec",
-}
+# the public names by module, each module imported when one of its names is first used: ``import aca_warp.sweep`` (as
+# the command line's parser does for every command) loads no sweep code, Dask or Warp
+_MODULES = {
+    "cluster": ("LOOPBACK", "cuda_ordinals", "local_cluster", "warm_workers"),
+    "commands": ("add_parsers",),
+    "manifest": ("MANIFEST", "SHARD_STATES", "SweepResult", "load_sweep", "prepare_dir", "read_manifest"),
+    "overlap": ("PIPELINE_DEPTH", "ChunkWriter", "KernelTurn", "ShardCancelled", "ShardContext"),
+    "prepare": ("batch_capacity", "device_memory", "pad_bytes"),
+    "run": ("run_sweep",),
+    "shard": ("TIMING_DOC", "TIMING_PHASES", "run_shard", "shard_finished", "shard_name"),
+    "spec": (
+        "DEFAULT_SHARD_SIZE", "FORMAT", "MAX_PADS", "MAX_STEPS", "MODES", "PACKINGS", "PARAMETERS", "SweepError",
+        "SweepSpec", "apply_parameters", "hf1_product_doc", "load_spec", "pack_order",
+    ),
+}  # fmt: skip
+_PUBLIC = {name: f"{__name__}.{module}" for module, names in _MODULES.items() for name in names}
 __all__ = sorted(_PUBLIC)
 
 
-def __getattr__(name: str) -> Any:
-    if name in _PUBLIC:
-        return getattr(import_module(_PUBLIC[name]), name)
-    raise AttributeError(f"module 'aca_warp.sweep' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_PUBLIC))
+__getattr__, __dir__ = lazy_names(__name__, _PUBLIC)
