@@ -8,7 +8,9 @@ system's packages with the clone installed (``pip install --no-deps -e .``: the 
 time of the suite and every process it waited for (user + sys: the figure that does not depend on what else loads
 the machine), the machine, the date, the load average before and after, and whether Warp's kernel cache was warm
 (the one ``aca-warp`` and the tests share, ``~/.cache/warp`` or ``WARP_CACHE_PATH``) or, with ``--cold``, an empty
-one (kernels compiled on the way, as on a new machine or after a Warp upgrade). With ``--durations N`` pytest also
+one (kernels compiled on the way, as on a new machine or after a Warp upgrade), and how many kernel modules were
+added to that cache during the run (a "warm" cache misses the modules whose source changed since it was filled:
+their compiles are in the CPU time, seconds each). With ``--durations N`` pytest also
 times every test (``--durations=0``): the N slowest tests and the N files of the largest total are listed (the time a
 file takes sets when its worker can finish: every file runs on one worker), and every file's total is kept in the JSON,
 from which the tests' conftest.py orders the files, longest first. With ``--beside`` a second fresh clone runs the
@@ -95,6 +97,13 @@ def _clone(tmp: Path, name: str, args: argparse.Namespace) -> tuple[Path, str, l
     return clone, commit, command, env
 
 
+def cached_modules(env: dict[str, str]) -> int:
+    """Kernel modules in the Warp kernel cache the suite uses (``WARP_CACHE_PATH``, else ``~/.cache/warp``; one folder
+    per compiled module under the Warp version's folder)."""
+    root = Path(env.get("WARP_CACHE_PATH") or Path.home() / ".cache" / "warp")
+    return sum(1 for d in root.glob("*/*") if d.is_dir())
+
+
 def _suites(runs: list[tuple[Path, list[str], dict[str, str]]], timeout: float) -> list[dict]:
     """Start every (folder, command, environment) of ``runs`` at the same moment and wait for all; per run its exit
     code, output (stdout and stderr), wall time [s] and CPU time [s] (user + sys of the command and every process it
@@ -141,9 +150,9 @@ def run(args: argparse.Namespace) -> dict:
             other, _, other_command, other_env = _clone(Path(tmp), "beside", args)
             runs.append((other, other_command, other_env))
         started = time.strftime("%Y-%m-%d %H:%M")
-        load_before = os.getloadavg()
+        load_before, modules_before = os.getloadavg(), cached_modules(env)
         done = _suites(runs, args.timeout)
-        load_after = os.getloadavg()
+        load_after, compiled = os.getloadavg(), cached_modules(env) - modules_before
     figures = [_figures(d) for d in done]
     beside = {"beside": figures[1]} if args.beside else {}
     return {
@@ -153,6 +162,7 @@ def run(args: argparse.Namespace) -> dict:
         "machine": _machine(),
         "cores": os.cpu_count(),
         "kernel_cache": "cold (empty)" if args.cold else "warm (Warp's cache of this machine)",
+        "kernels_compiled": compiled,
         **figures[0],
         "load_before": load_before[0],
         "load_after": load_after[0],
@@ -185,6 +195,9 @@ def markdown(r: dict) -> str:
     def minutes(s: float) -> str:
         return f"{int(s // 60)} min {s % 60:.0f} s"
 
+    n = r.get("kernels_compiled", 0)
+    compiled = f", {n} kernel modules added to it during the run (compiled by the suite or other work)" if n else ""
+
     def table(title: str, rows: list) -> str:
         lines = "".join(f"| `{name}` | {seconds:.1f} |\n" for name, seconds in rows)
         return f"\n| {title} | s |\n|---|---|\n{lines}"
@@ -192,8 +205,8 @@ def markdown(r: dict) -> str:
     return (
         "# Test suite: count and time\n\n"
         f"`{r['command']}` on a fresh clone (commit {r['commit']}), {r['date']}, on {r['machine']}; kernel cache "
-        f"{r['kernel_cache']}; load average {r['load_before']:.2g} before, {r['load_after']:.2g} after (the wall "
-        "time depends on it, the CPU time hardly). Written by `python3 scripts/time_tests.py`.\n\n"
+        f"{r['kernel_cache']}{compiled}; load average {r['load_before']:.2g} before, {r['load_after']:.2g} after "
+        "(the wall time depends on it, the CPU time hardly). Written by `python3 scripts/time_tests.py`.\n\n"
         "| passed | skipped | failed | wall | CPU (user + sys) |\n|---|---|---|---|---|\n"
         f"| {r['passed']} | {r['skipped']} | {r['failed'] + r['errors']} | {minutes(r['wall_s'])} | "
         f"{minutes(r['cpu_s'])} |\n"

@@ -132,5 +132,12 @@ def test_suite_timing_beside_a_second_suite(tmp_path: Path) -> None:
     assert (
         "Beside a second copy of the suite" in page and "990 passed, 0 failed, 4 min 50 s wall, 4 min 41 s CPU" in page
     )
+    assert "kernel modules added" not in page
+    assert "kernel cache warm, 62 kernel modules added to it during the run" in tt.markdown(
+        {**r, "kernels_compiled": 62}
+    )
+    assert tt.cached_modules({"WARP_CACHE_PATH": str(tmp_path / "none")}) == 0
+    (tmp_path / "cache" / "1.19.0" / "wp_a_1").mkdir(parents=True)
+    assert tt.cached_modules({"WARP_CACHE_PATH": str(tmp_path / "cache")}) == 1
     del r["beside"]
     assert "Beside" not in tt.markdown(r)
