@@ -61,14 +61,15 @@ def build_parser() -> argparse.ArgumentParser:
 def run(argv: Sequence[str] | None = None) -> NoReturn:
     """Entry point of the ``aca-warp`` console script: :func:`main`, then the end of the process
     (:func:`~aca_warp.common.interrupts.exit_process`): a SIGINT or SIGTERM that comes after the command's work, while
-    the process cleans up, ends it with 130 or 143 and one line, never half-way through the clean-up."""
+    the process cleans up (or one the work never saw), ends it with 130 or 143 and one line, never half-way through
+    the clean-up."""
     code = main(argv, hold=True)
 
     def late(signum: int, code: int) -> str:
         name = "SIGTERM" if signum == signal.SIGTERM else "Ctrl-C"
         return (
-            f"aca-warp: interrupted ({name}) as it exited, after the command ended with exit code {code}; its output "
-            "is as the command left it"
+            f"aca-warp: interrupted ({name}), but the command's work was not stopped: it ended with exit code {code} "
+            "and its output is as the command left it"
         )
 
     interrupts.exit_process(code, late)
@@ -93,8 +94,8 @@ def main(argv: Sequence[str] | None = None, *, hold: bool = False) -> int:
                 init_warp()
             _check_output_folder(args)
             code = args.handler(args)
-            interrupts.raise_lost(succeeded=code == 0)  # an interrupt swallowed beyond our code: not lost
-            interrupts.finished()  # the result is final: a signal from here on is recorded (run() reports it)
+            # the result is final: a signal from here on, or one the work never saw, is recorded (run() reports it)
+            interrupts.finished(unseen=code not in (130, 143))
         except AcaError as e:
             interrupts.finished()
             print(f"aca-warp: error: {e}", file=sys.stderr)

@@ -154,20 +154,40 @@ def _dropped_by_other_code(tmp_path: Path) -> list[Path]:
 
 
 @pytest.mark.parametrize("work", [_finalizer_at_the_end, _dropped_by_other_code], ids=["finalizer", "dropped"])
-def test_an_interrupt_the_work_never_saw_still_ends_the_command(tmp_path: Path, monkeypatch, capsys, work) -> None:
+def test_an_interrupt_the_work_never_saw_is_reported_at_exit(tmp_path: Path, monkeypatch, capsys, work) -> None:
     """A SIGTERM swallowed in a finalizer at the very end of a command's work (before it is raised again), or caught
-    and dropped by code beyond ours while the work then succeeds: the command still ends as interrupted, exit 143 and
-    the one ``interrupted`` line, not exit 0."""
+    and dropped by code beyond ours while the work then went on to its end: the command's output is whole, so it is
+    not reported as interrupted half-way; the signal is recorded for the exit's line ("the command's work was not
+    stopped") and exit 143, not lost."""
     import aca_warp.plots as plots
     from aca_warp.cli import main
 
     monkeypatch.setattr(plots, "plot_run", lambda *args, **kwargs: work(tmp_path))
     run = tmp_path / "run.h5"
     run.write_bytes(b"")
-    code = main(["plot", str(run), "-o", str(tmp_path / "figs")])
-    err = capsys.readouterr().err
-    assert code == 143, err
-    assert err.startswith("aca-warp: interrupted (SIGTERM);") and "Exception ignored" not in err
+    try:
+        code = main(["plot", str(run), "-o", str(tmp_path / "figs")])
+        err = capsys.readouterr().err
+        assert code == 0 and "interrupted" not in err and "Exception ignored" not in err, err
+        assert interrupts._late == [signal.SIGTERM]
+    finally:
+        interrupts._late.clear()
+
+
+def test_a_signal_while_the_output_is_completed_does_not_interrupt() -> None:
+    """Inside ``completing`` (the swap of /analysis) a signal is held back like in ``deferred``, but then recorded as
+    one that did not stop the command (its output whole), not raised; so is any signal after it."""
+    try:
+        with interrupts.installed():
+            with interrupts.completing():
+                os.kill(os.getpid(), signal.SIGTERM)
+                _ordinary_code(0.05)
+            _ordinary_code(0.05)  # nothing raised at its end
+            os.kill(os.getpid(), signal.SIGINT)
+            _ordinary_code(0.05)  # nor for a later signal: the result is final
+            assert interrupts._late == [signal.SIGTERM, signal.SIGINT]
+    finally:
+        interrupts._late.clear()
 
 
 def test_an_interrupt_a_finalizer_swallowed_as_a_command_fails_is_reported_at_exit() -> None:

@@ -12,9 +12,11 @@ inside :func:`second_signal_exits`, for a clean-up that may wait long (a sweep w
 second signal ends the process at once. An
 interrupt raised while Python runs a finalizer (``__del__``, a weakref callback) is swallowed there by Python, which
 prints it as "Exception ignored"; :func:`installed` catches it in ``sys.unraisablehook`` instead and raises it again
-a millisecond later (a SIGALRM timer, the command's ``installed`` owns SIGALRM), from ordinary code; a command whose
-work ends within that millisecond raises it at its end (:func:`raise_lost`), or, when it ends with an error,
-reports it as a signal that came as it exited (:func:`finished`).
+a millisecond later (a SIGALRM timer, the command's ``installed`` owns SIGALRM), from ordinary code; one that the
+work never saw (its command ended within that millisecond, or code beyond ours dropped it) is reported at the exit
+as a signal that did not stop the command (:func:`finished`). A write that completes the command's output (the swap
+of ``/analysis``) runs inside :func:`completing`: a signal that arrives there is reported the same way, since the
+output it leaves is whole.
 Without :func:`installed` (the Python API) Python's own SIGINT handling applies and :func:`deferred` defers nothing.
 
 The end of a process: once a command's result is final, :func:`installed` (``hold=True``) leaves SIGINT and SIGTERM
@@ -121,32 +123,21 @@ def _record(signum: int, frame: object) -> None:
     _late.append(signum)
 
 
-def finished() -> None:
+def finished(*, unseen: bool = True) -> None:
     """The command's result is final (its work done, or its error decided): from now on SIGINT and SIGTERM are only
-    recorded, for :func:`exit_process` to report; nothing raises any more. An interrupt a finalizer swallowed and
-    not yet raised again (:func:`raise_lost`) is recorded the same way."""
+    recorded, for :func:`exit_process` to report; nothing raises any more. With ``unseen`` (the command did not
+    handle an interrupt itself), an interrupt its work never saw is recorded the same way: one a finalizer swallowed
+    and not yet raised again (:func:`_unraisable`), or one that code beyond ours caught and dropped, so that the work
+    went on to its end. The command's output is then whole, and the exit's line says that the signal did not stop it
+    (an interrupt raised now would report the output of a command cut short)."""
+    first = not _state.final
     _state.final = True  # first: a redelivery that runs from here on only records its signal
     if not _state.installed:
         return
     signal.setitimer(signal.ITIMER_REAL, 0.0)
-    if _state.withheld and _state.last is not None:
-        _state.withheld = False
+    if first and unseen and _state.last is not None and (_state.withheld or _state.raised):
         _late.append(_state.last)
-
-
-def raise_lost(*, succeeded: bool) -> None:
-    """Raise now an interrupt the command's work never saw: one a finalizer swallowed that still waits for its
-    millisecond (:func:`_unraisable`), or, after work that ``succeeded``, one already raised that code beyond ours
-    caught and dropped (C code that clears any error). The command then ends as interrupted instead of losing the
-    signal. Nothing without one."""
-    if not _state.installed:
-        return
-    signal.setitimer(signal.ITIMER_REAL, 0.0)
-    if _state.withheld and _state.last is not None:  # (a redelivery that ran meanwhile cleared it and raised)
-        _state.withheld = False
-        _handler(_state.last, None)
-    if succeeded and _state.raised and _state.last is not None:
-        raise _interrupt(_state.last)
+    _state.withheld = False
 
 
 @contextmanager
@@ -214,6 +205,27 @@ def deferred() -> Iterator[None]:
     if _state.depth == 0 and _state.pending is not None and not _state.raised:
         signum, _state.pending = _state.pending, None
         raise _interrupt(signum)
+
+
+@contextmanager
+def completing() -> Iterator[None]:
+    """Run the body that completes the command's output (the swap of ``/analysis`` into the run file) whole, as
+    :func:`deferred` does, and make the result final at its end (:func:`finished`): a SIGINT or SIGTERM that arrives
+    meanwhile, or later, is reported at the exit as a signal that did not stop the command, not raised as an
+    interrupt whose line would describe the output of a command cut short. If the body raises, a signal that arrived
+    meanwhile is reported the same way, beside the body's error. Without :func:`installed` it changes nothing."""
+    if not _state.installed or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _state.depth += 1
+    try:
+        yield
+    finally:
+        _state.depth -= 1
+        if _state.depth == 0 and _state.pending is not None:
+            _late.append(_state.pending)
+            _state.pending = None
+    finished()
 
 
 def undivided(call: Callable[..., None]) -> Callable[..., None]:
