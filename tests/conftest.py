@@ -13,12 +13,12 @@ import json
 import os
 from pathlib import Path
 
+import pytest
 import warp as wp
 
-if hasattr(wp, "LOG_WARNING") and hasattr(wp.config, "log_level"):
-    wp.config.log_level = wp.LOG_WARNING
+from aca_warp.common.devices import init_warp
 
-import pytest
+init_warp()  # quietly, as the command line does: Warp's log at warnings, no note of a missing CUDA driver
 
 # ACA_WARP_TEST_DEVICES="cuda:0" restricts the device-parametrised tests (e.g. on a GPU machine whose Warp
 # build cannot compile CPU kernels); run them there with `-k cuda`.
@@ -39,7 +39,6 @@ def _load(names: tuple[str, ...]) -> None:
     """Load (compile, or fetch from the kernel cache) the kernel modules ``aca_warp.kernels.<name>`` on every device."""
     import importlib
 
-    wp.init()
     for name in names:
         module = importlib.import_module(f"aca_warp.kernels.{name}")
         for dev in DEVICES:
