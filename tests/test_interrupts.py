@@ -175,11 +175,11 @@ def test_an_interrupt_the_work_never_saw_is_reported_at_exit(tmp_path: Path, mon
 
 
 def test_a_signal_while_the_output_is_completed_does_not_interrupt() -> None:
-    """Inside ``completing`` (the swap of /analysis) a signal is held back like in ``deferred``, but then recorded as
-    one that did not stop the command (its output whole), not raised; so is any signal after it."""
+    """Inside ``deferred(completes=True)`` (the swap of /analysis) a signal is held back as in ``deferred``, but then
+    recorded as one that did not stop the command (its output whole), not raised; so is any signal after it."""
     try:
         with interrupts.installed():
-            with interrupts.completing():
+            with interrupts.deferred(completes=True):
                 os.kill(os.getpid(), signal.SIGTERM)
                 _ordinary_code(0.05)
             _ordinary_code(0.05)  # nothing raised at its end

@@ -523,9 +523,9 @@ def write_analysis(f: h5py.File, groups: dict[str, Group], attrs: dict[str, Any]
     the groups is reserved first (:class:`~aca_warp.common.storage.GuardedFile`): a full device, a file-size limit
     or a quota raises a :class:`~aca_warp.common.errors.StorageError` before anything is written, and the file is
     closed without another write (as it was); the swap is not cut half-way by Ctrl-C or SIGTERM (one that comes during
-    it, or later, is reported as not having stopped the command: :func:`~aca_warp.common.interrupts.completing`).
+    it, or later, is reported as not having stopped the command: :func:`~aca_warp.common.interrupts.deferred`).
     """
-    from aca_warp.common.interrupts import completing
+    from aca_warp.common.interrupts import deferred
     from aca_warp.common.storage import GuardedFile, storage_errno, storage_error
 
     guard = GuardedFile(f, f.filename)
@@ -546,7 +546,7 @@ def write_analysis(f: h5py.File, groups: dict[str, Group], attrs: dict[str, Any]
                     del f[TMP_GROUP]
             finally:
                 raise
-        with completing():  # the command's output is whole once the swap is done
+        with deferred(completes=True):  # the command's output is whole once the swap is done
             if GROUP in f:
                 del f[GROUP]
             f.move(TMP_GROUP, GROUP)

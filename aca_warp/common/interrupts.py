@@ -15,8 +15,8 @@ prints it as "Exception ignored"; :func:`installed` catches it in ``sys.unraisab
 a millisecond later (a SIGALRM timer, the command's ``installed`` owns SIGALRM), from ordinary code; one that the
 work never saw (its command ended within that millisecond, or code beyond ours dropped it) is reported at the exit
 as a signal that did not stop the command (:func:`finished`). A write that completes the command's output (the swap
-of ``/analysis``) runs inside :func:`completing`: a signal that arrives there is reported the same way, since the
-output it leaves is whole.
+of ``/analysis``) runs inside :func:`deferred` with ``completes``: a signal that arrives there is reported the same
+way, since the output it leaves is whole.
 Without :func:`installed` (the Python API) Python's own SIGINT handling applies and :func:`deferred` defers nothing.
 
 The end of a process: once a command's result is final, :func:`installed` (``hold=True``) leaves SIGINT and SIGTERM
@@ -189,11 +189,17 @@ def exit_process(code: int, late: Callable[[int, int], str]) -> NoReturn:
 
 
 @contextmanager
-def deferred() -> Iterator[None]:
+def deferred(*, completes: bool = False) -> Iterator[None]:
     """Run the body without being interrupted half-way: a SIGINT or SIGTERM that arrives meanwhile is raised when
     the body has finished (not when it raised an error of its own: that error ends the command anyway). Only the
     main thread defers: Python raises a signal's exception there and nowhere else, so another thread's body is never
-    cut by it, and an interrupt deferred for another thread would be raised in that thread, not the command's."""
+    cut by it, and an interrupt deferred for another thread would be raised in that thread, not the command's.
+
+    With ``completes`` (the body completes the command's output: the swap of ``/analysis`` into the run file) the
+    result is final at the body's end (:func:`finished`): a signal that arrived meanwhile (also when the body
+    raised), or comes later, is reported at the exit as one that did not stop the command, not raised as an
+    interrupt whose line would describe the output of a command cut short. Without :func:`installed` it changes
+    nothing."""
     if not _state.installed or threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -202,30 +208,14 @@ def deferred() -> Iterator[None]:
         yield
     finally:
         _state.depth -= 1
-    if _state.depth == 0 and _state.pending is not None and not _state.raised:
-        signum, _state.pending = _state.pending, None
-        raise _interrupt(signum)
-
-
-@contextmanager
-def completing() -> Iterator[None]:
-    """Run the body that completes the command's output (the swap of ``/analysis`` into the run file) whole, as
-    :func:`deferred` does, and make the result final at its end (:func:`finished`): a SIGINT or SIGTERM that arrives
-    meanwhile, or later, is reported at the exit as a signal that did not stop the command, not raised as an
-    interrupt whose line would describe the output of a command cut short. If the body raises, a signal that arrived
-    meanwhile is reported the same way, beside the body's error. Without :func:`installed` it changes nothing."""
-    if not _state.installed or threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    _state.depth += 1
-    try:
-        yield
-    finally:
-        _state.depth -= 1
-        if _state.depth == 0 and _state.pending is not None:
+        if completes and _state.depth == 0 and _state.pending is not None:
             _late.append(_state.pending)
             _state.pending = None
-    finished()
+    if completes:
+        finished()
+    elif _state.depth == 0 and _state.pending is not None and not _state.raised:
+        signum, _state.pending = _state.pending, None
+        raise _interrupt(signum)
 
 
 def undivided(call: Callable[..., None]) -> Callable[..., None]:
