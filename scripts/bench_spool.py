@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import shutil
 import statistics
 import sys
 import time
@@ -39,7 +40,7 @@ def measure(pads: int, repeat: int) -> dict:
     import pickle
 
     sys.path.insert(0, str(HERE))
-    from bench_sweep import sweep_doc  # noqa: E402  (the bench's hf1 product sweep)
+    from bench_sweep import sweep_doc  # the bench's hf1 product sweep
     from distributed import Client
 
     from aca_warp.common.devices import init_warp
@@ -47,34 +48,32 @@ def measure(pads: int, repeat: int) -> dict:
 
     init_warp()
     from aca_warp.sweep import hf1_product_doc, load_spec, local_cluster
-    from aca_warp.sweep.prepare import Preparer, prepare_shard
+    from aca_warp.sweep.prepare import _spool_folder, _spooled, prepare_shard
 
     spec = load_spec(sweep_doc(hf1_product_doc, pads, None, pads, 1e-5, "fp32"))
     t = time.perf_counter()
     prepared = prepare_shard(spec.doc, str(spec.base_dir), 0, device="cpu")
     prepare_s = time.perf_counter() - t
     size = len(pickle.dumps(prepared, protocol=pickle.HIGHEST_PROTOCOL))
-    spool = Preparer(spec.doc, str(spec.base_dir), processes=1, ahead=1, spool=True)  # its folder; no shard planned
+    spool = _spool_folder()  # the folder a sweep's pool writes its files into
     cluster, _ = local_cluster("cpu", 1, threads=2)
     client = Client(cluster)
     times: dict[str, list[float]] = {"by value": [], "spool file": []}
     try:
         client.submit(_held, None, pure=False).result()  # the worker warm: imports done
-        from aca_warp.sweep.prepare import _spooled
-
         for _ in range(repeat):
             t = time.time()
             with warnings.catch_warnings():  # Dask's note on large graphs: the hand-over measured here
                 warnings.filterwarnings("ignore", message="Sending large graph", category=UserWarning)
                 fut = client.submit(_held, prepared, pure=False)
             times["by value"].append(fut.result() - t)
-            handle = _spooled(lambda _i: prepared, spool.spool, 0)  # the file as the pool writes it
+            handle = _spooled(lambda _i: prepared, spool, 0)  # the file as the pool writes it
             t = time.time()
             times["spool file"].append(client.submit(_held, handle, pure=False).result() - t)
     finally:
         client.close()
         cluster.close()
-        spool.close()
+        shutil.rmtree(spool, ignore_errors=True)
     return {
         "date": time.strftime("%Y-%m-%d"),
         "machine": f"{host_cpu()}, {platform.platform()}",
