@@ -34,8 +34,12 @@ measured alone in one process (``--host-repeat`` times; :func:`host_phases`): th
 time of prepare, build and setup, and for a code with a preparation of models on the host, the pool's work per shard
 (``pool``: scenes, host model, initial state, checks) and what is left to the device's turn (``upload``, and
 ``setup_checked``: the run's set-up with the checks given), which on a machine shared with other work say more than
-the sweeps' wall times. The JSON and the Markdown line are written after every run (the JSON's ``partial`` true until
-the last), so that a command stopped by a time limit leaves what it measured.
+the sweeps' wall times. Every overlapped configuration also runs once as ``aca-warp sweep`` runs it, in a process of
+its own (:func:`command_sweep`): ``command_wall_s`` from the call's start (pool, cluster start, shards: what a user
+waits for), and ``command_shards_s`` from the first device turn to the end (the cluster's start left out, which does
+not grow with the sweep; the pool's head start, which prepares every worker's first shard during that start, kept
+in), each with its speedup over the fewest units. The JSON and the Markdown line are written after every run (the
+JSON's ``partial`` true until the last), so that a command stopped by a time limit leaves what it measured.
 
 Two H200s (one GPU and two, the code before as baseline; a few minutes)::
 
@@ -280,6 +284,7 @@ def command_sweep(cfg: dict) -> dict:
     return {
         "package": str(Path(aca_warp.__file__).parent),
         "command_wall_s": res.wall_time,
+        "command_shards_s": res.wall_time - min(d["start"] for d in line["devices"].values()),
         "command_rate": res.patch_steps / res.wall_time,
         "command_first_prepared": sum("upload" in t for t in first.values()),
         "command_timeline": line,
@@ -377,6 +382,8 @@ def summarise(rows: list[dict]) -> None:
         r["speedup_vs_fewest_units"] = r["wall_rate"] / first["wall_rate"]
         if "command_rate" in r and "command_rate" in first:
             r["command_speedup_vs_fewest_units"] = r["command_rate"] / first["command_rate"]
+            if "command_shards_s" in r and "command_shards_s" in first:
+                r["command_shards_speedup_vs_fewest_units"] = first["command_shards_s"] / r["command_shards_s"]
         if ref is not None:
             r["wall_over_reference_in_shard"] = r["wall_rate"] / (r["units"] * ref["in_shard_rate"])
 
@@ -407,6 +414,12 @@ def markdown_line(doc: dict) -> str:
                 f"{r['command_speedup_vs_fewest_units']:.2f}× its fewest-{unit} rate, first shard prepared ahead "
                 f"on {r['command_first_prepared']} of {len(r['command_timeline']['devices'])} worker(s)"
                 if "command_speedup_vs_fewest_units" in r
+                else ""
+            )
+            + (
+                f"; its shards, from the first device turn to the end: {r['command_shards_s']:.1f} s, "
+                f"{r['command_shards_speedup_vs_fewest_units']:.2f}× its fewest-{unit} time"
+                if "command_shards_speedup_vs_fewest_units" in r
                 else ""
             )
         )
