@@ -154,3 +154,19 @@ def test_plain_client_cannot_use_a_running_sweep(tmp_path: Path) -> None:
     assert [s["state"] for s in shards] == ["interrupted"]
     assert list((tmp_path / "tmp").iterdir()) == []  # Dask's work folders and locks: in the private folder
     assert (tmp_path / "run" / "aca-warp" / "dask").is_dir()
+
+
+def test_prepared_shards_go_through_files_only_to_workers_started_here() -> None:
+    """A sweep given a client hands its workers the spool files of prepared shards only when the client's cluster is
+    a LocalCluster this process started (its workers are this host's and this user's); a client connected to a
+    scheduler's address, whose workers may be on other hosts or of other users, gets the shards by value."""
+    from types import SimpleNamespace
+
+    from distributed import LocalCluster, SpecCluster
+
+    from aca_warp.sweep.cluster import started_here
+
+    assert started_here(SimpleNamespace(cluster=LocalCluster.__new__(LocalCluster)))
+    assert not started_here(SimpleNamespace(cluster=None))  # Client("tls://host:port"): no cluster object
+    assert not started_here(SimpleNamespace(cluster=SpecCluster.__new__(SpecCluster)))  # e.g. a cloud cluster
+    assert not started_here(object())

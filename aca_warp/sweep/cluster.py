@@ -404,6 +404,16 @@ def _stop_tasks(client: Any, futures: dict[Any, int], token: str, book: _Book) -
     book.stopped(running)
 
 
+def started_here(client: Any) -> bool:
+    """Whether ``client`` is connected to a Dask ``LocalCluster`` that this process started: its workers are then
+    processes (or threads) of this host and this user, which can read the files of this user's private folders."""
+    try:
+        from distributed import LocalCluster
+    except ImportError:
+        return False
+    return isinstance(getattr(client, "cluster", None), LocalCluster)
+
+
 def device_sharing(device: str, workers: int | None, scheduler: str | None, client: Any) -> int:
     """Shard tasks whose models may share one device's memory at once (:func:`~aca_warp.sweep.prepare.batch_capacity`
     splits it that many ways): on the CPU every worker of the cluster (local: ``workers``, default one per core; a

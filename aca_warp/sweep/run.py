@@ -20,7 +20,14 @@ from pathlib import Path
 from typing import Any
 
 from aca_warp.common.errors import StorageError
-from aca_warp.sweep.cluster import _have_dask, _run_on_dask, check_scheduler, cuda_ordinals, device_sharing
+from aca_warp.sweep.cluster import (
+    _have_dask,
+    _run_on_dask,
+    check_scheduler,
+    cuda_ordinals,
+    device_sharing,
+    started_here,
+)
 from aca_warp.sweep.manifest import MANIFEST, SweepResult, _Book, _one_line, prepare_dir
 from aca_warp.sweep.overlap import PIPELINE_DEPTH, ShardCancelled, ShardContext
 from aca_warp.sweep.prepare import PreparedShard, Preparer
@@ -87,7 +94,9 @@ def run_sweep(
             preparer = None
             if processes > 0:
                 made = {"device": prepare_device(device, local), "memory_fraction": memory_fraction, "sharing": sharing}
-                spool = local and workers != 0  # a local cluster's workers read the prepared shards from files
+                # the workers of a local cluster (this call's, or one this process started) read the prepared
+                # shards from files; those of a scheduler's cluster may be on other hosts: by value
+                spool = (local and workers != 0) or (client is not None and started_here(client))
                 preparer = Preparer(*args[:2], processes, ahead=2 * processes, spool=spool, **made)
                 preparer.plan(book.todo)  # the pool starts now, beside a local cluster's start
             try:
