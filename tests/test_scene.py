@@ -580,3 +580,26 @@ def test_sliding_speed_and_angular_velocity_keys():
     s = scene_from_dict(small_doc(disc={"angular_velocity": 50.0}))
     assert s.angular_velocity == 50.0
     assert s.sliding_speed == pytest.approx(50.0 * 0.13, rel=1e-12)
+
+
+def test_pairs_within_counts_as_a_kd_tree_does():
+    """The NumPy count of point pairs within a radius (the sweep's memory estimate per pad) equals SciPy's k-d tree
+    count, distance ≤ radius included: random points of several densities, a pair exactly at the radius, and the
+    hf1 preset's patches at its coupling radius."""
+    from scipy.spatial import cKDTree
+
+    from aca_warp.scene.parts import pairs_within
+
+    def kd(x: np.ndarray, y: np.ndarray, r: float) -> int:
+        return len(cKDTree(np.column_stack([x, y])).query_pairs(r))
+
+    rng = np.random.default_rng(7)
+    for n, r in [(2, 1.0), (40, 0.3), (500, 1e-3), (2000, 4e-3)]:
+        x, y = rng.uniform(0, 0.05, n), rng.uniform(0, 0.1, n)
+        assert pairs_within(x, y, r) == kd(x, y, r) > 0
+    x, y = np.array([0.0, 0.25, 0.5, 3.0]), np.array([0.0, 0.0, 0.0, 0.0])  # 0.25 apart exactly: in
+    assert pairs_within(x, y, 0.25) == kd(x, y, 0.25) == 2
+    assert pairs_within(np.zeros(1), np.zeros(1), 1.0) == 0
+    s = preset("hf1")
+    p = s.patches
+    assert pairs_within(p.x, p.y, s.material.coupling_radius) == kd(p.x, p.y, s.material.coupling_radius) > 1000

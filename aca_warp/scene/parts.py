@@ -489,14 +489,24 @@ def overlapping_pairs(p: Patches) -> np.ndarray:
     centre distance is below the sum of the radii."""
     pts = np.column_stack([p.x, p.y])
     rad = p.radius
-    i, j = _close_pairs(pts, 2.0 * float(rad.max()) * (1.0 + 1e-9)) if len(rad) > 1 else (np.zeros(0, np.int64),) * 2
+    i, j = close_pairs(pts, 2.0 * float(rad.max()) * (1.0 + 1e-9)) if len(rad) > 1 else (np.zeros(0, np.int64),) * 2
     d = np.hypot(*(pts[i] - pts[j]).T)
     hit = np.column_stack([i, j])[d < rad[i] + rad[j]]
     hit = np.sort(hit, axis=1)
     return hit[np.lexsort((hit[:, 1], hit[:, 0]))]
 
 
-def _close_pairs(pts: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
+def pairs_within(x: np.ndarray, y: np.ndarray, radius: float) -> int:
+    """How many pairs of points (x, y) [m] lie within ``radius`` [m] of each other (distance ≤ radius), each pair
+    counted once; NumPy only (no SciPy import in a sweep worker's first task)."""
+    if len(x) < 2:
+        return 0
+    pts = np.column_stack([x, y])
+    i, j = close_pairs(pts, radius * (1.0 + 1e-9))
+    return int(np.count_nonzero(np.hypot(*(pts[i] - pts[j]).T) <= radius))
+
+
+def close_pairs(pts: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
     """Every pair (i, j), i != j, once, of points (n, 2) [m] in the same or adjacent square cells of width ``cell``
     [m]: a superset of the pairs closer than ``cell``. Returns the index arrays (i, j)."""
     c = np.floor((pts - pts.min(axis=0)) / cell).astype(np.int64)

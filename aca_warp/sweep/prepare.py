@@ -50,6 +50,7 @@ import numpy as np
 from aca_warp.common.errors import SceneError
 from aca_warp.common.links import create_new, private_dir
 from aca_warp.scene import Scene
+from aca_warp.scene.parts import pairs_within
 from aca_warp.sweep.overlap import ShardCancelled
 from aca_warp.sweep.spec import SweepSpec, _resolve
 
@@ -68,11 +69,9 @@ def pad_bytes(scene: Scene, precision: str) -> int:
     (4 T), adaptive trial buffers (5 T); per directed link: index, inverse distance, stiffness (4 + 2 T); per
     pad: 257 recorded rows × 5 float64. Doubled for the neighbour build's temporaries and allocator slack.
     """
-    from scipy.spatial import cKDTree
-
     t = 4 if precision == "fp32" else 8
     p = scene.patches
-    links = 2 * len(cKDTree(np.column_stack([p.x, p.y])).query_pairs(scene.material.coupling_radius))
+    links = 2 * pairs_within(p.x, p.y, scene.material.coupling_radius)
     per_patch = 10 * t + 4 + 4 * t + 5 * t + 4
     return int(2 * (p.count * per_patch + links * (4 + 2 * t) + 257 * 5 * 8))
 
