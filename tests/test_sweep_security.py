@@ -158,15 +158,30 @@ def test_plain_client_cannot_use_a_running_sweep(tmp_path: Path) -> None:
 
 def test_prepared_shards_go_through_files_only_to_workers_started_here() -> None:
     """A sweep given a client hands its workers the spool files of prepared shards only when the client's cluster is
-    a LocalCluster this process started (its workers are this host's and this user's); a client connected to a
-    scheduler's address, whose workers may be on other hosts or of other users, gets the shards by value."""
+    a local one this process started (a LocalCluster, or a SpecCluster of nannies as the sweep's own): its workers
+    are this host's and this user's. A client connected to a scheduler's address, or a cluster class that starts its
+    workers elsewhere, whose workers may be on other hosts or of other users, gets the shards by value."""
     from types import SimpleNamespace
 
-    from distributed import LocalCluster, SpecCluster
+    from distributed import LocalCluster, Nanny, SpecCluster, Worker
+    from distributed.deploy.ssh import Worker as SSHWorker
 
     from aca_warp.sweep.cluster import started_here
 
-    assert started_here(SimpleNamespace(cluster=LocalCluster.__new__(LocalCluster)))
+    def made(cls: type, *workers: type) -> SimpleNamespace:
+        cluster = cls.__new__(cls)  # the object alone: no scheduler or worker started
+        cluster.worker_spec = {f"w{i}": {"cls": w, "options": {}} for i, w in enumerate(workers)}
+        return SimpleNamespace(cluster=cluster)
+
+    assert started_here(made(SpecCluster, Nanny, Nanny))  # as local_cluster makes it
+    assert started_here(made(LocalCluster, Worker))
+    assert not started_here(made(SpecCluster))  # no workers
+    assert not started_here(made(SpecCluster, Nanny, SimpleNamespace))  # one worker of another kind
+    assert not started_here(made(SpecCluster, SSHWorker, SSHWorker))  # as distributed.SSHCluster makes it
+
+    class Remote(SpecCluster):  # a cluster class of its own (a batch system's, the cloud's)
+        pass
+
+    assert not started_here(made(Remote, Nanny))
     assert not started_here(SimpleNamespace(cluster=None))  # Client("tls://host:port"): no cluster object
-    assert not started_here(SimpleNamespace(cluster=SpecCluster.__new__(SpecCluster)))  # e.g. a cloud cluster
     assert not started_here(object())

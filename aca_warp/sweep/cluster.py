@@ -405,13 +405,19 @@ def _stop_tasks(client: Any, futures: dict[Any, int], token: str, book: _Book) -
 
 
 def started_here(client: Any) -> bool:
-    """Whether ``client`` is connected to a Dask ``LocalCluster`` that this process started: its workers are then
-    processes (or threads) of this host and this user, which can read the files of this user's private folders."""
+    """Whether ``client`` is connected to a local Dask cluster that this process started (a ``LocalCluster``, or a
+    plain ``SpecCluster`` of nannies or workers as :func:`local_cluster` makes): its workers are then processes (or
+    threads) of this host and this user, which can read the files of this user's private folders. A cluster class
+    that starts its workers elsewhere (SSH, a batch system, the cloud) is not such a cluster."""
     try:
-        from distributed import LocalCluster
+        from distributed import LocalCluster, Nanny, SpecCluster, Worker
     except ImportError:
         return False
-    return isinstance(getattr(client, "cluster", None), LocalCluster)
+    cluster = getattr(client, "cluster", None)
+    if type(cluster) not in (LocalCluster, SpecCluster):
+        return False
+    specs = getattr(cluster, "worker_spec", None) or {}
+    return bool(specs) and all(spec.get("cls") in (Nanny, Worker) for spec in specs.values())
 
 
 def device_sharing(device: str, workers: int | None, scheduler: str | None, client: Any) -> int:
