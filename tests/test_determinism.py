@@ -241,3 +241,21 @@ def test_cpu_captures_only_graphs_that_pay():
     assert [pays(cpu, 7, None) for _ in range(CPU_CAPTURE_REPLAYS + 1)] == [False] * CPU_CAPTURE_REPLAYS + [True]
     cpu.graphs[5] = object()
     assert pays(cpu, 5, 0)  # captured already: replayed whatever is left
+
+
+def test_cpu_opening_chunk_is_launched_eagerly(monkeypatch):
+    """On the CPU the chunk that opens a fixed-step run (its first step eager, then one body fewer than the chunks
+    after it: a count used once) is launched eagerly, not captured for one replay: a 5 µs strang run in graphs of
+    3 samples (17 chunks, the last of 2 samples) captures one graph, that of the full chunks."""
+    import warp as wp
+
+    captures: list[int] = []
+
+    class Counted(wp.ScopedCapture):
+        def __enter__(self):
+            captures.append(1)
+            return super().__enter__()
+
+    monkeypatch.setattr(wp, "ScopedCapture", Counted)
+    run([scene_a()], "strang")
+    assert len(captures) == 1

@@ -281,7 +281,7 @@ def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
 
 
 def test_prepared_shards_on_dask(tmp_path: Path) -> None:
-    """On two Dask workers, shards prepared by the client's pool (models made on the host) and sent with their tasks
+    """On a Dask worker, shards prepared by the client's pool (models made on the host) and sent with their tasks
     give the serial path's outputs bit for bit, without Dask's warning about large task graphs (a prepared shard of
     256 hf1 pads is ~90 MB; here the warning's threshold is 1 byte, so that every task would raise it); a failed
     preparation is the shard's failure there too."""
@@ -295,7 +295,7 @@ def test_prepared_shards_on_dask(tmp_path: Path) -> None:
 
     spec = _spec(tmp_path)
     run_sweep(spec, tmp_path / "serial", workers=0, overlap=False)
-    cluster, device = local_cluster("cpu", 2)
+    cluster, device = local_cluster("cpu", 1)
     client = Client(cluster)
     try:
         big = {"distributed.admin.large-graph-warning-threshold": "1B"}

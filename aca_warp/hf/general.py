@@ -168,10 +168,11 @@ class GeneralEngine:
 
     def _replay(self, reps: int, uses_left: int | None = None) -> None:
         """Run ``reps`` bodies: from a captured graph (one per count) where graphs are used and capturing pays
-        (:meth:`_capture_pays`), else eagerly; the first (opening) one eagerly."""
+        (:meth:`_capture_pays`), else eagerly; the first (opening) one eagerly, and the rest of its chunk counted as
+        used once (a graph of one body fewer than the chunks after it: on the CPU launched eagerly)."""
         if not self.started and not self.adaptive:  # the opening step differs from the rest: run it eagerly
             self.body()
-            reps -= 1
+            reps, uses_left = reps - 1, 1
             if reps == 0:
                 return
         if not (self.use_graph and self._capture_pays(reps, uses_left)):
