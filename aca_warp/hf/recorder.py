@@ -16,6 +16,7 @@ import warp as wp
 
 from aca_warp.common.devices import block_threads
 from aca_warp.common.errors import SceneError, SimulationFault, option
+from aca_warp.common.launches import Launcher
 from aca_warp.hf.limits import check_int32
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import WATCHDOG_FACTOR, check_interval
@@ -155,6 +156,7 @@ class Recorder:
         names += ("first", "last", "every")
         # the kernels' parameter group (its arrays change in place only: graphs keep it)
         self.struct = HFRecorder.of(T, {k: getattr(self, k) for k in names})
+        self.launcher = Launcher(dev)
 
     def due(self, k: int) -> bool:
         """Whether global sample k also records per-patch histories (``patch_sample_due`` of kernels.physics)."""
@@ -180,16 +182,11 @@ class Recorder:
         """Record one sample of (u, u̇) (conditional: only when the adaptive controller landed on a sample)."""
         m, c, rec = self.model, int(conditional), self.struct
         threads = block_threads(m.device, RECORD_BLOCK)
-        wp.launch_tiled(
-            K.record_globals,
-            dim=[m.pad_count],
-            block_dim=RECORD_BLOCK,
-            device=m.device,
-            inputs=[m.struct(), rec, c, threads, u, v],
-        )
+        launch = self.launcher
+        launch(K.record_globals, [m.pad_count], [m.struct(), rec, c, threads, u, v], block_dim=RECORD_BLOCK)
         if self.patch_stage:
-            wp.launch(K.record_patches, dim=m.patch_count, device=m.device, inputs=[rec, c, u, v])
-        wp.launch(K.advance_counters, dim=1, device=m.device, inputs=[rec, c])
+            launch(K.record_patches, m.patch_count, [rec, c, u, v])
+        launch(K.advance_counters, 1, [rec, c])
 
     def flush(self) -> tuple[Chunk, np.ndarray]:
         """Copy the recorded rows to the host and reset the buffers; returns the chunk and the fault table."""

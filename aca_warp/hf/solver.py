@@ -32,6 +32,7 @@ import numpy as np
 import warp as wp
 
 from aca_warp.common.errors import SceneError, StabilityError, option
+from aca_warp.common.launches import Launcher
 from aca_warp.hf.model import PadModel, coupling_matrix
 from aca_warp.hf.options import (
     DEFAULT_DT,
@@ -266,6 +267,7 @@ class HFSolver:
             step_refusal(self.estimate, integrator, self.dt)
         self.kernel_model = model.struct()  # the model's arrays as one kernel argument
         self._v_sync: wp.array | None = None
+        self.launcher = Launcher(model.device)  # its launches packed once, replayed (on the CPU)
 
     @classmethod
     def for_run(
@@ -284,7 +286,7 @@ class HFSolver:
         )
 
     def _launch(self, kernel: Any, inputs: list, dim: int | None = None) -> None:
-        wp.launch(kernel, dim=self.model.patch_count if dim is None else dim, inputs=inputs, device=self.model.device)
+        self.launcher(kernel, self.model.patch_count if dim is None else dim, inputs)
 
     def prepare(self, state: HFState) -> None:
         """Fill the spring-force cache F_s(u) of a state (Strang and adaptive schemes)."""
