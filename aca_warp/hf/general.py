@@ -19,6 +19,7 @@ from typing import Any
 import warp as wp
 
 from aca_warp.common.devices import block_threads
+from aca_warp.common.launches import Launcher
 from aca_warp.hf import adaptive
 from aca_warp.hf.engine import EngineSetup, Progress, fault_cause, run_stages
 from aca_warp.hf.model import PadModel
@@ -43,6 +44,7 @@ class Growth:
         self.step = wp.zeros(1, dtype=wp.int64, device=model.device)
         self.due = (self.step, self.every if self.counted else 0)  # growth_due with every = 0 reads the flag
         self.kernel_model = model.struct(self.per_event)
+        self.launcher = Launcher(model.device)  # its launches packed once, replayed (on the CPU)
 
     def saved(self) -> dict[str, wp.array]:
         """What a checkpoint holds: the step count (fixed step) or the event flag (adaptive)."""
@@ -51,15 +53,13 @@ class Growth:
     def launch(self) -> None:
         """Count one step (fixed step); when an event is due, grow the areas, update the stiffnesses and re-solve
         the contact."""
-        m, dev, km = self.model, self.model.device, self.kernel_model
+        m, km, launch = self.model, self.kernel_model, self.launcher
         for coupling in (0, 1):  # the areas, then the stiffnesses at the new areas
-            wp.launch(K.grow_patches, dim=m.patch_count, device=dev, inputs=[km, *self.due, coupling])
-        threads = block_threads(dev, CONTACT_BLOCK)
-        wp.launch_tiled(
-            K.contact_flat, dim=[m.pad_count], block_dim=CONTACT_BLOCK, device=dev, inputs=[km, *self.due, threads]
-        )
+            launch(K.grow_patches, m.patch_count, [km, *self.due, coupling])
+        threads = block_threads(m.device, CONTACT_BLOCK)
+        launch(K.contact_flat, [m.pad_count], [km, *self.due, threads], block_dim=CONTACT_BLOCK)
         if self.counted:
-            wp.launch(K.tick, dim=1, device=dev, inputs=[self.step])
+            launch(K.tick, 1, [self.step])
 
 
 CPU_CAPTURE_REPLAYS = 8
