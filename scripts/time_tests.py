@@ -193,7 +193,8 @@ def _machine() -> str:
 
 def markdown(r: dict) -> str:
     def minutes(s: float) -> str:
-        return f"{int(s // 60)} min {s % 60:.0f} s"
+        whole = round(s)  # 299.6 s reads 5 min 0 s, not 4 min 60 s
+        return f"{whole // 60} min {whole % 60} s"
 
     n = r.get("kernels_compiled", 0)
     compiled = f", {n} kernel modules added to it during the run (compiled by the suite or other work)" if n else ""

@@ -124,14 +124,14 @@ def test_suite_timing_beside_a_second_suite(tmp_path: Path) -> None:
         "command": "python3 -m pytest -q -n auto tests", "commit": "abc1234", "date": "2026-01-01 00:00",
         "machine": "a test machine", "kernel_cache": "warm", "load_before": 0.1, "load_after": 2.0,
         "passed": 3, "skipped": 0, "failed": 0, "errors": 0, "failures": [], "wall_s": 200.0, "cpu_s": 280.0,
-        "beside": {"exit_code": 0, "passed": 990, "skipped": 1, "failed": 0, "errors": 0, "wall_s": 290.0,
+        "beside": {"exit_code": 0, "passed": 990, "skipped": 1, "failed": 0, "errors": 0, "wall_s": 299.6,
                    "cpu_s": 281.0},
     }  # fmt: skip
     page = tt.markdown(r)
     assert "| 3 | 0 | 0 | 3 min 20 s | 4 min 40 s |" in page
     assert (
-        "Beside a second copy of the suite" in page and "990 passed, 0 failed, 4 min 50 s wall, 4 min 41 s CPU" in page
-    )
+        "Beside a second copy of the suite" in page and "990 passed, 0 failed, 5 min 0 s wall, 4 min 41 s CPU" in page
+    )  # 299.6 s rounded as a whole: not "4 min 60 s"
     assert "kernel modules added" not in page
     assert "kernel cache warm, 62 kernel modules added to it during the run" in tt.markdown(
         {**r, "kernels_compiled": 62}
