@@ -280,19 +280,32 @@ def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
         prep.close()
 
 
-def test_prepared_shards_on_dask(tmp_path: Path) -> None:
-    """On a Dask worker, shards prepared by the client's pool (models made on the host) and sent with their tasks
-    give the serial path's outputs bit for bit, without Dask's warning about large task graphs (a prepared shard of
-    256 hf1 pads is ~90 MB; here the warning's threshold is 1 byte, so that every task would raise it); a failed
-    preparation is the shard's failure there too."""
+def test_prepared_shards_on_dask(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a Dask worker of a local cluster this process started, reached through a client, shards prepared by the
+    client's pool (models made on the host) are handed over as their spool files and give the serial path's outputs
+    bit for bit, without Dask's warning about large task graphs (a prepared shard of 256 hf1 pads is ~90 MB; here the
+    warning's threshold is 1 byte, so that every task would raise it); a failed preparation is the shard's failure
+    there too."""
     pytest.importorskip("distributed")
     import warnings
 
     import dask
     from distributed import Client
 
+    from aca_warp.sweep import cluster as sweep_cluster
     from aca_warp.sweep import local_cluster
 
+    handed: list[str] = []
+    fed = sweep_cluster._feed
+
+    def feed(book, submit, preparer, **kwargs) -> None:
+        def recorded(i, prepared):
+            handed.append(type(prepared).__name__)
+            return submit(i, prepared)
+
+        fed(book, recorded, preparer, **kwargs)
+
+    monkeypatch.setattr(sweep_cluster, "_feed", feed)
     spec = _spec(tmp_path)
     run_sweep(spec, tmp_path / "serial", workers=0, overlap=False)
     cluster, device = local_cluster("cpu", 1)
@@ -306,6 +319,8 @@ def test_prepared_shards_on_dask(tmp_path: Path) -> None:
         assert res.ran == [0, 1, 2] and not res.failed
         for s in res.summaries:  # prepared ahead (and uploaded) or, not ready when a worker would wait, in the task
             assert ("upload" in s["timings"]) == ("prepare_ahead" in s["timings"]) != ("build" in s["timings"])
+        ahead = sum("prepare_ahead" in s["timings"] for s in res.summaries)
+        assert sorted(handed) == ["NoneType"] * (3 - ahead) + ["SpooledShard"] * ahead, handed  # files, not models
         a, b = _outputs(tmp_path / "serial"), _outputs(tmp_path / "dask")
         for k, v in a.items():
             assert v.tobytes() == b[k].tobytes(), k
