@@ -27,7 +27,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
+from aca_warp.scene.parts import pairs_within
 
 COEFFICIENTS = {"fp32": (1.16e-6, 5.14e-6), "fp64": (1.51e-6, 8.88e-6)}  # (a, b) [s] of a + b·w/K
 HF1_PATCHES, HF1_LINKS = 1758, 20904
@@ -47,10 +47,8 @@ TRACK_S = 0.6  # s per track window of a 1758-patch pad (5 ms) on one core
 
 def links(scene: Any, radius: float = 5.0e-3) -> int:
     """Neighbour links of a pad (pairs of patches closer than the coupling radius, counted from both ends)."""
-    from scipy.spatial import cKDTree
-
     p = scene.patches
-    return 2 * len(cKDTree(np.column_stack([p.x, p.y])).query_pairs(radius))
+    return 2 * pairs_within(p.x, p.y, radius)
 
 
 def cluster(pads: int) -> int:
