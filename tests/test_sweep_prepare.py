@@ -44,6 +44,16 @@ def _outputs(d: Path) -> dict:
     return {k: s[k] for k in ("time", "pad_index", *GLOBAL_NAMES)}
 
 
+def _recording(submit, handed: list[str]):
+    """A sweep feed's ``submit`` that first notes what each shard's task is handed (its type's name) in ``handed``."""
+
+    def recorded(i, prepared):
+        handed.append(type(prepared).__name__)
+        return submit(i, prepared)
+
+    return recorded
+
+
 def _in_time(fn, seconds: float = 180.0):
     """``fn()`` in a thread; fails the test (instead of hanging it) when it has not returned within ``seconds``."""
     out: dict = {}
@@ -299,11 +309,7 @@ def test_prepared_shards_on_dask(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     fed = sweep_cluster._feed
 
     def feed(book, submit, preparer, **kwargs) -> None:
-        def recorded(i, prepared):
-            handed.append(type(prepared).__name__)
-            return submit(i, prepared)
-
-        fed(book, recorded, preparer, **kwargs)
+        fed(book, _recording(submit, handed), preparer, **kwargs)
 
     monkeypatch.setattr(sweep_cluster, "_feed", feed)
     spec = _spec(tmp_path)
@@ -363,12 +369,7 @@ def test_head_start_prepares_every_worker_s_first_shard(
         if pool == "ahead":  # the cluster took as long as the pool needed for the first shard of each worker
             for i in (0, 1):
                 _in_time(lambda i=i: preparer._future(i).result(), 120)
-
-        def recorded(i, prepared):
-            handed.append(type(prepared).__name__)
-            return submit(i, prepared)
-
-        fed(book, recorded, preparer, **kwargs)
+        fed(book, _recording(submit, handed), preparer, **kwargs)
         spools.append(preparer.spool)
 
     spools: list[str] = []
