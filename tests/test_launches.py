@@ -52,3 +52,18 @@ def test_a_launcher_keeps_a_bounded_number_of_launches(monkeypatch) -> None:
         launch(K.drift, 5, [wp.float64(float(k)), v, u])
         assert len(launch.recorded) <= 3
     np.testing.assert_array_equal(u.numpy(), 21.0 * v.numpy())
+
+
+def test_launch_cost_script(tmp_path) -> None:
+    """scripts/launch_cost.py: both measurements, both ways, in the JSON with the machine (tiny counts)."""
+    import json
+
+    from scriptload import load_script
+
+    out = tmp_path / "cost.json"
+    assert load_script("launch_cost").main(["--launches", "3", "--repeat", "1", "--json", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["patches"] == 1758 and doc["machine"] and "--launches 3" in doc["command"]
+    for case in ("launch", "strang step"):
+        assert set(doc["microseconds"][case]) == {"wp.launch", "Launcher"}
+        assert all(us > 0 for us in doc["microseconds"][case].values())

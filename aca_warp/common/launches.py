@@ -1,10 +1,11 @@
 """Kernel launches packed once and replayed, on the CPU.
 
-``wp.launch`` resolves and packs every argument on every call: ≈ 28 µs on this project's 2-core CPU container for
-a kernel of a model struct and two arrays, more than the kernel itself for a pad of a few dozen patches. A launch
-recorded with ``record_cmd=True`` (a ``wp.Launch``) keeps its packed arguments and replays them in ≈ 2.4 µs, with
-the same kernel, the same launch dimensions and the same argument values, so the results are the same bit for bit
-(inside a CPU graph capture the replay is recorded into the graph as ``wp.launch`` would be).
+``wp.launch`` resolves and packs every argument on every call: 27 µs on this project's 2-core CPU container for a
+kernel of a model struct and two arrays, more than the kernel itself for a pad of a few dozen patches; through a
+:class:`Launcher` 4.4 µs (``scripts/launch_cost.py``, docs/benchmarks/launch_cost_cpu.json). A launch recorded with
+``record_cmd=True`` (a ``wp.Launch``) keeps its packed arguments and replays them with the same kernel, the same
+launch dimensions and the same argument values, so the results are the same bit for bit (inside a CPU graph capture
+the replay is recorded into the graph as ``wp.launch`` would be).
 :class:`Launcher` records each distinct launch (kernel, dimensions, arguments) once and replays it afterwards.
 Arrays and structs are told apart by identity (their contents may change between launches: the packed pointers
 stay valid), numbers by type and value; the launcher keeps the arguments it has recorded alive, so that no other
