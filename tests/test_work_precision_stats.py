@@ -421,3 +421,90 @@ def test_a_result_file_continues_across_a_change_of_the_validation_stepping():
 
     key = {"seeds": 32, "window": 0.01, "stepping": {"hf": "strang, dt = 1e-07 s, fp32"}}
     assert _without_stepping(key) == {"seeds": 32, "window": 0.01} == _without_stepping({**key, "stepping": {}})
+
+
+def _parts_of(reg: dict, seeds: list[range], tags: list[str]) -> list[dict]:
+    """``reg`` split into result documents by seed (part k: the pads of every member with a seed in ``seeds[k]``),
+    each as one part's file."""
+    import copy
+
+    docs = []
+    for k, span in enumerate(seeds):
+        idx = [i for i, p in enumerate(reg["pads"]) if p["seed"] in span]
+        part = copy.deepcopy(reg)
+        part["pads"] = [reg["pads"][i] for i in idx]
+        part["duration_s"] = 0.03 + 0.001 * k  # each part's own plan
+        part["config"] = {**reg["config"], "seeds": len(span), "first_seed": span[0]}
+        for s in part["settings"]:
+            s["values"] = {m: [v[i] for i in idx] for m, v in s["values"].items()} if s["values"] else None
+            s["wall_s"] = s["wall_s"] / (k + 1)
+        docs.append({"machine": {"device": f"cuda:{tags[k][-1]}", "device_name": "GPU X", "host": "Test host"},
+                     "tag": tags[k], "quick": False, "rule": 0.25, "versions": {"warp": "1"},
+                     "commands": [f"part {k}"], "regimes": {"syn": part}, "regime_wall_s": 100.0})  # fmt: skip
+    return docs
+
+
+def test_merging_parts_gives_the_whole_regime(tmp_path, capsys):
+    """A regime measured in parts over disjoint seeds and merged gives every comparison of the whole regime (pads
+    ordered by member, then seed, whatever order the parts come in); a setting's wall time is the sum of its
+    parts', each part's kept; a setting incomplete in one part is not run in the merge; parts that overlap in
+    seeds, hold another regime or another device are refused; the CLI writes OUT/wps_<tag>_<regime>.json and never
+    over an existing file; the page gives each part's run length."""
+    from aca_warp.studies.work_precision_stats_merge import merge, merged_tag
+
+    whole = synthetic_regime(20)
+    for i, p in enumerate(whole["pads"]):
+        p["member"], p["seed"] = ("s1", i + 1) if i < 10 else ("s2", i - 9)
+    spans = [range(1, 4), range(4, 6), range(6, 9), range(9, 11)]
+    parts = _parts_of(whole, spans, ["cuda0", "cuda1", "cuda2", "cuda3"])
+    paths = []
+    for k in (2, 0, 3, 1):  # any order
+        paths.append(tmp_path / f"p{k}.json")
+        paths[-1].write_text(json.dumps(parts[k]))
+    doc = merge(paths)
+    reg = doc["regimes"]["syn"]
+    assert doc["tag"] == "cuda0123" and doc["regime_wall_s"] == 400.0 and len(doc["commands"]) == 4
+    assert [(p["member"], p["seed"]) for p in reg["pads"]] == [(p["member"], p["seed"]) for p in whole["pads"]]
+    assert reg["config"]["seeds"] == 10 and reg["config"]["first_seed"] == 1
+    assert [p["duration_s"] for p in reg["parts"]] == [0.032, 0.03, 0.033, 0.031] and reg["duration_s"] == 0.033
+    for s, w in zip(reg["settings"], whole["settings"], strict=True):
+        if not w["complete"]:
+            assert not s["complete"] and s["wall_s"] is None and "0 of 4 parts" in s["fault"]
+            continue
+        assert s["wall_s"] == pytest.approx(w["wall_s"] * (1 / 3 + 1 + 1 / 4 + 1 / 2))
+        assert len(s["part_wall_s"]) == 4
+        for m in whole["measures"]:
+            assert s["values"][m] == w["values"][m]
+            a, b = rule.compare_setting(reg, s, m), rule.compare_setting(whole, w, m)
+            assert (a.error, a.bound, a.member) == (b.error, b.bound, b.member)
+    short = json.loads(paths[1].read_text())
+    short["regimes"]["syn"]["settings"][1]["complete"] = False
+    paths[1].write_text(json.dumps(short))
+    cut = merge(paths)["regimes"]["syn"]["settings"][1]
+    assert not cut["complete"] and "complete in 3 of 4 parts" in cut["fault"]
+    paths[1].write_text(json.dumps(parts[0]))
+    twice = [paths[1], tmp_path / "again.json"]
+    twice[1].write_text(json.dumps(parts[0]))
+    with pytest.raises(ValueError, match="in both"):
+        merge(twice)
+    other = json.loads(json.dumps(parts[3]))
+    other["machine"]["device_name"] = "GPU Y"
+    (tmp_path / "other.json").write_text(json.dumps(other))
+    with pytest.raises(ValueError, match="GPU Y"):
+        merge([paths[1], tmp_path / "other.json"])
+    assert merged_tag(["cuda3", "cuda1"]) == "cuda13" and merged_tag(["cuda0_quick", "cuda1_quick"]) == "cuda01_quick"
+    assert merged_tag(["cpu", "cuda0"]) == "cpu_cuda0" and merged_tag(["cuda0", "cuda0"]) == "cuda0"
+    paths[1].write_text(json.dumps(parts[0]))
+    out = tmp_path / "merged"
+    assert wps.main(["--merge", *map(str, paths), "--out", str(out)]) == 0
+    written = out / "wps_cuda0123_syn.json"
+    assert json.loads(written.read_text())["regimes"]["syn"]["pads"] == reg["pads"]
+    assert wps.main(["--merge", *map(str, paths), "--out", str(out)]) == 2
+    assert "exists" in capsys.readouterr().err
+    assert wps.main(["--merge", str(paths[0]), "--out", str(out)]) == 2
+    page = tmp_path / "docs" / "page.md"
+    page.parent.mkdir()
+    wps_report.report([written], page, page.parent / "fig", 0.25, None, "resolution")
+    text = page.read_text()
+    assert "| syn | 20 × 10 | 30.0–33.0 ms |" in text
+    assert "measured in 4 parts (seeds 6…8; 1…3; 9…10; 4…5; on cuda:0, cuda:1, cuda:2, cuda:3)" in text

@@ -32,11 +32,14 @@ cheapest such setting per regime) are in
 :mod:`aca_warp.studies.work_precision_stats_report`. Results: one file per regime,
 ``OUT/wps_<device>[_quick]_<regime>.json``, rewritten after every run (per pad and measure the values, per setting
 the stepping wall time); a later call with the same settings continues it (runs kept, missing ones added: another
-integrator, or what a time limit cut off). Examples::
+integrator, or what a time limit cut off). A regime too long for one call is measured in parts over disjoint seeds
+(``--seeds K --first-seed S``, e.g. one process per GPU) and the parts joined by ``--merge``
+(:mod:`aca_warp.studies.work_precision_stats_merge`). Examples::
 
     python3 scripts/work_precision_stats.py --quick --out out/wps_quick                     # the CPU variant
     python3 scripts/work_precision_stats.py --device cuda:0 --seeds 32 --out wps --regimes hf1 hf2
     python3 scripts/work_precision_stats.py --report wps/wps_cuda0_*.json                       # figure + page
+    python3 scripts/work_precision_stats.py --merge part*/wps_cuda*_ms_app3.json --out wps     # parts into one
 """
 
 from __future__ import annotations
@@ -452,6 +455,13 @@ def build_parser() -> argparse.ArgumentParser:
                     "estimate: the reference's time per step × the steps); written as not run")  # fmt: skip
     ap.add_argument("--report", nargs="+", metavar="JSON", help="only write the figure(s) and the page from "
                     "result files")  # fmt: skip
+    ap.add_argument(
+        "--merge",
+        nargs="+",
+        metavar="JSON",
+        help="only join the result files of one regime measured "
+        "in parts over disjoint seeds (e.g. a process per GPU) into OUT/wps_<tag>_<regime>.json",
+    )
     ap.add_argument("--rule", type=float, default=DEFAULT_RULE, help="the report's rule: a setting's bias within "
                     f"± RULE × σ between seeds ({DEFAULT_RULE:g})")  # fmt: skip
     ap.add_argument("--criterion", default=DEFAULT_CRITERION, choices=list(CRITERIA), help="what the report's rule "
@@ -461,6 +471,27 @@ def build_parser() -> argparse.ArgumentParser:
                     f"report's rule uses (default every one of a regime; any of: {' '.join(MEASURES)})")  # fmt: skip
     add_page_options(ap, "docs/work_precision_statistics.md", "docs/figures/work_precision_statistics")
     return ap
+
+
+def merge_parts(paths: list[Path], out: Path) -> int:
+    """``--merge``: the parts' result files joined into ``out``/wps_<tag>_<regime>.json (never over an existing
+    file); returns 0, or 2 after one line on stderr."""
+    from aca_warp.studies.work_precision_stats_merge import merge
+
+    try:
+        doc = merge(paths)
+        (name,) = doc["regimes"]
+        path = out / f"wps_{doc['tag']}_{name}.json"
+        if path.exists():
+            raise FileExistsError(f"{path} exists: choose another --out or remove it")
+        out.mkdir(parents=True, exist_ok=True)
+        _write(path, doc, doc["regime_wall_s"])
+    except (OSError, ValueError, KeyError) as e:
+        print(f"work_precision_stats: {e}", file=sys.stderr)
+        return 2
+    reg = doc["regimes"][name]
+    print(f"wrote {path}: {name}, {len(reg['pads'])} pads from {len(paths)} parts, {len(reg['settings'])} settings")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -478,6 +509,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"work_precision_stats: {e}", file=sys.stderr)
             return 2
         return 0
+    if args.merge:
+        return merge_parts([Path(p) for p in args.merge], Path(args.out))
     args.regimes = args.regimes or list(REGIMES[args.quick])
     args.reference = args.reference or REFERENCE[args.quick]
     try:

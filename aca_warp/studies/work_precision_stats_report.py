@@ -210,7 +210,7 @@ def summary_table(docs: Sequence[dict[str, Any]], rule: float, measures: Sequenc
             ch = settings_for(doc, name, _measures(reg, measures), rule, criterion)
             ref = reference_of(reg)
             within = [MEASURES[m].label for m, v in ch.verdicts.items() if v == "within resolution"]
-            rows.append([name, _pads(reg), f"{reg['duration_s'] * 1e3:.1f} ms",
+            rows.append([name, _pads(reg), _duration(reg),
                          f"`{ref['label']}` ({fmt(ref['wall_s'])} s)", f"`{ch.setting}`", fmt(ch.wall_s),
                          fmt(ch.speedup, ".2g"),
                          ", ".join(MEASURES[m].label for m in ch.binding), ", ".join(within) or "–"])  # fmt: skip
@@ -298,6 +298,29 @@ def regime_results(doc: dict[str, Any], name: str, rule: float, measures: Sequen
     return " ".join(out)
 
 
+def _length(reg: dict[str, Any]) -> str:
+    """A regime's run length and what of it is analysed; for one merged from parts, each part's own."""
+    if reg["kind"] == "growth":
+        return f"{reg['duration_s'] * 1e3:.1f} ms (growing)"
+    parts = reg.get("parts")
+    if not parts:
+        return f"{reg['duration_s'] * 1e3:.1f} ms (analysed from {reg['window_start_s'] * 1e3:.1f} ms)"
+    each = ", ".join(f"{p['duration_s'] * 1e3:.1f} ms (from {p['window_start_s'] * 1e3:.1f} ms)" for p in parts)
+    seeds = "; ".join(f"{p['seeds'][0]}…{p['seeds'][-1]}" for p in parts)
+    devices = ", ".join(sorted({str(p["device"]) for p in parts}))
+    return (
+        f"measured in {len(parts)} parts (seeds {seeds}; on {devices}), each over its own plan (run length, "
+        f"analysed from): {each}; a setting's wall time is the sum of its parts'"
+    )
+
+
+def _duration(reg: dict[str, Any]) -> str:
+    """A regime's run length (its parts' range for one merged from parts)."""
+    lengths = sorted(p["duration_s"] for p in reg.get("parts") or [reg])
+    span = f"{lengths[0] * 1e3:.1f}" + (f"–{lengths[-1] * 1e3:.1f}" if lengths[-1] > lengths[0] else "")
+    return f"{span} ms"
+
+
 def render(docs: Sequence[dict[str, Any]], names: Sequence[str], figures: Sequence[Path], page: Path, rule: float,
            measures: Sequence[str] | None, criterion: str) -> list[str]:  # fmt: skip
     """The generated section of the page (``names``: the result files, as the page links them)."""
@@ -334,12 +357,11 @@ def render(docs: Sequence[dict[str, Any]], names: Sequence[str], figures: Sequen
         for name, reg in doc["regimes"].items():
             use = _measures(reg, measures)
             cfg = reg["config"]
-            span = "growing" if reg["kind"] == "growth" else f"analysed from {reg['window_start_s'] * 1e3:.1f} ms"
             lines += [
                 f"### {name}: {reg['description']}",
                 "",
                 f"{len(reg['pads'])} pads (seeds {reg['pads'][0]['seed']}…{reg['pads'][-1]['seed']}), "
-                f"{reg['duration_s'] * 1e3:.1f} ms ({span}), perturbation {cfg['perturbation']:g} m/s; pads the "
+                f"{_length(reg)}, perturbation {cfg['perturbation']:g} m/s; pads the "
                 f"saturation detector calls saturated: {reference_of(reg).get('saturated', '–')} of "
                 f"{len(reg['pads'])} in the reference; {fmt(doc.get('regime_wall_s'), '.0f')} s of wall time in "
                 f"all (runs, analysis, compilation). Per setting and measure: error/σ (the upper end of the 95 % "

@@ -1,0 +1,150 @@
+"""One result file of the statistical work-precision study from parts measured side by side.
+
+A regime whose reference does not fit one call (ms_app3: 64 pads × 78.8 ms at 1e-8 s in fp64, ≈ 1400 s on one
+H200) is measured in parts: the same regime, settings and reference over disjoint seeds (``--seeds K
+--first-seed S``), e.g. one process per GPU. :func:`merge` joins the parts' result files into one, as if one run
+had held every pad: per setting the per-pad values side by side (pads ordered by member, then seed, as one run
+orders them), its stepping wall time the sum of the parts' (the time one device would take running the parts one
+after the other), the parts' own times kept beside it.
+
+Each part runs the validation's plan for its own pads, so the parts' run lengths may differ (the plan is the
+predicted time to saturation of its slowest pad + the window); every pad is still compared with its own reference
+over the same window at the end of the same run, which is what the rule's per-seed differences need. The merged
+regime keeps each part's run length in ``parts``.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from aca_warp.studies.work_precision_stats_rule import load_results
+
+SAME = ("name", "description", "kind", "measures", "reference")
+"""Regime fields every part must share (besides its configuration less the seeds)."""
+SAME_TOP = ("quick", "rule", "versions")
+"""Top-level fields every part must share (besides the device's name)."""
+SUMMED = ("wall_s", "compile_s", "steps", "rejected", "saturated")
+"""Setting fields the merged row sums over the parts."""
+
+
+def _only_regime(doc: dict[str, Any], path: Path) -> tuple[str, dict[str, Any]]:
+    if len(doc["regimes"]) != 1:
+        raise ValueError(f"{path} holds {len(doc['regimes'])} regimes; a part holds one")
+    return next(iter(doc["regimes"].items()))
+
+
+def _config_less_seeds(reg: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in reg["config"].items() if k not in ("seeds", "first_seed")}
+
+
+def merged_tag(tags: Sequence[str]) -> str:
+    """The tag of the merged file: one tag when the parts share it; tags that differ only in a trailing device
+    number joined as one, in order ("cuda1", "cuda0" → "cuda01"); else the tags joined by "_", in order."""
+    uniq = sorted(set(tags))
+    if len(uniq) == 1:
+        return uniq[0]
+    split = [m for m in (re.fullmatch(r"(.*?)(\d+)((?:_quick)?)", t) for t in uniq) if m]
+    if len(split) == len(uniq) and len({(m.group(1), m.group(3)) for m in split}) == 1:
+        numbers = sorted(int(m.group(2)) for m in split)
+        return split[0].group(1) + "".join(map(str, numbers)) + split[0].group(3)
+    return "_".join(uniq)
+
+
+def _check(parts: list[tuple[Path, dict[str, Any], str, dict[str, Any]]]) -> None:
+    """ValueError unless the parts are one regime over disjoint seeds on one kind of device."""
+    p0, d0, n0, r0 = parts[0]
+    seen: dict[tuple[str | None, int], Path] = {}
+    for p, d, n, r in parts:
+        if n != n0:
+            raise ValueError(f"{p} holds regime {n}, {p0} holds {n0}")
+        if d["machine"]["device_name"] != d0["machine"]["device_name"]:
+            raise ValueError(f"{p} was measured on {d['machine']['device_name']}, {p0} on "
+                             f"{d0['machine']['device_name']}")  # fmt: skip
+        for k in SAME_TOP:
+            if d.get(k) != d0.get(k):
+                raise ValueError(f"{p} and {p0} differ in {k}: {d.get(k)!r} against {d0.get(k)!r}")
+        for k in SAME:
+            if r.get(k) != r0.get(k):
+                raise ValueError(f"{p} and {p0} differ in the regime's {k}: {r.get(k)!r} against {r0.get(k)!r}")
+        if _config_less_seeds(r) != _config_less_seeds(r0):
+            raise ValueError(f"{p} and {p0} were run with other settings of the regime (besides the seeds)")
+        for pad in r["pads"]:
+            key = (pad.get("member"), int(pad["seed"]))
+            if key in seen:
+                raise ValueError(f"seed {key[1]}{f' of {key[0]}' if key[0] else ''} is in both {seen[key]} and {p}")
+            seen[key] = p
+
+
+def _merged_row(label: str, role: str, rows: list[dict[str, Any] | None], order: list[tuple[int, int]],
+                measures: Sequence[str]) -> dict[str, Any]:  # fmt: skip
+    """One setting of the merged regime from its row in each part (None: the part lacks it); ``order``: (part,
+    pad) of each merged pad."""
+    have = [r for r in rows if r is not None]
+    base = {k: v for k, v in have[0].items() if k not in (*SUMMED, "values", "fault", "complete")}
+    if len(have) < len(rows) or not all(r.get("complete") and "values" in r for r in have):
+        missing = sum(r is None or not r.get("complete") for r in rows)
+        return {**base, "label": label, "role": role, "complete": False, "wall_s": None,
+                "fault": f"not run: complete in {len(rows) - missing} of {len(rows)} parts"}  # fmt: skip
+    full = [r for r in rows if r is not None]
+    row: dict[str, Any] = {**base, "complete": True, "fault": None}
+    for k in SUMMED:
+        vals = [r.get(k) for r in full]
+        row[k] = sum(vals) if all(v is not None for v in vals) else None
+    row["part_wall_s"] = [r["wall_s"] for r in full]
+    for k in ("dt_used", "engine", "host"):
+        vals = {repr(r.get(k)) for r in full}
+        row[k] = full[0].get(k) if len(vals) == 1 else [r.get(k) for r in full]
+    row["values"] = {m: [full[i]["values"][m][j] for i, j in order] for m in measures}
+    return row
+
+
+def merge(paths: Sequence[Path]) -> dict[str, Any]:
+    """The result document of one regime measured in parts (``paths``: the parts' result files, each one regime
+    over its own seeds). Raises ValueError when the files are not parts of one regime."""
+    if len(paths) < 2:
+        raise ValueError("merging needs at least two result files")
+    parts = []
+    for p in paths:
+        d = load_results(p)
+        parts.append((Path(p), d, *_only_regime(d, Path(p))))
+    _check(parts)
+    _, d0, name, r0 = parts[0]
+    members = list(dict.fromkeys(pad.get("member") for _, _, _, r in parts for pad in r["pads"]))
+    order = sorted(((i, j) for i, (_, _, _, r) in enumerate(parts) for j in range(len(r["pads"]))),
+                   key=lambda ij: (members.index(parts[ij[0]][3]["pads"][ij[1]].get("member")),
+                                   int(parts[ij[0]][3]["pads"][ij[1]]["seed"])))  # fmt: skip
+    pads = [parts[i][3]["pads"][j] for i, j in order]
+    keys = list(dict.fromkeys((s["label"], s["role"]) for _, _, _, r in parts for s in r["settings"]))
+    settings = []
+    for label, role in keys:
+        rows = [next((s for s in r["settings"] if (s["label"], s["role"]) == (label, role)), None)
+                for _, _, _, r in parts]  # fmt: skip
+        settings.append(_merged_row(label, role, rows, order, r0["measures"]))
+    seeds = sorted({int(p["seed"]) for p in pads})
+    reg = {k: v for k, v in r0.items() if k not in ("pads", "settings")}
+    reg["config"] = {**r0["config"], "seeds": len(seeds), "first_seed": seeds[0]}
+    reg["duration_s"] = max(r["duration_s"] for _, _, _, r in parts)
+    reg["window_start_s"] = max(r["window_start_s"] for _, _, _, r in parts)
+    reg["parts"] = [
+        {"file": p.as_posix(), "device": d["machine"]["device"], "seeds": sorted({int(x["seed"]) for x in r["pads"]}),
+         "pads": len(r["pads"]), "duration_s": r["duration_s"], "window_start_s": r["window_start_s"],
+         "settle_s": r.get("settle_s"), "regime_wall_s": d.get("regime_wall_s")}
+        for p, d, _, r in parts
+    ]  # fmt: skip
+    reg["pads"], reg["settings"] = pads, settings
+    devices = list(dict.fromkeys(d["machine"]["device"] for _, d, _, _ in parts))
+    hosts = list(dict.fromkeys(d["machine"]["host"] for _, d, _, _ in parts))
+    machine = {**d0["machine"], "device": ",".join(devices), "host": hosts[0] if len(hosts) == 1 else hosts}
+    walls = [d.get("regime_wall_s") for _, d, _, _ in parts]
+    return {
+        **{k: v for k, v in d0.items() if k not in ("tag", "machine", "commands", "regimes", "regime_wall_s")},
+        "tag": merged_tag([d["tag"] for _, d, _, _ in parts]),
+        "machine": machine,
+        "commands": list(dict.fromkeys(c for _, d, _, _ in parts for c in d["commands"])),
+        "merged_from": [p.as_posix() for p, _, _, _ in parts],
+        "regimes": {name: reg},
+        "regime_wall_s": sum(walls) if all(w is not None for w in walls) else None,
+    }
