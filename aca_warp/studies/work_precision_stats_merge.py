@@ -37,7 +37,9 @@ def _only_regime(doc: dict[str, Any], path: Path) -> tuple[str, dict[str, Any]]:
 
 
 def _config_less_seeds(reg: dict[str, Any]) -> dict[str, Any]:
-    return {k: v for k, v in reg["config"].items() if k not in ("seeds", "first_seed")}
+    """The regime's validation settings less the seeds and the validation's own stepping table (the grid and the
+    reference set the steps, as for a continued file)."""
+    return {k: v for k, v in reg["config"].items() if k not in ("seeds", "first_seed", "stepping")}
 
 
 def merged_tag(tags: Sequence[str]) -> str:
