@@ -355,9 +355,9 @@ def measure_scene(name: str, args: argparse.Namespace, log: Callable[[str], None
             what = f"adaptive {eng} {pads} pad(s) tol"
             tries = ladder(TOLS, ours("adaptive", eng, "tolerance"), args.target, log, what)
             rows.append(entry(name, "ours: adaptive (DP5)", pads, f"{dev}, {eng} engine", "tol", tries))
-        what = f"auto {pads} pad(s) tol"  # the default integrator at its defaults (general engine only)
+        what = f"auto {pads} pad(s) tol"  # auto at its default tolerances (general engine only)
         tries = ladder((DEFAULT_TOLERANCE,), ours("auto", "general", "tolerance"), args.target, log, what)
-        rows.append(entry(name, "ours: auto (default)", pads, f"{dev}, general engine", "tol", tries))
+        rows.append(entry(name, "ours: auto (its defaults)", pads, f"{dev}, general engine", "tol", tries))
         first = ladder(STEPS[:1], ours("strang", fixed, "dt"), args.target, log, f"strang {pads} pad(s) dt")
         rows.append(entry(name, "ours: strang 1e-8 s", pads, f"{dev}, {fixed} engine", "dt", first))
         if first and not first[-1].get("failed") and not first[-1]["reached"]:
