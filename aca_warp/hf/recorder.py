@@ -197,15 +197,27 @@ class Recorder:
         assert int(due.sum()) == prows, "per-patch rows out of step with the sample counter"
         chunk = Chunk(
             time=k * self.sample_dt,
-            globals=self.globals.numpy()[:rows].copy(),
+            globals=rows_to_host(self.globals, rows),
             patch_time=k[due] * self.sample_dt,
-            velocity=self.velocity.numpy()[:prows].copy() if self.want_v else None,
-            displacement=self.displacement.numpy()[:prows].copy() if self.want_u else None,
+            velocity=rows_to_host(self.velocity, prows) if self.want_v else None,
+            displacement=rows_to_host(self.displacement, prows) if self.want_u else None,
         )
         self.sample_index += rows
         c[1] = c[2] = 0
         wp.copy(self.counters, wp.array(c, dtype=wp.int32, device=self.model.device))
         return chunk, self.fault.numpy()
+
+
+def rows_to_host(buffer: wp.array, rows: int) -> np.ndarray:
+    """The first ``rows`` rows of a recording buffer as a host array of their own. On a GPU only those rows are
+    copied (``buffer.numpy()`` would copy the whole buffer: the per-patch history of a 32-pad hf1 batch holds up to
+    256 MB, and every chunk of a run flushes it, also before the window when no row is filled); on the CPU the
+    rows are copied out of the buffer, which the next chunk overwrites."""
+    if buffer.device.is_cpu:
+        return buffer.numpy()[:rows].copy()
+    if rows == 0:
+        return np.zeros((0, *buffer.shape[1:]), dtype=wp.dtype_to_numpy(buffer.dtype))
+    return buffer[:rows].numpy()
 
 
 def fault_from(
