@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 import warp as wp
 
 from aca_warp.hf.model import build_model
@@ -59,3 +60,13 @@ def test_flush_hands_over_the_filled_rows_of_device_buffers():
     np.testing.assert_array_equal(chunk.globals, whole_g[:3])
     np.testing.assert_array_equal(chunk.velocity, whole_v[:2])
     assert rec.counters.numpy()[1:3].tolist() == [0, 0] and table.shape[0] == 1
+
+
+@pytest.mark.skipif(not wp.is_cuda_available(), reason="needs a CUDA device")
+def test_rows_from_a_cuda_buffer_are_a_host_copy():
+    """On a GPU the rows handed over are a host array of their own: refilling the buffer leaves them unchanged."""
+    buf = wp.array(np.arange(24, dtype=np.float32).reshape(6, 4), device="cuda:0")
+    rows = rows_to_host(buf, 3)
+    buf.fill_(-1.0)
+    assert rows.tolist() == np.arange(12, dtype=np.float32).reshape(3, 4).tolist()
+    assert rows_to_host(buf, 0).shape == (0, 4)

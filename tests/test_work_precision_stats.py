@@ -466,10 +466,11 @@ def test_merging_parts_gives_the_whole_regime(tmp_path, capsys):
     assert doc["tag"] == "cuda0123" and doc["regime_wall_s"] == 400.0 and len(doc["commands"]) == 4
     assert [(p["member"], p["seed"]) for p in reg["pads"]] == [(p["member"], p["seed"]) for p in whole["pads"]]
     assert reg["config"]["seeds"] == 10 and reg["config"]["first_seed"] == 1
-    assert [p["duration_s"] for p in reg["parts"]] == [0.032, 0.03, 0.033, 0.031] and reg["duration_s"] == 0.033
+    assert [p["seeds"] for p in reg["parts"]] == [[1, 2, 3], [4, 5], [6, 7, 8], [9, 10]]  # by seed, any order given
+    assert [p["duration_s"] for p in reg["parts"]] == [0.03, 0.031, 0.032, 0.033] and reg["duration_s"] == 0.033
     for s, w in zip(reg["settings"], whole["settings"], strict=True):
         if not w["complete"]:
-            assert not s["complete"] and s["wall_s"] is None and "0 of 4 parts" in s["fault"]
+            assert not s["complete"] and s["wall_s"] is None and s["fault"].startswith("incomplete: complete in 0")
             continue
         assert s["wall_s"] == pytest.approx(w["wall_s"] * (1 / 3 + 1 + 1 / 4 + 1 / 2))
         assert len(s["part_wall_s"]) == 4
@@ -478,10 +479,15 @@ def test_merging_parts_gives_the_whole_regime(tmp_path, capsys):
             a, b = rule.compare_setting(reg, s, m), rule.compare_setting(whole, w, m)
             assert (a.error, a.bound, a.member) == (b.error, b.bound, b.member)
     short = json.loads(paths[1].read_text())
-    short["regimes"]["syn"]["settings"][1]["complete"] = False
+    short["regimes"]["syn"]["settings"][1].update(complete=False, fault="not run: --max-wall")
     paths[1].write_text(json.dumps(short))
     cut = merge(paths)["regimes"]["syn"]["settings"][1]
-    assert not cut["complete"] and "complete in 3 of 4 parts" in cut["fault"]
+    assert not cut["complete"] and cut["fault"] == "not run: complete in 3 of 4 parts (not run: --max-wall)"
+    short["regimes"]["syn"]["settings"][1]["fault"] = "refused: too tight"
+    paths[1].write_text(json.dumps(short))
+    assert merge(paths)["regimes"]["syn"]["settings"][1]["fault"].startswith("incomplete: complete in 3 of 4")
+    with pytest.raises(ValueError, match="gap"):
+        merge([paths[1], paths[0]])  # seeds 1–3 and 6–8
     paths[1].write_text(json.dumps(parts[0]))
     twice = [paths[1], tmp_path / "again.json"]
     twice[1].write_text(json.dumps(parts[0]))
@@ -499,6 +505,8 @@ def test_merging_parts_gives_the_whole_regime(tmp_path, capsys):
     assert wps.main(["--merge", *map(str, paths), "--out", str(out)]) == 0
     written = out / "wps_cuda0123_syn.json"
     assert json.loads(written.read_text())["regimes"]["syn"]["pads"] == reg["pads"]
+    with pytest.raises(ValueError, match="itself merged"):
+        merge([written, paths[0]])
     assert wps.main(["--merge", *map(str, paths), "--out", str(out)]) == 2
     assert "exists" in capsys.readouterr().err
     assert wps.main(["--merge", str(paths[0]), "--out", str(out)]) == 2
@@ -507,4 +515,5 @@ def test_merging_parts_gives_the_whole_regime(tmp_path, capsys):
     wps_report.report([written], page, page.parent / "fig", 0.25, None, "resolution")
     text = page.read_text()
     assert "| syn | 20 × 10 | 30.0–33.0 ms |" in text
-    assert "measured in 4 parts (seeds 6…8; 1…3; 9…10; 4…5; on cuda:0, cuda:1, cuda:2, cuda:3)" in text
+    assert "measured in 4 parts (seeds 1…3; 4…5; 6…8; 9…10; on cuda:0, cuda:1, cuda:2, cuda:3)" in text
+    assert "33.0 ms (from 20.0 ms) (a setting's wall time: the sum of its parts'), perturbation" in text

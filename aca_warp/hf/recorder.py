@@ -211,7 +211,7 @@ class Recorder:
 def rows_to_host(buffer: wp.array, rows: int) -> np.ndarray:
     """The first ``rows`` rows of a recording buffer as a host array of their own. On a GPU only those rows are
     copied (``buffer.numpy()`` would copy the whole buffer: the per-patch history of a 32-pad hf1 batch holds up to
-    256 MB, and every chunk of a run flushes it, also before the window when no row is filled); on the CPU the
+    262 MB, and every chunk of a run flushes it, also before the window when no row is filled); on the CPU the
     rows are copied out of the buffer, which the next chunk overwrites."""
     if buffer.device.is_cpu:
         return buffer.numpy()[:rows].copy()

@@ -5,7 +5,8 @@ H200) is measured in parts: the same regime, settings and reference over disjoin
 --first-seed S``), e.g. one process per GPU. :func:`merge` joins the parts' result files into one, as if one run
 had held every pad: per setting the per-pad values side by side (pads ordered by member, then seed, as one run
 orders them), its stepping wall time the sum of the parts' (the time one device would take running the parts one
-after the other), the parts' own times kept beside it.
+after the other), the parts' own times kept beside it. The parts must be one regime (settings besides the seeds,
+reference, device model, versions) over disjoint seeds that together are consecutive; a merged file is not a part.
 
 Each part runs the validation's plan for its own pads, so the parts' run lengths may differ (the plan is the
 predicted time to saturation of its slowest pad + the window); every pad is still compared with its own reference
@@ -60,6 +61,8 @@ def _check(parts: list[tuple[Path, dict[str, Any], str, dict[str, Any]]]) -> Non
     p0, d0, n0, r0 = parts[0]
     seen: dict[tuple[str | None, int], Path] = {}
     for p, d, n, r in parts:
+        if "merged_from" in d:
+            raise ValueError(f"{p} is itself merged from parts: merge the parts it names")
         if n != n0:
             raise ValueError(f"{p} holds regime {n}, {p0} holds {n0}")
         if d["machine"]["device_name"] != d0["machine"]["device_name"]:
@@ -78,6 +81,11 @@ def _check(parts: list[tuple[Path, dict[str, Any], str, dict[str, Any]]]) -> Non
             if key in seen:
                 raise ValueError(f"seed {key[1]}{f' of {key[0]}' if key[0] else ''} is in both {seen[key]} and {p}")
             seen[key] = p
+    seeds = sorted({k[1] for k in seen})
+    if seeds != list(range(seeds[0], seeds[-1] + 1)):
+        missing = sorted(set(range(seeds[0], seeds[-1] + 1)) - set(seeds))
+        raise ValueError(f"the parts' seeds leave a gap (missing {', '.join(map(str, missing))}): a merged regime "
+                         "holds consecutive seeds")  # fmt: skip
 
 
 def _merged_row(label: str, role: str, rows: list[dict[str, Any] | None], order: list[tuple[int, int]],
@@ -87,9 +95,13 @@ def _merged_row(label: str, role: str, rows: list[dict[str, Any] | None], order:
     have = [r for r in rows if r is not None]
     base = {k: v for k, v in have[0].items() if k not in (*SUMMED, "values", "fault", "complete")}
     if len(have) < len(rows) or not all(r.get("complete") and "values" in r for r in have):
-        missing = sum(r is None or not r.get("complete") for r in rows)
+        faults = ["not run: not in this part" if r is None else str(r.get("fault")) for r in rows]
+        bad = [f for r, f in zip(rows, faults, strict=True) if r is None or not r.get("complete")]
+        kinds = "; ".join(dict.fromkeys(bad))
+        # "not run" only when no part ran it and failed: the report reads that prefix as cut by a time limit
+        prefix = "not run" if all(f.startswith("not run") for f in bad) else "incomplete"
         return {**base, "label": label, "role": role, "complete": False, "wall_s": None,
-                "fault": f"not run: complete in {len(rows) - missing} of {len(rows)} parts"}  # fmt: skip
+                "fault": f"{prefix}: complete in {len(rows) - len(bad)} of {len(rows)} parts ({kinds})"}  # fmt: skip
     full = [r for r in rows if r is not None]
     row: dict[str, Any] = {**base, "complete": True, "fault": None}
     for k in SUMMED:
@@ -113,6 +125,7 @@ def merge(paths: Sequence[Path]) -> dict[str, Any]:
         d = load_results(p)
         parts.append((Path(p), d, *_only_regime(d, Path(p))))
     _check(parts)
+    parts.sort(key=lambda part: min(int(x["seed"]) for x in part[3]["pads"]))
     _, d0, name, r0 = parts[0]
     members = list(dict.fromkeys(pad.get("member") for _, _, _, r in parts for pad in r["pads"]))
     order = sorted(((i, j) for i, (_, _, _, r) in enumerate(parts) for j in range(len(r["pads"]))),
@@ -128,8 +141,9 @@ def merge(paths: Sequence[Path]) -> dict[str, Any]:
     seeds = sorted({int(p["seed"]) for p in pads})
     reg = {k: v for k, v in r0.items() if k not in ("pads", "settings")}
     reg["config"] = {**r0["config"], "seeds": len(seeds), "first_seed": seeds[0]}
-    reg["duration_s"] = max(r["duration_s"] for _, _, _, r in parts)
-    reg["window_start_s"] = max(r["window_start_s"] for _, _, _, r in parts)
+    longest = max((r for _, _, _, r in parts), key=lambda r: r["duration_s"])  # the regime's plan: its longest part's
+    for k in ("duration_s", "settle_s", "window_start_s"):
+        reg[k] = longest.get(k)
     reg["parts"] = [
         {"file": p.as_posix(), "device": d["machine"]["device"], "seeds": sorted({int(x["seed"]) for x in r["pads"]}),
          "pads": len(r["pads"]), "duration_s": r["duration_s"], "window_start_s": r["window_start_s"],

@@ -310,7 +310,7 @@ def _length(reg: dict[str, Any]) -> str:
     devices = ", ".join(sorted({str(p["device"]) for p in parts}))
     return (
         f"measured in {len(parts)} parts (seeds {seeds}; on {devices}), each over its own plan (run length, "
-        f"analysed from): {each}; a setting's wall time is the sum of its parts'"
+        f"analysed from): {each} (a setting's wall time: the sum of its parts')"
     )
 
 
