@@ -117,7 +117,7 @@ def test_a_default_run_resumes_after_ctrl_c(scene_file: Path, tmp_path: Path, mo
     Ctrl-C names the checkpoint and the command that continues the run, which then equals an uninterrupted run.
     A run stopped before its first checkpoint (the default 30 s of wall time not reached) says so and resumes
     from its start; --no-checkpoint (or --checkpoint-interval 0) writes none."""
-    opts = ["--no-progress", "--duration", "1e-5", "--record-patches", "velocity"]
+    opts = ["--no-progress", "--duration", "5e-5", "--record-patches", "velocity"]
     ref = tmp_path / "ref.h5"
     assert main(["hf", str(scene_file), "-o", str(ref), *opts, "--checkpoint-interval", "0"]) == 0
     real, written = runner.run_hf, []

@@ -1,7 +1,7 @@
 """Extreme scenes (docs/stability.md): each runs bounded with finite outputs, or is refused before running with a
 clear SceneError / StabilityError.
 
-Runs use the default integrator and step (``strang``, 1e-8 s) for 50 µs from rest unless a case needs otherwise;
+Runs use the default integrator and step (``strang``, 5e-8 s) for 250 µs from rest unless a case needs otherwise;
 strang's step is bounded by the springs only, so the cases far beyond the friction rate (tiny patches, 100 kN, no
 matrix) run unforced.
 *Bounded* means: complete, every recorded value finite, |μ| ≤ max(M, μ_pad), and every patch velocity below
@@ -29,13 +29,13 @@ import pytest
 from aca_warp.common.errors import SceneError, StabilityError
 from aca_warp.hf.loop import EngineTuning, run_hf
 from aca_warp.hf.model import PadModel, build_model, coupling_matrix
-from aca_warp.hf.options import DEFAULT_DT, RunOptions
+from aca_warp.hf.options import DEFAULT_DT, RunOptions, default_step
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, Initial, Material, Matrix, Pad, Patches, Record, Scene
 
 GRAPH_STEPS = 32  # short graphs: a CPU capture costs more per step the longer the graph (5000 steps of 30 patches
 # sampled every 10 steps: 0.08 s of CPU in graphs of 32 steps, 0.38 s in graphs of 256)
-DURATION = 5e-5  # s: 5000 default steps
+DURATION = 2.5e-4  # s: 5000 default steps
 RECORD = Record(sample_dt=1e-7, patches=("velocity",))
 HF1_LOAD = 487.2  # N
 R0 = 0.13  # m: friction radius of the test clusters
@@ -293,13 +293,14 @@ def outcomes() -> dict[str, Outcome]:
 
 @pytest.mark.parametrize("case", RUNS, ids=[c.name for c in RUNS])
 def test_case_runs_bounded(case, outcomes):
-    """The case runs 50 µs with strang at 1e-8 s: complete, finite, |μ| ≤ max(M, μ_pad), |u̇| < B. Where the
-    explicit estimate is below the default step, symplectic-euler is refused at that step with a message that
-    names the friction slope (or springs) and suggests an implicit integrator; elsewhere it runs bounded too."""
+    """The case runs 250 µs with strang at its default step (5e-8 s): complete, finite, |μ| ≤ max(M, μ_pad),
+    |u̇| < B. Where the explicit estimate is below symplectic Euler's default step (1e-8 s), symplectic-euler is
+    refused at that step with a message that names the friction slope (or springs) and suggests an implicit
+    integrator; elsewhere it runs bounded too."""
     o = outcomes[case.name]
     assert_bounded(o)
     est = o.result.estimate
-    assert est.spring > DEFAULT_DT  # within 1e-10..1e-4 m² the default step is always below the spring limit
+    assert est.spring > default_step("strang")  # within 1e-10..1e-4 m² strang's default is below the spring limit
     model = o.model
     if est.explicit < DEFAULT_DT:
         hint = r"exceeds the stable-step estimate .* an implicit-friction integrator \(strang, implicit-friction\)"
@@ -310,14 +311,18 @@ def test_case_runs_bounded(case, outcomes):
         assert_bounded(explicit)
 
 
+def refusal_record(case: Case) -> Record:
+    """The record of a case that is to be refused: samples at least its step apart, so that the step checked is the
+    one asked for (a run shortens its step to fit a sample interval)."""
+    return Record(sample_dt=max(RECORD.sample_dt, case.dt or default_step(case.integrator)), patches=("velocity",))
+
+
 @pytest.mark.parametrize("case", REFUSALS, ids=[c.name for c in REFUSALS])
 def test_case_refused_before_running(case):
     """The case is refused before any step, with the error type and message of the table."""
     kind, pattern = case.refused
-    # samples at least dt apart: the step checked is the one the run takes (dt shortened to fit a sample interval)
-    record = Record(sample_dt=max(RECORD.sample_dt, case.dt or DEFAULT_DT), patches=("velocity",))
     with pytest.raises(kind, match=pattern) as info:
-        attempt(case, record=record)
+        attempt(case, record=refusal_record(case))
     assert type(info.value) is kind
     assert "\n" not in str(info.value)  # one line, as the CLI prints it
 
@@ -468,7 +473,7 @@ def test_fp32_matches_fp64_on_the_stiffest_case():
 def table_row(case: Case) -> str:
     """One markdown row: case, what, outcome, estimate, observed values."""
     try:
-        o = attempt(case)
+        o = attempt(case, record=refusal_record(case)) if case.refused else attempt(case)
     except (SceneError, StabilityError) as e:
         msg = re.sub(r"\|", "/", str(e))
         return f"| `{case.name}` | {case.what} | refused: {type(e).__name__} | | | “{msg}” |"

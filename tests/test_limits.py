@@ -148,7 +148,7 @@ def test_step_counts_beyond_int32(tmp_path, capsys) -> None:
 
 
 def test_sample_interval_shorter_than_the_step(tmp_path, capsys) -> None:
-    """A sample interval below the step: `[record] sample_dt = 5e-10` (with the default 1e-8 s step), `--sample-dt
+    """A sample interval below the step: `[record] sample_dt = 5e-10` (with strang's default 5e-8 s step), `--sample-dt
     5e-10` and a sweep's `run.sample_dt = 5e-10`: one line each, nothing written (before: the step shrank to the
     sample interval, 20 or 1e4 times the steps; sample_dt = 1e-12 hung); `[record] sample_dt = 1e-12`, with or
     without that step asked for (`--dt 1e-12`: 2e8 samples), is refused as implausible (below 1e-10 s,
@@ -161,8 +161,8 @@ def test_sample_interval_shorter_than_the_step(tmp_path, capsys) -> None:
         '[sweep]\nbase = "hf1"\n[run]\nsample_dt = 5e-10\nduration = 1e-6\n[parameters]\n"friction.M" = [0.6]'
     )
     for argv, message in (
-        (["hf", str(tmp_path / "short.toml"), *out], "record.sample_dt = 5e-10 s is shorter than the step 1e-08 s"),
-        (["hf", str(tmp_path / "ok.toml"), "--sample-dt", "5e-10", *out], "5e-10 s is shorter than the step 1e-08"),
+        (["hf", str(tmp_path / "short.toml"), *out], "record.sample_dt = 5e-10 s is shorter than the step 5e-08 s"),
+        (["hf", str(tmp_path / "ok.toml"), "--sample-dt", "5e-10", *out], "5e-10 s is shorter than the step 5e-08"),
         (["sweep", str(spec), "-o", str(tmp_path / "sweep"), "--workers", "0"], "5e-10 s is shorter than the step"),
         (["hf", str(tmp_path / "tiny.toml"), *out], "record.sample_dt = 1e-12 s — below 1e-10 s"),
         (["hf", str(tmp_path / "tiny.toml"), *out, "--dt", "1e-12"], "record.sample_dt = 1e-12 s — below 1e-10 s"),

@@ -101,7 +101,7 @@ def test_rerun_names_what_it_applies_and_keeps_the_size_limits(tmp_path, capsys)
         note = f"aca-warp: note: {run} stores, and the rerun applies: force ("
         assert err[0].startswith(note) and "the watchdog off" in err[0] and "allow_implausible" in err[0], err
         if code == 2:
-            assert len(err) == 2 and "1e+13 steps, more than 1e+10" in err[1] and "--force runs it anyway" in err[1]
+            assert len(err) == 2 and "2e+12 steps, more than 1e+10" in err[1] and "--force runs it anyway" in err[1]
             assert not new.exists() and not new.with_name(new.name + ".partial").exists()
         else:
             with h5py.File(new, "r") as f:

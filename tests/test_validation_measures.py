@@ -244,7 +244,7 @@ def test_table_rows_and_every_registered_row_has_a_known_kind():
 
 
 def test_stepping_takes_the_fixed_step_the_friction_step_rule_the_cap_or_an_override():
-    from aca_warp.hf.solver import StepEstimate
+    from aca_warp.hf.solver import StepEstimate, friction_step
     from aca_warp.studies.validation import settings as VSet
 
     hf = VSet.STEPPING["hf"]
@@ -254,7 +254,7 @@ def test_stepping_takes_the_fixed_step_the_friction_step_rule_the_cap_or_an_over
     assert lf.step(1.34e-8) == pytest.approx(1.206e-8)  # 0.9 × the friction step
     assert lf.step(1.9e-7) == 8e-8  # capped
     # the friction step is h γ_max = 4: twice the explicit friction estimate 2/γ_max
-    assert VSet.friction_step(StepEstimate(spring=2e-6, friction=4.82e-8, explicit=4.8e-8)) == pytest.approx(9.64e-8)
+    assert friction_step(StepEstimate(spring=2e-6, friction=4.82e-8, explicit=4.8e-8)) == pytest.approx(9.64e-8)
     assert VB.Config(dt=5e-9, precision="fp64").stepping("hf").step(9.65e-8) == 5e-9
     quick = VB.Config(quick=True).stepping("lf_states")
     assert quick.dt == 1e-7 and quick.force and "forced" in quick.describe()

@@ -19,6 +19,7 @@ from aca_warp.hf.options import (
     DEFAULT_TOLERANCE,
     ENGINES,
     INTEGRATORS,
+    STATISTICS_STEP,
     STEP_CONTROLLED,
 )
 
@@ -80,8 +81,10 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "--dt",
         type=positive,
         metavar="S",
-        help=f"fixed step [s] (default {DEFAULT_DT:g}; shortened so that whole steps fit the sample interval, which "
-        "may not be shorter than it); first trial step of adaptive, controlled and auto",
+        help=f"fixed step [s] (default: strang {STATISTICS_STEP:g}, the step at which the saturated statistics "
+        f"were shown to hold; the other fixed-step integrators {DEFAULT_DT:g}; shortened so that whole steps fit the "
+        "sample interval, which may not be shorter than a step asked for); first trial step of adaptive, controlled "
+        "and auto",
     )
     hf.add_argument(
         "--tolerance",

@@ -23,7 +23,7 @@ from aca_warp.common.runfile import busy, reopen_resumable
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
-from aca_warp.hf.options import DEFAULT_DT, STEP_CONTROLLED, RunOptions
+from aca_warp.hf.options import STEP_CONTROLLED, RunOptions, default_step
 from aca_warp.hf.recorder import check_run, check_sample_step
 from aca_warp.hf.runfile import RunWriter, file_bytes
 from aca_warp.hf.sanity import check_contact
@@ -41,7 +41,8 @@ class RunPlan:
 
     Attributes:
         steps: Fixed steps (None for the adaptive integrator, whose count is not known ahead).
-        step: The step those are [s] (the requested one shortened to fit the sample interval), or None.
+        step: The step those are [s] (the requested one, or :func:`~aca_warp.hf.options.default_step`, shortened
+            to fit the sample interval), or None.
         samples: Global samples to record (the initial one included).
         patch_rows: Per-patch history rows to record.
         output_bytes: Bytes the recorded samples take in the run file (uncompressed).
@@ -84,7 +85,7 @@ def plan_run(
     if options.dt is not None:
         plausible.check("dt", options.dt, "hf_step", allow=scene.allow_implausible)
     steps = step = None
-    dt = DEFAULT_DT if options.dt is None else options.dt
+    dt = default_step(options.integrator) if options.dt is None else options.dt
     if not forced:
         check_sample_step(rec.sample_dt, dt, f"{option('force=True', '--force')} runs it anyway")
     if options.integrator not in STEP_CONTROLLED:
@@ -130,8 +131,9 @@ def run_scene(
     announce: Callable[[RunPlan], None] | None = None,
     force_limits: bool | None = None,
 ) -> RunResult:
-    """Simulate ``scene`` as ``options`` say (default :class:`RunOptions`: the scene's duration, ``strang`` at
-    1e-8 s) on ``device`` in ``precision`` and write the run file ``output``.
+    """Simulate ``scene`` as ``options`` say (default :class:`RunOptions`: the scene's duration, ``strang`` at its
+    default step, :func:`~aca_warp.hf.options.default_step`) on ``device`` in ``precision`` and write the run file
+    ``output``.
 
     Everything is validated before the simulation starts. A fault or an interrupt (Ctrl-C) still leaves a
     readable file holding every sample up to that point, marked ``complete = False``. The file also keeps the

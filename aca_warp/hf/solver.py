@@ -35,12 +35,12 @@ from aca_warp.common.errors import SceneError, StabilityError, option
 from aca_warp.common.launches import Launcher
 from aca_warp.hf.model import PadModel, coupling_matrix
 from aca_warp.hf.options import (
-    DEFAULT_DT,
     DEFAULT_SPLIT_TOLERANCE,
     DEFAULT_TOLERANCE,
     INTEGRATORS,
     STEP_CONTROLLED,
     RunOptions,
+    default_step,
 )
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
@@ -145,6 +145,16 @@ def stable_step(model: PadModel) -> StepEstimate:
         friction=float(friction),
         explicit=float(h_explicit.min()),
     )
+
+
+FRICTION_H_GAMMA = 4.0  # h γ_max of the friction step (friction_step)
+
+
+def friction_step(estimate: StepEstimate) -> float:
+    """The step [s] at which h γ_max = :data:`FRICTION_H_GAMMA` for a model's stable-step estimate (whose
+    ``friction`` is 2/γ_max): the resolution of the fastest friction relaxation of its patches. No stability bound
+    of ``strang`` depends on it."""
+    return 0.5 * FRICTION_H_GAMMA * estimate.friction
 
 
 def fitted_step(dt: float, sample_dt: float) -> float:
@@ -260,7 +270,9 @@ class HFSolver:
                     f"tolerance {tolerance:g} is below what fp32 state can resolve (>= {FP32_MIN_TOLERANCE:g}); "
                     f"use {fp64} or a looser tolerance"
                 )
-        self.dt = (ADAPTIVE_FIRST_STEP if integrator in STEP_CONTROLLED else DEFAULT_DT) if dt is None else dt
+        if dt is None:
+            dt = ADAPTIVE_FIRST_STEP if integrator in STEP_CONTROLLED else default_step(integrator)
+        self.dt = dt
         if not (self.dt > 0 and math.isfinite(self.dt)):
             raise SceneError(f"dt must be a positive number of seconds, got {self.dt}")
         if integrator not in STEP_CONTROLLED and not force:  # there dt is only the first trial

@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.hf.options import DEFAULT_TOLERANCE
+from aca_warp.hf.options import DEFAULT_TOLERANCE, default_step
 from aca_warp.hf.reference import ReferenceODE
 from aca_warp.scene import Initial, Record, Scene, preset
 from aca_warp.studies.report import (
@@ -358,6 +358,9 @@ def measure_scene(name: str, args: argparse.Namespace, log: Callable[[str], None
         what = f"auto {pads} pad(s) tol"  # auto at its default tolerances (general engine only)
         tries = ladder((DEFAULT_TOLERANCE,), ours("auto", "general", "tolerance"), args.target, log, what)
         rows.append(entry(name, "ours: auto (its defaults)", pads, f"{dev}, general engine", "tol", tries))
+        what = f"strang at its default step {pads} pad(s) dt"
+        tries = ladder((default_step("strang"),), ours("strang", fixed, "dt"), args.target, log, what)
+        rows.append(entry(name, "ours: strang (default step)", pads, f"{dev}, {fixed} engine", "dt", tries))
         first = ladder(STEPS[:1], ours("strang", fixed, "dt"), args.target, log, f"strang {pads} pad(s) dt")
         rows.append(entry(name, "ours: strang 1e-8 s", pads, f"{dev}, {fixed} engine", "dt", first))
         if first and not first[-1].get("failed") and not first[-1]["reached"]:

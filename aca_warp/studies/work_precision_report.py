@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.hf.options import DEFAULT_TOLERANCE
+from aca_warp.hf.options import DEFAULT_TOLERANCE, default_step
 from aca_warp.studies.report import figure, fmt, generated_markers, md_table, replace_generated, save_figure
 
 BEGIN, END = generated_markers("scripts/work_precision.py --report")
@@ -256,11 +256,11 @@ def defaults_table(pairs: list[tuple[dict, dict]]) -> list[str]:
             cells.append("–" if r is None else f"{fmt(r['window'].get('mu'), '.1e')} ({_wall(r['window'], ' s')})")
         rows.append([sc["regime"], scene_cell(doc, sc), doc["machine"]["device"], *cells])
     head = ["regime", "scene", "device"] + [f"{m} {'dt' if m == 'strang' else 'tol'} {v:g}" for m, _, v in settings]
-    now = (
-        "" if _close(tol, DEFAULT_TOLERANCE) else f" (the default when these runs were made; now {DEFAULT_TOLERANCE:g})"
-    )
+    then = " (the default when these runs were made; now {:g})"
+    now = "" if _close(tol, DEFAULT_TOLERANCE) else then.format(DEFAULT_TOLERANCE)
+    now_dt = "" if _close(dt, default_step("strang")) else then.format(default_step("strang"))
     return [
-        f"**μ error over the pointwise window (wall time) at strang's default step {dt:g} s and at adaptive's "
+        f"**μ error over the pointwise window (wall time) at strang's step {dt:g} s{now_dt} and at adaptive's "
         f"tolerance {tol:g}{now} and below.**",
         "",
         *md_table(head, rows),

@@ -86,8 +86,7 @@ def _verdict(res: Any) -> Any:
 def _saturate(scene: Scene, duration: float, device: str) -> Start:
     """Run ``scene`` for ``duration`` [s] with strang at SPIN_DT (at most half its friction step, h γ_max = 2); the
     state at the end and the saturation detector's verdict on Σ|u̇|."""
-    from aca_warp.hf.solver import stable_step
-    from aca_warp.studies.validation.settings import friction_step
+    from aca_warp.hf.solver import friction_step, stable_step
 
     model, state = batch_at_start([scene], device, "fp64")
     dt = min(SPIN_DT, 0.5 * friction_step(stable_step(model)))

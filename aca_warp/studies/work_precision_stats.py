@@ -237,8 +237,7 @@ class Progress:
 def reference_setting(spec: str, model: Any) -> Setting:
     """The reference of a regime: ``spec`` (one setting), a strang step capped at :data:`REFERENCE_MARGIN` × the
     model's friction step (:func:`~aca_warp.studies.validation.settings.friction_step`, h γ_max = 4)."""
-    from aca_warp.hf.solver import stable_step
-    from aca_warp.studies.validation.settings import friction_step
+    from aca_warp.hf.solver import friction_step, stable_step
 
     (s,) = parse_setting(spec)
     if s.integrator == "strang" and s.dt is not None:

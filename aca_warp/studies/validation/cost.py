@@ -119,8 +119,7 @@ def batch_friction_step(scenes: list[Any]) -> float:
     """The friction step of a batch of pads [s] (:func:`~aca_warp.studies.validation.settings.friction_step`), from
     a host model of them (``stable_step``)."""
     from aca_warp.hf.model import build_model
-    from aca_warp.hf.solver import stable_step
-    from aca_warp.studies.validation.settings import friction_step
+    from aca_warp.hf.solver import friction_step, stable_step
 
     return friction_step(stable_step(build_model(scenes, device="cpu", precision="fp64")))
 

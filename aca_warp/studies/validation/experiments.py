@@ -179,9 +179,8 @@ def run_batch(
     segment (a probe of its step time, on a non-growing batch) projects beyond the budget is stopped there. Its
     members' results say so.
     """
-    from aca_warp.hf.solver import stable_step
+    from aca_warp.hf.solver import friction_step, stable_step
     from aca_warp.studies.runs import batch_at_start
-    from aca_warp.studies.validation.settings import friction_step
 
     t0 = time.perf_counter()
     scenes, plan = batch.scenes, batch.plan

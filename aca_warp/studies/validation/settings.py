@@ -1,13 +1,13 @@
 """How the validation's experiments are integrated: integrator, step and precision per kind of scene, in one place.
 
-Every experiment names one entry of :data:`STEPPING` (``Experiment.stepping``); a batch of experiments runs with
-the entry's integrator and precision, and with its fixed step or, when the entry gives none, ``bound_fraction``
-× the batch's friction step (:func:`friction_step`: the step at which h γ_max = 4, γ_max = (c + F_N max|f′|)/m the
-fastest friction relaxation of its patches), capped at ``dt_max``. No stability bound of ``strang`` depends on it
-(only the springs bound its step); it is the resolution of the friction relaxation at which the LF-state runs are
-made, which the statistical work-precision rule (docs/work_precision_statistics.md) does not let coarsen. The run
-then shortens the step to a whole number of steps per sample interval (``fitted_step``). ``--dt`` and
-``--precision`` replace the table's values for every experiment.
+Every experiment names one entry of :data:`STEPPING` (``Experiment.stepping``); a batch of experiments runs with the
+entry's integrator and precision, and with its fixed step or, when the entry gives none, ``bound_fraction`` × the
+batch's friction step (:func:`~aca_warp.hf.solver.friction_step`: the step at which h γ_max = 4, γ_max = (c + F_N
+max|f′|)/m the fastest friction relaxation of its patches), capped at ``dt_max``. No stability bound of ``strang``
+depends on it (only the springs bound its step); it is the resolution of the friction relaxation at which the
+LF-state runs are made, which the statistical work-precision rule (docs/work_precision_statistics.md) does not let
+coarsen. The run then shortens the step to a whole number of steps per sample interval (``fitted_step``). ``--dt``
+and ``--precision`` replace the table's values for every experiment.
 
 Friction steps of the presets at their start: hf1 9.65e-8 s, hf2 9.50e-8 s, hf3 1.93e-7 s, hf4 1.90e-7 s,
 varying_area 1.34e-8 s (hf1's patches under the HF2 load: a few patches carry large loads at the start), LF states
@@ -18,15 +18,6 @@ takes the smallest of its pads.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
-
-FRICTION_H_GAMMA = 4.0  # h γ_max of the friction step (friction_step)
-
-
-def friction_step(estimate: Any) -> float:
-    """The step [s] at which h γ_max = FRICTION_H_GAMMA for a model's stable-step estimate
-    (:class:`~aca_warp.hf.solver.StepEstimate`, whose ``friction`` is 2/γ_max)."""
-    return 0.5 * FRICTION_H_GAMMA * estimate.friction
 
 
 @dataclass(frozen=True)
@@ -36,8 +27,8 @@ class Stepping:
     Attributes:
         integrator: HF integrator (``strang``: the one the on-chip engine runs).
         precision: "fp32" or "fp64".
-        dt: Fixed step [s]; None: ``bound_fraction`` × the batch's friction step (:func:`friction_step`), at most
-            ``dt_max``.
+        dt: Fixed step [s]; None: ``bound_fraction`` × the batch's friction step
+            (:func:`~aca_warp.hf.solver.friction_step`), at most ``dt_max``.
         bound_fraction: Share of the friction step taken when ``dt`` is None.
         dt_max: Largest step taken by the friction-step rule [s]; None: no cap.
         force: Run a step beyond the bounds (with a warning): the quick variant's coarse smoke-check step only.
