@@ -434,7 +434,14 @@ def add_parsers(sub: Any) -> None:
         default=["auto"],
         help="HF engines (default auto: on-chip on CUDA where possible, else general; onchip runs strang and adaptive)",
     )
-    p.add_argument("--dt", type=positive, default=1.0e-8, metavar="S", help="fixed step [s] (default 1e-8)")
+    p.add_argument(
+        "--dt",
+        type=positive,
+        default=1.0e-8,
+        metavar="S",
+        help="fixed step [s] (default 1e-8, the step of the published "
+        "tables; strang's default in `aca-warp hf` is 5e-8)",
+    )
     p.add_argument("--duration", type=positive, default=2.0e-5, metavar="S", help="timed window [s] (default 2e-5)")
     p.add_argument("--sample-dt", type=positive, default=1.0e-6, metavar="S", help="sample interval [s] (default 1e-6)")
     p.add_argument("--no-reference", action="store_true", help="skip the fp64 dt/4 reference run (no μ error)")

@@ -32,7 +32,7 @@ HF_SCENE = small_scene_toml(
     "full", count=40, duration=1.0e-3, sample_dt=5.0e-7, perturbation=1.0e-3, patches=("velocity", "displacement")
 )
 HF_DT = ["--dt", "5e-8"]  # HF_SCENE's step [s] (strang, well inside its stable step): what is written does not depend
-# on it, and the runs take a fifth of the default 1e-8 s
+# on it (strang's default step)
 
 
 def nine_patch_scene(

@@ -83,8 +83,8 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         metavar="S",
         help=f"fixed step [s] (default: strang {STATISTICS_STEP:g}, the step at which the saturated statistics "
         f"were shown to hold; the other fixed-step integrators {DEFAULT_DT:g}; shortened so that whole steps fit the "
-        "sample interval, which may not be shorter than a step asked for); first trial step of adaptive, controlled "
-        "and auto",
+        "sample interval, which may not be shorter than the step, asked for or default); first trial step of "
+        "adaptive, controlled and auto",
     )
     hf.add_argument(
         "--tolerance",

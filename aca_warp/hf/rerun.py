@@ -12,6 +12,7 @@ path as ``aca-warp hf`` and, on the same device and precision, gives the same bi
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,7 +23,7 @@ import numpy as np
 
 from aca_warp.common.bounds import json_attribute
 from aca_warp.common.errors import SceneError
-from aca_warp.hf.options import WATCHDOG_FACTOR, RunOptions
+from aca_warp.hf.options import DEFAULT_DT, STEP_CONTROLLED, WATCHDOG_FACTOR, RunOptions
 from aca_warp.scene import Friction, Growth, Initial, Material, Matrix, Pad, Patches, Record, Scene
 
 
@@ -99,12 +100,20 @@ def scene_from_run(f: h5py.File, path: Path) -> Scene:
 
 
 def _options(f: h5py.File, path: Path) -> RunOptions:
-    """The stored run options (files written before ``run_options`` existed keep them as ``step_policy``)."""
+    """The stored run options (files written before ``run_options`` existed keep them as ``step_policy``). A
+    fixed-step run without a stored step (files and sweep shards written while every fixed-step default was
+    :data:`DEFAULT_DT`; since, the step is stored) is repeated at the step it took (the ``dt`` its file recorded when
+    it closed), or, for a file stopped before, at :data:`DEFAULT_DT`: not at today's default."""
     if "run_options" in f.attrs:
-        return RunOptions.from_dict(_json(f.attrs, "run_options", path))
-    policy = _json(f.attrs, "step_policy", path)
-    keys = ("duration", "integrator", "dt", "tolerance", "force", "engine", "checkpoint_interval")
-    return RunOptions.from_dict({k: policy[k] for k in keys if k in policy})
+        options = RunOptions.from_dict(_json(f.attrs, "run_options", path))
+    else:
+        policy = _json(f.attrs, "step_policy", path)
+        keys = ("duration", "integrator", "dt", "tolerance", "force", "engine", "checkpoint_interval")
+        options = RunOptions.from_dict({k: policy[k] for k in keys if k in policy})
+    if options.dt is None and options.integrator not in STEP_CONTROLLED:
+        taken = f.attrs.get("dt")  # the step the run took (written when it closed), else the default of its time
+        options = dataclasses.replace(options, dt=float(taken) if taken is not None else DEFAULT_DT)
+    return options
 
 
 def relaxed_checks(s: RunSettings) -> list[str]:

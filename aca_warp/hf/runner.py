@@ -138,16 +138,18 @@ def run_scene(
     Everything is validated before the simulation starts. A fault or an interrupt (Ctrl-C) still leaves a
     readable file holding every sample up to that point, marked ``complete = False``. The file also keeps the
     solver state of the last checkpoint (``options.checkpoint_interval``: automatic by default, 0 for none), so that
-    a stopped or killed run continues with :func:`resume_run`. The file stores the options with the duration and
-    the engine resolved. ``announce`` receives the :class:`RunPlan` once everything is validated, just before the
-    run starts. ``force_limits`` lifts the size limits and the free-space check (:func:`plan_run`; None:
-    ``options.force``).
+    a stopped or killed run continues with :func:`resume_run`. The file stores the options with the duration, the
+    step (a fixed-step integrator's default written out) and the engine resolved. ``announce`` receives the
+    :class:`RunPlan` once everything is validated, just before the run starts. ``force_limits`` lifts the size
+    limits and the free-space check (:func:`plan_run`; None: ``options.force``).
     """
     options = options or RunOptions()
     lock = OutputLock.acquire(output, what=busy())  # held from here until the file has its final name
     try:
         check_output_path(output, overwrite=overwrite)
         options = options.with_duration(scene.duration if options.duration is None else options.duration)
+        if options.dt is None and options.integrator not in STEP_CONTROLLED:  # the file keeps the step asked for
+            options = dataclasses.replace(options, dt=default_step(options.integrator))
         plan = plan_run(scene, options, precision, force_limits=force_limits)  # absurd counts or sizes: refused early
         if not (options.force if force_limits is None else force_limits):
             hint = "a larger sample interval, a shorter patch window or decimation; "

@@ -40,6 +40,7 @@ import numpy as np
 from aca_warp.studies.report import Log, add_device, command_line, figure, fmt, md_table, save_figure, write_json
 
 MM2 = 1.0e-6
+HF_DT = 1.0e-8  # s: the HF runs' strang step (docs/results_multiscale_hf.md); the dense states need it
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -119,7 +120,7 @@ def run_hf_stage(lf_path: Path, args: argparse.Namespace, log: Log) -> dict[str,
         path = Path(args.runs_dir or args.outdir) / f"hf_{name}.h5"
         path.parent.mkdir(parents=True, exist_ok=True)
         t0 = time.perf_counter()
-        run_to_file(scene, path, device=args.device, overwrite=args.overwrite)
+        run_to_file(scene, path, device=args.device, overwrite=args.overwrite, dt=HF_DT)
         analyze_run(path, freq_range=(1.0e3, None))
         log(
             f"HF {name}: {scene.patches.count} patches, F_N {scene.normal_force:.0f} N, "

@@ -55,7 +55,7 @@ import numpy as np
 
 from aca_warp.analysis.spectra import amplitude_spectrum, peak
 from aca_warp.analysis.sync import sync_index_from_signals
-from aca_warp.hf.options import DEFAULT_DT, DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS
+from aca_warp.hf.options import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS, default_step
 from aca_warp.hf.reference import SCIPY_METHODS, ReferenceODE
 from aca_warp.scene import Record
 from aca_warp.studies.report import add_device, add_page_options, command_line, measure_or_report, write_json
@@ -486,7 +486,8 @@ def measure(args: argparse.Namespace, argv: list[str]) -> Path:
     args.long_ref_dt = args.long_ref_dt or 2.5e-9
     args.scipy_cap = args.scipy_cap or (5.0 if args.quick else 30.0)
     args.scipy_cap_long = args.scipy_cap_long or (10.0 if args.quick else 60.0)
-    print(f"default integrator {DEFAULT_INTEGRATOR}, dt {DEFAULT_DT:g} s, tolerance {DEFAULT_TOLERANCE:g}", flush=True)
+    dt = default_step(DEFAULT_INTEGRATOR)
+    print(f"default integrator {DEFAULT_INTEGRATOR}, dt {dt:g} s, tolerance {DEFAULT_TOLERANCE:g}", flush=True)
     dev = wp.get_device(args.device)
     t0 = time.perf_counter()
     results = []
@@ -507,7 +508,7 @@ def measure(args: argparse.Namespace, argv: list[str]) -> Path:
         "quick": bool(args.quick),
         "sample_dt_s": SAMPLE_DT,
         "fmin_hz": args.fmin,
-        "defaults": {"integrator": DEFAULT_INTEGRATOR, "dt": DEFAULT_DT, "tolerance": DEFAULT_TOLERANCE},
+        "defaults": {"integrator": DEFAULT_INTEGRATOR, "dt": dt, "tolerance": DEFAULT_TOLERANCE},
         "scenes": results,
         "total_wall_s": time.perf_counter() - t0,
         "command": command_line("work_precision.py", argv),

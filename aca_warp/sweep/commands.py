@@ -63,7 +63,12 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--duration", type=positive, metavar="S", help="simulated time per pad [s] (default: the spec's)")
     p.add_argument("--integrator", choices=INTEGRATORS, help="time integrator (default: the spec's, else strang)")
     p.add_argument("--precision", choices=("fp32", "fp64"), help="state precision (default: the spec's, else fp64)")
-    p.add_argument("--dt", type=positive, metavar="S", help="fixed step [s] (default: the spec's, else 1e-8)")
+    p.add_argument(
+        "--dt",
+        type=positive,
+        metavar="S",
+        help="fixed step [s] (default: the spec's, else strang 5e-8, the other fixed-step integrators 1e-8)",
+    )
     p.add_argument(
         "--memory-fraction",
         type=fraction,
