@@ -82,8 +82,9 @@ STEPPING: dict[str, Stepping] = {
         reason="the HF pads on the LF states (§3.3): their friction steps lie at 1.5e-8 … 4.1e-7 s (patches carrying "
         "large loads at the high-pressure applications), so a batch runs at 0.9 × its smallest; the statistical "
         "work-precision on one H200 (32 app2_start pads, 20 ms) lets no coarser step through: against fp64 at 1e-8 s "
-        "fp32 at 2e-8 s moves the growth rate by 0.27 σ, at 5e-8 s the velocity-sum peak by 0.4 σ; fp32 keeps the "
-        "dense states' neighbour lists (up to 31 links per patch) on chip where fp64 does not"
+        "fp32 at 2e-8 s moves the growth rate by 0.27 σ, at 5e-8 s the velocity-sum peak by 0.4 σ; the other LF "
+        "states keep fp32 at 5e-8 s (ms_short) and 1e-7 s (ms_mid, ms_app3), but one rule serves every LF state; fp32 "
+        "keeps the dense states' neighbour lists (up to 31 links per patch) on chip where fp64 does not"
     ),
 }
 """The stepping of every kind of experiment (``Experiment.stepping``)."""
