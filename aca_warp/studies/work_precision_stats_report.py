@@ -92,8 +92,7 @@ def regime_figure(docs: Sequence[dict[str, Any]], folder: Path, stem: str, rule:
         ax.axvline(settings_for(doc, name, rule=rule, criterion=criterion).wall_s, color="0.3", lw=1.0, ls=":")
         ax.axvline(reference_of(reg)["wall_s"], color="0.7", lw=1.5)
         ax.set(xscale="log", yscale="log", xlabel="stepping wall time [s]", ylabel="error of the mean / σ seeds")
-        pads = reg["pads"]
-        ax.set_title(f"{name}: {len(pads)} pads × {max(p['patches'] for p in pads)} patches", fontsize=9)
+        ax.set_title(f"{name}: {_pads(reg).replace(' × ', ' pads × ')} patches", fontsize=9)
         for fam in families:
             ax.plot([], [], _marker(fam, families), color="0.3", ls="none", label=fam)
         ax.legend(fontsize=6, loc="best", title="setting", title_fontsize=6)
