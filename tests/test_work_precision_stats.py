@@ -417,10 +417,10 @@ def test_committed_page_is_what_the_report_writes():
 
 def test_a_result_file_continues_across_a_change_of_the_validation_stepping():
     """The regime's config is compared without the validation's stepping table (the grid sets the steps)."""
-    from aca_warp.studies.work_precision_stats import _without_stepping
+    from aca_warp.studies.work_precision_stats_rule import without_stepping
 
     key = {"seeds": 32, "window": 0.01, "stepping": {"hf": "strang, dt = 1e-07 s, fp32"}}
-    assert _without_stepping(key) == {"seeds": 32, "window": 0.01} == _without_stepping({**key, "stepping": {}})
+    assert without_stepping(key) == {"seeds": 32, "window": 0.01} == without_stepping({**key, "stepping": {}})
 
 
 def _parts_of(reg: dict, seeds: list[range], tags: list[str]) -> list[dict]:

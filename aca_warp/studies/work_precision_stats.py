@@ -73,6 +73,7 @@ from aca_warp.studies.work_precision_stats_rule import (
     load_results,
     measures_of,
     pad_values,
+    without_stepping,
 )
 
 PRECISIONS = ("fp32", "fp64")
@@ -305,7 +306,7 @@ def measure_regime(
     plan = prep.plan
     reg: dict[str, Any] = {
         "name": name, "description": prep.exp.description, "kind": prep.exp.kind,
-        "config": _without_stepping(cfg.run_key()),
+        "config": without_stepping(cfg.run_key()),
         "duration_s": plan.duration, "settle_s": plan.settle, "window_start_s": plan.window_start,
         "pads": [{"seed": s.initial.seed, "member": m, "patches": s.patches.count}
                  for s, m in zip(prep.scenes, prep.members, strict=True)],
@@ -318,7 +319,7 @@ def measure_regime(
         old = load_results(path)
         oreg = old["regimes"][name]
         if old["machine"]["device_name"] != head["machine"]["device_name"] or any(
-            (_without_stepping(oreg.get(k)) if k == "config" else oreg.get(k)) != reg[k] for k in CONTINUED
+            (without_stepping(oreg.get(k)) if k == "config" else oreg.get(k)) != reg[k] for k in CONTINUED
         ):
             raise FileExistsError(f"{path} holds another run of {name} (device, pads, settings or reference "
                                   "differ): choose another --out")  # fmt: skip
@@ -357,12 +358,6 @@ def measure_regime(
             f"{state}, {row.get('saturated', 0)}/{len(prep.scenes)} pads saturated")  # fmt: skip
     _write(path, doc, before + log.elapsed() - t0)
     return path
-
-
-def _without_stepping(config: Any) -> Any:
-    """A regime's validation settings less the validation's own stepping table: the grid and the reference set the
-    steps here, so a change of that table does not make a result file another run."""
-    return {k: v for k, v in config.items() if k != "stepping"} if isinstance(config, dict) else config
 
 
 CONTINUED = ("config", "pads", "duration_s", "measures", "reference")

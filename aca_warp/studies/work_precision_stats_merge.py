@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from aca_warp.studies.work_precision_stats_rule import load_results
+from aca_warp.studies.work_precision_stats_rule import load_results, without_stepping
 
 SAME = ("name", "description", "kind", "measures", "reference")
 """Regime fields every part must share (besides its configuration less the seeds)."""
@@ -38,9 +38,9 @@ def _only_regime(doc: dict[str, Any], path: Path) -> tuple[str, dict[str, Any]]:
 
 
 def _config_less_seeds(reg: dict[str, Any]) -> dict[str, Any]:
-    """The regime's validation settings less the seeds and the validation's own stepping table (the grid and the
-    reference set the steps, as for a continued file)."""
-    return {k: v for k, v in reg["config"].items() if k not in ("seeds", "first_seed", "stepping")}
+    """The regime's validation settings as a continued file compares them (:func:`without_stepping`), less the
+    seeds."""
+    return {k: v for k, v in without_stepping(reg["config"]).items() if k not in ("seeds", "first_seed")}
 
 
 def merged_tag(tags: Sequence[str]) -> str:
@@ -102,16 +102,15 @@ def _merged_row(label: str, role: str, rows: list[dict[str, Any] | None], order:
         prefix = "not run" if all(f.startswith("not run") for f in bad) else "incomplete"
         return {**base, "label": label, "role": role, "complete": False, "wall_s": None,
                 "fault": f"{prefix}: complete in {len(rows) - len(bad)} of {len(rows)} parts ({kinds})"}  # fmt: skip
-    full = [r for r in rows if r is not None]
     row: dict[str, Any] = {**base, "complete": True, "fault": None}
     for k in SUMMED:
-        vals = [r.get(k) for r in full]
+        vals = [r.get(k) for r in have]
         row[k] = sum(vals) if all(v is not None for v in vals) else None
-    row["part_wall_s"] = [r["wall_s"] for r in full]
+    row["part_wall_s"] = [r["wall_s"] for r in have]
     for k in ("dt_used", "engine", "host"):
-        vals = {repr(r.get(k)) for r in full}
-        row[k] = full[0].get(k) if len(vals) == 1 else [r.get(k) for r in full]
-    row["values"] = {m: [full[i]["values"][m][j] for i, j in order] for m in measures}
+        vals = {repr(r.get(k)) for r in have}
+        row[k] = have[0].get(k) if len(vals) == 1 else [r.get(k) for r in have]
+    row["values"] = {m: [have[i]["values"][m][j] for i, j in order] for m in measures}
     return row
 
 
@@ -128,9 +127,9 @@ def merge(paths: Sequence[Path]) -> dict[str, Any]:
     parts.sort(key=lambda part: min(int(x["seed"]) for x in part[3]["pads"]))
     _, d0, name, r0 = parts[0]
     members = list(dict.fromkeys(pad.get("member") for _, _, _, r in parts for pad in r["pads"]))
-    order = sorted(((i, j) for i, (_, _, _, r) in enumerate(parts) for j in range(len(r["pads"]))),
-                   key=lambda ij: (members.index(parts[ij[0]][3]["pads"][ij[1]].get("member")),
-                                   int(parts[ij[0]][3]["pads"][ij[1]]["seed"])))  # fmt: skip
+    keyed = sorted((members.index(pad.get("member")), int(pad["seed"]), i, j)
+                   for i, (_, _, _, r) in enumerate(parts) for j, pad in enumerate(r["pads"]))  # fmt: skip
+    order = [(i, j) for *_, i, j in keyed]
     pads = [parts[i][3]["pads"][j] for i, j in order]
     keys = list(dict.fromkeys((s["label"], s["role"]) for _, _, _, r in parts for s in r["settings"]))
     settings = []

@@ -479,6 +479,12 @@ class Choice:
         return self.reference_wall_s / self.wall_s if self.wall_s > 0 else math.nan
 
 
+def without_stepping(config: Any) -> Any:
+    """A regime's validation settings less the validation's own stepping table: the grid and the reference set the
+    steps here, so a change of that table does not make a result file another run (continued or merged)."""
+    return {k: v for k, v in config.items() if k != "stepping"} if isinstance(config, dict) else config
+
+
 def load_results(source: dict[str, Any] | str | Path) -> dict[str, Any]:
     """A result document (the study's JSON) from a dict or a path."""
     if isinstance(source, dict):
