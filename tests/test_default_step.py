@@ -4,6 +4,8 @@ fixed-step integrators keep 1e-8 s."""
 
 from __future__ import annotations
 
+import pytest
+
 from aca_warp.hf.loop import run_hf
 from aca_warp.hf.model import build_model
 from aca_warp.hf.options import DEFAULT_DT, STATISTICS_STEP, RunOptions, default_step
@@ -71,7 +73,7 @@ def test_run_files_keep_the_step_they_ran_at(tmp_path, capsys):
 def test_a_sweep_spec_writes_its_default_step_out():
     """A sweep without run.dt takes the integrator's default step, written into its run settings and hash (a sweep
     directory begun when the default was 1e-8 s is then another sweep, not continued at another step)."""
-    from aca_warp.sweep import load_spec
+    from aca_warp.sweep import SweepError, load_spec
 
     doc = {"sweep": {"base": "hf1"}, "run": {"duration": 1e-5}, "parameters": {"friction.M": [0.6, 0.7]}}
     spec = load_spec(doc)
@@ -80,3 +82,5 @@ def test_a_sweep_spec_writes_its_default_step_out():
     assert load_spec({**doc, "run": {"duration": 1e-5, "dt": 1e-8}}).hash != spec.hash
     assert load_spec({**doc, "run": {"duration": 1e-5, "integrator": "implicit-friction"}}).dt == DEFAULT_DT
     assert load_spec({**doc, "run": {"duration": 1e-5, "integrator": "adaptive"}}).dt is None
+    with pytest.raises(SweepError, match="shorter than the step 1e-08 s"):  # checked against the first trial's bound
+        load_spec({**doc, "run": {"duration": 1e-5, "integrator": "adaptive", "sample_dt": 5e-9}})

@@ -39,6 +39,13 @@ def default_step(integrator: str) -> float:
     return STATISTICS_STEP if integrator == "strang" else DEFAULT_DT
 
 
+def step_asked(integrator: str, dt: float | None) -> float | None:
+    """The step a run of ``integrator`` asks for, as its file or sweep records it: ``dt``, or for a fixed-step
+    integrator :func:`default_step` written out; None stays None for the step-controlled integrators (their first
+    trial is the solver's)."""
+    return default_step(integrator) if dt is None and integrator not in STEP_CONTROLLED else dt
+
+
 def tolerance_keyword(integrator: str) -> str:
     """The option a study's single tolerance ``tol=`` sets for ``integrator``: ``tolerance`` for ``adaptive``,
     ``split_tolerance`` for ``controlled`` and ``auto`` (whose pair keeps its default)."""

@@ -23,7 +23,7 @@ from aca_warp.common.runfile import busy, reopen_resumable
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
-from aca_warp.hf.options import STEP_CONTROLLED, RunOptions, default_step
+from aca_warp.hf.options import STEP_CONTROLLED, RunOptions, default_step, step_asked
 from aca_warp.hf.recorder import check_run, check_sample_step
 from aca_warp.hf.runfile import RunWriter, file_bytes
 from aca_warp.hf.sanity import check_contact
@@ -148,8 +148,7 @@ def run_scene(
     try:
         check_output_path(output, overwrite=overwrite)
         options = options.with_duration(scene.duration if options.duration is None else options.duration)
-        if options.dt is None and options.integrator not in STEP_CONTROLLED:  # the file keeps the step asked for
-            options = dataclasses.replace(options, dt=default_step(options.integrator))
+        options = dataclasses.replace(options, dt=step_asked(options.integrator, options.dt))  # the file keeps it
         plan = plan_run(scene, options, precision, force_limits=force_limits)  # absurd counts or sizes: refused early
         if not (options.force if force_limits is None else force_limits):
             hint = "a larger sample interval, a shorter patch window or decimation; "

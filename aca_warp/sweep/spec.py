@@ -314,7 +314,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     """The :class:`SweepSpec` of a spec doc; ``check``: build a few pads first (:func:`_check_pads`; a shard task
     skips it, its client checked the spec)."""
     from aca_warp.hf.model import PRECISIONS
-    from aca_warp.hf.options import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS, STEP_CONTROLLED, default_step
+    from aca_warp.hf.options import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS, default_step, step_asked
 
     sw, run = doc["sweep"], doc["run"]
     base_doc, scene_dir, base_name = _base_doc(doc, base_dir)
@@ -351,9 +351,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         return float(v)
 
     duration = num("duration", base.duration)
-    dt = num("dt", None)
-    if dt is None and integrator not in STEP_CONTROLLED:  # written out: the hash and the shards name the step
-        dt = default_step(integrator)
+    dt = step_asked(integrator, num("dt", None))  # written out: the hash and the shards name the step
     tolerance = num("tolerance", DEFAULT_TOLERANCE)
     sample_dt = num("sample_dt", base.record.sample_dt)
     try:
@@ -361,8 +359,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
 
         base = base.replace(duration=duration, record=dataclasses.replace(base.record, sample_dt=sample_dt))
         check_run(duration, base.record)
-        if dt is not None:
-            check_sample_step(sample_dt, dt)
+        check_sample_step(sample_dt, default_step(integrator) if dt is None else dt)
     except SceneError as e:
         raise SweepError(f"run settings: {e}") from None
     if dt is not None and not duration / dt <= MAX_STEPS:
