@@ -40,6 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     from aca_warp.common.files import host_cpu
     from aca_warp.common.launches import Launcher
     from aca_warp.hf.solver import HFSolver
+    from aca_warp.studies.report import command_line
 
     model = build_model([preset(args.scene)], device="cpu")
     state = initial_state(model)
@@ -74,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
             "machine": f"{host_cpu()}, {platform.platform()}",
             "scene": args.scene,
             "patches": n,
-            "command": " ".join(["python3", "scripts/launch_cost.py", *(sys.argv[1:] if argv is None else argv)]),
+            "command": command_line("launch_cost.py", sys.argv[1:] if argv is None else argv),
             "microseconds": result,
         }
         args.json.parent.mkdir(parents=True, exist_ok=True)
