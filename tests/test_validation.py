@@ -234,6 +234,24 @@ def test_reduced_run_end_to_end(tmp_path, short_experiment, capsys):
     assert VL.main(second) == 0 and not (tmp_path / "bare" / "hf1").exists()
     again = json.loads((tmp_path / "bare" / "results.json").read_text())["results"]
     assert again["hf1"]["pads"][0]["measures"]["f1"] == doc["results"]["hf1"]["pads"][0]["measures"]["f1"]
+    # runs made side by side (--only on several GPUs) are joined by giving each results file to --with
+    halves = []
+    for name in ("hf1", "hf1_short"):
+        half = tmp_path / f"{name}.json"
+        half.write_text(json.dumps({**doc, "results": {name: doc["results"][name]}}))
+        halves.append(str(half))
+    joined = tmp_path / "joined"
+    assert VL.main([*argv[:-6], "--out", str(tmp_path / "bare2"), "--results", str(joined), "--with", *halves]) == 0
+    both = json.loads((joined / "results.json").read_text())
+    assert both["results"] == doc["results"] and not (tmp_path / "bare2" / "hf1").exists()
+    assert [p["experiments"] for p in both["meta"]["with"]] == [["hf1"], ["hf1_short"]]
+    assert "--with EARLIER_RESULTS_JSON EARLIER_RESULTS_JSON" in both["meta"]["command"]
+    assert "took the finished experiments of 2 earlier run(s) as done" in (joined / "validation.md").read_text()
+    # an experiment finished in two of the files is refused before anything is written
+    capsys.readouterr()
+    twice = [*argv[:-6], "--out", str(tmp_path / "b3"), "--results", str(tmp_path / "r3"), "--with", *halves, halves[0]]
+    assert VL.main(twice) == 2 and "hf1 finished in" in capsys.readouterr().err
+    assert not (tmp_path / "r3").exists() and not (tmp_path / "b3").exists()
 
 
 def test_report_refuses_a_file_that_is_not_a_results_file(tmp_path, capsys):

@@ -243,21 +243,28 @@ def test_table_rows_and_every_registered_row_has_a_known_kind():
 # ------------------------------------------------------------------------------------------------ settings and cost
 
 
-def test_stepping_takes_the_fixed_step_the_friction_step_rule_the_cap_or_an_override():
+def test_stepping_is_each_regimes_pick_of_the_statistical_work_precision_or_an_override():
     from aca_warp.hf.solver import StepEstimate, friction_step
     from aca_warp.studies.validation import settings as VSet
+    from aca_warp.studies.validation.base import EXPERIMENTS
+    from aca_warp.studies.validation.multiscale import GROUPS
 
-    hf = VSet.STEPPING["hf"]
-    assert hf.step(8.8e-8) == hf.step(1.9e-7) == 5e-8  # the measured step, whatever the friction step
-    assert VB.Config().stepping("growth").step(1.34e-8) == 5e-8  # the measured step for the growing pads too
-    lf = VB.Config().stepping("lf_states")
-    assert lf.step(1.34e-8) == pytest.approx(1.206e-8)  # 0.9 × the friction step
-    assert lf.step(1.9e-7) == 8e-8  # capped
-    # the friction step is h γ_max = 4: twice the explicit friction estimate 2/γ_max
+    cfg = VB.Config()
+    assert cfg.stepping("hf").dt == cfg.stepping("growth").dt == 5e-8  # hf1, hf2 and va pick 5e-8 s
+    assert (cfg.stepping("ms_fast").dt, cfg.stepping("ms_fast").precision) == (1e-8, "fp64")  # only the reference
+    assert [cfg.stepping(g).dt for g in ("ms_short", "ms_mid", "ms_app3")] == [5e-8, 1e-7, 1e-7]
+    # each LF group (and its from-rest variant) runs at its own regime's pick; ms_lin holds the densest states
+    for g in GROUPS:
+        assert EXPERIMENTS[g].stepping == g
+    assert EXPERIMENTS["ms_lin"].stepping == "ms_fast" and EXPERIMENTS["ms_order"].stepping == "ms_order"
+    assert all(e.stepping in VSet.STEPPING for e in EXPERIMENTS.values())
+    # the friction step is h γ_max = 4 (logged beside the step): twice the explicit friction estimate 2/γ_max
     assert friction_step(StepEstimate(spring=2e-6, friction=4.82e-8, explicit=4.8e-8)) == pytest.approx(9.64e-8)
-    assert VB.Config(dt=5e-9, precision="fp64").stepping("hf").step(9.65e-8) == 5e-9
-    quick = VB.Config(quick=True).stepping("lf_states")
-    assert quick.dt == 1e-7 and quick.force and "forced" in quick.describe()
+    over = VB.Config(dt=5e-9, precision="fp64")
+    assert {(over.stepping(k).dt, over.stepping(k).precision) for k in VSet.STEPPING} == {(5e-9, "fp64")}
+    quick = VB.Config(quick=True).stepping("ms_fast")
+    assert quick.dt == 1e-7 and quick.precision == "fp32" and quick.force and "forced" in quick.describe()
+    assert cfg.stepping("ms_mid").describe() == "strang, dt = 1e-07 s, fp32"
 
 
 def test_cost_model_follows_the_measured_waves_and_the_shared_memory():

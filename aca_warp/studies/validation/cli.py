@@ -76,9 +76,10 @@ def build_parser() -> argparse.ArgumentParser:
                    f"experiments (a sector; the whole state; quick {QUICK.state_patches})")  # fmt: skip
     p.add_argument("--workers", type=int, default=None, help="processes that analyse the pads of an experiment "
                    "(default: the CPU count less one, at most 15)")  # fmt: skip
-    p.add_argument("--with", dest="with_results", type=Path, default=None, metavar="RESULTS_JSON", help="take the "
-                   "experiments of an earlier results.json with the same settings as done (a second call that runs "
-                   "what the first left out)")  # fmt: skip
+    p.add_argument("--with", dest="with_results", type=Path, nargs="+", default=None, metavar="RESULTS_JSON",
+                   help="take the finished experiments of earlier results.json files with the same settings as done: "
+                   "a second call that runs what the first left out, or the join of runs made side by side with "
+                   "--only on several GPUs (an experiment finished in two of the files is refused)")  # fmt: skip
     p.add_argument("--rerun", action="store_true", help="run again even where a saved result fits")
     p.add_argument("--keep-records", action="store_true", help="also keep each run's records (globals and per-patch "
                    "velocities, DIR/<experiment>/records.npz: the per-patch record's size per experiment)")  # fmt: skip
@@ -141,7 +142,7 @@ def dry_run(names: list[str], cfg: Config, log: Log) -> float:
         batches.append(batch)
         bound = batch_friction_step(batch.scenes)
         step = cfg.stepping(batch.stepping_kind)
-        steps = costs.steps(batch, cfg, bound)
+        steps = costs.steps(batch, cfg)
         per = costs.step(batch, cfg)
         total += steps * per
         p = batch.plan
@@ -150,8 +151,8 @@ def dry_run(names: list[str], cfg: Config, log: Log) -> float:
         log(
             f"{key} ({', '.join(members)}): {len(batch.scenes)} pads × {'/'.join(map(str, sizes))} patches; σ_i "
             f"min/median/max {sig[0]:.0f}/{sig[1]:.0f}/{sig[2]:.0f} 1/s; run {p.duration * 1e3:.1f} ms in "
-            f"{len(p.segments)} segment(s); friction step {bound:.3g} s, {step.describe()}: dt {step.step(bound):.3g} "
-            f"s, {steps:,} steps at {per * 1e6:.2f} µs/step = {steps * per:.0f} s on {cfg.device}; per-patch record "
+            f"{len(p.segments)} segment(s); friction step {bound:.3g} s, {step.describe()}: "
+            f"{steps:,} steps at {per * 1e6:.2f} µs/step = {steps * per:.0f} s on {cfg.device}; per-patch record "
             f"{sum(m.plan.velocity_bytes for m in batch.members) / 2**20:.0f} MiB"
         )
     extra = overheads(batches, cfg, lf_runs)
@@ -208,13 +209,14 @@ def _list() -> None:
 
 def run_all(
     names: list[str], cfg: Config, out: Path, log: Log, args: argparse.Namespace,
-    done: Callable[[dict[str, dict]], None] | None = None,
+    done: Callable[[dict[str, dict]], None] | None = None, earlier: dict[str, dict] | None = None,
 ) -> dict:  # fmt: skip
     """Reuse, analyse again or run every experiment of ``names`` batch by batch; failures are logged and recorded
-    (``args``: rerun, reanalyse, keep_records, max_wall). ``done(results)`` after every batch (the results file is
-    written then, so a run cut off keeps what it finished)."""
+    (``args``: rerun, reanalyse, keep_records, max_wall). ``earlier``: finished results taken as done (``--with``).
+    ``done(results)`` after every batch (the results file is written then, so a run cut off keeps what it
+    finished)."""
+    earlier = earlier or {}
     results: dict[str, dict] = {}
-    earlier = earlier_results(args.with_results, cfg, log)
     todo = []
     for name in names:
         saved = None if args.rerun or args.reanalyse else load_result(out / name, EXPERIMENTS[name], cfg)
@@ -254,17 +256,31 @@ def run_all(
     return results
 
 
-def earlier_results(path: Path | None, cfg: Config, log: Log) -> dict[str, dict]:
-    """The finished experiments of an earlier ``results.json`` made with the same settings (``--with``)."""
+def earlier_results(paths: list[Path] | None, cfg: Config, log: Log) -> tuple[dict[str, dict], list[dict]]:
+    """The finished experiments of earlier ``results.json`` files made with the same settings (``--with``), and the
+    provenance of each file used (command, date, machine, wall time); a file of other settings is logged and left
+    out. ValueError for a file that is not a results file, or an experiment finished in two of them (which to take
+    would be a guess)."""
     from aca_warp.studies.validation.results import read_results
 
-    if path is None:
-        return {}
-    results, meta, _ = read_results(path)
-    if meta["config"] != cfg.run_key():
-        log(f"{path}: other settings than this run's; not used")
-        return {}
-    return {n: r for n, r in results.items() if n in EXPERIMENTS and r.get("status") in ("done", "stopped")}
+    taken: dict[str, dict] = {}
+    source: dict[str, Path] = {}
+    parts: list[dict] = []
+    for path in paths or []:
+        results, meta, _ = read_results(path)
+        if meta["config"] != cfg.run_key():
+            log(f"{path}: other settings than this run's; not used")
+            continue
+        done = {n: r for n, r in results.items() if n in EXPERIMENTS and r.get("status") in ("done", "stopped")}
+        twice = sorted(set(done) & set(taken))
+        if twice:
+            raise ValueError(f"{path}: {', '.join(twice)} finished in {source[twice[0]]} as well; give each once")
+        taken.update(done)
+        source.update(dict.fromkeys(done, path))
+        facts = {k: meta.get(k) for k in ("command", "created", "machine", "wall_s")}
+        parts.append(facts | {"experiments": sorted(done)})
+        log(f"{path}: taking {len(done)} finished experiment(s) as done")
+    return taken, parts
 
 
 def _failed(out: Path, name: str, e: Exception, log: Log) -> dict[str, Any]:
@@ -292,11 +308,19 @@ FOLDERS = {"--out": "DIR", "--results": "RESULTS", "--with": "EARLIER_RESULTS_JS
 
 
 def portable(argv: list[str]) -> list[str]:
-    """``argv`` with the values of :data:`FOLDERS` replaced by their role (the run's folders are not the reader's)."""
-    out = list(argv)
-    for i, a in enumerate(out[:-1]):
-        if a in FOLDERS:
-            out[i + 1] = FOLDERS[a]
+    """``argv`` with the values of :data:`FOLDERS` replaced by their role (the run's folders are not the reader's;
+    every value of ``--with``, which takes several)."""
+    out: list[str] = []
+    role, many = None, False
+    for a in argv:
+        if a.startswith("--"):
+            role, many = FOLDERS.get(a), a == "--with"
+            out.append(a)
+        elif role is not None:
+            out.append(role)
+            role = role if many else None
+        else:
+            out.append(a)
     return out
 
 
@@ -364,6 +388,11 @@ def main(argv: list[str] | None = None) -> int:
         cfg = config_from(args, "cpu" if args.device == "auto" else args.device)
         dry_run(names, dataclasses.replace(cfg, lf_dir=str(args.out / "lf")), Log())
         return 0
+    try:  # before anything is written: the device does not enter the settings compared
+        earlier, parts = earlier_results(args.with_results, config_from(args, "cpu"), Log())
+    except ValueError as e:
+        print(f"validation.py: {e}", file=sys.stderr)
+        return 2
     results_dir = args.results or args.out
     log = TeeLog(results_dir / "validation.log")
     wp = init_warp()
@@ -371,8 +400,11 @@ def main(argv: list[str] | None = None) -> int:
     cfg = dataclasses.replace(config_from(args, device), lf_dir=str(args.out / "lf"))
     args.out.mkdir(parents=True, exist_ok=True)
     log(f"validation ({'quick' if cfg.quick else 'full'}): {', '.join(names)} on {device} -> {args.out}")
-    save = ResultsWriter(results_dir / "results.json", args.out, cfg, log, meta_of(argv, wp, device, cfg))
-    path = save(run_all(names, cfg, args.out, log, args, save), final=True)
+    if parts:
+        log(f"taking {len(earlier)} finished experiment(s) of {len(parts)} earlier results file(s) as done (--with)")
+    meta = meta_of(argv, wp, device, cfg) | ({"with": parts} if parts else {})
+    save = ResultsWriter(results_dir / "results.json", args.out, cfg, log, meta)
+    path = save(run_all(names, cfg, args.out, log, args, save, earlier), final=True)
     log(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
     rows = write_page(path, args.page, results_dir / "validation.md", log)
     for r in rows:

@@ -95,17 +95,13 @@ class Costs:
         raw = step_seconds(len(scenes), n, n_links, step.precision, batch.growth, cfg.device)
         return raw * self.factors.get(batch.stepping_kind, 1.0)
 
-    def steps(self, batch: Any, cfg: Any, bound: float | None = None) -> int:
-        """Steps of the batch's run, at the step of its stepping (``bound``: its friction step [s],
-        :func:`~aca_warp.studies.validation.settings.friction_step`, computed on the host when not given)."""
-        step = cfg.stepping(batch.stepping_kind)
-        if step.dt is None and bound is None:
-            bound = batch_friction_step(batch.scenes)
-        return batch.plan.steps(step.step(bound if bound is not None else 0.0), cfg.sample_dt)
+    def steps(self, batch: Any, cfg: Any) -> int:
+        """Steps of the batch's run at the fixed step of its stepping."""
+        return batch.plan.steps(cfg.stepping(batch.stepping_kind).dt, cfg.sample_dt)
 
-    def estimate(self, batch: Any, cfg: Any, bound: float | None = None) -> float:
+    def estimate(self, batch: Any, cfg: Any) -> float:
         """Estimated seconds of stepping of the batch."""
-        return self.steps(batch, cfg, bound) * self.step(batch, cfg)
+        return self.steps(batch, cfg) * self.step(batch, cfg)
 
     def calibrate(self, batch: Any, cfg: Any, measured: float) -> None:
         """Correct later estimates of the batch's stepping kind by ``measured`` [s per step] over the estimate."""
@@ -116,7 +112,7 @@ class Costs:
 
 
 def batch_friction_step(scenes: list[Any]) -> float:
-    """The friction step of a batch of pads [s] (:func:`~aca_warp.studies.validation.settings.friction_step`), from
+    """The friction step of a batch of pads [s] (:func:`~aca_warp.hf.solver.friction_step`), from
     a host model of them (``stable_step``)."""
     from aca_warp.hf.model import build_model
     from aca_warp.hf.solver import friction_step, stable_step

@@ -187,9 +187,9 @@ def run_batch(
     step = cfg.stepping(batch.stepping_kind)
     model, state = batch_at_start(scenes, cfg.device, step.precision)
     bound = friction_step(stable_step(model))
-    dt = step.step(bound)
+    dt = step.dt
     steps = plan.steps(dt, cfg.sample_dt)
-    est = costs.estimate(batch, cfg, bound)
+    est = costs.estimate(batch, cfg)
     sizes = sorted({s.patches.count for s in scenes})
     names = ", ".join(p.exp.name for p in batch.members)
     log(

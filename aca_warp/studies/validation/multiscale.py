@@ -253,19 +253,21 @@ def state_scene(exp: Experiment, k: int, cfg: Config) -> Any:
     return scene.replace(name=f"{exp.name}:{member}:seed{seed}", initial=initial, origin=None)
 
 
-def _ms(name: str, description: str, members: tuple[str, ...], **kw: Any) -> Experiment:
+def _ms(name: str, description: str, members: tuple[str, ...], stepping: str, **kw: Any) -> Experiment:
     return Experiment(name, "§3.3", description, "multiscale", builder=state_scene, members=members,
-                      window_scale=0.5, stepping="lf_states", **kw)  # fmt: skip
+                      window_scale=0.5, stepping=stepping, **kw)  # fmt: skip
 
 
+# each group runs at its regime's stepping (settings.STEPPING, keyed by the group); ms_lin holds the densest states
 MS_EXPERIMENTS = (
-    *(_ms(g, f"LF states {', '.join(m)} (one pad per state and LF seed)", m) for g, m in GROUPS.items()),
-    *(_ms(f"{g}_rest", f"as {g}, HF started from rest (initial-state variant)", m, initial="rest", quick=False,
+    *(_ms(g, f"LF states {', '.join(m)} (one pad per state and LF seed)", m, g) for g, m in GROUPS.items()),
+    *(_ms(f"{g}_rest", f"as {g}, HF started from rest (initial-state variant)", m, g, initial="rest", quick=False,
           opt_in=True) for g, m in GROUPS.items()),
     _ms("ms_order", "LF schedule 10 / 5 / 30 / 15 bar: the low-load application (app2) right after the 10-bar one "
-        "(load-history variant)", ("app2_start",), schedule_bar=ORDER_BAR),
+        "(load-history variant)", ("app2_start",), "ms_order", schedule_bar=ORDER_BAR),
     _ms("ms_lin", "every state from rest for 2 ms, analysed over 0.5–2 ms unsaturated (the single run's window; "
-        "run-length variant)", STATES, initial="rest", kind="window", duration=2.0e-3, window_start=0.5e-3),
+        "run-length variant)", STATES, "ms_fast", initial="rest", kind="window", duration=2.0e-3,
+        window_start=0.5e-3),
 )  # fmt: skip
 
 

@@ -282,6 +282,19 @@ def render(
     ]
 
 
+def _earlier_runs(meta: dict[str, Any]) -> str:
+    """The runs whose finished experiments this one took as done (``--with``), one clause each; "" if none."""
+    parts = meta.get("with") or []
+    if not parts:
+        return ""
+    each = "; ".join(
+        f"`{p['command']}` on {p['created']}, {p['machine']}, wall time {p['wall_s']:.0f} s: "
+        f"{', '.join(p['experiments'])}"
+        for p in parts
+    )
+    return f" It took the finished experiments of {len(parts)} earlier run(s) as done: {each}."
+
+
 def _header_lines(meta: dict[str, Any]) -> list[str]:
     """The opening of the generated page: the variant (quick or full), the command, machine, versions and wall
     time that produced it, and the settings of its runs."""
@@ -312,8 +325,8 @@ def _header_lines(meta: dict[str, Any]) -> list[str]:
         f"Produced by `{meta['command']}` on {meta['created']}, {meta['machine']}; "
         f"Warp {meta['versions'].get('warp-lang')}, aca-warp {meta['versions'].get('aca-warp')}; "
         f"wall time {meta['wall_s']:.0f} s (the experiments' runs and analyses, from their checkpoints: "
-        f"{meta.get('experiments_s', 0.0):.0f} s). Rebuilt from `{meta.get('results', 'results.json')}` by "
-        "`python3 scripts/validation.py --report RESULTS --page PAGE`.",
+        f"{meta.get('experiments_s', 0.0):.0f} s).{_earlier_runs(meta)} Rebuilt from "
+        f"`{meta.get('results', 'results.json')}` by `python3 scripts/validation.py --report RESULTS --page PAGE`.",
         "",
         f"Settings: {cfg['seeds']} seeds from {cfg['first_seed']}; {cfg['patches'] or 'the preset’s'} patches per pad; "
         f"stepping {stepping}{f' (overridden: {over})' if over else ''}; global outputs every {cfg['sample_dt']:g} s, "

@@ -1,18 +1,16 @@
 """How the validation's experiments are integrated: integrator, step and precision per kind of scene, in one place.
 
-Every experiment names one entry of :data:`STEPPING` (``Experiment.stepping``); a batch of experiments runs with the
-entry's integrator and precision, and with its fixed step or, when the entry gives none, ``bound_fraction`` × the
-batch's friction step (:func:`~aca_warp.hf.solver.friction_step`: the step at which h γ_max = 4, γ_max = (c + F_N
-max|f′|)/m the fastest friction relaxation of its patches), capped at ``dt_max``. No stability bound of ``strang``
-depends on it (only the springs bound its step); it is the resolution of the friction relaxation at which the
-LF-state runs are made, which the statistical work-precision rule (docs/work_precision_statistics.md) does not let
-coarsen. The run then shortens the step to a whole number of steps per sample interval (``fitted_step``). ``--dt``
-and ``--precision`` replace the table's values for every experiment.
+Every experiment names one entry of :data:`STEPPING` (``Experiment.stepping``), and a batch of experiments runs with
+the entry's integrator, fixed step and precision. Each entry is the setting that the statistical work-precision rule
+(docs/work_precision_statistics.md: every validation measure within a quarter of the spread between seeds from a
+tight reference) picks for the regime the experiments belong to, or the tighter of two where a batch spans two
+regimes. The run then shortens the step to a whole number of steps per sample interval (``fitted_step``).
+``--dt`` and ``--precision`` replace the table's values for every experiment.
 
-Friction steps of the presets at their start: hf1 9.65e-8 s, hf2 9.50e-8 s, hf3 1.93e-7 s, hf4 1.90e-7 s,
-varying_area 1.34e-8 s (hf1's patches under the HF2 load: a few patches carry large loads at the start), LF states
-of the multiscale schedule 1.5e-8 … 5.3e-7 s (LF seed 1; 5.3e-7 s the low-load state of ``ms_order``). A batch
-takes the smallest of its pads.
+The friction step of each batch (:func:`~aca_warp.hf.solver.friction_step`, the step at which h γ_max = 4) is still
+logged and stored with its results: it bounds no step of ``strang`` (only the springs do), but it says how stiff
+the batch's friction is (hf1 9.65e-8 s, hf2 9.50e-8 s, hf3 1.93e-7 s, hf4 1.90e-7 s, varying_area 1.34e-8 s, the
+LF states of the multiscale schedule 1.5e-8 … 5.3e-7 s for LF seed 1).
 """
 
 from __future__ import annotations
@@ -22,41 +20,31 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class Stepping:
-    """Integrator, step and precision of a kind of experiment, with the reason.
+    """Integrator, fixed step and precision of a kind of experiment, with the reason.
 
     Attributes:
+        dt: Fixed step [s].
         integrator: HF integrator (``strang``: the one the on-chip engine runs).
         precision: "fp32" or "fp64".
-        dt: Fixed step [s]; None: ``bound_fraction`` × the batch's friction step
-            (:func:`~aca_warp.hf.solver.friction_step`), at most ``dt_max``.
-        bound_fraction: Share of the friction step taken when ``dt`` is None.
-        dt_max: Largest step taken by the friction-step rule [s]; None: no cap.
         force: Run a step beyond the bounds (with a warning): the quick variant's coarse smoke-check step only.
         reason: Why these settings (the measurements behind them).
     """
 
+    dt: float
     integrator: str = "strang"
     precision: str = "fp32"
-    dt: float | None = None
-    bound_fraction: float = 0.9
-    dt_max: float | None = 8.0e-8
     force: bool = False
     reason: str = ""
 
-    def step(self, friction_step: float) -> float:
-        """The step asked for [s]: ``dt``, or ``bound_fraction`` × ``friction_step`` [s] capped at ``dt_max``."""
-        if self.dt is not None:
-            return self.dt
-        step = self.bound_fraction * friction_step
-        return step if self.dt_max is None else min(step, self.dt_max)
-
     def describe(self) -> str:
-        """One line: integrator, step rule, precision."""
-        step = f"dt = {self.dt:g} s" if self.dt is not None else f"dt = {self.bound_fraction:g} × the friction step"
-        if self.dt is None and self.dt_max is not None:
-            step += f" ≤ {self.dt_max:g} s"
-        return f"{self.integrator}, {step}{' (forced)' if self.force else ''}, {self.precision}"
+        """One line: integrator, step, precision."""
+        return f"{self.integrator}, dt = {self.dt:g} s{' (forced)' if self.force else ''}, {self.precision}"
 
+
+_LF_REGIME = (
+    "(one pad per LF state of the group and LF seed, seeds 1–32, against strang fp64 at 1e-8 s; "
+    "docs/work_precision_statistics.md)"
+)
 
 STEPPING: dict[str, Stepping] = {
     "hf": Stepping(
@@ -76,15 +64,36 @@ STEPPING: dict[str, Stepping] = {
         "growth measure within a quarter of the spread between seeds at 5e-8 s (at 1e-7 s the STFT maximum's "
         "frequency leaves the resolution, at 5e-7 s the first line's fall); the paper-clock record (0.36 s) grows "
         "10× slower through the same saturated stick-slip, so it takes the same step: 20 steps per µs sample, "
-        "7.2e6 steps, where 0.9 × the friction step (1.2e-8 s) took 3.0e7; fp32 as the on-chip record",
+        "7.2e6 steps; fp32 as the on-chip record",
     ),
-    "lf_states": Stepping(
-        reason="the HF pads on the LF states (§3.3): their friction steps lie at 1.5e-8 … 4.1e-7 s (patches carrying "
-        "large loads at the high-pressure applications), so a batch runs at 0.9 × its smallest; the statistical "
-        "work-precision on one H200 (32 app2_start pads, 20 ms) lets no coarser step through: against fp64 at 1e-8 s "
-        "fp32 at 2e-8 s moves the growth rate by 0.27 σ, at 5e-8 s the velocity-sum peak by 0.4 σ; the other LF "
-        "states keep fp32 at 5e-8 s (ms_short) and 1e-7 s (ms_mid, ms_app3), but one rule serves every LF state; fp32 "
-        "keeps the dense states' neighbour lists (up to 31 links per patch) on chip where fp64 does not"
+    "ms_fast": Stepping(
+        dt=1.0e-8,
+        precision="fp64",
+        reason="the densest LF states (app2_start, 3659–4374 patches) and the linear-phase variant that holds them: "
+        f"the statistical work-precision on one H200 {_LF_REGIME} keeps only its reference, strang fp64 at 1e-8 s "
+        "(fp32 at 2e-8 s moves the growth rate by 0.27 σ, at 5e-8 s the velocity-sum peak by 0.4 σ; fp32 at 1e-8 s "
+        "was not measured)",
+    ),
+    "ms_short": Stepping(
+        dt=5.0e-8,
+        reason=f"the LF states app1_start and app2_end: the statistical work-precision on one H200 {_LF_REGIME} "
+        "picks strang fp32 at 5e-8 s (at 1e-7 s μ mean moves by 0.34 σ, μ std by 0.44 σ)",
+    ),
+    "ms_mid": Stepping(
+        dt=1.0e-7,
+        reason=f"the LF states app1_end, app4_start and app4_end: the statistical work-precision on one H200 "
+        f"{_LF_REGIME} picks strang fp32 at 1e-7 s (at 2.5e-7 s the first velocity peak moves by 0.12 σ, undecided)",
+    ),
+    "ms_app3": Stepping(
+        dt=1.0e-7,
+        reason=f"the LF states app3_start and app3_end: the statistical work-precision on four H200s {_LF_REGIME} "
+        "picks strang fp32 at 1e-7 s (at 2.5e-7 s Φ moves by 0.33 σ)",
+    ),
+    "ms_order": Stepping(
+        dt=5.0e-8,
+        reason="app2_start after the low-load schedule (about 200 patches, friction step 4.4e-7 s): not a regime of "
+        "the statistical work-precision; strang fp32 at 5e-8 s, the step that keeps every measure in every measured "
+        "saturated regime but the densest LF states (and hf3's fp32 effect)",
     ),
 }
 """The stepping of every kind of experiment (``Experiment.stepping``)."""
