@@ -70,3 +70,21 @@ def test_rows_from_a_cuda_buffer_are_a_host_copy():
     buf.fill_(-1.0)
     assert rows.tolist() == np.arange(12, dtype=np.float32).reshape(3, 4).tolist()
     assert rows_to_host(buf, 0).shape == (0, 4)
+
+
+def test_flush_cost_script_runs_both_ways_and_restores_the_package(tmp_path):
+    """scripts/recorder_flush_cost.py: each way hands over the same samples, the JSON names the machine and the
+    command, and the package's flush is in place again afterwards."""
+    import json
+
+    import aca_warp.hf.recorder as recorder
+    from scriptload import load_script
+
+    out = tmp_path / "flush.json"
+    argv = ["--seeds", "2", "--patches", "30", "--duration", "1e-4", "--window", "5e-5", "--dt", "1e-7"]
+    assert load_script("recorder_flush_cost").main([*argv, "--repeat", "1", "--json", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["pads"] == 2 and doc["patches"] == [30] and doc["machine"] and "--seeds 2" in doc["command"]
+    rows, whole = doc["runs"]["rows"][0], doc["runs"]["whole"][0]
+    assert rows["bytes"] == whole["bytes"] > 0 and rows["steps"] == whole["steps"] == 1000
+    assert recorder.rows_to_host.__module__ == "aca_warp.hf.recorder"

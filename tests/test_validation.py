@@ -571,3 +571,47 @@ def test_state_sector_keeps_the_gap_of_the_full_state(tmp_path, monkeypatch):
     q = part.pad.span_deg / full.pad.span_deg
     assert cp.matrix_force.sum() == pytest.approx(q * cf.matrix_force.sum(), rel=1e-9)
     assert VM.state_sector(full, 10**6) is full
+
+
+def test_results_of_different_lf_runs_are_neither_reused_nor_joined(tmp_path):
+    """An LF run on a GPU is not bit-reproducible, so a §3.3 result records the digests of the LF run files its pads
+    were cut from: a saved result is reused only while those files are the same, results of different LF runs are not
+    joined by --with, and a §3.3 experiment is not run against another LF folder than the joined results'."""
+    from aca_warp.studies.report import Log, clean
+    from aca_warp.studies.validation.results import read_results
+
+    cfg = VB.Config(seeds=2, lf_dir=str(tmp_path / "lf"))
+    exp = VB.EXPERIMENTS["ms_fast"]
+    (tmp_path / "lf").mkdir()
+    for seed in (1, 2):
+        VM.lf_path(cfg, seed, None).write_bytes(b"LF run %d" % seed)
+    runs = VM.lf_runs(exp, cfg)
+    assert (
+        sorted(runs) == ["lf_full_preset_seed1.h5", "lf_full_preset_seed2.h5"]
+        and VM.lf_runs(VB.EXPERIMENTS["hf1"], cfg) == {}
+    )
+    folder = tmp_path / "ms_fast"
+    folder.mkdir()
+    saved = {"experiment": clean(exp.key()), "config": cfg.run_key(), "status": "done", "lf_runs": runs, "pads": []}
+    (folder / "result.json").write_text(json.dumps(saved))
+    assert VE.load_result(folder, exp, cfg) is not None
+    VM.lf_path(cfg, 2, None).write_bytes(b"LF run 2, again: one birth otherwise")
+    assert VE.load_result(folder, exp, cfg) is None  # cut from other LF runs: run again
+    # --with: two files whose §3.3 results come from different LF runs are refused
+    doc = json.loads((Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json").read_text())
+    _, _, committed = read_results(Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json")
+    files = []
+    for name, digest in (("ms_fast", "aaaa"), ("ms_short", "bbbb")):
+        half = tmp_path / f"{name}.json"
+        result = {**doc["results"][name], "lf_runs": {"lf_full_preset_seed1.h5": digest}}
+        half.write_text(json.dumps({**doc, "results": {name: result}}))
+        files.append(half)
+    with pytest.raises(ValueError, match="different LF runs: lf_full_preset_seed1.h5"):
+        VL.earlier_results(files, committed, Log())
+    files[1].write_text(files[1].read_text().replace("bbbb", "aaaa"))
+    got = VL.earlier_results(files, committed, Log())
+    assert sorted(got.results) == ["ms_fast", "ms_short"] and len(got.parts) == 2
+    # a §3.3 experiment of this call is not run against LF runs other than the joined results'
+    local = VB.Config(**{**committed.__dict__, "lf_dir": str(tmp_path / "lf")})
+    why = VL.lf_refusals(["ms_fast", "hf1"], got.results, local)
+    assert list(why) == ["ms_fast"] and "give --lf-dir their folder" in why["ms_fast"]

@@ -11,6 +11,7 @@ import dataclasses
 import datetime as _dt
 import sys
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -80,6 +81,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="take the finished experiments of earlier results.json files with the same settings as done: "
                    "a second call that runs what the first left out, or the join of runs made side by side with "
                    "--only on several GPUs (an experiment finished in two of the files is refused)")  # fmt: skip
+    p.add_argument("--lf-dir", type=Path, default=None, help="folder of the LF runs of the §3.3 experiments "
+                   "(default DIR/lf): give shares run side by side, and a second call, the same folder, since "
+                   "an LF run on a GPU is not bit-reproducible; results of other LF runs are not joined")  # fmt: skip
     p.add_argument("--rerun", action="store_true", help="run again even where a saved result fits")
     p.add_argument("--keep-records", action="store_true", help="also keep each run's records (globals and per-patch "
                    "velocities, DIR/<experiment>/records.npz: the per-patch record's size per experiment)")  # fmt: skip
@@ -230,6 +234,10 @@ def run_all(
         validation_multiscale.ensure_lf(todo, cfg, log)
     except Exception as e:  # noqa: BLE001 (the experiments that need the LF runs fail below, the others go on)
         log(f"LF runs: FAILED: {type(e).__name__}: {e}")
+    for name, why in lf_refusals(todo, earlier, cfg).items():
+        log(f"{name}: {why}")
+        results[name] = {"status": f"failed: {why}", "pads": []}
+        todo.remove(name)
     costs = Costs()
     for key, members in batches_of(todo):
         preps = []
@@ -256,31 +264,66 @@ def run_all(
     return results
 
 
-def earlier_results(paths: list[Path] | None, cfg: Config, log: Log) -> tuple[dict[str, dict], list[dict]]:
-    """The finished experiments of earlier ``results.json`` files made with the same settings (``--with``), and the
-    provenance of each file used (command, date, machine, wall time); a file of other settings is logged and left
-    out. ValueError for a file that is not a results file, or an experiment finished in two of them (which to take
-    would be a guess)."""
+@dataclass
+class Earlier:
+    """What ``--with`` takes from earlier results files: the finished experiments, each file's provenance (command,
+    date, machine, wall time, its experiments) and their §3.3 LF facts (None if none has any)."""
+
+    results: dict[str, dict] = field(default_factory=dict)
+    parts: list[dict] = field(default_factory=list)
+    lf: dict | None = None
+
+
+def earlier_results(paths: list[Path] | None, cfg: Config, log: Log) -> Earlier:
+    """The finished experiments of earlier ``results.json`` files made with the same settings (``--with``); a file of
+    other settings is logged and left out. ValueError for a file that is not a results file, an experiment finished
+    in two of them (which to take would be a guess), or §3.3 results cut from different LF runs."""
     from aca_warp.studies.validation.results import read_results
 
-    taken: dict[str, dict] = {}
+    got = Earlier()
     source: dict[str, Path] = {}
-    parts: list[dict] = []
+    runs: dict[str, dict[str, str]] = {}
     for path in paths or []:
         results, meta, _ = read_results(path)
         if meta["config"] != cfg.run_key():
             log(f"{path}: other settings than this run's; not used")
             continue
         done = {n: r for n, r in results.items() if n in EXPERIMENTS and r.get("status") in ("done", "stopped")}
-        twice = sorted(set(done) & set(taken))
+        twice = sorted(set(done) & set(got.results))
         if twice:
             raise ValueError(f"{path}: {', '.join(twice)} finished in {source[twice[0]]} as well; give each once")
-        taken.update(done)
+        got.results.update(done)
         source.update(dict.fromkeys(done, path))
+        runs.update({f"{n} in {path}": r.get("lf_runs", {}) for n, r in done.items()})
+        if results.get("lf_states", {}).get("lf_runs"):
+            runs[f"the LF facts in {path}"] = results["lf_states"]["lf_runs"]
+            got.lf = got.lf or results["lf_states"]
         facts = {k: meta.get(k) for k in ("command", "created", "machine", "wall_s")}
-        parts.append(facts | {"experiments": sorted(done)})
+        got.parts.append(facts | {"experiments": sorted(done)})
         log(f"{path}: taking {len(done)} finished experiment(s) as done")
-    return taken, parts
+    clash = validation_multiscale.lf_conflicts(runs)
+    if clash:
+        raise ValueError(
+            f"§3.3 results made from different LF runs: {'; '.join(clash)} (an LF run on a GPU is not bit-"
+            "reproducible); run every share, and a second call, with one --lf-dir"
+        )
+    return got
+
+
+def lf_refusals(todo: list[str], earlier: dict[str, dict], cfg: Config) -> dict[str, str]:
+    """The §3.3 experiments of ``todo`` whose LF runs in ``cfg.lf_dir`` are not the files that the ``earlier``
+    results were cut from, each with the reason (they are not run: their results could not be joined)."""
+    theirs = {f"{n} (earlier)": r.get("lf_runs", {}) for n, r in earlier.items()}
+    out = {}
+    for name in todo:
+        mine = validation_multiscale.lf_runs(EXPERIMENTS[name], cfg)
+        clash = validation_multiscale.lf_conflicts({**theirs, name: mine}) if mine and theirs else []
+        if clash:
+            out[name] = (
+                f"not run: its LF runs in {cfg.lf_dir} are not those of the earlier results ({'; '.join(clash)}); "
+                "give --lf-dir their folder"
+            )
+    return out
 
 
 def _failed(out: Path, name: str, e: Exception, log: Log) -> dict[str, Any]:
@@ -303,7 +346,7 @@ def write_page(results_json: Path, page: Path | None, out_md: Path | None, log: 
     return rows
 
 
-FOLDERS = {"--out": "DIR", "--results": "RESULTS", "--with": "EARLIER_RESULTS_JSON"}
+FOLDERS = {"--out": "DIR", "--results": "RESULTS", "--with": "EARLIER_RESULTS_JSON", "--lf-dir": "LF_DIR"}
 """Options whose value is a folder or file of the machine that ran: named by their role in the recorded command."""
 
 
@@ -339,12 +382,14 @@ def meta_of(argv: list[str], wp: Any, device: str, cfg: Config) -> dict[str, Any
 
 class ResultsWriter:
     """Writes ``results.json`` (called after every batch, and at the end with ``final``): the results so far, every
-    saved result in ``out`` that fits the settings, the LF facts once the multi-timescale experiments have results,
-    and the provenance with the wall time so far."""
+    saved result in ``out`` that fits the settings, the LF facts once the multi-timescale experiments have results
+    (those of the earlier results when ``--with`` brought any), and the provenance with the wall time so far."""
 
-    def __init__(self, path: Path, out: Path, cfg: Config, log: Log, meta: dict[str, Any]) -> None:
+    def __init__(
+        self, path: Path, out: Path, cfg: Config, log: Log, meta: dict[str, Any], lf: dict[str, Any] | None = None
+    ) -> None:
         self.path, self.out, self.cfg, self.log, self.meta = path, out, cfg, log, meta
-        self.lf: dict[str, Any] | None = None
+        self.lf = lf  # the LF facts of the earlier results (--with), else made once from cfg.lf_dir
 
     def __call__(self, results: dict[str, dict], final: bool = False) -> Path:
         every = dict(results)
@@ -386,10 +431,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if args.dry_run:
         cfg = config_from(args, "cpu" if args.device == "auto" else args.device)
-        dry_run(names, dataclasses.replace(cfg, lf_dir=str(args.out / "lf")), Log())
+        dry_run(names, dataclasses.replace(cfg, lf_dir=str(args.lf_dir or args.out / "lf")), Log())
         return 0
     try:  # before anything is written: the device does not enter the settings compared
-        earlier, parts = earlier_results(args.with_results, config_from(args, "cpu"), Log())
+        earlier = earlier_results(args.with_results, config_from(args, "cpu"), Log())
     except ValueError as e:
         print(f"validation.py: {e}", file=sys.stderr)
         return 2
@@ -397,14 +442,15 @@ def main(argv: list[str] | None = None) -> int:
     log = TeeLog(results_dir / "validation.log")
     wp = init_warp()
     device = ("cuda:0" if wp.is_cuda_available() else "cpu") if args.device == "auto" else args.device
-    cfg = dataclasses.replace(config_from(args, device), lf_dir=str(args.out / "lf"))
+    cfg = dataclasses.replace(config_from(args, device), lf_dir=str(args.lf_dir or args.out / "lf"))
     args.out.mkdir(parents=True, exist_ok=True)
     log(f"validation ({'quick' if cfg.quick else 'full'}): {', '.join(names)} on {device} -> {args.out}")
-    if parts:
-        log(f"taking {len(earlier)} finished experiment(s) of {len(parts)} earlier results file(s) as done (--with)")
-    meta = meta_of(argv, wp, device, cfg) | ({"with": parts} if parts else {})
-    save = ResultsWriter(results_dir / "results.json", args.out, cfg, log, meta)
-    path = save(run_all(names, cfg, args.out, log, args, save, earlier), final=True)
+    if earlier.parts:
+        log(f"taking {len(earlier.results)} finished experiment(s) of {len(earlier.parts)} earlier results file(s) "
+            "as done (--with)")  # fmt: skip
+    meta = meta_of(argv, wp, device, cfg) | ({"with": earlier.parts} if earlier.parts else {})
+    save = ResultsWriter(results_dir / "results.json", args.out, cfg, log, meta, earlier.lf)
+    path = save(run_all(names, cfg, args.out, log, args, save, earlier.results), final=True)
     log(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
     rows = write_page(path, args.page, results_dir / "validation.md", log)
     for r in rows:

@@ -316,10 +316,13 @@ def pad_facts(scenes: list[Any], contacts: list[Any], sigma: list[np.ndarray]) -
 
 
 def _result_head(prep: Prepared, cfg: Config, est: float) -> dict[str, Any]:
+    from aca_warp.studies.validation.multiscale import lf_runs
+
     plan = prep.plan
     return {
         "experiment": prep.exp.key(),
         "config": cfg.run_key(),
+        **({"lf_runs": runs} if (runs := lf_runs(prep.exp, cfg)) else {}),
         "plan": {
             "duration_s": plan.duration,
             "settle_s": plan.settle,
@@ -371,7 +374,10 @@ def save_result(folder: Path, result: dict[str, Any], arrays: dict[str, np.ndarr
 
 
 def load_result(folder: Path, exp: Experiment, cfg: Config) -> dict[str, Any] | None:
-    """The saved result of ``exp`` if it was made with the same definition and settings, else None."""
+    """The saved result of ``exp`` if it was made with the same definition and settings (and, for a §3.3 experiment,
+    from the same LF run files as those in ``cfg.lf_dir``), else None."""
+    from aca_warp.studies.validation.multiscale import lf_runs
+
     path = folder / "result.json"
     if not path.is_file():
         return None
@@ -380,4 +386,5 @@ def load_result(folder: Path, exp: Experiment, cfg: Config) -> dict[str, Any] | 
     except (OSError, ValueError):
         return None
     same = res.get("experiment") == clean(exp.key()) and res.get("config") == cfg.run_key()
+    same = same and res.get("lf_runs", {}) == lf_runs(exp, cfg)
     return res if same and res.get("status") in ("done", "stopped") else None

@@ -27,6 +27,7 @@ the load history (§3.3/§4): application 3's start against the same low-load ap
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from pathlib import Path
 from typing import Any
@@ -100,6 +101,43 @@ def lf_path(cfg: Config, seed: int, schedule_bar: tuple[float, ...] | None) -> P
     sched = "preset" if schedule_bar is None else "-".join(f"{b:g}" for b in schedule_bar)
     length = "quick-{:g}-{:g}".format(*QUICK_DURATIONS) if cfg.quick else "full"
     return Path(cfg.lf_dir) / f"lf_{length}_{sched}_seed{seed}.h5"
+
+
+def lf_runs(exp: Experiment, cfg: Config) -> dict[str, str]:
+    """The LF run files a §3.3 experiment's pads are cut from, each with the first 16 hex digits of its SHA-256
+    ({} for other experiments; a file not on disk is left out). An LF run on a GPU is not bit-reproducible (float
+    atomics order its sums), so a second run of the same seed may differ in a birth or a death: results are joined or
+    reused only where their LF runs are the same files (:func:`lf_conflicts`)."""
+    if exp.builder is not state_scene:
+        return {}
+    out = {}
+    for k in range(cfg.seeds):
+        path = lf_path(cfg, cfg.first_seed + k, exp.schedule_bar)
+        if path.is_file():
+            st = path.stat()
+            out[path.name] = _digest(str(path.resolve()), st.st_mtime_ns, st.st_size)
+    return out
+
+
+@functools.lru_cache(maxsize=256)
+def _digest(path: str, mtime_ns: int, size: int) -> str:
+    """The first 16 hex digits of the SHA-256 of the file ``path`` (cached per modification time and size)."""
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+
+
+def lf_conflicts(runs: dict[str, dict[str, str]]) -> list[str]:
+    """The LF run files that two of ``runs`` (source → :func:`lf_runs`) give with different digests, each as
+    "file (source, source)"; [] when they agree."""
+    seen: dict[str, tuple[str, str]] = {}
+    out = []
+    for source, files in runs.items():
+        for name, digest in files.items():
+            first = seen.setdefault(name, (digest, source))
+            if first[0] != digest:
+                out.append(f"{name} ({first[1]}, {source})")
+    return out
 
 
 def _run_lf_job(job: tuple[int, tuple[float, ...] | None, tuple[float, float] | None, str, str]) -> float:
@@ -202,7 +240,8 @@ def lf_facts(cfg: Config) -> dict[str, Any]:
             m[f"match_{other}"] = coverage_match(a3, states[other])
             m[f"match_back_{other}"] = coverage_match(states[other], a3)
         pads.append({"seed": seed, "status": "LF state", "measures": m})
-    return {"pads": pads, "cap_frequency_hz": cap_frequency(cfg), "status": "done"}
+    runs = lf_runs(EXPERIMENTS[MAIN[0]], cfg) if MAIN[0] in EXPERIMENTS else {}
+    return {"pads": pads, "cap_frequency_hz": cap_frequency(cfg), "lf_runs": runs, "status": "done"}
 
 
 # ------------------------------------------------------------------------------------------------ HF scenes
