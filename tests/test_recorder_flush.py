@@ -77,8 +77,9 @@ def test_flush_cost_script_runs_both_ways_and_restores_the_package(tmp_path):
     command, and the package's flush is in place again afterwards."""
     import json
 
-    import aca_warp.hf.recorder as recorder
     from scriptload import load_script
+
+    import aca_warp.hf.recorder as recorder
 
     out = tmp_path / "flush.json"
     argv = ["--seeds", "2", "--patches", "30", "--duration", "1e-4", "--window", "5e-5", "--dt", "1e-7"]
