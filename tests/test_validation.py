@@ -582,9 +582,16 @@ def test_results_of_different_lf_runs_are_neither_reused_nor_joined(tmp_path):
 
     cfg = VB.Config(seeds=2, lf_dir=str(tmp_path / "lf"))
     exp = VB.EXPERIMENTS["ms_fast"]
+    import h5py
+
+    def lf_file(seed: int, alive: list[int], wall: float) -> None:
+        with h5py.File(VM.lf_path(cfg, seed, None), "w") as f:
+            f.attrs.update(scene="multiscale", wall_time=wall)
+            f.create_dataset("snapshots/app1_start/alive", data=np.array(alive))
+
     (tmp_path / "lf").mkdir()
     for seed in (1, 2):
-        VM.lf_path(cfg, seed, None).write_bytes(b"LF run %d" % seed)
+        lf_file(seed, [1, 0, seed], wall=1.0)
     runs = VM.lf_runs(exp, cfg)
     assert (
         sorted(runs) == ["lf_full_preset_seed1.h5", "lf_full_preset_seed2.h5"]
@@ -595,7 +602,9 @@ def test_results_of_different_lf_runs_are_neither_reused_nor_joined(tmp_path):
     saved = {"experiment": clean(exp.key()), "config": cfg.run_key(), "status": "done", "lf_runs": runs, "pads": []}
     (folder / "result.json").write_text(json.dumps(saved))
     assert VE.load_result(folder, exp, cfg) is not None
-    VM.lf_path(cfg, 2, None).write_bytes(b"LF run 2, again: one birth otherwise")
+    lf_file(2, [1, 0, 2], wall=7.5)  # the same run made again (bit-identical, another wall time): the same states
+    assert VM.lf_runs(exp, cfg) == runs and VE.load_result(folder, exp, cfg) is not None
+    lf_file(2, [1, 1, 2], wall=1.0)  # one birth otherwise
     assert VE.load_result(folder, exp, cfg) is None  # cut from other LF runs: run again
     # --with: two files whose §3.3 results come from different LF runs are refused
     doc = json.loads((Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json").read_text())

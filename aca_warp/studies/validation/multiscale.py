@@ -104,8 +104,8 @@ def lf_path(cfg: Config, seed: int, schedule_bar: tuple[float, ...] | None) -> P
 
 
 def lf_runs(exp: Experiment, cfg: Config) -> dict[str, str]:
-    """The LF run files a §3.3 experiment's pads are cut from, each with the first 16 hex digits of its SHA-256
-    ({} for other experiments; a file not on disk is left out). An LF run on a GPU is not bit-reproducible (float
+    """The LF run files a §3.3 experiment's pads are cut from, each with the digest of its content (:func:`_digest`;
+    {} for other experiments; a file not on disk is left out). An LF run on a GPU is not bit-reproducible (float
     atomics order its sums), so a second run of the same seed may differ in a birth or a death: results are joined or
     reused only where their LF runs are the same files (:func:`lf_conflicts`)."""
     if exp.builder is not state_scene:
@@ -115,16 +115,29 @@ def lf_runs(exp: Experiment, cfg: Config) -> dict[str, str]:
         path = lf_path(cfg, cfg.first_seed + k, exp.schedule_bar)
         if path.is_file():
             st = path.stat()
-            out[path.name] = _digest(str(path.resolve()), st.st_mtime_ns, st.st_size)
+            out[path.name] = _digest(str(path.resolve()), (st.st_ino, st.st_mtime_ns, st.st_ctime_ns, st.st_size))
     return out
 
 
 @functools.lru_cache(maxsize=256)
-def _digest(path: str, mtime_ns: int, size: int) -> str:
-    """The first 16 hex digits of the SHA-256 of the file ``path`` (cached per modification time and size)."""
+def _digest(path: str, stamp: tuple[int, ...]) -> str:
+    """The first 16 hex digits of the SHA-256 of the LF run file ``path``'s content: its scene and every dataset
+    (name, type, shape, values) in name order; the run's provenance attributes (device, host, versions, wall time)
+    are left out, so that two bit-identical runs give one digest. Cached per ``stamp`` (inode, times, size)."""
     import hashlib
 
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+    import h5py
+
+    h = hashlib.sha256()
+    with h5py.File(path, "r") as f:
+        h.update(str(f.attrs.get("scene", "")).encode())
+        names: list[str] = []
+        f.visit(lambda name: names.append(name) if isinstance(f[name], h5py.Dataset) else None)
+        for name in sorted(names):
+            data = np.ascontiguousarray(f[name][()])
+            h.update(f"{name}|{data.dtype.str}|{data.shape}|".encode())
+            h.update(data.tobytes())
+    return h.hexdigest()[:16]
 
 
 def lf_conflicts(runs: dict[str, dict[str, str]]) -> list[str]:
