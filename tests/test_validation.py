@@ -103,13 +103,15 @@ def test_segments_are_whole_samples_on_one_clock():
 
 def test_a_batch_runs_as_long_as_its_longest_member_and_refuses_mixed_kinds():
     cfg = VB.Config(seeds=1, patches=40, window=3e-3)
-    a, b = (VE.prepare(VB.EXPERIMENTS[n], cfg) for n in ("hf1", "hf3"))
+    a, b = (VE.prepare(VB.EXPERIMENTS[n], cfg) for n in ("hf1", "hf4"))
     batch = VE.make_batch("s31", [a, b], cfg)
-    assert b.plan.duration > a.plan.duration  # M = 0.4 grows at half the rate
+    assert b.plan.duration > a.plan.duration  # M = 0.4 grows more slowly
     assert [m.plan.duration for m in batch.members] == [b.plan.duration] * 2 and len(batch.scenes) == 2
     assert batch.members[0].plan.segments == batch.members[1].plan.segments
     with pytest.raises(ValueError, match="differ in kind"):
         VE.make_batch("x", [a, VE.prepare(VB.EXPERIMENTS["hf1_rest"], cfg)], cfg)
+    with pytest.raises(ValueError, match="stepping"):  # hf3 runs at its own stepping (fp64), in a batch of its own
+        VE.make_batch("x", [a, VE.prepare(VB.EXPERIMENTS["hf3"], cfg)], cfg)
 
 
 def test_collector_joins_segments_on_one_clock():
@@ -613,7 +615,8 @@ def test_results_of_different_lf_runs_are_neither_reused_nor_joined(tmp_path):
     for name, digest in (("ms_fast", "aaaa"), ("ms_short", "bbbb")):
         half = tmp_path / f"{name}.json"
         result = {**doc["results"][name], "lf_runs": {"lf_full_preset_seed1.h5": digest}}
-        half.write_text(json.dumps({**doc, "results": {name: result}}))
+        meta = {**doc["meta"], "config": committed.run_key()}  # made with this code's settings
+        half.write_text(json.dumps({**doc, "meta": meta, "results": {name: result}}))
         files.append(half)
     with pytest.raises(ValueError, match="different LF runs: lf_full_preset_seed1.h5"):
         VL.earlier_results(files, committed, Log())

@@ -21,8 +21,7 @@ defaults (``tol``: the tolerance of ``adaptive``, the split tolerance of ``contr
 :func:`~aca_warp.hf.options.tolerance_keyword`). Fixed steps run forced (past the spring bound too). Any name of
 ``aca_warp.hf.options.INTEGRATORS`` is accepted, and a name that the default grid does not list runs at its
 defaults in fp32 and fp64. The **reference** (``--reference``; strang fp64 at 1e-8 s, --quick 2e-8 s, capped at
-0.9 × the regime's friction step, h γ_max = 4, as the validation caps its own) runs first, then the grid, cheapest
-first.
+0.9 × the regime's friction step, h γ_max = 4) runs first, then the grid, cheapest first.
 
 The statistics and the rule (a setting's bias within ± ``--rule`` × the standard deviation between seeds for every
 measure, as ``--criterion`` counts it: proven by the 95 % interval, or within the resolution of the ensemble; the

@@ -32,8 +32,18 @@ TABLE_1 = {
 }
 
 
+def _stepping(preset: str) -> dict[str, str]:
+    """The stepping key of a preset's experiments (settings.STEPPING: hf3 runs at its own, fp64) and the suffix
+    of their batches (experiments of another stepping form batches of their own)."""
+    return {"stepping": "hf3", "suffix": "_hf3"} if preset == "hf3" else {"stepping": "hf", "suffix": ""}
+
+
 def _experiments() -> tuple[Experiment, ...]:
-    out = [Experiment(p, "§3.1", TABLE_1[p], p, batch="s31") for p in PRESETS]
+    def kw(p: str, batch: str) -> dict[str, str]:
+        st = _stepping(p)
+        return {"stepping": st["stepping"], "batch": batch + st["suffix"]}
+
+    out = [Experiment(p, "§3.1", TABLE_1[p], p, **kw(p, "s31")) for p in PRESETS]
     out += [
         Experiment(f"sweep_{a:g}".replace(".", "p"), "§3.1",
                    f"area sweep: mean {a:g} mm² (uniform 0.4–1.6 × mean), hf1 pressure, M = 0.8", "hf1",
@@ -42,21 +52,20 @@ def _experiments() -> tuple[Experiment, ...]:
     ]  # fmt: skip
     out += [
         Experiment(f"{p}_equal", "§3.1", f"{p.upper()} with every height 3 µm (preset {p}_equal; height-spread "
-                   "variant)", f"{p}_equal", quick=False, batch="s31")
+                   "variant)", f"{p}_equal", quick=False, **kw(p, "s31"))
         for p in PRESETS
     ]  # fmt: skip
     out += [
         Experiment(f"{p}_rest", "§3.1", f"{p.upper()} from rest for the paper's length, tracked over time", p,
-                   initial="rest", tracks=True, batch="rest")
+                   initial="rest", tracks=True, **kw(p, "rest"))
         for p in PRESETS
     ]  # fmt: skip
     for p in PRESETS:
+        lin = {"initial": "rest", "kind": "window", "duration": LIN_DURATION, "window_start": LIN_START, **kw(p, "lin")}
         out.append(Experiment(f"{p}_lin", "§3.1", f"{p.upper()} from rest for 4 ms, analysed over 0.2–4 ms "
-                              "unsaturated (run-length variant: the single run's window)", p, initial="rest",
-                              kind="window", duration=LIN_DURATION, window_start=LIN_START, batch="lin"))  # fmt: skip
+                              "unsaturated (run-length variant: the single run's window)", p, **lin))  # fmt: skip
         out.append(Experiment(f"{p}_equal_lin", "§3.1", f"{p.upper()} with equal heights from rest for 4 ms, over "
-                              "0.2–4 ms (the single runs' conditions)", f"{p}_equal", initial="rest", kind="window",
-                              duration=LIN_DURATION, window_start=LIN_START, batch="lin"))  # fmt: skip
+                              "0.2–4 ms (the single runs' conditions)", f"{p}_equal", **lin))  # fmt: skip
     return tuple(out)
 
 

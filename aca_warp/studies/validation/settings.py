@@ -53,9 +53,14 @@ STEPPING: dict[str, Stepping] = {
         "saturated hf1 and hf2 pads each, 30 ms, a 10 ms window; docs/work_precision_statistics.md) keeps every "
         "validation measure within a quarter of the spread between seeds with strang fp32 at 5e-8 s and at no "
         "coarser step (at 1e-7 s the velocity-sum peak moves in hf1, μ std and S − S_null in hf2); hf4 keeps every "
-        "measure up to 5e-7 s; in hf3 (no pad saturated in 30 ms) fp32 moves S − S_null against fp64 by "
-        "0.29–0.33 σ at every step from 1e-8 to 5e-8 s, just past the quarter and flat in the step (a precision "
-        "effect); 20 steps per µs sample; fp32 also keeps the neighbour lists on chip",
+        "measure up to 5e-7 s; 20 steps per µs sample; fp32 also keeps the neighbour lists on chip",
+    ),
+    "hf3": Stepping(
+        dt=1.0e-8,
+        precision="fp64",
+        reason="HF3 and its variants: the statistical work-precision on one H200 (32 hf3 pads, 30 ms) keeps only its "
+        "reference, strang fp64 at 1e-8 s: fp32 moves S − S_null by 0.29–0.33 σ of the spread between seeds at every "
+        "step from 1e-8 to 5e-8 s (flat in the step: a precision effect; 0.39 σ at 1e-7 s)",
     ),
     "growth": Stepping(
         dt=5.0e-8,
