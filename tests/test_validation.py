@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -586,10 +587,12 @@ def test_results_of_different_lf_runs_are_neither_reused_nor_joined(tmp_path):
     exp = VB.EXPERIMENTS["ms_fast"]
     import h5py
 
-    def lf_file(seed: int, alive: list[int], wall: float) -> None:
-        with h5py.File(VM.lf_path(cfg, seed, None), "w") as f:
+    def lf_file(seed: int, alive: list[int], wall: float) -> None:  # as an LF run writes it: a file renamed
+        tmp = tmp_path / "lf" / "run.tmp.h5"
+        with h5py.File(tmp, "w") as f:
             f.attrs.update(scene="multiscale", wall_time=wall)
             f.create_dataset("snapshots/app1_start/alive", data=np.array(alive))
+        tmp.replace(VM.lf_path(cfg, seed, None))
 
     (tmp_path / "lf").mkdir()
     for seed in (1, 2):
@@ -608,6 +611,8 @@ def test_results_of_different_lf_runs_are_neither_reused_nor_joined(tmp_path):
     assert VM.lf_runs(exp, cfg) == runs and VE.load_result(folder, exp, cfg) is not None
     lf_file(2, [1, 1, 2], wall=1.0)  # one birth otherwise
     assert VE.load_result(folder, exp, cfg) is None  # cut from other LF runs: run again
+    (folder / "records.npz").write_bytes(b"")  # nor are its kept records analysed against the new states
+    assert VE.reanalyse(SimpleNamespace(exp=exp), cfg, tmp_path, Log()) is None
     # --with: two files whose §3.3 results come from different LF runs are refused
     doc = json.loads((Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json").read_text())
     _, _, committed = read_results(Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json")
