@@ -250,6 +250,14 @@ def test_reduced_run_end_to_end(tmp_path, short_experiment, capsys):
     assert [p["experiments"] for p in both["meta"]["with"]] == [["hf1"], ["hf1_short"]]
     assert "--with EARLIER_RESULTS_JSON EARLIER_RESULTS_JSON" in both["meta"]["command"]
     assert "took the finished experiments of 2 earlier run(s) as done" in (joined / "validation.md").read_text()
+    # with --only the earlier results of the other experiments stay; a file of other settings is left out (logged)
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps({**doc, "meta": {**doc["meta"], "config": {**doc["meta"]["config"], "seeds": 3}}}))
+    only = [*argv[: argv.index("--only") + 2], "--out", str(tmp_path / "bare4"), "--results", str(tmp_path / "r4")]
+    assert VL.main([*only, "--with", str(res_dir / "results.json"), str(other)]) == 0
+    four = json.loads((tmp_path / "r4" / "results.json").read_text())
+    assert four["results"] == doc["results"]
+    assert f"{other}: other settings than this run's; not used" in (tmp_path / "r4" / "validation.log").read_text()
     # an experiment finished in two of the files is refused before anything is written
     capsys.readouterr()
     twice = [*argv[:-6], "--out", str(tmp_path / "b3"), "--results", str(tmp_path / "r3"), "--with", *halves, halves[0]]
@@ -632,3 +640,21 @@ def test_results_of_different_lf_runs_are_neither_reused_nor_joined(tmp_path):
     local = VB.Config(**{**committed.__dict__, "lf_dir": str(tmp_path / "lf")})
     why = VL.lf_refusals(["ms_fast", "hf1"], got.results, local)
     assert list(why) == ["ms_fast"] and "give --lf-dir their folder" in why["ms_fast"]
+    # nor is a result saved in the joining call's --out from those LF runs taken; the earlier result comes first
+    out = tmp_path / "out"
+    for name in ("ms_mid", "ms_fast"):
+        e = VB.EXPERIMENTS[name]
+        mine = {"experiment": clean(e.key()), "config": committed.run_key(), "status": "done"}
+        (out / name).mkdir(parents=True)
+        (out / name / "result.json").write_text(json.dumps({**mine, "lf_runs": VM.lf_runs(e, local)}))
+    assert VE.load_result(out / "ms_mid", VB.EXPERIMENTS["ms_mid"], local) is not None
+    assert VL.reusable("ms_mid", out, local, got.results) is None
+    assert VL.reusable("ms_mid", out, local, {}) is not None and VL.reusable("hf1", out, local, got.results) is None
+    assert VL.reusable("ms_fast", out, local, got.results) is got.results["ms_fast"]
+    # a §3.3 result that does not record its LF runs cannot be checked: left out, and the log says so
+    blind = {k: v for k, v in doc["results"]["ms_mid"].items() if k != "lf_runs"}
+    files[1].write_text(json.dumps({**doc, "meta": {**doc["meta"], "config": committed.run_key()},
+                                    "results": {"ms_mid": blind, "hf1": doc["results"]["hf1"]}}))  # fmt: skip
+    notes: list[str] = []
+    got = VL.earlier_results(files, committed, notes.append)
+    assert sorted(got.results) == ["hf1", "ms_fast"] and any("ms_mid not used" in n for n in notes)
