@@ -254,9 +254,10 @@ def test_reduced_run_end_to_end(tmp_path, short_experiment, capsys):
     other = tmp_path / "other.json"
     other.write_text(json.dumps({**doc, "meta": {**doc["meta"], "config": {**doc["meta"]["config"], "seeds": 3}}}))
     only = [*argv[: argv.index("--only") + 2], "--out", str(tmp_path / "bare4"), "--results", str(tmp_path / "r4")]
-    assert VL.main([*only, "--with", str(res_dir / "results.json"), str(other)]) == 0
+    assert VL.main([*only, "--with", str(res_dir / "results.json"), str(other), f"--lf-dir={tmp_path}"]) == 0
     four = json.loads((tmp_path / "r4" / "results.json").read_text())
-    assert four["results"] == doc["results"]
+    assert four["results"] == doc["results"] and str(tmp_path) not in four["meta"]["command"]
+    assert "--with EARLIER_RESULTS_JSON EARLIER_RESULTS_JSON --lf-dir=LF_DIR" in four["meta"]["command"]
     assert f"{other}: other settings than this run's; not used" in (tmp_path / "r4" / "validation.log").read_text()
     # an experiment finished in two of the files is refused before anything is written
     capsys.readouterr()

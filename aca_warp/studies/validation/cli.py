@@ -369,13 +369,18 @@ FOLDERS = {"--out": "DIR", "--results": "RESULTS", "--with": "EARLIER_RESULTS_JS
 
 def portable(argv: list[str]) -> list[str]:
     """``argv`` with the values of :data:`FOLDERS` replaced by their role (the run's folders are not the reader's;
-    every value of ``--with``, which takes several)."""
+    every value of ``--with``, which takes several; also as ``--out=DIR`` and under an abbreviated option name, as
+    argparse takes them)."""
     out: list[str] = []
     role, many = None, False
     for a in argv:
         if a.startswith("--"):
-            role, many = FOLDERS.get(a), a == "--with"
-            out.append(a)
+            name, eq, _ = a.partition("=")
+            keys = [k for k in FOLDERS if k.startswith(name)] if len(name) > 2 else []
+            role = FOLDERS[keys[0]] if len(keys) == 1 else None
+            many = role is not None and keys[0] == "--with"
+            out.append(f"{name}={role}" if eq and role is not None else a)
+            role = None if eq else role
         elif role is not None:
             out.append(role)
             role = role if many else None
