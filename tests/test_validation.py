@@ -272,6 +272,10 @@ def test_report_refuses_a_file_that_is_not_a_results_file(tmp_path, capsys):
     assert VL.main(["--report", str(bad), "--page", str(tmp_path / "p.md")]) == 2
     assert "not a validation results file" in capsys.readouterr().err and not (tmp_path / "p.md").exists()
     assert VL.main(["--report", str(tmp_path / "missing.json")]) == 2
+    bad.write_text("[1, 2]")  # JSON, but not an object; also as --with, before anything is written
+    assert VL.main(["--report", str(bad)]) == 2 and "not a validation results file" in capsys.readouterr().err
+    assert VL.main(["--quick", "--out", str(tmp_path / "o"), "--with", str(bad)]) == 2
+    assert "not a validation results file" in capsys.readouterr().err and not (tmp_path / "o").exists()
 
 
 def test_committed_page_is_rendered_from_the_committed_results():
