@@ -14,7 +14,8 @@ way, the two ways in turn, after a short untimed run that loads the kernels:
 The samples go to a sink that only counts them. Prints the wall time of each run [s] and, with ``--json``, writes
 them with the least per way, the bytes handed over, the machine and the command.
 
-    python3 scripts/recorder_flush_cost.py --device cuda:0 --seeds 32 --json docs/benchmarks/recorder_flush_h200.json
+    python3 scripts/recorder_flush_cost.py --device cuda:0 --seeds 32 \
+        --json docs/benchmarks/recorder/recorder_flush_32hf1_h200.json
 """
 
 from __future__ import annotations

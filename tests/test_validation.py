@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -249,6 +250,15 @@ def test_reduced_run_end_to_end(tmp_path, short_experiment, capsys):
     assert [p["experiments"] for p in both["meta"]["with"]] == [["hf1"], ["hf1_short"]]
     assert "--with EARLIER_RESULTS_JSON EARLIER_RESULTS_JSON" in both["meta"]["command"]
     assert "took the finished experiments of 2 earlier run(s) as done" in (joined / "validation.md").read_text()
+    # with --only the earlier results of the other experiments stay; a file of other settings is left out (logged)
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps({**doc, "meta": {**doc["meta"], "config": {**doc["meta"]["config"], "seeds": 3}}}))
+    only = [*argv[: argv.index("--only") + 2], "--out", str(tmp_path / "bare4"), "--results", str(tmp_path / "r4")]
+    assert VL.main([*only, "--with", str(res_dir / "results.json"), str(other), f"--lf-dir={tmp_path}"]) == 0
+    four = json.loads((tmp_path / "r4" / "results.json").read_text())
+    assert four["results"] == doc["results"] and str(tmp_path) not in four["meta"]["command"]
+    assert "--with EARLIER_RESULTS_JSON EARLIER_RESULTS_JSON --lf-dir=LF_DIR" in four["meta"]["command"]
+    assert f"{other}: other settings than this run's; not used" in (tmp_path / "r4" / "validation.log").read_text()
     # an experiment finished in two of the files is refused before anything is written
     capsys.readouterr()
     twice = [*argv[:-6], "--out", str(tmp_path / "b3"), "--results", str(tmp_path / "r3"), "--with", *halves, halves[0]]
@@ -262,6 +272,10 @@ def test_report_refuses_a_file_that_is_not_a_results_file(tmp_path, capsys):
     assert VL.main(["--report", str(bad), "--page", str(tmp_path / "p.md")]) == 2
     assert "not a validation results file" in capsys.readouterr().err and not (tmp_path / "p.md").exists()
     assert VL.main(["--report", str(tmp_path / "missing.json")]) == 2
+    bad.write_text("[1, 2]")  # JSON, but not an object; also as --with, before anything is written
+    assert VL.main(["--report", str(bad)]) == 2 and "not a validation results file" in capsys.readouterr().err
+    assert VL.main(["--quick", "--out", str(tmp_path / "o"), "--with", str(bad)]) == 2
+    assert "not a validation results file" in capsys.readouterr().err and not (tmp_path / "o").exists()
 
 
 def test_committed_page_is_rendered_from_the_committed_results():
@@ -586,10 +600,12 @@ def test_results_of_different_lf_runs_are_neither_reused_nor_joined(tmp_path):
     exp = VB.EXPERIMENTS["ms_fast"]
     import h5py
 
-    def lf_file(seed: int, alive: list[int], wall: float) -> None:
-        with h5py.File(VM.lf_path(cfg, seed, None), "w") as f:
+    def lf_file(seed: int, alive: list[int], wall: float) -> None:  # as an LF run writes it: a file renamed
+        tmp = tmp_path / "lf" / "run.tmp.h5"
+        with h5py.File(tmp, "w") as f:
             f.attrs.update(scene="multiscale", wall_time=wall)
             f.create_dataset("snapshots/app1_start/alive", data=np.array(alive))
+        tmp.replace(VM.lf_path(cfg, seed, None))
 
     (tmp_path / "lf").mkdir()
     for seed in (1, 2):
@@ -608,6 +624,8 @@ def test_results_of_different_lf_runs_are_neither_reused_nor_joined(tmp_path):
     assert VM.lf_runs(exp, cfg) == runs and VE.load_result(folder, exp, cfg) is not None
     lf_file(2, [1, 1, 2], wall=1.0)  # one birth otherwise
     assert VE.load_result(folder, exp, cfg) is None  # cut from other LF runs: run again
+    (folder / "records.npz").write_bytes(b"")  # nor are its kept records analysed against the new states
+    assert VE.reanalyse(SimpleNamespace(exp=exp), cfg, tmp_path, Log()) is None
     # --with: two files whose §3.3 results come from different LF runs are refused
     doc = json.loads((Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json").read_text())
     _, _, committed = read_results(Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json")
@@ -627,3 +645,21 @@ def test_results_of_different_lf_runs_are_neither_reused_nor_joined(tmp_path):
     local = VB.Config(**{**committed.__dict__, "lf_dir": str(tmp_path / "lf")})
     why = VL.lf_refusals(["ms_fast", "hf1"], got.results, local)
     assert list(why) == ["ms_fast"] and "give --lf-dir their folder" in why["ms_fast"]
+    # nor is a result saved in the joining call's --out from those LF runs taken; the earlier result comes first
+    out = tmp_path / "out"
+    for name in ("ms_mid", "ms_fast"):
+        e = VB.EXPERIMENTS[name]
+        mine = {"experiment": clean(e.key()), "config": committed.run_key(), "status": "done"}
+        (out / name).mkdir(parents=True)
+        (out / name / "result.json").write_text(json.dumps({**mine, "lf_runs": VM.lf_runs(e, local)}))
+    assert VE.load_result(out / "ms_mid", VB.EXPERIMENTS["ms_mid"], local) is not None
+    assert VL.reusable("ms_mid", out, local, got.results) is None
+    assert VL.reusable("ms_mid", out, local, {}) is not None and VL.reusable("hf1", out, local, got.results) is None
+    assert VL.reusable("ms_fast", out, local, got.results) is got.results["ms_fast"]
+    # a §3.3 result that does not record its LF runs cannot be checked: left out, and the log says so
+    blind = {k: v for k, v in doc["results"]["ms_mid"].items() if k != "lf_runs"}
+    files[1].write_text(json.dumps({**doc, "meta": {**doc["meta"], "config": committed.run_key()},
+                                    "results": {"ms_mid": blind, "hf1": doc["results"]["hf1"]}}))  # fmt: skip
+    notes: list[str] = []
+    got = VL.earlier_results(files, committed, notes.append)
+    assert sorted(got.results) == ["hf1", "ms_fast"] and any("ms_mid not used" in n for n in notes)

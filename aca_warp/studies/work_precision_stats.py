@@ -76,7 +76,7 @@ from aca_warp.studies.work_precision_stats_rule import (
 )
 
 PRECISIONS = ("fp32", "fp64")
-REFERENCE_MARGIN = 0.9  # the reference step: at most this × the regime's friction step (the validation's cap)
+REFERENCE_MARGIN = 0.9  # the reference step: at most this × the regime's friction step (h γ_max = 4)
 REFERENCE = {False: "strang@fp64:dt=1e-8", True: "strang@fp64:dt=2e-8"}
 GRID = {
     False: (
@@ -236,7 +236,7 @@ class Progress:
 
 def reference_setting(spec: str, model: Any) -> Setting:
     """The reference of a regime: ``spec`` (one setting), a strang step capped at :data:`REFERENCE_MARGIN` × the
-    model's friction step (:func:`~aca_warp.studies.validation.settings.friction_step`, h γ_max = 4)."""
+    model's friction step (:func:`~aca_warp.hf.solver.friction_step`, h γ_max = 4)."""
     from aca_warp.hf.solver import friction_step, stable_step
 
     (s,) = parse_setting(spec)

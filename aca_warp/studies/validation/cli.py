@@ -216,15 +216,15 @@ def run_all(
     done: Callable[[dict[str, dict]], None] | None = None, earlier: dict[str, dict] | None = None,
 ) -> dict:  # fmt: skip
     """Reuse, analyse again or run every experiment of ``names`` batch by batch; failures are logged and recorded
-    (``args``: rerun, reanalyse, keep_records, max_wall). ``earlier``: finished results taken as done (``--with``).
-    ``done(results)`` after every batch (the results file is written then, so a run cut off keeps what it
-    finished)."""
+    (``args``: rerun, reanalyse, keep_records, max_wall). ``earlier``: finished results taken as done (``--with``;
+    :func:`reusable`). ``done(results)`` after every batch (the results file is written then, so a run cut off keeps
+    what it finished)."""
     earlier = earlier or {}
     results: dict[str, dict] = {}
     todo = []
     for name in names:
-        saved = None if args.rerun or args.reanalyse else load_result(out / name, EXPERIMENTS[name], cfg)
-        saved = saved or earlier.get(name)
+        fresh = args.rerun or args.reanalyse
+        saved = earlier.get(name) if fresh else reusable(name, out, cfg, earlier)
         if saved is not None:
             results[name] = saved
             log(f"{name}: reusing the saved result")
@@ -274,10 +274,12 @@ class Earlier:
     lf: dict | None = None
 
 
-def earlier_results(paths: list[Path] | None, cfg: Config, log: Log) -> Earlier:
+def earlier_results(paths: list[Path] | None, cfg: Config, log: Callable[[str], None]) -> Earlier:
     """The finished experiments of earlier ``results.json`` files made with the same settings (``--with``); a file of
-    other settings is logged and left out. ValueError for a file that is not a results file, an experiment finished
-    in two of them (which to take would be a guess), or §3.3 results cut from different LF runs."""
+    other settings is logged and left out, and so is a §3.3 result that does not record the LF runs it was cut from
+    (it could be joined with results of other LF runs unseen). ValueError for a file that is not a results file, an
+    experiment finished in two of them (which to take would be a guess), or §3.3 results cut from different LF
+    runs."""
     from aca_warp.studies.validation.results import read_results
 
     got = Earlier()
@@ -289,6 +291,11 @@ def earlier_results(paths: list[Path] | None, cfg: Config, log: Log) -> Earlier:
             log(f"{path}: other settings than this run's; not used")
             continue
         done = {n: r for n, r in results.items() if n in EXPERIMENTS and r.get("status") in ("done", "stopped")}
+        blind = [n for n, r in done.items() if EXPERIMENTS[n].builder is validation_multiscale.state_scene]
+        blind = [n for n in blind if not done[n].get("lf_runs")]
+        if blind:
+            log(f"{path}: {', '.join(blind)} not used: no record of the LF runs they were cut from")
+            done = {n: r for n, r in done.items() if n not in blind}
         twice = sorted(set(done) & set(got.results))
         if twice:
             raise ValueError(f"{path}: {', '.join(twice)} finished in {source[twice[0]]} as well; give each once")
@@ -308,6 +315,16 @@ def earlier_results(paths: list[Path] | None, cfg: Config, log: Log) -> Earlier:
             "reproducible); run every share, and a second call, with one --lf-dir"
         )
     return got
+
+
+def reusable(name: str, out: Path, cfg: Config, earlier: dict[str, dict]) -> dict | None:
+    """The finished result of ``name`` that a call takes as done: that of the ``earlier`` results (``--with``), else
+    the one saved in ``out / name`` when it fits the settings and its LF runs (:func:`load_result`) and those are
+    the files the earlier results were cut from (:func:`lf_refusals`); None when there is none."""
+    if name in earlier:
+        return earlier[name]
+    saved = load_result(out / name, EXPERIMENTS[name], cfg)
+    return None if saved is None or lf_refusals([name], earlier, cfg) else saved
 
 
 def lf_refusals(todo: list[str], earlier: dict[str, dict], cfg: Config) -> dict[str, str]:
@@ -352,13 +369,18 @@ FOLDERS = {"--out": "DIR", "--results": "RESULTS", "--with": "EARLIER_RESULTS_JS
 
 def portable(argv: list[str]) -> list[str]:
     """``argv`` with the values of :data:`FOLDERS` replaced by their role (the run's folders are not the reader's;
-    every value of ``--with``, which takes several)."""
+    every value of ``--with``, which takes several; also as ``--out=DIR`` and under an abbreviated option name, as
+    argparse takes them)."""
     out: list[str] = []
     role, many = None, False
     for a in argv:
         if a.startswith("--"):
-            role, many = FOLDERS.get(a), a == "--with"
-            out.append(a)
+            name, eq, _ = a.partition("=")
+            keys = [k for k in FOLDERS if k.startswith(name)] if len(name) > 2 else []
+            role = FOLDERS[keys[0]] if len(keys) == 1 else None
+            many = role is not None and keys[0] == "--with"
+            out.append(f"{name}={role}" if eq and role is not None else a)
+            role = None if eq else role
         elif role is not None:
             out.append(role)
             role = role if many else None
@@ -382,19 +404,21 @@ def meta_of(argv: list[str], wp: Any, device: str, cfg: Config) -> dict[str, Any
 
 class ResultsWriter:
     """Writes ``results.json`` (called after every batch, and at the end with ``final``): the results so far, every
-    saved result in ``out`` that fits the settings, the LF facts once the multi-timescale experiments have results
-    (those of the earlier results when ``--with`` brought any), and the provenance with the wall time so far."""
+    other finished result the call may take (:func:`reusable`: those of ``--with``, those saved in ``out``), the LF
+    facts once the multi-timescale experiments have results (those of the earlier results when ``--with`` brought
+    any), and the provenance with the wall time so far."""
 
     def __init__(
-        self, path: Path, out: Path, cfg: Config, log: Log, meta: dict[str, Any], lf: dict[str, Any] | None = None
+        self, path: Path, out: Path, cfg: Config, log: Log, meta: dict[str, Any], earlier: Earlier | None = None
     ) -> None:
         self.path, self.out, self.cfg, self.log, self.meta = path, out, cfg, log, meta
-        self.lf = lf  # the LF facts of the earlier results (--with), else made once from cfg.lf_dir
+        self.earlier = earlier or Earlier()
+        self.lf = self.earlier.lf  # the LF facts of the earlier results (--with), else made once from cfg.lf_dir
 
     def __call__(self, results: dict[str, dict], final: bool = False) -> Path:
         every = dict(results)
-        for name, exp in EXPERIMENTS.items():
-            saved = None if name in every else load_result(self.out / name, exp, self.cfg)
+        for name in EXPERIMENTS:
+            saved = None if name in every else reusable(name, self.out, self.cfg, self.earlier.results)
             if saved is not None:
                 every[name] = saved
         if any(n in EXPERIMENTS and EXPERIMENTS[n].builder is validation_multiscale.state_scene for n in every):
@@ -433,8 +457,9 @@ def main(argv: list[str] | None = None) -> int:
         cfg = config_from(args, "cpu" if args.device == "auto" else args.device)
         dry_run(names, dataclasses.replace(cfg, lf_dir=str(args.lf_dir or args.out / "lf")), Log())
         return 0
+    notes: list[str] = []  # what --with left out, for the log once it is opened
     try:  # before anything is written: the device does not enter the settings compared
-        earlier = earlier_results(args.with_results, config_from(args, "cpu"), Log())
+        earlier = earlier_results(args.with_results, config_from(args, "cpu"), notes.append)
     except ValueError as e:
         print(f"validation.py: {e}", file=sys.stderr)
         return 2
@@ -445,11 +470,13 @@ def main(argv: list[str] | None = None) -> int:
     cfg = dataclasses.replace(config_from(args, device), lf_dir=str(args.lf_dir or args.out / "lf"))
     args.out.mkdir(parents=True, exist_ok=True)
     log(f"validation ({'quick' if cfg.quick else 'full'}): {', '.join(names)} on {device} -> {args.out}")
+    for note in notes:
+        log(note)
     if earlier.parts:
         log(f"taking {len(earlier.results)} finished experiment(s) of {len(earlier.parts)} earlier results file(s) "
             "as done (--with)")  # fmt: skip
     meta = meta_of(argv, wp, device, cfg) | ({"with": earlier.parts} if earlier.parts else {})
-    save = ResultsWriter(results_dir / "results.json", args.out, cfg, log, meta, earlier.lf)
+    save = ResultsWriter(results_dir / "results.json", args.out, cfg, log, meta, earlier)
     path = save(run_all(names, cfg, args.out, log, args, save, earlier.results), final=True)
     log(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
     rows = write_page(path, args.page, results_dir / "validation.md", log)

@@ -97,7 +97,7 @@ def prepare(exp: Experiment, cfg: Config) -> Prepared:
 @dataclass
 class Batch:
     """Experiments run as one batch of pads: one model, one run as long as the longest member's plan (each member
-    replanned to it), the step the stepping's rule over all pads; each member is analysed and saved on its own."""
+    replanned to it) at the fixed step of the members' stepping; each member is analysed and saved on its own."""
 
     name: str
     members: list[Prepared]
@@ -279,13 +279,14 @@ def finish_experiment(
 
 
 def reanalyse(prep: Prepared, cfg: Config, out: Path, log: Log) -> dict[str, Any] | None:
-    """Analyse again the kept records of a saved run of ``prep`` (same settings); None when there are none."""
+    """Analyse again the kept records of a saved run of ``prep`` (same settings and LF runs, :func:`fits`); None when
+    there are none."""
     folder = out / prep.exp.name
     path, res = folder / "records.npz", folder / "result.json"
     if not (path.is_file() and res.is_file()):
         return None
     result = json.loads(res.read_text())
-    if result.get("experiment") != clean(prep.exp.key()) or result.get("config") != cfg.run_key():
+    if not fits(result, prep.exp, cfg):
         return None
     duration = (result.get("plan") or {}).get("duration_s")
     if duration is not None and abs(duration - prep.plan.duration) > 1e-12:
@@ -373,11 +374,17 @@ def save_result(folder: Path, result: dict[str, Any], arrays: dict[str, np.ndarr
     tmp.replace(folder / "result.json")
 
 
-def load_result(folder: Path, exp: Experiment, cfg: Config) -> dict[str, Any] | None:
-    """The saved result of ``exp`` if it was made with the same definition and settings (and, for a §3.3 experiment,
-    from the same LF run files as those in ``cfg.lf_dir``), else None."""
+def fits(res: dict[str, Any], exp: Experiment, cfg: Config) -> bool:
+    """Whether the saved result ``res`` was made with the definition of ``exp`` and the settings ``cfg`` (and, for a
+    §3.3 experiment, from the same LF run files as those in ``cfg.lf_dir``)."""
     from aca_warp.studies.validation.multiscale import lf_runs
 
+    same = res.get("experiment") == clean(exp.key()) and res.get("config") == cfg.run_key()
+    return same and res.get("lf_runs", {}) == lf_runs(exp, cfg)
+
+
+def load_result(folder: Path, exp: Experiment, cfg: Config) -> dict[str, Any] | None:
+    """The saved result of ``exp`` if it :func:`fits` and is finished, else None."""
     path = folder / "result.json"
     if not path.is_file():
         return None
@@ -385,6 +392,4 @@ def load_result(folder: Path, exp: Experiment, cfg: Config) -> dict[str, Any] | 
         res = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
-    same = res.get("experiment") == clean(exp.key()) and res.get("config") == cfg.run_key()
-    same = same and res.get("lf_runs", {}) == lf_runs(exp, cfg)
-    return res if same and res.get("status") in ("done", "stopped") else None
+    return res if fits(res, exp, cfg) and res.get("status") in ("done", "stopped") else None

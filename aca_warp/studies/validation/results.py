@@ -47,8 +47,9 @@ def read_results(path: Path) -> tuple[dict[str, dict], dict[str, Any], Config]:
         doc = json.loads(path.read_text())
     except (OSError, ValueError) as e:
         raise ValueError(f"{path}: not a readable results file ({type(e).__name__}: {e})") from None
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise ValueError(f"{path}: not a validation results file (format {doc.get('format')!r}, want {FORMAT!r})")
+    got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
+    if got != FORMAT:
+        raise ValueError(f"{path}: not a validation results file (format {got!r}, want {FORMAT!r})")
     meta = doc["meta"]
     fields = {f.name for f in dataclasses.fields(Config)}
     cfg = {k: tuple(v) if isinstance(v, list) else v for k, v in meta["config"].items() if k in fields}

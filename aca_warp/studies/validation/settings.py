@@ -3,9 +3,9 @@
 Every experiment names one entry of :data:`STEPPING` (``Experiment.stepping``), and a batch of experiments runs with
 the entry's integrator, fixed step and precision. Each entry is the setting that the statistical work-precision rule
 (docs/work_precision_statistics.md: every validation measure within a quarter of the spread between seeds from a
-tight reference) picks for the regime the experiments belong to, or the tighter of two where a batch spans two
-regimes. The run then shortens the step to a whole number of steps per sample interval (``fitted_step``).
-``--dt`` and ``--precision`` replace the table's values for every experiment.
+tight reference) picks for the regime the experiments belong to, or the tightest pick where a batch spans several
+regimes (``ms_lin``: every LF state). The run then shortens the step to a whole number of steps per sample
+interval (``fitted_step``). ``--dt`` and ``--precision`` replace the table's values for every experiment.
 
 The friction step of each batch (:func:`~aca_warp.hf.solver.friction_step`, the step at which h γ_max = 4) is still
 logged and stored with its results: it bounds no step of ``strang`` (only the springs do), but it says how stiff
