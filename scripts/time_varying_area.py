@@ -45,6 +45,17 @@ def time_one(cmd: list[str]) -> dict:
     }
 
 
+def machine_of(run_file: Path) -> str:
+    """The device and host a run file says it ran on (its ``device_name`` and ``host`` attributes), else this host."""
+    try:
+        import h5py
+
+        with h5py.File(run_file, "r") as f:
+            return f"{f.attrs['device_name']}; host {f.attrs['host']}"
+    except (OSError, KeyError):
+        return f"{platform.node()} ({platform.processor() or platform.machine()})"
+
+
 def markdown(doc: dict) -> str:
     """The table of ``doc`` (one row per step)."""
     rows = [f"| {r['step_s']:g} | {r['wall_s']:.1f} | {r['exit']} | {r['summary']} |" for r in doc["rows"]]
@@ -82,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"dt {step:g} s: {rows[-1]['wall_s']:.1f} s  {rows[-1]['summary']}", flush=True)
     doc = {
         "date": time.strftime("%Y-%m-%d %H:%M"),
-        "machine": f"{platform.node()} ({platform.processor() or platform.machine()})",
+        "machine": machine_of(out / f"va_{args.steps[0]:g}.h5"),
         "device": args.device,
         "duration_s": args.duration,
         "rows": rows,

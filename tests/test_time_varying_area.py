@@ -30,3 +30,14 @@ def test_markdown_has_a_row_per_step():
     doc = {"date": "d", "machine": "m", "device": "cuda:0", "duration_s": 0.36,
            "rows": [{"step_s": 1e-7, "wall_s": 46.6, "exit": 0, "summary": "ok"}]}  # fmt: skip
     assert "| 1e-07 | 46.6 | 0 | ok |" in load().markdown(doc)
+
+
+def test_machine_is_read_from_the_run_file(tmp_path):
+    """The timed runs are subprocesses: the device they ran on is the one their run file names."""
+    import h5py
+
+    run = tmp_path / "va_5e-08.h5"
+    with h5py.File(run, "w") as f:
+        f.attrs.update(device_name="NVIDIA H200", host="Xeon, 16 cores")
+    assert load().machine_of(run) == "NVIDIA H200; host Xeon, 16 cores"
+    assert load().machine_of(tmp_path / "missing.h5")  # falls back to this host's name
