@@ -17,7 +17,7 @@ from aca_warp.kernels.lf_types import (
     block_end,
     disc_radius,
 )
-from aca_warp.kernels.tiles import block_add, block_sync, tile_store_1d
+from aca_warp.kernels.tiles import block_put, block_sync, tile_store_1d
 
 wp.set_module_options({"enable_backward": False})
 
@@ -47,10 +47,16 @@ def wear(
     # State in/out (the cells' elevations and debris sources, the patches' thicknesses and tops):
     cells: LFCells,
     patches: LFPatches,
-    glob: wp.array[wp.float64],
+    # Scratch out (per slot: the retained debris of the patch's wear [kg]; per block: Σ retained matrix debris,
+    # Σ lost matrix debris, Σ lost patch debris [kg]):
+    src_out: wp.array[wp.float64],
+    partial_out: wp.array2d[wp.float64],
 ):
-    """Energy wear: Δz = k_E f(T) P Δt / a. A fraction f_ret of the debris mass enters the cell's debris source,
-    the rest is lost (counted in ``glob``). Blocks and launch as in :func:`friction`."""
+    """Energy wear: Δz = k_E f(T) P Δt / a. A fraction f_ret of the debris mass enters the cell's debris source
+    (a cell's own at once; a patch's into ``src_out``, then added to its cell's by
+    :func:`~aca_warp.kernels.lf_sums.add_by_cell`), the rest is lost (the blocks' sums into ``partial_out``, then
+    :func:`~aca_warp.kernels.lf_sums.add_block_sums`). Blocks and launch as in
+    :func:`~aca_warp.kernels.lf_contact.friction`."""
     blk, lane = wp.tid()
     n = n_cells + patches.alive.shape[0]
     zero = wp.float64(0.0)
@@ -67,11 +73,12 @@ def wear(
             dz = wear_depth(p, p.wear_m, cells.T[t], pw, free)
             cells.z[t] = cells.z[t] - dz
             m = p.rho_m * dz * free
-            wp.atomic_add(cells.src, t, p.f_ret * m)
+            cells.src[t] = cells.src[t] + p.f_ret * m
             s_in += p.f_ret * m
             s_ml += (one - p.f_ret) * m
             continue
         i = t - n_cells
+        src_out[i] = zero
         if patches.alive[i] == 0:
             continue
         pw = patches.power[i]
@@ -82,11 +89,15 @@ def wear(
         patches.thick[i] = patches.thick[i] - dz
         patches.top[i] = patches.top[i] - dz
         m = p.rho_patch * dz * A
-        wp.atomic_add(cells.src, patches.cell[i], p.f_ret * m)
+        src_out[i] = p.f_ret * m
         s_pl += (one - p.f_ret) * m
-    block_add(glob, G_MATRIX_IN, s_in, lane)
-    block_add(glob, G_MATRIX_LOST, s_ml, lane)
-    block_add(glob, G_PATCH_LOST, s_pl, lane)
+    block_put(partial_out, blk, 0, s_in, lane)
+    block_put(partial_out, blk, 1, s_ml, lane)
+    block_put(partial_out, blk, 2, s_pl, lane)
+
+
+# the glob entries of the columns of ``wear``'s block sums (the fourth unused)
+WEAR_SUMS = wp.vec4i(G_MATRIX_IN, G_MATRIX_LOST, G_PATCH_LOST, -1)
 
 
 # ----------------------------------------------------------------------------------------------- debris
