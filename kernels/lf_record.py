@@ -25,12 +25,11 @@ from aca_warp.kernels.lf_types import (
     LF_BLOCK,
     LFPatches,
     LFRings,
+    put_chunk,
 )
-from aca_warp.kernels.tiles import block_sync, tile_store_1d
+from aca_warp.kernels.tiles import block_sync
 
 wp.set_module_options({"enable_backward": False})
-
-_put = tile_store_1d(wp.float64, LF_BLOCK)  # a thread's store into a chunk tile of the patch statistics
 
 # columns of the per-step history
 H_NAMES = (
@@ -127,14 +126,14 @@ def patch_stats(
         while j < m:
             i = c0 + j
             if patches.alive[i] != 0:
-                _put(n_t, j, wp.float64(1.0))
-                _put(a_t, j, patches.area[i])
-                _put(at_t, j, patches.area[i] * patches.temp[i])
+                put_chunk(n_t, j, wp.float64(1.0))
+                put_chunk(a_t, j, patches.area[i])
+                put_chunk(at_t, j, patches.area[i] * patches.temp[i])
             else:
-                _put(n_t, j, zero)
-                _put(a_t, j, zero)
-                _put(at_t, j, zero)
-            _put(d_t, j, wp.float64(died[i]))
+                put_chunk(n_t, j, zero)
+                put_chunk(a_t, j, zero)
+                put_chunk(at_t, j, zero)
+            put_chunk(d_t, j, wp.float64(died[i]))
             died[i] = 0
             j += threads
         block_sync()

@@ -16,13 +16,11 @@ from aca_warp.kernels.lf_types import (
     LFRings,
     block_end,
     disc_radius,
+    put_chunk,
 )
-from aca_warp.kernels.tiles import block_put, block_sync, tile_store_1d
+from aca_warp.kernels.tiles import block_put, block_sync
 
 wp.set_module_options({"enable_backward": False})
-
-
-_put = tile_store_1d(wp.float64, LF_BLOCK)  # a thread's store into a chunk tile of the debris sweep
 
 
 @wp.func
@@ -138,19 +136,19 @@ def debris_sweep(
         j = lane
         while j < m:
             e = k * p.n_t + c0 + j
-            _put(src_t, j, cells.src[e])
+            put_chunk(src_t, j, cells.src[e])
             cells.src[e] = zero
-            _put(frac_t, j, p.p_cap * wp.min(cells.chord[e] / p.dr, one))
+            put_chunk(frac_t, j, p.p_cap * wp.min(cells.chord[e] / p.dr, one))
             A = cells.area[e]
             s = cells.store[e]
             dr = zero
             if cells.fn[e] > zero:
                 dr = p.p_remob * s
                 s = s - dr
-            _put(remob_t, j, dr)
-            _put(store_t, j, s)
-            _put(room_t, j, wp.max(p.rho_patch * p.s_max_thick * A - s, zero))
-            _put(open_t, j, p.p_store * (one - wp.min(cells.cover[e] / A, one)))
+            put_chunk(remob_t, j, dr)
+            put_chunk(store_t, j, s)
+            put_chunk(room_t, j, wp.max(p.rho_patch * p.s_max_thick * A - s, zero))
+            put_chunk(open_t, j, p.p_store * (one - wp.min(cells.cover[e] / A, one)))
             j += threads
         block_sync()
         if lane == 0:

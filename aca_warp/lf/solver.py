@@ -462,9 +462,10 @@ class LFSimulation:
         ``arrays``: a host copy of every Warp array of the simulation (cells, rings, patch slots with ``alive``,
         temperatures, debris, wear, ``glob`` with the RNG step counter G_STEP and this step's birth/death/merge
         counts, the merge-candidate CSR and the hash-grid points ``pos``, scratch arrays), except the constants
-        (``cell_area``, ``cell_r``, ``ring_r``, ``schedule``) and ``hist``, whose rows are the run file's
-        /global datasets; ``death_age``/``death_area`` up to ``death_count``. ``counters``: ``step_index``,
-        ``dirty`` (neighbourhoods stale), ``snapshots`` (snapshots taken).
+        (``cell_area``, ``cell_r``, ``ring_r``, ``schedule``), ``hist``, whose rows are the run file's /global
+        datasets, and the scratch that a step writes before it reads it (``_CONSTANT_ARRAYS``);
+        ``death_age``/``death_area`` up to ``death_count``. ``counters``: ``step_index``, ``dirty`` (neighbourhoods
+        stale), ``snapshots`` (snapshots taken).
         """
         arrays: dict[str, np.ndarray] = {}
         for name, value in vars(self).items():
