@@ -1,10 +1,12 @@
 """LF kernels of the contact stage: binning the patches into cells, the elements' stiffnesses and heights, the
-gap's Newton solve, then the normal forces, friction forces and powers (docs/lf_model.md).
+gap's Newton solve, then the normal forces, friction forces and powers (docs/lf_model.md). Sums over several
+elements go through :mod:`~aca_warp.kernels.lf_sums` in a fixed order.
 """
 
 from __future__ import annotations
 
 import warp as wp
+from aca_warp.kernels.lf_sums import LFGroups
 from aca_warp.kernels.lf_types import (
     G_FF,
     G_FN,
@@ -26,7 +28,7 @@ from aca_warp.kernels.lf_types import (
     polar,
 )
 from aca_warp.kernels.physics import friction_coefficient
-from aca_warp.kernels.tiles import block_add
+from aca_warp.kernels.tiles import block_put
 
 wp.set_module_options({"enable_backward": False})
 
@@ -76,18 +78,37 @@ def zero_step(
 @wp.kernel
 def bin_patches(
     p: LFParams,
-    # State in/out (the patches' cells, the cells' cover and chord):
-    cells: LFCells,
+    # State in/out (the patches' cells):
     patches: LFPatches,
 ):
-    """Cell of each alive patch (its centre) and per-cell covered area and summed chord 2a (dim = P)."""
+    """Cell of each alive patch (its centre) (dim = P)."""
     i = wp.tid()
-    if patches.alive[i] == 0:
+    if patches.alive[i] != 0:
+        patches.cell[i] = cell_of(p, patches.x[i], patches.y[i])
+
+
+@wp.kernel
+def cover_chord(
+    groups: LFGroups,
+    patches: LFPatches,
+    # State out (the cells' cover and chord):
+    cells: LFCells,
+):
+    """Per-cell covered area and summed chord 2a of the cell's patches, in slot order (dim = C; a cell without
+    patches keeps the zeros of :func:`zero_step`)."""
+    e = wp.tid()
+    lo = groups.start[e]
+    hi = groups.start[e + 1]
+    if lo == hi:
         return
-    e = cell_of(p, patches.x[i], patches.y[i])
-    patches.cell[i] = e
-    wp.atomic_add(cells.cover, e, patches.area[i])
-    wp.atomic_add(cells.chord, e, wp.float64(2.0) * disc_radius(patches.area[i]))
+    cover = wp.float64(0.0)
+    chord = wp.float64(0.0)
+    for q in range(lo, hi):
+        i = groups.cell[q]
+        cover = cover + patches.area[i]
+        chord = chord + wp.float64(2.0) * disc_radius(patches.area[i])
+    cells.cover[e] = cover
+    cells.chord[e] = chord
 
 
 @wp.func
@@ -203,14 +224,17 @@ def friction(
     kh: wp.array[wp.vec2d],
     # State in/out (writes the normal forces and powers):
     cells: LFCells,
-    rings: LFRings,
     patches: LFPatches,
     glob: wp.array[wp.float64],
+    # Scratch out (the block's Σ F_N, Σ F_F, Σ r F_F, Σ F_N on patches):
+    partial_out: wp.array2d[wp.float64],
 ):
-    """Normal forces at the solved gap (from the contact scratch ``kh``), friction forces and powers, global sums.
+    """Normal forces at the solved gap (from the contact scratch ``kh``), friction forces and powers, and each
+    block's global sums (then :func:`~aca_warp.kernels.lf_sums.add_block_sums`; the rings' powers then
+    :func:`ring_power`).
 
-    Block b covers elements b·LF_BLOCK … (b+1)·LF_BLOCK − 1 of the C + P; the block reduces its global sums
-    before one atomic add each. Launch with ``wp.launch_tiled(dim=[⌈(C+P)/LF_BLOCK⌉], block_dim=LF_BLOCK)``.
+    Block b covers elements b·LF_BLOCK … (b+1)·LF_BLOCK − 1 of the C + P; the block reduces its global sums into
+    row b of ``partial_out``. Launch with ``wp.launch_tiled(dim=[⌈(C+P)/LF_BLOCK⌉], block_dim=LF_BLOCK)``.
     """
     blk, lane = wp.tid()
     n = kh.shape[0]
@@ -226,13 +250,11 @@ def friction(
         fn = e[0] * wp.max(e[1] - g, zero)
         r = zero
         ff = zero
-        ring = wp.int32(0)
         if t < n_cells:
             r = cells.r[t]
             ff = p.mu_pad * fn
             cells.fn[t] = fn
-            wp.atomic_add(cells.power, t, ff * omega * r)
-            ring = t / p.n_t
+            cells.power[t] = ff * omega * r
         else:
             i = t - n_cells
             if patches.alive[i] == 0:
@@ -243,14 +265,41 @@ def friction(
             ff = eq4(p, omega * r) * fn
             patches.fn[i] = fn
             patches.power[i] = ff * omega * r
-            ring = patches.cell[i] / p.n_t
             s_fp += fn
         if fn > zero:
-            wp.atomic_add(rings.power, ring, ff * omega * r)
             s_fn += fn
             s_ff += ff
             s_tq += ff * r
-    block_add(glob, G_FN, s_fn, lane)
-    block_add(glob, G_FF, s_ff, lane)
-    block_add(glob, G_TORQUE, s_tq, lane)
-    block_add(glob, G_FN_PATCH, s_fp, lane)
+    block_put(partial_out, blk, 0, s_fn, lane)
+    block_put(partial_out, blk, 1, s_ff, lane)
+    block_put(partial_out, blk, 2, s_tq, lane)
+    block_put(partial_out, blk, 3, s_fp, lane)
+
+
+# the glob entries of the columns of ``friction``'s block sums
+FRICTION_SUMS = wp.vec4i(G_FN, G_FF, G_TORQUE, G_FN_PATCH)
+
+
+@wp.kernel
+def ring_power(
+    p: LFParams,
+    groups: LFGroups,
+    cells: LFCells,
+    patches: LFPatches,
+    # State out (the rings' powers):
+    rings: LFRings,
+):
+    """Friction power into each disc ring: Σ over its loaded cells, then its loaded patches, in element order
+    (dim = R)."""
+    k = wp.tid()
+    zero = wp.float64(0.0)
+    s = zero
+    for j in range(p.n_t):
+        e = k * p.n_t + j
+        if cells.fn[e] > zero:
+            s = s + cells.power[e]
+    for q in range(groups.start[k * p.n_t], groups.start[(k + 1) * p.n_t]):
+        i = groups.ring[q]
+        if patches.fn[i] > zero:
+            s = s + patches.power[i]
+    rings.power[k] = s

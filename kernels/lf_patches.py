@@ -68,23 +68,25 @@ def clamp_inside(p: LFParams, x: wp.float64, y: wp.float64, a: wp.float64) -> wp
 def life_cycle(
     p: LFParams,
     # State in/out:
-    cells: LFCells,
     patches: LFPatches,
     glob: wp.array[wp.float64],
-    # Out:
-    death_count: wp.array[wp.int32],
-    death_age: wp.array[wp.float64],
-    death_area: wp.array[wp.float64],
+    # Out (per slot: the released debris mass [kg]; a death's flag and (age [s], area [m²])):
+    src_out: wp.array[wp.float64],
+    died_out: wp.array[wp.int32],
+    died_at_out: wp.array[wp.vec2d],
 ):
-    """Growth from captured debris, shrinking by friction power, death (dim = P); released mass → cell source.
+    """Growth from captured debris, shrinking by friction power, death (dim = P); the released mass goes to
+    ``src_out`` (then into the cell's source, :func:`~aca_warp.kernels.lf_sums.add_by_cell`), a death's record to
+    ``died_out``/``died_at_out`` (appended to the calibration lists in slot order by
+    :func:`~aca_warp.kernels.lf_record.patch_stats`).
 
     Growth ΔA = m_cap / (ρ_p t), capped at A_max (excess released). Shrink ΔA = k_shrink P Δt / t. Death when
     A < A_min, t < t_min, T ≥ T_kill, or with probability 1 − exp(−λ0 exp((T − T_c)/T_s) Δt).
     """
     i = wp.tid()
+    src_out[i] = wp.float64(0.0)
     if patches.alive[i] == 0:
         return
-    e = patches.cell[i]
     rho = p.rho_patch
     t = patches.thick[i]
     A = patches.area[i]
@@ -108,19 +110,16 @@ def life_cycle(
         patches.alive[i] = (
             0  # no G_TOPOLOGY: the grid and candidate lists may keep a dead slot (every query checks alive)
         )
-        wp.atomic_add(glob, G_DEATHS, wp.float64(1.0))
-        slot = wp.atomic_add(death_count, 0, 1)
-        if slot < death_age.shape[0]:
-            death_age[slot] = patches.age[i]
-            death_area[slot] = A
+        wp.atomic_add(glob, G_DEATHS, wp.float64(1.0))  # adds of 1: exact in any order
+        died_out[i] = 1
+        died_at_out[i] = wp.vec2d(patches.age[i], A)
         A = wp.float64(0.0)
     else:
         xy = clamp_inside(p, patches.x[i], patches.y[i], disc_radius(A))
         patches.x[i] = xy[0]
         patches.y[i] = xy[1]
     patches.area[i] = A
-    if released != wp.float64(0.0):
-        wp.atomic_add(cells.src, e, released)
+    src_out[i] = released
 
 
 # ----------------------------------------------------------------------------------------------- merges
@@ -158,14 +157,17 @@ def merge_apply(
     nbr_index: wp.array[wp.int32],
     target: wp.array[wp.int32],
     # State in/out (roots write only their own entries, read only absorbed ones):
-    cells: LFCells,
     patches: LFPatches,
     glob: wp.array[wp.float64],
+    # Out (per slot: the cut mass [kg]):
+    src_out: wp.array[wp.float64],
 ):
     """A root (target −1) absorbs every neighbour whose target it is: area sum, area-weighted centroid, top,
     temperature; volume-weighted thickness (mass conserved); oldest age (dim = P). A merged area above
-    max(A_max, the root's area) is cut back to it and the cut mass goes to the cell's debris source."""
+    max(A_max, the root's area) is cut back to it and the cut mass goes to ``src_out`` (then into the cell's
+    debris source, :func:`~aca_warp.kernels.lf_sums.add_by_cell`)."""
     i = wp.tid()
+    src_out[i] = wp.float64(0.0)
     if patches.alive[i] == 0 or target[i] != -1:
         return
     A = patches.area[i]
@@ -193,7 +195,7 @@ def merge_apply(
     t_new = sv / A
     cap = wp.max(p.A_max, patches.area[i])
     if A > cap:
-        wp.atomic_add(cells.src, patches.cell[i], (A - cap) * t_new * p.rho_patch)
+        src_out[i] = (A - cap) * t_new * p.rho_patch
         sx = sx * (cap / A)
         sy = sy * (cap / A)
         stop = stop * (cap / A)
@@ -208,7 +210,7 @@ def merge_apply(
     patches.temp[i] = sT / A
     patches.age[i] = ag
     glob[G_TOPOLOGY] = wp.float64(1.0)
-    wp.atomic_add(glob, G_MERGES, wp.float64(n))
+    wp.atomic_add(glob, G_MERGES, wp.float64(n))  # integer counts: exact in any order
 
 
 @wp.kernel

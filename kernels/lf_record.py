@@ -1,5 +1,5 @@
 """LF kernels of a step's load and outputs: this step's clamp force and disc speed from the schedule, the patch
-statistics, and the history row (docs/lf_model.md).
+statistics and the deaths' calibration lists, and the history row (docs/lf_model.md).
 """
 
 from __future__ import annotations
@@ -22,9 +22,12 @@ from aca_warp.kernels.lf_types import (
     G_STEP,
     G_TORQUE,
     G_TPATCH,
+    LF_BLOCK,
     LFPatches,
     LFRings,
+    put_chunk,
 )
+from aca_warp.kernels.tiles import block_sync
 
 wp.set_module_options({"enable_backward": False})
 
@@ -81,16 +84,77 @@ def set_load(
 
 @wp.kernel
 def patch_stats(
+    threads: wp.int32,
     patches: LFPatches,
+    # In/out (this step's deaths, from ``life_cycle``; the flags are cleared):
+    died: wp.array[wp.int32],
+    died_at: wp.array[wp.vec2d],
+    # Out:
     glob: wp.array[wp.float64],
+    death_count: wp.array[wp.int32],
+    death_age: wp.array[wp.float64],
+    death_area: wp.array[wp.float64],
 ):
-    """Count, Σ area and Σ A T of the alive patches (dim = P)."""
-    i = wp.tid()
-    if patches.alive[i] == 0:
-        return
-    wp.atomic_add(glob, G_COUNT, wp.float64(1.0))
-    wp.atomic_add(glob, G_AREA, patches.area[i])
-    wp.atomic_add(glob, G_TPATCH, patches.area[i] * patches.temp[i])
+    """Count, Σ area and Σ A T of the alive patches onto ``glob``, and this step's deaths appended to the
+    calibration lists ``death_age``/``death_area`` (as far as they reach; ``death_count`` counts them all), both
+    in slot order (one block, dim = [1]).
+
+    The block finds the last slot that is alive or died this step (a block-wide max), then, up to it, loads a
+    chunk of LF_BLOCK slots into shared memory in parallel and thread 0 adds them in slot order (an empty slot adds
+    +0, which changes no sum). Launch with ``wp.launch_tiled(dim=[1], block_dim=LF_BLOCK)``; ``threads`` as in
+    ``aca_warp.hf.block_threads``.
+    """
+    _blk, lane = wp.tid()
+    n_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
+    a_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
+    at_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
+    d_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
+    zero = wp.float64(0.0)
+    n = patches.alive.shape[0]
+    cnt = glob[G_COUNT]
+    s_a = glob[G_AREA]
+    s_at = glob[G_TPATCH]
+    last = int(-1)
+    for i in range(lane, n, threads):
+        if patches.alive[i] != 0 or died[i] != 0:
+            last = i
+    end = wp.tile_max(wp.tile(last))[0] + 1
+    c0 = wp.int32(0)
+    while c0 < end:
+        m = wp.min(LF_BLOCK, end - c0)
+        j = lane
+        while j < m:
+            i = c0 + j
+            if patches.alive[i] != 0:
+                put_chunk(n_t, j, wp.float64(1.0))
+                put_chunk(a_t, j, patches.area[i])
+                put_chunk(at_t, j, patches.area[i] * patches.temp[i])
+            else:
+                put_chunk(n_t, j, zero)
+                put_chunk(a_t, j, zero)
+                put_chunk(at_t, j, zero)
+            put_chunk(d_t, j, wp.float64(died[i]))
+            died[i] = 0
+            j += threads
+        block_sync()
+        if lane == 0:
+            for jj in range(m):
+                cnt = cnt + n_t[jj]
+                s_a = s_a + a_t[jj]
+                s_at = s_at + at_t[jj]
+                if d_t[jj] != zero:
+                    slot = death_count[0]
+                    if slot < death_age.shape[0]:
+                        rec = died_at[c0 + jj]
+                        death_age[slot] = rec[0]
+                        death_area[slot] = rec[1]
+                    death_count[0] = slot + 1
+        block_sync()
+        c0 += LF_BLOCK
+    if lane == 0:
+        glob[G_COUNT] = cnt
+        glob[G_AREA] = s_a
+        glob[G_TPATCH] = s_at
 
 
 @wp.kernel

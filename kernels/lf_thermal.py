@@ -74,6 +74,7 @@ def implicit_temperature(
 def pad_temperature(
     p: LFParams,
     n_cells: wp.int32,
+    first: wp.int32,
     # State in/out (the cells' and patches' temperatures):
     cells: LFCells,
     rings: LFRings,
@@ -83,10 +84,11 @@ def pad_temperature(
 
     Cell: C_e = ρ_p c_p A_e t_eff, heated by (1 − γ) P_e, contact conductance h_pd a_e to the ring while in
     contact, k_p A_e / L_b to the bulk at T_amb. Patch: C_i = ρ_p c_p A_i t_eff, (1 − γ) P_i, flash
-    (constriction) conductance 4 k_d a_i to the ring while loaded, k_p A_i / L_b to its cell. Cells are
-    updated in the same launch, so a patch couples to its cell's previous temperature (operator split).
+    (constriction) conductance 4 k_d a_i to the ring while loaded, k_p A_i / L_b to its cell. Element t =
+    ``first`` + thread: launched for the cells (first 0, dim C), then for the patches (first C, dim P), so a patch
+    couples to its cell's new temperature (operator split), whatever order the threads run in.
     """
-    t = wp.tid()
+    t = wp.tid() + first
     dt = p.dt
     if t < n_cells:
         A = cells.area[t]

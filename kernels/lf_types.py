@@ -6,7 +6,8 @@ The automaton's state comes to the kernels in three structs, :class:`LFCells`, :
 :mod:`~aca_warp.kernels.lf_contact` (binning, contact, friction), :mod:`~aca_warp.kernels.lf_thermal`
 (temperatures), :mod:`~aca_warp.kernels.lf_wear` (wear and its debris),
 :mod:`~aca_warp.kernels.lf_patches` (life cycle, merges, births, merge candidates, compaction),
-:mod:`~aca_warp.kernels.lf_record` (load schedule and outputs).
+:mod:`~aca_warp.kernels.lf_record` (load schedule and outputs); :mod:`~aca_warp.kernels.lf_sums` puts the sums
+of several elements' contributions into one place in a fixed order.
 
 Three element sets, all float64 SoA arrays:
 
@@ -25,12 +26,16 @@ Random numbers: a stateless counter hash keyed by (seed, step, element, stream),
 from __future__ import annotations
 
 import warp as wp
+from aca_warp.kernels.tiles import tile_store_1d
 
 wp.set_module_options({"enable_backward": False})
 
 # threads of the block kernels (contact solve, debris sweep): Warp's default block size, so that no second
-# module variant is compiled; also the debris sweep's chunk of cells per shared-memory load
+# module variant is compiled; also the chunk of elements per shared-memory load of the kernels that walk
+# elements in order (debris sweep, patch statistics)
 LF_BLOCK = wp.constant(256)
+# a thread's store into such a chunk tile (shape (LF_BLOCK,), float64), without a block barrier
+put_chunk = tile_store_1d(wp.float64, LF_BLOCK)
 
 
 # indices into the global scalar array ``glob`` (float64)

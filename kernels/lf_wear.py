@@ -16,13 +16,11 @@ from aca_warp.kernels.lf_types import (
     LFRings,
     block_end,
     disc_radius,
+    put_chunk,
 )
-from aca_warp.kernels.tiles import block_add, block_sync, tile_store_1d
+from aca_warp.kernels.tiles import block_put, block_sync
 
 wp.set_module_options({"enable_backward": False})
-
-
-_put = tile_store_1d(wp.float64, LF_BLOCK)  # a thread's store into a chunk tile of the debris sweep
 
 
 @wp.func
@@ -47,10 +45,16 @@ def wear(
     # State in/out (the cells' elevations and debris sources, the patches' thicknesses and tops):
     cells: LFCells,
     patches: LFPatches,
-    glob: wp.array[wp.float64],
+    # Scratch out (per slot: the retained debris of the patch's wear [kg]; per block: Σ retained matrix debris,
+    # Σ lost matrix debris, Σ lost patch debris [kg]):
+    src_out: wp.array[wp.float64],
+    partial_out: wp.array2d[wp.float64],
 ):
-    """Energy wear: Δz = k_E f(T) P Δt / a. A fraction f_ret of the debris mass enters the cell's debris source,
-    the rest is lost (counted in ``glob``). Blocks and launch as in :func:`friction`."""
+    """Energy wear: Δz = k_E f(T) P Δt / a. A fraction f_ret of the debris mass enters the cell's debris source
+    (a cell's own at once; a patch's into ``src_out``, then added to its cell's by
+    :func:`~aca_warp.kernels.lf_sums.add_by_cell`), the rest is lost (the blocks' sums into ``partial_out``, then
+    :func:`~aca_warp.kernels.lf_sums.add_block_sums`). Blocks and launch as in
+    :func:`~aca_warp.kernels.lf_contact.friction`."""
     blk, lane = wp.tid()
     n = n_cells + patches.alive.shape[0]
     zero = wp.float64(0.0)
@@ -67,11 +71,12 @@ def wear(
             dz = wear_depth(p, p.wear_m, cells.T[t], pw, free)
             cells.z[t] = cells.z[t] - dz
             m = p.rho_m * dz * free
-            wp.atomic_add(cells.src, t, p.f_ret * m)
+            cells.src[t] = cells.src[t] + p.f_ret * m
             s_in += p.f_ret * m
             s_ml += (one - p.f_ret) * m
             continue
         i = t - n_cells
+        src_out[i] = zero
         if patches.alive[i] == 0:
             continue
         pw = patches.power[i]
@@ -82,11 +87,15 @@ def wear(
         patches.thick[i] = patches.thick[i] - dz
         patches.top[i] = patches.top[i] - dz
         m = p.rho_patch * dz * A
-        wp.atomic_add(cells.src, patches.cell[i], p.f_ret * m)
+        src_out[i] = p.f_ret * m
         s_pl += (one - p.f_ret) * m
-    block_add(glob, G_MATRIX_IN, s_in, lane)
-    block_add(glob, G_MATRIX_LOST, s_ml, lane)
-    block_add(glob, G_PATCH_LOST, s_pl, lane)
+    block_put(partial_out, blk, 0, s_in, lane)
+    block_put(partial_out, blk, 1, s_ml, lane)
+    block_put(partial_out, blk, 2, s_pl, lane)
+
+
+# the glob entries of the columns of ``wear``'s block sums (the fourth unused)
+WEAR_SUMS = wp.vec4i(G_MATRIX_IN, G_MATRIX_LOST, G_PATCH_LOST, -1)
 
 
 # ----------------------------------------------------------------------------------------------- debris
@@ -127,19 +136,19 @@ def debris_sweep(
         j = lane
         while j < m:
             e = k * p.n_t + c0 + j
-            _put(src_t, j, cells.src[e])
+            put_chunk(src_t, j, cells.src[e])
             cells.src[e] = zero
-            _put(frac_t, j, p.p_cap * wp.min(cells.chord[e] / p.dr, one))
+            put_chunk(frac_t, j, p.p_cap * wp.min(cells.chord[e] / p.dr, one))
             A = cells.area[e]
             s = cells.store[e]
             dr = zero
             if cells.fn[e] > zero:
                 dr = p.p_remob * s
                 s = s - dr
-            _put(remob_t, j, dr)
-            _put(store_t, j, s)
-            _put(room_t, j, wp.max(p.rho_patch * p.s_max_thick * A - s, zero))
-            _put(open_t, j, p.p_store * (one - wp.min(cells.cover[e] / A, one)))
+            put_chunk(remob_t, j, dr)
+            put_chunk(store_t, j, s)
+            put_chunk(room_t, j, wp.max(p.rho_patch * p.s_max_thick * A - s, zero))
+            put_chunk(open_t, j, p.p_store * (one - wp.min(cells.cover[e] / A, one)))
             j += threads
         block_sync()
         if lane == 0:

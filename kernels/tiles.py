@@ -98,11 +98,12 @@ def tile_load_rows(dtype: Any, rows: int, size: int) -> Any:
 
 
 @wp.func
-def block_add(a: wp.array[wp.float64], i: int, x: wp.float64, lane: int):
-    """``a[i] += Σ x`` over the block: a block-wide sum, then one atomic add by thread 0 (all threads must call)."""
+def block_put(a: wp.array2d[wp.float64], row: int, col: int, x: wp.float64, lane: int):
+    """``a[row, col] = Σ x`` over the block: a block-wide sum (a fixed order), stored by thread 0 (all threads must
+    call). The blocks' sums are then added in block order by one thread (``lf_sums.add_block_sums``)."""
     s = wp.tile_sum(wp.tile(x))[0]
     if lane == 0:
-        wp.atomic_add(a, i, s)
+        a[row, col] = s
 
 
 # Thread-block clusters (sm_90+): a cluster's blocks share a barrier and can store into each other's shared memory.

@@ -24,7 +24,7 @@ from aca_warp.common.checkpoint import Checkpoint, CheckpointClock
 from aca_warp.common.devices import block_threads, init_warp, load_kernels
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.options import check_interval
-from aca_warp.kernels import lf_contact, lf_patches, lf_record, lf_thermal, lf_wear
+from aca_warp.kernels import lf_contact, lf_patches, lf_record, lf_sums, lf_thermal, lf_wear
 from aca_warp.kernels.lf_record import H_COUNT, H_COVER, H_MU, H_NAMES, H_SIZE
 from aca_warp.kernels.lf_types import (
     G_EMITTED,
@@ -54,8 +54,11 @@ _PARK_ROWS = 64
 _PATCH_ARRAYS = {"fn": "patch_fn", "power": "patch_power", "cell": "patch_cell"}
 _BIRTH_ARRAYS = {"xy": "birth_xy", "slot": "slot_list"}
 # arrays a checkpoint leaves out: constants of the grid and schedule, the history (the run file's /global) and
-# per-step scratch
-_CONSTANT_ARRAYS = ("cell_area", "cell_r", "ring_r", "schedule", "hist", "kh")
+# per-step scratch (written in a step before it is read)
+_CONSTANT_ARRAYS = (
+    "cell_area", "cell_r", "ring_r", "schedule", "hist", "kh", "partial", "patch_src", "died", "died_at",
+    "group_count", "group_fill", "group_start", "group_cell", "group_ring",
+)  # fmt: skip
 
 
 class LFSimulation:
@@ -80,7 +83,7 @@ class LFSimulation:
             self.device = wp.get_device(device)
         except (ValueError, RuntimeError) as e:
             raise SceneError(f"device {device!r} is not available: {e}") from None
-        load_kernels([lf_contact, lf_patches, lf_record, lf_thermal, lf_wear], self.device)
+        load_kernels([lf_contact, lf_patches, lf_record, lf_sums, lf_thermal, lf_wear], self.device)
         self.scene = scene
         self.table: StepTable = step_table(scene, duration)
         dr, dphi = self._set_grid()
@@ -167,6 +170,14 @@ class LFSimulation:
         self.ring_bulge, self.ring_power, self.ring_emit = zf(R), zf(R), zf(R)
         self.work = zf(2 * R)
         self.kh = wp.zeros(C + P, dtype=wp.vec2d, device=dev)  # contact scratch: (k [N/m], h [m]) per element
+        # order-fixed sums (kernels/lf_sums.py): the block kernels' per-block sums, a patch's debris for its cell
+        # [kg], a death's flag and (age [s], area [m²]) per slot, the patches grouped by cell and ring
+        self.partial = wp.zeros((self.element_blocks, 4), dtype=wp.float64, device=dev)
+        self.patch_src = zf(P)
+        self.died = zi(P)
+        self.died_at = wp.zeros(P, dtype=wp.vec2d, device=dev)
+        self.group_count, self.group_fill, self.group_start = zi(C), zi(C), zi(C + 1)
+        self.group_cell, self.group_ring = zi(P), zi(P)
         self.alive, self.patch_cell, self.target = zi(P), zi(P), zi(P)
         self.x, self.y, self.area, self.thick, self.top = (zf(P) for _ in range(5))
         self.temp = f64(np.full(P, c.T_amb))
@@ -201,6 +212,9 @@ class LFSimulation:
         self.births = lf_patches.LFBirths()
         for f in lf_patches.LFBirths.vars:
             setattr(self.births, f, getattr(self, _BIRTH_ARRAYS.get(f, f)))
+        self.groups = lf_sums.LFGroups()
+        for f in lf_sums.LFGroups.vars:
+            setattr(self.groups, f, getattr(self, f"group_{f}"))
 
     # ------------------------------------------------------------------------------------------- set-up
 
@@ -247,17 +261,38 @@ class LFSimulation:
         self.rebuilds += 1
 
     def _bin(self) -> None:
-        """Reset the step's accumulators and bin the patches into the cells."""
+        """Reset the step's accumulators, bin the patches into the cells, group them and sum the cells' cover."""
         self._launch(lf_contact.zero_step, self.n_cells, [self.cells, self.rings, self.glob])
-        self._launch(lf_contact.bin_patches, self.capacity, [self.params, self.cells, self.patches])
+        self._launch(lf_contact.bin_patches, self.capacity, [self.params, self.patches])
+        self._group()
+        self._launch(lf_contact.cover_chord, self.n_cells, [self.groups, self.patches, self.cells])
+
+    def _group(self) -> None:
+        """Group the alive patches by their cell (``patch_cell``) and ring, ascending slots in each group."""
+        C, P, groups = self.n_cells, self.capacity, self.groups
+        self.group_count.zero_()
+        self.group_fill.zero_()
+        self._launch(lf_sums.group_count, P, [self.alive, self.patch_cell, groups])
+        wp.utils.array_scan(self.group_count, self.group_start[:C], inclusive=False)
+        self._launch(lf_patches.set_row_end, 1, [self.group_count, self.group_start, C])
+        self._launch(lf_sums.group_fill, P, [self.alive, self.patch_cell, groups])
+        self._launch(lf_sums.group_sort, C + self.n_r, [C, self.n_t, groups])
+
+    def _add_patch_src(self) -> None:
+        """Add the patches' debris (``patch_src``) to their cells' sources, in slot order."""
+        self._launch(lf_sums.add_by_cell, self.n_cells, [self.groups, self.patch_src, self.cell_src])
 
     def _contact_and_friction(self) -> None:
-        p, C, P, state = self.params, self.n_cells, self.capacity, (self.cells, self.rings, self.patches)
-        self._launch(lf_contact.contact_elements, C + P, [p, C, *state, self.kh])
+        p, C, P = self.params, self.n_cells, self.capacity
+        cells, rings, patches = self.cells, self.rings, self.patches
+        self._launch(lf_contact.contact_elements, C + P, [p, C, cells, rings, patches, self.kh])
         lf = self.scene.lf
         tol = wp.float64(lf.contact_tol)
         self._launch_blocks(lf_contact.contact_solve, 1, [lf.contact_iterations, tol, self.threads, self.kh, self.glob])
-        self._launch_blocks(lf_contact.friction, self.element_blocks, [p, C, self.threads, self.kh, *state, self.glob])
+        fric = [p, C, self.threads, self.kh, cells, patches, self.glob, self.partial]
+        self._launch_blocks(lf_contact.friction, self.element_blocks, fric)
+        self._launch(lf_sums.add_block_sums, 4, [self.partial, lf_contact.FRICTION_SUMS, self.glob])
+        self._launch(lf_contact.ring_power, self.n_r, [p, self.groups, cells, patches, rings])
 
     def resolve(self) -> None:
         """Re-bin the patches and re-solve contact and friction at the current load, without advancing time."""
@@ -308,24 +343,32 @@ class LFSimulation:
             self.patch_fn.zero_()
             self.patch_power.zero_()
         self._launch(lf_thermal.disc_temperature, 1, [p, rings, self.work])
-        self._launch(lf_thermal.pad_temperature, C + P, [p, C, cells, rings, patches])
+        self._launch(lf_thermal.pad_temperature, C, [p, C, 0, cells, rings, patches])
+        self._launch(lf_thermal.pad_temperature, P, [p, C, C, cells, rings, patches])
         if loaded:
-            self._launch_blocks(lf_wear.wear, self.element_blocks, [p, C, self.threads, cells, patches, self.glob])
+            wear = [p, C, self.threads, cells, patches, self.patch_src, self.partial]
+            self._launch_blocks(lf_wear.wear, self.element_blocks, wear)
+            self._launch(lf_sums.add_block_sums, 3, [self.partial, lf_wear.WEAR_SUMS, self.glob])
+            self._add_patch_src()
             self._launch_blocks(lf_wear.debris_sweep, R, [p, self.threads, cells, rings])
             self._launch(lf_wear.capture_gather, P, [cells, patches])
-            deaths = [self.death_count, self.death_age, self.death_area]
-            self._launch(lf_patches.life_cycle, P, [p, cells, patches, self.glob, *deaths])
+            life = [p, patches, self.glob, self.patch_src, self.died, self.died_at]
+            self._launch(lf_patches.life_cycle, P, life)
+            self._add_patch_src()
             self.merge()
             self._birth()
-        self._launch(lf_record.patch_stats, P, [patches, self.glob])
+        deaths = [self.glob, self.death_count, self.death_age, self.death_area]
+        self._launch_blocks(lf_record.patch_stats, 1, [self.threads, patches, self.died, self.died_at, *deaths])
         self._launch(lf_record.record_step, 1, [wp.float64(self.scene.pad.area), rings, self.glob, self.hist])
 
     def merge(self) -> None:
-        """One merge pass over the candidate CSR: each root absorbs the patches that overlap it (lowest index)."""
+        """One merge pass over the candidate CSR: each root absorbs the patches that overlap it (lowest index).
+        The patches must be grouped by their cells (:meth:`_group`) since their last binning."""
         P, cand = self.capacity, (self.cand_start, self.cand_index)
         self._launch(lf_patches.merge_target, P, [*cand, self.patches, self.target])
-        merge = [self.params, *cand, self.target, self.cells, self.patches, self.glob]
+        merge = [self.params, *cand, self.target, self.patches, self.glob, self.patch_src]
         self._launch(lf_patches.merge_apply, P, merge)
+        self._add_patch_src()
         self._launch(lf_patches.merge_kill, P, [self.target, self.patches])
 
     def _birth(self) -> None:
@@ -419,9 +462,10 @@ class LFSimulation:
         ``arrays``: a host copy of every Warp array of the simulation (cells, rings, patch slots with ``alive``,
         temperatures, debris, wear, ``glob`` with the RNG step counter G_STEP and this step's birth/death/merge
         counts, the merge-candidate CSR and the hash-grid points ``pos``, scratch arrays), except the constants
-        (``cell_area``, ``cell_r``, ``ring_r``, ``schedule``) and ``hist``, whose rows are the run file's
-        /global datasets; ``death_age``/``death_area`` up to ``death_count``. ``counters``: ``step_index``,
-        ``dirty`` (neighbourhoods stale), ``snapshots`` (snapshots taken).
+        (``cell_area``, ``cell_r``, ``ring_r``, ``schedule``), ``hist``, whose rows are the run file's /global
+        datasets, and the scratch that a step writes before it reads it (``_CONSTANT_ARRAYS``);
+        ``death_age``/``death_area`` up to ``death_count``. ``counters``: ``step_index``, ``dirty`` (neighbourhoods
+        stale), ``snapshots`` (snapshots taken).
         """
         arrays: dict[str, np.ndarray] = {}
         for name, value in vars(self).items():
@@ -517,6 +561,7 @@ class LFSimulation:
             if pt is None or len(overlapping_pairs(pt)) == 0:
                 return k
             self.rebuild_neighbours()
+            self._group()  # patches born since the last binning keep the cell their slot held (as merges use)
             self.merge()
             self.dirty = True
         raise SceneError("patches still overlap after the merge passes")

@@ -1,0 +1,76 @@
+#!/usr/bin/env python3
+"""Run the LF automaton of the multi-timescale experiments several times per seed and compare the run files bit for
+bit: the check that an LF run is reproducible on a device (docs/lf_model.md, "Reproducibility").
+
+Each run is the ``multiscale`` preset with ``[lf] seed`` and ``[patches] seed`` set to the seed, as the §3.3
+experiments make them (``aca_warp.studies.validation.multiscale.lf_scene``), written by ``aca_warp.lf.commands.run_lf``
+into ``OUT/seed<S>_run<K>.h5``; every dataset of runs 2, 3, … is compared with run 1's (dtype, shape, every bit;
+``scripts/compare_checkouts.py``). One line per seed; exit code 0 when every seed's runs are bit-identical, 1 when
+any differ, 2 on bad arguments. Examples::
+
+    python3 scripts/lf_reproducible.py --device cuda:0 --seeds 1 2 3 4 5 6 7 8 --runs 3 --out lf_repro
+    python3 scripts/lf_reproducible.py --device cpu --seeds 1 --runs 2 --duration 0.5   # small, on the CPU
+
+``--duration`` [s] runs only the first part of the schedule (default: the whole schedule, 55 s, 5500 steps).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from compare_checkouts import compare, file_line, same_results
+
+
+def run_seed(seed: int, runs: int, out: Path, device: str, duration: float | None) -> tuple[bool, str]:
+    """``runs`` LF runs of ``seed`` into ``out``; (whether all are bit-identical to the first, one line)."""
+    from aca_warp.lf.commands import run_lf
+    from aca_warp.studies.validation.multiscale import lf_scene
+
+    paths, walls = [], []
+    for k in range(runs):
+        path = out / f"seed{seed}_run{k + 1}.h5"
+        t0 = time.perf_counter()
+        run_lf(lf_scene(seed, None, None), path, duration=duration, device=device, overwrite=True)
+        walls.append(time.perf_counter() - t0)
+        paths.append(path)
+    reports = [compare(paths[0], p) for p in paths[1:]]
+    same = all(same_results(r) for r in reports)
+    lines = [f"run {k + 2}: {file_line(r)}" for k, r in enumerate(reports) if not same_results(r)]
+    head = f"seed {seed}: {runs} runs ({', '.join(f'{w:.1f}' for w in walls)} s), "
+    if same:
+        return True, head + f"{reports[0]['datasets'] if reports else 0} datasets each, bit-identical"
+    return False, head + "; ".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--device", default="cpu", help="Warp device (default cpu)")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2], help="seeds (default 1 2)")
+    ap.add_argument("--runs", type=int, default=2, help="runs per seed, at least 2 (default 2)")
+    ap.add_argument("--duration", type=float, help="simulated time [s] (default: the whole schedule)")
+    ap.add_argument("--out", type=Path, help="folder for the run files (default: a temporary folder, removed)")
+    args = ap.parse_args(argv)
+    if args.runs < 2:
+        ap.error(f"--runs must be at least 2, not {args.runs}")
+    if args.duration is not None and not args.duration > 0:
+        ap.error(f"--duration must be a positive number of seconds, not {args.duration}")
+    if any(s < 0 for s in args.seeds):
+        ap.error("--seeds must be non-negative integers")
+    with tempfile.TemporaryDirectory() as tmp:
+        out = args.out or Path(tmp)
+        out.mkdir(parents=True, exist_ok=True)
+        ok = True
+        for seed in args.seeds:
+            same, line = run_seed(seed, args.runs, out, args.device, args.duration)
+            print(line, flush=True)
+            ok = ok and same
+    print("all bit-identical" if ok else "runs DIFFER", flush=True)
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
