@@ -663,3 +663,15 @@ def test_results_of_different_lf_runs_are_neither_reused_nor_joined(tmp_path):
     notes: list[str] = []
     got = VL.earlier_results(files, committed, notes.append)
     assert sorted(got.results) == ["hf1", "ms_fast"] and any("ms_mid not used" in n for n in notes)
+
+
+def test_committed_lf_state_results_come_from_one_set_of_lf_runs():
+    """Every §3.3 result of the committed results file records the LF runs it was cut from, and they agree."""
+    from aca_warp.studies.validation.results import read_results
+
+    results, _, _ = read_results(Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json")
+    runs = {n: r.get("lf_runs", {}) for n, r in results.items() if n in VB.EXPERIMENTS
+            and VB.EXPERIMENTS[n].builder is VM.state_scene}  # fmt: skip
+    assert set(runs) >= {"ms_fast", "ms_short", "ms_mid", "ms_app3", "ms_order", "ms_lin"}
+    assert all(runs.values()) and VM.lf_conflicts(runs) == []
+    assert VM.lf_conflicts({**runs, "lf facts": results["lf_states"]["lf_runs"]}) == []
