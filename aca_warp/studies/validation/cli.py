@@ -82,8 +82,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "a second call that runs what the first left out, or the join of runs made side by side with "
                    "--only on several GPUs (an experiment finished in two of the files is refused)")  # fmt: skip
     p.add_argument("--lf-dir", type=Path, default=None, help="folder of the LF runs of the §3.3 experiments "
-                   "(default DIR/lf): give shares run side by side, and a second call, the same folder, since "
-                   "an LF run on a GPU is not bit-reproducible; results of other LF runs are not joined")  # fmt: skip
+                   "(default DIR/lf): give shares run side by side, and a second call, the same folder (the LF "
+                   "stage runs once; results cut from other LF runs are not joined)")  # fmt: skip
     p.add_argument("--rerun", action="store_true", help="run again even where a saved result fits")
     p.add_argument("--keep-records", action="store_true", help="also keep each run's records (globals and per-patch "
                    "velocities, DIR/<experiment>/records.npz: the per-patch record's size per experiment)")  # fmt: skip
@@ -291,8 +291,8 @@ def earlier_results(paths: list[Path] | None, cfg: Config, log: Callable[[str], 
             log(f"{path}: other settings than this run's; not used")
             continue
         done = {n: r for n, r in results.items() if n in EXPERIMENTS and r.get("status") in ("done", "stopped")}
-        blind = [n for n, r in done.items() if EXPERIMENTS[n].builder is validation_multiscale.state_scene]
-        blind = [n for n in blind if not done[n].get("lf_runs")]
+        lf_state = validation_multiscale.state_scene
+        blind = [n for n, r in done.items() if EXPERIMENTS[n].builder is lf_state and not r.get("lf_runs")]
         if blind:
             log(f"{path}: {', '.join(blind)} not used: no record of the LF runs they were cut from")
             done = {n: r for n, r in done.items() if n not in blind}
@@ -311,8 +311,8 @@ def earlier_results(paths: list[Path] | None, cfg: Config, log: Callable[[str], 
     clash = validation_multiscale.lf_conflicts(runs)
     if clash:
         raise ValueError(
-            f"§3.3 results made from different LF runs: {'; '.join(clash)} (an LF run on a GPU is not bit-"
-            "reproducible); run every share, and a second call, with one --lf-dir"
+            f"§3.3 results made from different LF runs: {'; '.join(clash)}; run every share, and a second call, "
+            "with one --lf-dir"
         )
     return got
 

@@ -104,15 +104,19 @@ def lf_path(cfg: Config, seed: int, schedule_bar: tuple[float, ...] | None) -> P
 
 
 def lf_runs(exp: Experiment, cfg: Config) -> dict[str, str]:
-    """The LF run files a §3.3 experiment's pads are cut from, each with the digest of its content (:func:`_digest`;
-    {} for other experiments; a file not on disk is left out). An LF run on a GPU is not bit-reproducible (float
-    atomics order its sums), so a second run of the same seed may differ in a birth or a death: results are joined or
-    reused only where their LF runs are the same files (:func:`lf_conflicts`)."""
-    if exp.builder is not state_scene:
-        return {}
+    """The LF run files a §3.3 experiment's pads are cut from, each with the digest of its content
+    (:func:`lf_digests`; {} for other experiments). Results are joined or reused only where their LF runs are the
+    same (:func:`lf_conflicts`): another code version, another device or an LF run made before its sums were put in
+    a fixed order may give other states for the same seed."""
+    return lf_digests(cfg, exp.schedule_bar) if exp.builder is state_scene else {}
+
+
+def lf_digests(cfg: Config, schedule_bar: tuple[float, ...] | None) -> dict[str, str]:
+    """File name → content digest (:func:`_digest`) of the LF runs of ``cfg``'s seeds under ``schedule_bar`` (None:
+    the preset's schedule) in ``cfg.lf_dir``; a file not on disk is left out."""
     out = {}
     for k in range(cfg.seeds):
-        path = lf_path(cfg, cfg.first_seed + k, exp.schedule_bar)
+        path = lf_path(cfg, cfg.first_seed + k, schedule_bar)
         if path.is_file():
             st = path.stat()
             out[path.name] = _digest(str(path.resolve()), (st.st_ino, st.st_mtime_ns, st.st_ctime_ns, st.st_size))
@@ -253,8 +257,7 @@ def lf_facts(cfg: Config) -> dict[str, Any]:
             m[f"match_{other}"] = coverage_match(a3, states[other])
             m[f"match_back_{other}"] = coverage_match(states[other], a3)
         pads.append({"seed": seed, "status": "LF state", "measures": m})
-    runs = lf_runs(EXPERIMENTS[MAIN[0]], cfg) if MAIN[0] in EXPERIMENTS else {}
-    return {"pads": pads, "cap_frequency_hz": cap_frequency(cfg), "lf_runs": runs, "status": "done"}
+    return {"pads": pads, "cap_frequency_hz": cap_frequency(cfg), "lf_runs": lf_digests(cfg, None), "status": "done"}
 
 
 # ------------------------------------------------------------------------------------------------ HF scenes

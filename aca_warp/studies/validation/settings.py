@@ -49,7 +49,7 @@ _LF_REGIME = (
 STEPPING: dict[str, Stepping] = {
     "hf": Stepping(
         dt=5.0e-8,
-        reason="the §3.1 presets, the area sweep and their variants: the statistical work-precision on one H200 (32 "
+        reason="HF1, HF2, HF4, the area sweep and their variants: the statistical work-precision on one H200 (32 "
         "saturated hf1 and hf2 pads each, 30 ms, a 10 ms window; docs/work_precision_statistics.md) keeps every "
         "validation measure within a quarter of the spread between seeds with strang fp32 at 5e-8 s and at no "
         "coarser step (at 1e-7 s the velocity-sum peak moves in hf1, μ std and S − S_null in hf2); hf4 keeps every "
