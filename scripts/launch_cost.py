@@ -13,7 +13,6 @@ with ``--json``, writes them with the machine and the date.
 from __future__ import annotations
 
 import argparse
-import json
 import platform
 import sys
 import time
@@ -40,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     from aca_warp.common.files import host_cpu
     from aca_warp.common.launches import Launcher
     from aca_warp.hf.solver import HFSolver
-    from aca_warp.studies.report import command_line
+    from aca_warp.studies.report import command_line, write_json
 
     model = build_model([preset(args.scene)], device="cpu")
     state = initial_state(model)
@@ -79,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
             "microseconds": result,
         }
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(doc, indent=1) + "\n")
+        write_json(args.json, doc)
     return 0
 
 

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import platform
 import sys
 import time
@@ -58,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     init_warp()
     import aca_warp.hf.recorder as recorder
     from aca_warp.common.files import host_cpu, machine
-    from aca_warp.studies.report import command_line
+    from aca_warp.studies.report import command_line, write_json
     from aca_warp.studies.runs import batch_at_start, run_engine
     from aca_warp.studies.validation.base import EXPERIMENTS, FULL
     from aca_warp.studies.validation.experiments import prepare
@@ -116,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
             "runs": runs,
         }
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(doc, indent=1) + "\n")
+        write_json(args.json, doc)
     return 0
 
 
