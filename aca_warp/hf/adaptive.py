@@ -175,7 +175,7 @@ class AdaptiveStepper:
         fields = {k: getattr(self, k) for k in names} | stages | split
         fields |= {"h_min": MIN_STEP, "switching": int(self.pair and self.split)}
         self.struct = HFAdaptive.of(T, fields)
-        self.launch = Launcher(dev)  # its launches packed once, replayed (on the CPU)
+        self.launcher = Launcher(dev)  # its launches packed once, replayed (on the CPU)
 
     def _scales(self) -> tuple[wp.array, wp.array]:
         """Per-patch scales of the error norm: U_i = F_N,i M / k_T,i [m], the static deflection under the largest
@@ -239,7 +239,7 @@ class AdaptiveStepper:
         if self.split:
             m, s = self.model, self.state
             args = [m.struct(), self.struct, self.solver.newton_tol, s.force, s.v]
-            self.launch(KC.split_finish, m.patch_count, args)
+            self.launcher(KC.split_finish, m.patch_count, args)
 
     def body(self) -> None:
         """One iteration: a trial of every pad that has not landed, the landing check and (when every pad has
@@ -249,27 +249,27 @@ class AdaptiveStepper:
             self._pair_trial()
         if self.split:
             self._split_trial()
-        self.launch(KA.landing, 1, [m.pad_count, self.struct, self.rec.struct, self.event])
+        self.launcher(KA.landing, 1, [m.pad_count, self.struct, self.rec.struct, self.event])
         if self.growth is not None:
             self.growth.launch()
         if not self.split:
             self.rec.launch(s.u, s.v, conditional=True)
             return
         args = [m.struct(), self.struct, self.solver.newton_tol, self.rec.struct, self.event, s.u, s.force, s.v]
-        self.launch(KC.split_sample, m.patch_count, args)
+        self.launcher(KC.split_sample, m.patch_count, args)
         if self.pair:
-            self.launch(KC.switch_done, m.pad_count, [self.struct])
+            self.launcher(KC.switch_done, m.pad_count, [self.struct])
         self.rec.launch(s.u, self.split_arrays["v_rec"], conditional=True)
 
     def _split_trial(self) -> None:
         """A split-step trial of every pad on it that has not landed: sub-step and drift, gather, control, commit."""
         m, s, dev, n = self.model, self.state, self.model.device, self.model.patch_count
         km, ctl = m.struct(), self.struct
-        self.launch(KC.split_trial, n, [km, ctl, self.solver.newton_tol, s.u, s.v, s.force])
-        self.launch(KC.split_gather, n, [km, ctl])
+        self.launcher(KC.split_trial, n, [km, ctl, self.solver.newton_tol, s.u, s.v, s.force])
+        self.launcher(KC.split_gather, n, [km, ctl])
         threads = block_threads(dev, CONTROL_BLOCK)
-        self.launch(KC.split_control, [m.pad_count], [km, ctl, threads, s.force], block_dim=CONTROL_BLOCK)
-        self.launch(KC.split_commit, n, [km, ctl, s.force, s.u, s.v])
+        self.launcher(KC.split_control, [m.pad_count], [km, ctl, threads, s.force], block_dim=CONTROL_BLOCK)
+        self.launcher(KC.split_commit, n, [km, ctl, s.force, s.u, s.v])
 
     def _pair_trial(self) -> None:
         """A DP5 trial of every pad on the pair that has not landed: seven stages, control, commit."""
@@ -280,17 +280,19 @@ class AdaptiveStepper:
         def evaluate(stage: int, first: int, u: wp.array, v: wp.array, u_next: wp.array, v_next: wp.array) -> None:
             inputs = [km, dp5, stage, first, lanes, u, v, s.u, s.v, u_next, v_next]
             if lanes > 1:
-                self.launch(KA.dp5_eval, [n], inputs, block_dim=lanes)
+                self.launcher(KA.dp5_eval, [n], inputs, block_dim=lanes)
             else:
-                self.launch(KA.dp5_eval, (n, 1), inputs)
+                self.launcher(KA.dp5_eval, (n, 1), inputs)
 
         evaluate(0, 1, s.u, s.v, su[1], sv[1])
-        self.launch(KA.k1_done, m.pad_count, [dp5])
-        self.launch(KA.dp5_stage, n, [km, dp5, 1, s.u, s.v, su[1], sv[1]])
+        self.launcher(KA.k1_done, m.pad_count, [dp5])
+        self.launcher(KA.dp5_stage, n, [km, dp5, 1, s.u, s.v, su[1], sv[1]])
         for stage in range(1, KA.STAGES):  # each evaluation also forms its patch's next stage state
             a, b = stage % 2, (stage + 1) % 2
             evaluate(stage, 0, su[a], sv[a], su[b], sv[b])
         u_new, v_new = su[(KA.STAGES - 1) % 2], sv[(KA.STAGES - 1) % 2]
         threads = block_threads(dev, CONTROL_BLOCK)
-        self.launch(KA.dp5_control, [m.pad_count], [km, dp5, threads, s.u, s.v, u_new, v_new], block_dim=CONTROL_BLOCK)
-        self.launch(KA.dp5_commit, n, [km, dp5, u_new, v_new, s.u, s.v])
+        self.launcher(
+            KA.dp5_control, [m.pad_count], [km, dp5, threads, s.u, s.v, u_new, v_new], block_dim=CONTROL_BLOCK
+        )
+        self.launcher(KA.dp5_commit, n, [km, dp5, u_new, v_new, s.u, s.v])
