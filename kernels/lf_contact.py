@@ -25,10 +25,12 @@ from aca_warp.kernels.lf_types import (
     LFRings,
     block_end,
     disc_radius,
+    get_chunk,
     polar,
+    put_chunk,
 )
 from aca_warp.kernels.physics import friction_coefficient
-from aca_warp.kernels.tiles import block_put
+from aca_warp.kernels.tiles import block_put, block_sync
 
 wp.set_module_options({"enable_backward": False})
 
@@ -283,23 +285,44 @@ FRICTION_SUMS = wp.vec4i(G_FN, G_FF, G_TORQUE, G_FN_PATCH)
 @wp.kernel
 def ring_power(
     p: LFParams,
+    threads: wp.int32,
     groups: LFGroups,
     cells: LFCells,
     patches: LFPatches,
     # State out (the rings' powers):
     rings: LFRings,
 ):
-    """Friction power into each disc ring: Σ over its loaded cells, then its loaded patches, in element order
-    (dim = R)."""
-    k = wp.tid()
+    """Friction power into each disc ring: Σ over its loaded cells, then its loaded patches, in element order (one
+    block per ring: the block stages a chunk of LF_BLOCK terms in shared memory, an unloaded element's as +0, and
+    thread 0 adds them in order). Launch with ``wp.launch_tiled(dim=[R],
+    block_dim=LF_BLOCK)``; ``threads`` as in ``aca_warp.hf.block_threads``."""
+    k, lane = wp.tid()
+    buf = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
     zero = wp.float64(0.0)
+    lo = groups.start[k * p.n_t]
+    n = p.n_t + groups.start[(k + 1) * p.n_t] - lo  # the ring's cells, then its patches
     s = zero
-    for j in range(p.n_t):
-        e = k * p.n_t + j
-        if cells.fn[e] > zero:
-            s = s + cells.power[e]
-    for q in range(groups.start[k * p.n_t], groups.start[(k + 1) * p.n_t]):
-        i = groups.ring[q]
-        if patches.fn[i] > zero:
-            s = s + patches.power[i]
-    rings.power[k] = s
+    c0 = wp.int32(0)
+    while c0 < n:
+        m = wp.min(LF_BLOCK, n - c0)
+        j = lane
+        while j < m:
+            t = c0 + j
+            v = zero
+            if t < p.n_t:
+                if cells.fn[k * p.n_t + t] > zero:
+                    v = cells.power[k * p.n_t + t]
+            else:
+                i = groups.ring[lo + t - p.n_t]
+                if patches.fn[i] > zero:
+                    v = patches.power[i]
+            put_chunk(buf, j, v)
+            j += threads
+        block_sync()
+        if lane == 0:
+            for jj in range(m):
+                s = s + get_chunk(buf, jj)  # an unloaded element's +0 changes no sum that starts at +0
+        block_sync()
+        c0 += LF_BLOCK
+    if lane == 0:
+        rings.power[k] = s

@@ -25,6 +25,7 @@ from aca_warp.kernels.lf_types import (
     LF_BLOCK,
     LFPatches,
     LFRings,
+    get_chunk,
     put_chunk,
 )
 from aca_warp.kernels.tiles import block_sync
@@ -99,26 +100,34 @@ def patch_stats(
     calibration lists ``death_age``/``death_area`` (as far as they reach; ``death_count`` counts them all), both
     in slot order (one block, dim = [1]).
 
-    The block finds the last slot that is alive or died this step (a block-wide max), then, up to it, loads a
-    chunk of LF_BLOCK slots into shared memory in parallel and thread 0 adds them in slot order (an empty slot adds
-    +0, which changes no sum). Launch with ``wp.launch_tiled(dim=[1], block_dim=LF_BLOCK)``; ``threads`` as in
-    ``aca_warp.hf.block_threads``.
+    The block finds the last slot that is alive or died this step, the alive count (a whole number: its sum is
+    exact in any order) and whether any died (block-wide reductions). Then, up to the last slot, it loads a chunk of
+    LF_BLOCK slots' areas, A T and death flags into shared memory in parallel (an empty slot's terms as +0, which
+    changes no sum that starts at +0; the flags cleared), and thread 0 adds the terms in slot order and, on a step
+    with deaths, appends the chunk's deaths.
+    Launch with ``wp.launch_tiled(dim=[1], block_dim=LF_BLOCK)``; ``threads`` as in ``aca_warp.hf.block_threads``.
     """
     _blk, lane = wp.tid()
-    n_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
     a_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
     at_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
     d_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
     zero = wp.float64(0.0)
     n = patches.alive.shape[0]
-    cnt = glob[G_COUNT]
     s_a = glob[G_AREA]
     s_at = glob[G_TPATCH]
     last = int(-1)
+    alive = int(0)
+    deaths = int(0)
     for i in range(lane, n, threads):
-        if patches.alive[i] != 0 or died[i] != 0:
+        if patches.alive[i] != 0:
+            alive += 1
+            last = i
+        if died[i] != 0:
+            deaths += 1
             last = i
     end = wp.tile_max(wp.tile(last))[0] + 1
+    alive = wp.tile_sum(wp.tile(alive))[0]
+    deaths = wp.tile_sum(wp.tile(deaths))[0]
     c0 = wp.int32(0)
     while c0 < end:
         m = wp.min(LF_BLOCK, end - c0)
@@ -126,11 +135,9 @@ def patch_stats(
         while j < m:
             i = c0 + j
             if patches.alive[i] != 0:
-                put_chunk(n_t, j, wp.float64(1.0))
                 put_chunk(a_t, j, patches.area[i])
                 put_chunk(at_t, j, patches.area[i] * patches.temp[i])
             else:
-                put_chunk(n_t, j, zero)
                 put_chunk(a_t, j, zero)
                 put_chunk(at_t, j, zero)
             put_chunk(d_t, j, wp.float64(died[i]))
@@ -138,21 +145,42 @@ def patch_stats(
             j += threads
         block_sync()
         if lane == 0:
-            for jj in range(m):
-                cnt = cnt + n_t[jj]
-                s_a = s_a + a_t[jj]
-                s_at = s_at + at_t[jj]
-                if d_t[jj] != zero:
-                    slot = death_count[0]
-                    if slot < death_age.shape[0]:
-                        rec = died_at[c0 + jj]
-                        death_age[slot] = rec[0]
-                        death_area[slot] = rec[1]
-                    death_count[0] = slot + 1
+            jj = wp.int32(0)
+            while jj + 4 <= m:  # four slots' loads at once, then their adds in slot order
+                a0 = get_chunk(a_t, jj)
+                a1 = get_chunk(a_t, jj + 1)
+                a2 = get_chunk(a_t, jj + 2)
+                a3 = get_chunk(a_t, jj + 3)
+                b0 = get_chunk(at_t, jj)
+                b1 = get_chunk(at_t, jj + 1)
+                b2 = get_chunk(at_t, jj + 2)
+                b3 = get_chunk(at_t, jj + 3)
+                s_a = s_a + a0
+                s_at = s_at + b0
+                s_a = s_a + a1
+                s_at = s_at + b1
+                s_a = s_a + a2
+                s_at = s_at + b2
+                s_a = s_a + a3
+                s_at = s_at + b3
+                jj += 4
+            while jj < m:
+                s_a = s_a + get_chunk(a_t, jj)
+                s_at = s_at + get_chunk(at_t, jj)
+                jj += 1
+            if deaths > 0:
+                for jj in range(m):
+                    if get_chunk(d_t, jj) != zero:
+                        slot = death_count[0]
+                        if slot < death_age.shape[0]:
+                            rec = died_at[c0 + jj]
+                            death_age[slot] = rec[0]
+                            death_area[slot] = rec[1]
+                        death_count[0] = slot + 1
         block_sync()
         c0 += LF_BLOCK
     if lane == 0:
-        glob[G_COUNT] = cnt
+        glob[G_COUNT] = glob[G_COUNT] + wp.float64(alive)  # the sum of alive × 1.0 in any order
         glob[G_AREA] = s_a
         glob[G_TPATCH] = s_at
 

@@ -39,15 +39,13 @@ def group_count(alive: wp.array[wp.int32], cell: wp.array[wp.int32], groups: LFG
 
 @wp.kernel
 def group_fill(alive: wp.array[wp.int32], cell: wp.array[wp.int32], groups: LFGroups):
-    """Each alive slot into its cell's range of ``cell`` and ``ring`` (the same position; dim = P, ``fill`` zeroed
-    before). The order inside a range depends on the threads; :func:`group_sort` fixes it."""
+    """Each alive slot into its cell's range of ``cell`` (dim = P, ``fill`` zeroed before). The order inside a range
+    depends on the threads; :func:`group_sort` fixes it."""
     i = wp.tid()
     if alive[i] == 0:
         return
     e = cell[i]
-    q = groups.start[e] + wp.atomic_add(groups.fill, e, 1)
-    groups.cell[q] = i
-    groups.ring[q] = i
+    groups.cell[groups.start[e] + wp.atomic_add(groups.fill, e, 1)] = i
 
 
 @wp.func
@@ -63,14 +61,29 @@ def sort_range(a: wp.array[wp.int32], lo: int, hi: int):
 
 
 @wp.kernel
-def group_sort(n_cells: wp.int32, n_t: wp.int32, groups: LFGroups):
-    """Sort each cell's range of ``cell`` (t < C) and each ring's range of ``ring`` (t ≥ C) (dim = C + R)."""
-    t = wp.tid()
-    if t < n_cells:
-        sort_range(groups.cell, groups.start[t], groups.start[t + 1])
-    else:
-        k = t - n_cells
-        sort_range(groups.ring, groups.start[k * n_t], groups.start[(k + 1) * n_t])
+def group_sort(groups: LFGroups):
+    """Sort each cell's range of ``cell`` (dim = C)."""
+    e = wp.tid()
+    sort_range(groups.cell, groups.start[e], groups.start[e + 1])
+
+
+@wp.kernel
+def ring_order(cell: wp.array[wp.int32], n_t: wp.int32, groups: LFGroups):
+    """Each grouped slot into its ring's range of ``ring`` at its rank: the ring's range of ``cell`` holds the same
+    slots (its cells' ranges one after the other), and a slot's rank is the number of them below it, so that every
+    ring's range is ascending (dim = P; the threads past ``start[C]`` do nothing). A thread counts over its whole
+    ring (Σ over the rings of their squared sizes: ≈ 1e5 compares a step for the ``multiscale`` preset)."""
+    q = wp.tid()
+    if q >= groups.start[groups.start.shape[0] - 1]:
+        return
+    v = groups.cell[q]
+    k = cell[v] // n_t
+    lo = groups.start[k * n_t]
+    rank = int(0)
+    for u in range(lo, groups.start[(k + 1) * n_t]):
+        if groups.cell[u] < v:
+            rank += 1
+    groups.ring[lo + rank] = v
 
 
 @wp.kernel

@@ -5,7 +5,17 @@ their thermal bulge, the pad cells and the patches against their ring and the pa
 from __future__ import annotations
 
 import warp as wp
-from aca_warp.kernels.lf_types import LFCells, LFParams, LFPatches, LFRings, disc_radius
+from aca_warp.kernels.lf_types import (
+    LF_BLOCK,
+    LFCells,
+    LFParams,
+    LFPatches,
+    LFRings,
+    disc_radius,
+    get_chunk,
+    put_chunk,
+)
+from aca_warp.kernels.tiles import block_sync
 
 wp.set_module_options({"enable_backward": False})
 
@@ -13,52 +23,103 @@ wp.set_module_options({"enable_backward": False})
 @wp.kernel
 def disc_temperature(
     p: LFParams,
+    threads: wp.int32,
     # State in/out (the rings' temperatures and bulge):
     rings: LFRings,
     work: wp.array[wp.float64],
 ):
-    """Backward Euler of the ring temperatures with radial conduction (Thomas algorithm; dim = 1).
+    """Backward Euler of the ring temperatures with radial conduction (Thomas algorithm; one block, dim = [1]).
 
     C_k dT_k/dt = γ P_k − h A_k (T_k − T_amb) + G_k−½ (T_k−1 − T_k) + G_k+½ (T_k+1 − T_k);
     then the thermal bulge Δz_k = κ α d (T_k − T_amb) toward the pad.
+
+    A chunk of LF_BLOCK rings at a time: the block's threads form the rings' coefficients in shared memory, thread 0
+    runs the forward recurrence over them (c'_k, d'_k, carried in registers from chunk to chunk), and the threads
+    copy c', d' to ``work`` ([0, n) c', [n, 2n) d'); then, from the last chunk back, the threads load c', d', thread
+    0 runs the back substitution and the threads store T_k and the bulge. Thread 0 reads only shared memory, so that
+    its serial recurrences do not wait on global loads. Launch with ``wp.launch_tiled(dim=[1],
+    block_dim=LF_BLOCK)``; ``threads`` as in ``aca_warp.hf.block_threads``.
     """
+    _blk, lane = wp.tid()
+    x0 = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")  # diagonal, then c'
+    x1 = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")  # right-hand side, then d'
+    x2 = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")  # sub-diagonal a, then T
+    x3 = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")  # super-diagonal c
     n = p.n_r
     dt = p.dt
     two_pi = wp.float64(2.0 * wp.pi)
-    # work: [0, n) c' (super-diagonal), [n, 2n) d'; the recurrences carry c'_k−1, d'_k−1 and T_k+1 in registers
     cp = wp.float64(0.0)
     dp = wp.float64(0.0)
-    for k in range(n):
-        r = rings.r[k]
-        C = p.rho_d * p.c_d * two_pi * r * p.dr * p.d_d
-        hA = p.h_conv * wp.float64(2.0) * two_pi * r * p.dr
-        g_lo = wp.float64(0.0)
-        g_hi = wp.float64(0.0)
-        if k > 0:
-            g_lo = p.k_d * two_pi * (r - wp.float64(0.5) * p.dr) * p.d_d / p.dr
-        if k < n - 1:
-            g_hi = p.k_d * two_pi * (r + wp.float64(0.5) * p.dr) * p.d_d / p.dr
-        diag = C / dt + hA + g_lo + g_hi
-        rhs = C / dt * rings.T[k] + p.gamma_disc * rings.power[k] + hA * p.T_amb
-        a = -g_lo
-        c = -g_hi
-        if k > 0:
-            m = diag - a * cp
-            cp = c / m
-            dp = (rhs - a * dp) / m
-        else:
-            cp = c / diag
-            dp = rhs / diag
-        work[k] = cp
-        work[n + k] = dp
+    c0 = wp.int32(0)
+    while c0 < n:
+        m = wp.min(LF_BLOCK, n - c0)
+        j = lane
+        while j < m:
+            k = c0 + j
+            r = rings.r[k]
+            C = p.rho_d * p.c_d * two_pi * r * p.dr * p.d_d
+            hA = p.h_conv * wp.float64(2.0) * two_pi * r * p.dr
+            g_lo = wp.float64(0.0)
+            g_hi = wp.float64(0.0)
+            if k > 0:
+                g_lo = p.k_d * two_pi * (r - wp.float64(0.5) * p.dr) * p.d_d / p.dr
+            if k < n - 1:
+                g_hi = p.k_d * two_pi * (r + wp.float64(0.5) * p.dr) * p.d_d / p.dr
+            put_chunk(x0, j, C / dt + hA + g_lo + g_hi)
+            put_chunk(x1, j, C / dt * rings.T[k] + p.gamma_disc * rings.power[k] + hA * p.T_amb)
+            put_chunk(x2, j, -g_lo)
+            put_chunk(x3, j, -g_hi)
+            j += threads
+        block_sync()
+        if lane == 0:
+            for jj in range(m):
+                diag = get_chunk(x0, jj)
+                rhs = get_chunk(x1, jj)
+                a = get_chunk(x2, jj)
+                c = get_chunk(x3, jj)
+                if c0 + jj > 0:
+                    mk = diag - a * cp
+                    cp = c / mk
+                    dp = (rhs - a * dp) / mk
+                else:
+                    cp = c / diag
+                    dp = rhs / diag
+                put_chunk(x0, jj, cp)
+                put_chunk(x1, jj, dp)
+        block_sync()
+        j = lane
+        while j < m:
+            work[c0 + j] = get_chunk(x0, j)
+            work[n + c0 + j] = get_chunk(x1, j)
+            j += threads
+        block_sync()
+        c0 += LF_BLOCK
+    bulge = p.kappa_d * p.alpha_d * p.d_d  # Δz per kelvin above ambient [m/K]
     T_next = dp
-    rings.T[n - 1] = T_next
-    for kk in range(n - 1):
-        k = n - 2 - kk
-        T_next = work[n + k] - work[k] * T_next
-        rings.T[k] = T_next
-    for k in range(n):
-        rings.bulge[k] = p.kappa_d * p.alpha_d * p.d_d * (rings.T[k] - p.T_amb)
+    c0 = (n - 1) // LF_BLOCK * LF_BLOCK
+    while c0 >= 0:
+        m = wp.min(LF_BLOCK, n - c0)
+        j = lane
+        while j < m:
+            put_chunk(x0, j, work[c0 + j])
+            put_chunk(x1, j, work[n + c0 + j])
+            j += threads
+        block_sync()
+        if lane == 0:
+            for jj in range(m):
+                q = m - 1 - jj
+                if c0 + q < n - 1:
+                    T_next = get_chunk(x1, q) - get_chunk(x0, q) * T_next
+                put_chunk(x2, q, T_next)
+        block_sync()
+        j = lane
+        while j < m:
+            T = get_chunk(x2, j)
+            rings.T[c0 + j] = T
+            rings.bulge[c0 + j] = bulge * (T - p.T_amb)
+            j += threads
+        block_sync()
+        c0 -= LF_BLOCK
 
 
 @wp.func

@@ -26,16 +26,17 @@ Random numbers: a stateless counter hash keyed by (seed, step, element, stream),
 from __future__ import annotations
 
 import warp as wp
-from aca_warp.kernels.tiles import tile_store_1d
+from aca_warp.kernels.tiles import tile_load_1d, tile_store_1d
 
 wp.set_module_options({"enable_backward": False})
 
 # threads of the block kernels (contact solve, debris sweep): Warp's default block size, so that no second
 # module variant is compiled; also the chunk of elements per shared-memory load of the kernels that walk
-# elements in order (debris sweep, patch statistics)
+# elements in order (debris sweep, patch statistics, ring powers, disc temperature)
 LF_BLOCK = wp.constant(256)
-# a thread's store into such a chunk tile (shape (LF_BLOCK,), float64), without a block barrier
+# a thread's store into such a chunk tile (shape (LF_BLOCK,), float64), without a block barrier, and its read
 put_chunk = tile_store_1d(wp.float64, LF_BLOCK)
+get_chunk = tile_load_1d(wp.float64, LF_BLOCK)
 
 
 # indices into the global scalar array ``glob`` (float64)

@@ -255,13 +255,14 @@ def test_patches_grouped_by_cell_and_ring_in_slot_order():
     assert len(alive) > 20 and len(np.unique(cell)) < len(alive)  # some cells hold several patches
     np.testing.assert_array_equal(start, np.concatenate([[0], np.cumsum(np.bincount(cell, minlength=sim.n_cells))]))
     for scrambled in (False, True):
-        if scrambled:  # every group reversed, then sorted again
+        if scrambled:  # every group reversed; a cell's sorted again, a ring's placed again at its ranks
             for name, bounds in (("group_cell", start), ("group_ring", start[:: sim.n_t])):
                 a = getattr(sim, name).numpy()
                 for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
                     a[lo:hi] = a[lo:hi][::-1].copy()
                 getattr(sim, name).assign(a)
-            wp.launch(lf_sums.group_sort, dim=sim.n_cells + sim.n_r, inputs=[sim.n_cells, sim.n_t, sim.groups])
+            wp.launch(lf_sums.group_sort, dim=sim.n_cells, inputs=[sim.groups])
+            wp.launch(lf_sums.ring_order, dim=sim.capacity, inputs=[sim.patch_cell, sim.n_t, sim.groups])
         np.testing.assert_array_equal(sim.group_cell.numpy()[: len(alive)], by_cell)
         np.testing.assert_array_equal(sim.group_ring.numpy()[: len(alive)], by_ring)
 
@@ -411,3 +412,37 @@ def test_candidates_rebuilt_after_births_and_merges_only():
     assert rebuilt == sorted(k for k in want if k < sim.table.steps)
     deaths_only = np.flatnonzero((h["deaths"] > 0) & ~changed)
     assert any(k + 1 not in want for k in deaths_only), "the tiny scene must have a deaths-only step"
+
+
+@pytest.mark.parametrize("n_rings", [1, 7, 600])
+def test_disc_temperature_solves_the_ring_equations(n_rings):
+    """The disc kernel's backward Euler step against the tridiagonal system of docs/lf_model.md solved by SciPy,
+    for one ring, a few, and more rings than one chunk of the block (LF_BLOCK = 256: three chunks)."""
+    import warp as wp
+    from scipy.linalg import solve_banded
+
+    from aca_warp.kernels import lf_thermal
+    from aca_warp.kernels.lf_types import LFRings
+
+    sim = LFSimulation(_scene(), device="cpu", duration=0.05)
+    p = sim.params
+    p.n_r = n_rings
+    rng = np.random.default_rng(n_rings)
+    r = 0.08 + p.dr * (np.arange(n_rings) + 0.5)
+    T_old = 300.0 + 200.0 * rng.random(n_rings)
+    power = 50.0 * rng.random(n_rings)
+    rings = LFRings()
+    for name, value in (("r", r), ("T", T_old), ("bulge", 0 * r), ("power", power), ("emit", 0 * r)):
+        setattr(rings, name, wp.array(value, dtype=wp.float64, device="cpu"))
+    work = wp.zeros(2 * n_rings, dtype=wp.float64, device="cpu")
+    wp.launch_tiled(lf_thermal.disc_temperature, dim=[1], block_dim=256, inputs=[p, 1, rings, work], device="cpu")
+
+    C = p.rho_d * p.c_d * 2 * np.pi * r * p.dr * p.d_d  # heat capacity [J/K]
+    hA = p.h_conv * 2 * 2 * np.pi * r * p.dr  # convection, both faces [W/K]
+    G = p.k_d * 2 * np.pi * (r[:-1] + 0.5 * p.dr) * p.d_d / p.dr  # conductance between rings k, k + 1 [W/K]
+    diag = C / p.dt + hA + np.concatenate([[0.0], G]) + np.concatenate([G, [0.0]])
+    bands = np.zeros((3, n_rings))
+    bands[0, 1:], bands[1], bands[2, :-1] = -G, diag, -G
+    T = solve_banded((1, 1), bands, C / p.dt * T_old + p.gamma_disc * power + hA * p.T_amb)
+    np.testing.assert_allclose(rings.T.numpy(), T, rtol=1e-12)
+    np.testing.assert_allclose(rings.bulge.numpy(), p.kappa_d * p.alpha_d * p.d_d * (T - p.T_amb), rtol=1e-10)

@@ -268,7 +268,8 @@ class LFSimulation:
         self._launch(lf_contact.cover_chord, self.n_cells, [self.groups, self.patches, self.cells])
 
     def _group(self) -> None:
-        """Group the alive patches by their cell (``patch_cell``) and ring, ascending slots in each group."""
+        """Group the alive patches by their cell (``patch_cell``) and ring, ascending slots in each group: a cell's
+        few patches are filled in any order and sorted, a ring's placed at their ranks."""
         C, P, groups = self.n_cells, self.capacity, self.groups
         self.group_count.zero_()
         self.group_fill.zero_()
@@ -276,7 +277,8 @@ class LFSimulation:
         wp.utils.array_scan(self.group_count, self.group_start[:C], inclusive=False)
         self._launch(lf_patches.set_row_end, 1, [self.group_count, self.group_start, C])
         self._launch(lf_sums.group_fill, P, [self.alive, self.patch_cell, groups])
-        self._launch(lf_sums.group_sort, C + self.n_r, [C, self.n_t, groups])
+        self._launch(lf_sums.group_sort, C, [groups])
+        self._launch(lf_sums.ring_order, P, [self.patch_cell, self.n_t, groups])
 
     def _add_patch_src(self) -> None:
         """Add the patches' debris (``patch_src``) to their cells' sources, in slot order."""
@@ -292,7 +294,7 @@ class LFSimulation:
         fric = [p, C, self.threads, self.kh, cells, patches, self.glob, self.partial]
         self._launch_blocks(lf_contact.friction, self.element_blocks, fric)
         self._launch(lf_sums.add_block_sums, 4, [self.partial, lf_contact.FRICTION_SUMS, self.glob])
-        self._launch(lf_contact.ring_power, self.n_r, [p, self.groups, cells, patches, rings])
+        self._launch_blocks(lf_contact.ring_power, self.n_r, [p, self.threads, self.groups, cells, patches, rings])
 
     def resolve(self) -> None:
         """Re-bin the patches and re-solve contact and friction at the current load, without advancing time."""
@@ -342,7 +344,7 @@ class LFSimulation:
             self.cell_power.zero_()
             self.patch_fn.zero_()
             self.patch_power.zero_()
-        self._launch(lf_thermal.disc_temperature, 1, [p, rings, self.work])
+        self._launch_blocks(lf_thermal.disc_temperature, 1, [p, self.threads, rings, self.work])
         self._launch(lf_thermal.pad_temperature, C, [p, C, 0, cells, rings, patches])
         self._launch(lf_thermal.pad_temperature, P, [p, C, C, cells, rings, patches])
         if loaded:
