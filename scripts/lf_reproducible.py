@@ -12,6 +12,14 @@ any differ, 2 on bad arguments. Examples::
     python3 scripts/lf_reproducible.py --device cpu --seeds 1 --runs 2 --duration 0.5   # small, on the CPU
 
 ``--duration`` [s] runs only the first part of the schedule (default: the whole schedule, 55 s, 5500 steps).
+
+``--digests RESULTS.json`` also checks each seed's first run against the LF runs a validation results file was cut
+from: its §3.3 results record a content digest per LF run file (``lf_runs``; the whole preset schedule's files are
+named ``lf_full_preset_seed<S>.h5``), and a run that reproduces the committed states bit for bit has the same
+digest (a run cut short by ``--duration`` is compared with the same names, so it matches only digests of runs
+as short). Example (the committed validation page's LF states, on the kind of device they were made on)::
+
+    python3 scripts/lf_reproducible.py --device cuda:0 --seeds 1 2 3 4 5 6 7 8 --digests docs/validation/results.json
 """
 
 from __future__ import annotations
@@ -25,10 +33,28 @@ from pathlib import Path
 from compare_checkouts import compare, file_line, same_results
 
 
-def run_seed(seed: int, runs: int, out: Path, device: str, duration: float | None) -> tuple[bool, str]:
-    """``runs`` LF runs of ``seed`` into ``out``; (whether all are bit-identical to the first, one line)."""
+def recorded_digests(path: Path) -> dict[str, str]:
+    """File name → digest of every LF run that a validation results file's experiments record (``lf_runs``);
+    a file recorded twice with two digests is an error (the results were not cut from one set of LF runs)."""
+    import json
+
+    out: dict[str, str] = {}
+    results = json.loads(path.read_text()).get("results", {})
+    for name, res in results.items():
+        for file, digest in (res.get("lf_runs") or {}).items():
+            if out.setdefault(file, digest) != digest:
+                raise ValueError(f"{path}: {file} is recorded with two digests ({out[file]}, {digest}; {name})")
+    return out
+
+
+def run_seed(
+    seed: int, runs: int, out: Path, device: str, duration: float | None, recorded: dict[str, str] | None
+) -> tuple[bool, str]:
+    """``runs`` LF runs of ``seed`` into ``out``; (whether all are bit-identical to the first, and where
+    ``recorded`` is given, whether the first has the recorded digest; one line)."""
     from aca_warp.lf.commands import run_lf
-    from aca_warp.studies.validation.multiscale import lf_scene
+    from aca_warp.studies.validation.base import Config
+    from aca_warp.studies.validation.multiscale import _digest, lf_path, lf_scene
 
     paths, walls = [], []
     for k in range(runs):
@@ -41,9 +67,17 @@ def run_seed(seed: int, runs: int, out: Path, device: str, duration: float | Non
     same = all(same_results(r) for r in reports)
     lines = [f"run {k + 2}: {file_line(r)}" for k, r in enumerate(reports) if not same_results(r)]
     head = f"seed {seed}: {runs} runs ({', '.join(f'{w:.1f}' for w in walls)} s), "
-    if same:
-        return True, head + f"{reports[0]['datasets'] if reports else 0} datasets each, bit-identical"
-    return False, head + "; ".join(lines)
+    datasets = reports[0]["datasets"] if reports else 0
+    line = head + (f"{datasets} datasets each, bit-identical" if same else "; ".join(lines))
+    if recorded is None:
+        return same, line
+    name = lf_path(Config(lf_dir=out), seed, None).name
+    st = paths[0].stat()
+    digest = _digest(str(paths[0].resolve()), (st.st_ino, st.st_mtime_ns, st.st_ctime_ns, st.st_size))
+    if name not in recorded:
+        return False, line + f"; {name} is not in the results' LF runs"
+    match = digest == recorded[name]
+    return same and match, line + f"; digest {digest} {'==' if match else '!='} recorded {recorded[name]} ({name})"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -53,6 +87,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", type=int, default=2, help="runs per seed, at least 2 (default 2)")
     ap.add_argument("--duration", type=float, help="simulated time [s] (default: the whole schedule)")
     ap.add_argument("--out", type=Path, help="folder for the run files (default: a temporary folder, removed)")
+    ap.add_argument(
+        "--digests",
+        type=Path,
+        metavar="RESULTS.json",
+        help="also check each seed's first run against the LF run digests a validation results file records",
+    )
     args = ap.parse_args(argv)
     if args.runs < 2:
         ap.error(f"--runs must be at least 2, not {args.runs}")
@@ -60,15 +100,26 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--duration must be a positive number of seconds, not {args.duration}")
     if any(s < 0 for s in args.seeds):
         ap.error("--seeds must be non-negative integers")
+    recorded = None
+    if args.digests is not None:
+        try:
+            recorded = recorded_digests(args.digests)
+        except (OSError, ValueError, AttributeError) as e:
+            ap.error(f"--digests: {e}")
+        if not recorded:
+            ap.error(f"--digests: {args.digests} records no LF runs")
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
         out.mkdir(parents=True, exist_ok=True)
         ok = True
         for seed in args.seeds:
-            same, line = run_seed(seed, args.runs, out, args.device, args.duration)
+            same, line = run_seed(seed, args.runs, out, args.device, args.duration, recorded)
             print(line, flush=True)
             ok = ok and same
-    print("all bit-identical" if ok else "runs DIFFER", flush=True)
+    if ok:
+        print("all bit-identical" + (", with the recorded digests" if recorded else ""), flush=True)
+    else:
+        print("runs DIFFER" + (" or do not have the recorded digests" if recorded else ""), flush=True)
     return 0 if ok else 1
 
 

@@ -31,6 +31,41 @@ def test_repeated_runs_compared_bit_for_bit(tmp_path, capsys, monkeypatch):
     assert "seed 3: 2 runs" in out and "DIFFERENT" in out and "runs DIFFER" in out
 
 
+def test_first_run_checked_against_the_digests_a_results_file_records(tmp_path, capsys):
+    """--digests: a run with the digest a validation results file records for its LF run file passes, another
+    digest fails, and a results file that records one LF run with two digests is refused."""
+    import json
+
+    from aca_warp.studies.validation.multiscale import _digest
+
+    repro = load_script("lf_reproducible")
+    runs = tmp_path / "runs"
+    args = ["--seeds", "2", "--runs", "2", "--duration", "0.2", "--out", str(runs)]
+    assert repro.main(args) == 0
+    first = runs / "seed2_run1.h5"
+    digest = _digest(str(first), (first.stat().st_mtime_ns,))
+    results = tmp_path / "results.json"
+
+    def check(recorded: dict) -> int:
+        results.write_text(json.dumps({"results": recorded}))
+        capsys.readouterr()
+        return repro.main([*args, "--digests", str(results)])
+
+    assert check({"ms_fast": {"lf_runs": {"lf_full_preset_seed2.h5": digest}}, "hf1": {}}) == 0
+    assert f"digest {digest} == recorded" in capsys.readouterr().out
+    assert check({"ms_fast": {"lf_runs": {"lf_full_preset_seed2.h5": "0" * 16}}}) == 1
+    assert "runs DIFFER or do not have the recorded digests" in capsys.readouterr().out
+    assert check({"ms_fast": {"lf_runs": {"lf_full_preset_seed9.h5": digest}}}) == 1
+    assert "not in the results' LF runs" in capsys.readouterr().out
+    two = {"a": {"lf_runs": {"lf_full_preset_seed2.h5": digest}}, "b": {"lf_runs": {"lf_full_preset_seed2.h5": "1"}}}
+    with pytest.raises(SystemExit) as e:
+        check(two)
+    assert e.value.code == 2 and "two digests" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        check({})
+    assert e.value.code == 2 and "records no LF runs" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("bad", [["--runs", "1"], ["--duration", "-1"], ["--seeds", "x"]])
 def test_bad_arguments(bad, capsys):
     repro = load_script("lf_reproducible")
