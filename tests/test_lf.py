@@ -419,10 +419,9 @@ def test_disc_temperature_solves_the_ring_equations(n_rings):
     """The disc kernel's backward Euler step against the tridiagonal system of docs/lf_model.md solved by SciPy,
     for one ring, a few, and more rings than one chunk of the block (LF_BLOCK = 256: three chunks)."""
     import warp as wp
-    from scipy.linalg import solve_banded
-
     from aca_warp.kernels import lf_thermal
     from aca_warp.kernels.lf_types import LFRings
+    from scipy.linalg import solve_banded
 
     sim = LFSimulation(_scene(), device="cpu", duration=0.05)
     p = sim.params
