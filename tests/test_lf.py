@@ -6,7 +6,9 @@ happen within a few dozen steps.
 
 from __future__ import annotations
 
+import contextlib
 import copy
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -49,6 +51,20 @@ def _scene(**lf):
     doc = copy.deepcopy(DOC)
     doc["lf"].update(lf)
     return lf_scene_from_dict(doc)
+
+
+@contextlib.contextmanager
+def _cpu_blocks(fibers: bool) -> Iterator[int]:
+    """CPU block kernels with Warp's cooperative fibers (LF_BLOCK threads a block, real barriers) or as one-thread
+    blocks; yields the threads a block runs (a block kernel's ``threads``)."""
+    import warp as wp
+
+    old = wp.config.enable_cpu_blocks
+    wp.config.enable_cpu_blocks = fibers
+    try:
+        yield LF_BLOCK if fibers else 1
+    finally:
+        wp.config.enable_cpu_blocks = old
 
 
 def test_schedule_table_and_snapshot_steps():
@@ -275,19 +291,14 @@ def test_block_kernels_with_cpu_fibers_match_one_thread_blocks():
     the one-thread run ~5 ms). On this 5.9e4-cell grid the serial sums once sat above the 1e-13 tolerance for good
     (40 passes before the solve stopped at the rounding floor): the one-thread run goes on to 15 steps (7 of them
     on the bare matrix) for the passes."""
-    import warp as wp
 
     runs = []
-    old = wp.config.enable_cpu_blocks
-    try:
-        for fibers, duration in ((False, 0.08), (True, 0.08), (False, 0.15)):
-            wp.config.enable_cpu_blocks = fibers
+    for fibers, duration in ((False, 0.08), (True, 0.08), (False, 0.15)):
+        with _cpu_blocks(fibers) as threads:
             sim = LFSimulation(_scene(cell=4.0e-5), device="cpu", duration=duration)
-            assert sim.n_t > LF_BLOCK and sim.threads == (LF_BLOCK if fibers else 1)
+            assert sim.n_t > LF_BLOCK and sim.threads == threads
             sim.run()
-            runs.append((sim.patches_host(), sim.hist.numpy(), sim.cell_store.numpy()))
-    finally:
-        wp.config.enable_cpu_blocks = old
+        runs.append((sim.patches_host(), sim.hist.numpy(), sim.cell_store.numpy()))
     (pa, ha, sa), (pb, hb, sb), (pc, hc, _) = runs
     assert len(pa["x"]) == len(pb["x"]) == 0 < int(ha[0, H_COUNT]) and np.any(sa > 0)  # every patch has died
     for k in pa:
@@ -327,14 +338,8 @@ def test_debris_sweep_matches_a_serial_reference(fibers):
     for k, v in arr.items():
         setattr(cells, k, v)
     cells.capture, rings.emit = cap, emit
-    old = wp.config.enable_cpu_blocks
-    try:
-        wp.config.enable_cpu_blocks = fibers
-        wp.launch_tiled(
-            debris_sweep, dim=[R], block_dim=LF_BLOCK, device="cpu", inputs=[p, LF_BLOCK if fibers else 1, cells, rings]
-        )
-    finally:
-        wp.config.enable_cpu_blocks = old
+    with _cpu_blocks(fibers) as threads:
+        wp.launch_tiled(debris_sweep, dim=[R], block_dim=LF_BLOCK, device="cpu", inputs=[p, threads, cells, rings])
     want_cap, want_store, want_emit = np.zeros(C), store.copy(), np.zeros(R)
     for k in range(R):
         M = 0.0
@@ -436,13 +441,9 @@ def test_disc_temperature_solves_the_ring_equations(n_rings, fibers):
     for name, value in (("r", r), ("T", T_old), ("bulge", 0 * r), ("power", power), ("emit", 0 * r)):
         setattr(rings, name, wp.array(value, dtype=wp.float64, device="cpu"))
     work = wp.zeros(2 * n_rings, dtype=wp.float64, device="cpu")
-    old = wp.config.enable_cpu_blocks
-    try:
-        wp.config.enable_cpu_blocks = fibers
-        inputs = [p, LF_BLOCK if fibers else 1, rings, work]
+    with _cpu_blocks(fibers) as threads:
+        inputs = [p, threads, rings, work]
         wp.launch_tiled(lf_thermal.disc_temperature, dim=[1], block_dim=LF_BLOCK, inputs=inputs, device="cpu")
-    finally:
-        wp.config.enable_cpu_blocks = old
 
     C = p.rho_d * p.c_d * 2 * np.pi * r * p.dr * p.d_d  # heat capacity [J/K]
     hA = p.h_conv * 2 * 2 * np.pi * r * p.dr  # convection, both faces [W/K]
@@ -483,31 +484,27 @@ def test_patch_stats_add_in_slot_order(fibers):
     died_only[[5, LF_BLOCK + 1, P - 1]] = 1
     none = np.zeros(P, np.int32)
     assert died_mixed.sum() > n_list
-    old = wp.config.enable_cpu_blocks
-    try:
-        wp.config.enable_cpu_blocks = fibers
-        for alive, died in ((alive_mixed, died_mixed), (none, died_only), (none, none)):
-            sim.alive.assign(alive)
-            sim.died.assign(died)
-            sim.glob.zero_()
-            count = wp.array([n_before], dtype=wp.int32, device="cpu")
-            ages, areas = (wp.array(np.full(n_list, -1.0), dtype=wp.float64, device="cpu") for _ in range(2))
-            inputs = [LF_BLOCK if fibers else 1, sim.patches, sim.died, sim.died_at, sim.glob, count, ages, areas]
+    for alive, died in ((alive_mixed, died_mixed), (none, died_only), (none, none)):
+        sim.alive.assign(alive)
+        sim.died.assign(died)
+        sim.glob.zero_()
+        count = wp.array([n_before], dtype=wp.int32, device="cpu")
+        ages, areas = (wp.array(np.full(n_list, -1.0), dtype=wp.float64, device="cpu") for _ in range(2))
+        with _cpu_blocks(fibers) as threads:
+            inputs = [threads, sim.patches, sim.died, sim.died_at, sim.glob, count, ages, areas]
             wp.launch_tiled(lf_record.patch_stats, dim=[1], block_dim=LF_BLOCK, inputs=inputs, device="cpu")
-            s_a = s_at = 0.0
-            for i in np.flatnonzero(alive):
-                s_a += area[i]
-                s_at += area[i] * temp[i]
-            g = sim.glob.numpy()
-            assert (g[G_COUNT], g[G_AREA], g[G_TPATCH]) == (alive.sum(), s_a, s_at)
-            dead = np.flatnonzero(died)
-            assert count.numpy()[0] == n_before + len(dead)
-            want = np.full((n_list, 2), -1.0)
-            want[n_before:][: len(dead)] = died_at[dead][: n_list - n_before]
-            np.testing.assert_array_equal(np.column_stack([ages.numpy(), areas.numpy()]), want)
-            assert not sim.died.numpy().any()
-    finally:
-        wp.config.enable_cpu_blocks = old
+        s_a = s_at = 0.0
+        for i in np.flatnonzero(alive):
+            s_a += area[i]
+            s_at += area[i] * temp[i]
+        g = sim.glob.numpy()
+        assert (g[G_COUNT], g[G_AREA], g[G_TPATCH]) == (alive.sum(), s_a, s_at)
+        dead = np.flatnonzero(died)
+        assert count.numpy()[0] == n_before + len(dead)
+        want = np.full((n_list, 2), -1.0)
+        want[n_before:][: len(dead)] = died_at[dead][: n_list - n_before]
+        np.testing.assert_array_equal(np.column_stack([ages.numpy(), areas.numpy()]), want)
+        assert not sim.died.numpy().any()
 
 
 @pytest.mark.parametrize("fibers", [False, True])
@@ -535,13 +532,9 @@ def test_ring_power_adds_in_element_order(fibers):
     cell_power, patch_power = (10.0 ** rng.uniform(-9.0, 1.0, n) for n in (C, P))  # [W], magnitudes apart
     for name, value in dict(cell_fn=cell_fn, patch_fn=patch_fn, cell_power=cell_power, patch_power=patch_power).items():
         getattr(sim, name).assign(value)
-    old = wp.config.enable_cpu_blocks
-    try:
-        wp.config.enable_cpu_blocks = fibers
-        inputs = [sim.params, LF_BLOCK if fibers else 1, sim.groups, sim.cells, sim.patches, sim.rings]
+    with _cpu_blocks(fibers) as threads:
+        inputs = [sim.params, threads, sim.groups, sim.cells, sim.patches, sim.rings]
         wp.launch_tiled(lf_contact.ring_power, dim=[R], block_dim=LF_BLOCK, inputs=inputs, device="cpu")
-    finally:
-        wp.config.enable_cpu_blocks = old
     want = np.zeros(R)
     for k in range(R):
         s = 0.0
