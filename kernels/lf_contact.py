@@ -169,7 +169,8 @@ def contact_solve(
     the sums, which for ~1e4 elements can lie above tol = 1e-13). The passes made are counted in ``G_PASSES``. Thread
     ``lane`` sums elements lane, lane + B, …; the block reduces the sums, so every thread takes the same branches.
     With no element in contact the next iterate is the all-active bound (Σkh − F_N)/Σk, at or left of the root.
-    Launch with ``wp.launch_tiled(dim=[1], block_dim=LF_BLOCK)``; ``threads`` as in ``aca_warp.hf.block_threads``.
+    Launch with ``wp.launch_tiled(dim=[1], block_dim=LF_BLOCK)``; ``threads`` as in
+    ``aca_warp.common.devices.block_threads``.
     """
     _blk, lane = wp.tid()
     n = kh.shape[0]
@@ -295,7 +296,7 @@ def ring_power(
     """Friction power into each disc ring: Σ over its loaded cells, then its loaded patches, in element order (one
     block per ring: the block stages a chunk of LF_BLOCK terms in shared memory, an unloaded element's as +0, and
     thread 0 adds them in order). Launch with ``wp.launch_tiled(dim=[R],
-    block_dim=LF_BLOCK)``; ``threads`` as in ``aca_warp.hf.block_threads``."""
+    block_dim=LF_BLOCK)``; ``threads`` as in ``aca_warp.common.devices.block_threads``."""
     k, lane = wp.tid()
     buf = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")
     zero = wp.float64(0.0)

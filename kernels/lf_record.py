@@ -105,7 +105,8 @@ def patch_stats(
     LF_BLOCK slots' areas, A T and death flags into shared memory in parallel (an empty slot's terms as +0, which
     changes no sum that starts at +0; the flags cleared), and thread 0 adds the terms in slot order and, on a step
     with deaths, appends the chunk's deaths.
-    Launch with ``wp.launch_tiled(dim=[1], block_dim=LF_BLOCK)``; ``threads`` as in ``aca_warp.hf.block_threads``.
+    Launch with ``wp.launch_tiled(dim=[1], block_dim=LF_BLOCK)``; ``threads`` as in
+    ``aca_warp.common.devices.block_threads``.
     """
     _blk, lane = wp.tid()
     a_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")

@@ -38,7 +38,7 @@ def disc_temperature(
     copy c', d' to ``work`` ([0, n) c', [n, 2n) d'); then, from the last chunk back, the threads load c', d', thread
     0 runs the back substitution and the threads store T_k and the bulge. Thread 0 reads only shared memory, so that
     its serial recurrences do not wait on global loads. Launch with ``wp.launch_tiled(dim=[1],
-    block_dim=LF_BLOCK)``; ``threads`` as in ``aca_warp.hf.block_threads``.
+    block_dim=LF_BLOCK)``; ``threads`` as in ``aca_warp.common.devices.block_threads``.
     """
     _blk, lane = wp.tid()
     x0 = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")  # diagonal, then c'

@@ -118,7 +118,7 @@ def debris_sweep(
 
     Only the stream M is sequential: the block computes each chunk of LF_BLOCK cells' terms that do not depend
     on M in parallel into shared memory, then thread 0 walks the chunk. Launch with
-    ``wp.launch_tiled(dim=[R], block_dim=LF_BLOCK)``; ``threads`` as in ``aca_warp.hf.block_threads``.
+    ``wp.launch_tiled(dim=[R], block_dim=LF_BLOCK)``; ``threads`` as in ``aca_warp.common.devices.block_threads``.
     """
     k, lane = wp.tid()
     src_t = wp.tile_zeros(shape=LF_BLOCK, dtype=wp.float64, storage="shared")

@@ -17,7 +17,8 @@ any differ, 2 on bad arguments. Examples::
 from: its §3.3 results record a content digest per LF run file (``lf_runs``; the whole preset schedule's files are
 named ``lf_full_preset_seed<S>.h5``), and a run that reproduces the committed states bit for bit has the same
 digest (a run cut short by ``--duration`` is compared with the same names, so it matches only digests of runs
-as short). Example (the committed validation page's LF states, on the kind of device they were made on)::
+as short; a seed whose file the results do not record is a bad argument, found before any run). Example (the
+committed validation page's LF states, on the kind of device they were made on)::
 
     python3 scripts/lf_reproducible.py --device cuda:0 --seeds 1 2 3 4 5 6 7 8 --digests docs/validation/results.json
 """
@@ -47,14 +48,22 @@ def recorded_digests(path: Path) -> dict[str, str]:
     return out
 
 
+def recorded_name(seed: int) -> str:
+    """The name under which a validation results file records the LF run of ``seed`` (the preset's schedule)."""
+    from aca_warp.studies.validation.base import Config
+    from aca_warp.studies.validation.multiscale import lf_path
+
+    return lf_path(Config(lf_dir=Path(".")), seed, None).name
+
+
 def run_seed(
     seed: int, runs: int, out: Path, device: str, duration: float | None, recorded: dict[str, str] | None
 ) -> tuple[bool, str]:
     """``runs`` LF runs of ``seed`` into ``out``; (whether all are bit-identical to the first, and where
-    ``recorded`` is given, whether the first has the recorded digest; one line)."""
+    ``recorded`` is given (it must hold :func:`recorded_name` of ``seed``), whether the first has the recorded
+    digest; one line)."""
     from aca_warp.lf.commands import run_lf
-    from aca_warp.studies.validation.base import Config
-    from aca_warp.studies.validation.multiscale import _digest, lf_path, lf_scene
+    from aca_warp.studies.validation.multiscale import lf_file_digest, lf_scene
 
     paths, walls = [], []
     for k in range(runs):
@@ -71,11 +80,8 @@ def run_seed(
     line = head + (f"{datasets} datasets each, bit-identical" if same else "; ".join(lines))
     if recorded is None:
         return same, line
-    name = lf_path(Config(lf_dir=out), seed, None).name
-    st = paths[0].stat()
-    digest = _digest(str(paths[0].resolve()), (st.st_ino, st.st_mtime_ns, st.st_ctime_ns, st.st_size))
-    if name not in recorded:
-        return False, line + f"; {name} is not in the results' LF runs"
+    name = recorded_name(seed)
+    digest = lf_file_digest(paths[0])
     match = digest == recorded[name]
     return same and match, line + f"; digest {digest} {'==' if match else '!='} recorded {recorded[name]} ({name})"
 
@@ -108,6 +114,9 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"--digests: {e}")
         if not recorded:
             ap.error(f"--digests: {args.digests} records no LF runs")
+        missing = [recorded_name(s) for s in args.seeds if recorded_name(s) not in recorded]
+        if missing:
+            ap.error(f"--digests: {args.digests} records no LF run {', '.join(missing)}")
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
         out.mkdir(parents=True, exist_ok=True)

@@ -6,7 +6,9 @@ happen within a few dozen steps.
 
 from __future__ import annotations
 
+import contextlib
 import copy
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -49,6 +51,20 @@ def _scene(**lf):
     doc = copy.deepcopy(DOC)
     doc["lf"].update(lf)
     return lf_scene_from_dict(doc)
+
+
+@contextlib.contextmanager
+def _cpu_blocks(fibers: bool) -> Iterator[int]:
+    """CPU block kernels with Warp's cooperative fibers (LF_BLOCK threads a block, real barriers) or as one-thread
+    blocks; yields the threads a block runs (a block kernel's ``threads``)."""
+    import warp as wp
+
+    old = wp.config.enable_cpu_blocks
+    wp.config.enable_cpu_blocks = fibers
+    try:
+        yield LF_BLOCK if fibers else 1
+    finally:
+        wp.config.enable_cpu_blocks = old
 
 
 def test_schedule_table_and_snapshot_steps():
@@ -275,19 +291,14 @@ def test_block_kernels_with_cpu_fibers_match_one_thread_blocks():
     the one-thread run ~5 ms). On this 5.9e4-cell grid the serial sums once sat above the 1e-13 tolerance for good
     (40 passes before the solve stopped at the rounding floor): the one-thread run goes on to 15 steps (7 of them
     on the bare matrix) for the passes."""
-    import warp as wp
 
     runs = []
-    old = wp.config.enable_cpu_blocks
-    try:
-        for fibers, duration in ((False, 0.08), (True, 0.08), (False, 0.15)):
-            wp.config.enable_cpu_blocks = fibers
+    for fibers, duration in ((False, 0.08), (True, 0.08), (False, 0.15)):
+        with _cpu_blocks(fibers) as threads:
             sim = LFSimulation(_scene(cell=4.0e-5), device="cpu", duration=duration)
-            assert sim.n_t > LF_BLOCK and sim.threads == (LF_BLOCK if fibers else 1)
+            assert sim.n_t > LF_BLOCK and sim.threads == threads
             sim.run()
-            runs.append((sim.patches_host(), sim.hist.numpy(), sim.cell_store.numpy()))
-    finally:
-        wp.config.enable_cpu_blocks = old
+        runs.append((sim.patches_host(), sim.hist.numpy(), sim.cell_store.numpy()))
     (pa, ha, sa), (pb, hb, sb), (pc, hc, _) = runs
     assert len(pa["x"]) == len(pb["x"]) == 0 < int(ha[0, H_COUNT]) and np.any(sa > 0)  # every patch has died
     for k in pa:
@@ -327,14 +338,8 @@ def test_debris_sweep_matches_a_serial_reference(fibers):
     for k, v in arr.items():
         setattr(cells, k, v)
     cells.capture, rings.emit = cap, emit
-    old = wp.config.enable_cpu_blocks
-    try:
-        wp.config.enable_cpu_blocks = fibers
-        wp.launch_tiled(
-            debris_sweep, dim=[R], block_dim=LF_BLOCK, device="cpu", inputs=[p, LF_BLOCK if fibers else 1, cells, rings]
-        )
-    finally:
-        wp.config.enable_cpu_blocks = old
+    with _cpu_blocks(fibers) as threads:
+        wp.launch_tiled(debris_sweep, dim=[R], block_dim=LF_BLOCK, device="cpu", inputs=[p, threads, cells, rings])
     want_cap, want_store, want_emit = np.zeros(C), store.copy(), np.zeros(R)
     for k in range(R):
         M = 0.0
@@ -414,10 +419,12 @@ def test_candidates_rebuilt_after_births_and_merges_only():
     assert any(k + 1 not in want for k in deaths_only), "the tiny scene must have a deaths-only step"
 
 
-@pytest.mark.parametrize("n_rings", [1, 7, 600])
-def test_disc_temperature_solves_the_ring_equations(n_rings):
+@pytest.mark.parametrize("fibers", [False, True])
+@pytest.mark.parametrize("n_rings", [1, 7, 512, 600])
+def test_disc_temperature_solves_the_ring_equations(n_rings, fibers):
     """The disc kernel's backward Euler step against the tridiagonal system of docs/lf_model.md solved by SciPy,
-    for one ring, a few, and more rings than one chunk of the block (LF_BLOCK = 256: three chunks)."""
+    for one ring, a few, and more rings than one chunk of the block (LF_BLOCK = 256: two whole chunks; three, the
+    last one short), with one-thread CPU blocks and 256-thread CPU fibers (real barriers)."""
     import warp as wp
     from aca_warp.kernels import lf_thermal
     from aca_warp.kernels.lf_types import LFRings
@@ -434,7 +441,9 @@ def test_disc_temperature_solves_the_ring_equations(n_rings):
     for name, value in (("r", r), ("T", T_old), ("bulge", 0 * r), ("power", power), ("emit", 0 * r)):
         setattr(rings, name, wp.array(value, dtype=wp.float64, device="cpu"))
     work = wp.zeros(2 * n_rings, dtype=wp.float64, device="cpu")
-    wp.launch_tiled(lf_thermal.disc_temperature, dim=[1], block_dim=256, inputs=[p, 1, rings, work], device="cpu")
+    with _cpu_blocks(fibers) as threads:
+        inputs = [p, threads, rings, work]
+        wp.launch_tiled(lf_thermal.disc_temperature, dim=[1], block_dim=LF_BLOCK, inputs=inputs, device="cpu")
 
     C = p.rho_d * p.c_d * 2 * np.pi * r * p.dr * p.d_d  # heat capacity [J/K]
     hA = p.h_conv * 2 * 2 * np.pi * r * p.dr  # convection, both faces [W/K]
@@ -445,3 +454,95 @@ def test_disc_temperature_solves_the_ring_equations(n_rings):
     T = solve_banded((1, 1), bands, C / p.dt * T_old + p.gamma_disc * power + hA * p.T_amb)
     np.testing.assert_allclose(rings.T.numpy(), T, rtol=1e-12)
     np.testing.assert_allclose(rings.bulge.numpy(), p.kappa_d * p.alpha_d * p.d_d * (T - p.T_amb), rtol=1e-10)
+
+
+@pytest.mark.parametrize("fibers", [False, True])
+def test_patch_stats_add_in_slot_order(fibers):
+    """The patch statistics' block kernel against a serial walk of the slots (three chunks of LF_BLOCK and a tail of
+    7, not a whole number of the 4-slot steps): the alive count, Σ A and Σ A T bit for bit as added in slot order
+    from +0, the deaths appended in slot order after the earlier ones as far as the lists reach (the count counts
+    them all), every death flag cleared; then a step with deaths and no patch alive (the last slot dead), and one
+    with neither (nothing added). One-thread CPU blocks and 256-thread CPU fibers."""
+    import warp as wp
+    from aca_warp.kernels import lf_record
+    from aca_warp.kernels.lf_types import G_AREA, G_COUNT, G_TPATCH
+
+    P = 3 * LF_BLOCK + 7
+    sim = LFSimulation(_scene(capacity=P), device="cpu", duration=0.05)
+    rng = np.random.default_rng(11)
+    area = 10.0 ** rng.uniform(-12.0, -6.0, P)  # [m²], magnitudes apart: another order gives other bits
+    temp = rng.uniform(300.0, 900.0, P)  # [K]
+    died_at = rng.random((P, 2))  # (age [s], area [m²])
+    sim.area.assign(area)
+    sim.temp.assign(temp)
+    sim.died_at.assign(died_at)
+    n_list, n_before = 25, 3
+    alive_mixed = (rng.random(P) < 0.5).astype(np.int32)
+    alive_mixed[-1] = 1
+    died_mixed = ((rng.random(P) < 0.2) & (alive_mixed == 0)).astype(np.int32)
+    died_only = np.zeros(P, np.int32)
+    died_only[[5, LF_BLOCK + 1, P - 1]] = 1
+    none = np.zeros(P, np.int32)
+    assert died_mixed.sum() > n_list
+    for alive, died in ((alive_mixed, died_mixed), (none, died_only), (none, none)):
+        sim.alive.assign(alive)
+        sim.died.assign(died)
+        sim.glob.zero_()
+        count = wp.array([n_before], dtype=wp.int32, device="cpu")
+        ages, areas = (wp.array(np.full(n_list, -1.0), dtype=wp.float64, device="cpu") for _ in range(2))
+        with _cpu_blocks(fibers) as threads:
+            inputs = [threads, sim.patches, sim.died, sim.died_at, sim.glob, count, ages, areas]
+            wp.launch_tiled(lf_record.patch_stats, dim=[1], block_dim=LF_BLOCK, inputs=inputs, device="cpu")
+        s_a = s_at = 0.0
+        for i in np.flatnonzero(alive):
+            s_a += area[i]
+            s_at += area[i] * temp[i]
+        g = sim.glob.numpy()
+        assert (g[G_COUNT], g[G_AREA], g[G_TPATCH]) == (alive.sum(), s_a, s_at)
+        dead = np.flatnonzero(died)
+        assert count.numpy()[0] == n_before + len(dead)
+        want = np.full((n_list, 2), -1.0)
+        want[n_before:][: len(dead)] = died_at[dead][: n_list - n_before]
+        np.testing.assert_array_equal(np.column_stack([ages.numpy(), areas.numpy()]), want)
+        assert not sim.died.numpy().any()
+
+
+@pytest.mark.parametrize("fibers", [False, True])
+def test_ring_power_adds_in_element_order(fibers):
+    """The rings' friction power against a serial walk: each ring's loaded cells in order, then its loaded patches
+    in its grouped order, added from +0, bit for bit; rings of 244 cells and 0 to 30 patches (some rings empty of
+    patches, some longer than a block, the chunk boundary among the patches). One-thread CPU blocks and 256-thread
+    CPU fibers."""
+    import warp as wp
+    from aca_warp.kernels import lf_contact
+
+    sim = LFSimulation(_scene(cell=6.0e-5, capacity=8192), device="cpu", duration=0.05)
+    R, T, P, C = sim.n_r, sim.n_t, sim.capacity, sim.n_cells
+    assert T < LF_BLOCK < T + 30
+    rng = np.random.default_rng(13)
+    per_ring = rng.integers(0, 31, R)
+    per_ring[:2] = 0, 30
+    slots = [np.sort(s) for s in np.split(rng.permutation(P)[: per_ring.sum()], np.cumsum(per_ring)[:-1])]
+    ring = np.concatenate(slots).astype(np.int32)
+    start = np.repeat(np.concatenate([[0], np.cumsum(per_ring)]), [1, *([T] * R)]).astype(np.int32)  # in cell 0
+    assert start[-1] == per_ring.sum() and start[T * (R - 1)] == per_ring[:-1].sum()
+    sim.group_start.assign(start)
+    sim.group_ring.assign(np.concatenate([ring, np.zeros(P - len(ring), np.int32)]))
+    cell_fn, patch_fn = (np.where(rng.random(n) < 0.6, 1.0, 0.0) for n in (C, P))
+    cell_power, patch_power = (10.0 ** rng.uniform(-9.0, 1.0, n) for n in (C, P))  # [W], magnitudes apart
+    for name, value in dict(cell_fn=cell_fn, patch_fn=patch_fn, cell_power=cell_power, patch_power=patch_power).items():
+        getattr(sim, name).assign(value)
+    with _cpu_blocks(fibers) as threads:
+        inputs = [sim.params, threads, sim.groups, sim.cells, sim.patches, sim.rings]
+        wp.launch_tiled(lf_contact.ring_power, dim=[R], block_dim=LF_BLOCK, inputs=inputs, device="cpu")
+    want = np.zeros(R)
+    for k in range(R):
+        s = 0.0
+        for e in range(k * T, (k + 1) * T):
+            if cell_fn[e] > 0.0:
+                s += cell_power[e]
+        for i in slots[k]:
+            if patch_fn[i] > 0.0:
+                s += patch_power[i]
+        want[k] = s
+    np.testing.assert_array_equal(sim.ring_power.numpy(), want)

@@ -3,6 +3,8 @@ multiscale schedule)."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 from scriptload import load_script
 
@@ -33,17 +35,14 @@ def test_repeated_runs_compared_bit_for_bit(tmp_path, capsys, monkeypatch):
 
 def test_first_run_checked_against_the_digests_a_results_file_records(tmp_path, capsys):
     """--digests: a run with the digest a validation results file records for its LF run file passes, another
-    digest fails, and a results file that records one LF run with two digests is refused."""
-    import json
-
-    from aca_warp.studies.validation.multiscale import _digest
+    digest fails."""
+    from aca_warp.studies.validation.multiscale import lf_file_digest
 
     repro = load_script("lf_reproducible")
     runs = tmp_path / "runs"
     args = ["--seeds", "2", "--runs", "2", "--duration", "0.2", "--out", str(runs)]
     assert repro.main(args) == 0
-    first = runs / "seed2_run1.h5"
-    digest = _digest(str(first), (first.stat().st_mtime_ns,))
+    digest = lf_file_digest(runs / "seed2_run1.h5")
     results = tmp_path / "results.json"
 
     def check(recorded: dict) -> int:
@@ -55,15 +54,35 @@ def test_first_run_checked_against_the_digests_a_results_file_records(tmp_path, 
     assert f"digest {digest} == recorded" in capsys.readouterr().out
     assert check({"ms_fast": {"lf_runs": {"lf_full_preset_seed2.h5": "0" * 16}}}) == 1
     assert "runs DIFFER or do not have the recorded digests" in capsys.readouterr().out
-    assert check({"ms_fast": {"lf_runs": {"lf_full_preset_seed9.h5": digest}}}) == 1
-    assert "not in the results' LF runs" in capsys.readouterr().out
-    two = {"a": {"lf_runs": {"lf_full_preset_seed2.h5": digest}}, "b": {"lf_runs": {"lf_full_preset_seed2.h5": "1"}}}
+
+
+TWO = {"a": {"lf_runs": {"lf_full_preset_seed2.h5": "0"}}, "b": {"lf_runs": {"lf_full_preset_seed2.h5": "1"}}}
+OTHER_SEED = {"ms_fast": {"lf_runs": {"lf_full_preset_seed9.h5": "0"}}}
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        (None, "No such file"),
+        ("{not json", "Expecting property name"),
+        ([1, 2], "'list' object has no attribute"),
+        ({"results": {"ms_fast": {"lf_runs": ["lf_full_preset_seed2.h5"]}}}, "'list' object has no attribute"),
+        ({"results": TWO}, "recorded with two digests"),
+        ({"results": {"hf1": {}}}, "records no LF runs"),
+        ({"results": OTHER_SEED}, "records no LF run lf_full_preset_seed2.h5"),
+    ],
+)
+def test_bad_digests_file(tmp_path, capsys, content, message):
+    """A --digests file that cannot be read, is not a results file, records one LF run with two digests, records
+    none, or does not record a seed asked for: exit code 2 with the reason, before any run is made."""
+    repro = load_script("lf_reproducible")
+    results = tmp_path / "results.json"
+    if content is not None:
+        results.write_text(content if isinstance(content, str) else json.dumps(content))
+    out = tmp_path / "runs"
     with pytest.raises(SystemExit) as e:
-        check(two)
-    assert e.value.code == 2 and "two digests" in capsys.readouterr().err
-    with pytest.raises(SystemExit) as e:
-        check({})
-    assert e.value.code == 2 and "records no LF runs" in capsys.readouterr().err
+        repro.main(["--seeds", "2", "--duration", "0.2", "--out", str(out), "--digests", str(results)])
+    assert e.value.code == 2 and message in capsys.readouterr().err and not out.exists()
 
 
 @pytest.mark.parametrize("bad", [["--runs", "1"], ["--duration", "-1"], ["--seeds", "x"]])

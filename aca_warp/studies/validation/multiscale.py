@@ -112,15 +112,20 @@ def lf_runs(exp: Experiment, cfg: Config) -> dict[str, str]:
 
 
 def lf_digests(cfg: Config, schedule_bar: tuple[float, ...] | None) -> dict[str, str]:
-    """File name → content digest (:func:`_digest`) of the LF runs of ``cfg``'s seeds under ``schedule_bar`` (None:
-    the preset's schedule) in ``cfg.lf_dir``; a file not on disk is left out."""
+    """File name → content digest (:func:`lf_file_digest`) of the LF runs of ``cfg``'s seeds under ``schedule_bar``
+    (None: the preset's schedule) in ``cfg.lf_dir``; a file not on disk is left out."""
     out = {}
     for k in range(cfg.seeds):
         path = lf_path(cfg, cfg.first_seed + k, schedule_bar)
         if path.is_file():
-            st = path.stat()
-            out[path.name] = _digest(str(path.resolve()), (st.st_ino, st.st_mtime_ns, st.st_ctime_ns, st.st_size))
+            out[path.name] = lf_file_digest(path)
     return out
+
+
+def lf_file_digest(path: Path) -> str:
+    """The content digest of the LF run file ``path`` (:func:`_digest`, cached while the file is unchanged)."""
+    st = path.stat()
+    return _digest(str(path.resolve()), (st.st_ino, st.st_mtime_ns, st.st_ctime_ns, st.st_size))
 
 
 @functools.lru_cache(maxsize=256)

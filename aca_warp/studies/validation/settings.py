@@ -62,8 +62,8 @@ STEPPING: dict[str, Stepping] = {
         "H200, 32 hf3 pads, 30 ms): fp32 moves S − S_null by 0.29–0.33 σ of the spread between seeds at every step "
         "from 1e-8 to 5e-8 s (flat in the step: a precision effect). Of fp64's coarser steps the rule keeps 5e-8 s "
         "(S − S_null 0.096 σ, 4.2× faster) but not 2e-8 s (0.28 σ) or 1e-7 s (0.42 σ): S − S_null's error is not "
-        "monotone in the step and its spread between seeds is 1.3 σ, so that pick rests on one draw of a noisy "
-        "estimate; the reference is kept, with which the committed validation results were made",
+        "monotone in the step and its per-seed differences from the reference spread by 1.3 σ, so that pick rests on "
+        "one draw of a noisy estimate; the reference is kept, with which the committed validation results were made",
     ),
     "growth": Stepping(
         dt=5.0e-8,
