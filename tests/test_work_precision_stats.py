@@ -517,3 +517,12 @@ def test_merging_parts_gives_the_whole_regime(tmp_path, capsys):
     assert "| syn | 20 × 10 | 30.0–33.0 ms |" in text
     assert "measured in 4 parts (seeds 1…3; 4…5; 6…8; 9…10; on cuda:0, cuda:1, cuda:2, cuda:3)" in text
     assert "33.0 ms (from 20.0 ms) (a setting's wall time: the sum of its parts'), perturbation" in text
+
+
+def test_max_wall_estimate_counts_what_a_run_spends_besides_stepping():
+    """A run's estimate for --max-wall: its steps at the reference's time per step plus the mean of the earlier runs'
+    set-up and analysis time (a call that counted the stepping alone started a run it had no time left to finish)."""
+    assert wps.run_estimate(4e5, 7.4e-5, []) == pytest.approx(29.6)
+    assert wps.run_estimate(4e5, 7.4e-5, [60.0, 40.0]) == pytest.approx(79.6)
+    assert wps.run_estimate(math.inf, 7.4e-5, [50.0]) == 50.0  # a step chosen by error control: the overhead only
+    assert wps.run_estimate(4e5, math.nan, []) == 0.0  # no reference yet: nothing known

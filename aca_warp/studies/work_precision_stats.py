@@ -337,16 +337,19 @@ def measure_regime(
         f"reference {ref.label}")  # fmt: skip
     rref = [r for r in reg["settings"] if r["role"] == "reference" and r.get("steps")]
     per_step = rref[0]["wall_s"] / rref[0]["steps"] if rref else math.nan
+    overheads: list[float] = []  # s of each run of this call besides its stepping (set-up, analysis)
     t0 = log.elapsed()
     for k, (s, role) in enumerate(todo, 1):
-        steps = s.cost(plan.duration)
-        est = steps * per_step if math.isfinite(steps * per_step) else 0.0  # unknown: run while time is left
+        est = run_estimate(s.cost(plan.duration), per_step, overheads)
         if args.max_wall is not None and log.elapsed() + est > args.max_wall:
             log(f"  {s.label}: not run (--max-wall {args.max_wall:g} s)")
             reg["settings"].append({"label": s.label, "role": role, **dataclasses.asdict(s), "complete": False,
                                     "fault": "not run: --max-wall", "wall_s": None})  # fmt: skip
             continue
+        t_run = log.elapsed()
         row = run_setting(prep, cfg, s, role, names, log) | {"host": head["machine"]["host"]}
+        if row.get("wall_s") is not None:
+            overheads.append(max(log.elapsed() - t_run - row["wall_s"], 0.0))
         reg["settings"].append(row)
         if role == "reference" and row.get("steps"):
             per_step = row["wall_s"] / row["steps"]
@@ -357,6 +360,16 @@ def measure_regime(
             f"{state}, {row.get('saturated', 0)}/{len(prep.scenes)} pads saturated")  # fmt: skip
     _write(path, doc, before + log.elapsed() - t0)
     return path
+
+
+def run_estimate(steps: float, per_step: float, overheads: list[float]) -> float:
+    """Estimated wall time [s] of a run for ``--max-wall``: its ``steps`` at the reference's stepping time per step
+    ``per_step`` [s] (0 when either is unknown: a step chosen by error control, or no reference yet), plus the mean
+    of ``overheads``, the time [s] each earlier run of the call spent besides its stepping (the batch's set-up and
+    the analysis of its pads, which at 32 pads of 4000 patches is ≈ 50 s a run)."""
+    stepping = steps * per_step
+    extra = sum(overheads) / len(overheads) if overheads else 0.0
+    return (stepping if math.isfinite(stepping) else 0.0) + extra
 
 
 CONTINUED = ("config", "pads", "duration_s", "measures", "reference")
@@ -445,7 +458,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "CPU, else the CPU count less one, at most 8)")  # fmt: skip
     ap.add_argument("--lf-dir", help="folder of the LF runs of the LF-state regimes (default OUT/lf)")
     ap.add_argument("--max-wall", type=float, help="start no run that would end past this wall time [s] (the "
-                    "estimate: the reference's time per step × the steps); written as not run")  # fmt: skip
+                    "estimate: the reference's time per step × the steps, plus the mean time the call's earlier "
+                    "runs spent besides stepping); written as not run")  # fmt: skip
     ap.add_argument("--report", nargs="+", metavar="JSON", help="only write the figure(s) and the page from "
                     "result files")  # fmt: skip
     ap.add_argument(
