@@ -36,16 +36,18 @@ from compare_checkouts import compare, file_line, same_results
 
 def recorded_digests(path: Path) -> dict[str, str]:
     """File name → digest of every LF run that a validation results file's experiments record (``lf_runs``);
-    a file recorded twice with two digests is an error (the results were not cut from one set of LF runs)."""
+    a file recorded with two digests is an error (the results were not cut from one set of LF runs; the check the
+    validation's join makes, :func:`~aca_warp.studies.validation.multiscale.lf_conflicts`)."""
     import json
 
-    out: dict[str, str] = {}
+    from aca_warp.studies.validation.multiscale import lf_conflicts
+
     results = json.loads(path.read_text()).get("results", {})
-    for name, res in results.items():
-        for file, digest in (res.get("lf_runs") or {}).items():
-            if out.setdefault(file, digest) != digest:
-                raise ValueError(f"{path}: {file} is recorded with two digests ({out[file]}, {digest}; {name})")
-    return out
+    runs = {name: res.get("lf_runs") or {} for name, res in results.items()}
+    clash = lf_conflicts(runs)
+    if clash:
+        raise ValueError(f"{path}: LF runs recorded with two digests: {'; '.join(clash)}")
+    return {file: digest for files in runs.values() for file, digest in files.items()}
 
 
 def recorded_name(seed: int) -> str:
