@@ -72,7 +72,7 @@ def ring_order(cell: wp.array[wp.int32], n_t: wp.int32, groups: LFGroups):
     """Each grouped slot into its ring's range of ``ring`` at its rank: the ring's range of ``cell`` holds the same
     slots (its cells' ranges one after the other), and a slot's rank is the number of them below it, so that every
     ring's range is ascending (dim = P; the threads past ``start[C]`` do nothing). A thread counts over its whole
-    ring (Σ over the rings of their squared sizes: ≈ 1e5 compares a step for the ``multiscale`` preset)."""
+    ring (Σ over the rings of their squared sizes compares a step)."""
     q = wp.tid()
     if q >= groups.start[groups.start.shape[0] - 1]:
         return
