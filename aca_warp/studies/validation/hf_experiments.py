@@ -32,14 +32,8 @@ TABLE_1 = {
 }
 
 
-def _batch_of(preset: str, batch: str) -> dict[str, str]:
-    """The stepping key (settings.STEPPING) and the batch of a preset's experiments in ``batch``: hf3 runs at its own
-    stepping (fp64), so its experiments form batches of their own (``<batch>_hf3``)."""
-    return {"stepping": "hf3", "batch": f"{batch}_hf3"} if preset == "hf3" else {"stepping": "hf", "batch": batch}
-
-
 def _experiments() -> tuple[Experiment, ...]:
-    out = [Experiment(p, "§3.1", TABLE_1[p], p, **_batch_of(p, "s31")) for p in PRESETS]
+    out = [Experiment(p, "§3.1", TABLE_1[p], p, batch="s31") for p in PRESETS]
     out += [
         Experiment(f"sweep_{a:g}".replace(".", "p"), "§3.1",
                    f"area sweep: mean {a:g} mm² (uniform 0.4–1.6 × mean), hf1 pressure, M = 0.8", "hf1",
@@ -48,17 +42,16 @@ def _experiments() -> tuple[Experiment, ...]:
     ]  # fmt: skip
     out += [
         Experiment(f"{p}_equal", "§3.1", f"{p.upper()} with every height 3 µm (preset {p}_equal; height-spread "
-                   "variant)", f"{p}_equal", quick=False, **_batch_of(p, "s31"))
+                   "variant)", f"{p}_equal", quick=False, batch="s31")
         for p in PRESETS
     ]  # fmt: skip
     out += [
         Experiment(f"{p}_rest", "§3.1", f"{p.upper()} from rest for the paper's length, tracked over time", p,
-                   initial="rest", tracks=True, **_batch_of(p, "rest"))
+                   initial="rest", tracks=True, batch="rest")
         for p in PRESETS
     ]  # fmt: skip
     for p in PRESETS:
-        lin = {"initial": "rest", "kind": "window", "duration": LIN_DURATION, "window_start": LIN_START}
-        lin |= _batch_of(p, "lin")
+        lin = {"initial": "rest", "kind": "window", "duration": LIN_DURATION, "window_start": LIN_START, "batch": "lin"}
         out.append(Experiment(f"{p}_lin", "§3.1", f"{p.upper()} from rest for 4 ms, analysed over 0.2–4 ms "
                               "unsaturated (run-length variant: the single run's window)", p, **lin))  # fmt: skip
         out.append(Experiment(f"{p}_equal_lin", "§3.1", f"{p.upper()} with equal heights from rest for 4 ms, over "

@@ -49,21 +49,12 @@ _LF_REGIME = (
 STEPPING: dict[str, Stepping] = {
     "hf": Stepping(
         dt=5.0e-8,
-        reason="HF1, HF2, HF4, the area sweep and their variants: the statistical work-precision on one H200 (32 "
-        "saturated hf1 and hf2 pads each, 30 ms, a 10 ms window; docs/work_precision_statistics.md) keeps every "
-        "validation measure within a quarter of the spread between seeds with strang fp32 at 5e-8 s and at no "
-        "coarser step (at 1e-7 s the velocity-sum peak moves in hf1, μ std and S − S_null in hf2); hf4 keeps every "
-        "measure up to 5e-7 s; 20 steps per µs sample; fp32 also keeps the neighbour lists on chip",
-    ),
-    "hf3": Stepping(
-        dt=1.0e-8,
-        precision="fp64",
-        reason="HF3 and its variants: the statistical work-precision's reference, strang fp64 at 1e-8 s (one "
-        "H200, 32 hf3 pads, 30 ms): fp32 moves S − S_null by 0.29–0.33 σ of the spread between seeds at every step "
-        "from 1e-8 to 5e-8 s (flat in the step: a precision effect). Of fp64's coarser steps the rule keeps 5e-8 s "
-        "(S − S_null 0.096 σ, 4.2× faster) but not 2e-8 s (0.28 σ) or 1e-7 s (0.42 σ): S − S_null's error is not "
-        "monotone in the step and its per-seed differences from the reference spread by 1.3 σ, so that pick rests on "
-        "one draw of a noisy estimate; the reference is kept, with which the committed validation results were made",
+        reason="HF1–HF4, the area sweep and their variants: the statistical work-precision on one H200 (saturated "
+        "pads, 30 ms, a 10 ms window; docs/work_precision_statistics.md) keeps every validation measure within a "
+        "quarter of the spread between seeds with strang fp32 at 5e-8 s for hf1 and hf2 (32 pads each) and at no "
+        "coarser step (at 1e-7 s the velocity-sum peak moves in hf1, μ std and S − S_null in hf2); hf3 (128 pads) "
+        "keeps every measure in fp32 up to 1e-7 s, hf4 (32 pads) up to 5e-7 s; 20 steps per µs sample; fp32 also "
+        "keeps the neighbour lists on chip",
     ),
     "growth": Stepping(
         dt=5.0e-8,
@@ -77,11 +68,12 @@ STEPPING: dict[str, Stepping] = {
     "ms_fast": Stepping(
         dt=1.0e-8,
         precision="fp64",
-        reason="the densest LF states (app2_start, 3659–4374 patches) and the linear-phase variant that holds them: "
-        f"the statistical work-precision on one H200 {_LF_REGIME} keeps only its reference, strang fp64 at 1e-8 s "
-        "(fp32 at 5e-8 s moves the velocity-sum peak by 0.65 σ and the growth rate by 0.48 σ, fp64 at 5e-8 s the "
-        "5 mm neighbour correlation by 0.29 σ and the growth rate by 0.51 σ; on earlier, float-atomic LF states fp32 "
-        "at 2e-8 s moved the growth rate by 0.27 σ)",
+        reason="the densest LF states (app2_start, 3618–4374 patches) and the linear-phase variant that holds them: "
+        "the statistical work-precision on two H200s (one pad per LF seed 1–64, against strang fp64 at 1e-8 s; "
+        "docs/work_precision_statistics.md) keeps only its reference, strang fp64 at 1e-8 s: the growth rate moves "
+        "by 0.32 σ at fp64 5e-8 s, 0.29 σ at fp64 2e-8 s and 0.36 σ at fp32 5e-8 s (those three agree with each "
+        "other within 0.04 σ, so the reference ensemble's own draw may be most of it), the velocity-sum peak by "
+        "0.36 σ at fp64 2e-8 s",
     ),
     "ms_short": Stepping(
         dt=5.0e-8,
@@ -102,7 +94,7 @@ STEPPING: dict[str, Stepping] = {
         dt=5.0e-8,
         reason="app2_start after the low-load schedule (about 200 patches, friction step 4.4e-7 s): not a regime of "
         "the statistical work-precision; strang fp32 at 5e-8 s, the step that keeps every measure in every measured "
-        "saturated regime but the densest LF states (and hf3's fp32 effect)",
+        "saturated regime but the densest LF states",
     ),
 }
 """The stepping of every kind of experiment (``Experiment.stepping``)."""
