@@ -47,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common.devices import get_device
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.options import DEFAULT_TOLERANCE
 
@@ -329,10 +330,7 @@ def run_bench(
         raise SceneError("duration, dt and sample interval must be > 0")
     if sample_dt > duration:
         raise SceneError(f"sample interval {sample_dt:g} s exceeds the duration {duration:g} s")
-    try:
-        dev = wp.get_device(device)
-    except (ValueError, RuntimeError) as e:
-        raise SceneError(f"device {device!r} is not available: {e}") from None
+    dev = get_device(device)
     module_load = load_modules(dev)
     sc = bench_scene(scene, patches, sample_dt)
     rows = []

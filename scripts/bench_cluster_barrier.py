@@ -39,6 +39,9 @@ from aca_warp.kernels.tiles import (
     tile_store_rows_remote,
 )
 
+from aca_warp.common.devices import get_device
+from aca_warp.common.errors import SceneError
+
 MODES = ("barrier", "stores", "async")
 KEYS = ("ns_barrier", "ns_barrier_and_stores", "ns_async_stores_and_wait")
 
@@ -130,8 +133,10 @@ def main(argv: list[str] | None = None) -> int:
         p.error("--clusters: 1 to 16 blocks")
     if any(b < 32 or b > 1024 or b % 32 for b in a.blocks):
         p.error("--blocks: multiples of 32 from 32 to 1024")
-    wp.init()
-    dev = wp.get_device(a.device)
+    try:
+        dev = get_device(a.device)
+    except SceneError as e:
+        p.error(str(e))
     if dev.is_cpu or dev.arch < 90:
         print(f"{dev}: clusters need a CUDA device of compute capability 9.0+; nothing to measure", file=sys.stderr)
         return 2

@@ -36,6 +36,9 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
+from aca_warp.common.devices import get_device
+from aca_warp.common.errors import SceneError
+
 wp.config.log_level = wp.LOG_WARNING
 
 
@@ -183,7 +186,11 @@ def main() -> int:
     from aca_warp.lf.scene import load_lf_scene
     from aca_warp.lf.solver import LFSimulation
 
-    wp.init()
+    try:
+        get_device(args.device)
+    except SceneError as e:
+        print(f"bench_lf.py: error: {e}", file=sys.stderr)
+        return 2
     t0 = time.perf_counter()
     for module in (lf_contact, lf_thermal, lf_wear, lf_patches, lf_record):
         wp.load_module(module, device=args.device)

@@ -119,6 +119,13 @@ def main(argv: list[str] | None = None) -> int:
         missing = [recorded_name(s) for s in args.seeds if recorded_name(s) not in recorded]
         if missing:
             ap.error(f"--digests: {args.digests} records no LF run {', '.join(missing)}")
+    from aca_warp.common.devices import get_device
+    from aca_warp.common.errors import SceneError
+
+    try:
+        get_device(args.device)
+    except SceneError as e:
+        ap.error(str(e))
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
         out.mkdir(parents=True, exist_ok=True)

@@ -37,6 +37,9 @@ import sys
 import time
 from pathlib import Path
 
+from aca_warp.common.devices import get_device
+from aca_warp.common.errors import SceneError
+
 RTOL = {"fp32": 2e-4, "fp64": 1e-10}
 # adaptive at tolerance ADAPTIVE_TOL: a step decided differently in the last bits of an error near 1 moves the
 # results by up to about the tolerance, so the engines are compared to within ten times it
@@ -368,6 +371,10 @@ def main() -> int:
     ap.add_argument("--self-timeout", type=float, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.stage is None:
+        try:
+            get_device(args.device)
+        except SceneError as e:
+            ap.error(str(e))
         return parent(args)
     # child: dump the Python stack and exit shortly before the parent would kill us
     faulthandler.dump_traceback_later(args.self_timeout, exit=True)

@@ -1,5 +1,5 @@
-"""Warp start-up and device facts shared by HF and LF: a quiet initialisation, kernel loading with a first-run
-note, and the threads a tiled block runs.
+"""Warp start-up and device facts shared by HF and LF: a quiet initialisation, the device by name (a clear error for
+one this machine lacks), kernel loading with a first-run note, and the threads a tiled block runs.
 
 Warp prints its native CUDA-driver warning on every machine without a GPU and a line per module load; aca_warp
 keeps both off unless asked (``aca-warp --verbose``, or ``ACA_WARP_VERBOSE=1`` for the Python API), and says
@@ -15,6 +15,8 @@ from collections.abc import Callable, Iterable
 from types import ModuleType
 
 import warp as wp
+
+from aca_warp.common.errors import SceneError
 
 _CUDA_DRIVER_WARNING = "Could not find or load the NVIDIA CUDA driver"
 _state = {"initialised": False, "compiling_said": False}
@@ -49,6 +51,17 @@ def init_warp() -> None:
     kept = [line for line in text.splitlines() if _CUDA_DRIVER_WARNING not in line]
     if kept:
         print("\n".join(kept), file=sys.stderr)
+
+
+def get_device(device: str | wp.Device) -> wp.Device:
+    """The Warp device ``device`` ("cpu", "cuda:N" or a device), Warp initialised first; SceneError, naming the
+    devices this machine has, for one it lacks."""
+    init_warp()
+    try:
+        return wp.get_device(device)
+    except (ValueError, RuntimeError) as e:
+        have = ", ".join(str(d) for d in wp.get_devices())
+        raise SceneError(f"device {device!r} is not available here ({e}; this machine has: {have})") from None
 
 
 def _cached(module: ModuleType, device: wp.Device) -> bool:

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from aca_warp.common.devices import init_warp, load_kernels
+from aca_warp.common.devices import get_device, load_kernels
 from aca_warp.common.errors import SceneError
 from aca_warp.hf import limits
 from aca_warp.hf.contact import ContactSolution, solve_scene_contact
@@ -136,14 +136,6 @@ def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisi
     return upload(host_model(scenes, device=device, precision=precision), device)
 
 
-def _device(device: str | wp.Device) -> wp.Device:
-    init_warp()
-    try:
-        return wp.get_device(device)
-    except (ValueError, RuntimeError) as e:
-        raise SceneError(f"device {device!r} is not available: {e}") from None
-
-
 def host_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precision: str = "fp64") -> HostModel:
     """The model of a batch of scenes on the host: contact solve, neighbours, arrays as NumPy.
 
@@ -158,7 +150,7 @@ def host_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisio
         raise SceneError("a batch needs at least one scene")
     if precision not in PRECISIONS:
         raise SceneError(f"precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
-    dev = _device(device)
+    dev = get_device(device)
     load_kernels([neighbours_kernels], dev)
     T = PRECISIONS[precision]
     counts = np.array([s.patches.count for s in scenes])
@@ -193,7 +185,7 @@ def host_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisio
 def upload(host: HostModel, device: str | wp.Device, *, copy: bool = True) -> PadModel:
     """Put a :class:`HostModel` on ``device`` (its HF kernels loaded); ``copy=False`` on the CPU: the model's arrays
     are the host arrays themselves (a model to read, e.g. for the checks before a run, not to run)."""
-    dev = _device(device)
+    dev = get_device(device)
     if not copy and not dev.is_cpu:
         raise SceneError("a model shares the host arrays only on the CPU")
     if copy:

@@ -21,7 +21,7 @@ import numpy as np
 import warp as wp
 
 from aca_warp.common.checkpoint import Checkpoint, CheckpointClock
-from aca_warp.common.devices import block_threads, init_warp, load_kernels
+from aca_warp.common.devices import block_threads, get_device, load_kernels
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.options import check_interval
 from aca_warp.kernels import lf_contact, lf_patches, lf_record, lf_sums, lf_thermal, lf_wear
@@ -78,11 +78,7 @@ class LFSimulation:
     def __init__(
         self, scene: LFScene, *, device: str = "cpu", duration: float | None = None, graph: bool | None = None
     ) -> None:
-        init_warp()
-        try:
-            self.device = wp.get_device(device)
-        except (ValueError, RuntimeError) as e:
-            raise SceneError(f"device {device!r} is not available: {e}") from None
+        self.device = get_device(device)
         load_kernels([lf_contact, lf_patches, lf_record, lf_sums, lf_thermal, lf_wear], self.device)
         self.scene = scene
         self.table: StepTable = step_table(scene, duration)

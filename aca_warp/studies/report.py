@@ -30,12 +30,14 @@ NO_VALUE = "–"
 
 
 def init_warp() -> ModuleType:
-    """Import and initialise Warp with warnings only (no kernel-compile chatter); returns the module."""
+    """Import and initialise Warp with warnings only (no kernel-compile chatter, no note of a missing CUDA driver
+    unless asked: :func:`aca_warp.common.devices.init_warp`); returns the module."""
     import warp as wp
 
+    from aca_warp.common.devices import init_warp as init_quietly
+
     wp.config.quiet = True
-    wp.config.log_level = wp.LOG_WARNING
-    wp.init()
+    init_quietly()
     return wp
 
 

@@ -529,9 +529,13 @@ def main(argv: list[str] | None = None) -> int:
     for name, val, least in (("seeds", args.seeds, 2), ("patches", args.patches, 2), ("workers", args.workers, 1)):
         if val is not None and val < least:
             ap.error(f"--{name} must be at least {least}")
-    from aca_warp.studies.report import init_warp
+    from aca_warp.common.devices import get_device
+    from aca_warp.common.errors import SceneError
 
-    init_warp()
+    try:
+        get_device(args.device)
+    except SceneError as e:
+        ap.error(str(e))
     try:
         measure(args, argv)
     except FileExistsError as e:

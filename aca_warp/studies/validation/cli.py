@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common.devices import get_device
+from aca_warp.common.errors import SceneError
 from aca_warp.studies.report import Log, command_line, generated_markers, replace_generated
 from aca_warp.studies.validation import multiscale as validation_multiscale
 from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK, ROWS, Config, Experiment, close_pools
@@ -455,7 +457,12 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if args.dry_run:
         cfg = config_from(args, "cpu" if args.device == "auto" else args.device)
-        dry_run(names, dataclasses.replace(cfg, lf_dir=str(args.lf_dir or args.out / "lf")), Log())
+        try:  # the estimates need no device; the LF runs it has to make need --device
+            dry_run(names, dataclasses.replace(cfg, lf_dir=str(args.lf_dir or args.out / "lf")), Log())
+        except SceneError as e:
+            print(f"validation.py: {e}; the dry run makes the LF runs it lacks on --device: plan with --device cpu, "
+                  "or give --lf-dir a folder that holds them", file=sys.stderr)  # fmt: skip
+            return 2
         return 0
     notes: list[str] = []  # what --with left out, for the log once it is opened
     try:  # before anything is written: the device does not enter the settings compared
@@ -463,10 +470,15 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as e:
         print(f"validation.py: {e}", file=sys.stderr)
         return 2
-    results_dir = args.results or args.out
-    log = TeeLog(results_dir / "validation.log")
     wp = init_warp()
     device = ("cuda:0" if wp.is_cuda_available() else "cpu") if args.device == "auto" else args.device
+    try:
+        get_device(device)
+    except SceneError as e:
+        print(f"validation.py: {e}", file=sys.stderr)
+        return 2
+    results_dir = args.results or args.out
+    log = TeeLog(results_dir / "validation.log")
     cfg = dataclasses.replace(config_from(args, device), lf_dir=str(args.lf_dir or args.out / "lf"))
     args.out.mkdir(parents=True, exist_ok=True)
     log(f"validation ({'quick' if cfg.quick else 'full'}): {', '.join(names)} on {device} -> {args.out}")

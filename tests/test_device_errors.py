@@ -1,0 +1,56 @@
+"""A device the machine lacks (``--device cuda:99``) is a bad argument: one line naming the devices there are, exit
+code 2, nothing written; never a traceback (the package's ``get_device`` and the study and benchmark scripts that
+take ``--device``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from scriptload import load_script
+
+from aca_warp.common.devices import get_device
+from aca_warp.common.errors import SceneError
+
+ABSENT = "cuda:99"
+
+
+def test_get_device_names_the_devices_there_are():
+    assert str(get_device("cpu")) == "cpu"
+    with pytest.raises(SceneError, match=r"'cuda:99' is not available here .*this machine has: cpu"):
+        get_device(ABSENT)
+
+
+def test_validation_refuses_an_absent_device_before_writing(tmp_path: Path, capsys):
+    from aca_warp.studies.validation import cli
+
+    out = tmp_path / "v"
+    assert cli.main(["--device", ABSENT, "--quick", "--out", str(out), "--only", "hf1"]) == 2
+    assert "not available here" in capsys.readouterr().err
+    assert not out.exists()  # no log, no results file
+
+
+def test_validation_dry_run_that_must_make_lf_runs_on_an_absent_device_says_how(tmp_path: Path, capsys):
+    from aca_warp.studies.validation import cli
+
+    argv = ["--device", ABSENT, "--quick", "--out", str(tmp_path / "v"), "--only", "ms_fast", "--dry-run"]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert "not available here" in err and "--device cpu" in err and "--lf-dir" in err
+
+
+@pytest.mark.parametrize(
+    ("name", "argv"),
+    [
+        ("work_precision_stats", ["--quick"]),
+        ("lf_reproducible", ["--seeds", "1"]),
+        ("bench_cluster_barrier", []),
+    ],
+)
+def test_scripts_refuse_an_absent_device(name: str, argv: list[str], tmp_path: Path, capsys):
+    extra = ["--out", str(tmp_path / "out")] if name != "bench_cluster_barrier" else []
+    with pytest.raises(SystemExit) as stop:
+        load_script(name).main(["--device", ABSENT, *argv, *extra])
+    assert stop.value.code == 2
+    assert "not available here" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
