@@ -47,7 +47,6 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.common.devices import get_device
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.options import DEFAULT_TOLERANCE
 
@@ -324,6 +323,7 @@ def run_bench(
     """Run every case; returns ``{"machine", "scene", ..., "results": [rows]}`` (JSON-able)."""
     import warp as wp
 
+    from aca_warp.common.devices import get_device
     from aca_warp.common.files import machine
 
     if not (duration > 0 and dt > 0 and sample_dt > 0):
