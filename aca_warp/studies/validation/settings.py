@@ -49,12 +49,12 @@ _LF_REGIME = (
 STEPPING: dict[str, Stepping] = {
     "hf": Stepping(
         dt=5.0e-8,
-        reason="HF1–HF4, the area sweep and their variants: the statistical work-precision on one H200 (saturated "
-        "pads, 30 ms, a 10 ms window; docs/work_precision_statistics.md) keeps every validation measure within a "
-        "quarter of the spread between seeds with strang fp32 at 5e-8 s for hf1 and hf2 (32 pads each) and at no "
-        "coarser step (at 1e-7 s the velocity-sum peak moves in hf1, μ std and S − S_null in hf2); hf3 (128 pads) "
-        "keeps every measure in fp32 up to 1e-7 s, hf4 (32 pads) up to 5e-7 s; 20 steps per µs sample; fp32 also "
-        "keeps the neighbour lists on chip",
+        reason="HF1–HF4, the area sweep and their variants: the statistical work-precision on H200s (30 ms, a 10 ms "
+        "window; docs/work_precision_statistics.md) keeps every validation measure within a quarter of the spread "
+        "between seeds with strang fp32 at 5e-8 s for hf1 and hf2 (32 saturated pads each) and at no coarser step (at "
+        "1e-7 s the velocity-sum peak moves in hf1, μ std and S − S_null in hf2); hf3 (128 pads, none saturated "
+        "within 30 ms) keeps every measure in fp32 up to 1e-7 s, hf4 (32 pads) up to 5e-7 s; 20 steps per µs "
+        "sample; fp32 also keeps the neighbour lists on chip",
     ),
     "growth": Stepping(
         dt=5.0e-8,
@@ -72,7 +72,7 @@ STEPPING: dict[str, Stepping] = {
         "the statistical work-precision on two H200s (one pad per LF seed 1–64, against strang fp64 at 1e-8 s; "
         "docs/work_precision_statistics.md) keeps only its reference, strang fp64 at 1e-8 s: the growth rate moves "
         "by 0.32 σ at fp64 5e-8 s, 0.29 σ at fp64 2e-8 s and 0.36 σ at fp32 5e-8 s (those three agree with each "
-        "other within 0.04 σ, so the reference ensemble's own draw may be most of it), the velocity-sum peak by "
+        "other within 0.06 σ, so the reference ensemble's own draw may be most of it), the velocity-sum peak by "
         "0.36 σ at fp64 2e-8 s",
     ),
     "ms_short": Stepping(
