@@ -1,6 +1,6 @@
 """A device the machine lacks (``--device cuda:99``) is a bad argument: one line naming the devices there are, exit
 code 2, nothing written; never a traceback (the package's ``get_device`` and the study and benchmark scripts that
-take ``--device``)."""
+take ``--device``, those with a ``main(argv)`` and those that read ``sys.argv``)."""
 
 from __future__ import annotations
 
@@ -54,3 +54,21 @@ def test_scripts_refuse_an_absent_device(name: str, argv: list[str], tmp_path: P
     assert stop.value.code == 2
     assert "not available here" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("name", "out_flag"),
+    [("bench_lf", "--json"), ("onchip_gpu_check", "--out")],
+)
+def test_scripts_without_argv_refuse_an_absent_device(
+    name: str, out_flag: str, tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
+):
+    out = tmp_path / "out"
+    monkeypatch.setattr("sys.argv", [f"{name}.py", "--device", ABSENT, out_flag, str(out)])
+    try:
+        code = load_script(name).main()
+    except SystemExit as stop:
+        code = stop.code
+    assert code == 2
+    assert "not available here" in capsys.readouterr().err
+    assert not out.exists()
