@@ -17,7 +17,8 @@ and exits on its own shortly before), so a hung kernel costs at most that timeou
 
 Outputs in ``--out``: ``onchip_check.json`` (verdicts, errors, timings, the machine), ``onchip_check.md``
 (tables), ``log_check.txt`` / ``log_bench.txt`` (child output, with the stack dump on a timeout). Exit code 0 when
-the fp32 check passed (and fp64 passed or did not run), 1 otherwise. Example (GPU machine, Warp in /tmp/site)::
+the fp32 check passed (and fp64 passed or did not run), 1 otherwise, 2 for a bad argument (a ``--device`` the machine
+lacks: nothing run or written). Example (GPU machine, Warp in /tmp/site)::
 
     PYTHONPATH=/tmp/site python3 scripts/onchip_gpu_check.py --device cuda:0 --out $OUT/onchip_check --budget 80
     PYTHONPATH=/tmp/site python3 scripts/onchip_gpu_check.py --device cuda:0 --out $OUT/growth --growth --no-bench
