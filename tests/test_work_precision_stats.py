@@ -526,3 +526,54 @@ def test_max_wall_estimate_counts_what_a_run_spends_besides_stepping():
     assert wps.run_estimate(4e5, 7.4e-5, [60.0, 40.0]) == pytest.approx(79.6)
     assert wps.run_estimate(math.inf, 7.4e-5, [50.0]) == 50.0  # a step chosen by error control: the overhead only
     assert wps.run_estimate(4e5, math.nan, []) == 0.0  # no reference yet: nothing known
+
+
+def test_errors_by_part_split_a_merged_regime_by_seed(tmp_path, capsys):
+    """``--by-part``: each setting's error in units of σ (the reference's spread over every seed) over all pads and
+    over each part's pads alone, signed for a scalar measure: a shift of +0.6 σ in the first part's seeds and
+    −0.2 σ in the second's reads +0.6, −0.2 and their seed-weighted mean; a file that is not merged, and a measure
+    the regime lacks, are refused (exit 2)."""
+    from aca_warp.studies.work_precision_stats_merge import errors_by_part, merge
+
+    whole = synthetic_regime(20)
+    ref = np.array(whole["settings"][0]["values"]["phi"])
+    sigma = ref.std(ddof=1)
+    shift = np.where(np.arange(20) < 8, 0.6, -0.2) * sigma  # seeds 1–8, then 9–20
+    whole["settings"][4]["values"]["phi"] = (ref + shift).tolist()
+    paths = []
+    for k, part in enumerate(_parts_of(whole, [range(1, 9), range(9, 21)], ["cuda0", "cuda1"])):
+        paths.append(tmp_path / f"p{k}.json")
+        paths[-1].write_text(json.dumps(part))
+    doc = merge(paths)
+    table = errors_by_part(doc, ["phi"])
+    row = next(line for line in table.splitlines() if "`strang@fp32:dt=2e-08`" in line)
+    assert row.split("|")[4:7] == [" +0.12 ", " +0.60 ", " -0.20 "]  # all: (8 × 0.6 − 12 × 0.2) / 20
+    assert "| measure | member | setting | all 20 seeds | seeds 1–8 | seeds 9–20 |" in table
+    assert len([line for line in table.splitlines() if line.startswith("| Φ |")]) == 4  # complete grid settings
+    with pytest.raises(ValueError, match="merged"):
+        errors_by_part(json.loads(paths[0].read_text()))
+    with pytest.raises(ValueError, match="no measure f1"):
+        errors_by_part(doc, ["f1"])
+    merged = tmp_path / "m"
+    assert wps.main(["--merge", *map(str, paths), "--out", str(merged)]) == 0
+    capsys.readouterr()
+    assert wps.main(["--by-part", str(merged / "wps_cuda01_syn.json"), "--measures", "phi"]) == 0
+    assert "| Φ | – | `strang@fp32:dt=2e-08` |" in capsys.readouterr().out
+    assert wps.main(["--by-part", str(paths[0])]) == 2
+    assert "merged" in capsys.readouterr().err
+
+
+def test_the_pages_part_by_part_tables_are_the_scripts_output():
+    """Every ``BY PART`` table of docs/work_precision_statistics.md is what ``--by-part FILE --measures …`` prints
+    from the committed merged result file it names."""
+    from pathlib import Path
+
+    from aca_warp.studies.work_precision_stats_merge import errors_by_part
+
+    repo = Path(__file__).resolve().parent.parent
+    text = (repo / "docs" / "work_precision_statistics.md").read_text()
+    blocks = re.findall(r"<!-- BY PART (\S+) ([^>]+?) -->\n(.*?)<!-- END BY PART -->", text, flags=re.S)
+    assert len(blocks) >= 2
+    for path, measures, table in blocks:
+        printed = errors_by_part(rule.load_results(repo / path), measures.split())
+        assert printed.split("\n\n", 1)[1] == table, path

@@ -39,6 +39,7 @@ integrator, or what a time limit cut off). A regime too long for one call is mea
     python3 scripts/work_precision_stats.py --device cuda:0 --seeds 32 --out wps --regimes hf1 hf2
     python3 scripts/work_precision_stats.py --report wps/wps_cuda0_*.json                       # figure + page
     python3 scripts/work_precision_stats.py --merge part*/wps_cuda*_ms_app3.json --out wps     # parts into one
+    python3 scripts/work_precision_stats.py --by-part wps/wps_cuda0_hf3.json --measures sync_excess  # part by part
 """
 
 from __future__ import annotations
@@ -469,6 +470,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="only join the result files of one regime measured "
         "in parts over disjoint seeds (e.g. a process per GPU) into OUT/wps_<tag>_<regime>.json",
     )
+    ap.add_argument(
+        "--by-part",
+        metavar="JSON",
+        help="only print (Markdown) each setting's error in units of σ "
+        "over all pads and over each part's pads alone, for a merged result file (--measures: which)",
+    )
     ap.add_argument("--rule", type=float, default=DEFAULT_RULE, help="the report's rule: a setting's bias within "
                     f"± RULE × σ between seeds ({DEFAULT_RULE:g})")  # fmt: skip
     ap.add_argument("--criterion", default=DEFAULT_CRITERION, choices=list(CRITERIA), help="what the report's rule "
@@ -518,6 +525,16 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.merge:
         return merge_parts([Path(p) for p in args.merge], Path(args.out))
+    if args.by_part:
+        from aca_warp.studies.work_precision_stats_merge import errors_by_part
+        from aca_warp.studies.work_precision_stats_rule import load_results
+
+        try:
+            print(errors_by_part(load_results(Path(args.by_part)), args.measures), end="")
+        except (OSError, ValueError, KeyError) as e:
+            print(f"work_precision_stats: {e}", file=sys.stderr)
+            return 2
+        return 0
     args.regimes = args.regimes or list(REGIMES[args.quick])
     args.reference = args.reference or REFERENCE[args.quick]
     try:

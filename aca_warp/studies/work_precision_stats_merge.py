@@ -16,12 +16,22 @@ regime keeps each part's run length in ``parts``.
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from aca_warp.studies.work_precision_stats_rule import load_results, without_stepping
+import numpy as np
+
+from aca_warp.studies.work_precision_stats_rule import (
+    MEASURES,
+    _matrix,
+    _members,
+    load_results,
+    reference_of,
+    without_stepping,
+)
 
 SAME = ("name", "description", "kind", "measures", "reference")
 """Regime fields every part must share (besides its configuration less the seeds)."""
@@ -163,3 +173,49 @@ def merge(paths: Sequence[Path]) -> dict[str, Any]:
         "regimes": {name: reg},
         "regime_wall_s": sum(walls) if all(w is not None for w in walls) else None,
     }
+
+
+def _signed_error(ref: np.ndarray, val: np.ndarray, sigma: float) -> float:
+    """The mean of val − ref over the seeds that have both, in units of ``sigma``: signed for a scalar measure, the
+    rms over components of the per-component means for a vector one (NaN without two such seeds)."""
+    ref2, val2 = ref.reshape(ref.shape[0], -1), val.reshape(val.shape[0], -1)
+    rows = np.isfinite(ref2).all(axis=1) & np.isfinite(val2).all(axis=1)
+    if rows.sum() < 2 or not sigma > 0:
+        return math.nan
+    mean = (val2[rows] - ref2[rows]).mean(axis=0)
+    return float(mean[0] / sigma) if mean.size == 1 else float(np.sqrt(np.mean(np.square(mean))) / sigma)
+
+
+def errors_by_part(doc: dict[str, Any], measures: Sequence[str] | None = None) -> str:
+    """Markdown: per measure, member and setting, its error in units of σ over all of a merged regime's pads and over
+    each part's pads alone (σ: the reference's standard deviation between all the seeds, rms over components; signed
+    for a scalar measure). The reference's own sampling noise enters every setting's error alike, so errors that
+    share one sign within a part and change it between parts are that draw rather than a bias of the settings.
+    ``measures``: default every measure of the regime. ValueError for a document that is not a merged regime."""
+    if "merged_from" not in doc or len(doc.get("regimes", {})) != 1:
+        raise ValueError("errors by part need a merged result file (work_precision_stats.py --merge)")
+    name, reg = next(iter(doc["regimes"].items()))
+    names = list(measures or reg["measures"])
+    unknown = [m for m in names if m not in reg["measures"]]
+    if unknown:
+        raise ValueError(f"{name} has no measure {', '.join(unknown)} (it has {', '.join(reg['measures'])})")
+    seeds = np.array([int(p["seed"]) for p in reg["pads"]])
+    parts = [(min(p["seeds"]), max(p["seeds"])) for p in reg["parts"]]
+    ref = reference_of(reg)
+    rows = [s for s in reg["settings"] if s["role"] != "reference" and s.get("complete") and "values" in s]
+    head = ["measure", "member", "setting", f"all {len(seeds)} seeds", *(f"seeds {a}–{b}" for a, b in parts)]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for m in names:
+        for member, idx in _members(reg).items():
+            r = _matrix([ref["values"][m][i] for i in idx])
+            r2 = r.reshape(r.shape[0], -1)
+            sigma = float(np.sqrt(np.mean(np.square(np.nanstd(r2, axis=0, ddof=1)))))
+            s_idx = seeds[idx]
+            for s in rows:
+                v = _matrix([s["values"][m][i] for i in idx])
+                cells = [_signed_error(r, v, sigma)]
+                cells += [_signed_error(r[(s_idx >= a) & (s_idx <= b)], v[(s_idx >= a) & (s_idx <= b)], sigma)
+                          for a, b in parts]  # fmt: skip
+                txt = ["–" if not math.isfinite(c) else f"{c:+.2f}" for c in cells]
+                lines.append(f"| {MEASURES[m].label} | {member or '–'} | `{s['label']}` | " + " | ".join(txt) + " |")
+    return f"{name}: error / σ of each setting against the reference, by part\n\n" + "\n".join(lines) + "\n"

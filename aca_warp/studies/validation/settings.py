@@ -72,7 +72,7 @@ STEPPING: dict[str, Stepping] = {
         "the statistical work-precision on two H200s (one pad per LF seed 1–64, against strang fp64 at 1e-8 s; "
         "docs/work_precision_statistics.md) keeps only its reference, strang fp64 at 1e-8 s: the growth rate moves "
         "by 0.32 σ at fp64 5e-8 s, 0.29 σ at fp64 2e-8 s and 0.36 σ at fp32 5e-8 s (those three agree with each "
-        "other within 0.06 σ, so the reference ensemble's own draw may be most of it), the velocity-sum peak by "
+        "other within 0.06 σ; part of it may be the reference ensemble's own draw), the velocity-sum peak by "
         "0.36 σ at fp64 2e-8 s",
     ),
     "ms_short": Stepping(
