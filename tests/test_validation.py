@@ -665,6 +665,13 @@ def test_results_of_different_lf_runs_are_neither_reused_nor_joined(tmp_path):
     notes: list[str] = []
     got = VL.earlier_results(files, committed, notes.append)
     assert sorted(got.results) == ["hf1", "ms_fast"] and any("ms_mid not used" in n for n in notes)
+    # nor is a result made with another definition of its experiment (here: hf1 under another description)
+    other = {**doc["results"]["hf1"], "experiment": {**doc["results"]["hf1"]["experiment"], "description": "x"}}
+    files[1].write_text(json.dumps({**doc, "meta": {**doc["meta"], "config": committed.run_key()},
+                                    "results": {"hf1": other}}))  # fmt: skip
+    notes.clear()
+    got = VL.earlier_results(files, committed, notes.append)
+    assert sorted(got.results) == ["ms_fast"] and any("hf1 not used: made with another definition" in n for n in notes)
 
 
 def test_committed_lf_state_results_come_from_one_set_of_lf_runs():

@@ -19,7 +19,7 @@ import numpy as np
 
 from aca_warp.common.devices import get_device
 from aca_warp.common.errors import SceneError
-from aca_warp.studies.report import Log, command_line, generated_markers, replace_generated
+from aca_warp.studies.report import Log, clean, command_line, generated_markers, replace_generated
 from aca_warp.studies.validation import multiscale as validation_multiscale
 from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK, ROWS, Config, Experiment, close_pools
 from aca_warp.studies.validation.cost import Costs, batch_friction_step, overheads
@@ -278,8 +278,9 @@ class Earlier:
 
 def earlier_results(paths: list[Path] | None, cfg: Config, log: Callable[[str], None]) -> Earlier:
     """The finished experiments of earlier ``results.json`` files made with the same settings (``--with``); a file of
-    other settings is logged and left out, and so is a §3.3 result that does not record the LF runs it was cut from
-    (it could be joined with results of other LF runs unseen). ValueError for a file that is not a results file, an
+    other settings is logged and left out, and so is a result made with another definition of its experiment (as a
+    saved checkpoint would be) or a §3.3 result that does not record the LF runs it was cut from (it could be
+    joined with results of other LF runs unseen). ValueError for a file that is not a results file, an
     experiment finished in two of them (which to take would be a guess), or §3.3 results cut from different LF
     runs."""
     from aca_warp.studies.validation.results import read_results
@@ -293,6 +294,10 @@ def earlier_results(paths: list[Path] | None, cfg: Config, log: Callable[[str], 
             log(f"{path}: other settings than this run's; not used")
             continue
         done = {n: r for n, r in results.items() if n in EXPERIMENTS and r.get("status") in ("done", "stopped")}
+        stale = [n for n, r in done.items() if r.get("experiment") != clean(EXPERIMENTS[n].key())]
+        if stale:
+            log(f"{path}: {', '.join(stale)} not used: made with another definition of the experiment")
+            done = {n: r for n, r in done.items() if n not in stale}
         lf_state = validation_multiscale.state_scene
         blind = [n for n, r in done.items() if EXPERIMENTS[n].builder is lf_state and not r.get("lf_runs")]
         if blind:
