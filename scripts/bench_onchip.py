@@ -24,6 +24,8 @@ import warp as wp
 
 wp.config.log_level = wp.LOG_WARNING
 
+from aca_warp.common.devices import get_device, init_warp  # noqa: E402
+from aca_warp.common.errors import SceneError  # noqa: E402
 from aca_warp.common.files import machine  # noqa: E402
 from aca_warp.hf.loop import EngineTuning, run_hf  # noqa: E402
 from aca_warp.hf.model import build_model  # noqa: E402
@@ -80,6 +82,7 @@ def run_case(scene, device, precision, engine, pads, dt, duration, block_dim=Non
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    init_warp()  # quietly: no CUDA-driver note on a machine without a GPU, not even for --help
     ap.add_argument("--device", default="cuda:0" if wp.is_cuda_available() else "cpu")
     ap.add_argument("--scene", default="hf1")
     ap.add_argument("--pads", nargs="+", type=int, default=[1, 1024])
@@ -105,7 +108,18 @@ def main() -> None:
     ap.add_argument("--json", default="bench_onchip.json")
     ap.add_argument("--markdown", default=None)
     args = ap.parse_args()
-    scene = preset(args.scene).replace(record=Record(sample_dt=1e-6))
+    for name in ("duration", "batch_duration", "dt"):
+        if not getattr(args, name) > 0:
+            ap.error(f"--{name.replace('_', '-')} must be > 0")
+    if min(args.duration, args.batch_duration) < 1e-6:
+        ap.error("--duration and --batch-duration must hold at least one 1 µs sample (≥ 1e-6 s)")
+    if min(args.pads) < 1:
+        ap.error("--pads must be ≥ 1")
+    try:
+        get_device(args.device)
+        scene = preset(args.scene).replace(record=Record(sample_dt=1e-6))
+    except SceneError as e:
+        ap.error(str(e))
     rows = []
     for pads in args.pads:
         dur = args.duration if pads == 1 else args.batch_duration

@@ -72,3 +72,21 @@ def test_scripts_without_argv_refuse_an_absent_device(
     assert code == 2
     assert "not available here" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("argv", "says"),
+    [
+        (["--device", "cpu", "--duration", "1e-7"], "at least one 1 µs sample"),
+        (["--device", "cpu", "--scene", "nope"], "unknown preset 'nope'"),
+        (["--device", "cpu", "--pads", "0"], "--pads must be ≥ 1"),
+        (["--device", ABSENT], "not available here"),
+    ],
+)
+def test_bench_onchip_refuses_bad_arguments(argv: list[str], says: str, tmp_path: Path, capsys, monkeypatch):
+    script = load_script("bench_onchip")
+    monkeypatch.setattr("sys.argv", ["bench_onchip.py", *argv, "--json", str(tmp_path / "b.json")])
+    with pytest.raises(SystemExit) as stop:
+        script.main()
+    assert stop.value.code == 2 and says in capsys.readouterr().err
+    assert not (tmp_path / "b.json").exists()
