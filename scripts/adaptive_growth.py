@@ -26,6 +26,9 @@ from typing import Any
 import numpy as np
 import warp as wp
 
+from aca_warp.common.argtypes import positive
+from aca_warp.common.devices import get_device
+from aca_warp.common.errors import SceneError
 from aca_warp.common.files import machine
 from aca_warp.hf.loop import run_hf
 from aca_warp.hf.model import build_model
@@ -56,13 +59,17 @@ def one_run(args: argparse.Namespace, growth: bool = True, **options: Any) -> di
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--duration", type=float, default=2e-5, help="simulated time [s]")
-    ap.add_argument("--dt", type=float, default=1e-8, help="strang step [s]")
-    ap.add_argument("--tols", type=float, nargs="+", default=[1e-5, 1e-6], help="adaptive tolerances")
+    ap.add_argument("--duration", type=positive, default=2e-5, help="simulated time [s]")
+    ap.add_argument("--dt", type=positive, default=1e-8, help="strang step [s]")
+    ap.add_argument("--tols", type=positive, nargs="+", default=[1e-5, 1e-6], help="adaptive tolerances")
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--engine", default="auto", choices=ENGINES, help="HF engine (default auto)")
     ap.add_argument("--precision", default="fp64", choices=["fp32", "fp64"])
     args = ap.parse_args(argv)
+    try:
+        get_device(args.device)
+    except SceneError as e:
+        ap.error(str(e))
     runs = {f"strang {args.dt:g} s": one_run(args, integrator="strang", dt=args.dt)}
     for tol in args.tols:
         runs[f"adaptive tol {tol:g}"] = one_run(args, integrator="adaptive", tolerance=tol)

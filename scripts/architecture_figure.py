@@ -19,6 +19,8 @@ from matplotlib.figure import Figure
 from matplotlib.patches import FancyArrowPatch, FancyBboxPatch
 from matplotlib.path import Path
 
+from aca_warp.common.argtypes import int_at_least
+
 XLIM, YLIM = (0.0, 112.0), (-12.5, 95.5)  # drawing units (the axes' data coordinates), 10 to the inch
 HF, LF, SWEEP, STUDY = "#dbe9f6", "#fde8cf", "#dff0d8", "#eeeeee"  # box colours of the three lanes and the studies
 
@@ -214,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
     """Write the figure (PNG) to ``--out``."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", type=FilePath, default=OUT, help="PNG to write")
-    p.add_argument("--dpi", type=int, default=110, help="resolution [dots per inch]")
+    p.add_argument("--dpi", type=int_at_least(1), default=110, help="resolution [dots per inch]")
     args = p.parse_args(argv)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     draw().savefig(args.out, dpi=args.dpi, metadata={"Software": None})

@@ -19,15 +19,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scene", default="hf1", help="preset (default hf1)")
     ap.add_argument("--repeat", type=int, default=2, help="timed runs per case and mode (default 2)")
     args = ap.parse_args(argv)
+    if args.repeat < 1:
+        ap.error("--repeat must be at least 1")
 
     import warp as wp
 
     wp.config.quiet = True
     from aca_warp import RunOptions, build_model, initial_state, preset, run_hf
+    from aca_warp.common.errors import SceneError
     from aca_warp.hf import general
     from aca_warp.hf.engine import EngineTuning
 
-    scene = preset(args.scene)
+    try:
+        scene = preset(args.scene)
+    except SceneError as e:
+        ap.error(str(e))
 
     def wall(mode: str, duration: float, integrator: str) -> float:
         use_graph = mode != "eager"

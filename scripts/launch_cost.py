@@ -36,12 +36,17 @@ def main(argv: list[str] | None = None) -> int:
     from aca_warp.kernels import hf as K
 
     from aca_warp import RunOptions, build_model, initial_state, preset
+    from aca_warp.common.errors import SceneError
     from aca_warp.common.files import host_cpu
     from aca_warp.common.launches import Launcher
     from aca_warp.hf.solver import HFSolver
     from aca_warp.studies.report import command_line, write_json
 
-    model = build_model([preset(args.scene)], device="cpu")
+    try:
+        scene = preset(args.scene)
+    except SceneError as e:
+        ap.error(str(e))
+    model = build_model([scene], device="cpu")
     state = initial_state(model)
     solver = HFSolver.for_run(model, RunOptions(duration=1e-5, integrator="strang"))
     km, n, h = solver.kernel_model, model.patch_count, solver.T(solver.dt)

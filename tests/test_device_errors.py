@@ -1,6 +1,7 @@
 """A device the machine lacks (``--device cuda:99``) is a bad argument: one line naming the devices there are, exit
 code 2, nothing written; never a traceback (the package's ``get_device`` and the study and benchmark scripts that
-take ``--device``, those with a ``main(argv)`` and those that read ``sys.argv``)."""
+take ``--device``, those with a ``main(argv)`` and those that read ``sys.argv``). The same for the scripts' other
+mistyped arguments: an unknown preset, a zero or negative count, step or duration."""
 
 from __future__ import annotations
 
@@ -90,3 +91,27 @@ def test_bench_onchip_refuses_bad_arguments(argv: list[str], says: str, tmp_path
         script.main()
     assert stop.value.code == 2 and says in capsys.readouterr().err
     assert not (tmp_path / "b.json").exists()
+
+
+@pytest.mark.parametrize(
+    ("name", "argv", "says"),
+    [
+        ("adaptive_growth", ["--device", ABSENT], "not available here"),
+        ("adaptive_growth", ["--duration", "0"], "--duration: must be positive"),
+        ("adaptive_growth", ["--dt", "-1"], "--dt: must be positive"),
+        ("adaptive_growth", ["--tols", "0"], "--tols: must be positive"),
+        ("architecture_figure", ["--dpi", "0"], "--dpi: must be >= 1"),
+        ("capture_cost", ["--scene", "nope"], "unknown preset 'nope'"),
+        ("capture_cost", ["--repeat", "0"], "--repeat must be at least 1"),
+        ("launch_cost", ["--scene", "nope"], "unknown preset 'nope'"),
+    ],
+)
+def test_scripts_refuse_bad_arguments(name: str, argv: list[str], says: str, tmp_path: Path, capsys, monkeypatch):
+    """A mistyped argument: one line (after the usage) and exit code 2, before any run and with nothing written."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as stop:
+        load_script(name).main(argv)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert says in err and "Traceback" not in err
+    assert not any(tmp_path.iterdir())
