@@ -36,8 +36,10 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
+from aca_warp.common.argtypes import positive
 from aca_warp.common.devices import get_device
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import AcaError
+from aca_warp.common.files import check_output_path
 
 wp.config.log_level = wp.LOG_WARNING
 
@@ -94,7 +96,7 @@ def _parse() -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cpu", help="Warp device (default cpu)")
     ap.add_argument("--scene", default="multiscale", help="LF preset or TOML file (default multiscale)")
-    ap.add_argument("--duration", type=float, help="simulated time [s] (default: the whole schedule)")
+    ap.add_argument("--duration", type=positive, help="simulated time [s] (default: the whole schedule)")
     ap.add_argument("--eager", action="store_true", help="no graph capture (launch every kernel from Python)")
     ap.add_argument("--json", default="bench_lf.json", help="output JSON file")
     ap.add_argument("--markdown", help="also write a Markdown table here")
@@ -186,16 +188,21 @@ def main() -> int:
     from aca_warp.lf.scene import load_lf_scene
     from aca_warp.lf.solver import LFSimulation
 
-    try:
+    try:  # every refusal before the first compile: nothing run, nothing written
         get_device(args.device)
-    except SceneError as e:
+        scene = load_lf_scene(args.scene)
+        if args.compare and not Path(args.compare).is_file():
+            raise AcaError(f"--compare: no run file {args.compare}")
+        for out in (args.json, args.markdown, args.save):
+            if out:
+                check_output_path(out, overwrite=True)
+    except AcaError as e:
         print(f"bench_lf.py: error: {e}", file=sys.stderr)
         return 2
     t0 = time.perf_counter()
     for module in (lf_contact, lf_thermal, lf_wear, lf_patches, lf_record):
         wp.load_module(module, device=args.device)
     compile_s = time.perf_counter() - t0
-    scene = load_lf_scene(args.scene)
     sim = LFSimulation(scene, device=args.device, duration=args.duration, graph=False if args.eager else None)
     sim.step()  # first step: hash grid, scans, allocations
     writer = None

@@ -26,6 +26,8 @@ from pathlib import Path
 
 import warp as wp
 
+from aca_warp.common.argtypes import int_at_least, positive
+
 wp.config.log_level = wp.LOG_WARNING
 
 
@@ -132,11 +134,11 @@ def main() -> int:
     p.add_argument("--device", default="cpu")
     p.add_argument("--precision", default="fp64", choices=("fp32", "fp64"))
     p.add_argument("--scene", default="hf1", help="HF preset (default hf1)")
-    p.add_argument("--pads", type=int, default=1, help="copies of the HF scene in one batch (default 1)")
-    p.add_argument("--hf-duration", type=float, default=1e-3, help="simulated HF time [s] (default 1 ms)")
-    p.add_argument("--lf-duration", type=float, default=None, help="simulated LF time [s] (default: 55 s schedule)")
+    p.add_argument("--pads", type=int_at_least(1), default=1, help="copies of the HF scene in one batch (default 1)")
+    p.add_argument("--hf-duration", type=positive, default=1e-3, help="simulated HF time [s] (default 1 ms)")
+    p.add_argument("--lf-duration", type=positive, default=None, help="simulated LF time [s] (default: 55 s schedule)")
     p.add_argument("--only", choices=("hf", "lf"), help="one of the two runs")
-    p.add_argument("--wall", type=float, help="automatic checkpoints this many seconds of wall time apart")
+    p.add_argument("--wall", type=positive, help="automatic checkpoints this many seconds of wall time apart")
     p.add_argument("--json", type=Path)
     p.add_argument("--markdown", type=Path)
     args = p.parse_args()
@@ -144,9 +146,19 @@ def main() -> int:
     import os
 
     from aca_warp.common import checkpoint
-    from aca_warp.common.devices import init_warp
+    from aca_warp.common.devices import get_device
+    from aca_warp.common.errors import AcaError
+    from aca_warp.common.files import check_output_path
+    from aca_warp.scene import preset
 
-    init_warp()
+    try:  # every refusal before the first run: nothing run, nothing written
+        get_device(args.device)
+        preset(args.scene)
+        for out in (args.json, args.markdown):
+            if out:
+                check_output_path(out, overwrite=True)
+    except AcaError as e:
+        p.error(str(e))
     args.default_wall = checkpoint.AUTO_WALL_S
     if args.wall is not None:
         checkpoint.AUTO_WALL_S = args.wall

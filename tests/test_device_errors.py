@@ -115,3 +115,34 @@ def test_scripts_refuse_bad_arguments(name: str, argv: list[str], says: str, tmp
     err = capsys.readouterr().err
     assert says in err and "Traceback" not in err
     assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    ("name", "argv", "says"),
+    [
+        ("bench_lf", ["--scene", "nope"], "LF scene 'nope' is neither a preset"),
+        ("bench_lf", ["--duration", "0"], "--duration: must be positive"),
+        ("bench_lf", ["--compare", "{tmp}/absent.h5"], "--compare: no run file"),
+        ("bench_lf", ["--save", "{tmp}/absent/lf.h5"], "output folder"),
+        ("checkpoint_cost", ["--scene", "nope"], "unknown preset 'nope'"),
+        ("checkpoint_cost", ["--pads", "0"], "--pads: must be >= 1"),
+        ("checkpoint_cost", ["--hf-duration", "0"], "--hf-duration: must be positive"),
+        ("checkpoint_cost", ["--wall", "0"], "--wall: must be positive"),
+        ("checkpoint_cost", ["--device", ABSENT], "not available here"),
+        ("checkpoint_cost", ["--json", "{tmp}/absent/c.json"], "output folder"),
+    ],
+)
+def test_scripts_without_argv_refuse_bad_arguments(
+    name: str, argv: list[str], says: str, tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
+):
+    """The same for the scripts that read ``sys.argv``: refused before the first compile, nothing written."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr("sys.argv", [f"{name}.py", *(a.format(tmp=tmp_path) for a in argv)])
+    try:
+        code = load_script(name).main()
+    except SystemExit as stop:
+        code = stop.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert says in err and "Traceback" not in err
+    assert not any(tmp_path.iterdir())
