@@ -35,6 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
+from aca_warp.common.argtypes import positive
+from aca_warp.common.devices import get_device
+from aca_warp.common.errors import SceneError
+
 CASES = [
     # (label, precision, block_dim, csr_shared, ablations)
     ("full", "fp32", 512, None, ()),
@@ -115,9 +119,9 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     """The command line, with its combinations checked."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cuda:0", help="Warp device (default cuda:0)")
-    ap.add_argument("--window", type=float, default=1e-4, help="simulated time per timed run [s] (default 1e-4)")
-    ap.add_argument("--sample-dt", type=float, default=1e-5, help="sample interval [s] (default 1e-5)")
-    ap.add_argument("--dt", type=float, default=1e-8, help="time step [s] (default 1e-8)")
+    ap.add_argument("--window", type=positive, default=1e-4, help="simulated time per timed run [s] (default 1e-4)")
+    ap.add_argument("--sample-dt", type=positive, default=1e-5, help="sample interval [s] (default 1e-5)")
+    ap.add_argument("--dt", type=positive, default=1e-8, help="time step [s] (default 1e-8)")
     ap.add_argument("--growth", action="store_true", help="profile the growing varying-area pad (GROWTH_CASES)")
     ap.add_argument("--state", type=Path, help="with --growth: start from this varying_area.py state file")
     ap.add_argument("--only", nargs="*", default=None, help="labels of the cases to run (default: all)")
@@ -133,6 +137,10 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
         ap.error("--pads must be ≥ 1")
     if args.state and args.pads != 1:
         ap.error("--state holds one pad: use it with --pads 1")
+    try:
+        get_device(args.device)
+    except SceneError as e:
+        ap.error(str(e))
     return args
 
 
@@ -246,8 +254,6 @@ def main(argv: list[str] | None = None) -> int:
 
     import warp as wp
 
-    wp.config.quiet = True
-    wp.init()
     from aca_warp.common.files import machine
     from aca_warp.hf.model import build_model
     from aca_warp.scene import Record, preset

@@ -23,6 +23,10 @@ import sys
 import time
 from pathlib import Path
 
+from aca_warp.common.argtypes import int_at_least, positive
+from aca_warp.common.devices import get_device
+from aca_warp.common.errors import SceneError
+
 CASES = [("whole kernel", ()), ("no gather", ("gather",)), ("no record", ("record",)), ("no stage barriers", ("sync",))]
 CASES.append(("none of the three", ("gather", "record", "sync")))
 
@@ -30,18 +34,23 @@ CASES.append(("none of the three", ("gather", "record", "sync")))
 def _parse(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--device", default="cuda:0", help="Warp device (default cuda:0)")
-    ap.add_argument("--pads", type=int, default=1, help="identical hf1 pads in the batch (default 1)")
-    ap.add_argument("--duration", type=float, default=1e-3, help="simulated time per timed run [s] (default 1e-3)")
-    ap.add_argument("--tolerance", type=float, default=1e-5, help="adaptive tolerance (default 1e-5)")
+    ap.add_argument("--pads", type=int_at_least(1), default=1, help="identical hf1 pads in the batch (default 1)")
+    ap.add_argument("--duration", type=positive, default=1e-3, help="simulated time per timed run [s] (default 1e-3)")
+    ap.add_argument("--tolerance", type=positive, default=1e-5, help="adaptive tolerance (default 1e-5)")
     ap.add_argument("--cluster", type=int, default=None, help="blocks per pad (default: the engine's)")
     ap.add_argument("--block", type=int, default=None, help="threads per block (default: the engine's)")
     ap.add_argument(
         "--lanes", type=int, default=None, help="threads per patch of a stage evaluation on CUDA (default: the engine)"
     )
-    ap.add_argument("--repeats", type=int, default=2, help="timed runs per case, best kept (default 2)")
+    ap.add_argument("--repeats", type=int_at_least(1), default=2, help="timed runs per case, best kept (default 2)")
     ap.add_argument("--json", type=Path, default=None, help="write the rows here")
     ap.add_argument("--markdown", type=Path, default=None, help="write a table here")
-    return ap.parse_args(argv)
+    args = ap.parse_args(argv)
+    try:
+        get_device(args.device)
+    except SceneError as e:
+        ap.error(str(e))
+    return args
 
 
 def _time(model, options, tuning, repeats: int) -> dict:

@@ -52,9 +52,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.seeds < 1 or args.repeat < 1 or not 0 < args.window < args.duration or args.dt <= 0:
         ap.error("--seeds and --repeat must be at least 1, 0 < --window < --duration, --dt > 0")
 
-    from aca_warp.common.devices import init_warp
+    from aca_warp.common.devices import get_device
+    from aca_warp.common.errors import SceneError
 
-    init_warp()
+    try:
+        get_device(args.device)
+    except SceneError as e:
+        ap.error(str(e))
     import aca_warp.hf.recorder as recorder
     from aca_warp.common.files import host_cpu, machine
     from aca_warp.studies.report import command_line, write_json

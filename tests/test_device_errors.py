@@ -104,6 +104,13 @@ def test_bench_onchip_refuses_bad_arguments(argv: list[str], says: str, tmp_path
         ("capture_cost", ["--scene", "nope"], "unknown preset 'nope'"),
         ("capture_cost", ["--repeat", "0"], "--repeat must be at least 1"),
         ("launch_cost", ["--scene", "nope"], "unknown preset 'nope'"),
+        ("profile_onchip", ["--device", ABSENT], "not available here"),
+        ("profile_onchip", ["--device", "cpu", "--window", "0"], "--window: must be positive"),
+        ("profile_onchip_adaptive", ["--device", ABSENT], "not available here"),
+        ("profile_onchip_adaptive", ["--device", "cpu", "--pads", "0"], "--pads: must be >= 1"),
+        ("profile_onchip_adaptive", ["--device", "cpu", "--tolerance", "0"], "--tolerance: must be positive"),
+        ("profile_onchip_adaptive", ["--device", "cpu", "--repeats", "0"], "--repeats: must be >= 1"),
+        ("recorder_flush_cost", ["--device", ABSENT], "not available here"),
     ],
 )
 def test_scripts_refuse_bad_arguments(name: str, argv: list[str], says: str, tmp_path: Path, capsys, monkeypatch):
