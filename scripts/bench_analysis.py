@@ -21,7 +21,12 @@ import numpy as np
 import warp as wp
 
 from aca_warp.analysis import sync_index_from_signals
-from aca_warp.common.files import machine
+from aca_warp.common.argtypes import int_at_least, positive
+from aca_warp.common.devices import init_warp
+from aca_warp.common.errors import AcaError, SceneError
+from aca_warp.common.files import check_output_path, check_room, machine, open_h5
+
+CHUNK = 1024  # samples per chunk, as in run files
 
 
 def write_signals(path: Path, patches: int, samples: int, dt: float, seed: int) -> None:
@@ -32,7 +37,7 @@ def write_signals(path: Path, patches: int, samples: int, dt: float, seed: int) 
     phase[0] = rng.normal(0.0, 0.3, patches)  # the 72 kHz tone is nearly synchronous
     amp = rng.uniform(0.0, 1.0, (len(tones), patches))
     with h5py.File(path, "w") as f:
-        d = f.create_dataset("velocity", (samples, patches), dtype="f4", chunks=(1024, min(64, patches)))
+        d = f.create_dataset("velocity", (samples, patches), dtype="f4", chunks=(CHUNK, min(64, patches)))
         block = 1 << 16
         for start in range(0, samples, block):
             t = (np.arange(start, min(start + block, samples)) * dt)[:, None]
@@ -42,26 +47,57 @@ def write_signals(path: Path, patches: int, samples: int, dt: float, seed: int) 
             d[start : start + len(t)] = x.astype(np.float32)
 
 
+def check_scratch(path: Path, shape: tuple[int, int]) -> None:
+    """An existing scratch file must hold ``/velocity`` of ``shape`` (samples, patches): :class:`SceneError` if not."""
+    with open_h5(path, "scratch file") as f:
+        v = f.get("velocity")
+        if not isinstance(v, h5py.Dataset):
+            raise SceneError(f"{path} holds no /velocity dataset; give another --file (it is written when absent)")
+        if v.shape != shape:
+            raise SceneError(f"{path} holds shape {v.shape}; delete it or pass matching --patches/--log2-samples")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--file", type=Path, default=Path("/tmp/sync_bench.h5"), help="scratch HDF5 file (reused)")
-    ap.add_argument("--patches", type=int, default=1758, help="patches (columns)")
-    ap.add_argument("--log2-samples", type=int, default=20, help="log2 of the number of samples")
-    ap.add_argument("--dt", type=float, default=2.0e-7, help="sampling interval [s]")
+    ap.add_argument(
+        "--file",
+        type=Path,
+        default=Path("/tmp/sync_bench.h5"),
+        help="scratch HDF5 file: written when absent (its folder must exist), reused when present",
+    )
+    ap.add_argument("--patches", type=int_at_least(1), default=1758, help="patches (columns)")
+    ap.add_argument(
+        "--log2-samples", type=int_at_least(10), default=20, help="log2 of the number of samples (>= 10: one chunk)"
+    )
+    ap.add_argument("--dt", type=positive, default=2.0e-7, help="sampling interval [s]")
     ap.add_argument("--json", type=Path, help="write the result row as JSON")
     args = ap.parse_args()
     samples = 1 << args.log2_samples
+    try:  # every refusal before the scratch file is written or read: nothing written
+        if args.json:
+            check_output_path(args.json, overwrite=True)
+        if args.file.exists():
+            check_scratch(args.file, (samples, args.patches))
+        else:
+            check_output_path(args.file, overwrite=True)
+            check_room(args.file.parent, 4.0 * samples * args.patches, "fewer --patches or --log2-samples")
+    except AcaError as e:
+        ap.exit(e.exit_code, f"{ap.prog}: error: {e}\n")
     t0 = time.perf_counter()
     if not args.file.exists():
-        write_signals(args.file, args.patches, samples, args.dt, seed=1)
+        part = args.file.with_name(args.file.name + ".partial")  # a stopped write leaves no file that looks whole
+        try:
+            write_signals(part, args.patches, samples, args.dt, seed=1)
+            part.replace(args.file)
+        finally:
+            part.unlink(missing_ok=True)
     write_s = time.perf_counter() - t0
     with h5py.File(args.file, "r") as f:
         v = f["velocity"]
-        if v.shape != (samples, args.patches):
-            raise SystemExit(f"{args.file} holds shape {v.shape}; delete it or pass matching --patches/--log2-samples")
         t0 = time.perf_counter()
         res = sync_index_from_signals(v, args.dt, freq_range=(10.0, 200.0e3))
         wall = time.perf_counter() - t0
+    init_warp()  # quietly: no CUDA-driver note on a machine without one
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # Linux: KiB
     i72 = int(np.argmin(np.abs(res.freq - 72.0e3)))
     row = {
