@@ -96,6 +96,14 @@ PROVENANCE = {
 }
 
 
+def checkout_problem(checkout: Path) -> str | None:
+    """Why ``checkout`` is not a checkout of aca_warp (no ``aca_warp/__init__.py`` or no ``kernels/``), or None."""
+    for need in ("aca_warp/__init__.py", "kernels/__init__.py"):
+        if not (checkout / need).is_file():
+            return f"{checkout}: not a checkout of aca_warp (no {need})"
+    return None
+
+
 def package_view(checkout: Path, into: Path) -> Path:
     """A folder with package ``aca_warp`` made of links into ``checkout`` (kernels/ as aca_warp/kernels)."""
     pkg = into / "aca_warp"
@@ -228,6 +236,18 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--cache", type=Path, default=None, help="kernel caches kept here (default: a temporary folder)")
     args = ap.parse_args(argv)
+    for checkout in (args.first, args.second):  # every refusal before --out is made: nothing run, nothing written
+        if problem := checkout_problem(checkout):
+            ap.error(problem)
+    from aca_warp.common.errors import AcaError
+    from aca_warp.common.files import check_output_folder
+
+    try:
+        for folder in (args.out, args.cache):
+            if folder is not None:
+                check_output_folder(folder)
+    except AcaError as e:
+        ap.error(str(e))
     args.out.mkdir(parents=True, exist_ok=True)
     report: dict[str, dict] = {}
     with tempfile.TemporaryDirectory() as tmp:
