@@ -465,38 +465,65 @@ def device_time(devices: dict) -> str:
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    """The options, checked: a bad number, --pads not a power of two, --baseline not a checkout, an output in a missing
+    folder are refused here (exit 2), before the first run. (Imports the package's checks; a child, which may run an
+    older package, never parses.)"""
+    from aca_warp.common.argtypes import int_at_least, positive
+    from aca_warp.common.errors import AcaError
+    from aca_warp.common.files import check_output_folder, check_output_path
+
+    sys.path.insert(0, str(HERE))
+    from compare_checkouts import checkout_problem
+
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cuda", choices=("cuda", "cpu"), help="cuda (GPUs 0..N-1) or cpu")
-    ap.add_argument("--units", nargs="+", type=int, default=[1, 2], help="GPUs (CPU worker processes) per run")
-    ap.add_argument("--pads", type=int, default=2048, help="pads in the sweep (a power of two; default 2048)")
-    ap.add_argument("--patches", type=int, help="patches per pad (default: hf1's 1758)")
-    ap.add_argument("--shard-size", type=int, default=256, help="pads per shard (default 256)")
-    ap.add_argument("--duration", type=float, default=1e-3, help="simulated time per pad [s] (default 1e-3)")
+    ap.add_argument(
+        "--units", nargs="+", type=int_at_least(1), default=[1, 2], help="GPUs (CPU worker processes) per run"
+    )
+    ap.add_argument(
+        "--pads", type=int_at_least(1), default=2048, help="pads in the sweep (a power of two; default 2048)"
+    )
+    ap.add_argument("--patches", type=int_at_least(1), help="patches per pad (default: hf1's 1758)")
+    ap.add_argument("--shard-size", type=int_at_least(1), default=256, help="pads per shard (default 256)")
+    ap.add_argument("--duration", type=positive, default=1e-3, help="simulated time per pad [s] (default 1e-3)")
     ap.add_argument("--precision", default="fp32", choices=("fp32", "fp64"))
-    ap.add_argument("--prepare", type=int, help="preparation processes of the new code (default: as aca-warp sweep)")
+    ap.add_argument(
+        "--prepare", type=int_at_least(0), help="preparation processes of the new code (default: as aca-warp sweep)"
+    )
     ap.add_argument("--baseline", type=Path, help="a checkout of the code to compare against (e.g. the previous main)")
-    ap.add_argument("--repeat", type=int, default=1, help="runs of every configuration, in turn (default 1)")
+    ap.add_argument(
+        "--repeat", type=int_at_least(1), default=1, help="runs of every configuration, in turn (default 1)"
+    )
     ap.add_argument(
         "--host-repeat",
-        type=int,
+        type=int_at_least(0),
         default=3,
         help="repeats of the host phases of one shard per code, in one process (default 3; 0: none)",
     )
     ap.add_argument("--dir", type=Path, help="scratch folder (default: a temporary one, removed)")
     ap.add_argument("--json", default="bench_sweep.json", help="output JSON file")
     ap.add_argument("--md", default="bench_sweep.md", help="output Markdown file (one line)")
-    ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
-    if args.baseline is not None and not (args.baseline / "aca_warp" / "__init__.py").is_file():
-        ap.error(f"--baseline {args.baseline}: not a checkout of aca_warp (no aca_warp/__init__.py)")
+    if args.baseline is not None and (problem := checkout_problem(args.baseline)):
+        ap.error(f"--baseline {problem}")
+    if args.pads & (args.pads - 1):
+        ap.error(f"--pads {args.pads}: choose a power of two (the sweep is a product M x F_N x seed)")
+    try:  # every refusal before the first run: nothing run, nothing written
+        for out in (args.json, args.md):
+            check_output_path(out, overwrite=True)
+        if args.dir is not None:
+            check_output_folder(args.dir)
+    except AcaError as e:
+        ap.error(str(e))
     return args
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_args(argv)
-    if args.child:
-        print(json.dumps(child(json.loads(args.child))), flush=True)
+    given = sys.argv[1:] if argv is None else argv
+    if given[:1] == ["--child"]:  # one run, started by run_child with the code under test
+        print(json.dumps(child(json.loads(given[1]))), flush=True)
         return 0
+    args = parse_args(argv)
     from distributed import Client  # noqa: F401  (fails here, before any work, where Dask is missing)
 
     from aca_warp.common.devices import init_warp
