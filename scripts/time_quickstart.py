@@ -22,7 +22,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from time_tests import _machine, fresh_clone, report
+from time_tests import _machine, check_outputs, fresh_clone, report
+
+from aca_warp.common.argtypes import positive
 
 
 def quickstart_command(readme: str) -> str:
@@ -74,10 +76,11 @@ def markdown(r: dict) -> str:
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--timeout", type=float, default=1800.0, help="give up on a step after this many seconds")
+    p.add_argument("--timeout", type=positive, default=1800.0, help="give up on a step after this many seconds")
     p.add_argument("--json", type=Path)
     p.add_argument("--markdown", type=Path)
     args = p.parse_args()
+    check_outputs(p, args.json, args.markdown)
     report(run(args.timeout), markdown, args.json, args.markdown)
     return 0
 

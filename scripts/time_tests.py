@@ -37,6 +37,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from aca_warp.common.argtypes import int_at_least, positive
+
 REPO = Path(__file__).resolve().parent.parent
 
 
@@ -241,12 +243,32 @@ def report(r: dict, page: Callable[[dict], str], json_path: Path | None, markdow
         markdown_path.write_text(page(r))
 
 
+def check_outputs(p: argparse.ArgumentParser, *paths: Path | None) -> None:
+    """Refuse (``p.error``, exit 2) an output path given in a missing folder or naming a folder, before any work."""
+    from aca_warp.common.errors import AcaError
+    from aca_warp.common.files import check_output_path
+
+    try:
+        for path in paths:
+            if path is not None:
+                check_output_path(path, overwrite=True)
+    except AcaError as e:
+        p.error(str(e))
+
+
+def workers(text: str) -> str:
+    """pytest-xdist's ``-n``: ``auto`` or a count >= 0."""
+    return text if text == "auto" else str(int_at_least(0)(text))
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--cold", action="store_true", help="an empty kernel cache (kernels compiled during the run)")
-    p.add_argument("-n", default="auto", help="pytest-xdist workers (default auto: one per core)")
-    p.add_argument("--timeout", type=float, default=3600.0, help="give up after this many seconds (default 3600)")
-    p.add_argument("--durations", type=int, default=0, metavar="N", help="list the N slowest tests and files")
+    p.add_argument("-n", type=workers, default="auto", help="pytest-xdist workers (default auto: one per core)")
+    p.add_argument("--timeout", type=positive, default=3600.0, help="give up after this many seconds (default 3600)")
+    p.add_argument(
+        "--durations", type=int_at_least(0), default=0, metavar="N", help="list the N slowest tests and files"
+    )
     p.add_argument("--json", type=Path)
     p.add_argument("--markdown", type=Path)
     p.add_argument(
@@ -254,7 +276,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         action="store_true",
         help="a second fresh clone runs the same suite at the same moment (shared cores)",
     )
-    return p.parse_args(argv)
+    args = p.parse_args(argv)
+    check_outputs(p, args.json, args.markdown)
+    return args
 
 
 def main(argv: list[str] | None = None) -> int:
