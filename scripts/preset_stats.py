@@ -37,7 +37,9 @@ from pathlib import Path
 
 import numpy as np
 
-from aca_warp.common.files import host_cpu
+from aca_warp.common.argtypes import nonneg
+from aca_warp.common.errors import AcaError
+from aca_warp.common.files import check_output_path, host_cpu
 from aca_warp.hf.contact import load_window, solve_scene_contact
 from aca_warp.scene import PRESETS, PatchGenerator, Scene, preset
 
@@ -135,8 +137,15 @@ def host() -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     ap.add_argument("--out", type=Path, help="also write the table (markdown) to this file")
-    ap.add_argument("--derive", type=float, metavar="MARGIN", help="print the height spreads for this load margin")
+    ap.add_argument(
+        "--derive", type=nonneg, metavar="MARGIN", help="print the height spreads for this load margin (>= 0)"
+    )
     args = ap.parse_args(argv)
+    if args.out is not None:
+        try:
+            check_output_path(args.out, overwrite=True)
+        except AcaError as e:
+            ap.error(str(e))
     if args.derive is not None:
         for name in PRESETS:
             s = preset(name)
