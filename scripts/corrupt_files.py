@@ -40,6 +40,10 @@ from typing import Any
 import numpy as np
 from small_scenes import small_lf_scene_toml, small_scene_toml, three_applications
 
+from aca_warp.common.argtypes import int_at_least
+from aca_warp.common.errors import AcaError
+from aca_warp.common.files import check_output_path
+
 HF_SCENE = small_scene_toml("corrupt", count=40, duration=2.0e-4, sample_dt=1.0e-6, patches=("velocity",))
 LF_SCENE = small_lf_scene_toml(
     "corrupt-lf", three_applications(1.0), lf={"p_birth": 1.0}, snapshots={"applications": True}
@@ -346,14 +350,24 @@ def formats(src: Path, root: Path, n: int, rng: random.Random) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--flips", type=int, default=20, help="bit flips per command (default 20)")
+    p.add_argument("--flips", type=int_at_least(1), default=20, help="bit flips per command (default 20)")
     p.add_argument("--commands", default=",".join(COMMANDS), help="comma-separated subset of: " + ", ".join(COMMANDS))
-    p.add_argument("--formats", type=int, default=0, metavar="N", help="compare detection of N flips by format")
+    p.add_argument(
+        "--formats", type=int_at_least(0), default=0, metavar="N", help="compare detection of N flips by format"
+    )
     p.add_argument("--crafted", action="store_true", help="run the crafted files instead of flips and cuts")
     p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--jobs", type=int, default=2, help="commands run at once (default 2)")
+    p.add_argument("--jobs", type=int_at_least(1), default=2, help="commands run at once (default 2)")
     p.add_argument("--json", type=Path, help="write the results here")
     args = p.parse_args(argv)
+    unknown = [c for c in args.commands.split(",") if c not in COMMANDS]
+    if unknown:
+        p.error(f"--commands: unknown {', '.join(map(repr, unknown))}; choose from {', '.join(COMMANDS)}")
+    if args.json is not None:
+        try:
+            check_output_path(args.json, overwrite=True)
+        except AcaError as e:
+            p.error(str(e))
     rng = random.Random(args.seed)
     root = Path(tempfile.mkdtemp(prefix="aca-warp-corrupt-"))
     try:
