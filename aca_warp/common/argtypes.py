@@ -43,17 +43,24 @@ def fraction(text: str) -> float:
 
 def int_at_least(low: int):
     """An integer type >= ``low``."""
+    return int_between(low, None)
+
+
+def int_between(low: int, high: int | None):
+    """An integer type in [``low``, ``high``] (``high`` None: no upper bound)."""
 
     def parse(text: str) -> int:
         try:
             v = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-        if v < low:
+        if high is None and v < low:
             raise argparse.ArgumentTypeError(f"must be >= {low}, got {text!r}")
+        if high is not None and not low <= v <= high:
+            raise argparse.ArgumentTypeError(f"must lie in [{low}, {high}], got {text!r}")
         return v
 
-    parse.__name__ = f"int>={low}"
+    parse.__name__ = f"int>={low}" if high is None else f"int in [{low}, {high}]"
     return parse
 
 
