@@ -30,6 +30,9 @@ import struct
 import sys
 from pathlib import Path
 
+from aca_warp.common.argtypes import int_at_least, int_between
+from aca_warp.hf.onchip_layout import MAX_BLOCK, MAX_CLUSTER
+
 H100_SMEM_PER_BLOCK = 232448  # opt-in shared memory per block of an H100 / H200 (227 KB)
 EIATTR_REGCOUNT = 0x2F
 EIATTR_FRAME_SIZE = 0x11
@@ -74,12 +77,23 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--kernel", choices=["strang", "adaptive"], default="strang", help="which on-chip kernel")
     ap.add_argument("--preset", default="hf1", help="scene preset whose pad size is used (default hf1)")
-    ap.add_argument("--clusters", type=int, nargs="+", default=[1, 2, 4, 8], help="blocks per pad (default 1 2 4 8)")
-    ap.add_argument("--blocks", type=int, nargs="*", help="threads per block (default: the on-chip engine's choice)")
+    ap.add_argument(
+        "--clusters",
+        type=int_between(1, MAX_CLUSTER),
+        nargs="+",
+        default=[1, 2, 4, 8],
+        help="blocks per pad (default 1 2 4 8)",
+    )
+    ap.add_argument(
+        "--blocks",
+        type=int_between(1, MAX_BLOCK),
+        nargs="*",
+        help="threads per block (default: the on-chip engine's choice)",
+    )
     ap.add_argument("--precisions", nargs="+", default=["fp32", "fp64"], choices=["fp32", "fp64"])
     ap.add_argument(
         "--smem-per-block",
-        type=int,
+        type=int_at_least(1),
         default=H100_SMEM_PER_BLOCK,
         help="shared memory per block the device offers [bytes], which decides as the on-chip engine does whether the "
         f"neighbour lists are kept on chip (default {H100_SMEM_PER_BLOCK}, H100 and H200)",
@@ -89,11 +103,19 @@ def main(argv: list[str] | None = None) -> int:
 
     import warp as wp
 
-    wp.config.quiet = True
-    wp.init()
-
+    from aca_warp.common.devices import init_warp
+    from aca_warp.common.errors import AcaError
+    from aca_warp.common.files import check_output_path
     from aca_warp.hf.model import build_model
     from aca_warp.scene import preset
+
+    try:  # every refusal before the first compile: nothing compiled, nothing written
+        preset(args.preset)
+        if args.json is not None:
+            check_output_path(args.json, overwrite=True)
+    except AcaError as e:
+        ap.error(str(e))
+    init_warp()  # quietly: no CUDA-driver note on a machine without a GPU
 
     rows = []
     for prec in args.precisions:
