@@ -24,12 +24,13 @@ import warp as wp
 
 wp.config.log_level = wp.LOG_WARNING
 
+from aca_warp.common.argtypes import int_between  # noqa: E402
 from aca_warp.common.devices import get_device, init_warp  # noqa: E402
-from aca_warp.common.errors import SceneError  # noqa: E402
-from aca_warp.common.files import machine  # noqa: E402
+from aca_warp.common.errors import AcaError  # noqa: E402
+from aca_warp.common.files import check_output_path, machine  # noqa: E402
 from aca_warp.hf.loop import EngineTuning, run_hf  # noqa: E402
 from aca_warp.hf.model import build_model  # noqa: E402
-from aca_warp.hf.onchip_layout import block_config, shared_bytes  # noqa: E402
+from aca_warp.hf.onchip_layout import MAX_BLOCK, MAX_CLUSTER, block_config, shared_bytes  # noqa: E402
 from aca_warp.hf.options import RunOptions  # noqa: E402
 from aca_warp.hf.state import initial_state  # noqa: E402
 from aca_warp.scene import Record, preset  # noqa: E402
@@ -88,13 +89,13 @@ def main() -> None:
     ap.add_argument("--pads", nargs="+", type=int, default=[1, 1024])
     ap.add_argument("--precisions", nargs="+", default=["fp32", "fp64"], choices=["fp32", "fp64"])
     ap.add_argument(
-        "--clusters", nargs="+", type=int, default=[1],
+        "--clusters", nargs="+", type=int_between(0, MAX_CLUSTER), default=[1],
         help="blocks per pad to try (default 1; 0: the on-chip engine's default, default_cluster)",
     )  # fmt: skip
     ap.add_argument(
         "--blocks",
         nargs="+",
-        type=int,
+        type=int_between(0, MAX_BLOCK),
         default=[0],
         help="threads per block to try (0, the default: the on-chip engine's)",
     )
@@ -118,7 +119,10 @@ def main() -> None:
     try:
         get_device(args.device)
         scene = preset(args.scene).replace(record=Record(sample_dt=1e-6))
-    except SceneError as e:
+        for out in (args.json, args.markdown):
+            if out:
+                check_output_path(out, overwrite=True)
+    except AcaError as e:
         ap.error(str(e))
     rows = []
     for pads in args.pads:
