@@ -25,6 +25,12 @@ import warnings
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from bench_sweep import power_of_two  # noqa: E402
+
+from aca_warp.common.argtypes import int_at_least  # noqa: E402
+from aca_warp.common.errors import AcaError  # noqa: E402
+from aca_warp.common.files import check_output_path  # noqa: E402
 
 
 def _held(prepared: object) -> float:
@@ -39,7 +45,6 @@ def _held(prepared: object) -> float:
 def measure(pads: int, repeat: int) -> dict:
     import pickle
 
-    sys.path.insert(0, str(HERE))
     from bench_sweep import sweep_doc  # the bench's hf1 product sweep
     from distributed import Client
 
@@ -89,12 +94,17 @@ def measure(pads: int, repeat: int) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--pads", type=int, default=256, help="hf1 pads in the shard (a power of two; default 256)")
-    ap.add_argument("--repeat", type=int, default=3, help="hand-overs of each kind, in turn (default 3)")
+    ap.add_argument(
+        "--pads", type=power_of_two, default=256, help="hf1 pads in the shard (a power of two; default 256)"
+    )
+    ap.add_argument("--repeat", type=int_at_least(1), default=3, help="hand-overs of each kind, in turn (default 3)")
     ap.add_argument("--json", type=Path, help="write the result there (JSON)")
     args = ap.parse_args(argv)
-    if args.repeat < 1:
-        ap.error("--repeat must be at least 1")
+    if args.json:
+        try:
+            check_output_path(args.json, overwrite=True)
+        except AcaError as e:
+            ap.error(str(e))
     doc = measure(args.pads, args.repeat)
     med = doc["median_s"]
     print(
@@ -103,7 +113,6 @@ def main(argv: list[str] | None = None) -> int:
         f"{med['by value']:.3f} s, from the spool file {med['spool file']:.3f} s"
     )
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(doc, indent=1) + "\n")
     return 0
 

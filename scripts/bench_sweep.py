@@ -464,6 +464,16 @@ def device_time(devices: dict) -> str:
     )
 
 
+def power_of_two(text: str) -> int:
+    """A pad count of the bench's product sweep (argparse type): a power of two."""
+    from aca_warp.common.argtypes import int_at_least
+
+    v = int_at_least(1)(text)
+    if v & (v - 1):
+        raise argparse.ArgumentTypeError(f"choose a power of two (the sweep is a product M x F_N x seed), got {text!r}")
+    return v
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     """The options, checked: a bad number, --pads not a power of two, --baseline not a checkout, an output in a missing
     folder are refused here (exit 2), before the first run. (Imports the package's checks; a child, which may run an
@@ -480,9 +490,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument(
         "--units", nargs="+", type=int_at_least(1), default=[1, 2], help="GPUs (CPU worker processes) per run"
     )
-    ap.add_argument(
-        "--pads", type=int_at_least(1), default=2048, help="pads in the sweep (a power of two; default 2048)"
-    )
+    ap.add_argument("--pads", type=power_of_two, default=2048, help="pads in the sweep (a power of two; default 2048)")
     ap.add_argument("--patches", type=int_at_least(1), help="patches per pad (default: hf1's 1758)")
     ap.add_argument("--shard-size", type=int_at_least(1), default=256, help="pads per shard (default 256)")
     ap.add_argument("--duration", type=positive, default=1e-3, help="simulated time per pad [s] (default 1e-3)")
@@ -506,8 +514,6 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     args = ap.parse_args(argv)
     if args.baseline is not None and (problem := checkout_problem(args.baseline)):
         ap.error(f"--baseline {problem}")
-    if args.pads & (args.pads - 1):
-        ap.error(f"--pads {args.pads}: choose a power of two (the sweep is a product M x F_N x seed)")
     try:  # every refusal before the first run: nothing run, nothing written
         for out in (args.json, args.md):
             check_output_path(out, overwrite=True)
