@@ -54,7 +54,9 @@ import h5py
 import numpy as np
 from small_scenes import small_lf_scene_toml, small_scene_toml, three_applications
 
-from aca_warp.common.files import host_cpu
+from aca_warp.common.argtypes import int_at_least
+from aca_warp.common.errors import AcaError
+from aca_warp.common.files import check_output_folder, check_output_path, host_cpu
 
 
 def hf_scene(duration: float, patches: tuple[str, ...] = ("velocity", "displacement")) -> str:
@@ -110,6 +112,9 @@ class Trial:
     outcome: str = ""  # identical, different, error
     detail: str = ""
     seconds: float = 0.0
+
+
+WORKLOADS = ("hf", "lf", "sweep")  # the names of :func:`workloads`, in its order
 
 
 def workloads(root: Path, quick: bool) -> list[Workload]:
@@ -412,11 +417,15 @@ def markdown(s: dict) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog="See docs/faults.md.")
-    p.add_argument("--kills", type=int, default=10, help="trials per workload (each kills at least once; default 10)")
-    p.add_argument("--max-kills", type=int, default=3, help="most SIGKILLs in one trial, recoveries included")
+    p.add_argument(
+        "--kills", type=int_at_least(0), default=10, help="trials per workload (each kills at least once; default 10)"
+    )
+    p.add_argument(
+        "--max-kills", type=int_at_least(1), default=3, help="most SIGKILLs in one trial, recoveries included"
+    )
     p.add_argument(
         "--file-size-limits",
-        type=int,
+        type=int_at_least(0),
         default=0,
         metavar="N",
         help="also run each workload under N file-size limits (30-110 %% of its output) and recover it",
@@ -426,7 +435,7 @@ def main(argv: list[str] | None = None) -> int:
         default="KILL",
         help="comma-separated signals of the kills of hf and lf runs, drawn at random: KILL, INT, TERM (default KILL)",
     )
-    p.add_argument("--workloads", default="hf,lf,sweep", help="comma-separated subset of hf, lf, sweep")
+    p.add_argument("--workloads", default=",".join(WORKLOADS), help="comma-separated subset of hf, lf, sweep")
     p.add_argument("--seed", type=int, default=1, help="random seed of the kill times")
     p.add_argument("--quick", action="store_true", help="short runs, one trial per workload (used by the tests)")
     p.add_argument("--dir", type=Path, help="work folder (default: a new temporary folder, removed when all pass)")
@@ -436,6 +445,18 @@ def main(argv: list[str] | None = None) -> int:
     signals = args.signals.split(",")
     if not set(signals) <= set(SIGNALS):
         p.error(f"--signals takes {', '.join(SIGNALS)}")
+    wanted = args.workloads.split(",")
+    unknown = [w for w in wanted if w not in WORKLOADS]
+    if unknown:
+        p.error(f"--workloads: unknown {', '.join(map(repr, unknown))}; choose from {', '.join(WORKLOADS)}")
+    try:  # every refusal before the first run: nothing run, nothing written
+        for out in (args.json, args.markdown):
+            if out is not None:
+                check_output_path(out, overwrite=True)
+        if args.dir is not None:
+            check_output_folder(args.dir)
+    except AcaError as e:
+        p.error(str(e))
     if args.quick:
         args.kills = 1
     import tempfile
@@ -443,7 +464,6 @@ def main(argv: list[str] | None = None) -> int:
     root = args.dir or Path(tempfile.mkdtemp(prefix="aca-warp-faults-"))
     root.mkdir(parents=True, exist_ok=True)
     rng = random.Random(args.seed)
-    wanted = args.workloads.split(",")
     trials: list[Trial] = []
     refs: dict[str, float] = {}
     for w in workloads(root, args.quick):
