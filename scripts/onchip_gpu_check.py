@@ -38,8 +38,11 @@ import sys
 import time
 from pathlib import Path
 
+from aca_warp.common.argtypes import int_at_least, int_between, positive
 from aca_warp.common.devices import get_device
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import AcaError
+from aca_warp.common.files import check_output_folder
+from aca_warp.hf.onchip_layout import MAX_BLOCK, MAX_CLUSTER
 
 RTOL = {"fp32": 2e-4, "fp64": 1e-10}
 # adaptive at tolerance ADAPTIVE_TOL: a step decided differently in the last bits of an error near 1 moves the
@@ -350,14 +353,21 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cuda:0")
     ap.add_argument("--out", default="onchip_check", help="output directory")
-    ap.add_argument("--budget", type=float, default=80.0, help="wall-time budget of the whole script [s]")
-    ap.add_argument("--check-timeout", type=float, default=40.0, help="timeout of the check child [s]")
+    ap.add_argument("--budget", type=positive, default=80.0, help="wall-time budget of the whole script [s]")
+    ap.add_argument("--check-timeout", type=positive, default=40.0, help="timeout of the check child [s]")
     ap.add_argument("--precisions", nargs="+", default=["fp32", "fp64"], choices=["fp32", "fp64"])
-    ap.add_argument("--pads", nargs="+", type=int, default=[1, 1024], help="batch sizes of the benchmark")
-    ap.add_argument("--window", type=float, default=2e-5, help="timed simulated window of the benchmark [s]")
-    ap.add_argument("--dt", type=float, default=1e-8)
-    ap.add_argument("--block", type=int, default=None, help="threads per pad (default: the on-chip engine's)")
-    ap.add_argument("--cluster", type=int, default=1, help="blocks per pad (a thread-block cluster; default 1)")
+    ap.add_argument("--pads", nargs="+", type=int_at_least(1), default=[1, 1024], help="batch sizes of the benchmark")
+    ap.add_argument("--window", type=positive, default=2e-5, help="timed simulated window of the benchmark [s]")
+    ap.add_argument("--dt", type=positive, default=1e-8)
+    ap.add_argument(
+        "--block", type=int_between(1, MAX_BLOCK), default=None, help="threads per pad (default: the on-chip engine's)"
+    )
+    ap.add_argument(
+        "--cluster",
+        type=int_between(1, MAX_CLUSTER),
+        default=1,
+        help="blocks per pad (a thread-block cluster; default 1)",
+    )
     ap.add_argument("--csr", action=argparse.BooleanOptionalAction, default=None, help="CSR in shared memory")
     ap.add_argument("--no-bench", action="store_true")
     ap.add_argument("--growth", action="store_true", help="check the in-kernel patch growth (growing pads)")
@@ -372,9 +382,10 @@ def main() -> int:
     ap.add_argument("--self-timeout", type=float, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.stage is None:
-        try:
+        try:  # every refusal before the first child: nothing run, nothing written
             get_device(args.device)
-        except SceneError as e:
+            check_output_folder(args.out)
+        except AcaError as e:
             ap.error(str(e))
         return parent(args)
     # child: dump the Python stack and exit shortly before the parent would kill us
