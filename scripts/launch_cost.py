@@ -18,16 +18,18 @@ import sys
 import time
 from pathlib import Path
 
+from aca_warp.common.argtypes import int_at_least
+
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scene", default="hf1", help="preset (default hf1)")
-    ap.add_argument("--launches", type=int, default=2000, help="calls per round (default 2000)")
-    ap.add_argument("--repeat", type=int, default=3, help="rounds per way, in turn; the least is kept (default 3)")
+    ap.add_argument("--launches", type=int_at_least(1), default=2000, help="calls per round (default 2000)")
+    ap.add_argument(
+        "--repeat", type=int_at_least(1), default=3, help="rounds per way, in turn; the least is kept (default 3)"
+    )
     ap.add_argument("--json", type=Path, help="write the results there (JSON)")
     args = ap.parse_args(argv)
-    if args.launches < 1 or args.repeat < 1:
-        ap.error("--launches and --repeat must be at least 1")
 
     from aca_warp.common.devices import init_warp
 
@@ -36,15 +38,17 @@ def main(argv: list[str] | None = None) -> int:
     from aca_warp.kernels import hf as K
 
     from aca_warp import RunOptions, build_model, initial_state, preset
-    from aca_warp.common.errors import SceneError
-    from aca_warp.common.files import host_cpu
+    from aca_warp.common.errors import AcaError
+    from aca_warp.common.files import check_output_path, host_cpu
     from aca_warp.common.launches import Launcher
     from aca_warp.hf.solver import HFSolver
     from aca_warp.studies.report import command_line, write_json
 
-    try:
+    try:  # every refusal before the first launch: nothing run, nothing written
         scene = preset(args.scene)
-    except SceneError as e:
+        if args.json:
+            check_output_path(args.json, overwrite=True)
+    except AcaError as e:
         ap.error(str(e))
     model = build_model([scene], device="cpu")
     state = initial_state(model)
@@ -82,7 +86,6 @@ def main(argv: list[str] | None = None) -> int:
             "command": command_line("launch_cost.py", sys.argv[1:] if argv is None else argv),
             "microseconds": result,
         }
-        args.json.parent.mkdir(parents=True, exist_ok=True)
         write_json(args.json, doc)
     return 0
 
