@@ -120,11 +120,14 @@ def main(argv: list[str] | None = None) -> int:
         if missing:
             ap.error(f"--digests: {args.digests} records no LF run {', '.join(missing)}")
     from aca_warp.common.devices import get_device
-    from aca_warp.common.errors import SceneError
+    from aca_warp.common.errors import AcaError
+    from aca_warp.common.files import check_output_folder
 
-    try:
+    try:  # every refusal before the first run: nothing run, nothing written
         get_device(args.device)
-    except SceneError as e:
+        if args.out is not None:
+            check_output_folder(args.out)
+    except AcaError as e:
         ap.error(str(e))
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
