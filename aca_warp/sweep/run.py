@@ -19,6 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from aca_warp.common.devices import get_device
 from aca_warp.common.errors import StorageError
 from aca_warp.sweep.cluster import (
     _have_dask,
@@ -69,8 +70,9 @@ def run_sweep(
     t0 = time.perf_counter()
     say = log or (lambda s: None)
     out = Path(out_dir)
-    if device != "cpu" and scheduler is None and client is None:
-        cuda_ordinals(device)  # validate before anything is written
+    if device != "cpu" and scheduler is None and client is None:  # validate before anything is written
+        for k in cuda_ordinals(device):  # the GPUs of a local sweep: this machine's (SceneError names those it has)
+            get_device(f"cuda:{k}")
     if out.exists() and not out.is_dir():
         raise SweepError(f"{out} exists and is not a directory")
     if scheduler is not None and client is None:
