@@ -1,0 +1,88 @@
+"""Mistyped arguments of the benchmark and tool scripts and of ``aca-warp sweep``: one line (after any usage) and exit
+code 2, before the first run, compile or clone, with nothing written (no output file or folder, no scratch file); never
+a traceback, a run of nothing that passes, or a folder made for an output that cannot be written."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from scriptload import load_script
+
+from aca_warp.cli import main as aca_warp
+
+SPEC = Path(__file__).resolve().parent.parent / "aca_warp" / "data" / "sweep_hf1.toml"
+ABSENT = "{tmp}/absent"  # a folder that does not exist
+
+
+@pytest.mark.parametrize(
+    ("name", "argv", "says"),
+    [
+        ("bench_analysis", ["--patches", "0"], "--patches: must be >= 1"),
+        ("bench_analysis", ["--log2-samples", "-3"], "--log2-samples: must be >= 10"),
+        ("bench_analysis", ["--dt", "0"], "--dt: must be positive"),
+        ("bench_analysis", ["--file", f"{ABSENT}/s.h5"], "output folder"),
+        ("bench_analysis", ["--json", f"{ABSENT}/a.json"], "output folder"),
+        ("bench_sweep", ["--units", "0"], "--units: must be >= 1"),
+        ("bench_sweep", ["--shard-size", "0"], "--shard-size: must be >= 1"),
+        ("bench_sweep", ["--duration", "0"], "--duration: must be positive"),
+        ("bench_sweep", ["--repeat", "0"], "--repeat: must be >= 1"),
+        ("bench_sweep", ["--host-repeat", "-1"], "--host-repeat: must be >= 0"),
+        ("bench_sweep", ["--prepare", "-1"], "--prepare: must be >= 0"),
+        ("bench_sweep", ["--pads", "3"], "choose a power of two"),
+        ("bench_sweep", ["--json", f"{ABSENT}/b.json"], "output folder"),
+        ("compare_checkouts", [ABSENT, ABSENT, "--out", "{tmp}/cmp"], "not a checkout of aca_warp"),
+        ("corrupt_files", ["--commands", "nope"], "--commands: unknown 'nope'"),
+        ("corrupt_files", ["--jobs", "0"], "--jobs: must be >= 1"),
+        ("corrupt_files", ["--formats", "-1"], "--formats: must be >= 0"),
+        ("corrupt_files", ["--flips", "0"], "--flips: must be >= 1"),
+        ("corrupt_files", ["--json", f"{ABSENT}/c.json"], "output folder"),
+        ("onchip_registers", ["--preset", "nope"], "unknown preset 'nope'"),
+        ("onchip_registers", ["--clusters", "0"], "--clusters: must lie in [1, 16]"),
+        ("onchip_registers", ["--blocks", "0"], "--blocks: must lie in [1, 1024]"),
+        ("preset_stats", ["--derive", "-1"], "--derive: must be >= 0"),
+        ("preset_stats", ["--out", f"{ABSENT}/t.md"], "output folder"),
+        ("time_quickstart", ["--timeout", "0"], "--timeout: must be positive"),
+        ("time_quickstart", ["--json", f"{ABSENT}/q.json"], "output folder"),
+        ("time_tests", ["--timeout", "-1"], "--timeout: must be positive"),
+        ("time_tests", ["--markdown", f"{ABSENT}/t.md"], "output folder"),
+        ("bench_onchip", ["--device", "cpu", "--clusters", "-1"], "--clusters: must lie in [0, 16]"),
+        ("bench_onchip", ["--device", "cpu", "--blocks", "-1"], "--blocks: must lie in [0, 1024]"),
+        ("bench_onchip", ["--device", "cpu", "--json", f"{ABSENT}/b.json"], "output folder"),
+        ("bench_spool", ["--pads", "0"], "--pads: must be >= 1"),
+        ("bench_spool", ["--json", f"{ABSENT}/s.json"], "output folder"),
+        ("fault_injection", ["--workloads", "nope"], "--workloads: unknown 'nope'"),
+        ("fault_injection", ["--kills", "-1"], "--kills: must be >= 0"),
+        ("fault_injection", ["--json", f"{ABSENT}/f.json"], "output folder"),
+        ("onchip_gpu_check", ["--device", "cpu", "--pads", "0"], "--pads: must be >= 1"),
+        ("onchip_gpu_check", ["--device", "cpu", "--budget", "0"], "--budget: must be positive"),
+        ("time_tests", ["--durations", "-1"], "--durations: must be >= 0"),
+        ("lf_reproducible", ["--out", "/dev/null/runs"], "/dev/null is not a folder"),
+        ("launch_cost", ["--json", f"{ABSENT}/l.json"], "output folder"),
+    ],
+)
+def test_scripts_refuse_bad_arguments(
+    name: str, argv: list[str], says: str, tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
+):
+    """``main()`` reads ``sys.argv`` (``main(argv)``, given none, does too); the working folder, where some scripts
+    write by default, stays empty. bench_analysis's scratch file is put there too (its default lies outside it)."""
+    monkeypatch.chdir(tmp_path)
+    extra = ["--file", str(tmp_path / "s.h5")] if name == "bench_analysis" and "--file" not in argv else []
+    monkeypatch.setattr("sys.argv", [f"{name}.py", *(a.format(tmp=tmp_path) for a in argv), *extra])
+    try:
+        code = load_script(name).main()
+    except SystemExit as stop:
+        code = stop.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert says in err and "Traceback" not in err
+    assert not any(tmp_path.iterdir())
+
+
+def test_sweep_on_a_gpu_the_machine_lacks_is_refused_before_its_folder(tmp_path: Path, capsys):
+    """``aca-warp sweep --device cuda:99``: one line naming the devices there are (before: a ValueError traceback from
+    a Dask worker, exit 1, and the sweep folder made)."""
+    out = tmp_path / "sweep"
+    assert aca_warp(["sweep", str(SPEC), "-o", str(out), "--device", "cuda:99", "--quiet"]) == 2
+    assert "'cuda:99' is not available here" in capsys.readouterr().err
+    assert not out.exists()
