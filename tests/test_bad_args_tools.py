@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from scriptload import load_script
+import test_device_errors
 
 from aca_warp.cli import main as aca_warp
 
@@ -64,19 +64,10 @@ ABSENT = "{tmp}/absent"  # a folder that does not exist
 def test_scripts_refuse_bad_arguments(
     name: str, argv: list[str], says: str, tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
 ):
-    """``main()`` reads ``sys.argv`` (``main(argv)``, given none, does too); the working folder, where some scripts
-    write by default, stays empty. bench_analysis's scratch file is put there too (its default lies outside it)."""
-    monkeypatch.chdir(tmp_path)
-    extra = ["--file", str(tmp_path / "s.h5")] if name == "bench_analysis" and "--file" not in argv else []
-    monkeypatch.setattr("sys.argv", [f"{name}.py", *(a.format(tmp=tmp_path) for a in argv), *extra])
-    try:
-        code = load_script(name).main()
-    except SystemExit as stop:
-        code = stop.code
-    assert code == 2
-    err = capsys.readouterr().err
-    assert says in err and "Traceback" not in err
-    assert not any(tmp_path.iterdir())
+    """As the study scripts' table (``main()`` reads ``sys.argv``; exit 2, the message, no traceback, the working
+    folder left empty); bench_analysis's scratch file goes there too (its default lies outside it)."""
+    extra = ["--file", "{tmp}/s.h5"] if name == "bench_analysis" and "--file" not in argv else []
+    test_device_errors.test_scripts_refuse_bad_arguments(name, [*argv, *extra], says, tmp_path, capsys, monkeypatch)
 
 
 def test_sweep_on_a_gpu_the_machine_lacks_is_refused_before_its_folder(tmp_path: Path, capsys):
