@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.common.argtypes import positive
+from aca_warp.common.argtypes import nonneg, positive
 from aca_warp.common.errors import AcaError, SceneError
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import INTEGRATORS
@@ -480,7 +480,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--chunk", type=positive, default=1e-3, help="simulated time per run_hf call / load snapshot [s]")
     ap.add_argument("--until", type=positive, help="stop this call at this simulated time [s]")
-    ap.add_argument("--max-wall", type=positive, default=math.inf, help="stop this call after this wall time [s]")
+    ap.add_argument("--max-wall", type=nonneg, default=math.inf, help="stop this call after this wall time [s]")
     ap.add_argument("--resume", help="continue from this state file of a previous call")
     ap.add_argument("--out", default="varying_area_out", help="folder of the state and record files")
     ap.add_argument("--report", action="store_true", help="when finished, write figures and the docs page")

@@ -57,7 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.common.argtypes import int_at_least, positive
+from aca_warp.common.argtypes import int_at_least, nonneg, positive
 from aca_warp.hf.options import INTEGRATORS, tolerance_keyword
 from aca_warp.studies.report import Log, add_device, add_page_options, clean, command_line, write_json
 from aca_warp.studies.validation.analysis import analyse_batch
@@ -459,7 +459,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--workers", type=int_at_least(1), help="processes that analyse the pads of a run (default: 1 "
                     "on the CPU, else the CPU count less one, at most 8)")  # fmt: skip
     ap.add_argument("--lf-dir", help="folder of the LF runs of the LF-state regimes (default OUT/lf)")
-    ap.add_argument("--max-wall", type=positive, help="start no run that would end past this wall time [s] (the "
+    ap.add_argument("--max-wall", type=nonneg, help="start no run that would end past this wall time [s] (the "
                     "estimate: the reference's time per step × the steps, plus the mean time the call's earlier "
                     "runs spent besides stepping); written as not run")  # fmt: skip
     ap.add_argument("--report", nargs="+", metavar="JSON", help="only write the figure(s) and the page from "
