@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 from aca_warp.cli import Parser
+from aca_warp.common.argtypes import positive
 
 
 def command(step: float, duration: float, device: str, out: Path) -> list[str]:
@@ -73,19 +74,26 @@ def markdown(doc: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cuda:0", help="Warp device of the runs (default cuda:0)")
-    ap.add_argument("--steps", type=float, nargs="+", default=[1e-7, 2.5e-7, 5e-7], metavar="S",
+    ap.add_argument("--steps", type=positive, nargs="+", default=[1e-7, 2.5e-7, 5e-7], metavar="S",
                     help="fixed steps to time [s] (default 1e-7 2.5e-7 5e-7)")  # fmt: skip
-    ap.add_argument("--duration", type=float, default=0.36, metavar="S", help="record length [s] (default 0.36)")
+    ap.add_argument("--duration", type=positive, default=0.36, metavar="S", help="record length [s] (default 0.36)")
     ap.add_argument("--out", default="out/va_time", help="folder of the run files and the results")
     ap.add_argument("--dry-run", action="store_true", help="print the commands and exit")
     args = ap.parse_args(argv)
-    if not all(s > 0 for s in args.steps) or args.duration <= 0:
-        ap.error("steps and duration must be positive")
     out = Path(args.out)
     cmds = [command(s, args.duration, args.device, out) for s in args.steps]
-    if args.dry_run:
+    if args.dry_run:  # the commands, for this machine or another: the device is not looked up
         print("\n".join(" ".join(c) for c in cmds))
         return 0
+    from aca_warp.common.devices import get_device
+    from aca_warp.common.errors import AcaError
+    from aca_warp.common.files import check_output_folder
+
+    try:
+        get_device(args.device)
+        check_output_folder(out)
+    except AcaError as e:
+        ap.error(str(e))
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     for step, cmd in zip(args.steps, cmds, strict=True):

@@ -28,7 +28,9 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from aca_warp.common.files import machine
+from aca_warp.common.argtypes import positive
+from aca_warp.common.errors import AcaError
+from aca_warp.common.files import check_output_path, machine
 from aca_warp.hf.loop import run_hf
 from aca_warp.hf.model import build_model
 from aca_warp.hf.options import RunOptions
@@ -114,11 +116,14 @@ def trial(work: Work, seconds: float, turns: bool) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--seconds", type=float, default=90.0, help="time per mode [s] (default 90)")
+    ap.add_argument("--seconds", type=positive, default=90.0, help="time per mode [s] (default 90)")
     ap.add_argument("--md", type=Path, help="also write the Markdown lines to this file")
     a = ap.parse_args(argv)
-    if a.seconds <= 0:
-        ap.error("--seconds must be > 0")
+    if a.md is not None:
+        try:
+            check_output_path(a.md, overwrite=True)
+        except AcaError as e:
+            ap.error(str(e))
     wp.config.log_level = wp.LOG_WARNING
     work = Work()
     m = machine(wp.get_device("cpu"))

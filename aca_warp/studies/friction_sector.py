@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common.argtypes import int_at_least, positive
 from aca_warp.studies.report import Log, command_line, generated_markers, md_table, replace_generated, write_json
 
 SCRIPT = "friction_step_sector.py"
@@ -103,12 +104,33 @@ def report(doc: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _check(args: argparse.Namespace) -> None:
+    """Refuse, before anything runs or is written (ValueError or AcaError): a --report file that is not there, a
+    --page that cannot be written; without --report, no --out, an unknown run, an --out that cannot be written."""
+    from aca_warp.common.files import check_output_folder, check_output_path
+
+    if args.report is not None:
+        for path in args.report:
+            if not path.is_file():
+                raise ValueError(f"--report: no result file {path}")
+        if args.page is not None:
+            check_output_path(args.page, overwrite=True)
+        return
+    if args.out is None:
+        raise ValueError("--out is required (or --report)")
+    for spec in [args.reference, *args.runs]:
+        parse_run(spec)
+    if args.out.is_dir():
+        raise ValueError(f"--out {args.out} is a folder; give a file name such as {args.out / 'sector.json'}")
+    check_output_folder(args.out.parent)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--seeds", type=int, default=1, help="pads (seeds 1 …; default 1)")
-    ap.add_argument("--patches", type=int, default=150, help="patches per sector (default 150)")
-    ap.add_argument("--duration", type=float, default=30e-3, help="run length [s] (default 30e-3)")
-    ap.add_argument("--window", type=float, default=10e-3, help="statistics over the last WINDOW [s] (default 10e-3)")
+    ap.add_argument("--seeds", type=int_at_least(1), default=1, help="pads (seeds 1 …; default 1)")
+    ap.add_argument("--patches", type=int_at_least(1), default=150, help="patches per sector (default 150)")
+    ap.add_argument("--duration", type=positive, default=30e-3, help="run length [s] (default 30e-3)")
+    ap.add_argument("--window", type=positive, default=10e-3, help="statistics over the last WINDOW [s] (10e-3)")
     ap.add_argument("--precision", choices=("fp32", "fp64"), default="fp64")
     ap.add_argument("--reference", default=REFERENCE, help=f"the reference run (default {REFERENCE})")
     ap.add_argument("--runs", nargs="+", default=list(RUNS), help="INTEGRATOR[:DT | :tol=TOL] (default the grid)")
@@ -119,21 +141,19 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--page", type=Path, help="docs page whose generated section --report rewrites")
     args = ap.parse_args(argv)
+    from aca_warp.common.errors import AcaError
+
+    try:
+        _check(args)
+    except (AcaError, ValueError) as e:
+        print(f"{SCRIPT}: error: {e}", file=sys.stderr)
+        return 2
     if args.report is not None:
         lines = [line for path in args.report for line in [*report(json.loads(path.read_text())), ""]][:-1]
         if args.page is not None:
             replace_generated(args.page, lines, generated_markers(f"scripts/{SCRIPT} --report"), "Friction step")
         print("\n".join(lines))
         return 0
-    if args.out is None:
-        print(f"{SCRIPT}: error: --out is required (or --report)", file=sys.stderr)
-        return 2
-    try:
-        for spec in [args.reference, *args.runs]:
-            parse_run(spec)
-    except ValueError as e:
-        print(f"{SCRIPT}: error: {e}", file=sys.stderr)
-        return 2
     if args.quick:
         args.patches, args.duration, args.window = 60, 4e-3, 2e-3
     from aca_warp.common.files import machine

@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common.argtypes import int_at_least, positive
 from aca_warp.studies import friction_analysis as fa
 from aca_warp.studies import friction_schemes as fs
 from aca_warp.studies.friction_stats import (
@@ -387,23 +388,58 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--page", help="with --report: rewrite this page's generated section from OUT/{study,hf1,ss}")
     ap.add_argument("--parts", nargs="+", default=list(PARTS), choices=PARTS, help="what to measure (default all)")
     ap.add_argument("--quick", action="store_true", help=f"a CPU smoke run: {QUICK}")
-    ap.add_argument("--seeds", type=int, default=4, help="pads (seeds 1 …) of the sector ensemble (default 4)")
-    ap.add_argument("--patches", type=int, default=150, help="patches per sector (default 150)")
-    ap.add_argument("--duration", type=float, default=30e-3, help="simulated time [s] (default 0.03)")
-    ap.add_argument("--window", type=float, default=10e-3, help="statistics over the last WINDOW s (default 0.01)")
-    ap.add_argument("--ref-dt", type=float, default=1e-8, help="step of the strang reference [s] (default 1e-8)")
+    ap.add_argument(
+        "--seeds", type=int_at_least(1), default=4, help="pads (seeds 1 …) of the sector ensemble (default 4)"
+    )
+    ap.add_argument("--patches", type=int_at_least(2), default=150, help="patches per sector (default 150)")
+    ap.add_argument("--duration", type=positive, default=30e-3, help="simulated time [s] (default 0.03)")
+    ap.add_argument("--window", type=positive, default=10e-3, help="statistics over the last WINDOW s (default 0.01)")
+    ap.add_argument("--ref-dt", type=positive, default=1e-8, help="step of the strang reference [s] (default 1e-8)")
     ap.add_argument("--schemes", nargs="+", default=list(SCHEMES), help="split schemes: strang-<m> / forced-<m>")
     ap.add_argument("--runs", nargs="+", default=list(RUNS), help="fixed-step runs SCHEME:DT (default: the grid)")
-    ap.add_argument("--tol-e", type=float, default=1e-5, help="mode E (DP5) tolerance (default 1e-5)")
+    ap.add_argument("--tol-e", type=positive, default=1e-5, help="mode E (DP5) tolerance (default 1e-5)")
     ap.add_argument("--controlled", nargs="+", default=list(CONTROLLED),
                     help="composite settings MODES:METHOD:NORM:ERRORS:TOL_I (parse_job)")  # fmt: skip
-    ap.add_argument("--speed", type=float, help="disc speed at the mean radius [m/s] (default: the preset's)")
+    ap.add_argument("--speed", type=positive, help="disc speed at the mean radius [m/s] (default: the preset's)")
     return ap
+
+
+def _check(args: argparse.Namespace) -> None:
+    """Refuse, before anything runs or is written (ValueError or AcaError): with --report, an --out that is no
+    folder or a --page that cannot be written; else an unknown scheme, setting or run, a window longer than the run,
+    an --out that cannot be made."""
+    from aca_warp.common.files import check_output_folder, check_output_path
+
+    if args.report:
+        if not Path(args.out).is_dir():
+            raise ValueError(f"--out {args.out}: no folder of results")
+        if args.page:
+            check_output_path(args.page, overwrite=True)
+        return
+    for name in args.schemes:
+        fs.Scheme.parse(name)
+    for job in args.controlled:
+        parse_job(job)
+    for run in args.runs:
+        parse_run(run)
+    if not args.window <= args.duration:
+        raise ValueError("need --window <= --duration")
+    check_output_folder(args.out)
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = build_parser().parse_args(argv)
+    if args.quick:
+        for k, v in QUICK.items():
+            setattr(args, k, v)
+    from aca_warp.common.errors import AcaError
+
+    try:
+        _check(args)
+    except (AcaError, ValueError) as e:
+        print(f"friction_schemes.py: error: {e}", file=sys.stderr)
+        return 2
     if args.report:
         from aca_warp.studies.friction_report import report, write_page
 
@@ -412,22 +448,6 @@ def main(argv: list[str] | None = None) -> int:
         else:
             print("\n".join(report(Path(args.out))))
         return 0
-    if args.quick:
-        for k, v in QUICK.items():
-            setattr(args, k, v)
-    try:
-        for name in args.schemes:
-            fs.Scheme.parse(name)
-        for job in args.controlled:
-            parse_job(job)
-        for run in args.runs:
-            parse_run(run)
-    except ValueError as e:
-        print(f"friction_schemes.py: {e}", file=sys.stderr)
-        return 2
-    if not (0 < args.window <= args.duration) or args.seeds < 1 or args.patches < 2:
-        print("friction_schemes.py: need 0 < --window <= --duration, --seeds >= 1, --patches >= 2", file=sys.stderr)
-        return 2
     from aca_warp.studies.report import init_warp
 
     wp = init_warp()

@@ -37,6 +37,9 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common.argtypes import positive
+from aca_warp.common.errors import AcaError
+from aca_warp.common.errors import command_line as command_line_flags
 from aca_warp.studies.report import Log, add_device, command_line, figure, fmt, md_table, save_figure, write_json
 
 MM2 = 1.0e-6
@@ -52,17 +55,37 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--outdir", default="multiscale_study", help="output folder (default multiscale_study)")
     add_device(p, help="Warp device for LF and HF (default cpu)")
     p.add_argument("--quick", action="store_true", help="CPU-sized: 2 s applications, 1 s pauses, short HF records")
-    p.add_argument("--hf-duration", type=float, help="HF simulated time per state [s] (default 2e-3; quick 1e-4)")
-    p.add_argument("--hf-sample-dt", type=float, default=1.0e-7, help="HF sample interval [s] (default 1e-7)")
+    p.add_argument("--hf-duration", type=positive, help="HF simulated time per state [s] (default 2e-3; quick 1e-4)")
+    p.add_argument("--hf-sample-dt", type=positive, default=1.0e-7, help="HF sample interval [s] (default 1e-7)")
     p.add_argument("--skip-hf", action="store_true", help="LF, figures of LF and calibration only")
     p.add_argument("--runs-dir", help="folder of the HF run files (default: the output folder; they are large)")
     p.add_argument("--tei", action="store_true", help="also run the Coulomb-friction TEI check (tei.png)")
-    p.add_argument("--tei-duration", type=float, default=20.0, help="TEI application length [s] (quick: 5)")
+    p.add_argument("--tei-duration", type=positive, default=20.0, help="TEI application length [s] (quick: 5)")
     p.add_argument("--docs", help="write the calibration page (markdown) to this file")
     p.add_argument("--figures", help="with --docs: copy the figures into this folder and show them on the page")
     p.add_argument("--overwrite", action="store_true", help="replace existing run files")
     p.add_argument("--reuse-lf", action="store_true", help="use <outdir>/lf.h5 from an earlier run (skip the LF stage)")
     return p
+
+
+def check_arguments(args: argparse.Namespace) -> None:
+    """Refuse what would fail later, before anything is written (AcaError): an absent device, an unknown scene, an
+    output folder or page that cannot be written, an LF run file there already (without --overwrite or
+    --reuse-lf)."""
+    from aca_warp.common.devices import get_device
+    from aca_warp.common.files import check_output_folder, check_output_path
+    from aca_warp.lf.scene import load_lf_scene
+
+    get_device(args.device)
+    load_lf_scene(args.scene)
+    for folder in (args.outdir, args.runs_dir, args.figures):
+        if folder:
+            check_output_folder(folder)
+    lf_path = Path(args.outdir) / "lf.h5"
+    if not (args.reuse_lf and lf_path.is_file()) and Path(args.outdir).is_dir():
+        check_output_path(lf_path, overwrite=args.overwrite)
+    if args.docs:
+        check_output_path(args.docs, overwrite=True)
 
 
 # ------------------------------------------------------------------------------------------------ stages
@@ -567,7 +590,14 @@ def write_docs(study: dict[str, Any], path: Path, argv: list[str], figures: Path
 def main(argv: list[str] | None = None) -> int:
     """Run the study; returns 0."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
+    ap = build_parser()
+    args = ap.parse_args(argv)
+    try:
+        with command_line_flags():  # messages name --overwrite, not overwrite=True
+            check_arguments(args)
+    except AcaError as e:
+        print(f"{ap.prog}: error: {e}", file=sys.stderr)
+        return e.exit_code
     log = Log()
     outdir = Path(args.outdir)
     outdir.mkdir(parents=True, exist_ok=True)

@@ -61,9 +61,30 @@ def measure_or_report(
     """The command line of a study that measures, or with ``--report`` only writes its page from result files:
     parses ``argv`` (``sys.argv[1:]`` when None) with ``parser``, then ``report(args)``; else Warp is initialised
     (:func:`init_warp`) and ``measure(args, argv)`` runs (``argv`` for the results' :func:`command_line`).
-    Returns 0."""
+    Returns 0; before anything is written, one line on stderr and exit code 2 (4: an output that takes no file)
+    for a --report file that is not there, a page or figure folder that cannot be written, an absent ``--device`` or
+    an ``--out`` folder that cannot be made."""
+    from aca_warp.common.devices import get_device
+    from aca_warp.common.errors import AcaError, SceneError
+    from aca_warp.common.errors import command_line as command_line_flags
+    from aca_warp.common.files import check_output_folder, check_output_path
+
     argv = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
+    try:
+        with command_line_flags():
+            if args.report:
+                for path in args.report:
+                    if not Path(path).is_file():
+                        raise SceneError(f"--report: no result file {path}")
+                check_output_path(args.page, overwrite=True)
+                check_output_folder(args.figures)
+            else:
+                get_device(args.device)
+                check_output_folder(args.out)
+    except AcaError as e:
+        print(f"{parser.prog}: error: {e}", file=sys.stderr)
+        return e.exit_code
     if args.report:
         report(args)
         return 0

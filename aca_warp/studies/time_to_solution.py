@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common.argtypes import int_at_least, positive
 from aca_warp.hf.options import DEFAULT_TOLERANCE, default_step
 from aca_warp.hf.reference import ReferenceODE
 from aca_warp.scene import Initial, Record, Scene, preset
@@ -529,10 +530,12 @@ def build_parser() -> argparse.ArgumentParser:
     add_device(ap)
     ap.add_argument("--out", default="tts_results", help="folder of the result JSON")
     ap.add_argument("--scenes", nargs="+", default=["hf1", "stickslip"], choices=SCENES)
-    ap.add_argument("--target", type=float, default=1e-7, help="μ error to reach")
-    ap.add_argument("--duration", type=float, help="simulated time of every scene [s] (default 1 ms, stickslip 0.2 ms)")
-    ap.add_argument("--pads", type=int, help="pads of the batches (default 64 on CUDA, none on the CPU)")
-    ap.add_argument("--check-pads", type=int, default=4, help="pads of a batch whose μ error is checked")
+    ap.add_argument("--target", type=positive, default=1e-7, help="μ error to reach")
+    ap.add_argument(
+        "--duration", type=positive, help="simulated time of every scene [s] (default 1 ms, stickslip 0.2 ms)"
+    )
+    ap.add_argument("--pads", type=int_at_least(0), help="pads of the batches (default 64 on CUDA, none on the CPU)")
+    ap.add_argument("--check-pads", type=int_at_least(1), default=4, help="pads of a batch whose μ error is checked")
     ap.add_argument("--batch-on-cpu", action="store_true", help="run our engines on the batches on the CPU too")
     ap.add_argument("--no-diffrax", action="store_true", help="leave diffrax out")
     ap.add_argument("--report", nargs="+", metavar="JSON", help="write the tables of result JSONs into the page")

@@ -38,6 +38,8 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common.argtypes import nonneg, positive
+from aca_warp.common.errors import AcaError, SceneError
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import INTEGRATORS
 from aca_warp.hf.recorder import GLOBAL_NAMES
@@ -465,10 +467,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_device(ap)
     ap.add_argument("--quick", action="store_true", help="growth ×--speedup, duration ÷--speedup (CPU)")
-    ap.add_argument("--speedup", type=float, default=100.0, help="growth compression of --quick (default 100)")
-    ap.add_argument("--duration", type=float, help="simulated duration before --quick compression [s] (0.36)")
+    ap.add_argument("--speedup", type=positive, default=100.0, help="growth compression of --quick (default 100)")
+    ap.add_argument("--duration", type=positive, help="simulated duration before --quick compression [s] (0.36)")
     ap.add_argument("--integrator", default="strang", choices=[i for i in INTEGRATORS if i != "adaptive"])
-    ap.add_argument("--dt", type=float, default=STUDY_DT, help=f"step [s] (default {STUDY_DT:g}, the results' step)")
+    ap.add_argument("--dt", type=positive, default=STUDY_DT, help=f"step [s] (default {STUDY_DT:g}, the results' step)")
     ap.add_argument("--precision", default="fp64", choices=["fp32", "fp64"])
     ap.add_argument(
         "--engine",
@@ -476,9 +478,9 @@ def build_parser() -> argparse.ArgumentParser:
         choices=["general", "onchip", "auto"],
         help="HF engine (default general; onchip: growth inside the on-chip kernel, strang only; docs/onchip.md)",
     )
-    ap.add_argument("--chunk", type=float, default=1e-3, help="simulated time per run_hf call / load snapshot [s]")
-    ap.add_argument("--until", type=float, help="stop this call at this simulated time [s]")
-    ap.add_argument("--max-wall", type=float, default=math.inf, help="stop this call after this wall time [s]")
+    ap.add_argument("--chunk", type=positive, default=1e-3, help="simulated time per run_hf call / load snapshot [s]")
+    ap.add_argument("--until", type=positive, help="stop this call at this simulated time [s]")
+    ap.add_argument("--max-wall", type=nonneg, default=math.inf, help="stop this call after this wall time [s]")
     ap.add_argument("--resume", help="continue from this state file of a previous call")
     ap.add_argument("--out", default="varying_area_out", help="folder of the state and record files")
     ap.add_argument("--report", action="store_true", help="when finished, write figures and the docs page")
@@ -487,11 +489,33 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+def _check(args: argparse.Namespace) -> None:
+    """Refuse, before anything runs or is written (AcaError): a --report-only record or --resume state that is not
+    there, an absent device, an --out or page that cannot be written."""
+    from aca_warp.common.devices import get_device
+    from aca_warp.common.files import check_output_folder, check_output_path
+
+    for option, path in (("--report-only", args.report_only), ("--resume", args.resume)):
+        if path and not Path(path).is_file():
+            raise SceneError(f"{option}: no file {path}")
+    if args.report or args.report_only:
+        check_output_path(args.page, overwrite=True)
+        check_output_folder(args.figures)
+    if not args.report_only:
+        get_device(args.device)
+        check_output_folder(args.out)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one call of the study (or only its report); returns 0."""
     from aca_warp.studies.report import init_warp
 
-    args = build_parser().parse_args(argv)
+    ap = build_parser()
+    args = ap.parse_args(argv)
+    try:
+        _check(args)
+    except AcaError as e:
+        ap.error(str(e))
     if args.report_only:
         report(Path(args.report_only), Path(args.page), Path(args.figures))
         return 0

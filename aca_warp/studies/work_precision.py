@@ -55,6 +55,7 @@ import numpy as np
 
 from aca_warp.analysis.spectra import amplitude_spectrum, peak
 from aca_warp.analysis.sync import sync_index_from_signals
+from aca_warp.common.argtypes import int_at_least, nonneg, positive
 from aca_warp.hf.options import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS, default_step
 from aca_warp.hf.reference import SCIPY_METHODS, ReferenceODE
 from aca_warp.scene import Record
@@ -533,22 +534,26 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--quick", action="store_true", help=f"{QUICK_PATCHES}-patch sectors, short windows, fewer points")
     ap.add_argument("--out", default="wp_results", help="folder of the result JSON and the cached start states")
     ap.add_argument("--scenes", nargs="+", default=list(SCENES), choices=SCENES)
-    ap.add_argument("--patches", type=int, help=f"patches per pad (a sector; default all, --quick {QUICK_PATCHES})")
+    ap.add_argument(
+        "--patches", type=int_at_least(1), help=f"patches per pad (a sector; default all, --quick {QUICK_PATCHES})"
+    )
     ap.add_argument("--integrators", nargs="+", default=["adaptive", "strang"], choices=INTEGRATORS)
     ap.add_argument("--precisions", nargs="+", default=["fp64"], choices=["fp64", "fp32"])
     ap.add_argument("--parts", nargs="+", default=["ours", "scipy"], choices=["ours", "scipy"])
     ap.add_argument("--scipy-methods", nargs="+", default=["DOP853", "Radau"], choices=SCIPY_METHODS)
-    ap.add_argument("--scipy-rtols", nargs="+", type=float, help="rtols of every SciPy method (default per method)")
-    ap.add_argument("--tolerances", nargs="+", type=float, help="tolerances of adaptive (default 1e-2 … 1e-7)")
-    ap.add_argument("--steps", nargs="+", type=float, help="steps of strang/implicit-friction [s] (default per scene)")
-    ap.add_argument("--window", type=float, help="pointwise window [s] (default per scene)")
-    ap.add_argument("--long-window", type=float, help="statistics window of the saturated scenes [s]")
+    ap.add_argument("--scipy-rtols", nargs="+", type=positive, help="rtols of every SciPy method (default per method)")
+    ap.add_argument("--tolerances", nargs="+", type=positive, help="tolerances of adaptive (default 1e-2 … 1e-7)")
+    ap.add_argument(
+        "--steps", nargs="+", type=positive, help="steps of strang/implicit-friction [s] (default per scene)"
+    )
+    ap.add_argument("--window", type=positive, help="pointwise window [s] (default per scene)")
+    ap.add_argument("--long-window", type=positive, help="statistics window of the saturated scenes [s]")
     ap.add_argument("--no-long", action="store_true", help="no statistics windows")
-    ap.add_argument("--ref-rtol", type=float, default=1e-11, help="rtol of the SciPy DOP853 reference")
-    ap.add_argument("--long-ref-dt", type=float, help="step of the strang statistics reference [s] (2.5e-9)")
-    ap.add_argument("--fmin", type=float, default=5e3, help="lower edge of the spectral band [Hz]")
-    ap.add_argument("--scipy-cap", type=float, help="SciPy runs longer than this are extrapolated [s] (30; quick 5)")
-    ap.add_argument("--scipy-cap-long", type=float, help="the same for the statistics window [s] (60; quick 10)")
+    ap.add_argument("--ref-rtol", type=positive, default=1e-11, help="rtol of the SciPy DOP853 reference")
+    ap.add_argument("--long-ref-dt", type=positive, help="step of the strang statistics reference [s] (2.5e-9)")
+    ap.add_argument("--fmin", type=nonneg, default=5e3, help="lower edge of the spectral band [Hz]")
+    ap.add_argument("--scipy-cap", type=positive, help="SciPy runs longer than this are extrapolated [s] (30; quick 5)")
+    ap.add_argument("--scipy-cap-long", type=positive, help="the same for the statistics window [s] (60; quick 10)")
     ap.add_argument("--report", nargs="+", metavar="JSON", help="make figures and the docs page from result JSONs")
     add_page_options(ap, "docs/work_precision.md", "docs/figures/work_precision")
     return ap

@@ -57,6 +57,7 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common.argtypes import int_at_least, nonneg, positive
 from aca_warp.hf.options import INTEGRATORS, tolerance_keyword
 from aca_warp.studies.report import Log, add_device, add_page_options, clean, command_line, write_json
 from aca_warp.studies.validation.analysis import analyse_batch
@@ -433,12 +434,12 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--regimes", nargs="+", choices=regimes, metavar="REGIME",
                     help=f"validation experiments to measure (default {' '.join(REGIMES[False])}; --quick "
                     f"{' '.join(REGIMES[True])}); any of: {' '.join(regimes)}")  # fmt: skip
-    ap.add_argument("--seeds", type=int, help="pads (seeds) per regime (validation default 8; --quick 4)")
-    ap.add_argument("--first-seed", type=int, help="seed of the first pad (1)")
-    ap.add_argument("--patches", type=int, help="patches per pad: a sector (default all; --quick 60)")
-    ap.add_argument("--window", type=float, help="analysis window at the end of a saturated run [s] (20e-3; "
+    ap.add_argument("--seeds", type=int_at_least(2), help="pads (seeds) per regime (validation default 8; --quick 4)")
+    ap.add_argument("--first-seed", type=int_at_least(0), help="seed of the first pad (1)")
+    ap.add_argument("--patches", type=int_at_least(2), help="patches per pad: a sector (default all; --quick 60)")
+    ap.add_argument("--window", type=positive, help="analysis window at the end of a saturated run [s] (20e-3; "
                     "--quick 4e-3)")  # fmt: skip
-    ap.add_argument("--duration", type=float, help="run length of the saturated regimes [s] (default: the "
+    ap.add_argument("--duration", type=positive, help="run length of the saturated regimes [s] (default: the "
                     "validation's plan, the predicted time to saturation + the window)")  # fmt: skip
     ap.add_argument(
         "--grid",
@@ -455,10 +456,10 @@ def build_parser() -> argparse.ArgumentParser:
         f"{REFERENCE[True]}; a strang step is capped at {REFERENCE_MARGIN:g} × the friction step)",
     )
     ap.add_argument("--engine", default="auto", choices=["auto", "general", "onchip"], help="HF engine (auto)")
-    ap.add_argument("--workers", type=int, help="processes that analyse the pads of a run (default: 1 on the "
-                    "CPU, else the CPU count less one, at most 8)")  # fmt: skip
+    ap.add_argument("--workers", type=int_at_least(1), help="processes that analyse the pads of a run (default: 1 "
+                    "on the CPU, else the CPU count less one, at most 8)")  # fmt: skip
     ap.add_argument("--lf-dir", help="folder of the LF runs of the LF-state regimes (default OUT/lf)")
-    ap.add_argument("--max-wall", type=float, help="start no run that would end past this wall time [s] (the "
+    ap.add_argument("--max-wall", type=nonneg, help="start no run that would end past this wall time [s] (the "
                     "estimate: the reference's time per step × the steps, plus the mean time the call's earlier "
                     "runs spent besides stepping); written as not run")  # fmt: skip
     ap.add_argument("--report", nargs="+", metavar="JSON", help="only write the figure(s) and the page from "
@@ -476,7 +477,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="only print (Markdown) each setting's error in units of σ "
         "over all pads and over each part's pads alone, for a merged result file (--measures: which)",
     )
-    ap.add_argument("--rule", type=float, default=DEFAULT_RULE, help="the report's rule: a setting's bias within "
+    ap.add_argument("--rule", type=positive, default=DEFAULT_RULE, help="the report's rule: a setting's bias within "
                     f"± RULE × σ between seeds ({DEFAULT_RULE:g})")  # fmt: skip
     ap.add_argument("--criterion", default=DEFAULT_CRITERION, choices=list(CRITERIA), help="what the report's rule "
                     f"counts as keeping a measure (default {DEFAULT_CRITERION}): "
@@ -514,12 +515,15 @@ def main(argv: list[str] | None = None) -> int:
     ap = build_parser()
     args = ap.parse_args(argv)
     if args.report:
+        from aca_warp.common.errors import AcaError
+        from aca_warp.common.files import check_output_path
         from aca_warp.studies.work_precision_stats_report import report
 
         try:
+            check_output_path(args.page, overwrite=True)  # before the figures: nothing written for a bad page
             report([Path(p) for p in args.report], Path(args.page), Path(args.figures), args.rule, args.measures,
                    args.criterion)  # fmt: skip
-        except (OSError, ValueError, KeyError) as e:
+        except (AcaError, OSError, ValueError, KeyError) as e:
             print(f"work_precision_stats: {e}", file=sys.stderr)
             return 2
         return 0
@@ -543,15 +547,16 @@ def main(argv: list[str] | None = None) -> int:
         grid(args.grid or [], None, None)
     except ValueError as e:
         ap.error(str(e))
-    for name, val, least in (("seeds", args.seeds, 2), ("patches", args.patches, 2), ("workers", args.workers, 1)):
-        if val is not None and val < least:
-            ap.error(f"--{name} must be at least {least}")
     from aca_warp.common.devices import get_device
-    from aca_warp.common.errors import SceneError
+    from aca_warp.common.errors import AcaError
+    from aca_warp.common.files import check_output_folder
 
     try:
         get_device(args.device)
-    except SceneError as e:
+        for folder in (args.out, args.lf_dir):
+            if folder:
+                check_output_folder(folder)
+    except AcaError as e:
         ap.error(str(e))
     try:
         measure(args, argv)

@@ -11,6 +11,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from aca_warp.common.argtypes import int_at_least, nonneg, positive
+from aca_warp.hf.options import INTEGRATORS
 from aca_warp.studies.hf_study.base import (
     DEFAULT_PRESSURE,
     FULL_DURATION,
@@ -44,8 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--outdir", type=Path, default=Path("out/hf_study"), help="output folder (created)")
     p.add_argument("--device", default="auto", help="Warp device: cpu, cuda:0, or auto (cuda:0 when present)")
     p.add_argument("--precision", choices=("fp64", "fp32"), default="fp64", help="floating-point precision")
-    p.add_argument("--integrator", default="strang", help="HF integrator (see aca-warp hf --help)")
-    p.add_argument("--dt", type=float, default=1.0e-8, help="time step [s]")
+    p.add_argument("--integrator", default="strang", choices=INTEGRATORS, help="HF integrator (see aca-warp hf --help)")
+    p.add_argument("--dt", type=positive, default=1.0e-8, help="time step [s]")
     p.add_argument(
         "--quick",
         action="store_true",
@@ -53,22 +55,24 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--duration",
-        type=float,
+        type=positive,
         default=None,
         help=f"simulated time per run [s] (default {FULL_DURATION:g}; {QUICK_DURATION:g} with --quick)",
     )
     p.add_argument(
         "--transient",
-        type=float,
+        type=nonneg,
         default=None,
         help="start of the per-patch velocity record [s]; earlier samples are left out of the per-patch "
         f"spectra and S(f) (default {FULL_TRANSIENT:g}; {QUICK_TRANSIENT:g} with --quick)",
     )
-    p.add_argument("--sample-dt", type=float, default=2.0e-7, help="sampling interval of the global outputs [s]")
-    p.add_argument("--decimation", type=int, default=1, help="record per-patch velocities every N-th global sample")
+    p.add_argument("--sample-dt", type=positive, default=2.0e-7, help="sampling interval of the global outputs [s]")
+    p.add_argument(
+        "--decimation", type=int_at_least(1), default=1, help="record per-patch velocities every N-th global sample"
+    )
     p.add_argument(
         "--band",
-        type=float,
+        type=nonneg,
         nargs=2,
         default=(1.0e3, 5.0e5),
         metavar=("FMIN", "FMAX"),
@@ -76,7 +80,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--rule", choices=("relative", "snr"), default="relative", help="Phi rule of S(f)")
     p.add_argument(
-        "--phi-min", type=int, default=10, help="prevalence level: S statistics use the bins with Phi >= this"
+        "--phi-min",
+        type=int_at_least(0),
+        default=10,
+        help="prevalence level: S statistics use the bins with Phi >= this",
     )
     _add_run_selection(p)
     _add_sweep_options(p)
@@ -95,7 +102,7 @@ def _add_run_selection(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--patches",
-        type=int,
+        type=int_at_least(2),
         default=None,
         help=f"patches per pad instead of {NOMINAL_PATCHES} (loads scaled to keep the pressure); for tests",
     )
@@ -112,21 +119,21 @@ def _add_sweep_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--skip-sweep", action="store_true", help="leave out the area sweep")
     p.add_argument(
         "--sweep-areas",
-        type=float,
+        type=positive,
         nargs="+",
         default=[0.05, 0.125, 0.3, 0.6, 1.25],
         metavar="MM2",
         help="mean patch areas of the sweep [mm²], each range [0.4, 1.6] x mean",
     )
-    p.add_argument("--sweep-M", type=float, default=0.8, help="friction factor M of the sweep")
-    p.add_argument("--sweep-speed", type=float, default=10.0, help="sliding speed of the sweep at r = 0.13 m [m/s]")
+    p.add_argument("--sweep-M", type=positive, default=0.8, help="friction factor M of the sweep")
+    p.add_argument("--sweep-speed", type=positive, default=10.0, help="sliding speed of the sweep at r = 0.13 m [m/s]")
     p.add_argument(
         "--sweep-pressure",
-        type=float,
+        type=positive,
         default=DEFAULT_PRESSURE,
         help="mean patch pressure of the sweep F_N / (N mean area) [Pa] (hf1's)",
     )
-    p.add_argument("--seed", type=int, default=1, help="patch generator seed of the sweep (presets: 1)")
+    p.add_argument("--seed", type=int_at_least(0), default=1, help="patch generator seed of the sweep (presets: 1)")
 
 
 def _add_file_options(p: argparse.ArgumentParser) -> None:
@@ -144,42 +151,46 @@ def _add_file_options(p: argparse.ArgumentParser) -> None:
         help="also write a .tar.gz of the outdir without run files (figures, study.json, results.md); split into "
         "ARCHIVE-part1.tar.gz, -part2, ... when the files exceed --archive-max-mib",
     )
-    p.add_argument("--archive-max-mib", type=float, default=15.0, help="largest archive part [MiB]")
+    p.add_argument("--archive-max-mib", type=positive, default=15.0, help="largest archive part [MiB]")
     p.add_argument("--progress", action="store_true", help="show a progress bar per simulation")
 
 
 def resolve(args: argparse.Namespace, wp: Any) -> argparse.Namespace:
-    """Fill in the defaults that depend on --quick and on the machine; validate."""
+    """Fill in the defaults that depend on --quick and on the machine; validate (one line on stderr and exit code 2,
+    or 4 for an output folder that takes no file, before anything is written)."""
+    from aca_warp.common.devices import get_device
+    from aca_warp.common.errors import AcaError
+    from aca_warp.common.files import check_output_folder
+    from aca_warp.plots import FIGURES
+
     if args.duration is None:
         args.duration = QUICK_DURATION if args.quick else FULL_DURATION
     if args.transient is None:
         args.transient = QUICK_TRANSIENT if args.quick else FULL_TRANSIENT
     if args.device == "auto":
         args.device = "cuda:0" if wp.is_cuda_available() else "cpu"
-    from aca_warp.plots import FIGURES
-
-    problems = []
+    problems, code = [], 2
     if args.figures is None:
         args.figures = list(FIGURES)
     unknown = [f for f in args.figures if f not in FIGURES]
     if unknown:
         problems.append(f"unknown figure(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
-    if not args.duration > 0:
-        problems.append("--duration must be > 0")
-    if not 0 <= args.transient < args.duration:
+    if not args.transient < args.duration:
         problems.append("--transient must lie in [0, duration)")
-    if not args.band[1] > args.band[0] >= 0:
+    if not args.band[1] > args.band[0]:
         problems.append("--band needs 0 <= FMIN < FMAX")
-    if args.patches is not None and args.patches < 2:
-        problems.append("--patches must be >= 2")
-    if any(a <= 0 for a in args.sweep_areas):
-        problems.append("--sweep-areas must be > 0")
     per_patch = (args.duration - args.transient) / (args.sample_dt * args.decimation)
     if per_patch < 16:
         problems.append(f"the per-patch record would hold {per_patch:.0f} samples; need >= 16")
+    for check, value in ((get_device, args.device), (check_output_folder, args.outdir)):
+        try:
+            check(value)
+        except AcaError as e:
+            problems.append(str(e))
+            code = max(code, e.exit_code)
     if problems:
-        print("hf_study.py: " + "; ".join(problems), file=sys.stderr)
-        raise SystemExit(2)
+        print("hf_study.py: error: " + "; ".join(problems), file=sys.stderr)
+        raise SystemExit(code)
     return args
 
 

@@ -17,8 +17,9 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common.argtypes import int_at_least, nonneg, positive
 from aca_warp.common.devices import get_device
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import AcaError, SceneError
 from aca_warp.studies.report import Log, clean, command_line, generated_markers, replace_generated
 from aca_warp.studies.validation import multiscale as validation_multiscale
 from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK, ROWS, Config, Experiment, close_pools
@@ -58,26 +59,26 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: the stepping table's, settings.STEPPING)")  # fmt: skip
     p.add_argument("--engine", choices=("auto", "general", "onchip"), default="auto", help="HF engine")
     p.add_argument("--quick", action="store_true", help="the reduced CPU variant (small pads, short windows)")
-    p.add_argument("--seeds", type=int, default=None, help=f"pads per experiment ({FULL.seeds}; quick {QUICK.seeds})")
-    p.add_argument("--first-seed", type=int, default=None, help="seed of pad 0 (1: the presets' layout)")
-    p.add_argument("--patches", type=int, default=None, help=f"patches per pad (preset's; quick {QUICK.patches})")
-    p.add_argument("--dt", type=float, default=None, help="time step [s] of every experiment (default: the "
+    p.add_argument("--seeds", type=int_at_least(1), help=f"pads per experiment ({FULL.seeds}; quick {QUICK.seeds})")
+    p.add_argument("--first-seed", type=int_at_least(0), default=None, help="seed of pad 0 (1: the presets' layout)")
+    p.add_argument("--patches", type=int_at_least(2), help=f"patches per pad (preset's; quick {QUICK.patches})")
+    p.add_argument("--dt", type=positive, default=None, help="time step [s] of every experiment (default: the "
                    "stepping table's, settings.STEPPING)")  # fmt: skip
-    p.add_argument("--window", type=float, default=None, help=f"window [s] ({FULL.window:g}; quick {QUICK.window:g})")
-    p.add_argument("--perturbation", type=float, default=None, help=f"initial velocity σ [m/s] ({FULL.perturbation:g})")
-    p.add_argument("--settle-safety", type=float, default=None, help=f"factor on the predicted settling time "
+    p.add_argument("--window", type=positive, help=f"window [s] ({FULL.window:g}; quick {QUICK.window:g})")
+    p.add_argument("--perturbation", type=nonneg, help=f"initial velocity σ [m/s] ({FULL.perturbation:g})")
+    p.add_argument("--settle-safety", type=positive, default=None, help=f"factor on the predicted settling time "
                    f"({FULL.settle_safety:g})")  # fmt: skip
-    p.add_argument("--paper-length", type=float, default=None, help=f"length of the runs from rest [s] "
+    p.add_argument("--paper-length", type=positive, default=None, help=f"length of the runs from rest [s] "
                    f"({FULL.paper_length:g}; quick {QUICK.paper_length:g})")  # fmt: skip
     p.add_argument("--only", nargs="+", default=None, metavar="EXPERIMENT", help="run only these experiments "
                    "(the table still uses the saved results of the others)")  # fmt: skip
-    p.add_argument("--max-wall", type=float, default=None, help="wall-time budget [s]: a batch whose estimate (or "
+    p.add_argument("--max-wall", type=nonneg, default=None, help="wall-time budget [s]: a batch whose estimate (or "
                    "whose probe of its first segment) no longer fits is not run")  # fmt: skip
-    p.add_argument("--growth-speedup", type=float, default=None, help=f"compression of the varying-area growth of "
+    p.add_argument("--growth-speedup", type=positive, default=None, help=f"compression of the varying-area growth of "
                    f"va and its variants ({FULL.growth_speedup:g}; quick {QUICK.growth_speedup:g})")  # fmt: skip
-    p.add_argument("--state-patches", type=int, default=None, help=f"patches per LF state of the multi-timescale "
+    p.add_argument("--state-patches", type=int_at_least(2), help=f"patches per LF state of the multi-timescale "
                    f"experiments (a sector; the whole state; quick {QUICK.state_patches})")  # fmt: skip
-    p.add_argument("--workers", type=int, default=None, help="processes that analyse the pads of an experiment "
+    p.add_argument("--workers", type=int_at_least(1), help="processes that analyse the pads of an experiment "
                    "(default: the CPU count less one, at most 15)")  # fmt: skip
     p.add_argument("--with", dest="with_results", type=Path, nargs="+", default=None, metavar="RESULTS_JSON",
                    help="take the finished experiments of earlier results.json files with the same settings as done: "
@@ -436,6 +437,17 @@ class ResultsWriter:
         return write_results(self.path, every, meta)
 
 
+def _check_outputs(page: Path | None, *folders: Path | None) -> None:
+    """AcaError for a --page that cannot be written or an output folder that cannot be made (nothing written)."""
+    from aca_warp.common.files import check_output_folder, check_output_path
+
+    if page is not None:
+        check_output_path(page, overwrite=True)
+    for folder in folders:
+        if folder is not None:
+            check_output_folder(folder)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the selected experiments, write results.json, the log and --page; 0 unless the input is bad (2)."""
     from aca_warp.studies.report import init_warp
@@ -450,8 +462,9 @@ def main(argv: list[str] | None = None) -> int:
             print(f"validation.py: no results file {args.report}", file=sys.stderr)
             return 2
         try:
+            _check_outputs(args.page)
             write_page(args.report, args.page, None, Log())
-        except ValueError as e:
+        except (AcaError, ValueError) as e:
             print(f"validation.py: {e}", file=sys.stderr)
             return 2
         return 0
@@ -472,7 +485,8 @@ def main(argv: list[str] | None = None) -> int:
     notes: list[str] = []  # what --with left out, for the log once it is opened
     try:  # before anything is written: the device does not enter the settings compared
         earlier = earlier_results(args.with_results, config_from(args, "cpu"), notes.append)
-    except ValueError as e:
+        _check_outputs(args.page, args.out, args.results, args.lf_dir)
+    except (AcaError, ValueError) as e:
         print(f"validation.py: {e}", file=sys.stderr)
         return 2
     wp = init_warp()
