@@ -85,3 +85,30 @@ def test_study_scripts_refuse_bad_arguments(name: str, argv: list[str], says: st
     err = capsys.readouterr().err
     assert says in err and "Traceback" not in err
     assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("content", ['{"x": 1}', "[1, 2]", "not json"])
+@pytest.mark.parametrize(
+    ("name", "argv"),
+    [
+        ("time_to_solution", ["--report", "{bad}", "--page", "{tmp}/page.md"]),
+        ("work_precision", ["--report", "{bad}", "--page", "{tmp}/page.md"]),
+        ("friction_step_sector", ["--report", "{bad}", "--page", "{tmp}/page.md"]),
+        ("work_precision_stats", ["--report", "{bad}", "--page", "{tmp}/page.md", "--figures", "{tmp}/fig"]),
+        ("work_precision_stats", ["--by-part", "{bad}"]),
+    ],
+)
+def test_study_reports_refuse_a_file_that_is_not_their_results(
+    name: str, argv: list[str], content: str, tmp_path: Path, capsys
+):
+    """--report (and --by-part) of a JSON file of something else, or of no JSON: one line, exit code 2, no page."""
+    bad = tmp_path / "bad.json"
+    bad.write_text(content)
+    try:
+        code = load_script(name).main([a.format(tmp=tmp_path, bad=bad) for a in argv])
+    except SystemExit as stop:
+        code = stop.code
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err
+    assert "not a result file" in err or "not JSON" in err or "not a readable" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json"]

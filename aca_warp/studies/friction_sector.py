@@ -149,7 +149,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{SCRIPT}: error: {e}", file=sys.stderr)
         return 2
     if args.report is not None:
-        lines = [line for path in args.report for line in [*report(json.loads(path.read_text())), ""]][:-1]
+        try:
+            lines = [line for path in args.report for line in [*report(json.loads(path.read_text())), ""]][:-1]
+        except (ValueError, KeyError, TypeError, IndexError) as e:  # JSON that is not this study's results
+            print(f"{SCRIPT}: error: --report: not a result file of this study ({type(e).__name__}: {e})",
+                  file=sys.stderr)  # fmt: skip
+            return 2
         if args.page is not None:
             replace_generated(args.page, lines, generated_markers(f"scripts/{SCRIPT} --report"), "Friction step")
         print("\n".join(lines))

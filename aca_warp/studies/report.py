@@ -62,8 +62,8 @@ def measure_or_report(
     parses ``argv`` (``sys.argv[1:]`` when None) with ``parser``, then ``report(args)``; else Warp is initialised
     (:func:`init_warp`) and ``measure(args, argv)`` runs (``argv`` for the results' :func:`command_line`).
     Returns 0; before anything is written, one line on stderr and exit code 2 (4: an output that takes no file)
-    for a --report file that is not there, a page or figure folder that cannot be written, an absent ``--device`` or
-    an ``--out`` folder that cannot be made."""
+    for a --report file that is not there or (raised by ``report``) not this study's results, a page or figure
+    folder that cannot be written, an absent ``--device`` or an ``--out`` folder that cannot be made."""
     from aca_warp.common.devices import get_device
     from aca_warp.common.errors import AcaError, SceneError
     from aca_warp.common.errors import command_line as command_line_flags
@@ -86,7 +86,12 @@ def measure_or_report(
         print(f"{parser.prog}: error: {e}", file=sys.stderr)
         return e.exit_code
     if args.report:
-        report(args)
+        try:
+            report(args)
+        except (ValueError, KeyError, TypeError, IndexError) as e:  # JSON that is not this study's results
+            print(f"{parser.prog}: error: --report: not a result file of this study ({type(e).__name__}: {e})",
+                  file=sys.stderr)  # fmt: skip
+            return 2
         return 0
     init_warp()
     measure(args, argv)

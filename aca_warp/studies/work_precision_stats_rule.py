@@ -486,12 +486,23 @@ def without_stepping(config: Any) -> Any:
 
 
 def load_results(source: dict[str, Any] | str | Path) -> dict[str, Any]:
-    """A result document (the study's JSON) from a dict or a path."""
+    """A result document (the study's JSON) from a dict or a path; ValueError for a file that is not one (no
+    object with a ``regimes`` object of regimes that each hold ``pads`` and ``settings`` lists)."""
     if isinstance(source, dict):
         return source
     import json
 
-    return json.loads(Path(source).read_text())
+    try:
+        doc = json.loads(Path(source).read_text())
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{source}: not JSON ({e})") from None
+    regimes = doc.get("regimes") if isinstance(doc, dict) else None
+    if not isinstance(regimes, dict) or not all(
+        isinstance(r, dict) and isinstance(r.get("pads"), list) and isinstance(r.get("settings"), list)
+        for r in regimes.values()
+    ):
+        raise ValueError(f"{source}: not a result file of the statistical work-precision study")
+    return doc
 
 
 def settings_for(
