@@ -21,3 +21,18 @@ def load_script(name: str) -> ModuleType:
     sys.modules[name] = module  # dataclasses look their module up while the script runs
     spec.loader.exec_module(module)
     return module
+
+
+def exit_code(name: str, argv: list[str]) -> object:
+    """The exit code of ``scripts/<name>.py`` run with ``argv``: its ``main()`` called while ``sys.argv`` is
+    ``[<name>.py, *argv]`` (a ``main(argv=None)`` reads it there too), the value it returns or the code of the
+    SystemExit it raises (``argparse``'s errors)."""
+    module = load_script(name)
+    saved = sys.argv
+    sys.argv = [f"{name}.py", *argv]
+    try:
+        return module.main()
+    except SystemExit as stop:
+        return stop.code
+    finally:
+        sys.argv = saved

@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from scriptload import load_script
+from scriptload import exit_code
 
 ABSENT = "cuda:99"
 HF_STUDY = ["--quick", "--outdir", "{tmp}/out"]
@@ -77,11 +77,7 @@ VALIDATION = ["--quick", "--device", "cpu", "--only", "hf1", "--out", "{tmp}/out
 )
 def test_study_scripts_refuse_bad_arguments(name: str, argv: list[str], says: str, tmp_path: Path, capsys):
     """One line (after any usage), exit code 2, no traceback, and nothing in the output's place."""
-    try:
-        code = load_script(name).main([a.format(tmp=tmp_path) for a in argv])
-    except SystemExit as stop:
-        code = stop.code
-    assert code == 2
+    assert exit_code(name, [a.format(tmp=tmp_path) for a in argv]) == 2
     err = capsys.readouterr().err
     assert says in err and "Traceback" not in err
     assert not any(tmp_path.iterdir())
@@ -104,10 +100,7 @@ def test_study_reports_refuse_a_file_that_is_not_their_results(
     """--report (and --by-part) of a JSON file of something else, or of no JSON: one line, exit code 2, no page."""
     bad = tmp_path / "bad.json"
     bad.write_text(content)
-    try:
-        code = load_script(name).main([a.format(tmp=tmp_path, bad=bad) for a in argv])
-    except SystemExit as stop:
-        code = stop.code
+    code = exit_code(name, [a.format(tmp=tmp_path, bad=bad) for a in argv])
     err = capsys.readouterr().err
     assert code == 2 and "Traceback" not in err
     assert "not a result file" in err or "not JSON" in err or "not a readable" in err, err

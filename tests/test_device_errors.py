@@ -8,7 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from scriptload import load_script
+from scriptload import exit_code, load_script
 
 from aca_warp.common.devices import get_device
 from aca_warp.common.errors import SceneError
@@ -61,16 +61,9 @@ def test_scripts_refuse_an_absent_device(name: str, argv: list[str], tmp_path: P
     ("name", "out_flag"),
     [("bench_lf", "--json"), ("onchip_gpu_check", "--out")],
 )
-def test_scripts_without_argv_refuse_an_absent_device(
-    name: str, out_flag: str, tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
-):
+def test_scripts_without_argv_refuse_an_absent_device(name: str, out_flag: str, tmp_path: Path, capsys):
     out = tmp_path / "out"
-    monkeypatch.setattr("sys.argv", [f"{name}.py", "--device", ABSENT, out_flag, str(out)])
-    try:
-        code = load_script(name).main()
-    except SystemExit as stop:
-        code = stop.code
-    assert code == 2
+    assert exit_code(name, ["--device", ABSENT, out_flag, str(out)]) == 2
     assert "not available here" in capsys.readouterr().err
     assert not out.exists()
 
@@ -129,12 +122,7 @@ def test_scripts_refuse_bad_arguments(
     """A mistyped argument: one line (after any usage) and exit code 2, before the first compile and with nothing
     written (``main()`` reads ``sys.argv``; ``main(argv)``, given none, does too)."""
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr("sys.argv", [f"{name}.py", *(a.format(tmp=tmp_path) for a in argv)])
-    try:
-        code = load_script(name).main()
-    except SystemExit as stop:
-        code = stop.code
-    assert code == 2
+    assert exit_code(name, [a.format(tmp=tmp_path) for a in argv]) == 2
     err = capsys.readouterr().err
     assert says in err and "Traceback" not in err
     assert not any(tmp_path.iterdir())
