@@ -20,7 +20,7 @@ import numpy as np
 from aca_warp.common.argtypes import int_at_least, nonneg, positive
 from aca_warp.common.devices import get_device
 from aca_warp.common.errors import AcaError, SceneError
-from aca_warp.studies.report import Log, clean, command_line, generated_markers, replace_generated
+from aca_warp.studies.report import Log, command_line, generated_markers, replace_generated
 from aca_warp.studies.validation import multiscale as validation_multiscale
 from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK, ROWS, Config, Experiment, close_pools
 from aca_warp.studies.validation.cost import Costs, batch_friction_step, overheads
@@ -31,6 +31,7 @@ from aca_warp.studies.validation.experiments import (
     prepare,
     reanalyse,
     run_batch,
+    same_definition,
 )
 from aca_warp.studies.validation.results import render_report, write_results
 
@@ -295,7 +296,7 @@ def earlier_results(paths: list[Path] | None, cfg: Config, log: Callable[[str], 
             log(f"{path}: other settings than this run's; not used")
             continue
         done = {n: r for n, r in results.items() if n in EXPERIMENTS and r.get("status") in ("done", "stopped")}
-        stale = [n for n, r in done.items() if r.get("experiment") != clean(EXPERIMENTS[n].key())]
+        stale = [n for n, r in done.items() if not same_definition(r, EXPERIMENTS[n])]
         if stale:
             log(f"{path}: {', '.join(stale)} not used: made with another definition of the experiment")
             done = {n: r for n, r in done.items() if n not in stale}

@@ -374,12 +374,17 @@ def save_result(folder: Path, result: dict[str, Any], arrays: dict[str, np.ndarr
     tmp.replace(folder / "result.json")
 
 
+def same_definition(res: dict[str, Any], exp: Experiment) -> bool:
+    """Whether the saved result ``res`` was made with the current definition of ``exp``."""
+    return res.get("experiment") == clean(exp.key())
+
+
 def fits(res: dict[str, Any], exp: Experiment, cfg: Config) -> bool:
     """Whether the saved result ``res`` was made with the definition of ``exp`` and the settings ``cfg`` (and, for a
     §3.3 experiment, from the same LF run files as those in ``cfg.lf_dir``)."""
     from aca_warp.studies.validation.multiscale import lf_runs
 
-    same = res.get("experiment") == clean(exp.key()) and res.get("config") == cfg.run_key()
+    same = same_definition(res, exp) and res.get("config") == cfg.run_key()
     return same and res.get("lf_runs", {}) == lf_runs(exp, cfg)
 
 
