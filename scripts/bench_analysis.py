@@ -24,7 +24,7 @@ from aca_warp.analysis import sync_index_from_signals
 from aca_warp.common.argtypes import int_at_least, positive
 from aca_warp.common.devices import init_warp
 from aca_warp.common.errors import AcaError, SceneError
-from aca_warp.common.files import check_output_path, check_room, machine, open_h5
+from aca_warp.common.files import check_output_path, check_room, machine, open_h5, partial_path
 
 CHUNK = 1024  # samples per chunk, as in run files
 
@@ -85,7 +85,7 @@ def main() -> None:
         ap.exit(e.exit_code, f"{ap.prog}: error: {e}\n")
     t0 = time.perf_counter()
     if not args.file.exists():
-        part = args.file.with_name(args.file.name + ".partial")  # a stopped write leaves no file that looks whole
+        part = partial_path(args.file)  # a stopped write leaves no file that looks whole
         try:
             write_signals(part, args.patches, samples, args.dt, seed=1)
             part.replace(args.file)
