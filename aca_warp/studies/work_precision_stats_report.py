@@ -7,6 +7,7 @@ page is computed here from the per-pad values in the result files.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -264,8 +265,17 @@ def regime_results(doc: dict[str, Any], name: str, rule: float, measures: Sequen
     ref = reference_of(reg)
     walls = {s["label"]: s["wall_s"] for s in reg["settings"] if s.get("wall_s") is not None}
     ran = [s for s in reg["settings"] if usable(s)]
-    cut = [s["label"] for s in reg["settings"] if str(s.get("fault")).startswith("not run")]
+    absent = "not in this part"  # a merged regime's setting that some parts did not ask for
+    cut = [
+        s["label"] for s in reg["settings"] if str(s.get("fault")).startswith("not run") and absent not in s["fault"]
+    ]
+    some = [(s["label"], re.search(r"complete in \d+ of \d+ parts", s["fault"]))
+            for s in reg["settings"] if absent in str(s.get("fault"))]  # fmt: skip
     out = [f"**{name}** ({_pads(reg)} patches, {len(ran)} of {len(reg['settings'])} settings run"]
+    if some:
+        out[0] += "; run in some parts only, so on fewer seeds and left out of the rule: " + ", ".join(
+            f"`{label}` ({m.group(0) if m else 'not in every part'})" for label, m in some
+        )
     out[0] += f"; not run, cut by the call's time limit: {', '.join(f'`{c}`' for c in cut)})." if cut else ")."
     if ch.setting == ref["label"]:
         out.append(f"The rule keeps the reference `{ref['label']}` ({fmt(ref['wall_s'])} s).")
