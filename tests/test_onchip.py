@@ -394,12 +394,13 @@ def test_default_block(nmax, cluster, growth, fp64, expected):
 
 @pytest.mark.parametrize(
     ("pads", "split", "expected"),
-    [(1, False, 8), (14, False, 8), (15, False, 4), (28, False, 4), (29, False, 2), (64, False, 2), (66, False, 2),
-     (67, False, 1), (67, True, 2), (1024, False, 1), (1024, True, 2)],
+    [(1, False, 8), (14, False, 8), (15, False, 5), (21, False, 5), (22, False, 4), (28, False, 4), (29, False, 2),
+     (64, False, 2), (66, False, 2), (67, False, 1), (67, True, 2), (1024, False, 1), (1024, True, 2)],
 )  # fmt: skip
 def test_default_cluster(pads, split, expected):
-    """Blocks per pad on an H100 (132 SMs): the clusters of 8, 4 and 2 that run in one wave there (14, 28, 66,
-    measured), else 1, or 2 where only a split pad's CSR fits on chip; a sweep's default 64-pad shard gets K = 2."""
+    """Blocks per pad on an H100 or H200 (132 SMs): the clusters of 8, 5, 4 and 2 that run in one wave there (14, 21,
+    28, 66, measured), else 1, or 2 where only a split pad's CSR fits on chip; a sweep's default 64-pad shard gets
+    K = 2."""
     assert default_cluster(pads, 132, split) == expected
 
 

@@ -117,17 +117,20 @@ def default_cluster(pads: int, sm_count: int, split_fits_csr: bool = False) -> i
     once (one hf1 block per SM). Measured on an H100 (132 SMs; hf1 fp32, 2026-11-25,
     docs/benchmarks/onchip_h100/cluster_waves_*.md): 14 clusters of 8, 28 of 4 and 66 of 2 run in one wave, 16, 32
     and 68 need a second one (a step then takes 1.6–1.9× as long). Whole GPCs of 18 SMs (sm_count // 18 of them)
-    hold 18 // K clusters of 4 or 8, and pairs fill every SM; so K is the largest of 8, 4 with pads ≤
+    hold 18 // K clusters of 4, 5 or 8, and pairs fill every SM; so K is the largest of 8, 5, 4 with pads ≤
     (sm_count // 18) · (18 // K), else 2 with pads ≤ sm_count // 2; otherwise 1, or 2 when only a pad split in two
     keeps its neighbour lists in shared memory (fp64 hf1 pads: 2 blocks fastest, or within 2 %, from 57 to 1024
     pads). Once the batch fills the GPU, a cluster loses (it repeats the u update of the whole pad in every block):
     fp32 pads 67–1024 run fastest on one block each (64 pads: 7.2 µs/step on K = 1, 4.5 on K = 2; 100 pads: 7.5
     against 8.3). One pad: 6.3 → 1.8 µs/step fp32 (K = 1 → 8) and 18.4 → 2.6 fp64
     (docs/benchmarks/onchip_h100/bench_cluster.md); the growing varying_area pad (an event every 20 steps):
-    11.4 → 2.7 µs/step fp32 (K = 1 → 8; K = 4: 3.5; docs/benchmarks/onchip_h100/cluster_exchange_ab.md).
+    11.4 → 2.7 µs/step fp32 (K = 1 → 8; K = 4: 3.5; docs/benchmarks/onchip_h100/cluster_exchange_ab.md). Clusters
+    of 5 (15–21 pads on 132 SMs; 21 run in one wave, 24 do not) step 16–27 % faster than 4 there on an H200: hf1
+    fp32 2.47–2.79 against 3.16–3.37 µs/step, 16 growing varying_area pads 3.45 against 4.10
+    (docs/benchmarks/onchip_h200_cluster5/).
     """
     gpcs = max(sm_count // 18, 1)
-    for k in (8, 4):
+    for k in (8, 5, 4):
         if pads <= gpcs * (18 // k):
             return k
     if pads <= sm_count // 2:

@@ -1,9 +1,9 @@
 """The estimated wall time of a validation run: stepping per batch, kernel compilation, LF runs and analysis.
 
 **Stepping** (:func:`step_seconds`). On CUDA the on-chip engine advances every pad of a batch in one thread block or
-a cluster of K blocks (``default_cluster``: K = 8 for ≤ 14 pads, 4 for ≤ 28, 2 for ≤ 66, else 1 on an H100's 132
-SMs), every block sized for the batch's largest pad. A step then takes, per wave of clusters that fit the GPU at
-once (14 of 8, 28 of 4, 66 of 2, 132 of 1),
+a cluster of K blocks (``default_cluster``: K = 8 for ≤ 14 pads, 5 for ≤ 21, 4 for ≤ 28, 2 for ≤ 66, else 1 on an
+H100's or H200's 132 SMs), every block sized for the batch's largest pad. A step then takes, per wave of clusters that
+fit the GPU at once (14 of 8, 21 of 5, 28 of 4, 66 of 2, 132 of 1),
 
     a + b · w / K   [µs],   w = ½ N/1758 + ½ L/L_hf1,
 
@@ -31,7 +31,7 @@ from aca_warp.scene.parts import pairs_within
 
 COEFFICIENTS = {"fp32": (1.16e-6, 5.14e-6), "fp64": (1.51e-6, 8.88e-6)}  # (a, b) [s] of a + b·w/K
 HF1_PATCHES, HF1_LINKS = 1758, 20904
-WAVE = {8: 14, 4: 28, 2: 66, 1: 132}  # clusters of K blocks in one wave on an H100 (cluster_waves_*.md)
+WAVE = {8: 14, 5: 21, 4: 28, 2: 66, 1: 132}  # clusters of K in one wave on 132 SMs (cluster_waves_*.md, cluster5)
 OFF_CHIP = 5.0
 GROWTH_FLOOR_S = {"fp32": 2.7e-6, "fp64": 3.9e-6}
 """Seconds per step of a batch of growing pads in one wave (on-chip engine, a cluster of 8 blocks per pad): 2.7 µs
@@ -53,7 +53,7 @@ def links(scene: Any, radius: float = 5.0e-3) -> int:
 
 def cluster(pads: int) -> int:
     """Blocks per pad by ``default_cluster``'s rule on an H100 (a pad that must split to fit aside)."""
-    for k in (8, 4, 2):
+    for k in (8, 5, 4, 2):
         if pads <= WAVE[k]:
             return k
     return 1
