@@ -244,14 +244,36 @@ def test_table_rows_and_every_registered_row_has_a_known_kind():
 
 
 def test_stepping_is_each_regimes_pick_of_the_statistical_work_precision_or_an_override():
+    from pathlib import Path
+
     from aca_warp.hf.solver import StepEstimate, friction_step
+    from aca_warp.studies import work_precision_stats_rule as rule
     from aca_warp.studies.validation import settings as VSet
     from aca_warp.studies.validation.base import EXPERIMENTS
+    from aca_warp.studies.validation.hf_experiments import PRESETS
     from aca_warp.studies.validation.multiscale import GROUPS
 
     cfg = VB.Config()
-    assert cfg.stepping("hf").dt == cfg.stepping("growth").dt == 5e-8  # hf1, hf2 and va pick 5e-8 s
-    assert cfg.stepping("hf").precision == "fp32"  # hf3 too: with 128 seeds it keeps every measure in fp32
+    # each entry is the rule's pick from the committed result files of docs/work_precision_statistics.md
+    wps = Path(__file__).resolve().parent.parent / "docs" / "figures" / "work_precision_statistics"
+    files = {"hf1": "wps_cuda0_hf1.json", "hf2": "wps_cuda0_hf2.json", "hf3": "wps_cuda0_hf3.json",
+             "hf4": "wps_cuda0_hf4.json", "va": "wps_cuda0_va.json", "ms_fast": "wps_cuda0_ms_fast.json",
+             "ms_short": "wps_cuda0_ms_short.json", "ms_mid": "wps_cuda1_ms_mid.json",
+             "ms_app3": "wps_cuda0123_ms_app3.json"}  # fmt: skip
+    picks = {}
+    for regime, name in files.items():
+        label = rule.settings_for(rule.load_results(wps / name), regime).setting
+        integrator, rest = label.split("@")
+        precision, dt = rest.split(":dt=")
+        picks[regime] = (integrator, precision, float(dt))
+    assert picks["hf1"] == picks["hf2"] == picks["hf3"] == ("strang", "fp32", 1e-7)  # hf1, hf2 over 96 seeds
+    assert picks["hf4"] == ("strang", "fp32", 5e-7)
+    hf = cfg.stepping("hf")  # the presets' batches: the finest of their picks
+    assert (hf.integrator, hf.precision, hf.dt) == min((picks[r] for r in PRESETS), key=lambda p: p[2])
+    for key, regime in (("growth", "va"), ("ms_fast", "ms_fast"), ("ms_short", "ms_short"), ("ms_mid", "ms_mid"),
+                        ("ms_app3", "ms_app3")):  # fmt: skip
+        st = cfg.stepping(key)
+        assert (st.integrator, st.precision, st.dt) == picks[regime], key
     hf3 = [n for n in EXPERIMENTS if n.startswith("hf3")]
     assert sorted(hf3) == ["hf3", "hf3_equal", "hf3_equal_lin", "hf3_lin", "hf3_rest"]
     assert {(EXPERIMENTS[n].stepping, EXPERIMENTS[n].batch) for n in hf3} == {
@@ -260,7 +282,6 @@ def test_stepping_is_each_regimes_pick_of_the_statistical_work_precision_or_an_o
         ("hf", "lin"),
     }
     assert (cfg.stepping("ms_fast").dt, cfg.stepping("ms_fast").precision) == (1e-8, "fp64")  # only the reference
-    assert [cfg.stepping(g).dt for g in ("ms_short", "ms_mid", "ms_app3")] == [5e-8, 1e-7, 1e-7]
     # each LF group (and its from-rest variant) runs at its own regime's pick; ms_lin holds the densest states
     for g in GROUPS:
         assert EXPERIMENTS[g].stepping == g

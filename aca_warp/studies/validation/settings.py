@@ -48,13 +48,14 @@ _LF_REGIME = (
 
 STEPPING: dict[str, Stepping] = {
     "hf": Stepping(
-        dt=5.0e-8,
+        dt=1.0e-7,
         reason="HF1–HF4, the area sweep and their variants: the statistical work-precision on H200s (30 ms, a 10 ms "
-        "window; docs/work_precision_statistics.md) keeps every validation measure within a quarter of the spread "
-        "between seeds with strang fp32 at 5e-8 s for hf1 and hf2 (32 saturated pads each) and at no coarser step (at "
-        "1e-7 s the velocity-sum peak moves in hf1, μ std and S − S_null in hf2); hf3 (128 pads, none saturated "
-        "within 30 ms) keeps every measure in fp32 up to 1e-7 s, hf4 (32 pads) up to 5e-7 s; 20 steps per µs "
-        "sample; fp32 also keeps the neighbour lists on chip",
+        "window, against strang fp64 at 1e-8 s; docs/work_precision_statistics.md) keeps every validation measure "
+        "within a quarter of the spread between seeds with strang fp32 at 1e-7 s for hf1 and hf2 (96 saturated pads "
+        "each) and hf3 (128 pads, none saturated within 30 ms), and up to 5e-7 s for hf4 (32 pads); at 2.5e-7 s Φ "
+        "moves in hf1 and hf3, μ mean in hf2. The area sweep lies between hf1 and hf2, the equal-height, from-rest "
+        "and linear-phase variants are the same pads in other states: none is a regime of its own there. 10 steps "
+        "per µs sample; fp32 also keeps the neighbour lists on chip",
     ),
     "growth": Stepping(
         dt=5.0e-8,
