@@ -9,7 +9,7 @@ seeds and layouts, one setting changed) or changes the analysis of the same runs
   rest (``ms_*_rest``, opt-in); this variant is also shown beside every row of the main table
   (:func:`beside_rest`), since which state the paper's figures show is not stated;
 * **run length** — the linear phase: the presets from rest for 4 ms, analysed over 0.2–4 ms unsaturated, as the
-  single-run study of results_hf.md (``hf*_lin``); for §3.3 every LF state from rest for 2 ms (``ms_lin``);
+  single-run study of results_hf.md (``hf*_lin``); for §3.3 every LF state from rest for 2 ms (``ms_*_lin``);
 * **height spread** — every patch height 3 µm (``hf*_equal``; for §3.2 ``va_equal``, compressed as ``va``);
 * **single-run conditions** — equal heights, from rest and the 4 ms window together (``hf*_equal_lin``);
 * **growth clock** — the varying-area growth compressed × ``Config.growth_speedup`` (``va``);
@@ -144,7 +144,7 @@ def variants(cfg: Config) -> list[Variant]:
         *(Variant(c, label, sub) for c, label, sub in REST_VARIANTS),
         Variant("initial state", "from rest", _sub(ms, "_rest")),
         Variant("run length", "linear phase: 4 ms from rest, 0.2–4 ms", _sub(PRESETS, "_lin")),
-        Variant("run length", "linear phase: 2 ms from rest, 0.5–2 ms", tuple((n, "ms_lin") for n in ms)),
+        Variant("run length", "linear phase: 2 ms from rest, 0.5–2 ms", _sub(ms, "_lin")),
         Variant("height spread", "equal heights (3 µm)", _sub(PRESETS, "_equal")),
         Variant("height spread", f"equal heights, growth compressed × {cfg.growth_speedup:g}",
                 (("va_full", "va_equal"),)),

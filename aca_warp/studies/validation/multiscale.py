@@ -54,6 +54,8 @@ GROUPS = {  # by the predicted time to saturation and the size of LF seed 1's st
 }
 MAIN = tuple(GROUPS)
 REST = tuple(f"{g}_rest" for g in GROUPS)
+LIN = tuple(f"{g}_lin" for g in GROUPS)  # the linear phase from rest: the single run's window
+LIN_DURATION, LIN_START = 2.0e-3, 0.5e-3  # s
 ORDER_BAR = (10.0, 5.0, 30.0, 15.0)  # the low-load application right after the 10-bar one
 QUICK_DURATIONS = (2.0, 1.0)  # s: application and pause lengths of the quick variant (multiscale_study --quick)
 BAND = (20.0e3, 80.0e3)  # Hz: §4, "the characteristic friction and synchronization behavior ... 20–80 kHz"
@@ -318,16 +320,16 @@ def _ms(name: str, description: str, members: tuple[str, ...], stepping: str, **
                       window_scale=0.5, stepping=stepping, **kw)  # fmt: skip
 
 
-# each group runs at its regime's stepping (settings.STEPPING, keyed by the group); ms_lin holds the densest states
+# each group runs at its regime's stepping (settings.STEPPING, keyed by the group), its variants too
 MS_EXPERIMENTS = (
     *(_ms(g, f"LF states {', '.join(m)} (one pad per state and LF seed)", m, g) for g, m in GROUPS.items()),
     *(_ms(f"{g}_rest", f"as {g}, HF started from rest (initial-state variant)", m, g, initial="rest", quick=False,
           opt_in=True) for g, m in GROUPS.items()),
     _ms("ms_order", "LF schedule 10 / 5 / 30 / 15 bar: the low-load application (app2) right after the 10-bar one "
         "(load-history variant)", ("app2_start",), "ms_order", schedule_bar=ORDER_BAR),
-    _ms("ms_lin", "every state from rest for 2 ms, analysed over 0.5–2 ms unsaturated (the single run's window; "
-        "run-length variant)", STATES, "ms_fast", initial="rest", kind="window", duration=2.0e-3,
-        window_start=0.5e-3),
+    *(_ms(f"{g}_lin", f"as {g}, from rest for 2 ms, analysed over 0.5–2 ms unsaturated (the single run's window; "
+          "run-length variant)", m, g, initial="rest", kind="window", duration=LIN_DURATION,
+          window_start=LIN_START) for g, m in GROUPS.items()),
 )  # fmt: skip
 
 

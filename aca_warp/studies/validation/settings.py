@@ -3,9 +3,9 @@
 Every experiment names one entry of :data:`STEPPING` (``Experiment.stepping``), and a batch of experiments runs with
 the entry's integrator, fixed step and precision. Each entry is the setting that the statistical work-precision rule
 (docs/work_precision_statistics.md: every validation measure within a quarter of the spread between seeds from a
-tight reference) picks for the regime the experiments belong to, or the tightest pick where a batch spans several
-regimes (``ms_lin``: every LF state). The run then shortens the step to a whole number of steps per sample
-interval (``fitted_step``). ``--dt`` and ``--precision`` replace the table's values for every experiment.
+tight reference) picks for the regime the experiments belong to; a group of LF states and its variants (from rest,
+the linear phase) take the group's. The run then shortens the step to a whole number of steps per sample interval
+(``fitted_step``). ``--dt`` and ``--precision`` replace the table's values for every experiment.
 
 The friction step of each batch (:func:`~aca_warp.hf.solver.friction_step`, the step at which h γ_max = 4) is still
 logged and stored with its results: it bounds no step of ``strang`` (only the springs do), but it says how stiff
@@ -69,7 +69,7 @@ STEPPING: dict[str, Stepping] = {
     "ms_fast": Stepping(
         dt=1.0e-8,
         precision="fp64",
-        reason="the densest LF states (app2_start, 3618–4374 patches) and the linear-phase variant that holds them: "
+        reason="the densest LF states (app2_start, 3618–4374 patches), with their variants: "
         "the statistical work-precision on two H200s (one pad per LF seed 1–64, against strang fp64 at 1e-8 s; "
         "docs/work_precision_statistics.md) keeps only its reference, strang fp64 at 1e-8 s: the growth rate moves "
         "by 0.32 σ at fp64 5e-8 s, 0.29 σ at fp64 2e-8 s and 0.36 σ at fp32 5e-8 s (those three agree with each "
