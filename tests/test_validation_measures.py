@@ -308,3 +308,19 @@ def test_cost_model_follows_the_measured_waves_and_the_shared_memory():
     assert dense > 4 * VC.step_seconds(8, 1758, 20904, "fp64", False, "cuda:0")  # lists off chip
     assert VC.step_seconds(1, 1758, 20904, "fp32", True, "cuda:0") == VC.GROWTH_FLOOR_S["fp32"]
     assert VC.step_seconds(2, 500, 100, "fp64", False, "cpu") == pytest.approx(1000 / VC.CPU_PATCH_STEPS)
+
+
+def test_fig8_plateau_is_none_where_its_far_band_lies_beyond_the_spectrum():
+    """A first peak above a 2.5th of the spectrum's top (an LF state whose f1 is 235 kHz in a 500 kHz spectrum) has no
+    far band: its plateau measures are None and the pad keeps every other Fig. 8 measure (before, the pad's whole
+    analysis failed); a peak well inside keeps its plateau."""
+    freq = np.linspace(0.0, 500.0e3, 2001)
+    rng = np.random.default_rng(3)
+    spectra = {k: np.abs(rng.normal(1.0, 0.1, freq.size)) for k in ("velocity", "mu", "torque", "friction_radius")}
+    for f1, has_plateau in ((235.0e3, False), (60.0e3, True)):
+        for amp in spectra.values():
+            amp[np.argmin(np.abs(freq - f1))] = 20.0
+        out = VM.fig8_measures(freq, spectra, f1)
+        assert (out["plateau_velocity"] is not None) is has_plateau
+        assert all((out[f"plateau_{k}"] is None) is not has_plateau for k in ("mu", "torque", "radius"))
+        assert out["contrast_velocity"] > 5.0 and math.isfinite(out["peak_width"])

@@ -66,11 +66,15 @@ def velocity_sum_peaks(seg: np.ndarray, sample_dt: float, fmin: float) -> dict[s
     }
 
 
+PLATEAU_FAR = (2.5, 4.0)  # the plateau's far band, multiples of f1
+
+
 def fig8_measures(freq: np.ndarray, spectra: dict[str, np.ndarray], f1: float) -> dict[str, Any]:
     """The Fig. 8 shape measures of one pad at its first velocity peak f1 (global spectra of one segment).
 
     * ``contrast_*``: peak_to_floor at f1 (±2 bins over the median of [f1/2, 2 f1]) of velocity, μ, torque, radius;
-    * ``plateau_*``: plateau_excess (median over [1.1, 2] f1 against [2.5, 4] f1) of the same four;
+    * ``plateau_*``: plateau_excess (median over [1.1, 2] f1 against [2.5, 4] f1) of the same four; None where the
+      far band starts beyond the spectrum's last bin (f1 above a 2.5th of it: no level to compare with);
     * ``overlap_mu_torque`` / ``overlap_mu_radius``: spectral_overlap D over 1–200 kHz;
     * ``shared_*``: shared_peak_fraction of μ's peaks in μ, torque and radius (1–200 kHz), with chance, and the
       share of those shared peaks also in the velocity spectrum (``shared_in_velocity``) with its chance;
@@ -90,9 +94,10 @@ def fig8_measures(freq: np.ndarray, spectra: dict[str, np.ndarray], f1: float) -
 
     out: dict[str, Any] = {}
     names = {"velocity": "velocity", "mu": "mu", "torque": "torque", "radius": "friction_radius"}
+    far_inside = PLATEAU_FAR[0] * f1 < float(freq[-1])
     for short, key in names.items():
         out[f"contrast_{short}"] = peak_to_floor(freq, spectra[key], f1).ratio
-        out[f"plateau_{short}"] = plateau_excess(freq, spectra[key], f1).excess
+        out[f"plateau_{short}"] = plateau_excess(freq, spectra[key], f1, far=PLATEAU_FAR).excess if far_inside else None
     band = (1.0e3, min(200.0e3, float(freq[-1])))
     out["overlap_mu_torque"] = spectral_overlap(freq, spectra["mu"], spectra["torque"], band=band).mean_abs_log
     out["overlap_mu_radius"] = spectral_overlap(freq, spectra["mu"], spectra["friction_radius"], band=band).mean_abs_log
