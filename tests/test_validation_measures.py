@@ -297,8 +297,12 @@ def test_stepping_is_each_regimes_pick_of_the_statistical_work_precision_or_an_o
 
 
 def test_cost_model_follows_the_measured_waves_and_the_shared_memory():
+    from aca_warp.hf.onchip_layout import default_cluster
     from aca_warp.studies.validation import cost as VC
 
+    # the model's blocks per pad are the engine's on 132 SMs (H100, H200), and each K's clusters fit one wave
+    assert [VC.cluster(p) for p in range(1, 300)] == [default_cluster(p, 132) for p in range(1, 300)]
+    assert all(VC.cluster(VC.WAVE[k]) == k != VC.cluster(VC.WAVE[k] + 1) for k in (8, 5, 4, 2))
     one = VC.step_seconds(14, 1758, 20904, "fp32", False, "cuda:0")
     assert one == pytest.approx(1.16e-6 + 5.14e-6 / 8)  # one wave of clusters of 8
     assert VC.step_seconds(64, 1758, 20904, "fp32", False, "cuda:0") == pytest.approx(1.16e-6 + 5.14e-6 / 2)

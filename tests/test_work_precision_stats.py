@@ -447,7 +447,8 @@ def _parts_of(reg: dict, seeds: list[range], tags: list[str]) -> list[dict]:
 def test_merging_parts_gives_the_whole_regime(tmp_path, capsys):
     """A regime measured in parts over disjoint seeds and merged gives every comparison of the whole regime (pads
     ordered by member, then seed, whatever order the parts come in); a setting's wall time is the sum of its
-    parts', each part's kept; a setting incomplete in one part is not run in the merge; parts that overlap in
+    parts', each part's kept; a setting incomplete in one part is not run in the merge, and the report names one
+    that a part did not ask for as run in some parts only, not as cut by a time limit; parts that overlap in
     seeds, hold another regime or another device are refused; the CLI writes OUT/wps_<tag>_<regime>.json and never
     over an existing file; the page gives each part's run length."""
     from aca_warp.studies.work_precision_stats_merge import merge, merged_tag
@@ -483,6 +484,17 @@ def test_merging_parts_gives_the_whole_regime(tmp_path, capsys):
     paths[1].write_text(json.dumps(short))
     cut = merge(paths)["regimes"]["syn"]["settings"][1]
     assert not cut["complete"] and cut["fault"] == "not run: complete in 3 of 4 parts (not run: --max-wall)"
+    words = wps_report.regime_results(merge(paths), "syn", 0.25, None, "resolution")
+    assert f"cut by the call's time limit: `{cut['label']}`" in words and "some parts only" not in words
+    lacking = json.loads(json.dumps(short))
+    del lacking["regimes"]["syn"]["settings"][1]  # a setting this part did not ask for
+    paths[1].write_text(json.dumps(lacking))
+    doc = merge(paths)
+    absent = next(s for s in doc["regimes"]["syn"]["settings"] if s["label"] == cut["label"])
+    assert absent["fault"] == "not run: complete in 3 of 4 parts (not run: not in this part)"
+    words = wps_report.regime_results(doc, "syn", 0.25, None, "resolution")
+    assert f"left out of the rule: `{cut['label']}` (complete in 3 of 4 parts))." in words
+    assert "time limit" not in words
     short["regimes"]["syn"]["settings"][1]["fault"] = "refused: too tight"
     paths[1].write_text(json.dumps(short))
     assert merge(paths)["regimes"]["syn"]["settings"][1]["fault"].startswith("incomplete: complete in 3 of 4")

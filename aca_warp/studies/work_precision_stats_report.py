@@ -258,7 +258,8 @@ def regime_results(doc: dict[str, Any], name: str, rule: float, measures: Sequen
                    criterion: str) -> str:  # fmt: skip
     """What the rule says for one regime, in words: the pick with its wall time and speed-up, every setting that
     passes, what each cheaper setting does not keep, the measures kept only within resolution with the seeds the
-    strict rule would need, the runs a time limit cut, and the other criteria's picks."""
+    strict rule would need, the settings a merged regime ran in some parts only, the runs a time limit cut, and the
+    other criteria's picks."""
     reg = doc["regimes"][name]
     use = _measures(reg, measures)
     ch = settings_for(doc, name, use, rule, criterion)
