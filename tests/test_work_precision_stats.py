@@ -589,3 +589,21 @@ def test_the_pages_part_by_part_tables_are_the_scripts_output():
     for path, measures, table in blocks:
         printed = errors_by_part(rule.load_results(repo / path), measures.split())
         assert printed.split("\n\n", 1)[1] == table, path
+
+
+def test_hf1_first_part_regenerates_in_the_later_parts_code():
+    """The first hf1 part (seeds 1–32) was measured with earlier code than seeds 33–96; seeds 1 and 2 rerun with the
+    later part's code (``hf1_parts/check_s1-2``) gave its reference values bit for bit, so merging the parts mixes no
+    two versions of the model."""
+    from pathlib import Path
+
+    wps = Path(__file__).resolve().parent.parent / "docs" / "figures" / "work_precision_statistics" / "hf1_parts"
+    first = rule.load_results(wps / "s1" / "wps_cuda0_hf1.json")["regimes"]["hf1"]
+    check = rule.load_results(wps / "check_s1-2" / "wps_cuda0_hf1.json")["regimes"]["hf1"]
+    assert [int(p["seed"]) for p in check["pads"]] == [1, 2] == [int(p["seed"]) for p in first["pads"][:2]]
+    ref_first, ref_check = rule.reference_of(first), rule.reference_of(check)
+    assert ref_first["label"] == ref_check["label"] == "strang@fp64:dt=1e-08"
+    for m in first["measures"]:
+        a = np.asarray(ref_first["values"][m][:2], dtype=float)
+        b = np.asarray(ref_check["values"][m], dtype=float)
+        assert np.array_equal(a, b, equal_nan=True), m
