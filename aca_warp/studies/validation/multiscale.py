@@ -53,9 +53,7 @@ GROUPS = {  # by the predicted time to saturation and the size of LF seed 1's st
     "ms_app3": ("app3_start", "app3_end"),  # 54 and 67 ms
 }
 MAIN = tuple(GROUPS)
-REST = tuple(f"{g}_rest" for g in GROUPS)
-LIN = tuple(f"{g}_lin" for g in GROUPS)  # the linear phase from rest: the single run's window
-LIN_DURATION, LIN_START = 2.0e-3, 0.5e-3  # s
+LIN_DURATION, LIN_START = 2.0e-3, 0.5e-3  # s: the linear phase from rest, the single run's window
 ORDER_BAR = (10.0, 5.0, 30.0, 15.0)  # the low-load application right after the 10-bar one
 QUICK_DURATIONS = (2.0, 1.0)  # s: application and pause lengths of the quick variant (multiscale_study --quick)
 BAND = (20.0e3, 80.0e3)  # Hz: §4, "the characteristic friction and synchronization behavior ... 20–80 kHz"
