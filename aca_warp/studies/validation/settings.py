@@ -79,17 +79,17 @@ STEPPING: dict[str, Stepping] = {
     "ms_short": Stepping(
         dt=5.0e-8,
         reason=f"the LF states app1_start and app2_end: the statistical work-precision on one H200 {_LF_REGIME} "
-        "picks strang fp32 at 5e-8 s (at 1e-7 s μ mean moves by 0.34 σ, μ std by 0.44 σ)",
+        "picks strang fp32 at 5e-8 s (at 1e-7 s μ mean moves by 0.34 σ; μ std, 0.44 σ, is undecided)",
     ),
     "ms_mid": Stepping(
         dt=1.0e-7,
         reason=f"the LF states app1_end, app4_start and app4_end: the statistical work-precision on one H200 "
-        f"{_LF_REGIME} picks strang fp32 at 1e-7 s (at 2.5e-7 s the first velocity peak moves by 0.12 σ, undecided)",
+        f"{_LF_REGIME} picks strang fp32 at 1e-7 s (at 2.5e-7 s the first velocity peak's error is 0.12 σ, undecided)",
     ),
     "ms_app3": Stepping(
         dt=1.0e-7,
         reason=f"the LF states app3_start and app3_end: the statistical work-precision on four H200s {_LF_REGIME} "
-        "picks strang fp32 at 1e-7 s (at 2.5e-7 s Φ moves by 0.33 σ)",
+        "picks strang fp32 at 1e-7 s (at 2.5e-7 s Φ's error is 0.33 σ, undecided)",
     ),
     "ms_order": Stepping(
         dt=5.0e-8,
