@@ -71,10 +71,10 @@ STEPPING: dict[str, Stepping] = {
         precision="fp64",
         reason="the densest LF states (app2_start, 3618–4374 patches), with their variants: "
         "the statistical work-precision on two H200s (one pad per LF seed 1–64, against strang fp64 at 1e-8 s; "
-        "docs/work_precision_statistics.md) keeps only its reference, strang fp64 at 1e-8 s: the growth rate moves "
-        "by 0.32 σ at fp64 5e-8 s, 0.29 σ at fp64 2e-8 s and 0.36 σ at fp32 5e-8 s (those three agree with each "
-        "other within 0.06 σ; part of it may be the reference ensemble's own draw), the velocity-sum peak by "
-        "0.36 σ at fp64 2e-8 s",
+        "docs/work_precision_statistics.md) keeps only its reference, strang fp64 at 1e-8 s: the growth rate's "
+        "error is 0.32 σ at fp64 5e-8 s, 0.29 σ at fp64 2e-8 s and 0.36 σ at fp32 5e-8 s, undecided (those three "
+        "agree with each other within 0.06 σ; part of it may be the reference ensemble's own draw), the "
+        "velocity-sum peak's 0.36 σ at fp64 2e-8 s",
     ),
     "ms_short": Stepping(
         dt=5.0e-8,
