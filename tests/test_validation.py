@@ -681,6 +681,6 @@ def test_committed_lf_state_results_come_from_one_set_of_lf_runs():
     results, _, _ = read_results(Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json")
     runs = {n: r.get("lf_runs", {}) for n, r in results.items() if n in VB.EXPERIMENTS
             and VB.EXPERIMENTS[n].builder is VM.state_scene}  # fmt: skip
-    assert set(runs) >= {"ms_fast", "ms_short", "ms_mid", "ms_app3", "ms_order", "ms_fast_lin"}
+    assert set(runs) >= {*VM.MAIN, "ms_order", *(f"{g}_lin" for g in VM.MAIN)}  # each group's linear phase too
     assert all(runs.values()) and VM.lf_conflicts(runs) == []
     assert VM.lf_conflicts({**runs, "lf facts": results["lf_states"]["lf_runs"]}) == []

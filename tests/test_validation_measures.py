@@ -317,11 +317,12 @@ def test_cost_model_follows_the_measured_waves_and_the_shared_memory():
 def test_fig8_plateau_is_none_where_its_far_band_lies_beyond_the_spectrum():
     """A first peak above a 2.5th of the spectrum's top (an LF state whose f1 is 235 kHz in a 500 kHz spectrum) has no
     far band: its plateau measures are None and the pad keeps every other Fig. 8 measure (before, the pad's whole
-    analysis failed); a peak well inside keeps its plateau."""
+    analysis failed); a peak well inside keeps its plateau, and so does one whose far band starts inside the spectrum
+    and ends beyond it (a linear-phase app3_start pad at 190 kHz: 475–760 kHz, read over 475–500 kHz)."""
     freq = np.linspace(0.0, 500.0e3, 2001)
     rng = np.random.default_rng(3)
     spectra = {k: np.abs(rng.normal(1.0, 0.1, freq.size)) for k in ("velocity", "mu", "torque", "friction_radius")}
-    for f1, has_plateau in ((235.0e3, False), (60.0e3, True)):
+    for f1, has_plateau in ((235.0e3, False), (190.0e3, True), (60.0e3, True)):
         for amp in spectra.values():
             amp[np.argmin(np.abs(freq - f1))] = 20.0
         out = VM.fig8_measures(freq, spectra, f1)
