@@ -284,7 +284,7 @@ def test_stepping_is_each_regimes_pick_of_the_statistical_work_precision_or_an_o
     assert (cfg.stepping("ms_fast").dt, cfg.stepping("ms_fast").precision) == (1e-8, "fp64")  # only the reference
     # each LF group (and its from-rest and linear-phase variants) runs at its own regime's pick
     for g in GROUPS:
-        assert EXPERIMENTS[g].stepping == EXPERIMENTS[f"{g}_lin"].stepping == g
+        assert EXPERIMENTS[g].stepping == EXPERIMENTS[f"{g}_rest"].stepping == EXPERIMENTS[f"{g}_lin"].stepping == g
     assert "ms_lin" not in EXPERIMENTS and EXPERIMENTS["ms_order"].stepping == "ms_order"
     assert all(e.stepping in VSet.STEPPING for e in EXPERIMENTS.values())
     # the friction step is h γ_max = 4 (logged beside the step): twice the explicit friction estimate 2/γ_max
