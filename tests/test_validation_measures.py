@@ -329,3 +329,14 @@ def test_fig8_plateau_is_none_where_its_far_band_lies_beyond_the_spectrum():
         assert (out["plateau_velocity"] is not None) is has_plateau
         assert all((out[f"plateau_{k}"] is None) is not has_plateau for k in ("mu", "torque", "radius"))
         assert out["contrast_velocity"] > 5.0 and math.isfinite(out["peak_width"])
+
+
+def test_a_number_that_rounds_to_zero_is_printed_without_its_sign():
+    """The page's ranges and the plan's log print a slightly negative σ_i (a damped patch) as "0", not "-0"."""
+    from aca_warp.studies.report import unsigned_zero
+    from aca_warp.studies.validation.page import _range
+
+    assert [unsigned_zero(format(x, ".0f")) for x in (-0.3, -0.0, -1.2, 0.4, -12.0)] == ["0", "0", "-1", "0", "-12"]
+    assert unsigned_zero("-0.00") == "0.00" and unsigned_zero("-0.01") == "-0.01"
+    assert unsigned_zero("-1e-05") == "-1e-05"
+    assert _range([-0.3, 2562.0, 1296.0], spec=".0f") == "1286 (0–2562)"

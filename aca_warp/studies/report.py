@@ -135,6 +135,12 @@ def fmt(v: Any, spec: str = ".3g") -> str:
     return NO_VALUE if not math.isfinite(v) else format(v, spec)
 
 
+def unsigned_zero(text: str) -> str:
+    """``text`` (a formatted number) without the sign of a value that rounds to zero: "0", not "-0"."""
+    mantissa = text.split("e")[0]
+    return text[1:] if text.startswith("-") and not any(c in "123456789" for c in mantissa) else text
+
+
 def fmt_hz(v: Any) -> str:
     """A frequency [Hz] in kHz with one decimal, :data:`NO_VALUE` for None or a non-finite value."""
     v = num(v)

@@ -20,7 +20,7 @@ import numpy as np
 from aca_warp.common.argtypes import int_at_least, nonneg, positive
 from aca_warp.common.devices import get_device
 from aca_warp.common.errors import AcaError, SceneError
-from aca_warp.studies.report import Log, command_line, generated_markers, replace_generated
+from aca_warp.studies.report import Log, command_line, generated_markers, replace_generated, unsigned_zero
 from aca_warp.studies.validation import multiscale as validation_multiscale
 from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK, ROWS, Config, Experiment, close_pools
 from aca_warp.studies.validation.cost import Costs, batch_friction_step, overheads
@@ -158,7 +158,7 @@ def dry_run(names: list[str], cfg: Config, log: Log) -> float:
         sizes = sorted({s.patches.count for s in batch.scenes})
         log(
             f"{key} ({', '.join(members)}): {len(batch.scenes)} pads × {'/'.join(map(str, sizes))} patches; σ_i "
-            f"min/median/max {sig[0]:.0f}/{sig[1]:.0f}/{sig[2]:.0f} 1/s; run {p.duration * 1e3:.1f} ms in "
+            f"min/median/max {'/'.join(unsigned_zero(f'{x:.0f}') for x in sig)} 1/s; run {p.duration * 1e3:.1f} ms in "
             f"{len(p.segments)} segment(s); friction step {bound:.3g} s, {step.describe()}: "
             f"{steps:,} steps at {per * 1e6:.2f} µs/step = {steps * per:.0f} s on {cfg.device}; per-patch record "
             f"{sum(m.plan.velocity_bytes for m in batch.members) / 2**20:.0f} MiB"

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.studies.report import fmt, md_table
+from aca_warp.studies.report import fmt, md_table, unsigned_zero
 from aca_warp.studies.validation import area as validation_area
 from aca_warp.studies.validation import causes as validation_causes
 from aca_warp.studies.validation import multiscale as validation_multiscale
@@ -20,11 +20,12 @@ from aca_warp.studies.validation.verdicts import CRITERIA
 
 
 def _range(v: list[float | None], scale: float = 1.0, spec: str = ".3g") -> str:
-    x = np.array([np.nan if a is None else a for a in v], dtype=np.float64) * scale + 0.0  # no "-0"
+    x = np.array([np.nan if a is None else a for a in v], dtype=np.float64) * scale
     x = x[np.isfinite(x)]
     if x.size == 0:
         return "–"
-    return format(np.mean(x), spec) + (f" ({format(x.min(), spec)}–{format(x.max(), spec)})" if x.size > 1 else "")
+    one = [unsigned_zero(format(a, spec)) for a in (np.mean(x), x.min(), x.max())]
+    return one[0] + (f" ({one[1]}–{one[2]})" if x.size > 1 else "")
 
 
 def experiment_rows(results: dict[str, dict]) -> list[list[str]]:
