@@ -77,12 +77,9 @@ def test_scripts_without_argv_refuse_an_absent_device(name: str, out_flag: str, 
         (["--device", ABSENT], "not available here"),
     ],
 )
-def test_bench_onchip_refuses_bad_arguments(argv: list[str], says: str, tmp_path: Path, capsys, monkeypatch):
-    script = load_script("bench_onchip")
-    monkeypatch.setattr("sys.argv", ["bench_onchip.py", *argv, "--json", str(tmp_path / "b.json")])
-    with pytest.raises(SystemExit) as stop:
-        script.main()
-    assert stop.value.code == 2 and says in capsys.readouterr().err
+def test_bench_onchip_refuses_bad_arguments(argv: list[str], says: str, tmp_path: Path, capsys):
+    assert exit_code("bench_onchip", [*argv, "--json", str(tmp_path / "b.json")]) == 2
+    assert says in capsys.readouterr().err
     assert not (tmp_path / "b.json").exists()
 
 
