@@ -31,6 +31,7 @@ from aca_warp.scene.parts import pairs_within
 
 COEFFICIENTS = {"fp32": (1.16e-6, 5.14e-6), "fp64": (1.51e-6, 8.88e-6)}  # (a, b) [s] of a + b·w/K
 HF1_PATCHES, HF1_LINKS = 1758, 20904
+SM_COUNT = 132  # an H100's or H200's
 WAVE = {8: 14, 5: 21, 4: 28, 2: 66, 1: 132}  # clusters of K in one wave on 132 SMs (cluster_waves_*.md, cluster5)
 OFF_CHIP = 5.0
 GROWTH_FLOOR_S = {"fp32": 2.7e-6, "fp64": 3.9e-6}
@@ -52,11 +53,10 @@ def links(scene: Any, radius: float = 5.0e-3) -> int:
 
 
 def cluster(pads: int) -> int:
-    """Blocks per pad by ``default_cluster``'s rule on an H100 (a pad that must split to fit aside)."""
-    for k in (8, 5, 4, 2):
-        if pads <= WAVE[k]:
-            return k
-    return 1
+    """Blocks per pad: ``default_cluster`` on an H100's or H200's 132 SMs (a pad that must split to fit aside)."""
+    from aca_warp.hf.onchip_layout import default_cluster  # loads Warp: only where a batch is costed
+
+    return default_cluster(pads, SM_COUNT)
 
 
 def fits_on_chip(n: int, n_links: int, k: int, precision: str) -> bool:
