@@ -367,16 +367,14 @@ def patch_sample(v: Any, fn: Any, r: Any, x: Any, y: Any, omega: Any, mu_scale: 
 
 
 @wp.func
-def block_sums(s: SampleSums):
-    """The sums of every thread's ``s`` over the block (block-wide reductions: every thread must call it)."""
-    return SampleSums(
-        wp.tile_sum(wp.tile(s[0]))[0],
-        wp.tile_sum(wp.tile(s[1]))[0],
-        wp.tile_sum(wp.tile(s[2]))[0],
-        wp.tile_sum(wp.tile(s[3]))[0],
-        wp.tile_sum(wp.tile(s[4]))[0],
-        wp.tile_sum(wp.tile(s[5]))[0],
-    )
+def block_sums(s: Any):
+    """The sums over the block of every thread's float64 vector ``s`` (a :data:`SampleSums`, or a longer vector that
+    begins with one) in one block-wide reduction (every thread must call it).
+
+    A tile of vectors (``preserve_type``) is reduced with the scalar path's operations applied per component (Warp's
+    ``tile_reduce_impl`` with the vector ``add`` and the per-component ``warp_shuffle_down``), so every component is
+    the sum, in the same order, that its own scalar ``tile_sum`` gives, with one reduction's barriers for all."""
+    return wp.tile_sum(wp.tile(s, preserve_type=True))[0]
 
 
 @wp.func
