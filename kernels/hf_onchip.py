@@ -88,8 +88,10 @@ def readers(g: int, a: int, n: int, k: int, nbr_start: wp.array[wp.int32], nbr_i
 
 
 ABLATIONS = frozenset({"friction", "gather", "sync", "coupling", "contact", "gather_half"})
-# entries per block of a cluster's table of sample sums (float64): the six SampleSums (kernels.physics), Σ u, the
-# runaway patch, the first non-finite patch, the runaway patch's energy speed
+# a block's float64 sums of a sample: the six SampleSums (kernels.physics), then Σ u (for the watchdog)
+PadSums = wp.types.vector(length=7, dtype=wp.float64)
+# entries per block of a cluster's table of sample sums (float64): the seven PadSums, the runaway patch, the first
+# non-finite patch, the runaway patch's energy speed
 RED_SLOTS = 10
 
 
@@ -435,14 +437,13 @@ def onchip_kernel(
                 if due:
                     store_patch_sample(rec, prow, g, vs, uu)
                 i += threads
-            sums = block_sums(sums)
-            usum = wp.tile_sum(wp.tile(usum))[0]
+            tot = block_sums(PadSums(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5], usum))
             runaway = wp.tile_min(wp.tile(runaway))[0]
             # the block's fault candidates: its first non-finite patch, or its runaway patch's energy speed
             bad = int(-1)
             value = wp.float64(0.0)
             if lane == 0 and rec.fault[pad, 0] < 0:
-                if not (wp.isfinite(sums[3]) and wp.isfinite(usum)):
+                if not (wp.isfinite(tot[3]) and wp.isfinite(tot[6])):
                     for j in range(lo, hi):
                         if bad < 0:
                             vs = sync_velocity(j, a + j, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
@@ -454,22 +455,19 @@ def onchip_kernel(
                     value = wp.sqrt(energy_speed2(vs, get_u(u2, cur, runaway), model.k_t[g], model.inv_mass[g]))
             if CLUSTER > 1:  # block 0 combines the blocks' sums in rank order
                 if lane == 0:
-                    for c in range(6):
-                        put_red(red, rank, c, sums[c], 0)
-                    put_red(red, rank, 6, usum, 0)
+                    for c in range(7):
+                        put_red(red, rank, c, tot[c], 0)
                     put_red(red, rank, 7, wp.float64(runaway), 0)
                     put_red(red, rank, 8, wp.float64(bad), 0)
                     put_red(red, rank, 9, value, 0)
                 cluster_sync()
                 if lane == 0 and rank == 0:
-                    sums = SampleSums()
-                    usum = wp.float64(0.0)
+                    tot = PadSums()
                     runaway = n
                     bad = -1
                     for q in range(CLUSTER):
-                        for c in range(6):
-                            sums[c] += red[q, c]
-                        usum += red[q, 6]
+                        for c in range(7):
+                            tot[c] += red[q, c]
                         rq = int(red[q, 7])
                         if rq < runaway:
                             runaway = rq
@@ -479,10 +477,10 @@ def onchip_kernel(
                             bad = bq
             if lane == 0 and rank == 0:
                 write_globals(
-                    rec, row0 + s, pad, sums, omega, model.pad_mu_pad[pad], model.pad_matrix_force[pad],
+                    rec, row0 + s, pad, tot, omega, model.pad_mu_pad[pad], model.pad_matrix_force[pad],
                     model.pad_matrix_radius[pad], model.pad_load[pad],
                 )  # fmt: skip
-                broken = not (wp.isfinite(sums[3]) and wp.isfinite(usum))
+                broken = not (wp.isfinite(tot[3]) and wp.isfinite(tot[6]))
                 flag_fault(rec, pad, k, broken, bad, runaway, n, value)
             if due:
                 prow += 1

@@ -382,7 +382,7 @@ def write_globals(
     rec: Any,
     row: int,
     pad: int,
-    s: SampleSums,
+    s: Any,
     omega: Any,
     mu_pad: Any,
     matrix_force: Any,
@@ -390,8 +390,8 @@ def write_globals(
     load: Any,
 ):
     """Write one pad's sample row into ``rec.globals``: μ, torque [N m], friction radius [m], Σu̇, Σ|u̇| [m/s],
-    friction centroid [m] from the pad's :data:`SampleSums` ``s`` and the matrix's Coulomb friction μ_pad F_m sign(ω)
-    at radius r_m.
+    friction centroid [m] from the pad's :data:`SampleSums` ``s`` (or a longer vector that begins with one) and the
+    matrix's Coulomb friction μ_pad F_m sign(ω) at radius r_m.
 
     μ = (Σ F_i + μ_pad F_m sign ω)/F_N (0 without load); friction radius r_eff = T / total friction force (matrix
     included); friction centroid = |Σ F_i r⃗_i| / |Σ F_i|, the distance from the disc axis of the centroid of the
