@@ -88,6 +88,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scene", default="hf1")
     ap.add_argument("--window", type=float, default=2e-5, help="timed simulated time per run [s]")
     ap.add_argument("--repeats", type=int, default=3, help="timed runs per case and checkout")
+    ap.add_argument(
+        "--dt", type=float, default=None, help="step of the fixed-step cases [s] (default: each case's, CASES)"
+    )
     ap.add_argument("--cache", type=Path, default=None, help="kernel caches kept here (default: a temporary folder)")
     args = ap.parse_args(argv)
     for c in (args.first, args.second):
@@ -100,13 +103,16 @@ def main(argv: list[str] | None = None) -> int:
         views = [package_view(c.resolve(), Path(tmp) / f"v{i}") for i, c in enumerate((args.first, args.second))]
         for name in args.cases:
             engine, integrator, options = CASES[name]
+            if args.dt is not None and "dt" in options:
+                options = {**options, "dt": args.dt}
             for precision in args.precisions:
                 for pads in args.pads:
                     case = {"scene": args.scene, "pads": pads, "device": args.device, "precision": precision}
                     case |= {"engine": engine, "integrator": integrator, "options": options}
                     case |= {"window": args.window, "repeats": args.repeats}
                     got = [run_case(v, (args.cache or Path(tmp)) / f"cache{i}", case) for i, v in enumerate(views)]
-                    row = {"case": name, "precision": precision, "pads": pads, "first": got[0], "second": got[1]}
+                    row = {"case": name, "options": options, "precision": precision, "pads": pads}
+                    row |= {"first": got[0], "second": got[1]}
                     row["ratio"] = got[1]["wall_best"] / got[0]["wall_best"]
                     rows.append(row)
                     report = {"first": str(args.first.resolve()), "second": str(args.second.resolve()), "rows": rows}

@@ -10,7 +10,7 @@ A restructuring must not change results: this script runs, from each checkout's 
 * ``sweep`` of pads of unequal size     (2 friction factors × 2 layouts × 3 patch counts, shards of 4)
 
 (opt-in with ``--jobs``, ``EXTRA_JOBS``: the on-chip strang engine, the general adaptive engine, growth on every
-engine, both Euler schemes) and reports, per job, every dataset that differs (shape, dtype or any bit) and the root
+engine, both Euler schemes; every job on ``--device``, the CPU unless named) and reports, per job, every dataset that differs (shape, dtype or any bit) and the root
 attributes that differ (wall times, versions and similar provenance are listed separately as expected differences);
 a sweep's shard files are compared file by file, and its pads one by one (rows found through ``/pads/index``, so
 that the comparison holds when the two checkouts cut the pads into shards differently). Exit code 0 when every
@@ -24,6 +24,7 @@ Usage::
 
     git worktree add /tmp/base <commit>
     python scripts/compare_checkouts.py /tmp/base . --out /tmp/cmp [--jobs hf1 varying_area lf]
+    python scripts/compare_checkouts.py /tmp/base . --out /tmp/cmp --device cuda:0 --jobs hf1 hf1_onchip
 
 ``--cache DIR`` keeps the two checkouts' kernel caches (DIR/cache0, DIR/cache1) for later calls, so that an unchanged
 first checkout compiles once.
@@ -235,6 +236,9 @@ def main(argv: list[str] | None = None) -> int:
         "--jobs", nargs="+", choices=sorted(JOBS | EXTRA_JOBS), default=list(JOBS), help="jobs to run (default: JOBS)"
     )
     ap.add_argument("--cache", type=Path, default=None, help="kernel caches kept here (default: a temporary folder)")
+    ap.add_argument(
+        "--device", default="cpu", help="Warp device of every job (default cpu; cuda:0 compares the GPU's results)"
+    )
     args = ap.parse_args(argv)
     for checkout in (args.first, args.second):  # every refusal before --out is made: nothing run, nothing written
         if problem := checkout_problem(checkout):
@@ -262,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
                 if path.is_dir():
                     shutil.rmtree(path)
                 path.unlink(missing_ok=True)
-                cli = [arg.format(out=args.out.resolve()) for arg in spec]
+                cli = [arg.format(out=args.out.resolve()) for arg in spec] + ["--device", args.device]
                 run_job(view, cli + (["--quiet"] if sweep else []), path, (args.cache or Path(tmp)) / f"cache{i}")
             report[job] = r = compare_sweeps(*outs) if sweep else compare(*outs)
             print(f"{job}: " + (sweep_line(r) if sweep else file_line(r)))
