@@ -67,14 +67,12 @@ STEPPING: dict[str, Stepping] = {
         "7.2e6 steps; fp32 as the on-chip record",
     ),
     "ms_fast": Stepping(
-        dt=1.0e-8,
-        precision="fp64",
-        reason="the densest LF states (app2_start, 3618–4374 patches), with their variants: "
-        "the statistical work-precision on two H200s (one pad per LF seed 1–64, against strang fp64 at 1e-8 s; "
-        "docs/work_precision_statistics.md) keeps only its reference, strang fp64 at 1e-8 s: the growth rate's "
-        "error is 0.32 σ at fp64 5e-8 s, 0.29 σ at fp64 2e-8 s and 0.36 σ at fp32 5e-8 s, undecided (those three "
-        "agree with each other within 0.06 σ; part of it may be the reference ensemble's own draw), the "
-        "velocity-sum peak's 0.36 σ at fp64 2e-8 s",
+        dt=5.0e-8,
+        reason="the densest LF states (app2_start, 3618–4374 patches), with their variants: the statistical "
+        "work-precision on H200s (one pad per LF seed 1–128, against strang fp64 at 1e-8 s; "
+        "docs/work_precision_statistics.md) picks strang fp32 at 5e-8 s (7.8× the reference); over seeds 1–64 the "
+        "growth rate's error had been 0.36 σ there, over 128 it is 0.07 σ: seeds 1–32 hold the reference "
+        "ensemble's own draw",
     ),
     "ms_short": Stepping(
         dt=5.0e-8,
@@ -95,7 +93,7 @@ STEPPING: dict[str, Stepping] = {
         dt=5.0e-8,
         reason="app2_start after the low-load schedule (about 200 patches, friction step 4.4e-7 s): not a regime of "
         "the statistical work-precision; strang fp32 at 5e-8 s, the step that keeps every measure in every measured "
-        "saturated regime but the densest LF states",
+        "saturated regime",
     ),
 }
 """The stepping of every kind of experiment (``Experiment.stepping``)."""
