@@ -10,8 +10,9 @@ A restructuring must not change results: this script runs, from each checkout's 
 * ``sweep`` of pads of unequal size     (2 friction factors × 2 layouts × 3 patch counts, shards of 4)
 
 (opt-in with ``--jobs``, ``EXTRA_JOBS``: the on-chip strang engine, the general adaptive engine, growth on every
-engine, both Euler schemes; every job on ``--device``, the CPU unless named) and reports, per job, every dataset that differs (shape, dtype or any bit) and the root
-attributes that differ (wall times, versions and similar provenance are listed separately as expected differences);
+engine, both Euler schemes; every job on ``--device``, the CPU unless named) and reports, per job, every dataset
+that differs (shape, dtype or any bit) and the root attributes that differ (wall times, versions and similar
+provenance are listed separately as expected differences);
 a sweep's shard files are compared file by file, and its pads one by one (rows found through ``/pads/index``, so
 that the comparison holds when the two checkouts cut the pads into shards differently). Exit code 0 when every
 dataset (every pad of a sweep) is bit-identical.
