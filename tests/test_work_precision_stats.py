@@ -591,15 +591,17 @@ def test_the_pages_part_by_part_tables_are_the_scripts_output():
         assert printed.split("\n\n", 1)[1] == table, path
 
 
-def test_hf1_first_part_regenerates_in_the_later_parts_code():
-    """The first hf1 part (seeds 1–32) was measured with earlier code than seeds 33–96; seeds 1 and 2 rerun with the
-    later part's code (``hf1_parts/check_s1-2``) gave its reference values bit for bit, so merging the parts mixes no
-    two versions of the model."""
+@pytest.mark.parametrize("regime", ["hf1", "ms_fast"])
+def test_first_part_regenerates_in_the_later_parts_code(regime):
+    """The first part of hf1 and of ms_fast (seeds 1–32) was measured with earlier code than the later parts; seeds
+    1 and 2 rerun with the later parts' code (``<regime>_parts/check_s1-2``; ms_fast's on another H200 host, its LF
+    runs made again) gave the first part's reference values bit for bit, so merging the parts mixes no two versions
+    of the model."""
     from pathlib import Path
 
-    wps = Path(__file__).resolve().parent.parent / "docs" / "figures" / "work_precision_statistics" / "hf1_parts"
-    first = rule.load_results(wps / "s1" / "wps_cuda0_hf1.json")["regimes"]["hf1"]
-    check = rule.load_results(wps / "check_s1-2" / "wps_cuda0_hf1.json")["regimes"]["hf1"]
+    wps = Path(__file__).resolve().parent.parent / "docs" / "figures" / "work_precision_statistics" / f"{regime}_parts"
+    first = rule.load_results(wps / "s1" / f"wps_cuda0_{regime}.json")["regimes"][regime]
+    check = rule.load_results(wps / "check_s1-2" / f"wps_cuda0_{regime}.json")["regimes"][regime]
     assert [int(p["seed"]) for p in check["pads"]] == [1, 2] == [int(p["seed"]) for p in first["pads"][:2]]
     ref_first, ref_check = rule.reference_of(first), rule.reference_of(check)
     assert ref_first["label"] == ref_check["label"] == "strang@fp64:dt=1e-08"
