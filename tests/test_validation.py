@@ -294,6 +294,41 @@ def test_committed_page_is_rendered_from_the_committed_results():
     assert len(rows) == len(VB.ROWS) >= 45
 
 
+def test_the_pages_cost_table_is_the_scripts_output():
+    """The per-batch stepping table of docs/validation.md is what ``scripts/validation_cost.py`` prints from the
+    committed results file it names, and its sum is the sum of the batches' stepping walls."""
+    repo = Path(__file__).resolve().parent.parent
+    text = (repo / "docs" / "validation.md").read_text()
+    path, table = text.split("<!-- COST ", 1)[1].split(" -->\n", 1)
+    table = table.split("<!-- END COST -->", 1)[0]
+    lines = load_script("validation_cost").table(repo / path)
+    assert table == "\n".join(lines) + "\n"
+    walls = [float(row.split("|")[7].split()[0]) for row in lines[2:] if row.startswith("| ")]
+    total = float(lines[-1].split("Stepping: ", 1)[1].split(" s", 1)[0])
+    assert len(walls) == 14 and abs(total - sum(walls)) <= 0.05 * len(walls)  # the rows' rounding
+
+
+def test_cost_rows_group_a_batch_and_letter_the_shares():
+    """``cost.measured``: experiments of one batch name make one row (their pads added), the share is the letter of
+    the earlier results file that finished them, and rows without a finished run are left out."""
+    from aca_warp.studies.validation.cost import measured
+
+    run = {"stepping": {"precision": "fp32", "dt": 1e-7}, "steps": 10, "wall_s": 2.0, "us_per_step": 0.2}
+    plan = {"duration_s": 1e-3, "estimate_s": 1.0}
+    res = {"status": "done", "run": run, "plan": plan}
+    results = {
+        "hf1": {**res, "pads": [{"patches": 100}] * 2},
+        "hf2": {**res, "pads": [{"patches": 300}]},
+        "ms_fast": {**res, "pads": [{"patches": 4000}]},
+        "ms_short": {"status": "failed: x", "pads": []},
+    }
+    rows = measured(results, [{"experiments": ["ms_fast"]}, {"experiments": ["hf1", "hf2"]}])
+    assert [r["batch"] for r in rows] == ["ms_fast", "s31"]
+    assert [r["share"] for r in rows] == ["A", "B"]
+    assert rows[1]["experiments"] == ["hf1", "hf2"] and rows[1]["pads"] == 3 and rows[1]["patches"] == [100, 300]
+    assert measured(results)[0]["share"] == "–"
+
+
 def test_page_states_the_stepping_its_results_ran_with():
     """The page's settings line reads the stepping from the results file, not from today's table, and the run key
     carries the stepping, so results of another stepping or friction scheme are neither described nor reused as

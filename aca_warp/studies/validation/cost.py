@@ -139,3 +139,45 @@ def overheads(batches: list[Any], cfg: Any, lf_runs: int) -> dict[str, float]:
         "lf": lf * (lf_runs if gpu else math.ceil(lf_runs / max(cfg.workers, 1))) if lf_runs else 0.0,
         "analysis": ANALYSIS_S * pads / max(cfg.workers, 1),
     }
+
+
+def measured(results: dict[str, dict], parts: list[dict] | None = None) -> list[dict[str, Any]]:
+    """The measured stepping of every batch of a results file, by share and then in the order of ``results``.
+
+    Per batch (experiments of one batch name share one run): its name, experiments, section, share (the letter of
+    the earlier results file of ``parts``, the meta's ``with``, that finished it: A, B, … in their order; "–" for
+    this run's own), pads, patch counts [min, max], simulated time [s], stepping, steps, stepping wall [s], µs per
+    step, blocks per pad and the estimate [s] the run logged beside it."""
+    from aca_warp.studies.validation.base import EXPERIMENTS
+
+    share = {n: chr(ord("A") + k) for k, p in enumerate(parts or []) for n in p.get("experiments", [])}
+    rows: dict[str, dict[str, Any]] = {}
+    for name, res in results.items():
+        run = res.get("run") if isinstance(res, dict) else None
+        if name not in EXPERIMENTS or not run or res.get("status") not in ("done", "stopped"):
+            continue
+        batch = EXPERIMENTS[name].batch or name
+        if batch in rows:
+            rows[batch]["experiments"].append(name)
+            rows[batch]["pads"] += len(res["pads"])
+            rows[batch]["patches"] += [p["patches"] for p in res["pads"]]
+            continue
+        st = run["stepping"]
+        rows[batch] = {
+            "batch": batch,
+            "experiments": [name],
+            "section": EXPERIMENTS[name].section,
+            "share": share.get(name, "–"),
+            "pads": len(res["pads"]),
+            "patches": [p["patches"] for p in res["pads"]],
+            "duration_s": res["plan"]["duration_s"],
+            "stepping": f"{st['precision']}, {st['dt']:g} s",
+            "steps": run["steps"],
+            "wall_s": run["wall_s"],
+            "us_per_step": run["us_per_step"],
+            "blocks_per_pad": run.get("blocks_per_pad"),
+            "estimate_s": res["plan"].get("estimate_s"),
+        }
+    for r in rows.values():
+        r["patches"] = [min(r["patches"]), max(r["patches"])]
+    return sorted(rows.values(), key=lambda r: r["share"])  # stable: a share's batches keep their order
