@@ -404,6 +404,23 @@ def test_default_cluster(pads, split, expected):
     assert default_cluster(pads, 132, split) == expected
 
 
+def test_a_batch_of_few_pads_widens_its_cluster_until_its_lists_fit(monkeypatch):
+    """``widen_for_csr``: clusters of 4 or more whose neighbour lists do not fit shared memory take the smallest of 8
+    and 16 where they do (the validation's 16 dense LF-state pads: off chip on 5 blocks, on chip on 16), else stay;
+    many pads (clusters of 1 or 2) never widen, and a batch whose lists fit keeps its cluster."""
+    import aca_warp.hf.onchip_layout as L
+
+    fits_from = 16
+    monkeypatch.setattr(L, "block_config", lambda model, k: (512, 512, k >= fits_from))
+    assert [L.widen_for_csr(None, k) for k in (1, 2, 4, 5, 8, 16)] == [1, 2, 16, 16, 16, 16]
+    fits_from = 8
+    assert [L.widen_for_csr(None, k) for k in (2, 4, 5, 8)] == [2, 8, 8, 8]
+    fits_from = 5
+    assert [L.widen_for_csr(None, k) for k in (4, 5)] == [8, 5]
+    fits_from = 99  # fit nowhere: off chip on the cluster the rule gave
+    assert [L.widen_for_csr(None, k) for k in (2, 4, 5, 8)] == [2, 4, 5, 8]
+
+
 def test_cluster_refused_where_it_cannot_run():
     """Clusters need CUDA sm_90+; the size is 1…16 (above 8 only where the device launches it: checked there)."""
     model = build_model([preset("hf1").replace(record=Record(sample_dt=1e-7))], device="cpu", precision="fp32")

@@ -310,6 +310,11 @@ def test_cost_model_follows_the_measured_waves_and_the_shared_memory():
     assert VC.fits_on_chip(1758, 20904, 1, "fp32") and not VC.fits_on_chip(4329, 31 * 4329, 4, "fp64")
     dense = VC.step_seconds(8, 4329, 31 * 4329, "fp64", False, "cuda:0")
     assert dense > 4 * VC.step_seconds(8, 1758, 20904, "fp64", False, "cuda:0")  # lists off chip
+    # 16 pads of dense LF states: off chip on clusters of 5, on chip on 16 (as the engine widens them), 3 waves of 7
+    w = 0.5 * 2967 / 1758 + 0.5 * 220652 / 20904
+    assert not VC.fits_on_chip(2967, 220652, 8, "fp32") and VC.fits_on_chip(2967, 220652, 16, "fp32")
+    wide = VC.step_seconds(16, 2967, 220652, "fp32", False, "cuda:0")
+    assert wide == pytest.approx(3 * (1.16e-6 + 5.14e-6 * w / 16)) and wide < 1.16e-6 + VC.OFF_CHIP * 5.14e-6 * w / 5
     assert VC.step_seconds(1, 1758, 20904, "fp32", True, "cuda:0") == VC.GROWTH_FLOOR_S["fp32"]
     assert VC.step_seconds(2, 500, 100, "fp64", False, "cpu") == pytest.approx(1000 / VC.CPU_PATCH_STEPS)
 

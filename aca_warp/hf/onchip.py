@@ -29,6 +29,7 @@ from aca_warp.hf.onchip_layout import (
     itemsize,
     tile_sizes,
     unsupported,
+    widen_for_csr,
 )
 from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import HFSolver, grown_arrays, growth_events
@@ -43,15 +44,20 @@ _STEPS_PER_LAUNCH = 20_000  # default: sample intervals per launch fill about th
 
 
 def cluster_size(model: PadModel, cluster: int | None, split_fits_csr: bool | None = None) -> int:
-    """Blocks per pad: ``cluster`` checked, or :func:`default_cluster` on CUDA sm_90+ (else 1); ``split_fits_csr``
-    (default: whether only a pad split in two keeps its neighbour lists in shared memory) for the rule's last case."""
+    """Blocks per pad: ``cluster`` checked, or :func:`default_cluster` on CUDA sm_90+ (else 1). ``split_fits_csr``
+    None (the strang kernel, which keeps a block's neighbour lists on chip where they fit): the rule's last case from
+    whether only a pad split in two keeps them in shared memory, and a batch of few pads widened until they do
+    (:func:`widen_for_csr`); a bool (the adaptive kernel): that case as given, no widening."""
     dev = model.device
     if cluster is None:
         cluster = 1
         if dev.is_cuda and dev.arch >= 90:
-            if split_fits_csr is None:
+            strang = split_fits_csr is None
+            if strang:
                 split_fits_csr = not block_config(model, 1)[2] and block_config(model, 2)[2]
             cluster = default_cluster(model.pad_count, dev.sm_count, split_fits_csr)
+            if strang:
+                cluster = widen_for_csr(model, cluster)
     if not 1 <= cluster <= MAX_CLUSTER:
         raise SceneError(f"cluster must be in [1, {MAX_CLUSTER}] blocks per pad, got {cluster}")
     if cluster > 1 and (dev.is_cpu or dev.arch < 90):

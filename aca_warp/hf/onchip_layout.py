@@ -138,6 +138,26 @@ def default_cluster(pads: int, sm_count: int, split_fits_csr: bool = False) -> i
     return 2 if split_fits_csr else 1
 
 
+WIDER_CLUSTERS = (8, 16)  # the cluster sizes a batch of few pads widens to for its neighbour lists
+
+
+def widen_for_csr(model: PadModel, cluster: int) -> int:
+    """Blocks per pad for a batch of few pads (``cluster`` ≥ 4, one wave) whose neighbour lists do not fit shared
+    memory at ``cluster``: the smallest of :data:`WIDER_CLUSTERS` above it at which they fit, else ``cluster``.
+
+    Off chip every gather reads global memory, ≈ 5× the on-chip gather time (cost.OFF_CHIP); a wider cluster costs
+    waves instead (7 clusters of 16 run at once on 132 SMs), fewer than that for the batches it is taken for. The
+    validation's 16 pads of dense LF states (ms_short, ms_app3: up to 2967 patches, 78 links per patch) took
+    42.5 µs per step on clusters of 5 with their lists off chip, against 8.4 for 8 pads of 4329 patches with 31 links
+    per patch on chip (NVIDIA H200; docs/validation.md)."""
+    if cluster < 4 or block_config(model, cluster)[2]:
+        return cluster
+    for wider in WIDER_CLUSTERS:
+        if wider > cluster and block_config(model, wider)[2]:
+            return wider
+    return cluster
+
+
 def smem_limit(model: PadModel, per_block: int | None = None) -> int:
     """Shared memory a block's tiles may use [bytes]: ``per_block`` (default: the model device's opt-in limit per
     block; Warp's CPU tile arena on the CPU) less the reserve for Warp's own scratch."""

@@ -12,8 +12,10 @@ K = 1 … 8 blocks (fp32: 1.8 / 2.57 / 3.78 / 6.30 µs on K = 8 / 4 / 2 / 1; fp6
 docs/benchmarks/onchip_h100/bench_cluster.md): fp32 a = 1.16, b = 5.14; fp64 a = 1.51, b = 8.88. The batched
 figures of cluster_waves_default.md (64 fp32 pads on pairs 4.63 µs, 132 on one block 7.45, 1024 51.5) follow from
 the waves. Where a block's neighbour lists do not fit its shared memory beside the state (``shared_bytes`` against
-the H100's 227 KiB), the gathers read global memory: b × :data:`OFF_CHIP` (5, from the fp64 LF-state batches of the
-earlier validation on an H200: 8 pads of up to 4329 patches with 31 links each, 25.3 µs per step). Growing pads
+the H100's 227 KiB), a batch on clusters of 4 or more takes the smallest wider cluster of 8 or 16 where they fit, as
+the engine does (``widen_for_csr``; 7 clusters of 16 per wave); where none does, the gathers read global memory:
+b × :data:`OFF_CHIP` (5, from the fp64 LF-state batches of an earlier validation run on an H200: 8 pads of up to
+4329 patches with 31 links each, 25.3 µs per step). Growing pads
 take at least :data:`GROWTH_FLOOR_S`. On the CPU: 1e7 patch-steps/s (general engine, 2-core AMD EPYC).
 
 These are estimates, a factor 2 either way for dense LF states: a run measures each batch's step time on its first
@@ -32,7 +34,8 @@ from aca_warp.scene.parts import pairs_within
 COEFFICIENTS = {"fp32": (1.16e-6, 5.14e-6), "fp64": (1.51e-6, 8.88e-6)}  # (a, b) [s] of a + b·w/K
 HF1_PATCHES, HF1_LINKS = 1758, 20904
 SM_COUNT = 132  # an H100's or H200's
-WAVE = {8: 14, 5: 21, 4: 28, 2: 66, 1: 132}  # clusters of K in one wave on 132 SMs (cluster_waves_*.md, cluster5)
+WAVE = {16: 7, 8: 14, 5: 21, 4: 28, 2: 66, 1: 132}  # clusters of K in one wave on 132 SMs (cluster_waves_*.md,
+# cluster5; 16: one per GPC of 18 SMs, the rule that gives the measured 14, 21 and 28)
 OFF_CHIP = 5.0
 GROWTH_FLOOR_S = {"fp32": 2.7e-6, "fp64": 3.9e-6}
 """Seconds per step of a batch of growing pads in one wave (on-chip engine, a cluster of 8 blocks per pad): 2.7 µs
@@ -71,8 +74,12 @@ def step_seconds(pads: int, n: int, n_links: int, precision: str, growth: bool, 
     links (module docstring); ``device`` "cpu" uses the CPU throughput (total patches ≈ pads × n)."""
     if device == "cpu":
         return pads * n / CPU_PATCH_STEPS
+    from aca_warp.hf.onchip_layout import WIDER_CLUSTERS
+
     a, b = COEFFICIENTS[precision]
     k = cluster(pads)
+    if k >= 4 and not fits_on_chip(n, n_links, k, precision):  # widened as the engine does (widen_for_csr)
+        k = next((w for w in WIDER_CLUSTERS if w > k and fits_on_chip(n, n_links, w, precision)), k)
     if not fits_on_chip(n, n_links, k, precision):
         b *= OFF_CHIP
     w = 0.5 * n / HF1_PATCHES + 0.5 * n_links / HF1_LINKS
