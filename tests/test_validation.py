@@ -709,6 +709,27 @@ def test_results_of_different_lf_runs_are_neither_reused_nor_joined(tmp_path):
     assert sorted(got.results) == ["ms_fast"] and any("hf1 not used: made with another definition" in n for n in notes)
 
 
+def test_without_leaves_named_experiments_of_the_earlier_results_out(tmp_path, capsys):
+    """``--without``: the named experiments of a ``--with`` file are not taken as done (they run again), the others
+    are, and the log says which were left out; an unknown name, or ``--without`` without ``--with``, is refused
+    before anything is written."""
+    from aca_warp.studies.validation.results import read_results
+
+    committed_path = Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json"
+    results, _, cfg = read_results(committed_path)
+    notes: list[str] = []
+    got = VL.earlier_results([committed_path], cfg, notes.append, ["ms_short", "ms_app3"])
+    finished = {n for n, r in results.items() if n in VB.EXPERIMENTS and r.get("status") in ("done", "stopped")}
+    assert set(got.results) == finished - {"ms_short", "ms_app3"} and "hf1" in got.results
+    assert got.parts[0]["experiments"] == sorted(got.results)
+    assert any("ms_app3, ms_short not used: run again (--without)" in n for n in notes)
+    out = tmp_path / "out"
+    assert VL.main(["--out", str(out), "--with", str(committed_path), "--without", "nope"]) == 2
+    assert "unknown experiment(s) nope" in capsys.readouterr().err
+    assert VL.main(["--out", str(out), "--without", "ms_short"]) == 2
+    assert "give --with" in capsys.readouterr().err and not out.exists()
+
+
 def test_committed_lf_state_results_come_from_one_set_of_lf_runs():
     """Every §3.3 result of the committed results file records the LF runs it was cut from, and they agree."""
     from aca_warp.studies.validation.results import read_results

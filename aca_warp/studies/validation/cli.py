@@ -10,7 +10,7 @@ import argparse
 import dataclasses
 import datetime as _dt
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -85,6 +85,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="take the finished experiments of earlier results.json files with the same settings as done: "
                    "a second call that runs what the first left out, or the join of runs made side by side with "
                    "--only on several GPUs (an experiment finished in two of the files is refused)")  # fmt: skip
+    p.add_argument("--without", nargs="+", default=[], metavar="EXPERIMENT", help="leave these experiments of the "
+                   "--with files out, so that they run again (after a change that concerns them only)")  # fmt: skip
     p.add_argument("--lf-dir", type=Path, default=None, help="folder of the LF runs of the §3.3 experiments "
                    "(default DIR/lf): give shares run side by side, and a second call, the same folder (the LF "
                    "stage runs once; results cut from other LF runs are not joined)")  # fmt: skip
@@ -278,8 +280,11 @@ class Earlier:
     lf: dict | None = None
 
 
-def earlier_results(paths: list[Path] | None, cfg: Config, log: Callable[[str], None]) -> Earlier:
-    """The finished experiments of earlier ``results.json`` files made with the same settings (``--with``); a file of
+def earlier_results(
+    paths: list[Path] | None, cfg: Config, log: Callable[[str], None], without: Sequence[str] = ()
+) -> Earlier:
+    """The finished experiments of earlier ``results.json`` files made with the same settings (``--with``), less those
+    named in ``without`` (``--without``: they run again); a file of
     other settings is logged and left out, and so is a result made with another definition of its experiment (as a
     saved checkpoint would be) or a §3.3 result that does not record the LF runs it was cut from (it could be
     joined with results of other LF runs unseen). ValueError for a file that is not a results file, an
@@ -296,6 +301,10 @@ def earlier_results(paths: list[Path] | None, cfg: Config, log: Callable[[str], 
             log(f"{path}: other settings than this run's; not used")
             continue
         done = {n: r for n, r in results.items() if n in EXPERIMENTS and r.get("status") in ("done", "stopped")}
+        dropped = sorted(set(done) & set(without))
+        if dropped:
+            log(f"{path}: {', '.join(dropped)} not used: run again (--without)")
+            done = {n: r for n, r in done.items() if n not in dropped}
         stale = [n for n, r in done.items() if not same_definition(r, EXPERIMENTS[n])]
         if stale:
             log(f"{path}: {', '.join(stale)} not used: made with another definition of the experiment")
@@ -470,9 +479,12 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         return 0
     names = args.only or default_experiments(args.quick)
-    unknown = [n for n in names if n not in EXPERIMENTS]
+    unknown = [n for n in [*names, *args.without] if n not in EXPERIMENTS]
     if unknown:
         print(f"validation.py: unknown experiment(s) {', '.join(unknown)}; see --list", file=sys.stderr)
+        return 2
+    if args.without and not args.with_results:
+        print("validation.py: --without leaves experiments of --with files out; give --with", file=sys.stderr)
         return 2
     if args.dry_run:
         cfg = config_from(args, "cpu" if args.device == "auto" else args.device)
@@ -485,7 +497,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     notes: list[str] = []  # what --with left out, for the log once it is opened
     try:  # before anything is written: the device does not enter the settings compared
-        earlier = earlier_results(args.with_results, config_from(args, "cpu"), notes.append)
+        earlier = earlier_results(args.with_results, config_from(args, "cpu"), notes.append, args.without)
         _check_outputs(args.page, args.out, args.results, args.lf_dir)
     except (AcaError, ValueError) as e:
         print(f"validation.py: {e}", file=sys.stderr)
