@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common.errors import AcaError
+from aca_warp.common.files import check_output_path
 
 DEFAULT_CASES = [
     "ms_fast",
@@ -136,7 +137,7 @@ def table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cuda:0")
     ap.add_argument("--cases", nargs="+", default=DEFAULT_CASES, help="GROUP[:STATE][@K] (default: %(default)s)")
@@ -146,9 +147,14 @@ def main() -> None:
     ap.add_argument("--lf-dir", type=Path, default=Path("out/lf_batches"), help="folder of the LF runs")
     ap.add_argument("--window", type=float, default=5e-4, help="timed simulated time per case [s]")
     ap.add_argument("--json", type=Path, default=None, help="write the rows here")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if not args.window > 0 or args.seeds < 1:
         ap.error("--window must be > 0 and --seeds ≥ 1")
+    if args.json:
+        try:
+            check_output_path(args.json, overwrite=True)
+        except AcaError as e:
+            ap.error(str(e))
     try:
         cases = [parse_case(c) for c in args.cases]
     except ValueError:

@@ -59,6 +59,11 @@ ABSENT = "{tmp}/absent"  # a folder that does not exist
         ("time_tests", ["--durations", "-1"], "--durations: must be >= 0"),
         ("lf_reproducible", ["--out", "/dev/null/runs"], "/dev/null is not a folder"),
         ("launch_cost", ["--json", f"{ABSENT}/l.json"], "output folder"),
+        ("bench_lf_batches", ["--device", "cpu", "--window", "0"], "--window must be > 0"),
+        ("bench_lf_batches", ["--device", "cpu", "--json", f"{ABSENT}/b.json"], "output folder"),
+        ("bench_lf_batches", ["--device", "cpu", "--cases", "ms_nope"], "unknown group(s) ms_nope"),
+        ("bench_lf_batches", ["--device", "cpu", "--cases", "ms_fast@x"], "a case is GROUP[:STATE][@K]"),
+        ("validation_cost", [f"{ABSENT}/results.json"], "no results file"),
     ],
 )
 def test_scripts_refuse_bad_arguments(
