@@ -327,6 +327,13 @@ def test_cost_rows_group_a_batch_and_letter_the_shares():
     assert [r["share"] for r in rows] == ["A", "B"]
     assert rows[1]["experiments"] == ["hf1", "hf2"] and rows[1]["pads"] == 3 and rows[1]["patches"] == [100, 300]
     assert measured(results)[0]["share"] == "–"
+    # hf1 ran again in this run (--without hf1): its batch is a row of its own, not added to the earlier file's
+    split = measured(results, [{"experiments": ["ms_fast", "hf2"]}])
+    assert [(r["share"], r["batch"], r["experiments"]) for r in split] == [
+        ("A", "s31", ["hf2"]),
+        ("A", "ms_fast", ["ms_fast"]),
+        ("–", "s31", ["hf1"]),
+    ]
 
 
 def test_page_states_the_stepping_its_results_ran_with():
