@@ -74,11 +74,11 @@ def step_seconds(pads: int, n: int, n_links: int, precision: str, growth: bool, 
     links (module docstring); ``device`` "cpu" uses the CPU throughput (total patches ≈ pads × n)."""
     if device == "cpu":
         return pads * n / CPU_PATCH_STEPS
-    from aca_warp.hf.onchip_layout import WIDER_CLUSTERS
+    from aca_warp.hf.onchip_layout import WIDEN_FROM, WIDER_CLUSTERS
 
     a, b = COEFFICIENTS[precision]
     k = cluster(pads)
-    if k >= 4 and not fits_on_chip(n, n_links, k, precision):  # widened as the engine does (widen_for_csr)
+    if k >= WIDEN_FROM and not fits_on_chip(n, n_links, k, precision):  # widened as the engine does (widen_for_csr)
         k = next((w for w in WIDER_CLUSTERS if w > k and fits_on_chip(n, n_links, w, precision)), k)
     if not fits_on_chip(n, n_links, k, precision):
         b *= OFF_CHIP
