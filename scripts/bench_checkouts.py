@@ -93,6 +93,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--cache", type=Path, default=None, help="kernel caches kept here (default: a temporary folder)")
     args = ap.parse_args(argv)
+    if args.dt is not None and not 0 < args.dt < float("inf"):
+        print(f"bench_checkouts: --dt must be a step > 0 [s], got {args.dt}", file=sys.stderr)
+        return 2
     for c in (args.first, args.second):
         if not (c / "aca_warp").is_dir() or not (c / "kernels").is_dir():
             print(f"bench_checkouts: {c} is not a checkout of aca_warp (no aca_warp/ and kernels/)", file=sys.stderr)

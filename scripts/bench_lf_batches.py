@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common.argtypes import int_at_least
 from aca_warp.common.errors import AcaError
 from aca_warp.common.files import check_output_path
 
@@ -142,8 +143,10 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--device", default="cuda:0")
     ap.add_argument("--cases", nargs="+", default=DEFAULT_CASES, help="GROUP[:STATE][@K] (default: %(default)s)")
     ap.add_argument("--seeds", type=int, default=8, help="LF seeds (pads per state)")
-    ap.add_argument("--first-seed", type=int, default=1)
-    ap.add_argument("--state-patches", type=int, default=None, help="cut every state to a sector of this many patches")
+    ap.add_argument("--first-seed", type=int_at_least(0), default=1)
+    ap.add_argument(
+        "--state-patches", type=int_at_least(2), default=None, help="cut every state to a sector of this many patches"
+    )
     ap.add_argument("--lf-dir", type=Path, default=Path("out/lf_batches"), help="folder of the LF runs")
     ap.add_argument("--window", type=float, default=5e-4, help="timed simulated time per case [s]")
     ap.add_argument("--json", type=Path, default=None, help="write the rows here")

@@ -30,10 +30,12 @@ def table(path: Path) -> list[str]:
     ]
     for r in rows:
         lo, hi = r["patches"]
+        blocks = "–" if r["blocks_per_pad"] is None else r["blocks_per_pad"]  # results files that did not record them
+        estimate = "–" if r["estimate_s"] is None else f"{r['estimate_s']:.0f} s"
         lines.append(
             f"| {r['share']} | `{r['batch']}` | {r['pads']} × {lo if lo == hi else f'{lo}–{hi}'} | "
             f"{1e3 * r['duration_s']:.3g} ms | {r['stepping']} | {r['steps'] / 1e6:.2f} M | {r['wall_s']:.1f} s | "
-            f"{r['us_per_step']:.2f} | {r['blocks_per_pad']} | {r['estimate_s']:.0f} s |"
+            f"{r['us_per_step']:.2f} | {blocks} | {estimate} |"
         )
     total = sum(r["wall_s"] for r in rows)
     hf = sum(r["wall_s"] for r in rows if not r["section"].startswith("§3.3"))

@@ -308,6 +308,18 @@ def test_the_pages_cost_table_is_the_scripts_output():
     assert len(walls) == 14 and abs(total - sum(walls)) <= 0.05 * len(walls)  # the rows' rounding
 
 
+def test_cost_table_of_a_results_file_without_estimates_or_blocks(tmp_path):
+    """A results file whose runs did not record the blocks per pad or the estimate gives "–" there."""
+    import json
+
+    committed = Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json"
+    data = json.loads(committed.read_text())
+    del data["results"]["ms_fast"]["plan"]["estimate_s"], data["results"]["ms_fast"]["run"]["blocks_per_pad"]
+    (tmp_path / "results.json").write_text(json.dumps(data))
+    lines = load_script("validation_cost").table(tmp_path / "results.json")
+    assert [r for r in lines if "`ms_fast`" in r][0].endswith("| 8.42 | – | – |")
+
+
 def test_cost_rows_group_a_batch_and_letter_the_shares():
     """``cost.measured``: experiments of one batch name make one row (their pads added), the share is the letter of
     the earlier results file that finished them, and rows without a finished run are left out."""
@@ -327,6 +339,13 @@ def test_cost_rows_group_a_batch_and_letter_the_shares():
     assert [r["share"] for r in rows] == ["A", "B"]
     assert rows[1]["experiments"] == ["hf1", "hf2"] and rows[1]["pads"] == 3 and rows[1]["patches"] == [100, 300]
     assert measured(results)[0]["share"] == "–"
+    # hf1 ran again in this run (--without hf1): its batch is a row of its own, not added to the earlier file's
+    split = measured(results, [{"experiments": ["ms_fast", "hf2"]}])
+    assert [(r["share"], r["batch"], r["experiments"]) for r in split] == [
+        ("A", "s31", ["hf2"]),
+        ("A", "ms_fast", ["ms_fast"]),
+        ("–", "s31", ["hf1"]),
+    ]
 
 
 def test_page_states_the_stepping_its_results_ran_with():

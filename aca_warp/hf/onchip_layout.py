@@ -139,18 +139,21 @@ def default_cluster(pads: int, sm_count: int, split_fits_csr: bool = False) -> i
 
 
 WIDER_CLUSTERS = (8, 16)  # the cluster sizes a batch of few pads widens to for its neighbour lists
+WIDEN_FROM = 4  # the smallest cluster the rule gives a batch of few pads (≤ 28 on 132 SMs) that may widen
 
 
 def widen_for_csr(model: PadModel, cluster: int) -> int:
-    """Blocks per pad for a batch of few pads (``cluster`` ≥ 4, one wave) whose neighbour lists do not fit shared
-    memory at ``cluster``: the smallest of :data:`WIDER_CLUSTERS` above it at which they fit, else ``cluster``.
+    """Blocks per pad for a batch of few pads (``cluster`` ≥ :data:`WIDEN_FROM`, one wave) whose neighbour lists do
+    not fit shared memory at ``cluster``: the smallest of :data:`WIDER_CLUSTERS` above it at which they fit, else
+    ``cluster``.
 
     Off chip every gather reads global memory, ≈ 5× the on-chip gather time (cost.OFF_CHIP); a wider cluster costs
-    waves instead (7 clusters of 16 run at once on 132 SMs), fewer than that for the batches it is taken for. The
-    validation's 16 pads of dense LF states (ms_short, ms_app3: up to 2967 patches, 78 links per patch) took
-    42.5 µs per step on clusters of 5 with their lists off chip, against 8.4 for 8 pads of 4329 patches with 31 links
-    per patch on chip (NVIDIA H200; docs/validation.md)."""
-    if cluster < 4 or block_config(model, cluster)[2]:
+    waves instead (7 clusters of 16 at once on 132 SMs by the rule of :func:`default_cluster`, one per GPC: not
+    measured), fewer than that for the batches it is taken for. The validation's 16 pads of dense LF states
+    (ms_short, ms_app3: up to 2967 patches, 220 652 links in one pad) took 42.5 µs per step on clusters of 5 with
+    their lists off chip, 11.8 on clusters of 16 with them on chip, against 8.4 for 8 pads of up to 4329 patches
+    and 32 links per patch on chip (NVIDIA H200; docs/validation.md, docs/benchmarks/lf_batches_h200/)."""
+    if cluster < WIDEN_FROM or block_config(model, cluster)[2]:
         return cluster
     for wider in WIDER_CLUSTERS:
         if wider > cluster and block_config(model, wider)[2]:

@@ -86,7 +86,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "a second call that runs what the first left out, or the join of runs made side by side with "
                    "--only on several GPUs (an experiment finished in two of the files is refused)")  # fmt: skip
     p.add_argument("--without", nargs="+", default=[], metavar="EXPERIMENT", help="leave these experiments of the "
-                   "--with files out, so that they run again (after a change that concerns them only)")  # fmt: skip
+                   "--with files out, so that they run again (after a change that concerns them only); give a new "
+                   "--out, or --rerun: a result of theirs saved in --out is reused otherwise")  # fmt: skip
     p.add_argument("--lf-dir", type=Path, default=None, help="folder of the LF runs of the §3.3 experiments "
                    "(default DIR/lf): give shares run side by side, and a second call, the same folder (the LF "
                    "stage runs once; results cut from other LF runs are not joined)")  # fmt: skip

@@ -74,11 +74,11 @@ def step_seconds(pads: int, n: int, n_links: int, precision: str, growth: bool, 
     links (module docstring); ``device`` "cpu" uses the CPU throughput (total patches ≈ pads × n)."""
     if device == "cpu":
         return pads * n / CPU_PATCH_STEPS
-    from aca_warp.hf.onchip_layout import WIDER_CLUSTERS
+    from aca_warp.hf.onchip_layout import WIDEN_FROM, WIDER_CLUSTERS
 
     a, b = COEFFICIENTS[precision]
     k = cluster(pads)
-    if k >= 4 and not fits_on_chip(n, n_links, k, precision):  # widened as the engine does (widen_for_csr)
+    if k >= WIDEN_FROM and not fits_on_chip(n, n_links, k, precision):  # widened as the engine does (widen_for_csr)
         k = next((w for w in WIDER_CLUSTERS if w > k and fits_on_chip(n, n_links, w, precision)), k)
     if not fits_on_chip(n, n_links, k, precision):
         b *= OFF_CHIP
@@ -151,30 +151,31 @@ def overheads(batches: list[Any], cfg: Any, lf_runs: int) -> dict[str, float]:
 def measured(results: dict[str, dict], parts: list[dict] | None = None) -> list[dict[str, Any]]:
     """The measured stepping of every batch of a results file, by share and then in the order of ``results``.
 
-    Per batch (experiments of one batch name share one run): its name, experiments, section, share (the letter of
-    the earlier results file of ``parts``, the meta's ``with``, that finished it: A, B, … in their order; "–" for
-    this run's own), pads, patch counts [min, max], simulated time [s], stepping, steps, stepping wall [s], µs per
+    Per batch and share (experiments of one batch name finished in one file share one run; one that ran again, as
+    ``--without`` makes it, is a batch of its own): its name, experiments, section, share (the letter of the earlier
+    results file of ``parts``, the meta's ``with``, that finished it: A, B, … in their order; "–" for this run's
+    own), pads, patch counts [min, max], simulated time [s], stepping, steps, stepping wall [s], µs per
     step, blocks per pad and the estimate [s] the run logged beside it."""
     from aca_warp.studies.validation.base import EXPERIMENTS
 
     share = {n: chr(ord("A") + k) for k, p in enumerate(parts or []) for n in p.get("experiments", [])}
-    rows: dict[str, dict[str, Any]] = {}
+    rows: dict[tuple[str, str], dict[str, Any]] = {}
     for name, res in results.items():
         run = res.get("run") if isinstance(res, dict) else None
         if name not in EXPERIMENTS or not run or res.get("status") not in ("done", "stopped"):
             continue
-        batch = EXPERIMENTS[name].batch or name
-        if batch in rows:
-            rows[batch]["experiments"].append(name)
-            rows[batch]["pads"] += len(res["pads"])
-            rows[batch]["patches"] += [p["patches"] for p in res["pads"]]
+        key = (share.get(name, "–"), EXPERIMENTS[name].batch or name)
+        if key in rows:
+            rows[key]["experiments"].append(name)
+            rows[key]["pads"] += len(res["pads"])
+            rows[key]["patches"] += [p["patches"] for p in res["pads"]]
             continue
         st = run["stepping"]
-        rows[batch] = {
-            "batch": batch,
+        rows[key] = {
+            "batch": key[1],
             "experiments": [name],
             "section": EXPERIMENTS[name].section,
-            "share": share.get(name, "–"),
+            "share": key[0],
             "pads": len(res["pads"]),
             "patches": [p["patches"] for p in res["pads"]],
             "duration_s": res["plan"]["duration_s"],

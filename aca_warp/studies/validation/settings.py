@@ -71,8 +71,8 @@ STEPPING: dict[str, Stepping] = {
         reason="the densest LF states (app2_start, 3618–4374 patches), with their variants: the statistical "
         "work-precision on H200s (one pad per LF seed 1–128, against strang fp64 at 1e-8 s; "
         "docs/work_precision_statistics.md) picks strang fp32 at 5e-8 s (7.8× the reference); over seeds 1–64 the "
-        "growth rate's error had been 0.36 σ there, over 128 it is 0.07 σ: seeds 1–32 hold the reference "
-        "ensemble's own draw",
+        "growth rate's error had been 0.36 σ there, over 128 it is 0.07 σ: most of it lay in seeds 1–32 (−0.46 σ, "
+        "−0.49 σ in fp64), likely the reference ensemble's own draw",
     ),
     "ms_short": Stepping(
         dt=5.0e-8,
