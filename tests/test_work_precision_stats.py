@@ -395,6 +395,9 @@ def test_tiny_run_end_to_end(tmp_path, capsys):
     assert "choose another --out" in capsys.readouterr().err
 
 
+ABSENT_TEXT = "not in this part"  # the merge's fault text of a setting a part did not ask for
+
+
 def test_committed_page_is_what_the_report_writes():
     """The generated section of docs/work_precision_statistics.md is what ``--report`` writes from the committed
     result files (every number on the page traceable to them)."""
@@ -495,6 +498,8 @@ def test_merging_parts_gives_the_whole_regime(tmp_path, capsys):
     words = wps_report.regime_results(doc, "syn", 0.25, None, "resolution")
     assert f"left out of the rule: `{cut['label']}` (complete in 3 of 4 parts))." in words
     assert "time limit" not in words
+    table = "\n".join(wps_report.setting_table(doc["regimes"]["syn"], 0.25, ["mu_std"], "resolution"))
+    assert f"`{cut['label']}` |" in table and "no (run in 3 of 4 parts only) |" in table and ABSENT_TEXT not in table
     short["regimes"]["syn"]["settings"][1]["fault"] = "refused: too tight"
     paths[1].write_text(json.dumps(short))
     assert merge(paths)["regimes"]["syn"]["settings"][1]["fault"].startswith("incomplete: complete in 3 of 4")

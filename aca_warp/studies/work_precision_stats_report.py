@@ -36,6 +36,8 @@ TITLE = "Statistical work-precision: integrator settings for the validation's st
 MARKER = "scripts/work_precision_stats.py --report"  # the generated section's marker on the page
 NEAREST = 6  # cheaper settings the results in words name per regime (those nearest the pick in wall time)
 
+ABSENT = "not in this part"  # the fault of a merged regime's setting that some parts did not ask for
+
 
 def machine_text(doc: dict[str, Any]) -> str:
     """The device a result file was measured on, in words (its ``machine`` record)."""
@@ -143,7 +145,9 @@ def setting_table(reg: dict[str, Any], rule: float, measures: Sequence[str], cri
         speed = ref["wall_s"] / wall if wall else math.nan
         ok = "yes" if s["label"] in passing and usable(s) else "no"
         if not usable(s):
-            ok = f"no ({s.get('fault') or 'incomplete'})"
+            fault = s.get("fault") or "incomplete"
+            some = re.search(r"complete in (\d+ of \d+ parts)", fault) if ABSENT in fault else None
+            ok = f"no (run in {some.group(1)} only)" if some else f"no ({fault})"
         role = " (reference)" if s["role"] == "reference" else " (twin)" if twin is not None and s is twin else ""
         rows.append([f"`{s['label']}`{role}", fmt(wall), fmt(speed, ".2g"),
                      *(_cell(reg, s, m, rule, criterion) for m in measures), ok])  # fmt: skip
@@ -266,12 +270,11 @@ def regime_results(doc: dict[str, Any], name: str, rule: float, measures: Sequen
     ref = reference_of(reg)
     walls = {s["label"]: s["wall_s"] for s in reg["settings"] if s.get("wall_s") is not None}
     ran = [s for s in reg["settings"] if usable(s)]
-    absent = "not in this part"  # a merged regime's setting that some parts did not ask for
     cut = [
-        s["label"] for s in reg["settings"] if str(s.get("fault")).startswith("not run") and absent not in s["fault"]
+        s["label"] for s in reg["settings"] if str(s.get("fault")).startswith("not run") and ABSENT not in s["fault"]
     ]
     some = [(s["label"], re.search(r"complete in \d+ of \d+ parts", s["fault"]))
-            for s in reg["settings"] if absent in str(s.get("fault"))]  # fmt: skip
+            for s in reg["settings"] if ABSENT in str(s.get("fault"))]  # fmt: skip
     out = [f"**{name}** ({_pads(reg)} patches, {len(ran)} of {len(reg['settings'])} settings run"]
     if some:
         out[0] += "; run in some parts only, so on fewer seeds and left out of the rule: " + ", ".join(
