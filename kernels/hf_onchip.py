@@ -87,7 +87,7 @@ def readers(g: int, a: int, n: int, k: int, nbr_start: wp.array[wp.int32], nbr_i
     return m
 
 
-ABLATIONS = frozenset({"friction", "gather", "sync", "coupling", "contact", "gather_half"})
+ABLATIONS = frozenset({"friction", "gather", "sync", "coupling", "contact", "gather_half", "sample"})
 # a block's float64 sums of a sample: the six SampleSums (kernels.physics), then Σ u (for the watchdog)
 PadSums = wp.types.vector(length=7, dtype=wp.float64)
 # entries per block of a cluster's table of sample sums (float64): the seven PadSums, the runaway patch, the first
@@ -118,10 +118,11 @@ def onchip_kernel(
 
     ``ablate`` (profiling only, ``scripts/profile_onchip.py``; the results are then wrong) drops parts of the
     step to time the rest: ``friction`` (the implicit friction solve becomes an explicit kick), ``gather``
-    (the neighbour sum), ``gather_half`` (the second half of every row's links), ``sync`` (the block barrier);
-    with ``growth``, ``coupling`` (the stiffness update after an event) and ``contact`` (the contact re-solve
-    after an event). ``fast_math``: compile with CUDA fast math (approximate division and transcendental
-    functions; changes the results in the last bits).
+    (the neighbour sum), ``gather_half`` (the second half of every row's links), ``sync`` (the block barrier),
+    ``sample`` (a sample's per-patch work and block reductions: the synchronous velocities, sums, watchdog and
+    per-patch histories; zero sums are written); with ``growth``, ``coupling`` (the stiffness update after an
+    event) and ``contact`` (the contact re-solve after an event). ``fast_math``: compile with CUDA fast math
+    (approximate division and transcendental functions; changes the results in the last bits).
 
     ``cluster`` = K > 1 (CUDA sm_90+): a pad is advanced by a thread-block cluster of K blocks; block ``rank`` owns
     the patches ``n·rank // K`` … ``n·(rank + 1) // K − 1`` (and their CSR rows, ``emax`` is then
@@ -159,6 +160,7 @@ def onchip_kernel(
     SYNC = wp.constant(0 if "sync" in ablate else 1)
     COUPLING = wp.constant(0 if "coupling" in ablate else 1)
     CONTACT = wp.constant(0 if "contact" in ablate else 1)
+    SAMPLE = wp.constant(0 if "sample" in ablate else 1)
     GROWTH = wp.constant(1 if growth else 0)
     CLUSTER = wp.constant(cluster)
     RED = wp.constant(RED_SLOTS)
@@ -424,6 +426,8 @@ def onchip_kernel(
             usum = wp.float64(0.0)
             runaway = n  # first patch whose energy speed exceeds the watchdog bound (n: none)
             i = lo + lane
+            if SAMPLE == 0:
+                i = hi
             while i < hi:
                 g = a + i
                 vs = sync_velocity(i, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
@@ -437,8 +441,10 @@ def onchip_kernel(
                 if due:
                     store_patch_sample(rec, prow, g, vs, uu)
                 i += threads
-            tot = block_sums(PadSums(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5], usum))
-            runaway = wp.tile_min(wp.tile(runaway))[0]
+            tot = PadSums()
+            if wp.static(SAMPLE != 0):  # static: the ablated kernel leaves the block reductions out as well
+                tot = block_sums(PadSums(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5], usum))
+                runaway = wp.tile_min(wp.tile(runaway))[0]
             # the block's fault candidates: its first non-finite patch, or its runaway patch's energy speed
             bad = int(-1)
             value = wp.float64(0.0)

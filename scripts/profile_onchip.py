@@ -2,12 +2,11 @@
 """Where the on-chip HF kernel spends its time: ablation profile on one hf1 pad (or a batch of them).
 
 Times the on-chip engine (``aca_warp.hf.onchip``) on one pad (``--pads N``: a batch of N identical pads) for a
-window of steps
-with parts of the step left out (``ablate``: the implicit friction solve → an explicit kick, the neighbour gather
-or its second half, the block barrier; the results of an ablated run are wrong and only its time counts), for
-several block sizes, with the CSR in shared or global memory, fp32 and fp64, and the general per-step path for
-comparison. The difference between two rows is the cost of the part left out. Writes a JSON list and a Markdown
-table.
+window of steps with parts of the step left out (``ablate``: the implicit friction solve → an explicit kick, the
+neighbour gather or its second half, the block barrier, a sample's per-patch work and reductions; the results of
+an ablated run are wrong and only its time counts), for several block sizes, with the CSR in shared or global
+memory, fp32 and fp64, and the general per-step path for comparison. The difference between two rows is the cost
+of the part left out. Writes a JSON list and a Markdown table.
 
 ``--growth`` profiles the growing pad of the varying-area study instead (preset ``varying_area``: hf1 patches,
 an event every 0.202 µs ≈ 20 steps): the same pad without growth, with growth as in the study, with the
@@ -58,6 +57,7 @@ CASES = [
     ("no friction solve, default block", "fp32", None, None, ("friction",)),
     ("no gather, default block", "fp32", None, None, ("gather",)),
     ("no friction, no gather, default block", "fp32", None, None, ("friction", "gather")),
+    ("no sample outputs, default block", "fp32", None, None, ("sample",)),
     # a pad over a thread-block cluster of K blocks ("clusterK"; block size: the part rounded up to 32, at most 512)
     ("full, cluster 2", "fp32", None, None, ("cluster2",)),
     ("full, cluster 4", "fp32", None, None, ("cluster4",)),

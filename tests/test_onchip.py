@@ -27,6 +27,7 @@ from aca_warp.hf.loop import EngineTuning, run_hf
 from aca_warp.hf.model import build_model
 from aca_warp.hf.onchip_layout import choose_engine, csr_slots, default_block, default_cluster, pad_sizes
 from aca_warp.hf.options import RunOptions
+from aca_warp.hf.recorder import GLOBAL_NAMES
 from aca_warp.hf.solver import stable_step
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import Growth, Initial, Patches, Record, preset
@@ -266,6 +267,26 @@ def test_ablations_for_profiling(device):
             RunOptions(integrator="strang", engine="onchip", duration=2e-7, dt=1e-8),
             tuning=EngineTuning(ablate=frozenset({"springs"})),
         )
+
+
+def test_sample_ablation_leaves_the_motion_and_drops_the_outputs(device):
+    """``sample`` (scripts/profile_onchip.py: the cost of a sample's per-patch work and reductions) leaves the
+    motion as it is, bit for bit, and records zero velocity sums after sample 0 (which the general kernels record)."""
+    s = preset("hf1").replace(record=Record(sample_dt=1e-7))
+    got = {}
+    for abl in ((), ("sample",)):
+        model = build_model([s], device=device, precision="fp32")
+        st = initial_state(model)
+        res = run_hf(
+            model, st, RunOptions(integrator="strang", engine="onchip", duration=5e-7, dt=1e-8),
+            tuning=EngineTuning(ablate=frozenset(abl)),
+        )  # fmt: skip
+        got[abl] = (st.u.numpy().copy(), st.v.numpy().copy(), res.collect())
+    full, cut = got[()], got[("sample",)]
+    np.testing.assert_array_equal(full[0], cut[0])
+    np.testing.assert_array_equal(full[1], cut[1])
+    k = GLOBAL_NAMES.index("sum_abs_velocity")
+    assert np.all(full[2].globals[1:, 0, k] > 0) and np.all(cut[2].globals[1:, 0, k] == 0)
 
 
 def test_growth_ablations_for_profiling(device):
