@@ -740,7 +740,12 @@ def test_without_leaves_named_experiments_of_the_earlier_results_out(tmp_path, c
     got = VL.earlier_results([committed_path], cfg, notes.append, ["ms_short", "ms_app3"])
     finished = {n for n, r in results.items() if n in VB.EXPERIMENTS and r.get("status") in ("done", "stopped")}
     assert set(got.results) == finished - {"ms_short", "ms_app3"} and "hf1" in got.results
-    assert got.parts[0]["experiments"] == sorted(got.results)
+    # each experiment is credited to the call that ran it: the committed file's own earlier call (its ``with``),
+    # then that file's call with the rest (it ran the four experiments of the widened batches, two of them kept here)
+    meta = json.loads(committed_path.read_text())["meta"]
+    assert [p["command"] for p in got.parts] == [meta["with"][0]["command"], meta["command"]]
+    assert got.parts[1]["experiments"] == ["ms_app3_lin", "ms_short_lin"]
+    assert sorted(n for p in got.parts for n in p["experiments"]) == sorted(got.results)
     assert any("ms_app3, ms_short not used: run again (--without)" in n for n in notes)
     out = tmp_path / "out"
     assert VL.main(["--out", str(out), "--with", str(committed_path), "--without", "nope"]) == 2

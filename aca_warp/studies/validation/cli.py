@@ -327,8 +327,7 @@ def earlier_results(
         if results.get("lf_states", {}).get("lf_runs"):
             runs[f"the LF facts in {path}"] = results["lf_states"]["lf_runs"]
             got.lf = got.lf or results["lf_states"]
-        facts = {k: meta.get(k) for k in ("command", "created", "machine", "wall_s")}
-        got.parts.append(facts | {"experiments": sorted(done)})
+        got.parts += runs_of(meta, sorted(done))
         log(f"{path}: taking {len(done)} finished experiment(s) as done")
     clash = validation_multiscale.lf_conflicts(runs)
     if clash:
@@ -337,6 +336,22 @@ def earlier_results(
             "with one --lf-dir"
         )
     return got
+
+
+def runs_of(meta: dict[str, Any], done: list[str]) -> list[dict[str, Any]]:
+    """The calls that finished the experiments ``done`` of a results file with provenance ``meta``, for the page:
+    the earlier calls the file itself took experiments from (its ``with``), each with those of ``done`` it finished,
+    then the file's own call with the rest (command, created, machine, wall time and experiments each), so that a
+    join of a joined file still names the call that ran each experiment."""
+    parts, left = [], list(done)
+    for part in meta.get("with") or []:
+        mine = [n for n in left if n in set(part.get("experiments", []))]
+        if mine:
+            parts.append({**part, "experiments": mine})
+            left = [n for n in left if n not in mine]
+    if left:
+        parts.append({k: meta.get(k) for k in ("command", "created", "machine", "wall_s")} | {"experiments": left})
+    return parts
 
 
 def reusable(name: str, out: Path, cfg: Config, earlier: dict[str, dict]) -> dict | None:
