@@ -426,7 +426,7 @@ def onchip_kernel(
             usum = wp.float64(0.0)
             runaway = n  # first patch whose energy speed exceeds the watchdog bound (n: none)
             i = lo + lane
-            if SAMPLE == 0:
+            if wp.static(SAMPLE == 0):
                 i = hi
             while i < hi:
                 g = a + i
@@ -441,10 +441,11 @@ def onchip_kernel(
                 if due:
                     store_patch_sample(rec, prow, g, vs, uu)
                 i += threads
-            tot = PadSums()
-            if wp.static(SAMPLE != 0):  # static: the ablated kernel leaves the block reductions out as well
+            if wp.static(SAMPLE != 0):  # static: only the branch taken is compiled (the reductions are tile ops)
                 tot = block_sums(PadSums(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5], usum))
                 runaway = wp.tile_min(wp.tile(runaway))[0]
+            else:
+                tot = PadSums()  # zero sums; runaway stays n (none)
             # the block's fault candidates: its first non-finite patch, or its runaway patch's energy speed
             bad = int(-1)
             value = wp.float64(0.0)

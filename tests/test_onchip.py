@@ -271,8 +271,9 @@ def test_ablations_for_profiling(device):
 
 def test_sample_ablation_leaves_the_motion_and_drops_the_outputs(device):
     """``sample`` (scripts/profile_onchip.py: the cost of a sample's per-patch work and reductions) leaves the
-    motion as it is, bit for bit, and records zero velocity sums after sample 0 (which the general kernels record)."""
-    s = preset("hf1").replace(record=Record(sample_dt=1e-7))
+    motion as it is, bit for bit, and records zero velocity sums and no patch velocities after sample 0 (which the
+    general kernels record)."""
+    s = preset("hf1").replace(record=Record(sample_dt=1e-7, patches=("velocity",)))
     got = {}
     for abl in ((), ("sample",)):
         model = build_model([s], device=device, precision="fp32")
@@ -287,6 +288,7 @@ def test_sample_ablation_leaves_the_motion_and_drops_the_outputs(device):
     np.testing.assert_array_equal(full[1], cut[1])
     k = GLOBAL_NAMES.index("sum_abs_velocity")
     assert np.all(full[2].globals[1:, 0, k] > 0) and np.all(cut[2].globals[1:, 0, k] == 0)
+    assert np.all(np.abs(full[2].velocity[1:]).sum(axis=1) > 0) and np.all(cut[2].velocity[1:] == 0)
 
 
 def test_growth_ablations_for_profiling(device):
