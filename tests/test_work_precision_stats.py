@@ -447,6 +447,26 @@ def _parts_of(reg: dict, seeds: list[range], tags: list[str]) -> list[dict]:
     return docs
 
 
+def test_setting_table_says_run_in_some_parts_only_where_every_part_that_asked_for_it_ran_it(tmp_path):
+    """A merged setting one part did not ask for and another did not finish reads as the merge's fault in the setting
+    table, not as run in the parts that asked for it."""
+    from aca_warp.studies.work_precision_stats_merge import merge
+
+    whole = synthetic_regime(6)
+    parts = _parts_of(whole, [range(1, 3), range(3, 5), range(5, 7)], ["cuda0", "cuda1", "cuda2"])
+    label = parts[0]["regimes"]["syn"]["settings"][1]["label"]
+    del parts[0]["regimes"]["syn"]["settings"][1]  # not asked for
+    parts[1]["regimes"]["syn"]["settings"][1].update(complete=False, fault="not run: --max-wall")
+    paths = [tmp_path / f"p{k}.json" for k in range(3)]
+    for path, part in zip(paths, parts, strict=True):
+        path.write_text(json.dumps(part))
+    reg = merge(paths)["regimes"]["syn"]
+    fault = next(s["fault"] for s in reg["settings"] if s["label"] == label)
+    assert fault == "not run: complete in 1 of 3 parts (not run: not in this part; not run: --max-wall)"
+    row = next(r for r in wps_report.setting_table(reg, 0.25, ["mu_std"], "resolution") if f"`{label}`" in r)
+    assert row.endswith(f"| no ({fault}) |") and "run in 1 of 3 parts only" not in row
+
+
 def test_merging_parts_gives_the_whole_regime(tmp_path, capsys):
     """A regime measured in parts over disjoint seeds and merged gives every comparison of the whole regime (pads
     ordered by member, then seed, whatever order the parts come in); a setting's wall time is the sum of its

@@ -37,6 +37,8 @@ SAME = ("name", "description", "kind", "measures", "reference")
 """Regime fields every part must share (besides its configuration less the seeds)."""
 SAME_TOP = ("quick", "rule", "versions")
 """Top-level fields every part must share (besides the device's name)."""
+ABSENT = "not run: not in this part"
+"""The fault a merged setting records for a part that did not ask for it."""
 SUMMED = ("wall_s", "compile_s", "steps", "rejected", "saturated")
 """Setting fields the merged row sums over the parts."""
 
@@ -105,7 +107,7 @@ def _merged_row(label: str, role: str, rows: list[dict[str, Any] | None], order:
     have = [r for r in rows if r is not None]
     base = {k: v for k, v in have[0].items() if k not in (*SUMMED, "values", "fault", "complete")}
     if len(have) < len(rows) or not all(r.get("complete") and "values" in r for r in have):
-        faults = ["not run: not in this part" if r is None else str(r.get("fault")) for r in rows]
+        faults = [ABSENT if r is None else str(r.get("fault")) for r in rows]
         bad = [f for r, f in zip(rows, faults, strict=True) if r is None or not r.get("complete")]
         kinds = "; ".join(dict.fromkeys(bad))
         # "not run" only when no part ran it and failed: the report reads that prefix as cut by a time limit

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from aca_warp.studies.report import fmt, generated_markers, md_table, replace_generated, save_figure
+from aca_warp.studies.work_precision_stats_merge import ABSENT
 from aca_warp.studies.work_precision_stats_rule import (
     CRITERIA,
     MEASURES,
@@ -35,8 +36,6 @@ RATIO_FLOOR = 1.0e-3  # error/σ below this is drawn at it (log axis)
 TITLE = "Statistical work-precision: integrator settings for the validation's statistics"
 MARKER = "scripts/work_precision_stats.py --report"  # the generated section's marker on the page
 NEAREST = 6  # cheaper settings the results in words name per regime (those nearest the pick in wall time)
-
-ABSENT = "not in this part"  # the fault of a merged regime's setting that some parts did not ask for
 
 
 def machine_text(doc: dict[str, Any]) -> str:
@@ -132,6 +131,14 @@ def _cell(reg: dict[str, Any], setting: dict[str, Any], measure: str, rule: floa
     return {"keeps": f"{text} ✓", "within resolution": f"{text} ≈", "moves": f"**{text}**"}.get(v, text)
 
 
+def run_in_parts(s: dict[str, Any]) -> str | None:
+    """The parts that ran a merged setting, as "K of N parts", where only some parts asked for it and each of those
+    ran it in full (its fault as :func:`~aca_warp.studies.work_precision_stats_merge.merge` writes it); None for any
+    other setting."""
+    m = re.fullmatch(rf"not run: complete in (\d+ of \d+ parts) \({re.escape(ABSENT)}\)", str(s.get("fault")))
+    return m.group(1) if m else None
+
+
 def setting_table(reg: dict[str, Any], rule: float, measures: Sequence[str], criterion: str) -> list[str]:
     """Rows: every setting (the reference first, then the grid as run); columns: stepping wall time, the reference's
     over it, per measure error/σ with the bound (:func:`_cell`), whether it keeps every measure."""
@@ -145,9 +152,8 @@ def setting_table(reg: dict[str, Any], rule: float, measures: Sequence[str], cri
         speed = ref["wall_s"] / wall if wall else math.nan
         ok = "yes" if s["label"] in passing and usable(s) else "no"
         if not usable(s):
-            fault = s.get("fault") or "incomplete"
-            some = re.search(r"complete in (\d+ of \d+ parts)", fault) if ABSENT in fault else None
-            ok = f"no (run in {some.group(1)} only)" if some else f"no ({fault})"
+            some = run_in_parts(s)
+            ok = f"no (run in {some} only)" if some else f"no ({s.get('fault') or 'incomplete'})"
         role = " (reference)" if s["role"] == "reference" else " (twin)" if twin is not None and s is twin else ""
         rows.append([f"`{s['label']}`{role}", fmt(wall), fmt(speed, ".2g"),
                      *(_cell(reg, s, m, rule, criterion) for m in measures), ok])  # fmt: skip
