@@ -755,28 +755,36 @@ def test_without_leaves_named_experiments_of_the_earlier_results_out(tmp_path, c
 
 
 def test_dry_run_plans_lf_states_from_every_seed_where_their_lf_runs_are_there(monkeypatch):
-    """The dry run plans an LF-state experiment from every seed's states when the LF folder holds them all; else from
-    the first seed's, repeated, and the log says so (seed 1's states are sparser than others': its plan put the
-    16-pad batches' neighbour lists on chip where every seed's put them off)."""
+    """The dry run plans an LF-state experiment from every seed's states when the LF folder holds them all (the first
+    seed's made here if it alone is missing); else from the first seed's, repeated, and the log says so (seed 1's
+    states are sparser than others': its plan put the 16-pad batches' neighbour lists on chip where every seed's put
+    them off)."""
     from aca_warp.studies.validation.experiments import Prepared
 
     seen: list[int] = []
+    missing: set[int] = set()  # seeds whose LF run the folder lacks
 
     def fake_prepare(exp, cfg):
         seen.append(cfg.seeds)
         return Prepared(exp, ["s"] * cfg.seeds, ["c"] * cfg.seeds, ["σ"] * cfg.seeds, "plan", ["m"] * cfg.seeds)
 
+    def fake_jobs(names, cfg, first_only=False):
+        return sorted(k for k in missing if k < cfg.first_seed + (1 if first_only else cfg.seeds))
+
     monkeypatch.setattr(VL, "prepare", fake_prepare)
-    monkeypatch.setattr(VM, "ensure_lf", lambda names, cfg, log: None)
-    cfg = VB.Config(seeds=3)
+    monkeypatch.setattr(VM, "lf_jobs", fake_jobs)
+    monkeypatch.setattr(VM, "ensure_lf", lambda names, cfg, log, first_only=False: missing.difference_update(
+        fake_jobs(names, cfg, first_only)))  # fmt: skip
     notes: list[str] = []
-    monkeypatch.setattr(VM, "lf_jobs", lambda names, cfg: [])  # every seed's LF run is there
-    assert VL.dry_prepare(VB.EXPERIMENTS["ms_short"], cfg, notes.append).scenes == ["s"] * 3 and seen == [3]
-    assert notes == []
-    monkeypatch.setattr(VM, "lf_jobs", lambda names, cfg: ["missing"])
-    got = VL.dry_prepare(VB.EXPERIMENTS["ms_short"], cfg, notes.append)
-    assert seen == [3, 1] and got.scenes == ["s"] * 3 and "planned from LF seed 1's states for all 3" in notes[0]
-    assert VL.dry_prepare(VB.EXPERIMENTS["hf1"], cfg, notes.append).scenes == ["s"] * 3 and len(notes) == 1
+    for seeds, gone, plan in ((3, set(), 3), (3, {1}, 3), (1, {1}, 1), (3, {1, 2}, 1)):
+        seen.clear()
+        missing.update(gone)
+        got = VL.dry_prepare(VB.EXPERIMENTS["ms_short"], VB.Config(seeds=seeds), notes.append)
+        assert seen == [plan] and got.scenes == ["s"] * seeds and missing == (gone - {1}), (seeds, gone)
+        missing.clear()
+    assert len(notes) == 1 and "planned from LF seed 1's states for all 3" in notes[0]
+    assert VL.dry_prepare(VB.EXPERIMENTS["hf1"], VB.Config(seeds=3), notes.append).scenes == ["s"] * 3
+    assert len(notes) == 1
 
 
 def test_committed_lf_state_results_come_from_one_set_of_lf_runs():

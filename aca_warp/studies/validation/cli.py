@@ -130,12 +130,15 @@ def batches_of(names: list[str]) -> list[tuple[str, list[str]]]:
 
 def dry_prepare(exp: Experiment, cfg: Config, log: Log) -> Prepared:
     """:func:`prepare` for the cost: an LF-state experiment is planned from every seed's LF run where ``cfg.lf_dir``
-    holds them all, else from the first seed's only (run here if missing; its states stand for every seed's, and
-    the log says so: a denser state of another seed can push a batch's neighbour lists off chip, 5× slower)."""
-    if exp.builder is not validation_multiscale.state_scene or not validation_multiscale.lf_jobs([exp.name], cfg):
+    holds them all (the first seed's run here if missing), else from the first seed's only (its states stand for
+    every seed's, and the log says so: a denser state of another seed can push a batch's neighbour lists off chip,
+    4.2× slower on an H200, docs/benchmarks/lf_batches_h200)."""
+    if exp.builder is not validation_multiscale.state_scene:
+        return prepare(exp, cfg)
+    validation_multiscale.ensure_lf([exp.name], cfg, log, first_only=True)
+    if not validation_multiscale.lf_jobs([exp.name], cfg):
         return prepare(exp, cfg)
     one = dataclasses.replace(cfg, seeds=1)
-    validation_multiscale.ensure_lf([exp.name], one, log)
     log(f"{exp.name}: planned from LF seed {cfg.first_seed}'s states for all {cfg.seeds} seeds (the others' LF runs "
         f"are not in {cfg.lf_dir}; give --lf-dir a folder that holds them to plan from each)")  # fmt: skip
     p = prepare(exp, one)
