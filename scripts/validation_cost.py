@@ -2,8 +2,8 @@
 """The measured stepping of a validation results file, batch by batch, as a Markdown table with its sums.
 
 Every figure comes from the results file (``run``: steps, stepping wall, µs per step, blocks per pad; ``plan``: the
-simulated time and the estimate the run logged beside its batch); a joined file's shares are lettered A, B, … in
-the order of the earlier results files its command took (``--with``). Example::
+simulated time and the estimate the run logged beside its batch); the experiments a file took from earlier calls
+(``--with``) are lettered A, B, … by the call that ran them, in the order its meta records them. Example::
 
     python3 scripts/validation_cost.py docs/validation/results.json
 """

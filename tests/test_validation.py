@@ -754,6 +754,21 @@ def test_without_leaves_named_experiments_of_the_earlier_results_out(tmp_path, c
     assert "give --with" in capsys.readouterr().err and not out.exists()
 
 
+def test_runs_of_credits_each_experiment_to_the_call_that_ran_it_once():
+    """A joined file's experiments go to the earlier calls of its ``with`` that ran them, in their order, the rest to
+    the file's own call; a call none of whose experiments are taken is not named, and none is named twice."""
+    call = {"command": "c", "created": "t", "machine": "m", "wall_s": 1.0}
+    meta = {**call, "command": "join", "wall_s": 0.01, "with": [
+        {**call, "command": "A", "experiments": ["a", "b", "x"]},
+        {**call, "command": "B", "experiments": ["y"]},
+        {**call, "command": "C", "experiments": ["c", "a"]},
+    ]}  # fmt: skip
+    got = VL.runs_of(meta, ["a", "b", "c", "d"])
+    assert [(p["command"], p["experiments"]) for p in got] == [("A", ["a", "b"]), ("C", ["c"]), ("join", ["d"])]
+    assert got[-1] == {**call, "command": "join", "wall_s": 0.01, "experiments": ["d"]}
+    assert [p["command"] for p in VL.runs_of({**call, "with": None}, ["a"])] == ["c"] and VL.runs_of(meta, []) == []
+
+
 def test_dry_run_plans_lf_states_from_every_seed_where_their_lf_runs_are_there(monkeypatch):
     """The dry run plans an LF-state experiment from every seed's states when the LF folder holds them all (the first
     seed's made here if it alone is missing); else from the first seed's, repeated, and the log says so (seed 1's

@@ -279,8 +279,9 @@ def run_all(
 
 @dataclass
 class Earlier:
-    """What ``--with`` takes from earlier results files: the finished experiments, each file's provenance (command,
-    date, machine, wall time, its experiments) and their §3.3 LF facts (None if none has any)."""
+    """What ``--with`` takes from earlier results files: the finished experiments, the provenance of each call that
+    ran some of them (command, date, machine, wall time, its experiments; :func:`runs_of`) and the files' §3.3 LF
+    facts (None if none has any)."""
 
     results: dict[str, dict] = field(default_factory=dict)
     parts: list[dict] = field(default_factory=list)
@@ -348,7 +349,8 @@ def runs_of(meta: dict[str, Any], done: list[str]) -> list[dict[str, Any]]:
     join of a joined file still names the call that ran each experiment."""
     parts, left = [], list(done)
     for part in meta.get("with") or []:
-        mine = [n for n in left if n in set(part.get("experiments", []))]
+        theirs = set(part.get("experiments", []))
+        mine = [n for n in left if n in theirs]
         if mine:
             parts.append({**part, "experiments": mine})
             left = [n for n in left if n not in mine]
@@ -539,8 +541,8 @@ def main(argv: list[str] | None = None) -> int:
     for note in notes:
         log(note)
     if earlier.parts:
-        log(f"taking {len(earlier.results)} finished experiment(s) of {len(earlier.parts)} earlier results file(s) "
-            "as done (--with)")  # fmt: skip
+        log(f"taking {len(earlier.results)} finished experiment(s) of {len(earlier.parts)} earlier call(s) as done "
+            "(--with)")  # fmt: skip
     meta = meta_of(argv, wp, device, cfg) | ({"with": earlier.parts} if earlier.parts else {})
     save = ResultsWriter(results_dir / "results.json", args.out, cfg, log, meta, earlier)
     path = save(run_all(names, cfg, args.out, log, args, save, earlier.results), final=True)

@@ -151,11 +151,11 @@ def overheads(batches: list[Any], cfg: Any, lf_runs: int) -> dict[str, float]:
 def measured(results: dict[str, dict], parts: list[dict] | None = None) -> list[dict[str, Any]]:
     """The measured stepping of every batch of a results file, by share and then in the order of ``results``.
 
-    Per batch and share (experiments of one batch name finished in one file share one run; one that ran again, as
+    Per batch and share (experiments of one batch name finished in one call share one run; one that ran again, as
     ``--without`` makes it, is a batch of its own): its name, experiments, section, share (the letter of the earlier
-    results file of ``parts``, the meta's ``with``, that finished it: A, B, … in their order; "–" for this run's
-    own), pads, patch counts [min, max], simulated time [s], stepping, steps, stepping wall [s], µs per
-    step, blocks per pad and the estimate [s] the run logged beside it."""
+    call of ``parts``, the meta's ``with``, that finished it: A, B, … in their order; "–" for this run's own), pads,
+    patch counts [min, max], simulated time [s], stepping, steps, stepping wall [s], µs per step, blocks per pad and
+    the estimate [s] the run logged beside it."""
     from aca_warp.studies.validation.base import EXPERIMENTS
 
     share = {n: chr(ord("A") + k) for k, p in enumerate(parts or []) for n in p.get("experiments", [])}
