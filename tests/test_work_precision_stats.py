@@ -448,8 +448,8 @@ def _parts_of(reg: dict, seeds: list[range], tags: list[str]) -> list[dict]:
 
 
 def test_setting_table_says_run_in_some_parts_only_where_every_part_that_asked_for_it_ran_it(tmp_path):
-    """A merged setting one part did not ask for and another did not finish reads as the merge's fault in the setting
-    table, not as run in the parts that asked for it."""
+    """A merged setting one part did not ask for and another cut reads as the merge's fault in the setting table and
+    as cut by a time limit in the words, not as run in the parts that asked for it."""
     from aca_warp.studies.work_precision_stats_merge import merge
 
     whole = synthetic_regime(6)
@@ -465,6 +465,8 @@ def test_setting_table_says_run_in_some_parts_only_where_every_part_that_asked_f
     assert fault == "not run: complete in 1 of 3 parts (not run: not in this part; not run: --max-wall)"
     row = next(r for r in wps_report.setting_table(reg, 0.25, ["mu_std"], "resolution") if f"`{label}`" in r)
     assert row.endswith(f"| no ({fault}) |") and "run in 1 of 3 parts only" not in row
+    words = wps_report.regime_results({"regimes": {"syn": reg}}, "syn", 0.25, None, "resolution")
+    assert f"cut by the call's time limit: `{label}`" in words and "some parts only" not in words
 
 
 def test_merging_parts_gives_the_whole_regime(tmp_path, capsys):

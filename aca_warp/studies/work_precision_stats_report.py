@@ -276,15 +276,12 @@ def regime_results(doc: dict[str, Any], name: str, rule: float, measures: Sequen
     ref = reference_of(reg)
     walls = {s["label"]: s["wall_s"] for s in reg["settings"] if s.get("wall_s") is not None}
     ran = [s for s in reg["settings"] if usable(s)]
-    cut = [
-        s["label"] for s in reg["settings"] if str(s.get("fault")).startswith("not run") and ABSENT not in s["fault"]
-    ]
-    some = [(s["label"], re.search(r"complete in \d+ of \d+ parts", s["fault"]))
-            for s in reg["settings"] if ABSENT in str(s.get("fault"))]  # fmt: skip
+    some = [(s["label"], part) for s in reg["settings"] if (part := run_in_parts(s))]
+    cut = [s["label"] for s in reg["settings"] if str(s.get("fault")).startswith("not run") and not run_in_parts(s)]
     out = [f"**{name}** ({_pads(reg)} patches, {len(ran)} of {len(reg['settings'])} settings run"]
     if some:
         out[0] += "; run in some parts only, so on fewer seeds and left out of the rule: " + ", ".join(
-            f"`{label}` ({m.group(0) if m else 'not in every part'})" for label, m in some
+            f"`{label}` (complete in {part})" for label, part in some
         )
     out[0] += f"; not run, cut by the call's time limit: {', '.join(f'`{c}`' for c in cut)})." if cut else ")."
     if ch.setting == ref["label"]:
