@@ -427,21 +427,19 @@ def test_default_cluster(pads, split, expected):
     assert default_cluster(pads, 132, split) == expected
 
 
-def test_a_batch_of_few_pads_widens_its_cluster_until_its_lists_fit(monkeypatch):
+def test_a_batch_of_few_pads_widens_its_cluster_until_its_lists_fit():
     """``widen_for_csr``: clusters of 4 or more whose neighbour lists do not fit shared memory take the smallest of 8
     and 16 where they do (the validation's 16 dense LF-state pads: off chip on 5 blocks, on chip on 16), else stay;
     many pads (clusters of 1 or 2) never widen, and a batch whose lists fit keeps its cluster."""
-    import aca_warp.hf.onchip_layout as L
+    from aca_warp.hf.onchip_layout import widen_for_csr
 
-    fits_from = 16
-    monkeypatch.setattr(L, "block_config", lambda model, k: (512, 512, k >= fits_from))
-    assert [L.widen_for_csr(None, k) for k in (1, 2, 4, 5, 8, 16)] == [1, 2, 16, 16, 16, 16]
-    fits_from = 8
-    assert [L.widen_for_csr(None, k) for k in (2, 4, 5, 8)] == [2, 8, 8, 8]
-    fits_from = 5
-    assert [L.widen_for_csr(None, k) for k in (4, 5)] == [8, 5]
-    fits_from = 99  # fit nowhere: off chip on the cluster the rule gave
-    assert [L.widen_for_csr(None, k) for k in (2, 4, 5, 8)] == [2, 4, 5, 8]
+    def widen(clusters: tuple[int, ...], fits_from: int) -> list[int]:
+        return [widen_for_csr(k, lambda w: w >= fits_from) for k in clusters]
+
+    assert widen((1, 2, 4, 5, 8, 16), 16) == [1, 2, 16, 16, 16, 16]
+    assert widen((2, 4, 5, 8), 8) == [2, 8, 8, 8]
+    assert widen((4, 5), 5) == [8, 5]
+    assert widen((2, 4, 5, 8), 99) == [2, 4, 5, 8]  # fit nowhere: off chip on the cluster the rule gave
 
 
 def test_cluster_refused_where_it_cannot_run():

@@ -57,7 +57,7 @@ def cluster_size(model: PadModel, cluster: int | None, split_fits_csr: bool | No
                 split_fits_csr = not block_config(model, 1)[2] and block_config(model, 2)[2]
             cluster = default_cluster(model.pad_count, dev.sm_count, split_fits_csr)
             if strang:
-                cluster = widen_for_csr(model, cluster)
+                cluster = widen_for_csr(cluster, lambda k: block_config(model, k)[2])
     if not 1 <= cluster <= MAX_CLUSTER:
         raise SceneError(f"cluster must be in [1, {MAX_CLUSTER}] blocks per pad, got {cluster}")
     if cluster > 1 and (dev.is_cpu or dev.arch < 90):

@@ -8,6 +8,8 @@ bank-interleaved neighbour lists), pick the threads per block and blocks per pad
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import warp as wp
 
@@ -142,10 +144,11 @@ WIDER_CLUSTERS = (8, 16)  # the cluster sizes a batch of few pads widens to for 
 WIDEN_FROM = 4  # the smallest cluster the rule gives a batch of few pads (≤ 28 on 132 SMs) that may widen
 
 
-def widen_for_csr(model: PadModel, cluster: int) -> int:
+def widen_for_csr(cluster: int, fits: Callable[[int], bool]) -> int:
     """Blocks per pad for a batch of few pads (``cluster`` ≥ :data:`WIDEN_FROM`, one wave) whose neighbour lists do
-    not fit shared memory at ``cluster``: the smallest of :data:`WIDER_CLUSTERS` above it at which they fit, else
-    ``cluster``.
+    not fit shared memory at ``cluster`` (``fits(k)``: whether they do on k blocks per pad): the smallest of
+    :data:`WIDER_CLUSTERS` above it at which they fit, else ``cluster``. The engine asks :func:`block_config`, the
+    validation's cost model its own estimate of the same bytes.
 
     Off chip every gather reads global memory, ≈ 5× the on-chip gather time (cost.OFF_CHIP); a wider cluster costs
     waves instead (7 clusters of 16 at once on 132 SMs by the rule of :func:`default_cluster`, one per GPC: not
@@ -153,12 +156,9 @@ def widen_for_csr(model: PadModel, cluster: int) -> int:
     (ms_short, ms_app3: up to 2967 patches, 220 652 links in one pad) took 42.5 µs per step on clusters of 5 with
     their lists off chip, 11.8 on clusters of 16 with them on chip, against 8.4 for 8 pads of up to 4329 patches
     and 32 links per patch on chip (NVIDIA H200; docs/validation.md, docs/benchmarks/lf_batches_h200/)."""
-    if cluster < WIDEN_FROM or block_config(model, cluster)[2]:
+    if cluster < WIDEN_FROM or fits(cluster):
         return cluster
-    for wider in WIDER_CLUSTERS:
-        if wider > cluster and block_config(model, wider)[2]:
-            return wider
-    return cluster
+    return next((wider for wider in WIDER_CLUSTERS if wider > cluster and fits(wider)), cluster)
 
 
 def smem_limit(model: PadModel, per_block: int | None = None) -> int:

@@ -74,12 +74,10 @@ def step_seconds(pads: int, n: int, n_links: int, precision: str, growth: bool, 
     links (module docstring); ``device`` "cpu" uses the CPU throughput (total patches ≈ pads × n)."""
     if device == "cpu":
         return pads * n / CPU_PATCH_STEPS
-    from aca_warp.hf.onchip_layout import WIDEN_FROM, WIDER_CLUSTERS
+    from aca_warp.hf.onchip_layout import widen_for_csr
 
     a, b = COEFFICIENTS[precision]
-    k = cluster(pads)
-    if k >= WIDEN_FROM and not fits_on_chip(n, n_links, k, precision):  # widened as the engine does (widen_for_csr)
-        k = next((w for w in WIDER_CLUSTERS if w > k and fits_on_chip(n, n_links, w, precision)), k)
+    k = widen_for_csr(cluster(pads), lambda w: fits_on_chip(n, n_links, w, precision))  # as the engine widens
     if not fits_on_chip(n, n_links, k, precision):
         b *= OFF_CHIP
     w = 0.5 * n / HF1_PATCHES + 0.5 * n_links / HF1_LINKS
