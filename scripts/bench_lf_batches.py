@@ -49,28 +49,12 @@ def parse_case(text: str) -> tuple[str, str | None, int]:
     return group, state or None, int(k or 0)
 
 
-def thread_links(model: Any, cluster: int, threads: int) -> int:
-    """The most neighbour links one thread gathers per step: thread t of a block owns its part's patches t, t + B, …
-    (B = ``threads``), a pad split over ``cluster`` blocks as the kernel splits it."""
-    start = model.pad_patch_start_host
-    deg = np.diff(model.host("nbr_start"))
-    most = 0
-    for p in range(model.pad_count):
-        n = int(start[p + 1] - start[p])
-        for r in range(cluster):
-            part = deg[start[p] + n * r // cluster : start[p] + n * (r + 1) // cluster]
-            per = np.zeros(-(-part.size // threads) * threads, dtype=np.int64)
-            per[: part.size] = part
-            most = max(most, int(per.reshape(-1, threads).sum(axis=0).max()))
-    return most
-
-
 def run_case(case: str, preps: dict[str, Any], cfg: Any, window: float) -> dict[str, Any]:
     """Build, lay out and time one case; returns its table row."""
     from aca_warp.hf.engine import EngineTuning
     from aca_warp.hf.loop import run_hf
     from aca_warp.hf.onchip import cluster_size
-    from aca_warp.hf.onchip_layout import block_config, pad_sizes, shared_bytes, smem_limit
+    from aca_warp.hf.onchip_layout import block_config, pad_sizes, shared_bytes, smem_limit, thread_links
     from aca_warp.hf.options import RunOptions
     from aca_warp.hf.state import initial_state
     from aca_warp.scene import Record
@@ -96,7 +80,7 @@ def run_case(case: str, preps: dict[str, Any], cfg: Any, window: float) -> dict[
         "smem_need": shared_bytes(model, True, kk, threads),
         "smem_limit": smem_limit(model),
         "csr_on_chip": bool(csr),
-        "thread_links": thread_links(model, kk, threads),
+        "thread_links": int(thread_links(model, kk, threads).max()),
         "precision": step.precision,
         "dt": step.dt,
     }

@@ -49,31 +49,37 @@ def pad_sizes(model: PadModel, cluster: int = 1) -> tuple[int, int]:
     return int(n.max()), int(np.diff(nbr[cuts], axis=1).max())
 
 
-def csr_slots(model: PadModel, cluster: int = 1, threads: int = 1) -> int:
-    """Length of a block's on-chip neighbour-list tiles in the kernel's bank-interleaved layout.
-
-    Thread ``lane`` of a block of ``threads`` stores its patches' links one after another, link m at slot
-    W·(s + m) + lane mod W (W = min(threads, 32); s: the links of the threads before it with the same lane mod W),
-    so that the 32 lanes of a warp always read 32 different shared-memory banks. The tile needs W times the
-    largest sum of links over the threads of one bank, over every block of the batch (a pad split over
-    ``cluster`` blocks as the kernel splits it).
-    """
+def thread_links(model: PadModel, cluster: int = 1, threads: int = 1) -> np.ndarray:
+    """The neighbour links each thread gathers per step, shape (pads · ``cluster`` blocks, ``threads``): thread t of
+    a block owns its part's patches t, t + ``threads``, … (a pad split over ``cluster`` blocks as the kernel splits
+    it: block r, patches n·r // K … n·(r + 1) // K − 1)."""
     start = model.pad_patch_start_host
     deg = np.diff(model.host("nbr_start"))
-    w = min(threads, 32)
     per_thread = -(-int(np.diff(start).max()) // threads) * threads
-    banks = -(-threads // w) * w
-    most = 0
+    rows = []
     for p in range(model.pad_count):
         n = start[p + 1] - start[p]
         for r in range(cluster):
             d = np.zeros(per_thread, dtype=np.int64)
             part = deg[start[p] + n * r // cluster : start[p] + n * (r + 1) // cluster]
             d[: part.size] = part
-            t = np.zeros(banks, dtype=np.int64)
-            t[:threads] = d.reshape(-1, threads).sum(axis=0)  # links per thread
-            most = max(most, int(t.reshape(-1, w).sum(axis=0).max()))  # links per bank
-    return w * most
+            rows.append(d.reshape(-1, threads).sum(axis=0))
+    return np.array(rows, dtype=np.int64)
+
+
+def csr_slots(model: PadModel, cluster: int = 1, threads: int = 1) -> int:
+    """Length of a block's on-chip neighbour-list tiles in the kernel's bank-interleaved layout.
+
+    Thread ``lane`` of a block of ``threads`` stores its patches' links one after another, link m at slot
+    W·(s + m) + lane mod W (W = min(threads, 32); s: the links of the threads before it with the same lane mod W),
+    so that the 32 lanes of a warp always read 32 different shared-memory banks. The tile needs W times the
+    largest sum of links over the threads of one bank (:func:`thread_links`), over every block of the batch.
+    """
+    w = min(threads, 32)
+    banks = -(-threads // w) * w
+    t = thread_links(model, cluster, threads)
+    t = np.pad(t, ((0, 0), (0, banks - threads)))  # lanes beyond the block's threads hold no links
+    return w * int(t.reshape(t.shape[0], -1, w).sum(axis=1).max())  # links per bank, most over the blocks
 
 
 def tile_sizes(model: PadModel, cluster: int = 1, threads: int = 1) -> tuple[int, int]:
