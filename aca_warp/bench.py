@@ -215,7 +215,8 @@ def run_case(
     rec = Record(sample_dt=scene.record.sample_dt)
     engine = choose_engine(model, engine, integrator)
     options = RunOptions(engine=engine, integrator=integrator, dt=dt)
-    warm = run_hf(model, state, options.with_duration(warmup), record=rec)  # compiles, captures
+    # compiles, captures; at least one sample interval (a shorter run records nothing and is refused)
+    warm = run_hf(model, state, options.with_duration(max(warmup, rec.sample_dt)), record=rec)
     res = run_hf(model, state, options.with_duration(duration), record=rec)
     mu = res.collect().globals[:, 0, 0]
     n = model.patch_count

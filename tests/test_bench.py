@@ -55,6 +55,15 @@ def test_bench_cli_json(tmp_path: Path) -> None:
     assert "| CPU | fp32 | strang | general | 2 | 40 |" in md.read_text()
 
 
+def test_bench_sample_interval_longer_than_the_warm_up(tmp_path: Path) -> None:
+    """A sample interval past the 2 µs warm-up: the warm-up spans one interval instead of refusing the run."""
+    out = tmp_path / "b.json"
+    args = ["bench", "--patches", "10", "--duration", "2e-5", "--sample-dt", "1e-5", "--precision", "fp32"]
+    assert main([*args, "--no-reference", "--no-stages", "--json", str(out)]) == 0
+    (row,) = json.loads(out.read_text())["results"]
+    assert row["steps"] == 2000 and row["complete"]
+
+
 def test_bench_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert main(["bench", "--duration", "1e-7", "--patches", "5", "--json", str(tmp_path / "x.json")]) == 2
     assert "exceeds the duration" in capsys.readouterr().err
