@@ -60,6 +60,18 @@ CASES = [
     ("no sample outputs, default block", "fp32", None, None, ("sample",)),
     # a pad over a thread-block cluster of K blocks ("clusterK"; block size: the part rounded up to 32, at most 512)
     ("full, cluster 2", "fp32", None, None, ("cluster2",)),
+    # the default layout of 34-66 pads (default_cluster): with --pads 64 --dt 1e-7 --sample-dt 1e-6 the recording
+    # floor of the saturated hf1 benchmark
+    ("no sample outputs, cluster 2", "fp32", None, None, ("cluster2", "sample")),
+    ("no friction solve, cluster 2", "fp32", None, None, ("cluster2", "friction")),
+    ("no gather, cluster 2", "fp32", None, None, ("cluster2", "gather")),
+    ("half gather, cluster 2", "fp32", None, None, ("cluster2", "gather_half")),
+    ("no barrier, cluster 2", "fp32", None, None, ("cluster2", "sync")),
+    ("no friction, no gather, cluster 2", "fp32", None, None, ("cluster2", "friction", "gather")),
+    ("loop only, cluster 2", "fp32", None, None, ("cluster2", "friction", "gather", "sync")),
+    ("full, fast math, cluster 2", "fp32", None, None, ("cluster2", "fast_math")),
+    ("full, cluster 2", "fp64", None, None, ("cluster2",)),
+    ("no sample outputs, cluster 2", "fp64", None, None, ("cluster2", "sample")),
     ("full, cluster 4", "fp32", None, None, ("cluster4",)),
     ("full, cluster 8", "fp32", None, None, ("cluster8",)),
     ("no gather, cluster 4", "fp32", None, None, ("cluster4", "gather")),
