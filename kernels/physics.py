@@ -291,10 +291,11 @@ def contact_block(
         hmin = wp.min(hmin, wp.float64(model.height[i]))
         ktot += wp.float64(model.k_n[i])
         i += threads
-    covered = wp.tile_sum(wp.tile(covered))[0]
-    moment = wp.tile_sum(wp.tile(moment))[0]
+    sums = block_sums(wp.vec3d(covered, moment, ktot))  # one reduction for the three sums
+    covered = sums[0]
+    moment = sums[1]
+    ktot = sums[2]
     hmin = wp.tile_min(wp.tile(hmin))[0]
-    ktot = wp.tile_sum(wp.tile(ktot))[0]
     free = wp.max(model.pad_area[pad] - covered, zero)
     km = model.pad_k_m[pad] * free
     ktot += km
@@ -312,8 +313,9 @@ def contact_block(
                     fp += wp.float64(model.k_n[i]) * d
                     kp += wp.float64(model.k_n[i])
                 i += threads
-            f = km * wp.max(-g, zero) + wp.tile_sum(wp.tile(fp))[0]
-            kact = wp.tile_sum(wp.tile(kp))[0]
+            active = block_sums(wp.vec2d(fp, kp))  # the compressed patches' force and stiffness
+            f = km * wp.max(-g, zero) + active[0]
+            kact = active[1]
             if g < zero:
                 kact += km
             if it == 0 and f < load:
@@ -368,8 +370,8 @@ def patch_sample(v: Any, fn: Any, r: Any, x: Any, y: Any, omega: Any, mu_scale: 
 
 @wp.func
 def block_sums(s: Any):
-    """The sums over the block of every thread's float64 vector ``s`` (a :data:`SampleSums`, or a longer vector that
-    begins with one) in one block-wide reduction (every thread must call it).
+    """The sums over the block of every thread's float64 vector ``s`` (a :data:`SampleSums`, a longer vector that
+    begins with one, or the contact solve's sums) in one block-wide reduction (every thread must call it).
 
     A tile of vectors (``preserve_type``) is reduced with the scalar path's operations applied per component (Warp's
     ``tile_reduce_impl`` with the vector ``add`` and the per-component ``warp_shuffle_down``), so every component is

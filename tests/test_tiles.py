@@ -1,10 +1,11 @@
 """The barrier-free shared-tile helpers of aca_warp.kernels.tiles (CPU): ``get`` reads the element ``t[i]`` reads
-(without the negative-index wrap), ``put`` writes the element ``t[i] = x`` writes; the sample sums' one block
-reduction of a vector (kernels.physics.block_sums) against one scalar reduction per component."""
+(without the negative-index wrap), ``put`` writes the element ``t[i] = x`` writes; the sample sums' and the contact
+solve's one block reduction of a vector (kernels.physics.block_sums) against one scalar reduction per component."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import warp as wp
 from aca_warp.kernels.physics import block_sums
 from aca_warp.kernels.tiles import lowest_bit, tile_load_1d, tile_load_rows, tile_store_1d, tile_store_rows
@@ -91,36 +92,44 @@ def test_lowest_bit():
 
 
 LANES = 96
-Vec7 = wp.types.vector(length=7, dtype=wp.float64)  # as the on-chip kernel's sums (SampleSums, then Σ u)
 
 
-@wp.kernel(enable_backward=False, module="unique")
-def _block_sums_both_ways(x: wp.array3d[wp.float64], fused: wp.array2d[wp.float64], scalar: wp.array2d[wp.float64]):
-    blk, lane = wp.tid()
-    s = Vec7()
-    for c in range(7):
-        s[c] = x[blk, c, lane]
-    t = block_sums(s)
-    for c in range(7):
-        r = wp.tile_sum(wp.tile(s[c]))[0]
-        if lane == 0:
-            fused[blk, c] = t[c]
-            scalar[blk, c] = r
+def _block_sums_both_ways(length: int):
+    """A kernel that reduces a block's float64 vectors of ``length`` components both ways: 7 as the on-chip kernel's
+    sample sums (SampleSums, then Σ u), 3 and 2 as the contact solve's."""
+    Vec = wp.types.vector(length=length, dtype=wp.float64)
+    L = wp.constant(length)
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def both_ways(x: wp.array3d[wp.float64], fused: wp.array2d[wp.float64], scalar: wp.array2d[wp.float64]):
+        blk, lane = wp.tid()
+        s = Vec()
+        for c in range(L):
+            s[c] = x[blk, c, lane]
+        t = block_sums(s)
+        for c in range(L):
+            r = wp.tile_sum(wp.tile(s[c]))[0]
+            if lane == 0:
+                fused[blk, c] = t[c]
+                scalar[blk, c] = r
+
+    return both_ways
 
 
-def test_block_sums_is_one_scalar_reduction_per_component():
+@pytest.mark.parametrize("length", [7, 3, 2])
+def test_block_sums_is_one_scalar_reduction_per_component(length: int):
     """A block of 96 fiber threads: every component of the one vector reduction is bit for bit the scalar
     ``tile_sum`` of that component (the same additions in the same order), on terms whose sum depends on the
     order (they differ from numpy's sum)."""
     rng = np.random.default_rng(5)
-    x = rng.standard_normal((2, 7, LANES)) * 10.0 ** rng.integers(-8, 9, (2, 7, LANES))
-    fused = wp.zeros((2, 7), dtype=wp.float64, device="cpu")
-    scalar = wp.zeros((2, 7), dtype=wp.float64, device="cpu")
+    x = rng.standard_normal((2, length, LANES)) * 10.0 ** rng.integers(-8, 9, (2, length, LANES))
+    fused = wp.zeros((2, length), dtype=wp.float64, device="cpu")
+    scalar = wp.zeros((2, length), dtype=wp.float64, device="cpu")
     old = wp.config.enable_cpu_blocks
     try:
         wp.config.enable_cpu_blocks = True
         wp.launch_tiled(
-            _block_sums_both_ways,
+            _block_sums_both_ways(length),
             dim=[2],
             inputs=[wp.array(x, dtype=wp.float64, device="cpu"), fused, scalar],
             block_dim=LANES,
