@@ -176,6 +176,6 @@ def test_script_table(capsys):
     assert load_script("adaptive_growth").main(["--duration", "2e-6", "--tols", "1e-5"]) == 0
     rows = [r.split("|")[1:-1] for r in capsys.readouterr().out.splitlines() if r.startswith("| ") and "run" not in r]
     assert [r[0].strip() for r in rows] == ["strang 1e-08 s", "adaptive tol 1e-05"]
-    assert [r[1].strip() for r in rows] == ["general", "onchip"]  # auto on the CPU
+    assert [r[1].strip() for r in rows] == ["onchip", "onchip"]  # auto on the CPU
     assert float(rows[0][8]) == 0.0 and float(rows[1][9]) == 0.0
     assert int(rows[1][3]) >= 11 and int(rows[1][3]) > int(rows[1][5])  # ≥ one trial per target; fewer without

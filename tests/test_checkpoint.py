@@ -43,7 +43,9 @@ def test_sigkill_then_resume_is_bit_identical(scene_file: Path, tmp_path: Path) 
     SIGKILL once the first checkpoint is on disk: only RUN.h5.partial is left, it resumes with `hf --resume`, and
     the finished file equals an uninterrupted run (no checkpoints) dataset for dataset, bit for bit."""
     # 0.5 ms: the first automatic checkpoint comes at the first chunk end (2 µs), the run goes on ~0.5 s after it
+    # (on the general engine: on the CPU the on-chip engine's first launch would cover the whole run)
     opts = ["--duration", "5e-4", "--sample-dt", "1e-6", "--record-patches", "velocity,displacement", "--no-progress"]
+    opts += ["--engine", "general"]
     ref = tmp_path / "ref.h5"
     assert main(["hf", str(scene_file), "-o", str(ref), *opts, "--no-checkpoint"]) == 0
 
@@ -117,7 +119,8 @@ def test_a_default_run_resumes_after_ctrl_c(scene_file: Path, tmp_path: Path, mo
     Ctrl-C names the checkpoint and the command that continues the run, which then equals an uninterrupted run.
     A run stopped before its first checkpoint (the default 30 s of wall time not reached) says so and resumes
     from its start; --no-checkpoint (or --checkpoint-interval 0) writes none."""
-    opts = ["--no-progress", "--duration", "5e-5", "--record-patches", "velocity"]
+    # the general engine, whose chunks end every 2 µs (on the CPU the on-chip engine's first launch is the whole run)
+    opts = ["--no-progress", "--duration", "5e-5", "--record-patches", "velocity", "--engine", "general"]
     ref = tmp_path / "ref.h5"
     assert main(["hf", str(scene_file), "-o", str(ref), *opts, "--checkpoint-interval", "0"]) == 0
     real, written = runner.run_hf, []

@@ -75,13 +75,13 @@ def scene_b() -> Scene:
     )
 
 
-def run(scenes, integrator, *, use_graph=True, device="cpu"):
-    """Run a batch from its initial state for 5 µs; returns the collected chunk and the final (u, v)."""
+def run(scenes, integrator, *, use_graph=True, device="cpu", engine="auto"):
+    """Run a batch from its initial state for 5 µs on ``engine``; returns the collected chunk and the final (u, v)."""
     model = build_model(scenes, device=device, precision="fp64")
     state = initial_state(model)
     kw = SETTINGS[integrator]
     tuning = EngineTuning(use_graph=use_graph, max_graph_steps=GRAPH_STEPS)
-    res = run_hf(model, state, RunOptions(duration=5e-6, integrator=integrator, **kw), tuning=tuning)
+    res = run_hf(model, state, RunOptions(duration=5e-6, integrator=integrator, engine=engine, **kw), tuning=tuning)
     assert res.complete
     return res.collect(), state.numpy(), res
 
@@ -114,8 +114,8 @@ def test_graph_and_eager_are_bit_identical(integrator, monkeypatch):
     from aca_warp.hf import general
 
     monkeypatch.setattr(general, "CPU_CAPTURE_REPLAYS", 0)
-    c1, (u1, v1), r1 = run([scene_a()], integrator, use_graph=True)
-    c2, (u2, v2), r2 = run([scene_a()], integrator, use_graph=False)
+    c1, (u1, v1), r1 = run([scene_a()], integrator, use_graph=True, engine="general")  # the engine with graphs
+    c2, (u2, v2), r2 = run([scene_a()], integrator, use_graph=False, engine="general")
     assert_identical(c1, c2)
     np.testing.assert_array_equal(u1, u2)
     np.testing.assert_array_equal(v1, v2)
@@ -131,7 +131,7 @@ def test_graph_size_does_not_change_results():
         res = run_hf(
             model,
             initial_state(model),
-            RunOptions(duration=5e-6, integrator="strang", dt=1e-8),
+            RunOptions(duration=5e-6, integrator="strang", dt=1e-8, engine="general"),  # the engine with graphs
             tuning=EngineTuning(max_graph_steps=steps),
         )
         out.append(res.collect())
@@ -244,9 +244,9 @@ def test_cpu_captures_only_graphs_that_pay():
 
 
 def test_cpu_opening_chunk_is_launched_eagerly(monkeypatch):
-    """On the CPU the chunk that opens a fixed-step run (its first step eager, then one body fewer than the chunks
-    after it: a count used once) is launched eagerly, not captured for one replay: a 5 µs strang run in graphs of
-    3 samples (17 chunks, the last of 2 samples) captures one graph, that of the full chunks."""
+    """On the CPU the general engine launches the chunk that opens a fixed-step run (its first step eager, then one
+    body fewer than the chunks after it: a count used once) eagerly, not captured for one replay: a 5 µs strang run
+    in graphs of 3 samples (17 chunks, the last of 2 samples) captures one graph, that of the full chunks."""
     import warp as wp
 
     captures: list[int] = []
@@ -257,5 +257,5 @@ def test_cpu_opening_chunk_is_launched_eagerly(monkeypatch):
             return super().__enter__()
 
     monkeypatch.setattr(wp, "ScopedCapture", Counted)
-    run([scene_a()], "strang")
+    run([scene_a()], "strang", engine="general")
     assert len(captures) == 1

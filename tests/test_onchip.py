@@ -171,7 +171,7 @@ def test_onchip_growth_multithread_block_cpu_fibers(precision, block, csr):
 def test_engine_choice_and_refusals(device):
     s = preset("hf1").replace(record=Record(sample_dt=1e-7))
     model = build_model([s], device=device, precision="fp32")
-    assert choose_engine(model, "auto", "strang") == ("onchip" if device != "cpu" else "general")
+    assert choose_engine(model, "auto", "strang") == "onchip"  # on the CPU too: faster, the same bits
     assert choose_engine(model, "onchip", "strang") == "onchip"
     assert choose_engine(model, "general", "strang") == "general"
     assert choose_engine(model, "auto", "implicit-friction") == "general"
@@ -181,7 +181,7 @@ def test_engine_choice_and_refusals(device):
     with pytest.raises(SceneError, match="unknown engine"):
         choose_engine(model, "fast", "strang")
     grow = build_model([s.replace(growth=Growth(increment=1e-9, interval=1e-6))], device=device, precision="fp32")
-    assert choose_engine(grow, "auto", "strang") == ("onchip" if device != "cpu" else "general")
+    assert choose_engine(grow, "auto", "strang") == "onchip"
     assert choose_engine(grow, "onchip", "strang") == "onchip"
     res = run_hf(model, initial_state(model), RunOptions(integrator="strang", engine="onchip", duration=2e-7, dt=1e-8))
     assert "step:strang:onchip" in res.stages and res.steps == 20
@@ -522,3 +522,41 @@ def test_halo_readers_cover_every_gather(k):
             assert mask[a + i] == np.bitwise_or.reduce(1 << owner[links], initial=0)
             for j in links[owner[links] != owner[i]]:  # block owner[i] gathers u_j from another block
                 assert mask[a + j] >> owner[i] & 1
+
+
+def _small_pad(growth: bool):
+    """The validation's hf1 pad of seed 1 cut to 60 patches (samples every 1 µs), growing or not."""
+    from aca_warp.studies.friction_stats import sector_scenes
+
+    s = sector_scenes(1, 60)[0].replace(record=Record(sample_dt=1e-6))
+    return s.replace(growth=Growth(increment=1e-9, interval=1e-6)) if growth else s
+
+
+@pytest.mark.parametrize("growth", [False, True])
+def test_a_checkpoint_continues_on_the_engine_that_wrote_it(growth):
+    """A checkpoint names its engine; a run left to ``auto`` continues on it (the general engine's checkpoint of a
+    growing pad holds its growth counter, which the on-chip engine does not take), and the resumed samples are the
+    uninterrupted run's bit for bit. A checkpoint without the name (written before it was stored) takes ``auto``'s
+    choice: on the CPU the on-chip engine, which continues a non-growing general run bit for bit."""
+    s = _small_pad(growth)
+    opts = RunOptions(integrator="strang", duration=1e-5, checkpoint_interval=3e-6)
+    for engine, onchip in (("general", 0), ("auto", 1)):
+        model = build_model([s], device="cpu", precision="fp64")
+        ckpts = []
+        full = run_hf(model, initial_state(model), dataclasses.replace(opts, engine=engine), on_checkpoint=ckpts.append)
+        assert full.complete and [c.counters["onchip"] for c in ckpts] == [onchip] * len(ckpts) and len(ckpts) >= 2
+        again = build_model([s], device="cpu", precision="fp64")
+        rest = run_hf(again, initial_state(again), opts, resume=ckpts[1])  # engine "auto"
+        a, b = full.collect(), rest.collect()
+        np.testing.assert_array_equal(a.globals[len(a.time) - len(b.time) :], b.globals)
+    if not growth:
+        model = build_model([s], device="cpu", precision="fp64")
+        ckpts = []
+        general = dataclasses.replace(opts, engine="general")
+        full = run_hf(model, initial_state(model), general, on_checkpoint=ckpts.append)
+        older = dataclasses.replace(ckpts[1], counters={k: v for k, v in ckpts[1].counters.items() if k != "onchip"})
+        again = build_model([s], device="cpu", precision="fp64")
+        rest = run_hf(again, initial_state(again), opts, resume=older)
+        assert "step:strang:onchip" in rest.stages
+        a, b = full.collect(), rest.collect()
+        np.testing.assert_array_equal(a.globals[len(a.time) - len(b.time) :], b.globals)

@@ -102,9 +102,9 @@ def test_pad_equals_hand_built_scene() -> None:
     np.testing.assert_allclose(rb.collect().globals[:, 0], res.collect().globals[:, 0], rtol=1e-6, atol=0)
 
 
-@pytest.mark.parametrize(("integrator", "engine"), [("strang", "general"), ("adaptive", "onchip")])
+@pytest.mark.parametrize(("integrator", "engine"), [("implicit-friction", "general"), ("adaptive", "onchip")])
 def test_shard_files_name_the_engine(tmp_path: Path, integrator: str, engine: str) -> None:
-    """A shard file's ``engine`` attribute is the engine that ran it (on the CPU ``auto`` runs ``strang`` on the
+    """A shard file's ``engine`` attribute is the engine that ran it (``auto`` runs ``implicit-friction`` on the
     general engine and ``adaptive`` on chip)."""
     spec = _spec(run__integrator=integrator)
     run_sweep(spec, tmp_path / "out", workers=0)

@@ -13,9 +13,9 @@ from procs import assert_same_datasets, error_lines, start
 
 from aca_warp.cli import main
 
-# 6 pads of 25 patches in 3 shards of 2; 0.5 ms simulated (about a quarter of a second of stepping per shard on one
-# idle core, 50 times the polling interval; the signal comes while a shard runs, found by polling its .partial every
-# 5 ms)
+# 6 pads of 200 patches in 3 shards of 2; 0.5 ms simulated (about a quarter of a second of stepping per shard on one
+# idle core on the on-chip engine, 50 times the polling interval; the signal comes while a shard runs, found by
+# polling its .partial every 5 ms)
 SPEC = """[sweep]
 base = "hf1"
 shard_size = 2
@@ -25,7 +25,7 @@ duration = 5e-4
 precision = "fp32"
 sample_dt = 1e-5
 [base.patches]
-count = 25
+count = 200
 [parameters]
 "friction.M" = [0.6, 0.7, 0.8, 0.9, 0.95, 0.85]
 """

@@ -28,7 +28,8 @@ pytest.importorskip("distributed")
 
 PROBE_S = 4.0  # how long a plain client or RPC may take to get through [s] (on loopback it takes milliseconds)
 # The sweep must outlive the probe, which takes all of PROBE_S at the HTTP ports (they never answer a Dask
-# handshake): one shard of 25 patches (the other worker stays idle) whose simulated time takes RUN_S of stepping at the
+# handshake): one shard of 400 patches (the other worker stays idle; few enough steps that 60 s stay a plausible
+# duration on the CPU's fast on-chip engine) whose simulated time takes RUN_S of stepping at the
 # pace measured here just before (:func:`run_duration`; a fixed duration is minutes on a loaded machine and, on a fast
 # idle one, may end while the probe runs, as eight shards of 2 ms once did), and at least MIN_DURATION_S. The sweep is
 # stopped once the probe is done, so a long RUN_S costs nothing.
@@ -36,7 +37,7 @@ RUN_S = 60.0
 MIN_DURATION_S = 2e-2
 SPEC = (
     '[sweep]\nbase = "hf1"\nshard_size = 1\n[run]\nduration = {duration:.3g}\nprecision = "fp32"\n'
-    '[base.patches]\ncount = 25\n[parameters]\n"friction.M" = [0.8]\n'
+    '[base.patches]\ncount = 400\n[parameters]\n"friction.M" = [0.8]\n'
 )
 
 

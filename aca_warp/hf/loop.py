@@ -121,7 +121,7 @@ def restore(saved: dict[str, wp.array], ckpt: Checkpoint) -> None:
     if missing or extra:
         raise SceneError(
             f"the checkpoint does not fit this run (missing {', '.join(missing) or 'nothing'}, "
-            f"unexpected {', '.join(extra) or 'nothing'}): another integrator or scene?"
+            f"unexpected {', '.join(extra) or 'nothing'}): another integrator, engine or scene?"
         )
     for name, arr in saved.items():
         data = ckpt.arrays[name]
@@ -229,8 +229,16 @@ class _Run:
         self.n_samples = check_run(duration, record, options.checkpoint_interval)
         self.options = options = options.with_duration(duration)
         checked = preflight(model, state, options, record) if checked is None else checked
-        # the engines skip their own check of the step asked for (it is not the step they take)
-        engine_options = dataclasses.replace(options, force=True)
+        # the engines skip their own check of the step asked for (it is not the step they take); a checkpoint
+        # continues on the engine that wrote it when the run leaves the choice to ``auto`` (their checkpointed arrays
+        # differ for growing pads, and the choice of ``auto`` may have changed since)
+        from aca_warp.hf.onchip_layout import choose_engine
+
+        engine = options.engine
+        if resume is not None and engine == "auto" and "onchip" in resume.counters:
+            engine = "onchip" if resume.counters["onchip"] else "general"
+        engine_options = dataclasses.replace(options, force=True, engine=engine)
+        self.onchip = choose_engine(model, engine, options.integrator) == "onchip"
         self.engine = make_engine(model, state, engine_options, record, self.n_samples, tuning, checked.estimate)
         self.rec = rec = self.engine.recorder
         self.mu_bound = checked.mu_bound
@@ -316,7 +324,8 @@ class _Run:
     def _checkpoint(self) -> Checkpoint:
         """The run's state now: every checkpointed array and the counters to continue from."""
         p = self.p
-        counters = {"samples": p.samples, "steps": p.steps, "rejected": p.rejected, **self.engine.counters()}
+        counters = {"samples": p.samples, "steps": p.steps, "rejected": p.rejected, "onchip": int(self.onchip)}
+        counters.update(self.engine.counters())
         counters["sample_index"] = self.rec.sample_index
         arrays = {k: a.numpy().copy() for k, a in self.saved.items()}
         return Checkpoint(sim_time=p.sim_time, arrays=arrays, counters=counters)

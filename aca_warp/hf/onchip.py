@@ -41,6 +41,9 @@ __all__ = ["OnchipEngine", "choose_engine"]
 
 _PATCH_BUFFER_BYTES = 256 * 2**20  # cap of the per-patch history buffers of one launch
 _STEPS_PER_LAUNCH = 20_000  # default: sample intervals per launch fill about this many steps
+# on the CPU (a pad's block is one thread, ~1e7 patch-steps/s) also at most about this many patch-steps, about a
+# second: progress, Ctrl-C and checkpoints stay timely on large batches
+_CPU_PATCH_STEPS_PER_LAUNCH = 10_000_000
 
 
 def cluster_size(model: PadModel, cluster: int | None, split_fits_csr: bool | None = None) -> int:
@@ -155,8 +158,12 @@ class OnchipEngine(OnchipLaunches):
         self.solver.prepare(state)
 
     def _samples_per_launch(self, asked: int | None) -> int:
-        """Sample intervals per launch: ``asked`` or ~20k steps, at most the run and the history buffer cap."""
-        spl = max(1, _STEPS_PER_LAUNCH // self.sps) if asked is None else asked
+        """Sample intervals per launch: ``asked`` or ~20k steps (on the CPU at most ~1e7 patch-steps), at most the run
+        and the history buffer cap."""
+        steps = _STEPS_PER_LAUNCH
+        if self.model.device.is_cpu:
+            steps = min(steps, _CPU_PATCH_STEPS_PER_LAUNCH // self.model.patch_count)
+        spl = max(1, steps // self.sps) if asked is None else asked
         spl = max(1, min(spl, self.n_samples))
         probe = Recorder(self.model, self.record, 1, self.n_samples)
         per_row = (int(probe.want_v) + int(probe.want_u)) * self.model.patch_count * itemsize(self.model)

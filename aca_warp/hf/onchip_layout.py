@@ -217,11 +217,12 @@ def unsupported(model: PadModel, integrator: str) -> str | None:
 def choose_engine(model: PadModel, engine: str, integrator: str) -> str:
     """Resolve ``engine`` (auto, onchip, general) for a model; ``onchip`` on an unsupported model is an error.
 
-    ``auto`` picks ``onchip`` on CUDA when the model allows it (faster there, docs/onchip.md), growing models
-    included (their in-kernel growth passes ``scripts/onchip_gpu_check.py --growth`` on an H100; docs/onchip.md).
-    On the CPU, where Warp runs a block as one thread, ``strang`` stays on the general engine (no faster on chip)
-    and ``adaptive`` goes on chip: one launch per chunk instead of 14 per trial (hf1, 1 ms, tolerance 1e-5:
-    1.03 s against 1.84 s on the 2-core host of docs/time_to_solution.md).
+    ``auto`` picks ``onchip`` when the model allows it, growing models included (their in-kernel growth passes
+    ``scripts/onchip_gpu_check.py --growth`` on an H100; docs/onchip.md): faster on CUDA (docs/onchip.md) and on the
+    CPU, where Warp runs a block as one thread and a launch covers many steps instead of several launches per step
+    (``scripts/bench_cpu_engines.py``: ``strang`` 1.0–1.2× as fast on a whole hf1 pad, 1.5–2× on 60–150 patches;
+    ``adaptive`` one launch per chunk instead of 14 per trial, hf1, 1 ms, tolerance 1e-5: 1.03 s against 1.84 s on
+    the 2-core host of docs/time_to_solution.md). On the CPU both engines give the same bits.
     """
     if engine not in ENGINES:
         raise SceneError(f"unknown engine {engine!r}; choose from {', '.join(ENGINES)}")
@@ -231,6 +232,6 @@ def choose_engine(model: PadModel, engine: str, integrator: str) -> str:
             given = option("engine='onchip'", "--engine onchip")
             raise SceneError(f"{given}: {why}")
         return "onchip"
-    if engine == "general" or why is not None or (model.device.is_cpu and integrator != "adaptive"):
+    if engine == "general" or why is not None:
         return "general"
     return "onchip"
