@@ -3,9 +3,10 @@
 
 The pads are the validation's ``reduced_pad`` sectors of hf1 (``--seeds`` pads of ``--patches`` patches, from
 equilibrium + N(0, (0.01 m/s)²) velocities, :func:`~aca_warp.studies.friction_stats.sector_scenes`), run as one
-batch on the general engine on the CPU over ``--duration``. Every setting of ``--runs`` (``INTEGRATOR:DT`` for a
-fixed step, forced past the stable-step estimate; ``INTEGRATOR:tol=TOL``, the tolerance of ``adaptive`` or the split
-tolerance of ``controlled`` and ``auto``; or ``INTEGRATOR`` at its defaults) is
+batch on the CPU over ``--duration`` on ``--engine`` (default the general engine; ``auto``: the engine a run of
+``aca-warp hf`` takes, on-chip; both give the same bits, the wall times differ). Every setting of ``--runs``
+(``INTEGRATOR:DT`` for a fixed step, forced past the stable-step estimate; ``INTEGRATOR:tol=TOL``, the tolerance of
+``adaptive`` or the split tolerance of ``controlled`` and ``auto``; or ``INTEGRATOR`` at its defaults) is
 compared with ``--reference`` over the last ``--window``: the ensemble means of μ mean, μ std, mean Σ|u̇| and the
 velocity-sum peak (:func:`~aca_warp.studies.friction_stats.statistics`, ``compare``), the steps and the wall time of
 the stepping loop. Examples::
@@ -14,6 +15,7 @@ the stepping loop. Examples::
     python3 scripts/friction_step_sector.py --quick --out OUT/quick.json          # a smoke run of a minute
     python3 scripts/friction_step_sector.py --runs controlled controlled:tol=3e-3 auto adaptive strang:1e-7 \
         --out docs/figures/friction_step/sector_controlled_cpu.json
+    python3 scripts/friction_step_sector.py --runs strang --engine auto --out OUT/sector_default.json
     python3 scripts/friction_step_sector.py --report docs/figures/friction_step/sector_cpu.json \
         docs/figures/friction_step/sector_controlled_cpu.json --page docs/friction_step.md
 """
@@ -35,6 +37,7 @@ SCRIPT = "friction_step_sector.py"
 RUNS = ("strang:1e-7", "strang:2.5e-7", "strang:5e-7", "strang:1e-6")
 REFERENCE = "strang:1e-8"
 MEASURES = ("mu_mean", "mu_std", "abs_velocity_mean", "velocity_peak_hz")
+ENGINE_TEXT = {"general": "general engine", "onchip": "on-chip engine", "auto": "`auto`'s engine (on chip for strang)"}
 LABELS = {"mu_mean": "μ mean", "mu_std": "μ std", "abs_velocity_mean": "Σ|u̇| mean", "velocity_peak_hz": "Σu̇ peak"}
 
 
@@ -62,7 +65,10 @@ def run_all(args: argparse.Namespace, log: Log) -> dict[str, Any]:
     ref_stats: dict[str, Any] | None = None
     for spec in [args.reference, *args.runs]:
         log(f"{spec}: {len(scenes)} pads × {args.patches} patches, {args.duration * 1e3:g} ms")
-        rec, info = package_run(scenes, duration=args.duration, window=0.0, precision=args.precision, **parse_run(spec))
+        run = parse_run(spec)
+        rec, info = package_run(
+            scenes, duration=args.duration, window=0.0, precision=args.precision, engine=args.engine, **run
+        )
         stats = statistics(rec, args.window, np.zeros(0), np.zeros(0, dtype=int))
         ref_stats = stats if ref_stats is None else ref_stats
         row = {"run": spec, "wall_s": info["wall_s"], "steps": info["steps"]}
@@ -93,7 +99,8 @@ def report(doc: dict[str, Any]) -> list[str]:
     s = doc["setup"]
     lines = [
         f"{s['seeds']} hf1 sector(s) × {s['patches']} patches (the validation's reduced pad, seeds from 1), "
-        f"{s['duration'] * 1e3:g} ms from equilibrium + 0.01 m/s, {s['precision']}, general engine on the CPU; "
+        f"{s['duration'] * 1e3:g} ms from equilibrium + 0.01 m/s, {s['precision']}, "
+        f"{ENGINE_TEXT[s.get('engine', 'general')]} on the CPU; "
         f"statistics of the last {s['window'] * 1e3:g} ms against `{doc['reference']}` (ensemble means; the "
         "velocity-sum peak above 20 kHz):",
         "",
@@ -132,6 +139,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--duration", type=positive, default=30e-3, help="run length [s] (default 30e-3)")
     ap.add_argument("--window", type=positive, default=10e-3, help="statistics over the last WINDOW [s] (10e-3)")
     ap.add_argument("--precision", choices=("fp32", "fp64"), default="fp64")
+    ap.add_argument(
+        "--engine",
+        choices=("general", "onchip", "auto"),
+        default="general",
+        help="the engine of every run (default general; auto: on-chip, as aca-warp hf runs; the same bits)",
+    )
     ap.add_argument("--reference", default=REFERENCE, help=f"the reference run (default {REFERENCE})")
     ap.add_argument("--runs", nargs="+", default=list(RUNS), help="INTEGRATOR[:DT | :tol=TOL] (default the grid)")
     ap.add_argument("--quick", action="store_true", help="1 pad × 60 patches × 4 ms, window 2 ms: a smoke run")
@@ -167,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
     wp = init_warp()
     log = Log()
     doc = run_all(args, log)
-    setup = {k: getattr(args, k) for k in ("seeds", "patches", "duration", "window", "precision")}
+    setup = {k: getattr(args, k) for k in ("seeds", "patches", "duration", "window", "precision", "engine")}
     setup |= {"command": command_line(SCRIPT, sys.argv[1:] if argv is None else argv)}
     setup |= {"machine": machine(wp.get_device("cpu"))["host"] + " (shared with other jobs)"}
     args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -90,8 +90,9 @@ def package_run(
     tolerance: float | None = None,
     split_tolerance: float | None = None,
     precision: str = "fp64",
+    engine: str = "general",
 ) -> tuple[Record, dict[str, Any]]:
-    """A run of the package (general engine on the CPU) of ``scenes`` as one batch with ``integrator`` at step
+    """A run of the package (on ``engine``, on the CPU) of ``scenes`` as one batch with ``integrator`` at step
     ``dt`` [s] (forced past the stable-step estimate) or ``tolerance``/``split_tolerance`` (None: the defaults)
     over ``duration`` [s]:
     samples every SAMPLE_DT, per-patch velocities over the last ``window`` [s] (0: none). Returns the record and
@@ -103,7 +104,7 @@ def package_run(
     patches = ("velocity",) if window > 0 else ()
     record = SceneRecord(SAMPLE_DT, patches=patches, window=(duration - window - 0.5 * SAMPLE_DT, math.inf))
     res = run_engine(
-        model, state, engine="general", duration=duration, integrator=integrator, dt=dt, record=record,
+        model, state, engine=engine, duration=duration, integrator=integrator, dt=dt, record=record,
         force=dt is not None, tolerance=tolerance, split_tolerance=split_tolerance,
     )  # fmt: skip
     if not res.complete:

@@ -1,0 +1,28 @@
+"""``scripts/friction_step_sector.py`` on a tiny sector: the engine is a setting of the study, recorded and reported,
+and both engines give the same statistics (the same bits)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from scriptload import load_script
+
+from aca_warp.studies.friction_sector import report
+
+
+def test_the_engine_is_recorded_and_both_give_the_same_statistics(tmp_path: Path) -> None:
+    docs = {}
+    for engine in ("general", "auto"):
+        out = tmp_path / f"{engine}.json"
+        argv = ["--patches", "20", "--duration", "1e-3", "--window", "5e-4", "--reference", "strang:2e-8"]
+        assert (
+            load_script("friction_step_sector").main([*argv, "--runs", "strang", "--engine", engine, "--out", str(out)])
+            == 0
+        )
+        docs[engine] = json.loads(out.read_text())
+        assert docs[engine]["setup"]["engine"] == engine
+    for a, b in zip(docs["general"]["runs"], docs["auto"]["runs"], strict=True):
+        assert (a["run"], a["steps"], a["stats"]) == (b["run"], b["steps"], b["stats"])
+    assert "`auto`'s engine (on chip for strang) on the CPU" in report(docs["auto"])[0]
+    assert "general engine on the CPU" in report(docs["general"])[0]
