@@ -35,7 +35,7 @@ Importing the package registers every experiment and row, in the order of the ru
 The paper's findings (§3) describe the HF state of the friction instability; a single run stopped in its linear
 growth says nothing about them. Every number here comes from an **experiment**: N pads that differ in their seed
 (patch layout, areas and heights, ``[patches] seed``; initial perturbation, ``[initial] seed``), run with the one run
-loop (engine ``auto``: on-chip on CUDA, general on the CPU) until every pad has saturated (or for the paper's length
+loop (engine ``auto``: on-chip on CUDA and on the CPU) until every pad has saturated (or for the paper's length
 from rest), then analysed over the saturated part only. Experiments of one **batch** run as one batch of pads. A
 **row** compares one statement of the paper with an ensemble measure: the mean over seeds with its 95 % Student-t
 interval (``ensemble_interval``), the paper's value and a verdict whose criterion is fixed in advance
