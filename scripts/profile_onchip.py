@@ -70,6 +70,11 @@ CASES = [
     ("no friction, no gather, cluster 2", "fp32", None, None, ("cluster2", "friction", "gather")),
     ("loop only, cluster 2", "fp32", None, None, ("cluster2", "friction", "gather", "sync")),
     ("full, fast math, cluster 2", "fp32", None, None, ("cluster2", "fast_math")),
+    # the same per-SM load in smaller blocks (two patches per thread): with --pads 64, 2 or 4 blocks per SM
+    ("full, cluster 4, block 224", "fp32", 224, None, ("cluster4",)),
+    ("full, cluster 4, block 256", "fp32", 256, None, ("cluster4",)),
+    ("full, cluster 8, block 128", "fp32", 128, None, ("cluster8",)),
+    ("full, cluster 8, block 112", "fp32", 112, None, ("cluster8",)),
     ("full, cluster 2", "fp64", None, None, ("cluster2",)),
     ("no sample outputs, cluster 2", "fp64", None, None, ("cluster2", "sample")),
     ("full, cluster 4", "fp32", None, None, ("cluster4",)),
