@@ -5,6 +5,7 @@ Per case (a batch of pads) and precision, the same ``strang`` run (its default s
 (``RunOptions.engine``), ``--repeats`` times in turn: a warm-up of two sample intervals (compilation), then
 ``--duration`` [s] timed from the scene's initial state. Every timed run's μ(t) and final state must be equal between
 the engines bit for bit, else the script stops with exit code 1. Cases: ``hf1`` (the whole 1758-patch pad),
+``varying_area`` (hf1's patches growing: a growth event and contact re-solve every 0.202 µs),
 ``sectorN`` (the validation's hf1 pad of seed 1 cut to N patches, from equilibrium + 0.01 m/s, as
 ``scripts/friction_step_sector.py`` runs it), ``sectorsKxN`` (K such pads, seeds 1 … K, one batch). Writes a JSON
 document (``--json``) and a Markdown table (``--markdown``). Example (the figures of docs/onchip.md, "On the CPU")::
@@ -39,11 +40,11 @@ def case_scenes(case: str) -> list[Any]:
     from aca_warp.scene import preset
     from aca_warp.studies.friction_stats import sector_scenes
 
-    if case == "hf1":
-        return [preset("hf1")]
+    if case in ("hf1", "varying_area"):
+        return [preset(case)]
     m = re.fullmatch(r"sector(\d+)|sectors(\d+)x(\d+)", case)
     if m is None:
-        raise SceneError(f"unknown case {case!r}: hf1, sectorN or sectorsKxN")
+        raise SceneError(f"unknown case {case!r}: hf1, varying_area, sectorN or sectorsKxN")
     if m.group(1):
         return sector_scenes(1, int(m.group(1)))
     return sector_scenes(int(m.group(2)), int(m.group(3)))

@@ -36,7 +36,7 @@ def test_an_engine_that_parts_from_the_other_stops_the_script(monkeypatch, capsy
     assert "differs from the general one's" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("case", ["hf9", "sector", "sectors4"])
+@pytest.mark.parametrize("case", ["hf9", "sector", "sectors4", "varying_area2"])
 def test_unknown_cases_are_refused_before_anything_runs(case: str, tmp_path: Path) -> None:
     with pytest.raises(SystemExit) as e:
         load_script("bench_cpu_engines").main(["--cases", case, "--json", str(tmp_path / "x.json")])
