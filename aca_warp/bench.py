@@ -431,7 +431,7 @@ def add_parsers(sub: Any) -> None:
         nargs="+",
         choices=ENGINES,
         default=["auto"],
-        help="HF engines (default auto: on-chip on CUDA where possible, else general; onchip runs strang and adaptive)",
+        help="HF engines (default auto: on-chip where the model allows it, else general; onchip: strang, adaptive)",
     )
     p.add_argument(
         "--dt",
