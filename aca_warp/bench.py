@@ -48,7 +48,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common.errors import SceneError
-from aca_warp.hf.options import DEFAULT_TOLERANCE
+from aca_warp.hf.options import DEFAULT_TOLERANCE, ONCHIP_INTEGRATORS
 
 GRAPH_STEPS = 200
 # Data-sheet peaks [B/s] by device-name fragment; used when the driver query is unavailable.
@@ -339,7 +339,7 @@ def run_bench(
     for npads in pads:
         for prec in precisions:
             for integ, eng in ((i, e) for i in integrators for e in engines):
-                if eng == "onchip" and integ not in ("strang", "adaptive"):
+                if eng == "onchip" and integ not in ONCHIP_INTEGRATORS:
                     continue  # the on-chip engine implements strang and adaptive
                 r = run_case(sc, device, prec, integ, npads, dt, duration, stages=stages, engine=eng)
                 mu = r.pop("mu")
@@ -431,7 +431,7 @@ def add_parsers(sub: Any) -> None:
         nargs="+",
         choices=ENGINES,
         default=["auto"],
-        help="HF engines (default auto: on-chip on CUDA where possible, else general; onchip runs strang and adaptive)",
+        help="HF engines (default auto: on-chip where the model allows it, else general; onchip: strang, adaptive)",
     )
     p.add_argument(
         "--dt",

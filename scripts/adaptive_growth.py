@@ -2,8 +2,8 @@
 """The adaptive integrator on a growing scene against strang: the ``varying_area`` preset (1758 patches, growth
 events every 2.02e-7 s, docs/model.md §2.10) from rest over its first ``--duration`` (default 20 µs), with strang
 at ``--dt`` (default 1e-8 s) and adaptive at each ``--tols`` (default 1e-5 and 1e-6), in ``--precision`` (default
-fp64) on ``--engine`` (default ``auto``: both integrators on chip on CUDA, adaptive on chip on the CPU; ``general``
-for the per-step kernels).
+fp64) on ``--engine`` (default ``auto``: both integrators on chip, on CUDA and on the CPU; ``general`` for the per-step
+kernels).
 
 Prints a markdown table, one row per run: wall time of the stepping loop (compilation and graph captures
 excluded), accepted steps (adaptive: trials of the pad) and rejected trials, mean step (simulated time per

@@ -136,6 +136,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from aca_warp.common.devices import init_warp
     from aca_warp.common.files import machine
+    from aca_warp.studies.report import command_line
 
     try:  # every refusal before the first run
         for case in args.cases:
@@ -162,7 +163,7 @@ def main(argv: list[str] | None = None) -> int:
             )
             results.append(row)
     doc = {
-        "command": "python3 scripts/bench_cpu_engines.py " + " ".join(sys.argv[1:] if argv is None else argv),
+        "command": command_line("bench_cpu_engines.py", sys.argv[1:] if argv is None else argv),
         "machine": machine(wp.get_device("cpu")),
         "warp_version": wp.__version__,
         "duration_s": args.duration,

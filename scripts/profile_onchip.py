@@ -60,8 +60,8 @@ CASES = [
     ("no sample outputs, default block", "fp32", None, None, ("sample",)),
     # a pad over a thread-block cluster of K blocks ("clusterK"; block size: the part rounded up to 32, at most 512)
     ("full, cluster 2", "fp32", None, None, ("cluster2",)),
-    # the default layout of 34-66 pads (default_cluster): with --pads 64 --dt 1e-7 --sample-dt 1e-6 the recording
-    # floor of the saturated hf1 benchmark
+    # the default layout of 29-66 pads on 132 SMs (default_cluster): with --pads 64 --dt 1e-7 --sample-dt 1e-6 the
+    # recording floor of the saturated hf1 benchmark
     ("no sample outputs, cluster 2", "fp32", None, None, ("cluster2", "sample")),
     ("no friction solve, cluster 2", "fp32", None, None, ("cluster2", "friction")),
     ("no gather, cluster 2", "fp32", None, None, ("cluster2", "gather")),

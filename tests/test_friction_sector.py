@@ -26,3 +26,13 @@ def test_the_engine_is_recorded_and_both_give_the_same_statistics(tmp_path: Path
         assert (a["run"], a["steps"], a["stats"]) == (b["run"], b["steps"], b["stats"])
     assert "`auto`'s engine (on chip for strang) on the CPU" in report(docs["auto"])[0]
     assert "general engine on the CPU" in report(docs["general"])[0]
+
+
+def test_an_integrator_the_on_chip_engine_lacks_is_refused_before_anything_runs(tmp_path: Path, capsys) -> None:
+    """``--engine onchip`` with a run the on-chip engine does not implement: exit code 2 and one line, before the
+    reference runs and before anything is written."""
+    out = tmp_path / "x.json"
+    argv = ["--patches", "20", "--runs", "strang", "controlled:tol=3e-3", "--engine", "onchip", "--out", str(out)]
+    assert load_script("friction_step_sector").main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "'controlled:tol=3e-3'" in err[0] and not out.exists()

@@ -560,3 +560,36 @@ def test_a_checkpoint_continues_on_the_engine_that_wrote_it(growth):
         assert "step:strang:onchip" in rest.stages
         a, b = full.collect(), rest.collect()
         np.testing.assert_array_equal(a.globals[len(a.time) - len(b.time) :], b.globals)
+
+
+@pytest.mark.parametrize(("cap", "launches"), [(None, 1), (60 * 300, 4), (10, 10)])
+def test_a_cpu_launch_covers_at_most_the_patch_step_cap(cap, launches, monkeypatch):
+    """On the CPU a launch covers at most ``_CPU_PATCH_STEPS_PER_LAUNCH`` patch-steps in whole sample intervals and at
+    least one interval (a pad larger than the cap: one per launch): 60 patches, 100 steps per sample, 10 samples in 1,
+    ceil(10 / 3) or 10 launches; the samples are the same bits in every case."""
+    from aca_warp.hf import onchip
+
+    if cap is not None:
+        monkeypatch.setattr(onchip, "_CPU_PATCH_STEPS_PER_LAUNCH", cap)
+    calls = []
+    real = onchip.OnchipEngine._launch
+
+    def counted(self, *a):
+        calls.append(a[1])  # sample intervals of the launch
+        return real(self, *a)
+
+    monkeypatch.setattr(onchip.OnchipEngine, "_launch", counted)
+    s = _small_pad(False)
+    model = build_model([s], device="cpu", precision="fp64")
+    res = run_hf(model, initial_state(model), RunOptions(integrator="strang", dt=1e-8, duration=1e-5, engine="onchip"))
+    assert res.complete and len(calls) == launches and sum(calls) == 10
+    ref = _small_pad_reference()
+    np.testing.assert_array_equal(res.collect().globals, ref)
+
+
+def _small_pad_reference() -> np.ndarray:
+    """The global outputs of the 60-patch pad over 10 µs at 1e-8 s on the general engine."""
+    s = _small_pad(False)
+    model = build_model([s], device="cpu", precision="fp64")
+    opts = RunOptions(integrator="strang", dt=1e-8, duration=1e-5, engine="general")
+    return run_hf(model, initial_state(model), opts).collect().globals

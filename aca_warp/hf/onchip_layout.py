@@ -16,7 +16,7 @@ import warp as wp
 from aca_warp.common.devices import block_threads
 from aca_warp.common.errors import SceneError, option
 from aca_warp.hf.model import PadModel
-from aca_warp.hf.options import ENGINES
+from aca_warp.hf.options import ENGINES, ONCHIP_INTEGRATORS
 from aca_warp.kernels.hf_onchip import RED_SLOTS
 
 MAX_BLOCK = 1024  # threads per block
@@ -203,7 +203,7 @@ def unsupported(model: PadModel, integrator: str) -> str | None:
         if need > smem_limit(model):
             return f"the stage displacements of a {pad_sizes(model)[0]}-patch pad need {need} B of shared memory"
         return None
-    if integrator != "strang":
+    if integrator not in ONCHIP_INTEGRATORS:
         return f"the on-chip engine implements the strang and adaptive integrators only (got {integrator})"
     need, limit = shared_bytes(model, False), smem_limit(model)
     if need > limit:

@@ -29,6 +29,7 @@ DEFAULT_TOLERANCE = 1.0e-5  # adaptive: μ errors ≤ 1e-7 on hf1 and stick-slip
 # scale V_i; 1e-2 meets the saturated-statistics targets on hf1 sectors (docs/friction_step.md §5.2)
 DEFAULT_SPLIT_TOLERANCE = 1.0e-2
 ENGINES = ("auto", "onchip", "general")
+ONCHIP_INTEGRATORS = ("strang", "adaptive")  # the integrators the on-chip engine implements
 WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (recorder.watchdog_bound)
 
 

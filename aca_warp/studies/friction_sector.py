@@ -113,8 +113,10 @@ def report(doc: dict[str, Any]) -> list[str]:
 
 def _check(args: argparse.Namespace) -> None:
     """Refuse, before anything runs or is written (ValueError or AcaError): a --report file that is not there, a
-    --page that cannot be written; without --report, no --out, an unknown run, an --out that cannot be written."""
+    --page that cannot be written; without --report, no --out, an unknown run, a run the on-chip engine does not
+    implement with ``--engine onchip``, an --out that cannot be written."""
     from aca_warp.common.files import check_output_folder, check_output_path
+    from aca_warp.hf.options import ONCHIP_INTEGRATORS
 
     if args.report is not None:
         for path in args.report:
@@ -126,7 +128,8 @@ def _check(args: argparse.Namespace) -> None:
     if args.out is None:
         raise ValueError("--out is required (or --report)")
     for spec in [args.reference, *args.runs]:
-        parse_run(spec)
+        if parse_run(spec)["integrator"] not in ONCHIP_INTEGRATORS and args.engine == "onchip":
+            raise ValueError(f"--engine onchip runs {' and '.join(ONCHIP_INTEGRATORS)} only, not {spec!r}")
     if args.out.is_dir():
         raise ValueError(f"--out {args.out} is a folder; give a file name such as {args.out / 'sector.json'}")
     check_output_folder(args.out.parent)

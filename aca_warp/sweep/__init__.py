@@ -5,8 +5,8 @@ A sweep spec (``docs/sweeps.md``) names a base scene (a preset, a TOML scene fil
 or lists of scene parameters (``friction.M``, ``load.normal_force``, ``disc.sliding_speed``, ``patches.seed``,
 ``patches.area_min``, ``material.K_C``, ...), combined as a Cartesian product or zipped. Every combination is
 one pad. Pads are cut into shards of a fixed size; each shard is one batched HF run (one model,
-one :func:`aca_warp.hf.loop.run_hf` with the engine ``auto``: the on-chip kernel on CUDA, else the general one;
-split only when the estimated device memory says the batch does not fit) and one HDF5 file::
+one :func:`aca_warp.hf.loop.run_hf` with the engine ``auto``: the on-chip kernel where the model allows it, else the
+general one; split only when the estimated device memory says the batch does not fit) and one HDF5 file::
 
     DIR/manifest.json            spec, spec hash, shards and their state (written only by the client)
     DIR/shard-00000.h5           /global/time (samples,) [s]

@@ -104,8 +104,8 @@ def shard_capacity(scenes: list[Scene], precision: str, device: str, fraction: f
 
 
 def run_options(spec: SweepSpec) -> RunOptions:
-    """The options every pad of the sweep runs with (engine auto: the on-chip kernel on CUDA where the model allows
-    it, else the general one)."""
+    """The options every pad of the sweep runs with (engine auto: the on-chip kernel where the model allows it, on
+    CUDA and on the CPU, else the general one)."""
     from aca_warp.hf.options import RunOptions
 
     return RunOptions(duration=spec.duration, integrator=spec.integrator, dt=spec.dt, tolerance=spec.tolerance)
