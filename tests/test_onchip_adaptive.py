@@ -220,3 +220,27 @@ def test_pads_of_different_sizes():
     np.testing.assert_array_equal(out["onchip"][0], out["general"][0])
     np.testing.assert_array_equal(out["onchip"][1], out["general"][1])
     assert out["onchip"][2:] == out["general"][2:]
+
+
+@pytest.mark.parametrize(("cap", "launches"), [(None, 1), (3 * 3516, 7), (100, 20)])
+def test_a_cpu_launch_covers_at_most_the_patch_sample_cap(cap, launches, monkeypatch):
+    """On the CPU a launch of the adaptive kernel covers at most ``CPU_PATCH_SAMPLES_PER_LAUNCH`` patch-samples in whole
+    sample intervals and at least one (a batch larger than the cap: one per launch): two hf1 pads (3516 patches),
+    20 samples in 1, ceil(20 / 3) or 20 launches; the same bits as the general engine in every case."""
+    from aca_warp.hf import onchip_adaptive
+
+    if cap is not None:
+        monkeypatch.setattr(onchip_adaptive, "CPU_PATCH_SAMPLES_PER_LAUNCH", cap)
+    calls = []
+    real = onchip_adaptive.OnchipAdaptiveEngine._launch
+
+    def counted(self, samples, *a):
+        calls.append(samples)
+        return real(self, samples, *a)
+
+    monkeypatch.setattr(onchip_adaptive.OnchipAdaptiveEngine, "_launch", counted)
+    ro, co, uo, _ = _run("onchip", "fp64")
+    assert ro.complete and len(calls) == launches and sum(calls) == 20
+    _, cg, ug, _ = _run("general", "fp64")
+    np.testing.assert_array_equal(co.globals, cg.globals)
+    np.testing.assert_array_equal(uo, ug)

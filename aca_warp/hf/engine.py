@@ -102,7 +102,8 @@ class EngineTuning:
         max_graph_steps: General engine: most steps per captured graph.
         block_dim: On-chip: threads per block (None: :func:`~aca_warp.hf.onchip_layout.default_block`).
         csr_shared: On-chip: neighbour lists in shared memory (None: when they fit).
-        samples_per_launch: On-chip: sample intervals per launch (None: ~20k steps).
+        samples_per_launch: On-chip: sample intervals per launch (None: strang ~20k steps, adaptive 256; fewer on the
+            CPU for large batches).
         cluster: On-chip: blocks per pad (None: :func:`~aca_warp.hf.onchip_layout.default_cluster` on sm_90+).
         ablate: On-chip profiling only: parts of the step left out (results wrong).
         fast_math: On-chip profiling only: CUDA fast math.

@@ -38,6 +38,10 @@ BLOCK = 512  # most threads per block by default
 EVAL_LANES = 4
 WIDE_CLUSTER = 16  # blocks per pad for at most one pad per GPC (18 SMs) where the device launches them (else 8)
 SAMPLES_PER_LAUNCH = 256  # sample intervals per launch (a chunk; the recorder holds one launch's rows)
+# on the CPU (a pad's block is one thread) also at most about this many patch-samples per launch, so that progress,
+# Ctrl-C and checkpoints stay timely on large batches: a sample of a sliding hf1 pad takes a few trials, of the
+# stick-slip one of docs/time_to_solution.md ~29 at tolerance 1e-5, ~0.27 µs per patch-trial there: ~1.6 s a launch
+CPU_PATCH_SAMPLES_PER_LAUNCH = 200_000
 
 
 def tile_sizes(model: PadModel, cluster: int) -> tuple[int, int]:
@@ -85,8 +89,9 @@ class OnchipAdaptiveEngine(OnchipLaunches):
     """The on-chip ``adaptive`` kernel (:class:`~aca_warp.hf.engine.Engine`). Tuning: ``cluster`` blocks per pad
     (default :func:`layout`: 16 for one hf1 pad on an H100/H200, else as the strang engine), ``block_dim`` threads
     per block (default :func:`layout`), ``samples_per_launch`` sample intervals per launch (default
-    ``SAMPLES_PER_LAUNCH``), ``ablate`` (profiling only: ``kernels.hf_onchip_adaptive.ABLATIONS``). On the CPU a
-    block is one thread unless Warp's CPU fibers are on."""
+    ``SAMPLES_PER_LAUNCH``; on the CPU at most ``CPU_PATCH_SAMPLES_PER_LAUNCH`` patch-samples, at least one),
+    ``ablate`` (profiling only: ``kernels.hf_onchip_adaptive.ABLATIONS``). On the CPU a block is one thread unless
+    Warp's CPU fibers are on."""
 
     def __init__(self, setup: EngineSetup) -> None:
         model, state, options, record = setup.model, setup.state, setup.options, setup.record
@@ -98,6 +103,8 @@ class OnchipAdaptiveEngine(OnchipLaunches):
         self.solver = HFSolver.for_run(model, options, setup.estimate)
         self.estimate = self.solver.estimate
         spl = SAMPLES_PER_LAUNCH if tuning.samples_per_launch is None else tuning.samples_per_launch
+        if tuning.samples_per_launch is None and model.device.is_cpu:
+            spl = min(spl, max(1, CPU_PATCH_SAMPLES_PER_LAUNCH // model.patch_count))
         if spl < 1:
             raise SceneError(f"samples_per_launch must be at least 1, got {spl}")
         self.spl = min(spl, n_samples)
