@@ -107,7 +107,7 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         choices=ENGINES,
         default="auto",
         help="onchip: one thread block per pad (a cluster of up to 16 on sm_90+ for a few pads), many strang "
-        "steps or adaptive trials per launch (faster on CUDA; both grow patches too); general: per-step kernels "
+        "steps or adaptive trials per launch (faster than general; both grow patches too); general: per-step kernels "
         "(every integrator); auto (default): onchip where the run allows it (strang and adaptive, a pad that fits "
         "a block's shared memory), on CUDA and on the CPU (the same bits as general there, faster; docs/onchip.md)",
     )
