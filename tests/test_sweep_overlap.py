@@ -228,12 +228,12 @@ def test_gpu_turn_across_processes_is_a_file_lock(tmp_path: Path, monkeypatch: p
         os.close(other)
 
 
-# 8 pads of 25 patches in 4 shards of 2; 0.4 ms in steps of 20 ns, 2 µs samples: tenths of a second of stepping per
-# shard on one core, long beside a shard's upload
+# 8 pads of 150 patches in 4 shards of 2; 0.4 ms in steps of 20 ns, 2 µs samples: tenths of a second of stepping per
+# shard on one core (on the on-chip engine, which auto takes on the CPU), long beside a shard's upload
 PIPELINE = {
     "sweep": {"base": "hf1", "shard_size": 2, "name": "pipeline"},
     "run": {"duration": 4e-4, "precision": "fp32", "sample_dt": 2e-6, "dt": 2e-8},
-    "base": {"patches": {"count": 25}},
+    "base": {"patches": {"count": 150}},
     "parameters": {"friction.M": [0.6, 0.7, 0.8, 0.9], "patches.seed": [1, 2]},
 }
 
