@@ -237,8 +237,9 @@ class _Run:
         engine = options.engine
         if resume is not None and engine == "auto" and "onchip" in resume.counters:
             engine = "onchip" if resume.counters["onchip"] else "general"
+        engine = choose_engine(model, engine, options.integrator)  # resolved once: "onchip" or "general"
+        self.onchip = engine == "onchip"
         engine_options = dataclasses.replace(options, force=True, engine=engine)
-        self.onchip = choose_engine(model, engine, options.integrator) == "onchip"
         self.engine = make_engine(model, state, engine_options, record, self.n_samples, tuning, checked.estimate)
         self.rec = rec = self.engine.recorder
         self.mu_bound = checked.mu_bound
