@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common.argtypes import int_at_least, positive
+from aca_warp.hf.options import ENGINES, ONCHIP_INTEGRATORS
 from aca_warp.studies.report import Log, command_line, generated_markers, md_table, replace_generated, write_json
 
 SCRIPT = "friction_step_sector.py"
@@ -116,7 +117,6 @@ def _check(args: argparse.Namespace) -> None:
     --page that cannot be written; without --report, no --out, an unknown run, a run the on-chip engine does not
     implement with ``--engine onchip``, an --out that cannot be written."""
     from aca_warp.common.files import check_output_folder, check_output_path
-    from aca_warp.hf.options import ONCHIP_INTEGRATORS
 
     if args.report is not None:
         for path in args.report:
@@ -144,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--precision", choices=("fp32", "fp64"), default="fp64")
     ap.add_argument(
         "--engine",
-        choices=("general", "onchip", "auto"),
+        choices=ENGINES,
         default="general",
         help="the engine of every run (default general; auto: on-chip, as aca-warp hf runs; the same bits)",
     )
