@@ -540,26 +540,29 @@ def test_a_checkpoint_continues_on_the_engine_that_wrote_it(growth):
     choice: on the CPU the on-chip engine, which continues a non-growing general run bit for bit."""
     s = _small_pad(growth)
     opts = RunOptions(integrator="strang", duration=1e-5, checkpoint_interval=3e-6)
-    for engine, onchip in (("general", 0), ("auto", 1)):
+
+    def resumed(engine: str, forget: bool = False):
+        """The checkpoints of a run on ``engine``, and the run resumed from the second (its engine name dropped
+        when ``forget``) under ``auto``, checked against the uninterrupted samples."""
         model = build_model([s], device="cpu", precision="fp64")
         ckpts = []
         full = run_hf(model, initial_state(model), dataclasses.replace(opts, engine=engine), on_checkpoint=ckpts.append)
-        assert full.complete and [c.counters["onchip"] for c in ckpts] == [onchip] * len(ckpts) and len(ckpts) >= 2
+        ck = ckpts[1]
+        if forget:
+            ck = dataclasses.replace(ck, counters={k: v for k, v in ck.counters.items() if k != "onchip"})
         again = build_model([s], device="cpu", precision="fp64")
-        rest = run_hf(again, initial_state(again), opts, resume=ckpts[1])  # engine "auto"
+        rest = run_hf(again, initial_state(again), opts, resume=ck)  # engine "auto"
         a, b = full.collect(), rest.collect()
         np.testing.assert_array_equal(a.globals[len(a.time) - len(b.time) :], b.globals)
+        assert full.complete
+        return ckpts, rest
+
+    for engine, onchip in (("general", 0), ("auto", 1)):
+        ckpts, _ = resumed(engine)
+        assert [c.counters["onchip"] for c in ckpts] == [onchip] * len(ckpts) and len(ckpts) >= 2
     if not growth:
-        model = build_model([s], device="cpu", precision="fp64")
-        ckpts = []
-        general = dataclasses.replace(opts, engine="general")
-        full = run_hf(model, initial_state(model), general, on_checkpoint=ckpts.append)
-        older = dataclasses.replace(ckpts[1], counters={k: v for k, v in ckpts[1].counters.items() if k != "onchip"})
-        again = build_model([s], device="cpu", precision="fp64")
-        rest = run_hf(again, initial_state(again), opts, resume=older)
+        _, rest = resumed("general", forget=True)
         assert "step:strang:onchip" in rest.stages
-        a, b = full.collect(), rest.collect()
-        np.testing.assert_array_equal(a.globals[len(a.time) - len(b.time) :], b.globals)
 
 
 @pytest.mark.parametrize(("cap", "launches"), [(None, 1), (60 * 300, 4), (10, 10)])
