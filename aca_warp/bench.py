@@ -193,8 +193,10 @@ def run_case(
     warmup: float = 2.0e-6,
     stages: bool = True,
     engine: str = "general",
+    fast_math: bool = False,
 ) -> dict:
-    """Time one configuration; returns a result row (with ``mu``, pad 0's μ(t), for the error; popped later)."""
+    """Time one configuration; returns a result row (with ``mu``, pad 0's μ(t), for the error; popped later).
+    ``fast_math``: the on-chip strang kernel compiled with CUDA fast math (``RunOptions.fast_math``)."""
     import warp as wp
 
     from aca_warp.hf.loop import run_hf
@@ -213,8 +215,8 @@ def run_case(
     build_time = time.perf_counter() - t0
     state = initial_state(model)
     rec = Record(sample_dt=scene.record.sample_dt)
-    engine = choose_engine(model, engine, integrator)
-    options = RunOptions(engine=engine, integrator=integrator, dt=dt)
+    engine = choose_engine(model, engine, integrator, fast_math)
+    options = RunOptions(engine=engine, integrator=integrator, dt=dt, fast_math=fast_math)
     # compiles, captures; at least one sample interval (a shorter run records nothing and is refused)
     warm = run_hf(model, state, options.with_duration(max(warmup, rec.sample_dt)), record=rec)
     res = run_hf(model, state, options.with_duration(duration), record=rec)
@@ -231,6 +233,7 @@ def run_case(
             "precision": precision,
             "integrator": integrator,
             "engine": engine,
+            "fast_math": fast_math,
             "blocks_per_pad": res.blocks_per_pad,
             "pads": pads,
             "patches": n,
@@ -302,7 +305,7 @@ def _bandwidth_fields(
 def _engine_cell(r: dict) -> str:
     """The engine of a row, with the on-chip cluster size when a pad ran on more than one block ("onchip ×8")."""
     k = r.get("blocks_per_pad", 1)
-    return r.get("engine", "general") + (f" ×{k}" if k > 1 else "")
+    return r.get("engine", "general") + (f" ×{k}" if k > 1 else "") + (", fast math" if r.get("fast_math") else "")
 
 
 def run_bench(
@@ -313,6 +316,7 @@ def run_bench(
     precisions: tuple[str, ...] = ("fp64", "fp32"),
     integrators: tuple[str, ...] = ("strang",),
     engines: tuple[str, ...] = ("auto",),
+    maths: tuple[str, ...] = ("exact",),
     pads: tuple[int, ...] = (1,),
     dt: float = 1.0e-8,
     duration: float = 2.0e-5,
@@ -321,7 +325,8 @@ def run_bench(
     stages: bool = True,
     log: Any = None,
 ) -> dict:
-    """Run every case; returns ``{"machine", "scene", ..., "results": [rows]}`` (JSON-able)."""
+    """Run every case; returns ``{"machine", "scene", ..., "results": [rows]}`` (JSON-able). ``maths``: ``exact``
+    and/or ``fast`` (CUDA fast math, on-chip strang in fp32 only: other cases are not run with it)."""
     import warp as wp
 
     from aca_warp.common.devices import get_device
@@ -331,6 +336,10 @@ def run_bench(
         raise SceneError("duration, dt and sample interval must be > 0")
     if sample_dt > duration:
         raise SceneError(f"sample interval {sample_dt:g} s exceeds the duration {duration:g} s")
+    if "fast" in maths and ("fp32" not in precisions or "strang" not in integrators or set(engines) == {"general"}):
+        raise SceneError(
+            "fast math compiles the on-chip strang kernel in fp32 only: add fp32, strang and auto or onchip"
+        )
     dev = get_device(device)
     module_load = load_modules(dev)
     sc = bench_scene(scene, patches, sample_dt)
@@ -338,10 +347,13 @@ def run_bench(
     refs: dict[int, np.ndarray] = {}
     for npads in pads:
         for prec in precisions:
-            for integ, eng in ((i, e) for i in integrators for e in engines):
+            for integ, eng, kind in ((i, e, m) for i in integrators for e in engines for m in maths):
                 if eng == "onchip" and integ not in ONCHIP_INTEGRATORS:
                     continue  # the on-chip engine implements strang and adaptive
-                r = run_case(sc, device, prec, integ, npads, dt, duration, stages=stages, engine=eng)
+                fast = kind == "fast"
+                if fast and (prec != "fp32" or integ != "strang" or eng == "general"):
+                    continue  # fast math: the on-chip strang kernel in fp32 only
+                r = run_case(sc, device, prec, integ, npads, dt, duration, stages=stages, engine=eng, fast_math=fast)
                 mu = r.pop("mu")
                 r["module_load_s"] = module_load
                 if reference:
@@ -357,7 +369,7 @@ def run_bench(
                 if log:
                     err = r["mu_rel_error_max"]
                     log(
-                        f"{r['device_name'][:24]:>24s} {prec} {integ:>17s} {r['engine']:>7s} pads={npads:5d} "
+                        f"{r['device_name'][:24]:>24s} {prec} {integ:>17s} {_engine_cell(r):>18s} pads={npads:5d} "
                         f"{r['patch_steps_per_s']:.3g} patch-steps/s {r['ns_per_patch_step']:.3g} ns/patch-step, "
                         + ("" if r["bandwidth_Bps"] is None else f"{r['bandwidth_Bps'] / 1e9:.3g} GB/s, ")
                         + f"compile {r['compile_time_s']:.2f} s"
@@ -434,6 +446,14 @@ def add_parsers(sub: Any) -> None:
         help="HF engines (default auto: on-chip where the model allows it, else general; onchip: strang, adaptive)",
     )
     p.add_argument(
+        "--math",
+        nargs="+",
+        choices=("exact", "fast"),
+        default=["exact"],
+        help="exact (default) and/or fast: the on-chip strang kernel compiled with CUDA fast math, timed for fp32 "
+        "cases only (aca-warp hf --fast-math; docs/onchip.md, 'Fast math')",
+    )
+    p.add_argument(
         "--dt",
         type=positive,
         default=1.0e-8,
@@ -461,6 +481,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         precisions=tuple(args.precision),
         integrators=tuple(args.integrator),
         engines=tuple(args.engine),
+        maths=tuple(args.math),
         pads=tuple(args.pads),
         dt=args.dt,
         duration=args.duration,

@@ -217,14 +217,9 @@ def _case_runner(args: argparse.Namespace, model, block, csr, abl):
         def fn(st, duration, model=model, block=block, csr=csr, abl=abl):
             tags = {a for a in abl if a == "fast_math" or a.startswith("cluster")}
             cluster = max([int(a[7:]) for a in tags if a.startswith("cluster")], default=1)
-            tuning = EngineTuning(
-                block_dim=block,
-                csr_shared=csr,
-                ablate=frozenset(abl) - tags,
-                fast_math="fast_math" in abl,
-                cluster=cluster,
-            )
-            return run_hf(model, st, RunOptions(engine="onchip", duration=duration, dt=args.dt), tuning=tuning)
+            tuning = EngineTuning(block_dim=block, csr_shared=csr, ablate=frozenset(abl) - tags, cluster=cluster)
+            options = RunOptions(engine="onchip", duration=duration, dt=args.dt, fast_math="fast_math" in abl)
+            return run_hf(model, st, options, tuning=tuning)
 
     return fn
 

@@ -18,6 +18,7 @@ from aca_warp.hf.options import (
     DEFAULT_SPLIT_TOLERANCE,
     DEFAULT_TOLERANCE,
     ENGINES,
+    FAST_MATH_HELP,
     INTEGRATORS,
     STATISTICS_STEP,
     STEP_CONTROLLED,
@@ -111,6 +112,7 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "(every integrator); auto (default): onchip where the run allows it (strang and adaptive, a pad that fits "
         "a block's shared memory), on CUDA and on the CPU (the same bits as general there, faster; docs/onchip.md)",
     )
+    hf.add_argument("--fast-math", action="store_true", help=FAST_MATH_HELP)
 
 
 def _add_record_arguments(hf: argparse.ArgumentParser) -> None:
@@ -199,6 +201,7 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         engine=args.engine,
         checkpoint_interval=args.checkpoint_interval,
         accept_unphysical=args.accept_unphysical,
+        fast_math=args.fast_math,
     )
     result = run_scene(
         scene,
@@ -327,6 +330,7 @@ def _resume_hf(args: argparse.Namespace) -> int:
             ("--allow-implausible", args.allow_implausible, False),
             ("--overwrite", args.overwrite, False),
             ("--engine", getattr(args, "engine", "auto"), "auto"),
+            ("--fast-math", args.fast_math, False),
         ),
         "the run",
     )

@@ -106,7 +106,6 @@ class EngineTuning:
             CPU for large batches).
         cluster: On-chip: blocks per pad (None: :func:`~aca_warp.hf.onchip_layout.default_cluster` on sm_90+).
         ablate: On-chip profiling only: parts of the step left out (results wrong).
-        fast_math: On-chip profiling only: CUDA fast math.
     """
 
     use_graph: bool = True
@@ -116,7 +115,6 @@ class EngineTuning:
     samples_per_launch: int | None = None
     cluster: int | None = None
     ablate: frozenset[str] = frozenset()
-    fast_math: bool = False
 
 
 @dataclass(frozen=True)

@@ -101,7 +101,7 @@ def make_engine(
     from aca_warp.hf.onchip_layout import choose_engine
 
     setup = EngineSetup(model, state, options, record, n_samples, tuning, estimate)
-    if choose_engine(model, options.engine, options.integrator) == "onchip":
+    if choose_engine(model, options.engine, options.integrator, options.fast_math) == "onchip":
         if options.integrator == "adaptive":
             from aca_warp.hf.onchip_adaptive import OnchipAdaptiveEngine
 
@@ -237,7 +237,7 @@ class _Run:
         engine = options.engine
         if resume is not None and engine == "auto" and "onchip" in resume.counters:
             engine = "onchip" if resume.counters["onchip"] else "general"
-        engine = choose_engine(model, engine, options.integrator)  # resolved once: "onchip" or "general"
+        engine = choose_engine(model, engine, options.integrator, options.fast_math)  # resolved once: onchip or general
         self.onchip = engine == "onchip"
         engine_options = dataclasses.replace(options, force=True, engine=engine)
         self.engine = make_engine(model, state, engine_options, record, self.n_samples, tuning, checked.estimate)

@@ -117,8 +117,9 @@ class OnchipEngine(OnchipLaunches):
     ``block_dim``: threads per block (default :func:`~aca_warp.hf.onchip_layout.default_block`); ``csr_shared``:
     neighbour lists in shared memory (default: when they fit); ``samples_per_launch``: sample intervals per launch
     (default: about 20k steps); ``cluster``: blocks per pad, 1–16 (CUDA sm_90+; above 8 a "non-portable" size,
-    refused where the device cannot launch it); ``ablate``/``fast_math``: profiling only. On the CPU a block is one
-    thread unless ``wp.config.enable_cpu_blocks`` is set (Warp's cooperative CPU fibers, used by the tests).
+    refused where the device cannot launch it); ``ablate``: profiling only. CUDA fast math is a run option
+    (``RunOptions.fast_math``). On the CPU a block is one thread unless ``wp.config.enable_cpu_blocks`` is set (Warp's
+    cooperative CPU fibers, used by the tests).
     """
 
     def __init__(self, setup: EngineSetup) -> None:
@@ -142,7 +143,7 @@ class OnchipEngine(OnchipLaunches):
             bool(csr_shared),
             self.block_dim,
             frozenset(tuning.ablate),
-            tuning.fast_math,
+            options.fast_math,
             "pad_growth" in model.arrays,
             cluster,
             min(self.threads, 32),

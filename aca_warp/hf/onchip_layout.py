@@ -214,8 +214,28 @@ def unsupported(model: PadModel, integrator: str) -> str | None:
     return None
 
 
-def choose_engine(model: PadModel, engine: str, integrator: str) -> str:
-    """Resolve ``engine`` (auto, onchip, general) for a model; ``onchip`` on an unsupported model is an error.
+def fast_math_refusal(model: PadModel, engine: str, integrator: str) -> str | None:
+    """Why a run on ``engine`` (resolved: onchip or general) cannot take CUDA fast math (None when it can).
+
+    Fast math is a compile option of the on-chip ``strang`` kernel. It changes single-precision arithmetic only
+    (fp64 runs would be unchanged), and Warp's CPU build ignores it (a CPU run would be the exact one), so it is
+    offered where it acts: fp32 on a CUDA device. Its statistics were measured against the exact kernel's
+    (docs/onchip.md, "Fast math")."""
+    if integrator != "strang" or engine != "onchip":
+        why = unsupported(model, integrator) if integrator == "strang" else None
+        return "it compiles the on-chip strang kernel only" + (
+            f", and {why}" if why else f" (got {integrator} on {engine})"
+        )
+    if model.device.is_cpu:
+        return "it applies to CUDA devices only (Warp's CPU build has no fast math: the run would be the exact one)"
+    if model.dtype == wp.float64:
+        return "it changes single-precision arithmetic only: choose fp32"
+    return None
+
+
+def choose_engine(model: PadModel, engine: str, integrator: str, fast_math: bool = False) -> str:
+    """Resolve ``engine`` (auto, onchip, general) for a model; ``onchip`` on an unsupported model is an error, and
+    so is ``fast_math`` where :func:`fast_math_refusal` gives a reason.
 
     ``auto`` picks ``onchip`` when the model allows it, growing models included (their in-kernel growth passes
     ``scripts/onchip_gpu_check.py --growth`` on an H100; docs/onchip.md): faster on CUDA (docs/onchip.md) and on the
@@ -227,11 +247,11 @@ def choose_engine(model: PadModel, engine: str, integrator: str) -> str:
     if engine not in ENGINES:
         raise SceneError(f"unknown engine {engine!r}; choose from {', '.join(ENGINES)}")
     why = unsupported(model, integrator)
-    if engine == "onchip":
-        if why is not None:
-            given = option("engine='onchip'", "--engine onchip")
-            raise SceneError(f"{given}: {why}")
-        return "onchip"
-    if engine == "general" or why is not None:
-        return "general"
-    return "onchip"
+    if engine == "onchip" and why is not None:
+        given = option("engine='onchip'", "--engine onchip")
+        raise SceneError(f"{given}: {why}")
+    resolved = "general" if engine == "general" or why is not None else "onchip"
+    refusal = fast_math_refusal(model, resolved, integrator) if fast_math else None
+    if refusal is not None:
+        raise SceneError(f"{option('fast_math=True', '--fast-math')}: {refusal}")
+    return resolved

@@ -30,6 +30,12 @@ DEFAULT_TOLERANCE = 1.0e-5  # adaptive: μ errors ≤ 1e-7 on hf1 and stick-slip
 DEFAULT_SPLIT_TOLERANCE = 1.0e-2
 ENGINES = ("auto", "onchip", "general")
 ONCHIP_INTEGRATORS = ("strang", "adaptive")  # the integrators the on-chip engine implements
+FAST_MATH_HELP = (
+    "compile the on-chip strang kernel with CUDA fast math (approximate fp32 division, square root and "
+    "transcendentals; denormals flushed): fp32 on a CUDA device only; faster, and every result changes in its last "
+    "bits: the saturated statistics of hf1-hf4 keep every measure at their steps, growing pads unconfirmed "
+    "(docs/onchip.md, 'Fast math')"
+)
 WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (recorder.watchdog_bound)
 
 
@@ -90,6 +96,9 @@ class RunOptions:
         watchdog_factor: Watchdog bound in units of the scene's velocity scale; None: only non-finite checks.
         accept_unphysical: Run on, with a warning, where the physical sanity checks (:mod:`aca_warp.hf.sanity`:
             contact solution, μ bound) would stop the run.
+        fast_math: Compile the on-chip ``strang`` kernel with CUDA fast math (approximate single-precision division,
+            square root and transcendentals, denormals flushed to zero): fp32 on a CUDA device only
+            (:func:`~aca_warp.hf.onchip_layout.fast_math_refusal`; docs/onchip.md, "Fast math").
     """
 
     duration: float | None = None
@@ -102,6 +111,7 @@ class RunOptions:
     checkpoint_interval: float | None = None
     watchdog_factor: float | None = WATCHDOG_FACTOR
     accept_unphysical: bool = False
+    fast_math: bool = False
 
     def __post_init__(self) -> None:
         if self.integrator not in INTEGRATORS:
@@ -111,6 +121,8 @@ class RunOptions:
         _positive_or_none("duration", self.duration, " of seconds")
         _positive_or_none("dt", self.dt, " of seconds")
         check_interval(self.checkpoint_interval)
+        if not isinstance(self.fast_math, bool):
+            raise SceneError(f"fast_math must be true or false, got {self.fast_math!r}")
         _positive_or_none("watchdog_factor", self.watchdog_factor, "")
         for name in ("tolerance", "split_tolerance"):
             value = getattr(self, name)

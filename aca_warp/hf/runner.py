@@ -157,7 +157,8 @@ def run_scene(
         state = initial_state(model)
         check_step(model, options, scene.record.sample_dt)  # the step the run takes
         check_contact(model, accept=options.accept_unphysical)  # exit 3 before a file exists
-        options = dataclasses.replace(options, engine=choose_engine(model, options.engine, options.integrator))
+        engine = choose_engine(model, options.engine, options.integrator, options.fast_math)
+        options = dataclasses.replace(options, engine=engine)
     except BaseException:
         lock.release()
         raise

@@ -99,14 +99,17 @@ def run_engine(
     force: bool = False,
     tolerance: float | None = None,
     split_tolerance: float | None = None,
+    fast_math: bool = False,
 ) -> RunResult:
     """``run_hf`` for ``duration`` [s] with step ``dt`` [s] (None: the integrator's default; an error-controlled
-    integrator's first trial), ``tolerance`` and ``split_tolerance`` (None: the defaults;
-    :class:`~aca_warp.hf.options.RunOptions`); ``engine``: general, onchip or auto. With
+    integrator's first trial), ``tolerance``, ``split_tolerance`` (None: the defaults) and ``fast_math``
+    (:class:`~aca_warp.hf.options.RunOptions`); ``engine``: general, onchip or auto. With
     ``sink`` every recorded chunk goes there (the result then holds none); ``force``: a step beyond the stable-step
     estimate runs (with a warning)."""
     tol = {k: v for k, v in (("tolerance", tolerance), ("split_tolerance", split_tolerance)) if v is not None}
-    options = RunOptions(engine=engine, duration=duration, integrator=integrator, dt=dt, force=force, **tol)
+    options = RunOptions(
+        engine=engine, duration=duration, integrator=integrator, dt=dt, force=force, fast_math=fast_math, **tol
+    )
     return run_hf(model, state, options, record=record, sink=sink)
 
 

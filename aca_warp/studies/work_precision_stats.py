@@ -15,13 +15,14 @@ groups of LF snapshots; their LF runs are made once in ``OUT/lf``). Every pad of
 same per-patch window by the validation's own per-pad analysis, whether its detector calls it saturated or not,
 so that every setting is measured on the same samples.
 
-A **setting** is ``INTEGRATOR@PRECISIONS[:dt=STEPS][:tol=TOLERANCES]`` (a product), e.g. ``strang@fp32:dt=1e-8,
-5e-7``, ``adaptive@fp64:tol=1e-4``, ``implicit-friction@fp32,fp64:dt=1e-7``; without dt or tol the integrator's
-defaults (``tol``: the tolerance of ``adaptive``, the split tolerance of ``controlled`` and ``auto``,
-:func:`~aca_warp.hf.options.tolerance_keyword`). Fixed steps run forced (past the spring bound too). Any name of
-``aca_warp.hf.options.INTEGRATORS`` is accepted, and a name that the default grid does not list runs at its
-defaults in fp32 and fp64. The **reference** (``--reference``; strang fp64 at 1e-8 s, --quick 2e-8 s, capped at
-0.9 × the regime's friction step, h γ_max = 4) runs first, then the grid, cheapest first.
+A **setting** is ``INTEGRATOR@PRECISIONS[:dt=STEPS][:tol=TOLERANCES][:fast]`` (a product), e.g.
+``strang@fp32:dt=1e-8,5e-7``, ``adaptive@fp64:tol=1e-4``, ``implicit-friction@fp32,fp64:dt=1e-7``,
+``strang@fp32:dt=1e-7:fast`` (the on-chip kernel compiled with CUDA fast math: ``aca-warp hf --fast-math``); without
+dt or tol the integrator's defaults (``tol``: the tolerance of ``adaptive``, the split tolerance of ``controlled``
+and ``auto``, :func:`~aca_warp.hf.options.tolerance_keyword`). Fixed steps run forced (past the spring bound
+too). Any name of ``aca_warp.hf.options.INTEGRATORS`` is accepted, and a name that the default grid does not list
+runs at its defaults in fp32 and fp64. The **reference** (``--reference``; strang fp64 at 1e-8 s, --quick 2e-8 s,
+capped at 0.9 × the regime's friction step, h γ_max = 4) runs first, then the grid, cheapest first.
 
 The statistics and the rule (a setting's bias within ± ``--rule`` × the standard deviation between seeds for every
 measure, as ``--criterion`` counts it: proven by the 95 % interval, or within the resolution of the ensemble; the
@@ -108,18 +109,21 @@ PROGRESS_S = 30.0  # s of wall time between progress lines of one run
 
 @dataclass(frozen=True)
 class Setting:
-    """One point of the grid: integrator, precision, fixed step [s] and/or tolerance (None: the defaults)."""
+    """One point of the grid: integrator, precision, fixed step [s] and/or tolerance (None: the defaults), and
+    whether the on-chip strang kernel is compiled with CUDA fast math (``RunOptions.fast_math``)."""
 
     integrator: str
     precision: str
     dt: float | None = None
     tolerance: float | None = None
+    fast_math: bool = False
 
     @property
     def label(self) -> str:
-        """``integrator@precision[:dt=…][:tol=…]`` (parses back to this setting)."""
+        """``integrator@precision[:dt=…][:tol=…][:fast]`` (parses back to this setting)."""
         parts = [f"dt={self.dt:g}"] if self.dt is not None else []
         parts += [f"tol={self.tolerance:g}"] if self.tolerance is not None else []
+        parts += ["fast"] if self.fast_math else []
         return ":".join([f"{self.integrator}@{self.precision}", *parts])
 
     def cost(self, duration: float) -> float:
@@ -129,8 +133,8 @@ class Setting:
 
 
 def parse_setting(spec: str) -> list[Setting]:
-    """The settings of one spec ``NAME@P1[,P2][:dt=V[,V…]][:tol=V[,V…]]`` (module docstring); ValueError names
-    what is wrong."""
+    """The settings of one spec ``NAME@P1[,P2][:dt=V[,V…]][:tol=V[,V…]][:fast]`` (module docstring); ValueError
+    names what is wrong."""
     head, *params = spec.split(":")
     name, _, precs = head.partition("@")
     if name not in INTEGRATORS:
@@ -140,10 +144,13 @@ def parse_setting(spec: str) -> list[Setting]:
     if bad:
         raise ValueError(f"unknown precision {', '.join(bad)} in {spec!r}; choose from {', '.join(PRECISIONS)}")
     axes: dict[str, list[float | None]] = {"dt": [None], "tol": [None]}
-    for p in params:
+    fast = "fast" in params
+    if fast and (name != "strang" or precisions != ["fp32"]):
+        raise ValueError(f"fast math in {spec!r}: the on-chip strang kernel in fp32 only (strang@fp32:…:fast)")
+    for p in (p for p in params if p != "fast"):
         key, _, vals = p.partition("=")
         if key not in axes or not vals:
-            raise ValueError(f"bad parameter {p!r} in {spec!r}: use dt=V[,V…] or tol=V[,V…]")
+            raise ValueError(f"bad parameter {p!r} in {spec!r}: use dt=V[,V…], tol=V[,V…] or fast")
         try:
             nums = [float(v) for v in vals.split(",")]
         except ValueError:
@@ -151,7 +158,8 @@ def parse_setting(spec: str) -> list[Setting]:
         if not all(v > 0 and math.isfinite(v) for v in nums):
             raise ValueError(f"{key} must be positive in {spec!r}")
         axes[key] = list(nums)
-    return [Setting(name, pr, dt, tol) for pr, dt, tol in itertools.product(precisions, axes["dt"], axes["tol"])]
+    combos = itertools.product(precisions, axes["dt"], axes["tol"])
+    return [Setting(name, pr, dt, tol, fast) for pr, dt, tol in combos]
 
 
 def grid(specs: list[str], integrators: list[str] | None, precisions: list[str] | None) -> list[Setting]:
@@ -260,7 +268,7 @@ def run_setting(prep: Any, cfg: Any, setting: Setting, role: str, names: list[st
         res = run_engine(
             model, state, engine=cfg.engine, duration=prep.plan.duration, integrator=setting.integrator,
             dt=setting.dt, record=prep.plan.record(cfg), sink=sink, force=setting.dt is not None,
-            **{tolerance_keyword(setting.integrator): setting.tolerance},
+            fast_math=setting.fast_math, **{tolerance_keyword(setting.integrator): setting.tolerance},
         )  # fmt: skip
     except (SceneError, ValueError) as e:  # a setting the integrator refuses (e.g. an fp32 tolerance too tight)
         log(f"  {setting.label}: refused: {e}")

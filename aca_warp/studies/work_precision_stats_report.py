@@ -45,7 +45,7 @@ def machine_text(doc: dict[str, Any]) -> str:
 
 
 def _family(setting: dict[str, Any]) -> str:
-    return f"{setting['integrator']}@{setting['precision']}"
+    return f"{setting['integrator']}@{setting['precision']}" + (" fast math" if setting.get("fast_math") else "")
 
 
 def _marker(family: str, families: list[str]) -> str:

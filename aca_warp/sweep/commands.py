@@ -70,6 +70,13 @@ def add_parsers(sub: Any) -> None:
         help="fixed step [s] (default: the spec's, else strang 5e-8, the other fixed-step integrators 1e-8)",
     )
     p.add_argument(
+        "--fast-math",
+        action="store_true",
+        default=None,
+        help="the on-chip strang kernel compiled with CUDA fast math (the spec's run.fast_math; fp32 strang on CUDA "
+        "only; aca-warp hf --fast-math, docs/onchip.md 'Fast math')",
+    )
+    p.add_argument(
         "--memory-fraction",
         type=fraction,
         default=0.5,
@@ -118,7 +125,7 @@ def _interrupted_line(out: str, e: KeyboardInterrupt) -> str:
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from aca_warp.sweep.run import run_sweep
-    from aca_warp.sweep.spec import load_spec
+    from aca_warp.sweep.spec import SweepError, load_spec
 
     spec = load_spec(
         args.spec,
@@ -127,13 +134,16 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         integrator=args.integrator,
         precision=args.precision,
         dt=args.dt,
+        fast_math=args.fast_math,
     )
+    if spec.fast_math and args.scheduler is None and "cpu" in args.device.split(","):
+        raise SweepError("fast math applies to CUDA devices only: run the sweep with --device cuda")
     log = None if args.quiet else (lambda s: print(s, flush=True))
     if log:
         log(
             f"sweep {spec.name!r}: {spec.pad_count} pads ({', '.join(spec.parameters) or 'base only'}), "
             f"{spec.shard_count} shard(s) of {spec.shard_size}, {spec.duration:g} s each, "
-            f"{spec.integrator} {spec.precision}, spec hash {spec.hash[:12]}"
+            f"{spec.integrator} {spec.precision}{', fast math' if spec.fast_math else ''}, spec hash {spec.hash[:12]}"
         )
     try:
         with interrupts.second_signal_exits():  # the signals are the command line's (aca_warp.cli.main)

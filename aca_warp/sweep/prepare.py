@@ -108,7 +108,13 @@ def run_options(spec: SweepSpec) -> RunOptions:
     CUDA and on the CPU, else the general one)."""
     from aca_warp.hf.options import RunOptions
 
-    return RunOptions(duration=spec.duration, integrator=spec.integrator, dt=spec.dt, tolerance=spec.tolerance)
+    return RunOptions(
+        duration=spec.duration,
+        integrator=spec.integrator,
+        dt=spec.dt,
+        tolerance=spec.tolerance,
+        fast_math=spec.fast_math,
+    )
 
 
 @dataclass

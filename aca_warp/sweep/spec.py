@@ -39,7 +39,7 @@ MODES = ("product", "zip")
 DEFAULT_SHARD_SIZE = 64
 PACKINGS = ("size", "none")
 _SWEEP_KEYS = ("name", "base", "mode", "shard_size", "pack")
-_RUN_KEYS = ("duration", "integrator", "precision", "dt", "tolerance", "sample_dt")
+_RUN_KEYS = ("duration", "integrator", "precision", "dt", "tolerance", "sample_dt", "fast_math")
 
 # Parameters a sweep may vary: key -> (unit, kind); kind says how the value is applied to the base scene.
 PARAMETERS: dict[str, tuple[str, str]] = {
@@ -169,6 +169,8 @@ class SweepSpec:
             order (``pack = "none"``, or every pad of the same patch count).
         duration: Simulated duration of every pad [s].
         integrator, precision, dt, tolerance: Solver settings (as ``run_hf``).
+        fast_math: The on-chip strang kernel compiled with CUDA fast math (``RunOptions.fast_math``: fp32 strang on
+            CUDA only).
     """
 
     doc: dict
@@ -186,6 +188,7 @@ class SweepSpec:
     tolerance: float
     pack: str = "size"
     order: np.ndarray | None = field(default=None, repr=False)
+    fast_math: bool = False
     _hash: str = field(default="", repr=False)
 
     @property
@@ -227,7 +230,8 @@ class SweepSpec:
         return self._hash
 
     def run_settings(self) -> dict:
-        """Duration, integrator, precision, dt, tolerance and sample interval, as a JSON-able dict."""
+        """Duration, integrator, precision, dt, tolerance and sample interval, and fast math where it is on (absent
+        otherwise: hashes of earlier sweeps hold), as a JSON-able dict."""
         return {
             "duration": self.duration,
             "integrator": self.integrator,
@@ -235,6 +239,7 @@ class SweepSpec:
             "dt": self.dt,
             "tolerance": self.tolerance,
             "sample_dt": self.base.record.sample_dt,
+            **({"fast_math": True} if self.fast_math else {}),
         }
 
     def pad_values(self, pad: int) -> dict[str, Any]:
@@ -252,7 +257,7 @@ class SweepSpec:
 
 def load_spec(source: str | Path | dict, *, base_dir: Path | None = None, **overrides: Any) -> SweepSpec:
     """Read and validate a sweep spec (TOML path or dict); ``overrides`` (shard_size, duration, integrator,
-    precision, dt, tolerance; None = keep) replace the spec's values and so enter its hash."""
+    precision, dt, tolerance, fast_math; None = keep) replace the spec's values and so enter its hash."""
     if isinstance(source, dict):
         doc = copy.deepcopy(source)
         base_dir = base_dir or Path.cwd()
@@ -350,6 +355,13 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
             raise SweepError(f"run.{key} must be a positive number, got {v!r}")
         return float(v)
 
+    fast_math = run.get("fast_math", False)
+    if not isinstance(fast_math, bool):
+        raise SweepError(f"run.fast_math must be true or false, got {fast_math!r}")
+    if fast_math and (integrator != "strang" or precision != "fp32"):
+        raise SweepError(
+            f"run.fast_math compiles the on-chip strang kernel in fp32 only (got {integrator} in {precision})"
+        )
     duration = num("duration", base.duration)
     dt = step_asked(integrator, num("dt", None))  # written out: the hash and the shards name the step
     tolerance = num("tolerance", DEFAULT_TOLERANCE)
@@ -381,6 +393,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         tolerance=tolerance,
         pack=pack,
         order=pack_order(params, pack),
+        fast_math=fast_math,
     )
     if check:
         _check_pads(spec, lists)
