@@ -2,12 +2,14 @@
 """Time the varying-area record through the command line at several fixed steps.
 
 Runs ``aca-warp hf varying_area --duration D --dt STEP --precision fp32 --device DEV -o OUT/va_STEP.h5`` once per
-step (each in its own process, as a user runs it, kernels cached after the first) and writes the wall time of each
+step (each in its own process, as a user runs it, kernels cached after the first), with ``--math exact fast`` also
+with ``--fast-math`` (``OUT/va_STEP_fast.h5``; docs/onchip.md, "Fast math"), and writes the wall time of each
 command with the run's summary line to ``OUT/time_varying_area.json`` and a Markdown table beside it. Which step the
 statistics allow is the statistical work-precision's question (docs/work_precision_statistics.md, regime ``va``);
 this script only measures what each step costs. Example (one GPU; the paper's record is 0.36 s)::
 
     python3 scripts/time_varying_area.py --device cuda:0 --steps 1e-7 2.5e-7 5e-7 --out out/va_time
+    python3 scripts/time_varying_area.py --device cuda:0 --steps 5e-8 --math exact fast --out out/va_fast
     python3 scripts/time_varying_area.py --dry-run --steps 5e-8        # print the commands only
 """
 
@@ -24,11 +26,17 @@ from aca_warp.cli import Parser
 from aca_warp.common.argtypes import positive
 
 
-def command(step: float, duration: float, device: str, out: Path) -> list[str]:
-    """The command line timed for one step [s]."""
+def run_file(out: Path, step: float, fast: bool) -> Path:
+    """The run file of one step [s], with or without fast math."""
+    return out / f"va_{step:g}{'_fast' if fast else ''}.h5"
+
+
+def command(step: float, duration: float, device: str, out: Path, fast: bool = False) -> list[str]:
+    """The command line timed for one step [s] (``fast``: with CUDA fast math)."""
     return [
         "aca-warp", "hf", "varying_area", "--duration", f"{duration:g}", "--dt", f"{step:g}",
-        "--precision", "fp32", "--device", device, "--overwrite", "-o", str(out / f"va_{step:g}.h5"),
+        "--precision", "fp32", "--device", device, "--overwrite", "-o", str(run_file(out, step, fast)),
+        *(["--fast-math"] if fast else []),
     ]  # fmt: skip
 
 
@@ -59,14 +67,18 @@ def machine_of(run_file: Path) -> str:
 
 def markdown(doc: dict) -> str:
     """The table of ``doc`` (one row per step)."""
-    rows = [f"| {r['step_s']:g} | {r['wall_s']:.1f} | {r['exit']} | {r['summary']} |" for r in doc["rows"]]
+    rows = [
+        f"| {r['step_s']:g} | {'fast' if r.get('fast_math') else 'exact'} | {r['wall_s']:.1f} | {r['exit']} "
+        f"| {r['summary']} |"
+        for r in doc["rows"]
+    ]
     head = [
         f"# Varying-area record through the CLI ({doc['duration_s']:g} s)",
         "",
         f"{doc['date']}, {doc['machine']}, device {doc['device']}; written by `python3 scripts/time_varying_area.py`.",
         "",
-        "| step [s] | wall [s] | exit | summary |",
-        "|---|---|---|---|",
+        "| step [s] | math | wall [s] | exit | summary |",
+        "|---|---|---|---|---|",
     ]
     return "\n".join(head + rows) + "\n"
 
@@ -78,10 +90,13 @@ def main(argv: list[str] | None = None) -> int:
                     help="fixed steps to time [s] (default 1e-7 2.5e-7 5e-7)")  # fmt: skip
     ap.add_argument("--duration", type=positive, default=0.36, metavar="S", help="record length [s] (default 0.36)")
     ap.add_argument("--out", default="out/va_time", help="folder of the run files and the results")
+    ap.add_argument("--math", nargs="+", choices=("exact", "fast"), default=["exact"],
+                    help="exact (default) and/or fast: each step also with --fast-math (fp32 on CUDA)")  # fmt: skip
     ap.add_argument("--dry-run", action="store_true", help="print the commands and exit")
     args = ap.parse_args(argv)
     out = Path(args.out)
-    cmds = [command(s, args.duration, args.device, out) for s in args.steps]
+    cases = [(s, m == "fast") for s in args.steps for m in args.math]
+    cmds = [command(s, args.duration, args.device, out, fast) for s, fast in cases]
     if args.dry_run:  # the commands, for this machine or another: the device is not looked up
         print("\n".join(" ".join(c) for c in cmds))
         return 0
@@ -96,12 +111,13 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(str(e))
     out.mkdir(parents=True, exist_ok=True)
     rows = []
-    for step, cmd in zip(args.steps, cmds, strict=True):
-        rows.append({"step_s": step} | time_one(cmd))
-        print(f"dt {step:g} s: {rows[-1]['wall_s']:.1f} s  {rows[-1]['summary']}", flush=True)
+    for (step, fast), cmd in zip(cases, cmds, strict=True):
+        rows.append({"step_s": step, "fast_math": fast} | time_one(cmd))
+        what = f"dt {step:g} s{' fast math' if fast else ''}"
+        print(f"{what}: {rows[-1]['wall_s']:.1f} s  {rows[-1]['summary']}", flush=True)
     doc = {
         "date": time.strftime("%Y-%m-%d %H:%M"),
-        "machine": machine_of(out / f"va_{args.steps[0]:g}.h5"),
+        "machine": machine_of(run_file(out, *cases[0])),
         "device": args.device,
         "duration_s": args.duration,
         "rows": rows,

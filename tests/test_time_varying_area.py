@@ -18,6 +18,12 @@ def test_dry_run_prints_one_command_per_step(capsys):
     assert "--dt 2.5e-07" in lines[1] and lines[1].endswith("va_2.5e-07.h5")
 
 
+def test_math_fast_adds_the_fast_math_command_per_step(capsys):
+    assert load().main(["--dry-run", "--steps", "5e-8", "--math", "exact", "fast"]) == 0
+    exact, fast = capsys.readouterr().out.splitlines()
+    assert exact.endswith("va_5e-08.h5") and fast.endswith("va_5e-08_fast.h5 --fast-math")
+
+
 @pytest.mark.parametrize("argv", [["--steps", "-1e-7"], ["--duration", "0"]])
 def test_bad_input_is_one_line_exit_2(argv, capsys):
     with pytest.raises(SystemExit) as e:
@@ -29,7 +35,7 @@ def test_bad_input_is_one_line_exit_2(argv, capsys):
 def test_markdown_has_a_row_per_step():
     doc = {"date": "d", "machine": "m", "device": "cuda:0", "duration_s": 0.36,
            "rows": [{"step_s": 1e-7, "wall_s": 46.6, "exit": 0, "summary": "ok"}]}  # fmt: skip
-    assert "| 1e-07 | 46.6 | 0 | ok |" in load().markdown(doc)
+    assert "| 1e-07 | exact | 46.6 | 0 | ok |" in load().markdown(doc)
 
 
 def test_machine_is_read_from_the_run_file(tmp_path):
