@@ -105,14 +105,17 @@ def main(argv: list[str] | None = None) -> int:
     from aca_warp.common.files import check_output_folder
 
     try:
-        get_device(args.device)
+        if get_device(args.device).is_cpu and "fast" in args.math:
+            ap.error("--math fast: fast math applies to CUDA devices only")
         check_output_folder(out)
     except AcaError as e:
         ap.error(str(e))
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     for (step, fast), cmd in zip(cases, cmds, strict=True):
-        rows.append({"step_s": step, "fast_math": fast} | time_one(cmd))
+        row = time_one(cmd)
+        row["summary"] = row["summary"].replace(f"{out}/", "")  # the run file as named under --out
+        rows.append({"step_s": step, "fast_math": fast} | row)
         what = f"dt {step:g} s{' fast math' if fast else ''}"
         print(f"{what}: {rows[-1]['wall_s']:.1f} s  {rows[-1]['summary']}", flush=True)
     doc = {

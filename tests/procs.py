@@ -211,3 +211,18 @@ def gated(gate: str, fn: Any, *args: Any) -> Any:
     while not Path(gate).exists() and time.monotonic() < deadline:
         time.sleep(0.01)
     return fn(*args)
+
+
+def one_shard_sweep(folder: Path, m_values: list[float], *, duration: float, sample_dt: float = 1.0e-6) -> Path:
+    """Sweep hf1 pads of 12 patches in fp32, one per friction factor M of ``m_values``, all in one shard, in this
+    process (``--workers 0``) into ``folder/sw``; the shard's path."""
+    from aca_warp.cli import main
+
+    spec = folder / "s.toml"
+    spec.write_text(
+        f'[sweep]\nbase = "hf1"\nshard_size = {len(m_values)}\n[run]\nduration = {duration!r}\n'
+        f'sample_dt = {sample_dt!r}\nprecision = "fp32"\n[base.patches]\ncount = 12\n[parameters]\n'
+        f'"friction.M" = {list(m_values)!r}\n'
+    )
+    assert main(["sweep", str(spec), "-o", str(folder / "sw"), "--workers", "0", "--quiet"]) == 0
+    return folder / "sw" / "shard-00000.h5"

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import pytest
+from procs import one_shard_sweep
 
 from aca_warp.bench import run_bench
 from aca_warp.cli import main
@@ -76,8 +77,12 @@ def test_study_setting_fast():
     assert s.fast_math and s.label == "strang@fp32:dt=1e-07:fast"
     assert wps.parse_setting(s.label) == [s]
     assert [x.fast_math for x in wps.parse_setting("strang@fp32:dt=1e-7,2e-7")] == [False, False]
-    for bad in ("strang@fp64:dt=1e-7:fast", "adaptive@fp32:fast", "strang@fp32,fp64:fast"):
-        with pytest.raises(ValueError, match="fp32 only"):
+    for bad, why in (
+        ("strang@fp64:dt=1e-7:fast", "single-precision arithmetic only"),
+        ("adaptive@fp32:fast", "on-chip strang kernel only"),
+        ("strang@fp32,fp64:fast", "single-precision arithmetic only"),
+    ):
+        with pytest.raises(ValueError, match=why):
             wps.parse_setting(bad)
 
 
@@ -106,7 +111,7 @@ def test_sweep_spec_fast_math():
     fast = load_spec(_spec_doc(fast_math=True))
     assert fast.fast_math and fast.run_settings()["fast_math"] is True and fast.hash != exact.hash
     assert load_spec(_spec_doc(), fast_math=True).hash == fast.hash  # --fast-math as the spec's key
-    with pytest.raises(SweepError, match="fp32 only"):
+    with pytest.raises(SweepError, match=r"run.fast_math \(--fast-math\): it changes single-precision"):
         load_spec(_spec_doc(fast_math=True, precision="fp64"))
     with pytest.raises(SweepError, match="true or false"):
         load_spec(_spec_doc(fast_math=1))
@@ -139,3 +144,67 @@ def test_fast_math_reaches_the_cuda_kernel(device):
         mu[fast] = res.collect().globals[:, 0, 0]
     assert not (mu[True] == mu[False]).all()
     assert abs(mu[True] - mu[False]).max() <= 1e-4 * abs(mu[False]).max()
+
+
+def _mark_fast(path: Path, attr: str = "run_options") -> None:
+    """Write ``fast_math: true`` into a file's stored options (a run file's ``run_options``, a shard's ``run``)."""
+    import h5py
+
+    with h5py.File(path, "r+") as f:
+        doc = json.loads(f.attrs[attr])
+        doc["fast_math"] = True
+        f.attrs[attr] = json.dumps(doc)
+
+
+def test_rerun_and_resume_of_a_fast_math_run_on_the_cpu_say_why(tmp_path: Path, capsys):
+    run = tmp_path / "run.h5"
+    argv = ["hf", "hf1", "-o", str(run), "--precision", "fp32", "--duration", "2e-7", "--sample-dt", "1e-7"]
+    assert main([*argv, "--no-progress"]) == 0
+    _mark_fast(run)
+    capsys.readouterr()
+    assert main(["rerun", str(run), "-o", str(tmp_path / "again.h5"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "ran with CUDA fast math, which runs on CUDA devices only: give --device cuda:N" in err[0]
+    assert not (tmp_path / "again.h5").exists()
+    import h5py
+
+    with h5py.File(run, "r+") as f:  # as a run stopped before its end leaves its file
+        f.attrs["complete"] = False
+    assert main(["hf", "--resume", str(run), "--no-progress"]) == 2
+    assert "ran with CUDA fast math" in capsys.readouterr().err
+
+
+def test_a_pad_of_a_fast_math_shard_keeps_fast_math(tmp_path: Path):
+    import h5py
+
+    from aca_warp.analysis.pads import write_pad_run
+
+    shard = one_shard_sweep(tmp_path, [0.7, 0.8], duration=2e-7, sample_dt=1e-7)
+    _mark_fast(shard, "run")  # as a CUDA sweep with --fast-math writes it
+    with h5py.File(write_pad_run(shard, 1, tmp_path / "pad1.h5"), "r") as f:
+        assert json.loads(f.attrs["run_options"])["fast_math"] is True
+
+
+def test_the_sweep_worker_rebuilds_fast_math_from_the_doc():
+    import copy
+
+    from aca_warp.sweep.spec import _resolve, load_spec
+
+    spec = load_spec(_spec_doc(), fast_math=True)  # the command line's override, written into the doc
+    assert _resolve(copy.deepcopy(spec.doc), spec.base_dir, check=False).fast_math
+
+
+def test_labels_and_the_study_run_path():
+    from aca_warp.bench import _engine_cell
+    from aca_warp.hf.state import initial_state
+    from aca_warp.studies.runs import run_engine
+    from aca_warp.studies.work_precision_stats_report import _family
+
+    assert _engine_cell({"engine": "onchip", "blocks_per_pad": 2, "fast_math": True}) == "onchip ×2, fast math"
+    assert _family({"integrator": "strang", "precision": "fp32", "fast_math": True}) == "strang@fp32 fast math"
+    with pytest.raises(SceneError, match="CUDA devices only"):  # the study's runs pass the setting's fast math on
+        model = _model("cpu")
+        run_engine(model, initial_state(model), engine="auto", duration=1e-7, integrator="strang", dt=1e-8,
+                   record=Record(sample_dt=1e-7), fast_math=True)  # fmt: skip
+    with pytest.raises(SystemExit):
+        wps.main(["--reference", "strang@fp32:dt=1e-8:fast", "--out", "unused"])

@@ -11,6 +11,7 @@ import shutil
 import h5py
 import numpy as np
 import pytest
+from procs import one_shard_sweep
 
 from aca_warp import plots
 from aca_warp.analysis import report, sync_index_from_signals
@@ -445,13 +446,7 @@ def test_one_pad_of_a_sweep_shard(tmp_path, capsys):
     the shard itself says what to do instead."""
     from aca_warp.cli import main
 
-    spec = tmp_path / "s.toml"
-    spec.write_text(
-        '[sweep]\nbase = "hf1"\nshard_size = 3\n[run]\nduration = 2e-5\nprecision = "fp32"\n'
-        '[base.patches]\ncount = 12\n[parameters]\n"friction.M" = [0.7, 0.8, 0.9]\n'
-    )
-    assert main(["sweep", str(spec), "-o", str(tmp_path / "sw"), "--workers", "0", "--quiet"]) == 0
-    shard = tmp_path / "sw" / "shard-00000.h5"
+    shard = one_shard_sweep(tmp_path, [0.7, 0.8, 0.9], duration=2e-5)
     capsys.readouterr()
     for argv, said in (
         (["analyze", str(shard)], "is a sweep shard of pads 0-2: analyze one of them with --pad K"),

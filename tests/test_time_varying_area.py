@@ -36,6 +36,8 @@ def test_markdown_has_a_row_per_step():
     doc = {"date": "d", "machine": "m", "device": "cuda:0", "duration_s": 0.36,
            "rows": [{"step_s": 1e-7, "wall_s": 46.6, "exit": 0, "summary": "ok"}]}  # fmt: skip
     assert "| 1e-07 | exact | 46.6 | 0 | ok |" in load().markdown(doc)
+    doc["rows"].append({"step_s": 1e-7, "fast_math": True, "wall_s": 40.0, "exit": 0, "summary": "ok"})
+    assert "| 1e-07 | fast | 40.0 | 0 | ok |" in load().markdown(doc)
 
 
 def test_machine_is_read_from_the_run_file(tmp_path):

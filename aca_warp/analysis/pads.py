@@ -79,7 +79,11 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
     except SweepError as e:
         raise SceneError(f"{shard}: the pad's scene cannot be rebuilt from the shard's spec: {e}") from None
     options = RunOptions(
-        duration=float(run["duration"]), integrator=run["integrator"], dt=run["dt"], tolerance=run["tolerance"]
+        duration=float(run["duration"]),
+        integrator=run["integrator"],
+        dt=run["dt"],
+        tolerance=run["tolerance"],
+        fast_math=bool(run.get("fast_math", False)),  # absent in the shards of an exact sweep
     )
     complete = bool(finished) and end == time.size
     tmp = new_path(dest)

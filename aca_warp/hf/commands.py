@@ -281,7 +281,8 @@ def _summarise_hf(args: argparse.Namespace, scene: Any, result: Any, duration: f
     rate = n * result.steps / max(result.wall_time, 1e-12)
     line = (
         f"{args.output}: {len(mu)} samples over {result.sim_time:.4g} s, {result.steps} steps "
-        f"({result.dt:.3g} s, {args.integrator}, {args.precision}), mean mu {np.mean(mu):.4f}, "
+        f"({result.dt:.3g} s, {args.integrator}, {args.precision}{', fast math' if args.fast_math else ''}), "
+        f"mean mu {np.mean(mu):.4f}, "
         f"{rate:.3g} patch-steps/s"
     )
     if result.fault is not None:
@@ -426,7 +427,7 @@ def _cmd_rerun(args: argparse.Namespace) -> int:
         s.scene,
         args.output,
         options,
-        device=args.device or s.device,
+        device=s.device_for(args.device, args.run),
         precision=s.precision,
         overwrite=args.overwrite,
         progress=not args.no_progress,

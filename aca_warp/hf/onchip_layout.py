@@ -16,7 +16,7 @@ import warp as wp
 from aca_warp.common.devices import block_threads
 from aca_warp.common.errors import SceneError, option
 from aca_warp.hf.model import PadModel
-from aca_warp.hf.options import ENGINES, ONCHIP_INTEGRATORS
+from aca_warp.hf.options import ENGINES, ONCHIP_INTEGRATORS, fast_math_unfit
 from aca_warp.kernels.hf_onchip import RED_SLOTS
 
 MAX_BLOCK = 1024  # threads per block
@@ -217,20 +217,17 @@ def unsupported(model: PadModel, integrator: str) -> str | None:
 def fast_math_refusal(model: PadModel, engine: str, integrator: str) -> str | None:
     """Why a run on ``engine`` (resolved: onchip or general) cannot take CUDA fast math (None when it can).
 
-    Fast math is a compile option of the on-chip ``strang`` kernel. It changes single-precision arithmetic only
-    (fp64 runs would be unchanged), and Warp's CPU build ignores it (a CPU run would be the exact one), so it is
-    offered where it acts: fp32 on a CUDA device. Its statistics were measured against the exact kernel's
-    (docs/onchip.md, "Fast math")."""
-    if integrator != "strang" or engine != "onchip":
-        why = unsupported(model, integrator) if integrator == "strang" else None
-        return "it compiles the on-chip strang kernel only" + (
-            f", and {why}" if why else f" (got {integrator} on {engine})"
-        )
-    if model.device.is_cpu:
-        return "it applies to CUDA devices only (Warp's CPU build has no fast math: the run would be the exact one)"
-    if model.dtype == wp.float64:
-        return "it changes single-precision arithmetic only: choose fp32"
-    return None
+    Fast math is a compile option of the on-chip ``strang`` kernel and changes single-precision operations only
+    (:func:`~aca_warp.hf.options.fast_math_unfit`); Warp's CPU build ignores it (a CPU run would be the exact one),
+    so it is offered where it acts: fp32 on a CUDA device, on chip. Its statistics were measured against the exact
+    kernel's (docs/onchip.md, "Fast math")."""
+    why = fast_math_unfit(integrator, "fp64" if model.dtype == wp.float64 else "fp32")
+    if why is None and engine != "onchip":
+        reason = unsupported(model, integrator) or "the general engine asked for"
+        why = f"it compiles the on-chip strang kernel only ({reason})"
+    if why is None and model.device.is_cpu:
+        why = "it applies to CUDA devices only (Warp's CPU build has no fast math: the run would be the exact one)"
+    return why
 
 
 def choose_engine(model: PadModel, engine: str, integrator: str, fast_math: bool = False) -> str:

@@ -31,8 +31,8 @@ DEFAULT_SPLIT_TOLERANCE = 1.0e-2
 ENGINES = ("auto", "onchip", "general")
 ONCHIP_INTEGRATORS = ("strang", "adaptive")  # the integrators the on-chip engine implements
 FAST_MATH_HELP = (
-    "compile the on-chip strang kernel with CUDA fast math (approximate fp32 division, square root and "
-    "transcendentals; denormals flushed): fp32 on a CUDA device only; faster, and every result changes in its last "
+    "compile the on-chip strang kernel with CUDA fast math (approximate fp32 division and square root, fast "
+    "sin/cos/exp/log/pow; denormals flushed): fp32 on a CUDA device only; faster, and every result changes in its last "
     "bits: the statistics of hf1-hf4 and of growing pads keep every measure at their steps (docs/onchip.md, "
     "'Fast math')"
 )
@@ -51,6 +51,17 @@ def step_asked(integrator: str, dt: float | None) -> float | None:
     integrator :func:`default_step` written out; None stays None for the step-controlled integrators (their first
     trial is the solver's)."""
     return default_step(integrator) if dt is None and integrator not in STEP_CONTROLLED else dt
+
+
+def fast_math_unfit(integrator: str, precision: str) -> str | None:
+    """Why CUDA fast math cannot apply to a run of ``integrator`` in ``precision`` (None when it can): it compiles
+    the on-chip ``strang`` kernel only, and changes single-precision operations only. The device and the engine
+    are checked when the engine is chosen (:func:`~aca_warp.hf.onchip_layout.fast_math_refusal`)."""
+    if integrator != "strang":
+        return f"it compiles the on-chip strang kernel only (got {integrator})"
+    if precision != "fp32":
+        return f"it changes single-precision arithmetic only: choose fp32 (got {precision})"
+    return None
 
 
 def tolerance_keyword(integrator: str) -> str:
@@ -96,8 +107,8 @@ class RunOptions:
         watchdog_factor: Watchdog bound in units of the scene's velocity scale; None: only non-finite checks.
         accept_unphysical: Run on, with a warning, where the physical sanity checks (:mod:`aca_warp.hf.sanity`:
             contact solution, μ bound) would stop the run.
-        fast_math: Compile the on-chip ``strang`` kernel with CUDA fast math (approximate single-precision division,
-            square root and transcendentals, denormals flushed to zero): fp32 on a CUDA device only
+        fast_math: Compile the on-chip ``strang`` kernel with CUDA fast math (approximate single-precision division
+            and square root, fast sin/cos/exp/log/pow, denormals flushed to zero): fp32 on a CUDA device only
             (:func:`~aca_warp.hf.onchip_layout.fast_math_refusal`; docs/onchip.md, "Fast math").
     """
 

@@ -22,7 +22,7 @@ import h5py
 import numpy as np
 
 from aca_warp.common.bounds import json_attribute
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import SceneError, option
 from aca_warp.hf.options import DEFAULT_DT, STEP_CONTROLLED, WATCHDOG_FACTOR, RunOptions
 from aca_warp.scene import Friction, Growth, Initial, Material, Matrix, Pad, Patches, Record, Scene
 
@@ -46,6 +46,15 @@ class RunSettings:
     device: str
     versions: dict[str, str]
     complete: bool
+
+    def device_for(self, asked: str | None, path: str | Path) -> str:
+        """The device a repeat of the run ``path`` takes: ``asked``, else the run's; a run with fast math repeats on
+        CUDA only (SceneError in one line: its option came from the file, not from the command)."""
+        device = asked or self.device
+        if self.options.fast_math and device.startswith("cpu"):
+            flag = option("device='cuda:0'", "--device cuda:N")
+            raise SceneError(f"{path} ran with CUDA fast math, which runs on CUDA devices only: give {flag}")
+        return device
 
 
 def _json(attrs: Any, key: str, path: Path) -> Any:

@@ -239,7 +239,7 @@ def resume_run(
 
     def prepare(src: Path) -> tuple[PadModel, HFState, RunOptions]:
         s = read_settings(src)
-        model = build_model([s.scene], device=device or s.device, precision=s.precision)
+        model = build_model([s.scene], device=s.device_for(device, src), precision=s.precision)
         options = s.options
         if checkpoint_interval is not None:
             options = dataclasses.replace(options, checkpoint_interval=checkpoint_interval)

@@ -59,7 +59,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common.argtypes import int_at_least, nonneg, positive
-from aca_warp.hf.options import INTEGRATORS, tolerance_keyword
+from aca_warp.hf.options import INTEGRATORS, fast_math_unfit, tolerance_keyword
 from aca_warp.studies.report import Log, add_device, add_page_options, clean, command_line, write_json
 from aca_warp.studies.validation.analysis import analyse_batch
 from aca_warp.studies.validation.area import analyse_growth
@@ -145,8 +145,9 @@ def parse_setting(spec: str) -> list[Setting]:
         raise ValueError(f"unknown precision {', '.join(bad)} in {spec!r}; choose from {', '.join(PRECISIONS)}")
     axes: dict[str, list[float | None]] = {"dt": [None], "tol": [None]}
     fast = "fast" in params
-    if fast and (name != "strang" or precisions != ["fp32"]):
-        raise ValueError(f"fast math in {spec!r}: the on-chip strang kernel in fp32 only (strang@fp32:…:fast)")
+    unfit = [why for p in precisions if (why := fast_math_unfit(name, p))] if fast else []
+    if unfit:
+        raise ValueError(f"fast math in {spec!r}: {unfit[0]} (strang@fp32:…:fast)")
     for p in (p for p in params if p != "fast"):
         key, _, vals = p.partition("=")
         if key not in axes or not vals:
@@ -453,7 +454,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--grid",
         nargs="+",
         metavar="SPEC",
-        help="settings INTEGRATOR@P1[,P2][:dt=V,…][:tol=V,…] "
+        help="settings INTEGRATOR@P1[,P2][:dt=V,…][:tol=V,…][:fast] "
         f"(default: {' '.join(default_grid(False))}; --quick: {' '.join(default_grid(True))})",
     )
     ap.add_argument("--integrators", nargs="+", choices=INTEGRATORS, help="only these integrators of the grid")
@@ -550,8 +551,11 @@ def main(argv: list[str] | None = None) -> int:
     args.regimes = args.regimes or list(REGIMES[args.quick])
     args.reference = args.reference or REFERENCE[args.quick]
     try:
-        if len(parse_setting(args.reference)) != 1:
+        refs = parse_setting(args.reference)
+        if len(refs) != 1:
             raise ValueError(f"--reference {args.reference!r} names more than one setting")
+        if refs[0].fast_math:
+            raise ValueError(f"--reference {args.reference!r}: the reference runs the exact kernel (drop :fast)")
         grid(args.grid or [], None, None)
     except ValueError as e:
         ap.error(str(e))

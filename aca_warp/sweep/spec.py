@@ -319,7 +319,14 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     """The :class:`SweepSpec` of a spec doc; ``check``: build a few pads first (:func:`_check_pads`; a shard task
     skips it, its client checked the spec)."""
     from aca_warp.hf.model import PRECISIONS
-    from aca_warp.hf.options import DEFAULT_INTEGRATOR, DEFAULT_TOLERANCE, INTEGRATORS, default_step, step_asked
+    from aca_warp.hf.options import (
+        DEFAULT_INTEGRATOR,
+        DEFAULT_TOLERANCE,
+        INTEGRATORS,
+        default_step,
+        fast_math_unfit,
+        step_asked,
+    )
 
     sw, run = doc["sweep"], doc["run"]
     base_doc, scene_dir, base_name = _base_doc(doc, base_dir)
@@ -358,10 +365,9 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     fast_math = run.get("fast_math", False)
     if not isinstance(fast_math, bool):
         raise SweepError(f"run.fast_math must be true or false, got {fast_math!r}")
-    if fast_math and (integrator != "strang" or precision != "fp32"):
-        raise SweepError(
-            f"run.fast_math compiles the on-chip strang kernel in fp32 only (got {integrator} in {precision})"
-        )
+    unfit = fast_math_unfit(integrator, precision) if fast_math else None
+    if unfit is not None:
+        raise SweepError(f"run.fast_math (--fast-math): {unfit}")
     duration = num("duration", base.duration)
     dt = step_asked(integrator, num("dt", None))  # written out: the hash and the shards name the step
     tolerance = num("tolerance", DEFAULT_TOLERANCE)
