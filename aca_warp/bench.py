@@ -40,8 +40,10 @@ from __future__ import annotations
 
 import argparse
 import ctypes
+import itertools
 import json
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -308,6 +310,36 @@ def _engine_cell(r: dict) -> str:
     return r.get("engine", "general") + (f" ×{k}" if k > 1 else "") + (", fast math" if r.get("fast_math") else "")
 
 
+def _cases(
+    pads: tuple[int, ...],
+    precisions: tuple[str, ...],
+    integrators: tuple[str, ...],
+    engines: tuple[str, ...],
+    maths: tuple[str, ...],
+) -> Iterator[tuple[int, str, str, str, bool]]:
+    """The cases (pads, precision, integrator, engine, fast math) of a benchmark in the order they are timed: the
+    on-chip engine only for its integrators, fast math only where it fits (strang in fp32, not the general engine)."""
+    for npads, prec, integ, eng, kind in itertools.product(pads, precisions, integrators, engines, maths):
+        fast = kind == "fast"
+        if eng == "onchip" and integ not in ONCHIP_INTEGRATORS:
+            continue
+        if fast and (fast_math_unfit(integ, prec) is not None or eng == "general"):
+            continue
+        yield npads, prec, integ, eng, fast
+
+
+def _row_line(r: dict) -> str:
+    """The line a timed case prints."""
+    err = r["mu_rel_error_max"]
+    return (
+        f"{r['device_name'][:24]:>24s} {r['precision']} {r['integrator']:>17s} {_engine_cell(r):>18s} "
+        f"pads={r['pads']:5d} {r['patch_steps_per_s']:.3g} patch-steps/s {r['ns_per_patch_step']:.3g} ns/patch-step, "
+        + ("" if r["bandwidth_Bps"] is None else f"{r['bandwidth_Bps'] / 1e9:.3g} GB/s, ")
+        + f"compile {r['compile_time_s']:.2f} s"
+        + ("" if err is None else f", mu err {err:.2e}")
+    )
+
+
 def run_bench(
     *,
     device: str = "cpu",
@@ -336,8 +368,7 @@ def run_bench(
         raise SceneError("duration, dt and sample interval must be > 0")
     if sample_dt > duration:
         raise SceneError(f"sample interval {sample_dt:g} s exceeds the duration {duration:g} s")
-    fast_cases = [(i, p) for i in integrators for p in precisions if fast_math_unfit(i, p) is None]
-    if "fast" in maths and not (fast_cases and set(engines) != {"general"}):
+    if "fast" in maths and not any(c[4] for c in _cases((1,), precisions, integrators, engines, maths)):
         raise SceneError(
             "fast math compiles the on-chip strang kernel in fp32 only: add fp32, strang and auto or onchip"
         )
@@ -348,44 +379,27 @@ def run_bench(
     sc = bench_scene(scene, patches, sample_dt)
     rows = []
     refs: dict[int, np.ndarray] = {}
-    for npads in pads:
-        for prec in precisions:
-            for integ, eng, kind in ((i, e, m) for i in integrators for e in engines for m in maths):
-                if eng == "onchip" and integ not in ONCHIP_INTEGRATORS:
-                    continue  # the on-chip engine implements strang and adaptive
-                fast = kind == "fast"
-                if fast and ((integ, prec) not in fast_cases or eng == "general"):
-                    continue  # fast math: the on-chip strang kernel in fp32 only
-                kw = {"stages": stages, "engine": eng, "fast_math": fast}
-                try:
-                    r = run_case(sc, device, prec, integ, npads, dt, duration, **kw)
-                except SceneError as e:
-                    if not fast:
-                        raise
-                    if log:  # e.g. a pad that does not fit on chip: its exact rows stand, no fast one
-                        log(f"{prec} {integ} {eng} pads={npads}: no fast-math case: {e}")
-                    continue
-                mu = r.pop("mu")
-                r["module_load_s"] = module_load
-                if reference:
-                    if npads not in refs:  # reference: fp64 strang at dt/4 over the same two windows
-                        ref = run_case(sc, device, "fp64", "strang", 1, dt / 4, duration, stages=False)
-                        refs[npads] = ref["mu"]
-                    n = min(len(mu), len(refs[npads]))
-                    scale = max(np.abs(refs[npads][:n]).max(), 1e-300)
-                    r["mu_rel_error_max"] = float(np.max(np.abs(mu[:n] - refs[npads][:n])) / scale)
-                else:
-                    r["mu_rel_error_max"] = None
-                rows.append(r)
-                if log:
-                    err = r["mu_rel_error_max"]
-                    log(
-                        f"{r['device_name'][:24]:>24s} {prec} {integ:>17s} {_engine_cell(r):>18s} pads={npads:5d} "
-                        f"{r['patch_steps_per_s']:.3g} patch-steps/s {r['ns_per_patch_step']:.3g} ns/patch-step, "
-                        + ("" if r["bandwidth_Bps"] is None else f"{r['bandwidth_Bps'] / 1e9:.3g} GB/s, ")
-                        + f"compile {r['compile_time_s']:.2f} s"
-                        + ("" if err is None else f", mu err {err:.2e}")
-                    )
+    for npads, prec, integ, eng, fast in _cases(pads, precisions, integrators, engines, maths):
+        try:
+            r = run_case(sc, device, prec, integ, npads, dt, duration, stages=stages, engine=eng, fast_math=fast)
+        except SceneError as e:
+            if not fast:
+                raise
+            if log:  # e.g. a pad that does not fit on chip: its exact rows stand, no fast one
+                log(f"{prec} {integ} {eng} pads={npads}: no fast-math case: {e}")
+            continue
+        mu = r.pop("mu")
+        r["module_load_s"] = module_load
+        r["mu_rel_error_max"] = None
+        if reference:
+            if npads not in refs:  # reference: fp64 strang at dt/4 over the same two windows
+                refs[npads] = run_case(sc, device, "fp64", "strang", 1, dt / 4, duration, stages=False)["mu"]
+            n = min(len(mu), len(refs[npads]))
+            scale = max(np.abs(refs[npads][:n]).max(), 1e-300)
+            r["mu_rel_error_max"] = float(np.max(np.abs(mu[:n] - refs[npads][:n])) / scale)
+        rows.append(r)
+        if log:
+            log(_row_line(r))
     return {
         "machine": machine(dev),
         "warp_version": wp.__version__,

@@ -208,3 +208,11 @@ def test_labels_and_the_study_run_path():
                    record=Record(sample_dt=1e-7), fast_math=True)  # fmt: skip
     with pytest.raises(SystemExit):
         wps.main(["--reference", "strang@fp32:dt=1e-8:fast", "--out", "unused"])
+
+
+def test_bench_cases_take_fast_math_where_it_fits():
+    from aca_warp.bench import _cases
+
+    got = list(_cases((1,), ("fp64", "fp32"), ("strang", "adaptive"), ("auto", "general"), ("exact", "fast")))
+    assert [c for c in got if c[4]] == [(1, "fp32", "strang", "auto", True)]
+    assert len([c for c in got if not c[4]]) == 8  # every exact case
