@@ -376,6 +376,41 @@ def test_onchip_kernel_refuses_pads_beyond_int16_indices():
     assert onchip_kernel(wp.float32, 2**15 - 1, 32, True, 32) is not None  # built lazily: no compile here
 
 
+def test_kernel_tiles_are_shared_by_pads_of_about_the_same_size():
+    """The kernel's tiles are bucketed (at most 1/16 above the warp-rounded sizes): hf1 pads of eight patch seeds,
+    whose neighbour lists differ by a few percent, get one or two kernels instead of six; a bucket that would not
+    fit the shared memory the exact tiles fit falls back to them."""
+    from aca_warp.hf import onchip_layout as L
+
+    assert [L._bucket(x) for x in (1, 32, 33, 1758, 23584, 24320)] == [32, 32, 64, 1792, 24576, 24576]
+    for x in range(1, 70000, 97):
+        assert x <= L._bucket(x) <= max(-(-x // 32) * 32, x + x / 16)
+    from aca_warp.sweep.spec import load_spec
+
+    spec = load_spec({"sweep": {"base": "hf1"}, "parameters": {"patches.seed": list(range(1, 9))}})
+    models = [build_model([scene], device="cpu", precision="fp32") for scene in spec.scenes(range(8))]
+    exact = {L.tile_sizes(m, 1, 640) for m in models}
+    assert len(exact) == 6 and len({L.kernel_tiles(m, 1, 640) for m in models}) <= 2  # a bucket edge may fall between
+    tight = models[0]
+    limit = L._block_bytes(tight, *L.tile_sizes(tight, 1, 640), True, 1)  # the exact tiles just fit
+    with _smem_limit(limit):
+        assert L.kernel_tiles(tight, 1, 640) == L.tile_sizes(tight, 1, 640)
+        assert L.block_config(tight, 1, 640)[2]  # the neighbour lists stay on chip
+
+
+@contextmanager
+def _smem_limit(limit: int):
+    """The on-chip layout's shared-memory limit set to ``limit`` bytes for every model."""
+    from aca_warp.hf import onchip_layout as L
+
+    saved = L.smem_limit
+    L.smem_limit = lambda model, per_block=None: limit
+    try:
+        yield
+    finally:
+        L.smem_limit = saved
+
+
 @pytest.mark.parametrize(("cluster", "threads"), [(1, 1), (1, 96), (1, 100), (3, 512), (8, 224)])
 def test_csr_slots_bank_interleaved(cluster, threads):
     """The kernel's on-chip CSR layout (link m of a thread at slot W·(s + m) + lane mod W, s the links of the earlier

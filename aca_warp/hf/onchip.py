@@ -27,7 +27,7 @@ from aca_warp.hf.onchip_layout import (
     choose_engine,
     default_cluster,
     itemsize,
-    tile_sizes,
+    kernel_tiles,
     unsupported,
     widen_for_csr,
 )
@@ -139,7 +139,7 @@ class OnchipEngine(OnchipLaunches):
         self.recorder = Recorder(model, record, self.spl + 1, n_samples)
         self.kernel = onchip_kernel(
             model.dtype,
-            *tile_sizes(model, cluster, self.threads),
+            *kernel_tiles(model, cluster, self.threads),
             bool(csr_shared),
             self.block_dim,
             frozenset(tuning.ablate),

@@ -88,6 +88,27 @@ def tile_sizes(model: PadModel, cluster: int = 1, threads: int = 1) -> tuple[int
     return _round_up(pad_sizes(model, cluster)[0], 32), _round_up(csr_slots(model, cluster, threads), 32)
 
 
+def _bucket(x: int) -> int:
+    """``x`` rounded up to a multiple of 2^(⌊log2 x⌋ − 4) and of 32: at most 1/16 above ``x`` (or a warp above it,
+    below 512), the same value for sizes a few percent apart."""
+    return _round_up(x, max(32, 1 << max(0, x.bit_length() - 5)))
+
+
+def kernel_tiles(model: PadModel, cluster: int = 1, threads: int = 1) -> tuple[int, int]:
+    """The on-chip ``strang`` kernel's tile sizes (patches, CSR slots): :func:`tile_sizes` rounded up to buckets
+    (:func:`_bucket`, at most 1/16 more), so that batches of different pads of about the same size, e.g. the shards of a
+    sweep over patch seeds, share one compiled kernel instead of compiling one each. The tiles are only the
+    kernel's storage: the results do not depend on them. Where the buckets would not fit the shared memory that
+    the warp-rounded tiles fit (with the neighbour lists on chip, or else without), the warp-rounded ones."""
+    exact = tile_sizes(model, cluster, threads)
+    bucketed = (_bucket(exact[0]), _bucket(exact[1]))
+    limit = smem_limit(model)
+    for csr in (True, False):
+        if _block_bytes(model, *exact, csr, cluster) <= limit:
+            return bucketed if _block_bytes(model, *bucketed, csr, cluster) <= limit else exact
+    return exact
+
+
 def default_block(nmax: int, cluster: int, growth: bool, fp64: bool) -> int:
     """Threads per block for ``block_dim=None``: the block's part of an ``nmax``-patch pad rounded up to 32, at most
     ``DEFAULT_BLOCK``; on one block at most ``GROWTH_BLOCK`` for a growing pad, ``FP32_BLOCK`` for an fp32 one."""
@@ -98,10 +119,15 @@ def default_block(nmax: int, cluster: int, growth: bool, fp64: bool) -> int:
 
 
 def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1, threads: int = 1) -> int:
-    """Shared memory one block of ``threads`` threads needs [bytes]: u (×2), w, F_s per patch of the pad, the
-    cluster's table of sample sums and, on a cluster, the u exchange's two mbarriers and its per-patch mask of
-    receiving blocks, plus the block's part of the CSR (:func:`csr_slots`) when kept on chip."""
-    nmax, slots = tile_sizes(model, cluster, threads)
+    """Shared memory one block of ``threads`` threads of the on-chip ``strang`` kernel needs [bytes], its tiles
+    :func:`kernel_tiles` (:func:`_block_bytes`)."""
+    return _block_bytes(model, *kernel_tiles(model, cluster, threads), csr_shared, cluster)
+
+
+def _block_bytes(model: PadModel, nmax: int, slots: int, csr_shared: bool, cluster: int) -> int:
+    """Shared memory [bytes] of a block with tiles of ``nmax`` patches and ``slots`` CSR slots: u (×2), w, F_s per
+    patch of the pad, the cluster's table of sample sums and, on a cluster, the u exchange's two mbarriers and its
+    per-patch mask of receiving blocks, plus the block's part of the CSR when kept on chip (``csr_shared``)."""
     b = 4 * nmax * itemsize(model) + 8 * RED_SLOTS * cluster
     if cluster > 1:
         b += 16 + 4 * (nmax // cluster + 1)
