@@ -379,7 +379,7 @@ def test_onchip_kernel_refuses_pads_beyond_int16_indices():
 def test_kernel_tiles_are_shared_by_pads_of_about_the_same_size():
     """The kernel's tiles are bucketed (at most 1/16 above the warp-rounded sizes): hf1 pads of eight patch seeds,
     whose neighbour lists differ by a few percent, get one or two kernels instead of six; a bucket that would not
-    fit the shared memory the exact tiles fit falls back to them."""
+    fit the shared memory the exact tiles fit, or fewer times, falls back to them."""
     from aca_warp.hf import onchip_layout as L
 
     assert [L._bucket(x) for x in (1, 32, 33, 1758, 23584, 24320)] == [32, 32, 64, 1792, 24576, 24576]
@@ -396,6 +396,10 @@ def test_kernel_tiles_are_shared_by_pads_of_about_the_same_size():
     with _smem_limit(limit):
         assert L.kernel_tiles(tight, 1, 640) == L.tile_sizes(tight, 1, 640)
         assert L.block_config(tight, 1, 640)[2]  # the neighbour lists stay on chip
+    with _smem_limit(2 * limit):  # two blocks of the exact tiles share an SM, two of the buckets would not
+        assert L.kernel_tiles(tight, 1, 640) == L.tile_sizes(tight, 1, 640)
+    with _smem_limit(4 * limit):  # 640 threads: three blocks per SM either way (2048 threads)
+        assert L.kernel_tiles(tight, 1, 640) != L.tile_sizes(tight, 1, 640)
 
 
 @contextmanager

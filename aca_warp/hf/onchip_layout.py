@@ -29,6 +29,7 @@ GROWTH_BLOCK = 384
 # 61.3 -> 55.3 us/step against 512 (576, 672, 704 threads: 66-68; 1024: 56.2; docs/onchip.md, "Block size")
 FP32_BLOCK = 640
 _SMEM_RESERVE = 8 * 1024  # bytes left for Warp's reduction scratch and static shared memory
+_SM_THREADS, _SM_BLOCKS = 2048, 32  # resident threads and blocks per SM (sm_80–sm_90)
 
 
 def itemsize(model: PadModel) -> int:
@@ -96,16 +97,20 @@ def _bucket(x: int) -> int:
 
 def kernel_tiles(model: PadModel, cluster: int = 1, threads: int = 1) -> tuple[int, int]:
     """The on-chip ``strang`` kernel's tile sizes (patches, CSR slots): :func:`tile_sizes` rounded up to buckets
-    (:func:`_bucket`, at most 1/16 more), so that batches of different pads of about the same size, e.g. the shards of a
-    sweep over patch seeds, share one compiled kernel instead of compiling one each. The tiles are only the
-    kernel's storage: the results do not depend on them. Where the buckets would not fit the shared memory that
-    the warp-rounded tiles fit (with the neighbour lists on chip, or else without), the warp-rounded ones."""
+    (:func:`_bucket`, at most 1/16 more), so that batches of different pads of about the same size, e.g. the shards
+    of a sweep over patch seeds, share one compiled kernel instead of compiling one each. The tiles are only the
+    kernel's storage: the results do not depend on them. Where the buckets would not fit the shared memory that the
+    warp-rounded tiles fit (with the neighbour lists on chip, or else without), or would leave fewer blocks resident
+    per SM (by shared memory, the per-block limit taken for an SM's, threads and blocks), the warp-rounded ones."""
     exact = tile_sizes(model, cluster, threads)
     bucketed = (_bucket(exact[0]), _bucket(exact[1]))
     limit = smem_limit(model)
     for csr in (True, False):
-        if _block_bytes(model, *exact, csr, cluster) <= limit:
-            return bucketed if _block_bytes(model, *bucketed, csr, cluster) <= limit else exact
+        need = _block_bytes(model, *exact, csr, cluster)
+        if need <= limit:  # the placement the exact tiles allow: the buckets must keep it, and the blocks per SM
+            more = _block_bytes(model, *bucketed, csr, cluster)
+            per_sm = [min(limit // b, _SM_THREADS // threads, _SM_BLOCKS) for b in (need, more)]
+            return bucketed if more <= limit and per_sm[0] == per_sm[1] else exact
     return exact
 
 
