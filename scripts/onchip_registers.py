@@ -147,15 +147,14 @@ def _strang(model, cluster: int, growth: bool, args) -> list:
     """(row, kernel) of the on-chip strang kernel per block size (default: the engine's choice)."""
     from aca_warp.kernels.hf_onchip import onchip_kernel
 
-    from aca_warp.hf.onchip_layout import default_block, pad_sizes, shared_bytes, smem_limit, tile_sizes
+    from aca_warp.hf.onchip_layout import default_block, kernel_tiles, pad_sizes, shared_bytes, smem_limit
 
     out = []
     fp64 = model.precision == "fp64"
     for b in args.blocks or [default_block(pad_sizes(model, cluster)[0], cluster, growth, fp64)]:
-        csr = shared_bytes(model, True, cluster, b) <= smem_limit(model, args.smem_per_block)
-        kernel = onchip_kernel(
-            model.dtype, *tile_sizes(model, cluster, b), csr, b, growth=growth, cluster=cluster, lanes=min(b, 32)
-        )
+        csr = shared_bytes(model, True, cluster, b, args.smem_per_block) <= smem_limit(model, args.smem_per_block)
+        tiles = kernel_tiles(model, cluster, b, args.smem_per_block)  # the engine's tiles for that device's limit
+        kernel = onchip_kernel(model.dtype, *tiles, csr, b, growth=growth, cluster=cluster, lanes=min(b, 32))
         kernel.module.options["block_dim"] = b
         out.append(({"block_dim": b, "csr_shared": csr}, kernel))
     return out

@@ -7,14 +7,16 @@ compile one kernel per shard; bucketed tiles (``aca_warp.hf.onchip_layout.kernel
 the same size share one. Per checkout, in its own Python process with an empty kernel cache (as a first sweep on a
 new machine, or after a Warp update), this runs ``aca-warp sweep`` in-process (``--workers 0``) over ``--shards``
 shards of ``--pads`` hf1 pads with seeds 1, 2, … in fp32 for ``--duration`` [s], and reports the command's wall
-time, the on-chip kernel modules the cache then holds and the distinct tile sizes of the shards. Every shard's μ(t)
-of the two checkouts is compared bit for bit (the tiles are storage: the results must not change). JSON and a
-Markdown table into ``--out``. ``--tiles THREADS`` runs nothing: it prints each shard's exact and bucketed tiles
-for blocks of THREADS threads, one block per pad (a GPU's layout for batches of many fp32 hf1 pads: 640), as this
-checkout computes them on the host. Examples (the baseline checkout from ``git archive``)::
+time (compiles, runs and files together), the on-chip kernel modules the cache then holds and the distinct tile
+sizes of the shards. Every dataset of every shard of the two checkouts is compared bit for bit (the tiles are
+storage: the results must not change). JSON and a Markdown table into ``--out``. ``--tiles THREADS`` (no
+checkout) runs nothing: it prints each shard's exact and bucketed tiles for blocks of THREADS threads, one block per
+pad, against an H100's or H200's shared memory per block (a GPU's layout for batches of many fp32 hf1 pads: 640), as
+this checkout computes them. Exit codes: 0 done, 1 the checkouts' results differ, 2 bad input, 3 a sweep failed.
+Examples (the baseline checkout from ``git archive``)::
 
     python3 scripts/sweep_compiles.py build/base . --device cpu --shards 4 --pads 2 --out out/sweep_compiles
-    python3 scripts/sweep_compiles.py . --tiles 640 --shards 8 --pads 256 --out out/sweep_tiles
+    python3 scripts/sweep_compiles.py --tiles 640 --shards 8 --pads 256 --out out/sweep_tiles
 """
 
 from __future__ import annotations
@@ -28,9 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
-import h5py
-import numpy as np
-from compare_checkouts import package_view
+from compare_checkouts import datasets, package_view, same_bits
 
 from aca_warp.cli import Parser
 from aca_warp.common.argtypes import int_at_least, positive
@@ -69,8 +69,16 @@ def spec_text(shards: int, pads: int, duration: float) -> str:
     )
 
 
+GPU_SMEM_PER_BLOCK = 232448  # bytes: an H100's or H200's opt-in shared memory per block (227 KiB)
+
+
+class SweepFailed(RuntimeError):
+    """A checkout's sweep did not finish (its error in one line)."""
+
+
 def run_checkout(checkout: Path, work: Path, spec: Path, device: str) -> dict:
-    """One checkout's sweep with an empty kernel cache: wall time [s], kernel modules compiled, tiles per shard."""
+    """One checkout's sweep with an empty kernel cache: wall time [s], kernel modules compiled, tiles per shard,
+    and every shard's datasets (``data``)."""
     view = package_view(checkout, work / "view")
     cache = work / "cache"
     out = work / "sweep"
@@ -78,15 +86,14 @@ def run_checkout(checkout: Path, work: Path, spec: Path, device: str) -> dict:
     env = {**os.environ, "WARP_CACHE_PATH": str(cache)}
     t = time.perf_counter()
     done = subprocess.run([sys.executable, "-c", CHILD, str(view), arg], capture_output=True, text=True, env=env)
-    if done.returncode != 0:
-        raise RuntimeError(f"{checkout}: the sweep failed: {done.stderr.strip()[-1500:]}")
-    row = json.loads(done.stdout.strip().splitlines()[-1])
+    lines = done.stdout.strip().splitlines()
+    row = json.loads(lines[-1]) if done.returncode == 0 and lines else {"exit": done.returncode}
+    if row["exit"] != 0:
+        last = (done.stderr.strip().splitlines() or ["no message"])[-1]
+        raise SweepFailed(f"{checkout}: the sweep failed (exit {row['exit']}): {last}")
     row["process_s"] = time.perf_counter() - t
     row["onchip_modules"] = sorted(p.name for p in cache.rglob("*") if p.is_dir() and "onchip" in p.name)
-    row["mu"] = {}
-    for shard in sorted(out.glob("shard-*.h5")):
-        with h5py.File(shard, "r") as f:
-            row["mu"][shard.name] = f["global/mu"][()]
+    row["data"] = {shard.name: datasets(shard) for shard in sorted(out.glob("shard-*.h5"))}
     return row
 
 
@@ -104,7 +111,8 @@ def print_tiles(args: argparse.Namespace, out: Path) -> int:
         rows = []
         for i in range(spec.shard_count):
             model = build_model(spec.scenes(spec.shard_pads(i)), device="cpu", precision="fp32")
-            exact, bucketed = tile_sizes(model, 1, args.tiles), kernel_tiles(model, 1, args.tiles)
+            exact = tile_sizes(model, 1, args.tiles)
+            bucketed = kernel_tiles(model, 1, args.tiles, GPU_SMEM_PER_BLOCK)
             rows.append({"shard": i, "exact": exact, "bucketed": bucketed})
             print(f"shard {i}: exact {rows[-1]['exact']}, bucketed {rows[-1]['bucketed']}", flush=True)
     kinds = {k: len({tuple(r[k]) for r in rows}) for k in ("exact", "bucketed")}
@@ -112,7 +120,8 @@ def print_tiles(args: argparse.Namespace, out: Path) -> int:
     (out / "sweep_tiles.json").write_text(json.dumps(doc, indent=1) + "\n")
     lines = [
         f"Tiles (patches, CSR slots) of {args.shards} shards × {args.pads} fp32 hf1 pads with patch seeds 1, 2, …, one "
-        f"block of {args.tiles} threads per pad (`python3 scripts/sweep_compiles.py . --tiles {args.tiles}`): "
+        f"block of {args.tiles} threads per pad, {GPU_SMEM_PER_BLOCK} B of shared memory per block "
+        f"(`python3 scripts/sweep_compiles.py --tiles {args.tiles}`): "
         f"{kinds['exact']} distinct exact, {kinds['bucketed']} distinct bucketed.",
         "",
         "| shard | exact | bucketed |",
@@ -125,7 +134,7 @@ def print_tiles(args: argparse.Namespace, out: Path) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     ap = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("checkouts", nargs="+", type=Path, metavar="CHECKOUT", help="one or two checkouts (folders)")
+    ap.add_argument("checkouts", nargs="*", type=Path, metavar="CHECKOUT", help="one or two checkouts (folders)")
     ap.add_argument("--device", default="cpu", help="Warp device of the sweep (default cpu)")
     ap.add_argument("--shards", type=int_at_least(1), default=4, help="shards (default 4)")
     ap.add_argument("--pads", type=int_at_least(1), default=2, help="hf1 pads per shard (default 2)")
@@ -134,7 +143,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tiles", type=int_at_least(1), metavar="THREADS",
                     help="only print the shards' exact and bucketed tiles for blocks of THREADS threads")  # fmt: skip
     args = ap.parse_args(argv)
-    if len(args.checkouts) > 2:
+    if args.tiles is not None and (args.checkouts or args.tiles > 1024):
+        ap.error("--tiles THREADS (1-1024) computes this checkout's tiles: give no CHECKOUT")
+    if args.tiles is None and not 1 <= len(args.checkouts) <= 2:
         ap.error("give one or two checkouts")
     for c in args.checkouts:
         if not (c / "aca_warp").is_dir() or not (c / "kernels").is_dir():
@@ -148,18 +159,24 @@ def main(argv: list[str] | None = None) -> int:
         spec = Path(tmp) / "seeds.toml"
         spec.write_text(spec_text(args.shards, args.pads, args.duration))
         for k, checkout in enumerate(args.checkouts):
-            row = run_checkout(checkout.resolve(), Path(tmp) / f"c{k}", spec, args.device)
+            try:
+                row = run_checkout(checkout.resolve(), Path(tmp) / f"c{k}", spec, args.device)
+            except SweepFailed as e:
+                print(f"sweep_compiles: {e}", file=sys.stderr)
+                return 3
             row["checkout"] = str(checkout)
             rows.append(row)
             print(f"{checkout}: {row['wall_s']:.1f} s, {len(row['onchip_modules'])} on-chip kernel modules, tiles "
                   f"{row['tiles']}", flush=True)  # fmt: skip
     same = None
     if len(rows) == 2:
-        a, b = rows[0]["mu"], rows[1]["mu"]
-        same = a.keys() == b.keys() and all(np.array_equal(a[k], b[k], equal_nan=True) for k in a)
-        print(f"mu of every shard bit for bit the same: {same}")
+        a, b = rows[0]["data"], rows[1]["data"]
+        same = a.keys() == b.keys() and all(
+            a[f].keys() == b[f].keys() and all(same_bits(a[f][d], b[f][d]) for d in a[f]) for f in a
+        )
+        print(f"every dataset of every shard bit for bit the same: {same}")
     for r in rows:
-        del r["mu"]
+        del r["data"]
     doc = {"device": args.device, "shards": args.shards, "pads": args.pads, "duration_s": args.duration,
            "rows": rows, "mu_identical": same}  # fmt: skip
     (out / "sweep_compiles.json").write_text(json.dumps(doc, indent=1) + "\n")
@@ -175,7 +192,7 @@ def main(argv: list[str] | None = None) -> int:
         ),  # fmt: skip
     ]
     if same is not None:
-        lines += ["", f"μ(t) of every shard bit for bit the same in both: {same}."]
+        lines += ["", f"Every dataset of every shard bit for bit the same in both: {same}."]
     (out / "sweep_compiles.md").write_text("\n".join(lines) + "\n")
     return 0 if same in (None, True) else 1
 

@@ -396,10 +396,49 @@ def test_kernel_tiles_are_shared_by_pads_of_about_the_same_size():
     with _smem_limit(limit):
         assert L.kernel_tiles(tight, 1, 640) == L.tile_sizes(tight, 1, 640)
         assert L.block_config(tight, 1, 640)[2]  # the neighbour lists stay on chip
-    with _smem_limit(2 * limit):  # two blocks of the exact tiles share an SM, two of the buckets would not
+    with _smem_limit(2 * limit), _as_on_cuda():  # two blocks of the exact tiles share an SM, two of the buckets not
         assert L.kernel_tiles(tight, 1, 640) == L.tile_sizes(tight, 1, 640)
-    with _smem_limit(4 * limit):  # 640 threads: three blocks per SM either way (2048 threads)
+    with _smem_limit(4 * limit), _as_on_cuda():  # 640 threads: three blocks per SM either way (2048 threads)
         assert L.kernel_tiles(tight, 1, 640) != L.tile_sizes(tight, 1, 640)
+    with _smem_limit(2 * limit):  # on the CPU no SM is shared: the buckets
+        assert L.kernel_tiles(tight, 1, 640) != L.tile_sizes(tight, 1, 640)
+
+
+@contextmanager
+def _as_on_cuda():
+    """The layout's estimate of resident blocks per SM as on a CUDA device, for a model on the CPU."""
+    from types import SimpleNamespace
+
+    from aca_warp.hf import onchip_layout as L
+
+    saved = L._resident
+    gpu = SimpleNamespace(device=SimpleNamespace(is_cpu=False))
+    L._resident = lambda model, *args: saved(gpu, *args)
+    try:
+        yield
+    finally:
+        L._resident = saved
+
+
+def test_results_do_not_depend_on_the_tiles(monkeypatch):
+    """The tiles are storage: the on-chip kernel with the warp-rounded tiles and with the bucketed ones gives the
+    same samples and final state bit for bit (two pads on the CPU)."""
+    from aca_warp.hf import onchip as O
+    from aca_warp.hf import onchip_layout as L
+
+    def run():
+        model = build_model(_scenes(), device="cpu", precision="fp32")
+        state = initial_state(model)
+        res = run_hf(model, state, RunOptions(engine="onchip", duration=4e-7, dt=1e-8))
+        return res.collect().globals, state.u.numpy(), state.v.numpy(), L.kernel_tiles(model, 1, 1)
+
+    g1, u1, v1, tiles = run()
+    monkeypatch.setattr(O, "kernel_tiles", L.tile_sizes)  # the exact tiles, as before the buckets
+    model = build_model(_scenes(), device="cpu", precision="fp32")
+    assert L.tile_sizes(model, 1, 1) != tiles  # another kernel
+    g0, u0, v0, _ = run()
+    for a, b in ((g1, g0), (u1, u0), (v1, v0)):
+        assert a.tobytes() == b.tobytes()
 
 
 @contextmanager

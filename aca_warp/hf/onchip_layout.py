@@ -95,23 +95,33 @@ def _bucket(x: int) -> int:
     return _round_up(x, max(32, 1 << max(0, x.bit_length() - 5)))
 
 
-def kernel_tiles(model: PadModel, cluster: int = 1, threads: int = 1) -> tuple[int, int]:
+def kernel_tiles(model: PadModel, cluster: int = 1, threads: int = 1, per_block: int | None = None) -> tuple[int, int]:
     """The on-chip ``strang`` kernel's tile sizes (patches, CSR slots): :func:`tile_sizes` rounded up to buckets
     (:func:`_bucket`, at most 1/16 more), so that batches of different pads of about the same size, e.g. the shards
     of a sweep over patch seeds, share one compiled kernel instead of compiling one each. The tiles are only the
-    kernel's storage: the results do not depend on them. Where the buckets would not fit the shared memory that the
-    warp-rounded tiles fit (with the neighbour lists on chip, or else without), or would leave fewer blocks resident
-    per SM (by shared memory, the per-block limit taken for an SM's, threads and blocks), the warp-rounded ones."""
+    kernel's storage: the results do not depend on them. The warp-rounded sizes stay where the buckets would not fit
+    the shared memory (``per_block``: :func:`smem_limit`'s) that they fit, with the neighbour lists on chip or else
+    without, and on CUDA where the buckets would leave fewer blocks resident per SM by an estimate (the per-block
+    limit taken for an SM's shared memory, its threads and blocks; registers not counted)."""
     exact = tile_sizes(model, cluster, threads)
     bucketed = (_bucket(exact[0]), _bucket(exact[1]))
-    limit = smem_limit(model)
+    limit = smem_limit(model, per_block)
     for csr in (True, False):
         need = _block_bytes(model, *exact, csr, cluster)
-        if need <= limit:  # the placement the exact tiles allow: the buckets must keep it, and the blocks per SM
+        if need <= limit:  # the placement the exact tiles allow: the buckets must keep it
             more = _block_bytes(model, *bucketed, csr, cluster)
-            per_sm = [min(limit // b, _SM_THREADS // threads, _SM_BLOCKS) for b in (need, more)]
-            return bucketed if more <= limit and per_sm[0] == per_sm[1] else exact
+            same = _resident(model, more, threads, limit) == _resident(model, need, threads, limit)
+            return bucketed if same else exact  # the same count (≥ 1): the buckets fit too
     return exact
+
+
+def _resident(model: PadModel, nbytes: int, threads: int, limit: int) -> int:
+    """Blocks of ``nbytes`` of shared memory and ``threads`` threads resident per SM, estimated (``limit`` taken for
+    an SM's shared memory; registers not counted); on the CPU, where a block is a thread or a group of fibers and
+    there are no SMs, 1 if the block fits ``limit``, else 0."""
+    if model.device.is_cpu:
+        return int(nbytes <= limit)
+    return min(limit // nbytes, _SM_THREADS // threads, _SM_BLOCKS)
 
 
 def default_block(nmax: int, cluster: int, growth: bool, fp64: bool) -> int:
@@ -123,10 +133,12 @@ def default_block(nmax: int, cluster: int, growth: bool, fp64: bool) -> int:
     return min(cap, _round_up(-(-nmax // cluster), 32))
 
 
-def shared_bytes(model: PadModel, csr_shared: bool, cluster: int = 1, threads: int = 1) -> int:
+def shared_bytes(
+    model: PadModel, csr_shared: bool, cluster: int = 1, threads: int = 1, per_block: int | None = None
+) -> int:
     """Shared memory one block of ``threads`` threads of the on-chip ``strang`` kernel needs [bytes], its tiles
-    :func:`kernel_tiles` (:func:`_block_bytes`)."""
-    return _block_bytes(model, *kernel_tiles(model, cluster, threads), csr_shared, cluster)
+    :func:`kernel_tiles` (for the limit ``per_block``, default the device's; :func:`_block_bytes`)."""
+    return _block_bytes(model, *kernel_tiles(model, cluster, threads, per_block), csr_shared, cluster)
 
 
 def _block_bytes(model: PadModel, nmax: int, slots: int, csr_shared: bool, cluster: int) -> int:
