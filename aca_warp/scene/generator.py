@@ -116,32 +116,30 @@ class PatchGenerator:
         return Patches(xy[order, 0], xy[order, 1], area[order], self.heights()[order], source=desc)
 
     def _place(self, pad: Pad, rng: np.random.Generator, rad: np.ndarray, max_tries: int) -> np.ndarray:
-        """Centres (count, 2) [m] of discs of radii ``rad`` [m] by random sequential addition inside the pad."""
+        """Centres (count, 2) [m] of discs of radii ``rad`` [m] by random sequential addition inside the pad.
+
+        A trial position is r = √U(r_inner², r_outer²), θ = π/2 + U(−half span, half span), the two uniforms drawn
+        in that order per trial; a trial is kept when the disc lies inside the pad and overlaps no disc placed
+        before. The trials come from :class:`_Trials`, which draws the uniforms in blocks and tests the pad's
+        bounds for a block at once: the same positions, the same decisions as one trial at a time."""
         cell = max(2.0 * rad.max(), 1e-4)
         grid: dict[tuple[int, int], list[int]] = {}
-        xy = np.zeros((self.count, 2))
-        lo2, hi2 = pad.r_inner**2, pad.r_outer**2
+        xs, ys, radii = [0.0] * self.count, [0.0] * self.count, rad.tolist()  # Python floats: the same values
+        trials = _Trials(pad, rng)
         for i in range(self.count):
+            ri = radii[i]
             for _ in range(max_tries * 10):
-                r = math.sqrt(rng.uniform(lo2, hi2))
-                th = math.pi / 2 + rng.uniform(-pad.half_span, pad.half_span)
-                p = (r * math.cos(th), r * math.sin(th))
-                if not pad.contains_disc(np.array(p[0]), np.array(p[1]), np.array(rad[i])):
+                px, py, inside = trials.next(ri)
+                if not inside:
                     continue
-                cx, cy = int(math.floor(p[0] / cell)), int(math.floor(p[1] / cell))
-                ok = True
-                for gx in (cx - 1, cx, cx + 1):
-                    for gy in (cy - 1, cy, cy + 1):
-                        for j in grid.get((gx, gy), ()):
-                            if math.hypot(p[0] - xy[j, 0], p[1] - xy[j, 1]) < rad[i] + rad[j]:
-                                ok = False
-                                break
-                        if not ok:
-                            break
-                    if not ok:
-                        break
-                if ok:
-                    xy[i] = p
+                cx, cy = int(math.floor(px / cell)), int(math.floor(py / cell))
+                if not any(
+                    math.hypot(px - xs[j], py - ys[j]) < ri + radii[j]
+                    for gx in (cx - 1, cx, cx + 1)
+                    for gy in (cy - 1, cy, cy + 1)
+                    for j in grid.get((gx, gy), ())
+                ):
+                    xs[i], ys[i] = px, py
                     grid.setdefault((cx, cy), []).append(i)
                     break
             else:
@@ -149,7 +147,48 @@ class PatchGenerator:
                     f"could not place {self.count} non-overlapping patches of {self.area_min:g}-{self.area_max:g} m² "
                     f"on the pad (placed {i}); use fewer or smaller patches"
                 )
-        return xy
+        return np.column_stack((xs, ys))
+
+
+class _Trials:
+    """The trial positions of :meth:`PatchGenerator._place` in draw order, made in blocks of :data:`BLOCK`.
+
+    Per trial two uniforms of ``rng`` (``low + (high − low) · u``, the arithmetic of ``Generator.uniform``, from one
+    ``Generator.random`` block: the same stream as scalar ``uniform`` calls) and the position with the scalar
+    ``math`` functions; a block's distances to the pad's bounds at once (:meth:`Pad.edge_distances`, NumPy's
+    elementwise functions, the same for a block as for one value), and per trial :meth:`Pad.disc_fits` in scalars:
+    the decisions of :meth:`Pad.contains_disc` one trial at a time."""
+
+    BLOCK = 64
+
+    def __init__(self, pad: Pad, rng: np.random.Generator) -> None:
+        self.pad, self.rng = pad, rng
+        self.x: list[float] = []
+        self.y: list[float] = []
+        self.r: list[float] = []
+        self.edge: list[float] = []
+        self.k = 0
+
+    def _refill(self) -> None:
+        pad, n = self.pad, self.BLOCK
+        u = self.rng.random(2 * n).tolist()
+        lo2, hi2, hs = pad.r_inner**2, pad.r_outer**2, pad.half_span
+        x, y = [], []
+        for t in range(n):
+            r = math.sqrt(lo2 + (hi2 - lo2) * u[2 * t])
+            th = math.pi / 2 + (-hs + (hs - -hs) * u[2 * t + 1])
+            x.append(r * math.cos(th))
+            y.append(r * math.sin(th))
+        dist, edge = pad.edge_distances(np.array(x), np.array(y))
+        self.x, self.y, self.r, self.edge, self.k = x, y, dist.tolist(), edge.tolist(), 0
+
+    def next(self, radius: float) -> tuple[float, float, bool]:
+        """The next trial position (x, y) [m] and whether a disc of ``radius`` [m] there lies inside the pad."""
+        if self.k == len(self.x):
+            self._refill()
+        k = self.k
+        self.k += 1
+        return self.x[k], self.y[k], bool(self.pad.disc_fits(self.r[k], self.edge[k], radius))
 
 
 def _spatial_order(x: np.ndarray, y: np.ndarray, cell: float) -> np.ndarray:

@@ -155,14 +155,25 @@ class Pad:
 
     def contains_disc(self, x: np.ndarray, y: np.ndarray, radius: np.ndarray) -> np.ndarray:
         """True where the disc of ``radius`` [m] centred at (x, y) [m] lies inside the pad (shape of x)."""
+        return self.disc_fits(*self.edge_distances(x, y), radius)
+
+    def edge_distances(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(distance from the disc axis, distance to the nearest straight edge measured perpendicular to it) [m] of
+        the points (x, y) [m]; the second is +inf on a full ring."""
         r = np.hypot(x, y)
-        ang = np.abs(np.arctan2(x, y))  # angle from +y
-        inside_r = (r - radius >= self.r_inner * (1 - 1e-12)) & (r + radius <= self.r_outer * (1 + 1e-12))
         if self.span_deg >= 360.0:
-            return inside_r
-        # distance from the centre to the nearest straight edge, measured perpendicular to it
-        edge = r * np.sin(np.clip(self.half_span - ang, -np.pi / 2, np.pi / 2))
-        return inside_r & (edge >= radius * (1 - 1e-12))
+            return r, np.full(np.shape(r), np.inf)
+        ang = np.abs(np.arctan2(x, y))  # angle from +y
+        return r, r * np.sin(np.clip(self.half_span - ang, -np.pi / 2, np.pi / 2))
+
+    def disc_fits(self, r: Any, edge: Any, radius: Any) -> Any:
+        """Whether a disc of ``radius`` [m] at distances ``r`` and ``edge`` [m] (:meth:`edge_distances`) lies inside
+        the pad: arrays elementwise, or scalars (the same IEEE operations either way)."""
+        return (
+            (r - radius >= self.r_inner * (1 - 1e-12))
+            & (r + radius <= self.r_outer * (1 + 1e-12))
+            & (edge >= radius * (1 - 1e-12))
+        )
 
 
 @dataclass(frozen=True)
