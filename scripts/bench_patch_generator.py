@@ -20,7 +20,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from compare_checkouts import package_view
+from compare_checkouts import checkout_problem, package_view
 
 from aca_warp.cli import Parser
 from aca_warp.common.argtypes import int_at_least
@@ -69,9 +69,9 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if len(args.checkouts) > 2:
         ap.error("give one or two checkouts")
-    for c in args.checkouts:
-        if not (c / "aca_warp").is_dir() or not (c / "kernels").is_dir():
-            ap.error(f"{c} is not a checkout of aca_warp (no aca_warp/ and kernels/ in it)")
+    problem = next((why for c in args.checkouts if (why := checkout_problem(c))), None)
+    if problem:
+        ap.error(problem)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:

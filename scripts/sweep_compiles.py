@@ -30,7 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from compare_checkouts import datasets, package_view, same_bits
+from compare_checkouts import checkout_problem, datasets, package_view, same_bits
 
 from aca_warp.cli import Parser
 from aca_warp.common.argtypes import int_at_least, positive
@@ -147,9 +147,9 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--tiles THREADS (1-1024) computes this checkout's tiles: give no CHECKOUT")
     if args.tiles is None and not 1 <= len(args.checkouts) <= 2:
         ap.error("give one or two checkouts")
-    for c in args.checkouts:
-        if not (c / "aca_warp").is_dir() or not (c / "kernels").is_dir():
-            ap.error(f"{c} is not a checkout of aca_warp (no aca_warp/ and kernels/ in it)")
+    problem = next((why for c in args.checkouts if (why := checkout_problem(c))), None)
+    if problem:
+        ap.error(problem)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.tiles is not None:

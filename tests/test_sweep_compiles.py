@@ -21,7 +21,7 @@ def test_tiles_of_the_shards(tmp_path):
 @pytest.mark.parametrize(
     ("argv", "said"),
     [
-        (["{tmp}"], "is not a checkout of aca_warp"),
+        (["{tmp}"], "not a checkout of aca_warp"),
         ([], "give one or two checkouts"),
         (["{tmp}", "--tiles", "640"], "give no CHECKOUT"),
         (["--tiles", "2048"], "THREADS (1-1024)"),
