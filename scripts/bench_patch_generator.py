@@ -20,7 +20,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from compare_checkouts import checkout_problem, package_view
+from compare_checkouts import package_view, refuse_bad_checkouts
 
 from aca_warp.cli import Parser
 from aca_warp.common.argtypes import int_at_least
@@ -69,9 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if len(args.checkouts) > 2:
         ap.error("give one or two checkouts")
-    problem = next((why for c in args.checkouts if (why := checkout_problem(c))), None)
-    if problem:
-        ap.error(problem)
+    refuse_bad_checkouts(ap, args.checkouts)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:

@@ -106,6 +106,13 @@ def checkout_problem(checkout: Path) -> str | None:
     return None
 
 
+def refuse_bad_checkouts(ap: argparse.ArgumentParser, checkouts: list[Path]) -> None:
+    """``ap.error`` (one line, exit 2) for the first of ``checkouts`` that is not a checkout of aca_warp."""
+    for checkout in checkouts:
+        if problem := checkout_problem(checkout):
+            ap.error(problem)
+
+
 def package_view(checkout: Path, into: Path) -> Path:
     """A folder with package ``aca_warp`` made of links into ``checkout`` (kernels/ as aca_warp/kernels)."""
     pkg = into / "aca_warp"
@@ -241,9 +248,7 @@ def main(argv: list[str] | None = None) -> int:
         "--device", default="cpu", help="Warp device of every job (default cpu; cuda:0 compares the GPU's results)"
     )
     args = ap.parse_args(argv)
-    for checkout in (args.first, args.second):  # every refusal before --out is made: nothing run, nothing written
-        if problem := checkout_problem(checkout):
-            ap.error(problem)
+    refuse_bad_checkouts(ap, [args.first, args.second])  # every refusal before --out is made: nothing written
     from aca_warp.common.errors import AcaError
     from aca_warp.common.files import check_output_folder
 
