@@ -30,7 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from compare_checkouts import checkout_problem, datasets, package_view, same_bits
+from compare_checkouts import compare_sweeps, package_view, refuse_bad_checkouts, same_results
 
 from aca_warp.cli import Parser
 from aca_warp.common.argtypes import int_at_least, positive
@@ -77,8 +77,8 @@ class SweepFailed(RuntimeError):
 
 
 def run_checkout(checkout: Path, work: Path, spec: Path, device: str) -> dict:
-    """One checkout's sweep with an empty kernel cache: wall time [s], kernel modules compiled, tiles per shard,
-    and every shard's datasets (``data``)."""
+    """One checkout's sweep into ``work/sweep`` with an empty kernel cache: wall time [s], kernel modules compiled,
+    tiles per shard."""
     view = package_view(checkout, work / "view")
     cache = work / "cache"
     out = work / "sweep"
@@ -93,7 +93,6 @@ def run_checkout(checkout: Path, work: Path, spec: Path, device: str) -> dict:
         raise SweepFailed(f"{checkout}: the sweep failed (exit {row['exit']}): {last}")
     row["process_s"] = time.perf_counter() - t
     row["onchip_modules"] = sorted(p.name for p in cache.rglob("*") if p.is_dir() and "onchip" in p.name)
-    row["data"] = {shard.name: datasets(shard) for shard in sorted(out.glob("shard-*.h5"))}
     return row
 
 
@@ -147,9 +146,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--tiles THREADS (1-1024) computes this checkout's tiles: give no CHECKOUT")
     if args.tiles is None and not 1 <= len(args.checkouts) <= 2:
         ap.error("give one or two checkouts")
-    problem = next((why for c in args.checkouts if (why := checkout_problem(c))), None)
-    if problem:
-        ap.error(problem)
+    refuse_bad_checkouts(ap, args.checkouts)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.tiles is not None:
@@ -168,17 +165,13 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(row)
             print(f"{checkout}: {row['wall_s']:.1f} s, {len(row['onchip_modules'])} on-chip kernel modules, tiles "
                   f"{row['tiles']}", flush=True)  # fmt: skip
-    same = None
-    if len(rows) == 2:
-        a, b = rows[0]["data"], rows[1]["data"]
-        same = a.keys() == b.keys() and all(
-            a[f].keys() == b[f].keys() and all(same_bits(a[f][d], b[f][d]) for d in a[f]) for f in a
-        )
-        print(f"every dataset of every shard bit for bit the same: {same}")
-    for r in rows:
-        del r["data"]
+        same = None
+        if len(rows) == 2:  # every pad's outputs and every dataset of every shard file (compare_checkouts)
+            r = compare_sweeps(Path(tmp) / "c0" / "sweep", Path(tmp) / "c1" / "sweep")
+            same = same_results(r) and not r["files_only_one"] and all(map(same_results, r["files"].values()))
+            print(f"every dataset of every shard bit for bit the same: {same}")
     doc = {"device": args.device, "shards": args.shards, "pads": args.pads, "duration_s": args.duration,
-           "rows": rows, "mu_identical": same}  # fmt: skip
+           "rows": rows, "identical": same}  # fmt: skip
     (out / "sweep_compiles.json").write_text(json.dumps(doc, indent=1) + "\n")
     lines = [
         f"Sweep over patch seeds: {args.shards} shards × {args.pads} hf1 pads, fp32, {args.duration:g} s, device "
