@@ -214,6 +214,50 @@ def onchip_kernel(
             omega * model.radius[g], mu_scale, slope, decay, tol,
         )  # fmt: skip
 
+    @wp.func
+    def couple_shared(
+        g: int, pad: int, a: int, p: int, sidx: wp.tile[wp.int16, ne], sk: wp.tile[T, ne], model: Any
+    ) -> int:
+        """``patch_coupling`` of patch g with its neighbour indices from the shared CSR copy (its first link at slot
+        ``p``), the new k_ij into that copy too; returns the slot after the row. Four links' loads before their
+        stores, the diagonal summed in link order (as ``patch_coupling``)."""
+        ki = model.pad_kc[pad] * model.sqrt_area[g]
+        d = model.k_t[g]
+        e = model.nbr_start[g]
+        end = model.nbr_start[g + 1]
+        while e + 3 < end:
+            s0 = model.sqrt_area[a + int(get_ei(sidx, p))]
+            s1 = model.sqrt_area[a + int(get_ei(sidx, p + NW))]
+            s2 = model.sqrt_area[a + int(get_ei(sidx, p + 2 * NW))]
+            s3 = model.sqrt_area[a + int(get_ei(sidx, p + 3 * NW))]
+            k0 = link_stiffness(ki, s0, model.nbr_inv_dist[e])
+            k1 = link_stiffness(ki, s1, model.nbr_inv_dist[e + 1])
+            k2 = link_stiffness(ki, s2, model.nbr_inv_dist[e + 2])
+            k3 = link_stiffness(ki, s3, model.nbr_inv_dist[e + 3])
+            model.nbr_stiffness[e] = k0
+            model.nbr_stiffness[e + 1] = k1
+            model.nbr_stiffness[e + 2] = k2
+            model.nbr_stiffness[e + 3] = k3
+            put_ek(sk, p, k0)
+            put_ek(sk, p + NW, k1)
+            put_ek(sk, p + 2 * NW, k2)
+            put_ek(sk, p + 3 * NW, k3)
+            d += k0
+            d += k1
+            d += k2
+            d += k3
+            e += 4
+            p += 4 * NW
+        while e < end:
+            kij = link_stiffness(ki, model.sqrt_area[a + int(get_ei(sidx, p))], model.nbr_inv_dist[e])
+            model.nbr_stiffness[e] = kij
+            put_ek(sk, p, kij)
+            d += kij
+            e += 1
+            p += NW
+        model.k_diag[g] = d
+        return p
+
     @wp.kernel(
         enable_backward=False,
         module="unique",
@@ -402,18 +446,8 @@ def onchip_kernel(
                         p = p0
                         while i < hi:
                             g = a + i
-                            if CSR_SHARED != 0:  # patch_coupling with the neighbour indices from shared memory
-                                ki = model.pad_kc[pad] * model.sqrt_area[g]
-                                d = model.k_t[g]
-                                for e in range(model.nbr_start[g], model.nbr_start[g + 1]):
-                                    kij = link_stiffness(
-                                        ki, model.sqrt_area[a + int(get_ei(sidx, p))], model.nbr_inv_dist[e]
-                                    )
-                                    model.nbr_stiffness[e] = kij
-                                    put_ek(sk, p, kij)
-                                    d += kij
-                                    p += nw
-                                model.k_diag[g] = d
+                            if CSR_SHARED != 0:
+                                p = couple_shared(g, pad, a, p, sidx, sk, model)
                             else:
                                 patch_coupling(g, pad, model)
                             i += threads

@@ -240,17 +240,148 @@ def link_stiffness(ki: Any, sqrt_area_j: Any, inv_dist: Any):
 @wp.func
 def patch_coupling(i: int, p: int, model: Any):
     """k_ij (:func:`link_stiffness`) for every link of patch i of pad p [N/m] and k_T,i + Σ_j k_ij, into ``model``'s
-    ``nbr_stiffness`` and ``k_diag``."""
+    ``nbr_stiffness`` and ``k_diag`` (the diagonal summed in link order). Four links' loads are issued before their
+    stores (a store may alias a later load, so the compiler would not move the loads ahead itself: on a GPU the
+    neighbours' √A just grown come from L2, and four in flight wait once)."""
     ki = model.pad_kc[p] * model.sqrt_area[i]
     d = model.k_t[i]
-    for e in range(model.nbr_start[i], model.nbr_start[i + 1]):
+    e = model.nbr_start[i]
+    end = model.nbr_start[i + 1]
+    while e + 3 < end:
+        s0 = model.sqrt_area[model.nbr_index[e]]
+        s1 = model.sqrt_area[model.nbr_index[e + 1]]
+        s2 = model.sqrt_area[model.nbr_index[e + 2]]
+        s3 = model.sqrt_area[model.nbr_index[e + 3]]
+        k0 = link_stiffness(ki, s0, model.nbr_inv_dist[e])
+        k1 = link_stiffness(ki, s1, model.nbr_inv_dist[e + 1])
+        k2 = link_stiffness(ki, s2, model.nbr_inv_dist[e + 2])
+        k3 = link_stiffness(ki, s3, model.nbr_inv_dist[e + 3])
+        model.nbr_stiffness[e] = k0
+        model.nbr_stiffness[e + 1] = k1
+        model.nbr_stiffness[e + 2] = k2
+        model.nbr_stiffness[e + 3] = k3
+        d += k0
+        d += k1
+        d += k2
+        d += k3
+        e += 4
+    while e < end:
         k = link_stiffness(ki, model.sqrt_area[model.nbr_index[e]], model.nbr_inv_dist[e])
         model.nbr_stiffness[e] = k
         d += k
+        e += 1
     model.k_diag[i] = d
 
 
 # ---------------------------------------------------------------------------------------------- contact
+
+
+ContactSums = wp.types.vector(length=5, dtype=wp.float64)  # covered area, first moment, Σ k_N, fp, kp
+
+
+@wp.func
+def _pad_terms(a: Any, r: Any, h: Any, kn: Any, g: wp.float64, acc: ContactSums, hmin: wp.float64):
+    """``acc`` (:data:`ContactSums`) and the lowest height with one patch (area a [m²], radius r [m], height h [m],
+    stiffness k_N [N/m]) added, its force and stiffness when compressed at gap g."""
+    d = wp.float64(h) - g
+    fp = acc[3]
+    kp = acc[4]
+    if d > wp.float64(0.0):
+        fp += wp.float64(kn) * d
+        kp += wp.float64(kn)
+    return (
+        ContactSums(acc[0] + wp.float64(a), acc[1] + wp.float64(a * r), acc[2] + wp.float64(kn), fp, kp),
+        wp.min(hmin, wp.float64(h)),
+    )
+
+
+@wp.func
+def _pad_sums(s: int, e: int, lane: int, threads: int, model: Any, g: wp.float64):
+    """The pad's :data:`ContactSums` at gap g over the block (one reduction) and this thread's lowest height (the
+    patches lane, lane + threads, … of s … e − 1 in index order, four patches' loads before their sums)."""
+    acc = ContactSums()
+    hmin = wp.float64(0.0)
+    i = s + lane
+    while i + 3 * threads < e:
+        a0 = model.area[i]
+        r0 = model.radius[i]
+        h0 = model.height[i]
+        k0 = model.k_n[i]
+        a1 = model.area[i + threads]
+        r1 = model.radius[i + threads]
+        h1 = model.height[i + threads]
+        k1 = model.k_n[i + threads]
+        a2 = model.area[i + 2 * threads]
+        r2 = model.radius[i + 2 * threads]
+        h2 = model.height[i + 2 * threads]
+        k2 = model.k_n[i + 2 * threads]
+        a3 = model.area[i + 3 * threads]
+        r3 = model.radius[i + 3 * threads]
+        h3 = model.height[i + 3 * threads]
+        k3 = model.k_n[i + 3 * threads]
+        acc, hmin = _pad_terms(a0, r0, h0, k0, g, acc, hmin)
+        acc, hmin = _pad_terms(a1, r1, h1, k1, g, acc, hmin)
+        acc, hmin = _pad_terms(a2, r2, h2, k2, g, acc, hmin)
+        acc, hmin = _pad_terms(a3, r3, h3, k3, g, acc, hmin)
+        i += 4 * threads
+    while i < e:
+        acc, hmin = _pad_terms(model.area[i], model.radius[i], model.height[i], model.k_n[i], g, acc, hmin)
+        i += threads
+    return block_sums(acc), hmin
+
+
+@wp.func
+def _compressed(h: Any, kn: Any, g: wp.float64, fp: wp.float64, kp: wp.float64):
+    """(fp, kp) with patch (height h [m], stiffness k_N [N/m]) added when compressed at gap g: fp + k_N (h − g),
+    kp + k_N."""
+    d = wp.float64(h) - g
+    if d > wp.float64(0.0):
+        return fp + wp.float64(kn) * d, kp + wp.float64(kn)
+    return fp, kp
+
+
+@wp.func
+def _compressed_sums(s: int, e: int, lane: int, threads: int, model: Any, g: wp.float64):
+    """This thread's partial (Σ k_N (h − g), Σ k_N) over the compressed patches lane, lane + threads, … of the
+    range s … e − 1, in index order; four patches' loads issued before their sums (on a GPU the loads of
+    stiffnesses just grown elsewhere come from L2, and four in flight wait once)."""
+    fp = wp.float64(0.0)
+    kp = wp.float64(0.0)
+    i = s + lane
+    while i + 3 * threads < e:
+        h0 = model.height[i]
+        k0 = model.k_n[i]
+        h1 = model.height[i + threads]
+        k1 = model.k_n[i + threads]
+        h2 = model.height[i + 2 * threads]
+        k2 = model.k_n[i + 2 * threads]
+        h3 = model.height[i + 3 * threads]
+        k3 = model.k_n[i + 3 * threads]
+        fp, kp = _compressed(h0, k0, g, fp, kp)
+        fp, kp = _compressed(h1, k1, g, fp, kp)
+        fp, kp = _compressed(h2, k2, g, fp, kp)
+        fp, kp = _compressed(h3, k3, g, fp, kp)
+        i += 4 * threads
+    while i < e:
+        fp, kp = _compressed(model.height[i], model.k_n[i], g, fp, kp)
+        i += threads
+    return fp, kp
+
+
+@wp.func
+def _newton_from_left(f: wp.float64, kact: wp.float64, load: wp.float64, g: wp.float64):
+    """One Newton step of the contact from the left of its root: (new gap [m], 1 when the solve stops here). It
+    stops when the stiffness in contact is 0, when the step stops being positive (from the left of the root Newton
+    only moves right: there f = F_N to rounding) or when it falls below 1e-15 of the gap."""
+    if kact <= wp.float64(0.0):
+        return g, 1
+    dg = (f - load) / kact
+    if dg <= wp.float64(0.0):
+        return g, 1
+    g = g + dg
+    if dg <= wp.float64(1.0e-15) * (wp.abs(g) + wp.float64(1.0e-9)):
+        return g, 1
+    return g, 0
 
 
 @wp.func
@@ -263,7 +394,9 @@ def contact_block(
     and exact on a piecewise-linear convex function), warm-started from the previous gap; it stops when the step
     falls below 1e-15 of the gap or stops being positive (the rounding floor of the block sums; with the first
     test alone, the re-solve late in the varying-area study cost 7.3 µs per step on the H100 against 1.0 µs with
-    the second, docs/onchip.md). Launch with
+    the second, docs/onchip.md). The first pass also sums the pad's covered area, first moment and stiffness, in
+    the same reduction as the compressed patches' force and stiffness at the warm start; the lowest height (the
+    restart left of the root) is reduced only when the warm start lies right of the root. Launch with
     ``wp.launch_tiled(dim=[pads], block_dim=B)``; ``threads`` is the block size the device runs (B on CUDA, 1 on
     the CPU): thread ``lane`` sums patches lane, lane + B, … and the block reduces the sums, so every thread
     sees the same values and takes the same branches (the block-wide reductions stay outside per-thread code).
@@ -280,55 +413,34 @@ def contact_block(
     e = model.pad_patch_start[pad + 1]
     zero = wp.float64(0.0)
     load = wp.float64(model.pad_load[pad])
-    covered = zero
-    moment = zero
-    hmin = zero
-    ktot = zero
-    i = s + lane
-    while i < e:
-        covered += wp.float64(model.area[i])
-        moment += wp.float64(model.area[i] * model.radius[i])
-        hmin = wp.min(hmin, wp.float64(model.height[i]))
-        ktot += wp.float64(model.k_n[i])
-        i += threads
-    sums = block_sums(wp.vec3d(covered, moment, ktot))  # one reduction for the three sums
-    covered = sums[0]
-    moment = sums[1]
-    ktot = sums[2]
-    hmin = wp.tile_min(wp.tile(hmin))[0]
-    free = wp.max(model.pad_area[pad] - covered, zero)
-    km = model.pad_k_m[pad] * free
-    ktot += km
-    if free > zero and lane == 0 and writer:
-        model.pad_matrix_radius[pad] = type(model.pad_load[pad])((model.pad_moment[pad] - moment) / free)
     g = gap
+    sums, hmin = _pad_sums(s, e, lane, threads, model, g)  # one reduction
+    free = wp.max(model.pad_area[pad] - sums[0], zero)
+    km = model.pad_k_m[pad] * free
+    ktot = sums[2] + km
+    if free > zero and lane == 0 and writer:
+        model.pad_matrix_radius[pad] = type(model.pad_load[pad])((model.pad_moment[pad] - sums[1]) / free)
     if load > zero:
-        for it in range(200):
-            fp = zero
-            kp = zero
-            i = s + lane
-            while i < e:
-                d = wp.float64(model.height[i]) - g
-                if d > zero:
-                    fp += wp.float64(model.k_n[i]) * d
-                    kp += wp.float64(model.k_n[i])
-                i += threads
+        f = km * wp.max(-g, zero) + sums[3]
+        kact = sums[4]
+        if g < zero:
+            kact += km
+        stop = int(0)
+        if f < load:  # the warm start lies right of the root: restart left of it, where every element is compressed
+            hmin = wp.tile_min(wp.tile(hmin))[0]
+            g = hmin - load / ktot
+        else:
+            g, stop = _newton_from_left(f, kact, load, g)
+        it = int(1)
+        while stop == 0 and it < 200:
+            fp, kp = _compressed_sums(s, e, lane, threads, model, g)
             active = block_sums(wp.vec2d(fp, kp))  # the compressed patches' force and stiffness
             f = km * wp.max(-g, zero) + active[0]
             kact = active[1]
             if g < zero:
                 kact += km
-            if it == 0 and f < load:
-                g = hmin - load / ktot  # restart left of the root, where every element is compressed
-                continue
-            if kact <= zero:
-                break
-            dg = (f - load) / kact
-            if dg <= zero:  # from the left of the root Newton only moves right: here f = F_N to rounding
-                break
-            g = g + dg
-            if dg <= wp.float64(1.0e-15) * (wp.abs(g) + wp.float64(1.0e-9)):
-                break
+            g, stop = _newton_from_left(f, kact, load, g)
+            it += 1
     i = out_start + lane
     while i < out_end:
         f_i = zero
