@@ -6,10 +6,17 @@ step (each in its own process, as a user runs it, kernels cached after the first
 with ``--fast-math`` (``OUT/va_STEP_fast.h5``; docs/onchip.md, "Fast math"), and writes the wall time of each
 command with the run's summary line to ``OUT/time_varying_area.json`` and a Markdown table beside it. Which step the
 statistics allow is the statistical work-precision's question (docs/work_precision_statistics.md, regime ``va``);
-this script only measures what each step costs. Example (one GPU; the paper's record is 0.36 s)::
+this script only measures what each step costs.
+
+``--checkouts FIRST SECOND`` times two checkouts of aca_warp side by side instead of the installed package: each
+command runs with that checkout's code (a package view as in ``scripts/compare_checkouts.py``, its own kernel
+cache, warmed up by a 10 µs run of the same case first), the checkouts alternating case by case and ``--repeat``
+times, and each case's two run files (the last repeat's) are compared dataset by dataset. Example (one GPU; the
+paper's record is 0.36 s)::
 
     python3 scripts/time_varying_area.py --device cuda:0 --steps 1e-7 2.5e-7 5e-7 --out out/va_time
     python3 scripts/time_varying_area.py --device cuda:0 --steps 5e-8 --math exact fast --out out/va_fast
+    python3 scripts/time_varying_area.py --device cuda:0 --steps 5e-8 --checkouts build/base . --repeat 2
     python3 scripts/time_varying_area.py --dry-run --steps 5e-8        # print the commands only
 """
 
@@ -17,33 +24,50 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 
 from aca_warp.cli import Parser
 from aca_warp.common.argtypes import positive
 
+# runs the CLI with the package of the view in argv[1] (scripts/compare_checkouts.py's package view)
+CHILD = (
+    "import sys; sys.path.insert(0, sys.argv[1]); import aca_warp; "
+    "assert aca_warp.__file__.startswith(sys.argv[1]), aca_warp.__file__; "
+    "from aca_warp.cli import main; sys.exit(main(sys.argv[2:]))"
+)
 
-def run_file(out: Path, step: float, fast: bool) -> Path:
-    """The run file of one step [s], with or without fast math."""
-    return out / f"va_{step:g}{'_fast' if fast else ''}.h5"
+
+def run_file(out: Path, step: float, fast: bool, checkout: int | None = None) -> Path:
+    """The run file of one step [s], with or without fast math (of checkout 0 or 1 with ``--checkouts``)."""
+    return out / f"va_{step:g}{'_fast' if fast else ''}{'' if checkout is None else f'_c{checkout}'}.h5"
 
 
-def command(step: float, duration: float, device: str, out: Path, fast: bool = False) -> list[str]:
-    """The command line timed for one step [s] (``fast``: with CUDA fast math)."""
+def command(
+    step: float, duration: float, device: str, out: Path, fast: bool = False, checkout: int | None = None
+) -> list[str]:
+    """The command line timed for one step [s] (``fast``: with CUDA fast math; ``checkout``: its run file's)."""
     return [
         "aca-warp", "hf", "varying_area", "--duration", f"{duration:g}", "--dt", f"{step:g}",
-        "--precision", "fp32", "--device", device, "--overwrite", "-o", str(run_file(out, step, fast)),
+        "--precision", "fp32", "--device", device, "--overwrite", "-o", str(run_file(out, step, fast, checkout)),
         *(["--fast-math"] if fast else []),
     ]  # fmt: skip
 
 
-def time_one(cmd: list[str]) -> dict:
-    """Wall time [s], exit code and the last output line of one command."""
+def in_view(cmd: list[str], view: Path) -> list[str]:
+    """``cmd`` (an ``aca-warp`` command line) run with the package of a checkout's view instead of the installed one."""
+    return [sys.executable, "-c", CHILD, str(view), *cmd[1:]]
+
+
+def time_one(cmd: list[str], env: dict[str, str] | None = None) -> dict:
+    """Wall time [s], exit code and the last output line of one command (in environment ``env``, default this one)."""
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True)
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
     wall = time.perf_counter() - t0
     lines = (proc.stdout + proc.stderr).strip().splitlines()
     return {
@@ -67,20 +91,28 @@ def machine_of(run_file: Path) -> str:
 
 def markdown(doc: dict) -> str:
     """The table of ``doc`` (one row per step)."""
+    two = "checkouts" in doc
     rows = [
-        f"| {r['step_s']:g} | {'fast' if r.get('fast_math') else 'exact'} | {r['wall_s']:.1f} | {r['exit']} "
-        f"| {r['summary']} |"
+        f"| {r['step_s']:g} | {'fast' if r.get('fast_math') else 'exact'} "
+        + (f"| {r['checkout']} " if two else "")
+        + f"| {r['wall_s']:.1f} | {r['exit']} | {r['summary']} |"
         for r in doc["rows"]
     ]
     head = [
         f"# Varying-area record through the CLI ({doc['duration_s']:g} s)",
         "",
         f"{doc['date']}, {doc['machine']}, device {doc['device']}; written by `python3 scripts/time_varying_area.py`.",
+        *([f"Checkouts: 0 = `{doc['checkouts'][0]}`, 1 = `{doc['checkouts'][1]}`."] if two else []),
         "",
-        "| step [s] | math | wall [s] | exit | summary |",
-        "|---|---|---|---|---|",
+        "| step [s] | math | " + ("checkout | " if two else "") + "wall [s] | exit | summary |",
+        "|---|---|" + ("---|" if two else "") + "---|---|---|",
     ]
-    return "\n".join(head + rows) + "\n"
+    same = [
+        f"* {c['step_s']:g} s, {'fast' if c['fast_math'] else 'exact'}: "
+        + ("the two records bit-identical" if c["identical"] else f"records differ: {c['differ']}")
+        for c in doc.get("comparisons", [])
+    ]
+    return "\n".join(head + rows + ([""] + same if same else [])) + "\n"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -92,11 +124,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default="out/va_time", help="folder of the run files and the results")
     ap.add_argument("--math", nargs="+", choices=("exact", "fast"), default=["exact"],
                     help="exact (default) and/or fast: each step also with --fast-math (fp32 on CUDA)")  # fmt: skip
+    ap.add_argument("--checkouts", type=Path, nargs=2, metavar=("FIRST", "SECOND"),
+                    help="time these two checkouts of aca_warp side by side (run files compared)")  # fmt: skip
+    ap.add_argument("--repeat", type=int, default=1, choices=range(1, 11), metavar="N",
+                    help="with --checkouts: runs of each checkout per case, alternating (1-10, default 1)")  # fmt: skip
     ap.add_argument("--dry-run", action="store_true", help="print the commands and exit")
     args = ap.parse_args(argv)
+    if args.checkouts:
+        from compare_checkouts import refuse_bad_checkouts
+
+        refuse_bad_checkouts(ap, args.checkouts)
+    elif args.repeat != 1:
+        ap.error("--repeat needs --checkouts")
     out = Path(args.out)
     cases = [(s, m == "fast") for s in args.steps for m in args.math]
-    cmds = [command(s, args.duration, args.device, out, fast) for s, fast in cases]
+    ks = (0, 1) if args.checkouts else (None,)
+    cmds = [command(s, args.duration, args.device, out, fast, k) for s, fast in cases for k in ks]
     if args.dry_run:  # the commands, for this machine or another: the device is not looked up
         print("\n".join(" ".join(c) for c in cmds))
         return 0
@@ -111,23 +154,67 @@ def main(argv: list[str] | None = None) -> int:
     except AcaError as e:
         ap.error(str(e))
     out.mkdir(parents=True, exist_ok=True)
-    rows = []
-    for (step, fast), cmd in zip(cases, cmds, strict=True):
-        row = time_one(cmd)
-        row["summary"] = row["summary"].replace(f"{out}/", "")  # the run file as named under --out
-        rows.append({"step_s": step, "fast_math": fast} | row)
-        what = f"dt {step:g} s{' fast math' if fast else ''}"
-        print(f"{what}: {rows[-1]['wall_s']:.1f} s  {rows[-1]['summary']}", flush=True)
+    if args.checkouts:
+        rows, extra = time_checkouts(args, cases, out)
+    else:
+        rows, extra = [], {}
+        for (step, fast), cmd in zip(cases, cmds, strict=True):
+            rows.append({"step_s": step, "fast_math": fast} | time_one(cmd))
+            report(rows[-1], out)
     doc = {
         "date": time.strftime("%Y-%m-%d %H:%M"),
-        "machine": machine_of(run_file(out, *cases[0])),
+        "machine": machine_of(run_file(out, *cases[0], 0 if args.checkouts else None)),
         "device": args.device,
         "duration_s": args.duration,
         "rows": rows,
+        **extra,
     }
     (out / "time_varying_area.json").write_text(json.dumps(doc, indent=1) + "\n")
     (out / "time_varying_area.md").write_text(markdown(doc))
-    return 0 if all(r["exit"] == 0 for r in rows) else 1
+    ok = all(r["exit"] == 0 for r in rows) and all(c["identical"] for c in extra.get("comparisons", []))
+    return 0 if ok else 1
+
+
+def report(row: dict, out: Path) -> None:
+    """Print one timed row (its run file named as under ``out``)."""
+    row["summary"] = row["summary"].replace(f"{out}/", "")
+    what = f"dt {row['step_s']:g} s{' fast math' if row['fast_math'] else ''}"
+    who = f" [checkout {row['checkout']}]" if "checkout" in row else ""
+    print(f"{what}{who}: {row['wall_s']:.1f} s  {row['summary']}", flush=True)
+
+
+def time_checkouts(args: argparse.Namespace, cases: list[tuple[float, bool]], out: Path) -> tuple[list, dict]:
+    """The cases run from the two checkouts, alternating, ``--repeat`` times, each checkout warmed up first per case;
+    the rows and {"checkouts", "comparisons"} (each case's two last run files compared dataset by dataset)."""
+    from compare_checkouts import compare, package_view, same_results
+
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="va_checkouts_") as tmp:
+        views = [package_view(c, Path(tmp) / f"view{k}") for k, c in enumerate(args.checkouts)]
+        envs = [{**os.environ, "WARP_CACHE_PATH": str(Path(tmp) / f"cache{k}")} for k in range(2)]
+        for step, fast in cases:
+            for k in range(2):  # the warm-up: the same kernels compiled into each checkout's cache
+                warm = command(step, 1e-5, args.device, Path(tmp), fast, k)
+                if (w := time_one(in_view(warm, views[k]), envs[k]))["exit"] != 0:
+                    raise SystemExit(f"checkout {k} ({args.checkouts[k]}) failed its warm-up: {w['summary']}")
+        for r in range(args.repeat):
+            for step, fast in cases:
+                for k in range(2):
+                    cmd = command(step, args.duration, args.device, out, fast, k)
+                    row = time_one(in_view(cmd, views[k]), envs[k])
+                    row["command"] = " ".join(cmd)  # as a user would type it in that checkout
+                    rows.append({"step_s": step, "fast_math": fast, "checkout": k, "repeat": r} | row)
+                    report(rows[-1], out)
+    comparisons = []
+    for step, fast in cases:
+        files = [run_file(out, step, fast, k) for k in range(2)]
+        last = [r for r in rows if (r["step_s"], r["fast_math"], r["repeat"]) == (step, fast, args.repeat - 1)]
+        if any(r["exit"] != 0 for r in last):
+            comparisons.append({"step_s": step, "fast_math": fast, "identical": False, "differ": "a run failed"})
+            continue
+        c = compare(*files)
+        comparisons.append({"step_s": step, "fast_math": fast, "identical": same_results(c), "differ": c["different"]})
+    return rows, {"checkouts": [str(c) for c in args.checkouts], "comparisons": comparisons}
 
 
 if __name__ == "__main__":

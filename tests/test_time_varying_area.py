@@ -49,3 +49,33 @@ def test_machine_is_read_from_the_run_file(tmp_path):
         f.attrs.update(device_name="NVIDIA H200", host="Xeon, 16 cores")
     assert load().machine_of(run) == "NVIDIA H200; host Xeon, 16 cores"
     assert load().machine_of(tmp_path / "missing.h5")  # falls back to this host's name
+
+
+def test_checkouts_run_each_case_from_both(capsys, tmp_path):
+    base = tmp_path / "base"
+    for need in ("aca_warp/__init__.py", "kernels/__init__.py"):
+        (base / need).parent.mkdir(parents=True, exist_ok=True)
+        (base / need).write_text("")
+    assert load().main(["--dry-run", "--steps", "5e-8", "--checkouts", str(base), "."]) == 0
+    first, second = capsys.readouterr().out.splitlines()
+    assert first.endswith("va_5e-08_c0.h5") and second.endswith("va_5e-08_c1.h5")
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [(["--repeat", "2"], "--repeat needs --checkouts"), (["--checkouts", "nowhere", "."], "not a checkout")],
+)
+def test_checkouts_refusals_are_one_line_exit_2(argv, message, capsys):
+    with pytest.raises(SystemExit) as e:
+        load().main(["--dry-run", *argv])
+    assert e.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_markdown_of_two_checkouts_names_them_and_the_comparison():
+    doc = {"date": "d", "machine": "m", "device": "cuda:0", "duration_s": 0.36, "checkouts": ["old", "new"],
+           "rows": [{"step_s": 5e-8, "checkout": 1, "wall_s": 40.0, "exit": 0, "summary": "ok"}],
+           "comparisons": [{"step_s": 5e-8, "fast_math": False, "identical": True, "differ": []}]}  # fmt: skip
+    md = load().markdown(doc)
+    assert "0 = `old`, 1 = `new`" in md and "| 5e-08 | exact | 1 | 40.0 | 0 | ok |" in md
+    assert "5e-08 s, exact: the two records bit-identical" in md
