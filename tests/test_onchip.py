@@ -259,7 +259,10 @@ def test_ablations_for_profiling(device):
             tuning=EngineTuning(ablate=frozenset({"gather_half"}), csr_shared=csr),
         )
         half[csr] = res.collect().globals[-1, 0]
-    np.testing.assert_array_equal(half[True], half[False])
+    if wp.get_device(device).is_cpu:
+        np.testing.assert_array_equal(half[True], half[False])
+    else:  # the two gathers compile to different code: last bits apart on a GPU (1.6e-10 relative on an H200)
+        np.testing.assert_allclose(half[True], half[False], rtol=1e-8)
     with pytest.raises(ValueError, match="unknown ablations"):
         run_hf(
             model,
