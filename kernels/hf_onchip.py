@@ -43,13 +43,15 @@ from aca_warp.kernels.physics import (
     SampleSums,
     block_sums,
     contact_block,
+    contact_block_from,
     energy_speed2,
     flag_fault,
     grow_patch,
+    grown_area,
     link_stiffness,
-    patch_coupling,
     patch_sample,
     patch_sample_due,
+    store_grown_patch,
     store_patch_sample,
     strang_close_velocity,
     strang_velocity,
@@ -107,6 +109,7 @@ def onchip_kernel(
     growth: bool = False,
     cluster: int = 1,
     lanes: int = 32,
+    grown_tiles: bool = False,
 ) -> wp.Kernel:
     """The on-chip strang kernel for pads of at most ``nmax`` patches (``emax`` CSR slots when ``csr_shared``).
 
@@ -138,6 +141,12 @@ def onchip_kernel(
 
     ``lanes``: min(threads, 32), the banks of the on-chip CSR layout (:func:`aca_warp.hf.onchip.csr_slots`).
 
+    ``grown_tiles`` (with ``growth``; :func:`aca_warp.hf.onchip_layout.grown_tiles`, on a cluster): every block keeps
+    its own copies of the whole pad's areas, √A and k_N in shared memory and grows all of them at an event (the
+    same operations as ``grow_patch``, so the same values in every block), stores its own patches' grown values into
+    the model, and reads the neighbours' √A (stiffness update) and every area and k_N (contact re-solve) from its
+    copies: an event then needs no cluster barrier, and its reads wait for shared memory instead of L2.
+
     Launch with ``wp.launch_tiled(kernel, dim=[pads · K], block_dim=B, ...)`` (K = ``cluster``); ``threads``
     must be the block size the device really runs (B on CUDA or with CPU fibers, else 1 on the CPU). The kernel
     is compiled with ``__launch_bounds__(block_dim)`` so that a block of ``block_dim`` threads gets the registers
@@ -162,6 +171,7 @@ def onchip_kernel(
     CONTACT = wp.constant(0 if "contact" in ablate else 1)
     SAMPLE = wp.constant(0 if "sample" in ablate else 1)
     GROWTH = wp.constant(1 if growth else 0)
+    GTILES = wp.constant(1 if growth and grown_tiles else 0)
     CLUSTER = wp.constant(cluster)
     RED = wp.constant(RED_SLOTS)
     # a cluster exchanges u by st.async into the blocks that read it and mbarrier waits (no cluster barrier per step)
@@ -215,21 +225,37 @@ def onchip_kernel(
         )  # fmt: skip
 
     @wp.func
-    def couple_shared(
-        g: int, pad: int, a: int, p: int, sidx: wp.tile[wp.int16, ne], sk: wp.tile[T, ne], model: Any
+    def link_neighbour(e: int, p: int, m: int, a: int, sidx: wp.tile[wp.int16, ne], model: Any) -> int:
+        """The global index of link m of a row (its first link CSR entry e, on-chip slot p)."""
+        if wp.static(csr_shared):
+            return a + int(get_ei(sidx, p + m * NW))
+        return model.nbr_index[e + m]
+
+    @wp.func
+    def couple(
+        g: int,
+        pad: int,
+        a: int,
+        p: int,
+        sidx: wp.tile[wp.int16, ne],
+        sk: wp.tile[T, ne],
+        model: Any,
+        sqa: Any,
+        off: int,
     ) -> int:
-        """``patch_coupling`` of patch g with its neighbour indices from the shared CSR copy (its first link at slot
-        ``p``), the new k_ij into that copy too; returns the slot after the row. Four links' loads before their
-        stores, the diagonal summed in link order (as ``patch_coupling``)."""
-        ki = model.pad_kc[pad] * model.sqrt_area[g]
+        """``patch_coupling`` of patch g with √A of patch j at ``sqa[j − off]`` (the model's array, ``off`` 0, or the
+        block's copy of the pad's, ``off`` its first patch) and, with the CSR on chip, the neighbour indices from the
+        shared copy (the row's first link at slot ``p``; the new k_ij into that copy too); returns the slot after the
+        row. Four links' loads before their stores, the diagonal summed in link order (as ``patch_coupling``)."""
+        ki = model.pad_kc[pad] * sqa[g - off]
         d = model.k_t[g]
         e = model.nbr_start[g]
         end = model.nbr_start[g + 1]
         while e + 3 < end:
-            s0 = model.sqrt_area[a + int(get_ei(sidx, p))]
-            s1 = model.sqrt_area[a + int(get_ei(sidx, p + NW))]
-            s2 = model.sqrt_area[a + int(get_ei(sidx, p + 2 * NW))]
-            s3 = model.sqrt_area[a + int(get_ei(sidx, p + 3 * NW))]
+            s0 = sqa[link_neighbour(e, p, 0, a, sidx, model) - off]
+            s1 = sqa[link_neighbour(e, p, 1, a, sidx, model) - off]
+            s2 = sqa[link_neighbour(e, p, 2, a, sidx, model) - off]
+            s3 = sqa[link_neighbour(e, p, 3, a, sidx, model) - off]
             k0 = link_stiffness(ki, s0, model.nbr_inv_dist[e])
             k1 = link_stiffness(ki, s1, model.nbr_inv_dist[e + 1])
             k2 = link_stiffness(ki, s2, model.nbr_inv_dist[e + 2])
@@ -238,23 +264,25 @@ def onchip_kernel(
             model.nbr_stiffness[e + 1] = k1
             model.nbr_stiffness[e + 2] = k2
             model.nbr_stiffness[e + 3] = k3
-            put_ek(sk, p, k0)
-            put_ek(sk, p + NW, k1)
-            put_ek(sk, p + 2 * NW, k2)
-            put_ek(sk, p + 3 * NW, k3)
+            if wp.static(csr_shared):
+                put_ek(sk, p, k0)
+                put_ek(sk, p + NW, k1)
+                put_ek(sk, p + 2 * NW, k2)
+                put_ek(sk, p + 3 * NW, k3)
+                p += 4 * NW
             d += k0
             d += k1
             d += k2
             d += k3
             e += 4
-            p += 4 * NW
         while e < end:
-            kij = link_stiffness(ki, model.sqrt_area[a + int(get_ei(sidx, p))], model.nbr_inv_dist[e])
+            kij = link_stiffness(ki, sqa[link_neighbour(e, p, 0, a, sidx, model) - off], model.nbr_inv_dist[e])
             model.nbr_stiffness[e] = kij
-            put_ek(sk, p, kij)
+            if wp.static(csr_shared):
+                put_ek(sk, p, kij)
+                p += NW
             d += kij
             e += 1
-            p += NW
         model.k_diag[g] = d
         return p
 
@@ -306,6 +334,10 @@ def onchip_kernel(
         sidx = wp.tile_zeros(shape=EMAX, dtype=wp.int16, storage="shared")
         sk = wp.tile_zeros(shape=EMAX, dtype=T, storage="shared")
         red = wp.tile_zeros(shape=(CLUSTER, RED), dtype=wp.float64, storage="shared")
+        if wp.static(GTILES != 0):  # the block's copies of the pad's areas, √A and k_N (see the factory)
+            garea = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
+            gsqrt = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
+            gkn = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
         nbytes = int(0)  # bytes of u the other blocks store into this one per step
         if wp.static(ASYNC != 0):  # static: a one-block kernel carries none of the exchange (registers)
             bars = wp.tile_zeros(shape=2, dtype=wp.int64, storage="shared")
@@ -330,6 +362,10 @@ def onchip_kernel(
         i = lane
         while i < n:  # every block holds all of u
             put_u(u2, 0, i, u_io[a + i])
+            if wp.static(GTILES != 0):
+                put_n(garea, i, model.area[a + i])
+                put_n(gsqrt, i, model.sqrt_area[a + i])
+                put_n(gkn, i, model.k_n[a + i])
             i += threads
         i = lo + lane
         while i < hi:
@@ -435,24 +471,42 @@ def onchip_kernel(
                 if GROWTH != 0:
                     steps_done += 1
                     if steps_done % growth_every == 0:  # the same for every thread of the cluster
-                        i = lo + lane
-                        while i < hi:
-                            grow_patch(a + i, pad, model)
-                            i += threads
-                        pad_sync()  # the links below read the neighbours' new √A, the contact every new area and k_N
+                        if wp.static(GTILES != 0):
+                            i = lane
+                            while i < n:  # the block's copies of the whole pad grown (grow_patch's operations)
+                                ar, sq = grown_area(get_n(garea, i), model.pad_growth[pad])
+                                put_n(garea, i, ar)
+                                put_n(gsqrt, i, sq)
+                                put_n(gkn, i, model.pad_k_n[pad] * sq)
+                                i += threads
+                            block_sync()  # the links and the contact below read every patch's copies
+                            i = lo + lane
+                            while i < hi:
+                                store_grown_patch(a + i, pad, model, get_n(garea, i), get_n(gsqrt, i))
+                                i += threads
+                        else:
+                            i = lo + lane
+                            while i < hi:
+                                grow_patch(a + i, pad, model)
+                                i += threads
+                            pad_sync()  # the links below read the neighbours' new √A, the contact every area and k_N
                         i = lo + lane
                         if COUPLING == 0:
                             i = hi
                         p = p0
                         while i < hi:
-                            g = a + i
-                            if CSR_SHARED != 0:
-                                p = couple_shared(g, pad, a, p, sidx, sk, model)
+                            if wp.static(GTILES != 0):
+                                p = couple(a + i, pad, a, p, sidx, sk, model, gsqrt, a)
                             else:
-                                patch_coupling(g, pad, model)
+                                p = couple(a + i, pad, a, p, sidx, sk, model, model.sqrt_area, 0)
                             i += threads
                         if CONTACT != 0:  # every block solves the pad's contact, keeps its own patches' forces
-                            gap = contact_block(pad, lane, threads, model, gap, a + lo, a + hi, rank == 0)
+                            if wp.static(GTILES != 0):
+                                gap = contact_block_from(
+                                    pad, lane, threads, model, garea, gkn, a, gap, a + lo, a + hi, rank == 0
+                                )
+                            else:
+                                gap = contact_block(pad, lane, threads, model, gap, a + lo, a + hi, rank == 0)
             # sample: synchronous velocity (strang_close_velocity), the sums of kernels.physics, patch histories
             k = k0 + s
             due = patch_sample_due(rec, k)

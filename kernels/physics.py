@@ -215,12 +215,16 @@ def strang_close_velocity(
 
 
 @wp.func
-def grow_patch(i: int, p: int, model: Any):
-    """One growth event of patch i of pad p (paper Eq. 10): A ← A + g √A, then m, k_T, k_N, c follow the area
-    (written into ``model``'s arrays; g its ``pad_growth``)."""
-    a = model.area[i]
-    a = a + model.pad_growth[p] * wp.sqrt(a)
-    s = wp.sqrt(a)
+def grown_area(a: Any, increment: Any):
+    """One growth event of an area (paper Eq. 10): (A + g √A [m²], its square root [m]) for A [m²] and the
+    increment g [m]."""
+    a = a + increment * wp.sqrt(a)
+    return a, wp.sqrt(a)
+
+
+@wp.func
+def store_grown_patch(i: int, p: int, model: Any, a: Any, s: Any):
+    """Patch i of pad p at area ``a`` [m²] (√A ``s`` [m]): A, √A, 1/m, k_T, k_N and c into ``model``'s arrays."""
     m = model.pad_mass_per_area[p] * a
     kt = model.pad_k_t[p] * s
     model.area[i] = a
@@ -229,6 +233,14 @@ def grow_patch(i: int, p: int, model: Any):
     model.k_t[i] = kt
     model.k_n[i] = model.pad_k_n[p] * s
     model.damping[i] = type(a)(2.0) * model.pad_zeta[p] * wp.sqrt(kt * m)
+
+
+@wp.func
+def grow_patch(i: int, p: int, model: Any):
+    """One growth event of patch i of pad p (paper Eq. 10): A ← A + g √A (:func:`grown_area`), then m, k_T, k_N, c
+    follow the area (written into ``model``'s arrays; g its ``pad_growth``)."""
+    a, s = grown_area(model.area[i], model.pad_growth[p])
+    store_grown_patch(i, p, model, a, s)
 
 
 @wp.func
@@ -296,36 +308,37 @@ def _pad_terms(a: Any, r: Any, h: Any, kn: Any, g: wp.float64, acc: ContactSums,
 
 
 @wp.func
-def _pad_sums(s: int, e: int, lane: int, threads: int, model: Any, g: wp.float64):
+def _pad_sums(s: int, e: int, lane: int, threads: int, model: Any, area: Any, k_n: Any, off: int, g: wp.float64):
     """The pad's :data:`ContactSums` at gap g over the block (one reduction) and this thread's lowest height (the
-    patches lane, lane + threads, … of s … e − 1 in index order, four patches' loads before their sums)."""
+    patches lane, lane + threads, … of s … e − 1 in index order, four patches' loads before their sums; areas and
+    k_N of patch i at ``area[i − off]``, ``k_n[i − off]``, :func:`contact_block_from`)."""
     acc = ContactSums()
     hmin = wp.float64(0.0)
     i = s + lane
     while i + 3 * threads < e:
-        a0 = model.area[i]
+        a0 = area[i - off]
         r0 = model.radius[i]
         h0 = model.height[i]
-        k0 = model.k_n[i]
-        a1 = model.area[i + threads]
+        k0 = k_n[i - off]
+        a1 = area[i + threads - off]
         r1 = model.radius[i + threads]
         h1 = model.height[i + threads]
-        k1 = model.k_n[i + threads]
-        a2 = model.area[i + 2 * threads]
+        k1 = k_n[i + threads - off]
+        a2 = area[i + 2 * threads - off]
         r2 = model.radius[i + 2 * threads]
         h2 = model.height[i + 2 * threads]
-        k2 = model.k_n[i + 2 * threads]
-        a3 = model.area[i + 3 * threads]
+        k2 = k_n[i + 2 * threads - off]
+        a3 = area[i + 3 * threads - off]
         r3 = model.radius[i + 3 * threads]
         h3 = model.height[i + 3 * threads]
-        k3 = model.k_n[i + 3 * threads]
+        k3 = k_n[i + 3 * threads - off]
         acc, hmin = _pad_terms(a0, r0, h0, k0, g, acc, hmin)
         acc, hmin = _pad_terms(a1, r1, h1, k1, g, acc, hmin)
         acc, hmin = _pad_terms(a2, r2, h2, k2, g, acc, hmin)
         acc, hmin = _pad_terms(a3, r3, h3, k3, g, acc, hmin)
         i += 4 * threads
     while i < e:
-        acc, hmin = _pad_terms(model.area[i], model.radius[i], model.height[i], model.k_n[i], g, acc, hmin)
+        acc, hmin = _pad_terms(area[i - off], model.radius[i], model.height[i], k_n[i - off], g, acc, hmin)
         i += threads
     return block_sums(acc), hmin
 
@@ -341,29 +354,29 @@ def _compressed(h: Any, kn: Any, g: wp.float64, fp: wp.float64, kp: wp.float64):
 
 
 @wp.func
-def _compressed_sums(s: int, e: int, lane: int, threads: int, model: Any, g: wp.float64):
+def _compressed_sums(s: int, e: int, lane: int, threads: int, model: Any, k_n: Any, off: int, g: wp.float64):
     """This thread's partial (Σ k_N (h − g), Σ k_N) over the compressed patches lane, lane + threads, … of the
-    range s … e − 1, in index order; four patches' loads issued before their sums (on a GPU the loads of
-    stiffnesses just grown elsewhere come from L2, and four in flight wait once)."""
+    range s … e − 1, in index order (k_N of patch i at ``k_n[i − off]``); four patches' loads issued before their
+    sums (on a GPU the loads of stiffnesses just grown elsewhere come from L2, and four in flight wait once)."""
     fp = wp.float64(0.0)
     kp = wp.float64(0.0)
     i = s + lane
     while i + 3 * threads < e:
         h0 = model.height[i]
-        k0 = model.k_n[i]
+        k0 = k_n[i - off]
         h1 = model.height[i + threads]
-        k1 = model.k_n[i + threads]
+        k1 = k_n[i + threads - off]
         h2 = model.height[i + 2 * threads]
-        k2 = model.k_n[i + 2 * threads]
+        k2 = k_n[i + 2 * threads - off]
         h3 = model.height[i + 3 * threads]
-        k3 = model.k_n[i + 3 * threads]
+        k3 = k_n[i + 3 * threads - off]
         fp, kp = _compressed(h0, k0, g, fp, kp)
         fp, kp = _compressed(h1, k1, g, fp, kp)
         fp, kp = _compressed(h2, k2, g, fp, kp)
         fp, kp = _compressed(h3, k3, g, fp, kp)
         i += 4 * threads
     while i < e:
-        fp, kp = _compressed(model.height[i], model.k_n[i], g, fp, kp)
+        fp, kp = _compressed(model.height[i], k_n[i - off], g, fp, kp)
         i += threads
     return fp, kp
 
@@ -385,8 +398,18 @@ def _newton_from_left(f: wp.float64, kact: wp.float64, load: wp.float64, g: wp.f
 
 
 @wp.func
-def contact_block(
-    pad: int, lane: int, threads: int, model: Any, gap: wp.float64, out_start: int, out_end: int, writer: bool
+def contact_block_from(
+    pad: int,
+    lane: int,
+    threads: int,
+    model: Any,
+    area: Any,
+    k_n: Any,
+    off: int,
+    gap: wp.float64,
+    out_start: int,
+    out_end: int,
+    writer: bool,
 ) -> wp.float64:
     """Re-solve the normal forces of one pad on a flat matrix at elevation 0 (one thread block per pad).
 
@@ -408,13 +431,17 @@ def contact_block(
     forces of the patches ``out_start`` … ``out_end − 1`` only (global indices; the pad's whole range on the
     general path, a block's own part in a cluster, where every block of the cluster solves the same contact
     redundantly) and, when ``writer``, the pad's matrix force and radius.
+
+    ``area``, ``k_n``: where the patches' areas [m²] and normal stiffnesses [N/m] are read, patch i (a global index)
+    at ``[i − off]``: the model's arrays (``off`` 0, :func:`contact_block`) or a block's shared copies of its pad's
+    (``off`` its first patch; the on-chip kernel on a cluster, where every block grows the whole pad's copies).
     """
     s = model.pad_patch_start[pad]
     e = model.pad_patch_start[pad + 1]
     zero = wp.float64(0.0)
     load = wp.float64(model.pad_load[pad])
     g = gap
-    sums, hmin = _pad_sums(s, e, lane, threads, model, g)  # one reduction
+    sums, hmin = _pad_sums(s, e, lane, threads, model, area, k_n, off, g)  # one reduction
     free = wp.max(model.pad_area[pad] - sums[0], zero)
     km = model.pad_k_m[pad] * free
     ktot = sums[2] + km
@@ -433,7 +460,7 @@ def contact_block(
             g, stop = _newton_from_left(f, kact, load, g)
         it = int(1)
         while stop == 0 and it < 200:
-            fp, kp = _compressed_sums(s, e, lane, threads, model, g)
+            fp, kp = _compressed_sums(s, e, lane, threads, model, k_n, off, g)
             active = block_sums(wp.vec2d(fp, kp))  # the compressed patches' force and stiffness
             f = km * wp.max(-g, zero) + active[0]
             kact = active[1]
@@ -445,7 +472,7 @@ def contact_block(
     while i < out_end:
         f_i = zero
         if load > zero:
-            f_i = wp.float64(model.k_n[i]) * wp.max(wp.float64(model.height[i]) - g, zero)
+            f_i = wp.float64(k_n[i - off]) * wp.max(wp.float64(model.height[i]) - g, zero)
         model.normal_force[i] = type(model.pad_load[pad])(f_i)
         i += threads
     if lane == 0 and writer:
@@ -454,6 +481,14 @@ def contact_block(
         else:
             model.pad_matrix_force[pad] = type(model.pad_load[pad])(0.0)
     return g
+
+
+@wp.func
+def contact_block(
+    pad: int, lane: int, threads: int, model: Any, gap: wp.float64, out_start: int, out_end: int, writer: bool
+) -> wp.float64:
+    """:func:`contact_block_from` with the areas and stiffnesses from the model's arrays."""
+    return contact_block_from(pad, lane, threads, model, model.area, model.k_n, 0, gap, out_start, out_end, writer)
 
 
 # ---------------------------------------------------------------------------------------------- samples

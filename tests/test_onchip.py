@@ -154,6 +154,59 @@ def test_onchip_growth_matches_general(device, precision):
         np.testing.assert_allclose(co.globals[:, :, 0], cg.globals[:, :, 0], rtol=rtol, atol=0)
 
 
+@pytest.fixture
+def grown_tiles_on_one_block(monkeypatch):
+    """The block's copies of a growing pad (``onchip_layout.grown_tiles``, used on clusters) on one block too, so that
+    the CPU runs that code path (a CPU block cannot be part of a cluster)."""
+    from aca_warp.hf import onchip, onchip_layout
+
+    def rule(model, cluster):
+        return "pad_growth" in model.arrays
+
+    monkeypatch.setattr(onchip, "grown_tiles", rule)
+    monkeypatch.setattr(onchip_layout, "grown_tiles", rule)
+
+
+@pytest.mark.parametrize("precision", ["fp64", "fp32"])
+def test_grown_tiles_match_general(grown_tiles_on_one_block, precision):
+    """Growth from the block's own copies of the pad's areas, √A and k_N (the cluster layout's events): the general
+    path's bits on the CPU, as the events from the model's arrays."""
+    cg, (ug, vg), ag = _grown("cpu", precision, "general")
+    for csr in (True, False) if precision == "fp32" else (None,):  # an fp64 pad's lists do not fit the CPU's tiles
+        co, (uo, vo), ao = _grown("cpu", precision, "onchip", csr_shared=csr)
+        for k in ag:
+            np.testing.assert_array_equal(ao[k], ag[k], err_msg=k)
+        np.testing.assert_array_equal(uo, ug)
+        np.testing.assert_array_equal(vo, vg)
+        np.testing.assert_array_equal(co.globals, cg.globals)
+
+
+@pytest.mark.parametrize(("precision", "block", "csr"), [("fp32", 96, True), ("fp64", 32, False)])
+def test_grown_tiles_multithread_block_cpu_fibers(grown_tiles_on_one_block, precision, block, csr):
+    """The copies grown by every thread of a block (fibers, real barriers), read by others in the stiffness update and
+    the contact: the general path to rounding; a missing barrier after the growth shows as an O(1) error."""
+    cg, (ug, vg), ag = _grown("cpu", precision, "general")
+    co, (uo, vo), ao = _grown("cpu", precision, "onchip", fibers=True, block_dim=block, csr_shared=csr)
+    rtol = 1e-9 if precision == "fp64" else 1e-4
+    for k in ag:
+        np.testing.assert_allclose(ao[k], ag[k], rtol=rtol, atol=0, err_msg=k)
+    np.testing.assert_allclose(uo, ug, rtol=0, atol=rtol * np.abs(ug).max())
+    np.testing.assert_allclose(co.globals[:, :, 0], cg.globals[:, :, 0], rtol=rtol, atol=0)
+
+
+def test_grown_tiles_on_clusters_of_growing_pads_only():
+    """The three copies (areas, √A, k_N) are counted in a block's shared memory where the kernel keeps them: growing
+    pads on a cluster."""
+    from aca_warp.hf.onchip_layout import _block_bytes, grown_tiles
+
+    grow = build_model([preset("varying_area")], device="cpu", precision="fp32")
+    still = build_model([preset("hf1")], device="cpu", precision="fp32")
+    assert grown_tiles(grow, 2) and not grown_tiles(grow, 1) and not grown_tiles(still, 2)
+    extra = _block_bytes(grow, 1792, 4096, True, 2) - _block_bytes(still, 1792, 4096, True, 2)
+    assert extra == 3 * 1792 * 4
+    assert _block_bytes(grow, 1792, 4096, True, 1) == _block_bytes(still, 1792, 4096, True, 1)
+
+
 @pytest.mark.parametrize(("precision", "block", "csr"), [("fp32", 96, True), ("fp64", 32, False)])
 def test_onchip_growth_multithread_block_cpu_fibers(precision, block, csr):
     """Growth with real (fiber) threads per block: the contact re-solve's block sums run in a tree, so against the

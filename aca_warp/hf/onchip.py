@@ -26,6 +26,7 @@ from aca_warp.hf.onchip_layout import (
     block_config,
     choose_engine,
     default_cluster,
+    grown_tiles,
     itemsize,
     kernel_tiles,
     unsupported,
@@ -147,6 +148,7 @@ class OnchipEngine(OnchipLaunches):
             "pad_growth" in model.arrays,
             cluster,
             min(self.threads, 32),
+            grown_tiles(model, cluster),
         )
         dev = model.device
         if cluster > 1 and wp.get_cuda_max_cluster_dim(self.kernel, dev, block_dim=self.block_dim) < cluster:

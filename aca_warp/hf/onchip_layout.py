@@ -141,13 +141,23 @@ def shared_bytes(
     return _block_bytes(model, *kernel_tiles(model, cluster, threads, per_block), csr_shared, cluster)
 
 
+def grown_tiles(model: PadModel, cluster: int) -> bool:
+    """Whether the on-chip ``strang`` kernel keeps each block's own copies of a growing pad's areas, √A and k_N
+    (``onchip_kernel(grown_tiles=...)``): on a cluster, where it spares every growth event a cluster barrier and
+    its reads from L2 (docs/onchip.md, "Growth on a cluster"); on one block the state's reads keep that L1."""
+    return "pad_growth" in model.arrays and cluster > 1
+
+
 def _block_bytes(model: PadModel, nmax: int, slots: int, csr_shared: bool, cluster: int) -> int:
     """Shared memory [bytes] of a block with tiles of ``nmax`` patches and ``slots`` CSR slots: u (×2), w, F_s per
     patch of the pad, the cluster's table of sample sums and, on a cluster, the u exchange's two mbarriers and its
-    per-patch mask of receiving blocks, plus the block's part of the CSR when kept on chip (``csr_shared``)."""
+    per-patch mask of receiving blocks, with :func:`grown_tiles` the three copies of a growing pad, plus the
+    block's part of the CSR when kept on chip (``csr_shared``)."""
     b = 4 * nmax * itemsize(model) + 8 * RED_SLOTS * cluster
     if cluster > 1:
         b += 16 + 4 * (nmax // cluster + 1)
+    if grown_tiles(model, cluster):
+        b += 3 * nmax * itemsize(model)
     if csr_shared:
         b += slots * (2 + itemsize(model))  # int16 local index, k_ij in the state precision
     return b
