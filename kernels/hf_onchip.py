@@ -134,10 +134,11 @@ def onchip_kernel(
     distributed shared memory), and instead of a
     cluster barrier each block waits for the bytes of u that the others send it (a transaction mbarrier per u
     buffer; ``sync`` ablated: plain remote stores and no wait); the sums of a sample are combined in rank order by
-    block 0. A growth event there: each block grows its own patches, a
-    cluster barrier (the new areas and stiffnesses in global memory are then visible to the cluster), each block
-    updates its own CSR rows, and every block re-solves the whole pad's contact (the same sums in the same order, so
-    the same gap; cheaper than a cluster barrier per Newton iteration) and keeps its own patches' normal forces.
+    block 0. A growth event there (with ``grown_tiles``, below): each block grows its copies of the whole pad's
+    areas, √A and k_N and stores its own patches' grown values into the model, updates its own CSR rows from its
+    copies, and re-solves the whole pad's contact from them (every block the same sums in the same order, so the
+    same gap; cheaper than a cluster barrier per Newton iteration) and keeps its own patches' normal forces: no
+    block reads what another wrote, so an event needs no cluster barrier.
 
     ``lanes``: min(threads, 32), the banks of the on-chip CSR layout (:func:`aca_warp.hf.onchip.csr_slots`).
 
