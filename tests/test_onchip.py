@@ -129,7 +129,8 @@ def _grown(device: str, precision: str, engine: str, fibers: bool = False, **onc
                 model, state, RunOptions(integrator="strang", duration=2e-6, dt=1e-8, engine="onchip"), tuning=tuning
             )
     assert res.complete and res.steps == 200 and "growth" in res.stages
-    keys = ("area", "k_t", "damping", "nbr_stiffness", "k_diag", "normal_force", "pad_matrix_force", "pad_gap")
+    keys = ("area", "sqrt_area", "inv_mass", "k_t", "k_n", "damping", "nbr_stiffness", "k_diag", "normal_force")
+    keys += ("pad_matrix_force", "pad_matrix_radius", "pad_gap")
     arrays = {k: model.host(k) for k in keys}
     assert np.all(arrays["area"] > area0)
     return res.collect(), state.numpy(), arrays
@@ -181,19 +182,6 @@ def test_grown_tiles_match_general(grown_tiles_on_one_block, precision):
         np.testing.assert_array_equal(co.globals, cg.globals)
 
 
-@pytest.mark.parametrize(("precision", "block", "csr"), [("fp32", 96, True), ("fp64", 32, False)])
-def test_grown_tiles_multithread_block_cpu_fibers(grown_tiles_on_one_block, precision, block, csr):
-    """The copies grown by every thread of a block (fibers, real barriers), read by others in the stiffness update and
-    the contact: the general path to rounding; a missing barrier after the growth shows as an O(1) error."""
-    cg, (ug, vg), ag = _grown("cpu", precision, "general")
-    co, (uo, vo), ao = _grown("cpu", precision, "onchip", fibers=True, block_dim=block, csr_shared=csr)
-    rtol = 1e-9 if precision == "fp64" else 1e-4
-    for k in ag:
-        np.testing.assert_allclose(ao[k], ag[k], rtol=rtol, atol=0, err_msg=k)
-    np.testing.assert_allclose(uo, ug, rtol=0, atol=rtol * np.abs(ug).max())
-    np.testing.assert_allclose(co.globals[:, :, 0], cg.globals[:, :, 0], rtol=rtol, atol=0)
-
-
 def test_grown_tiles_on_clusters_of_growing_pads_only():
     """The three copies (areas, √A, k_N) are counted in a block's shared memory where the kernel keeps them: growing
     pads on a cluster."""
@@ -207,11 +195,16 @@ def test_grown_tiles_on_clusters_of_growing_pads_only():
     assert _block_bytes(grow, 1792, 4096, True, 1) == _block_bytes(still, 1792, 4096, True, 1)
 
 
+@pytest.mark.parametrize("copies", [False, True], ids=["model", "copies"])
 @pytest.mark.parametrize(("precision", "block", "csr"), [("fp32", 96, True), ("fp64", 32, False)])
-def test_onchip_growth_multithread_block_cpu_fibers(precision, block, csr):
+def test_onchip_growth_multithread_block_cpu_fibers(request, precision, block, csr, copies):
     """Growth with real (fiber) threads per block: the contact re-solve's block sums run in a tree, so against the
     general path (one-thread blocks) everything agrees to rounding; a barrier missed by part of the block (the
-    grow → coupling order, the shared CSR copy) shows as an O(1) error in the stiffnesses or forces."""
+    grow → coupling order, the shared CSR copy) shows as an O(1) error in the stiffnesses or forces. ``copies``: the
+    events from the block's copies of the pad's areas, √A and k_N (``grown_tiles_on_one_block``), grown by every
+    thread and read by others in the stiffness update and the contact (the block barrier after the growth)."""
+    if copies:
+        request.getfixturevalue("grown_tiles_on_one_block")
     cg, (ug, vg), ag = _grown("cpu", precision, "general")
     co, (uo, vo), ao = _grown("cpu", precision, "onchip", fibers=True, block_dim=block, csr_shared=csr)
     rtol = 1e-9 if precision == "fp64" else 1e-4
