@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     from aca_warp.common.errors import AcaError
     from aca_warp.common.files import check_output_path
     from aca_warp.hf.model import build_model
-    from aca_warp.scene import preset
+    from aca_warp.scene import Growth, preset
 
     try:  # every refusal before the first compile: nothing compiled, nothing written
         preset(args.preset)
@@ -118,10 +118,17 @@ def main(argv: list[str] | None = None) -> int:
     init_warp()  # quietly: no CUDA-driver note on a machine without a GPU
 
     rows = []
+    scene = preset(args.preset)
     for prec in args.precisions:
-        model = build_model([preset(args.preset)], device="cpu", precision=prec)
+        # the pad without growth and growing (the preset's growth, else Eq. 10's): the layout the engine picks for each
+        models = {
+            growth: build_model(
+                [scene.replace(growth=(scene.growth or Growth()) if growth else None)], device="cpu", precision=prec
+            )
+            for growth in (False, True)
+        }
         for k in args.clusters:
-            for growth in (False, True):
+            for growth, model in models.items():
                 configs = (_strang if args.kernel == "strang" else _adaptive)(model, k, growth, args)
                 for row, kernel in configs:
                     # into Warp's kernel cache, keyed by the module's hash: a configuration compiles once per machine
@@ -147,14 +154,24 @@ def _strang(model, cluster: int, growth: bool, args) -> list:
     """(row, kernel) of the on-chip strang kernel per block size (default: the engine's choice)."""
     from aca_warp.kernels.hf_onchip import onchip_kernel
 
-    from aca_warp.hf.onchip_layout import default_block, kernel_tiles, pad_sizes, shared_bytes, smem_limit
+    from aca_warp.hf.onchip_layout import (
+        default_block,
+        grown_tiles,
+        kernel_tiles,
+        pad_sizes,
+        shared_bytes,
+        smem_limit,
+    )
 
     out = []
     fp64 = model.precision == "fp64"
     for b in args.blocks or [default_block(pad_sizes(model, cluster)[0], cluster, growth, fp64)]:
         csr = shared_bytes(model, True, cluster, b, args.smem_per_block) <= smem_limit(model, args.smem_per_block)
         tiles = kernel_tiles(model, cluster, b, args.smem_per_block)  # the engine's tiles for that device's limit
-        kernel = onchip_kernel(model.dtype, *tiles, csr, b, growth=growth, cluster=cluster, lanes=min(b, 32))
+        kernel = onchip_kernel(
+            model.dtype, *tiles, csr, b, growth=growth, cluster=cluster, lanes=min(b, 32),
+            grown_tiles=grown_tiles(model, cluster),
+        )  # fmt: skip
         kernel.module.options["block_dim"] = b
         out.append(({"block_dim": b, "csr_shared": csr}, kernel))
     return out
