@@ -186,7 +186,7 @@ def report(row: dict, out: Path) -> None:
 def time_checkouts(args: argparse.Namespace, cases: list[tuple[float, bool]], out: Path) -> tuple[list, dict]:
     """The cases run from the two checkouts, alternating, ``--repeat`` times, each checkout warmed up first per case;
     the rows and {"checkouts", "comparisons"} (each case's two last run files compared dataset by dataset)."""
-    from compare_checkouts import compare, package_view, same_results
+    from compare_checkouts import package_view
 
     rows = []
     with tempfile.TemporaryDirectory(prefix="va_checkouts_") as tmp:
@@ -212,9 +212,17 @@ def time_checkouts(args: argparse.Namespace, cases: list[tuple[float, bool]], ou
         if any(r["exit"] != 0 for r in last):
             comparisons.append({"step_s": step, "fast_math": fast, "identical": False, "differ": "a run failed"})
             continue
-        c = compare(*files)
-        comparisons.append({"step_s": step, "fast_math": fast, "identical": same_results(c), "differ": c["different"]})
+        comparisons.append({"step_s": step, "fast_math": fast} | compare_runs(*files))
     return rows, {"checkouts": [str(c) for c in args.checkouts], "comparisons": comparisons}
+
+
+def compare_runs(first: Path, second: Path) -> dict:
+    """{"identical": every dataset in both run files and bit for bit the same, "differ": the datasets that differ or
+    are in one file only}."""
+    from compare_checkouts import compare, same_results
+
+    c = compare(first, second)
+    return {"identical": same_results(c), "differ": sorted({*c["different"], *c["only_first"], *c["only_second"]})}
 
 
 if __name__ == "__main__":

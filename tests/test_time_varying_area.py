@@ -79,3 +79,22 @@ def test_markdown_of_two_checkouts_names_them_and_the_comparison():
     md = load().markdown(doc)
     assert "0 = `old`, 1 = `new`" in md and "| 5e-08 | exact | 1 | 40.0 | 0 | ok |" in md
     assert "5e-08 s, exact: the two records bit-identical" in md
+
+
+def test_run_files_compared_dataset_by_dataset(tmp_path):
+    """Two checkouts' records: identical when every dataset is in both and the same; a dataset that differs or is
+    missing from one file is named."""
+    import h5py
+    import numpy as np
+
+    def write(name, **datasets):
+        with h5py.File(tmp_path / name, "w") as f:
+            for key, value in datasets.items():
+                f[key] = value
+        return tmp_path / name
+
+    a = write("a.h5", mu=np.arange(3.0), u=np.ones(2))
+    assert load().compare_runs(a, write("b.h5", mu=np.arange(3.0), u=np.ones(2))) == {"identical": True, "differ": []}
+    changed = load().compare_runs(a, write("c.h5", mu=np.array([0.0, 1.0, np.nextafter(2.0, 3.0)]), u=np.ones(2)))
+    assert changed == {"identical": False, "differ": ["mu"]}
+    assert load().compare_runs(a, write("d.h5", mu=np.arange(3.0))) == {"identical": False, "differ": ["u"]}
