@@ -170,7 +170,7 @@ def _strang(model, cluster: int, growth: bool, args) -> list:
         tiles = kernel_tiles(model, cluster, b, args.smem_per_block)  # the engine's tiles for that device's limit
         kernel = onchip_kernel(
             model.dtype, *tiles, csr, b, growth=growth, cluster=cluster, lanes=min(b, 32),
-            grown_tiles=grown_tiles(model, cluster),
+            grown_tiles=grown_tiles(model, cluster, args.smem_per_block),
         )  # fmt: skip
         kernel.module.options["block_dim"] = b
         out.append(({"block_dim": b, "csr_shared": csr}, kernel))

@@ -161,7 +161,7 @@ def grown_tiles_on_one_block(monkeypatch):
     the CPU runs that code path (a CPU block cannot be part of a cluster)."""
     from aca_warp.hf import onchip, onchip_layout
 
-    def rule(model, cluster):
+    def rule(model, cluster, per_block=None):
         return "pad_growth" in model.arrays
 
     monkeypatch.setattr(onchip, "grown_tiles", rule)
@@ -193,6 +193,18 @@ def test_grown_tiles_on_clusters_of_growing_pads_only():
     extra = _block_bytes(grow, 1792, 4096, True, 2) - _block_bytes(still, 1792, 4096, True, 2)
     assert extra == 3 * 1792 * 4
     assert _block_bytes(grow, 1792, 4096, True, 1) == _block_bytes(still, 1792, 4096, True, 1)
+
+
+def test_grown_tiles_only_where_they_fit_beside_the_state():
+    """A growing pad too large for the copies beside its state (here: a per-block limit just below what they need,
+    with the largest tiles kernel_tiles may give) grows from the model's arrays, and its blocks count no copies."""
+    from aca_warp.hf import onchip_layout as L
+
+    grow = build_model([preset("varying_area")], device="cpu", precision="fp32")
+    nmax = L._bucket(L._round_up(L.pad_sizes(grow)[0], 32))
+    need = L._state_bytes(grow, nmax, 2) + 3 * nmax * 4 + L._SMEM_RESERVE
+    assert L.grown_tiles(grow, 2, need) and not L.grown_tiles(grow, 2, need - 1)
+    assert L._block_bytes(grow, nmax, 0, False, 2, need - 1) == L._state_bytes(grow, nmax, 2)
 
 
 @pytest.mark.parametrize("copies", [False, True], ids=["model", "copies"])

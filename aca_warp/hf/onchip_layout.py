@@ -107,9 +107,9 @@ def kernel_tiles(model: PadModel, cluster: int = 1, threads: int = 1, per_block:
     bucketed = (_bucket(exact[0]), _bucket(exact[1]))
     limit = smem_limit(model, per_block)
     for csr in (True, False):
-        need = _block_bytes(model, *exact, csr, cluster)
+        need = _block_bytes(model, *exact, csr, cluster, per_block)
         if need <= limit:  # the placement the exact tiles allow: the buckets must keep it
-            more = _block_bytes(model, *bucketed, csr, cluster)
+            more = _block_bytes(model, *bucketed, csr, cluster, per_block)
             same = _resident(model, more, threads, limit) == _resident(model, need, threads, limit)
             return bucketed if same else exact  # the same count (≥ 1): the buckets fit too
     return exact
@@ -138,25 +138,40 @@ def shared_bytes(
 ) -> int:
     """Shared memory one block of ``threads`` threads of the on-chip ``strang`` kernel needs [bytes], its tiles
     :func:`kernel_tiles` (for the limit ``per_block``, default the device's; :func:`_block_bytes`)."""
-    return _block_bytes(model, *kernel_tiles(model, cluster, threads, per_block), csr_shared, cluster)
+    return _block_bytes(model, *kernel_tiles(model, cluster, threads, per_block), csr_shared, cluster, per_block)
 
 
-def grown_tiles(model: PadModel, cluster: int) -> bool:
+def grown_tiles(model: PadModel, cluster: int, per_block: int | None = None) -> bool:
     """Whether the on-chip ``strang`` kernel keeps each block's own copies of a growing pad's areas, √A and k_N
     (``onchip_kernel(grown_tiles=...)``): on a cluster, where it spares every growth event a cluster barrier and
-    its reads from L2 (docs/onchip.md, "Growth on a cluster"); on one block the state's reads keep that L1."""
-    return "pad_growth" in model.arrays and cluster > 1
+    its reads from L2 (docs/onchip.md, "Growth on a cluster"), when the copies fit beside the state in the shared
+    memory of ``per_block`` (:func:`smem_limit`; with the largest tiles :func:`kernel_tiles` may give). A pad too
+    large for them grows from the model's arrays with a cluster barrier, as on one block, where the state's reads
+    keep the L1 the copies would take."""
+    if "pad_growth" not in model.arrays or cluster < 2:
+        return False
+    nmax = _bucket(_round_up(pad_sizes(model)[0], 32))
+    return _state_bytes(model, nmax, cluster) + 3 * nmax * itemsize(model) <= smem_limit(model, per_block)
 
 
-def _block_bytes(model: PadModel, nmax: int, slots: int, csr_shared: bool, cluster: int) -> int:
-    """Shared memory [bytes] of a block with tiles of ``nmax`` patches and ``slots`` CSR slots: u (×2), w, F_s per
-    patch of the pad, the cluster's table of sample sums and, on a cluster, the u exchange's two mbarriers and its
-    per-patch mask of receiving blocks, with :func:`grown_tiles` the three copies of a growing pad, plus the
-    block's part of the CSR when kept on chip (``csr_shared``)."""
+def _state_bytes(model: PadModel, nmax: int, cluster: int) -> int:
+    """Shared memory [bytes] of a block's state tiles of ``nmax`` patches: u (×2), w, F_s per patch of the pad, the
+    cluster's table of sample sums and, on a cluster, the u exchange's two mbarriers and its per-patch mask of
+    receiving blocks."""
     b = 4 * nmax * itemsize(model) + 8 * RED_SLOTS * cluster
     if cluster > 1:
         b += 16 + 4 * (nmax // cluster + 1)
-    if grown_tiles(model, cluster):
+    return b
+
+
+def _block_bytes(
+    model: PadModel, nmax: int, slots: int, csr_shared: bool, cluster: int, per_block: int | None = None
+) -> int:
+    """Shared memory [bytes] of a block with tiles of ``nmax`` patches and ``slots`` CSR slots: the state
+    (:func:`_state_bytes`), with :func:`grown_tiles` (for ``per_block``) the three copies of a growing pad, plus
+    the block's part of the CSR when kept on chip (``csr_shared``)."""
+    b = _state_bytes(model, nmax, cluster)
+    if grown_tiles(model, cluster, per_block):
         b += 3 * nmax * itemsize(model)
     if csr_shared:
         b += slots * (2 + itemsize(model))  # int16 local index, k_ij in the state precision
