@@ -182,6 +182,31 @@ def test_grown_tiles_match_general(grown_tiles_on_one_block, precision):
         np.testing.assert_array_equal(co.globals, cg.globals)
 
 
+@pytest.mark.parametrize("cluster", [8, 2])
+@pytest.mark.parametrize("precision", ["fp32", "fp64"])
+def test_grown_tiles_equal_model_arrays_on_clusters(device, monkeypatch, precision, cluster):
+    """On a cluster (CUDA sm_90+) the events from the blocks' copies give the bits of the events from the model's
+    arrays behind a cluster barrier (the path of a pad too large for the copies): μ, the state, the grown areas,
+    normal forces and diagonals of two varying-area pads over 100 µs at 5e-8 s."""
+    if wp.get_device(device).is_cpu:
+        pytest.skip("no thread-block clusters on the CPU (test_grown_tiles_match_general runs the copies there)")
+    from aca_warp.hf import onchip
+
+    rule = onchip.grown_tiles
+    out = []
+    for copies in (True, False):
+        monkeypatch.setattr(onchip, "grown_tiles", rule if copies else (lambda model, cluster, per_block=None: False))
+        model = build_model([preset("varying_area")] * 2, device=device, precision=precision)
+        state = initial_state(model)
+        options = RunOptions(integrator="strang", duration=1e-4, dt=5e-8, engine="onchip")
+        res = run_hf(model, state, options, tuning=EngineTuning(cluster=cluster))
+        out.append(
+            (res.collect().globals, *state.numpy(), *(model.host(k) for k in ("area", "normal_force", "k_diag")))
+        )
+    for a, b in zip(*out, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_grown_tiles_on_clusters_of_growing_pads_only():
     """The three copies (areas, √A, k_N) are counted in a block's shared memory where the kernel keeps them: growing
     pads on a cluster."""
