@@ -85,6 +85,29 @@ def test_spec_expansion_and_errors() -> None:
             load_spec(doc)
 
 
+def test_spec_check_builds_one_pad_per_value_but_not_per_seed(monkeypatch) -> None:
+    """The spec's check builds the first and last pad and one pad per value of each parameter, but not one per seed
+    (a sweep over many patch seeds would make every layout before it starts); a count that does not fit still fails
+    at load time, naming its pad."""
+    import aca_warp.sweep.spec as S
+
+    built: list[dict] = []
+    real = S.apply_parameters
+
+    def counting(base, base_doc, values, **kw):
+        built.append(dict(values))
+        return real(base, base_doc, values, **kw)
+
+    monkeypatch.setattr(S, "apply_parameters", counting)
+    load_spec({"sweep": {"base": "hf1"}, "parameters": {"patches.count": [30], "patches.seed": {"range": [1, 41]}}})
+    assert sorted(v["patches.seed"] for v in built) == [1, 40]
+    built.clear()
+    load_spec({"sweep": {"base": "hf1"}, "parameters": {"patches.count": [20, 30, 40], "patches.seed": [1, 2, 3]}})
+    assert sorted({v["patches.count"] for v in built}) == [20, 30, 40] and len(built) <= 4
+    with pytest.raises(SweepError, match=r"pad \d+ .*patches.count"):
+        load_spec({"sweep": {"base": "hf1"}, "parameters": {"patches.count": [20, 10**6], "patches.seed": [1, 2]}})
+
+
 def test_pad_equals_hand_built_scene() -> None:
     """Pad 9 of the sweep (M 0.8, 400 N, seed 2) reproduces a scene built by hand, run alone."""
     s = _spec()

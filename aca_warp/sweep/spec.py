@@ -447,11 +447,19 @@ def pack_order(parameters: dict[str, list], pack: str) -> np.ndarray | None:
     return np.argsort(np.asarray(counts, dtype=np.int64), kind="stable").astype(np.int64)
 
 
+# parameters whose values select a random draw, not the geometry or the material: checked through the first and last
+# pad only (a sweep over 2048 patch seeds would otherwise make every layout here, in one process, before any run)
+_DRAW_PARAMETERS = frozenset({"patches.seed", "initial.seed"})
+
+
 def _check_pads(spec: SweepSpec, lists: dict[str, list]) -> None:
-    """Fail before any run: build the first and last pad and, for every value of every parameter, one pad that has
-    it (catches e.g. patches that do not fit; a bad combination of good values fails its shard at run time)."""
+    """Fail before any run: build the first and last pad and, for every value of every parameter but the seeds
+    (:data:`_DRAW_PARAMETERS`), one pad that has it (catches e.g. patches that do not fit; a bad combination of good
+    values, or a seed whose draw fails, fails its shard at run time)."""
     check = {0, spec.pad_count - 1}
     for key, vals in lists.items():
+        if key in _DRAW_PARAMETERS:
+            continue
         first: dict[str, int] = {}
         distinct = len(set(map(repr, vals)))
         for p, v in enumerate(spec.parameters[key]):
