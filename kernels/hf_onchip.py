@@ -49,6 +49,7 @@ from aca_warp.kernels.physics import (
     grow_patch,
     grown_area,
     link_stiffness,
+    link_stiffness4,
     patch_sample,
     patch_sample_due,
     store_grown_patch,
@@ -247,24 +248,17 @@ def onchip_kernel(
         """``patch_coupling`` of patch g with √A of patch j at ``sqa[j − off]`` (the model's array, ``off`` 0, or the
         block's copy of the pad's, ``off`` its first patch) and, with the CSR on chip, the neighbour indices from the
         shared copy (the row's first link at slot ``p``; the new k_ij into that copy too); returns the slot after the
-        row. Four links' loads before their stores, the diagonal summed in link order (as ``patch_coupling``)."""
+        row. Four links at a time (``link_stiffness4``), the diagonal summed in link order (as ``patch_coupling``)."""
         ki = model.pad_kc[pad] * sqa[g - off]
         d = model.k_t[g]
         e = model.nbr_start[g]
         end = model.nbr_start[g + 1]
         while e + 3 < end:
-            s0 = sqa[link_neighbour(e, p, 0, a, sidx, model) - off]
-            s1 = sqa[link_neighbour(e, p, 1, a, sidx, model) - off]
-            s2 = sqa[link_neighbour(e, p, 2, a, sidx, model) - off]
-            s3 = sqa[link_neighbour(e, p, 3, a, sidx, model) - off]
-            k0 = link_stiffness(ki, s0, model.nbr_inv_dist[e])
-            k1 = link_stiffness(ki, s1, model.nbr_inv_dist[e + 1])
-            k2 = link_stiffness(ki, s2, model.nbr_inv_dist[e + 2])
-            k3 = link_stiffness(ki, s3, model.nbr_inv_dist[e + 3])
-            model.nbr_stiffness[e] = k0
-            model.nbr_stiffness[e + 1] = k1
-            model.nbr_stiffness[e + 2] = k2
-            model.nbr_stiffness[e + 3] = k3
+            j0 = link_neighbour(e, p, 0, a, sidx, model)
+            j1 = link_neighbour(e, p, 1, a, sidx, model)
+            j2 = link_neighbour(e, p, 2, a, sidx, model)
+            j3 = link_neighbour(e, p, 3, a, sidx, model)
+            k0, k1, k2, k3 = link_stiffness4(ki, sqa, off, j0, j1, j2, j3, e, model)
             if wp.static(csr_shared):
                 put_ek(sk, p, k0)
                 put_ek(sk, p + NW, k1)

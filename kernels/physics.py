@@ -250,28 +250,39 @@ def link_stiffness(ki: Any, sqrt_area_j: Any, inv_dist: Any):
 
 
 @wp.func
+def link_stiffness4(ki: Any, sqa: Any, off: int, j0: int, j1: int, j2: int, j3: int, e: int, model: Any):
+    """k_ij (:func:`link_stiffness`) of the four links e … e + 3 of a row (neighbours j0 … j3, global indices, √A_j
+    at ``sqa[j − off]``: the model's array with ``off`` 0, or a block's copy of its pad's), stored into ``model``'s
+    ``nbr_stiffness`` and returned. The four links' loads are issued before their stores (a store may alias a later
+    load, so the compiler would not move the loads ahead itself: on a GPU the neighbours' √A just grown come from
+    L2, and four in flight wait once)."""
+    s0 = sqa[j0 - off]
+    s1 = sqa[j1 - off]
+    s2 = sqa[j2 - off]
+    s3 = sqa[j3 - off]
+    k0 = link_stiffness(ki, s0, model.nbr_inv_dist[e])
+    k1 = link_stiffness(ki, s1, model.nbr_inv_dist[e + 1])
+    k2 = link_stiffness(ki, s2, model.nbr_inv_dist[e + 2])
+    k3 = link_stiffness(ki, s3, model.nbr_inv_dist[e + 3])
+    model.nbr_stiffness[e] = k0
+    model.nbr_stiffness[e + 1] = k1
+    model.nbr_stiffness[e + 2] = k2
+    model.nbr_stiffness[e + 3] = k3
+    return k0, k1, k2, k3
+
+
+@wp.func
 def patch_coupling(i: int, p: int, model: Any):
     """k_ij (:func:`link_stiffness`) for every link of patch i of pad p [N/m] and k_T,i + Σ_j k_ij, into ``model``'s
-    ``nbr_stiffness`` and ``k_diag`` (the diagonal summed in link order). Four links' loads are issued before their
-    stores (a store may alias a later load, so the compiler would not move the loads ahead itself: on a GPU the
-    neighbours' √A just grown come from L2, and four in flight wait once)."""
+    ``nbr_stiffness`` and ``k_diag`` (the diagonal summed in link order), four links at a time
+    (:func:`link_stiffness4`)."""
     ki = model.pad_kc[p] * model.sqrt_area[i]
     d = model.k_t[i]
     e = model.nbr_start[i]
     end = model.nbr_start[i + 1]
     while e + 3 < end:
-        s0 = model.sqrt_area[model.nbr_index[e]]
-        s1 = model.sqrt_area[model.nbr_index[e + 1]]
-        s2 = model.sqrt_area[model.nbr_index[e + 2]]
-        s3 = model.sqrt_area[model.nbr_index[e + 3]]
-        k0 = link_stiffness(ki, s0, model.nbr_inv_dist[e])
-        k1 = link_stiffness(ki, s1, model.nbr_inv_dist[e + 1])
-        k2 = link_stiffness(ki, s2, model.nbr_inv_dist[e + 2])
-        k3 = link_stiffness(ki, s3, model.nbr_inv_dist[e + 3])
-        model.nbr_stiffness[e] = k0
-        model.nbr_stiffness[e + 1] = k1
-        model.nbr_stiffness[e + 2] = k2
-        model.nbr_stiffness[e + 3] = k3
+        n = model.nbr_index
+        k0, k1, k2, k3 = link_stiffness4(ki, model.sqrt_area, 0, n[e], n[e + 1], n[e + 2], n[e + 3], e, model)
         d += k0
         d += k1
         d += k2
