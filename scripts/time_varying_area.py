@@ -2,11 +2,13 @@
 """Time the varying-area record through the command line at several fixed steps.
 
 Runs ``aca-warp hf varying_area --duration D --dt STEP --precision fp32 --device DEV -o OUT/va_STEP.h5`` once per
-step (each in its own process, as a user runs it, kernels cached after the first), with ``--math exact fast`` also
-with ``--fast-math`` (``OUT/va_STEP_fast.h5``; docs/onchip.md, "Fast math"), and writes the wall time of each
-command with the run's summary line to ``OUT/time_varying_area.json`` and a Markdown table beside it. Which step the
+step (each in its own process, as a user runs it, after a 10 µs run of every case has compiled the kernels into
+Warp's cache), with ``--math exact fast`` also with ``--fast-math`` (``OUT/va_STEP_fast.h5``; docs/onchip.md,
+"Fast math"), with ``--growth-dt`` once per spacing of the growth events (``scene``: the scene's own clock, no
+option; a number S: ``--growth-dt S``, ``OUT/va_STEP_gS.h5``), and writes the wall time of each command with the
+run's summary line to ``OUT/time_varying_area.json`` and a Markdown table beside it. Which step and spacing the
 statistics allow is the statistical work-precision's question (docs/work_precision_statistics.md, regime ``va``);
-this script only measures what each step costs.
+this script only measures what each costs.
 
 ``--checkouts FIRST SECOND`` times two checkouts of aca_warp side by side instead of the installed package: each
 command runs with that checkout's code (a package view as in ``scripts/compare_checkouts.py``, its own kernel
@@ -16,6 +18,7 @@ paper's record is 0.36 s)::
 
     python3 scripts/time_varying_area.py --device cuda:0 --steps 1e-7 2.5e-7 5e-7 --out out/va_time
     python3 scripts/time_varying_area.py --device cuda:0 --steps 5e-8 --math exact fast --out out/va_fast
+    python3 scripts/time_varying_area.py --device cuda:0 --steps 5e-8 1e-7 --growth-dt scene 1e-6 --out out/va_g
     python3 scripts/time_varying_area.py --device cuda:0 --steps 5e-8 --checkouts build/base . --repeat 2
     python3 scripts/time_varying_area.py --dry-run --steps 5e-8        # print the commands only
 """
@@ -30,6 +33,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from aca_warp.cli import Parser
@@ -43,19 +47,39 @@ CHILD = (
 )
 
 
-def run_file(out: Path, step: float, fast: bool, checkout: int | None = None) -> Path:
-    """The run file of one step [s], with or without fast math (of checkout 0 or 1 with ``--checkouts``)."""
-    return out / f"va_{step:g}{'_fast' if fast else ''}{'' if checkout is None else f'_c{checkout}'}.h5"
+@dataclass(frozen=True)
+class Case:
+    """One timed case: the fixed step [s], CUDA fast math or not, and the growth events' spacing [s] (None: the
+    scene's clock, no ``--growth-dt``)."""
+
+    step: float
+    fast: bool = False
+    growth_dt: float | None = None
+
+    def fields(self) -> dict:
+        """The case as a result row's fields."""
+        return {"step_s": self.step, "fast_math": self.fast, "growth_dt_s": self.growth_dt}
 
 
-def command(
-    step: float, duration: float, device: str, out: Path, fast: bool = False, checkout: int | None = None
-) -> list[str]:
-    """The command line timed for one step [s] (``fast``: with CUDA fast math; ``checkout``: its run file's)."""
+def spacing(text: str) -> float | None:
+    """``--growth-dt`` value: ``scene`` (the scene's clock: None) or a positive number of seconds."""
+    return None if text == "scene" else positive(text)
+
+
+def run_file(out: Path, case: Case, checkout: int | None = None) -> Path:
+    """The run file of one case (of checkout 0 or 1 with ``--checkouts``)."""
+    growth = "" if case.growth_dt is None else f"_g{case.growth_dt:g}"
+    kept = "" if checkout is None else f"_c{checkout}"
+    return out / f"va_{case.step:g}{growth}{'_fast' if case.fast else ''}{kept}.h5"
+
+
+def command(case: Case, duration: float, device: str, out: Path, checkout: int | None = None) -> list[str]:
+    """The command line timed for one case (``checkout``: its run file's)."""
     return [
-        "aca-warp", "hf", "varying_area", "--duration", f"{duration:g}", "--dt", f"{step:g}",
-        "--precision", "fp32", "--device", device, "--overwrite", "-o", str(run_file(out, step, fast, checkout)),
-        *(["--fast-math"] if fast else []),
+        "aca-warp", "hf", "varying_area", "--duration", f"{duration:g}", "--dt", f"{case.step:g}",
+        "--precision", "fp32", "--device", device, "--overwrite", "-o", str(run_file(out, case, checkout)),
+        *(["--fast-math"] if case.fast else []),
+        *([] if case.growth_dt is None else ["--growth-dt", f"{case.growth_dt:g}"]),
     ]  # fmt: skip
 
 
@@ -89,11 +113,17 @@ def machine_of(run_file: Path) -> str:
         return f"{platform.node()} ({platform.processor() or platform.machine()})"
 
 
+def _events(row: dict) -> str:
+    """The growth events' spacing of a row, in words."""
+    g = row.get("growth_dt_s")
+    return "scene" if g is None else f"{g:g}"
+
+
 def markdown(doc: dict) -> str:
-    """The table of ``doc`` (one row per step)."""
+    """The table of ``doc`` (one row per case)."""
     two = "checkouts" in doc
     rows = [
-        f"| {r['step_s']:g} | {'fast' if r.get('fast_math') else 'exact'} "
+        f"| {r['step_s']:g} | {'fast' if r.get('fast_math') else 'exact'} | {_events(r)} "
         + (f"| {r['checkout']} " if two else "")
         + f"| {r['wall_s']:.1f} | {r['exit']} | {r['summary']} |"
         for r in doc["rows"]
@@ -104,11 +134,13 @@ def markdown(doc: dict) -> str:
         f"{doc['date']}, {doc['machine']}, device {doc['device']}; written by `python3 scripts/time_varying_area.py`.",
         *([f"Checkouts: 0 = `{doc['checkouts'][0]}`, 1 = `{doc['checkouts'][1]}`."] if two else []),
         "",
-        "| step [s] | math | " + ("checkout | " if two else "") + "wall [s] | exit | summary |",
-        "|---|---|" + ("---|" if two else "") + "---|---|---|",
+        "| step [s] | math | growth events every [s] | "
+        + ("checkout | " if two else "")
+        + "wall [s] | exit | summary |",
+        "|---|---|---|" + ("---|" if two else "") + "---|---|---|",
     ]
     same = [
-        f"* {c['step_s']:g} s, {'fast' if c['fast_math'] else 'exact'}: "
+        f"* {c['step_s']:g} s, {'fast' if c['fast_math'] else 'exact'}, events {_events(c)}: "
         + ("the two records bit-identical" if c["identical"] else f"records differ: {c['differ']}")
         for c in doc.get("comparisons", [])
     ]
@@ -124,6 +156,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default="out/va_time", help="folder of the run files and the results")
     ap.add_argument("--math", nargs="+", choices=("exact", "fast"), default=["exact"],
                     help="exact (default) and/or fast: each step also with --fast-math (fp32 on CUDA)")  # fmt: skip
+    ap.add_argument("--growth-dt", type=spacing, nargs="+", default=[None], metavar="S",
+                    help="spacings of the growth events [s] (aca-warp hf --growth-dt), each step with each; "
+                    "scene (default): the scene's own clock")  # fmt: skip
     ap.add_argument("--checkouts", type=Path, nargs=2, metavar=("FIRST", "SECOND"),
                     help="time these two checkouts of aca_warp side by side (run files compared)")  # fmt: skip
     ap.add_argument("--repeat", type=int, default=1, choices=range(1, 11), metavar="N",
@@ -137,9 +172,9 @@ def main(argv: list[str] | None = None) -> int:
     elif args.repeat != 1:
         ap.error("--repeat needs --checkouts")
     out = Path(args.out)
-    cases = [(s, m == "fast") for s in args.steps for m in args.math]
+    cases = [Case(s, m == "fast", g) for s in args.steps for g in args.growth_dt for m in args.math]
     ks = (0, 1) if args.checkouts else (None,)
-    cmds = [command(s, args.duration, args.device, out, fast, k) for s, fast in cases for k in ks]
+    cmds = [command(c, args.duration, args.device, out, k) for c in cases for k in ks]
     if args.dry_run:  # the commands, for this machine or another: the device is not looked up
         print("\n".join(" ".join(c) for c in cmds))
         return 0
@@ -158,12 +193,17 @@ def main(argv: list[str] | None = None) -> int:
         rows, extra = time_checkouts(args, cases, out)
     else:
         rows, extra = [], {}
-        for (step, fast), cmd in zip(cases, cmds, strict=True):
-            rows.append({"step_s": step, "fast_math": fast} | time_one(cmd))
+        with tempfile.TemporaryDirectory(prefix="va_warm_") as tmp:
+            for case in cases:  # the warm-up: every kernel compiled into the cache before any case is timed
+                if (w := time_one(command(case, 1e-5, args.device, Path(tmp))))["exit"] != 0:
+                    raise SystemExit(f"the warm-up of {' '.join(command(case, 1e-5, args.device, Path(tmp)))} "
+                                     f"failed: {w['summary']}")  # fmt: skip
+        for case, cmd in zip(cases, cmds, strict=True):
+            rows.append(case.fields() | time_one(cmd))
             report(rows[-1], out)
     doc = {
         "date": time.strftime("%Y-%m-%d %H:%M"),
-        "machine": machine_of(run_file(out, *cases[0], 0 if args.checkouts else None)),
+        "machine": machine_of(run_file(out, cases[0], 0 if args.checkouts else None)),
         "device": args.device,
         "duration_s": args.duration,
         "rows": rows,
@@ -178,12 +218,12 @@ def main(argv: list[str] | None = None) -> int:
 def report(row: dict, out: Path) -> None:
     """Print one timed row (its run file named as under ``out``)."""
     row["summary"] = row["summary"].replace(f"{out}/", "")
-    what = f"dt {row['step_s']:g} s{' fast math' if row['fast_math'] else ''}"
+    what = f"dt {row['step_s']:g} s, events {_events(row)}{' fast math' if row['fast_math'] else ''}"
     who = f" [checkout {row['checkout']}]" if "checkout" in row else ""
     print(f"{what}{who}: {row['wall_s']:.1f} s  {row['summary']}", flush=True)
 
 
-def time_checkouts(args: argparse.Namespace, cases: list[tuple[float, bool]], out: Path) -> tuple[list, dict]:
+def time_checkouts(args: argparse.Namespace, cases: list[Case], out: Path) -> tuple[list, dict]:
     """The cases run from the two checkouts, alternating, ``--repeat`` times, each checkout warmed up first per case;
     the rows and {"checkouts", "comparisons"} (each case's two last run files compared dataset by dataset)."""
     from compare_checkouts import package_view
@@ -192,27 +232,27 @@ def time_checkouts(args: argparse.Namespace, cases: list[tuple[float, bool]], ou
     with tempfile.TemporaryDirectory(prefix="va_checkouts_") as tmp:
         views = [package_view(c, Path(tmp) / f"view{k}") for k, c in enumerate(args.checkouts)]
         envs = [{**os.environ, "WARP_CACHE_PATH": str(Path(tmp) / f"cache{k}")} for k in range(2)]
-        for step, fast in cases:
+        for case in cases:
             for k in range(2):  # the warm-up: the same kernels compiled into each checkout's cache
-                warm = command(step, 1e-5, args.device, Path(tmp), fast, k)
+                warm = command(case, 1e-5, args.device, Path(tmp), k)
                 if (w := time_one(in_view(warm, views[k]), envs[k]))["exit"] != 0:
                     raise SystemExit(f"checkout {k} ({args.checkouts[k]}) failed its warm-up: {w['summary']}")
         for r in range(args.repeat):
-            for step, fast in cases:
+            for case in cases:
                 for k in range(2):
-                    cmd = command(step, args.duration, args.device, out, fast, k)
+                    cmd = command(case, args.duration, args.device, out, k)
                     row = time_one(in_view(cmd, views[k]), envs[k])
                     row["command"] = " ".join(cmd)  # as a user would type it in that checkout
-                    rows.append({"step_s": step, "fast_math": fast, "checkout": k, "repeat": r} | row)
+                    rows.append(case.fields() | {"checkout": k, "repeat": r} | row)
                     report(rows[-1], out)
     comparisons = []
-    for step, fast in cases:
-        files = [run_file(out, step, fast, k) for k in range(2)]
-        last = [r for r in rows if (r["step_s"], r["fast_math"], r["repeat"]) == (step, fast, args.repeat - 1)]
+    for case in cases:
+        files = [run_file(out, case, k) for k in range(2)]
+        last = [r for r in rows if r["repeat"] == args.repeat - 1 and all(r[k] == v for k, v in case.fields().items())]
         if any(r["exit"] != 0 for r in last):
-            comparisons.append({"step_s": step, "fast_math": fast, "identical": False, "differ": "a run failed"})
+            comparisons.append(case.fields() | {"identical": False, "differ": "a run failed"})
             continue
-        comparisons.append({"step_s": step, "fast_math": fast} | compare_runs(*files))
+        comparisons.append(case.fields() | compare_runs(*files))
     return rows, {"checkouts": [str(c) for c in args.checkouts], "comparisons": comparisons}
 
 

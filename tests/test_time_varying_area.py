@@ -24,7 +24,16 @@ def test_math_fast_adds_the_fast_math_command_per_step(capsys):
     assert exact.endswith("va_5e-08.h5") and fast.endswith("va_5e-08_fast.h5 --fast-math")
 
 
-@pytest.mark.parametrize("argv", [["--steps", "-1e-7"], ["--duration", "0"]])
+def test_growth_dt_gives_each_step_each_spacing(capsys):
+    """``scene`` is the scene's own clock (no option); a number is passed as --growth-dt and names the run file."""
+    assert load().main(["--dry-run", "--steps", "5e-8", "1e-7", "--growth-dt", "scene", "1e-6"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 4 and "--growth-dt" not in lines[0] and lines[0].endswith("va_5e-08.h5")
+    assert lines[1].endswith("va_5e-08_g1e-06.h5 --growth-dt 1e-06")
+    assert lines[3].endswith("va_1e-07_g1e-06.h5 --growth-dt 1e-06")
+
+
+@pytest.mark.parametrize("argv", [["--steps", "-1e-7"], ["--duration", "0"], ["--growth-dt", "0"]])
 def test_bad_input_is_one_line_exit_2(argv, capsys):
     with pytest.raises(SystemExit) as e:
         load().main(["--dry-run", *argv])
@@ -35,9 +44,11 @@ def test_bad_input_is_one_line_exit_2(argv, capsys):
 def test_markdown_has_a_row_per_step():
     doc = {"date": "d", "machine": "m", "device": "cuda:0", "duration_s": 0.36,
            "rows": [{"step_s": 1e-7, "wall_s": 46.6, "exit": 0, "summary": "ok"}]}  # fmt: skip
-    assert "| 1e-07 | exact | 46.6 | 0 | ok |" in load().markdown(doc)
+    assert "| 1e-07 | exact | scene | 46.6 | 0 | ok |" in load().markdown(doc)
     doc["rows"].append({"step_s": 1e-7, "fast_math": True, "wall_s": 40.0, "exit": 0, "summary": "ok"})
-    assert "| 1e-07 | fast | 40.0 | 0 | ok |" in load().markdown(doc)
+    assert "| 1e-07 | fast | scene | 40.0 | 0 | ok |" in load().markdown(doc)
+    doc["rows"].append({"step_s": 1e-7, "growth_dt_s": 1e-6, "wall_s": 20.0, "exit": 0, "summary": "ok"})
+    assert "| 1e-07 | exact | 1e-06 | 20.0 | 0 | ok |" in load().markdown(doc)
 
 
 def test_machine_is_read_from_the_run_file(tmp_path):
@@ -77,8 +88,8 @@ def test_markdown_of_two_checkouts_names_them_and_the_comparison():
            "rows": [{"step_s": 5e-8, "checkout": 1, "wall_s": 40.0, "exit": 0, "summary": "ok"}],
            "comparisons": [{"step_s": 5e-8, "fast_math": False, "identical": True, "differ": []}]}  # fmt: skip
     md = load().markdown(doc)
-    assert "0 = `old`, 1 = `new`" in md and "| 5e-08 | exact | 1 | 40.0 | 0 | ok |" in md
-    assert "5e-08 s, exact: the two records bit-identical" in md
+    assert "0 = `old`, 1 = `new`" in md and "| 5e-08 | exact | scene | 1 | 40.0 | 0 | ok |" in md
+    assert "5e-08 s, exact, events scene: the two records bit-identical" in md
 
 
 def test_run_files_compared_dataset_by_dataset(tmp_path):

@@ -113,6 +113,15 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "a block's shared memory), on CUDA and on the CPU (the same bits as general there, faster; docs/onchip.md)",
     )
     hf.add_argument("--fast-math", action="store_true", help=FAST_MATH_HELP)
+    hf.add_argument(
+        "--growth-dt",
+        type=positive,
+        metavar="S",
+        help="simulated time between the growth events of a growing scene [s] (default: the scene's growth "
+        "interval, the paper's clock of 2.02e-7 s for varying_area); each event adds the increment scaled to the "
+        "spacing, so growth per simulated time stays the scene's; the statistics of growing pads keep every "
+        "measure up to 5e-6 s (docs/model.md 2.10); refused for a scene that does not grow",
+    )
 
 
 def _add_record_arguments(hf: argparse.ArgumentParser) -> None:
@@ -202,6 +211,7 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         checkpoint_interval=args.checkpoint_interval,
         accept_unphysical=args.accept_unphysical,
         fast_math=args.fast_math,
+        growth_dt=args.growth_dt,
     )
     result = run_scene(
         scene,
@@ -332,6 +342,7 @@ def _resume_hf(args: argparse.Namespace) -> int:
             ("--overwrite", args.overwrite, False),
             ("--engine", getattr(args, "engine", "auto"), "auto"),
             ("--fast-math", args.fast_math, False),
+            ("--growth-dt", args.growth_dt, None),
         ),
         "the run",
     )

@@ -4,9 +4,9 @@ Fixed-step schemes take ``options.dt`` shortened so that a whole number of steps
 record one sample per interval; a chunk is a graph of up to ``max_graph_steps`` steps. ``adaptive`` steps every pad
 with its own step and mode, decided on the device (:mod:`aca_warp.hf.adaptive`); a chunk is a graph of 128
 iterations. Growing scenes run a growth event (areas, stiffnesses, the contact re-solve) every
-``growth.interval`` of simulated time: counted in steps on the device (fixed step), or at the event times
-j·interval, on which every pad lands (adaptive). Every stepping path is captured in a Warp graph (CPU and CUDA);
-the host reads back only a few counters per replay.
+``RunOptions.growth_dt`` (default the scene's ``growth.interval``) of simulated time: counted in steps on the
+device (fixed step), or at the event times j·growth_dt, on which every pad lands (adaptive). Every stepping path is
+captured in a Warp graph (CPU and CUDA); the host reads back only a few counters per replay.
 """
 
 from __future__ import annotations
@@ -25,21 +25,22 @@ from aca_warp.hf.engine import EngineSetup, Progress, fault_cause, run_stages
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import STEP_CONTROLLED
 from aca_warp.hf.recorder import Recorder
-from aca_warp.hf.solver import CONTACT_BLOCK, HFSolver, grown_arrays, growth_events, growth_interval
+from aca_warp.hf.solver import CONTACT_BLOCK, HFSolver, event_spacing, grown_arrays, growth_events
 from aca_warp.kernels import hf as K
 
 
 class Growth:
     """Growth events of a growing model on the general engine: the launches of one event, due every ``every``-th
     step of ``h`` [s] (fixed step; the device counts steps in ``step``) or, with ``h`` None (adaptive), wherever
-    the adaptive landing sets ``step`` as the event flag: at the event times j·interval, each event adding the
-    scene's increment unscaled (``every`` = 1 of a step of one interval)."""
+    the adaptive landing sets ``step`` as the event flag: at the event times j·interval (``interval``: the spacing
+    ``growth_dt`` [s], default the scene's growth interval), each event adding the scene's increment × the spacing
+    over the scene's interval (``every`` = 1 of a step of one spacing)."""
 
-    def __init__(self, model: PadModel, h: float | None) -> None:
+    def __init__(self, model: PadModel, h: float | None, growth_dt: float | None = None) -> None:
         self.model = model
-        self.interval = growth_interval(model)
+        self.interval = event_spacing(model, growth_dt)
         self.counted = h is not None
-        self.every, self.per_event = growth_events(model, h if self.counted else self.interval)
+        self.every, self.per_event = growth_events(model, h if self.counted else self.interval, growth_dt)
         # int64 (1,): the completed steps (fixed step) or the event flag (adaptive)
         self.step = wp.zeros(1, dtype=wp.int64, device=model.device)
         self.due = (self.step, self.every if self.counted else 0)  # growth_due with every = 0 reads the flag
@@ -92,7 +93,7 @@ class GeneralEngine:
         self.started = False
         self.growth = None
         if growing:
-            self.growth = Growth(model, None if self.adaptive else self.h)
+            self.growth = Growth(model, None if self.adaptive else self.h, self.solver.growth_dt)
         self.stepper = None
         if self.adaptive:
             t_end = n_samples * record.sample_dt

@@ -176,7 +176,7 @@ class OnchipEngine(OnchipLaunches):
         """The kernel's model struct, for a growing model with the increment per event of step h."""
         m = self.model
         if "pad_growth" in m.arrays:
-            self.growth_every, per_event = growth_events(m, self.h)
+            self.growth_every, per_event = growth_events(m, self.h, self.solver.growth_dt)
             return m.struct(per_event)
         self.growth_every = 1  # the growth fields are not read
         return m.struct()

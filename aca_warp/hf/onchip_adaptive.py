@@ -113,7 +113,7 @@ class OnchipAdaptiveEngine(OnchipLaunches):
         self.recorder = Recorder(model, record, self.spl + 1, n_samples)
         self.t_end = n_samples * record.sample_dt
         # the event times and the increment per event (its flag and launches are the general engine's, unused here)
-        self.growth = Growth(model, None) if "pad_growth" in model.arrays else None
+        self.growth = Growth(model, None, self.solver.growth_dt) if "pad_growth" in model.arrays else None
         self.stepper = adaptive.AdaptiveStepper(model, state, self.solver, self.recorder, self.t_end, self.growth)
         self.kernel_model = model.struct(None if self.growth is None else self.growth.per_event)
         self.stages = run_stages(model, self.recorder, "adaptive:onchip")

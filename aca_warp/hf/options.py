@@ -110,6 +110,10 @@ class RunOptions:
         fast_math: Compile the on-chip ``strang`` kernel with CUDA fast math (approximate single-precision division
             and square root, fast sin/cos/exp/log/pow, denormals flushed to zero): fp32 on a CUDA device only
             (:func:`~aca_warp.hf.onchip_layout.fast_math_refusal`; docs/onchip.md, "Fast math").
+        growth_dt: Simulated time between the growth events of a growing scene [s], a numerical setting like
+            ``dt``: each event adds the scene's increment × growth_dt / ``growth.interval``, so that the growth per
+            simulated time stays the scene's (docs/model.md §2.10); None: the scene's ``growth.interval`` (the
+            paper's clock). Refused for a scene that does not grow (:func:`~aca_warp.hf.solver.check_step`).
     """
 
     duration: float | None = None
@@ -123,6 +127,7 @@ class RunOptions:
     watchdog_factor: float | None = WATCHDOG_FACTOR
     accept_unphysical: bool = False
     fast_math: bool = False
+    growth_dt: float | None = None
 
     def __post_init__(self) -> None:
         if self.integrator not in INTEGRATORS:
@@ -131,6 +136,7 @@ class RunOptions:
             raise SceneError(f"unknown engine {self.engine!r}; choose from {', '.join(ENGINES)}")
         _positive_or_none("duration", self.duration, " of seconds")
         _positive_or_none("dt", self.dt, " of seconds")
+        _positive_or_none("growth_dt", self.growth_dt, " of seconds")
         check_interval(self.checkpoint_interval)
         if not isinstance(self.fast_math, bool):
             raise SceneError(f"fast_math must be true or false, got {self.fast_math!r}")

@@ -51,21 +51,29 @@ CONTACT_BLOCK = 256  # threads per pad of the growth events' contact re-solve (W
 
 
 def growth_interval(model: PadModel) -> float:
-    """The growth interval [s] of a growing model, which all its growing pads share."""
+    """The growth interval [s] of a growing model (the scenes' ``growth.interval``, over which each event adds the
+    scene's increment), which all its growing pads share."""
     intervals = {s.growth.interval for s in model.scenes if s.growth is not None}
     if len(intervals) > 1:
         raise SceneError("all growing pads of a batch need the same growth.interval")
     return intervals.pop()
 
 
-def growth_events(model: PadModel, h: float) -> tuple[int, wp.array]:
+def event_spacing(model: PadModel, growth_dt: float | None) -> float:
+    """The simulated time between growth events [s]: ``growth_dt`` (``RunOptions.growth_dt``), or the model's
+    :func:`growth_interval` when None."""
+    return growth_interval(model) if growth_dt is None else growth_dt
+
+
+def growth_events(model: PadModel, h: float, growth_dt: float | None = None) -> tuple[int, wp.array]:
     """(steps per growth event, growth increment per event per pad [m], shape (pads,)) for step ``h`` [s].
 
-    An event every round(interval / h) steps; the increment is scaled so that growth per simulated time is exact
-    (h = interval, the adaptive integrator's events at the event times: every step, unscaled).
+    An event every round(spacing / h) steps (spacing: :func:`event_spacing`); the increment is scaled by
+    (steps × h) / interval, so that growth per simulated time is the scene's whatever the spacing and the step
+    (h = spacing = interval, the adaptive integrator's events at the event times: every step, unscaled).
     """
     interval = growth_interval(model)
-    every = max(1, round(interval / h))
+    every = max(1, round(event_spacing(model, growth_dt) / h))
     scale = every * h / interval
     return every, wp.array(model.host("pad_growth") * scale, dtype=model.dtype, device=model.device)
 
@@ -199,7 +207,8 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
     The bound is checked for the step the run takes (:func:`fitted_step`), not the one asked for. Beyond it a
     :class:`StabilityError` (exit 2), or with ``options.force`` a warning that says what the forced step risks
     (:func:`step_problem`: the explicit and spring bounds). Steps per sample interval and
-    per growth interval (adaptive: growth events of the run) are checked against int32 (the kernels count them so).
+    per growth event (adaptive: growth events of the run) are checked against int32 (the kernels count them so);
+    ``options.growth_dt`` is refused for a model that does not grow.
     ``options``: :class:`~aca_warp.hf.options.RunOptions`.
     """
     from aca_warp.hf.limits import check_int32
@@ -207,11 +216,18 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
 
     solver = HFSolver.for_run(model, options, force=True)
     est = solver.estimate
+    grows = any(scene.growth is not None for scene in model.scenes)
+    if options.growth_dt is not None and not grows:
+        raise SceneError(
+            f"{option('growth_dt', '--growth-dt')} sets the spacing of growth events; the scene does not grow "
+            "(it has no [growth] table)"
+        )
+    spacing = event_spacing(model, options.growth_dt) if grows else None
     if options.integrator in STEP_CONTROLLED:  # their steps are not counted; their growth events are (the index)
-        for scene in model.scenes:
-            if scene.growth is not None and options.duration is not None:
-                events = options.duration / scene.growth.interval
-                check_int32("growth events of the run", events, "choose a larger growth interval or a shorter run")
+        if spacing is not None and options.duration is not None:
+            events = options.duration / spacing
+            hint = f"choose a larger {option('growth_dt', '--growth-dt')} or a shorter run"
+            check_int32("growth events of the run", events, hint)
         return est
     h = fitted_step(solver.dt, sample_dt)
     check_int32(
@@ -219,11 +235,8 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
         round(sample_dt / h),
         f"choose a larger {option('dt', '--dt')} or a smaller sample interval",
     )
-    for scene in model.scenes:
-        if scene.growth is not None:
-            check_int32(
-                "steps per growth interval", round(scene.growth.interval / h), f"choose a larger {option('dt', '--dt')}"
-            )
+    if spacing is not None:
+        check_int32("steps per growth event", round(spacing / h), f"choose a larger {option('dt', '--dt')}")
     if not options.force:
         step_refusal(est, options.integrator, h)
     else:
@@ -238,7 +251,8 @@ class HFSolver:
 
     ``estimate``: the model's :func:`stable_step`, when the caller has it already (it reads every link of the batch).
     ``tolerance``: the explicit pair's (``adaptive``, ``auto``), ``split_tolerance`` the split step's (``controlled``,
-    ``auto``).
+    ``auto``). ``growth_dt``: the spacing of a growing model's events [s] (:func:`event_spacing`), which the engines
+    read.
     """
 
     def __init__(
@@ -251,6 +265,7 @@ class HFSolver:
         tolerance: float = DEFAULT_TOLERANCE,
         split_tolerance: float = DEFAULT_SPLIT_TOLERANCE,
         estimate: StepEstimate | None = None,
+        growth_dt: float | None = None,
     ) -> None:
         if integrator not in INTEGRATORS:
             raise SceneError(f"unknown integrator {integrator!r}; choose from {', '.join(INTEGRATORS)}")
@@ -263,6 +278,7 @@ class HFSolver:
             if not (value > 0 and math.isfinite(value)):
                 raise SceneError(f"{name} must be a positive number, got {value}")
         self.tolerance, self.split_tolerance = tolerance, split_tolerance
+        self.growth_dt = growth_dt  # spacing of growth events [s]; None: the scenes' growth.interval
         if integrator in ("adaptive", "auto"):
             if self.T == wp.float32 and tolerance < FP32_MIN_TOLERANCE:
                 fp64 = option("precision='fp64'", "--precision fp64")
@@ -285,8 +301,8 @@ class HFSolver:
     def for_run(
         cls, model: PadModel, options: RunOptions, estimate: StepEstimate | None = None, *, force: bool | None = None
     ) -> HFSolver:
-        """The solver of a run with ``options``: its integrator, dt, tolerances and force (``force``, when given,
-        in place of ``options.force``)."""
+        """The solver of a run with ``options``: its integrator, dt, tolerances, growth spacing and force
+        (``force``, when given, in place of ``options.force``)."""
         return cls(
             model,
             options.integrator,
@@ -295,6 +311,7 @@ class HFSolver:
             tolerance=options.tolerance,
             split_tolerance=options.split_tolerance,
             estimate=estimate,
+            growth_dt=options.growth_dt,
         )
 
     def _launch(self, kernel: Any, inputs: list, dim: int | None = None) -> None:

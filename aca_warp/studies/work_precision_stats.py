@@ -15,9 +15,11 @@ groups of LF snapshots; their LF runs are made once in ``OUT/lf``). Every pad of
 same per-patch window by the validation's own per-pad analysis, whether its detector calls it saturated or not,
 so that every setting is measured on the same samples.
 
-A **setting** is ``INTEGRATOR@PRECISIONS[:dt=STEPS][:tol=TOLERANCES][:fast]`` (a product), e.g.
+A **setting** is ``INTEGRATOR@PRECISIONS[:dt=STEPS][:tol=TOLERANCES][:growth_dt=SPACINGS][:fast]`` (a product), e.g.
 ``strang@fp32:dt=1e-8,5e-7``, ``adaptive@fp64:tol=1e-4``, ``implicit-friction@fp32,fp64:dt=1e-7``,
-``strang@fp32:dt=1e-7:fast`` (the on-chip kernel compiled with CUDA fast math: ``aca-warp hf --fast-math``); without
+``strang@fp32:dt=1e-7:fast`` (the on-chip kernel compiled with CUDA fast math: ``aca-warp hf --fast-math``),
+``strang@fp32:dt=1e-7:growth_dt=1e-6`` (a growing pad's growth events every 1 µs, the increment scaled to keep the
+growth rate: ``aca-warp hf --growth-dt``; refused in regimes that do not grow); without
 dt or tol the integrator's defaults (``tol``: the tolerance of ``adaptive``, the split tolerance of ``controlled``
 and ``auto``, :func:`~aca_warp.hf.options.tolerance_keyword`). Fixed steps run forced (past the spring bound
 too). Any name of ``aca_warp.hf.options.INTEGRATORS`` is accepted, and a name that the default grid does not list
@@ -109,20 +111,23 @@ PROGRESS_S = 30.0  # s of wall time between progress lines of one run
 
 @dataclass(frozen=True)
 class Setting:
-    """One point of the grid: integrator, precision, fixed step [s] and/or tolerance (None: the defaults), and
-    whether the on-chip strang kernel is compiled with CUDA fast math (``RunOptions.fast_math``)."""
+    """One point of the grid: integrator, precision, fixed step [s] and/or tolerance (None: the defaults), whether
+    the on-chip strang kernel is compiled with CUDA fast math (``RunOptions.fast_math``), and the spacing of a
+    growing pad's growth events [s] (``RunOptions.growth_dt``; None: the scenes' growth interval)."""
 
     integrator: str
     precision: str
     dt: float | None = None
     tolerance: float | None = None
     fast_math: bool = False
+    growth_dt: float | None = None
 
     @property
     def label(self) -> str:
-        """``integrator@precision[:dt=…][:tol=…][:fast]`` (parses back to this setting)."""
+        """``integrator@precision[:dt=…][:tol=…][:growth_dt=…][:fast]`` (parses back to this setting)."""
         parts = [f"dt={self.dt:g}"] if self.dt is not None else []
         parts += [f"tol={self.tolerance:g}"] if self.tolerance is not None else []
+        parts += [f"growth_dt={self.growth_dt:g}"] if self.growth_dt is not None else []
         parts += ["fast"] if self.fast_math else []
         return ":".join([f"{self.integrator}@{self.precision}", *parts])
 
@@ -133,8 +138,8 @@ class Setting:
 
 
 def parse_setting(spec: str) -> list[Setting]:
-    """The settings of one spec ``NAME@P1[,P2][:dt=V[,V…]][:tol=V[,V…]][:fast]`` (module docstring); ValueError
-    names what is wrong."""
+    """The settings of one spec ``NAME@P1[,P2][:dt=V[,V…]][:tol=V[,V…]][:growth_dt=V[,V…]][:fast]`` (module
+    docstring); ValueError names what is wrong."""
     head, *params = spec.split(":")
     name, _, precs = head.partition("@")
     if name not in INTEGRATORS:
@@ -143,7 +148,7 @@ def parse_setting(spec: str) -> list[Setting]:
     bad = [p for p in precisions if p not in PRECISIONS]
     if bad:
         raise ValueError(f"unknown precision {', '.join(bad)} in {spec!r}; choose from {', '.join(PRECISIONS)}")
-    axes: dict[str, list[float | None]] = {"dt": [None], "tol": [None]}
+    axes: dict[str, list[float | None]] = {"dt": [None], "tol": [None], "growth_dt": [None]}
     fast = "fast" in params
     unfit = [why for p in precisions if (why := fast_math_unfit(name, p))] if fast else []
     if unfit:
@@ -151,7 +156,7 @@ def parse_setting(spec: str) -> list[Setting]:
     for p in (p for p in params if p != "fast"):
         key, _, vals = p.partition("=")
         if key not in axes or not vals:
-            raise ValueError(f"bad parameter {p!r} in {spec!r}: use dt=V[,V…], tol=V[,V…] or fast")
+            raise ValueError(f"bad parameter {p!r} in {spec!r}: use dt=V[,V…], tol=V[,V…], growth_dt=V[,V…] or fast")
         try:
             nums = [float(v) for v in vals.split(",")]
         except ValueError:
@@ -159,8 +164,8 @@ def parse_setting(spec: str) -> list[Setting]:
         if not all(v > 0 and math.isfinite(v) for v in nums):
             raise ValueError(f"{key} must be positive in {spec!r}")
         axes[key] = list(nums)
-    combos = itertools.product(precisions, axes["dt"], axes["tol"])
-    return [Setting(name, pr, dt, tol, fast) for pr, dt, tol in combos]
+    combos = itertools.product(precisions, axes["dt"], axes["tol"], axes["growth_dt"])
+    return [Setting(name, pr, dt, tol, fast, growth) for pr, dt, tol, growth in combos]
 
 
 def grid(specs: list[str], integrators: list[str] | None, precisions: list[str] | None) -> list[Setting]:
@@ -269,7 +274,8 @@ def run_setting(prep: Any, cfg: Any, setting: Setting, role: str, names: list[st
         res = run_engine(
             model, state, engine=cfg.engine, duration=prep.plan.duration, integrator=setting.integrator,
             dt=setting.dt, record=prep.plan.record(cfg), sink=sink, force=setting.dt is not None,
-            fast_math=setting.fast_math, **{tolerance_keyword(setting.integrator): setting.tolerance},
+            fast_math=setting.fast_math, growth_dt=setting.growth_dt,
+            **{tolerance_keyword(setting.integrator): setting.tolerance},
         )  # fmt: skip
     except (SceneError, ValueError) as e:  # a setting the integrator refuses (e.g. an fp32 tolerance too tight)
         log(f"  {setting.label}: refused: {e}")
@@ -454,7 +460,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--grid",
         nargs="+",
         metavar="SPEC",
-        help="settings INTEGRATOR@P1[,P2][:dt=V,…][:tol=V,…][:fast] "
+        help="settings INTEGRATOR@P1[,P2][:dt=V,…][:tol=V,…][:growth_dt=V,…][:fast] "
         f"(default: {' '.join(default_grid(False))}; --quick: {' '.join(default_grid(True))})",
     )
     ap.add_argument("--integrators", nargs="+", choices=INTEGRATORS, help="only these integrators of the grid")

@@ -45,7 +45,9 @@ def machine_text(doc: dict[str, Any]) -> str:
 
 
 def _family(setting: dict[str, Any]) -> str:
-    return f"{setting['integrator']}@{setting['precision']}" + (" fast math" if setting.get("fast_math") else "")
+    fast = " fast math" if setting.get("fast_math") else ""
+    growth = f" events every {setting['growth_dt']:g} s" if setting.get("growth_dt") is not None else ""
+    return f"{setting['integrator']}@{setting['precision']}{fast}{growth}"
 
 
 def _marker(family: str, families: list[str]) -> str:

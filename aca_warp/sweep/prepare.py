@@ -114,6 +114,7 @@ def run_options(spec: SweepSpec) -> RunOptions:
         dt=spec.dt,
         tolerance=spec.tolerance,
         fast_math=spec.fast_math,
+        growth_dt=spec.growth_dt,
     )
 
 

@@ -39,7 +39,7 @@ MODES = ("product", "zip")
 DEFAULT_SHARD_SIZE = 64
 PACKINGS = ("size", "none")
 _SWEEP_KEYS = ("name", "base", "mode", "shard_size", "pack")
-_RUN_KEYS = ("duration", "integrator", "precision", "dt", "tolerance", "sample_dt", "fast_math")
+_RUN_KEYS = ("duration", "integrator", "precision", "dt", "tolerance", "sample_dt", "fast_math", "growth_dt")
 
 # Parameters a sweep may vary: key -> (unit, kind); kind says how the value is applied to the base scene.
 PARAMETERS: dict[str, tuple[str, str]] = {
@@ -171,6 +171,8 @@ class SweepSpec:
         integrator, precision, dt, tolerance: Solver settings (as ``run_hf``).
         fast_math: The on-chip strang kernel compiled with CUDA fast math (``RunOptions.fast_math``: fp32 strang on
             CUDA only).
+        growth_dt: Simulated time between growth events of growing pads [s] (``RunOptions.growth_dt``); None: the
+            scenes' growth interval.
     """
 
     doc: dict
@@ -189,6 +191,7 @@ class SweepSpec:
     pack: str = "size"
     order: np.ndarray | None = field(default=None, repr=False)
     fast_math: bool = False
+    growth_dt: float | None = None
     _hash: str = field(default="", repr=False)
 
     @property
@@ -230,8 +233,9 @@ class SweepSpec:
         return self._hash
 
     def run_settings(self) -> dict:
-        """Duration, integrator, precision, dt, tolerance and sample interval, and fast math where it is on (absent
-        otherwise: hashes of earlier sweeps hold), as a JSON-able dict."""
+        """Duration, integrator, precision, dt, tolerance and sample interval, and fast math where it is on and the
+        growth events' spacing where it is set (absent otherwise: hashes of earlier sweeps hold), as a JSON-able
+        dict."""
         return {
             "duration": self.duration,
             "integrator": self.integrator,
@@ -240,6 +244,7 @@ class SweepSpec:
             "tolerance": self.tolerance,
             "sample_dt": self.base.record.sample_dt,
             **({"fast_math": True} if self.fast_math else {}),
+            **({"growth_dt": self.growth_dt} if self.growth_dt is not None else {}),
         }
 
     def pad_values(self, pad: int) -> dict[str, Any]:
@@ -369,6 +374,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     if unfit is not None:
         raise SweepError(f"run.fast_math (--fast-math): {unfit}")
     duration = num("duration", base.duration)
+    growth_dt = num("growth_dt", None)
     dt = step_asked(integrator, num("dt", None))  # written out: the hash and the shards name the step
     tolerance = num("tolerance", DEFAULT_TOLERANCE)
     sample_dt = num("sample_dt", base.record.sample_dt)
@@ -383,6 +389,8 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     if dt is not None and not duration / dt <= MAX_STEPS:
         raise SweepError(f"run.duration / run.dt = {duration / dt:.3g} steps per pad, more than {MAX_STEPS:.0e}")
     lists, params = _expand(doc.get("parameters", {}), mode, base, base_doc)
+    if growth_dt is not None and base.growth is None and not any(k.startswith("growth.") for k in params):
+        raise SweepError("run.growth_dt sets the spacing of growth events; the base scene does not grow (no [growth])")
     spec = SweepSpec(
         doc=doc,
         base_dir=base_dir,
@@ -400,6 +408,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         pack=pack,
         order=pack_order(params, pack),
         fast_math=fast_math,
+        growth_dt=growth_dt,
     )
     if check:
         _check_pads(spec, lists)
