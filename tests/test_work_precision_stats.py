@@ -636,3 +636,32 @@ def test_first_part_regenerates_in_the_later_parts_code(regime):
         a = np.asarray(ref_first["values"][m][:2], dtype=float)
         b = np.asarray(ref_check["values"][m], dtype=float)
         assert np.array_equal(a, b, equal_nan=True), m
+
+
+def test_growth_events_page_is_what_merge_and_report_write(monkeypatch):
+    """The growth-events page (docs/figures/work_precision_statistics/growth_events/): its merged files are the
+    ``--merge`` of its parts and its generated section is what ``--report`` writes from them."""
+    from pathlib import Path
+
+    from aca_warp.studies.report import clean
+    from aca_warp.studies.work_precision_stats_merge import merge
+
+    repo = Path(__file__).resolve().parent.parent
+    monkeypatch.chdir(repo)  # the parts named as the page's command names them
+    folder = repo / "docs" / "figures" / "work_precision_statistics" / "growth_events"
+    docs, names = [], []
+    for regime in ("va", "va_full"):
+        merged = rule.load_results(folder / f"wps_cuda0_{regime}.json")
+        parts = sorted(p.relative_to(repo) for p in (folder / f"{regime}_parts").glob(f"*/wps_cuda0_{regime}.json"))
+        assert len(parts) == 3
+        assert json.loads(json.dumps(clean(merge(parts)))) == merged
+        docs.append(merged)
+        names.append(f"growth_events/wps_cuda0_{regime}.json")
+    page = folder / "README.md"
+    text = page.read_text()
+    body = wps_report.render(docs, names, [folder / "wps_cuda0.png"], page, 0.25, None, "resolution")
+    begin, end = wps_report.generated_markers(wps_report.MARKER)
+    assert text.split(begin, 1)[1].split(end, 1)[0] == "\n" + "\n".join(body) + "\n"
+    assert len(docs[0]["regimes"]["va"]["pads"]) == 96 and len(docs[1]["regimes"]["va_full"]["pads"]) == 48
+    for doc, regime in zip(docs, ("va", "va_full"), strict=True):
+        assert rule.settings_for(doc, regime).setting == "strang@fp32:dt=1e-07:growth_dt=5e-06"
