@@ -21,22 +21,29 @@ INTERVAL = 2.02e-7  # s: the scene's growth interval (the paper's clock)
 
 
 def grow(
-    growth_dt: float | None, *, integrator: str = "strang", engine: str = "general", dt: float = 1e-8
+    growth_dt: float | None,
+    *,
+    integrator: str = "strang",
+    engine: str = "general",
+    dt: float = 1e-8,
+    device: str = "cpu",
+    precision: str = "fp64",
 ) -> tuple[np.ndarray, np.ndarray]:
     """(μ samples, final areas [m²]) of the 9-patch scene growing 1000× faster than Eq. 10 over 40 µs."""
     scene = nine_patch_scene(increment=1e-6, interval=INTERVAL, sample_dt=1e-6, duration=4e-5)
-    model = build_model([scene], device="cpu", precision="fp64")
+    model = build_model([scene], device=device, precision=precision)
     options = RunOptions(integrator=integrator, engine=engine, dt=dt, growth_dt=growth_dt, checkpoint_interval=0)
     res = run_hf(model, initial_state(model), options)
     assert res.complete, res.fault
     return res.collect().globals[:, 0, 0], model.host("area")
 
 
+@pytest.mark.parametrize("precision", ["fp32", "fp64"])
 @pytest.mark.parametrize("engine", ["general", "onchip"])
-def test_the_scenes_spacing_gives_the_same_bits(engine):
-    """growth_dt equal to the scene's interval is the run without it, bit for bit."""
-    mu, area = grow(None, engine=engine)
-    mu2, area2 = grow(INTERVAL, engine=engine)
+def test_the_scenes_spacing_gives_the_same_bits(engine, precision, device):
+    """growth_dt equal to the scene's interval is the run without it, bit for bit (on every device)."""
+    mu, area = grow(None, engine=engine, device=device, precision=precision)
+    mu2, area2 = grow(INTERVAL, engine=engine, device=device, precision=precision)
     np.testing.assert_array_equal(mu2, mu)
     np.testing.assert_array_equal(area2, area)
 

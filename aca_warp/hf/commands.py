@@ -120,7 +120,8 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         help="simulated time between the growth events of a growing scene [s] (default: the scene's growth "
         "interval, the paper's clock of 2.02e-7 s for varying_area); each event adds the increment scaled to the "
         "spacing, so growth per simulated time stays the scene's; the statistics of growing pads keep every "
-        "measure up to 5e-6 s (docs/model.md 2.10); refused for a scene that does not grow",
+        "measure with events every 5e-6 s at --dt 5e-8 and 1e-7 (docs/model.md 2.10), and events cost several "
+        "steps each; refused for a scene that does not grow",
     )
 
 

@@ -21,8 +21,8 @@ DEFAULT_INTEGRATOR = "strang"
 DEFAULT_DT = 1.0e-8  # s: the default step of the fixed-step integrators other than strang
 # strang's default step [s]: the statistical work-precision (docs/work_precision_statistics.md) keeps every
 # validation measure of saturated ensembles of hf1–hf4, varying-area pads and every group of LF states at 5e-8 s,
-# not the varying-area pads' and ms_short's at 1e-7 s (hf1–hf4 keep theirs up to 1e-7 s); one value for every pad,
-# so that a pad's run does not depend on the batch it shares
+# not ms_short's at 1e-7 s (hf1–hf4 and, over 96 seeds, the varying-area pads keep theirs up to 1e-7 s); one value
+# for every pad, so that a pad's run does not depend on the batch it shares
 STATISTICS_STEP = 5.0e-8
 DEFAULT_TOLERANCE = 1.0e-5  # adaptive: μ errors ≤ 1e-7 on hf1 and stick-slip (docs/time_to_solution.md)
 # controlled: the rms over a pad of the per-patch local velocity errors of a step, relative to the patch's velocity
