@@ -137,3 +137,26 @@ def test_sweep_spec_takes_the_spacing_for_growing_pads_only(tmp_path):
         load_spec({**doc, "sweep": {"base": "hf1"}}, base_dir=tmp_path)
     with pytest.raises(SweepError, match="run.growth_dt must be a positive number"):
         load_spec({**doc, "run": {"growth_dt": 0}}, base_dir=tmp_path)
+
+
+def test_a_pad_of_a_sweep_keeps_the_spacing(tmp_path):
+    """A pad taken out of a shard of a sweep with ``run.growth_dt`` (``aca-warp analyze SHARD --pad K``) stores the
+    spacing, so that ``aca-warp rerun`` of it repeats the pad's run: the same μ as in the shard."""
+    from aca_warp.analysis.pads import write_pad_run
+    from aca_warp.cli import main
+    from aca_warp.hf.rerun import read_settings
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(
+        '[sweep]\nbase = "hf1"\nshard_size = 2\n[run]\nduration = 4e-6\nsample_dt = 1e-6\ngrowth_dt = 1e-6\n'
+        f"[base.patches]\ncount = 12\n[base.growth]\nincrement = 1e-6\ninterval = {INTERVAL!r}\n"
+        '[parameters]\n"friction.M" = [0.7, 0.8]\n'
+    )
+    assert main(["sweep", str(spec), "-o", str(tmp_path / "sw"), "--workers", "0", "--quiet"]) == 0
+    shard = tmp_path / "sw" / "shard-00000.h5"
+    pad = write_pad_run(shard, 1, tmp_path / "pad1.h5")
+    assert read_settings(pad).options.growth_dt == 1e-6
+    again = tmp_path / "again.h5"
+    assert main(["rerun", str(pad), "-o", str(again), "--no-progress"]) == 0
+    with h5py.File(pad) as f, h5py.File(again) as g:
+        np.testing.assert_allclose(g["global/mu"][()], f["global/mu"][()], rtol=1e-12, atol=0)
