@@ -139,6 +139,17 @@ def test_sweep_spec_takes_the_spacing_for_growing_pads_only(tmp_path):
         load_spec({**doc, "run": {"growth_dt": 0}}, base_dir=tmp_path)
 
 
+def test_onchip_adaptive_lands_on_the_spacing_as_the_general_engine():
+    """The adaptive integrator on chip (CPU) with events every 1 µs: the general engine's samples and areas, bit for
+    bit, and not those at the scene's own spacing."""
+    mu_g, area_g = grow(1e-6, integrator="adaptive", dt=1e-9)
+    mu_o, area_o = grow(1e-6, integrator="adaptive", engine="onchip", dt=1e-9)
+    np.testing.assert_array_equal(mu_o, mu_g)
+    np.testing.assert_array_equal(area_o, area_g)
+    _, area_scene = grow(None, integrator="adaptive", engine="onchip", dt=1e-9)
+    assert not np.allclose(area_scene, area_o, rtol=1e-9, atol=0)
+
+
 @pytest.mark.parametrize(
     ("integrator", "engine"), [("strang", "general"), ("strang", "onchip"), ("adaptive", "general")]
 )
