@@ -570,9 +570,10 @@ def landing(
 
 @wp.kernel
 def k1_done(dp5: Any):
-    """Per pad of the pair: its first stage is evaluated."""
+    """Per pad that took this iteration's trial of the pair: its first stage is evaluated (a landed pad, waiting at
+    a pause of the run, keeps its flag: after a growth event there its k_0 is still due)."""
     p = wp.tid()
-    if dp5.mode[p, M_SPLIT] == 0:
+    if pair_active(p, dp5):
         dp5.mode[p, M_NEEDK1] = 0
 
 

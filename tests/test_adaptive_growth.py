@@ -139,6 +139,22 @@ def test_checkpoint_resume_bit_identical(precision, engine):
     assert (full.steps, full.rejected) == (rest.steps, rest.rejected)
 
 
+@pytest.mark.parametrize("engine", ["general", "onchip"])
+def test_a_pause_at_an_event_changes_nothing(engine):
+    """Checkpoints every 2 µs pause the run on samples that are also event times (every 0.5 µs): the run equals the
+    one without pauses, bit for bit (the first stage after the event is evaluated with the grown model even when the
+    pad waited at the pause, not kept from before it)."""
+    s = growing_scene(5.0e-7)
+    runs = []
+    for interval in (0.0, 2.0e-6):
+        model = build_model([s], device="cpu", precision="fp64")
+        opts = RunOptions(engine=engine, integrator="adaptive", tolerance=1e-8, checkpoint_interval=interval)
+        res = run_hf(model, initial_state(model), opts, on_checkpoint=lambda c: None)
+        assert res.complete and res.checkpoints == (4 if interval else 0)
+        runs.append(res.collect().globals)
+    np.testing.assert_array_equal(runs[1], runs[0])
+
+
 @pytest.mark.parametrize("precision", ["fp64", "fp32"])
 @pytest.mark.parametrize(("interval", "sample_dt"), [(1.5e-6, 1e-6), (1e-6, 3e-6), (1e-6, 1e-6)])
 def test_onchip_engine_grows_bit_identical_to_general(interval, sample_dt, precision):

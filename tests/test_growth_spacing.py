@@ -137,3 +137,84 @@ def test_sweep_spec_takes_the_spacing_for_growing_pads_only(tmp_path):
         load_spec({**doc, "sweep": {"base": "hf1"}}, base_dir=tmp_path)
     with pytest.raises(SweepError, match="run.growth_dt must be a positive number"):
         load_spec({**doc, "run": {"growth_dt": 0}}, base_dir=tmp_path)
+
+
+def test_onchip_adaptive_lands_on_the_spacing_as_the_general_engine():
+    """The adaptive integrator on chip (CPU) with events every 1 µs: the general engine's samples and areas, bit for
+    bit, and not those at the scene's own spacing."""
+    mu_g, area_g = grow(1e-6, integrator="adaptive", dt=1e-9)
+    mu_o, area_o = grow(1e-6, integrator="adaptive", engine="onchip", dt=1e-9)
+    np.testing.assert_array_equal(mu_o, mu_g)
+    np.testing.assert_array_equal(area_o, area_g)
+    _, area_scene = grow(None, integrator="adaptive", engine="onchip", dt=1e-9)
+    assert not np.allclose(area_scene, area_o, rtol=1e-9, atol=0)
+
+
+@pytest.mark.parametrize(
+    ("integrator", "engine"), [("strang", "general"), ("strang", "onchip"), ("adaptive", "general")]
+)
+def test_resume_keeps_the_spacing(integrator, engine, tmp_path, monkeypatch):
+    """``aca-warp hf --growth-dt 1.5e-6`` stopped by Ctrl-C after its second checkpoint (4 µs: between the events at
+    3 and 4.5 µs, each 150 steps of 1e-8 s across 15 samples) and resumed with ``--resume`` (the spacing read from
+    the file) ends equal to the uninterrupted run, bit for bit, and not to the run at the scene's own spacing."""
+    from procs import small_scene_toml
+
+    from aca_warp.cli import main
+    from aca_warp.hf import runner
+
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        small_scene_toml("g", count=40, duration=1e-5, perturbation=1e-3)
+        + f"\n[growth]\nincrement = 1.0e-6\ninterval = {INTERVAL!r}\n"
+    )
+    opts = ["--integrator", integrator, "--engine", engine, "--dt", "1e-8", "--no-progress"]
+    ref, scene_clock, out = tmp_path / "ref.h5", tmp_path / "scene.h5", tmp_path / "run.h5"
+    assert main(["hf", str(scene), "-o", str(ref), *opts, "--growth-dt", "1.5e-6", "--no-checkpoint"]) == 0
+    assert main(["hf", str(scene), "-o", str(scene_clock), *opts, "--no-checkpoint"]) == 0
+    real = runner.run_hf
+
+    def interrupted(*args, on_checkpoint=None, **kw):
+        seen = []
+
+        def ckpt(c):
+            on_checkpoint(c)
+            seen.append(c.sim_time)
+            if len(seen) == 2:
+                raise KeyboardInterrupt
+
+        return real(*args, on_checkpoint=ckpt, **kw)
+
+    monkeypatch.setattr(runner, "run_hf", interrupted)
+    argv = ["hf", str(scene), "-o", str(out), *opts, "--growth-dt", "1.5e-6", "--checkpoint-interval", "2e-6"]
+    assert main(argv) == 130
+    monkeypatch.setattr(runner, "run_hf", real)
+    with h5py.File(out) as f:
+        assert not f.attrs["complete"] and 4e-6 <= f["checkpoint"].attrs["sim_time"] < 4.5e-6
+    assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
+    with h5py.File(out) as f, h5py.File(ref) as g, h5py.File(scene_clock) as h:
+        assert f.attrs["complete"]
+        np.testing.assert_array_equal(f["global/mu"][()], g["global/mu"][()])
+        assert not np.array_equal(f["global/mu"][()], h["global/mu"][()])
+
+
+def test_a_pad_of_a_sweep_keeps_the_spacing(tmp_path):
+    """A pad taken out of a shard of a sweep with ``run.growth_dt`` (``aca-warp analyze SHARD --pad K``) stores the
+    spacing, so that ``aca-warp rerun`` of it repeats the pad's run: the same μ as in the shard."""
+    from aca_warp.analysis.pads import write_pad_run
+    from aca_warp.cli import main
+    from aca_warp.hf.rerun import read_settings
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(
+        '[sweep]\nbase = "hf1"\nshard_size = 2\n[run]\nduration = 4e-6\nsample_dt = 1e-6\ngrowth_dt = 1e-6\n'
+        f"[base.patches]\ncount = 12\n[base.growth]\nincrement = 1e-6\ninterval = {INTERVAL!r}\n"
+        '[parameters]\n"friction.M" = [0.7, 0.8]\n'
+    )
+    assert main(["sweep", str(spec), "-o", str(tmp_path / "sw"), "--workers", "0", "--quiet"]) == 0
+    shard = tmp_path / "sw" / "shard-00000.h5"
+    pad = write_pad_run(shard, 1, tmp_path / "pad1.h5")
+    assert read_settings(pad).options.growth_dt == 1e-6
+    again = tmp_path / "again.h5"
+    assert main(["rerun", str(pad), "-o", str(again), "--no-progress"]) == 0
+    with h5py.File(pad) as f, h5py.File(again) as g:
+        np.testing.assert_allclose(g["global/mu"][()], f["global/mu"][()], rtol=1e-12, atol=0)

@@ -84,6 +84,7 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
         dt=run["dt"],
         tolerance=run["tolerance"],
         fast_math=bool(run.get("fast_math", False)),  # absent in the shards of an exact sweep
+        growth_dt=run.get("growth_dt"),  # absent in the shards of a sweep at the scenes' growth interval
     )
     complete = bool(finished) and end == time.size
     tmp = new_path(dest)
