@@ -218,3 +218,33 @@ def test_a_pad_of_a_sweep_keeps_the_spacing(tmp_path):
     assert main(["rerun", str(pad), "-o", str(again), "--no-progress"]) == 0
     with h5py.File(pad) as f, h5py.File(again) as g:
         np.testing.assert_allclose(g["global/mu"][()], f["global/mu"][()], rtol=1e-12, atol=0)
+
+
+def test_a_spacing_beyond_the_run_warns_that_nothing_grows(capsys):
+    from aca_warp.hf.sanity import _WARNED
+
+    _WARNED.clear()
+    scene = nine_patch_scene(increment=1e-6, interval=INTERVAL, sample_dt=1e-6, duration=4e-6)
+    model = build_model([scene], device="cpu", precision="fp64")
+    area = model.host("area").copy()
+    res = run_hf(model, initial_state(model), RunOptions(growth_dt=1e-5, checkpoint_interval=0))
+    assert res.complete
+    assert "no growth event in the run" in capsys.readouterr().err
+    np.testing.assert_array_equal(model.host("area"), area)
+
+
+def test_sweep_command_takes_the_spacing(tmp_path, capsys):
+    from aca_warp.cli import main
+
+    spec = tmp_path / "va.toml"
+    spec.write_text('[sweep]\nbase = "varying_area"\nshard_size = 2\n[run]\nduration = 2e-6\nsample_dt = 1e-6\n'
+                    '[parameters]\n"initial.perturbation" = [0.0, 0.01]\n')  # fmt: skip
+    out = tmp_path / "sweep"
+    assert main(["sweep", str(spec), "-o", str(out), "--workers", "0", "--growth-dt", "1e-6", "--quiet"]) == 0
+    import json
+
+    import h5py
+
+    shard = next(out.glob("*.h5"))
+    with h5py.File(shard) as f:
+        assert json.loads(f.attrs["run"])["growth_dt"] == 1e-6

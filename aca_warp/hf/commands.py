@@ -292,7 +292,8 @@ def _summarise_hf(args: argparse.Namespace, scene: Any, result: Any, duration: f
     rate = n * result.steps / max(result.wall_time, 1e-12)
     line = (
         f"{args.output}: {len(mu)} samples over {result.sim_time:.4g} s, {result.steps} steps "
-        f"({result.dt:.3g} s, {args.integrator}, {args.precision}{', fast math' if args.fast_math else ''}), "
+        f"({result.dt:.3g} s, {args.integrator}, {args.precision}{', fast math' if args.fast_math else ''}"
+        f"{'' if args.growth_dt is None else f', growth events every {args.growth_dt:g} s'}), "
         f"mean mu {np.mean(mu):.4f}, "
         f"{rate:.3g} patch-steps/s"
     )

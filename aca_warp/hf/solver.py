@@ -208,7 +208,7 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
     :class:`StabilityError` (exit 2), or with ``options.force`` a warning that says what the forced step risks
     (:func:`step_problem`: the explicit and spring bounds). Steps per sample interval and
     per growth event (adaptive: growth events of the run) are checked against int32 (the kernels count them so);
-    ``options.growth_dt`` is refused for a model that does not grow.
+    ``options.growth_dt`` is refused for a model that does not grow, and warned of when no event falls in the run.
     ``options``: :class:`~aca_warp.hf.options.RunOptions`.
     """
     from aca_warp.hf.limits import check_int32
@@ -223,6 +223,11 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
             "(it has no [growth] table)"
         )
     spacing = event_spacing(model, options.growth_dt) if grows else None
+    if spacing is not None and options.duration is not None and spacing > options.duration:
+        warn(
+            f"growth events every {spacing:.3g} s and a run of {options.duration:.3g} s: no growth event in the run "
+            f"(choose a smaller {option('growth_dt', '--growth-dt')})"
+        )
     if options.integrator in STEP_CONTROLLED:  # their steps are not counted; their growth events are (the index)
         if spacing is not None and options.duration is not None:
             events = options.duration / spacing

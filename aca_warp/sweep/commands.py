@@ -77,6 +77,13 @@ def add_parsers(sub: Any) -> None:
         "only; aca-warp hf --fast-math, docs/onchip.md 'Fast math')",
     )
     p.add_argument(
+        "--growth-dt",
+        type=positive,
+        metavar="S",
+        help="simulated time between growth events of growing pads [s] (the spec's run.growth_dt; default: the "
+        "scenes' growth interval; aca-warp hf --growth-dt, docs/model.md 2.10)",
+    )
+    p.add_argument(
         "--memory-fraction",
         type=fraction,
         default=0.5,
@@ -135,6 +142,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         precision=args.precision,
         dt=args.dt,
         fast_math=args.fast_math,
+        growth_dt=args.growth_dt,
     )
     if spec.fast_math and args.scheduler is None and "cpu" in args.device.split(","):
         raise SweepError("fast math applies to CUDA devices only: run the sweep with --device cuda")
@@ -143,7 +151,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         log(
             f"sweep {spec.name!r}: {spec.pad_count} pads ({', '.join(spec.parameters) or 'base only'}), "
             f"{spec.shard_count} shard(s) of {spec.shard_size}, {spec.duration:g} s each, "
-            f"{spec.integrator} {spec.precision}{', fast math' if spec.fast_math else ''}, spec hash {spec.hash[:12]}"
+            f"{spec.integrator} {spec.precision}{', fast math' if spec.fast_math else ''}"
+            f"{'' if spec.growth_dt is None else f', growth events every {spec.growth_dt:g} s'}"
+            f", spec hash {spec.hash[:12]}"
         )
     try:
         with interrupts.second_signal_exits():  # the signals are the command line's (aca_warp.cli.main)

@@ -262,7 +262,7 @@ class SweepSpec:
 
 def load_spec(source: str | Path | dict, *, base_dir: Path | None = None, **overrides: Any) -> SweepSpec:
     """Read and validate a sweep spec (TOML path or dict); ``overrides`` (shard_size, duration, integrator,
-    precision, dt, tolerance, fast_math; None = keep) replace the spec's values and so enter its hash."""
+    precision, dt, tolerance, fast_math, growth_dt; None = keep) replace the spec's values and so enter its hash."""
     if isinstance(source, dict):
         doc = copy.deepcopy(source)
         base_dir = base_dir or Path.cwd()
