@@ -55,6 +55,8 @@ VALIDATION = ["--quick", "--device", "cpu", "--only", "hf1", "--out", "{tmp}/out
         ("varying_area", [*VA, "--chunk", "0"], "--chunk: must be positive"),
         ("varying_area", [*VA, "--resume", "{tmp}/absent.npz"], "--resume: no file"),
         ("varying_area", [*VA, "--report-only", "{tmp}/absent.h5"], "--report-only: no file"),
+        ("varying_area", [*VA, "--growth-dt", "0"], "--growth-dt: must be positive"),
+        ("varying_area", [*VA, "--growth-dt", "3e-6", "--dt", "1e-8"], "does not divide --chunk"),
         ("work_precision", [*WP, "--patches", "0"], "--patches: must be >= 1"),
         ("work_precision", [*WP, "--window", "0"], "--window: must be positive"),
         ("work_precision", [*WP, "--device", ABSENT], "not available here"),

@@ -150,17 +150,27 @@ class Segment:
         return json.loads(str(d["meta"]))
 
     def advance(
-        self, until: float, *, chunk: float, integrator: str, dt: float, max_wall: float, engine: str = "general"
+        self,
+        until: float,
+        *,
+        chunk: float,
+        integrator: str,
+        dt: float,
+        max_wall: float,
+        engine: str = "general",
+        growth_dt: float | None = None,
     ) -> None:
         """Run in chunks of ``chunk`` simulated seconds to ``until`` or until ``max_wall`` wall seconds pass
-        (``engine``: general, onchip or auto, as :class:`aca_warp.hf.options.RunOptions`)."""
+        (``engine``: general, onchip or auto; ``growth_dt``: the growth events' spacing [s], None for the scene's
+        interval; as :class:`aca_warp.hf.options.RunOptions`). Each chunk counts its growth events from its start."""
         rec = Record(sample_dt=self.scene.record.sample_dt)
         t_start = time.perf_counter()
         while self.sim_time < until - 0.5 * rec.sample_dt:
             d = min(chunk, until - self.sim_time)
             res = run_engine(
-                self.model, self.state, engine=engine, duration=d, integrator=integrator, dt=dt, record=rec
-            )
+                self.model, self.state, engine=engine, duration=d, integrator=integrator, dt=dt, record=rec,
+                growth_dt=growth_dt,
+            )  # fmt: skip
             c = res.collect()
             if not res.complete:
                 raise RuntimeError(f"run stopped at {self.sim_time + res.sim_time:.6g} s: {res.fault}")
@@ -186,8 +196,8 @@ class Segment:
 def _resume(seg: Segment, path: Path, meta: dict[str, Any]) -> None:
     """Load ``seg`` from the state file ``path``, which must have been made with the settings of ``meta``."""
     old = seg.load(path)
-    for k in ("speedup", "duration", "integrator", "dt", "precision", "chunk"):
-        if old[k] != meta[k]:
+    for k in ("speedup", "duration", "integrator", "dt", "precision", "chunk", "growth_dt"):
+        if old.get(k) != meta[k]:  # states made before growth_dt was recorded ran at the scene's interval (None)
             raise SystemExit(f"--resume: the state was made with {k} = {old[k]}, this call has {meta[k]}")
     meta["calls"] = old["calls"]
 
@@ -208,6 +218,7 @@ def simulate(args: argparse.Namespace) -> Path | None:
         "dt": args.dt,
         "precision": args.precision,
         "chunk": args.chunk,
+        "growth_dt": args.growth_dt,
         "calls": [],
     }
     if args.resume:
@@ -222,8 +233,9 @@ def simulate(args: argparse.Namespace) -> Path | None:
     until = min(scene.duration, args.until or scene.duration)
     w0 = seg.wall
     seg.advance(
-        until, chunk=args.chunk, integrator=args.integrator, dt=args.dt, max_wall=args.max_wall, engine=args.engine
-    )
+        until, chunk=args.chunk, integrator=args.integrator, dt=args.dt, max_wall=args.max_wall, engine=args.engine,
+        growth_dt=args.growth_dt,
+    )  # fmt: skip
     call = {"machine": machine(wp.get_device(args.device)), "warp": wp.__version__, "sim_time": seg.sim_time}
     meta["calls"].append({**call, "wall_s": seg.wall - w0, "engine": args.engine})
     out = Path(args.out)
@@ -478,6 +490,13 @@ def build_parser() -> argparse.ArgumentParser:
         choices=["general", "onchip", "auto"],
         help="HF engine (default general; onchip: growth inside the on-chip kernel, strang only; docs/onchip.md)",
     )
+    ap.add_argument(
+        "--growth-dt",
+        type=positive,
+        metavar="S",
+        help="simulated time between growth events [s] (default: the scene's growth interval, the paper's clock; "
+        "aca-warp hf --growth-dt, docs/model.md 2.10); a whole number of them must fit --chunk",
+    )
     ap.add_argument("--chunk", type=positive, default=1e-3, help="simulated time per run_hf call / load snapshot [s]")
     ap.add_argument("--until", type=positive, help="stop this call at this simulated time [s]")
     ap.add_argument("--max-wall", type=nonneg, default=math.inf, help="stop this call after this wall time [s]")
@@ -498,6 +517,13 @@ def _check(args: argparse.Namespace) -> None:
     for option, path in (("--report-only", args.report_only), ("--resume", args.resume)):
         if path and not Path(path).is_file():
             raise SceneError(f"{option}: no file {path}")
+    if args.growth_dt is not None:  # each chunk counts its events from its start: a remainder loses growth per chunk
+        spacing = max(1, round(args.growth_dt / args.dt)) * args.dt  # the events' spacing in whole steps
+        if abs(args.chunk / spacing - round(args.chunk / spacing)) > 1e-9:
+            raise SceneError(
+                f"--growth-dt {args.growth_dt:g} s (events every {spacing:g} s at --dt {args.dt:g} s) does not divide "
+                f"--chunk {args.chunk:g} s: choose a spacing that does"
+            )
     if args.report or args.report_only:
         check_output_path(args.page, overwrite=True)
         check_output_folder(args.figures)
