@@ -226,3 +226,29 @@ def one_shard_sweep(folder: Path, m_values: list[float], *, duration: float, sam
     )
     assert main(["sweep", str(spec), "-o", str(folder / "sw"), "--workers", "0", "--quiet"]) == 0
     return folder / "sw" / "shard-00000.h5"
+
+
+@contextmanager
+def interrupted_at_second_checkpoint(monkeypatch: Any) -> Iterator[None]:
+    """Within the block, ``aca-warp hf`` runs stop with a KeyboardInterrupt right after their second checkpoint was
+    written (as Ctrl-C there would); the real ``run_hf`` is back after it."""
+    from aca_warp.hf import runner
+
+    real = runner.run_hf
+
+    def interrupted(*args: Any, on_checkpoint: Any = None, **kw: Any) -> Any:
+        seen = []
+
+        def ckpt(c: Any) -> None:
+            on_checkpoint(c)
+            seen.append(c.sim_time)
+            if len(seen) == 2:
+                raise KeyboardInterrupt
+
+        return real(*args, on_checkpoint=ckpt, **kw)
+
+    monkeypatch.setattr(runner, "run_hf", interrupted)
+    try:
+        yield
+    finally:
+        monkeypatch.setattr(runner, "run_hf", real)

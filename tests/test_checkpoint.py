@@ -7,7 +7,7 @@ from pathlib import Path
 
 import h5py
 import pytest
-from procs import assert_refused, assert_same_run_file, small_scene_toml
+from procs import assert_refused, assert_same_run_file, interrupted_at_second_checkpoint, small_scene_toml
 from sigkill import AUTO_AT_ONCE, kill_after_first_checkpoint
 
 from aca_warp.cli import main
@@ -90,23 +90,9 @@ def test_interrupted_run_resumes_bit_identical(integrator, extra, dt, engine, tm
     ref = tmp_path / "ref.h5"
     assert main(["hf", str(scene), "-o", str(ref), *opts]) == 0
 
-    real = runner.run_hf
-
-    def interrupted(*args, on_checkpoint=None, **kw):
-        seen = []
-
-        def ckpt(c):
-            on_checkpoint(c)
-            seen.append(c.sim_time)
-            if len(seen) == 2:
-                raise KeyboardInterrupt
-
-        return real(*args, on_checkpoint=ckpt, **kw)
-
-    monkeypatch.setattr(runner, "run_hf", interrupted)
     out = tmp_path / "run.h5"
-    assert main(["hf", str(scene), "-o", str(out), *opts, "--checkpoint-interval", "2e-6"]) == 130
-    monkeypatch.setattr(runner, "run_hf", real)
+    with interrupted_at_second_checkpoint(monkeypatch):
+        assert main(["hf", str(scene), "-o", str(out), *opts, "--checkpoint-interval", "2e-6"]) == 130
     with h5py.File(out, "r") as f:
         assert not f.attrs["complete"] and "interrupted" in f.attrs["status"]
         assert has_checkpoint(f) and 4e-6 <= f["checkpoint"].attrs["sim_time"] < 1e-5

@@ -7,7 +7,7 @@ from __future__ import annotations
 import h5py
 import numpy as np
 import pytest
-from procs import nine_patch_scene
+from procs import interrupted_at_second_checkpoint, nine_patch_scene
 
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.loop import run_hf
@@ -160,7 +160,6 @@ def test_resume_keeps_the_spacing(integrator, engine, tmp_path, monkeypatch):
     from procs import small_scene_toml
 
     from aca_warp.cli import main
-    from aca_warp.hf import runner
 
     scene = tmp_path / "s.toml"
     scene.write_text(
@@ -171,23 +170,9 @@ def test_resume_keeps_the_spacing(integrator, engine, tmp_path, monkeypatch):
     ref, scene_clock, out = tmp_path / "ref.h5", tmp_path / "scene.h5", tmp_path / "run.h5"
     assert main(["hf", str(scene), "-o", str(ref), *opts, "--growth-dt", "1.5e-6", "--no-checkpoint"]) == 0
     assert main(["hf", str(scene), "-o", str(scene_clock), *opts, "--no-checkpoint"]) == 0
-    real = runner.run_hf
-
-    def interrupted(*args, on_checkpoint=None, **kw):
-        seen = []
-
-        def ckpt(c):
-            on_checkpoint(c)
-            seen.append(c.sim_time)
-            if len(seen) == 2:
-                raise KeyboardInterrupt
-
-        return real(*args, on_checkpoint=ckpt, **kw)
-
-    monkeypatch.setattr(runner, "run_hf", interrupted)
     argv = ["hf", str(scene), "-o", str(out), *opts, "--growth-dt", "1.5e-6", "--checkpoint-interval", "2e-6"]
-    assert main(argv) == 130
-    monkeypatch.setattr(runner, "run_hf", real)
+    with interrupted_at_second_checkpoint(monkeypatch):
+        assert main(argv) == 130
     with h5py.File(out) as f:
         assert not f.attrs["complete"] and 4e-6 <= f["checkpoint"].attrs["sim_time"] < 4.5e-6
     assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
