@@ -60,6 +60,20 @@ def test_growth_dt_reaches_the_runs_and_keeps_the_growth():
     assert coarse.snaps[-1]["area_total"] == pytest.approx(paper.snaps[-1]["area_total"], rel=0.02)
 
 
+def test_resume_refuses_another_growth_spacing(tmp_path):
+    """A state saved without a spacing (as before the option was recorded) resumed with --growth-dt is refused,
+    naming both values."""
+    s = growing_scene()
+    seg = va.Segment(s, "cpu", "fp64")
+    seg.advance(2e-6, chunk=2e-6, integrator="strang", dt=1e-8, max_wall=np.inf)
+    meta = {"speedup": 1.0, "duration": s.duration, "integrator": "strang", "dt": 1e-8, "precision": "fp64",
+            "chunk": 2e-6, "calls": []}  # fmt: skip
+    seg.save(tmp_path / "state.npz", meta)
+    with pytest.raises(SystemExit, match="made with growth_dt = None, this call has 1e-06"):
+        va._resume(va.Segment(s, "cpu", "fp64"), tmp_path / "state.npz", {**meta, "growth_dt": 1e-6})
+    va._resume(va.Segment(s, "cpu", "fp64"), tmp_path / "state.npz", {**meta, "growth_dt": None})
+
+
 def test_onchip_engine_equals_general():
     """``--engine onchip`` (growth inside the on-chip kernel) gives the general engine's record bit for bit on the
     CPU, over several run calls (the growth counter restarts with each call in both)."""

@@ -198,7 +198,7 @@ def _resume(seg: Segment, path: Path, meta: dict[str, Any]) -> None:
     old = seg.load(path)
     for k in ("speedup", "duration", "integrator", "dt", "precision", "chunk", "growth_dt"):
         if old.get(k) != meta[k]:  # states made before growth_dt was recorded ran at the scene's interval (None)
-            raise SystemExit(f"--resume: the state was made with {k} = {old[k]}, this call has {meta[k]}")
+            raise SystemExit(f"--resume: the state was made with {k} = {old.get(k)}, this call has {meta[k]}")
     meta["calls"] = old["calls"]
 
 
