@@ -22,6 +22,7 @@ from aca_warp.hf.options import (
     INTEGRATORS,
     STATISTICS_STEP,
     STEP_CONTROLLED,
+    growth_words,
 )
 
 
@@ -293,7 +294,7 @@ def _summarise_hf(args: argparse.Namespace, scene: Any, result: Any, duration: f
     line = (
         f"{args.output}: {len(mu)} samples over {result.sim_time:.4g} s, {result.steps} steps "
         f"({result.dt:.3g} s, {args.integrator}, {args.precision}{', fast math' if args.fast_math else ''}"
-        f"{'' if args.growth_dt is None else f', growth events every {args.growth_dt:g} s'}), "
+        f"{growth_words(args.growth_dt)}), "
         f"mean mu {np.mean(mu):.4f}, "
         f"{rate:.3g} patch-steps/s"
     )

@@ -64,6 +64,12 @@ def fast_math_unfit(integrator: str, precision: str) -> str | None:
     return None
 
 
+def growth_words(growth_dt: float | None) -> str:
+    """The growth events' spacing for a summary line: ``, growth events every S s``, or nothing at the scenes' own
+    interval (None)."""
+    return "" if growth_dt is None else f", growth events every {growth_dt:g} s"
+
+
 def tolerance_keyword(integrator: str) -> str:
     """The option a study's single tolerance ``tol=`` sets for ``integrator``: ``tolerance`` for ``adaptive``,
     ``split_tolerance`` for ``controlled`` and ``auto`` (whose pair keeps its default)."""

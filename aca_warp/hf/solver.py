@@ -65,6 +65,11 @@ def event_spacing(model: PadModel, growth_dt: float | None) -> float:
     return growth_interval(model) if growth_dt is None else growth_dt
 
 
+def steps_per_event(spacing: float, h: float) -> int:
+    """Steps of ``h`` [s] between growth events ``spacing`` [s] apart: the nearest whole number, at least one."""
+    return max(1, round(spacing / h))
+
+
 def growth_events(model: PadModel, h: float, growth_dt: float | None = None) -> tuple[int, wp.array]:
     """(steps per growth event, growth increment per event per pad [m], shape (pads,)) for step ``h`` [s].
 
@@ -73,7 +78,7 @@ def growth_events(model: PadModel, h: float, growth_dt: float | None = None) -> 
     (h = spacing = interval, the adaptive integrator's events at the event times: every step, unscaled).
     """
     interval = growth_interval(model)
-    every = max(1, round(event_spacing(model, growth_dt) / h))
+    every = steps_per_event(event_spacing(model, growth_dt), h)
     scale = every * h / interval
     return every, wp.array(model.host("pad_growth") * scale, dtype=model.dtype, device=model.device)
 
@@ -241,7 +246,7 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
         f"choose a larger {option('dt', '--dt')} or a smaller sample interval",
     )
     if spacing is not None:
-        check_int32("steps per growth event", round(spacing / h), f"choose a larger {option('dt', '--dt')}")
+        check_int32("steps per growth event", steps_per_event(spacing, h), f"choose a larger {option('dt', '--dt')}")
     if not options.force:
         step_refusal(est, options.integrator, h)
     else:

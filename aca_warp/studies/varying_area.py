@@ -43,7 +43,7 @@ from aca_warp.common.errors import AcaError, SceneError
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import INTEGRATORS
 from aca_warp.hf.recorder import GLOBAL_NAMES
-from aca_warp.hf.solver import GROWTH_MUTABLE, stable_step
+from aca_warp.hf.solver import GROWTH_MUTABLE, stable_step, steps_per_event
 from aca_warp.hf.state import HFState
 from aca_warp.scene import Growth, Record, Scene, preset
 from aca_warp.studies.hf_study.base import isolated_frequency
@@ -518,7 +518,7 @@ def _check(args: argparse.Namespace) -> None:
         if path and not Path(path).is_file():
             raise SceneError(f"{option}: no file {path}")
     if args.growth_dt is not None:  # each chunk counts its events from its start: a remainder loses growth per chunk
-        spacing = max(1, round(args.growth_dt / args.dt)) * args.dt  # the events' spacing in whole steps
+        spacing = steps_per_event(args.growth_dt, args.dt) * args.dt  # the events' spacing in whole steps
         if abs(args.chunk / spacing - round(args.chunk / spacing)) > 1e-9:
             raise SceneError(
                 f"--growth-dt {args.growth_dt:g} s (events every {spacing:g} s at --dt {args.dt:g} s) does not divide "

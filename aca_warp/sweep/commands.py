@@ -131,6 +131,7 @@ def _interrupted_line(out: str, e: KeyboardInterrupt) -> str:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
+    from aca_warp.hf.options import growth_words
     from aca_warp.sweep.run import run_sweep
     from aca_warp.sweep.spec import SweepError, load_spec
 
@@ -152,7 +153,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             f"sweep {spec.name!r}: {spec.pad_count} pads ({', '.join(spec.parameters) or 'base only'}), "
             f"{spec.shard_count} shard(s) of {spec.shard_size}, {spec.duration:g} s each, "
             f"{spec.integrator} {spec.precision}{', fast math' if spec.fast_math else ''}"
-            f"{'' if spec.growth_dt is None else f', growth events every {spec.growth_dt:g} s'}"
+            f"{growth_words(spec.growth_dt)}"
             f", spec hash {spec.hash[:12]}"
         )
     try:
