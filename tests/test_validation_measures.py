@@ -257,7 +257,8 @@ def test_stepping_is_each_regimes_pick_of_the_statistical_work_precision_or_an_o
     # each entry is the rule's pick from the committed result files of docs/work_precision_statistics.md
     wps = Path(__file__).resolve().parent.parent / "docs" / "figures" / "work_precision_statistics"
     files = {"hf1": "wps_cuda0_hf1.json", "hf2": "wps_cuda0_hf2.json", "hf3": "wps_cuda0_hf3.json",
-             "hf4": "wps_cuda0_hf4.json", "va": "wps_cuda0_va.json", "ms_fast": "wps_cuda0_ms_fast.json",
+             "hf4": "wps_cuda0_hf4.json", "va": "growth_events/wps_cuda0_va.json",
+             "va_full": "growth_events/wps_cuda0_va_full.json", "ms_fast": "wps_cuda0_ms_fast.json",
              "ms_short": "wps_cuda0_ms_short.json", "ms_mid": "wps_cuda1_ms_mid.json",
              "ms_app3": "wps_cuda0123_ms_app3.json"}  # fmt: skip
     picks = {}
@@ -265,15 +266,18 @@ def test_stepping_is_each_regimes_pick_of_the_statistical_work_precision_or_an_o
         label = rule.settings_for(rule.load_results(wps / name), regime).setting
         integrator, rest = label.split("@")
         precision, dt = rest.split(":dt=")
-        picks[regime] = (integrator, precision, float(dt))
-    assert picks["hf1"] == picks["hf2"] == picks["hf3"] == ("strang", "fp32", 1e-7)  # hf1, hf2 over 96 seeds
-    assert picks["hf4"] == ("strang", "fp32", 5e-7)
+        dt, _, spacing = dt.partition(":growth_dt=")
+        picks[regime] = (integrator, precision, float(dt), float(spacing) if spacing else None)
+    assert picks["hf1"] == picks["hf2"] == picks["hf3"] == ("strang", "fp32", 1e-7, None)  # hf1, hf2 over 96 seeds
+    assert picks["hf4"] == ("strang", "fp32", 5e-7, None)
     hf = cfg.stepping("hf")  # the presets' batches: the finest of their picks
-    assert (hf.integrator, hf.precision, hf.dt) == min((picks[r] for r in PRESETS), key=lambda p: p[2])
+    assert (hf.integrator, hf.precision, hf.dt, hf.growth_dt) == min((picks[r] for r in PRESETS), key=lambda p: p[2])
+    # the growth experiments: both growing regimes (the compressed va and the paper-clock record) pick one setting
+    assert picks["va"] == picks["va_full"] == ("strang", "fp32", 1e-7, 5e-6)
     for key, regime in (("growth", "va"), ("ms_fast", "ms_fast"), ("ms_short", "ms_short"), ("ms_mid", "ms_mid"),
                         ("ms_app3", "ms_app3")):  # fmt: skip
         st = cfg.stepping(key)
-        assert (st.integrator, st.precision, st.dt) == picks[regime], key
+        assert (st.integrator, st.precision, st.dt, st.growth_dt) == picks[regime], key
     hf3 = [n for n in EXPERIMENTS if n.startswith("hf3")]
     assert sorted(hf3) == ["hf3", "hf3_equal", "hf3_equal_lin", "hf3_lin", "hf3_rest"]
     assert {(EXPERIMENTS[n].stepping, EXPERIMENTS[n].batch) for n in hf3} == {

@@ -45,6 +45,9 @@ class Config:
         patches: Patches per pad; None: the preset's count (1758). Fewer sit on a sector of the pad.
         dt: Time step [s] for every experiment instead of :data:`~aca_warp.studies.validation.settings.STEPPING`'s.
         precision: "fp32" or "fp64" for every experiment instead of the stepping table's.
+        growth_dt: Spacing of the growth events [s] of the growing experiments instead of the stepping table's;
+            "scene": the scenes' own interval (the paper's clock). Not part of the run key itself: the stepping
+            there says what each kind ran with.
         sample_dt: Sampling interval of the global outputs [s].
         decimation: Per-patch velocities every ``decimation`` global samples (Nyquist 1/(2·dt_p)).
         window: Measurement window at the end of a run [s] (per-patch record; spectra resolve 1/window).
@@ -72,6 +75,7 @@ class Config:
     patches: int | None = None
     dt: float | None = None
     precision: str | None = None
+    growth_dt: float | str | None = None
     sample_dt: float = 1.0e-6
     decimation: int = 3
     window: float = 20.0e-3
@@ -90,11 +94,11 @@ class Config:
     def run_key(self) -> dict[str, Any]:
         """The settings that decide a run's result (device, engine, LF folder and workers left out), with the
         stepping of each kind of experiment as it describes itself, so that results made under another stepping
-        table or friction scheme are not taken for this run's."""
+        or friction scheme are not taken for this run's (:func:`same_settings`)."""
         from aca_warp.studies.validation.settings import STEPPING
 
         d = dataclasses.asdict(self)
-        for k in ("device", "engine", "lf_dir", "workers"):
+        for k in ("device", "engine", "lf_dir", "workers", "growth_dt"):
             d.pop(k)
         d["stepping"] = {kind: self.stepping(kind).describe() for kind in STEPPING}
         return clean(d)
@@ -103,7 +107,18 @@ class Config:
         """The :class:`~aca_warp.studies.validation.settings.Stepping` of experiments of ``kind``."""
         from aca_warp.studies.validation.settings import stepping
 
-        return stepping(kind, self.quick, self.dt, self.precision)
+        return stepping(kind, self.quick, self.dt, self.precision, self.growth_dt)
+
+
+def same_settings(key: dict[str, Any], other: dict[str, Any], kind: str | None) -> bool:
+    """Whether two run keys (:meth:`Config.run_key`) agree on everything an experiment of stepping ``kind`` depends
+    on: every setting, and the stepping of that kind (the other kinds' may differ: a result of the hf kind made
+    before the growth stepping changed is still this run's); ``kind`` None: every setting but the stepping."""
+
+    def mine(k: dict[str, Any]) -> dict[str, Any]:
+        return {**k, "stepping": (k.get("stepping") or {}).get(kind) if kind else None}
+
+    return mine(key) == mine(other)
 
 
 FULL = Config()

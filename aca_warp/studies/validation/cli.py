@@ -22,7 +22,16 @@ from aca_warp.common.devices import get_device
 from aca_warp.common.errors import AcaError, SceneError
 from aca_warp.studies.report import Log, command_line, generated_markers, replace_generated, unsigned_zero
 from aca_warp.studies.validation import multiscale as validation_multiscale
-from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK, ROWS, Config, Experiment, close_pools
+from aca_warp.studies.validation.base import (
+    EXPERIMENTS,
+    FULL,
+    QUICK,
+    ROWS,
+    Config,
+    Experiment,
+    close_pools,
+    same_settings,
+)
 from aca_warp.studies.validation.cost import Costs, batch_friction_step, overheads
 from aca_warp.studies.validation.experiments import (
     Prepared,
@@ -65,6 +74,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--patches", type=int_at_least(2), help=f"patches per pad (preset's; quick {QUICK.patches})")
     p.add_argument("--dt", type=positive, default=None, help="time step [s] of every experiment (default: the "
                    "stepping table's, settings.STEPPING)")  # fmt: skip
+    p.add_argument("--growth-dt", type=growth_spacing, default=None, metavar="S|scene", help="spacing [s] of the "
+                   "growth events of the growing experiments (§3.2), each adding the growth of its spacing (default: "
+                   "the stepping table's, 5e-6 s; 'scene': the scenes' own interval, the paper's clock)")  # fmt: skip
     p.add_argument("--window", type=positive, help=f"window [s] ({FULL.window:g}; quick {QUICK.window:g})")
     p.add_argument("--perturbation", type=nonneg, help=f"initial velocity σ [m/s] ({FULL.perturbation:g})")
     p.add_argument("--settle-safety", type=positive, default=None, help=f"factor on the predicted settling time "
@@ -189,6 +201,11 @@ def default_workers() -> int:
     return max(1, min(15, (os.cpu_count() or 1) - 1))
 
 
+def growth_spacing(text: str) -> float | str:
+    """``--growth-dt``: "scene", or a positive number of seconds."""
+    return "scene" if text == "scene" else positive(text)
+
+
 def default_experiments(quick: bool) -> list[str]:
     """The experiments a run without --only runs: every registered one except the opt-in ones and, in the quick
     variant, those marked full-variant only."""
@@ -203,6 +220,7 @@ def config_from(args: argparse.Namespace, device: str) -> Config:
         "first_seed": args.first_seed,
         "patches": args.patches,
         "dt": args.dt,
+        "growth_dt": args.growth_dt,
         "window": args.window,
         "perturbation": args.perturbation,
         "settle_safety": args.settle_safety,
@@ -293,7 +311,8 @@ def earlier_results(
 ) -> Earlier:
     """The finished experiments of earlier ``results.json`` files made with the same settings (``--with``), less those
     named in ``without`` (``--without``: they run again); a file of
-    other settings is logged and left out, and so is a result made with another definition of its experiment (as a
+    other settings is logged and left out, and so is a result made with another stepping of its kind
+    (:func:`~aca_warp.studies.validation.base.same_settings`) or another definition of its experiment (as a
     saved checkpoint would be) or a §3.3 result that does not record the LF runs it was cut from (it could be
     joined with results of other LF runs unseen). ValueError for a file that is not a results file, an
     experiment finished in two of them (which to take would be a guess), or §3.3 results cut from different LF
@@ -301,14 +320,19 @@ def earlier_results(
     from aca_warp.studies.validation.results import read_results
 
     got = Earlier()
+    key = cfg.run_key()
     source: dict[str, Path] = {}
     runs: dict[str, dict[str, str]] = {}
     for path in paths or []:
         results, meta, _ = read_results(path)
-        if meta["config"] != cfg.run_key():
+        if not same_settings(meta["config"], key, None):
             log(f"{path}: other settings than this run's; not used")
             continue
         done = {n: r for n, r in results.items() if n in EXPERIMENTS and r.get("status") in ("done", "stopped")}
+        stepped = [n for n in done if not same_settings(meta["config"], key, EXPERIMENTS[n].stepping)]
+        if stepped:
+            log(f"{path}: {', '.join(sorted(stepped))} not used: made with another stepping of their kind")
+            done = {n: r for n, r in done.items() if n not in stepped}
         dropped = sorted(set(done) & set(without))
         if dropped:
             log(f"{path}: {', '.join(dropped)} not used: run again (--without)")

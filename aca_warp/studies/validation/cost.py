@@ -16,7 +16,9 @@ the H100's 227 KiB), a batch on clusters of 4 or more takes the smallest wider c
 the engine does (``widen_for_csr``; 7 clusters of 16 per wave); where none does, the gathers read global memory:
 b × :data:`OFF_CHIP` (5, from the fp64 LF-state batches of an earlier validation run on an H200: 8 pads of up to
 4329 patches with 31 links each, 25.3 µs per step). Growing pads
-take at least :data:`GROWTH_FLOOR_S`. On the CPU: 1e7 patch-steps/s (general engine, 2-core AMD EPYC).
+at the scenes' own growth clock (an event every few steps) take at least :data:`GROWTH_FLOOR_S`; with events a
+growth spacing apart (the stepping table's 5 µs: one per 50 steps of 1e-7 s) their share is left to the estimate's
+calibration by the run. On the CPU: 1e7 patch-steps/s (general engine, 2-core AMD EPYC).
 
 These are estimates, a factor 2 either way for dense LF states: a run measures each batch's step time on its first
 segment (a probe) before going on, and corrects the later estimates of its kind by what it measured
@@ -97,7 +99,8 @@ class Costs:
         n = max(s.patches.count for s in scenes)
         n_links = max(links(s) for s in {id(s.patches): s for s in scenes}.values())
         step = cfg.stepping(batch.stepping_kind)
-        raw = step_seconds(len(scenes), n, n_links, step.precision, batch.growth, cfg.device)
+        frequent = batch.growth and step.growth_dt is None  # events at the scenes' clock
+        raw = step_seconds(len(scenes), n, n_links, step.precision, frequent, cfg.device)
         return raw * self.factors.get(batch.stepping_kind, 1.0)
 
     def steps(self, batch: Any, cfg: Any) -> int:
@@ -146,6 +149,11 @@ def overheads(batches: list[Any], cfg: Any, lf_runs: int) -> dict[str, float]:
     }
 
 
+def events(growth_dt: float | None) -> str:
+    """The growth events' spacing of a stepping, for the cost table ("" at the scenes' own clock)."""
+    return "" if growth_dt is None else f", events every {growth_dt * 1e6:g} µs"
+
+
 def measured(results: dict[str, dict], parts: list[dict] | None = None) -> list[dict[str, Any]]:
     """The measured stepping of every batch of a results file, by share and then in the order of ``results``.
 
@@ -177,7 +185,7 @@ def measured(results: dict[str, dict], parts: list[dict] | None = None) -> list[
             "pads": len(res["pads"]),
             "patches": [p["patches"] for p in res["pads"]],
             "duration_s": res["plan"]["duration_s"],
-            "stepping": f"{st['precision']}, {st['dt']:g} s",
+            "stepping": f"{st['precision']}, {st['dt']:g} s" + events(st.get("growth_dt")),
             "steps": run["steps"],
             "wall_s": run["wall_s"],
             "us_per_step": run["us_per_step"],

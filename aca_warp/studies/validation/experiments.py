@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.studies.report import Log, clean
-from aca_warp.studies.validation.base import USABLE, Config, Experiment, pad_member
+from aca_warp.studies.validation.base import USABLE, Config, Experiment, pad_member, same_settings
 from aca_warp.studies.validation.plan import Plan, experiment_scene, plan_run, predicted_sigma
 
 # ------------------------------------------------------------------------------------------------ running
@@ -148,7 +148,7 @@ def run_segments(
         sink.segment(a)
         res = run_engine(
             model, state, engine=cfg.engine, duration=b - a, integrator=step.integrator, dt=dt, record=record,
-            sink=sink, force=step.force,
+            sink=sink, force=step.force, growth_dt=step.growth_dt,
         )  # fmt: skip
         results.append(res)
         if not res.complete or (probe is not None and len(results) == 1 and not probe(res)):
@@ -212,6 +212,8 @@ def run_batch(
         return left is None or per * steps <= left
 
     probe_s = cfg.sample_dt * max(1, round(min(5.0e-4, 0.05 * plan.duration) / cfg.sample_dt))  # whole samples
+    if batch.growth and len(plan.segments) != 1:  # each run counts its growth events from its start
+        raise ValueError(f"batch {batch.name}: a growing batch runs as one segment, planned {len(plan.segments)}")
     run_plan = plan if batch.growth else split_segments(plan, probe_s)
     sink = Collector()
     last, parts = run_segments(model, state, run_plan, cfg, step, dt, sink, probe if not batch.growth else None)
@@ -384,7 +386,7 @@ def fits(res: dict[str, Any], exp: Experiment, cfg: Config) -> bool:
     §3.3 experiment, from the same LF run files as those in ``cfg.lf_dir``)."""
     from aca_warp.studies.validation.multiscale import lf_runs
 
-    same = same_definition(res, exp) and res.get("config") == cfg.run_key()
+    same = same_definition(res, exp) and same_settings(res.get("config") or {}, cfg.run_key(), exp.stepping)
     return same and res.get("lf_runs", {}) == lf_runs(exp, cfg)
 
 

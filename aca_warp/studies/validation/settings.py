@@ -5,7 +5,8 @@ the entry's integrator, fixed step and precision. Each entry is the setting that
 (docs/work_precision_statistics.md: every validation measure within a quarter of the spread between seeds from a
 tight reference) picks for the regime the experiments belong to; a group of LF states and its variants (from rest,
 the linear phase) take the group's. The run then shortens the step to a whole number of steps per sample interval
-(``fitted_step``). ``--dt`` and ``--precision`` replace the table's values for every experiment.
+(``fitted_step``). ``--dt`` and ``--precision`` replace the table's values for every experiment, ``--growth-dt`` the
+growth events' spacing of the growing ones.
 
 The friction step of each batch (:func:`~aca_warp.hf.solver.friction_step`, the step at which h γ_max = 4) is still
 logged and stored with its results: it bounds no step of ``strang`` (only the springs do), but it says how stiff
@@ -26,6 +27,8 @@ class Stepping:
         dt: Fixed step [s].
         integrator: HF integrator (``strang``: the one the on-chip engine runs).
         precision: "fp32" or "fp64".
+        growth_dt: Simulated time between the growth events of growing pads [s] (``RunOptions.growth_dt``: the
+            growth per simulated time stays the scene's); None: the scenes' own interval (the paper's clock).
         force: Run a step beyond the bounds (with a warning): the quick variant's coarse smoke-check step only.
         reason: Why these settings (the measurements behind them).
     """
@@ -33,12 +36,14 @@ class Stepping:
     dt: float
     integrator: str = "strang"
     precision: str = "fp32"
+    growth_dt: float | None = None
     force: bool = False
     reason: str = ""
 
     def describe(self) -> str:
-        """One line: integrator, step, precision."""
-        return f"{self.integrator}, dt = {self.dt:g} s{' (forced)' if self.force else ''}, {self.precision}"
+        """One line: integrator, step, precision and, where set, the growth events' spacing."""
+        events = "" if self.growth_dt is None else f", growth events every {self.growth_dt:g} s"
+        return f"{self.integrator}, dt = {self.dt:g} s{' (forced)' if self.force else ''}, {self.precision}{events}"
 
 
 _LF_REGIME = (
@@ -58,13 +63,14 @@ STEPPING: dict[str, Stepping] = {
         "per µs sample; fp32 also keeps the neighbour lists on chip",
     ),
     "growth": Stepping(
-        dt=5.0e-8,
-        reason="the varying-area growth (§3.2): the statistical work-precision on one H200 (32 va pads, growth "
-        "compressed × 10, 36 ms, against strang fp32 at 1e-8 s; docs/work_precision_statistics.md) keeps every "
-        "growth measure within a quarter of the spread between seeds at 5e-8 s (at 1e-7 s the STFT maximum's "
-        "frequency leaves the resolution, at 5e-7 s the first line's fall); the paper-clock record (0.36 s) grows "
-        "10× slower through the same saturated stick-slip, so it takes the same step: 20 steps per µs sample, "
-        "7.2e6 steps; fp32 as the on-chip record",
+        dt=1.0e-7,
+        growth_dt=5.0e-6,
+        reason="the varying-area growth (§3.2): the statistical work-precision on one H200 (against strang fp32 at "
+        '1e-8 s on the paper\'s clock; docs/work_precision_statistics.md, "Growth events") picks strang fp32 at '
+        "1e-7 s with growth events every 5 µs (the growth rate kept) both for va (96 pads, growth compressed × 10, "
+        "36 ms: every growth measure within a quarter of the spread between seeds, μ mean and μ rise at 0.24 σ the "
+        "closest) and for the paper-clock record itself (48 pads, 0.36 s: every measure within 0.18 σ); 10 steps "
+        "per µs sample, an event every 50 steps; fp32 as the on-chip record",
     ),
     "ms_fast": Stepping(
         dt=5.0e-8,
@@ -107,11 +113,19 @@ QUICK_STEPPING = Stepping(
 """The stepping of every experiment in the quick variant."""
 
 
-def stepping(kind: str, quick: bool, dt: float | None = None, precision: str | None = None) -> Stepping:
-    """The stepping of an experiment of ``kind`` (a key of :data:`STEPPING`): the quick variant's, or the table's,
-    with ``dt`` [s] and ``precision`` replacing its own when given (``--dt``, ``--precision``)."""
+def stepping(
+    kind: str, quick: bool, dt: float | None = None, precision: str | None = None, growth_dt: float | str | None = None
+) -> Stepping:
+    """The stepping of an experiment of ``kind`` (a key of :data:`STEPPING`): the quick variant's (with the table's
+    growth spacing), or the table's, with ``dt`` [s] and ``precision`` replacing its own when given (``--dt``,
+    ``--precision``), and ``growth_dt`` [s] the growth spacing of a kind that has one ("scene": the scenes' own
+    interval; ``--growth-dt``)."""
     import dataclasses
 
-    base = QUICK_STEPPING if quick else STEPPING[kind]
-    over = {k: v for k, v in (("dt", dt), ("precision", precision)) if v is not None}
-    return dataclasses.replace(base, **over)
+    base = STEPPING[kind]
+    if quick:
+        base = dataclasses.replace(QUICK_STEPPING, growth_dt=base.growth_dt)
+    over: dict[str, float | str | None] = {k: v for k, v in (("dt", dt), ("precision", precision)) if v is not None}
+    if growth_dt is not None and base.growth_dt is not None:
+        over["growth_dt"] = None if growth_dt == "scene" else growth_dt
+    return dataclasses.replace(base, **over)  # type: ignore[arg-type]
