@@ -374,6 +374,10 @@ def test_script_help_and_list(capsys):
     assert script.main(["--list"]) == 0
     listed = capsys.readouterr().out
     assert all(f"experiment {n}" in listed for n in VB.EXPERIMENTS)
+    for bad in ("0", "abc", "-1e-6"):  # --growth-dt: a positive number of seconds or "scene"
+        with pytest.raises(SystemExit) as done:
+            script.main(["--dry-run", "--growth-dt", bad])
+        assert done.value.code == 2 and "--growth-dt" in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------------------------------------ §3.2 (synthetic)
@@ -601,6 +605,7 @@ def test_growth_window_and_lf_state_experiments_end_to_end(tmp_path, lf_window_e
     va = json.loads((out / "va" / "result.json").read_text())
     assert va["plan"]["patch_samples"] == 0 and va["plan"]["duration_s"] == pytest.approx(0.36 / 60)
     assert va["run"]["segments"] == 1  # a growing run is one segment: its growth clock runs from its start
+    assert va["run"]["stepping"]["growth_dt"] == 5e-6  # the stepping table's growth events, in the quick variant too
     for p in va["pads"]:
         assert p["status"] == "saturated" and 0 < p["t_start"] < 3e-3, p["verdict_sum_abs_velocity"]
         m = p["measures"]
@@ -740,11 +745,13 @@ def test_without_leaves_named_experiments_of_the_earlier_results_out(tmp_path, c
     got = VL.earlier_results([committed_path], cfg, notes.append, ["ms_short", "ms_app3"])
     finished = {n for n, r in results.items() if n in VB.EXPERIMENTS and r.get("status") in ("done", "stopped")}
     assert set(got.results) == finished - {"ms_short", "ms_app3"} and "hf1" in got.results
-    # each experiment is credited to the call that ran it: the committed file's own earlier call (its ``with``),
-    # then that file's call with the rest (it ran the four experiments of the widened batches, two of them kept here)
+    # each experiment is credited to the call that ran it: the committed file's own earlier calls (its ``with``: the
+    # two-GPU run, then the four experiments of the widened batches, two of them kept here), then that file's call
+    # (the growth experiments)
     meta = json.loads(committed_path.read_text())["meta"]
-    assert [p["command"] for p in got.parts] == [meta["with"][0]["command"], meta["command"]]
+    assert [p["command"] for p in got.parts] == [w["command"] for w in meta["with"]] + [meta["command"]]
     assert got.parts[1]["experiments"] == ["ms_app3_lin", "ms_short_lin"]
+    assert got.parts[2]["experiments"] == ["va", "va_equal", "va_full", "va_full_rest", "va_rest"]
     assert sorted(n for p in got.parts for n in p["experiments"]) == sorted(got.results)
     assert any("ms_app3, ms_short not used: run again (--without)" in n for n in notes)
     out = tmp_path / "out"
@@ -752,6 +759,47 @@ def test_without_leaves_named_experiments_of_the_earlier_results_out(tmp_path, c
     assert "unknown experiment(s) nope" in capsys.readouterr().err
     assert VL.main(["--out", str(out), "--without", "ms_short"]) == 2
     assert "give --with" in capsys.readouterr().err and not out.exists()
+
+
+def test_earlier_results_are_taken_per_kind_of_stepping(tmp_path):
+    """A results file made under another stepping of one kind gives up that kind's experiments only (they run
+    again, the log says why) and keeps the others; another setting of any other name leaves the whole file out. A
+    saved checkpoint is judged the same way."""
+    from aca_warp.studies.validation.base import same_settings
+    from aca_warp.studies.validation.results import read_results
+
+    committed_path = Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json"
+    results, _, cfg = read_results(committed_path)
+    doc = json.loads(committed_path.read_text())
+    doc["meta"]["config"]["stepping"]["growth"] = "strang, dt = 5e-08 s, fp32"  # the growth stepping before
+    older = tmp_path / "older.json"
+    older.write_text(json.dumps(doc))
+    notes: list[str] = []
+    got = VL.earlier_results([older], cfg, notes.append)
+    growth = {n for n in results if n in VB.EXPERIMENTS and VB.EXPERIMENTS[n].stepping == "growth"}
+    assert growth == {"va", "va_equal", "va_full", "va_full_rest", "va_rest"}
+    finished = {n for n, r in results.items() if n in VB.EXPERIMENTS and r.get("status") in ("done", "stopped")}
+    assert set(got.results) == finished - growth and "hf1" in got.results and "ms_fast" in got.results
+    assert any("va, va_equal, va_full, va_full_rest, va_rest not used: made with another stepping" in n for n in notes)
+    doc["meta"]["config"]["window"] = 0.01  # another setting than the stepping: nothing is taken
+    older.write_text(json.dumps(doc))
+    notes.clear()
+    assert VL.earlier_results([older], cfg, notes.append).results == {} and "other settings" in notes[0]
+    # a checkpoint: hf1's result was made before the growth stepping changed and still fits; va's under that
+    # older stepping would not
+    assert VE.fits(results["hf1"], VB.EXPERIMENTS["hf1"], cfg) and VE.fits(results["va"], VB.EXPERIMENTS["va"], cfg)
+    assert not VE.fits({**results["va"], "config": results["hf1"]["config"]}, VB.EXPERIMENTS["va"], cfg)
+    key = cfg.run_key()
+    other = {**key, "stepping": {**key["stepping"], "growth": "strang, dt = 5e-08 s, fp32"}}
+    assert same_settings(other, key, "hf") and same_settings(other, key, None)
+    assert not same_settings(other, key, "growth")
+    # --growth-dt: the growing kind's stepping only, "scene" the scenes' own clock
+    assert cfg.stepping("growth").growth_dt == 5e-6 and cfg.stepping("hf").growth_dt is None
+    scene = dataclasses.replace(cfg, growth_dt="scene")
+    assert scene.stepping("growth").growth_dt is None and "growth events" not in scene.run_key()["stepping"]["growth"]
+    assert scene.run_key()["stepping"]["hf"] == key["stepping"]["hf"] and "growth_dt" not in key
+    finer = dataclasses.replace(cfg, growth_dt=1e-6).stepping("growth")
+    assert finer.describe().endswith("growth events every 1e-06 s")
 
 
 def test_runs_of_credits_each_experiment_to_the_call_that_ran_it_once():
