@@ -197,3 +197,46 @@ def test_identity_lock_in_process(tmp_path: Path, monkeypatch) -> None:
     a.release()
     c.release()
     assert list(folder.iterdir()) == []
+
+
+def test_a_momentary_unnamed_holder_is_waited_for(tmp_path: Path) -> None:
+    """A lock file locked for a moment by no named writer — a sweep of stale identity locks that caught a file
+    another writer had just created, or a probe — delays the writer instead of refusing it (a sweep's shard failed
+    that way now and then); a lock held by no named writer for longer than that is refused, one held by a named
+    writer at once."""
+    import fcntl
+    import threading
+    import time
+
+    from aca_warp.common import files
+
+    out = tmp_path / "run.h5"
+    lp = lock_path(out)
+    fd = os.open(lp, os.O_RDWR | os.O_CREAT, 0o600)  # created, not yet named: as a stale-lock sweep holds it
+    fcntl.flock(fd, fcntl.LOCK_EX)
+
+    def sweep_drops_it() -> None:
+        time.sleep(0.05)
+        os.unlink(lp)
+        os.close(fd)
+
+    t = threading.Thread(target=sweep_drops_it)
+    t.start()
+    a = OutputLock.acquire(out)
+    t.join()
+    assert a.held and str(os.getpid()) in lp.read_text()
+    a.release()
+    fd = os.open(lp, os.O_RDWR | os.O_CREAT, 0o600)  # held, unnamed, past the wait
+    fcntl.flock(fd, fcntl.LOCK_EX)
+    t0 = time.monotonic()
+    with pytest.raises(SceneError, match="is being written by another process"):
+        OutputLock.acquire(out)
+    assert files.TRANSIENT_S <= time.monotonic() - t0 < files.TRANSIENT_S + 1.0
+    os.close(fd)
+    lp.unlink()
+    b = OutputLock.acquire(out)
+    t0 = time.monotonic()
+    with pytest.raises(SceneError, match=r"is being written by pid \d+"):
+        OutputLock.acquire(out)
+    assert time.monotonic() - t0 < 0.1  # a named writer: no wait
+    b.release()

@@ -11,6 +11,7 @@ import platform
 import socket
 import sys
 import tempfile
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -90,6 +91,10 @@ def partial_path(path: str | Path) -> Path:
     """The name a run file has while it is written: ``NAME.partial``."""
     p = Path(path)
     return p.with_name(p.name + ".partial")
+
+
+UNNAMED = "another process"  # the holder of a lock file that names none
+TRANSIENT_S = 0.5  # s a lock held by no named writer is tried again before it is taken for a live writer's
 
 
 def lock_path(path: str | Path) -> Path:
@@ -178,7 +183,13 @@ class OutputLock:
 def _take(lp: Path, p: Path, what: str) -> int | None:
     """Take ``flock(LOCK_EX | LOCK_NB)`` on the lock file ``lp`` of ``p`` (created if missing, never through a
     link) and write this process into it; the descriptor, or None on a filesystem without locks. SceneError naming
-    the holder when another process holds it; OSError when the file cannot be created."""
+    the holder when another process holds it; OSError when the file cannot be created.
+
+    A lock held by no named writer (the file holds no pid yet) is held only for a moment: by a sweep of stale
+    identity locks (:func:`_drop_stale`, which may lock a file another writer has just created before that writer
+    locks it), by :func:`holder`'s probe, or by a writer between its lock and its note. Such a lock is tried again
+    for up to :data:`TRANSIENT_S` before the refusal; a named writer is refused at once."""
+    deadline = time.monotonic() + TRANSIENT_S
     while True:
         fd = open_lock_file(lp)
         try:
@@ -186,6 +197,9 @@ def _take(lp: Path, p: Path, what: str) -> int | None:
         except BlockingIOError:
             holder = _read_holder(fd)
             os.close(fd)
+            if holder == UNNAMED and time.monotonic() < deadline:
+                time.sleep(0.005)
+                continue
             raise SceneError(f"{p} is being written by {holder}; {what}") from None
         except OSError as e:
             os.close(fd)
@@ -239,7 +253,7 @@ def _drop(lp: Path, fd: int) -> None:
 
 
 def _read_holder(fd: int) -> str:
-    """'pid P on HOST (COMMAND)' from a lock file's content, or 'another process'."""
+    """'pid P on HOST (COMMAND)' from a lock file's content, or :data:`UNNAMED`."""
     try:
         parts = os.pread(fd, 512, 0).decode(errors="replace").split(maxsplit=2)
         if len(parts) >= 2:
@@ -247,7 +261,7 @@ def _read_holder(fd: int) -> str:
             return f"pid {parts[0]} on {parts[1]}{cmd}"
     except OSError:
         pass
-    return "another process"
+    return UNNAMED
 
 
 def holder(path: str | Path) -> str | None:
