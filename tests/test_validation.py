@@ -115,6 +115,11 @@ def test_a_batch_runs_as_long_as_its_longest_member_and_refuses_mixed_kinds():
     own = dataclasses.replace(VB.EXPERIMENTS["hf3"], stepping="ms_fast")  # a batch is one run: one stepping
     with pytest.raises(ValueError, match="stepping"):
         VE.make_batch("x", [a, VE.prepare(own, cfg)], cfg)
+    va = VE.prepare(VB.EXPERIMENTS["va"], cfg)  # a growing run counts its growth events from its start
+    assert len(VE.make_batch("va", [va], cfg).plan.segments) == 1
+    cut = dataclasses.replace(va, plan=VE.split_segments(va.plan, 1e-3))
+    with pytest.raises(ValueError, match="a growing batch runs as one segment, planned 2"):
+        VE.make_batch("va", [cut], cfg)
 
 
 def test_collector_joins_segments_on_one_clock():
@@ -359,6 +364,12 @@ def test_page_states_the_stepping_its_results_ran_with():
     meta = json.loads((repo / "docs" / "validation" / "results.json").read_text())["meta"]
     meta["config"]["stepping"] = {"hf": "strang, dt = 3.3e-08 s, fp64"}
     assert "stepping hf: strang, dt = 3.3e-08 s, fp64;" in "\n".join(_header_lines(meta))
+    meta["config"] = VB.QUICK.run_key()  # the quick variant: one stepping, the growing kind's events named
+    line = next(t for t in _header_lines(meta) if t.startswith("Settings"))
+    assert (
+        "stepping every experiment strang, dt = 1e-07 s (forced), fp32; growth: strang, dt = 1e-07 s (forced), "
+        "fp32, growth events every 5e-06 s;" in line
+    )
     key = VB.FULL.run_key()
     assert key["stepping"] == {kind: VB.FULL.stepping(kind).describe() for kind in STEPPING}
     assert key != {**key, "stepping": meta["config"]["stepping"]}
@@ -771,7 +782,9 @@ def test_earlier_results_are_taken_per_kind_of_stepping(tmp_path):
     committed_path = Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json"
     results, _, cfg = read_results(committed_path)
     doc = json.loads(committed_path.read_text())
-    doc["meta"]["config"]["stepping"]["growth"] = "strang, dt = 5e-08 s, fp32"  # the growth stepping before
+    for part in (doc["meta"], *doc["results"].values()):  # the growth stepping before, in the file and each result
+        if isinstance(part, dict) and "config" in part:
+            part["config"]["stepping"]["growth"] = "strang, dt = 5e-08 s, fp32"
     older = tmp_path / "older.json"
     older.write_text(json.dumps(doc))
     notes: list[str] = []
@@ -797,9 +810,14 @@ def test_earlier_results_are_taken_per_kind_of_stepping(tmp_path):
     assert cfg.stepping("growth").growth_dt == 5e-6 and cfg.stepping("hf").growth_dt is None
     scene = dataclasses.replace(cfg, growth_dt="scene")
     assert scene.stepping("growth").growth_dt is None and "growth events" not in scene.run_key()["stepping"]["growth"]
-    assert scene.run_key()["stepping"]["hf"] == key["stepping"]["hf"] and "growth_dt" not in key
-    finer = dataclasses.replace(cfg, growth_dt=1e-6).stepping("growth")
-    assert finer.describe().endswith("growth events every 1e-06 s")
+    assert same_settings(scene.run_key(), key, "hf") and not same_settings(scene.run_key(), key, "growth")
+    assert key["growth_dt"] is None and scene.run_key()["growth_dt"] == "scene"  # the page names the override
+    finer = dataclasses.replace(cfg, growth_dt=1e-6)
+    assert finer.stepping("growth").describe().endswith("growth events every 1e-06 s")
+    # a file made with the option reads back with it (read_results rebuilds the settings from the run key)
+    doc["meta"]["config"] = finer.run_key()
+    older.write_text(json.dumps(doc))
+    assert read_results(older)[2].stepping("growth").growth_dt == 1e-6
 
 
 def test_runs_of_credits_each_experiment_to_the_call_that_ran_it_once():

@@ -3,7 +3,8 @@ experiments and the measures of a growing pad (the rows are in :mod:`~aca_warp.s
 
 The ``varying_area`` preset — HF1-size patches under the HF2 load, areas growing by Eq. 10 until HF2 size — runs
 as a batch of pads that differ in their seed (layout, areas, heights, initial perturbation), like the §3.1
-experiments. ``va_full`` runs the **paper's clock** (0.36 s, the areas grown every 2.02e-7 s), from equilibrium +
+experiments. ``va_full`` runs the **paper's growth rate** over its 0.36 s (uncompressed; the areas grown in events
+every 5 µs of the ``growth`` stepping, each adding its spacing's growth: docs/model.md §2.10), from equilibrium +
 the seeded perturbation, and ``va_full_rest`` the same from rest, in one batch; the rows read ``va_full``, with the
 from-rest pads beside. ``va`` runs the same area path **compressed** (the increment of Eq. 10 × s and the run ÷ s,
 s = ``Config.growth_speedup``: 10 on the GPU, 20 in the quick variant) with its variants ``va_equal`` (every height

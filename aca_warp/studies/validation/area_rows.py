@@ -1,5 +1,5 @@
-"""§3.2 rows (varying patch area, Eq. 10, Figs. 10–11), read from ``va_full`` (the paper's clock, from equilibrium
-+ the seeded perturbation; the measures: :mod:`~aca_warp.studies.validation.area`)."""
+"""§3.2 rows (varying patch area, Eq. 10, Figs. 10–11), read from ``va_full`` (the paper's growth rate over 0.36 s, from
+equilibrium + the seeded perturbation; the measures: :mod:`~aca_warp.studies.validation.area`)."""
 
 from __future__ import annotations
 

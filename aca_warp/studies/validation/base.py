@@ -46,8 +46,7 @@ class Config:
         dt: Time step [s] for every experiment instead of :data:`~aca_warp.studies.validation.settings.STEPPING`'s.
         precision: "fp32" or "fp64" for every experiment instead of the stepping table's.
         growth_dt: Spacing of the growth events [s] of the growing experiments instead of the stepping table's;
-            "scene": the scenes' own interval (the paper's clock). Not part of the run key itself: the stepping
-            there says what each kind ran with.
+            "scene": the scenes' own interval (the paper's clock).
         sample_dt: Sampling interval of the global outputs [s].
         decimation: Per-patch velocities every ``decimation`` global samples (Nyquist 1/(2·dt_p)).
         window: Measurement window at the end of a run [s] (per-patch record; spectra resolve 1/window).
@@ -98,7 +97,7 @@ class Config:
         from aca_warp.studies.validation.settings import STEPPING
 
         d = dataclasses.asdict(self)
-        for k in ("device", "engine", "lf_dir", "workers", "growth_dt"):
+        for k in ("device", "engine", "lf_dir", "workers"):
             d.pop(k)
         d["stepping"] = {kind: self.stepping(kind).describe() for kind in STEPPING}
         return clean(d)
@@ -110,13 +109,19 @@ class Config:
         return stepping(kind, self.quick, self.dt, self.precision, self.growth_dt)
 
 
+STEPPING_OVERRIDES = ("dt", "precision", "growth_dt")
+"""Settings that only replace values of the stepping table: a run key's stepping describes what each kind ran with."""
+
+
 def same_settings(key: dict[str, Any], other: dict[str, Any], kind: str | None) -> bool:
     """Whether two run keys (:meth:`Config.run_key`) agree on everything an experiment of stepping ``kind`` depends
-    on: every setting, and the stepping of that kind (the other kinds' may differ: a result of the hf kind made
-    before the growth stepping changed is still this run's); ``kind`` None: every setting but the stepping."""
+    on: every setting, and the stepping of that kind as described (the other kinds' may differ: a result of the hf
+    kind made before the growth stepping changed is still this run's; the overrides :data:`STEPPING_OVERRIDES` count
+    through the description); ``kind`` None: every setting but the stepping."""
 
     def mine(k: dict[str, Any]) -> dict[str, Any]:
-        return {**k, "stepping": (k.get("stepping") or {}).get(kind) if kind else None}
+        rest = {n: v for n, v in k.items() if n not in STEPPING_OVERRIDES}
+        return {**rest, "stepping": (k.get("stepping") or {}).get(kind) if kind else None}
 
     return mine(key) == mine(other)
 
@@ -191,7 +196,7 @@ class Experiment:
         window_scale: Measurement window of a ``"saturated"`` run as a multiple of the configured window.
         window_start: Start of the per-patch record of a ``"window"`` run [s].
         growth_speedup: Growth compression of a growing scene; None: the configured one (``va`` and its variants;
-            1: the paper's clock).
+            1: the paper's growth rate).
         schedule_bar: Application pressures [bar] of the LF schedule in order (None: the preset's).
         tracks: Run for the paper's length (``Config.paper_length``) and analyse, besides the final window, the
             per-patch windows of ``Config.track_windows`` over the run (f1, neighbour correlation and S over time).

@@ -131,7 +131,7 @@ def _sub(names: tuple[str, ...], suffix: str) -> tuple[tuple[str, str], ...]:
 
 REST_VARIANTS = (
     ("initial state", "from rest, paper length", tuple((p, f"{p}_rest") for p in PRESETS)),
-    ("initial state", "from rest, paper's clock", (("va_full", "va_full_rest"),)),
+    ("initial state", "from rest, paper's growth rate", (("va_full", "va_full_rest"),)),
 )
 
 

@@ -43,6 +43,7 @@ from aca_warp.studies.validation.experiments import (
     same_definition,
 )
 from aca_warp.studies.validation.results import render_report, write_results
+from aca_warp.studies.validation.settings import STEPPING
 
 MARKER = "scripts/validation.py"  # the generated section's marker on the page
 
@@ -76,7 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "stepping table's, settings.STEPPING)")  # fmt: skip
     p.add_argument("--growth-dt", type=growth_spacing, default=None, metavar="S|scene", help="spacing [s] of the "
                    "growth events of the growing experiments (§3.2), each adding the growth of its spacing (default: "
-                   "the stepping table's, 5e-6 s; 'scene': the scenes' own interval, the paper's clock)")  # fmt: skip
+                   f"the stepping table's, {STEPPING['growth'].growth_dt:g} s; 'scene': the scenes' own interval, the "
+                   "paper's clock)")  # fmt: skip
     p.add_argument("--window", type=positive, help=f"window [s] ({FULL.window:g}; quick {QUICK.window:g})")
     p.add_argument("--perturbation", type=nonneg, help=f"initial velocity σ [m/s] ({FULL.perturbation:g})")
     p.add_argument("--settle-safety", type=positive, default=None, help=f"factor on the predicted settling time "
@@ -329,7 +331,8 @@ def earlier_results(
             log(f"{path}: other settings than this run's; not used")
             continue
         done = {n: r for n, r in results.items() if n in EXPERIMENTS and r.get("status") in ("done", "stopped")}
-        stepped = [n for n in done if not same_settings(meta["config"], key, EXPERIMENTS[n].stepping)]
+        stepped = [n for n, r in done.items() if not same_settings(r.get("config") or meta["config"], key,
+                                                                   EXPERIMENTS[n].stepping)]  # fmt: skip
         if stepped:
             log(f"{path}: {', '.join(sorted(stepped))} not used: made with another stepping of their kind")
             done = {n: r for n, r in done.items() if n not in stepped}

@@ -16,9 +16,10 @@ the H100's 227 KiB), a batch on clusters of 4 or more takes the smallest wider c
 the engine does (``widen_for_csr``; 7 clusters of 16 per wave); where none does, the gathers read global memory:
 b × :data:`OFF_CHIP` (5, from the fp64 LF-state batches of an earlier validation run on an H200: 8 pads of up to
 4329 patches with 31 links each, 25.3 µs per step). Growing pads
-at the scenes' own growth clock (an event every few steps) take at least :data:`GROWTH_FLOOR_S`; with events a
-growth spacing apart (the stepping table's 5 µs: one per 50 steps of 1e-7 s) their share is left to the estimate's
-calibration by the run. On the CPU: 1e7 patch-steps/s (general engine, 2-core AMD EPYC).
+with a growth event every :data:`FREQUENT_EVENTS` steps or more often (the scenes' own clock: every 4 steps of
+5e-8 s) take at least :data:`GROWTH_FLOOR_S`; with sparser events (the stepping table's 5 µs: one per 50 steps of
+1e-7 s) their share is left to the estimate's calibration by the run. On the CPU: 1e7 patch-steps/s (general
+engine, 2-core AMD EPYC).
 
 These are estimates, a factor 2 either way for dense LF states: a run measures each batch's step time on its first
 segment (a probe) before going on, and corrects the later estimates of its kind by what it measured
@@ -43,6 +44,7 @@ GROWTH_FLOOR_S = {"fp32": 2.7e-6, "fp64": 3.9e-6}
 """Seconds per step of a batch of growing pads in one wave (on-chip engine, a cluster of 8 blocks per pad): 2.7 µs
 measured in fp32 for one varying_area pad (an event every 20 steps; docs/onchip.md); fp64 1.45 × that, the fp64/fp32
 ratio of one non-growing hf1 pad on 8 blocks."""
+FREQUENT_EVENTS = 20  # steps between growth events up to which GROWTH_FLOOR_S applies (its measurement's)
 SMEM_BYTES = 227 * 1024  # the H100's shared memory per block (opt-in)
 CPU_PATCH_STEPS = 1.0e7  # patch-steps per second of the general engine on the 2-core AMD EPYC host
 COMPILE_S = 4.0  # s per batch on CUDA: one on-chip module per tile shape (1.7–4.5 s, docs/benchmarks/onchip_h100)
@@ -71,9 +73,10 @@ def fits_on_chip(n: int, n_links: int, k: int, precision: str) -> bool:
     return 4 * n * item + n_links / k * (2 + item) * 1.1 + 8 * 1024 <= SMEM_BYTES
 
 
-def step_seconds(pads: int, n: int, n_links: int, precision: str, growth: bool, device: str) -> float:
+def step_seconds(pads: int, n: int, n_links: int, precision: str, frequent: bool, device: str) -> float:
     """Estimated seconds per time step of a batch of ``pads`` pads, the largest of ``n`` patches and ``n_links``
-    links (module docstring); ``device`` "cpu" uses the CPU throughput (total patches ≈ pads × n)."""
+    links (module docstring), at least :data:`GROWTH_FLOOR_S` with ``frequent`` growth events; ``device`` "cpu"
+    uses the CPU throughput (total patches ≈ pads × n)."""
     if device == "cpu":
         return pads * n / CPU_PATCH_STEPS
     from aca_warp.hf.onchip_layout import widen_for_csr
@@ -84,7 +87,7 @@ def step_seconds(pads: int, n: int, n_links: int, precision: str, growth: bool, 
         b *= OFF_CHIP
     w = 0.5 * n / HF1_PATCHES + 0.5 * n_links / HF1_LINKS
     t = math.ceil(pads / WAVE[k]) * (a + b * w / k)
-    return max(t, GROWTH_FLOOR_S[precision]) if growth else t
+    return max(t, GROWTH_FLOOR_S[precision]) if frequent else t
 
 
 @dataclass
@@ -99,7 +102,7 @@ class Costs:
         n = max(s.patches.count for s in scenes)
         n_links = max(links(s) for s in {id(s.patches): s for s in scenes}.values())
         step = cfg.stepping(batch.stepping_kind)
-        frequent = batch.growth and step.growth_dt is None  # events at the scenes' clock
+        frequent = batch.growth and events_every(scenes, step) <= FREQUENT_EVENTS
         raw = step_seconds(len(scenes), n, n_links, step.precision, frequent, cfg.device)
         return raw * self.factors.get(batch.stepping_kind, 1.0)
 
@@ -117,6 +120,14 @@ class Costs:
         raw = self.step(batch, cfg) / self.factors.get(kind, 1.0)
         if raw > 0 and measured > 0:
             self.factors[kind] = measured / raw
+
+
+def events_every(scenes: list[Any], step: Any) -> int:
+    """Steps between the growth events of growing ``scenes`` at ``step`` (a validation ``Stepping``)."""
+    from aca_warp.hf.solver import steps_per_event
+
+    interval = next(s.growth.interval for s in scenes if s.growth is not None)
+    return steps_per_event(interval if step.growth_dt is None else step.growth_dt, step.dt)
 
 
 def batch_friction_step(scenes: list[Any]) -> float:

@@ -122,12 +122,16 @@ class Batch:
 
 def make_batch(name: str, preps: list[Prepared], cfg: Config) -> Batch:
     """The batch of ``preps``: every member replanned to the longest duration. Members must share their kind,
-    stepping and per-patch windows (ValueError otherwise: a batch is one run)."""
+    stepping and per-patch windows, and a growing batch runs as one segment, since each run counts its growth
+    events from its start (ValueError otherwise: a batch is one run)."""
     if len({(p.exp.kind, p.exp.stepping, p.exp.tracks, p.exp.window_scale) for p in preps}) > 1:
         raise ValueError(f"batch {name}: its experiments differ in kind, stepping, tracks or window")
     duration = max(p.plan.duration for p in preps)
     members = [p if p.plan.duration == duration else p.replanned(duration, cfg) for p in preps]
-    return Batch(name, members)
+    batch = Batch(name, members)
+    if batch.growth and len(batch.plan.segments) != 1:
+        raise ValueError(f"batch {name}: a growing batch runs as one segment, planned {len(batch.plan.segments)}")
+    return batch
 
 
 def run_segments(
@@ -212,8 +216,6 @@ def run_batch(
         return left is None or per * steps <= left
 
     probe_s = cfg.sample_dt * max(1, round(min(5.0e-4, 0.05 * plan.duration) / cfg.sample_dt))  # whole samples
-    if batch.growth and len(plan.segments) != 1:  # each run counts its growth events from its start
-        raise ValueError(f"batch {batch.name}: a growing batch runs as one segment, planned {len(plan.segments)}")
     run_plan = plan if batch.growth else split_segments(plan, probe_s)
     sink = Collector()
     last, parts = run_segments(model, state, run_plan, cfg, step, dt, sink, probe if not batch.growth else None)

@@ -309,12 +309,11 @@ def _header_lines(meta: dict[str, Any]) -> list[str]:
     dtp = cfg["sample_dt"] * cfg["decimation"]
     cut = cfg.get("state_patches") or cfg["patches"]
     steps = cfg.get("stepping") or {}  # as the run described it (the code's table may have changed since)
-    stepping = (
-        f"every experiment {next(iter(steps.values()))}"
-        if cfg["quick"] and steps
-        else "; ".join(f"{k}: {text}" for k, text in steps.items()) or "not recorded"
-    )
-    over = ", ".join(f"{k} = {cfg[k]}" for k in ("dt", "precision") if cfg.get(k) is not None)
+    stepping = "; ".join(f"{k}: {text}" for k, text in steps.items()) or "not recorded"
+    if cfg["quick"] and steps:  # one stepping, the growing kinds' events aside
+        common = max(set(steps.values()), key=list(steps.values()).count)
+        stepping = "; ".join([f"every experiment {common}", *(f"{k}: {t}" for k, t in steps.items() if t != common)])
+    over = ", ".join(f"{k} = {cfg[k]}" for k in ("dt", "precision", "growth_dt") if cfg.get(k) is not None)
     if not meta.get("complete", True):
         variant += (
             " **Incomplete: the run stopped before its last batch (the results file is written after every batch); "
@@ -335,7 +334,7 @@ def _header_lines(meta: dict[str, Any]) -> list[str]:
         f"{cfg['window'] * 1e3:g} ms; initial velocity perturbation {cfg['perturbation']:g} m/s; settling factor "
         f"{cfg['settle_safety']:g}; S(f) over {cfg['sync_band'][0] / 1e3:g}–{cfg['sync_band'][1] / 1e3:g} kHz; runs "
         f"from rest {cfg['paper_length'] * 1e3:g} ms with {cfg['track_windows']} track windows of "
-        f"{cfg['track_window'] * 1e3:g} ms. §3.2: `va_full` at the paper's clock (the growth compressed × "
+        f"{cfg['track_window'] * 1e3:g} ms. §3.2: `va_full` at the paper's growth rate (compressed × "
         f"{0.36 / cfg['paper_length']:g} where the paper length is shorter), the compressed `va` × "
         f"{cfg['growth_speedup']:g}. §3.3: the LF {'quick ' if cfg['quick'] else ''}schedule per seed, every state "
         f"{f'cut to about {cut} patches' if cut else 'whole'}, a window of half the above.",

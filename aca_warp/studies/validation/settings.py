@@ -17,6 +17,7 @@ LF states of the multiscale schedule 1.5e-8 … 5.3e-7 s for LF seed 1).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -110,7 +111,10 @@ QUICK_STEPPING = Stepping(
     reason="the quick CPU smoke check: one coarse step for every experiment (forced where it exceeds a bound); "
     "not the validation",
 )
-"""The stepping of every experiment in the quick variant."""
+"""The stepping of every experiment in the quick variant (the growing ones with the table's growth spacing)."""
+
+GROWING = ("growth",)
+"""The kinds of :data:`STEPPING` whose experiments grow (``--growth-dt`` applies to them only)."""
 
 
 def stepping(
@@ -119,13 +123,13 @@ def stepping(
     """The stepping of an experiment of ``kind`` (a key of :data:`STEPPING`): the quick variant's (with the table's
     growth spacing), or the table's, with ``dt`` [s] and ``precision`` replacing its own when given (``--dt``,
     ``--precision``), and ``growth_dt`` [s] the growth spacing of a kind that has one ("scene": the scenes' own
-    interval; ``--growth-dt``)."""
+    interval; ``--growth-dt``) of a :data:`GROWING` kind."""
     import dataclasses
 
     base = STEPPING[kind]
     if quick:
         base = dataclasses.replace(QUICK_STEPPING, growth_dt=base.growth_dt)
-    over: dict[str, float | str | None] = {k: v for k, v in (("dt", dt), ("precision", precision)) if v is not None}
-    if growth_dt is not None and base.growth_dt is not None:
+    over: dict[str, Any] = {k: v for k, v in (("dt", dt), ("precision", precision)) if v is not None}
+    if growth_dt is not None and kind in GROWING:
         over["growth_dt"] = None if growth_dt == "scene" else growth_dt
-    return dataclasses.replace(base, **over)  # type: ignore[arg-type]
+    return dataclasses.replace(base, **over)
