@@ -878,3 +878,32 @@ def test_committed_lf_state_results_come_from_one_set_of_lf_runs():
     assert set(runs) >= {*VM.MAIN, "ms_order", *(f"{g}_lin" for g in VM.MAIN)}  # each group's linear phase too
     assert all(runs.values()) and VM.lf_conflicts(runs) == []
     assert VM.lf_conflicts({**runs, "lf facts": results["lf_states"]["lf_runs"]}) == []
+
+
+def test_compare_two_results_files(tmp_path, capsys):
+    """``scripts/validation_compare.py``: the committed file against itself is the same (exit 0); a copy with one
+    per-pad number changed, one entry dropped and a row's input moved names each (exit 1); a file that is not a
+    results file exits 2."""
+    committed = Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json"
+    script = load_script("validation_compare")
+    assert script.main([str(committed), str(committed)]) == 0
+    assert "0 of " in capsys.readouterr().out
+    doc = json.loads(committed.read_text())
+    pad = doc["results"]["hf1"]["pads"][0]
+    pad["patches"] += 1
+    del pad["seed"]
+    for p in doc["results"]["va_full"]["pads"]:  # μ falls instead of rising: the row's verdict moves
+        p["measures"]["mu_rise"] = -abs(p["measures"]["mu_rise"])
+    doc["results"]["hf2"]["run"]["wall_s"] = 1e9  # timings are not compared
+    other = tmp_path / "results.json"
+    other.write_text(json.dumps(doc))
+    assert script.main([str(committed), str(other)]) == 1
+    out = capsys.readouterr().out
+    hf1 = next(line for line in out.splitlines() if line.startswith("| hf1 |"))
+    assert "| 1 |" in hf1 and "pads[0].patches: 1758 against 1759" in hf1 and "pads[0].seed" in hf1
+    assert next(line for line in out.splitlines() if line.startswith("| hf2 |")).split("|")[3].strip() == "0"
+    assert "* μ rises as the load moves from the matrix to the growing patches: reproduced" in out
+    assert "→ not reproduced" in out
+    other.write_text("{}")
+    assert script.main([str(committed), str(other)]) == 2
+    assert "not a validation results file" in capsys.readouterr().err
