@@ -106,9 +106,7 @@ def report(path_a: Path, path_b: Path) -> tuple[list[str], bool]:
     ]
     for d in diffs:
         one = ", ".join(d.only_one_side[:3]) + (f" (+{len(d.only_one_side) - 3})" if len(d.only_one_side) > 3 else "")
-        lines.append(
-            f"| {d.name} | {d.numbers} | {d.differing} | {d.largest:.3g} | {d.first or '–'} | {one or '–'} |"
-        )
+        lines.append(f"| {d.name} | {d.numbers} | {d.differing} | {d.largest:.3g} | {d.first or '–'} | {one or '–'} |")
     same = all(d.identical for d in diffs) and not moved
     total, differing = sum(d.numbers for d in diffs), sum(d.differing for d in diffs)
     lines += ["", f"{differing} of {total} numbers differ; rows whose verdict or value text differ: {len(moved)}."]
