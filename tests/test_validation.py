@@ -322,7 +322,7 @@ def test_cost_table_of_a_results_file_without_estimates_or_blocks(tmp_path):
     del data["results"]["ms_fast"]["plan"]["estimate_s"], data["results"]["ms_fast"]["run"]["blocks_per_pad"]
     (tmp_path / "results.json").write_text(json.dumps(data))
     lines = load_script("validation_cost").table(tmp_path / "results.json")
-    assert [r for r in lines if "`ms_fast`" in r][0].endswith("| 8.42 | – | – |")
+    assert [r for r in lines if "`ms_fast`" in r][0].endswith("| 7.83 | – | – |")
 
 
 def test_cost_rows_group_a_batch_and_letter_the_shares():
@@ -756,13 +756,10 @@ def test_without_leaves_named_experiments_of_the_earlier_results_out(tmp_path, c
     got = VL.earlier_results([committed_path], cfg, notes.append, ["ms_short", "ms_app3"])
     finished = {n for n, r in results.items() if n in VB.EXPERIMENTS and r.get("status") in ("done", "stopped")}
     assert set(got.results) == finished - {"ms_short", "ms_app3"} and "hf1" in got.results
-    # each experiment is credited to the call that ran it: the committed file's own earlier calls (its ``with``: the
-    # two-GPU run, then the four experiments of the widened batches, two of them kept here), then that file's call
-    # (the growth experiments)
+    # each experiment is credited to the call that ran it: the committed file's own (one call made every result)
     meta = json.loads(committed_path.read_text())["meta"]
-    assert [p["command"] for p in got.parts] == [w["command"] for w in meta["with"]] + [meta["command"]]
-    assert got.parts[1]["experiments"] == ["ms_app3_lin", "ms_short_lin"]
-    assert got.parts[2]["experiments"] == ["va", "va_equal", "va_full", "va_full_rest", "va_rest"]
+    assert not meta.get("with") and [p["command"] for p in got.parts] == [meta["command"]]
+    assert got.parts[0]["experiments"] == sorted(got.results)
     assert sorted(n for p in got.parts for n in p["experiments"]) == sorted(got.results)
     assert any("ms_app3, ms_short not used: run again (--without)" in n for n in notes)
     out = tmp_path / "out"
@@ -798,10 +795,11 @@ def test_earlier_results_are_taken_per_kind_of_stepping(tmp_path):
     older.write_text(json.dumps(doc))
     notes.clear()
     assert VL.earlier_results([older], cfg, notes.append).results == {} and "other settings" in notes[0]
-    # a checkpoint: hf1's result was made before the growth stepping changed and still fits; va's under that
-    # older stepping would not
-    assert VE.fits(results["hf1"], VB.EXPERIMENTS["hf1"], cfg) and VE.fits(results["va"], VB.EXPERIMENTS["va"], cfg)
-    assert not VE.fits({**results["va"], "config": results["hf1"]["config"]}, VB.EXPERIMENTS["va"], cfg)
+    # a checkpoint: hf1's result made under the older growth stepping still fits; va's would not
+    older_key = doc["results"]["hf1"]["config"]
+    assert VE.fits({**results["hf1"], "config": older_key}, VB.EXPERIMENTS["hf1"], cfg)
+    assert VE.fits(results["va"], VB.EXPERIMENTS["va"], cfg)
+    assert not VE.fits({**results["va"], "config": older_key}, VB.EXPERIMENTS["va"], cfg)
     key = cfg.run_key()
     other = {**key, "stepping": {**key["stepping"], "growth": "strang, dt = 5e-08 s, fp32"}}
     assert same_settings(other, key, "hf") and same_settings(other, key, None)
