@@ -878,11 +878,13 @@ def test_committed_lf_state_results_come_from_one_set_of_lf_runs():
     assert VM.lf_conflicts({**runs, "lf facts": results["lf_states"]["lf_runs"]}) == []
 
 
-def test_compare_two_results_files(tmp_path, capsys):
+def test_compare_two_results_files(tmp_path, capsys, monkeypatch):
     """``scripts/validation_compare.py``: the committed file against itself is the same (exit 0); a copy with one
-    per-pad number changed, one entry dropped and a row's input moved names each (exit 1); a file that is not a
-    results file exits 2."""
-    committed = Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json"
+    per-pad number changed, one entry dropped, the LF facts' cap moved, an experiment only in it and a row's input
+    moved names each (exit 1), its timings and provenance do not count; a file that is not a results file exits 2.
+    The committed comparison of the results with the file they replaced is the script's output."""
+    repo = Path(__file__).resolve().parent.parent
+    committed = repo / "docs" / "validation" / "results.json"
     script = load_script("validation_compare")
     assert script.main([str(committed), str(committed)]) == 0
     assert "0 of " in capsys.readouterr().out
@@ -892,16 +894,27 @@ def test_compare_two_results_files(tmp_path, capsys):
     del pad["seed"]
     for p in doc["results"]["va_full"]["pads"]:  # μ falls instead of rising: the row's verdict moves
         p["measures"]["mu_rise"] = -abs(p["measures"]["mu_rise"])
-    doc["results"]["hf2"]["run"]["wall_s"] = 1e9  # timings are not compared
+    doc["results"]["lf_states"]["cap_frequency_hz"] *= 2
+    doc["results"]["hf2"]["run"]["wall_s"] = 1e9  # timings and provenance are not compared
+    doc["results"]["hf2"]["run"]["device"] = "cuda:7"
     other = tmp_path / "results.json"
     other.write_text(json.dumps(doc))
     assert script.main([str(committed), str(other)]) == 1
-    out = capsys.readouterr().out
-    hf1 = next(line for line in out.splitlines() if line.startswith("| hf1 |"))
-    assert "| 1 |" in hf1 and "pads[0].patches: 1758 against 1759" in hf1 and "pads[0].seed" in hf1
-    assert next(line for line in out.splitlines() if line.startswith("| hf2 |")).split("|")[3].strip() == "0"
-    assert "* μ rises as the load moves from the matrix to the growing patches: reproduced" in out
-    assert "→ not reproduced" in out
+    out = capsys.readouterr().out.splitlines()
+    row = {line.split("|")[1].strip(): line for line in out if line.startswith("| ")}
+    assert "| 1 |" in row["hf1"] and "pads[0].patches: 1758 against 1759" in row["hf1"] and "pads[0].seed" in row["hf1"]
+    assert row["hf2"].split("|")[3].strip() == "0" and "cap_frequency_hz" in row["lf_states"]
+    assert any(line.startswith("* rows: μ rises as the load moves from the matrix") for line in out)
+    one = {**doc, "results": {k: v for k, v in doc["results"].items() if k != "ms_order"}}
+    other.write_text(json.dumps(one))
+    assert script.main([str(other), str(committed)]) == 1  # an experiment in the second file only
+    assert "(the whole experiment)" in capsys.readouterr().out
     other.write_text("{}")
     assert script.main([str(committed), str(other)]) == 2
     assert "not a validation results file" in capsys.readouterr().err
+    other.write_text(json.dumps({"format": doc["format"], "results": {}}))
+    assert script.main([str(committed), str(other)]) == 2
+    assert "not a complete validation results file" in capsys.readouterr().err
+    monkeypatch.chdir(repo)  # the committed comparison, as its page names it
+    assert script.main(["docs/validation/earlier/results.json", "docs/validation/results.json"]) == 0
+    assert capsys.readouterr().out == (repo / "docs" / "validation" / "h200_compare.md").read_text()

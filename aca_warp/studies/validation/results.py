@@ -50,10 +50,12 @@ def read_results(path: Path) -> tuple[dict[str, dict], dict[str, Any], Config]:
     got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
     if got != FORMAT:
         raise ValueError(f"{path}: not a validation results file (format {got!r}, want {FORMAT!r})")
-    meta = doc["meta"]
+    meta, results = doc.get("meta"), doc.get("results")
+    if not (isinstance(meta, dict) and isinstance(meta.get("config"), dict) and isinstance(results, dict)):
+        raise ValueError(f"{path}: not a complete validation results file (its meta, settings or results missing)")
     fields = {f.name for f in dataclasses.fields(Config)}
     cfg = {k: tuple(v) if isinstance(v, list) else v for k, v in meta["config"].items() if k in fields}
-    return doc["results"], meta, Config(**cfg)
+    return results, meta, Config(**cfg)
 
 
 def evaluate(results: dict[str, dict], cfg: Config) -> tuple[list[dict], list[dict | None], list[dict]]:
