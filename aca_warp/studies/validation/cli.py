@@ -55,9 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Seed ensembles of HF runs against the paper's statements; writes the runs under --out, the "
         "compact results.json and a log under --results, and, with --page, the generated section of a docs page.",
         epilog="Full variant (GPU, one call): python3 scripts/validation.py --device cuda:0 --out DIR --results "
-        "RESULTS --max-wall 500 (406 s on one H200). Quick CPU smoke check: --quick. The page from a results file alone: --report "
-        "RESULTS/results.json --page docs/validation.md. Checkpoints: each experiment's result is saved under "
-        "DIR/<experiment>/ when done and reused by a rerun with the same settings (--rerun: run again).",
+        "RESULTS --max-wall 500 (406 s on one H200). Quick CPU smoke check: --quick. The page from a results file "
+        "alone: --report RESULTS/results.json --page docs/validation.md. Checkpoints: each experiment's result is "
+        "saved under DIR/<experiment>/ when done and reused by a rerun with the same settings (--rerun: run again).",
     )
     p.add_argument("--out", type=Path, default=Path("out/validation"), help="folder of the runs (created)")
     p.add_argument("--results", type=Path, default=None, help="folder of results.json and validation.log "
