@@ -424,6 +424,26 @@ def test_a_result_file_continues_across_a_change_of_the_validation_stepping():
 
     key = {"seeds": 32, "window": 0.01, "stepping": {"hf": "strang, dt = 1e-07 s, fp32"}}
     assert without_stepping(key) == {"seeds": 32, "window": 0.01} == without_stepping({**key, "stepping": {}})
+    assert without_stepping({**key, "dt": None, "growth_dt": None}) == without_stepping(key)  # overrides too
+
+
+def test_committed_parts_continue_under_the_current_settings():
+    """The config a run of the study writes now, for the arguments of a committed part's command, is the one that
+    part holds (as the continuation compares them): a part can be continued with more settings, and parts made
+    before and after a change of the validation's run key merge."""
+    import shlex
+    from pathlib import Path
+
+    from aca_warp.studies.work_precision_stats_rule import without_stepping
+
+    root = Path(__file__).resolve().parent.parent / "docs" / "figures" / "work_precision_statistics"
+    parts = sorted((root / "growth_events").glob("*_parts/s*/wps_*.json"))
+    assert len(parts) == 6
+    for path in parts:
+        doc = json.loads(path.read_text())
+        args = wps.build_parser().parse_args(shlex.split(doc["commands"][-1])[2:])
+        (reg,) = doc["regimes"].values()
+        assert without_stepping(wps.regime_config(args).run_key()) == without_stepping(reg["config"]), path
 
 
 def _parts_of(reg: dict, seeds: list[range], tags: list[str]) -> list[dict]:
