@@ -420,7 +420,7 @@ def test_committed_page_is_what_the_report_writes():
 
 def test_a_result_file_continues_across_a_change_of_the_validation_stepping():
     """The regime's config is compared without the validation's stepping table (the grid sets the steps)."""
-    from aca_warp.studies.work_precision_stats_rule import without_stepping
+    from aca_warp.studies.validation.base import without_stepping
 
     key = {"seeds": 32, "window": 0.01, "stepping": {"hf": "strang, dt = 1e-07 s, fp32"}}
     assert without_stepping(key) == {"seeds": 32, "window": 0.01} == without_stepping({**key, "stepping": {}})
@@ -434,7 +434,7 @@ def test_committed_parts_continue_under_the_current_settings():
     import shlex
     from pathlib import Path
 
-    from aca_warp.studies.work_precision_stats_rule import without_stepping
+    from aca_warp.studies.validation.base import without_stepping
 
     root = Path(__file__).resolve().parent.parent / "docs" / "figures" / "work_precision_statistics"
     parts = sorted((root / "growth_events").glob("*_parts/s*/wps_*.json"))

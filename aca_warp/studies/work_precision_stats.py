@@ -65,7 +65,7 @@ from aca_warp.hf.options import INTEGRATORS, fast_math_unfit, tolerance_keyword
 from aca_warp.studies.report import Log, add_device, add_page_options, clean, command_line, write_json
 from aca_warp.studies.validation.analysis import analyse_batch
 from aca_warp.studies.validation.area import analyse_growth
-from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK, close_pools
+from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK, close_pools, without_stepping
 from aca_warp.studies.validation.cli import default_workers
 from aca_warp.studies.validation.experiments import Collector, prepare
 from aca_warp.studies.validation.multiscale import ensure_lf
@@ -77,7 +77,6 @@ from aca_warp.studies.work_precision_stats_rule import (
     load_results,
     measures_of,
     pad_values,
-    without_stepping,
 )
 
 PRECISIONS = ("fp32", "fp64")

@@ -24,13 +24,13 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.studies.validation.base import without_stepping
 from aca_warp.studies.work_precision_stats_rule import (
     MEASURES,
     _matrix,
     _members,
     load_results,
     reference_of,
-    without_stepping,
 )
 
 SAME = ("name", "description", "kind", "measures", "reference")

@@ -481,17 +481,6 @@ class Choice:
         return self.reference_wall_s / self.wall_s if self.wall_s > 0 else math.nan
 
 
-STEPPING_KEYS = ("stepping", "dt", "precision", "growth_dt")
-"""The validation's stepping table and its overrides in a run key (the grid and the reference set the steps here)."""
-
-
-def without_stepping(config: Any) -> Any:
-    """A regime's validation settings less the validation's own stepping table and its overrides
-    (:data:`STEPPING_KEYS`): the grid and the reference set the steps here, so a change of that table, or an override
-    added to the run key, does not make a result file another run (continued or merged)."""
-    return {k: v for k, v in config.items() if k not in STEPPING_KEYS} if isinstance(config, dict) else config
-
-
 def load_results(source: dict[str, Any] | str | Path) -> dict[str, Any]:
     """A result document (the study's JSON) from a dict or a path; ValueError for a file that is not one (no
     object with a ``regimes`` object of regimes that each hold ``pads`` and ``settings`` lists)."""

@@ -113,6 +113,16 @@ STEPPING_OVERRIDES = ("dt", "precision", "growth_dt")
 """Settings that only replace values of the stepping table: a run key's stepping describes what each kind ran with."""
 
 
+def without_stepping(key: Any) -> Any:
+    """A run key (:meth:`Config.run_key`) less the stepping table and its overrides (:data:`STEPPING_OVERRIDES`):
+    the settings every kind of experiment shares. The work-precision study compares its result files so (its grid
+    and reference set the steps), so that a change of the table, or an override added to the run key, does not make
+    a file another run (continued or merged); anything but a dict is returned as it is."""
+    if not isinstance(key, dict):
+        return key
+    return {k: v for k, v in key.items() if k != "stepping" and k not in STEPPING_OVERRIDES}
+
+
 def same_settings(key: dict[str, Any], other: dict[str, Any], kind: str | None) -> bool:
     """Whether two run keys (:meth:`Config.run_key`) agree on everything an experiment of stepping ``kind`` depends
     on: every setting, and the stepping of that kind as described (the other kinds' may differ: a result of the hf
@@ -120,8 +130,7 @@ def same_settings(key: dict[str, Any], other: dict[str, Any], kind: str | None) 
     through the description); ``kind`` None: every setting but the stepping."""
 
     def mine(k: dict[str, Any]) -> dict[str, Any]:
-        rest = {n: v for n, v in k.items() if n not in STEPPING_OVERRIDES}
-        return {**rest, "stepping": (k.get("stepping") or {}).get(kind) if kind else None}
+        return {**without_stepping(k), "stepping": (k.get("stepping") or {}).get(kind) if kind else None}
 
     return mine(key) == mine(other)
 

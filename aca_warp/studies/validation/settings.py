@@ -19,6 +19,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from aca_warp.hf.options import growth_words
+
 
 @dataclass(frozen=True)
 class Stepping:
@@ -42,9 +44,9 @@ class Stepping:
     reason: str = ""
 
     def describe(self) -> str:
-        """One line: integrator, step, precision and, where set, the growth events' spacing."""
-        events = "" if self.growth_dt is None else f", growth events every {self.growth_dt:g} s"
-        return f"{self.integrator}, dt = {self.dt:g} s{' (forced)' if self.force else ''}, {self.precision}{events}"
+        """One line: integrator, step, precision and, where set, the growth events' spacing (``growth_words``)."""
+        forced = " (forced)" if self.force else ""
+        return f"{self.integrator}, dt = {self.dt:g} s{forced}, {self.precision}{growth_words(self.growth_dt)}"
 
 
 _LF_REGIME = (
