@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import threading
 import time
 import uuid
 import warnings
@@ -151,6 +152,50 @@ def warm_workers(client: Any, device: str) -> dict[str, float]:
     return client.run(load, device)
 
 
+class ClusterStart:
+    """A local cluster (:func:`local_cluster`) started in a thread of its own, with its client and, with ``warm``,
+    its workers' kernels loaded (:func:`warm_workers`): the worker processes start (≈ 2–3 s on a GPU host: Python,
+    Dask, Warp and CUDA in each) while the call checks its devices, prepares its manifest and starts its preparation
+    pool. :meth:`result` waits for it and returns (cluster, client, device seen by workers), or raises what the
+    start raised; :meth:`close` waits for it and closes what it started (a call that stops before using it)."""
+
+    def __init__(self, device: str, workers: int | None, threads: int, *, warm: bool) -> None:
+        self.cluster: Any = None
+        self.client: Any = None
+        self.worker_device = ""
+        self.error: BaseException | None = None
+        self._thread = threading.Thread(
+            target=self._start, args=(device, workers, threads, warm), name="aca-warp-cluster-start", daemon=True
+        )
+        self._thread.start()
+
+    def _start(self, device: str, workers: int | None, threads: int, warm: bool) -> None:
+        try:
+            from distributed import Client
+
+            _drop_sync_cancel_errors()
+            self.cluster, self.worker_device = local_cluster(device, workers, threads=threads)
+            self.client = Client(self.cluster)
+            if warm:
+                # the workers load their kernels before the first shard is handed out: the first turns do not
+                # include it, and the pool's head start (begun beside this start) grows by that time
+                warm_workers(self.client, self.worker_device)
+        except BaseException as e:  # noqa: BLE001  (raised in the caller's thread by result())
+            self.error = e
+
+    def result(self) -> tuple[Any, Any, str]:
+        self._thread.join()
+        if self.error is not None:
+            raise self.error
+        return self.cluster, self.client, self.worker_device
+
+    def close(self, *, quiet: bool) -> None:
+        """Wait for the start, then close its client and cluster (once; later calls do nothing)."""
+        self._thread.join()
+        client, cluster, self.client, self.cluster = self.client, self.cluster, None, None
+        _close(client, cluster, quiet=quiet)
+
+
 def _have_dask() -> bool:
     import importlib.util
 
@@ -224,10 +269,12 @@ def _run_on_dask(
     overlap: bool,
     preparer: Preparer | None = None,
     sharing: int = 1,
+    started: ClusterStart | None = None,
 ) -> None:
     """Run ``book.todo`` as Dask tasks (a local cluster, a scheduler's, or ``client``'s); ``preparer``: the shards
     made ahead and sent with the tasks (:func:`_feed`); ``sharing``: tasks that may hold a device's memory at once
-    (:func:`device_sharing`)."""
+    (:func:`device_sharing`); ``started``: the local cluster, begun by the caller (:class:`ClusterStart`; without
+    it, and without a scheduler or client, one is started here). The local cluster is closed on return."""
     try:
         from distributed import Client
     except ImportError:
@@ -235,7 +282,6 @@ def _run_on_dask(
             "Dask is not installed: pip install 'aca-warp[sweep]' (or dask[distributed]), or run with --workers 0"
         ) from None
     _drop_sync_cancel_errors()
-    cluster = None
     own_client = client is None
     futures: dict[Any, int] = {}
     interrupted = False
@@ -244,8 +290,9 @@ def _run_on_dask(
         if client is not None:
             worker_device = "cuda:0" if device.startswith("cuda") else device
         elif scheduler is None:
-            cluster, worker_device = local_cluster(device, workers, threads=PIPELINE_DEPTH if overlap else 1)
-            client = Client(cluster)
+            if started is None:
+                started = ClusterStart(device, workers, PIPELINE_DEPTH if overlap else 1, warm=preparer is not None)
+            _, client, worker_device = started.result()
         else:
             if not scheduler.startswith("tls://"):
                 print(
@@ -255,10 +302,6 @@ def _run_on_dask(
                 )
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)  # TLS settings, if any, from Dask's configuration
             worker_device = "cuda:0" if device == "cuda" else device
-        if cluster is not None and preparer is not None:
-            # the workers load their kernels before the first shard is handed out: the pool's head start (begun
-            # beside the cluster's start) grows by that time, and the first turns no longer include it
-            warm_workers(client, worker_device)
         info = client.scheduler_info(n_workers=-1)["workers"]
         book.result.workers = len(info)
         threads = sum(int(w.get("nthreads", 1)) for w in info.values())
@@ -293,7 +336,10 @@ def _run_on_dask(
             _stop_tasks(client, futures, token, book)
         raise
     finally:
-        _close(client if own_client else None, cluster, quiet=interrupted)
+        if started is not None:
+            started.close(quiet=interrupted)
+        else:
+            _close(client if own_client else None, None, quiet=interrupted)
 
 
 def shard_task(

@@ -22,6 +22,7 @@ from typing import Any
 from aca_warp.common.devices import get_device
 from aca_warp.common.errors import StorageError
 from aca_warp.sweep.cluster import (
+    ClusterStart,
     _have_dask,
     _run_on_dask,
     check_scheduler,
@@ -29,7 +30,7 @@ from aca_warp.sweep.cluster import (
     device_sharing,
     started_here,
 )
-from aca_warp.sweep.manifest import MANIFEST, SweepResult, _Book, _one_line, prepare_dir
+from aca_warp.sweep.manifest import MANIFEST, SweepResult, _Book, _one_line, prepare_dir, read_manifest
 from aca_warp.sweep.overlap import PIPELINE_DEPTH, ShardCancelled, ShardContext
 from aca_warp.sweep.prepare import PreparedShard, Preparer
 from aca_warp.sweep.shard import run_shard, shard_name
@@ -70,51 +71,95 @@ def run_sweep(
     t0 = time.perf_counter()
     say = log or (lambda s: None)
     out = Path(out_dir)
-    if device != "cpu" and scheduler is None and client is None:  # validate before anything is written
-        for k in cuda_ordinals(device):  # the GPUs of a local sweep: this machine's (SceneError names those it has)
-            get_device(f"cuda:{k}")
     if out.exists() and not out.is_dir():
         raise SweepError(f"{out} exists and is not a directory")
-    if scheduler is not None and client is None:
-        check_scheduler(scheduler)  # a bad address or no answer: one line, nothing written
-    out.mkdir(parents=True, exist_ok=True)
-    from aca_warp.common.files import locked_output
+    early = None
+    if scheduler is None and client is None and workers != 0 and _have_dask() and _will_run(spec, out, overwrite):
+        # the local cluster's processes start while this call checks its devices, prepares the manifest and starts
+        # its pool; its workers load their kernels where a pool will prepare the shards (prepare_processes)
+        pool = device != "cpu" if prepare is None else prepare > 0
+        early = ClusterStart(device, workers, PIPELINE_DEPTH if overlap else 1, warm=pool)
+    try:
+        if device != "cpu" and scheduler is None and client is None:  # validate before anything is written
+            for k in cuda_ordinals(device):  # the GPUs of a local sweep: this machine's (SceneError names those it has)
+                get_device(f"cuda:{k}")
+        if scheduler is not None and client is None:
+            check_scheduler(scheduler)  # a bad address or no answer: one line, nothing written
+        out.mkdir(parents=True, exist_ok=True)
+        from aca_warp.common.files import locked_output
 
-    # one sweep per directory: held until the last shard is recorded
-    with locked_output(out / MANIFEST, what="wait for that sweep to finish or stop it"):
-        manifest = prepare_dir(spec, out, overwrite=overwrite)
-        book = _Book(spec, out, manifest, say)
-        book.result.workers = 0
-        if book.todo:
-            args = (spec.doc, str(spec.base_dir), str(out.resolve()))
-            if workers is None and scheduler is None and client is None and not _have_dask():
-                say("Dask is not installed (pip install 'aca-warp[sweep]'): running the shards in this process")
-                workers = 0
-            local = scheduler is None and client is None
-            processes = prepare_processes(device, workers, local) if prepare is None else prepare
-            sharing = device_sharing(device, workers, scheduler, client)
-            preparer = None
-            if processes > 0:
-                made = {"device": prepare_device(device, local), "memory_fraction": memory_fraction, "sharing": sharing}
-                # the workers of a local cluster (this call's, or one this process started) read the prepared
-                # shards from files; those of a scheduler's cluster may be on other hosts: by value
-                spool = (local and workers != 0) or (client is not None and started_here(client))
-                preparer = Preparer(*args[:2], processes, ahead=2 * processes, spool=spool, **made)
-                preparer.plan(book.todo)  # the pool starts now, beside a local cluster's start
-            try:
-                if workers == 0 and local:
-                    dev = device if device == "cpu" else f"cuda:{cuda_ordinals(device)[0]}"
-                    run = _run_in_process_overlapped if overlap else _run_in_process
-                    run(book, args, dev, memory_fraction, preparer)
-                else:
-                    job = (book, args, device, workers, scheduler, client, memory_fraction, overlap, preparer, sharing)
-                    _run_on_dask(*job)
-            finally:
-                if preparer is not None:
-                    preparer.close()
-        book.result.ran.sort()
-        book.result.wall_time = time.perf_counter() - t0
-        return book.result
+        # one sweep per directory: held until the last shard is recorded
+        with locked_output(out / MANIFEST, what="wait for that sweep to finish or stop it"):
+            manifest = prepare_dir(spec, out, overwrite=overwrite)
+            book = _Book(spec, out, manifest, say)
+            book.result.workers = 0
+            if book.todo:
+                options = {"memory_fraction": memory_fraction, "overlap": overlap, "prepare": prepare, "early": early}
+                _run_todo(book, spec, device, workers, scheduler, client, **options)
+            book.result.ran.sort()
+            book.result.wall_time = time.perf_counter() - t0
+            return book.result
+    finally:
+        if early is not None:
+            early.close(quiet=True)  # a call that stopped before its shards (the Dask path has closed it)
+
+
+def _run_todo(
+    book: _Book,
+    spec: SweepSpec,
+    device: str,
+    workers: int | None,
+    scheduler: str | None,
+    client: Any,
+    *,
+    memory_fraction: float,
+    overlap: bool,
+    prepare: int | None,
+    early: ClusterStart | None,
+) -> None:
+    """Run ``book.todo`` (the arguments of :func:`run_sweep`): its preparation pool, then the in-process or the
+    Dask path (``early``: the local cluster, starting)."""
+    args = (spec.doc, str(spec.base_dir), str(book.out.resolve()))
+    if workers is None and scheduler is None and client is None and not _have_dask():
+        book.say("Dask is not installed (pip install 'aca-warp[sweep]'): running the shards in this process")
+        workers = 0
+    local = scheduler is None and client is None
+    processes = prepare_processes(device, workers, local) if prepare is None else prepare
+    sharing = device_sharing(device, workers, scheduler, client)
+    preparer = None
+    if processes > 0:
+        made = {"device": prepare_device(device, local), "memory_fraction": memory_fraction, "sharing": sharing}
+        # the workers of a local cluster (this call's, or one this process started) read the prepared
+        # shards from files; those of a scheduler's cluster may be on other hosts: by value
+        spool = (local and workers != 0) or (client is not None and started_here(client))
+        preparer = Preparer(*args[:2], processes, ahead=2 * processes, spool=spool, **made)
+        preparer.plan(book.todo)  # the pool starts now, beside a local cluster's start
+    try:
+        if workers == 0 and local:
+            dev = device if device == "cpu" else f"cuda:{cuda_ordinals(device)[0]}"
+            run = _run_in_process_overlapped if overlap else _run_in_process
+            run(book, args, dev, memory_fraction, preparer)
+        else:
+            job = (book, args, device, workers, scheduler, client, memory_fraction, overlap, preparer, sharing)
+            _run_on_dask(*job, started=early)
+    finally:
+        if preparer is not None:
+            preparer.close()
+
+
+def _will_run(spec: SweepSpec, out: Path, overwrite: bool) -> bool:
+    """Whether a call for ``spec`` into ``out`` will run shards, as far as a look without the directory's lock tells
+    (:func:`run_sweep` decides under the lock): not for a sweep whose every shard has finished, nor for a directory
+    that holds another sweep without ``overwrite``; a manifest that cannot be read: no (the call says why)."""
+    try:
+        old = read_manifest(out)
+    except SweepError:
+        return False
+    if old is None:
+        return overwrite or not any(out.glob("shard-*.h5*"))
+    if old.get("spec_hash") != spec.hash:
+        return overwrite
+    return any(s.get("state") not in ("done", "fault") for s in old.get("shards", []))
 
 
 PREPARE_PER_GPU = 2  # default preparation processes per GPU of a local sweep (prepare_processes)
