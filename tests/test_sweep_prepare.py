@@ -237,7 +237,8 @@ def test_spooled_shard_is_the_prepared_shard(tmp_path: Path, monkeypatch: pytest
         _same_shard(got.load(), ref)
         assert not Path(got.path).exists() and got.load() is None  # a task run again prepares the shard itself
         _in_time(lambda: prep._future(2).result(), 120)  # shard 2's file: never taken
-        assert len(list(folder.iterdir())) == 1
+        assert len(list(folder.glob("shard-*.pkl"))) == 1  # beside the marks of the begun preparations
+        assert sorted(f.name for f in folder.glob("began-*")) == ["began-00001", "began-00002"]
     finally:
         prep.close()
     assert not folder.exists()
@@ -458,3 +459,44 @@ def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pyte
     h = bench.run_child(repo, {**runs[0], "code": "baseline", "mode": "host", "repeat": 1}, scratch)
     assert h["code"] == "baseline" and h["package"] == str(scratch / "view-baseline" / "aca_warp")
     assert all(0 < h["cpu_s"][p] for p in phases)
+
+
+def test_a_free_task_waits_for_a_begun_preparation(tmp_path: Path) -> None:
+    """A task whose device is free takes a shard whose preparation a pool process has begun (held here until the
+    task has asked for it), rather than make the shard itself; a shard whose preparation has not begun (held before
+    its mark) is left to the task."""
+    import functools
+
+    from aca_warp.sweep import prepare as prep_mod
+
+    spec, gate = _spec(), tmp_path / "gate"
+    for begun in (True, False):
+        p = Preparer(spec.doc, str(spec.base_dir), 1, 1, device="cpu")
+        if begun:  # marked, then held
+            p.prepare = functools.partial(prep_mod._begin, p.folder, functools.partial(gated, str(gate), p.work))
+        else:  # held before its mark
+            p.prepare = functools.partial(gated, str(gate), p.prepare)
+        try:
+            p.plan([0, 1])
+            if begun:
+                _in_time(lambda p=p: _until(lambda: p.began(0)), 120)
+                asked: list[int] = []
+                release = threading.Timer(0.3, gate.touch)
+                release.start()
+                shard = _in_time(lambda p=p, asked=asked: p.take(0, lambda: asked.append(0) or True), 120)
+                assert isinstance(shard, PreparedShard) and shard.index == 0 and not asked
+            else:
+                time.sleep(0.5)  # the pool process holds shard 0 before marking it
+                assert not p.began(0) and p.take(0, lambda: True) is None
+        finally:
+            gate.touch()
+            p.close()
+            gate.unlink()
+        assert not Path(p.folder).exists()
+
+
+def _until(done, seconds: float = 120.0) -> None:
+    deadline = time.monotonic() + seconds
+    while not done():
+        assert time.monotonic() < deadline
+        time.sleep(0.01)

@@ -385,10 +385,10 @@ def _feed(
     """Hand ``book.todo`` to Dask in order (``submit``) and record the tasks as they finish.
 
     Without a ``preparer`` every shard is submitted at once (its task prepares it). With one (planned for
-    ``book.todo`` already), a shard is submitted
-    while fewer tasks than the cluster's ``threads`` are unfinished (so that prepared shards wait in the pool's
-    results, not in the cluster's memory): with its preparation once that is ready, or, when fewer tasks than
-    ``workers`` are unfinished (a worker would wait: at the start, or when the pool falls behind), at once and
+    ``book.todo`` already), a shard is submitted while fewer tasks than the cluster's ``threads`` are unfinished (so
+    that prepared shards wait in the pool's results, not in the cluster's memory): with its preparation once that is
+    ready, or, when fewer tasks than ``workers`` are unfinished (a worker would wait: at the start, or when the pool
+    falls behind) and no pool process has begun it (:meth:`~aca_warp.sweep.prepare.Preparer.began`), at once and
     unprepared (its task prepares it). A shard whose preparation raised (or whose pool process died) is recorded
     failed, not submitted."""
     from distributed import as_completed
@@ -409,7 +409,7 @@ def _feed(
                         todo.popleft()
                         book.failed(i, _one_line(e))
                         continue
-                elif running.count() < workers:
+                elif running.count() < workers and not preparer.began(i):
                     preparer.forget(i)
                 else:
                     break

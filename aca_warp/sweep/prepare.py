@@ -260,6 +260,18 @@ def _spooled(prepare: Callable[[int], PreparedShard], spool: str, index: int) ->
     return SpooledShard(index, str(path))
 
 
+def _begun_name(index: int) -> str:
+    return f"began-{index:05d}"
+
+
+def _begin(folder: str, work: Callable[[int], PreparedShard | SpooledShard], index: int) -> Any:
+    """In a pool process: mark in ``folder`` that shard ``index``'s preparation has begun (:meth:`Preparer.began`),
+    then do it (``work``)."""
+    with contextlib.suppress(OSError, SceneError):  # the mark is there already (the shard asked for again)
+        os.close(create_new(Path(folder) / _begun_name(index), "mark of a begun preparation", mode=0o600))
+    return work(index)
+
+
 SPOOL_PREFIX = "spool-"
 
 
@@ -320,11 +332,14 @@ class Preparer:
         workers of a local cluster), removed with the folder by :meth:`close`; ``shard_options``: the keyword
         arguments of :func:`prepare_shard` (``device``, ``memory_fraction``, ``sharing``), with its defaults."""
         device = shard_options.get("device")
-        self.spool = _spool_folder() if spool else None
+        self.folder = _spool_folder()  # this call's private folder: the marks of begun preparations, spooled shards
+        self.spool = self.folder if spool else None
         made = functools.partial(prepare_shard, doc, base_dir, **shard_options)
-        self.prepare: Callable[[int], PreparedShard | SpooledShard] = (
+        # what a pool process does for a shard (work), behind the mark that it has begun (prepare)
+        self.work: Callable[[int], PreparedShard | SpooledShard] = (
             made if self.spool is None else functools.partial(_spooled, made, self.spool)
         )
+        self.prepare: Callable[[int], PreparedShard | SpooledShard] = functools.partial(_begin, self.folder, self.work)
         self.ahead = max(1, ahead)
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(_PRELOAD)  # imported once by this process's fork server, not per process
@@ -358,6 +373,11 @@ class Preparer:
         """Whether shard ``index``'s preparation has finished (successfully or not)."""
         return self._future(index).done()
 
+    def began(self, index: int) -> bool:
+        """Whether a pool process has begun preparing shard ``index`` (:func:`_begin`): the rest of it takes less
+        than the task would take to make the shard itself, so a task that is free waits for it."""
+        return (Path(self.folder) / _begun_name(index)).exists()
+
     def forget(self, index: int) -> None:
         """Drop shard ``index``: its task prepares it itself (a preparation under way finishes unused)."""
         with self.lock:
@@ -387,11 +407,12 @@ class Preparer:
     def take(
         self, index: int, idle: Callable[[], bool], cancel: threading.Event | None = None
     ) -> PreparedShard | SpooledShard | None:
-        """Shard ``index`` prepared, waiting for it while ``idle()`` is False (the device has other work); None once
-        it is not ready and ``idle()`` is True: the shard is then dropped (:meth:`forget`) and its task prepares it,
-        rather than leave the device waiting. Raises as :meth:`get`."""
+        """Shard ``index`` prepared, waiting for it while ``idle()`` is False (the device has other work) or its
+        preparation has begun (:meth:`began`); None once it is neither ready nor begun and ``idle()`` is True: the
+        shard is then dropped (:meth:`forget`) and its task prepares it, rather than leave the device waiting.
+        Raises as :meth:`get`."""
         while not self.poll(index):
-            if idle():
+            if not self.began(index) and idle():
                 self.forget(index)
                 return None
             if cancel is not None and cancel.is_set():
@@ -406,5 +427,4 @@ class Preparer:
         with self.lock:
             self.waiting.clear()
         self.pool.shutdown(wait=False, cancel_futures=True)
-        if self.spool is not None:
-            shutil.rmtree(self.spool, ignore_errors=True)
+        shutil.rmtree(self.folder, ignore_errors=True)
