@@ -91,3 +91,28 @@ def test_a_failed_start_is_raised_where_the_cluster_is_used(monkeypatch: pytest.
         start.result()
     start.close(quiet=False)
     start.close(quiet=False)
+
+
+def test_start_parts_script(tmp_path: Path) -> None:
+    """``scripts/sweep_start_parts.py`` times a fresh process's start part by part and a local cluster's start,
+    warm-up and close; a bad option exits 2."""
+    from scriptload import load_script
+
+    script = load_script("sweep_start_parts")
+    out = tmp_path / "parts.json"
+    assert script.main(["--workers", "1", "--repeat", "1", "--json", str(out)]) == 0
+    import json
+
+    doc = json.loads(out.read_text())
+    (fresh,) = doc["fresh"]
+    assert list(fresh) == [
+        "import numpy", "import warp", "wp.init", "context + first alloc", "import aca_warp sweep", "load kernels.hf",
+        "load kernels.neighbours", "import distributed",
+    ]  # fmt: skip
+    assert all(v >= 0 for v in fresh.values())
+    (start,) = doc["cluster"]
+    assert start["local_cluster"] > 0 and len(start["warm (per worker, inside)"]) == 1 and start["close"] > 0
+    for bad in (["--repeat", "0"], ["--json", str(tmp_path / "missing" / "x.json")]):
+        with pytest.raises(SystemExit) as e:
+            script.main(bad)
+        assert e.value.code == 2
