@@ -257,10 +257,11 @@ def child(cfg: dict) -> dict:
 
 
 def command_sweep(cfg: dict) -> dict:
-    """The sweep as ``aca-warp sweep`` runs it: one ``run_sweep`` call that starts its preparation pool, then its own
-    local cluster (its default workers), then hands out the shards; timed from the call's start (the pool's head
-    start beside the cluster's start is inside it). Run in a process of its own after the configuration's warm-up
-    (the kernels are in the disk cache then: loaded, not compiled; the pool's fork server starts in the call)."""
+    """The sweep as ``aca-warp sweep`` runs it: one ``run_sweep`` call that starts its own local cluster (its default
+    workers) and its preparation pool, then hands out the shards; timed from the call's start (both starts, side by
+    side in this code, one after the other in older ones, are inside it). Run in a process of its own after the
+    configuration's warm-up (the kernels are in the disk cache then: loaded, not compiled; the pool's fork server
+    starts in the call)."""
     import inspect
 
     import aca_warp
