@@ -153,10 +153,10 @@ def _run_file_state(path: Path) -> str:
             if bool(f.attrs.get("complete", False)):
                 return f"{final} is complete"
             t = f["global/time"]
-            upto = f"to t = {float(t[-1]):.6g} s" if t.shape[0] else "no sample"
+            held = f"keeps the samples to t = {float(t[-1]):.6g} s" if t.shape[0] else "holds no sample yet"
     except (OSError, KeyError, ValueError, RuntimeError):
         return f"{final} was written but cannot be read back"
-    return f"{final} keeps the samples {upto}, marked incomplete; {recovery(final)}"
+    return f"{final} {held}, marked incomplete; {recovery(final)}"
 
 
 if __name__ == "__main__":

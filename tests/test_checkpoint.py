@@ -127,9 +127,9 @@ def test_a_default_run_resumes_after_ctrl_c(scene_file: Path, tmp_path: Path, mo
 
     monkeypatch.setattr(runner, "run_hf", interrupted)
     monkeypatch.setattr(checkpoint, "AUTO_WALL_S", 0.0)
-    for stop_at_first_chunk, flags, said in (
-        (False, [], "continue it from its checkpoint at t = "),
-        (True, [], "continue it from t = 0 with 'aca-warp hf --resume"),
+    for stop_at_first_chunk, flags, said, resumed in (
+        (False, [], "continue it from its checkpoint at t = ", ": resumed from its checkpoint at t = "),
+        (True, [], "continue it from t = 0 with 'aca-warp hf --resume", ": resumed again from t = 0 (it held no"),
     ):
         out = tmp_path / f"run{len(flags)}{stop_at_first_chunk}.h5"
         capsys.readouterr()
@@ -138,7 +138,7 @@ def test_a_default_run_resumes_after_ctrl_c(scene_file: Path, tmp_path: Path, mo
         assert len(err) == 1 and said in err[0] and f"'aca-warp hf --resume {out}'" in err[0], err
         monkeypatch.setattr(runner, "run_hf", real)
         assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
-        assert "resumed" in capsys.readouterr().out
+        assert resumed in capsys.readouterr().out  # the summary says where the resume started
         assert_same_file(out, ref)
         monkeypatch.setattr(runner, "run_hf", interrupted)
     written.clear()

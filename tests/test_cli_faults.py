@@ -515,3 +515,21 @@ def test_signal_while_the_process_exits(tmp_path: Path, sig: int) -> None:
     assert r.stdout.startswith(f"{out}: 21 samples")
     with h5py.File(out, "r") as f:
         assert f.attrs["complete"]
+
+
+def test_interrupt_message_for_a_file_without_samples(tmp_path: Path) -> None:
+    """A run stopped before its first sample: the message says the file holds no sample yet (and how to go on)."""
+    import h5py
+
+    from aca_warp.cli import _run_file_state
+
+    run = tmp_path / "early.h5"
+    with h5py.File(run, "w") as f:
+        f.attrs["complete"] = False
+        f.create_dataset("global/time", shape=(0,), maxshape=(None,), dtype="f8")
+    text = _run_file_state(run)
+    assert text.startswith(f"{run} holds no sample yet, marked incomplete; continue it from t = 0"), text
+    with h5py.File(run, "a") as f:
+        f["global/time"].resize((2,))
+        f["global/time"][:] = [0.0, 1.0e-6]
+    assert _run_file_state(run).startswith(f"{run} keeps the samples to t = 1e-06 s, marked incomplete; ")

@@ -98,7 +98,7 @@ def test_interrupted_run_resumes_and_reruns_bit_identical(tmp_path: Path, monkey
         assert has_checkpoint(f) and f["checkpoint"].attrs["sim_time"] == pytest.approx(0.6)
         assert f["global/mu"].shape == (75,) and "t0.75s" in f["snapshots"] and "calibration" in f
     assert main(["lf", "--resume", str(out), "--no-progress"]) == 0
-    assert "resumed" in capsys.readouterr().out
+    assert ": resumed from its checkpoint at t = 0.6 s, " in capsys.readouterr().out
     assert_same_lf_file(out, ref)
 
     again = tmp_path / "rerun.h5"

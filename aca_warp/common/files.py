@@ -413,7 +413,7 @@ def recovery(path: str | Path) -> str:
     try:
         with open_h5(src, "run file") as f:
             kind = "lf" if attr_value(f.attrs.get("kind")) == "lf" else "hf"
-            at = float(f["checkpoint"].attrs["sim_time"]) if has_checkpoint(f) else None
+            at = _checkpoint_time(f)
             stored = attr_value(f.attrs.get("lf_run" if kind == "lf" else "run_options", "{}"))
             interval = stored.get("checkpoint_interval") if isinstance(stored, dict) else None
     except (AcaError, OSError, RuntimeError, KeyError, ValueError, TypeError):
@@ -422,6 +422,26 @@ def recovery(path: str | Path) -> str:
         return f"continue it from its checkpoint at t = {at:.6g} s with {resume_hint(kind, final)}"
     why = "it ran without checkpoints" if interval == 0 else "it stopped before its first one"
     return f"continue it from t = 0 with {resume_hint(kind, final)} (it holds no checkpoint: {why})"
+
+
+def _checkpoint_time(f: Any) -> float | None:
+    """The simulated time of the open run file ``f``'s checkpoint [s], or None when it holds none."""
+    return float(f["checkpoint"].attrs["sim_time"]) if has_checkpoint(f) else None
+
+
+def resumed_from(path: str | Path) -> str:
+    """Where a resume of the unfinished run ``path`` (``NAME`` or ``NAME.partial``) starts, for its summary line:
+    "from its checkpoint at t = … s", or "again from t = 0 (it held no checkpoint)"; "" when the file cannot be
+    read (the resume then says why)."""
+    p = Path(path)
+    final = p.with_name(p.name.removesuffix(".partial"))
+    src = partial_path(final) if partial_path(final).exists() else final
+    try:
+        with open_h5(src, "run file") as f:
+            at = _checkpoint_time(f)
+    except (AcaError, OSError, RuntimeError, KeyError, ValueError, TypeError):
+        return ""
+    return "again from t = 0 (it held no checkpoint)" if at is None else f"from its checkpoint at t = {at:.6g} s"
 
 
 def check_output_path(path: str | Path, *, overwrite: bool) -> Path:

@@ -349,13 +349,16 @@ def _resume_hf(args: argparse.Namespace) -> int:
         ),
         "the run",
     )
+    from aca_warp.common.files import resumed_from
+
+    start = resumed_from(args.resume)  # before the resume writes its own checkpoints
     result, path = resume_run(
         args.resume,
         progress=not args.no_progress,
         checkpoint_interval=args.checkpoint_interval,
         device=None if args.device == "cpu" else args.device,
     )
-    line = f"{path}: resumed, {result.steps} steps over {result.sim_time:.4g} s"
+    line = f"{path}: resumed{' ' + start if start else ''}, {result.steps} steps over {result.sim_time:.4g} s"
     if result.fault is not None:
         print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
         from aca_warp.hf.rerun import read_settings

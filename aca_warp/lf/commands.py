@@ -210,11 +210,14 @@ def _cmd_lf(args: argparse.Namespace) -> int:
             ),
             "the LF run",
         )
+        from aca_warp.common.files import resumed_from
+
+        start = resumed_from(args.resume)  # before the resume writes its own checkpoints
         sim, path = resume_lf(
             args.resume, progress=not args.no_progress, checkpoint_interval=args.checkpoint_interval,
             device=None if args.device == "cpu" else args.device,
         )  # fmt: skip
-        print(_summary(path, sim).replace(": ", ": resumed, ", 1))
+        print(_summary(path, sim).replace(": ", f": resumed{' ' + start if start else ''}, ", 1))
         return 0
     if args.scene is None or args.output is None:
         raise SceneError("lf needs SCENE and -o LF.h5 (or --resume LF.h5 to continue a run)")
