@@ -31,6 +31,11 @@ class Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
+    def error(self, message: str) -> NoReturn:
+        """A mistyped command line: one line on stderr, naming where the options are listed, and exit code 2 (not
+        argparse's usage block before it)."""
+        self.exit(2, f"{self.prog}: error: {message}; see {self.prog} --help\n")
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``aca-warp``."""

@@ -16,10 +16,17 @@ from aca_warp.common.errors import SceneError
 ABSENT = "cuda:99"
 
 
-def test_get_device_names_the_devices_there_are():
+def test_get_device_names_the_devices_there_are(capfd):
     assert str(get_device("cpu")) == "cpu"
-    with pytest.raises(SceneError, match=r"'cuda:99' is not available here .*this machine has: cpu"):
+    with pytest.raises(SceneError, match=r"'cuda:99' is not available here.*this machine has: cpu"):
         get_device(ABSENT)
+    import warp as wp
+
+    if not wp.is_cuda_available():  # "cuda" without a usable GPU: the one error, no native CUDA messages before it
+        capfd.readouterr()
+        with pytest.raises(SceneError, match=r"^device 'cuda' is not available here: no usable CUDA GPU"):
+            get_device("cuda")
+        assert capfd.readouterr().err == ""
 
 
 def test_validation_refuses_an_absent_device_before_writing(tmp_path: Path, capsys):

@@ -11,7 +11,9 @@ def number(text: str) -> float:
     try:
         v = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"not a number: {text!r} (a plain number in SI units, e.g. 1e-3 for 1 ms, 5e-8 for 50 ns)"
+        ) from None
     if not math.isfinite(v):
         raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
     return v
