@@ -255,3 +255,22 @@ def test_absurd_runs_are_refused_before_anything_is_written(scene_file, tmp_path
     plan = runner.plan_run(scene, runner.RunOptions(duration=50.0, integrator="strang", dt=1e-10, force=True))
     assert plan.steps == 500_000_000_000 and plan.samples == 500_000_001
     assert plan.describe() == "5e+11 steps of 1e-10 s, 5e+08 samples, about 28 GB to record"
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["hf", "{scene}", "-o", "{out}", "--duration", "1ms"], "not a number: '1ms' (a plain number in SI units"),
+        (["hf", "{scene}", "-o", "{out}", "--bogus"], "unrecognized arguments: --bogus"),
+        (["hf", "{scene}", "-o", "{out}", "--integrator", "rk4"], "invalid choice: 'rk4'"),
+    ],
+)
+def test_a_mistyped_command_line_is_one_line(argv, message, scene_file, tmp_path, capsys):
+    """What argparse refuses is one line too (no usage block), naming the --help that lists the options; exit 2."""
+    out = tmp_path / "run.h5"
+    with pytest.raises(SystemExit) as e:
+        main([a.format(out=out, scene=scene_file) for a in argv])
+    assert e.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0] and err[0].endswith("--help"), err
+    assert not out.exists()
