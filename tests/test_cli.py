@@ -274,3 +274,19 @@ def test_a_mistyped_command_line_is_one_line(argv, message, scene_file, tmp_path
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0] and err[0].endswith("--help"), err
     assert not out.exists()
+
+
+def test_a_large_run_says_what_it_will_record_in_a_log_too(capsys):
+    """Off a terminal (a log, a pipe) the plan's line is printed for a run that records 1 GB or more, even with
+    --no-progress; a smaller run stays quiet there."""
+    from aca_warp.hf.commands import LARGE_OUTPUT_BYTES, _announce
+    from aca_warp.hf.runner import RunPlan
+
+    def plan(size: float) -> RunPlan:
+        return RunPlan(steps=10, step=5e-8, samples=11, patch_rows=11, output_bytes=int(size), file_bytes=int(size))
+
+    for progress in (True, False):
+        _announce("big.h5", progress)(plan(LARGE_OUTPUT_BYTES))
+        assert capsys.readouterr().err == "aca-warp: big.h5: 10 steps of 5e-08 s, 11 samples, about 1 GB to record\n"
+        _announce("small.h5", progress)(plan(LARGE_OUTPUT_BYTES / 10))
+        assert capsys.readouterr().err == ""

@@ -161,7 +161,10 @@ def test_sample_interval_shorter_than_the_step(tmp_path, capsys) -> None:
         '[sweep]\nbase = "hf1"\n[run]\nsample_dt = 5e-10\nduration = 1e-6\n[parameters]\n"friction.M" = [0.6]'
     )
     for argv, message in (
-        (["hf", str(tmp_path / "short.toml"), *out], "record.sample_dt = 5e-10 s is shorter than the step 5e-08 s"),
+        (
+            ["hf", str(tmp_path / "short.toml"), *out],
+            "(--sample-dt, or record.sample_dt in the scene) = 5e-10 s is shorter than the step 5e-08 s",
+        ),
         (["hf", str(tmp_path / "ok.toml"), "--sample-dt", "5e-10", *out], "5e-10 s is shorter than the step 5e-08"),
         (["sweep", str(spec), "-o", str(tmp_path / "sweep"), "--workers", "0"], "5e-10 s is shorter than the step"),
         (["hf", str(tmp_path / "tiny.toml"), *out], "record.sample_dt = 1e-12 s — below 1e-10 s"),

@@ -261,7 +261,8 @@ def _hf_scene(args: argparse.Namespace) -> tuple[Any, float]:
     duration = args.duration if args.duration is not None else scene.duration
     if changes.get("sample_dt", rec.sample_dt) > duration:
         raise SceneError(
-            f"sample interval {changes.get('sample_dt', rec.sample_dt):g} s exceeds the duration {duration:g} s"
+            f"sample interval {changes.get('sample_dt', rec.sample_dt):g} s (--sample-dt) exceeds the duration "
+            f"{duration:g} s: give a longer --duration or a shorter --sample-dt"
         )
     scene = scene.replace(duration=duration, record=Record(**{**dataclasses.asdict(rec), **changes}))
     return scene, duration
@@ -312,12 +313,20 @@ def stopped_at(sim_time: float, duration: float | None) -> str:
     return f"; stopped at t = {sim_time:.4g} s{asked} (incomplete)"
 
 
+LARGE_OUTPUT_BYTES = 1e9  # a run that records this much says so before it starts, on a terminal or not [B]
+
+
 def _announce(output: str, progress: bool) -> Any:
-    """What to do with the plan of a validated run: on a terminal with progress shown, a line on stderr before the
-    bar (in a log the summary line at the end says the same)."""
-    if not (progress and sys.stderr.isatty()):
-        return None
-    return lambda plan: print(f"aca-warp: {output}: {plan.describe()}", file=sys.stderr, flush=True)
+    """What to do with the plan of a validated run: a line on stderr before it starts, on a terminal with progress
+    shown (before the bar), and wherever stderr goes for a run that records :data:`LARGE_OUTPUT_BYTES` or more (a
+    log then says what is coming; otherwise the summary line at the end says the same)."""
+    shown = progress and sys.stderr.isatty()
+
+    def say(plan: Any) -> None:
+        if shown or plan.output_bytes >= LARGE_OUTPUT_BYTES:
+            print(f"aca-warp: {output}: {plan.describe()}", file=sys.stderr, flush=True)
+
+    return say
 
 
 def _resume_hf(args: argparse.Namespace) -> int:

@@ -38,7 +38,10 @@ def check_run(duration: float, record: Record, checkpoint_every: float | None = 
         raise SceneError(f"duration must be a positive number of seconds, got {duration}")
     # 1e-9: a duration made as the difference of two times (a run in segments) is a whole number of samples to ~1e-10
     if record.sample_dt > duration * (1 + 1e-9):
-        raise SceneError(f"sample interval {record.sample_dt:g} s exceeds the duration {duration:g} s")
+        raise SceneError(
+            f"sample interval {record.sample_dt:g} s ({option('record.sample_dt', '--sample-dt')}) exceeds the "
+            f"duration {duration:g} s: give a longer duration or a shorter sample interval"
+        )
     check_interval(checkpoint_every)
     n_samples = max(1, round(duration / record.sample_dt))
     if n_samples > 2**31 - 2:  # the recorder counts samples in int32
@@ -57,9 +60,11 @@ def check_sample_step(sample_dt: float, dt: float, anyway: str = "") -> None:
     turned a 1e-8 s step into 1e-12 s and a run of hours). ``anyway`` names the override, if there is one."""
     if sample_dt < dt * (1 - 1e-9):
         raise SceneError(
-            f"record.sample_dt = {sample_dt:g} s is shorter than the step {dt:g} s: every step would shrink to the "
-            f"sample interval ({dt / sample_dt:.3g} times the steps); choose a sample interval of at least the step "
-            f"(seconds) or ask for that step ({option('dt', '--dt')})" + (f"; {anyway}" if anyway else "")
+            f"{option('record.sample_dt', 'the sample interval (--sample-dt, or record.sample_dt in the scene)')} = "
+            f"{sample_dt:g} s is shorter than the step {dt:g} s: every step would shrink to the sample interval "
+            f"({dt / sample_dt:.3g} times the steps); "
+            f"choose a sample interval of at least the step ({option('record.sample_dt', '--sample-dt')}, seconds) "
+            f"or ask for that step ({option('dt', '--dt')})" + (f"; {anyway}" if anyway else "")
         )
 
 
