@@ -290,3 +290,13 @@ def test_a_large_run_says_what_it_will_record_in_a_log_too(capsys):
         assert capsys.readouterr().err == "aca-warp: big.h5: 10 steps of 5e-08 s, 11 samples, about 1 GB to record\n"
         _announce("small.h5", progress)(plan(LARGE_OUTPUT_BYTES / 10))
         assert capsys.readouterr().err == ""
+
+
+def test_a_misspelled_preset_gets_a_suggestion(tmp_path, capsys):
+    """A preset name off by its case or a few letters: the one line also names the nearest preset."""
+    for argv, near in ((["hf", "HF1"], "'hf1'"), (["hf", "varying"], "'varying_area'"), (["lf", "multiscal"], None)):
+        assert main([*argv, "-o", str(tmp_path / "x.h5")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].endswith(f"did you mean {near or repr('multiscale')}?"), err
+    assert main(["hf", "zzz", "-o", str(tmp_path / "x.h5")]) == 2
+    assert "did you mean" not in capsys.readouterr().err

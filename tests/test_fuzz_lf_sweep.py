@@ -152,7 +152,7 @@ def test_lf_resume_of_bad_files(tmp_path, capsys):
         f.attrs["kind"] = "lf"
         f.attrs["scene"] = "{"
     for argv, message in (
-        (["lf", "--resume", str(junk)], "cannot open"),
+        (["lf", "--resume", str(junk)], "is not an HDF5 file (expected a "),
         (["lf", "--resume", str(hf_like)], "attribute 'scene' is not valid JSON"),
         (["rerun", str(hf_like), "-o", str(tmp_path / "r.h5")], "attribute 'scene' is not valid JSON"),
     ):

@@ -481,6 +481,8 @@ def open_h5(path: str | Path, what: str, *, mode: str = "r", text: tuple[str, ..
     p = Path(path)
     if not p.is_file():
         raise SceneError(f"{what} not found: {p}")
+    if not h5py.is_hdf5(p):
+        raise SceneError(f"{p} is not an HDF5 file (expected a {what} written by aca-warp)")
     try:
         f = h5py.File(p, mode)
     except (OSError, RuntimeError) as e:

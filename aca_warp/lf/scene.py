@@ -32,6 +32,7 @@ from aca_warp.scene import (
     preset_document,
     read_scene_toml,
 )
+from aca_warp.scene.files import closest
 from aca_warp.scene.parts import _finite
 
 LF_PRESETS = ("multiscale",)
@@ -432,7 +433,10 @@ def load_lf_scene(spec: str | Path, overrides: dict | None = None, *, allow_impl
                 f"{s!r} is an HF scene: run it with 'aca-warp hf {s} -o RUN.h5'; LF presets: {', '.join(LF_PRESETS)}"
             )
         if not p.is_file():
-            raise SceneError(f"LF scene {s!r} is neither a preset ({', '.join(LF_PRESETS)}) nor an existing TOML file")
+            raise SceneError(
+                f"LF scene {s!r} is neither a preset ({', '.join(LF_PRESETS)}) nor an existing TOML file"
+                f"{closest(s, LF_PRESETS)}"
+            )
         doc = read_scene_toml(p, "LF scene file")
         if not doc:
             raise SceneError(f"LF scene file {p} is empty; start from the preset file aca_warp/data/multiscale.toml")

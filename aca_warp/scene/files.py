@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import sys
+from collections.abc import Iterable
 from importlib import resources
 from pathlib import Path
 
@@ -187,6 +188,15 @@ def read_scene_toml(p: Path, what: str) -> dict:
         raise SceneError(f"cannot read {what} {p}: {e.strerror}") from None
 
 
+def closest(name: str, names: Iterable[str]) -> str:
+    """ "; did you mean 'X'?" for the name of ``names`` nearest to ``name`` (case aside), or ""."""
+    import difflib
+
+    known = {n.lower(): n for n in names}
+    near = difflib.get_close_matches(name.lower(), list(known), n=1, cutoff=0.6)
+    return f"; did you mean {known[near[0]]!r}?" if near else ""
+
+
 def load_scene(spec: str | Path, *, allow_implausible: bool = False) -> Scene:
     """A preset name (:data:`PRESETS`) or the path of a TOML scene file (``allow_implausible``: as the scene key)."""
     s = str(spec)
@@ -197,7 +207,9 @@ def load_scene(spec: str | Path, *, allow_implausible: bool = False) -> Scene:
     if p.is_dir():
         raise SceneError(f"scene {s!r} is a folder; give a preset ({', '.join(PRESETS)}) or a TOML scene file")
     if not p.is_file():
-        raise SceneError(f"scene {s!r} is neither a preset ({', '.join(PRESETS)}) nor an existing TOML file")
+        raise SceneError(
+            f"scene {s!r} is neither a preset ({', '.join(PRESETS)}) nor an existing TOML file{closest(s, PRESETS)}"
+        )
     doc = read_scene_toml(p, "scene file")
     if not doc:
         raise SceneError(
