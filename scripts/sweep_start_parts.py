@@ -12,7 +12,7 @@ cluster's start, client, kernel warm-up and close, each ``--repeat`` times.
 The first repeat loads the kernels into the cache if they are not there (compiling them: minutes); later ones load
 them. Prints the JSON and writes it with ``--json``.
 
-    python3 scripts/sweep_start_parts.py --device cuda:0 --repeat 2 \
+    python3 scripts/sweep_start_parts.py --device cuda:0 --repeat 3 \
         --json docs/benchmarks/sweep/cluster_start_h200/parts.json
 """
 
@@ -83,23 +83,25 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", type=Path, help="write the results here")
     args = ap.parse_args(argv)
     from aca_warp.common.files import host_cpu
+    from aca_warp.studies.report import command_line, write_json
 
     if args.repeat < 1:
         ap.error("--repeat must be at least 1")
+    if args.workers is not None and args.workers < 1:
+        ap.error("--workers must be at least 1")
     if args.json is not None and not args.json.parent.is_dir():
         ap.error(f"--json: folder {args.json.parent} does not exist")
     doc = {
         "date": time.strftime("%Y-%m-%d"),
         "host": host_cpu(),
         "platform": platform.platform(),
-        "command": " ".join([Path(sys.argv[0]).name, *(argv if argv is not None else sys.argv[1:])]),
+        "command": command_line("sweep_start_parts.py", argv if argv is not None else sys.argv[1:]),
         "fresh": [fresh(args.device) for _ in range(args.repeat)],
         "cluster": [cluster(args.device, args.workers) for _ in range(args.repeat)],
     }
-    text = json.dumps(doc, indent=1)
-    print(text)
+    print(json.dumps(doc, indent=1))
     if args.json is not None:
-        args.json.write_text(text + "\n")
+        write_json(args.json, doc)
     return 0
 
 

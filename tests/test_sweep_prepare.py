@@ -469,8 +469,9 @@ def test_a_free_task_waits_for_a_begun_preparation(tmp_path: Path) -> None:
 
     from aca_warp.sweep import prepare as prep_mod
 
-    spec, gate = _spec(), tmp_path / "gate"
+    spec = _spec()
     for begun in (True, False):
+        gate = tmp_path / f"gate-{begun}"  # one per case, left in place: the held processes see it and finish
         p = Preparer(spec.doc, str(spec.base_dir), 1, 1, device="cpu")
         if begun:  # marked, then held
             p.prepare = functools.partial(prep_mod._begin, p.folder, functools.partial(gated, str(gate), p.work))
@@ -481,8 +482,7 @@ def test_a_free_task_waits_for_a_begun_preparation(tmp_path: Path) -> None:
             if begun:
                 _in_time(lambda p=p: _until(lambda: p.began(0)), 120)
                 asked: list[int] = []
-                release = threading.Timer(0.3, gate.touch)
-                release.start()
+                threading.Timer(0.3, gate.touch).start()
                 shard = _in_time(lambda p=p, asked=asked: p.take(0, lambda: asked.append(0) or True), 120)
                 assert isinstance(shard, PreparedShard) and shard.index == 0 and not asked
             else:
@@ -491,8 +491,41 @@ def test_a_free_task_waits_for_a_begun_preparation(tmp_path: Path) -> None:
         finally:
             gate.touch()
             p.close()
-            gate.unlink()
         assert not Path(p.folder).exists()
+
+
+def test_a_free_worker_waits_for_a_begun_preparation(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """On Dask too: a worker with nothing to do is handed the first shard once the pool process that has begun it
+    is done (its file, not the shard), instead of the shard unprepared."""
+    pytest.importorskip("distributed")
+    import functools
+
+    from aca_warp.sweep import cluster
+    from aca_warp.sweep import prepare as prep_mod
+
+    gate = tmp_path / "gate"
+    made = Preparer.__init__
+
+    def held(self: Preparer, *args, **kwargs) -> None:
+        made(self, *args, **kwargs)  # marked, then held until the feed below has seen the worker free
+        self.prepare = functools.partial(prep_mod._begin, self.folder, functools.partial(gated, str(gate), self.work))
+
+    fed = cluster._feed
+    handed: list[str] = []
+
+    def feed(book, submit, preparer, **kwargs) -> None:
+        _in_time(lambda: _until(lambda: preparer.began(0)), 120)
+        threading.Timer(0.5, gate.touch).start()
+        fed(book, _recording(submit, handed), preparer, **kwargs)
+
+    monkeypatch.setattr(Preparer, "__init__", held)
+    monkeypatch.setattr(cluster, "_feed", feed)
+    try:
+        res = _in_time(lambda: run_sweep(_spec(), tmp_path / "out", device="cpu", workers=1, prepare=1))
+    finally:
+        gate.touch()
+    assert res.ran == [0, 1, 2] and not res.failed
+    assert handed[0] == "SpooledShard", handed
 
 
 def _until(done, seconds: float = 120.0) -> None:

@@ -3,6 +3,7 @@ and starts its pool; closed when the call stops before its shards; not begun for
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import pytest
@@ -19,11 +20,14 @@ SPEC = small_sweep_doc("start", count=16, duration=2e-6, parameters={"patches.se
 
 
 class FakeStart:
-    """Records the call's order of events in ``events``; a start that is never used (:meth:`result` fails)."""
+    """Records the call's order of events in ``events``; a start whose cluster is never used (:meth:`result` fails)."""
 
-    def __init__(self, events: list[str], device: str, workers: int | None, threads: int, *, warm: bool) -> None:
+    def __init__(self, events: list[str], device: str, workers: int | None, threads: int) -> None:
         self.events = events
-        events.append(f"start {device} workers={workers} threads={threads} warm={warm}")
+        events.append(f"start {device} workers={workers} threads={threads}")
+
+    def go(self, *, warm: bool) -> None:
+        self.events.append(f"go warm={warm}")
 
     def result(self):
         raise AssertionError("not reached in these tests")
@@ -37,11 +41,11 @@ def _fake(monkeypatch: pytest.MonkeyPatch, events: list[str]) -> None:
 
 
 @pytest.mark.parametrize("stop", [SceneError("device 'cuda:9' is not available"), KeyboardInterrupt()])
-def test_cluster_starts_before_the_checks_and_closes_when_the_call_stops(
+def test_cluster_begins_before_the_checks_and_spawns_nothing_when_the_call_stops(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, stop: BaseException
 ) -> None:
-    """The cluster of a local GPU sweep starts before its devices are checked (a check that fails, or Ctrl-C there,
-    closes it quietly and writes nothing); its workers load their kernels where a pool prepares the shards."""
+    """The start of a local GPU sweep's cluster begins (Dask imported in its thread) before the devices are
+    checked; a check that fails, or Ctrl-C there, closes it without its go: no process spawned, nothing written."""
     events: list[str] = []
     _fake(monkeypatch, events)
 
@@ -53,29 +57,39 @@ def test_cluster_starts_before_the_checks_and_closes_when_the_call_stops(
     out = tmp_path / "out"
     with pytest.raises(type(stop)):
         run_sweep(load_spec(SPEC, base_dir=tmp_path), out, device="cuda:0", workers=1)
-    assert events == ["start cuda:0 workers=1 threads=2 warm=True", "check cuda:0", "close quiet=True"]
+    assert events == ["start cuda:0 workers=1 threads=2", "check cuda:0", "close quiet=True"]
     assert not out.exists()
 
 
-def test_no_cluster_starts_for_a_call_that_will_run_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """A finished sweep run again, and a directory that holds another sweep (refused), start no cluster; with
-    ``overwrite`` the other sweep is replaced and the cluster starts (here on the CPU, without a pool: no warm-up)."""
+def test_cluster_goes_only_for_a_call_that_runs_shards(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A finished sweep run again, a directory that holds another sweep (refused) and one whose lock another sweep
+    holds (refused) give the start no go; with ``overwrite`` the other sweep is replaced and the cluster goes (here
+    on the CPU, without a pool: no warm-up)."""
+    from aca_warp.common.files import locked_output
+
     spec = load_spec(SPEC, base_dir=tmp_path)
     out = tmp_path / "out"
     assert run_sweep(spec, out, workers=0).ran == [0]
     events: list[str] = []
     _fake(monkeypatch, events)
     res = run_sweep(spec, out, workers=1)
-    assert res.ran == [] and res.skipped == [0] and events == []
+    assert res.ran == [] and res.skipped == [0]
+    assert events == ["start cpu workers=1 threads=2", "close quiet=True"]
     other = load_spec(SPEC | {"run": SPEC["run"] | {"duration": 3e-6}}, base_dir=tmp_path)
+    events.clear()
     with pytest.raises(SweepError, match="different sweep"):
         run_sweep(other, out, workers=1)
-    assert events == []
+    assert events == ["start cpu workers=1 threads=2", "close quiet=True"]
+    events.clear()
+    with locked_output(out / "manifest.json", what="wait"), pytest.raises(SceneError, match="is being written by"):
+        run_sweep(other, out, workers=1, overwrite=True)
+    assert events == ["start cpu workers=1 threads=2", "close quiet=True"]
+    events.clear()
     with pytest.raises(AssertionError, match="not reached"):
         run_sweep(other, out, workers=1, overwrite=True, overlap=False)
-    assert events[0] == "start cpu workers=1 threads=1 warm=False" and set(events[1:]) == {"close quiet=True"}
-    # the directory holds the other sweep now, its shard not run: a call for it will run, one for the first will not
-    assert sweep_run._will_run(other, out, overwrite=False) and not sweep_run._will_run(spec, out, overwrite=False)
+    assert events[:2] == ["start cpu workers=1 threads=1", "go warm=False"]
+    # the Dask path gives the go again (idempotent) and closes; the call closes again (idempotent)
+    assert set(events[2:]) == {"go warm=False", "close quiet=True"}
 
 
 def test_a_failed_start_is_raised_where_the_cluster_is_used(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -86,11 +100,35 @@ def test_a_failed_start_is_raised_where_the_cluster_is_used(monkeypatch: pytest.
         raise SweepError("a local Dask cluster is secured with TLS, which needs the cryptography package")
 
     monkeypatch.setattr(sweep_cluster, "local_cluster", refuse)
-    start = sweep_cluster.ClusterStart("cpu", 1, 1, warm=False)
+    start = sweep_cluster.ClusterStart("cpu", 1, 1)
+    start.go(warm=False)
     with pytest.raises(SweepError, match="cryptography"):
         start.result()
     start.close(quiet=False)
     start.close(quiet=False)
+
+
+def test_a_start_closed_early_leaves_no_process() -> None:
+    """A start closed before its go spawns nothing and its thread ends at once; one closed while it starts returns
+    at once too, and the thread closes the cluster it made when it ends: no worker process is left."""
+    import psutil
+
+    me = psutil.Process()
+    before = {p.pid for p in me.children(recursive=True)}
+    idle = sweep_cluster.ClusterStart("cpu", 1, 1)
+    idle.close(quiet=True)
+    idle._thread.join(30)
+    assert not idle._thread.is_alive() and idle.client is None
+    busy = sweep_cluster.ClusterStart("cpu", 1, 1)
+    busy.go(warm=False)
+    busy.close(quiet=True)  # does not wait for the start
+    busy._thread.join(120)
+    assert not busy._thread.is_alive() and busy.error is None and busy.client is None
+    deadline = time.monotonic() + 30
+    while {p.pid for p in me.children(recursive=True) if p.is_running()} - before and time.monotonic() < deadline:
+        time.sleep(0.1)
+    left = [p for p in me.children(recursive=True) if p.pid not in before and p.is_running()]
+    assert not [p for p in left if p.status() != psutil.STATUS_ZOMBIE], left
 
 
 def test_start_parts_script(tmp_path: Path) -> None:
@@ -112,7 +150,7 @@ def test_start_parts_script(tmp_path: Path) -> None:
     assert all(v >= 0 for v in fresh.values())
     (start,) = doc["cluster"]
     assert start["local_cluster"] > 0 and len(start["warm (per worker, inside)"]) == 1 and start["close"] > 0
-    for bad in (["--repeat", "0"], ["--json", str(tmp_path / "missing" / "x.json")]):
+    for bad in (["--repeat", "0"], ["--workers", "0"], ["--json", str(tmp_path / "missing" / "x.json")]):
         with pytest.raises(SystemExit) as e:
             script.main(bad)
         assert e.value.code == 2

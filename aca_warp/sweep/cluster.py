@@ -153,46 +153,77 @@ def warm_workers(client: Any, device: str) -> dict[str, float]:
 
 
 class ClusterStart:
-    """A local cluster (:func:`local_cluster`) started in a thread of its own, with its client and, with ``warm``,
-    its workers' kernels loaded (:func:`warm_workers`): the worker processes start (≈ 2–3 s on a GPU host: Python,
-    Dask, Warp and CUDA in each) while the call checks its devices, prepares its manifest and starts its preparation
-    pool. :meth:`result` waits for it and returns (cluster, client, device seen by workers), or raises what the
-    start raised; :meth:`close` waits for it and closes what it started (a call that stops before using it)."""
+    """A local cluster (:func:`local_cluster`) started in a thread of its own, with its client and, when asked, its
+    workers' kernels loaded (:func:`warm_workers`), so that its worker processes start (≈ 2 s on a GPU host: Python,
+    Dask, Warp and CUDA in each) while the call starts its preparation pool and hands out the first shards.
 
-    def __init__(self, device: str, workers: int | None, threads: int, *, warm: bool) -> None:
-        self.cluster: Any = None
+    The thread imports Dask at once, then waits for :meth:`go`, which the call gives once it knows it will run
+    shards: its devices checked (Warp started in the calling process first, so that no worker is spawned while
+    Warp's start redirects this process's stderr), the directory's lock taken, the manifest made and the pool's fork
+    server started (before a nanny sets its environment variables in this process). :meth:`result` waits for the
+    start and returns (client, device seen by workers), or raises what the start raised. :meth:`close` closes what
+    the start made; before the start has ended (a refused call, Ctrl-C) it does not wait: a start not given
+    :meth:`go` spawns nothing, and one under way closes what it made when it ends."""
+
+    def __init__(self, device: str, workers: int | None, threads: int) -> None:
         self.client: Any = None
         self.worker_device = ""
         self.error: BaseException | None = None
+        self._cluster: Any = None
+        self._warm = False
+        self._go = threading.Event()
+        self._lock = threading.Lock()
+        self._ended = False  # the thread has ended (under _lock)
+        self._abandoned = False  # closed before the thread ended: the thread closes what it made (under _lock)
         self._thread = threading.Thread(
-            target=self._start, args=(device, workers, threads, warm), name="aca-warp-cluster-start", daemon=True
+            target=self._start, args=(device, workers, threads), name="aca-warp-cluster-start", daemon=True
         )
         self._thread.start()
 
-    def _start(self, device: str, workers: int | None, threads: int, warm: bool) -> None:
+    def go(self, *, warm: bool) -> None:
+        """Start the cluster now (``warm``: and load the workers' kernels: a pool prepares the shards)."""
+        self._warm = warm
+        self._go.set()
+
+    def _start(self, device: str, workers: int | None, threads: int) -> None:
         try:
             from distributed import Client
 
-            _drop_sync_cancel_errors()
-            self.cluster, self.worker_device = local_cluster(device, workers, threads=threads)
-            self.client = Client(self.cluster)
-            if warm:
-                # the workers load their kernels before the first shard is handed out: the first turns do not
-                # include it, and the pool's head start (begun beside this start) grows by that time
-                warm_workers(self.client, self.worker_device)
+            self._go.wait()
+            if not self._abandoned:
+                self._cluster, self.worker_device = local_cluster(device, workers, threads=threads)
+                self.client = Client(self._cluster)
+                if self._warm:
+                    # the workers load their kernels before the first shard is handed out: the first turns do not
+                    # include it
+                    warm_workers(self.client, self.worker_device)
         except BaseException as e:  # noqa: BLE001  (raised in the caller's thread by result())
             self.error = e
+        finally:
+            with self._lock:
+                self._ended = True
+                abandoned = self._abandoned
+            if abandoned:
+                self._close(quiet=True)
 
-    def result(self) -> tuple[Any, Any, str]:
+    def result(self) -> tuple[Any, str]:
+        """Wait for the start; (client, device seen by workers), or what the start raised."""
         self._thread.join()
         if self.error is not None:
             raise self.error
-        return self.cluster, self.client, self.worker_device
+        return self.client, self.worker_device
 
     def close(self, *, quiet: bool) -> None:
-        """Wait for the start, then close its client and cluster (once; later calls do nothing)."""
-        self._thread.join()
-        client, cluster, self.client, self.cluster = self.client, self.cluster, None, None
+        """Close the client and cluster (once; later calls do nothing); ``quiet`` as :func:`_close`."""
+        with self._lock:
+            ended = self._ended
+            self._abandoned = True
+        self._go.set()  # a start still waiting for go ends without spawning anything
+        if ended:
+            self._close(quiet=quiet)
+
+    def _close(self, *, quiet: bool) -> None:
+        client, cluster, self.client, self._cluster = self.client, self._cluster, None, None
         _close(client, cluster, quiet=quiet)
 
 
@@ -291,8 +322,9 @@ def _run_on_dask(
             worker_device = "cuda:0" if device.startswith("cuda") else device
         elif scheduler is None:
             if started is None:
-                started = ClusterStart(device, workers, PIPELINE_DEPTH if overlap else 1, warm=preparer is not None)
-            _, client, worker_device = started.result()
+                started = ClusterStart(device, workers, PIPELINE_DEPTH if overlap else 1)
+            started.go(warm=preparer is not None)  # (given already by a caller that began the start)
+            client, worker_device = started.result()
         else:
             if not scheduler.startswith("tls://"):
                 print(
@@ -503,10 +535,12 @@ def _close(client: Any, cluster: Any, *, quiet: bool) -> None:
     import logging
 
     if not quiet:
-        if client is not None:
-            client.close()
-        if cluster is not None:
-            cluster.close()
+        try:
+            if client is not None:
+                client.close()
+        finally:
+            if cluster is not None:
+                cluster.close()
         return
     loggers = [logging.getLogger(n) for n in ("distributed", "tornado", "asyncio")]
     levels = [q.level for q in loggers]

@@ -31,6 +31,7 @@ import contextlib
 import copy
 import functools
 import multiprocessing
+import multiprocessing.forkserver
 import os
 import pickle
 import shutil
@@ -261,14 +262,21 @@ def _spooled(prepare: Callable[[int], PreparedShard], spool: str, index: int) ->
 
 
 def _begun_name(index: int) -> str:
+    """The name of the mark of shard ``index``'s begun preparation in the call's private folder."""
     return f"began-{index:05d}"
 
 
-def _begin(folder: str, work: Callable[[int], PreparedShard | SpooledShard], index: int) -> Any:
-    """In a pool process: mark in ``folder`` that shard ``index``'s preparation has begun (:meth:`Preparer.began`),
-    then do it (``work``)."""
-    with contextlib.suppress(OSError, SceneError):  # the mark is there already (the shard asked for again)
-        os.close(create_new(Path(folder) / _begun_name(index), "mark of a begun preparation", mode=0o600))
+BEGUN_WAIT_S = 5.0  # how long after its preparation began a free task still waits for a shard [s]
+
+
+def _begin(
+    folder: str | None, work: Callable[[int], PreparedShard | SpooledShard], index: int
+) -> PreparedShard | SpooledShard:
+    """In a pool process: mark in ``folder`` (new, or renewed) that shard ``index``'s preparation begins now
+    (:meth:`Preparer.began`), then do it (``work``). No folder, or one that is gone (the call closed): no mark."""
+    if folder is not None:
+        with contextlib.suppress(OSError, SceneError):
+            os.close(create_new(Path(folder) / _begun_name(index), "mark of a begun preparation", mode=0o600))
     return work(index)
 
 
@@ -332,7 +340,14 @@ class Preparer:
         workers of a local cluster), removed with the folder by :meth:`close`; ``shard_options``: the keyword
         arguments of :func:`prepare_shard` (``device``, ``memory_fraction``, ``sharing``), with its defaults."""
         device = shard_options.get("device")
-        self.folder = _spool_folder()  # this call's private folder: the marks of begun preparations, spooled shards
+        # this call's private folder: the marks of begun preparations and the spooled shards; without spool a pool
+        # that cannot have one works unmarked (began() is then False)
+        self.folder: str | None = None
+        try:
+            self.folder = _spool_folder()
+        except (OSError, SceneError):
+            if spool:
+                raise
         self.spool = self.folder if spool else None
         made = functools.partial(prepare_shard, doc, base_dir, **shard_options)
         # what a pool process does for a shard (work), behind the mark that it has begun (prepare)
@@ -343,6 +358,9 @@ class Preparer:
         self.ahead = max(1, ahead)
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(_PRELOAD)  # imported once by this process's fork server, not per process
+        # started now, with this process's environment as it is (a local cluster's nanny, started next, sets
+        # OMP_NUM_THREADS and others in it); the pool's processes are forked from it as they are needed
+        multiprocessing.forkserver.ensure_running()
         self.pool = ProcessPoolExecutor(
             max_workers=max(1, processes), mp_context=context, initializer=_start_process, initargs=(device,)
         )
@@ -374,9 +392,17 @@ class Preparer:
         return self._future(index).done()
 
     def began(self, index: int) -> bool:
-        """Whether a pool process has begun preparing shard ``index`` (:func:`_begin`): the rest of it takes less
-        than the task would take to make the shard itself, so a task that is free waits for it."""
-        return (Path(self.folder) / _begun_name(index)).exists()
+        """Whether a pool process began preparing shard ``index`` (:func:`_begin`) less than :data:`BEGUN_WAIT_S`
+        ago: the rest of it takes less than the task would take to make the shard itself (on one H200 host a 256-pad
+        hf1 shard takes 0.5–0.7 s in the pool, 0.9 s or more in the task's turn), so a task that is free waits for
+        it; a preparation begun longer ago (a loaded machine, a stalled process) is left to the task."""
+        if self.folder is None:
+            return False
+        try:
+            age = time.time() - (Path(self.folder) / _begun_name(index)).stat().st_mtime
+        except OSError:
+            return False
+        return age < BEGUN_WAIT_S
 
     def forget(self, index: int) -> None:
         """Drop shard ``index``: its task prepares it itself (a preparation under way finishes unused)."""
@@ -427,4 +453,5 @@ class Preparer:
         with self.lock:
             self.waiting.clear()
         self.pool.shutdown(wait=False, cancel_futures=True)
-        shutil.rmtree(self.folder, ignore_errors=True)
+        if self.folder is not None:
+            shutil.rmtree(self.folder, ignore_errors=True)

@@ -30,7 +30,7 @@ from aca_warp.sweep.cluster import (
     device_sharing,
     started_here,
 )
-from aca_warp.sweep.manifest import MANIFEST, SweepResult, _Book, _one_line, prepare_dir, read_manifest
+from aca_warp.sweep.manifest import MANIFEST, SweepResult, _Book, _one_line, prepare_dir
 from aca_warp.sweep.overlap import PIPELINE_DEPTH, ShardCancelled, ShardContext
 from aca_warp.sweep.prepare import PreparedShard, Preparer
 from aca_warp.sweep.shard import run_shard, shard_name
@@ -74,12 +74,11 @@ def run_sweep(
     if out.exists() and not out.is_dir():
         raise SweepError(f"{out} exists and is not a directory")
     early = None
-    if scheduler is None and client is None and workers != 0 and _have_dask() and _will_run(spec, out, overwrite):
-        # the local cluster's processes start while this call checks its devices, prepares the manifest and starts
-        # its pool; its workers load their kernels where a pool will prepare the shards (prepare_processes)
-        pool = device != "cpu" if prepare is None else prepare > 0
-        early = ClusterStart(device, workers, PIPELINE_DEPTH if overlap else 1, warm=pool)
     try:
+        if scheduler is None and client is None and workers != 0 and _have_dask():
+            # a local cluster: Dask imported in a thread of its own while this call checks its devices and prepares
+            # the manifest; its processes start once the call knows it runs shards (ClusterStart.go in _run_todo)
+            early = ClusterStart(device, workers, PIPELINE_DEPTH if overlap else 1)
         if device != "cpu" and scheduler is None and client is None:  # validate before anything is written
             for k in cuda_ordinals(device):  # the GPUs of a local sweep: this machine's (SceneError names those it has)
                 get_device(f"cuda:{k}")
@@ -101,7 +100,7 @@ def run_sweep(
             return book.result
     finally:
         if early is not None:
-            early.close(quiet=True)  # a call that stopped before its shards (the Dask path has closed it)
+            early.close(quiet=True)  # a call that stopped before its shards, or ran none (the Dask path closed it)
 
 
 def _run_todo(
@@ -133,8 +132,11 @@ def _run_todo(
         # shards from files; those of a scheduler's cluster may be on other hosts: by value
         spool = (local and workers != 0) or (client is not None and started_here(client))
         preparer = Preparer(*args[:2], processes, ahead=2 * processes, spool=spool, **made)
-        preparer.plan(book.todo)  # the pool starts now, beside a local cluster's start
     try:
+        if early is not None:  # after the pool's fork server has started (Preparer), before its first processes
+            early.go(warm=preparer is not None)
+        if preparer is not None:
+            preparer.plan(book.todo)  # the pool starts its processes now, beside the local cluster's start
         if workers == 0 and local:
             dev = device if device == "cpu" else f"cuda:{cuda_ordinals(device)[0]}"
             run = _run_in_process_overlapped if overlap else _run_in_process
@@ -145,21 +147,6 @@ def _run_todo(
     finally:
         if preparer is not None:
             preparer.close()
-
-
-def _will_run(spec: SweepSpec, out: Path, overwrite: bool) -> bool:
-    """Whether a call for ``spec`` into ``out`` will run shards, as far as a look without the directory's lock tells
-    (:func:`run_sweep` decides under the lock): not for a sweep whose every shard has finished, nor for a directory
-    that holds another sweep without ``overwrite``; a manifest that cannot be read: no (the call says why)."""
-    try:
-        old = read_manifest(out)
-    except SweepError:
-        return False
-    if old is None:
-        return overwrite or not any(out.glob("shard-*.h5*"))
-    if old.get("spec_hash") != spec.hash:
-        return overwrite
-    return any(s.get("state") not in ("done", "fault") for s in old.get("shards", []))
 
 
 PREPARE_PER_GPU = 2  # default preparation processes per GPU of a local sweep (prepare_processes)
