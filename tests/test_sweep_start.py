@@ -22,9 +22,9 @@ SPEC = small_sweep_doc("start", count=16, duration=2e-6, parameters={"patches.se
 class FakeStart:
     """Records the call's order of events in ``events``; a start whose cluster is never used (:meth:`result` fails)."""
 
-    def __init__(self, events: list[str], device: str, workers: int | None, threads: int) -> None:
+    def __init__(self, events: list[str], device: str, workers: int | None, *, overlap: bool) -> None:
         self.events = events
-        events.append(f"start {device} workers={workers} threads={threads}")
+        events.append(f"start {device} workers={workers} overlap={overlap}")
 
     def go(self, *, warm: bool) -> None:
         self.events.append(f"go warm={warm}")
@@ -57,7 +57,7 @@ def test_cluster_begins_before_the_checks_and_spawns_nothing_when_the_call_stops
     out = tmp_path / "out"
     with pytest.raises(type(stop)):
         run_sweep(load_spec(SPEC, base_dir=tmp_path), out, device="cuda:0", workers=1)
-    assert events == ["start cuda:0 workers=1 threads=2", "check cuda:0", "close quiet=True"]
+    assert events == ["start cuda:0 workers=1 overlap=True", "check cuda:0", "close quiet=True"]
     assert not out.exists()
 
 
@@ -74,20 +74,20 @@ def test_cluster_goes_only_for_a_call_that_runs_shards(tmp_path: Path, monkeypat
     _fake(monkeypatch, events)
     res = run_sweep(spec, out, workers=1)
     assert res.ran == [] and res.skipped == [0]
-    assert events == ["start cpu workers=1 threads=2", "close quiet=True"]
+    assert events == ["start cpu workers=1 overlap=True", "close quiet=True"]
     other = load_spec(SPEC | {"run": SPEC["run"] | {"duration": 3e-6}}, base_dir=tmp_path)
     events.clear()
     with pytest.raises(SweepError, match="different sweep"):
         run_sweep(other, out, workers=1)
-    assert events == ["start cpu workers=1 threads=2", "close quiet=True"]
+    assert events == ["start cpu workers=1 overlap=True", "close quiet=True"]
     events.clear()
     with locked_output(out / "manifest.json", what="wait"), pytest.raises(SceneError, match="is being written by"):
         run_sweep(other, out, workers=1, overwrite=True)
-    assert events == ["start cpu workers=1 threads=2", "close quiet=True"]
+    assert events == ["start cpu workers=1 overlap=True", "close quiet=True"]
     events.clear()
     with pytest.raises(AssertionError, match="not reached"):
         run_sweep(other, out, workers=1, overwrite=True, overlap=False)
-    assert events[:2] == ["start cpu workers=1 threads=1", "go warm=False"]
+    assert events[:2] == ["start cpu workers=1 overlap=False", "go warm=False"]
     # the Dask path gives the go again (idempotent) and closes; the call closes again (idempotent)
     assert set(events[2:]) == {"go warm=False", "close quiet=True"}
 
@@ -100,7 +100,7 @@ def test_a_failed_start_is_raised_where_the_cluster_is_used(monkeypatch: pytest.
         raise SweepError("a local Dask cluster is secured with TLS, which needs the cryptography package")
 
     monkeypatch.setattr(sweep_cluster, "local_cluster", refuse)
-    start = sweep_cluster.ClusterStart("cpu", 1, 1)
+    start = sweep_cluster.ClusterStart("cpu", 1, overlap=False)
     start.go(warm=False)
     with pytest.raises(SweepError, match="cryptography"):
         start.result()
@@ -115,11 +115,11 @@ def test_a_start_closed_early_leaves_no_process() -> None:
 
     me = psutil.Process()
     before = {p.pid for p in me.children(recursive=True)}
-    idle = sweep_cluster.ClusterStart("cpu", 1, 1)
+    idle = sweep_cluster.ClusterStart("cpu", 1, overlap=False)
     idle.close(quiet=True)
     idle._thread.join(30)
     assert not idle._thread.is_alive() and idle.client is None
-    busy = sweep_cluster.ClusterStart("cpu", 1, 1)
+    busy = sweep_cluster.ClusterStart("cpu", 1, overlap=False)
     busy.go(warm=False)
     busy.close(quiet=True)  # does not wait for the start
     busy._thread.join(120)

@@ -165,7 +165,8 @@ class ClusterStart:
     the start made; before the start has ended (a refused call, Ctrl-C) it does not wait: a start not given
     :meth:`go` spawns nothing, and one under way closes what it made when it ends."""
 
-    def __init__(self, device: str, workers: int | None, threads: int) -> None:
+    def __init__(self, device: str, workers: int | None, *, overlap: bool) -> None:
+        """``overlap``: workers of :data:`PIPELINE_DEPTH` threads (the overlapped path), else of one."""
         self.client: Any = None
         self.worker_device = ""
         self.error: BaseException | None = None
@@ -176,7 +177,10 @@ class ClusterStart:
         self._ended = False  # the thread has ended (under _lock)
         self._abandoned = False  # closed before the thread ended: the thread closes what it made (under _lock)
         self._thread = threading.Thread(
-            target=self._start, args=(device, workers, threads), name="aca-warp-cluster-start", daemon=True
+            target=self._start,
+            args=(device, workers, PIPELINE_DEPTH if overlap else 1),
+            name="aca-warp-cluster-start",
+            daemon=True,
         )
         self._thread.start()
 
@@ -322,7 +326,7 @@ def _run_on_dask(
             worker_device = "cuda:0" if device.startswith("cuda") else device
         elif scheduler is None:
             if started is None:
-                started = ClusterStart(device, workers, PIPELINE_DEPTH if overlap else 1)
+                started = ClusterStart(device, workers, overlap=overlap)
             started.go(warm=preparer is not None)  # (given already by a caller that began the start)
             client, worker_device = started.result()
         else:

@@ -78,7 +78,7 @@ def run_sweep(
         if scheduler is None and client is None and workers != 0 and _have_dask():
             # a local cluster: Dask imported in a thread of its own while this call checks its devices and prepares
             # the manifest; its processes start once the call knows it runs shards (ClusterStart.go in _run_todo)
-            early = ClusterStart(device, workers, PIPELINE_DEPTH if overlap else 1)
+            early = ClusterStart(device, workers, overlap=overlap)
         if device != "cpu" and scheduler is None and client is None:  # validate before anything is written
             for k in cuda_ordinals(device):  # the GPUs of a local sweep: this machine's (SceneError names those it has)
                 get_device(f"cuda:{k}")
