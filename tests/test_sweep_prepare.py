@@ -461,15 +461,29 @@ def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pyte
     assert all(0 < h["cpu_s"][p] for p in phases)
 
 
-def test_a_free_task_waits_for_a_begun_preparation(tmp_path: Path) -> None:
+def test_a_free_task_waits_for_a_begun_preparation(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A task whose device is free takes a shard whose preparation a pool process has begun (held here until the
     task has asked for it), rather than make the shard itself; a shard whose preparation has not begun (held before
-    its mark) is left to the task."""
+    its mark), or began longer ago than ``BEGUN_WAIT_S``, is left to the task."""
     import functools
 
     from aca_warp.sweep import prepare as prep_mod
 
+    monkeypatch.setattr(prep_mod, "BEGUN_WAIT_S", 600.0)  # however slow this machine
     spec = _spec()
+    gate = tmp_path / "gate-expired"  # marked, then held past the (short) wait
+    p = Preparer(spec.doc, str(spec.base_dir), 1, 1, device="cpu")
+    p.prepare = functools.partial(prep_mod._begin, p.folder, functools.partial(gated, str(gate), p.work))
+    try:
+        p.plan([0])
+        _in_time(lambda: _until(lambda: p.began(0)), 120)
+        monkeypatch.setattr(prep_mod, "BEGUN_WAIT_S", 0.2)
+        t = time.monotonic()
+        assert _in_time(lambda: p.take(0, lambda: True), 120) is None and time.monotonic() - t < 60
+    finally:
+        gate.touch()
+        p.close()
+    monkeypatch.setattr(prep_mod, "BEGUN_WAIT_S", 600.0)
     for begun in (True, False):
         gate = tmp_path / f"gate-{begun}"  # one per case, left in place: the held processes see it and finish
         p = Preparer(spec.doc, str(spec.base_dir), 1, 1, device="cpu")
@@ -502,6 +516,8 @@ def test_a_free_worker_waits_for_a_begun_preparation(tmp_path: Path, monkeypatch
 
     from aca_warp.sweep import cluster
     from aca_warp.sweep import prepare as prep_mod
+
+    monkeypatch.setattr(prep_mod, "BEGUN_WAIT_S", 600.0)  # however slow the cluster's start on this machine
 
     gate = tmp_path / "gate"
     made = Preparer.__init__

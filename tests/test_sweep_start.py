@@ -108,27 +108,66 @@ def test_a_failed_start_is_raised_where_the_cluster_is_used(monkeypatch: pytest.
     start.close(quiet=False)
 
 
-def test_a_start_closed_early_leaves_no_process() -> None:
-    """A start closed before its go spawns nothing and its thread ends at once; one closed while it starts returns
-    at once too, and the thread closes the cluster it made when it ends: no worker process is left."""
+def test_a_start_closed_early_leaves_no_process(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A start closed before its go spawns nothing and its thread ends at once; one closed once its cluster exists
+    returns at once too, and the thread, at its next step, closes that cluster (no client made, no worker left)."""
+    import threading
+
     import psutil
 
+    made: list = []
+    ready = threading.Event()
+    real = sweep_cluster.local_cluster
+
+    def watched(*args, **kwargs):
+        out = real(*args, **kwargs)
+        made.append(out[0])
+        ready.set()
+        time.sleep(0.5)  # the call closes the start meanwhile
+        return out
+
+    monkeypatch.setattr(sweep_cluster, "local_cluster", watched)
     me = psutil.Process()
-    before = {p.pid for p in me.children(recursive=True)}
+
+    def ours() -> set[int]:  # this test's worker processes: not the multiprocessing helpers other tests leave
+        keep = ("resource_tracker", "forkserver")
+        return {p.pid for p in me.children(recursive=True) if not any(k in " ".join(p.cmdline()) for k in keep)}
+
+    before = ours()
     idle = sweep_cluster.ClusterStart("cpu", 1, overlap=False)
     idle.close(quiet=True)
     idle._thread.join(30)
-    assert not idle._thread.is_alive() and idle.client is None
+    assert not idle._thread.is_alive() and not made
     busy = sweep_cluster.ClusterStart("cpu", 1, overlap=False)
-    busy.go(warm=False)
-    busy.close(quiet=True)  # does not wait for the start
+    busy.go(warm=True)
+    assert ready.wait(120)
+    t = time.perf_counter()
+    busy.close(quiet=True)
+    assert time.perf_counter() - t < 0.2  # does not wait for the start
     busy._thread.join(120)
     assert not busy._thread.is_alive() and busy.error is None and busy.client is None
+    assert made[0].status.name == "closed"
     deadline = time.monotonic() + 30
-    while {p.pid for p in me.children(recursive=True) if p.is_running()} - before and time.monotonic() < deadline:
+    while ours() - before and time.monotonic() < deadline:
         time.sleep(0.1)
-    left = [p for p in me.children(recursive=True) if p.pid not in before and p.is_running()]
-    assert not [p for p in left if p.status() != psutil.STATUS_ZOMBIE], left
+    assert not ours() - before
+
+
+def test_the_pool_s_fork_server_starts_before_the_go(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With a pool, the call makes its Preparer (whose fork server starts then, before a nanny can set its
+    environment variables in this process) before it gives the cluster's start its go, and asks for the warm-up."""
+    events: list[str] = []
+    _fake(monkeypatch, events)
+    real = sweep_run.Preparer
+
+    def recorded(*args, **kwargs):
+        events.append("preparer")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(sweep_run, "Preparer", recorded)
+    with pytest.raises(AssertionError, match="not reached"):
+        run_sweep(load_spec(SPEC, base_dir=tmp_path), tmp_path / "out", workers=1, prepare=1)
+    assert events[:3] == ["start cpu workers=1 overlap=True", "preparer", "go warm=True"], events
 
 
 def test_start_parts_script(tmp_path: Path) -> None:

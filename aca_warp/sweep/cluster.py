@@ -9,6 +9,7 @@ closes the cluster without its shutdown chatter.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import os
 import sys
@@ -163,7 +164,9 @@ class ClusterStart:
     server started (before a nanny sets its environment variables in this process). :meth:`result` waits for the
     start and returns (client, device seen by workers), or raises what the start raised. :meth:`close` closes what
     the start made; before the start has ended (a refused call, Ctrl-C) it does not wait: a start not given
-    :meth:`go` spawns nothing, and one under way closes what it made when it ends."""
+    :meth:`go` spawns nothing, and one under way stops at its next step and closes what it made. A process that exits
+    meanwhile waits for that (:func:`_join_starts`, at most :data:`EXIT_WAIT_S`): a thread killed at exit inside
+    the TLS key's generation aborts the interpreter."""
 
     def __init__(self, device: str, workers: int | None, *, overlap: bool) -> None:
         """``overlap``: workers of :data:`PIPELINE_DEPTH` threads (the overlapped path), else of one."""
@@ -182,6 +185,7 @@ class ClusterStart:
             name="aca-warp-cluster-start",
             daemon=True,
         )
+        _STARTS.add(self._thread)
         self._thread.start()
 
     def go(self, *, warm: bool) -> None:
@@ -196,11 +200,12 @@ class ClusterStart:
             self._go.wait()
             if not self._abandoned:
                 self._cluster, self.worker_device = local_cluster(device, workers, threads=threads)
+            if not self._abandoned:
                 self.client = Client(self._cluster)
-                if self._warm:
-                    # the workers load their kernels before the first shard is handed out: the first turns do not
-                    # include it
-                    warm_workers(self.client, self.worker_device)
+            if self._warm and not self._abandoned:
+                # the workers load their kernels before the first shard is handed out: the first turns do not
+                # include it
+                warm_workers(self.client, self.worker_device)
         except BaseException as e:  # noqa: BLE001  (raised in the caller's thread by result())
             self.error = e
         finally:
@@ -209,6 +214,7 @@ class ClusterStart:
                 abandoned = self._abandoned
             if abandoned:
                 self._close(quiet=True)
+            _STARTS.discard(threading.current_thread())
 
     def result(self) -> tuple[Any, str]:
         """Wait for the start; (client, device seen by workers), or what the start raised."""
@@ -227,8 +233,23 @@ class ClusterStart:
             self._close(quiet=quiet)
 
     def _close(self, *, quiet: bool) -> None:
-        client, cluster, self.client, self._cluster = self.client, self._cluster, None, None
-        _close(client, cluster, quiet=quiet)
+        with self._lock:
+            client, cluster, self.client, self._cluster = self.client, self._cluster, None, None
+        if client is not None or cluster is not None:
+            _close(client, cluster, quiet=quiet)
+
+
+EXIT_WAIT_S = 30.0  # how long a process that exits waits for a cluster start under way to end [s]
+_STARTS: set[threading.Thread] = set()  # the start threads under way
+
+
+@atexit.register
+def _join_starts() -> None:
+    """At exit: wait for the cluster starts under way (an abandoned one stops at its next step and closes what it
+    made), at most :data:`EXIT_WAIT_S` in all."""
+    deadline = time.monotonic() + EXIT_WAIT_S
+    for t in list(_STARTS):
+        t.join(max(0.0, deadline - time.monotonic()))
 
 
 def _have_dask() -> bool:
@@ -533,6 +554,9 @@ def _running_shards(client: Any, futures: dict[Any, int]) -> set[int]:
         return {i for fut, i in futures.items() if not fut.done()}
 
 
+_QUIET = threading.Lock()
+
+
 def _close(client: Any, cluster: Any, *, quiet: bool) -> None:
     """Close a client and a local cluster; ``quiet`` (the sweep was stopped): without the shutdown chatter of workers
     stopped mid-task, and without raising."""
@@ -546,17 +570,18 @@ def _close(client: Any, cluster: Any, *, quiet: bool) -> None:
             if cluster is not None:
                 cluster.close()
         return
-    loggers = [logging.getLogger(n) for n in ("distributed", "tornado", "asyncio")]
-    levels = [q.level for q in loggers]
-    for q in loggers:
-        q.setLevel(logging.CRITICAL + 1)
-    try:
-        if client is not None:
-            with contextlib.suppress(Exception):
-                client.close(timeout=10)
-        if cluster is not None:
-            with contextlib.suppress(Exception):
-                cluster.close(timeout=20)
-    finally:
-        for q, lv in zip(loggers, levels, strict=True):
-            q.setLevel(lv)
+    with _QUIET:  # one quiet close at a time (a start's thread may close its own): the levels come back as they were
+        loggers = [logging.getLogger(n) for n in ("distributed", "tornado", "asyncio")]
+        levels = [q.level for q in loggers]
+        for q in loggers:
+            q.setLevel(logging.CRITICAL + 1)
+        try:
+            if client is not None:
+                with contextlib.suppress(Exception):
+                    client.close(timeout=10)
+            if cluster is not None:
+                with contextlib.suppress(Exception):
+                    cluster.close(timeout=20)
+        finally:
+            for q, lv in zip(loggers, levels, strict=True):
+                q.setLevel(lv)

@@ -272,11 +272,15 @@ BEGUN_WAIT_S = 5.0  # how long after its preparation began a free task still wai
 def _begin(
     folder: str | None, work: Callable[[int], PreparedShard | SpooledShard], index: int
 ) -> PreparedShard | SpooledShard:
-    """In a pool process: mark in ``folder`` (new, or renewed) that shard ``index``'s preparation begins now
-    (:meth:`Preparer.began`), then do it (``work``). No folder, or one that is gone (the call closed): no mark."""
+    """In a pool process: mark in ``folder`` (new, or renewed) that shard ``index``'s preparation begins now, the
+    mark holding ``time.monotonic_ns()`` (one clock for every process of the host, whatever the file system's
+    clock; :meth:`Preparer.began`), then do it (``work``). No folder, or one that is gone (the call closed): no
+    mark."""
     if folder is not None:
         with contextlib.suppress(OSError, SceneError):
-            os.close(create_new(Path(folder) / _begun_name(index), "mark of a begun preparation", mode=0o600))
+            fd = create_new(Path(folder) / _begun_name(index), "mark of a begun preparation", mode=0o600)
+            with os.fdopen(fd, "w") as f:
+                f.write(str(time.monotonic_ns()))
     return work(index)
 
 
@@ -399,10 +403,10 @@ class Preparer:
         if self.folder is None:
             return False
         try:
-            age = time.time() - (Path(self.folder) / _begun_name(index)).stat().st_mtime
-        except OSError:
+            began_ns = int((Path(self.folder) / _begun_name(index)).read_text() or "x")
+        except (OSError, ValueError):  # no mark, or one being written
             return False
-        return age < BEGUN_WAIT_S
+        return (time.monotonic_ns() - began_ns) / 1e9 < BEGUN_WAIT_S
 
     def forget(self, index: int) -> None:
         """Drop shard ``index``: its task prepares it itself (a preparation under way finishes unused)."""
