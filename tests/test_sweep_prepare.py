@@ -291,6 +291,46 @@ def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
         prep.close()
 
 
+def test_pool_processes_end_with_a_killed_client(tmp_path: Path) -> None:
+    """A process that made a pool and is killed (SIGKILL: no clean-up of its own) leaves no pool process behind:
+    each ends within seconds of its client, and the fork server with them."""
+    import signal
+    import subprocess
+    import sys
+
+    client = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import sys, time\n"
+            "from aca_warp.sweep import load_spec\n"
+            "from aca_warp.sweep.prepare import Preparer\n"
+            "from procs import small_sweep_doc\n"
+            "spec = load_spec(small_sweep_doc('k', count=20, duration=3e-6, parameters={'patches.seed': [1, 2]}))\n"
+            "p = Preparer(spec.doc, str(spec.base_dir), 2, 2, device='cpu')\n"
+            "p.plan([0])\n"
+            "p.get(0)\n"
+            "print('ready', flush=True)\n"
+            "time.sleep(600)\n",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+        cwd=str(Path(__file__).parent),
+    )
+    try:
+        assert client.stdout.readline().strip() == "ready"
+        tree = [c for c in psutil.Process(client.pid).children(recursive=True)]
+        pool = [c for c in tree if "forkserver" in " ".join(c.cmdline())]
+        assert pool, [c.cmdline() for c in tree]  # the fork server and its pool process(es)
+        client.send_signal(signal.SIGKILL)
+        client.wait(30)
+        _, alive = psutil.wait_procs(pool, timeout=30)
+        assert not alive, [(p.pid, p.cmdline()[-1][:40]) for p in alive]
+    finally:
+        if client.poll() is None:
+            client.kill()
+
+
 def test_prepared_shards_on_dask(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """On a Dask worker of a local cluster this process started, reached through a client, shards prepared by the
     client's pool (models made on the host) are handed over as their spool files and give the serial path's outputs

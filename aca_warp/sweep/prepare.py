@@ -309,11 +309,25 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def _start_process(device: str | None) -> None:
-    """In a pool process: Ctrl-C reaches the whole process group, the client alone handles it; with ``device``, Warp
+CLIENT_POLL_S = 1.0  # how often a pool process looks whether the process that started its pool still lives [s]
+
+
+def _end_with(client: int) -> None:
+    """In a pool process: exit once process ``client`` (the one whose pool this is) has gone. A pool process holds
+    both ends of its task queue and the fork server's liveness pipe, so a killed client would leave it, and the fork
+    server, waiting for ever."""
+    while _alive(client):
+        time.sleep(CLIENT_POLL_S)
+    os._exit(0)
+
+
+def _start_process(device: str | None, client: int) -> None:
+    """In a pool process: Ctrl-C reaches the whole process group, the client alone handles it; the process ends
+    when ``client`` (the pid of the process that made the pool) has gone (:func:`_end_with`); with ``device``, Warp
     started and the neighbour search's kernels loaded there before the first shard. A device this process cannot use
     (a GPU in exclusive-process mode, held by its worker) is left to the tasks: this process makes scenes only."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_end_with, args=(client,), name="aca-warp-client-watch", daemon=True).start()
     if device is not None:
         from aca_warp.common.devices import init_warp, load_kernels
 
@@ -366,7 +380,10 @@ class Preparer:
         # OMP_NUM_THREADS and others in it); the pool's processes are forked from it as they are needed
         multiprocessing.forkserver.ensure_running()
         self.pool = ProcessPoolExecutor(
-            max_workers=max(1, processes), mp_context=context, initializer=_start_process, initargs=(device,)
+            max_workers=max(1, processes),
+            mp_context=context,
+            initializer=_start_process,
+            initargs=(device, os.getpid()),
         )
         self.waiting: deque[int] = deque()
         self.futures: dict[int, Future] = {}
