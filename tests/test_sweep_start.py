@@ -193,3 +193,25 @@ def test_start_parts_script(tmp_path: Path) -> None:
         with pytest.raises(SystemExit) as e:
             script.main(bad)
         assert e.value.code == 2
+
+
+@pytest.mark.parametrize("go", [False, True])
+def test_a_process_exits_cleanly_with_a_start_under_way(go: bool) -> None:
+    """A process that exits with a cluster start not closed (waiting for its go, or under way): the exit closes it
+    and waits for its thread (no abort inside the TLS key's generation, no wait for a go that never comes)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import time\n"
+        "from aca_warp.sweep.cluster import ClusterStart\n"
+        "s = ClusterStart('cpu', 1, overlap=False)\n"
+        f"if {go}:\n"
+        "    time.sleep(0.3)\n"
+        "    s.go(warm=False)\n"
+        "    time.sleep(0.3)\n"
+    )
+    t = time.monotonic()
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert time.monotonic() - t < 25  # well inside EXIT_WAIT_S (30 s): the start did not wait for a go

@@ -185,7 +185,7 @@ class ClusterStart:
             name="aca-warp-cluster-start",
             daemon=True,
         )
-        _STARTS.add(self._thread)
+        _STARTS.add(self)
         self._thread.start()
 
     def go(self, *, warm: bool) -> None:
@@ -214,7 +214,7 @@ class ClusterStart:
                 abandoned = self._abandoned
             if abandoned:
                 self._close(quiet=True)
-            _STARTS.discard(threading.current_thread())
+            _STARTS.discard(self)
 
     def result(self) -> tuple[Any, str]:
         """Wait for the start; (client, device seen by workers), or what the start raised."""
@@ -240,16 +240,17 @@ class ClusterStart:
 
 
 EXIT_WAIT_S = 30.0  # how long a process that exits waits for a cluster start under way to end [s]
-_STARTS: set[threading.Thread] = set()  # the start threads under way
+_STARTS: set[ClusterStart] = set()  # the starts whose thread has not ended
 
 
 @atexit.register
 def _join_starts() -> None:
-    """At exit: wait for the cluster starts under way (an abandoned one stops at its next step and closes what it
-    made), at most :data:`EXIT_WAIT_S` in all."""
+    """At exit: close the cluster starts under way (one not given its go ends at once, one under way stops at its
+    next step and closes what it made) and wait for their threads, at most :data:`EXIT_WAIT_S` in all."""
     deadline = time.monotonic() + EXIT_WAIT_S
-    for t in list(_STARTS):
-        t.join(max(0.0, deadline - time.monotonic()))
+    for start in list(_STARTS):
+        start.close(quiet=True)
+        start._thread.join(max(0.0, deadline - time.monotonic()))
 
 
 def _have_dask() -> bool:
