@@ -175,11 +175,8 @@ def _kind(f: h5py.File) -> str | None:
 
 def _open(path: str | Path) -> tuple[h5py.File, str]:
     p = Path(path)
-    if not p.is_file():
-        raise SceneError(f"run file not found: {p}")
-    if not h5py.is_hdf5(p):
-        raise SceneError(f"{p} is not an HDF5 file (expected a run file written by aca-warp hf, lf or sweep)")
-    f = open_h5(p, "run file", text=("parameters",))  # links, declared sizes: checked before anything is read
+    # missing, not HDF5, links, declared sizes: checked before anything is read
+    f = open_h5(p, "run file", text=("parameters",))
     kind = _kind(f)
     if kind is None:
         f.close()

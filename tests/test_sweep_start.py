@@ -88,8 +88,8 @@ def test_cluster_goes_only_for_a_call_that_runs_shards(tmp_path: Path, monkeypat
     with pytest.raises(AssertionError, match="not reached"):
         run_sweep(other, out, workers=1, overwrite=True, overlap=False)
     assert events[:2] == ["start cpu workers=1 overlap=False", "go warm=False"]
-    # the Dask path gives the go again (idempotent) and closes; the call closes again (idempotent)
-    assert set(events[2:]) == {"go warm=False", "close quiet=True"}
+    # the Dask path closes the start; the call closes it again (idempotent)
+    assert set(events[2:]) == {"close quiet=True"}
 
 
 def test_a_failed_start_is_raised_where_the_cluster_is_used(monkeypatch: pytest.MonkeyPatch) -> None:

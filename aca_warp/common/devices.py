@@ -57,14 +57,18 @@ def get_device(device: str | wp.Device) -> wp.Device:
     """The Warp device ``device`` ("cpu", "cuda:N" or a device), Warp initialised first; SceneError, naming the
     devices this machine has, for one it lacks."""
     init_warp()
-    have = ", ".join(str(d) for d in wp.get_devices())
     if isinstance(device, str) and device.startswith("cuda") and not wp.is_cuda_available():
         # asked before Warp's own lookup, which prints native CUDA errors for "cuda" on a machine without a driver
-        raise SceneError(f"device {device!r} is not available here: no usable CUDA GPU (this machine has: {have})")
+        raise SceneError(f"device {device!r} is not available here: no usable CUDA GPU (this machine has: {_have()})")
     try:
         return wp.get_device(device)
     except (ValueError, RuntimeError) as e:
-        raise SceneError(f"device {device!r} is not available here ({e}; this machine has: {have})") from None
+        raise SceneError(f"device {device!r} is not available here ({e}; this machine has: {_have()})") from None
+
+
+def _have() -> str:
+    """The devices this machine has, for a message: "cpu, cuda:0"."""
+    return ", ".join(str(d) for d in wp.get_devices())
 
 
 def _cached(module: ModuleType, device: wp.Device) -> bool:

@@ -406,22 +406,31 @@ def recovery(path: str | Path) -> str:
     or stopped before its first: :func:`~aca_warp.hf.runner.resume_run` then starts it again). The one piece of
     advice of every message that leaves a run unfinished: a storage failure, an interrupt, an output whose
     ``.partial`` is in the way."""
-    p = Path(path)
-    final = p.with_name(p.name.removesuffix(".partial"))
-    part = partial_path(final)
-    src = part if part.exists() else final
+    final, src = _unfinished(path)
     try:
         with open_h5(src, "run file") as f:
             kind = "lf" if attr_value(f.attrs.get("kind")) == "lf" else "hf"
             at = _checkpoint_time(f)
             stored = attr_value(f.attrs.get("lf_run" if kind == "lf" else "run_options", "{}"))
             interval = stored.get("checkpoint_interval") if isinstance(stored, dict) else None
-    except (AcaError, OSError, RuntimeError, KeyError, ValueError, TypeError):
+    except _UNREADABLE:
         return f"{src.name} cannot be read back (empty or damaged): run its scene again"
     if at is not None:
         return f"continue it from its checkpoint at t = {at:.6g} s with {resume_hint(kind, final)}"
     why = "it ran without checkpoints" if interval == 0 else "it stopped before its first one"
     return f"continue it from t = 0 with {resume_hint(kind, final)} (it holds no checkpoint: {why})"
+
+
+_UNREADABLE = (AcaError, OSError, RuntimeError, KeyError, ValueError, TypeError)  # a run file that cannot be read
+
+
+def _unfinished(path: str | Path) -> tuple[Path, Path]:
+    """(its final name, the file it is in now) of the unfinished run ``path`` (``NAME`` or ``NAME.partial``): the
+    ``.partial`` where it exists, else ``NAME``."""
+    p = Path(path)
+    final = p.with_name(p.name.removesuffix(".partial"))
+    part = partial_path(final)
+    return final, part if part.exists() else final
 
 
 def _checkpoint_time(f: Any) -> float | None:
@@ -433,13 +442,10 @@ def resumed_from(path: str | Path) -> str:
     """Where a resume of the unfinished run ``path`` (``NAME`` or ``NAME.partial``) starts, for its summary line:
     "from its checkpoint at t = … s", or "again from t = 0 (it held no checkpoint)"; "" when the file cannot be
     read (the resume then says why)."""
-    p = Path(path)
-    final = p.with_name(p.name.removesuffix(".partial"))
-    src = partial_path(final) if partial_path(final).exists() else final
     try:
-        with open_h5(src, "run file") as f:
+        with open_h5(_unfinished(path)[1], "run file") as f:
             at = _checkpoint_time(f)
-    except (AcaError, OSError, RuntimeError, KeyError, ValueError, TypeError):
+    except _UNREADABLE:
         return ""
     return "again from t = 0 (it held no checkpoint)" if at is None else f"from its checkpoint at t = {at:.6g} s"
 

@@ -330,8 +330,9 @@ def _run_on_dask(
 ) -> None:
     """Run ``book.todo`` as Dask tasks (a local cluster, a scheduler's, or ``client``'s); ``preparer``: the shards
     made ahead and sent with the tasks (:func:`_feed`); ``sharing``: tasks that may hold a device's memory at once
-    (:func:`device_sharing`); ``started``: the local cluster, begun by the caller (:class:`ClusterStart`; without
-    it, and without a scheduler or client, one is started here). The local cluster is closed on return."""
+    (:func:`device_sharing`); ``started``: the local cluster, begun by the caller and given its go
+    (:class:`ClusterStart`, :func:`~aca_warp.sweep.run.run_sweep`), used when there is neither a scheduler nor a
+    client, and closed on return."""
     try:
         from distributed import Client
     except ImportError:
@@ -348,8 +349,7 @@ def _run_on_dask(
             worker_device = "cuda:0" if device.startswith("cuda") else device
         elif scheduler is None:
             if started is None:
-                started = ClusterStart(device, workers, overlap=overlap)
-            started.go(warm=preparer is not None)  # (given already by a caller that began the start)
+                raise ValueError("a local cluster is begun by the caller: pass started=ClusterStart(...)")
             client, worker_device = started.result()
         else:
             if not scheduler.startswith("tls://"):
