@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import SceneError, option
 from aca_warp.hf.options import DEFAULT_TOLERANCE, ONCHIP_INTEGRATORS, fast_math_unfit
 
 GRAPH_STEPS = 200
@@ -363,11 +363,13 @@ def run_bench(
 
     from aca_warp.common.devices import get_device
     from aca_warp.common.files import machine
+    from aca_warp.scene import Record
 
     if not (duration > 0 and dt > 0 and sample_dt > 0):
         raise SceneError("duration, dt and sample interval must be > 0")
-    if sample_dt > duration:
-        raise SceneError(f"sample interval {sample_dt:g} s exceeds the duration {duration:g} s")
+    Record(sample_dt=sample_dt).check_duration(
+        duration, option("sample_dt", "--sample-dt"), option("duration", "--duration")
+    )
     if "fast" in maths and not any(c[4] for c in _cases((1,), precisions, integrators, engines, maths)):
         raise SceneError(
             "fast math compiles the on-chip strang kernel in fp32 only: add fp32, strang and auto or onchip"

@@ -67,7 +67,7 @@ def test_bench_sample_interval_longer_than_the_warm_up(tmp_path: Path) -> None:
 
 def test_bench_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert main(["bench", "--duration", "1e-7", "--patches", "5", "--json", str(tmp_path / "x.json")]) == 2
-    assert "exceeds the duration" in capsys.readouterr().err
+    assert "(--sample-dt) exceeds the duration" in capsys.readouterr().err
     assert main(["bench", "--patches", "5", "--json", str(tmp_path / "no" / "x.json")]) == 2
     assert main(["bench", "--device", "cuda:7", "--patches", "5"]) == 2
     with pytest.raises(SystemExit):

@@ -30,9 +30,9 @@ from typing import Any
 import h5py
 import numpy as np
 
-from aca_warp.common.bounds import check_h5, json_attribute
+from aca_warp.common.bounds import json_attribute
 from aca_warp.common.errors import SceneError
-from aca_warp.common.files import attr_value
+from aca_warp.common.files import attr_value, open_h5
 
 from .groups import DEFAULT_BAND_TOP as DEFAULT_BAND_TOP
 from .groups import GROUP, TMP_GROUP
@@ -118,21 +118,12 @@ def check_run_file(f: h5py.File, name: str | Path = "") -> None:
 
 
 def open_run_file(path: str | Path, mode: str = "r") -> h5py.File:
-    """Open and check an HF run file as an h5py File; :class:`SceneError` if it is missing, not HDF5, an LF run
-    file or not a run file. (:func:`aca_warp.open_run` reads any run file into an xarray Dataset.)"""
+    """Open and check an HF run file as an h5py File (:func:`~aca_warp.common.files.open_h5`); :class:`SceneError`
+    if it is missing, not HDF5, an LF run file or not a run file. (:func:`aca_warp.open_run` reads any run file
+    into an xarray Dataset.)"""
     p = Path(path)
-    if not p.is_file():
-        raise SceneError(f"run file not found: {p}")
-    if not h5py.is_hdf5(p):
-        raise SceneError(f"{p} is not an HDF5 file (expected a run file written by aca-warp hf)")
+    f = open_h5(p, "run file", mode=mode)
     try:
-        f = h5py.File(p, mode)
-    except (OSError, RuntimeError) as e:
-        what = " for writing" if mode != "r" else ""
-        detail = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-        raise SceneError(f"cannot open {p}{what}: {detail}") from None
-    try:
-        check_h5(f, p, "run file")  # links, declared sizes, numbers: before anything is read
         if _decode(f.attrs.get("kind")) == "lf":
             raise SceneError(
                 f"{p} is an LF run file: the analysis applies to HF run files (aca-warp hf); "

@@ -492,7 +492,9 @@ def open_h5(path: str | Path, what: str, *, mode: str = "r", text: tuple[str, ..
     try:
         f = h5py.File(p, mode)
     except (OSError, RuntimeError) as e:
-        raise SceneError(f"cannot open {what} {p}: {str(e).strip().splitlines()[0] if str(e).strip() else e}") from None
+        detail = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        how = "" if mode == "r" else " for writing"
+        raise SceneError(f"cannot open {what} {p}{how}: {detail}") from None
     try:
         with reading(p, what):
             check_h5(f, p, what, text=text)

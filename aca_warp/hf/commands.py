@@ -259,12 +259,9 @@ def _hf_scene(args: argparse.Namespace) -> tuple[Any, float]:
             "(or velocity,displacement)"
         )
     duration = args.duration if args.duration is not None else scene.duration
-    if changes.get("sample_dt", rec.sample_dt) > duration:
-        raise SceneError(
-            f"sample interval {changes.get('sample_dt', rec.sample_dt):g} s (--sample-dt) exceeds the duration "
-            f"{duration:g} s: give a longer --duration or a shorter --sample-dt"
-        )
-    scene = scene.replace(duration=duration, record=Record(**{**dataclasses.asdict(rec), **changes}))
+    record = Record(**{**dataclasses.asdict(rec), **changes})
+    record.check_duration(duration, "--sample-dt", "--duration")  # before the scene's check, which names its fields
+    scene = scene.replace(duration=duration, record=record)
     return scene, duration
 
 

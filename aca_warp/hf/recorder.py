@@ -36,12 +36,7 @@ def check_run(duration: float, record: Record, checkpoint_every: float | None = 
     the number of samples."""
     if not (duration > 0 and math.isfinite(duration)):
         raise SceneError(f"duration must be a positive number of seconds, got {duration}")
-    # 1e-9: a duration made as the difference of two times (a run in segments) is a whole number of samples to ~1e-10
-    if record.sample_dt > duration * (1 + 1e-9):
-        raise SceneError(
-            f"sample interval {record.sample_dt:g} s ({option('record.sample_dt', '--sample-dt')}) exceeds the "
-            f"duration {duration:g} s: give a longer duration or a shorter sample interval"
-        )
+    record.check_duration(duration, option("record.sample_dt", "--sample-dt"), option("duration", "--duration"))
     check_interval(checkpoint_every)
     n_samples = max(1, round(duration / record.sample_dt))
     if n_samples > 2**31 - 2:  # the recorder counts samples in int32

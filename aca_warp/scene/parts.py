@@ -316,6 +316,16 @@ class Record:
         if isinstance(self.decimation, bool) or not isinstance(self.decimation, int) or self.decimation < 1:
             raise SceneError(f"record.decimation must be a positive integer, got {self.decimation!r}")
 
+    def check_duration(self, duration: float, sample: str = "record.sample_dt", length: str = "run.duration") -> None:
+        """Refuse a run of ``duration`` [s] shorter than one sample interval (:class:`SceneError`), naming the two
+        settings as ``sample`` and ``length`` (the scene's fields, or the command line's flags). A duration made as
+        the difference of two times (a run in segments) is a whole number of samples to ~1e-10: allowed."""
+        if self.sample_dt > duration * (1 + 1e-9):
+            raise SceneError(
+                f"sample interval {self.sample_dt:g} s ({sample}) exceeds the duration {duration:g} s ({length}): "
+                f"give a longer duration or a shorter sample interval"
+            )
+
     def patch_rows(self, duration: float) -> int:
         """Rows of per-patch histories a run of ``duration`` [s] records: the global samples k·sample_dt, k = 0 …
         round(duration / sample_dt), inside the window, every ``decimation``-th (0 when nothing is recorded)."""
@@ -409,10 +419,7 @@ class Scene:
         _finite("load.normal_force", self.normal_force, low=0.0)
         _finite("disc.angular_velocity", self.angular_velocity)
         _finite("run.duration", self.duration, low=0.0, strict=True)
-        if self.record.sample_dt > self.duration:
-            raise SceneError(
-                f"record.sample_dt ({self.record.sample_dt:g} s) exceeds the duration ({self.duration:g} s)"
-            )
+        self.record.check_duration(self.duration)
         plausible.flag(self.allow_implausible)
         self._check_plausible()
         self._check_window()
