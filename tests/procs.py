@@ -213,6 +213,11 @@ def gated(gate: str, fn: Any, *args: Any) -> Any:
     return fn(*args)
 
 
+def gated_one(gate: str, held: int, fn: Any, index: int) -> Any:
+    """``fn(index)``, held back as :func:`gated` for shard ``held`` only: one slow preparation among quick ones."""
+    return gated(gate, fn, index) if index == held else fn(index)
+
+
 def one_shard_sweep(folder: Path, m_values: list[float], *, duration: float, sample_dt: float = 1.0e-6) -> Path:
     """Sweep hf1 pads of 12 patches in fp32, one per friction factor M of ``m_values``, all in one shard, in this
     process (``--workers 0``) into ``folder/sw``; the shard's path."""

@@ -15,7 +15,7 @@ import h5py
 import numpy as np
 import psutil
 import pytest
-from procs import gated, small_sweep_doc
+from procs import gated, gated_one, small_sweep_doc
 
 from aca_warp.hf.recorder import GLOBAL_NAMES
 from aca_warp.sweep import load_spec, load_sweep, run_sweep
@@ -582,6 +582,56 @@ def test_a_free_worker_waits_for_a_begun_preparation(tmp_path: Path, monkeypatch
         gate.touch()
     assert res.ran == [0, 1, 2] and not res.failed
     assert handed[0] == "SpooledShard", handed
+
+
+def test_a_ready_shard_goes_before_one_still_being_prepared(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """On Dask, a free worker is handed the next shard whose preparation is ready while the first one's is still
+    under way (held here until the second shard has been handed over), not left waiting behind it; every shard runs
+    prepared, and the sweep's outputs are those of the same sweep in this process."""
+    pytest.importorskip("distributed")
+    import functools
+
+    from aca_warp.sweep import cluster
+    from aca_warp.sweep import prepare as prep_mod
+
+    monkeypatch.setattr(prep_mod, "BEGUN_WAIT_S", 600.0)  # however slow the cluster's start on this machine
+    gate = tmp_path / "gate"
+    made = Preparer.__init__
+
+    def held(self: Preparer, *args, **kwargs) -> None:
+        made(self, *args, **kwargs)  # shard 0 marked as begun, then held
+        work = functools.partial(gated_one, str(gate), 0, self.work)
+        self.prepare = functools.partial(prep_mod._begin, self.folder, work)
+
+    fed = cluster._feed
+    handed: list[tuple[int, str]] = []
+
+    def noted(submit):
+        def submitted(i, prepared):
+            handed.append((i, type(prepared).__name__))
+            if i == 1:
+                gate.touch()
+            return submit(i, prepared)
+
+        return submitted
+
+    def feed(book, submit, preparer, **kwargs) -> None:
+        _in_time(lambda: _until(lambda: preparer.began(0) and preparer.poll(1)), 120)
+        fed(book, noted(submit), preparer, **kwargs)
+
+    monkeypatch.setattr(Preparer, "__init__", held)
+    monkeypatch.setattr(cluster, "_feed", feed)
+    try:
+        res = _in_time(lambda: run_sweep(_spec(), tmp_path / "out", device="cpu", workers=1, prepare=2))
+    finally:
+        gate.touch()
+    assert res.ran == [0, 1, 2] and not res.failed
+    assert handed[0] == (1, "SpooledShard") and sorted(handed) == [(i, "SpooledShard") for i in range(3)], handed
+    monkeypatch.undo()
+    alone = run_sweep(_spec(), tmp_path / "alone", device="cpu", workers=0)
+    assert alone.ran == [0, 1, 2]
+    a, b = _outputs(tmp_path / "out"), _outputs(tmp_path / "alone")
+    assert all(np.array_equal(a[k], b[k]) for k in a), [k for k in a if not np.array_equal(a[k], b[k])]
 
 
 def _until(done, seconds: float = 120.0) -> None:

@@ -447,8 +447,9 @@ def _feed(
     that prepared shards wait in the pool's results, not in the cluster's memory): with its preparation once that is
     ready, or, when fewer tasks than ``workers`` are unfinished (a worker would wait: at the start, or when the pool
     falls behind) and no pool process has begun it (:meth:`~aca_warp.sweep.prepare.Preparer.began`), at once and
-    unprepared (its task prepares it). A shard whose preparation raised (or whose pool process died) is recorded
-    failed, not submitted."""
+    unprepared (its task prepares it). A later shard whose preparation is ready goes before one still being prepared
+    (shards of unequal pads take unequal times). A shard whose preparation raised (or whose pool process died) is
+    recorded failed, not submitted."""
     from distributed import as_completed
 
     todo = deque(book.todo)
@@ -460,18 +461,20 @@ def _feed(
             i = todo[0]
             prepared = None
             if preparer is not None:
-                if preparer.poll(i):
+                ready = preparer.first_ready(todo)
+                if ready is not None:
+                    i = ready
                     try:
                         prepared = preparer.get(i)
                     except Exception as e:  # noqa: BLE001  (recorded as the shard's failure)
-                        todo.popleft()
+                        todo.remove(i)
                         book.failed(i, _one_line(e))
                         continue
                 elif running.count() < workers and not preparer.began(i):
                     preparer.forget(i)
                 else:
                     break
-            todo.popleft()
+            todo.remove(i)
             fut = submit(i, prepared)
             index[fut] = i
             running.add(fut)

@@ -346,7 +346,7 @@ class Preparer:
 
     :meth:`plan` names the shards in the order they will be taken; :meth:`get` waits for one (starting it now if it
     had not started) and returns it (with ``spool``: a :class:`SpooledShard` where its file could be written) or
-    raises its error; :meth:`poll` says whether one is ready without waiting;
+    raises its error; :meth:`poll` says whether one is ready without waiting, :meth:`first_ready` which is;
     :meth:`take` waits while the device has work, else leaves the shard to its task; :meth:`forget` drops one.
     Safe to use from several threads. :meth:`close` cancels what has not started.
     """
@@ -411,6 +411,13 @@ class Preparer:
     def poll(self, index: int) -> bool:
         """Whether shard ``index``'s preparation has finished (successfully or not)."""
         return self._future(index).done()
+
+    def first_ready(self, order: Iterable[int]) -> int | None:
+        """The first shard of ``order`` whose preparation has finished (successfully or not), starting none; None
+        when none has."""
+        with self.lock:
+            done = {i for i, fut in self.futures.items() if fut.done()}
+        return next((i for i in order if i in done), None) if done else None
 
     def began(self, index: int) -> bool:
         """Whether a pool process began preparing shard ``index`` (:func:`_begin`) less than :data:`BEGUN_WAIT_S`
