@@ -31,8 +31,9 @@ three_applications = _scenes.three_applications
 HF_SCENE = small_scene_toml(
     "full", count=40, duration=1.0e-3, sample_dt=5.0e-7, perturbation=1.0e-3, patches=("velocity", "displacement")
 )
-HF_DT = ["--dt", "5e-8"]  # HF_SCENE's step [s] (strang, well inside its stable step): what is written does not depend
-# on it (strang's default step)
+# HF_SCENE's step [s] (strang's default, well inside its stable step) and precision: the file sizes and checkpoint
+# times the storage tests expect are those of fp64 states
+HF_DT = ["--dt", "5e-8", "--precision", "fp64"]
 
 
 def nine_patch_scene(

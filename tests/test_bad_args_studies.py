@@ -45,6 +45,7 @@ VALIDATION = ["--quick", "--device", "cpu", "--only", "hf1", "--out", "{tmp}/out
         ("time_to_solution", [*TTS, "--pads", "-1"], "--pads: must be >= 0"),
         ("friction_step_sector", ["--report", "{tmp}/absent.json"], "--report: no result file"),
         ("friction_step_sector", [*SECTOR, "--seeds", "0"], "--seeds: must be >= 1"),
+        ("friction_step_sector", [*SECTOR, "--runs", "strang@fp16"], "unknown precision 'fp16'"),
         ("friction_schemes", [*SCHEMES, "--ref-dt", "0"], "--ref-dt: must be positive"),
         ("friction_schemes", [*SCHEMES, "--tol-e", "0"], "--tol-e: must be positive"),
         ("friction_schemes", [*SCHEMES, "--speed", "-1"], "--speed: must be positive"),

@@ -36,3 +36,19 @@ def test_an_integrator_the_on_chip_engine_lacks_is_refused_before_anything_runs(
     assert load_script("friction_step_sector").main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "'controlled:tol=3e-3'" in err[0] and not out.exists()
+
+
+def test_a_run_may_name_its_precision(tmp_path: Path) -> None:
+    """``strang@fp32`` runs in fp32 beside an fp64 reference (the defaults against the reference in one file): its
+    statistics differ from the same run's in fp64 by less than 0.1 %, and the report says which runs differ."""
+    from aca_warp.studies.friction_sector import parse_run
+
+    assert parse_run("strang:5e-8@fp32") == {"integrator": "strang", "dt": 5e-8, "precision": "fp32"}
+    assert parse_run("auto:tol=3e-3") == {"integrator": "auto", "split_tolerance": 3e-3}
+    out = tmp_path / "p.json"
+    argv = ["--patches", "20", "--duration", "1e-3", "--window", "5e-4", "--reference", "strang:2e-8"]
+    assert load_script("friction_step_sector").main([*argv, "--runs", "strang", "strang@fp32", "--out", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    fp64, fp32 = doc["runs"][1]["stats"], doc["runs"][2]["stats"]
+    assert fp64 != fp32 and all(abs(fp32[k][0] - fp64[k][0]) <= 1e-3 * abs(fp64[k][0]) for k in fp64), (fp64, fp32)
+    assert "fp64 (a run ending in @fp32 or @fp64: that precision)" in report(doc)[0]

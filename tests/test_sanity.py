@@ -48,16 +48,23 @@ def run_cli(capsys, argv: list[str]) -> tuple[int, list[str]]:
 )
 def test_contact_that_loses_the_load_is_refused(tmp_path, capsys, extra, height, message) -> None:
     """Stiffnesses or heights beyond float64: refused as implausible values (exit 2); allowed, the contact check
-    refuses them: exit 3, one line, no file; --accept-unphysical runs with a warning."""
+    refuses them in fp64: exit 3, one line, no file; --accept-unphysical runs with a warning. In fp32 (strang's
+    default) a stiffness beyond what single precision holds is refused before, exit 2, one line naming fp64."""
     s = scene_file(tmp_path, extra, height)
     out = tmp_path / "run.h5"
     code, err = run_cli(capsys, ["hf", str(s), "-o", str(out), "--no-progress"])
     assert code == 2 and len(err) == 1 and "allow_implausible" in err[0], err
     code, err = run_cli(capsys, ["hf", str(s), "-o", str(out), "--no-progress", "--allow-implausible"])
+    if "1e308" in extra:
+        assert code == 2 and len(err) == 1 and "beyond what fp32 holds" in err[0] and "--precision fp64" in err[0], err
+    else:
+        assert code == 3 and len(err) == 1 and message in err[0], err
+    fp64 = ["hf", str(s), "-o", str(out), "--no-progress", "--precision", "fp64"]
+    code, err = run_cli(capsys, [*fp64, "--allow-implausible"])
     assert code == 3 and len(err) == 1 and message in err[0] and "--accept-unphysical" in err[0], err
     assert not out.exists() and not (tmp_path / "run.h5.partial").exists() and not (tmp_path / "run.h5.lock").exists()
     if "1e20" in extra:
-        argv = ["hf", str(s), "-o", str(out), "--no-progress", "--accept-unphysical", "--allow-implausible"]
+        argv = [*fp64, "--accept-unphysical", "--allow-implausible"]
         code, err = run_cli(capsys, argv)
         assert code == 0 and len(err) == 1 and err[0].startswith("aca-warp: warning:") and message in err[0], err
         with h5py.File(out, "r") as f:

@@ -121,7 +121,8 @@ def test_guarded_file_reserves_and_trims(tmp_path: Path) -> None:
 
 def test_free_space_check_asks_for_the_file_as_it_will_be(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The free-space check asks for the file on disk, chunks allocated whole (a 1000-patch history of 201 samples
-    takes a 1024-sample chunk row: 8.7 MB, its samples 1.6 MB), never less than the file (scripts/file_size.py):
+    takes a 1024-sample chunk row: 4.6 MB in fp32, strang's default, its samples 0.8 MB), never less than the file
+    (scripts/file_size.py):
     a folder with room for the samples but not for the file is refused, exit 4, nothing written (before: accepted,
     and the run met a full device)."""
     import os
@@ -149,6 +150,6 @@ def test_free_space_check_asks_for_the_file_as_it_will_be(tmp_path: Path, monkey
         "aca_warp.common.files.os.statvfs",
         lambda p: types.SimpleNamespace(f_bavail=free, f_frsize=1, f_blocks=1) if str(p) == str(tmp_path) else real(p),
     )
-    with pytest.raises(StorageError, match="file will take about 8.7"):
+    with pytest.raises(StorageError, match="file will take about 4.58"):
         run_scene(scene, tmp_path / "full.h5", RunOptions())
     assert not list(tmp_path.glob("full.h5*"))

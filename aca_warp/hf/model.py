@@ -16,7 +16,7 @@ import numpy as np
 import warp as wp
 
 from aca_warp.common.devices import get_device, load_kernels
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import SceneError, option
 from aca_warp.hf import limits
 from aca_warp.hf.contact import ContactSolution, solve_scene_contact
 from aca_warp.kernels import hf as hf_kernels
@@ -132,7 +132,9 @@ class HostModel:
 
 def build_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precision: str = "fp64") -> PadModel:
     """Build the device model of a batch of scenes (one pad each): contact solve, neighbours, arrays
-    (:func:`host_model` on ``device``, then :func:`upload` to it)."""
+    (:func:`host_model` on ``device``, then :func:`upload` to it). The state precision is the model's, fp64 unless
+    asked; a run file made by :func:`~aca_warp.hf.runner.run_scene` or ``aca-warp hf`` takes the integrator's
+    default instead (fp32 for ``strang``: :func:`~aca_warp.hf.options.default_precision`)."""
     return upload(host_model(scenes, device=device, precision=precision), device)
 
 
@@ -178,8 +180,24 @@ def host_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisio
     host.update(_pad_arrays(scenes, contacts))
     wide = {"pad_area", "pad_moment", "pad_k_m", "pad_gap"}  # float64 whatever the precision (the growth re-solve)
     kind = lambda k: _INT32 if k in _INT32_NAMES else wp.float64 if k in wide else T  # noqa: E731
+    if T == wp.float32:
+        _check_fp32({k: a for k, a in host.items() if kind(k) == T})
     arrays = {k: np.ascontiguousarray(a, dtype=_NP_DTYPES[kind(k)]) for k, a in host.items()}
     return HostModel(list(scenes), precision, start, contacts, len(nbr_index), arrays)
+
+
+def _check_fp32(arrays: dict[str, np.ndarray]) -> None:
+    """Refuse a model whose values (float64 ``arrays``, by name) single precision cannot hold: a finite value beyond
+    its largest, 3.4e38, would become infinite."""
+    top = float(np.finfo(np.float32).max)
+    fp64 = option("precision='fp64'", "--precision fp64")
+    for name, a in arrays.items():
+        values = np.abs(np.asarray(a, dtype=np.float64))
+        big = float(values[np.isfinite(values)].max(initial=0.0))
+        if big > top:
+            raise SceneError(
+                f"the model's {name} reaches {big:.3g}, beyond what fp32 holds ({top:.3g}): run it in fp64 ({fp64})"
+            )
 
 
 def upload(host: HostModel, device: str | wp.Device, *, copy: bool = True) -> PadModel:

@@ -23,7 +23,7 @@ from aca_warp.common.runfile import busy, reopen_resumable
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
-from aca_warp.hf.options import STEP_CONTROLLED, RunOptions, default_step, step_asked
+from aca_warp.hf.options import STEP_CONTROLLED, RunOptions, default_precision, default_step, step_asked
 from aca_warp.hf.recorder import check_run, check_sample_step
 from aca_warp.hf.runfile import RunWriter, file_bytes
 from aca_warp.hf.sanity import check_contact
@@ -71,9 +71,10 @@ def _size(b: float) -> str:
 
 
 def plan_run(
-    scene: Scene, options: RunOptions, precision: str = "fp64", *, force_limits: bool | None = None
+    scene: Scene, options: RunOptions, precision: str | None = None, *, force_limits: bool | None = None
 ) -> RunPlan:
-    """The :class:`RunPlan` of ``scene`` under ``options`` (``options.duration`` None: the scene's); raises
+    """The :class:`RunPlan` of ``scene`` under ``options`` in ``precision`` (None: the integrator's default,
+    :func:`~aca_warp.hf.options.default_precision`; ``options.duration`` None: the scene's); raises
     :class:`SceneError` for one beyond :data:`MAX_STEPS` or :data:`MAX_OUTPUT_BYTES`, or whose sample interval is
     shorter than its step, unless ``force_limits`` (None: ``options.force``; ``rerun`` passes its own ``--force``,
     so that a run file's stored ``force`` does not lift these limits)."""
@@ -97,7 +98,7 @@ def plan_run(
             f"the per-patch window [{rec.window[0]:g}, {rec.window[1]:g}] s holds no sample of the run (0 to "
             f"{duration:g} s, every {rec.sample_dt:g} s): nothing would be recorded; choose a window inside the run"
         )
-    item = 4 if precision == "fp32" else 8
+    item = 4 if (precision or default_precision(options.integrator)) == "fp32" else 8
     out = (n + 1) * 8 * 7 + rows * (8 + len(rec.patches) * scene.patches.count * item)
     cells = 0 if scene.matrix is None else len(scene.matrix.area)
     ckpt = options.checkpoint_interval is not None
@@ -125,15 +126,16 @@ def run_scene(
     options: RunOptions | None = None,
     *,
     device: str = "cpu",
-    precision: str = "fp64",
+    precision: str | None = None,
     overwrite: bool = False,
     progress: bool = False,
     announce: Callable[[RunPlan], None] | None = None,
     force_limits: bool | None = None,
 ) -> RunResult:
     """Simulate ``scene`` as ``options`` say (default :class:`RunOptions`: the scene's duration, ``strang`` at its
-    default step, :func:`~aca_warp.hf.options.default_step`) on ``device`` in ``precision`` and write the run file
-    ``output``.
+    default step, :func:`~aca_warp.hf.options.default_step`) on ``device`` in ``precision`` (None: the integrator's
+    default, fp32 for ``strang`` and fp64 for the others, :func:`~aca_warp.hf.options.default_precision`) and write
+    the run file ``output``.
 
     Everything is validated before the simulation starts. A fault or an interrupt (Ctrl-C) still leaves a
     readable file holding every sample up to that point, marked ``complete = False``. The file also keeps the
@@ -144,6 +146,7 @@ def run_scene(
     limits and the free-space check (:func:`plan_run`; None: ``options.force``).
     """
     options = options or RunOptions()
+    precision = precision or default_precision(options.integrator)
     lock = OutputLock.acquire(output, what=busy())  # held from here until the file has its final name
     try:
         check_output_path(output, overwrite=overwrite)

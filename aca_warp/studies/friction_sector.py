@@ -6,7 +6,8 @@ equilibrium + N(0, (0.01 m/s)²) velocities, :func:`~aca_warp.studies.friction_s
 batch on the CPU over ``--duration`` on ``--engine`` (default the general engine; ``auto``: the engine a run of
 ``aca-warp hf`` takes, on-chip; both give the same bits, the wall times differ). Every setting of ``--runs``
 (``INTEGRATOR:DT`` for a fixed step, forced past the stable-step estimate; ``INTEGRATOR:tol=TOL``, the tolerance of
-``adaptive`` or the split tolerance of ``controlled`` and ``auto``; or ``INTEGRATOR`` at its defaults) is
+``adaptive`` or the split tolerance of ``controlled`` and ``auto``; or ``INTEGRATOR`` at its defaults; each in
+``--precision`` unless it ends in ``@fp32`` or ``@fp64``) is
 compared with ``--reference`` over the last ``--window``: the ensemble means of μ mean, μ std, mean Σ|u̇| and the
 velocity-sum peak (:func:`~aca_warp.studies.friction_stats.statistics`, ``compare``), the steps and the wall time of
 the stepping loop. Examples::
@@ -15,7 +16,7 @@ the stepping loop. Examples::
     python3 scripts/friction_step_sector.py --quick --out OUT/quick.json          # a smoke run of a minute
     python3 scripts/friction_step_sector.py --runs controlled controlled:tol=3e-3 auto adaptive strang:1e-7 \
         --out docs/figures/friction_step/sector_controlled_cpu.json
-    python3 scripts/friction_step_sector.py --runs strang --engine auto --out OUT/sector_default.json
+    python3 scripts/friction_step_sector.py --runs strang@fp32 --engine auto --out OUT/sector_default.json
     python3 scripts/friction_step_sector.py --report docs/figures/friction_step/sector_cpu.json \
         docs/figures/friction_step/sector_controlled_cpu.json --page docs/friction_step.md
 """
@@ -43,18 +44,23 @@ LABELS = {"mu_mean": "μ mean", "mu_std": "μ std", "abs_velocity_mean": "Σ|u̇
 
 
 def parse_run(spec: str) -> dict[str, Any]:
-    """``INTEGRATOR``, ``INTEGRATOR:DT`` [s] or ``INTEGRATOR:tol=TOL`` as package_run's keywords (TOL: the
-    ``tolerance`` of ``adaptive``, the ``split_tolerance`` of ``controlled`` and ``auto``)."""
+    """``INTEGRATOR``, ``INTEGRATOR:DT`` [s] or ``INTEGRATOR:tol=TOL``, each with an optional ``@fp32`` or
+    ``@fp64``, as package_run's keywords (TOL: the ``tolerance`` of ``adaptive``, the ``split_tolerance`` of
+    ``controlled`` and ``auto``; ``precision`` only where the spec names one)."""
     from aca_warp.hf.options import INTEGRATORS, tolerance_keyword
 
-    name, _, rest = spec.partition(":")
+    setting, at, precision = spec.partition("@")
+    if at and precision not in ("fp32", "fp64"):
+        raise ValueError(f"unknown precision {precision!r} in {spec!r}; choose fp32 or fp64")
+    out: dict[str, Any] = {"precision": precision} if at else {}
+    name, _, rest = setting.partition(":")
     if name not in INTEGRATORS:
         raise ValueError(f"unknown integrator {name!r} in {spec!r}; choose from {', '.join(INTEGRATORS)}")
-    if not rest:
-        return {"integrator": name}
     if rest.startswith("tol="):
-        return {"integrator": name, tolerance_keyword(name): float(rest[4:])}
-    return {"integrator": name, "dt": float(rest)}
+        out[tolerance_keyword(name)] = float(rest[4:])
+    elif rest:
+        out["dt"] = float(rest)
+    return {"integrator": name, **out}
 
 
 def run_all(args: argparse.Namespace, log: Log) -> dict[str, Any]:
@@ -66,10 +72,8 @@ def run_all(args: argparse.Namespace, log: Log) -> dict[str, Any]:
     ref_stats: dict[str, Any] | None = None
     for spec in [args.reference, *args.runs]:
         log(f"{spec}: {len(scenes)} pads × {args.patches} patches, {args.duration * 1e3:g} ms")
-        run = parse_run(spec)
-        rec, info = package_run(
-            scenes, duration=args.duration, window=0.0, precision=args.precision, engine=args.engine, **run
-        )
+        run = {"precision": args.precision, **parse_run(spec)}
+        rec, info = package_run(scenes, duration=args.duration, window=0.0, engine=args.engine, **run)
         stats = statistics(rec, args.window, np.zeros(0), np.zeros(0, dtype=int))
         ref_stats = stats if ref_stats is None else ref_stats
         row = {"run": spec, "wall_s": info["wall_s"], "steps": info["steps"]}
@@ -100,7 +104,8 @@ def report(doc: dict[str, Any]) -> list[str]:
     s = doc["setup"]
     lines = [
         f"{s['seeds']} hf1 sector(s) × {s['patches']} patches (the validation's reduced pad, seeds from 1), "
-        f"{s['duration'] * 1e3:g} ms from equilibrium + 0.01 m/s, {s['precision']}, "
+        f"{s['duration'] * 1e3:g} ms from equilibrium + 0.01 m/s, {s['precision']}"
+        f"{' (a run ending in @fp32 or @fp64: that precision)' if any('@' in r['run'] for r in doc['runs']) else ''}, "
         f"{ENGINE_TEXT[s.get('engine', 'general')]} on the CPU; "
         f"statistics of the last {s['window'] * 1e3:g} ms against `{doc['reference']}` (ensemble means; the "
         "velocity-sum peak above 20 kHz):",
@@ -141,7 +146,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--patches", type=int_at_least(1), default=150, help="patches per sector (default 150)")
     ap.add_argument("--duration", type=positive, default=30e-3, help="run length [s] (default 30e-3)")
     ap.add_argument("--window", type=positive, default=10e-3, help="statistics over the last WINDOW [s] (10e-3)")
-    ap.add_argument("--precision", choices=("fp32", "fp64"), default="fp64")
+    ap.add_argument(
+        "--precision", choices=("fp32", "fp64"), default="fp64", help="of the runs that name none (default fp64)"
+    )
     ap.add_argument(
         "--engine",
         choices=ENGINES,

@@ -7,7 +7,8 @@ computed in the same run. Solvers, each timed after a warm-up that compiles its 
 
 * ``adaptive`` (ours, fp64), on the on-chip engine (one block or cluster per pad) and on the general engine (a
   trial of every pad per 14 launches): the loosest tolerance of 1e-3 … 1e-7 that reaches the target;
-* ``strang`` (ours, fp64) at its default step (:func:`~aca_warp.hf.options.default_step`) and at 1e-8 s — on the
+* ``strang`` (ours) at its defaults (:func:`~aca_warp.hf.options.default_step`, fp32:
+  :func:`~aca_warp.hf.options.default_precision`), in fp64 at 1e-8 s — on the
   on-chip engine, ``auto``'s choice on either device — and the largest of 1e-8, 5e-9, 2.5e-9 s that reaches the
   target;
 * SciPy DOP853 (host CPU): the loosest rtol of 1e-5 … 1e-10 that reaches it;
@@ -47,7 +48,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common.argtypes import int_at_least, positive
-from aca_warp.hf.options import DEFAULT_TOLERANCE, default_step
+from aca_warp.hf.options import DEFAULT_TOLERANCE, default_precision, default_step
 from aca_warp.hf.reference import ReferenceODE
 from aca_warp.scene import Initial, Record, Scene, preset
 from aca_warp.studies.report import (
@@ -142,12 +143,15 @@ class Problem:
 # ----------------------------------------------------------------------------------------------- solvers
 
 
-def run_ours(prob: Problem, device: str, integrator: str, engine: str, **kw: float) -> dict[str, Any]:
-    """A warm-up run (20 µs) and the timed run of every pad of ``prob`` with ours; μ error and times."""
+def run_ours(
+    prob: Problem, device: str, integrator: str, engine: str, precision: str = "fp64", **kw: float
+) -> dict[str, Any]:
+    """A warm-up run (20 µs) and the timed run of every pad of ``prob`` with ours in ``precision``; μ error and
+    times."""
     rec = Record(sample_dt=SAMPLE_DT)
-    model, state = batch_at_start(prob.scenes, device, "fp64")
+    model, state = batch_at_start(prob.scenes, device, precision)
     run_general(model, state, duration=20 * SAMPLE_DT, integrator=integrator, record=rec, engine=engine, **kw)
-    model, state = batch_at_start(prob.scenes, device, "fp64")
+    model, state = batch_at_start(prob.scenes, device, precision)
     t0 = time.perf_counter()
     res = run_general(model, state, duration=prob.duration, integrator=integrator, record=rec, engine=engine, **kw)
     total = time.perf_counter() - t0
@@ -350,8 +354,8 @@ def measure_scene(name: str, args: argparse.Namespace, log: Callable[[str], None
         if pads > 1 and not (cuda or args.batch_on_cpu):
             continue
 
-        def ours(integ: str, eng: str, key: str, p: Problem = p) -> Callable[[float], dict]:
-            return lambda s: run_ours(p, args.device, integ, eng, **{key: s})
+        def ours(integ: str, eng: str, key: str, p: Problem = p, precision: str = "fp64") -> Callable[[float], dict]:
+            return lambda s: run_ours(p, args.device, integ, eng, precision, **{key: s})
 
         for eng in ("onchip", "general"):
             what = f"adaptive {eng} {pads} pad(s) tol"
@@ -360,9 +364,11 @@ def measure_scene(name: str, args: argparse.Namespace, log: Callable[[str], None
         what = f"auto {pads} pad(s) tol"  # auto at its default tolerances (general engine only)
         tries = ladder((DEFAULT_TOLERANCE,), ours("auto", "general", "tolerance"), args.target, log, what)
         rows.append(entry(name, "ours: auto (its defaults)", pads, f"{dev}, general engine", "tol", tries))
-        what = f"strang at its default step {pads} pad(s) dt"
-        tries = ladder((default_step("strang"),), ours("strang", fixed, "dt"), args.target, log, what)
-        rows.append(entry(name, "ours: strang (default step)", pads, f"{dev}, {fixed} engine", "dt", tries))
+        what = f"strang at its defaults {pads} pad(s) dt"  # step and precision: default_step, default_precision
+        at = ours("strang", fixed, "dt", precision=default_precision("strang"))
+        tries = ladder((default_step("strang"),), at, args.target, log, what)
+        where = f"{dev}, {fixed} engine, {default_precision('strang')}"
+        rows.append(entry(name, "ours: strang (its defaults)", pads, where, "dt", tries))
         first = ladder(STEPS[:1], ours("strang", fixed, "dt"), args.target, log, f"strang {pads} pad(s) dt")
         rows.append(entry(name, "ours: strang 1e-8 s", pads, f"{dev}, {fixed} engine", "dt", first))
         if first and not first[-1].get("failed") and not first[-1]["reached"]:

@@ -62,7 +62,11 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace a different sweep in DIR")
     p.add_argument("--duration", type=positive, metavar="S", help="simulated time per pad [s] (default: the spec's)")
     p.add_argument("--integrator", choices=INTEGRATORS, help="time integrator (default: the spec's, else strang)")
-    p.add_argument("--precision", choices=("fp32", "fp64"), help="state precision (default: the spec's, else fp64)")
+    p.add_argument(
+        "--precision",
+        choices=("fp32", "fp64"),
+        help="state precision (default: the spec's, else fp32 for strang and fp64 for the other integrators)",
+    )
     p.add_argument(
         "--dt",
         type=positive,

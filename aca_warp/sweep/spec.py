@@ -328,6 +328,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         DEFAULT_INTEGRATOR,
         DEFAULT_TOLERANCE,
         INTEGRATORS,
+        default_precision,
         default_step,
         fast_math_unfit,
         step_asked,
@@ -355,7 +356,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     integrator = run.get("integrator", DEFAULT_INTEGRATOR)
     if integrator not in INTEGRATORS:
         raise SweepError(f"run.integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
-    precision = run.get("precision", "fp64")
+    precision = run.get("precision", default_precision(integrator))
     if precision not in PRECISIONS:
         raise SweepError(f"run.precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
 
