@@ -85,6 +85,21 @@ def test_spec_expansion_and_errors() -> None:
             load_spec(doc)
 
 
+def test_the_precision_follows_the_integrator_and_is_written_out() -> None:
+    """A spec without ``precision`` runs ``strang`` in fp32 and the other integrators in fp64 (their defaults), and
+    its hash holds the precision resolved: the same spec with ``precision = "fp64"`` written, or given as an override
+    (``--precision fp64``), is one sweep, a sweep begun in fp64 from a spec without it continues that way."""
+    doc = json.loads(json.dumps(TINY))
+    doc["run"].pop("precision", None)
+    assert load_spec(doc).precision == "fp32"
+    adaptive = json.loads(json.dumps(doc))
+    adaptive["run"]["integrator"] = "adaptive"
+    assert load_spec(adaptive).precision == "fp64"
+    written = json.loads(json.dumps(doc))
+    written["run"]["precision"] = "fp64"
+    assert load_spec(doc, precision="fp64").hash == load_spec(written).hash != load_spec(doc).hash
+
+
 def test_spec_check_builds_one_pad_per_value_but_not_per_seed(monkeypatch) -> None:
     """The spec's check builds the first and last pad and one pad per value of each parameter, but not one per seed
     (a sweep over many patch seeds would make every layout before it starts); a count that does not fit still fails
