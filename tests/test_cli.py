@@ -49,6 +49,21 @@ def test_hf_writes_a_complete_run_file(scene_file, tmp_path, capsys):
     assert np.all(np.isfinite(mu)) and 0.3 < mu[-1] < 0.8
 
 
+def test_the_precision_follows_the_integrator(scene_file, tmp_path, capsys):
+    """Without --precision, strang runs in fp32 (its statistics' choice) and adaptive in fp64; the file and the
+    summary line say which; --precision overrides it."""
+    for integrator, extra, precision in (
+        ("strang", [], "fp32"),
+        ("adaptive", [], "fp64"),
+        ("strang", ["--precision", "fp64"], "fp64"),
+    ):
+        out = tmp_path / f"{integrator}-{precision}.h5"
+        assert main(["hf", str(scene_file), "-o", str(out), "--no-progress", "--integrator", integrator, *extra]) == 0
+        assert f"{integrator}, {precision})" in capsys.readouterr().out
+        with h5py.File(out, "r") as f:
+            assert f.attrs["precision"] == precision
+
+
 def test_only_what_is_asked_is_recorded(scene_file, tmp_path):
     """Without --record-patches no per-patch history (and no per-patch stage) exists."""
     out = tmp_path / "run.h5"
