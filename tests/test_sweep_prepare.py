@@ -574,12 +574,7 @@ def test_a_free_worker_waits_for_a_begun_preparation(tmp_path: Path, monkeypatch
         threading.Timer(0.5, gate.touch).start()
         fed(book, _recording(submit, handed), preparer, **kwargs)
 
-    monkeypatch.setattr(Preparer, "__init__", held)
-    monkeypatch.setattr(cluster, "_feed", feed)
-    try:
-        res = _in_time(lambda: run_sweep(_spec(), tmp_path / "out", device="cpu", workers=1, prepare=1))
-    finally:
-        gate.touch()
+    res = _fed_sweep(tmp_path, monkeypatch, held, feed, gate, prepare=1)
     assert res.ran == [0, 1, 2] and not res.failed
     assert handed[0] == "SpooledShard", handed
 
@@ -619,12 +614,7 @@ def test_a_ready_shard_goes_before_one_still_being_prepared(tmp_path: Path, monk
         _in_time(lambda: _until(lambda: preparer.began(0) and preparer.poll(1)), 120)
         fed(book, noted(submit), preparer, **kwargs)
 
-    monkeypatch.setattr(Preparer, "__init__", held)
-    monkeypatch.setattr(cluster, "_feed", feed)
-    try:
-        res = _in_time(lambda: run_sweep(_spec(), tmp_path / "out", device="cpu", workers=1, prepare=2))
-    finally:
-        gate.touch()
+    res = _fed_sweep(tmp_path, monkeypatch, held, feed, gate, prepare=2)
     assert res.ran == [0, 1, 2] and not res.failed
     assert handed[0] == (1, "SpooledShard") and sorted(handed) == [(i, "SpooledShard") for i in range(3)], handed
     monkeypatch.undo()
@@ -632,6 +622,19 @@ def test_a_ready_shard_goes_before_one_still_being_prepared(tmp_path: Path, monk
     assert alone.ran == [0, 1, 2]
     a, b = _outputs(tmp_path / "out"), _outputs(tmp_path / "alone")
     assert all(np.array_equal(a[k], b[k]) for k in a), [k for k in a if not np.array_equal(a[k], b[k])]
+
+
+def _fed_sweep(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, held, feed, gate: Path, *, prepare: int):
+    """The small sweep on a one-worker local cluster, its pool's ``Preparer.__init__`` replaced by ``held`` and the
+    client's feed by ``feed``; ``gate`` is touched when it ends, whatever happened (the held pool processes go on)."""
+    from aca_warp.sweep import cluster
+
+    monkeypatch.setattr(Preparer, "__init__", held)
+    monkeypatch.setattr(cluster, "_feed", feed)
+    try:
+        return _in_time(lambda: run_sweep(_spec(), tmp_path / "out", device="cpu", workers=1, prepare=prepare))
+    finally:
+        gate.touch()
 
 
 def _until(done, seconds: float = 120.0) -> None:
