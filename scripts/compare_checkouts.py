@@ -45,9 +45,12 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+# the strang jobs name their precision, so that checkouts on either side of a change of strang's default precision
+# (fp64, then fp32) run the same job; one pair in each precision
 JOBS = {
-    "hf1": ["hf", "hf1", "--duration", "2e-5", "--no-progress"],
-    "varying_area": ["hf", "varying_area", "--duration", "1e-5", "--no-progress"],
+    "hf1": ["hf", "hf1", "--duration", "2e-5", "--precision", "fp64", "--no-progress"],
+    "hf1_fp32": ["hf", "hf1", "--duration", "2e-5", "--precision", "fp32", "--no-progress"],
+    "varying_area": ["hf", "varying_area", "--duration", "1e-5", "--precision", "fp64", "--no-progress"],
     "hf1_adaptive": ["hf", "hf1", "--duration", "1e-4", "--integrator", "adaptive", "--tolerance", "1e-5"]
     + ["--no-progress"],
     "lf": ["lf", "multiscale", "--no-progress"],
@@ -69,8 +72,9 @@ precision = "fp32"
 # opt-in jobs (--jobs): the engines and integrators the default jobs leave out on the CPU
 EXTRA_JOBS = {
     "hf1_onchip": ["hf", "hf1", "--duration", "2e-5", "--engine", "onchip", "--record-patches", "velocity,displacement"]
+    + ["--precision", "fp64", "--no-progress"],
+    "varying_area_onchip": ["hf", "varying_area", "--duration", "1e-5", "--engine", "onchip", "--precision", "fp64"]
     + ["--no-progress"],
-    "varying_area_onchip": ["hf", "varying_area", "--duration", "1e-5", "--engine", "onchip", "--no-progress"],
     "hf1_adaptive_general": ["hf", "hf1", "--duration", "1e-4", "--integrator", "adaptive", "--tolerance", "1e-5"]
     + ["--engine", "general", "--record-patches", "velocity", "--no-progress"],
     "varying_area_adaptive": ["hf", "varying_area", "--duration", "1e-5", "--integrator", "adaptive"]

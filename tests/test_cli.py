@@ -85,6 +85,7 @@ def test_only_what_is_asked_is_recorded(scene_file, tmp_path):
         ),
         (["hf", "{scene}", "-o", "{out}", "--dt", "1e-6"], "shorter than the step"),
         (["hf", "{scene}", "-o", "{out}", "--sample-dt", "1e-3"], "(--sample-dt) exceeds the duration"),
+        (["hf", "{scene}", "-o", "{out}", "--duration", "5e-8"], "(the scene's record.sample_dt) exceeds the duration"),
         (["hf", "{scene}", "-o", "{out}", "--record-patches", "pressure"], "unknown variable"),
         (["hf", "{scene}", "-o", "{out}", "--device", "cuda:7"], "device"),
         (["hf", "{scene}", "-o", "/no/such/dir/run.h5"], "does not exist"),

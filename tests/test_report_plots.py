@@ -184,6 +184,27 @@ def test_non_run_files_are_refused_and_left_unchanged(tmp_path):
         plots.plot_run(plain, tmp_path / "fig")
 
 
+def test_a_run_file_that_cannot_be_opened_for_writing_says_so(runs, tmp_path, monkeypatch):
+    """A run file HDF5 will not open for writing (here a simulated lock error for mode "r+"): one SceneError naming
+    the file, "for writing" and the first line of the cause; opening it to read still works."""
+    from aca_warp.analysis.report import open_run_file
+
+    path = _copy(runs["globals"], tmp_path)
+    real = h5py.File
+
+    def refusing(name, mode="r", *args, **kwargs):
+        if mode != "r":
+            raise OSError("unable to lock file (simulated)\nsecond line")
+        return real(name, mode, *args, **kwargs)
+
+    monkeypatch.setattr(h5py, "File", refusing)
+    with pytest.raises(
+        SceneError, match=rf"cannot open run file {path} for writing: unable to lock file \(simulated\)$"
+    ):
+        open_run_file(path, "r+")
+    open_run_file(path, "r").close()
+
+
 def test_a_failed_write_keeps_the_previous_analysis(runs, tmp_path, monkeypatch):
     """If writing fails half-way, the earlier /analysis survives untouched and no temporary group remains."""
     path = _copy(runs["globals"], tmp_path)

@@ -79,6 +79,7 @@ def test_spec_expansion_and_errors() -> None:
         ({"parameters": {"patches.seed": [1.5]}}, "integers"),
         ({"parameters": {"friction.M": [-1.0]}}, "friction.M must be >= 0"),
         ({"extra": {}}, "unknown table"),
+        ({"sweep": {"base": "hf1"}, "run": {"duration": 1e-6, "sample_dt": 1e-5}}, r"\(run\.sample_dt\) exceeds"),
     ]
     for doc, msg in bad:
         with pytest.raises(SweepError, match=msg):
@@ -98,6 +99,19 @@ def test_the_precision_follows_the_integrator_and_is_written_out() -> None:
     written = json.loads(json.dumps(doc))
     written["run"]["precision"] = "fp64"
     assert load_spec(doc, precision="fp64").hash == load_spec(written).hash != load_spec(doc).hash
+
+
+def test_a_sweep_begun_with_other_run_settings_is_refused_with_how_to_continue_it(tmp_path: Path) -> None:
+    """A folder whose sweep ran in fp64 from the same spec: the spec without ``precision`` (fp32 for strang) is
+    refused, naming the setting that differs and the option that continues it; with that option it continues."""
+    from aca_warp.sweep.manifest import prepare_dir
+
+    doc = json.loads(json.dumps(TINY))
+    doc["run"].pop("precision", None)
+    prepare_dir(load_spec(doc, precision="fp64"), tmp_path / "sw")
+    with pytest.raises(SweepError, match=r"precision fp64 there, fp32 here\) \(to continue it: --precision fp64\)"):
+        prepare_dir(load_spec(doc), tmp_path / "sw")
+    assert prepare_dir(load_spec(doc, precision="fp64"), tmp_path / "sw")["shards"]
 
 
 def test_spec_check_builds_one_pad_per_value_but_not_per_seed(monkeypatch) -> None:

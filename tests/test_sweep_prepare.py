@@ -7,9 +7,11 @@ import json
 import shutil
 import threading
 import time
+from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -624,7 +626,15 @@ def test_a_ready_shard_goes_before_one_still_being_prepared(tmp_path: Path, monk
     assert all(np.array_equal(a[k], b[k]) for k in a), [k for k in a if not np.array_equal(a[k], b[k])]
 
 
-def _fed_sweep(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, held, feed, gate: Path, *, prepare: int):
+def _fed_sweep(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    held: Callable[..., None],
+    feed: Callable[..., None],
+    gate: Path,
+    *,
+    prepare: int,
+) -> Any:
     """The small sweep on a one-worker local cluster, its pool's ``Preparer.__init__`` replaced by ``held`` and the
     client's feed by ``feed``; ``gate`` is touched when it ends, whatever happened (the held pool processes go on)."""
     from aca_warp.sweep import cluster

@@ -266,7 +266,12 @@ def _hf_scene(args: argparse.Namespace) -> tuple[Any, float]:
         )
     duration = args.duration if args.duration is not None else scene.duration
     record = Record(**{**dataclasses.asdict(rec), **changes})
-    record.check_duration(duration, "--sample-dt", "--duration")  # before the scene's check, which names its fields
+    # before the scene's check, naming the flags given and the scene's fields for what the scene set
+    record.check_duration(
+        duration,
+        "--sample-dt" if args.sample_dt is not None else "the scene's record.sample_dt",
+        "--duration" if args.duration is not None else "the scene's run.duration",
+    )
     scene = scene.replace(duration=duration, record=record)
     return scene, duration
 

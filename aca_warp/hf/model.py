@@ -186,17 +186,33 @@ def host_model(scenes: list[Scene], *, device: str | wp.Device = "cpu", precisio
     return HostModel(list(scenes), precision, start, contacts, len(nbr_index), arrays)
 
 
+# what the model's arrays that large inputs make large come from (for the fp32 refusal)
+_FROM = {
+    "k_n": "material.K_N",
+    "pad_k_n": "material.K_N",
+    "k_t": "material.K_T",
+    "pad_k_t": "material.K_T",
+    "pad_kc": "material.K_C",
+    "nbr_stiffness": "material.K_C",
+    "k_diag": "material.K_T and K_C",
+    "normal_force": "load.normal_force",
+    "pad_load": "load.normal_force",
+}
+
+
 def _check_fp32(arrays: dict[str, np.ndarray]) -> None:
     """Refuse a model whose values (float64 ``arrays``, by name) single precision cannot hold: a finite value beyond
-    its largest, 3.4e38, would become infinite."""
+    its largest, 3.4e38, would become infinite. The message names the scene's setting behind the array where known."""
     top = float(np.finfo(np.float32).max)
-    fp64 = option("precision='fp64'", "--precision fp64")
+    fp64 = option("precision='fp64', run.precision in a sweep spec", "--precision fp64")
     for name, a in arrays.items():
         values = np.abs(np.asarray(a, dtype=np.float64))
         big = float(values[np.isfinite(values)].max(initial=0.0))
         if big > top:
+            source = f" (from {_FROM[name]})" if name in _FROM else ""
             raise SceneError(
-                f"the model's {name} reaches {big:.3g}, beyond what fp32 holds ({top:.3g}): run it in fp64 ({fp64})"
+                f"the model's {name}{source} reaches {big:.3g}, beyond what fp32 holds ({top:.3g}): run it in fp64 "
+                f"({fp64})"
             )
 
 

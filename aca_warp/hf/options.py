@@ -27,7 +27,7 @@ STATISTICS_STEP = 5.0e-8
 # strang's default state precision: the same study keeps every one of those measures in fp32 at that step (every
 # regime's pick is fp32); the other integrators compute in fp64 unless asked (pointwise μ to 1e-7 and below)
 STATISTICS_PRECISION = "fp32"
-DEFAULT_PRECISION = "fp64"
+POINTWISE_PRECISION = "fp64"
 DEFAULT_TOLERANCE = 1.0e-5  # adaptive: μ errors ≤ 1e-7 on hf1 and stick-slip (docs/time_to_solution.md)
 # controlled: the rms over a pad of the per-patch local velocity errors of a step, relative to the patch's velocity
 # scale V_i; 1e-2 meets the saturated-statistics targets on hf1 sectors (docs/friction_step.md §5.2)
@@ -53,8 +53,8 @@ def default_step(integrator: str) -> float:
 def default_precision(integrator: str) -> str:
     """The state precision of a run of ``integrator`` when none is asked for: :data:`STATISTICS_PRECISION` for
     ``strang`` (with its default step, the setting the saturated statistics were shown to hold at),
-    :data:`DEFAULT_PRECISION` for the others."""
-    return STATISTICS_PRECISION if integrator == "strang" else DEFAULT_PRECISION
+    :data:`POINTWISE_PRECISION` for the others."""
+    return STATISTICS_PRECISION if integrator == "strang" else POINTWISE_PRECISION
 
 
 def step_asked(integrator: str, dt: float | None) -> float | None:

@@ -6,8 +6,9 @@ equilibrium + N(0, (0.01 m/s)²) velocities, :func:`~aca_warp.studies.friction_s
 batch on the CPU over ``--duration`` on ``--engine`` (default the general engine; ``auto``: the engine a run of
 ``aca-warp hf`` takes, on-chip; both give the same bits, the wall times differ). Every setting of ``--runs``
 (``INTEGRATOR:DT`` for a fixed step, forced past the stable-step estimate; ``INTEGRATOR:tol=TOL``, the tolerance of
-``adaptive`` or the split tolerance of ``controlled`` and ``auto``; or ``INTEGRATOR`` at its defaults; each in
-``--precision`` unless it ends in ``@fp32`` or ``@fp64``) is
+``adaptive`` or the split tolerance of ``controlled`` and ``auto``; or ``INTEGRATOR`` at its default step or
+tolerances; each in ``--precision``, fp64 unless asked, unless it ends in ``@fp32`` or ``@fp64``: ``strang@fp32`` is
+``strang`` at both its defaults) is
 compared with ``--reference`` over the last ``--window``: the ensemble means of μ mean, μ std, mean Σ|u̇| and the
 velocity-sum peak (:func:`~aca_warp.studies.friction_stats.statistics`, ``compare``), the steps and the wall time of
 the stepping loop. Examples::
@@ -156,7 +157,9 @@ def main(argv: list[str] | None = None) -> int:
         help="the engine of every run (default general; auto: on-chip, as aca-warp hf runs; the same bits)",
     )
     ap.add_argument("--reference", default=REFERENCE, help=f"the reference run (default {REFERENCE})")
-    ap.add_argument("--runs", nargs="+", default=list(RUNS), help="INTEGRATOR[:DT | :tol=TOL] (default the grid)")
+    ap.add_argument(
+        "--runs", nargs="+", default=list(RUNS), help="INTEGRATOR[:DT | :tol=TOL][@fp32 | @fp64] (default the grid)"
+    )
     ap.add_argument("--quick", action="store_true", help="1 pad × 60 patches × 4 ms, window 2 ms: a smoke run")
     ap.add_argument("--out", type=Path, help="result JSON")
     ap.add_argument(

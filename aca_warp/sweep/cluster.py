@@ -440,7 +440,8 @@ def _feed(
     workers: int,
     threads: int,
 ) -> None:
-    """Hand ``book.todo`` to Dask in order (``submit``) and record the tasks as they finish.
+    """Hand ``book.todo`` to Dask (``submit``), in order but for prepared shards (below), and record the tasks as
+    they finish.
 
     Without a ``preparer`` every shard is submitted at once (its task prepares it). With one (planned for
     ``book.todo`` already), a shard is submitted while fewer tasks than the cluster's ``threads`` are unfinished (so

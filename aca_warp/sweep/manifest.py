@@ -62,6 +62,24 @@ def read_manifest(out_dir: str | Path) -> dict | None:
         raise SweepError(f"{p} is not a sweep manifest ({e}); remove it or pass --overwrite") from None
 
 
+def _run_changes(old: dict | None, spec: SweepSpec) -> str:
+    """The run settings in which the sweep of manifest ``old`` differs from ``spec``, with the options that continue
+    it (``--precision fp64`` for a sweep begun at another default precision, ``--dt`` for another default step), as a
+    clause of the refusal; "" when they agree or ``old`` records none."""
+    before = (old or {}).get("run")
+    if not isinstance(before, dict):
+        return ""
+    now = spec.run_settings()
+    keys = sorted(k for k in before.keys() | now.keys() if before.get(k) != now.get(k))
+    if not keys:
+        return ""
+    flags = {"precision": "--precision", "dt": "--dt", "duration": "--duration", "integrator": "--integrator"}
+    changed = ", ".join(f"{k} {before.get(k)} there, {now.get(k)} here" for k in keys)
+    again = [f"{flags[k]} {before[k]}" for k in keys if k in flags and before.get(k) is not None]
+    hint = f" (to continue it: {' '.join(again)})" if again and len(again) == len(keys) else ""
+    return f": its run settings differ ({changed}){hint}"
+
+
 def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False) -> dict:
     """Create or reopen the sweep directory; returns the manifest with every shard's verified state.
 
@@ -84,7 +102,7 @@ def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False
             else:
                 what = f"{len(stray)} shard file(s) without a manifest"
             raise SweepError(
-                f"{d} holds {what}, not this spec (hash {spec.hash[:12]}); "
+                f"{d} holds {what}, not this spec (hash {spec.hash[:12]}){_run_changes(old, spec)}; "
                 "pass --overwrite to replace it, or choose another output directory"
             )
         for p in stray:

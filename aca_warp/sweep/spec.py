@@ -382,7 +382,9 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     try:
         from aca_warp.hf.recorder import check_run, check_sample_step
 
-        base = base.replace(duration=duration, record=dataclasses.replace(base.record, sample_dt=sample_dt))
+        record = dataclasses.replace(base.record, sample_dt=sample_dt)
+        record.check_duration(duration, "run.sample_dt", "run.duration")  # before the scene's, which names its fields
+        base = base.replace(duration=duration, record=record)
         check_run(duration, base.record)
         check_sample_step(sample_dt, default_step(integrator) if dt is None else dt)
     except SceneError as e:
