@@ -105,6 +105,45 @@ def test_run_file_keeps_the_spacing_and_rerun_repeats_it(tmp_path):
         assert '"growth_dt": 1e-06' in f.attrs["run_options"]
 
 
+def test_strang_spaces_growth_events_5_us_apart_by_default(tmp_path, capsys):
+    """``aca-warp hf`` and ``run_scene`` without a spacing: strang's events every 5 µs (the statistics' spacing),
+    written out in the file and named in the summary line; a scene whose interval is longer keeps it; ``adaptive``
+    keeps the scene's interval (None)."""
+    import json
+
+    from aca_warp.cli import main
+
+    for extra, spacing in (([], 5e-6), (["--integrator", "adaptive"], None)):
+        out = tmp_path / f"run{len(extra)}.h5"
+        assert main(["hf", "varying_area", "--duration", "1e-5", "-o", str(out), "--no-progress", *extra]) == 0
+        with h5py.File(out) as f:
+            assert json.loads(f.attrs["run_options"])["growth_dt"] == spacing
+        assert ("growth events every 5e-06 s" in capsys.readouterr().out) == (spacing is not None)
+    slow = nine_patch_scene(increment=1e-6, interval=1e-5, sample_dt=1e-6, duration=2e-5)
+    run_scene(slow, tmp_path / "slow.h5", RunOptions(checkpoint_interval=0))
+    with h5py.File(tmp_path / "slow.h5") as f:
+        assert json.loads(f.attrs["run_options"])["growth_dt"] == 1e-5
+
+
+def test_a_file_without_a_stored_spacing_is_repeated_at_the_scene_s_interval(tmp_path):
+    """A run file that stores no spacing (written while the events came at the scene's interval by default) is
+    rerun at that interval, not at today's default: the same samples, bit for bit."""
+    import json
+
+    from aca_warp.cli import main
+
+    scene = nine_patch_scene(increment=1e-6, interval=INTERVAL, sample_dt=1e-6, duration=4e-6)
+    out = tmp_path / "old.h5"
+    run_scene(scene, out, RunOptions(growth_dt=INTERVAL, checkpoint_interval=0))
+    with h5py.File(out, "r+") as f:
+        options = json.loads(f.attrs["run_options"])
+        f.attrs["run_options"] = json.dumps({**options, "growth_dt": None})
+    assert main(["rerun", str(out), "-o", str(tmp_path / "again.h5"), "--no-progress"]) == 0
+    with h5py.File(out) as a, h5py.File(tmp_path / "again.h5") as b:
+        assert np.array_equal(a["global/mu"][()], b["global/mu"][()])
+        assert json.loads(b.attrs["run_options"])["growth_dt"] == INTERVAL
+
+
 def test_study_settings_parse_the_spacing():
     settings = parse_setting("strang@fp32:dt=1e-7:growth_dt=1e-6,5e-6")
     assert [s.growth_dt for s in settings] == [1e-6, 5e-6]
@@ -125,14 +164,22 @@ def test_cli_refuses_the_spacing_for_a_scene_that_does_not_grow(tmp_path, capsys
 
 
 def test_sweep_spec_takes_the_spacing_for_growing_pads_only(tmp_path):
+    """A growing sweep's spacing: the asked one; by default with strang the statistics' 5 µs, written out; the
+    scene's own interval, asked for or the default of the other integrators, is left out of the run settings, so
+    that a sweep begun at the scenes' interval keeps its hash (--growth-dt 2.02e-7 continues it)."""
     from aca_warp.sweep.prepare import run_options
     from aca_warp.sweep.spec import SweepError, load_spec
 
     doc = {"sweep": {"base": "varying_area"}, "run": {"duration": 1e-5, "growth_dt": 1e-6}, "parameters": {}}
     spec = load_spec(doc, base_dir=tmp_path)
     assert run_options(spec).growth_dt == 1e-6 and spec.run_settings()["growth_dt"] == 1e-6
-    before = load_spec({**doc, "run": {"duration": 1e-5}}, base_dir=tmp_path)
-    assert "growth_dt" not in before.run_settings() and before.hash != spec.hash
+    default = load_spec({**doc, "run": {"duration": 1e-5}}, base_dir=tmp_path)
+    assert run_options(default).growth_dt == 5e-6 and default.run_settings()["growth_dt"] == 5e-6
+    clock = load_spec({**doc, "run": {"duration": 1e-5}}, base_dir=tmp_path, growth_dt=2.02e-7)
+    adaptive = load_spec({**doc, "run": {"duration": 1e-5, "integrator": "adaptive"}}, base_dir=tmp_path)
+    for s in (clock, adaptive):
+        assert run_options(s).growth_dt is None and "growth_dt" not in s.run_settings()
+    assert len({spec.hash, default.hash, clock.hash}) == 3
     with pytest.raises(SweepError, match="the base scene does not grow"):
         load_spec({**doc, "sweep": {"base": "hf1"}}, base_dir=tmp_path)
     with pytest.raises(SweepError, match="run.growth_dt must be a positive number"):

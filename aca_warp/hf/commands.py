@@ -123,11 +123,11 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "--growth-dt",
         type=positive,
         metavar="S",
-        help="simulated time between the growth events of a growing scene [s] (default: the scene's growth "
-        "interval, the paper's clock of 2.02e-7 s for varying_area); each event adds the increment scaled to the "
-        "spacing, so growth per simulated time stays the scene's; the statistics of growing pads keep every "
-        "measure with events every 5e-6 s at --dt 5e-8 and 1e-7 (docs/model.md 2.10), and events cost several "
-        "steps each; refused for a scene that does not grow",
+        help="simulated time between the growth events of a growing scene [s] (default with strang: 5e-6, where "
+        "the statistics of growing pads keep every measure at --dt 5e-8 and 1e-7, or the scene's growth interval "
+        "if longer; with the other integrators the scene's interval, the paper's clock of 2.02e-7 s for "
+        "varying_area); each event adds the increment scaled to the spacing, so growth per simulated time stays "
+        "the scene's (docs/model.md 2.10); events cost several steps each; refused for a scene that does not grow",
     )
 
 
@@ -188,7 +188,7 @@ def _add_file_arguments(hf: argparse.ArgumentParser) -> None:
 
 def _cmd_hf(args: argparse.Namespace) -> int:
     from aca_warp.common.files import check_output_path
-    from aca_warp.hf.options import RunOptions, default_precision
+    from aca_warp.hf.options import RunOptions, default_precision, growth_asked
     from aca_warp.hf.runner import run_scene
 
     if args.resume is not None:
@@ -207,7 +207,9 @@ def _cmd_hf(args: argparse.Namespace) -> int:
             )
     check_output_path(args.output, overwrite=args.overwrite)
     scene, duration = _hf_scene(args)
-    args.precision = args.precision or default_precision(args.integrator)  # as the summary line names it
+    # as the run file keeps them and the summary line names them
+    args.precision = args.precision or default_precision(args.integrator)
+    args.growth_dt = growth_asked(args.integrator, args.growth_dt, scene.growth.interval if scene.growth else None)
     options = RunOptions(
         duration=duration,
         integrator=args.integrator,

@@ -108,11 +108,13 @@ def scene_from_run(f: h5py.File, path: Path) -> Scene:
         raise SceneError(f"{path}: the stored scene is incomplete or damaged ({type(e).__name__}: {e})") from None
 
 
-def _options(f: h5py.File, path: Path) -> RunOptions:
+def _options(f: h5py.File, path: Path, scene: Scene) -> RunOptions:
     """The stored run options (files written before ``run_options`` existed keep them as ``step_policy``). A
     fixed-step run without a stored step (files and sweep shards written while every fixed-step default was
     :data:`DEFAULT_DT`; since, the step is stored) is repeated at the step it took (the ``dt`` its file recorded when
-    it closed), or, for a file stopped before, at :data:`DEFAULT_DT`: not at today's default."""
+    it closed), or, for a file stopped before, at :data:`DEFAULT_DT`: not at today's default. Likewise a growing
+    ``scene``'s run without a stored spacing of growth events (files written while the events came at the scene's
+    interval by default; since, the spacing is stored) is repeated at that interval, written out."""
     if "run_options" in f.attrs:
         options = RunOptions.from_dict(_json(f.attrs, "run_options", path))
     else:
@@ -122,6 +124,8 @@ def _options(f: h5py.File, path: Path) -> RunOptions:
     if options.dt is None and options.integrator not in STEP_CONTROLLED:
         taken = f.attrs.get("dt")  # the step the run took (written when it closed), else the default of its time
         options = dataclasses.replace(options, dt=float(taken) if taken is not None else DEFAULT_DT)
+    if options.growth_dt is None and scene.growth is not None:
+        options = dataclasses.replace(options, growth_dt=scene.growth.interval)
     return options
 
 
@@ -153,7 +157,7 @@ def read_settings(path: str | Path) -> RunSettings:
         try:
             return RunSettings(
                 scene=scene,
-                options=_options(f, p),
+                options=_options(f, p, scene),
                 precision=str(f.attrs["precision"]),
                 device=str(f.attrs["device"]),
                 versions=versions if isinstance(versions, dict) else {},

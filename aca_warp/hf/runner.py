@@ -23,7 +23,14 @@ from aca_warp.common.runfile import busy, reopen_resumable
 from aca_warp.hf.loop import RunResult, run_hf
 from aca_warp.hf.model import PadModel, build_model
 from aca_warp.hf.onchip_layout import choose_engine
-from aca_warp.hf.options import STEP_CONTROLLED, RunOptions, default_precision, default_step, step_asked
+from aca_warp.hf.options import (
+    STEP_CONTROLLED,
+    RunOptions,
+    default_precision,
+    default_step,
+    growth_asked,
+    step_asked,
+)
 from aca_warp.hf.recorder import check_run, check_sample_step
 from aca_warp.hf.runfile import RunWriter, file_bytes
 from aca_warp.hf.sanity import check_contact
@@ -151,7 +158,12 @@ def run_scene(
     try:
         check_output_path(output, overwrite=overwrite)
         options = options.with_duration(scene.duration if options.duration is None else options.duration)
-        options = dataclasses.replace(options, dt=step_asked(options.integrator, options.dt))  # the file keeps it
+        interval = scene.growth.interval if scene.growth is not None else None
+        options = dataclasses.replace(  # the file keeps both
+            options,
+            dt=step_asked(options.integrator, options.dt),
+            growth_dt=growth_asked(options.integrator, options.growth_dt, interval),
+        )
         plan = plan_run(scene, options, precision, force_limits=force_limits)  # absurd counts or sizes: refused early
         if not (options.force if force_limits is None else force_limits):
             hint = "a larger sample interval, a shorter patch window or decimation; "

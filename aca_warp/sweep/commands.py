@@ -84,8 +84,9 @@ def add_parsers(sub: Any) -> None:
         "--growth-dt",
         type=positive,
         metavar="S",
-        help="simulated time between growth events of growing pads [s] (the spec's run.growth_dt; default: the "
-        "scenes' growth interval; aca-warp hf --growth-dt, docs/model.md 2.10)",
+        help="simulated time between growth events of growing pads [s] (the spec's run.growth_dt; default with "
+        "strang 5e-6, or the base scene's growth interval if longer; with the other integrators the scenes' "
+        "interval; aca-warp hf --growth-dt, docs/model.md 2.10)",
     )
     p.add_argument(
         "--memory-fraction",

@@ -25,6 +25,7 @@ from aca_warp.common.errors import AcaError, SceneError
 from aca_warp.scene import (
     PRESETS,
     Friction,
+    Growth,
     Material,
     Pad,
     PatchGenerator,
@@ -320,6 +321,19 @@ def _base_doc(doc: dict, base_dir: Path) -> tuple[dict, Path, str]:
         raise SweepError(f"the base scene: {e}") from None
 
 
+def _growth_spacing(integrator: str, growth_dt: float | None, base: Scene, params: dict) -> float | None:
+    """The spacing of a growing sweep's events [s] as its hash and shards name it: the asked or default one
+    (:func:`~aca_warp.hf.options.growth_asked`, with the base scene's interval), or None where that is the base
+    scene's own interval (the events then come at every pad's interval, as in sweeps begun before the default)."""
+    from aca_warp.hf.options import growth_asked
+
+    if "growth.interval" in params:  # every pad's own interval, unless asked
+        return growth_dt
+    interval = (base.growth or Growth()).interval
+    spacing = growth_asked(integrator, growth_dt, interval)
+    return None if spacing == interval else spacing
+
+
 def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     """The :class:`SweepSpec` of a spec doc; ``check``: build a few pads first (:func:`_check_pads`; a shard task
     skips it, its client checked the spec)."""
@@ -392,8 +406,10 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     if dt is not None and not duration / dt <= MAX_STEPS:
         raise SweepError(f"run.duration / run.dt = {duration / dt:.3g} steps per pad, more than {MAX_STEPS:.0e}")
     lists, params = _expand(doc.get("parameters", {}), mode, base, base_doc)
-    if growth_dt is not None and base.growth is None and not any(k.startswith("growth.") for k in params):
+    grows = base.growth is not None or any(k.startswith("growth.") for k in params)
+    if growth_dt is not None and not grows:
         raise SweepError("run.growth_dt sets the spacing of growth events; the base scene does not grow (no [growth])")
+    growth_dt = _growth_spacing(integrator, growth_dt, base, params) if grows else None
     spec = SweepSpec(
         doc=doc,
         base_dir=base_dir,
