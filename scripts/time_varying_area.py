@@ -4,9 +4,10 @@
 Runs ``aca-warp hf varying_area --duration D --dt STEP --precision fp32 --device DEV -o OUT/va_STEP.h5`` once per
 step (each in its own process, as a user runs it, after a 10 µs run of every case has compiled the kernels into
 Warp's cache), with ``--math exact fast`` also with ``--fast-math`` (``OUT/va_STEP_fast.h5``; docs/onchip.md,
-"Fast math"), with ``--growth-dt`` once per spacing of the growth events (``scene``: the scene's own clock, no
-option; a number S: ``--growth-dt S``, ``OUT/va_STEP_gS.h5``), and writes the wall time of each command with the
-run's summary line to ``OUT/time_varying_area.json`` and a Markdown table beside it. Which step and spacing the
+"Fast math"), with ``--growth-dt`` once per spacing of the growth events (``default``: no option, the command's
+default spacing, 5e-6 s for ``strang``, which the row records as read back from the run file; a number S:
+``--growth-dt S``, ``OUT/va_STEP_gS.h5``; the paper's clock is 2.02e-7), and writes the wall time of each command
+with the run's summary line to ``OUT/time_varying_area.json`` and a Markdown table beside it. Which step and spacing the
 statistics allow is the statistical work-precision's question (docs/work_precision_statistics.md, regime ``va``);
 this script only measures what each costs.
 
@@ -18,7 +19,7 @@ paper's record is 0.36 s)::
 
     python3 scripts/time_varying_area.py --device cuda:0 --steps 1e-7 2.5e-7 5e-7 --out out/va_time
     python3 scripts/time_varying_area.py --device cuda:0 --steps 5e-8 --math exact fast --out out/va_fast
-    python3 scripts/time_varying_area.py --device cuda:0 --steps 5e-8 1e-7 --growth-dt scene 1e-6 --out out/va_g
+    python3 scripts/time_varying_area.py --device cuda:0 --steps 5e-8 1e-7 --growth-dt default 2.02e-7 --out out/va_g
     python3 scripts/time_varying_area.py --device cuda:0 --steps 5e-8 --checkouts build/base . --repeat 2
     python3 scripts/time_varying_area.py --dry-run --steps 5e-8        # print the commands only
 """
@@ -49,8 +50,8 @@ CHILD = (
 
 @dataclass(frozen=True)
 class Case:
-    """One timed case: the fixed step [s], CUDA fast math or not, and the growth events' spacing [s] (None: the
-    scene's clock, no ``--growth-dt``)."""
+    """One timed case: the fixed step [s], CUDA fast math or not, and the growth events' spacing [s] (None: no
+    ``--growth-dt``, the command's default)."""
 
     step: float
     fast: bool = False
@@ -62,8 +63,21 @@ class Case:
 
 
 def spacing(text: str) -> float | None:
-    """``--growth-dt`` value: ``scene`` (the scene's clock: None) or a positive number of seconds."""
-    return None if text == "scene" else positive(text)
+    """``--growth-dt`` value: ``default`` (no option: None) or a positive number of seconds."""
+    if text == "scene":
+        raise argparse.ArgumentTypeError("'scene' is no spacing: give the scene's interval (2.02e-7 s for the preset)")
+    return None if text == "default" else positive(text)
+
+
+def spacing_used(path: Path) -> float | None:
+    """The spacing of growth events a run file says its run took [s] (None where it names none, or is unreadable)."""
+    try:
+        import h5py
+
+        with h5py.File(path, "r") as f:
+            return json.loads(f.attrs["run_options"]).get("growth_dt")
+    except (OSError, KeyError, ValueError):
+        return None
 
 
 def run_file(out: Path, case: Case, checkout: int | None = None) -> Path:
@@ -114,9 +128,12 @@ def machine_of(run_file: Path) -> str:
 
 
 def _events(row: dict) -> str:
-    """The growth events' spacing of a row, in words."""
-    g = row.get("growth_dt_s")
-    return "scene" if g is None else f"{g:g}"
+    """The growth events' spacing of a row, in words: the one asked, or the command's default with the spacing its
+    run file names ("scene": a row of a file written before the rows named it, at the scene's own clock)."""
+    g, used = row.get("growth_dt_s"), row.get("growth_dt_used_s")
+    if g is not None:
+        return f"{g:g}"
+    return "scene" if "growth_dt_used_s" not in row else f"default ({'scene' if used is None else f'{used:g}'})"
 
 
 def markdown(doc: dict) -> str:
@@ -157,8 +174,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--math", nargs="+", choices=("exact", "fast"), default=["exact"],
                     help="exact (default) and/or fast: each step also with --fast-math (fp32 on CUDA)")  # fmt: skip
     ap.add_argument("--growth-dt", type=spacing, nargs="+", default=[None], metavar="S",
-                    help="spacings of the growth events [s] (aca-warp hf --growth-dt), each step with each; "
-                    "scene (default): the scene's own clock")  # fmt: skip
+                    help="spacings of the growth events [s] (aca-warp hf --growth-dt), each step with each; default "
+                    "(the default): no option, the command's default spacing; the paper's clock: 2.02e-7")  # fmt: skip
     ap.add_argument("--checkouts", type=Path, nargs=2, metavar=("FIRST", "SECOND"),
                     help="time these two checkouts of aca_warp side by side (run files compared)")  # fmt: skip
     ap.add_argument("--repeat", type=int, default=1, choices=range(1, 11), metavar="N",
@@ -199,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
                     raise SystemExit(f"the warm-up of {' '.join(command(case, 1e-5, args.device, Path(tmp)))} "
                                      f"failed: {w['summary']}")  # fmt: skip
         for case, cmd in zip(cases, cmds, strict=True):
-            rows.append(case.fields() | time_one(cmd))
+            rows.append(case.fields() | time_one(cmd) | {"growth_dt_used_s": spacing_used(run_file(out, case))})
             report(rows[-1], out)
     doc = {
         "date": time.strftime("%Y-%m-%d %H:%M"),

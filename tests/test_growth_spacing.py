@@ -167,6 +167,7 @@ def test_sweep_spec_takes_the_spacing_for_growing_pads_only(tmp_path):
     """A growing sweep's spacing: the asked one; by default with strang the statistics' 5 µs, written out; the
     scene's own interval, asked for or the default of the other integrators, is left out of the run settings, so
     that a sweep begun at the scenes' interval keeps its hash (--growth-dt 2.02e-7 continues it)."""
+    from aca_warp.sweep.manifest import prepare_dir
     from aca_warp.sweep.prepare import run_options
     from aca_warp.sweep.spec import SweepError, load_spec
 
@@ -180,6 +181,11 @@ def test_sweep_spec_takes_the_spacing_for_growing_pads_only(tmp_path):
     for s in (clock, adaptive):
         assert run_options(s).growth_dt is None and "growth_dt" not in s.run_settings()
     assert len({spec.hash, default.hash, clock.hash}) == 3
+    prepare_dir(clock, tmp_path / "sw")  # a sweep begun with its events at the scenes' interval
+    with pytest.raises(
+        SweepError, match=r"growth_dt unset there, 5e-06 here\) \(to continue it: --growth-dt 2.02e-07\)"
+    ):
+        prepare_dir(default, tmp_path / "sw")
     with pytest.raises(SweepError, match="the base scene does not grow"):
         load_spec({**doc, "sweep": {"base": "hf1"}}, base_dir=tmp_path)
     with pytest.raises(SweepError, match="run.growth_dt must be a positive number"):

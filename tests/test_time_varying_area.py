@@ -25,12 +25,16 @@ def test_math_fast_adds_the_fast_math_command_per_step(capsys):
 
 
 def test_growth_dt_gives_each_step_each_spacing(capsys):
-    """``scene`` is the scene's own clock (no option); a number is passed as --growth-dt and names the run file."""
-    assert load().main(["--dry-run", "--steps", "5e-8", "1e-7", "--growth-dt", "scene", "1e-6"]) == 0
+    """``default`` is no option (the command's default spacing); a number is passed as --growth-dt and names the run
+    file; ``scene``, which named the scene's clock when that was the default, is refused with the number to give."""
+    assert load().main(["--dry-run", "--steps", "5e-8", "1e-7", "--growth-dt", "default", "1e-6"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 4 and "--growth-dt" not in lines[0] and lines[0].endswith("va_5e-08.h5")
     assert lines[1].endswith("va_5e-08_g1e-06.h5 --growth-dt 1e-06")
     assert lines[3].endswith("va_1e-07_g1e-06.h5 --growth-dt 1e-06")
+    with pytest.raises(SystemExit) as e:
+        load().main(["--dry-run", "--growth-dt", "scene"])
+    assert e.value.code == 2 and "give the scene's interval (2.02e-7 s" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("argv", [["--steps", "-1e-7"], ["--duration", "0"], ["--growth-dt", "0"]])
@@ -49,6 +53,8 @@ def test_markdown_has_a_row_per_step():
     assert "| 1e-07 | fast | scene | 40.0 | 0 | ok |" in load().markdown(doc)
     doc["rows"].append({"step_s": 1e-7, "growth_dt_s": 1e-6, "wall_s": 20.0, "exit": 0, "summary": "ok"})
     assert "| 1e-07 | exact | 1e-06 | 20.0 | 0 | ok |" in load().markdown(doc)
+    doc["rows"].append({"step_s": 5e-8, "growth_dt_used_s": 5e-6, "wall_s": 23.0, "exit": 0, "summary": "ok"})
+    assert "| 5e-08 | exact | default (5e-06) | 23.0 | 0 | ok |" in load().markdown(doc)
 
 
 def test_machine_is_read_from_the_run_file(tmp_path):
