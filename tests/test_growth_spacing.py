@@ -107,8 +107,8 @@ def test_run_file_keeps_the_spacing_and_rerun_repeats_it(tmp_path):
 
 def test_strang_spaces_growth_events_5_us_apart_by_default(tmp_path, capsys):
     """``aca-warp hf`` and ``run_scene`` without a spacing: strang's events every 5 µs (the statistics' spacing),
-    written out in the file and named in the summary line; a scene whose interval is longer keeps it; ``adaptive``
-    keeps the scene's interval (None)."""
+    written out in the file and named in the summary line; a shorter run's at its duration; a scene whose interval is
+    longer keeps it; ``adaptive`` keeps the scene's interval (None)."""
     import json
 
     from aca_warp.cli import main
@@ -119,6 +119,11 @@ def test_strang_spaces_growth_events_5_us_apart_by_default(tmp_path, capsys):
         with h5py.File(out) as f:
             assert json.loads(f.attrs["run_options"])["growth_dt"] == spacing
         assert ("growth events every 5e-06 s" in capsys.readouterr().out) == (spacing is not None)
+    out = tmp_path / "short.h5"  # a run shorter than 5 µs still grows: its events come at its end, no warning
+    assert main(["hf", "varying_area", "--duration", "2e-6", "-o", str(out), "--no-progress"]) == 0
+    with h5py.File(out) as f:
+        assert json.loads(f.attrs["run_options"])["growth_dt"] == 2e-6
+    assert "warning" not in capsys.readouterr().err
     slow = nine_patch_scene(increment=1e-6, interval=1e-5, sample_dt=1e-6, duration=2e-5)
     run_scene(slow, tmp_path / "slow.h5", RunOptions(checkpoint_interval=0))
     with h5py.File(tmp_path / "slow.h5") as f:

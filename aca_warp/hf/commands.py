@@ -209,7 +209,8 @@ def _cmd_hf(args: argparse.Namespace) -> int:
     scene, duration = _hf_scene(args)
     # as the run file keeps them and the summary line names them
     args.precision = args.precision or default_precision(args.integrator)
-    args.growth_dt = growth_asked(args.integrator, args.growth_dt, scene.growth.interval if scene.growth else None)
+    interval = scene.growth.interval if scene.growth else None
+    args.growth_dt = growth_asked(args.integrator, args.growth_dt, interval, duration)
     options = RunOptions(
         duration=duration,
         integrator=args.integrator,

@@ -61,14 +61,18 @@ def default_precision(integrator: str) -> str:
     return STATISTICS_PRECISION if integrator == "strang" else POINTWISE_PRECISION
 
 
-def growth_asked(integrator: str, growth_dt: float | None, interval: float | None) -> float | None:
-    """The spacing of growth events [s] a run of ``integrator`` asks for, as its file or sweep records it:
-    ``growth_dt``; or, for ``strang`` on a growing scene (``interval``: its growth interval [s], None when it does
-    not grow), :data:`STATISTICS_GROWTH_DT` written out, or the scene's interval where that is longer. None keeps
-    the scene's own interval (the other integrators, and every run file written before this default)."""
+def growth_asked(
+    integrator: str, growth_dt: float | None, interval: float | None, duration: float | None = None
+) -> float | None:
+    """The spacing of growth events [s] a run of ``integrator`` over ``duration`` [s] asks for, as its file or sweep
+    records it: ``growth_dt``; or, for ``strang`` on a growing scene (``interval``: its growth interval [s], None
+    when it does not grow), :data:`STATISTICS_GROWTH_DT` written out (the duration where that is shorter, so that
+    a short run still grows), or the scene's interval where that is longer. None keeps the scene's own interval (the
+    other integrators, and the run files that store no spacing)."""
     if growth_dt is not None or interval is None or integrator != "strang":
         return growth_dt
-    return max(STATISTICS_GROWTH_DT, interval)
+    spacing = STATISTICS_GROWTH_DT if duration is None else min(STATISTICS_GROWTH_DT, duration)
+    return max(spacing, interval)
 
 
 def step_asked(integrator: str, dt: float | None) -> float | None:

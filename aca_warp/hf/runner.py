@@ -162,7 +162,7 @@ def run_scene(
         options = dataclasses.replace(  # the file keeps both
             options,
             dt=step_asked(options.integrator, options.dt),
-            growth_dt=growth_asked(options.integrator, options.growth_dt, interval),
+            growth_dt=growth_asked(options.integrator, options.growth_dt, interval, options.duration),
         )
         plan = plan_run(scene, options, precision, force_limits=force_limits)  # absurd counts or sizes: refused early
         if not (options.force if force_limits is None else force_limits):

@@ -321,7 +321,9 @@ def _base_doc(doc: dict, base_dir: Path) -> tuple[dict, Path, str]:
         raise SweepError(f"the base scene: {e}") from None
 
 
-def _growth_spacing(integrator: str, growth_dt: float | None, base: Scene, params: dict) -> float | None:
+def _growth_spacing(
+    integrator: str, growth_dt: float | None, base: Scene, params: dict, duration: float
+) -> float | None:
     """The spacing of a growing sweep's events [s] as its hash and shards name it: the asked or default one
     (:func:`~aca_warp.hf.options.growth_asked`, with the base scene's interval), or None where that is the base
     scene's own interval (the events then come at every pad's interval, as in sweeps begun before the default)."""
@@ -330,7 +332,7 @@ def _growth_spacing(integrator: str, growth_dt: float | None, base: Scene, param
     if "growth.interval" in params:  # every pad's own interval, unless asked
         return growth_dt
     interval = (base.growth or Growth()).interval
-    spacing = growth_asked(integrator, growth_dt, interval)
+    spacing = growth_asked(integrator, growth_dt, interval, duration)
     return None if spacing == interval else spacing
 
 
@@ -409,7 +411,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     grows = base.growth is not None or any(k.startswith("growth.") for k in params)
     if growth_dt is not None and not grows:
         raise SweepError("run.growth_dt sets the spacing of growth events; the base scene does not grow (no [growth])")
-    growth_dt = _growth_spacing(integrator, growth_dt, base, params) if grows else None
+    growth_dt = _growth_spacing(integrator, growth_dt, base, params, duration) if grows else None
     spec = SweepSpec(
         doc=doc,
         base_dir=base_dir,
