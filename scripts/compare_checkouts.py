@@ -45,12 +45,14 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-# the strang jobs name their precision, so that checkouts on either side of a change of strang's default precision
-# (fp64, then fp32) run the same job; one pair in each precision
+# the strang jobs name their precision, and the growing ones their growth events' spacing, so that checkouts on either
+# side of a change of strang's defaults (fp64, then fp32; events at the scene's 2.02e-7 s, then every 5e-6 s) run
+# the same job; one pair in each precision
 JOBS = {
     "hf1": ["hf", "hf1", "--duration", "2e-5", "--precision", "fp64", "--no-progress"],
     "hf1_fp32": ["hf", "hf1", "--duration", "2e-5", "--precision", "fp32", "--no-progress"],
-    "varying_area": ["hf", "varying_area", "--duration", "1e-5", "--precision", "fp64", "--no-progress"],
+    "varying_area": ["hf", "varying_area", "--duration", "1e-5", "--precision", "fp64", "--growth-dt", "2.02e-7"]
+    + ["--no-progress"],
     "hf1_adaptive": ["hf", "hf1", "--duration", "1e-4", "--integrator", "adaptive", "--tolerance", "1e-5"]
     + ["--no-progress"],
     "lf": ["lf", "multiscale", "--no-progress"],
@@ -74,7 +76,7 @@ EXTRA_JOBS = {
     "hf1_onchip": ["hf", "hf1", "--duration", "2e-5", "--engine", "onchip", "--record-patches", "velocity,displacement"]
     + ["--precision", "fp64", "--no-progress"],
     "varying_area_onchip": ["hf", "varying_area", "--duration", "1e-5", "--engine", "onchip", "--precision", "fp64"]
-    + ["--no-progress"],
+    + ["--growth-dt", "2.02e-7", "--no-progress"],
     "hf1_adaptive_general": ["hf", "hf1", "--duration", "1e-4", "--integrator", "adaptive", "--tolerance", "1e-5"]
     + ["--engine", "general", "--record-patches", "velocity", "--no-progress"],
     "varying_area_adaptive": ["hf", "varying_area", "--duration", "1e-5", "--integrator", "adaptive"]

@@ -129,7 +129,8 @@ def machine_of(run_file: Path) -> str:
 
 def _events(row: dict) -> str:
     """The growth events' spacing of a row, in words: the one asked, or the command's default with the spacing its
-    run file names ("scene": a row of a file written before the rows named it, at the scene's own clock)."""
+    run file names ("default (scene)" where it names none or could not be read; "scene": a row of a result file
+    written before the rows named it, at the scene's own clock, then the command's default)."""
     g, used = row.get("growth_dt_s"), row.get("growth_dt_used_s")
     if g is not None:
         return f"{g:g}"
@@ -260,7 +261,8 @@ def time_checkouts(args: argparse.Namespace, cases: list[Case], out: Path) -> tu
                     cmd = command(case, args.duration, args.device, out, k)
                     row = time_one(in_view(cmd, views[k]), envs[k])
                     row["command"] = " ".join(cmd)  # as a user would type it in that checkout
-                    rows.append(case.fields() | {"checkout": k, "repeat": r} | row)
+                    used = {"growth_dt_used_s": spacing_used(run_file(out, case, k))}
+                    rows.append(case.fields() | {"checkout": k, "repeat": r} | row | used)
                     report(rows[-1], out)
     comparisons = []
     for case in cases:

@@ -107,8 +107,8 @@ def test_run_file_keeps_the_spacing_and_rerun_repeats_it(tmp_path):
 
 def test_strang_spaces_growth_events_5_us_apart_by_default(tmp_path, capsys):
     """``aca-warp hf`` and ``run_scene`` without a spacing: strang's events every 5 µs (the statistics' spacing),
-    written out in the file and named in the summary line; a shorter run's at its duration; a scene whose interval is
-    longer keeps it; ``adaptive`` keeps the scene's interval (None)."""
+    written out in the file and named in the summary line; a shorter run, and a scene whose interval is longer, keep
+    the scene's interval; ``adaptive`` keeps it too (None); ``--growth-dt scene`` names it."""
     import json
 
     from aca_warp.cli import main
@@ -119,11 +119,19 @@ def test_strang_spaces_growth_events_5_us_apart_by_default(tmp_path, capsys):
         with h5py.File(out) as f:
             assert json.loads(f.attrs["run_options"])["growth_dt"] == spacing
         assert ("growth events every 5e-06 s" in capsys.readouterr().out) == (spacing is not None)
-    out = tmp_path / "short.h5"  # a run shorter than 5 µs still grows: its events come at its end, no warning
+    out = tmp_path / "short.h5"  # a run shorter than 5 µs grows at the scene's clock, without a warning
     assert main(["hf", "varying_area", "--duration", "2e-6", "-o", str(out), "--no-progress"]) == 0
     with h5py.File(out) as f:
-        assert json.loads(f.attrs["run_options"])["growth_dt"] == 2e-6
+        assert json.loads(f.attrs["run_options"])["growth_dt"] == INTERVAL
     assert "warning" not in capsys.readouterr().err
+    out = tmp_path / "clock.h5"  # --growth-dt scene: the scene's clock, written out
+    assert (
+        main(["hf", "varying_area", "--duration", "1e-5", "--growth-dt", "scene", "-o", str(out), "--no-progress"]) == 0
+    )
+    with h5py.File(out) as f:
+        assert json.loads(f.attrs["run_options"])["growth_dt"] == INTERVAL
+    assert main(["hf", "hf1", "--duration", "1e-6", "--growth-dt", "scene", "-o", str(out), "--no-progress"]) == 2
+    assert "the scene does not grow" in capsys.readouterr().err
     slow = nine_patch_scene(increment=1e-6, interval=1e-5, sample_dt=1e-6, duration=2e-5)
     run_scene(slow, tmp_path / "slow.h5", RunOptions(checkpoint_interval=0))
     with h5py.File(tmp_path / "slow.h5") as f:
@@ -169,9 +177,10 @@ def test_cli_refuses_the_spacing_for_a_scene_that_does_not_grow(tmp_path, capsys
 
 
 def test_sweep_spec_takes_the_spacing_for_growing_pads_only(tmp_path):
-    """A growing sweep's spacing: the asked one; by default with strang the statistics' 5 µs, written out; the
-    scene's own interval, asked for or the default of the other integrators, is left out of the run settings, so
-    that a sweep begun at the scenes' interval keeps its hash (--growth-dt 2.02e-7 continues it)."""
+    """A growing sweep's spacing: the asked one, kept as asked (the scenes' interval too); by default with strang the
+    statistics' 5 µs, written out; ``scene``, and the default of the other integrators, leave it out of the run
+    settings, as sweeps at the scenes' interval did before the default: such a sweep continues with
+    ``--growth-dt scene``, which its refusal names."""
     from aca_warp.sweep.manifest import prepare_dir
     from aca_warp.sweep.prepare import run_options
     from aca_warp.sweep.spec import SweepError, load_spec
@@ -179,18 +188,22 @@ def test_sweep_spec_takes_the_spacing_for_growing_pads_only(tmp_path):
     doc = {"sweep": {"base": "varying_area"}, "run": {"duration": 1e-5, "growth_dt": 1e-6}, "parameters": {}}
     spec = load_spec(doc, base_dir=tmp_path)
     assert run_options(spec).growth_dt == 1e-6 and spec.run_settings()["growth_dt"] == 1e-6
+    asked = load_spec(doc, base_dir=tmp_path, growth_dt=INTERVAL)
+    assert run_options(asked).growth_dt == INTERVAL and asked.run_settings()["growth_dt"] == INTERVAL
     default = load_spec({**doc, "run": {"duration": 1e-5}}, base_dir=tmp_path)
     assert run_options(default).growth_dt == 5e-6 and default.run_settings()["growth_dt"] == 5e-6
-    clock = load_spec({**doc, "run": {"duration": 1e-5}}, base_dir=tmp_path, growth_dt=2.02e-7)
+    clock = load_spec({**doc, "run": {"duration": 1e-5}}, base_dir=tmp_path, growth_dt="scene")
     adaptive = load_spec({**doc, "run": {"duration": 1e-5, "integrator": "adaptive"}}, base_dir=tmp_path)
     for s in (clock, adaptive):
         assert run_options(s).growth_dt is None and "growth_dt" not in s.run_settings()
-    assert len({spec.hash, default.hash, clock.hash}) == 3
+    assert len({spec.hash, asked.hash, default.hash, clock.hash}) == 4
     prepare_dir(clock, tmp_path / "sw")  # a sweep begun with its events at the scenes' interval
-    with pytest.raises(
-        SweepError, match=r"growth_dt unset there, 5e-06 here\) \(to continue it: --growth-dt 2.02e-07\)"
-    ):
+    with pytest.raises(SweepError, match=r"growth_dt unset there, 5e-06 here\) \(to continue it: --growth-dt scene\)"):
         prepare_dir(default, tmp_path / "sw")
+    odd = load_spec({**doc, "run": {"duration": 1e-5, "dt": 1.2345678e-8}}, base_dir=tmp_path)
+    prepare_dir(odd, tmp_path / "odd")  # the hint gives every digit of the stored value
+    with pytest.raises(SweepError, match=r"to continue it: --dt 1.2345678e-08 --growth-dt 5e-06\)"):
+        prepare_dir(spec, tmp_path / "odd")
     with pytest.raises(SweepError, match="the base scene does not grow"):
         load_spec({**doc, "sweep": {"base": "hf1"}}, base_dir=tmp_path)
     with pytest.raises(SweepError, match="run.growth_dt must be a positive number"):

@@ -27,6 +27,11 @@ def positive(text: str) -> float:
     return v
 
 
+def spacing(text: str) -> float | str:
+    """A growth events' spacing: a finite float > 0 [s], or ``scene`` (the scenes' own growth interval)."""
+    return "scene" if text == "scene" else positive(text)
+
+
 def nonneg(text: str) -> float:
     """A finite float >= 0."""
     v = number(text)

@@ -10,7 +10,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from aca_warp.common.argtypes import add_checkpoint_arguments, int_at_least, nonneg, positive, refuse_with_resume
+from aca_warp.common.argtypes import (
+    add_checkpoint_arguments,
+    int_at_least,
+    nonneg,
+    positive,
+    refuse_with_resume,
+    spacing,
+)
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.options import (
     DEFAULT_DT,
@@ -121,13 +128,14 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
     hf.add_argument("--fast-math", action="store_true", help=FAST_MATH_HELP)
     hf.add_argument(
         "--growth-dt",
-        type=positive,
+        type=spacing,
         metavar="S",
         help="simulated time between the growth events of a growing scene [s] (default with strang: 5e-6, where "
         "the statistics of growing pads keep every measure at --dt 5e-8 and 1e-7, or the scene's growth interval "
-        "if longer; with the other integrators the scene's interval, the paper's clock of 2.02e-7 s for "
-        "varying_area); each event adds the increment scaled to the spacing, so growth per simulated time stays "
-        "the scene's (docs/model.md 2.10); events cost several steps each; refused for a scene that does not grow",
+        "if longer or the run shorter; with the other integrators, or 'scene', the scene's interval, the paper's "
+        "clock of 2.02e-7 s for varying_area); each event adds the increment scaled to the spacing, so growth per "
+        "simulated time stays the scene's (docs/model.md 2.10); events cost several steps each; refused for a "
+        "scene that does not grow",
     )
 
 
@@ -188,7 +196,7 @@ def _add_file_arguments(hf: argparse.ArgumentParser) -> None:
 
 def _cmd_hf(args: argparse.Namespace) -> int:
     from aca_warp.common.files import check_output_path
-    from aca_warp.hf.options import RunOptions, default_precision, growth_asked
+    from aca_warp.hf.options import SCENE_CLOCK, RunOptions, default_precision, growth_asked
     from aca_warp.hf.runner import run_scene
 
     if args.resume is not None:
@@ -210,6 +218,10 @@ def _cmd_hf(args: argparse.Namespace) -> int:
     # as the run file keeps them and the summary line names them
     args.precision = args.precision or default_precision(args.integrator)
     interval = scene.growth.interval if scene.growth else None
+    if args.growth_dt == SCENE_CLOCK:  # the scene's own clock, written out
+        if interval is None:
+            raise SceneError("--growth-dt scene sets the spacing of growth events; the scene does not grow")
+        args.growth_dt = interval
     args.growth_dt = growth_asked(args.integrator, args.growth_dt, interval, duration)
     options = RunOptions(
         duration=duration,

@@ -66,13 +66,14 @@ def growth_asked(
 ) -> float | None:
     """The spacing of growth events [s] a run of ``integrator`` over ``duration`` [s] asks for, as its file or sweep
     records it: ``growth_dt``; or, for ``strang`` on a growing scene (``interval``: its growth interval [s], None
-    when it does not grow), :data:`STATISTICS_GROWTH_DT` written out (the duration where that is shorter, so that
-    a short run still grows), or the scene's interval where that is longer. None keeps the scene's own interval (the
-    other integrators, and the run files that store no spacing)."""
+    when it does not grow), :data:`STATISTICS_GROWTH_DT` written out, or the scene's interval where that is longer,
+    or where the run is shorter than that spacing (it grows at its scene's clock, as its samples see). None keeps
+    the scene's own interval (the other integrators, and the run files that store no spacing)."""
     if growth_dt is not None or interval is None or integrator != "strang":
         return growth_dt
-    spacing = STATISTICS_GROWTH_DT if duration is None else min(STATISTICS_GROWTH_DT, duration)
-    return max(spacing, interval)
+    if duration is not None and duration < STATISTICS_GROWTH_DT:
+        return interval
+    return max(STATISTICS_GROWTH_DT, interval)
 
 
 def step_asked(integrator: str, dt: float | None) -> float | None:
@@ -91,6 +92,9 @@ def fast_math_unfit(integrator: str, precision: str) -> str | None:
     if precision != "fp32":
         return f"it changes single-precision arithmetic only: choose fp32 (got {precision})"
     return None
+
+
+SCENE_CLOCK = "scene"  # --growth-dt / run.growth_dt: the events at the scenes' own growth interval
 
 
 def growth_words(growth_dt: float | None) -> str:
@@ -148,7 +152,9 @@ class RunOptions:
         growth_dt: Simulated time between the growth events of a growing scene [s], a numerical setting like
             ``dt``: each event adds the scene's increment × growth_dt / ``growth.interval``, so that the growth per
             simulated time stays the scene's (docs/model.md §2.10); None: the scene's ``growth.interval`` (the
-            paper's clock). Refused for a scene that does not grow (:func:`~aca_warp.hf.solver.check_step`).
+            paper's clock) where the options are run as they are (``run_hf``), while ``run_scene``, ``aca-warp hf``
+            and a sweep first write out ``strang``'s default, :func:`growth_asked`. Refused for a scene that does
+            not grow (:func:`~aca_warp.hf.solver.check_step`).
     """
 
     duration: float | None = None

@@ -148,7 +148,8 @@ def run_scene(
     readable file holding every sample up to that point, marked ``complete = False``. The file also keeps the
     solver state of the last checkpoint (``options.checkpoint_interval``: automatic by default, 0 for none), so that
     a stopped or killed run continues with :func:`resume_run`. The file stores the options with the duration, the
-    step (a fixed-step integrator's default written out) and the engine resolved. ``announce`` receives the
+    step (a fixed-step integrator's default written out), the spacing of a growing scene's growth events (``strang``'s
+    default written out, :func:`~aca_warp.hf.options.growth_asked`) and the engine resolved. ``announce`` receives the
     :class:`RunPlan` once everything is validated, just before the run starts. ``force_limits`` lifts the size
     limits and the free-space check (:func:`plan_run`; None: ``options.force``).
     """

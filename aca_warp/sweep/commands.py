@@ -25,7 +25,7 @@ interrupt the manifest marks the shards that were running "interrupted" and a re
 
 def add_parsers(sub: Any) -> None:
     """Register ``aca-warp sweep``."""
-    from aca_warp.common.argtypes import fraction, int_at_least, positive
+    from aca_warp.common.argtypes import fraction, int_at_least, positive, spacing
     from aca_warp.hf.options import INTEGRATORS
 
     p = sub.add_parser(
@@ -82,11 +82,11 @@ def add_parsers(sub: Any) -> None:
     )
     p.add_argument(
         "--growth-dt",
-        type=positive,
+        type=spacing,
         metavar="S",
         help="simulated time between growth events of growing pads [s] (the spec's run.growth_dt; default with "
-        "strang 5e-6, or the base scene's growth interval if longer; with the other integrators the scenes' "
-        "interval; aca-warp hf --growth-dt, docs/model.md 2.10)",
+        "strang 5e-6, or the base scene's growth interval if longer or the run shorter; with the other "
+        "integrators, or 'scene', the scenes' interval; aca-warp hf --growth-dt, docs/model.md 2.10)",
     )
     p.add_argument(
         "--memory-fraction",

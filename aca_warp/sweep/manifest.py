@@ -74,8 +74,9 @@ _FLAGS = {  # the run settings a sweep command's options set
 def _run_changes(old: dict | None, spec: SweepSpec) -> str:
     """The run settings in which the sweep of manifest ``old`` differs from ``spec``, with the options that continue
     it (``--precision fp64`` for a sweep begun at another default precision, ``--dt`` for another default step,
-    ``--growth-dt`` with the scenes' interval for one whose growth events came at it), as a clause of the refusal;
-    "" when they agree or ``old`` records none."""
+    ``--growth-dt scene`` for one whose growth events came at the scenes' interval), each value as stored (every
+    digit: a rounded one would be another sweep again), as a clause of the refusal; "" when they agree or ``old``
+    records none."""
     before = (old or {}).get("run")
     if not isinstance(before, dict):
         return ""
@@ -83,12 +84,11 @@ def _run_changes(old: dict | None, spec: SweepSpec) -> str:
     keys = sorted(k for k in before.keys() | now.keys() if before.get(k) != now.get(k))
     if not keys:
         return ""
-    was = dict(before)  # each setting as an option gives it: a spacing left out is the scenes' interval
+    was = dict(before)  # each setting as an option gives it: a spacing left out is the scenes' own clock
     if "growth_dt" not in was and spec.base.growth is not None:
-        was["growth_dt"] = spec.base.growth.interval
+        was["growth_dt"] = "scene"
     changed = ", ".join(f"{k} {before.get(k, 'unset')} there, {now.get(k, 'unset')} here" for k in keys)
-    again = [f"{_FLAGS[k]} {was[k]:g}" if isinstance(was[k], float) else f"{_FLAGS[k]} {was[k]}" for k in keys
-             if k in _FLAGS and was.get(k) is not None]  # fmt: skip
+    again = [f"{_FLAGS[k]} {was[k]}" for k in keys if k in _FLAGS and was.get(k) is not None]
     hint = f" (to continue it: {' '.join(again)})" if len(again) == len(keys) else ""
     return f": its run settings differ ({changed}){hint}"
 

@@ -25,7 +25,6 @@ from aca_warp.common.errors import AcaError, SceneError
 from aca_warp.scene import (
     PRESETS,
     Friction,
-    Growth,
     Material,
     Pad,
     PatchGenerator,
@@ -172,8 +171,9 @@ class SweepSpec:
         integrator, precision, dt, tolerance: Solver settings (as ``run_hf``).
         fast_math: The on-chip strang kernel compiled with CUDA fast math (``RunOptions.fast_math``: fp32 strang on
             CUDA only).
-        growth_dt: Simulated time between growth events of growing pads [s] (``RunOptions.growth_dt``); None: the
-            scenes' growth interval.
+        growth_dt: Simulated time between growth events of growing pads [s] (``RunOptions.growth_dt``), written
+            out (:func:`~aca_warp.hf.options.growth_asked`); None: the scenes' growth interval (``run.growth_dt =
+            "scene"``, or an integrator other than strang).
     """
 
     doc: dict
@@ -321,21 +321,6 @@ def _base_doc(doc: dict, base_dir: Path) -> tuple[dict, Path, str]:
         raise SweepError(f"the base scene: {e}") from None
 
 
-def _growth_spacing(
-    integrator: str, growth_dt: float | None, base: Scene, params: dict, duration: float
-) -> float | None:
-    """The spacing of a growing sweep's events [s] as its hash and shards name it: the asked or default one
-    (:func:`~aca_warp.hf.options.growth_asked`, with the base scene's interval), or None where that is the base
-    scene's own interval (the events then come at every pad's interval, as in sweeps begun before the default)."""
-    from aca_warp.hf.options import growth_asked
-
-    if "growth.interval" in params:  # every pad's own interval, unless asked
-        return growth_dt
-    interval = (base.growth or Growth()).interval
-    spacing = growth_asked(integrator, growth_dt, interval, duration)
-    return None if spacing == interval else spacing
-
-
 def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     """The :class:`SweepSpec` of a spec doc; ``check``: build a few pads first (:func:`_check_pads`; a shard task
     skips it, its client checked the spec)."""
@@ -344,9 +329,11 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         DEFAULT_INTEGRATOR,
         DEFAULT_TOLERANCE,
         INTEGRATORS,
+        SCENE_CLOCK,
         default_precision,
         default_step,
         fast_math_unfit,
+        growth_asked,
         step_asked,
     )
 
@@ -391,7 +378,8 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     if unfit is not None:
         raise SweepError(f"run.fast_math (--fast-math): {unfit}")
     duration = num("duration", base.duration)
-    growth_dt = num("growth_dt", None)
+    scene_clock = run.get("growth_dt") == SCENE_CLOCK  # the events at the scenes' own interval: left out
+    growth_dt = None if scene_clock else num("growth_dt", None)
     dt = step_asked(integrator, num("dt", None))  # written out: the hash and the shards name the step
     tolerance = num("tolerance", DEFAULT_TOLERANCE)
     sample_dt = num("sample_dt", base.record.sample_dt)
@@ -408,10 +396,10 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     if dt is not None and not duration / dt <= MAX_STEPS:
         raise SweepError(f"run.duration / run.dt = {duration / dt:.3g} steps per pad, more than {MAX_STEPS:.0e}")
     lists, params = _expand(doc.get("parameters", {}), mode, base, base_doc)
-    grows = base.growth is not None or any(k.startswith("growth.") for k in params)
-    if growth_dt is not None and not grows:
+    if (growth_dt is not None or scene_clock) and base.growth is None:  # (growth.* parameters need one too)
         raise SweepError("run.growth_dt sets the spacing of growth events; the base scene does not grow (no [growth])")
-    growth_dt = _growth_spacing(integrator, growth_dt, base, params, duration) if grows else None
+    if base.growth is not None and not scene_clock:  # written out, like the step: the hash and the shards name it
+        growth_dt = growth_asked(integrator, growth_dt, base.growth.interval, duration)
     spec = SweepSpec(
         doc=doc,
         base_dir=base_dir,
