@@ -2,8 +2,8 @@
 
 A restructuring must not change results: this script runs, from each checkout's own code, the CPU jobs
 
-* ``hf hf1 --duration 2e-5``            (the paper's HF1 pad, 20 µs)
-* ``hf varying_area --duration 1e-5``   (growing patches, 10 µs)
+* ``hf hf1 --duration 2e-5``            (the paper's HF1 pad, 20 µs, in fp64 and in fp32)
+* ``hf varying_area --duration 1e-5``   (growing patches, 10 µs, fp64, growth events at the scene's 2.02e-7 s)
 * ``hf hf1 --integrator adaptive``      (100 µs at tolerance 1e-5; on the CPU the on-chip adaptive engine)
 * ``lf multiscale``                     (the LF automaton over the whole load procedure)
 * ``sweep aca_warp/data/sweep_hf1.toml`` (24 hf1 pads in 5 shards, 10 µs, in this process)
@@ -15,7 +15,8 @@ that differs (shape, dtype or any bit) and the root attributes that differ (wall
 provenance are listed separately as expected differences);
 a sweep's shard files are compared file by file, and its pads one by one (rows found through ``/pads/index``, so
 that the comparison holds when the two checkouts cut the pads into shards differently). Exit code 0 when every
-dataset (every pad of a sweep) is bit-identical.
+dataset (every pad of a sweep) is bit-identical. The `strang` jobs name their precision and spacing of growth events,
+so that two checkouts on either side of a change of those defaults run the same job.
 
 Each checkout is imported as it is on disk: a temporary folder holds a package ``aca_warp`` whose entries link
 to the checkout's ``aca_warp/`` with ``kernels`` linked to the checkout's ``kernels/`` (the layout an install
