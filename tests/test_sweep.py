@@ -99,6 +99,10 @@ def test_the_precision_follows_the_integrator_and_is_written_out() -> None:
     written = json.loads(json.dumps(doc))
     written["run"]["precision"] = "fp64"
     assert load_spec(doc, precision="fp64").hash == load_spec(written).hash != load_spec(doc).hash
+    # the doc the workers resolve again holds the settings resolved here: the same spec whatever their defaults
+    resolved = load_spec(doc).doc["run"]
+    assert resolved["precision"] == "fp32" and resolved["dt"] == 5e-8
+    assert load_spec(load_spec(doc).doc).hash == load_spec(doc).hash
 
 
 def test_a_sweep_begun_with_other_run_settings_is_refused_with_how_to_continue_it(tmp_path: Path) -> None:

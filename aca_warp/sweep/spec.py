@@ -400,6 +400,10 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         raise SweepError("run.growth_dt sets the spacing of growth events; the base scene does not grow (no [growth])")
     if base.growth is not None and not scene_clock:  # written out, like the step: the hash and the shards name it
         growth_dt = growth_asked(integrator, growth_dt, base.growth.interval, duration)
+    # the defaults resolved here written into the doc the workers resolve again, so that a worker whose code has
+    # other defaults runs this spec's settings (its hash is the same either way)
+    run.update({"precision": precision, **({"dt": dt} if dt is not None else {})})
+    run.update({"growth_dt": growth_dt} if growth_dt is not None else {})
     spec = SweepSpec(
         doc=doc,
         base_dir=base_dir,
