@@ -196,7 +196,7 @@ def _add_file_arguments(hf: argparse.ArgumentParser) -> None:
 
 def _cmd_hf(args: argparse.Namespace) -> int:
     from aca_warp.common.files import check_output_path
-    from aca_warp.hf.options import SCENE_CLOCK, RunOptions, default_precision, growth_asked
+    from aca_warp.hf.options import SCENE_CLOCK, RunOptions
     from aca_warp.hf.runner import run_scene
 
     if args.resume is not None:
@@ -215,14 +215,10 @@ def _cmd_hf(args: argparse.Namespace) -> int:
             )
     check_output_path(args.output, overwrite=args.overwrite)
     scene, duration = _hf_scene(args)
-    # as the run file keeps them and the summary line names them
-    args.precision = args.precision or default_precision(args.integrator)
-    interval = scene.growth.interval if scene.growth else None
-    if args.growth_dt == SCENE_CLOCK:  # the scene's own clock, written out
-        if interval is None:
+    if args.growth_dt == SCENE_CLOCK:  # the scene's own clock, written out (run_scene writes out the defaults)
+        if scene.growth is None:
             raise SceneError("--growth-dt scene sets the spacing of growth events; the scene does not grow")
-        args.growth_dt = interval
-    args.growth_dt = growth_asked(args.integrator, args.growth_dt, interval, duration)
+        args.growth_dt = scene.growth.interval
     options = RunOptions(
         duration=duration,
         integrator=args.integrator,
@@ -307,18 +303,23 @@ def _record_changes(args: argparse.Namespace) -> dict:
 
 
 def _summarise_hf(args: argparse.Namespace, scene: Any, result: Any, duration: float) -> int:
-    """Print the summary line of a finished or stopped ``aca-warp hf`` run; the exit code (0 done, 3 stopped)."""
+    """Print the summary line of a finished or stopped ``aca-warp hf`` run (its precision and growth spacing as
+    its file records them, the defaults written out); the exit code (0 done, 3 stopped)."""
     import h5py
     import numpy as np
 
+    from aca_warp.common.files import attr_value
+
     with h5py.File(args.output, "r") as f:
         mu = f["global/mu"][()]
+        precision = attr_value(f.attrs["precision"])
+        growth_dt = attr_value(f.attrs["run_options"]).get("growth_dt")
     n = scene.patches.count
     rate = n * result.steps / max(result.wall_time, 1e-12)
     line = (
         f"{args.output}: {len(mu)} samples over {result.sim_time:.4g} s, {result.steps} steps "
-        f"({result.dt:.3g} s, {args.integrator}, {args.precision}{', fast math' if args.fast_math else ''}"
-        f"{growth_words(args.growth_dt)}), "
+        f"({result.dt:.3g} s, {args.integrator}, {precision}{', fast math' if args.fast_math else ''}"
+        f"{growth_words(growth_dt)}), "
         f"mean mu {np.mean(mu):.4f}, "
         f"{rate:.3g} patch-steps/s"
     )
