@@ -47,6 +47,7 @@ from aca_warp.kernels import hf as K
 
 FP32_MIN_TOLERANCE = 1.0e-5  # relative; tighter asks fp32 for more digits than it has
 ADAPTIVE_FIRST_STEP = 1.0e-9  # s; the adaptive controller grows it by up to 5× per accepted step
+NEWTON_TOL = {"fp32": 1.0e-6, "fp64": 1.0e-9}  # the friction solve's tolerance, of the velocity increment's scale
 CONTACT_BLOCK = 256  # threads per pad of the growth events' contact re-solve (Warp's default block size)
 
 
@@ -283,7 +284,7 @@ class HFSolver:
         self.integrator = integrator
         self.estimate = stable_step(model) if estimate is None else estimate
         self.T = model.dtype
-        self.newton_tol = self.T(1.0e-6 if self.T == wp.float32 else 1.0e-9)  # of the velocity increment
+        self.newton_tol = self.T(NEWTON_TOL["fp32" if self.T == wp.float32 else "fp64"])
         for name, value in (("tolerance", tolerance), ("split_tolerance", split_tolerance)):
             if not (value > 0 and math.isfinite(value)):
                 raise SceneError(f"{name} must be a positive number, got {value}")

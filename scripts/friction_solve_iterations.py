@@ -1,0 +1,257 @@
+#!/usr/bin/env python3
+"""How many Newton iterations the friction sub-step's solve takes, patch by patch, at states of a run.
+
+On a GPU one pad's step is a chain through the slowest patch of its cluster, so the tail of the solves' iteration
+counts was the first suspect for the solve's share of a step; shortening it did not pay (docs/onchip.md, "The
+friction solve at the default step"). This script runs a preset with the general engine up to each time of
+``--times`` and there counts, for every patch, the iterations of the merged step's solve from the synchronous state
+(u, u̇): the
+damped-midpoint sub-step of ``kernels/physics.py`` (:func:`~aca_warp.kernels.physics.friction_substep`) over one
+step with the spring force at u frozen. The counting copy of the solve below returns the same velocity as the
+kernels' to the last bit (``tests/test_friction_solve_iterations.py``). ``--zero-slip`` counts beside it a
+variant tried and not kept: the bracket split at the zero-slip point and, where the first Newton step leaves the
+bracket, the Newton step from there.
+
+Writes a JSON file and a Markdown table (mean, 99th percentile and largest count per time, the histogram).
+
+Example (CPU, ~1 min)::
+
+    python3 scripts/friction_solve_iterations.py --scene varying_area --dt 5e-8 --times 2e-4 1e-3 3e-3 1e-2 \\
+        --zero-slip --out out/solve_iterations
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import warp as wp
+from aca_warp.kernels.physics import friction_pair
+
+from aca_warp.common.argtypes import positive
+from aca_warp.hf.solver import NEWTON_TOL
+
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.func
+def counted_solve(
+    a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any, zero_slip: int
+):
+    """:func:`~aca_warp.kernels.physics.solve_velocity` with its iterations and bisections counted; ``zero_slip``
+    = 1 the variant of the module docstring. Returns (iterations, bisections, v [m/s])."""
+    fmax = mu_scale * type(a)(3.141592653589793)
+    r = b - a * guess
+    lo = (r - hfn * fmax) / a
+    hi = (r + hfn * fmax) / a
+    dtol = tol * (wp.abs(r) + hfn * fmax) / a
+    vp0 = vd - guess
+    zero = a - a
+    half = type(a)(0.5)
+    gz = a * vp0 - r
+    split = zero_slip != 0 and vp0 > lo and vp0 < hi
+    if split:
+        if gz > zero:
+            hi = vp0
+        else:
+            lo = vp0
+    d = wp.clamp(zero, lo, hi)
+    last = type(a)(2.0) * (hi - lo)
+    before = last
+    n = int(0)  # noqa: UP018 (a mutable kernel variable)
+    nb = int(0)  # noqa: UP018
+    for it in range(60):
+        n += 1
+        f, df = friction_pair(vp0 - d, mu_scale, slope, decay)
+        g = a * d - hfn * f - r
+        if g == zero:
+            break
+        if g > zero:
+            hi = d
+        else:
+            lo = d
+        dg = a + hfn * df
+        dn = d - g / dg
+        if it == 0 and split and (dg <= zero or dn < lo or dn > hi) and (g > zero) != (gz > zero):
+            dn = vp0 - gz / (a + hfn * type(a)(2.0) * mu_scale * slope)
+        if dg <= zero or dn < lo or dn > hi or wp.abs(dn - d) > half * before:
+            dn = half * (lo + hi)
+            nb += 1
+        step = wp.abs(dn - d)
+        converged = step <= dtol or hi - lo <= dtol
+        before = last
+        last = step
+        d = dn
+        if converged:
+            break
+    return n, nb, guess + d
+
+
+@wp.kernel
+def count_substeps(
+    v: wp.array[Any],
+    force: wp.array[Any],
+    mass: wp.array[Any],
+    damping: wp.array[Any],
+    normal_force: wp.array[Any],
+    disc_speed: wp.array[Any],
+    h: Any,
+    mu_scale: Any,
+    slope: Any,
+    decay: Any,
+    tol: Any,
+    zero_slip: int,
+    iterations: wp.array[wp.int32],
+    bisections: wp.array[wp.int32],
+    v_out: wp.array[Any],
+):
+    """Per patch (n,): :func:`~aca_warp.kernels.physics.friction_substep` over ``h`` [s] from ``v`` [m/s] with
+    ``force`` [N] frozen, counting its solve's iterations and bisections; ``v_out`` its velocity [m/s]."""
+    i = wp.tid()
+    one = type(h)(1.0)
+    m = mass[i]
+    c = damping[i]
+    fn = normal_force[i]
+    vi = v[i]
+    f0, df0 = friction_pair(disc_speed[i] - vi, mu_scale, slope, decay)
+    x = h * (c + fn * df0) / m
+    theta = type(h)(0.5)
+    if x > type(h)(6.0):
+        theta = wp.min((one - type(h)(1.5) / x) / type(h)(1.5), one)
+    th = theta * h
+    n, nb, vm = counted_solve(
+        m + th * c, m * vi + th * force[i], th * fn, disc_speed[i], vi, mu_scale, slope, decay, tol, zero_slip
+    )
+    iterations[i] = n
+    bisections[i] = nb
+    v_out[i] = vm + (vm - vi) * (one / theta - one)
+
+
+def count(patch: dict[str, np.ndarray], pad: dict[str, float], h: float, precision: str, zero_slip: bool) -> dict:
+    """Run :func:`count_substeps` on the CPU for the per-patch arrays ``patch`` (v [m/s], force [N], mass [kg],
+    damping [N s/m], normal_force [N], disc_speed [m/s]; (n,) each) and the friction law ``pad`` (mu_scale, slope,
+    decay); returns iterations, bisections (int32 (n,)) and v (n,) as NumPy arrays."""
+    dtype = wp.float32 if precision == "fp32" else wp.float64
+    n = len(patch["v"])
+    arrays = {k: wp.array(np.asarray(patch[k]), dtype=dtype, device="cpu") for k in
+              ("v", "force", "mass", "damping", "normal_force", "disc_speed")}  # fmt: skip
+    out = {k: wp.zeros(n, dtype=wp.int32, device="cpu") for k in ("iterations", "bisections")}
+    v_out = wp.zeros(n, dtype=dtype, device="cpu")
+    wp.launch(
+        count_substeps,
+        dim=n,
+        inputs=[
+            *arrays.values(),
+            dtype(h),
+            *(dtype(pad[k]) for k in ("mu_scale", "slope", "decay")),
+            dtype(NEWTON_TOL[precision]),
+            int(zero_slip),
+        ],
+        outputs=[out["iterations"], out["bisections"], v_out],
+        device="cpu",
+    )
+    return {"iterations": out["iterations"].numpy(), "bisections": out["bisections"].numpy(), "v": v_out.numpy()}
+
+
+def state_arrays(model, state) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    """The per-patch inputs of :func:`count` at ``state`` of a one-pad ``model``: the synchronous velocity, the
+    spring force F_s(u) = Σ_j k_ij u_j − k_diag u (summed in float64), mass, damping, normal force and disc speed
+    ω r; and the pad's friction law."""
+    arr = model.arrays
+    n = model.patch_count
+    u = state.u.numpy().astype(np.float64)
+    start, index = arr["nbr_start"].numpy(), arr["nbr_index"].numpy()
+    k = arr["nbr_stiffness"].numpy().astype(np.float64)
+    rows = np.repeat(np.arange(n), np.diff(start[: n + 1]))
+    sums = np.bincount(rows, weights=k[: start[n]] * u[index[: start[n]]], minlength=n)
+    patch = {
+        "v": state.v.numpy(),
+        "force": sums - arr["k_diag"].numpy()[:n] * u,
+        "mass": 1.0 / arr["inv_mass"].numpy()[:n],
+        "damping": arr["damping"].numpy()[:n],
+        "normal_force": arr["normal_force"].numpy()[:n],
+        "disc_speed": arr["pad_omega"].numpy()[0] * arr["radius"].numpy()[:n],
+    }
+    pad = {k: float(arr[f"pad_{k}"].numpy()[0]) for k in ("mu_scale", "slope", "decay")}
+    return patch, pad
+
+
+def summary(iterations: np.ndarray, bisections: np.ndarray) -> dict:
+    """Mean, 99th percentile, largest count and histogram of one time's iterations; bisections' mean and largest."""
+    hist = np.bincount(iterations)
+    return {
+        "mean": float(iterations.mean()),
+        "p99": float(np.percentile(iterations, 99)),
+        "max": int(iterations.max()),
+        "histogram": {int(i): int(c) for i, c in enumerate(hist) if c},
+        "bisections_mean": float(bisections.mean()),
+        "bisections_max": int(bisections.max()),
+    }
+
+
+def _parse(argv: list[str] | None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scene", default="varying_area", help="preset (default varying_area)")
+    ap.add_argument("--dt", type=positive, default=5e-8, help="time step [s] (default 5e-8, strang's default)")
+    ap.add_argument("--times", type=positive, nargs="+", default=[2e-4, 1e-3, 3e-3, 1e-2],
+                    help="simulated times at which to count [s], increasing (default 2e-4 1e-3 3e-3 1e-2)")  # fmt: skip
+    ap.add_argument("--precision", choices=("fp32", "fp64"), default="fp32", help="state precision (default fp32)")
+    ap.add_argument("--zero-slip", action="store_true", help="count the zero-slip variant beside the kernels' solve")
+    ap.add_argument("--out", type=Path, required=True, help="folder for solve_iterations.json and .md")
+    args = ap.parse_args(argv)
+    if any(b <= a for a, b in zip(args.times, args.times[1:], strict=False)):
+        ap.error("--times must increase")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parse(argv)
+    from aca_warp.common.files import machine
+    from aca_warp.hf.loop import run_hf
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.options import RunOptions, growth_asked
+    from aca_warp.hf.state import initial_state
+    from aca_warp.scene import preset
+
+    wp.config.quiet = True
+    scene = preset(args.scene)
+    model = build_model([scene], device="cpu", precision=args.precision)
+    state = initial_state(model)
+    interval = scene.growth.interval if scene.growth is not None else None
+    growth_dt = growth_asked("strang", None, interval, args.times[-1])
+    variants = ["kernel", "zero-slip"] if args.zero_slip else ["kernel"]
+    rows, now = [], 0.0
+    for t in args.times:
+        run_hf(model, state, RunOptions(duration=t - now, dt=args.dt, engine="general", growth_dt=growth_dt))
+        now = t
+        patch, pad = state_arrays(model, state)
+        for variant in variants:
+            got = count(patch, pad, args.dt, args.precision, variant == "zero-slip")
+            rows.append({"time_s": t, "variant": variant, **summary(got["iterations"], got["bisections"])})
+            r = rows[-1]
+            print(f"t = {t:g} s, {variant:9s}: iterations mean {r['mean']:.2f}, p99 {r['p99']:.0f}, max {r['max']}",
+                  flush=True)  # fmt: skip
+    info = {"scene": args.scene, "patches": model.patch_count, "dt_s": args.dt, "precision": args.precision,
+            "growth_dt_s": growth_dt, "machine": machine(model.device), "warp_version": wp.__version__}  # fmt: skip
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "solve_iterations.json").write_text(json.dumps({**info, "rows": rows}, indent=1))
+    lines = [
+        f"Newton iterations of the friction sub-step's solve per patch: {args.scene} ({model.patch_count} patches), "
+        f"{args.precision}, dt {args.dt:g} s (scripts/friction_solve_iterations.py)",
+        "",
+        "| t [s] | solve | mean | p99 | max | histogram (iterations: patches) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        hist = ", ".join(f"{k}: {v}" for k, v in r["histogram"].items())
+        lines.append(f"| {r['time_s']:g} | {r['variant']} | {r['mean']:.2f} | {r['p99']:.0f} | {r['max']} | {hist} |")
+    (args.out / "solve_iterations.md").write_text("\n".join(lines) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

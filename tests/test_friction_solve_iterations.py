@@ -1,0 +1,103 @@
+"""scripts/friction_solve_iterations.py: its counting copy of the friction solve returns the kernels' velocity to
+the last bit, its zero-slip variant the same root within the solve's tolerance, and the command writes its table."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import warp as wp
+from aca_warp.kernels.physics import friction_substep
+from scriptload import load_script
+
+from aca_warp.hf.solver import NEWTON_TOL
+
+fsi = load_script("friction_solve_iterations")
+
+# hf1's Eq. 4: M/π, slope a [s/m], decay b [s/m]
+PAD = {"mu_scale": 0.8 / np.pi, "slope": 200.0, "decay": 0.25}
+
+
+@wp.kernel(enable_backward=False, module="unique")
+def _substep(
+    v: wp.array[Any],
+    force: wp.array[Any],
+    mass: wp.array[Any],
+    damping: wp.array[Any],
+    normal_force: wp.array[Any],
+    disc_speed: wp.array[Any],
+    h: Any,
+    mu_scale: Any,
+    slope: Any,
+    decay: Any,
+    tol: Any,
+    out: wp.array[Any],
+):
+    i = wp.tid()
+    out[i] = friction_substep(
+        v[i], h, mass[i], damping[i], normal_force[i], force[i], disc_speed[i], mu_scale, slope, decay, tol
+    )
+
+
+def _patches(n: int = 4000, seed: int = 3) -> dict[str, np.ndarray]:
+    """Patches of hf1's scale: sliding, near sticking (slips within ±0.1 m/s) and spring forces up to twice the
+    friction force, so that some slips pass through zero in the step."""
+    rng = np.random.default_rng(seed)
+    vd = rng.uniform(5.0, 12.0, n)
+    slip = np.where(rng.random(n) < 0.5, rng.uniform(-0.1, 0.1, n), rng.uniform(0.1, 12.0, n))
+    fn = rng.uniform(0.5, 5.0, n)
+    mass = rng.uniform(1e-7, 2e-6, n)
+    return {
+        "v": vd - slip,
+        "force": fn * 0.8 * rng.uniform(-2.0, 2.0, n),
+        "mass": mass,
+        "damping": 2.0 * 0.05 * np.sqrt(1e6 * mass),
+        "normal_force": fn,
+        "disc_speed": vd,
+    }
+
+
+@pytest.mark.parametrize("precision", ["fp32", "fp64"])
+@pytest.mark.parametrize("h", [5e-8, 1e-6])
+def test_counting_copy_is_the_kernels_solve(precision: str, h: float) -> None:
+    """The script counts the solve the kernels take: its velocity equals friction_substep's bit for bit (at 5e-8 s
+    and at 1e-6 s, where θ leaves ½ and the solves bisect), and a zero-slip variant that counts differently lands on
+    the same root within the solve's tolerance."""
+    patch = _patches()
+    dtype = wp.float32 if precision == "fp32" else wp.float64
+    arrays = [wp.array(patch[k], dtype=dtype, device="cpu") for k in
+              ("v", "force", "mass", "damping", "normal_force", "disc_speed")]  # fmt: skip
+    out = wp.zeros(len(patch["v"]), dtype=dtype, device="cpu")
+    scalars = [dtype(x) for x in (h, PAD["mu_scale"], PAD["slope"], PAD["decay"], NEWTON_TOL[precision])]
+    wp.launch(_substep, dim=len(out), inputs=[*arrays, *scalars], outputs=[out], device="cpu")
+    kernel = fsi.count(patch, PAD, h, precision, zero_slip=False)
+    np.testing.assert_array_equal(kernel["v"], out.numpy())
+    assert kernel["iterations"].min() >= 1 and kernel["iterations"].max() < 60
+    assert kernel["bisections"].max() > 0 or h < 1e-6  # the large step exercises the safeguard
+    variant = fsi.count(patch, PAD, h, precision, zero_slip=True)
+    scale = h * patch["normal_force"] * 0.8 / patch["mass"]  # the bracket's half width [m/s], at most
+    eps = 1e-5 if precision == "fp32" else 1e-8
+    assert np.all(np.abs(variant["v"] - kernel["v"]) <= eps * (scale + np.abs(kernel["v"]) * 1e-2))
+    assert not np.array_equal(variant["iterations"], kernel["iterations"])
+
+
+def test_command_writes_its_table(tmp_path: Path) -> None:
+    """Two times of a short hf1 run: one row per time and solve in the JSON and the Markdown table."""
+    out = tmp_path / "si"
+    assert (
+        fsi.main(["--scene", "hf1", "--dt", "5e-8", "--times", "1e-6", "2e-6", "--zero-slip", "--out", str(out)]) == 0
+    )
+    doc = json.loads((out / "solve_iterations.json").read_text())
+    assert [(r["time_s"], r["variant"]) for r in doc["rows"]] == [
+        (1e-6, "kernel"), (1e-6, "zero-slip"), (2e-6, "kernel"), (2e-6, "zero-slip")
+    ]  # fmt: skip
+    assert all(r["max"] >= r["p99"] >= 1 and sum(r["histogram"].values()) == doc["patches"] for r in doc["rows"])
+    assert (out / "solve_iterations.md").read_text().count("\n| 1e-06 |") == 2
+
+
+def test_times_must_increase(tmp_path: Path) -> None:
+    with pytest.raises(SystemExit):
+        fsi.main(["--times", "2e-6", "1e-6", "--out", str(tmp_path)])
