@@ -13,7 +13,8 @@ an event every 0.202 µs ≈ 20 steps): the same pad without growth, with growth
 event's stiffness update (``coupling``) and/or contact re-solve (``contact``) left out, with events 100× rarer
 (the cost of the growth code being in the kernel at all), and the general path. ``--state STATE.npz`` (a
 ``scripts/varying_area.py`` state file) starts every case from that point of the study instead of t = 0 (the
-grown areas, stiffnesses, forces and the patch motion).
+grown areas, stiffnesses, forces and the patch motion). ``--growth-dt S`` spaces the events S apart as
+``aca-warp hf --growth-dt`` does (5e-6 s is ``strang``'s default there), × 100 in the rarer-event cases.
 
 Example (GPU machine)::
 
@@ -124,6 +125,9 @@ GROWTH_CASES = [
     ("growth, cluster 8, no contact re-solve", "fp32", None, ("cluster8", "contact"), 1),
     ("growth, cluster 8, no stiffness update", "fp32", None, ("cluster8", "coupling"), 1),
     ("growth, cluster 8, events 100x rarer", "fp32", None, ("cluster8",), 100),
+    ("growth, cluster 8, no friction solve", "fp32", None, ("cluster8", "friction"), 1),
+    ("no growth, cluster 8, no friction solve", "fp32", None, ("cluster8", "friction"), 0),
+    ("no growth, cluster 8, no gather", "fp32", None, ("cluster8", "gather"), 0),
     ("growth, cluster 16", "fp32", None, ("cluster16",), 1),
     ("growth, cluster 8", "fp64", None, ("cluster8",), 1),
     ("growth, cluster 2, block 384", "fp32", 384, ("cluster2",), 1),
@@ -141,6 +145,13 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--dt", type=positive, default=1e-8, help="time step [s] (default 1e-8)")
     ap.add_argument("--growth", action="store_true", help="profile the growing varying-area pad (GROWTH_CASES)")
     ap.add_argument("--state", type=Path, help="with --growth: start from this varying_area.py state file")
+    ap.add_argument(
+        "--growth-dt",
+        type=positive,
+        default=None,
+        help="with --growth: simulated time between growth events [s] (default: the scene's interval, 2.02e-7; "
+        "strang's default spacing in the hf command is 5e-6), × the case's factor for the rarer-event cases",
+    )
     ap.add_argument("--only", nargs="*", default=None, help="labels of the cases to run (default: all)")
     ap.add_argument(
         "--pads", type=int, default=1, help="identical pads in the batch (default 1; e.g. 1024: the batched target)"
@@ -150,6 +161,8 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     args = ap.parse_args(argv)
     if args.state and not args.growth:
         ap.error("--state needs --growth")
+    if args.growth_dt is not None and not args.growth:
+        ap.error("--growth-dt needs --growth")
     if args.pads < 1:
         ap.error("--pads must be ≥ 1")
     if args.state and args.pads != 1:
@@ -202,23 +215,27 @@ def _case_model(args: argparse.Namespace, scene, model, prec: str, k: int, saved
     return model
 
 
-def _case_runner(args: argparse.Namespace, model, block, csr, abl):
+def _case_runner(args: argparse.Namespace, model, block, csr, abl, k: int):
     """``fn(state, duration)``: one run of the case, the general path (``abl`` None) or the on-chip engine with
-    the case's block size, CSR placement, ablations, fast-math and cluster tags."""
+    the case's block size, CSR placement, ablations, fast-math and cluster tags; growth events ``--growth-dt`` × ``k``
+    apart where --growth-dt is given and the case grows."""
     from aca_warp.hf.loop import EngineTuning, run_hf
     from aca_warp.hf.options import RunOptions
 
+    growth_dt = None if args.growth_dt is None or k == 0 else args.growth_dt * k
     if abl is None:
 
         def fn(st, duration, model=model):
-            return run_hf(model, st, RunOptions(duration=duration, dt=args.dt, engine="general"))
+            return run_hf(model, st, RunOptions(duration=duration, dt=args.dt, engine="general", growth_dt=growth_dt))
     else:
 
         def fn(st, duration, model=model, block=block, csr=csr, abl=abl):
             tags = {a for a in abl if a == "fast_math" or a.startswith("cluster")}
             cluster = max([int(a[7:]) for a in tags if a.startswith("cluster")], default=1)
             tuning = EngineTuning(block_dim=block, csr_shared=csr, ablate=frozenset(abl) - tags, cluster=cluster)
-            options = RunOptions(engine="onchip", duration=duration, dt=args.dt, fast_math="fast_math" in abl)
+            options = RunOptions(
+                engine="onchip", duration=duration, dt=args.dt, fast_math="fast_math" in abl, growth_dt=growth_dt
+            )
             return run_hf(model, st, options, tuning=tuning)
 
     return fn
@@ -247,6 +264,7 @@ def _markdown_lines(args: argparse.Namespace, name: str, patches: int, rows: lis
     lines = [
         f"On-chip ablation profile: {name} ({patches} patches), {args.pads} pad(s), "
         f"dt {args.dt:g} s, "
+        f"{f'growth events every {args.growth_dt:g} s (× the case factor), ' if args.growth_dt else ''}"
         f"{rows[0].get('steps', '?')} steps"
         f"{f' from {args.state.name}' if args.state else ''}, "
         f"sample interval {args.sample_dt:g} s; {info.get('device_name', args.device)}, Warp "
@@ -282,7 +300,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.only is not None and label not in args.only and key not in args.only:
             continue
         model = _case_model(args, scene, models[prec], prec, k, saved)
-        fn = _case_runner(args, model, block, csr, abl)
+        fn = _case_runner(args, model, block, csr, abl, k)
         row = {"case": label, "precision": prec, "block_dim": block, "csr_shared": csr, "ablate": list(abl or ())}
         if args.growth:
             row["growth_interval_factor"] = k
@@ -290,7 +308,8 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
         print(f"{key:52s} " + (f"{row['us_per_step']:8.2f} us/step" if "us_per_step" in row else row["error"]),
               flush=True)  # fmt: skip
-    info = {**machine(models["fp32"].device), "warp_version": wp.__version__, "dt": args.dt, "window_s": args.window}
+    info = {**machine(models["fp32"].device), "warp_version": wp.__version__, "dt": args.dt, "window_s": args.window,
+            "growth_dt": args.growth_dt}  # fmt: skip
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps({"machine": info, "rows": rows}, indent=1))
