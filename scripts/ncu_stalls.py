@@ -1,0 +1,98 @@
+#!/usr/bin/env python3
+"""Where a kernel's warps wait: the stall reasons of Nsight Compute's warp-state sampling, from a SASS source export.
+
+Reads the export of one profiled launch's source page, made with the ``SourceCounters`` section::
+
+    ncu --clock-control none -k regex:onchip_strang --launch-skip 1 --launch-count 1 \\
+        --section WarpStateStats --section SourceCounters -o prof python3 ...
+    ncu -i prof.ncu-rep --page source --csv --print-source sass > sass.csv      # gzip it if you like
+
+and prints each stall reason's share of all samples (``stall_wait``: a fixed-latency dependency, the arithmetic
+chain; ``short_sb``: shared memory or special-function results; ``long_sb``: global or distributed shared memory;
+``barrier``: barriers and mbarrier waits; ``selected``: issuing) and the instructions with the most samples. Writes
+the same as Markdown with ``--markdown``. docs/onchip.md, "The friction solve at the default step", cites it.
+
+Example::
+
+    python3 scripts/ncu_stalls.py docs/benchmarks/onchip_h200_solver/ncu_cluster8_sass.csv.gz --top 10
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import gzip
+import sys
+from collections import Counter
+from pathlib import Path
+
+SAMPLES = "Warp Stall Sampling (All Samples)"
+
+
+def read_sass(path: Path) -> tuple[str, list[dict[str, str]]]:
+    """(kernel name, one dict per SASS instruction) of an ``ncu --page source --csv --print-source sass`` export."""
+    opener = gzip.open if path.suffix == ".gz" else open
+    with opener(path, "rt", newline="") as f:
+        rows = list(csv.reader(f))
+    if len(rows) < 2 or not rows[0] or rows[0][0] != "Kernel Name":
+        raise ValueError(f"{path}: not an ncu source-page export (its first row names no kernel)")
+    header = rows[1]
+    if SAMPLES not in header:
+        raise ValueError(f"{path}: no '{SAMPLES}' column (profile with --section SourceCounters)")
+    return rows[0][1], [dict(zip(header, r, strict=False)) for r in rows[2:] if len(r) == len(header)]
+
+
+def _count(value: str) -> int:
+    return int(value) if value.strip().isdigit() else 0
+
+
+def stall_shares(rows: list[dict[str, str]]) -> tuple[int, list[tuple[str, int, float]]]:
+    """(all samples, [(reason, samples, share of all)] largest first) over the sampled stall reasons."""
+    total = sum(_count(r[SAMPLES]) for r in rows)
+    reasons: Counter[str] = Counter()
+    for r in rows:
+        for k, v in r.items():
+            if k.startswith("stall_") and "Not Issued" not in k:
+                reasons[k.removeprefix("stall_")] += _count(v)
+    return total, [(k, n, n / total if total else 0.0) for k, n in reasons.most_common() if n]
+
+
+def top_instructions(rows: list[dict[str, str]], n: int) -> list[tuple[str, str, int, str]]:
+    """The ``n`` instructions with the most samples: (address, SASS, samples, their two largest reasons)."""
+    out = []
+    for r in sorted(rows, key=lambda r: -_count(r[SAMPLES]))[:n]:
+        reasons = Counter({k.removeprefix("stall_"): _count(v) for k, v in r.items()
+                           if k.startswith("stall_") and "Not Issued" not in k})  # fmt: skip
+        words = ", ".join(f"{k} {v}" for k, v in reasons.most_common(2) if v)
+        out.append((r.get("Address", ""), " ".join(r.get("Source", "").split()), _count(r[SAMPLES]), words))
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("sass", type=Path, help="the source-page export (.csv or .csv.gz)")
+    ap.add_argument("--top", type=int, default=10, help="instructions to list (default 10)")
+    ap.add_argument("--markdown", type=Path, default=None, help="write the tables here")
+    args = ap.parse_args(argv)
+    if args.top < 0:
+        ap.error("--top must be >= 0")
+    try:
+        kernel, rows = read_sass(args.sass)
+    except (OSError, ValueError) as exc:
+        ap.error(str(exc))
+    total, shares = stall_shares(rows)
+    lines = [f"Warp-state samples of {kernel} ({total} samples; {args.sass.name}, scripts/ncu_stalls.py)", "",
+             "| stall reason | samples | share |", "|---|---|---|"]  # fmt: skip
+    lines += [f"| {k} | {n} | {s:.1%} |" for k, n, s in shares]
+    lines += ["", "| address | instruction | samples | largest reasons |", "|---|---|---|---|"]
+    lines += [f"| {a} | `{src}` | {n} | {why} |" for a, src, n, why in top_instructions(rows, args.top)]
+    text = "\n".join(lines) + "\n"
+    print(text, end="")
+    if args.markdown:
+        args.markdown.parent.mkdir(parents=True, exist_ok=True)
+        args.markdown.write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

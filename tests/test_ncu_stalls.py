@@ -1,0 +1,51 @@
+"""scripts/ncu_stalls.py: stall-reason shares and the busiest instructions of an ncu source-page export."""
+
+from __future__ import annotations
+
+import gzip
+from pathlib import Path
+
+import pytest
+from scriptload import load_script
+
+ns = load_script("ncu_stalls")
+
+HEADER = '"Address","Source","Warp Stall Sampling (All Samples)","stall_wait","stall_barrier","stall_wait (Not Issued)"'
+ROWS = [
+    '"0x10","  FFMA R1, R2, R3, R4","6","4","2","4"',
+    '"0x20","  SYNCS.PHASECHK.TRANS64.TRYWAIT P0, [R5], R6","3","0","3","0"',
+    '"0x30","  NOP","0","0","0","0"',
+]
+
+
+def _export(path: Path, gz: bool = False) -> Path:
+    text = "\n".join(['"Kernel Name","k_forward",', HEADER, *ROWS]) + "\n"
+    if gz:
+        with gzip.open(path, "wt") as f:
+            f.write(text)
+    else:
+        path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("gz", [False, True])
+def test_shares_and_top(tmp_path: Path, gz: bool) -> None:
+    kernel, rows = ns.read_sass(_export(tmp_path / ("s.csv.gz" if gz else "s.csv"), gz))
+    assert kernel == "k_forward" and len(rows) == 3
+    total, shares = ns.stall_shares(rows)
+    assert total == 9
+    assert shares == [("wait", 4, pytest.approx(4 / 9)), ("barrier", 5, pytest.approx(5 / 9))][::-1]
+    top = ns.top_instructions(rows, 2)
+    assert [(a, n) for a, _, n, _ in top] == [("0x10", 6), ("0x20", 3)]
+    assert top[0][1] == "FFMA R1, R2, R3, R4" and top[0][3] == "wait 4, barrier 2"
+
+
+def test_markdown_and_refusals(tmp_path: Path) -> None:
+    md = tmp_path / "out" / "stalls.md"
+    assert ns.main([str(_export(tmp_path / "s.csv")), "--top", "1", "--markdown", str(md)]) == 0
+    text = md.read_text()
+    assert "| barrier | 5 | 55.6% |" in text and "| 0x10 | `FFMA R1, R2, R3, R4` | 6 | wait 4, barrier 2 |" in text
+    bad = tmp_path / "bad.csv"
+    bad.write_text('"Address","Source"\n')
+    with pytest.raises(SystemExit):
+        ns.main([str(bad)])
