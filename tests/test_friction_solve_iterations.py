@@ -22,24 +22,11 @@ PAD = {"mu_scale": 0.8 / np.pi, "slope": 200.0, "decay": 0.25}
 
 
 @wp.kernel(enable_backward=False, module="unique")
-def _substep(
-    v: wp.array[Any],
-    force: wp.array[Any],
-    mass: wp.array[Any],
-    damping: wp.array[Any],
-    normal_force: wp.array[Any],
-    disc_speed: wp.array[Any],
-    h: Any,
-    mu_scale: Any,
-    slope: Any,
-    decay: Any,
-    tol: Any,
-    out: wp.array[Any],
-):
+def _substep(p: wp.array2d[Any], h: Any, law: wp.array[Any], out: wp.array[Any]):
+    """friction_substep per patch i of the rows of ``p``: v, force, mass, damping, normal force, disc speed;
+    ``law`` the friction law and tolerance (mu_scale, slope, decay, tol)."""
     i = wp.tid()
-    out[i] = friction_substep(
-        v[i], h, mass[i], damping[i], normal_force[i], force[i], disc_speed[i], mu_scale, slope, decay, tol
-    )
+    out[i] = friction_substep(p[0, i], h, p[2, i], p[3, i], p[4, i], p[1, i], p[5, i], law[0], law[1], law[2], law[3])
 
 
 def _patches(n: int = 4000, seed: int = 3) -> dict[str, np.ndarray]:
@@ -68,11 +55,11 @@ def test_counting_copy_is_the_kernels_solve(precision: str, h: float) -> None:
     the same root within the solve's tolerance."""
     patch = _patches()
     dtype = wp.float32 if precision == "fp32" else wp.float64
-    arrays = [wp.array(patch[k], dtype=dtype, device="cpu") for k in
-              ("v", "force", "mass", "damping", "normal_force", "disc_speed")]  # fmt: skip
+    rows = np.stack([patch[k] for k in ("v", "force", "mass", "damping", "normal_force", "disc_speed")])
+    law = [PAD["mu_scale"], PAD["slope"], PAD["decay"], NEWTON_TOL[precision]]
     out = wp.zeros(len(patch["v"]), dtype=dtype, device="cpu")
-    scalars = [dtype(x) for x in (h, PAD["mu_scale"], PAD["slope"], PAD["decay"], NEWTON_TOL[precision])]
-    wp.launch(_substep, dim=len(out), inputs=[*arrays, *scalars], outputs=[out], device="cpu")
+    inputs = [wp.array(rows, dtype=dtype, device="cpu"), dtype(h), wp.array(law, dtype=dtype, device="cpu")]
+    wp.launch(_substep, dim=len(out), inputs=inputs, outputs=[out], device="cpu")
     kernel = fsi.count(patch, PAD, h, precision, zero_slip=False)
     np.testing.assert_array_equal(kernel["v"], out.numpy())
     assert kernel["iterations"].min() >= 1 and kernel["iterations"].max() < 60
