@@ -2,17 +2,18 @@
 """How many Newton iterations the friction sub-step's solve takes, patch by patch, at states of a run.
 
 On a GPU one pad's step is a chain through the slowest patch of its cluster, so the tail of the solves' iteration
-counts was the first suspect for the solve's share of a step; shortening it did not pay (docs/onchip.md, "The
-friction solve at the default step"). This script runs a preset with the general engine up to each time of
-``--times`` and there counts, for every patch, the iterations of the merged step's solve from the synchronous state
-(u, u̇): the
-damped-midpoint sub-step of ``kernels/physics.py`` (:func:`~aca_warp.kernels.physics.friction_substep`) over one
-step with the spring force at u frozen. The counting copy of the solve below returns the same velocity as the
-kernels' to the last bit (``tests/test_friction_solve_iterations.py``). ``--zero-slip`` counts beside it a
-variant tried and not kept: the bracket split at the zero-slip point and, where the first Newton step leaves the
-bracket, the Newton step from there.
+counts is a suspect for the solve's share of a step (docs/onchip.md, "The friction solve at the default step"). This
+script runs a preset with the general engine up to each time of ``--times`` (whole numbers of the scene's sample
+interval, and of the growth spacing on a growing scene) and there counts, for every patch, the iterations of the
+next step's solve from the synchronous state: the damped-midpoint sub-step of ``kernels/physics.py``
+(:func:`~aca_warp.kernels.physics.friction_substep`) over one step ``--dt`` [s], with the cached spring force
+frozen. The counting copy of the solve below returns the same velocity as the kernels' to the last bit
+(``tests/test_friction_solve_iterations.py``). ``--zero-slip`` counts beside it a variant tried and not kept: the
+bracket split at the zero-slip point and, where the first Newton step leaves the bracket, the Newton step from
+there.
 
-Writes a JSON file and a Markdown table (mean, 99th percentile and largest count per time, the histogram).
+Writes a JSON file and a Markdown table (mean, 99th percentile and largest count per time, the histogram, and the
+long solves with how many of them are of patches whose slip changes sign in the step).
 
 Example (CPU, ~1 min)::
 
@@ -33,7 +34,7 @@ import warp as wp
 from aca_warp.kernels.physics import friction_pair
 
 from aca_warp.common.argtypes import positive
-from aca_warp.hf.solver import NEWTON_TOL
+from aca_warp.hf.options import NEWTON_TOL
 
 wp.set_module_options({"enable_backward": False})
 
@@ -158,19 +159,15 @@ def count(patch: dict[str, np.ndarray], pad: dict[str, float], h: float, precisi
 
 
 def state_arrays(model, state) -> tuple[dict[str, np.ndarray], dict[str, float]]:
-    """The per-patch inputs of :func:`count` at ``state`` of a one-pad ``model``: the synchronous velocity, the
-    spring force F_s(u) = Σ_j k_ij u_j − k_diag u (summed in float64), mass, damping, normal force and disc speed
-    ω r; and the pad's friction law."""
+    """The per-patch inputs of :func:`count` at ``state`` of a one-pad ``model``, as the engine's next step takes
+    them: the synchronous velocity [m/s], the cached spring force F_s(u) [N] (after a growth event still at the
+    stiffnesses of before, as the step uses it), mass [kg], damping [N s/m], normal force [N] and disc speed ω r
+    [m/s]; and the pad's friction law (mu_scale, slope [s/m], decay [s/m])."""
     arr = model.arrays
     n = model.patch_count
-    u = state.u.numpy().astype(np.float64)
-    start, index = arr["nbr_start"].numpy(), arr["nbr_index"].numpy()
-    k = arr["nbr_stiffness"].numpy().astype(np.float64)
-    rows = np.repeat(np.arange(n), np.diff(start[: n + 1]))
-    sums = np.bincount(rows, weights=k[: start[n]] * u[index[: start[n]]], minlength=n)
     patch = {
         "v": state.v.numpy(),
-        "force": sums - arr["k_diag"].numpy()[:n] * u,
+        "force": state.force.numpy(),
         "mass": 1.0 / arr["inv_mass"].numpy()[:n],
         "damping": arr["damping"].numpy()[:n],
         "normal_force": arr["normal_force"].numpy()[:n],
@@ -180,9 +177,15 @@ def state_arrays(model, state) -> tuple[dict[str, np.ndarray], dict[str, float]]
     return patch, pad
 
 
-def summary(iterations: np.ndarray, bisections: np.ndarray) -> dict:
-    """Mean, 99th percentile, largest count and histogram of one time's iterations; bisections' mean and largest."""
+LONG = 5  # iterations from which a solve counts as long
+
+
+def summary(iterations: np.ndarray, bisections: np.ndarray, through_zero: np.ndarray) -> dict:
+    """Mean, 99th percentile, largest count and histogram of one time's iterations; bisections' mean and largest;
+    the long solves (≥ :data:`LONG` iterations) and how many of them are of patches whose slip changes sign in the
+    sub-step (``through_zero``, bool (n,))."""
     hist = np.bincount(iterations)
+    long = iterations >= LONG
     return {
         "mean": float(iterations.mean()),
         "p99": float(np.percentile(iterations, 99)),
@@ -190,10 +193,18 @@ def summary(iterations: np.ndarray, bisections: np.ndarray) -> dict:
         "histogram": {int(i): int(c) for i, c in enumerate(hist) if c},
         "bisections_mean": float(bisections.mean()),
         "bisections_max": int(bisections.max()),
+        "long": int(long.sum()),
+        "long_through_zero": int((long & through_zero).sum()),
     }
 
 
-def _parse(argv: list[str] | None) -> argparse.Namespace:
+def whole(gap: float, unit: float) -> bool:
+    """Whether ``gap`` [s] is a whole number (≥ 1) of ``unit`` [s], to rounding."""
+    k = round(gap / unit)
+    return k >= 1 and abs(gap - k * unit) <= 1e-9 * gap
+
+
+def _parse(argv: list[str] | None) -> tuple[argparse.ArgumentParser, argparse.Namespace]:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scene", default="varying_area", help="preset (default varying_area)")
     ap.add_argument("--dt", type=positive, default=5e-8, help="time step [s] (default 5e-8, strang's default)")
@@ -205,11 +216,12 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     args = ap.parse_args(argv)
     if any(b <= a for a, b in zip(args.times, args.times[1:], strict=False)):
         ap.error("--times must increase")
-    return args
+    return ap, args
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parse(argv)
+    ap, args = _parse(argv)
+    from aca_warp.common.errors import SceneError
     from aca_warp.common.files import machine
     from aca_warp.hf.loop import run_hf
     from aca_warp.hf.model import build_model
@@ -218,20 +230,36 @@ def main(argv: list[str] | None = None) -> int:
     from aca_warp.scene import preset
 
     wp.config.quiet = True
-    scene = preset(args.scene)
-    model = build_model([scene], device="cpu", precision=args.precision)
-    state = initial_state(model)
+    try:
+        scene = preset(args.scene)
+    except SceneError as exc:
+        ap.error(str(exc))
+    sample = scene.record.sample_dt
     interval = scene.growth.interval if scene.growth is not None else None
     growth_dt = growth_asked("strang", None, interval, args.times[-1])
+    if not whole(sample, args.dt):
+        ap.error(f"--dt {args.dt:g} s must divide the scene's sample interval, {sample:g} s")
+    for gap in np.diff([0.0, *args.times]):
+        if not whole(gap, sample) or (growth_dt is not None and not whole(gap, growth_dt)):
+            spacing = f" and of the growth spacing, {growth_dt:g} s" if growth_dt is not None else ""
+            ap.error(f"--times: {gap:g} s between counts is not a whole number of sample intervals, {sample:g} s"
+                     f"{spacing}")  # fmt: skip
+    model = build_model([scene], device="cpu", precision=args.precision)
+    state = initial_state(model)
     variants = ["kernel", "zero-slip"] if args.zero_slip else ["kernel"]
     rows, now = [], 0.0
     for t in args.times:
-        run_hf(model, state, RunOptions(duration=t - now, dt=args.dt, engine="general", growth_dt=growth_dt))
+        res = run_hf(model, state, RunOptions(duration=t - now, dt=args.dt, engine="general", growth_dt=growth_dt))
+        if not res.complete:
+            ap.error(f"the run stopped at {now + res.sim_time:g} s: {res.fault}")
         now = t
         patch, pad = state_arrays(model, state)
+        slip = patch["disc_speed"] - patch["v"]
         for variant in variants:
             got = count(patch, pad, args.dt, args.precision, variant == "zero-slip")
-            rows.append({"time_s": t, "variant": variant, **summary(got["iterations"], got["bisections"])})
+            through_zero = np.sign(slip) != np.sign(patch["disc_speed"] - got["v"])
+            rows.append({"time_s": t, "variant": variant,
+                         **summary(got["iterations"], got["bisections"], through_zero)})  # fmt: skip
             r = rows[-1]
             print(f"t = {t:g} s, {variant:9s}: iterations mean {r['mean']:.2f}, p99 {r['p99']:.0f}, max {r['max']}",
                   flush=True)  # fmt: skip
@@ -243,12 +271,14 @@ def main(argv: list[str] | None = None) -> int:
         f"Newton iterations of the friction sub-step's solve per patch: {args.scene} ({model.patch_count} patches), "
         f"{args.precision}, dt {args.dt:g} s (scripts/friction_solve_iterations.py)",
         "",
-        "| t [s] | solve | mean | p99 | max | histogram (iterations: patches) |",
-        "|---|---|---|---|---|---|",
+        f"| t [s] | solve | mean | p99 | max | histogram (iterations: patches) | solves ≥ {LONG} iterations "
+        "(of them, slip through zero) |",
+        "|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         hist = ", ".join(f"{k}: {v}" for k, v in r["histogram"].items())
-        lines.append(f"| {r['time_s']:g} | {r['variant']} | {r['mean']:.2f} | {r['p99']:.0f} | {r['max']} | {hist} |")
+        lines.append(f"| {r['time_s']:g} | {r['variant']} | {r['mean']:.2f} | {r['p99']:.0f} | {r['max']} | {hist} "
+                     f"| {r['long']} ({r['long_through_zero']}) |")  # fmt: skip
     (args.out / "solve_iterations.md").write_text("\n".join(lines) + "\n")
     return 0
 

@@ -39,11 +39,21 @@ def read_sass(path: Path) -> tuple[str, list[dict[str, str]]]:
     header = rows[1]
     if SAMPLES not in header:
         raise ValueError(f"{path}: no '{SAMPLES}' column (profile with --section SourceCounters)")
-    return rows[0][1], [dict(zip(header, r, strict=False)) for r in rows[2:] if len(r) == len(header)]
+    body = [r for r in rows[2:] if r]
+    for k, r in enumerate(body, start=3):
+        if len(r) != len(header):
+            raise ValueError(f"{path}: row {k} has {len(r)} fields, the header {len(header)}")
+    return rows[0][1], [dict(zip(header, r, strict=True)) for r in body]
 
 
 def _count(value: str) -> int:
-    return int(value) if value.strip().isdigit() else 0
+    """A sample count of the export: digits, possibly with thousands separators; empty or "-" for none."""
+    text = value.strip().replace(",", "")
+    if text in ("", "-"):
+        return 0
+    if not text.isdigit():
+        raise ValueError(f"not a sample count: {value!r}")
+    return int(text)
 
 
 def stall_shares(rows: list[dict[str, str]]) -> tuple[int, list[tuple[str, int, float]]]:
@@ -78,14 +88,15 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--top must be >= 0")
     try:
         kernel, rows = read_sass(args.sass)
+        total, shares = stall_shares(rows)
+        top = top_instructions(rows, args.top)
     except (OSError, ValueError) as exc:
         ap.error(str(exc))
-    total, shares = stall_shares(rows)
     lines = [f"Warp-state samples of {kernel} ({total} samples; {args.sass.name}, scripts/ncu_stalls.py)", "",
              "| stall reason | samples | share |", "|---|---|---|"]  # fmt: skip
     lines += [f"| {k} | {n} | {s:.1%} |" for k, n, s in shares]
     lines += ["", "| address | instruction | samples | largest reasons |", "|---|---|---|---|"]
-    lines += [f"| {a} | `{src}` | {n} | {why} |" for a, src, n, why in top_instructions(rows, args.top)]
+    lines += [f"| {a} | `{src}` | {n} | {why} |" for a, src, n, why in top]
     text = "\n".join(lines) + "\n"
     print(text, end="")
     if args.markdown:

@@ -13,7 +13,7 @@ import warp as wp
 from aca_warp.kernels.physics import friction_substep
 from scriptload import load_script
 
-from aca_warp.hf.solver import NEWTON_TOL
+from aca_warp.hf.options import NEWTON_TOL
 
 fsi = load_script("friction_solve_iterations")
 
@@ -82,9 +82,25 @@ def test_command_writes_its_table(tmp_path: Path) -> None:
         (1e-6, "kernel"), (1e-6, "zero-slip"), (2e-6, "kernel"), (2e-6, "zero-slip")
     ]  # fmt: skip
     assert all(r["max"] >= r["p99"] >= 1 and sum(r["histogram"].values()) == doc["patches"] for r in doc["rows"])
+    assert all(r["long_through_zero"] <= r["long"] for r in doc["rows"])
+    # hf1 slides at its start: every solve takes one Newton step and one evaluation to confirm it
+    assert doc["rows"][0]["histogram"] == {"2": doc["patches"]}
     assert (out / "solve_iterations.md").read_text().count("\n| 1e-06 |") == 2
 
 
-def test_times_must_increase(tmp_path: Path) -> None:
-    with pytest.raises(SystemExit):
-        fsi.main(["--times", "2e-6", "1e-6", "--out", str(tmp_path)])
+@pytest.mark.parametrize(
+    ("argv", "words"),
+    [
+        (["--times", "2e-6", "1e-6"], "--times must increase"),
+        (["--scene", "nope", "--times", "1e-6"], "nope"),
+        (["--scene", "hf1", "--times", "1.5e-6"], "not a whole number of sample intervals"),
+        (["--scene", "varying_area", "--times", "2e-6"], "growth spacing"),
+        (["--scene", "hf1", "--dt", "3e-7", "--times", "1e-6"], "must divide the scene's sample interval"),
+    ],
+)
+def test_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], words: str) -> None:
+    """Bad input ends in one line naming it (exit 2), before any run."""
+    with pytest.raises(SystemExit) as exc:
+        fsi.main([*argv, "--out", str(tmp_path / "o")])
+    assert exc.value.code == 2 and words in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

@@ -45,7 +45,17 @@ def test_markdown_and_refusals(tmp_path: Path) -> None:
     assert ns.main([str(_export(tmp_path / "s.csv")), "--top", "1", "--markdown", str(md)]) == 0
     text = md.read_text()
     assert "| barrier | 5 | 55.6% |" in text and "| 0x10 | `FFMA R1, R2, R3, R4` | 6 | wait 4, barrier 2 |" in text
-    bad = tmp_path / "bad.csv"
-    bad.write_text('"Address","Source"\n')
-    with pytest.raises(SystemExit):
-        ns.main([str(bad)])
+    for name, text in [
+        ("no_kernel.csv", '"Address","Source"\n'),
+        ("short_row.csv", '"Kernel Name","k",\n' + HEADER + '\n"0x10","NOP","1"\n'),
+        ("not_a_count.csv", '"Kernel Name","k",\n' + HEADER + '\n"0x10","NOP","many","0","0","0"\n'),
+    ]:
+        bad = tmp_path / name
+        bad.write_text(text)
+        with pytest.raises(SystemExit) as exc:
+            ns.main([str(bad)])
+        assert exc.value.code == 2
+
+
+def test_thousands_separators() -> None:
+    assert ns._count("1,234") == 1234 and ns._count("-") == 0 and ns._count("") == 0

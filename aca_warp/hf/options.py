@@ -36,6 +36,9 @@ DEFAULT_TOLERANCE = 1.0e-5  # adaptive: μ errors ≤ 1e-7 on hf1 and stick-slip
 # controlled: the rms over a pad of the per-patch local velocity errors of a step, relative to the patch's velocity
 # scale V_i; 1e-2 meets the saturated-statistics targets on hf1 sectors (docs/friction_step.md §5.2)
 DEFAULT_SPLIT_TOLERANCE = 1.0e-2
+# the implicit friction solve's tolerance per state precision, of its velocity increment's scale (kernels/physics.py,
+# solve_velocity)
+NEWTON_TOL = {"fp32": 1.0e-6, "fp64": 1.0e-9}
 ENGINES = ("auto", "onchip", "general")
 ONCHIP_INTEGRATORS = ("strang", "adaptive")  # the integrators the on-chip engine implements
 FAST_MATH_HELP = (

@@ -38,6 +38,7 @@ from aca_warp.hf.options import (
     DEFAULT_SPLIT_TOLERANCE,
     DEFAULT_TOLERANCE,
     INTEGRATORS,
+    NEWTON_TOL,
     STEP_CONTROLLED,
     RunOptions,
     default_step,
@@ -47,7 +48,6 @@ from aca_warp.kernels import hf as K
 
 FP32_MIN_TOLERANCE = 1.0e-5  # relative; tighter asks fp32 for more digits than it has
 ADAPTIVE_FIRST_STEP = 1.0e-9  # s; the adaptive controller grows it by up to 5× per accepted step
-NEWTON_TOL = {"fp32": 1.0e-6, "fp64": 1.0e-9}  # the friction solve's tolerance, of the velocity increment's scale
 CONTACT_BLOCK = 256  # threads per pad of the growth events' contact re-solve (Warp's default block size)
 
 

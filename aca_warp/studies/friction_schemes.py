@@ -38,13 +38,15 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from aca_warp.hf.options import NEWTON_TOL as SOLVER_TOL
+
 METHODS = ("mid", "thmid", "be", "sdirk2", "trbdf2", "sub4")
 KICKS = ("outside", "inside")
 SDIRK_D = 1.0 - 1.0 / math.sqrt(2.0)  # diagonal of sdirk2 and of both TR-BDF2 stages
 TRBDF2_G = 2.0 - math.sqrt(2.0)  # TR-BDF2's intermediate time fraction
 TRBDF2_C1 = 1.0 / (TRBDF2_G * (2.0 - TRBDF2_G))  # BDF2 weights: y⁺ = c1 Y1 − c0 y + d h φ(y⁺)
 TRBDF2_C0 = (1.0 - TRBDF2_G) ** 2 / (TRBDF2_G * (2.0 - TRBDF2_G))
-NEWTON_TOL = 1.0e-9  # of the step's velocity change (the kernels' fp64 tolerance)
+NEWTON_TOL = SOLVER_TOL["fp64"]  # of the step's velocity change: the kernels' fp64 tolerance
 SUBSTEPS = 4  # sdirk2 sub-steps of ``sub4``
 THETA_RHO = 0.5  # ``thmid`` keeps |R(−hγ)| ≤ this at the patch's own friction rate: θ = 1/2 up to hγ = 6
 STATIC_SLIP = 0.17  # m/s: Eq. 4 rises with the slip below this (its maximum); a patch there holds to the disc
