@@ -529,10 +529,10 @@ def test_a_free_task_waits_for_a_begun_preparation(tmp_path: Path, monkeypatch: 
     for begun in (True, False):
         gate = tmp_path / f"gate-{begun}"  # one per case, left in place: the held processes see it and finish
         p = Preparer(spec.doc, str(spec.base_dir), 1, 1, device="cpu")
-        if begun:  # marked, then held
-            p.prepare = functools.partial(prep_mod._begin, p.folder, functools.partial(gated, str(gate), p.work))
-        else:  # held before its mark
-            p.prepare = functools.partial(gated, str(gate), p.prepare)
+        if begun:  # shard 0 marked, then held
+            p.prepare = functools.partial(prep_mod._begin, p.folder, functools.partial(gated_one, str(gate), 0, p.work))
+        else:  # shard 0 held before its mark
+            p.prepare = functools.partial(gated_one, str(gate), 0, p.prepare)
         try:
             p.plan([0, 1])
             if begun:
@@ -541,12 +541,14 @@ def test_a_free_task_waits_for_a_begun_preparation(tmp_path: Path, monkeypatch: 
                 threading.Timer(0.3, gate.touch).start()
                 shard = _in_time(lambda p=p, asked=asked: p.take(0, lambda: asked.append(0) or True), 120)
                 assert isinstance(shard, PreparedShard) and shard.index == 0 and not asked
+                # no pool process writes into the folder while it is removed: shard 1 prepared first
+                _in_time(lambda p=p: _until(lambda: p.first_ready([1]) == 1), 120)
             else:
                 time.sleep(0.5)  # the pool process holds shard 0 before marking it
                 assert not p.began(0) and p.take(0, lambda: True) is None
         finally:
+            p.close()  # before the gate opens: a process held before its mark then finds no folder to write into
             gate.touch()
-            p.close()
         assert not Path(p.folder).exists()
 
 
