@@ -56,14 +56,16 @@ def _count(value: str) -> int:
     return int(text)
 
 
+def _reasons(row: dict[str, str]) -> Counter[str]:
+    """One instruction's samples per stall reason (the columns ``stall_*``, all samples, not only the not-issued)."""
+    return Counter({k.removeprefix("stall_"): _count(v) for k, v in row.items()
+                    if k.startswith("stall_") and "Not Issued" not in k})  # fmt: skip
+
+
 def stall_shares(rows: list[dict[str, str]]) -> tuple[int, list[tuple[str, int, float]]]:
     """(all samples, [(reason, samples, share of all)] largest first) over the sampled stall reasons."""
     total = sum(_count(r[SAMPLES]) for r in rows)
-    reasons: Counter[str] = Counter()
-    for r in rows:
-        for k, v in r.items():
-            if k.startswith("stall_") and "Not Issued" not in k:
-                reasons[k.removeprefix("stall_")] += _count(v)
+    reasons = sum((_reasons(r) for r in rows), Counter())
     return total, [(k, n, n / total if total else 0.0) for k, n in reasons.most_common() if n]
 
 
@@ -71,9 +73,7 @@ def top_instructions(rows: list[dict[str, str]], n: int) -> list[tuple[str, str,
     """The ``n`` instructions with the most samples: (address, SASS, samples, their two largest reasons)."""
     out = []
     for r in sorted(rows, key=lambda r: -_count(r[SAMPLES]))[:n]:
-        reasons = Counter({k.removeprefix("stall_"): _count(v) for k, v in r.items()
-                           if k.startswith("stall_") and "Not Issued" not in k})  # fmt: skip
-        words = ", ".join(f"{k} {v}" for k, v in reasons.most_common(2) if v)
+        words = ", ".join(f"{k} {v}" for k, v in _reasons(r).most_common(2) if v)
         out.append((r.get("Address", ""), " ".join(r.get("Source", "").split()), _count(r[SAMPLES]), words))
     return out
 
