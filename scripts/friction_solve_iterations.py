@@ -226,6 +226,7 @@ def main(argv: list[str] | None = None) -> int:
     from aca_warp.hf.loop import run_hf
     from aca_warp.hf.model import build_model
     from aca_warp.hf.options import RunOptions, growth_asked
+    from aca_warp.hf.solver import fitted_step
     from aca_warp.hf.state import initial_state
     from aca_warp.scene import preset
 
@@ -237,8 +238,10 @@ def main(argv: list[str] | None = None) -> int:
     sample = scene.record.sample_dt
     interval = scene.growth.interval if scene.growth is not None else None
     growth_dt = growth_asked("strang", None, interval, args.times[-1])
-    if not whole(sample, args.dt):
-        ap.error(f"--dt {args.dt:g} s must divide the scene's sample interval, {sample:g} s")
+    taken = fitted_step(args.dt, sample)  # the step the engine takes: a whole number of them per sample interval
+    if abs(taken - args.dt) > 1e-9 * args.dt:
+        ap.error(f"--dt {args.dt:g} s must divide the scene's sample interval, {sample:g} s (the run would take "
+                 f"{taken:.6g} s)")  # fmt: skip
     for gap in np.diff([0.0, *args.times]):
         if not whole(gap, sample) or (growth_dt is not None and not whole(gap, growth_dt)):
             spacing = f" and of the growth spacing, {growth_dt:g} s" if growth_dt is not None else ""

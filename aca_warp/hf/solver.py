@@ -284,7 +284,7 @@ class HFSolver:
         self.integrator = integrator
         self.estimate = stable_step(model) if estimate is None else estimate
         self.T = model.dtype
-        self.newton_tol = self.T(NEWTON_TOL["fp32" if self.T == wp.float32 else "fp64"])
+        self.newton_tol = self.T(NEWTON_TOL[model.precision])
         for name, value in (("tolerance", tolerance), ("split_tolerance", split_tolerance)):
             if not (value > 0 and math.isfinite(value)):
                 raise SceneError(f"{name} must be a positive number, got {value}")
