@@ -12,8 +12,9 @@ frozen. The counting copy of the solve below returns the same velocity as the ke
 bracket split at the zero-slip point and, where the first Newton step leaves the bracket, the Newton step from
 there.
 
-Writes a JSON file and a Markdown table (mean, 99th percentile and largest count per time, the histogram, and the
-long solves with how many of them are of patches whose slip changes sign in the step).
+Writes a JSON file and a Markdown table (mean, 99th percentile and largest count per time; the mean over warps of
+32 consecutive patches of their largest count, which on a GPU is what a warp waits for; the histogram; and the long
+solves with how many of them are of patches whose slip changes sign in the step).
 
 Example (CPU, ~1 min)::
 
@@ -178,10 +179,12 @@ def state_arrays(model, state) -> tuple[dict[str, np.ndarray], dict[str, float]]
 
 
 LONG = 5  # iterations from which a solve counts as long
+WARP = 32  # the patches of one GPU warp: a block's threads own consecutive patches
 
 
 def summary(iterations: np.ndarray, bisections: np.ndarray, through_zero: np.ndarray) -> dict:
-    """Mean, 99th percentile, largest count and histogram of one time's iterations; bisections' mean and largest;
+    """Mean, 99th percentile, largest count, mean over warps (:data:`WARP` consecutive patches, the last group
+    shorter) of their largest count and histogram of one time's iterations; bisections' mean and largest;
     the long solves (≥ :data:`LONG` iterations) and how many of them are of patches whose slip changes sign in the
     sub-step (``through_zero``, bool (n,))."""
     hist = np.bincount(iterations)
@@ -189,6 +192,7 @@ def summary(iterations: np.ndarray, bisections: np.ndarray, through_zero: np.nda
     return {
         "mean": float(iterations.mean()),
         "p99": float(np.percentile(iterations, 99)),
+        "warp_max_mean": float(np.maximum.reduceat(iterations, np.arange(0, len(iterations), WARP)).mean()),
         "max": int(iterations.max()),
         "histogram": {int(i): int(c) for i, c in enumerate(hist) if c},
         "bisections_mean": float(bisections.mean()),
@@ -264,8 +268,8 @@ def main(argv: list[str] | None = None) -> int:
             rows.append({"time_s": t, "variant": variant,
                          **summary(got["iterations"], got["bisections"], through_zero)})  # fmt: skip
             r = rows[-1]
-            print(f"t = {t:g} s, {variant:9s}: iterations mean {r['mean']:.2f}, p99 {r['p99']:.0f}, max {r['max']}",
-                  flush=True)  # fmt: skip
+            print(f"t = {t:g} s, {variant:9s}: iterations mean {r['mean']:.2f}, p99 {r['p99']:.0f}, max {r['max']}, "
+                  f"warp max mean {r['warp_max_mean']:.2f}", flush=True)  # fmt: skip
     info = {"scene": args.scene, "patches": model.patch_count, "dt_s": args.dt, "precision": args.precision,
             "growth_dt_s": growth_dt, "machine": machine(model.device), "warp_version": wp.__version__}  # fmt: skip
     args.out.mkdir(parents=True, exist_ok=True)
@@ -274,13 +278,14 @@ def main(argv: list[str] | None = None) -> int:
         f"Newton iterations of the friction sub-step's solve per patch: {args.scene} ({model.patch_count} patches), "
         f"{args.precision}, dt {args.dt:g} s (scripts/friction_solve_iterations.py)",
         "",
-        f"| t [s] | solve | mean | p99 | max | histogram (iterations: patches) | solves ≥ {LONG} iterations "
-        "(of them, slip through zero) |",
-        "|---|---|---|---|---|---|---|",
+        "| t [s] | solve | mean | p99 | max | warp max, mean | histogram (iterations: patches) "
+        f"| solves ≥ {LONG} iterations (of them, slip through zero) |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         hist = ", ".join(f"{k}: {v}" for k, v in r["histogram"].items())
-        lines.append(f"| {r['time_s']:g} | {r['variant']} | {r['mean']:.2f} | {r['p99']:.0f} | {r['max']} | {hist} "
+        lines.append(f"| {r['time_s']:g} | {r['variant']} | {r['mean']:.2f} | {r['p99']:.0f} | {r['max']} "
+                     f"| {r['warp_max_mean']:.2f} | {hist} "
                      f"| {r['long']} ({r['long_through_zero']}) |")  # fmt: skip
     (args.out / "solve_iterations.md").write_text("\n".join(lines) + "\n")
     return 0

@@ -83,6 +83,8 @@ def test_command_writes_its_table(tmp_path: Path) -> None:
     ]  # fmt: skip
     assert all(r["max"] >= r["p99"] >= 1 and sum(r["histogram"].values()) == doc["patches"] for r in doc["rows"])
     assert all(r["long_through_zero"] <= r["long"] for r in doc["rows"])
+    # a warp waits for its slowest patch: the warps' largest counts average between the mean and the largest
+    assert all(r["mean"] <= r["warp_max_mean"] <= r["max"] for r in doc["rows"])
     # hf1 slides at its start: every solve takes one Newton step and one evaluation to confirm it
     assert doc["rows"][0]["histogram"] == {"2": doc["patches"]}
     assert (out / "solve_iterations.md").read_text().count("\n| 1e-06 |") == 2
@@ -104,3 +106,11 @@ def test_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list
         fsi.main([*argv, "--out", str(tmp_path / "o")])
     assert exc.value.code == 2 and words in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_summary_takes_each_warps_slowest_patch() -> None:
+    """Two warps of 32 patches and a last one of 3: one long solve sets its warp's count, not the others'."""
+    its = np.array([2] * 31 + [6] + [2] * 32 + [3, 2, 2], dtype=np.int32)
+    row = fsi.summary(its, np.zeros_like(its), np.zeros(len(its), dtype=bool))
+    assert row["warp_max_mean"] == pytest.approx((6 + 2 + 3) / 3)
+    assert row["max"] == 6 and row["histogram"] == {2: 65, 3: 1, 6: 1}
