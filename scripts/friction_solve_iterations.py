@@ -13,7 +13,7 @@ bracket split at the zero-slip point and, where the first Newton step leaves the
 there.
 
 Writes a JSON file and a Markdown table (mean, 99th percentile and largest count per time; the mean over warps of
-32 consecutive patches of their largest count, which on a GPU is what a warp waits for; the histogram; and the long
+32 consecutive patches of their largest count, about what a GPU warp waits for; the histogram; and the long
 solves with how many of them are of patches whose slip changes sign in the step).
 
 Example (CPU, ~1 min)::
@@ -179,7 +179,8 @@ def state_arrays(model, state) -> tuple[dict[str, np.ndarray], dict[str, float]]
 
 
 LONG = 5  # iterations from which a solve counts as long
-WARP = 32  # the patches of one GPU warp: a block's threads own consecutive patches
+WARP = 32  # the patches of one GPU warp: a block's threads own consecutive patches (the kernel's warps start anew at
+# each block's first patch, so groups counted from patch 0 approximate them)
 
 
 def summary(iterations: np.ndarray, bisections: np.ndarray, through_zero: np.ndarray) -> dict:

@@ -109,8 +109,10 @@ def test_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list
 
 
 def test_summary_takes_each_warps_slowest_patch() -> None:
-    """Two warps of 32 patches and a last one of 3: one long solve sets its warp's count, not the others'."""
-    its = np.array([2] * 31 + [6] + [2] * 32 + [3, 2, 2], dtype=np.int32)
+    """Two warps of 32 patches and a last one of 3, counted from patch 0: groups starting one patch later
+    (14/3) or counted from the end (19/3) give other means than the warps' 5, 8 and 4."""
+    its = np.full(67, 2, dtype=np.int32)
+    its[[0, 33, 63, 66]] = [5, 8, 6, 4]
     row = fsi.summary(its, np.zeros_like(its), np.zeros(len(its), dtype=bool))
-    assert row["warp_max_mean"] == pytest.approx((6 + 2 + 3) / 3)
-    assert row["max"] == 6 and row["histogram"] == {2: 65, 3: 1, 6: 1}
+    assert row["warp_max_mean"] == pytest.approx(17 / 3)
+    assert row["max"] == 8 and row["histogram"] == {2: 63, 4: 1, 5: 1, 6: 1, 8: 1}
