@@ -71,12 +71,15 @@ def spacing(text: str) -> float | None:
 
 def spacing_used(path: Path) -> float | None:
     """The spacing of growth events a run file says its run took [s] (None where it names none, or is unreadable)."""
-    try:
-        import h5py
+    import h5py
 
+    from aca_warp.common.errors import SceneError
+    from aca_warp.common.files import attr_value
+
+    try:
         with h5py.File(path, "r") as f:
-            return json.loads(f.attrs["run_options"]).get("growth_dt")
-    except (OSError, KeyError, ValueError):
+            return attr_value(f.attrs["run_options"]).get("growth_dt")  # as the hf command's summary line reads it
+    except (OSError, KeyError, AttributeError, SceneError):  # no file, no options, options that are not JSON
         return None
 
 
