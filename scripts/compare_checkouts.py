@@ -10,9 +10,10 @@ A restructuring must not change results: this script runs, from each checkout's 
 * ``sweep`` of pads of unequal size     (2 friction factors × 2 layouts × 3 patch counts, shards of 4)
 
 (opt-in with ``--jobs``, ``EXTRA_JOBS``: the on-chip strang engine, the general adaptive engine, growth on every
-engine, both Euler schemes; every job on ``--device``, the CPU unless named) and reports, per job, every dataset
-that differs (shape, dtype or any bit) and the root attributes that differ (wall times, versions and similar
-provenance are listed separately as expected differences);
+engine, both Euler schemes, and ``sweep_pairs``: 64 hf1 pads of patch seeds 1–64 in one shard over 100 µs, which a
+GPU of 132 SMs runs on clusters of 2 blocks; every job on ``--device``, the CPU unless named) and reports, per job,
+every dataset that differs (shape, dtype or any bit) and the root attributes that differ (wall times, versions and
+similar provenance are listed separately as expected differences);
 a sweep's shard files are compared file by file, and its pads one by one (rows found through ``/pads/index``, so
 that the comparison holds when the two checkouts cut the pads into shards differently). Exit code 0 when every
 dataset (every pad of a sweep) is bit-identical. The `strang` jobs name their precision and spacing of growth events,
@@ -72,6 +73,18 @@ precision = "fp32"
 "patches.seed" = [1, 2]
 "patches.count" = [60, 200, 120]
 """
+# the spec of the job sweep_pairs: 64 hf1 pads in one shard, which a GPU of 132 SMs runs on clusters of 2 blocks
+SWEEP_PAIRS = """[sweep]
+base = "hf1"
+shard_size = 64
+[run]
+duration = 1.0e-4
+precision = "fp32"
+[parameters]
+"patches.seed" = { range = [1, 65] }
+"""
+# the sweep jobs whose spec this script writes into the output folder
+SPECS = {"sweep_sizes": SWEEP_SIZES, "sweep_pairs": SWEEP_PAIRS}
 # opt-in jobs (--jobs): the engines and integrators the default jobs leave out on the CPU
 EXTRA_JOBS = {
     "hf1_onchip": ["hf", "hf1", "--duration", "2e-5", "--engine", "onchip", "--record-patches", "velocity,displacement"]
@@ -87,6 +100,7 @@ EXTRA_JOBS = {
     "hf1_euler": ["hf", "hf1", "--duration", "2e-6", "--integrator", "symplectic-euler", "--dt", "2e-10"]
     + ["--no-progress"],
     "hf1_imex": ["hf", "hf1", "--duration", "2e-5", "--integrator", "implicit-friction", "--no-progress"],
+    "sweep_pairs": ["sweep", "{out}/sweep_pairs.toml", "--workers", "0"],
 }
 # root attributes that describe the machine, the package or the wall clock, not the results
 PROVENANCE = {
@@ -272,8 +286,8 @@ def main(argv: list[str] | None = None) -> int:
         for job in args.jobs:
             spec = (JOBS | EXTRA_JOBS)[job]
             sweep = spec[0] == "sweep"
-            if job == "sweep_sizes":
-                (args.out / "sweep_sizes.toml").write_text(SWEEP_SIZES)
+            if job in SPECS:
+                (args.out / f"{job}.toml").write_text(SPECS[job])
             outs = [args.out / (f"{job}_{i}" if sweep else f"{job}_{i}.h5") for i in (0, 1)]
             for view, path, i in zip(views, outs, (0, 1), strict=True):
                 if path.is_dir():
