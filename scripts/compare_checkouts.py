@@ -10,10 +10,10 @@ A restructuring must not change results: this script runs, from each checkout's 
 * ``sweep`` of pads of unequal size     (2 friction factors × 2 layouts × 3 patch counts, shards of 4)
 
 (opt-in with ``--jobs``, ``EXTRA_JOBS``: the on-chip strang engine, the general adaptive engine, growth on every
-engine, both Euler schemes, and ``sweep_pairs``: 64 hf1 pads of patch seeds 1–64 in one shard over 100 µs, which a
-GPU of 132 SMs runs on clusters of 2 blocks; every job on ``--device``, the CPU unless named) and reports, per job,
-every dataset that differs (shape, dtype or any bit) and the root attributes that differ (wall times, versions and
-similar provenance are listed separately as expected differences);
+engine, both Euler schemes, and ``sweep_pairs`` / ``sweep_pairs_fp64``: 64 hf1 pads of patch seeds 1–64 in one shard
+over 100 µs in fp32 / fp64, which a GPU of 132 SMs runs on clusters of 2 blocks; every job on ``--device``, the
+CPU unless named) and reports, per job, every dataset that differs (shape, dtype or any bit) and the root
+attributes that differ (wall times, versions and similar provenance are listed separately as expected differences);
 a sweep's shard files are compared file by file, and its pads one by one (rows found through ``/pads/index``, so
 that the comparison holds when the two checkouts cut the pads into shards differently). Exit code 0 when every
 dataset (every pad of a sweep) is bit-identical. The `strang` jobs name their precision and spacing of growth events,
@@ -73,18 +73,23 @@ precision = "fp32"
 "patches.seed" = [1, 2]
 "patches.count" = [60, 200, 120]
 """
-# the spec of the job sweep_pairs: 64 hf1 pads in one shard, which a GPU of 132 SMs runs on clusters of 2 blocks
+# the spec of the jobs sweep_pairs (fp32) and sweep_pairs_fp64: 64 hf1 pads in one shard, which a GPU of 132 SMs runs
+# on clusters of 2 blocks
 SWEEP_PAIRS = """[sweep]
 base = "hf1"
 shard_size = 64
 [run]
 duration = 1.0e-4
-precision = "fp32"
+precision = "{precision}"
 [parameters]
-"patches.seed" = { range = [1, 65] }
+"patches.seed" = {{ range = [1, 65] }}
 """
 # the sweep jobs whose spec this script writes into the output folder
-SPECS = {"sweep_sizes": SWEEP_SIZES, "sweep_pairs": SWEEP_PAIRS}
+SPECS = {
+    "sweep_sizes": SWEEP_SIZES,
+    "sweep_pairs": SWEEP_PAIRS.format(precision="fp32"),
+    "sweep_pairs_fp64": SWEEP_PAIRS.format(precision="fp64"),
+}
 # opt-in jobs (--jobs): the engines and integrators the default jobs leave out on the CPU
 EXTRA_JOBS = {
     "hf1_onchip": ["hf", "hf1", "--duration", "2e-5", "--engine", "onchip", "--record-patches", "velocity,displacement"]
@@ -101,6 +106,7 @@ EXTRA_JOBS = {
     + ["--no-progress"],
     "hf1_imex": ["hf", "hf1", "--duration", "2e-5", "--integrator", "implicit-friction", "--no-progress"],
     "sweep_pairs": ["sweep", "{out}/sweep_pairs.toml", "--workers", "0"],
+    "sweep_pairs_fp64": ["sweep", "{out}/sweep_pairs_fp64.toml", "--workers", "0"],
 }
 # root attributes that describe the machine, the package or the wall clock, not the results
 PROVENANCE = {
@@ -181,6 +187,19 @@ def same_bits(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.array_equal(a, b))
 
 
+def largest_relative(a: np.ndarray, b: np.ndarray) -> float | None:
+    """max |a − b| / max |a| of two float arrays of one shape (0 where a is all zero and b equals it; inf where a is
+    all zero and b is not), None when they cannot be compared so (other shapes or not floats). NaNs are left out."""
+    a, b = np.asarray(a), np.asarray(b)
+    if a.shape != b.shape or a.dtype.kind != "f" or b.dtype.kind != "f" or a.size == 0:
+        return None
+    diff = np.abs(a.astype(np.float64) - b.astype(np.float64))
+    top, scale = np.nanmax(diff, initial=0.0), np.nanmax(np.abs(a.astype(np.float64)), initial=0.0)
+    if top == 0.0:
+        return 0.0
+    return float(top / scale) if scale > 0.0 else float("inf")
+
+
 def compare_sweeps(a: Path, b: Path) -> dict:
     """Differences between two sweep directories: their pads one by one (``/pads/index`` gives a row's pad; every
     global output of every pad compared bit for bit) and their shard files (as :func:`compare`)."""
@@ -220,6 +239,8 @@ def compare(a: Path, b: Path) -> dict:
         "only_first": only_a,
         "only_second": only_b,
         "different": differ,
+        # how far each differing float dataset is off: max |second − first| / max |first| (None: not comparable so)
+        "largest_relative": {k: largest_relative(da[k], db[k]) for k in differ},
         "attrs_different": [k for k in attr_diff if k not in PROVENANCE],
         "attrs_provenance": [k for k in attr_diff if k in PROVENANCE],
     }
@@ -232,11 +253,17 @@ def same_results(r: dict) -> bool:
     return not (r["different"] or r["only_first"] or r["only_second"])
 
 
+def _with_sizes(r: dict) -> str:
+    """The differing datasets of a :func:`compare` report, each with its largest relative difference where known."""
+    sizes = r.get("largest_relative", {})
+    return ", ".join(k + (f" (≤ {sizes[k]:.2g} relative)" if sizes.get(k) is not None else "") for k in r["different"])
+
+
 def file_line(r: dict) -> str:
     """One line on a run file's comparison."""
     return (
         f"{r['datasets']} datasets, {'bit-identical' if same_results(r) else 'DIFFERENT'}"
-        + (f"; differ: {r['different']}" if r["different"] else "")
+        + (f"; differ: {_with_sizes(r)}" if r["different"] else "")
         + (f"; only in first: {r['only_first']}" if r["only_first"] else "")
         + (f"; only in second: {r['only_second']}" if r["only_second"] else "")
         + (f"; attributes differ: {r['attrs_different']}" if r["attrs_different"] else "")

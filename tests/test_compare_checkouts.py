@@ -1,0 +1,57 @@
+"""scripts/compare_checkouts.py: the sizes of the differences it reports and the sweep specs it writes."""
+
+from __future__ import annotations
+
+import tomllib
+
+import h5py
+import numpy as np
+import pytest
+
+from tests.scriptload import load_script
+
+cc = load_script("compare_checkouts")
+
+
+@pytest.mark.parametrize(
+    ("a", "b", "expected"),
+    [
+        ([1.0, -4.0, 2.0], [1.0, -4.0, 2.0], 0.0),
+        ([1.0, -4.0, 2.0], [1.0, -4.0, 2.5], 0.125),  # 0.5 / max |a| = 4
+        ([0.0, 0.0], [0.0, 1e-3], float("inf")),
+        ([1.0, np.nan], [1.5, np.nan], 0.5),  # NaNs left out
+    ],
+)
+def test_largest_relative(a, b, expected):
+    """max |b − a| / max |a|, against the first array's largest value, not each element's own."""
+    assert cc.largest_relative(np.array(a), np.array(b)) == expected
+
+
+def test_largest_relative_not_comparable():
+    """Other shapes and integer data have no relative difference."""
+    assert cc.largest_relative(np.zeros(3), np.zeros(4)) is None
+    assert cc.largest_relative(np.arange(3), np.arange(3) + 1) is None
+
+
+def test_compare_reports_sizes(tmp_path):
+    """A run file pair: the differing float dataset listed with its size, the equal one not listed."""
+    paths = [tmp_path / "a.h5", tmp_path / "b.h5"]
+    for path, last in zip(paths, (2.0, 2.0 + 2e-16 * 2.0), strict=True):
+        with h5py.File(path, "w") as f:
+            f["global/mu"] = np.array([1.0, last])
+            f["global/same"] = np.arange(4.0)
+    r = cc.compare(*paths)
+    assert r["different"] == ["global/mu"]
+    assert r["largest_relative"]["global/mu"] == pytest.approx(2.0 * np.finfo(float).eps / 2.0, rel=1e-6)
+    assert "global/mu (≤ 2.2e-16 relative)" in cc.file_line(r)
+    assert not cc.same_results(r)
+
+
+@pytest.mark.parametrize(("job", "precision"), [("sweep_pairs", "fp32"), ("sweep_pairs_fp64", "fp64")])
+def test_pair_specs(job, precision):
+    """The 64-pad sweeps are valid TOML with their precision, one shard of 64 patch seeds, and each is a job."""
+    spec = tomllib.loads(cc.SPECS[job])
+    assert spec["run"]["precision"] == precision
+    assert spec["sweep"]["shard_size"] == 64
+    assert spec["parameters"]["patches.seed"] == {"range": [1, 65]}
+    assert cc.EXTRA_JOBS[job][1] == f"{{out}}/{job}.toml"
