@@ -189,10 +189,13 @@ def same_bits(a: np.ndarray, b: np.ndarray) -> bool:
 
 def largest_relative(a: np.ndarray, b: np.ndarray) -> float | None:
     """max |a − b| / max |a| of two float arrays of one shape (0 where a is all zero and b equals it; inf where a is
-    all zero and b is not), None when they cannot be compared so (other shapes or not floats). NaNs are left out."""
+    all zero and b is not, or where a NaN of one stands opposite a number of the other), None when they cannot be
+    compared so (other shapes or not floats). NaNs in the same places are left out."""
     a, b = np.asarray(a), np.asarray(b)
     if a.shape != b.shape or a.dtype.kind != "f" or b.dtype.kind != "f" or a.size == 0:
         return None
+    if np.any(np.isnan(a) != np.isnan(b)):
+        return float("inf")
     diff = np.abs(a.astype(np.float64) - b.astype(np.float64))
     top, scale = np.nanmax(diff, initial=0.0), np.nanmax(np.abs(a.astype(np.float64)), initial=0.0)
     if top == 0.0:

@@ -76,8 +76,9 @@ CASES = [
     ("full, cluster 4, block 256", "fp32", 256, None, ("cluster4",)),
     ("full, cluster 8, block 128", "fp32", 128, None, ("cluster8",)),
     ("full, cluster 8, block 112", "fp32", 112, None, ("cluster8",)),
-    # the same layout with other threads per block: more threads, fewer registers per thread (512 threads leave 128,
-    # 640 96, 896 72; 384 and fewer 168: scripts/onchip_registers.py), one to four patches per thread
+    # the same layout with other threads per block: more threads, fewer registers per thread (fp32: 256 threads use
+    # 199, 320 and 384 168, 448 and 512 128, 640 96, 896 72; scripts/onchip_registers.py), one to four patches per
+    # thread
     ("full, cluster 2, block 1024", "fp32", 1024, None, ("cluster2",)),
     ("full, cluster 2, block 896", "fp32", 896, None, ("cluster2",)),
     ("full, cluster 2, block 1024", "fp64", 1024, None, ("cluster2",)),

@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
-import tomllib
+import sys
 
 import h5py
 import numpy as np
 import pytest
 
 from tests.scriptload import load_script
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
 
 cc = load_script("compare_checkouts")
 
@@ -19,7 +24,8 @@ cc = load_script("compare_checkouts")
         ([1.0, -4.0, 2.0], [1.0, -4.0, 2.0], 0.0),
         ([1.0, -4.0, 2.0], [1.0, -4.0, 2.5], 0.125),  # 0.5 / max |a| = 4
         ([0.0, 0.0], [0.0, 1e-3], float("inf")),
-        ([1.0, np.nan], [1.5, np.nan], 0.5),  # NaNs left out
+        ([1.0, np.nan], [1.5, np.nan], 0.5),  # NaNs in the same places left out
+        ([1.0, 2.0], [1.0, np.nan], float("inf")),  # a NaN opposite a number
     ],
 )
 def test_largest_relative(a, b, expected):
