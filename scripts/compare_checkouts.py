@@ -11,8 +11,9 @@ A restructuring must not change results: this script runs, from each checkout's 
 
 (opt-in with ``--jobs``, ``EXTRA_JOBS``: the on-chip strang engine, the general adaptive engine, growth on every
 engine, both Euler schemes, and ``sweep_pairs`` / ``sweep_pairs_fp64``: 64 hf1 pads of patch seeds 1–64 in one shard
-over 100 µs in fp32 / fp64, which a GPU of 132 SMs runs on clusters of 2 blocks; every job on ``--device``, the
-CPU unless named) and reports, per job, every dataset that differs (shape, dtype or any bit) and the root
+over 100 µs in fp32 / fp64, which a GPU of 132 SMs runs on clusters of 2 blocks; ``lf_seed7`` then
+``hf_lf_state``: an HF pad on an LF state of 4196 patches, 100 µs in fp32; every job on ``--device``, the CPU unless
+named) and reports, per job, every dataset that differs (shape, dtype or any bit) and the root
 attributes that differ (wall times, versions and similar provenance are listed separately as expected differences);
 a sweep's shard files are compared file by file, and its pads one by one (rows found through ``/pads/index``, so
 that the comparison holds when the two checkouts cut the pads into shards differently). Exit code 0 when every
@@ -107,6 +108,11 @@ EXTRA_JOBS = {
     "hf1_imex": ["hf", "hf1", "--duration", "2e-5", "--integrator", "implicit-friction", "--no-progress"],
     "sweep_pairs": ["sweep", "{out}/sweep_pairs.toml", "--workers", "0"],
     "sweep_pairs_fp64": ["sweep", "{out}/sweep_pairs_fp64.toml", "--workers", "0"],
+    # an LF state of about 4200 patches (LF seed 7's app2_start), then one HF pad on it read from the first checkout's
+    # LF file (run lf_seed7 first, in the same --jobs): on a GPU 8 blocks of 525 patches, more than 512 per block
+    "lf_seed7": ["lf", "multiscale", "--seed", "7", "--no-progress"],
+    "hf_lf_state": ["hf", "{out}/lf_seed7_0.h5", "--snapshot", "app2_start", "--duration", "1e-4"]
+    + ["--precision", "fp32", "--no-progress"],
 }
 # root attributes that describe the machine, the package or the wall clock, not the results
 PROVENANCE = {

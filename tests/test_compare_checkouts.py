@@ -61,3 +61,11 @@ def test_pair_specs(job, precision):
     assert spec["sweep"]["shard_size"] == 64
     assert spec["parameters"]["patches.seed"] == {"range": [1, 65]}
     assert cc.EXTRA_JOBS[job][1] == f"{{out}}/{job}.toml"
+
+
+def test_lf_state_job_reads_the_first_lf_file():
+    """hf_lf_state runs on the LF file that the job lf_seed7 wrote from the first checkout, so both checkouts' HF runs
+    start from the same state."""
+    assert cc.EXTRA_JOBS["lf_seed7"][:4] == ["lf", "multiscale", "--seed", "7"]
+    job = cc.EXTRA_JOBS["hf_lf_state"]
+    assert job[:4] == ["hf", "{out}/lf_seed7_0.h5", "--snapshot", "app2_start"]
