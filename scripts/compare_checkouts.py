@@ -114,6 +114,8 @@ EXTRA_JOBS = {
     "hf_lf_state": ["hf", "{out}/lf_seed7_0.h5", "--snapshot", "app2_start", "--duration", "1e-4"]
     + ["--precision", "fp32", "--no-progress"],
 }
+# jobs that read what another job wrote, and that job, which must come earlier in --jobs
+NEEDS = {"hf_lf_state": "lf_seed7"}
 # root attributes that describe the machine, the package or the wall clock, not the results
 PROVENANCE = {
     "versions",
@@ -306,6 +308,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = ap.parse_args(argv)
     refuse_bad_checkouts(ap, [args.first, args.second])  # every refusal before --out is made: nothing written
+    for job, need in NEEDS.items():
+        if job in args.jobs and need not in args.jobs[: args.jobs.index(job)]:
+            ap.error(f"--jobs: {job} runs on the file that {need} writes; name {need} before it")
     from aca_warp.common.errors import AcaError
     from aca_warp.common.files import check_output_folder
 

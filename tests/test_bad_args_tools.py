@@ -11,7 +11,8 @@ import test_device_errors
 
 from aca_warp.cli import main as aca_warp
 
-SPEC = Path(__file__).resolve().parent.parent / "aca_warp" / "data" / "sweep_hf1.toml"
+REPO = str(Path(__file__).resolve().parent.parent)  # a checkout of aca_warp
+SPEC = Path(REPO) / "aca_warp" / "data" / "sweep_hf1.toml"
 ABSENT = "{tmp}/absent"  # a folder that does not exist
 
 
@@ -32,6 +33,8 @@ ABSENT = "{tmp}/absent"  # a folder that does not exist
         ("bench_sweep", ["--pads", "3"], "choose a power of two"),
         ("bench_sweep", ["--json", f"{ABSENT}/b.json"], "output folder"),
         ("compare_checkouts", [ABSENT, ABSENT, "--out", "{tmp}/cmp"], "not a checkout of aca_warp"),
+        ("compare_checkouts", [REPO, REPO, "--out", "{tmp}/cmp", "--jobs", "hf_lf_state", "lf_seed7"], "name lf_seed7"),
+        ("compare_checkouts", [REPO, REPO, "--out", "{tmp}/cmp", "--jobs", "hf_lf_state"], "name lf_seed7"),
         ("corrupt_files", ["--commands", "nope"], "--commands: unknown 'nope'"),
         ("corrupt_files", ["--jobs", "0"], "--jobs: must be >= 1"),
         ("corrupt_files", ["--formats", "-1"], "--formats: must be >= 0"),
