@@ -91,11 +91,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--dt", type=float, default=None, help="step of the fixed-step cases [s] (default: each case's, CASES)"
     )
+    ap.add_argument(
+        "--growth-dt",
+        type=float,
+        default=None,
+        help="simulated time between the growth events of a growing scene [s] (RunOptions.growth_dt of the strang "
+        "cases; default: the scene's own interval)",
+    )
     ap.add_argument("--cache", type=Path, default=None, help="kernel caches kept here (default: a temporary folder)")
     args = ap.parse_args(argv)
-    if args.dt is not None and not 0 < args.dt < float("inf"):
-        print(f"bench_checkouts: --dt must be a step > 0 [s], got {args.dt}", file=sys.stderr)
-        return 2
+    for flag, value in (("--dt", args.dt), ("--growth-dt", args.growth_dt)):
+        if value is not None and not 0 < value < float("inf"):
+            print(f"bench_checkouts: {flag} must be a step > 0 [s], got {value}", file=sys.stderr)
+            return 2
     for c in (args.first, args.second):
         if not (c / "aca_warp").is_dir() or not (c / "kernels").is_dir():
             print(f"bench_checkouts: {c} is not a checkout of aca_warp (no aca_warp/ and kernels/)", file=sys.stderr)
@@ -108,6 +116,8 @@ def main(argv: list[str] | None = None) -> int:
             engine, integrator, options = CASES[name]
             if args.dt is not None and "dt" in options:
                 options = {**options, "dt": args.dt}
+            if args.growth_dt is not None and integrator == "strang":
+                options = {**options, "growth_dt": args.growth_dt}
             for precision in args.precisions:
                 for pads in args.pads:
                     case = {"scene": args.scene, "pads": pads, "device": args.device, "precision": precision}

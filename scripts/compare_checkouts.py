@@ -11,10 +11,11 @@ A restructuring must not change results: this script runs, from each checkout's 
 
 (opt-in with ``--jobs``, ``EXTRA_JOBS``: the on-chip strang engine, the general adaptive engine, growth on every
 engine, both Euler schemes, and ``sweep_pairs`` / ``sweep_pairs_fp64``: 64 hf1 pads of patch seeds 1–64 in one shard
-over 100 µs in fp32 / fp64, which a GPU of 132 SMs runs on clusters of 2 blocks; ``lf_seed7`` then
-``hf_lf_state``: an HF pad on an LF state of 4196 patches, 100 µs in fp32; every job on ``--device``, the CPU unless
-named) and reports, per job, every dataset that differs (shape, dtype or any bit) and the root
-attributes that differ (wall times, versions and similar provenance are listed separately as expected differences);
+over 100 µs in fp32 / fp64, which a GPU of 132 SMs runs on clusters of 2 blocks; ``sweep_va_pairs``: the same for 32
+growing varying_area pads; ``lf_seed7`` then ``hf_lf_state``: an HF pad on an LF state of 4196 patches, 100 µs in
+fp32; every job on ``--device``, the CPU unless named) and reports, per job, every dataset that differs (shape,
+dtype or any bit) and the root attributes that differ (wall times, versions and similar provenance are listed
+separately as expected differences);
 a sweep's shard files are compared file by file, and its pads one by one (rows found through ``/pads/index``, so
 that the comparison holds when the two checkouts cut the pads into shards differently). Exit code 0 when every
 dataset (every pad of a sweep) is bit-identical. The `strang` jobs name their precision and spacing of growth events,
@@ -85,11 +86,23 @@ precision = "{precision}"
 [parameters]
 "patches.seed" = {{ range = [1, 65] }}
 """
+# the spec of the job sweep_va_pairs: 32 growing varying_area pads in one shard (growth events 5 µs apart, strang's
+# default), which a GPU of 132 SMs runs on clusters of 2 blocks
+SWEEP_VA_PAIRS = """[sweep]
+base = "varying_area"
+shard_size = 32
+[run]
+duration = 1.0e-4
+precision = "fp32"
+[parameters]
+"patches.seed" = { range = [1, 33] }
+"""
 # the sweep jobs whose spec this script writes into the output folder
 SPECS = {
     "sweep_sizes": SWEEP_SIZES,
     "sweep_pairs": SWEEP_PAIRS.format(precision="fp32"),
     "sweep_pairs_fp64": SWEEP_PAIRS.format(precision="fp64"),
+    "sweep_va_pairs": SWEEP_VA_PAIRS,
 }
 # opt-in jobs (--jobs): the engines and integrators the default jobs leave out on the CPU
 EXTRA_JOBS = {
@@ -108,6 +121,7 @@ EXTRA_JOBS = {
     "hf1_imex": ["hf", "hf1", "--duration", "2e-5", "--integrator", "implicit-friction", "--no-progress"],
     "sweep_pairs": ["sweep", "{out}/sweep_pairs.toml", "--workers", "0"],
     "sweep_pairs_fp64": ["sweep", "{out}/sweep_pairs_fp64.toml", "--workers", "0"],
+    "sweep_va_pairs": ["sweep", "{out}/sweep_va_pairs.toml", "--workers", "0"],
     # an LF state of about 4200 patches (LF seed 7's app2_start), then one HF pad on it read from the first checkout's
     # LF file (run lf_seed7 first, in the same --jobs): on a GPU 8 blocks of 525 patches, more than 512 per block
     "lf_seed7": ["lf", "multiscale", "--seed", "7", "--no-progress"],

@@ -68,6 +68,7 @@ ABSENT = "{tmp}/absent"  # a folder that does not exist
         ("bench_lf_batches", ["--device", "cpu", "--cases", "ms_fast@x"], "a case is GROUP[:STATE][@K]"),
         ("bench_lf_batches", ["--device", "cpu", "--state-patches", "0"], "--state-patches: must be >= 2"),
         ("bench_checkouts", [ABSENT, ABSENT, "--out", "{tmp}/b", "--dt", "0"], "--dt must be a step > 0"),
+        ("bench_checkouts", [ABSENT, ABSENT, "--out", "{tmp}/b", "--growth-dt", "-1"], "--growth-dt must be a step"),
         ("validation_cost", [f"{ABSENT}/results.json"], "no results file"),
     ],
 )

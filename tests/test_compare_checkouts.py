@@ -63,6 +63,15 @@ def test_pair_specs(job, precision):
     assert cc.EXTRA_JOBS[job][1] == f"{{out}}/{job}.toml"
 
 
+def test_va_pairs_spec():
+    """The growing sweep: 32 varying_area pads of patch seeds 1–32 in one shard, fp32, and it is a job."""
+    spec = tomllib.loads(cc.SPECS["sweep_va_pairs"])
+    assert spec["sweep"] == {"base": "varying_area", "shard_size": 32}
+    assert spec["run"]["precision"] == "fp32"
+    assert spec["parameters"]["patches.seed"] == {"range": [1, 33]}
+    assert cc.EXTRA_JOBS["sweep_va_pairs"][1] == "{out}/sweep_va_pairs.toml"
+
+
 def test_lf_state_job_reads_the_first_lf_file():
     """hf_lf_state runs on the LF file that the job lf_seed7 wrote from the first checkout, so both checkouts' HF runs
     start from the same state."""

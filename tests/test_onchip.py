@@ -571,14 +571,14 @@ def test_csr_slots_bank_interleaved(cluster, threads):
     ("nmax", "cluster", "growth", "fp64", "expected"),
     [(1758, 1, False, False, 640), (1758, 1, False, True, 512), (1758, 1, True, False, 384),
      (1758, 1, True, True, 384), (1758, 2, False, False, 896), (1758, 2, False, True, 512),
-     (1758, 2, True, False, 512), (1758, 4, True, False, 448), (1758, 8, False, True, 224),
+     (1758, 2, True, False, 896), (1758, 2, True, True, 512), (1758, 4, True, False, 448), (1758, 8, False, True, 224),
      (2048, 2, False, False, 1024), (2050, 2, False, False, 512), (4000, 4, False, False, 1024),
      (100, 1, False, False, 128)],
 )  # fmt: skip
 def test_default_block(nmax, cluster, growth, fp64, expected):
     """Threads per block: the block's part rounded up to 32, capped at 640 (fp32) / 512 (fp64) on one block, 384 for a
-    growing pad on one block; on a cluster one thread per patch up to 1024 for an fp32 pad that does not grow, else 512
-    (the sizes measured fastest on the H100 and H200, docs/onchip.md)."""
+    growing pad on one block; on a cluster one thread per patch up to 1024 for an fp32 pad, else 512 (the sizes
+    measured fastest on the H100 and H200, docs/onchip.md)."""
     assert default_block(nmax, cluster, growth, fp64) == expected
 
 
