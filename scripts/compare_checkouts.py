@@ -63,46 +63,25 @@ JOBS = {
     "sweep": ["sweep", "aca_warp/data/sweep_hf1.toml", "--workers", "0", "--duration", "1e-5", "--shard-size", "5"],
     "sweep_sizes": ["sweep", "{out}/sweep_sizes.toml", "--workers", "0"],
 }
-# the spec of the job sweep_sizes, written into the output folder
-SWEEP_SIZES = """[sweep]
-base = "hf1"
-shard_size = 4
-[run]
-duration = 2.0e-5
-precision = "fp32"
-[parameters]
-"friction.M" = [0.7, 0.8]
-"patches.seed" = [1, 2]
-"patches.count" = [60, 200, 120]
-"""
-# the spec of the jobs sweep_pairs (fp32) and sweep_pairs_fp64: 64 hf1 pads in one shard, which a GPU of 132 SMs runs
-# on clusters of 2 blocks
-SWEEP_PAIRS = """[sweep]
-base = "hf1"
-shard_size = 64
-[run]
-duration = 1.0e-4
-precision = "{precision}"
-[parameters]
-"patches.seed" = {{ range = [1, 65] }}
-"""
-# the spec of the job sweep_va_pairs: 32 growing varying_area pads in one shard (growth events 5 µs apart, strang's
-# default), which a GPU of 132 SMs runs on clusters of 2 blocks
-SWEEP_VA_PAIRS = """[sweep]
-base = "varying_area"
-shard_size = 32
-[run]
-duration = 1.0e-4
-precision = "fp32"
-[parameters]
-"patches.seed" = { range = [1, 33] }
-"""
-# the sweep jobs whose spec this script writes into the output folder
+
+
+def sweep_spec(base: str, shard_size: int, duration: float, precision: str, parameters: str) -> str:
+    """The TOML spec of a sweep job: ``base`` scene, pads per shard, simulated time [s], precision and the
+    ``[parameters]`` table's lines."""
+    run = f'duration = {duration!r}\nprecision = "{precision}"'
+    return f'[sweep]\nbase = "{base}"\nshard_size = {shard_size}\n[run]\n{run}\n[parameters]\n{parameters}\n'
+
+
+# the specs of the sweep jobs, written into the output folder: sweep_sizes, pads of unequal size; sweep_pairs (fp32)
+# and sweep_pairs_fp64, 64 hf1 pads in one shard, and sweep_va_pairs, 32 growing varying_area pads (growth events
+# 5 µs apart, strang's default), which a GPU of 132 SMs runs on clusters of 2 blocks
 SPECS = {
-    "sweep_sizes": SWEEP_SIZES,
-    "sweep_pairs": SWEEP_PAIRS.format(precision="fp32"),
-    "sweep_pairs_fp64": SWEEP_PAIRS.format(precision="fp64"),
-    "sweep_va_pairs": SWEEP_VA_PAIRS,
+    "sweep_sizes": sweep_spec(
+        "hf1", 4, 2.0e-5, "fp32", '"friction.M" = [0.7, 0.8]\n"patches.seed" = [1, 2]\n"patches.count" = [60, 200, 120]'
+    ),
+    "sweep_pairs": sweep_spec("hf1", 64, 1.0e-4, "fp32", '"patches.seed" = { range = [1, 65] }'),
+    "sweep_pairs_fp64": sweep_spec("hf1", 64, 1.0e-4, "fp64", '"patches.seed" = { range = [1, 65] }'),
+    "sweep_va_pairs": sweep_spec("varying_area", 32, 1.0e-4, "fp32", '"patches.seed" = { range = [1, 33] }'),
 }
 # opt-in jobs (--jobs): the engines and integrators the default jobs leave out on the CPU
 EXTRA_JOBS = {
