@@ -76,6 +76,25 @@ def run_case(view: Path, cache: Path, case: dict) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+def growth_refusal(scene: str, growth_dt: float | None, cases: list[str]) -> str | None:
+    """Why ``--scene SCENE`` with ``--growth-dt`` cannot be run (an unknown preset; a spacing of growth events for a
+    scene that does not grow, or for a choice of cases without ``strang``), or None."""
+    from aca_warp.common.errors import AcaError
+    from aca_warp.scene import preset
+
+    try:
+        grows = preset(scene).growth is not None
+    except AcaError as e:
+        return f"--scene: {e}"
+    if growth_dt is None:
+        return None
+    if not grows:
+        return f"--growth-dt: scene {scene!r} does not grow"
+    if not any(CASES[c][1] == "strang" for c in cases):
+        return "--growth-dt applies to the strang cases, and none is asked for (--cases)"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("first", type=Path, help="first checkout (e.g. a worktree of the old commit)")
@@ -104,6 +123,9 @@ def main(argv: list[str] | None = None) -> int:
         if value is not None and not 0 < value < float("inf"):
             print(f"bench_checkouts: {flag} must be a step > 0 [s], got {value}", file=sys.stderr)
             return 2
+    if (why := growth_refusal(args.scene, args.growth_dt, args.cases)) is not None:
+        print(f"bench_checkouts: {why}", file=sys.stderr)
+        return 2
     for c in (args.first, args.second):
         if not (c / "aca_warp").is_dir() or not (c / "kernels").is_dir():
             print(f"bench_checkouts: {c} is not a checkout of aca_warp (no aca_warp/ and kernels/)", file=sys.stderr)

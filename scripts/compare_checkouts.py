@@ -11,11 +11,11 @@ A restructuring must not change results: this script runs, from each checkout's 
 
 (opt-in with ``--jobs``, ``EXTRA_JOBS``: the on-chip strang engine, the general adaptive engine, growth on every
 engine, both Euler schemes, and ``sweep_pairs`` / ``sweep_pairs_fp64``: 64 hf1 pads of patch seeds 1–64 in one shard
-over 100 µs in fp32 / fp64, which a GPU of 132 SMs runs on clusters of 2 blocks; ``sweep_va_pairs``: the same for 32
-growing varying_area pads; ``lf_seed7`` then ``hf_lf_state``: an HF pad on an LF state of 4196 patches, 100 µs in
-fp32; every job on ``--device``, the CPU unless named) and reports, per job, every dataset that differs (shape,
-dtype or any bit) and the root attributes that differ (wall times, versions and similar provenance are listed
-separately as expected differences);
+over 100 µs in fp32 / fp64, which a GPU of 132 SMs runs on clusters of 2 blocks; ``sweep_va_pairs``: 32 growing
+varying_area pads in fp32, growth events 5 µs apart, over 100 µs; ``lf_seed7`` then ``hf_lf_state``: an HF pad on an
+LF state of 4196 patches, 100 µs in fp32; every job on ``--device``, the CPU unless named) and reports, per job,
+every dataset that differs (shape, dtype or any bit) and the root attributes that differ (wall times, versions and
+similar provenance are listed separately as expected differences);
 a sweep's shard files are compared file by file, and its pads one by one (rows found through ``/pads/index``, so
 that the comparison holds when the two checkouts cut the pads into shards differently). Exit code 0 when every
 dataset (every pad of a sweep) is bit-identical. The `strang` jobs name their precision and spacing of growth events,
@@ -65,23 +65,28 @@ JOBS = {
 }
 
 
-def sweep_spec(base: str, shard_size: int, duration: float, precision: str, parameters: str) -> str:
-    """The TOML spec of a sweep job: ``base`` scene, pads per shard, simulated time [s], precision and the
-    ``[parameters]`` table's lines."""
+def sweep_spec(
+    base: str, shard_size: int, duration: float, precision: str, parameters: str, growth_dt: float | None = None
+) -> str:
+    """The TOML spec of a sweep job: ``base`` scene, pads per shard, simulated time [s], precision, the
+    ``[parameters]`` table's lines and, for growing pads, the spacing of their growth events [s] (named, so that two
+    checkouts on either side of a change of its default run the same job)."""
     run = f'duration = {duration!r}\nprecision = "{precision}"'
+    if growth_dt is not None:
+        run += f"\ngrowth_dt = {growth_dt!r}"
     return f'[sweep]\nbase = "{base}"\nshard_size = {shard_size}\n[run]\n{run}\n[parameters]\n{parameters}\n'
 
 
 # the specs of the sweep jobs, written into the output folder: sweep_sizes, pads of unequal size; sweep_pairs (fp32)
-# and sweep_pairs_fp64, 64 hf1 pads in one shard, and sweep_va_pairs, 32 growing varying_area pads (growth events
-# 5 µs apart, strang's default), which a GPU of 132 SMs runs on clusters of 2 blocks
+# and sweep_pairs_fp64, 64 hf1 pads in one shard, and sweep_va_pairs, 32 growing varying_area pads in fp32 with
+# growth events 5 µs apart, which a GPU of 132 SMs runs on clusters of 2 blocks
 SPECS = {
     "sweep_sizes": sweep_spec(
         "hf1", 4, 2.0e-5, "fp32", '"friction.M" = [0.7, 0.8]\n"patches.seed" = [1, 2]\n"patches.count" = [60, 200, 120]'
     ),
     "sweep_pairs": sweep_spec("hf1", 64, 1.0e-4, "fp32", '"patches.seed" = { range = [1, 65] }'),
     "sweep_pairs_fp64": sweep_spec("hf1", 64, 1.0e-4, "fp64", '"patches.seed" = { range = [1, 65] }'),
-    "sweep_va_pairs": sweep_spec("varying_area", 32, 1.0e-4, "fp32", '"patches.seed" = { range = [1, 33] }'),
+    "sweep_va_pairs": sweep_spec("varying_area", 32, 1.0e-4, "fp32", '"patches.seed" = { range = [1, 33] }', 5.0e-6),
 }
 # opt-in jobs (--jobs): the engines and integrators the default jobs leave out on the CPU
 EXTRA_JOBS = {

@@ -59,7 +59,8 @@ CASES = [
     ("no gather, default block", "fp32", None, None, ("gather",)),
     ("no friction, no gather, default block", "fp32", None, None, ("friction", "gather")),
     ("no sample outputs, default block", "fp32", None, None, ("sample",)),
-    # a pad over a thread-block cluster of K blocks ("clusterK"; block size: the part rounded up to 32, at most 512)
+    # a pad over a thread-block cluster of K blocks ("clusterK"; block size: the engine's default_block, the part
+    # rounded up to 32: in fp32 up to 1024, in fp64 at most 512)
     ("full, cluster 2", "fp32", None, None, ("cluster2",)),
     # the default layout of 29-66 pads on 132 SMs (default_cluster): with --pads 64 --dt 1e-7 --sample-dt 1e-6 the
     # recording floor of the saturated hf1 benchmark

@@ -69,6 +69,14 @@ ABSENT = "{tmp}/absent"  # a folder that does not exist
         ("bench_lf_batches", ["--device", "cpu", "--state-patches", "0"], "--state-patches: must be >= 2"),
         ("bench_checkouts", [ABSENT, ABSENT, "--out", "{tmp}/b", "--dt", "0"], "--dt must be a step > 0"),
         ("bench_checkouts", [ABSENT, ABSENT, "--out", "{tmp}/b", "--growth-dt", "-1"], "--growth-dt must be a step"),
+        ("bench_checkouts", [REPO, REPO, "--out", "{tmp}/b", "--growth-dt", "5e-6"], "scene 'hf1' does not grow"),
+        ("bench_checkouts", [REPO, REPO, "--out", "{tmp}/b", "--scene", "nope"], "--scene: "),
+        (
+            "bench_checkouts",
+            [REPO, REPO, "--out", "{tmp}/b", "--scene", "varying_area", "--growth-dt", "5e-6"]
+            + ["--cases", "onchip_adaptive"],
+            "none is asked for",
+        ),
         ("validation_cost", [f"{ABSENT}/results.json"], "no results file"),
     ],
 )

@@ -64,10 +64,11 @@ def test_pair_specs(job, precision):
 
 
 def test_va_pairs_spec():
-    """The growing sweep: 32 varying_area pads of patch seeds 1–32 in one shard, fp32, and it is a job."""
+    """The growing sweep: 32 varying_area pads of patch seeds 1–32 in one shard, fp32, its growth spacing named (so
+    that both checkouts run it, whatever their default), and it is a job."""
     spec = tomllib.loads(cc.SPECS["sweep_va_pairs"])
     assert spec["sweep"] == {"base": "varying_area", "shard_size": 32}
-    assert spec["run"]["precision"] == "fp32"
+    assert spec["run"] == {"duration": 1e-4, "precision": "fp32", "growth_dt": 5e-6}
     assert spec["parameters"]["patches.seed"] == {"range": [1, 33]}
     assert cc.EXTRA_JOBS["sweep_va_pairs"][1] == "{out}/sweep_va_pairs.toml"
 

@@ -22,7 +22,8 @@ from aca_warp.kernels.hf_onchip import RED_SLOTS
 MAX_BLOCK = 1024  # threads per block
 MAX_CLUSTER = 16  # blocks per pad (8 is the portable cluster size; H100/H200 launch 16 as "non-portable")
 DEFAULT_BLOCK = 512  # threads per pad by default (1024 leaves 64 registers per thread: the fp64 kernel spills)
-# On a cluster an fp32 pad takes one thread per patch of its block's part instead, up to MAX_BLOCK: 64 hf1 pads on
+# On a cluster an fp32 pad takes one thread per patch of its block's part instead where that fits MAX_BLOCK threads
+# (a larger part keeps DEFAULT_BLOCK): 64 hf1 pads on
 # clusters of 2 (879 patches per block) take 9.8 % less time per step with 896 threads (72 registers) than with 512
 # (128 registers, two patches per thread), 32 growing varying_area pads with events 5 us apart 13 %, every result
 # bit for bit the same where compared. fp64 gains 2.7-3.1 % but its sample sums, added in another order, change in
@@ -132,7 +133,8 @@ def _resident(model: PadModel, nbytes: int, threads: int, limit: int) -> int:
 def default_block(nmax: int, cluster: int, growth: bool, fp64: bool) -> int:
     """Threads per block for ``block_dim=None``: the block's part of an ``nmax``-patch pad rounded up to 32, at most
     ``DEFAULT_BLOCK``; on one block at most ``GROWTH_BLOCK`` for a growing pad, ``FP32_BLOCK`` for an fp32 one; on a
-    cluster, an fp32 pad takes one thread per patch of its part up to ``MAX_BLOCK`` threads."""
+    cluster, an fp32 pad takes one thread per patch of its part where that part fits ``MAX_BLOCK`` threads (a larger
+    part, and fp64, at most ``DEFAULT_BLOCK``)."""
     part = _round_up(-(-nmax // cluster), 32)
     if cluster == 1:
         return min(GROWTH_BLOCK if growth else (DEFAULT_BLOCK if fp64 else FP32_BLOCK), part)
