@@ -202,8 +202,9 @@ def largest_relative(a: np.ndarray, b: np.ndarray) -> float | None:
         return None
     if np.any(np.isnan(a) != np.isnan(b)):
         return float("inf")
-    diff = np.abs(a.astype(np.float64) - b.astype(np.float64))
-    top, scale = np.nanmax(diff, initial=0.0), np.nanmax(np.abs(a.astype(np.float64)), initial=0.0)
+    a = a.astype(np.float64)
+    diff = np.abs(a - b.astype(np.float64))
+    top, scale = np.nanmax(diff, initial=0.0), np.nanmax(np.abs(a), initial=0.0)
     if top == 0.0:
         return 0.0
     return float(top / scale) if scale > 0.0 else float("inf")

@@ -80,19 +80,12 @@ CASES = [
     # the same layout with other threads per block: more threads, fewer registers per thread (fp32: 256 threads use
     # 199, 320 and 384 168, 448 and 512 128, 640 96, 896 72; scripts/onchip_registers.py), one to four patches per
     # thread
-    ("full, cluster 2, block 1024", "fp32", 1024, None, ("cluster2",)),
-    ("full, cluster 2, block 896", "fp32", 896, None, ("cluster2",)),
-    ("full, cluster 2, block 1024", "fp64", 1024, None, ("cluster2",)),
-    ("full, cluster 2, block 896", "fp64", 896, None, ("cluster2",)),
-    ("full, cluster 2, block 768", "fp32", 768, None, ("cluster2",)),
-    ("full, cluster 2, block 640", "fp32", 640, None, ("cluster2",)),
-    ("full, cluster 2, block 576", "fp32", 576, None, ("cluster2",)),
-    ("full, cluster 2, block 448", "fp32", 448, None, ("cluster2",)),
-    ("full, cluster 2, block 384", "fp32", 384, None, ("cluster2",)),
-    ("full, cluster 2, block 320", "fp32", 320, None, ("cluster2",)),
-    ("full, cluster 2, block 256", "fp32", 256, None, ("cluster2",)),
-    ("full, cluster 2, block 384", "fp64", 384, None, ("cluster2",)),
-    ("full, cluster 2, block 256", "fp64", 256, None, ("cluster2",)),
+    *[
+        (f"full, cluster 2, block {block}", precision, block, None, ("cluster2",))
+        for block, precision in [(1024, "fp32"), (896, "fp32"), (1024, "fp64"), (896, "fp64")]
+        + [(b, "fp32") for b in (768, 640, 576, 448, 384, 320, 256)]
+        + [(384, "fp64"), (256, "fp64")]
+    ],
     ("full, cluster 2", "fp64", None, None, ("cluster2",)),
     ("no sample outputs, cluster 2", "fp64", None, None, ("cluster2", "sample")),
     ("full, cluster 4", "fp32", None, None, ("cluster4",)),
