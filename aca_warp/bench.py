@@ -350,7 +350,7 @@ def run_bench(
     engines: tuple[str, ...] = ("auto",),
     maths: tuple[str, ...] = ("exact",),
     pads: tuple[int, ...] = (1,),
-    dt: float = 1.0e-8,
+    dt: float | None = 1.0e-8,
     duration: float = 2.0e-5,
     sample_dt: float = 1.0e-6,
     reference: bool = True,
@@ -358,13 +358,19 @@ def run_bench(
     log: Any = None,
 ) -> dict:
     """Run every case; returns ``{"machine", "scene", ..., "results": [rows]}`` (JSON-able). ``maths``: ``exact``
-    and/or ``fast`` (CUDA fast math, on-chip strang in fp32 only: other cases are not run with it)."""
+    and/or ``fast`` (CUDA fast math, on-chip strang in fp32 only: other cases are not run with it). ``dt`` None:
+    strang's default step for the scene (:func:`~aca_warp.hf.options.default_step`), for every case."""
     import warp as wp
 
     from aca_warp.common.devices import get_device
     from aca_warp.common.files import machine
+    from aca_warp.hf.options import default_step
     from aca_warp.scene import Record
 
+    sc = bench_scene(scene, patches, sample_dt)
+    default = dt is None
+    if default:
+        dt = default_step("strang", [sc])
     if not (duration > 0 and dt > 0 and sample_dt > 0):
         raise SceneError("duration, dt and sample interval must be > 0")
     Record(sample_dt=sample_dt).check_duration(
@@ -378,7 +384,6 @@ def run_bench(
     if "fast" in maths and dev.is_cpu:
         raise SceneError("fast math applies to CUDA devices only (Warp's CPU build has no fast math)")
     module_load = load_modules(dev)
-    sc = bench_scene(scene, patches, sample_dt)
     rows = []
     refs: dict[int, np.ndarray] = {}
     for npads, prec, integ, eng, fast in _cases(pads, precisions, integrators, engines, maths):
@@ -408,6 +413,7 @@ def run_bench(
         "scene": scene,
         "duration_s": duration,
         "dt_s": dt,
+        "dt_is_default": default,
         "sample_dt_s": sample_dt,
         "module_load_s": module_load,
         "results": rows,
@@ -416,9 +422,11 @@ def run_bench(
 
 def markdown(out: dict) -> str:
     """A Markdown table of a :func:`run_bench` result."""
+    default = " (strang's default for the scene)" if out.get("dt_is_default") else ""
     lines = [
         f"Machine: {out['machine']['device_name']}. Scene {out['scene']}, timed window {out['duration_s']:g} s "
-        f"simulated, dt = {out['dt_s']:g} s (adaptive: tolerance {DEFAULT_TOLERANCE:g}), Warp {out['warp_version']}. "
+        f"simulated, dt = {out['dt_s']:g} s{default} (adaptive: tolerance {DEFAULT_TOLERANCE:g}), "
+        f"Warp {out['warp_version']}. "
         "μ error: max |μ − μ_ref| / max|μ_ref| against fp64 strang at dt/4. Bandwidth: modelled bytes per step "
         "(aca_warp/bench.py) over the bare-step time.",
         "",
@@ -443,7 +451,7 @@ def markdown(out: dict) -> str:
 
 def add_parsers(sub: Any) -> None:
     """Register ``aca-warp bench``."""
-    from aca_warp.common.argtypes import int_at_least, positive
+    from aca_warp.common.argtypes import int_at_least, positive, step_or_default
     from aca_warp.hf.options import ENGINES, INTEGRATORS
 
     p = sub.add_parser(
@@ -482,11 +490,11 @@ def add_parsers(sub: Any) -> None:
     )
     p.add_argument(
         "--dt",
-        type=positive,
+        type=step_or_default,
         default=1.0e-8,
         metavar="S",
-        help="fixed step [s] (default 1e-8, the step of the published "
-        "tables; strang's default in `aca-warp hf` is 5e-8)",
+        help="fixed step [s] (default 1e-8, the step of the published tables), or 'default': strang's default step "
+        "for the scene, as `aca-warp hf` takes it (1e-7 for the shipped presets' physics, 5e-8 for any other scene)",
     )
     p.add_argument("--duration", type=positive, default=2.0e-5, metavar="S", help="timed window [s] (default 2e-5)")
     p.add_argument("--sample-dt", type=positive, default=1.0e-6, metavar="S", help="sample interval [s] (default 1e-6)")

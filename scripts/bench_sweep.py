@@ -4,7 +4,8 @@ their ratio, the speedup of two GPUs over one, every shard's phase times and the
 
 The sweep: ``--pads`` hf1 pads (default 2048: friction.M × load.normal_force × patches.seed, 8 layouts), ``strang``,
 fp32, dt 1e-8 s, 1 µs samples, 1 ms simulated, shards of 256 (``aca-warp sweep --device cuda`` but the shard size
-and the step: strang's default is 5e-8 s, the benchmark keeps 1e-8 s so that its runs compare).
+and the step: strang's default for these pads, whose M and load vary, is 5e-8 s; the benchmark keeps 1e-8 s so
+that its runs compare).
 Each configuration runs in a child process that imports the code under test (its Dask workers and preparation
 processes inherit it), starts a local Dask cluster as that code's ``aca-warp sweep --device cuda:0[,cuda:1]`` does
 (loopback only; this code: one worker process per GPU with two shard tasks in its threads, overlapped, or one,

@@ -20,6 +20,7 @@ paper's record is 0.36 s)::
     python3 scripts/time_varying_area.py --device cuda:0 --steps 1e-7 2.5e-7 5e-7 --out out/va_time
     python3 scripts/time_varying_area.py --device cuda:0 --steps 5e-8 --math exact fast --out out/va_fast
     python3 scripts/time_varying_area.py --device cuda:0 --steps 5e-8 1e-7 --growth-dt default 2.02e-7 --out out/va_g
+    python3 scripts/time_varying_area.py --device cuda:0 --steps default 5e-8 --out out/va_default  # the defaults
     python3 scripts/time_varying_area.py --device cuda:0 --steps 5e-8 --checkouts build/base . --repeat 2
     python3 scripts/time_varying_area.py --dry-run --steps 5e-8        # print the commands only
 """
@@ -38,7 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from aca_warp.cli import Parser
-from aca_warp.common.argtypes import positive
+from aca_warp.common.argtypes import positive, step_or_default
 
 # runs the CLI with the package of the view in argv[1] (scripts/compare_checkouts.py's package view)
 CHILD = (
@@ -50,10 +51,10 @@ CHILD = (
 
 @dataclass(frozen=True)
 class Case:
-    """One timed case: the fixed step [s], CUDA fast math or not, and the growth events' spacing [s] (None: no
-    ``--growth-dt``, the command's default)."""
+    """One timed case: the fixed step [s] (None: no ``--dt``, the command's default), CUDA fast math or not, and the
+    growth events' spacing [s] (None: no ``--growth-dt``, the command's default)."""
 
-    step: float
+    step: float | None
     fast: bool = False
     growth_dt: float | None = None
 
@@ -69,8 +70,9 @@ def spacing(text: str) -> float | None:
     return None if text == "default" else positive(text)
 
 
-def spacing_used(path: Path) -> float | None:
-    """The spacing of growth events a run file says its run took [s] (None where it names none, or is unreadable)."""
+def settings_used(path: Path) -> dict:
+    """The step and the spacing of growth events a run file says its run took [s], as ``step_used_s`` and
+    ``growth_dt_used_s`` (None where it names none, or is unreadable)."""
     import h5py
 
     from aca_warp.common.errors import SceneError
@@ -78,22 +80,25 @@ def spacing_used(path: Path) -> float | None:
 
     try:
         with h5py.File(path, "r") as f:
-            return attr_value(f.attrs["run_options"]).get("growth_dt")  # as the hf command's summary line reads it
+            options = attr_value(f.attrs["run_options"])  # as the hf command's summary line reads them
+            return {"step_used_s": options.get("dt"), "growth_dt_used_s": options.get("growth_dt")}
     except (OSError, KeyError, AttributeError, SceneError):  # no file, no options, options that are not JSON
-        return None
+        return {"step_used_s": None, "growth_dt_used_s": None}
 
 
 def run_file(out: Path, case: Case, checkout: int | None = None) -> Path:
     """The run file of one case (of checkout 0 or 1 with ``--checkouts``)."""
     growth = "" if case.growth_dt is None else f"_g{case.growth_dt:g}"
     kept = "" if checkout is None else f"_c{checkout}"
-    return out / f"va_{case.step:g}{growth}{'_fast' if case.fast else ''}{kept}.h5"
+    step = "default" if case.step is None else f"{case.step:g}"
+    return out / f"va_{step}{growth}{'_fast' if case.fast else ''}{kept}.h5"
 
 
 def command(case: Case, duration: float, device: str, out: Path, checkout: int | None = None) -> list[str]:
     """The command line timed for one case (``checkout``: its run file's)."""
     return [
-        "aca-warp", "hf", "varying_area", "--duration", f"{duration:g}", "--dt", f"{case.step:g}",
+        "aca-warp", "hf", "varying_area", "--duration", f"{duration:g}",
+        *([] if case.step is None else ["--dt", f"{case.step:g}"]),
         "--precision", "fp32", "--device", device, "--overwrite", "-o", str(run_file(out, case, checkout)),
         *(["--fast-math"] if case.fast else []),
         *([] if case.growth_dt is None else ["--growth-dt", f"{case.growth_dt:g}"]),
@@ -140,11 +145,19 @@ def _events(row: dict) -> str:
     return "scene" if "growth_dt_used_s" not in row else f"default ({'scene' if used is None else f'{used:g}'})"
 
 
+def _step(row: dict) -> str:
+    """The step of a row, in words: the one asked, or the command's default with the step its run file names."""
+    if row["step_s"] is not None:
+        return f"{row['step_s']:g}"
+    used = row.get("step_used_s")
+    return f"default ({'?' if used is None else f'{used:g}'})"
+
+
 def markdown(doc: dict) -> str:
     """The table of ``doc`` (one row per case)."""
     two = "checkouts" in doc
     rows = [
-        f"| {r['step_s']:g} | {'fast' if r.get('fast_math') else 'exact'} | {_events(r)} "
+        f"| {_step(r)} | {'fast' if r.get('fast_math') else 'exact'} | {_events(r)} "
         + (f"| {r['checkout']} " if two else "")
         + f"| {r['wall_s']:.1f} | {r['exit']} | {r['summary']} |"
         for r in doc["rows"]
@@ -161,7 +174,7 @@ def markdown(doc: dict) -> str:
         "|---|---|---|" + ("---|" if two else "") + "---|---|---|",
     ]
     same = [
-        f"* {c['step_s']:g} s, {'fast' if c['fast_math'] else 'exact'}, events {_events(c)}: "
+        f"* {_step(c)} s, {'fast' if c['fast_math'] else 'exact'}, events {_events(c)}: "
         + ("the two records bit-identical" if c["identical"] else f"records differ: {c['differ']}")
         for c in doc.get("comparisons", [])
     ]
@@ -171,8 +184,9 @@ def markdown(doc: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cuda:0", help="Warp device of the runs (default cuda:0)")
-    ap.add_argument("--steps", type=positive, nargs="+", default=[1e-7, 2.5e-7, 5e-7], metavar="S",
-                    help="fixed steps to time [s] (default 1e-7 2.5e-7 5e-7)")  # fmt: skip
+    ap.add_argument("--steps", type=step_or_default, nargs="+", default=[1e-7, 2.5e-7, 5e-7], metavar="S",
+                    help="fixed steps to time [s] (default 1e-7 2.5e-7 5e-7); default: no --dt, the command's default "
+                    "step, which the row records as read back from the run file")  # fmt: skip
     ap.add_argument("--duration", type=positive, default=0.36, metavar="S", help="record length [s] (default 0.36)")
     ap.add_argument("--out", default="out/va_time", help="folder of the run files and the results")
     ap.add_argument("--math", nargs="+", choices=("exact", "fast"), default=["exact"],
@@ -220,7 +234,7 @@ def main(argv: list[str] | None = None) -> int:
                     raise SystemExit(f"the warm-up of {' '.join(command(case, 1e-5, args.device, Path(tmp)))} "
                                      f"failed: {w['summary']}")  # fmt: skip
         for case, cmd in zip(cases, cmds, strict=True):
-            rows.append(case.fields() | time_one(cmd) | {"growth_dt_used_s": spacing_used(run_file(out, case))})
+            rows.append(case.fields() | time_one(cmd) | settings_used(run_file(out, case)))
             report(rows[-1], out)
     doc = {
         "date": time.strftime("%Y-%m-%d %H:%M"),
@@ -239,7 +253,7 @@ def main(argv: list[str] | None = None) -> int:
 def report(row: dict, out: Path) -> None:
     """Print one timed row (its run file named as under ``out``)."""
     row["summary"] = row["summary"].replace(f"{out}/", "")
-    what = f"dt {row['step_s']:g} s, events {_events(row)}{' fast math' if row['fast_math'] else ''}"
+    what = f"dt {_step(row)} s, events {_events(row)}{' fast math' if row['fast_math'] else ''}"
     who = f" [checkout {row['checkout']}]" if "checkout" in row else ""
     print(f"{what}{who}: {row['wall_s']:.1f} s  {row['summary']}", flush=True)
 
@@ -264,7 +278,7 @@ def time_checkouts(args: argparse.Namespace, cases: list[Case], out: Path) -> tu
                     cmd = command(case, args.duration, args.device, out, k)
                     row = time_one(in_view(cmd, views[k]), envs[k])
                     row["command"] = " ".join(cmd)  # as a user would type it in that checkout
-                    used = {"growth_dt_used_s": spacing_used(run_file(out, case, k))}
+                    used = settings_used(run_file(out, case, k))
                     rows.append(case.fields() | {"checkout": k, "repeat": r} | row | used)
                     report(rows[-1], out)
     comparisons = []

@@ -65,6 +65,19 @@ def test_bench_sample_interval_longer_than_the_warm_up(tmp_path: Path) -> None:
     assert row["steps"] == 2000 and row["complete"]
 
 
+def test_bench_takes_strangs_default_step_when_asked(tmp_path: Path) -> None:
+    """``--dt default``: the scene's own default step (1e-7 s for a preset's physics, 5e-8 s once the patch count
+    differs from the preset's), recorded as such."""
+    for patches, dt, steps in ((None, 1e-7, 20), (10, 5e-8, 40)):
+        out = tmp_path / f"d{patches}.json"
+        args = ["bench", "--dt", "default", "--duration", "2e-6", "--precision", "fp32", "--no-reference"]
+        args += ["--no-stages", "--json", str(out), "--markdown", str(tmp_path / "d.md")]
+        assert main(args + ([] if patches is None else ["--patches", str(patches)])) == 0
+        doc = json.loads(out.read_text())
+        assert doc["dt_s"] == dt and doc["dt_is_default"] and doc["results"][0]["steps"] == steps
+        assert f"dt = {dt:g} s (strang's default for the scene)" in (tmp_path / "d.md").read_text()
+
+
 def test_bench_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert main(["bench", "--duration", "1e-7", "--patches", "5", "--json", str(tmp_path / "x.json")]) == 2
     assert "(--sample-dt) exceeds the duration" in capsys.readouterr().err

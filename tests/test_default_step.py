@@ -1,28 +1,67 @@
 """The step a fixed-step run takes when none is asked for: strang's is the step at which the saturated statistics
-were shown to hold (5e-8 s, one value for every pad, so that a pad's run does not depend on its batch); the other
+were shown to hold, 1e-7 s for a scene with a shipped preset's physics (any patch seed, initial state, recording) and
+5e-8 s for any other scene; a batch of both is refused, so that a pad's run never depends on its batch. The other
 fixed-step integrators keep 1e-8 s."""
 
 from __future__ import annotations
 
+import dataclasses
+
+import numpy as np
 import pytest
 
+from aca_warp.common.errors import SceneError
 from aca_warp.hf.loop import run_hf
 from aca_warp.hf.model import build_model
-from aca_warp.hf.options import DEFAULT_DT, STATISTICS_STEP, RunOptions, default_step
+from aca_warp.hf.options import DEFAULT_DT, PRESET_STEP, STATISTICS_STEP, RunOptions, default_step
 from aca_warp.hf.runner import plan_run
 from aca_warp.hf.state import initial_state
-from aca_warp.scene import Record, load_scene, preset
+from aca_warp.scene import PRESETS, Initial, Matrix, PatchGenerator, Record, load_scene, preset, preset_document
+from aca_warp.scene.regimes import preset_regime
 from tests.test_small_defects import tiny_scene
 
 
 def test_default_steps_by_integrator():
-    assert default_step("strang") == STATISTICS_STEP == 5e-8
-    assert default_step("implicit-friction") == default_step("symplectic-euler") == DEFAULT_DT == 1e-8
+    hf1 = preset("hf1")
+    assert default_step("strang") == default_step("strang", [tiny_scene(1e-6)]) == STATISTICS_STEP == 5e-8
+    assert default_step("strang", [hf1, preset("varying_area_equal")]) == PRESET_STEP == 1e-7
+    for integrator in ("implicit-friction", "symplectic-euler"):
+        assert default_step(integrator) == default_step(integrator, [hf1]) == DEFAULT_DT == 1e-8
+    with pytest.raises(SceneError, match=r"mixes pads with a shipped preset's physics \(hf1: .* give the step"):
+        default_step("strang", [hf1, tiny_scene(1e-6)])
+
+
+def test_a_scene_shares_a_presets_physics_whatever_its_seed_state_and_recording():
+    """Every preset is its own regime; another patch seed, initial state, recording or duration keeps it; another
+    load, speed, friction, patch count or height law, patches from elsewhere or a matrix of several cells do not."""
+    for name in PRESETS:
+        assert preset_regime(preset(name)) == name
+    hf1 = preset("hf1")
+    gen = PatchGenerator(**preset_document("hf1")["patches"])
+    reseeded = hf1.replace(patches=PatchGenerator(**{**dataclasses.asdict(gen), "seed": 17}).generate(hf1.pad))
+    assert reseeded.patches.source != hf1.patches.source and preset_regime(reseeded) == "hf1"
+    same = hf1.replace(initial=Initial(state="equilibrium"), record=Record(2e-7), duration=0.03, name="mine")
+    assert preset_regime(same) == "hf1"
+    others = [
+        hf1.replace(normal_force=480.0),
+        hf1.replace(angular_velocity=hf1.angular_velocity * 0.5),
+        hf1.replace(friction=dataclasses.replace(hf1.friction, M=0.7)),
+        hf1.replace(patches=dataclasses.replace(gen, count=1000).generate(hf1.pad)),
+        hf1.replace(patches=dataclasses.replace(gen, height_law="uniform").generate(hf1.pad)),
+        hf1.replace(patches=dataclasses.replace(hf1.patches, source="python")),
+        tiny_scene(1e-6),
+    ]
+    m = hf1.matrix
+    others += [hf1.replace(matrix=Matrix(np.r_[m.area, 1e-4], np.r_[m.radius, 0.13], np.zeros(2))),
+               hf1.replace(matrix=Matrix(m.area, m.radius, np.array([1e-6])))]  # fmt: skip
+    assert [preset_regime(s) for s in others] == [None] * 9
+    equal = hf1.replace(patches=dataclasses.replace(gen, height_spread=0.0).generate(hf1.pad))
+    assert preset_regime(equal) == "hf1_equal"  # hf1 with equal heights is hf1_equal, by its physics
 
 
 def test_a_run_without_dt_takes_the_default_step():
-    """run_hf, the plan a command announces, and a scene whose friction relaxes fastest of the presets
-    (varying_area, friction step 1.34e-8 s) all take strang's default: the step is not set per batch."""
+    """run_hf, the plan a command announces, and the presets, growing or not, take strang's default for their
+    scenes; a batch that mixes them with another scene is refused before anything runs."""
     s = tiny_scene(1e-6)
     model = build_model([s])
     res = run_hf(model, initial_state(model), RunOptions(duration=2e-6), record=Record(1e-6))
@@ -33,8 +72,16 @@ def test_a_run_without_dt_takes_the_default_step():
     plan = plan_run(s, RunOptions(duration=1e-3))
     assert plan.step == STATISTICS_STEP and plan.steps == 20_000 and "steps of 5e-08 s" in plan.describe()
     va = preset("varying_area")
-    assert plan_run(va, RunOptions(duration=1e-3)).step == STATISTICS_STEP
-    assert load_scene("hf1").record.sample_dt >= STATISTICS_STEP  # the presets' sample intervals hold whole steps
+    plan = plan_run(va, RunOptions(duration=1e-3))
+    assert plan.step == PRESET_STEP and plan.steps == 10_000 and "steps of 1e-07 s" in plan.describe()
+    assert load_scene("hf1").record.sample_dt >= PRESET_STEP  # the presets' sample intervals hold whole steps
+    hf1 = preset("hf1")
+    model = build_model([hf1, hf1.replace(patches=PatchGenerator(count=1758, seed=3, height_spread=2.42e-7)
+                                          .generate(hf1.pad))])  # fmt: skip
+    res = run_hf(model, initial_state(model), RunOptions(duration=1e-6), record=Record(1e-6))
+    assert res.complete and res.dt == PRESET_STEP and res.steps == 10
+    with pytest.raises(SceneError, match="give the step"):
+        run_hf(build_model([hf1, s]), None, RunOptions(duration=1e-6))
 
 
 def test_run_files_keep_the_step_they_ran_at(tmp_path, capsys):
@@ -72,7 +119,8 @@ def test_run_files_keep_the_step_they_ran_at(tmp_path, capsys):
 
 def test_a_sweep_spec_writes_its_default_step_out():
     """A sweep without run.dt takes the integrator's default step, written into its run settings and hash (a sweep
-    directory begun when the default was 1e-8 s is then another sweep, not continued at another step)."""
+    directory begun under another default is then another sweep, not continued at another step): the base scene's
+    where the sweep varies only seeds and initial states, else the step for any scene."""
     from aca_warp.sweep import SweepError, load_spec
 
     doc = {"sweep": {"base": "hf1"}, "run": {"duration": 1e-5}, "parameters": {"friction.M": [0.6, 0.7]}}
@@ -84,3 +132,7 @@ def test_a_sweep_spec_writes_its_default_step_out():
     assert load_spec({**doc, "run": {"duration": 1e-5, "integrator": "adaptive"}}).dt is None
     with pytest.raises(SweepError, match="shorter than the step 1e-08 s"):  # checked against the first trial's bound
         load_spec({**doc, "run": {"duration": 1e-5, "integrator": "adaptive", "sample_dt": 5e-9}})
+    seeds = {**doc, "parameters": {"patches.seed": [1, 2], "initial.state": ["rest", "equilibrium"]}}
+    assert load_spec(seeds).dt == PRESET_STEP and load_spec(seeds).run_settings()["dt"] == PRESET_STEP
+    custom = {**seeds, "sweep": {"base": "hf1"}, "base": {"load": {"normal_force": 400.0}}}
+    assert load_spec(custom).dt == STATISTICS_STEP

@@ -37,6 +37,24 @@ def test_growth_dt_gives_each_step_each_spacing(capsys):
     assert e.value.code == 2 and "give the scene's interval (2.02e-7 s" in capsys.readouterr().err
 
 
+def test_default_step_is_no_option_and_read_back(capsys, tmp_path):
+    """``--steps default`` times the command without --dt; the row keeps the step its run file names."""
+    import h5py
+
+    assert load().main(["--dry-run", "--steps", "default", "5e-8"]) == 0
+    default, fixed = capsys.readouterr().out.splitlines()
+    assert "--dt" not in default and default.endswith("va_default.h5") and "--dt 5e-08" in fixed
+    run = tmp_path / "va_default.h5"
+    with h5py.File(run, "w") as f:
+        f.attrs["run_options"] = '{"dt": 1e-07, "growth_dt": 5e-06}'
+    used = load().settings_used(run)
+    assert used == {"step_used_s": 1e-7, "growth_dt_used_s": 5e-6}
+    assert load().settings_used(tmp_path / "missing.h5") == {"step_used_s": None, "growth_dt_used_s": None}
+    doc = {"date": "d", "machine": "m", "device": "cuda:0", "duration_s": 0.36,
+           "rows": [{"step_s": None, **used, "wall_s": 14.7, "exit": 0, "summary": "ok"}]}  # fmt: skip
+    assert "| default (1e-07) | exact | default (5e-06) | 14.7 | 0 | ok |" in load().markdown(doc)
+
+
 @pytest.mark.parametrize("argv", [["--steps", "-1e-7"], ["--duration", "0"], ["--growth-dt", "0"]])
 def test_bad_input_is_one_line_exit_2(argv, capsys):
     with pytest.raises(SystemExit) as e:

@@ -27,6 +27,11 @@ def positive(text: str) -> float:
     return v
 
 
+def step_or_default(text: str) -> float | None:
+    """A fixed step: a finite float > 0 [s], or ``default`` (None: strang's default step for the scene)."""
+    return None if text == "default" else positive(text)
+
+
 def spacing(text: str) -> float | str:
     """A growth events' spacing: a finite float > 0 [s], or ``scene`` (the scenes' own growth interval)."""
     return "scene" if text == "scene" else positive(text)

@@ -27,6 +27,7 @@ from aca_warp.hf.options import (
     ENGINES,
     FAST_MATH_HELP,
     INTEGRATORS,
+    PRESET_STEP,
     STATISTICS_STEP,
     STEP_CONTROLLED,
     growth_words,
@@ -90,10 +91,11 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "--dt",
         type=positive,
         metavar="S",
-        help=f"fixed step [s] (default: strang {STATISTICS_STEP:g}, the step at which the saturated statistics "
-        f"were shown to hold; the other fixed-step integrators {DEFAULT_DT:g}; shortened so that whole steps fit the "
-        "sample interval, which may not be shorter than the step, asked for or default); first trial step of "
-        "adaptive, controlled and auto",
+        help=f"fixed step [s] (default: strang {PRESET_STEP:g} for a scene with a shipped preset's physics, hf1-hf4, "
+        f"varying_area and their _equal variants with any patch seed, {STATISTICS_STEP:g} for any other scene: the "
+        f"steps at which the saturated statistics were shown to hold, docs/numerics.md; the other fixed-step "
+        f"integrators {DEFAULT_DT:g}; shortened so that whole steps fit the sample interval, which may not be shorter "
+        "than the step, asked for or default); first trial step of adaptive, controlled and auto",
     )
     hf.add_argument(
         "--tolerance",

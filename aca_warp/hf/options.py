@@ -9,20 +9,28 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, fields, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from aca_warp.common.errors import SceneError
+
+if TYPE_CHECKING:
+    from aca_warp.scene import Scene
 
 INTEGRATORS = ("symplectic-euler", "implicit-friction", "strang", "adaptive", "controlled", "auto")
 # integrators that choose their own steps per pad (dt is only the first trial)
 STEP_CONTROLLED = ("adaptive", "controlled", "auto")
 DEFAULT_INTEGRATOR = "strang"
 DEFAULT_DT = 1.0e-8  # s: the default step of the fixed-step integrators other than strang
-# strang's default step [s]: the statistical work-precision (docs/work_precision_statistics.md) keeps every
-# validation measure of saturated ensembles of hf1–hf4, varying-area pads and every group of LF states at 5e-8 s,
-# not ms_short's at 1e-7 s (hf1–hf4 and, over 96 seeds, the varying-area pads keep theirs up to 1e-7 s); one value
-# for every pad, so that a pad's run does not depend on the batch it shares
+# strang's default step [s] for a batch whose every pad shares a shipped preset's physics (hf1–hf4, varying_area and
+# their equal-height variants, any patch seed; aca_warp.scene.regimes): the statistical work-precision
+# (docs/work_precision_statistics.md) keeps every validation measure of saturated ensembles of hf1–hf4 (and hf4 up to
+# 5e-7 s) and of the growing varying-area pads (with growth events every 5 µs) at 1e-7 s, the step the validation
+# runs them at
+PRESET_STEP = 1.0e-7
+# strang's default step [s] for any other scene: every measured regime keeps its measures at 5e-8 s, the LF states
+# too (two of their groups, ms_fast and ms_short, not at 1e-7 s)
 STATISTICS_STEP = 5.0e-8
 # strang's default state precision: the same study keeps every one of those measures in fp32 at that step (every
 # regime's pick is fp32); the other integrators compute in fp64 unless asked (pointwise μ to 1e-7 and below)
@@ -50,11 +58,30 @@ FAST_MATH_HELP = (
 WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (recorder.watchdog_bound)
 
 
-def default_step(integrator: str) -> float:
-    """The step [s] a fixed-step run takes when none is asked for: :data:`STATISTICS_STEP` for ``strang`` (the step
-    at which the saturated statistics were shown to hold), :data:`DEFAULT_DT` for the other fixed-step
-    integrators (explicit friction, or a friction step not measured for the statistics)."""
-    return STATISTICS_STEP if integrator == "strang" else DEFAULT_DT
+def default_step(integrator: str, scenes: Iterable[Scene] = ()) -> float:
+    """The step [s] a fixed-step run of the pads of ``scenes`` takes when none is asked for.
+
+    ``strang``: :data:`PRESET_STEP` when every scene shares a shipped preset's physics
+    (:func:`~aca_warp.scene.regimes.preset_regime`), :data:`STATISTICS_STEP` when none does (or none is given);
+    a batch of both is refused (SceneError), so that a pad's step never depends on the batch it shares. The other
+    fixed-step integrators: :data:`DEFAULT_DT` (explicit friction, or a friction step not measured for the
+    statistics).
+    """
+    if integrator != "strang":
+        return DEFAULT_DT
+    from aca_warp.scene.regimes import preset_regime
+
+    regimes = [preset_regime(s) for s in scenes]
+    measured = [r is not None for r in regimes]
+    if all(measured) and regimes:
+        return PRESET_STEP
+    if any(measured):
+        names = sorted({r for r in regimes if r is not None})
+        raise SceneError(
+            f"this batch mixes pads with a shipped preset's physics ({', '.join(names)}: strang's default step "
+            f"{PRESET_STEP:g} s) and other pads ({STATISTICS_STEP:g} s); give the step (dt) for all of them"
+        )
+    return STATISTICS_STEP
 
 
 def default_precision(integrator: str) -> str:
@@ -79,11 +106,11 @@ def growth_asked(
     return max(STATISTICS_GROWTH_DT, interval)
 
 
-def step_asked(integrator: str, dt: float | None) -> float | None:
-    """The step a run of ``integrator`` asks for, as its file or sweep records it: ``dt``, or for a fixed-step
-    integrator :func:`default_step` written out; None stays None for the step-controlled integrators (their first
-    trial is the solver's)."""
-    return default_step(integrator) if dt is None and integrator not in STEP_CONTROLLED else dt
+def step_asked(integrator: str, dt: float | None, scenes: Iterable[Scene]) -> float | None:
+    """The step a run of ``integrator`` on ``scenes`` asks for, as its file or sweep records it: ``dt``, or for a
+    fixed-step integrator :func:`default_step` written out; None stays None for the step-controlled integrators
+    (their first trial is the solver's)."""
+    return default_step(integrator, scenes) if dt is None and integrator not in STEP_CONTROLLED else dt
 
 
 def fast_math_unfit(integrator: str, precision: str) -> str | None:
@@ -135,7 +162,8 @@ class RunOptions:
         duration: Simulated time [s]; None: the scene's own duration.
         integrator: One of :data:`INTEGRATORS` (docs/numerics.md).
         dt: Fixed step [s] (shortened so that whole steps fit a sample interval); None: :func:`default_step`
-            (``strang`` :data:`STATISTICS_STEP`, the other fixed-step integrators :data:`DEFAULT_DT`).
+            (``strang`` :data:`PRESET_STEP` for the shipped presets' physics, else :data:`STATISTICS_STEP`; the
+            other fixed-step integrators :data:`DEFAULT_DT`).
             For the step-controlled integrators (:data:`STEP_CONTROLLED`) the first trial step.
         tolerance: Relative tolerance of the explicit pair: ``adaptive`` and the sliding mode of ``auto`` [1].
         split_tolerance: Tolerance of the error-controlled split step: ``controlled`` and the sticking mode of

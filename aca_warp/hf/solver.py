@@ -298,7 +298,7 @@ class HFSolver:
                     f"use {fp64} or a looser tolerance"
                 )
         if dt is None:
-            dt = ADAPTIVE_FIRST_STEP if integrator in STEP_CONTROLLED else default_step(integrator)
+            dt = ADAPTIVE_FIRST_STEP if integrator in STEP_CONTROLLED else default_step(integrator, model.scenes)
         self.dt = dt
         if not (self.dt > 0 and math.isfinite(self.dt)):
             raise SceneError(f"dt must be a positive number of seconds, got {self.dt}")

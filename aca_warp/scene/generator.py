@@ -106,6 +106,11 @@ class PatchGenerator:
         area = rng.uniform(self.area_min, self.area_max, self.count)
         xy = self._place(pad, rng, np.sqrt(area / np.pi), max_tries)
         order = _spatial_order(xy[:, 0], xy[:, 1], 5.0e-3)
+        return Patches(xy[order, 0], xy[order, 1], area[order], self.heights()[order], source=self.describe())
+
+    def describe(self) -> str:
+        """The ``source`` of the patches this generator makes: ``generator(count=…, area=[…] m2, height=… m,
+        seed=…[, height_spread=… m, law=…[, cut=…]])``, the numbers to 6 significant digits."""
         desc = (
             f"generator(count={self.count}, area=[{self.area_min:g}, {self.area_max:g}] m2, "
             f"height={self.height:g} m, seed={self.seed})"
@@ -113,7 +118,7 @@ class PatchGenerator:
         if self.height_spread > 0.0:
             cut = f", cut={self.height_truncation:g}" if self.height_law == "normal" else ""
             desc = desc[:-1] + f", height_spread={self.height_spread:g} m, law={self.height_law}{cut})"
-        return Patches(xy[order, 0], xy[order, 1], area[order], self.heights()[order], source=desc)
+        return desc
 
     def _place(self, pad: Pad, rng: np.random.Generator, rad: np.ndarray, max_tries: int) -> np.ndarray:
         """Centres (count, 2) [m] of discs of radii ``rad`` [m] by random sequential addition inside the pad.

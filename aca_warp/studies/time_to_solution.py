@@ -366,7 +366,7 @@ def measure_scene(name: str, args: argparse.Namespace, log: Callable[[str], None
         rows.append(entry(name, "ours: auto (its defaults)", pads, f"{dev}, general engine", "tol", tries))
         what = f"strang at its defaults {pads} pad(s) dt"  # step and precision: default_step, default_precision
         at = ours("strang", fixed, "dt", precision=default_precision("strang"))
-        tries = ladder((default_step("strang"),), at, args.target, log, what)
+        tries = ladder((default_step("strang", p.scenes),), at, args.target, log, what)
         where = f"{dev}, {fixed} engine, {default_precision('strang')}"
         rows.append(entry(name, "ours: strang (its defaults)", pads, where, "dt", tries))
         first = ladder(STEPS[:1], ours("strang", fixed, "dt"), args.target, log, f"strang {pads} pad(s) dt")

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.hf.options import DEFAULT_TOLERANCE, default_step
+from aca_warp.hf.options import DEFAULT_TOLERANCE, PRESET_STEP, default_step
 from aca_warp.studies.report import figure, fmt, generated_markers, md_table, replace_generated, save_figure
 
 BEGIN, END = generated_markers("scripts/work_precision.py --report")
@@ -259,6 +259,7 @@ def defaults_table(pairs: list[tuple[dict, dict]]) -> list[str]:
     then = " (the default when these runs were made; now {:g})"
     now = "" if _close(tol, DEFAULT_TOLERANCE) else then.format(DEFAULT_TOLERANCE)
     now_dt = "" if _close(dt, default_step("strang")) else then.format(default_step("strang"))
+    now_dt = now_dt and now_dt[:-1] + f" s for a scene that is no preset's, {PRESET_STEP:g} s for the presets' physics)"
     return [
         f"**μ error over the pointwise window (wall time) at strang's step {dt:g} s{now_dt} and at adaptive's "
         f"tolerance {tol:g}{now} and below.**",

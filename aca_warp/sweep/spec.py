@@ -380,9 +380,13 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     duration = num("duration", base.duration)
     scene_clock = run.get("growth_dt") == SCENE_CLOCK  # the events at the scenes' own interval: left out
     growth_dt = None if scene_clock else num("growth_dt", None)
-    dt = step_asked(integrator, num("dt", None))  # written out: the hash and the shards name the step
     tolerance = num("tolerance", DEFAULT_TOLERANCE)
     sample_dt = num("sample_dt", base.record.sample_dt)
+    lists, params = _expand(doc.get("parameters", {}), mode, base, base_doc)
+    # the default step written out (the hash and the shards name the step): the base scene's, where the sweep
+    # varies only seeds and initial states (every pad then shares its physics), else the step for any scene
+    seeds_only = all(k == "patches.seed" or PARAMETERS[k][1] == "initial" for k in lists)
+    dt = step_asked(integrator, num("dt", None), [base] if seeds_only else [])
     try:
         from aca_warp.hf.recorder import check_run, check_sample_step
 
@@ -395,7 +399,6 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         raise SweepError(f"run settings: {e}") from None
     if dt is not None and not duration / dt <= MAX_STEPS:
         raise SweepError(f"run.duration / run.dt = {duration / dt:.3g} steps per pad, more than {MAX_STEPS:.0e}")
-    lists, params = _expand(doc.get("parameters", {}), mode, base, base_doc)
     if (growth_dt is not None or scene_clock) and base.growth is None:  # (growth.* parameters need one too)
         raise SweepError("run.growth_dt sets the spacing of growth events; the base scene does not grow (no [growth])")
     if base.growth is not None and not scene_clock:  # written out, like the step: the hash and the shards name it

@@ -1,0 +1,72 @@
+"""Which shipped preset's physics a scene shares: the regime its statistics were measured in.
+
+The statistical work-precision (docs/work_precision_statistics.md) measured how far each validation measure moves
+with the step on seed ensembles of the shipped HF presets and of LF states. A scene shares a preset's physics when
+it differs from the preset at most in what those ensembles varied or what does not enter the equations of motion:
+the patch seed (the layout is a draw of the same generator), the initial state, the recording and the duration.
+Everything else must be the preset's: the pad outline, the load, the disc speed, the friction law, the material
+constants, the growth, a fresh matrix (one cell at elevation 0), and the generator of the patches (count, area range,
+height law), which the patches' ``source`` names (:meth:`~aca_warp.scene.generator.PatchGenerator.describe`).
+"""
+
+from __future__ import annotations
+
+import re
+from functools import cache
+from typing import Any
+
+from aca_warp.scene.files import PRESETS, preset_document
+from aca_warp.scene.generator import PatchGenerator
+from aca_warp.scene.parts import Friction, Growth, Material, Pad, Scene
+
+_SEED = re.compile(r"seed=\d+")
+
+
+def _physics(scene: Scene) -> tuple[Any, ...]:
+    """What a scene's motion depends on beyond its patch seed, initial state, recording and duration."""
+    return (
+        scene.pad,
+        scene.normal_force,
+        scene.angular_velocity,
+        scene.friction,
+        scene.material,
+        scene.growth,
+        _SEED.sub("seed=*", scene.patches.source),
+    )
+
+
+@cache
+def _preset_physics() -> dict[tuple[Any, ...], str]:
+    """The physics of every shipped preset, from its document (no patches generated)."""
+    out = {}
+    for name in PRESETS:
+        doc = preset_document(name)
+        pad = Pad(**doc["pad"])
+        disc = doc.get("disc", {})
+        omega = disc["angular_velocity"] if "angular_velocity" in disc else disc["sliding_speed"] / pad.mean_radius
+        key = (
+            pad,
+            doc["load"]["normal_force"],
+            omega,
+            Friction(**doc.get("friction", {})),
+            Material(**doc.get("material", {})),
+            Growth(**doc["growth"]) if "growth" in doc else None,
+            _SEED.sub("seed=*", PatchGenerator(**doc["patches"]).describe()),
+        )
+        out[key] = name
+    return out
+
+
+def preset_regime(scene: Scene) -> str | None:
+    """The shipped preset (:data:`~aca_warp.scene.files.PRESETS`) whose physics ``scene`` shares, or None.
+
+    hf1 with another patch seed, from rest or saturated, recorded at any interval, is hf1's regime; hf1 at another
+    load, speed or patch count, with patches from a file, or an LF state, is no preset's.
+    """
+    m = scene.matrix
+    if m is not None and not (m.is_flat and m.height[0] == 0.0):  # a worn or raised matrix: no fresh pad's
+        return None
+    try:
+        return _preset_physics().get(_physics(scene))
+    except TypeError:  # an unhashable part (a scene built by hand with lists): no preset's
+        return None
