@@ -76,9 +76,9 @@ def test_rerun_without_the_patch_file_is_bit_identical(tmp_path, capsys):
 
 def test_rerun_names_what_it_applies_and_keeps_the_size_limits(tmp_path, capsys):
     """A run file whose stored options relax checks (force, the watchdog off, allow_implausible) and ask for 1e5 s
-    at strang's default 5e-8 s steps (2e12 steps, 1e8 samples): `rerun` names each stored relaxation on stderr and
-    refuses the run with one line, nothing written (before: silently applied, and a 1e13-step run started); the same
-    file asking for 2 µs reruns, with the same note."""
+    at strang's default for a small scene, 5e-8 s (2e12 steps, 1e8 samples): `rerun` names each stored relaxation on
+    stderr and refuses the run with one line, nothing written (before: silently applied, and a 1e13-step run
+    started); the same file asking for 2 µs reruns, with the same note."""
     from procs import small_scene_toml
 
     (tmp_path / "s.toml").write_text(small_scene_toml("relaxed", count=10, duration=2.0e-6))
