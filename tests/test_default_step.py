@@ -136,3 +136,22 @@ def test_a_sweep_spec_writes_its_default_step_out():
     assert load_spec(seeds).dt == PRESET_STEP and load_spec(seeds).run_settings()["dt"] == PRESET_STEP
     custom = {**seeds, "sweep": {"base": "hf1"}, "base": {"load": {"normal_force": 400.0}}}
     assert load_spec(custom).dt == STATISTICS_STEP
+
+
+def test_the_summary_line_says_why_the_step(tmp_path, capsys):
+    """``aca-warp hf`` without --dt names the default it took: the preset's physics, or a scene of no preset."""
+    from procs import small_scene_toml
+
+    from aca_warp.cli import main
+
+    (tmp_path / "s.toml").write_text(small_scene_toml("small", count=10, duration=2.0e-6))
+    for scene, words in (
+        ("hf2", "(1e-07 s, the default step for hf2's physics, strang, fp32)"),
+        (str(tmp_path / "s.toml"), "(5e-08 s, the default step for a scene of no preset, strang"),
+    ):
+        assert main(["hf", scene, "--duration", "2e-6", "-o", str(tmp_path / "r.h5"), "--overwrite",
+                     "--no-progress"]) == 0  # fmt: skip
+        assert words in capsys.readouterr().out
+    assert main(["hf", "hf2", "--duration", "2e-6", "--dt", "1e-7", "-o", str(tmp_path / "r.h5"), "--overwrite",
+                 "--no-progress"]) == 0  # fmt: skip
+    assert "(1e-07 s, strang, fp32)" in capsys.readouterr().out

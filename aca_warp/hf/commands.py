@@ -320,7 +320,8 @@ def _summarise_hf(args: argparse.Namespace, scene: Any, result: Any, duration: f
     rate = n * result.steps / max(result.wall_time, 1e-12)
     line = (
         f"{args.output}: {len(mu)} samples over {result.sim_time:.4g} s, {result.steps} steps "
-        f"({result.dt:.3g} s, {args.integrator}, {precision}{', fast math' if args.fast_math else ''}"
+        f"({result.dt:.3g} s{_default_step_words(args, scene)}, {args.integrator}, {precision}"
+        f"{', fast math' if args.fast_math else ''}"
         f"{growth_words(growth_dt)}), "
         f"mean mu {np.mean(mu):.4f}, "
         f"{rate:.3g} patch-steps/s"
@@ -331,6 +332,16 @@ def _summarise_hf(args: argparse.Namespace, scene: Any, result: Any, duration: f
         return 3
     print(line)
     return 0
+
+
+def _default_step_words(args: argparse.Namespace, scene: Any) -> str:
+    """Why a ``strang`` run without ``--dt`` took its step, for the summary line (nothing when --dt was given)."""
+    if args.dt is not None or args.integrator != "strang":
+        return ""
+    from aca_warp.scene.regimes import preset_regime
+
+    regime = preset_regime(scene)
+    return f", the default step for {regime}'s physics" if regime else ", the default step for a scene of no preset"
 
 
 def stopped_at(sim_time: float, duration: float | None) -> str:
