@@ -18,8 +18,8 @@ every dataset that differs (shape, dtype or any bit) and the root attributes tha
 similar provenance are listed separately as expected differences);
 a sweep's shard files are compared file by file, and its pads one by one (rows found through ``/pads/index``, so
 that the comparison holds when the two checkouts cut the pads into shards differently). Exit code 0 when every
-dataset (every pad of a sweep) is bit-identical. The `strang` jobs name their precision and spacing of growth events,
-so that two checkouts on either side of a change of those defaults run the same job.
+dataset (every pad of a sweep) is bit-identical. The `strang` jobs name their step, precision and spacing of growth
+events, so that two checkouts on either side of a change of those defaults run the same job.
 
 Each checkout is imported as it is on disk: a temporary folder holds a package ``aca_warp`` whose entries link
 to the checkout's ``aca_warp/`` with ``kernels`` linked to the checkout's ``kernels/`` (the layout an install
@@ -49,13 +49,14 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-# the strang jobs name their precision, and the growing ones their growth events' spacing, so that checkouts on either
-# side of a change of strang's defaults (fp64, then fp32; events at the scene's 2.02e-7 s, then every 5e-6 s) run
-# the same job; one pair in each precision
+# the strang jobs name their step and precision, and the growing ones their growth events' spacing, so that checkouts
+# on either side of a change of strang's defaults (fp64, then fp32; events at the scene's 2.02e-7 s, then every 5e-6 s;
+# 5e-8 s for every scene, then 1e-7 s for the presets' physics) run the same job; one pair in each precision
+STEP = ["--dt", "5e-8"]
 JOBS = {
-    "hf1": ["hf", "hf1", "--duration", "2e-5", "--precision", "fp64", "--no-progress"],
-    "hf1_fp32": ["hf", "hf1", "--duration", "2e-5", "--precision", "fp32", "--no-progress"],
-    "varying_area": ["hf", "varying_area", "--duration", "1e-5", "--precision", "fp64", "--growth-dt", "2.02e-7"]
+    "hf1": ["hf", "hf1", "--duration", "2e-5", *STEP, "--precision", "fp64", "--no-progress"],
+    "hf1_fp32": ["hf", "hf1", "--duration", "2e-5", *STEP, "--precision", "fp32", "--no-progress"],
+    "varying_area": ["hf", "varying_area", "--duration", "1e-5", *STEP, "--precision", "fp64", "--growth-dt", "2.02e-7"]
     + ["--no-progress"],
     "hf1_adaptive": ["hf", "hf1", "--duration", "1e-4", "--integrator", "adaptive", "--tolerance", "1e-5"]
     + ["--no-progress"],
@@ -69,9 +70,9 @@ def sweep_spec(
     base: str, shard_size: int, duration: float, precision: str, parameters: str, growth_dt: float | None = None
 ) -> str:
     """The TOML spec of a sweep job: ``base`` scene, pads per shard, simulated time [s], precision, the
-    ``[parameters]`` table's lines and, for growing pads, the spacing of their growth events [s] (named, so that two
-    checkouts on either side of a change of its default run the same job)."""
-    run = f'duration = {duration!r}\nprecision = "{precision}"'
+    ``[parameters]`` table's lines and, for growing pads, the spacing of their growth events [s] (named, as the step
+    is, 5e-8 s, so that two checkouts on either side of a change of their defaults run the same job)."""
+    run = f'duration = {duration!r}\ndt = 5.0e-8\nprecision = "{precision}"'
     if growth_dt is not None:
         run += f"\ngrowth_dt = {growth_dt!r}"
     return f'[sweep]\nbase = "{base}"\nshard_size = {shard_size}\n[run]\n{run}\n[parameters]\n{parameters}\n'
@@ -91,9 +92,9 @@ SPECS = {
 # opt-in jobs (--jobs): the engines and integrators the default jobs leave out on the CPU
 EXTRA_JOBS = {
     "hf1_onchip": ["hf", "hf1", "--duration", "2e-5", "--engine", "onchip", "--record-patches", "velocity,displacement"]
-    + ["--precision", "fp64", "--no-progress"],
+    + [*STEP, "--precision", "fp64", "--no-progress"],
     "varying_area_onchip": ["hf", "varying_area", "--duration", "1e-5", "--engine", "onchip", "--precision", "fp64"]
-    + ["--growth-dt", "2.02e-7", "--no-progress"],
+    + [*STEP, "--growth-dt", "2.02e-7", "--no-progress"],
     "hf1_adaptive_general": ["hf", "hf1", "--duration", "1e-4", "--integrator", "adaptive", "--tolerance", "1e-5"]
     + ["--engine", "general", "--record-patches", "velocity", "--no-progress"],
     "varying_area_adaptive": ["hf", "varying_area", "--duration", "1e-5", "--integrator", "adaptive"]
@@ -110,7 +111,7 @@ EXTRA_JOBS = {
     # LF file (run lf_seed7 first, in the same --jobs): on a GPU 8 blocks of 525 patches, more than 512 per block
     "lf_seed7": ["lf", "multiscale", "--seed", "7", "--no-progress"],
     "hf_lf_state": ["hf", "{out}/lf_seed7_0.h5", "--snapshot", "app2_start", "--duration", "1e-4"]
-    + ["--precision", "fp32", "--no-progress"],
+    + [*STEP, "--precision", "fp32", "--no-progress"],
 }
 # jobs that read what another job wrote, and that job, which must come earlier in --jobs
 NEEDS = {"hf_lf_state": "lf_seed7"}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -16,6 +17,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 cc = load_script("compare_checkouts")
+REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.mark.parametrize(
@@ -55,20 +57,33 @@ def test_compare_reports_sizes(tmp_path):
 
 @pytest.mark.parametrize(("job", "precision"), [("sweep_pairs", "fp32"), ("sweep_pairs_fp64", "fp64")])
 def test_pair_specs(job, precision):
-    """The 64-pad sweeps are valid TOML with their precision, one shard of 64 patch seeds, and each is a job."""
+    """The 64-pad sweeps are valid TOML with their step and precision, one shard of 64 patch seeds, and each is a
+    job."""
     spec = tomllib.loads(cc.SPECS[job])
-    assert spec["run"]["precision"] == precision
+    assert spec["run"]["precision"] == precision and spec["run"]["dt"] == 5e-8
     assert spec["sweep"]["shard_size"] == 64
     assert spec["parameters"]["patches.seed"] == {"range": [1, 65]}
     assert cc.EXTRA_JOBS[job][1] == f"{{out}}/{job}.toml"
 
 
+def test_every_strang_job_names_its_step():
+    """Every job of the default integrator names its step, so that checkouts on either side of a change of strang's
+    default step run the same job (the sweep specs name it in their [run] table)."""
+    for name, job in {**cc.JOBS, **cc.EXTRA_JOBS}.items():
+        if job[0] == "hf" and "--integrator" not in job:
+            assert "--dt" in job, name
+        elif job[0] == "sweep" and not job[1].startswith("{out}/"):  # a packaged spec (SPECS are checked below)
+            assert "dt" in tomllib.loads((REPO / job[1]).read_text())["run"], name
+    for text in cc.SPECS.values():
+        assert tomllib.loads(text)["run"]["dt"] == 5e-8
+
+
 def test_va_pairs_spec():
-    """The growing sweep: 32 varying_area pads of patch seeds 1–32 in one shard, fp32, its growth spacing named (so
-    that both checkouts run it, whatever their default), and it is a job."""
+    """The growing sweep: 32 varying_area pads of patch seeds 1–32 in one shard, fp32, its step and growth spacing
+    named (so that both checkouts run it, whatever their defaults), and it is a job."""
     spec = tomllib.loads(cc.SPECS["sweep_va_pairs"])
     assert spec["sweep"] == {"base": "varying_area", "shard_size": 32}
-    assert spec["run"] == {"duration": 1e-4, "precision": "fp32", "growth_dt": 5e-6}
+    assert spec["run"] == {"duration": 1e-4, "dt": 5e-8, "precision": "fp32", "growth_dt": 5e-6}
     assert spec["parameters"]["patches.seed"] == {"range": [1, 33]}
     assert cc.EXTRA_JOBS["sweep_va_pairs"][1] == "{out}/sweep_va_pairs.toml"
 
