@@ -368,10 +368,8 @@ def run_bench(
     from aca_warp.scene import Record
 
     sc = bench_scene(scene, patches, sample_dt)
-    default = dt is None
-    if default:
-        dt = default_step("strang", [sc])
-    if not (duration > 0 and dt > 0 and sample_dt > 0):
+    step = default_step("strang", [sc]) if dt is None else dt
+    if not (duration > 0 and step > 0 and sample_dt > 0):
         raise SceneError("duration, dt and sample interval must be > 0")
     Record(sample_dt=sample_dt).check_duration(
         duration, option("sample_dt", "--sample-dt"), option("duration", "--duration")
@@ -388,7 +386,7 @@ def run_bench(
     refs: dict[int, np.ndarray] = {}
     for npads, prec, integ, eng, fast in _cases(pads, precisions, integrators, engines, maths):
         try:
-            r = run_case(sc, device, prec, integ, npads, dt, duration, stages=stages, engine=eng, fast_math=fast)
+            r = run_case(sc, device, prec, integ, npads, step, duration, stages=stages, engine=eng, fast_math=fast)
         except SceneError as e:
             if not fast:
                 raise
@@ -400,7 +398,7 @@ def run_bench(
         r["mu_rel_error_max"] = None
         if reference:
             if npads not in refs:  # reference: fp64 strang at dt/4 over the same two windows
-                refs[npads] = run_case(sc, device, "fp64", "strang", 1, dt / 4, duration, stages=False)["mu"]
+                refs[npads] = run_case(sc, device, "fp64", "strang", 1, step / 4, duration, stages=False)["mu"]
             n = min(len(mu), len(refs[npads]))
             scale = max(np.abs(refs[npads][:n]).max(), 1e-300)
             r["mu_rel_error_max"] = float(np.max(np.abs(mu[:n] - refs[npads][:n])) / scale)
@@ -412,8 +410,8 @@ def run_bench(
         "warp_version": wp.__version__,
         "scene": scene,
         "duration_s": duration,
-        "dt_s": dt,
-        "dt_is_default": default,
+        "dt_s": step,
+        "dt_is_default": dt is None,
         "sample_dt_s": sample_dt,
         "module_load_s": module_load,
         "results": rows,

@@ -67,6 +67,7 @@ def time_engine(scenes: list[Any], engine: str, precision: str, dt: float | None
     return {
         "wall": wall,
         "steps": res.steps,
+        "step_s": res.dt,
         "patches": model.patch_count,
         "mu": res.collect().globals[:, :, 0],
         "state": [a.copy() for a in state.numpy()],
@@ -93,11 +94,17 @@ def run_case(case: str, precision: str, dt: float | None, duration: float, repea
         "patches": ref["patches"],
         "precision": precision,
         "steps": ref["steps"],
+        "step_s": ref["step_s"],
         "walls": walls,
         "us_per_step": {e: best[e] / ref["steps"] * 1e6 for e in ENGINES},
         "speedup": best["general"] / best["onchip"],
         "bit_identical": True,
     }
+
+
+def _step(row: dict[str, Any]) -> str:
+    """A row's step [s] (``?`` in a result file written before the rows named it)."""
+    return "?" if row.get("step_s") is None else f"{row['step_s']:g}"
 
 
 def markdown(doc: dict[str, Any]) -> str:
@@ -107,15 +114,18 @@ def markdown(doc: dict[str, Any]) -> str:
         f"# strang on the CPU: general against on-chip engine ({m['device_name']}, Warp {doc['warp_version']})",
         "",
         f"`{doc['command']}`; {doc['duration_s']:g} s per run, best of {doc['repeats']}, step "
-        f"{doc['dt_s'] if doc['dt_s'] else 'the default'}; μ(t) and final state bit-identical between the engines.",
+        f"{doc['dt_s'] if doc['dt_s'] else 'the default of each case'}; μ(t) and final state bit-identical between the "
+        "engines.",
         "",
-        "| case | pads | patches | precision | steps | general [µs/step] | on chip [µs/step] | on chip speed-up |",
-        "|---|---|---|---|---|---|---|---|",
+        "| case | pads | patches | precision | step [s] | steps | general [µs/step] | on chip [µs/step] "
+        "| on chip speed-up |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in doc["results"]:
         us = r["us_per_step"]
         lines.append(
-            f"| {r['case']} | {r['pads']} | {r['patches']} | {r['precision']} | {r['steps']} | {us['general']:.2f} | "
+            f"| {r['case']} | {r['pads']} | {r['patches']} | {r['precision']} | {_step(r)} | {r['steps']} | "
+            f"{us['general']:.2f} | "
             f"{us['onchip']:.2f} | {r['speedup']:.2f}× |"
         )
     return "\n".join(lines) + "\n"

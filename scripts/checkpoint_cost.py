@@ -56,6 +56,7 @@ def hf_runs(args: argparse.Namespace, folder: Path) -> dict:
         )
         out["machine"] = machine(model.device)
         out["steps"] = res.steps
+        out["step_s"] = res.dt  # strang's default for the scene (docs/numerics.md)
     return out
 
 

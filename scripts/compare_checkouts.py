@@ -12,14 +12,14 @@ A restructuring must not change results: this script runs, from each checkout's 
 (opt-in with ``--jobs``, ``EXTRA_JOBS``: the on-chip strang engine, the general adaptive engine, growth on every
 engine, both Euler schemes, and ``sweep_pairs`` / ``sweep_pairs_fp64``: 64 hf1 pads of patch seeds 1–64 in one shard
 over 100 µs in fp32 / fp64, which a GPU of 132 SMs runs on clusters of 2 blocks; ``sweep_va_pairs``: 32 growing
-varying_area pads in fp32, growth events 5 µs apart, over 100 µs; ``lf_seed7`` then ``hf_lf_state``: an HF pad on an
-LF state of 4196 patches, 100 µs in fp32; every job on ``--device``, the CPU unless named) and reports, per job,
-every dataset that differs (shape, dtype or any bit) and the root attributes that differ (wall times, versions and
-similar provenance are listed separately as expected differences);
-a sweep's shard files are compared file by file, and its pads one by one (rows found through ``/pads/index``, so
-that the comparison holds when the two checkouts cut the pads into shards differently). Exit code 0 when every
-dataset (every pad of a sweep) is bit-identical. The `strang` jobs name their step, precision and spacing of growth
-events, so that two checkouts on either side of a change of those defaults run the same job.
+varying_area pads in fp32, growth events 5 µs apart, over 100 µs (``sweep_va_pairs_2ms``: over 2 ms); ``lf_seed7``
+then ``hf_lf_state``: an HF pad on an LF state of 4196 patches, 100 µs in fp32; every job on ``--device``, the CPU
+unless named) and reports, per job, every dataset that differs (shape, dtype or any bit) and the root attributes that
+differ (wall times, versions and similar provenance are listed separately as expected differences); a sweep's shard
+files are compared file by file, and its pads one by one (rows found through ``/pads/index``, so that the comparison
+holds when the two checkouts cut the pads into shards differently). Exit code 0 when every dataset (every pad of a
+sweep) is bit-identical. The `strang` jobs name their step, precision and spacing of growth events, so that two
+checkouts on either side of a change of those defaults run the same job.
 
 Each checkout is imported as it is on disk: a temporary folder holds a package ``aca_warp`` whose entries link
 to the checkout's ``aca_warp/`` with ``kernels`` linked to the checkout's ``kernels/`` (the layout an install
@@ -88,6 +88,10 @@ SPECS = {
     "sweep_pairs": sweep_spec("hf1", 64, 1.0e-4, "fp32", '"patches.seed" = { range = [1, 65] }'),
     "sweep_pairs_fp64": sweep_spec("hf1", 64, 1.0e-4, "fp64", '"patches.seed" = { range = [1, 65] }'),
     "sweep_va_pairs": sweep_spec("varying_area", 32, 1.0e-4, "fp32", '"patches.seed" = { range = [1, 33] }', 5.0e-6),
+    # the same over 2 ms: 400 growth events, each with its contact re-solve, whose block sums feed back into the motion
+    "sweep_va_pairs_2ms": sweep_spec(
+        "varying_area", 32, 2.0e-3, "fp32", '"patches.seed" = { range = [1, 33] }', 5.0e-6
+    ),
 }
 # opt-in jobs (--jobs): the engines and integrators the default jobs leave out on the CPU
 EXTRA_JOBS = {
@@ -107,6 +111,7 @@ EXTRA_JOBS = {
     "sweep_pairs": ["sweep", "{out}/sweep_pairs.toml", "--workers", "0"],
     "sweep_pairs_fp64": ["sweep", "{out}/sweep_pairs_fp64.toml", "--workers", "0"],
     "sweep_va_pairs": ["sweep", "{out}/sweep_va_pairs.toml", "--workers", "0"],
+    "sweep_va_pairs_2ms": ["sweep", "{out}/sweep_va_pairs_2ms.toml", "--workers", "0"],
     # an LF state of about 4200 patches (LF seed 7's app2_start), then one HF pad on it read from the first checkout's
     # LF file (run lf_seed7 first, in the same --jobs): on a GPU 8 blocks of 525 patches, more than 512 per block
     "lf_seed7": ["lf", "multiscale", "--seed", "7", "--no-progress"],

@@ -212,7 +212,12 @@ def whole(gap: float, unit: float) -> bool:
 def _parse(argv: list[str] | None) -> tuple[argparse.ArgumentParser, argparse.Namespace]:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scene", default="varying_area", help="preset (default varying_area)")
-    ap.add_argument("--dt", type=positive, default=5e-8, help="time step [s] (default 5e-8, strang's default)")
+    ap.add_argument(
+        "--dt",
+        type=positive,
+        default=5e-8,
+        help="time step [s] (default 5e-8, strang's default for a scene of no preset)",
+    )
     ap.add_argument("--times", type=positive, nargs="+", default=[2e-4, 1e-3, 3e-3, 1e-2],
                     help="simulated times at which to count [s], increasing (default 2e-4 1e-3 3e-3 1e-2)")  # fmt: skip
     ap.add_argument("--precision", choices=("fp32", "fp64"), default="fp32", help="state precision (default fp32)")

@@ -70,7 +70,7 @@ def spacing(text: str) -> float | None:
     return None if text == "default" else positive(text)
 
 
-def settings_used(path: Path) -> dict:
+def settings_used(path: Path) -> dict[str, float | None]:
     """The step and the spacing of growth events a run file says its run took [s], as ``step_used_s`` and
     ``growth_dt_used_s`` (None where it names none, or is unreadable)."""
     import h5py
@@ -286,9 +286,9 @@ def time_checkouts(args: argparse.Namespace, cases: list[Case], out: Path) -> tu
         files = [run_file(out, case, k) for k in range(2)]
         last = [r for r in rows if r["repeat"] == args.repeat - 1 and all(r[k] == v for k, v in case.fields().items())]
         if any(r["exit"] != 0 for r in last):
-            comparisons.append(case.fields() | {"identical": False, "differ": "a run failed"})
+            comparisons.append(case.fields() | settings_used(files[1]) | {"identical": False, "differ": "a run failed"})
             continue
-        comparisons.append(case.fields() | compare_runs(*files))
+        comparisons.append(case.fields() | settings_used(files[1]) | compare_runs(*files))
     return rows, {"checkouts": [str(c) for c in args.checkouts], "comparisons": comparisons}
 
 

@@ -15,9 +15,14 @@ def test_small_case_runs_both_engines_bit_identical(tmp_path: Path) -> None:
     assert load_script("bench_cpu_engines").main(args) == 0
     (row,) = json.loads(out.read_text())["results"]
     assert (row["case"], row["pads"], row["patches"], row["precision"]) == ("sector20", 1, 20, "fp64")
-    assert row["steps"] == 80 and row["bit_identical"] and set(row["us_per_step"]) == {"general", "onchip"}
+    assert (
+        row["steps"] == 80
+        and row["step_s"] == 5e-8
+        and row["bit_identical"]
+        and set(row["us_per_step"]) == {"general", "onchip"}
+    )
     assert row["speedup"] == pytest.approx(min(row["walls"]["general"]) / min(row["walls"]["onchip"]))
-    assert "| sector20 | 1 | 20 | fp64 | 80 |" in md.read_text()
+    assert "| sector20 | 1 | 20 | fp64 | 5e-08 | 80 |" in md.read_text()
 
 
 def test_an_engine_that_parts_from_the_other_stops_the_script(monkeypatch, capsys) -> None:

@@ -27,7 +27,10 @@ def test_default_steps_by_integrator():
     assert default_step("strang", [hf1, preset("varying_area_equal")]) == PRESET_STEP == 1e-7
     for integrator in ("implicit-friction", "symplectic-euler"):
         assert default_step(integrator) == default_step(integrator, [hf1]) == DEFAULT_DT == 1e-8
-    with pytest.raises(SceneError, match=r"mixes pads with a shipped preset's physics \(hf1: .* give the step"):
+    with pytest.raises(
+        SceneError,
+        match=r"mixes 1 pad\(s\) with .* physics \(hf1: .* and 1 other pad\(s\) .*first is pad 1\); give the step",
+    ):
         default_step("strang", [hf1, tiny_scene(1e-6)])
 
 
@@ -155,3 +158,25 @@ def test_the_summary_line_says_why_the_step(tmp_path, capsys):
     assert main(["hf", "hf2", "--duration", "2e-6", "--dt", "1e-7", "-o", str(tmp_path / "r.h5"), "--overwrite",
                  "--no-progress"]) == 0  # fmt: skip
     assert "(1e-07 s, strang, fp32)" in capsys.readouterr().out
+
+
+def test_the_validation_runs_the_presets_at_their_default_step():
+    """The validation's stepping table holds the defaults' values written out: the presets' regimes (hf, growth) at
+    strang's default for their physics with its growth spacing, ms_order (no measured regime) at the step for any
+    scene. A change of a default must change the table on purpose."""
+    from aca_warp.hf.options import STATISTICS_GROWTH_DT
+    from aca_warp.studies.validation.settings import STEPPING
+
+    assert STEPPING["hf"].dt == STEPPING["growth"].dt == PRESET_STEP
+    assert STEPPING["growth"].growth_dt == STATISTICS_GROWTH_DT and STEPPING["ms_order"].dt == STATISTICS_STEP
+
+
+def test_a_scene_read_back_from_its_run_file_keeps_its_regime(tmp_path):
+    """A run file stores the patches themselves; the scene read back names its generator in ``origin``, which is what
+    decides (a Python rerun at the default step repeats the step of the original)."""
+    from aca_warp.hf.rerun import read_settings
+    from aca_warp.hf.runner import run_scene
+
+    run_scene(preset("hf2"), tmp_path / "r.h5", RunOptions(duration=2e-6))
+    scene = read_settings(tmp_path / "r.h5").scene
+    assert scene.patches.source.endswith(":/patches") and preset_regime(scene) == "hf2"

@@ -27,10 +27,10 @@ DEFAULT_DT = 1.0e-8  # s: the default step of the fixed-step integrators other t
 # their equal-height variants, any patch seed; aca_warp.scene.regimes): the statistical work-precision
 # (docs/work_precision_statistics.md) keeps every validation measure of saturated ensembles of hf1–hf4 (and hf4 up to
 # 5e-7 s) and of the growing varying-area pads (with growth events every 5 µs) at 1e-7 s, the step the validation
-# runs them at
+# runs every preset at (the equal-height variants, not measured themselves, as the same pads)
 PRESET_STEP = 1.0e-7
 # strang's default step [s] for any other scene: every measured regime keeps its measures at 5e-8 s, the LF states
-# too (two of their groups, ms_fast and ms_short, not at 1e-7 s)
+# too (one of their groups, ms_short, not at 1e-7 s; another, ms_fast, was measured at 5e-8 s only)
 STATISTICS_STEP = 5.0e-8
 # strang's default state precision: the same study keeps every one of those measures in fp32 at that step (every
 # regime's pick is fp32); the other integrators compute in fp64 unless asked (pointwise μ to 1e-7 and below)
@@ -77,9 +77,11 @@ def default_step(integrator: str, scenes: Iterable[Scene] = ()) -> float:
         return PRESET_STEP
     if any(measured):
         names = sorted({r for r in regimes if r is not None})
+        other = measured.index(False)
         raise SceneError(
-            f"this batch mixes pads with a shipped preset's physics ({', '.join(names)}: strang's default step "
-            f"{PRESET_STEP:g} s) and other pads ({STATISTICS_STEP:g} s); give the step (dt) for all of them"
+            f"this batch mixes {sum(measured)} pad(s) with a shipped preset's physics ({', '.join(names)}: strang's "
+            f"default step {PRESET_STEP:g} s) and {measured.count(False)} other pad(s) ({STATISTICS_STEP:g} s; the "
+            f"first is pad {other}); give the step (dt) for all of them"
         )
     return STATISTICS_STEP
 

@@ -6,15 +6,22 @@ it differs from the preset at most in what those ensembles varied or what does n
 the patch seed (the layout is a draw of the same generator), the initial state, the recording and the duration.
 Everything else must be the preset's: the pad outline, the load, the disc speed, the friction law, the material
 constants, the growth, a fresh matrix (one cell at elevation 0), and the generator of the patches (count, area range,
-height law), which the patches' ``source`` names (:meth:`~aca_warp.scene.generator.PatchGenerator.describe`).
+height law): the one the scene's ``origin`` names (a scene read from TOML, or back from a run file), else the one the
+patches' ``source`` describes (:meth:`~aca_warp.scene.generator.PatchGenerator.describe`, numbers to 6 significant
+digits).
+
+The presets' equal-height variants were not measured themselves: the validation runs them at their preset's step, the
+same pads with equal heights (docs/work_precision_statistics.md).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from functools import cache
 from typing import Any
 
+from aca_warp.common.errors import SceneError
 from aca_warp.scene.files import PRESETS, preset_document
 from aca_warp.scene.generator import PatchGenerator
 from aca_warp.scene.parts import Friction, Growth, Material, Pad, Scene
@@ -31,8 +38,20 @@ def _physics(scene: Scene) -> tuple[Any, ...]:
         scene.friction,
         scene.material,
         scene.growth,
-        _SEED.sub("seed=*", scene.patches.source),
+        _generator(scene),
     )
+
+
+def _generator(scene: Scene) -> str:
+    """The description of the generator of a scene's patches, its seed masked: from ``origin`` where that holds a
+    generator's parameters, else the patches' ``source``."""
+    gen = (scene.origin or {}).get("patches", {})
+    if isinstance(gen, dict) and gen and set(gen) <= {f.name for f in dataclasses.fields(PatchGenerator)}:
+        try:
+            return _SEED.sub("seed=*", PatchGenerator(**gen).describe())
+        except (SceneError, TypeError):  # not a valid generator: the patches' own source decides
+            pass
+    return _SEED.sub("seed=*", scene.patches.source)
 
 
 @cache

@@ -256,10 +256,11 @@ def defaults_table(pairs: list[tuple[dict, dict]]) -> list[str]:
             cells.append("–" if r is None else f"{fmt(r['window'].get('mu'), '.1e')} ({_wall(r['window'], ' s')})")
         rows.append([sc["regime"], scene_cell(doc, sc), doc["machine"]["device"], *cells])
     head = ["regime", "scene", "device"] + [f"{m} {'dt' if m == 'strang' else 'tol'} {v:g}" for m, _, v in settings]
-    then = " (the default when these runs were made; now {:g})"
-    now = "" if _close(tol, DEFAULT_TOLERANCE) else then.format(DEFAULT_TOLERANCE)
-    now_dt = "" if _close(dt, default_step("strang")) else then.format(default_step("strang"))
-    now_dt = now_dt and now_dt[:-1] + f" s for a scene that is no preset's, {PRESET_STEP:g} s for the presets' physics)"
+    then = " (the default when these runs were made; now {})"
+    now = "" if _close(tol, DEFAULT_TOLERANCE) else then.format(f"{DEFAULT_TOLERANCE:g}")
+    # strang's default depends on the scene: the note names both when the runs' step is either one's no longer
+    steps = f"{PRESET_STEP:g} s for the presets' physics, {default_step('strang'):g} s for other scenes"
+    now_dt = "" if any(_close(dt, s) for s in (PRESET_STEP, default_step("strang"))) else then.format(steps)
     return [
         f"**μ error over the pointwise window (wall time) at strang's step {dt:g} s{now_dt} and at adaptive's "
         f"tolerance {tol:g}{now} and below.**",
