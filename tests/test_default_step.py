@@ -180,3 +180,15 @@ def test_a_scene_read_back_from_its_run_file_keeps_its_regime(tmp_path):
     run_scene(preset("hf2"), tmp_path / "r.h5", RunOptions(duration=2e-6))
     scene = read_settings(tmp_path / "r.h5").scene
     assert scene.patches.source.endswith(":/patches") and preset_regime(scene) == "hf2"
+
+
+def test_a_sweep_names_its_step(tmp_path, capsys):
+    """``aca-warp sweep`` says the step it runs at: here hf1's default, the sweep varying only patch seeds."""
+    from aca_warp.cli import main
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(
+        '[sweep]\nbase = "hf1"\nshard_size = 2\n[run]\nduration = 2e-6\n[parameters]\n"patches.seed" = [1, 2]\n'
+    )
+    assert main(["sweep", str(spec), "-o", str(tmp_path / "sw"), "--workers", "0"]) == 0
+    assert "2e-06 s each, strang fp32 at 1e-07 s, spec hash" in capsys.readouterr().out

@@ -158,7 +158,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         log(
             f"sweep {spec.name!r}: {spec.pad_count} pads ({', '.join(spec.parameters) or 'base only'}), "
             f"{spec.shard_count} shard(s) of {spec.shard_size}, {spec.duration:g} s each, "
-            f"{spec.integrator} {spec.precision}{', fast math' if spec.fast_math else ''}"
+            f"{spec.integrator} {spec.precision}{'' if spec.dt is None else f' at {spec.dt:g} s'}"
+            f"{', fast math' if spec.fast_math else ''}"
             f"{growth_words(spec.growth_dt)}"
             f", spec hash {spec.hash[:12]}"
         )
