@@ -27,7 +27,7 @@ DEFAULT_DT = 1.0e-8  # s: the default step of the fixed-step integrators other t
 # their equal-height variants, any patch seed; aca_warp.scene.regimes): the statistical work-precision
 # (docs/work_precision_statistics.md) keeps every validation measure of saturated ensembles of hf1–hf4 (and hf4 up to
 # 5e-7 s) and of the growing varying-area pads (with growth events every 5 µs) at 1e-7 s, the step the validation
-# runs every preset at (the equal-height variants, not measured themselves, as the same pads)
+# runs every preset at; so are the equal-height variants' (128 or 64 seeds each)
 PRESET_STEP = 1.0e-7
 # strang's default step [s] for any other scene: every measured regime keeps its measures at 5e-8 s, the LF states
 # too (one of their groups, ms_short, not at 1e-7 s; another, ms_fast, was measured at 5e-8 s only)

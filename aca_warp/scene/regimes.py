@@ -10,8 +10,8 @@ height law): the one the scene's ``origin`` names (a scene read from TOML, or ba
 patches' ``source`` describes (:meth:`~aca_warp.scene.generator.PatchGenerator.describe`, numbers to 6 significant
 digits).
 
-The presets' equal-height variants were not measured themselves: the validation runs them at their preset's step, the
-same pads with equal heights (docs/work_precision_statistics.md).
+Every shipped preset was measured so, the equal-height variants too (docs/work_precision_statistics.md and its
+``equal_heights`` figures).
 """
 
 from __future__ import annotations

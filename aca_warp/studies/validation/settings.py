@@ -65,9 +65,10 @@ STEPPING: dict[str, Stepping] = {
         "window, against strang fp64 at 1e-8 s; docs/work_precision_statistics.md) keeps every validation measure "
         "within a quarter of the spread between seeds with strang fp32 at 1e-7 s for hf1 and hf2 (96 saturated pads "
         "each) and hf3 (128 pads, none saturated within 30 ms), and up to 5e-7 s for hf4 (32 pads); at 2.5e-7 s Φ "
-        "moves in hf1 and hf3, μ mean in hf2. The area sweep lies between hf1 and hf2, the equal-height, from-rest "
-        "and linear-phase variants are the same pads in other states: none is a regime of its own there. 10 steps "
-        "per µs sample; fp32 also keeps the neighbour lists on chip",
+        "moves in hf1 and hf3, μ mean in hf2; the equal-height variants keep every measure at 1e-7 s too (128 seeds "
+        "of hf1_equal and hf2_equal, 64 of hf3_equal and hf4_equal). The area sweep lies between hf1 and hf2, the "
+        "from-rest and linear-phase variants are the same pads in other states: none is a regime of its own there. "
+        "10 steps per µs sample; fp32 also keeps the neighbour lists on chip",
     ),
     "growth": Stepping(
         dt=1.0e-7,
@@ -76,7 +77,8 @@ STEPPING: dict[str, Stepping] = {
         '1e-8 s on the paper\'s clock; docs/work_precision_statistics.md, "Growth events") picks strang fp32 at '
         "1e-7 s with growth events every 5 µs (the growth rate kept) both for va (96 pads, growth compressed × 10, "
         "36 ms: every growth measure within a quarter of the spread between seeds, μ mean and μ rise at 0.24 σ the "
-        "closest) and for the paper-clock record itself (48 pads, 0.36 s: every measure within 0.18 σ); 10 steps "
+        "closest) and for the paper-clock record itself (48 pads, 0.36 s: every measure within 0.18 σ), and for "
+        "va_equal (128 pads); 10 steps "
         "per µs sample, an event every 50 steps; fp32 as the on-chip record",
     ),
     "ms_fast": Stepping(
