@@ -192,3 +192,18 @@ def test_a_sweep_names_its_step(tmp_path, capsys):
     )
     assert main(["sweep", str(spec), "-o", str(tmp_path / "sw"), "--workers", "0"]) == 0
     assert "2e-06 s each, strang fp32 at 1e-07 s, spec hash" in capsys.readouterr().out
+
+
+def test_a_sample_interval_between_the_defaults_sets_the_step():
+    """Samples every 5e-8 s to 1e-7 s on a preset: the default step becomes the sample interval (what ran under the
+    one default of 5e-8 s still runs); below 5e-8 s the sample interval is refused as for any step."""
+    hf1 = preset("hf1")
+    for sample, step in ((5e-8, 5e-8), (8e-8, 8e-8), (1e-7, 1e-7), (2e-7, 1e-7)):
+        plan = plan_run(hf1.replace(record=Record(sample)), RunOptions(duration=1e-6))
+        assert plan.step == pytest.approx(step) and plan.steps == round(1e-6 / step)
+    with pytest.raises(SceneError, match="is shorter than the step 1e-07 s"):
+        plan_run(hf1.replace(record=Record(2e-8)), RunOptions(duration=1e-6))
+    from aca_warp.sweep import load_spec
+
+    doc = {"sweep": {"base": "hf1"}, "run": {"duration": 1e-5, "sample_dt": 5e-8}, "parameters": {"patches.seed": [1]}}
+    assert load_spec(doc).dt == 5e-8

@@ -108,11 +108,21 @@ def growth_asked(
     return max(STATISTICS_GROWTH_DT, interval)
 
 
-def step_asked(integrator: str, dt: float | None, scenes: Iterable[Scene]) -> float | None:
+def step_asked(
+    integrator: str, dt: float | None, scenes: Iterable[Scene], sample_dt: float | None = None
+) -> float | None:
     """The step a run of ``integrator`` on ``scenes`` asks for, as its file or sweep records it: ``dt``, or for a
     fixed-step integrator :func:`default_step` written out; None stays None for the step-controlled integrators
-    (their first trial is the solver's)."""
-    return default_step(integrator, scenes) if dt is None and integrator not in STEP_CONTROLLED else dt
+    (their first trial is the solver's). A default longer than the sample interval ``sample_dt`` [s] becomes that
+    interval where it is at least :data:`STATISTICS_STEP` (a step the statistics hold at in every measured regime),
+    so that what ran under the one default of 5e-8 s still runs; a shorter interval is left to the refusal of a
+    sample interval below the step."""
+    if dt is not None or integrator in STEP_CONTROLLED:
+        return dt
+    step = default_step(integrator, scenes)
+    if sample_dt is not None and integrator == "strang" and STATISTICS_STEP <= sample_dt < step:
+        return sample_dt
+    return step
 
 
 def fast_math_unfit(integrator: str, precision: str) -> str | None:

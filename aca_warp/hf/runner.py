@@ -93,7 +93,8 @@ def plan_run(
     if options.dt is not None:
         plausible.check("dt", options.dt, "hf_step", allow=scene.allow_implausible)
     steps = step = None
-    dt = default_step(options.integrator, [scene]) if options.dt is None else options.dt
+    asked = step_asked(options.integrator, options.dt, [scene], rec.sample_dt)
+    dt = default_step(options.integrator) if asked is None else asked  # step-controlled: the first trial's bound
     if not forced:
         check_sample_step(rec.sample_dt, dt, f"{option('force=True', '--force')} runs it anyway")
     if options.integrator not in STEP_CONTROLLED:
@@ -162,7 +163,7 @@ def run_scene(
         interval = scene.growth.interval if scene.growth is not None else None
         options = dataclasses.replace(  # the file keeps both
             options,
-            dt=step_asked(options.integrator, options.dt, [scene]),
+            dt=step_asked(options.integrator, options.dt, [scene], scene.record.sample_dt),
             growth_dt=growth_asked(options.integrator, options.growth_dt, interval, options.duration),
         )
         plan = plan_run(scene, options, precision, force_limits=force_limits)  # absurd counts or sizes: refused early

@@ -386,7 +386,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     # the default step written out (the hash and the shards name the step): the base scene's, where the sweep
     # varies only seeds and initial states (every pad then shares its physics), else the step for any scene
     seeds_only = all(k == "patches.seed" or PARAMETERS[k][1] == "initial" for k in lists)
-    dt = step_asked(integrator, num("dt", None), [base] if seeds_only else [])
+    dt = step_asked(integrator, num("dt", None), [base] if seeds_only else [], sample_dt)
     try:
         from aca_warp.hf.recorder import check_run, check_sample_step
 
