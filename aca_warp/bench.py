@@ -359,16 +359,17 @@ def run_bench(
 ) -> dict:
     """Run every case; returns ``{"machine", "scene", ..., "results": [rows]}`` (JSON-able). ``maths``: ``exact``
     and/or ``fast`` (CUDA fast math, on-chip strang in fp32 only: other cases are not run with it). ``dt`` None:
-    strang's default step for the scene (:func:`~aca_warp.hf.options.default_step`), for every case."""
+    strang's default step for the scene and sample interval (:func:`~aca_warp.hf.options.step_asked`), for every
+    case."""
     import warp as wp
 
     from aca_warp.common.devices import get_device
     from aca_warp.common.files import machine
-    from aca_warp.hf.options import default_step
+    from aca_warp.hf.options import step_asked
     from aca_warp.scene import Record
 
     sc = bench_scene(scene, patches, sample_dt)
-    step = default_step("strang", [sc]) if dt is None else dt
+    step = step_asked("strang", dt, [sc], sample_dt)
     if not (duration > 0 and step > 0 and sample_dt > 0):
         raise SceneError("duration, dt and sample interval must be > 0")
     Record(sample_dt=sample_dt).check_duration(

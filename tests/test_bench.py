@@ -67,11 +67,11 @@ def test_bench_sample_interval_longer_than_the_warm_up(tmp_path: Path) -> None:
 
 def test_bench_takes_strangs_default_step_when_asked(tmp_path: Path) -> None:
     """``--dt default``: the scene's own default step (1e-7 s for a preset's physics, 5e-8 s once the patch count
-    differs from the preset's), recorded as such."""
-    for patches, dt, steps in ((None, 1e-7, 20), (10, 5e-8, 40)):
+    differs from the preset's, the sample interval where that is shorter down to 5e-8 s), recorded as such."""
+    for patches, sample, dt, steps in ((None, 1e-6, 1e-7, 20), (10, 1e-6, 5e-8, 40), (None, 5e-8, 5e-8, 40)):
         out = tmp_path / f"d{patches}.json"
         args = ["bench", "--dt", "default", "--duration", "2e-6", "--precision", "fp32", "--no-reference"]
-        args += ["--no-stages", "--json", str(out), "--markdown", str(tmp_path / "d.md")]
+        args += ["--no-stages", "--json", str(out), "--markdown", str(tmp_path / "d.md"), "--sample-dt", str(sample)]
         assert main(args + ([] if patches is None else ["--patches", str(patches)])) == 0
         doc = json.loads(out.read_text())
         assert doc["dt_s"] == dt and doc["dt_is_default"] and doc["results"][0]["steps"] == steps

@@ -155,6 +155,10 @@ def test_the_summary_line_says_why_the_step(tmp_path, capsys):
         assert main(["hf", scene, "--duration", "2e-6", "-o", str(tmp_path / "r.h5"), "--overwrite",
                      "--no-progress"]) == 0  # fmt: skip
         assert words in capsys.readouterr().out
+    assert main(["hf", "hf2", "--duration", "2e-6", "--sample-dt", "5e-8", "-o", str(tmp_path / "r.h5"), "--overwrite",
+                 "--no-progress"]) == 0  # fmt: skip
+    words = "(5e-08 s, the sample interval, shorter than the default step for hf2's physics (1e-07 s), strang, fp32)"
+    assert words in capsys.readouterr().out
     assert main(["hf", "hf2", "--duration", "2e-6", "--dt", "1e-7", "-o", str(tmp_path / "r.h5"), "--overwrite",
                  "--no-progress"]) == 0  # fmt: skip
     assert "(1e-07 s, strang, fp32)" in capsys.readouterr().out

@@ -116,6 +116,18 @@ def test_markdown_of_two_checkouts_names_them_and_the_comparison():
     assert "5e-08 s, exact, events scene: the two records bit-identical" in md
 
 
+def test_markdown_names_the_default_step_of_a_comparison():
+    """A comparison of the command's default step names the step its run file read back."""
+    doc = {"date": "d", "machine": "m", "device": "cuda:0", "duration_s": 0.36, "checkouts": ["old", "new"],
+           "rows": [{"step_s": None, "step_used_s": 1e-7, "growth_dt_s": None, "growth_dt_used_s": 5e-6,
+                     "checkout": 1, "wall_s": 14.7, "exit": 0, "summary": "ok"}],
+           "comparisons": [{"step_s": None, "step_used_s": 1e-7, "growth_dt_s": None, "growth_dt_used_s": 5e-6,
+                            "fast_math": False, "identical": True, "differ": []}]}  # fmt: skip
+    md = load().markdown(doc)
+    assert "| default (1e-07) | exact | default (5e-06) | 1 | 14.7 | 0 | ok |" in md
+    assert "* default (1e-07) s, exact, events default (5e-06): the two records bit-identical" in md
+
+
 def test_run_files_compared_dataset_by_dataset(tmp_path):
     """Two checkouts' records: identical when every dataset is in both and the same; a dataset that differs or is
     missing from one file is named."""

@@ -94,8 +94,9 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         help=f"fixed step [s] (default: strang {PRESET_STEP:g} for a scene with a shipped preset's physics, hf1-hf4, "
         f"varying_area and their _equal variants with any patch seed, {STATISTICS_STEP:g} for any other scene: the "
         f"steps at which the saturated statistics were shown to hold, docs/numerics.md; the other fixed-step "
-        f"integrators {DEFAULT_DT:g}; shortened so that whole steps fit the sample interval, which may not be shorter "
-        "than the step, asked for or default); first trial step of adaptive, controlled and auto",
+        f"integrators {DEFAULT_DT:g}; shortened so that whole steps fit the sample interval; a sample interval shorter "
+        f"than the step asked for is refused, and strang's default becomes a shorter sample interval down to "
+        f"{STATISTICS_STEP:g}); first trial step of adaptive, controlled and auto",
     )
     hf.add_argument(
         "--tolerance",
@@ -338,10 +339,15 @@ def _default_step_words(args: argparse.Namespace, scene: Any) -> str:
     """Why a ``strang`` run without ``--dt`` took its step, for the summary line (nothing when --dt was given)."""
     if args.dt is not None or args.integrator != "strang":
         return ""
+    from aca_warp.hf.options import default_step
     from aca_warp.scene.regimes import preset_regime
 
     regime = preset_regime(scene)
-    return f", the default step for {regime}'s physics" if regime else ", the default step for a scene of no preset"
+    whose = f"{regime}'s physics" if regime else "a scene of no preset"
+    default = default_step("strang", [scene])
+    if scene.record.sample_dt < default * (1 - 1e-9):  # the default shortened to the sample interval
+        return f", the sample interval, shorter than the default step for {whose} ({default:g} s)"
+    return f", the default step for {whose}"
 
 
 def stopped_at(sim_time: float, duration: float | None) -> str:
