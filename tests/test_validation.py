@@ -918,3 +918,6 @@ def test_compare_two_results_files(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(repo)  # the committed comparison, as its page names it
     assert script.main(["docs/validation/earlier/results.json", "docs/validation/results.json"]) == 0
     assert capsys.readouterr().out == (repo / "docs" / "validation" / "h200_compare.md").read_text()
+    recheck = "docs/validation/recheck_one_patch_per_thread"  # a rerun without the s31 batch: only its status differs
+    assert script.main(["docs/validation/results.json", f"{recheck}/results.json"]) == 1
+    assert capsys.readouterr().out == (repo / recheck / "compare.md").read_text()
