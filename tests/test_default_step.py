@@ -29,7 +29,7 @@ def test_default_steps_by_integrator():
         assert default_step(integrator) == default_step(integrator, [hf1]) == DEFAULT_DT == 1e-8
     with pytest.raises(
         SceneError,
-        match=r"mixes 1 pad\(s\) with .* physics \(hf1: .* and 1 other pad\(s\) .*first is pad 1\); give the step",
+        match=r"mixes 1 pad\(s\) of a measured regime \(hf1: .* and 1 other pad\(s\) .*first is pad 1\); give the step",
     ):
         default_step("strang", [hf1, tiny_scene(1e-6)])
 
@@ -211,3 +211,37 @@ def test_a_sample_interval_between_the_defaults_sets_the_step():
 
     doc = {"sweep": {"base": "hf1"}, "run": {"duration": 1e-5, "sample_dt": 5e-8}, "parameters": {"patches.seed": [1]}}
     assert load_spec(doc).dt == 5e-8
+
+
+def test_an_lf_state_of_a_measured_group_takes_the_preset_step(tmp_path):
+    """An HF scene of an LF state takes 1e-7 s where the LF run was the multiscale preset (any seed) and the state is
+    of a group measured there (app3_start), 5e-8 s otherwise; a state changed afterwards is no longer measured."""
+    import json
+
+    import h5py
+
+    from aca_warp.lf.commands import run_lf
+    from aca_warp.lf.io import STATES_AT_PRESET_STEP, lf_state_regime, scene_from_snapshot
+    from aca_warp.lf.scene import lf_scene_to_dict, load_lf_scene
+    from aca_warp.studies.validation.multiscale import GROUPS
+    from tests.test_lf import _scene
+
+    assert set(STATES_AT_PRESET_STEP) == set(GROUPS["ms_mid"] + GROUPS["ms_app3"])
+    out = tmp_path / "lf.h5"
+    run_lf(_scene(), out, duration=0.35)  # a small LF scene: no preset's
+    plain = scene_from_snapshot(out, "app1_start")
+    assert preset_regime(plain) is None and default_step("strang", [plain]) == STATISTICS_STEP
+    doc = json.loads(json.dumps(lf_scene_to_dict(load_lf_scene("multiscale"))))
+    doc["lf"]["seed"] = doc["patches"]["seed"] = 7
+    with h5py.File(out, "r+") as f:  # as the preset's LF run of seed 7 stores it, its state named as a measured one
+        f.attrs["scene"] = json.dumps(doc)
+        f.move("snapshots/app1_start", "snapshots/app3_start")
+    state = scene_from_snapshot(out, "app3_start")
+    assert preset_regime(state) == "multiscale app3_start" and default_step("strang", [state]) == PRESET_STEP
+    same = state.replace(record=Record(2e-7), initial=Initial(state="equilibrium"), duration=1e-3)
+    assert preset_regime(same) == "multiscale app3_start"
+    assert preset_regime(state.replace(normal_force=state.normal_force * 1.01)) is None
+    other = json.loads(json.dumps(doc))
+    other["schedule"][0]["pressure_bar"] = 12.0
+    assert lf_state_regime(other, "app3_start") is None and lf_state_regime(doc, "app2_start") is None
+    assert lf_state_regime({"lf": 1}, "app3_start") is None

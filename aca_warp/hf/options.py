@@ -27,7 +27,8 @@ DEFAULT_DT = 1.0e-8  # s: the default step of the fixed-step integrators other t
 # their equal-height variants, any patch seed; aca_warp.scene.regimes): the statistical work-precision
 # (docs/work_precision_statistics.md) keeps every validation measure of saturated ensembles of hf1–hf4 (and hf4 up to
 # 5e-7 s) and of the growing varying-area pads (with growth events every 5 µs) at 1e-7 s, the step the validation
-# runs every preset at; so are the equal-height variants' (128 or 64 seeds each)
+# runs every preset at; so are the equal-height variants' (128 or 64 seeds each); also the default for the LF states of
+# the multiscale preset whose groups keep their measures at 1e-7 s (aca_warp.lf.io.STATES_AT_PRESET_STEP)
 PRESET_STEP = 1.0e-7
 # strang's default step [s] for any other scene: every measured regime keeps its measures at 5e-8 s, the LF states
 # too (one of their groups, ms_short, not at 1e-7 s; another, ms_fast, was measured at 5e-8 s only)
@@ -61,8 +62,9 @@ WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (
 def default_step(integrator: str, scenes: Iterable[Scene] = ()) -> float:
     """The step [s] a fixed-step run of the pads of ``scenes`` takes when none is asked for.
 
-    ``strang``: :data:`PRESET_STEP` when every scene shares a shipped preset's physics
-    (:func:`~aca_warp.scene.regimes.preset_regime`), :data:`STATISTICS_STEP` when none does (or none is given);
+    ``strang``: :data:`PRESET_STEP` when every scene is of a measured regime that keeps its statistics there (a
+    shipped preset's physics, or a marked LF state: :func:`~aca_warp.scene.regimes.preset_regime`),
+    :data:`STATISTICS_STEP` when none is (or none is given);
     a batch of both is refused (SceneError), so that a pad's step never depends on the batch it shares. The other
     fixed-step integrators: :data:`DEFAULT_DT` (explicit friction, or a friction step not measured for the
     statistics).
@@ -79,7 +81,7 @@ def default_step(integrator: str, scenes: Iterable[Scene] = ()) -> float:
         names = sorted({r for r in regimes if r is not None})
         other = measured.index(False)
         raise SceneError(
-            f"this batch mixes {sum(measured)} pad(s) with a shipped preset's physics ({', '.join(names)}: strang's "
+            f"this batch mixes {sum(measured)} pad(s) of a measured regime ({', '.join(names)}: strang's "
             f"default step {PRESET_STEP:g} s) and {measured.count(False)} other pad(s) ({STATISTICS_STEP:g} s; the "
             f"first is pad {other}); give the step (dt) for all of them"
         )

@@ -25,6 +25,7 @@ one. The lock, the ``.partial`` and a full device are handled as for every run f
 from __future__ import annotations
 
 import json
+from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -49,9 +50,10 @@ from aca_warp.common.files import (
 )
 from aca_warp.common.runfile import RunFileWriter, write_attrs
 from aca_warp.kernels.lf_record import H_NAMES, H_UNITS
-from aca_warp.lf.scene import lf_scene_to_dict
+from aca_warp.lf.scene import lf_scene_to_dict, load_lf_scene
 from aca_warp.lf.solver import LFSimulation
 from aca_warp.scene import Friction, Material, Matrix, Pad, Patches, Scene
+from aca_warp.scene.regimes import measured_origin
 
 _UNITS = {
     "x": "m", "y": "m", "area": "m2", "height": "m", "thickness": "m", "normal_force": "N", "temperature": "K",
@@ -243,6 +245,39 @@ def read_snapshot(path: str | Path, name: str) -> dict[str, Any]:
     return out
 
 
+# the LF states of the multiscale preset whose HF statistics keep every measure at 1e-7 s: the statistical
+# work-precision's groups ms_mid (app1_end, app4_start, app4_end) and ms_app3 (app3_start, app3_end), one pad per state
+# and LF seed (docs/work_precision_statistics.md); ms_fast (app2_start) and ms_short (app1_start, app2_end) need 5e-8 s
+STATES_AT_PRESET_STEP = ("app1_end", "app4_start", "app4_end", "app3_start", "app3_end")
+
+
+def _lf_physics(doc: dict) -> dict:
+    """An LF scene document less what does not set the states' physics: its name, its snapshots and its seeds (the
+    LF run's random numbers and the initial patches' layout)."""
+    out = {k: v for k, v in doc.items() if k not in ("scene", "snapshots")}
+    out["lf"] = {**out["lf"], "seed": None}
+    out["patches"] = {**out["patches"], "seed": None}
+    return out
+
+
+@cache
+def _preset_lf_physics() -> dict:
+    return _lf_physics(json.loads(json.dumps(lf_scene_to_dict(load_lf_scene("multiscale")))))
+
+
+def lf_state_regime(doc: dict, snapshot: str) -> str | None:
+    """The measured regime of the HF scene of state ``snapshot`` of an LF run of scene document ``doc`` (as its run
+    file stores it): ``multiscale <snapshot>`` for a state of :data:`STATES_AT_PRESET_STEP` of the multiscale preset
+    with any seed, else None (``strang`` then takes its default for any other scene)."""
+    if snapshot not in STATES_AT_PRESET_STEP:
+        return None
+    try:
+        same = _lf_physics(doc) == _preset_lf_physics()
+    except (KeyError, TypeError, AttributeError):  # a document of another shape: no preset's
+        return None
+    return f"multiscale {snapshot}" if same else None
+
+
 def scene_from_snapshot(
     path: str | Path, name: str, *, duration: float | None = None, allow_implausible: bool = False
 ) -> Scene:
@@ -270,7 +305,7 @@ def scene_from_snapshot(
     if duration is not None:
         kw["duration"] = duration
     try:
-        return Scene(
+        scene = Scene(
             name=f"{doc['scene']['name']}:{name}",
             pad=Pad(**doc["pad"]),
             patches=patches,
@@ -286,3 +321,5 @@ def scene_from_snapshot(
         raise SceneError(f"{path}: snapshot {name!r} is not a valid HF scene: {e}") from None
     except (KeyError, TypeError, ValueError, AttributeError) as e:
         raise SceneError(f"{path}: snapshot {name!r} is incomplete or damaged ({type(e).__name__}: {e})") from None
+    regime = lf_state_regime(doc, name)
+    return scene if regime is None else scene.replace(origin=measured_origin(scene, regime))

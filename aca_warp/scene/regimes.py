@@ -12,14 +12,22 @@ digits).
 
 Every shipped preset was measured so, the equal-height variants too (docs/work_precision_statistics.md and its
 ``equal_heights`` figures).
+
+An HF scene of a saved LF state (:func:`~aca_warp.lf.io.scene_from_snapshot`) is a measured regime when the LF run was
+the shipped multiscale preset (any seed) and the state one of the groups that keep their statistics at 1e-7 s: the
+snapshot marks it in its ``origin`` with :func:`measured_origin`, which also records the scene's physics
+(:func:`physics_digest`), so that a scene changed afterwards (another load, other patches) is no longer one.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import re
 from functools import cache
 from typing import Any
+
+import numpy as np
 
 from aca_warp.common.errors import SceneError
 from aca_warp.scene.files import PRESETS, preset_document
@@ -76,12 +84,33 @@ def _preset_physics() -> dict[tuple[Any, ...], str]:
     return out
 
 
+def physics_digest(scene: Scene) -> str:
+    """A digest of what a scene's motion depends on beyond its initial state, recording and duration: the parts of
+    :func:`_physics` with the patches' and the matrix cells' arrays themselves."""
+    h = hashlib.sha256(repr(_physics(scene)[:-1] + (scene.patches.source,)).encode())
+    p, m = scene.patches, scene.matrix
+    for a in (p.x, p.y, p.area, p.height) + (() if m is None else (m.area, m.radius, m.height)):
+        h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    return h.hexdigest()
+
+
+def measured_origin(scene: Scene, regime: str) -> dict[str, Any]:
+    """The ``origin`` that marks ``scene`` as of the measured regime ``regime`` (a name for messages), as long as its
+    physics stays what it is now."""
+    return {"measured_regime": {"name": regime, "physics": physics_digest(scene)}}
+
+
 def preset_regime(scene: Scene) -> str | None:
-    """The shipped preset (:data:`~aca_warp.scene.files.PRESETS`) whose physics ``scene`` shares, or None.
+    """The shipped preset (:data:`~aca_warp.scene.files.PRESETS`) whose physics ``scene`` shares, or the measured
+    regime its ``origin`` marks (:func:`measured_origin`) while its physics is unchanged, or None.
 
     hf1 with another patch seed, from rest or saturated, recorded at any interval, is hf1's regime; hf1 at another
-    load, speed or patch count, with patches from a file, or an LF state, is no preset's.
+    load, speed or patch count, or with patches from a file, is no preset's; an LF state is one where
+    :func:`~aca_warp.lf.io.scene_from_snapshot` marked it.
     """
+    marked = (scene.origin or {}).get("measured_regime")
+    if isinstance(marked, dict):  # an LF state of a measured group, unless changed since (measured_origin)
+        return str(marked.get("name")) if marked.get("physics") == physics_digest(scene) else None
     m = scene.matrix
     if m is not None and not (m.is_flat and m.height[0] == 0.0):  # a worn or raised matrix: no fresh pad's
         return None
