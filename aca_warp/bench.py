@@ -493,7 +493,8 @@ def add_parsers(sub: Any) -> None:
         default=1.0e-8,
         metavar="S",
         help="fixed step [s] (default 1e-8, the step of the published tables), or 'default': strang's default step "
-        "for the scene, as `aca-warp hf` takes it (1e-7 for the shipped presets' physics, 5e-8 for any other scene)",
+        "for the scene, as `aca-warp hf` takes it (1e-7 for the shipped presets' physics, 5e-8 for any other scene; "
+        "docs/numerics.md)",
     )
     p.add_argument("--duration", type=positive, default=2.0e-5, metavar="S", help="timed window [s] (default 2e-5)")
     p.add_argument("--sample-dt", type=positive, default=1.0e-6, metavar="S", help="sample interval [s] (default 1e-6)")

@@ -223,10 +223,13 @@ def test_an_lf_state_of_a_measured_group_takes_the_preset_step(tmp_path):
     from aca_warp.lf.commands import run_lf
     from aca_warp.lf.io import STATES_AT_PRESET_STEP, lf_state_regime, scene_from_snapshot
     from aca_warp.lf.scene import lf_scene_to_dict, load_lf_scene
-    from aca_warp.studies.validation.multiscale import GROUPS
+    from aca_warp.studies.validation import multiscale as VM
+    from aca_warp.studies.validation.settings import STEPPING
     from tests.test_lf import _scene
 
-    assert set(STATES_AT_PRESET_STEP) == set(GROUPS["ms_mid"] + GROUPS["ms_app3"])
+    # the list is the groups that the statistics keep at the preset step, as the validation runs them
+    assert set(STATES_AT_PRESET_STEP) == set(VM.GROUPS["ms_mid"] + VM.GROUPS["ms_app3"])
+    assert [STEPPING[g].dt == PRESET_STEP for g in VM.GROUPS] == [g in ("ms_mid", "ms_app3") for g in VM.GROUPS]
     out = tmp_path / "lf.h5"
     run_lf(_scene(), out, duration=0.35)  # a small LF scene: no preset's
     plain = scene_from_snapshot(out, "app1_start")
@@ -238,10 +241,27 @@ def test_an_lf_state_of_a_measured_group_takes_the_preset_step(tmp_path):
         f.move("snapshots/app1_start", "snapshots/app3_start")
     state = scene_from_snapshot(out, "app3_start")
     assert preset_regime(state) == "multiscale app3_start" and default_step("strang", [state]) == PRESET_STEP
-    same = state.replace(record=Record(2e-7), initial=Initial(state="equilibrium"), duration=1e-3)
+    same = state.replace(record=Record(2e-7), initial=Initial(state="equilibrium"), duration=1e-3, name="mine")
     assert preset_regime(same) == "multiscale app3_start"
-    assert preset_regime(state.replace(normal_force=state.normal_force * 1.01)) is None
-    other = json.loads(json.dumps(doc))
-    other["schedule"][0]["pressure_bar"] = 12.0
-    assert lf_state_regime(other, "app3_start") is None and lf_state_regime(doc, "app2_start") is None
-    assert lf_state_regime({"lf": 1}, "app3_start") is None
+    assert preset_regime(state.replace(normal_force=np.float64(state.normal_force))) == "multiscale app3_start"
+    m = state.matrix
+    changed = [
+        state.replace(normal_force=state.normal_force * 1.01),
+        state.replace(angular_velocity=state.angular_velocity * 0.5),
+        state.replace(friction=dataclasses.replace(state.friction, M=0.7)),
+        state.replace(material=dataclasses.replace(state.material, K_T=state.material.K_T * 2)),
+        state.replace(matrix=Matrix(m.area, m.radius, m.height + 1e-9)),
+    ]
+    assert [preset_regime(s) for s in changed] == [None] * 5
+    # the document: the validation's own LF scenes are the preset's; another schedule or LF constant is not
+    assert lf_state_regime(json.loads(json.dumps(lf_scene_to_dict(VM.lf_scene(3, None, None)))), "app1_end")
+    renamed = {**doc, "scene": {"name": "copy"}, "snapshots": {"applications": True, "times": [1.0, 2.0]}}
+    assert lf_state_regime(renamed, "app4_end") == "multiscale app4_end"
+    for variant in (VM.lf_scene(3, (10.0, 5.0, 30.0, 15.0), None), VM.lf_scene(3, None, (1.0, 0.5))):
+        assert lf_state_regime(json.loads(json.dumps(lf_scene_to_dict(variant))), "app3_start") is None
+    louder = json.loads(json.dumps(doc))
+    louder["schedule"][0]["normal_force"] *= 1.2
+    constant = json.loads(json.dumps(doc))
+    constant["lf"]["dt"] = 0.02
+    assert lf_state_regime(louder, "app3_start") is None and lf_state_regime(constant, "app3_start") is None
+    assert lf_state_regime(doc, "app2_start") is None and lf_state_regime({"lf": 1}, "app3_start") is None

@@ -92,7 +92,8 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         type=positive,
         metavar="S",
         help=f"fixed step [s] (default: strang {PRESET_STEP:g} for a scene with a shipped preset's physics, hf1-hf4, "
-        f"varying_area and their _equal variants with any patch seed, {STATISTICS_STEP:g} for any other scene: the "
+        f"varying_area and their _equal variants with any patch seed, and for the LF states app1_end, app3_*, app4_* "
+        f"of the multiscale preset, {STATISTICS_STEP:g} for any other scene: the "
         f"steps at which the saturated statistics were shown to hold, docs/numerics.md; the other fixed-step "
         f"integrators {DEFAULT_DT:g}; shortened so that whole steps fit the sample interval; a sample interval shorter "
         f"than the step asked for is refused, and strang's default becomes a shorter sample interval down to "

@@ -176,8 +176,8 @@ class RunOptions:
         duration: Simulated time [s]; None: the scene's own duration.
         integrator: One of :data:`INTEGRATORS` (docs/numerics.md).
         dt: Fixed step [s] (shortened so that whole steps fit a sample interval); None: :func:`default_step`
-            (``strang`` :data:`PRESET_STEP` for the shipped presets' physics, else :data:`STATISTICS_STEP`; the
-            other fixed-step integrators :data:`DEFAULT_DT`).
+            (``strang`` :data:`PRESET_STEP` for the shipped presets' physics and the measured LF states of the
+            multiscale preset, else :data:`STATISTICS_STEP`; the other fixed-step integrators :data:`DEFAULT_DT`).
             For the step-controlled integrators (:data:`STEP_CONTROLLED`) the first trial step.
         tolerance: Relative tolerance of the explicit pair: ``adaptive`` and the sliding mode of ``auto`` [1].
         split_tolerance: Tolerance of the error-controlled split step: ``controlled`` and the sticking mode of

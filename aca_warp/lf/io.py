@@ -285,7 +285,10 @@ def scene_from_snapshot(
 
     The HF contact solve of the returned scene reproduces the snapshot's normal forces (same springs, same
     elevations). Material constants come from the LF scene's ``[material]``; recording defaults are HF's. The
-    scene accepts implausible values when ``allow_implausible`` or the LF scene did.
+    scene accepts implausible values when ``allow_implausible`` or the LF scene did. A state of
+    :data:`STATES_AT_PRESET_STEP` of an LF run of the multiscale preset is marked as its measured regime in the
+    scene's ``origin`` (:func:`lf_state_regime`, :func:`~aca_warp.scene.regimes.measured_origin`): ``strang`` then
+    takes :data:`~aca_warp.hf.options.PRESET_STEP` by default.
     """
     s = read_snapshot(path, name)
     doc = s["scene"]

@@ -394,7 +394,8 @@ class Scene:
         duration: Default simulated duration of a run [s].
         growth: Patch growth (varying-area study), or None.
         matrix: Matrix contact cells; None means a fresh flat matrix (:meth:`Matrix.fresh`).
-        origin: The table-of-tables this scene was read from (for run files), or None.
+        origin: The table-of-tables this scene was read from (for run files), or None; for an LF state of a measured
+            regime its mark (:func:`~aca_warp.scene.regimes.measured_origin`).
         allow_implausible: Accept values far outside the physical range of a brake pad (a pad radius beyond
             2 m, patch areas beyond 1e-3 m², ...; :mod:`aca_warp.common.plausible`), which are refused otherwise
             as likely unit mistakes.

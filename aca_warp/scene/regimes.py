@@ -85,12 +85,18 @@ def _preset_physics() -> dict[tuple[Any, ...], str]:
 
 
 def physics_digest(scene: Scene) -> str:
-    """A digest of what a scene's motion depends on beyond its initial state, recording and duration: the parts of
-    :func:`_physics` with the patches' and the matrix cells' arrays themselves."""
-    h = hashlib.sha256(repr(_physics(scene)[:-1] + (scene.patches.source,)).encode())
+    """A digest of what a scene's motion depends on beyond its initial state, recording and duration: the pad, load,
+    disc speed, friction law, material and growth (their numbers as Python floats, however they were given), the
+    patches' source, and the patches' and the matrix cells' arrays themselves (each with its length)."""
+    numbers = []
+    for part in (scene.pad, scene.normal_force, scene.angular_velocity, scene.friction, scene.material, scene.growth):
+        values = dataclasses.astuple(part) if dataclasses.is_dataclass(part) else (part,)
+        numbers.append(tuple(float(v) if isinstance(v, (int, float, np.number)) else v for v in values))
+    h = hashlib.sha256(repr((*numbers, scene.patches.source)).encode())
     p, m = scene.patches, scene.matrix
     for a in (p.x, p.y, p.area, p.height) + (() if m is None else (m.area, m.radius, m.height)):
-        h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+        a = np.ascontiguousarray(a, dtype=np.float64)
+        h.update(np.int64(a.size).tobytes() + a.tobytes())
     return h.hexdigest()
 
 
