@@ -52,7 +52,8 @@ import numpy as np
 # the strang jobs name their step and precision, and the growing ones their growth events' spacing, so that checkouts
 # on either side of a change of strang's defaults (fp64, then fp32; events at the scene's 2.02e-7 s, then every 5e-6 s;
 # 5e-8 s for every scene, then 1e-7 s for the presets' physics) run the same job; one pair in each precision
-STEP = ["--dt", "5e-8"]
+PINNED_STEP = 5.0e-8  # s
+STEP = ["--dt", f"{PINNED_STEP:g}"]
 JOBS = {
     "hf1": ["hf", "hf1", "--duration", "2e-5", *STEP, "--precision", "fp64", "--no-progress"],
     "hf1_fp32": ["hf", "hf1", "--duration", "2e-5", *STEP, "--precision", "fp32", "--no-progress"],
@@ -71,8 +72,8 @@ def sweep_spec(
 ) -> str:
     """The TOML spec of a sweep job: ``base`` scene, pads per shard, simulated time [s], precision, the
     ``[parameters]`` table's lines and, for growing pads, the spacing of their growth events [s] (named, as the step
-    is, 5e-8 s, so that two checkouts on either side of a change of their defaults run the same job)."""
-    run = f'duration = {duration!r}\ndt = 5.0e-8\nprecision = "{precision}"'
+    is, :data:`PINNED_STEP`, so that two checkouts on either side of a change of their defaults run the same job)."""
+    run = f'duration = {duration!r}\ndt = {PINNED_STEP!r}\nprecision = "{precision}"'
     if growth_dt is not None:
         run += f"\ngrowth_dt = {growth_dt!r}"
     return f'[sweep]\nbase = "{base}"\nshard_size = {shard_size}\n[run]\n{run}\n[parameters]\n{parameters}\n'
