@@ -2,16 +2,19 @@
 """Sweep throughput on one and on two GPUs, the new path against a baseline in the same run: wall rate, in-shard rate,
 their ratio, the speedup of two GPUs over one, every shard's phase times and the devices' time lines.
 
-The sweep: ``--pads`` hf1 pads (default 2048: friction.M × load.normal_force × patches.seed, 8 layouts), ``strang``,
-fp32, dt 1e-8 s, 1 µs samples, 1 ms simulated, shards of 256 (``aca-warp sweep --device cuda`` but the shard size
-and the step: strang's default for these pads, whose M and load vary, is 5e-8 s; the benchmark keeps 1e-8 s so
-that its runs compare).
+The sweep: ``--pads`` hf1 pads, ``strang``, fp32, 1 µs samples, 1 ms simulated, shards of 256 (``aca-warp sweep
+--device cuda`` but the shard size and, by default, the step). ``--sweep product`` (default): friction.M ×
+load.normal_force × patches.seed, 8 layouts; ``--sweep seeds``: patch seeds 1…pads, every pad a layout of its own
+(the ensembles of the statistics), whose layouts the preparation makes. ``--dt``: 1e-8 s by default, the step of
+the earlier runs, so that they compare; ``--dt default`` runs the sweep's own default step, as a user's sweep does
+(5e-8 s for the product sweep, whose M and load vary; 1e-7 s for the seeds sweep, hf1's physics).
 Each configuration runs in a child process that imports the code under test (its Dask workers and preparation
 processes inherit it), starts a local Dask cluster as that code's ``aca-warp sweep --device cuda:0[,cuda:1]`` does
 (loopback only; this code: one worker process per GPU with two shard tasks in its threads, overlapped, or one,
 ``sequential``, as ``--no-overlap``; a code from before it: two single-threaded workers per GPU overlapped, one
-sequential), runs a warm-up sweep of the same pads for 1 µs (kernels compiled or loaded in every worker; the pool's
-fork server started), then the timed sweep into a fresh directory. Configurations:
+sequential), runs a warm-up sweep of the same pads (of the seeds sweep, two shards per unit) for 1 µs (kernels
+compiled or loaded in every worker; the pool's fork server started), then the timed sweep into a fresh directory.
+Configurations:
 
 * ``new``: the checkout this script belongs to, with its preparation pool (``--prepare``, default as ``aca-warp
   sweep``: two processes per GPU, none on the CPU), overlapped, on each of ``--units`` GPUs (CPU worker processes
@@ -78,19 +81,43 @@ TURN = ("upload", "build", "setup", "kernel")  # the phases of a shard's turn on
 HERE = Path(__file__).resolve().parent
 
 
-def sweep_doc(
-    hf1_product_doc: Any, pads: int, patches: int | None, shard: int, duration: float, precision: str
-) -> dict:
-    """A product sweep of ``pads`` hf1 pads: M × F_N × seed, 8 seeds (fewer for tiny sweeps), pads a power of two."""
+def sweep_doc(hf1_product_doc: Any, cfg: dict, duration: float, pads: int | None = None) -> dict:
+    """The spec of the bench's sweep of ``pads`` (default ``cfg["pads"]``) hf1 pads for ``duration`` [s]:
+    ``cfg["sweep"]`` ``product``, M × F_N × seed with 8 seeds (fewer for tiny sweeps), pads a power of two
+    (``hf1_product_doc`` of the code under test), or ``seeds``, patch seeds 1…pads, each pad its own layout;
+    ``strang`` at ``cfg["dt"]`` [s], or at the sweep's default step where it is None."""
+    pads = cfg["pads"] if pads is None else pads
     if pads < 1 or pads & (pads - 1):
         raise SystemExit(f"--pads {pads}: choose a power of two (the sweep is a product M x F_N x seed)")
-    seeds = min(8, pads)
-    rest = pads // seeds
-    n_m = 2 ** (rest.bit_length() // 2)
-    n_f = rest // n_m
-    return hf1_product_doc(
-        f"bench-{pads}", n_m, n_f, seeds, shard_size=shard, duration=duration, precision=precision, patches=patches
-    )
+    shard, patches, precision = cfg["shard_size"], cfg["patches"], cfg["precision"]
+    if cfg.get("sweep", "product") == "seeds":
+        doc: dict = {
+            "sweep": {"name": f"bench-seeds-{pads}", "base": "hf1", "shard_size": shard},
+            "run": {"duration": duration, "precision": precision, "integrator": "strang"},
+            "parameters": {"patches.seed": {"range": [1, pads + 1]}},
+        }
+        if patches is not None:
+            doc["base"] = {"patches": {"count": patches}}
+    else:
+        seeds = min(8, pads)
+        rest = pads // seeds
+        n_m = 2 ** (rest.bit_length() // 2)
+        n_f = rest // n_m
+        doc = hf1_product_doc(
+            f"bench-{pads}", n_m, n_f, seeds, shard_size=shard, duration=duration, precision=precision, patches=patches
+        )
+    doc["run"].pop("dt", None)
+    if cfg.get("dt", 1e-8) is not None:
+        doc["run"]["dt"] = cfg.get("dt", 1e-8)
+    return doc
+
+
+def warm_up_pads(cfg: dict) -> int:
+    """Pads of the warm-up sweep: all of them for the product sweep (8 layouts); for the seeds sweep, whose every pad
+    is a layout of its own, two shards per unit (every worker's threads load their kernels, the pool starts)."""
+    if cfg.get("sweep", "product") != "seeds":
+        return cfg["pads"]
+    return min(cfg["pads"], 1 << (2 * cfg["shard_size"] * cfg["units"] - 1).bit_length())
 
 
 # ----------------------------------------------------------------------------------------------------- child
@@ -120,8 +147,7 @@ def host_phases(cfg: dict) -> dict:
     from aca_warp.sweep import hf1_product_doc, load_spec
     from aca_warp.sweep import spec as spec_module
 
-    args = (cfg["pads"], cfg["patches"], cfg["shard_size"])
-    spec = load_spec(sweep_doc(hf1_product_doc, *args, cfg["duration"], cfg["precision"]))
+    spec = load_spec(sweep_doc(hf1_product_doc, cfg, cfg["duration"]))
     device = "cpu" if cfg["device"] == "cpu" else "cuda:0"
     index = min(1, spec.shard_count - 1)
     resolve = spec_module._resolve
@@ -197,9 +223,8 @@ def child(cfg: dict) -> dict:
 
     from aca_warp.sweep import hf1_product_doc, load_spec, local_cluster, run_sweep
 
-    args = (cfg["pads"], cfg["patches"], cfg["shard_size"])
-    spec = load_spec(sweep_doc(hf1_product_doc, *args, cfg["duration"], cfg["precision"]))
-    warm = load_spec(sweep_doc(hf1_product_doc, *args, WARM_UP_S, cfg["precision"]))
+    spec = load_spec(sweep_doc(hf1_product_doc, cfg, cfg["duration"]))
+    warm = load_spec(sweep_doc(hf1_product_doc, cfg, WARM_UP_S, warm_up_pads(cfg)))
     units, cpu = cfg["units"], cfg["device"] == "cpu"
     device = "cpu" if cpu else ",".join(f"cuda:{i}" for i in range(units))
     overlap = cfg["mode"] == "overlapped"
@@ -268,9 +293,7 @@ def command_sweep(cfg: dict) -> dict:
     import aca_warp
     from aca_warp.sweep import hf1_product_doc, load_spec, run_sweep
 
-    spec = load_spec(
-        sweep_doc(hf1_product_doc, cfg["pads"], cfg["patches"], cfg["shard_size"], cfg["duration"], cfg["precision"])
-    )
+    spec = load_spec(sweep_doc(hf1_product_doc, cfg, cfg["duration"]))
     units, cpu = cfg["units"], cfg["device"] == "cpu"
     device = "cpu" if cpu else ",".join(f"cuda:{i}" for i in range(units))
     kwargs: dict[str, Any] = {"device": device, "workers": units if cpu else None, "overlap": True}
@@ -349,7 +372,8 @@ def run_child(code_dir: Path, cfg: dict, scratch: Path) -> dict:
 
 def configurations(args: argparse.Namespace) -> list[dict]:
     """The runs: new overlapped on every unit count, new sequential on the first, the baseline overlapped on every."""
-    base = {k: getattr(args, k) for k in ("device", "pads", "patches", "shard_size", "duration", "precision")}
+    keys = ("device", "pads", "patches", "shard_size", "duration", "precision", "sweep", "dt")
+    base = {k: getattr(args, k) for k in keys}
     runs = [{**base, "code": "new", "mode": "overlapped", "units": u, "prepare": args.prepare} for u in args.units]
     runs.append({**base, "code": "new", "mode": "sequential", "units": args.units[0], "prepare": args.prepare})
     if args.baseline:
@@ -476,6 +500,13 @@ def power_of_two(text: str) -> int:
     return v
 
 
+def step_or_default(text: str) -> float | None:
+    """A step [s] (argparse type): a positive number, or ``default`` (None: the sweep's own default step)."""
+    from aca_warp.common.argtypes import positive
+
+    return None if text == "default" else positive(text)
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     """The options, checked: a bad number, --pads not a power of two, --baseline not a checkout, an output in a missing
     folder are refused here (exit 2), before the first run. (Imports the package's checks; a child, which may run an
@@ -497,6 +528,20 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--shard-size", type=int_at_least(1), default=256, help="pads per shard (default 256)")
     ap.add_argument("--duration", type=positive, default=1e-3, help="simulated time per pad [s] (default 1e-3)")
     ap.add_argument("--precision", default="fp32", choices=("fp32", "fp64"))
+    ap.add_argument(
+        "--sweep",
+        default="product",
+        choices=("product", "seeds"),
+        help="product: M x F_N x 8 patch seeds (8 layouts); seeds: patch seeds 1..pads, a layout per pad "
+        "(default product)",
+    )
+    ap.add_argument(
+        "--dt",
+        type=step_or_default,
+        default=1e-8,
+        help="strang's step [s], or 'default': the sweep's default step (5e-8 s for the product sweep, whose M and "
+        "load vary; 1e-7 s for the seeds sweep, hf1's physics) (default 1e-8, the step of the earlier runs)",
+    )
     ap.add_argument(
         "--prepare", type=int_at_least(0), help="preparation processes of the new code (default: as aca-warp sweep)"
     )
@@ -596,6 +641,9 @@ def document(args: argparse.Namespace, runs: list[dict], hosts: list[dict], argv
             "shard_size": args.shard_size,
             "duration_s": args.duration,
             "precision": args.precision,
+            "kind": args.sweep,
+            "dt_s": args.dt,
+            "step": "named" if args.dt is not None else "the sweep's default",
         },
         "results": rows,
         "runs": runs,

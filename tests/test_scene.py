@@ -644,3 +644,50 @@ def test_blocked_trials_place_the_patches_of_one_trial_at_a_time(name, count, se
         rad = np.sqrt(rng.uniform(gen.area_min, gen.area_max, count) / np.pi)
         got = gen._place(pad, rng, rad, 200)
         assert got.tobytes() == _placed_one_trial_at_a_time(gen, pad).tobytes()
+
+
+def test_native_placement_resumes_and_defers_close_calls(monkeypatch):
+    """The native accept / reject loop gives the layouts of one trial at a time when it runs out of trials and must
+    draw more (a dense pad), and when it leaves many trials to the host (a wide margin: every close pair is decided
+    with ``math.hypot`` there); the host path is taken in the second case."""
+    from aca_warp.kernels import placement
+
+    from aca_warp.scene import generator
+    from aca_warp.scene.generator import PatchGenerator
+    from aca_warp.scene.parts import Pad
+
+    pad = Pad(r_inner=0.1, r_outer=0.104, span_deg=10.0)  # 7.0e-5 m²: 500 patches of ≤ 8e-8 m² fill 0.4 of it
+    statuses: list[int] = []
+    run = placement.DiscPlacement.run
+
+    def counted(self, *args):
+        state = run(self, *args)
+        statuses.append(int(state[3]))
+        return state
+
+    monkeypatch.setattr(placement.DiscPlacement, "run", counted)
+    for seed in (1, 2):
+        gen = PatchGenerator(count=500, seed=seed)
+        rng = np.random.default_rng(seed)
+        rad = np.sqrt(rng.uniform(gen.area_min, gen.area_max, gen.count) / np.pi)
+        assert gen._place(pad, rng, rad, 200).tobytes() == _placed_one_trial_at_a_time(gen, pad).tobytes()
+    assert placement.MORE_TRIALS in statuses and placement.AMBIGUOUS not in statuses
+    deferred = []
+    overlaps = generator._overlaps
+    monkeypatch.setattr(generator, "_overlaps", lambda *a: deferred.append(a) or overlaps(*a))
+    monkeypatch.setattr(placement, "MARGIN", 0.3)
+    gen = PatchGenerator(count=300, seed=3)
+    rng = np.random.default_rng(3)
+    rad = np.sqrt(rng.uniform(gen.area_min, gen.area_max, gen.count) / np.pi)
+    hf1 = preset("hf1").pad
+    assert gen._place(hf1, rng, rad, 200).tobytes() == _placed_one_trial_at_a_time(gen, hf1).tobytes()
+    assert len(deferred) > 5
+
+
+def test_placement_grid_refuses_a_pad_far_larger_than_its_patches():
+    """A pad whose outer radius spans 2³⁰ cells of the placement grid or more is refused in one line."""
+    from aca_warp.scene.generator import PatchGenerator
+    from aca_warp.scene.parts import Pad
+
+    with pytest.raises(SceneError, match="too large against its patches"):
+        PatchGenerator(count=2, area_min=1e-12, area_max=1e-12).generate(Pad(r_inner=0.0, r_outer=2e5, span_deg=1.0))

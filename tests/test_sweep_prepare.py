@@ -654,3 +654,25 @@ def _until(done, seconds: float = 120.0) -> None:
     while not done():
         assert time.monotonic() < deadline
         time.sleep(0.01)
+
+
+def test_bench_sweep_kinds_and_steps() -> None:
+    """scripts/bench_sweep.py's sweeps: ``seeds`` gives every pad a patch seed of its own (1…pads), ``product`` the
+    M × F_N × 8 seeds of ``hf1_product_doc``; ``--dt default`` leaves the step to the sweep's default (1e-7 s for the
+    seeds of hf1's physics, 5e-8 s for the product, whose M and load vary), a number names it; the seeds sweep warms
+    up on two shards per unit (a power of two, at most the sweep)."""
+    from scriptload import load_script
+
+    from aca_warp.sweep import hf1_product_doc, load_spec
+
+    bench = load_script("bench_sweep")
+    cfg = {"pads": 2048, "shard_size": 256, "patches": None, "precision": "fp32", "units": 2}
+    seeds = load_spec(bench.sweep_doc(hf1_product_doc, {**cfg, "sweep": "seeds", "dt": None}, 1e-3))
+    assert seeds.doc["parameters"] == {"patches.seed": {"range": [1, 2049]}} and seeds.dt == 1e-7
+    product = load_spec(bench.sweep_doc(hf1_product_doc, {**cfg, "sweep": "product", "dt": None}, 1e-3))
+    assert set(product.doc["parameters"]) == {"friction.M", "load.normal_force", "patches.seed"}
+    assert product.dt == 5e-8
+    assert load_spec(bench.sweep_doc(hf1_product_doc, {**cfg, "sweep": "seeds", "dt": 2e-8}, 1e-3)).dt == 2e-8
+    assert bench.warm_up_pads({**cfg, "sweep": "seeds"}) == 1024
+    assert bench.warm_up_pads({**cfg, "sweep": "seeds", "units": 1, "pads": 256}) == 256
+    assert bench.warm_up_pads({**cfg, "sweep": "product"}) == 2048

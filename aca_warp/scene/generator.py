@@ -125,75 +125,76 @@ class PatchGenerator:
 
         A trial position is r = √U(r_inner², r_outer²), θ = π/2 + U(−half span, half span), the two uniforms drawn
         in that order per trial; a trial is kept when the disc lies inside the pad and overlaps no disc placed
-        before. The trials come from :class:`_Trials`, which draws the uniforms in blocks and tests the pad's
-        bounds for a block at once: the same positions, the same decisions as one trial at a time."""
-        cell = max(2.0 * rad.max(), 1e-4)
-        grid: dict[tuple[int, int], list[int]] = {}
-        xs, ys, radii = [0.0] * self.count, [0.0] * self.count, rad.tolist()  # Python floats: the same values
+        before (centre distance, ``math.hypot``, < the sum of the radii), among those of the 3 × 3 cells of width
+        max(2 max(rad), 1e-4) m around it. Disc i gets ``max_tries`` × 10 trials. The trials come from
+        :class:`_Trials`; the loop over them runs natively on the CPU (``aca_warp.kernels.placement``), which leaves
+        to :meth:`_overlaps` the trials whose distance it cannot tell from the sum of the radii: the decisions of
+        the loop in Python, one trial at a time."""
+        from aca_warp.common.devices import init_warp
+        from aca_warp.kernels import placement
+
+        init_warp()
+        cell = max(2.0 * float(rad.max()), 1e-4)
+        if pad.r_outer / cell >= 2.0**30:
+            raise SceneError(
+                f"the pad (r_outer {pad.r_outer:g} m) is too large against its patches (cells of {cell:g} m) for the "
+                "placement grid: use a smaller pad or larger patches"
+            )
         trials = _Trials(pad, rng)
-        for i in range(self.count):
-            ri = radii[i]
-            for _ in range(max_tries * 10):
-                px, py, inside = trials.next(ri)
-                if not inside:
-                    continue
-                cx, cy = int(math.floor(px / cell)), int(math.floor(py / cell))
-                if not any(
-                    math.hypot(px - xs[j], py - ys[j]) < ri + radii[j]
-                    for gx in (cx - 1, cx, cx + 1)
-                    for gy in (cy - 1, cy, cy + 1)
-                    for j in grid.get((gx, gy), ())
-                ):
-                    xs[i], ys[i] = px, py
-                    grid.setdefault((cx, cy), []).append(i)
-                    break
+        trials.draw(-(-(self.count + self.count // 8 + 1) // _Trials.BLOCK))
+        loop = placement.DiscPlacement(rad, cell, pad.fit_bounds)
+        while True:
+            placed, k, _, status, _ = loop.run(trials.x, trials.y, trials.dist, trials.edge, max_tries * 10)
+            if status == placement.DONE:
+                return np.column_stack(loop.placed())
+            if status == placement.MORE_TRIALS:
+                trials.draw(max(8, len(trials.x) // (2 * _Trials.BLOCK)))
+            elif status == placement.AMBIGUOUS:
+                loop.decide(not _overlaps(trials.x[k], trials.y[k], int(placed), rad, *loop.placed(), cell))
             else:
                 raise SceneError(
                     f"could not place {self.count} non-overlapping patches of {self.area_min:g}-{self.area_max:g} m² "
-                    f"on the pad (placed {i}); use fewer or smaller patches"
+                    f"on the pad (placed {placed}); use fewer or smaller patches"
                 )
-        return np.column_stack((xs, ys))
+
+
+def _overlaps(px: float, py: float, i: int, rad: np.ndarray, xs: np.ndarray, ys: np.ndarray, cell: float) -> bool:
+    """Whether disc ``i`` at (px, py) [m] overlaps one of the discs placed before it (centres ``xs``, ``ys`` [m]) in
+    the 3 × 3 cells around it: ``math.hypot`` of the centres' differences against the sum of the radii."""
+    cx, cy = math.floor(px / cell), math.floor(py / cell)
+    near = np.flatnonzero((np.abs(np.floor(xs / cell) - cx) <= 1) & (np.abs(np.floor(ys / cell) - cy) <= 1))
+    ri = float(rad[i])
+    return any(math.hypot(px - float(xs[j]), py - float(ys[j])) < ri + float(rad[j]) for j in near)
 
 
 class _Trials:
     """The trial positions of :meth:`PatchGenerator._place` in draw order, made in blocks of :data:`BLOCK`.
 
-    Per trial two uniforms of ``rng`` (``low + (high − low) · u``, the arithmetic of ``Generator.uniform``, from one
-    ``Generator.random`` block: the same stream as scalar ``uniform`` calls) and the position with the scalar
-    ``math`` functions; a block's distances to the pad's bounds at once (:meth:`Pad.edge_distances`, NumPy's
-    elementwise functions, the same for a block as for one value), and per trial :meth:`Pad.disc_fits` in scalars:
-    the decisions of :meth:`Pad.contains_disc` one trial at a time."""
+    Per trial two uniforms of ``rng`` (``low + (high − low) · u``, the arithmetic of ``Generator.uniform``, from
+    ``Generator.random``: the same stream as scalar ``uniform`` calls), the radius and angle with NumPy's
+    elementwise arithmetic (each operation rounded once, as in scalars), ``math.cos`` and ``math.sin``; per block
+    the distances to the pad's bounds (:meth:`Pad.edge_distances`). Attributes ``x``, ``y`` [m] and ``dist``,
+    ``edge`` [m], shape (trials drawn,)."""
 
     BLOCK = 64
 
     def __init__(self, pad: Pad, rng: np.random.Generator) -> None:
         self.pad, self.rng = pad, rng
-        self.x: list[float] = []
-        self.y: list[float] = []
-        self.r: list[float] = []
-        self.edge: list[float] = []
-        self.k = 0
+        self.x = self.y = self.dist = self.edge = np.empty(0)
 
-    def _refill(self) -> None:
-        pad, n = self.pad, self.BLOCK
-        u = self.rng.random(2 * n).tolist()
+    def draw(self, blocks: int) -> None:
+        """Append ``blocks`` blocks of trials."""
+        pad, n = self.pad, self.BLOCK * blocks
+        u = self.rng.random(2 * n)
         lo2, hi2, hs = pad.r_inner**2, pad.r_outer**2, pad.half_span
-        x, y = [], []
-        for t in range(n):
-            r = math.sqrt(lo2 + (hi2 - lo2) * u[2 * t])
-            th = math.pi / 2 + (-hs + (hs - -hs) * u[2 * t + 1])
-            x.append(r * math.cos(th))
-            y.append(r * math.sin(th))
-        dist, edge = pad.edge_distances(np.array(x), np.array(y))
-        self.x, self.y, self.r, self.edge, self.k = x, y, dist.tolist(), edge.tolist(), 0
-
-    def next(self, radius: float) -> tuple[float, float, bool]:
-        """The next trial position (x, y) [m] and whether a disc of ``radius`` [m] there lies inside the pad."""
-        if self.k == len(self.x):
-            self._refill()
-        k = self.k
-        self.k += 1
-        return self.x[k], self.y[k], bool(self.pad.disc_fits(self.r[k], self.edge[k], radius))
+        r = np.sqrt(lo2 + (hi2 - lo2) * u[0::2])
+        th = (math.pi / 2 + (-hs + (hs - -hs) * u[1::2])).tolist()
+        x = r * np.fromiter(map(math.cos, th), np.float64, n)
+        y = r * np.fromiter(map(math.sin, th), np.float64, n)
+        parts = [pad.edge_distances(x[a : a + self.BLOCK], y[a : a + self.BLOCK]) for a in range(0, n, self.BLOCK)]
+        self.x, self.y = np.concatenate((self.x, x)), np.concatenate((self.y, y))
+        self.dist = np.concatenate((self.dist, *(p[0] for p in parts)))
+        self.edge = np.concatenate((self.edge, *(p[1] for p in parts)))
 
 
 def _spatial_order(x: np.ndarray, y: np.ndarray, cell: float) -> np.ndarray:

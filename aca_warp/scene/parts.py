@@ -166,14 +166,17 @@ class Pad:
         ang = np.abs(np.arctan2(x, y))  # angle from +y
         return r, r * np.sin(np.clip(self.half_span - ang, -np.pi / 2, np.pi / 2))
 
+    @property
+    def fit_bounds(self) -> tuple[float, float, float]:
+        """The operands of :meth:`disc_fits`: r_inner (1 − 1e-12) [m], r_outer (1 + 1e-12) [m] and the factor
+        1 − 1e-12 on the radius against the straight edges [1]."""
+        return self.r_inner * (1 - 1e-12), self.r_outer * (1 + 1e-12), 1 - 1e-12
+
     def disc_fits(self, r: Any, edge: Any, radius: Any) -> Any:
         """Whether a disc of ``radius`` [m] at distances ``r`` and ``edge`` [m] (:meth:`edge_distances`) lies inside
         the pad: arrays elementwise, or scalars (the same IEEE operations either way)."""
-        return (
-            (r - radius >= self.r_inner * (1 - 1e-12))
-            & (r + radius <= self.r_outer * (1 + 1e-12))
-            & (edge >= radius * (1 - 1e-12))
-        )
+        inner, outer, shrink = self.fit_bounds
+        return (r - radius >= inner) & (r + radius <= outer) & (edge >= radius * shrink)
 
 
 @dataclass(frozen=True)
