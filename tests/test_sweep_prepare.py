@@ -676,3 +676,19 @@ def test_bench_sweep_kinds_and_steps() -> None:
     assert bench.warm_up_pads({**cfg, "sweep": "seeds"}) == 1024
     assert bench.warm_up_pads({**cfg, "sweep": "seeds", "units": 1, "pads": 256}) == 256
     assert bench.warm_up_pads({**cfg, "sweep": "product"}) == 2048
+
+
+def test_default_pool_size(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The preparation pool's default: 2 processes per GPU of a local CUDA sweep and at least 4 (a sweep over patch
+    seeds makes a layout per pad), at most the cores the workers leave (one kept for the client), at least 1; none on
+    the CPU or for a cluster given by address."""
+    from aca_warp.sweep import run
+
+    monkeypatch.setattr(run.os, "cpu_count", lambda: 32)
+    assert run.prepare_processes("cuda:0", None, True) == 4
+    assert run.prepare_processes("cuda:0,cuda:1", None, True) == 4
+    assert run.prepare_processes("cuda:0,cuda:1,cuda:2,cuda:3", None, True) == 8
+    assert run.prepare_processes("cpu", None, True) == run.prepare_processes("cuda:0", None, False) == 0
+    monkeypatch.setattr(run.os, "cpu_count", lambda: 4)
+    assert run.prepare_processes("cuda:0", None, True) == 2  # 4 cores, one worker, the client
+    assert run.prepare_processes("cuda:0", 3, True) == 1

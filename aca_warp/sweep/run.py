@@ -150,17 +150,19 @@ def _run_todo(
 
 
 PREPARE_PER_GPU = 2  # default preparation processes per GPU of a local sweep (prepare_processes)
+PREPARE_LEAST = 4  # and at least this many: a sweep over patch seeds makes a layout per pad (docs/sweeps.md)
 
 
 def prepare_processes(device: str, workers: int | None, local: bool) -> int:
     """Default size of the preparation pool: on CUDA :data:`PREPARE_PER_GPU` per GPU of a local sweep (a cluster
-    this call starts, or this process), at most the cores its workers leave; 0 (each task makes its own shard) on
-    the CPU, whose cores the workers use, and with a scheduler or client given (their hosts are not known here)."""
+    this call starts, or this process) and at least :data:`PREPARE_LEAST`, at most the cores its workers leave; 0
+    (each task makes its own shard) on the CPU, whose cores the workers use, and with a scheduler or client given
+    (their hosts are not known here)."""
     if device == "cpu" or not local:
         return 0
     gpus = len(cuda_ordinals(device))
     busy = gpus if workers is None else workers
-    return max(1, min(PREPARE_PER_GPU * gpus, (os.cpu_count() or 1) - busy - 1))
+    return max(1, min(max(PREPARE_PER_GPU * gpus, PREPARE_LEAST), (os.cpu_count() or 1) - busy - 1))
 
 
 def prepare_device(device: str, local: bool) -> str | None:
