@@ -51,6 +51,11 @@ Two H200s (one GPU and two, the code before as baseline; a few minutes)::
     mkdir -p build/baseline && git archive <commit> aca_warp kernels | tar -x -C build/baseline
     NCCL_NVLS_ENABLE=0 python scripts/bench_sweep.py --device cuda --units 1 2 --baseline build/baseline
 
+The host phases alone (no sweep), this code against a baseline: a shard of 256 pads of the seeds sweep, each its
+own layout, 3 times per code::
+
+    python scripts/bench_sweep.py --device cpu --host-only --sweep seeds --pads 512 --dt default --baseline build/base
+
 CPU (the host time per shard before and after: 2 shards of 256 hf1 pads, 1 µs simulated, 3 times in turn)::
 
     python scripts/bench_sweep.py --device cpu --units 1 --pads 512 --duration 1e-6 --repeat 3 --baseline build/baseline
@@ -555,12 +560,19 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         default=3,
         help="repeats of the host phases of one shard per code, in one process (default 3; 0: none)",
     )
+    ap.add_argument(
+        "--host-only",
+        action="store_true",
+        help="only the host phases of one shard per code (--host-repeat times): no sweep, no Dask needed",
+    )
     ap.add_argument("--dir", type=Path, help="scratch folder (default: a temporary one, removed)")
     ap.add_argument("--json", default="bench_sweep.json", help="output JSON file")
     ap.add_argument("--md", default="bench_sweep.md", help="output Markdown file (one line)")
     args = ap.parse_args(argv)
     if args.baseline is not None and (problem := checkout_problem(args.baseline)):
         ap.error(f"--baseline {problem}")
+    if args.host_only and not args.host_repeat:
+        ap.error("--host-only measures the host phases: give --host-repeat 1 or more")
     try:  # every refusal before the first run: nothing run, nothing written
         for out in (args.json, args.md):
             check_output_path(out, overwrite=True)
@@ -577,7 +589,8 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(child(json.loads(given[1]))), flush=True)
         return 0
     args = parse_args(argv)
-    from distributed import Client  # noqa: F401  (fails here, before any work, where Dask is missing)
+    if not args.host_only:
+        from distributed import Client  # noqa: F401  (fails here, before any work, where Dask is missing)
 
     from aca_warp.common.devices import init_warp
 
@@ -595,7 +608,8 @@ def main(argv: list[str] | None = None) -> int:
                 print(
                     f"{code} host phases of a shard ({h['engine']}): wall {h['wall_s']}, CPU {h['cpu_s']}", flush=True
                 )
-        for rep in range(args.repeat):  # in turn: a slow spell of a shared machine spreads over every configuration
+        # in turn: a slow spell of a shared machine spreads over every configuration
+        for rep in range(0 if args.host_only else args.repeat):
             for cfg in configurations(args):
                 r = {**run_child(codes[cfg["code"]].resolve(), cfg, scratch), "run": rep + 1}
                 if cfg["mode"] == "overlapped":  # the whole call, as the command runs it (its own cluster and pool)

@@ -691,3 +691,16 @@ def test_placement_grid_refuses_a_pad_far_larger_than_its_patches():
 
     with pytest.raises(SceneError, match="too large against its patches"):
         PatchGenerator(count=2, area_min=1e-12, area_max=1e-12).generate(Pad(r_inner=0.0, r_outer=2e5, span_deg=1.0))
+
+
+def test_generated_layouts_pass_the_geometry_check_they_skip():
+    """The generator marks its layouts as fitting their pad, so a scene does not check them again; the check itself,
+    run on them, finds every patch inside the pad and no pair overlapping (hf1 and varying_area counts, a full ring)."""
+    from aca_warp.scene.generator import PatchGenerator
+    from aca_warp.scene.parts import Pad, overlapping_pairs
+
+    for pad, count, amax in ((preset("hf1").pad, 1758, 8e-8), (Pad(0.05, 0.08, 360.0), 4000, 6e-8)):
+        for seed in (1, 2, 3):
+            p = PatchGenerator(count=count, area_max=amax, seed=seed).generate(pad)
+            assert p.__dict__["_fits"] == pad
+            assert pad.contains_disc(p.x, p.y, p.radius).all() and len(overlapping_pairs(p)) == 0

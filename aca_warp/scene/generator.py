@@ -95,7 +95,9 @@ class PatchGenerator:
         return np.clip(self.height + self.height_spread * z, *self.height_bounds)
 
     def generate(self, pad: Pad, *, max_tries: int = 200) -> Patches:
-        """Place the patches by random sequential addition; sorted row-major by coupling-size cells."""
+        """Place the patches by random sequential addition; sorted row-major by coupling-size cells. They fit
+        ``pad`` by construction (the tests of :meth:`Pad.disc_fits` and of the centre distances that a scene's
+        geometry check applies), and are marked as fitting it, so that a scene does not test them again."""
         if self.count * self.area_min > pad.area:  # cannot fit; also keeps absurd counts from allocating
             raise SceneError(
                 f"could not place {self.count} non-overlapping patches of {self.area_min:g}-{self.area_max:g} m² on "
@@ -106,7 +108,9 @@ class PatchGenerator:
         area = rng.uniform(self.area_min, self.area_max, self.count)
         xy = self._place(pad, rng, np.sqrt(area / np.pi), max_tries)
         order = _spatial_order(xy[:, 0], xy[:, 1], 5.0e-3)
-        return Patches(xy[order, 0], xy[order, 1], area[order], self.heights()[order], source=self.describe())
+        patches = Patches(xy[order, 0], xy[order, 1], area[order], self.heights()[order], source=self.describe())
+        object.__setattr__(patches, "_fits", pad)  # the mark of Scene._check_geometry
+        return patches
 
     def describe(self) -> str:
         """The ``source`` of the patches this generator makes: ``generator(count=…, area=[…] m2, height=… m,
