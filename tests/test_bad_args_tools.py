@@ -33,6 +33,7 @@ ABSENT = "{tmp}/absent"  # a folder that does not exist
         ("bench_sweep", ["--pads", "3"], "choose a power of two"),
         ("bench_sweep", ["--dt", "0"], "--dt: must be positive"),
         ("bench_sweep", ["--sweep", "grid"], "invalid choice: 'grid'"),
+        ("bench_sweep", ["--host-only", "--host-repeat", "0"], "--host-only measures the host phases"),
         ("bench_sweep", ["--json", f"{ABSENT}/b.json"], "output folder"),
         ("compare_checkouts", [ABSENT, ABSENT, "--out", "{tmp}/cmp"], "not a checkout of aca_warp"),
         ("compare_checkouts", [REPO, REPO, "--out", "{tmp}/cmp", "--jobs", "hf_lf_state", "lf_seed7"], "name lf_seed7"),

@@ -692,3 +692,22 @@ def test_default_pool_size(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(run.os, "cpu_count", lambda: 4)
     assert run.prepare_processes("cuda:0", None, True) == 2  # 4 cores, one worker, the client
     assert run.prepare_processes("cuda:0", 3, True) == 1
+
+
+def test_bench_sweep_host_only(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--host-only``: the host phases of one shard per code and no sweep (no run rows); the seeds sweep's shard has
+    a layout per pad."""
+    import warp as wp
+    from scriptload import load_script
+
+    monkeypatch.setenv("WARP_CACHE_PATH", str(Path(wp.config.kernel_cache_dir).parent))
+    bench = load_script("bench_sweep")
+    out, md = tmp_path / "h.json", tmp_path / "h.md"
+    argv = ["--device", "cpu", "--host-only", "--host-repeat", "1", "--sweep", "seeds", "--pads", "8", "--patches"]
+    argv += ["12", "--shard-size", "4", "--json", str(out), "--md", str(md), "--dir", str(tmp_path / "w")]
+    assert bench.main(argv) == 0
+    doc = json.loads(out.read_text())
+    assert doc["results"] == [] and doc["runs"] == [] and doc["sweep"]["kind"] == "seeds"
+    (host,) = doc["host"]
+    assert host["code"] == "new" and host["pads"] == 4 and host["wall_s"]["prepare"] > 0
+    assert "new: host time per shard (least of 1" in md.read_text()
