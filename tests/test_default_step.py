@@ -200,17 +200,24 @@ def test_a_sweep_names_its_step(tmp_path, capsys):
 
 def test_a_sample_interval_between_the_defaults_sets_the_step():
     """Samples every 5e-8 s to 1e-7 s on a preset: the default step becomes the sample interval (what ran under the
-    one default of 5e-8 s still runs); below 5e-8 s the sample interval is refused as for any step."""
+    one default of 5e-8 s still runs); below 5e-8 s the sample interval is refused as for any step, and the message
+    names 5e-8 s as the shortest interval (for a step asked for, the step itself), in a run and in a sweep."""
     hf1 = preset("hf1")
     for sample, step in ((5e-8, 5e-8), (8e-8, 8e-8), (1e-7, 1e-7), (2e-7, 1e-7)):
         plan = plan_run(hf1.replace(record=Record(sample)), RunOptions(duration=1e-6))
         assert plan.step == pytest.approx(step) and plan.steps == round(1e-6 / step)
-    with pytest.raises(SceneError, match="is shorter than the step 1e-07 s"):
+    shortest = r"shorter than the default step 1e-07 s \(which a sample interval down to 5e-08 s would shorten\).*"
+    with pytest.raises(SceneError, match=shortest + "at least 5e-08 s"):
         plan_run(hf1.replace(record=Record(2e-8)), RunOptions(duration=1e-6))
-    from aca_warp.sweep import load_spec
+    with pytest.raises(SceneError, match=r"shorter than the step 1e-07 s: .* at least 1e-07 s"):
+        plan_run(hf1.replace(record=Record(2e-8)), RunOptions(duration=1e-6, dt=1e-7))
+    from aca_warp.sweep import SweepError, load_spec
 
     doc = {"sweep": {"base": "hf1"}, "run": {"duration": 1e-5, "sample_dt": 5e-8}, "parameters": {"patches.seed": [1]}}
     assert load_spec(doc).dt == 5e-8
+    doc["run"]["sample_dt"] = 2e-8
+    with pytest.raises(SweepError, match=shortest + "at least 5e-08 s"):
+        load_spec(doc)
 
 
 def test_an_lf_state_of_a_measured_group_takes_the_preset_step(tmp_path):

@@ -127,6 +127,14 @@ def step_asked(
     return step
 
 
+def default_follows(integrator: str, asked: float | None, step: float) -> float | None:
+    """The shortest sample interval [s] that the default ``step`` [s] of ``integrator`` becomes when none was
+    ``asked`` (:func:`step_asked`): :data:`STATISTICS_STEP` where the default is longer; else None."""
+    if asked is None and integrator == "strang" and STATISTICS_STEP < step:
+        return STATISTICS_STEP
+    return None
+
+
 def fast_math_unfit(integrator: str, precision: str) -> str | None:
     """Why CUDA fast math cannot apply to a run of ``integrator`` in ``precision`` (None when it can): it compiles
     the on-chip ``strang`` kernel only, and changes single-precision operations only. The device and the engine

@@ -49,17 +49,23 @@ def check_run(duration: float, record: Record, checkpoint_every: float | None = 
     return n_samples
 
 
-def check_sample_step(sample_dt: float, dt: float, anyway: str = "") -> None:
+def check_sample_step(sample_dt: float, dt: float, anyway: str = "", follows: float | None = None) -> None:
     """Refuse a sample interval [s] shorter than the step ``dt`` [s] that was asked for (or the default): the run
     would shrink every step to the sample interval, silently multiplying the steps (``record.sample_dt = 1e-12``
-    turned a 1e-8 s step into 1e-12 s and a run of hours). ``anyway`` names the override, if there is one."""
+    turned a 1e-8 s step into 1e-12 s and a run of hours). ``anyway`` names the override, if there is one;
+    ``follows`` [s], where ``dt`` is a default step that becomes a shorter sample interval down to ``follows``
+    (:func:`~aca_warp.hf.options.step_asked`): the message names that as the shortest interval."""
     if sample_dt < dt * (1 - 1e-9):
+        least = dt if follows is None else follows
+        which = f"the step {dt:g} s"
+        if follows is not None:
+            which = f"the default step {dt:g} s (which a sample interval down to {follows:g} s would shorten)"
         raise SceneError(
             f"{option('record.sample_dt', 'the sample interval (--sample-dt, or record.sample_dt in the scene)')} = "
-            f"{sample_dt:g} s is shorter than the step {dt:g} s: every step would shrink to the sample interval "
+            f"{sample_dt:g} s is shorter than {which}: every step would shrink to the sample interval "
             f"({dt / sample_dt:.3g} times the steps); "
-            f"choose a sample interval of at least the step ({option('record.sample_dt', '--sample-dt')}, seconds) "
-            f"or ask for that step ({option('dt', '--dt')})" + (f"; {anyway}" if anyway else "")
+            f"choose a sample interval of at least {least:g} s ({option('record.sample_dt', '--sample-dt')}, seconds) "
+            f"or ask for a step ({option('dt', '--dt')})" + (f"; {anyway}" if anyway else "")
         )
 
 

@@ -26,6 +26,7 @@ from aca_warp.hf.onchip_layout import choose_engine
 from aca_warp.hf.options import (
     STEP_CONTROLLED,
     RunOptions,
+    default_follows,
     default_precision,
     default_step,
     growth_asked,
@@ -96,7 +97,8 @@ def plan_run(
     asked = step_asked(options.integrator, options.dt, [scene], rec.sample_dt)
     dt = default_step(options.integrator) if asked is None else asked  # step-controlled: the first trial's bound
     if not forced:
-        check_sample_step(rec.sample_dt, dt, f"{option('force=True', '--force')} runs it anyway")
+        anyway = f"{option('force=True', '--force')} runs it anyway"
+        check_sample_step(rec.sample_dt, dt, anyway, follows=default_follows(options.integrator, options.dt, dt))
     if options.integrator not in STEP_CONTROLLED:
         sps = max(1, math.ceil(rec.sample_dt / dt - 1e-9))
         steps, step = n * sps, rec.sample_dt / sps
@@ -160,13 +162,14 @@ def run_scene(
     try:
         check_output_path(output, overwrite=overwrite)
         options = options.with_duration(scene.duration if options.duration is None else options.duration)
+        # planned before the step is written out: plan_run resolves the same step, and knows whether one was asked
+        plan = plan_run(scene, options, precision, force_limits=force_limits)  # absurd counts or sizes: refused early
         interval = scene.growth.interval if scene.growth is not None else None
         options = dataclasses.replace(  # the file keeps both
             options,
             dt=step_asked(options.integrator, options.dt, [scene], scene.record.sample_dt),
             growth_dt=growth_asked(options.integrator, options.growth_dt, interval, options.duration),
         )
-        plan = plan_run(scene, options, precision, force_limits=force_limits)  # absurd counts or sizes: refused early
         if not (options.force if force_limits is None else force_limits):
             hint = "a larger sample interval, a shorter patch window or decimation; "
             check_room(Path(output).parent, plan.file_bytes, hint + f"{option('force=True', '--force')} tries anyway")

@@ -330,6 +330,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         DEFAULT_TOLERANCE,
         INTEGRATORS,
         SCENE_CLOCK,
+        default_follows,
         default_precision,
         default_step,
         fast_math_unfit,
@@ -394,7 +395,8 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         record.check_duration(duration, "run.sample_dt", "run.duration")  # before the scene's, which names its fields
         base = base.replace(duration=duration, record=record)
         check_run(duration, base.record)
-        check_sample_step(sample_dt, default_step(integrator) if dt is None else dt)
+        step = default_step(integrator) if dt is None else dt
+        check_sample_step(sample_dt, step, follows=default_follows(integrator, num("dt", None), step))
     except SceneError as e:
         raise SweepError(f"run settings: {e}") from None
     if dt is not None and not duration / dt <= MAX_STEPS:
