@@ -123,7 +123,8 @@ def test_run_files_keep_the_step_they_ran_at(tmp_path, capsys):
 def test_a_sweep_spec_writes_its_default_step_out():
     """A sweep without run.dt takes the integrator's default step, written into its run settings and hash (a sweep
     directory begun under another default is then another sweep, not continued at another step): the base scene's
-    where the sweep varies only seeds and initial states, else the step for any scene."""
+    where every pad shares its physics (seeds and initial states vary, and any other parameter lists the base's own
+    values only), else the step for any scene."""
     from aca_warp.sweep import SweepError, load_spec
 
     doc = {"sweep": {"base": "hf1"}, "run": {"duration": 1e-5}, "parameters": {"friction.M": [0.6, 0.7]}}
@@ -139,6 +140,11 @@ def test_a_sweep_spec_writes_its_default_step_out():
     assert load_spec(seeds).dt == PRESET_STEP and load_spec(seeds).run_settings()["dt"] == PRESET_STEP
     custom = {**seeds, "sweep": {"base": "hf1"}, "base": {"load": {"normal_force": 400.0}}}
     assert load_spec(custom).dt == STATISTICS_STEP
+    own = {"friction.M": [0.8, 0.8], "load.normal_force": [487.2], "patches.count": [1758], "patches.seed": [1, 2]}
+    assert load_spec({**doc, "parameters": own}).dt == PRESET_STEP  # hf1's own M, load and count
+    for key, other in (("friction.M", 0.7), ("load.normal_force", 400.0), ("patches.count", 1000)):
+        changed = {**own, key: [*own[key], other]}
+        assert load_spec({**doc, "parameters": changed}).dt == STATISTICS_STEP, key
 
 
 def test_the_summary_line_says_why_the_step(tmp_path, capsys):

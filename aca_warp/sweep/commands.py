@@ -71,8 +71,9 @@ def add_parsers(sub: Any) -> None:
         "--dt",
         type=positive,
         metavar="S",
-        help="fixed step [s] (default: the spec's, else strang 1e-7 for a sweep of a shipped preset that varies only "
-        "seeds and initial states, 5e-8 for any other; the other fixed-step integrators 1e-8)",
+        help="fixed step [s] (default: the spec's, else strang 1e-7 for a sweep of a shipped preset whose pads all "
+        "keep its physics (seeds and initial states varied, other parameters at the preset's values only), 5e-8 for "
+        "any other; the other fixed-step integrators 1e-8)",
     )
     p.add_argument(
         "--fast-math",

@@ -384,10 +384,10 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     tolerance = num("tolerance", DEFAULT_TOLERANCE)
     sample_dt = num("sample_dt", base.record.sample_dt)
     lists, params = _expand(doc.get("parameters", {}), mode, base, base_doc)
-    # the default step written out (the hash and the shards name the step): the base scene's, where the sweep
-    # varies only seeds and initial states (every pad then shares its physics), else the step for any scene
-    seeds_only = all(k == "patches.seed" or PARAMETERS[k][1] == "initial" for k in lists)
-    dt = step_asked(integrator, num("dt", None), [base] if seeds_only else [], sample_dt)
+    # the default step written out (the hash and the shards name the step): the base scene's, where every pad
+    # shares its physics, else the step for any scene
+    shared = num("dt", None) is None and integrator == "strang" and _shares_base_physics(base, base_doc, lists)
+    dt = step_asked(integrator, num("dt", None), [base] if shared else [], sample_dt)
     try:
         from aca_warp.hf.recorder import check_run, check_sample_step
 
@@ -477,6 +477,28 @@ def pack_order(parameters: dict[str, list], pack: str) -> np.ndarray | None:
 # parameters whose values select a random draw, not the geometry or the material: checked through the first and last
 # pad only (a sweep over 2048 patch seeds would otherwise make every layout here, in one process, before any run)
 _DRAW_PARAMETERS = frozenset({"patches.seed", "initial.seed"})
+
+
+def _shares_base_physics(base: Scene, base_doc: dict, lists: dict[str, list]) -> bool:
+    """Whether every pad of a sweep has the physics of ``base``, a scene of a measured regime
+    (:func:`~aca_warp.scene.regimes.preset_regime`): every listed parameter but the draws (patch and initial-state
+    seeds) and the initial state takes only values that leave the base's regime as it is (the base with that one
+    value applied is of the same regime). Stops at the first value that does not."""
+    from aca_warp.scene.regimes import preset_regime
+
+    regime = preset_regime(base)
+    if regime is None:
+        return False
+    for key, values in lists.items():
+        if key == "patches.seed" or PARAMETERS[key][1] == "initial":
+            continue
+        for v in {repr(v): v for v in values}.values():  # each distinct value once
+            try:
+                if preset_regime(apply_parameters(base, base_doc, {key: v})) != regime:
+                    return False
+            except SceneError:  # a value the pads refuse: its shard says so; it keeps no preset's physics
+                return False
+    return True
 
 
 def _check_pads(spec: SweepSpec, lists: dict[str, list]) -> None:
