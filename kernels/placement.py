@@ -81,7 +81,7 @@ def _place(
     lo = wp.float64(1.0) - margin
     hi = wp.float64(1.0) + margin
     while i < count:
-        if tries == max_tries:
+        if tries >= max_tries:
             status = NOT_PLACED
             break
         if k == n_trials:

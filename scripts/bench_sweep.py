@@ -17,9 +17,9 @@ compiled or loaded in every worker; the pool's fork server started), then the ti
 Configurations:
 
 * ``new``: the checkout this script belongs to, with its preparation pool (``--prepare``, default as ``aca-warp
-  sweep``: two processes per GPU, none on the CPU), overlapped, on each of ``--units`` GPUs (CPU worker processes
-  with ``--device cpu``); and once ``sequential`` on the first of ``--units``: the in-shard rate of kernels that do
-  not share their GPU, the reference of the targets;
+  sweep``: two processes per GPU and at least four, none on the CPU), overlapped, on each of ``--units`` GPUs (CPU
+  worker processes with ``--device cpu``); and once ``sequential`` on the first of ``--units``: the in-shard rate of
+  kernels that do not share their GPU, the reference of the targets;
 * ``baseline`` (with ``--baseline DIR``): the checkout at DIR (e.g. ``git archive <commit> aca_warp kernels | tar -x
   -C DIR``), overlapped, on each of ``--units``.
 
@@ -93,7 +93,7 @@ def sweep_doc(hf1_product_doc: Any, cfg: dict, duration: float, pads: int | None
     ``strang`` at ``cfg["dt"]`` [s], or at the sweep's default step where it is None."""
     pads = cfg["pads"] if pads is None else pads
     if pads < 1 or pads & (pads - 1):
-        raise SystemExit(f"--pads {pads}: choose a power of two (the sweep is a product M x F_N x seed)")
+        raise SystemExit(f"--pads {pads}: choose a power of two (the bench's sweeps have 2^k pads)")
     shard, patches, precision = cfg["shard_size"], cfg["patches"], cfg["precision"]
     if cfg.get("sweep", "product") == "seeds":
         doc: dict = {
@@ -496,12 +496,13 @@ def device_time(devices: dict) -> str:
 
 
 def power_of_two(text: str) -> int:
-    """A pad count of the bench's product sweep (argparse type): a power of two."""
+    """A pad count of the bench's sweeps (argparse type): a power of two (the product's M x F_N x seed; the seeds
+    sweep's warm-up of two shards per unit)."""
     from aca_warp.common.argtypes import int_at_least
 
     v = int_at_least(1)(text)
     if v & (v - 1):
-        raise argparse.ArgumentTypeError(f"choose a power of two (the sweep is a product M x F_N x seed), got {text!r}")
+        raise argparse.ArgumentTypeError(f"choose a power of two (the bench's sweeps have 2^k pads), got {text!r}")
     return v
 
 

@@ -684,6 +684,65 @@ def test_native_placement_resumes_and_defers_close_calls(monkeypatch):
     assert len(deferred) > 5
 
 
+def _placed_before_giving_up(gen, pad, max_tries):
+    """How many patches the loop of one trial at a time places before one finds no place in ``max_tries`` × 10
+    trials (``gen.count`` where all are placed): the reference of the generator's "(placed i)"."""
+    rng = np.random.default_rng(gen.seed)
+    rad = np.sqrt(rng.uniform(gen.area_min, gen.area_max, gen.count) / np.pi)
+    cell, grid, xy = max(2.0 * rad.max(), 1e-4), {}, np.zeros((gen.count, 2))
+    lo2, hi2 = pad.r_inner**2, pad.r_outer**2
+    for i in range(gen.count):
+        for _ in range(max_tries * 10):
+            r = math.sqrt(rng.uniform(lo2, hi2))
+            th = math.pi / 2 + rng.uniform(-pad.half_span, pad.half_span)
+            p = (r * math.cos(th), r * math.sin(th))
+            if not pad.contains_disc(np.array(p[0]), np.array(p[1]), np.array(rad[i])):
+                continue
+            cx, cy = int(math.floor(p[0] / cell)), int(math.floor(p[1] / cell))
+            near = [j for gx in (cx - 1, cx, cx + 1) for gy in (cy - 1, cy, cy + 1) for j in grid.get((gx, gy), ())]
+            if all(math.hypot(p[0] - xy[j, 0], p[1] - xy[j, 1]) >= rad[i] + rad[j] for j in near):
+                xy[i] = p
+                grid.setdefault((cx, cy), []).append(i)
+                break
+        else:
+            return i
+    return gen.count
+
+
+def test_native_placement_gives_up_where_the_loop_in_python_did(monkeypatch):
+    """A pad that jams: the native loop gives up at the same patch as one trial at a time (the message names how
+    many it placed); with every disc in one hash bucket (every chain collides) the layout is the same; max_tries
+    outside [1, MAX_TRIES] is refused before any draw."""
+    import warp as wp
+    from aca_warp.kernels import placement
+
+    from aca_warp.scene.generator import MAX_TRIES, PatchGenerator
+    from aca_warp.scene.parts import Pad
+
+    pad = Pad(r_inner=0.1, r_outer=0.1006, span_deg=2.0)  # 2.1e-6 m² for 60 patches of 2e-8–8e-8 m²: jams
+    for seed, tries in ((4, 2), (5, 1), (6, 3)):
+        gen = PatchGenerator(count=60, seed=seed)
+        expected = _placed_before_giving_up(gen, pad, tries)
+        assert 0 < expected < 60
+        with pytest.raises(SceneError, match=rf"\(placed {expected}\)"):
+            gen.generate(pad, max_tries=tries)
+    init = placement.DiscPlacement.__init__
+
+    def one_bucket(self, *args):
+        init(self, *args)
+        self.mask = wp.uint32(0)
+
+    monkeypatch.setattr(placement.DiscPlacement, "__init__", one_bucket)
+    hf1 = preset("hf1").pad
+    gen = PatchGenerator(count=400, seed=9)
+    rng = np.random.default_rng(9)
+    rad = np.sqrt(rng.uniform(gen.area_min, gen.area_max, gen.count) / np.pi)
+    assert gen._place(hf1, rng, rad, 200).tobytes() == _placed_one_trial_at_a_time(gen, hf1).tobytes()
+    for bad in (0, -1, MAX_TRIES + 1, 2.0, True):
+        with pytest.raises(SceneError, match=r"max_tries must be an integer in \[1, "):
+            gen.generate(hf1, max_tries=bad)
+
+
 def test_placement_grid_refuses_a_pad_far_larger_than_its_patches():
     """A pad whose outer radius spans 2³⁰ cells of the placement grid or more is refused in one line."""
     from aca_warp.scene.generator import PatchGenerator

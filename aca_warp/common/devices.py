@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import sys
 import tempfile
+import threading
 from collections.abc import Callable, Iterable
 from types import ModuleType
 
@@ -20,6 +21,7 @@ from aca_warp.common.errors import SceneError
 
 _CUDA_DRIVER_WARNING = "Could not find or load the NVIDIA CUDA driver"
 _state = {"initialised": False, "compiling_said": False}
+_init_lock = threading.Lock()  # a thread that finds Warp initialising waits for it (sweep tasks, generators)
 
 
 def verbose() -> bool:
@@ -29,10 +31,18 @@ def verbose() -> bool:
 
 def init_warp() -> None:
     """Initialise Warp once, quietly unless :func:`verbose`: its log level at warnings, and its native start-up
-    message about a missing CUDA driver dropped (any other native message is passed on to stderr)."""
+    message about a missing CUDA driver dropped (any other native message is passed on to stderr). Safe to call
+    from several threads: the first initialises, the others wait for it."""
     if _state["initialised"]:
         return
-    _state["initialised"] = True
+    with _init_lock:
+        if not _state["initialised"]:
+            _init_quietly()
+            _state["initialised"] = True
+
+
+def _init_quietly() -> None:
+    """``wp.init()`` as :func:`init_warp` describes it."""
     if verbose():
         wp.init()
         return

@@ -65,7 +65,7 @@ def check_sample_step(sample_dt: float, dt: float, anyway: str = "", follows: fl
             f"{sample_dt:g} s is shorter than {which}: every step would shrink to the sample interval "
             f"({dt / sample_dt:.3g} times the steps); "
             f"choose a sample interval of at least {least:g} s ({option('record.sample_dt', '--sample-dt')}, seconds) "
-            f"or ask for a step ({option('dt', '--dt')})" + (f"; {anyway}" if anyway else "")
+            f"or a step of at most {sample_dt:g} s ({option('dt', '--dt')})" + (f"; {anyway}" if anyway else "")
         )
 
 

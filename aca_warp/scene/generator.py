@@ -11,6 +11,8 @@ import numpy as np
 from aca_warp.common.errors import SceneError
 from aca_warp.scene.parts import HEIGHT_LAWS, Pad, Patches, _finite
 
+MAX_TRIES = 100_000_000  # largest max_tries: its trials per patch, ×10, fit the native loop's int32 counter
+
 
 @dataclass(frozen=True)
 class PatchGenerator:
@@ -96,8 +98,12 @@ class PatchGenerator:
 
     def generate(self, pad: Pad, *, max_tries: int = 200) -> Patches:
         """Place the patches by random sequential addition; sorted row-major by coupling-size cells. They fit
-        ``pad`` by construction (the tests of :meth:`Pad.disc_fits` and of the centre distances that a scene's
-        geometry check applies), and are marked as fitting it, so that a scene does not test them again."""
+        ``pad`` by the generator's own tests, and are marked as fitting it, so that a scene does not test them
+        again: inside the pad by :meth:`Pad.disc_fits`, as the scene's check; apart by ``math.hypot`` of the centres'
+        differences, where the check takes ``np.hypot``, which can differ in the last place (in about 0.6 % of
+        pairs): a pair that touches to within that rounding (≈ 1e-19 m here) stays as the generator placed it."""
+        if isinstance(max_tries, bool) or not isinstance(max_tries, int) or not 1 <= max_tries <= MAX_TRIES:
+            raise SceneError(f"max_tries must be an integer in [1, {MAX_TRIES}], got {max_tries!r}")
         if self.count * self.area_min > pad.area:  # cannot fit; also keeps absurd counts from allocating
             raise SceneError(
                 f"could not place {self.count} non-overlapping patches of {self.area_min:g}-{self.area_max:g} m² on "
@@ -109,7 +115,7 @@ class PatchGenerator:
         xy = self._place(pad, rng, np.sqrt(area / np.pi), max_tries)
         order = _spatial_order(xy[:, 0], xy[:, 1], 5.0e-3)
         patches = Patches(xy[order, 0], xy[order, 1], area[order], self.heights()[order], source=self.describe())
-        object.__setattr__(patches, "_fits", pad)  # the mark of Scene._check_geometry
+        object.__setattr__(patches, "_fits", pad)  # the mark of Scene._check_geometry (docstring)
         return patches
 
     def describe(self) -> str:
