@@ -4,9 +4,9 @@
 A sweep over patch seeds makes one layout per pad before it runs (random sequential addition,
 ``aca_warp.scene.generator.PatchGenerator``), so the generator's speed bounds how fast its shards are prepared. Per
 checkout, in its own Python process, this generates the layouts of ``--seeds`` seeds for each case (a preset's pad
-with its patch count and areas, and a 4000-patch and a 200-patch variant) and reports the wall time and a SHA-256
-of every layout's x, y and area bytes; with two checkouts the hashes must agree (exit 1 otherwise). JSON and a
-Markdown table into ``--out``. Example (the baseline checkout from ``git archive``)::
+with its patch count and areas: hf1's, which hf3 and varying_area share, and hf2's, which hf4 shares; and a
+4000-patch and a 200-patch variant) and reports the wall time and a SHA-256 of every layout's x, y and area bytes;
+with two checkouts the hashes must agree (exit 1 otherwise). JSON and a Markdown table into ``--out``. Example (the baseline checkout from ``git archive``)::
 
     python3 scripts/bench_patch_generator.py build/base . --seeds 50 --out out/patch_generator
 """
@@ -26,7 +26,12 @@ from aca_warp.cli import Parser
 from aca_warp.common.argtypes import int_at_least
 
 # (preset whose pad is used, patch count, area_min, area_max [m²])
-CASES = [("hf1", 1758, 2e-8, 8e-8), ("varying_area", 4000, 2e-8, 6e-8), ("hf3", 200, 1e-7, 4e-7)]
+CASES = [
+    ("hf1", 1758, 2e-8, 8e-8),  # hf1, hf3 and varying_area
+    ("hf2", 1758, 5e-7, 2e-6),  # hf2 and hf4: larger patches, a fifth of the pad covered
+    ("varying_area", 4000, 2e-8, 6e-8),
+    ("hf3", 200, 1e-7, 4e-7),
+]
 
 CHILD = """
 import hashlib, json, sys, time
