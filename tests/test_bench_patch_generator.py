@@ -15,7 +15,7 @@ def test_one_checkout(tmp_path):
     assert load_script("bench_patch_generator").main([ROOT, "--seeds", "1", "--out", str(tmp_path)]) == 0
     doc = json.loads((tmp_path / "patch_generator.json").read_text())
     (rows,) = doc["runs"]
-    assert [r["case"][0] for r in rows] == ["hf1", "varying_area", "hf3"] and doc["identical"] is None
+    assert [r["case"][0] for r in rows] == ["hf1", "hf2", "varying_area", "hf3"] and doc["identical"] is None
     assert all(len(r["sha256"]) == 64 and r["wall_s"] > 0 for r in rows)
 
 
