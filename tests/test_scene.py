@@ -608,9 +608,11 @@ def test_pairs_within_counts_as_a_kd_tree_does():
     assert pairs_within(p.x, p.y, s.material.coupling_radius) == kd(p.x, p.y, s.material.coupling_radius) > 1000
 
 
-def _placed_one_trial_at_a_time(gen, pad, max_tries=200):
+def _one_trial_at_a_time(gen, pad, max_tries=200):
     """Random sequential addition as first written: one scalar draw pair and one bounds test per trial (the
-    reference the blocked trials of PatchGenerator._place must reproduce bit for bit)."""
+    reference the generator's blocked trials and native loop must reproduce bit for bit). Returns the centres
+    (count, 2) [m] and how many patches were placed before one found no place in ``max_tries`` × 10 trials (then
+    the loop stops there, as the generator gives up there)."""
     rng = np.random.default_rng(gen.seed)
     rad = np.sqrt(rng.uniform(gen.area_min, gen.area_max, gen.count) / np.pi)
     cell, grid, xy = max(2.0 * rad.max(), 1e-4), {}, np.zeros((gen.count, 2))
@@ -628,6 +630,15 @@ def _placed_one_trial_at_a_time(gen, pad, max_tries=200):
                 xy[i] = p
                 grid.setdefault((cx, cy), []).append(i)
                 break
+        else:
+            return xy, i
+    return xy, gen.count
+
+
+def _placed_one_trial_at_a_time(gen, pad):
+    """The centres of :func:`_one_trial_at_a_time`, every patch placed."""
+    xy, placed = _one_trial_at_a_time(gen, pad)
+    assert placed == gen.count
     return xy
 
 
@@ -684,31 +695,6 @@ def test_native_placement_resumes_and_defers_close_calls(monkeypatch):
     assert len(deferred) > 5
 
 
-def _placed_before_giving_up(gen, pad, max_tries):
-    """How many patches the loop of one trial at a time places before one finds no place in ``max_tries`` × 10
-    trials (``gen.count`` where all are placed): the reference of the generator's "(placed i)"."""
-    rng = np.random.default_rng(gen.seed)
-    rad = np.sqrt(rng.uniform(gen.area_min, gen.area_max, gen.count) / np.pi)
-    cell, grid, xy = max(2.0 * rad.max(), 1e-4), {}, np.zeros((gen.count, 2))
-    lo2, hi2 = pad.r_inner**2, pad.r_outer**2
-    for i in range(gen.count):
-        for _ in range(max_tries * 10):
-            r = math.sqrt(rng.uniform(lo2, hi2))
-            th = math.pi / 2 + rng.uniform(-pad.half_span, pad.half_span)
-            p = (r * math.cos(th), r * math.sin(th))
-            if not pad.contains_disc(np.array(p[0]), np.array(p[1]), np.array(rad[i])):
-                continue
-            cx, cy = int(math.floor(p[0] / cell)), int(math.floor(p[1] / cell))
-            near = [j for gx in (cx - 1, cx, cx + 1) for gy in (cy - 1, cy, cy + 1) for j in grid.get((gx, gy), ())]
-            if all(math.hypot(p[0] - xy[j, 0], p[1] - xy[j, 1]) >= rad[i] + rad[j] for j in near):
-                xy[i] = p
-                grid.setdefault((cx, cy), []).append(i)
-                break
-        else:
-            return i
-    return gen.count
-
-
 def test_native_placement_gives_up_where_the_loop_in_python_did(monkeypatch):
     """A pad that jams: the native loop gives up at the same patch as one trial at a time (the message names how
     many it placed); with every disc in one hash bucket (every chain collides) the layout is the same; max_tries
@@ -722,7 +708,7 @@ def test_native_placement_gives_up_where_the_loop_in_python_did(monkeypatch):
     pad = Pad(r_inner=0.1, r_outer=0.1006, span_deg=2.0)  # 2.1e-6 m² for 60 patches of 2e-8–8e-8 m²: jams
     for seed, tries in ((4, 2), (5, 1), (6, 3)):
         gen = PatchGenerator(count=60, seed=seed)
-        expected = _placed_before_giving_up(gen, pad, tries)
+        expected = _one_trial_at_a_time(gen, pad, tries)[1]
         assert 0 < expected < 60
         with pytest.raises(SceneError, match=rf"\(placed {expected}\)"):
             gen.generate(pad, max_tries=tries)
