@@ -6,7 +6,8 @@ A sweep over patch seeds makes one layout per pad before it runs (random sequent
 checkout, in its own Python process, this generates the layouts of ``--seeds`` seeds for each case (a preset's pad
 with its patch count and areas: hf1's, which hf3 and varying_area share, and hf2's, which hf4 shares; and a
 4000-patch and a 200-patch variant) and reports the wall time and a SHA-256 of every layout's x, y and area bytes;
-with two checkouts the hashes must agree (exit 1 otherwise). JSON and a Markdown table into ``--out``. Example (the baseline checkout from ``git archive``)::
+with two checkouts the hashes must agree (exit 1 otherwise). JSON and a Markdown table into ``--out``. Example
+(the baseline checkout from ``git archive``)::
 
     python3 scripts/bench_patch_generator.py build/base . --seeds 50 --out out/patch_generator
 """
