@@ -95,7 +95,7 @@ def sweep_doc(hf1_product_doc: Any, cfg: dict, duration: float, pads: int | None
     if pads < 1 or pads & (pads - 1):
         raise SystemExit(f"--pads {pads}: choose a power of two (the bench's sweeps have 2^k pads)")
     shard, patches, precision = cfg["shard_size"], cfg["patches"], cfg["precision"]
-    if cfg.get("sweep", "product") == "seeds":
+    if cfg["sweep"] == "seeds":
         doc: dict = {
             "sweep": {"name": f"bench-seeds-{pads}", "base": "hf1", "shard_size": shard},
             "run": {"duration": duration, "precision": precision, "integrator": "strang"},
@@ -111,16 +111,17 @@ def sweep_doc(hf1_product_doc: Any, cfg: dict, duration: float, pads: int | None
         doc = hf1_product_doc(
             f"bench-{pads}", n_m, n_f, seeds, shard_size=shard, duration=duration, precision=precision, patches=patches
         )
-    doc["run"].pop("dt", None)
-    if cfg.get("dt", 1e-8) is not None:
-        doc["run"]["dt"] = cfg.get("dt", 1e-8)
+    if cfg["dt"] is None:
+        doc["run"].pop("dt", None)
+    else:
+        doc["run"]["dt"] = cfg["dt"]
     return doc
 
 
 def warm_up_pads(cfg: dict) -> int:
     """Pads of the warm-up sweep: all of them for the product sweep (8 layouts); for the seeds sweep, whose every pad
     is a layout of its own, two shards per unit (every worker's threads load their kernels, the pool starts)."""
-    if cfg.get("sweep", "product") != "seeds":
+    if cfg["sweep"] != "seeds":
         return cfg["pads"]
     return min(cfg["pads"], 1 << (2 * cfg["shard_size"] * cfg["units"] - 1).bit_length())
 

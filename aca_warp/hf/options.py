@@ -122,7 +122,8 @@ def step_asked(
     if dt is not None or integrator in STEP_CONTROLLED:
         return dt
     step = default_step(integrator, scenes)
-    if sample_dt is not None and integrator == "strang" and STATISTICS_STEP <= sample_dt < step:
+    least = default_follows(integrator, None, step)
+    if sample_dt is not None and least is not None and least <= sample_dt < step:
         return sample_dt
     return step
 

@@ -386,8 +386,9 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     lists, params = _expand(doc.get("parameters", {}), mode, base, base_doc)
     # the default step written out (the hash and the shards name the step): the base scene's, where every pad
     # shares its physics, else the step for any scene
-    shared = num("dt", None) is None and integrator == "strang" and _shares_base_physics(base, base_doc, lists)
-    dt = step_asked(integrator, num("dt", None), [base] if shared else [], sample_dt)
+    asked = num("dt", None)
+    shared = asked is None and integrator == "strang" and _shares_base_physics(base, base_doc, lists)
+    dt = step_asked(integrator, asked, [base] if shared else [], sample_dt)
     try:
         from aca_warp.hf.recorder import check_run, check_sample_step
 
@@ -396,7 +397,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         base = base.replace(duration=duration, record=record)
         check_run(duration, base.record)
         step = default_step(integrator) if dt is None else dt
-        check_sample_step(sample_dt, step, follows=default_follows(integrator, num("dt", None), step))
+        check_sample_step(sample_dt, step, follows=default_follows(integrator, asked, step))
     except SceneError as e:
         raise SweepError(f"run settings: {e}") from None
     if dt is not None and not duration / dt <= MAX_STEPS:
