@@ -5,6 +5,7 @@ held case: every patch held by static friction (M = 100), where strang's step is
 from __future__ import annotations
 
 import dataclasses
+import re
 from pathlib import Path
 
 import h5py
@@ -176,3 +177,18 @@ def test_options_that_would_do_nothing_or_harm_say_so(tmp_path, capsys) -> None:
     assert code == 0 and len(err) == 1, err
     assert "exceeds the stable-step estimate" in err[0] and "of symplectic-euler" in err[0]
     assert err[0].startswith("aca-warp: warning:") and "running as forced" in err[0]
+
+
+def test_fp32_check_refuses_finite_values_beyond_single_precision_only() -> None:
+    """The fp32 check refuses a finite value beyond 3.4e38 of either sign (naming the array and its setting) and lets
+    through what fp32 holds, infinities, NaN and empty arrays, whether it decides from the extremes alone or looks at
+    every value."""
+    from aca_warp.common.errors import SceneError
+    from aca_warp.hf.model import _check_fp32
+
+    top = float(np.finfo(np.float32).max)
+    for fine in ([1.0, -top, top], [np.inf, 1.0], [-np.inf, np.nan, 2.0], [], [0.0]):
+        _check_fp32({"k_t": np.array(fine, dtype=np.float64)})
+    for bad, shown in (([1.0, 3.5e38], "3.5e+38"), ([-3.5e38, 0.0], "3.5e+38"), ([np.inf, -1e300, np.nan], "1e+300")):
+        with pytest.raises(SceneError, match=rf"k_n \(from material.K_N\) reaches {re.escape(shown)}, beyond"):
+            _check_fp32({"k_t": np.ones(3), "k_n": np.array(bad)})

@@ -331,3 +331,38 @@ def test_energy_balance_closes(speed, integrator, order, rel_bound, duration):
     assert r_coarse / abs(w_f) < rel_bound
     ratio = r_coarse / r_fine
     assert 2**order * 0.8 < ratio < 2**order * 1.2, ratio
+
+
+def test_spring_row_sums_are_numpys_bit_for_bit():
+    """The estimate's row sums Σ_j k_ij and Σ_j k_ij / √(m_i m_j), summed natively, equal NumPy's ``bincount`` of the
+    same terms bit for bit: on a batch of generated hf1 pads (each a layout of its own, fp32 springs), on random
+    graphs with empty rows and on a model without links."""
+    from aca_warp.kernels.step_bound import spring_row_sums
+
+    from aca_warp.sweep import load_spec
+
+    def numpy_sums(start, index, kij, m):
+        n = len(m)
+        deg = np.diff(start)
+        rows = np.repeat(np.arange(n), deg)
+        ksum = np.bincount(rows, kij, minlength=n)
+        off = np.bincount(rows, kij / np.sqrt(np.repeat(m, deg) * m[index]), minlength=n) if len(kij) else np.zeros(n)
+        return ksum, off
+
+    spec = load_spec({"sweep": {"name": "seeds", "base": "hf1"}, "parameters": {"patches.seed": [1, 2, 3]}})
+    model = build_model(spec.scenes(spec.shard_pads(0)), precision="fp32")
+    start, index, kij = coupling_matrix(model)
+    m = masses(model)
+    got, want = spring_row_sums(start, index, kij, m), numpy_sums(start, index, kij, m)
+    assert len(kij) > 1000 and all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
+    rng = np.random.default_rng(7)
+    for n in (1, 5, 300):
+        deg = rng.integers(0, 9, n) * (rng.random(n) < 0.7)  # about a third of the rows empty
+        start = np.concatenate([[0], np.cumsum(deg)]).astype(np.int32)
+        index = rng.integers(0, n, int(start[-1])).astype(np.int32)
+        kij = rng.lognormal(8.0, 2.0, len(index))
+        m = rng.lognormal(-12.0, 1.0, n)
+        got, want = spring_row_sums(start, index, kij, m), numpy_sums(start, index, kij, m)
+        assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True)), n
+    zero = spring_row_sums(np.zeros(4, np.int32), np.zeros(0, np.int32), np.zeros(0), np.ones(3))
+    assert all(np.array_equal(a, np.zeros(3)) for a in zero)

@@ -281,3 +281,106 @@ def test_pipeline_overlaps_preparation_and_writing_with_runs(tmp_path: Path, mon
             assert span[i]["prepare_ahead"][0] < span[before]["kernel"][1]  # made while an earlier shard ran
             assert span[i]["prepare_ahead"][1] <= span[before]["kernel"][1]  # ready when the device came free
             assert turn - span[before]["kernel"][1] < 0.25  # taken at once (a thread's wake-up on a busy machine)
+
+
+def test_quiet_holds_host_work_while_a_shard_sets_up() -> None:
+    """:func:`quiet` returns at once while nothing sets up; it waits while a turn's set-up is marked, until the run
+    starts, at most its bound; it stops with the sweep; the turn's end ends the mark. A writer waits before each
+    write."""
+    import warp as wp
+
+    from aca_warp.sweep.overlap import quiet
+
+    dev = wp.get_device("cpu")
+    assert quiet(dev) < 0.05
+    a = KernelTurn(dev, None, processes=False)
+    a.enter()
+    a.setting_up()
+    a.setting_up()  # idempotent
+    waited: list[float] = []
+    t = threading.Thread(target=lambda: waited.append(quiet(dev)))
+    t.start()
+    time.sleep(0.3)
+    assert not waited  # held while the set-up is under way
+    a.started()
+    t.join(5)
+    assert len(waited) == 1 and 0.25 < waited[0] < 0.9, waited
+    assert quiet(dev) < 0.05  # the mark is gone
+    a.setting_up()
+    assert 0.1 <= quiet(dev, most=0.1) < 0.6  # bounded
+    cancel = threading.Event()
+    cancel.set()
+    with pytest.raises(ShardCancelled):
+        quiet(dev, cancel)
+    gate = threading.Event()
+    written: list[float] = []
+    w = ChunkWriter(lambda item: written.append(time.perf_counter()), rows=1, wait=gate.wait)
+    w.put((0, 1, _chunk(0, 1, 1)))
+    time.sleep(0.2)
+    assert written == []  # the writer waits
+    gate.set()
+    w.close()
+    assert len(written) == 1
+    a.exit()  # ends the set-up too
+    assert quiet(dev) < 0.05 and not a.marked
+
+
+def test_host_work_waits_for_a_set_up_in_the_turn(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """An overlapped sweep in this process whose model builds are made slow (0.3 s, in the turn): no other task of
+    the process begins loading its shard or closing its file while a shard sets its run up (from its build to its
+    first step); each task records the time it waited; the files equal the sequential path's. A task's end of run
+    is made 0.05 s late, so that the next shard has surely begun its set-up when the task would close its file."""
+    import aca_warp.hf.model as hf_model
+    import aca_warp.sweep.shard as shard
+
+    spec = load_spec(SPEC, base_dir=Path.cwd())
+    seq = tmp_path / "seq"
+    run_sweep(spec, seq, workers=0, overlap=False, prepare=0)
+    build = hf_model.build_model
+
+    def slow_build(*args, **kwargs):
+        time.sleep(0.3)
+        return build(*args, **kwargs)
+
+    monkeypatch.setattr(hf_model, "build_model", slow_build)
+    end_run = shard._end_run
+
+    def late_end(*args):
+        end_run(*args)
+        time.sleep(0.05)
+
+    monkeypatch.setattr(shard, "_end_run", late_end)
+    r = run_sweep(spec, tmp_path / "ovl", workers=0, overlap=True, prepare=0)
+    assert r.ran == [0, 1, 2] and not r.failed, (r.ran, r.failed)
+    _assert_same_files(seq, tmp_path / "ovl")
+    t = {s["index"]: s["timings"] for s in r.summaries}
+    assert all("quiet_wait" in t[i] for i in t)
+    for i in t:
+        began, ran = t[i]["spans"]["build"][0], t[i]["spans"]["kernel"][0]
+        assert ran - began >= 0.3
+        for j in t:
+            if j != i:
+                for phase in ("prepare", "close"):
+                    start = t[j]["spans"][phase][0]
+                    assert not (began + 0.005 < start < ran), (i, j, phase, began, start, ran)
+
+
+def test_run_says_when_its_set_up_is_over() -> None:
+    """``run_hf(on_start=...)`` is called once, after the run's set-up and before its first samples reach the sink."""
+    from aca_warp.hf.loop import run_hf
+    from aca_warp.hf.model import build_model
+    from aca_warp.hf.state import initial_state
+    from aca_warp.sweep.prepare import run_options
+
+    spec = load_spec(SPEC, base_dir=Path.cwd())
+    model = build_model(spec.scenes(spec.shard_pads(0)), precision=spec.precision)
+    events: list[str] = []
+    res = run_hf(
+        model,
+        initial_state(model),
+        run_options(spec),
+        record=spec.base.record,
+        sink=lambda chunk: events.append("chunk"),
+        on_start=lambda: events.append("start"),
+    )
+    assert res.complete and events[0] == "start" and events.count("start") == 1 and events.count("chunk") >= 1

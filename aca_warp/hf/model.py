@@ -9,6 +9,7 @@ Array dtype is the model's precision T (float32 or float64) unless noted. Built 
 from __future__ import annotations
 
 import hashlib
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -206,7 +207,13 @@ def _check_fp32(arrays: dict[str, np.ndarray]) -> None:
     top = float(np.finfo(np.float32).max)
     fp64 = option("precision='fp64', run.precision in a sweep spec", "--precision fp64")
     for name, a in arrays.items():
-        values = np.abs(np.asarray(a, dtype=np.float64))
+        a = np.asarray(a)
+        if a.size == 0:
+            continue
+        lo, hi = float(a.min()), float(a.max())
+        if math.isfinite(lo) and math.isfinite(hi) and max(-lo, hi) <= top:
+            continue  # every value finite, none beyond the largest (two passes, no copies)
+        values = np.abs(a.astype(np.float64))
         big = float(values[np.isfinite(values)].max(initial=0.0))
         if big > top:
             source = f" (from {_FROM[name]})" if name in _FROM else ""

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
+from aca_warp.common.devices import load_kernels
 from aca_warp.common.errors import SceneError, StabilityError, option
 from aca_warp.common.launches import Launcher
 from aca_warp.hf.model import PadModel, coupling_matrix
@@ -45,6 +46,7 @@ from aca_warp.hf.options import (
 )
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
+from aca_warp.kernels import step_bound
 
 FP32_MIN_TOLERANCE = 1.0e-5  # relative; tighter asks fp32 for more digits than it has
 ADAPTIVE_FIRST_STEP = 1.0e-9  # s; the adaptive controller grows it by up to 5× per accepted step
@@ -142,12 +144,9 @@ class StepEstimate:
 def stable_step(model: PadModel) -> StepEstimate:
     """Stable-step estimate from the model's current areas and normal forces (all pads)."""
     start, index, kij = coupling_matrix(model)
-    n = model.patch_count
     m = 1.0 / model.host("inv_mass").astype(np.float64)
-    deg = np.diff(start)
-    rows = np.repeat(np.arange(n), deg)
-    ksum = np.bincount(rows, kij, minlength=n)
-    off = np.bincount(rows, kij / np.sqrt(np.repeat(m, deg) * m[index]), minlength=n) if len(kij) else np.zeros(n)
+    load_kernels([step_bound], "cpu")
+    ksum, off = step_bound.spring_row_sums(start, index, kij, m)  # Σ_j k_ij, Σ_j k_ij / √(m_i m_j) per row
     w2 = (model.host("k_t").astype(np.float64) + ksum) / m + off
     slope = np.array([s.friction.max_slope() for s in model.scenes])[model.host("patch_pad")]
     gamma = (model.host("damping").astype(np.float64) + model.host("normal_force").astype(np.float64) * slope) / m
