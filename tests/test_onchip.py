@@ -763,3 +763,33 @@ def _small_pad_reference() -> np.ndarray:
     model = build_model([s], device="cpu", precision="fp64")
     opts = RunOptions(integrator="strang", dt=1e-8, duration=1e-5, engine="general")
     return run_hf(model, initial_state(model), opts).collect().globals
+
+
+def test_thread_links_per_block_and_thread_as_a_loop_counts_them():
+    """The links each thread of each block gathers (:func:`thread_links`, counted in one pass over the patches) equal
+    a loop over the blocks that sums every ``threads``-th patch's links, for pads of unequal size split over clusters
+    larger than some pads (empty blocks); the model keeps one read-only host copy of its neighbour lists, made once,
+    and the tile sizes worked out from them."""
+    from aca_warp.hf.onchip_layout import thread_links, tile_sizes
+    from aca_warp.sweep import load_spec
+
+    def loop(model, cluster, threads):
+        start, deg = model.pad_patch_start_host, np.diff(model.host("nbr_start"))
+        rows = []
+        for p in range(model.pad_count):
+            n = start[p + 1] - start[p]
+            for r in range(cluster):
+                part = deg[start[p] + n * r // cluster : start[p] + n * (r + 1) // cluster]
+                rows.append([int(part[t::threads].sum()) for t in range(threads)])
+        return np.array(rows, dtype=np.int64)
+
+    spec = load_spec({"sweep": {"name": "sizes", "base": "hf1"}, "parameters": {"patches.count": [3, 50, 7, 200]}})
+    model = build_model(spec.scenes(spec.shard_pads(0)))
+    for cluster in (1, 2, 8, 16):
+        for threads in (1, 5, 32, 96):
+            got = thread_links(model, cluster, threads)
+            assert got.dtype == np.int64 and np.array_equal(got, loop(model, cluster, threads)), (cluster, threads)
+    start = model.host("nbr_start")
+    assert start is model.host("nbr_start") and not start.flags.writeable
+    assert model.host("area") is not model.host("area")  # arrays a run changes: a fresh copy each time
+    assert tile_sizes(model, 2, 32) is tile_sizes(model, 2, 32) and ("tile_sizes", 2, 32) in model.memo

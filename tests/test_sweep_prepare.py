@@ -711,3 +711,43 @@ def test_bench_sweep_host_only(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) 
     (host,) = doc["host"]
     assert host["code"] == "new" and host["pads"] == 4 and host["wall_s"]["prepare"] > 0
     assert "new: host time per shard (least of 1" in md.read_text()
+
+
+def _slow_exit(seconds: float) -> None:
+    """A pool process's initializer: its exit takes ``seconds`` (as a GPU context's teardown does)."""
+    import multiprocessing.util
+
+    multiprocessing.util.Finalize(None, time.sleep, args=(seconds,), exitpriority=10)
+
+
+def test_closing_the_pool_does_not_wait_for_its_processes_to_exit() -> None:
+    """The pool is let go (:func:`_let_go`) and dropped in this thread at once, although its processes take 1 s to
+    exit (a plain ``shutdown(wait=False)`` followed by the executor's collection here waits for them: the collection
+    takes the lock its manager thread holds while it joins them, in Python 3.12); they do exit, in the background,
+    and the executor is collected there."""
+    import gc
+    import multiprocessing
+    import weakref
+    from concurrent.futures import ProcessPoolExecutor
+
+    from aca_warp.sweep.prepare import _let_go
+
+    pool = ProcessPoolExecutor(
+        2, mp_context=multiprocessing.get_context("forkserver"), initializer=_slow_exit, initargs=(1.0,)
+    )
+    assert list(pool.map(abs, [-1, -2, -3])) == [1, 2, 3]
+    procs = list(pool._processes.values())
+    ref = weakref.ref(pool)
+    t = time.perf_counter()
+    _let_go(pool)
+    time.sleep(0.2)  # the manager thread is joining the processes now
+    del pool
+    gc.collect()
+    assert time.perf_counter() - t < 0.7
+    assert ref() is not None and any(p.is_alive() for p in procs)  # not collected here: its processes still exit
+    for p in procs:
+        p.join(10)
+    deadline = time.monotonic() + 10
+    while ref() is not None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert ref() is None and not any(p.is_alive() for p in procs)  # collected once they had

@@ -29,6 +29,9 @@ from aca_warp.scene import Scene
 PRECISIONS = {"fp32": wp.float32, "fp64": wp.float64}
 
 
+FIXED_ARRAYS = frozenset({"nbr_start", "nbr_index", "patch_pad", "pad_patch_start"})  # no run changes them
+
+
 @dataclass
 class PadModel:
     """Device arrays of the HF model; shapes: n = patch_count, P = pad_count, E = nnz of the CSR.
@@ -56,6 +59,8 @@ class PadModel:
     nbr_count: int
     arrays: dict[str, wp.array] = field(default_factory=dict)
     _struct: Any = field(default=None, repr=False)
+    _fixed: dict[str, np.ndarray] = field(default_factory=dict, repr=False)  # host copies of FIXED_ARRAYS
+    memo: dict[Any, Any] = field(default_factory=dict, repr=False)  # what is derived from FIXED_ARRAYS alone
 
     def __getattr__(self, name: str) -> wp.array:
         try:
@@ -99,8 +104,15 @@ class PadModel:
         return self._struct
 
     def host(self, name: str) -> np.ndarray:
-        """A copy of a model array on the host (``numpy()`` of a CPU array is a view of the live array)."""
-        return self.arrays[name].numpy().copy()
+        """A copy of a model array on the host (``numpy()`` of a CPU array is a view of the live array); for the
+        arrays no run changes (:data:`FIXED_ARRAYS`), one read-only copy, made once."""
+        if name not in FIXED_ARRAYS:
+            return self.arrays[name].numpy().copy()
+        if name not in self._fixed:
+            a = self.arrays[name].numpy().copy()
+            a.setflags(write=False)
+            self._fixed[name] = a
+        return self._fixed[name]
 
 
 @dataclass
