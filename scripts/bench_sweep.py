@@ -81,7 +81,7 @@ from typing import Any
 os.environ.setdefault("NCCL_NVLS_ENABLE", "0")  # never use NVLink multicast (shared machines)
 
 WARM_UP_S = 1e-6  # simulated time of the warm-up sweep [s]: one sample, enough to load every kernel in every worker
-PHASES = ("prepare", "prepare_ahead", "upload", "build", "setup", "kernel", "write", "quiet_wait", "task")
+PHASES = ("prepare", "prepare_ahead", "upload", "build", "setup", "kernel", "write", "task")
 TURN = ("upload", "build", "setup", "kernel")  # the phases of a shard's turn on its device
 HERE = Path(__file__).resolve().parent
 

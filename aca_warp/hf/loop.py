@@ -158,7 +158,6 @@ def run_hf(
     resume: Checkpoint | None = None,
     tuning: EngineTuning | None = None,
     checked: Preflight | None = None,
-    on_start: Callable[[], None] | None = None,
 ) -> RunResult:
     """Advance all pads of ``model`` from ``state`` as ``options`` say, recording as ``record`` says.
 
@@ -171,15 +170,12 @@ def run_hf(
     ``on_checkpoint``; ``resume`` (a checkpoint of the same scene,
     options, device and precision) continues from it with the same arithmetic in the same order, so the samples
     equal an uninterrupted run's bit for bit. ``checked``: :func:`preflight` of this model, state, options and
-    record, made beforehand (e.g. in another process, on the model's host arrays); None: made here. ``on_start``:
-    called once the run is set up (checks, engine, launch layout), before its first step.
+    record, made beforehand (e.g. in another process, on the model's host arrays); None: made here.
     """
     t_compile = time.perf_counter()
     record = record or model.scenes[0].record
     run = _Run(model, state, options, record, tuning or EngineTuning(), resume, checked)
     compile_time = time.perf_counter() - t_compile
-    if on_start is not None:
-        on_start()
     return run.loop(sink, progress, on_checkpoint, compile_time)
 
 

@@ -5,10 +5,8 @@ and the cancel event of a stopping sweep.
 :class:`KernelTurn` gives one shard at a time the device (the :data:`PIPELINE_DEPTH` shard tasks of a process, and
 processes that share a GPU), from putting its model there to the end of its run, so that the next shard waits ready
 and the last one's file is finished beside the current run; :class:`ShardContext` says how a shard task runs and
-carries the event that stops it (:class:`ShardCancelled`); :func:`quiet` holds the other host work of a process
-(loading and creating shard files, writing chunks, closing files) while a shard sets its run up in its turn, so that
-the set-up, which keeps the device waiting, does not share the interpreter with it. None of them decides what a kernel
-computes: results are the same bit for bit with or without them.
+carries the event that stops it (:class:`ShardCancelled`). None of them decides what a kernel computes: results are
+the same bit for bit with or without them.
 """
 
 from __future__ import annotations
@@ -50,22 +48,12 @@ class ChunkWriter:
     go to the thread as one write, waiting while ``depth`` writes wait already. :meth:`close` writes the rest and
     waits. The first error of a write ends the writing: nothing more is written, writes still queued are dropped (the
     run is not held up by a full queue), and the error is raised by the next :meth:`put` or by :meth:`close`, so that
-    it stops the run in the shard's own thread. ``wait``: called before each write (:func:`quiet`). :attr:`seconds`
-    is the time spent writing (not waiting), :attr:`span` the wall-clock times (``time.time()``) the first write began
-    and the last one ended [s].
+    it stops the run in the shard's own thread. :attr:`seconds` is the time spent writing, :attr:`span` the
+    wall-clock times (``time.time()``) the first write began and the last one ended [s].
     """
 
-    def __init__(
-        self,
-        write: Callable[[Any], None],
-        *,
-        depth: int = 4,
-        rows: int = 4096,
-        limit: int = 2**20,
-        wait: Callable[[], None] | None = None,
-    ) -> None:
+    def __init__(self, write: Callable[[Any], None], *, depth: int = 4, rows: int = 4096, limit: int = 2**20) -> None:
         self._write = write
-        self._wait = wait
         self._queue: queue.Queue = queue.Queue(maxsize=depth)
         self._rows, self._limit = rows, limit
         self._held: list = []  # chunks of one batch not yet handed over
@@ -83,8 +71,6 @@ class ChunkWriter:
             if item is _STOP:
                 return
             if self.error is None and not self._drop:
-                if self._wait is not None:
-                    self._wait()
                 t, began = time.perf_counter(), time.time()
                 try:
                     self._write(item)
@@ -149,43 +135,6 @@ class ChunkWriter:
         self._thread.join()
 
 
-QUIET_MOST_S = 1.0  # the longest that host work waits for another shard's set-up (quiet) [s]
-
-_SETTING_UP: dict[str, int] = {}  # per device: shards of this process setting their runs up
-_SETTING_UP_CHANGED = threading.Condition()
-
-
-def quiet(device: Any, cancel: threading.Event | None = None, most: float = QUIET_MOST_S) -> float:
-    """Wait while a shard of this process sets its run up on ``device`` (:meth:`KernelTurn.setting_up` to
-    :meth:`KernelTurn.started`: the upload or build of its model, the checks, the engine), at most ``most`` seconds;
-    returns the seconds waited. Raises :class:`ShardCancelled` on a stop.
-
-    The set-up runs in its turn, so the device waits for it; it is Python and NumPy work, which the interpreter's
-    lock lets run only one thread at a time. Host work that can wait (loading the next prepared shard, creating,
-    writing and closing shard files) calls this first and runs beside the kernel that follows instead: a shard that
-    set itself up in 0.02 s alone took 0.06–0.08 s beside that work (one H200). The bound keeps a long set-up (a
-    shard built in its task) from holding the rest for long."""
-    key = str(device)
-    t = time.perf_counter()
-    with _SETTING_UP_CHANGED:
-        while _SETTING_UP.get(key, 0) > 0:
-            left = most - (time.perf_counter() - t)
-            if left <= 0:
-                break
-            _SETTING_UP_CHANGED.wait(min(left, 0.05))
-            if cancel is not None and cancel.is_set():
-                raise ShardCancelled()
-    return time.perf_counter() - t
-
-
-def _setting_up(key: str, change: int) -> None:
-    with _SETTING_UP_CHANGED:
-        _SETTING_UP[key] = _SETTING_UP.get(key, 0) + change
-        if _SETTING_UP[key] <= 0:
-            del _SETTING_UP[key]
-            _SETTING_UP_CHANGED.notify_all()
-
-
 _TURN_LOCKS: dict[str, threading.Lock] = {}
 _TURN_LOCKS_GUARD = threading.Lock()
 
@@ -205,9 +154,8 @@ class KernelTurn:
       after the GPU (host-local, in the user's private folder, :func:`~aca_warp.common.links.private_dir`: another
       user cannot hold it), so that their runs alternate instead of time-slicing the GPU.
 
-    :meth:`enter` waits for both (polled: a stopping sweep is not held up). :meth:`setting_up` and :meth:`started`
-    mark a batch's set-up within the turn, for which the process's other host work waits (:func:`quiet`). Neither
-    decides what a kernel computes (pads of a shard are one batch wherever it runs), only when it runs.
+    :meth:`enter` waits for both (polled: a stopping sweep is not held up). Neither decides what a kernel computes
+    (pads of a shard are one batch wherever it runs), only when it runs.
     """
 
     def __init__(self, device: Any, cancel: threading.Event | None, *, processes: bool) -> None:
@@ -219,7 +167,6 @@ class KernelTurn:
         self.locked = False
         self.fd: int | None = None
         self.waited = 0.0  # seconds spent waiting for a turn
-        self.marked = False  # a set-up under way (setting_up, not yet started)
 
     def enter(self) -> None:
         """Wait for the device's turn (idempotent); raises :class:`ShardCancelled` on a stop."""
@@ -267,21 +214,8 @@ class KernelTurn:
                 self.processes = False
                 return
 
-    def setting_up(self) -> None:
-        """Mark a batch's set-up as under way (in the turn): :func:`quiet` waits until :meth:`started`."""
-        if not self.marked:
-            self.marked = True
-            _setting_up(str(self.device), +1)
-
-    def started(self) -> None:
-        """The batch's run has begun (or its set-up failed): the set-up is over (idempotent)."""
-        if self.marked:
-            self.marked = False
-            _setting_up(str(self.device), -1)
-
     def exit(self) -> None:
         """End the turn (idempotent)."""
-        self.started()
         if self.fd is not None:
             os.close(self.fd)  # drops the flock
             self.fd = None

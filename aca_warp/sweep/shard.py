@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.scene import Scene
-from aca_warp.sweep.overlap import ChunkWriter, KernelTurn, ShardCancelled, ShardContext, quiet
+from aca_warp.sweep.overlap import ChunkWriter, KernelTurn, ShardCancelled, ShardContext
 from aca_warp.sweep.prepare import (
     PreparedBatch,
     PreparedShard,
@@ -81,7 +81,6 @@ TIMING_PHASES = (
     "sink",
     "write",
     "turn_wait",
-    "quiet_wait",
     "write_wait",
     "close",
     "task",
@@ -94,9 +93,7 @@ and initial_state in the task (contact solve, neighbour lists, device arrays), w
 setup: run_hf before its first step (checks unless prepared, engine, launch layout; RunResult.compile_time);
 kernel: the run loop less the time in the sink (steps, recording, flushing to the host); sink: time inside the sink
 (serial: the HDF5 writes; overlapped: handing chunks to the writer); write: header and chunk writes (overlapped: in
-the writer thread, beside the run); turn_wait: waiting for the device's turn; quiet_wait: the task's host work
-(loading or making its shard, creating and closing its file) waiting while another shard of the process sets its
-run up (overlapped; the writer's waits are in neither write nor quiet_wait); write_wait: waiting after the run for
+the writer thread, beside the run); turn_wait: waiting for the device's turn; write_wait: waiting after the run for
 the writer to finish; close: final attributes, close and rename (not in the file's own copy); task: the whole task.
 run_start, run_end: wall-clock time (time.time()) when the run began and ended [s]. spans: per phase the wall-clock
 times it first began and last ended, [start, end] [s] (prepare_ahead: in the pool; write: the first and last write;
@@ -234,9 +231,6 @@ def run_shard(
     clock = _Clock()
     t_start = time.perf_counter()
     ctx.check()
-    dev = wp.get_device(device)
-    hold = _quiet(dev, ctx, clock)
-    hold()
     with clock("prepare"):
         if isinstance(prepared, SpooledShard):
             prepared = prepared.load()  # left in its file by the pool (a local cluster's worker); None: gone
@@ -248,6 +242,7 @@ def run_shard(
         if prepared.index != index:
             raise ValueError(f"shard {index} was handed the scenes of shard {prepared.index}")
         spec, pads, scenes = prepared.spec, prepared.pads, prepared.scenes
+        dev = wp.get_device(device)
         cap = shard_capacity(scenes, spec.precision, device, memory_fraction, sharing)
         fits = prepared.batches and max(b.stop - b.start for b in prepared.batches) <= cap
         batches = prepared.batches if fits else []
@@ -261,16 +256,14 @@ def run_shard(
     turn = KernelTurn(dev, ctx.cancel, processes=ctx.processes) if ctx.overlap else None
     try:
         ctx.check()
-        hold()
         with clock("write"):
             f, out = _create_shard_file(tmp, partial, lock, spec, index, scenes, dev, n_samples)
         write = _chunk_writer(f, out, len(pads))
-        writer = ChunkWriter(write, wait=lambda: quiet(dev)) if ctx.overlap else None
+        writer = ChunkWriter(write) if ctx.overlap else None
         work = _Work(spec, dev, ctx, clock, turn, writer.put if writer else write)
         run = _run_batches(work, scenes, batches, cap, pads)
         _end_run(turn, writer, clock)
         clock.add("task", time.perf_counter() - t_start)
-        hold(stoppable=False)  # the shard is run: its file is finished whatever happens now
         timings = clock.timings(run_start=run["run_start"], run_end=run["run_end"])
         with clock("close"):
             for k, v in run["attrs"].items():
@@ -298,20 +291,8 @@ def run_shard(
         lock.release()
     timings["close"] = clock.s["close"]
     timings["spans"]["close"] = clock.spans["close"]
-    timings["quiet_wait"] = clock.s.get("quiet_wait", 0.0)
     timings["task"] = time.perf_counter() - t_start
     return _summary(index, dev, final.name, scenes, run, timings)
-
-
-def _quiet(dev: Any, ctx: ShardContext, clock: _Clock) -> Callable[..., None]:
-    """The task's wait before its host work while another shard of the process sets its run up (:func:`quiet`;
-    overlapped only), timed as ``quiet_wait``; ``stoppable=False``: not ended by the sweep's stop."""
-
-    def hold(stoppable: bool = True) -> None:
-        if ctx.overlap:
-            clock.add("quiet_wait", quiet(dev, ctx.cancel if stoppable else None))
-
-    return hold
 
 
 def _end_run(turn: KernelTurn | None, writer: ChunkWriter | None, clock: _Clock) -> None:
@@ -422,31 +403,18 @@ def _run_batch(work: _Work, scenes: list[Scene], b0: int, prepared: PreparedBatc
     """Put one batch (the shard's pads [b0, b0 + len(scenes))) on the device in its turn, as ``prepared`` or built
     here, and run it; returns the :class:`~aca_warp.hf.loop.RunResult` and the wall-clock time its run began
     (``time.time()``) [s]. Clock: ``turn_wait`` (its span), ``upload`` or ``build``, ``setup``, ``kernel`` (the run
-    less its sink), ``sink``. The turn's set-up is marked (:meth:`KernelTurn.setting_up`) until the run's first step,
-    for :func:`quiet`."""
-    clock, turn = work.clock, work.turn
-    work.ctx.check()
-    if turn is not None:
-        waiting = time.time()
-        turn.enter()
-        clock.span("turn_wait", waiting, time.time())
-        turn.setting_up()
-    try:
-        res, began = _set_up_and_run(work, scenes, b0, prepared)
-    finally:
-        if turn is not None:
-            turn.started()
-    return res, began
-
-
-def _set_up_and_run(work: _Work, scenes: list[Scene], b0: int, prepared: PreparedBatch | None) -> tuple[Any, float]:
-    """The body of :func:`_run_batch`, in the turn: upload or build, set up and run the batch."""
+    less its sink), ``sink``."""
     from aca_warp.hf.loop import run_hf
     from aca_warp.hf.model import build_model, upload
     from aca_warp.hf.state import initial_state, state_from_host
 
     spec, dev, ctx, clock, turn = work.spec, work.dev, work.ctx, work.clock, work.turn
     b1 = b0 + len(scenes)
+    ctx.check()
+    if turn is not None:
+        waiting = time.time()
+        turn.enter()
+        clock.span("turn_wait", waiting, time.time())
     if prepared is None:
         with clock("build"):
             model = build_model(scenes, device=dev, precision=spec.precision)
@@ -465,10 +433,7 @@ def _set_up_and_run(work: _Work, scenes: list[Scene], b0: int, prepared: Prepare
     sink_before = clock.s.get("sink", 0.0)
     began = time.time()
     checked = None if prepared is None else prepared.checked
-    on_start = None if turn is None else turn.started
-    res = run_hf(
-        model, state, run_options(spec), record=spec.base.record, sink=sink, checked=checked, on_start=on_start
-    )
+    res = run_hf(model, state, run_options(spec), record=spec.base.record, sink=sink, checked=checked)
     ended = time.time()
     del model, state  # freed within the turn
     clock.add("setup", res.compile_time)
