@@ -60,16 +60,18 @@ def thread_links(model: PadModel, cluster: int = 1, threads: int = 1) -> np.ndar
     """The neighbour links each thread gathers per step, shape (pads · ``cluster`` blocks, ``threads``): thread t of
     a block owns its part's patches t, t + ``threads``, … (a pad split over ``cluster`` blocks as the kernel splits
     it: block r, patches n·r // K … n·(r + 1) // K − 1)."""
-    start = model.pad_patch_start_host.astype(np.int64)
-    deg = np.diff(model.host("nbr_start")).astype(np.int64)
-    n = np.diff(start)
-    first = (start[:-1, None] + n[:, None] * np.arange(cluster)[None, :] // cluster).ravel()  # each block's first
-    patch = np.arange(int(start[-1]))
-    block = np.searchsorted(first, patch, side="right") - 1  # the last block starting at or before it (empty ones
-    # start where the next one does)
-    slot = block * threads + (patch - first[block]) % threads
-    links = np.bincount(slot, weights=deg, minlength=len(first) * threads)  # exact: integer sums far below 2^53
-    return links.astype(np.int64).reshape(len(first), threads)
+    start = model.pad_patch_start_host
+    deg = np.diff(model.host("nbr_start"))
+    per_thread = -(-int(np.diff(start).max()) // threads) * threads
+    rows = []
+    for p in range(model.pad_count):
+        n = start[p + 1] - start[p]
+        for r in range(cluster):
+            d = np.zeros(per_thread, dtype=np.int64)
+            part = deg[start[p] + n * r // cluster : start[p] + n * (r + 1) // cluster]
+            d[: part.size] = part
+            rows.append(d.reshape(-1, threads).sum(axis=0))
+    return np.array(rows, dtype=np.int64)
 
 
 def csr_slots(model: PadModel, cluster: int = 1, threads: int = 1) -> int:
