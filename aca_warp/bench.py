@@ -145,15 +145,18 @@ def bench_scene(name: str = "hf1", patches: int | None = None, sample_dt: float 
 
 
 def load_modules(device: Any) -> float:
-    """Load (compile, or fetch from the kernel cache) the HF kernel modules on ``device``; wall time [s]."""
+    """Load (compile, or fetch from the kernel cache) the HF kernel modules on ``device``, and on the CPU the one of
+    a run's checks (the stable-step estimate's row sums); wall time [s]."""
     import warp as wp
 
     import aca_warp.kernels.hf
     import aca_warp.kernels.neighbours
+    import aca_warp.kernels.step_bound
 
     t0 = time.perf_counter()
     wp.load_module(aca_warp.kernels.hf, device=device)
     wp.load_module(aca_warp.kernels.neighbours, device=device)
+    wp.load_module(aca_warp.kernels.step_bound, device="cpu")
     wp.synchronize_device(device)
     return time.perf_counter() - t0
 

@@ -23,7 +23,8 @@ def _row_sums(
     k_sum_out: wp.array[wp.float64],
     off_out: wp.array[wp.float64],
 ):
-    """Σ_j k_ij and Σ_j k_ij / √(m_i m_j) over row i."""
+    """Row i (one thread): ``k_sum_out[i]`` = Σ_j k_ij [N/m] and ``off_out[i]`` = Σ_j k_ij / √(m_i m_j) [1/s²], over
+    links ``start[i]`` … ``start[i + 1]`` − 1 (``index``: neighbour j, ``k_ij`` [N/m]; ``mass`` [kg], shape (n,))."""
     i = wp.tid()
     mi = mass[i]
     ks = wp.float64(0.0)
@@ -36,31 +37,43 @@ def _row_sums(
     off_out[i] = off
 
 
+def _host(a: np.ndarray, np_type: type, wp_type: type) -> wp.array:
+    """``a`` as a CPU Warp array of ``wp_type``: the host array itself where it is contiguous and of that type."""
+    return wp.array(np.ascontiguousarray(a, dtype=np_type), dtype=wp_type, device="cpu", copy=False)
+
+
 def spring_row_sums(
     start: np.ndarray, index: np.ndarray, k_ij: np.ndarray, mass: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """(Σ_j k_ij [N/m], Σ_j k_ij / √(m_i m_j) [1/s²]) per patch, each shape (n,) float64, summed on the CPU.
 
     Args:
-        start: CSR row offsets, shape (n+1,), int.
-        index: Neighbour of each link, shape (≥ start[-1],), int.
+        start: CSR row offsets, shape (n+1,), int, non-decreasing from 0.
+        index: Neighbour of each link, shape (≥ start[-1],), int in [0, n).
         k_ij: Coupling stiffness of each link [N/m], shape (≥ start[-1],).
         mass: Patch masses [kg], shape (n,).
+
+    Raises:
+        ValueError: Arrays of inconsistent lengths, or offsets or indices out of range (the kernel reads no bounds).
     """
     n = len(mass)
     k_sum, off = np.zeros(n), np.zeros(n)
+    if len(start) != n + 1 or (n and int(start[0]) != 0):
+        raise ValueError(f"spring_row_sums: {len(start)} row offsets starting at {start[:1]} for {n} rows")
     links = int(start[-1]) if n else 0
     if links == 0:
         return k_sum, off
-    host = lambda a, np_type, wp_type: wp.array(  # noqa: E731  (the host arrays themselves where they fit)
-        np.ascontiguousarray(a, dtype=np_type), dtype=wp_type, device="cpu", copy=False
-    )
+    if len(index) < links or len(k_ij) < links or np.any(np.diff(start) < 0):
+        raise ValueError(f"spring_row_sums: {links} links, {len(index)} indices, {len(k_ij)} stiffnesses")
+    index = index[:links]
+    if int(index.min()) < 0 or int(index.max()) >= n:
+        raise ValueError(f"spring_row_sums: neighbour indices outside [0, {n})")
     inputs = [
-        host(start, np.int32, wp.int32),
-        host(index[:links], np.int32, wp.int32),
-        host(k_ij[:links], np.float64, wp.float64),
-        host(mass, np.float64, wp.float64),
+        _host(start, np.int32, wp.int32),
+        _host(index, np.int32, wp.int32),
+        _host(k_ij[:links], np.float64, wp.float64),
+        _host(mass, np.float64, wp.float64),
     ]
-    outputs = [host(k_sum, np.float64, wp.float64), host(off, np.float64, wp.float64)]
+    outputs = [_host(k_sum, np.float64, wp.float64), _host(off, np.float64, wp.float64)]
     wp.launch(_row_sums, dim=n, inputs=inputs, outputs=outputs, device="cpu")
     return k_sum, off

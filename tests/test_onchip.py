@@ -766,14 +766,14 @@ def _small_pad_reference() -> np.ndarray:
 
 
 def test_thread_links_per_block_and_thread_as_a_loop_counts_them():
-    """The links each thread of each block gathers (:func:`thread_links`, counted in one pass over the patches) equal
-    a loop over the blocks that sums every ``threads``-th patch's links, for pads of unequal size split over clusters
-    larger than some pads (empty blocks); the model keeps one read-only host copy of its neighbour lists, made once,
-    and the tile sizes worked out from them."""
+    """The links each thread of each block gathers (:func:`thread_links`) equal every ``threads``-th patch's links of
+    the block summed by slicing, for pads of unequal size split over clusters larger than some pads (empty blocks);
+    the model keeps one read-only host copy of its neighbour lists, made once, and the tile sizes worked out from
+    them."""
     from aca_warp.hf.onchip_layout import thread_links, tile_sizes
     from aca_warp.sweep import load_spec
 
-    def loop(model, cluster, threads):
+    def loop(model: object, cluster: int, threads: int) -> np.ndarray:
         start, deg = model.pad_patch_start_host, np.diff(model.host("nbr_start"))
         rows = []
         for p in range(model.pad_count):

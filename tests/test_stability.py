@@ -341,7 +341,9 @@ def test_spring_row_sums_are_numpys_bit_for_bit():
 
     from aca_warp.sweep import load_spec
 
-    def numpy_sums(start, index, kij, m):
+    def numpy_sums(
+        start: np.ndarray, index: np.ndarray, kij: np.ndarray, m: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         n = len(m)
         deg = np.diff(start)
         rows = np.repeat(np.arange(n), deg)
@@ -366,3 +368,13 @@ def test_spring_row_sums_are_numpys_bit_for_bit():
         assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True)), n
     zero = spring_row_sums(np.zeros(4, np.int32), np.zeros(0, np.int32), np.zeros(0), np.ones(3))
     assert all(np.array_equal(a, np.zeros(3)) for a in zero)
+    start, index, kij, m = np.array([0, 1, 2]), np.array([1, 0]), np.ones(2), np.ones(2)
+    for bad in (
+        (start[:2], index, kij, m),  # offsets for one row fewer
+        (start, index[:1], kij, m),  # fewer indices than links
+        (start, index, kij[:1], m),  # fewer stiffnesses than links
+        (start, np.array([1, 2]), kij, m),  # an index past the last row
+        (np.array([0, 2, 1]), index, kij, m),  # decreasing offsets
+    ):
+        with pytest.raises(ValueError, match="spring_row_sums"):
+            spring_row_sums(*bad)

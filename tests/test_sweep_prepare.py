@@ -310,7 +310,7 @@ def test_pool_processes_end_with_a_killed_client(tmp_path: Path) -> None:
             "from procs import small_sweep_doc\n"
             "spec = load_spec(small_sweep_doc('k', count=20, duration=3e-6, parameters={'patches.seed': [1, 2]}))\n"
             "p = Preparer(spec.doc, str(spec.base_dir), 2, 2, device='cpu')\n"
-            "p.plan([0])\n"
+            "p.plan([0, 1])\n"  # shard 1 never taken: the pool is kept (it is let go once every shard is taken)
             "p.get(0)\n"
             "print('ready', flush=True)\n"
             "time.sleep(600)\n",
@@ -721,7 +721,7 @@ def _slow_exit(seconds: float) -> None:
 
 
 def test_closing_the_pool_does_not_wait_for_its_processes_to_exit() -> None:
-    """The pool is let go (:func:`_let_go`) and dropped in this thread at once, although its processes take 1 s to
+    """The pool is let go (:func:`_let_go`) and dropped in this thread at once, although its processes take 2 s to
     exit (a plain ``shutdown(wait=False)`` followed by the executor's collection here waits for them: the collection
     takes the lock its manager thread holds while it joins them, in Python 3.12); they do exit, in the background,
     and the executor is collected there."""
@@ -733,7 +733,7 @@ def test_closing_the_pool_does_not_wait_for_its_processes_to_exit() -> None:
     from aca_warp.sweep.prepare import _let_go
 
     pool = ProcessPoolExecutor(
-        2, mp_context=multiprocessing.get_context("forkserver"), initializer=_slow_exit, initargs=(1.0,)
+        2, mp_context=multiprocessing.get_context("forkserver"), initializer=_slow_exit, initargs=(2.0,)
     )
     assert list(pool.map(abs, [-1, -2, -3])) == [1, 2, 3]
     procs = list(pool._processes.values())
@@ -743,7 +743,7 @@ def test_closing_the_pool_does_not_wait_for_its_processes_to_exit() -> None:
     time.sleep(0.2)  # the manager thread is joining the processes now
     del pool
     gc.collect()
-    assert time.perf_counter() - t < 0.7
+    assert time.perf_counter() - t < 1.5  # their exit takes 2 s
     assert ref() is not None and any(p.is_alive() for p in procs)  # not collected here: its processes still exit
     for p in procs:
         p.join(10)
@@ -751,3 +751,27 @@ def test_closing_the_pool_does_not_wait_for_its_processes_to_exit() -> None:
     while ref() is not None and time.monotonic() < deadline:
         time.sleep(0.01)
     assert ref() is None and not any(p.is_alive() for p in procs)  # collected once they had
+
+
+def test_pool_processes_are_let_go_once_every_planned_shard_is_taken() -> None:
+    """Once each planned shard has been taken or dropped, the pool's processes exit before :meth:`Preparer.close`
+    (while the last shards would run); a shard asked of the pool after that is refused, not silently prepared."""
+    spec = _spec()
+    prep = Preparer(spec.doc, str(spec.base_dir), processes=2, ahead=2, device="cpu")
+    try:
+        prep.plan([0, 1, 2])
+        assert _in_time(lambda: prep.get(0), 120).index == 0
+        procs = list(prep.pool._processes.values())
+        assert procs and all(p.is_alive() for p in procs) and not prep.released
+        prep.forget(2)
+        assert not prep.released  # shard 1 still planned
+        assert _in_time(lambda: prep.get(1), 120).index == 1
+        assert prep.released
+        deadline = time.monotonic() + 30
+        while any(p.is_alive() for p in procs) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert not any(p.is_alive() for p in procs)  # gone before close()
+        with pytest.raises(RuntimeError, match="has made all its shards"):
+            prep.get(0)
+    finally:
+        prep.close()

@@ -324,16 +324,18 @@ def _end_with(client: int) -> None:
 def _start_process(device: str | None, client: int) -> None:
     """In a pool process: Ctrl-C reaches the whole process group, the client alone handles it; the process ends
     when ``client`` (the pid of the process that made the pool) has gone (:func:`_end_with`); with ``device``, Warp
-    started and the neighbour search's kernels loaded there before the first shard. A device this process cannot use
-    (a GPU in exclusive-process mode, held by its worker) is left to the tasks: this process makes scenes only."""
+    started, the neighbour search's kernels loaded there and the checks' CPU kernels, before the first shard. A
+    device this process cannot use (a GPU in exclusive-process mode, held by its worker) is left to the tasks: this
+    process makes scenes only."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     threading.Thread(target=_end_with, args=(client,), name="aca-warp-client-watch", daemon=True).start()
     if device is not None:
         from aca_warp.common.devices import init_warp, load_kernels
 
         init_warp()  # before any import that starts Warp: quietly
-        from aca_warp.kernels import neighbours
+        from aca_warp.kernels import neighbours, step_bound
 
+        load_kernels([step_bound], "cpu")  # the runs' checks
         try:
             load_kernels([neighbours], device)
         except Exception:  # noqa: BLE001  (no context there: the tasks build their models)
@@ -348,7 +350,8 @@ class Preparer:
     had not started) and returns it (with ``spool``: a :class:`SpooledShard` where its file could be written) or
     raises its error; :meth:`poll` says whether one is ready without waiting, :meth:`first_ready` which is;
     :meth:`take` waits while the device has work, else leaves the shard to its task; :meth:`forget` drops one.
-    Safe to use from several threads. :meth:`close` cancels what has not started.
+    Safe to use from several threads. The processes are let go once every planned shard has been taken or dropped;
+    :meth:`close` cancels what has not started.
     """
 
     def __init__(
@@ -388,21 +391,33 @@ class Preparer:
         self.waiting: deque[int] = deque()
         self.futures: dict[int, Future] = {}
         self.lock = threading.Lock()
+        self.planned = False
+        self.released = False  # every planned shard taken or dropped: the processes let go
 
     def plan(self, indices: Iterable[int]) -> None:
-        """Prepare these shards, in this order, as room allows."""
+        """Prepare these shards, in this order, as room allows. Once each of them has been taken (:meth:`get`) or
+        dropped (:meth:`forget`), the pool's processes are let go, while the last shards run: the call's end (and
+        its process's exit) then waits for none of them."""
         with self.lock:
+            self.planned = True
             self.waiting.extend(indices)
             self._top_up()
 
     def _top_up(self) -> None:
+        """Start waiting preparations while fewer than ``ahead`` are under way; let the processes go once nothing
+        is waiting or under way (under the lock)."""
         while self.waiting and len(self.futures) < self.ahead:
             i = self.waiting.popleft()
             self.futures[i] = self.pool.submit(self.prepare, i)
+        if self.planned and not self.waiting and not self.futures and not self.released:
+            self.released = True
+            _let_go(self.pool)
 
     def _future(self, index: int) -> Future:
         with self.lock:
             if index not in self.futures:  # asked for out of turn: start it now
+                if self.released:
+                    raise RuntimeError(f"shard {index} was asked of a preparation pool that has made all its shards")
                 if index in self.waiting:
                     self.waiting.remove(index)
                 self.futures[index] = self.pool.submit(self.prepare, index)
@@ -480,7 +495,9 @@ class Preparer:
         next sweep, which removes the folders of processes that are gone)."""
         with self.lock:
             self.waiting.clear()
-        _let_go(self.pool)
+            released, self.released = self.released, True
+        if not released:
+            _let_go(self.pool)
         if self.folder is not None:
             shutil.rmtree(self.folder, ignore_errors=True)
 
