@@ -40,10 +40,12 @@ time of prepare, build and setup, and for a code with a preparation of models on
 (``pool``: scenes, host model, initial state, checks) and what is left to the device's turn (``upload``, and
 ``setup_checked``: the run's set-up with the checks given), which on a machine shared with other work say more than
 the sweeps' wall times. Every overlapped configuration also runs once as ``aca-warp sweep`` runs it, in a process of
-its own (:func:`command_sweep`): ``command_wall_s`` from the call's start (pool, cluster start, shards: what a user
-waits for), and ``command_shards_s`` from the first device turn to the end (the cluster's start left out, which does
-not grow with the sweep; the pool's head start, which prepares every worker's first shard during that start, kept
-in), each with its speedup over the fewest units. The JSON and the Markdown line are written after every run (the
+its own (:func:`command_sweep`): ``command_wall_s`` from the call's start to its return (pool, cluster start,
+shards), ``command_exit_s`` from the call's start to its process's end (what a user of the command waits for: the
+interpreter's exit waits for processes the call left, such as a preparation pool's), and ``command_shards_s`` from
+the first device turn to the call's return (the cluster's start left out, which does not grow with the sweep; the
+pool's head start, which prepares every worker's first shard during that start, kept in), each with its speedup
+over the fewest units. The JSON and the Markdown line are written after every run (the
 JSON's ``partial`` true until the last), so that a command stopped by a time limit leaves what it measured.
 
 Two H200s (one GPU and two, the code before as baseline; a few minutes)::
@@ -316,6 +318,7 @@ def command_sweep(cfg: dict) -> dict:
     return {
         "package": str(Path(aca_warp.__file__).parent),
         "command_wall_s": res.wall_time,
+        "command_called": called,  # when the call began (time.time()): run_child adds command_exit_s from it
         "command_shards_s": res.wall_time - min(d["start"] for d in line["devices"].values()),
         "command_rate": res.patch_steps / res.wall_time,
         "command_first_prepared": sum("upload" in t for t in first.values()),
@@ -367,10 +370,13 @@ def run_child(code_dir: Path, cfg: dict, scratch: Path) -> dict:
         env["WARP_CACHE_PATH"] = str(scratch / f"warp-cache-{cfg['code']}")
     cmd = [sys.executable, str(Path(__file__).resolve()), "--child", json.dumps({**cfg, "dir": str(out)})]
     done = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=scratch)
+    exited = time.time()
     shutil.rmtree(out, ignore_errors=True)
     if done.returncode != 0:
         raise SystemExit(f"{cfg['code']} {cfg['mode']} x{cfg['units']} failed:\n{done.stderr[-3000:]}")
     row = json.loads(done.stdout.strip().splitlines()[-1])
+    if "command_called" in row:
+        row["command_exit_s"] = exited - row["command_called"]
     if not row["package"].startswith(str(view)):
         raise SystemExit(f"the child imported {row['package']}, not the code under test at {code_dir}")
     return row
@@ -443,7 +449,8 @@ def markdown_line(doc: dict) -> str:
             + f"build {ph['build']:.2f}, setup {ph['setup']:.2f}, kernel {ph['kernel']:.2f} s"
             + device_time(r["timeline"]["devices"])
             + (
-                f"; the whole call as the command runs it (pool, cluster start, shards): {r['command_wall_s']:.1f} s, "
+                f"; the whole call as the command runs it (pool, cluster start, shards): {r['command_wall_s']:.1f} s "
+                f"({r['command_exit_s']:.1f} s to its process's end), "
                 f"{r['command_speedup_vs_fewest_units']:.2f}× its fewest-{unit} rate, first shard prepared ahead "
                 f"on {r['command_first_prepared']} of {len(r['command_timeline']['devices'])} worker(s)"
                 if "command_speedup_vs_fewest_units" in r

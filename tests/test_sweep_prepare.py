@@ -481,6 +481,7 @@ def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pyte
     assert all(0 < host["cpu_s"][p] and 0 < host["wall_s"][p] for p in phases)
     new = rows[("new", "overlapped")]
     assert new["prepare"] == 1 and new["workers"] == 1 and new["command_wall_s"] > 0
+    assert new["command_exit_s"] > new["command_wall_s"]  # the process ends after the call returns
     # the command's shards alone: from its first device turn (after the cluster's start) to the call's end
     first_turn = min(d["start"] for d in new["command_timeline"]["devices"].values())
     assert new["command_shards_s"] == pytest.approx(new["command_wall_s"] - first_turn) and first_turn > 0
@@ -488,6 +489,7 @@ def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pyte
     text = md.read_text()
     assert len(text.splitlines()) == 1 and "new sequential on 1 CPU worker" in text
     assert "idle between turns" in text and "the whole call as the command runs it" in text
+    assert "to its process's end" in text
     assert "its shards, from the first device turn to the end" in text
     # --baseline: its configurations, and its processes import that checkout's code
     args = bench.parse_args([*argv, "--baseline", str(repo)])
