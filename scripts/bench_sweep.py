@@ -369,12 +369,18 @@ def run_child(code_dir: Path, cfg: dict, scratch: Path) -> dict:
     if "WARP_CACHE_PATH" not in env:
         env["WARP_CACHE_PATH"] = str(scratch / f"warp-cache-{cfg['code']}")
     cmd = [sys.executable, str(Path(__file__).resolve()), "--child", json.dumps({**cfg, "dir": str(out)})]
-    done = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=scratch)
-    exited = time.time()
+    # the output to files, not pipes: the processes the child leaves (a pool's fork server) would hold pipes open
+    # past the child's end, and its end is what command_exit_s times
+    with tempfile.TemporaryFile("w+") as stdout, tempfile.TemporaryFile("w+") as stderr:
+        code = subprocess.Popen(cmd, env=env, stdout=stdout, stderr=stderr, text=True, cwd=scratch).wait()
+        exited = time.time()
+        stdout.seek(0)
+        stderr.seek(0)
+        text, errors = stdout.read(), stderr.read()
     shutil.rmtree(out, ignore_errors=True)
-    if done.returncode != 0:
-        raise SystemExit(f"{cfg['code']} {cfg['mode']} x{cfg['units']} failed:\n{done.stderr[-3000:]}")
-    row = json.loads(done.stdout.strip().splitlines()[-1])
+    if code != 0:
+        raise SystemExit(f"{cfg['code']} {cfg['mode']} x{cfg['units']} failed:\n{errors[-3000:]}")
+    row = json.loads(text.strip().splitlines()[-1])
     if "command_called" in row:
         row["command_exit_s"] = exited - row["command_called"]
     if not row["package"].startswith(str(view)):

@@ -270,15 +270,17 @@ def _pool_processes(before: set[int] = frozenset()) -> list[psutil.Process]:
 
 def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
     """A pool process killed while it prepares a shard: waiting for that shard raises (BrokenProcessPool) instead of
-    waiting for ever."""
+    waiting for ever, and so does asking for the shards left waiting behind it (not taken for a pool that has made
+    all its shards)."""
     doc = json.loads(json.dumps(SMALL))
     doc["base"]["patches"] = {"count": 6000, "area_min": 2e-9, "area_max": 4e-9}  # seconds of placement per layout
-    doc["sweep"]["shard_size"] = 8
+    doc["sweep"]["shard_size"] = 1  # a shard per pad
     spec = load_spec(doc, base_dir=Path.cwd())
     before = {p.pid for p in psutil.Process().children(recursive=True)}
-    prep = Preparer(spec.doc, str(spec.base_dir), processes=1, ahead=1)
+    prep = Preparer(spec.doc, str(spec.base_dir), processes=1, ahead=3)
+    assert spec.shard_count >= 5
     try:
-        prep.plan([0])
+        prep.plan(range(5))
         deadline = time.monotonic() + 60
         while not (kids := _pool_processes(before)) and time.monotonic() < deadline:
             time.sleep(0.05)
@@ -287,8 +289,9 @@ def test_dead_pool_process_fails_its_shard(tmp_path: Path) -> None:
         assert kids and not prep.poll(0)
         for k in kids:
             k.kill()
-        with pytest.raises(BrokenProcessPool):
-            _in_time(lambda: prep.get(0), 60)
+        for i in range(5):  # the three sent to the pool, and the two left waiting behind them
+            with pytest.raises(BrokenProcessPool):
+                _in_time(lambda i=i: prep.get(i), 60)
     finally:
         prep.close()
 

@@ -42,6 +42,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -392,12 +393,14 @@ class Preparer:
         self.futures: dict[int, Future] = {}
         self.lock = threading.Lock()
         self.planned = False
-        self.released = False  # every planned shard taken or dropped: the processes let go
+        self.released = False  # every planned shard taken or dropped (or closed): no more shards asked of the pool
+        self.let_go = False  # the processes let go (_let_go)
 
     def plan(self, indices: Iterable[int]) -> None:
-        """Prepare these shards, in this order, as room allows. Once each of them has been taken (:meth:`get`) or
-        dropped (:meth:`forget`), the pool's processes are let go, while the last shards run: the call's end (and
-        its process's exit) then waits for none of them."""
+        """Prepare these shards, in this order, as room allows (once per pool). Once each of them has been taken
+        (:meth:`get`) or dropped (:meth:`forget`), the pool's processes are let go, while the last shards run: the
+        call's end (and its process's exit) then waits for none of them, but for a dropped shard's preparation that
+        a process had begun (it finishes, unused)."""
         with self.lock:
             self.planned = True
             self.waiting.extend(indices)
@@ -405,12 +408,24 @@ class Preparer:
 
     def _top_up(self) -> None:
         """Start waiting preparations while fewer than ``ahead`` are under way; let the processes go once nothing
-        is waiting or under way (under the lock)."""
+        is waiting or under way (under the lock). A broken pool (a process died) starts nothing more: the shards
+        left waiting raise its error when asked for (:meth:`get`)."""
         while self.waiting and len(self.futures) < self.ahead:
             i = self.waiting.popleft()
-            self.futures[i] = self.pool.submit(self.prepare, i)
-        if self.planned and not self.waiting and not self.futures and not self.released:
-            self.released = True
+            try:
+                self.futures[i] = self.pool.submit(self.prepare, i)
+            except BrokenProcessPool:
+                self.waiting.appendleft(i)
+                break
+        if self.planned and not self.waiting and not self.futures:
+            self._release()
+
+    def _release(self) -> None:
+        """Refuse further shards and let the processes go, once (under the lock: two shutdowns of one executor at
+        once race on its queues)."""
+        self.released = True
+        if not self.let_go:
+            self.let_go = True
             _let_go(self.pool)
 
     def _future(self, index: int) -> Future:
@@ -495,9 +510,7 @@ class Preparer:
         next sweep, which removes the folders of processes that are gone)."""
         with self.lock:
             self.waiting.clear()
-            released, self.released = self.released, True
-        if not released:
-            _let_go(self.pool)
+            self._release()
         if self.folder is not None:
             shutil.rmtree(self.folder, ignore_errors=True)
 
