@@ -340,13 +340,13 @@ def _default_step_words(args: argparse.Namespace, scene: Any) -> str:
     """Why a ``strang`` run without ``--dt`` took its step, for the summary line (nothing when --dt was given)."""
     if args.dt is not None or args.integrator != "strang":
         return ""
-    from aca_warp.hf.options import default_step
+    from aca_warp.hf.options import default_step, step_asked
     from aca_warp.scene.regimes import preset_regime
 
     regime = preset_regime(scene)
     whose = f"{regime}'s physics" if regime else "a scene of no preset"
     default = default_step("strang", [scene])
-    if scene.record.sample_dt < default * (1 - 1e-9):  # the default shortened to the sample interval
+    if step_asked("strang", None, [scene], scene.record.sample_dt) != default:  # shortened to the sample interval
         return f", the sample interval, shorter than the default step for {whose} ({default:g} s)"
     return f", the default step for {whose}"
 

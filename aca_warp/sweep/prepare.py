@@ -393,8 +393,7 @@ class Preparer:
         self.futures: dict[int, Future] = {}
         self.lock = threading.Lock()
         self.planned = False
-        self.released = False  # every planned shard taken or dropped (or closed): no more shards asked of the pool
-        self.let_go = False  # the processes let go (_let_go)
+        self.released = False  # every planned shard taken or dropped (or closed): the processes let go, no more asked
 
     def plan(self, indices: Iterable[int]) -> None:
         """Prepare these shards, in this order, as room allows (once per pool). Once each of them has been taken
@@ -423,9 +422,8 @@ class Preparer:
     def _release(self) -> None:
         """Refuse further shards and let the processes go, once (under the lock: two shutdowns of one executor at
         once race on its queues)."""
-        self.released = True
-        if not self.let_go:
-            self.let_go = True
+        if not self.released:
+            self.released = True
             _let_go(self.pool)
 
     def _future(self, index: int) -> Future:
