@@ -19,7 +19,9 @@ Configurations:
 * ``new``: the checkout this script belongs to, with its preparation pool (``--prepare``, default as ``aca-warp
   sweep``: two processes per GPU and at least four, none on the CPU), overlapped, on each of ``--units`` GPUs (CPU
   worker processes with ``--device cpu``); and once ``sequential`` on the first of ``--units``: the in-shard rate of
-  kernels that do not share their GPU, the reference of the targets;
+  kernels that do not share their GPU, the reference of the targets; with ``--kept-pool`` also ``kept`` on each of
+  ``--units``: overlapped, its warm-up and timed sweeps inside ``keep_preparation_pool()``, so that the timed sweep
+  prepares its shards in the processes the warm-up started (a script that runs sweeps one after another);
 * ``baseline`` (with ``--baseline DIR``): the checkout at DIR (e.g. ``git archive <commit> aca_warp kernels | tar -x
   -C DIR``), overlapped, on each of ``--units``.
 
@@ -66,6 +68,7 @@ CPU (the host time per shard before and after: 2 shards of 256 hf1 pads, 1 µs s
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import functools
 import inspect
@@ -235,7 +238,7 @@ def child(cfg: dict) -> dict:
     warm = load_spec(sweep_doc(hf1_product_doc, cfg, WARM_UP_S, warm_up_pads(cfg)))
     units, cpu = cfg["units"], cfg["device"] == "cpu"
     device = "cpu" if cpu else ",".join(f"cuda:{i}" for i in range(units))
-    overlap = cfg["mode"] == "overlapped"
+    overlap = cfg["mode"] in ("overlapped", "kept")
     t0 = time.perf_counter()
     workers = units if cpu else None
     if "threads" in inspect.signature(local_cluster).parameters:  # one worker per GPU, shard tasks in its threads
@@ -255,12 +258,18 @@ def child(cfg: dict) -> dict:
         prepare = cfg["prepare"] if cfg["prepare"] is not None else prepare_processes(device, None, True)
         kwargs["prepare"] = prepare
     scratch = Path(cfg["dir"])
+    kept = contextlib.nullcontext()
+    if cfg["mode"] == "kept":  # the warm-up's preparation pool kept for the timed sweep
+        from aca_warp.sweep import keep_preparation_pool
+
+        kept = keep_preparation_pool()
     try:
-        t0 = time.perf_counter()
-        run_sweep(warm, scratch / "warm", **kwargs)
-        warm_s = time.perf_counter() - t0
-        called = time.time()
-        res = run_sweep(spec, scratch / "timed", **kwargs)
+        with kept:
+            t0 = time.perf_counter()
+            run_sweep(warm, scratch / "warm", **kwargs)
+            warm_s = time.perf_counter() - t0
+            called = time.time()
+            res = run_sweep(spec, scratch / "timed", **kwargs)
     finally:
         client.close()
         cluster.close()
@@ -389,11 +398,14 @@ def run_child(code_dir: Path, cfg: dict, scratch: Path) -> dict:
 
 
 def configurations(args: argparse.Namespace) -> list[dict]:
-    """The runs: new overlapped on every unit count, new sequential on the first, the baseline overlapped on every."""
+    """The runs: new overlapped on every unit count, new sequential on the first, with ``--kept-pool`` new kept on every
+    unit count, the baseline overlapped on every."""
     keys = ("device", "pads", "patches", "shard_size", "duration", "precision", "sweep", "dt")
     base = {k: getattr(args, k) for k in keys}
     runs = [{**base, "code": "new", "mode": "overlapped", "units": u, "prepare": args.prepare} for u in args.units]
     runs.append({**base, "code": "new", "mode": "sequential", "units": args.units[0], "prepare": args.prepare})
+    if args.kept_pool:
+        runs += [{**base, "code": "new", "mode": "kept", "units": u, "prepare": args.prepare} for u in args.units]
     if args.baseline:
         runs += [{**base, "code": "baseline", "mode": "overlapped", "units": u, "prepare": None} for u in args.units]
     return runs
@@ -564,6 +576,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     )
     ap.add_argument(
         "--prepare", type=int_at_least(0), help="preparation processes of the new code (default: as aca-warp sweep)"
+    )
+    ap.add_argument(
+        "--kept-pool",
+        action="store_true",
+        help="also run the new code's overlapped sweeps with the warm-up's preparation pool kept for the timed sweep "
+        "(keep_preparation_pool: sweeps one after another in one script)",
     )
     ap.add_argument("--baseline", type=Path, help="a checkout of the code to compare against (e.g. the previous main)")
     ap.add_argument(

@@ -439,8 +439,8 @@ def test_head_start_prepares_every_worker_s_first_shard(
 
 
 def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """scripts/bench_sweep.py on the CPU with tiny settings: the new path overlapped (and as the command runs it) and
-    sequential, each in a process that imported the code it names; rates and ratios from the shards' own timings; the
+    """scripts/bench_sweep.py on the CPU with tiny settings: the new path overlapped (and as the command runs it),
+    sequential and with the warm-up's pool kept, each in a process that imported the code it names; rates and ratios from the shards' own timings; the
     device's time line (start, busy, idle, tail) adds up to the wall time; the host phases include the pool's work and
     the turn's (upload, set-up with the checks given). With ``--baseline`` the same configurations run for a second
     checkout (here this one): its runs are listed, and its processes import the code of that checkout (a package view
@@ -459,11 +459,12 @@ def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pyte
     repo = Path(bench.__file__).resolve().parent.parent
     out, md = tmp_path / "b.json", tmp_path / "b.md"
     argv = ["--device", "cpu", "--units", "1", "--pads", "8", "--patches", "12", "--shard-size", "4"]
-    argv += ["--duration", "3e-6", "--prepare", "1", "--json", str(out), "--md", str(md)]
+    argv += ["--duration", "3e-6", "--prepare", "1", "--kept-pool", "--json", str(out), "--md", str(md)]
     assert bench.main([*argv, "--dir", str(tmp_path / "w")]) == 0
     doc = json.loads(out.read_text())
     rows = {(r["code"], r["mode"]): r for r in doc["results"]}
-    assert set(rows) == {("new", "overlapped"), ("new", "sequential")}
+    assert set(rows) == {("new", "overlapped"), ("new", "sequential"), ("new", "kept")}
+    assert any("prepare_ahead" in sh for sh in rows[("new", "kept")]["shards"])  # the kept pool's work
     assert "partial" not in doc  # written after every run, whole at the end
     for r in rows.values():
         assert r["patch_steps"] == 8 * 12 * 300 and r["package"].startswith(str(tmp_path / "w"))
@@ -498,9 +499,9 @@ def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pyte
     args = bench.parse_args([*argv, "--baseline", str(repo)])
     runs = bench.configurations(args)
     assert [(c["code"], c["mode"], c["units"]) for c in runs] == [
-        ("new", "overlapped", 1), ("new", "sequential", 1), ("baseline", "overlapped", 1)
+        ("new", "overlapped", 1), ("new", "sequential", 1), ("new", "kept", 1), ("baseline", "overlapped", 1)
     ]  # fmt: skip
-    assert runs[2]["prepare"] is None  # a baseline runs with its own default pool
+    assert runs[3]["prepare"] is None  # a baseline runs with its own default pool
     scratch = tmp_path / "b"
     scratch.mkdir()
     h = bench.run_child(repo, {**runs[0], "code": "baseline", "mode": "host", "repeat": 1}, scratch)
@@ -780,3 +781,77 @@ def test_pool_processes_are_let_go_once_every_planned_shard_is_taken() -> None:
             prep.get(0)
     finally:
         prep.close()
+
+
+def _wait_gone(procs: list, seconds: float = 30.0) -> bool:
+    """Whether every process of ``procs`` (multiprocessing processes) has exited within ``seconds``."""
+    deadline = time.monotonic() + seconds
+    while any(p.is_alive() for p in procs) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return not any(p.is_alive() for p in procs)
+
+
+def test_a_kept_pool_serves_the_next_calls(tmp_path: Path) -> None:
+    """Inside :func:`keep_preparation_pool` the second sweep call prepares its shards in the processes the first call
+    started, which outlive the first call; the block's end lets them go; the outputs are those of sweeps with a pool
+    of their own and of sweeps without a pool, bit for bit. Outside a block every call has a pool of its own."""
+    from aca_warp.sweep import keep_preparation_pool
+
+    spec = _spec()
+    run_sweep(spec, tmp_path / "none", workers=0, overlap=True, prepare=0)
+    run_sweep(spec, tmp_path / "own", workers=0, overlap=True, prepare=2)
+    with keep_preparation_pool():
+        first = Preparer(spec.doc, str(spec.base_dir), processes=2, ahead=2, device="cpu")
+        first.plan([0, 1, 2])
+        for i in (0, 1, 2):
+            assert _in_time(lambda i=i: first.get(i), 120).index == i
+        first.close()
+        procs = list(first.pool._processes.values())
+        assert first.kept and first.released and procs and all(p.is_alive() for p in procs)  # kept past its call
+        res = [run_sweep(spec, tmp_path / f"kept{k}", workers=0, overlap=True, prepare=2) for k in range(2)]
+        second = Preparer(spec.doc, str(spec.base_dir), processes=2, ahead=2, device="cpu")
+        assert second.pool is first.pool and second.kept
+        second.close()
+        assert {p.pid for p in second.pool._processes.values()} == {p.pid for p in procs}  # the same processes
+    assert _wait_gone(procs)  # let go at the block's end
+    assert all(any("prepare_ahead" in s["timings"] for s in r.summaries) for r in res)  # the kept pool made some
+    outputs = {name: _outputs(tmp_path / name) for name in ("none", "own", "kept0", "kept1")}
+    for name in ("own", "kept0", "kept1"):
+        for k, v in outputs["none"].items():
+            assert v.tobytes() == outputs[name][k].tobytes(), (name, k)
+    alone = Preparer(spec.doc, str(spec.base_dir), processes=1, ahead=1, device="cpu")
+    try:
+        assert not alone.kept and alone.pool is not first.pool
+    finally:
+        alone.close()
+
+
+def test_a_kept_pool_is_replaced_when_broken_or_unlike() -> None:
+    """A kept pool whose process died, or one made for another number of processes, is let go and a new one kept in
+    its place; an inner block's end keeps the pool, the outermost lets it go."""
+    from aca_warp.sweep import keep_preparation_pool
+
+    spec = _spec()
+
+    def preparer(processes: int) -> Preparer:
+        prep = Preparer(spec.doc, str(spec.base_dir), processes=processes, ahead=1, device="cpu")
+        prep.plan([0])
+        assert _in_time(lambda: prep.get(0), 120).index == 0
+        prep.close()
+        return prep
+
+    with keep_preparation_pool():
+        first = preparer(1)
+        for p in first.pool._processes.values():
+            p.kill()
+        _wait_gone(list(first.pool._processes.values()))
+        with keep_preparation_pool():
+            second = preparer(1)  # the first pool is broken now
+            assert second.pool is not first.pool and second.kept
+        assert preparer(1).pool is second.pool  # kept past the inner block
+        procs = list(second.pool._processes.values())
+        third = preparer(2)
+        assert third.pool is not second.pool and _wait_gone(procs)  # the unlike pool let go
+        procs = list(third.pool._processes.values())
+        assert all(p.is_alive() for p in procs)
+    assert _wait_gone(procs)

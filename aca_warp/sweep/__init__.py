@@ -46,7 +46,7 @@ _MODULES = {
     "commands": ("add_parsers",),
     "manifest": ("MANIFEST", "SHARD_STATES", "SweepResult", "load_sweep", "prepare_dir", "read_manifest"),
     "overlap": ("PIPELINE_DEPTH", "ChunkWriter", "KernelTurn", "ShardCancelled", "ShardContext"),
-    "prepare": ("batch_capacity", "device_memory", "pad_bytes"),
+    "prepare": ("batch_capacity", "device_memory", "keep_preparation_pool", "pad_bytes"),
     "run": ("run_sweep",),
     "shard": ("TIMING_DOC", "TIMING_PHASES", "run_shard", "shard_finished", "shard_name"),
     "spec": (

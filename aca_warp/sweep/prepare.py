@@ -23,6 +23,9 @@ task reads it there, rather than have it pickled into the client, sent through t
 cluster's encrypted connections and unpickled there (0.53–0.66 s for 256 hf1 pads against 0.08–0.16 s from the
 file on this project's 2-core CPU container, ``scripts/bench_spool.py``); a shard that cannot be written there (no
 room) travels by value as before.
+
+Each sweep call starts its own pool and lets it go as its last shards run; a script that runs sweeps one after
+another keeps one pool for all of them with :func:`keep_preparation_pool`.
 """
 
 from __future__ import annotations
@@ -40,7 +43,7 @@ import tempfile
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
@@ -352,7 +355,8 @@ class Preparer:
     raises its error; :meth:`poll` says whether one is ready without waiting, :meth:`first_ready` which is;
     :meth:`take` waits while the device has work, else leaves the shard to its task; :meth:`forget` drops one.
     Safe to use from several threads. The processes are let go once every planned shard has been taken or dropped;
-    :meth:`close` cancels what has not started.
+    :meth:`close` cancels what has not started. Inside :func:`keep_preparation_pool` the pool is the kept one: it
+    stays for the next call, and only this call's preparations not begun are cancelled.
     """
 
     def __init__(
@@ -378,17 +382,7 @@ class Preparer:
         )
         self.prepare: Callable[[int], PreparedShard | SpooledShard] = functools.partial(_begin, self.folder, self.work)
         self.ahead = max(1, ahead)
-        context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload(_PRELOAD)  # imported once by this process's fork server, not per process
-        # started now, with this process's environment as it is (a local cluster's nanny, started next, sets
-        # OMP_NUM_THREADS and others in it); the pool's processes are forked from it as they are needed
-        multiprocessing.forkserver.ensure_running()
-        self.pool = ProcessPoolExecutor(
-            max_workers=max(1, processes),
-            mp_context=context,
-            initializer=_start_process,
-            initargs=(device, os.getpid()),
-        )
+        self.pool, self.kept = _pool_for(processes, device)
         self.waiting: deque[int] = deque()
         self.futures: dict[int, Future] = {}
         self.lock = threading.Lock()
@@ -396,10 +390,10 @@ class Preparer:
         self.released = False  # every planned shard taken or dropped (or closed): the processes let go, no more asked
 
     def plan(self, indices: Iterable[int]) -> None:
-        """Prepare these shards, in this order, as room allows (once per pool). Once each of them has been taken
-        (:meth:`get`) or dropped (:meth:`forget`), the pool's processes are let go, while the last shards run: the
-        call's end (and its process's exit) then waits for none of them, but for a dropped shard's preparation that
-        a process had begun (it finishes, unused)."""
+        """Prepare these shards, in this order, as room allows (once per call). Once each of them has been taken
+        (:meth:`get`) or dropped (:meth:`forget`), the pool's processes are let go (unless the pool is kept), while
+        the last shards run: the call's end (and its process's exit) then waits for none of them, but for a dropped
+        shard's preparation that a process had begun (it finishes, unused)."""
         with self.lock:
             self.planned = True
             self.waiting.extend(indices)
@@ -421,10 +415,15 @@ class Preparer:
 
     def _release(self) -> None:
         """Refuse further shards and let the processes go, once (under the lock: two shutdowns of one executor at
-        once race on its queues)."""
+        once race on its queues); a kept pool (:func:`keep_preparation_pool`) stays, only this call's preparations
+        not begun are cancelled."""
         if not self.released:
             self.released = True
-            _let_go(self.pool)
+            if self.kept:
+                for fut in self.futures.values():
+                    fut.cancel()
+            else:
+                _let_go(self.pool)
 
     def _future(self, index: int) -> Future:
         with self.lock:
@@ -511,6 +510,89 @@ class Preparer:
             self._release()
         if self.folder is not None:
             shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def _new_pool(processes: int, device: str | None) -> ProcessPoolExecutor:
+    """A pool of ``processes`` processes forked from this process's fork server, each started by
+    :func:`_start_process` (Warp on ``device``) when it is first needed."""
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(_PRELOAD)  # imported once by this process's fork server, not per process
+    # started now, with this process's environment as it is (a local cluster's nanny, started next, sets
+    # OMP_NUM_THREADS and others in it); the pool's processes are forked from it as they are needed
+    multiprocessing.forkserver.ensure_running()
+    return ProcessPoolExecutor(
+        max_workers=max(1, processes), mp_context=context, initializer=_start_process, initargs=(device, os.getpid())
+    )
+
+
+@dataclass
+class _Kept:
+    """The pool kept across sweep calls: open :func:`keep_preparation_pool` blocks, the pool and what it was made for
+    (processes, device)."""
+
+    depth: int = 0
+    pool: ProcessPoolExecutor | None = None
+    key: tuple[int, str | None] | None = None
+
+
+_KEPT = _Kept()
+_KEPT_GUARD = threading.Lock()
+
+
+@contextlib.contextmanager
+def keep_preparation_pool() -> Iterator[None]:
+    """Keep the preparation pool of a sweep call for the next calls of this process until the block ends.
+
+    Without it, each :func:`~aca_warp.sweep.run_sweep` call starts its own pool (its processes start Warp and a GPU
+    context: 0.6 s on an H200 host before their first shard, and their first shard takes longer than the next ones)
+    and lets it go once its last shards are taken. Inside the block, a call finds the pool an earlier call of the
+    block made and keeps it: a script that runs one sweep after another on a warm cluster has its next shards
+    prepared from the call's start. A call that needs another pool (another number of processes or device), or finds
+    the kept one broken (a process died), makes a new one and keeps that instead. Blocks may nest; the outermost
+    block's end lets the pool go (without waiting for its processes to exit). Results are the same bit for bit with
+    or without it::
+
+        with keep_preparation_pool():
+            for doc in docs:
+                run_sweep(load_spec(doc), out / doc["sweep"]["name"], client=client)
+    """
+    with _KEPT_GUARD:
+        _KEPT.depth += 1
+    try:
+        yield
+    finally:
+        with _KEPT_GUARD:
+            _KEPT.depth -= 1
+            pool = None
+            if _KEPT.depth == 0:
+                pool, _KEPT.pool, _KEPT.key = _KEPT.pool, None, None
+        if pool is not None:
+            _let_go(pool)
+
+
+def _pool_for(processes: int, device: str | None) -> tuple[ProcessPoolExecutor, bool]:
+    """A pool for a call: (pool, kept). Outside :func:`keep_preparation_pool` a new one of the call's own; inside, the
+    kept one where it was made for the same processes and device and still works, else a new one, kept in its
+    place."""
+    with _KEPT_GUARD:
+        if _KEPT.depth == 0:
+            return _new_pool(processes, device), False
+        key = (max(1, processes), device)
+        if _KEPT.pool is not None and (_KEPT.key != key or not _usable(_KEPT.pool)):
+            _let_go(_KEPT.pool)
+            _KEPT.pool = None
+        if _KEPT.pool is None:
+            _KEPT.pool, _KEPT.key = _new_pool(processes, device), key
+        return _KEPT.pool, True
+
+
+def _usable(pool: ProcessPoolExecutor) -> bool:
+    """Whether ``pool`` takes work: a broken pool (a process died) refuses a task at once, as does one shut down."""
+    try:
+        pool.submit(int).cancel()
+    except (BrokenProcessPool, RuntimeError):
+        return False
+    return True
 
 
 def _let_go(pool: ProcessPoolExecutor) -> None:
