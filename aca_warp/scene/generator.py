@@ -182,9 +182,9 @@ class _Trials:
 
     Per trial two uniforms of ``rng`` (``low + (high − low) · u``, the arithmetic of ``Generator.uniform``, from
     ``Generator.random``: the same stream as scalar ``uniform`` calls), the radius and angle with NumPy's
-    elementwise arithmetic (each operation rounded once, as in scalars), ``math.cos`` and ``math.sin``; per block
-    the distances to the pad's bounds (:meth:`Pad.edge_distances`). Attributes ``x``, ``y`` [m] and ``dist``,
-    ``edge`` [m], shape (trials drawn,)."""
+    elementwise arithmetic (each operation rounded once, as in scalars), ``math.cos`` and ``math.sin``, and the
+    distances to the pad's bounds (:meth:`Pad.edge_distances`, elementwise: the values of one trial at a time, as the
+    tests check). Attributes ``x``, ``y`` [m] and ``dist``, ``edge`` [m], shape (trials drawn,)."""
 
     BLOCK = 64
 
@@ -201,10 +201,9 @@ class _Trials:
         th = (math.pi / 2 + (-hs + (hs - -hs) * u[1::2])).tolist()
         x = r * np.fromiter(map(math.cos, th), np.float64, n)
         y = r * np.fromiter(map(math.sin, th), np.float64, n)
-        parts = [pad.edge_distances(x[a : a + self.BLOCK], y[a : a + self.BLOCK]) for a in range(0, n, self.BLOCK)]
+        dist, edge = pad.edge_distances(x, y)
         self.x, self.y = np.concatenate((self.x, x)), np.concatenate((self.y, y))
-        self.dist = np.concatenate((self.dist, *(p[0] for p in parts)))
-        self.edge = np.concatenate((self.edge, *(p[1] for p in parts)))
+        self.dist, self.edge = np.concatenate((self.dist, dist)), np.concatenate((self.edge, edge))
 
 
 def _spatial_order(x: np.ndarray, y: np.ndarray, cell: float) -> np.ndarray:
