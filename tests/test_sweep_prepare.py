@@ -440,13 +440,14 @@ def test_head_start_prepares_every_worker_s_first_shard(
 
 def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """scripts/bench_sweep.py on the CPU with tiny settings: the new path overlapped (and as the command runs it),
-    sequential and with the warm-up's pool kept, each in a process that imported the code it names; rates and ratios from the shards' own timings; the
-    device's time line (start, busy, idle, tail) adds up to the wall time; the host phases include the pool's work and
-    the turn's (upload, set-up with the checks given). With ``--baseline`` the same configurations run for a second
-    checkout (here this one): its runs are listed, and its processes import the code of that checkout (a package view
-    of it; checked on its host-phase process, the cheapest: the sweeps of the baseline run the same functions as the
-    new code's, in the same way). The children share the tests' kernel cache (the script gives each code its own,
-    empty one where WARP_CACHE_PATH is unset: kernels compiled twice, for identical code)."""
+    sequential and with the warm-up's pool kept, each in a process that imported the code it names; rates and ratios
+    from the shards' own timings; the device's time line (start, busy, idle, tail) adds up to the wall time; the
+    host phases include the pool's work and the turn's (upload, set-up with the checks given). With ``--baseline``
+    the same configurations run for a second checkout (here this one): its runs are listed, and its processes import
+    the code of that checkout (a package view of it; checked on its host-phase process, the cheapest: the sweeps of
+    the baseline run the same functions as the new code's, in the same way). The children share the tests' kernel
+    cache (the script gives each code its own, empty one where WARP_CACHE_PATH is unset: kernels compiled twice, for
+    identical code)."""
     pytest.importorskip("distributed")
     import warp as wp
     from scriptload import load_script
@@ -854,4 +855,29 @@ def test_a_kept_pool_is_replaced_when_broken_or_unlike() -> None:
         assert third.pool is not second.pool and _wait_gone(procs)  # the unlike pool let go
         procs = list(third.pool._processes.values())
         assert all(p.is_alive() for p in procs)
+    assert _wait_gone(procs)
+
+
+def test_a_kept_pool_in_use_is_never_let_go_under_its_call() -> None:
+    """While a call uses the kept pool, another call that needs other settings gets a pool of its own (the kept one
+    stays), and the block's end leaves the pool to that call, whose end lets it go."""
+    from aca_warp.sweep import keep_preparation_pool
+
+    spec = _spec()
+    with keep_preparation_pool():
+        using = Preparer(spec.doc, str(spec.base_dir), processes=1, ahead=1, device="cpu")
+        other = Preparer(spec.doc, str(spec.base_dir), processes=2, ahead=1, device="cpu")
+        try:
+            assert using.kept and not other.kept and other.pool is not using.pool
+            other.plan([0])
+            assert _in_time(lambda: other.get(0), 120).index == 0
+        finally:
+            other.close()
+        using.plan([1, 2])
+        assert _in_time(lambda: using.get(1), 120).index == 1
+    procs = list(using.pool._processes.values())
+    assert procs and all(p.is_alive() for p in procs)  # the block has ended: its call still has the pool
+    assert not using.pool._shutdown_thread
+    assert _in_time(lambda: using.get(2), 120).index == 2  # its last shard: the pool is let go now
+    using.close()
     assert _wait_gone(procs)

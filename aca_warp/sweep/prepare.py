@@ -382,7 +382,7 @@ class Preparer:
         )
         self.prepare: Callable[[int], PreparedShard | SpooledShard] = functools.partial(_begin, self.folder, self.work)
         self.ahead = max(1, ahead)
-        self.pool, self.kept = _pool_for(processes, device)
+        self.pool, self.kept = _KEPT.acquire(processes, device)
         self.waiting: deque[int] = deque()
         self.futures: dict[int, Future] = {}
         self.lock = threading.Lock()
@@ -422,6 +422,7 @@ class Preparer:
             if self.kept:
                 for fut in self.futures.values():
                     fut.cancel()
+                _KEPT.release(self.pool)
             else:
                 _let_go(self.pool)
 
@@ -525,18 +526,65 @@ def _new_pool(processes: int, device: str | None) -> ProcessPoolExecutor:
     )
 
 
-@dataclass
-class _Kept:
-    """The pool kept across sweep calls: open :func:`keep_preparation_pool` blocks, the pool and what it was made for
-    (processes, device)."""
+class _KeptPool:
+    """The pool kept across sweep calls (:func:`keep_preparation_pool`): the open blocks (``depth``), the pool, what it
+    was made for (processes, device) and the calls using it now (``users``). A pool in use is never let go under a
+    call: one made for other settings is then made for the asking call alone, and the block's end leaves a pool in
+    use to its last call's end (:meth:`release`)."""
 
-    depth: int = 0
-    pool: ProcessPoolExecutor | None = None
-    key: tuple[int, str | None] | None = None
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.depth = 0
+        self.pool: ProcessPoolExecutor | None = None
+        self.key: tuple[int, str | None] | None = None
+        self.users = 0
+
+    def enter(self) -> None:
+        with self.lock:
+            self.depth += 1
+
+    def exit(self) -> None:
+        with self.lock:
+            self.depth -= 1
+            self._drop_if_done()
+
+    def acquire(self, processes: int, device: str | None) -> tuple[ProcessPoolExecutor, bool]:
+        """A pool for a call: (pool, kept). Outside a block, or where the kept pool is another's in use (other
+        settings), a new one of the call's own; else the kept one if it was made for the same processes and device
+        and still works, else a new one, kept in its place (a broken pool is let go, in use or not: its calls'
+        shards fail with its error already)."""
+        key = (max(1, processes), device)
+        with self.lock:
+            if self.depth == 0:
+                return _new_pool(processes, device), False
+            if self.pool is not None and not _usable(self.pool):
+                _let_go(self.pool)
+                self.pool, self.users = None, 0
+            if self.pool is not None and self.key != key:
+                if self.users > 0:
+                    return _new_pool(processes, device), False
+                _let_go(self.pool)
+                self.pool = None
+            if self.pool is None:
+                self.pool, self.key = _new_pool(processes, device), key
+            self.users += 1
+            return self.pool, True
+
+    def release(self, pool: ProcessPoolExecutor) -> None:
+        """A call that had ``pool`` from :meth:`acquire` as the kept one is done with it."""
+        with self.lock:
+            if pool is self.pool:
+                self.users -= 1
+                self._drop_if_done()
+
+    def _drop_if_done(self) -> None:
+        """Let the pool go once no block is open and no call uses it (under the lock)."""
+        if self.depth == 0 and self.users == 0 and self.pool is not None:
+            _let_go(self.pool)
+            self.pool = self.key = None
 
 
-_KEPT = _Kept()
-_KEPT_GUARD = threading.Lock()
+_KEPT = _KeptPool()
 
 
 @contextlib.contextmanager
@@ -547,43 +595,21 @@ def keep_preparation_pool() -> Iterator[None]:
     context: 0.6 s on an H200 host before their first shard, and their first shard takes longer than the next ones)
     and lets it go once its last shards are taken. Inside the block, a call finds the pool an earlier call of the
     block made and keeps it: a script that runs one sweep after another on a warm cluster has its next shards
-    prepared from the call's start. A call that needs another pool (another number of processes or device), or finds
-    the kept one broken (a process died), makes a new one and keeps that instead. Blocks may nest; the outermost
-    block's end lets the pool go (without waiting for its processes to exit). Results are the same bit for bit with
-    or without it::
+    prepared from the call's start. A call that needs another pool (another number of processes or device) makes a
+    new one and keeps that instead (or, while another call of this process uses the kept one, one of its own); one
+    that finds the kept pool broken (a process died) replaces it. Blocks may nest; the outermost block's end lets the
+    pool go (without waiting for its processes to exit; after the last call still using it, if any). Results are the
+    same bit for bit with or without it::
 
         with keep_preparation_pool():
             for doc in docs:
                 run_sweep(load_spec(doc), out / doc["sweep"]["name"], client=client)
     """
-    with _KEPT_GUARD:
-        _KEPT.depth += 1
+    _KEPT.enter()
     try:
         yield
     finally:
-        with _KEPT_GUARD:
-            _KEPT.depth -= 1
-            pool = None
-            if _KEPT.depth == 0:
-                pool, _KEPT.pool, _KEPT.key = _KEPT.pool, None, None
-        if pool is not None:
-            _let_go(pool)
-
-
-def _pool_for(processes: int, device: str | None) -> tuple[ProcessPoolExecutor, bool]:
-    """A pool for a call: (pool, kept). Outside :func:`keep_preparation_pool` a new one of the call's own; inside, the
-    kept one where it was made for the same processes and device and still works, else a new one, kept in its
-    place."""
-    with _KEPT_GUARD:
-        if _KEPT.depth == 0:
-            return _new_pool(processes, device), False
-        key = (max(1, processes), device)
-        if _KEPT.pool is not None and (_KEPT.key != key or not _usable(_KEPT.pool)):
-            _let_go(_KEPT.pool)
-            _KEPT.pool = None
-        if _KEPT.pool is None:
-            _KEPT.pool, _KEPT.key = _new_pool(processes, device), key
-        return _KEPT.pool, True
+        _KEPT.exit()
 
 
 def _usable(pool: ProcessPoolExecutor) -> bool:
