@@ -7,7 +7,7 @@ import json
 import shutil
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures.process import BrokenProcessPool
 from importlib import resources
 from pathlib import Path
@@ -21,7 +21,7 @@ from procs import gated, gated_one, small_sweep_doc
 
 from aca_warp.hf.recorder import GLOBAL_NAMES
 from aca_warp.sweep import load_spec, load_sweep, run_sweep
-from aca_warp.sweep.prepare import PreparedShard, Preparer, SpooledShard, prepare_shard
+from aca_warp.sweep.prepare import _KEPT, PreparedShard, Preparer, SpooledShard, prepare_shard
 
 # 2 M x 2 seeds x 2 loads = 8 pads of 20 patches in 3 shards (the last of 2 pads); 3 µs simulated
 SMALL = small_sweep_doc(
@@ -465,7 +465,7 @@ def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pyte
     doc = json.loads(out.read_text())
     rows = {(r["code"], r["mode"]): r for r in doc["results"]}
     assert set(rows) == {("new", "overlapped"), ("new", "sequential"), ("new", "kept")}
-    assert any("prepare_ahead" in sh for sh in rows[("new", "kept")]["shards"])  # the kept pool's work
+    assert any("prepare_ahead" in sh for sh in rows[("new", "kept")]["shards"])  # its pool ran (kept: tests above)
     assert "partial" not in doc  # written after every run, whole at the end
     for r in rows.values():
         assert r["patch_steps"] == 8 * 12 * 300 and r["package"].startswith(str(tmp_path / "w"))
@@ -784,6 +784,22 @@ def test_pool_processes_are_let_go_once_every_planned_shard_is_taken() -> None:
         prep.close()
 
 
+@pytest.fixture
+def kept_clean() -> Iterator[None]:
+    """After a test of the kept pool: no block open, no call holding it, none kept (a failed test's leftovers are let
+    go here, so that they cannot reach the next test)."""
+    yield
+    from aca_warp.sweep.prepare import _let_go
+
+    with _KEPT.lock:
+        left = (_KEPT.depth, len(_KEPT.users), _KEPT.pool is not None)
+        if _KEPT.pool is not None:
+            _let_go(_KEPT.pool)
+        _KEPT.depth, _KEPT.pool, _KEPT.key = 0, None, None
+        _KEPT.users.clear()
+    assert left == (0, 0, False), left
+
+
 def _wait_gone(procs: list, seconds: float = 30.0) -> bool:
     """Whether every process of ``procs`` (multiprocessing processes) has exited within ``seconds``."""
     deadline = time.monotonic() + seconds
@@ -792,7 +808,7 @@ def _wait_gone(procs: list, seconds: float = 30.0) -> bool:
     return not any(p.is_alive() for p in procs)
 
 
-def test_a_kept_pool_serves_the_next_calls(tmp_path: Path) -> None:
+def test_a_kept_pool_serves_the_next_calls(tmp_path: Path, kept_clean: None) -> None:
     """Inside :func:`keep_preparation_pool` the second sweep call prepares its shards in the processes the first call
     started, which outlive the first call; the block's end lets them go; the outputs are those of sweeps with a pool
     of their own and of sweeps without a pool, bit for bit. Outside a block every call has a pool of its own."""
@@ -809,7 +825,10 @@ def test_a_kept_pool_serves_the_next_calls(tmp_path: Path) -> None:
         first.close()
         procs = list(first.pool._processes.values())
         assert first.kept and first.released and procs and all(p.is_alive() for p in procs)  # kept past its call
-        res = [run_sweep(spec, tmp_path / f"kept{k}", workers=0, overlap=True, prepare=2) for k in range(2)]
+        res = [
+            _in_time(lambda k=k: run_sweep(spec, tmp_path / f"kept{k}", workers=0, overlap=True, prepare=2))
+            for k in range(2)
+        ]
         second = Preparer(spec.doc, str(spec.base_dir), processes=2, ahead=2, device="cpu")
         assert second.pool is first.pool and second.kept
         second.close()
@@ -827,7 +846,7 @@ def test_a_kept_pool_serves_the_next_calls(tmp_path: Path) -> None:
         alone.close()
 
 
-def test_a_kept_pool_is_replaced_when_broken_or_unlike() -> None:
+def test_a_kept_pool_is_replaced_when_broken_or_unlike(kept_clean: None) -> None:
     """A kept pool whose process died, or one made for another number of processes, is let go and a new one kept in
     its place; an inner block's end keeps the pool, the outermost lets it go."""
     from aca_warp.sweep import keep_preparation_pool
@@ -845,7 +864,7 @@ def test_a_kept_pool_is_replaced_when_broken_or_unlike() -> None:
         first = preparer(1)
         for p in first.pool._processes.values():
             p.kill()
-        _wait_gone(list(first.pool._processes.values()))
+        assert _wait_gone(list(first.pool._processes.values()))
         with keep_preparation_pool():
             second = preparer(1)  # the first pool is broken now
             assert second.pool is not first.pool and second.kept
@@ -858,7 +877,7 @@ def test_a_kept_pool_is_replaced_when_broken_or_unlike() -> None:
     assert _wait_gone(procs)
 
 
-def test_a_kept_pool_in_use_is_never_let_go_under_its_call() -> None:
+def test_a_kept_pool_in_use_is_never_let_go_under_its_call(kept_clean: None) -> None:
     """While a call uses the kept pool, another call that needs other settings gets a pool of its own (the kept one
     stays), and the block's end leaves the pool to that call, whose end lets it go."""
     from aca_warp.sweep import keep_preparation_pool
@@ -877,7 +896,7 @@ def test_a_kept_pool_in_use_is_never_let_go_under_its_call() -> None:
         assert _in_time(lambda: using.get(1), 120).index == 1
     procs = list(using.pool._processes.values())
     assert procs and all(p.is_alive() for p in procs)  # the block has ended: its call still has the pool
-    assert not using.pool._shutdown_thread
+    assert _KEPT.pool is using.pool and _KEPT.users == {using}  # still kept, for its call alone
     assert _in_time(lambda: using.get(2), 120).index == 2  # its last shard: the pool is let go now
     using.close()
     assert _wait_gone(procs)

@@ -382,7 +382,7 @@ class Preparer:
         )
         self.prepare: Callable[[int], PreparedShard | SpooledShard] = functools.partial(_begin, self.folder, self.work)
         self.ahead = max(1, ahead)
-        self.pool, self.kept = _KEPT.acquire(processes, device)
+        self.pool, self.kept = _KEPT.acquire(processes, device, self)
         self.waiting: deque[int] = deque()
         self.futures: dict[int, Future] = {}
         self.lock = threading.Lock()
@@ -420,9 +420,11 @@ class Preparer:
         if not self.released:
             self.released = True
             if self.kept:
-                for fut in self.futures.values():
-                    fut.cancel()
-                _KEPT.release(self.pool)
+                try:
+                    for fut in self.futures.values():
+                        fut.cancel()
+                finally:
+                    _KEPT.release(self.pool, self)
             else:
                 _let_go(self.pool)
 
@@ -506,9 +508,13 @@ class Preparer:
         """Cancel the preparations not begun and let the pool's processes go (they finish the one in hand, unused);
         the spool folder is removed with the files no task took (one written into it meanwhile keeps it until the
         next sweep, which removes the folders of processes that are gone)."""
-        with self.lock:
-            self.waiting.clear()
-            self._release()
+        try:
+            with self.lock:
+                self.waiting.clear()
+                self._release()
+        finally:
+            if self.kept:  # again, should an interrupt have come between the release's flag and its end: once counts
+                _KEPT.release(self.pool, self)
         if self.folder is not None:
             shutil.rmtree(self.folder, ignore_errors=True)
 
@@ -528,16 +534,16 @@ def _new_pool(processes: int, device: str | None) -> ProcessPoolExecutor:
 
 class _KeptPool:
     """The pool kept across sweep calls (:func:`keep_preparation_pool`): the open blocks (``depth``), the pool, what it
-    was made for (processes, device) and the calls using it now (``users``). A pool in use is never let go under a
-    call: one made for other settings is then made for the asking call alone, and the block's end leaves a pool in
-    use to its last call's end (:meth:`release`)."""
+    was made for (processes, device) and the calls using it now (``users``, their :class:`Preparer`). A pool in use is
+    never let go under a call: one made for other settings is then made for the asking call alone, and the block's
+    end leaves a pool in use to its last call's end (:meth:`release`)."""
 
     def __init__(self) -> None:
         self.lock = threading.Lock()
         self.depth = 0
         self.pool: ProcessPoolExecutor | None = None
         self.key: tuple[int, str | None] | None = None
-        self.users = 0
+        self.users: set[object] = set()  # the calls' Preparers
 
     def enter(self) -> None:
         with self.lock:
@@ -548,7 +554,7 @@ class _KeptPool:
             self.depth -= 1
             self._drop_if_done()
 
-    def acquire(self, processes: int, device: str | None) -> tuple[ProcessPoolExecutor, bool]:
+    def acquire(self, processes: int, device: str | None, user: object) -> tuple[ProcessPoolExecutor, bool]:
         """A pool for a call: (pool, kept). Outside a block, or where the kept pool is another's in use (other
         settings), a new one of the call's own; else the kept one if it was made for the same processes and device
         and still works, else a new one, kept in its place (a broken pool is let go, in use or not: its calls'
@@ -559,27 +565,29 @@ class _KeptPool:
                 return _new_pool(processes, device), False
             if self.pool is not None and not _usable(self.pool):
                 _let_go(self.pool)
-                self.pool, self.users = None, 0
+                self.pool = None
+                self.users.clear()
             if self.pool is not None and self.key != key:
-                if self.users > 0:
+                if self.users:
                     return _new_pool(processes, device), False
                 _let_go(self.pool)
                 self.pool = None
             if self.pool is None:
                 self.pool, self.key = _new_pool(processes, device), key
-            self.users += 1
+            self.users.add(user)
             return self.pool, True
 
-    def release(self, pool: ProcessPoolExecutor) -> None:
-        """A call that had ``pool`` from :meth:`acquire` as the kept one is done with it."""
+    def release(self, pool: ProcessPoolExecutor, user: object) -> None:
+        """``user`` (a call that had ``pool`` from :meth:`acquire` as the kept one) is done with it; again: no
+        effect."""
         with self.lock:
             if pool is self.pool:
-                self.users -= 1
+                self.users.discard(user)
                 self._drop_if_done()
 
     def _drop_if_done(self) -> None:
         """Let the pool go once no block is open and no call uses it (under the lock)."""
-        if self.depth == 0 and self.users == 0 and self.pool is not None:
+        if self.depth == 0 and not self.users and self.pool is not None:
             _let_go(self.pool)
             self.pool = self.key = None
 
@@ -591,19 +599,20 @@ _KEPT = _KeptPool()
 def keep_preparation_pool() -> Iterator[None]:
     """Keep the preparation pool of a sweep call for the next calls of this process until the block ends.
 
-    Without it, each :func:`~aca_warp.sweep.run_sweep` call starts its own pool (its processes start Warp and a GPU
-    context: 0.6 s on an H200 host before their first shard, and their first shard takes longer than the next ones)
-    and lets it go once its last shards are taken. Inside the block, a call finds the pool an earlier call of the
-    block made and keeps it: a script that runs one sweep after another on a warm cluster has its next shards
-    prepared from the call's start. A call that needs another pool (another number of processes or device) makes a
-    new one and keeps that instead (or, while another call of this process uses the kept one, one of its own); one
-    that finds the kept pool broken (a process died) replaces it. Blocks may nest; the outermost block's end lets the
-    pool go (without waiting for its processes to exit; after the last call still using it, if any). Results are the
-    same bit for bit with or without it::
+    Without it, each :func:`~aca_warp.sweep.run_sweep` call with a preparation pool starts its own (its processes
+    start Warp and a GPU context: 0.6 s on an H200 host before their first shard, and their first shard takes longer
+    than the next ones) and lets it go once its last shards are taken. Inside the block, a call finds the pool an
+    earlier call of the block made and keeps it: a script that runs one sweep after another on a local cluster it
+    started has its next shards prepared from the call's start. (A call given a client or scheduler has no pool
+    unless it asks for one, ``prepare=N``: the cluster's hosts are not known to it.) A call that needs another pool
+    (another number of processes or device) makes a new one and keeps that instead (or, while another call of this
+    process uses the kept one, one of its own); one that finds the kept pool broken (a process died) replaces it.
+    Blocks may nest; the outermost block's end lets the pool go (without waiting for its processes to exit; after
+    the last call still using it, if any). Results are the same bit for bit with or without it::
 
         with keep_preparation_pool():
             for doc in docs:
-                run_sweep(load_spec(doc), out / doc["sweep"]["name"], client=client)
+                run_sweep(load_spec(doc), out / doc["sweep"]["name"], device=device, client=client, prepare=4)
     """
     _KEPT.enter()
     try:
