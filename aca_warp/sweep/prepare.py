@@ -420,11 +420,9 @@ class Preparer:
         if not self.released:
             self.released = True
             if self.kept:
-                try:
-                    for fut in self.futures.values():
-                        fut.cancel()
-                finally:
-                    _KEPT.release(self.pool, self)
+                _KEPT.release(self.pool, self)
+                for fut in self.futures.values():
+                    fut.cancel()
             else:
                 _let_go(self.pool)
 
