@@ -23,7 +23,12 @@ Sub-steps (:data:`METHODS`; each stage one call of :func:`solve`, the kernels' b
 * ``trbdf2``: TR-BDF2 with γ = 2 − √2 (trapezoid to t + γh, then BDF2), order 2, L-stable, stiffly accurate; one
   explicit friction evaluation plus two solves;
 * ``sub4``: four ``sdirk2`` sub-steps of h/4 (an accurate sub-flow, to separate the splitting error from the
-  sub-step's).
+  sub-step's);
+* ``thmean``: ``thmid``, except where a midpoint step (θ = 1/2) crosses zero slip: there the friction is its mean
+  along the step's slip segment, (G(s₁) − G(s₀))/(s₁ − s₀) with G = ∫ f (:func:`friction_integral`), instead of
+  f at the midpoint (the averaged-vector-field form of the midpoint; the same for a linear law). It integrates
+  the sign change of Eq. 4 inside a step exactly along a straight velocity path, where the midpoint takes one
+  sample of it (docs/friction_step.md §8).
 
 Scenes, models and neighbour lists come from the package (:func:`load_pads`: ``build_model`` and the SciPy
 reference :class:`~aca_warp.hf.reference.ReferenceODE`), so the equations and parameters are exactly the package's.
@@ -31,6 +36,7 @@ reference :class:`~aca_warp.hf.reference.ReferenceODE`), so the equations and pa
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -40,7 +46,7 @@ import scipy.sparse as sp
 
 from aca_warp.hf.options import NEWTON_TOL as SOLVER_TOL
 
-METHODS = ("mid", "thmid", "be", "sdirk2", "trbdf2", "sub4")
+METHODS = ("mid", "thmid", "be", "sdirk2", "trbdf2", "sub4", "thmean")
 KICKS = ("outside", "inside")
 SDIRK_D = 1.0 - 1.0 / math.sqrt(2.0)  # diagonal of sdirk2 and of both TR-BDF2 stages
 TRBDF2_G = 2.0 - math.sqrt(2.0)  # TR-BDF2's intermediate time fraction
@@ -51,6 +57,7 @@ SUBSTEPS = 4  # sdirk2 sub-steps of ``sub4``
 THETA_RHO = 0.5  # ``thmid`` keeps |R(−hγ)| ≤ this at the patch's own friction rate: θ = 1/2 up to hγ = 6
 STATIC_SLIP = 0.17  # m/s: Eq. 4 rises with the slip below this (its maximum); a patch there holds to the disc
 CHATTER_FLOOR = 1.0e-4 * STATIC_SLIP  # m/s: slip increments below this do not count as chatter
+SEGMENT_MIN = 1.0e-9  # m/s: ``thmean`` takes f at the midpoint where the slip segment is shorter than this
 
 
 # ---------------------------------------------------------------------------------------------------- pads
@@ -176,6 +183,46 @@ def friction_pair(pads: Pads, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return k * at * (rq + 1.0), k * (da * (rq + 1.0) - at * pads.decay * np.sign(s) * rq * rq)
 
 
+def friction_integral(pads: Pads, s: np.ndarray) -> np.ndarray:
+    """G(s) = ∫₀ˢ f(x) dx of Eq. 4 [m/s], even in s, in closed form up to O(decay²/slope³) (≈ 4e-9 m/s for the
+    presets' law).
+
+    With x = |s|, a = slope, b = decay and H(x) = ∫₀ˣ (1/(b x' + 1) + 1) dx' = x + ln(1 + b x)/b, integration by
+    parts gives (M/π)[atan(a x) H(x) − ∫₀ˣ a H/(1 + a² x'²) dx']. The last integral is ln(1 + a² x²)/a for H's
+    linear part 2x, plus ∫ a (H − 2x')/(1 + a² x'²) dx', taken with a/(1 + a² x'²) → 1/(a x'²) (exactly
+    (1 − ln(1 + b x)/(b x) − ln(1 + b x))/a) and the leading correction b atan(a x)/(2a²) from H − 2x' ≈ −b x'²/2
+    where the two kernels differ (x' ≲ 1/a)."""
+    x = np.abs(s)
+    a, b = pads.slope, pads.decay
+    bx = b * x
+    small = bx < 1e-6
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ln = np.log1p(bx)
+        q = np.where(small, 0.5 * bx, 1.0 - ln / bx)  # 1 − ln(1 + b x)/(b x)
+        hx = x + np.where(small, x * (1.0 - 0.5 * bx), ln / b)  # H(x)
+    at = np.arctan(a * x)
+    g = at * hx - np.log1p((a * x) ** 2) / a - (q - ln) / a - b * at / (2.0 * a * a)
+    return pads.M / math.pi * g
+
+
+def segment_pair(
+    pads: Pads, s: np.ndarray, s0: np.ndarray, g0: np.ndarray, mask: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``thmean``'s law at midpoint slip s [m/s] of a step that starts at slip s0 (G(s0) = ``g0``): where ``mask``,
+    the mean of f over the slips from s0 to s1 = 2 s − s0 and its derivative in s; elsewhere (and for segments
+    shorter than SEGMENT_MIN) :func:`friction_pair` at s."""
+    f, df = friction_pair(pads, s)
+    ds = 2.0 * (s - s0)
+    use = mask & (np.abs(ds) > SEGMENT_MIN)
+    if not use.any():
+        return f, df
+    s1 = s0[use] + ds[use]
+    mean = (friction_integral(pads, s1) - g0[use]) / ds[use]
+    f[use] = mean
+    df[use] = 2.0 * (friction(pads, s1) - mean) / ds[use]
+    return f, df
+
+
 def solve(
     pads: Pads,
     a: np.ndarray,
@@ -185,6 +232,8 @@ def solve(
     evals: np.ndarray,
     *,
     halving: bool = True,
+    start: np.ndarray | None = None,
+    mask: np.ndarray | None = None,
 ) -> np.ndarray:
     """Solve a v − hfn f(v_d − v) = b per patch (a > 0, hfn ≥ 0): the kernels' ``solve_velocity``, vectorised, with
     one more safeguard.
@@ -195,8 +244,9 @@ def solve(
     half the step before the last one bisects instead. Without it, at hγ ≳ 10 Newton can settle into a 2-cycle
     across the steep part of Eq. 4 that stays inside the bracket and never shrinks it (:data:`CYCLE_CASE`); the
     kernels' version then returns after 60 iterations with an error of up to the bracket width (``halving=False``
-    is the kernels' algorithm). Adds the friction evaluations of every patch to ``evals`` (n,); patches that have
-    converged drop out of the arrays.
+    is the kernels' algorithm). With ``start`` (the sub-step's start velocity [m/s], (n,)) and ``mask`` (n,), the
+    law of the masked patches is the mean of f along the step (:func:`segment_pair`; ``thmean``). Adds the friction
+    evaluations of every patch to ``evals`` (n,); patches that have converged drop out of the arrays.
     """
     r = b - a * guess
     hm = hfn * pads.M
@@ -204,6 +254,11 @@ def solve(
     hi = (r + hm) / a
     tol = NEWTON_TOL * (np.abs(r) + hm) / a
     s0 = pads.vd - guess
+    seg = start is not None and mask is not None and bool(mask.any())
+    if seg:
+        st = pads.vd - start
+        g0 = friction_integral(pads, st)
+        mk = mask.copy()
     d = np.clip(0.0, lo, hi)
     out = d.copy()
     last = np.full_like(d, np.inf)  # the last step and the one before [m/s]
@@ -211,7 +266,7 @@ def solve(
     act: np.ndarray | None = None  # indices of the patches still iterating (None: all)
     for _ in range(60):
         vd = s0 - d
-        f, df = friction_pair(pads, vd)
+        f, df = segment_pair(pads, vd, st, g0, mk) if seg else friction_pair(pads, vd)
         g = a * d - hfn * f - r
         if act is None:
             evals += 1
@@ -240,6 +295,8 @@ def solve(
         act = keep if act is None else act[keep]
         a, r, hfn, s0, lo, hi, tol, d = a[keep], r[keep], hfn[keep], s0[keep], lo[keep], hi[keep], tol[keep], dn[keep]
         last, before = last[keep], before[keep]
+        if seg:
+            st, g0, mk = st[keep], g0[keep], mk[keep]
     return guess + out
 
 
@@ -275,6 +332,8 @@ def substep(
     if method == "thmid":
         theta = theta_of(pads, v, h, evals)
         return v + (stage(pads, v, theta * h, force, evals) - v) / theta
+    if method == "thmean":
+        return thmean(pads, v, h, force, evals)
     if method == "be":
         return stage(pads, v, h, force, evals)
     if method == "sdirk2":
@@ -300,6 +359,27 @@ def theta_of(pads: Pads, v: np.ndarray, h: np.ndarray, evals: np.ndarray) -> np.
     with np.errstate(divide="ignore"):
         theta = (1.0 - (1.0 + rho) / np.maximum(x, 1e-300)) / (1.0 + rho)
     return np.clip(theta, 0.5, 1.0)
+
+
+def thmean(pads: Pads, v: np.ndarray, h: np.ndarray, force: np.ndarray, evals: np.ndarray) -> np.ndarray:
+    """``thmean``: ``thmid``, then, for the patches whose midpoint step (θ = 1/2) crosses zero slip, the midpoint
+    solved again with the friction averaged along the step's slip segment (:func:`segment_pair`), from the first
+    solution."""
+    theta = theta_of(pads, v, h, evals)
+    vm = stage(pads, v, theta * h, force, evals)
+    out = v + (vm - v) / theta
+    cross = (theta == 0.5) & ((pads.vd - v) * (pads.vd - out) < 0.0)
+    if not cross.any():
+        return out
+    i = np.flatnonzero(cross)
+    sub = dataclasses.replace(pads, vd=pads.vd[i])  # solve reads the disc speed and the law only
+    th = 0.5 * h[i]
+    e = np.zeros(i.size)
+    vm = solve(sub, pads.m[i] + th * pads.c[i], pads.m[i] * v[i] + th * force[i], th * pads.fn[i], vm[i], e,
+               start=v[i], mask=np.ones(i.size, dtype=bool))  # fmt: skip
+    evals[i] += e
+    out[i] = 2.0 * vm - v[i]
+    return out
 
 
 def sdirk2(
@@ -331,7 +411,7 @@ def substep_with_error(
 
 
 def stability_function(method: str, z: complex) -> complex:
-    """R(z) of a sub-step on v̇ = λ v, z = hλ (closed forms; ``sub4`` is R_sdirk2(z/4)⁴)."""
+    """R(z) of a sub-step on v̇ = λ v, z = hλ (closed forms; ``sub4`` is R_sdirk2(z/4)⁴; ``thmean`` is ``thmid``'s)."""
     d = SDIRK_D
     if method == "mid":
         return (1.0 + z / 2.0) / (1.0 - z / 2.0)
@@ -344,7 +424,7 @@ def stability_function(method: str, z: complex) -> complex:
         return (TRBDF2_C1 * y1 - TRBDF2_C0) / (1.0 - d * z)
     if method == "sub4":
         return stability_function("sdirk2", z / SUBSTEPS) ** SUBSTEPS
-    if method == "thmid":
+    if method in ("thmid", "thmean"):  # thmean is thmid on a linear law
         x = max(-z.real, 1e-300)
         th = min(max((1.0 - (1.0 + THETA_RHO) / x) / (1.0 + THETA_RHO), 0.5), 1.0)
         return (1.0 + (1.0 - th) * z) / (1.0 - th * z)
