@@ -1,0 +1,109 @@
+"""The zero-slip crossing treatment of the prototype (``thmean`` in aca_warp.studies.friction_schemes) and the
+measures and tables of aca_warp.studies.friction_crossing: G = ∫ f in closed form against quadrature, ``thmean``
+equal to ``thmid`` where no step crosses zero slip and solving the segment-averaged midpoint where one does, Φ and
+f1 of a known set of patch signals, result files joined over seeds."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.integrate
+
+from aca_warp.studies import friction_crossing as fc
+from aca_warp.studies import friction_schemes as fs
+
+
+def one_patch(M: float = 0.8, slope: float = 200.0, decay: float = 0.25) -> fs.Pads:
+    """One hf1-like patch (mass, damping, normal force, disc speed, k_T of an hf1 patch) with Eq. 4's law."""
+    a = lambda x: np.array([x], dtype=np.float64)  # noqa: E731
+    import scipy.sparse as sp
+
+    return fs.Pads(
+        m=a(1.86e-6), c=a(2.0e-2), fn=a(0.27), vd=a(10.0), kt=a(4.2e5), K=sp.csr_matrix(a(4.2e5)[:, None]),
+        start=np.array([0, 1]), M=M, slope=slope, decay=decay, load=a(0.27), coulomb=a(0.0), u0=a(0.0), v0=a(0.0),
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(("M", "slope", "decay"), [(0.8, 200.0, 0.25), (0.4, 200.0, 0.25), (0.8, 50.0, 0.0)])
+def test_friction_integral_is_the_integral_of_eq4(M: float, slope: float, decay: float) -> None:
+    p = one_patch(M, slope, decay)
+    s = np.array([-3.0, -0.3, -4e-3, 0.0, 1e-6, 1e-3, 0.17, 1.0, 2.7, 12.0, 30.0])
+    g = fs.friction_integral(p, s)
+    for x, gx in zip(s, g, strict=True):
+        f = lambda y: float(fs.friction(p, np.array([y]))[0])  # noqa: E731
+        ref = 0.0 if x == 0 else scipy.integrate.quad(f, 0.0, x, points=[0.0], limit=400, epsabs=1e-14, epsrel=1e-13)[0]
+        assert gx == pytest.approx(ref, abs=2e-8), x
+    assert np.array_equal(fs.friction_integral(p, -s), g)  # even
+
+
+def test_thmean_is_thmid_where_no_step_crosses_zero_slip() -> None:
+    p = one_patch()
+    v = np.array([8.0])  # slip 2 m/s, a force that keeps it sliding over the step
+    for h in (1e-7, 5e-7, 1e-6):
+        a = fs.substep(p, "thmid", v, h, np.array([0.05]), np.zeros(1))
+        b = fs.substep(p, "thmean", v, h, np.array([0.05]), np.zeros(1))
+        assert (p.vd - a)[0] > 0.0
+        assert np.array_equal(a, b)
+
+
+def test_thmean_averages_the_friction_along_a_crossing_step() -> None:
+    """A patch 0.3 m/s below the disc speed pushed across it within one step: thmean's result satisfies the
+    midpoint with f replaced by its mean over the slip segment, m (v₁ − v₀)/h = F − c (v₀ + v₁)/2 + F_N Ḡ; thmid's
+    does not, and the two differ by much more than the solve's tolerance."""
+    p = one_patch()
+    v0, h, force = np.array([9.7]), 5e-7, np.array([3.0])  # F ≫ F_N μ: it passes v_d
+    mid = fs.substep(p, "thmid", v0, h, force, np.zeros(1))
+    mean = fs.substep(p, "thmean", v0, h, force, np.zeros(1))
+    s0, s1 = p.vd - v0, p.vd - mean
+    assert s0[0] > 0.0 > s1[0] and (p.vd - mid)[0] < 0.0  # both cross
+    gbar = (fs.friction_integral(p, s1) - fs.friction_integral(p, s0)) / (s1 - s0)
+    lhs = p.m * (mean - v0) / h
+    rhs = force - p.c * 0.5 * (v0 + mean) + p.fn * gbar
+    assert lhs[0] == pytest.approx(rhs[0], rel=1e-9)
+    assert abs(mean[0] - mid[0]) > 1e-3
+
+
+def test_stability_function_of_thmean_is_thmids() -> None:
+    for z in (-0.5, -4.0, -40.0, -1000.0):
+        assert fs.stability_function("thmean", z) == fs.stability_function("thmid", z)
+
+
+def test_pad_measures_count_the_patches_above_a_tenth_of_the_largest() -> None:
+    """Twenty patches with one signal (a 50 kHz line over broadband noise), three at amplitude 1, seventeen at 0.05:
+    every bin has the same amplitude ratios, so Φ is 3 throughout the band; f1 is the line."""
+    dt = 3e-6
+    t = np.arange(4000) * dt
+    x = np.sin(2 * math.pi * 50e3 * t) + 0.01 * np.random.default_rng(1).standard_normal(t.size)
+    amps = np.r_[np.ones(3), np.full(17, 0.05)]
+    vel = x[:, None] * amps[None, :]
+    mu = 0.5 + 0.01 * np.sin(2 * math.pi * 7e3 * t)
+    m = fc.pad_measures(t, mu, np.abs(vel).sum(axis=1), t, vel, fc.Window(0.0, dt))
+    assert m["phi"] == pytest.approx(3.0)
+    assert m["f1"] == pytest.approx(50e3, rel=0.01)
+    assert m["mu_mean"] == pytest.approx(mu.mean()) and m["mu_std"] == pytest.approx(mu.std())
+    assert m["floor"] > 0.0
+
+
+def _doc(seeds: list[int], shift: float) -> dict:
+    pad = lambda s, d: {k: float(s) + d for k in fc.MEASURES}  # noqa: E731
+    run = lambda kind, method, dt, wall, d: {  # noqa: E731
+        "kind": kind, "method": method, "dt": dt, "wall_s": wall, "steps": 1, "pads": [pad(s, d) for s in seeds]
+    }  # fmt: skip
+    runs = [run("reference", "strang", 5e-8, 10.0, 0.0), run("prototype", "thmean", 5e-7, 2.0, shift)]
+    return {"seeds": seeds, "runs": runs}
+
+
+def test_result_files_join_over_seeds_and_tabulate_the_paired_differences() -> None:
+    doc = fc.joined([_doc([1, 2], 1.0), _doc([3], 1.0)])
+    assert doc["seeds"] == [1, 2, 3]
+    assert [len(r["pads"]) for r in doc["runs"]] == [3, 3]
+    assert doc["runs"][0]["wall_s"] == 20.0
+    lines = fc.table(doc)
+    assert lines[2].startswith("| reference: strang (package) | 5e-08 | 20 |")
+    assert lines[3].startswith("| forced-thmean (prototype) | 5e-07 | 4 | +1 ± 0 ")
+    other = _doc([4], 1.0)
+    other["runs"][1]["dt"] = 1e-6
+    with pytest.raises(ValueError, match="different runs"):
+        fc.joined([_doc([1], 1.0), other])
