@@ -65,9 +65,22 @@ def test_thmean_averages_the_friction_along_a_crossing_step() -> None:
     assert abs(mean[0] - mid[0]) > 1e-3
 
 
-def test_stability_function_of_thmean_is_thmids() -> None:
-    for z in (-0.5, -4.0, -40.0, -1000.0):
-        assert fs.stability_function("thmean", z) == fs.stability_function("thmid", z)
+def test_thmean_treats_each_patch_of_a_batch_as_alone() -> None:
+    """Three patches at once (one crossing, one sliding, one held at hγ ≫ 6, where θ > 1/2): each result equals the
+    same patch's alone; only the crossing one differs from thmid."""
+    p1 = one_patch()
+    p = fs.Pads(**{k: (np.repeat(v, 3) if isinstance(v, np.ndarray) and v.size == 1 else v)
+                   for k, v in vars(p1).items() if k not in ("K", "start", "load", "coulomb", "names")},
+                K=p1.K, start=np.array([0, 3]), load=p1.load, coulomb=p1.coulomb)  # fmt: skip
+    v0 = np.array([9.7, 8.0, p1.vd[0] - 1e-4])
+    force = np.array([3.0, 0.05, p1.c[0] * p1.vd[0]])
+    h = 5e-7
+    both = fs.substep(p, "thmean", v0, h, force, np.zeros(3))
+    mid = fs.substep(p, "thmid", v0, h, force, np.zeros(3))
+    for k in range(3):
+        alone = fs.substep(p1, "thmean", v0[k : k + 1], h, force[k : k + 1], np.zeros(1))
+        assert both[k] == pytest.approx(alone[0], rel=1e-13, abs=1e-13)
+    assert abs(both[0] - mid[0]) > 1e-3 and both[1] == mid[1] and both[2] == mid[2]
 
 
 def test_pad_measures_count_the_patches_above_a_tenth_of_the_largest() -> None:

@@ -1,10 +1,11 @@
-"""Zero-slip crossings at large steps: where the step error of Φ comes from.
+"""Zero-slip crossings at large steps: where the step error of Φ arises.
 
 The statistical work-precision (docs/work_precision_statistics.md) finds Φ, the number of patches the relative rule
 counts as oscillating at a frequency, the measure that binds `strang`'s step on the whole hf1 pad: it grows with
 the step (+0.6, +4, +19 and +67 patches at 1e-7, 2.5e-7, 5e-7 and 1e-6 s over a mean of 153), while μ and the
-velocity-sum spectrum hardly move. This study runs full pads of the validation's hf1 experiment (equilibrium + a
-velocity perturbation, into saturation, the validation's run length and window) on the CPU and compares, per seed,
+velocity-sum spectrum stay within a quarter of their spread between seeds up to 2.5e-7 s. This study runs full
+pads of the validation's hf1 experiment (equilibrium + a velocity perturbation, into saturation, the validation's
+run length and window) on the CPU and compares, per seed,
 
 * the package's `strang` at a fine reference step and at the steps asked for, and
 * the NumPy prototype (:mod:`aca_warp.studies.friction_schemes`) with the kernels' sub-step (``forced-thmid``) and
@@ -13,7 +14,9 @@ velocity perturbation, into saturation, the validation's run length and window) 
 
 by μ mean and std, Σ|u̇| mean, Φ (relative rule, η = 0.1, mean over [f1/8, 2 f1] of the per-patch spectra as the
 validation counts it), the first peak f1 and the per-patch spectra's floor: the median over the patches of their
-mean amplitude in [f1/8, f1/2], where Φ counts the patches that stand above a tenth of the largest amplitude.
+mean amplitude in [f1/8, f1/2] (the unnormalised Hann-windowed rfft of the velocity, in m/s), where Φ counts the
+patches that stand above a tenth of the largest amplitude. Each result file's run length and window follow its
+seeds (the validation's plan), so files of other seeds join run by run.
 
 Results: one JSON (per run and seed the measures, wall time and steps) and a Markdown table of the ensemble mean
 differences against the reference with their 95 % half-widths (``--report``). The page is docs/friction_step.md §8.
@@ -41,8 +44,8 @@ PROTOTYPE = ("thmid", "thmean")  # the prototype's sub-steps (forced kicks)
 ETA = 0.1  # the relative rule of Φ
 MEASURES = ("mu_mean", "mu_std", "abs_velocity_mean", "phi", "f1", "floor")
 LABELS = {
-    "mu_mean": ("μ mean", "1"), "mu_std": ("μ std", "1"), "abs_velocity_mean": ("Σ|u̇| mean", "m/s"),
-    "phi": ("Φ", "patches"), "f1": ("f1", "Hz"), "floor": ("floor", "m/s·√s"),
+    "mu_mean": ("μ mean", "1"), "mu_std": ("μ std", "1"), "abs_velocity_mean": ("Σ\\|u̇\\| mean", "m/s"),
+    "phi": ("Φ", "patches"), "f1": ("f1", "Hz"), "floor": ("floor", "m/s"),
 }  # fmt: skip
 
 
@@ -57,7 +60,8 @@ class Window:
 def pad_measures(time_s: np.ndarray, mu: np.ndarray, abs_v: np.ndarray, ptime: np.ndarray, vel: np.ndarray,
                  win: Window) -> dict[str, float]:  # fmt: skip
     """The measures of one pad over the window: global series (N,) at ``time_s`` [s]; per-patch velocities
-    ``vel`` (M, n) [m/s] at ``ptime`` [s], already at the window's per-patch interval."""
+    ``vel`` (M, n) [m/s] at ``ptime`` [s], already at the window's per-patch interval. ``floor`` is in m/s (the
+    unnormalised Hann-windowed rfft amplitude)."""
     from aca_warp.analysis.measures import first_peak
     from aca_warp.analysis.sync import sync_index_from_signals
 

@@ -36,7 +36,6 @@ reference :class:`~aca_warp.hf.reference.ReferenceODE`), so the equations and pa
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -205,15 +204,13 @@ def friction_integral(pads: Pads, s: np.ndarray) -> np.ndarray:
     return pads.M / math.pi * g
 
 
-def segment_pair(
-    pads: Pads, s: np.ndarray, s0: np.ndarray, g0: np.ndarray, mask: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """``thmean``'s law at midpoint slip s [m/s] of a step that starts at slip s0 (G(s0) = ``g0``): where ``mask``,
-    the mean of f over the slips from s0 to s1 = 2 s − s0 and its derivative in s; elsewhere (and for segments
-    shorter than SEGMENT_MIN) :func:`friction_pair` at s."""
+def segment_pair(pads: Pads, s: np.ndarray, s0: np.ndarray, g0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``thmean``'s law at midpoint slip s [m/s] of a step that starts at slip s0 (G(s0) = ``g0``): the mean of f
+    over the slips from s0 to s1 = 2 s − s0 and its derivative in s; :func:`friction_pair` at s where the segment is
+    shorter than SEGMENT_MIN."""
     f, df = friction_pair(pads, s)
     ds = 2.0 * (s - s0)
-    use = mask & (np.abs(ds) > SEGMENT_MIN)
+    use = np.abs(ds) > SEGMENT_MIN
     if not use.any():
         return f, df
     s1 = s0[use] + ds[use]
@@ -232,8 +229,8 @@ def solve(
     evals: np.ndarray,
     *,
     halving: bool = True,
+    vd: np.ndarray | None = None,
     start: np.ndarray | None = None,
-    mask: np.ndarray | None = None,
 ) -> np.ndarray:
     """Solve a v − hfn f(v_d − v) = b per patch (a > 0, hfn ≥ 0): the kernels' ``solve_velocity``, vectorised, with
     one more safeguard.
@@ -244,21 +241,22 @@ def solve(
     half the step before the last one bisects instead. Without it, at hγ ≳ 10 Newton can settle into a 2-cycle
     across the steep part of Eq. 4 that stays inside the bracket and never shrinks it (:data:`CYCLE_CASE`); the
     kernels' version then returns after 60 iterations with an error of up to the bracket width (``halving=False``
-    is the kernels' algorithm). With ``start`` (the sub-step's start velocity [m/s], (n,)) and ``mask`` (n,), the
-    law of the masked patches is the mean of f along the step (:func:`segment_pair`; ``thmean``). Adds the friction
-    evaluations of every patch to ``evals`` (n,); patches that have converged drop out of the arrays.
+    is the kernels' algorithm). ``vd``: the patches' disc speeds [m/s] where the arrays are a subset of the
+    batch's patches (default ``pads.vd``). With ``start`` (the sub-step's start velocity [m/s]) the law is the mean
+    of f along the step (:func:`segment_pair`; ``thmean``). Adds the friction evaluations of every patch to
+    ``evals``; patches that have converged drop out of the arrays.
     """
     r = b - a * guess
     hm = hfn * pads.M
     lo = (r - hm) / a
     hi = (r + hm) / a
     tol = NEWTON_TOL * (np.abs(r) + hm) / a
-    s0 = pads.vd - guess
-    seg = start is not None and mask is not None and bool(mask.any())
+    disc = pads.vd if vd is None else vd
+    s0 = disc - guess
+    seg = start is not None
     if seg:
-        st = pads.vd - start
+        st = disc - start
         g0 = friction_integral(pads, st)
-        mk = mask.copy()
     d = np.clip(0.0, lo, hi)
     out = d.copy()
     last = np.full_like(d, np.inf)  # the last step and the one before [m/s]
@@ -266,7 +264,7 @@ def solve(
     act: np.ndarray | None = None  # indices of the patches still iterating (None: all)
     for _ in range(60):
         vd = s0 - d
-        f, df = segment_pair(pads, vd, st, g0, mk) if seg else friction_pair(pads, vd)
+        f, df = segment_pair(pads, vd, st, g0) if seg else friction_pair(pads, vd)
         g = a * d - hfn * f - r
         if act is None:
             evals += 1
@@ -296,7 +294,7 @@ def solve(
         a, r, hfn, s0, lo, hi, tol, d = a[keep], r[keep], hfn[keep], s0[keep], lo[keep], hi[keep], tol[keep], dn[keep]
         last, before = last[keep], before[keep]
         if seg:
-            st, g0, mk = st[keep], g0[keep], mk[keep]
+            st, g0 = st[keep], g0[keep]
     return guess + out
 
 
@@ -372,11 +370,10 @@ def thmean(pads: Pads, v: np.ndarray, h: np.ndarray, force: np.ndarray, evals: n
     if not cross.any():
         return out
     i = np.flatnonzero(cross)
-    sub = dataclasses.replace(pads, vd=pads.vd[i])  # solve reads the disc speed and the law only
     th = 0.5 * h[i]
     e = np.zeros(i.size)
-    vm = solve(sub, pads.m[i] + th * pads.c[i], pads.m[i] * v[i] + th * force[i], th * pads.fn[i], vm[i], e,
-               start=v[i], mask=np.ones(i.size, dtype=bool))  # fmt: skip
+    vm = solve(pads, pads.m[i] + th * pads.c[i], pads.m[i] * v[i] + th * force[i], th * pads.fn[i], vm[i], e,
+               vd=pads.vd[i], start=v[i])  # fmt: skip
     evals[i] += e
     out[i] = 2.0 * vm - v[i]
     return out
