@@ -105,7 +105,7 @@ def _doc(seeds: list[int], shift: float) -> dict:
         "kind": kind, "method": method, "dt": dt, "wall_s": wall, "steps": 1, "pads": [pad(s, d) for s in seeds]
     }  # fmt: skip
     runs = [run("reference", "strang", 5e-8, 10.0, 0.0), run("prototype", "thmean", 5e-7, 2.0, shift)]
-    return {"seeds": seeds, "runs": runs}
+    return {"seeds": seeds, "runs": runs, "duration_s": 0.045, "window_start_s": 0.025, "patch_dt_s": 3e-6}
 
 
 def test_result_files_join_over_seeds_and_tabulate_the_paired_differences() -> None:
@@ -120,3 +120,7 @@ def test_result_files_join_over_seeds_and_tabulate_the_paired_differences() -> N
     other["runs"][1]["dt"] = 1e-6
     with pytest.raises(ValueError, match="different runs"):
         fc.joined([_doc([1], 1.0), other])
+    shorter = _doc([5], 1.0)
+    shorter["window_start_s"] = 0.03
+    with pytest.raises(ValueError, match="different windows"):
+        fc.joined([_doc([1], 1.0), shorter])

@@ -181,6 +181,9 @@ def joined(docs: list[dict[str, Any]]) -> dict[str, Any]:
     keys = [[(r["kind"], r["method"], r["dt"]) for r in d["runs"]] for d in docs]
     if any(k != keys[0] for k in keys):
         raise ValueError("the result files hold different runs; join files of the same command with other seeds")
+    spans = [(round(d["duration_s"] - d["window_start_s"], 9), d["patch_dt_s"]) for d in docs]
+    if any(sp != spans[0] for sp in spans):
+        raise ValueError(f"the result files analyse different windows (length [s], per-patch interval [s]): {spans}")
     runs = [
         dict(r, pads=[p for d in docs for p in d["runs"][j]["pads"]], wall_s=sum(d["runs"][j]["wall_s"] for d in docs))
         for j, r in enumerate(docs[0]["runs"])
