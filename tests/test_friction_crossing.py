@@ -124,3 +124,20 @@ def test_result_files_join_over_seeds_and_tabulate_the_paired_differences() -> N
     shorter["window_start_s"] = 0.03
     with pytest.raises(ValueError, match="different windows"):
         fc.joined([_doc([1], 1.0), shorter])
+
+
+def test_step_errors_vanish_for_a_step_the_fine_steps_resolve() -> None:
+    """On a 40-patch hf1 sector from its start state: one step of 2 ns against two of 1 ns errs by far less than a
+    step of 0.5 µs against 50 of 10 ns; the counts and the lines add up."""
+    from aca_warp.studies.friction_stats import sector_scenes
+
+    pads = fs.load_pads(sector_scenes(1, 40))
+    quiet = lambda _m: None  # noqa: E731
+    fine = fc.step_errors(pads, 2e-9, 2, 1e-6, 3, 5e-6, quiet)
+    coarse = fc.step_errors(pads, 5e-7, 50, 1e-6, 3, 5e-6, quiet)
+    assert fine["patch_steps"] == coarse["patch_steps"] == 3 * pads.n
+    assert fine["thmid_other_rms"] < 1e-3 * coarse["thmid_other_rms"]
+    doc = dict(coarse, seed=1)
+    lines = fc.step_error_lines(doc)
+    assert lines[0].startswith("hf1 seed 1, one step of 5e-07 s against 50 steps of thmid, 3 instants 5 µs apart")
+    assert lines[-1].startswith("| thmean |")

@@ -19,7 +19,9 @@ patches that stand above a tenth of the largest amplitude. Each result file's ru
 seeds (the validation's plan), so files of other seeds join run by run.
 
 Results: one JSON (per run and seed the measures, wall time and steps) and a Markdown table of the ensemble mean
-differences against the reference with their 95 % half-widths (``--report``). The page is docs/friction_step.md §8.
+differences against the reference with their 95 % half-widths (``--report``). ``--step-errors`` measures single
+steps instead (:func:`step_errors`): the velocity error of one step of each sub-step against fine steps, for the
+patches that cross zero slip inside it and for the others. The page is docs/friction_step.md §8.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ from aca_warp.common.files import host_cpu
 from aca_warp.studies.report import Log, command_line, write_json
 
 PROTOTYPE = ("thmid", "thmean")  # the prototype's sub-steps (forced kicks)
+SETTLE_DT = 1.0e-7  # s: the step that runs a pad into saturation before the step errors are measured
 ETA = 0.1  # the relative rule of Φ
 MEASURES = ("mu_mean", "mu_std", "abs_velocity_mean", "phi", "f1", "floor")
 LABELS = {
@@ -150,6 +153,64 @@ def patch_scales(prep: Any, steps: list[float]) -> list[str]:
     return lines
 
 
+def step_errors(pads: Any, h: float, fine: int, settle: float, instants: int, every: float, log: Log) -> dict[str, Any]:
+    """The error of one step h [s] of ``forced-thmid`` and ``forced-thmean`` from a synchronous state to the next
+    (opening half sub-step, drift, closing half sub-step) against the same interval followed by ``forced-thmid`` at
+    h/``fine``: at ``instants`` instants ``every`` [s] apart along that fine trajectory, which starts from the pads'
+    start state run ``settle`` [s] into saturation by ``forced-thmid`` at SETTLE_DT.
+
+    A patch crosses zero slip in the interval when its slip, sampled at every fine step, changes sign; its time held
+    is the fine steps' time with |slip| < 1/slope. Per sub-step and class of patch (crossing or not) the mean and the
+    rms of the velocity error v − v_ref [m/s] at the interval's end, over every patch and instant."""
+    from aca_warp.studies import friction_schemes as fs
+
+    ref = fs.SplitStepper(pads, fs.Scheme.parse("forced-thmid"))
+    hs = np.full(pads.n, SETTLE_DT)
+    for k in range(round(settle / SETTLE_DT)):
+        ref.step(hs)
+        if (k + 1) % 50000 == 0:
+            log(f"  settling: {(k + 1) * SETTLE_DT * 1e3:.1f} of {settle * 1e3:.1f} ms")
+    ref.synchronise()
+    hf = np.full(pads.n, h / fine)
+    per = max(1, round(every / h)) * fine
+    width = 1.0 / pads.slope
+    errs: dict[str, list[np.ndarray]] = {m: [] for m in PROTOTYPE}
+    cross, held = [], []
+    for k in range(instants):
+        u0, v0 = ref.u.copy(), ref.velocity()
+        s_min, s_max, t_held = pads.vd - v0, pads.vd - v0, np.zeros(pads.n)
+        for _ in range(fine):
+            ref.step(hf)
+            s = pads.vd - ref.w
+            s_min, s_max = np.minimum(s_min, s), np.maximum(s_max, s)
+            t_held += (np.abs(s) < width) * (h / fine)
+        v_ref = ref.velocity()
+        c = (s_min < 0.0) & (s_max > 0.0)
+        cross.append(c)
+        held.append(t_held)
+        for m in PROTOTYPE:
+            st = fs.SplitStepper(pads, fs.Scheme.parse(f"forced-{m}"))
+            st.u, st.w, st.force = u0.copy(), v0.copy(), -(pads.K @ u0)
+            st.step(np.full(pads.n, h))
+            errs[m].append(st.velocity() - v_ref)
+        for _ in range(per - fine):
+            ref.step(hf)
+        if (k + 1) % 10 == 0:
+            log(f"  {k + 1} of {instants} instants")
+    c = np.concatenate(cross)
+    t = np.concatenate(held)[c]
+    out: dict[str, Any] = {"h_s": h, "fine": fine, "instants": instants, "every_s": every, "settle_s": settle,
+                           "patch_steps": int(c.size), "crossing": int(c.sum()),
+                           "held_s_median": float(np.median(t)) if t.size else None,
+                           "held_s_p90": float(np.quantile(t, 0.9)) if t.size else None}  # fmt: skip
+    for m in PROTOTYPE:
+        e = np.concatenate(errs[m])
+        for name, sel in (("crossing", c), ("other", ~c)):
+            out[f"{m}_{name}_mean"] = float(e[sel].mean()) if sel.any() else float("nan")
+            out[f"{m}_{name}_rms"] = float(np.sqrt(np.mean(e[sel] ** 2))) if sel.any() else float("nan")
+    return out
+
+
 def measure(args: argparse.Namespace, log: Log) -> dict[str, Any]:
     """Every run of the study; the result document."""
     cfg, prep = prepared(args, log)
@@ -219,6 +280,38 @@ def table(doc: dict[str, Any]) -> list[str]:
     return lines
 
 
+def run_step_errors(args: argparse.Namespace) -> int:
+    """``--step-errors``: one pad, the JSON ``OUT/step_errors.json`` and its lines on stdout."""
+    from aca_warp.studies import friction_schemes as fs
+
+    log = Log()
+    args.seeds = 1
+    _, prep = prepared(args, log)
+    doc = step_errors(fs.load_pads(prep.scenes), args.dt[0], args.fine, args.settle, args.instants, 5e-6, log)
+    doc |= {"seed": args.first_seed, "machine": {"host": host_cpu(), "python": platform.python_version()},
+            "command": command_line("friction_crossing.py", args.argv)}  # fmt: skip
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(out / "step_errors.json", doc)
+    print("\n".join(step_error_lines(doc)))
+    return 0
+
+
+def step_error_lines(doc: dict[str, Any]) -> list[str]:
+    """Markdown: per sub-step the mean and rms velocity error of one step, crossing patches and the others."""
+    held = ("none crosses" if doc["held_s_median"] is None else
+            f"median {doc['held_s_median'] * 1e9:.0f} ns, 90 % {doc['held_s_p90'] * 1e9:.0f} ns")  # fmt: skip
+    lines = [f"hf1 seed {doc['seed']}, one step of {doc['h_s']:g} s against {doc['fine']} steps of thmid, "
+             f"{doc['instants']} instants {doc['every_s'] * 1e6:g} µs apart: {doc['crossing']} of {doc['patch_steps']} "
+             f"patch-steps cross zero slip; time held (|slip| < 1/a) of a crossing patch: {held}", "",
+             "| sub-step | crossing: mean [m/s] | crossing: rms [m/s] | other: mean [m/s] | other: rms [m/s] |",
+             "|---|---|---|---|---|"]  # fmt: skip
+    for m in PROTOTYPE:
+        lines.append(f"| {m} | {doc[f'{m}_crossing_mean']:+.3g} | {doc[f'{m}_crossing_rms']:.3g} | "
+                     f"{doc[f'{m}_other_mean']:+.3g} | {doc[f'{m}_other_rms']:.3g} |")  # fmt: skip
+    return lines
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="friction_crossing.py", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -230,10 +323,19 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--dt", type=positive, nargs="+", default=[2.5e-7, 5e-7], help="steps compared [s]")
     ap.add_argument("--scales", action="store_true", help="print the patches' scales per seed (no runs)")
     ap.add_argument(
+        "--step-errors", action="store_true",
+        help="one pad (--first-seed): the error of single steps (--dt, the first) of thmid and thmean against a fine "
+             "thmid step, for patches that cross zero slip inside the step and for the others (JSON in --out)",
+    )  # fmt: skip
+    ap.add_argument("--fine", type=int_at_least(2), default=250, help="--step-errors: fine steps per step (250)")
+    ap.add_argument("--instants", type=int_at_least(1), default=100, help="--step-errors: instants (100)")
+    ap.add_argument("--settle", type=positive, default=25e-3, help="--step-errors: time into saturation [s] (0.025)")
+    ap.add_argument(
         "--report",
         metavar="JSON",
         nargs="+",
-        help="print the table of result files (the same runs over disjoint seeds, joined) instead of running",
+        help="print the table of result files (the same runs over disjoint seeds, joined), or of --step-errors files "
+        "(one each), instead of running",
     )
     return ap
 
@@ -242,11 +344,17 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)
     args.argv = argv
+    if args.step_errors:
+        return run_step_errors(args)
     if args.scales:
         print("\n".join(patch_scales(prepared(args, lambda _m: None)[1], args.dt)))
         return 0
     if args.report:
-        print("\n".join(table(joined([json.loads(Path(p).read_text()) for p in args.report]))))
+        docs = [json.loads(Path(p).read_text()) for p in args.report]
+        if all("h_s" in d for d in docs):  # --step-errors files: one table each
+            print("\n\n".join("\n".join(step_error_lines(d)) for d in docs))
+        else:
+            print("\n".join(table(joined(docs))))
         return 0
     log = Log()
     t0 = time.perf_counter()
