@@ -44,6 +44,7 @@ from aca_warp.studies.report import Log, command_line, write_json
 
 PROTOTYPE = ("thmid", "thmean")  # the prototype's sub-steps (forced kicks)
 SETTLE_DT = 1.0e-7  # s: the step that runs a pad into saturation before the step errors are measured
+INSTANT_SPACING = 5.0e-6  # s: between the instants at which single steps are measured
 ETA = 0.1  # the relative rule of Φ
 MEASURES = ("mu_mean", "mu_std", "abs_velocity_mean", "phi", "f1", "floor")
 LABELS = {
@@ -146,7 +147,7 @@ def patch_scales(prep: Any, steps: list[float]) -> list[str]:
         p = fs.load_pads([scene])
         kd, fn, vd = np.median(p.K.diagonal()), np.median(p.fn), np.median(p.vd)
         s = np.linspace(1e-4, 2.0, 20001)
-        fmax = float(np.median(p.fn)) * float(fs.friction(p, s).max())
+        fmax = float(fn) * float(fs.friction(p, s).max())
         moves = ", ".join(f"{kd * vd * h:.3g} N at {h:g} s" for h in steps)
         lines.append(f"seed {scene.initial.seed}: k_diag {kd:.4g} N/m, F_N {fn:.4g} N, m {np.median(p.m):.4g} kg, "
                      f"v_d {vd:.4g} m/s; F_N max|f| {fmax:.3g} N; k_diag v_d h: {moves}")  # fmt: skip
@@ -188,9 +189,9 @@ def step_errors(pads: Any, h: float, fine: int, settle: float, instants: int, ev
         c = (s_min < 0.0) & (s_max > 0.0)
         cross.append(c)
         held.append(t_held)
+        at = dataclasses.replace(pads, u0=u0, v0=v0)  # the fine trajectory's synchronous state as a start state
         for m in PROTOTYPE:
-            st = fs.SplitStepper(pads, fs.Scheme.parse(f"forced-{m}"))
-            st.u, st.w, st.force = u0.copy(), v0.copy(), -(pads.K @ u0)
+            st = fs.SplitStepper(at, fs.Scheme.parse(f"forced-{m}"))
             st.step(np.full(pads.n, h))
             errs[m].append(st.velocity() - v_ref)
         for _ in range(per - fine):
@@ -287,7 +288,8 @@ def run_step_errors(args: argparse.Namespace) -> int:
     log = Log()
     args.seeds = 1
     _, prep = prepared(args, log)
-    doc = step_errors(fs.load_pads(prep.scenes), args.dt[0], args.fine, args.settle, args.instants, 5e-6, log)
+    pads = fs.load_pads(prep.scenes)
+    doc = step_errors(pads, args.dt[0], args.fine, args.settle, args.instants, INSTANT_SPACING, log)
     doc |= {"seed": args.first_seed, "machine": {"host": host_cpu(), "python": platform.python_version()},
             "command": command_line("friction_crossing.py", args.argv)}  # fmt: skip
     out = Path(args.out)
