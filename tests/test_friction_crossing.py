@@ -1,7 +1,8 @@
 """The zero-slip crossing treatment of the prototype (``thmean`` in aca_warp.studies.friction_schemes) and the
 measures and tables of aca_warp.studies.friction_crossing: G = ∫ f in closed form against quadrature, ``thmean``
 equal to ``thmid`` where no step crosses zero slip and solving the segment-averaged midpoint where one does, Φ and
-f1 of a known set of patch signals, result files joined over seeds."""
+f1 of a known set of patch signals, result files joined over seeds; the prototype's three readings of μ and its
+dispersion-corrected stiffness."""
 
 from __future__ import annotations
 
@@ -141,3 +142,61 @@ def test_step_errors_vanish_for_a_step_the_fine_steps_resolve() -> None:
     lines = fc.step_error_lines(doc)
     assert lines[0].startswith("hf1 seed 1, one step of 5e-07 s against 50 steps of thmid, 3 instants 5 µs apart")
     assert lines[-1].startswith("| thmean |")
+
+
+def test_the_three_readings_of_mu_agree_on_a_steadily_sliding_patch() -> None:
+    """One patch released at its sliding equilibrium (the spring balances F_N f(v_d), no velocity): it stays there,
+    so the point reading, the segment reading (nothing crosses) and the applied friction of the momentum balance are
+    the same μ, f(v_d), at every sample."""
+    p = one_patch()
+    f = float(fs.friction(p, p.vd)[0])
+    p.u0 = np.array([p.fn[0] * f / p.kt[0]])
+    r = fs.run_fixed(p, fs.Scheme.parse("forced-thmean"), 2.5e-7, 1e-5, 1e-6)
+    rec = r["record"]
+    for reading in (rec.mu[1:], rec.mu_segment[1:], rec.mu_applied[1:]):
+        assert np.allclose(reading, f, rtol=1e-9, atol=0.0)
+
+
+def test_the_segment_reading_averages_only_the_crossing_patches() -> None:
+    """Two patches, one whose slip changes sign between its staggered and synchronous velocity and one that does not:
+    the segment reading takes the crossing one's mean of f over its slip segment (quadrature) and the other's f."""
+    p1 = one_patch()
+    p = fs.Pads(**{k: (np.repeat(v, 2) if isinstance(v, np.ndarray) and v.size == 1 else v)
+                   for k, v in vars(p1).items() if k not in ("K", "start", "load", "coulomb", "names")},
+                K=p1.K, start=np.array([0, 2]), load=2 * p1.load, coulomb=p1.coulomb)  # fmt: skip
+    w, v = np.array([9.9, 8.0]), np.array([10.2, 8.1])
+    g = fs.pad_globals(p, v, w)
+    law = lambda y: float(fs.friction(p1, np.array([y]))[0])  # noqa: E731
+    s0, s1 = p1.vd[0] - w[0], p1.vd[0] - v[0]
+    mean = scipy.integrate.quad(law, s1, s0, points=[0.0], epsabs=1e-13)[0] / (s0 - s1)
+    expect = p1.fn[0] * (mean + law(p1.vd[0] - v[1])) / (2 * p1.load[0])
+    assert g["mu_segment"][0] == pytest.approx(expect, rel=1e-7)
+    point = p1.fn[0] * (law(s1) + law(p1.vd[0] - v[1])) / (2 * p1.load[0])
+    assert g["mu"][0] == pytest.approx(point, rel=1e-12) and abs(g["mu"][0] - g["mu_segment"][0]) > 1e-3
+
+
+def test_the_corrected_stiffness_gives_the_leapfrog_the_true_frequencies() -> None:
+    """A 40-patch hf1 sector: with K_c = K − (h²/12) K M⁻¹ K the leapfrog's frequency of every spring mode,
+    (2/h) arcsin(ω_c h/2), is ω to within (ωh)⁴/100 relative, where with K it is off by about (ωh)²/24."""
+    from aca_warp.studies.friction_stats import sector_scenes
+
+    pads = fs.load_pads(sector_scenes(1, 40))
+    h = 5e-7
+    lam = lambda k: np.sort(np.linalg.eigvals(np.diag(1 / pads.m) @ k.toarray()).real)  # noqa: E731
+    omega, omega_c = np.sqrt(lam(pads.K)), np.sqrt(lam(pads.dispersion_corrected(h).K))
+    leap = lambda w: 2.0 / h * np.arcsin(w * h / 2.0)  # noqa: E731
+    x = omega * h
+    assert np.all(np.abs(leap(omega_c) / omega - 1.0) < x**4 / 100)
+    assert np.all(np.abs(leap(omega) / omega - 1.0 - x**2 / 24) < x**4 / 100)
+    assert x.max() > 0.3  # the largest mode is far enough from ωh → 0 for the test to tell the two apart
+
+
+def test_the_readings_table_lists_the_prototype_runs_that_recorded_them() -> None:
+    doc = _doc([1, 2, 3], 1.0)
+    for run in doc["runs"]:
+        for p in run["pads"]:
+            p |= {"mu_segment_mean": p["mu_mean"] - 0.5, "mu_segment_std": p["mu_std"], "mu_applied_mean": p["mu_mean"]}
+    lines = fc.readings_table(doc)
+    assert len(lines) == 3 and lines[2].startswith("| forced-thmean (prototype) | 5e-07 | +1 ± 0 ")
+    assert "+0.5 ± 0" in lines[2]
+    assert fc.readings_table(_doc([1], 1.0)) == []

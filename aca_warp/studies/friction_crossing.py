@@ -46,6 +46,7 @@ PROTOTYPE = ("thmid", "thmean")  # the prototype's sub-steps (forced kicks)
 SETTLE_DT = 1.0e-7  # s: the step that runs a pad into saturation before the step errors are measured
 INSTANT_SPACING = 5.0e-6  # s: between the instants at which single steps are measured
 ETA = 0.1  # the relative rule of Φ
+READINGS = ("point", "segment", "applied")  # μ of the prototype's runs: Record.mu, .mu_segment, .mu_applied
 MEASURES = ("mu_mean", "mu_std", "abs_velocity_mean", "phi", "f1", "floor")
 LABELS = {
     "mu_mean": ("μ mean", "1"), "mu_std": ("μ std", "1"), "abs_velocity_mean": ("Σ\\|u̇\\| mean", "m/s"),
@@ -105,12 +106,18 @@ def package_runs(prep: Any, cfg: Any, dt: float, win: Window, log: Log) -> tuple
     return out, float(res.wall_time), int(res.steps)
 
 
-def prototype_runs(prep: Any, cfg: Any, method: str, dt: float, win: Window, log: Log) -> tuple[list[dict], float, int]:
-    """The prototype's ``forced-<method>`` (fp64) at ``dt`` [s] over the experiment's plan: per pad its measures,
-    the wall time [s] and the steps."""
+def prototype_runs(
+    prep: Any, cfg: Any, method: str, dt: float, win: Window, log: Log, *, corrected: bool = False
+) -> tuple[list[dict], float, int]:
+    """The prototype's ``forced-<method>`` (fp64) at ``dt`` [s] over the experiment's plan: per pad its measures
+    (with the other readings of μ: :data:`READINGS`), the wall time [s] and the steps. ``corrected``: with the
+    stiffness pre-corrected for the leapfrog's dispersion at ``dt``
+    (:meth:`~aca_warp.studies.friction_schemes.Pads.dispersion_corrected`)."""
     from aca_warp.studies import friction_schemes as fs
 
     pads = fs.load_pads(prep.scenes)
+    if corrected:
+        pads = pads.dispersion_corrected(dt)
     t0 = time.perf_counter()
     r = fs.run_fixed(pads, fs.Scheme.parse(f"forced-{method}"), dt, prep.plan.duration, cfg.sample_dt,
                      patch_window=prep.plan.duration - win.start)  # fmt: skip
@@ -120,9 +127,14 @@ def prototype_runs(prep: Any, cfg: Any, method: str, dt: float, win: Window, log
         raise RuntimeError(f"forced-{method} at {dt:g} s did not stay finite")
     ptime = rec.time[rec.patch_first :][:: cfg.decimation]
     vel = rec.velocity[:: cfg.decimation]
+    g = rec.time >= win.start - 1e-12
     out = [pad_measures(rec.time, rec.mu[:, p], rec.sum_abs_velocity[:, p], ptime,
-                        vel[:, pads.start[p]:pads.start[p + 1]], win) for p in range(pads.pads)]  # fmt: skip
-    log(f"  forced-{method} {dt:g} s: {wall:.1f} s, {r['steps']} steps")
+                        vel[:, pads.start[p]:pads.start[p + 1]], win)
+           | {"mu_segment_mean": float(rec.mu_segment[g, p].mean()),
+              "mu_segment_std": float(rec.mu_segment[g, p].std()),
+              "mu_applied_mean": float(rec.mu_applied[g, p].mean())}
+           for p in range(pads.pads)]  # fmt: skip
+    log(f"  forced-{method}{' (K_c)' if corrected else ''} {dt:g} s: {wall:.1f} s, {r['steps']} steps")
     return out, wall, int(r["steps"])
 
 
@@ -228,13 +240,14 @@ def measure(args: argparse.Namespace, log: Log) -> dict[str, Any]:
     for dt in args.dt:
         add("package", "strang", dt, package_runs(prep, cfg, dt, win, log))
         for m in PROTOTYPE:
-            add("prototype", m, dt, prototype_runs(prep, cfg, m, dt, win, log))
+            add("prototype", m, dt, prototype_runs(prep, cfg, m, dt, win, log, corrected=args.corrected_stiffness))
     return {
         "what": "hf1 pads saturated: the package's strang and the prototype's sub-steps against a fine strang step",
         "seeds": list(range(args.first_seed, args.first_seed + args.seeds)),
         "duration_s": prep.plan.duration, "window_start_s": win.start, "patch_dt_s": win.dt,
         "machine": {"host": host_cpu(), "platform": platform.platform(), "python": platform.python_version()},
         "command": command_line("friction_crossing.py", args.argv), "runs": runs,
+        "corrected_stiffness": bool(args.corrected_stiffness),
     }  # fmt: skip
 
 
@@ -243,6 +256,8 @@ def joined(docs: list[dict[str, Any]]) -> dict[str, Any]:
     keys = [[(r["kind"], r["method"], r["dt"]) for r in d["runs"]] for d in docs]
     if any(k != keys[0] for k in keys):
         raise ValueError("the result files hold different runs; join files of the same command with other seeds")
+    if len({bool(d.get("corrected_stiffness")) for d in docs}) > 1:
+        raise ValueError("the result files mix the prototype's stiffness with its dispersion-corrected one")
     spans = [(round(d["duration_s"] - d["window_start_s"], 9), d["patch_dt_s"]) for d in docs]
     if any(sp != spans[0] for sp in spans):
         raise ValueError(f"the result files analyse different windows (length [s], per-patch interval [s]): {spans}")
@@ -267,10 +282,11 @@ def table(doc: dict[str, Any]) -> list[str]:
     cells = [f"{refvals[m].mean():.5g} (σ {refvals[m].std(ddof=1):.2g})" if n > 1 else f"{refvals[m].mean():.5g}"
              for m in MEASURES]  # fmt: skip
     lines.append(f"| reference: strang (package) | {ref['dt']:g} | {ref['wall_s']:.0f} | " + " | ".join(cells) + " |")
+    kc = ", K_c" if doc.get("corrected_stiffness") else ""
     for r in doc["runs"]:
         if r is ref:
             continue
-        name = "strang (package)" if r["kind"] == "package" else f"forced-{r['method']} (prototype)"
+        name = "strang (package)" if r["kind"] == "package" else f"forced-{r['method']} (prototype{kc})"
         cells = []
         for m in MEASURES:
             d = np.array([p[m] for p in r["pads"]]) - refvals[m]
@@ -279,6 +295,39 @@ def table(doc: dict[str, Any]) -> list[str]:
             cells.append(f"{d.mean():+.3g} ± {half:.2g}{rel}")
         lines.append(f"| {name} | {r['dt']:g} | {r['wall_s']:.0f} | " + " | ".join(cells) + " |")
     return lines
+
+
+def readings_table(doc: dict[str, Any]) -> list[str]:
+    """Markdown: per prototype run (those that recorded them) μ mean by each reading (:data:`READINGS`) and μ std by
+    the point law and the segment reading, as ensemble mean differences to the reference's μ (± 95 % half-width)."""
+    import scipy.stats
+
+    ref = next(r for r in doc["runs"] if r["kind"] == "reference")
+    runs = [r for r in doc["runs"] if r["kind"] == "prototype" and "mu_applied_mean" in r["pads"][0]]
+    if not runs:
+        return []
+    n = len(ref["pads"])
+    t = float(scipy.stats.t.ppf(0.975, n - 1)) if n > 1 else math.nan
+    mean, std = (np.array([p[k] for p in ref["pads"]]) for k in ("mu_mean", "mu_std"))
+    cols = [("mu_mean", mean, "μ mean, point"), ("mu_segment_mean", mean, "μ mean, segment"),
+            ("mu_applied_mean", mean, "μ mean, applied"), ("mu_std", std, "μ std, point"),
+            ("mu_segment_std", std, "μ std, segment")]  # fmt: skip
+    lines = ["| run | step [s] | " + " | ".join(c[2] for c in cols) + " |", "|" + "---|" * (2 + len(cols))]
+    kc = ", K_c" if doc.get("corrected_stiffness") else ""
+    for r in runs:
+        cells = []
+        for key, refv, _ in cols:
+            d = np.array([p[key] for p in r["pads"]]) - refv
+            half = t * d.std(ddof=1) / math.sqrt(n) if n > 1 else math.nan
+            cells.append(f"{d.mean():+.3g} ± {half:.2g} ({100 * d.mean() / refv.mean():+.2f} %)")
+        lines.append(f"| forced-{r['method']} (prototype{kc}) | {r['dt']:g} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def report_lines(doc: dict[str, Any]) -> list[str]:
+    """The measures' table and, where the prototype's runs recorded them, the readings of μ."""
+    more = readings_table(doc)
+    return table(doc) + (["", *more] if more else [])
 
 
 def run_step_errors(args: argparse.Namespace) -> int:
@@ -325,6 +374,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--dt", type=positive, nargs="+", default=[2.5e-7, 5e-7], help="steps compared [s]")
     ap.add_argument("--scales", action="store_true", help="print the patches' scales per seed (no runs)")
     ap.add_argument(
+        "--corrected-stiffness", action="store_true",
+        help="run the prototype with its stiffness pre-corrected for the leapfrog's dispersion at each step, "
+             "K − (h²/12) K M⁻¹ K (the package's runs unchanged)",
+    )  # fmt: skip
+    ap.add_argument(
         "--step-errors", action="store_true",
         help="one pad (--first-seed): the error of single steps (--dt, the first) of thmid and thmean against a fine "
              "thmid step, for patches that cross zero slip inside the step and for the others (JSON in --out)",
@@ -356,7 +410,7 @@ def main(argv: list[str] | None = None) -> int:
         if all("h_s" in d for d in docs):  # --step-errors files: one table each
             print("\n\n".join("\n".join(step_error_lines(d)) for d in docs))
         else:
-            print("\n".join(table(joined(docs))))
+            print("\n".join(report_lines(joined(docs))))
         return 0
     log = Log()
     t0 = time.perf_counter()
@@ -366,8 +420,8 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     path = out / "friction_crossing.json"
     write_json(path, doc)
-    (out / "friction_crossing.md").write_text("\n".join(table(doc)) + "\n")
-    print("\n".join(table(doc)))
+    (out / "friction_crossing.md").write_text("\n".join(report_lines(doc)) + "\n")
+    print("\n".join(report_lines(doc)))
     log(f"wrote {path} ({doc['wall_s']:.0f} s)")
     return 0
 

@@ -36,6 +36,7 @@ reference :class:`~aca_warp.hf.reference.ReferenceODE`), so the equations and pa
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -118,6 +119,13 @@ class Pads:
         if self.n <= 400:
             return float(math.sqrt(np.linalg.eigvalsh(a.toarray()).max()))
         return float(math.sqrt(eigsh(a, k=1, which="LA", return_eigenvectors=False)[0]))
+
+    def dispersion_corrected(self, h: float) -> Pads:
+        """This batch with K replaced by K_c = K − (h²/12) K M⁻¹ K: the step-h leapfrog's frequency of each spring
+        mode, (2/h) arcsin(ω_c h/2), then equals ω to O((ωh)⁴) (ω_c² = ω² (1 − ω²h²/12)), so the first peak f1
+        does not move with h. K_c couples neighbours of neighbours; h [s]."""
+        corrected = self.K - (h * h / 12.0) * (self.K @ sp.diags(1.0 / self.m) @ self.K)
+        return dataclasses.replace(self, K=corrected.tocsr())
 
     def subset(self, pads: list[int]) -> Pads:
         """The pads ``pads`` of this batch as a batch of their own."""
@@ -531,26 +539,45 @@ class SplitStepper:
         self.open_h = None
 
 
-def pad_globals(pads: Pads, v: np.ndarray) -> dict[str, np.ndarray]:
-    """μ, Σu̇ [m/s] and Σ|u̇| [m/s] of every pad at patch velocities v (n,) (docs/model.md §2.8), each (P,)."""
-    f = pads.fn * friction(pads, pads.vd - v)
+def pad_globals(pads: Pads, v: np.ndarray, w: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """μ, Σu̇ [m/s] and Σ|u̇| [m/s] of every pad at patch velocities v (n,) (docs/model.md §2.8), each (P,). Given
+    the staggered velocities w (n,) [m/s] that v was closed from, also ``mu_segment``: μ with each patch whose slip
+    changes sign between w and v taking the mean of f along that slip segment instead of f at v."""
+    s = pads.vd - v
+    f = pads.fn * friction(pads, s)
     seg = pads.start[:-1]
-    return {
+    out = {
         "mu": (np.add.reduceat(f, seg) + pads.coulomb) / pads.load,
         "sum_velocity": np.add.reduceat(v, seg),
         "sum_abs_velocity": np.add.reduceat(np.abs(v), seg),
     }
+    if w is not None:
+        s0 = pads.vd - w
+        cross = np.flatnonzero((s0 * s < 0.0) & (np.abs(s - s0) > SEGMENT_MIN))
+        f = f.copy()
+        g = friction_integral(pads, s[cross]) - friction_integral(pads, s0[cross])
+        f[cross] = pads.fn[cross] * g / (s[cross] - s0[cross])
+        out["mu_segment"] = (np.add.reduceat(f, seg) + pads.coulomb) / pads.load
+    return out
 
 
 @dataclass
 class Record:
     """Sampled pad globals: ``time`` (N,) [s], ``mu``, ``sum_velocity``, ``sum_abs_velocity`` (N, P) [1, m/s, m/s];
-    per-patch velocities ``velocity`` (N − patch_first, n) [m/s] from sample ``patch_first`` on (None: not kept)."""
+    per-patch velocities ``velocity`` (N − patch_first, n) [m/s] from sample ``patch_first`` on (None: not kept).
+
+    Two other readings of μ (N, P) [1], NaN where not taken: ``mu_segment`` (:func:`pad_globals`: f averaged along
+    the slip segment of the patches that cross zero slip in the closing half step) and ``mu_applied``, the friction
+    and damping force the steps applied over the sample interval ending at the sample, from the momentum balance
+    m (w⁺ − w) = span (F_s + F_N f − c v) of each sub-step (its time mean equals the mean friction the pad passes
+    to its springs; the damping's mean, c Σu̇, is zero in a bounded steady state)."""
 
     time: np.ndarray
     mu: np.ndarray
     sum_velocity: np.ndarray
     sum_abs_velocity: np.ndarray
+    mu_segment: np.ndarray
+    mu_applied: np.ndarray
     velocity: np.ndarray | None = None
     patch_first: int = 0
 
@@ -560,12 +587,15 @@ class Record:
         z = lambda: np.full((samples, pads.pads), np.nan)  # noqa: E731
         rows = min(samples, round(patch_window / sample_dt) + 1) if patch_window > 0 else 0
         vel = np.full((rows, pads.n), np.nan) if rows else None
-        return cls(np.arange(samples) * sample_dt, z(), z(), z(), vel, samples - rows)
+        return cls(np.arange(samples) * sample_dt, z(), z(), z(), z(), z(), vel, samples - rows)
 
-    def put(self, k: int, pads: Pads, v: np.ndarray) -> None:
-        """Sample k from the synchronous patch velocities v (n,) [m/s]."""
-        g = pad_globals(pads, v)
+    def put(self, k: int, pads: Pads, v: np.ndarray, w: np.ndarray | None = None) -> None:
+        """Sample k from the synchronous patch velocities v (n,) [m/s]; ``mu_segment`` too where the staggered
+        velocities w (n,) [m/s] that v was closed from are given."""
+        g = pad_globals(pads, v, w)
         self.mu[k], self.sum_velocity[k], self.sum_abs_velocity[k] = g["mu"], g["sum_velocity"], g["sum_abs_velocity"]
+        if w is not None:
+            self.mu_segment[k] = g["mu_segment"]
         if self.velocity is not None and k >= self.patch_first:
             self.velocity[k - self.patch_first] = v
 
@@ -591,14 +621,20 @@ def run_fixed(
     st = SplitStepper(pads, scheme)
     rec.put(0, pads, st.w)
     hh = np.full(pads.n, h)
+    seg = pads.start[:-1]
     close_evals = 0.0
     for k in range(1, samples + 1):
+        impulse, span = np.zeros(pads.n), 0.0
         for _ in range(per):
+            w0, force, sub = st.w, st.force, (0.5 * h if st.open_h is None else h)
             st.step(hh)
+            impulse += pads.m * (st.w - w0) - sub * force
+            span += sub
+        rec.mu_applied[k] = (np.add.reduceat(impulse, seg) / span + pads.coulomb) / pads.load
         before = st.evals.sum()
         v = st.velocity()
         close_evals += st.evals.sum() - before
-        rec.put(k, pads, v)
+        rec.put(k, pads, v, st.w)
         if not np.all(np.isfinite(v)):
             break
         if progress is not None and k % 2000 == 0:
