@@ -144,28 +144,29 @@ def test_step_errors_vanish_for_a_step_the_fine_steps_resolve() -> None:
     assert lines[-1].startswith("| thmean |")
 
 
-def test_the_three_readings_of_mu_agree_on_a_steadily_sliding_patch() -> None:
+def test_the_readings_of_mu_agree_on_a_steadily_sliding_patch() -> None:
     """One patch released at its sliding equilibrium (the spring balances F_N f(v_d), no velocity): it stays there,
-    so the point reading, the segment reading (nothing crosses) and the applied friction of the momentum balance are
-    the same μ, f(v_d), at every sample."""
+    so the point reading, the segment and instant readings (nothing crosses) and the applied friction of the
+    momentum balance are the same μ, f(v_d), at every sample."""
     p = one_patch()
     f = float(fs.friction(p, p.vd)[0])
     p.u0 = np.array([p.fn[0] * f / p.kt[0]])
     r = fs.run_fixed(p, fs.Scheme.parse("forced-thmean"), 2.5e-7, 1e-5, 1e-6)
     rec = r["record"]
-    for reading in (rec.mu[1:], rec.mu_segment[1:], rec.mu_applied[1:]):
+    for reading in (rec.mu[1:], rec.mu_segment[1:], rec.mu_instant[1:], rec.mu_applied[1:]):
         assert np.allclose(reading, f, rtol=1e-9, atol=0.0)
 
 
-def test_the_segment_reading_averages_only_the_crossing_patches() -> None:
+def test_the_segment_and_instant_readings_change_only_the_crossing_patches() -> None:
     """Two patches, one whose slip changes sign between its staggered and synchronous velocity and one that does not:
-    the segment reading takes the crossing one's mean of f over its slip segment (quadrature) and the other's f."""
+    the segment reading takes the crossing one's mean of f over its slip segment (quadrature), the instant reading
+    f at the fraction τ of that segment, and both the other's f at its velocity."""
     p1 = one_patch()
     p = fs.Pads(**{k: (np.repeat(v, 2) if isinstance(v, np.ndarray) and v.size == 1 else v)
                    for k, v in vars(p1).items() if k not in ("K", "start", "load", "coulomb", "names")},
                 K=p1.K, start=np.array([0, 2]), load=2 * p1.load, coulomb=p1.coulomb)  # fmt: skip
     w, v = np.array([9.9, 8.0]), np.array([10.2, 8.1])
-    g = fs.pad_globals(p, v, w)
+    g = fs.pad_globals(p, v, w, np.array([0.25, 0.9]))
     law = lambda y: float(fs.friction(p1, np.array([y]))[0])  # noqa: E731
     s0, s1 = p1.vd[0] - w[0], p1.vd[0] - v[0]
     mean = scipy.integrate.quad(law, s1, s0, points=[0.0], epsabs=1e-13)[0] / (s0 - s1)
@@ -173,6 +174,25 @@ def test_the_segment_reading_averages_only_the_crossing_patches() -> None:
     assert g["mu_segment"][0] == pytest.approx(expect, rel=1e-7)
     point = p1.fn[0] * (law(s1) + law(p1.vd[0] - v[1])) / (2 * p1.load[0])
     assert g["mu"][0] == pytest.approx(point, rel=1e-12) and abs(g["mu"][0] - g["mu_segment"][0]) > 1e-3
+    instant = p1.fn[0] * (law(s0 + 0.25 * (s1 - s0)) + law(p1.vd[0] - v[1])) / (2 * p1.load[0])
+    assert g["mu_instant"][0] == pytest.approx(instant, rel=1e-12)
+    assert law(s0 + 0.25 * (s1 - s0)) > 0.0 > law(s1)  # τ = 0.25 lies before the crossing, on the start's side
+
+
+def test_the_instant_reading_is_reproducible_and_averages_to_the_segment_reading() -> None:
+    """A record's instants come from a generator seeded by the sample: the same sample gives the same μ; over many
+    draws a crossing patch's instant reading averages to its segment reading."""
+    p1 = one_patch()
+    rec = fs.Record.empty(3, p1, 1e-6)
+    w, v = np.array([9.9]), np.array([10.2])
+    rec.put(1, p1, v, w)
+    again = fs.Record.empty(3, p1, 1e-6)
+    again.put(1, p1, v, w)
+    assert rec.mu_instant[1, 0] == again.mu_instant[1, 0]
+    draws = np.random.default_rng(3).random(20000)
+    inst = [fs.pad_globals(p1, v, w, np.array([t]))["mu_instant"][0] for t in draws[:4000]]
+    seg = fs.pad_globals(p1, v, w, draws[:1])["mu_segment"][0]
+    assert np.mean(inst) == pytest.approx(seg, abs=3 * np.std(inst) / math.sqrt(len(inst)))
 
 
 def test_the_corrected_stiffness_gives_the_leapfrog_the_true_frequencies() -> None:
@@ -196,7 +216,12 @@ def test_the_readings_table_lists_the_prototype_runs_that_recorded_them() -> Non
     for run in doc["runs"]:
         for p in run["pads"]:
             p |= {"mu_segment_mean": p["mu_mean"] - 0.5, "mu_segment_std": p["mu_std"], "mu_applied_mean": p["mu_mean"]}
-    lines = fc.readings_table(doc)
+    lines = fc.readings_table(doc)  # files without the instant reading: its columns left out
     assert len(lines) == 3 and lines[2].startswith("| forced-thmean (prototype) | 5e-07 | +1 ± 0 ")
-    assert "+0.5 ± 0" in lines[2]
+    assert "+0.5 ± 0" in lines[2] and "instant" not in lines[0] and lines[2].count("|") == 8
+    for run in doc["runs"]:
+        for p in run["pads"]:
+            p |= {"mu_instant_mean": p["mu_mean"] + 2.0, "mu_instant_std": p["mu_std"]}
+    lines = fc.readings_table(doc)
+    assert "μ mean, instant" in lines[0] and "μ std, instant" in lines[0] and "+3 ± 0" in lines[2]
     assert fc.readings_table(_doc([1], 1.0)) == []

@@ -46,7 +46,7 @@ PROTOTYPE = ("thmid", "thmean")  # the prototype's sub-steps (forced kicks)
 SETTLE_DT = 1.0e-7  # s: the step that runs a pad into saturation before the step errors are measured
 INSTANT_SPACING = 5.0e-6  # s: between the instants at which single steps are measured
 ETA = 0.1  # the relative rule of Φ
-READINGS = ("point", "segment", "applied")  # μ of the prototype's runs: Record.mu, .mu_segment, .mu_applied
+READINGS = ("point", "segment", "instant", "applied")  # the prototype's μ: Record.mu, .mu_segment, .mu_instant, …
 MEASURES = ("mu_mean", "mu_std", "abs_velocity_mean", "phi", "f1", "floor")
 LABELS = {
     "mu_mean": ("μ mean", "1"), "mu_std": ("μ std", "1"), "abs_velocity_mean": ("Σ\\|u̇\\| mean", "m/s"),
@@ -132,6 +132,8 @@ def prototype_runs(
                         vel[:, pads.start[p]:pads.start[p + 1]], win)
            | {"mu_segment_mean": float(rec.mu_segment[g, p].mean()),
               "mu_segment_std": float(rec.mu_segment[g, p].std()),
+              "mu_instant_mean": float(rec.mu_instant[g, p].mean()),
+              "mu_instant_std": float(rec.mu_instant[g, p].std()),
               "mu_applied_mean": float(rec.mu_applied[g, p].mean())}
            for p in range(pads.pads)]  # fmt: skip
     log(f"  forced-{method}{' (K_c)' if corrected else ''} {dt:g} s: {wall:.1f} s, {r['steps']} steps")
@@ -299,7 +301,7 @@ def table(doc: dict[str, Any]) -> list[str]:
 
 def readings_table(doc: dict[str, Any]) -> list[str]:
     """Markdown: per prototype run (those that recorded them) μ mean by each reading (:data:`READINGS`) and μ std by
-    the point law and the segment reading, as ensemble mean differences to the reference's μ (± 95 % half-width)."""
+    each instantaneous one, as ensemble mean differences to the reference's μ (± 95 % half-width)."""
     import scipy.stats
 
     ref = next(r for r in doc["runs"] if r["kind"] == "reference")
@@ -310,8 +312,10 @@ def readings_table(doc: dict[str, Any]) -> list[str]:
     t = float(scipy.stats.t.ppf(0.975, n - 1)) if n > 1 else math.nan
     mean, std = (np.array([p[k] for p in ref["pads"]]) for k in ("mu_mean", "mu_std"))
     cols = [("mu_mean", mean, "μ mean, point"), ("mu_segment_mean", mean, "μ mean, segment"),
-            ("mu_applied_mean", mean, "μ mean, applied"), ("mu_std", std, "μ std, point"),
-            ("mu_segment_std", std, "μ std, segment")]  # fmt: skip
+            ("mu_instant_mean", mean, "μ mean, instant"), ("mu_applied_mean", mean, "μ mean, applied"),
+            ("mu_std", std, "μ std, point"), ("mu_segment_std", std, "μ std, segment"),
+            ("mu_instant_std", std, "μ std, instant")]  # fmt: skip
+    cols = [c for c in cols if c[0] in runs[0]["pads"][0]]  # files from before the instant reading lack it
     lines = ["| run | step [s] | " + " | ".join(c[2] for c in cols) + " |", "|" + "---|" * (2 + len(cols))]
     kc = ", K_c" if doc.get("corrected_stiffness") else ""
     for r in runs:

@@ -57,6 +57,7 @@ SUBSTEPS = 4  # sdirk2 sub-steps of ``sub4``
 THETA_RHO = 0.5  # ``thmid`` keeps |R(−hγ)| ≤ this at the patch's own friction rate: θ = 1/2 up to hγ = 6
 STATIC_SLIP = 0.17  # m/s: Eq. 4 rises with the slip below this (its maximum); a patch there holds to the disc
 CHATTER_FLOOR = 1.0e-4 * STATIC_SLIP  # m/s: slip increments below this do not count as chatter
+INSTANT_SEED = 20261130  # seeds the random instants of ``Record.mu_instant`` (with the sample's index)
 SEGMENT_MIN = 1.0e-9  # m/s: ``thmean`` takes f at the midpoint where the slip segment is shorter than this
 
 
@@ -539,10 +540,14 @@ class SplitStepper:
         self.open_h = None
 
 
-def pad_globals(pads: Pads, v: np.ndarray, w: np.ndarray | None = None) -> dict[str, np.ndarray]:
+def pad_globals(
+    pads: Pads, v: np.ndarray, w: np.ndarray | None = None, tau: np.ndarray | None = None
+) -> dict[str, np.ndarray]:
     """μ, Σu̇ [m/s] and Σ|u̇| [m/s] of every pad at patch velocities v (n,) (docs/model.md §2.8), each (P,). Given
-    the staggered velocities w (n,) [m/s] that v was closed from, also ``mu_segment``: μ with each patch whose slip
-    changes sign between w and v taking the mean of f along that slip segment instead of f at v."""
+    the staggered velocities w (n,) [m/s] that v was closed from, also two readings that differ from μ only at the
+    patches whose slip changes sign between w and v: ``mu_segment``, each such patch taking the mean of f along its
+    slip segment instead of f at v, and ``mu_instant``, each taking f at the fraction ``tau`` (n,) in [0, 1) of its
+    segment (random fractions: an instant of the straight path, whose mean over τ is the segment's mean)."""
     s = pads.vd - v
     f = pads.fn * friction(pads, s)
     seg = pads.start[:-1]
@@ -554,10 +559,13 @@ def pad_globals(pads: Pads, v: np.ndarray, w: np.ndarray | None = None) -> dict[
     if w is not None:
         s0 = pads.vd - w
         cross = np.flatnonzero((s0 * s < 0.0) & (np.abs(s - s0) > SEGMENT_MIN))
-        f = f.copy()
+        seg_f, inst_f = f.copy(), f.copy()
         g = friction_integral(pads, s[cross]) - friction_integral(pads, s0[cross])
-        f[cross] = pads.fn[cross] * g / (s[cross] - s0[cross])
-        out["mu_segment"] = (np.add.reduceat(f, seg) + pads.coulomb) / pads.load
+        seg_f[cross] = pads.fn[cross] * g / (s[cross] - s0[cross])
+        out["mu_segment"] = (np.add.reduceat(seg_f, seg) + pads.coulomb) / pads.load
+        if tau is not None:
+            inst_f[cross] = pads.fn[cross] * friction(pads, s0 + tau * (s - s0))[cross]
+            out["mu_instant"] = (np.add.reduceat(inst_f, seg) + pads.coulomb) / pads.load
     return out
 
 
@@ -566,8 +574,9 @@ class Record:
     """Sampled pad globals: ``time`` (N,) [s], ``mu``, ``sum_velocity``, ``sum_abs_velocity`` (N, P) [1, m/s, m/s];
     per-patch velocities ``velocity`` (N − patch_first, n) [m/s] from sample ``patch_first`` on (None: not kept).
 
-    Two other readings of μ (N, P) [1], NaN where not taken: ``mu_segment`` (:func:`pad_globals`: f averaged along
-    the slip segment of the patches that cross zero slip in the closing half step) and ``mu_applied``, the friction
+    Three other readings of μ (N, P) [1], NaN where not taken: ``mu_segment`` and ``mu_instant`` (:func:`pad_globals`:
+    f averaged along the slip segment of the patches that cross zero slip in the closing half step, or taken at a
+    random instant of it) and ``mu_applied``, the friction
     and damping force the steps applied over the sample interval ending at the sample, from the momentum balance
     m (w⁺ − w) = span (F_s + F_N f − c v) of each sub-step (its time mean equals the mean friction the pad passes
     to its springs; the damping's mean, c Σu̇, is zero in a bounded steady state)."""
@@ -577,6 +586,7 @@ class Record:
     sum_velocity: np.ndarray
     sum_abs_velocity: np.ndarray
     mu_segment: np.ndarray
+    mu_instant: np.ndarray
     mu_applied: np.ndarray
     velocity: np.ndarray | None = None
     patch_first: int = 0
@@ -587,15 +597,17 @@ class Record:
         z = lambda: np.full((samples, pads.pads), np.nan)  # noqa: E731
         rows = min(samples, round(patch_window / sample_dt) + 1) if patch_window > 0 else 0
         vel = np.full((rows, pads.n), np.nan) if rows else None
-        return cls(np.arange(samples) * sample_dt, z(), z(), z(), z(), z(), vel, samples - rows)
+        return cls(np.arange(samples) * sample_dt, z(), z(), z(), z(), z(), z(), vel, samples - rows)
 
     def put(self, k: int, pads: Pads, v: np.ndarray, w: np.ndarray | None = None) -> None:
-        """Sample k from the synchronous patch velocities v (n,) [m/s]; ``mu_segment`` too where the staggered
-        velocities w (n,) [m/s] that v was closed from are given."""
-        g = pad_globals(pads, v, w)
+        """Sample k from the synchronous patch velocities v (n,) [m/s]; ``mu_segment`` and ``mu_instant`` too where
+        the staggered velocities w (n,) [m/s] that v was closed from are given (the instants drawn from a generator
+        seeded by k: reproducible)."""
+        tau = None if w is None else np.random.default_rng((INSTANT_SEED, k)).random(pads.n)
+        g = pad_globals(pads, v, w, tau)
         self.mu[k], self.sum_velocity[k], self.sum_abs_velocity[k] = g["mu"], g["sum_velocity"], g["sum_abs_velocity"]
         if w is not None:
-            self.mu_segment[k] = g["mu_segment"]
+            self.mu_segment[k], self.mu_instant[k] = g["mu_segment"], g["mu_instant"]
         if self.velocity is not None and k >= self.patch_first:
             self.velocity[k - self.patch_first] = v
 
