@@ -128,6 +128,7 @@ def prototype_runs(
     ptime = rec.time[rec.patch_first :][:: cfg.decimation]
     vel = rec.velocity[:: cfg.decimation]
     g = rec.time >= win.start - 1e-12
+    assert rec.mu_segment is not None and rec.mu_instant is not None and rec.mu_applied is not None
     out = [pad_measures(rec.time, rec.mu[:, p], rec.sum_abs_velocity[:, p], ptime,
                         vel[:, pads.start[p]:pads.start[p + 1]], win)
            | {"mu_segment_mean": float(rec.mu_segment[g, p].mean()),

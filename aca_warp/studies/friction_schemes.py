@@ -574,9 +574,9 @@ class Record:
     """Sampled pad globals: ``time`` (N,) [s], ``mu``, ``sum_velocity``, ``sum_abs_velocity`` (N, P) [1, m/s, m/s];
     per-patch velocities ``velocity`` (N − patch_first, n) [m/s] from sample ``patch_first`` on (None: not kept).
 
-    Three other readings of μ (N, P) [1], NaN where not taken: ``mu_segment`` and ``mu_instant`` (:func:`pad_globals`:
-    f averaged along the slip segment of the patches that cross zero slip in the closing half step, or taken at a
-    random instant of it) and ``mu_applied``, the friction
+    Three other readings of μ (N, P) [1] (None in a record not made by :meth:`empty`; NaN where not taken):
+    ``mu_segment`` and ``mu_instant`` (:func:`pad_globals`: f averaged along the slip segment of the patches that
+    cross zero slip in the closing half step, or taken at a random instant of it) and ``mu_applied``, the friction
     and damping force the steps applied over the sample interval ending at the sample, from the momentum balance
     m (w⁺ − w) = span (F_s + F_N f − c v) of each sub-step (its time mean equals the mean friction the pad passes
     to its springs; the damping's mean, c Σu̇, is zero in a bounded steady state)."""
@@ -585,11 +585,11 @@ class Record:
     mu: np.ndarray
     sum_velocity: np.ndarray
     sum_abs_velocity: np.ndarray
-    mu_segment: np.ndarray
-    mu_instant: np.ndarray
-    mu_applied: np.ndarray
     velocity: np.ndarray | None = None
     patch_first: int = 0
+    mu_segment: np.ndarray | None = None
+    mu_instant: np.ndarray | None = None
+    mu_applied: np.ndarray | None = None
 
     @classmethod
     def empty(cls, samples: int, pads: Pads, sample_dt: float, patch_window: float = 0.0) -> Record:
@@ -597,7 +597,7 @@ class Record:
         z = lambda: np.full((samples, pads.pads), np.nan)  # noqa: E731
         rows = min(samples, round(patch_window / sample_dt) + 1) if patch_window > 0 else 0
         vel = np.full((rows, pads.n), np.nan) if rows else None
-        return cls(np.arange(samples) * sample_dt, z(), z(), z(), z(), z(), z(), vel, samples - rows)
+        return cls(np.arange(samples) * sample_dt, z(), z(), z(), vel, samples - rows, z(), z(), z())
 
     def put(self, k: int, pads: Pads, v: np.ndarray, w: np.ndarray | None = None) -> None:
         """Sample k from the synchronous patch velocities v (n,) [m/s]; ``mu_segment`` and ``mu_instant`` too where
@@ -606,7 +606,7 @@ class Record:
         tau = None if w is None else np.random.default_rng((INSTANT_SEED, k)).random(pads.n)
         g = pad_globals(pads, v, w, tau)
         self.mu[k], self.sum_velocity[k], self.sum_abs_velocity[k] = g["mu"], g["sum_velocity"], g["sum_abs_velocity"]
-        if w is not None:
+        if w is not None and self.mu_segment is not None and self.mu_instant is not None:
             self.mu_segment[k], self.mu_instant[k] = g["mu_segment"], g["mu_instant"]
         if self.velocity is not None and k >= self.patch_first:
             self.velocity[k - self.patch_first] = v
@@ -630,6 +630,8 @@ def run_fixed(
     h = sample_dt / per
     samples = round(duration / sample_dt)
     rec = Record.empty(samples + 1, pads, sample_dt, patch_window)
+    applied = rec.mu_applied
+    assert applied is not None  # made by Record.empty
     st = SplitStepper(pads, scheme)
     rec.put(0, pads, st.w)
     hh = np.full(pads.n, h)
@@ -642,7 +644,7 @@ def run_fixed(
             st.step(hh)
             impulse += pads.m * (st.w - w0) - sub * force
             span += sub
-        rec.mu_applied[k] = (np.add.reduceat(impulse, seg) / span + pads.coulomb) / pads.load
+        applied[k] = (np.add.reduceat(impulse, seg) / span + pads.coulomb) / pads.load
         before = st.evals.sum()
         v = st.velocity()
         close_evals += st.evals.sum() - before
