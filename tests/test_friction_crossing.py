@@ -180,19 +180,43 @@ def test_the_segment_and_instant_readings_change_only_the_crossing_patches() -> 
 
 
 def test_the_instant_reading_is_reproducible_and_averages_to_the_segment_reading() -> None:
-    """A record's instants come from a generator seeded by the sample: the same sample gives the same μ; over many
-    draws a crossing patch's instant reading averages to its segment reading."""
+    """A record's instants come from a generator seeded by the sample: the same sample gives the same μ in another
+    record, other samples other instants, and over many samples a crossing patch's instant reading averages to its
+    segment reading."""
     p1 = one_patch()
-    rec = fs.Record.empty(3, p1, 1e-6)
     w, v = np.array([9.9]), np.array([10.2])
-    rec.put(1, p1, v, w)
-    again = fs.Record.empty(3, p1, 1e-6)
-    again.put(1, p1, v, w)
-    assert rec.mu_instant[1, 0] == again.mu_instant[1, 0]
-    draws = np.random.default_rng(3).random(20000)
-    inst = [fs.pad_globals(p1, v, w, np.array([t]))["mu_instant"][0] for t in draws[:4000]]
-    seg = fs.pad_globals(p1, v, w, draws[:1])["mu_segment"][0]
-    assert np.mean(inst) == pytest.approx(seg, abs=3 * np.std(inst) / math.sqrt(len(inst)))
+    rec, again = fs.Record.empty(3001, p1, 1e-6), fs.Record.empty(3001, p1, 1e-6)
+    for k in range(1, 3001):
+        rec.put(k, p1, v, w)
+    again.put(7, p1, v, w)
+    inst = rec.mu_instant[1:, 0]
+    assert again.mu_instant[7, 0] == inst[6]
+    assert np.unique(np.sign(inst - rec.mu_segment[1, 0])).size == 2  # both sides of the crossing are read
+    assert inst.mean() == pytest.approx(rec.mu_segment[1, 0], abs=3 * inst.std() / math.sqrt(inst.size))
+
+
+def test_the_applied_reading_is_the_friction_and_damping_over_each_interval() -> None:
+    """One patch released from a stretched spring (it oscillates while sliding): the applied reading of each
+    sample interval, run at 1 ns, equals the mean of F_N f(v_d − u̇) − c u̇ over the span its sub-steps cover, taken
+    from the point reading and the velocity of a run that samples every step (linear between steps). The sub-steps
+    lag the samples by half a step, and the opening interval's first one spans half a step: [0, t₁ − h/2], then
+    [t_{k−1} − h/2, t_k − h/2]."""
+    p = one_patch()
+    p.u0 = np.array([1e-5])  # m: velocity swings of ≈ ±4.7 m/s, slip 5–15 m/s (no crossing)
+    h, every, duration = 1e-9, 1e-7, 4e-6
+    coarse = fs.run_fixed(p, fs.Scheme.parse("forced-thmid"), h, duration, every)["record"]
+    fine = fs.run_fixed(p, fs.Scheme.parse("forced-thmid"), h, duration, h)["record"]
+    force = fine.mu[:, 0] * p.load[0] - p.coulomb[0] - p.c[0] * fine.sum_velocity[:, 0]  # N, at every step
+    per = round(every / h)
+    half = lambda j: h / 8 * (3 * force[j] + force[j - 1])  # noqa: E731  (∫ over [t_j − h/2, t_j], linear)
+    for k in range(1, round(duration / every) + 1):
+        j0, j1 = (k - 1) * per, k * per
+        seg = force[j0 : j1 + 1]
+        integral = h * (seg.sum() - 0.5 * (seg[0] + seg[-1])) - half(j1) + (half(j0) if k > 1 else 0.0)
+        mean = integral / (per * h - (0.0 if k > 1 else h / 2))
+        applied = coarse.mu_applied[k, 0] * p.load[0] - p.coulomb[0]
+        assert applied == pytest.approx(mean, rel=2e-6), k
+    assert np.ptp(force) > 0.05  # the friction force swings by far more than the tolerance
 
 
 def test_the_corrected_stiffness_gives_the_leapfrog_the_true_frequencies() -> None:

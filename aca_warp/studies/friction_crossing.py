@@ -117,7 +117,7 @@ def prototype_runs(
 
     pads = fs.load_pads(prep.scenes)
     if corrected:
-        pads = pads.dispersion_corrected(dt)
+        pads = pads.dispersion_corrected(fs.fixed_step(dt, cfg.sample_dt)[1])  # for the step the run takes
     t0 = time.perf_counter()
     r = fs.run_fixed(pads, fs.Scheme.parse(f"forced-{method}"), dt, prep.plan.duration, cfg.sample_dt,
                      patch_window=prep.plan.duration - win.start)  # fmt: skip
@@ -312,10 +312,10 @@ def readings_table(doc: dict[str, Any]) -> list[str]:
     n = len(ref["pads"])
     t = float(scipy.stats.t.ppf(0.975, n - 1)) if n > 1 else math.nan
     mean, std = (np.array([p[k] for p in ref["pads"]]) for k in ("mu_mean", "mu_std"))
-    cols = [("mu_mean", mean, "μ mean, point"), ("mu_segment_mean", mean, "μ mean, segment"),
-            ("mu_instant_mean", mean, "μ mean, instant"), ("mu_applied_mean", mean, "μ mean, applied"),
-            ("mu_std", std, "μ std, point"), ("mu_segment_std", std, "μ std, segment"),
-            ("mu_instant_std", std, "μ std, instant")]  # fmt: skip
+    cols = [("mu_mean", mean, "μ mean, point [1]"), ("mu_segment_mean", mean, "μ mean, segment [1]"),
+            ("mu_instant_mean", mean, "μ mean, instant [1]"), ("mu_applied_mean", mean, "μ mean, applied [1]"),
+            ("mu_std", std, "μ std, point [1]"), ("mu_segment_std", std, "μ std, segment [1]"),
+            ("mu_instant_std", std, "μ std, instant [1]")]  # fmt: skip
     cols = [c for c in cols if c[0] in runs[0]["pads"][0]]  # files from before the instant reading lack it
     lines = ["| run | step [s] | " + " | ".join(c[2] for c in cols) + " |", "|" + "---|" * (2 + len(cols))]
     kc = ", K_c" if doc.get("corrected_stiffness") else ""

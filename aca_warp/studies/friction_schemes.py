@@ -603,6 +603,7 @@ class Record:
         """Sample k from the synchronous patch velocities v (n,) [m/s]; ``mu_segment`` and ``mu_instant`` too where
         the staggered velocities w (n,) [m/s] that v was closed from are given (the instants drawn from a generator
         seeded by k: reproducible)."""
+        # τ depends on k only: a batch's patches draw their own, records of other pads at the same place repeat them
         tau = None if w is None else np.random.default_rng((INSTANT_SEED, k)).random(pads.n)
         g = pad_globals(pads, v, w, tau)
         self.mu[k], self.sum_velocity[k], self.sum_abs_velocity[k] = g["mu"], g["sum_velocity"], g["sum_abs_velocity"]
@@ -610,6 +611,13 @@ class Record:
             self.mu_segment[k], self.mu_instant[k] = g["mu_segment"], g["mu_instant"]
         if self.velocity is not None and k >= self.patch_first:
             self.velocity[k - self.patch_first] = v
+
+
+def fixed_step(dt: float, sample_dt: float) -> tuple[int, float]:
+    """The steps per sample interval and the step [s] that :func:`run_fixed` takes for a step of at most dt [s]
+    (the interval ``sample_dt`` [s] divided evenly)."""
+    per = max(1, math.ceil(sample_dt / dt - 1e-9))
+    return per, sample_dt / per
 
 
 def run_fixed(
@@ -626,8 +634,7 @@ def run_fixed(
     samples every ``sample_dt`` [s] (synchronous velocities), per-patch velocities over the last ``patch_window``
     [s]. Returns the :class:`Record`, the step, the steps, and
     friction evaluations per patch per step (recording closes excluded) and per simulated ms."""
-    per = max(1, math.ceil(sample_dt / dt - 1e-9))
-    h = sample_dt / per
+    per, h = fixed_step(dt, sample_dt)
     samples = round(duration / sample_dt)
     rec = Record.empty(samples + 1, pads, sample_dt, patch_window)
     applied = rec.mu_applied
