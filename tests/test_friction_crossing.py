@@ -151,10 +151,13 @@ def test_the_readings_of_mu_agree_on_a_steadily_sliding_patch() -> None:
     p = one_patch()
     f = float(fs.friction(p, p.vd)[0])
     p.u0 = np.array([p.fn[0] * f / p.kt[0]])
-    r = fs.run_fixed(p, fs.Scheme.parse("forced-thmean"), 2.5e-7, 1e-5, 1e-6)
+    r = fs.run_fixed(p, fs.Scheme.parse("forced-thmean"), 2.5e-7, 1e-5, 1e-6, readings=True)
     rec = r["record"]
     for reading in (rec.mu[1:], rec.mu_segment[1:], rec.mu_instant[1:], rec.mu_applied[1:]):
         assert np.allclose(reading, f, rtol=1e-9, atol=0.0)
+    plain = fs.run_fixed(p, fs.Scheme.parse("forced-thmean"), 2.5e-7, 1e-5, 1e-6)["record"]  # not asked: not taken
+    assert plain.mu_segment is None and plain.mu_instant is None and plain.mu_applied is None
+    assert np.array_equal(plain.mu, rec.mu)
 
 
 def test_the_segment_and_instant_readings_change_only_the_crossing_patches() -> None:
@@ -185,7 +188,7 @@ def test_the_instant_reading_is_reproducible_and_averages_to_the_segment_reading
     segment reading."""
     p1 = one_patch()
     w, v = np.array([9.9]), np.array([10.2])
-    rec, again = fs.Record.empty(3001, p1, 1e-6), fs.Record.empty(3001, p1, 1e-6)
+    rec, again = fs.Record.empty(3001, p1, 1e-6, readings=True), fs.Record.empty(3001, p1, 1e-6, readings=True)
     for k in range(1, 3001):
         rec.put(k, p1, v, w)
     again.put(7, p1, v, w)
@@ -204,7 +207,7 @@ def test_the_applied_reading_is_the_friction_and_damping_over_each_interval() ->
     p = one_patch()
     p.u0 = np.array([1e-5])  # m: velocity swings of ≈ ±4.7 m/s, slip 5–15 m/s (no crossing)
     h, every, duration = 1e-9, 1e-7, 4e-6
-    coarse = fs.run_fixed(p, fs.Scheme.parse("forced-thmid"), h, duration, every)["record"]
+    coarse = fs.run_fixed(p, fs.Scheme.parse("forced-thmid"), h, duration, every, readings=True)["record"]
     fine = fs.run_fixed(p, fs.Scheme.parse("forced-thmid"), h, duration, h)["record"]
     force = fine.mu[:, 0] * p.load[0] - p.coulomb[0] - p.c[0] * fine.sum_velocity[:, 0]  # N, at every step
     per = round(every / h)

@@ -120,7 +120,7 @@ def prototype_runs(
         pads = pads.dispersion_corrected(fs.fixed_step(dt, cfg.sample_dt)[1])  # for the step the run takes
     t0 = time.perf_counter()
     r = fs.run_fixed(pads, fs.Scheme.parse(f"forced-{method}"), dt, prep.plan.duration, cfg.sample_dt,
-                     patch_window=prep.plan.duration - win.start)  # fmt: skip
+                     patch_window=prep.plan.duration - win.start, readings=True)  # fmt: skip
     wall = time.perf_counter() - t0
     rec = r["record"]
     if not r["finite"] or rec.velocity is None:

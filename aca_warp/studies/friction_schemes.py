@@ -551,21 +551,23 @@ def pad_globals(
     s = pads.vd - v
     f = pads.fn * friction(pads, s)
     seg = pads.start[:-1]
+    mu = lambda forces: (np.add.reduceat(forces, seg) + pads.coulomb) / pads.load  # noqa: E731  (N per patch → μ)
     out = {
-        "mu": (np.add.reduceat(f, seg) + pads.coulomb) / pads.load,
+        "mu": mu(f),
         "sum_velocity": np.add.reduceat(v, seg),
         "sum_abs_velocity": np.add.reduceat(np.abs(v), seg),
     }
     if w is not None:
         s0 = pads.vd - w
         cross = np.flatnonzero((s0 * s < 0.0) & (np.abs(s - s0) > SEGMENT_MIN))
-        seg_f, inst_f = f.copy(), f.copy()
+        seg_f = f.copy()
         g = friction_integral(pads, s[cross]) - friction_integral(pads, s0[cross])
         seg_f[cross] = pads.fn[cross] * g / (s[cross] - s0[cross])
-        out["mu_segment"] = (np.add.reduceat(seg_f, seg) + pads.coulomb) / pads.load
+        out["mu_segment"] = mu(seg_f)
         if tau is not None:
-            inst_f[cross] = pads.fn[cross] * friction(pads, s0 + tau * (s - s0))[cross]
-            out["mu_instant"] = (np.add.reduceat(inst_f, seg) + pads.coulomb) / pads.load
+            inst_f = f.copy()
+            inst_f[cross] = pads.fn[cross] * friction(pads, s0[cross] + tau[cross] * (s - s0)[cross])
+            out["mu_instant"] = mu(inst_f)
     return out
 
 
@@ -574,7 +576,7 @@ class Record:
     """Sampled pad globals: ``time`` (N,) [s], ``mu``, ``sum_velocity``, ``sum_abs_velocity`` (N, P) [1, m/s, m/s];
     per-patch velocities ``velocity`` (N − patch_first, n) [m/s] from sample ``patch_first`` on (None: not kept).
 
-    Three other readings of μ (N, P) [1] (None in a record not made by :meth:`empty`; NaN where not taken):
+    Three other readings of μ (N, P) [1] (None unless :meth:`empty` was asked for them; NaN where not taken):
     ``mu_segment`` and ``mu_instant`` (:func:`pad_globals`: f averaged along the slip segment of the patches that
     cross zero slip in the closing half step, or taken at a random instant of it) and ``mu_applied``, the friction
     and damping force the steps applied over the sample interval ending at the sample, from the momentum balance
@@ -592,23 +594,28 @@ class Record:
     mu_applied: np.ndarray | None = None
 
     @classmethod
-    def empty(cls, samples: int, pads: Pads, sample_dt: float, patch_window: float = 0.0) -> Record:
-        """A record of ``samples`` samples of ``pads``, per-patch velocities over the last ``patch_window`` [s]."""
+    def empty(
+        cls, samples: int, pads: Pads, sample_dt: float, patch_window: float = 0.0, *, readings: bool = False
+    ) -> Record:
+        """A record of ``samples`` samples of ``pads``, per-patch velocities over the last ``patch_window`` [s];
+        with ``readings``, room for the other readings of μ."""
         z = lambda: np.full((samples, pads.pads), np.nan)  # noqa: E731
         rows = min(samples, round(patch_window / sample_dt) + 1) if patch_window > 0 else 0
         vel = np.full((rows, pads.n), np.nan) if rows else None
-        return cls(np.arange(samples) * sample_dt, z(), z(), z(), vel, samples - rows, z(), z(), z())
+        more = (z(), z(), z()) if readings else (None, None, None)
+        return cls(np.arange(samples) * sample_dt, z(), z(), z(), vel, samples - rows, *more)
 
     def put(self, k: int, pads: Pads, v: np.ndarray, w: np.ndarray | None = None) -> None:
         """Sample k from the synchronous patch velocities v (n,) [m/s]; ``mu_segment`` and ``mu_instant`` too where
-        the staggered velocities w (n,) [m/s] that v was closed from are given (the instants drawn from a generator
-        seeded by k: reproducible)."""
-        # τ depends on k only: a batch's patches draw their own, records of other pads at the same place repeat them
-        tau = None if w is None else np.random.default_rng((INSTANT_SEED, k)).random(pads.n)
-        g = pad_globals(pads, v, w, tau)
-        self.mu[k], self.sum_velocity[k], self.sum_abs_velocity[k] = g["mu"], g["sum_velocity"], g["sum_abs_velocity"]
-        if w is not None and self.mu_segment is not None and self.mu_instant is not None:
+        the record has room for them and the staggered velocities w (n,) [m/s] that v was closed from are given (the
+        instants drawn from a generator seeded by k: reproducible)."""
+        if w is None or self.mu_segment is None or self.mu_instant is None:
+            g = pad_globals(pads, v)
+        else:
+            # τ depends on k only: a batch's patches draw their own, records of other pads at the same place repeat them
+            g = pad_globals(pads, v, w, np.random.default_rng((INSTANT_SEED, k)).random(pads.n))
             self.mu_segment[k], self.mu_instant[k] = g["mu_segment"], g["mu_instant"]
+        self.mu[k], self.sum_velocity[k], self.sum_abs_velocity[k] = g["mu"], g["sum_velocity"], g["sum_abs_velocity"]
         if self.velocity is not None and k >= self.patch_first:
             self.velocity[k - self.patch_first] = v
 
@@ -629,29 +636,34 @@ def run_fixed(
     *,
     patch_window: float = 0.0,
     progress: Any = None,
+    readings: bool = False,
 ) -> dict[str, Any]:
     """Run ``scheme`` at the fixed step dt [s] (shortened to fit the sample interval) for ``duration`` [s];
     samples every ``sample_dt`` [s] (synchronous velocities), per-patch velocities over the last ``patch_window``
-    [s]. Returns the :class:`Record`, the step, the steps, and
+    [s]; with ``readings`` also the record's other readings of μ (segment, instant, applied). Returns the
+    :class:`Record`, the step, the steps, and
     friction evaluations per patch per step (recording closes excluded) and per simulated ms."""
     per, h = fixed_step(dt, sample_dt)
     samples = round(duration / sample_dt)
-    rec = Record.empty(samples + 1, pads, sample_dt, patch_window)
+    rec = Record.empty(samples + 1, pads, sample_dt, patch_window, readings=readings)
     applied = rec.mu_applied
-    assert applied is not None  # made by Record.empty
     st = SplitStepper(pads, scheme)
     rec.put(0, pads, st.w)
     hh = np.full(pads.n, h)
     seg = pads.start[:-1]
     close_evals = 0.0
     for k in range(1, samples + 1):
-        impulse, span = np.zeros(pads.n), 0.0
-        for _ in range(per):
-            w0, force, sub = st.w, st.force, (0.5 * h if st.open_h is None else h)
-            st.step(hh)
-            impulse += pads.m * (st.w - w0) - sub * force
-            span += sub
-        applied[k] = (np.add.reduceat(impulse, seg) / span + pads.coulomb) / pads.load
+        if applied is None:
+            for _ in range(per):
+                st.step(hh)
+        else:
+            impulse, span = np.zeros(pads.n), 0.0
+            for _ in range(per):
+                w0, force, sub = st.w, st.force, (0.5 * h if st.open_h is None else h)
+                st.step(hh)
+                impulse += pads.m * (st.w - w0) - sub * force
+                span += sub
+            applied[k] = (np.add.reduceat(impulse, seg) / span + pads.coulomb) / pads.load
         before = st.evals.sum()
         v = st.velocity()
         close_evals += st.evals.sum() - before
