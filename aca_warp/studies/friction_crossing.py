@@ -271,14 +271,28 @@ def joined(docs: list[dict[str, Any]]) -> dict[str, Any]:
     return dict(docs[0], runs=runs, seeds=[s for d in docs for s in d["seeds"]])
 
 
+def t95(n: int) -> float:
+    """Student's t quantile of a 95 % two-sided interval for the mean of n paired differences (NaN for n < 2)."""
+    import scipy.stats
+
+    return float(scipy.stats.t.ppf(0.975, n - 1)) if n > 1 else math.nan
+
+
+def paired_cell(values: np.ndarray, ref: np.ndarray, t: float, relative: bool = True) -> str:
+    """A table cell: the mean of the paired differences ``values − ref`` (per seed) ± its half-width with the
+    quantile t, and the mean difference relative to the reference's mean."""
+    d = values - ref
+    half = t * d.std(ddof=1) / math.sqrt(d.size) if d.size > 1 else math.nan
+    rel = f" ({100 * d.mean() / ref.mean():+.2f} %)" if relative else ""
+    return f"{d.mean():+.3g} ± {half:.2g}{rel}"
+
+
 def table(doc: dict[str, Any]) -> list[str]:
     """Markdown: per run the ensemble mean of each measure's difference to the reference (± the 95 % half-width of
     the paired differences over the seeds), and the reference's own mean and spread between seeds."""
-    import scipy.stats
-
     ref = next(r for r in doc["runs"] if r["kind"] == "reference")
     n = len(ref["pads"])
-    t = float(scipy.stats.t.ppf(0.975, n - 1)) if n > 1 else math.nan
+    t = t95(n)
     head = "| run | step [s] | wall [s] | " + " | ".join(f"{LABELS[m][0]} [{LABELS[m][1]}]" for m in MEASURES) + " |"
     lines = [head, "|" + "---|" * (3 + len(MEASURES))]
     refvals = {m: np.array([p[m] for p in ref["pads"]]) for m in MEASURES}
@@ -290,12 +304,8 @@ def table(doc: dict[str, Any]) -> list[str]:
         if r is ref:
             continue
         name = "strang (package)" if r["kind"] == "package" else f"forced-{r['method']} (prototype{kc})"
-        cells = []
-        for m in MEASURES:
-            d = np.array([p[m] for p in r["pads"]]) - refvals[m]
-            half = t * d.std(ddof=1) / math.sqrt(n) if n > 1 else math.nan
-            rel = f" ({100 * d.mean() / refvals[m].mean():+.2f} %)" if m not in ("phi",) else ""
-            cells.append(f"{d.mean():+.3g} ± {half:.2g}{rel}")
+        cells = [paired_cell(np.array([p[m] for p in r["pads"]]), refvals[m], t, relative=m != "phi")
+                 for m in MEASURES]  # fmt: skip
         lines.append(f"| {name} | {r['dt']:g} | {r['wall_s']:.0f} | " + " | ".join(cells) + " |")
     return lines
 
@@ -303,14 +313,11 @@ def table(doc: dict[str, Any]) -> list[str]:
 def readings_table(doc: dict[str, Any]) -> list[str]:
     """Markdown: per prototype run (those that recorded them) μ mean by each reading (:data:`READINGS`) and μ std by
     each instantaneous one, as ensemble mean differences to the reference's μ (± 95 % half-width)."""
-    import scipy.stats
-
     ref = next(r for r in doc["runs"] if r["kind"] == "reference")
     runs = [r for r in doc["runs"] if r["kind"] == "prototype" and "mu_applied_mean" in r["pads"][0]]
     if not runs:
         return []
-    n = len(ref["pads"])
-    t = float(scipy.stats.t.ppf(0.975, n - 1)) if n > 1 else math.nan
+    t = t95(len(ref["pads"]))
     mean, std = (np.array([p[k] for p in ref["pads"]]) for k in ("mu_mean", "mu_std"))
     cols = [("mu_mean", mean, "μ mean, point [1]"), ("mu_segment_mean", mean, "μ mean, segment [1]"),
             ("mu_instant_mean", mean, "μ mean, instant [1]"), ("mu_applied_mean", mean, "μ mean, applied [1]"),
@@ -320,11 +327,7 @@ def readings_table(doc: dict[str, Any]) -> list[str]:
     lines = ["| run | step [s] | " + " | ".join(c[2] for c in cols) + " |", "|" + "---|" * (2 + len(cols))]
     kc = ", K_c" if doc.get("corrected_stiffness") else ""
     for r in runs:
-        cells = []
-        for key, refv, _ in cols:
-            d = np.array([p[key] for p in r["pads"]]) - refv
-            half = t * d.std(ddof=1) / math.sqrt(n) if n > 1 else math.nan
-            cells.append(f"{d.mean():+.3g} ± {half:.2g} ({100 * d.mean() / refv.mean():+.2f} %)")
+        cells = [paired_cell(np.array([p[key] for p in r["pads"]]), refv, t) for key, refv, _ in cols]
         lines.append(f"| forced-{r['method']} (prototype{kc}) | {r['dt']:g} | " + " | ".join(cells) + " |")
     return lines
 
