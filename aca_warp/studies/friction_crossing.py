@@ -111,8 +111,8 @@ def prototype_runs(
 ) -> tuple[list[dict], float, int]:
     """The prototype's ``forced-<method>`` (fp64) at ``dt`` [s] over the experiment's plan: per pad its measures
     (with the other readings of μ: :data:`READINGS`), the wall time [s] and the steps. ``corrected``: with the
-    stiffness pre-corrected for the leapfrog's dispersion at ``dt``
-    (:meth:`~aca_warp.studies.friction_schemes.Pads.dispersion_corrected`)."""
+    stiffness pre-corrected for the leapfrog's dispersion at the step the run takes (``dt`` fitted to the sample
+    interval: :meth:`~aca_warp.studies.friction_schemes.Pads.dispersion_corrected`)."""
     from aca_warp.studies import friction_schemes as fs
 
     pads = fs.load_pads(prep.scenes)
