@@ -199,9 +199,11 @@ def run_case(
     stages: bool = True,
     engine: str = "general",
     fast_math: bool = False,
+    crossing: str = "point",
 ) -> dict:
     """Time one configuration; returns a result row (with ``mu``, pad 0's μ(t), for the error; popped later).
-    ``fast_math``: the on-chip strang kernel compiled with CUDA fast math (``RunOptions.fast_math``)."""
+    ``fast_math``: the on-chip strang kernel compiled with CUDA fast math (``RunOptions.fast_math``); ``crossing``:
+    strang's treatment of steps that cross zero slip (``RunOptions.crossing``)."""
     import warp as wp
 
     from aca_warp.hf.loop import run_hf
@@ -221,7 +223,7 @@ def run_case(
     state = initial_state(model)
     rec = Record(sample_dt=scene.record.sample_dt)
     engine = choose_engine(model, engine, integrator, fast_math)
-    options = RunOptions(engine=engine, integrator=integrator, dt=dt, fast_math=fast_math)
+    options = RunOptions(engine=engine, integrator=integrator, dt=dt, fast_math=fast_math, crossing=crossing)
     # compiles, captures; at least one sample interval (a shorter run records nothing and is refused)
     warm = run_hf(model, state, options.with_duration(max(warmup, rec.sample_dt)), record=rec)
     res = run_hf(model, state, options.with_duration(duration), record=rec)
@@ -239,6 +241,7 @@ def run_case(
             "integrator": integrator,
             "engine": engine,
             "fast_math": fast_math,
+            "crossing": crossing,
             "blocks_per_pad": res.blocks_per_pad,
             "pads": pads,
             "patches": n,
@@ -310,7 +313,9 @@ def _bandwidth_fields(
 def _engine_cell(r: dict) -> str:
     """The engine of a row, with the on-chip cluster size when a pad ran on more than one block ("onchip ×8")."""
     k = r.get("blocks_per_pad", 1)
-    return r.get("engine", "general") + (f" ×{k}" if k > 1 else "") + (", fast math" if r.get("fast_math") else "")
+    fast = ", fast math" if r.get("fast_math") else ""
+    mean = ", crossings averaged" if r.get("crossing", "point") != "point" else ""
+    return r.get("engine", "general") + (f" ×{k}" if k > 1 else "") + fast + mean
 
 
 def _cases(
@@ -359,11 +364,13 @@ def run_bench(
     reference: bool = True,
     stages: bool = True,
     log: Any = None,
+    crossing: str = "point",
 ) -> dict:
     """Run every case; returns ``{"machine", "scene", ..., "results": [rows]}`` (JSON-able). ``maths``: ``exact``
     and/or ``fast`` (CUDA fast math, on-chip strang in fp32 only: other cases are not run with it). ``dt`` None:
     strang's default step for the scene and sample interval (:func:`~aca_warp.hf.options.step_asked`), for every
-    case."""
+    case. ``crossing``: strang's treatment of steps that cross zero slip, for every case
+    (:data:`~aca_warp.hf.options.CROSSINGS`; ``mean`` with strang only)."""
     import warp as wp
 
     from aca_warp.common.devices import get_device
@@ -390,7 +397,10 @@ def run_bench(
     refs: dict[int, np.ndarray] = {}
     for npads, prec, integ, eng, fast in _cases(pads, precisions, integrators, engines, maths):
         try:
-            r = run_case(sc, device, prec, integ, npads, step, duration, stages=stages, engine=eng, fast_math=fast)
+            r = run_case(
+                sc, device, prec, integ, npads, step, duration, stages=stages, engine=eng, fast_math=fast,
+                crossing=crossing,
+            )  # fmt: skip
         except SceneError as e:
             if not fast:
                 raise
@@ -454,7 +464,7 @@ def markdown(out: dict) -> str:
 def add_parsers(sub: Any) -> None:
     """Register ``aca-warp bench``."""
     from aca_warp.common.argtypes import int_at_least, positive, step_or_default
-    from aca_warp.hf.options import ENGINES, INTEGRATORS
+    from aca_warp.hf.options import CROSSINGS, ENGINES, INTEGRATORS
 
     p = sub.add_parser(
         "bench",
@@ -499,6 +509,14 @@ def add_parsers(sub: Any) -> None:
         "for the scene, as `aca-warp hf` takes it (1e-7 for the shipped presets' physics, 5e-8 for any other scene; "
         "docs/numerics.md)",
     )
+    p.add_argument(
+        "--crossing",
+        choices=CROSSINGS,
+        default="point",
+        help="strang's treatment of steps that cross zero slip (default point; mean: the friction averaged along "
+        "the step's slip segment, μ read at an instant of a crossing patch's closing half step; docs/friction_step.md "
+        "§8): strang only",
+    )
     p.add_argument("--duration", type=positive, default=2.0e-5, metavar="S", help="timed window [s] (default 2e-5)")
     p.add_argument("--sample-dt", type=positive, default=1.0e-6, metavar="S", help="sample interval [s] (default 1e-6)")
     p.add_argument("--no-reference", action="store_true", help="skip the fp64 dt/4 reference run (no μ error)")
@@ -527,6 +545,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         reference=not args.no_reference,
         stages=not args.no_stages,
         log=lambda s: print(s, flush=True),
+        crossing=args.crossing,
     )
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1))

@@ -123,6 +123,7 @@ def strang_advance(
     dt: Any,
     tol: Any,
     first: int,
+    crossing: int,
     # State in:
     force_in: wp.array[Any],
     # State in/out:
@@ -130,7 +131,8 @@ def strang_advance(
     v_io: wp.array[Any],
 ):
     """One Strang step of every patch: the velocity update (:func:`~aca_warp.kernels.physics.strang_velocity`; the
-    opening half step from a synchronous state when ``first`` ≠ 0, else a merged step), then the drift u ← u + dt v.
+    opening half step from a synchronous state when ``first`` ≠ 0, else a merged step; ``crossing``: the treatment
+    of steps that cross zero slip), then the drift u ← u + dt v.
 
     Afterwards ``v_io`` holds the staggered velocity w; follow with :func:`spring_forces` at the new u.
     """
@@ -139,18 +141,20 @@ def strang_advance(
     v = strang_velocity(
         first, v_io[i], force_in[i], dt, model.inv_mass[i], model.damping[i], model.normal_force[i],
         model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
+        crossing,
     )  # fmt: skip
     v_io[i] = v
     u_io[i] = u_io[i] + dt * v
 
 
 @wp.func
-def patch_close_velocity(i: int, p: int, w: Any, force: Any, dt: Any, model: Any, tol: Any):
+def patch_close_velocity(i: int, p: int, w: Any, force: Any, dt: Any, model: Any, tol: Any, crossing: int):
     """Patch i's (pad p) synchronous velocity [m/s] from its staggered w and F_s(uₙ) ``force`` [N] after a step
     ``dt`` [s]: :func:`~aca_warp.kernels.physics.strang_close_velocity` with the patch's parameters from ``model``."""
     return strang_close_velocity(
         w, force, dt, model.inv_mass[i], model.damping[i], model.normal_force[i],
         model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
+        crossing,
     )  # fmt: skip
 
 
@@ -160,6 +164,7 @@ def strang_close(
     # Control:
     dt: Any,
     tol: Any,
+    crossing: int,
     # State in:
     force_in: wp.array[Any],
     v_in: wp.array[Any],
@@ -169,7 +174,7 @@ def strang_close(
     """Synchronous velocity from the staggered w and F_s(uₙ) (:func:`~aca_warp.kernels.physics.strang_close_velocity`;
     may be in place)."""
     i = wp.tid()
-    v_out[i] = patch_close_velocity(i, model.patch_pad[i], v_in[i], force_in[i], dt, model, tol)
+    v_out[i] = patch_close_velocity(i, model.patch_pad[i], v_in[i], force_in[i], dt, model, tol, crossing)
 
 
 # ---------------------------------------------------------------------------------------------- recording
@@ -188,16 +193,20 @@ def record_globals(
     # Control:
     conditional: int,
     threads: int,
+    crossing: int,
     # State in:
     u_in: wp.array[Any],
     v_in: wp.array[Any],
+    w_in: wp.array[Any],
 ):
     """Per pad (one block, ``launch_tiled``): the sample of the recorder's sample index into its next globals row
-    (:func:`record_pad`), when one is taken (:func:`sample_flagged`)."""
+    (:func:`record_pad`; ``w_in`` the staggered velocities ``v_in`` was closed from, read with ``crossing`` ≠ 0),
+    when one is taken (:func:`sample_flagged`)."""
     pad, lane = wp.tid()
     if not sample_flagged(rec, conditional):
         return
-    record_pad(pad, lane, threads, rec.counters[GLOBAL_ROWS], rec.counters[SAMPLE_INDEX], model, u_in, v_in, rec)
+    k = rec.counters[SAMPLE_INDEX]
+    record_pad(pad, lane, threads, rec.counters[GLOBAL_ROWS], k, model, u_in, v_in, w_in, crossing, rec)
 
 
 @wp.kernel

@@ -118,7 +118,7 @@ def patch_substep(i: int, p: int, v: Any, span: Any, force: Any, model: Any, tol
     ``force`` [N] frozen (:func:`~aca_warp.kernels.physics.friction_substep`)."""
     return friction_substep(
         v, span, type(v)(1.0) / model.inv_mass[i], model.damping[i], model.normal_force[i], force,
-        model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
+        model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol, 0,
     )  # fmt: skip
 
 
@@ -129,7 +129,7 @@ def patch_close(i: int, p: int, w: Any, force: Any, dp5: Any, model: Any, tol: A
     hp = dp5.ctl[p, C_HPREV]
     if hp <= wp.float64(0.0):
         return w
-    return patch_close_velocity(i, p, w, force, type(w)(hp), model, tol)
+    return patch_close_velocity(i, p, w, force, type(w)(hp), model, tol, 0)
 
 
 @wp.kernel

@@ -48,6 +48,7 @@ from aca_warp.kernels.physics import (
     flag_fault,
     grow_patch,
     grown_area,
+    instant_velocity,
     link_stiffness,
     link_stiffness4,
     patch_sample,
@@ -111,6 +112,7 @@ def onchip_kernel(
     cluster: int = 1,
     lanes: int = 32,
     grown_tiles: bool = False,
+    crossing: bool = False,
 ) -> wp.Kernel:
     """The on-chip strang kernel for pads of at most ``nmax`` patches (``emax`` CSR slots when ``csr_shared``).
 
@@ -140,6 +142,10 @@ def onchip_kernel(
     copies, and re-solves the whole pad's contact from them (every block the same sums in the same order, so the
     same gap; cheaper than a cluster barrier per Newton iteration) and keeps its own patches' normal forces: no
     block reads what another wrote, so an event needs no cluster barrier.
+
+    ``crossing``: steps that cross zero slip take the friction's mean along their slip segment, and samples read
+    a crossing patch's friction at an instant of its closing half step (``RunOptions.crossing`` "mean":
+    :func:`~aca_warp.kernels.physics.friction_substep`, :func:`~aca_warp.kernels.physics.instant_velocity`).
 
     ``lanes``: min(threads, 32), the banks of the on-chip CSR layout (:func:`aca_warp.hf.onchip.csr_slots`).
 
@@ -173,6 +179,7 @@ def onchip_kernel(
     CONTACT = wp.constant(0 if "contact" in ablate else 1)
     SAMPLE = wp.constant(0 if "sample" in ablate else 1)
     GROWTH = wp.constant(1 if growth else 0)
+    CROSSING = wp.constant(1 if crossing else 0)
     GTILES = wp.constant(1 if growth and grown_tiles else 0)
     CLUSTER = wp.constant(cluster)
     RED = wp.constant(RED_SLOTS)
@@ -223,7 +230,7 @@ def onchip_kernel(
         """Synchronous velocity of local patch i (global g) from the staggered w and F_s (``strang_close_velocity``)."""
         return strang_close_velocity(
             get_n(w, i), get_n(fs, i), dt, model.inv_mass[g], model.damping[g], model.normal_force[g],
-            omega * model.radius[g], mu_scale, slope, decay, tol,
+            omega * model.radius[g], mu_scale, slope, decay, tol, CROSSING,
         )  # fmt: skip
 
     @wp.func
@@ -417,7 +424,7 @@ def onchip_kernel(
                     else:
                         v = strang_velocity(
                             first_step, get_n(w, i), get_n(fs, i), dt, im, model.damping[g], model.normal_force[g], vd,
-                            mu_scale, slope, decay, tol,
+                            mu_scale, slope, decay, tol, CROSSING,
                         )  # fmt: skip
                     put_n(w, i, v)
                     un = get_u(u2, cur, i) + dt * v
@@ -515,9 +522,11 @@ def onchip_kernel(
                 g = a + i
                 vs = sync_velocity(i, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
                 uu = get_u(u2, cur, i)
+                vf = instant_velocity(vs, get_n(w, i), omega * model.radius[g], CROSSING, k, i)
                 sums += patch_sample(
-                    vs, model.normal_force[g], model.radius[g], model.x[g], model.y[g], omega, mu_scale, slope, decay
-                )
+                    vs, vf, model.normal_force[g], model.radius[g], model.x[g], model.y[g], omega, mu_scale, slope,
+                    decay,
+                )  # fmt: skip
                 usum += wp.float64(uu)
                 if energy_speed2(vs, uu, model.k_t[g], model.inv_mass[g]) > bound2 and runaway == n:
                     runaway = i

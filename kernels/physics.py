@@ -58,9 +58,70 @@ def friction_pair(vp: Any, mu_scale: Any, slope: Any, decay: Any):
     return mu_scale * at * (rq + one), mu_scale * (da * (rq + one) - at * decay * wp.sign(vp) * rq * rq)
 
 
+SEGMENT_TOL = wp.constant(1.0e3)  # a slip segment below this × the solve's tolerance [m/s]: f at its midpoint
+INSTANT_SEED = wp.constant(20261130)  # seeds the instant reading, with the sample index (instant_velocity)
+
+
 @wp.func
-def solve_velocity(a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any):
-    """Solve a·v − hfn·f(vd − v) = b for v (a > 0, hfn ≥ 0): per-patch implicit friction.
+def friction_integral(s: Any, mu_scale: Any, slope: Any, decay: Any):
+    """G(s) = ∫₀ˢ f(x) dx of Eq. 4 [m/s], even in s, in closed form up to O(decay²/slope³) (≈ 4e-9 m/s for the
+    presets' law), in the precision of ``s``.
+
+    With x = |s|, a = slope, b = decay and H(x) = ∫₀ˣ (1/(b x' + 1) + 1) dx' = x + ln(1 + b x)/b, by parts
+    G = (M/π)[atan(a x) H(x) − ∫₀ˣ a H/(1 + a² x'²) dx']; the last integral is ln(1 + a² x²)/a for H's linear part
+    2x, plus ∫ a (H − 2x')/(1 + a² x'²) dx', taken with a/(1 + a² x'²) → 1/(a x'²) (exactly
+    (1 − ln(1 + b x)/(b x) − ln(1 + b x))/a) and the leading correction b atan(a x)/(2a²) from H − 2x' ≈ −b x'²/2
+    where the two kernels differ (docs/friction_step.md §8)."""
+    one = type(s)(1.0)
+    half = type(s)(0.5)
+    x = wp.abs(s)
+    bx = decay * x
+    r = one - bx * (half - bx * (one / type(s)(3.0) - bx / type(s)(4.0)))  # ln(1 + b x)/(b x), b x < 1e-3: series
+    ln = bx * r
+    q = one - r  # 1 − ln(1 + b x)/(b x)
+    hx = x * (one + r)  # H(x)
+    if bx >= type(s)(1.0e-3):
+        ln = wp.log(one + bx)
+        q = one - ln / bx
+        hx = x + ln / decay
+    ax = slope * x
+    at = wp.atan(ax)
+    g = at * hx - wp.log(one + ax * ax) / slope - (q - ln) / slope - decay * at / (type(s)(2.0) * slope * slope)
+    return mu_scale * g
+
+
+@wp.func
+def segment_pair(vp: Any, s0: Any, g0: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any):
+    """The law of a step that crosses zero slip, at midpoint slip ``vp`` [m/s] of a step that starts at slip ``s0``
+    (G(s0) = ``g0``, :func:`friction_integral`): the mean of f over the slips from s0 to s1 = 2 vp − s0 and its
+    derivative in vp [1, s/m] (the averaged-vector-field form of the midpoint); :func:`friction_pair` at vp where
+    the segment is shorter than :data:`SEGMENT_TOL` × ``tol`` m/s (1e-3 m/s in fp32, 1e-6 m/s in fp64: where
+    the difference of G would lose more to rounding than the midpoint's f misses the mean by)."""
+    ds = type(vp)(2.0) * (vp - s0)
+    if wp.abs(ds) <= type(vp)(SEGMENT_TOL) * tol:
+        return friction_pair(vp, mu_scale, slope, decay)
+    s1 = s0 + ds
+    mean = (friction_integral(s1, mu_scale, slope, decay) - g0) / ds
+    f1 = friction_coefficient(s1, mu_scale, slope, decay)
+    return mean, type(vp)(2.0) * (f1 - mean) / ds
+
+
+@wp.func
+def law_pair(vp: Any, seg: int, s0: Any, g0: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any):
+    """(f, df/dvp) of the implicit solve's law: Eq. 4 at ``vp`` (:func:`friction_pair`), or with ``seg`` ≠ 0 its
+    mean along the step's slip segment from ``s0`` (:func:`segment_pair`)."""
+    if seg != 0:
+        return segment_pair(vp, s0, g0, mu_scale, slope, decay, tol)
+    return friction_pair(vp, mu_scale, slope, decay)
+
+
+@wp.func
+def solve_velocity(
+    a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any, seg: int, s0: Any,
+    g0: Any,
+):  # fmt: skip
+    """Solve a·v − hfn·f(vd − v) = b for v (a > 0, hfn ≥ 0): per-patch implicit friction. ``seg`` ≠ 0: with f the
+    mean of Eq. 4 along a step's slip segment from ``s0`` [m/s] (G(s0) = ``g0``) instead (:func:`segment_pair`).
 
     Works on the increment δ = v − guess, so the convergence test is relative to the size of the step's
     velocity change (meaningful in fp32 too). |f| ≤ 2 mu_scale π/2 brackets δ in
@@ -83,7 +144,7 @@ def solve_velocity(a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any,
     last = type(a)(2.0) * (hi - lo)  # the last two step lengths; twice the bracket lets any first steps pass
     before = last
     for _it in range(60):
-        f, df = friction_pair(vp0 - d, mu_scale, slope, decay)
+        f, df = law_pair(vp0 - d, seg, s0, g0, mu_scale, slope, decay, tol)
         g = a * d - hfn * f - r
         if g == zero:
             break
@@ -119,13 +180,24 @@ def theta_substep(
     backward Euler (V itself); θ = ½ the implicit midpoint. ``m`` mass [kg], ``c`` damping [N s/m], ``fn`` normal
     force [N], ``vd`` disc speed ω r [m/s]. Written as V + (V − v)(1/θ − 1), which is V itself at θ = 1."""
     th = theta * h
-    vm = solve_velocity(m + th * c, m * v + th * force, th * fn, vd, v, mu_scale, slope, decay, tol)
+    vm = solve_velocity(m + th * c, m * v + th * force, th * fn, vd, v, mu_scale, slope, decay, tol, 0, vd - v, v - v)
     return vm + (vm - v) * (type(v)(1.0) / theta - type(v)(1.0))
 
 
 @wp.func
 def friction_substep(
-    v: Any, h: Any, m: Any, c: Any, fn: Any, force: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any
+    v: Any,
+    h: Any,
+    m: Any,
+    c: Any,
+    fn: Any,
+    force: Any,
+    vd: Any,
+    mu_scale: Any,
+    slope: Any,
+    decay: Any,
+    tol: Any,
+    crossing: int,
 ):
     """The friction sub-step of every Strang path: a damped implicit midpoint over h [s] of m v̇ = F + F_N f(vd − v)
     − c v from velocity v [m/s], with the spring force F = ``force`` [N] frozen inside the solve (docs/numerics.md,
@@ -136,14 +208,35 @@ def friction_substep(
     R(−hγ) stays ≥ −½: a held patch's chatter about its static slip halves every step instead of alternating without
     decay (R → −1 of the plain midpoint). With F inside, a patch held at h γ ≫ 1 lands on its sticking manifold
     F + F_N f(vd − v) − c v = 0, so its recorded friction force is its static friction.
+
+    ``crossing`` ≠ 0 (``RunOptions.crossing`` "mean"): a midpoint step (θ = ½) whose slip changes sign is solved
+    again, from its first solution, with the friction averaged along its slip segment (:func:`segment_pair`)
+    instead of taken at the midpoint velocity (docs/friction_step.md §8).
     """
     one = type(v)(1.0)
+    half = type(v)(0.5)
     f0, df0 = friction_pair(vd - v, mu_scale, slope, decay)
     x = h * (c + fn * df0) / m
-    theta = type(v)(0.5)
+    theta = half
     if x > type(v)(6.0):
         theta = wp.min((one - type(v)(1.5) / x) / type(v)(1.5), one)
-    return theta_substep(v, h, theta, m, c, fn, force, vd, mu_scale, slope, decay, tol)
+    th = theta * h
+    a = m + th * c
+    b = m * v + th * force
+    s0 = vd - v
+    g0 = v - v  # G(s0), once a crossing step is solved again with the mean law
+    seg = int(0)
+    guess = v
+    out = v
+    for _pass in range(2):  # one solve call site (the second pass only on a crossing step)
+        vm = solve_velocity(a, b, th * fn, vd, guess, mu_scale, slope, decay, tol, seg, s0, g0)
+        out = vm + (vm - v) * (one / theta - one)
+        if seg != 0 or crossing == 0 or theta != half or s0 * (vd - out) >= v - v:
+            break
+        seg = 1
+        g0 = friction_integral(s0, mu_scale, slope, decay)
+        guess = vm
+    return out
 
 
 # ---------------------------------------------------------------------------------------------- per-patch terms
@@ -192,26 +285,40 @@ def strang_velocity(
     slope: Any,
     decay: Any,
     tol: Any,
+    crossing: int,
 ):
     """Strang's velocity update of one step of a patch, before its drift u ← u + dt v; ``fs`` the cached F_s(uₙ)
     [N], ``im`` = 1/m [1/kg]. The spring force is frozen inside the friction sub-step (:func:`friction_substep`, the
     "forced" splitting: kick and friction at fixed u against the drift). ``first`` ≠ 0, the opening half step from
     the synchronous velocity ``w``: the sub-step over dt/2. Otherwise a merged step on the staggered velocity ``w``:
-    the sub-step over dt (the closing half of step n and the opening half of step n+1 are one sub-step). Returns the
-    staggered velocity (the drift velocity of the step)."""
+    the sub-step over dt (the closing half of step n and the opening half of step n+1 are one sub-step); ``crossing``:
+    the treatment of steps that cross zero slip (:func:`friction_substep`). Returns the staggered velocity (the drift
+    velocity of the step)."""
     h = dt
     if first != 0:
         h = dt * type(dt)(0.5)
-    return friction_substep(w, h, type(dt)(1.0) / im, c, fn, fs, vd, mu_scale, slope, decay, tol)
+    return friction_substep(w, h, type(dt)(1.0) / im, c, fn, fs, vd, mu_scale, slope, decay, tol, crossing)
 
 
 @wp.func
 def strang_close_velocity(
-    w: Any, fs: Any, dt: Any, im: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any
+    w: Any,
+    fs: Any,
+    dt: Any,
+    im: Any,
+    c: Any,
+    fn: Any,
+    vd: Any,
+    mu_scale: Any,
+    slope: Any,
+    decay: Any,
+    tol: Any,
+    crossing: int,
 ):
     """The synchronous velocity of a patch from its staggered ``w`` and F_s(uₙ) ``fs``: the friction sub-step over
-    dt/2 with F_s(uₙ) frozen inside."""
-    return friction_substep(w, dt * type(dt)(0.5), type(dt)(1.0) / im, c, fn, fs, vd, mu_scale, slope, decay, tol)
+    dt/2 with F_s(uₙ) frozen inside (``crossing``: :func:`friction_substep`)."""
+    h = dt * type(dt)(0.5)
+    return friction_substep(w, h, type(dt)(1.0) / im, c, fn, fs, vd, mu_scale, slope, decay, tol, crossing)
 
 
 @wp.func
@@ -517,10 +624,26 @@ def sign_or_zero(x: Any):
 
 
 @wp.func
-def patch_sample(v: Any, fn: Any, r: Any, x: Any, y: Any, omega: Any, mu_scale: Any, slope: Any, decay: Any):
-    """One patch's terms of the sample sums at velocity ``v`` [m/s], normal force ``fn`` [N], radius ``r`` and
-    position (``x``, ``y``) [m]: its friction force F = F_N f(ω r − v) [N], F r [N m], v, |v| [m/s], F x, F y [N m]."""
-    f = fn * friction_coefficient(omega * r - v, mu_scale, slope, decay)
+def instant_velocity(v: Any, w: Any, vd: Any, crossing: int, k: int, i: int):
+    """The velocity [m/s] at which sample k reads the friction of patch i (its index within its pad): its
+    synchronous ``v``; with ``crossing`` ≠ 0 (``RunOptions.crossing`` "mean"), for a patch whose slip changes sign
+    between its staggered ``w`` and v (the closing half step), an instant of that step's straight path,
+    w + τ (v − w), τ uniform in [0, 1) from ``wp.rand_init(INSTANT_SEED + k, i)``: reproducible, and the same for a
+    pad in any batch (docs/friction_step.md §8, the instant reading). ``vd`` the disc speed ω r [m/s]."""
+    if crossing != 0 and (vd - w) * (vd - v) < v - v:
+        state = wp.rand_init(INSTANT_SEED + k, i)
+        return w + type(v)(wp.randf(state)) * (v - w)
+    return v
+
+
+@wp.func
+def patch_sample(
+    v: Any, vf: Any, fn: Any, r: Any, x: Any, y: Any, omega: Any, mu_scale: Any, slope: Any, decay: Any
+):  # fmt: skip
+    """One patch's terms of the sample sums at velocity ``v`` [m/s], its friction read at ``vf`` [m/s] (v, or an
+    instant of its closing half step: :func:`instant_velocity`), normal force ``fn`` [N], radius ``r`` and position
+    (``x``, ``y``) [m]: its friction force F = F_N f(ω r − vf) [N], F r [N m], v, |v| [m/s], F x, F y [N m]."""
+    f = fn * friction_coefficient(omega * r - vf, mu_scale, slope, decay)
     return SampleSums(
         wp.float64(f), wp.float64(f * r), wp.float64(v), wp.float64(wp.abs(v)), wp.float64(f * x), wp.float64(f * y)
     )
@@ -629,12 +752,15 @@ def record_pad(
     # State in:
     u_in: wp.array[Any],
     v_in: wp.array[Any],
+    w_in: wp.array[Any],
+    crossing: int,
     rec: Any,
 ):
     """Sample k of pad ``pad`` (lane ``lane`` of its block of ``threads``) of the state (``u_in``, ``v_in``) of
     ``model`` (an :data:`~aca_warp.kernels.hf_types.HFModel`) into globals row ``row`` of ``rec`` (an
     :data:`~aca_warp.kernels.hf_types.HFRecorder`, :func:`write_globals`); flags the first faulty patch
-    (:func:`flag_fault`).
+    (:func:`flag_fault`). ``w_in``: the staggered velocities v was closed from (``v_in`` where the state is
+    synchronous), read with ``crossing`` ≠ 0 (:func:`instant_velocity`).
 
     Each of the block's ``threads`` lanes sums the patches lane, lane + threads, … in float64 (:func:`patch_sample`),
     and the block adds the lanes' sums; with one lane (a CPU block) that is the sum in patch order. Watchdog: a
@@ -652,8 +778,9 @@ def record_pad(
     while i < n:
         g = a + i
         v = v_in[g]
+        vf = instant_velocity(v, w_in[g], omega * model.radius[g], crossing, k, i)
         sums += patch_sample(
-            v, model.normal_force[g], model.radius[g], model.x[g], model.y[g], omega, model.pad_mu_scale[pad],
+            v, vf, model.normal_force[g], model.radius[g], model.x[g], model.y[g], omega, model.pad_mu_scale[pad],
             model.pad_slope[pad], model.pad_decay[pad],
         )  # fmt: skip
         if energy_speed2(v, u_in[g], model.k_t[g], model.inv_mass[g]) > bound2 and runaway == n:

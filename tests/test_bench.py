@@ -173,3 +173,15 @@ def test_bench_row_of_a_step_controlled_split_integrator_has_no_traffic_model():
 
     assert bytes_per_step("strang", 10, 20, "fp32") == 10 * (8 + 48) + 20 * 8
     assert bytes_per_step("controlled", 10, 20, "fp32") is None and bytes_per_step("auto", 10, 20, "fp64") is None
+
+
+def test_bench_crossing_option(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """``--crossing mean`` runs strang with the crossing steps averaged, says so in the row and the table, and is
+    refused for another integrator."""
+    out, md = tmp_path / "m.json", tmp_path / "m.md"
+    args = ["bench", "--patches", "10", "--duration", "2e-6", "--precision", "fp64", "--no-reference", "--no-stages"]
+    assert main([*args, "--crossing", "mean", "--json", str(out), "--markdown", str(md)]) == 0
+    (row,) = json.loads(out.read_text())["results"]
+    assert row["crossing"] == "mean" and row["complete"] and "crossings averaged" in md.read_text()
+    assert main([*args, "--integrator", "adaptive", "--crossing", "mean"]) == 2
+    assert "treatment of strang's steps" in capsys.readouterr().err

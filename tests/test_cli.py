@@ -64,6 +64,14 @@ def test_the_precision_follows_the_integrator(scene_file, tmp_path, capsys):
             assert f.attrs["precision"] == precision
 
 
+def test_the_crossing_treatment_is_a_run_option(scene_file, tmp_path, capsys):
+    """``--crossing mean`` is said in the summary line and stored with the run options, so ``rerun`` repeats it."""
+    out = tmp_path / "mean.h5"
+    assert main(["hf", str(scene_file), "-o", str(out), "--no-progress", "--crossing", "mean"]) == 0
+    assert "crossings averaged" in capsys.readouterr().out
+    assert read_run(out)["attrs"]["run_options"]["crossing"] == "mean"
+
+
 def test_only_what_is_asked_is_recorded(scene_file, tmp_path):
     """Without --record-patches no per-patch history (and no per-patch stage) exists."""
     out = tmp_path / "run.h5"
@@ -89,6 +97,7 @@ def test_only_what_is_asked_is_recorded(scene_file, tmp_path):
         (["hf", "{scene}", "-o", "{out}", "--record-patches", "pressure"], "unknown variable"),
         (["hf", "{scene}", "-o", "{out}", "--device", "cuda:7"], "device"),
         (["hf", "{scene}", "-o", "/no/such/dir/run.h5"], "does not exist"),
+        (["hf", "{scene}", "-o", "{out}", "--integrator", "adaptive", "--crossing", "mean"], "treatment of strang"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(argv, message, scene_file, tmp_path, capsys):

@@ -265,7 +265,11 @@ def test_grid_syntax_and_new_integrators(monkeypatch):
     a = wps.parse_setting("adaptive@fp64:tol=1e-4:dt=1e-9")
     assert a == [wps.Setting("adaptive", "fp64", 1e-9, 1e-4)]
     assert math.isinf(a[0].cost(1e-3)) and s[0].cost(1e-3) == pytest.approx(1e5)
-    for bad in ("rk4@fp32", "strang@fp16", "strang@fp32:h=1e-8", "strang@fp32:dt=-1", "strang@fp32:dt=x"):
+    m = wps.parse_setting("strang@fp32:dt=2.5e-7:mean")
+    assert m == [wps.Setting("strang", "fp32", 2.5e-7, crossing="mean")] and m[0].label == "strang@fp32:dt=2.5e-07:mean"
+    assert wps.parse_setting(m[0].label) == m
+    for bad in ("rk4@fp32", "strang@fp16", "strang@fp32:h=1e-8", "strang@fp32:dt=-1", "strang@fp32:dt=x",
+                "adaptive@fp64:tol=1e-4:mean"):  # fmt: skip
         with pytest.raises(ValueError):
             wps.parse_setting(bad)
     assert not any(spec.startswith("lstable") for spec in wps.default_grid(False))

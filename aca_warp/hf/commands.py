@@ -20,6 +20,8 @@ from aca_warp.common.argtypes import (
 )
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.options import (
+    CROSSING_HELP,
+    CROSSINGS,
     DEFAULT_DT,
     DEFAULT_INTEGRATOR,
     DEFAULT_SPLIT_TOLERANCE,
@@ -130,6 +132,7 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "a block's shared memory), on CUDA and on the CPU (the same bits as general there, faster; docs/onchip.md)",
     )
     hf.add_argument("--fast-math", action="store_true", help=FAST_MATH_HELP)
+    hf.add_argument("--crossing", choices=CROSSINGS, default="point", help=CROSSING_HELP)
     hf.add_argument(
         "--growth-dt",
         type=spacing,
@@ -235,6 +238,7 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         accept_unphysical=args.accept_unphysical,
         fast_math=args.fast_math,
         growth_dt=args.growth_dt,
+        crossing=args.crossing,
     )
     result = run_scene(
         scene,
@@ -324,6 +328,7 @@ def _summarise_hf(args: argparse.Namespace, scene: Any, result: Any, duration: f
         f"{args.output}: {len(mu)} samples over {result.sim_time:.4g} s, {result.steps} steps "
         f"({result.dt:.3g} s{_default_step_words(args, scene)}, {args.integrator}, {precision}"
         f"{', fast math' if args.fast_math else ''}"
+        f"{', crossings averaged' if args.crossing != 'point' else ''}"
         f"{growth_words(growth_dt)}), "
         f"mean mu {np.mean(mu):.4f}, "
         f"{rate:.3g} patch-steps/s"
@@ -398,6 +403,7 @@ def _resume_hf(args: argparse.Namespace) -> int:
             ("--overwrite", args.overwrite, False),
             ("--engine", getattr(args, "engine", "auto"), "auto"),
             ("--fast-math", args.fast_math, False),
+            ("--crossing", args.crossing, "point"),
             ("--growth-dt", args.growth_dt, None),
         ),
         "the run",

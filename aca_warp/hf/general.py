@@ -152,7 +152,8 @@ class GeneralEngine:
             self.started = True
             if self.growth is not None:
                 self.growth.launch()
-        self.recorder.launch(s.u, self.solver.velocity(s, self.h), conditional=False)
+        v = self.solver.velocity(s, self.h)
+        self.recorder.launch(s.u, v, conditional=False, staggered=s.v, crossing=self.solver.crossing)
 
     def _capture_pays(self, reps: int, uses_left: int | None) -> bool:
         """Whether to capture the graph of ``reps`` bodies now: always on a GPU; on the CPU only once it will be

@@ -49,6 +49,16 @@ DEFAULT_SPLIT_TOLERANCE = 1.0e-2
 # solve_velocity)
 NEWTON_TOL = {"fp32": 1.0e-6, "fp64": 1.0e-9}
 ENGINES = ("auto", "onchip", "general")
+# strang's treatment of a step whose slip changes sign (docs/friction_step.md §8): "point", Eq. 4 at the midpoint
+# velocity and μ read at the synchronous velocities; "mean", the friction averaged along the step's slip segment
+# and a crossing patch's μ read at an instant of its closing half step
+CROSSINGS = ("point", "mean")
+CROSSING_HELP = (
+    "strang's treatment of the steps on which a patch's slip changes sign: point (default), Eq. 4 at the midpoint "
+    "velocity and mu read at the synchronous velocities; mean, the friction averaged along the step's slip segment "
+    "and a crossing patch's friction read at a random instant of its closing half step, which removes the step "
+    "error of Phi at large steps and costs more per step (docs/friction_step.md, section 8)"
+)
 ONCHIP_INTEGRATORS = ("strang", "adaptive")  # the integrators the on-chip engine implements
 FAST_MATH_HELP = (
     "compile the on-chip strang kernel with CUDA fast math (approximate fp32 division and square root, fast "
@@ -177,6 +187,15 @@ def check_interval(interval: float | None) -> None:
         )
 
 
+def check_crossing(crossing: str, integrator: str) -> None:
+    """SceneError unless ``crossing`` is one of :data:`CROSSINGS`, and ``point`` for an integrator other than
+    ``strang``."""
+    if crossing not in CROSSINGS:
+        raise SceneError(f"unknown crossing treatment {crossing!r}; choose from {', '.join(CROSSINGS)}")
+    if crossing != "point" and integrator != "strang":
+        raise SceneError(f"crossing {crossing!r} is a treatment of strang's steps, not of {integrator}")
+
+
 @dataclass(frozen=True)
 class RunOptions:
     """Options of one HF run (all validated on construction; :class:`SceneError` names the bad one).
@@ -209,6 +228,10 @@ class RunOptions:
             paper's clock) where the options are run as they are (``run_hf``), while ``run_scene``, ``aca-warp hf``
             and a sweep first write out ``strang``'s default, :func:`growth_asked`. Refused for a scene that does
             not grow (:func:`~aca_warp.hf.solver.check_step`).
+        crossing: ``strang``'s treatment of the steps on which a patch's slip changes sign (:data:`CROSSINGS`):
+            ``point`` (the default: Eq. 4 at the midpoint velocity; μ read at the synchronous velocities) or ``mean``
+            (the friction averaged along the step's slip segment, and a crossing patch's friction read at a random
+            instant of its closing half step; docs/friction_step.md §8). ``strang`` only.
     """
 
     duration: float | None = None
@@ -223,12 +246,14 @@ class RunOptions:
     accept_unphysical: bool = False
     fast_math: bool = False
     growth_dt: float | None = None
+    crossing: str = "point"
 
     def __post_init__(self) -> None:
         if self.integrator not in INTEGRATORS:
             raise SceneError(f"unknown integrator {self.integrator!r}; choose from {', '.join(INTEGRATORS)}")
         if self.engine not in ENGINES:
             raise SceneError(f"unknown engine {self.engine!r}; choose from {', '.join(ENGINES)}")
+        check_crossing(self.crossing, self.integrator)
         _positive_or_none("duration", self.duration, " of seconds")
         _positive_or_none("dt", self.dt, " of seconds")
         _positive_or_none("growth_dt", self.growth_dt, " of seconds")

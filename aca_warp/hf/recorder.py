@@ -184,12 +184,19 @@ class Recorder:
         """Whether per-patch histories are recorded at all."""
         return self.want_v or self.want_u
 
-    def launch(self, u: wp.array, v: wp.array, conditional: bool) -> None:
-        """Record one sample of (u, u̇) (conditional: only when the adaptive controller landed on a sample)."""
+    def launch(
+        self, u: wp.array, v: wp.array, conditional: bool, *, staggered: wp.array | None = None, crossing: int = 0
+    ) -> None:
+        """Record one sample of (u, u̇) (conditional: only when the adaptive controller landed on a sample). With
+        ``crossing`` ≠ 0, ``staggered`` holds the staggered velocities [m/s] that v was closed from, and a patch whose
+        slip changed sign between them has its friction read at an instant of that closing half step
+        (:func:`~aca_warp.kernels.physics.instant_velocity`)."""
         m, c, rec = self.model, int(conditional), self.struct
         threads = block_threads(m.device, RECORD_BLOCK)
         launch = self.launcher
-        launch(K.record_globals, [m.pad_count], [m.struct(), rec, c, threads, u, v], block_dim=RECORD_BLOCK)
+        w = v if staggered is None else staggered
+        args = [m.struct(), rec, c, threads, crossing, u, v, w]
+        launch(K.record_globals, [m.pad_count], args, block_dim=RECORD_BLOCK)
         if self.patch_stage:
             launch(K.record_patches, m.patch_count, [rec, c, u, v])
         launch(K.advance_counters, 1, [rec, c])

@@ -42,6 +42,7 @@ from aca_warp.hf.options import (
     NEWTON_TOL,
     STEP_CONTROLLED,
     RunOptions,
+    check_crossing,
     default_step,
 )
 from aca_warp.hf.state import HFState
@@ -262,7 +263,7 @@ class HFSolver:
     ``estimate``: the model's :func:`stable_step`, when the caller has it already (it reads every link of the batch).
     ``tolerance``: the explicit pair's (``adaptive``, ``auto``), ``split_tolerance`` the split step's (``controlled``,
     ``auto``). ``growth_dt``: the spacing of a growing model's events [s] (:func:`event_spacing`), which the engines
-    read.
+    read. ``crossing``: ``strang``'s treatment of steps that cross zero slip (:data:`~aca_warp.hf.options.CROSSINGS`).
     """
 
     def __init__(
@@ -276,9 +277,12 @@ class HFSolver:
         split_tolerance: float = DEFAULT_SPLIT_TOLERANCE,
         estimate: StepEstimate | None = None,
         growth_dt: float | None = None,
+        crossing: str = "point",
     ) -> None:
         if integrator not in INTEGRATORS:
             raise SceneError(f"unknown integrator {integrator!r}; choose from {', '.join(INTEGRATORS)}")
+        check_crossing(crossing, integrator)
+        self.crossing = int(crossing == "mean")  # the kernels' flag
         self.model = model
         self.integrator = integrator
         self.estimate = stable_step(model) if estimate is None else estimate
@@ -322,6 +326,7 @@ class HFSolver:
             split_tolerance=options.split_tolerance,
             estimate=estimate,
             growth_dt=options.growth_dt,
+            crossing=options.crossing,
         )
 
     def _launch(self, kernel: Any, inputs: list, dim: int | None = None) -> None:
@@ -344,7 +349,7 @@ class HFSolver:
             self._launch(K.euler_velocity, [self.kernel_model, h, self.newton_tol, implicit, state.u, state.v])
             self._launch(K.drift, [h, state.v, state.u])
         elif self.integrator == "strang":
-            args = [self.kernel_model, h, self.newton_tol, int(first), state.force, state.u, state.v]
+            args = [self.kernel_model, h, self.newton_tol, int(first), self.crossing, state.force, state.u, state.v]
             self._launch(K.strang_advance, args)
             self.prepare(state)
         else:
@@ -357,12 +362,13 @@ class HFSolver:
         if self._v_sync is None:
             self._v_sync = wp.zeros_like(state.v)
         self._launch(
-            K.strang_close, [self.kernel_model, self.T(dt), self.newton_tol, state.force, state.v, self._v_sync]
+            K.strang_close,
+            [self.kernel_model, self.T(dt), self.newton_tol, self.crossing, state.force, state.v, self._v_sync],
         )
         return self._v_sync
 
     def finish(self, state: HFState, dt: float) -> None:
         """Bring a staggered strang state back to synchronous velocities (no-op for other schemes)."""
         if self.integrator == "strang":
-            args = [self.kernel_model, self.T(dt), self.newton_tol, state.force, state.v, state.v]
+            args = [self.kernel_model, self.T(dt), self.newton_tol, self.crossing, state.force, state.v, state.v]
             self._launch(K.strang_close, args)

@@ -15,9 +15,11 @@ groups of LF snapshots; their LF runs are made once in ``OUT/lf``). Every pad of
 same per-patch window by the validation's own per-pad analysis, whether its detector calls it saturated or not,
 so that every setting is measured on the same samples.
 
-A **setting** is ``INTEGRATOR@PRECISIONS[:dt=STEPS][:tol=TOLERANCES][:growth_dt=SPACINGS][:fast]`` (a product), e.g.
-``strang@fp32:dt=1e-8,5e-7``, ``adaptive@fp64:tol=1e-4``, ``implicit-friction@fp32,fp64:dt=1e-7``,
+A **setting** is ``INTEGRATOR@PRECISIONS[:dt=STEPS][:tol=TOLERANCES][:growth_dt=SPACINGS][:fast][:mean]`` (a
+product), e.g. ``strang@fp32:dt=1e-8,5e-7``, ``adaptive@fp64:tol=1e-4``, ``implicit-friction@fp32,fp64:dt=1e-7``,
 ``strang@fp32:dt=1e-7:fast`` (the on-chip kernel compiled with CUDA fast math: ``aca-warp hf --fast-math``),
+``strang@fp32:dt=2.5e-7:mean`` (strang's steps that cross zero slip averaged along their slip segment, and μ read at
+an instant of a crossing patch's closing half step: ``aca-warp hf --crossing mean``),
 ``strang@fp32:dt=1e-7:growth_dt=1e-6`` (a growing pad's growth events every 1 µs, the increment scaled to keep the
 growth rate: ``aca-warp hf --growth-dt``; refused in regimes that do not grow); without
 dt or tol the integrator's defaults (``tol``: the tolerance of ``adaptive``, the split tolerance of ``controlled``
@@ -112,7 +114,8 @@ PROGRESS_S = 30.0  # s of wall time between progress lines of one run
 class Setting:
     """One point of the grid: integrator, precision, fixed step [s] and/or tolerance (None: the defaults), whether
     the on-chip strang kernel is compiled with CUDA fast math (``RunOptions.fast_math``), and the spacing of a
-    growing pad's growth events [s] (``RunOptions.growth_dt``; None: the scenes' growth interval)."""
+    growing pad's growth events [s] (``RunOptions.growth_dt``; None: the scenes' growth interval) and strang's
+    treatment of steps that cross zero slip (``RunOptions.crossing``)."""
 
     integrator: str
     precision: str
@@ -120,14 +123,16 @@ class Setting:
     tolerance: float | None = None
     fast_math: bool = False
     growth_dt: float | None = None
+    crossing: str = "point"
 
     @property
     def label(self) -> str:
-        """``integrator@precision[:dt=…][:tol=…][:growth_dt=…][:fast]`` (parses back to this setting)."""
+        """``integrator@precision[:dt=…][:tol=…][:growth_dt=…][:fast][:mean]`` (parses back to this setting)."""
         parts = [f"dt={self.dt:g}"] if self.dt is not None else []
         parts += [f"tol={self.tolerance:g}"] if self.tolerance is not None else []
         parts += [f"growth_dt={self.growth_dt:g}"] if self.growth_dt is not None else []
         parts += ["fast"] if self.fast_math else []
+        parts += [self.crossing] if self.crossing != "point" else []
         return ":".join([f"{self.integrator}@{self.precision}", *parts])
 
     def cost(self, duration: float) -> float:
@@ -137,7 +142,7 @@ class Setting:
 
 
 def parse_setting(spec: str) -> list[Setting]:
-    """The settings of one spec ``NAME@P1[,P2][:dt=V[,V…]][:tol=V[,V…]][:growth_dt=V[,V…]][:fast]`` (module
+    """The settings of one spec ``NAME@P1[,P2][:dt=V[,V…]][:tol=V[,V…]][:growth_dt=V[,V…]][:fast][:mean]`` (module
     docstring); ValueError names what is wrong."""
     head, *params = spec.split(":")
     name, _, precs = head.partition("@")
@@ -152,10 +157,15 @@ def parse_setting(spec: str) -> list[Setting]:
     unfit = [why for p in precisions if (why := fast_math_unfit(name, p))] if fast else []
     if unfit:
         raise ValueError(f"fast math in {spec!r}: {unfit[0]} (strang@fp32:…:fast)")
-    for p in (p for p in params if p != "fast"):
+    crossing = "mean" if "mean" in params else "point"
+    if crossing != "point" and name != "strang":
+        raise ValueError(f"{crossing!r} in {spec!r}: a treatment of strang's steps (strang@…:mean)")
+    for p in (p for p in params if p not in ("fast", "mean")):
         key, _, vals = p.partition("=")
         if key not in axes or not vals:
-            raise ValueError(f"bad parameter {p!r} in {spec!r}: use dt=V[,V…], tol=V[,V…], growth_dt=V[,V…] or fast")
+            raise ValueError(
+                f"bad parameter {p!r} in {spec!r}: use dt=V[,V…], tol=V[,V…], growth_dt=V[,V…], fast or mean"
+            )
         try:
             nums = [float(v) for v in vals.split(",")]
         except ValueError:
@@ -164,7 +174,7 @@ def parse_setting(spec: str) -> list[Setting]:
             raise ValueError(f"{key} must be positive in {spec!r}")
         axes[key] = list(nums)
     combos = itertools.product(precisions, axes["dt"], axes["tol"], axes["growth_dt"])
-    return [Setting(name, pr, dt, tol, fast, growth) for pr, dt, tol, growth in combos]
+    return [Setting(name, pr, dt, tol, fast, growth, crossing) for pr, dt, tol, growth in combos]
 
 
 def grid(specs: list[str], integrators: list[str] | None, precisions: list[str] | None) -> list[Setting]:
@@ -273,7 +283,7 @@ def run_setting(prep: Any, cfg: Any, setting: Setting, role: str, names: list[st
         res = run_engine(
             model, state, engine=cfg.engine, duration=prep.plan.duration, integrator=setting.integrator,
             dt=setting.dt, record=prep.plan.record(cfg), sink=sink, force=setting.dt is not None,
-            fast_math=setting.fast_math, growth_dt=setting.growth_dt,
+            fast_math=setting.fast_math, growth_dt=setting.growth_dt, crossing=setting.crossing,
             **{tolerance_keyword(setting.integrator): setting.tolerance},
         )  # fmt: skip
     except (SceneError, ValueError) as e:  # a setting the integrator refuses (e.g. an fp32 tolerance too tight)
@@ -459,7 +469,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--grid",
         nargs="+",
         metavar="SPEC",
-        help="settings INTEGRATOR@P1[,P2][:dt=V,…][:tol=V,…][:growth_dt=V,…][:fast] "
+        help="settings INTEGRATOR@P1[,P2][:dt=V,…][:tol=V,…][:growth_dt=V,…][:fast][:mean] "
         f"(default: {' '.join(default_grid(False))}; --quick: {' '.join(default_grid(True))})",
     )
     ap.add_argument("--integrators", nargs="+", choices=INTEGRATORS, help="only these integrators of the grid")

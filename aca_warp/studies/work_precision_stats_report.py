@@ -47,7 +47,8 @@ def machine_text(doc: dict[str, Any]) -> str:
 def _family(setting: dict[str, Any]) -> str:
     fast = " fast math" if setting.get("fast_math") else ""
     growth = f" events every {setting['growth_dt']:g} s" if setting.get("growth_dt") is not None else ""
-    return f"{setting['integrator']}@{setting['precision']}{fast}{growth}"
+    crossing = " crossings averaged" if setting.get("crossing", "point") != "point" else ""
+    return f"{setting['integrator']}@{setting['precision']}{fast}{growth}{crossing}"
 
 
 def _marker(family: str, families: list[str]) -> str:
