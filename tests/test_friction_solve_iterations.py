@@ -26,7 +26,9 @@ def _substep(p: wp.array2d[Any], h: Any, law: wp.array[Any], out: wp.array[Any])
     """friction_substep per patch i of the rows of ``p``: v, force, mass, damping, normal force, disc speed;
     ``law`` the friction law and tolerance (mu_scale, slope, decay, tol)."""
     i = wp.tid()
-    out[i] = friction_substep(p[0, i], h, p[2, i], p[3, i], p[4, i], p[1, i], p[5, i], law[0], law[1], law[2], law[3])
+    out[i] = friction_substep(
+        p[0, i], h, p[2, i], p[3, i], p[4, i], p[1, i], p[5, i], law[0], law[1], law[2], law[3], 0
+    )
 
 
 def _patches(n: int = 4000, seed: int = 3) -> dict[str, np.ndarray]:

@@ -29,7 +29,18 @@ def eq4(s: float) -> float:
 @wp.kernel(enable_backward=False, module="unique")
 def _solve_kernel(p: wp.array(dtype=wp.float64), mu_scale: wp.float64, out: wp.array(dtype=wp.float64)):
     out[0] = solve_velocity(
-        p[0], p[1], p[2], p[3], p[4], mu_scale, wp.float64(SLOPE), wp.float64(DECAY), wp.float64(1e-9)
+        p[0],
+        p[1],
+        p[2],
+        p[3],
+        p[4],
+        mu_scale,
+        wp.float64(SLOPE),
+        wp.float64(DECAY),
+        wp.float64(1e-9),
+        0,
+        wp.float64(0.0),
+        wp.float64(0.0),
     )
 
 
@@ -54,7 +65,7 @@ def test_solve_breaks_the_newton_two_cycle() -> None:
 def _hold_kernel(v: wp.array(dtype=wp.float64), h: wp.float64, p: wp.array(dtype=wp.float64), mu_scale: wp.float64):
     for k in range(v.shape[0] - 1):
         v[k + 1] = friction_substep(
-            v[k], h, p[0], p[1], p[2], p[3], p[4], mu_scale, wp.float64(SLOPE), wp.float64(DECAY), wp.float64(1e-12)
+            v[k], h, p[0], p[1], p[2], p[3], p[4], mu_scale, wp.float64(SLOPE), wp.float64(DECAY), wp.float64(1e-12), 0
         )
 
 

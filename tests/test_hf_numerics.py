@@ -371,7 +371,7 @@ def _midpoint_kernel_for(T):
         i = wp.tid()
         v_out[i] = friction_substep(
             v_in[i], dt, T(37.5 * 5e-8), T(0.0), T(1.0), T(0.0), T(10.0), T(0.8 / 3.141592653589793), T(200.0),
-            T(0.25), tol,
+            T(0.25), tol, 0,
         )  # fmt: skip
 
     return kernel
@@ -396,7 +396,7 @@ def _substep_kernel(
     # M/π comes in as an argument: a float literal in a kernel is rounded to fp32 first
     v_out[i] = friction_substep(
         v_in[i], dt[i], m[i], c[i], fn[i], force[i], vd[i], mu_scale, wp.float64(200.0), wp.float64(0.25),
-        wp.float64(1e-12),
+        wp.float64(1e-12), 0,
     )  # fmt: skip
 
 
