@@ -273,20 +273,9 @@ def patch_force(fs: Any, v: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope:
 
 @wp.func
 def strang_velocity(
-    first: int,
-    w: Any,
-    fs: Any,
-    dt: Any,
-    im: Any,
-    c: Any,
-    fn: Any,
-    vd: Any,
-    mu_scale: Any,
-    slope: Any,
-    decay: Any,
-    tol: Any,
-    crossing: int,
-):
+    first: int, w: Any, fs: Any, dt: Any, im: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any,
+    tol: Any, crossing: int,
+):  # fmt: skip
     """Strang's velocity update of one step of a patch, before its drift u ← u + dt v; ``fs`` the cached F_s(uₙ)
     [N], ``im`` = 1/m [1/kg]. The spring force is frozen inside the friction sub-step (:func:`friction_substep`, the
     "forced" splitting: kick and friction at fixed u against the drift). ``first`` ≠ 0, the opening half step from
@@ -302,19 +291,9 @@ def strang_velocity(
 
 @wp.func
 def strang_close_velocity(
-    w: Any,
-    fs: Any,
-    dt: Any,
-    im: Any,
-    c: Any,
-    fn: Any,
-    vd: Any,
-    mu_scale: Any,
-    slope: Any,
-    decay: Any,
-    tol: Any,
+    w: Any, fs: Any, dt: Any, im: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any,
     crossing: int,
-):
+):  # fmt: skip
     """The synchronous velocity of a patch from its staggered ``w`` and F_s(uₙ) ``fs``: the friction sub-step over
     dt/2 with F_s(uₙ) frozen inside (``crossing``: :func:`friction_substep`)."""
     h = dt * type(dt)(0.5)
