@@ -161,15 +161,18 @@ def load_modules(device: Any) -> float:
     return time.perf_counter() - t0
 
 
-def _stepping_time(model: Any, state: Any, integrator: str, dt: float, steps: int) -> float | None:
-    """Wall time of ``steps`` bare steps (no recording) replayed from a captured graph [s]; None for adaptive."""
+def _stepping_time(
+    model: Any, state: Any, integrator: str, dt: float, steps: int, crossing: str = "point"
+) -> float | None:
+    """Wall time of ``steps`` bare steps (no recording) replayed from a captured graph [s]; None for adaptive.
+    ``crossing``: strang's treatment of steps that cross zero slip."""
     import warp as wp
 
     from aca_warp.hf.solver import HFSolver
 
     if integrator == "adaptive":
         return None
-    solver = HFSolver(model, integrator, dt, force=True)
+    solver = HFSolver(model, integrator, dt, force=True, crossing=crossing)
     dev = model.device
     if integrator == "strang":
         solver.prepare(state)
@@ -231,7 +234,7 @@ def run_case(
     n = model.patch_count
     onchip = engine == "onchip"
     bare = stages and not onchip  # the on-chip step has no bare-step graph to time
-    stepping = _stepping_time(model, initial_state(model), integrator, res.dt, res.steps) if bare else None
+    stepping = _stepping_time(model, initial_state(model), integrator, res.dt, res.steps, crossing) if bare else None
     row.update(
         {
             "device": str(model.device),
@@ -375,7 +378,7 @@ def run_bench(
 
     from aca_warp.common.devices import get_device
     from aca_warp.common.files import machine
-    from aca_warp.hf.options import step_asked
+    from aca_warp.hf.options import check_crossing, step_asked
     from aca_warp.scene import Record
 
     sc = bench_scene(scene, patches, sample_dt)
@@ -385,6 +388,8 @@ def run_bench(
     Record(sample_dt=sample_dt).check_duration(
         duration, option("sample_dt", "--sample-dt"), option("duration", "--duration")
     )
+    for integrator in integrators:  # before the first case, not after some have run
+        check_crossing(crossing, integrator)
     if "fast" in maths and not any(c[4] for c in _cases((1,), precisions, integrators, engines, maths)):
         raise SceneError(
             "fast math compiles the on-chip strang kernel in fp32 only: add fp32, strang and auto or onchip"

@@ -116,37 +116,6 @@ def spring_forces(
     force_out[i] = spring_force(i, u_in, model)
 
 
-@wp.kernel
-def strang_advance(
-    model: Any,
-    # Control:
-    dt: Any,
-    tol: Any,
-    first: int,
-    crossing: int,
-    # State in:
-    force_in: wp.array[Any],
-    # State in/out:
-    u_io: wp.array[Any],
-    v_io: wp.array[Any],
-):
-    """One Strang step of every patch: the velocity update (:func:`~aca_warp.kernels.physics.strang_velocity`; the
-    opening half step from a synchronous state when ``first`` ≠ 0, else a merged step; ``crossing``: the treatment
-    of steps that cross zero slip), then the drift u ← u + dt v.
-
-    Afterwards ``v_io`` holds the staggered velocity w; follow with :func:`spring_forces` at the new u.
-    """
-    i = wp.tid()
-    p = model.patch_pad[i]
-    v = strang_velocity(
-        first, v_io[i], force_in[i], dt, model.inv_mass[i], model.damping[i], model.normal_force[i],
-        model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
-        crossing,
-    )  # fmt: skip
-    v_io[i] = v
-    u_io[i] = u_io[i] + dt * v
-
-
 @wp.func
 def patch_close_velocity(i: int, p: int, w: Any, force: Any, dt: Any, model: Any, tol: Any, crossing: int):
     """Patch i's (pad p) synchronous velocity [m/s] from its staggered w and F_s(uₙ) ``force`` [N] after a step
@@ -158,25 +127,6 @@ def patch_close_velocity(i: int, p: int, w: Any, force: Any, dt: Any, model: Any
     )  # fmt: skip
 
 
-@wp.kernel
-def strang_close(
-    model: Any,
-    # Control:
-    dt: Any,
-    tol: Any,
-    crossing: int,
-    # State in:
-    force_in: wp.array[Any],
-    v_in: wp.array[Any],
-    # Out:
-    v_out: wp.array[Any],
-):
-    """Synchronous velocity from the staggered w and F_s(uₙ) (:func:`~aca_warp.kernels.physics.strang_close_velocity`;
-    may be in place)."""
-    i = wp.tid()
-    v_out[i] = patch_close_velocity(i, model.patch_pad[i], v_in[i], force_in[i], dt, model, tol, crossing)
-
-
 # ---------------------------------------------------------------------------------------------- recording
 
 
@@ -186,27 +136,85 @@ def sample_flagged(rec: Any, conditional: int) -> bool:
     return conditional == 0 or rec.counters[RECORD_FLAG] != 0
 
 
-@wp.kernel
-def record_globals(
-    model: Any,
-    rec: Any,
-    # Control:
-    conditional: int,
-    threads: int,
-    crossing: int,
-    # State in:
-    u_in: wp.array[Any],
-    v_in: wp.array[Any],
-    w_in: wp.array[Any],
-):
-    """Per pad (one block, ``launch_tiled``): the sample of the recorder's sample index into its next globals row
-    (:func:`record_pad`; ``w_in`` the staggered velocities ``v_in`` was closed from, read with ``crossing`` ≠ 0),
-    when one is taken (:func:`sample_flagged`)."""
-    pad, lane = wp.tid()
-    if not sample_flagged(rec, conditional):
-        return
-    k = rec.counters[SAMPLE_INDEX]
-    record_pad(pad, lane, threads, rec.counters[GLOBAL_ROWS], k, model, u_in, v_in, w_in, crossing, rec)
+# ------------------------------------------------------------------------- strang's steps and the sample they close
+
+
+def _strang_kernels(crossing: int, module: str | None) -> tuple[wp.Kernel, wp.Kernel, wp.Kernel]:
+    """``strang_advance``, ``strang_close`` and ``record_globals`` with strang's treatment of steps that cross zero
+    slip compiled in (``crossing`` 1: ``RunOptions.crossing`` "mean", :func:`~aca_warp.kernels.physics.friction_substep`
+    and :func:`~aca_warp.kernels.physics.instant_velocity`; 0: "point"), so that the default kernels carry none of
+    the other treatment's code; ``module``: the Warp module (None: this one; "unique": a module of their own,
+    compiled only when a run asks for it)."""
+    CROSSING = wp.constant(crossing)
+
+    @wp.kernel(module=module)
+    def strang_advance(
+        model: Any,
+        # Control:
+        dt: Any,
+        tol: Any,
+        first: int,
+        # State in:
+        force_in: wp.array[Any],
+        # State in/out:
+        u_io: wp.array[Any],
+        v_io: wp.array[Any],
+    ):
+        """One Strang step of every patch: the velocity update (:func:`~aca_warp.kernels.physics.strang_velocity`; the
+        opening half step from a synchronous state when ``first`` ≠ 0, else a merged step), then the drift
+        u ← u + dt v.
+
+        Afterwards ``v_io`` holds the staggered velocity w; follow with :func:`spring_forces` at the new u.
+        """
+        i = wp.tid()
+        p = model.patch_pad[i]
+        v = strang_velocity(
+            first, v_io[i], force_in[i], dt, model.inv_mass[i], model.damping[i], model.normal_force[i],
+            model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
+            CROSSING,
+        )  # fmt: skip
+        v_io[i] = v
+        u_io[i] = u_io[i] + dt * v
+
+    @wp.kernel(module=module)
+    def strang_close(
+        model: Any,
+        # Control:
+        dt: Any,
+        tol: Any,
+        # State in:
+        force_in: wp.array[Any],
+        v_in: wp.array[Any],
+        # Out:
+        v_out: wp.array[Any],
+    ):
+        """Synchronous velocity from the staggered w and F_s(uₙ)
+        (:func:`~aca_warp.kernels.physics.strang_close_velocity`; may be in place)."""
+        i = wp.tid()
+        v_out[i] = patch_close_velocity(i, model.patch_pad[i], v_in[i], force_in[i], dt, model, tol, CROSSING)
+
+    @wp.kernel(module=module)
+    def record_globals(
+        model: Any,
+        rec: Any,
+        # Control:
+        conditional: int,
+        threads: int,
+        # State in:
+        u_in: wp.array[Any],
+        v_in: wp.array[Any],
+        w_in: wp.array[Any],
+    ):
+        """Per pad (one block, ``launch_tiled``): the sample of the recorder's sample index into its next globals row
+        (:func:`record_pad`; ``w_in`` the staggered velocities ``v_in`` was closed from, read by the crossing
+        treatment), when one is taken (:func:`sample_flagged`)."""
+        pad, lane = wp.tid()
+        if not sample_flagged(rec, conditional):
+            return
+        k = rec.counters[SAMPLE_INDEX]
+        record_pad(pad, lane, threads, rec.counters[GLOBAL_ROWS], k, model, u_in, v_in, w_in, CROSSING, rec)
+
+    return strang_advance, strang_close, record_globals
 
 
 @wp.kernel
@@ -290,7 +298,11 @@ def contact_flat(
 
 # ---------------------------------------------------------------------------------------------- overloads
 
+strang_advance, strang_close, record_globals = _strang_kernels(0, None)
+# per crossing treatment (RunOptions.crossing: 0 point, 1 mean): strang_advance, strang_close, record_globals
+STRANG_KERNELS = {0: (strang_advance, strang_close, record_globals), 1: _strang_kernels(1, "unique")}
+
 precision_overloads(
-    euler_velocity, drift, spring_forces, strang_advance, strang_close, record_globals, record_patches,
-    advance_counters, grow_patches, contact_flat, model=HFModel, rec=HFRecorder,
+    euler_velocity, drift, spring_forces, *STRANG_KERNELS[0], *STRANG_KERNELS[1], record_patches, advance_counters,
+    grow_patches, contact_flat, model=HFModel, rec=HFRecorder,
 )  # fmt: skip

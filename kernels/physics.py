@@ -95,8 +95,9 @@ def segment_pair(vp: Any, s0: Any, g0: Any, mu_scale: Any, slope: Any, decay: An
     """The law of a step that crosses zero slip, at midpoint slip ``vp`` [m/s] of a step that starts at slip ``s0``
     (G(s0) = ``g0``, :func:`friction_integral`): the mean of f over the slips from s0 to s1 = 2 vp − s0 and its
     derivative in vp [1, s/m] (the averaged-vector-field form of the midpoint); :func:`friction_pair` at vp where
-    the segment is shorter than :data:`SEGMENT_TOL` × ``tol`` m/s (1e-3 m/s in fp32, 1e-6 m/s in fp64: where
-    the difference of G would lose more to rounding than the midpoint's f misses the mean by)."""
+    the segment is shorter than :data:`SEGMENT_TOL` × ``tol`` m/s (1e-3 m/s in fp32, 1e-6 m/s in fp64), which
+    misses the mean there by at most f″ Δs²/24 (5e-4, 5e-10); the rounding of G's difference, 2ε|G|/Δs, would
+    overtake that only below a few 1e-4 m/s in fp32 (docs/friction_step.md §8.1)."""
     ds = type(vp)(2.0) * (vp - s0)
     if wp.abs(ds) <= type(vp)(SEGMENT_TOL) * tol:
         return friction_pair(vp, mu_scale, slope, decay)

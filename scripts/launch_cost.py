@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     state = initial_state(model)
     solver = HFSolver.for_run(model, RunOptions(duration=1e-5, integrator="strang"))
     km, n, h = solver.kernel_model, model.patch_count, solver.T(solver.dt)
-    step = [(K.strang_advance, n, [km, h, solver.newton_tol, 0, solver.crossing, state.force, state.u, state.v])]
+    step = [(K.strang_advance, n, [km, h, solver.newton_tol, 0, state.force, state.u, state.v])]
     step.append((K.spring_forces, n, [km, state.u, state.force]))
     cases = {"launch": [(K.spring_forces, 1, [km, state.u, state.force])], "strang step": step}
     launcher = Launcher(model.device)

@@ -183,5 +183,9 @@ def test_bench_crossing_option(tmp_path: Path, capsys: pytest.CaptureFixture) ->
     assert main([*args, "--crossing", "mean", "--json", str(out), "--markdown", str(md)]) == 0
     (row,) = json.loads(out.read_text())["results"]
     assert row["crossing"] == "mean" and row["complete"] and "crossings averaged" in md.read_text()
-    assert main([*args, "--integrator", "adaptive", "--crossing", "mean"]) == 2
-    assert "treatment of strang's steps" in capsys.readouterr().err
+    capsys.readouterr()
+    both = [*args, "--integrator", "strang", "adaptive", "--crossing", "mean", "--json", str(tmp_path / "x.json")]
+    assert main(both) == 2  # refused before the strang case runs: no line of a timed case, no file
+    captured = capsys.readouterr()
+    assert "treatment of strang's steps" in captured.err and "pads=" not in captured.out
+    assert not (tmp_path / "x.json").exists()

@@ -11,7 +11,8 @@ import dataclasses
 import numpy as np
 import pytest
 import warp as wp
-from aca_warp.kernels.physics import INSTANT_SEED, friction_integral
+from aca_warp.kernels.physics import INSTANT_SEED, friction_integral, friction_pair, segment_pair
+from scipy.integrate import quad
 
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.loop import EngineTuning, run_hf
@@ -130,7 +131,8 @@ def _integral(s: wp.array(dtype=wp.float64), law: wp.vec3d, out: wp.array(dtype=
 
 
 def test_friction_integral_is_the_prototypes_and_its_derivative_is_eq4(scenes):
-    """The kernels' closed-form G = ∫ f agrees with the prototype's and its central differences give Eq. 4."""
+    """The kernels' closed-form G = ∫ f agrees with the prototype's, with quadrature of Eq. 4 to its stated
+    O(decay²/slope³) (≈ 4e-9 m/s), and its central differences give Eq. 4."""
     pads = fs.load_pads(scenes[:1])
     s = np.concatenate([np.linspace(-12.0, 12.0, 2401), [-1e-5, 0.0, 3e-4, 1e-3, 4.0e-3]])
     law = wp.vec3d(pads.M / np.pi, pads.slope, pads.decay)
@@ -141,6 +143,55 @@ def test_friction_integral_is_the_prototypes_and_its_derivative_is_eq4(scenes):
     g = lambda x: fs.friction_integral(pads, x)  # noqa: E731
     x = np.linspace(-5.0, 5.0, 101)
     np.testing.assert_allclose((g(x + e) - g(x - e)) / (2 * e), fs.friction(pads, x), rtol=0, atol=1e-7)
+    ends = np.array([-7.0, -0.3, 0.004, 0.05, 2.0, 12.0])
+    g_end = wp.zeros(ends.size, dtype=wp.float64, device="cpu")
+    wp.launch(_integral, dim=ends.size, inputs=[wp.array(ends, dtype=wp.float64, device="cpu"), law, g_end],
+              device="cpu")  # fmt: skip
+    f = lambda x: float(fs.friction(pads, np.array([x]))[0])  # noqa: E731
+    exact = [quad(f, 0.0, end, points=[0.0], limit=200)[0] for end in ends]
+    np.testing.assert_allclose(g_end.numpy(), exact, rtol=0, atol=1e-8)
+
+
+@wp.kernel
+def _segment(vp: wp.array(dtype=wp.float64), s0: wp.float64, law: wp.vec3d, tol: wp.float64,
+             out: wp.array2d(dtype=wp.float64)):  # fmt: skip
+    i = wp.tid()
+    g0 = friction_integral(s0, law[0], law[1], law[2])
+    f, df = segment_pair(vp[i], s0, g0, law[0], law[1], law[2], tol)
+    p, dp = friction_pair(vp[i], law[0], law[1], law[2])
+    out[i, 0] = f
+    out[i, 1] = df
+    out[i, 2] = p
+
+
+def test_segment_law_and_its_short_segment_fallback(scenes):
+    """The segment law is the mean of Eq. 4 over [s0, 2 vp − s0] with its derivative in vp; a segment shorter than
+    10³ × the solve's tolerance takes Eq. 4 at the midpoint instead."""
+    pads = fs.load_pads(scenes[:1])
+    s0, tol = -0.01, 1e-9  # fp64: segments below 1e-6 m/s fall back
+    vp = np.array([s0 + 0.02, s0 + 0.2, s0 + 1e-3, s0 + 4e-7, s0 - 2e-7])
+    law = wp.vec3d(pads.M / np.pi, pads.slope, pads.decay)
+    out = wp.zeros((vp.size, 3), dtype=wp.float64, device="cpu")
+    wp.launch(_segment, dim=vp.size, inputs=[wp.array(vp, dtype=wp.float64, device="cpu"), s0, law, tol, out],
+              device="cpu")  # fmt: skip
+    r = out.numpy()
+    f = lambda x: float(fs.friction(pads, np.array([x]))[0])  # noqa: E731
+    for k in range(3):
+        s1 = 2 * vp[k] - s0
+        mean = quad(f, s0, s1, points=[0.0], limit=200)[0] / (s1 - s0)
+        assert r[k, 0] == pytest.approx(mean, abs=1e-7)
+        assert r[k, 1] == pytest.approx(2 * (f(s1) - r[k, 0]) / (s1 - s0), rel=1e-9)
+    np.testing.assert_array_equal(r[3:, 0], r[3:, 2])  # |Δs| = 8e-7 and 4e-7 m/s: the midpoint value
+
+
+def test_mean_in_fp32_follows_fp64(scenes):
+    """The fp32 kernels take the same treatment: over 20 µs of crossing-rich motion their Σ|u̇| and μ stay within
+    fp32's reach of the fp64 run's."""
+    _, v0 = _start(scenes)
+    g64, _ = _package(scenes, v0, "mean")
+    g32, _ = _package(scenes, v0, "mean", precision="fp32")
+    np.testing.assert_allclose(g32[:, :, 4], g64[:, :, 4], rtol=1e-4)
+    np.testing.assert_allclose(g32[:, :, 0], g64[:, :, 0], rtol=0, atol=1e-4)
 
 
 def test_crossing_refused_where_it_does_not_apply():

@@ -106,3 +106,17 @@ def test_rerun_names_what_it_applies_and_keeps_the_size_limits(tmp_path, capsys)
         else:
             with h5py.File(new, "r") as f:
                 assert f.attrs["complete"] and json.loads(f.attrs["run_options"])["watchdog_factor"] is None
+
+
+def test_rerun_repeats_the_crossing_treatment(tmp_path, capsys):
+    """A run with strang's crossing treatment (``--crossing mean``) is repeated with it, bit for bit."""
+    src = load_scene("hf1").patches
+    keep = np.flatnonzero((np.abs(src.x) < 4e-3) & (np.abs(src.y - 0.13) < 4e-3))
+    write_patch_file(tmp_path / "patches.h5", type(src)(src.x[keep], src.y[keep], src.area[keep], src.height[keep]))
+    (tmp_path / "s.toml").write_text(SCENE)
+    run, new = tmp_path / "run.h5", tmp_path / "new.h5"
+    assert main(["hf", str(tmp_path / "s.toml"), "-o", str(run), "--no-progress", "--crossing", "mean"]) == 0
+    assert read_settings(run).options.crossing == "mean"
+    assert main(["rerun", str(run), "-o", str(new), "--no-progress"]) == 0
+    a, b = datasets(run), datasets(new)
+    assert all(a[k].tobytes() == b[k].tobytes() for k in a)

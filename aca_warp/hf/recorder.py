@@ -195,8 +195,8 @@ class Recorder:
         threads = block_threads(m.device, RECORD_BLOCK)
         launch = self.launcher
         w = v if staggered is None else staggered
-        args = [m.struct(), rec, c, threads, crossing, u, v, w]
-        launch(K.record_globals, [m.pad_count], args, block_dim=RECORD_BLOCK)
+        record = K.STRANG_KERNELS[crossing][2]
+        launch(record, [m.pad_count], [m.struct(), rec, c, threads, u, v, w], block_dim=RECORD_BLOCK)
         if self.patch_stage:
             launch(K.record_patches, m.patch_count, [rec, c, u, v])
         launch(K.advance_counters, 1, [rec, c])

@@ -283,6 +283,7 @@ class HFSolver:
             raise SceneError(f"unknown integrator {integrator!r}; choose from {', '.join(INTEGRATORS)}")
         check_crossing(crossing, integrator)
         self.crossing = int(crossing == "mean")  # the kernels' flag
+        self._advance, self._close, _ = K.STRANG_KERNELS[self.crossing]
         self.model = model
         self.integrator = integrator
         self.estimate = stable_step(model) if estimate is None else estimate
@@ -349,8 +350,8 @@ class HFSolver:
             self._launch(K.euler_velocity, [self.kernel_model, h, self.newton_tol, implicit, state.u, state.v])
             self._launch(K.drift, [h, state.v, state.u])
         elif self.integrator == "strang":
-            args = [self.kernel_model, h, self.newton_tol, int(first), self.crossing, state.force, state.u, state.v]
-            self._launch(K.strang_advance, args)
+            args = [self.kernel_model, h, self.newton_tol, int(first), state.force, state.u, state.v]
+            self._launch(self._advance, args)
             self.prepare(state)
         else:
             raise SceneError(f"the {self.integrator} integrator steps each pad on its own; use run_hf")
@@ -361,14 +362,11 @@ class HFSolver:
             return state.v
         if self._v_sync is None:
             self._v_sync = wp.zeros_like(state.v)
-        self._launch(
-            K.strang_close,
-            [self.kernel_model, self.T(dt), self.newton_tol, self.crossing, state.force, state.v, self._v_sync],
-        )
+        self._launch(self._close, [self.kernel_model, self.T(dt), self.newton_tol, state.force, state.v, self._v_sync])
         return self._v_sync
 
     def finish(self, state: HFState, dt: float) -> None:
         """Bring a staggered strang state back to synchronous velocities (no-op for other schemes)."""
         if self.integrator == "strang":
-            args = [self.kernel_model, self.T(dt), self.newton_tol, self.crossing, state.force, state.v, state.v]
-            self._launch(K.strang_close, args)
+            args = [self.kernel_model, self.T(dt), self.newton_tol, state.force, state.v, state.v]
+            self._launch(self._close, args)
