@@ -39,12 +39,23 @@ def _start(scenes: list) -> tuple[fs.Pads, np.ndarray]:
     return dataclasses.replace(pads, v0=v0), v0
 
 
-def _package(scenes: list, v0: np.ndarray, crossing: str, engine: str = "general", precision: str = "fp64"):
+def _package(
+    scenes: list, v0: np.ndarray, crossing: str, engine: str = "general", precision: str = "fp64", block: int = 0
+):
+    """The package's strang run from velocities ``v0``: its globals and final state; ``block`` > 0: the on-chip
+    kernel with blocks of that many cooperative CPU threads (Warp's CPU fibers)."""
     model, state = batch_at_start(scenes, "cpu", precision)
     state.v.assign(v0.astype(state.v.numpy().dtype))
     options = RunOptions(integrator="strang", duration=DURATION, dt=DT, force=True, engine=engine, crossing=crossing)
-    tuning = EngineTuning(samples_per_launch=3) if engine == "onchip" else None
-    res = run_hf(model, state, options, record=Record(sample_dt=SAMPLE_DT), tuning=tuning)
+    tuning = None
+    if engine == "onchip":
+        tuning = EngineTuning(samples_per_launch=3, **({"block_dim": block} if block else {}))
+    old = wp.config.enable_cpu_blocks
+    wp.config.enable_cpu_blocks = block > 0
+    try:
+        res = run_hf(model, state, options, record=Record(sample_dt=SAMPLE_DT), tuning=tuning)
+    finally:
+        wp.config.enable_cpu_blocks = old
     assert res.complete
     return res.collect().globals, state.numpy()
 
@@ -105,13 +116,18 @@ def test_point_stays_the_package_strang_on_crossing_steps(scenes):
 
 
 def test_onchip_matches_general_with_mean(scenes):
-    """On the CPU the on-chip kernel (its CROSSING variant) does what the general kernels do, bit for bit."""
+    """On the CPU the on-chip kernel (its CROSSING variant) does what the general kernels do, bit for bit; with
+    blocks of 32 cooperative threads the states stay bit-identical (every barrier reached by all threads)."""
     _, v0 = _start(scenes)
     g, (u, v) = _package(scenes, v0, "mean")
     go, (uo, vo) = _package(scenes, v0, "mean", engine="onchip")
     np.testing.assert_array_equal(go, g)
     np.testing.assert_array_equal(uo, u)
     np.testing.assert_array_equal(vo, v)
+    gf, (uf, vf) = _package(scenes, v0, "mean", engine="onchip", block=32)  # 32 fiber threads per block
+    np.testing.assert_array_equal(uf, u)
+    np.testing.assert_array_equal(vf, v)
+    np.testing.assert_allclose(gf, g, rtol=1e-12, atol=0)  # the block's tree sums in float64
 
 
 def test_a_pads_reading_does_not_depend_on_its_batch(scenes):
