@@ -10,14 +10,16 @@ Equation of motion of patch i (paper §2.1.2, docs/model.md §2.2), u along the 
   implicit solve (:func:`solve_velocity`), the θ-method step of a patch's forced friction equation
   (:func:`theta_substep`; backward Euler for ``implicit-friction``) and the damped-midpoint friction sub-step
   (:func:`friction_substep`), which every Strang path, general and on-chip, takes through :func:`strang_velocity`
-  and :func:`strang_close_velocity`;
+  and :func:`strang_close_velocity`; for strang's crossing treatment the law's integral (:func:`friction_integral`)
+  and its mean along a step's slip segment (:func:`segment_pair`);
 * per-patch terms: the coupling gather F_s,i = Σ_j k_ij u_j − k_diag,i u_i (:func:`spring_force`; the on-chip
   shared-memory gather sums the links in the same order, :mod:`aca_warp.kernels.hf_onchip_gather`), the net force
   of the explicit schemes (:func:`patch_force`), growth (Eq. 10, :func:`grow_patch`) and the coupling stiffness it
   changes (Eq. 3, :func:`patch_coupling`);
 * contact: one pad's normal forces on the flat matrix (:func:`contact_block`);
-* samples: a patch's terms of a sample (:func:`patch_sample`), the block sums, the globals row
-  (:func:`write_globals`), the watchdog and the per-patch histories (:func:`record_pad` puts them together).
+* samples: a patch's terms of a sample (:func:`patch_sample`; the crossing treatment's :func:`instant_velocity`), the
+  block sums, the globals row (:func:`write_globals`), the watchdog and the per-patch histories (:func:`record_pad`
+  puts them together).
 
 Functions are generic in the state precision T (float32 or float64 arguments; sample sums in float64); those that read
 the model's or the recorder's arrays take them as one struct, ``model`` (:data:`~aca_warp.kernels.hf_types.HFModel`)
@@ -187,19 +189,9 @@ def theta_substep(
 
 @wp.func
 def friction_substep(
-    v: Any,
-    h: Any,
-    m: Any,
-    c: Any,
-    fn: Any,
-    force: Any,
-    vd: Any,
-    mu_scale: Any,
-    slope: Any,
-    decay: Any,
-    tol: Any,
+    v: Any, h: Any, m: Any, c: Any, fn: Any, force: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any,
     crossing: int,
-):
+):  # fmt: skip
     """The friction sub-step of every Strang path: a damped implicit midpoint over h [s] of m v̇ = F + F_N f(vd − v)
     − c v from velocity v [m/s], with the spring force F = ``force`` [N] frozen inside the solve (docs/numerics.md,
     docs/friction_step.md §6.1).
