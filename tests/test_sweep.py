@@ -21,6 +21,7 @@ from aca_warp.hf.recorder import GLOBAL_NAMES
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import Friction, PatchGenerator, preset
 from aca_warp.sweep import SweepError, load_spec, load_sweep, run_sweep
+from aca_warp.sweep.prepare import run_options
 
 # 2 M x 3 loads x 2 seeds = 12 pads of 25 patches, 4 shards of 3; 4 µs simulated (5 samples).
 TINY = small_sweep_doc(
@@ -157,6 +158,27 @@ def test_pad_equals_hand_built_scene() -> None:
     mb = build_model(s.scenes(range(9, 12)), precision="fp32")
     rb = run_hf(mb, initial_state(mb), RunOptions(duration=4e-6, integrator="strang"), record=hand.record)
     np.testing.assert_allclose(rb.collect().globals[:, 0], res.collect().globals[:, 0], rtol=1e-6, atol=0)
+
+
+def test_the_crossing_treatment_is_a_run_setting(tmp_path: Path) -> None:
+    """``run.crossing = "mean"`` (``--crossing mean``) enters the hash, the shards' run settings and the pads' run
+    options; the default leaves the hashes of earlier sweeps as they were; another integrator is refused with the
+    key named."""
+    doc = json.loads(json.dumps(TINY))
+    plain = load_spec(doc)
+    assert "crossing" not in plain.run_settings() and run_options(plain).crossing == "point"
+    mean = load_spec(doc, crossing="mean")
+    assert mean.crossing == "mean" and mean.hash != plain.hash and run_options(mean).crossing == "mean"
+    written = json.loads(json.dumps(doc))
+    written["run"]["crossing"] = "mean"
+    assert load_spec(written).hash == mean.hash
+    bad = json.loads(json.dumps(written))
+    bad["run"]["integrator"] = "adaptive"
+    with pytest.raises(SweepError, match="run.crossing"):
+        load_spec(bad)
+    run_sweep(mean, tmp_path / "out", workers=0)
+    with h5py.File(tmp_path / "out" / "shard-00000.h5") as f:
+        assert json.loads(f.attrs["run"])["crossing"] == "mean"
 
 
 @pytest.mark.parametrize(("integrator", "engine"), [("implicit-friction", "general"), ("adaptive", "onchip")])

@@ -26,7 +26,7 @@ interrupt the manifest marks the shards that were running "interrupted" and a re
 def add_parsers(sub: Any) -> None:
     """Register ``aca-warp sweep``."""
     from aca_warp.common.argtypes import fraction, int_at_least, positive, spacing
-    from aca_warp.hf.options import INTEGRATORS
+    from aca_warp.hf.options import CROSSINGS, INTEGRATORS
 
     p = sub.add_parser(
         "sweep",
@@ -81,6 +81,12 @@ def add_parsers(sub: Any) -> None:
         default=None,
         help="the on-chip strang kernel compiled with CUDA fast math (the spec's run.fast_math; fp32 strang on CUDA "
         "only; aca-warp hf --fast-math, docs/onchip.md 'Fast math')",
+    )
+    p.add_argument(
+        "--crossing",
+        choices=CROSSINGS,
+        help="strang's treatment of steps that cross zero slip (the spec's run.crossing; default point; "
+        "aca-warp hf --crossing, docs/friction_step.md section 8.1)",
     )
     p.add_argument(
         "--growth-dt",
@@ -151,6 +157,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         dt=args.dt,
         fast_math=args.fast_math,
         growth_dt=args.growth_dt,
+        crossing=args.crossing,
     )
     if spec.fast_math and args.scheduler is None and "cpu" in args.device.split(","):
         raise SweepError("fast math applies to CUDA devices only: run the sweep with --device cuda")
@@ -161,6 +168,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             f"{spec.shard_count} shard(s) of {spec.shard_size}, {spec.duration:g} s each, "
             f"{spec.integrator} {spec.precision}{'' if spec.dt is None else f' at {spec.dt:g} s'}"
             f"{', fast math' if spec.fast_math else ''}"
+            f"{', crossings averaged' if spec.crossing != 'point' else ''}"
             f"{growth_words(spec.growth_dt)}"
             f", spec hash {spec.hash[:12]}"
         )

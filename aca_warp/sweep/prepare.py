@@ -120,6 +120,7 @@ def run_options(spec: SweepSpec) -> RunOptions:
         tolerance=spec.tolerance,
         fast_math=spec.fast_math,
         growth_dt=spec.growth_dt,
+        crossing=spec.crossing,
     )
 
 

@@ -39,7 +39,9 @@ MODES = ("product", "zip")
 DEFAULT_SHARD_SIZE = 64
 PACKINGS = ("size", "none")
 _SWEEP_KEYS = ("name", "base", "mode", "shard_size", "pack")
-_RUN_KEYS = ("duration", "integrator", "precision", "dt", "tolerance", "sample_dt", "fast_math", "growth_dt")
+_RUN_KEYS = (
+    "duration", "integrator", "precision", "dt", "tolerance", "sample_dt", "fast_math", "growth_dt", "crossing"
+)  # fmt: skip
 
 # Parameters a sweep may vary: key -> (unit, kind); kind says how the value is applied to the base scene.
 PARAMETERS: dict[str, tuple[str, str]] = {
@@ -174,6 +176,7 @@ class SweepSpec:
         growth_dt: Simulated time between growth events of growing pads [s] (``RunOptions.growth_dt``), written
             out (:func:`~aca_warp.hf.options.growth_asked`); None: the scenes' growth interval (``run.growth_dt =
             "scene"``, or an integrator other than strang).
+        crossing: strang's treatment of steps that cross zero slip (``RunOptions.crossing``: ``point`` or ``mean``).
     """
 
     doc: dict
@@ -193,6 +196,7 @@ class SweepSpec:
     order: np.ndarray | None = field(default=None, repr=False)
     fast_math: bool = False
     growth_dt: float | None = None
+    crossing: str = "point"
     _hash: str = field(default="", repr=False)
 
     @property
@@ -234,9 +238,9 @@ class SweepSpec:
         return self._hash
 
     def run_settings(self) -> dict:
-        """Duration, integrator, precision, dt, tolerance and sample interval, and fast math where it is on and the
-        growth events' spacing where it is set (absent otherwise: hashes of earlier sweeps hold), as a JSON-able
-        dict."""
+        """Duration, integrator, precision, dt, tolerance and sample interval, and fast math where it is on, the
+        growth events' spacing where it is set and the crossing treatment where it is not the default (absent
+        otherwise: hashes of earlier sweeps hold), as a JSON-able dict."""
         return {
             "duration": self.duration,
             "integrator": self.integrator,
@@ -246,6 +250,7 @@ class SweepSpec:
             "sample_dt": self.base.record.sample_dt,
             **({"fast_math": True} if self.fast_math else {}),
             **({"growth_dt": self.growth_dt} if self.growth_dt is not None else {}),
+            **({"crossing": self.crossing} if self.crossing != "point" else {}),
         }
 
     def pad_values(self, pad: int) -> dict[str, Any]:
@@ -263,7 +268,8 @@ class SweepSpec:
 
 def load_spec(source: str | Path | dict, *, base_dir: Path | None = None, **overrides: Any) -> SweepSpec:
     """Read and validate a sweep spec (TOML path or dict); ``overrides`` (shard_size, duration, integrator,
-    precision, dt, tolerance, fast_math, growth_dt; None = keep) replace the spec's values and so enter its hash."""
+    precision, dt, tolerance, fast_math, growth_dt, crossing; None = keep) replace the spec's values and so enter its
+    hash."""
     if isinstance(source, dict):
         doc = copy.deepcopy(source)
         base_dir = base_dir or Path.cwd()
@@ -330,6 +336,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         DEFAULT_TOLERANCE,
         INTEGRATORS,
         SCENE_CLOCK,
+        check_crossing,
         default_follows,
         default_precision,
         default_step,
@@ -378,6 +385,11 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     unfit = fast_math_unfit(integrator, precision) if fast_math else None
     if unfit is not None:
         raise SweepError(f"run.fast_math (--fast-math): {unfit}")
+    crossing = run.get("crossing", "point")
+    try:
+        check_crossing(crossing, integrator)
+    except SceneError as e:
+        raise SweepError(f"run.crossing (--crossing): {e}") from None
     duration = num("duration", base.duration)
     scene_clock = run.get("growth_dt") == SCENE_CLOCK  # the events at the scenes' own interval: left out
     growth_dt = None if scene_clock else num("growth_dt", None)
@@ -428,6 +440,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         order=pack_order(params, pack),
         fast_math=fast_math,
         growth_dt=growth_dt,
+        crossing=crossing,
     )
     if check:
         _check_pads(spec, lists)
