@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common.errors import SceneError, option
-from aca_warp.hf.options import DEFAULT_TOLERANCE, ONCHIP_INTEGRATORS, fast_math_unfit
+from aca_warp.hf.options import DEFAULT_TOLERANCE, ONCHIP_INTEGRATORS, crossing_words, fast_math_unfit
 
 GRAPH_STEPS = 200
 # Data-sheet peaks [B/s] by device-name fragment; used when the driver query is unavailable.
@@ -317,8 +317,7 @@ def _engine_cell(r: dict) -> str:
     """The engine of a row, with the on-chip cluster size when a pad ran on more than one block ("onchip ×8")."""
     k = r.get("blocks_per_pad", 1)
     fast = ", fast math" if r.get("fast_math") else ""
-    mean = ", crossings averaged" if r.get("crossing", "point") != "point" else ""
-    return r.get("engine", "general") + (f" ×{k}" if k > 1 else "") + fast + mean
+    return r.get("engine", "general") + (f" ×{k}" if k > 1 else "") + fast + crossing_words(r.get("crossing", "point"))
 
 
 def _cases(
@@ -469,7 +468,7 @@ def markdown(out: dict) -> str:
 def add_parsers(sub: Any) -> None:
     """Register ``aca-warp bench``."""
     from aca_warp.common.argtypes import int_at_least, positive, step_or_default
-    from aca_warp.hf.options import CROSSINGS, ENGINES, INTEGRATORS
+    from aca_warp.hf.options import CROSSING_HELP, CROSSINGS, ENGINES, INTEGRATORS
 
     p = sub.add_parser(
         "bench",
@@ -514,14 +513,7 @@ def add_parsers(sub: Any) -> None:
         "for the scene, as `aca-warp hf` takes it (1e-7 for the shipped presets' physics, 5e-8 for any other scene; "
         "docs/numerics.md)",
     )
-    p.add_argument(
-        "--crossing",
-        choices=CROSSINGS,
-        default="point",
-        help="strang's treatment of steps that cross zero slip (default point; mean: the friction averaged along "
-        "the step's slip segment, μ read at an instant of a crossing patch's closing half step; docs/friction_step.md "
-        "§8): strang only",
-    )
+    p.add_argument("--crossing", choices=CROSSINGS, default="point", help=CROSSING_HELP)
     p.add_argument("--duration", type=positive, default=2.0e-5, metavar="S", help="timed window [s] (default 2e-5)")
     p.add_argument("--sample-dt", type=positive, default=1.0e-6, metavar="S", help="sample interval [s] (default 1e-6)")
     p.add_argument("--no-reference", action="store_true", help="skip the fp64 dt/4 reference run (no μ error)")

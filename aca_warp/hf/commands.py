@@ -32,6 +32,7 @@ from aca_warp.hf.options import (
     PRESET_STEP,
     STATISTICS_STEP,
     STEP_CONTROLLED,
+    crossing_words,
     growth_words,
 )
 
@@ -328,7 +329,7 @@ def _summarise_hf(args: argparse.Namespace, scene: Any, result: Any, duration: f
         f"{args.output}: {len(mu)} samples over {result.sim_time:.4g} s, {result.steps} steps "
         f"({result.dt:.3g} s{_default_step_words(args, scene)}, {args.integrator}, {precision}"
         f"{', fast math' if args.fast_math else ''}"
-        f"{', crossings averaged' if args.crossing != 'point' else ''}"
+        f"{crossing_words(args.crossing)}"
         f"{growth_words(growth_dt)}), "
         f"mean mu {np.mean(mu):.4f}, "
         f"{rate:.3g} patch-steps/s"

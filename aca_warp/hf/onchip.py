@@ -149,7 +149,7 @@ class OnchipEngine(OnchipLaunches):
             cluster,
             min(self.threads, 32),
             grown_tiles(model, cluster),
-            options.crossing == "mean",
+            bool(self.solver.crossing),
         )
         dev = model.device
         if cluster > 1 and wp.get_cuda_max_cluster_dim(self.kernel, dev, block_dim=self.block_dim) < cluster:

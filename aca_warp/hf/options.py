@@ -166,6 +166,12 @@ def growth_words(growth_dt: float | None) -> str:
     return "" if growth_dt is None else f", growth events every {growth_dt:g} s"
 
 
+def crossing_words(crossing: str) -> str:
+    """strang's crossing treatment for a summary line: ``, crossings averaged`` for ``mean``, nothing for the
+    default ``point``."""
+    return "" if crossing == "point" else ", crossings averaged"
+
+
 def tolerance_keyword(integrator: str) -> str:
     """The option a study's single tolerance ``tol=`` sets for ``integrator``: ``tolerance`` for ``adaptive``,
     ``split_tolerance`` for ``controlled`` and ``auto`` (whose pair keeps its default)."""

@@ -63,7 +63,8 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common.argtypes import int_at_least, nonneg, positive
-from aca_warp.hf.options import INTEGRATORS, fast_math_unfit, tolerance_keyword
+from aca_warp.common.errors import SceneError
+from aca_warp.hf.options import INTEGRATORS, check_crossing, fast_math_unfit, tolerance_keyword
 from aca_warp.studies.report import Log, add_device, add_page_options, clean, command_line, write_json
 from aca_warp.studies.validation.analysis import analyse_batch
 from aca_warp.studies.validation.area import analyse_growth
@@ -158,8 +159,10 @@ def parse_setting(spec: str) -> list[Setting]:
     if unfit:
         raise ValueError(f"fast math in {spec!r}: {unfit[0]} (strang@fp32:…:fast)")
     crossing = "mean" if "mean" in params else "point"
-    if crossing != "point" and name != "strang":
-        raise ValueError(f"{crossing!r} in {spec!r}: a treatment of strang's steps (strang@…:mean)")
+    try:
+        check_crossing(crossing, name)
+    except SceneError as e:
+        raise ValueError(f"{crossing!r} in {spec!r}: {e} (strang@…:mean)") from None
     for p in (p for p in params if p not in ("fast", "mean")):
         key, _, vals = p.partition("=")
         if key not in axes or not vals:
@@ -273,7 +276,6 @@ def reference_setting(spec: str, model: Any) -> Setting:
 def run_setting(prep: Any, cfg: Any, setting: Setting, role: str, names: list[str], log: Log) -> dict[str, Any]:
     """One run of the regime's batch with ``setting``, analysed; the row of the result file (``role``: "reference"
     or "grid")."""
-    from aca_warp.common.errors import SceneError
     from aca_warp.studies.runs import batch_at_start, run_engine
 
     row: dict[str, Any] = {"label": setting.label, "role": role, **dataclasses.asdict(setting)}

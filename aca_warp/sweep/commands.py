@@ -144,7 +144,7 @@ def _interrupted_line(out: str, e: KeyboardInterrupt) -> str:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from aca_warp.hf.options import growth_words
+    from aca_warp.hf.options import crossing_words, growth_words
     from aca_warp.sweep.run import run_sweep
     from aca_warp.sweep.spec import SweepError, load_spec
 
@@ -168,7 +168,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             f"{spec.shard_count} shard(s) of {spec.shard_size}, {spec.duration:g} s each, "
             f"{spec.integrator} {spec.precision}{'' if spec.dt is None else f' at {spec.dt:g} s'}"
             f"{', fast math' if spec.fast_math else ''}"
-            f"{', crossings averaged' if spec.crossing != 'point' else ''}"
+            f"{crossing_words(spec.crossing)}"
             f"{growth_words(spec.growth_dt)}"
             f", spec hash {spec.hash[:12]}"
         )
