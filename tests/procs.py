@@ -258,3 +258,17 @@ def interrupted_at_second_checkpoint(monkeypatch: Any) -> Iterator[None]:
         yield
     finally:
         monkeypatch.setattr(runner, "run_hf", real)
+
+
+@contextmanager
+def cpu_fibers(on: bool) -> Iterator[None]:
+    """Warp's cooperative CPU blocks (block_dim fiber threads per CPU block, real barriers) switched ``on`` or off for
+    the duration of the block, the setting before restored."""
+    import warp as wp
+
+    old = wp.config.enable_cpu_blocks
+    wp.config.enable_cpu_blocks = on
+    try:
+        yield
+    finally:
+        wp.config.enable_cpu_blocks = old

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import warp as wp
 from aca_warp.kernels.physics import INSTANT_SEED, friction_integral, friction_pair, segment_pair
+from procs import cpu_fibers
 from scipy.integrate import quad
 
 from aca_warp.common.errors import SceneError
@@ -50,12 +51,8 @@ def _package(
     tuning = None
     if engine == "onchip":
         tuning = EngineTuning(samples_per_launch=3, **({"block_dim": block} if block else {}))
-    old = wp.config.enable_cpu_blocks
-    wp.config.enable_cpu_blocks = block > 0
-    try:
+    with cpu_fibers(block > 0):
         res = run_hf(model, state, options, record=Record(sample_dt=SAMPLE_DT), tuning=tuning)
-    finally:
-        wp.config.enable_cpu_blocks = old
     assert res.complete
     return res.collect().globals, state.numpy()
 

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import warp as wp
 from aca_warp.kernels.physics import friction_substep
-from procs import nine_patch_scene
+from procs import cpu_fibers, nine_patch_scene
 from scipy.integrate import solve_ivp
 
 from aca_warp.common.errors import SceneError, SimulationFault, StabilityError
@@ -298,15 +298,11 @@ def test_network_block_lanes_agree_with_one_lane(net_ref):
     them still matches the reference."""
     s, _, _, ref = net_ref
     out = []
-    old = wp.config.enable_cpu_blocks
-    try:
-        for fibers in (False, True):
-            wp.config.enable_cpu_blocks = fibers
+    for fibers in (False, True):
+        with cpu_fibers(fibers):
             res, c, _, _ = run(s, integrator="adaptive", tolerance=1e-7)
-            assert res.complete
-            out.append(c)
-    finally:
-        wp.config.enable_cpu_blocks = old
+        assert res.complete
+        out.append(c)
     one, lanes = out
     np.testing.assert_allclose(lanes.globals, one.globals, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(lanes.velocity, one.velocity, rtol=0, atol=1e-12 * np.abs(one.velocity).max())

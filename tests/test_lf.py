@@ -15,6 +15,7 @@ import pytest
 from aca_warp.kernels.lf_record import H_COUNT, H_LOAD, H_PASSES, H_SIZE
 from aca_warp.kernels.lf_types import G_LOAD, LF_BLOCK, LFCells, LFRings
 from aca_warp.kernels.lf_wear import debris_sweep
+from procs import cpu_fibers
 
 from aca_warp.hf.contact import solve_contact, solve_scene_contact
 from aca_warp.lf.scene import lf_scene_from_dict, step_table
@@ -57,14 +58,8 @@ def _scene(**lf):
 def _cpu_blocks(fibers: bool) -> Iterator[int]:
     """CPU block kernels with Warp's cooperative fibers (LF_BLOCK threads a block, real barriers) or as one-thread
     blocks; yields the threads a block runs (a block kernel's ``threads``)."""
-    import warp as wp
-
-    old = wp.config.enable_cpu_blocks
-    wp.config.enable_cpu_blocks = fibers
-    try:
+    with cpu_fibers(fibers):
         yield LF_BLOCK if fibers else 1
-    finally:
-        wp.config.enable_cpu_blocks = old
 
 
 def test_schedule_table_and_snapshot_steps():

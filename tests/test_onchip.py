@@ -21,6 +21,7 @@ import warp as wp
 from aca_warp.kernels.hf_onchip import readers
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from procs import cpu_fibers
 
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.loop import EngineTuning, run_hf
@@ -41,17 +42,6 @@ def _scenes():
     return [s, s.replace(normal_force=700.0, angular_velocity=5.0 / 0.13, initial=Initial(perturbation=0.02, seed=3))]
 
 
-@contextmanager
-def _cpu_fibers(on: bool):
-    """Warp's cooperative CPU blocks (block_dim threads per CPU block) for the duration of the block."""
-    old = wp.config.enable_cpu_blocks
-    wp.config.enable_cpu_blocks = on
-    try:
-        yield
-    finally:
-        wp.config.enable_cpu_blocks = old
-
-
 def _both(device: str, precision: str, fibers: bool = False, **onchip_kw):
     out = {}
     for engine in ("general", "onchip"):
@@ -60,7 +50,7 @@ def _both(device: str, precision: str, fibers: bool = False, **onchip_kw):
         if engine == "general":
             res = run_hf(model, state, RunOptions(integrator="strang", duration=2e-6, dt=1e-8, engine="general"))
         else:
-            with _cpu_fibers(fibers):
+            with cpu_fibers(fibers):
                 tuning = EngineTuning(samples_per_launch=3, **onchip_kw)
                 res = run_hf(
                     model,
@@ -102,7 +92,7 @@ def test_onchip_csr_in_shared_memory_matches(device):
 
 
 @pytest.mark.parametrize(("precision", "block", "csr"), [("fp32", 96, True), ("fp64", 32, False)])
-def test_onchip_multithread_block_cpu_fibers(precision, block, csr):
+def test_onchip_multithread_blockcpu_fibers(precision, block, csr):
     """Blocks of 96/32 real (fiber) threads, each owning 18–19 / 54–55 patches: every barrier must be reached by
     all threads of the block (uneven patch counts per thread), else the gathers read unfinished drifts; with 96
     threads three share each bank of the on-chip CSR (a wrong slot offset overlaps their links)."""
@@ -120,7 +110,7 @@ def _grown(device: str, precision: str, engine: str, fibers: bool = False, **onc
     model = build_model(scenes, device=device, precision=precision)
     state = initial_state(model)
     area0 = model.host("area")
-    with _cpu_fibers(fibers):
+    with cpu_fibers(fibers):
         if engine == "general":
             res = run_hf(model, state, RunOptions(integrator="strang", duration=2e-6, dt=1e-8, engine="general"))
         else:
@@ -234,7 +224,7 @@ def test_grown_tiles_only_where_they_fit_beside_the_state():
 
 @pytest.mark.parametrize("copies", [False, True], ids=["model", "copies"])
 @pytest.mark.parametrize(("precision", "block", "csr"), [("fp32", 96, True), ("fp64", 32, False)])
-def test_onchip_growth_multithread_block_cpu_fibers(request, precision, block, csr, copies):
+def test_onchip_growth_multithread_blockcpu_fibers(request, precision, block, csr, copies):
     """Growth with real (fiber) threads per block: the contact re-solve's block sums run in a tree, so against the
     general path (one-thread blocks) everything agrees to rounding; a barrier missed by part of the block (the
     grow → coupling order, the shared CSR copy) shows as an O(1) error in the stiffnesses or forces. ``copies``: the
@@ -285,7 +275,7 @@ def test_onchip_fault_matches_general(device):
                 RunOptions(integrator="strang", engine=engine, duration=4e-3, dt=dt, force=True),
             )
         else:  # on the CPU with 64 fiber threads per block: the in-block min/sums find the same first patch
-            with _cpu_fibers(device == "cpu"):
+            with cpu_fibers(device == "cpu"):
                 res = run_hf(
                     model,
                     initial_state(model),
