@@ -95,12 +95,14 @@ def test_study_scripts_refuse_bad_arguments(name: str, argv: list[str], says: st
         ("friction_step_sector", ["--report", "{bad}", "--page", "{tmp}/page.md"]),
         ("work_precision_stats", ["--report", "{bad}", "--page", "{tmp}/page.md", "--figures", "{tmp}/fig"]),
         ("work_precision_stats", ["--by-part", "{bad}"]),
+        ("work_precision_stats", ["--steps", "{bad}", "--figures", "{tmp}/fig"]),
     ],
 )
 def test_study_reports_refuse_a_file_that_is_not_their_results(
     name: str, argv: list[str], content: str, tmp_path: Path, capsys
 ):
-    """--report (and --by-part) of a JSON file of something else, or of no JSON: one line, exit code 2, no page."""
+    """--report (and --by-part, --steps) of a JSON file of something else, or of no JSON: one line, exit code 2, no
+    page."""
     bad = tmp_path / "bad.json"
     bad.write_text(content)
     code = exit_code(name, [a.format(tmp=tmp_path, bad=bad) for a in argv])

@@ -198,10 +198,10 @@ def test_labels_and_the_study_run_path():
     from aca_warp.bench import _engine_cell
     from aca_warp.hf.state import initial_state
     from aca_warp.studies.runs import run_engine
-    from aca_warp.studies.work_precision_stats_report import _family
+    from aca_warp.studies.work_precision_stats_report import setting_family
 
     assert _engine_cell({"engine": "onchip", "blocks_per_pad": 2, "fast_math": True}) == "onchip ×2, fast math"
-    assert _family({"integrator": "strang", "precision": "fp32", "fast_math": True}) == "strang@fp32 fast math"
+    assert setting_family({"integrator": "strang", "precision": "fp32", "fast_math": True}) == "strang@fp32 fast math"
     with pytest.raises(SceneError, match="CUDA devices only"):  # the study's runs pass the setting's fast math on
         model = _model("cpu")
         run_engine(model, initial_state(model), engine="auto", duration=1e-7, integrator="strang", dt=1e-8,

@@ -503,6 +503,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="only print (Markdown) each setting's error in units of σ "
         "over all pads and over each part's pads alone, for a merged result file (--measures: which)",
     )
+    ap.add_argument(
+        "--steps",
+        metavar="JSON",
+        help="only print (Markdown) each fixed-step setting's error ± its 95 %% half-width in units of σ, family by "
+        "family and step by step (signed for a scalar measure), and draw them against the step into "
+        "FIGURES/wps_<tag>_<regime>_steps.png (--regimes: which regime of the file, --measures: which measures)",
+    )
     ap.add_argument("--rule", type=positive, default=DEFAULT_RULE, help="the report's rule: a setting's bias within "
                     f"± RULE × σ between seeds ({DEFAULT_RULE:g})")  # fmt: skip
     ap.add_argument("--criterion", default=DEFAULT_CRITERION, choices=list(CRITERIA), help="what the report's rule "
@@ -532,6 +539,27 @@ def merge_parts(paths: list[Path], out: Path) -> int:
         return 2
     reg = doc["regimes"][name]
     print(f"wrote {path}: {name}, {len(reg['pads'])} pads from {len(paths)} parts, {len(reg['settings'])} settings")
+    return 0
+
+
+def steps_report(args: argparse.Namespace) -> int:
+    """``--steps``: the errors against the step of one regime of a result file, as Markdown on stdout and as a
+    figure in ``--figures``; returns 0, or 2 after one line on stderr."""
+    from aca_warp.studies.work_precision_stats_rule import load_results
+    from aca_warp.studies.work_precision_stats_steps import errors_by_step, step_figure
+
+    try:
+        if args.regimes and len(args.regimes) > 1:
+            raise ValueError(f"--steps takes one regime, not {' '.join(args.regimes)}")
+        doc = load_results(Path(args.steps))
+        name = args.regimes[0] if args.regimes else None
+        text = errors_by_step(doc, name, args.measures)
+        path = step_figure(doc, Path(args.figures), name, args.rule, args.measures)
+    except (OSError, ValueError, KeyError) as e:
+        print(f"work_precision_stats: {e}", file=sys.stderr)
+        return 2
+    print(text, end="")
+    print(f"wrote {path}", file=sys.stderr)
     return 0
 
 
@@ -565,6 +593,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"work_precision_stats: {e}", file=sys.stderr)
             return 2
         return 0
+    if args.steps:
+        return steps_report(args)
     args.regimes = args.regimes or list(REGIMES[args.quick])
     args.reference = args.reference or REFERENCE[args.quick]
     try:

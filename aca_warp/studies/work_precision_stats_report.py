@@ -44,7 +44,8 @@ def machine_text(doc: dict[str, Any]) -> str:
     return m["device_name"] if str(m.get("device", "")).startswith("cuda") else m["host"]
 
 
-def _family(setting: dict[str, Any]) -> str:
+def setting_family(setting: dict[str, Any]) -> str:
+    """A setting's family in words: integrator@precision with its variant (fast math, growth events, crossings)."""
     fast = " fast math" if setting.get("fast_math") else ""
     growth = f" events every {setting['growth_dt']:g} s" if setting.get("growth_dt") is not None else ""
     crossing = " crossings averaged" if setting.get("crossing", "point") != "point" else ""
@@ -78,12 +79,13 @@ def regime_figure(docs: Sequence[dict[str, Any]], folder: Path, stem: str, rule:
     for ax, (doc, name) in zip(axes, regimes, strict=False):
         reg = doc["regimes"][name]
         grid = [s for s in reg["settings"] if s["role"] == "grid" and usable(s)]
-        families = list(dict.fromkeys(_family(s) for s in grid))
+        families = list(dict.fromkeys(setting_family(s) for s in grid))
         for m in reg["measures"]:
             for fam in families:
                 pts = sorted(
                     (s["wall_s"], max(c.ratio, RATIO_FLOOR), verdict(reg, s, m, rule, criterion))
-                    for s in grid if _family(s) == fam for c in [compare_setting(reg, s, m)] if math.isfinite(c.ratio)
+                    for s in grid if setting_family(s) == fam
+                    for c in [compare_setting(reg, s, m)] if math.isfinite(c.ratio)
                 )  # fmt: skip
                 if not pts:
                     continue
