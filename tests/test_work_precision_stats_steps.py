@@ -1,0 +1,143 @@
+"""The statistical work-precision's errors against the step (``work_precision_stats.py --steps``,
+:mod:`aca_warp.studies.work_precision_stats_steps`): signed errors and their 95 % half-widths on an ensemble whose
+answer is known, the table and figure, refusals, and the committed page's table."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.stats
+from test_work_precision_stats import _setting, synthetic_regime
+
+from aca_warp.studies import work_precision_stats as wps
+from aca_warp.studies import work_precision_stats_rule as rule
+from aca_warp.studies.work_precision_stats_steps import errors_by_step, step_errors, step_figure
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def _doc(reg: dict) -> dict:
+    """A result document of one regime."""
+    machine = {"device": "cpu", "device_name": "cpu", "host": "test host"}
+    return {"tag": "cpu", "machine": machine, "quick": False, "commands": [], "regimes": {reg["name"]: reg}}
+
+
+def known_regime() -> dict:
+    """The synthetic regime (:func:`synthetic_regime`, 30 seeds) with μ std of its 5e-7 s setting moved by −0.5 σ
+    instead of +0.5 σ, and a two-component spectrum measure that every setting shifts by (−0.3, +0.4) × its
+    components' σ."""
+    reg = synthetic_regime()
+    rng = np.random.default_rng(3)
+    spec = rng.normal(0.0, [1.0, 3.0], (30, 2))
+    sd = spec.std(axis=0, ddof=1)
+    ref = reg["settings"][0]["values"]["mu_std"]
+    cheap = reg["settings"][1]["values"]
+    cheap["mu_std"] = (2 * np.array(ref) - np.array(cheap["mu_std"])).tolist()  # ref − 0.5 σ
+    reg["measures"].append("mu_spectrum")
+    for k, s in enumerate(reg["settings"]):
+        if s["values"]:
+            s["values"]["mu_spectrum"] = (spec + (0 if k == 0 else 1) * np.array([-0.3, 0.4]) * sd).tolist()
+    return reg
+
+
+def test_step_errors_are_signed_with_their_interval():
+    """Per fixed-step setting, by family and step: the signed mean(x − x_ref)/σ (−0.5 σ, +0.1 σ, 0) and the 95 %
+    half-width t₀.₉₇₅ sd(d)/(√n σ) (0.2 t/√30 for the 1e-7 s setting, whose noise is 0.2 σ); a vector measure's
+    rms error over the rms σ of its components, unsigned; settings with a tolerance and incomplete runs are left out."""
+    reg = known_regime()
+    got = step_errors(reg, "mu_std")
+    assert [(e.family, e.dt) for e in got] == [("strang@fp32", 2e-8), ("strang@fp32", 1e-7), ("strang@fp32", 5e-7)]
+    assert [e.error for e in got] == pytest.approx([0.0, 0.1, -0.5], abs=1e-12)
+    t = scipy.stats.t.ppf(0.975, 29)
+    assert [e.half for e in got] == pytest.approx([0.0, 0.2 * t / math.sqrt(30), 0.0], abs=1e-9)
+    assert all(e.signed for e in got)
+    spec = step_errors(reg, "mu_spectrum")
+    sd2 = np.square(np.array(reg["settings"][0]["values"]["mu_spectrum"]).std(axis=0, ddof=1))
+    rms = math.sqrt((0.09 * sd2[0] + 0.16 * sd2[1]) / sd2.sum())  # rms of the errors over rms of the σ
+    assert [e.error for e in spec] == pytest.approx([rms] * 3, rel=1e-9)
+    assert not any(e.signed for e in spec)
+    phi = {e.dt: e.error for e in step_errors(reg, "phi")}
+    assert phi[2e-8] == pytest.approx(0.3) and phi[1e-7] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_families_are_apart_and_the_table_lists_them():
+    """A crossing treatment is a family of its own; the table has a block per family, a column per step and a row
+    per measure asked for, cells "error ± half-width"; an unknown measure, a regime with no fixed-step setting and a
+    file of two regimes without a name are refused."""
+    reg = known_regime()
+    values = reg["settings"][1]["values"]
+    reg["settings"].append(_setting("strang@fp32:dt=5e-07:mean", "grid", 1.2, values))
+    table = errors_by_step(_doc(reg), measures=["mu_std", "phi"])
+    assert "**strang@fp32**" in table and "**strang@fp32 crossings averaged**" in table
+    assert "| measure | 2e-08 s | 1e-07 s | 5e-07 s |" in table and "| measure | 5e-07 s |" in table
+    assert re.search(r"\| μ std \| \+0\.00 ± 0\.00 \| \+0\.10 ± 0\.07 \| -0\.50 ± 0\.00 \|", table)
+    assert table.count("| Φ |") == 2 and "μ spectrum" not in table
+    with pytest.raises(ValueError, match="no measure f1"):
+        errors_by_step(_doc(reg), measures=["f1"])
+    bare = known_regime()
+    bare["settings"] = [s for s in bare["settings"] if s["role"] == "reference" or s.get("dt") is None]
+    with pytest.raises(ValueError, match="no completed fixed-step setting"):
+        errors_by_step(_doc(bare))
+    two = _doc(reg)
+    two["regimes"]["other"] = reg
+    with pytest.raises(ValueError, match="name one"):
+        errors_by_step(two)
+    with pytest.raises(ValueError, match="no regime hf9"):
+        errors_by_step(two, "hf9")
+
+
+def test_steps_command_prints_the_table_and_draws_the_figure(tmp_path, capsys):
+    """``--steps FILE --figures DIR``: the table on stdout, ``wps_<tag>_<regime>_steps.png`` in DIR; two regimes
+    named, or a file that is no result, exit 2 with one line and no figure."""
+    path = tmp_path / "wps_cpu_syn.json"
+    path.write_text(json.dumps(_doc(known_regime())))
+    figs = tmp_path / "figs"
+    assert wps.main(["--steps", str(path), "--figures", str(figs), "--measures", "mu_std"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("syn: error / σ ± 95 % half-width") and "| μ std |" in out and "| Φ |" not in out
+    assert (figs / "wps_cpu_syn_steps.png").stat().st_size > 10_000
+    assert step_figure(_doc(known_regime()), tmp_path / "f2").name == "wps_cpu_syn_steps.png"
+    assert wps.main(["--steps", str(path), "--figures", str(tmp_path / "no"), "--regimes", "hf1", "hf2"]) == 2
+    assert "one regime" in capsys.readouterr().err and not (tmp_path / "no").exists()
+
+
+def test_the_pages_by_step_tables_are_the_scripts_output():
+    """Every ``BY STEP`` table of the docs is what ``--steps FILE --measures …`` prints from the committed result
+    file it names."""
+    crossing = REPO / "docs" / "figures" / "work_precision_statistics" / "hf1_crossing" / "README.md"
+    pages = [REPO / "docs" / "friction_step.md", crossing]
+    blocks = [b for p in pages for b in re.findall(r"<!-- BY STEP (\S+) ([^>]+?) -->\n(.*?)<!-- END BY STEP -->",
+                                                   p.read_text(), flags=re.S)]  # fmt: skip
+    assert blocks
+    for path, measures, table in blocks:
+        printed = errors_by_step(rule.load_results(REPO / path), None, measures.split())
+        assert printed.split("\n\n", 1)[1] == table, path
+
+
+def test_crossing_page_is_what_merge_and_report_write(monkeypatch):
+    """The crossing treatment's page (docs/figures/work_precision_statistics/hf1_crossing/): its merged file is the
+    ``--merge`` of its three parts, each setting of the steps' study on all 160 seeds, and its generated section is
+    what ``--report`` writes from it."""
+    from aca_warp.studies import work_precision_stats_report as wps_report
+    from aca_warp.studies.report import clean
+    from aca_warp.studies.work_precision_stats_merge import merge
+
+    monkeypatch.chdir(REPO)  # the parts named as the page's command names them
+    folder = REPO / "docs" / "figures" / "work_precision_statistics" / "hf1_crossing"
+    merged = rule.load_results(folder / "wps_cuda0_hf1.json")
+    parts = [(folder / p / "wps_cuda0_hf1.json").relative_to(REPO) for p in ("s1", "s33", "s97")]
+    assert json.loads(json.dumps(clean(merge(parts)))) == merged
+    reg = merged["regimes"]["hf1"]
+    done = {s["label"] for s in reg["settings"] if rule.usable(s)}
+    assert {"strang@fp32:dt=1e-08:mean", "strang@fp32:dt=2.5e-08:mean", "strang@fp64:dt=5e-09"} <= done
+    assert len(reg["pads"]) == 160
+    page = folder / "README.md"
+    body = wps_report.render([merged], ["hf1_crossing/wps_cuda0_hf1.json"], [folder / "wps_cuda0.png"], page, 0.25,
+                             None, "resolution")  # fmt: skip
+    begin, end = wps_report.generated_markers(wps_report.MARKER)
+    assert page.read_text().split(begin, 1)[1].split(end, 1)[0] == "\n" + "\n".join(body) + "\n"
