@@ -16,7 +16,7 @@ from test_work_precision_stats import _setting, synthetic_regime
 
 from aca_warp.studies import work_precision_stats as wps
 from aca_warp.studies import work_precision_stats_rule as rule
-from aca_warp.studies.work_precision_stats_steps import errors_by_step, step_errors, step_figure
+from aca_warp.studies.work_precision_stats_steps import collect, errors_by_step, step_errors
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -48,60 +48,102 @@ def known_regime() -> dict:
 def test_step_errors_are_signed_with_their_interval():
     """Per fixed-step setting, by family and step: the signed mean(x − x_ref)/σ (−0.5 σ, +0.1 σ, 0) and the 95 %
     half-width t₀.₉₇₅ sd(d)/(√n σ) (0.2 t/√30 for the 1e-7 s setting, whose noise is 0.2 σ); a vector measure's
-    rms error over the rms σ of its components, unsigned; settings with a tolerance and incomplete runs are left out."""
+    rms error over the rms σ of its components, unsigned; settings with a tolerance (error control chooses their
+    steps, whatever their dt) and incomplete runs are left out."""
     reg = known_regime()
+    values = reg["settings"][3]["values"]
+    reg["settings"].append(_setting("controlled@fp32:dt=1e-07:tol=0.01", "grid", 1.1, values))
     got = step_errors(reg, "mu_std")
     assert [(e.family, e.dt) for e in got] == [("strang@fp32", 2e-8), ("strang@fp32", 1e-7), ("strang@fp32", 5e-7)]
     assert [e.error for e in got] == pytest.approx([0.0, 0.1, -0.5], abs=1e-12)
     t = scipy.stats.t.ppf(0.975, 29)
     assert [e.half for e in got] == pytest.approx([0.0, 0.2 * t / math.sqrt(30), 0.0], abs=1e-9)
-    assert all(e.signed for e in got)
     spec = step_errors(reg, "mu_spectrum")
     sd2 = np.square(np.array(reg["settings"][0]["values"]["mu_spectrum"]).std(axis=0, ddof=1))
     rms = math.sqrt((0.09 * sd2[0] + 0.16 * sd2[1]) / sd2.sum())  # rms of the errors over rms of the σ
     assert [e.error for e in spec] == pytest.approx([rms] * 3, rel=1e-9)
-    assert not any(e.signed for e in spec)
+    steps = collect(_doc(reg))
+    assert steps.signed == {"mu_std": True, "phi": True, "mu_spectrum": False}
     phi = {e.dt: e.error for e in step_errors(reg, "phi")}
     assert phi[2e-8] == pytest.approx(0.3) and phi[1e-7] == pytest.approx(0.0, abs=1e-12)
 
 
+def test_a_regime_with_members_takes_the_sign_of_the_member_it_compares():
+    """With members (the LF states) the error is the rule's, the member with the largest bound/σ, and so is its sign:
+    member a moved by +0.5 σ_a, member b by −0.1 σ_b with σ_b ten times σ_a reads +0.5, where the mean over every pad
+    would be negative."""
+    rng = np.random.default_rng(5)
+    a, b = rng.normal(0.0, 1.0, 15), rng.normal(0.0, 10.0, 15)
+    ref = np.concatenate([a, b])
+    moved = np.concatenate([a + 0.5 * a.std(ddof=1), b - 0.1 * b.std(ddof=1)])
+    reg = {
+        "name": "lf", "measures": ["mu_mean"],
+        "pads": [{"seed": k % 15 + 1, "member": "a" if k < 15 else "b"} for k in range(30)],
+        "settings": [_setting("strang@fp64:dt=1e-08", "reference", 9.0, {"mu_mean": ref.tolist()}),
+                     _setting("strang@fp32:dt=1e-07", "grid", 1.0, {"mu_mean": moved.tolist()})],
+    }  # fmt: skip
+    assert np.mean(moved - ref) < 0
+    (e,) = step_errors(reg, "mu_mean")
+    assert e.error == pytest.approx(0.5, rel=1e-9)
+
+
 def test_families_are_apart_and_the_table_lists_them():
     """A crossing treatment is a family of its own; the table has a block per family, a column per step and a row
-    per measure asked for, cells "error ± half-width"; an unknown measure, a regime with no fixed-step setting and a
-    file of two regimes without a name are refused."""
+    per measure asked for, cells "error ± half-width" and "–" where a setting has no figure for the measure; an
+    unknown measure, a regime with no fixed-step setting and a file of two regimes without a name are refused."""
     reg = known_regime()
     values = reg["settings"][1]["values"]
     reg["settings"].append(_setting("strang@fp32:dt=5e-07:mean", "grid", 1.2, values))
-    table = errors_by_step(_doc(reg), measures=["mu_std", "phi"])
+    no_phi = {**values, "phi": [None] * 30}
+    reg["settings"].append(_setting("strang@fp32:dt=2.5e-07", "grid", 1.3, no_phi))
+    table = errors_by_step(collect(_doc(reg), measures=["mu_std", "phi"]))
     assert "**strang@fp32**" in table and "**strang@fp32 crossings averaged**" in table
-    assert "| measure | 2e-08 s | 1e-07 s | 5e-07 s |" in table and "| measure | 5e-07 s |" in table
-    assert re.search(r"\| μ std \| \+0\.00 ± 0\.00 \| \+0\.10 ± 0\.07 \| -0\.50 ± 0\.00 \|", table)
+    assert "| measure | 2e-08 s | 1e-07 s | 2.5e-07 s | 5e-07 s |" in table and "| measure | 5e-07 s |" in table
+    assert re.search(r"\| μ std \| \+0\.00 ± 0\.00 \| \+0\.10 ± 0\.07 \| -0\.50 ± 0\.00 \| -0\.50 ± 0\.00 \|", table)
+    assert re.search(r"\| Φ \| \+0\.30 ± 0\.00 \| [+-]0\.00 ± 0\.00 \| – \| [+-]0\.00 ± 0\.00 \|", table)
     assert table.count("| Φ |") == 2 and "μ spectrum" not in table
     with pytest.raises(ValueError, match="no measure f1"):
-        errors_by_step(_doc(reg), measures=["f1"])
+        collect(_doc(reg), measures=["f1"])
     bare = known_regime()
     bare["settings"] = [s for s in bare["settings"] if s["role"] == "reference" or s.get("dt") is None]
     with pytest.raises(ValueError, match="no completed fixed-step setting"):
-        errors_by_step(_doc(bare))
+        collect(_doc(bare))
     two = _doc(reg)
     two["regimes"]["other"] = reg
     with pytest.raises(ValueError, match="name one"):
-        errors_by_step(two)
+        collect(two)
     with pytest.raises(ValueError, match="no regime hf9"):
-        errors_by_step(two, "hf9")
+        collect(two, "hf9")
+
+
+def _drawn(png: Path, colour: tuple[float, float, float]) -> int:
+    """Pixels of ``png`` within 0.02 of ``colour`` (RGB in 0–1)."""
+    import matplotlib.image
+
+    rgb = matplotlib.image.imread(png)[..., :3]
+    return int((np.abs(rgb - np.array(colour)).max(axis=-1) < 0.02).sum())
 
 
 def test_steps_command_prints_the_table_and_draws_the_figure(tmp_path, capsys):
-    """``--steps FILE --figures DIR``: the table on stdout, ``wps_<tag>_<regime>_steps.png`` in DIR; two regimes
-    named, or a file that is no result, exit 2 with one line and no figure."""
+    """``--steps FILE --figures DIR``: the table on stdout, ``wps_<tag>_<regime>_steps.png`` in DIR with a panel per
+    measure asked for (one measure: one panel's width) and each family's errors drawn in its colour; without
+    ``--figures`` beside the file; two regimes named exit 2 with one line and no figure."""
+    from matplotlib import colormaps
+
     path = tmp_path / "wps_cpu_syn.json"
     path.write_text(json.dumps(_doc(known_regime())))
     figs = tmp_path / "figs"
     assert wps.main(["--steps", str(path), "--figures", str(figs), "--measures", "mu_std"]) == 0
     out = capsys.readouterr().out
     assert out.startswith("syn: error / σ ± 95 % half-width") and "| μ std |" in out and "| Φ |" not in out
-    assert (figs / "wps_cpu_syn_steps.png").stat().st_size > 10_000
-    assert step_figure(_doc(known_regime()), tmp_path / "f2").name == "wps_cpu_syn_steps.png"
+    one = figs / "wps_cpu_syn_steps.png"
+    assert _drawn(one, colormaps["tab10"](0)[:3]) > 120  # the points, bars and line (the legend alone: ≈ 35)
+    assert wps.main(["--steps", str(path)]) == 0
+    capsys.readouterr()
+    every = tmp_path / "wps_cpu_syn_steps.png"  # beside the file: three measures, three panels
+    import matplotlib.image
+
+    assert matplotlib.image.imread(every).shape[1] > 2.5 * matplotlib.image.imread(one).shape[1]
     assert wps.main(["--steps", str(path), "--figures", str(tmp_path / "no"), "--regimes", "hf1", "hf2"]) == 2
     assert "one regime" in capsys.readouterr().err and not (tmp_path / "no").exists()
 
@@ -115,7 +157,7 @@ def test_the_pages_by_step_tables_are_the_scripts_output():
                                                    p.read_text(), flags=re.S)]  # fmt: skip
     assert blocks
     for path, measures, table in blocks:
-        printed = errors_by_step(rule.load_results(REPO / path), None, measures.split())
+        printed = errors_by_step(collect(rule.load_results(REPO / path), None, measures.split()))
         assert printed.split("\n\n", 1)[1] == table, path
 
 

@@ -508,7 +508,8 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="JSON",
         help="only print (Markdown) each fixed-step setting's error ± its 95 %% half-width in units of σ, family by "
         "family and step by step (signed for a scalar measure), and draw them against the step into "
-        "FIGURES/wps_<tag>_<regime>_steps.png (--regimes: which regime of the file, --measures: which measures)",
+        "wps_<tag>_<regime>_steps.png beside JSON, or in --figures where given (--regimes: which regime of the file, "
+        "--measures: which measures)",
     )
     ap.add_argument("--rule", type=positive, default=DEFAULT_RULE, help="the report's rule: a setting's bias within "
                     f"± RULE × σ between seeds ({DEFAULT_RULE:g})")  # fmt: skip
@@ -544,21 +545,19 @@ def merge_parts(paths: list[Path], out: Path) -> int:
 
 def steps_report(args: argparse.Namespace) -> int:
     """``--steps``: the errors against the step of one regime of a result file, as Markdown on stdout and as a
-    figure in ``--figures``; returns 0, or 2 after one line on stderr."""
+    figure in ``--figures`` (where not given: beside the result file); returns 0, or 2 after one line on stderr."""
     from aca_warp.studies.work_precision_stats_rule import load_results
-    from aca_warp.studies.work_precision_stats_steps import errors_by_step, step_figure
+    from aca_warp.studies.work_precision_stats_steps import collect, errors_by_step, step_figure
 
     try:
         if args.regimes and len(args.regimes) > 1:
             raise ValueError(f"--steps takes one regime, not {' '.join(args.regimes)}")
-        doc = load_results(Path(args.steps))
-        name = args.regimes[0] if args.regimes else None
-        text = errors_by_step(doc, name, args.measures)
-        path = step_figure(doc, Path(args.figures), name, args.rule, args.measures)
+        steps = collect(load_results(Path(args.steps)), args.regimes[0] if args.regimes else None, args.measures)
+        path = step_figure(steps, Path(args.figures or Path(args.steps).parent), args.rule)
     except (OSError, ValueError, KeyError) as e:
         print(f"work_precision_stats: {e}", file=sys.stderr)
         return 2
-    print(text, end="")
+    print(errors_by_step(steps), end="")
     print(f"wrote {path}", file=sys.stderr)
     return 0
 
@@ -567,6 +566,8 @@ def main(argv: list[str] | None = None) -> int:
     """Measure (or, with --report, only report); returns 0, or 2 after one line on stderr for bad input."""
     argv = list(sys.argv[1:] if argv is None else argv)
     ap = build_parser()
+    figures = ap.get_default("figures")
+    ap.set_defaults(figures=None)  # --steps puts its figure beside the result file unless --figures names a folder
     args = ap.parse_args(argv)
     if args.report:
         from aca_warp.common.errors import AcaError
@@ -575,8 +576,8 @@ def main(argv: list[str] | None = None) -> int:
 
         try:
             check_output_path(args.page, overwrite=True)  # before the figures: nothing written for a bad page
-            report([Path(p) for p in args.report], Path(args.page), Path(args.figures), args.rule, args.measures,
-                   args.criterion)  # fmt: skip
+            report([Path(p) for p in args.report], Path(args.page), Path(args.figures or figures), args.rule,
+                   args.measures, args.criterion)  # fmt: skip
         except (AcaError, OSError, ValueError, KeyError) as e:
             print(f"work_precision_stats: {e}", file=sys.stderr)
             return 2
