@@ -30,6 +30,7 @@ from aca_warp.studies.work_precision_stats_rule import (
     _matrix,
     _members,
     load_results,
+    measures_asked,
     reference_of,
 )
 
@@ -197,10 +198,7 @@ def errors_by_part(doc: dict[str, Any], measures: Sequence[str] | None = None) -
     if "merged_from" not in doc or len(doc.get("regimes", {})) != 1:
         raise ValueError("errors by part need a merged result file (work_precision_stats.py --merge)")
     name, reg = next(iter(doc["regimes"].items()))
-    names = list(measures or reg["measures"])
-    unknown = [m for m in names if m not in reg["measures"]]
-    if unknown:
-        raise ValueError(f"{name} has no measure {', '.join(unknown)} (it has {', '.join(reg['measures'])})")
+    names = measures_asked(name, reg, measures)
     seeds = np.array([int(p["seed"]) for p in reg["pads"]])
     parts = [(min(p["seeds"]), max(p["seeds"])) for p in reg["parts"]]
     ref = reference_of(reg)

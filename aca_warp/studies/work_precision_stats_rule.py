@@ -398,6 +398,16 @@ def reference_of(regime: dict[str, Any]) -> dict[str, Any]:
     return refs[0]
 
 
+def measures_asked(name: str, regime: dict[str, Any], measures: Sequence[str] | None) -> list[str]:
+    """The measures ``measures`` of the regime ``name`` (None: every one it has), in that order; ValueError naming
+    those it lacks."""
+    names = list(measures or regime["measures"])
+    unknown = [m for m in names if m not in regime["measures"]]
+    if unknown:
+        raise ValueError(f"{name} has no measure {', '.join(unknown)} (it has {', '.join(regime['measures'])})")
+    return names
+
+
 def usable(setting: dict[str, Any]) -> bool:
     """A setting whose run completed and was analysed."""
     return bool(setting.get("complete")) and bool(setting.get("values"))

@@ -27,6 +27,7 @@ from aca_warp.studies.work_precision_stats_rule import (
     _matrix,
     _members,
     compare_setting,
+    measures_asked,
     reference_of,
     usable,
 )
@@ -105,10 +106,7 @@ def collect(doc: dict[str, Any], name: str | None = None, measures: Sequence[str
     if name not in regimes:
         raise ValueError(f"the file has no regime {name} (it has {', '.join(regimes)})")
     reg = regimes[name]
-    names = list(measures or reg["measures"])
-    unknown = [m for m in names if m not in reg["measures"]]
-    if unknown:
-        raise ValueError(f"{name} has no measure {', '.join(unknown)} (it has {', '.join(reg['measures'])})")
+    names = measures_asked(name, reg, measures)
     errors = {m: step_errors(reg, m) for m in names}
     families = list(dict.fromkeys(e.family for m in names for e in errors[m]))
     if not families:
