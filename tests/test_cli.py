@@ -72,6 +72,18 @@ def test_the_crossing_treatment_is_a_run_option(scene_file, tmp_path, capsys):
     assert read_run(out)["attrs"]["run_options"]["crossing"] == "mean"
 
 
+def test_the_solve_tolerance_is_a_run_option(scene_file, tmp_path, capsys):
+    """``--solve-tol`` is stored with the run options (``rerun`` repeats it); a value outside (0, 1) exits 2 before
+    anything is written."""
+    out = tmp_path / "tight.h5"
+    assert main(["hf", str(scene_file), "-o", str(out), "--no-progress", "--solve-tol", "1e-7"]) == 0
+    assert read_run(out)["attrs"]["run_options"]["solve_tol"] == 1e-7
+    bad = tmp_path / "bad.h5"
+    assert main(["hf", str(scene_file), "-o", str(bad), "--no-progress", "--solve-tol", "1"]) == 2
+    assert "solve_tol must be a number between 0 and 1" in capsys.readouterr().err
+    assert not bad.exists() and not list(tmp_path.glob("bad.h5*"))
+
+
 def test_only_what_is_asked_is_recorded(scene_file, tmp_path):
     """Without --record-patches no per-patch history (and no per-patch stage) exists."""
     out = tmp_path / "run.h5"

@@ -30,6 +30,7 @@ from aca_warp.hf.options import (
     FAST_MATH_HELP,
     INTEGRATORS,
     PRESET_STEP,
+    SOLVE_TOL_HELP,
     STATISTICS_STEP,
     STEP_CONTROLLED,
     crossing_words,
@@ -134,6 +135,7 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
     )
     hf.add_argument("--fast-math", action="store_true", help=FAST_MATH_HELP)
     hf.add_argument("--crossing", choices=CROSSINGS, default="point", help=CROSSING_HELP)
+    hf.add_argument("--solve-tol", type=positive, metavar="X", help=SOLVE_TOL_HELP)
     hf.add_argument(
         "--growth-dt",
         type=spacing,
@@ -240,6 +242,7 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         fast_math=args.fast_math,
         growth_dt=args.growth_dt,
         crossing=args.crossing,
+        solve_tol=args.solve_tol,
     )
     result = run_scene(
         scene,
@@ -405,6 +408,7 @@ def _resume_hf(args: argparse.Namespace) -> int:
             ("--engine", getattr(args, "engine", "auto"), "auto"),
             ("--fast-math", args.fast_math, False),
             ("--crossing", args.crossing, "point"),
+            ("--solve-tol", args.solve_tol, None),
             ("--growth-dt", args.growth_dt, None),
         ),
         "the run",

@@ -46,8 +46,13 @@ DEFAULT_TOLERANCE = 1.0e-5  # adaptive: μ errors ≤ 1e-7 on hf1 and stick-slip
 # scale V_i; 1e-2 meets the saturated-statistics targets on hf1 sectors (docs/friction_step.md §5.2)
 DEFAULT_SPLIT_TOLERANCE = 1.0e-2
 # the implicit friction solve's tolerance per state precision, of its velocity increment's scale (kernels/physics.py,
-# solve_velocity)
+# solve_velocity); RunOptions.solve_tol sets another
 NEWTON_TOL = {"fp32": 1.0e-6, "fp64": 1.0e-9}
+SOLVE_TOL_HELP = (
+    "tolerance of the per-patch implicit friction solve, relative to the scale of the step's velocity change "
+    f"(default {NEWTON_TOL['fp32']:g} in fp32, {NEWTON_TOL['fp64']:g} in fp64; between 0 and 1): a numerical "
+    "setting for studies of the solve's own error (docs/numerics.md)"
+)
 ENGINES = ("auto", "onchip", "general")
 # strang's treatment of a step whose slip changes sign (docs/friction_step.md §8): "point", Eq. 4 at the midpoint
 # velocity and μ read at the synchronous velocities; "mean", the friction averaged along the step's slip segment
@@ -202,6 +207,12 @@ def check_crossing(crossing: str, integrator: str) -> None:
         raise SceneError(f"crossing {crossing!r} is a treatment of strang's steps, not of {integrator}")
 
 
+def check_solve_tol(solve_tol: float | None) -> None:
+    """Refuse a friction solve tolerance outside (0, 1) (SceneError); None is the precision's default."""
+    if solve_tol is not None and not (isinstance(solve_tol, int | float) and 0 < solve_tol < 1):
+        raise SceneError(f"solve_tol must be a number between 0 and 1 (exclusive), got {solve_tol!r}")
+
+
 @dataclass(frozen=True)
 class RunOptions:
     """Options of one HF run (all validated on construction; :class:`SceneError` names the bad one).
@@ -238,6 +249,9 @@ class RunOptions:
             ``point`` (the default: Eq. 4 at the midpoint velocity; μ read at the synchronous velocities) or ``mean``
             (the friction averaged along the step's slip segment, and a crossing patch's friction read at a random
             instant of its closing half step; docs/friction_step.md §8). ``strang`` only.
+        solve_tol: Tolerance of the per-patch implicit friction solve (``solve_velocity`` in ``kernels/physics.py``),
+            relative to the scale of the step's velocity change [1], in (0, 1); None: :data:`NEWTON_TOL` of the
+            model's precision. The integrators without an implicit solve ignore it.
     """
 
     duration: float | None = None
@@ -253,6 +267,7 @@ class RunOptions:
     fast_math: bool = False
     growth_dt: float | None = None
     crossing: str = "point"
+    solve_tol: float | None = None
 
     def __post_init__(self) -> None:
         if self.integrator not in INTEGRATORS:
@@ -267,6 +282,7 @@ class RunOptions:
         if not isinstance(self.fast_math, bool):
             raise SceneError(f"fast_math must be true or false, got {self.fast_math!r}")
         _positive_or_none("watchdog_factor", self.watchdog_factor, "")
+        check_solve_tol(self.solve_tol)
         for name in ("tolerance", "split_tolerance"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and value > 0 and math.isfinite(value)):

@@ -43,6 +43,7 @@ from aca_warp.hf.options import (
     STEP_CONTROLLED,
     RunOptions,
     check_crossing,
+    check_solve_tol,
     default_step,
 )
 from aca_warp.hf.state import HFState
@@ -264,6 +265,8 @@ class HFSolver:
     ``tolerance``: the explicit pair's (``adaptive``, ``auto``), ``split_tolerance`` the split step's (``controlled``,
     ``auto``). ``growth_dt``: the spacing of a growing model's events [s] (:func:`event_spacing`), which the engines
     read. ``crossing``: ``strang``'s treatment of steps that cross zero slip (:data:`~aca_warp.hf.options.CROSSINGS`).
+    ``solve_tol``: the implicit friction solve's tolerance (None: :data:`~aca_warp.hf.options.NEWTON_TOL` of the
+    model's precision).
     """
 
     def __init__(
@@ -278,6 +281,7 @@ class HFSolver:
         estimate: StepEstimate | None = None,
         growth_dt: float | None = None,
         crossing: str = "point",
+        solve_tol: float | None = None,
     ) -> None:
         if integrator not in INTEGRATORS:
             raise SceneError(f"unknown integrator {integrator!r}; choose from {', '.join(INTEGRATORS)}")
@@ -288,7 +292,8 @@ class HFSolver:
         self.integrator = integrator
         self.estimate = stable_step(model) if estimate is None else estimate
         self.T = model.dtype
-        self.newton_tol = self.T(NEWTON_TOL[model.precision])
+        check_solve_tol(solve_tol)
+        self.newton_tol = self.T(NEWTON_TOL[model.precision] if solve_tol is None else solve_tol)
         for name, value in (("tolerance", tolerance), ("split_tolerance", split_tolerance)):
             if not (value > 0 and math.isfinite(value)):
                 raise SceneError(f"{name} must be a positive number, got {value}")
@@ -328,6 +333,7 @@ class HFSolver:
             estimate=estimate,
             growth_dt=options.growth_dt,
             crossing=options.crossing,
+            solve_tol=options.solve_tol,
         )
 
     def _launch(self, kernel: Any, inputs: list, dim: int | None = None) -> None:

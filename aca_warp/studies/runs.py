@@ -102,18 +102,19 @@ def run_engine(
     fast_math: bool = False,
     growth_dt: float | None = None,
     crossing: str = "point",
+    solve_tol: float | None = None,
 ) -> RunResult:
     """``run_hf`` for ``duration`` [s] with step ``dt`` [s] (None: the integrator's default; an error-controlled
     integrator's first trial), ``tolerance``, ``split_tolerance`` (None: the defaults), ``fast_math``, the growth
-    events' spacing ``growth_dt`` [s] (None: the scenes' growth interval) and strang's ``crossing`` treatment
-    (:class:`~aca_warp.hf.options.RunOptions`);
+    events' spacing ``growth_dt`` [s] (None: the scenes' growth interval), strang's ``crossing`` treatment and the
+    friction solve's tolerance ``solve_tol`` (None: the precision's; :class:`~aca_warp.hf.options.RunOptions`);
     ``engine``: general, onchip or auto. With
     ``sink`` every recorded chunk goes there (the result then holds none); ``force``: a step beyond the stable-step
     estimate runs (with a warning)."""
     tol = {k: v for k, v in (("tolerance", tolerance), ("split_tolerance", split_tolerance)) if v is not None}
     options = RunOptions(
         engine=engine, duration=duration, integrator=integrator, dt=dt, force=force, fast_math=fast_math,
-        growth_dt=growth_dt, crossing=crossing, **tol,
+        growth_dt=growth_dt, crossing=crossing, solve_tol=solve_tol, **tol,
     )  # fmt: skip
     return run_hf(model, state, options, record=record, sink=sink)
 

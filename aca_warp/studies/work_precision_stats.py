@@ -15,13 +15,15 @@ groups of LF snapshots; their LF runs are made once in ``OUT/lf``). Every pad of
 same per-patch window by the validation's own per-pad analysis, whether its detector calls it saturated or not,
 so that every setting is measured on the same samples.
 
-A **setting** is ``INTEGRATOR@PRECISIONS[:dt=STEPS][:tol=TOLERANCES][:growth_dt=SPACINGS][:fast][:mean]`` (a
-product), e.g. ``strang@fp32:dt=1e-8,5e-7``, ``adaptive@fp64:tol=1e-4``, ``implicit-friction@fp32,fp64:dt=1e-7``,
-``strang@fp32:dt=1e-7:fast`` (the on-chip kernel compiled with CUDA fast math: ``aca-warp hf --fast-math``),
-``strang@fp32:dt=2.5e-7:mean`` (strang's steps that cross zero slip averaged along their slip segment, and μ read at
-an instant of a crossing patch's closing half step: ``aca-warp hf --crossing mean``),
-``strang@fp32:dt=1e-7:growth_dt=1e-6`` (a growing pad's growth events every 1 µs, the increment scaled to keep the
-growth rate: ``aca-warp hf --growth-dt``; refused in regimes that do not grow); without
+A **setting** is ``INTEGRATOR@PRECISIONS[:dt=STEPS][:tol=TOLERANCES][:growth_dt=SPACINGS][:solve_tol=TOLS][:fast]
+[:mean]`` (a product), e.g. ``strang@fp32:dt=1e-8,5e-7``, ``adaptive@fp64:tol=1e-4``,
+``implicit-friction@fp32,fp64:dt=1e-7``, ``strang@fp32:dt=1e-7:fast`` (the on-chip kernel compiled with CUDA
+fast math: ``aca-warp hf --fast-math``), ``strang@fp32:dt=2.5e-7:mean`` (strang's steps that cross zero slip
+averaged along their slip segment, and μ read at an instant of a crossing patch's closing half step: ``aca-warp hf
+--crossing mean``), ``strang@fp32:dt=1e-7:growth_dt=1e-6`` (a growing pad's growth events every 1 µs, the
+increment scaled to keep the growth rate: ``aca-warp hf --growth-dt``; refused in regimes that do not grow),
+``strang@fp32:dt=1e-8:solve_tol=1e-7`` (the per-patch friction solve stopped at 1e-7 of the scale of its velocity
+change instead of the precision's default: ``aca-warp hf --solve-tol``); without
 dt or tol the integrator's defaults (``tol``: the tolerance of ``adaptive``, the split tolerance of ``controlled``
 and ``auto``, :func:`~aca_warp.hf.options.tolerance_keyword`). Fixed steps run forced (past the spring bound
 too). Any name of ``aca_warp.hf.options.INTEGRATORS`` is accepted, and a name that the default grid does not list
@@ -116,7 +118,8 @@ class Setting:
     """One point of the grid: integrator, precision, fixed step [s] and/or tolerance (None: the defaults), whether
     the on-chip strang kernel is compiled with CUDA fast math (``RunOptions.fast_math``), and the spacing of a
     growing pad's growth events [s] (``RunOptions.growth_dt``; None: the scenes' growth interval) and strang's
-    treatment of steps that cross zero slip (``RunOptions.crossing``)."""
+    treatment of steps that cross zero slip (``RunOptions.crossing``) and the friction solve's tolerance
+    (``RunOptions.solve_tol``; None: the precision's)."""
 
     integrator: str
     precision: str
@@ -125,13 +128,16 @@ class Setting:
     fast_math: bool = False
     growth_dt: float | None = None
     crossing: str = "point"
+    solve_tol: float | None = None
 
     @property
     def label(self) -> str:
-        """``integrator@precision[:dt=…][:tol=…][:growth_dt=…][:fast][:mean]`` (parses back to this setting)."""
+        """``integrator@precision[:dt=…][:tol=…][:growth_dt=…][:solve_tol=…][:fast][:mean]`` (parses back to this
+        setting)."""
         parts = [f"dt={self.dt:g}"] if self.dt is not None else []
         parts += [f"tol={self.tolerance:g}"] if self.tolerance is not None else []
         parts += [f"growth_dt={self.growth_dt:g}"] if self.growth_dt is not None else []
+        parts += [f"solve_tol={self.solve_tol:g}"] if self.solve_tol is not None else []
         parts += ["fast"] if self.fast_math else []
         parts += [self.crossing] if self.crossing != "point" else []
         return ":".join([f"{self.integrator}@{self.precision}", *parts])
@@ -143,8 +149,8 @@ class Setting:
 
 
 def parse_setting(spec: str) -> list[Setting]:
-    """The settings of one spec ``NAME@P1[,P2][:dt=V[,V…]][:tol=V[,V…]][:growth_dt=V[,V…]][:fast][:mean]`` (module
-    docstring); ValueError names what is wrong."""
+    """The settings of one spec ``NAME@P1[,P2][:dt=V[,V…]][:tol=V[,V…]][:growth_dt=V[,V…]][:solve_tol=V[,V…]][:fast]
+    [:mean]`` (module docstring); ValueError names what is wrong."""
     head, *params = spec.split(":")
     name, _, precs = head.partition("@")
     if name not in INTEGRATORS:
@@ -153,7 +159,7 @@ def parse_setting(spec: str) -> list[Setting]:
     bad = [p for p in precisions if p not in PRECISIONS]
     if bad:
         raise ValueError(f"unknown precision {', '.join(bad)} in {spec!r}; choose from {', '.join(PRECISIONS)}")
-    axes: dict[str, list[float | None]] = {"dt": [None], "tol": [None], "growth_dt": [None]}
+    axes: dict[str, list[float | None]] = {"dt": [None], "tol": [None], "growth_dt": [None], "solve_tol": [None]}
     fast = "fast" in params
     unfit = [why for p in precisions if (why := fast_math_unfit(name, p))] if fast else []
     if unfit:
@@ -167,7 +173,8 @@ def parse_setting(spec: str) -> list[Setting]:
         key, _, vals = p.partition("=")
         if key not in axes or not vals:
             raise ValueError(
-                f"bad parameter {p!r} in {spec!r}: use dt=V[,V…], tol=V[,V…], growth_dt=V[,V…], fast or mean"
+                f"bad parameter {p!r} in {spec!r}: use dt=V[,V…], tol=V[,V…], growth_dt=V[,V…], solve_tol=V[,V…], "
+                "fast or mean"
             )
         try:
             nums = [float(v) for v in vals.split(",")]
@@ -175,9 +182,11 @@ def parse_setting(spec: str) -> list[Setting]:
             raise ValueError(f"bad number in {p!r} of {spec!r}") from None
         if not all(v > 0 and math.isfinite(v) for v in nums):
             raise ValueError(f"{key} must be positive in {spec!r}")
+        if key == "solve_tol" and not all(v < 1 for v in nums):
+            raise ValueError(f"solve_tol must be below 1 in {spec!r}")
         axes[key] = list(nums)
-    combos = itertools.product(precisions, axes["dt"], axes["tol"], axes["growth_dt"])
-    return [Setting(name, pr, dt, tol, fast, growth, crossing) for pr, dt, tol, growth in combos]
+    combos = itertools.product(precisions, axes["dt"], axes["tol"], axes["growth_dt"], axes["solve_tol"])
+    return [Setting(name, pr, dt, tol, fast, growth, crossing, solve) for pr, dt, tol, growth, solve in combos]
 
 
 def grid(specs: list[str], integrators: list[str] | None, precisions: list[str] | None) -> list[Setting]:
@@ -286,6 +295,7 @@ def run_setting(prep: Any, cfg: Any, setting: Setting, role: str, names: list[st
             model, state, engine=cfg.engine, duration=prep.plan.duration, integrator=setting.integrator,
             dt=setting.dt, record=prep.plan.record(cfg), sink=sink, force=setting.dt is not None,
             fast_math=setting.fast_math, growth_dt=setting.growth_dt, crossing=setting.crossing,
+            solve_tol=setting.solve_tol,
             **{tolerance_keyword(setting.integrator): setting.tolerance},
         )  # fmt: skip
     except (SceneError, ValueError) as e:  # a setting the integrator refuses (e.g. an fp32 tolerance too tight)
@@ -471,7 +481,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--grid",
         nargs="+",
         metavar="SPEC",
-        help="settings INTEGRATOR@P1[,P2][:dt=V,…][:tol=V,…][:growth_dt=V,…][:fast][:mean] "
+        help="settings INTEGRATOR@P1[,P2][:dt=V,…][:tol=V,…][:growth_dt=V,…][:solve_tol=V,…][:fast][:mean] "
         f"(default: {' '.join(default_grid(False))}; --quick: {' '.join(default_grid(True))})",
     )
     ap.add_argument("--integrators", nargs="+", choices=INTEGRATORS, help="only these integrators of the grid")

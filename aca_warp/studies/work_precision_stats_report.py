@@ -45,11 +45,13 @@ def machine_text(doc: dict[str, Any]) -> str:
 
 
 def setting_family(setting: dict[str, Any]) -> str:
-    """A setting's family in words: integrator@precision with its variant (fast math, growth events, crossings)."""
+    """A setting's family in words: integrator@precision with its variant (fast math, growth events, crossings, the
+    friction solve's tolerance)."""
     fast = " fast math" if setting.get("fast_math") else ""
     growth = f" events every {setting['growth_dt']:g} s" if setting.get("growth_dt") is not None else ""
     crossing = " crossings averaged" if setting.get("crossing", "point") != "point" else ""
-    return f"{setting['integrator']}@{setting['precision']}{fast}{growth}{crossing}"
+    solve = f" solve tol {setting['solve_tol']:g}" if setting.get("solve_tol") is not None else ""
+    return f"{setting['integrator']}@{setting['precision']}{fast}{growth}{crossing}{solve}"
 
 
 def _marker(family: str, families: list[str]) -> str:

@@ -415,15 +415,16 @@ def usable(setting: dict[str, Any]) -> bool:
 
 def twin_of(regime: dict[str, Any]) -> dict[str, Any] | None:
     """The reference's twin: the completed grid setting of the reference's integrator, step and tolerance in the
-    other precision, without fast math, at the reference's growth events and crossing treatment (as exact as the
-    reference; its runs part from the reference's by rounding alone), or None."""
+    other precision, without fast math, at the reference's growth events, crossing treatment and friction solve
+    tolerance (as exact as the reference; its runs part from the reference's by rounding alone), or None."""
     ref = reference_of(regime)
     key = (ref.get("integrator"), ref.get("dt"), ref.get("tolerance"))
     twins = [s for s in regime["settings"] if s["role"] == "grid" and usable(s)
              and (s.get("integrator"), s.get("dt"), s.get("tolerance")) == key
              and s.get("precision") != ref.get("precision") and not s.get("fast_math")
              and s.get("growth_dt") == ref.get("growth_dt")
-             and s.get("crossing", "point") == ref.get("crossing", "point")]  # fmt: skip
+             and s.get("crossing", "point") == ref.get("crossing", "point")
+             and s.get("solve_tol") == ref.get("solve_tol")]  # fmt: skip
     return twins[0] if twins else None
 
 
