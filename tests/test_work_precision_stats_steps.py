@@ -150,14 +150,15 @@ def test_steps_command_prints_the_table_and_draws_the_figure(tmp_path, capsys):
 
 def test_the_pages_by_step_tables_are_the_scripts_output():
     """Every ``BY STEP`` table of the docs is what ``--steps FILE --measures …`` prints from the committed result
-    file it names."""
-    crossing = REPO / "docs" / "figures" / "work_precision_statistics" / "hf1_crossing" / "README.md"
-    pages = [REPO / "docs" / "friction_step.md", crossing]
-    blocks = [b for p in pages for b in re.findall(r"<!-- BY STEP (\S+) ([^>]+?) -->\n(.*?)<!-- END BY STEP -->",
-                                                   p.read_text(), flags=re.S)]  # fmt: skip
-    assert blocks
-    for path, measures, table in blocks:
-        printed = errors_by_step(collect(rule.load_results(REPO / path), None, measures.split()))
+    file it names (``BY STEP PAIRS``: with ``--precision-pairs``)."""
+    folder = REPO / "docs" / "figures" / "work_precision_statistics"
+    pages = [REPO / "docs" / "friction_step.md", REPO / "docs" / "work_precision_statistics.md",
+             folder / "hf1_crossing" / "README.md", folder / "fp32_fp64" / "README.md"]  # fmt: skip
+    pattern = r"<!-- BY STEP( PAIRS)? (\S+) ([^>]+?) -->\n(.*?)<!-- END BY STEP -->"
+    blocks = [b for p in pages for b in re.findall(pattern, p.read_text(), flags=re.S)]
+    assert any(pairs for pairs, *_ in blocks) and any(not pairs for pairs, *_ in blocks)
+    for pairs, path, measures, table in blocks:
+        printed = errors_by_step(collect(rule.load_results(REPO / path), None, measures.split(), bool(pairs)))
         assert printed.split("\n\n", 1)[1] == table, path
 
 
@@ -183,3 +184,54 @@ def test_crossing_page_is_what_merge_and_report_write(monkeypatch):
                              None, "resolution")  # fmt: skip
     begin, end = wps_report.generated_markers(wps_report.MARKER)
     assert page.read_text().split(begin, 1)[1].split(end, 1)[0] == "\n" + "\n".join(body) + "\n"
+
+
+def test_precision_pairs_measure_fp32_against_fp64_of_its_step_and_variant(tmp_path, capsys):
+    """``--precision-pairs``: each fp32 setting against the fp64 setting of its step and variant (the reference where
+    that is it): an fp64 twin at 5e-7 s biased by +0.2 σ in μ std puts the 5e-7 s fp32 setting's −0.5 σ (against the
+    reference) at −0.7 σ against its twin; the 2e-8 s setting has no partner and is left out; a row of an older file
+    without the variant fields pairs with a new row of the defaults; a partner of another variant (a crossing
+    treatment, a solve tolerance) is none."""
+    from aca_warp.studies.work_precision_stats_steps import fp64_partner
+
+    reg = known_regime()
+    ref_vals = reg["settings"][0]["values"]
+    sa = float(np.std(ref_vals["mu_std"], ddof=1))
+    twin = {m: list(v) for m, v in ref_vals.items()}
+    twin["mu_std"] = (np.array(ref_vals["mu_std"]) + 0.2 * sa).tolist()
+    reg["settings"].append(_setting("strang@fp64:dt=5e-07", "grid", 4.0, twin))
+    reg["settings"].append(_setting("strang@fp64:dt=1e-07:mean", "grid", 4.0, twin))
+    reg["settings"].append(_setting("strang@fp64:dt=2e-08:solve_tol=1e-06", "grid", 4.0, twin))
+    fp32_5e7, fp32_1e7 = reg["settings"][1], reg["settings"][3]
+    old = {k: v for k, v in fp32_5e7.items() if k not in ("fast_math", "crossing", "growth_dt", "solve_tol")}
+    assert fp64_partner(reg, old)["label"] == "strang@fp64:dt=5e-07"
+    assert fp64_partner(reg, fp32_1e7) is None  # only a partner that averages its crossings
+    assert fp64_partner(reg, reg["settings"][4]) is None  # 2e-8 s: only one with another solve tolerance
+    assert fp64_partner(reg, reg["settings"][0]) is None  # an fp64 setting has no partner
+    got = step_errors(reg, "mu_std", paired=True)
+    assert [(e.family, e.dt) for e in got] == [("strang@fp32 − fp64", 5e-7)]
+    assert got[0].error == pytest.approx(-0.7, abs=1e-9)
+    steps = collect(_doc(reg), measures=["mu_std"], paired=True)
+    assert steps.paired and "fp64 setting of the same step" in errors_by_step(steps)
+    path = tmp_path / "pairs.json"
+    path.write_text(json.dumps(_doc(reg)))
+    assert wps.main(["--steps", str(path), "--precision-pairs", "--figures", str(tmp_path)]) == 0
+    assert "| μ std | -0.70 ± 0.00 |" in capsys.readouterr().out
+    assert (tmp_path / "wps_cpu_syn_fp32_fp64.png").is_file() and not (tmp_path / "wps_cpu_syn_steps.png").exists()
+    lonely = known_regime()  # no fp64 setting but the reference at 1e-8 s, no fp32 setting there
+    path.write_text(json.dumps(_doc(lonely)))
+    assert wps.main(["--steps", str(path), "--precision-pairs", "--figures", str(tmp_path / "no")]) == 2
+    assert "no completed fp32 setting with an fp64 partner" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        wps.main(["--precision-pairs"])
+    assert "--precision-pairs goes with --steps" in capsys.readouterr().err
+
+
+def test_a_reference_partner_is_the_reference():
+    """An fp32 setting at the reference's step and variant pairs with the reference itself: the same error as
+    against the reference."""
+    reg = known_regime()
+    reg["settings"].append(_setting("strang@fp32:dt=1e-08", "grid", 5.0, reg["settings"][1]["values"]))
+    paired = {e.dt: e.error for e in step_errors(reg, "mu_std", paired=True)}
+    plain = {e.dt: e.error for e in step_errors(reg, "mu_std")}
+    assert list(paired) == [1e-8] and paired[1e-8] == pytest.approx(plain[1e-8]) == pytest.approx(-0.5)

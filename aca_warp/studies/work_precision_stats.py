@@ -521,6 +521,12 @@ def build_parser() -> argparse.ArgumentParser:
         "wps_<tag>_<regime>_steps.png beside JSON, or in --figures where given (--regimes: which regime of the file, "
         "--measures: which measures)",
     )
+    ap.add_argument(
+        "--precision-pairs",
+        action="store_true",
+        help="with --steps: each fp32 setting against the fp64 setting of its step and variant instead of the "
+        "reference (what the precision alone moves, step by step; figure wps_<tag>_<regime>_fp32_fp64.png)",
+    )
     ap.add_argument("--rule", type=positive, default=DEFAULT_RULE, help="the report's rule: a setting's bias within "
                     f"± RULE × σ between seeds ({DEFAULT_RULE:g})")  # fmt: skip
     ap.add_argument("--criterion", default=DEFAULT_CRITERION, choices=list(CRITERIA), help="what the report's rule "
@@ -554,15 +560,17 @@ def merge_parts(paths: list[Path], out: Path) -> int:
 
 
 def steps_report(args: argparse.Namespace) -> int:
-    """``--steps``: the errors against the step of one regime of a result file, as Markdown on stdout and as a
-    figure in ``--figures`` (where not given: beside the result file); returns 0, or 2 after one line on stderr."""
+    """``--steps``: the errors against the step of one regime of a result file (``--precision-pairs``: fp32 against
+    fp64 step by step), as Markdown on stdout and as a figure in ``--figures`` (where not given: beside the result
+    file); returns 0, or 2 after one line on stderr."""
     from aca_warp.studies.work_precision_stats_rule import load_results
     from aca_warp.studies.work_precision_stats_steps import collect, errors_by_step, step_figure
 
     try:
         if args.regimes and len(args.regimes) > 1:
             raise ValueError(f"--steps takes one regime, not {' '.join(args.regimes)}")
-        steps = collect(load_results(Path(args.steps)), args.regimes[0] if args.regimes else None, args.measures)
+        name = args.regimes[0] if args.regimes else None
+        steps = collect(load_results(Path(args.steps)), name, args.measures, args.precision_pairs)
         path = step_figure(steps, Path(args.figures or Path(args.steps).parent), args.rule)
     except (OSError, ValueError, KeyError) as e:
         print(f"work_precision_stats: {e}", file=sys.stderr)
@@ -579,6 +587,8 @@ def main(argv: list[str] | None = None) -> int:
     figures = ap.get_default("figures")
     ap.set_defaults(figures=None)  # --steps puts its figure beside the result file unless --figures names a folder
     args = ap.parse_args(argv)
+    if args.precision_pairs and not args.steps:
+        ap.error("--precision-pairs goes with --steps FILE")
     if args.report:
         from aca_warp.common.errors import AcaError
         from aca_warp.common.files import check_output_path

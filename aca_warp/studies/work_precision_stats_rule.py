@@ -358,10 +358,12 @@ def _members(regime: dict[str, Any]) -> dict[str | None, list[int]]:
     return out
 
 
-def member_comparisons(regime: dict[str, Any], setting: dict[str, Any], measure: str) -> list[Comparison]:
-    """``setting`` against the regime's reference for ``measure``, one :class:`Comparison` per member (one for a
-    regime without members)."""
-    ref = reference_of(regime)
+def member_comparisons(
+    regime: dict[str, Any], setting: dict[str, Any], measure: str, ref: dict[str, Any] | None = None
+) -> list[Comparison]:
+    """``setting`` against ``ref`` (default the regime's reference) for ``measure``, one :class:`Comparison` per
+    member (one for a regime without members)."""
+    ref = reference_of(regime) if ref is None else ref
     out = []
     for member, idx in _members(regime).items():
         a = [ref["values"][measure][i] for i in idx]
@@ -370,11 +372,13 @@ def member_comparisons(regime: dict[str, Any], setting: dict[str, Any], measure:
     return out
 
 
-def compare_setting(regime: dict[str, Any], setting: dict[str, Any], measure: str) -> Comparison:
-    """``setting`` against the regime's reference for ``measure``: the member with the largest bound/σ (a member
-    whose figure is not defined counts as the worst)."""
+def compare_setting(
+    regime: dict[str, Any], setting: dict[str, Any], measure: str, ref: dict[str, Any] | None = None
+) -> Comparison:
+    """``setting`` against ``ref`` (default the regime's reference) for ``measure``: the member with the largest
+    bound/σ (a member whose figure is not defined counts as the worst)."""
     worst: Comparison | None = None
-    for c in member_comparisons(regime, setting, measure):
+    for c in member_comparisons(regime, setting, measure, ref):
         if worst is None or not (c.bound_ratio <= worst.bound_ratio):  # NaN beats every number
             worst = c
     assert worst is not None

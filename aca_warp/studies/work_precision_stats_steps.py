@@ -8,6 +8,10 @@ rule counts them (:func:`~aca_warp.studies.work_precision_stats_rule.compare_set
 member with the largest bound): the error of the ensemble mean, mean(x − x_ref)/σ, signed for a scalar measure (for
 a spectrum the rms over its components of the errors over the rms of their σ, ≥ 0), and how far the upper end of its
 95 % interval lies beyond it, (bound − error)/σ: for a scalar measure the half-width t₀.₉₇₅ sd(x − x_ref)/(√n σ).
+
+With ``paired`` (``--steps FILE --precision-pairs``) each fp32 setting is measured against the fp64 setting of the
+same step and variant instead (:func:`fp64_partner`; the reference where it is that setting): what the precision
+alone moves at each step, on the same seeds, free of the step's own error.
 """
 
 from __future__ import annotations
@@ -57,13 +61,15 @@ class Steps:
 
     Attributes:
         regime: The regime's name.
-        reference: The reference setting's label.
+        reference: What the settings are measured against: the reference, by its label, or (paired) their fp64
+            partners.
         measures: The measures, in the order asked for.
         signed: Per measure, whether it is a scalar (its errors signed).
         errors: Per measure, the errors of every completed fixed-step setting (:func:`step_errors`).
         families: The families with at least one error, in order of first appearance.
         tag: The result file's tag (its device and variant).
         machine: The device the file was measured on, in words.
+        paired: fp32 against fp64 step by step (:func:`step_errors`), not against the reference.
     """
 
     regime: str
@@ -74,30 +80,59 @@ class Steps:
     families: list[str]
     tag: str
     machine: str
+    paired: bool = False
 
 
-def step_errors(regime: dict[str, Any], measure: str) -> list[StepError]:
+VARIANT = {"integrator": None, "dt": None, "tolerance": None, "fast_math": False, "growth_dt": None,
+           "crossing": "point", "solve_tol": None}  # fmt: skip
+"""The fields a setting shares with its fp64 partner (:func:`fp64_partner`), everything but the precision, with the
+value a result file's row that lacks one holds (files written before the field existed)."""
+
+
+def _variant(setting: dict[str, Any]) -> list[Any]:
+    return [setting.get(k, default) for k, default in VARIANT.items()]
+
+
+def fp64_partner(regime: dict[str, Any], setting: dict[str, Any]) -> dict[str, Any] | None:
+    """The completed fp64 setting (grid or reference) of ``setting``'s step and variant, for an fp32 ``setting``;
+    None where there is none."""
+    if setting.get("precision") != "fp32":
+        return None
+    partners = [s for s in regime["settings"] if s.get("precision") == "fp64" and usable(s)]
+    return next((s for s in partners if _variant(s) == _variant(setting)), None)
+
+
+def step_errors(regime: dict[str, Any], measure: str, paired: bool = False) -> list[StepError]:
     """Every completed fixed-step grid setting of ``regime`` (a regime of a result file; a setting with a tolerance
-    has its step chosen by error control and is left out) for ``measure``, by family and step."""
-    ref = reference_of(regime)
+    has its step chosen by error control and is left out) for ``measure``, by family and step, against the
+    reference; ``paired``: every such fp32 setting against its :func:`fp64_partner` (family "… − fp64"), where it has
+    one."""
     out = []
     for s in regime["settings"]:
         if s["role"] != "grid" or not usable(s) or s.get("dt") is None or s.get("tolerance") is not None:
             continue
-        c = compare_setting(regime, s, measure)
+        ref = fp64_partner(regime, s) if paired else reference_of(regime)
+        if ref is None:
+            continue
+        c = compare_setting(regime, s, measure, ref)
         if not (math.isfinite(c.ratio) and c.sigma > 0):
             continue
         idx = _members(regime)[c.member]  # the sign over the pads the comparison took: its member's
         d = _matrix([s["values"][measure][i] for i in idx]) - _matrix([ref["values"][measure][i] for i in idx])
         sign = -1.0 if d.ndim == 1 and np.nanmean(d) < 0 else 1.0
-        out.append(StepError(setting_family(s), float(s["dt"]), sign * c.ratio, (c.bound - c.error) / c.sigma))
+        family = f"{setting_family(s)} − fp64" if paired else setting_family(s)
+        out.append(StepError(family, float(s["dt"]), sign * c.ratio, (c.bound - c.error) / c.sigma))
     return sorted(out, key=lambda e: (e.family, e.dt))
 
 
-def collect(doc: dict[str, Any], name: str | None = None, measures: Sequence[str] | None = None) -> Steps:
+def collect(
+    doc: dict[str, Any], name: str | None = None, measures: Sequence[str] | None = None, paired: bool = False
+) -> Steps:
     """The errors against the step of the regime ``name`` of a result file (its only one where None) for
-    ``measures`` (default every measure of the regime). ValueError for a regime or measure the file lacks, a file of
-    several regimes without a name, or a regime with no completed fixed-step setting besides its reference."""
+    ``measures`` (default every measure of the regime); ``paired``: fp32 against fp64 step by step
+    (:func:`step_errors`). ValueError for a regime or measure the file lacks, a file of several regimes without a
+    name, or a regime with no completed fixed-step setting besides its reference (paired: no fp32 setting with an
+    fp64 partner)."""
     regimes = doc["regimes"]
     if name is None:
         if len(regimes) != 1:
@@ -107,20 +142,22 @@ def collect(doc: dict[str, Any], name: str | None = None, measures: Sequence[str
         raise ValueError(f"the file has no regime {name} (it has {', '.join(regimes)})")
     reg = regimes[name]
     names = measures_asked(name, reg, measures)
-    errors = {m: step_errors(reg, m) for m in names}
+    errors = {m: step_errors(reg, m, paired) for m in names}
     families = list(dict.fromkeys(e.family for m in names for e in errors[m]))
     if not families:
-        raise ValueError(f"{name} has no completed fixed-step setting besides its reference")
+        lacks = "fp32 setting with an fp64 partner" if paired else "fixed-step setting besides its reference"
+        raise ValueError(f"{name} has no completed {lacks}")
     ref = reference_of(reg)
     signed = {m: _matrix(ref["values"][m]).ndim == 1 for m in names}
-    return Steps(name, ref["label"], names, signed, errors, families, doc["tag"], machine_text(doc))
+    against = "the fp64 setting of the same step and variant" if paired else f"the reference `{ref['label']}`"
+    return Steps(name, against, names, signed, errors, families, doc["tag"], machine_text(doc), paired)
 
 
 def errors_by_step(steps: Steps) -> str:
     """Markdown: per family, one row per measure and one column per step, each setting's error ± its 95 % reach in
     units of σ ("–" where the setting has no figure for the measure)."""
-    lines = [f"{steps.regime}: error / σ ± 95 % half-width of each fixed-step setting against the reference "
-             f"`{steps.reference}`, by step (signed for a scalar measure, rms for a spectrum)", ""]  # fmt: skip
+    lines = [f"{steps.regime}: error / σ ± 95 % half-width of each fixed-step setting against "
+             f"{steps.reference}, by step (signed for a scalar measure, rms for a spectrum)", ""]  # fmt: skip
     for fam in steps.families:
         dts = sorted({e.dt for m in steps.measures for e in steps.errors[m] if e.family == fam})
         lines += [f"**{fam}**", "", "| measure | " + " | ".join(f"{dt:g} s" for dt in dts) + " |",
@@ -165,6 +202,7 @@ def step_figure(steps: Steps, folder: Path, rule: float = 0.25) -> Path:
     fig.legend(handles, steps.families, loc="outside lower center", ncol=min(4, len(steps.families)), fontsize=7)
     fig.supxlabel("step [s]", fontsize=8)
     fig.supylabel("error of the ensemble mean / σ between seeds", fontsize=8)
-    fig.suptitle(f"{steps.regime}: error against the step, 95 % intervals; shaded: ± {rule:g} σ\n{steps.machine}",
-                 fontsize=9)  # fmt: skip
-    return save_figure(fig, folder, f"wps_{steps.tag}_{steps.regime}_steps", dpi=90, formats=("png",))[0]
+    what = "fp32 against fp64 at the same step" if steps.paired else "error against the step"
+    fig.suptitle(f"{steps.regime}: {what}, 95 % intervals; shaded: ± {rule:g} σ\n{steps.machine}", fontsize=9)
+    name = f"wps_{steps.tag}_{steps.regime}_{'fp32_fp64' if steps.paired else 'steps'}"
+    return save_figure(fig, folder, name, dpi=90, formats=("png",))[0]
