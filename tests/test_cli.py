@@ -73,15 +73,24 @@ def test_the_crossing_treatment_is_a_run_option(scene_file, tmp_path, capsys):
 
 
 def test_the_solve_tolerance_is_a_run_option(scene_file, tmp_path, capsys):
-    """``--solve-tol`` is stored with the run options (``rerun`` repeats it); a value outside (0, 1) exits 2 before
-    anything is written."""
+    """``--solve-tol`` is said in the summary line and stored with the run options, and ``rerun`` repeats it (the
+    same samples); ``--resume`` takes the stored one and refuses the option; a value outside (0, 1), or one with
+    ``--crossing mean``, exits 2 before anything is written."""
     out = tmp_path / "tight.h5"
     assert main(["hf", str(scene_file), "-o", str(out), "--no-progress", "--solve-tol", "1e-7"]) == 0
+    assert ", solve tol 1e-07" in capsys.readouterr().out
     assert read_run(out)["attrs"]["run_options"]["solve_tol"] == 1e-7
-    bad = tmp_path / "bad.h5"
-    assert main(["hf", str(scene_file), "-o", str(bad), "--no-progress", "--solve-tol", "1"]) == 2
-    assert "solve_tol must be a number between 0 and 1" in capsys.readouterr().err
-    assert not bad.exists() and not list(tmp_path.glob("bad.h5*"))
+    again = tmp_path / "again.h5"
+    assert main(["rerun", str(out), "-o", str(again), "--no-progress"]) == 0
+    assert read_run(again)["attrs"]["run_options"]["solve_tol"] == 1e-7
+    assert np.array_equal(read_run(again)["global/mu"], read_run(out)["global/mu"])
+    assert main(["hf", "--resume", str(out), "--solve-tol", "1e-7"]) == 2
+    assert "--solve-tol" in capsys.readouterr().err
+    for extra in (["--solve-tol", "1"], ["--solve-tol", "1e-7", "--crossing", "mean"]):
+        bad = tmp_path / "bad.h5"
+        assert main(["hf", str(scene_file), "-o", str(bad), "--no-progress", *extra]) == 2
+        assert "solve_tol" in capsys.readouterr().err
+        assert not bad.exists() and not list(tmp_path.glob("bad.h5*"))
 
 
 def test_only_what_is_asked_is_recorded(scene_file, tmp_path):

@@ -55,10 +55,49 @@ def test_solver_takes_the_tolerance_and_the_precisions_default(scenes):
     assert math.isclose(float(HFSolver(model, "strang", DT, solve_tol=3e-7).newton_tol), 3e-7)
 
 
-@pytest.mark.parametrize("bad", [0.0, 1.0, -1e-6, 2.0, math.nan, "1e-7"])
+@pytest.mark.parametrize("bad", [0.0, 1.0, -1e-6, 2.0, math.nan, "1e-7", True])
 def test_bad_solve_tol_is_refused(bad):
     with pytest.raises(SceneError, match="solve_tol must be a number between 0 and 1"):
         RunOptions(solve_tol=bad)
+
+
+def test_solve_tol_is_refused_with_the_mean_crossing_treatment(scenes):
+    """The ``mean`` treatment's short-segment threshold is 1e3 × the solve's tolerance: a tolerance of its own would
+    move it too, so the two are not combined (options, solver, study setting)."""
+    with pytest.raises(SceneError, match="solve_tol with crossing 'mean'"):
+        RunOptions(solve_tol=1e-7, crossing="mean")
+    model, _ = batch_at_start(scenes, "cpu", "fp32")
+    with pytest.raises(SceneError, match="solve_tol with crossing 'mean'"):
+        HFSolver(model, "strang", DT, crossing="mean", solve_tol=1e-7)
+    with pytest.raises(ValueError, match="solve_tol with crossing 'mean'"):
+        parse_setting("strang@fp32:dt=1e-8:solve_tol=1e-7:mean")
+
+
+def test_the_study_runs_a_setting_at_its_solve_tolerance(scenes, monkeypatch):
+    """A study setting's ``:solve_tol=V`` reaches the run's options (``run_setting`` → ``run_engine`` →
+    ``run_hf``), not only its label."""
+    from types import SimpleNamespace
+
+    from aca_warp.studies import runs
+    from aca_warp.studies import work_precision_stats as wps
+
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def capture(model, state, options, **kwargs):
+        seen.append(options)
+        raise Stop
+
+    monkeypatch.setattr(runs, "run_hf", capture)
+    plan = SimpleNamespace(duration=DURATION, record=lambda cfg: Record(sample_dt=1e-6))
+    prep = SimpleNamespace(scenes=scenes, exp=SimpleNamespace(name="sector"), plan=plan)
+    cfg = SimpleNamespace(device="cpu", engine="auto")
+    (setting,) = parse_setting("strang@fp32:dt=5e-8:solve_tol=3e-7")
+    with pytest.raises(Stop):
+        wps.run_setting(prep, cfg, setting, "grid", [], lambda line: None)
+    assert [o.solve_tol for o in seen] == [3e-7]
 
 
 def test_stored_options_keep_the_tolerance_and_old_files_take_the_default():

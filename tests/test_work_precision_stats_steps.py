@@ -235,3 +235,14 @@ def test_a_reference_partner_is_the_reference():
     paired = {e.dt: e.error for e in step_errors(reg, "mu_std", paired=True)}
     plain = {e.dt: e.error for e in step_errors(reg, "mu_std")}
     assert list(paired) == [1e-8] and paired[1e-8] == pytest.approx(plain[1e-8]) == pytest.approx(-0.5)
+
+
+def test_the_variant_is_every_field_of_a_setting_but_its_precision():
+    """The fields that pair settings (twin, fp64 partner) are the study's ``Setting`` fields less the precision, with
+    its defaults: a field added to one and not the other would pair settings of different variants."""
+    import dataclasses
+
+    fields = {f.name: f.default for f in dataclasses.fields(wps.Setting) if f.name != "precision"}
+    assert rule.VARIANT == {k: None if v is dataclasses.MISSING else v for k, v in fields.items()}
+    old_row = {"integrator": "strang", "precision": "fp32", "dt": 1e-7, "tolerance": None}
+    assert rule.variant(old_row) == rule.variant(_setting("strang@fp64:dt=1e-07", "grid", 1.0, {}))

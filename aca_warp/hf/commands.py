@@ -35,6 +35,7 @@ from aca_warp.hf.options import (
     STEP_CONTROLLED,
     crossing_words,
     growth_words,
+    solve_tol_words,
 )
 
 
@@ -333,6 +334,7 @@ def _summarise_hf(args: argparse.Namespace, scene: Any, result: Any, duration: f
         f"({result.dt:.3g} s{_default_step_words(args, scene)}, {args.integrator}, {precision}"
         f"{', fast math' if args.fast_math else ''}"
         f"{crossing_words(args.crossing)}"
+        f"{solve_tol_words(args.solve_tol)}"
         f"{growth_words(growth_dt)}), "
         f"mean mu {np.mean(mu):.4f}, "
         f"{rate:.3g} patch-steps/s"

@@ -50,8 +50,8 @@ DEFAULT_SPLIT_TOLERANCE = 1.0e-2
 NEWTON_TOL = {"fp32": 1.0e-6, "fp64": 1.0e-9}
 SOLVE_TOL_HELP = (
     "tolerance of the per-patch implicit friction solve, relative to the scale of the step's velocity change "
-    f"(default {NEWTON_TOL['fp32']:g} in fp32, {NEWTON_TOL['fp64']:g} in fp64; between 0 and 1): a numerical "
-    "setting for studies of the solve's own error (docs/numerics.md)"
+    f"(default {NEWTON_TOL['fp32']:g} in fp32, {NEWTON_TOL['fp64']:g} in fp64; between 0 and 1; not with "
+    "--crossing mean): a numerical setting for studies of the solve's own error (docs/numerics.md)"
 )
 ENGINES = ("auto", "onchip", "general")
 # strang's treatment of a step whose slip changes sign (docs/friction_step.md §8): "point", Eq. 4 at the midpoint
@@ -207,10 +207,25 @@ def check_crossing(crossing: str, integrator: str) -> None:
         raise SceneError(f"crossing {crossing!r} is a treatment of strang's steps, not of {integrator}")
 
 
-def check_solve_tol(solve_tol: float | None) -> None:
-    """Refuse a friction solve tolerance outside (0, 1) (SceneError); None is the precision's default."""
-    if solve_tol is not None and not (isinstance(solve_tol, int | float) and 0 < solve_tol < 1):
+def check_solve_tol(solve_tol: float | None, crossing: str = "point") -> None:
+    """Refuse a friction solve tolerance outside (0, 1), or one given with the ``mean`` crossing treatment, whose
+    short-segment threshold (``SEGMENT_TOL`` in ``kernels/physics.py``) is the same tolerance times 1e3 and would
+    move with it (SceneError); None is the precision's default."""
+    if solve_tol is None:
+        return
+    if not (isinstance(solve_tol, int | float) and not isinstance(solve_tol, bool) and 0 < solve_tol < 1):
         raise SceneError(f"solve_tol must be a number between 0 and 1 (exclusive), got {solve_tol!r}")
+    if crossing != "point":
+        raise SceneError(
+            f"solve_tol with crossing {crossing!r}: that treatment's short-segment threshold follows the solve's "
+            "tolerance; keep the default tolerance with it"
+        )
+
+
+def solve_tol_words(solve_tol: float | None) -> str:
+    """The friction solve's tolerance for a summary line: ``, solve tol X``, or nothing at the precision's default
+    (None)."""
+    return "" if solve_tol is None else f", solve tol {solve_tol:g}"
 
 
 @dataclass(frozen=True)
@@ -251,7 +266,8 @@ class RunOptions:
             instant of its closing half step; docs/friction_step.md §8). ``strang`` only.
         solve_tol: Tolerance of the per-patch implicit friction solve (``solve_velocity`` in ``kernels/physics.py``),
             relative to the scale of the step's velocity change [1], in (0, 1); None: :data:`NEWTON_TOL` of the
-            model's precision. The integrators without an implicit solve ignore it.
+            model's precision. ``symplectic-euler`` (explicit friction) ignores it; refused with ``crossing``
+            ``mean``, whose short-segment threshold follows it (:func:`check_solve_tol`). Not a sweep option.
     """
 
     duration: float | None = None
@@ -282,7 +298,7 @@ class RunOptions:
         if not isinstance(self.fast_math, bool):
             raise SceneError(f"fast_math must be true or false, got {self.fast_math!r}")
         _positive_or_none("watchdog_factor", self.watchdog_factor, "")
-        check_solve_tol(self.solve_tol)
+        check_solve_tol(self.solve_tol, self.crossing)
         for name in ("tolerance", "split_tolerance"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and value > 0 and math.isfinite(value)):

@@ -292,7 +292,7 @@ class HFSolver:
         self.integrator = integrator
         self.estimate = stable_step(model) if estimate is None else estimate
         self.T = model.dtype
-        check_solve_tol(solve_tol)
+        check_solve_tol(solve_tol, crossing)
         self.newton_tol = self.T(NEWTON_TOL[model.precision] if solve_tol is None else solve_tol)
         for name, value in (("tolerance", tolerance), ("split_tolerance", split_tolerance)):
             if not (value > 0 and math.isfinite(value)):

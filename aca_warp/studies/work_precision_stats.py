@@ -66,7 +66,7 @@ import numpy as np
 
 from aca_warp.common.argtypes import int_at_least, nonneg, positive
 from aca_warp.common.errors import SceneError
-from aca_warp.hf.options import INTEGRATORS, check_crossing, fast_math_unfit, tolerance_keyword
+from aca_warp.hf.options import INTEGRATORS, check_crossing, check_solve_tol, fast_math_unfit, tolerance_keyword
 from aca_warp.studies.report import Log, add_device, add_page_options, clean, command_line, write_json
 from aca_warp.studies.validation.analysis import analyse_batch
 from aca_warp.studies.validation.area import analyse_growth
@@ -182,8 +182,12 @@ def parse_setting(spec: str) -> list[Setting]:
             raise ValueError(f"bad number in {p!r} of {spec!r}") from None
         if not all(v > 0 and math.isfinite(v) for v in nums):
             raise ValueError(f"{key} must be positive in {spec!r}")
-        if key == "solve_tol" and not all(v < 1 for v in nums):
-            raise ValueError(f"solve_tol must be below 1 in {spec!r}")
+        if key == "solve_tol":
+            try:
+                for v in nums:
+                    check_solve_tol(v, crossing)
+            except SceneError as e:
+                raise ValueError(f"{e} ({spec!r})") from None
         axes[key] = list(nums)
     combos = itertools.product(precisions, axes["dt"], axes["tol"], axes["growth_dt"], axes["solve_tol"])
     return [Setting(name, pr, dt, tol, fast, growth, crossing, solve) for pr, dt, tol, growth, solve in combos]

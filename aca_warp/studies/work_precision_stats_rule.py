@@ -417,18 +417,25 @@ def usable(setting: dict[str, Any]) -> bool:
     return bool(setting.get("complete")) and bool(setting.get("values"))
 
 
+VARIANT = {"integrator": None, "dt": None, "tolerance": None, "fast_math": False, "growth_dt": None,
+           "crossing": "point", "solve_tol": None}  # fmt: skip
+"""A setting's fields besides its precision (the study's ``Setting``), with the value a result file's row that lacks
+one holds (files written before the field existed)."""
+
+
+def variant(setting: dict[str, Any]) -> tuple[Any, ...]:
+    """Everything of a setting (a result file's row) but its precision, old rows' missing fields at their defaults:
+    two settings of one variant differ in precision alone."""
+    return tuple(setting.get(k, default) for k, default in VARIANT.items())
+
+
 def twin_of(regime: dict[str, Any]) -> dict[str, Any] | None:
-    """The reference's twin: the completed grid setting of the reference's integrator, step and tolerance in the
-    other precision, without fast math, at the reference's growth events, crossing treatment and friction solve
-    tolerance (as exact as the reference; its runs part from the reference's by rounding alone), or None."""
+    """The reference's twin: the completed grid setting of the reference's :func:`variant` (integrator, step,
+    tolerances, growth events, crossing treatment; the reference runs without fast math) in the other precision (as
+    exact as the reference; its runs part from the reference's by rounding alone), or None."""
     ref = reference_of(regime)
-    key = (ref.get("integrator"), ref.get("dt"), ref.get("tolerance"))
-    twins = [s for s in regime["settings"] if s["role"] == "grid" and usable(s)
-             and (s.get("integrator"), s.get("dt"), s.get("tolerance")) == key
-             and s.get("precision") != ref.get("precision") and not s.get("fast_math")
-             and s.get("growth_dt") == ref.get("growth_dt")
-             and s.get("crossing", "point") == ref.get("crossing", "point")
-             and s.get("solve_tol") == ref.get("solve_tol")]  # fmt: skip
+    twins = [s for s in regime["settings"] if s["role"] == "grid" and usable(s) and variant(s) == variant(ref)
+             and s.get("precision") != ref.get("precision")]  # fmt: skip
     return twins[0] if twins else None
 
 

@@ -10,8 +10,10 @@ a spectrum the rms over its components of the errors over the rms of their σ, �
 95 % interval lies beyond it, (bound − error)/σ: for a scalar measure the half-width t₀.₉₇₅ sd(x − x_ref)/(√n σ).
 
 With ``paired`` (``--steps FILE --precision-pairs``) each fp32 setting is measured against the fp64 setting of the
-same step and variant instead (:func:`fp64_partner`; the reference where it is that setting): what the precision
-alone moves at each step, on the same seeds, free of the step's own error.
+same step and variant instead (:func:`fp64_partner`; the reference where it is that setting), in units of that
+setting's own σ between seeds (within a few per cent of the reference's for μ mean on the committed files, up to a
+quarter apart for S − S_null): what the precision alone moves at each step, on the same seeds, free of the step's
+own error.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from aca_warp.studies.work_precision_stats_rule import (
     measures_asked,
     reference_of,
     usable,
+    variant,
 )
 
 
@@ -83,23 +86,13 @@ class Steps:
     paired: bool = False
 
 
-VARIANT = {"integrator": None, "dt": None, "tolerance": None, "fast_math": False, "growth_dt": None,
-           "crossing": "point", "solve_tol": None}  # fmt: skip
-"""The fields a setting shares with its fp64 partner (:func:`fp64_partner`), everything but the precision, with the
-value a result file's row that lacks one holds (files written before the field existed)."""
-
-
-def _variant(setting: dict[str, Any]) -> list[Any]:
-    return [setting.get(k, default) for k, default in VARIANT.items()]
-
-
 def fp64_partner(regime: dict[str, Any], setting: dict[str, Any]) -> dict[str, Any] | None:
     """The completed fp64 setting (grid or reference) of ``setting``'s step and variant, for an fp32 ``setting``;
     None where there is none."""
     if setting.get("precision") != "fp32":
         return None
     partners = [s for s in regime["settings"] if s.get("precision") == "fp64" and usable(s)]
-    return next((s for s in partners if _variant(s) == _variant(setting)), None)
+    return next((s for s in partners if variant(s) == variant(setting)), None)
 
 
 def step_errors(regime: dict[str, Any], measure: str, paired: bool = False) -> list[StepError]:
@@ -149,7 +142,8 @@ def collect(
         raise ValueError(f"{name} has no completed {lacks}")
     ref = reference_of(reg)
     signed = {m: _matrix(ref["values"][m]).ndim == 1 for m in names}
-    against = "the fp64 setting of the same step and variant" if paired else f"the reference `{ref['label']}`"
+    partner = "the fp64 setting of the same step and variant (σ: that setting's)"
+    against = partner if paired else f"the reference `{ref['label']}`"
     return Steps(name, against, names, signed, errors, families, doc["tag"], machine_text(doc), paired)
 
 
