@@ -120,15 +120,19 @@ def law_pair(vp: Any, seg: int, s0: Any, g0: Any, mu_scale: Any, slope: Any, dec
 
 @wp.func
 def solve_velocity(
-    a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any, seg: int, s0: Any,
+    a: Any, r: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any, seg: int, s0: Any,
     g0: Any,
 ):  # fmt: skip
-    """Solve a·v − hfn·f(vd − v) = b for v (a > 0, hfn ≥ 0): per-patch implicit friction. ``seg`` ≠ 0: with f the
-    mean of Eq. 4 along a step's slip segment from ``s0`` [m/s] (G(s0) = ``g0``) instead (:func:`segment_pair`).
+    """Solve a·v − hfn·f(vd − v) = b for v (a > 0, hfn ≥ 0), given r = b − a·guess: per-patch implicit friction.
+    ``seg`` ≠ 0: with f the mean of Eq. 4 along a step's slip segment from ``s0`` [m/s] (G(s0) = ``g0``) instead
+    (:func:`segment_pair`).
 
     Works on the increment δ = v − guess, so the convergence test is relative to the size of the step's
-    velocity change (meaningful in fp32 too). |f| ≤ 2 mu_scale π/2 brackets δ in
-    [(r − hfn f_max)/a, (r + hfn f_max)/a], r = b − a·guess. Safeguarded Newton, ``rtsafe`` of Numerical Recipes:
+    velocity change (meaningful in fp32 too). The caller forms r from its terms (θh (F − c·guess), plus
+    m (v − guess) where the guess is not the step's start), never as b − a·guess: in fp32 the damping's θh c is
+    below half an ulp of the mass m at the small steps (4.4e-14 against m ≈ 1.9e-6 kg, ulp 1.1e-13, at 5e-8 s), so
+    a = m + θh c rounds to m and b − a·guess would lose the damping force. |f| ≤ 2 mu_scale π/2 brackets δ in
+    [(r − hfn f_max)/a, (r + hfn f_max)/a]. Safeguarded Newton, ``rtsafe`` of Numerical Recipes:
     it bisects when a Newton step would leave the bracket or when it is longer than half the step before the last
     one. Without the second rule Newton can settle, at hγ ≳ 10, into a 2-cycle across the steep part of Eq. 4 that
     stays inside the bracket and never shrinks it (docs/friction_step.md §2). It stops at an exact root, or when the
@@ -136,7 +140,6 @@ def solve_velocity(
     per solve.
     """
     fmax = mu_scale * type(a)(3.141592653589793)
-    r = b - a * guess
     lo = (r - hfn * fmax) / a
     hi = (r + hfn * fmax) / a
     dtol = tol * (wp.abs(r) + hfn * fmax) / a
@@ -183,7 +186,7 @@ def theta_substep(
     backward Euler (V itself); θ = ½ the implicit midpoint. ``m`` mass [kg], ``c`` damping [N s/m], ``fn`` normal
     force [N], ``vd`` disc speed ω r [m/s]. Written as V + (V − v)(1/θ − 1), which is V itself at θ = 1."""
     th = theta * h
-    vm = solve_velocity(m + th * c, m * v + th * force, th * fn, vd, v, mu_scale, slope, decay, tol, 0, vd - v, v - v)
+    vm = solve_velocity(m + th * c, th * (force - c * v), th * fn, vd, v, mu_scale, slope, decay, tol, 0, vd - v, v - v)
     return vm + (vm - v) * (type(v)(1.0) / theta - type(v)(1.0))
 
 
@@ -215,14 +218,14 @@ def friction_substep(
         theta = wp.min((one - type(v)(1.5) / x) / type(v)(1.5), one)
     th = theta * h
     a = m + th * c
-    b = m * v + th * force
     s0 = vd - v
     g0 = v - v  # G(s0), once a crossing step is solved again with the mean law
     seg = int(0)
     guess = v
     out = v
     for _pass in range(2):  # one solve call site (the second pass only on a crossing step)
-        vm = solve_velocity(a, b, th * fn, vd, guess, mu_scale, slope, decay, tol, seg, s0, g0)
+        r = th * (force - c * guess) + m * (v - guess)  # b − a·guess by its terms (solve_velocity); 0 + … on pass 1
+        vm = solve_velocity(a, r, th * fn, vd, guess, mu_scale, slope, decay, tol, seg, s0, g0)
         out = vm + (vm - v) * (one / theta - one)
         if seg != 0 or crossing == 0 or theta != half or s0 * (vd - out) >= v - v:
             break

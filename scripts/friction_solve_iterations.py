@@ -42,12 +42,12 @@ wp.set_module_options({"enable_backward": False})
 
 @wp.func
 def counted_solve(
-    a: Any, b: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any, zero_slip: int
+    a: Any, r: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any, zero_slip: int
 ):
-    """:func:`~aca_warp.kernels.physics.solve_velocity` with its iterations and bisections counted; ``zero_slip``
-    = 1 the variant of the module docstring. Returns (iterations, bisections, v [m/s])."""
+    """:func:`~aca_warp.kernels.physics.solve_velocity` (``r`` = b − a·guess, formed by its terms) with its
+    iterations and bisections counted; ``zero_slip`` = 1 the variant of the module docstring. Returns (iterations,
+    bisections, v [m/s])."""
     fmax = mu_scale * type(a)(3.141592653589793)
-    r = b - a * guess
     lo = (r - hfn * fmax) / a
     hi = (r + hfn * fmax) / a
     dtol = tol * (wp.abs(r) + hfn * fmax) / a
@@ -126,7 +126,7 @@ def count_substeps(
         theta = wp.min((one - type(h)(1.5) / x) / type(h)(1.5), one)
     th = theta * h
     n, nb, vm = counted_solve(
-        m + th * c, m * vi + th * force[i], th * fn, disc_speed[i], vi, mu_scale, slope, decay, tol, zero_slip
+        m + th * c, th * (force[i] - c * vi), th * fn, disc_speed[i], vi, mu_scale, slope, decay, tol, zero_slip
     )
     iterations[i] = n
     bisections[i] = nb

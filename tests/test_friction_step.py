@@ -49,7 +49,8 @@ def test_solve_breaks_the_newton_two_cycle() -> None:
     between slips +0.053 and −0.0996 m/s inside its bracket for all 60 iterations and returns an iterate far from
     the root; solve_velocity with the rule returns the root."""
     c = fs.CYCLE_CASE
-    p = wp.array([c["a"], c["b"], c["hfn"], c["vd"], c["guess"]], dtype=wp.float64, device="cpu")
+    r = c["b"] - c["a"] * c["guess"]  # solve_velocity takes b − a·guess
+    p = wp.array([c["a"], r, c["hfn"], c["vd"], c["guess"]], dtype=wp.float64, device="cpu")
     out = wp.zeros(1, dtype=wp.float64, device="cpu")
     wp.launch(_solve_kernel, dim=1, inputs=[p, M / math.pi], outputs=[out], device="cpu")
 
