@@ -224,7 +224,7 @@ def friction_substep(
     guess = v
     out = v
     for _pass in range(2):  # one solve call site (the second pass only on a crossing step)
-        r = th * (force - c * guess) + m * (v - guess)  # b − a·guess by its terms (solve_velocity); 0 + … on pass 1
+        r = th * (force - c * guess) + m * (v - guess)  # b − a·guess by its terms (solve_velocity); m·0 on pass 1
         vm = solve_velocity(a, r, th * fn, vd, guess, mu_scale, slope, decay, tol, seg, s0, g0)
         out = vm + (vm - v) * (one / theta - one)
         if seg != 0 or crossing == 0 or theta != half or s0 * (vd - out) >= v - v:
