@@ -130,7 +130,7 @@ def solve_velocity(
     Works on the increment δ = v − guess, so the convergence test is relative to the size of the step's
     velocity change (meaningful in fp32 too). The caller forms r from its terms (θh (F − c·guess), plus
     m (v − guess) where the guess is not the step's start), never as b − a·guess: in fp32 the damping's θh c is
-    below half an ulp of the mass m at the small steps (4.4e-14 against m ≈ 1.9e-6 kg, ulp 1.1e-13, at 5e-8 s), so
+    below half an ulp of the mass m at the small steps (4.4e-14 kg against m ≈ 1.9e-6 kg, ulp 1.1e-13 kg, at 5e-8 s), so
     a = m + θh c rounds to m and b − a·guess would lose the damping force. |f| ≤ 2 mu_scale π/2 brackets δ in
     [(r − hfn f_max)/a, (r + hfn f_max)/a]. Safeguarded Newton, ``rtsafe`` of Numerical Recipes:
     it bisects when a Newton step would leave the bracket or when it is longer than half the step before the last

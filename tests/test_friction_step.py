@@ -113,3 +113,43 @@ def test_strang_bounded_at_the_spring_bound(sector) -> None:
     assert np.all(np.abs(out.globals[:, 0, 0]) <= M)
     vd = scene.angular_velocity * np.hypot(scene.patches.x, scene.patches.y)
     assert np.all(np.abs(out.velocity) < vd.max() + 20.0)
+
+
+def _substep_kernel(T: type) -> wp.Kernel:
+    @wp.kernel(enable_backward=False, module="unique")
+    def k(
+        v: wp.array(dtype=T), m: wp.array(dtype=T), c: wp.array(dtype=T), fn: wp.array(dtype=T),
+        force: wp.array(dtype=T), vd: wp.array(dtype=T), h: T, tol: T, out: wp.array(dtype=T),
+    ):  # fmt: skip
+        i = wp.tid()
+        out[i] = friction_substep(
+            v[i], h, m[i], c[i], fn[i], force[i], vd[i], T(M / math.pi), T(SLOPE), T(DECAY), tol, 0
+        )
+
+    return k
+
+
+def test_fp32_substep_keeps_the_damping() -> None:
+    """The sub-step forms its solve's right-hand side by its terms, θh (F − c v): in fp32 at 5e-8 s, where θh c is
+    below half an ulp of an hf1-like patch's mass, so that a = m + θh c rounds to m, the fp32 velocity increments
+    still agree with fp64's on average to a small share of the damping's own increment θh c v/m (formed as b − a·v
+    they were off by 0.8 of it: the damping lost)."""
+    rng = np.random.default_rng(1)
+    n = 20_000
+    m = 37.5 * rng.uniform(2e-8, 8e-8, n)  # kg: hf1's mass per area [kg/m²] × patch areas [m²]
+    c = 0.95 * m  # N s/m: hf1's c/m
+    fn = rng.uniform(0.1, 0.5, n)  # N
+    vd = np.full(n, 10.0)  # m/s
+    v = vd - rng.uniform(0.02, 0.1, n)  # sliding a little slower than the disc
+    force = -fn * M / math.pi * np.arctan(SLOPE * (vd - v)) * (1 / (DECAY * np.abs(vd - v) + 1) + 1) + c * v
+    h = float(np.float32(5e-8))
+    v, m, c, fn, force, vd = (x.astype(np.float32).astype(np.float64) for x in (v, m, c, fn, force, vd))
+    assert np.all(np.float32(m) + np.float32(0.5 * h) * np.float32(c) == np.float32(m))  # a rounds to m in fp32
+    increment = {}
+    for T, npt, tol in ((wp.float32, np.float32, 1e-6), (wp.float64, np.float64, 1e-12)):
+        arrays = [wp.array(x.astype(npt), dtype=T, device="cpu") for x in (v, m, c, fn, force, vd)]
+        out = wp.zeros(n, dtype=T, device="cpu")
+        wp.launch(_substep_kernel(T), dim=n, inputs=[*arrays, T(h), T(tol)], outputs=[out], device="cpu")
+        increment[T] = out.numpy().astype(np.float64) - v
+    damping = np.mean(h * c * v / m)  # m/s: the damping's share of an increment
+    assert abs(np.mean(increment[wp.float32] - increment[wp.float64])) < 0.05 * damping

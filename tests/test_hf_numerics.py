@@ -440,7 +440,7 @@ def test_friction_substep_solves_the_damped_midpoint_equation():
         # which a frozen force nearly balancing friction makes far larger than the increment
         a = m[i] + h * c[i]
         scale = (abs(h * (force[i] - c[i] * v[i])) + h * fn[i] * 0.8) / a / theta
-        floor = 8.0 * np.finfo(float).eps * abs(v[i]) / theta  # the rounding of r = b − a v
+        floor = 8.0 * np.finfo(float).eps * abs(v[i]) / theta  # the rounding of V = v + δ and of the update
         assert abs(got[i] - want) <= 1e-10 * scale + floor, (i, got[i], want, scale)
     assert 10 < damped < n - 10  # both branches of θ are exercised
 
