@@ -92,7 +92,7 @@ def test_onchip_csr_in_shared_memory_matches(device):
 
 
 @pytest.mark.parametrize(("precision", "block", "csr"), [("fp32", 96, True), ("fp64", 32, False)])
-def test_onchip_multithread_blockcpu_fibers(precision, block, csr):
+def test_onchip_multithread_block_cpu_fibers(precision, block, csr):
     """Blocks of 96/32 real (fiber) threads, each owning 18–19 / 54–55 patches: every barrier must be reached by
     all threads of the block (uneven patch counts per thread), else the gathers read unfinished drifts; with 96
     threads three share each bank of the on-chip CSR (a wrong slot offset overlaps their links)."""
@@ -224,7 +224,7 @@ def test_grown_tiles_only_where_they_fit_beside_the_state():
 
 @pytest.mark.parametrize("copies", [False, True], ids=["model", "copies"])
 @pytest.mark.parametrize(("precision", "block", "csr"), [("fp32", 96, True), ("fp64", 32, False)])
-def test_onchip_growth_multithread_blockcpu_fibers(request, precision, block, csr, copies):
+def test_onchip_growth_multithread_block_cpu_fibers(request, precision, block, csr, copies):
     """Growth with real (fiber) threads per block: the contact re-solve's block sums run in a tree, so against the
     general path (one-thread blocks) everything agrees to rounding; a barrier missed by part of the block (the
     grow → coupling order, the shared CSR copy) shows as an O(1) error in the stiffnesses or forces. ``copies``: the
