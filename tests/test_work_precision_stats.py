@@ -56,7 +56,7 @@ def _setting(label: str, role: str, wall: float, values: dict, complete: bool = 
     """A row of a result file as the study writes it."""
     (setting,) = wps.parse_setting(label)
     return {"label": label, "role": role, **dataclasses.asdict(setting), "wall_s": wall, "complete": complete,
-            "values": values if complete else None, "steps": 1}  # fmt: skip
+            "values": values if complete else None, "steps": 1, "kernels": "0123456789ab"}  # fmt: skip
 
 
 T29 = scipy.stats.t.ppf(0.975, 29)
@@ -397,6 +397,43 @@ def test_tiny_run_end_to_end(tmp_path, capsys):
     path.write_text(json.dumps(doc))
     assert wps.main([*argv, "--grid", "strang@fp64:dt=5e-7"]) == 2
     assert "choose another --out" in capsys.readouterr().err
+
+
+def test_again_runs_the_grid_again_and_rows_name_their_kernels(tmp_path):
+    """Each row records the digest of the kernels it ran on; ``--again`` runs the grid's settings of a continued
+    file again and replaces their rows, keeping the reference's and every other row. The report marks an fp32 row
+    without a digest (run on the kernels whose fp32 friction sub-step dropped the damping), and only such a row."""
+    from aca_warp.studies import work_precision_stats_report as report
+
+    out = tmp_path / "wps"
+    argv = ["--quick", "--regimes", "hf1", "--seeds", "2", "--patches", "6", "--duration", "2e-4", "--window",
+            "1e-4", "--out", str(out)]  # fmt: skip
+    assert wps.main([*argv, "--grid", "strang@fp32:dt=5e-7,1e-7"]) == 0
+    path = out / "wps_cpu_quick_hf1.json"
+    doc = json.loads(path.read_text())
+    rows = doc["regimes"]["hf1"]["settings"]
+    digest = wps.kernels_digest()
+    assert re.fullmatch(r"[0-9a-f]{12}", digest) and all(r["kernels"] == digest for r in rows)
+    assert "kernels" not in doc  # a file's rows may come from several calls: the digest is per row
+    for r in rows:
+        r["kernels"] = None if r["precision"] == "fp32" else r["kernels"]
+        r["wall_s"] = 1e3 if r["label"] == "strang@fp32:dt=1e-07" else r["wall_s"]  # marks the rows kept
+    path.write_text(json.dumps(doc))
+    marked = [report.earlier_fp32(r) for r in rows]
+    assert marked == [False, True, True], marked  # the fp64 reference is not marked
+    table = report.setting_table(doc["regimes"]["hf1"], 0.25, ["mu_mean"], "resolution")
+    assert [line.split(" |")[0] for line in table[2:]] == [
+        "| `strang@fp64:dt=2e-08` (reference)",
+        "| `strang@fp32:dt=5e-07` †",
+        "| `strang@fp32:dt=1e-07` †",
+    ]
+    assert wps.main([*argv, "--grid", "strang@fp32:dt=5e-7", "--again"]) == 0
+    after = json.loads(path.read_text())["regimes"]["hf1"]["settings"]
+    assert [r["label"] for r in after] == [rows[0]["label"], rows[2]["label"], rows[1]["label"]]
+    assert after[0] == rows[0] and after[1] == rows[2]  # the reference and the other grid row kept as they were
+    assert after[2]["kernels"] == digest and not report.earlier_fp32(after[2])
+    assert wps.main([*argv, "--grid", "strang@fp32:dt=5e-7"]) == 0  # without --again: nothing run again
+    assert json.loads(path.read_text())["regimes"]["hf1"]["settings"] == after
 
 
 ABSENT_TEXT = "not in this part"  # the merge's fault text of a setting a part did not ask for

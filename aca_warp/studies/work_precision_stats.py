@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import hashlib
 import itertools
 import math
 import re
@@ -334,7 +335,8 @@ def measure_regime(
 ) -> Path:
     """Every setting of one regime (the reference first, then the grid cheapest first) into its result file
     ``OUT/wps_<tag>_<regime>.json``, rewritten after each run. A file of the same regime, pads, settings and
-    reference is continued: its runs are kept, the missing ones added (a run skipped by --max-wall is run again),
+    reference is continued: its runs are kept, the missing ones added (a run skipped by --max-wall is run again;
+    with ``--again`` the grid's settings are run again and replace their rows, the reference's row is kept),
     on the same kind of device (:data:`CONTINUED`; another host with it is accepted, each run records its host).
     Raises FileExistsError when the file holds another configuration or device."""
     from aca_warp.studies.runs import batch_at_start
@@ -355,7 +357,8 @@ def measure_regime(
     }  # fmt: skip
     path = Path(args.out) / f"wps_{head['tag']}_{name}.json"
     before = 0.0  # s of wall time earlier calls spent on this file
-    doc = {**{k: v for k, v in head.items() if k != "command"}, "commands": [head["command"]], "regimes": {name: reg}}
+    doc = {**{k: v for k, v in head.items() if k not in ("command", "kernels")}, "commands": [head["command"]],
+           "regimes": {name: reg}}  # fmt: skip
     if path.exists():
         old = load_results(path)
         oreg = old["regimes"][name]
@@ -365,7 +368,11 @@ def measure_regime(
             raise FileExistsError(f"{path} holds another run of {name} (device, pads, settings or reference "
                                   "differ): choose another --out")  # fmt: skip
         doc["machine"] = old["machine"]
-        reg["settings"] = [r for r in oreg["settings"] if not str(r.get("fault")).startswith("not run")]
+        again = {s.label for s in settings} if args.again else set()
+        reg["settings"] = [r for r in oreg["settings"] if not str(r.get("fault")).startswith("not run")
+                           and not (r["role"] == "grid" and r["label"] in again)]  # fmt: skip
+        if again:
+            log(f"{name}: running again: {', '.join(sorted(again & {r['label'] for r in oreg['settings']}))}")
         doc["commands"] = [*old["commands"], head["command"]]
         before = old.get("regime_wall_s") or 0.0
         log(f"{name}: continuing {path} ({len(reg['settings'])} runs in it)")
@@ -389,7 +396,10 @@ def measure_regime(
                                     "fault": "not run: --max-wall", "wall_s": None})  # fmt: skip
             continue
         t_run = log.elapsed()
-        row = run_setting(prep, cfg, s, role, names, log) | {"host": head["machine"]["host"]}
+        row = run_setting(prep, cfg, s, role, names, log) | {
+            "host": head["machine"]["host"],
+            "kernels": head["kernels"],
+        }
         if row.get("wall_s") is not None:
             overheads.append(max(log.elapsed() - t_run - row["wall_s"], 0.0))
         reg["settings"].append(row)
@@ -402,6 +412,17 @@ def measure_regime(
             f"{state}, {row.get('saturated', 0)}/{len(prep.scenes)} pads saturated")  # fmt: skip
     _write(path, doc, before + log.elapsed() - t0)
     return path
+
+
+def kernels_digest() -> str:
+    """The first 12 hex digits of the SHA-256 of the Warp kernels' sources (``kernels/*.py``, by name): which kernels
+    a row's numbers came from. Each row records it under ``kernels``; rows written before it was recorded lack it."""
+    import aca_warp.kernels
+
+    h = hashlib.sha256()
+    for p in sorted(Path(aca_warp.kernels.__file__).parent.glob("*.py")):
+        h.update(p.name.encode() + b"\0" + p.read_bytes())
+    return h.hexdigest()[:12]
 
 
 def run_estimate(steps: float, per_step: float, overheads: list[float]) -> float:
@@ -447,6 +468,7 @@ def measure(args: argparse.Namespace, argv: list[str]) -> list[Path]:
         "quick": bool(args.quick),
         "command": command_line("work_precision_stats.py", argv),
         "rule": DEFAULT_RULE,
+        "kernels": kernels_digest(),
     }
     try:
         paths = [measure_regime(name, args, cfg, settings, head, log) for name in args.regimes]
@@ -502,6 +524,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--max-wall", type=nonneg, help="start no run that would end past this wall time [s] (the "
                     "estimate: the reference's time per step × the steps, plus the mean time the call's earlier "
                     "runs spent besides stepping); written as not run")  # fmt: skip
+    ap.add_argument("--again", action="store_true", help="in a continued result file, run the grid's settings "
+                    "again and replace their rows (e.g. after a change to the kernels; the reference's row is "
+                    "kept, each row records the digest of the kernels it ran on)")  # fmt: skip
     ap.add_argument("--report", nargs="+", metavar="JSON", help="only write the figure(s) and the page from "
                     "result files")  # fmt: skip
     ap.add_argument(

@@ -120,7 +120,9 @@ def _merged_row(label: str, role: str, rows: list[dict[str, Any] | None], order:
         vals = [r.get(k) for r in have]
         row[k] = sum(vals) if all(v is not None for v in vals) else None
     row["part_wall_s"] = [r["wall_s"] for r in have]
-    for k in ("dt_used", "engine", "host"):
+    for k in ("dt_used", "engine", "host", "kernels"):
+        if not any(k in r for r in have):  # rows written before the field was recorded
+            continue
         vals = {repr(r.get(k)) for r in have}
         row[k] = have[0].get(k) if len(vals) == 1 else [r.get(k) for r in have]
     row["values"] = {m: [have[i]["values"][m][j] for i, j in order] for m in measures}

@@ -36,6 +36,20 @@ RATIO_FLOOR = 1.0e-3  # error/σ below this is drawn at it (log axis)
 TITLE = "Statistical work-precision: integrator settings for the validation's statistics"
 MARKER = "scripts/work_precision_stats.py --report"  # the generated section's marker on the page
 NEAREST = 6  # cheaper settings the results in words name per regime (those nearest the pick in wall time)
+EARLIER = "†"  # marks an fp32 row that ran on kernels older than the fp32 friction sub-step that keeps the damping
+
+
+def earlier_fp32(s: dict[str, Any]) -> bool:
+    """Whether ``s`` is an fp32 row that ran (in any part) before each row recorded the digest of its kernels: on
+    kernels whose fp32 friction sub-step rounded the patch damping away (docs/numerics.md), which sets fp32's μ mean
+    up to 0.14 σ low at steps of 1e-7 s and below."""
+    k = s.get("kernels")
+    return s.get("precision") == "fp32" and (not k or (isinstance(k, list) and not all(k)))
+
+
+def _label(s: dict[str, Any]) -> str:
+    """A row's setting as the tables name it: its label, marked where :func:`earlier_fp32`."""
+    return f"`{s['label']}`" + (f" {EARLIER}" if earlier_fp32(s) else "")
 
 
 def machine_text(doc: dict[str, Any]) -> str:
@@ -162,7 +176,7 @@ def setting_table(reg: dict[str, Any], rule: float, measures: Sequence[str], cri
             some = run_in_parts(s)
             ok = f"no (run in {some} only)" if some else f"no ({s.get('fault') or 'incomplete'})"
         role = " (reference)" if s["role"] == "reference" else " (twin)" if twin is not None and s is twin else ""
-        rows.append([f"`{s['label']}`{role}", fmt(wall), fmt(speed, ".2g"),
+        rows.append([f"{_label(s)}{role}", fmt(wall), fmt(speed, ".2g"),
                      *(_cell(reg, s, m, rule, criterion) for m in measures), ok])  # fmt: skip
     return md_table(head, rows)
 
@@ -217,6 +231,11 @@ def _pads(reg: dict[str, Any]) -> str:
     return f"{len(reg['pads'])} × {sizes[0]}" + (f"–{sizes[-1]}" if len(sizes) > 1 else "")
 
 
+def row_of(reg: dict[str, Any], label: str) -> dict[str, Any]:
+    """The row of the setting ``label`` in a regime's result."""
+    return next(s for s in reg["settings"] if s["label"] == label)
+
+
 def summary_table(docs: Sequence[dict[str, Any]], rule: float, measures: Sequence[str] | None,
                   criterion: str) -> list[str]:  # fmt: skip
     """One row per regime: pads, run, reference, the chosen setting, its wall time and speed-up, the measures that
@@ -228,7 +247,7 @@ def summary_table(docs: Sequence[dict[str, Any]], rule: float, measures: Sequenc
             ref = reference_of(reg)
             within = [MEASURES[m].label for m, v in ch.verdicts.items() if v == "within resolution"]
             rows.append([name, _pads(reg), _duration(reg),
-                         f"`{ref['label']}` ({fmt(ref['wall_s'])} s)", f"`{ch.setting}`", fmt(ch.wall_s),
+                         f"{_label(ref)} ({fmt(ref['wall_s'])} s)", _label(row_of(reg, ch.setting)), fmt(ch.wall_s),
                          fmt(ch.speedup, ".2g"),
                          ", ".join(MEASURES[m].label for m in ch.binding), ", ".join(within) or "–"])  # fmt: skip
     head = ["regime", "pads × patches", "run", "reference (wall)", "rule picks", "wall [s]", "speed-up",
@@ -311,13 +330,18 @@ def regime_results(doc: dict[str, Any], name: str, rule: float, measures: Sequen
     if within:
         parts = []
         for m in within:
-            c = compare_setting(reg, next(s for s in reg["settings"] if s["label"] == ch.setting), m)
+            c = compare_setting(reg, row_of(reg, ch.setting), m)
             need = seeds_needed(c.sd_ratio, rule)
             parts.append(f"{MEASURES[m].label} (error {_small(c.ratio)} σ, bound {_small(c.bound_ratio)} σ, sd(d) "
                          f"{c.sd_ratio:.2g} σ: the strict criterion would need {fmt(need)} seeds)")  # fmt: skip
         out.append("It keeps within resolution only, undecided by the strict criterion: " + "; ".join(parts) + ".")
     others = [(c, settings_for(doc, name, use, rule, c)) for c in CRITERIA if c != criterion]
     out.append("The other criteria pick " + ", ".join(f"`{o.setting}` ({c})" for c, o in others) + ".")
+    early = [s for s in ran if earlier_fp32(s)]
+    if early:
+        out.append(f"{EARLIER} ran before the fp32 friction sub-step kept the patch damping (no kernel digest in "
+                   "their rows; fp32's μ mean then sat up to 0.14 σ low at steps ≤ 1e-7 s): "
+                   + ", ".join(f"`{s['label']}`" for s in early) + ".")  # fmt: skip
     return " ".join(out)
 
 
