@@ -432,6 +432,9 @@ def test_again_runs_the_grid_again_and_rows_name_their_kernels(tmp_path):
     assert [r["label"] for r in after] == [rows[0]["label"], rows[2]["label"], rows[1]["label"]]
     assert after[0] == rows[0] and after[1] == rows[2]  # the reference and the other grid row kept as they were
     assert after[2]["kernels"] == digest and not report.earlier_fp32(after[2])
+    (mixed,) = report.versions_text(after)  # wall times of two kernel versions side by side: said
+    assert f"kernels of 2 versions (2 on kernels `{digest}`; 1 from before the rows recorded" in mixed, mixed
+    assert report.versions_text([after[0], after[2]]) == []
     assert wps.main([*argv, "--grid", "strang@fp32:dt=5e-7"]) == 0  # without --again: nothing run again
     assert json.loads(path.read_text())["regimes"]["hf1"]["settings"] == after
 

@@ -337,12 +337,30 @@ def regime_results(doc: dict[str, Any], name: str, rule: float, measures: Sequen
         out.append("It keeps within resolution only, undecided by the strict criterion: " + "; ".join(parts) + ".")
     others = [(c, settings_for(doc, name, use, rule, c)) for c in CRITERIA if c != criterion]
     out.append("The other criteria pick " + ", ".join(f"`{o.setting}` ({c})" for c, o in others) + ".")
+    out.extend(versions_text(ran))
     early = [s for s in ran if earlier_fp32(s)]
     if early:
         out.append(f"{EARLIER} ran before the fp32 friction sub-step kept the patch damping (no kernel digest in "
                    "their rows; fp32's μ mean then sat up to 0.14 σ low at steps ≤ 1e-7 s): "
                    + ", ".join(f"`{s['label']}`" for s in early) + ".")  # fmt: skip
     return " ".join(out)
+
+
+def versions_text(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """A sentence where ``rows`` ran on kernels of more than one version (the digest each row records; rows from
+    before digests were recorded count as one earlier version): their wall times, timed on different days, compare
+    only within a version. [] where they all ran on one."""
+    groups: dict[str, int] = {}
+    for s in rows:
+        k = s.get("kernels")
+        key = ", ".join(sorted(set(map(str, k)))) if isinstance(k, list) else str(k or "")
+        groups[key] = groups.get(key, 0) + 1
+    if len(groups) < 2:
+        return []
+    parts = [f"{n} on kernels `{k}`" if k else f"{n} from before the rows recorded their kernels"
+             for k, n in groups.items()]  # fmt: skip
+    return [f"Its runs come from kernels of {len(groups)} versions ({'; '.join(parts)}), each timed on its own "
+            "day: wall times and speed-ups compare fairly only within one version."]
 
 
 def _length(reg: dict[str, Any]) -> str:
