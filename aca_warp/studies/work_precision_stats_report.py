@@ -359,8 +359,10 @@ def versions_text(rows: Sequence[dict[str, Any]]) -> list[str]:
         return []
     parts = [f"{n} on kernels `{k}`" if k else f"{n} from before the rows recorded their kernels"
              for k, n in groups.items()]  # fmt: skip
-    return [f"Its runs come from kernels of {len(groups)} versions ({'; '.join(parts)}), each timed on its own "
-            "day: wall times and speed-ups compare fairly only within one version."]
+    return [
+        f"Its runs come from kernels of {len(groups)} versions ({'; '.join(parts)}), each timed on its own "
+        "day: wall times and speed-ups compare fairly only within one version."
+    ]
 
 
 def _length(reg: dict[str, Any]) -> str:
