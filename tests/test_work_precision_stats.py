@@ -702,6 +702,24 @@ def test_first_part_regenerates_in_the_later_parts_code(regime):
         assert np.array_equal(a, b, equal_nan=True), m
 
 
+@pytest.mark.parametrize("regime", ["hf1", "hf2", "hf3", "va"])
+def test_main_pages_merged_files_are_the_merge_of_their_parts(regime, monkeypatch):
+    """The main page's merged result files are the ``--merge`` of the parts committed beside them (each part's rows
+    as continued: the fp32 grid run again on the fixed kernels, the rest as before)."""
+    from pathlib import Path
+
+    from aca_warp.studies.report import clean
+    from aca_warp.studies.work_precision_stats_merge import merge
+
+    repo = Path(__file__).resolve().parent.parent
+    monkeypatch.chdir(repo)  # the parts named as the merge names them
+    folder = repo / "docs" / "figures" / "work_precision_statistics"
+    parts = sorted((p.relative_to(repo) for p in (folder / f"{regime}_parts").glob(f"s*/wps_cuda0_{regime}.json")),
+                   key=lambda p: int(p.parent.name[1:]))  # fmt: skip
+    assert len(parts) >= 2
+    assert json.loads(json.dumps(clean(merge(parts)))) == rule.load_results(folder / f"wps_cuda0_{regime}.json")
+
+
 def test_growth_events_page_is_what_merge_and_report_write(monkeypatch):
     """The growth-events page (docs/figures/work_precision_statistics/growth_events/): its merged files are the
     ``--merge`` of its parts and its generated section is what ``--report`` writes from them."""
