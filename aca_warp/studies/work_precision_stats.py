@@ -37,9 +37,11 @@ cheapest such setting per regime) are in
 (:func:`~aca_warp.studies.work_precision_stats_rule.settings_for`); the figure and the page in
 :mod:`aca_warp.studies.work_precision_stats_report`. Results: one file per regime,
 ``OUT/wps_<device>[_quick]_<regime>.json``, rewritten after every run (per pad and measure the values, per setting
-the stepping wall time); a later call with the same settings continues it (runs kept, missing ones added: another
-integrator, or what a time limit cut off). A regime too long for one call is measured in parts over disjoint seeds
-(``--seeds K --first-seed S``, e.g. one process per GPU) and the parts joined by ``--merge``
+the stepping wall time, the digest of the kernels it ran on); a later call with the same settings continues it
+(runs kept, missing ones added: another integrator, or what a time limit cut off; ``--again`` runs the grid's
+settings again and replaces their rows, e.g. after the kernels changed). A regime too long for one call is
+measured in parts over disjoint seeds (``--seeds K --first-seed S``, e.g. one process per GPU) and the parts joined
+by ``--merge``
 (:mod:`aca_warp.studies.work_precision_stats_merge`). Examples::
 
     python3 scripts/work_precision_stats.py --quick --out out/wps_quick                     # the CPU variant
