@@ -359,6 +359,13 @@ def test_bad_input_exits_2(capsys):
     assert wps.main(["--report", "missing.json"]) == 2
 
 
+def _tiny_argv(out, patches: int, duration: float) -> list[str]:
+    """The arguments of a tiny quick hf1 run: two sectors of ``patches`` patches over ``duration`` [s], the window
+    its second half, results into ``out``."""
+    return ["--quick", "--regimes", "hf1", "--seeds", "2", "--patches", str(patches), "--duration", f"{duration:g}",
+            "--window", f"{duration / 2:g}", "--out", str(out)]  # fmt: skip
+
+
 def test_tiny_run_end_to_end(tmp_path, capsys):
     """Two 10-patch hf1 sectors for 1 ms (linear growth: not chaotic yet): strang at 1e-8 s stays within 1e-3 σ of
     the 2e-8 s reference, at 5e-7 s forced it moves the measures by more than 0.1 σ; the file holds every pad's
@@ -366,8 +373,7 @@ def test_tiny_run_end_to_end(tmp_path, capsys):
     was made on another host with the same device (each run records its host); a call with other pads or on
     another device is refused."""
     out = tmp_path / "wps"
-    argv = ["--quick", "--regimes", "hf1", "--seeds", "2", "--patches", "10", "--duration", "1e-3", "--window",
-            "5e-4", "--out", str(out)]  # fmt: skip
+    argv = _tiny_argv(out, 10, 1e-3)
     assert wps.main([*argv, "--grid", "strang@fp64:dt=5e-7,1e-8"]) == 0
     path = out / "wps_cpu_quick_hf1.json"
     first = json.loads(path.read_text())
@@ -406,8 +412,7 @@ def test_again_runs_the_grid_again_and_rows_name_their_kernels(tmp_path):
     from aca_warp.studies import work_precision_stats_report as report
 
     out = tmp_path / "wps"
-    argv = ["--quick", "--regimes", "hf1", "--seeds", "2", "--patches", "6", "--duration", "2e-4", "--window",
-            "1e-4", "--out", str(out)]  # fmt: skip
+    argv = _tiny_argv(out, 6, 2e-4)
     assert wps.main([*argv, "--grid", "strang@fp32:dt=5e-7,1e-7"]) == 0
     path = out / "wps_cpu_quick_hf1.json"
     doc = json.loads(path.read_text())
