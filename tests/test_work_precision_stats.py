@@ -407,8 +407,9 @@ def test_tiny_run_end_to_end(tmp_path, capsys):
 
 def test_again_runs_the_grid_again_and_rows_name_their_kernels(tmp_path):
     """Each row records the digest of the kernels it ran on; ``--again`` runs the grid's settings of a continued
-    file again and replaces their rows, keeping the reference's and every other row. The report marks an fp32 row
-    without a digest (run on the kernels whose fp32 friction sub-step dropped the damping), and only such a row."""
+    file again and replaces their rows, keeping the reference's (also where the grid names its setting) and every
+    other row; a call cut short by --max-wall keeps the earlier rows. The report marks an fp32 row without a digest
+    (run on the kernels whose fp32 friction sub-step dropped the damping), and only such a row."""
     from aca_warp.studies import work_precision_stats_report as report
 
     out = tmp_path / "wps"
@@ -432,16 +433,68 @@ def test_again_runs_the_grid_again_and_rows_name_their_kernels(tmp_path):
         "| `strang@fp32:dt=5e-07` †",
         "| `strang@fp32:dt=1e-07` †",
     ]
-    assert wps.main([*argv, "--grid", "strang@fp32:dt=5e-7", "--again"]) == 0
+    grid = ["--grid", "strang@fp32:dt=5e-7", "strang@fp64:dt=2e-8", "--again"]  # the second: the reference's
+    assert wps.main([*argv, *grid, "--max-wall", "0"]) == 0  # cut before its first run: every earlier row kept
+    assert json.loads(path.read_text())["regimes"]["hf1"]["settings"] == rows
+    assert wps.main([*argv, *grid]) == 0
     after = json.loads(path.read_text())["regimes"]["hf1"]["settings"]
     assert [r["label"] for r in after] == [rows[0]["label"], rows[2]["label"], rows[1]["label"]]
     assert after[0] == rows[0] and after[1] == rows[2]  # the reference and the other grid row kept as they were
     assert after[2]["kernels"] == digest and not report.earlier_fp32(after[2])
     (mixed,) = report.versions_text(after)  # wall times of two kernel versions side by side: said
-    assert f"kernels of 2 versions (2 on kernels `{digest}`; 1 from before the rows recorded" in mixed, mixed
+    assert f"kernels of 2 versions (1 from before the rows recorded their kernels; 2 on kernels `{digest}`)" in mixed
     assert report.versions_text([after[0], after[2]]) == []
     assert wps.main([*argv, "--grid", "strang@fp32:dt=5e-7"]) == 0  # without --again: nothing run again
     assert json.loads(path.read_text())["regimes"]["hf1"]["settings"] == after
+
+
+def test_kernels_digest_follows_the_sources(tmp_path):
+    """The kernels' digest changes with a file's content and name, not with the folder's place or the files'
+    order on disk."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    for folder, names in ((a, ("x.py", "y.py")), (b, ("y.py", "x.py"))):
+        folder.mkdir()
+        for n in names:
+            (folder / n).write_text(f"# {n}\nK = 1\n")
+    assert wps.kernels_digest(a) == wps.kernels_digest(b) != wps.kernels_digest()
+    (b / "y.py").write_text("# y.py\nK = 2\n")
+    assert wps.kernels_digest(b) != wps.kernels_digest(a)
+    (b / "y.py").rename(b / "z.py")
+    (b / "z.py").write_text("# y.py\nK = 1\n")
+    assert wps.kernels_digest(b) != wps.kernels_digest(a)
+
+
+def test_merged_rows_of_two_kernel_versions():
+    """A merged row whose parts ran on different kernels (one before rows recorded them) holds both; the report
+    counts it under each version, marks it as earlier in fp32, and never marks a row that did not run."""
+    from aca_warp.studies import work_precision_stats_report as report
+    from aca_warp.studies.work_precision_stats_merge import _merged_row
+
+    values = {"mu_mean": [0.5]}
+    new = _setting("strang@fp32:dt=1e-7", "grid", 1.0, values) | {"kernels": "0123456789ab"}
+    old = {k: v for k, v in new.items() if k != "kernels"}
+    row = _merged_row(new["label"], "grid", [new, old], [(0, 0), (1, 0)], ["mu_mean"])
+    assert row["kernels"] == ["0123456789ab", None] and report.kernel_versions(row) == {"0123456789ab", None}
+    assert report.earlier_fp32(row) and not report.earlier_fp32(new)
+    assert "kernels" not in _merged_row(old["label"], "grid", [old, old], [(0, 0), (1, 0)], ["mu_mean"])
+    ref = _setting("strang@fp64:dt=1e-8", "reference", 2.0, values) | {"kernels": "0123456789ab"}
+    (text,) = report.versions_text([ref, row])
+    assert "kernels of 2 versions (1 from before the rows recorded their kernels; 2 on kernels `0123456789ab`)" in text
+    assert "None" not in text
+    cut = {**old, "complete": False, "fault": "not run: --max-wall", "wall_s": None, "values": None}
+    del cut["steps"], cut["values"]
+    assert not report.earlier_fp32(cut)
+    with pytest.raises(KeyError, match="no setting"):
+        report.row_of({"name": "hf1", "settings": [ref]}, "strang@fp32:dt=1e-07")
+
+
+def test_again_only_with_a_measuring_call(capsys):
+    """``--again`` with --report, --merge, --by-part or --steps is refused (exit 2, nothing written)."""
+    for extra in (["--report", "x.json"], ["--merge", "a.json", "b.json"], ["--by-part", "x.json"],
+                  ["--steps", "x.json"]):  # fmt: skip
+        with pytest.raises(SystemExit) as e:
+            wps.main([*extra, "--again"])
+        assert e.value.code == 2 and "--again goes with a call that measures" in capsys.readouterr().err
 
 
 ABSENT_TEXT = "not in this part"  # the merge's fault text of a setting a part did not ask for

@@ -338,8 +338,9 @@ def measure_regime(
     """Every setting of one regime (the reference first, then the grid cheapest first) into its result file
     ``OUT/wps_<tag>_<regime>.json``, rewritten after each run. A file of the same regime, pads, settings and
     reference is continued: its runs are kept, the missing ones added (a run skipped by --max-wall is run again;
-    with ``--again`` the grid's settings are run again and replace their rows, the reference's row is kept),
-    on the same kind of device (:data:`CONTINUED`; another host with it is accepted, each run records its host).
+    with ``--again`` the grid's settings are run again, each new row replacing the earlier one as it is written, so
+    that a call cut short keeps the rows it did not reach; the reference's row is kept), on the same kind of device
+    (:data:`CONTINUED`; another host with it is accepted, each run records its host).
     Raises FileExistsError when the file holds another configuration or device."""
     from aca_warp.studies.runs import batch_at_start
 
@@ -359,6 +360,7 @@ def measure_regime(
     }  # fmt: skip
     path = Path(args.out) / f"wps_{head['tag']}_{name}.json"
     before = 0.0  # s of wall time earlier calls spent on this file
+    redo: set[tuple[str, str]] = set()  # (label, role) of the continued file's rows that --again runs again
     doc = {**{k: v for k, v in head.items() if k not in ("command", "kernels")}, "commands": [head["command"]],
            "regimes": {name: reg}}  # fmt: skip
     if path.exists():
@@ -370,15 +372,14 @@ def measure_regime(
             raise FileExistsError(f"{path} holds another run of {name} (device, pads, settings or reference "
                                   "differ): choose another --out")  # fmt: skip
         doc["machine"] = old["machine"]
-        again = {s.label for s in settings} if args.again else set()
-        reg["settings"] = [r for r in oreg["settings"] if not str(r.get("fault")).startswith("not run")
-                           and not (r["role"] == "grid" and r["label"] in again)]  # fmt: skip
-        if again:
-            log(f"{name}: running again: {', '.join(sorted(again & {r['label'] for r in oreg['settings']}))}")
+        reg["settings"] = [r for r in oreg["settings"] if not str(r.get("fault")).startswith("not run")]
+        if args.again:
+            redo = {(s.label, "grid") for s in settings} & {(r["label"], r["role"]) for r in reg["settings"]}
+            log(f"{name}: running again: {', '.join(sorted(label for label, _ in redo)) or 'nothing'}")
         doc["commands"] = [*old["commands"], head["command"]]
         before = old.get("regime_wall_s") or 0.0
         log(f"{name}: continuing {path} ({len(reg['settings'])} runs in it)")
-    done = {(r["label"], r["role"]) for r in reg["settings"]}
+    done = {(r["label"], r["role"]) for r in reg["settings"]} - redo
     grid_rows = sorted((s for s in settings if s != ref), key=lambda s: s.cost(plan.duration))
     todo = [(s, role) for s, role in [(ref, "reference"), *((s, "grid") for s in grid_rows)] if (s.label, role)
             not in done]  # fmt: skip
@@ -393,6 +394,9 @@ def measure_regime(
     for k, (s, role) in enumerate(todo, 1):
         est = run_estimate(s.cost(plan.duration), per_step, overheads)
         if args.max_wall is not None and log.elapsed() + est > args.max_wall:
+            if (s.label, role) in redo:
+                log(f"  {s.label}: not run again (--max-wall {args.max_wall:g} s): its earlier row kept")
+                continue
             log(f"  {s.label}: not run (--max-wall {args.max_wall:g} s)")
             reg["settings"].append({"label": s.label, "role": role, **dataclasses.asdict(s), "complete": False,
                                     "fault": "not run: --max-wall", "wall_s": None})  # fmt: skip
@@ -404,7 +408,7 @@ def measure_regime(
         }
         if row.get("wall_s") is not None:
             overheads.append(max(log.elapsed() - t_run - row["wall_s"], 0.0))
-        reg["settings"].append(row)
+        reg["settings"] = [r for r in reg["settings"] if (r["label"], r["role"]) != (s.label, role)] + [row]
         if role == "reference" and row.get("steps"):
             per_step = row["wall_s"] / row["steps"]
         _write(path, doc, before + log.elapsed() - t0)
@@ -416,13 +420,16 @@ def measure_regime(
     return path
 
 
-def kernels_digest() -> str:
-    """The first 12 hex digits of the SHA-256 of the Warp kernels' sources (``kernels/*.py``, by name): which kernels
-    a row's numbers came from. Each row records it under ``kernels``; rows written before it was recorded lack it."""
+def kernels_digest(folder: Path | None = None) -> str:
+    """The first 12 hex digits of the SHA-256 of the Warp kernels' sources (``folder``/*.py by name and content;
+    default the package's ``kernels/``): which kernels a row's numbers came from. Each row records it under
+    ``kernels``; rows written before it was recorded lack it. Any edit of a kernel file gives another digest, a
+    comment's too (two digests may name the same arithmetic, never one digest two); the host-side Python (e.g. the
+    recorder) is not in it."""
     import aca_warp.kernels
 
     h = hashlib.sha256()
-    for p in sorted(Path(aca_warp.kernels.__file__).parent.glob("*.py")):
+    for p in sorted((folder or Path(aca_warp.kernels.__file__).parent).glob("*.py")):
         h.update(p.name.encode() + b"\0" + p.read_bytes())
     return h.hexdigest()[:12]
 
@@ -620,6 +627,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.precision_pairs and not args.steps:
         ap.error("--precision-pairs goes with --steps FILE")
+    if args.again and (args.report or args.merge or args.by_part or args.steps):
+        ap.error("--again goes with a call that measures (not with --report, --merge, --by-part or --steps)")
     if args.report:
         from aca_warp.common.errors import AcaError
         from aca_warp.common.files import check_output_path

@@ -40,11 +40,19 @@ EARLIER = "†"  # marks an fp32 row that ran on kernels older than the fp32 fri
 
 
 def earlier_fp32(s: dict[str, Any]) -> bool:
-    """Whether ``s`` is an fp32 row that ran (in any part) before each row recorded the digest of its kernels: on
-    kernels whose fp32 friction sub-step rounded the patch damping away (docs/numerics.md), which sets fp32's μ mean
-    up to 0.14 σ low at steps of 1e-7 s and below."""
+    """Whether ``s`` is an fp32 row that ran (in all or some parts) before each row recorded the digest of its
+    kernels: on kernels whose fp32 friction sub-step rounded the patch damping away (docs/numerics.md), which set
+    fp32's μ mean up to 0.15 σ low in hf1–hf4 at steps of 1e-7 s and below. A row that never ran (cut by a time
+    limit, refused) is none."""
+    ran = "values" in s or s.get("steps") is not None or run_in_parts(s) is not None
+    return s.get("precision") == "fp32" and ran and None in kernel_versions(s)
+
+
+def kernel_versions(s: dict[str, Any]) -> set[str | None]:
+    """The kernel digests a row ran on: one, or one per part of a merged row whose parts differ; None for a row
+    (or part) written before rows recorded them."""
     k = s.get("kernels")
-    return s.get("precision") == "fp32" and (not k or (isinstance(k, list) and not all(k)))
+    return set(k) if isinstance(k, list) else {k}
 
 
 def _label(s: dict[str, Any]) -> str:
@@ -232,8 +240,11 @@ def _pads(reg: dict[str, Any]) -> str:
 
 
 def row_of(reg: dict[str, Any], label: str) -> dict[str, Any]:
-    """The row of the setting ``label`` in a regime's result."""
-    return next(s for s in reg["settings"] if s["label"] == label)
+    """The row of the setting ``label`` in a regime's result (KeyError naming it when there is none)."""
+    for s in reg["settings"]:
+        if s["label"] == label:
+            return s
+    raise KeyError(f"no setting {label} in regime {reg.get('name')}")
 
 
 def summary_table(docs: Sequence[dict[str, Any]], rule: float, measures: Sequence[str] | None,
@@ -338,31 +349,29 @@ def regime_results(doc: dict[str, Any], name: str, rule: float, measures: Sequen
     others = [(c, settings_for(doc, name, use, rule, c)) for c in CRITERIA if c != criterion]
     out.append("The other criteria pick " + ", ".join(f"`{o.setting}` ({c})" for c, o in others) + ".")
     out.extend(versions_text(ran))
-    early = [s for s in ran if earlier_fp32(s)]
+    early = [s for s in reg["settings"] if earlier_fp32(s)]
     if early:
         out.append(f"{EARLIER} ran before the fp32 friction sub-step kept the patch damping (no kernel digest in "
-                   "their rows; fp32's μ mean then sat up to 0.14 σ low at steps ≤ 1e-7 s): "
+                   "their rows; in hf1–hf4 fp32's μ mean then sat up to 0.15 σ low at steps ≤ 1e-7 s): "
                    + ", ".join(f"`{s['label']}`" for s in early) + ".")  # fmt: skip
     return " ".join(out)
 
 
 def versions_text(rows: Sequence[dict[str, Any]]) -> list[str]:
-    """A sentence where ``rows`` ran on kernels of more than one version (the digest each row records; rows from
-    before digests were recorded count as one earlier version): their wall times, timed on different days, compare
-    only within a version. [] where they all ran on one."""
+    """A sentence where ``rows`` ran on kernels of more than one version (:func:`kernel_versions`; rows from before
+    digests were recorded count as one earlier version, a merged row whose parts differ under each of its versions):
+    rows of different versions ran in different calls, so their wall times compare only within a version. [] where
+    they all ran on one."""
     groups: dict[str, int] = {}
     for s in rows:
-        k = s.get("kernels")
-        key = ", ".join(sorted(set(map(str, k)))) if isinstance(k, list) else str(k or "")
-        groups[key] = groups.get(key, 0) + 1
+        for k in kernel_versions(s):
+            groups[k or ""] = groups.get(k or "", 0) + 1
     if len(groups) < 2:
         return []
     parts = [f"{n} on kernels `{k}`" if k else f"{n} from before the rows recorded their kernels"
-             for k, n in groups.items()]  # fmt: skip
-    return [
-        f"Its runs come from kernels of {len(groups)} versions ({'; '.join(parts)}), each timed on its own "
-        "day: wall times and speed-ups compare fairly only within one version."
-    ]
+             for k, n in sorted(groups.items())]  # fmt: skip
+    return [f"Its runs come from kernels of {len(groups)} versions ({'; '.join(parts)}), run in different calls: "
+            "wall times and speed-ups compare fairly only within one version."]  # fmt: skip
 
 
 def _length(reg: dict[str, Any]) -> str:
