@@ -762,8 +762,8 @@ def test_first_part_regenerates_in_the_later_parts_code(regime):
 
 @pytest.mark.parametrize("regime", ["hf1", "hf2", "hf3", "va"])
 def test_main_pages_merged_files_are_the_merge_of_their_parts(regime, monkeypatch):
-    """The main page's merged result files are the ``--merge`` of the parts committed beside them (each part's rows
-    as continued: the fp32 grid run again on the fixed kernels, the rest as before)."""
+    """The main page's merged result files are the ``--merge`` of the parts committed beside them (hf1–hf3's parts
+    continued with the fp32 grid run again on the fixed kernels; va's four parts run anew)."""
     from pathlib import Path
 
     from aca_warp.studies.report import clean
