@@ -410,8 +410,6 @@ def test_again_runs_the_grid_again_and_rows_name_their_kernels(tmp_path):
     file again and replaces their rows, keeping the reference's (also where the grid names its setting) and every
     other row; a call cut short by --max-wall keeps the earlier rows. The report marks an fp32 row without a digest
     (run on the kernels whose fp32 friction sub-step dropped the damping), and only such a row."""
-    from aca_warp.studies import work_precision_stats_report as report
-
     out = tmp_path / "wps"
     argv = _tiny_argv(out, 6, 2e-4)
     assert wps.main([*argv, "--grid", "strang@fp32:dt=5e-7,1e-7"]) == 0
@@ -425,9 +423,9 @@ def test_again_runs_the_grid_again_and_rows_name_their_kernels(tmp_path):
         r["kernels"] = None if r["precision"] == "fp32" else r["kernels"]
         r["wall_s"] = 1e3 if r["label"] == "strang@fp32:dt=1e-07" else r["wall_s"]  # marks the rows kept
     path.write_text(json.dumps(doc))
-    marked = [report.earlier_fp32(r) for r in rows]
+    marked = [wps_report.earlier_fp32(r) for r in rows]
     assert marked == [False, True, True], marked  # the fp64 reference is not marked
-    table = report.setting_table(doc["regimes"]["hf1"], 0.25, ["mu_mean"], "resolution")
+    table = wps_report.setting_table(doc["regimes"]["hf1"], 0.25, ["mu_mean"], "resolution")
     assert [line.split(" |")[0] for line in table[2:]] == [
         "| `strang@fp64:dt=2e-08` (reference)",
         "| `strang@fp32:dt=5e-07` †",
@@ -440,10 +438,10 @@ def test_again_runs_the_grid_again_and_rows_name_their_kernels(tmp_path):
     after = json.loads(path.read_text())["regimes"]["hf1"]["settings"]
     assert [r["label"] for r in after] == [rows[0]["label"], rows[2]["label"], rows[1]["label"]]
     assert after[0] == rows[0] and after[1] == rows[2]  # the reference and the other grid row kept as they were
-    assert after[2]["kernels"] == digest and not report.earlier_fp32(after[2])
-    (mixed,) = report.versions_text(after)  # wall times of two kernel versions side by side: said
+    assert after[2]["kernels"] == digest and not wps_report.earlier_fp32(after[2])
+    (mixed,) = wps_report.versions_text(after)  # wall times of two kernel versions side by side: said
     assert f"kernels of 2 versions (1 from before the rows recorded their kernels; 2 on kernels `{digest}`)" in mixed
-    assert report.versions_text([after[0], after[2]]) == []
+    assert wps_report.versions_text([after[0], after[2]]) == []
     assert wps.main([*argv, "--grid", "strang@fp32:dt=5e-7"]) == 0  # without --again: nothing run again
     assert json.loads(path.read_text())["regimes"]["hf1"]["settings"] == after
 
@@ -467,25 +465,24 @@ def test_kernels_digest_follows_the_sources(tmp_path):
 def test_merged_rows_of_two_kernel_versions():
     """A merged row whose parts ran on different kernels (one before rows recorded them) holds both; the report
     counts it under each version, marks it as earlier in fp32, and never marks a row that did not run."""
-    from aca_warp.studies import work_precision_stats_report as report
     from aca_warp.studies.work_precision_stats_merge import _merged_row
 
     values = {"mu_mean": [0.5]}
     new = _setting("strang@fp32:dt=1e-7", "grid", 1.0, values) | {"kernels": "0123456789ab"}
     old = {k: v for k, v in new.items() if k != "kernels"}
     row = _merged_row(new["label"], "grid", [new, old], [(0, 0), (1, 0)], ["mu_mean"])
-    assert row["kernels"] == ["0123456789ab", None] and report.kernel_versions(row) == {"0123456789ab", None}
-    assert report.earlier_fp32(row) and not report.earlier_fp32(new)
+    assert row["kernels"] == ["0123456789ab", None] and wps_report.kernel_versions(row) == {"0123456789ab", None}
+    assert wps_report.earlier_fp32(row) and not wps_report.earlier_fp32(new)
     assert "kernels" not in _merged_row(old["label"], "grid", [old, old], [(0, 0), (1, 0)], ["mu_mean"])
     ref = _setting("strang@fp64:dt=1e-8", "reference", 2.0, values) | {"kernels": "0123456789ab"}
-    (text,) = report.versions_text([ref, row])
+    (text,) = wps_report.versions_text([ref, row])
     assert "kernels of 2 versions (1 from before the rows recorded their kernels; 2 on kernels `0123456789ab`)" in text
     assert "None" not in text
     cut = {**old, "complete": False, "fault": "not run: --max-wall", "wall_s": None, "values": None}
     del cut["steps"], cut["values"]
-    assert not report.earlier_fp32(cut)
+    assert not wps_report.earlier_fp32(cut)
     with pytest.raises(KeyError, match="no setting"):
-        report.row_of({"name": "hf1", "settings": [ref]}, "strang@fp32:dt=1e-07")
+        wps_report.row_of({"name": "hf1", "settings": [ref]}, "strang@fp32:dt=1e-07")
 
 
 def test_again_only_with_a_measuring_call(capsys):
