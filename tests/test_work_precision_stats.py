@@ -408,7 +408,8 @@ def test_tiny_run_end_to_end(tmp_path, capsys):
 def test_again_runs_the_grid_again_and_rows_name_their_kernels(tmp_path):
     """Each row records the digest of the kernels it ran on; ``--again`` runs the grid's settings of a continued
     file again and replaces their rows, keeping the reference's (also where the grid names its setting) and every
-    other row; a call cut short by --max-wall keeps the earlier rows. The report marks an fp32 row without a digest
+    other row, and only rows made on other kernels; a call cut short by --max-wall keeps the earlier rows, and the
+    same call again finishes it. The report marks an fp32 row without a digest
     (run on the kernels whose fp32 friction sub-step dropped the damping), and only such a row."""
     out = tmp_path / "wps"
     argv = _tiny_argv(out, 6, 2e-4)
@@ -443,6 +444,8 @@ def test_again_runs_the_grid_again_and_rows_name_their_kernels(tmp_path):
     assert f"kernels of 2 versions (1 from before the rows recorded their kernels; 2 on kernels `{digest}`)" in mixed
     assert wps_report.versions_text([after[0], after[2]]) == []
     assert wps.main([*argv, "--grid", "strang@fp32:dt=5e-7"]) == 0  # without --again: nothing run again
+    assert json.loads(path.read_text())["regimes"]["hf1"]["settings"] == after
+    assert wps.main([*argv, *grid]) == 0  # --again again: its rows are on these kernels now, nothing run again
     assert json.loads(path.read_text())["regimes"]["hf1"]["settings"] == after
 
 
@@ -481,6 +484,10 @@ def test_merged_rows_of_two_kernel_versions():
     cut = {**old, "complete": False, "fault": "not run: --max-wall", "wall_s": None, "values": None}
     del cut["steps"], cut["values"]
     assert not wps_report.earlier_fp32(cut)
+    half = _merged_row(old["label"], "grid", [cut, old], [(1, 0)], ["mu_mean"])  # ran in one part, cut in the other
+    assert "complete in 1 of 2 parts" in half["fault"] and wps_report.earlier_fp32(half)
+    half = _merged_row(new["label"], "grid", [cut, new], [(1, 0)], ["mu_mean"])
+    assert half["kernels"] == "0123456789ab" and not wps_report.earlier_fp32(half)
     with pytest.raises(KeyError, match="no setting"):
         wps_report.row_of({"name": "hf1", "settings": [ref]}, "strang@fp32:dt=1e-07")
 

@@ -39,7 +39,7 @@ cheapest such setting per regime) are in
 ``OUT/wps_<device>[_quick]_<regime>.json``, rewritten after every run (per pad and measure the values, per setting
 the stepping wall time, the digest of the kernels it ran on); a later call with the same settings continues it
 (runs kept, missing ones added: another integrator, or what a time limit cut off; ``--again`` runs the grid's
-settings again and replaces their rows, e.g. after the kernels changed). A regime too long for one call is
+settings again whose rows were made on other kernels, replacing their rows). A regime too long for one call is
 measured in parts over disjoint seeds (``--seeds K --first-seed S``, e.g. one process per GPU) and the parts joined
 by ``--merge``
 (:mod:`aca_warp.studies.work_precision_stats_merge`). Examples::
@@ -338,8 +338,9 @@ def measure_regime(
     """Every setting of one regime (the reference first, then the grid cheapest first) into its result file
     ``OUT/wps_<tag>_<regime>.json``, rewritten after each run. A file of the same regime, pads, settings and
     reference is continued: its runs are kept, the missing ones added (a run skipped by --max-wall is run again;
-    with ``--again`` the grid's settings are run again, each new row replacing the earlier one as it is written, so
-    that a call cut short keeps the rows it did not reach; the reference's row is kept), on the same kind of device
+    with ``--again`` the grid's settings whose rows were not made on the current kernels are run again, each new row
+    replacing the earlier one as it is written: a call cut short keeps the rows it did not reach, and the same call
+    again finishes it; the reference's row is kept), on the same kind of device
     (:data:`CONTINUED`; another host with it is accepted, each run records its host).
     Raises FileExistsError when the file holds another configuration or device."""
     from aca_warp.studies.runs import batch_at_start
@@ -373,9 +374,12 @@ def measure_regime(
                                   "differ): choose another --out")  # fmt: skip
         doc["machine"] = old["machine"]
         reg["settings"] = [r for r in oreg["settings"] if not str(r.get("fault")).startswith("not run")]
-        if args.again:
-            redo = {(s.label, "grid") for s in settings} & {(r["label"], r["role"]) for r in reg["settings"]}
-            log(f"{name}: running again: {', '.join(sorted(label for label, _ in redo)) or 'nothing'}")
+        if args.again:  # the grid's rows not made on these kernels (so a call cut short is finished by the same call)
+            redo = {(s.label, "grid") for s in settings} & {
+                (r["label"], r["role"]) for r in reg["settings"] if r.get("kernels") != head["kernels"]
+            }
+            log(f"{name}: running again on kernels {head['kernels']}: "
+                f"{', '.join(sorted(label for label, _ in redo)) or 'nothing'}")  # fmt: skip
         doc["commands"] = [*old["commands"], head["command"]]
         before = old.get("regime_wall_s") or 0.0
         log(f"{name}: continuing {path} ({len(reg['settings'])} runs in it)")
@@ -534,8 +538,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "estimate: the reference's time per step × the steps, plus the mean time the call's earlier "
                     "runs spent besides stepping); written as not run")  # fmt: skip
     ap.add_argument("--again", action="store_true", help="in a continued result file, run the grid's settings "
-                    "again and replace their rows (e.g. after a change to the kernels; the reference's row is "
-                    "kept, each row records the digest of the kernels it ran on)")  # fmt: skip
+                    "again whose rows were made on other kernels (each row records the digest of the kernels it "
+                    "ran on) and replace their rows; the reference's row is kept; a call cut short is finished by "
+                    "the same call")  # fmt: skip
     ap.add_argument("--report", nargs="+", metavar="JSON", help="only write the figure(s) and the page from "
                     "result files")  # fmt: skip
     ap.add_argument(

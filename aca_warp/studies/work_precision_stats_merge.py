@@ -113,8 +113,14 @@ def _merged_row(label: str, role: str, rows: list[dict[str, Any] | None], order:
         kinds = "; ".join(dict.fromkeys(bad))
         # "not run" only when no part ran it and failed: the report reads that prefix as cut by a time limit
         prefix = "not run" if all(f.startswith("not run") for f in bad) else "incomplete"
-        return {**base, "label": label, "role": role, "complete": False, "wall_s": None,
-                "fault": f"{prefix}: complete in {len(rows) - len(bad)} of {len(rows)} parts ({kinds})"}  # fmt: skip
+        out = {**base, "label": label, "role": role, "complete": False, "wall_s": None,
+               "fault": f"{prefix}: complete in {len(rows) - len(bad)} of {len(rows)} parts ({kinds})"}  # fmt: skip
+        out.pop("kernels", None)
+        ran = [r for r in have if r.get("steps") is not None]  # the parts that ran it, complete or not
+        if any("kernels" in r for r in ran):
+            vals = [r.get("kernels") for r in ran]
+            out["kernels"] = vals[0] if len(set(vals)) == 1 else vals
+        return out
     row: dict[str, Any] = {**base, "complete": True, "fault": None}
     for k in SUMMED:
         vals = [r.get(k) for r in have]
