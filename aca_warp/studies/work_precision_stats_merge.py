@@ -101,6 +101,15 @@ def _check(parts: list[tuple[Path, dict[str, Any], str, dict[str, Any]]]) -> Non
                          "holds consecutive seeds")  # fmt: skip
 
 
+def _join_field(out: dict[str, Any], rows: list[dict[str, Any]], key: str) -> None:
+    """``out[key]``: the parts' rows' common value of ``key``, or each row's in a list where they differ; left out
+    where no row has it (rows written before the field was recorded)."""
+    out.pop(key, None)
+    if any(key in r for r in rows):
+        vals = [r.get(key) for r in rows]
+        out[key] = vals[0] if len({repr(v) for v in vals}) == 1 else vals
+
+
 def _merged_row(label: str, role: str, rows: list[dict[str, Any] | None], order: list[tuple[int, int]],
                 measures: Sequence[str]) -> dict[str, Any]:  # fmt: skip
     """One setting of the merged regime from its row in each part (None: the part lacks it); ``order``: (part,
@@ -115,11 +124,7 @@ def _merged_row(label: str, role: str, rows: list[dict[str, Any] | None], order:
         prefix = "not run" if all(f.startswith("not run") for f in bad) else "incomplete"
         out = {**base, "label": label, "role": role, "complete": False, "wall_s": None,
                "fault": f"{prefix}: complete in {len(rows) - len(bad)} of {len(rows)} parts ({kinds})"}  # fmt: skip
-        out.pop("kernels", None)
-        ran = [r for r in have if r.get("steps") is not None]  # the parts that ran it, complete or not
-        if any("kernels" in r for r in ran):
-            vals = [r.get("kernels") for r in ran]
-            out["kernels"] = vals[0] if len(set(vals)) == 1 else vals
+        _join_field(out, [r for r in have if r.get("steps") is not None], "kernels")  # the parts that ran it
         return out
     row: dict[str, Any] = {**base, "complete": True, "fault": None}
     for k in SUMMED:
@@ -127,10 +132,7 @@ def _merged_row(label: str, role: str, rows: list[dict[str, Any] | None], order:
         row[k] = sum(vals) if all(v is not None for v in vals) else None
     row["part_wall_s"] = [r["wall_s"] for r in have]
     for k in ("dt_used", "engine", "host", "kernels"):
-        if not any(k in r for r in have):  # rows written before the field was recorded
-            continue
-        vals = {repr(r.get(k)) for r in have}
-        row[k] = have[0].get(k) if len(vals) == 1 else [r.get(k) for r in have]
+        _join_field(row, have, k)
     row["values"] = {m: [have[i]["values"][m][j] for i, j in order] for m in measures}
     return row
 
