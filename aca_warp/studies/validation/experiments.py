@@ -139,13 +139,18 @@ def run_segments(
     probe: Any = None,
 ) -> tuple[Any, list[Any]]:  # fmt: skip
     """Step ``model`` from ``state`` through the plan's segments (``run_engine`` per segment, per-patch velocities
-    recorded where the segment says), every chunk to ``sink``. ``probe(result) -> bool``, called after the first
-    segment, may stop the run (False). Returns (the last segment's result, every segment's result)."""
+    recorded where the segment says), every chunk to ``sink``. Returns (the last segment's result, every segment's
+    result).
+
+    ``probe(result, last) -> bool | None`` is called after the first segment: True goes on, False stops the run, and
+    None asks for another measure. That one is a segment as long as the first, cut from the next one when it is
+    longer than two of them, after which ``probe`` is called again (``last``: no room for yet another measure)."""
     from aca_warp.scene import Record
     from aca_warp.studies.runs import run_engine
 
-    results = []
-    for a, b, patches in plan.segments:
+    results, segments, probing = [], list(plan.segments), probe is not None
+    while segments:
+        a, b, patches = segments.pop(0)
         record = Record(
             sample_dt=cfg.sample_dt, patches=("velocity",) if patches else (), decimation=cfg.decimation
         )  # fmt: skip
@@ -155,8 +160,18 @@ def run_segments(
             sink=sink, force=step.force, growth_dt=step.growth_dt,
         )  # fmt: skip
         results.append(res)
-        if not res.complete or (probe is not None and len(results) == 1 and not probe(res)):
+        if not res.complete:
             break
+        if probing:
+            room = bool(segments) and segments[0][1] - segments[0][0] > 2.0 * (b - a)
+            go = probe(res, not room)
+            if go is None:  # only asked for where there is room
+                (c, d, rec_patches), length = segments[0], b - a
+                segments[0:1] = [(c, c + length, rec_patches), (c + length, d, rec_patches)]
+                continue
+            probing = False
+            if not go:
+                break
     return results[-1], results
 
 
@@ -166,6 +181,37 @@ def split_segments(plan: Plan, first: float) -> Plan:
     if b - a <= 2.0 * first:
         return plan
     return dataclasses.replace(plan, segments=((a, a + first, patches), (a + first, b, patches), *plan.segments[1:]))
+
+
+@dataclass
+class BudgetProbe:
+    """The probe of a batch's step time (``run_segments``' ``probe``): a probe segment's wall time per step,
+    projected over the batch's ``steps``, against what the ``budget`` [s] (None: none) leaves since ``t0``
+    (``time.perf_counter``). A first projection that does not fit asks once for another measure, since a batch's
+    first launches carry one-off costs; ``stopped``: the last measure did not fit."""
+
+    name: str
+    steps: int
+    budget: float | None
+    t0: float
+    log: Log
+    per_step: float = float("nan")  # [s] per step, the last measure
+    measures: int = 0
+    stopped: bool = False
+
+    def __call__(self, res: Any, last: bool) -> bool | None:
+        self.per_step, self.measures = res.wall_time / max(res.steps, 1), self.measures + 1
+        total = self.per_step * self.steps
+        fits = self.budget is None or total <= self.budget - (time.perf_counter() - self.t0)
+        again = not fits and not last and self.measures == 1
+        self.log(
+            f"{self.name}: probe {res.steps:,} steps at {self.per_step * 1e6:.2f} µs/step: {total:.0f} s projected"
+            + ("; measuring again past the first launches' one-off costs" if again else "")
+        )
+        if again:
+            return None
+        self.stopped = not fits
+        return fits
 
 
 def run_batch(
@@ -180,8 +226,10 @@ def run_batch(
     """Run, analyse and save one batch; returns its members' result dicts by name.
 
     A batch the ``budget`` [s of wall time left] cannot hold by its estimate is not started; a batch whose first
-    segment (a probe of its step time, on a non-growing batch) projects beyond the budget is stopped there. Its
-    members' results say so.
+    segment (a probe of its step time, on a non-growing batch) projects beyond the budget is measured again on a
+    second segment as long, since its first launches carry one-off costs (on an H200 about 2 s for 88 full pads,
+    some 40 times their 5000 steps), and stopped when that one projects beyond the budget too. Its members' results
+    say so.
     """
     from aca_warp.hf.solver import friction_step, stable_step
     from aca_warp.studies.runs import batch_at_start
@@ -206,22 +254,15 @@ def run_batch(
     if budget is not None and est > budget:
         log(f"{batch.name}: not run: estimated {est:.0f} s exceeds the {budget:.0f} s left of the budget")
         return {n: {**h, "status": "skipped (budget)"} for n, h in heads.items()}
-    projection: dict[str, float] = {}
-
-    def probe(res: Any) -> bool:
-        per = res.wall_time / max(res.steps, 1)
-        projection.update(per_step=per, total=per * steps)
-        left = None if budget is None else budget - (time.perf_counter() - t0)
-        log(f"{batch.name}: probe {res.steps:,} steps at {per * 1e6:.2f} µs/step: {per * steps:.0f} s projected")
-        return left is None or per * steps <= left
+    probe = BudgetProbe(batch.name, steps, budget, t0, log)
 
     probe_s = cfg.sample_dt * max(1, round(min(5.0e-4, 0.05 * plan.duration) / cfg.sample_dt))  # whole samples
     run_plan = plan if batch.growth else split_segments(plan, probe_s)
     sink = Collector()
     last, parts = run_segments(model, state, run_plan, cfg, step, dt, sink, probe if not batch.growth else None)
-    if "total" in projection and len(parts) == 1 and len(run_plan.segments) > 1 and last.complete:
-        log(f"{batch.name}: stopped after the probe: {projection['total']:.0f} s projected exceeds the budget")
-        return {n: {**h, "status": "skipped (budget)", "probe_us_per_step": 1e6 * projection["per_step"]}
+    if probe.stopped:
+        log(f"{batch.name}: stopped after the probe: {probe.per_step * steps:.0f} s projected exceeds the budget")
+        return {n: {**h, "status": "skipped (budget)", "probe_us_per_step": 1e6 * probe.per_step}
                 for n, h in heads.items()}  # fmt: skip
     facts = _run_facts(parts, model, cfg, step, bound)
     costs.calibrate(batch, cfg, facts["us_per_step"] * 1e-6)
@@ -229,7 +270,9 @@ def run_batch(
     log(
         f"{batch.name}: {'complete' if facts['complete'] else 'stopped: ' + str(facts['fault'])} in "
         f"{facts['wall_s']:.1f} s ({facts['us_per_step']:.2f} µs/step at dt = {facts['dt']:.3g} s, compile "
-        f"{facts['compile_s']:.1f} s)"
+        f"{facts['compile_s']:.1f} s; per segment: "
+        + ", ".join(f"{r.steps:,} steps in {r.wall_time:.2f} s + {r.compile_time:.2f} s set-up" for r in parts)
+        + ")"
     )
     records = sink.arrays()
     del sink
