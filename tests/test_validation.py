@@ -371,7 +371,8 @@ def test_cost_table_of_a_results_file_without_estimates_or_blocks(tmp_path):
     del data["results"]["ms_fast"]["plan"]["estimate_s"], data["results"]["ms_fast"]["run"]["blocks_per_pad"]
     (tmp_path / "results.json").write_text(json.dumps(data))
     lines = load_script("validation_cost").table(tmp_path / "results.json")
-    assert [r for r in lines if "`ms_fast`" in r][0].endswith("| 7.83 | – | – |")
+    per_step = data["results"]["ms_fast"]["run"]["us_per_step"]
+    assert [r for r in lines if "`ms_fast`" in r][0].endswith(f"| {per_step:.2f} | – | – |")
 
 
 def test_cost_rows_group_a_batch_and_letter_the_shares():
@@ -753,7 +754,7 @@ def test_results_of_different_lf_runs_are_neither_reused_nor_joined(tmp_path):
     files = []
     for name, digest in (("ms_fast", "aaaa"), ("ms_short", "bbbb")):
         half = tmp_path / f"{name}.json"
-        result = {**doc["results"][name], "lf_runs": {"lf_full_preset_seed1.h5": digest}}
+        result = {**doc["results"][name], "config": committed.run_key(), "lf_runs": {"lf_full_preset_seed1.h5": digest}}
         meta = {**doc["meta"], "config": committed.run_key()}  # made with this code's settings
         half.write_text(json.dumps({**doc, "meta": meta, "results": {name: result}}))
         files.append(half)
@@ -802,20 +803,44 @@ def test_without_leaves_named_experiments_of_the_earlier_results_out(tmp_path, c
     committed_path = Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json"
     results, _, cfg = read_results(committed_path)
     notes: list[str] = []
-    got = VL.earlier_results([committed_path], cfg, notes.append, ["ms_short", "ms_app3"])
+    got = VL.earlier_results([committed_path], cfg, notes.append, ["ms_mid", "ms_app3"])
     finished = {n for n, r in results.items() if n in VB.EXPERIMENTS and r.get("status") in ("done", "stopped")}
-    assert set(got.results) == finished - {"ms_short", "ms_app3"} and "hf1" in got.results
-    # each experiment is credited to the call that ran it: the committed file's own (one call made every result)
+    stale = _restepped(committed_path)  # made with a stepping the table has changed since: they run again
+    assert set(got.results) == finished - stale - {"ms_mid", "ms_app3"} and "hf1" in got.results
+    # each experiment is credited to the call that ran it: the committed file joins two calls, the first's less the
+    # left-out experiments, then the file's own (s31 alone)
     meta = json.loads(committed_path.read_text())["meta"]
-    assert not meta.get("with") and [p["command"] for p in got.parts] == [meta["command"]]
-    assert got.parts[0]["experiments"] == sorted(got.results)
+    assert [p["command"] for p in got.parts] == [meta["with"][0]["command"], meta["command"]]
+    assert got.parts[0]["experiments"] == sorted(set(meta["with"][0]["experiments"]) - stale - {"ms_mid", "ms_app3"})
+    assert got.parts[1]["experiments"] == sorted(set(got.results) - set(meta["with"][0]["experiments"]))
     assert sorted(n for p in got.parts for n in p["experiments"]) == sorted(got.results)
-    assert any("ms_app3, ms_short not used: run again (--without)" in n for n in notes)
+    assert any("ms_app3, ms_mid not used: run again (--without)" in n for n in notes)
     out = tmp_path / "out"
     assert VL.main(["--out", str(out), "--with", str(committed_path), "--without", "nope"]) == 2
     assert "unknown experiment(s) nope" in capsys.readouterr().err
     assert VL.main(["--out", str(out), "--without", "ms_short"]) == 2
     assert "give --with" in capsys.readouterr().err and not out.exists()
+
+
+def _restepped(path: Path) -> set[str]:
+    """The experiments of a results file whose kind of stepping the table (``settings.STEPPING``) has changed since
+    the file was made: a call that takes the file with ``--with`` runs them again."""
+    made = json.loads(path.read_text())["meta"]["config"]["stepping"]
+    now = VB.FULL.run_key()["stepping"]
+    kinds = {k for k in now if made.get(k) != now[k]}
+    return {
+        n
+        for n in json.loads(path.read_text())["results"]
+        if n in VB.EXPERIMENTS and VB.EXPERIMENTS[n].stepping in kinds
+    }
+
+
+def test_committed_results_predate_the_ms_fast_and_ms_short_picks_on_the_fixed_kernels():
+    """The committed results ran every LF-state group at the picks before the fp32 damping fix; since, the table asks
+    ms_fast in fp64 at 5e-8 s and ms_short at the reference, fp64 at 1e-8 s, so exactly those groups and their
+    linear phases run again when a call takes the file (docs/validation.md, "Stepping")."""
+    committed = Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json"
+    assert _restepped(committed) == {"ms_fast", "ms_fast_lin", "ms_short", "ms_short_lin"}
 
 
 def test_earlier_results_are_taken_per_kind_of_stepping(tmp_path):
@@ -838,7 +863,8 @@ def test_earlier_results_are_taken_per_kind_of_stepping(tmp_path):
     growth = {n for n in results if n in VB.EXPERIMENTS and VB.EXPERIMENTS[n].stepping == "growth"}
     assert growth == {"va", "va_equal", "va_full", "va_full_rest", "va_rest"}
     finished = {n for n, r in results.items() if n in VB.EXPERIMENTS and r.get("status") in ("done", "stopped")}
-    assert set(got.results) == finished - growth and "hf1" in got.results and "ms_fast" in got.results
+    stale = _restepped(committed_path)
+    assert set(got.results) == finished - growth - stale and "hf1" in got.results and "ms_mid" in got.results
     assert any("va, va_equal, va_full, va_full_rest, va_rest not used: made with another stepping" in n for n in notes)
     doc["meta"]["config"]["window"] = 0.01  # another setting than the stepping: nothing is taken
     older.write_text(json.dumps(doc))
@@ -931,7 +957,7 @@ def test_compare_two_results_files(tmp_path, capsys, monkeypatch):
     """``scripts/validation_compare.py``: the committed file against itself is the same (exit 0); a copy with one
     per-pad number changed, one entry dropped, the LF facts' cap moved, an experiment only in it and a row's input
     moved names each (exit 1), its timings and provenance do not count; a file that is not a results file exits 2.
-    The committed comparison of the results with the file they replaced is the script's output."""
+    The committed comparison of the results with the file before the fp32 fix is the script's output."""
     repo = Path(__file__).resolve().parent.parent
     committed = repo / "docs" / "validation" / "results.json"
     script = load_script("validation_compare")
@@ -964,9 +990,6 @@ def test_compare_two_results_files(tmp_path, capsys, monkeypatch):
     other.write_text(json.dumps({"format": doc["format"], "results": {}}))
     assert script.main([str(committed), str(other)]) == 2
     assert "not a complete validation results file" in capsys.readouterr().err
-    monkeypatch.chdir(repo)  # the committed comparison, as its page names it
-    assert script.main(["docs/validation/earlier/results.json", "docs/validation/results.json"]) == 0
-    assert capsys.readouterr().out == (repo / "docs" / "validation" / "h200_compare.md").read_text()
-    recheck = "docs/validation/recheck_one_patch_per_thread"  # a rerun without the s31 batch: only its status differs
-    assert script.main(["docs/validation/results.json", f"{recheck}/results.json"]) == 1
-    assert capsys.readouterr().out == (repo / recheck / "compare.md").read_text()
+    monkeypatch.chdir(repo)  # the committed comparison, as its page names it: the results before the fp32 fix
+    assert script.main(["docs/validation/before_fix/results.json", "docs/validation/results.json"]) == 1
+    assert capsys.readouterr().out == (repo / "docs" / "validation" / "before_fix" / "compare.md").read_text()

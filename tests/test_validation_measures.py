@@ -285,7 +285,7 @@ def test_stepping_is_each_regimes_pick_of_the_statistical_work_precision_or_an_o
         ("hf", "rest"),
         ("hf", "lin"),
     }
-    assert (cfg.stepping("ms_fast").dt, cfg.stepping("ms_fast").precision) == (5e-8, "fp32")  # over 128 LF seeds
+    assert (cfg.stepping("ms_fast").dt, cfg.stepping("ms_fast").precision) == (5e-8, "fp64")  # over 128 LF seeds
     # each LF group (and its from-rest and linear-phase variants) runs at its own regime's pick
     for g in GROUPS:
         assert EXPERIMENTS[g].stepping == EXPERIMENTS[f"{g}_rest"].stepping == EXPERIMENTS[f"{g}_lin"].stepping == g

@@ -764,7 +764,7 @@ def test_first_part_regenerates_in_the_later_parts_code(regime):
         assert np.array_equal(a, b, equal_nan=True), m
 
 
-@pytest.mark.parametrize("regime", ["hf1", "hf2", "hf3", "va"])
+@pytest.mark.parametrize("regime", ["hf1", "hf2", "hf3", "va", "ms_fast"])
 def test_main_pages_merged_files_are_the_merge_of_their_parts(regime, monkeypatch):
     """The main page's merged result files are the ``--merge`` of the parts committed beside them (hf1–hf3's parts
     continued with the fp32 grid run again on the fixed kernels; va's four parts run anew)."""

@@ -83,16 +83,22 @@ STEPPING: dict[str, Stepping] = {
     ),
     "ms_fast": Stepping(
         dt=5.0e-8,
+        precision="fp64",
         reason="the densest LF states (app2_start, 3618–4374 patches), with their variants: the statistical "
         "work-precision on H200s (one pad per LF seed 1–128, against strang fp64 at 1e-8 s; "
-        "docs/work_precision_statistics.md) picks strang fp32 at 5e-8 s (7.8× the reference); over seeds 1–64 the "
-        "growth rate's error had been 0.36 σ there, over 128 it is 0.07 σ: most of it lay in seeds 1–32 (−0.46 σ, "
-        "−0.49 σ in fp64), likely the reference ensemble's own draw",
+        "docs/work_precision_statistics.md) picks strang fp64 at 5e-8 s (4.4× the reference; Φ 0.13 ± 0.13 σ). On "
+        "the kernels with the fp32 damping fix fp32 at 5e-8 s misses Φ by 0.27 ± 0.18 σ (0.22 ± 0.18 σ before the "
+        "fix, when the rule picked it), while fp32 − fp64 at 5e-8 s is +0.15 ± 0.18 σ in Φ and within its interval "
+        "of 0 in every measure",
     ),
     "ms_short": Stepping(
-        dt=5.0e-8,
+        dt=1.0e-8,
+        precision="fp64",
         reason=f"the LF states app1_start and app2_end: the statistical work-precision on one H200 {_LF_REGIME} "
-        "picks strang fp32 at 5e-8 s (at 1e-7 s μ mean moves by 0.34 σ; μ std, 0.44 σ, is undecided)",
+        "keeps only its reference, strang fp64 at 1e-8 s: on the kernels with the fp32 damping fix fp32 at 5e-8 s "
+        "misses S − S_null by +0.26 ± 0.41 σ (−0.10 ± 0.44 σ before the fix, when the rule picked it), an estimate "
+        "at the rule's edge whose interval reaches past it on both sides, which more seeds would decide; at 1e-7 s "
+        "μ mean moves by 0.35 σ",
     ),
     "ms_mid": Stepping(
         dt=1.0e-7,
@@ -107,8 +113,9 @@ STEPPING: dict[str, Stepping] = {
     "ms_order": Stepping(
         dt=5.0e-8,
         reason="app2_start after the low-load schedule (about 200 patches, friction step 4.4e-7 s): not a regime of "
-        "the statistical work-precision; strang fp32 at 5e-8 s, the step that keeps every measure in every measured "
-        "saturated regime",
+        "the statistical work-precision; strang fp32 at 5e-8 s, strang's default for a scene without a preset's "
+        "physics, the step that kept every measure in every measured saturated regime before the fp32 damping fix "
+        "(since, ms_fast and ms_short pick finer, by estimates at the rule's edge)",
     ),
 }
 """The stepping of every kind of experiment (``Experiment.stepping``)."""
