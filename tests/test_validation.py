@@ -414,6 +414,10 @@ def test_page_states_the_stepping_its_results_ran_with():
     meta = json.loads((repo / "docs" / "validation" / "results.json").read_text())["meta"]
     meta["config"]["stepping"] = {"hf": "strang, dt = 3.3e-08 s, fp64"}
     assert "stepping hf: strang, dt = 3.3e-08 s, fp64;" in "\n".join(_header_lines(meta))
+    produced = next(t for t in _header_lines(meta) if t.startswith("Produced"))  # the kernels where recorded
+    assert "aca-warp 0.1.0; wall time" in produced  # the committed file predates the record
+    meta["versions"] = {**meta["versions"], "kernels": "0123456789ab"}
+    assert "aca-warp 0.1.0, kernels 0123456789ab; wall time" in "\n".join(_header_lines(meta))
     meta["config"] = VB.QUICK.run_key()  # the quick variant: one stepping, the growing kind's events named
     line = next(t for t in _header_lines(meta) if t.startswith("Settings"))
     assert (

@@ -417,7 +417,9 @@ def test_again_runs_the_grid_again_and_rows_name_their_kernels(tmp_path):
     path = out / "wps_cpu_quick_hf1.json"
     doc = json.loads(path.read_text())
     rows = doc["regimes"]["hf1"]["settings"]
-    digest = wps.kernels_digest()
+    from aca_warp.common.files import kernels_digest
+
+    digest = kernels_digest()
     assert re.fullmatch(r"[0-9a-f]{12}", digest) and all(r["kernels"] == digest for r in rows)
     assert "kernels" not in doc  # a file's rows may come from several calls: the digest is per row
     for r in rows:
@@ -451,18 +453,22 @@ def test_again_runs_the_grid_again_and_rows_name_their_kernels(tmp_path):
 
 def test_kernels_digest_follows_the_sources(tmp_path):
     """The kernels' digest changes with a file's content and name, not with the folder's place or the files'
-    order on disk."""
+    order on disk; every run's versions carry it."""
+    from aca_warp.common.files import kernels_digest, version_changes, versions
+
     a, b = tmp_path / "a", tmp_path / "b"
     for folder, names in ((a, ("x.py", "y.py")), (b, ("y.py", "x.py"))):
         folder.mkdir()
         for n in names:
             (folder / n).write_text(f"# {n}\nK = 1\n")
-    assert wps.kernels_digest(a) == wps.kernels_digest(b) != wps.kernels_digest()
+    assert kernels_digest(a) == kernels_digest(b) != kernels_digest()
     (b / "y.py").write_text("# y.py\nK = 2\n")
-    assert wps.kernels_digest(b) != wps.kernels_digest(a)
+    assert kernels_digest(b) != kernels_digest(a)
     (b / "y.py").rename(b / "z.py")
     (b / "z.py").write_text("# y.py\nK = 1\n")
-    assert wps.kernels_digest(b) != wps.kernels_digest(a)
+    assert kernels_digest(b) != kernels_digest(a)
+    assert versions()["kernels"] == kernels_digest()  # a rerun names a kernel edit as it names a package's
+    assert version_changes({"kernels": "000000000000"}) == [f"kernels 000000000000 -> {kernels_digest()}"]
 
 
 def test_merged_rows_of_two_kernel_versions():

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import hashlib
 import json
 import os
 import platform
@@ -36,7 +37,8 @@ UNWRITABLE = {
 
 
 def versions() -> dict[str, str]:
-    """Versions of Python and of the packages a run depends on."""
+    """Versions of Python and of the packages a run depends on, and the digest of the Warp kernels' sources
+    (``kernels``, :func:`kernels_digest`): the package's version does not change when a kernel does."""
     import importlib.metadata as md
 
     out = {"python": platform.python_version()}
@@ -45,7 +47,21 @@ def versions() -> dict[str, str]:
             out[pkg] = md.version(pkg)
         except md.PackageNotFoundError:
             out[pkg] = "not installed"
+    out["kernels"] = kernels_digest()
     return out
+
+
+def kernels_digest(folder: Path | None = None) -> str:
+    """The first 12 hex digits of the SHA-256 of the Warp kernels' sources (``folder``/*.py by name and content;
+    default the package's ``kernels/``): which kernels a result's numbers came from. Any edit of a kernel file gives
+    another digest, a comment's too (two digests may name the same arithmetic, never one digest two); the host-side
+    Python (e.g. the recorder) is not in it."""
+    import aca_warp.kernels
+
+    h = hashlib.sha256()
+    for p in sorted((folder or Path(aca_warp.kernels.__file__).parent).glob("*.py")):
+        h.update(p.name.encode() + b"\0" + p.read_bytes())
+    return h.hexdigest()[:12]
 
 
 def attr_value(value: Any) -> Any:

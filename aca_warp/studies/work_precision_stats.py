@@ -55,7 +55,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import hashlib
 import itertools
 import math
 import re
@@ -69,6 +68,7 @@ import numpy as np
 
 from aca_warp.common.argtypes import int_at_least, nonneg, positive
 from aca_warp.common.errors import SceneError
+from aca_warp.common.files import kernels_digest
 from aca_warp.hf.options import INTEGRATORS, check_crossing, check_solve_tol, fast_math_unfit, tolerance_keyword
 from aca_warp.studies.report import Log, add_device, add_page_options, clean, command_line, write_json
 from aca_warp.studies.validation.analysis import analyse_batch
@@ -422,20 +422,6 @@ def measure_regime(
             f"{state}, {row.get('saturated', 0)}/{len(prep.scenes)} pads saturated")  # fmt: skip
     _write(path, doc, before + log.elapsed() - t0)
     return path
-
-
-def kernels_digest(folder: Path | None = None) -> str:
-    """The first 12 hex digits of the SHA-256 of the Warp kernels' sources (``folder``/*.py by name and content;
-    default the package's ``kernels/``): which kernels a row's numbers came from. Each row records it under
-    ``kernels``; rows written before it was recorded lack it. Any edit of a kernel file gives another digest, a
-    comment's too (two digests may name the same arithmetic, never one digest two); the host-side Python (e.g. the
-    recorder) is not in it."""
-    import aca_warp.kernels
-
-    h = hashlib.sha256()
-    for p in sorted((folder or Path(aca_warp.kernels.__file__).parent).glob("*.py")):
-        h.update(p.name.encode() + b"\0" + p.read_bytes())
-    return h.hexdigest()[:12]
 
 
 def run_estimate(steps: float, per_step: float, overheads: list[float]) -> float:

@@ -283,6 +283,12 @@ def render(
     ]
 
 
+def _kernels(versions: dict[str, str]) -> str:
+    """ ", kernels DIGEST" where the run recorded its kernels' digest (``versions()["kernels"]``); "" for a file made
+    before runs recorded it."""
+    return f", kernels {versions['kernels']}" if "kernels" in versions else ""
+
+
 def _earlier_runs(meta: dict[str, Any]) -> str:
     """The runs whose finished experiments this one took as done (``--with``), one clause each; "" if none."""
     parts = meta.get("with") or []
@@ -323,7 +329,8 @@ def _header_lines(meta: dict[str, Any]) -> list[str]:
         variant,
         "",
         f"Produced by `{meta['command']}` on {meta['created']}, {meta['machine']}; "
-        f"Warp {meta['versions'].get('warp-lang')}, aca-warp {meta['versions'].get('aca-warp')}; "
+        f"Warp {meta['versions'].get('warp-lang')}, aca-warp {meta['versions'].get('aca-warp')}"
+        f"{_kernels(meta['versions'])}; "
         f"wall time {meta['wall_s']:.0f} s (the experiments' runs and analyses, from their checkpoints: "
         f"{meta.get('experiments_s', 0.0):.0f} s).{_earlier_runs(meta)} Rebuilt from "
         f"`{meta.get('results', 'results.json')}` by `python3 scripts/validation.py --report RESULTS --page PAGE`.",
