@@ -139,51 +139,54 @@ def test_collector_joins_segments_on_one_clock():
 
 
 def test_the_probe_measures_again_past_the_first_launches(monkeypatch):
-    """A batch's first segment carries the one-off costs of its first launches (on an H200 about 40 times the
-    stepping of 88 pads' 5000 steps, which once stopped the main batch on a budget it fitted easily). A probe that
-    does not fit measures again on a segment as long, cut from the next, and the run stops only when that one does
-    not fit either, or when there is no room for it."""
+    """A batch's first segment carries the one-off costs of its first launches (on an H200 about 50 times the steady
+    cost of 88 pads' 5000 steps, which stopped the main batch on budgets it fitted easily). A probe that does not fit
+    measures again on a segment as long, cut from the next (recorded as that one is) when it is longer than two, and
+    the run stops only when that measure does not fit either, or when there is no room for it; the budget counts the
+    time spent since the batch began; a run of one segment is never stopped after it."""
     import aca_warp.studies.runs as runs
 
     def fake(walls: list[float]):
         calls = []
 
-        def run_engine(model, state, *, duration, **_):
-            calls.append(duration)
+        def run_engine(model, state, *, duration, record, **_):
+            calls.append((round(duration, 9), bool(record.patches)))
             steps = round(duration / 1e-7)
             return SimpleNamespace(complete=True, steps=steps, wall_time=walls[min(len(calls), len(walls)) - 1] * steps)
 
         return calls, run_engine
 
-    plan = SimpleNamespace(segments=((0.0, 5e-4, False), (5e-4, 20e-3, False), (20e-3, 30e-3, True)))
     cfg = SimpleNamespace(sample_dt=1e-6, decimation=1, engine="onchip")
     step = SimpleNamespace(integrator="strang", force=False, growth_dt=None)
     sink = SimpleNamespace(segment=lambda a: None)
 
-    def run(walls: list[float], budget: float | None) -> tuple[list[float], bool, list[str]]:
+    def run(segments, walls: list[float], budget: float | None, spent: float = 0.0, probing: bool = True):
         calls, engine = fake(walls)
         monkeypatch.setattr(runs, "run_engine", engine)
         lines: list[str] = []
-        probe = VE.BudgetProbe("s31", 300_000, budget, time.perf_counter(), lines.append)  # 30 ms at 1e-7 s
-        VE.run_segments(None, None, plan, cfg, step, 1e-7, sink, probe)
-        return [round(d, 9) for d in calls], probe.stopped, lines
+        t0 = time.perf_counter() - spent  # the batch began ``spent`` s ago
+        probe = VE.BudgetProbe("s31", 300_000, budget, t0, lines.append) if probing else None  # 30 ms at 1e-7 s
+        VE.run_segments(None, None, SimpleNamespace(segments=segments), cfg, step, 1e-7, sink, probe)
+        return calls, probe is not None and probe.stopped, lines
 
-    calls, stopped, lines = run([1e-5], 10.0)  # 3 s projected: the segments as planned
-    assert calls == [5e-4, 19.5e-3, 10e-3] and not stopped
+    plan = ((0.0, 5e-4, False), (5e-4, 20e-3, False), (20e-3, 30e-3, True))
+    calls, stopped, lines = run(plan, [1e-5], 10.0)  # 3 s projected: the segments as planned
+    assert calls == [(5e-4, False), (19.5e-3, False), (10e-3, True)] and not stopped
     assert lines == ["s31: probe 5,000 steps at 10.00 µs/step: 3 s projected"]
-    calls, stopped, lines = run([4e-4, 1e-5], 10.0)  # a first launch 40 times the step: measured again, goes on
-    assert calls == [5e-4, 5e-4, 19e-3, 10e-3] and not stopped
+    calls, stopped, lines = run(plan, [4e-4, 1e-5], 10.0)  # a first launch 40 times the step: measured again
+    assert calls == [(5e-4, False), (5e-4, False), (19e-3, False), (10e-3, True)] and not stopped
     assert lines[0].endswith("120 s projected; measuring again past the first launches' one-off costs")
-    calls, stopped, lines = run([4e-4, 4e-4], 10.0)  # slow twice: stopped after the second measure
-    assert calls == [5e-4, 5e-4] and stopped and len(lines) == 2
-    assert run([4e-4, 1e-5], None)[:2] == ([5e-4, 19.5e-3, 10e-3], False)  # no budget: nothing to stop for
-    plan = SimpleNamespace(segments=((0.0, 5e-4, False), (5e-4, 1e-3, False)))  # no room for a second measure
-    assert run([4e-4, 1e-5], 10.0)[:2] == ([5e-4], True)
-    short = plan
-    calls, engine = fake([1e-5])
-    monkeypatch.setattr(runs, "run_engine", engine)
-    VE.run_segments(None, None, short, cfg, step, 1e-7, sink)  # no probe: every segment as planned
-    assert [round(d, 9) for d in calls] == [5e-4, 5e-4]
+    calls, stopped, lines = run(plan, [4e-4, 4e-4], 10.0)  # slow twice: stopped after the second measure
+    assert calls == [(5e-4, False), (5e-4, False)] and stopped and len(lines) == 2
+    assert run(plan, [4e-4, 1e-5], None)[:2] == ([(5e-4, False), (19.5e-3, False), (10e-3, True)], False)
+    assert run(plan, [1e-5], 10.0, spent=8.0)[1]  # 3 s projected fits the budget, not what 8 s spent leave of it
+    recorded = ((0.0, 5e-4, False), (5e-4, 4e-3, True))  # the next segment a recorded window: the cut records too
+    assert run(recorded, [4e-4, 1e-5], 10.0)[0] == [(5e-4, False), (5e-4, True), (3e-3, True)]
+    no_room = ((0.0, 5e-4, False), (5e-4, 1.25e-3, False))  # 1.5 probe lengths: no room for a second measure
+    assert run(no_room, [4e-4, 1e-5], 10.0)[:2] == ([(5e-4, False)], True)
+    assert run(no_room, [1e-5], None, probing=False)[0] == [(5e-4, False), (7.5e-4, False)]  # no probe: as planned
+    calls, stopped, lines = run(((0.0, 5e-4, False),), [4e-4], 10.0)  # one segment: done, nothing left to stop
+    assert calls == [(5e-4, False)] and not stopped and lines == []
 
 
 # ------------------------------------------------------------------------------------------------ verdicts

@@ -142,9 +142,10 @@ def run_segments(
     recorded where the segment says), every chunk to ``sink``. Returns (the last segment's result, every segment's
     result).
 
-    ``probe(result, last) -> bool | None`` is called after the first segment: True goes on, False stops the run, and
-    None asks for another measure. That one is a segment as long as the first, cut from the next one when it is
-    longer than two of them, after which ``probe`` is called again (``last``: no room for yet another measure)."""
+    ``probe(result, last) -> bool | None`` is called after the first segment, unless it was the only one: True goes
+    on, False stops the run, and None asks for another measure. That one is a segment as long as the first, cut from
+    the next one (recorded as it is) when that is longer than two of them, after which ``probe`` is called again
+    (``last``: no room for yet another measure)."""
     from aca_warp.scene import Record
     from aca_warp.studies.runs import run_engine
 
@@ -162,8 +163,8 @@ def run_segments(
         results.append(res)
         if not res.complete:
             break
-        if probing:
-            room = bool(segments) and segments[0][1] - segments[0][0] > 2.0 * (b - a)
+        if probing and segments:  # after the last segment there is nothing left to stop
+            room = segments[0][1] - segments[0][0] > 2.0 * (b - a)
             go = probe(res, not room)
             if go is None:  # only asked for where there is room
                 (c, d, rec_patches), length = segments[0], b - a
@@ -227,9 +228,9 @@ def run_batch(
 
     A batch the ``budget`` [s of wall time left] cannot hold by its estimate is not started; a batch whose first
     segment (a probe of its step time, on a non-growing batch) projects beyond the budget is measured again on a
-    second segment as long, since its first launches carry one-off costs (on an H200 about 2 s for 88 full pads,
-    some 40 times their 5000 steps), and stopped when that one projects beyond the budget too. Its members' results
-    say so.
+    second segment as long, since its first launches carry one-off costs (on an H200 about 2.1 s for 88 full pads,
+    some 50 times the steady cost of their 5000 steps), and stopped when that one projects beyond the budget too.
+    Its members' results say so.
     """
     from aca_warp.hf.solver import friction_step, stable_step
     from aca_warp.studies.runs import batch_at_start

@@ -96,9 +96,9 @@ STEPPING: dict[str, Stepping] = {
         precision="fp64",
         reason=f"the LF states app1_start and app2_end: the statistical work-precision on one H200 {_LF_REGIME} "
         "keeps only its reference, strang fp64 at 1e-8 s: on the kernels with the fp32 damping fix fp32 at 5e-8 s "
-        "misses S − S_null by +0.26 ± 0.41 σ (−0.10 ± 0.44 σ before the fix, when the rule picked it), an estimate "
-        "at the rule's edge whose interval reaches past it on both sides, which more seeds would decide; at 1e-7 s "
-        "μ mean moves by 0.35 σ",
+        "misses S − S_null by +0.26 ± 0.41 σ in the app1_start states (−0.10 ± 0.44 σ before the fix, when the rule "
+        "picked it), an estimate 0.01 σ past the rule's edge whose interval straddles it (32 LF seeds per state: a "
+        "resolution floor of 0.51 σ), which more seeds would decide; at 1e-7 s μ mean moves by 0.35 σ",
     ),
     "ms_mid": Stepping(
         dt=1.0e-7,
