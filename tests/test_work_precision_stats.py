@@ -236,6 +236,35 @@ def test_rule_picks_the_cheapest_setting_that_keeps_every_measure():
         rule.settings_for(doc, "syn", criterion="loose")
 
 
+def test_an_amplitude_that_few_pads_dominate_is_judged_in_log_too():
+    """The STFT maximum of 64 pads about 1.7e-3 (a fixed draw), a few turning tonal at five times that, different
+    pads in the two runs: the arithmetic mean's paired differences scatter beyond the floor (undecided), while the
+    same comparison on the logarithms, a geometric mean over the pads, keeps it within resolution; a setting that
+    moves every pad by 30 % moves in log too, and a measure every setting keeps gets no sentence."""
+    from aca_warp.studies import work_precision_stats_report as report
+
+    rng = np.random.default_rng(3)
+    base = 1.7e-3 * np.exp(0.1 * rng.standard_normal(64))
+    ref, same, moved = base.copy(), base * np.exp(0.02 * rng.standard_normal(64)), base * 1.3
+    ref[[5]] *= 5.0  # tonal in the reference
+    same[[20, 41]] *= 5.0  # others tonal in the setting
+    moved[[20, 41]] *= 5.0
+    reg = {"measures": ["stft_amplitude", "mu_mean"], "pads": [{"seed": s} for s in range(64)], "settings": [
+        _setting("strang@fp32:dt=1e-08", "reference", 10.0, {"stft_amplitude": ref.tolist(), "mu_mean": [0.4] * 64}),
+        _setting("strang@fp32:dt=1e-07", "grid", 2.0, {"stft_amplitude": same.tolist(), "mu_mean": [0.4] * 64}),
+        _setting("strang@fp32:dt=5e-07", "grid", 1.0, {"stft_amplitude": moved.tolist(), "mu_mean": [0.4] * 64}),
+    ]}  # fmt: skip
+    assert rule.verdict(reg, reg["settings"][1], "stft_amplitude", 0.25) == "undecided"
+    view = report.logged(reg, "stft_amplitude")
+    assert rule.verdict(view, view["settings"][1], "stft_amplitude", 0.25) == "within resolution"
+    assert view["settings"][1]["values"]["mu_mean"] == [0.4] * 64  # only the named measure is taken in log
+    (text,) = report.log_candidates(reg, 0.25, "resolution")
+    assert text.startswith("STFT max averaged in log over the pads")
+    assert "`strang@fp32:dt=1e-07` within resolution" in text and "`strang@fp32:dt=5e-07` moves" in text
+    reg["measures"] = ["mu_mean"]
+    assert report.log_candidates(reg, 0.25, "resolution") == []
+
+
 def test_members_take_the_worst():
     """A regime with two members (LF states): the regime's figure is the member with the larger bound/σ."""
     reg = synthetic_regime(20)

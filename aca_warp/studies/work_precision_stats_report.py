@@ -1,7 +1,8 @@
 """Figure and docs section of the statistical work-precision study (:mod:`aca_warp.studies.work_precision_stats`)
 from its result files: per regime, error/σ between seeds against stepping wall time for every measure, the tables,
-the settings the rule picks (:func:`~aca_warp.studies.work_precision_stats_rule.settings_for`). Every number on the
-page is computed here from the per-pad values in the result files.
+the settings the rule picks (:func:`~aca_warp.studies.work_precision_stats_rule.settings_for`), and for an amplitude
+that a few pads dominate the same comparison in log beside it (:func:`log_candidates`). Every number on the page is
+computed here from the per-pad values in the result files.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from aca_warp.studies.work_precision_stats_rule import (
     Choice,
     compare_setting,
     keep_chance,
+    kept,
     load_results,
     reference_of,
     resolution_floor,
@@ -37,6 +39,7 @@ TITLE = "Statistical work-precision: integrator settings for the validation's st
 MARKER = "scripts/work_precision_stats.py --report"  # the generated section's marker on the page
 NEAREST = 6  # cheaper settings the results in words name per regime (those nearest the pick in wall time)
 EARLIER = "†"  # marks an fp32 row that ran on kernels older than the fp32 friction sub-step that keeps the damping
+LOG_CANDIDATES = ("stft_amplitude",)  # amplitudes whose mean over pads a few large pads dominate: also judged in log
 
 
 def earlier_fp32(s: dict[str, Any]) -> bool:
@@ -348,6 +351,7 @@ def regime_results(doc: dict[str, Any], name: str, rule: float, measures: Sequen
         out.append("It keeps within resolution only, undecided by the strict criterion: " + "; ".join(parts) + ".")
     others = [(c, settings_for(doc, name, use, rule, c)) for c in CRITERIA if c != criterion]
     out.append("The other criteria pick " + ", ".join(f"`{o.setting}` ({c})" for c, o in others) + ".")
+    out.extend(log_candidates(reg, rule, criterion))
     out.extend(versions_text(ran))
     early = [s for s in reg["settings"] if earlier_fp32(s)]
     if early:
@@ -355,6 +359,40 @@ def regime_results(doc: dict[str, Any], name: str, rule: float, measures: Sequen
                    "their rows; in hf1–hf4 fp32's μ mean then sat up to 0.15 σ low at steps ≤ 1e-7 s): "
                    + ", ".join(f"`{s['label']}`" for s in early) + ".")  # fmt: skip
     return " ".join(out)
+
+
+def logged(reg: dict[str, Any], measure: str) -> dict[str, Any]:
+    """``reg`` with ``measure``'s per-pad values replaced by their natural logarithms (NaN where not positive or
+    missing): the measure's mean over pads becomes a geometric mean."""
+
+    def log(vals: Sequence[Any]) -> list[float]:
+        return [math.log(v) if isinstance(v, (int, float)) and v > 0 else math.nan for v in vals]
+
+    rows = [{**s, "values": {**s["values"], measure: log(s["values"][measure])}} if s.get("values") else s
+            for s in reg["settings"]]  # fmt: skip
+    return {**reg, "settings": rows}
+
+
+def log_candidates(reg: dict[str, Any], rule: float, criterion: str) -> list[str]:
+    """For an amplitude of :data:`LOG_CANDIDATES` that a setting does not keep: the same comparison on the pads' log
+    values, a candidate convention beside the validation's arithmetic mean over pads (which the few pads whose
+    amplitude is several times the others' dominate). One sentence; [] when every setting keeps it."""
+    out = []
+    for m in (m for m in LOG_CANDIDATES if m in reg["measures"]):
+        view = logged(reg, m)
+        rows = {s["label"]: s for s in view["settings"]}
+        parts = []
+        for s in reg["settings"]:
+            if s["role"] == "reference" or not usable(s) or kept(verdict(reg, s, m, rule, criterion)):
+                continue
+            c = compare_setting(view, rows[s["label"]], m)
+            parts.append(f"`{s['label']}` {verdict(view, rows[s['label']], m, rule, criterion)} (error "
+                         f"{_small(c.ratio)} σ, sd(d) {c.sd_ratio:.2g} σ)")  # fmt: skip
+        if parts:
+            out.append(f"{MEASURES[m].label} averaged in log over the pads (a geometric mean: a candidate beside the "
+                       "arithmetic mean the validation takes, which the few pads several times the others' "
+                       "dominate), for the settings that do not keep it: " + "; ".join(parts) + ".")  # fmt: skip
+    return out
 
 
 def versions_text(rows: Sequence[dict[str, Any]]) -> list[str]:
