@@ -249,18 +249,28 @@ def test_an_amplitude_that_few_pads_dominate_is_judged_in_log_too():
     ref[[5]] *= 5.0  # tonal in the reference
     same[[20, 41]] *= 5.0  # others tonal in the setting
     moved[[20, 41]] *= 5.0
+    same[7] = 0.0  # a pad without a maximum: it drops out of the log comparison (NaN), not the arithmetic one
+    row = {"mu_mean": [0.4] * 64}
     reg = {"measures": ["stft_amplitude", "mu_mean"], "pads": [{"seed": s} for s in range(64)], "settings": [
-        _setting("strang@fp32:dt=1e-08", "reference", 10.0, {"stft_amplitude": ref.tolist(), "mu_mean": [0.4] * 64}),
-        _setting("strang@fp32:dt=1e-07", "grid", 2.0, {"stft_amplitude": same.tolist(), "mu_mean": [0.4] * 64}),
-        _setting("strang@fp32:dt=5e-07", "grid", 1.0, {"stft_amplitude": moved.tolist(), "mu_mean": [0.4] * 64}),
+        _setting("strang@fp32:dt=1e-08", "reference", 10.0, {**row, "stft_amplitude": ref.tolist()}),
+        _setting("strang@fp64:dt=1e-08", "grid", 12.0, {**row, "stft_amplitude": ref.tolist()}),  # keeps it
+        _setting("strang@fp32:dt=1e-07", "grid", 2.0, {**row, "stft_amplitude": same.tolist()}),
+        _setting("strang@fp32:dt=5e-07", "grid", 1.0, {**row, "stft_amplitude": moved.tolist()}),
+        _setting("strang@fp32:dt=1e-06", "grid", 0.5, {}, complete=False),  # no run
     ]}  # fmt: skip
-    assert rule.verdict(reg, reg["settings"][1], "stft_amplitude", 0.25) == "undecided"
+    assert rule.verdict(reg, reg["settings"][2], "stft_amplitude", 0.25) == "undecided"
     view = report.logged(reg, "stft_amplitude")
-    assert rule.verdict(view, view["settings"][1], "stft_amplitude", 0.25) == "within resolution"
-    assert view["settings"][1]["values"]["mu_mean"] == [0.4] * 64  # only the named measure is taken in log
+    assert rule.verdict(view, view["settings"][2], "stft_amplitude", 0.25) == "within resolution"
+    assert view["settings"][2]["values"]["mu_mean"] == [0.4] * 64  # only the named measure is taken in log
+    assert math.isnan(view["settings"][2]["values"]["stft_amplitude"][7])
+    log = rule.compare_setting(view, view["settings"][2], "stft_amplitude")
+    assert log.n == 63 and rule.compare_setting(reg, reg["settings"][2], "stft_amplitude").n == 64
     (text,) = report.log_candidates(reg, 0.25, "resolution")
     assert text.startswith("STFT max averaged in log over the pads")
-    assert "`strang@fp32:dt=1e-07` within resolution" in text and "`strang@fp32:dt=5e-07` moves" in text
+    assert f"`strang@fp32:dt=1e-07` within resolution (error {report._small(log.ratio)} σ, sd(d) " in text
+    assert f"sd(d) {log.sd_ratio:.2g} σ)" in text and "`strang@fp32:dt=5e-07` moves" in text
+    assert "fp64" not in text and "1e-06" not in text  # a setting that keeps it, a row that did not run: not named
+    assert report.log_candidates(reg, 0.25, "resolution", ["mu_mean"]) == []  # not asked for
     reg["measures"] = ["mu_mean"]
     assert report.log_candidates(reg, 0.25, "resolution") == []
 

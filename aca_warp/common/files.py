@@ -56,10 +56,14 @@ def kernels_digest(folder: Path | None = None) -> str:
     default the package's ``kernels/``): which kernels a result's numbers came from. Any edit of a kernel file gives
     another digest, a comment's too (two digests may name the same arithmetic, never one digest two); the host-side
     Python (e.g. the recorder) is not in it."""
-    import aca_warp.kernels
+    import importlib.util
 
+    if folder is None:  # the package's folder, found without running its __init__ (which imports Warp)
+        spec = importlib.util.find_spec("aca_warp.kernels")
+        assert spec is not None and spec.submodule_search_locations
+        folder = Path(list(spec.submodule_search_locations)[0])
     h = hashlib.sha256()
-    for p in sorted((folder or Path(aca_warp.kernels.__file__).parent).glob("*.py")):
+    for p in sorted(folder.glob("*.py")):
         h.update(p.name.encode() + b"\0" + p.read_bytes())
     return h.hexdigest()[:12]
 
@@ -521,7 +525,7 @@ def open_h5(path: str | Path, what: str, *, mode: str = "r", text: tuple[str, ..
 
 
 def version_changes(stored: dict[str, str]) -> list[str]:
-    """``name old -> new`` for every package whose version differs from the run file's."""
+    """``name old -> new`` for every package whose version, or the kernels' digest, differs from the run file's."""
     now = versions()
     return [f"{k} {v} -> {now.get(k, 'missing')}" for k, v in stored.items() if now.get(k) != v]
 

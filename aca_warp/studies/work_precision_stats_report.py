@@ -39,7 +39,7 @@ TITLE = "Statistical work-precision: integrator settings for the validation's st
 MARKER = "scripts/work_precision_stats.py --report"  # the generated section's marker on the page
 NEAREST = 6  # cheaper settings the results in words name per regime (those nearest the pick in wall time)
 EARLIER = "†"  # marks an fp32 row that ran on kernels older than the fp32 friction sub-step that keeps the damping
-LOG_CANDIDATES = ("stft_amplitude",)  # amplitudes whose mean over pads a few large pads dominate: also judged in log
+LOG_CANDIDATES = ("stft_amplitude",)  # scalar amplitudes a few large pads dominate in the mean: judged in log too
 
 
 def earlier_fp32(s: dict[str, Any]) -> bool:
@@ -351,7 +351,7 @@ def regime_results(doc: dict[str, Any], name: str, rule: float, measures: Sequen
         out.append("It keeps within resolution only, undecided by the strict criterion: " + "; ".join(parts) + ".")
     others = [(c, settings_for(doc, name, use, rule, c)) for c in CRITERIA if c != criterion]
     out.append("The other criteria pick " + ", ".join(f"`{o.setting}` ({c})" for c, o in others) + ".")
-    out.extend(log_candidates(reg, rule, criterion))
+    out.extend(log_candidates(reg, rule, criterion, use))
     out.extend(versions_text(ran))
     early = [s for s in reg["settings"] if earlier_fp32(s)]
     if early:
@@ -373,12 +373,15 @@ def logged(reg: dict[str, Any], measure: str) -> dict[str, Any]:
     return {**reg, "settings": rows}
 
 
-def log_candidates(reg: dict[str, Any], rule: float, criterion: str) -> list[str]:
-    """For an amplitude of :data:`LOG_CANDIDATES` that a setting does not keep: the same comparison on the pads' log
-    values, a candidate convention beside the validation's arithmetic mean over pads (which the few pads whose
-    amplitude is several times the others' dominate). One sentence; [] when every setting keeps it."""
+def log_candidates(
+    reg: dict[str, Any], rule: float, criterion: str, measures: Sequence[str] | None = None
+) -> list[str]:
+    """For an amplitude of :data:`LOG_CANDIDATES` (scalar measures, among ``measures``; None: the regime's) that a
+    setting does not keep: the same comparison on the pads' log values (a pad whose value is not positive drops
+    out), a candidate convention beside the validation's arithmetic mean over pads, which the few pads whose
+    amplitude is several times the others' dominate. One sentence per measure; [] when every setting keeps it."""
     out = []
-    for m in (m for m in LOG_CANDIDATES if m in reg["measures"]):
+    for m in (m for m in LOG_CANDIDATES if m in (reg["measures"] if measures is None else measures)):
         view = logged(reg, m)
         rows = {s["label"]: s for s in view["settings"]}
         parts = []

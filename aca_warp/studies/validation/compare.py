@@ -142,8 +142,8 @@ def report(path_a: Path, path_b: Path) -> tuple[list[str], bool]:
     """Markdown lines of the comparison, and whether everything compared is the same."""
     diffs, moved = compare_files(path_a, path_b)
     lines = [
-        f"`{path_a}` against `{path_b}`: every entry of every experiment's result but provenance, timings and the "
-        "stepping's reason, as stored (6 significant digits), then what the page says",
+        f"`{path_a}` against `{path_b}`: every entry of every experiment's result but provenance, timings, the "
+        "stepping's reason and the count of segments, as stored (6 significant digits), then what the page says",
         "",
         "| experiment | entries | differing | largest relative difference | first difference | on one side only |",
         "|---|---|---|---|---|---|",
