@@ -138,21 +138,19 @@ def test_collector_joins_segments_on_one_clock():
     np.testing.assert_allclose(pt, [1e-6, 2e-6, 3e-6, 4e-6, 5e-6]) and v.dtype == np.float32
 
 
-def test_the_probe_measures_again_past_the_first_launches(monkeypatch):
-    """A batch's first segment carries the one-off costs of its first launches (on an H200 about 50 times the steady
-    cost of 88 pads' 5000 steps, which stopped the main batch on budgets it fitted easily). A probe that does not fit
-    measures again on a segment as long, cut from the next (recorded as that one is) when it is longer than two, and
-    the run stops only when that measure does not fit either, or when there is no room for it; the budget counts the
-    time spent since the batch began; a run of one segment is never stopped after it."""
+def test_the_probe_projects_the_step_time_against_what_the_budget_leaves(monkeypatch):
+    """The probe segment's step time, projected over the batch, against the budget less the time already spent:
+    a run that fits goes on through its segments as planned, one that does not stops after the probe, no budget
+    never stops, and a plan of one segment is not probed (nothing left to stop)."""
     import aca_warp.studies.runs as runs
 
-    def fake(walls: list[float]):
+    def fake(per_step: float):
         calls = []
 
         def run_engine(model, state, *, duration, record, **_):
             calls.append((round(duration, 9), bool(record.patches)))
             steps = round(duration / 1e-7)
-            return SimpleNamespace(complete=True, steps=steps, wall_time=walls[min(len(calls), len(walls)) - 1] * steps)
+            return SimpleNamespace(complete=True, steps=steps, wall_time=per_step * steps)
 
         return calls, run_engine
 
@@ -160,33 +158,52 @@ def test_the_probe_measures_again_past_the_first_launches(monkeypatch):
     step = SimpleNamespace(integrator="strang", force=False, growth_dt=None)
     sink = SimpleNamespace(segment=lambda a: None)
 
-    def run(segments, walls: list[float], budget: float | None, spent: float = 0.0, probing: bool = True):
-        calls, engine = fake(walls)
+    def run(segments, per_step: float, budget: float | None, spent: float = 0.0):
+        calls, engine = fake(per_step)
         monkeypatch.setattr(runs, "run_engine", engine)
         lines: list[str] = []
-        t0 = time.perf_counter() - spent  # the batch began ``spent`` s ago
-        probe = VE.BudgetProbe("s31", 300_000, budget, t0, lines.append) if probing else None  # 30 ms at 1e-7 s
+        probe = VE.BudgetProbe("s31", 300_000, budget, time.perf_counter() - spent, lines.append)  # 30 ms, 1e-7 s
         VE.run_segments(None, None, SimpleNamespace(segments=segments), cfg, step, 1e-7, sink, probe)
-        return calls, probe is not None and probe.stopped, lines
+        return calls, probe.stopped, lines
 
     plan = ((0.0, 5e-4, False), (5e-4, 20e-3, False), (20e-3, 30e-3, True))
-    calls, stopped, lines = run(plan, [1e-5], 10.0)  # 3 s projected: the segments as planned
+    calls, stopped, lines = run(plan, 1e-5, 10.0)  # 3 s projected: the segments as planned
     assert calls == [(5e-4, False), (19.5e-3, False), (10e-3, True)] and not stopped
     assert lines == ["s31: probe 5,000 steps at 10.00 µs/step: 3 s projected"]
-    calls, stopped, lines = run(plan, [4e-4, 1e-5], 10.0)  # a first launch 40 times the step: measured again
-    assert calls == [(5e-4, False), (5e-4, False), (19e-3, False), (10e-3, True)] and not stopped
-    assert lines[0].endswith("120 s projected; measuring again past the first launches' one-off costs")
-    calls, stopped, lines = run(plan, [4e-4, 4e-4], 10.0)  # slow twice: stopped after the second measure
-    assert calls == [(5e-4, False), (5e-4, False)] and stopped and len(lines) == 2
-    assert run(plan, [4e-4, 1e-5], None)[:2] == ([(5e-4, False), (19.5e-3, False), (10e-3, True)], False)
-    assert run(plan, [1e-5], 10.0, spent=8.0)[1]  # 3 s projected fits the budget, not what 8 s spent leave of it
-    recorded = ((0.0, 5e-4, False), (5e-4, 4e-3, True))  # the next segment a recorded window: the cut records too
-    assert run(recorded, [4e-4, 1e-5], 10.0)[0] == [(5e-4, False), (5e-4, True), (3e-3, True)]
-    no_room = ((0.0, 5e-4, False), (5e-4, 1.25e-3, False))  # 1.5 probe lengths: no room for a second measure
-    assert run(no_room, [4e-4, 1e-5], 10.0)[:2] == ([(5e-4, False)], True)
-    assert run(no_room, [1e-5], None, probing=False)[0] == [(5e-4, False), (7.5e-4, False)]  # no probe: as planned
-    calls, stopped, lines = run(((0.0, 5e-4, False),), [4e-4], 10.0)  # one segment: done, nothing left to stop
+    calls, stopped, lines = run(plan, 4e-4, 10.0)  # 120 s projected: stopped after the probe
+    assert calls == [(5e-4, False)] and stopped and lines[0].endswith("120 s projected")
+    assert run(plan, 4e-4, None)[:2] == ([(5e-4, False), (19.5e-3, False), (10e-3, True)], False)  # no budget
+    assert run(plan, 1e-5, 10.0, spent=8.0)[1]  # 3 s fits the budget, not what 8 s spent leave of it
+    calls, stopped, lines = run(((0.0, 5e-4, False),), 4e-4, 10.0)  # one segment: run, not probed
     assert calls == [(5e-4, False)] and not stopped and lines == []
+
+
+def test_the_warm_up_leaves_the_batch_s_numbers_as_they_are():
+    """The warm-up (one sample from a spare initial state, which takes a batch's first launches' one-off costs
+    out of its probe) leaves every global output and recorded patch velocity of the run after it the same, bit
+    for bit (a 40-patch hf1 pad on the CPU); cutting a segment in two does not: the segments are part of the
+    arithmetic, which is why the probe does not measure again on another cut."""
+    from aca_warp.studies.runs import batch_at_start
+
+    cfg = VB.Config(seeds=1, patches=40, window=3e-3)
+    prep = VE.prepare(VB.EXPERIMENTS["hf1"], cfg)
+    run_cfg = SimpleNamespace(sample_dt=cfg.sample_dt, decimation=cfg.decimation, engine="auto")
+    step = SimpleNamespace(integrator="strang", force=False, growth_dt=None)
+
+    def run(segments, warm: bool):
+        model, state = batch_at_start(prep.scenes, "cpu", "fp32")
+        if warm:
+            assert VE.warm_up(model, run_cfg, step, 1e-7) > 0.0
+        sink = VE.Collector()
+        VE.run_segments(model, state, SimpleNamespace(segments=segments), run_cfg, step, 1e-7, sink)
+        return sink.arrays()
+
+    plan = ((0.0, 3e-4, False), (3e-4, 5e-4, True))
+    plain, warmed = run(plan, False), run(plan, True)
+    for a, b in zip(plain, warmed, strict=True):
+        assert a.size > 0 and a.shape == b.shape and np.array_equal(a, b)
+    cut = run(((0.0, 1e-4, False), (1e-4, 3e-4, False), (3e-4, 5e-4, True)), False)
+    assert not np.array_equal(plain[1], cut[1])  # the globals part after the cut
 
 
 # ------------------------------------------------------------------------------------------------ verdicts

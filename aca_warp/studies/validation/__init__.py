@@ -53,8 +53,8 @@ Stages of a batch (:func:`~aca_warp.studies.validation.experiments.run_batch`):
    in segments, recording the patches only in the segments that hold a window.
 3. **Run** through :func:`aca_warp.studies.runs.run_engine` with the stepping of
    :data:`~aca_warp.studies.validation.settings.STEPPING`; the first segment is a probe of the step time that
-   stops a batch the budget cannot hold (measured again on a second segment when it does not fit, since a batch's
-   first launches carry one-off costs).
+   stops a batch the budget cannot hold, after a warm-up from a spare state has taken the one-off costs of the
+   batch's first launches.
 4. **Saturation** per pad (``saturation``) on Σ|u̇| (envelope: window mean) and on μ (window standard deviation
    over 64 windows of the record); a pad counts when Σ|u̇| has a growth phase (from rest: without one) and a
    saturated part that starts at least half a window before the end.

@@ -88,8 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--only", nargs="+", default=None, metavar="EXPERIMENT", help="run only these experiments "
                    "(the table still uses the saved results of the others)")  # fmt: skip
     p.add_argument("--max-wall", type=nonneg, default=None, help="wall-time budget [s]: a batch whose estimate (or "
-                   "whose probe of its step time, taken twice where the first does not fit) no longer fits is not "
-                   "run")  # fmt: skip
+                   "whose probe of its step time, after a warm-up) no longer fits is not run")  # fmt: skip
     p.add_argument("--growth-speedup", type=positive, default=None, help=f"compression of the varying-area growth of "
                    f"va and its variants ({FULL.growth_speedup:g}; quick {QUICK.growth_speedup:g})")  # fmt: skip
     p.add_argument("--state-patches", type=int_at_least(2), help=f"patches per LF state of the multi-timescale "

@@ -1,9 +1,8 @@
 """Two validation results files side by side: does a rerun regenerate every number of the committed one?
 
-Compared is every entry of every experiment's result — each pad's facts and measures, the plan, the run's steps
-and step, the analysed segment, the status, and the §3.3 LF facts with the LF runs' digests — except the
-provenance, the timings, the stepping's reason and the count of segments the run was stepped in (a budget's cost
-probe may cut one more: the arithmetic is the same) (:data:`NOT_COMPARED`); an entry absent from one file and None
+Compared is every entry of every experiment's result — each pad's facts and measures, the plan, the run's steps,
+step and segments, the analysed segment, the status, and the §3.3 LF facts with the LF runs' digests — except the
+provenance, the timings and the stepping's reason (:data:`NOT_COMPARED`); an entry absent from one file and None
 in the other counts as the same (a field added since, at its default). Every entry is compared as stored (floats
 to six significant digits, :data:`~aca_warp.studies.validation.results.SIGNIFICANT`), so "the same" means equal to
 the digits the page is made from. Then what the page says: every row's verdict and value text, the rows from rest
@@ -30,7 +29,6 @@ NOT_COMPARED = (
     "run.device",
     "run.engine",
     "run.stepping.reason",  # why the table chose the stepping: documentation
-    "run.segments",  # a budget's probe that measures again cuts one more segment, the same steps
     "plan.estimate_s",
 )
 """Entries of an experiment's result that are provenance, timings or documentation (dotted paths; everything below
@@ -142,8 +140,8 @@ def report(path_a: Path, path_b: Path) -> tuple[list[str], bool]:
     """Markdown lines of the comparison, and whether everything compared is the same."""
     diffs, moved = compare_files(path_a, path_b)
     lines = [
-        f"`{path_a}` against `{path_b}`: every entry of every experiment's result but provenance, timings, the "
-        "stepping's reason and the count of segments, as stored (6 significant digits), then what the page says",
+        f"`{path_a}` against `{path_b}`: every entry of every experiment's result but provenance, timings and the "
+        "stepping's reason, as stored (6 significant digits), then what the page says",
         "",
         "| experiment | entries | differing | largest relative difference | first difference | on one side only |",
         "|---|---|---|---|---|---|",

@@ -22,7 +22,7 @@ with a growth event every :data:`FREQUENT_EVENTS` steps or more often (the scene
 engine, 2-core AMD EPYC).
 
 These are estimates, a factor 2 either way for dense LF states: a run measures each batch's step time on its first
-segment (a probe; a second one where the first does not fit) before going on, and corrects the later estimates of
+segment (a probe, after a warm-up) before going on, and corrects the later estimates of
 its kind by what it measured (:meth:`Costs.calibrate`).
 """
 

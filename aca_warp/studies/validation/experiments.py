@@ -139,19 +139,16 @@ def run_segments(
     probe: Any = None,
 ) -> tuple[Any, list[Any]]:  # fmt: skip
     """Step ``model`` from ``state`` through the plan's segments (``run_engine`` per segment, per-patch velocities
-    recorded where the segment says), every chunk to ``sink``. Returns (the last segment's result, every segment's
-    result).
-
-    ``probe(result, last) -> bool | None`` is called after the first segment, unless it was the only one: True goes
-    on, False stops the run, and None asks for another measure. That one is a segment as long as the first, cut from
-    the next one (recorded as it is) when that is longer than two of them, after which ``probe`` is called again
-    (``last``: no room for yet another measure)."""
+    recorded where the segment says), every chunk to ``sink``. ``probe(result) -> bool``, called after the first
+    segment when others follow, may stop the run (False). Returns (the last segment's result, every segment's
+    result). Each segment starts its integrator afresh, so the segments are part of the arithmetic: the same plan
+    gives the same numbers, another cut of it numbers that differ in the last bits (and then, in stick-slip, in
+    every measure)."""
     from aca_warp.scene import Record
     from aca_warp.studies.runs import run_engine
 
-    results, segments, probing = [], list(plan.segments), probe is not None
-    while segments:
-        a, b, patches = segments.pop(0)
+    results = []
+    for k, (a, b, patches) in enumerate(plan.segments):
         record = Record(
             sample_dt=cfg.sample_dt, patches=("velocity",) if patches else (), decimation=cfg.decimation
         )  # fmt: skip
@@ -161,19 +158,27 @@ def run_segments(
             sink=sink, force=step.force, growth_dt=step.growth_dt,
         )  # fmt: skip
         results.append(res)
-        if not res.complete:
+        if not res.complete or (probe is not None and k == 0 and k + 1 < len(plan.segments) and not probe(res)):
             break
-        if probing and segments:  # after the last segment there is nothing left to stop
-            room = segments[0][1] - segments[0][0] > 2.0 * (b - a)
-            go = probe(res, not room)
-            if go is None:  # only asked for where there is room
-                (c, d, rec_patches), length = segments[0], b - a
-                segments[0:1] = [(c, c + length, rec_patches), (c + length, d, rec_patches)]
-                continue
-            probing = False
-            if not go:
-                break
     return results[-1], results
+
+
+def warm_up(model: Any, cfg: Config, step: Any, dt: float) -> float:
+    """Run ``model`` for one sample interval from a spare initial state, discarded, and return the wall time [s]: a
+    batch's first launches carry one-off costs (on an H200 the first 5000 steps of 88 full pads took 2.18 s, about
+    50 times their steady cost), which would otherwise enter the probe of its step time. The batch's own state, and
+    so every number of its run, is left as it is (a run writes its state and its recorder, not the model; a growing
+    batch, whose events write the model, is not warmed up)."""
+    from aca_warp.hf.state import initial_state
+    from aca_warp.scene import Record
+    from aca_warp.studies.runs import run_engine
+
+    t0 = time.perf_counter()
+    run_engine(
+        model, initial_state(model), engine=cfg.engine, duration=cfg.sample_dt, integrator=step.integrator, dt=dt,
+        record=Record(sample_dt=cfg.sample_dt), sink=lambda chunk: None, force=step.force,
+    )  # fmt: skip
+    return time.perf_counter() - t0
 
 
 def split_segments(plan: Plan, first: float) -> Plan:
@@ -186,33 +191,26 @@ def split_segments(plan: Plan, first: float) -> Plan:
 
 @dataclass
 class BudgetProbe:
-    """The probe of a batch's step time (``run_segments``' ``probe``): a probe segment's wall time per step,
+    """The probe of a batch's step time (``run_segments``' ``probe``): the probe segment's wall time per step,
     projected over the batch's ``steps``, against what the ``budget`` [s] (None: none) leaves since ``t0``
-    (``time.perf_counter``). A first projection that does not fit asks once for another measure, since a batch's
-    first launches carry one-off costs; ``stopped``: the last measure did not fit."""
+    (``time.perf_counter``); ``stopped``: it did not fit."""
 
     name: str
     steps: int
     budget: float | None
     t0: float
     log: Log
-    per_step: float = float("nan")  # [s] per step, the last measure
-    measures: int = 0
+    per_step: float = float("nan")  # [s] per step
     stopped: bool = False
 
-    def __call__(self, res: Any, last: bool) -> bool | None:
-        self.per_step, self.measures = res.wall_time / max(res.steps, 1), self.measures + 1
+    def __call__(self, res: Any) -> bool:
+        self.per_step = res.wall_time / max(res.steps, 1)
         total = self.per_step * self.steps
-        fits = self.budget is None or total <= self.budget - (time.perf_counter() - self.t0)
-        again = not fits and not last and self.measures == 1
         self.log(
             f"{self.name}: probe {res.steps:,} steps at {self.per_step * 1e6:.2f} µs/step: {total:.0f} s projected"
-            + ("; measuring again past the first launches' one-off costs" if again else "")
         )
-        if again:
-            return None
-        self.stopped = not fits
-        return fits
+        self.stopped = self.budget is not None and total > self.budget - (time.perf_counter() - self.t0)
+        return not self.stopped
 
 
 def run_batch(
@@ -227,10 +225,8 @@ def run_batch(
     """Run, analyse and save one batch; returns its members' result dicts by name.
 
     A batch the ``budget`` [s of wall time left] cannot hold by its estimate is not started; a batch whose first
-    segment (a probe of its step time, on a non-growing batch) projects beyond the budget is measured again on a
-    second segment as long, since its first launches carry one-off costs (on an H200 about 2.1 s for 88 full pads,
-    some 50 times the steady cost of their 5000 steps), and stopped when that one projects beyond the budget too.
-    Its members' results say so.
+    segment (a probe of its step time, on a non-growing batch, after :func:`warm_up` has taken the first launches'
+    one-off costs) projects beyond the budget is stopped there. Its members' results say so.
     """
     from aca_warp.hf.solver import friction_step, stable_step
     from aca_warp.studies.runs import batch_at_start
@@ -255,13 +251,14 @@ def run_batch(
     if budget is not None and est > budget:
         log(f"{batch.name}: not run: estimated {est:.0f} s exceeds the {budget:.0f} s left of the budget")
         return {n: {**h, "status": "skipped (budget)"} for n, h in heads.items()}
-    probe = BudgetProbe(batch.name, steps, budget, t0, log)
-
+    probe = None if batch.growth else BudgetProbe(batch.name, steps, budget, t0, log)
+    if probe is not None:
+        log(f"{batch.name}: warm-up {warm_up(model, cfg, step, dt):.2f} s (one sample from a spare state)")
     probe_s = cfg.sample_dt * max(1, round(min(5.0e-4, 0.05 * plan.duration) / cfg.sample_dt))  # whole samples
     run_plan = plan if batch.growth else split_segments(plan, probe_s)
     sink = Collector()
-    last, parts = run_segments(model, state, run_plan, cfg, step, dt, sink, probe if not batch.growth else None)
-    if probe.stopped:
+    last, parts = run_segments(model, state, run_plan, cfg, step, dt, sink, probe)
+    if probe is not None and probe.stopped:
         log(f"{batch.name}: stopped after the probe: {probe.per_step * steps:.0f} s projected exceeds the budget")
         return {n: {**h, "status": "skipped (budget)", "probe_us_per_step": 1e6 * probe.per_step}
                 for n, h in heads.items()}  # fmt: skip
