@@ -383,14 +383,13 @@ def log_candidates(
     out = []
     for m in (m for m in LOG_CANDIDATES if m in (reg["measures"] if measures is None else measures)):
         view = logged(reg, m)
-        rows = {s["label"]: s for s in view["settings"]}
         parts = []
-        for s in reg["settings"]:
+        for s, v in zip(reg["settings"], view["settings"], strict=True):  # the same rows, in log in ``view``
             if s["role"] == "reference" or not usable(s) or kept(verdict(reg, s, m, rule, criterion)):
                 continue
-            c = compare_setting(view, rows[s["label"]], m)
-            parts.append(f"`{s['label']}` {verdict(view, rows[s['label']], m, rule, criterion)} (error "
-                         f"{_small(c.ratio)} σ, sd(d) {c.sd_ratio:.2g} σ)")  # fmt: skip
+            c = compare_setting(view, v, m)
+            parts.append(f"`{s['label']}` {verdict(view, v, m, rule, criterion)} (error {_small(c.ratio)} σ, "
+                         f"sd(d) {c.sd_ratio:.2g} σ)")  # fmt: skip
         if parts:
             out.append(f"{MEASURES[m].label} averaged in log over the pads (a geometric mean: a candidate beside the "
                        "arithmetic mean the validation takes, which the few pads several times the others' "
