@@ -409,8 +409,8 @@ def test_tiny_run_end_to_end(tmp_path, capsys):
     """Two 10-patch hf1 sectors for 1 ms (linear growth: not chaotic yet): strang at 1e-8 s stays within 1e-3 σ of
     the 2e-8 s reference, at 5e-7 s forced it moves the measures by more than 0.1 σ; the file holds every pad's
     value. A second call with another grid continues the file (the reference kept, not rerun), also when the file
-    was made on another host with the same device (each run records its host); a call with other pads or on
-    another device is refused."""
+    was made on another host with the same kind of device (each run records its host; the file keeps the machine
+    and tag it was begun on); a call with other pads or on another device is refused."""
     out = tmp_path / "wps"
     argv = _tiny_argv(out, 10, 1e-3)
     assert wps.main([*argv, "--grid", "strang@fp64:dt=5e-7,1e-8"]) == 0
@@ -426,10 +426,11 @@ def test_tiny_run_end_to_end(tmp_path, capsys):
     coarse = [rule.compare_setting(reg, reg["settings"][1], m).ratio for m in ("mu_std", "f1", "phi", "top_excess")]
     assert max(coarse) > 0.1, coarse
     moved = json.loads(path.read_text())  # the file made on another host with the same device: continued
-    moved["machine"]["host"] = "Other host"
+    moved["machine"]["host"], moved["tag"] = "Other host", "cpu3_quick"
     path.write_text(json.dumps(moved))
     assert wps.main([*argv, "--grid", "implicit-friction@fp64:dt=2.5e-7"]) == 0
     doc = json.loads(path.read_text())
+    assert doc["tag"] == "cpu3_quick"  # the tag it was begun with, as its machine
     assert doc["machine"]["host"] == "Other host" and doc["regimes"]["hf1"]["settings"][-1]["host"] != "Other host"
     again = doc["regimes"]["hf1"]["settings"]
     assert [s["label"] for s in again] == [*(s["label"] for s in reg["settings"]), "implicit-friction@fp64:dt=2.5e-07"]
@@ -809,10 +810,16 @@ def test_first_part_regenerates_in_the_later_parts_code(regime):
         assert np.array_equal(a, b, equal_nan=True), m
 
 
-@pytest.mark.parametrize("regime", ["hf1", "hf2", "hf3", "va", "ms_fast"])
-def test_main_pages_merged_files_are_the_merge_of_their_parts(regime, monkeypatch):
-    """The main page's merged result files are the ``--merge`` of the parts committed beside them (hf1–hf3's parts
-    continued with the fp32 grid run again on the fixed kernels; va's four parts run anew)."""
+MERGED = [("hf1", "cuda0"), ("hf2", "cuda0"), ("hf3", "cuda0"), ("va", "cuda0"), ("ms_fast", "cuda0"),
+          ("ms_short", "cuda01"), ("ms_app3", "cuda0123")]  # fmt: skip
+"""(regime, tag of its merged file) of the main page's regimes measured in parts."""
+
+
+@pytest.mark.parametrize(("regime", "tag"), MERGED)
+def test_main_pages_merged_files_are_the_merge_of_their_parts(regime, tag, monkeypatch):
+    """The main page's merged result files are the ``--merge`` of the parts committed beside them (hf1–hf3's and
+    ms_app3's parts continued with the fp32 grid run again on the fixed kernels, ms_short's first part with fp64 at
+    5e-8 s; va's four parts run anew); a part keeps the tag of the device it was begun on."""
     from pathlib import Path
 
     from aca_warp.studies.report import clean
@@ -821,10 +828,11 @@ def test_main_pages_merged_files_are_the_merge_of_their_parts(regime, monkeypatc
     repo = Path(__file__).resolve().parent.parent
     monkeypatch.chdir(repo)  # the parts named as the merge names them
     folder = repo / "docs" / "figures" / "work_precision_statistics"
-    parts = sorted((p.relative_to(repo) for p in (folder / f"{regime}_parts").glob(f"s*/wps_cuda0_{regime}.json")),
+    parts = sorted((p.relative_to(repo) for p in (folder / f"{regime}_parts").glob(f"s*/wps_cuda*_{regime}.json")),
                    key=lambda p: int(p.parent.name[1:]))  # fmt: skip
     assert len(parts) >= 2
-    assert json.loads(json.dumps(clean(merge(parts)))) == rule.load_results(folder / f"wps_cuda0_{regime}.json")
+    assert all(p.name == f"wps_{rule.load_results(repo / p)['tag']}_{regime}.json" for p in parts)
+    assert json.loads(json.dumps(clean(merge(parts)))) == rule.load_results(folder / f"wps_{tag}_{regime}.json")
 
 
 def test_growth_events_page_is_what_merge_and_report_write(monkeypatch):

@@ -341,7 +341,9 @@ def measure_regime(
     with ``--again`` the grid's settings whose rows were not made on the current kernels are run again, each new row
     replacing the earlier one as it is written: a call cut short keeps the rows it did not reach, and the same call
     again finishes it; the reference's row is kept), on the same kind of device
-    (:data:`CONTINUED`; another host with it is accepted, each run records its host).
+    (:data:`CONTINUED`; another host with it is accepted, each run records its host; the file keeps the machine and
+    tag it was begun on, so a part begun on ``cuda:3`` and continued on ``cuda:0`` from a copy named
+    ``wps_cuda0_<regime>.json`` is still the part of ``cuda:3``).
     Raises FileExistsError when the file holds another configuration or device."""
     from aca_warp.studies.runs import batch_at_start
 
@@ -372,7 +374,7 @@ def measure_regime(
         ):
             raise FileExistsError(f"{path} holds another run of {name} (device, pads, settings or reference "
                                   "differ): choose another --out")  # fmt: skip
-        doc["machine"] = old["machine"]
+        doc["machine"], doc["tag"] = old["machine"], old.get("tag", doc["tag"])  # the device it was begun on
         reg["settings"] = [r for r in oreg["settings"] if not str(r.get("fault")).startswith("not run")]
         if args.again:  # the grid's rows not made on these kernels (so a call cut short is finished by the same call)
             redo = {(s.label, "grid") for s in settings} & {

@@ -92,13 +92,13 @@ STEPPING: dict[str, Stepping] = {
         "of 0 in every measure",
     ),
     "ms_short": Stepping(
-        dt=1.0e-8,
+        dt=5.0e-8,
         precision="fp64",
-        reason=f"the LF states app1_start and app2_end: the statistical work-precision on one H200 {_LF_REGIME} "
-        "keeps only its reference, strang fp64 at 1e-8 s: on the kernels with the fp32 damping fix fp32 at 5e-8 s "
-        "misses S − S_null by +0.26 ± 0.41 σ in the app1_start states (−0.10 ± 0.44 σ before the fix, when the rule "
-        "picked it), an estimate 0.01 σ past the rule's edge whose interval straddles it (32 LF seeds per state: a "
-        "resolution floor of 0.51 σ), which more seeds would decide; at 1e-7 s μ mean moves by 0.35 σ",
+        reason="the LF states app1_start and app2_end: the statistical work-precision on H200s (one pad per LF seed "
+        "1–64 and state, against strang fp64 at 1e-8 s; docs/work_precision_statistics.md) picks strang fp64 at "
+        "5e-8 s. On the kernels with the fp32 damping fix fp32 at 5e-8 s moves S − S_null by +0.33 σ in the "
+        "app1_start states (+0.29 and +0.37 σ in the two halves of the seeds; −0.10 σ before the fix, when the rule "
+        "picked it), while fp32 at 1e-7 s and 2.5e-7 s keep it and miss μ mean by 0.33 and 1.52 σ",
     ),
     "ms_mid": Stepping(
         dt=1.0e-7,
