@@ -435,7 +435,9 @@ def test_page_states_the_stepping_its_results_ran_with():
     meta["config"]["stepping"] = {"hf": "strang, dt = 3.3e-08 s, fp64"}
     assert "stepping hf: strang, dt = 3.3e-08 s, fp64;" in "\n".join(_header_lines(meta))
     produced = next(t for t in _header_lines(meta) if t.startswith("Produced"))  # the kernels where recorded
-    assert "aca-warp 0.1.0; wall time" in produced  # the committed file predates the record
+    assert f"aca-warp 0.1.0, kernels {meta['versions']['kernels']}; wall time" in produced
+    del meta["versions"]["kernels"]  # a file written before the record
+    assert "aca-warp 0.1.0; wall time" in "\n".join(_header_lines(meta))
     meta["versions"] = {**meta["versions"], "kernels": "0123456789ab"}
     assert "aca-warp 0.1.0, kernels 0123456789ab; wall time" in "\n".join(_header_lines(meta))
     meta["config"] = VB.QUICK.run_key()  # the quick variant: one stepping, the growing kind's events named
@@ -831,12 +833,18 @@ def test_without_leaves_named_experiments_of_the_earlier_results_out(tmp_path, c
     finished = {n for n, r in results.items() if n in VB.EXPERIMENTS and r.get("status") in ("done", "stopped")}
     stale = _restepped(committed_path)  # made with a stepping the table has changed since: they run again
     assert set(got.results) == finished - stale - {"ms_mid", "ms_app3"} and "hf1" in got.results
-    # each experiment is credited to the call that ran it: the committed file joins two calls, the first's less the
-    # left-out experiments, then the file's own (s31 alone)
+    # each experiment is credited to the call that ran it: the committed file joins four calls, the earlier ones' less
+    # the left-out experiments, then the file's own (ms_short and its linear phase)
     meta = json.loads(committed_path.read_text())["meta"]
-    assert [p["command"] for p in got.parts] == [meta["with"][0]["command"], meta["command"]]
-    assert got.parts[0]["experiments"] == sorted(set(meta["with"][0]["experiments"]) - stale - {"ms_mid", "ms_app3"})
-    assert got.parts[1]["experiments"] == sorted(set(got.results) - set(meta["with"][0]["experiments"]))
+    assert len(meta["with"]) == 3
+    assert [p["command"] for p in got.parts] == [*(w["command"] for w in meta["with"]), meta["command"]]
+    for part, earlier in zip(got.parts, meta["with"], strict=False):
+        assert part["experiments"] == sorted(set(earlier["experiments"]) - stale - {"ms_mid", "ms_app3"})
+    assert (
+        got.parts[-1]["experiments"]
+        == sorted(set(got.results) - {n for w in meta["with"] for n in w["experiments"]})
+        == ["ms_short", "ms_short_lin"]
+    )
     assert sorted(n for p in got.parts for n in p["experiments"]) == sorted(got.results)
     assert any("ms_app3, ms_mid not used: run again (--without)" in n for n in notes)
     out = tmp_path / "out"
@@ -859,12 +867,17 @@ def _restepped(path: Path) -> set[str]:
     }
 
 
-def test_committed_results_predate_the_ms_fast_and_ms_short_picks_on_the_fixed_kernels():
-    """The committed results ran every LF-state group at the picks before the fp32 damping fix; since, the table asks
-    ms_fast in fp64 at 5e-8 s and ms_short at the reference, fp64 at 1e-8 s, so exactly those groups and their
-    linear phases run again when a call takes the file (docs/validation.md, "Stepping")."""
-    committed = Path(__file__).resolve().parent.parent / "docs" / "validation" / "results.json"
-    assert _restepped(committed) == {"ms_fast", "ms_fast_lin", "ms_short", "ms_short_lin"}
+def test_committed_results_ran_every_experiment_at_the_stepping_table_s_entry():
+    """The committed results ran every experiment at the table's current entry (a call that takes the file with
+    ``--with`` runs nothing again), while the kept ms_short results at the table's earlier entry, the reference
+    fp64 at 1e-8 s, would run again (docs/validation.md, "Stepping")."""
+    folder = Path(__file__).resolve().parent.parent / "docs" / "validation"
+    assert _restepped(folder / "results.json") == set()
+    assert _restepped(folder / "ms_short_reference_step" / "results.json") == {"ms_short", "ms_short_lin"}
+    made = json.loads((folder / "ms_short_reference_step" / "results.json").read_text())["meta"]["config"]["stepping"]
+    assert made["ms_short"] == "strang, dt = 1e-08 s, fp64" and VB.FULL.stepping("ms_short").describe() == (
+        "strang, dt = 5e-08 s, fp64"
+    )
 
 
 def test_earlier_results_are_taken_per_kind_of_stepping(tmp_path):
@@ -1008,6 +1021,19 @@ def test_compare_two_results_files(tmp_path, capsys, monkeypatch):
     other.write_text(json.dumps(one))
     assert script.main([str(other), str(committed)]) == 1  # an experiment in the second file only
     assert "(the whole experiment)" in capsys.readouterr().out
+    # a partial first file: the experiments it lacks come from the second, only its own are compared
+    part = {**doc, "results": {k: v for k, v in doc["results"].items() if k in ("va_full", "hf2")}}
+    other.write_text(json.dumps(part))
+    assert script.main(["--partial", str(other), str(committed)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    row = {line.split("|")[1].strip(): line for line in out if line.startswith("| ")}
+    assert set(row) == {"experiment", "va_full", "hf2"} and row["hf2"].split("|")[3].strip() == "0"
+    assert any(line.startswith("* rows: μ rises as the load moves from the matrix") for line in out)
+    assert any("; the verdict moved in " in line for line in out)
+    part = {**doc, "results": {"hf2": doc["results"]["hf2"]}}
+    other.write_text(json.dumps(part))
+    assert script.main(["--partial", str(other), str(committed)]) == 0
+    assert "the verdict moved in 0 rows, 0 from rest, 0 variants" in capsys.readouterr().out
     other.write_text("{}")
     assert script.main([str(committed), str(other)]) == 2
     assert "not a validation results file" in capsys.readouterr().err
@@ -1017,3 +1043,8 @@ def test_compare_two_results_files(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(repo)  # the committed comparison, as its page names it: the results before the fp32 fix
     assert script.main(["docs/validation/before_fix/results.json", "docs/validation/results.json"]) == 1
     assert capsys.readouterr().out == (repo / "docs" / "validation" / "before_fix" / "compare.md").read_text()
+    kept = "docs/validation/ms_short_reference_step"  # ms_short at the reference step: no verdict moved
+    assert script.main(["--partial", f"{kept}/results.json", "docs/validation/results.json"]) == 1
+    out = capsys.readouterr().out
+    assert out == (repo / kept / "compare.md").read_text()
+    assert "the verdict moved in 0 rows, 0 from rest, 0 variants" in out

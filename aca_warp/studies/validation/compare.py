@@ -120,14 +120,28 @@ def _said(results: dict[str, dict], cfg: Any) -> dict[str, list[tuple[str, str]]
     }
 
 
-def compare_files(path_a: Path, path_b: Path) -> tuple[list[Difference], dict[str, list[tuple[str, str, str]]]]:
+def _verdict(said: str) -> str:
+    """The verdict in one entry of what the page says (a row's text, or a row from rest or variant as JSON)."""
+    if said.startswith("{"):
+        return str(json.loads(said).get("verdict"))
+    return said.split(":", 1)[0]
+
+
+def compare_files(
+    path_a: Path, path_b: Path, partial: bool = False
+) -> tuple[list[Difference], dict[str, list[tuple[str, str, str]]]]:
     """Per experiment of either file, its :class:`Difference`; and per group of what the page says, the entries
-    that differ: (statement, in ``path_a``, in ``path_b``). ValueError for a file that is not a results file."""
+    that differ: (statement, in ``path_a``, in ``path_b``). ``partial``: ``path_a`` holds some experiments only
+    (e.g. one group run at another stepping): the experiments it lacks are taken from ``path_b``, and only its own
+    are compared entry by entry. ValueError for a file that is not a results file."""
     from aca_warp.studies.validation.results import read_results
 
     ra, _, cfg_a = read_results(path_a)
     rb, _, cfg_b = read_results(path_b)
-    diffs = [compare_experiment(n, ra.get(n), rb.get(n)) for n in dict.fromkeys([*ra, *rb])]
+    names = list(ra) if partial else list(dict.fromkeys([*ra, *rb]))
+    if partial:
+        ra = {**rb, **ra}
+    diffs = [compare_experiment(n, ra.get(n), rb.get(n)) for n in names]
     said_a, said_b = _said(ra, cfg_a), _said(rb, cfg_b)
     moved = {}
     for group in said_a:  # by statement: a verdict that moves can add or drop variants
@@ -136,11 +150,14 @@ def compare_files(path_a: Path, path_b: Path) -> tuple[list[Difference], dict[st
     return diffs, moved
 
 
-def report(path_a: Path, path_b: Path) -> tuple[list[str], bool]:
-    """Markdown lines of the comparison, and whether everything compared is the same."""
-    diffs, moved = compare_files(path_a, path_b)
+def report(path_a: Path, path_b: Path, partial: bool = False) -> tuple[list[str], bool]:
+    """Markdown lines of the comparison, and whether everything compared is the same (``partial``:
+    :func:`compare_files`)."""
+    diffs, moved = compare_files(path_a, path_b, partial)
+    which = (f"the experiments of `{path_a}`, the others taken from `{path_b}`, against `{path_b}`" if partial
+             else f"`{path_a}` against `{path_b}`")  # fmt: skip
     lines = [
-        f"`{path_a}` against `{path_b}`: every entry of every experiment's result but provenance, timings and the "
+        f"{which}: every entry of every experiment's result but provenance, timings and the "
         "stepping's reason, as stored (6 significant digits), then what the page says",
         "",
         "| experiment | entries | differing | largest relative difference | first difference | on one side only |",
@@ -152,10 +169,13 @@ def report(path_a: Path, path_b: Path) -> tuple[list[str], bool]:
     same = all(d.same for d in diffs) and not any(moved.values())
     total, differing = sum(d.entries for d in diffs), sum(d.differing for d in diffs)
     one_side = sum(len(d.only_one_side) for d in diffs)
+    verdicts = {g: sum(_verdict(a) != _verdict(b) for _, a, b in m) for g, m in moved.items()}
     lines += [
         "",
         f"{differing} of {total} entries differ, {one_side} on one side only; what the page says differs in "
         + ", ".join(f"{len(m)} {group}" for group, m in moved.items())
+        + "; the verdict moved in "
+        + ", ".join(f"{n} {group}" for group, n in verdicts.items())
         + ".",
     ]
     for group, m in moved.items():
