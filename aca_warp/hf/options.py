@@ -32,8 +32,9 @@ DEFAULT_DT = 1.0e-8  # s: the default step of the fixed-step integrators other t
 PRESET_STEP = 1.0e-7
 # strang's default step [s] for any other scene: every measured regime kept its measures at 5e-8 s in fp32 before
 # the fp32 damping fix, the LF states too (one of their groups, ms_short, not at 1e-7 s; another, ms_fast, was
-# measured at 5e-8 s only); on the fixed kernels ms_fast and ms_short miss one measure each there by estimates at
-# the rule's edge, which the validation follows (fp64) while this default awaits more seeds (docs/numerics.md)
+# measured at 5e-8 s only); on the fixed kernels fp32 at 5e-8 s misses one measure each in ms_fast and ms_short
+# (Φ 0.27 σ, S − S_null 0.33 σ against the rule's 0.25 σ), where fp64 keeps them and the validation runs fp64; the
+# default stays fp32, whose misses lie just past the rule and whose cause is not found (docs/numerics.md)
 STATISTICS_STEP = 5.0e-8
 # strang's default state precision: the same study kept every one of those measures in fp32 at that step (every
 # regime's pick was fp32); the other integrators compute in fp64 unless asked (pointwise μ to 1e-7 and below)

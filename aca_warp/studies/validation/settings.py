@@ -115,7 +115,7 @@ STEPPING: dict[str, Stepping] = {
         reason="app2_start after the low-load schedule (about 200 patches, friction step 4.4e-7 s): not a regime of "
         "the statistical work-precision; strang fp32 at 5e-8 s, strang's default for a scene without a preset's "
         "physics, the step that kept every measure in every measured saturated regime before the fp32 damping fix "
-        "(since, ms_fast and ms_short pick finer, by estimates at the rule's edge)",
+        "(since, ms_fast and ms_short pick fp64 at that step, and ms_app3 leaves Φ undecided there)",
     ),
 }
 """The stepping of every kind of experiment (``Experiment.stepping``)."""
