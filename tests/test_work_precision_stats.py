@@ -736,7 +736,33 @@ def test_max_wall_estimate_counts_what_a_run_spends_besides_stepping():
     assert wps.run_estimate(4e5, 7.4e-5, []) == pytest.approx(29.6)
     assert wps.run_estimate(4e5, 7.4e-5, [60.0, 40.0]) == pytest.approx(79.6)
     assert wps.run_estimate(math.inf, 7.4e-5, [50.0]) == 50.0  # a step chosen by error control: the overhead only
-    assert wps.run_estimate(4e5, math.nan, []) == 0.0  # no reference yet: nothing known
+    assert wps.run_estimate(4e5, math.nan, []) == 0.0  # nothing known
+
+
+def test_max_wall_reckons_a_new_file_s_reference_by_the_cost_model(tmp_path, monkeypatch):
+    """Before a regime's reference has run, ``--max-wall`` reckons it by the validation's cost model
+    (``model_step``), so a new file's first run whose modelled time cannot end in time is not started (before, the
+    estimate was 0 and any reference started); the model gives the CPU's throughput here, and no time for a step
+    chosen by error control."""
+    from aca_warp.studies.validation.cost import CPU_PATCH_STEPS
+
+    out = tmp_path / "wps"
+    argv = _tiny_argv(out, 10, 1e-3)
+    seen: list[float] = []
+    real = wps.model_step
+
+    def model(scenes, setting, kind, cfg):
+        seen.append(real(scenes, setting, kind, cfg))
+        return 1.0  # s per step: 5e4 steps of the reference cannot fit in 60 s
+
+    monkeypatch.setattr(wps, "model_step", model)
+    assert wps.main([*argv, "--grid", "strang@fp64:dt=5e-7", "--max-wall", "60"]) == 0
+    rows = json.loads((out / "wps_cpu_quick_hf1.json").read_text())["regimes"]["hf1"]["settings"]
+    assert [(r["role"], r["fault"]) for r in rows] == [("reference", "not run: --max-wall"),
+                                                       ("grid", "not run: --max-wall")]  # fmt: skip
+    assert seen == [pytest.approx(2 * 10 / CPU_PATCH_STEPS)]  # two 10-patch pads on the CPU
+    adaptive = wps.parse_setting("adaptive@fp64:tol=1e-6")[0]
+    assert math.isnan(real([], adaptive, "window", None))
 
 
 def test_errors_by_part_split_a_merged_regime_by_seed(tmp_path, capsys):

@@ -394,7 +394,7 @@ def measure_regime(
         f"{plan.duration * 1e3:.1f} ms ({span}); {len(todo)} runs; "
         f"reference {ref.label}")  # fmt: skip
     rref = [r for r in reg["settings"] if r["role"] == "reference" and r.get("steps")]
-    per_step = rref[0]["wall_s"] / rref[0]["steps"] if rref else math.nan
+    per_step = rref[0]["wall_s"] / rref[0]["steps"] if rref else model_step(prep.scenes, ref, prep.exp.kind, cfg)
     overheads: list[float] = []  # s of each run of this call besides its stepping (set-up, analysis)
     t0 = log.elapsed()
     for k, (s, role) in enumerate(todo, 1):
@@ -426,9 +426,28 @@ def measure_regime(
     return path
 
 
+def model_step(scenes: list[Any], setting: Setting, kind: str, cfg: Any) -> float:
+    """Seconds per step of a batch of ``scenes`` at ``setting`` by the validation's cost model
+    (:func:`~aca_warp.studies.validation.cost.step_seconds`: the largest pad's patches and links; a growing regime
+    at the paper's clock, whose events come every few steps, at least the model's floor): what ``--max-wall``
+    reckons a regime's first run with, before the call has timed any (nan for a step chosen by error control). The
+    model is the validation's bare stepping, calibrated on an H100: hf1's first reference over 32 pads (fp64 at
+    1e-8 s on an H200, with the recorder of that time) ran 11.5 µs per step against 5.95 µs modelled, so a run the
+    model lets start can still outlast the budget."""
+    from aca_warp.studies.validation.cost import links, step_seconds
+
+    if setting.dt is None or setting.tolerance is not None:
+        return math.nan
+    n = max(s.patches.count for s in scenes)
+    n_links = max(links(s) for s in {id(s.patches): s for s in scenes}.values())
+    frequent = kind == "growth" and setting.growth_dt is None
+    return step_seconds(len(scenes), n, n_links, setting.precision, frequent, cfg.device)
+
+
 def run_estimate(steps: float, per_step: float, overheads: list[float]) -> float:
     """Estimated wall time [s] of a run for ``--max-wall``: its ``steps`` at the reference's stepping time per step
-    ``per_step`` [s] (0 when either is unknown: a step chosen by error control, or no reference yet), plus the mean
+    ``per_step`` [s] (the cost model's before the reference has run, :func:`model_step`; 0 when either is unknown:
+    a step chosen by error control), plus the mean
     of ``overheads``, the time [s] each earlier run of the call spent besides its stepping (the batch's set-up and
     the analysis of its pads, which at 32 pads of 4000 patches is ≈ 50 s a run)."""
     stepping = steps * per_step
@@ -523,8 +542,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "on the CPU, else the CPU count less one, at most 8)")  # fmt: skip
     ap.add_argument("--lf-dir", help="folder of the LF runs of the LF-state regimes (default OUT/lf)")
     ap.add_argument("--max-wall", type=nonneg, help="start no run that would end past this wall time [s] (the "
-                    "estimate: the reference's time per step × the steps, plus the mean time the call's earlier "
-                    "runs spent besides stepping); written as not run")  # fmt: skip
+                    "estimate: the reference's time per step × the steps, the validation's cost model's before the "
+                    "reference has run, plus the mean time the call's earlier runs spent besides stepping); written "
+                    "as not run")  # fmt: skip
     ap.add_argument("--again", action="store_true", help="in a continued result file, run the grid's settings "
                     "again whose rows were made on other kernels (each row records the digest of the kernels it "
                     "ran on) and replace their rows; the reference's row is kept; a call cut short is finished by "
