@@ -1029,7 +1029,18 @@ def test_compare_two_results_files(tmp_path, capsys, monkeypatch):
     row = {line.split("|")[1].strip(): line for line in out if line.startswith("| ")}
     assert set(row) == {"experiment", "va_full", "hf2"} and row["hf2"].split("|")[3].strip() == "0"
     assert any(line.startswith("* rows: μ rises as the load moves from the matrix") for line in out)
-    assert any("; the verdict moved in " in line for line in out)
+    full = json.loads(committed.read_text())  # the same as a whole file with that one experiment changed
+    full["results"]["va_full"] = doc["results"]["va_full"]
+    whole = tmp_path / "whole.json"
+    whole.write_text(json.dumps(full))
+    assert script.main([str(whole), str(committed)]) == 1
+    said = [line.split("what the page says")[1] for line in capsys.readouterr().out.splitlines() if "page says" in line]
+    assert said[-1] == out[-1 - sum(line.startswith("* ") for line in out)].split("what the page says")[1]
+    assert said[-1].endswith("; the verdict moved in 2 rows, 0 from rest, 10 variants.")
+    other_settings = {**part, "meta": {**part["meta"], "config": {**part["meta"]["config"], "seeds": 3}}}
+    other.write_text(json.dumps(other_settings))
+    assert script.main(["--partial", str(other), str(committed)]) == 2
+    assert "other settings (besides the stepping)" in capsys.readouterr().err
     part = {**doc, "results": {"hf2": doc["results"]["hf2"]}}
     other.write_text(json.dumps(part))
     assert script.main(["--partial", str(other), str(committed)]) == 0

@@ -133,11 +133,16 @@ def compare_files(
     """Per experiment of either file, its :class:`Difference`; and per group of what the page says, the entries
     that differ: (statement, in ``path_a``, in ``path_b``). ``partial``: ``path_a`` holds some experiments only
     (e.g. one group run at another stepping): the experiments it lacks are taken from ``path_b``, and only its own
-    are compared entry by entry. ValueError for a file that is not a results file."""
+    are compared entry by entry; the two files must share their settings but the stepping. ValueError for a file
+    that is not a results file, or for partial files of other settings."""
+    from aca_warp.studies.validation.base import without_stepping
     from aca_warp.studies.validation.results import read_results
 
-    ra, _, cfg_a = read_results(path_a)
-    rb, _, cfg_b = read_results(path_b)
+    ra, meta_a, cfg_a = read_results(path_a)
+    rb, meta_b, cfg_b = read_results(path_b)
+    if partial and without_stepping(meta_a["config"]) != without_stepping(meta_b["config"]):
+        raise ValueError(f"{path_a} and {path_b} were made with other settings (besides the stepping): the first "
+                         "file's experiments cannot stand in for the second's")  # fmt: skip
     names = list(ra) if partial else list(dict.fromkeys([*ra, *rb]))
     if partial:
         ra = {**rb, **ra}
