@@ -429,6 +429,7 @@ def test_tiny_run_end_to_end(tmp_path, capsys):
     moved["machine"]["host"], moved["tag"] = "Other host", "cpu3_quick"
     path.write_text(json.dumps(moved))
     assert wps.main([*argv, "--grid", "implicit-friction@fp64:dt=2.5e-7"]) == 0
+    assert "it keeps that tag, cpu3_quick" in "".join(capsys.readouterr())
     doc = json.loads(path.read_text())
     assert doc["tag"] == "cpu3_quick"  # the tag it was begun with, as its machine
     assert doc["machine"]["host"] == "Other host" and doc["regimes"]["hf1"]["settings"][-1]["host"] != "Other host"

@@ -375,6 +375,8 @@ def measure_regime(
             raise FileExistsError(f"{path} holds another run of {name} (device, pads, settings or reference "
                                   "differ): choose another --out")  # fmt: skip
         doc["machine"], doc["tag"] = old["machine"], old.get("tag", doc["tag"])  # the device it was begun on
+        if doc["tag"] != head["tag"]:
+            log(f"{name}: {path.name} was begun on {doc['machine']['device']}: it keeps that tag, {doc['tag']}")
         reg["settings"] = [r for r in oreg["settings"] if not str(r.get("fault")).startswith("not run")]
         if args.again:  # the grid's rows not made on these kernels (so a call cut short is finished by the same call)
             redo = {(s.label, "grid") for s in settings} & {

@@ -121,7 +121,8 @@ def _said(results: dict[str, dict], cfg: Any) -> dict[str, list[tuple[str, str]]
 
 
 def _verdict(said: str) -> str:
-    """The verdict in one entry of what the page says (a row's text, or a row from rest or variant as JSON)."""
+    """The verdict in one entry of what the page says (a row's text, or a row from rest or variant as JSON); an entry
+    on one side only ("–") counts as a verdict of its own, so a variant that appears or goes counts as moved."""
     if said.startswith("{"):
         return str(json.loads(said).get("verdict"))
     return said.split(":", 1)[0]
