@@ -430,20 +430,18 @@ def measure_regime(
 
 def model_step(scenes: list[Any], setting: Setting, kind: str, cfg: Any) -> float:
     """Seconds per step of a batch of ``scenes`` at ``setting`` by the validation's cost model
-    (:func:`~aca_warp.studies.validation.cost.step_seconds`: the largest pad's patches and links; a growing regime
+    (:func:`~aca_warp.studies.validation.cost.batch_step_seconds`: the largest pad's patches and links; a growing regime
     at the paper's clock, whose events come every few steps, at least the model's floor): what ``--max-wall``
     reckons a regime's first run with, before the call has timed any (nan for a step chosen by error control). The
     model is the validation's bare stepping, calibrated on an H100: hf1's first reference over 32 pads (fp64 at
     1e-8 s on an H200, with the recorder of that time) ran 11.5 µs per step against 5.95 µs modelled, so a run the
     model lets start can still outlast the budget."""
-    from aca_warp.studies.validation.cost import links, step_seconds
+    from aca_warp.studies.validation.cost import batch_step_seconds
 
     if setting.dt is None or setting.tolerance is not None:
         return math.nan
-    n = max(s.patches.count for s in scenes)
-    n_links = max(links(s) for s in {id(s.patches): s for s in scenes}.values())
     frequent = kind == "growth" and setting.growth_dt is None
-    return step_seconds(len(scenes), n, n_links, setting.precision, frequent, cfg.device)
+    return batch_step_seconds(scenes, setting.precision, frequent, cfg.device)
 
 
 def run_estimate(steps: float, per_step: float, overheads: list[float]) -> float:

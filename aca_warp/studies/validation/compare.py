@@ -145,8 +145,7 @@ def compare_files(
         raise ValueError(f"{path_a} and {path_b} were made with other settings (besides the stepping): the first "
                          "file's experiments cannot stand in for the second's")  # fmt: skip
     names = list(ra) if partial else list(dict.fromkeys([*ra, *rb]))
-    if partial:
-        ra = {**rb, **ra}
+    ra = {**rb, **ra} if partial else ra
     diffs = [compare_experiment(n, ra.get(n), rb.get(n)) for n in names]
     said_a, said_b = _said(ra, cfg_a), _said(rb, cfg_b)
     moved = {}

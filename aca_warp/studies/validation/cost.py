@@ -90,6 +90,14 @@ def step_seconds(pads: int, n: int, n_links: int, precision: str, frequent: bool
     return max(t, GROWTH_FLOOR_S[precision]) if frequent else t
 
 
+def batch_step_seconds(scenes: list[Any], precision: str, frequent: bool, device: str) -> float:
+    """:func:`step_seconds` of a batch of ``scenes``: their count, the largest pad's patches and links (a layout that
+    several scenes share counted once)."""
+    n = max(s.patches.count for s in scenes)
+    n_links = max(links(s) for s in {id(s.patches): s for s in scenes}.values())
+    return step_seconds(len(scenes), n, n_links, precision, frequent, device)
+
+
 @dataclass
 class Costs:
     """Estimates and the calibration a run learns (measured over estimated step time, per stepping kind)."""
@@ -98,12 +106,9 @@ class Costs:
 
     def step(self, batch: Any, cfg: Any) -> float:
         """Estimated seconds per step of ``batch`` (a :class:`~aca_warp.studies.validation.experiments.Batch`)."""
-        scenes = batch.scenes
-        n = max(s.patches.count for s in scenes)
-        n_links = max(links(s) for s in {id(s.patches): s for s in scenes}.values())
         step = cfg.stepping(batch.stepping_kind)
-        frequent = batch.growth and events_every(scenes, step) <= FREQUENT_EVENTS
-        raw = step_seconds(len(scenes), n, n_links, step.precision, frequent, cfg.device)
+        frequent = batch.growth and events_every(batch.scenes, step) <= FREQUENT_EVENTS
+        raw = batch_step_seconds(batch.scenes, step.precision, frequent, cfg.device)
         return raw * self.factors.get(batch.stepping_kind, 1.0)
 
     def steps(self, batch: Any, cfg: Any) -> int:
