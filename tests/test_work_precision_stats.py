@@ -446,6 +446,26 @@ def test_tiny_run_end_to_end(tmp_path, capsys):
     assert "choose another --out" in capsys.readouterr().err
 
 
+def test_the_default_reference_is_capped_and_a_named_one_runs_as_given():
+    """The default reference's strang step is capped at REFERENCE_MARGIN × the regime's friction step; a reference
+    named with ``--reference`` (e.g. the fp64 side of a precision pair) runs at its step, with a line saying it is
+    past the margin, and none when it is not."""
+    from aca_warp.hf.solver import friction_step, stable_step
+    from aca_warp.studies.friction_stats import sector_scenes
+    from aca_warp.studies.runs import batch_at_start
+
+    model, _ = batch_at_start(sector_scenes(1, 20), "cpu", "fp64")
+    bound = wps.REFERENCE_MARGIN * friction_step(stable_step(model))
+    spec = f"strang@fp64:dt={3 * bound:.3g}"
+    assert wps.reference_setting(spec, model).dt == pytest.approx(bound, rel=1e-2)
+    lines: list[str] = []
+    named = wps.reference_setting(spec, model, capped=False, log=lines.append)
+    assert named.dt == pytest.approx(3 * bound, rel=1e-2)
+    assert len(lines) == 1 and "run as given" in lines[0]
+    assert wps.reference_setting(f"strang@fp64:dt={bound / 2:.3g}", model, capped=False, log=lines.append).dt < bound
+    assert len(lines) == 1
+
+
 def test_again_runs_the_grid_again_and_rows_name_their_kernels(tmp_path):
     """Each row records the digest of the kernels it ran on; ``--again`` runs the grid's settings of a continued
     file again and replaces their rows, keeping the reference's (also where the grid names its setting) and every

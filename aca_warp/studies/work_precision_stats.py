@@ -278,14 +278,23 @@ class Progress:
                      f"({100 * t / self.duration:.0f} %, {now - self.t0:.0f} s)")  # fmt: skip
 
 
-def reference_setting(spec: str, model: Any) -> Setting:
-    """The reference of a regime: ``spec`` (one setting), a strang step capped at :data:`REFERENCE_MARGIN` × the
-    model's friction step (:func:`~aca_warp.hf.solver.friction_step`, h γ_max = 4)."""
+def reference_setting(spec: str, model: Any, capped: bool = True, log: Any = None) -> Setting:
+    """The reference of a regime: ``spec`` (one setting). ``capped``: a strang step capped at
+    :data:`REFERENCE_MARGIN` × the model's friction step (:func:`~aca_warp.hf.solver.friction_step`, h γ_max = 4),
+    the default reference's rule; otherwise the step as given (an explicit ``--reference``, e.g. the fp64 setting
+    of a precision pair), with a line to ``log`` when it is past that margin."""
     from aca_warp.hf.solver import friction_step, stable_step
 
     (s,) = parse_setting(spec)
     if s.integrator == "strang" and s.dt is not None:
-        s = dataclasses.replace(s, dt=float(f"{min(s.dt, REFERENCE_MARGIN * friction_step(stable_step(model))):.3g}"))
+        bound = REFERENCE_MARGIN * friction_step(stable_step(model))
+        if capped:
+            s = dataclasses.replace(s, dt=float(f"{min(s.dt, bound):.3g}"))
+        elif s.dt > bound and log is not None:
+            log(
+                f"reference {s.label}: its step is past {REFERENCE_MARGIN:g} × the friction step ({bound:.3g} s): "
+                "run as given"
+            )
     return s
 
 
@@ -350,7 +359,7 @@ def measure_regime(
     prep = prepare_regime(name, cfg, args.duration, log)
     names = measures_of(prep.exp.kind)
     model, _ = batch_at_start(prep.scenes, cfg.device, "fp64")
-    ref = reference_setting(args.reference, model)
+    ref = reference_setting(args.reference, model, capped=args.reference_capped, log=log)
     del model
     plan = prep.plan
     reg: dict[str, Any] = {
@@ -534,8 +543,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--precisions", nargs="+", choices=PRECISIONS, help="only these precisions of the grid")
     ap.add_argument(
         "--reference",
-        help=f"the reference setting (default {REFERENCE[False]}; --quick "
-        f"{REFERENCE[True]}; a strang step is capped at {REFERENCE_MARGIN:g} × the friction step)",
+        help=f"the reference setting (default {REFERENCE[False]}; --quick {REFERENCE[True]}; the default's step is "
+        f"capped at {REFERENCE_MARGIN:g} × the regime's friction step, a setting named here runs as given, e.g. "
+        "the fp64 side of a precision pair)",
     )
     ap.add_argument("--engine", default="auto", choices=["auto", "general", "onchip"], help="HF engine (auto)")
     ap.add_argument("--workers", type=int_at_least(1), help="processes that analyse the pads of a run (default: 1 "
@@ -670,6 +680,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.steps:
         return steps_report(args)
     args.regimes = args.regimes or list(REGIMES[args.quick])
+    args.reference_capped = args.reference is None
     args.reference = args.reference or REFERENCE[args.quick]
     try:
         refs = parse_setting(args.reference)
