@@ -259,7 +259,7 @@ def test_stepping_is_each_regimes_pick_of_the_statistical_work_precision_or_an_o
     files = {"hf1": "wps_cuda0_hf1.json", "hf2": "wps_cuda0_hf2.json", "hf3": "wps_cuda0_hf3.json",
              "hf4": "wps_cuda0_hf4.json", "va": "growth_events/wps_cuda0_va.json",
              "va_full": "growth_events/wps_cuda0_va_full.json", "ms_fast": "wps_cuda0_ms_fast.json",
-             "ms_short": "wps_cuda01_ms_short.json", "ms_mid": "wps_cuda1_ms_mid.json",
+             "ms_short": "wps_cuda01_ms_short.json", "ms_mid": "wps_cuda01_ms_mid.json",
              "ms_app3": "wps_cuda0123_ms_app3.json"}  # fmt: skip
     picks = {}
     for regime, name in files.items():

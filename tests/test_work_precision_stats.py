@@ -858,7 +858,7 @@ def test_first_part_regenerates_in_the_later_parts_code(regime):
 
 
 MERGED = [("hf1", "cuda0"), ("hf2", "cuda0"), ("hf3", "cuda0"), ("va", "cuda0"), ("ms_fast", "cuda0"),
-          ("ms_short", "cuda01"), ("ms_app3", "cuda0123")]  # fmt: skip
+          ("ms_short", "cuda01"), ("ms_mid", "cuda01"), ("ms_app3", "cuda0123")]  # fmt: skip
 """(regime, tag of its merged file) of the main page's regimes measured in parts."""
 
 
@@ -866,7 +866,7 @@ MERGED = [("hf1", "cuda0"), ("hf2", "cuda0"), ("hf3", "cuda0"), ("va", "cuda0"),
 def test_main_pages_merged_files_are_the_merge_of_their_parts(regime, tag, monkeypatch):
     """The main page's merged result files are the ``--merge`` of the parts committed beside them (hf1–hf3's and
     ms_app3's parts continued with the fp32 grid run again on the fixed kernels, ms_short's first part with fp64 at
-    5e-8 s; va's four parts run anew); a part keeps the tag of the device it was begun on."""
+    5e-8 s; va's four parts and ms_mid's two run anew); a part keeps the tag of the device it was begun on."""
     from pathlib import Path
 
     from aca_warp.studies.report import clean
@@ -880,6 +880,28 @@ def test_main_pages_merged_files_are_the_merge_of_their_parts(regime, tag, monke
     assert len(parts) >= 2
     assert all(p.name == f"wps_{rule.load_results(repo / p)['tag']}_{regime}.json" for p in parts)
     assert json.loads(json.dumps(clean(merge(parts)))) == rule.load_results(folder / f"wps_{tag}_{regime}.json")
+
+
+def test_ms_short_precision_pairs_are_the_merge_of_their_parts(monkeypatch):
+    """The fp32/fp64 folder's fresh LF seeds of ms_short (65–128): the merged file is the ``--merge`` of its two
+    parts, its reference is the fp64 setting of the pair at 5e-8 s, run as given past the friction-step margin, and
+    every setting of the pair ran on all 128 pads."""
+    from pathlib import Path
+
+    from aca_warp.studies.report import clean
+    from aca_warp.studies.work_precision_stats_merge import merge
+
+    repo = Path(__file__).resolve().parent.parent
+    monkeypatch.chdir(repo)
+    folder = repo / "docs" / "figures" / "work_precision_statistics" / "fp32_fp64" / "ms_short_pairs"
+    parts = [p.relative_to(repo) for p in (folder / "s65" / "wps_cuda0_ms_short.json",
+                                           folder / "s97" / "wps_cuda1_ms_short.json")]  # fmt: skip
+    merged = rule.load_results(folder / "wps_cuda01_ms_short.json")
+    assert json.loads(json.dumps(clean(merge(parts)))) == merged
+    reg = merged["regimes"]["ms_short"]
+    assert reg["reference"] == "strang@fp64:dt=5e-08" and {p["seed"] for p in reg["pads"]} == set(range(65, 129))
+    full = {s["label"] for s in reg["settings"] if len(s.get("values", {}).get("mu_mean", [])) == len(reg["pads"])}
+    assert {"strang@fp64:dt=5e-08", "strang@fp32:dt=5e-08", "strang@fp32:dt=1e-07", "strang@fp64:dt=1e-07"} <= full
 
 
 def test_growth_events_page_is_what_merge_and_report_write(monkeypatch):
