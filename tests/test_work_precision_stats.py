@@ -931,3 +931,36 @@ def test_growth_events_page_is_what_merge_and_report_write(monkeypatch):
     assert len(docs[0]["regimes"]["va"]["pads"]) == 96 and len(docs[1]["regimes"]["va_full"]["pads"]) == 48
     for doc, regime in zip(docs, ("va", "va_full"), strict=True):
         assert rule.settings_for(doc, regime).setting == "strang@fp32:dt=1e-07:growth_dt=5e-06"
+
+
+def test_equal_heights_page_is_what_merge_and_report_write(monkeypatch):
+    """The equal-height presets' page (docs/figures/work_precision_statistics/equal_heights/): its three merged files
+    are the ``--merge`` of their parts, its generated section is what ``--report`` writes from its five files, every
+    fp32 row names the kernels it ran on (made since the fp32 fix), and the rule keeps 1e-7 s for the four HF
+    presets."""
+    from pathlib import Path
+
+    from aca_warp.studies.report import clean
+    from aca_warp.studies.work_precision_stats_merge import merge
+
+    repo = Path(__file__).resolve().parent.parent
+    monkeypatch.chdir(repo)  # the parts named as the page's command names them
+    folder = repo / "docs" / "figures" / "work_precision_statistics" / "equal_heights"
+    files = ["wps_cuda01_hf1_equal.json", "wps_cuda1_hf2_equal.json", "wps_cuda0_hf3_equal.json",
+             "wps_cuda1_hf4_equal.json", "wps_cuda0_va_equal.json"]  # fmt: skip
+    docs = [rule.load_results(folder / f) for f in files]
+    for doc in docs:
+        (regime,) = doc["regimes"]
+        parts = sorted(p.relative_to(repo) for p in (folder / f"{regime}_parts").glob(f"s*/wps_*_{regime}.json"))
+        if parts:
+            assert len(parts) == 2 and json.loads(json.dumps(clean(merge(parts)))) == doc
+        grid = [s for s in doc["regimes"][regime]["settings"] if s["role"] == "grid"]
+        assert grid and all(s.get("kernels") for s in grid), regime
+    page = folder / "README.md"
+    figures = [folder / f"wps_{t}.png" for t in ("cuda01", "cuda1", "cuda0")]
+    body = wps_report.render(docs, [f"equal_heights/{f}" for f in files], figures, page, 0.25, None, "resolution")
+    begin, end = wps_report.generated_markers(wps_report.MARKER)
+    assert page.read_text().split(begin, 1)[1].split(end, 1)[0] == "\n" + "\n".join(body) + "\n"
+    for doc in docs[:4]:
+        (regime,) = doc["regimes"]
+        assert rule.settings_for(doc, regime).setting == "strang@fp32:dt=1e-07", regime

@@ -78,7 +78,8 @@ STEPPING: dict[str, Stepping] = {
         "1e-7 s with growth events every 5 µs (the growth rate kept) both for va (96 pads, growth compressed × 10, "
         "36 ms: every growth measure within a quarter of the spread between seeds, μ mean and μ rise at 0.24 σ the "
         "closest) and for the paper-clock record itself (48 pads, 0.36 s: every measure within 0.18 σ), and for "
-        "va_equal (128 pads); 10 steps "
+        "va_equal (128 pads; on the kernels with the fp32 damping fix its 1e-7 s leaves the STFT maximum's "
+        "frequency undecided, 0.26 σ, as va's, and the rule picks 5e-8 s); 10 steps "
         "per µs sample, an event every 50 steps; fp32 as the on-chip record",
     ),
     "ms_fast": Stepping(
