@@ -7,16 +7,17 @@ strang at ``--dt`` [s] for ``--settle`` [s] from equilibrium + 0.01 m/s (the sat
 rounds that state to fp32, and from it runs each of ``--steps`` strang steps twice on the general engine, in fp32
 and in fp64. Each patch's velocity difference is given in ulps of fp32 at 10 m/s (9.5e-7 m/s, the disc speed of the
 presets and the LF states) and its displacement difference in ulps of fp32 at the pad's rms |u|. Rounding alone leaves
-every patch within a few ulps growing slowly with the steps; an operation that loses a term in fp32 (as the patch
-damping once was, fp32_fp64/README.md) shows as patches far apart from the rest or as a mean signed difference that
-grows with the steps.
+every patch within a few ulps growing slowly with the steps, and a mean signed velocity difference within a few of
+its standard errors (given beside it); an operation that loses a term in fp32 (as the patch damping once was,
+fp32_fp64/README.md) shows as patches far apart from the rest or as a mean signed difference many standard errors
+from 0.
 
-The pad: a preset (``--scene hf1``) or an LF state of the multiscale schedule (``--scene app1_start``, LF seed
-``--lf-seed``; the LF run is made on the CPU into ``--out`` first, ≈ 10–20 s).
+The pad: a preset or a scene file (``--scene hf1``) or an LF state of the multiscale schedule (``--scene
+app1_start``, LF seed ``--lf-seed``; the LF run is made on the CPU into ``--out`` first, ≈ 10–20 s).
 
-Writes ``OUT/precision_rounding_<scene>.json`` and prints a Markdown table.
+Writes ``OUT/precision_rounding_<scene>.json`` (with the machine, versions and command) and prints a Markdown table.
 
-Example (CPU, ≈ 40 s with the LF run)::
+Example (CPU, ≈ 20 s with the LF run on a 2-core machine)::
 
     python3 scripts/precision_rounding.py --scene app1_start --settle 3e-3 --out out/rounding
 """
@@ -40,8 +41,10 @@ ULP_10 = float(np.spacing(np.float32(10.0)))  # m/s: one ulp of fp32 at the disc
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog="See the module docstring.")
-    ap.add_argument("--scene", default="app1_start", help=f"a preset name or an LF state ({', '.join(LF_STATES)})")
-    ap.add_argument("--lf-seed", type=int_at_least(1), default=1, help="LF and patch seed of an LF state (1)")
+    ap.add_argument("--scene", default="app1_start", help="a preset name, a scene TOML file or an LF state "
+                    f"({', '.join(LF_STATES)}) (app1_start)")  # fmt: skip
+    ap.add_argument("--lf-seed", type=int_at_least(1), default=1, help="LF and patch seed of an LF state, and the "
+                    "seed of the initial perturbation (1)")  # fmt: skip
     ap.add_argument("--settle", type=positive, default=3e-3, help="fp64 run before the comparison [s] (3e-3)")
     ap.add_argument("--dt", type=positive, default=5e-8, help="strang step [s] (5e-8)")
     ap.add_argument("--steps", type=int_at_least(1), nargs="+", default=[1, 20], help="steps compared (1 20)")
@@ -83,7 +86,8 @@ def run_steps(scene: Any, precision: str, u: np.ndarray, v: np.ndarray, dt: floa
 
 def compare(scene: Any, u: np.ndarray, v: np.ndarray, dt: float, n: int) -> dict[str, Any]:
     """fp32 against fp64 after ``n`` steps from (u, v): velocity differences in ulps of fp32 at 10 m/s, displacement
-    differences in ulps of fp32 at the pad's rms |u| (quantiles, largest, the mean signed velocity difference)."""
+    differences in ulps of fp32 at the pad's rms |u| (quantiles, largest, the mean signed velocity difference [m/s]
+    and its standard error over the patches)."""
     u32, v32 = run_steps(scene, "fp32", u, v, dt, n)
     u64, v64 = run_steps(scene, "fp64", u, v, dt, n)
     dv = np.abs(v32 - v64) / ULP_10
@@ -94,6 +98,7 @@ def compare(scene: Any, u: np.ndarray, v: np.ndarray, dt: float, n: int) -> dict
         "dv_ulp10": {f"q{k}": float(np.percentile(dv, k)) for k in q} | {"max": float(dv.max())},
         "du_ulp": {f"q{k}": float(np.percentile(du, k)) for k in q} | {"max": float(du.max())},
         "mean_signed_dv_m_s": float(np.mean(v32 - v64)),
+        "mean_signed_dv_se_m_s": float(np.std(v32 - v64, ddof=1) / np.sqrt(v32.size)),
         "dv_max_over_q99": float(dv.max() / max(np.percentile(dv, 99), 1e-30)),
     }
 
@@ -101,16 +106,18 @@ def compare(scene: Any, u: np.ndarray, v: np.ndarray, dt: float, n: int) -> dict
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     from aca_warp.studies.report import init_warp
 
-    init_warp()
+    wp = init_warp()
     from aca_warp.common.errors import AcaError
+    from aca_warp.common.files import machine
     from aca_warp.scene import Record
+    from aca_warp.studies.report import command_line
     from aca_warp.studies.runs import batch_at_start, run_general
 
     t0 = time.perf_counter()
     try:
+        out.mkdir(parents=True, exist_ok=True)
         scene = pad_scene(args, out)
     except (AcaError, OSError) as e:
         print(f"precision_rounding: {e}", file=sys.stderr)
@@ -123,7 +130,9 @@ def main(argv: list[str] | None = None) -> int:
     u = state.u.numpy().astype(np.float32).astype(np.float64)  # the state rounded to fp32: both runs start on it
     v = state.v.numpy().astype(np.float32).astype(np.float64)
     rows = [compare(scene, u, v, args.dt, n) for n in args.steps]
-    doc = {"scene": args.scene, "lf_seed": args.lf_seed, "patches": int(u.size), "settle_s": args.settle,
+    doc = {"command": command_line("precision_rounding.py", sys.argv[1:] if argv is None else argv),
+           "machine": machine(wp.get_device("cpu")), "warp": wp.__version__, "numpy": np.__version__,
+           "scene": args.scene, "lf_seed": args.lf_seed, "patches": int(u.size), "settle_s": args.settle,
            "dt_s": args.dt, "ulp10_m_s": ULP_10, "rms_velocity_m_s": float(np.sqrt(np.mean(v**2))),
            "rms_displacement_m": float(np.sqrt(np.mean(u**2))), "rows": rows,
            "wall_s": time.perf_counter() - t0}  # fmt: skip
@@ -133,11 +142,11 @@ def main(argv: list[str] | None = None) -> int:
           f"{doc['rms_displacement_m']:.3g} m), fp32 − fp64 after n strang steps of {args.dt:g} s from the state at "
           f"{args.settle:g} s rounded to fp32\n")  # fmt: skip
     print("| steps | |Δu̇| / ulp(10 m/s): median, 99 %, largest | |Δu| / ulp(rms u): median, 99 %, largest "
-          "| mean signed Δu̇ [m/s] |\n|---|---|---|---|")  # fmt: skip
+          "| mean signed Δu̇ ± its standard error [m/s] |\n|---|---|---|---|")  # fmt: skip
     for r in rows:
         a, b = r["dv_ulp10"], r["du_ulp"]
         print(f"| {r['steps']} | {a['q50']:.2f}, {a['q99']:.2f}, {a['max']:.2f} | {b['q50']:.2f}, {b['q99']:.2f}, "
-              f"{b['max']:.2f} | {r['mean_signed_dv_m_s']:.2g} |")  # fmt: skip
+              f"{b['max']:.2f} | {r['mean_signed_dv_m_s']:.2g} ± {r['mean_signed_dv_se_m_s']:.2g} |")  # fmt: skip
     print(f"\nwrote {path} ({doc['wall_s']:.0f} s)")
     return 0
 

@@ -466,6 +466,18 @@ def test_the_default_reference_is_capped_and_a_named_one_runs_as_given():
     assert len(lines) == 1
 
 
+def test_a_named_reference_runs_as_given_through_the_command(tmp_path, capsys):
+    """``--reference`` past the margin (hf1: 0.9 × its friction step ≈ 8.7e-8 s) is the file's reference as given,
+    and the call says so."""
+    out = tmp_path / "wps"
+    argv = [*_tiny_argv(out, 10, 2e-4), "--reference", "strang@fp64:dt=3e-7", "--grid", "strang@fp64:dt=5e-7"]
+    assert wps.main(argv) == 0
+    reg = json.loads((out / "wps_cpu_quick_hf1.json").read_text())["regimes"]["hf1"]
+    assert reg["reference"] == "strang@fp64:dt=3e-07"
+    assert reg["settings"][0]["dt_used"] > 2e-7  # run near 3e-7 s (fitted whole into the sample), not capped
+    assert "run as given" in capsys.readouterr().out
+
+
 def test_again_runs_the_grid_again_and_rows_name_their_kernels(tmp_path):
     """Each row records the digest of the kernels it ran on; ``--again`` runs the grid's settings of a continued
     file again and replaces their rows, keeping the reference's (also where the grid names its setting) and every

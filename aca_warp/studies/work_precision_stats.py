@@ -292,8 +292,8 @@ def reference_setting(spec: str, model: Any, capped: bool = True, log: Any = Non
             s = dataclasses.replace(s, dt=float(f"{min(s.dt, bound):.3g}"))
         elif s.dt > bound and log is not None:
             log(
-                f"reference {s.label}: its step is past {REFERENCE_MARGIN:g} × the friction step ({bound:.3g} s): "
-                "run as given"
+                f"reference {s.label}: its step is past the reference margin, {REFERENCE_MARGIN:g} × the friction "
+                f"step = {bound:.3g} s: run as given"
             )
     return s
 

@@ -79,7 +79,7 @@ STEPPING: dict[str, Stepping] = {
         "36 ms: every growth measure within a quarter of the spread between seeds, μ mean and μ rise at 0.24 σ the "
         "closest) and for the paper-clock record itself (48 pads, 0.36 s: every measure within 0.18 σ), and for "
         "va_equal (128 pads; on the kernels with the fp32 damping fix its 1e-7 s leaves the STFT maximum's "
-        "frequency undecided, 0.26 σ, as va's, and the rule picks 5e-8 s); 10 steps "
+        "frequency undecided, 0.26 σ, and the rule picks 5e-8 s); 10 steps "
         "per µs sample, an event every 50 steps; fp32 as the on-chip record",
     ),
     "ms_fast": Stepping(
@@ -106,8 +106,8 @@ STEPPING: dict[str, Stepping] = {
         dt=1.0e-7,
         reason=f"the LF states app1_end, app4_start and app4_end: the statistical work-precision on two H200s, on the "
         f"kernels with the fp32 damping fix {_LF_REGIME}, picks strang fp32 at 1e-7 s (at 2.5e-7 s the first velocity "
-        "peak moves by 0.15 σ and S − S_null by 0.33 σ); fp32 − fp64 at 5e-8 s is within its interval of 0 in every "
-        "measure",
+        "peak, 0.25 σ in app1_end, and S − S_null, 0.33 σ, are undecided); fp32 − fp64 at 5e-8 s is within its "
+        "interval of 0 in every measure but the growth rate, just outside (+0.07 ± 0.07 σ)",
     ),
     "ms_app3": Stepping(
         dt=1.0e-7,
