@@ -100,7 +100,7 @@ STEPPING: dict[str, Stepping] = {
         "5e-8 s. On the kernels with the fp32 damping fix fp32 at 5e-8 s moves S − S_null by +0.33 σ in the "
         "app1_start states (+0.29 and +0.37 σ in the two halves of the seeds; −0.10 σ before the fix, when the rule "
         "picked it), while fp32 at 1e-7 s and 2.5e-7 s keep it and miss μ mean by 0.33 and 1.52 σ. fp32 − fp64 at "
-        "5e-8 s, +0.39 ± 0.30 σ in S − S_null there, is −0.02 ± 0.31 σ on LF seeds 65–128: not shown to be fp32's",
+        "5e-8 s, +0.39 ± 0.30 σ in S − S_null there, is −0.02 ± 0.31 σ on LF seeds 65–128: not shown to be fp32's own",
     ),
     "ms_mid": Stepping(
         dt=1.0e-7,
