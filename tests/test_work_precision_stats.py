@@ -976,3 +976,67 @@ def test_equal_heights_page_is_what_merge_and_report_write(monkeypatch):
     for doc in docs[:4]:
         (regime,) = doc["regimes"]
         assert rule.settings_for(doc, regime).setting == "strang@fp32:dt=1e-07", regime
+
+
+class _Clock:
+    """A stand-in for the ``time`` module of work_precision_stats: ``perf_counter`` advances ``step`` [s] a call."""
+
+    def __init__(self, step: float) -> None:
+        self.now, self.step = 0.0, step
+
+    def perf_counter(self) -> float:
+        self.now += self.step
+        return self.now
+
+
+def test_progress_stops_a_run_whose_projected_end_is_past_the_deadline(monkeypatch):
+    """With a deadline, the sink projects the run's end from its rate since the first chunk once that rate spans
+    PROBE_S, and stops the run (PastBudget) when the end lies past the deadline; without one it never stops, and a
+    run whose end fits goes on."""
+    from types import SimpleNamespace
+
+    class Log(list):
+        def __call__(self, message: str) -> None:
+            self.append(message)
+
+        def elapsed(self) -> float:
+            return 100.0  # the call's wall time [s]
+
+    monkeypatch.setattr(wps, "time", _Clock(5.0))  # 5 s of wall time between the sink's clock readings
+    chunks = [SimpleNamespace(time=np.array([k * 1e-3])) for k in range(1, 6)]  # 1 ms of 10 per chunk
+
+    def feed(deadline):
+        sink = wps.Progress(lambda c: None, "x", 10e-3, Log(), deadline)
+        for c in chunks:
+            sink(c)
+
+    feed(None)  # no deadline: never stops
+    feed(140.0)  # the end projected at the third chunk, 100 + 5e3 s/s × 7 ms = 135 s, fits
+    with pytest.raises(wps.PastBudget) as e:
+        feed(120.0)  # the second chunk's 5 s are short of PROBE_S (10 s); the third's 10 s project 135 s
+    assert e.value.done == pytest.approx(0.3) and e.value.rate == pytest.approx(5e3)
+    assert e.value.end == pytest.approx(135.0)
+
+
+def test_a_run_stopped_past_max_wall_is_written_as_not_run_and_run_by_a_later_call(tmp_path, monkeypatch, capsys):
+    """A run whose projected end lies past ``--max-wall`` is stopped, written as not run (with the rate it ran
+    at), and the next call without the limit runs it."""
+    out = tmp_path / "wps"
+    argv = [*_tiny_argv(out, 10, 2e-4), "--grid", "strang@fp64:dt=1e-7"]
+
+    class Projecting(wps.Progress):  # a run of one chunk, projected as a sink of several would project it
+        def __call__(self, chunk):
+            super().__call__(chunk)
+            if self.deadline is not None:
+                raise wps.PastBudget(0.25, self.deadline + 50.0, 2e5)
+
+    monkeypatch.setattr(wps, "Progress", Projecting)
+    assert wps.main([*argv, "--max-wall", "100"]) == 0
+    reg = json.loads((out / "wps_cpu_quick_hf1.json").read_text())["regimes"]["hf1"]
+    stopped = [s for s in reg["settings"] if str(s["fault"]).startswith("not run: --max-wall (stopped at")]
+    assert stopped and all(s["rate"] > 0 and s["wall_s"] is None for s in stopped)
+    assert "past --max-wall: not run" in capsys.readouterr().out
+    monkeypatch.undo()
+    assert wps.main(argv) == 0
+    reg = json.loads((out / "wps_cpu_quick_hf1.json").read_text())["regimes"]["hf1"]
+    assert [s["complete"] for s in reg["settings"]] == [True, True]

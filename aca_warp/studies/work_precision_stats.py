@@ -111,6 +111,7 @@ REGIMES = {
 }
 QUICK_CONFIG = {"seeds": 4, "patches": 60, "state_patches": 60, "window": 4.0e-3}
 PROGRESS_S = 30.0  # s of wall time between progress lines of one run
+PROBE_S = 10.0  # s of wall time after a run's first chunk before its end is projected against --max-wall
 
 
 # ------------------------------------------------------------------------------------------------ settings
@@ -261,21 +262,47 @@ def analyse(prep: Any, cfg: Any, records: tuple[np.ndarray, ...]) -> tuple[list[
 # ------------------------------------------------------------------------------------------------ runs
 
 
-class Progress:
-    """Sink of a run: the validation's collector, and a progress line every :data:`PROGRESS_S` seconds."""
+class PastBudget(Exception):
+    """A run stopped because its projected end lies past ``--max-wall``: ``done`` the share of its simulated time
+    run, ``end`` the call's wall time [s] it would have ended at, ``rate`` [wall s per simulated s] since its first
+    chunk."""
 
-    def __init__(self, collector: Any, what: str, duration: float, log: Log) -> None:
+    def __init__(self, done: float, end: float, rate: float) -> None:
+        super().__init__(f"stopped at {100 * done:.0f} % of its run, projected to end at {end:.0f} s")
+        self.done, self.end, self.rate = done, end, rate
+
+
+class Progress:
+    """Sink of a run: the validation's collector, a progress line every :data:`PROGRESS_S` seconds and, with a
+    ``deadline`` (the call's wall time [s] by which the run's stepping must end, ``log``'s clock), a stop
+    (:class:`PastBudget`) as soon as the rate since the run's first chunk, measured over at least :data:`PROBE_S`,
+    projects its end past it: a run that cannot finish inside ``--max-wall`` gives its time back to the runs after
+    it instead of running until an outer time limit kills it."""
+
+    def __init__(self, collector: Any, what: str, duration: float, log: Log, deadline: float | None = None) -> None:
         self.collector, self.what, self.duration, self.log = collector, what, duration, log
+        self.deadline = deadline
         self.t0 = self.last = time.perf_counter()
+        self.first: tuple[float, float] | None = None  # (wall clock, simulated time) at the first chunk
 
     def __call__(self, chunk: Any) -> None:
         self.collector(chunk)
-        now = time.perf_counter()
-        if now - self.last >= PROGRESS_S and len(chunk.time):
+        if not len(chunk.time):
+            return
+        now, t = time.perf_counter(), float(chunk.time[-1])
+        if now - self.last >= PROGRESS_S:
             self.last = now
-            t = float(chunk.time[-1])
             self.log(f"  {self.what}: {t * 1e3:.1f} of {self.duration * 1e3:.1f} ms simulated "
                      f"({100 * t / self.duration:.0f} %, {now - self.t0:.0f} s)")  # fmt: skip
+        if self.first is None:
+            self.first = (now, t)
+            return
+        wall, sim = now - self.first[0], t - self.first[1]
+        if self.deadline is not None and wall >= PROBE_S and sim > 0:
+            rate = wall / sim
+            end = self.log.elapsed() + rate * (self.duration - t)
+            if end > self.deadline:
+                raise PastBudget(t / self.duration, end, rate)
 
 
 def reference_setting(spec: str, model: Any, capped: bool = True, log: Any = None) -> Setting:
@@ -298,15 +325,19 @@ def reference_setting(spec: str, model: Any, capped: bool = True, log: Any = Non
     return s
 
 
-def run_setting(prep: Any, cfg: Any, setting: Setting, role: str, names: list[str], log: Log) -> dict[str, Any]:
+def run_setting(
+    prep: Any, cfg: Any, setting: Setting, role: str, names: list[str], log: Log, deadline: float | None = None
+) -> dict[str, Any]:
     """One run of the regime's batch with ``setting``, analysed; the row of the result file (``role``: "reference"
-    or "grid")."""
+    or "grid"). ``deadline``: the call's wall time [s] by which its stepping must end (:class:`Progress`); a run
+    stopped for it gives a row "not run: --max-wall (…)", with its ``rate`` [wall s per simulated s], which a
+    later call runs again."""
     from aca_warp.studies.runs import batch_at_start, run_engine
 
     row: dict[str, Any] = {"label": setting.label, "role": role, **dataclasses.asdict(setting)}
     try:
         model, state = batch_at_start(prep.scenes, cfg.device, setting.precision)
-        sink = Progress(Collector(), f"{prep.exp.name} {setting.label}", prep.plan.duration, log)
+        sink = Progress(Collector(), f"{prep.exp.name} {setting.label}", prep.plan.duration, log, deadline)
         res = run_engine(
             model, state, engine=cfg.engine, duration=prep.plan.duration, integrator=setting.integrator,
             dt=setting.dt, record=prep.plan.record(cfg), sink=sink, force=setting.dt is not None,
@@ -317,6 +348,9 @@ def run_setting(prep: Any, cfg: Any, setting: Setting, role: str, names: list[st
     except (SceneError, ValueError) as e:  # a setting the integrator refuses (e.g. an fp32 tolerance too tight)
         log(f"  {setting.label}: refused: {e}")
         return {**row, "complete": False, "fault": f"refused: {e}", "wall_s": None}
+    except PastBudget as e:
+        log(f"  {setting.label}: {e}, past --max-wall: not run")
+        return {**row, "complete": False, "fault": f"not run: --max-wall ({e})", "wall_s": None, "rate": e.rate}
     row.update(
         complete=bool(res.complete), fault=None if res.fault is None else str(res.fault), wall_s=res.wall_time,
         compile_s=res.compile_time, steps=int(res.steps), rejected=int(res.rejected), dt_used=res.dt,
@@ -419,12 +453,18 @@ def measure_regime(
                                     "fault": "not run: --max-wall", "wall_s": None})  # fmt: skip
             continue
         t_run = log.elapsed()
-        row = run_setting(prep, cfg, s, role, names, log) | {
+        deadline = None if args.max_wall is None else args.max_wall - run_estimate(0.0, 0.0, overheads)
+        row = run_setting(prep, cfg, s, role, names, log, deadline) | {
             "host": head["machine"]["host"],
             "kernels": head["kernels"],
         }
         if row.get("wall_s") is not None:
             overheads.append(max(log.elapsed() - t_run - row["wall_s"], 0.0))
+        if role == "reference" and row.get("rate") and s.dt:  # stopped: the rate it ran at, for the estimates
+            per_step = row["rate"] * s.dt
+        if str(row.get("fault")).startswith("not run") and (s.label, role) in redo:
+            log(f"  {s.label}: its earlier row kept")
+            continue
         reg["settings"] = [r for r in reg["settings"] if (r["label"], r["role"]) != (s.label, role)] + [row]
         if role == "reference" and row.get("steps"):
             per_step = row["wall_s"] / row["steps"]
@@ -553,8 +593,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--lf-dir", help="folder of the LF runs of the LF-state regimes (default OUT/lf)")
     ap.add_argument("--max-wall", type=nonneg, help="start no run that would end past this wall time [s] (the "
                     "estimate: the reference's time per step × the steps, the validation's cost model's before the "
-                    "reference has run, plus the mean time the call's earlier runs spent besides stepping); written "
-                    "as not run")  # fmt: skip
+                    "reference has run, plus the mean time the call's earlier runs spent besides stepping), and stop "
+                    "one whose rate, measured over its first 10 s, projects its end past it; written as not run, "
+                    "for a later call")  # fmt: skip
     ap.add_argument("--again", action="store_true", help="in a continued result file, run the grid's settings "
                     "again whose rows were made on other kernels (each row records the digest of the kernels it "
                     "ran on) and replace their rows; the reference's row is kept; a call cut short is finished by "
