@@ -25,7 +25,6 @@ Example (CPU, ≈ 20 s with the LF run on a 2-core machine)::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -34,8 +33,8 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common.argtypes import int_at_least, positive
+from aca_warp.studies.validation.multiscale import STATES as LF_STATES
 
-LF_STATES = ("app1_start", "app1_end", "app2_start", "app2_end", "app3_start", "app3_end", "app4_start", "app4_end")
 ULP_10 = float(np.spacing(np.float32(10.0)))  # m/s: one ulp of fp32 at the disc speed 10 m/s
 
 
@@ -58,16 +57,15 @@ def pad_scene(args: argparse.Namespace, out: Path) -> Any:
     from aca_warp.scene import Initial, load_scene
 
     if args.scene in LF_STATES:
-        from aca_warp.lf.commands import run_lf
         from aca_warp.lf.io import scene_from_snapshot
-        from aca_warp.studies.validation.multiscale import lf_scene
+        from aca_warp.studies.validation import multiscale
+        from aca_warp.studies.validation.base import Config
 
-        path = out / f"lf_full_preset_seed{args.lf_seed}.h5"
-        if not path.is_file():
-            tmp = path.with_suffix(".tmp.h5")
-            run_lf(lf_scene(args.lf_seed, None, None), tmp, device="cpu", overwrite=True, progress=False)
-            tmp.replace(path)
-        scene = scene_from_snapshot(path, args.scene)
+        multiscale.register()
+        group = next(g for g, members in multiscale.GROUPS.items() if args.scene in members)
+        cfg = Config(device="cpu", seeds=1, first_seed=args.lf_seed, lf_dir=str(out))
+        multiscale.ensure_lf([group], cfg, print)  # the validation's LF run of that seed, made once into ``out``
+        scene = scene_from_snapshot(multiscale.lf_path(cfg, args.lf_seed, None), args.scene)
     else:
         scene = load_scene(args.scene)
     initial = Initial(state="equilibrium", perturbation=0.01, seed=args.lf_seed)
@@ -112,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     from aca_warp.common.errors import AcaError
     from aca_warp.common.files import machine
     from aca_warp.scene import Record
-    from aca_warp.studies.report import command_line
+    from aca_warp.studies.report import command_line, write_json
     from aca_warp.studies.runs import batch_at_start, run_general
 
     t0 = time.perf_counter()
@@ -137,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
            "rms_displacement_m": float(np.sqrt(np.mean(u**2))), "rows": rows,
            "wall_s": time.perf_counter() - t0}  # fmt: skip
     path = out / f"precision_rounding_{args.scene}.json"
-    path.write_text(json.dumps(doc, indent=1))
+    write_json(path, doc)
     print(f"{args.scene} ({u.size} patches; rms u̇ {doc['rms_velocity_m_s']:.3g} m/s, rms u "
           f"{doc['rms_displacement_m']:.3g} m), fp32 − fp64 after n strang steps of {args.dt:g} s from the state at "
           f"{args.settle:g} s rounded to fp32\n")  # fmt: skip
