@@ -275,6 +275,45 @@ def test_an_amplitude_that_few_pads_dominate_is_judged_in_log_too():
     assert report.log_candidates(reg, 0.25, "resolution") == []
 
 
+def test_one_seed_that_decides_a_verdict_is_named():
+    """64 pads whose STFT maximum agrees closely between two runs, but for seed 7, tonal (×6) in the setting's run
+    only: the setting is undecided, its pick the reference, and the report names seed 7, without which it keeps every
+    measure; a seed that is no outlier (×1.2) is not named, nor a setting that moves a measure, and without the seed
+    the pads (and every setting's values) are one fewer."""
+    from aca_warp.studies import work_precision_stats_report as report
+
+    rng = np.random.default_rng(11)
+    base = 1.7e-3 * np.exp(0.1 * rng.standard_normal(64))
+    near = base * np.exp(0.01 * rng.standard_normal(64))
+    tonal, mild, moved = near.copy(), near.copy(), near * 1.3
+    tonal[6] *= 6.0  # seed 7
+    mild[6] *= 1.2
+    row = {"mu_mean": [0.4] * 64}
+
+    def regime(values: np.ndarray) -> dict:
+        return {"measures": ["stft_amplitude", "mu_mean"], "pads": [{"seed": s + 1} for s in range(64)], "settings": [
+            _setting("strang@fp32:dt=1e-08", "reference", 10.0, {**row, "stft_amplitude": base.tolist()}),
+            _setting("strang@fp32:dt=5e-07", "grid", 1.0, {**row, "stft_amplitude": moved.tolist()}),
+            _setting("strang@fp32:dt=1e-07", "grid", 2.0, {**row, "stft_amplitude": values.tolist()}),
+        ]}  # fmt: skip
+
+    reg = regime(tonal)
+    doc = {"regimes": {"syn": reg}}
+    ch = rule.settings_for(doc, "syn")
+    assert ch.setting == "strang@fp32:dt=1e-08"
+    assert rule.verdict(reg, reg["settings"][2], "stft_amplitude", 0.25) == "undecided"
+    assert report.seed_differences(reg, reg["settings"][2], "stft_amplitude")[7] > report.outlier_bound(64)
+    (text,) = report.one_seed_notes(reg, ch, 0.25, "resolution")
+    assert text.startswith("Decided by one seed") and "`strang@fp32:dt=1e-07` without seed 7 (" in text
+    assert "5e-07" not in text  # it moves the measure: no seed decides that
+    view = report.without_seeds(reg, {7})
+    assert len(view["pads"]) == 63 and all(len(s["values"]["stft_amplitude"]) == 63 for s in view["settings"])
+    assert rule.kept(rule.verdict(view, view["settings"][2], "stft_amplitude", 0.25))
+    assert 4.9 < report.outlier_bound(128) < 5.1 and report.outlier_bound(32) < report.outlier_bound(128)
+    calm = regime(mild)  # a seed within what two parted runs give: nothing named
+    assert report.one_seed_notes(calm, rule.settings_for({"regimes": {"syn": calm}}, "syn"), 0.25, "resolution") == []
+
+
 def test_members_take_the_worst():
     """A regime with two members (LF states): the regime's figure is the member with the larger bound/σ."""
     reg = synthetic_regime(20)
@@ -976,6 +1015,52 @@ def test_equal_heights_page_is_what_merge_and_report_write(monkeypatch):
     for doc in docs[:4]:
         (regime,) = doc["regimes"]
         assert rule.settings_for(doc, regime).setting == "strang@fp32:dt=1e-07", regime
+    va = docs[4]["regimes"]["va_equal"]  # made anew on the fixed kernels, its reference too: one seed decides it
+    assert all(s.get("kernels") for s in va["settings"])
+    ch = rule.settings_for(docs[4], "va_equal")
+    assert ch.setting == "strang@fp32:dt=1e-08"
+    (note,) = wps_report.one_seed_notes(va, ch, 0.25, "resolution")
+    assert "`strang@fp32:dt=1e-07:growth_dt=5e-06` without seed 3 (" in note and note in page.read_text()
+
+
+def test_fast_math_page_is_what_merge_and_report_write(monkeypatch):
+    """The fast-math page (docs/figures/work_precision_statistics/fast_math/): each merged file is the ``--merge`` of
+    its parts, which are the study's own part files with fast-math rows added (every other row as in the study's
+    file), every row was made on kernels that record their digest or in fp64, and its generated section is what
+    ``--report`` writes from its eight files."""
+    from pathlib import Path
+
+    from aca_warp.studies.report import clean
+    from aca_warp.studies.work_precision_stats_merge import merge
+
+    repo = Path(__file__).resolve().parent.parent
+    monkeypatch.chdir(repo)
+    study = repo / "docs" / "figures" / "work_precision_statistics"
+    folder = study / "fast_math"
+    files = [f"wps_cuda0_{r}.json" for r in ("hf1", "hf2", "hf3", "hf4", "va", "ms_fast")]
+    files += [f"wps_cuda01_{r}.json" for r in ("ms_short", "ms_mid")]
+    docs = [rule.load_results(folder / f) for f in files]
+    for doc in docs:
+        (regime,) = doc["regimes"]
+        parts = sorted(p.relative_to(repo) for p in (folder / f"{regime}_parts").glob(f"s*/wps_*_{regime}.json"))
+        own = sorted(p.relative_to(repo) for p in (study / f"{regime}_parts").glob(f"s*/wps_*_{regime}.json"))
+        if regime == "hf4":
+            parts, own = [], [(study / "wps_cuda0_hf4.json").relative_to(repo)]
+        else:
+            assert len(parts) >= 2 and json.loads(json.dumps(clean(merge(parts)))) == doc
+        for mine, theirs in zip(parts or [(folder / "wps_cuda0_hf4.json").relative_to(repo)], own, strict=True):
+            rows = rule.load_results(mine)["regimes"][regime]["settings"]
+            study_rows = rule.load_results(theirs)["regimes"][regime]["settings"]
+            assert [s for s in rows if not s.get("fast_math")] == study_rows, mine
+            fast = [s for s in rows if s.get("fast_math")]
+            assert fast and all(s.get("kernels") and s.get("complete") for s in fast), mine
+    page = folder / "README.md"
+    figures = [folder / f"wps_{t}.png" for t in ("cuda0", "cuda01")]
+    body = wps_report.render(docs, [f"fast_math/{f}" for f in files], figures, page, 0.25, None, "resolution")
+    begin, end = wps_report.generated_markers(wps_report.MARKER)
+    assert page.read_text().split(begin, 1)[1].split(end, 1)[0] == "\n" + "\n".join(body) + "\n"
+    picks = {next(iter(d["regimes"])): rule.settings_for(d, next(iter(d["regimes"]))).setting for d in docs}
+    assert picks["ms_short"] == picks["ms_fast"] == "strang@fp32:dt=5e-08:fast"
 
 
 class _Clock:

@@ -1,8 +1,9 @@
 """Figure and docs section of the statistical work-precision study (:mod:`aca_warp.studies.work_precision_stats`)
 from its result files: per regime, error/σ between seeds against stepping wall time for every measure, the tables,
-the settings the rule picks (:func:`~aca_warp.studies.work_precision_stats_rule.settings_for`), and for an amplitude
-that a few pads dominate the same comparison in log beside it (:func:`log_candidates`). Every number on the page is
-computed here from the per-pad values in the result files.
+the settings the rule picks (:func:`~aca_warp.studies.work_precision_stats_rule.settings_for`), for an amplitude
+that a few pads dominate the same comparison in log beside it (:func:`log_candidates`), and the cheaper settings that
+one seed alone leaves undecided (:func:`one_seed_notes`). Every number on the page is computed here from the per-pad
+values in the result files.
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from aca_warp.studies.report import fmt, generated_markers, md_table, replace_generated, save_figure
 from aca_warp.studies.work_precision_stats_merge import ABSENT
@@ -352,6 +355,7 @@ def regime_results(doc: dict[str, Any], name: str, rule: float, measures: Sequen
     others = [(c, settings_for(doc, name, use, rule, c)) for c in CRITERIA if c != criterion]
     out.append("The other criteria pick " + ", ".join(f"`{o.setting}` ({c})" for c, o in others) + ".")
     out.extend(log_candidates(reg, rule, criterion, use))
+    out.extend(one_seed_notes(reg, ch, rule, criterion))
     out.extend(versions_text(ran))
     early = [s for s in reg["settings"] if earlier_fp32(s)]
     if early:
@@ -395,6 +399,71 @@ def log_candidates(
                        "arithmetic mean the validation takes, which the few pads several times the others' "
                        "dominate), for the settings that do not keep it: " + "; ".join(parts) + ".")  # fmt: skip
     return out
+
+
+def without_seeds(reg: dict[str, Any], seeds: set[int]) -> dict[str, Any]:
+    """``reg`` without the pads of ``seeds`` (every member of an LF seed), in every setting's per-pad values."""
+    keep = [k for k, p in enumerate(reg["pads"]) if p["seed"] not in seeds]
+    rows = [{**s, "values": {m: [v[k] for k in keep] for m, v in s["values"].items()}} if s.get("values") else s
+            for s in reg["settings"]]  # fmt: skip
+    return {**reg, "pads": [reg["pads"][k] for k in keep], "settings": rows}
+
+
+def seed_differences(reg: dict[str, Any], setting: dict[str, Any], measure: str) -> dict[int, float]:
+    """Per seed, the largest |setting − reference| over its pads of a scalar ``measure``, in units of σ between the
+    reference's pads ({} for a vector measure or a reference without spread)."""
+    ref = reference_of(reg)["values"][measure]
+    if any(isinstance(v, list) for v in ref):
+        return {}
+    sigma = float(np.nanstd(np.asarray(ref, dtype=float), ddof=1))
+    if not sigma > 0:
+        return {}
+    out: dict[int, float] = {}
+    for p, a, b in zip(reg["pads"], setting["values"][measure], ref, strict=True):
+        if isinstance(a, (int, float)) and isinstance(b, (int, float)) and math.isfinite(a - b):
+            out[p["seed"]] = max(out.get(p["seed"], 0.0), abs(a - b) / sigma)
+    return out
+
+
+def outlier_bound(n: int) -> float:
+    """The largest |d|/σ that ``n`` seeds of two runs that have parted give by chance (d of standard deviation √2 σ)
+    at the two-sided 5 % level over all of them (Bonferroni): √2 z(1 − 0.025/n); 5.0 for 128 seeds."""
+    import scipy.stats
+
+    return math.sqrt(2.0) * float(scipy.stats.norm.ppf(1.0 - 0.025 / max(n, 1)))
+
+
+def one_seed_notes(reg: dict[str, Any], choice: Choice, rule: float, criterion: str) -> list[str]:
+    """For each completed setting cheaper than the pick that moves no measure, only leaves some undecided, and keeps
+    every measure once the one seed whose pads differ most from the reference's in those measures is left out, that
+    seed an outlier (its difference past :func:`outlier_bound`): a sentence naming it (a verdict decided by one seed,
+    such as a pad that turns tonal in one run and not in the other). [] when there is none."""
+    bound = outlier_bound(len({p["seed"] for p in reg["pads"]}))
+    parts = []
+    for label, names in choice.fails.items():
+        s = row_of(reg, label)
+        verdicts = {m: verdict(reg, s, m, rule, criterion) for m in names}
+        if any(v != "undecided" for v in verdicts.values()):
+            continue
+        diffs = {m: seed_differences(reg, s, m) for m in names}
+        if not all(diffs.values()):
+            continue
+        seeds = {max(d, key=d.get) for d in diffs.values()}
+        if len(seeds) != 1:
+            continue
+        seed = seeds.pop()
+        if any(d[seed] <= bound for d in diffs.values()):
+            continue
+        view = without_seeds(reg, {seed})
+        row = row_of(view, label)
+        if all(kept(verdict(view, row, m, rule, criterion)) for m in choice.measures):
+            what = ", ".join(f"{diffs[m][seed]:.2g} σ in {MEASURES[m].label}" for m in names)
+            parts.append(f"`{label}` without seed {seed} (its pads' largest difference from the reference's: {what})")
+    if not parts:
+        return []
+    return [f"Decided by one seed: these cheaper settings keep every measure once that seed, an outlier (past "
+            f"{bound:.2g} σ, the largest difference the seeds of two parted runs give by chance at 5 %), is left "
+            "out, the rule applied as above to the other seeds: " + "; ".join(parts) + "."]  # fmt: skip
 
 
 def versions_text(rows: Sequence[dict[str, Any]]) -> list[str]:
