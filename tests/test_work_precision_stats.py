@@ -275,7 +275,7 @@ def test_an_amplitude_that_few_pads_dominate_is_judged_in_log_too():
     assert report.log_candidates(reg, 0.25, "resolution") == []
 
 
-def test_one_seed_that_decides_a_verdict_is_named():
+def test_one_seed_that_decides_a_verdict_is_named(monkeypatch):
     """64 pads whose STFT maximum agrees closely between two runs, but for seed 7, tonal (×6) in the setting's run
     only: the setting is undecided, its pick the reference, and the report names seed 7, without which it keeps every
     measure; a seed that is no outlier (×1.2) is not named, nor a setting that moves a measure, and without the seed
@@ -312,6 +312,22 @@ def test_one_seed_that_decides_a_verdict_is_named():
     assert 4.9 < report.outlier_bound(128) < 5.1 and report.outlier_bound(32) < report.outlier_bound(128)
     calm = regime(mild)  # a seed within what two parted runs give: nothing named
     assert report.one_seed_notes(calm, rule.settings_for({"regimes": {"syn": calm}}, "syn"), 0.25, "resolution") == []
+    monkeypatch.setattr(report, "outlier_bound", lambda n: 100.0)  # seed 7's pad no outlier: not named either
+    assert report.one_seed_notes(reg, ch, 0.25, "resolution") == []
+    monkeypatch.undo()
+    # two members (LF states) per seed: each pad in units of its own member's σ, the bound over all 128 pads
+    two = regime(tonal)
+    two["pads"] = [{"seed": s % 32 + 1, "member": "ab"[s // 32]} for s in range(64)]
+    wide = np.where(np.arange(64) < 32, 1.0, 100.0)  # member b's values (and σ) 100 times member a's
+    for s in two["settings"]:
+        s["values"]["stft_amplitude"] = (np.array(s["values"]["stft_amplitude"]) * wide).tolist()
+    alone = regime(tonal)  # member a by itself
+    alone["pads"] = alone["pads"][:32]
+    for s in alone["settings"]:
+        s["values"] = {m: v[:32] for m, v in s["values"].items()}
+    got = report.seed_differences(two, two["settings"][2], "stft_amplitude")[7]
+    assert got == pytest.approx(report.seed_differences(alone, alone["settings"][2], "stft_amplitude")[7])
+    assert got > report.outlier_bound(64)  # pooled with member b's σ it would read 100 times smaller
 
 
 def test_members_take_the_worst():

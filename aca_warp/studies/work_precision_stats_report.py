@@ -22,6 +22,7 @@ from aca_warp.studies.work_precision_stats_rule import (
     CRITERIA,
     MEASURES,
     Choice,
+    _members,
     compare_setting,
     keep_chance,
     kept,
@@ -410,24 +411,28 @@ def without_seeds(reg: dict[str, Any], seeds: set[int]) -> dict[str, Any]:
 
 
 def seed_differences(reg: dict[str, Any], setting: dict[str, Any], measure: str) -> dict[int, float]:
-    """Per seed, the largest |setting − reference| over its pads of a scalar ``measure``, in units of σ between the
-    reference's pads ({} for a vector measure or a reference without spread)."""
+    """Per seed, the largest |setting − reference| over its pads of a scalar ``measure``, each pad in units of σ
+    between the reference's pads of its member (an LF state: the rule judges each member on its own σ); {} for a
+    vector measure or a member without spread."""
     ref = reference_of(reg)["values"][measure]
     if any(isinstance(v, list) for v in ref):
         return {}
-    sigma = float(np.nanstd(np.asarray(ref, dtype=float), ddof=1))
-    if not sigma > 0:
-        return {}
+    vals = setting["values"][measure]
     out: dict[int, float] = {}
-    for p, a, b in zip(reg["pads"], setting["values"][measure], ref, strict=True):
-        if isinstance(a, (int, float)) and isinstance(b, (int, float)) and math.isfinite(a - b):
-            out[p["seed"]] = max(out.get(p["seed"], 0.0), abs(a - b) / sigma)
+    for idx in _members(reg).values():
+        sigma = float(np.nanstd(np.asarray([ref[i] for i in idx], dtype=float), ddof=1))
+        if not sigma > 0:
+            return {}
+        for i in idx:
+            a, b = vals[i], ref[i]
+            if isinstance(a, (int, float)) and isinstance(b, (int, float)) and math.isfinite(a - b):
+                out[reg["pads"][i]["seed"]] = max(out.get(reg["pads"][i]["seed"], 0.0), abs(a - b) / sigma)
     return out
 
 
 def outlier_bound(n: int) -> float:
-    """The largest |d|/σ that ``n`` seeds of two runs that have parted give by chance (d of standard deviation √2 σ)
-    at the two-sided 5 % level over all of them (Bonferroni): √2 z(1 − 0.025/n); 5.0 for 128 seeds."""
+    """The largest |d|/σ that ``n`` pads of two runs that have parted give by chance (d of standard deviation √2 σ)
+    at the two-sided 5 % level over all of them (Bonferroni): √2 z(1 − 0.025/n); 5.0 for 128 pads."""
     import scipy.stats
 
     return math.sqrt(2.0) * float(scipy.stats.norm.ppf(1.0 - 0.025 / max(n, 1)))
@@ -438,7 +443,7 @@ def one_seed_notes(reg: dict[str, Any], choice: Choice, rule: float, criterion: 
     every measure once the one seed whose pads differ most from the reference's in those measures is left out, that
     seed an outlier (its difference past :func:`outlier_bound`): a sentence naming it (a verdict decided by one seed,
     such as a pad that turns tonal in one run and not in the other). [] when there is none."""
-    bound = outlier_bound(len({p["seed"] for p in reg["pads"]}))
+    bound = outlier_bound(len(reg["pads"]))  # every pad compared: seeds × members
     parts = []
     for label, names in choice.fails.items():
         s = row_of(reg, label)
@@ -461,9 +466,10 @@ def one_seed_notes(reg: dict[str, Any], choice: Choice, rule: float, criterion: 
             parts.append(f"`{label}` without seed {seed} (its pads' largest difference from the reference's: {what})")
     if not parts:
         return []
-    return [f"Decided by one seed: these cheaper settings keep every measure once that seed, an outlier (past "
-            f"{bound:.2g} σ, the largest difference the seeds of two parted runs give by chance at 5 %), is left "
-            "out, the rule applied as above to the other seeds: " + "; ".join(parts) + "."]  # fmt: skip
+    return [f"Decided by one seed: each of these cheaper settings keeps every measure once the seed it names is left "
+            f"out (the rule applied as above to the other seeds), a seed whose pads differ from the reference's by "
+            f"more than the {bound:.3g} σ the pads of two parted runs reach by chance (at 5 % over all pads): "
+            + "; ".join(parts) + "."]  # fmt: skip
 
 
 def versions_text(rows: Sequence[dict[str, Any]]) -> list[str]:

@@ -79,9 +79,9 @@ STEPPING: dict[str, Stepping] = {
         "36 ms: every growth measure within a quarter of the spread between seeds, μ mean and μ rise at 0.24 σ the "
         "closest) and for the paper-clock record itself (48 pads, 0.36 s: every measure within 0.18 σ). For va_equal "
         "(128 pads, made anew on the kernels with the fp32 damping fix) the rule keeps only its reference, by one "
-        "seed: the STFT maximum is undecided at 1e-7 and 5e-8 s because that seed's pad turns tonal in those runs "
-        "and not in the reference, and without it both steps keep every measure; 10 steps "
-        "per µs sample, an event every 50 steps; fp32 as the on-chip record",
+        "seed: the STFT maximum is undecided at 1e-7 and 5e-8 s (at 5e-8 s the tonality change too) because that "
+        "seed's pad turns tonal in those runs and not in the reference, and without it both steps keep every measure; "
+        "10 steps per µs sample, an event every 50 steps; fp32 as the on-chip record",
     ),
     "ms_fast": Stepping(
         dt=5.0e-8,
