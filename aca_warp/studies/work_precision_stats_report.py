@@ -442,7 +442,8 @@ def one_seed_notes(reg: dict[str, Any], choice: Choice, rule: float, criterion: 
     """For each completed setting cheaper than the pick that moves no measure, only leaves some undecided, and keeps
     every measure once the one seed whose pads differ most from the reference's in those measures is left out, that
     seed an outlier (its difference past :func:`outlier_bound`): a sentence naming it (a verdict decided by one seed,
-    such as a pad that turns tonal in one run and not in the other). [] when there is none."""
+    such as a pad that turns tonal in one run and not in the other). [] when there is none. Settings dearer than the
+    pick are not looked at (va's 1e-7 s, dearer than its pick 2.5e-7 s, is decided by its tonal pads too)."""
     bound = outlier_bound(len(reg["pads"]))  # every pad compared: seeds × members
     parts = []
     for label, names in choice.fails.items():
@@ -468,8 +469,8 @@ def one_seed_notes(reg: dict[str, Any], choice: Choice, rule: float, criterion: 
         return []
     return [f"Decided by one seed: each of these cheaper settings keeps every measure once the seed it names is left "
             f"out (the rule applied as above to the other seeds), a seed whose pads differ from the reference's by "
-            f"more than the {bound:.3g} σ the pads of two parted runs reach by chance (at 5 % over all pads): "
-            + "; ".join(parts) + "."]  # fmt: skip
+            f"more than the {bound:.3g} σ the pads of two parted runs reach by chance (at 5 % over all pads); the "
+            "rule's verdict stands, this names what decides it: " + "; ".join(parts) + "."]  # fmt: skip
 
 
 def versions_text(rows: Sequence[dict[str, Any]]) -> list[str]:
