@@ -467,7 +467,7 @@ def one_seed_notes(reg: dict[str, Any], choice: Choice, rule: float, criterion: 
             parts.append(f"`{label}` without seed {seed} (its pads' largest difference from the reference's: {what})")
     if not parts:
         return []
-    return [f"Decided by one seed: each of these cheaper settings keeps every measure once the seed it names is left "
+    return [f"Kept without one seed: each of these cheaper settings keeps every measure once the seed it names is left "
             f"out (the rule applied as above to the other seeds), a seed whose pads differ from the reference's by "
             f"more than the {bound:.3g} σ the pads of two parted runs reach by chance (at 5 % over all pads); the "
             "rule's verdict stands, this names what decides it: " + "; ".join(parts) + "."]  # fmt: skip
