@@ -142,7 +142,8 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         type=spacing,
         metavar="S",
         help="simulated time between the growth events of a growing scene [s] (default with strang: 5e-6, where "
-        "the statistics of growing pads keep every measure at --dt 5e-8 and 1e-7, or the scene's growth interval "
+        "the statistics of growing pads keep every measure at --dt 5e-8 and 1e-7 but the STFT maximum, which the "
+        "pads that turn tonal leave undecided (docs/work_precision_statistics.md), or the scene's growth interval "
         "if longer or the run shorter; with the other integrators, or 'scene', the scene's interval, the paper's "
         "clock of 2.02e-7 s for varying_area); each event adds the increment scaled to the spacing, so growth per "
         "simulated time stays the scene's (docs/model.md 2.10); events cost several steps each; refused for a "
