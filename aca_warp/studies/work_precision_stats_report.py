@@ -14,8 +14,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from aca_warp.studies.report import fmt, generated_markers, md_table, replace_generated, save_figure
 from aca_warp.studies.work_precision_stats_merge import ABSENT
 from aca_warp.studies.work_precision_stats_rule import (
@@ -27,6 +25,7 @@ from aca_warp.studies.work_precision_stats_rule import (
     keep_chance,
     kept,
     load_results,
+    member_comparisons,
     reference_of,
     resolution_floor,
     seeds_needed,
@@ -411,22 +410,22 @@ def without_seeds(reg: dict[str, Any], seeds: set[int]) -> dict[str, Any]:
 
 
 def seed_differences(reg: dict[str, Any], setting: dict[str, Any], measure: str) -> dict[int, float]:
-    """Per seed, the largest |setting − reference| over its pads of a scalar ``measure``, each pad in units of σ
-    between the reference's pads of its member (an LF state: the rule judges each member on its own σ); {} for a
-    vector measure or a member without spread."""
+    """Per seed, the largest |setting − reference| over its pads of a scalar ``measure``, each pad in units of its
+    member's σ as the rule takes it (:func:`member_comparisons`: an LF state is judged on its own σ); {} for a vector
+    measure or a member without spread."""
     ref = reference_of(reg)["values"][measure]
     if any(isinstance(v, list) for v in ref):
         return {}
     vals = setting["values"][measure]
     out: dict[int, float] = {}
-    for idx in _members(reg).values():
-        sigma = float(np.nanstd(np.asarray([ref[i] for i in idx], dtype=float), ddof=1))
-        if not sigma > 0:
+    comparisons = member_comparisons(reg, setting, measure)
+    for c, idx in zip(comparisons, _members(reg).values(), strict=True):  # the same members, in the same order
+        if not c.sigma > 0:
             return {}
         for i in idx:
             a, b = vals[i], ref[i]
             if isinstance(a, (int, float)) and isinstance(b, (int, float)) and math.isfinite(a - b):
-                out[reg["pads"][i]["seed"]] = max(out.get(reg["pads"][i]["seed"], 0.0), abs(a - b) / sigma)
+                out[reg["pads"][i]["seed"]] = max(out.get(reg["pads"][i]["seed"], 0.0), abs(a - b) / c.sigma)
     return out
 
 
@@ -448,8 +447,7 @@ def one_seed_notes(reg: dict[str, Any], choice: Choice, rule: float, criterion: 
     parts = []
     for label, names in choice.fails.items():
         s = row_of(reg, label)
-        verdicts = {m: verdict(reg, s, m, rule, criterion) for m in names}
-        if any(v != "undecided" for v in verdicts.values()):
+        if any(verdict(reg, s, m, rule, criterion) != "undecided" for m in names):
             continue
         diffs = {m: seed_differences(reg, s, m) for m in names}
         if not all(diffs.values()):
