@@ -247,6 +247,7 @@ def test_stepping_is_each_regimes_pick_of_the_statistical_work_precision_or_an_o
     from pathlib import Path
 
     from aca_warp.hf.solver import StepEstimate, friction_step
+    from aca_warp.studies import work_precision_stats_report as wps_report
     from aca_warp.studies import work_precision_stats_rule as rule
     from aca_warp.studies.validation import settings as VSet
     from aca_warp.studies.validation.base import EXPERIMENTS
@@ -257,8 +258,8 @@ def test_stepping_is_each_regimes_pick_of_the_statistical_work_precision_or_an_o
     # each entry is the rule's pick from the committed result files of docs/work_precision_statistics.md
     wps = Path(__file__).resolve().parent.parent / "docs" / "figures" / "work_precision_statistics"
     files = {"hf1": "wps_cuda0_hf1.json", "hf2": "wps_cuda0_hf2.json", "hf3": "wps_cuda0_hf3.json",
-             "hf4": "wps_cuda0_hf4.json", "va": "growth_events/wps_cuda0_va.json",
-             "va_full": "growth_events/wps_cuda0_va_full.json", "ms_fast": "wps_cuda0_ms_fast.json",
+             "hf4": "wps_cuda0_hf4.json", "va_full": "growth_events/wps_cuda01_va_full.json",
+             "ms_fast": "wps_cuda0_ms_fast.json",
              "ms_short": "wps_cuda01_ms_short.json", "ms_mid": "wps_cuda01_ms_mid.json",
              "ms_app3": "wps_cuda0123_ms_app3.json"}  # fmt: skip
     picks = {}
@@ -272,9 +273,19 @@ def test_stepping_is_each_regimes_pick_of_the_statistical_work_precision_or_an_o
     assert picks["hf4"] == ("strang", "fp32", 5e-7, None)
     hf = cfg.stepping("hf")  # the presets' batches: the finest of their picks
     assert (hf.integrator, hf.precision, hf.dt, hf.growth_dt) == min((picks[r] for r in PRESETS), key=lambda p: p[2])
-    # the growth experiments: both growing regimes (the compressed va and the paper-clock record) pick one setting
-    assert picks["va"] == picks["va_full"] == ("strang", "fp32", 1e-7, 5e-6)
-    for key, regime in (("growth", "va"), ("ms_fast", "ms_fast"), ("ms_short", "ms_short"), ("ms_mid", "ms_mid"),
+    # the growth experiments run at the paper-clock record's pick (96 seeds of 0.36 s); in the compressed regime
+    # (128 seeds) that setting, cheaper than the pick there, moves no measure and leaves only the STFT maximum
+    # undecided, by one seed whose pad turns tonal in its runs and not in the reference's
+    assert picks["va_full"] == ("strang", "fp32", 1e-7, 5e-6)
+    va = rule.load_results(wps / "wps_cuda0_va.json")["regimes"]["va"]
+    growth = next(s for s in va["settings"] if s["label"] == "strang@fp32:dt=1e-07:growth_dt=5e-06")
+    verdicts = {m: rule.verdict(va, growth, m, 0.25) for m in rule.measures_of(va["kind"])}
+    assert {m for m, v in verdicts.items() if not rule.kept(v)} == {"stft_amplitude"}
+    assert verdicts["stft_amplitude"] == "undecided"
+    calm = wps_report.without_seeds(va, {3})
+    growth = next(s for s in calm["settings"] if s["label"] == growth["label"])
+    assert all(rule.kept(rule.verdict(calm, growth, m, 0.25)) for m in verdicts)
+    for key, regime in (("growth", "va_full"), ("ms_fast", "ms_fast"), ("ms_short", "ms_short"), ("ms_mid", "ms_mid"),
                         ("ms_app3", "ms_app3")):  # fmt: skip
         st = cfg.stepping(key)
         assert (st.integrator, st.precision, st.dt, st.growth_dt) == picks[regime], key

@@ -683,7 +683,7 @@ def test_committed_parts_continue_under_the_current_settings():
 
     root = Path(__file__).resolve().parent.parent / "docs" / "figures" / "work_precision_statistics"
     parts = sorted((root / "growth_events").glob("*_parts/s*/wps_*.json"))
-    assert len(parts) == 6
+    assert len(parts) == 7
     for path in parts:
         doc = json.loads(path.read_text())
         args = wps.build_parser().parse_args(shlex.split(doc["commands"][-1])[2:])
@@ -894,16 +894,18 @@ def test_errors_by_part_split_a_merged_regime_by_seed(tmp_path, capsys):
 
 
 def test_the_pages_part_by_part_tables_are_the_scripts_output():
-    """Every ``BY PART`` table of docs/work_precision_statistics.md is what ``--by-part FILE --measures …`` prints
-    from the committed merged result file it names."""
+    """Every ``BY PART`` table of the docs is what ``--by-part FILE --measures …`` prints from the committed merged
+    result file it names."""
     from pathlib import Path
 
     from aca_warp.studies.work_precision_stats_merge import errors_by_part
 
     repo = Path(__file__).resolve().parent.parent
-    text = (repo / "docs" / "work_precision_statistics.md").read_text()
-    blocks = re.findall(r"<!-- BY PART (\S+) ([^>]+?) -->\n(.*?)<!-- END BY PART -->", text, flags=re.S)
-    assert len(blocks) >= 2
+    blocks = []
+    for page in sorted((repo / "docs").rglob("*.md")):
+        text = page.read_text()
+        blocks += re.findall(r"<!-- BY PART (\S+) ([^>]+?) -->\n(.*?)<!-- END BY PART -->", text, flags=re.S)
+    assert len(blocks) >= 3
     for path, measures, table in blocks:
         printed = errors_by_part(rule.load_results(repo / path), measures.split())
         assert printed.split("\n\n", 1)[1] == table, path
@@ -988,19 +990,20 @@ def test_growth_events_page_is_what_merge_and_report_write(monkeypatch):
     monkeypatch.chdir(repo)  # the parts named as the page's command names them
     folder = repo / "docs" / "figures" / "work_precision_statistics" / "growth_events"
     docs, names = [], []
-    for regime in ("va", "va_full"):
-        merged = rule.load_results(folder / f"wps_cuda0_{regime}.json")
-        parts = sorted(p.relative_to(repo) for p in (folder / f"{regime}_parts").glob(f"*/wps_cuda0_{regime}.json"))
-        assert len(parts) == 3
+    for regime, tag, count in (("va", "cuda0", 3), ("va_full", "cuda01", 4)):
+        merged = rule.load_results(folder / f"wps_{tag}_{regime}.json")
+        parts = sorted(p.relative_to(repo) for p in (folder / f"{regime}_parts").glob(f"*/wps_cuda*_{regime}.json"))
+        assert len(parts) == count
         assert json.loads(json.dumps(clean(merge(parts)))) == merged
         docs.append(merged)
-        names.append(f"growth_events/wps_cuda0_{regime}.json")
+        names.append(f"growth_events/wps_{tag}_{regime}.json")
     page = folder / "README.md"
     text = page.read_text()
-    body = wps_report.render(docs, names, [folder / "wps_cuda0.png"], page, 0.25, None, "resolution")
+    figures = [folder / "wps_cuda0.png", folder / "wps_cuda01.png"]  # one per device tag: va's, va_full's
+    body = wps_report.render(docs, names, figures, page, 0.25, None, "resolution")
     begin, end = wps_report.generated_markers(wps_report.MARKER)
     assert text.split(begin, 1)[1].split(end, 1)[0] == "\n" + "\n".join(body) + "\n"
-    assert len(docs[0]["regimes"]["va"]["pads"]) == 96 and len(docs[1]["regimes"]["va_full"]["pads"]) == 48
+    assert len(docs[0]["regimes"]["va"]["pads"]) == 96 and len(docs[1]["regimes"]["va_full"]["pads"]) == 96
     for doc, regime in zip(docs, ("va", "va_full"), strict=True):
         assert rule.settings_for(doc, regime).setting == "strang@fp32:dt=1e-07:growth_dt=5e-06"
 
@@ -1148,3 +1151,76 @@ def test_a_run_stopped_past_max_wall_is_written_as_not_run_and_run_by_a_later_ca
     assert wps.main(argv) == 0
     reg = json.loads((out / "wps_cpu_quick_hf1.json").read_text())["regimes"]["hf1"]
     assert [s["complete"] for s in reg["settings"]] == [True, True]
+
+
+def test_pads_far_from_the_median_are_listed_by_setting(tmp_path, capsys):
+    """32 pads whose STFT maximum sits near 1.7e-3 but for seed 5, tonal (×6) in the reference only, and seed 9,
+    tonal (×4) in the setting's run only: each listed where it is far from its setting's median, with its value in
+    units of the median and its difference from the reference's value of the same pad in units of σ; a signed measure
+    is left out with a line; two members each take their own σ; bad input is refused."""
+    from aca_warp.studies.work_precision_stats_pads import pads_far_from_median
+
+    rng = np.random.default_rng(3)
+    base = 1.7e-3 * np.exp(0.05 * rng.standard_normal(32))
+    ref, run = base.copy(), base.copy()
+    ref[4] *= 6.0  # seed 5
+    run[8] *= 4.0  # seed 9
+    signed = (-0.6 + 0.05 * rng.standard_normal(32)).tolist()
+    reg = {"name": "syn", "measures": ["stft_amplitude", "line_first"], "pads": [{"seed": s + 1} for s in range(32)],
+           "settings": [_setting("strang@fp32:dt=1e-08", "reference", 10.0,
+                                 {"stft_amplitude": ref.tolist(), "line_first": signed}),
+                        _setting("strang@fp32:dt=1e-07", "grid", 1.0,
+                                 {"stft_amplitude": run.tolist(), "line_first": signed}),
+                        _setting("strang@fp32:dt=5e-07", "grid", 1.0, {}, complete=False)]}  # fmt: skip
+    text = pads_far_from_median({"regimes": {"syn": reg}})
+    sigma = float(np.std(ref, ddof=1))
+    rows = [line for line in text.splitlines() if line.startswith("| STFT max |")]
+    assert len(rows) == 2  # the reference and the completed setting; the run that did not complete is not listed
+    assert "(reference)" in rows[0] and f"| 5: {ref[4] / np.median(ref):.1f}×, +0.0 σ |" in rows[0]
+    d9 = (run[8] - ref[8]) / sigma
+    assert rows[1].endswith(f"| {np.median(run):.4g} | 9: {run[8] / np.median(run):.1f}×, {d9:+.1f} σ |")
+    assert "first line Δln f: left out" in text
+    assert "| 9:" not in pads_far_from_median({"regimes": {"syn": reg}}, ["stft_amplitude"], factor=5.0)
+    # two members per seed: member b's values 100 times a's, each pad in units of its own member's σ
+    two = json.loads(json.dumps(reg))
+    two["pads"] = [{"seed": k % 16 + 1, "member": "ab"[k // 16]} for k in range(32)]
+    wide = np.where(np.arange(32) < 16, 1.0, 100.0)
+    for s in two["settings"][:2]:
+        s["values"]["stft_amplitude"] = (np.array(s["values"]["stft_amplitude"]) * wide).tolist()
+    text = pads_far_from_median({"regimes": {"syn": two}}, ["stft_amplitude"], factor=2.0)
+    b_rows = [line for line in text.splitlines() if line.startswith("| STFT max | b |")]
+    assert len(b_rows) == 2 and all(line.endswith("| none |") for line in b_rows)  # b's pads: no tonal one
+    (a_ref,) = [line for line in text.splitlines() if line.startswith("| STFT max | a | `strang@fp32:dt=1e-08`")]
+    assert "| 5: " in a_ref and "| 5: " not in text.split(a_ref)[1]  # seed 5 is pad 4, in member a
+    a_sigma = float(np.std(ref[:16], ddof=1))
+    assert f"9: {run[8] / np.median(run[:16]):.1f}×, {(run[8] - ref[8]) / a_sigma:+.1f} σ" in text
+    with pytest.raises(ValueError, match="exceed 1"):
+        pads_far_from_median({"regimes": {"syn": reg}}, factor=1.0)
+    with pytest.raises(ValueError, match="one regime"):
+        pads_far_from_median({"regimes": {"a": reg, "b": reg}})
+    with pytest.raises(ValueError, match="has no measure"):
+        pads_far_from_median({"regimes": {"syn": reg}}, ["phi"])
+    path = tmp_path / "wps_cpu_syn.json"
+    path.write_text(json.dumps({"regimes": {"syn": reg}}))
+    assert wps.main(["--by-pad", str(path), "--measures", "stft_amplitude"]) == 0
+    assert "| 5: " in capsys.readouterr().out
+    assert wps.main(["--by-pad", str(path), "--factor", "0.5"]) == 2
+    assert "exceed 1" in capsys.readouterr().err
+
+
+def test_the_pages_pad_tables_are_the_scripts_output():
+    """Every ``BY PAD`` table of the docs is what ``--by-pad FILE --factor F --measures …`` prints from the committed
+    result file it names."""
+    from pathlib import Path
+
+    from aca_warp.studies.work_precision_stats_pads import pads_far_from_median
+
+    repo = Path(__file__).resolve().parent.parent
+    blocks = []
+    for page in sorted((repo / "docs").rglob("*.md")):
+        text = page.read_text()
+        blocks += re.findall(r"<!-- BY PAD (\S+) (\S+) ([^>]+?) -->\n(.*?)<!-- END BY PAD -->", text, flags=re.S)
+    assert len(blocks) >= 3
+    for path, factor, measures, table in blocks:
+        printed = pads_far_from_median(rule.load_results(repo / path), measures.split(), float(factor))
+        assert printed.split("\n\n", 1)[1] == table, path

@@ -40,11 +40,11 @@ STATISTICS_STEP = 5.0e-8
 # regime's pick was fp32); the other integrators compute in fp64 unless asked (pointwise μ to 1e-7 and below)
 STATISTICS_PRECISION = "fp32"
 POINTWISE_PRECISION = "fp64"
-# strang's default spacing of a growing pad's growth events [s]: the statistics of growing pads kept every measure
-# with events every 5 µs at 5e-8 s and 1e-7 s before the fp32 fix (the compressed regime over 96 seeds, the 0.36 s
-# record over 48); on the fixed kernels (128 seeds of the compressed regime) every measure but the STFT maximum, which
-# the pads that turn tonal leave undecided (docs/work_precision_statistics.md, "Growth events"); each event adds the
-# increment scaled to its spacing, so the growth rate stays the scene's
+# strang's default spacing of a growing pad's growth events [s]: on the kernels with the fp32 fix the statistics of
+# growing pads keep every measure with events every 5 µs at 5e-8 s and 1e-7 s over 96 seeds of the 0.36 s record, and
+# every measure but the STFT maximum over 128 seeds of the compressed regime, which a pad that turns tonal leaves
+# undecided (docs/work_precision_statistics.md, "Growth events"); each event adds the increment scaled to its
+# spacing, so the growth rate stays the scene's
 STATISTICS_GROWTH_DT = 5.0e-6
 DEFAULT_TOLERANCE = 1.0e-5  # adaptive: μ errors ≤ 1e-7 on hf1 and stick-slip (docs/time_to_solution.md)
 # controlled: the rms over a pad of the per-patch local velocity errors of a step, relative to the patch's velocity

@@ -49,6 +49,7 @@ by ``--merge``
     python3 scripts/work_precision_stats.py --report wps/wps_cuda0_*.json                       # figure + page
     python3 scripts/work_precision_stats.py --merge part*/wps_cuda*_ms_app3.json --out wps     # parts into one
     python3 scripts/work_precision_stats.py --by-part wps/wps_cuda0_hf3.json --measures sync_excess  # part by part
+    python3 scripts/work_precision_stats.py --by-pad wps/wps_cuda0_va.json --measures stft_amplitude  # tonal pads
 """
 
 from __future__ import annotations
@@ -77,6 +78,7 @@ from aca_warp.studies.validation.base import EXPERIMENTS, FULL, QUICK, close_poo
 from aca_warp.studies.validation.cli import default_workers
 from aca_warp.studies.validation.experiments import Collector, prepare
 from aca_warp.studies.validation.multiscale import ensure_lf
+from aca_warp.studies.work_precision_stats_pads import DEFAULT_FACTOR
 from aca_warp.studies.work_precision_stats_rule import (
     CRITERIA,
     DEFAULT_CRITERION,
@@ -616,6 +618,16 @@ def build_parser() -> argparse.ArgumentParser:
         "over all pads and over each part's pads alone, for a merged result file (--measures: which)",
     )
     ap.add_argument(
+        "--by-pad",
+        metavar="JSON",
+        help="only print (Markdown), for a result file of one regime, per setting the pads' median of each measure "
+        "with positive values and every pad at --factor × that median or more (seed, value / median, difference from "
+        "the reference's value of the pad in units of σ): the few pads that decide a heavy-tailed measure such as a "
+        "growing pad's STFT maximum (--measures: which)",
+    )
+    ap.add_argument("--factor", type=positive, default=DEFAULT_FACTOR, help="with --by-pad: how many times the pads' "
+                    f"median a pad's value must reach to be listed ({DEFAULT_FACTOR:g})")  # fmt: skip
+    ap.add_argument(
         "--steps",
         metavar="JSON",
         help="only print (Markdown) each fixed-step setting's error ± its 95 %% half-width in units of σ, family by "
@@ -691,8 +703,10 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.precision_pairs and not args.steps:
         ap.error("--precision-pairs goes with --steps FILE")
-    if args.again and (args.report or args.merge or args.by_part or args.steps):
-        ap.error("--again goes with a call that measures (not with --report, --merge, --by-part or --steps)")
+    if args.factor != DEFAULT_FACTOR and not args.by_pad:
+        ap.error("--factor goes with --by-pad FILE")
+    if args.again and (args.report or args.merge or args.by_part or args.by_pad or args.steps):
+        ap.error("--again goes with a call that measures (not with --report, --merge, --by-part, --by-pad or --steps)")
     if args.report:
         from aca_warp.common.errors import AcaError
         from aca_warp.common.files import check_output_path
@@ -714,6 +728,16 @@ def main(argv: list[str] | None = None) -> int:
 
         try:
             print(errors_by_part(load_results(Path(args.by_part)), args.measures), end="")
+        except (OSError, ValueError, KeyError) as e:
+            print(f"work_precision_stats: {e}", file=sys.stderr)
+            return 2
+        return 0
+    if args.by_pad:
+        from aca_warp.studies.work_precision_stats_pads import pads_far_from_median
+        from aca_warp.studies.work_precision_stats_rule import load_results
+
+        try:
+            print(pads_far_from_median(load_results(Path(args.by_pad)), args.measures, args.factor), end="")
         except (OSError, ValueError, KeyError) as e:
             print(f"work_precision_stats: {e}", file=sys.stderr)
             return 2

@@ -73,19 +73,19 @@ STEPPING: dict[str, Stepping] = {
     "growth": Stepping(
         dt=1.0e-7,
         growth_dt=5.0e-6,
-        reason="the varying-area growth (§3.2): the statistical work-precision on one H200 (against strang fp32 at "
-        '1e-8 s on the paper\'s clock; docs/work_precision_statistics.md, "Growth events") picks strang fp32 at '
-        "1e-7 s with growth events every 5 µs (the growth rate kept) both for va (96 pads, growth compressed × 10, "
-        "36 ms: every growth measure within a quarter of the spread between seeds, μ mean and μ rise at 0.24 σ the "
-        "closest) and for the paper-clock record itself (48 pads, 0.36 s: every measure within 0.18 σ), both before "
-        "the fp32 damping fix. On the fixed kernels, in the study's own va file (128 pads, its reference made anew), "
-        "this setting keeps every measure but the STFT maximum, left undecided by the pads that turn tonal in one "
-        "run and not the other (seed 3 in its runs, 15 σ from the reference; without that seed every measure is "
-        "kept). For va_equal "
-        "(128 pads, made anew on the kernels with the fp32 damping fix) the rule keeps only its reference, by one "
-        "seed: the STFT maximum is undecided at 1e-7 and 5e-8 s (at 5e-8 s the tonality change too) because that "
-        "seed's pad turns tonal in those runs and not in the reference, and without it both steps keep every measure; "
-        "10 steps per µs sample, an event every 50 steps; fp32 as the on-chip record",
+        reason="the varying-area growth (§3.2): the statistical work-precision on H200s (against strang fp32 at "
+        '1e-8 s on the paper\'s clock; docs/work_precision_statistics.md, "Growth events"), on the kernels with the '
+        "fp32 damping fix, picks strang fp32 at 1e-7 s with growth events every 5 µs (the growth rate kept) for the "
+        "paper-clock record itself (96 pads, 0.36 s: every measure within a quarter of the spread between seeds, the "
+        "STFT maximum's frequency at 0.23 σ the largest; μ's rise 0.20 σ low, as at 1e-7 s with every spacing). For "
+        "va (128 pads, growth compressed × 10, 36 ms; the rule's pick there is 2.5e-7 s on the paper's clock) this "
+        "setting keeps every measure but the STFT maximum, left undecided by a pad that turns tonal in one run and "
+        "not the other (seed 3 in its runs, 15 σ from the reference; without that seed every measure is kept); before "
+        "the fix it was va's pick too (96 pads). For va_equal (128 pads, made anew on the kernels with the fp32 "
+        "damping fix) the rule keeps only its reference, by one seed: the STFT maximum is undecided at 1e-7 and "
+        "5e-8 s (at 5e-8 s the tonality change too) because that seed's pad turns tonal in those runs and not in the "
+        "reference, and without it both steps keep every measure; 10 steps per µs sample, an event every 50 steps; "
+        "fp32 as the on-chip record",
     ),
     "ms_fast": Stepping(
         dt=5.0e-8,
