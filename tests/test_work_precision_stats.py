@@ -1181,6 +1181,14 @@ def test_pads_far_from_the_median_are_listed_by_setting(tmp_path, capsys):
     assert rows[1].endswith(f"| {np.median(run):.4g} | 9: {run[8] / np.median(run):.1f}×, {d9:+.1f} σ |")
     assert "first line Δln f: left out" in text
     assert "| 9:" not in pads_far_from_median({"regimes": {"syn": reg}}, ["stft_amplitude"], factor=5.0)
+    edge = json.loads(json.dumps(reg))  # a pad at exactly the factor × the median counts (above the median already)
+    k = int(np.flatnonzero(run > np.median(run))[0])
+    vals = run.copy()
+    vals[k] = 3.0 * float(np.median(run))
+    assert float(np.median(vals)) == float(np.median(run))
+    edge["settings"][1]["values"]["stft_amplitude"] = vals.tolist()
+    listed = pads_far_from_median({"regimes": {"syn": edge}}, ["stft_amplitude"]).replace("; ", "| ")
+    assert f"| {k + 1}: 3.0×" in listed
     # two members per seed: member b's values 100 times a's, each pad in units of its own member's σ
     two = json.loads(json.dumps(reg))
     two["pads"] = [{"seed": k % 16 + 1, "member": "ab"[k // 16]} for k in range(32)]
@@ -1206,6 +1214,10 @@ def test_pads_far_from_the_median_are_listed_by_setting(tmp_path, capsys):
     assert "| 5: " in capsys.readouterr().out
     assert wps.main(["--by-pad", str(path), "--factor", "0.5"]) == 2
     assert "exceed 1" in capsys.readouterr().err
+    for argv in (["--factor", "3"], ["--by-pad", str(path), "--report", str(path)], ["--by-pad", str(path), "--again"]):
+        with pytest.raises(SystemExit):  # the default factor without --by-pad too: refused before anything runs
+            wps.main(argv)
+    assert "--by-pad" in capsys.readouterr().err
 
 
 def test_the_pages_pad_tables_are_the_scripts_output():

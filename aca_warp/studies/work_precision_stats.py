@@ -625,7 +625,7 @@ def build_parser() -> argparse.ArgumentParser:
         "the reference's value of the pad in units of σ): the few pads that decide a heavy-tailed measure such as a "
         "growing pad's STFT maximum (--measures: which)",
     )
-    ap.add_argument("--factor", type=positive, default=DEFAULT_FACTOR, help="with --by-pad: how many times the pads' "
+    ap.add_argument("--factor", type=positive, default=None, help="with --by-pad: how many times the pads' "
                     f"median a pad's value must reach to be listed ({DEFAULT_FACTOR:g})")  # fmt: skip
     ap.add_argument(
         "--steps",
@@ -703,9 +703,13 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.precision_pairs and not args.steps:
         ap.error("--precision-pairs goes with --steps FILE")
-    if args.factor != DEFAULT_FACTOR and not args.by_pad:
+    if args.factor is not None and not args.by_pad:
         ap.error("--factor goes with --by-pad FILE")
-    if args.again and (args.report or args.merge or args.by_part or args.by_pad or args.steps):
+    only = [flag for flag, given in (("--report", args.report), ("--merge", args.merge), ("--by-part", args.by_part),
+                                     ("--by-pad", args.by_pad), ("--steps", args.steps)) if given]  # fmt: skip
+    if len(only) > 1:
+        ap.error(f"{' and '.join(only)} each do one thing alone: give one of them")
+    if args.again and only:
         ap.error("--again goes with a call that measures (not with --report, --merge, --by-part, --by-pad or --steps)")
     if args.report:
         from aca_warp.common.errors import AcaError
@@ -737,7 +741,8 @@ def main(argv: list[str] | None = None) -> int:
         from aca_warp.studies.work_precision_stats_rule import load_results
 
         try:
-            print(pads_far_from_median(load_results(Path(args.by_pad)), args.measures, args.factor), end="")
+            factor = DEFAULT_FACTOR if args.factor is None else args.factor
+            print(pads_far_from_median(load_results(Path(args.by_pad)), args.measures, factor), end="")
         except (OSError, ValueError, KeyError) as e:
             print(f"work_precision_stats: {e}", file=sys.stderr)
             return 2

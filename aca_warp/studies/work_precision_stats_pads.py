@@ -21,6 +21,7 @@ from aca_warp.studies.work_precision_stats_rule import (
     _matrix,
     _members,
     measures_asked,
+    member_comparisons,
     reference_of,
     usable,
 )
@@ -30,7 +31,9 @@ DEFAULT_FACTOR = 3.0
 
 
 def _cell(seeds: np.ndarray, v: np.ndarray, r: np.ndarray, median: float, sigma: float, far: np.ndarray) -> str:
-    """The far pads of one setting: ``seed: value / median ×, difference / σ`` each, or "none"."""
+    """The far pads of one setting and member: ``seed: value / median ×, difference / σ`` each, or "none".
+    ``seeds``, ``v`` (the setting's values), ``r`` (the reference's) and ``far`` (bool): shape (pads of the member,);
+    ``median`` in the measure's unit, ``sigma`` the member's σ between seeds in it."""
     parts = []
     for k in np.flatnonzero(far):
         d = (v[k] - r[k]) / sigma if sigma > 0 else math.nan
@@ -38,14 +41,39 @@ def _cell(seeds: np.ndarray, v: np.ndarray, r: np.ndarray, median: float, sigma:
     return "; ".join(parts) or "none"
 
 
+def _listable(reg: dict[str, Any], measure: str) -> bool:
+    """A scalar measure whose finite reference values are all positive (a median and ratios to it mean something)."""
+    r = _matrix(reference_of(reg)["values"][measure])
+    finite = r[np.isfinite(r)] if r.ndim == 1 else r
+    return r.ndim == 1 and finite.size > 0 and bool(np.all(finite > 0))
+
+
+def _rows(reg: dict[str, Any], measure: str, factor: float, settings: list[dict[str, Any]]) -> list[str]:
+    """The table rows of one measure: per member and setting, the pads' median and the far pads (:func:`_cell`),
+    each difference in units of the member's σ as the rule's comparison takes it (:func:`member_comparisons`)."""
+    ref = reference_of(reg)
+    seeds = np.array([int(p["seed"]) for p in reg["pads"]])
+    out = []
+    for k, (member, idx) in enumerate(_members(reg).items()):
+        r = _matrix([ref["values"][measure][i] for i in idx])
+        for s in settings:
+            v = _matrix([s["values"][measure][i] for i in idx])
+            median = float(np.nanmedian(v))
+            sigma = member_comparisons(reg, s, measure)[k].sigma
+            label = f"`{s['label']}`" + (" (reference)" if s is ref else "")
+            cell = _cell(seeds[idx], v, r, median, sigma, v >= factor * median)
+            out.append(f"| {MEASURES[measure].label} | {member or '–'} | {label} | {median:.4g} | {cell} |")
+    return out
+
+
 def pads_far_from_median(doc: dict[str, Any], measures: Sequence[str] | None = None,
                          factor: float = DEFAULT_FACTOR) -> str:  # fmt: skip
     """Markdown: per scalar measure of the file's one regime whose values are positive, member and completed setting
     (the reference first), the pads' median and every pad whose value is at least ``factor`` × that median, each
     with its seed, its value in units of the median and its difference from the reference's value of the same pad in
-    units of σ (the reference's standard deviation between the member's seeds, as the rule takes it). ``measures``:
-    default every measure of the regime; a vector measure or one with a value ≤ 0 is left out with a line saying
-    so. ValueError for a file of several regimes, a measure it lacks or a factor ≤ 1."""
+    units of σ (the reference's standard deviation between the member's seeds, as the rule's comparison takes it).
+    ``measures``: default every measure of the regime; a vector measure or one with a value ≤ 0 is left out with a
+    line saying so. ValueError for a file of several regimes, a measure it lacks or a factor ≤ 1."""
     if not factor > 1:
         raise ValueError(f"the factor must exceed 1, got {factor:g}")
     if len(doc.get("regimes", {})) != 1:
@@ -53,26 +81,14 @@ def pads_far_from_median(doc: dict[str, Any], measures: Sequence[str] | None = N
     name, reg = next(iter(doc["regimes"].items()))
     names = measures_asked(name, reg, measures)
     ref = reference_of(reg)
-    rows = [ref] + [s for s in reg["settings"] if s["role"] != "reference" and usable(s)]
-    seeds = np.array([int(p["seed"]) for p in reg["pads"]])
+    settings = [ref] + [s for s in reg["settings"] if s["role"] != "reference" and usable(s)]
     lines = ["| measure | member | setting | pads' median | pads ≥ "
              f"{factor:g} × the median (seed: value / median, difference from the reference / σ) |",
              "|---|---|---|---|---|"]  # fmt: skip
-    skipped = []
+    skipped = [MEASURES[m].label for m in names if not _listable(reg, m)]
     for m in names:
-        for member, idx in _members(reg).items():
-            r = _matrix([ref["values"][m][i] for i in idx])
-            if r.ndim != 1 or not np.all(np.isfinite(r) & (r > 0)):
-                skipped.append(MEASURES[m].label)
-                break
-            sigma = float(np.std(r, ddof=1)) if len(r) > 1 else math.nan
-            for s in rows:
-                v = _matrix([s["values"][m][i] for i in idx])
-                median = float(np.nanmedian(v))
-                far = v >= factor * median
-                label = f"`{s['label']}`" + (" (reference)" if s is ref else "")
-                cell = _cell(seeds[idx], v, r, median, sigma, far)
-                lines.append(f"| {MEASURES[m].label} | {member or '–'} | {label} | {median:.4g} | {cell} |")
-    head = f"{name}: the pads far from the median, by setting ({len(seeds)} pads)\n\n"
-    tail = "".join(f"\n{label}: left out (a vector measure, or values not all positive)\n" for label in skipped)
+        if MEASURES[m].label not in skipped:
+            lines += _rows(reg, m, factor, settings)
+    head = f"{name}: the pads far from the median, by setting ({len(reg['pads'])} pads)\n\n"
+    tail = "".join(f"\n{label}: left out (a vector measure, or a value not positive)\n" for label in skipped)
     return head + "\n".join(lines) + "\n" + tail
