@@ -9,6 +9,7 @@ import dataclasses
 import json
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,6 +18,8 @@ import scipy.stats
 from aca_warp.studies import work_precision_stats as wps
 from aca_warp.studies import work_precision_stats_report as wps_report
 from aca_warp.studies import work_precision_stats_rule as rule
+
+REPO = Path(__file__).resolve().parent.parent
 
 
 def test_compare_known_ensemble():
@@ -893,21 +896,24 @@ def test_errors_by_part_split_a_merged_regime_by_seed(tmp_path, capsys):
     assert "merged" in capsys.readouterr().err
 
 
+def _page_blocks(kind: str, head: str) -> list[tuple[str, ...]]:
+    """Every ``<!-- kind HEAD -->`` … ``<!-- END kind -->`` block of the docs pages: the groups of the regex ``head``
+    (the block's header fields), then the block's text."""
+    blocks = []
+    for page in sorted((REPO / "docs").rglob("*.md")):
+        blocks += re.findall(rf"<!-- {kind} {head} -->\n(.*?)<!-- END {kind} -->", page.read_text(), flags=re.S)
+    return blocks
+
+
 def test_the_pages_part_by_part_tables_are_the_scripts_output():
     """Every ``BY PART`` table of the docs is what ``--by-part FILE --measures …`` prints from the committed merged
     result file it names."""
-    from pathlib import Path
-
     from aca_warp.studies.work_precision_stats_merge import errors_by_part
 
-    repo = Path(__file__).resolve().parent.parent
-    blocks = []
-    for page in sorted((repo / "docs").rglob("*.md")):
-        text = page.read_text()
-        blocks += re.findall(r"<!-- BY PART (\S+) ([^>]+?) -->\n(.*?)<!-- END BY PART -->", text, flags=re.S)
+    blocks = _page_blocks("BY PART", r"(\S+) ([^>]+?)")
     assert len(blocks) >= 3
     for path, measures, table in blocks:
-        printed = errors_by_part(rule.load_results(repo / path), measures.split())
+        printed = errors_by_part(rule.load_results(REPO / path), measures.split())
         assert printed.split("\n\n", 1)[1] == table, path
 
 
@@ -1223,16 +1229,10 @@ def test_pads_far_from_the_median_are_listed_by_setting(tmp_path, capsys):
 def test_the_pages_pad_tables_are_the_scripts_output():
     """Every ``BY PAD`` table of the docs is what ``--by-pad FILE --factor F --measures …`` prints from the committed
     result file it names."""
-    from pathlib import Path
-
     from aca_warp.studies.work_precision_stats_pads import pads_far_from_median
 
-    repo = Path(__file__).resolve().parent.parent
-    blocks = []
-    for page in sorted((repo / "docs").rglob("*.md")):
-        text = page.read_text()
-        blocks += re.findall(r"<!-- BY PAD (\S+) (\S+) ([^>]+?) -->\n(.*?)<!-- END BY PAD -->", text, flags=re.S)
+    blocks = _page_blocks("BY PAD", r"(\S+) (\S+) ([^>]+?)")
     assert len(blocks) >= 3
     for path, factor, measures, table in blocks:
-        printed = pads_far_from_median(rule.load_results(repo / path), measures.split(), float(factor))
+        printed = pads_far_from_median(rule.load_results(REPO / path), measures.split(), float(factor))
         assert printed.split("\n\n", 1)[1] == table, path
