@@ -710,7 +710,7 @@ def main(argv: list[str] | None = None) -> int:
     if len(only) > 1:
         ap.error(f"{' and '.join(only)} each do one thing alone: give one of them")
     if args.again and only:
-        ap.error("--again goes with a call that measures (not with --report, --merge, --by-part, --by-pad or --steps)")
+        ap.error(f"--again goes with a call that measures (not with {only[0]})")
     if args.report:
         from aca_warp.common.errors import AcaError
         from aca_warp.common.files import check_output_path

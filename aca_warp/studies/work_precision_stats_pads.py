@@ -53,13 +53,13 @@ def _rows(reg: dict[str, Any], measure: str, factor: float, settings: list[dict[
     each difference in units of the member's σ as the rule's comparison takes it (:func:`member_comparisons`)."""
     ref = reference_of(reg)
     seeds = np.array([int(p["seed"]) for p in reg["pads"]])
+    sigmas = [[c.sigma for c in member_comparisons(reg, s, measure)] for s in settings]  # per setting, per member
     out = []
     for k, (member, idx) in enumerate(_members(reg).items()):
         r = _matrix([ref["values"][measure][i] for i in idx])
-        for s in settings:
+        for s, sigma in zip(settings, (per_member[k] for per_member in sigmas), strict=True):
             v = _matrix([s["values"][measure][i] for i in idx])
             median = float(np.nanmedian(v))
-            sigma = member_comparisons(reg, s, measure)[k].sigma
             label = f"`{s['label']}`" + (" (reference)" if s is ref else "")
             cell = _cell(seeds[idx], v, r, median, sigma, v >= factor * median)
             out.append(f"| {MEASURES[measure].label} | {member or '–'} | {label} | {median:.4g} | {cell} |")
