@@ -81,9 +81,10 @@ def _have() -> str:
     return ", ".join(str(d) for d in wp.get_devices())
 
 
-def _cached(module: ModuleType, device: wp.Device) -> bool:
-    """Whether ``module``'s compiled kernels are in Warp's kernel cache (a heuristic: its cache folder exists)."""
-    m = wp.get_module(module.__name__)
+def _cached(module: ModuleType | wp.Kernel, device: wp.Device) -> bool:
+    """Whether ``module``'s compiled kernels (a kernel's: its module's) are in Warp's kernel cache (a heuristic: its
+    cache folder exists)."""
+    m = module.module if isinstance(module, wp.Kernel) else wp.get_module(module.__name__)
     try:  # Warp loads CPU modules with block_dim 1, CUDA modules with the module's own
         ident = m.get_module_identifier(1 if device.is_cpu else None)
     except Exception:  # noqa: BLE001 (a Warp internal; when it fails, assume a compile is coming)
@@ -92,10 +93,11 @@ def _cached(module: ModuleType, device: wp.Device) -> bool:
 
 
 def load_kernels(
-    modules: Iterable[ModuleType], device: wp.Device | str, say: Callable[[str], None] | None = None
+    modules: Iterable[ModuleType | wp.Kernel], device: wp.Device | str, say: Callable[[str], None] | None = None
 ) -> None:
-    """Load (compile, or fetch from the kernel cache) kernel ``modules`` on ``device``; before the first compile of
-    the process, ``say`` (default: a line on stderr) "compiling kernels (first run only)…"."""
+    """Load (compile, or fetch from the kernel cache) kernel ``modules`` on ``device`` (a kernel: its module, e.g. a
+    kernel made in a module of its own); before the first compile of the process, ``say`` (default: a line on
+    stderr) "compiling kernels (first run only)…"."""
     init_warp()
     device = wp.get_device(device)
     for module in modules:
@@ -104,7 +106,7 @@ def load_kernels(
             (say or (lambda s: print(s, file=sys.stderr, flush=True)))(
                 f"compiling kernels (first run only; cached in {wp.config.kernel_cache_dir})…"
             )
-        wp.load_module(module, device=device)
+        wp.load_module(module.module if isinstance(module, wp.Kernel) else module, device=device)
 
 
 def block_threads(device: wp.Device, block_dim: int) -> int:

@@ -18,6 +18,7 @@ accept/reject, landing, growth events and checkpointed control; a per-pad flag s
 from __future__ import annotations
 
 import math
+from types import ModuleType
 from typing import Protocol
 
 import numpy as np
@@ -196,6 +197,11 @@ class AdaptiveStepper:
             np.maximum.at(floor, pad, x)
             np.maximum(x, 1.0e-6 * floor[pad] + 1.0e-30, out=x)
         return (wp.array(a, dtype=m.dtype, device=m.device) for a in (u, v))
+
+    def kernels(self) -> list[ModuleType]:
+        """The kernel modules its launches use, to load before the run's first step: the landing's and the explicit
+        pair's, and the split step's where pads may take it."""
+        return [KA, KC] if self.split else [KA]
 
     def saved(self) -> dict[str, wp.array]:
         """Arrays a checkpoint holds: the clocks, modes, counters, the first stage (FSAL) and, with the split step, the

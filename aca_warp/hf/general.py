@@ -18,7 +18,7 @@ from typing import Any
 
 import warp as wp
 
-from aca_warp.common.devices import block_threads
+from aca_warp.common.devices import block_threads, load_kernels
 from aca_warp.common.launches import Launcher
 from aca_warp.hf import adaptive
 from aca_warp.hf.engine import EngineSetup, Progress, fault_cause, run_stages
@@ -118,7 +118,8 @@ class GeneralEngine:
             self.recorder.launch(self.state.u, self.state.v, conditional=False)  # sample 0: the initial state
         else:
             self.started = bool(resume.get("started", 0))
-        wp.load_module(K, device=self.model.device)
+        stepper = self.stepper.kernels() if self.stepper is not None else []
+        load_kernels([*self.solver.kernels(), *stepper], self.model.device)
 
     def advance(self, p: Progress, most: int) -> Progress:
         if self.stepper is not None:

@@ -18,6 +18,7 @@ from typing import Any
 
 import warp as wp
 
+from aca_warp.common.devices import load_kernels
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.engine import EngineSetup, Progress, fault_cause, run_stages
 from aca_warp.hf.model import PadModel
@@ -35,7 +36,6 @@ from aca_warp.hf.onchip_layout import (
 from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import HFSolver, grown_arrays, growth_events
 from aca_warp.hf.state import HFState
-from aca_warp.kernels import hf as K
 from aca_warp.kernels.hf_onchip import onchip_kernel
 
 __all__ = ["OnchipEngine", "choose_engine"]
@@ -80,6 +80,7 @@ class OnchipLaunches:
     state: HFState
     model: PadModel
     recorder: Recorder
+    solver: HFSolver
     kernel: wp.Kernel
     blocks_per_pad: int
     block_dim: int
@@ -89,8 +90,7 @@ class OnchipLaunches:
             self.recorder.launch(self.state.u, self.state.v, conditional=False)  # sample 0: the initial state
         else:
             self.started = bool(resume.get("started", 0))
-        wp.load_module(self.kernel.module, device=self.model.device)
-        wp.load_module(K, device=self.model.device)
+        load_kernels([self.kernel, *self.solver.kernels(stepping=False)], self.model.device)
 
     def counters(self) -> dict[str, int]:
         return {"started": int(self.started)}

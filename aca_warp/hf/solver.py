@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -335,6 +336,15 @@ class HFSolver:
             crossing=options.crossing,
             solve_tol=options.solve_tol,
         )
+
+    def kernels(self, *, stepping: bool = True) -> list[ModuleType | wp.Kernel]:
+        """The kernels this solver and a recorder of its samples launch, to load before a run's first step (a module
+        loaded at its first launch would put its compile into the run's stepping time): the HF kernels and, with
+        strang's crossing treatment, its kernels (each in a module of its own). ``stepping`` False: of a run another
+        kernel steps (the on-chip engines), which launches of the treatment's kernels only the closing step."""
+        if not self.crossing:
+            return [K]
+        return [K, *K.STRANG_KERNELS[self.crossing]] if stepping else [K, self._close]
 
     def _launch(self, kernel: Any, inputs: list, dim: int | None = None) -> None:
         self.launcher(kernel, self.model.patch_count if dim is None else dim, inputs)
