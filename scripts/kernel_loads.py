@@ -101,6 +101,16 @@ def run_cases(cases: list[tuple[str, str, str]], view: Path | None = None, cache
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+def label(checkout: Path) -> str:
+    """The checkout's commit (short hash, "+ changes" where its tracked files differ from it), else its path."""
+    git = ["git", "-C", str(checkout)]
+    head = subprocess.run([*git, "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    if head.returncode != 0:
+        return str(checkout)
+    dirty = subprocess.run([*git, "diff", "--quiet", "HEAD", "--", "aca_warp", "kernels"]).returncode != 0
+    return head.stdout.strip() + (" + changes" if dirty else "")
+
+
 def table(rows: list[dict]) -> str:
     """The Markdown table of the rows: per checkout and case the times and the modules loaded while stepping."""
     lines = [
@@ -138,9 +148,9 @@ def main(argv: list[str] | None = None) -> int:
             for case in CASES if args.cold else [None]:
                 cache = Path(tmp) / f"cache{i}_{len(rows)}" if args.cold else None
                 for r in run_cases([case] if case else CASES, view, cache):
-                    rows.append({"checkout": str(checkout), **r})
-                    said = f"set-up {r['compile_s']:.2f} s, stepping {r['wall_s']:.2f} s"
-                    print(f"{checkout}: {', '.join(r['case'])}: {said}, loaded while stepping: {r['stepping']}")
+                    rows.append({"checkout": label(checkout), **r})
+                    said = f"{', '.join(r['case'])}: set-up {r['compile_s']:.2f} s, stepping {r['wall_s']:.2f} s"
+                    print(f"{rows[-1]['checkout']}: {said}, loaded while stepping: {r['stepping']}")
     args.out.mkdir(parents=True, exist_ok=True)
     doc_out = {"command": "scripts/kernel_loads.py " + " ".join(argv if argv is not None else sys.argv[1:]),
                "machine": machine(wp.get_device("cpu")), "cold": args.cold, "rows": rows}  # fmt: skip
