@@ -2,16 +2,17 @@
 """Where a run's kernel compiles go: into its set-up (``RunResult.compile_time``) or into its stepping time
 (``RunResult.wall_time``, which the studies' work-precision and the benchmarks compare).
 
-Per case (integrator, engine, strang's crossing treatment; one pad of the hf1 physics, a 40-patch sector, fp64, 4 µs
-on the CPU) a process of its own runs it, every Warp module unloaded first, and reports the run's set-up and stepping
-times and the kernel modules loaded before and during its stepping (a module loaded at its first launch, inside the
-stepping). ``--cold``: each case with an empty kernel cache of its own, so that a load is a compile (seconds on the
-CPU); without it the cache of this machine (a load then takes milliseconds, but is still listed). Every checkout
-given (default: this one) runs every case; a checkout of an earlier commit (e.g. ``git worktree add /tmp/old
+Per case (integrator, engine, strang's crossing treatment; one pad of the hf1 physics, a 40-patch sector, fp64, 4 µs, on
+``--device``: the CPU by default) a process of its own runs it, every Warp module unloaded first, and reports the run's
+set-up and stepping times and the kernel modules loaded before and during its stepping (a module loaded at its first
+launch, inside the stepping). ``--cold``: each case with an empty kernel cache of its own, so that a load is a compile
+(seconds on the CPU); without it the cache of this machine (a load then takes milliseconds, but is still listed). Every
+checkout given (default: this one) runs every case; a checkout of an earlier commit (e.g. ``git worktree add /tmp/old
 <commit>``) shows what a change moved. JSON and a Markdown table into ``--out``. Examples::
 
     python3 scripts/kernel_loads.py --out /tmp/loads
     python3 scripts/kernel_loads.py /tmp/old . --cold --out docs/benchmarks/kernel_loads
+    python3 scripts/kernel_loads.py /tmp/old . --cold --device cuda:0 --out $OUT/kernel_loads_cuda
 """
 
 from __future__ import annotations
@@ -40,8 +41,8 @@ CASES = [
     ("adaptive", "onchip", "point"),
 ]
 
-# runs the cases of argv[2] (JSON) with the package first on sys.path (argv[1]: a package view, or "" for the
-# installed one); prints one JSON line: per case the set-up's and the stepping's loads and times
+# runs the cases of argv[2] (JSON) on device argv[3] with the package first on sys.path (argv[1]: a package view, or
+# "" for the installed one); prints one JSON line: per case the set-up's and the stepping's loads and times
 CHILD = r"""
 import json, sys
 if sys.argv[1]:
@@ -78,7 +79,7 @@ for integrator, engine, crossing in json.loads(sys.argv[2]):
         module.unload()
     stepping[0] = False
     loads = {"setup": [], "stepping": []}
-    model, state = batch_at_start(sector_scenes(1, 40), "cpu", "fp64")
+    model, state = batch_at_start(sector_scenes(1, 40), sys.argv[3], "fp64")
     dt = None if integrator in ("adaptive", "controlled", "auto") else 2.5e-7
     options = RunOptions(integrator=integrator, engine=engine, crossing=crossing, duration=4e-6, dt=dt, force=True)
     res = loop.run_hf(model, state, options, record=Record(sample_dt=1e-6))
@@ -88,13 +89,16 @@ print(json.dumps(out))
 """
 
 
-def run_cases(cases: list[tuple[str, str, str]], view: Path | None = None, cache: Path | None = None) -> list[dict]:
-    """The cases in one process (the package of ``view``, default the installed one; Warp's kernel cache ``cache``,
-    default this machine's): per case its ``setup`` and ``stepping`` module loads, ``compile_s`` and ``wall_s``."""
+def run_cases(
+    cases: list[tuple[str, str, str]], view: Path | None = None, cache: Path | None = None, device: str = "cpu"
+) -> list[dict]:
+    """The cases in one process on ``device`` (the package of ``view``, default the installed one; Warp's kernel
+    cache ``cache``, default this machine's): per case its ``setup`` and ``stepping`` module loads, ``compile_s``
+    and ``wall_s``."""
     env = dict(os.environ)
     if cache is not None:
         env["WARP_CACHE_PATH"] = str(cache)
-    cmd = [sys.executable, "-c", CHILD, "" if view is None else str(view), json.dumps(cases)]
+    cmd = [sys.executable, "-c", CHILD, "" if view is None else str(view), json.dumps(cases), device]
     done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=1800)
     if done.returncode != 0:
         raise RuntimeError(f"the cases failed ({done.returncode}): {done.stderr.strip()[-2000:]}")
@@ -102,11 +106,13 @@ def run_cases(cases: list[tuple[str, str, str]], view: Path | None = None, cache
 
 
 def label(checkout: Path) -> str:
-    """The checkout's commit (short hash, "+ changes" where its tracked files differ from it), else its path."""
+    """The checkout's commit (short hash, "+ changes" where its package differs from it) where it is the top of a git
+    work tree, else its path."""
     git = ["git", "-C", str(checkout)]
-    head = subprocess.run([*git, "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-    if head.returncode != 0:
+    top = subprocess.run([*git, "rev-parse", "--show-toplevel"], capture_output=True, text=True)
+    if top.returncode != 0 or Path(top.stdout.strip()).resolve() != checkout.resolve():
         return str(checkout)
+    head = subprocess.run([*git, "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
     dirty = subprocess.run([*git, "diff", "--quiet", "HEAD", "--", "aca_warp", "kernels"]).returncode != 0
     return head.stdout.strip() + (" + changes" if dirty else "")
 
@@ -129,31 +135,38 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=doc.split("\n\n")[0], epilog=doc.split("\n\n", 1)[1],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
     ap.add_argument("checkouts", nargs="*", type=Path, help="checkouts of aca_warp (default: this one)")
+    ap.add_argument("--device", default="cpu", help="the device the runs take: cpu (default) or cuda:N")
+    names = [":".join(c) for c in CASES]
+    said = "the cases, as integrator:engine:crossing (default: all: " + " ".join(names) + ")"
+    ap.add_argument("--cases", nargs="+", choices=names, default=names, metavar="CASE", help=said)
     ap.add_argument("--cold", action="store_true", help="every case with an empty kernel cache of its own")
     ap.add_argument("--out", type=Path, required=True, help="folder for kernel_loads.json and kernel_loads.md")
     args = ap.parse_args(argv)
     checkouts = args.checkouts or [Path(__file__).resolve().parent.parent]
     refuse_bad_checkouts(ap, checkouts)
-    import warp as wp
-
-    from aca_warp.common.devices import init_warp
+    from aca_warp.common.devices import get_device
+    from aca_warp.common.errors import SceneError
     from aca_warp.common.files import machine
 
-    init_warp()
+    try:
+        device = get_device(args.device)
+    except SceneError as e:
+        ap.error(f"--device: {e}")
 
     rows: list[dict] = []
     with tempfile.TemporaryDirectory() as tmp:
         for i, checkout in enumerate(checkouts):
             view = package_view(checkout.resolve(), Path(tmp) / f"v{i}")
-            for case in CASES if args.cold else [None]:
+            cases = [c for c in CASES if ":".join(c) in args.cases]
+            for group in [[c] for c in cases] if args.cold else [cases]:
                 cache = Path(tmp) / f"cache{i}_{len(rows)}" if args.cold else None
-                for r in run_cases([case] if case else CASES, view, cache):
+                for r in run_cases(group, view, cache, args.device):
                     rows.append({"checkout": label(checkout), **r})
                     said = f"{', '.join(r['case'])}: set-up {r['compile_s']:.2f} s, stepping {r['wall_s']:.2f} s"
                     print(f"{rows[-1]['checkout']}: {said}, loaded while stepping: {r['stepping']}")
     args.out.mkdir(parents=True, exist_ok=True)
     doc_out = {"command": "scripts/kernel_loads.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-               "machine": machine(wp.get_device("cpu")), "cold": args.cold, "rows": rows}  # fmt: skip
+               "machine": machine(device), "cold": args.cold, "rows": rows}  # fmt: skip
     (args.out / "kernel_loads.json").write_text(json.dumps(doc_out, indent=1) + "\n")
     (args.out / "kernel_loads.md").write_text(table(rows))
     return 0

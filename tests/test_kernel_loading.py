@@ -37,14 +37,23 @@ def test_a_run_loads_every_kernel_it_launches_before_its_stepping(loads):
 def test_the_script_writes_its_table(tmp_path, loads, monkeypatch):
     rows = [{"case": ["strang", "onchip", "mean"], "complete": True, "compile_s": 1.0, "wall_s": 2.0, "setup": ["a"],
              "stepping": ["b"]}]  # fmt: skip
-    monkeypatch.setattr(loads, "run_cases", lambda cases, view=None, cache=None: rows)
+    monkeypatch.setattr(loads, "run_cases", lambda cases, view=None, cache=None, device="cpu": rows)
     assert loads.main(["--out", str(tmp_path)]) == 0
     doc = json.loads((tmp_path / "kernel_loads.json").read_text())
     assert doc["rows"][0]["stepping"] == ["b"] and doc["cold"] is False
     assert "| strang, onchip, mean | 1.00 | 2.00 | `b` |" in (tmp_path / "kernel_loads.md").read_text()
 
 
-def test_the_script_refuses_a_folder_that_is_no_checkout(tmp_path, loads, capsys):
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["{tmp}"], "not a checkout of aca_warp"),
+        (["--device", "tpu:3"], "--device: device 'tpu:3'"),
+        (["--cases", "strang:onchip:sometimes"], "invalid choice: 'strang:onchip:sometimes'"),
+    ],
+)
+def test_the_script_refuses_bad_input(tmp_path, loads, capsys, argv, said):
     with pytest.raises(SystemExit) as e:
-        loads.main([str(tmp_path), "--out", str(tmp_path / "o")])
-    assert e.value.code == 2 and "not a checkout of aca_warp" in capsys.readouterr().err
+        loads.main([a.format(tmp=tmp_path) for a in argv] + ["--out", str(tmp_path / "o")])
+    assert e.value.code == 2 and said in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
