@@ -177,7 +177,7 @@ def _stepping_time(
     if integrator == "strang":
         solver.prepare(state)
     solver.step(state, dt, first=True)  # strang's opening step differs from the rest
-    with wp.ScopedCapture(device=dev, force_module_load=True) as cap:
+    with wp.ScopedCapture(device=dev) as cap:
         for _ in range(GRAPH_STEPS):
             solver.step(state, dt)
     reps = max(1, round(steps / GRAPH_STEPS))

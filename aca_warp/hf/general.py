@@ -184,7 +184,7 @@ class GeneralEngine:
             return
         if reps not in self.graphs:
             tc = time.perf_counter()
-            with wp.ScopedCapture(device=self.model.device, force_module_load=True) as cap:
+            with wp.ScopedCapture(device=self.model.device) as cap:
                 for _ in range(reps):
                     self.body()
             self.graphs[reps] = cap.graph
