@@ -81,32 +81,39 @@ def _have() -> str:
     return ", ".join(str(d) for d in wp.get_devices())
 
 
-def _cached(module: ModuleType | wp.Kernel, device: wp.Device) -> bool:
-    """Whether ``module``'s compiled kernels (a kernel's: its module's) are in Warp's kernel cache (a heuristic: its
-    cache folder exists)."""
-    m = module.module if isinstance(module, wp.Kernel) else wp.get_module(module.__name__)
-    try:  # Warp loads CPU modules with block_dim 1, CUDA modules with the module's own
-        ident = m.get_module_identifier(1 if device.is_cpu else None)
+# what load_kernels takes: a Python module of kernels, a kernel (its module, e.g. one of its own), or either with the
+# block size its launches take (Warp compiles a module once per block size)
+Kernels = ModuleType | wp.Kernel | tuple[ModuleType | wp.Kernel, int]
+
+
+def _cached(module: wp.Module, device: wp.Device, block_dim: int | None) -> bool:
+    """Whether ``module``'s kernels compiled for blocks of ``block_dim`` threads (None: a launch's default) are in
+    Warp's kernel cache (a heuristic: its cache folder exists)."""
+    try:  # a launch's default block size: one thread on the CPU, the module's own on CUDA
+        dim = 1 if device.is_cpu else module.options["block_dim"]
+        ident = module.get_module_identifier(dim if block_dim is None else block_threads(device, block_dim))
     except Exception:  # noqa: BLE001 (a Warp internal; when it fails, assume a compile is coming)
         return False
     return os.path.isdir(os.path.join(wp.config.kernel_cache_dir, ident))
 
 
-def load_kernels(
-    modules: Iterable[ModuleType | wp.Kernel], device: wp.Device | str, say: Callable[[str], None] | None = None
-) -> None:
-    """Load (compile, or fetch from the kernel cache) kernel ``modules`` on ``device`` (a kernel: its module, e.g. a
-    kernel made in a module of its own); before the first compile of the process, ``say`` (default: a line on
-    stderr) "compiling kernels (first run only)…"."""
+def load_kernels(modules: Iterable[Kernels], device: wp.Device | str, say: Callable[[str], None] | None = None) -> None:
+    """Load (compile, or fetch from the kernel cache) kernel ``modules`` on ``device``: each a Python module, a
+    kernel (its module, e.g. a kernel made in a module of its own) or either with the block size [threads] of the
+    launches that take it (a module is compiled once per block size: ``wp.launch_tiled`` with ``block_dim`` B needs
+    the variant of B; without a size, the variant of a plain launch). Before the first compile of the process,
+    ``say`` (default: a line on stderr) "compiling kernels (first run only)…"."""
     init_warp()
     device = wp.get_device(device)
-    for module in modules:
-        if not _cached(module, device) and not _state["compiling_said"]:
+    for entry in modules:
+        item, block_dim = entry if isinstance(entry, tuple) else (entry, None)
+        module = item.module if isinstance(item, wp.Kernel) else wp.get_module(item.__name__)
+        if not _cached(module, device, block_dim) and not _state["compiling_said"]:
             _state["compiling_said"] = True
             (say or (lambda s: print(s, file=sys.stderr, flush=True)))(
                 f"compiling kernels (first run only; cached in {wp.config.kernel_cache_dir})…"
             )
-        wp.load_module(module.module if isinstance(module, wp.Kernel) else module, device=device)
+        wp.load_module(module, device=device, block_dim=block_dim)
 
 
 def block_threads(device: wp.Device, block_dim: int) -> int:

@@ -18,13 +18,12 @@ accept/reject, landing, growth events and checkpointed control; a per-pad flag s
 from __future__ import annotations
 
 import math
-from types import ModuleType
 from typing import Protocol
 
 import numpy as np
 import warp as wp
 
-from aca_warp.common.devices import block_threads
+from aca_warp.common.devices import Kernels, block_threads
 from aca_warp.common.errors import SimulationFault
 from aca_warp.common.launches import Launcher
 from aca_warp.hf.engine import Progress
@@ -198,10 +197,11 @@ class AdaptiveStepper:
             np.maximum(x, 1.0e-6 * floor[pad] + 1.0e-30, out=x)
         return (wp.array(a, dtype=m.dtype, device=m.device) for a in (u, v))
 
-    def kernels(self) -> list[ModuleType]:
-        """The kernel modules its launches use, to load before the run's first step: the landing's and the explicit
-        pair's, and the split step's where pads may take it."""
-        return [KA, KC] if self.split else [KA]
+    def kernels(self) -> list[Kernels]:
+        """The kernel modules its launches use, to load before the run's first step (:func:`load_kernels`): the
+        landing's and the explicit pair's (also for the pair's evaluations in blocks of ``lanes`` threads, where a
+        patch takes more than one), and the split step's where pads may take it."""
+        return [KA, *([(KA, self.lanes)] if self.lanes > 1 else []), *([KC] if self.split else [])]
 
     def saved(self) -> dict[str, wp.array]:
         """Arrays a checkpoint holds: the clocks, modes, counters, the first stage (FSAL) and, with the split step, the

@@ -90,7 +90,7 @@ class OnchipLaunches:
             self.recorder.launch(self.state.u, self.state.v, conditional=False)  # sample 0: the initial state
         else:
             self.started = bool(resume.get("started", 0))
-        load_kernels([self.kernel, *self.solver.kernels(stepping=False)], self.model.device)
+        load_kernels([(self.kernel, self.block_dim), *self.solver.kernels(stepping=False)], self.model.device)
 
     def counters(self) -> dict[str, int]:
         return {"started": int(self.started)}

@@ -26,13 +26,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from types import ModuleType
 from typing import Any
 
 import numpy as np
 import warp as wp
 
-from aca_warp.common.devices import load_kernels
+from aca_warp.common.devices import Kernels, load_kernels
 from aca_warp.common.errors import SceneError, StabilityError, option
 from aca_warp.common.launches import Launcher
 from aca_warp.hf.model import PadModel, coupling_matrix
@@ -337,11 +336,12 @@ class HFSolver:
             solve_tol=options.solve_tol,
         )
 
-    def kernels(self, *, stepping: bool = True) -> list[ModuleType | wp.Kernel]:
-        """The kernels this solver and a recorder of its samples launch, to load before a run's first step (a module
-        loaded at its first launch would put its compile into the run's stepping time): the HF kernels and, with
-        strang's crossing treatment, its kernels (each in a module of its own). ``stepping`` False: of a run another
-        kernel steps (the on-chip engines), which launches of the treatment's kernels only the closing step."""
+    def kernels(self, *, stepping: bool = True) -> list[Kernels]:
+        """The kernels this solver and a recorder of its samples launch, to load before a run's first step
+        (:func:`~aca_warp.common.devices.load_kernels`; a module loaded at its first launch would put its compile into
+        the run's stepping time): the HF kernels and, with strang's crossing treatment, its kernels (each in a module
+        of its own). ``stepping`` False: for the on-chip engines, whose own kernel steps; of the treatment's kernels
+        they launch only the closing one."""
         if not self.crossing:
             return [K]
         return [K, *K.STRANG_KERNELS[self.crossing]] if stepping else [K, self._close]
