@@ -137,6 +137,9 @@ def test_a_default_run_resumes_after_ctrl_c(scene_file: Path, tmp_path: Path, mo
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and said in err[0] and f"'aca-warp hf --resume {out}'" in err[0], err
         monkeypatch.setattr(runner, "run_hf", real)
+        assert main(["hf", str(scene_file), "-o", str(out), *opts]) == 2  # the same command again: how to continue
+        err = capsys.readouterr().err
+        assert f"{out} exists (an interrupted run): " in err and f"'aca-warp hf --resume {out}'" in err, err
         assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
         assert resumed in capsys.readouterr().out  # the summary says where the resume started
         assert_same_file(out, ref)

@@ -346,3 +346,13 @@ def test_a_misspelled_preset_gets_a_suggestion(tmp_path, capsys):
         assert len(err) == 1 and err[0].endswith(f"did you mean {near or repr('multiscale')}?"), err
     assert main(["hf", "zzz", "-o", str(tmp_path / "x.h5")]) == 2
     assert "did you mean" not in capsys.readouterr().err
+
+
+def test_the_help_names_every_preset():
+    from aca_warp.hf.commands import run_epilog
+    from aca_warp.scene.files import PRESETS
+
+    text = run_epilog("aca-warp hf --resume RUN.h5")
+    for name in PRESETS:
+        base = name.removesuffix("_equal")
+        assert base in text and (name == base or "NAME_equal" in text), name

@@ -453,6 +453,15 @@ def _unfinished(path: str | Path) -> tuple[Path, Path]:
     return final, part if part.exists() else final
 
 
+def _interrupted(path: Path) -> bool:
+    """Whether ``path`` is a run file that an interrupt (Ctrl-C, SIGTERM) closed unfinished."""
+    try:
+        with open_h5(path, "run file") as f:
+            return str(attr_value(f.attrs.get("status", ""))).startswith("interrupted")
+    except _UNREADABLE:
+        return False
+
+
 def _checkpoint_time(f: Any) -> float | None:
     """The simulated time of the open run file ``f``'s checkpoint [s], or None when it holds none."""
     return float(f["checkpoint"].attrs["sim_time"]) if has_checkpoint(f) else None
@@ -482,7 +491,10 @@ def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
     if busy is not None:
         raise SceneError(f"{p} is being written by {busy}; wait for it to finish or stop it")
     if p.exists() and not overwrite:
-        raise SceneError(f"output file {p} exists; pass {option('overwrite=True', '--overwrite')} to replace it")
+        again = option("overwrite=True", "--overwrite")
+        if _interrupted(p):
+            raise SceneError(f"output file {p} exists (an interrupted run): {recovery(p)}; or pass {again} to replace")
+        raise SceneError(f"output file {p} exists; pass {again} to replace it")
     part = partial_path(p)
     if part.exists() and not overwrite:
         raise SceneError(

@@ -43,7 +43,8 @@ def run_epilog(resume: str) -> str:
     """The help epilog of ``aca-warp`` and ``aca-warp hf``: SCENE, an example, the units and the exit codes;
     ``resume``: the command that continues an interrupted run (docs/faults.md)."""
     return f"""\
-SCENE is a preset (hf1, hf2, hf3, hf4, varying_area) or a TOML scene file (docs/scenes.md).
+SCENE is a preset (hf1, hf2, hf3, hf4, varying_area, and each as NAME_equal: every patch 3 µm high, docs/presets.md)
+or a TOML scene file (docs/scenes.md).
 Example:  aca-warp hf hf1 --duration 1e-3 -o run.h5
 Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad input (nothing written),
 3 the run stopped on a fault or an unphysical result (the file holds everything before it, marked incomplete),
