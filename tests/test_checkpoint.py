@@ -38,10 +38,11 @@ def scene_file(tmp_path: Path) -> Path:
     return p
 
 
-def test_sigkill_then_resume_is_bit_identical(scene_file: Path, tmp_path: Path) -> None:
+def test_sigkill_then_resume_is_bit_identical(scene_file: Path, tmp_path: Path, capsys) -> None:
     """`aca-warp hf` with its default, automatic checkpoints (here from the first chunk on) in a subprocess, killed with
-    SIGKILL once the first checkpoint is on disk: only RUN.h5.partial is left, it resumes with `hf --resume`, and
-    the finished file equals an uninterrupted run (no checkpoints) dataset for dataset, bit for bit."""
+    SIGKILL once the first checkpoint is on disk: only RUN.h5.partial is left; `analyze` of it calls the run killed
+    and names the resume; it resumes with `hf --resume` (dropping that analysis), and the finished file equals an
+    uninterrupted run (no checkpoints) dataset for dataset, bit for bit."""
     # 0.5 ms: the first automatic checkpoint comes at the first chunk end (2 µs), the run goes on ~0.5 s after it
     # (on the general engine: on the CPU the on-chip engine's first launch would cover the whole run)
     opts = ["--duration", "5e-4", "--sample-dt", "1e-6", "--record-patches", "velocity,displacement", "--no-progress"]
@@ -59,6 +60,10 @@ def test_sigkill_then_resume_is_bit_identical(scene_file: Path, tmp_path: Path) 
     assert 0 < at < 5e-4
     # a new run cannot clobber the unfinished one by accident
     assert main(["hf", str(scene_file), "-o", str(out), *opts]) == 2
+    capsys.readouterr()
+    assert main(["analyze", str(part), "--no-sync"]) == 0
+    said = capsys.readouterr().out
+    assert "the run is incomplete (killed: no process writes it)" in said and f"'aca-warp hf --resume {out}'" in said
 
     assert main(["hf", "--resume", str(part), "--no-progress"]) == 0
     assert out.exists() and not part.exists()

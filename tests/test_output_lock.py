@@ -70,6 +70,7 @@ def test_live_hf_run_is_not_replaced_or_resumed(tmp_path, capsys, monkeypatch) -
                 ["hf", str(scene), "-o", str(out), "--overwrite", "--no-progress"],
                 ["hf", str(scene), "-o", str(out), "--no-progress"],
                 ["hf", "--resume", str(out), "--no-progress"],
+                ["analyze", str(part)],
             ):
                 refused(capsys, argv, first.pid)
             r = cli(["hf", "--resume", str(out), "--no-progress"], HDF5_USE_FILE_LOCKING=locking)  # a process too

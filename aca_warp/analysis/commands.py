@@ -312,10 +312,13 @@ def run_or_pad(args: argparse.Namespace, command: str, *, keep: bool) -> Iterato
 
 def record_ends_early(path: str) -> str | None:
     """For a run that did not complete (interrupted, stopped on a fault, killed), where its record ends against the
-    duration asked, in words; None for a complete run."""
+    duration asked, in words; None for a complete run. A killed run (its file still marked running, no process
+    writing it) is called so, with the command that continues it (which drops the analysis written here)."""
     import json
 
     import h5py
+
+    from aca_warp.common.files import recovery
 
     with h5py.File(path, "r") as f:
         if bool(f.attrs.get("complete", True)):
@@ -328,7 +331,11 @@ def record_ends_early(path: str) -> str | None:
             asked = None
         status = str(f.attrs.get("status", "incomplete"))
     of = "" if asked is None else f" of the {float(asked):.4g} s asked"
-    return f"the run is incomplete ({status}): its record ends early, at t = {end:.4g} s{of}, and so does the analysis"
+    said = f"its record ends early, at t = {end:.4g} s{of}, and so does the analysis"
+    if status.startswith("running"):  # no live process writes it (analyze_run holds its lock): the run was killed
+        again = f"{recovery(path)} (the resume drops this analysis)"
+        return f"the run is incomplete (killed: no process writes it): {said}; {again}"
+    return f"the run is incomplete ({status}): {said}"
 
 
 def check_writable_file(path: str) -> None:
