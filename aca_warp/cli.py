@@ -8,6 +8,7 @@ imports this module. Parsing imports no simulation code, so ``--help`` and argum
 from __future__ import annotations
 
 import argparse
+import difflib
 import os
 import re
 import signal
@@ -35,6 +36,27 @@ class Parser(argparse.ArgumentParser):
         """A mistyped command line: one line on stderr, naming where the options are listed, and exit code 2 (not
         argparse's usage block before it)."""
         self.exit(2, f"{self.prog}: error: {message}; see {self.prog} --help\n")
+
+    def parse_args(self, args: Sequence[str] | None = None, namespace: Any = None) -> Any:  # type: ignore[override]
+        """argparse's, but an unknown option is refused by the command it was given to (``aca-warp hf: error: …;
+        see aca-warp hf --help``), with the nearest option of that command where one is close ("did you mean
+        --duration?")."""
+        ns, extras = self.parse_known_args(args, namespace)
+        if extras:
+            command = self._command_parser(ns)
+            options = {s.lstrip("-"): s for action in command._actions for s in action.option_strings}
+            typed = [x.split("=")[0].lstrip("-") for x in extras if x.startswith("-")]
+            near = [difflib.get_close_matches(x, list(options), n=1) for x in typed]
+            hint = "".join(f" (did you mean {options[m[0]]}?)" for m in near if m)[:200]
+            command.error(f"unrecognized arguments: {' '.join(extras)}{hint}")
+        return ns
+
+    def _command_parser(self, ns: Any) -> argparse.ArgumentParser:
+        """The parser of the command ``ns`` holds (its subcommand's), or this one."""
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                return action.choices.get(getattr(ns, action.dest, None), self)
+        return self
 
 
 def build_parser() -> argparse.ArgumentParser:

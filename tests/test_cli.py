@@ -356,3 +356,21 @@ def test_the_help_names_every_preset():
     for name in PRESETS:
         base = name.removesuffix("_equal")
         assert base in text and (name == base or "NAME_equal" in text), name
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["hf", "hf1", "--duraton", "1e-4", "-o", "x.h5"], "(did you mean --duration?); see aca-warp hf --help"),
+        (["hf", "hf1", "--sampledt=1e-6", "-o", "x.h5"], "(did you mean --sample-dt?); see aca-warp hf --help"),
+        (["analyze", "x.h5", "--no-snyc"], "(did you mean --no-sync?); see aca-warp analyze --help"),
+        (["hf", "hf1", "--zzz", "-o", "x.h5"], "unrecognized arguments: --zzz; see aca-warp hf --help"),
+    ],
+)
+def test_a_mistyped_option_is_refused_by_its_command_with_the_nearest(argv, said, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert e.value.code == 2 and len(err) == 1 and said in err[0], err
+    assert not list(tmp_path.iterdir())
