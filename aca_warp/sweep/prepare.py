@@ -621,7 +621,11 @@ def keep_preparation_pool() -> Iterator[None]:
 
 
 def _usable(pool: ProcessPoolExecutor) -> bool:
-    """Whether ``pool`` takes work: a broken pool (a process died) refuses a task at once, as does one shut down."""
+    """Whether ``pool`` takes work: not one with a dead process (the pool's own thread marks it broken only when it
+    notices, a moment later), nor a broken pool, which refuses a task at once, nor one shut down."""
+    processes = getattr(pool, "_processes", None) or {}  # the executor's own table of its processes
+    if any(not p.is_alive() for p in list(processes.values())):
+        return False
     try:
         pool.submit(int).cancel()
     except (BrokenProcessPool, RuntimeError):
