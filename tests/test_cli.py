@@ -256,7 +256,7 @@ def test_version_and_quiet_start(scene_file, tmp_path):
     out = tmp_path / "run.h5"
     done = _cli("hf", str(scene_file), "-o", str(out))
     assert done.returncode == 0, done.stderr
-    err = [line for line in done.stderr.splitlines() if not line.startswith("compiling kernels (first run only")]
+    err = [line for line in done.stderr.splitlines() if not line.startswith("compiling kernels (once per")]
     assert err == [], done.stderr
     assert "%|" not in done.stderr and "Module" not in done.stderr and "CUDA" not in done.stderr
     assert len(done.stdout.strip().splitlines()) == 1 and "samples over" in done.stdout

@@ -1,9 +1,9 @@
 """Warp start-up and device facts shared by HF and LF: a quiet initialisation, the device by name (a clear error for
 one this machine lacks), kernel loading with a first-run note, and the threads a tiled block runs.
 
-Warp prints its native CUDA-driver warning on every machine without a GPU and a line per module load; aca_warp
-keeps both off unless asked (``aca-warp --verbose``, or ``ACA_WARP_VERBOSE=1`` for the Python API), and says
-"compiling kernels (first run only)…" before a compile that would otherwise leave the terminal silent.
+Warp prints its native CUDA-driver warning on every machine without a GPU and a line per module load; aca_warp keeps
+both off unless asked (``aca-warp --verbose``, or ``ACA_WARP_VERBOSE=1`` for the Python API), and says "compiling
+kernels (once per machine and pad size)…" before a compile that would otherwise leave the terminal silent.
 """
 
 from __future__ import annotations
@@ -102,7 +102,7 @@ def load_kernels(modules: Iterable[Kernels], device: wp.Device | str, say: Calla
     kernel (its module, e.g. a kernel made in a module of its own) or either with the block size [threads] of the
     launches that take it (a module is compiled once per block size: ``wp.launch_tiled`` with ``block_dim`` B needs
     the variant of B; without a size, the variant of a plain launch). Before the first compile of the process,
-    ``say`` (default: a line on stderr) "compiling kernels (first run only)…"."""
+    ``say`` (default: a line on stderr) "compiling kernels (once per machine and pad size)…"."""
     init_warp()
     device = wp.get_device(device)
     for entry in modules:
@@ -111,7 +111,8 @@ def load_kernels(modules: Iterable[Kernels], device: wp.Device | str, say: Calla
         if not _cached(module, device, block_dim) and not _state["compiling_said"]:
             _state["compiling_said"] = True
             (say or (lambda s: print(s, file=sys.stderr, flush=True)))(
-                f"compiling kernels (first run only; cached in {wp.config.kernel_cache_dir})…"
+                "compiling kernels (once per machine and pad size: the on-chip kernels are made for the largest "
+                f"pad of a batch; cached in {wp.config.kernel_cache_dir})…"
             )
         wp.load_module(module, device=device, block_dim=block_dim)
 
