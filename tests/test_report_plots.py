@@ -342,6 +342,12 @@ def test_commands(runs, tmp_path, capsys):
     assert _cli(["plot", str(path), "-o", str(out_dir), "--only", "patch_map", "--times", "5e-5", "9e-5"]) == 0
     assert sorted(p.name for p in out_dir.iterdir()) == ["run_patch_map.pdf", "run_patch_map.png"]
     assert _cli(["plot", str(path), "-o", str(out_dir), "--only", "patch_map", "--times", "1.0"]) == 2
+    capsys.readouterr()  # an instant outside the record: refused before any figure, the other figures included
+    from aca_warp.cli import main
+
+    assert main(["plot", str(path), "-o", str(tmp_path / "fig2"), "--times", "5e-5", "1.0"]) == 2
+    assert "--times: instant 1 s lies outside the per-patch record" in capsys.readouterr().err
+    assert not (tmp_path / "fig2").exists()
 
 
 def test_analyze_summary_uses_the_figures_band(runs, tmp_path, capsys):
@@ -492,3 +498,10 @@ def test_one_pad_of_a_sweep_shard(tmp_path, capsys):
     assert main(["rerun", str(pad), "-o", str(again), "--no-progress"]) == 0
     with h5py.File(again, "r") as a, h5py.File(pad, "r") as p:
         assert np.allclose(a["global/mu"][()], p["global/mu"][()], rtol=1e-5)
+
+
+def test_figures_are_named_for_the_run_also_when_unfinished():
+    from aca_warp.plots.figure import run_stem
+
+    assert run_stem("out/k.h5") == run_stem("out/k.h5.partial") == "k"
+    assert run_stem("lf.h5") == "lf"

@@ -262,6 +262,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
             reading(run, "run file"),
             storage_errors(f"figures into {out}", "the figures before it are kept"),
         ):
+            check_times_in_record(run, args.times)
             files = plot_run(
                 run,
                 out,
@@ -279,6 +280,23 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if not files:
         raise SceneError(f"no figure could be made from {args.run}")
     return 0
+
+
+def check_times_in_record(run: str, times: list[float] | None) -> None:
+    """Refuse ``plot --times`` instants [s] outside the per-patch record of ``run`` before any figure is drawn (a
+    run without one: left to the figures, which say what they need)."""
+    import h5py
+
+    if not times:
+        return
+    with h5py.File(run, "r") as f:
+        if "patches/time" not in f or f["patches/time"].shape[0] == 0:
+            return
+        pt = f["patches/time"]
+        lo, hi = float(pt[0]), float(pt[-1])
+    for t in times:
+        if not lo - 1e-12 <= t <= hi + 1e-12:
+            raise SceneError(f"--times: instant {t:g} s lies outside the per-patch record {lo:g}-{hi:g} s of {run}")
 
 
 @contextmanager

@@ -76,6 +76,12 @@ def whole(path: Path) -> Iterator[BinaryIO]:
         tmp.unlink(missing_ok=True)
 
 
+def run_stem(path: str | Path) -> str:
+    """The name a run file's figures start with: its name without ``.h5`` (and without ``.partial``, an unfinished
+    run's)."""
+    return Path(Path(path).name.removesuffix(".partial")).stem
+
+
 def save(fig: Figure, outdir: Path, stem: str) -> list[Path]:
     """Write ``outdir/stem.png`` (150 dpi) and ``outdir/stem.pdf`` (folder created if missing), each whole
     (:func:`whole`); returns both paths. The PDF takes the layout the PNG's drawing settled (the constrained layout

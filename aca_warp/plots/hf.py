@@ -20,7 +20,7 @@ from aca_warp.analysis import report
 from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run_file, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
 from aca_warp.common.errors import SceneError, option
-from aca_warp.plots.figure import GifInto, device_text, whole
+from aca_warp.plots.figure import GifInto, device_text, run_stem, whole
 from aca_warp.plots.figure import envelope as _envelope
 from aca_warp.plots.figure import finish as _finish
 from aca_warp.plots.figure import new_figure as _figure
@@ -70,7 +70,7 @@ class _Run:
         """Finish ``fig`` with ``caption`` above the run's footer and write it as ``outdir/STEM_name.png`` and
         ``.pdf`` (STEM: the run file's stem); returns both paths."""
         _finish(fig, caption, self.footer)
-        return _save(fig, Path(outdir), f"{self.path.stem}_{name}")
+        return _save(fig, Path(outdir), f"{run_stem(self.path)}_{name}")
 
     def group(self, name: str, compute: Callable[[], Group | None]) -> Group | None:
         return analysis_group(self.f, name, compute)
@@ -270,7 +270,7 @@ def plot_patch_map(path: str | Path, outdir: str | Path, *, times: Sequence[floa
         smax = _marker_scale(axes[0][0], fig, x, y, area)
         for _, sc in axes:
             sc.set_sizes(smax * area / area.max())
-        return _save(fig, Path(outdir), f"{run.path.stem}_patch_map")
+        return _save(fig, Path(outdir), f"{run_stem(run.path)}_patch_map")
 
 
 def animate_patch_map(
@@ -296,7 +296,7 @@ def animate_patch_map(
         anim = animation.FuncAnimation(fig, update, frames=count, blit=False, repeat=False)
         out = Path(outdir)
         out.mkdir(parents=True, exist_ok=True)
-        gif = out / f"{run.path.stem}_patch_map.gif"
+        gif = out / f"{run_stem(run.path)}_patch_map.gif"
         with whole(gif) as fh:
             anim.save(fh.name, writer=GifInto(fh, fps), dpi=GIF_DPI)
         return [gif]

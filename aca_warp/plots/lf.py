@@ -35,7 +35,7 @@ from matplotlib.figure import Figure
 from aca_warp.analysis.report import run_attr
 from aca_warp.common.errors import SceneError
 from aca_warp.common.files import open_h5
-from aca_warp.plots.figure import WIDTH, device_text, envelope, finish, new_figure, pad_outline, save
+from aca_warp.plots.figure import WIDTH, device_text, envelope, finish, new_figure, pad_outline, run_stem, save
 
 LF_FIGURES = ("lf_global", "lf_population", "lf_patch_map")
 """LF figure names accepted by :func:`plot_lf_run` (``which``) and ``aca-warp plot --only``."""
@@ -411,12 +411,12 @@ def lf_figure(
 
 def plot_lf_global(path: str | Path, outdir: str | Path) -> list[Path]:
     """Clamp force, μ, friction torque, friction radius and temperatures against time (PNG + PDF in ``outdir``)."""
-    return save(lf_figure(path, "lf_global"), Path(outdir), f"{Path(path).stem}_lf_global")
+    return save(lf_figure(path, "lf_global"), Path(outdir), f"{run_stem(path)}_lf_global")
 
 
 def plot_lf_population(path: str | Path, outdir: str | Path) -> list[Path]:
     """Patch count, coverage, load share, life-cycle counts; debris, patch mass and thickness at the snapshots."""
-    return save(lf_figure(path, "lf_population"), Path(outdir), f"{Path(path).stem}_lf_population")
+    return save(lf_figure(path, "lf_population"), Path(outdir), f"{run_stem(path)}_lf_population")
 
 
 def plot_lf_patch_map(
@@ -424,7 +424,7 @@ def plot_lf_patch_map(
 ) -> list[Path]:
     """Patch maps of the snapshots coloured by ``quantity`` (:func:`lf_figure`), PNG + PDF in ``outdir``."""
     fig = lf_figure(path, "lf_patch_map", quantity=quantity, snapshots=snapshots)
-    return save(fig, Path(outdir), f"{Path(path).stem}_lf_patch_map")
+    return save(fig, Path(outdir), f"{run_stem(path)}_lf_patch_map")
 
 
 def _stderr(message: str) -> None:
