@@ -44,10 +44,14 @@ class Parser(argparse.ArgumentParser):
         ns, extras = self.parse_known_args(args, namespace)
         if extras:
             command = self._command_parser(ns)
+            own = {s for action in self._actions for s in action.option_strings}
+            early = [x for x in extras if x.split("=")[0] in own and command is not self]
+            if early:  # an option of aca-warp itself, given after the command
+                self.error(f"{early[0]} is an option of {self.prog} itself: give it before the command")
             options = {s.lstrip("-"): s for action in command._actions for s in action.option_strings}
-            typed = [x.split("=")[0].lstrip("-") for x in extras if x.startswith("-")]
+            typed = [x.split("=")[0].lstrip("-") for x in extras if x.startswith("-")][:3]
             near = [difflib.get_close_matches(x, list(options), n=1) for x in typed]
-            hint = "".join(f" (did you mean {options[m[0]]}?)" for m in near if m)[:200]
+            hint = "".join(f" (did you mean {options[m[0]]}?)" for m in near if m)
             command.error(f"unrecognized arguments: {' '.join(extras)}{hint}")
         return ns
 

@@ -31,8 +31,8 @@ from typing import Any
 from compare_checkouts import package_view, refuse_bad_checkouts
 
 # (integrator, engine, crossing, variant): every path that launches kernels of its own. Variants: "plain", "growth"
-# (the pad's patches grow, an event every 1 µs) and "cpu-blocks" (Warp's cooperative CPU blocks on, so that an on-chip
-# launch takes its real block size on the CPU as on CUDA: a module compiles once per block size)
+# (the pad's patches grow, an event every 1 µs), "cpu-blocks" (Warp's cooperative CPU blocks on, so that a launch in
+# blocks takes its real block size on the CPU as on CUDA: a module compiles once per block size) and both
 CASES = [
     ("strang", "general", "point", "plain"),
     ("strang", "general", "mean", "plain"),
@@ -49,6 +49,11 @@ CASES = [
     ("adaptive", "general", "point", "growth"),
     ("strang", "onchip", "point", "cpu-blocks"),
     ("adaptive", "onchip", "point", "cpu-blocks"),
+    ("strang", "general", "mean", "cpu-blocks"),
+    ("adaptive", "general", "point", "cpu-blocks"),
+    ("controlled", "general", "point", "cpu-blocks"),
+    ("auto", "general", "point", "cpu-blocks"),
+    ("strang", "general", "point", "growth-cpu-blocks"),
 ]
 
 # runs the cases of argv[2] (JSON) on device argv[3] with the package first on sys.path (argv[1]: a package view, or
@@ -103,9 +108,9 @@ for integrator, engine, crossing, variant in json.loads(sys.argv[2]):
         module.unload()
     phase[:] = ["setup"]
     loads = {"setup": [], "capture": [], "stepping": []}
-    wp.config.enable_cpu_blocks = variant == "cpu-blocks"
+    wp.config.enable_cpu_blocks = variant.endswith("cpu-blocks")
     scene = sector_scenes(1, 40)[0]
-    if variant == "growth":
+    if variant.startswith("growth"):
         scene = scene.replace(growth=Growth(increment=1e-9, interval=1e-6))
     model, state = batch_at_start([scene], sys.argv[3], "fp64")
     dt = None if integrator in ("adaptive", "controlled", "auto") else 2.5e-7

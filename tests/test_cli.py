@@ -365,6 +365,7 @@ def test_the_help_names_every_preset():
         (["hf", "hf1", "--sampledt=1e-6", "-o", "x.h5"], "(did you mean --sample-dt?); see aca-warp hf --help"),
         (["analyze", "x.h5", "--no-snyc"], "(did you mean --no-sync?); see aca-warp analyze --help"),
         (["hf", "hf1", "--zzz", "-o", "x.h5"], "unrecognized arguments: --zzz; see aca-warp hf --help"),
+        (["hf", "hf1", "--verbose", "-o", "x.h5"], "--verbose is an option of aca-warp itself: give it before the"),
     ],
 )
 def test_a_mistyped_option_is_refused_by_its_command_with_the_nearest(argv, said, capsys, tmp_path, monkeypatch):

@@ -31,17 +31,24 @@ def test_a_run_loads_every_kernel_it_launches_before_its_stepping(loads, tmp_pat
     for r in rows:
         assert r["complete"], r
         assert r["setup"], r  # the spy sees loads: every run loads its kernels again after the unloading
-        assert r["stepping"] == [] and r["capture"] == [], f"{r['case']}: loaded while stepping: {r['stepping']}"
-    setup = {tuple(r["case"]): {name: dim for name, dim in r["setup"]} for r in rows}
+        assert r["stepping"] == [] and r["capture"] == [], f"{r['case']}: {r['stepping']}, in a capture {r['capture']}"
+    setup = {tuple(r["case"]): {(name, dim) for name, dim in r["setup"]} for r in rows}
+    names = {case: {name for name, _ in loaded} for case, loaded in setup.items()}
     # the treatment's closing kernel, not its stepping ones, on chip; the split step's module only where it runs
-    assert any("strang_close" in name for name in setup["strang", "onchip", "mean", "plain"])
-    assert not any("strang_advance" in name for name in setup["strang", "onchip", "mean", "plain"])
-    assert any("strang_advance" in name for name in setup["strang", "general", "mean", "plain"])
-    assert "aca_warp.kernels.hf_controlled" in setup["auto", "general", "point", "plain"]
-    assert "aca_warp.kernels.hf_controlled" not in setup["adaptive", "general", "point", "plain"]
-    # with real CPU blocks the on-chip kernel is loaded at the block size it is launched with, not at one thread
-    dims = [dim for name, dim in rows[loads.CASES.index(("strang", "onchip", "point", "cpu-blocks"))]["setup"]]
-    assert max(dims) > 1
+    assert any("strang_close" in name for name in names["strang", "onchip", "mean", "plain"])
+    assert not any("strang_advance" in name for name in names["strang", "onchip", "mean", "plain"])
+    assert any("strang_advance" in name for name in names["strang", "general", "mean", "plain"])
+    assert "aca_warp.kernels.hf_controlled" in names["auto", "general", "point", "plain"]
+    assert "aca_warp.kernels.hf_controlled" not in names["adaptive", "general", "point", "plain"]
+    # with real CPU blocks every kernel is loaded at the block size it is launched with: the on-chip kernels not at
+    # one thread, the explicit pair's evaluations in lanes (only where the pair runs)
+    for integrator in ("strang", "adaptive"):
+        onchip = setup[integrator, "onchip", "point", "cpu-blocks"]
+        assert any(name.startswith("onchip_") and dim > 1 for name, dim in onchip), onchip
+    lanes = {dim for name, dim in setup["adaptive", "general", "point", "cpu-blocks"] if name.endswith("hf_adaptive")}
+    assert len(lanes) == 3, lanes  # plain launches, the control's blocks and the evaluations' lanes
+    controlled = setup["controlled", "general", "point", "cpu-blocks"]
+    assert {dim for name, dim in controlled if name.endswith("hf_adaptive")} == {1}, controlled
 
 
 def test_a_capture_loads_no_module_itself(monkeypatch):

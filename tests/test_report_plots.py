@@ -500,8 +500,30 @@ def test_one_pad_of_a_sweep_shard(tmp_path, capsys):
         assert np.allclose(a["global/mu"][()], p["global/mu"][()], rtol=1e-5)
 
 
-def test_figures_are_named_for_the_run_also_when_unfinished():
+def test_figures_are_named_for_the_run_also_when_unfinished(runs, tmp_path):
     from aca_warp.plots.figure import run_stem
 
     assert run_stem("out/k.h5") == run_stem("out/k.h5.partial") == "k"
     assert run_stem("lf.h5") == "lf"
+    path = _copy(runs["patches"], tmp_path, "k.h5.partial")
+    assert _cli(["plot", str(path), "-o", str(tmp_path / "fig"), "--only", "global"]) == 0
+    assert sorted(p.name for p in (tmp_path / "fig").iterdir()) == ["k_global.pdf", "k_global.png"]
+
+
+@pytest.mark.parametrize("axis", ["group", "scalar", "text", "2-D"])
+def test_times_with_a_crafted_patch_time_axis_give_one_line(runs, tmp_path, capsys, axis):
+    """A /patches/time that is no 1-D axis of numbers: `plot --times` ends in one line, as `plot` does without it."""
+    from aca_warp.cli import main
+
+    path = _copy(runs["patches"], tmp_path)
+    with h5py.File(path, "r+") as f:
+        del f["patches/time"]
+        if axis == "group":
+            f.create_group("patches/time")
+        else:
+            data = {"scalar": 1e-5, "text": np.array([b"a", b"b"]), "2-D": np.zeros((2, 2))}[axis]
+            f["patches/time"] = data
+    capsys.readouterr()
+    code = main(["plot", str(path), "-o", str(tmp_path / "fig"), "--times", "1e-5"])
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert code == 2 and len(err) == 1 and "patches/" in err[0], err

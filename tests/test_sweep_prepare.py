@@ -900,3 +900,26 @@ def test_a_kept_pool_in_use_is_never_let_go_under_its_call(kept_clean: None) -> 
     assert _in_time(lambda: using.get(2), 120).index == 2  # its last shard: the pool is let go now
     using.close()
     assert _wait_gone(procs)
+
+
+def test_a_pool_with_a_dead_process_is_not_usable() -> None:
+    """A pool one of whose processes has died is not taken for work, also before the pool's own thread has noticed and
+    marked it broken (a stand-in pool whose dead process it has not noticed: it would still take a task)."""
+    from aca_warp.sweep.prepare import _usable
+
+    class Process:
+        def __init__(self, alive: bool) -> None:
+            self.alive = alive
+
+        def is_alive(self) -> bool:
+            return self.alive
+
+    class Pool:
+        def __init__(self, *alive: bool) -> None:
+            self._processes = {k: Process(a) for k, a in enumerate(alive)}
+
+        def submit(self, fn: Callable[[], int]) -> Any:
+            return type("Task", (), {"cancel": lambda self: True})()
+
+    assert _usable(Pool(True, True))  # type: ignore[arg-type]
+    assert not _usable(Pool(True, False))  # type: ignore[arg-type]

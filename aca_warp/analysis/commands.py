@@ -262,7 +262,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
             reading(run, "run file"),
             storage_errors(f"figures into {out}", "the figures before it are kept"),
         ):
-            check_times_in_record(run, args.times)
+            check_times_in_record(run, args.times, args.run if args.pad is None else f"pad {args.pad} of {args.run}")
             files = plot_run(
                 run,
                 out,
@@ -282,21 +282,23 @@ def cmd_plot(args: argparse.Namespace) -> int:
     return 0
 
 
-def check_times_in_record(run: str, times: list[float] | None) -> None:
-    """Refuse ``plot --times`` instants [s] outside the per-patch record of ``run`` before any figure is drawn (a
-    run without one: left to the figures, which say what they need)."""
+def check_times_in_record(run: str, times: list[float] | None, name: str) -> None:
+    """Refuse ``plot --times`` instants [s] outside the per-patch record of the run file ``run`` (``name``: the run
+    as the user gave it) before any figure is drawn; a run without a readable per-patch time axis is left to the
+    figures, which say what they need."""
     import h5py
+
+    from aca_warp.common.files import open_h5
+    from aca_warp.plots.hf import check_instants
 
     if not times:
         return
-    with h5py.File(run, "r") as f:
-        if "patches/time" not in f or f["patches/time"].shape[0] == 0:
+    with open_h5(run, "run file") as f:
+        pt = f.get("patches/time")
+        if not isinstance(pt, h5py.Dataset) or pt.ndim != 1 or pt.shape[0] == 0 or pt.dtype.kind not in "fiu":
             return
-        pt = f["patches/time"]
-        lo, hi = float(pt[0]), float(pt[-1])
-    for t in times:
-        if not lo - 1e-12 <= t <= hi + 1e-12:
-            raise SceneError(f"--times: instant {t:g} s lies outside the per-patch record {lo:g}-{hi:g} s of {run}")
+        lo, hi = float(pt[0]), float(pt[-1])  # two values: the axis is read no further
+    check_instants(times, lo, hi, name, "--times: instant")
 
 
 @contextmanager

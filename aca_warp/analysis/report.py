@@ -98,7 +98,8 @@ def check_run_file(f: h5py.File, name: str | Path = "") -> None:
         raise SceneError(f"{where}not an aca_warp run file (lacks {', '.join(missing)})")
     if not isinstance(json_attribute(f.attrs["scene"], f"{where}attribute 'scene'"), dict):
         raise SceneError(f"{where}attribute 'scene' is not a JSON object (a crafted or damaged file)")
-    for k in ("global/time", *(f"global/{k}" for k in GLOBAL_OUTPUTS), "patches/x", "patches/y", "patches/area"):
+    for k in ("global/time", *(f"global/{k}" for k in GLOBAL_OUTPUTS), "patches/x", "patches/y", "patches/area",
+              "patches/time"):  # fmt: skip
         if k in f and not isinstance(f[k], h5py.Dataset):
             raise SceneError(f"{where}/{k} is a {type(f[k]).__name__.lower()}, not a dataset")
     n = f["global/time"].shape
@@ -112,7 +113,8 @@ def check_run_file(f: h5py.File, name: str | Path = "") -> None:
     if n[0] < 8:
         raise SceneError(f"{where}the run holds {n[0]} samples; the analysis needs at least 8")
     if "patches/velocity" in f:
-        v, rows = f["patches/velocity"], f["patches/time"].shape[0] if "patches/time" in f else -1
+        pt = f["patches/time"] if "patches/time" in f else None
+        v, rows = f["patches/velocity"], pt.shape[0] if pt is not None and pt.ndim == 1 else -1
         if v.ndim != 2 or v.shape != (rows, f["patches/x"].shape[0]):
             raise SceneError(f"{where}/patches/velocity has shape {v.shape}, expected (len(/patches/time), patches)")
 

@@ -3,7 +3,8 @@ one this machine lacks), kernel loading with a first-run note, and the threads a
 
 Warp prints its native CUDA-driver warning on every machine without a GPU and a line per module load; aca_warp keeps
 both off unless asked (``aca-warp --verbose``, or ``ACA_WARP_VERBOSE=1`` for the Python API), and says "compiling
-kernels (once per machine and pad size)…" before a compile that would otherwise leave the terminal silent.
+kernels (once per machine, the on-chip ones once per pad size)…" before a compile that would otherwise leave the
+terminal silent.
 """
 
 from __future__ import annotations
@@ -86,12 +87,11 @@ def _have() -> str:
 Kernels = ModuleType | wp.Kernel | tuple[ModuleType | wp.Kernel, int]
 
 
-def _cached(module: wp.Module, device: wp.Device, block_dim: int | None) -> bool:
-    """Whether ``module``'s kernels compiled for blocks of ``block_dim`` threads (None: a launch's default) are in
-    Warp's kernel cache (a heuristic: its cache folder exists)."""
-    try:  # a launch's default block size: one thread on the CPU, the module's own on CUDA
-        dim = 1 if device.is_cpu else module.options["block_dim"]
-        ident = module.get_module_identifier(dim if block_dim is None else block_threads(device, block_dim))
+def _cached(module: wp.Module, device: wp.Device, threads: int) -> bool:
+    """Whether ``module``'s kernels compiled for blocks of ``threads`` threads are in Warp's kernel cache (a heuristic:
+    its cache folder exists)."""
+    try:
+        ident = module.get_module_identifier(threads)
     except Exception:  # noqa: BLE001 (a Warp internal; when it fails, assume a compile is coming)
         return False
     return os.path.isdir(os.path.join(wp.config.kernel_cache_dir, ident))
@@ -101,20 +101,24 @@ def load_kernels(modules: Iterable[Kernels], device: wp.Device | str, say: Calla
     """Load (compile, or fetch from the kernel cache) kernel ``modules`` on ``device``: each a Python module, a
     kernel (its module, e.g. a kernel made in a module of its own) or either with the block size [threads] of the
     launches that take it (a module is compiled once per block size: ``wp.launch_tiled`` with ``block_dim`` B needs
-    the variant of B; without a size, the variant of a plain launch). Before the first compile of the process,
-    ``say`` (default: a line on stderr) "compiling kernels (once per machine and pad size)…"."""
+    the variant of B); without a size, the variant of a plain launch (one thread on the CPU, the module's own size
+    on CUDA). Before the first compile of the process, ``say`` (default: a line on stderr) "compiling kernels…"."""
     init_warp()
     device = wp.get_device(device)
     for entry in modules:
         item, block_dim = entry if isinstance(entry, tuple) else (entry, None)
         module = item.module if isinstance(item, wp.Kernel) else wp.get_module(item.__name__)
-        if not _cached(module, device, block_dim) and not _state["compiling_said"]:
+        if block_dim is None:
+            threads = 1 if device.is_cpu else int(module.options["block_dim"])
+        else:
+            threads = block_threads(device, block_dim)
+        if not _cached(module, device, threads) and not _state["compiling_said"]:
             _state["compiling_said"] = True
             (say or (lambda s: print(s, file=sys.stderr, flush=True)))(
-                "compiling kernels (once per machine and pad size: the on-chip kernels are made for the largest "
-                f"pad of a batch; cached in {wp.config.kernel_cache_dir})…"
+                "compiling kernels (once per machine, the on-chip ones once per pad size; cached in "
+                f"{wp.config.kernel_cache_dir})…"
             )
-        wp.load_module(module, device=device, block_dim=block_dim)
+        wp.load_module(module, device=device, block_dim=threads)
 
 
 def block_threads(device: wp.Device, block_dim: int) -> int:

@@ -493,7 +493,8 @@ def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
     if p.exists() and not overwrite:
         again = option("overwrite=True", "--overwrite")
         if _interrupted(p):
-            raise SceneError(f"output file {p} exists (an interrupted run): {recovery(p)}; or pass {again} to replace")
+            why = f"output file {p} exists (an interrupted run): {recovery(p)}"
+            raise SceneError(f"{why}; or pass {again} to replace it")
         raise SceneError(f"output file {p} exists; pass {again} to replace it")
     part = partial_path(p)
     if part.exists() and not overwrite:

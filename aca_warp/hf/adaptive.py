@@ -198,10 +198,16 @@ class AdaptiveStepper:
         return (wp.array(a, dtype=m.dtype, device=m.device) for a in (u, v))
 
     def kernels(self) -> list[Kernels]:
-        """The kernel modules its launches use, to load before the run's first step (:func:`load_kernels`): the
-        landing's and the explicit pair's (also for the pair's evaluations in blocks of ``lanes`` threads, where a
-        patch takes more than one), and the split step's where pads may take it."""
-        return [KA, *([(KA, self.lanes)] if self.lanes > 1 else []), *([KC] if self.split else [])]
+        """The kernel modules its launches use, each at the block sizes it is launched with, to load before the run's
+        first step (:func:`~aca_warp.common.devices.load_kernels`): the landing's; the explicit pair's where pads may
+        take it (its control in blocks of ``CONTROL_BLOCK``, its evaluations in blocks of ``lanes`` threads where a
+        patch takes more than one); the split step's where pads may take it (its control likewise)."""
+        out: list[Kernels] = [KA]
+        if self.pair:
+            out += [(KA, CONTROL_BLOCK), *([(KA, self.lanes)] if self.lanes > 1 else [])]
+        if self.split:
+            out += [KC, (KC, CONTROL_BLOCK)]
+        return out
 
     def saved(self) -> dict[str, wp.array]:
         """Arrays a checkpoint holds: the clocks, modes, counters, the first stage (FSAL) and, with the split step, the

@@ -18,7 +18,7 @@ from typing import Any
 
 import warp as wp
 
-from aca_warp.common.devices import block_threads, load_kernels
+from aca_warp.common.devices import Kernels, block_threads, load_kernels
 from aca_warp.common.launches import Launcher
 from aca_warp.hf import adaptive
 from aca_warp.hf.engine import EngineSetup, Progress, fault_cause, run_stages
@@ -114,12 +114,13 @@ class GeneralEngine:
         return out | grown_arrays(self.model)
 
     def begin(self, resume: dict[str, int] | None) -> None:
+        stepper = self.stepper.kernels() if self.stepper is not None else []
+        growth: list[Kernels] = [(K, CONTACT_BLOCK)] if self.growth is not None else []  # the contact re-solve
+        load_kernels([*self.solver.kernels(), *stepper, *growth], self.model.device)
         if resume is None:
             self.recorder.launch(self.state.u, self.state.v, conditional=False)  # sample 0: the initial state
         else:
             self.started = bool(resume.get("started", 0))
-        stepper = self.stepper.kernels() if self.stepper is not None else []
-        load_kernels([*self.solver.kernels(), *stepper], self.model.device)
 
     def advance(self, p: Progress, most: int) -> Progress:
         if self.stepper is not None:

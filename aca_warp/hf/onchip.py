@@ -86,11 +86,11 @@ class OnchipLaunches:
     block_dim: int
 
     def begin(self, resume: dict[str, int] | None) -> None:
+        load_kernels([(self.kernel, self.block_dim), *self.solver.kernels(stepping=False)], self.model.device)
         if resume is None:
             self.recorder.launch(self.state.u, self.state.v, conditional=False)  # sample 0: the initial state
         else:
             self.started = bool(resume.get("started", 0))
-        load_kernels([(self.kernel, self.block_dim), *self.solver.kernels(stepping=False)], self.model.device)
 
     def counters(self) -> dict[str, int]:
         return {"started": int(self.started)}

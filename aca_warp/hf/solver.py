@@ -46,6 +46,7 @@ from aca_warp.hf.options import (
     check_solve_tol,
     default_step,
 )
+from aca_warp.hf.recorder import RECORD_BLOCK
 from aca_warp.hf.state import HFState
 from aca_warp.kernels import hf as K
 from aca_warp.kernels import step_bound
@@ -342,9 +343,11 @@ class HFSolver:
         the run's stepping time): the HF kernels and, with strang's crossing treatment, its kernels (each in a module
         of its own). ``stepping`` False: for the on-chip engines, whose own kernel steps; of the treatment's kernels
         they launch only the closing one."""
+        hf = [K, (K, RECORD_BLOCK)]  # the recorder's sums run in blocks of RECORD_BLOCK
         if not self.crossing:
-            return [K]
-        return [K, *K.STRANG_KERNELS[self.crossing]] if stepping else [K, self._close]
+            return hf
+        advance, close, record = K.STRANG_KERNELS[self.crossing]
+        return [*hf, advance, close, (record, RECORD_BLOCK)] if stepping else [*hf, close]
 
     def _launch(self, kernel: Any, inputs: list, dim: int | None = None) -> None:
         self.launcher(kernel, self.model.patch_count if dim is None else dim, inputs)

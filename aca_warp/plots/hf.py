@@ -140,16 +140,19 @@ def _require_patch_velocity(run: _Run, figure: str) -> None:
 # ----------------------------------------------------------------------------------------- patch map
 
 
+def check_instants(times: Sequence[float], lo: float, hi: float, name: str, what: str = "instant") -> None:
+    """Refuse an instant of ``times`` [s] outside the per-patch record ``lo``–``hi`` [s] of the run ``name``."""
+    for t in times:
+        if not lo - 1e-12 <= t <= hi + 1e-12:
+            raise SceneError(f"{what} {t:g} s lies outside the per-patch record {lo:g}-{hi:g} s of {name}")
+
+
 def _patch_rows(run: _Run, times: Sequence[float] | None, count: int = 4) -> tuple[np.ndarray, str]:
     """Rows of /patches/velocity to draw and a sentence on how they were chosen."""
     pt = run.f["patches/time"][()]
     if times is not None and len(times):
         times = np.asarray(times, dtype=np.float64)
-        bad = times[(times < pt[0] - 1e-12) | (times > pt[-1] + 1e-12)]
-        if bad.size:
-            raise SceneError(
-                f"instant {bad[0]:g} s lies outside the per-patch record {pt[0]:g}-{pt[-1]:g} s of {run.path.name}"
-            )
+        check_instants(times, float(pt[0]), float(pt[-1]), run.path.name)
         rows = np.unique(np.abs(pt[None, :] - times[:, None]).argmin(axis=1))
         return rows, "Instants as requested (nearest recorded sample)."
     fp = run.first_peak()
