@@ -87,7 +87,7 @@ def _have() -> str:
 Kernels = ModuleType | wp.Kernel | tuple[ModuleType | wp.Kernel, int]
 
 
-def _cached(module: wp.Module, device: wp.Device, threads: int) -> bool:
+def _cached(module: wp.Module, threads: int) -> bool:
     """Whether ``module``'s kernels compiled for blocks of ``threads`` threads are in Warp's kernel cache (a heuristic:
     its cache folder exists)."""
     try:
@@ -112,7 +112,7 @@ def load_kernels(modules: Iterable[Kernels], device: wp.Device | str, say: Calla
             threads = 1 if device.is_cpu else int(module.options["block_dim"])
         else:
             threads = block_threads(device, block_dim)
-        if not _cached(module, device, threads) and not _state["compiling_said"]:
+        if not _cached(module, threads) and not _state["compiling_said"]:
             _state["compiling_said"] = True
             (say or (lambda s: print(s, file=sys.stderr, flush=True)))(
                 "compiling kernels (once per machine, the on-chip ones once per pad size; cached in "
