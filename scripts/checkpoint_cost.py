@@ -6,8 +6,8 @@ checkpoints (the default) and with none (``--no-checkpoint``). Reported per run:
 checkpoints written, the wall time spent writing them and its share of the run (the load-independent figure: both
 are measured in the same process under the same load), the mean cost of one checkpoint, and the share that cost
 makes at the default spacing (one checkpoint per :data:`~aca_warp.common.checkpoint.AUTO_WALL_S`, the steady state
-of a long run). ``--wall S`` spaces the automatic checkpoints S apart instead of 30 s (more of them in a short run:
-a denser sample of their cost; the share at the default spacing is still reported). Examples::
+of a long run). ``--wall S`` spaces the automatic checkpoints S apart instead of the default (more of them in a short
+run: a denser sample of their cost; the share at the default spacing is still reported). Examples::
 
     python3 scripts/checkpoint_cost.py                                    # CPU: hf1 for 1 ms, the LF schedule
     python3 scripts/checkpoint_cost.py --wall 1 --json docs/benchmarks/checkpoint_cost_cpu.json \\

@@ -14,7 +14,7 @@ import h5py
 
 from aca_warp.common.checkpoint import has_checkpoint
 
-# ``aca_warp.cli`` with its automatic checkpoints from the first chunk or step end on (not after 30 s of wall time)
+# ``aca_warp.cli`` with its automatic checkpoints from the first chunk or step end on (not after 5 s of wall time)
 AUTO_AT_ONCE = (
     "-c",
     "import sys; import aca_warp.common.checkpoint as c; c.AUTO_WALL_S = 0.0; from aca_warp.cli import main; "

@@ -108,7 +108,7 @@ def test_interrupted_run_resumes_bit_identical(integrator, extra, dt, engine, tm
 def test_a_default_run_resumes_after_ctrl_c(scene_file: Path, tmp_path: Path, monkeypatch, capsys) -> None:
     """Without checkpoint options a run checkpoints automatically (here: AUTO_WALL_S = 0, from the first chunk on);
     Ctrl-C names the checkpoint and the command that continues the run, which then equals an uninterrupted run.
-    A run stopped before its first checkpoint (the default 30 s of wall time not reached) says so and resumes
+    A run stopped before its first checkpoint (the default 5 s of wall time not reached) says so and resumes
     from its start; --no-checkpoint (or --checkpoint-interval 0) writes none."""
     # the general engine, whose chunks end every 2 µs (on the CPU the on-chip engine's first launch is the whole run)
     opts = ["--no-progress", "--duration", "5e-5", "--record-patches", "velocity", "--engine", "general"]

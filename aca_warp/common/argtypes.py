@@ -88,7 +88,7 @@ def refuse_with_resume(options: tuple[tuple[str, object, object], ...], what: st
 
 CHECKPOINT_HELP = (
     "keep the {what} state in the run file every S of simulated time, so that a stopped or killed run can be resumed "
-    "(default: automatic, every 30 s of wall time or less often, costing at most 2%% of the run; 0: none; "
+    "(default: automatic, every 5 s of wall time or less often, costing at most 2%% of the run; 0: none; "
     "docs/faults.md)"
 )
 

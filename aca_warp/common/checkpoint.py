@@ -176,7 +176,7 @@ def drop_checkpoint(f: h5py.File) -> None:
         del f[GROUP]
 
 
-AUTO_WALL_S = 30.0  # automatic checkpoints: at least this much wall time between two [s]
+AUTO_WALL_S = 5.0  # automatic checkpoints: at least this much wall time between two [s]
 AUTO_SHARE = 0.02  # ... and at least 1 / AUTO_SHARE times the wall time the last one took
 
 
