@@ -375,3 +375,18 @@ def test_a_mistyped_option_is_refused_by_its_command_with_the_nearest(argv, said
     err = capsys.readouterr().err.strip().splitlines()
     assert e.value.code == 2 and len(err) == 1 and said in err[0], err
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    ("extra", "said"),
+    [
+        (["--record-patches", "velocty"], "--record-patches: unknown variable 'velocty'; choose from velocity,"),
+        (["--record-patches", "velocity", "--patch-window", "1e-4", "0"], "--patch-window: the end T1 must exceed"),
+    ],
+)
+def test_a_bad_record_option_is_named_as_typed(extra, said, capsys, tmp_path):
+    out = tmp_path / "e.h5"
+    assert main(["hf", "hf1", "--duration", "1e-4", *extra, "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and said in err[0], err
+    assert not list(tmp_path.iterdir())

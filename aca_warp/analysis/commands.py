@@ -236,7 +236,7 @@ def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float
         from aca_warp.analysis.report import saturation_summary
 
         parts.append(saturation_summary(groups["saturation"]))
-    print("; ".join(parts))
+    print("\n  ".join(parts))  # the file and what was written, then one finding per line
     return 0
 
 

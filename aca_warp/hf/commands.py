@@ -305,13 +305,21 @@ def _hf_scene(args: argparse.Namespace) -> tuple[Any, float]:
 def _record_changes(args: argparse.Namespace) -> dict:
     """The fields of the scene's Record that the command line sets (--sample-dt, --record-patches, --patch-window,
     --patch-decimation)."""
+    from aca_warp.scene.parts import PATCH_VARIABLES
+
     changes: dict = {}
     if args.sample_dt is not None:
         changes["sample_dt"] = args.sample_dt
     if args.record_patches is not None:
         changes["patches"] = tuple(v.strip() for v in args.record_patches.split(",") if v.strip())
+        for v in changes["patches"]:
+            if v not in PATCH_VARIABLES:
+                raise SceneError(f"--record-patches: unknown variable {v!r}; choose from {', '.join(PATCH_VARIABLES)}")
     if args.patch_window is not None:
-        changes["window"] = tuple(args.patch_window)
+        t0, t1 = args.patch_window
+        if not t1 > t0:
+            raise SceneError(f"--patch-window: the end T1 must exceed the start T0, got {t0:g} {t1:g} [s]")
+        changes["window"] = (t0, t1)
     if args.patch_decimation is not None:
         changes["decimation"] = args.patch_decimation
     return changes
