@@ -172,7 +172,9 @@ def table(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main(argv: list[str] | None = None) -> int:
+def parse(argv: list[str] | None) -> argparse.Namespace:
+    """The command line, checked (exit 2 and one line on bad input); ``checkouts``, ``labels`` and ``device`` filled
+    in."""
     doc = __doc__ or ""
     ap = argparse.ArgumentParser(description=doc.split("\n\n")[0], epilog=doc.split("\n\n", 1)[1],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
@@ -185,39 +187,54 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--labels", nargs="+", help="the checkouts' names in the record (default: commit or path)")
     ap.add_argument("--out", type=Path, required=True, help="folder for kernel_loads.json and kernel_loads.md")
     args = ap.parse_args(argv)
-    checkouts = args.checkouts or [Path(__file__).resolve().parent.parent]
-    refuse_bad_checkouts(ap, checkouts)
-    if args.labels is not None and len(args.labels) != len(checkouts):
-        ap.error(f"--labels: give one name per checkout ({len(checkouts)}), got {len(args.labels)}")
-    labels = args.labels or [label(c) for c in checkouts]
+    args.checkouts = args.checkouts or [Path(__file__).resolve().parent.parent]
+    refuse_bad_checkouts(ap, args.checkouts)
+    if args.labels is not None and len(args.labels) != len(args.checkouts):
+        ap.error(f"--labels: give one name per checkout ({len(args.checkouts)}), got {len(args.labels)}")
+    args.labels = args.labels or [label(c) for c in args.checkouts]
     from aca_warp.common.devices import get_device
     from aca_warp.common.errors import SceneError
-    from aca_warp.common.files import machine
 
     try:
-        device = get_device(args.device)
+        args.device = get_device(args.device)
     except SceneError as e:
         ap.error(f"--device: {e}")
+    return args
 
+
+def measure(args: argparse.Namespace) -> list[dict]:
+    """Every asked case of every checkout (each in a process of its own with ``--cold``), a line per case on stdout;
+    the rows of the record. RuntimeError (one line) when a case fails."""
     rows: list[dict] = []
+    cases = [c for c in CASES if ":".join(c) in args.cases]
     with tempfile.TemporaryDirectory() as tmp:
-        for i, checkout in enumerate(checkouts):
+        for i, (checkout, name) in enumerate(zip(args.checkouts, args.labels, strict=True)):
             view = package_view(checkout.resolve(), Path(tmp) / f"v{i}")
-            cases = [c for c in CASES if ":".join(c) in args.cases]
             for group in [[c] for c in cases] if args.cold else [cases]:
                 cache = Path(tmp) / f"cache{i}_{len(rows)}" if args.cold else None
                 try:
-                    done = run_cases(group, view, cache, args.device)
+                    done = run_cases(group, view, cache, str(args.device))
                 except RuntimeError as e:
-                    print(f"kernel_loads: {labels[i]}: {e}", file=sys.stderr)
-                    return 1
+                    raise RuntimeError(f"{name}: {e}") from None
                 for r in done:
-                    rows.append({"checkout": labels[i], **r})
+                    rows.append({"checkout": name, **r})
                     said = f"{', '.join(r['case'])}: set-up {r['compile_s']:.2f} s, stepping {r['wall_s']:.2f} s"
-                    print(f"{labels[i]}: {said}, loaded while stepping: {modules_text(r['stepping'])}")
+                    print(f"{name}: {said}, loaded while stepping: {modules_text(r['stepping'])}")
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(argv)
+    try:
+        rows = measure(args)
+    except RuntimeError as e:
+        print(f"kernel_loads: {e}", file=sys.stderr)
+        return 1
+    from aca_warp.common.files import machine
+
     args.out.mkdir(parents=True, exist_ok=True)
     doc_out = {"command": "scripts/kernel_loads.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-               "machine": machine(device), "cold": args.cold, "rows": rows}  # fmt: skip
+               "machine": machine(args.device), "cold": args.cold, "rows": rows}  # fmt: skip
     (args.out / "kernel_loads.json").write_text(json.dumps(doc_out, indent=1) + "\n")
     (args.out / "kernel_loads.md").write_text(table(rows))
     return 0
