@@ -175,7 +175,8 @@ def _add_plot(subparsers: Any) -> None:
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:
-    """``aca-warp analyze``: write /analysis and print a one-line summary; 0 on success."""
+    """``aca-warp analyze``: write /analysis and print a summary (the groups written, then a finding per line); 0 on
+    success."""
 
     if args.freq_min is not None and args.freq_max is not None and args.freq_min >= args.freq_max:
         raise SceneError(f"--freq-min ({args.freq_min:g} Hz) must be below --freq-max ({args.freq_max:g} Hz)")

@@ -428,7 +428,7 @@ def compute_saturation(f: h5py.File) -> Group:
 
 
 def saturation_summary(g: Group) -> str:
-    """One clause for the ``analyze`` summary line: whether the record is saturated, from when, and the measured
+    """One line of the ``analyze`` summary: whether the record is saturated, from when, and the measured
     growth rate beside the predicted median and 25th percentile."""
     a = g.attrs
     status = a["status"]

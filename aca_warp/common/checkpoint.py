@@ -194,7 +194,8 @@ class CheckpointClock:
       :data:`AUTO_WALL_S` of wall time after the run started, then after the previous checkpoint, and at least
       1 / :data:`AUTO_SHARE` times as long as that checkpoint took to write: checkpoints cost at most
       :data:`AUTO_SHARE` of the run's wall time (``scripts/checkpoint_cost.py`` measures it), and an interrupt loses
-      at most that much work. A run that ends or stops before its first checkpoint resumes from its start.
+      at most that spacing and the chunk or step then running. A run that ends or stops before its first checkpoint
+      resumes from its start.
     * ``> 0``: the first chunk or step end at or past each multiple of it in simulated time (the HF loop ends its
       chunks there).
     * ``0``: none.
