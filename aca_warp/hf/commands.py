@@ -305,16 +305,14 @@ def _hf_scene(args: argparse.Namespace) -> tuple[Any, float]:
 def _record_changes(args: argparse.Namespace) -> dict:
     """The fields of the scene's Record that the command line sets (--sample-dt, --record-patches, --patch-window,
     --patch-decimation)."""
-    from aca_warp.scene.parts import PATCH_VARIABLES
+    from aca_warp.scene.parts import check_patch_variables
 
     changes: dict = {}
     if args.sample_dt is not None:
         changes["sample_dt"] = args.sample_dt
     if args.record_patches is not None:
         changes["patches"] = tuple(v.strip() for v in args.record_patches.split(",") if v.strip())
-        for v in changes["patches"]:
-            if v not in PATCH_VARIABLES:
-                raise SceneError(f"--record-patches: unknown variable {v!r}; choose from {', '.join(PATCH_VARIABLES)}")
+        check_patch_variables(changes["patches"], "--record-patches")
     if args.patch_window is not None:
         t0, t1 = args.patch_window
         if not t1 > t0:

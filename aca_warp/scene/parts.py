@@ -23,6 +23,14 @@ PATCH_VARIABLES = ("velocity", "displacement")
 HEIGHT_LAWS = ("normal", "uniform")
 
 
+def check_patch_variables(names: tuple[str, ...], setting: str = "record.patches") -> None:
+    """Refuse a per-patch variable of ``names`` that is not one of :data:`PATCH_VARIABLES` (:class:`SceneError`
+    naming ``setting``: the scene's field, or the command line's flag)."""
+    for v in names:
+        if v not in PATCH_VARIABLES:
+            raise SceneError(f"{setting}: unknown variable {v!r}; choose from {', '.join(PATCH_VARIABLES)}")
+
+
 def _finite(name: str, value: Any, *, low: float | None = None, strict: bool = False) -> float:
     """Return ``value`` as float after checking it is a finite number (and ≥ / > ``low``)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
@@ -303,9 +311,7 @@ class Record:
     def __post_init__(self) -> None:
         _finite("record.sample_dt", self.sample_dt, low=0.0, strict=True)
         object.__setattr__(self, "patches", tuple(self.patches))
-        for v in self.patches:
-            if v not in PATCH_VARIABLES:
-                raise SceneError(f"record.patches: unknown variable {v!r}; choose from {', '.join(PATCH_VARIABLES)}")
+        check_patch_variables(self.patches)
         if isinstance(self.window, (str, bytes)) or not hasattr(self.window, "__len__") or len(self.window) != 2:
             raise SceneError(f"record.window must be [start, end] in seconds, got {self.window!r}")
         t0 = _finite("record.window start", self.window[0], low=0.0)
