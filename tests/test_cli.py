@@ -102,6 +102,17 @@ def test_only_what_is_asked_is_recorded(scene_file, tmp_path):
     assert "record:patches" not in r["attrs"]["stages"]
 
 
+def test_record_patches_none_turns_a_scenes_record_off(scene_file, tmp_path):
+    """``--record-patches none`` leaves out the per-patch histories a scene records itself."""
+    scene = tmp_path / "patches.toml"
+    scene.write_text(scene_file.read_text().replace("[record]\n", '[record]\npatches = ["velocity"]\n'))
+    on, off = tmp_path / "on.h5", tmp_path / "off.h5"
+    assert main(["hf", str(scene), "-o", str(on), "--no-progress"]) == 0
+    assert main(["hf", str(scene), "-o", str(off), "--no-progress", "--record-patches", "none"]) == 0
+    assert "patches/velocity" in read_run(on)
+    assert not any(k.startswith("patches/velocity") for k in read_run(off))
+
+
 @pytest.mark.parametrize(
     "argv, message",
     [
@@ -116,6 +127,7 @@ def test_only_what_is_asked_is_recorded(scene_file, tmp_path):
         (["hf", "{scene}", "-o", "{out}", "--sample-dt", "1e-3"], "(--sample-dt) exceeds the duration"),
         (["hf", "{scene}", "-o", "{out}", "--duration", "5e-8"], "(the scene's record.sample_dt) exceeds the duration"),
         (["hf", "{scene}", "-o", "{out}", "--record-patches", "pressure"], "unknown variable"),
+        (["hf", "{scene}", "-o", "{out}", "--record-patches", " , "], "or none for no per-patch histories"),
         (["hf", "{scene}", "-o", "{out}", "--device", "cuda:7"], "device"),
         (["hf", "{scene}", "-o", "/no/such/dir/run.h5"], "does not exist"),
         (["hf", "{scene}", "-o", "{out}", "--integrator", "adaptive", "--crossing", "mean"], "treatment of strang"),

@@ -158,7 +158,8 @@ def _add_record_arguments(hf: argparse.ArgumentParser) -> None:
     hf.add_argument(
         "--record-patches",
         metavar="VARS",
-        help="record per-patch histories: velocity, displacement or velocity,displacement",
+        help="record per-patch histories: velocity, displacement or velocity,displacement; none: no per-patch "
+        "histories (a scene's own per-patch record off)",
     )
     hf.add_argument(
         "--patch-window", type=nonneg, nargs=2, metavar=("T0", "T1"), help="time window of the per-patch histories [s]"
@@ -302,17 +303,30 @@ def _hf_scene(args: argparse.Namespace) -> tuple[Any, float]:
     return scene, duration
 
 
+def _patch_variables(given: str) -> tuple[str, ...]:
+    """The per-patch variables of ``--record-patches`` (comma-separated; ``none``: none); an empty value is refused,
+    so that a stray quoting mistake does not silently turn a scene's per-patch record off."""
+    from aca_warp.scene.parts import check_patch_variables
+
+    if given.strip().lower() == "none":
+        return ()
+    names = tuple(v.strip() for v in given.split(",") if v.strip())
+    if not names:
+        raise SceneError(
+            "--record-patches: give velocity, displacement or velocity,displacement, or none for no per-patch histories"
+        )
+    check_patch_variables(names, "--record-patches")
+    return names
+
+
 def _record_changes(args: argparse.Namespace) -> dict:
     """The fields of the scene's Record that the command line sets (--sample-dt, --record-patches, --patch-window,
     --patch-decimation)."""
-    from aca_warp.scene.parts import check_patch_variables
-
     changes: dict = {}
     if args.sample_dt is not None:
         changes["sample_dt"] = args.sample_dt
     if args.record_patches is not None:
-        changes["patches"] = tuple(v.strip() for v in args.record_patches.split(",") if v.strip())
-        check_patch_variables(changes["patches"], "--record-patches")
+        changes["patches"] = _patch_variables(args.record_patches)
     if args.patch_window is not None:
         t0, t1 = args.patch_window
         if not t1 > t0:
