@@ -255,7 +255,9 @@ def child(cfg: dict) -> dict:
     if "prepare" in inspect.signature(run_sweep).parameters:  # a code with a preparation pool
         from aca_warp.sweep.run import prepare_processes
 
-        prepare = cfg["prepare"] if cfg["prepare"] is not None else prepare_processes(device, None, True)
+        by_spec = "spec" in inspect.signature(prepare_processes).parameters  # a code whose default reads the sweep
+        default = prepare_processes(device, None, True, *([spec] if by_spec else []))
+        prepare = cfg["prepare"] if cfg["prepare"] is not None else default
         kwargs["prepare"] = prepare
     scratch = Path(cfg["dir"])
     kept = contextlib.nullcontext()

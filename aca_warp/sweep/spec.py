@@ -209,6 +209,15 @@ class SweepSpec:
         """Number of shards."""
         return math.ceil(self.pad_count / self.shard_size)
 
+    @property
+    def layout_count(self) -> int:
+        """Number of distinct patch layouts the pads take: the combinations of the swept patch and pad parameters
+        among the pads (1 when none is swept). Each is made by the patch generator before its pads run."""
+        keys = [k for k in self.parameters if PARAMETERS[k][1] in ("patches", "pad")]
+        if not keys:
+            return 1
+        return len(set(zip(*(self.parameters[k] for k in keys), strict=True)))  # numbers: hashable
+
     def shard_range(self, index: int) -> tuple[int, int]:
         """[start, stop) positions of shard ``index`` in the order shards take the pads (:attr:`order`; the global pad
         indices themselves when pads are not reordered)."""
