@@ -686,10 +686,9 @@ def test_bench_sweep_kinds_and_steps() -> None:
 
 
 def test_default_pool_size(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The preparation pool's default: 2 processes per GPU of a local CUDA sweep and at least 4, 4 per GPU and at
-    least 8 for a sweep with a layout of its own for at least half of its pads (its preparation binds), at most the
-    cores the workers leave (one kept for the client), at least 1; none on the CPU or for a cluster given by
-    address."""
+    """The preparation pool's default: 2 processes per GPU of a local CUDA sweep, 4 per GPU for a sweep with a
+    layout of its own for at least half of its pads (its preparation binds), at least 4, at most the cores the
+    workers leave (one kept for the client), at least 1; none on the CPU or for a cluster given by address."""
     from aca_warp.sweep import hf1_product_doc, run
 
     seeds = load_spec({"sweep": {"name": "s", "base": "hf1"}, "parameters": {"patches.seed": {"range": [1, 65]}}})
@@ -706,14 +705,20 @@ def test_default_pool_size(monkeypatch: pytest.MonkeyPatch) -> None:
     ) == (64, 8, 1)
     monkeypatch.setattr(run.os, "cpu_count", lambda: 32)
     assert run.prepare_processes("cuda:0", None, True) == run.prepare_processes("cuda:0", None, True, product) == 4
-    assert run.prepare_processes("cuda:0", None, True, seeds) == run.prepare_processes("cuda:0", None, True, half) == 8
-    assert run.prepare_processes("cuda:0", None, True, fewer) == 4  # 31 layouts of 64 pads
+    assert run.prepare_processes("cuda:0", None, True, seeds) == 4  # one GPU: at least 4 either way
     assert run.prepare_processes("cuda:0,cuda:1", None, True) == 4
+    assert (
+        run.prepare_processes("cuda:0,cuda:1", None, True, seeds)
+        == run.prepare_processes("cuda:0,cuda:1", None, True, half)
+        == 8
+    )
+    assert run.prepare_processes("cuda:0,cuda:1", None, True, fewer) == 4  # 31 layouts of 64 pads
     assert run.prepare_processes("cuda:0,cuda:1,cuda:2,cuda:3", None, True) == 8
     assert run.prepare_processes("cuda:0,cuda:1,cuda:2,cuda:3", None, True, seeds) == 16
     assert run.prepare_processes("cpu", None, True, seeds) == run.prepare_processes("cuda:0", None, False, seeds) == 0
     monkeypatch.setattr(run.os, "cpu_count", lambda: 4)
-    assert run.prepare_processes("cuda:0", None, True) == run.prepare_processes("cuda:0", None, True, seeds) == 2
+    assert run.prepare_processes("cuda:0", None, True) == 2  # 4 cores, one worker, the client
+    assert run.prepare_processes("cuda:0,cuda:1", None, True, seeds) == 1  # 4 cores, two workers, the client
     assert run.prepare_processes("cuda:0", 3, True) == 1
 
 
