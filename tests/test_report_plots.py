@@ -370,6 +370,16 @@ def test_analyze_summary_uses_the_figures_band(runs, tmp_path, capsys):
     assert f"over {2 * df / 1e3:.4g}-200 kHz" in out and "leakage of the mean" in out
     above = np.count_nonzero((S > s0)[shown & np.isfinite(S)])
     assert f"S > S_null in {above} of {np.count_nonzero(shown & np.isfinite(S))} bins" in out
+    lowest = k == int(np.flatnonzero(shown & np.isfinite(S))[0])  # there the record's start-up can win: said so
+    assert (f"(the lowest bin counted, {freq[k] / df:.3g} periods in the record" in out) == lowest
+    band = ["--freq-min", f"{freq[k] * 1.01:.6g}"]  # the winning bin left out: another wins, lowest or not
+    assert _cli(["analyze", str(path), *band]) == 0
+    out = capsys.readouterr().out
+    with h5py.File(path, "r") as f:
+        freq, S, s0 = (f[f"analysis/sync/{k}"][()] for k in ("freq", "S", "S_null"))
+    counted = (freq >= float(band[1])) & np.isfinite(S)
+    k = int(np.argmax(np.where(counted, S - s0, -np.inf)))
+    assert (f"(the lowest bin counted, {freq[k] / df:.3g} periods" in out) == (k == int(np.flatnonzero(counted)[0]))
 
 
 def test_a_one_bin_band_names_its_floor_and_plots_no_sync(runs, tmp_path, capsys):

@@ -60,7 +60,8 @@ def sync_excess(sync: Group) -> dict[str, Any] | None:
 
     Returns None when no such bin has Φ ≥ 2, else a dict: ``freq`` [Hz], ``S``, ``S_null``, ``Phi`` of the bin
     with the largest S − S_null; ``above`` (bins with S > S_null) and ``bins`` (bins with Φ ≥ 2), both counted
-    over the shown bins; ``band`` [Hz] (the stored band, its lower edge raised to the floor) and ``floor`` [Hz].
+    over the shown bins; ``band`` [Hz] (the stored band, its lower edge raised to the floor), ``floor`` [Hz],
+    ``periods`` (of that bin's frequency in the record: f / Δf) and ``lowest`` (whether it is the lowest bin counted).
     """
     freq, S, s0 = (np.asarray(sync[k], dtype=np.float64) for k in ("freq", "S", "S_null"))
     floor = leakage_floor(freq, sync.attrs)
@@ -71,6 +72,8 @@ def sync_excess(sync: Group) -> dict[str, Any] | None:
         return None
     k = int(np.argmax(np.where(valid, S - s0, -np.inf)))
     return {
+        "periods": float(freq[k] / bin_width(freq, sync.attrs)),
+        "lowest": k == int(np.flatnonzero(valid)[0]),
         "freq": float(freq[k]),
         "S": float(S[k]),
         "S_null": float(s0[k]),
