@@ -282,8 +282,10 @@ TARGETS: tuple[Target, ...] = (
            "s", (DEFAULT_STEP + "bench_64hf1_360ms_default_h200.json",), bench_wall, LINK["time_to_solution.md"]),
     Target("varying-area record", "varying-area record (0.36 s) at the defaults ≤ 20 s (set for one H100)", 20.0,
            "≤", "s", (DEFAULT_STEP + "time_varying_area_default.json",), command_wall, LINK["time_to_solution.md"]),
-    Target("varying-area record, on chip", "varying-area record (0.36 s) on the on-chip engine ≤ 60 s", 60.0, "≤",
-           "s", ("results_varying_area_onchip.md",), report_run_line, LINK["onchip.md"]),
+    Target("varying-area record, on chip, 1e-8 s",
+           "varying-area record (0.36 s) on the on-chip engine at 1e-8 s ≤ 60 s (the record at the defaults, above, "
+           "runs on chip too)", 60.0, "≤", "s", ("results_varying_area_onchip.md",), report_run_line,
+           LINK["onchip.md"]),
     Target("one pad per step", "one hf1 pad ≤ 1.5 µs per step", 1.5, "≤", "µs per step",
            tuple(PROFILES + s for s in ("r0.md", "r1.json", "r2.json", "r3.json")), profile_us_per_step,
            LINK["onchip.md"]),
