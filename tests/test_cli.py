@@ -128,6 +128,7 @@ def test_record_patches_none_turns_a_scenes_record_off(scene_file, tmp_path):
         (["hf", "{scene}", "-o", "{out}", "--duration", "5e-8"], "(the scene's record.sample_dt) exceeds the duration"),
         (["hf", "{scene}", "-o", "{out}", "--record-patches", "pressure"], "unknown variable"),
         (["hf", "{scene}", "-o", "{out}", "--record-patches", " , "], "or none for no per-patch histories"),
+        (["hf", "{scene}", "-o", "{out}", "--record-patches", "none,velocity"], "none stands alone"),
         (["hf", "{scene}", "-o", "{out}", "--device", "cuda:7"], "device"),
         (["hf", "{scene}", "-o", "/no/such/dir/run.h5"], "does not exist"),
         (["hf", "{scene}", "-o", "{out}", "--integrator", "adaptive", "--crossing", "mean"], "treatment of strang"),

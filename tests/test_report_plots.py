@@ -371,7 +371,8 @@ def test_analyze_summary_uses_the_figures_band(runs, tmp_path, capsys):
     above = np.count_nonzero((S > s0)[shown & np.isfinite(S)])
     assert f"S > S_null in {above} of {np.count_nonzero(shown & np.isfinite(S))} bins" in out
     lowest = k == int(np.flatnonzero(shown & np.isfinite(S))[0])  # there the record's start-up can win: said so
-    assert (f"(the lowest bin counted, {freq[k] / df:.3g} periods in the record" in out) == lowest
+    assert lowest and freq[k] / df <= 20  # this record: the remark's case
+    assert f"(the lowest bin counted, {freq[k] / df:.3g} periods in the record" in out
     band = ["--freq-min", f"{freq[k] * 1.01:.6g}"]  # the winning bin left out: another wins, lowest or not
     assert _cli(["analyze", str(path), *band]) == 0
     out = capsys.readouterr().out
@@ -379,7 +380,19 @@ def test_analyze_summary_uses_the_figures_band(runs, tmp_path, capsys):
         freq, S, s0 = (f[f"analysis/sync/{k}"][()] for k in ("freq", "S", "S_null"))
     counted = (freq >= float(band[1])) & np.isfinite(S)
     k = int(np.argmax(np.where(counted, S - s0, -np.inf)))
-    assert (f"(the lowest bin counted, {freq[k] / df:.3g} periods" in out) == (k == int(np.flatnonzero(counted)[0]))
+    remark = k == int(np.flatnonzero(counted)[0]) and freq[k] / df <= 20
+    assert (f"(the lowest bin counted, {freq[k] / df:.3g} periods" in out) == remark
+
+
+@pytest.mark.parametrize(("lowest", "periods", "said"), [(True, 2.0, True), (True, 20.0, True), (True, 21.0, False),
+                                                        (False, 2.0, False)])  # fmt: skip
+def test_the_lowest_bin_remark_needs_few_periods(lowest, periods, said):
+    """The remark on a shared start-up or drift comes only at the lowest bin counted and with at most 20 periods of
+    its frequency in the record (beyond, a Hann-windowed drift has faded)."""
+    from aca_warp.analysis.report import lowest_bin_remark
+
+    remark = lowest_bin_remark({"lowest": lowest, "periods": periods})
+    assert bool(remark) == said and (not said or f"{periods:.3g} periods in the record" in remark)
 
 
 def test_a_one_bin_band_names_its_floor_and_plots_no_sync(runs, tmp_path, capsys):

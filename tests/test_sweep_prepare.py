@@ -686,9 +686,9 @@ def test_bench_sweep_kinds_and_steps() -> None:
 
 
 def test_default_pool_size(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The preparation pool's default: 2 processes per GPU of a local CUDA sweep, 4 per GPU for a sweep with a
-    layout of its own for at least half of its pads (its preparation binds), at least 4, at most the cores the
-    workers leave (one kept for the client), at least 1; none on the CPU or for a cluster given by address."""
+    """The preparation pool's default: 2 processes per GPU of a local CUDA sweep, 4 per GPU for a sweep with at
+    least one patch layout per two pads (its preparation binds), at least 4, at most the cores the workers leave (one
+    kept for the client), at least 1; none on the CPU or for a cluster given by address."""
     from aca_warp.sweep import hf1_product_doc, run
 
     seeds = load_spec({"sweep": {"name": "s", "base": "hf1"}, "parameters": {"patches.seed": {"range": [1, 65]}}})
@@ -713,6 +713,9 @@ def test_default_pool_size(monkeypatch: pytest.MonkeyPatch) -> None:
         == 8
     )
     assert run.prepare_processes("cuda:0,cuda:1", None, True, fewer) == 4  # 31 layouts of 64 pads
+    two_each = load_spec(hf1_product_doc("q", 2, 1, 8, shard_size=16, duration=1e-6, precision="fp32"))
+    assert (two_each.layout_count, two_each.pad_count) == (8, 16)  # no pad's layout its own, one per two pads
+    assert run.prepare_processes("cuda:0,cuda:1", None, True, two_each) == 8
     assert run.prepare_processes("cuda:0,cuda:1,cuda:2,cuda:3", None, True) == 8
     assert run.prepare_processes("cuda:0,cuda:1,cuda:2,cuda:3", None, True, seeds) == 16
     assert run.prepare_processes("cpu", None, True, seeds) == run.prepare_processes("cuda:0", None, False, seeds) == 0

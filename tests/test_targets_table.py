@@ -21,12 +21,13 @@ def test_check_fails_on_a_changed_number(tmp_path: Path, capsys: pytest.CaptureF
     page = tmp_path / "status.md"
     shutil.copy(MODULE.STATUS, page)
     text = page.read_text()
-    block = text.split(MODULE.BEGIN, 1)[1].split(MODULE.END, 1)[0]
-    assert "| 1.58–1.59 s (2 runs) |" in block
-    page.write_text(text.replace("| 1.58–1.59 s (2 runs) |", "| 1.48–1.59 s (2 runs) |"))
+    row = next(ln for ln in text.split(MODULE.BEGIN, 1)[1].splitlines() if ln.startswith("| 64 saturated hf1 pads"))
+    cell = row.split(" | ")[1]  # the measured value, as generated
+    changed = row.replace(f" | {cell} | ", f" | 9{cell} | ", 1)
+    page.write_text(text.replace(row, changed))
     assert MODULE.main(["--check", "--status", str(page)]) == 1
     out = capsys.readouterr().out
-    assert "-| 64 saturated hf1 pads" in out and "1.48–1.59 s" in out
+    assert f"-{changed}" in out and f"+{row}" in out
     page.write_text(text)
     assert MODULE.main(["--check", "--status", str(page)]) == 0
 
@@ -65,6 +66,56 @@ def test_ratio_is_below_one_when_met_in_both_directions() -> None:
     assert MODULE.ratios([200.0, 50.0], 100.0, "≥") == [0.5, 2.0]
     with pytest.raises(ValueError):
         MODULE.ratios([1.0], 1.0, "<")
+
+
+def _sweep_run(code: str, mode: str, units: int, run: int, wall: float, command: float, fraction: float) -> dict:
+    return {"code": code, "mode": mode, "units": units, "run": run, "wall_s": wall, "command_wall_s": command,
+            "wall_over_in_shard": fraction}  # fmt: skip
+
+
+def test_sweep_readers_take_the_default_path_of_this_code(tmp_path: Path) -> None:
+    """The sweep rows read the overlapped runs of the code measured, paired run by run, among decoys: the
+    baseline's, the kept pool's and the sequential path's runs."""
+    runs = [
+        _sweep_run("new", "overlapped", 1, 1, 4.0, 8.0, 0.60),
+        _sweep_run("new", "overlapped", 2, 1, 2.0, 5.0, 0.55),
+        _sweep_run("new", "overlapped", 1, 2, 3.0, 7.0, 0.70),
+        _sweep_run("new", "overlapped", 2, 2, 2.5, 6.0, 0.50),
+        _sweep_run("baseline", "overlapped", 1, 1, 1.0, 1.0, 0.99),
+        _sweep_run("new", "kept", 2, 1, 0.1, 0.1, 0.99),
+        _sweep_run("new", "sequential", 1, 1, 9.0, 0.0, 0.10),
+    ]
+    path = tmp_path / "sweep.json"
+    path.write_text(MODULE.json.dumps({"machine": {"device_name": "GPU", "host": "CPU, 8 cores"}, "runs": runs}))
+    assert MODULE.sweep_wall_fraction([path]).values == pytest.approx((60.0, 70.0))
+    two = MODULE.sweep_two_over_one([path])
+    assert two.values == pytest.approx((2.0, 1.2)) and two.machine == "2 × GPU, CPU, 8 cores"
+    assert two.note == "the whole command, cluster start included, 1.17–1.60×"
+
+
+def _tts_row(solver: str, where: str, tries: list[tuple[float, float, bool]]) -> dict:
+    return {"scene": "hf1", "solver": solver, "pads": 1, "where": where,
+            "tries": [{"error": e, "time_s": t, "reached": r, "setting": 0} for e, t, r in tries]}  # fmt: skip
+
+
+def test_time_to_solution_ratio_takes_the_try_that_reached_and_says_when_none_did(tmp_path: Path) -> None:
+    """A solver's time is its first try that reached the error (not its last, nor another engine's row); where the
+    other solver never reaches it, its finest try bounds the ratio and the note says so; where ours does not, too."""
+    rows = [
+        _tts_row("ours", "gpu", [(1e-6, 0.1, False), (5e-8, 0.2, True), (1e-8, 0.9, True)]),
+        _tts_row("ours", "cpu", [(5e-8, 5.0, True)]),
+        _tts_row("other", "", [(1e-5, 0.3, False), (2e-6, 0.5, False)]),
+        _tts_row("third", "", [(5e-8, 0.05, True)]),
+        _tts_row("late", "", [(1e-6, 0.4, False)]),
+    ]
+    path = tmp_path / "tts.json"
+    path.write_text(MODULE.json.dumps({"machine": {"device": "cpu", "host": "CPU, 2 cores"}, "rows": rows}))
+    slow = MODULE.tts_ratio("hf1", ("ours", "gpu"), ("other", ""), speedup=False)([path])
+    assert slow.values == pytest.approx((0.4,)) and "at most this ratio at equal error" in slow.note
+    fast = MODULE.tts_ratio("hf1", ("third", ""), ("ours", "gpu"), speedup=True)([path])
+    assert fast.values == pytest.approx((4.0,)) and fast.note == "0.0500 s against 0.200 s"
+    short = MODULE.tts_ratio("hf1", ("late", ""), ("third", ""), speedup=False)([path])
+    assert "ours at 1.0e-6, short of the error" in short.note
 
 
 def test_entry_without_files_is_not_in_data() -> None:

@@ -216,7 +216,7 @@ def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float
     if "mu_peak_frequency" in peaks:
         parts.append(f"largest mu peak {peaks['mu_peak_frequency'] / 1e3:.4g} kHz")
     if "sync" in groups:
-        from aca_warp.analysis.report import LEAKAGE_BINS, sync_excess
+        from aca_warp.analysis.report import LEAKAGE_BINS, lowest_bin_remark, sync_excess
 
         ex = sync_excess(groups["sync"])
         if ex is None:
@@ -228,13 +228,7 @@ def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float
                 f"below max(10 Hz, {LEAKAGE_BINS} df) = {ex['floor'] / 1e3:.4g} kHz, the Hann leakage of the mean, as "
                 f"in the figures): S > S_null in {ex['above']} of {ex['bins']} bins with Phi >= 2, largest excess "
                 f"S = {ex['S']:.3f} (null {ex['S_null']:.3f}, Phi {ex['Phi']}) at {ex['freq'] / 1e3:.4g} kHz"
-                + (
-                    f" (the lowest bin counted, {ex['periods']:.3g} periods in the record: there a start-up transient "
-                    "or a drift shared by the patches reads as synchronised as a vibration does; a longer record, or "
-                    "a higher --freq-min, tells them apart)"
-                    if ex["lowest"]
-                    else ""
-                )
+                + lowest_bin_remark(ex)
             )
     elif args.no_sync:
         parts.append("per-patch velocities not read (--no-sync)")

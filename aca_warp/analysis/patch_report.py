@@ -22,6 +22,10 @@ from .sync import SyncResult, _patch_groups, sync_index, sync_index_from_signals
 
 LEAKAGE_BINS = 2
 """Figures and the ``analyze`` summary leave out the lowest bins f < LEAKAGE_BINS·Δf (see :func:`leakage_floor`)."""
+FEW_PERIODS = 20
+"""At most this many periods of a frequency in the record (f / Δf): the ``analyze`` summary says that a start-up
+transient or a drift shared by the patches can read as synchronised there, where the largest excess S sits at the
+lowest bin counted."""
 
 
 def bin_width(freq: np.ndarray, attrs: Any = None) -> float:
@@ -83,6 +87,18 @@ def sync_excess(sync: Group) -> dict[str, Any] | None:
         "band": (max(floor, float(band[0])), float(band[1])),
         "floor": floor,
     }
+
+
+def lowest_bin_remark(excess: dict[str, Any]) -> str:
+    """The ``analyze`` summary's remark on the largest excess S (:func:`sync_excess`) where it sits at the lowest
+    bin counted and the record holds at most :data:`FEW_PERIODS` periods of it; else ""."""
+    if not (excess["lowest"] and excess["periods"] <= FEW_PERIODS):
+        return ""
+    return (
+        f" (the lowest bin counted, {excess['periods']:.3g} periods in the record: there a start-up transient or a "
+        "drift shared by the patches reads as synchronised as a vibration does; a longer record, or a higher "
+        "--freq-min, tells them apart)"
+    )
 
 
 def _band(freq_range: tuple[float, float] | None, nyquist: float, top: float = DEFAULT_BAND_TOP) -> tuple[float, float]:

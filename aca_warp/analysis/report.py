@@ -45,6 +45,7 @@ from .patch_report import compute_patch_spectrum as compute_patch_spectrum
 from .patch_report import compute_patch_velocity as compute_patch_velocity
 from .patch_report import compute_sync as compute_sync
 from .patch_report import leakage_floor as leakage_floor
+from .patch_report import lowest_bin_remark as lowest_bin_remark
 from .patch_report import shown_bins as shown_bins
 from .patch_report import sync_excess as sync_excess
 from .saturation import record_saturation

@@ -304,17 +304,19 @@ def _hf_scene(args: argparse.Namespace) -> tuple[Any, float]:
 
 
 def _patch_variables(given: str) -> tuple[str, ...]:
-    """The per-patch variables of ``--record-patches`` (comma-separated; ``none``: none); an empty value is refused,
-    so that a stray quoting mistake does not silently turn a scene's per-patch record off."""
+    """The per-patch variables of ``--record-patches`` (comma-separated, each once; ``none`` alone: none); an empty
+    value is refused, so that a stray quoting mistake does not silently turn a scene's per-patch record off."""
     from aca_warp.scene.parts import check_patch_variables
 
-    if given.strip().lower() == "none":
+    if given.strip() == "none":
         return ()
-    names = tuple(v.strip() for v in given.split(",") if v.strip())
+    names = tuple(dict.fromkeys(v.strip() for v in given.split(",") if v.strip()))  # in order, each once
     if not names:
         raise SceneError(
             "--record-patches: give velocity, displacement or velocity,displacement, or none for no per-patch histories"
         )
+    if "none" in names:
+        raise SceneError(f"--record-patches {given}: none stands alone (no per-patch histories); or name the variables")
     check_patch_variables(names, "--record-patches")
     return names
 

@@ -116,8 +116,8 @@ def add_parsers(sub: Any) -> None:
         type=int_at_least(0),
         metavar="N",
         help="processes that make the shards ahead of their runs: scenes, models on the host, initial states and "
-        "checks (default: 2 per GPU of a local CUDA sweep, 4 per GPU where at least half of the pads have a patch "
-        "layout of their own, at least 4, at most the cores the workers leave; else 0: each shard task makes its "
+        "checks (default: 2 per GPU of a local CUDA sweep, 4 per GPU where the sweep makes at least one patch "
+        "layout per two pads, at least 4, at most the cores the workers leave; else 0: each shard task makes its "
         "own)",
     )
     p.add_argument("--quiet", action="store_true", help="print only the summary")

@@ -150,7 +150,7 @@ def _run_todo(
 
 
 # default preparation processes (prepare_processes): per GPU of a local sweep, and at least; twice as many per GPU
-# for a sweep that makes a layout for most of its pads (a sweep over patch seeds: its preparation binds on two
+# for a sweep that makes at least one layout per two pads (a sweep over patch seeds: its preparation binds on two
 # GPUs; on one, a larger pool's slower start outweighs it: docs/sweeps.md)
 PREPARE_PER_GPU, PREPARE_LEAST = 2, 4
 LAYOUT_PREPARE_PER_GPU = 4
@@ -159,7 +159,7 @@ LAYOUT_PREPARE_PER_GPU = 4
 def prepare_processes(device: str, workers: int | None, local: bool, spec: SweepSpec | None = None) -> int:
     """Default size of the preparation pool: on CUDA :data:`PREPARE_PER_GPU` per GPU of a local sweep (a cluster
     this call starts, or this process) and at least :data:`PREPARE_LEAST`, or, for a ``spec`` with a patch layout of
-    its own for at least half of its pads (:attr:`~aca_warp.sweep.spec.SweepSpec.layout_count`)
+    at least one patch layout per two pads (:attr:`~aca_warp.sweep.spec.SweepSpec.layout_count` ≥ pads / 2)
     :data:`LAYOUT_PREPARE_PER_GPU` per GPU; at most the cores its workers leave;
     0 (each task makes its own shard) on the CPU, whose cores the workers use, and with a scheduler or client given
     (their hosts are not known here)."""
@@ -168,7 +168,7 @@ def prepare_processes(device: str, workers: int | None, local: bool, spec: Sweep
     gpus = len(cuda_ordinals(device))
     busy = gpus if workers is None else workers
     per_gpu = PREPARE_PER_GPU
-    if spec is not None and 2 * spec.layout_count >= spec.pad_count > 1:
+    if spec is not None and 2 * spec.layout_count >= spec.pad_count:
         per_gpu = LAYOUT_PREPARE_PER_GPU
     return max(1, min(max(per_gpu * gpus, PREPARE_LEAST), (os.cpu_count() or 1) - busy - 1))
 
