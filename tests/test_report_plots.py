@@ -550,3 +550,65 @@ def test_times_with_a_crafted_patch_time_axis_give_one_line(runs, tmp_path, caps
     code = main(["plot", str(path), "-o", str(tmp_path / "fig"), "--times", "1e-5"])
     err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
     assert code == 2 and len(err) == 1 and "patches/" in err[0], err
+
+
+def test_one_pad_of_a_packed_shard_is_that_pad(tmp_path, capsys, monkeypatch):
+    """A sweep packed by size holds pads from anywhere in the sweep in a shard: --pad K takes the row /pads/index
+    names (the pad's own series, as load_sweep reads it), refuses a pad the shard does not hold naming those it
+    does, finds its earlier extraction however the shard's path is spelled, refuses a pad whose base scene file
+    changed since the sweep, and a file system that refuses the write gives one line and exit 4."""
+    import errno
+
+    from aca_warp.analysis import pads as pads_module
+    from aca_warp.cli import main
+    from aca_warp.sweep import load_sweep
+
+    base = tmp_path / "small.toml"
+    base.write_text('[scene]\nname = "small"\n[patches]\ncount = 20\n[run]\nduration = 2e-6\n')
+    spec = tmp_path / "pack.toml"
+    spec.write_text(
+        '[sweep]\nbase = "small.toml"\nmode = "zip"\nshard_size = 2\n[run]\nduration = 2e-5\nsample_dt = 1e-6\n'
+        '[parameters]\n"patches.count" = [30, 10, 30, 10]\n"patches.seed" = [1, 2, 3, 4]\n'
+    )
+    out = tmp_path / "sw"
+    assert main(["sweep", str(spec), "-o", str(out), "--workers", "0", "--quiet"]) == 0
+    shard = out / "shard-00000.h5"
+    with h5py.File(shard, "r") as f:
+        assert f["pads/index"][()].tolist() == [1, 3]  # the two pads of 10 patches
+    capsys.readouterr()
+    assert main(["analyze", str(shard), "--pad", "0"]) == 2
+    assert "holds pads 1, 3; pad 0 is not one of them" in capsys.readouterr().err
+    assert main(["analyze", str(shard), "--pad", "3", "--no-sync"]) == 0
+    capsys.readouterr()
+    mu = load_sweep(out)["mu"]  # (pads, samples) in the sweep's pad order
+    with h5py.File(out / "shard-00000_pad3.h5", "r") as p:
+        assert np.array_equal(p["global/mu"][()], mu[3]) and json.loads(p.attrs["scene"])["patches"]
+        assert len(p["patches/x"]) == 10
+    monkeypatch.chdir(out)  # the same shard spelled another way: its extraction is found, not refused
+    assert main(["analyze", "shard-00000.h5", "--pad", "3", "--no-sync"]) == 0
+    monkeypatch.chdir(tmp_path)
+
+    def refused(*args, **kwargs):
+        raise OSError(errno.EROFS, "Read-only file system")
+
+    monkeypatch.setattr(pads_module, "_write", refused)
+    capsys.readouterr()
+    assert main(["analyze", str(shard), "--pad", "1", "--no-sync"]) == 4
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "read-only" in err[0] and not (out / "shard-00000_pad1.h5").exists()
+    monkeypatch.undo()
+    base.write_text(base.read_text().replace("count = 20", "count = 21"))  # the spec's base file changed
+    assert main(["analyze", str(shard), "--pad", "1", "--no-sync"]) == 2
+    assert "is not the one it ran" in capsys.readouterr().err
+
+
+def test_a_failed_analysis_of_a_pad_leaves_no_pad_file(tmp_path, capsys):
+    """analyze SHARD --pad K on a pad whose record is too short for the analysis: one line, exit 2, and no
+    SHARD_padK.h5 left beside the shard (bad input writes nothing)."""
+    from aca_warp.cli import main
+
+    shard = one_shard_sweep(tmp_path, [0.7], duration=2e-6)
+    capsys.readouterr()
+    assert main(["analyze", str(shard), "--pad", "0"]) == 2
+    assert "needs at least" in capsys.readouterr().err
+    assert not (shard.parent / "shard-00000_pad0.h5").exists()

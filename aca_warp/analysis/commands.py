@@ -324,7 +324,14 @@ def run_or_pad(args: argparse.Namespace, command: str, *, keep: bool) -> Iterato
         raise shard_refusal(args.run, pads, command)
     dest = pad_run_path(args.run, args.pad)
     if keep:
-        yield str(write_pad_run(args.run, args.pad, dest))
+        existed = dest.exists()
+        written = write_pad_run(args.run, args.pad, dest)
+        try:
+            yield str(written)
+        except BaseException:
+            if not existed:  # bad input (a record too short, say) leaves nothing behind
+                written.unlink(missing_ok=True)
+            raise
     elif dest.exists() and extracted_from(dest, args.run):
         yield str(dest)
     else:

@@ -10,6 +10,7 @@ and ``pad`` say where it comes from.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 from pathlib import Path
@@ -18,21 +19,29 @@ from typing import Any
 import h5py
 import numpy as np
 
-from aca_warp.common.errors import SceneError, option
+from aca_warp.common.errors import SceneError, StorageError, option
 
 SHARD_FORMAT = "aca_warp.sweep/"  # the start of a shard's ``format`` attribute
 
 
-def shard_pads(path: str | Path) -> tuple[int, int] | None:
-    """The sweep pads [start, stop) a sweep shard holds, or None when ``path`` is no shard (or no HDF5 file)."""
+def shard_pads(path: str | Path) -> np.ndarray | None:
+    """The sweep's indices of the pads a sweep shard holds, in its row order (``/pads/index``: a sweep packed by size
+    holds pads from anywhere in the sweep), shape (pads,) int64; None when ``path`` is no shard (or no HDF5 file)."""
     try:
         with h5py.File(path, "r") as f:
             fmt = f.attrs.get("format", "")
             if not str(fmt.decode() if isinstance(fmt, bytes) else fmt).startswith(SHARD_FORMAT):
                 return None
-            return int(f.attrs["pad_start"]), int(f.attrs["pad_stop"])
+            return np.asarray(f["pads/index"][()], dtype=np.int64).reshape(-1)
     except (OSError, KeyError, ValueError, TypeError):
         return None
+
+
+def pads_in_words(pads: np.ndarray) -> str:
+    """A shard's pads for a message: ``a-b`` where they run consecutively, else the sorted list (the first 8)."""
+    from aca_warp.sweep.shard import pad_list
+
+    return pad_list(np.sort(pads)).replace("..", "-")
 
 
 def pad_run_path(shard: str | Path, pad: int) -> Path:
@@ -41,11 +50,11 @@ def pad_run_path(shard: str | Path, pad: int) -> Path:
     return p.with_name(f"{p.stem}_pad{pad}.h5")
 
 
-def shard_refusal(path: str | Path, pads: tuple[int, int], command: str) -> SceneError:
+def shard_refusal(path: str | Path, pads: np.ndarray, command: str) -> SceneError:
     """The one-line refusal of ``command`` (analyze, plot) given a shard without ``--pad``."""
     return SceneError(
-        f"{path} is a sweep shard of pads {pads[0]}-{pads[1] - 1}: {command} one of them with "
-        f"{option('pad=K', '--pad K')} (K from {pads[0]} to {pads[1] - 1}, the pad's index in the sweep)"
+        f"{path} is a sweep shard of pads {pads_in_words(pads)}: {command} one of them with "
+        f"{option('pad=K', '--pad K')} (K one of those, the pad's index in the sweep)"
     )
 
 
@@ -53,21 +62,23 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
     """Write pad ``pad`` (its index in the sweep) of the sweep shard ``shard`` as the HF run file ``dest`` (written
     whole under a temporary name, then renamed; an earlier extraction of the same pad is replaced, any other file
     refused). The samples end at the pad's last finite μ (a pad stopped on a fault, or a shard still running)."""
-    from aca_warp.common.files import new_path, reading
+    from aca_warp.common.files import UNWRITABLE, new_path, reading
+    from aca_warp.common.storage import storage_errno, storage_error
     from aca_warp.hf.options import RunOptions
-    from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS
-    from aca_warp.scene import scene_to_dict
+    from aca_warp.hf.recorder import GLOBAL_NAMES
     from aca_warp.sweep.spec import SweepError, load_spec
 
     shard, dest = Path(shard), Path(dest)
     pads = shard_pads(shard)
     if pads is None:
         raise SceneError(f"{shard} is not a sweep shard ({option('pad', '--pad')} picks a pad of one)")
-    if not pads[0] <= pad < pads[1]:
-        raise SceneError(f"{shard} holds pads {pads[0]}-{pads[1] - 1}; pad {pad} is not one of them")
+    rows = np.flatnonzero(pads == pad)
+    if rows.size != 1:
+        raise SceneError(f"{shard} holds pads {pads_in_words(pads)}; pad {pad} is not one of them")
     _check_replaceable(dest, shard)
     with reading(shard, "sweep shard"), h5py.File(shard, "r") as f:
-        row = pad - pads[0]
+        row = int(rows[0])
+        count, spec_hash = int(f["pads/patch_count"][row]), _text(f.attrs.get("spec_hash", ""))
         time = f["global/time"][()]
         series = {k: f[f"global/{k}"][row, : time.size] for k in GLOBAL_NAMES}
         end = int(np.flatnonzero(np.isfinite(series["mu"]))[-1]) + 1 if np.isfinite(series["mu"]).any() else 0
@@ -78,6 +89,12 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
         scene = spec.scene(pad).replace(duration=float(run["duration"]))
     except SweepError as e:
         raise SceneError(f"{shard}: the pad's scene cannot be rebuilt from the shard's spec: {e}") from None
+    if (spec_hash and spec.hash != spec_hash) or scene.patches.count != count:
+        raise SceneError(
+            f"{shard}: the pad's scene rebuilt from the shard's spec is not the one it ran (the sweep's hash "
+            f"{spec.hash[:12]}, the shard's {spec_hash[:12]}; {scene.patches.count} patches, the shard's {count}): "
+            "a file the spec names (its base scene) changed since; restore it to take the pad out"
+        )
     options = RunOptions(
         duration=float(run["duration"]),
         integrator=run["integrator"],
@@ -88,6 +105,41 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
     )
     complete = bool(finished) and end == time.size
     tmp = new_path(dest)
+    try:
+        _write(tmp, attrs, scene, options, complete, time, end, series, shard, pad)
+    except BaseException as e:
+        tmp.unlink(missing_ok=True)
+        if isinstance(e, OSError) and e.errno in UNWRITABLE:  # a read-only folder, no permission, no room
+            err = StorageError(
+                f"cannot write {dest.name} beside the shard in {dest.parent} ({UNWRITABLE[e.errno]}); nothing was "
+                "written: copy the shard to a folder you can write to (plot --pad needs no such folder)"
+            )
+            err.errno = e.errno  # type: ignore[attr-defined]
+            raise err from None
+        code = storage_errno(e)
+        if code is not None:
+            raise storage_error(code, dest, "the shard is as it was") from None
+        raise
+    os.replace(tmp, dest)
+    return dest
+
+
+def _write(
+    tmp: Path,
+    attrs: dict[str, Any],
+    scene: Any,
+    options: Any,
+    complete: bool,
+    time: np.ndarray,
+    end: int,
+    series: dict[str, np.ndarray],
+    shard: Path,
+    pad: int,
+) -> None:
+    """The pad's run file at ``tmp`` (:func:`write_pad_run`)."""
+    from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS
+    from aca_warp.scene import scene_to_dict
+
     with h5py.File(tmp, "w") as out:
         out.attrs.update(attrs)
         out.attrs.update(
@@ -109,17 +161,23 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
             unit = "m2" if name == "area" else "m"
             out.create_dataset(f"matrix/{name}", data=np.asarray(getattr(scene.matrix, name), np.float64))
             out[f"matrix/{name}"].attrs["unit"] = unit
-    os.replace(tmp, dest)
-    return dest
 
 
 def extracted_from(dest: str | Path, shard: str | Path) -> bool:
-    """Whether ``dest`` is a pad run file :func:`write_pad_run` extracted from ``shard``."""
+    """Whether ``dest`` is a pad run file :func:`write_pad_run` extracted from ``shard`` (the same file, however its
+    path was spelled)."""
     try:
         with h5py.File(dest, "r") as f:
-            return _text(f.attrs.get("source_shard", "")) == str(shard)
+            source = _text(f.attrs.get("source_shard", ""))
     except OSError:
         return False
+    if not source:
+        return False
+    with contextlib.suppress(OSError):
+        if os.path.samefile(source, shard):
+            return True
+    # the path as recorded, relative to another folder or to a folder since moved: the shard of that name beside it
+    return Path(source).name == Path(shard).name and Path(dest).resolve().parent == Path(shard).resolve().parent
 
 
 def _check_replaceable(dest: Path, shard: Path) -> None:

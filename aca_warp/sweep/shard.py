@@ -151,8 +151,9 @@ def _create_shard_file(
             out.reserve(data.nbytes)
             pg.create_dataset(key, data=data).attrs["unit"] = PARAMETERS[key][0]
         group = f.create_group("pads")
-        group.create_dataset("index", data=pads)
-        group.create_dataset("patch_count", data=np.array([s.patches.count for s in scenes], dtype=np.int64))
+        group.create_dataset("index", data=pads).attrs["unit"] = "1"
+        counts = np.array([s.patches.count for s in scenes], dtype=np.int64)
+        group.create_dataset("patch_count", data=counts).attrs["unit"] = "1"
         out.flush()
         os.replace(tmp, partial)  # readable from the moment it has this name
     except BaseException:
@@ -367,7 +368,7 @@ def _run_batches(work: _Work, scenes: list[Scene], prepared: list[PreparedBatch]
         compile_time += res.compile_time
         dt_used = res.dt
         if res.fault is not None:
-            fault = f"pads {_pad_list(pads[b0:b1])}: {res.fault}"
+            fault = f"pads {pad_list(pads[b0:b1])}: {res.fault}"
             break
     attrs = {
         "complete": fault is None,
@@ -391,7 +392,7 @@ def _run_batches(work: _Work, scenes: list[Scene], prepared: list[PreparedBatch]
     }
 
 
-def _pad_list(pads: np.ndarray) -> str:
+def pad_list(pads: np.ndarray) -> str:
     """Global pad indices in words: ``a..b`` for a run of consecutive ones, else a list (the first 8)."""
     if np.all(np.diff(pads) == 1):
         return f"{pads[0]}..{pads[-1]}"
