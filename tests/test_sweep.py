@@ -119,6 +119,31 @@ def test_a_sweep_begun_with_other_run_settings_is_refused_with_how_to_continue_i
     assert prepare_dir(load_spec(doc, precision="fp64"), tmp_path / "sw")["shards"]
 
 
+def test_a_refusal_offers_the_options_only_where_the_run_settings_alone_differ(tmp_path: Path) -> None:
+    """Another sweep in the folder: where its parameters differ too the refusal says so and offers no options (they
+    would meet a second refusal); where the spec is the same but its base scene file changed, it says that."""
+    from aca_warp.sweep.manifest import prepare_dir
+
+    doc = json.loads(json.dumps(TINY))
+    doc["run"].pop("precision", None)
+    prepare_dir(load_spec(doc, precision="fp64"), tmp_path / "sw")
+    other = json.loads(json.dumps(doc))
+    first = next(iter(other["parameters"]))
+    other["parameters"][first] = list(other["parameters"][first])[:1]
+    with pytest.raises(
+        SweepError, match=r"fp32 here\); its parameters, pad count \(12 there, 6 here\) differ too"
+    ) as e:
+        prepare_dir(load_spec(other), tmp_path / "sw")
+    assert "to continue it" not in str(e.value)
+    base = tmp_path / "base.toml"
+    base.write_text('[scene]\nname = "b"\n[patches]\ncount = 20\n')
+    mine = {"sweep": {"name": "f", "base": "base.toml"}, "run": {"duration": 2e-6}, "parameters": {"friction.M": [0.6]}}
+    prepare_dir(load_spec(mine, base_dir=tmp_path), tmp_path / "f")
+    base.write_text(base.read_text().replace("20", "21"))
+    with pytest.raises(SweepError, match="the spec is the same, so a file it names"):
+        prepare_dir(load_spec(mine, base_dir=tmp_path), tmp_path / "f")
+
+
 def test_spec_check_builds_one_pad_per_value_but_not_per_seed(monkeypatch) -> None:
     """The spec's check builds the first and last pad and one pad per value of each parameter, but not one per seed
     (a sweep over many patch seeds would make every layout before it starts); a count that does not fit still fails
@@ -289,3 +314,28 @@ def test_scheduler_that_does_not_answer(tmp_path: Path, capsys, monkeypatch, add
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("aca-warp: error: ") and message in err[0]
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("lines", "said", "not_said"),
+    [
+        ('[run]\nduration = 2e-6\n[parameters]\n"disc.sliding_speed" = [36.0, 3600.0]\n',
+         "set allow_implausible = true in the spec's [base.scene] table", "--allow-implausible"),
+        ('[run]\nduration = 2e-5\nsample_dt = 1e-8\ndt = 1e-7\n[parameters]\n"friction.M" = [0.6]\n',
+         "(run.sample_dt, seconds)", "--sample-dt"),
+    ],
+)  # fmt: skip
+def test_a_sweeps_refusals_name_what_the_spec_takes(tmp_path: Path, capsys, lines: str, said: str, not_said: str):
+    """A scene's refusal inside a sweep names the spec's key ([base.scene] allow_implausible, run.sample_dt), not the
+    flags of aca-warp hf that aca-warp sweep does not take; the same refusal from the Python API names parameters."""
+    from aca_warp.cli import main
+    from aca_warp.common.errors import AcaError
+
+    spec = tmp_path / "s.toml"
+    spec.write_text('[sweep]\nbase = "hf1"\n' + lines)
+    assert main(["sweep", str(spec), "-o", str(tmp_path / "o"), "--workers", "0"]) == 2
+    err = capsys.readouterr().err
+    assert said in err and not_said not in err and not (tmp_path / "o").exists()
+    with pytest.raises(AcaError) as e:
+        load_spec(spec)
+    assert said not in str(e.value)

@@ -5,32 +5,47 @@ The command line prints an :class:`AcaError` as one ``aca-warp: error:`` line an
 
 A message that names an option names it the way its reader passes it: as a Python parameter (``overwrite=True``)
 from the Python API, as a flag (``--overwrite``) from the command line, which runs its commands inside
-:func:`command_line`; messages build the name with :func:`option`.
+:func:`command_line`, and as a key of the sweep spec where ``aca-warp sweep`` checks its spec (:func:`sweep_spec`)
+and the option has one there; messages build the name with :func:`option`.
 """
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-_command_line = [False]  # inside command_line()
+_reader = ["python"]  # who reads the messages: "python", "command line" (command_line()), "sweep" (sweep_spec())
 
 
-def option(python: str, flag: str) -> str:
+def option(python: str, flag: str, spec: str | None = None) -> str:
     """The name of an option in a message: ``python`` (a parameter, e.g. ``overwrite=True``) for the Python API,
-    ``flag`` (e.g. ``--overwrite``) inside :func:`command_line`."""
-    return flag if _command_line[0] else python
+    ``flag`` (e.g. ``--overwrite``) inside :func:`command_line`, ``spec`` (a key of the sweep spec, e.g.
+    ``run.sample_dt``) inside :func:`sweep_spec` where given (else the flag)."""
+    if _reader[0] == "sweep" and spec is not None:
+        return spec
+    return python if _reader[0] == "python" else flag
 
 
 @contextmanager
-def command_line() -> Iterator[None]:
-    """Messages built in the body name options as command-line flags (:func:`option`)."""
-    before = _command_line[0]
-    _command_line[0] = True
+def _read_by(reader: str) -> Iterator[None]:
+    before = _reader[0]
+    _reader[0] = reader
     try:
         yield
     finally:
-        _command_line[0] = before
+        _reader[0] = before
+
+
+def command_line() -> contextlib.AbstractContextManager[None]:
+    """Messages built in the body name options as command-line flags (:func:`option`)."""
+    return _read_by("command line")
+
+
+def sweep_spec() -> contextlib.AbstractContextManager[None]:
+    """Messages built in the body (``aca-warp sweep`` checking its spec and scenes) name an option as the spec's key
+    where it has one, else as a flag (:func:`option`)."""
+    return _read_by("sweep")
 
 
 class AcaError(Exception):

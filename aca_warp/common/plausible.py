@@ -118,10 +118,13 @@ def check(name: str, value: float, kind: str, *, allow: bool = False) -> None:
         where, hint = f"below {r.low:g}", r.guess(v, r.below)
     else:
         return
-    run_anyway = option("allow_implausible=True to the scene or its loader", "--allow-implausible")
+    run_anyway = option(
+        "set [scene] allow_implausible = true or pass allow_implausible=True to the scene or its loader",
+        "set [scene] allow_implausible = true or pass --allow-implausible",
+        "set allow_implausible = true in the spec's [base.scene] table",
+    )
     raise ImplausibleError(
-        f"{name} = {value:g} {r.unit} — {where} {r.unit} ({r.why}); {hint}; to run it anyway set [scene] "
-        f"allow_implausible = true or pass {run_anyway}"
+        f"{name} = {value:g} {r.unit} — {where} {r.unit} ({r.why}); {hint}; to run it anyway {run_anyway}"
     )
 
 

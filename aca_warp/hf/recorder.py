@@ -60,12 +60,14 @@ def check_sample_step(sample_dt: float, dt: float, anyway: str = "", follows: fl
         which = f"the step {dt:g} s"
         if follows is not None:
             which = f"the default step {dt:g} s (which a sample interval down to {follows:g} s would shorten)"
+        named = option(
+            "record.sample_dt", "the sample interval (--sample-dt, or record.sample_dt in the scene)", "run.sample_dt"
+        )
         raise SceneError(
-            f"{option('record.sample_dt', 'the sample interval (--sample-dt, or record.sample_dt in the scene)')} = "
-            f"{sample_dt:g} s is shorter than {which}: every step would shrink to the sample interval "
-            f"({dt / sample_dt:.3g} times the steps); "
-            f"choose a sample interval of at least {least:g} s ({option('record.sample_dt', '--sample-dt')}, seconds) "
-            f"or a step of at most {sample_dt:g} s ({option('dt', '--dt')})" + (f"; {anyway}" if anyway else "")
+            f"{named} = {sample_dt:g} s is shorter than {which}: every step would shrink to the sample interval "
+            f"({dt / sample_dt:.3g} times the steps); choose a sample interval of at least {least:g} s "
+            f"({option('record.sample_dt', '--sample-dt', 'run.sample_dt')}, seconds) or a step of at most "
+            f"{sample_dt:g} s ({option('dt', '--dt')})" + (f"; {anyway}" if anyway else "")
         )
 
 

@@ -72,25 +72,53 @@ _FLAGS = {  # the run settings a sweep command's options set
 
 
 def _run_changes(old: dict | None, spec: SweepSpec) -> str:
-    """The run settings in which the sweep of manifest ``old`` differs from ``spec``, with the options that continue
-    it (``--precision fp64`` for a sweep begun at another default precision, ``--dt`` for another default step,
-    ``--growth-dt scene`` for one whose growth events came at the scenes' interval), each value as stored (every
-    digit: a rounded one would be another sweep again), as a clause of the refusal; "" when they agree or ``old``
-    records none."""
-    before = (old or {}).get("run")
-    if not isinstance(before, dict):
+    """What differs between the sweep of manifest ``old`` and ``spec``, as a clause of the refusal: the spec's other
+    parts (:func:`_spec_changes`) and the run settings, with the options that continue it where the run settings
+    alone differ (``--precision fp64`` for a sweep begun at another default precision, ``--dt`` for another default
+    step, ``--growth-dt scene`` for one whose growth events came at the scenes' interval), each value as stored
+    (every digit: a rounded one would be another sweep again); where nothing the manifest records differs, that a
+    file the spec names changed; "" where ``old`` records none of it."""
+    if not isinstance(old, dict) or not isinstance(old.get("run"), dict):
         return ""
-    now = spec.run_settings()
+    before, now = old["run"], spec.run_settings()
+    others = _spec_changes(old, spec)
     keys = sorted(k for k in before.keys() | now.keys() if before.get(k) != now.get(k))
     if not keys:
-        return ""
+        if others:
+            return f": its {', '.join(others)} differ"
+        return ": the spec is the same, so a file it names (its base scene) has changed since"
     was = dict(before)  # each setting as an option gives it: a spacing left out is the scenes' own clock
     if "growth_dt" not in was and spec.base.growth is not None:
         was["growth_dt"] = "scene"
     changed = ", ".join(f"{k} {before.get(k, 'unset')} there, {now.get(k, 'unset')} here" for k in keys)
     again = [f"{_FLAGS[k]} {was[k]}" for k in keys if k in _FLAGS and was.get(k) is not None]
-    hint = f" (to continue it: {' '.join(again)})" if len(again) == len(keys) else ""
-    return f": its run settings differ ({changed}){hint}"
+    hint = f" (to continue it: {' '.join(again)})" if len(again) == len(keys) and not others else ""
+    also = f"; its {', '.join(others)} differ too" if others else ""
+    return f": its run settings differ ({changed}){hint}{also}"
+
+
+def _spec_changes(old: dict, spec: SweepSpec) -> list[str]:
+    """The parts of the spec besides the run settings in which the sweep of manifest ``old`` differs from ``spec``:
+    its parameters, base scene (the preset or file named, and the tables that change it), mode, packing, shard size
+    and pad count, in words."""
+    normal = lambda x: json.loads(json.dumps(x, default=str))  # noqa: E731  (as the manifest stored it)
+    was, now = normal(old.get("spec") or {}), normal(spec.doc)
+    sw_was, sw_now = was.get("sweep", {}), now.get("sweep", {})
+    parts = [
+        words
+        for differs, words in (
+            (was.get("parameters") != now.get("parameters"), "parameters"),
+            (sw_was.get("base") != sw_now.get("base") or was.get("base") != now.get("base"), "base scene"),
+            (sw_was.get("mode") != sw_now.get("mode"), "mode"),
+            (sw_was.get("pack") != sw_now.get("pack"), "packing"),
+        )
+        if differs
+    ]
+    if old.get("shard_size") != spec.shard_size:
+        parts.append(f"shard size ({old.get('shard_size')} there, {spec.shard_size} here)")
+    if old.get("pads") != spec.pad_count:
+        parts.append(f"pad count ({old.get('pads')} there, {spec.pad_count} here)")
+    return parts
 
 
 def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False) -> dict:
