@@ -100,17 +100,22 @@ with interrupts.installed(), interrupts.second_signal_exits():
         time.sleep(5)
     except KeyboardInterrupt:
         print("first", flush=True)
+        time.sleep(float(sys.argv[1]))
         os.kill(os.getpid(), signal.SIGINT)
-        time.sleep(5)
+        time.sleep(2)
         print("clean-up went on", flush=True)
 sys.exit(1)
 """
 
 
 def test_second_signal_exits_at_once() -> None:
-    r = subprocess.run([sys.executable, "-c", SECOND], capture_output=True, text=True, timeout=60)
+    """A second signal during the clean-up ends the process with one line; one that comes right after the first is
+    that one delivered twice (``timeout -s INT`` signals the process and its group) and the clean-up goes on."""
+    r = subprocess.run([sys.executable, "-c", SECOND, "0.3"], capture_output=True, text=True, timeout=60)
     assert r.returncode == 130, r.stderr
-    assert r.stdout.split() == ["first"]
+    assert r.stdout.split() == ["first"] and "a second interrupt: stopped at once" in r.stderr
+    r = subprocess.run([sys.executable, "-c", SECOND, "0"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1 and r.stdout.split() == ["first", "clean-up", "went", "on"], r.stderr
 
 
 def test_sweep_command_raises_an_interrupt_from_a_finalizer(tmp_path: Path, monkeypatch, capsys) -> None:

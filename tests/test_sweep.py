@@ -339,3 +339,24 @@ def test_a_sweeps_refusals_name_what_the_spec_takes(tmp_path: Path, capsys, line
     with pytest.raises(AcaError) as e:
         load_spec(spec)
     assert said not in str(e.value)
+
+
+def test_an_interrupt_after_every_shard_finished_says_the_sweep_is_complete(tmp_path: Path) -> None:
+    """The interrupt line of a sweep whose shards had all finished (the signal came as it closed) says it is complete,
+    not that running it again finishes it; with shards left, it says how many finished and what to do."""
+    from aca_warp.sweep import run_sweep
+    from aca_warp.sweep.commands import _interrupted_line
+    from aca_warp.sweep.manifest import MANIFEST
+
+    assert not run_sweep(load_spec(TINY), tmp_path / "o", workers=0).failed
+    line = _interrupted_line(str(tmp_path / "o"), KeyboardInterrupt())
+    assert (
+        "after every shard had finished" in line and "the sweep is complete" in line and "again to finish" not in line
+    )
+    manifest = tmp_path / "o" / MANIFEST
+    m = json.loads(manifest.read_text())
+    m["shards"][-1]["state"] = "interrupted"
+    manifest.write_text(json.dumps(m))
+    line = _interrupted_line(str(tmp_path / "o"), KeyboardInterrupt())
+    last = len(m["shards"]) - 1
+    assert f"shard(s) {last} marked interrupted" in line and "run the same command again to finish the sweep" in line

@@ -9,7 +9,8 @@ appended to several datasets, a checkpoint, the closing of a file) run inside :f
 arrives there is raised when the write is done. After the first interrupt has been raised, later signals are
 ignored while the command closes its files (a second Ctrl-C would otherwise stop that clean-up half-way), except
 inside :func:`second_signal_exits`, for a clean-up that may wait long (a sweep waits for its Dask workers): there a
-second signal ends the process at once. An
+second signal ends the process at once, with one line (one within :data:`SAME_SIGNAL_S` of the first is that one
+delivered twice, as ``timeout -s INT`` does to the process and its group, and is ignored). An
 interrupt raised while Python runs a finalizer (``__del__``, a weakref callback) is swallowed there by Python, which
 prints it as "Exception ignored"; :func:`installed` catches it in ``sys.unraisablehook`` instead and raises it again
 a millisecond later (a SIGALRM timer, the command's ``installed`` owns SIGALRM), from ordinary code; one that the
@@ -34,6 +35,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -56,13 +58,18 @@ class _State:
     last: int | None = None  # the last signal received
     final: bool = False  # the command's result is final: signals are recorded only (finished())
     withheld: bool = False  # a finalizer swallowed the interrupt: it is raised again in a millisecond (_unraisable)
+    raised_at: float = 0.0  # time.monotonic() of the first interrupt raised
 
 
 _state = _State()
 
 
+SAME_SIGNAL_S = 0.1  # a second signal this soon after the first is the same one, delivered twice [s]
+
+
 def _interrupt(signum: int) -> KeyboardInterrupt:
     _state.raised = True
+    _state.raised_at = time.monotonic()
     return Terminated("terminated (SIGTERM)") if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
@@ -72,7 +79,9 @@ def _handler(signum: int, frame: object) -> None:
         return
     _state.last = signum
     if _state.raised:
-        if _state.second_exits:
+        if _state.second_exits and time.monotonic() - _state.raised_at > SAME_SIGNAL_S:
+            with contextlib.suppress(OSError):
+                os.write(2, b"aca-warp: a second interrupt: stopped at once; the next run cleans up what it left\n")
             os._exit(128 + signum)
         return
     if _state.depth > 0:
@@ -231,10 +240,10 @@ def undivided(call: Callable[..., None]) -> Callable[..., None]:
 
 @contextmanager
 def second_signal_exits() -> Iterator[None]:
-    """In the body, a signal that comes while the first interrupt is being handled ends the process at once with
-    exit code 128 + the signal, leaving its files as a kill would (for a clean-up that may wait long, such as a
-    sweep waiting for its Dask workers; the next call of the command cleans up). Without :func:`installed`
-    it changes nothing."""
+    """In the body, a signal that comes while the first interrupt is being handled (later than :data:`SAME_SIGNAL_S`
+    after it) ends the process at once with one line and exit code 128 + the signal, leaving its files as a kill
+    would (for a clean-up that may wait long, such as a sweep waiting for its Dask workers; the next call of the
+    command cleans up). Without :func:`installed` it changes nothing."""
     before = _state.second_exits
     _state.second_exits = True
     try:

@@ -138,10 +138,16 @@ def _interrupted_line(out: str, e: KeyboardInterrupt) -> str:
         return f"aca-warp: {what}; nothing was run"
     hit = [str(s["index"]) for s in m.get("shards", []) if s.get("state") == "interrupted"]
     done = sum(s.get("state") in ("done", "fault") for s in m.get("shards", []))
-    shards = f"shard(s) {', '.join(hit)} marked interrupted" if hit else "no shard was running"
+    total = len(m.get("shards", []))
+    if total and done == total:
+        return (
+            f"aca-warp: {what} after every shard had finished ({done} of {total} in {Path(out) / MANIFEST}): the "
+            "sweep is complete; running the same command again skips every shard"
+        )
+    shards = f"shard(s) {', '.join(hit)} marked interrupted" if hit else "none was running"
     return (
-        f"aca-warp: {what}; {done} of {len(m.get('shards', []))} shard(s) finished, {shards} in "
-        f"{Path(out) / MANIFEST}; run the same command again to finish the sweep"
+        f"aca-warp: {what}; {done} of {total} shard(s) finished, {shards} ({Path(out) / MANIFEST}); run the same "
+        "command again to finish the sweep"
     )
 
 
