@@ -5,6 +5,7 @@ from __future__ import annotations
 import ipaddress
 import json
 import os
+import re
 from pathlib import Path
 
 import h5py
@@ -360,3 +361,33 @@ def test_an_interrupt_after_every_shard_finished_says_the_sweep_is_complete(tmp_
     line = _interrupted_line(str(tmp_path / "o"), KeyboardInterrupt())
     last = len(m["shards"]) - 1
     assert f"shard(s) {last} marked interrupted" in line and "run the same command again to finish the sweep" in line
+
+
+@pytest.mark.parametrize(
+    ("text", "said"),
+    [
+        ("", "is empty: it would run one pad of the default scene"),
+        ('[sweep]\nbase = "hf1"\n[base.record]\npatches = ["velocity"]\n[parameters]\n"friction.M" = [0.6]\n',
+         "which a sweep's shards do not hold"),
+        ('[sweep]\nbase = "nothere.toml"\n', "'nothere.toml': no such file in"),
+    ],
+)  # fmt: skip
+def test_a_spec_that_would_do_other_than_it_says_is_refused(tmp_path: Path, text: str, said: str) -> None:
+    """An empty spec (it would run the default scene), a base that records per-patch histories (a shard holds none:
+    they would be dropped), a base file that is not there: one line each, before anything runs."""
+    spec = tmp_path / "s.toml"
+    spec.write_text(text)
+    with pytest.raises(SweepError, match=re.escape(said)):
+        load_spec(spec)
+
+
+def test_a_missing_spec_named_like_the_shipped_example_points_to_it(tmp_path: Path) -> None:
+    """The help's example path read from another folder: the refusal names where the installed example is."""
+    from importlib import resources
+
+    shipped = resources.files("aca_warp.data") / "sweep_hf1.toml"
+    with pytest.raises(SweepError, match=re.escape(f"the example of that name shipped with aca_warp is {shipped}")):
+        load_spec(tmp_path / "aca_warp" / "data" / "sweep_hf1.toml")
+    with pytest.raises(SweepError) as e:
+        load_spec(tmp_path / "mine.toml")
+    assert "shipped" not in str(e.value)

@@ -15,6 +15,7 @@ import itertools
 import json
 import math
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -285,11 +286,18 @@ def load_spec(source: str | Path | dict, *, base_dir: Path | None = None, **over
     else:
         p = Path(source)
         if not p.is_file():
-            raise SweepError(f"sweep spec {p} not found")
+            shipped = resources.files("aca_warp.data") / p.name
+            where = f"; the example of that name shipped with aca_warp is {shipped}" if shipped.is_file() else ""
+            raise SweepError(f"sweep spec {p} not found{where}")
         try:
             doc = read_toml(p, "sweep spec")
         except SceneError as e:
             raise SweepError(str(e)) from None
+        if not doc:
+            raise SweepError(
+                f"sweep spec {p} is empty: it would run one pad of the default scene; give at least [sweep] base and "
+                "[parameters] (docs/sweeps.md)"
+            )
         base_dir = p.resolve().parent
     for table in doc:
         if table not in ("sweep", "run", "base", "parameters"):
@@ -329,7 +337,12 @@ def _base_doc(doc: dict, base_dir: Path) -> tuple[dict, Path, str]:
     if not p.is_absolute():
         p = base_dir / p
     if not p.is_file():
-        raise SweepError(f"sweep.base {base!r} is neither a preset ({', '.join(PRESETS)}) nor a TOML file")
+        looks = p.suffix == ".toml" or "/" in base
+        raise SweepError(
+            f"sweep.base {base!r}: no such file in {p.parent} (a relative path is read from the spec's folder)"
+            if looks
+            else f"sweep.base {base!r} is neither a preset ({', '.join(PRESETS)}) nor a TOML file"
+        )
     try:
         return _merge(read_toml(p, "base scene"), inline), p.parent, p.stem
     except SceneError as e:
@@ -363,6 +376,12 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         base = scene_from_dict(base_doc, base_dir=scene_dir, name=base_name)
     except SceneError as e:
         raise SweepError(f"base scene: {e}") from None
+    if base.record.patches:
+        raise SweepError(
+            f"the base scene records per-patch histories ({', '.join(base.record.patches)}), which a sweep's shards do "
+            "not hold (global outputs only): leave record.patches out of the base ([base.record] patches = [] for a "
+            "scene that sets it); for one pad's histories run its scene with aca-warp hf --record-patches"
+        )
     name = str(sw.get("name", base_name))
     mode = sw.get("mode", "product")
     if mode not in MODES:
