@@ -612,3 +612,8 @@ def test_a_failed_analysis_of_a_pad_leaves_no_pad_file(tmp_path, capsys):
     assert main(["analyze", str(shard), "--pad", "0"]) == 2
     assert "needs at least" in capsys.readouterr().err
     assert not (shard.parent / "shard-00000_pad0.h5").exists()
+    assert main(["plot", str(shard), "--pad", "0", "-o", str(tmp_path / "f"), "--only", "global"]) == 2
+    err = capsys.readouterr().err
+    assert f"pad 0 of {shard}" in err and "tmp" not in err.replace(str(tmp_path), ""), err
+    assert main(["analyze", str(tmp_path / "none.h5"), "--pad", "1"]) == 2
+    assert "none.h5 not found" in capsys.readouterr().err

@@ -381,6 +381,20 @@ def test_a_spec_that_would_do_other_than_it_says_is_refused(tmp_path: Path, text
         load_spec(spec)
 
 
+@pytest.mark.parametrize(
+    ("table", "typed", "meant"),
+    [("sweep", "shard_sise", "shard_size"), ("run", "duraton", "duration"), ("parameters", '"friction.m"', "friction.M")],
+)
+def test_a_mistyped_spec_key_names_the_nearest(tmp_path: Path, table: str, typed: str, meant: str) -> None:
+    """A mistyped key of [sweep], [run] or [parameters] is refused naming the nearest allowed one."""
+    spec = tmp_path / "s.toml"
+    value = "[0.5]" if table == "parameters" else "4"
+    head = '[sweep]\nbase = "hf1"\n' + ("" if table == "sweep" else f"[{table}]\n")
+    spec.write_text(head + f"{typed} = {value}\n")
+    with pytest.raises(SweepError, match=re.escape(f"(did you mean {meant!r}?)")):
+        load_spec(spec)
+
+
 def test_a_missing_spec_named_like_the_shipped_example_points_to_it(tmp_path: Path) -> None:
     """The help's example path read from another folder: the refusal names where the installed example is."""
     from importlib import resources

@@ -316,6 +316,8 @@ def run_or_pad(args: argparse.Namespace, command: str, *, keep: bool) -> Iterato
 
     pads = shard_pads(args.run)
     if pads is None:
+        if args.pad is not None and not Path(args.run).exists():
+            raise SceneError(f"{args.run} not found (--pad picks a pad of a sweep shard)")
         if args.pad is not None:
             raise SceneError(f"--pad picks a pad of a sweep shard; {args.run} is not one")
         yield args.run
@@ -336,7 +338,11 @@ def run_or_pad(args: argparse.Namespace, command: str, *, keep: bool) -> Iterato
         yield str(dest)
     else:
         with tempfile.TemporaryDirectory() as tmp:
-            yield str(write_pad_run(args.run, args.pad, Path(tmp) / dest.name))
+            temporary = write_pad_run(args.run, args.pad, Path(tmp) / dest.name)
+            try:
+                yield str(temporary)
+            except SceneError as e:  # name the pad as given, not the temporary file no one saw
+                raise SceneError(str(e).replace(str(temporary), f"pad {args.pad} of {args.run}")) from None
 
 
 def record_ends_early(path: str) -> str | None:

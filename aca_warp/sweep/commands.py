@@ -175,7 +175,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if log:
         log(
             f"sweep {spec.name!r}: {spec.pad_count} pads ({', '.join(spec.parameters) or 'base only'}), "
-            f"{spec.shard_count} shard(s) of {spec.shard_size}, {spec.duration:g} s each, "
+            f"{spec.shard_count} shard(s) of up to {min(spec.shard_size, spec.pad_count)} pads, "
+            f"{spec.duration:g} s each, "
             f"{spec.integrator} {spec.precision}{'' if spec.dt is None else f' at {spec.dt:g} s'}"
             f"{', fast math' if spec.fast_math else ''}"
             f"{crossing_words(spec.crossing)}"

@@ -99,7 +99,7 @@ def _values(key: str, raw: Any) -> list:
         ((form, args),) = raw.items()
         if form in ("linspace", "geomspace"):
             if not (isinstance(args, list) and len(args) == 3 and isinstance(args[2], int) and args[2] >= 1):
-                raise SweepError(f"parameters.{key}: {form} takes [start, stop, count], got {args!r}")
+                raise SweepError(f"parameters.{key}: {form} takes [start, stop, count] with count ≥ 1, got {args!r}")
             if args[2] > MAX_PADS:
                 raise SweepError(f"parameters.{key}: {args[2]} values, more than a sweep runs ({MAX_PADS} pads)")
             try:
@@ -125,7 +125,7 @@ def _values(key: str, raw: Any) -> list:
             f"parameters.{key} must be a list of values or a table such as {{ linspace = [a, b, n] }}, got {raw!r}"
         )
     if not vals:
-        raise SweepError(f"parameters.{key} has no values")
+        raise SweepError(f"parameters.{key} has no values (a range's stop is not among them: [1, 2] is 1 alone)")
     if key in _INT_PARAMETERS:
         if not all(isinstance(v, int) and not isinstance(v, bool) for v in vals):
             raise SweepError(f"parameters.{key} takes integers, got {vals!r}")
@@ -276,6 +276,15 @@ class SweepSpec:
         return [self.scene(int(p)) for p in pads]
 
 
+def _nearest(key: str, allowed: Any) -> str:
+    """ " (did you mean 'x'?)" for the allowed name nearest to a mistyped ``key`` (case aside), else ""."""
+    import difflib
+
+    names = {str(a).lower(): str(a) for a in allowed}
+    near = difflib.get_close_matches(str(key).lower(), list(names), n=1)
+    return f" (did you mean {names[near[0]]!r}?)" if near else ""
+
+
 def load_spec(source: str | Path | dict, *, base_dir: Path | None = None, **overrides: Any) -> SweepSpec:
     """Read and validate a sweep spec (TOML path or dict); ``overrides`` (shard_size, duration, integrator,
     precision, dt, tolerance, fast_math, growth_dt, crossing; None = keep) replace the spec's values and so enter its
@@ -306,10 +315,12 @@ def load_spec(source: str | Path | dict, *, base_dir: Path | None = None, **over
     run = doc.setdefault("run", {})
     for key in sw:
         if key not in _SWEEP_KEYS:
-            raise SweepError(f"unknown key {key!r} in [sweep]; allowed: {', '.join(_SWEEP_KEYS)}")
+            raise SweepError(
+                f"unknown key {key!r} in [sweep]{_nearest(key, _SWEEP_KEYS)}; allowed: {', '.join(_SWEEP_KEYS)}"
+            )
     for key in run:
         if key not in _RUN_KEYS:
-            raise SweepError(f"unknown key {key!r} in [run]; allowed: {', '.join(_RUN_KEYS)}")
+            raise SweepError(f"unknown key {key!r} in [run]{_nearest(key, _RUN_KEYS)}; allowed: {', '.join(_RUN_KEYS)}")
     if "shard_size" in overrides and overrides["shard_size"] is not None:
         sw["shard_size"] = overrides.pop("shard_size")
     overrides.pop("shard_size", None)
@@ -482,7 +493,9 @@ def _expand(raw: Any, mode: str, base: Scene, base_doc: dict) -> tuple[dict[str,
     lists: dict[str, list] = {}
     for key, value in raw.items():
         if key not in PARAMETERS:
-            raise SweepError(f"unknown sweep parameter {key!r}; allowed: {', '.join(PARAMETERS)}")
+            raise SweepError(
+                f"unknown sweep parameter {key!r}{_nearest(key, PARAMETERS)}; allowed: {', '.join(PARAMETERS)}"
+            )
         lists[key] = _values(key, value)
     if "disc.sliding_speed" in lists and "disc.angular_velocity" in lists:
         raise SweepError("sweep disc.sliding_speed or disc.angular_velocity, not both")
