@@ -383,7 +383,11 @@ def test_a_spec_that_would_do_other_than_it_says_is_refused(tmp_path: Path, text
 
 @pytest.mark.parametrize(
     ("table", "typed", "meant"),
-    [("sweep", "shard_sise", "shard_size"), ("run", "duraton", "duration"), ("parameters", '"friction.m"', "friction.M")],
+    [
+        ("sweep", "shard_sise", "shard_size"),
+        ("run", "duraton", "duration"),
+        ("parameters", '"friction.m"', "friction.M"),
+    ],
 )
 def test_a_mistyped_spec_key_names_the_nearest(tmp_path: Path, table: str, typed: str, meant: str) -> None:
     """A mistyped key of [sweep], [run] or [parameters] is refused naming the nearest allowed one."""

@@ -179,7 +179,7 @@ def test_failed_preparation_fails_its_shards(tmp_path: Path, prepare: int) -> No
     (tmp_path / "base.toml").unlink()
     res = _in_time(lambda: run_sweep(spec, tmp_path / "out", workers=0, prepare=prepare))
     assert sorted(res.failed) == [0, 1, 2] and res.ran == []
-    assert all("neither a preset" in e for e in res.failed.values()), res.failed
+    assert all("'base.toml': no such file in" in e for e in res.failed.values()), res.failed
     manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
     assert [s["state"] for s in manifest["shards"]] == ["failed"] * 3
 
@@ -379,7 +379,7 @@ def test_prepared_shards_on_dask(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
         shutil.copy(tmp_path / "base.toml", tmp_path / "kept.toml")
         (tmp_path / "base.toml").unlink()
         res = _in_time(lambda: run_sweep(spec, tmp_path / "gone", device=device, client=client, prepare=1))
-        assert sorted(res.failed) == [0, 1, 2] and all("neither a preset" in e for e in res.failed.values())
+        assert sorted(res.failed) == [0, 1, 2] and all("'base.toml': no such file in" in e for e in res.failed.values())
     finally:
         client.close()
         cluster.close()
