@@ -7,6 +7,7 @@ import hashlib
 import json
 import math
 import shutil
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -617,3 +618,68 @@ def test_a_failed_analysis_of_a_pad_leaves_no_pad_file(tmp_path, capsys):
     assert f"pad 0 of {shard}" in err and "tmp" not in err.replace(str(tmp_path), ""), err
     assert main(["analyze", str(tmp_path / "none.h5"), "--pad", "1"]) == 2
     assert "none.h5 not found" in capsys.readouterr().err
+
+
+def test_pads_in_words_compresses_runs_and_counts_the_rest():
+    from aca_warp.analysis.pads import pads_in_words
+
+    assert pads_in_words(np.array([2, 0, 1])) == "0-2"
+    assert pads_in_words(np.array([7, 1, 2, 3, 9, 10, 11, 12])) == "1-3, 7, 9-12"
+    many = pads_in_words(np.arange(1, 60, 2))
+    assert many.startswith("1, 3, 5") and many.endswith("… (30 pads; the shard's /pads/index lists them)")
+    assert "-." not in many
+
+
+def test_a_shard_written_before_the_run_settings_were_spelled_out_gives_its_pads(tmp_path, capsys):
+    """A shard whose stored spec lacks the step and precision (written before they were spelled out, when the defaults
+    were others): its pad is rebuilt with the run settings the shard ran, and extracted; a crafted /pads/index (of
+    another length, or a link) makes the file no shard, in one line."""
+    from aca_warp.cli import main
+
+    spec = tmp_path / "s.toml"  # run in fp64: today's default for strang is fp32
+    spec.write_text(
+        '[sweep]\nbase = "hf1"\nshard_size = 2\n[run]\nduration = 2e-5\nsample_dt = 1e-6\nprecision = "fp64"\n'
+        '[base.patches]\ncount = 12\n[parameters]\n"friction.M" = [0.7, 0.8]\n'
+    )
+    assert main(["sweep", str(spec), "-o", str(tmp_path / "sw"), "--workers", "0", "--quiet"]) == 0
+    shard = tmp_path / "sw" / "shard-00000.h5"
+    with h5py.File(shard, "r+") as f:  # the spec as stored before the run settings were written out
+        doc = json.loads(f.attrs["spec"])
+        doc["run"].pop("dt", None)
+        doc["run"].pop("precision", None)
+        f.attrs["spec"] = json.dumps(doc)
+    capsys.readouterr()
+    assert main(["analyze", str(shard), "--pad", "1", "--no-sync"]) == 0
+    with h5py.File(shard, "r+") as f:
+        del f["pads/index"]
+        f["pads/index"] = np.arange(5)
+    assert main(["analyze", str(shard), "--pad", "1", "--no-sync"]) == 2  # no shard now: a run file it is not
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_a_read_only_folder_refusing_even_the_clean_up_gives_one_line(tmp_path, capsys, monkeypatch):
+    """On a read-only file system the write of the pad file fails and so does the removal of its temporary name:
+    still one line and exit 4."""
+    import errno
+
+    from aca_warp.analysis import pads as pads_module
+    from aca_warp.cli import main
+
+    shard = one_shard_sweep(tmp_path, [0.7], duration=2e-5)
+
+    def refused(*args, **kwargs):
+        raise OSError(errno.EROFS, "Read-only file system")
+
+    real_unlink = Path.unlink
+
+    def unlink(self, missing_ok=False):
+        if self.name.endswith(".new"):
+            raise OSError(errno.EROFS, "Read-only file system")
+        return real_unlink(self, missing_ok=missing_ok)
+
+    monkeypatch.setattr(pads_module, "_write", refused)
+    monkeypatch.setattr(Path, "unlink", unlink)
+    capsys.readouterr()
+    assert main(["analyze", str(shard), "--pad", "0", "--no-sync"]) == 4
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "read-only" in err[0], err

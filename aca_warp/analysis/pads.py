@@ -26,22 +26,34 @@ SHARD_FORMAT = "aca_warp.sweep/"  # the start of a shard's ``format`` attribute
 
 def shard_pads(path: str | Path) -> np.ndarray | None:
     """The sweep's indices of the pads a sweep shard holds, in its row order (``/pads/index``: a sweep packed by size
-    holds pads from anywhere in the sweep), shape (pads,) int64; None when ``path`` is no shard (or no HDF5 file)."""
+    holds pads from anywhere in the sweep), shape (pads,) int64; None when ``path`` is no shard (or no HDF5 file).
+    The index is read only when it is a dataset of this file, 1-D, of integers, with the shard's pad count
+    (``pad_stop - pad_start``) of rows: a crafted file is no shard."""
     try:
         with h5py.File(path, "r") as f:
             fmt = f.attrs.get("format", "")
             if not str(fmt.decode() if isinstance(fmt, bytes) else fmt).startswith(SHARD_FORMAT):
                 return None
-            return np.asarray(f["pads/index"][()], dtype=np.int64).reshape(-1)
-    except (OSError, KeyError, ValueError, TypeError):
+            rows = int(f.attrs["pad_stop"]) - int(f.attrs["pad_start"])
+            index = f.get("pads/index")
+            here = isinstance(f.get("pads/index", getlink=True), h5py.HardLink)
+            if not (here and isinstance(index, h5py.Dataset) and index.shape == (rows,) and index.dtype.kind in "iu"):
+                return None
+            return np.asarray(index[()], dtype=np.int64)
+    except (OSError, KeyError, ValueError, TypeError, MemoryError):
         return None
 
 
-def pads_in_words(pads: np.ndarray) -> str:
-    """A shard's pads for a message: ``a-b`` where they run consecutively, else the sorted list (the first 8)."""
-    from aca_warp.sweep.shard import pad_list
-
-    return pad_list(np.sort(pads)).replace("..", "-")
+def pads_in_words(pads: np.ndarray, most: int = 12) -> str:
+    """A shard's pads for a message, sorted, runs of consecutive pads as ``a-b`` (``1-3, 7, 9-12``); beyond ``most``
+    items the first of them and the count (the shard's ``/pads/index`` lists every one)."""
+    p = np.sort(np.asarray(pads, dtype=np.int64))
+    starts = np.flatnonzero(np.diff(p, prepend=p[0] - 2) != 1)
+    ends = np.append(starts[1:], p.size) - 1
+    items = [f"{p[a]}" if a == b else f"{p[a]}-{p[b]}" for a, b in zip(starts, ends, strict=True)]
+    if len(items) <= most:
+        return ", ".join(items)
+    return ", ".join(items[:most]) + f", … ({p.size} pads; the shard's /pads/index lists them)"
 
 
 def pad_run_path(shard: str | Path, pad: int) -> Path:
@@ -79,21 +91,25 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
     with reading(shard, "sweep shard"), h5py.File(shard, "r") as f:
         row = int(rows[0])
         count, spec_hash = int(f["pads/patch_count"][row]), _text(f.attrs.get("spec_hash", ""))
+        versions = _text(f.attrs.get("versions", "{}"))
         time = f["global/time"][()]
         series = {k: f[f"global/{k}"][row, : time.size] for k in GLOBAL_NAMES}
         end = int(np.flatnonzero(np.isfinite(series["mu"]))[-1]) + 1 if np.isfinite(series["mu"]).any() else 0
         attrs = {k: _text(f.attrs[k]) for k in ("integrator", "precision", "device", "device_name", "versions")}
         run, doc, finished = json.loads(_text(f.attrs["run"])), json.loads(_text(f.attrs["spec"])), f.attrs["complete"]
-    try:
-        spec = load_spec(doc, base_dir=_base_dir(shard))
+    try:  # the run settings as the shard ran them (a default written out since would change the hash, not the pad)
+        spec = load_spec({**doc, "run": run}, base_dir=_base_dir(shard))
         scene = spec.scene(pad).replace(duration=float(run["duration"]))
     except SweepError as e:
         raise SceneError(f"{shard}: the pad's scene cannot be rebuilt from the shard's spec: {e}") from None
     if (spec_hash and spec.hash != spec_hash) or scene.patches.count != count:
+        base = doc.get("sweep", {}).get("base")
+        named = f"the base scene file {base}" if isinstance(base, str) and base.endswith(".toml") else "a file it names"
         raise SceneError(
-            f"{shard}: the pad's scene rebuilt from the shard's spec is not the one it ran (the sweep's hash "
-            f"{spec.hash[:12]}, the shard's {spec_hash[:12]}; {scene.patches.count} patches, the shard's {count}): "
-            "a file the spec names (its base scene) changed since; restore it to take the pad out"
+            f"{shard}: the pad's scene rebuilt from the shard's spec is not the one it ran (spec hash "
+            f"{spec.hash[:12]} here, {spec_hash[:12]} in the shard; {scene.patches.count} patches here, {count} in the "
+            f"shard): {named} changed since, or this aca_warp builds the scene otherwise than the one that wrote the "
+            f"shard (its versions: {versions}); restore that to take the pad out"
         )
     options = RunOptions(
         duration=float(run["duration"]),
@@ -108,7 +124,8 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
     try:
         _write(tmp, attrs, scene, options, complete, time, end, series, shard, pad)
     except BaseException as e:
-        tmp.unlink(missing_ok=True)
+        with contextlib.suppress(OSError):  # on a read-only file system even a missing file's unlink fails
+            tmp.unlink(missing_ok=True)
         if isinstance(e, OSError) and e.errno in UNWRITABLE:  # a read-only folder, no permission, no room
             err = StorageError(
                 f"cannot write {dest.name} beside the shard in {dest.parent} ({UNWRITABLE[e.errno]}); nothing was "

@@ -15,26 +15,25 @@ import contextlib
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-_reader = ["python"]  # who reads the messages: "python", "command line" (command_line()), "sweep" (sweep_spec())
+_readers = ["python"]  # who reads the messages, innermost last: "command line" (command_line()), "sweep" (sweep_spec())
 
 
 def option(python: str, flag: str, spec: str | None = None) -> str:
     """The name of an option in a message: ``python`` (a parameter, e.g. ``overwrite=True``) for the Python API,
     ``flag`` (e.g. ``--overwrite``) inside :func:`command_line`, ``spec`` (a key of the sweep spec, e.g.
-    ``run.sample_dt``) inside :func:`sweep_spec` where given (else the flag)."""
-    if _reader[0] == "sweep" and spec is not None:
+    ``run.sample_dt``) inside :func:`sweep_spec` where given (else the name of the API or command line around it)."""
+    if _readers[-1] == "sweep" and spec is not None:
         return spec
-    return python if _reader[0] == "python" else flag
+    return flag if "command line" in _readers else python
 
 
 @contextmanager
 def _read_by(reader: str) -> Iterator[None]:
-    before = _reader[0]
-    _reader[0] = reader
+    _readers.append(reader)
     try:
         yield
     finally:
-        _reader[0] = before
+        _readers.pop()
 
 
 def command_line() -> contextlib.AbstractContextManager[None]:

@@ -36,7 +36,8 @@ def check_run(duration: float, record: Record, checkpoint_every: float | None = 
     the number of samples."""
     if not (duration > 0 and math.isfinite(duration)):
         raise SceneError(f"duration must be a positive number of seconds, got {duration}")
-    record.check_duration(duration, option("record.sample_dt", "--sample-dt"), option("duration", "--duration"))
+    sample_dt = option("record.sample_dt", "--sample-dt", "run.sample_dt")
+    record.check_duration(duration, sample_dt, option("duration", "--duration", "run.duration"))
     check_interval(checkpoint_every)
     n_samples = max(1, round(duration / record.sample_dt))
     if n_samples > 2**31 - 2:  # the recorder counts samples in int32
@@ -61,13 +62,15 @@ def check_sample_step(sample_dt: float, dt: float, anyway: str = "", follows: fl
         if follows is not None:
             which = f"the default step {dt:g} s (which a sample interval down to {follows:g} s would shorten)"
         named = option(
-            "record.sample_dt", "the sample interval (--sample-dt, or record.sample_dt in the scene)", "run.sample_dt"
+            "record.sample_dt",
+            "the sample interval (--sample-dt, or record.sample_dt in the scene)",
+            "the sample interval (run.sample_dt, else the base's record.sample_dt)",
         )
         raise SceneError(
             f"{named} = {sample_dt:g} s is shorter than {which}: every step would shrink to the sample interval "
             f"({dt / sample_dt:.3g} times the steps); choose a sample interval of at least {least:g} s "
             f"({option('record.sample_dt', '--sample-dt', 'run.sample_dt')}, seconds) or a step of at most "
-            f"{sample_dt:g} s ({option('dt', '--dt')})" + (f"; {anyway}" if anyway else "")
+            f"{sample_dt:g} s ({option('dt', '--dt', 'run.dt')})" + (f"; {anyway}" if anyway else "")
         )
 
 

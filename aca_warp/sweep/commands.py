@@ -140,9 +140,11 @@ def _interrupted_line(out: str, e: KeyboardInterrupt) -> str:
     done = sum(s.get("state") in ("done", "fault") for s in m.get("shards", []))
     total = len(m.get("shards", []))
     if total and done == total:
+        faults = sum(s.get("state") == "fault" for s in m.get("shards", []))
+        stopped = f", {faults} stopped on a fault" if faults else ""
         return (
-            f"aca-warp: {what} after every shard had finished ({done} of {total} in {Path(out) / MANIFEST}): the "
-            "sweep is complete; running the same command again skips every shard"
+            f"aca-warp: {what} after every shard had finished ({done} of {total}{stopped}; {Path(out) / MANIFEST}): "
+            "the sweep is complete; running the same command again skips every shard"
         )
     shards = f"shard(s) {', '.join(hit)} marked interrupted" if hit else "none was running"
     return (
@@ -152,23 +154,21 @@ def _interrupted_line(out: str, e: KeyboardInterrupt) -> str:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from aca_warp.common.errors import sweep_spec
     from aca_warp.hf.options import crossing_words, growth_words
     from aca_warp.sweep.run import run_sweep
     from aca_warp.sweep.spec import SweepError, load_spec
 
-    with sweep_spec():  # a scene's messages name the spec's keys (run.sample_dt, [base.scene])
-        spec = load_spec(
-            args.spec,
-            shard_size=args.shard_size,
-            duration=args.duration,
-            integrator=args.integrator,
-            precision=args.precision,
-            dt=args.dt,
-            fast_math=args.fast_math,
-            growth_dt=args.growth_dt,
-            crossing=args.crossing,
-        )
+    spec = load_spec(
+        args.spec,
+        shard_size=args.shard_size,
+        duration=args.duration,
+        integrator=args.integrator,
+        precision=args.precision,
+        dt=args.dt,
+        fast_math=args.fast_math,
+        growth_dt=args.growth_dt,
+        crossing=args.crossing,
+    )
     if spec.fast_math and args.scheduler is None and "cpu" in args.device.split(","):
         raise SweepError("fast math applies to CUDA devices only: run the sweep with --device cuda")
     log = None if args.quiet else (lambda s: print(s, flush=True))

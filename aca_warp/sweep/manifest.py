@@ -86,7 +86,13 @@ def _run_changes(old: dict | None, spec: SweepSpec) -> str:
     if not keys:
         if others:
             return f": its {', '.join(others)} differ"
-        return ": the spec is the same, so a file it names (its base scene) has changed since"
+        base = spec.doc.get("sweep", {}).get("base")
+        if isinstance(base, str) and base.endswith(".toml"):
+            return f": the spec is the same, so its base scene file {base} (or a file that names) has changed since"
+        return (
+            ": the spec is the same, so the scene it builds has changed since (a patch file it names, or this "
+            "aca_warp's presets or scene defaults)"
+        )
     was = dict(before)  # each setting as an option gives it: a spacing left out is the scenes' own clock
     if "growth_dt" not in was and spec.base.growth is not None:
         was["growth_dt"] = "scene"

@@ -73,6 +73,7 @@ def run_sweep(
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SweepError(f"{out} exists and is not a directory")
+    spec.check_records()
     early = None
     try:
         if scheduler is None and client is None and workers != 0 and _have_dask():

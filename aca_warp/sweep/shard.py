@@ -368,7 +368,7 @@ def _run_batches(work: _Work, scenes: list[Scene], prepared: list[PreparedBatch]
         compile_time += res.compile_time
         dt_used = res.dt
         if res.fault is not None:
-            fault = f"pads {pad_list(pads[b0:b1])}: {res.fault}"
+            fault = f"pads {_pad_list(pads[b0:b1])}: {res.fault}"
             break
     attrs = {
         "complete": fault is None,
@@ -392,7 +392,7 @@ def _run_batches(work: _Work, scenes: list[Scene], prepared: list[PreparedBatch]
     }
 
 
-def pad_list(pads: np.ndarray) -> str:
+def _pad_list(pads: np.ndarray) -> str:
     """Global pad indices in words: ``a..b`` for a run of consecutive ones, else a list (the first 8)."""
     if np.all(np.diff(pads) == 1):
         return f"{pads[0]}..{pads[-1]}"

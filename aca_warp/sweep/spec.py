@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common.bounds import read_toml
-from aca_warp.common.errors import AcaError, SceneError
+from aca_warp.common.errors import AcaError, SceneError, sweep_spec
 from aca_warp.scene import (
     PRESETS,
     Friction,
@@ -125,7 +125,9 @@ def _values(key: str, raw: Any) -> list:
             f"parameters.{key} must be a list of values or a table such as {{ linspace = [a, b, n] }}, got {raw!r}"
         )
     if not vals:
-        raise SweepError(f"parameters.{key} has no values (a range's stop is not among them: [1, 2] is 1 alone)")
+        ranged = isinstance(raw, dict) and "range" in raw
+        hint = " (a range stops before its stop: [20, 20] is empty, and counting down needs a negative step)"
+        raise SweepError(f"parameters.{key} has no values{hint if ranged else ''}")
     if key in _INT_PARAMETERS:
         if not all(isinstance(v, int) and not isinstance(v, bool) for v in vals):
             raise SweepError(f"parameters.{key} takes integers, got {vals!r}")
@@ -210,6 +212,17 @@ class SweepSpec:
         """Number of shards."""
         return math.ceil(self.pad_count / self.shard_size)
 
+    def check_records(self) -> None:
+        """Refuse a base scene that records per-patch histories, which a sweep's shards do not hold (global outputs
+        only): checked where a sweep starts (a shard written before the check reads as it was)."""
+        if self.base.record.patches:
+            raise SweepError(
+                f"the base scene records per-patch histories ({', '.join(self.base.record.patches)}), which a sweep's "
+                "shards do not hold (global outputs only): leave record.patches out of the base ([base.record] "
+                "patches = [] for a scene that sets it); for one pad's histories run its scene with aca-warp hf "
+                "--record-patches"
+            )
+
     @property
     def layout_count(self) -> int:
         """Number of distinct patch layouts the pads take: the combinations of the swept patch and pad parameters
@@ -289,6 +302,12 @@ def load_spec(source: str | Path | dict, *, base_dir: Path | None = None, **over
     """Read and validate a sweep spec (TOML path or dict); ``overrides`` (shard_size, duration, integrator,
     precision, dt, tolerance, fast_math, growth_dt, crossing; None = keep) replace the spec's values and so enter its
     hash."""
+    with sweep_spec():  # messages name the spec's keys (run.sample_dt, [base.scene] allow_implausible)
+        return _load(source, base_dir, overrides)
+
+
+def _load(source: str | Path | dict, base_dir: Path | None, overrides: dict[str, Any]) -> SweepSpec:
+    """:func:`load_spec`'s work."""
     if isinstance(source, dict):
         doc = copy.deepcopy(source)
         base_dir = base_dir or Path.cwd()
@@ -296,7 +315,8 @@ def load_spec(source: str | Path | dict, *, base_dir: Path | None = None, **over
         p = Path(source)
         if not p.is_file():
             shipped = resources.files("aca_warp.data") / p.name
-            where = f"; the example of that name shipped with aca_warp is {shipped}" if shipped.is_file() else ""
+            example = p.name.startswith("sweep_") and shipped.is_file()
+            where = f"; the example of that name shipped with aca_warp is {shipped}" if example else ""
             raise SweepError(f"sweep spec {p} not found{where}")
         try:
             doc = read_toml(p, "sweep spec")
@@ -387,12 +407,6 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         base = scene_from_dict(base_doc, base_dir=scene_dir, name=base_name)
     except SceneError as e:
         raise SweepError(f"base scene: {e}") from None
-    if base.record.patches:
-        raise SweepError(
-            f"the base scene records per-patch histories ({', '.join(base.record.patches)}), which a sweep's shards do "
-            "not hold (global outputs only): leave record.patches out of the base ([base.record] patches = [] for a "
-            "scene that sets it); for one pad's histories run its scene with aca-warp hf --record-patches"
-        )
     name = str(sw.get("name", base_name))
     mode = sw.get("mode", "product")
     if mode not in MODES:
