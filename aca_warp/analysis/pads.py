@@ -28,13 +28,17 @@ def shard_pads(path: str | Path) -> np.ndarray | None:
     """The sweep's indices of the pads a sweep shard holds, in its row order (``/pads/index``: a sweep packed by size
     holds pads from anywhere in the sweep), shape (pads,) int64; None when ``path`` is no shard (or no HDF5 file).
     The index is read only when it is a dataset of this file, 1-D, of integers, with the shard's pad count
-    (``pad_stop - pad_start``) of rows: a crafted file is no shard."""
+    (``pad_stop - pad_start``, at most a sweep's pads) of rows: a crafted file is no shard."""
+    from aca_warp.sweep.spec import MAX_PADS
+
     try:
         with h5py.File(path, "r") as f:
             fmt = f.attrs.get("format", "")
             if not str(fmt.decode() if isinstance(fmt, bytes) else fmt).startswith(SHARD_FORMAT):
                 return None
             rows = int(f.attrs["pad_stop"]) - int(f.attrs["pad_start"])
+            if not 0 < rows <= MAX_PADS:
+                return None
             index = f.get("pads/index")
             here = isinstance(f.get("pads/index", getlink=True), h5py.HardLink)
             if not (here and isinstance(index, h5py.Dataset) and index.shape == (rows,) and index.dtype.kind in "iu"):
