@@ -598,6 +598,12 @@ def test_one_pad_of_a_packed_shard_is_that_pad(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "read-only" in err[0] and not (out / "shard-00000_pad1.h5").exists()
     monkeypatch.undo()
+    (tmp_path / "other").mkdir()
+    other = one_shard_sweep(tmp_path / "other", [0.7, 0.8], duration=2e-5)  # another sweep, a shard of that name
+    shutil.copy(out / "shard-00000_pad3.h5", other.parent / "shard-00000_pad1.h5")
+    capsys.readouterr()
+    assert main(["analyze", str(other), "--pad", "1", "--no-sync"]) == 2  # not taken for this shard's pad
+    assert "is not a pad extracted from" in capsys.readouterr().err
     base.write_text(base.read_text().replace("count = 20", "count = 21"))  # the spec's base file changed
     assert main(["analyze", str(shard), "--pad", "1", "--no-sync"]) == 2
     assert "is not the one it ran" in capsys.readouterr().err

@@ -4,8 +4,8 @@ A shard (``aca-warp sweep``) holds the global outputs of many pads, ``/global/NA
 parameters and the sweep's spec, but no per-patch data. :func:`write_pad_run` writes pad ``K`` (its index in the
 sweep) as an ordinary HF run file: its global series, its scene (the spec's base with the pad's parameter values,
 patches and matrix cells from it), the shard's integrator, precision, device and versions, and the run options of
-the sweep, so that ``analyze``, ``plot`` and ``rerun`` take it like any run. Its root attributes ``source_shard``
-and ``pad`` say where it comes from.
+the sweep, so that ``analyze``, ``plot`` and ``rerun`` take it like any run. Its root attributes ``source_shard``,
+``source_spec_hash`` and ``pad`` say where it comes from.
 """
 
 from __future__ import annotations
@@ -100,6 +100,7 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
         series = {k: f[f"global/{k}"][row, : time.size] for k in GLOBAL_NAMES}
         end = int(np.flatnonzero(np.isfinite(series["mu"]))[-1]) + 1 if np.isfinite(series["mu"]).any() else 0
         attrs = {k: _text(f.attrs[k]) for k in ("integrator", "precision", "device", "device_name", "versions")}
+        attrs["source_spec_hash"] = spec_hash  # with source_shard and pad: which shard of which sweep
         run, doc, finished = json.loads(_text(f.attrs["run"])), json.loads(_text(f.attrs["spec"])), f.attrs["complete"]
     try:  # the run settings as the shard ran them (a default written out since would change the hash, not the pad)
         spec = load_spec({**doc, "run": run}, base_dir=_base_dir(shard))
@@ -197,8 +198,16 @@ def extracted_from(dest: str | Path, shard: str | Path) -> bool:
     with contextlib.suppress(OSError):
         if os.path.samefile(source, shard):
             return True
-    # the path as recorded, relative to another folder or to a folder since moved: the shard of that name beside it
-    return Path(source).name == Path(shard).name and Path(dest).resolve().parent == Path(shard).resolve().parent
+    # the path as recorded, relative to another folder or to a folder since moved: a shard of that name beside it, of
+    # the same sweep where the pad file records which
+    if Path(source).name != Path(shard).name or Path(dest).resolve().parent != Path(shard).resolve().parent:
+        return False
+    try:
+        with h5py.File(dest, "r") as f, h5py.File(shard, "r") as s:
+            recorded = _text(f.attrs.get("source_spec_hash", ""))
+            return not recorded or recorded == _text(s.attrs.get("spec_hash", ""))
+    except OSError:
+        return False
 
 
 def _check_replaceable(dest: Path, shard: Path) -> None:
