@@ -178,9 +178,13 @@ def test_a_pad_of_a_fast_math_shard_keeps_fast_math(tmp_path: Path):
     import h5py
 
     from aca_warp.analysis.pads import write_pad_run
+    from aca_warp.sweep import load_spec
 
     shard = one_shard_sweep(tmp_path, [0.7, 0.8], duration=2e-7, sample_dt=1e-7)
-    _mark_fast(shard, "run")  # as a CUDA sweep with --fast-math writes it
+    _mark_fast(shard, "run")  # as a CUDA sweep with --fast-math writes it: its run settings, and the hash of them
+    with h5py.File(shard, "r+") as f:
+        doc, run = json.loads(f.attrs["spec"]), json.loads(f.attrs["run"])
+        f.attrs["spec_hash"] = load_spec({**doc, "run": run}, base_dir=shard.parent).hash
     with h5py.File(write_pad_run(shard, 1, tmp_path / "pad1.h5"), "r") as f:
         assert json.loads(f.attrs["run_options"])["fast_math"] is True
 
