@@ -5,8 +5,8 @@ The command line prints an :class:`AcaError` as one ``aca-warp: error:`` line an
 
 A message that names an option names it the way its reader passes it: as a Python parameter (``overwrite=True``)
 from the Python API, as a flag (``--overwrite``) from the command line, which runs its commands inside
-:func:`command_line`, and as a key of the sweep spec where ``aca-warp sweep`` checks its spec (:func:`sweep_spec`)
-and the option has one there; messages build the name with :func:`option`.
+:func:`command_line`, and as a key of the sweep spec while a spec is read (:func:`sweep_spec`, entered by
+``aca_warp.sweep.load_spec``) where the option has one there; messages build the name with :func:`option`.
 """
 
 from __future__ import annotations
@@ -42,8 +42,8 @@ def command_line() -> contextlib.AbstractContextManager[None]:
 
 
 def sweep_spec() -> contextlib.AbstractContextManager[None]:
-    """Messages built in the body (``aca-warp sweep`` checking its spec and scenes) name an option as the spec's key
-    where it has one, else as a flag (:func:`option`)."""
+    """Messages built in the body (a sweep spec read and its scenes checked) name an option as the spec's key where
+    it has one, else as its reader around passes it (:func:`option`)."""
     return _read_by("sweep")
 
 

@@ -159,11 +159,10 @@ LAYOUT_PREPARE_PER_GPU = 4
 
 def prepare_processes(device: str, workers: int | None, local: bool, spec: SweepSpec | None = None) -> int:
     """Default size of the preparation pool: on CUDA :data:`PREPARE_PER_GPU` per GPU of a local sweep (a cluster
-    this call starts, or this process) and at least :data:`PREPARE_LEAST`, or, for a ``spec`` with a patch layout of
-    at least one patch layout per two pads (:attr:`~aca_warp.sweep.spec.SweepSpec.layout_count` ≥ pads / 2)
-    :data:`LAYOUT_PREPARE_PER_GPU` per GPU; at most the cores its workers leave;
-    0 (each task makes its own shard) on the CPU, whose cores the workers use, and with a scheduler or client given
-    (their hosts are not known here)."""
+    this call starts, or this process), :data:`LAYOUT_PREPARE_PER_GPU` for a ``spec`` with at least one patch layout
+    per two pads (:attr:`~aca_warp.sweep.spec.SweepSpec.layout_count` ≥ pads / 2), at least :data:`PREPARE_LEAST`
+    and at most the cores its workers leave; 0 (each task makes its own shard) on the CPU, whose cores the workers
+    use, and with a scheduler or client given (their hosts are not known here)."""
     if device == "cpu" or not local:
         return 0
     gpus = len(cuda_ordinals(device))

@@ -226,7 +226,7 @@ class SweepSpec:
     @property
     def layout_count(self) -> int:
         """Number of distinct patch layouts the pads take: the combinations of the swept patch and pad parameters
-        among the pads (1 when none is swept). Each is made by the patch generator before its pads run."""
+        among the pads (1 when none is swept); the preparation of a shard generates the layouts of its pads."""
         keys = [k for k in self.parameters if PARAMETERS[k][1] in ("patches", "pad")]
         if not keys:
             return 1
@@ -290,7 +290,7 @@ class SweepSpec:
 
 
 def _nearest(key: str, allowed: Any) -> str:
-    """ " (did you mean 'x'?)" for the allowed name nearest to a mistyped ``key`` (case aside), else ""."""
+    """The clause ``(did you mean 'x'?)`` for the allowed name nearest to a mistyped ``key`` (case aside), else ""."""
     import difflib
 
     names = {str(a).lower(): str(a) for a in allowed}
