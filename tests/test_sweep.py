@@ -368,10 +368,12 @@ def test_an_interrupt_after_every_shard_finished_says_the_sweep_is_complete(tmp_
     [
         ("", "is empty: it would run one pad of the default scene"),
         ('[sweep]\nbase = "nothere.toml"\n', "'nothere.toml': no such file in"),
+        ('[sweep]\nbase = "hf1"\n[parameters]\n"pad.r_inner" = [100.0]\n', "did you mean mm? (100 mm = 0.1 m)"),
     ],
 )  # fmt: skip
 def test_a_spec_that_would_do_other_than_it_says_is_refused(tmp_path: Path, text: str, said: str) -> None:
-    """An empty spec (it would run the default scene), a base file that is not there: one line each."""
+    """An empty spec (it would run the default scene), a base file that is not there, a pad radius typed in mm (said
+    so before the radii are compared): one line each."""
     spec = tmp_path / "s.toml"
     spec.write_text(text)
     with pytest.raises(SweepError, match=re.escape(said)):

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common import plausible
 from aca_warp.common.bounds import read_toml
 from aca_warp.common.errors import AcaError, SceneError, sweep_spec
 from aca_warp.scene import (
@@ -610,6 +611,9 @@ def apply_parameters(base: Scene, base_doc: dict, values: dict[str, Any], *, nam
     changes: dict[str, Any] = {}
     pad = base.pad
     if "pad" in groups:
+        for attr in ("r_inner", "r_outer"):  # a radius typed in mm: said so before the radii are compared
+            if attr in groups["pad"]:
+                plausible.check(f"pad.{attr}", groups["pad"][attr], "length", allow=base.allow_implausible)
         pad = dataclasses.replace(base.pad, **groups["pad"])
         changes["pad"] = pad
     if "pad" in groups or "patches" in groups:
