@@ -624,6 +624,9 @@ def test_a_failed_analysis_of_a_pad_leaves_no_pad_file(tmp_path, capsys):
     assert f"pad 0 of {shard}" in err and "tmp" not in err.replace(str(tmp_path), ""), err
     assert main(["analyze", str(tmp_path / "none.h5"), "--pad", "1"]) == 2
     assert "none.h5 not found" in capsys.readouterr().err
+    for command in (["analyze"], ["plot", "-o", str(tmp_path / "f")]):  # in a folder that is not there either
+        assert main([command[0], str(tmp_path / "nodir" / "run.h5"), *command[1:]]) == 2
+        assert f"run file not found: {tmp_path / 'nodir' / 'run.h5'}" in capsys.readouterr().err
 
 
 def test_pads_in_words_compresses_runs_and_counts_the_rest():
