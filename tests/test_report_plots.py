@@ -692,3 +692,15 @@ def test_a_read_only_folder_refusing_even_the_clean_up_gives_one_line(tmp_path, 
     assert main(["analyze", str(shard), "--pad", "0", "--no-sync"]) == 4
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "read-only" in err[0], err
+
+
+@pytest.mark.parametrize(("freq", "said"), [(3e6, True), (2e7, True), (2.1e7, False)])
+def test_a_peak_with_few_periods_in_the_record_says_so(freq, said):
+    """analyze's peak lines: a peak of which a 1 µs record holds at most 20 periods names the bins' width and the
+    periods; beyond, nothing is added."""
+    from aca_warp.analysis.commands import _few_periods
+
+    clause = _few_periods(freq, {"samples": 10, "sample_interval": 1e-7})
+    assert bool(clause) == said
+    if said:
+        assert clause == f" (bins 1e+03 kHz wide: {freq * 1e-6:.3g} periods in the record)"

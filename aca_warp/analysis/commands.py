@@ -210,11 +210,13 @@ def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float
     early = record_ends_early(run)
     if early:
         parts.append(early)
-    peaks = groups["peaks"].attrs
+    peaks, spectra = groups["peaks"].attrs, groups["spectra"].attrs
     if "first_velocity_peak_frequency" in peaks:
-        parts.append(f"first velocity-spectrum peak {peaks['first_velocity_peak_frequency'] / 1e3:.4g} kHz")
+        f = float(peaks["first_velocity_peak_frequency"])
+        parts.append(f"first velocity-spectrum peak {f / 1e3:.4g} kHz{_few_periods(f, spectra)}")
     if "mu_peak_frequency" in peaks:
-        parts.append(f"largest mu peak {peaks['mu_peak_frequency'] / 1e3:.4g} kHz")
+        f = float(peaks["mu_peak_frequency"])
+        parts.append(f"largest mu peak {f / 1e3:.4g} kHz{_few_periods(f, spectra)}")
     if "sync" in groups:
         from aca_warp.analysis.report import LEAKAGE_BINS, lowest_bin_remark, sync_excess
 
@@ -345,6 +347,21 @@ def run_or_pad(args: argparse.Namespace, command: str, *, keep: bool) -> Iterato
                 yield str(temporary)
             except SceneError as e:  # name the pad as given, not the temporary file no one saw
                 raise SceneError(str(e).replace(str(temporary), f"pad {args.pad} of {args.run}")) from None
+
+
+def _few_periods(freq: float, spectra: Any) -> str:
+    """For a peak at ``freq`` [Hz] of which the record holds at most ``FEW_PERIODS`` periods, the clause that says so
+    with the spectra's bin width Δf = 1 / record length (what the frequency is known to); else ""."""
+    from aca_warp.analysis.patch_report import FEW_PERIODS
+
+    try:
+        length = float(spectra["samples"]) * float(spectra["sample_interval"])
+    except (KeyError, TypeError, ValueError):
+        return ""
+    periods = freq * length
+    if not 0 < periods <= FEW_PERIODS:
+        return ""
+    return f" (bins {1e-3 / length:.3g} kHz wide: {periods:.3g} periods in the record)"
 
 
 def record_ends_early(path: str) -> str | None:
