@@ -431,19 +431,3 @@ def test_an_empty_parameter_says_why_where_it_was_a_range(parameter: object) -> 
         load_spec(doc)
     assert "has no values" in str(e.value)
     assert ("counting down needs a negative step" in str(e.value)) == isinstance(parameter, dict)
-
-
-def test_a_patch_file_enters_the_hash_by_its_data(tmp_path: Path) -> None:
-    """A base whose patches come from a file: the sweep's hash changes with the file's patches, not only with its
-    path, so that a sweep is not continued with another layout under the same name (a generated base's hash is
-    as before: its layout follows from its settings)."""
-    from aca_warp.scene import Patches, write_patch_file
-
-    patches = preset("hf1").patches
-    write_patch_file(tmp_path / "p.h5", patches)
-    (tmp_path / "b.toml").write_text('[scene]\nname = "b"\n[patches]\nfile = "p.h5"\n')
-    doc = {"sweep": {"name": "f", "base": "b.toml"}, "run": {"duration": 2e-6}, "parameters": {"friction.M": [0.6]}}
-    before = load_spec(doc, base_dir=tmp_path).hash
-    assert load_spec(doc, base_dir=tmp_path).hash == before
-    write_patch_file(tmp_path / "p.h5", Patches(patches.x + 1e-9, patches.y, patches.area, patches.height))
-    assert load_spec(doc, base_dir=tmp_path).hash != before

@@ -246,8 +246,7 @@ class SweepSpec:
 
     @property
     def hash(self) -> str:
-        """SHA-256 of everything that decides the results: base scene (a patch file's patches by their data), parameter
-        values, run settings, shards."""
+        """SHA-256 of everything that decides the results: base scene, parameter values, run settings, shards."""
         if not self._hash:
             payload = {
                 "format": FORMAT,
@@ -258,11 +257,6 @@ class SweepSpec:
             }
             if self.order is not None:  # pads reordered into shards (absent otherwise: hashes of earlier sweeps hold)
                 payload["pack"] = self.pack
-            if "file" in (self.base.origin or {}).get("patches", {}):  # a patch file by its data, not its path alone
-                digest = hashlib.sha256()
-                for a in (self.base.patches.x, self.base.patches.y, self.base.patches.area, self.base.patches.height):
-                    digest.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
-                payload["patch_data"] = digest.hexdigest()
             text = json.dumps(payload, sort_keys=True, default=str)
             self._hash = hashlib.sha256(text.encode()).hexdigest()
         return self._hash
