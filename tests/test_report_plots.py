@@ -629,12 +629,13 @@ def test_a_failed_analysis_of_a_pad_leaves_no_pad_file(tmp_path, capsys):
         assert f"run file not found: {tmp_path / 'nodir' / 'run.h5'}" in capsys.readouterr().err
 
 
-def test_pads_in_words_compresses_runs_and_counts_the_rest():
-    from aca_warp.analysis.pads import pads_in_words
+def test_pad_list_compresses_runs_and_counts_the_rest():
+    """One wording of a list of pads, for a shard's refusals and for the pads a fault stopped."""
+    from aca_warp.sweep.spec import pad_list
 
-    assert pads_in_words(np.array([2, 0, 1])) == "0-2"
-    assert pads_in_words(np.array([7, 1, 2, 3, 9, 10, 11, 12])) == "1-3, 7, 9-12"
-    many = pads_in_words(np.arange(1, 60, 2))
+    assert pad_list(np.array([2, 0, 1])) == "0-2"
+    assert pad_list(np.array([7, 1, 2, 3, 9, 10, 11, 12])) == "1-3, 7, 9-12"
+    many = pad_list(np.arange(1, 60, 2))
     assert many.startswith("1, 3, 5") and many.endswith("… (30 pads; the shard's /pads/index lists them)")
     assert "-." not in many
 

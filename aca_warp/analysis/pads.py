@@ -48,18 +48,6 @@ def shard_pads(path: str | Path) -> np.ndarray | None:
         return None
 
 
-def pads_in_words(pads: np.ndarray, most: int = 12) -> str:
-    """A shard's pads for a message, sorted, runs of consecutive pads as ``a-b`` (``1-3, 7, 9-12``); beyond ``most``
-    items the first of them and the count (the shard's ``/pads/index`` lists every one)."""
-    p = np.sort(np.asarray(pads, dtype=np.int64))
-    starts = np.flatnonzero(np.diff(p, prepend=p[0] - 2) != 1)
-    ends = np.append(starts[1:], p.size) - 1
-    items = [f"{p[a]}" if a == b else f"{p[a]}-{p[b]}" for a, b in zip(starts, ends, strict=True)]
-    if len(items) <= most:
-        return ", ".join(items)
-    return ", ".join(items[:most]) + f", … ({p.size} pads; the shard's /pads/index lists them)"
-
-
 def pad_run_path(shard: str | Path, pad: int) -> Path:
     """Where ``analyze SHARD --pad K`` keeps pad ``K``'s run file: ``SHARD_padK.h5`` beside the shard."""
     p = Path(shard)
@@ -68,8 +56,10 @@ def pad_run_path(shard: str | Path, pad: int) -> Path:
 
 def shard_refusal(path: str | Path, pads: np.ndarray, command: str) -> SceneError:
     """The one-line refusal of ``command`` (analyze, plot) given a shard without ``--pad``."""
+    from aca_warp.sweep.spec import pad_list
+
     return SceneError(
-        f"{path} is a sweep shard of pads {pads_in_words(pads)}: {command} one of them with "
+        f"{path} is a sweep shard of pads {pad_list(pads)}: {command} one of them with "
         f"{option('pad=K', '--pad K')} (K one of those, the pad's index in the sweep)"
     )
 
@@ -82,7 +72,7 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
     from aca_warp.common.storage import storage_errno, storage_error
     from aca_warp.hf.options import RunOptions
     from aca_warp.hf.recorder import GLOBAL_NAMES
-    from aca_warp.sweep.spec import SweepError, load_spec
+    from aca_warp.sweep.spec import SweepError, load_spec, pad_list
 
     shard, dest = Path(shard), Path(dest)
     pads = shard_pads(shard)
@@ -90,7 +80,7 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
         raise SceneError(f"{shard} is not a sweep shard ({option('pad', '--pad')} picks a pad of one)")
     rows = np.flatnonzero(pads == pad)
     if rows.size != 1:
-        raise SceneError(f"{shard} holds pads {pads_in_words(pads)}; pad {pad} is not one of them")
+        raise SceneError(f"{shard} holds pads {pad_list(pads)}; pad {pad} is not one of them")
     _check_replaceable(dest, shard)
     with reading(shard, "sweep shard"), h5py.File(shard, "r") as f:
         row = int(rows[0])

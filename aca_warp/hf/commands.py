@@ -498,15 +498,17 @@ def _is_lf(path: str | Path) -> bool:
 def _cmd_rerun(args: argparse.Namespace) -> int:
     import dataclasses
 
-    from aca_warp.analysis.pads import pads_in_words, shard_pads
+    from aca_warp.analysis.pads import shard_pads
     from aca_warp.common.files import check_output_path, version_changes
     from aca_warp.hf.rerun import read_settings, relaxed_checks
     from aca_warp.hf.runner import run_scene
 
     pads = shard_pads(args.run)
     if pads is not None:
+        from aca_warp.sweep.spec import pad_list
+
         raise SceneError(
-            f"{args.run} is a sweep shard (pads {pads_in_words(pads)}), not a run: run its sweep again with "
+            f"{args.run} is a sweep shard (pads {pad_list(pads)}), not a run: run its sweep again with "
             "'aca-warp sweep SPEC -o DIR' (finished shards are skipped; remove this one's file to redo it), or take "
             f"one pad out as a run file with 'aca-warp analyze {args.run} --pad K' and rerun that"
         )

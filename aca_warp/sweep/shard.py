@@ -32,7 +32,7 @@ from aca_warp.sweep.prepare import (
     run_options,
     shard_capacity,
 )
-from aca_warp.sweep.spec import FORMAT, PARAMETERS, SweepSpec
+from aca_warp.sweep.spec import FORMAT, PARAMETERS, SweepSpec, pad_list
 
 # ---------------------------------------------------------------------------------------------- shard
 
@@ -368,7 +368,7 @@ def _run_batches(work: _Work, scenes: list[Scene], prepared: list[PreparedBatch]
         compile_time += res.compile_time
         dt_used = res.dt
         if res.fault is not None:
-            fault = f"pads {_pad_list(pads[b0:b1])}: {res.fault}"
+            fault = f"pads {pad_list(pads[b0:b1])}: {res.fault}"
             break
     attrs = {
         "complete": fault is None,
@@ -390,14 +390,6 @@ def _run_batches(work: _Work, scenes: list[Scene], prepared: list[PreparedBatch]
         "run_start": run_start,
         "run_end": run_end,
     }
-
-
-def _pad_list(pads: np.ndarray) -> str:
-    """Global pad indices in words: ``a..b`` for a run of consecutive ones, else a list (the first 8)."""
-    if np.all(np.diff(pads) == 1):
-        return f"{pads[0]}..{pads[-1]}"
-    shown = ", ".join(str(p) for p in pads[:8])
-    return shown + (f", ... ({len(pads)} pads)" if len(pads) > 8 else "")
 
 
 def _run_batch(work: _Work, scenes: list[Scene], b0: int, prepared: PreparedBatch | None) -> tuple[Any, float]:

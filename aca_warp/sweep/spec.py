@@ -290,6 +290,18 @@ class SweepSpec:
         return [self.scene(int(p)) for p in pads]
 
 
+def pad_list(pads: Any, most: int = 12) -> str:
+    """Global pad indices in words for a message, sorted, runs of consecutive ones as ``a-b`` (``1-3, 7, 9-12``);
+    beyond ``most`` items the first of them and the count (a shard's ``/pads/index`` lists every one)."""
+    p = np.sort(np.asarray(pads, dtype=np.int64))
+    starts = np.flatnonzero(np.diff(p, prepend=p[0] - 2) != 1)
+    ends = np.append(starts[1:], p.size) - 1
+    items = [f"{p[a]}" if a == b else f"{p[a]}-{p[b]}" for a, b in zip(starts, ends, strict=True)]
+    if len(items) <= most:
+        return ", ".join(items)
+    return ", ".join(items[:most]) + f", … ({p.size} pads; the shard's /pads/index lists them)"
+
+
 def _nearest(key: str, allowed: Any) -> str:
     """The clause ``(did you mean 'x'?)`` for the allowed name nearest to a mistyped ``key`` (case aside), else ""."""
     import difflib
