@@ -72,7 +72,7 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
     from aca_warp.common.storage import storage_errno, storage_error
     from aca_warp.hf.options import RunOptions
     from aca_warp.hf.recorder import GLOBAL_NAMES
-    from aca_warp.sweep.spec import SweepError, load_spec, pad_list
+    from aca_warp.sweep.spec import SweepError, base_file, load_spec, pad_list
 
     shard, dest = Path(shard), Path(dest)
     pads = shard_pads(shard)
@@ -85,7 +85,6 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
     with reading(shard, "sweep shard"), h5py.File(shard, "r") as f:
         row = int(rows[0])
         count, spec_hash = int(f["pads/patch_count"][row]), _text(f.attrs.get("spec_hash", ""))
-        versions = _text(f.attrs.get("versions", "{}"))
         time = f["global/time"][()]
         series = {k: f[f"global/{k}"][row, : time.size] for k in GLOBAL_NAMES}
         end = int(np.flatnonzero(np.isfinite(series["mu"]))[-1]) + 1 if np.isfinite(series["mu"]).any() else 0
@@ -98,13 +97,13 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
     except SweepError as e:
         raise SceneError(f"{shard}: the pad's scene cannot be rebuilt from the shard's spec: {e}") from None
     if (spec_hash and spec.hash != spec_hash) or scene.patches.count != count:
-        base = doc.get("sweep", {}).get("base")
-        named = f"the base scene file {base}" if isinstance(base, str) and base.endswith(".toml") else "a file it names"
+        base = base_file(doc)
+        named = f"the base scene file {base}" if base else "a file it names"
         raise SceneError(
             f"{shard}: the pad's scene rebuilt from the shard's spec is not the one it ran (spec hash "
             f"{spec.hash[:12]} here, {spec_hash[:12]} in the shard; {scene.patches.count} patches here, {count} in the "
             f"shard): {named} changed since, or this aca_warp builds the scene otherwise than the one that wrote the "
-            f"shard (its versions: {versions}); restore that to take the pad out"
+            f"shard (its versions: {attrs['versions']}); restore that to take the pad out"
         )
     options = RunOptions(
         duration=float(run["duration"]),
@@ -181,6 +180,7 @@ def extracted_from(dest: str | Path, shard: str | Path) -> bool:
     try:
         with h5py.File(dest, "r") as f:
             source = _text(f.attrs.get("source_shard", ""))
+            recorded = _text(f.attrs.get("source_spec_hash", ""))
     except OSError:
         return False
     if not source:
@@ -193,8 +193,7 @@ def extracted_from(dest: str | Path, shard: str | Path) -> bool:
     if Path(source).name != Path(shard).name or Path(dest).resolve().parent != Path(shard).resolve().parent:
         return False
     try:
-        with h5py.File(dest, "r") as f, h5py.File(shard, "r") as s:
-            recorded = _text(f.attrs.get("source_spec_hash", ""))
+        with h5py.File(shard, "r") as s:
             return not recorded or recorded == _text(s.attrs.get("spec_hash", ""))
     except OSError:
         return False

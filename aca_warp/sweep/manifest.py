@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.sweep.shard import shard_finished, shard_name
-from aca_warp.sweep.spec import FORMAT, SweepError, SweepSpec
+from aca_warp.sweep.spec import FORMAT, SweepError, SweepSpec, base_file
 
 MANIFEST = "manifest.json"
 # the states of a shard in the manifest (docs/sweeps.md, "Manifest states")
@@ -86,8 +86,8 @@ def _run_changes(old: dict | None, spec: SweepSpec) -> str:
     if not keys:
         if others:
             return f": its {', '.join(others)} differ"
-        base = spec.doc.get("sweep", {}).get("base")
-        if isinstance(base, str) and base.endswith(".toml"):
+        base = base_file(spec.doc)
+        if base:
             return f": the spec is the same, so its base scene file {base} (or a file that names) has changed since"
         return (
             ": the spec is the same, so the scene it builds has changed since (a patch file it names, or this "

@@ -290,6 +290,12 @@ class SweepSpec:
         return [self.scene(int(p)) for p in pads]
 
 
+def base_file(doc: dict) -> str | None:
+    """The base scene file a spec doc names (``sweep.base`` as given), or None for a preset or an inline base."""
+    base = doc.get("sweep", {}).get("base")
+    return base if isinstance(base, str) and base not in PRESETS else None
+
+
 def pad_list(pads: Any, most: int = 12) -> str:
     """Global pad indices in words for a message, sorted, runs of consecutive ones as ``a-b`` (``1-3, 7, 9-12``);
     beyond ``most`` items the first of them and the count (a shard's ``/pads/index`` lists every one)."""
