@@ -36,8 +36,8 @@ def check_run(duration: float, record: Record, checkpoint_every: float | None = 
     the number of samples."""
     if not (duration > 0 and math.isfinite(duration)):
         raise SceneError(f"duration must be a positive number of seconds, got {duration}")
-    sample_dt = option("record.sample_dt", "--sample-dt", "run.sample_dt")
-    record.check_duration(duration, sample_dt, option("duration", "--duration", "run.duration"))
+    sample_dt_name = option("record.sample_dt", "--sample-dt", "run.sample_dt")
+    record.check_duration(duration, sample_dt_name, option("duration", "--duration", "run.duration"))
     check_interval(checkpoint_every)
     n_samples = max(1, round(duration / record.sample_dt))
     if n_samples > 2**31 - 2:  # the recorder counts samples in int32
