@@ -318,12 +318,14 @@ def run_or_pad(args: argparse.Namespace, command: str, *, keep: bool) -> Iterato
 
     pads = shard_pads(args.run)
     if pads is None:
-        if args.pad is not None and not Path(args.run).exists():
-            raise SceneError(f"{args.run} not found (--pad picks a pad of a sweep shard)")
+        if not Path(args.run).exists():  # before any output check names its folder
+            raise SceneError(
+                f"{args.run} not found (--pad picks a pad of a sweep shard)"
+                if args.pad is not None
+                else f"run file not found: {args.run}"
+            )
         if args.pad is not None:
             raise SceneError(f"--pad picks a pad of a sweep shard; {args.run} is not one")
-        if not Path(args.run).exists():  # before any output check names its folder
-            raise SceneError(f"run file not found: {args.run}")
         yield args.run
         return
     if args.pad is None:
