@@ -701,7 +701,7 @@ def test_a_peak_with_few_periods_in_the_record_says_so(freq, said):
     periods; beyond, nothing is added."""
     from aca_warp.analysis.commands import _few_periods
 
-    clause = _few_periods(freq, {"samples": 10, "sample_interval": 1e-7})
+    clause = _few_periods(freq, 1.0 / (10 * 1e-7))  # the bins of 10 samples 1e-7 s apart
     assert bool(clause) == said
     if said:
         assert clause == f" (bins 1e+03 kHz wide: {freq * 1e-6:.3g} periods in the record)"

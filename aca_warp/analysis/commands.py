@@ -210,13 +210,16 @@ def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float
     early = record_ends_early(run)
     if early:
         parts.append(early)
-    peaks, spectra = groups["peaks"].attrs, groups["spectra"].attrs
+    from aca_warp.analysis.report import bin_width
+
+    peaks, spectra = groups["peaks"].attrs, groups["spectra"]
+    df = bin_width(spectra["freq"], spectra.attrs)
     if "first_velocity_peak_frequency" in peaks:
         f = float(peaks["first_velocity_peak_frequency"])
-        parts.append(f"first velocity-spectrum peak {f / 1e3:.4g} kHz{_few_periods(f, spectra)}")
+        parts.append(f"first velocity-spectrum peak {f / 1e3:.4g} kHz{_few_periods(f, df)}")
     if "mu_peak_frequency" in peaks:
         f = float(peaks["mu_peak_frequency"])
-        parts.append(f"largest mu peak {f / 1e3:.4g} kHz{_few_periods(f, spectra)}")
+        parts.append(f"largest mu peak {f / 1e3:.4g} kHz{_few_periods(f, df)}")
     if "sync" in groups:
         from aca_warp.analysis.report import LEAKAGE_BINS, lowest_bin_remark, sync_excess
 
@@ -351,19 +354,15 @@ def run_or_pad(args: argparse.Namespace, command: str, *, keep: bool) -> Iterato
                 raise SceneError(str(e).replace(str(temporary), f"pad {args.pad} of {args.run}")) from None
 
 
-def _few_periods(freq: float, spectra: Any) -> str:
-    """For a peak at ``freq`` [Hz] of which the record holds at most ``FEW_PERIODS`` periods, the clause that says so
-    with the spectra's bin width Δf = 1 / record length (what the frequency is known to); else ""."""
+def _few_periods(freq: float, df: float) -> str:
+    """For a peak at ``freq`` [Hz] of which the record holds at most ``FEW_PERIODS`` periods (``freq / df``, ``df``
+    [Hz] the spectra's bin width, 1 / record length: what the frequency is known to), the clause that says so;
+    else ""."""
     from aca_warp.analysis.patch_report import FEW_PERIODS
 
-    try:
-        length = float(spectra["samples"]) * float(spectra["sample_interval"])
-    except (KeyError, TypeError, ValueError):
+    if not df > 0 or not 0 < freq / df <= FEW_PERIODS:
         return ""
-    periods = freq * length
-    if not 0 < periods <= FEW_PERIODS:
-        return ""
-    return f" (bins {1e-3 / length:.3g} kHz wide: {periods:.3g} periods in the record)"
+    return f" (bins {df / 1e3:.3g} kHz wide: {freq / df:.3g} periods in the record)"
 
 
 def record_ends_early(path: str) -> str | None:
