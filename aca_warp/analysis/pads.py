@@ -29,7 +29,7 @@ def shard_pads(path: str | Path) -> np.ndarray | None:
     holds pads from anywhere in the sweep), shape (pads,) int64; None when ``path`` is no shard (or no HDF5 file).
     The index is read only when it is a dataset of this file, 1-D, of integers, with the shard's pad count
     (``pad_stop - pad_start``, at most a sweep's pads) of rows: a crafted file is no shard."""
-    from aca_warp.sweep.spec import MAX_PADS
+    from aca_warp.common.bounds import MAX_PADS
 
     try:
         with h5py.File(path, "r") as f:

@@ -24,6 +24,7 @@ import numpy as np
 from aca_warp.common.errors import SceneError
 
 MAX_NESTING = 64  # arrays and tables within each other in a JSON attribute or a TOML file (aca-warp writes 3)
+MAX_PADS = 10**6  # pads of one sweep (its spec refused beyond, before the combinations are expanded; a shard file's)
 # declared bytes a dataset may hold beyond what the file stores for it: rows appended to a killed run's dataset
 # after its last flush, never written (at most the writer's chunk cache per dataset, 64 MiB), plus a chunk
 UNSTORED_SLACK = 80 * 2**20

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common import plausible
-from aca_warp.common.bounds import read_toml
+from aca_warp.common.bounds import MAX_PADS, read_toml
 from aca_warp.common.errors import AcaError, SceneError, sweep_spec
 from aca_warp.scene import (
     PRESETS,
@@ -81,7 +81,6 @@ PARAMETERS: dict[str, tuple[str, str]] = {
     "growth.increment": ("m", "growth"),
 }
 _INT_PARAMETERS = ("patches.count", "patches.seed", "initial.seed")
-MAX_PADS = 10**6  # pads of one sweep (refused before the combinations are expanded)
 MAX_STEPS = 10**11  # steps of one pad's run (duration / dt; larger is a typo, not a run)
 
 
