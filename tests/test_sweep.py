@@ -431,3 +431,82 @@ def test_an_empty_parameter_says_why_where_it_was_a_range(parameter: object) -> 
         load_spec(doc)
     assert "has no values" in str(e.value)
     assert ("counting down needs a negative step" in str(e.value)) == isinstance(parameter, dict)
+
+
+def _file_sweep(folder: Path, patches) -> tuple[dict, Path]:
+    """A sweep of four pads in two shards over the patches of ``folder/p.h5`` (written from ``patches``)."""
+    from aca_warp.scene import write_patch_file
+
+    write_patch_file(folder / "p.h5", patches)
+    (folder / "b.toml").write_text('[scene]\nname = "b"\n[patches]\nfile = "p.h5"\n')
+    doc = {
+        "sweep": {"name": "f", "base": "b.toml", "shard_size": 2},
+        "run": {"duration": 8e-6, "precision": "fp32"},
+        "parameters": {"friction.M": [0.6, 0.7, 0.8, 0.9]},
+    }
+    return doc, folder / "out"
+
+
+def test_a_patch_file_rewritten_under_its_name_is_caught_by_resume_and_pad(tmp_path: Path, capsys) -> None:
+    """A base whose patches come from a file: the spec names the file by its path (its hash does not change with
+    the file), so the folder and shards record the patches' digest; a sweep continued, or a pad taken out, after the
+    file was rewritten with other patches of the same count is refused, and goes on once the file is restored. A
+    folder of a sweep begun before the digest was recorded continues as before."""
+    from aca_warp.scene import Patches, write_patch_file
+
+    src = PatchGenerator(count=20, seed=3).generate(preset("hf1").pad)
+    doc, out = _file_sweep(tmp_path, src)
+    spec = load_spec(doc, base_dir=tmp_path)
+    assert spec.patch_data is not None and load_spec(TINY, base_dir=tmp_path).patch_data is None
+    assert not run_sweep(spec, out, workers=0).failed
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["patch_data"] == spec.patch_data
+    assert all("patch_data" not in s for s in manifest["shards"])  # once, at the top
+    with h5py.File(out / "shard-00000.h5", "r") as f:
+        assert f.attrs["patch_data"] == spec.patch_data
+    moved = Patches(src.x + 1e-6, src.y, src.area, src.height)
+    write_patch_file(tmp_path / "p.h5", moved)
+    other = load_spec(doc, base_dir=tmp_path)
+    assert other.hash == spec.hash and other.patch_data != spec.patch_data
+    with pytest.raises(SweepError, match="begun over other patches: its patch file .*p.h5 has changed since"):
+        run_sweep(other, out, workers=0)
+    assert main(["analyze", str(out / "shard-00001.h5"), "--pad", "2", "--no-sync"]) == 2
+    assert "ran over other patches than its patch file" in capsys.readouterr().err
+    assert not list(out.glob("*pad*"))
+    write_patch_file(tmp_path / "p.h5", src)
+    r = run_sweep(load_spec(doc, base_dir=tmp_path), out, workers=0)
+    assert r.ran == [] and r.skipped == [0, 1]
+    assert main(["analyze", str(out / "shard-00001.h5"), "--pad", "2", "--no-sync"]) == 0
+    # a folder begun before the digest was recorded: no record in the manifest nor in the shards, continued as before
+    manifest = json.loads((out / "manifest.json").read_text())
+    del manifest["patch_data"]
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    for p in out.glob("shard-0000?.h5"):
+        with h5py.File(p, "a") as f:
+            del f.attrs["patch_data"]
+    write_patch_file(tmp_path / "p.h5", moved)
+    r = run_sweep(load_spec(doc, base_dir=tmp_path), out, workers=0)
+    assert r.ran == [] and r.skipped == [0, 1]
+    assert "patch_data" not in json.loads((out / "manifest.json").read_text())
+
+
+def test_a_patch_file_rewritten_while_the_sweep_runs_fails_the_shards_made_over_it(tmp_path: Path) -> None:
+    """The file rewritten between two shards of one call: the later shard, made over the new patches, is failed
+    with the reason (not recorded as done), and runs again once the file is restored."""
+    from aca_warp.scene import Patches, write_patch_file
+
+    src = PatchGenerator(count=20, seed=3).generate(preset("hf1").pad)
+    doc, out = _file_sweep(tmp_path, src)
+
+    def rewrite(line: str) -> None:
+        if line.startswith("shard 0:"):
+            write_patch_file(tmp_path / "p.h5", Patches(src.x, src.y + 1e-6, src.area, src.height))
+
+    r = run_sweep(load_spec(doc, base_dir=tmp_path), out, workers=0, overlap=False, prepare=0, log=rewrite)
+    assert r.ran == [0] and list(r.failed) == [1]
+    assert "ran over other patches than the sweep began with" in r.failed[1]
+    states = [s["state"] for s in json.loads((out / "manifest.json").read_text())["shards"]]
+    assert states == ["done", "failed"]
+    write_patch_file(tmp_path / "p.h5", src)
+    r = run_sweep(load_spec(doc, base_dir=tmp_path), out, workers=0, prepare=0)
+    assert r.ran == [1] and not r.failed

@@ -85,6 +85,7 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
     with reading(shard, "sweep shard"), h5py.File(shard, "r") as f:
         row = int(rows[0])
         count, spec_hash = int(f["pads/patch_count"][row]), _text(f.attrs.get("spec_hash", ""))
+        patch_data = _text(f.attrs["patch_data"]) if "patch_data" in f.attrs else None  # a patch file's digest
         time = f["global/time"][()]
         series = {k: f[f"global/{k}"][row, : time.size] for k in GLOBAL_NAMES}
         end = int(np.flatnonzero(np.isfinite(series["mu"]))[-1]) + 1 if np.isfinite(series["mu"]).any() else 0
@@ -96,6 +97,12 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
         scene = spec.scene(pad).replace(duration=float(run["duration"]))
     except SweepError as e:
         raise SceneError(f"{shard}: the pad's scene cannot be rebuilt from the shard's spec: {e}") from None
+    if patch_data is not None and spec.patch_data != patch_data:
+        raise SceneError(
+            f"{shard}: the pad ran over other patches than its patch file {scene.patches.source} holds now (their "
+            f"SHA-256 {patch_data[:12]} in the shard, {str(spec.patch_data)[:12]} here): the file has changed since; "
+            "restore it to take the pad out"
+        )
     if (spec_hash and spec.hash != spec_hash) or scene.patches.count != count:
         base = base_file(doc)
         named = f"the base scene file {base}" if base else "a file it names"

@@ -15,7 +15,8 @@ general one; split only when the estimated device memory says the batch does not
                                  /parameters/<key> (pads,) one dataset per swept parameter, unit attribute
                                  /pads/index (pads,) global pad index, /pads/patch_count (pads,)
                                  attrs: spec (JSON), spec_hash, shard, pad_start, pad_stop, complete,
-                                     finished, status, device, integrator, precision, dt, steps, timings, ...
+                                     finished, status, device, integrator, precision, dt, steps, timings, ...,
+                                     patch_data (the SHA-256 of a patch file's patches, where the base names one)
 
 A shard file is written as ``NAME.partial`` and renamed when its run ends: a final name always holds a whole
 shard. A rerun skips a shard only when the manifest *and* the file agree that it finished under the same spec

@@ -142,8 +142,17 @@ def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False
     d.mkdir(parents=True, exist_ok=True)
     old = read_manifest(d)
     stray = sorted(d.glob("shard-*.h5*"))
-    if (old is not None and old.get("spec_hash") != spec.hash) or (old is None and stray):
+    recorded = (old or {}).get("patch_data")  # absent in the folders of sweeps begun before it was recorded
+    other_patches = recorded is not None and recorded != spec.patch_data and old.get("spec_hash") == spec.hash
+    if (old is not None and old.get("spec_hash") != spec.hash) or (old is None and stray) or other_patches:
         if not overwrite:
+            if other_patches:
+                raise SweepError(
+                    f"{d} holds this sweep begun over other patches: its patch file {spec.base.patches.source} has "
+                    f"changed since (the patches' SHA-256 {str(recorded)[:12]} there, {str(spec.patch_data)[:12]} "
+                    "here); restore the file to continue the sweep, pass --overwrite to start it over, or choose "
+                    "another output directory"
+                )
             if old is not None:
                 what = f"a different sweep ({old.get('name', '?')!r}, spec hash {str(old.get('spec_hash'))[:12]})"
             else:
@@ -157,13 +166,16 @@ def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False
                 p.unlink(missing_ok=True)
         (d / MANIFEST).unlink(missing_ok=True)
         old = None
+    # the digest of a patch file's patches: recorded by a new folder, kept absent by one begun without it (its
+    # finished shards were made over patches nobody recorded)
+    patch_data = spec.patch_data if old is None else old.get("patch_data")
     shards = []
     for i in range(spec.shard_count):
         a, b = spec.shard_range(i)
         prev = (old or {}).get("shards", [])
         entry = dict(prev[i]) if i < len(prev) else {}
         entry.update(index=i, file=shard_name(i), pad_start=a, pad_stop=b)
-        verified = shard_finished(d / shard_name(i), spec.hash, a, b)
+        verified = shard_finished(d / shard_name(i), spec.hash, a, b, patch_data)
         if verified is None:
             entry["state"] = "pending"
             with locked_output(d / shard_name(i), what="a worker of an earlier sweep still runs; stop it first"):
@@ -182,6 +194,7 @@ def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False
         "pad_order": "spec" if spec.order is None else "patch_count",
         "parameters": list(spec.parameters),
         "run": spec.run_settings(),
+        **({"patch_data": patch_data} if patch_data is not None else {}),
         "shards": shards,
     }
     _write_json(d / MANIFEST, manifest)
@@ -232,6 +245,7 @@ class _Book:
     def __init__(self, spec: SweepSpec, out: Path, manifest: dict, say: Callable[[str], None]) -> None:
         self.out, self.manifest, self.say = out, manifest, say
         self.spec_hash = spec.hash
+        self.patch_data = manifest.get("patch_data")
         shards = manifest["shards"]
         self.todo = [s["index"] for s in shards if s["state"] not in ("done", "fault")]
         skipped = [s["index"] for s in shards if s["state"] in ("done", "fault")]
@@ -249,9 +263,18 @@ class _Book:
         self.save()
 
     def done(self, index: int, summary: dict) -> None:
+        ran_over = summary.get("patch_data")
+        if self.patch_data is not None and ran_over != self.patch_data:  # the file was rewritten while the sweep ran
+            self.failed(
+                index,
+                f"SweepError: shard {index} ran over other patches than the sweep began with (the patch file's "
+                f"SHA-256 {str(ran_over)[:12]}, the sweep's {self.patch_data[:12]}): the file changed while the sweep "
+                "ran",
+            )
+            return
         entry = self.manifest["shards"][index]
         entry.pop("error", None)
-        entry.update({k: v for k, v in summary.items() if k != "index"})
+        entry.update({k: v for k, v in summary.items() if k not in ("index", "patch_data")})
         self.recorded.add(index)
         self.result.ran.append(index)
         self.result.patch_steps += int(summary["patch_steps"])
@@ -283,7 +306,9 @@ class _Book:
             if i in self.recorded:
                 continue
             entry = self.manifest["shards"][i]
-            finished = shard_finished(self.out / entry["file"], self.spec_hash, entry["pad_start"], entry["pad_stop"])
+            finished = shard_finished(
+                self.out / entry["file"], self.spec_hash, entry["pad_start"], entry["pad_stop"], self.patch_data
+            )
             if finished is not None:
                 entry["state"] = finished
                 self.result.skipped.append(i)  # finished, but its summary was not received: not counted as run

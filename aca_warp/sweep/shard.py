@@ -134,6 +134,7 @@ def _create_shard_file(
             "precision": spec.precision,
             "run": json.dumps(spec.run_settings()),
             "versions": json.dumps(versions()),
+            **({"patch_data": spec.patch_data} if spec.patch_data is not None else {}),
         }
         for k, v in attrs.items():
             f.attrs[k] = v
@@ -293,7 +294,7 @@ def run_shard(
     timings["close"] = clock.s["close"]
     timings["spans"]["close"] = clock.spans["close"]
     timings["task"] = time.perf_counter() - t_start
-    return _summary(index, dev, final.name, scenes, run, timings)
+    return _summary(index, dev, final.name, spec, scenes, run, timings)
 
 
 def _end_run(turn: KernelTurn | None, writer: ChunkWriter | None, clock: _Clock) -> None:
@@ -311,8 +312,9 @@ def _end_run(turn: KernelTurn | None, writer: ChunkWriter | None, clock: _Clock)
         clock.add("write", clock.s.get("sink", 0.0))
 
 
-def _summary(index: int, dev: Any, file: str, scenes: list[Scene], run: dict, timings: dict) -> dict:
-    """The manifest entry of a finished shard (:func:`run_shard`); ``process``: the id of the process that ran it."""
+def _summary(index: int, dev: Any, file: str, spec: SweepSpec, scenes: list[Scene], run: dict, timings: dict) -> dict:
+    """The manifest entry of a finished shard (:func:`run_shard`); ``process``: the id of the process that ran it;
+    ``patch_data``: the digest of the patch file's patches it ran over (None for generated patches)."""
     return {
         "index": index,
         "device": str(dev),
@@ -327,6 +329,7 @@ def _summary(index: int, dev: Any, file: str, scenes: list[Scene], run: dict, ti
         "compile_time": run["compile"],
         "task_time": timings["task"],
         "patch_steps": int(sum(s.patches.count for s in scenes)) * run["steps"],
+        "patch_data": spec.patch_data,
         "fault": run["fault"],
         "timings": timings,
     }
@@ -436,10 +439,11 @@ def _run_batch(work: _Work, scenes: list[Scene], b0: int, prepared: PreparedBatc
     return res, began
 
 
-def shard_finished(path: Path, spec_hash: str, start: int, stop: int) -> str | None:
-    """``"done"``/``"fault"`` when ``path`` holds a finished, readable shard of this spec and pad range, else None
-    (then it runs again). Readable: every object opens and the last sample of every output reads (a damaged group
-    or chunk index shows up here)."""
+def shard_finished(path: Path, spec_hash: str, start: int, stop: int, patch_data: str | None = None) -> str | None:
+    """``"done"``/``"fault"`` when ``path`` holds a finished, readable shard of this spec and pad range (with
+    ``patch_data``, made over the patches of that digest: :attr:`~aca_warp.sweep.spec.SweepSpec.patch_data`), else
+    None (then it runs again). Readable: every object opens and the last sample of every output reads (a damaged
+    group or chunk index shows up here)."""
     import h5py
 
     from aca_warp.hf.recorder import GLOBAL_NAMES
@@ -454,6 +458,7 @@ def shard_finished(path: Path, spec_hash: str, start: int, stop: int) -> str | N
                 and a.get("spec_hash") == spec_hash
                 and int(a.get("pad_start", -1)) == start
                 and int(a.get("pad_stop", -1)) == stop
+                and (patch_data is None or a.get("patch_data") == patch_data)
             ):
                 return None
             f.visititems(lambda name, obj: None)

@@ -260,6 +260,20 @@ class SweepSpec:
             self._hash = hashlib.sha256(text.encode()).hexdigest()
         return self._hash
 
+    @functools.cached_property
+    def patch_data(self) -> str | None:
+        """SHA-256 of the base scene's patches (x, y, area, height [m, m, m², m] as float64) where they come from a
+        patch file (``[patches] file``), else None. The spec names such a file by its path, so :attr:`hash` stays
+        the same when the file is rewritten; the sweep's folder and shards record this digest beside it, and a
+        sweep continued, or a pad taken out, over other patches is refused."""
+        if "file" not in (self.base.origin or {}).get("patches", {}):
+            return None
+        digest = hashlib.sha256()
+        p = self.base.patches
+        for a in (p.x, p.y, p.area, p.height):
+            digest.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+        return digest.hexdigest()
+
     def run_settings(self) -> dict:
         """Duration, integrator, precision, dt, tolerance and sample interval, and fast math where it is on, the
         growth events' spacing where it is set and the crossing treatment where it is not the default (absent
