@@ -8,7 +8,6 @@ imports this module. Parsing imports no simulation code, so ``--help`` and argum
 from __future__ import annotations
 
 import argparse
-import difflib
 import os
 import re
 import signal
@@ -19,7 +18,7 @@ from typing import Any, NoReturn
 
 from aca_warp import __version__
 from aca_warp.common import interrupts
-from aca_warp.common.errors import AcaError, command_line
+from aca_warp.common.errors import AcaError, command_line, nearest
 
 
 class Parser(argparse.ArgumentParser):
@@ -50,8 +49,8 @@ class Parser(argparse.ArgumentParser):
                 self.error(f"{early[0]} is an option of {self.prog} itself: give it before the command")
             options = {s.lstrip("-"): s for action in command._actions for s in action.option_strings}
             typed = [x.split("=")[0].lstrip("-") for x in extras if x.startswith("-")][:3]
-            near = [difflib.get_close_matches(x, list(options), n=1) for x in typed]
-            hint = "".join(f" (did you mean {options[m[0]]}?)" for m in near if m)
+            near = [nearest(x, options) for x in typed]
+            hint = "".join(f" (did you mean {options[m]}?)" for m in near if m is not None)
             command.error(f"unrecognized arguments: {' '.join(extras)}{hint}")
         return ns
 

@@ -356,7 +356,7 @@ def test_a_misspelled_preset_gets_a_suggestion(tmp_path, capsys):
     for argv, near in ((["hf", "HF1"], "'hf1'"), (["hf", "varying"], "'varying_area'"), (["lf", "multiscal"], None)):
         assert main([*argv, "-o", str(tmp_path / "x.h5")]) == 2
         err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and err[0].endswith(f"did you mean {near or repr('multiscale')}?"), err
+        assert len(err) == 1 and err[0].endswith(f"(did you mean {near or repr('multiscale')}?)"), err
     assert main(["hf", "zzz", "-o", str(tmp_path / "x.h5")]) == 2
     assert "did you mean" not in capsys.readouterr().err
 

@@ -12,7 +12,7 @@ from the Python API, as a flag (``--overwrite``) from the command line, which ru
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 
 _readers = ["python"]  # who reads the messages, innermost last: "command line" (command_line()), "sweep" (sweep_spec())
@@ -25,6 +25,22 @@ def option(python: str, flag: str, spec: str | None = None) -> str:
     if _readers[-1] == "sweep" and spec is not None:
         return spec
     return flag if "command line" in _readers else python
+
+
+def nearest(name: str, names: Iterable[str]) -> str | None:
+    """The one of ``names`` nearest to a mistyped ``name`` (case aside; ``difflib``'s ratio ≥ 0.6), or None."""
+    import difflib
+
+    known = {str(n).lower(): str(n) for n in names}
+    near = difflib.get_close_matches(str(name).lower(), list(known), n=1)
+    return known[near[0]] if near else None
+
+
+def did_you_mean(name: str, names: Iterable[str]) -> str:
+    """The clause `` (did you mean 'X'?)`` for the one of ``names`` nearest to a mistyped ``name`` (:func:`nearest`),
+    or ""."""
+    near = nearest(name, names)
+    return f" (did you mean {near!r}?)" if near is not None else ""
 
 
 @contextmanager

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common import plausible
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import SceneError, did_you_mean
 from aca_warp.scene import (
     GENERATOR_KINDS,
     PRESETS,
@@ -32,7 +32,6 @@ from aca_warp.scene import (
     preset_document,
     read_scene_toml,
 )
-from aca_warp.scene.files import closest
 from aca_warp.scene.parts import _finite
 
 LF_PRESETS = ("multiscale",)
@@ -435,7 +434,7 @@ def load_lf_scene(spec: str | Path, overrides: dict | None = None, *, allow_impl
         if not p.is_file():
             raise SceneError(
                 f"LF scene {s!r} is neither a preset ({', '.join(LF_PRESETS)}) nor an existing TOML file"
-                f"{closest(s, LF_PRESETS)}"
+                f"{did_you_mean(s, LF_PRESETS)}"
             )
         doc = read_scene_toml(p, "LF scene file")
         if not doc:

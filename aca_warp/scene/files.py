@@ -8,7 +8,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import sys
-from collections.abc import Iterable
 from importlib import resources
 from pathlib import Path
 
@@ -16,7 +15,7 @@ import numpy as np
 
 from aca_warp.common import plausible
 from aca_warp.common.bounds import check_h5, read_toml
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import SceneError, did_you_mean
 from aca_warp.scene.generator import PatchGenerator
 from aca_warp.scene.parts import (
     Friction,
@@ -188,15 +187,6 @@ def read_scene_toml(p: Path, what: str) -> dict:
         raise SceneError(f"cannot read {what} {p}: {e.strerror}") from None
 
 
-def closest(name: str, names: Iterable[str]) -> str:
-    """ "; did you mean 'X'?" for the name of ``names`` nearest to ``name`` (case aside), or ""."""
-    import difflib
-
-    known = {n.lower(): n for n in names}
-    near = difflib.get_close_matches(name.lower(), list(known), n=1, cutoff=0.6)
-    return f"; did you mean {known[near[0]]!r}?" if near else ""
-
-
 def load_scene(spec: str | Path, *, allow_implausible: bool = False) -> Scene:
     """A preset name (:data:`PRESETS`) or the path of a TOML scene file (``allow_implausible``: as the scene key)."""
     s = str(spec)
@@ -208,7 +198,8 @@ def load_scene(spec: str | Path, *, allow_implausible: bool = False) -> Scene:
         raise SceneError(f"scene {s!r} is a folder; give a preset ({', '.join(PRESETS)}) or a TOML scene file")
     if not p.is_file():
         raise SceneError(
-            f"scene {s!r} is neither a preset ({', '.join(PRESETS)}) nor an existing TOML file{closest(s, PRESETS)}"
+            f"scene {s!r} is neither a preset ({', '.join(PRESETS)}) nor an existing TOML file"
+            f"{did_you_mean(s, PRESETS)}"
         )
     doc = read_scene_toml(p, "scene file")
     if not doc:

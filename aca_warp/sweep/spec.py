@@ -23,7 +23,7 @@ import numpy as np
 
 from aca_warp.common import plausible
 from aca_warp.common.bounds import MAX_PADS, read_toml
-from aca_warp.common.errors import AcaError, SceneError, sweep_spec
+from aca_warp.common.errors import AcaError, SceneError, did_you_mean, sweep_spec
 from aca_warp.scene import (
     PRESETS,
     Friction,
@@ -321,15 +321,6 @@ def pad_list(pads: Any, most: int = 12) -> str:
     return ", ".join(items[:most]) + f", … ({p.size} pads; the shard's /pads/index lists them)"
 
 
-def _nearest(key: str, allowed: Any) -> str:
-    """The clause ``(did you mean 'x'?)`` for the allowed name nearest to a mistyped ``key`` (case aside), else ""."""
-    import difflib
-
-    names = {str(a).lower(): str(a) for a in allowed}
-    near = difflib.get_close_matches(str(key).lower(), list(names), n=1)
-    return f" (did you mean {names[near[0]]!r}?)" if near else ""
-
-
 def load_spec(source: str | Path | dict, *, base_dir: Path | None = None, **overrides: Any) -> SweepSpec:
     """Read and validate a sweep spec (TOML path or dict); ``overrides`` (shard_size, duration, integrator,
     precision, dt, tolerance, fast_math, growth_dt, crossing; None = keep) replace the spec's values and so enter its
@@ -368,11 +359,13 @@ def _load(source: str | Path | dict, base_dir: Path | None, overrides: dict[str,
     for key in sw:
         if key not in _SWEEP_KEYS:
             raise SweepError(
-                f"unknown key {key!r} in [sweep]{_nearest(key, _SWEEP_KEYS)}; allowed: {', '.join(_SWEEP_KEYS)}"
+                f"unknown key {key!r} in [sweep]{did_you_mean(key, _SWEEP_KEYS)}; allowed: {', '.join(_SWEEP_KEYS)}"
             )
     for key in run:
         if key not in _RUN_KEYS:
-            raise SweepError(f"unknown key {key!r} in [run]{_nearest(key, _RUN_KEYS)}; allowed: {', '.join(_RUN_KEYS)}")
+            raise SweepError(
+                f"unknown key {key!r} in [run]{did_you_mean(key, _RUN_KEYS)}; allowed: {', '.join(_RUN_KEYS)}"
+            )
     if "shard_size" in overrides and overrides["shard_size"] is not None:
         sw["shard_size"] = overrides.pop("shard_size")
     overrides.pop("shard_size", None)
@@ -540,7 +533,7 @@ def _expand(raw: Any, mode: str, base: Scene, base_doc: dict) -> tuple[dict[str,
     for key, value in raw.items():
         if key not in PARAMETERS:
             raise SweepError(
-                f"unknown sweep parameter {key!r}{_nearest(key, PARAMETERS)}; allowed: {', '.join(PARAMETERS)}"
+                f"unknown sweep parameter {key!r}{did_you_mean(key, PARAMETERS)}; allowed: {', '.join(PARAMETERS)}"
             )
         lists[key] = _values(key, value)
     if "disc.sliding_speed" in lists and "disc.angular_velocity" in lists:
