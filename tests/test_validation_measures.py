@@ -133,6 +133,60 @@ def test_the_band_row_counts_mu_peaks_and_flags_the_area_cap():
     assert "states there app1_start" in v.notes
 
 
+@pytest.mark.parametrize(
+    ("f1", "mu", "verdict", "inside"),
+    [
+        (lambda s: 30e3 + s, lambda s: 60e3 + s, V.REPRODUCED, (8, 8)),  # every state's both peaks inside
+        (lambda s: 10e3 + s, lambda s: 100e3 + s, V.NOT_REPRODUCED, (0, 0)),  # no part inside
+        (lambda s: 30e3 + s, lambda s: (75e3, 90e3, 70e3, 85e3)[s - 1], V.PARTLY, (8, 0)),  # μ's means inside only
+        (lambda s: 10e3 + s, lambda s: (75e3, 90e3, 70e3, 85e3)[s - 1], V.PARTLY, (0, 0)),
+    ],
+)
+def test_the_band_row_combines_its_state_parts_as_every_statement_of_several_parts(f1, mu, verdict, inside):
+    """§4's 20–80 kHz: each state's first peak and μ's largest peak a part (reproduced when its whole interval lies
+    inside the band, partly when its mean does), combined as every threshold statement of several parts: reproduced
+    when every part is, not reproduced when every part is not, partly otherwise (no count of parts decides)."""
+    from aca_warp.studies.validation import multiscale as VMS
+
+    row = next(r for r in VB.ROWS if r.statement.startswith("the characteristic friction and synchronisation"))
+    groups = {
+        g: {"pads": [_pad(s, {"f1": f1(s), "mu_peak_hz": mu(s)}, member=m) for m in members for s in range(1, 5)]}
+        for g, members in VMS.GROUPS.items()
+    }
+    v = row.measure(groups, VB.Config())
+    assert v.verdict == verdict
+    assert (
+        f"first velocity peak inside 20–80 kHz: {inside[0]} of 8; with μ's largest peak inside: {inside[1]} of 8"
+        in v.value
+    )
+
+
+@pytest.mark.parametrize(
+    ("corr", "verdict"), [(lambda s: 0.1 + 0.01 * s, V.REPRODUCED), (lambda s: -0.1 - 0.01 * s, V.NOT_REPRODUCED)]
+)
+def test_the_clustering_row_combines_its_states_as_every_statement_of_several_parts(corr, verdict):
+    """§3.3's clustering in every state: reproduced when every state's C lies above 0, not reproduced when none does,
+    partly when one state of eight does (a rule of its own had needed half of them)."""
+    from aca_warp.studies.validation import multiscale as VMS
+
+    row = next(r for r in VB.ROWS if r.statement.startswith("a degree of local clustering"))
+    first = next(iter(VMS.GROUPS.values()))[0]
+
+    def groups(value):
+        return {
+            g: {
+                "pads": [
+                    _pad(s, {"corr_near": value(s, m), "corr_zero": 1e-3}, member=m) for m in ms for s in range(1, 5)
+                ]
+            }
+            for g, ms in VMS.GROUPS.items()
+        }
+
+    assert row.measure(groups(lambda s, m: corr(s)), VB.Config()).verdict == verdict
+    v = row.measure(groups(lambda s, m: 0.1 + 0.01 * s if m == first else -0.1 - 0.01 * s), VB.Config())
+    assert v.verdict == V.PARTLY and "lies above 0: 1 of 8" in v.value
+
+
 @pytest.mark.parametrize("case", [1, 2, 3, 4])
 def test_table_a2_rows(case):
     row = next(r for r in VB.ROWS if r.statement.startswith(f"case {case} "))

@@ -32,6 +32,7 @@ from aca_warp.studies.validation.verdicts import (
     NOT_REPRODUCED,
     PARTLY,
     REPRODUCED,
+    all_of,
     direction_verdict,
     effect,
     rules_verdict,
@@ -144,12 +145,10 @@ def history_row(results: dict[str, dict], cfg: Config) -> RowValue:
 def clustering_every_row(results: dict[str, dict], cfg: Config) -> RowValue:
     per = per_state(results, "corr_near")
     verdicts = [threshold_verdict(np.array(list(v.values())), 0.0, False) for v in per.values() if v]
-    good = sum(v == REPRODUCED for v in verdicts)
-    verdict = REPRODUCED if verdicts and good == len(verdicts) else (PARTLY if good >= len(verdicts) / 2 else
-                                                                       NOT_REPRODUCED)  # fmt: skip
+    good = verdicts.count(REPRODUCED)
     return RowValue(
         f"states whose C of coupled neighbours' directions lies above 0: {good} of {len(verdicts)}",
-        verdict if verdicts else NOT_MEASURED,
+        all_of(verdicts) if verdicts else NOT_MEASURED,
         f"C per state: {state_line(per)}; group size {state_line(per_state(results, 'corr_zero'), '.3g', 1e3, 'mm')}",
     )
 
@@ -290,25 +289,27 @@ def early_row(results: dict[str, dict], cfg: Config) -> RowValue:
     )
 
 
+def in_band(v: np.ndarray) -> str:
+    """Threshold verdict of a state's values ``v`` [Hz] against both edges of :data:`BAND`: reproduced when the whole
+    95 % interval of the mean lies inside, not reproduced when the mean lies outside, partly otherwise."""
+    edges = (threshold_verdict(v, BAND[0], False), threshold_verdict(v, BAND[1], True))
+    if NOT_REPRODUCED in edges or NOT_MEASURED in edges:
+        return NOT_REPRODUCED if NOT_REPRODUCED in edges else NOT_MEASURED
+    return REPRODUCED if edges == (REPRODUCED, REPRODUCED) else PARTLY
+
+
 def band_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    """Every state's first velocity peak and μ's largest peak within 20–80 kHz; the states at the LF cap flagged."""
+    """Every state's first velocity peak and μ's largest peak within 20–80 kHz, each state and measure a part of the
+    threshold (:func:`in_band`), the parts combined as every row's (:func:`all_of`); the states at the LF cap
+    flagged."""
     f1, mu = per_state(results, "f1"), per_state(results, "mu_peak_hz")
     cap = (results.get("lf_states") or {}).get("cap_frequency_hz")
-
-    def inside(per: dict[str, dict[int, float]]) -> tuple[int, int]:
-        ok = [threshold_verdict(np.array(list(v.values())), BAND[0], False) == REPRODUCED
-              and threshold_verdict(np.array(list(v.values())), BAND[1], True) == REPRODUCED
-              for v in per.values() if v]  # fmt: skip
-        return sum(ok), len(ok)
-
-    (a, n), (b, m) = inside(f1), inside(mu)
+    parts = {
+        name: [in_band(np.array(list(v.values()))) for v in per.values() if v] for name, per in (("f1", f1), ("mu", mu))
+    }
+    (a, n), (b, m) = ((p.count(REPRODUCED), len(p)) for p in parts.values())
     at_cap = [s for s, v in f1.items() if v and cap and abs(np.mean(list(v.values())) / cap - 1) <= CAP_TOLERANCE]
-    if n and a == n and b == m:
-        verdict = REPRODUCED
-    elif n and (a + b) >= (n + m) / 2:
-        verdict = PARTLY
-    else:
-        verdict = NOT_REPRODUCED if n else NOT_MEASURED
+    verdict = all_of(parts["f1"] + parts["mu"]) if n else NOT_MEASURED
     cap_text = f"{cap / 1e3:.1f} kHz" if cap else "–"
     return RowValue(
         f"states with the first velocity peak inside 20–80 kHz: {a} of {n}; with μ's largest peak inside: {b} of {m}",

@@ -45,7 +45,8 @@ CRITERIA = {
     "side; not reproduced otherwise (an interval containing 0 is no evidence either way); undetermined when the two "
     "Φ rules of S give significant effects of opposite sign",
     "threshold": "reproduced when the whole 95 % interval lies on the paper's side of the threshold; partly when the "
-    "mean does; not reproduced otherwise",
+    "mean does; not reproduced otherwise; a statement of several parts (presets, states, measures) is reproduced when "
+    "every part is, not reproduced when every part is not, partly otherwise",
     "not comparable": "the paper does not give what decides the number (named in the row); the candidate "
     "conventions are computed and their spread is shown, without a verdict on the model",
 }
