@@ -172,6 +172,9 @@ def _run_file_state(path: Path) -> str:
 
     final = path.with_name(path.name.removesuffix(".partial"))
     part = partial_path(final)
+    if part.exists() and final.exists():  # a run that was to replace an earlier file (--overwrite)
+        kept = f"{final}, the earlier file it was to replace, is unchanged"
+        return f"{part} keeps the interrupted run and {kept}: {recovery(final)}"
     if part.exists():  # interrupted before the file was closed (or a killed run's file)
         return f"{part} was left as it was: {recovery(final)}"
     if not final.exists():

@@ -20,6 +20,7 @@ from __future__ import annotations
 import os
 import shutil
 import signal
+import stat
 import subprocess
 import sys
 import time
@@ -93,6 +94,46 @@ def test_bad_output_paths_are_refused_first(tmp_path, capsys, runs, kind, name, 
     err = one_line(capsys)
     assert len(err) == 1 and message in err[0], err
     assert listing(tmp_path) == before
+
+
+@pytest.mark.parametrize("kind", ["hf", "lf", "rerun"])
+@pytest.mark.parametrize("name", [".", ""], ids=["dot", "empty"])
+def test_an_output_or_resume_that_names_no_file_is_one_line(tmp_path, capsys, monkeypatch, runs, kind, name) -> None:
+    """``-o .``, ``-o ''`` and ``--resume ''`` (in the working folder): exit 2 and one line, nothing created."""
+    monkeypatch.chdir(tmp_path)
+    before = listing(tmp_path)
+    assert main(command(kind, runs, name)) == 2
+    assert "names a folder" in one_line(capsys)[0]
+    if kind != "rerun":
+        assert main([kind, "--resume", name]) == 2
+        assert "names no run file" in one_line(capsys)[0]
+    assert listing(tmp_path) == before
+
+
+@pytest.mark.parametrize("kind", ["hf", "lf", "rerun"])
+def test_an_output_that_is_not_a_regular_file_is_refused_even_with_overwrite(tmp_path, capsys, runs, kind) -> None:
+    """A pipe (or a device) at the output name: --overwrite would replace it with a regular file; exit 2, one line."""
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    assert main([*command(kind, runs, str(fifo)), "--overwrite"]) == 2
+    assert "exists and is not a regular file" in one_line(capsys)[0]
+    assert stat.S_ISFIFO(fifo.stat().st_mode)
+
+
+def test_an_output_that_is_an_input_is_refused(tmp_path, capsys, runs) -> None:
+    """hf -o its own scene file, its LF run file (however spelled: a link) or its patch file, rerun -o its run file:
+    exit 2 and one line, the input unchanged, even with --overwrite."""
+    scene = tmp_path / "scene.toml"
+    shutil.copy(runs["hf"], scene)
+    before = scene.read_bytes()
+    assert main(["hf", str(scene), "-o", str(scene), "--overwrite", "--no-progress"]) == 2
+    assert f"hf writes a new file; {scene} is its scene file" in one_line(capsys)[0]
+    run = tmp_path / "run.h5"
+    shutil.copy(runs["run"], run)
+    (tmp_path / "link.h5").symlink_to(run)
+    assert main(["rerun", str(tmp_path / "link.h5"), "-o", str(run), "--overwrite", "--no-progress"]) == 2
+    assert f"rerun writes a new file; {run} is its run file" in one_line(capsys)[0]
+    assert scene.read_bytes() == before
 
 
 @pytest.mark.parametrize(
@@ -321,6 +362,39 @@ def test_interrupt_then_resume(tmp_path: Path, references, kind: str, sig: int) 
         assert not f.attrs["complete"] and str(f.attrs["status"]).startswith("interrupted")
     assert main([resume, "--resume", str(out), "--no-progress"]) == 0
     assert_same_datasets(out, ref)
+
+
+@pytest.mark.parametrize("kind", ["hf", "lf"])
+def test_an_interrupted_overwrite_keeps_the_earlier_file(tmp_path: Path, references, kind: str) -> None:
+    """A run that was to replace a complete file (--overwrite), interrupted: the earlier file stays as it was, the
+    interrupted run stays NAME.partial (the line says both), and --resume NAME finishes it, which then replaces the
+    earlier file with the bits of an uninterrupted run."""
+    out, part = tmp_path / "run.h5", tmp_path / "run.h5.partial"
+    if kind == "lf":
+        ref, earlier = references["lf"], references["hf"]  # any complete run file stands for the earlier one
+        args = ["lf", str(references["lf_scene"]), "-o", str(out), "--checkpoint-interval", "0.05", "--no-progress"]
+    else:
+        ref, earlier = references["hf"], references["lf"]
+        args = ["hf", str(references["hf_scene"]), *HF_DT, "-o", str(out), "--checkpoint-interval", "5e-5"]
+        args.append("--no-progress")
+    shutil.copy(earlier, out)
+    before = out.read_bytes()
+    code, lines = interrupt_when(
+        start([*args, "--overwrite"]), lambda: part.exists() and has_checkpoint(part), signal.SIGINT
+    )
+    assert_interrupted(code, lines, signal.SIGINT)
+    assert f"{part} keeps the interrupted run and {out}, the earlier file it was to replace, is unchanged" in lines[0]
+    assert f"aca-warp {kind} --resume {out}" in lines[0]
+    assert out.read_bytes() == before and part.exists() and not (tmp_path / "run.h5.lock").exists()
+    with h5py.File(part, "r") as f:
+        assert not f.attrs["complete"] and str(f.attrs["status"]).startswith("interrupted")
+    assert main([kind, "--resume", str(out), "--no-progress"]) == 0
+    assert not part.exists()
+    assert_same_datasets(out, ref)
+    if kind == "lf":  # its rate counts the steps this process ran, not those before the checkpoint
+        with h5py.File(out, "r") as f:
+            ran = f.attrs["steps_per_second"] * f.attrs["wall_time"]
+            assert 0 < ran < int(f.attrs["steps"]) - 0.5
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])

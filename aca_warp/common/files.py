@@ -487,6 +487,8 @@ def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
     p = check_output_name(path)
     if p.is_dir():
         raise SceneError(f"output {p} is a folder; give a file name such as {p / 'run.h5'}")
+    if p.exists() and not p.is_file():  # --overwrite would replace a device, pipe or socket with a regular file
+        raise SceneError(f"output {p} exists and is not a regular file (a device, pipe or socket); give another output")
     busy = holder(p)
     if busy is not None:
         raise SceneError(f"{p} is being written by {busy}; wait for it to finish or stop it")
@@ -508,6 +510,22 @@ def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
         raise SceneError(f"output folder {p.parent} is not a folder")
     probe_folder(p.parent)
     return p
+
+
+def check_not_input(output: str | Path, inputs: dict[str, str | Path | None], command: str) -> None:
+    """Refuse an ``output`` that is one of the files ``command`` reads (``inputs``: what each is, e.g. "run file",
+    → its path; None: none), however either is spelled (a link, ``./``, a relative path): ``--overwrite`` would
+    otherwise replace the input with the output."""
+    out = Path(output)
+    for what, src in inputs.items():
+        if src is None or not Path(src).is_file():
+            continue
+        try:
+            same = os.path.samefile(out, src)
+        except OSError:  # the output does not exist yet
+            same = out.resolve() == Path(src).resolve()
+        if same:
+            raise SceneError(f"{command} writes a new file; {out} is its {what}: give another output")
 
 
 def open_h5(path: str | Path, what: str, *, mode: str = "r", text: tuple[str, ...] = ()) -> h5py.File:
@@ -547,30 +565,39 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     """(run file, its ``.partial``) of the run ``path`` names: ``NAME``, ``NAME.partial`` or a stopped ``NAME``.
 
     A killed run left ``NAME.partial``; a run stopped by Ctrl-C or a fault was moved to ``NAME`` (incomplete)
-    and keeps its checkpoint, if it had one (without, it is resumed from its start). Raises SceneError when there
-    is nothing to resume.
+    and keeps its checkpoint, if it had one (without, it is resumed from its start). A run that was to replace a
+    complete ``NAME`` (``--overwrite``) and was killed or interrupted stays ``NAME.partial`` beside it: that is the one
+    resumed, and it replaces ``NAME`` when it completes. Raises SceneError when there is nothing to resume.
     """
-    p = Path(path)
+    text = os.fspath(path)
+    if not text or text.endswith(("/", os.sep)) or Path(text).name in ("", ".", ".."):
+        raise SceneError(f"{text!r} names no run file; give the run file to continue, such as run.h5")
+    p = Path(text)
     if p.name.endswith(".partial"):
         final, part = p.with_name(p.name.removesuffix(".partial")), p
     else:
         final, part = p, partial_path(p)
+    if not part.exists() and not final.exists():
+        raise SceneError(f"nothing to resume: neither {final} nor {part} exists")
+    complete = final.exists() and _complete(final)
     if part.exists():
-        if final.exists():
+        if final.exists() and not complete:
             raise SceneError(f"both {final} and {part} exist; move the one you do not want to resume away")
         return final, part
-    if not final.exists():
-        raise SceneError(f"nothing to resume: neither {final} nor {part} exists")
-    try:
-        with open_h5(final, "run file") as f:
-            complete = bool(f.attrs.get("complete", False))
-    except AcaError:
-        raise
-    except (OSError, RuntimeError, KeyError, ValueError) as e:
-        raise SceneError(f"cannot read run file {final}: {e}") from None
     if complete:
         raise SceneError(f"{final} is a complete run; nothing to resume")
     return final, part
+
+
+def _complete(path: Path) -> bool:
+    """Whether the run file ``path`` says it is complete; SceneError where it cannot be read."""
+    try:
+        with open_h5(path, "run file") as f:
+            return bool(f.attrs.get("complete", False))
+    except AcaError:
+        raise
+    except (OSError, RuntimeError, KeyError, ValueError) as e:
+        raise SceneError(f"cannot read run file {path}: {e}") from None
 
 
 def lock_resumable(path: str | Path) -> tuple[Path, Path, Path, OutputLock]:

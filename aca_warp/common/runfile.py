@@ -153,13 +153,17 @@ class RunFileWriter(ABC):
     def _write_closing(self, complete: bool, status: str, attrs: dict[str, Any]) -> None:
         """Write what the file holds at its end: ``complete``, ``status``, ``attrs`` and the run's closing data."""
 
-    def close(self, *, complete: bool, status: str, attrs: dict[str, Any] | None = None) -> Path:
+    def close(self, *, complete: bool, status: str, attrs: dict[str, Any] | None = None, rename: bool = True) -> Path:
         """Write the closing datasets and attributes (:meth:`_write_closing`), close, move the file to its final
-        name and release the output. A failure abandons the file as it was at its last flush (a storage failure
-        raises a one-line StorageError)."""
+        name (``rename``; else it stays ``NAME.partial``) and release the output. Returns where the file is. A
+        failure abandons the file as it was at its last flush (a storage failure raises a one-line
+        StorageError)."""
         try:
             self._write_closing(complete, status, attrs or {})
             self.out.close()
+            if not rename:
+                self.lock.release()
+                return self.partial
             os.replace(self.partial, self.path)
         except BaseException as e:
             self.abandon()
@@ -181,8 +185,11 @@ class RunFileWriter(ABC):
         :class:`~aca_warp.common.errors.StorageError`), or None to raise ``error`` itself."""
         code = storage_errno(error)
         if code is None and not from_h5py(error):
+            # an interrupted run that was to replace an earlier file (--overwrite) stays NAME.partial: the earlier
+            # file is kept until a run that replaces it completes (find_resumable resumes the .partial)
+            keep = status.startswith("interrupted") and self.path.exists()
             try:
-                self.close(complete=False, status=status)
+                self.close(complete=False, status=status, rename=not keep)
             except AcaError as e:
                 return e
             return None

@@ -209,7 +209,7 @@ def _add_file_arguments(hf: argparse.ArgumentParser) -> None:
 
 
 def _cmd_hf(args: argparse.Namespace) -> int:
-    from aca_warp.common.files import check_output_path
+    from aca_warp.common.files import check_not_input, check_output_path
     from aca_warp.hf.options import SCENE_CLOCK, RunOptions
     from aca_warp.hf.runner import run_scene
 
@@ -228,7 +228,10 @@ def _cmd_hf(args: argparse.Namespace) -> int:
                 f"or choose one of those"
             )
     check_output_path(args.output, overwrite=args.overwrite)
+    what = "LF run file" if args.snapshot is not None else "scene file"
+    check_not_input(args.output, {what: args.scene}, "hf")
     scene, duration = _hf_scene(args)
+    check_not_input(args.output, {"patch file": scene.patches.source}, "hf")
     if args.growth_dt == SCENE_CLOCK:  # the scene's own clock, written out (run_scene writes out the defaults)
         if scene.growth is None:
             raise SceneError("--growth-dt scene sets the spacing of growth events; the scene does not grow")
@@ -499,7 +502,7 @@ def _cmd_rerun(args: argparse.Namespace) -> int:
     import dataclasses
 
     from aca_warp.analysis.pads import shard_pads
-    from aca_warp.common.files import check_output_path, version_changes
+    from aca_warp.common.files import check_not_input, check_output_path, version_changes
     from aca_warp.hf.rerun import read_settings, relaxed_checks
     from aca_warp.hf.runner import run_scene
 
@@ -520,8 +523,7 @@ def _cmd_rerun(args: argparse.Namespace) -> int:
             overwrite=args.overwrite, progress=not args.no_progress,
         )  # fmt: skip
     check_output_path(args.output, overwrite=args.overwrite)
-    if Path(args.output).resolve() == Path(args.run).resolve():
-        raise SceneError("rerun writes a new file; give an output other than the run file")
+    check_not_input(args.output, {"run file": args.run}, "rerun")
     s = read_settings(args.run)
     changed = version_changes(s.versions)
     if changed:

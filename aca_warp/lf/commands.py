@@ -35,13 +35,13 @@ def run_lf(
     The file keeps the full state of the last checkpoint (``checkpoint_interval`` [s of simulated time]; None:
     automatic, :class:`~aca_warp.common.checkpoint.CheckpointClock`; 0: none), so that a killed or stopped run
     continues with :func:`resume_lf` (docs/faults.md)."""
-    from aca_warp.common.files import OutputLock
+    from aca_warp.common.files import OutputLock, check_output_path
     from aca_warp.common.runfile import busy
     from aca_warp.hf.options import check_interval
-    from aca_warp.lf.io import LFRunWriter, check_lf_output
+    from aca_warp.lf.io import LFRunWriter
     from aca_warp.lf.solver import LFSimulation
 
-    check_lf_output(output, overwrite=overwrite)
+    check_output_path(output, overwrite=overwrite)
     check_interval(checkpoint_interval)
     if duration is not None and duration > scene.duration * (1 + 1e-9):
         print(
@@ -52,7 +52,7 @@ def run_lf(
         )
     lock = OutputLock.acquire(output, what=busy())  # held from here until the file has its final name
     try:
-        check_lf_output(output, overwrite=overwrite)
+        check_output_path(output, overwrite=overwrite)
         sim = LFSimulation(scene, device=device, duration=duration, graph=graph)
     except BaseException:
         lock.release()
@@ -67,6 +67,7 @@ def _execute(sim: Any, writer: Any, *, progress: bool, checkpoint_interval: floa
     storage failure leaves the ``.partial`` as it was at its last checkpoint and raises a one-line StorageError)."""
     from aca_warp.common.interrupts import deferred, undivided
 
+    start = sim.step_index  # a resumed run starts at its checkpoint's step
     with writer.closed_when_stopped():
         wall = sim.run(
             on_snapshot=undivided(writer.snapshot),
@@ -74,10 +75,11 @@ def _execute(sim: Any, writer: Any, *, progress: bool, checkpoint_interval: floa
             checkpoint_every=checkpoint_interval,
             on_checkpoint=undivided(writer.checkpoint),
         )
-        attrs = {"wall_time": wall, "steps_per_second": sim.step_index / wall}
+        attrs = {"wall_time": wall, "steps_per_second": (sim.step_index - start) / wall}
         with deferred():
             writer.close(complete=True, status="complete", attrs=attrs)
     sim.wall_time = wall
+    sim.steps_per_second = attrs["steps_per_second"]  # of the steps this process ran
     return sim
 
 
@@ -159,11 +161,9 @@ def rerun_lf(run: str | Path, output: str | Path, *, device: str | None, checkpo
              overwrite: bool, progress: bool) -> int:  # fmt: skip
     """``aca-warp rerun LF.h5 -o NEW.h5``: repeat an LF run from its file (scene, initial patches, duration,
     device); on the same CPU the new file's datasets equal the old one's bit for bit."""
-    from aca_warp.common.errors import SceneError
-    from aca_warp.common.files import version_changes
+    from aca_warp.common.files import check_not_input, version_changes
 
-    if Path(output).resolve() == Path(run).resolve():
-        raise SceneError("rerun writes a new file; give an output other than the run file")
+    check_not_input(output, {"run file": run}, "rerun")
     s = read_lf_settings(run)
     changed = version_changes(s["versions"])
     if changed:
@@ -186,7 +186,7 @@ def _summary(output: Any, sim: Any) -> str:
     return (
         f"{output}: {sim.step_index} LF steps over {sim.step_index * sim.scene.lf.dt:.4g} s, "
         f"{len(sim.table.snapshots)} snapshots, mean mu (loaded) {mu:.4f}, final patches "
-        f"{int(h['patch_count'][-1])}, coverage {h['coverage'][-1]:.4f}, {sim.step_index / sim.wall_time:.3g} steps/s"
+        f"{int(h['patch_count'][-1])}, coverage {h['coverage'][-1]:.4f}, {sim.steps_per_second:.3g} steps/s"
     )
 
 
@@ -194,6 +194,7 @@ def _cmd_lf(args: argparse.Namespace) -> int:
     import dataclasses
 
     from aca_warp.common.errors import SceneError
+    from aca_warp.common.files import check_not_input
     from aca_warp.lf.scene import load_lf_scene
 
     if args.resume is not None:
@@ -221,6 +222,7 @@ def _cmd_lf(args: argparse.Namespace) -> int:
         return 0
     if args.scene is None or args.output is None:
         raise SceneError("lf needs SCENE and -o LF.h5 (or --resume LF.h5 to continue a run)")
+    check_not_input(args.output, {"scene file": args.scene}, "lf")
     scene = load_lf_scene(args.scene, allow_implausible=args.allow_implausible)
     if args.coulomb:
         scene = scene.replace(lf=dataclasses.replace(scene.lf, coulomb=1))

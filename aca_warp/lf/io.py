@@ -37,15 +37,13 @@ from aca_warp.common.checkpoint import (
     closed_on_failure,
     drop_checkpoint,
 )
-from aca_warp.common.errors import SceneError, option
+from aca_warp.common.errors import SceneError
 from aca_warp.common.files import (
     OutputLock,
     check_output_path,
     machine,
     open_h5,
-    partial_path,
     reading,
-    recovery,
     versions,
 )
 from aca_warp.common.runfile import RunFileWriter, write_attrs
@@ -75,7 +73,7 @@ class LFRunWriter(RunFileWriter):
     ) -> None:
         self.sim = sim
         self.rows = 0
-        self._create(path, check_lf_output, overwrite=overwrite, lock=lock, header=lambda: self._write_header(run))
+        self._create(path, check_output_path, overwrite=overwrite, lock=lock, header=lambda: self._write_header(run))
 
     def _write_header(self, run: dict[str, Any] | None) -> None:
         """Attributes, the initial patches and the empty /global datasets."""
@@ -190,17 +188,6 @@ class LFRunWriter(RunFileWriter):
         if complete:
             drop_checkpoint(f)
         write_attrs(f, attrs)
-
-
-def check_lf_output(path: str | Path, *, overwrite: bool) -> Path:
-    """:func:`~aca_warp.common.files.check_output_path` for LF runs (``NAME.partial`` names ``lf --resume``)."""
-    part = partial_path(path)
-    if part.exists() and not overwrite and not Path(path).is_dir():
-        raise SceneError(
-            f"{part} exists (an unfinished LF run): {recovery(path)}; or pass "
-            f"{option('overwrite=True', '--overwrite')} to replace it"
-        )
-    return check_output_path(path, overwrite=overwrite)
 
 
 def write_snapshot(group: h5py.Group, snap: dict[str, Any]) -> None:
