@@ -39,9 +39,11 @@ data-sheet peak of known devices (``PEAK_TABLE``: H100, H200, A100), else the dr
 from __future__ import annotations
 
 import argparse
+import contextlib
 import ctypes
 import itertools
 import json
+import os
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -49,8 +51,14 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.common.errors import SceneError, option
-from aca_warp.hf.options import DEFAULT_TOLERANCE, ONCHIP_INTEGRATORS, crossing_words, fast_math_unfit
+from aca_warp.common.errors import SceneError, StorageError, option
+from aca_warp.hf.options import (
+    DEFAULT_SPLIT_TOLERANCE,
+    DEFAULT_TOLERANCE,
+    ONCHIP_INTEGRATORS,
+    crossing_words,
+    fast_math_unfit,
+)
 
 GRAPH_STEPS = 200
 # Data-sheet peaks [B/s] by device-name fragment; used when the driver query is unavailable.
@@ -127,13 +135,16 @@ def peak_bandwidth(device: Any) -> tuple[float | None, str]:
     return None, "unknown"
 
 
-def bench_scene(name: str = "hf1", patches: int | None = None, sample_dt: float = 1.0e-6):
-    """The preset ``name`` (or a TOML scene path) with ``patches`` generated patches (default: the scene's)."""
+def bench_scene(
+    name: str = "hf1", patches: int | None = None, sample_dt: float = 1.0e-6, allow_implausible: bool = False
+):
+    """The preset ``name`` (or a TOML scene path) with ``patches`` generated patches (default: the scene's);
+    ``allow_implausible`` as ``aca-warp hf --allow-implausible``."""
     import dataclasses
 
     from aca_warp.scene import PatchGenerator, Record, load_scene
 
-    scene = load_scene(name)
+    scene = load_scene(name, allow_implausible=allow_implausible)
     if patches is not None:
         origin = dict((scene.origin or {}).get("patches", {}))
         if "file" in origin:
@@ -338,6 +349,18 @@ def _cases(
         yield npads, prec, integ, eng, fast
 
 
+def _no_case(integrators: tuple[str, ...], engines: tuple[str, ...]) -> str:
+    """Why the cases of ``integrators`` × ``engines`` (and the other axes) are none, in one line."""
+    if engines and set(engines) == {"onchip"} and integrators:
+        given = option("engines=('onchip',)", "--engine onchip")
+        general = option("'general' to engines", "--engine general")
+        return (
+            f"{given}: the on-chip engine implements the {' and '.join(ONCHIP_INTEGRATORS)} integrators only (got "
+            f"{', '.join(integrators)}): no case to run; add {general} or one of those integrators"
+        )
+    return "no case to run: give at least one precision, integrator, engine, batch size and math"
+
+
 def _row_line(r: dict) -> str:
     """The line a timed case prints."""
     err = r["mu_rel_error_max"]
@@ -367,32 +390,53 @@ def run_bench(
     stages: bool = True,
     log: Any = None,
     crossing: str = "point",
+    allow_implausible: bool = False,
 ) -> dict:
     """Run every case; returns ``{"machine", "scene", ..., "results": [rows]}`` (JSON-able). ``maths``: ``exact``
     and/or ``fast`` (CUDA fast math, on-chip strang in fp32 only: other cases are not run with it). ``dt`` None:
     strang's default step for the scene and sample interval (:func:`~aca_warp.hf.options.step_asked`), for every
     case. ``crossing``: strang's treatment of steps that cross zero slip, for every case
-    (:data:`~aca_warp.hf.options.CROSSINGS`; ``mean`` with strang only)."""
+    (:data:`~aca_warp.hf.options.CROSSINGS`; ``mean`` with strang only).
+
+    Everything is checked before the first case runs, as ``aca-warp hf`` checks a run (SceneError): a step or
+    duration outside the plausible range of an HF run unless ``allow_implausible``
+    (:func:`~aca_warp.common.plausible.check`), a sample interval shorter than the step
+    (:func:`~aca_warp.hf.recorder.check_sample_step`; a bench has no ``force``), and options that leave no case to
+    run (e.g. the on-chip engine alone with an integrator it does not implement). The fixed step the cases take is
+    the step shortened so that a whole number of steps fills a sample interval
+    (:func:`~aca_warp.hf.solver.fitted_step`): ``dt_s`` in the result, ``dt_asked_s`` the step asked for."""
     import warp as wp
 
+    from aca_warp.common import plausible
     from aca_warp.common.devices import get_device
     from aca_warp.common.files import machine
-    from aca_warp.hf.options import check_crossing, step_asked
+    from aca_warp.hf.options import check_crossing, default_follows, step_asked
+    from aca_warp.hf.recorder import check_sample_step
+    from aca_warp.hf.solver import fitted_step
     from aca_warp.scene import Record
 
-    sc = bench_scene(scene, patches, sample_dt)
+    sc = bench_scene(scene, patches, sample_dt, allow_implausible)
     step = step_asked("strang", dt, [sc], sample_dt)
     if not (duration > 0 and step > 0 and sample_dt > 0):
         raise SceneError("duration, dt and sample interval must be > 0")
     Record(sample_dt=sample_dt).check_duration(
         duration, option("sample_dt", "--sample-dt"), option("duration", "--duration")
     )
+    plausible.check("duration", duration, "hf_duration", allow=sc.allow_implausible)
+    if dt is not None:
+        plausible.check("dt", dt, "hf_step", allow=sc.allow_implausible)
+    check_sample_step(sample_dt, step, follows=default_follows("strang", dt, step))
+    taken = fitted_step(step, sample_dt)
+    if abs(taken - step) <= 1e-9 * step:  # whole steps fill the interval: the step as asked, not its rounding
+        taken = step
     for integrator in integrators:  # before the first case, not after some have run
         check_crossing(crossing, integrator)
     if "fast" in maths and not any(c[4] for c in _cases((1,), precisions, integrators, engines, maths)):
         raise SceneError(
             "fast math compiles the on-chip strang kernel in fp32 only: add fp32, strang and auto or onchip"
         )
+    if not any(True for _ in _cases(pads, precisions, integrators, engines, maths)):
+        raise SceneError(_no_case(integrators, engines))
     dev = get_device(device)
     if "fast" in maths and dev.is_cpu:
         raise SceneError("fast math applies to CUDA devices only (Warp's CPU build has no fast math)")
@@ -428,7 +472,8 @@ def run_bench(
         "warp_version": wp.__version__,
         "scene": scene,
         "duration_s": duration,
-        "dt_s": step,
+        "dt_s": taken,
+        "dt_asked_s": step,
         "dt_is_default": dt is None,
         "sample_dt_s": sample_dt,
         "module_load_s": module_load,
@@ -436,12 +481,30 @@ def run_bench(
     }
 
 
+def _tolerances(integrators: list[str]) -> str:
+    """The error controls of the step-controlled ``integrators`` among those of a bench's rows, for its header:
+    `` (adaptive: tolerance 1e-05)``, …; "" when none of them ran."""
+    words = {
+        "adaptive": f"adaptive: tolerance {DEFAULT_TOLERANCE:g}",
+        "controlled": f"controlled: split tolerance {DEFAULT_SPLIT_TOLERANCE:g}",
+        "auto": f"auto: tolerance {DEFAULT_TOLERANCE:g}, split tolerance {DEFAULT_SPLIT_TOLERANCE:g}",
+    }
+    ran = [words[i] for i in dict.fromkeys(integrators) if i in words]
+    return f" ({'; '.join(ran)})" if ran else ""
+
+
 def markdown(out: dict) -> str:
     """A Markdown table of a :func:`run_bench` result."""
-    default = " (strang's default for the scene)" if out.get("dt_is_default") else ""
+    asked = out.get("dt_asked_s", out["dt_s"])
+    how = ["strang's default for the scene"] if out.get("dt_is_default") else []
+    if asked != out["dt_s"]:
+        interval = out["sample_dt_s"]
+        how.append(f"{asked:g} s asked, shortened so that whole steps fill the {interval:g} s sample interval")
+    step = f"{out['dt_s']:g} s" + (f" ({'; '.join(how)})" if how else "")
+    tolerances = _tolerances([r["integrator"] for r in out["results"]])
     lines = [
         f"Machine: {out['machine']['device_name']}. Scene {out['scene']}, timed window {out['duration_s']:g} s "
-        f"simulated, dt = {out['dt_s']:g} s{default} (adaptive: tolerance {DEFAULT_TOLERANCE:g}), "
+        f"simulated, dt = {step}{tolerances}, "
         f"Warp {out['warp_version']}. "
         "μ error: max |μ − μ_ref| / max|μ_ref| against fp64 strang at dt/4. Bandwidth: modelled bytes per step "
         "(aca_warp/bench.py) over the bare-step time.",
@@ -474,10 +537,13 @@ def add_parsers(sub: Any) -> None:
         "bench",
         help="measure HF step throughput (steps/s, patch-steps/s, bandwidth, error against a reference)",
         description="Benchmark the HF step per device, precision, integrator and batch size; prints one line "
-        "per case and writes JSON rows (aca_warp/bench.py documents every field and the byte count).",
+        "per case and writes JSON rows\n(aca_warp/bench.py documents every field and the byte count).\n"
+        "Checked before anything is measured: the step and duration (as aca-warp hf checks them) and the output "
+        "files:\nan existing --json or --markdown file is kept unless --overwrite. The files are written whole at "
+        "the end\n(a temporary file beside each, then renamed).",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="Example: aca-warp bench --device cuda:0 --precision fp32 --pads 1 1024 --json bench.json\n"
-        "Exit codes: 0 done, 2 bad input, 3 a case stopped on a non-finite value.",
+        "Exit codes: 0 done, 2 bad input, 3 a case stopped on a non-finite value, 4 an output could not be written.",
     )
     p.add_argument("--device", default="cpu", help="Warp device (default cpu)")
     p.add_argument("--scene", default="hf1", help="preset or TOML scene (default hf1)")
@@ -511,22 +577,98 @@ def add_parsers(sub: Any) -> None:
         metavar="S",
         help="fixed step [s] (default 1e-8, the step of the published tables), or 'default': strang's default step "
         "for the scene, as `aca-warp hf` takes it (1e-7 for the shipped presets' physics, 5e-8 for any other scene; "
-        "docs/numerics.md)",
+        "docs/numerics.md); refused, as by aca-warp hf, when longer than the sample interval or beyond 1e-5 s; "
+        "shortened so that whole steps fill a sample interval (JSON dt_s: the step taken, dt_asked_s: this one)",
     )
     p.add_argument("--crossing", choices=CROSSINGS, default="point", help=CROSSING_HELP)
     p.add_argument("--duration", type=positive, default=2.0e-5, metavar="S", help="timed window [s] (default 2e-5)")
     p.add_argument("--sample-dt", type=positive, default=1.0e-6, metavar="S", help="sample interval [s] (default 1e-6)")
     p.add_argument("--no-reference", action="store_true", help="skip the fp64 dt/4 reference run (no μ error)")
     p.add_argument("--no-stages", action="store_true", help="skip the per-stage timings")
-    p.add_argument("--json", metavar="FILE", help="write the result rows as JSON here")
-    p.add_argument("--markdown", metavar="FILE", help="also write a Markdown table here")
+    p.add_argument(
+        "--allow-implausible",
+        action="store_true",
+        help="run a step or duration far outside an HF run's range (dt beyond 1e-5 s, a duration beyond 1 s) and a "
+        "scene with values far outside a brake pad's, refused otherwise as likely unit mistakes (as aca-warp hf)",
+    )
+    p.add_argument("--json", metavar="FILE", help="write the result rows as JSON here (a new file unless --overwrite)")
+    p.add_argument(
+        "--markdown", metavar="FILE", help="also write a Markdown table here (a new file unless --overwrite)"
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an existing --json or --markdown file (refused otherwise, before anything is measured)",
+    )
     p.set_defaults(handler=_cmd_bench)
 
 
+EXAMPLE_NAMES = {"--json": "bench.json", "--markdown": "bench.md"}  # file names the refusals suggest
+
+
+def check_outputs(outputs: dict[str, str | None], overwrite: bool) -> dict[str, Path]:
+    """The output files of a bench, by option (``--json``, ``--markdown``; None: not asked for), checked before
+    anything is measured: SceneError (exit 2) for an empty name, a name of a folder, two options naming one file, an
+    existing file without ``overwrite``, a missing folder; StorageError (exit 4) for a folder that takes no new file
+    (:func:`~aca_warp.common.files.check_output_path`, as ``aca-warp hf`` checks its run file)."""
+    from aca_warp.common.files import check_output_path
+
+    given = {flag: path for flag, path in outputs.items() if path is not None}
+    for flag, text in given.items():
+        example = EXAMPLE_NAMES.get(flag, "bench.json")
+        if not text.strip():
+            raise SceneError(f"{flag} {text!r} names no file; give a file name such as {example}")
+        p = Path(text)
+        if p.is_dir() or text.endswith(("/", os.sep)) or p.name in ("", ".", ".."):
+            folder = Path(text.rstrip("/" + os.sep) or ".")
+            raise SceneError(f"{flag} {text} names a folder; give a file name such as {folder / example}")
+    flags = list(given)
+    for i, flag in enumerate(flags):
+        for other in flags[:i]:
+            a, b = Path(given[other]), Path(given[flag])
+            if os.path.realpath(a) == os.path.realpath(b) or (a.exists() and b.exists() and os.path.samefile(a, b)):
+                raise SceneError(f"{other} and {flag} name the same file {given[flag]}; give each its own file")
+    return {flag: check_output_path(text, overwrite=overwrite) for flag, text in given.items()}
+
+
+def write_outputs(texts: dict[Path, str]) -> None:
+    """Write each text to its file whole: every text first into a new temporary file beside its target (hidden,
+    created exclusively and never through a link, :func:`~aca_warp.common.links.create_new`), then each renamed
+    onto its target, so that a failure leaves no half-written file. A file that cannot be written: StorageError
+    (exit 4), one line naming it, the cause and what was written."""
+    from aca_warp.common.files import UNWRITABLE
+    from aca_warp.common.links import create_new
+
+    temps: dict[Path, Path] = {}
+    done: list[Path] = []
+    path = next(iter(texts), Path("."))
+    try:
+        for path, text in texts.items():
+            tmp = path.with_name(f".{path.stem}.partial{path.suffix}")
+            fd = create_new(tmp, "temporary file")
+            temps[path] = tmp
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(text)
+        for path, tmp in temps.items():
+            os.replace(tmp, path)
+            done.append(path)
+    except OSError as e:
+        why = UNWRITABLE.get(e.errno or 0) or e.strerror or type(e).__name__
+        kept = f"{', '.join(map(str, done))} written, the rest not" if done else "nothing was written"
+        err = StorageError(
+            f"cannot write {path} ({why}); {kept} (the results are in the lines above): choose another output "
+            "folder and run again"
+        )
+        err.errno = e.errno  # type: ignore[attr-defined]
+        raise err from None
+    finally:
+        for tmp in temps.values():
+            with contextlib.suppress(OSError):  # on a read-only file system even a missing file's unlink fails
+                tmp.unlink(missing_ok=True)
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
-    for path in (args.json, args.markdown):
-        if path is not None and not Path(path).resolve().parent.is_dir():
-            raise SceneError(f"output folder of {path} does not exist")
+    outputs = check_outputs({"--json": args.json, "--markdown": args.markdown}, args.overwrite)
     out = run_bench(
         device=args.device,
         scene=args.scene,
@@ -543,11 +685,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         stages=not args.no_stages,
         log=lambda s: print(s, flush=True),
         crossing=args.crossing,
+        allow_implausible=args.allow_implausible,
     )
-    if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=1))
-        print(f"wrote {args.json}")
-    if args.markdown:
-        Path(args.markdown).write_text(markdown(out))
-        print(f"wrote {args.markdown}")
+    render = {"--json": lambda: json.dumps(out, indent=1), "--markdown": lambda: markdown(out)}
+    write_outputs({path: render[flag]() for flag, path in outputs.items()})
+    for path in outputs.values():
+        print(f"wrote {path}")
     return 0 if all(r["complete"] for r in out["results"]) else 3

@@ -23,11 +23,17 @@ RENAMED = {"--integrators": "--integrator", "--precisions": "--precision"}  # th
 
 
 def main(argv: list[str]) -> int:
-    """``aca-warp bench`` with every integrator and ``--json bench_hf.json`` unless the arguments say otherwise."""
+    """``aca-warp bench`` with every integrator and ``--json bench_hf.json`` (this script's own file, replaced by
+    the next run) unless the arguments say otherwise."""
     if {"-h", "--help"} & set(argv):
         print(__doc__)
     args = [RENAMED.get(a, a) for a in argv]
-    return cli_main(["bench", "--integrator", *INTEGRATORS, "--json", "bench_hf.json", *args])
+    own = (
+        []
+        if any(a == "--json" or a.startswith("--json=") for a in args)
+        else ["--json", "bench_hf.json", "--overwrite"]
+    )
+    return cli_main(["bench", "--integrator", *INTEGRATORS, *own, *args])
 
 
 if __name__ == "__main__":

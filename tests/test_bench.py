@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -68,14 +69,15 @@ def test_bench_sample_interval_longer_than_the_warm_up(tmp_path: Path) -> None:
 def test_bench_takes_strangs_default_step_when_asked(tmp_path: Path) -> None:
     """``--dt default``: the scene's own default step (1e-7 s for a preset's physics, 5e-8 s once the patch count
     differs from the preset's, the sample interval where that is shorter down to 5e-8 s), recorded as such."""
-    for patches, sample, dt, steps in ((None, 1e-6, 1e-7, 20), (10, 1e-6, 5e-8, 40), (None, 5e-8, 5e-8, 40)):
-        out = tmp_path / f"d{patches}.json"
+    cases = ((None, 1e-6, 1e-7, 20), (10, 1e-6, 5e-8, 40), (None, 5e-8, 5e-8, 40))
+    for i, (patches, sample, dt, steps) in enumerate(cases):
+        out, md = tmp_path / f"d{i}.json", tmp_path / f"d{i}.md"
         args = ["bench", "--dt", "default", "--duration", "2e-6", "--precision", "fp32", "--no-reference"]
-        args += ["--no-stages", "--json", str(out), "--markdown", str(tmp_path / "d.md"), "--sample-dt", str(sample)]
+        args += ["--no-stages", "--json", str(out), "--markdown", str(md), "--sample-dt", str(sample)]
         assert main(args + ([] if patches is None else ["--patches", str(patches)])) == 0
         doc = json.loads(out.read_text())
         assert doc["dt_s"] == dt and doc["dt_is_default"] and doc["results"][0]["steps"] == steps
-        assert f"dt = {dt:g} s (strang's default for the scene)" in (tmp_path / "d.md").read_text()
+        assert f"dt = {dt:g} s (strang's default for the scene)" in md.read_text()
 
 
 def test_bench_exit_codes(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
@@ -189,3 +191,157 @@ def test_bench_crossing_option(tmp_path: Path, capsys: pytest.CaptureFixture) ->
     captured = capsys.readouterr()
     assert "treatment of strang's steps" in captured.err and "pads=" not in captured.out
     assert not (tmp_path / "x.json").exists()
+
+
+QUICK = ["bench", "--patches", "10", "--duration", "2e-6", "--precision", "fp32", "--no-reference", "--no-stages"]
+
+
+def _error(capsys: pytest.CaptureFixture) -> tuple[str, list[str]]:
+    """stdout and the error lines of stderr of the command just run."""
+    captured = capsys.readouterr()
+    return captured.out, [line for line in captured.err.splitlines() if line.strip()]
+
+
+def test_bench_keeps_an_existing_output_unless_overwrite(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """An existing --json or --markdown file is refused before anything is measured (a run file stays a run file);
+    --overwrite replaces it."""
+    precious = tmp_path / "precious.h5"
+    precious.write_bytes(b"\x89HDF\r\n\x1a\n run file")
+    for flag in ("--json", "--markdown"):
+        assert main([*QUICK, flag, str(precious)]) == 2
+        out, err = _error(capsys)
+        assert err == [f"aca-warp: error: output file {precious} exists; pass --overwrite to replace it"]
+        assert "pads=" not in out and precious.read_bytes() == b"\x89HDF\r\n\x1a\n run file"
+    assert main([*QUICK, "--json", str(precious), "--overwrite"]) == 0
+    assert json.loads(precious.read_text())["results"][0]["patches"] == 10
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["precious.h5"]  # no temporary file left
+
+
+def test_bench_refuses_a_folder_or_an_unwritable_one_before_measuring(
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A folder named as the output: exit 2; a folder that takes no new file (a read-only file system): exit 4;
+    both one line, before the first case."""
+    import errno
+
+    from aca_warp.common import files
+
+    figs = tmp_path / "figs"
+    figs.mkdir()
+    for name in (str(figs), f"{figs}/"):
+        assert main([*QUICK, "--json", name]) == 2
+        out, err = _error(capsys)
+        assert err == [f"aca-warp: error: --json {name} names a folder; give a file name such as {figs}/bench.json"]
+        assert "pads=" not in out
+
+    def read_only(folder: str | Path) -> None:
+        raise files.unwritable(folder, OSError(errno.EROFS, "Read-only file system"))
+
+    monkeypatch.setattr(files, "probe_folder", read_only)
+    assert main([*QUICK, "--json", str(figs / "b.json")]) == 4
+    out, err = _error(capsys)
+    assert len(err) == 1 and "read-only file system" in err[0] and "pads=" not in out
+    assert list(figs.iterdir()) == []
+
+
+def test_bench_writes_its_files_whole(
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A write that fails at the end: one line, exit 4, the measured lines printed, no half file and no temporary
+    file left. A name taken by a folder while the cases ran: the other file written, as the line says; the device
+    full: nothing written, the old file as it was."""
+    import aca_warp.bench as bench
+    from aca_warp.common import links
+
+    out, md = tmp_path / "b.json", tmp_path / "b.md"
+    real_run = bench.run_bench
+
+    def run_then_take_the_name(**kw: object) -> dict:
+        result = real_run(**kw)
+        md.mkdir()
+        (md / "x").write_text("")
+        return result
+
+    monkeypatch.setattr(bench, "run_bench", run_then_take_the_name)
+    assert main([*QUICK, "--json", str(out), "--markdown", str(md)]) == 4
+    printed, err = _error(capsys)
+    assert len(err) == 1 and f"cannot write {md} (" in err[0] and f"{out} written, the rest not" in err[0], err
+    assert "pads=" in printed and "wrote" not in printed
+    assert json.loads(out.read_text())["results"] and sorted(p.name for p in tmp_path.iterdir()) == ["b.json", "b.md"]
+    monkeypatch.undo()
+
+    out.write_text("old")
+    real = links.create_new
+
+    def full(path: Path, what: str, mode: int = 0o644) -> int:  # the temporary file lands on a full device
+        os.close(real(path, what, mode))
+        return os.open("/dev/full", os.O_WRONLY)
+
+    monkeypatch.setattr(links, "create_new", full)
+    assert main([*QUICK, "--json", str(out), "--markdown", str(tmp_path / "c.md"), "--overwrite"]) == 4
+    printed, err = _error(capsys)
+    assert len(err) == 1 and "no space left on device" in err[0] and "nothing was written" in err[0], err
+    assert "pads=" in printed and "wrote" not in printed
+    assert out.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["b.json", "b.md"]
+
+
+def test_bench_refuses_one_file_twice_and_an_empty_name(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """--json and --markdown naming one file (however spelled), or an empty name: exit 2, one line, nothing run."""
+    b1 = tmp_path / "b1.json"
+    for md in (str(b1), f"{tmp_path}/./b1.json"):
+        assert main([*QUICK, "--json", str(b1), "--markdown", md]) == 2
+        out, err = _error(capsys)
+        assert len(err) == 1 and "--json and --markdown name the same file" in err[0] and "pads=" not in out
+    for flag, example in (("--json", "bench.json"), ("--markdown", "bench.md")):
+        assert main([*QUICK, flag, ""]) == 2
+        out, err = _error(capsys)
+        assert err == [f"aca-warp: error: {flag} '' names no file; give a file name such as {example}"]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bench_checks_the_step_as_hf_does(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """A step longer than the sample interval, or beyond an HF step's range, is refused as by ``aca-warp hf``
+    (it ran at the sample interval while the files said otherwise); a step that whole steps do not fit into a
+    sample interval is reported as the step taken, with the one asked for."""
+    out = tmp_path / "d.json"
+    assert main([*QUICK, "--dt", "2e-6", "--duration", "1e-5", "--json", str(out)]) == 2
+    printed, err = _error(capsys)
+    assert len(err) == 1 and "= 1e-06 s is shorter than the step 2e-06 s" in err[0] and "pads=" not in printed
+    assert main([*QUICK, "--dt", "1e-3", "--json", str(out)]) == 2
+    _, err = _error(capsys)
+    assert len(err) == 1 and "dt = 0.001 s — beyond 1e-05 s" in err[0] and "did you mean µs?" in err[0]
+    assert main([*QUICK, "--dt", "1e-3", "--allow-implausible", "--json", str(out)]) == 2  # past that check only
+    _, err = _error(capsys)
+    assert len(err) == 1 and "is shorter than the step 0.001 s" in err[0]
+    assert not out.exists()
+    md = tmp_path / "d.md"
+    assert main([*QUICK, "--dt", "3e-8", "--json", str(out), "--markdown", str(md)]) == 0
+    doc = json.loads(out.read_text())
+    taken = 1e-6 / 34  # 34 steps per sample interval
+    assert doc["dt_s"] == pytest.approx(taken, rel=1e-12) and doc["dt_asked_s"] == 3e-8
+    assert doc["results"][0]["dt"] == pytest.approx(taken, rel=1e-12) and doc["results"][0]["steps"] == 68
+    assert f"dt = {taken:g} s (3e-08 s asked, shortened so that whole steps fill" in md.read_text()
+
+
+def test_bench_refuses_options_that_leave_no_case(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """The on-chip engine alone with an integrator it does not implement: exit 2 and why, not an empty result."""
+    out = tmp_path / "se.json"
+    args = [*QUICK, "--engine", "onchip", "--integrator", "symplectic-euler", "--json", str(out)]
+    assert main(args) == 2
+    printed, err = _error(capsys)
+    assert err == [
+        "aca-warp: error: --engine onchip: the on-chip engine implements the strang and adaptive integrators only "
+        "(got symplectic-euler): no case to run; add --engine general or one of those integrators"
+    ]
+    assert "pads=" not in printed and not out.exists()
+
+
+def test_bench_header_names_a_tolerance_only_for_a_case_that_has_one(tmp_path: Path) -> None:
+    """The Markdown header names the adaptive tolerance only when an adaptive case ran."""
+    md = tmp_path / "s.md"
+    assert main([*QUICK, "--markdown", str(md)]) == 0
+    assert "tolerance" not in md.read_text()
+    md2 = tmp_path / "a.md"
+    assert main([*QUICK, "--integrator", "strang", "adaptive", "--engine", "general", "--markdown", str(md2)]) == 0
+    head = md2.read_text().splitlines()[0]
+    assert "(adaptive: tolerance 1e-05)" in head and "split tolerance" not in head
