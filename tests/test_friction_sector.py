@@ -52,3 +52,32 @@ def test_a_run_may_name_its_precision(tmp_path: Path) -> None:
     fp64, fp32 = doc["runs"][1]["stats"], doc["runs"][2]["stats"]
     assert fp64 != fp32 and all(abs(fp32[k][0] - fp64[k][0]) <= 1e-3 * abs(fp64[k][0]) for k in fp64), (fp64, fp32)
     assert "fp64 (a run ending in @fp32 or @fp64: that precision)" in report(doc)[0]
+
+
+def test_a_run_may_name_its_engine(tmp_path: Path) -> None:
+    """``/ENGINE`` after a run: that run on its own engine, the others on ``--engine``, so that the default on chip
+    and the reference on the general engine compare within one call; the engines give the same statistics."""
+    from aca_warp.studies.friction_sector import parse_run
+
+    assert parse_run("strang:1e-8@fp64/general") == {
+        "integrator": "strang",
+        "dt": 1e-8,
+        "precision": "fp64",
+        "engine": "general",
+    }
+    assert parse_run("strang/auto") == {"integrator": "strang", "engine": "auto"}
+    out = tmp_path / "e.json"
+    argv = ["--patches", "20", "--duration", "1e-3", "--window", "5e-4", "--engine", "auto"]
+    argv += ["--reference", "strang:2e-8/general", "--runs", "strang:2e-8", "--out", str(out)]
+    assert load_script("friction_step_sector").main(argv) == 0
+    ref, run = json.loads(out.read_text())["runs"]
+    assert ref["run"] == "strang:2e-8/general" and (ref["steps"], ref["stats"]) == (run["steps"], run["stats"])
+
+
+def test_an_unknown_engine_of_a_run_is_refused(tmp_path: Path, capsys) -> None:
+    argv = ["--patches", "20", "--runs", "strang/gpu", "--out", str(tmp_path / "x.json")]
+    assert load_script("friction_step_sector").main(argv) == 2
+    assert "unknown engine 'gpu' in 'strang/gpu'" in capsys.readouterr().err
+    argv = ["--patches", "20", "--runs", "controlled/onchip", "--out", str(tmp_path / "x.json")]
+    assert load_script("friction_step_sector").main(argv) == 2
+    assert "the on-chip engine runs" in capsys.readouterr().err

@@ -8,7 +8,8 @@ batch on the CPU over ``--duration`` on ``--engine`` (default the general engine
 (``INTEGRATOR:DT`` for a fixed step, forced past the stable-step estimate; ``INTEGRATOR:tol=TOL``, the tolerance of
 ``adaptive`` or the split tolerance of ``controlled`` and ``auto``; or ``INTEGRATOR`` at its default step or
 tolerances; each in ``--precision``, fp64 unless asked, unless it ends in ``@fp32`` or ``@fp64``: ``strang@fp32`` is
-``strang`` at both its defaults) is
+``strang`` at both its defaults; a run ending in ``/general``, ``/onchip`` or ``/auto`` on that engine, so that the
+default on one engine and the reference on another compare within one call) is
 compared with ``--reference`` over the last ``--window``: the ensemble means of μ mean, μ std, mean Σ|u̇| and the
 velocity-sum peak (:func:`~aca_warp.studies.friction_stats.statistics`, ``compare``), the steps and the wall time of
 the stepping loop. Examples::
@@ -18,6 +19,8 @@ the stepping loop. Examples::
     python3 scripts/friction_step_sector.py --runs controlled controlled:tol=3e-3 auto adaptive strang:1e-7 \
         --out docs/figures/friction_step/sector_controlled_cpu.json
     python3 scripts/friction_step_sector.py --runs strang@fp32 --engine auto --out OUT/sector_default.json
+    python3 scripts/friction_step_sector.py --engine auto --reference strang:1e-8/general \
+        --runs strang@fp32 strang:1e-8 --out OUT/sector_default_vs_general.json
     python3 scripts/friction_step_sector.py --report docs/figures/friction_step/sector_cpu.json \
         docs/figures/friction_step/sector_controlled_cpu.json --page docs/friction_step.md
 """
@@ -46,14 +49,20 @@ LABELS = {"mu_mean": "μ mean", "mu_std": "μ std", "abs_velocity_mean": "Σ|u̇
 
 def parse_run(spec: str) -> dict[str, Any]:
     """``INTEGRATOR``, ``INTEGRATOR:DT`` [s] or ``INTEGRATOR:tol=TOL``, each with an optional ``@fp32`` or
-    ``@fp64``, as package_run's keywords (TOL: the ``tolerance`` of ``adaptive``, the ``split_tolerance`` of
-    ``controlled`` and ``auto``; ``precision`` only where the spec names one)."""
+    ``@fp64`` and then an optional ``/ENGINE`` (the run's own engine, so that settings on two engines compare within
+    one call), as package_run's keywords (TOL: the ``tolerance`` of ``adaptive``, the ``split_tolerance`` of
+    ``controlled`` and ``auto``; ``precision`` and ``engine`` only where the spec names them)."""
     from aca_warp.hf.options import INTEGRATORS, tolerance_keyword
 
-    setting, at, precision = spec.partition("@")
+    spec_only, slash, engine = spec.partition("/")
+    if slash and engine not in ENGINES:
+        raise ValueError(f"unknown engine {engine!r} in {spec!r}; choose from {', '.join(ENGINES)}")
+    setting, at, precision = spec_only.partition("@")
     if at and precision not in ("fp32", "fp64"):
         raise ValueError(f"unknown precision {precision!r} in {spec!r}; choose fp32 or fp64")
     out: dict[str, Any] = {"precision": precision} if at else {}
+    if slash:
+        out["engine"] = engine
     name, _, rest = setting.partition(":")
     if name not in INTEGRATORS:
         raise ValueError(f"unknown integrator {name!r} in {spec!r}; choose from {', '.join(INTEGRATORS)}")
@@ -73,8 +82,8 @@ def run_all(args: argparse.Namespace, log: Log) -> dict[str, Any]:
     ref_stats: dict[str, Any] | None = None
     for spec in [args.reference, *args.runs]:
         log(f"{spec}: {len(scenes)} pads × {args.patches} patches, {args.duration * 1e3:g} ms")
-        run = {"precision": args.precision, **parse_run(spec)}
-        rec, info = package_run(scenes, duration=args.duration, window=0.0, engine=args.engine, **run)
+        run = {"precision": args.precision, "engine": args.engine, **parse_run(spec)}
+        rec, info = package_run(scenes, duration=args.duration, window=0.0, **run)
         stats = statistics(rec, args.window, np.zeros(0), np.zeros(0, dtype=int))
         ref_stats = stats if ref_stats is None else ref_stats
         row = {"run": spec, "wall_s": info["wall_s"], "steps": info["steps"]}
@@ -134,8 +143,9 @@ def _check(args: argparse.Namespace) -> None:
     if args.out is None:
         raise ValueError("--out is required (or --report)")
     for spec in [args.reference, *args.runs]:
-        if parse_run(spec)["integrator"] not in ONCHIP_INTEGRATORS and args.engine == "onchip":
-            raise ValueError(f"--engine onchip runs {' and '.join(ONCHIP_INTEGRATORS)} only, not {spec!r}")
+        run = parse_run(spec)
+        if run["integrator"] not in ONCHIP_INTEGRATORS and run.get("engine", args.engine) == "onchip":
+            raise ValueError(f"the on-chip engine runs {' and '.join(ONCHIP_INTEGRATORS)} only, not {spec!r}")
     if args.out.is_dir():
         raise ValueError(f"--out {args.out} is a folder; give a file name such as {args.out / 'sector.json'}")
     check_output_folder(args.out.parent)
@@ -154,11 +164,15 @@ def main(argv: list[str] | None = None) -> int:
         "--engine",
         choices=ENGINES,
         default="general",
-        help="the engine of every run (default general; auto: on-chip, as aca-warp hf runs; the same bits)",
+        help="the engine of every run that names none (default general; auto: on-chip, as aca-warp hf runs; the "
+        "same bits)",
     )
     ap.add_argument("--reference", default=REFERENCE, help=f"the reference run (default {REFERENCE})")
     ap.add_argument(
-        "--runs", nargs="+", default=list(RUNS), help="INTEGRATOR[:DT | :tol=TOL][@fp32 | @fp64] (default the grid)"
+        "--runs",
+        nargs="+",
+        default=list(RUNS),
+        help="INTEGRATOR[:DT | :tol=TOL][@fp32 | @fp64][/ENGINE] (default the grid)",
     )
     ap.add_argument("--quick", action="store_true", help="1 pad × 60 patches × 4 ms, window 2 ms: a smoke run")
     ap.add_argument("--out", type=Path, help="result JSON")
