@@ -76,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Abstract Cellular Automaton of the brake pad-disc "
         "boundary layer (Merlis & Ostermeyer 2019) in NVIDIA Warp.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog=run_epilog("hf/lf --resume"),
+        epilog=run_epilog("hf/lf --resume", lf=True),
     )
     p.add_argument("--version", action="version", version=f"aca-warp {__version__}")
     p.add_argument(

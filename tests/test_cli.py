@@ -351,6 +351,34 @@ def test_a_large_run_says_what_it_will_record_in_a_log_too(capsys):
         assert capsys.readouterr().err == ""
 
 
+def test_a_file_of_the_other_kind_says_which_command_takes_it(tmp_path, capsys):
+    """An HDF5 file where a TOML scene is asked for, an LF scene file or preset given to hf or bench, --snapshot
+    with a preset, an LF run given to hf --resume: one line each, exit 2, naming the command that takes it."""
+    h5 = tmp_path / "run.h5"
+    with h5py.File(h5, "w") as f:
+        f.attrs["kind"] = "lf"
+    lf_toml = tmp_path / "lf.toml"
+    lf_toml.write_text("[lf]\ndt = 0.01\n")
+    out = str(tmp_path / "x.h5")
+    for argv, said in (
+        (["lf", str(h5), "-o", out], f"{h5} is an HDF5 file, not a TOML LF scene file"),
+        (["bench", "--scene", str(h5), "--device", "cpu"], "is an HDF5 file, not a TOML scene file"),
+        (
+            ["hf", str(lf_toml), "-o", out],
+            f"{lf_toml} is an LF scene file (it has an [lf] table): run it with 'aca-warp lf",
+        ),
+        (
+            ["bench", "--scene", "multiscale", "--device", "cpu"],
+            "'multiscale' is an LF scene: run it with 'aca-warp lf",
+        ),
+        (["hf", "hf1", "--snapshot", "app1_start", "-o", out], "--snapshot takes a pad from an LF run file"),
+        (["hf", "--resume", str(h5)], f"{h5} is an LF run: continue it with 'aca-warp lf --resume {h5}'"),
+    ):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and said in err[0], (argv, err)
+
+
 def test_a_misspelled_preset_gets_a_suggestion(tmp_path, capsys):
     """A preset name off by its case or a few letters: the one line also names the nearest preset."""
     for argv, near in ((["hf", "HF1"], "'hf1'"), (["hf", "varying"], "'varying_area'"), (["lf", "multiscal"], None)):

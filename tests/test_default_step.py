@@ -148,7 +148,8 @@ def test_a_sweep_spec_writes_its_default_step_out():
 
 
 def test_the_summary_line_says_why_the_step(tmp_path, capsys):
-    """``aca-warp hf`` without --dt names the default it took: the preset's physics, or a scene of no preset."""
+    """``aca-warp hf`` without --dt names the default it took: the preset's physics, or a scene outside the measured
+    regimes."""
     from procs import small_scene_toml
 
     from aca_warp.cli import main
@@ -156,7 +157,7 @@ def test_the_summary_line_says_why_the_step(tmp_path, capsys):
     (tmp_path / "s.toml").write_text(small_scene_toml("small", count=10, duration=2.0e-6))
     for scene, words in (
         ("hf2", "(1e-07 s, the default step for hf2's physics, strang, fp32)"),
-        (str(tmp_path / "s.toml"), "(5e-08 s, the default step for a scene of no preset, strang"),
+        (str(tmp_path / "s.toml"), "(5e-08 s, the default step for a scene outside the regimes the statistics"),
     ):
         assert main(["hf", scene, "--duration", "2e-6", "-o", str(tmp_path / "r.h5"), "--overwrite",
                      "--no-progress"]) == 0  # fmt: skip

@@ -20,10 +20,11 @@ from aca_warp.lf import io as lf_io
 
 
 def lf_scene(first: float) -> str:
-    """The tiny pad with snapshots at every application and at 0.3 s and 0.75 s, first applied for ``first`` [s]."""
+    """The tiny pad with snapshots at every application and at 0.3 s and 0.75 s (those within its schedule of
+    ``first`` + 0.5 s), first applied for ``first`` [s]."""
     lf = {"wear_m": 2e-12, "p_remob": 0.0, "p_store": 0.3, "p_birth": 1.0, "p_comp": 1e4, "k_shrink": 2e-14}
     lf |= {"p_cap": 0.8, "lam0": 2.0, "T_c": 293.15, "compact_every": 25}
-    snapshots = {"applications": True, "times": [0.3, 0.75]}
+    snapshots = {"applications": True, "times": [t for t in (0.3, 0.75) if t <= first + 0.5]}
     return small_lf_scene_toml("lfckpt", three_applications(first), lf=lf, snapshots=snapshots)
 
 

@@ -83,6 +83,24 @@ def test_plot_writes_every_lf_figure(lf_run, tmp_path):
     assert notes == []
 
 
+def test_a_damaged_lf_file_leaves_no_figure(lf_run, tmp_path, capsys):
+    """A snapshot group damaged after the global series: one line, exit 2, and the figures drawn before the failure
+    removed (all or nothing); --times on an LF file names --snapshots."""
+    import shutil
+
+    damaged = tmp_path / "damaged.h5"
+    shutil.copy(lf_run, damaged)
+    with h5py.File(damaged, "a") as f:
+        first = next(iter(f["snapshots"]))
+        del f[f"snapshots/{first}/matrix"]
+    out = tmp_path / "fig"
+    assert _cli(["plot", str(damaged), "-o", str(out)]) == 2
+    assert "damaged or incomplete" in capsys.readouterr().out
+    assert not out.exists() or not list(out.iterdir())
+    assert _cli(["plot", str(lf_run), "-o", str(out), "--times", "0.1"]) == 2
+    assert "panels with snapshots=[…], not times=[…]" in capsys.readouterr().out  # the Python API's names here
+
+
 def test_only_selects_among_the_lf_figures(lf_run, hf_run, tmp_path, capsys):
     out = tmp_path / "fig"
     argv = ["plot", str(lf_run), "-o", str(out), "--only", "lf_patch_map", "--quantity", "thickness"]

@@ -99,6 +99,63 @@ RANGES: dict[str, Range] = {
         "s", 0.0, 1.0e4, "brake applications last seconds to minutes, 10 s in the paper", (1e-2, 3600.0),
         (("ms", 1e-3),),
     ),
+    "lf_cell": Range(
+        "m", 0.0, 2.0e-2, "LF cells and neighbourhood margins are about a millimetre, 1e-3 and 5e-4 m in the presets",
+        (1e-5, 1e-2), (("mm", 1e-3), ("µm", 1e-6)),
+    ),
+    "thermal_length": Range(
+        "m", 0.0, 0.1, "disc cheeks and thermal depths are micrometres to centimetres, 3e-5 to 0.02 m in the presets",
+        (1e-7, 0.05), (("mm", 1e-3), ("µm", 1e-6)),
+    ),
+    "temperature": Range(
+        "K", 150.0, 5000.0, "brake temperatures are 200 to 1500 K, 293.15 to 973.15 K in the presets; cast iron "
+        "melts near 1450 K", (200.0, 2000.0), (), "did you mean °C? (temperatures are kelvin: K = °C + 273.15)",
+    ),
+    "temperature_scale": Range(
+        "K", 1.0e-2, 1.0e4, "temperature scales are kelvin, 30 K in the presets", (0.1, 1000.0), (),
+        "check the exponent",
+    ),
+    "density": Range(
+        "kg/m³", 100.0, 3.0e4, "pad, disc and debris densities are 1000 to 8000 kg/m³, 2500 to 7200 in the presets",
+        (300.0, 2.5e4), (), (("g/cm³", 1e3),),
+    ),
+    "heat_capacity": Range(
+        "J/(kg K)", 10.0, 2.0e4, "specific heats of solids are 100 to 2000 J/(kg K), 460 and 1000 in the presets",
+        (50.0, 5000.0), (), (("kJ/(kg K)", 1e3),),
+    ),
+    "conductivity": Range(
+        "W/(m K)", 1.0e-2, 5.0e3, "thermal conductivities of solids are 0.1 to 400 W/(m K), 1 and 50 in the presets",
+        (1e-2, 2000.0), (("mW/(m K)", 1e-3),), (("W/(cm K)", 1e2),),
+    ),
+    "heat_transfer": Range(
+        "W/(m² K)", 0.1, 1.0e7, "convection and contact conductances are 5 to 1e5 W/(m² K), 100 and 1e4 in the presets",
+        (1.0, 1e6), (), (("kW/(m² K)", 1e3),),
+    ),
+    "expansion": Range(
+        "1/K", 1.0e-8, 1.0e-3, "expansion coefficients of solids are 1e-6 to 1e-4 1/K, 1.2e-5 in the presets",
+        (1e-7, 5e-4), (("µm/(m K)", 1e-6),), "check the exponent",
+    ),
+    "wear": Range(
+        "m³/J", 1.0e-21, 1.0e-9, "energy wear coefficients are 1e-16 to 1e-12 m³/J, 1e-15 to 2e-13 in the presets",
+        (1e-19, 1e-10), (("mm³/(N m)", 1e-9),),
+        "did you convert mm³/(N m) to m³/J twice (a factor 1e-18 instead of 1e-9)?",
+    ),
+    "pressure": Range(
+        "Pa", 1.0e3, 1.0e9, "pressures under a brake pad are 1e4 to 1e7 Pa, 3e5 Pa in the presets", (1e3, 1e8), (),
+        (("kPa", 1e3), ("bar", 1e5), ("MPa", 1e6)),
+    ),
+    "rate": Range(
+        "1/s", 0.0, 1.0e3, "hazard rates are per second for patch lifetimes of seconds, 0.1 1/s in the presets",
+        (1e-6, 100.0),
+    ),
+    "newton_per_bar": Range(
+        "N/bar", 1.0, 1.0e5, "a caliper gives 100 to 10000 N of clamp force per bar, 370 N/bar in the presets",
+        (10.0, 2e4), (), (("kN/bar", 1e3), ("N/Pa", 1e5)),
+    ),
+    "winkler": Range(
+        "N/m³", 1.0e7, 1.0e16, "a pad matrix's Winkler stiffness E/H is 1e9 to 1e14 N/m³, 1.85e11 in the presets",
+        (1e8, 1e15), (), (("N/mm³", 1e9), ("MPa/m", 1e6)),
+    ),
 }  # fmt: skip
 
 

@@ -39,12 +39,18 @@ from aca_warp.hf.options import (
 )
 
 
-def run_epilog(resume: str) -> str:
+def run_epilog(resume: str, lf: bool = False) -> str:
     """The help epilog of ``aca-warp`` and ``aca-warp hf``: SCENE, an example, the units and the exit codes;
-    ``resume``: the command that continues an interrupted run (docs/faults.md)."""
+    ``resume``: the command that continues an interrupted run (docs/faults.md); ``lf``: the LF scenes too."""
+    scenes = (
+        "\nThe LF automaton (aca-warp lf) takes the preset multiscale or a TOML file with an [lf] table"
+        "\n(docs/lf_model.md); aca-warp hf LF.h5 --snapshot NAME runs HF on a state it saved."
+        if lf
+        else ""
+    )
     return f"""\
 SCENE is a preset (hf1, hf2, hf3, hf4, varying_area, and each as NAME_equal: every patch 3 µm high, docs/presets.md)
-or a TOML scene file (docs/scenes.md).
+or a TOML scene file (docs/scenes.md).{scenes}
 Example:  aca-warp hf hf1 --duration 1e-3 -o run.h5
 Units are SI throughout: seconds, metres, newtons. Exit codes: 0 done, 2 bad input (nothing written),
 3 the run stopped on a fault or an unphysical result (the file holds everything before it, marked incomplete),
@@ -275,16 +281,18 @@ def _hf_scene(args: argparse.Namespace) -> tuple[Any, float]:
         from aca_warp.lf.io import scene_from_snapshot
 
         if args.snapshot is None:
-            raise SceneError(f"{args.scene} is an LF run file: name a snapshot with --snapshot NAME")
+            from aca_warp.lf.io import snapshot_names
+
+            names = snapshot_names(args.scene)  # one line of its own for a file that is no LF run
+            held = f" (it holds {', '.join(names)})" if names else " (it holds none)"
+            raise SceneError(f"{args.scene} is an LF run file: name a snapshot with --snapshot NAME{held}")
+        if not Path(args.scene).exists() and not str(args.scene).endswith(".h5"):
+            raise SceneError(
+                f"--snapshot takes a pad from an LF run file: SCENE is then LF.h5, not {args.scene!r} (an LF run "
+                "writes one: 'aca-warp lf multiscale -o LF.h5')"
+            )
         scene = scene_from_snapshot(args.scene, args.snapshot, allow_implausible=args.allow_implausible)
     else:
-        from aca_warp.lf.scene import LF_PRESETS
-
-        if args.scene in LF_PRESETS and not Path(args.scene).exists():
-            raise SceneError(
-                f"{args.scene!r} is an LF scene: run it with 'aca-warp lf {args.scene} -o LF.h5', then HF on one of "
-                f"its snapshots with 'aca-warp hf LF.h5 --snapshot app1_start -o RUN.h5'"
-            )
         scene = load_scene(args.scene, allow_implausible=args.allow_implausible)
     rec = scene.record
     changes = _record_changes(args)
@@ -382,7 +390,7 @@ def _default_step_words(args: argparse.Namespace, scene: Any) -> str:
     from aca_warp.scene.regimes import preset_regime
 
     regime = preset_regime(scene)
-    whose = f"{regime}'s physics" if regime else "a scene of no preset"
+    whose = f"{regime}'s physics" if regime else "a scene outside the regimes the statistics measured"
     default = default_step("strang", [scene])
     if step_asked("strang", None, [scene], scene.record.sample_dt) != default:  # shortened to the sample interval
         return f", the sample interval, shorter than the default step for {whose} ({default:g} s)"
@@ -442,8 +450,11 @@ def _resume_hf(args: argparse.Namespace) -> int:
         ),
         "the run",
     )
-    from aca_warp.common.files import resumed_from
+    from aca_warp.common.files import find_resumable, resumed_from
 
+    final, part = find_resumable(args.resume)
+    if _is_lf(part if part.exists() else final):
+        raise SceneError(f"{args.resume} is an LF run: continue it with 'aca-warp lf --resume {args.resume}'")
     start = resumed_from(args.resume)  # before the resume writes its own checkpoints
     result, path = resume_run(
         args.resume,

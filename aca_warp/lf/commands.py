@@ -100,7 +100,8 @@ def read_lf_settings(path: str | Path) -> dict[str, Any]:
     with reading(p, "LF run file"), open_h5(p, "LF run file") as f:
         try:
             if f.attrs.get("kind") != "lf":
-                raise SceneError(f"{p} is not an LF run file (no kind = 'lf' attribute)")
+                hint = f"; an HF run is continued with 'aca-warp hf --resume {p}'" if "run_options" in f.attrs else ""
+                raise SceneError(f"{p} is not an LF run file (no kind = 'lf' attribute){hint}")
             doc = json_attribute(f.attrs["scene"], f"{p}: attribute 'scene'")
             run = json_attribute(f.attrs["lf_run"], f"{p}: attribute 'lf_run'") if "lf_run" in f.attrs else {}
             scene = lf_scene_from_dict(doc, name=str(doc.get("scene", {}).get("name", p.stem)))
@@ -227,7 +228,7 @@ def _cmd_lf(args: argparse.Namespace) -> int:
     if args.coulomb:
         scene = scene.replace(lf=dataclasses.replace(scene.lf, coulomb=1))
     if args.seed is not None:
-        scene = scene.replace(lf=dataclasses.replace(scene.lf, seed=args.seed))
+        scene = scene.with_seed(args.seed)
     sim = run_lf(
         scene, args.output, duration=args.duration, device=args.device, overwrite=args.overwrite,
         progress=not args.no_progress, graph=False if args.eager else None,
@@ -252,7 +253,12 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--duration", type=positive, metavar="S", help="simulated time [s] (default: the whole schedule)")
     p.add_argument("--device", default="cpu", help="Warp device: cpu (default) or cuda:0, ...")
     p.add_argument("--coulomb", action="store_true", help="constant patch friction (lf.mu_coulomb) for a TEI check")
-    p.add_argument("--seed", type=int, help="seed of the random numbers (default: the scene's lf.seed)")
+    p.add_argument(
+        "--seed",
+        type=int,
+        help="seed of the automaton's random events (births, deaths; default: the scene's lf.seed); the initial "
+        "patches keep the scene's [patches] seed, so runs of different --seed agree until the first random event",
+    )
     p.add_argument(
         "--allow-implausible",
         action="store_true",

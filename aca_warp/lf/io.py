@@ -211,8 +211,10 @@ def _open(path: str | Path) -> h5py.File:
     p = Path(path)
     f = open_h5(p, "LF run file")
     if f.attrs.get("kind") != "lf" or "snapshots" not in f:
+        hf = "run_options" in f.attrs
         f.close()
-        raise SceneError(f"{p} is not an LF run file (no kind = 'lf' attribute or /snapshots group)")
+        hint = f": an HF run file, repeated with 'aca-warp rerun {p} -o NEW.h5'" if hf else ""
+        raise SceneError(f"{p} is not an LF run file (no kind = 'lf' attribute or /snapshots group){hint}")
     return f
 
 

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.common import plausible
-from aca_warp.common.errors import SceneError, did_you_mean
+from aca_warp.common.errors import SceneError, did_you_mean, option
 from aca_warp.scene import (
     GENERATOR_KINDS,
     PRESETS,
@@ -40,6 +40,7 @@ MAX_CAPACITY = 2**24  # patch slots
 MAX_CELLS = 2**24  # pad matrix cells (rings × columns)
 MAX_STEPS = 10**7  # LF steps of one run (the history alone is steps × 14 × 8 B on the device)
 MAX_CONTACT_ITERATIONS = 1000
+SEED_LIMIT = 2**64  # the LF random numbers hash a 64-bit seed
 
 
 @dataclass(frozen=True)
@@ -48,7 +49,7 @@ class LFConstants:
 
     Attributes (SI):
         dt: LF step [s] (paper §2.1.3: 0.01 s).
-        seed: Seed of the counter-based random numbers.
+        seed: Seed of the counter-based random numbers (0 to 2^64 − 1).
         cell: Size of the pad matrix cells and disc rings (radial and arc length at the ring) [m].
         capacity: Patch slots (fixed capacity of the dynamic patch set).
         coulomb: 1 = constant patch coefficient ``mu_coulomb`` (TEI check), 0 = paper Eq. 4 at v = ω r.
@@ -137,7 +138,9 @@ class LFConstants:
         ints = ("seed", "capacity", "coulomb", "contact_iterations", "compact_every")
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
-            if f.name in ints:
+            if f.name == "seed":
+                object.__setattr__(self, "seed", check_seed(v, "lf.seed"))
+            elif f.name in ints:
                 if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
                     raise SceneError(f"lf.{f.name} must be a non-negative integer, got {v!r}")
                 object.__setattr__(self, f.name, int(v))
@@ -158,6 +161,33 @@ class LFConstants:
             raise SceneError(f"lf.coulomb must be 0 or 1, got {self.coulomb}")
         if not self.A_min < self.A0 <= self.A_max:
             raise SceneError(f"lf areas need A_min < A0 <= A_max, got {self.A_min:g}, {self.A0:g}, {self.A_max:g}")
+
+
+def check_seed(value: Any, name: str) -> int:
+    """``value`` as the seed of the LF random numbers: an integer from 0 to 2^64 − 1 (SceneError naming ``name``)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value < SEED_LIMIT:
+        raise SceneError(f"{name} must be a non-negative integer below 2^64 = {SEED_LIMIT}, got {value!r}")
+    return int(value)
+
+
+# the plausible range (aca_warp.common.plausible.RANGES) of every [lf] constant with a unit; the others are
+# counts, switches, fractions and probabilities, bounded by their own checks
+LF_KINDS: dict[str, str] = {
+    "dt": "lf_step", "cell": "lf_cell", "cand_margin": "lf_cell", "newton_per_bar": "newton_per_bar",
+    "T_amb": "temperature", "T_c": "temperature", "T_kill": "temperature",
+    "T_s": "temperature_scale", "wear_T": "temperature_scale",
+    "rho_d": "density", "rho_p": "density", "rho_m": "density", "rho_patch": "density",
+    "c_d": "heat_capacity", "c_p": "heat_capacity", "k_d": "conductivity", "k_p": "conductivity",
+    "d_d": "thermal_length", "t_eff": "thermal_length", "L_b": "thermal_length",
+    "h_conv": "heat_transfer", "h_pd": "heat_transfer", "alpha_d": "expansion",
+    "wear_m": "wear", "wear_p": "wear", "k_shrink": "wear",
+    "s_max_thick": "height", "t0": "height", "t_min": "height", "A0": "area", "A_min": "area", "A_max": "area",
+    "p_comp": "pressure", "lam0": "rate",
+}  # fmt: skip
+# the plausible range of each number of a [[schedule]] entry
+SEGMENT_KINDS: dict[str, str] = {
+    "duration": "lf_duration", "ramp": "lf_duration", "normal_force": "force", "sliding_speed": "speed",
+}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -202,10 +232,12 @@ class LFScene:
         schedule: Applications and pauses, in order.
         patches: Initial patches (None = a bare pad).
         snapshot_applications: Save the state at the start (after the ramp) and end of every application.
-        snapshot_times: Extra snapshot times [s] (saved after the step that ends at or after each).
+        snapshot_times: Extra snapshot times [s] (saved after the step that ends at or after each; each within the
+            schedule, no two alike, in any order).
         origin: The TOML-shaped dict the scene came from (for run files), or None.
         allow_implausible: Accept values far outside the physical range of a brake pad (as HF scenes:
-            :mod:`aca_warp.common.plausible`; here also loads, speeds and lengths of the schedule and the LF step).
+            :mod:`aca_warp.common.plausible`; here also loads, speeds and lengths of the schedule, the matrix
+            stiffness and every ``lf`` constant with a unit: :data:`LF_KINDS`).
     """
 
     name: str
@@ -224,11 +256,45 @@ class LFScene:
         object.__setattr__(self, "schedule", tuple(self.schedule))
         if not self.schedule:
             raise SceneError("an LF scene needs a [[schedule]] with at least one application")
+        if not any(s.kind == "application" and s.sliding_speed > 0 for s in self.schedule):
+            raise SceneError(
+                'an LF scene needs a [[schedule]] with at least one application (kind = "application", a '
+                "normal_force or pressure_bar and a sliding_speed > 0); this one only "
+                + ("pauses" if all(s.kind == "pause" for s in self.schedule) else "pauses or loads a disc at rest")
+            )
         if not plausible.flag(self.allow_implausible):
             self._check_plausible()
         if self.pad.span_deg >= 360.0:
             raise SceneError("the LF grid needs an annular sector pad (span_deg < 360)")
         check_grid(self.pad, self.lf)
+        object.__setattr__(self, "snapshot_times", self._checked_snapshot_times())
+
+    def _checked_snapshot_times(self) -> tuple[float, ...]:
+        """The snapshot times as floats: each a number > 0 within the schedule (a later one would never be taken),
+        no two of the same name (the run file's /snapshots/NAME)."""
+        times = self.snapshot_times
+        if isinstance(times, (str, bytes)) or not isinstance(times, (list, tuple, np.ndarray)):
+            raise SceneError(f"snapshots.times must be a list of seconds, got {times!r}")
+        out = tuple(_finite("snapshots.times", t, low=0.0, strict=True) for t in times)
+        dt, end = self.lf.dt, self.duration
+        steps = _steps(end, dt) if math.isfinite(end / dt) else math.inf
+        names: dict[str, float] = {}
+        for t in out:
+            if _snapshot_step(t, dt) >= steps:
+                raise SceneError(
+                    f"snapshots.times = {t:g} s lies past the end of the schedule ({steps * dt:.6g} s, {steps} LF "
+                    f"steps of {dt:g} s): the snapshot would never be taken; give times within the schedule"
+                )
+            name = snapshot_name(t)
+            if name in names and names[name] == t:
+                raise SceneError(f"snapshots.times lists {t:g} s twice; give each time once")
+            if name in names:
+                raise SceneError(
+                    f"snapshots.times {names[name]!r} s and {t!r} s both name the snapshot {name}; make them differ "
+                    "within 6 significant digits"
+                )
+            names[name] = t
+        return out
 
     def _check_plausible(self) -> None:
         """Refuse values far outside a brake pad's range (likely unit mistakes; docs/scenes.md)."""
@@ -241,11 +307,12 @@ class LFScene:
             for i in (int(np.argmax(p.area)), int(np.argmin(p.area))):
                 plausible.check(f"patch area (patch {i})", p.area[i], "area")
             plausible.check("patch height", float(np.max(p.height)), "height")
-        plausible.check("lf.dt", self.lf.dt, "lf_step")
+        plausible.check("material.matrix_stiffness", self.material.matrix_stiffness, "winkler")
+        for key, kind in LF_KINDS.items():
+            plausible.check(f"lf.{key}", getattr(self.lf, key), kind)
         for i, s in enumerate(self.schedule):
-            plausible.check(f"schedule[{i}].normal_force", s.normal_force, "force")
-            plausible.check(f"schedule[{i}].sliding_speed", s.sliding_speed, "speed")
-            plausible.check(f"schedule[{i}].duration", s.duration, "lf_duration")
+            for key, kind in SEGMENT_KINDS.items():
+                plausible.check(f"schedule[{i}].{key}", getattr(s, key), kind)
 
     @property
     def duration(self) -> float:
@@ -255,6 +322,26 @@ class LFScene:
     def replace(self, **changes: Any) -> LFScene:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
+
+    def with_seed(self, seed: int) -> LFScene:
+        """A copy whose LF random numbers come from ``seed`` (``aca-warp lf --seed``), an integer from 0 to
+        2^64 − 1; the initial patches are kept."""
+        return self.replace(lf=dataclasses.replace(self.lf, seed=check_seed(seed, option("seed", "--seed"))))
+
+
+def _steps(total: float, dt: float) -> int:
+    """LF steps of a run of ``total`` [s] (at least one)."""
+    return max(int(round(total / dt)), 1)
+
+
+def _snapshot_step(t: float, dt: float) -> int:
+    """Index of the step after which the snapshot at ``t`` [s] is taken: the first step that ends at or after it."""
+    return int(math.ceil(t / dt - 1e-9)) - 1
+
+
+def snapshot_name(t: float) -> str:
+    """The name of the snapshot at time ``t`` [s] of ``[snapshots] times`` in the run file: ``t<T>s``."""
+    return f"t{t:g}s"
 
 
 def check_grid(pad: Pad, lf: LFConstants) -> None:
@@ -302,7 +389,7 @@ def step_table(scene: LFScene, duration: float | None = None) -> StepTable:
         raise SceneError(f"duration must be a positive number of seconds, got {total}")
     if not total / dt <= MAX_STEPS:
         raise SceneError(f"{total:g} s of {dt:g} s LF steps is more than {MAX_STEPS} steps; shorten the run")
-    n = max(int(round(total / dt)), 1)
+    n = _steps(total, dt)
     t_mid = (np.arange(n) + 0.5) * dt
     load = np.zeros(n)
     omega = np.zeros(n)
@@ -328,9 +415,9 @@ def step_table(scene: LFScene, duration: float | None = None) -> StepTable:
                     snaps.append((f"app{k}_end", s_end))
         t0 += seg.duration
     for t in scene.snapshot_times:
-        s = int(math.ceil(t / dt - 1e-9)) - 1
-        if 0 <= s < n:
-            snaps.append((f"t{t:g}s", max(s, 0)))
+        s = _snapshot_step(t, dt)
+        if 0 <= s < n:  # a shorter run (duration) leaves out the later ones
+            snaps.append((snapshot_name(t), s))
     snaps.sort(key=lambda p: p[1])
     return StepTable(load, omega, app, tuple(snaps))
 
@@ -369,7 +456,7 @@ def lf_scene_from_dict(doc: dict, *, name: str = "lf", allow_implausible: bool =
         if not allow:  # before the pad's own checks (r_inner = 100 is a unit mistake before an ordering one)
             check_numbers_plausible(t["pad"], "pad", {"r_inner": "length", "r_outer": "length"})
             check_numbers_plausible(t["patches"], "patches", GENERATOR_KINDS)
-            check_numbers_plausible(t["lf"], "lf", {"dt": "lf_step"})
+            check_numbers_plausible(t["lf"], "lf", LF_KINDS)
         pad = Pad(**t["pad"])
         lf = LFConstants(**t["lf"])
         check_grid(pad, lf)
@@ -377,7 +464,7 @@ def lf_scene_from_dict(doc: dict, *, name: str = "lf", allow_implausible: bool =
         if not isinstance(sched, list):
             raise SceneError("[[schedule]] must be an array of tables")
         segs = []
-        for s in sched:
+        for i, s in enumerate(sched):
             if not isinstance(s, dict):
                 raise SceneError("each [[schedule]] entry must be a table")
             bad = sorted(set(s) - set(_SEGMENT_KEYS))
@@ -386,6 +473,8 @@ def lf_scene_from_dict(doc: dict, *, name: str = "lf", allow_implausible: bool =
                     f"unknown key(s) {', '.join(bad)} in [[schedule]]; allowed: {', '.join(_SEGMENT_KEYS)}"
                 )
             s = dict(s)
+            if not allow:  # before the segment's own checks (a ramp in ms is a unit mistake before an ordering one)
+                check_numbers_plausible(s, f"schedule[{i}]", SEGMENT_KINDS)
             if "pressure_bar" in s:
                 if "normal_force" in s:
                     raise SceneError("[[schedule]] takes normal_force or pressure_bar, not both")
@@ -401,6 +490,9 @@ def lf_scene_from_dict(doc: dict, *, name: str = "lf", allow_implausible: bool =
         times = sn.get("times", [])
         if not isinstance(times, list):
             raise SceneError("snapshots.times must be a list of seconds")
+        applications = sn.get("applications", True)
+        if not isinstance(applications, bool):
+            raise SceneError(f"snapshots.applications must be true or false, got {applications!r}")
         return LFScene(
             name=str(t["scene"].get("name", name)),
             pad=pad,
@@ -409,8 +501,8 @@ def lf_scene_from_dict(doc: dict, *, name: str = "lf", allow_implausible: bool =
             lf=lf,
             schedule=tuple(segs),
             patches=patches,
-            snapshot_applications=bool(sn.get("applications", True)),
-            snapshot_times=tuple(_finite("snapshots.times", x, low=0.0) for x in times),
+            snapshot_applications=applications,
+            snapshot_times=tuple(times),
             origin=doc,
             allow_implausible=allow,
         )

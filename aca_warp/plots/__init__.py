@@ -33,7 +33,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from aca_warp.analysis.report import has_patch_velocity, stored
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import SceneError, option
 from aca_warp.common.links import LinkError
 from aca_warp.plots import lf as plots_lf
 from aca_warp.plots.hf import (
@@ -130,7 +130,8 @@ def plot_run(
     if plots_lf.is_lf_file(path):
         if times is not None:
             raise SceneError(
-                f"{Path(path).name} is an LF run file: choose its patch-map panels with snapshots, not times"
+                f"{Path(path).name} is an LF run file: choose its patch-map panels with "
+                f"{option('snapshots=[…]', '--snapshots')}, not {option('times=[…]', '--times')}"
             )
         return plots_lf.plot_lf_run(
             path, outdir, which=which, quantity=quantity or "temperature", snapshots=snapshots, log=log

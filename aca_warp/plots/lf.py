@@ -444,7 +444,8 @@ def plot_lf_run(
 
     Without ``which``, the patch map of a file without snapshots is skipped with a message to ``log``; a figure
     named in ``which`` that cannot be made, an unknown name, quantity or snapshot raise :class:`SceneError`
-    before anything is written.
+    before anything is written; a file that fails to read while the figures are drawn (a damaged group) raises
+    its error after the figures this call wrote are removed again (all or nothing).
     """
     names = list(LF_FIGURES if which is None else dict.fromkeys(which))
     unknown = [n for n in names if n not in LF_FIGURES]
@@ -468,10 +469,15 @@ def plot_lf_run(
         "lf_patch_map": lambda: plot_lf_patch_map(path, outdir, quantity=quantity, snapshots=snapshots),
     }
     files: list[Path] = []
-    for name in names:
-        if name == "lf_patch_map" and not maps:
-            if log:
-                log(f"skipped lf_patch_map: {reason}")
-            continue
-        files += makers[name]()
+    try:
+        for name in names:
+            if name == "lf_patch_map" and not maps:
+                if log:
+                    log(f"skipped lf_patch_map: {reason}")
+                continue
+            files += makers[name]()
+    except BaseException:
+        for f in files:
+            f.unlink(missing_ok=True)
+        raise
     return files

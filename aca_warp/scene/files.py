@@ -178,10 +178,21 @@ def scene_from_dict(
         raise SceneError(f"invalid scene value: {e}") from None
 
 
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"  # the first bytes of an HDF5 file (a run file, a patch file)
+
+
 def read_scene_toml(p: Path, what: str) -> dict:
     """The TOML document of the scene file ``p`` (a ``what`` such as "LF scene file") as
-    :func:`~aca_warp.common.bounds.read_toml` reads it; one SceneError line when it cannot be read."""
+    :func:`~aca_warp.common.bounds.read_toml` reads it; one SceneError line when it cannot be read, or when it is an
+    HDF5 file (a run file given where a scene is asked for: the line says what takes one)."""
     try:
+        with open(p, "rb") as f:
+            if f.read(len(HDF5_SIGNATURE)) == HDF5_SIGNATURE:
+                raise SceneError(
+                    f"{p} is an HDF5 file, not a TOML {what}: a run file is repeated with 'aca-warp rerun {p} -o "
+                    f"NEW.h5' and continued with --resume; an LF run's snapshot runs as HF with 'aca-warp hf {p} "
+                    "--snapshot NAME -o RUN.h5'"
+                )
         return read_toml(p, what)
     except OSError as e:
         raise SceneError(f"cannot read {what} {p}: {e.strerror}") from None
@@ -196,6 +207,11 @@ def load_scene(spec: str | Path, *, allow_implausible: bool = False) -> Scene:
     p = Path(s)
     if p.is_dir():
         raise SceneError(f"scene {s!r} is a folder; give a preset ({', '.join(PRESETS)}) or a TOML scene file")
+    if not p.is_file() and "lf" in _packaged(s):
+        raise SceneError(
+            f"{s!r} is an LF scene: run it with 'aca-warp lf {s} -o LF.h5', then HF on one of its snapshots with "
+            "'aca-warp hf LF.h5 --snapshot app1_start -o RUN.h5'"
+        )
     if not p.is_file():
         raise SceneError(
             f"scene {s!r} is neither a preset ({', '.join(PRESETS)}) nor an existing TOML file"
@@ -207,6 +223,8 @@ def load_scene(spec: str | Path, *, allow_implausible: bool = False) -> Scene:
             f"scene file {p} is empty (no table, no key): it would silently run the defaults; start from a preset "
             "file (aca_warp/data/hf1.toml, docs/scenes.md) or name the preset (hf1)"
         )
+    if "lf" in doc:
+        raise SceneError(f"{p} is an LF scene file (it has an [lf] table): run it with 'aca-warp lf {p} -o LF.h5'")
     return scene_from_dict(doc, base_dir=p.parent, name=p.stem, allow_implausible=allow_implausible)
 
 
@@ -215,6 +233,14 @@ def preset(name: str) -> Scene:
     if name not in PRESETS:
         raise SceneError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
     return scene_from_dict(preset_document(name), name=name)
+
+
+def _packaged(name: str) -> dict:
+    """The packaged scene file ``aca_warp/data/<name>.toml`` of any kind (HF or LF), or {} where there is none."""
+    if not name.isidentifier():
+        return {}
+    path = resources.files("aca_warp.data").joinpath(f"{name}.toml")
+    return tomllib.loads(path.read_text()) if path.is_file() else {}
 
 
 def preset_document(name: str) -> dict:
