@@ -43,13 +43,6 @@ def run_lf(
 
     check_output_path(output, overwrite=overwrite)
     check_interval(checkpoint_interval)
-    if duration is not None and duration > scene.duration * (1 + 1e-9):
-        print(
-            f"aca-warp: note: the run's {duration:g} s go {duration - scene.duration:.4g} s past the end of the "
-            f"scene's schedule ({scene.duration:g} s): the pad then stands unloaded, the disc at rest (it only cools)",
-            file=sys.stderr,
-            flush=True,
-        )
     lock = OutputLock.acquire(output, what=busy())  # held from here until the file has its final name
     try:
         check_output_path(output, overwrite=overwrite)
@@ -57,9 +50,35 @@ def run_lf(
     except BaseException:
         lock.release()
         raise
+    notes = _duration_notes(scene, duration, sim.table.steps)  # once the duration is known to be runnable
+    if checkpoint_interval is not None and 0 < checkpoint_interval < scene.lf.dt:
+        notes.append(
+            f"a checkpoint interval of {checkpoint_interval:g} s is shorter than an LF step ({scene.lf.dt:g} s): a "
+            "checkpoint follows every step, which makes the run many times slower (the automatic interval, the "
+            "default, costs at most 2 %)"
+        )
+    for note in notes:
+        print(f"aca-warp: note: {note}", file=sys.stderr, flush=True)
     run = {"duration": duration, "checkpoint_interval": checkpoint_interval, "graph": graph}
     writer = LFRunWriter(output, sim, overwrite=overwrite, run=run, lock=lock)
     return _execute(sim, writer, progress=progress, checkpoint_interval=checkpoint_interval)
+
+
+def _duration_notes(scene: Any, duration: float | None, steps: int) -> list[str]:
+    """What a ``duration`` [s] asked of the LF scene ``scene`` does that the user may not expect, in words: a run past
+    the schedule's end, a duration that whole LF steps (``steps`` of them) round up."""
+    if duration is None:
+        return []
+    notes = []
+    if duration > scene.duration * (1 + 1e-9):
+        notes.append(
+            f"the run's {duration:g} s go {duration - scene.duration:.4g} s past the end of the scene's schedule "
+            f"({scene.duration:g} s): the pad then stands unloaded, the disc at rest (it only cools)"
+        )
+    ran = steps * scene.lf.dt
+    if abs(ran - duration) > 1e-9 * ran:
+        notes.append(f"{duration:g} s is run as {steps} whole LF steps of {scene.lf.dt:g} s: {ran:.6g} s")
+    return notes
 
 
 def _execute(sim: Any, writer: Any, *, progress: bool, checkpoint_interval: float | None) -> Any:
