@@ -66,7 +66,7 @@ def run_lf(
 
 def _duration_notes(scene: Any, duration: float | None, steps: int) -> list[str]:
     """What a ``duration`` [s] asked of the LF scene ``scene`` does that the user may not expect, in words: a run past
-    the schedule's end, a duration that whole LF steps (``steps`` of them) round up."""
+    the schedule's end, a duration that whole LF steps (``steps`` of them) round."""
     if duration is None:
         return []
     notes = []
