@@ -39,7 +39,6 @@ data-sheet peak of known devices (``PEAK_TABLE``: H100, H200, A100), else the dr
 from __future__ import annotations
 
 import argparse
-import contextlib
 import ctypes
 import itertools
 import json
@@ -606,12 +605,13 @@ def add_parsers(sub: Any) -> None:
 EXAMPLE_NAMES = {"--json": "bench.json", "--markdown": "bench.md"}  # file names the refusals suggest
 
 
-def check_outputs(outputs: dict[str, str | None], overwrite: bool) -> dict[str, Path]:
+def check_outputs(outputs: dict[str, str | None], overwrite: bool, scene: str | None = None) -> dict[str, Path]:
     """The output files of a bench, by option (``--json``, ``--markdown``; None: not asked for), checked before
-    anything is measured: SceneError (exit 2) for an empty name, a name of a folder, two options naming one file, an
-    existing file without ``overwrite``, a missing folder; StorageError (exit 4) for a folder that takes no new file
-    (:func:`~aca_warp.common.files.check_output_path`, as ``aca-warp hf`` checks its run file)."""
-    from aca_warp.common.files import check_output_path
+    anything is measured: SceneError (exit 2) for an empty name, a name of a folder, two options naming one file, the
+    ``scene`` file itself, an existing file without ``overwrite``, a missing folder; StorageError (exit 4) for a
+    folder that takes no new file (:func:`~aca_warp.common.files.check_output_path`, as ``aca-warp hf`` checks its
+    run file)."""
+    from aca_warp.common.files import check_not_input, check_output_path
 
     given = {flag: path for flag, path in outputs.items() if path is not None}
     for flag, text in given.items():
@@ -628,29 +628,23 @@ def check_outputs(outputs: dict[str, str | None], overwrite: bool) -> dict[str, 
             a, b = Path(given[other]), Path(given[flag])
             if os.path.realpath(a) == os.path.realpath(b) or (a.exists() and b.exists() and os.path.samefile(a, b)):
                 raise SceneError(f"{other} and {flag} name the same file {given[flag]}; give each its own file")
+    for text in given.values():
+        check_not_input(text, {"scene file": scene}, "bench")
     return {flag: check_output_path(text, overwrite=overwrite) for flag, text in given.items()}
 
 
 def write_outputs(texts: dict[Path, str]) -> None:
-    """Write each text to its file whole: every text first into a new temporary file beside its target (hidden,
-    created exclusively and never through a link, :func:`~aca_warp.common.links.create_new`), then each renamed
-    onto its target, so that a failure leaves no half-written file. A file that cannot be written: StorageError
-    (exit 4), one line naming it, the cause and what was written."""
-    from aca_warp.common.files import UNWRITABLE
-    from aca_warp.common.links import create_new
+    """Write each text to its file whole, one after the other (:func:`~aca_warp.common.files.whole`: a temporary
+    file beside it, then renamed), so that a failure leaves no half-written file. A file that cannot be written:
+    StorageError (exit 4), one line naming it, the cause and what was written."""
+    from aca_warp.common.files import UNWRITABLE, whole
 
-    temps: dict[Path, Path] = {}
     done: list[Path] = []
     path = next(iter(texts), Path("."))
     try:
         for path, text in texts.items():
-            tmp = path.with_name(f".{path.stem}.partial{path.suffix}")
-            fd = create_new(tmp, "temporary file")
-            temps[path] = tmp
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(text)
-        for path, tmp in temps.items():
-            os.replace(tmp, path)
+            with whole(path) as fh:
+                fh.write(text.encode("utf-8"))
             done.append(path)
     except OSError as e:
         why = UNWRITABLE.get(e.errno or 0) or e.strerror or type(e).__name__
@@ -661,14 +655,10 @@ def write_outputs(texts: dict[Path, str]) -> None:
         )
         err.errno = e.errno  # type: ignore[attr-defined]
         raise err from None
-    finally:
-        for tmp in temps.values():
-            with contextlib.suppress(OSError):  # on a read-only file system even a missing file's unlink fails
-                tmp.unlink(missing_ok=True)
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    outputs = check_outputs({"--json": args.json, "--markdown": args.markdown}, args.overwrite)
+    outputs = check_outputs({"--json": args.json, "--markdown": args.markdown}, args.overwrite, args.scene)
     out = run_bench(
         device=args.device,
         scene=args.scene,

@@ -168,11 +168,11 @@ def _left(args: argparse.Namespace) -> str:
 
 def _run_file_state(path: Path) -> str:
     """'RUN.h5 keeps …' for an interrupted run: where its samples end and how to continue it."""
-    from aca_warp.common.files import partial_path, recovery
+    from aca_warp.common.files import is_complete, partial_path, recovery
 
     final = path.with_name(path.name.removesuffix(".partial"))
     part = partial_path(final)
-    if part.exists() and final.exists():  # a run that was to replace an earlier file (--overwrite)
+    if part.exists() and final.exists() and is_complete(final):  # a run kept beside the file it replaces
         kept = f"{final}, the earlier file it was to replace, is unchanged"
         return f"{part} keeps the interrupted run and {kept}: {recovery(final)}"
     if part.exists():  # interrupted before the file was closed (or a killed run's file)

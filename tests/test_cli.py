@@ -359,14 +359,17 @@ def test_a_file_of_the_other_kind_says_which_command_takes_it(tmp_path, capsys):
         f.attrs["kind"] = "lf"
     lf_toml = tmp_path / "lf.toml"
     lf_toml.write_text("[lf]\ndt = 0.01\n")
+    sched = tmp_path / "sched.toml"  # an LF scene of the defaults but its schedule
+    sched.write_text('[[schedule]]\nkind = "application"\nduration = 1.0\nnormal_force = 400.0\nsliding_speed = 10.0\n')
     out = str(tmp_path / "x.h5")
     for argv, said in (
         (["lf", str(h5), "-o", out], f"{h5} is an HDF5 file, not a TOML LF scene file"),
         (["bench", "--scene", str(h5), "--device", "cpu"], "is an HDF5 file, not a TOML scene file"),
         (
             ["hf", str(lf_toml), "-o", out],
-            f"{lf_toml} is an LF scene file (it has an [lf] table): run it with 'aca-warp lf",
+            f"{lf_toml} is an LF scene file (it has [lf]): run it with 'aca-warp lf",
         ),
+        (["hf", str(sched), "-o", out], f"{sched} is an LF scene file (it has [schedule]): run it with 'aca-warp lf"),
         (
             ["bench", "--scene", "multiscale", "--device", "cpu"],
             "'multiscale' is an LF scene: run it with 'aca-warp lf",

@@ -33,7 +33,8 @@ from test_lf_checkpoint import lf_scene
 
 from aca_warp.cli import main
 from aca_warp.common.errors import SceneError
-from aca_warp.scene import load_scene, scene_from_dict
+from aca_warp.common.files import REPLACES
+from aca_warp.scene import load_scene, scene_from_dict, write_patch_file
 
 SMALL = small_scene_toml(patches=("velocity",))
 
@@ -130,10 +131,24 @@ def test_an_output_that_is_an_input_is_refused(tmp_path, capsys, runs) -> None:
     assert f"hf writes a new file; {scene} is its scene file" in one_line(capsys)[0]
     run = tmp_path / "run.h5"
     shutil.copy(runs["run"], run)
-    (tmp_path / "link.h5").symlink_to(run)
-    assert main(["rerun", str(tmp_path / "link.h5"), "-o", str(run), "--overwrite", "--no-progress"]) == 2
+    os.link(run, tmp_path / "hard.h5")  # another name of the same file
+    assert main(["rerun", str(tmp_path / "hard.h5"), "-o", str(run), "--overwrite", "--no-progress"]) == 2
     assert f"rerun writes a new file; {run} is its run file" in one_line(capsys)[0]
-    assert scene.read_bytes() == before
+    os.replace(run, tmp_path / "run.h5.partial")  # the output's .partial is the input: --overwrite would remove it
+    assert main(["rerun", str(tmp_path / "run.h5.partial"), "-o", str(run), "--overwrite", "--no-progress"]) == 2
+    assert f"rerun writes a new file; {tmp_path / 'run.h5.partial'} is its run file" in one_line(capsys)[0]
+    lf = tmp_path / "lf.h5"
+    with h5py.File(lf, "w") as f:
+        f.attrs["kind"] = "lf"
+    assert main(["hf", str(lf), "--snapshot", "app1_start", "-o", str(lf), "--overwrite", "--no-progress"]) == 2
+    assert f"hf writes a new file; {lf} is its LF run file" in one_line(capsys)[0]
+    patches = tmp_path / "p.h5"
+    write_patch_file(patches, load_scene("hf1").patches)
+    with_file = tmp_path / "with_file.toml"
+    with_file.write_text('[scene]\nname = "f"\n[patches]\nfile = "p.h5"\n')
+    assert main(["hf", str(with_file), "-o", str(patches), "--overwrite", "--no-progress"]) == 2
+    assert f"hf writes a new file; {patches} is its patch file" in one_line(capsys)[0]
+    assert scene.read_bytes() == before and (tmp_path / "run.h5.partial").exists() and patches.exists()
 
 
 @pytest.mark.parametrize(
@@ -387,14 +402,50 @@ def test_an_interrupted_overwrite_keeps_the_earlier_file(tmp_path: Path, referen
     assert f"aca-warp {kind} --resume {out}" in lines[0]
     assert out.read_bytes() == before and part.exists() and not (tmp_path / "run.h5.lock").exists()
     with h5py.File(part, "r") as f:
-        assert not f.attrs["complete"] and str(f.attrs["status"]).startswith("interrupted")
+        assert not f.attrs["complete"] and str(f.attrs["status"]).startswith("interrupted") and f.attrs[REPLACES]
     assert main([kind, "--resume", str(out), "--no-progress"]) == 0
     assert not part.exists()
     assert_same_datasets(out, ref)
+    with h5py.File(out, "r") as f:
+        assert REPLACES not in f.attrs
     if kind == "lf":  # its rate counts the steps this process ran, not those before the checkpoint
         with h5py.File(out, "r") as f:
             ran = f.attrs["steps_per_second"] * f.attrs["wall_time"]
             assert 0 < ran < int(f.attrs["steps"]) - 0.5
+
+
+def test_an_interrupted_overwrite_of_an_incomplete_file_replaces_it(tmp_path: Path, references) -> None:
+    """The earlier file, itself incomplete, is not kept: the interrupted run takes its name, as any interrupted run,
+    and --resume continues it."""
+    out, part = tmp_path / "run.h5", tmp_path / "run.h5.partial"
+    shutil.copy(references["lf"], out)
+    with h5py.File(out, "a") as f:
+        f.attrs["complete"] = False
+    args = ["hf", str(references["hf_scene"]), *HF_DT, "-o", str(out), "--checkpoint-interval", "5e-5"]
+    code, lines = interrupt_when(
+        start([*args, "--no-progress", "--overwrite"]), lambda: part.exists() and has_checkpoint(part), signal.SIGINT
+    )
+    assert_interrupted(code, lines, signal.SIGINT)
+    assert "marked incomplete" in lines[0] and not part.exists()
+    assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
+    assert_same_datasets(out, references["hf"])
+
+
+def test_a_partial_beside_a_complete_file_is_resumed_only_when_it_was_kept_there(tmp_path: Path, references) -> None:
+    """A .partial beside a complete NAME that no interrupted --overwrite left (a killed run's, say): --resume NAME
+    refuses both (move one away), so that an old .partial never replaces a good file unasked."""
+    from aca_warp.common.files import find_resumable
+
+    out, part = tmp_path / "run.h5", tmp_path / "run.h5.partial"
+    shutil.copy(references["hf"], out)
+    shutil.copy(references["hf"], part)
+    with h5py.File(part, "a") as f:
+        f.attrs["complete"] = False
+    with pytest.raises(SceneError, match="both .* exist; move the one you do not want to resume away"):
+        find_resumable(out)
+    with h5py.File(part, "a") as f:
+        f.attrs[REPLACES] = True
+    assert find_resumable(out) == (out, part)
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])

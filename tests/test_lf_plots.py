@@ -83,20 +83,26 @@ def test_plot_writes_every_lf_figure(lf_run, tmp_path):
     assert notes == []
 
 
-def test_a_damaged_lf_file_leaves_no_figure(lf_run, tmp_path, capsys):
-    """A snapshot group damaged after the global series: one line, exit 2, and the figures drawn before the failure
-    removed (all or nothing); --times on an LF file names --snapshots."""
+def test_a_damaged_lf_file_skips_or_refuses_the_figure_it_breaks(lf_run, tmp_path, capsys):
+    """A snapshot group damaged after the global series: the figure that reads it is skipped with a note naming the
+    file (exit 0, the others drawn), or, named with --only, refused in one line (exit 2) with the figures of the
+    call removed again (all or nothing), as for HF run files; --times on an LF file names --snapshots."""
     import shutil
 
     damaged = tmp_path / "damaged.h5"
     shutil.copy(lf_run, damaged)
     with h5py.File(damaged, "a") as f:
-        first = next(iter(f["snapshots"]))
-        del f[f"snapshots/{first}/matrix"]
+        for name in f["snapshots"]:
+            del f[f"snapshots/{name}/matrix"]
     out = tmp_path / "fig"
-    assert _cli(["plot", str(damaged), "-o", str(out)]) == 2
+    assert _cli(["plot", str(damaged), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "skipped lf_population: cannot read run file" in err and "damaged or incomplete" in err
+    assert (out / "damaged_lf_global.png").exists() and not (out / "damaged_lf_population.png").exists()
+    out2 = tmp_path / "fig2"
+    assert _cli(["plot", str(damaged), "-o", str(out2), "--only", "lf_global", "lf_population"]) == 2
     assert "damaged or incomplete" in capsys.readouterr().out
-    assert not out.exists() or not list(out.iterdir())
+    assert not out2.exists() or not list(out2.iterdir())
     assert _cli(["plot", str(lf_run), "-o", str(out), "--times", "0.1"]) == 2
     assert "panels with snapshots=[…], not times=[…]" in capsys.readouterr().out  # the Python API's names here
 

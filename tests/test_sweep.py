@@ -507,6 +507,19 @@ def test_a_patch_file_rewritten_while_the_sweep_runs_fails_the_shards_made_over_
     assert "ran over other patches than the sweep began with" in r.failed[1]
     states = [s["state"] for s in json.loads((out / "manifest.json").read_text())["shards"]]
     assert states == ["done", "failed"]
+    assert not (out / "shard-00001.h5").exists()  # not the sweep's data: removed, nothing to take a pad out of
     write_patch_file(tmp_path / "p.h5", src)
     r = run_sweep(load_spec(doc, base_dir=tmp_path), out, workers=0, prepare=0)
     assert r.ran == [1] and not r.failed
+
+
+def test_the_patch_digest_comes_with_shards_a_preparation_pool_made(tmp_path: Path) -> None:
+    """A shard prepared in a pool process (its spec resolved there) records the same digest as the manifest."""
+    src = PatchGenerator(count=20, seed=3).generate(preset("hf1").pad)
+    doc, out = _file_sweep(tmp_path, src)
+    spec = load_spec(doc, base_dir=tmp_path)
+    assert not run_sweep(spec, out, workers=0, prepare=1).failed
+    assert json.loads((out / "manifest.json").read_text())["patch_data"] == spec.patch_data
+    for i in (0, 1):
+        with h5py.File(out / f"shard-0000{i}.h5", "r") as f:
+            assert f.attrs["patch_data"] == spec.patch_data

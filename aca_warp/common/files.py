@@ -16,7 +16,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import h5py
 import numpy as np
@@ -512,20 +512,38 @@ def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
     return p
 
 
+@contextmanager
+def whole(path: Path, what: str = "temporary file") -> Iterator[BinaryIO]:
+    """Yield a file open for writing under a temporary name next to ``path`` (hidden, same suffix; its ``name`` is
+    that path) and move it to ``path`` when the body ends; on any failure or interrupt the temporary file is
+    removed. A file written so (a figure, a benchmark's results) is never half written. The temporary file is created
+    exclusively and never through a link (:func:`~aca_warp.common.links.create_new`: a link planted there is
+    refused, naming it ``what``) and written through this descriptor only, so nothing another user plants in the
+    folder is followed."""
+    from aca_warp.common.links import create_new  # looked up per call (tests put a failing one in its place)
+
+    tmp = path.with_name(f".{path.stem}.partial{path.suffix}")
+    fh = open(tmp, "wb", opener=lambda name, flags: create_new(Path(name), what))  # noqa: SIM115
+    try:
+        with fh:
+            yield fh
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def check_not_input(output: str | Path, inputs: dict[str, str | Path | None], command: str) -> None:
-    """Refuse an ``output`` that is one of the files ``command`` reads (``inputs``: what each is, e.g. "run file",
-    → its path; None: none), however either is spelled (a link, ``./``, a relative path): ``--overwrite`` would
-    otherwise replace the input with the output."""
-    out = Path(output)
+    """Refuse an ``output`` that is, or whose ``.partial`` is, one of the files ``command`` reads (``inputs``: what
+    each is, e.g. "run file", → its path; None: none), however either is spelled (a link, ``./``, a relative path, a
+    hard link): ``--overwrite`` would otherwise replace the input with the output. Checked before
+    :func:`check_output_path`, so that a refusal never first suggests ``--overwrite``."""
+    out = check_output_name(output)
     for what, src in inputs.items():
         if src is None or not Path(src).is_file():
             continue
-        try:
-            same = os.path.samefile(out, src)
-        except OSError:  # the output does not exist yet
-            same = out.resolve() == Path(src).resolve()
-        if same:
-            raise SceneError(f"{command} writes a new file; {out} is its {what}: give another output")
+        for name in (out, partial_path(out)):
+            if name.exists() and os.path.samefile(name, src):
+                raise SceneError(f"{command} writes a new file; {name} is its {what}: give another output")
 
 
 def open_h5(path: str | Path, what: str, *, mode: str = "r", text: tuple[str, ...] = ()) -> h5py.File:
@@ -565,9 +583,10 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     """(run file, its ``.partial``) of the run ``path`` names: ``NAME``, ``NAME.partial`` or a stopped ``NAME``.
 
     A killed run left ``NAME.partial``; a run stopped by Ctrl-C or a fault was moved to ``NAME`` (incomplete)
-    and keeps its checkpoint, if it had one (without, it is resumed from its start). A run that was to replace a
-    complete ``NAME`` (``--overwrite``) and was killed or interrupted stays ``NAME.partial`` beside it: that is the one
-    resumed, and it replaces ``NAME`` when it completes. Raises SceneError when there is nothing to resume.
+    and keeps its checkpoint, if it had one (without, it is resumed from its start). A run interrupted while it was
+    to replace a complete ``NAME`` (``--overwrite``) stays ``NAME.partial`` beside it, marked :data:`REPLACES`: that
+    one is resumed, and replaces ``NAME`` when it completes; any other ``.partial`` beside an existing ``NAME`` is
+    refused (move one away). Raises SceneError when there is nothing to resume.
     """
     text = os.fspath(path)
     if not text or text.endswith(("/", os.sep)) or Path(text).name in ("", ".", ".."):
@@ -579,31 +598,48 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
         final, part = p, partial_path(p)
     if not part.exists() and not final.exists():
         raise SceneError(f"nothing to resume: neither {final} nor {part} exists")
-    complete = final.exists() and _complete(final)
     if part.exists():
-        if final.exists() and not complete:
+        if final.exists() and not (is_complete(final) and _replaces(part)):
             raise SceneError(f"both {final} and {part} exist; move the one you do not want to resume away")
         return final, part
+    try:
+        with open_h5(final, "run file") as f:
+            complete = bool(f.attrs.get("complete", False))
+    except AcaError:
+        raise
+    except (OSError, RuntimeError, KeyError, ValueError) as e:
+        raise SceneError(f"cannot read run file {final}: {e}") from None
     if complete:
         raise SceneError(f"{final} is a complete run; nothing to resume")
     return final, part
 
 
-def _complete(path: Path) -> bool:
-    """Whether the run file ``path`` says it is complete; SceneError where it cannot be read."""
+REPLACES = "replaces_complete_run"  # the mark of a run interrupted while it was to replace a complete NAME
+
+
+def is_complete(path: str | Path) -> bool:
+    """Whether ``path`` is a readable run file that says it is complete (False for anything else)."""
     try:
         with open_h5(path, "run file") as f:
             return bool(f.attrs.get("complete", False))
-    except AcaError:
-        raise
-    except (OSError, RuntimeError, KeyError, ValueError) as e:
-        raise SceneError(f"cannot read run file {path}: {e}") from None
+    except _UNREADABLE:
+        return False
+
+
+def _replaces(partial: Path) -> bool:
+    """Whether ``partial`` is a run interrupted while it was to replace a complete run file (:data:`REPLACES`)."""
+    try:
+        with open_h5(partial, "run file") as f:
+            return bool(f.attrs.get(REPLACES, False))
+    except _UNREADABLE:
+        return False
 
 
 def lock_resumable(path: str | Path) -> tuple[Path, Path, Path, OutputLock]:
-    """:func:`find_resumable` under the output lock of the run: (run file, its ``.partial``, the one of them that
-    exists, the lock). The lock also owns that file's identity (:meth:`OutputLock.own`), so a run that another
-    process writes under another name (a link, a hard link, a moved file) is refused too."""
+    """:func:`find_resumable` under the output lock of the run: (run file, its ``.partial``, the one to resume: the
+    ``.partial`` where it exists, else the run file; the lock). The lock also owns that file's identity
+    (:meth:`OutputLock.own`), so a run that another process writes under another name (a link, a hard link, a moved
+    file) is refused too."""
     final, part = find_resumable(path)
     what = "it cannot be resumed while it runs"
     lock = OutputLock.acquire(final, what=what)

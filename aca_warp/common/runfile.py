@@ -6,8 +6,10 @@ looks at ``NAME`` until the file has its final name, so a second run, an ``--ove
 same name is refused while it runs. The file is created as ``NAME.partial.new``, its header written and flushed,
 and only then renamed to ``NAME.partial``: a ``.partial`` is a readable HDF5 file from the moment it exists. When
 the run ends, completed or not, the file is closed and renamed to ``NAME`` (then ``complete = False`` and
-``status`` says why): the final name never holds a file that is half written. A killed process leaves only the
-``.partial`` behind, which :func:`reopen_resumable` hands to the writer's ``reopen`` to continue it. On a full
+``status`` says why): the final name never holds a file that is half written. A run interrupted while it was to
+replace a complete ``NAME`` (``--overwrite``) stays ``.partial``, marked (:data:`~aca_warp.common.files.REPLACES`),
+and the earlier file stays until the run completes. A killed process leaves only the ``.partial`` behind, which
+:func:`reopen_resumable` hands to the writer's ``reopen`` to continue it. On a full
 device the file is abandoned as it was at its last flush (:mod:`aca_warp.common.storage`).
 """
 
@@ -27,7 +29,17 @@ import numpy as np
 from aca_warp.common import interrupts
 from aca_warp.common.checkpoint import Checkpoint, checkpoint_room, has_checkpoint, read_checkpoint, write_checkpoint
 from aca_warp.common.errors import AcaError, SceneError, option
-from aca_warp.common.files import OutputLock, create_h5, from_h5py, lock_resumable, new_path, partial_path, recovery
+from aca_warp.common.files import (
+    REPLACES,
+    OutputLock,
+    create_h5,
+    from_h5py,
+    is_complete,
+    lock_resumable,
+    new_path,
+    partial_path,
+    recovery,
+)
 from aca_warp.common.storage import GuardedFile, storage_errno, storage_error, write_failed
 
 P = TypeVar("P")
@@ -160,6 +172,8 @@ class RunFileWriter(ABC):
         StorageError)."""
         try:
             self._write_closing(complete, status, attrs or {})
+            if rename and REPLACES in self.f.attrs:  # it replaces NAME now: no more a run kept beside it
+                del self.f.attrs[REPLACES]
             self.out.close()
             if not rename:
                 self.lock.release()
@@ -185,11 +199,11 @@ class RunFileWriter(ABC):
         :class:`~aca_warp.common.errors.StorageError`), or None to raise ``error`` itself."""
         code = storage_errno(error)
         if code is None and not from_h5py(error):
-            # an interrupted run that was to replace an earlier file (--overwrite) stays NAME.partial: the earlier
-            # file is kept until a run that replaces it completes (find_resumable resumes the .partial)
-            keep = status.startswith("interrupted") and self.path.exists()
+            # an interrupted run that was to replace a complete earlier file (--overwrite) stays NAME.partial,
+            # marked so (REPLACES): the earlier file is kept until the run completes (find_resumable resumes it)
+            keep = status.startswith("interrupted") and is_complete(self.path)
             try:
-                self.close(complete=False, status=status, rename=not keep)
+                self.close(complete=False, status=status, attrs={REPLACES: True} if keep else None, rename=not keep)
             except AcaError as e:
                 return e
             return None

@@ -233,9 +233,9 @@ def _cmd_hf(args: argparse.Namespace) -> int:
                 f"{flag} applies to --integrator {' or '.join(takes)} only; {args.integrator} {kind}: drop {flag} "
                 f"or choose one of those"
             )
-    check_output_path(args.output, overwrite=args.overwrite)
     what = "LF run file" if args.snapshot is not None else "scene file"
     check_not_input(args.output, {what: args.scene}, "hf")
+    check_output_path(args.output, overwrite=args.overwrite)
     scene, duration = _hf_scene(args)
     check_not_input(args.output, {"patch file": scene.patches.source}, "hf")
     if args.growth_dt == SCENE_CLOCK:  # the scene's own clock, written out (run_scene writes out the defaults)
@@ -533,8 +533,8 @@ def _cmd_rerun(args: argparse.Namespace) -> int:
             args.run, args.output, device=args.device, checkpoint_interval=args.checkpoint_interval,
             overwrite=args.overwrite, progress=not args.no_progress,
         )  # fmt: skip
-    check_output_path(args.output, overwrite=args.overwrite)
     check_not_input(args.output, {"run file": args.run}, "rerun")
+    check_output_path(args.output, overwrite=args.overwrite)
     s = read_settings(args.run)
     changed = version_changes(s.versions)
     if changed:

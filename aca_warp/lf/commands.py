@@ -51,6 +51,7 @@ def run_lf(
         lock.release()
         raise
     notes = _duration_notes(scene, duration, sim.table.steps)  # once the duration is known to be runnable
+    notes += _snapshots_not_taken(scene, sim.table)
     if checkpoint_interval is not None and 0 < checkpoint_interval < scene.lf.dt:
         notes.append(
             f"a checkpoint interval of {checkpoint_interval:g} s is shorter than an LF step ({scene.lf.dt:g} s): a "
@@ -77,8 +78,23 @@ def _duration_notes(scene: Any, duration: float | None, steps: int) -> list[str]
         )
     ran = steps * scene.lf.dt
     if abs(ran - duration) > 1e-9 * ran:
-        notes.append(f"{duration:g} s is run as {steps} whole LF steps of {scene.lf.dt:g} s: {ran:.6g} s")
+        whole = f"{steps} whole LF step{'s' if steps != 1 else ''}"
+        notes.append(f"{duration:g} s is run as {whole} of {scene.lf.dt:g} s: {ran:.6g} s")
     return notes
+
+
+def _snapshots_not_taken(scene: Any, table: Any) -> list[str]:
+    """A note for the ``[snapshots] times`` of ``scene`` that its run (``table``: its steps and snapshots) ends
+    before, in words; [] when every one is taken."""
+    from aca_warp.lf.scene import snapshot_name
+
+    taken = {name for name, _ in table.snapshots}
+    late = [t for t in scene.snapshot_times if snapshot_name(t) not in taken]
+    if not late:
+        return []
+    end = table.steps * scene.lf.dt
+    times = ", ".join(f"{t:g} s" for t in late)
+    return [f"the run ends at {end:.6g} s, before the snapshot time(s) {times} of the scene: not taken"]
 
 
 def _execute(sim: Any, writer: Any, *, progress: bool, checkpoint_interval: float | None) -> Any:

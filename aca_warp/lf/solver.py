@@ -88,6 +88,8 @@ class LFSimulation:
         self._allocate(ring_r)
         self.step_index = 0
         self.rebuilds = 0  # merge-candidate rebuilds so far (reported by scripts/bench_lf.py)
+        self.wall_time = 0.0  # [s] of the last run call, and its rate over the steps it ran [1/s]: set by the
+        self.steps_per_second = 0.0  # command that runs it (aca_warp.lf.commands)
         self.dirty = True
         if scene.patches is not None:
             self._place(scene.patches)

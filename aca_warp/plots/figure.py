@@ -8,11 +8,8 @@ by side, min/max envelopes of long series and the annular-sector pad outline fro
 from __future__ import annotations
 
 import math
-import os
 import textwrap
 import warnings
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -20,6 +17,8 @@ import numpy as np
 from matplotlib.animation import PillowWriter
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+
+from aca_warp.common.files import whole
 
 WIDTH = 9.0  # in
 DPI = 150
@@ -55,25 +54,6 @@ def finish(fig: Figure, caption: str, footer: str) -> None:
     fig.get_layout_engine().set(rect=(0.0, strip / (h + strip), 1.0, h / (h + strip)))
     fig.text(0.012, (strip - 4.0 / 72.0) / (h + strip), "\n".join(lines), va="top", ha="left", fontsize=CAPTION_PT)
     fig.text(0.012, 3.0 / 72.0 / (h + strip), footer, va="bottom", ha="left", fontsize=FOOTER_PT, color="0.35")
-
-
-@contextmanager
-def whole(path: Path) -> Iterator[BinaryIO]:
-    """Yield a file open for writing under a temporary name next to ``path`` (hidden, same suffix; its ``name`` is
-    that path) and move it to ``path`` when the body ends; on any failure or interrupt the temporary file is
-    removed. A figure file is never half written. The temporary file is created exclusively and never through a
-    link (:func:`~aca_warp.common.links.create_new`: a link planted there is refused) and written through this
-    descriptor only, so nothing another user plants in the folder is followed."""
-    from aca_warp.common.links import create_new
-
-    tmp = path.with_name(f".{path.stem}.partial{path.suffix}")
-    fh = open(tmp, "wb", opener=lambda name, flags: create_new(Path(name), "temporary figure"))  # noqa: SIM115
-    try:
-        with fh:
-            yield fh
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def run_stem(path: str | Path) -> str:

@@ -20,7 +20,8 @@ from aca_warp.analysis import report
 from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run_file, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
 from aca_warp.common.errors import SceneError, option
-from aca_warp.plots.figure import GifInto, device_text, run_stem, whole
+from aca_warp.common.files import whole
+from aca_warp.plots.figure import GifInto, device_text, run_stem
 from aca_warp.plots.figure import envelope as _envelope
 from aca_warp.plots.figure import finish as _finish
 from aca_warp.plots.figure import new_figure as _figure

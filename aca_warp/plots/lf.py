@@ -34,7 +34,8 @@ from matplotlib.figure import Figure
 
 from aca_warp.analysis.report import run_attr
 from aca_warp.common.errors import SceneError
-from aca_warp.common.files import open_h5
+from aca_warp.common.files import open_h5, reading
+from aca_warp.common.links import LinkError
 from aca_warp.plots.figure import WIDTH, device_text, envelope, finish, new_figure, pad_outline, run_stem, save
 
 LF_FIGURES = ("lf_global", "lf_population", "lf_patch_map")
@@ -444,8 +445,10 @@ def plot_lf_run(
 
     Without ``which``, the patch map of a file without snapshots is skipped with a message to ``log``; a figure
     named in ``which`` that cannot be made, an unknown name, quantity or snapshot raise :class:`SceneError`
-    before anything is written; a file that fails to read while the figures are drawn (a damaged group) raises
-    its error after the figures this call wrote are removed again (all or nothing).
+    before anything is written. A figure that fails while it is drawn (a damaged group of the file) is skipped with
+    a message to ``log`` when ``which`` is None; when ``which`` names figures, its error is raised and the figures
+    this call wrote before it are removed again (all or nothing), as for HF run files
+    (:func:`~aca_warp.plots.plot_run`).
     """
     names = list(LF_FIGURES if which is None else dict.fromkeys(which))
     unknown = [n for n in names if n not in LF_FIGURES]
@@ -469,15 +472,20 @@ def plot_lf_run(
         "lf_patch_map": lambda: plot_lf_patch_map(path, outdir, quantity=quantity, snapshots=snapshots),
     }
     files: list[Path] = []
-    try:
-        for name in names:
-            if name == "lf_patch_map" and not maps:
-                if log:
-                    log(f"skipped lf_patch_map: {reason}")
-                continue
-            files += makers[name]()
-    except BaseException:
-        for f in files:
-            f.unlink(missing_ok=True)
-        raise
+    for name in names:
+        if name == "lf_patch_map" and not maps:
+            if log:
+                log(f"skipped lf_patch_map: {reason}")
+            continue
+        try:
+            with reading(path, "run file"):  # a damaged group: one SceneError line naming the file
+                files += makers[name]()
+        except SceneError as e:
+            if which is not None:  # a figure asked for: all or nothing
+                for written in files:
+                    written.unlink(missing_ok=True)
+            if isinstance(e, LinkError) or which is not None:  # a planted link stops the call, whatever was asked
+                raise
+            if log:
+                log(f"skipped {name}: {e}")
     return files

@@ -223,8 +223,12 @@ def load_scene(spec: str | Path, *, allow_implausible: bool = False) -> Scene:
             f"scene file {p} is empty (no table, no key): it would silently run the defaults; start from a preset "
             "file (aca_warp/data/hf1.toml, docs/scenes.md) or name the preset (hf1)"
         )
-    if "lf" in doc:
-        raise SceneError(f"{p} is an LF scene file (it has an [lf] table): run it with 'aca-warp lf {p} -o LF.h5'")
+    lf_tables = [t for t in ("lf", "schedule", "snapshots") if t in doc]
+    if lf_tables:
+        raise SceneError(
+            f"{p} is an LF scene file (it has {', '.join(f'[{t}]' for t in lf_tables)}): run it with 'aca-warp lf "
+            f"{p} -o LF.h5'"
+        )
     return scene_from_dict(doc, base_dir=p.parent, name=p.stem, allow_implausible=allow_implausible)
 
 
@@ -240,7 +244,10 @@ def _packaged(name: str) -> dict:
     if not name.isidentifier():
         return {}
     path = resources.files("aca_warp.data").joinpath(f"{name}.toml")
-    return tomllib.loads(path.read_text()) if path.is_file() else {}
+    try:
+        return tomllib.loads(path.read_text()) if path.is_file() else {}
+    except OSError:  # a name too long for the file system: no packaged scene
+        return {}
 
 
 def preset_document(name: str) -> dict:

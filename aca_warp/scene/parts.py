@@ -448,6 +448,7 @@ class Scene:
         plausible.check("material.coupling_radius", m.coupling_radius, "length")
         for k in ("K_N", "K_T", "K_C"):
             plausible.check(f"material.{k}", getattr(m, k), "stiffness")
+        plausible.check("material.matrix_stiffness", m.matrix_stiffness, "winkler")  # as LF scenes check it
         p = self.patches
         for i in (int(np.argmax(p.area)), int(np.argmin(p.area))):
             plausible.check(f"patch area (patch {i})", p.area[i], "area")

@@ -265,11 +265,12 @@ class _Book:
     def done(self, index: int, summary: dict) -> None:
         ran_over = summary.get("patch_data")
         if self.patch_data is not None and ran_over != self.patch_data:  # the file was rewritten while the sweep ran
+            (self.out / summary["file"]).unlink(missing_ok=True)  # not the sweep's data: no pad is taken out of it
             self.failed(
                 index,
                 f"SweepError: shard {index} ran over other patches than the sweep began with (the patch file's "
                 f"SHA-256 {str(ran_over)[:12]}, the sweep's {self.patch_data[:12]}): the file changed while the sweep "
-                "ran",
+                "ran; the shard's file was removed",
             )
             return
         entry = self.manifest["shards"][index]

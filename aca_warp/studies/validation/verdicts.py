@@ -156,10 +156,15 @@ def equivalence_verdict(d: np.ndarray, margin: float) -> str:
 
 
 def all_of(verdicts: list[str]) -> str:
-    """Reproduced when every part is, not reproduced when none is, partly otherwise."""
-    if verdicts and all(v == REPRODUCED for v in verdicts):
+    """The verdict of a statement of several parts: reproduced when every part is, not reproduced when every part
+    measured is not, partly otherwise (a part not measured keeps a statement from reproduced, and counts for
+    nothing else); not measured when no part is."""
+    measured = [v for v in verdicts if v != NOT_MEASURED]
+    if not measured:
+        return NOT_MEASURED
+    if len(measured) == len(verdicts) and all(v == REPRODUCED for v in measured):
         return REPRODUCED
-    return NOT_REPRODUCED if all(v == NOT_REPRODUCED for v in verdicts) else PARTLY
+    return NOT_REPRODUCED if all(v == NOT_REPRODUCED for v in measured) else PARTLY
 
 
 def spread_text(values: dict[str, float], spec: str = ".3g") -> str:
