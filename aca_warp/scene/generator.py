@@ -1,5 +1,5 @@
 """Seeded patch layouts: :class:`PatchGenerator` places non-overlapping patches uniformly over a pad and draws their
-heights (docs/model.md §2.9)."""
+heights (docs/model.md §2.9 for the placement, §2.6 for the heights)."""
 
 from __future__ import annotations
 

@@ -51,7 +51,7 @@ class Material:
         K_N: Normal stiffness constant, k_N = K_N √A [N m⁻²] (paper Eq. 1).
         K_T: Tangential stiffness constant, k_T = K_T √A [N m⁻²] (paper Eq. 2).
         K_C: Coupling constant, k_ij = K_C √(A_i A_j) / D0_ij [N m⁻²] (paper Eq. 3).
-        coupling_radius: Patches closer than this (centre distance) are coupled [m].
+        coupling_radius: Patches at a centre distance of at most this are coupled [m].
         damping_ratio: Damping ratio ζ of each patch, c = 2ζ√(k_T m) [1].
         mass_per_area: Effective mass per patch area, m = ρ_A A [kg m⁻²].
         matrix_stiffness: Winkler stiffness of the pad matrix per area, E_m/H_m [N m⁻³].
