@@ -202,3 +202,16 @@ def test_lock_file_removed_by_its_holder_while_opened_is_opened_anew(tmp_path: P
         assert calls == [lp] and os.fstat(fd).st_nlink == 1 and lp.exists()
     finally:
         os.close(fd)
+
+
+def test_a_folder_where_a_whole_file_goes_is_one_line(tmp_path: Path) -> None:
+    """whole() (figures, a bench's results): a folder at the file's name is refused before anything is written, in
+    one line (os.replace would fail after the drawing, with a traceback), and the folder is left as it was."""
+    from aca_warp.common.errors import SceneError
+    from aca_warp.common.files import whole
+
+    target = tmp_path / "run_global.png"
+    target.mkdir()
+    with pytest.raises(SceneError, match="is a folder where a file of that name goes"), whole(target) as fh:
+        fh.write(b"x")
+    assert target.is_dir() and sorted(p.name for p in tmp_path.iterdir()) == ["run_global.png"]

@@ -522,6 +522,8 @@ def whole(path: Path, what: str = "temporary file") -> Iterator[BinaryIO]:
     folder is followed."""
     from aca_warp.common.links import create_new  # looked up per call (tests put a failing one in its place)
 
+    if path.is_dir():  # os.replace would fail late, after the drawing, with a traceback
+        raise SceneError(f"{path} is a folder where a file of that name goes; move it away or choose another folder")
     tmp = path.with_name(f".{path.stem}.partial{path.suffix}")
     fh = open(tmp, "wb", opener=lambda name, flags: create_new(Path(name), what))  # noqa: SIM115
     try:
