@@ -646,14 +646,19 @@ def write_outputs(texts: dict[Path, str]) -> None:
             with whole(path) as fh:
                 fh.write(text.encode("utf-8"))
             done.append(path)
-    except OSError as e:
-        why = UNWRITABLE.get(e.errno or 0) or e.strerror or type(e).__name__
+    except (OSError, SceneError) as e:  # SceneError: whole() found a folder at the name
+        code = getattr(e, "errno", None) or 0
+        why = (
+            UNWRITABLE.get(code)
+            or getattr(e, "strerror", None)
+            or ("a folder is there" if isinstance(e, SceneError) else type(e).__name__)
+        )
         kept = f"{', '.join(map(str, done))} written, the rest not" if done else "nothing was written"
         err = StorageError(
             f"cannot write {path} ({why}); {kept} (the results are in the lines above): choose another output "
             "folder and run again"
         )
-        err.errno = e.errno  # type: ignore[attr-defined]
+        err.errno = getattr(e, "errno", None)  # type: ignore[attr-defined]
         raise err from None
 
 

@@ -186,8 +186,9 @@ def test_non_run_files_are_refused_and_left_unchanged(tmp_path):
 
 
 def test_a_run_file_that_cannot_be_opened_for_writing_says_so(runs, tmp_path, monkeypatch):
-    """A run file HDF5 will not open for writing (here a simulated lock error for mode "r+"): one SceneError naming
-    the file, "for writing" and the first line of the cause; opening it to read still works."""
+    """A run file HDF5 will not open for writing because another process holds it (here a simulated lock error for
+    mode "r+"): one SceneError naming the file and HDF5's file lock, with what to do; opening it to read still works.
+    Another cause keeps HDF5's first line."""
     from aca_warp.analysis.report import open_run_file
 
     path = _copy(runs["globals"], tmp_path)
@@ -199,11 +200,20 @@ def test_a_run_file_that_cannot_be_opened_for_writing_says_so(runs, tmp_path, mo
         return real(name, mode, *args, **kwargs)
 
     monkeypatch.setattr(h5py, "File", refusing)
-    with pytest.raises(
-        SceneError, match=rf"cannot open run file {path} for writing: unable to lock file \(simulated\)$"
-    ):
+    with pytest.raises(SceneError, match=rf"^another process has {path} open \(HDF5's file lock\): close it there"):
         open_run_file(path, "r+")
     open_run_file(path, "r").close()
+
+    def failing(name, mode="r", *args, **kwargs):
+        if mode != "r":
+            raise OSError("unable to open file (simulated)\nsecond line")
+        return real(name, mode, *args, **kwargs)
+
+    monkeypatch.setattr(h5py, "File", failing)
+    with pytest.raises(
+        SceneError, match=rf"cannot open run file {path} for writing: unable to open file \(simulated\)$"
+    ):
+        open_run_file(path, "r+")
 
 
 def test_a_failed_write_keeps_the_previous_analysis(runs, tmp_path, monkeypatch):
@@ -236,6 +246,12 @@ def test_a_failed_write_keeps_the_previous_analysis(runs, tmp_path, monkeypatch)
         ({"snr": -1.0}, "snr"),
         ({"n_bins": 1}, "n_bins"),
         ({"freq_range": (5e4, 1e4)}, "frequency range"),
+        ({"cwt_count": 0}, "cwt_count must be an integer >= 1, got 0"),
+        ({"cwt_columns": 1}, "cwt_columns must be an integer >= 2, got 1"),
+        ({"null_trials": -5}, "null_trials must be an integer >= 0, got -5"),
+        ({"stft_window_s": -1.0}, "stft_window_s must be a positive window length in s"),
+        ({"stft_window_s": 2e-7}, r"STFT of mu: stft_window_s 2e-07 s is 2 samples .* at least 4 samples \(4e-07 s\)"),
+        ({"stft_window_s": 1e-4}, r"stft_window_s 0.0001 s is 1000 samples .* holds 1 window of it, .* 2 windows"),
     ],
 )
 def test_bad_options_are_refused(runs, tmp_path, kwargs, message):
@@ -352,7 +368,8 @@ def test_commands(runs, tmp_path, capsys):
 
 
 def test_analyze_summary_uses_the_figures_band(runs, tmp_path, capsys):
-    """The printed largest excess S skips the bins below max(10 Hz, 2 Δf), as the figures do, and names that band.
+    """The printed largest excess S − S_null (with S and S_null beside it) skips the bins below max(10 Hz, 2 Δf), as
+    the figures do, and names that band.
 
     On this 0.1 ms record (Δf ≈ 10 kHz) bin 1, the Hann leakage of the mean, has the largest S − S_null.
     """
@@ -367,7 +384,8 @@ def test_analyze_summary_uses_the_figures_band(runs, tmp_path, capsys):
     shown = freq > 1.5 * df
     k = int(np.argmax(np.where(shown, excess, -np.inf)))
     assert freq[k] >= 2 * df * (1 - 1e-9)
-    assert f"largest excess S = {S[k]:.3f} (null {s0[k]:.3f}, Phi {phi[k]}) at {freq[k] / 1e3:.4g} kHz" in out
+    said = f"largest excess S - S_null = {S[k] - s0[k]:.3f} (S {S[k]:.3f}, S_null {s0[k]:.3f}, Phi {phi[k]}) at "
+    assert said + f"{freq[k] / 1e3:.4g} kHz" in out
     assert f"over {2 * df / 1e3:.4g}-200 kHz" in out and "leakage of the mean" in out
     above = np.count_nonzero((S > s0)[shown & np.isfinite(S)])
     assert f"S > S_null in {above} of {np.count_nonzero(shown & np.isfinite(S))} bins" in out
@@ -705,3 +723,105 @@ def test_a_peak_with_few_periods_in_the_record_says_so(freq, said):
     assert bool(clause) == said
     if said:
         assert clause == f" (bins 1e+03 kHz wide: {freq * 1e-6:.3g} periods in the record)"
+
+
+def test_numpy_numbers_in_options_are_stored_as_json(runs, tmp_path):
+    """NumPy scalars pass the option checks and are stored in ``parameters`` as plain JSON numbers."""
+    path = _copy(runs["globals"], tmp_path)
+    analyze_run(path, n_bins=np.int64(90), eta=np.float64(0.2), null_trials=np.int64(3), stft_window_s=np.float64(2e-6))
+    with h5py.File(path, "r") as f:
+        params = json.loads(f["analysis"].attrs["parameters"])
+    assert params["n_bins"] == 90 and params["eta"] == 0.2 and params["null_trials"] == 3
+    assert params["stft_window_s"] == 2e-6
+
+
+def test_plot_api_refuses_bad_animation_counts_and_takes_one_name_as_a_string(runs, tmp_path):
+    from aca_warp.plots.hf import animate_patch_map
+
+    with pytest.raises(SceneError, match="fps must be an integer >= 1, got 0"):
+        animate_patch_map(runs["patches"], tmp_path / "a", fps=0)
+    with pytest.raises(SceneError, match="frames must be an integer >= 2, got 0"):
+        animate_patch_map(runs["patches"], tmp_path / "a", frames=0)
+    files = plots.plot_run(runs["globals"], tmp_path / "s", which="spectra")
+    assert sorted(p.name for p in files) == ["globals_spectra.pdf", "globals_spectra.png"]
+
+
+def test_a_band_edge_is_no_peak_and_is_said_to_be_one(monkeypatch, tmp_path):
+    """The largest bin of a band that sits on its lower edge of a falling spectrum is flagged in /analysis/peaks, in
+    the summary line and in the spectra figure's caption; an interior maximum is not."""
+    from matplotlib.figure import Figure
+
+    from aca_warp.analysis.commands import peak_lines
+    from aca_warp.plots import hf
+
+    freq = np.arange(0, 401) * 5.0e3
+    falling = 1.0 / (1.0 + freq / 1e4)
+    bump = falling + 0.5 * np.exp(-(((freq - 150e3) / 8e3) ** 2))
+    spectra = report.Group(attrs={"samples": 800, "sample_interval": 2.5e-7})
+    spectra.add("freq", freq, "Hz")
+    for name, a in (("mu", falling), ("sum_velocity", falling), ("sum_abs_velocity", bump)):
+        spectra.add(name, a, "1")
+    peaks = report.compute_peaks(spectra, freq_range=(1.2e5, 2e5))
+    a = peaks.attrs
+    assert a["first_velocity_peak_frequency"] == 120e3 and a["first_velocity_peak_at_band_edge"] == "lower"
+    assert a["mu_peak_at_band_edge"] == "lower" and a["sum_abs_velocity_peak_at_band_edge"] == "no"
+    lines = peak_lines({"peaks": peaks, "spectra": spectra})
+    assert lines[0] == "first velocity-spectrum peak 120 kHz (at the band's lower edge: no peak inside the band)"
+    assert lines[1].startswith("largest mu peak 120 kHz (at the band's lower edge: no peak inside the band)")
+    axes = Figure().subplots(2, 1)
+    text = hf._mark_velocity_peak(axes, peaks)
+    assert "120 kHz, at the band's lower edge: no peak inside the band" in text
+    assert "(120 kHz – 200 kHz)" in text
+    inside = report.compute_peaks(spectra, freq_range=(1e5, 2e5))  # the bump is the Σ|u̇| peak, not an edge
+    assert inside.attrs["sum_abs_velocity_peak_frequency"] == pytest.approx(150e3, rel=1e-3)
+    assert inside.attrs["sum_abs_velocity_peak_at_band_edge"] == "no"
+
+
+def test_the_per_patch_peak_line_uses_the_per_patch_bin_width():
+    """A per-patch spectrum coarser than the global one (``--patch-window``/``--patch-decimation``): the summary's bin
+    width and period count are those of the per-patch spectrum the peak comes from."""
+    from aca_warp.analysis.commands import peak_lines
+
+    spectra = report.Group(attrs={"samples": 1001, "sample_interval": 2e-7})  # Δf 4995 Hz
+    spectra.add("freq", np.arange(501) * 4995.0, "Hz")
+    patch = report.Group(attrs={"sample_interval": 6e-7})
+    patch.add("freq", np.arange(84) * 9980.0, "Hz")  # Δf 9980 Hz
+    peaks = report.Group(
+        attrs={
+            "first_velocity_peak_frequency": 73.73e3,
+            "first_velocity_peak_source": "mean per-patch velocity amplitude spectrum (/analysis/patch_spectrum)",
+            "first_velocity_peak_at_band_edge": "no",
+            "mu_peak_frequency": 72.22e3,
+            "mu_peak_at_band_edge": "no",
+        }
+    )
+    lines = peak_lines({"peaks": peaks, "spectra": spectra, "patch_spectrum": patch})
+    assert lines[0] == "first velocity-spectrum peak 73.73 kHz (bins 9.98 kHz wide: 7.39 periods in the record)"
+    assert lines[1] == "largest mu peak 72.22 kHz (bins 5 kHz wide: 14.5 periods in the record)"
+
+
+def test_the_sync_caption_gives_the_band_with_units(runs, monkeypatch, tmp_path):
+    """The band of the sync figure's caption carries a unit on each edge: 10 Hz – 200 kHz, not "10–200 kHz"."""
+    from aca_warp.plots import hf
+
+    assert (hf._hz(10.0), hf._hz(2.0e4), hf._hz(2.0e5), hf._hz(2.5e6)) == ("10 Hz", "20 kHz", "200 kHz", "2.5 MHz")
+    captions = []
+    monkeypatch.setattr(hf._Run, "save", lambda self, fig, caption, outdir, name: captions.append(caption) or [])
+    hf.plot_sync(runs["patches"], tmp_path)
+    assert "Band 10 Hz – 200 kHz, Δf" in captions[0]
+
+
+def test_a_run_named_without_its_partial_says_where_it_is(runs, tmp_path, capsys):
+    """``analyze RUN.h5``/``plot RUN.h5`` where only RUN.h5.partial exists: one line naming the .partial and what to
+    do; a folder is called one."""
+    from aca_warp.cli import main
+
+    _copy(runs["globals"], tmp_path, "cut.h5.partial")
+    run = tmp_path / "cut.h5"
+    for argv in (["analyze", str(run)], ["plot", str(run), "-o", str(tmp_path / "fig")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert f"{run}.partial exists (a run still being written, or one stopped or killed" in err
+        assert f"analyse or plot {run}.partial itself, or continue the run with 'aca-warp hf --resume {run}'" in err
+    assert main(["analyze", str(tmp_path)]) == 2
+    assert f"{tmp_path} is a folder, not a run file" in capsys.readouterr().err

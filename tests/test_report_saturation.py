@@ -112,3 +112,25 @@ def test_a_record_too_short_is_not_analysed(tmp_path):
     g = analyze_run(path)["saturation"]
     assert g.attrs["status"] == "not analysed" and "too short" in g.attrs["reason"]
     assert saturation_summary(g).startswith("saturation not analysed")
+
+
+def test_a_record_shorter_than_one_predicted_e_fold_is_too_short_to_tell():
+    """No growth phase in a record of σ_pred·T < 1 e-fold (a 1 ms hf1 record, σ median 590 s^-1): the summary says
+    the record is too short to tell, not that Σ|u̇| settled without growing; from one e-fold on it says settled."""
+    from aca_warp.analysis.report import Group
+
+    attrs = {
+        "status": "no growth phase",
+        "t_s_sum_abs_velocity": 7.956e-4,
+        "growth_rate": "none",
+        "predicted_growth_rate_median": 590.1,
+        "predicted_growth_rate_q25": 413.3,
+        "record_length": 1.0e-3,
+    }
+    line = saturation_summary(Group(attrs=attrs))
+    assert line.startswith("no growth phase: record too short to tell (σ_pred·T = 0.59 e-folds)")
+    assert "settled" not in line
+    long = saturation_summary(Group(attrs={**attrs, "record_length": 3.0e-3}))
+    assert long.startswith("no growth phase (Σ|u̇| settled from 0.7956 ms without growing)")
+    old = {k: v for k, v in attrs.items() if k != "record_length"}  # an analysis written before record_length
+    assert saturation_summary(Group(attrs=old)).startswith("no growth phase (Σ|u̇| settled")

@@ -30,11 +30,14 @@ LF_QUANTITIES = ("temperature", "thickness", "normal_force", "pressure", "age", 
 ANALYZE_EPILOG = """\
 Writes the group /analysis into RUN.h5, replacing an earlier one (computed first, swapped in at the end: a
 failure leaves the file as it was):
-  /analysis/spectra         Hann amplitude spectra of mu, torque, friction radius, sum u', sum |u'| (mean-normalised)
+  /analysis/spectra         Hann amplitude spectra of mu, torque, friction radius, sum u', sum |u'| and the
+                            friction centroid (mean-normalised where the signal keeps one sign)
   /analysis/patch_spectrum  mean per-patch velocity amplitude spectrum          (with per-patch velocities)
   /analysis/stft, /cwt      time-frequency maps of mu
   /analysis/sync            Synchronization Index S(f), Phi(f), S_null(f), R_w(f) (with per-patch velocities)
-  /analysis/peaks           attributes: first velocity-spectrum peak, largest mu peak
+  /analysis/peaks           attributes: first velocity-spectrum peak, largest mu peak (flagged when only a
+                            band edge: no peak inside the band)
+  /analysis/saturation      growth and saturation of sum |u'| and mu, beside the predicted growth rate
 Units are SI: frequencies in Hz. See docs/analysis.md.
 Example:  aca-warp analyze run.h5 --freq-max 150e3 --rule snr --snr 8
 """
@@ -111,7 +114,13 @@ def _add_analyze(subparsers: Any) -> None:
         "--n-bins", type=int_at_least(2), default=180, metavar="N", help="phase bins on [-pi, pi) (default 180)"
     )
     a.add_argument(
-        "--stft-window", type=positive, metavar="S", help="STFT window length [s] (default: about N/64 samples)"
+        "--stft-window",
+        type=positive,
+        metavar="S",
+        help="STFT window length [s], at least 4 samples and leaving at least 2 windows in the record (default, for "
+        "N samples at dt: 2^round(log2(N/64)) samples, at least 16; if that gives df > 25 kHz, the next power of two "
+        "up with df = 1/(samples dt) <= 25 kHz (df <= Nyquist/8 when the Nyquist frequency is below 200 kHz); at "
+        "most the largest power of two <= N/2)",
     )
     a.add_argument(
         "--no-sync",
@@ -210,16 +219,7 @@ def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float
     early = record_ends_early(run)
     if early:
         parts.append(early)
-    from aca_warp.analysis.report import bin_width
-
-    peaks, spectra = groups["peaks"].attrs, groups["spectra"]
-    df = bin_width(spectra["freq"], spectra.attrs)
-    if "first_velocity_peak_frequency" in peaks:
-        f = float(peaks["first_velocity_peak_frequency"])
-        parts.append(f"first velocity-spectrum peak {f / 1e3:.4g} kHz{_few_periods(f, df)}")
-    if "mu_peak_frequency" in peaks:
-        f = float(peaks["mu_peak_frequency"])
-        parts.append(f"largest mu peak {f / 1e3:.4g} kHz{_few_periods(f, df)}")
+    parts += peak_lines(groups)
     if "sync" in groups:
         from aca_warp.analysis.report import LEAKAGE_BINS, lowest_bin_remark, sync_excess
 
@@ -232,8 +232,8 @@ def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float
                 f"Synchronization Index over {lo / 1e3:.4g}-{hi / 1e3:.4g} kHz (the analysis band without the bins "
                 f"below max(10 Hz, {LEAKAGE_BINS} df) = {ex['floor'] / 1e3:.4g} kHz, the Hann leakage of the mean, as "
                 f"in the figures): S > S_null in {ex['above']} of {ex['bins']} bins with Phi >= 2, largest excess "
-                f"S = {ex['S']:.3f} (null {ex['S_null']:.3f}, Phi {ex['Phi']}) at {ex['freq'] / 1e3:.4g} kHz"
-                + lowest_bin_remark(ex)
+                f"S - S_null = {ex['S'] - ex['S_null']:.3f} (S {ex['S']:.3f}, S_null {ex['S_null']:.3f}, "
+                f"Phi {ex['Phi']}) at {ex['freq'] / 1e3:.4g} kHz" + lowest_bin_remark(ex)
             )
     elif args.no_sync:
         parts.append("per-patch velocities not read (--no-sync)")
@@ -295,12 +295,12 @@ def check_times_in_record(run: str, times: list[float] | None, name: str) -> Non
     figures, which say what they need."""
     import h5py
 
-    from aca_warp.common.files import open_h5
+    from aca_warp.analysis.groups import open_h5_run
     from aca_warp.plots.hf import check_instants
 
     if not times:
         return
-    with open_h5(run, "run file") as f:
+    with open_h5_run(run) as f:
         pt = f.get("patches/time")
         if not isinstance(pt, h5py.Dataset) or pt.ndim != 1 or pt.shape[0] == 0 or pt.dtype.kind not in "fiu":
             return
@@ -317,8 +317,12 @@ def run_or_pad(args: argparse.Namespace, command: str, *, keep: bool) -> Iterato
     import tempfile
     from pathlib import Path
 
+    from aca_warp.analysis.groups import missing_run_message
     from aca_warp.analysis.pads import extracted_from, pad_run_path, shard_pads, shard_refusal, write_pad_run
 
+    said = missing_run_message(args.run) if args.pad is None else None
+    if said is not None:  # before any output check names its folder
+        raise SceneError(said)
     pads = shard_pads(args.run)
     if pads is None:
         if not Path(args.run).exists():  # before any output check names its folder
@@ -352,6 +356,38 @@ def run_or_pad(args: argparse.Namespace, command: str, *, keep: bool) -> Iterato
                 yield str(temporary)
             except SceneError as e:  # name the pad as given, not the temporary file no one saw
                 raise SceneError(str(e).replace(str(temporary), f"pad {args.pad} of {args.run}")) from None
+
+
+def peak_lines(groups: dict[str, Any]) -> list[str]:
+    """The ``analyze`` summary's lines on the first velocity-spectrum peak and the largest μ peak, from the groups
+    :func:`~aca_warp.analysis.report.analyze_run` returns: each peak with the bin width and period count of the
+    spectrum it comes from (the per-patch spectrum's own, which ``--patch-window``/``--patch-decimation`` may make
+    coarser than the global record's), and a peak that is only a band edge said to be one."""
+    from aca_warp.analysis.report import bin_width
+
+    peaks, spectra = groups["peaks"].attrs, groups["spectra"]
+    df = bin_width(spectra["freq"], spectra.attrs)
+    lines = []
+    if "first_velocity_peak_frequency" in peaks:
+        f = float(peaks["first_velocity_peak_frequency"])
+        patch = groups.get("patch_spectrum")
+        from_patch = patch is not None and "patch_spectrum" in str(peaks.get("first_velocity_peak_source", ""))
+        dfv = bin_width(patch["freq"], patch.attrs) if from_patch and patch is not None else df
+        edge = _edge_clause(peaks.get("first_velocity_peak_at_band_edge"))
+        lines.append(f"first velocity-spectrum peak {f / 1e3:.4g} kHz{edge}{_few_periods(f, dfv)}")
+    if "mu_peak_frequency" in peaks:
+        f = float(peaks["mu_peak_frequency"])
+        edge = _edge_clause(peaks.get("mu_peak_at_band_edge"))
+        lines.append(f"largest mu peak {f / 1e3:.4g} kHz{edge}{_few_periods(f, df)}")
+    return lines
+
+
+def _edge_clause(edge: object) -> str:
+    """For a peak's ``<name>_peak_at_band_edge`` attribute (``"lower"``, ``"upper"`` or ``"no"``;
+    :func:`aca_warp.analysis.report.band_edge`), the clause that says the band holds no peak; else ""."""
+    if edge in ("lower", "upper"):
+        return f" (at the band's {edge} edge: no peak inside the band)"
+    return ""
 
 
 def _few_periods(freq: float, df: float) -> str:

@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import h5py
@@ -65,3 +66,46 @@ def sample_interval(time: np.ndarray, what: str = "/global/time") -> float:
 def has_patch_velocity(f: h5py.File) -> bool:
     """True when the run recorded per-patch velocities (with at least 8 rows)."""
     return "patches/velocity" in f and "patches/time" in f and f["patches/velocity"].shape[0] >= 8
+
+
+def missing_run_message(path: str | Path) -> str | None:
+    """For a run file ``path`` that does not exist, the message naming its ``.partial`` when that exists (a run still
+    being written, or one that was stopped or killed) and what to do; for a folder, that it is one; else None."""
+    from aca_warp.common.files import partial_path
+
+    p = Path(path)
+    if p.is_dir():
+        return f"{p} is a folder, not a run file: name the run file (RUN.h5) inside it"
+    if p.exists():
+        return None
+    partial = partial_path(p)
+    if partial.is_file():
+        return (
+            f"run file not found: {p}; {partial} exists (a run still being written, or one stopped or killed before "
+            f"it completed): analyse or plot {partial} itself, or continue the run with 'aca-warp hf --resume {p}'"
+        )
+    return None
+
+
+HDF5_LOCKED = "unable to lock file"
+"""What HDF5 says (with errno 11) when another process holds the file open in a way that excludes this opening."""
+
+
+def open_h5_run(path: str | Path, mode: str = "r") -> h5py.File:
+    """``open_h5`` of a run file, with one line for a missing file that has a ``.partial``
+    (:func:`missing_run_message`) and for a file another process holds open (HDF5's file lock)."""
+    from aca_warp.common.files import open_h5
+
+    p = Path(path)
+    said = missing_run_message(p)
+    if said is not None:
+        raise SceneError(said)
+    try:
+        return open_h5(p, "run file", mode=mode)
+    except SceneError as e:
+        if HDF5_LOCKED not in str(e):
+            raise
+        raise SceneError(
+            f"another process has {p} open (HDF5's file lock): close it there (a notebook, a viewer, a running "
+            "aca-warp), or wait for it to finish"
+        ) from None

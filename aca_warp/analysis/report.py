@@ -31,13 +31,15 @@ import h5py
 import numpy as np
 
 from aca_warp.common.bounds import json_attribute
-from aca_warp.common.errors import SceneError
-from aca_warp.common.files import attr_value, open_h5
+from aca_warp.common.errors import SceneError, option
+from aca_warp.common.files import attr_value
 
 from .groups import DEFAULT_BAND_TOP as DEFAULT_BAND_TOP
 from .groups import GROUP, TMP_GROUP
 from .groups import Group as Group
 from .groups import has_patch_velocity as has_patch_velocity
+from .groups import missing_run_message as missing_run_message
+from .groups import open_h5_run as open_h5_run
 from .groups import sample_interval as sample_interval
 from .patch_report import LEAKAGE_BINS as LEAKAGE_BINS
 from .patch_report import bin_width as bin_width
@@ -50,7 +52,7 @@ from .patch_report import shown_bins as shown_bins
 from .patch_report import sync_excess as sync_excess
 from .saturation import record_saturation
 from .spectra import DEFAULT_FLOOR_HZ, amplitude_spectrum, peak
-from .timefreq import cwt_morlet, stft
+from .timefreq import check_stft_window, cwt_morlet, stft
 
 GLOBAL_OUTPUTS = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity", "friction_centroid")
 """Global outputs of a run file (datasets under ``/global``), in the order of ``aca_warp.hf.recorder.GLOBAL_NAMES``.
@@ -122,10 +124,11 @@ def check_run_file(f: h5py.File, name: str | Path = "") -> None:
 
 def open_run_file(path: str | Path, mode: str = "r") -> h5py.File:
     """Open and check an HF run file as an h5py File (:func:`~aca_warp.common.files.open_h5`); :class:`SceneError`
-    if it is missing, not HDF5, an LF run file or not a run file. (:func:`aca_warp.open_run` reads any run file
+    if it is missing (naming its ``.partial`` where that exists), held open by another process (HDF5's file lock),
+    not HDF5, an LF run file or not a run file. (:func:`aca_warp.open_run` reads any run file
     into an xarray Dataset.)"""
     p = Path(path)
-    f = open_h5(p, "run file", mode=mode)
+    f = open_h5_run(p, mode)
     try:
         if _decode(f.attrs.get("kind")) == "lf":
             raise SceneError(
@@ -196,29 +199,40 @@ def compute_spectra(f: h5py.File) -> Group:
 
 
 def default_stft_window(n: int, dt: float, top: float = DEFAULT_BAND_TOP) -> float:
-    """STFT window [s]: ``timefreq.stft``'s 2^round(log2(N/64)) samples, but long enough for Δf ≤ top/8 [Hz]
-    where the record allows (at most N/4 samples): short records would otherwise resolve nothing below ``top``.
+    """STFT window [s] of ``analyze`` for ``n`` samples at ``dt`` [s], a power of two of samples:
+
+    * 2^round(log2(N/64)) samples, at least 16 (``timefreq.stft``'s default);
+    * if that resolves Δf > top/8 (25 kHz for the default band top of 200 kHz; top is capped at the Nyquist
+      frequency), the smallest power of two with Δf = 1/(samples·dt) ≤ top/8 (rounded up: 40 samples needed give 64);
+    * at most the largest power of two ≤ N/2 (at least 4), so that the map has five or more windows: on records too
+      short for Δf ≤ top/8 the resolution is the best those allow.
     """
     samples = max(16, 2 ** round(math.log2(max(n / 64, 1.0))))
-    need = min(n / 4, 8.0 / (min(top, 0.5 / dt) * dt))
-    if samples < need:
-        samples = 2 ** round(math.log2(need))
-    return min(samples, n) * dt
+    need = 8.0 / (min(top, 0.5 / dt) * dt)  # samples for Δf ≤ top/8
+    if samples < need * (1 - 1e-9):
+        samples = 2 ** math.ceil(math.log2(need) - 1e-9)
+    cap = max(4, 2 ** math.floor(math.log2(max(n / 2, 1.0))))
+    return min(samples, cap) * dt
 
 
 def compute_stft(f: h5py.File, *, window_s: float | None = None, detrend: str | None = "linear") -> Group:
     """STFT amplitude of μ(t) (``timefreq.stft``; linear trend removed per window), float32.
 
-    ``window_s`` defaults to :func:`default_stft_window`.
+    ``window_s`` defaults to :func:`default_stft_window`. A window of fewer than 4 samples, or one that leaves fewer
+    than 2 windows in the record (a map of one column shows nothing), is refused in one line (:class:`SceneError`,
+    in seconds and samples).
     """
     mu = f["global/mu"][()]
     dt = sample_interval(f["global/time"][()])
+    name = "the default STFT window" if window_s is None else option("stft_window_s", "--stft-window")
     if window_s is None:
         window_s = default_stft_window(mu.size, dt)
-    try:
+    nperseg = round(window_s / dt)
+    try:  # the map needs MIN_STFT_WINDOWS columns (stft alone accepts one)
+        check_stft_window(nperseg, max(1, nperseg // 4), mu.size, dt, name="window", seconds=window_s)
         times, freqs, amp, info = stft(mu, dt, window_s=window_s, detrend=detrend)
     except ValueError as e:
-        raise SceneError(f"STFT of mu: {e}") from None
+        raise SceneError(f"STFT of mu: {str(e).replace('window', name, 1)}") from None
     t0 = float(f["global/time"][0])
     g = Group(attrs={"signal": "/global/mu", **info})
     g.add("time", times + t0, "s", meaning="window centres")
@@ -301,6 +315,7 @@ def compute_cwt(
 
     Every ``stride``-th time sample of |W| is kept (float32), stride the smallest power of two with
     ceil(N/stride) ≤ ``columns``; low frequencies are computed on a downsampled record (:func:`multirate_cwt`).
+    :class:`SceneError` for no frequency or ``columns`` < 2 (a map of one column shows nothing).
     """
     mu = f["global/mu"][()].astype(np.float64)
     time = f["global/time"][()]
@@ -308,6 +323,10 @@ def compute_cwt(
     if freqs is None:
         freqs = default_cwt_freqs(mu.size, dt, freq_range=freq_range, count=count)
     freqs = np.asarray(freqs, dtype=np.float64)
+    if freqs.ndim != 1 or freqs.size < 1:
+        raise SceneError(f"the CWT needs at least one frequency, got {freqs.size}")
+    if columns < 2:
+        raise SceneError(f"the CWT map needs at least 2 time columns, got columns = {columns}")
     stride = 1 << max(0, math.ceil(math.log2(max(1.0, mu.size / max(1, columns)))))
     mean = float(np.mean(mu))
     if np.any(freqs <= 0) or np.any(freqs >= 0.5 / dt):
@@ -334,6 +353,22 @@ def _peak_band(freq: np.ndarray, freq_range: tuple[float, float] | None) -> tupl
     return lo, hi
 
 
+def band_edge(freq: np.ndarray, amp: np.ndarray, fmin: float, fmax: float) -> str:
+    """Whether the largest bin of ``amp`` in ``fmin`` ≤ f ≤ ``fmax`` [Hz] (what :func:`~aca_warp.analysis.spectra.peak`
+    returns) lies on a band edge without being a local maximum of the whole spectrum: ``"lower"`` or ``"upper"``
+    (the spectrum still rises beyond that edge, or the edge is the spectrum's end: no peak inside the band), else
+    ``"no"`` (an interior local maximum, or an edge bin that its outer neighbour does not exceed)."""
+    band = np.flatnonzero((freq >= fmin) & (freq <= fmax))
+    if band.size == 0:
+        return "no"
+    i = int(band[np.argmax(amp[band])])
+    if i == band[0] and (i == 0 or amp[i - 1] >= amp[i]):
+        return "lower"
+    if i == band[-1] and (i == amp.size - 1 or amp[i + 1] >= amp[i]):
+        return "upper"
+    return "no"
+
+
 def compute_peaks(
     spectra: Group, patch_spectrum: Group | None = None, *, freq_range: tuple[float, float] | None = None
 ) -> Group:
@@ -342,21 +377,27 @@ def compute_peaks(
     The *first velocity-spectrum peak* is that of the mean per-patch velocity amplitude spectrum when the
     run holds per-patch velocities, else that of the Σu̇ spectrum. The Σ|u̇| peak is stored too, but it is
     not used as the velocity peak: rectification moves a patch oscillating at f to 2f and its harmonics.
+    A largest bin on a band edge that is no local maximum (:func:`band_edge`) is still stored, with
+    ``<name>_peak_at_band_edge`` (and ``first_velocity_peak_at_band_edge``) ``"lower"`` or ``"upper"`` instead
+    of ``"no"``: the band then holds no peak, only the foot of one outside it.
     """
     freq = spectra["freq"]
     lo, hi = _peak_band(freq, freq_range)
     attrs: dict[str, Any] = {"band": [lo, hi], "band_unit": "Hz", "method": "largest bin, Gaussian interpolation"}
     candidates = {}
+    edges: dict[str, str] = {}
     for name in ("mu", "sum_velocity", "sum_abs_velocity"):
         try:
             candidates[name] = (*peak(freq, spectra[name], fmin=lo, fmax=hi), spectra.meta(name)["unit"])
         except ValueError:
             continue
+        edges[name] = band_edge(freq, spectra[name], lo, hi)
     if patch_spectrum is not None:
         pf = patch_spectrum["freq"]
         plo, phi = _peak_band(pf, freq_range)
         try:
             candidates["patch_velocity"] = (*peak(pf, patch_spectrum["mean_amplitude"], fmin=plo, fmax=phi), "m s-1")
+            edges["patch_velocity"] = band_edge(pf, patch_spectrum["mean_amplitude"], plo, phi)
         except ValueError:
             pass
     for name, (fp, ap, unit) in candidates.items():
@@ -364,6 +405,7 @@ def compute_peaks(
         attrs[f"{name}_peak_frequency_unit"] = "Hz"
         attrs[f"{name}_peak_amplitude"] = ap
         attrs[f"{name}_peak_amplitude_unit"] = unit
+        attrs[f"{name}_peak_at_band_edge"] = edges[name]
     source = "patch_velocity" if "patch_velocity" in candidates else "sum_velocity"
     if source in candidates:
         fp, ap, unit = candidates[source]
@@ -371,6 +413,7 @@ def compute_peaks(
         attrs["first_velocity_peak_frequency_unit"] = "Hz"
         attrs["first_velocity_peak_amplitude"] = ap
         attrs["first_velocity_peak_amplitude_unit"] = unit
+        attrs["first_velocity_peak_at_band_edge"] = edges[source]
         attrs["first_velocity_peak_source"] = (
             "mean per-patch velocity amplitude spectrum (/analysis/patch_spectrum)"
             if source == "patch_velocity"
@@ -397,7 +440,8 @@ def compute_saturation(f: h5py.File) -> Group:
     Attributes: ``status`` ("saturated", "not saturated", "no growth phase", or "not analysed" for a record shorter
     than 64 samples, with ``reason``), ``t_start`` [s] (the later of ``t_s_sum_abs_velocity`` and ``t_s_mu``),
     the measured ``growth_rate`` of Σ|u̇| over ``growth_window`` [s] with ``growth_r2`` and ``growth_rise``
-    [e-folds], ``mu_growth_rate``, both verdicts, and (where the run file holds σ_i) ``predicted_growth_rate_*``
+    [e-folds], ``mu_growth_rate``, both verdicts, ``record_length`` [s], and (where the run file holds σ_i)
+    ``predicted_growth_rate_*``
     (min, q25, median, max) and ``growth_rate_ratio`` = measured / predicted median. Datasets: the envelopes of
     both signals per window with their log-slopes. Absent values are stored as "none".
     """
@@ -406,6 +450,8 @@ def compute_saturation(f: h5py.File) -> Group:
     predicted = _predicted_rates(f)
     attrs.update({f"predicted_growth_rate_{k}": v for k, v in predicted.items()})
     attrs["predicted_source"] = "/patches/predicted_growth_rate" if predicted else "none (not in this run file)"
+    attrs["record_length"] = float(time[-1] - time[0]) if time.size > 1 else 0.0
+    attrs["record_length_unit"] = "s"
     try:
         sample_interval(time)
         rec = record_saturation(time, f["global/mu"][()], f["global/sum_abs_velocity"][()])
@@ -428,9 +474,19 @@ def compute_saturation(f: h5py.File) -> Group:
     return g
 
 
+def _predicted_e_folds(a: dict[str, Any]) -> float | None:
+    """σ_pred·T: e-folds of the predicted σ median over the record length T (None where either is missing)."""
+    sigma, length = a.get("predicted_growth_rate_median"), a.get("record_length")
+    if sigma is None or length is None or isinstance(sigma, str) or isinstance(length, str):
+        return None
+    return float(sigma) * float(length)
+
+
 def saturation_summary(g: Group) -> str:
     """One line of the ``analyze`` summary: whether the record is saturated, from when, and the measured
-    growth rate beside the predicted median and 25th percentile."""
+    growth rate beside the predicted median and 25th percentile. A record without a growth phase that spans less
+    than one e-fold of the predicted σ median (σ_pred·T < 1, T the record length) is called too short to tell, not
+    settled: the detector needs a rise of at least one e-fold to see growth."""
     a = g.attrs
     status = a["status"]
     if status == "not analysed":
@@ -442,7 +498,11 @@ def saturation_summary(g: Group) -> str:
     if status == "saturated":
         text = f"saturated from {ms(a['t_start'])} (Σ|u̇| {ms(a['t_s_sum_abs_velocity'])}, μ {ms(a['t_s_mu'])})"
     elif status == "no growth phase":
-        text = f"no growth phase (Σ|u̇| settled from {ms(a['t_s_sum_abs_velocity'])} without growing)"
+        folds = _predicted_e_folds(a)
+        if folds is not None and folds < 1.0:
+            text = f"no growth phase: record too short to tell (σ_pred·T = {folds:.2g} e-folds)"
+        else:
+            text = f"no growth phase (Σ|u̇| settled from {ms(a['t_s_sum_abs_velocity'])} without growing)"
     else:
         text = "not saturated (Σ|u̇| still changes at the end of the record)"
     rate = a.get("growth_rate")
@@ -463,7 +523,14 @@ def _attr_value(v: Any) -> Any:
         return "none"
     if isinstance(v, (list, tuple)) and all(isinstance(x, (int, float, np.number)) for x in v):
         return np.asarray(v, dtype=np.float64)
-    return json.dumps(v)
+    return json.dumps(v, default=_json_plain)
+
+
+def _json_plain(v: Any) -> Any:
+    """A NumPy scalar or array as the Python number or list that JSON stores (``json.dumps``' ``default``)."""
+    if isinstance(v, (np.generic, np.ndarray)):
+        return v.tolist()
+    raise TypeError(f"{type(v).__name__} cannot be stored as JSON")
 
 
 def _write_group(parent: h5py.Group, name: str, group: Group) -> None:
@@ -613,6 +680,12 @@ def analyze_run(
     from aca_warp.common.files import locked_output
 
     _check_options(rule, eta, snr, n_bins)
+    _check_counts(cwt_count=cwt_count, cwt_columns=cwt_columns, null_trials=null_trials)
+    if stft_window_s is not None and not (_is_number(stft_window_s) and 0.0 < stft_window_s < math.inf):
+        raise SceneError(f"stft_window_s must be a positive window length in s, got {stft_window_s!r}")
+    eta, snr, n_bins, null_trials = float(eta), float(snr), int(n_bins), int(null_trials)
+    cwt_count, cwt_columns = int(cwt_count), int(cwt_columns)
+    stft_window_s = None if stft_window_s is None else float(stft_window_s)
     index = {"rule": rule, "eta": eta, "snr": snr, "n_bins": n_bins, "null_trials": null_trials}
     busy = "wait for it to finish or stop it (analyze writes /analysis into the run file)"
     with locked_output(path, what=busy) as lock:
@@ -653,13 +726,28 @@ def analyze_run(
     return groups
 
 
+def _is_number(v: Any) -> bool:
+    """A real number (Python or NumPy), not a bool."""
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+
+
+def _check_counts(**counts: Any) -> None:
+    """Refuse a count option of :func:`analyze_run` that is not an integer at least its minimum (:class:`SceneError`):
+    ``cwt_count`` ≥ 1 frequency, ``cwt_columns`` ≥ 2 time columns (one column is no map), ``null_trials`` ≥ 0 (0:
+    no null level)."""
+    least = {"cwt_count": 1, "cwt_columns": 2, "null_trials": 0}
+    for name, value in counts.items():
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < least[name]:
+            raise SceneError(f"{name} must be an integer >= {least[name]}, got {value!r}")
+
+
 def _check_options(rule: str, eta: float, snr: float, n_bins: int) -> None:
     """Refuse a Synchronization Index option of :func:`analyze_run` that is out of range (:class:`SceneError`)."""
     if rule not in RULES:
         raise SceneError(f"rule must be one of {', '.join(RULES)}, got {rule!r}")
-    if not 0.0 < eta <= 1.0:
-        raise SceneError(f"eta must lie in (0, 1], got {eta}")
-    if not snr > 0.0:
+    if not (_is_number(eta) and 0.0 < eta <= 1.0):
+        raise SceneError(f"eta must lie in (0, 1], got {eta!r}")
+    if not (_is_number(snr) and 0.0 < snr < math.inf):
         raise SceneError(f"snr must be > 0, got {snr}")
     if isinstance(n_bins, bool) or not isinstance(n_bins, (int, np.integer)) or n_bins < 2:
         raise SceneError(f"n_bins must be an integer >= 2, got {n_bins!r}")

@@ -20,6 +20,61 @@ from .spectra import DEFAULT_FLOOR_HZ
 _CWT_HAS_PRECISION = "precision" in inspect.signature(pywt.cwt).parameters
 
 
+MIN_STFT_SAMPLES = 4
+"""Fewest samples of an STFT window: fewer resolve no frequency between 0 Hz and the Nyquist frequency."""
+
+MIN_STFT_WINDOWS = 2
+"""Fewest windows of an STFT map (``aca-warp analyze``, the figure): one window is a spectrum, with no time axis to
+draw. :func:`stft` itself accepts one window (a measure such as ``stft_peak`` may use one as long as the record)."""
+
+
+def stft_window_count(nperseg: int, hop: int, n: int) -> int:
+    """Number of STFT windows of ``nperseg`` samples, ``hop`` apart, that lie wholly inside a record of ``n``
+    samples (0 when the window is longer than the record). Window p spans samples p·hop - nperseg//2 up to
+    p·hop - nperseg//2 + nperseg - 1 (the grid of ``scipy.signal.ShortTimeFFT``)."""
+    mid = nperseg // 2
+    return max(0, (n - nperseg + mid) // hop + 1 - -(-mid // hop))
+
+
+def check_stft_window(
+    nperseg: int,
+    hop: int,
+    n: int,
+    dt: float,
+    name: str = "window",
+    seconds: float | None = None,
+    windows: int = MIN_STFT_WINDOWS,
+) -> None:
+    """Refuse an STFT window of ``nperseg`` samples (hop ``hop``) on ``n`` samples at ``dt`` [s] that is shorter than
+    :data:`MIN_STFT_SAMPLES` or leaves fewer than ``windows`` windows inside the record (ValueError, in seconds and
+    samples; ``name`` names the window, ``seconds`` its length as given [s], in the message)."""
+    seconds = nperseg * dt if seconds is None else seconds
+    given = f"{name} {seconds:.4g} s is {nperseg} sample{'s' if nperseg != 1 else ''} at dt = {dt:.4g} s"
+    if nperseg < MIN_STFT_SAMPLES:
+        raise ValueError(f"{given}; at least {MIN_STFT_SAMPLES} samples ({MIN_STFT_SAMPLES * dt:.4g} s) needed")
+    count = stft_window_count(nperseg, hop, n)
+    if count < windows:
+        quarter = hop == max(1, nperseg // 4)  # the default hop follows the window
+        longest = next(
+            (w for w in range(min(nperseg, n), MIN_STFT_SAMPLES - 1, -1)
+             if stft_window_count(w, max(1, w // 4) if quarter else hop, n) >= windows),
+            0,
+        )  # fmt: skip
+        record = f"{n} samples, {n * dt:.4g} s"
+        fit = (
+            f"longer than the record ({record})"
+            if nperseg > n
+            else f"the record ({record}) holds {count} window{'s' if count != 1 else ''} of it"
+        )
+        fix = (
+            f"at most {longest * dt:.4g} s ({longest} samples)"
+            if longest
+            else f"no window length does at a hop of {hop * dt:.4g} s ({hop} samples): shorten the hop"
+        )
+        need = f"the map needs {windows} windows" if windows > 1 else "a whole window is needed"
+        raise ValueError(f"{given}; {fit}, and {need}: {fix}")
+
+
 def stft(
     x: np.ndarray,
     dt: float,
@@ -33,12 +88,15 @@ def stft(
 
     Periodic Hann window, ``scale_to("magnitude")`` (window normalised to unit sum) and the
     bins 0 < f < f_Nyquist doubled, so |S| is a one-sided amplitude. Only windows lying
-    entirely inside the record are kept (no zero-padded edge slices).
+    entirely inside the record are kept: none starts before sample 0 or reaches past the last one,
+    so a per-window trend is fitted to recorded samples only.
 
     Args:
         x: Real signal of shape (N,).
         dt: Sampling interval [s].
-        window_s: Window length [s]; default 2^round(log2(N/64)) samples (at least 16).
+        window_s: Window length [s], at least 4 samples and at most the record (one window may be all);
+            default 2^round(log2(N/64)) samples, at least 16 and at most the largest power of two ≤ N/2
+            (at least 4).
         hop_s: Hop between windows [s]; default a quarter of the window.
         fmin: Bins below this frequency are dropped [Hz] (paper: 10 Hz).
         detrend: Subtract each segment's mean (``"constant"``) or linear trend (``"linear"``)
@@ -48,20 +106,29 @@ def stft(
     Returns:
         ``(times, freqs, amp, info)``: window centres of shape (T,) [s], frequencies of shape
         (F,) [Hz], |S| of shape (F, T) in units of ``x``, and a caption dict.
+
+    Raises:
+        ValueError: A window of fewer than :data:`MIN_STFT_SAMPLES` samples or longer than the record (no
+            whole window inside it); a hop below one sample.
     """
     x = np.asarray(x, dtype=np.float64)
     n = x.size
     if window_s is None:
-        nperseg = min(n, max(16, 2 ** round(np.log2(max(n / 64, 1.0)))))
+        cap = max(MIN_STFT_SAMPLES, 2 ** int(np.floor(np.log2(max(n / 2, 1.0)))))
+        nperseg = min(cap, max(16, 2 ** round(np.log2(max(n / 64, 1.0)))))
     else:
         nperseg = round(window_s / dt)
     hop = max(1, nperseg // 4) if hop_s is None else round(hop_s / dt)
-    if not 2 <= nperseg <= n or hop < 1:
-        raise ValueError(f"window of {nperseg} samples and hop of {hop} do not fit a record of {n} samples")
+    if hop < 1:
+        raise ValueError(f"hop of {hop_s:.4g} s is {hop} samples at dt = {dt:.4g} s; at least 1 sample needed")
+    check_stft_window(nperseg, hop, n, dt, seconds=window_s, windows=1)
+    # ShortTimeFFT centres window p on sample p·hop (its first sample at p·hop - nperseg//2). Its own border
+    # (lower_border_end) also keeps a window whose first sample lies before the record where the periodic Hann
+    # window is 0, but a per-window detrend still fits that zero-padded sample: keep only p with
+    # 0 <= p·hop - nperseg//2 and p·hop - nperseg//2 + nperseg <= N.
     sft = ShortTimeFFT(hann(nperseg, sym=False), hop, fs=1.0 / dt, fft_mode="onesided", scale_to="magnitude")
-    p0, p1 = sft.lower_border_end[1], sft.upper_border_begin(n)[1]
-    if p1 <= p0:
-        raise ValueError(f"no window of {nperseg} samples at hop {hop} lies entirely inside {n} samples")
+    p0 = -(-(nperseg // 2) // hop)
+    p1 = p0 + stft_window_count(nperseg, hop, n)
     amp = np.abs(sft.stft_detrend(x, detrend, p0=p0, p1=p1))
     amp[1:] *= 2.0
     if nperseg % 2 == 0:

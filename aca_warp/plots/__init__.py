@@ -122,11 +122,13 @@ def plot_run(
     Args:
         path: Run file.
         outdir: Output folder (created if missing); files are named ``<run stem>_<figure>.png/.pdf/.gif``.
-        which: Figure names from :data:`FIGURES` (default: all).
+        which: Figure names from :data:`FIGURES` (default: all); one name may be given as a string.
         times: Instants of the patch map [s] (see :func:`plot_patch_map`).
         frames: Frames of the animation (see :func:`animate_patch_map`).
         log: Receives one line per skipped figure (None: silent).
     """
+    if isinstance(which, str):  # one name, not its letters
+        which = [which]
     if plots_lf.is_lf_file(path):
         if times is not None:
             raise SceneError(

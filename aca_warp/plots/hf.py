@@ -114,6 +114,15 @@ _PLAIN = FuncFormatter(lambda v, _: f"{v:g}")
 _UNITS = {"m s-1": "m/s", "N m": "N m", "m": "m", "1": "1", "Hz": "Hz"}
 
 
+def _hz(f: float) -> str:
+    """A frequency [Hz] with its unit, in Hz, kHz or MHz by size (10 Hz, 200 kHz, 2.5 MHz)."""
+    f = float(f)
+    for scale, unit in ((1e6, "MHz"), (1e3, "kHz")):
+        if abs(f) >= scale:
+            return f"{f / scale:.4g} {unit}"
+    return f"{f:.4g} Hz"
+
+
 def _unit(unit: str) -> str:
     """Plot-friendly spelling of a run-file unit string ("m s-1" -> "m/s")."""
     return _UNITS.get(unit, unit)
@@ -289,9 +298,16 @@ def animate_patch_map(
     """GIF of the patch coverage state (colours as in :func:`plot_patch_map`) over [t0, t1], 512 × 288 px.
 
     Default window: the last two periods of the first velocity-spectrum peak, else the whole per-patch
-    record; ``frames`` evenly spaced recorded samples. Needs Pillow (matplotlib's ``PillowWriter``).
+    record; ``frames`` evenly spaced recorded samples (``frames`` ≥ 2; fewer when the window holds fewer recorded
+    samples: each frame is a different sample), shown at ``fps`` ≥ 1 frames per second. Needs Pillow (matplotlib's
+    ``PillowWriter``).
     """
     from matplotlib import animation
+
+    for name, value, least in (("frames", frames, 2), ("fps", fps, 1)):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < least:
+            raise SceneError(f"{name} must be an integer >= {least}, got {value!r}")
+    frames, fps = int(frames), int(fps)
 
     if not animation.writers.is_available("pillow"):
         raise SceneError("the animation needs Pillow (pip install pillow); it is not installed")
@@ -429,10 +445,17 @@ def _mark_velocity_peak(axes: Any, peaks: Group) -> str:
         xytext=(3, -3),
         textcoords="offset points",
     )
+    source = peaks.attrs.get("first_velocity_peak_source", "?").split(" (")[0]
+    edge = peaks.attrs.get("first_velocity_peak_at_band_edge", "no")
+    if edge in ("lower", "upper"):
+        return (
+            f" Dotted red: the largest value of the {source} in the band searched "
+            f"({_hz(peaks.attrs['band'][0])} – {_hz(peaks.attrs['band'][1])}), {fp / 1e3:.4g} kHz, at the band's "
+            f"{edge} edge: no peak inside the band."
+        )
     return (
         f" Dotted red: first velocity-spectrum peak, {fp / 1e3:.4g} kHz "
-        f"(largest peak above {peaks.attrs['band'][0] / 1e3:.3g} kHz of the "
-        f"{peaks.attrs.get('first_velocity_peak_source', '?').split(' (')[0]})."
+        f"(largest peak of the {source} from {_hz(peaks.attrs['band'][0])} up)."
     )
 
 
@@ -566,7 +589,7 @@ def plot_sync(path: str | Path, outdir: str | Path, **options: Any) -> list[Path
             f"over all patches. Φ: {_rule_text(a)}; {a.get('n_bins')} phase bins on [−π, π)"
             + (", circular 3-bin Gaussian filter (σ = 1 bin)" if a.get("smooth", True) else ", no filter")
             + f"; τ_AB = {a.get('tau_ab')}, τ_BC = {a.get('tau_bc')}, w = {a.get('w')}. Band "
-            f"{band[0]:g}–{band[1] / 1e3:g} kHz, Δf = {df:.4g} Hz; {a.get('patches')} patches × "
+            f"{_hz(band[0])} – {_hz(band[1])}, Δf = {df:.4g} Hz; {a.get('patches')} patches × "
             f"{a.get('samples')} samples, Hann window; bins below max(10 Hz, 2 Δf) = {floor:.4g} Hz left out (the "
             f"window's leakage of the mean). {np.count_nonzero(valid)} of {f.size} bins shown have Φ ≥ 2, "
             f"{np.count_nonzero(above)} with S > S_null."
