@@ -638,6 +638,7 @@ def write_outputs(texts: dict[Path, str]) -> None:
     file beside it, then renamed), so that a failure leaves no half-written file. A file that cannot be written:
     StorageError (exit 4), one line naming it, the cause and what was written."""
     from aca_warp.common.files import UNWRITABLE, whole
+    from aca_warp.common.links import LinkError
 
     done: list[Path] = []
     path = next(iter(texts), Path("."))
@@ -647,6 +648,8 @@ def write_outputs(texts: dict[Path, str]) -> None:
                 fh.write(text.encode("utf-8"))
             done.append(path)
     except (OSError, SceneError) as e:  # SceneError: whole() found a folder at the name
+        if isinstance(e, LinkError):  # a link planted at the temporary file: its own refusal
+            raise
         code = getattr(e, "errno", None) or 0
         why = (
             UNWRITABLE.get(code)

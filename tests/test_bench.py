@@ -345,3 +345,26 @@ def test_bench_header_names_a_tolerance_only_for_a_case_that_has_one(tmp_path: P
     assert main([*QUICK, "--integrator", "strang", "adaptive", "--engine", "general", "--markdown", str(md2)]) == 0
     head = md2.read_text().splitlines()[0]
     assert "(adaptive: tolerance 1e-05)" in head and "split tolerance" not in head
+
+
+def test_a_link_planted_at_a_benchs_temporary_file_is_refused_as_a_link(
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A link another user plants where the JSON's temporary file goes, while the cases run: the link refusal (exit
+    2), not a storage failure, and nothing written through it."""
+    import aca_warp.bench as bench
+
+    out, victim = tmp_path / "b.json", tmp_path / "victim"
+    victim.write_text("keep")
+    real_run = bench.run_bench
+
+    def run_then_plant(**kw: object) -> dict:
+        result = real_run(**kw)
+        (tmp_path / ".b.partial.json").symlink_to(victim)
+        return result
+
+    monkeypatch.setattr(bench, "run_bench", run_then_plant)
+    assert main([*QUICK, "--json", str(out)]) == 2
+    printed, err = _error(capsys)
+    assert len(err) == 1 and "cannot write" not in err[0], err
+    assert victim.read_text() == "keep" and not out.exists()

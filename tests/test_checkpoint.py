@@ -69,6 +69,21 @@ def test_sigkill_then_resume_is_bit_identical(scene_file: Path, tmp_path: Path, 
     assert out.exists() and not part.exists()
     assert_same_file(out, ref)
 
+    # the same over a complete earlier file (--overwrite): marked when it begins, so the killed run resumes beside
+    # the earlier file, which it replaces only when it completes
+    from aca_warp.common.files import REPLACES
+
+    kill_after_first_checkpoint(
+        ["hf", str(scene_file), "-o", str(out), *opts, "--overwrite"], part, poll=0.01, python=AUTO_AT_ONCE
+    )
+    with h5py.File(part, "r") as f:
+        assert f.attrs[REPLACES] and f.attrs["status"] == "running"
+    assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
+    assert not part.exists()
+    assert_same_file(out, ref)
+    with h5py.File(out, "r") as f:
+        assert REPLACES not in f.attrs
+
 
 @pytest.mark.parametrize(
     ("integrator", "extra", "dt", "engine"),

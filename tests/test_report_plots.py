@@ -196,7 +196,7 @@ def test_a_run_file_that_cannot_be_opened_for_writing_says_so(runs, tmp_path, mo
 
     def refusing(name, mode="r", *args, **kwargs):
         if mode != "r":
-            raise OSError("unable to lock file (simulated)\nsecond line")
+            raise OSError("unable to lock file, errno = 11 (simulated)\nsecond line")
         return real(name, mode, *args, **kwargs)
 
     monkeypatch.setattr(h5py, "File", refusing)
@@ -822,6 +822,7 @@ def test_a_run_named_without_its_partial_says_where_it_is(runs, tmp_path, capsys
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert f"{run}.partial exists (a run still being written, or one stopped or killed" in err
-        assert f"analyse or plot {run}.partial itself, or continue the run with 'aca-warp hf --resume {run}'" in err
+        said = f"analyse or plot {run}.partial itself, or continue it from t = 0 with 'aca-warp hf --resume {run}'"
+        assert said in err
     assert main(["analyze", str(tmp_path)]) == 2
     assert f"{tmp_path} is a folder, not a run file" in capsys.readouterr().err

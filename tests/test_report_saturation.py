@@ -134,3 +134,5 @@ def test_a_record_shorter_than_one_predicted_e_fold_is_too_short_to_tell():
     assert long.startswith("no growth phase (Σ|u̇| settled from 0.7956 ms without growing)")
     old = {k: v for k, v in attrs.items() if k != "record_length"}  # an analysis written before record_length
     assert saturation_summary(Group(attrs=old)).startswith("no growth phase (Σ|u̇| settled")
+    stable = {**attrs, "predicted_growth_rate_median": -3000.0}  # σ_pred < 0: a stable pad settles, as said
+    assert saturation_summary(Group(attrs=stable)).startswith("no growth phase (Σ|u̇| settled")

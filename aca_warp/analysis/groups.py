@@ -80,9 +80,11 @@ def missing_run_message(path: str | Path) -> str | None:
         return None
     partial = partial_path(p)
     if partial.is_file():
+        from aca_warp.common.files import recovery
+
         return (
             f"run file not found: {p}; {partial} exists (a run still being written, or one stopped or killed before "
-            f"it completed): analyse or plot {partial} itself, or continue the run with 'aca-warp hf --resume {p}'"
+            f"it completed): analyse or plot {partial} itself, or {recovery(p)}"
         )
     return None
 
@@ -103,7 +105,7 @@ def open_h5_run(path: str | Path, mode: str = "r") -> h5py.File:
     try:
         return open_h5(p, "run file", mode=mode)
     except SceneError as e:
-        if HDF5_LOCKED not in str(e):
+        if HDF5_LOCKED not in str(e) or "errno = 11" not in str(e):  # EAGAIN: held; others (no locks) pass on
             raise
         raise SceneError(
             f"another process has {p} open (HDF5's file lock): close it there (a notebook, a viewer, a running "

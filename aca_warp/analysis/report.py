@@ -499,7 +499,7 @@ def saturation_summary(g: Group) -> str:
         text = f"saturated from {ms(a['t_start'])} (Σ|u̇| {ms(a['t_s_sum_abs_velocity'])}, μ {ms(a['t_s_mu'])})"
     elif status == "no growth phase":
         folds = _predicted_e_folds(a)
-        if folds is not None and folds < 1.0:
+        if folds is not None and 0.0 < folds < 1.0:  # σ_pred ≤ 0: a stable pad, whose settling is the verdict
             text = f"no growth phase: record too short to tell (σ_pred·T = {folds:.2g} e-folds)"
         else:
             text = f"no growth phase (Σ|u̇| settled from {ms(a['t_s_sum_abs_velocity'])} without growing)"

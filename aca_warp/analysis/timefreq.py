@@ -66,11 +66,12 @@ def check_stft_window(
             if nperseg > n
             else f"the record ({record}) holds {count} window{'s' if count != 1 else ''} of it"
         )
-        fix = (
-            f"at most {longest * dt:.4g} s ({longest} samples)"
-            if longest
-            else f"no window length does at a hop of {hop * dt:.4g} s ({hop} samples): shorten the hop"
-        )
+        if longest:  # windows sit on a grid centred at multiples of the hop: not every shorter length fits
+            fix = f"a window of {longest * dt:.4g} s ({longest} samples) fits"
+        elif n < MIN_STFT_SAMPLES * windows or hop <= 1:
+            fix = f"the record is too short for an STFT map of {MIN_STFT_SAMPLES}-sample windows"
+        else:
+            fix = f"no window length does at a hop of {hop * dt:.4g} s ({hop} samples): shorten the hop"
         need = f"the map needs {windows} windows" if windows > 1 else "a whole window is needed"
         raise ValueError(f"{given}; {fit}, and {need}: {fix}")
 

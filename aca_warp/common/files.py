@@ -585,10 +585,10 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     """(run file, its ``.partial``) of the run ``path`` names: ``NAME``, ``NAME.partial`` or a stopped ``NAME``.
 
     A killed run left ``NAME.partial``; a run stopped by Ctrl-C or a fault was moved to ``NAME`` (incomplete)
-    and keeps its checkpoint, if it had one (without, it is resumed from its start). A run interrupted while it was
-    to replace a complete ``NAME`` (``--overwrite``) stays ``NAME.partial`` beside it, marked :data:`REPLACES`: that
-    one is resumed, and replaces ``NAME`` when it completes; any other ``.partial`` beside an existing ``NAME`` is
-    refused (move one away). Raises SceneError when there is nothing to resume.
+    and keeps its checkpoint, if it had one (without, it is resumed from its start). A run begun over a complete
+    ``NAME`` (``--overwrite``) is marked :data:`REPLACES` and, interrupted, killed or stopped by a full device, stays
+    ``NAME.partial`` beside it: that one is resumed, and replaces ``NAME`` when it completes; any other ``.partial``
+    beside an existing ``NAME`` is refused (move one away). Raises SceneError when there is nothing to resume.
     """
     text = os.fspath(path)
     if not text or text.endswith(("/", os.sep)) or Path(text).name in ("", ".", ".."):
@@ -616,7 +616,7 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     return final, part
 
 
-REPLACES = "replaces_complete_run"  # the mark of a run interrupted while it was to replace a complete NAME
+REPLACES = "replaces_complete_run"  # the mark of a run begun over a complete NAME (--overwrite), until it completes
 
 
 def is_complete(path: str | Path) -> bool:
@@ -629,7 +629,7 @@ def is_complete(path: str | Path) -> bool:
 
 
 def _replaces(partial: Path) -> bool:
-    """Whether ``partial`` is a run interrupted while it was to replace a complete run file (:data:`REPLACES`)."""
+    """Whether ``partial`` is a run begun over a complete run file, to replace it (:data:`REPLACES`)."""
     try:
         with open_h5(partial, "run file") as f:
             return bool(f.attrs.get(REPLACES, False))

@@ -6,11 +6,11 @@ looks at ``NAME`` until the file has its final name, so a second run, an ``--ove
 same name is refused while it runs. The file is created as ``NAME.partial.new``, its header written and flushed,
 and only then renamed to ``NAME.partial``: a ``.partial`` is a readable HDF5 file from the moment it exists. When
 the run ends, completed or not, the file is closed and renamed to ``NAME`` (then ``complete = False`` and
-``status`` says why): the final name never holds a file that is half written. A run interrupted while it was to
-replace a complete ``NAME`` (``--overwrite``) stays ``.partial``, marked (:data:`~aca_warp.common.files.REPLACES`),
-and the earlier file stays until the run completes. A killed process leaves only the ``.partial`` behind, which
-:func:`reopen_resumable` hands to the writer's ``reopen`` to continue it. On a full
-device the file is abandoned as it was at its last flush (:mod:`aca_warp.common.storage`).
+``status`` says why): the final name never holds a file that is half written. A run begun over a complete ``NAME``
+(``--overwrite``) is marked :data:`~aca_warp.common.files.REPLACES`; interrupted, it stays ``.partial`` and the earlier
+file stays until the run completes. A killed process leaves only the ``.partial`` behind, which
+:func:`reopen_resumable` hands to the writer's ``reopen`` to continue it. On a full device the file is abandoned as it
+was at its last flush (:mod:`aca_warp.common.storage`).
 """
 
 from __future__ import annotations
@@ -106,6 +106,8 @@ class RunFileWriter(ABC):
             self.f = create_h5(tmp, self.lock, rdcc_nbytes=self.RAW_CACHE)  # a leftover .new replaced, a link refused
             self.out = GuardedFile(self.f, self.partial, raw_cache=self.RAW_CACHE)
             header()
+            if is_complete(self.path):  # --overwrite of a complete file: kept until this run completes
+                self.f.attrs[REPLACES] = True
             self.out.flush()
             os.replace(tmp, self.partial)  # readable from the moment it has this name
         except BaseException as e:
@@ -199,11 +201,11 @@ class RunFileWriter(ABC):
         :class:`~aca_warp.common.errors.StorageError`), or None to raise ``error`` itself."""
         code = storage_errno(error)
         if code is None and not from_h5py(error):
-            # an interrupted run that was to replace a complete earlier file (--overwrite) stays NAME.partial,
-            # marked so (REPLACES): the earlier file is kept until the run completes (find_resumable resumes it)
+            # an interrupted run that was to replace a complete earlier file (--overwrite, marked REPLACES when it
+            # began) stays NAME.partial: the earlier file is kept until the run completes (find_resumable resumes it)
             keep = status.startswith("interrupted") and is_complete(self.path)
             try:
-                self.close(complete=False, status=status, attrs={REPLACES: True} if keep else None, rename=not keep)
+                self.close(complete=False, status=status, rename=not keep)
             except AcaError as e:
                 return e
             return None

@@ -455,7 +455,7 @@ def _mark_velocity_peak(axes: Any, peaks: Group) -> str:
         )
     return (
         f" Dotted red: first velocity-spectrum peak, {fp / 1e3:.4g} kHz "
-        f"(largest peak of the {source} from {_hz(peaks.attrs['band'][0])} up)."
+        f"(largest peak of the {source} in {_hz(peaks.attrs['band'][0])} – {_hz(peaks.attrs['band'][1])})."
     )
 
 
