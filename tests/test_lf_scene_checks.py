@@ -271,3 +271,16 @@ def test_a_seed_beyond_64_bits_at_the_command_line(tmp_path: Path, capsys: pytes
 def test_the_preset_loads() -> None:
     scene = load_lf_scene("multiscale")
     assert scene.duration == 55.0 and scene.lf == LFConstants(seed=1)
+
+
+def test_an_hf_scene_of_a_snapshot_in_a_pause_is_refused(tmp_path: Path) -> None:
+    """A snapshot taken in a pause (no load, the disc at rest) gives no HF scene: its run would have no friction;
+    an application's snapshot does."""
+    from aca_warp.lf.commands import run_lf
+    from aca_warp.lf.io import scene_from_snapshot
+
+    out = tmp_path / "lf.h5"
+    run_lf(lf_scene_from_dict(preset(schedule=SHORT, snapshots={"times": [1.2]}, patches={"count": 50})), out)
+    with pytest.raises(SceneError, match=r"snapshot 't1.2s' was taken with the pad unloaded or the disc at rest"):
+        scene_from_snapshot(out, "t1.2s")
+    assert scene_from_snapshot(out, "app1_end").normal_force > 0

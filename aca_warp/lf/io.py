@@ -293,6 +293,13 @@ def scene_from_snapshot(
     except (KeyError, TypeError, ValueError) as e:
         raise SceneError(f"{path}: snapshot {name!r} is incomplete or damaged ({type(e).__name__}: {e})") from None
     a = s["attrs"]
+    load, omega = float(a.get("normal_force", 0.0)), float(a.get("angular_velocity", 0.0))
+    if not (load > 0.0 and omega != 0.0):
+        raise SceneError(
+            f"{path}: snapshot {name!r} was taken with the pad unloaded or the disc at rest (normal force {load:g} N, "
+            f"angular velocity {omega:g} rad/s: a pause of the schedule); its HF run would have no friction to "
+            "vibrate: choose a snapshot of an application"
+        )
     kw: dict[str, Any] = {}
     if duration is not None:
         kw["duration"] = duration
