@@ -71,7 +71,7 @@ def has_patch_velocity(f: h5py.File) -> bool:
 def missing_run_message(path: str | Path) -> str | None:
     """For a run file ``path`` that does not exist, the message naming its ``.partial`` when that exists (a run still
     being written, or one that was stopped or killed) and what to do; for a folder, that it is one; else None."""
-    from aca_warp.common.files import partial_path
+    from aca_warp.common.files import partial_path, recovery
 
     p = Path(path)
     if p.is_dir():
@@ -80,8 +80,6 @@ def missing_run_message(path: str | Path) -> str | None:
         return None
     partial = partial_path(p)
     if partial.is_file():
-        from aca_warp.common.files import recovery
-
         return (
             f"run file not found: {p}; {partial} exists (a run still being written, or one stopped or killed before "
             f"it completed): analyse or plot {partial} itself, or {recovery(p)}"
@@ -89,25 +87,12 @@ def missing_run_message(path: str | Path) -> str | None:
     return None
 
 
-HDF5_LOCKED = "unable to lock file"
-"""What HDF5 says (with errno 11) when another process holds the file open in a way that excludes this opening."""
-
-
 def open_h5_run(path: str | Path, mode: str = "r") -> h5py.File:
-    """``open_h5`` of a run file, with one line for a missing file that has a ``.partial``
-    (:func:`missing_run_message`) and for a file another process holds open (HDF5's file lock)."""
+    """``open_h5`` of a run file (which names a file another process holds open), with one line for a missing file
+    that has a ``.partial`` (:func:`missing_run_message`)."""
     from aca_warp.common.files import open_h5
 
-    p = Path(path)
-    said = missing_run_message(p)
+    said = missing_run_message(path)
     if said is not None:
         raise SceneError(said)
-    try:
-        return open_h5(p, "run file", mode=mode)
-    except SceneError as e:
-        if HDF5_LOCKED not in str(e) or "errno = 11" not in str(e):  # EAGAIN: held; others (no locks) pass on
-            raise
-        raise SceneError(
-            f"another process has {p} open (HDF5's file lock): close it there (a notebook, a viewer, a running "
-            "aca-warp), or wait for it to finish"
-        ) from None
+    return open_h5(path, "run file", mode=mode)

@@ -52,7 +52,7 @@ from .patch_report import shown_bins as shown_bins
 from .patch_report import sync_excess as sync_excess
 from .saturation import record_saturation
 from .spectra import DEFAULT_FLOOR_HZ, amplitude_spectrum, peak
-from .timefreq import check_stft_window, cwt_morlet, stft
+from .timefreq import check_stft_window, cwt_morlet, default_window_samples, stft
 
 GLOBAL_OUTPUTS = ("mu", "torque", "friction_radius", "sum_velocity", "sum_abs_velocity", "friction_centroid")
 """Global outputs of a run file (datasets under ``/global``), in the order of ``aca_warp.hf.recorder.GLOBAL_NAMES``.
@@ -207,12 +207,7 @@ def default_stft_window(n: int, dt: float, top: float = DEFAULT_BAND_TOP) -> flo
     * at most the largest power of two ≤ N/2 (at least 4), so that the map has five or more windows: on records too
       short for Δf ≤ top/8 the resolution is the best those allow.
     """
-    samples = max(16, 2 ** round(math.log2(max(n / 64, 1.0))))
-    need = 8.0 / (min(top, 0.5 / dt) * dt)  # samples for Δf ≤ top/8
-    if samples < need * (1 - 1e-9):
-        samples = 2 ** math.ceil(math.log2(need) - 1e-9)
-    cap = max(4, 2 ** math.floor(math.log2(max(n / 2, 1.0))))
-    return min(samples, cap) * dt
+    return default_window_samples(n, at_least=8.0 / (min(top, 0.5 / dt) * dt)) * dt  # Δf ≤ top/8
 
 
 def compute_stft(f: h5py.File, *, window_s: float | None = None, detrend: str | None = "linear") -> Group:

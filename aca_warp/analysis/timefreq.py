@@ -8,6 +8,7 @@ scaling, for figure captions and file attributes.
 from __future__ import annotations
 
 import inspect
+import math
 from typing import Literal
 
 import numpy as np
@@ -26,6 +27,17 @@ MIN_STFT_SAMPLES = 4
 MIN_STFT_WINDOWS = 2
 """Fewest windows of an STFT map (``aca-warp analyze``, the figure): one window is a spectrum, with no time axis to
 draw. :func:`stft` itself accepts one window (a measure such as ``stft_peak`` may use one as long as the record)."""
+
+
+def default_window_samples(n: int, at_least: float = 0.0) -> int:
+    """The default STFT window of a record of ``n`` samples, in samples, a power of two: 2^round(log2(N/64)), at
+    least 16; the smallest power of two of ``at_least`` samples or more where that is longer (rounded up: 40 give
+    64); at most the largest power of two ≤ N/2 (at least :data:`MIN_STFT_SAMPLES`), so that the map has several
+    windows."""
+    samples = max(16, 2 ** round(math.log2(max(n / 64, 1.0))))
+    if samples < at_least * (1 - 1e-9):
+        samples = 2 ** math.ceil(math.log2(at_least) - 1e-9)
+    return min(samples, max(MIN_STFT_SAMPLES, 2 ** math.floor(math.log2(max(n / 2, 1.0)))))
 
 
 def stft_window_count(nperseg: int, hop: int, n: int) -> int:
@@ -115,8 +127,7 @@ def stft(
     x = np.asarray(x, dtype=np.float64)
     n = x.size
     if window_s is None:
-        cap = max(MIN_STFT_SAMPLES, 2 ** int(np.floor(np.log2(max(n / 2, 1.0)))))
-        nperseg = min(cap, max(16, 2 ** round(np.log2(max(n / 64, 1.0)))))
+        nperseg = default_window_samples(n)
     else:
         nperseg = round(window_s / dt)
     hop = max(1, nperseg // 4) if hop_s is None else round(hop_s / dt)

@@ -548,11 +548,16 @@ def check_not_input(output: str | Path, inputs: dict[str, str | Path | None], co
                 raise SceneError(f"{command} writes a new file; {name} is its {what}: give another output")
 
 
+HDF5_LOCKED = "unable to lock file"
+"""What HDF5 says (with errno 11) when another process holds the file open in a way that excludes this opening."""
+
+
 def open_h5(path: str | Path, what: str, *, mode: str = "r", text: tuple[str, ...] = ()) -> h5py.File:
     """Open an existing HDF5 input (read-only, or ``mode``) and check it before anything is read
     (:func:`~aca_warp.common.bounds.check_h5`: no soft or external links, declared sizes backed by the file and
     within memory, numbers outside the groups named in ``text``); :class:`SceneError` naming ``what`` ("run file",
-    …) when it is missing, cannot be opened or fails a check."""
+    …) when it is missing, cannot be opened (one line of its own where another process holds it: HDF5's file lock)
+    or fails a check."""
     from aca_warp.common.bounds import check_h5
 
     p = Path(path)
@@ -563,6 +568,11 @@ def open_h5(path: str | Path, what: str, *, mode: str = "r", text: tuple[str, ..
     try:
         f = h5py.File(p, mode)
     except (OSError, RuntimeError) as e:
+        if HDF5_LOCKED in str(e) and "errno = 11" in str(e):  # EAGAIN: held; no locks at all (errno 38) passes on
+            raise SceneError(
+                f"another process has {p} open (HDF5's file lock): close it there (a notebook, a viewer, a running "
+                "aca-warp), or wait for it to finish"
+            ) from None
         detail = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         how = "" if mode == "r" else " for writing"
         raise SceneError(f"cannot open {what} {p}{how}: {detail}") from None

@@ -243,10 +243,9 @@ def _packaged(name: str) -> dict:
     """The packaged scene file ``aca_warp/data/<name>.toml`` of any kind (HF or LF), or {} where there is none."""
     if not name.isidentifier():
         return {}
-    path = resources.files("aca_warp.data").joinpath(f"{name}.toml")
     try:
-        return tomllib.loads(path.read_text()) if path.is_file() else {}
-    except OSError:  # a name too long for the file system: no packaged scene
+        return preset_document(name)
+    except OSError:  # none of that name (or a name too long for the file system)
         return {}
 
 
