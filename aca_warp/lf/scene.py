@@ -325,16 +325,6 @@ class LFScene:
         return self.replace(lf=dataclasses.replace(self.lf, seed=check_seed(seed, option("seed", "--seed"))))
 
 
-def _steps(total: float, dt: float) -> int:
-    """LF steps of a run of ``total`` [s] (at least one)."""
-    return max(int(round(total / dt)), 1)
-
-
-def _snapshot_step(t: float, dt: float) -> int:
-    """Index of the step after which the snapshot at ``t`` [s] is taken: the first step that ends at or after it."""
-    return int(math.ceil(t / dt - 1e-9)) - 1
-
-
 def snapshot_name(t: float) -> str:
     """The name of the snapshot at time ``t`` [s] of ``[snapshots] times`` in the run file: ``t<T>s``."""
     return f"t{t:g}s"
@@ -385,7 +375,7 @@ def step_table(scene: LFScene, duration: float | None = None) -> StepTable:
         raise SceneError(f"duration must be a positive number of seconds, got {total}")
     if not total / dt <= MAX_STEPS:
         raise SceneError(f"{total:g} s of {dt:g} s LF steps is more than {MAX_STEPS} steps; shorten the run")
-    n = _steps(total, dt)
+    n = max(int(round(total / dt)), 1)
     t_mid = (np.arange(n) + 0.5) * dt
     load = np.zeros(n)
     omega = np.zeros(n)
@@ -411,7 +401,7 @@ def step_table(scene: LFScene, duration: float | None = None) -> StepTable:
                     snaps.append((f"app{k}_end", s_end))
         t0 += seg.duration
     for t in scene.snapshot_times:
-        s = _snapshot_step(t, dt)
+        s = int(math.ceil(t / dt - 1e-9)) - 1
         if 0 <= s < n:  # a shorter run (duration) leaves out the later ones
             snaps.append((snapshot_name(t), s))
     snaps.sort(key=lambda p: p[1])

@@ -69,12 +69,12 @@ def save(fig: Figure, outdir: Path, stem: str) -> list[Path]:
     figure): the two files show the same layout, and the PDF costs ~15 % less time."""
     outdir.mkdir(parents=True, exist_ok=True)
     files = [outdir / f"{stem}.png", outdir / f"{stem}.pdf"]
-    with whole(files[0]) as fh:
+    with whole(files[0], "temporary figure") as fh:
         fig.savefig(fh, format="png", dpi=DPI)
     engine = fig.get_layout_engine()
     fig.set_layout_engine("none")
     try:
-        with whole(files[1]) as fh:
+        with whole(files[1], "temporary figure") as fh:
             fig.savefig(fh, format="pdf")
     finally:
         fig.set_layout_engine(engine)

@@ -317,7 +317,7 @@ def animate_patch_map(
         out = Path(outdir)
         out.mkdir(parents=True, exist_ok=True)
         gif = out / f"{run_stem(run.path)}_patch_map.gif"
-        with whole(gif) as fh:
+        with whole(gif, "temporary figure") as fh:
             anim.save(fh.name, writer=GifInto(fh, fps), dpi=GIF_DPI)
         return [gif]
 
