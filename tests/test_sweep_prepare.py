@@ -4,6 +4,7 @@ path (serial, overlapped threads, Dask), and a failed preparation is its shard's
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import threading
 import time
@@ -341,7 +342,7 @@ def test_prepared_shards_on_dask(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     client's pool (models made on the host) are handed over as their spool files and give the serial path's outputs
     bit for bit, without Dask's warning about large task graphs (a prepared shard of 256 hf1 pads is ~90 MB; here the
     warning's threshold is 1 byte, so that every task would raise it); a failed preparation is the shard's failure
-    there too."""
+    there too. The worker has glibc's sliding mmap threshold (no MALLOC_TRIM_THRESHOLD_ from its nanny)."""
     pytest.importorskip("distributed")
     import warnings
 
@@ -360,9 +361,12 @@ def test_prepared_shards_on_dask(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     monkeypatch.setattr(sweep_cluster, "_feed", feed)
     spec = _spec(tmp_path)
     run_sweep(spec, tmp_path / "serial", workers=0, overlap=False)
+    trim = os.environ.get("MALLOC_TRIM_THRESHOLD_")  # Dask's nannies set it (65536) unless told not to
     cluster, device = local_cluster("cpu", 1)
     client = Client(cluster)
     try:
+        assert list(client.run(os.environ.get, "MALLOC_TRIM_THRESHOLD_").values()) == [trim]
+        assert os.environ.get("MALLOC_TRIM_THRESHOLD_") == trim  # nor in this process, for what it starts later
         big = {"distributed.admin.large-graph-warning-threshold": "1B"}
         with dask.config.set(big), warnings.catch_warnings(record=True) as said:
             warnings.simplefilter("always")

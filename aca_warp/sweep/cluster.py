@@ -62,6 +62,14 @@ _WORKER_PRELOAD = (
 )
 
 
+# Dask's nannies give their workers MALLOC_TRIM_THRESHOLD_=65536 (and set it in this process's environment, which
+# processes started here later inherit). Setting it turns off glibc's sliding mmap threshold: every NumPy buffer of
+# 128 KiB or more is then mapped afresh (its pages faulted in and zeroed) and unmapped on free, which made a worker's
+# build of a 256-pad hf1 shard 2.2× and its checks 1.6× slower (docs/sweeps.md, "A worker's host work"). These
+# workers hold no Dask data to trim (memory_limit 0): None leaves the variable unset.
+_NANNY_ENV = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+
+
 def local_cluster(device: str, workers: int | None = None, *, threads: int = 1) -> Any:
     """A local Dask cluster of worker processes with ``threads`` threads each: one per GPU (``CUDA_VISIBLE_DEVICES``
     pinned; ``workers`` of them spread over the GPUs in turn, if given) or, for ``cpu``, ``workers`` of them (default
@@ -76,6 +84,7 @@ def local_cluster(device: str, workers: int | None = None, *, threads: int = 1) 
     The worker processes ignore SIGINT (the client stops them)."""
     import logging
 
+    import dask
     from distributed import Nanny, Scheduler, SpecCluster
 
     if device == "cpu":
@@ -113,13 +122,14 @@ def local_cluster(device: str, workers: int | None = None, *, threads: int = 1) 
         "protocol": "tls",
         "local_directory": scratch,
     }
-    cluster = SpecCluster(
-        workers=spec,
-        scheduler={"cls": Scheduler, "options": {**scheduler, "security": security}},
-        security=security,
-        silence_logs=logging.ERROR,
-        name="aca-warp-sweep",
-    )
+    with dask.config.set(_NANNY_ENV):  # read as the nannies are made, inside the constructor
+        cluster = SpecCluster(
+            workers=spec,
+            scheduler={"cls": Scheduler, "options": {**scheduler, "security": security}},
+            security=security,
+            silence_logs=logging.ERROR,
+            name="aca-warp-sweep",
+        )
     return cluster, worker_device
 
 
