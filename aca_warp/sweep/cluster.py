@@ -65,7 +65,7 @@ _WORKER_PRELOAD = (
 # Dask's nannies give their workers MALLOC_TRIM_THRESHOLD_=65536 (and set it in this process's environment, which
 # processes started here later inherit). Setting it turns off glibc's sliding mmap threshold: every NumPy buffer of
 # 128 KiB or more is then mapped afresh (its pages faulted in and zeroed) and unmapped on free, which made a worker's
-# build of a 256-pad hf1 shard 2.2× and its checks 1.6× slower (docs/sweeps.md, "A worker's host work"). These
+# build of a 256-pad hf1 shard 1.8× and its checks 1.5× slower on a CPU (docs/sweeps.md, "A worker's host work"). These
 # workers hold no Dask data to trim (memory_limit 0): None leaves the variable unset.
 _NANNY_ENV = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 
