@@ -86,7 +86,8 @@ def test_plot_writes_every_lf_figure(lf_run, tmp_path):
 def test_a_damaged_lf_file_skips_or_refuses_the_figure_it_breaks(lf_run, tmp_path, capsys):
     """A snapshot group damaged after the global series: the figure that reads it is skipped with a note naming the
     file (exit 0, the others drawn), or, named with --only, refused in one line (exit 2) with the figures of the
-    call removed again (all or nothing), as for HF run files; --times on an LF file names --snapshots."""
+    call removed again and the earlier figures they replaced put back (all or nothing), as for HF run files; --times
+    on an LF file names --snapshots."""
     import shutil
 
     damaged = tmp_path / "damaged.h5"
@@ -103,6 +104,11 @@ def test_a_damaged_lf_file_skips_or_refuses_the_figure_it_breaks(lf_run, tmp_pat
     assert _cli(["plot", str(damaged), "-o", str(out2), "--only", "lf_global", "lf_population"]) == 2
     assert "damaged or incomplete" in capsys.readouterr().out
     assert not out2.exists() or not list(out2.iterdir())
+    # an earlier plot's figure that this call replaced before it failed is put back, byte for byte
+    earlier = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert _cli(["plot", str(damaged), "-o", str(out), "--only", "lf_global", "lf_population"]) == 2
+    capsys.readouterr()
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == earlier  # nothing left beside them, hidden or not
     assert _cli(["plot", str(lf_run), "-o", str(out), "--times", "0.1"]) == 2
     assert "panels with snapshots=[…], not times=[…]" in capsys.readouterr().out  # the Python API's names here
 

@@ -15,6 +15,7 @@ from test_output_lock import LF_SCENE
 
 from aca_warp.cli import main
 from aca_warp.common import links
+from aca_warp.common.errors import SceneError
 from aca_warp.common.files import OutputLock
 from aca_warp.hf import runner
 
@@ -215,3 +216,32 @@ def test_a_folder_where_a_whole_file_goes_is_one_line(tmp_path: Path) -> None:
     with pytest.raises(SceneError, match="is a folder where a file of that name goes"), whole(target) as fh:
         fh.write(b"x")
     assert target.is_dir() and sorted(p.name for p in tmp_path.iterdir()) == ["run_global.png"]
+
+
+@pytest.mark.parametrize("ending", ["completes", "fails", "ctrl-c"])
+def test_all_or_nothing_puts_back_what_its_files_replaced(tmp_path: Path, ending: str) -> None:
+    """Files written whole inside all_or_nothing(): when the block completes they stand and the earlier files they
+    replaced are gone; when it fails or is interrupted, every file it wrote is removed and every earlier file put
+    back byte for byte (one written twice in the block is put back once, as it was before the block); no hidden
+    file is left beside them either way."""
+    from aca_warp.common.files import all_or_nothing, whole
+
+    earlier, new = tmp_path / "a.png", tmp_path / "b.png"
+    earlier.write_bytes(b"an earlier plot")
+    raised = {"completes": None, "fails": SceneError("drawing failed"), "ctrl-c": KeyboardInterrupt()}[ending]
+    try:
+        with all_or_nothing():
+            for content in (b"first", b"second"):
+                with whole(earlier) as fh:
+                    fh.write(content)
+            with whole(new) as fh:
+                fh.write(b"new")
+            if raised is not None:
+                raise raised
+    except (SceneError, KeyboardInterrupt) as e:
+        assert e is raised
+    got = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    if raised is None:
+        assert got == {"a.png": b"second", "b.png": b"new"}
+    else:
+        assert got == {"a.png": b"an earlier plot"}

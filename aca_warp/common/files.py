@@ -15,6 +15,7 @@ import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -529,9 +530,56 @@ def whole(path: Path, what: str = "temporary file") -> Iterator[BinaryIO]:
     try:
         with fh:
             yield fh
+        book = _WRITES.get()
+        if book is not None:
+            book.keep_earlier(path)
         os.replace(tmp, path)
+        if book is not None:
+            book.written.append(path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+class _Writes:
+    """The files :func:`whole` wrote inside :func:`all_or_nothing`, and the earlier files they replaced, each kept
+    under a hidden name beside it until the block ends."""
+
+    def __init__(self) -> None:
+        self.written: list[Path] = []
+        self.earlier: dict[Path, Path] = {}  # a replaced file -> where it is kept
+
+    def keep_earlier(self, path: Path) -> None:
+        """Before ``path`` is replaced: move the file there aside, unless this block wrote it (or it is none)."""
+        if path in self.earlier or path in self.written or not path.is_file() or path.is_symlink():
+            return
+        kept = path.with_name(f".{path.stem}.earlier{path.suffix}")
+        os.replace(path, kept)  # a link planted at ``kept`` is replaced, not followed
+        self.earlier[path] = kept
+
+
+_WRITES: ContextVar[_Writes | None] = ContextVar("aca_warp_writes", default=None)
+
+
+@contextmanager
+def all_or_nothing() -> Iterator[None]:
+    """A block whose files written by :func:`whole` stand or fall together: when the block raises (an error, Ctrl-C),
+    every file it wrote is removed and every earlier file one of them replaced is put back; when it ends, the earlier
+    files are let go. Figures named with ``plot --only`` are written so."""
+    book = _Writes()
+    token = _WRITES.set(book)
+    try:
+        yield
+    except BaseException:
+        for path in book.written:
+            path.unlink(missing_ok=True)
+        for path, kept in book.earlier.items():
+            os.replace(kept, path)
+        raise
+    else:
+        for kept in book.earlier.values():
+            kept.unlink(missing_ok=True)
+    finally:
+        _WRITES.reset(token)
 
 
 def check_not_input(output: str | Path, inputs: dict[str, str | Path | None], command: str) -> None:

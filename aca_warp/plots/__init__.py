@@ -28,12 +28,14 @@ strip, PNG + PDF written whole, envelopes, pad outline).
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from aca_warp.analysis.report import has_patch_velocity, stored
 from aca_warp.common.errors import SceneError, option
+from aca_warp.common.files import all_or_nothing
 from aca_warp.common.links import LinkError
 from aca_warp.plots import lf as plots_lf
 from aca_warp.plots.hf import (
@@ -116,7 +118,8 @@ def plot_run(
     Figures whose data are absent (per-patch velocities for ``patch_map``, ``sync``, ``animation``; a
     record too short for a transform, a Synchronization Index of fewer than two bins) are skipped with a message to
     ``log`` when ``which`` is None; a figure named in ``which`` that cannot be made raises :class:`SceneError`, and
-    the figures this call wrote before it are removed again (all or nothing). A link planted where a figure's
+    the figures this call wrote before it are removed again and the earlier files they replaced put back (all or
+    nothing, :func:`~aca_warp.common.files.all_or_nothing`; an interrupt likewise). A link planted where a figure's
     temporary file goes (:class:`~aca_warp.common.links.LinkError`) stops the call in either case.
 
     Args:
@@ -152,21 +155,19 @@ def plot_run(
         "animation": lambda: animate_patch_map(path, outdir, frames=frames),
     }
     files: list[Path] = []
-    for name in names:
-        if name in absent:
-            if log:
-                log(f"skipped {name}: {Path(path).name} holds no per-patch velocities")
-            continue
-        try:
-            files += makers[name]()
-        except SceneError as e:
-            if which is not None:  # a figure asked for: all or nothing
-                for written in files:
-                    written.unlink(missing_ok=True)
-            if isinstance(e, LinkError):  # a planted link stops the call, whatever was asked
-                raise
-            if which is not None:
-                raise SceneError(f"{name}: {e}") from None
-            if log:
-                log(f"skipped {name}: {e}")
+    with all_or_nothing() if which is not None else contextlib.nullcontext():  # figures asked for: all or nothing
+        for name in names:
+            if name in absent:
+                if log:
+                    log(f"skipped {name}: {Path(path).name} holds no per-patch velocities")
+                continue
+            try:
+                files += makers[name]()
+            except SceneError as e:
+                if isinstance(e, LinkError):  # a planted link stops the call, whatever was asked
+                    raise
+                if which is not None:
+                    raise SceneError(f"{name}: {e}") from None
+                if log:
+                    log(f"skipped {name}: {e}")
     return files

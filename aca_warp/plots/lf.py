@@ -18,6 +18,7 @@ small-print footer, Agg canvas).
 
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 from collections.abc import Callable, Sequence
@@ -34,7 +35,7 @@ from matplotlib.figure import Figure
 
 from aca_warp.analysis.report import run_attr
 from aca_warp.common.errors import SceneError
-from aca_warp.common.files import open_h5, reading
+from aca_warp.common.files import all_or_nothing, open_h5, reading
 from aca_warp.common.links import LinkError
 from aca_warp.plots.figure import WIDTH, device_text, envelope, finish, new_figure, pad_outline, run_stem, save
 
@@ -447,7 +448,8 @@ def plot_lf_run(
     named in ``which`` that cannot be made, an unknown name, quantity or snapshot raise :class:`SceneError`
     before anything is written. A figure that fails while it is drawn (a damaged group of the file) is skipped with
     a message to ``log`` when ``which`` is None; when ``which`` names figures, its error is raised and the figures
-    this call wrote before it are removed again (all or nothing), as for HF run files
+    this call wrote before it are removed again and the earlier files they replaced put back (all or nothing), as for
+    HF run files
     (:func:`~aca_warp.plots.plot_run`).
     """
     names = list(LF_FIGURES if which is None else dict.fromkeys(which))
@@ -472,20 +474,18 @@ def plot_lf_run(
         "lf_patch_map": lambda: plot_lf_patch_map(path, outdir, quantity=quantity, snapshots=snapshots),
     }
     files: list[Path] = []
-    for name in names:
-        if name == "lf_patch_map" and not maps:
-            if log:
-                log(f"skipped lf_patch_map: {reason}")
-            continue
-        try:
-            with reading(path, "run file"):  # a damaged group: one SceneError line naming the file
-                files += makers[name]()
-        except SceneError as e:
-            if which is not None:  # a figure asked for: all or nothing
-                for written in files:
-                    written.unlink(missing_ok=True)
-            if isinstance(e, LinkError) or which is not None:  # a planted link stops the call, whatever was asked
-                raise
-            if log:
-                log(f"skipped {name}: {e}")
+    with all_or_nothing() if which is not None else contextlib.nullcontext():  # figures asked for: all or nothing
+        for name in names:
+            if name == "lf_patch_map" and not maps:
+                if log:
+                    log(f"skipped lf_patch_map: {reason}")
+                continue
+            try:
+                with reading(path, "run file"):  # a damaged group: one SceneError line naming the file
+                    files += makers[name]()
+            except SceneError as e:
+                if isinstance(e, LinkError) or which is not None:  # a planted link stops the call, whatever was asked
+                    raise
+                if log:
+                    log(f"skipped {name}: {e}")
     return files
