@@ -355,13 +355,23 @@ def test_commands(runs, tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         _cli(["analyze", str(path), "--eta", "1.5"])
     assert e.value.code == 2
+    capsys.readouterr()
+    from aca_warp.cli import main
+
+    for argv, said in (  # an option that would not act: one line, exit 2, before the file is touched
+        (["--snr", "8"], "add --rule snr"),
+        (["--rule", "relative", "--snr", "8"], "add --rule snr"),
+        (["--rule", "snr", "--eta", "0.2"], "the snr rule takes --snr"),
+        (["--no-sync", "--n-bins", "90", "--rule", "snr"], "--rule, --n-bins would not act"),
+    ):
+        assert main(["analyze", str(path), *argv]) == 2, argv
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and said in lines[0], (argv, lines)
     out_dir = tmp_path / "fig"
     assert _cli(["plot", str(path), "-o", str(out_dir), "--only", "patch_map", "--times", "5e-5", "9e-5"]) == 0
     assert sorted(p.name for p in out_dir.iterdir()) == ["run_patch_map.pdf", "run_patch_map.png"]
     assert _cli(["plot", str(path), "-o", str(out_dir), "--only", "patch_map", "--times", "1.0"]) == 2
     capsys.readouterr()  # an instant outside the record: refused before any figure, the other figures included
-    from aca_warp.cli import main
-
     assert main(["plot", str(path), "-o", str(tmp_path / "fig2"), "--times", "5e-5", "1.0"]) == 2
     assert "--times: instant 1 s lies outside the per-patch record" in capsys.readouterr().err
     assert not (tmp_path / "fig2").exists()

@@ -104,15 +104,12 @@ def _add_analyze(subparsers: Any) -> None:
     a.add_argument(
         "--rule",
         choices=("relative", "snr"),
-        default="relative",
         help="how Phi(f) counts a patch as oscillating at f: 'relative' |X_i(f)| >= eta * max_j |X_j(f)| "
         "(default), or 'snr' |X_i(f)| >= snr * median over f of |X_i|",
     )
-    a.add_argument("--eta", type=fraction, default=0.1, metavar="X", help="eta of the relative rule (default 0.1)")
-    a.add_argument("--snr", type=positive, default=5.0, metavar="X", help="factor of the snr rule (default 5)")
-    a.add_argument(
-        "--n-bins", type=int_at_least(2), default=180, metavar="N", help="phase bins on [-pi, pi) (default 180)"
-    )
+    a.add_argument("--eta", type=fraction, metavar="X", help="eta of the relative rule (default 0.1)")
+    a.add_argument("--snr", type=positive, metavar="X", help="factor of the snr rule (default 5)")
+    a.add_argument("--n-bins", type=int_at_least(2), metavar="N", help="phase bins on [-pi, pi) (default 180)")
     a.add_argument(
         "--stft-window",
         type=positive,
@@ -189,10 +186,25 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 
     if args.freq_min is not None and args.freq_max is not None and args.freq_min >= args.freq_max:
         raise SceneError(f"--freq-min ({args.freq_min:g} Hz) must be below --freq-max ({args.freq_max:g} Hz)")
+    _check_sync_options(args)
     band = None if args.freq_min is None and args.freq_max is None else (args.freq_min, args.freq_max)
 
     with run_or_pad(args, "analyze", keep=True) as run:
         return _analyze(args, run, band)
+
+
+def _check_sync_options(args: argparse.Namespace) -> None:
+    """Refuse options of the Synchronization Index that would not act: any of them with --no-sync, --snr with the
+    relative rule, --eta with the snr rule."""
+    given = [f"--{k.replace('_', '-')}" for k in ("rule", "eta", "snr", "n_bins") if getattr(args, k) is not None]
+    if args.no_sync and given:
+        raise SceneError(f"--no-sync computes no Synchronization Index: {', '.join(given)} would not act; drop {'it' if len(given) == 1 else 'them'}")
+    if args.snr is not None and (args.rule or "relative") == "relative":
+        raise SceneError(
+            "--snr is the factor of the snr rule: add --rule snr (the relative rule, the default, takes --eta)"
+        )
+    if args.eta is not None and args.rule == "snr":
+        raise SceneError("--eta is the fraction of the relative rule: the snr rule takes --snr")
 
 
 def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float | None] | None) -> int:
@@ -207,10 +219,10 @@ def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float
             run,
             freq_range=band,
             sync=not args.no_sync,
-            rule=args.rule,
-            eta=args.eta,
-            snr=args.snr,
-            n_bins=args.n_bins,
+            rule=args.rule or "relative",
+            eta=0.1 if args.eta is None else args.eta,
+            snr=5.0 if args.snr is None else args.snr,
+            n_bins=args.n_bins or 180,
             stft_window_s=args.stft_window,
         )
     parts = [f"{run}: /analysis written ({', '.join(groups)})"]
