@@ -344,12 +344,14 @@ def test_commands(runs, tmp_path, capsys):
     path = _copy(runs["patches"], tmp_path)
     assert _cli(["analyze", str(path), "--freq-min", "1e3", "--freq-max", "3e5", "--rule", "snr", "--snr", "4"]) == 0
     out = capsys.readouterr().out
-    assert "/analysis written" in out and "first velocity-spectrum peak" in out
+    assert "/analysis written" in out and "first velocity-spectrum peak" in out and "Nyquist" not in out
     with h5py.File(path, "r") as f:
         assert f["analysis/sync"].attrs["rule"] == "snr" and f["analysis/sync"].attrs["snr"] == 4.0
         assert list(f["analysis/sync"].attrs["band"]) == [1e3, 3e5]
     assert _cli(["analyze", str(path), "--no-sync"]) == 0
     assert "not read (--no-sync)" in capsys.readouterr().out
+    assert _cli(["analyze", str(path), "--no-sync", "--freq-max", "1e9"]) == 0  # a band past the samples: said
+    assert "--freq-max 1e+09 Hz lies above the Nyquist frequency of the samples, " in capsys.readouterr().out
     assert _cli(["analyze", str(tmp_path / "missing.h5")]) == 2
     assert _cli(["analyze", str(path), "--freq-min", "5e4", "--freq-max", "1e4"]) == 2
     with pytest.raises(SystemExit) as e:

@@ -198,7 +198,8 @@ def _check_sync_options(args: argparse.Namespace) -> None:
     relative rule, --eta with the snr rule."""
     given = [f"--{k.replace('_', '-')}" for k in ("rule", "eta", "snr", "n_bins") if getattr(args, k) is not None]
     if args.no_sync and given:
-        raise SceneError(f"--no-sync computes no Synchronization Index: {', '.join(given)} would not act; drop {'it' if len(given) == 1 else 'them'}")
+        them = "it" if len(given) == 1 else "them"
+        raise SceneError(f"--no-sync computes no Synchronization Index: {', '.join(given)} would not act; drop {them}")
     if args.snr is not None and (args.rule or "relative") == "relative":
         raise SceneError(
             "--snr is the factor of the snr rule: add --rule snr (the relative rule, the default, takes --eta)"
@@ -231,6 +232,9 @@ def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float
     early = record_ends_early(run)
     if early:
         parts.append(early)
+    above = above_nyquist(run, args.freq_max)
+    if above:
+        parts.append(above)
     parts += peak_lines(groups)
     if "sync" in groups:
         from aca_warp.analysis.report import LEAKAGE_BINS, lowest_bin_remark, sync_excess
@@ -411,6 +415,24 @@ def _few_periods(freq: float, df: float) -> str:
     if not df > 0 or not 0 < freq / df <= FEW_PERIODS:
         return ""
     return f" (bins {df / 1e3:.3g} kHz wide: {freq / df:.3g} periods in the record)"
+
+
+def above_nyquist(path: str, freq_max: float | None) -> str | None:
+    """A line when ``--freq-max`` [Hz] lies above the Nyquist frequency of the run's samples (the band then ends at
+    the Nyquist frequency), else None."""
+    if freq_max is None:
+        return None
+    from aca_warp.analysis.groups import sample_interval
+    from aca_warp.analysis.report import open_run_file
+
+    with open_run_file(path) as f:
+        nyquist = 0.5 / sample_interval(f["global/time"][()])
+    if freq_max <= nyquist:
+        return None
+    return (
+        f"--freq-max {freq_max:g} Hz lies above the Nyquist frequency of the samples, {nyquist / 1e3:.4g} kHz "
+        "(half the sampling rate): the band ends there"
+    )
 
 
 def record_ends_early(path: str) -> str | None:
