@@ -649,7 +649,7 @@ def test_a_failed_analysis_of_a_pad_leaves_no_pad_file(tmp_path, capsys):
     assert main(["analyze", str(shard), "--pad", "0"]) == 2
     assert "needs at least" in capsys.readouterr().err
     assert not (shard.parent / "shard-00000_pad0.h5").exists()
-    assert main(["plot", str(shard), "--pad", "0", "-o", str(tmp_path / "f"), "--only", "global"]) == 2
+    assert main(["plot", str(shard), "--pad", "0", "-o", str(tmp_path / "f"), "--only", "spectra"]) == 2
     err = capsys.readouterr().err
     assert f"pad 0 of {shard}" in err and "tmp" not in err.replace(str(tmp_path), ""), err
     assert main(["analyze", str(tmp_path / "none.h5"), "--pad", "1"]) == 2
@@ -838,3 +838,39 @@ def test_a_run_named_without_its_partial_says_where_it_is(runs, tmp_path, capsys
         assert said in err
     assert main(["analyze", str(tmp_path)]) == 2
     assert f"{tmp_path} is a folder, not a run file" in capsys.readouterr().err
+
+
+def test_a_record_too_short_for_the_transforms_still_plots_its_series(tmp_path, capsys):
+    """A run of 6 samples: analyze refuses it (the transforms need 8), plot draws its global series and skips the
+    transforms' and the per-patch figures saying why; --only naming a transform is refused in one line with nothing
+    written (all or nothing); a run of 1 sample gives no figure at all."""
+    from dataclasses import replace
+
+    from aca_warp.cli import main
+
+    short = tmp_path / "short.h5"
+    scene = replace(_small_scene(patches=("velocity",)), duration=5 * SAMPLE_DT)
+    run_scene(scene, short, RunOptions(integrator="strang", dt=2e-8), device="cpu", overwrite=True)
+    assert main(["analyze", str(short)]) == 2
+    assert "holds 6 samples; the analysis needs at least 8" in capsys.readouterr().err
+    out = tmp_path / "fig"
+    assert main(["plot", str(short), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["short_global.pdf", "short_global.png"]
+    for name in ("spectra", "sync", "stft", "cwt"):
+        assert f"skipped {name}: {short} holds 6 samples; spectra, time-frequency maps and S(f) need at least 8" in err
+    for name in ("patch_map", "animation"):  # its per-patch velocities are there, too few for the default instants
+        assert f"skipped {name}: {short} holds 6 per-patch samples; the per-patch figures need at least 8" in err
+    assert main(["plot", str(short), "-o", str(tmp_path / "only"), "--only", "global"]) == 0
+    assert main(["plot", str(short), "-o", str(tmp_path / "two"), "--only", "global", "stft"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert lines[-1].endswith(f"stft: {short} holds 6 samples; spectra, time-frequency maps and S(f) need at least 8")
+    assert not (tmp_path / "two").exists() or not list((tmp_path / "two").iterdir())
+    one = _copy(short, tmp_path, "one.h5")
+    with h5py.File(one, "a") as f:  # its global series cut to the first sample
+        for k in list(f["global"]):
+            first = f["global"][k][:1]
+            del f["global"][k]
+            f["global"][k] = first
+    assert main(["plot", str(one), "-o", str(tmp_path / "none")]) == 2
+    assert "holds 1 samples; a figure needs at least 2" in capsys.readouterr().err

@@ -90,8 +90,12 @@ def run_attr(f: h5py.File, name: str, default: Any = None) -> Any:
     return attr_value(f.attrs[name]) if name in f.attrs else default
 
 
-def check_run_file(f: h5py.File, name: str | Path = "") -> None:
-    """Refuse an HDF5 file that is not an aca_warp run file (:class:`SceneError`, one line)."""
+MIN_SAMPLES = 8  # samples the analysis needs (its spectra, time-frequency maps and Synchronization Index)
+
+
+def check_run_file(f: h5py.File, name: str | Path = "", *, min_samples: int = MIN_SAMPLES) -> None:
+    """Refuse an HDF5 file that is not an aca_warp run file, or holds fewer than ``min_samples`` samples
+    (:class:`SceneError`, one line)."""
     where = f"{name}: " if name else ""
     missing = [f"/global/{k}" for k in ("time", *GLOBAL_OUTPUTS[:5]) if f"global/{k}" not in f]
     missing += [f"/patches/{k}" for k in ("x", "y", "area") if f"patches/{k}" not in f]
@@ -113,8 +117,9 @@ def check_run_file(f: h5py.File, name: str | Path = "") -> None:
     for k in ("x", "y", "area"):
         if f[f"patches/{k}"].shape != m or len(m) != 1:
             raise SceneError(f"{where}/patches/{k} has shape {f[f'patches/{k}'].shape}, expected one value per patch")
-    if n[0] < 8:
-        raise SceneError(f"{where}the run holds {n[0]} samples; the analysis needs at least 8")
+    if n[0] < min_samples:
+        needs = "the analysis needs" if min_samples == MIN_SAMPLES else "a figure needs"
+        raise SceneError(f"{where}the run holds {n[0]} samples; {needs} at least {min_samples}")
     if "patches/velocity" in f:
         pt = f["patches/time"] if "patches/time" in f else None
         v, rows = f["patches/velocity"], pt.shape[0] if pt is not None and pt.ndim == 1 else -1
@@ -122,11 +127,11 @@ def check_run_file(f: h5py.File, name: str | Path = "") -> None:
             raise SceneError(f"{where}/patches/velocity has shape {v.shape}, expected (len(/patches/time), patches)")
 
 
-def open_run_file(path: str | Path, mode: str = "r") -> h5py.File:
+def open_run_file(path: str | Path, mode: str = "r", *, min_samples: int = MIN_SAMPLES) -> h5py.File:
     """Open and check an HF run file as an h5py File (:func:`~aca_warp.common.files.open_h5`); :class:`SceneError`
     if it is missing (naming its ``.partial`` where that exists), held open by another process (HDF5's file lock),
-    not HDF5, an LF run file or not a run file. (:func:`aca_warp.open_run` reads any run file
-    into an xarray Dataset.)"""
+    not HDF5, an LF run file or not a run file, or holds fewer than ``min_samples`` samples. (:func:`aca_warp.open_run`
+    reads any run file into an xarray Dataset.)"""
     p = Path(path)
     f = open_h5_run(p, mode)
     try:
@@ -135,7 +140,7 @@ def open_run_file(path: str | Path, mode: str = "r") -> h5py.File:
                 f"{p} is an LF run file: the analysis applies to HF run files (aca-warp hf); "
                 f"draw its figures with 'aca-warp plot {p} -o DIR'"
             )
-        check_run_file(f, p)
+        check_run_file(f, p, min_samples=min_samples)
     except BaseException:
         f.close()
         raise

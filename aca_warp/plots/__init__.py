@@ -33,13 +33,14 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from aca_warp.analysis.report import has_patch_velocity, stored
+from aca_warp.analysis.report import MIN_SAMPLES, stored
 from aca_warp.common.errors import SceneError, option
 from aca_warp.common.files import all_or_nothing
 from aca_warp.common.links import LinkError
 from aca_warp.plots import lf as plots_lf
 from aca_warp.plots.hf import (
     FIGURES,
+    TRANSFORMS,
     _record_velocity,
     _Run,
     animate_patch_map,
@@ -83,18 +84,30 @@ def _hf_figure_names(path: str | Path, which: Sequence[str] | None) -> list[str]
     return names
 
 
-def _absent_figures(path: str | Path, names: list[str], which: Sequence[str] | None) -> list[str]:
-    """The figures of ``names`` whose per-patch velocities the file lacks (``sync`` also counts as present when
+def _absent_figures(path: str | Path, names: list[str], which: Sequence[str] | None) -> dict[str, str]:
+    """The figures of ``names`` the file cannot give, each with why: a record too short for the transforms, or
+    per-patch velocities absent or too few for the per-patch figures (``sync`` also counts as present when
     ``/analysis/sync`` is stored); :class:`SceneError` when ``which`` named one of them."""
     with _Run(path) as run:
-        patches = has_patch_velocity(run.f)
+        rows = run.f["patches/velocity"].shape[0] if "patches/velocity" in run.f and "patches/time" in run.f else 0
         stored_sync = stored(run.f, "sync")
-    needs = {"patch_map": patches, "animation": patches, "sync": patches or stored_sync}
-    absent = [n for n in names if not needs.get(n, True)]
+        samples = run.f["global/time"].shape[0]
+    name = str(path)  # as given: a shard's pad in a temporary file is then named as the pad (analysis.commands)
+    none = f"{name} holds no per-patch velocities"
+    few = f"{name} holds {rows} per-patch samples; the per-patch figures need at least {MIN_SAMPLES}"
+    absent = {}
+    for n in names:
+        if n in TRANSFORMS and samples < MIN_SAMPLES:
+            absent[n] = (
+                f"{name} holds {samples} samples; spectra, time-frequency maps and S(f) need at least {MIN_SAMPLES}"
+            )
+        elif n in ("patch_map", "animation", "sync") and rows < MIN_SAMPLES and not (n == "sync" and stored_sync):
+            absent[n] = none if rows == 0 else few
     if absent and which is not None:
-        raise SceneError(
-            f"{Path(path).name} holds no per-patch velocities, needed by {', '.join(absent)}; {_record_velocity()}"
-        )
+        if none in absent.values():
+            lacking = [n for n, why in absent.items() if why == none]
+            raise SceneError(f"{none}, needed by {', '.join(lacking)}; {_record_velocity()}")
+        raise SceneError(f"{', '.join(absent)}: {next(iter(absent.values()))}")
     return absent
 
 
@@ -159,7 +172,7 @@ def plot_run(
         for name in names:
             if name in absent:
                 if log:
-                    log(f"skipped {name}: {Path(path).name} holds no per-patch velocities")
+                    log(f"skipped {name}: {absent[name]}")
                 continue
             try:
                 files += makers[name]()

@@ -29,6 +29,12 @@ from aca_warp.plots.figure import pad_outline as _pad_outline
 from aca_warp.plots.figure import save as _save
 
 FIGURES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
+TRANSFORMS = (
+    "spectra",
+    "sync",
+    "stft",
+    "cwt",
+)  # the figures of the analysis's transforms (at least MIN_SAMPLES samples)
 GIF_DPI = 80  # the animation's resolution: 6.4 x 3.6 in frames are 512 x 288 px
 GIF_FOOTER_PT = 7.0  # the animation's footer [pt]: 7.8 px letters in its 512 x 288 px frames (80 dpi)
 GIF_FOOTER_CHARS = 100  # ... wrapped to lines this long, which fit the frame's width
@@ -47,7 +53,7 @@ class _Run:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        self.f = open_run_file(self.path, "r")
+        self.f = open_run_file(self.path, "r", min_samples=2)  # the transforms' figures ask for more (plot_run)
         self.scene = run_attr(self.f, "scene", {}) or {}
         if not isinstance(self.scene, dict):
             self.scene = {}
