@@ -523,8 +523,9 @@ def test_analyze_of_an_interrupted_run_says_where_its_record_ends(runs, tmp_path
 def test_one_pad_of_a_sweep_shard(tmp_path, capsys):
     """analyze/plot of a sweep shard: without --pad one line naming --pad and the shard's pads; with --pad K the
     pad's run file SHARD_padK.h5 (its global series and scene) gets its /analysis, plot draws its global figures
-    (the per-patch ones skipped: a shard holds no per-patch data), and rerun of that file repeats the pad. rerun of
-    the shard itself says what to do instead."""
+    (the per-patch ones skipped: a shard holds no per-patch data), and rerun of that file repeats the pad; the pad
+    file has the predicted growth rates a run of its scene writes. rerun of the shard itself says what to do
+    instead."""
     from aca_warp.cli import main
 
     shard = one_shard_sweep(tmp_path, [0.7, 0.8, 0.9], duration=2e-5)
@@ -552,6 +553,11 @@ def test_one_pad_of_a_sweep_shard(tmp_path, capsys):
     assert main(["rerun", str(pad), "-o", str(again), "--no-progress"]) == 0
     with h5py.File(again, "r") as a, h5py.File(pad, "r") as p:
         assert np.allclose(a["global/mu"][()], p["global/mu"][()], rtol=1e-5)
+        # the pad's predicted growth rates, as a run of its scene writes them, and the analysis read them
+        sigma = p["patches/predicted_growth_rate"][()]
+        assert sigma.shape == p["patches/x"].shape and np.array_equal(sigma, a["patches/predicted_growth_rate"][()])
+        assert p.attrs["predicted_growth_rate_median"] == a.attrs["predicted_growth_rate_median"]
+        assert p["analysis/saturation"].attrs["predicted_source"] == "/patches/predicted_growth_rate"
 
 
 def test_figures_are_named_for_the_run_also_when_unfinished(runs, tmp_path):

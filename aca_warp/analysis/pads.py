@@ -155,7 +155,9 @@ def _write(
     pad: int,
 ) -> None:
     """The pad's run file at ``tmp`` (:func:`write_pad_run`)."""
+    from aca_warp.hf.contact import solve_scene_contact
     from aca_warp.hf.recorder import GLOBAL_NAMES, GLOBAL_UNITS
+    from aca_warp.hf.runfile import write_predicted_growth_rate
     from aca_warp.scene import scene_to_dict
 
     with h5py.File(tmp, "w") as out:
@@ -179,6 +181,7 @@ def _write(
             unit = "m2" if name == "area" else "m"
             out.create_dataset(f"matrix/{name}", data=np.asarray(getattr(scene.matrix, name), np.float64))
             out[f"matrix/{name}"].attrs["unit"] = unit
+        write_predicted_growth_rate(out, scene, solve_scene_contact(scene).patch_force)  # the contact the pad began in
 
 
 def extracted_from(dest: str | Path, shard: str | Path) -> bool:

@@ -24,6 +24,7 @@ the start when the run had no checkpoint yet. Neither ``NAME`` nor a leftover ``
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -73,6 +74,27 @@ def file_bytes(
     fixed = 7 * patches * 8 + 3 * cells * 8 + (CHECKPOINT_BYTES_PER_PATCH * patches if checkpoints else 0)
     return series + history + fixed + chunks * BYTES_PER_CHUNK + HEADER_BYTES
 
+
+
+def write_predicted_growth_rate(
+    f: h5py.File, scene: Scene, patch_force: np.ndarray, reserve: Callable[[int], None] | None = None
+) -> None:
+    """``/patches/predicted_growth_rate`` σ_i [1/s] of ``scene`` under the contact forces ``patch_force`` [N] of the
+    start, shape (patches,), and its minimum, median and maximum as root attributes of ``f`` (a run file, or a
+    shard's pad extracted as one); ``reserve`` is told its bytes first."""
+    from aca_warp.analysis.saturation import scene_growth_rate
+
+    sigma = scene_growth_rate(scene, patch_force)
+    if reserve is not None:
+        reserve(sigma.nbytes)
+    d = f.create_dataset("patches/predicted_growth_rate", data=sigma)
+    d.attrs["unit"] = "s-1"
+    d.attrs["meaning"] = (
+        "growth rate of each isolated patch linearised about steady sliding at the contact forces of the start, "
+        "p_i |f'(omega r_i)| / (2 rho_A) - zeta omega_0,i (docs/analysis.md)"
+    )
+    for stat, value in (("min", sigma.min()), ("median", np.median(sigma)), ("max", sigma.max())):
+        f.attrs[f"predicted_growth_rate_{stat}"] = float(value)
 
 class RunWriter(RunFileWriter):
     """Streams one pad's recorded samples into an HDF5 run file (``pad`` selects it from a batch)."""
@@ -140,19 +162,8 @@ class RunWriter(RunFileWriter):
             mg.create_dataset(name, data=data).attrs["unit"] = unit
 
     def _write_growth_rate(self, scene: Scene, p: h5py.Group) -> None:
-        """``/patches/predicted_growth_rate`` σ_i [1/s] and its minimum, median and maximum as root attributes."""
-        from aca_warp.analysis.saturation import scene_growth_rate
-
-        sigma = scene_growth_rate(scene, self.model.contacts[self.pad].patch_force)
-        self.out.reserve(sigma.nbytes)
-        d = p.create_dataset("predicted_growth_rate", data=sigma)
-        d.attrs["unit"] = "s-1"
-        d.attrs["meaning"] = (
-            "growth rate of each isolated patch linearised about steady sliding at the contact forces of the start, "
-            "p_i |f'(omega r_i)| / (2 rho_A) - zeta omega_0,i (docs/analysis.md)"
-        )
-        for stat, value in (("min", sigma.min()), ("median", np.median(sigma)), ("max", sigma.max())):
-            self.f.attrs[f"predicted_growth_rate_{stat}"] = float(value)
+        """``/patches/predicted_growth_rate`` of the pad (:func:`write_predicted_growth_rate`)."""
+        write_predicted_growth_rate(self.f, scene, self.model.contacts[self.pad].patch_force, self.out.reserve)
 
     @classmethod
     def reopen(
