@@ -350,6 +350,14 @@ def test_commands(runs, tmp_path, capsys):
         assert list(f["analysis/sync"].attrs["band"]) == [1e3, 3e5]
     assert _cli(["analyze", str(path), "--no-sync"]) == 0
     assert "not read (--no-sync)" in capsys.readouterr().out
+    # a band below 4 periods of the record (1001 samples of 0.1 µs): the CWT keeps to it and says so; the peak
+    # search's band, which starts at 3 bins (29.97 kHz), is empty, said too
+    assert _cli(["analyze", str(path), "--no-sync", "--freq-min", "2e3", "--freq-max", "2e4"]) == 0
+    out = capsys.readouterr().out
+    assert "CWT over 2-20 kHz: the record (0.0001001 s) holds fewer than 4 periods below 39.96 kHz" in out
+    assert "no velocity-spectrum peak: the peak search's band 29.97-20 kHz is empty" in out
+    with h5py.File(path, "r") as f:
+        assert f["analysis/cwt/freq"][0] == pytest.approx(2e3) and f["analysis/cwt/freq"][-1] == pytest.approx(2e4)
     assert _cli(["analyze", str(path), "--no-sync", "--freq-max", "1e9"]) == 0  # a band past the samples: said
     assert "--freq-max 1e+09 Hz lies above the Nyquist frequency of the samples, " in capsys.readouterr().out
     assert _cli(["analyze", str(tmp_path / "missing.h5")]) == 2

@@ -235,6 +235,9 @@ def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float
     above = above_nyquist(run, args.freq_max)
     if above:
         parts.append(above)
+    if "few_periods" in groups["cwt"].attrs:
+        freq = groups["cwt"]["freq"]
+        parts.append(f"CWT over {freq[0] / 1e3:.4g}-{freq[-1] / 1e3:.4g} kHz: {groups['cwt'].attrs['few_periods']}")
     parts += peak_lines(groups)
     if "sync" in groups:
         from aca_warp.analysis.report import LEAKAGE_BINS, lowest_bin_remark, sync_excess
@@ -391,6 +394,15 @@ def peak_lines(groups: dict[str, Any]) -> list[str]:
         dfv = bin_width(patch["freq"], patch.attrs) if from_patch and patch is not None else df
         edge = _edge_clause(peaks.get("first_velocity_peak_at_band_edge"))
         lines.append(f"first velocity-spectrum peak {f / 1e3:.4g} kHz{edge}{_few_periods(f, dfv)}")
+    else:
+        lo, hi = (float(v) for v in peaks["band"])
+        lines.append(
+            f"no velocity-spectrum peak: the peak search's band {lo / 1e3:.4g}-{hi / 1e3:.4g} kHz is empty (it starts "
+            f"at max(1 kHz, 3 bins = {3 * df / 1e3:.4g} kHz), above the Hann leakage of the mean, and within "
+            "--freq-min/--freq-max)"
+            if lo >= hi
+            else f"no velocity-spectrum peak in the peak search's band {lo / 1e3:.4g}-{hi / 1e3:.4g} kHz"
+        )
     if "mu_peak_frequency" in peaks:
         f = float(peaks["mu_peak_frequency"])
         edge = _edge_clause(peaks.get("mu_peak_at_band_edge"))

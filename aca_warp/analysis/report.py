@@ -244,7 +244,9 @@ def compute_stft(f: h5py.File, *, window_s: float | None = None, detrend: str | 
 def default_cwt_freqs(
     n: int, dt: float, *, freq_range: tuple[float, float] | None = None, count: int = 96
 ) -> np.ndarray:
-    """Log-spaced CWT frequencies [Hz]: from max(10 Hz, 4/T) to min(200 kHz, 0.4/dt), or ``freq_range``."""
+    """Log-spaced CWT frequencies [Hz]: from max(10 Hz, 4/T) to min(200 kHz, 0.4/dt), or ``freq_range`` (from no
+    lower than 4/T: at least 4 periods in the record). A band wholly below 4/T (a short record) keeps its top and
+    reaches down a decade, never below ``freq_range``'s lower edge: :func:`compute_cwt` says so."""
     record = n * dt
     hi_default = min(DEFAULT_BAND_TOP, 0.4 / dt)
     if freq_range is None:
@@ -253,7 +255,7 @@ def default_cwt_freqs(
         lo = max(float(freq_range[0]), 4.0 / record, 1e-3)
         hi = min(float(freq_range[1]), 0.45 / dt)
     if not hi > lo:
-        lo = hi / 10.0
+        lo = hi / 10.0 if freq_range is None else min(max(float(freq_range[0]), 1e-3, hi / 10.0), hi)
     return np.geomspace(lo, hi, count)
 
 
@@ -332,6 +334,12 @@ def compute_cwt(
     if np.any(freqs <= 0) or np.any(freqs >= 0.5 / dt):
         raise SceneError(f"CWT frequencies must lie in (0, {0.5 / dt:g}) Hz (the Nyquist frequency)")
     times, out_freqs, amp, info = multirate_cwt(mu - mean, dt, freqs, stride=stride)
+    record = mu.size * dt
+    if freqs[0] < 4.0 / record:
+        info["few_periods"] = (
+            f"the record ({record:.4g} s) holds fewer than 4 periods below {4.0 / record / 1e3:.4g} kHz: the "
+            "wavelets of the map's lower frequencies reach past its ends"
+        )
     info["mean_removed"] = f"mean(μ) = {mean:.6g} subtracted before the transform"
     info["decimation"] = (
         "Every time sample of |W| kept"

@@ -75,7 +75,6 @@ def file_bytes(
     return series + history + fixed + chunks * BYTES_PER_CHUNK + HEADER_BYTES
 
 
-
 def write_predicted_growth_rate(
     f: h5py.File, scene: Scene, patch_force: np.ndarray, reserve: Callable[[int], None] | None = None
 ) -> None:
@@ -95,6 +94,7 @@ def write_predicted_growth_rate(
     )
     for stat, value in (("min", sigma.min()), ("median", np.median(sigma)), ("max", sigma.max())):
         f.attrs[f"predicted_growth_rate_{stat}"] = float(value)
+
 
 class RunWriter(RunFileWriter):
     """Streams one pad's recorded samples into an HDF5 run file (``pad`` selects it from a batch)."""
