@@ -258,11 +258,13 @@ def _draw_population(run: _LFRun) -> Figure:
         axes[3].plot(st, 1e9 * snaps["store"], "o-", ms=3, lw=0.8, color="tab:brown", label="stored on the matrix")
         axes[3].plot(st, 1e9 * snaps["patch_mass"], "s-", ms=3, lw=0.8, color="tab:blue", label="bound in patches")
         axes[3].set_ylabel("mass [µg]", fontsize=8)
-        axes[3].legend(fontsize=7, ncols=2, loc="upper left")
+        axes[3].margins(y=0.3)  # room for the legend beside a few markers (one snapshot: a single point)
+        axes[3].legend(fontsize=7, ncols=2, loc="best")
         axes[4].plot(st, 1e6 * snaps["thickness"], "o-", ms=3, lw=0.8, color="k")
         axes[4].set_ylabel("mean patch\nthickness [µm]", fontsize=8)
+        at = "the snapshot" if st.size == 1 else f"the {st.size} snapshots"
         more = (
-            f" At the {st.size} snapshots (markers): the debris stored on the matrix cells (Σ store), the mass "
+            f" At {at} (markers): the debris stored on the matrix cells (Σ store), the mass "
             "bound in patches (Σ ρ_patch t_i A_i) and the area-weighted mean patch thickness, which patch wear "
             "lowers; the run file holds these at the snapshots only."
         )
