@@ -611,17 +611,12 @@ def check_outputs(outputs: dict[str, str | None], overwrite: bool, scene: str | 
     ``scene`` file itself, an existing file without ``overwrite``, a missing folder; StorageError (exit 4) for a
     folder that takes no new file (:func:`~aca_warp.common.files.check_output_path`, as ``aca-warp hf`` checks its
     run file)."""
-    from aca_warp.common.files import check_not_input, check_output_path
+    from aca_warp.common.files import check_not_input, check_output_name, check_output_path
 
     given = {flag: path for flag, path in outputs.items() if path is not None}
+    examples = {flag: EXAMPLE_NAMES.get(flag, "bench.json") for flag in given}
     for flag, text in given.items():
-        example = EXAMPLE_NAMES.get(flag, "bench.json")
-        if not text.strip():
-            raise SceneError(f"{flag} {text!r} names no file; give a file name such as {example}")
-        p = Path(text)
-        if p.is_dir() or text.endswith(("/", os.sep)) or p.name in ("", ".", ".."):
-            folder = Path(text.rstrip("/" + os.sep) or ".")
-            raise SceneError(f"{flag} {text} names a folder; give a file name such as {folder / example}")
+        check_output_name(text, flag=flag, example=examples[flag])
     flags = list(given)
     for i, flag in enumerate(flags):
         for other in flags[:i]:
@@ -630,7 +625,10 @@ def check_outputs(outputs: dict[str, str | None], overwrite: bool, scene: str | 
                 raise SceneError(f"{other} and {flag} name the same file {given[flag]}; give each its own file")
     for text in given.values():
         check_not_input(text, {"scene file": scene}, "bench")
-    return {flag: check_output_path(text, overwrite=overwrite) for flag, text in given.items()}
+    return {
+        flag: check_output_path(text, overwrite=overwrite, flag=flag, example=examples[flag])
+        for flag, text in given.items()
+    }
 
 
 def write_outputs(texts: dict[Path, str]) -> None:

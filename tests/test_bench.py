@@ -228,10 +228,10 @@ def test_bench_refuses_a_folder_or_an_unwritable_one_before_measuring(
 
     figs = tmp_path / "figs"
     figs.mkdir()
-    for name in (str(figs), f"{figs}/"):
+    for name, said in ((str(figs), f"{figs} is a folder"), (f"{figs}/", f"'{figs}/' names a folder")):
         assert main([*QUICK, "--json", name]) == 2
         out, err = _error(capsys)
-        assert err == [f"aca-warp: error: --json {name} names a folder; give a file name such as {figs}/bench.json"]
+        assert err == [f"aca-warp: error: --json {said}; give a file name such as {figs}/bench.json"]
         assert "pads=" not in out
 
     def read_only(folder: str | Path) -> None:

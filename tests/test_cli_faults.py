@@ -104,7 +104,7 @@ def test_an_output_or_resume_that_names_no_file_is_one_line(tmp_path, capsys, mo
     monkeypatch.chdir(tmp_path)
     before = listing(tmp_path)
     assert main(command(kind, runs, name)) == 2
-    assert "names a folder" in one_line(capsys)[0]
+    assert ("names no file" if name == "" else "names a folder") in one_line(capsys)[0]
     if kind != "rerun":
         assert main([kind, "--resume", name]) == 2
         assert "names no run file" in one_line(capsys)[0]

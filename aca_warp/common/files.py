@@ -335,13 +335,18 @@ def create_h5(tmp: Path, lock: OutputLock, **kw: Any) -> h5py.File:
     return f
 
 
-def check_output_name(path: str | Path) -> Path:
-    """``path`` as the name of an output file: a name that ends in a path separator or is ``.``/``..`` names a
-    folder (``Path`` would drop the separator and write a file named like the folder) and is refused."""
+def check_output_name(path: str | Path, *, flag: str = "output", example: str = "run.h5") -> Path:
+    """``path`` as the name of an output file, refused in one line naming ``flag`` and a name like ``example``:
+    an empty name; a name that ends in a path separator or is ``.``/``..``, which names a folder (``Path`` would drop
+    the separator and write a file named like the folder); an existing folder."""
     text = os.fspath(path)
-    if not text or text.endswith(("/", os.sep)) or Path(text).name in ("", ".", ".."):
+    if not text.strip():
+        raise SceneError(f"{flag} {text!r} names no file; give a file name such as {example}")
+    if text.endswith(("/", os.sep)) or Path(text).name in ("", ".", ".."):
         base = text.rstrip("/" + os.sep) or "."
-        raise SceneError(f"output {text!r} names a folder; give a file name such as {Path(base) / 'run.h5'}")
+        raise SceneError(f"{flag} {text!r} names a folder; give a file name such as {Path(base) / example}")
+    if Path(text).is_dir():
+        raise SceneError(f"{flag} {text} is a folder; give a file name such as {Path(text) / example}")
     return Path(text)
 
 
@@ -480,16 +485,14 @@ def resumed_from(path: str | Path) -> str:
     return "again from t = 0 (it held no checkpoint)" if at is None else f"from its checkpoint at t = {at:.6g} s"
 
 
-def check_output_path(path: str | Path, *, overwrite: bool) -> Path:
+def check_output_path(path: str | Path, *, overwrite: bool, flag: str = "output", example: str = "run.h5") -> Path:
     """Refuse to clobber an existing file (or a killed run's ``NAME.partial``) unless ``overwrite``, and an output
     that a live process writes (:class:`OutputLock`) in any case; the name must name a file
-    (:func:`check_output_name`), its folder must exist and take a new file (:func:`probe_folder`: exit 4 for a
-    read-only or full file system)."""
-    p = check_output_name(path)
-    if p.is_dir():
-        raise SceneError(f"output {p} is a folder; give a file name such as {p / 'run.h5'}")
+    (:func:`check_output_name`, with ``flag`` and ``example``), its folder must exist and take a new file
+    (:func:`probe_folder`: exit 4 for a read-only or full file system)."""
+    p = check_output_name(path, flag=flag, example=example)
     if p.exists() and not p.is_file():  # --overwrite would replace a device, pipe or socket with a regular file
-        raise SceneError(f"output {p} exists and is not a regular file (a device, pipe or socket); give another output")
+        raise SceneError(f"{flag} {p} exists and is not a regular file (a device, pipe or socket); give another output")
     busy = holder(p)
     if busy is not None:
         raise SceneError(f"{p} is being written by {busy}; wait for it to finish or stop it")
