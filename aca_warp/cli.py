@@ -160,7 +160,9 @@ def _left(args: argparse.Namespace) -> str:
     if cmd == "analyze":
         return f"{args.run} is unchanged (an earlier /analysis, if any, is kept)"
     if cmd == "plot":
-        return f"the figures finished before it are in {args.output_dir}; none is half written"
+        from aca_warp.analysis.commands import plot_leftovers
+
+        return plot_leftovers(args.output_dir, bool(args.only))
     if cmd == "sweep":
         return f"finished shards are kept in {args.output}; the same command continues the sweep"
     return "nothing was written"

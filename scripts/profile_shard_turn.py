@@ -30,7 +30,6 @@ import cProfile
 import dataclasses
 import io
 import json
-import platform
 import pstats
 import time
 from collections.abc import Callable
@@ -60,9 +59,11 @@ class _Clock:
         t = time.perf_counter()
         if profiled:
             self.profile.enable()
-        out = fn(*args, **kw)
-        wp.synchronize_device(self.dev)
-        self.profile.disable()
+        try:
+            out = fn(*args, **kw)
+            wp.synchronize_device(self.dev)
+        finally:
+            self.profile.disable()
         self.phases[name] = self.phases.get(name, 0.0) + time.perf_counter() - t
         return out
 
@@ -92,6 +93,7 @@ def main() -> int:
     import warp as wp
 
     from aca_warp.common.devices import init_warp
+    from aca_warp.common.files import host_cpu
 
     init_warp()
     from aca_warp.hf.engine import EngineTuning
@@ -165,7 +167,7 @@ def main() -> int:
     out = {
         "date": time.strftime("%Y-%m-%d"),
         "device": dev.name,
-        "host": platform.processor() or platform.machine(),
+        "host": host_cpu(),
         "warp_version": wp.__version__,
         "release_threshold": args.release_threshold,
         "warm_up": args.warm_up,

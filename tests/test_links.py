@@ -221,27 +221,37 @@ def test_a_folder_where_a_whole_file_goes_is_one_line(tmp_path: Path) -> None:
 @pytest.mark.parametrize("ending", ["completes", "fails", "ctrl-c"])
 def test_all_or_nothing_puts_back_what_its_files_replaced(tmp_path: Path, ending: str) -> None:
     """Files written whole inside all_or_nothing(): when the block completes they stand and the earlier files they
-    replaced are gone; when it fails or is interrupted, every file it wrote is removed and every earlier file put
-    back byte for byte (one written twice in the block is put back once, as it was before the block); no hidden
-    file is left beside them either way."""
+    replaced are gone; when it fails or is interrupted, every file it wrote is removed (one new file written twice
+    too) and every earlier file put back byte for byte (one written twice in the block as it was before the block; a
+    link as the link it was); no hidden file is left beside them either way."""
     from aca_warp.common.files import all_or_nothing, whole
 
-    earlier, new = tmp_path / "a.png", tmp_path / "b.png"
+    earlier, new, link = tmp_path / "a.png", tmp_path / "b.png", tmp_path / "c.png"
     earlier.write_bytes(b"an earlier plot")
+    (tmp_path / "real.png").write_bytes(b"the link's target")
+    link.symlink_to("real.png")
     raised = {"completes": None, "fails": SceneError("drawing failed"), "ctrl-c": KeyboardInterrupt()}[ending]
     try:
         with all_or_nothing():
             for content in (b"first", b"second"):
-                with whole(earlier) as fh:
-                    fh.write(content)
-            with whole(new) as fh:
-                fh.write(b"new")
+                for path in (earlier, new):
+                    with whole(path) as fh:
+                        fh.write(content)
+            with whole(link) as fh:
+                fh.write(b"over the link")
             if raised is not None:
                 raise raised
     except (SceneError, KeyboardInterrupt) as e:
         assert e is raised
-    got = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    got = {p.name: p.read_bytes() for p in tmp_path.iterdir() if not p.is_symlink()}
     if raised is None:
-        assert got == {"a.png": b"second", "b.png": b"new"}
+        assert got == {
+            "a.png": b"second",
+            "b.png": b"second",
+            "c.png": b"over the link",
+            "real.png": b"the link's target",
+        }
+        assert not link.is_symlink()
     else:
-        assert got == {"a.png": b"an earlier plot"}
+        assert got == {"a.png": b"an earlier plot", "real.png": b"the link's target"}
+        assert link.is_symlink() and os.readlink(link) == "real.png"

@@ -352,12 +352,15 @@ def test_commands(runs, tmp_path, capsys):
     assert "not read (--no-sync)" in capsys.readouterr().out
     # a band below 4 periods of the record (1001 samples of 0.1 µs): the CWT keeps to it and says so; the peak
     # search's band, which starts at 3 bins (29.97 kHz), is empty, said too
-    assert _cli(["analyze", str(path), "--no-sync", "--freq-min", "2e3", "--freq-max", "2e4"]) == 0
+    assert _cli(["analyze", str(path), "--no-sync", "--freq-min", "5e3", "--freq-max", "2e4"]) == 0
     out = capsys.readouterr().out
-    assert "CWT over 2-20 kHz: the record (0.0001001 s) holds fewer than 4 periods below 39.96 kHz" in out
+    assert "CWT over 5-20 kHz: the record (0.0001001 s) holds fewer than 4 periods below 39.96 kHz" in out
     assert "no velocity-spectrum peak: the peak search's band 29.97-20 kHz is empty" in out
     with h5py.File(path, "r") as f:
-        assert f["analysis/cwt/freq"][0] == pytest.approx(2e3) and f["analysis/cwt/freq"][-1] == pytest.approx(2e4)
+        assert f["analysis/cwt/freq"][0] == pytest.approx(5e3) and f["analysis/cwt/freq"][-1] == pytest.approx(2e4)
+    # a band above the CWT's top (0.45/Δt = 4.5 MHz, below the Nyquist frequency): the decade below that top, said
+    assert _cli(["analyze", str(path), "--no-sync", "--freq-min", "4.6e6", "--freq-max", "4.9e6"]) == 0
+    assert "CWT over 450-4500 kHz: the band lies above the CWT's top, 0.45/Δt = 4500 kHz" in capsys.readouterr().out
     assert _cli(["analyze", str(path), "--no-sync", "--freq-max", "1e9"]) == 0  # a band past the samples: said
     assert "--freq-max 1e+09 Hz lies above the Nyquist frequency of the samples, " in capsys.readouterr().out
     assert _cli(["analyze", str(tmp_path / "missing.h5")]) == 2
@@ -880,6 +883,12 @@ def test_a_record_too_short_for_the_transforms_still_plots_its_series(tmp_path, 
     lines = capsys.readouterr().err.strip().splitlines()
     assert lines[-1].endswith(f"stft: {short} holds 6 samples; spectra, time-frequency maps and S(f) need at least 8")
     assert not (tmp_path / "two").exists() or not list((tmp_path / "two").iterdir())
+    assert main(["plot", str(short), "-o", str(tmp_path / "two"), "--only", "stft", "patch_map"]) == 2
+    line = capsys.readouterr().err.strip().splitlines()[-1]  # each reason with the figures it keeps out
+    assert f"stft: {short} holds 6 samples;" in line and f"; patch_map: {short} holds 6 per-patch samples;" in line
+    for draw in (plots.plot_spectra, plots.plot_stft, plots.plot_cwt):  # the figures' own API refuses it too
+        with pytest.raises(SceneError, match="holds 6 samples; the analysis needs at least 8"):
+            draw(short, tmp_path / "api")
     one = _copy(short, tmp_path, "one.h5")
     with h5py.File(one, "a") as f:  # its global series cut to the first sample
         for k in list(f["global"]):
@@ -887,4 +896,17 @@ def test_a_record_too_short_for_the_transforms_still_plots_its_series(tmp_path, 
             del f["global"][k]
             f["global"][k] = first
     assert main(["plot", str(one), "-o", str(tmp_path / "none")]) == 2
-    assert "holds 1 samples; a figure needs at least 2" in capsys.readouterr().err
+    assert "holds 1 sample; a figure needs at least 2" in capsys.readouterr().err
+
+
+def test_an_interrupted_or_failed_plot_says_what_it_left(tmp_path):
+    """What a stopped plot says it left (the interrupt's line, and a full device's): the figures finished before
+    it, or with --only none of its own (all or nothing) and an earlier plot's figures back."""
+    import argparse
+
+    from aca_warp.analysis.commands import plot_leftovers
+    from aca_warp.cli import _left
+
+    for only, said in ((None, "the figures finished before it are in figs"), (["global"], "none of its figures")):
+        args = argparse.Namespace(command="plot", output_dir="figs", only=only)
+        assert said in _left(args) == plot_leftovers("figs", bool(only))

@@ -193,17 +193,18 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         return _analyze(args, run, band)
 
 
+SYNC_OPTIONS = ("rule", "eta", "snr", "n_bins")  # analyze's options of the Synchronization Index (None: not given)
+
+
 def _check_sync_options(args: argparse.Namespace) -> None:
     """Refuse options of the Synchronization Index that would not act: any of them with --no-sync, --snr with the
     relative rule, --eta with the snr rule."""
-    given = [f"--{k.replace('_', '-')}" for k in ("rule", "eta", "snr", "n_bins") if getattr(args, k) is not None]
+    given = [f"--{k.replace('_', '-')}" for k in SYNC_OPTIONS if getattr(args, k) is not None]
     if args.no_sync and given:
         them = "it" if len(given) == 1 else "them"
         raise SceneError(f"--no-sync computes no Synchronization Index: {', '.join(given)} would not act; drop {them}")
     if args.snr is not None and (args.rule or "relative") == "relative":
-        raise SceneError(
-            "--snr is the factor of the snr rule: add --rule snr (the relative rule, the default, takes --eta)"
-        )
+        raise SceneError("--snr is the factor of the snr rule: add --rule snr (the relative rule takes --eta)")
     if args.eta is not None and args.rule == "snr":
         raise SceneError("--eta is the fraction of the relative rule: the snr rule takes --snr")
 
@@ -220,10 +221,7 @@ def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float
             run,
             freq_range=band,
             sync=not args.no_sync,
-            rule=args.rule or "relative",
-            eta=0.1 if args.eta is None else args.eta,
-            snr=5.0 if args.snr is None else args.snr,
-            n_bins=args.n_bins or 180,
+            **{k: getattr(args, k) for k in SYNC_OPTIONS if getattr(args, k) is not None},  # else analyze_run's
             stft_window_s=args.stft_window,
         )
     parts = [f"{run}: /analysis written ({', '.join(groups)})"]
@@ -235,9 +233,10 @@ def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float
     above = above_nyquist(run, args.freq_max)
     if above:
         parts.append(above)
-    if "few_periods" in groups["cwt"].attrs:
-        freq = groups["cwt"]["freq"]
-        parts.append(f"CWT over {freq[0] / 1e3:.4g}-{freq[-1] / 1e3:.4g} kHz: {groups['cwt'].attrs['few_periods']}")
+    for key in ("below_band", "few_periods"):
+        if key in groups["cwt"].attrs:
+            freq = groups["cwt"]["freq"]
+            parts.append(f"CWT over {freq[0] / 1e3:.4g}-{freq[-1] / 1e3:.4g} kHz: {groups['cwt'].attrs[key]}")
     parts += peak_lines(groups)
     if "sync" in groups:
         from aca_warp.analysis.report import LEAKAGE_BINS, lowest_bin_remark, sync_excess
@@ -278,16 +277,23 @@ def cmd_plot(args: argparse.Namespace) -> int:
     created = not out.exists()
     from aca_warp.plots import plot_run
 
+    shown: dict[str, str] = {}  # a shard's pad in a file of its own -> the pad as the user named it
+
     def note(message: str) -> None:
+        for path, name in shown.items():
+            message = message.replace(path, name)
         print(f"aca-warp plot: {message}", file=sys.stderr)
 
+    kept = plot_leftovers(args.output_dir, bool(args.only))
     files: list[Path] = []
     try:
         with (
             run_or_pad(args, "plot", keep=False) as run,
             reading(run, "run file"),
-            storage_errors(f"figures into {out}", "the figures before it are kept"),
+            storage_errors(f"figures into {out}", kept),
         ):
+            if args.pad is not None:
+                shown[run] = f"pad {args.pad} of {args.run}"
             check_times_in_record(run, args.times, args.run if args.pad is None else f"pad {args.pad} of {args.run}")
             files = plot_run(
                 run,
@@ -306,6 +312,17 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if not files:
         raise SceneError(f"no figure could be made from {args.run}")
     return 0
+
+
+def plot_leftovers(output_dir: str, only: bool) -> str:
+    """What a ``plot`` stopped by an error or an interrupt leaves in ``output_dir``: with ``--only`` (all or
+    nothing) none of its figures, and an earlier plot's figures it had replaced put back; else those finished."""
+    if only:
+        return (
+            f"none of its figures is left in {output_dir} (--only: all or nothing; an earlier plot's figures it had "
+            "replaced are back)"
+        )
+    return f"the figures finished before it are in {output_dir}; none is half written"
 
 
 def check_times_in_record(run: str, times: list[float] | None, name: str) -> None:

@@ -93,9 +93,11 @@ def run_attr(f: h5py.File, name: str, default: Any = None) -> Any:
 MIN_SAMPLES = 8  # samples the analysis needs (its spectra, time-frequency maps and Synchronization Index)
 
 
-def check_run_file(f: h5py.File, name: str | Path = "", *, min_samples: int = MIN_SAMPLES) -> None:
-    """Refuse an HDF5 file that is not an aca_warp run file, or holds fewer than ``min_samples`` samples
-    (:class:`SceneError`, one line)."""
+def check_run_file(
+    f: h5py.File, name: str | Path = "", *, min_samples: int = MIN_SAMPLES, needed_by: str = "the analysis"
+) -> None:
+    """Refuse an HDF5 file that is not an aca_warp run file, or holds fewer than the ``min_samples`` samples that
+    ``needed_by`` needs (:class:`SceneError`, one line)."""
     where = f"{name}: " if name else ""
     missing = [f"/global/{k}" for k in ("time", *GLOBAL_OUTPUTS[:5]) if f"global/{k}" not in f]
     missing += [f"/patches/{k}" for k in ("x", "y", "area") if f"patches/{k}" not in f]
@@ -118,8 +120,8 @@ def check_run_file(f: h5py.File, name: str | Path = "", *, min_samples: int = MI
         if f[f"patches/{k}"].shape != m or len(m) != 1:
             raise SceneError(f"{where}/patches/{k} has shape {f[f'patches/{k}'].shape}, expected one value per patch")
     if n[0] < min_samples:
-        needs = "the analysis needs" if min_samples == MIN_SAMPLES else "a figure needs"
-        raise SceneError(f"{where}the run holds {n[0]} samples; {needs} at least {min_samples}")
+        held = f"{n[0]} sample" + ("" if n[0] == 1 else "s")
+        raise SceneError(f"{where}the run holds {held}; {needed_by} needs at least {min_samples}")
     if "patches/velocity" in f:
         pt = f["patches/time"] if "patches/time" in f else None
         v, rows = f["patches/velocity"], pt.shape[0] if pt is not None and pt.ndim == 1 else -1
@@ -127,10 +129,13 @@ def check_run_file(f: h5py.File, name: str | Path = "", *, min_samples: int = MI
             raise SceneError(f"{where}/patches/velocity has shape {v.shape}, expected (len(/patches/time), patches)")
 
 
-def open_run_file(path: str | Path, mode: str = "r", *, min_samples: int = MIN_SAMPLES) -> h5py.File:
+def open_run_file(
+    path: str | Path, mode: str = "r", *, min_samples: int = MIN_SAMPLES, needed_by: str = "the analysis"
+) -> h5py.File:
     """Open and check an HF run file as an h5py File (:func:`~aca_warp.common.files.open_h5`); :class:`SceneError`
     if it is missing (naming its ``.partial`` where that exists), held open by another process (HDF5's file lock),
-    not HDF5, an LF run file or not a run file, or holds fewer than ``min_samples`` samples. (:func:`aca_warp.open_run`
+    not HDF5, an LF run file or not a run file, or holds fewer than ``min_samples`` samples (said as what
+    ``needed_by`` needs). (:func:`aca_warp.open_run`
     reads any run file into an xarray Dataset.)"""
     p = Path(path)
     f = open_h5_run(p, mode)
@@ -140,7 +145,7 @@ def open_run_file(path: str | Path, mode: str = "r", *, min_samples: int = MIN_S
                 f"{p} is an LF run file: the analysis applies to HF run files (aca-warp hf); "
                 f"draw its figures with 'aca-warp plot {p} -o DIR'"
             )
-        check_run_file(f, p, min_samples=min_samples)
+        check_run_file(f, p, min_samples=min_samples, needed_by=needed_by)
     except BaseException:
         f.close()
         raise
@@ -245,8 +250,9 @@ def default_cwt_freqs(
     n: int, dt: float, *, freq_range: tuple[float, float] | None = None, count: int = 96
 ) -> np.ndarray:
     """Log-spaced CWT frequencies [Hz]: from max(10 Hz, 4/T) to min(200 kHz, 0.4/dt), or ``freq_range`` (from no
-    lower than 4/T: at least 4 periods in the record). A band wholly below 4/T (a short record) keeps its top and
-    reaches down a decade, never below ``freq_range``'s lower edge: :func:`compute_cwt` says so."""
+    lower than 4/T: at least 4 periods in the record; up to 0.45/dt). A band wholly below 4/T (a short record) keeps
+    its top and reaches down a decade, never below ``freq_range``'s lower edge; a band wholly above 0.45/dt gives the
+    decade below 0.45/dt. :func:`compute_cwt` says so in either case."""
     record = n * dt
     hi_default = min(DEFAULT_BAND_TOP, 0.4 / dt)
     if freq_range is None:
@@ -254,8 +260,10 @@ def default_cwt_freqs(
     else:
         lo = max(float(freq_range[0]), 4.0 / record, 1e-3)
         hi = min(float(freq_range[1]), 0.45 / dt)
-    if not hi > lo:
-        lo = hi / 10.0 if freq_range is None else min(max(float(freq_range[0]), 1e-3, hi / 10.0), hi)
+    if not hi > lo and freq_range is not None:
+        lo = max(float(freq_range[0]), 1e-3, hi / 10.0)
+    if not hi > lo:  # no band at all: the decade below the top (a band above 0.45/dt: compute_cwt says so)
+        lo = hi / 10.0
     return np.geomspace(lo, hi, count)
 
 
@@ -335,7 +343,12 @@ def compute_cwt(
         raise SceneError(f"CWT frequencies must lie in (0, {0.5 / dt:g}) Hz (the Nyquist frequency)")
     times, out_freqs, amp, info = multirate_cwt(mu - mean, dt, freqs, stride=stride)
     record = mu.size * dt
-    if freqs[0] < 4.0 / record:
+    if freq_range is not None and freqs[0] < float(freq_range[0]):
+        info["below_band"] = (
+            f"the band lies above the CWT's top, 0.45/Δt = {0.45 / dt / 1e3:.4g} kHz: the map spans the decade "
+            "below that"
+        )
+    elif freqs[0] < 4.0 / record:
         info["few_periods"] = (
             f"the record ({record:.4g} s) holds fewer than 4 periods below {4.0 / record / 1e3:.4g} kHz: the "
             "wavelets of the map's lower frequencies reach past its ends"

@@ -14,7 +14,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from contextvars import ContextVar
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -535,10 +535,8 @@ def whole(path: Path, what: str = "temporary file") -> Iterator[BinaryIO]:
             yield fh
         book = _WRITES.get()
         if book is not None:
-            book.keep_earlier(path)
+            book.before_replacing(path)
         os.replace(tmp, path)
-        if book is not None:
-            book.written.append(path)
     finally:
         tmp.unlink(missing_ok=True)
 
@@ -551,13 +549,33 @@ class _Writes:
         self.written: list[Path] = []
         self.earlier: dict[Path, Path] = {}  # a replaced file -> where it is kept
 
-    def keep_earlier(self, path: Path) -> None:
-        """Before ``path`` is replaced: move the file there aside, unless this block wrote it (or it is none)."""
-        if path in self.earlier or path in self.written or not path.is_file() or path.is_symlink():
+    def before_replacing(self, path: Path) -> None:
+        """Before ``path`` is replaced: the file (or link) there moved aside under a name of its own, unless this
+        block wrote it or there is none, and ``path`` counted as written (each noted before its step: an interrupt
+        between the steps still finds it)."""
+        if path in self.written:
             return
-        kept = path.with_name(f".{path.stem}.earlier{path.suffix}")
-        os.replace(path, kept)  # a link planted at ``kept`` is replaced, not followed
-        self.earlier[path] = kept
+        if path.is_file() or path.is_symlink():
+            kept = path.with_name(f".{path.stem}.earlier-{os.getpid()}-{os.urandom(4).hex()}{path.suffix}")
+            self.earlier[path] = kept
+            os.replace(path, kept)  # a link is moved as a link, not followed
+        self.written.append(path)
+
+    def undo(self) -> None:
+        """Remove every file this block wrote and put back every earlier file, each on its own (one that cannot be
+        put back stays under its kept name)."""
+        for path in self.written:
+            with suppress(OSError):
+                path.unlink(missing_ok=True)
+        for path, kept in self.earlier.items():
+            with suppress(OSError):  # a kept name never made (the move itself failed): nothing to put back
+                os.replace(kept, path)
+
+    def commit(self) -> None:
+        """Let the earlier files go."""
+        for kept in self.earlier.values():
+            with suppress(OSError):
+                kept.unlink(missing_ok=True)
 
 
 _WRITES: ContextVar[_Writes | None] = ContextVar("aca_warp_writes", default=None)
@@ -573,14 +591,10 @@ def all_or_nothing() -> Iterator[None]:
     try:
         yield
     except BaseException:
-        for path in book.written:
-            path.unlink(missing_ok=True)
-        for path, kept in book.earlier.items():
-            os.replace(kept, path)
+        book.undo()
         raise
     else:
-        for kept in book.earlier.values():
-            kept.unlink(missing_ok=True)
+        book.commit()
     finally:
         _WRITES.reset(token)
 

@@ -154,14 +154,14 @@ class RunWriter(RunFileWriter):
         ):
             self.out.reserve(8 * len(data))
             p.create_dataset(name, data=np.asarray(data, dtype=np.float64)).attrs["unit"] = unit
-        self._write_growth_rate(scene, p)
+        self._write_growth_rate(scene)
         mg = f.create_group("matrix")
         for name, unit in (("area", "m2"), ("radius", "m"), ("height", "m")):
             data = np.asarray(getattr(scene.matrix, name), np.float64)
             self.out.reserve(data.nbytes)
             mg.create_dataset(name, data=data).attrs["unit"] = unit
 
-    def _write_growth_rate(self, scene: Scene, p: h5py.Group) -> None:
+    def _write_growth_rate(self, scene: Scene) -> None:
         """``/patches/predicted_growth_rate`` of the pad (:func:`write_predicted_growth_rate`)."""
         write_predicted_growth_rate(self.f, scene, self.model.contacts[self.pad].patch_force, self.out.reserve)
 

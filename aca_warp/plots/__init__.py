@@ -88,7 +88,7 @@ def _absent_figures(path: str | Path, names: list[str], which: Sequence[str] | N
     """The figures of ``names`` the file cannot give, each with why: a record too short for the transforms, or
     per-patch velocities absent or too few for the per-patch figures (``sync`` also counts as present when
     ``/analysis/sync`` is stored); :class:`SceneError` when ``which`` named one of them."""
-    with _Run(path) as run:
+    with _Run(path, min_samples=2, needed_by="a figure") as run:
         rows = run.f["patches/velocity"].shape[0] if "patches/velocity" in run.f and "patches/time" in run.f else 0
         stored_sync = stored(run.f, "sync")
         samples = run.f["global/time"].shape[0]
@@ -103,11 +103,12 @@ def _absent_figures(path: str | Path, names: list[str], which: Sequence[str] | N
             )
         elif n in ("patch_map", "animation", "sync") and rows < MIN_SAMPLES and not (n == "sync" and stored_sync):
             absent[n] = none if rows == 0 else few
-    if absent and which is not None:
-        if none in absent.values():
-            lacking = [n for n, why in absent.items() if why == none]
-            raise SceneError(f"{none}, needed by {', '.join(lacking)}; {_record_velocity()}")
-        raise SceneError(f"{', '.join(absent)}: {next(iter(absent.values()))}")
+    if absent and which is not None:  # every reason, with the figures it keeps out
+        reasons: dict[str, list[str]] = {}
+        for n, why in absent.items():
+            reasons.setdefault(why, []).append(n)
+        said = "; ".join(f"{', '.join(ns)}: {why}" for why, ns in reasons.items())
+        raise SceneError(f"{said}; {_record_velocity()}" if none in reasons else said)
     return absent
 
 

@@ -17,7 +17,7 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter
 
 from aca_warp.analysis import report
-from aca_warp.analysis.report import Group, analysis_group, has_patch_velocity, open_run_file, run_attr
+from aca_warp.analysis.report import MIN_SAMPLES, Group, analysis_group, has_patch_velocity, open_run_file, run_attr
 from aca_warp.analysis.spectra import DEFAULT_FLOOR_HZ
 from aca_warp.common.errors import SceneError, option
 from aca_warp.common.files import whole
@@ -29,12 +29,8 @@ from aca_warp.plots.figure import pad_outline as _pad_outline
 from aca_warp.plots.figure import save as _save
 
 FIGURES = ("patch_map", "global", "spectra", "sync", "stft", "cwt", "animation")
-TRANSFORMS = (
-    "spectra",
-    "sync",
-    "stft",
-    "cwt",
-)  # the figures of the analysis's transforms (at least MIN_SAMPLES samples)
+# the figures of the analysis's transforms (at least MIN_SAMPLES samples)
+TRANSFORMS = ("spectra", "sync", "stft", "cwt")
 GIF_DPI = 80  # the animation's resolution: 6.4 x 3.6 in frames are 512 x 288 px
 GIF_FOOTER_PT = 7.0  # the animation's footer [pt]: 7.8 px letters in its 512 x 288 px frames (80 dpi)
 GIF_FOOTER_CHARS = 100  # ... wrapped to lines this long, which fit the frame's width
@@ -51,9 +47,10 @@ AT_REST = "#9a9a9a"
 class _Run:
     """An open run file with what every figure needs (path, stem, footer text, scene)."""
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, *, min_samples: int = MIN_SAMPLES, needed_by: str = "the analysis") -> None:
+        """``min_samples``: the fewest samples ``needed_by`` needs (the analysis': 8; the global series: 2)."""
         self.path = Path(path)
-        self.f = open_run_file(self.path, "r", min_samples=2)  # the transforms' figures ask for more (plot_run)
+        self.f = open_run_file(self.path, "r", min_samples=min_samples, needed_by=needed_by)
         self.scene = run_attr(self.f, "scene", {}) or {}
         if not isinstance(self.scene, dict):
             self.scene = {}
@@ -378,7 +375,7 @@ def animation_figure(
 
 def plot_global(path: str | Path, outdir: str | Path) -> list[Path]:
     """μ, friction torque, effective friction radius and Σ|u̇| against time [ms], stacked (Figs. 5, 7)."""
-    with _Run(path) as run:
+    with _Run(path, min_samples=2, needed_by="the global series") as run:
         t = run.f["global/time"][()]
         panels = [
             ("mu", "μ [1]", 1.0),
