@@ -135,8 +135,7 @@ def open_run_file(
     """Open and check an HF run file as an h5py File (:func:`~aca_warp.common.files.open_h5`); :class:`SceneError`
     if it is missing (naming its ``.partial`` where that exists), held open by another process (HDF5's file lock),
     not HDF5, an LF run file or not a run file, or holds fewer than ``min_samples`` samples (said as what
-    ``needed_by`` needs). (:func:`aca_warp.open_run`
-    reads any run file into an xarray Dataset.)"""
+    ``needed_by`` needs). (:func:`aca_warp.open_run` reads any run file into an xarray Dataset.)"""
     p = Path(path)
     f = open_h5_run(p, mode)
     try:
