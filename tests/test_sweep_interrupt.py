@@ -80,12 +80,14 @@ def test_signal_marks_running_shards_and_rerun_finishes(
         _wait_for_running_shard(out, proc)
         proc.send_signal(sig)
         stdout, stderr = proc.communicate(timeout=120)
+        states = _states(out)
+        if proc.returncode == 0 and "work was not stopped" in stderr:
+            continue  # on a loaded machine the signal came after the last shard's end: nothing to interrupt; again
         assert proc.returncode == code, stderr
         lines = error_lines(stderr)
         assert len(lines) == 1, stderr  # no traceback, no Dask shutdown chatter
         assert lines[0].startswith(f"aca-warp: {word};") and "run the same command again" in lines[0]
         assert "Traceback" not in stderr and "Traceback" not in stdout
-        states = _states(out)
         # the signal came after the shards that ran had finished (on two Dask workers the first two run side by
         # side, and on a loaded machine the second may end between the first's end and the signal): nothing was
         # left to interrupt, and nothing was; the check needs a signal during a run, so it is made again
