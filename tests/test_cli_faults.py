@@ -287,6 +287,7 @@ def test_plot_file_size_limit_leaves_whole_figures(tmp_path: Path, runs) -> None
     r = cli(["plot", str(runs["run"]), "-o", str(out), "--only", "global"], limit=20_000)
     lines = error_lines(r.stderr)
     assert r.returncode == 4 and len(lines) == 1 and "file size limit reached while writing figures" in lines[0], r
+    assert f"none of its figures is left in {out} (--only: all or nothing" in lines[0], lines  # --only said so
     assert not out.exists()
 
 

@@ -255,3 +255,39 @@ def test_all_or_nothing_puts_back_what_its_files_replaced(tmp_path: Path, ending
     else:
         assert got == {"a.png": b"an earlier plot", "real.png": b"the link's target"}
         assert link.is_symlink() and os.readlink(link) == "real.png"
+
+
+def test_all_or_nothing_holds_at_every_step(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    """An interrupt just after a new figure has been renamed into place still removes it (the figure is counted as
+    written before its rename); an earlier figure that cannot be renamed back is said, with the hidden name it is
+    kept under (which does not grow with the figure's name), and left there."""
+    from aca_warp.common.files import all_or_nothing, whole
+
+    real = os.replace
+    new, earlier = tmp_path / "new.png", tmp_path / ("e" * 230 + ".png")  # 234 characters: its kept name must fit
+    earlier.write_bytes(b"an earlier plot")
+
+    def interrupt_after(src, dst):
+        real(src, dst)
+        if Path(dst) == new:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "replace", interrupt_after)
+    with pytest.raises(KeyboardInterrupt), all_or_nothing(), whole(new) as fh:
+        fh.write(b"new")
+    assert list(tmp_path.iterdir()) == [earlier]
+
+    def refuse_restore(src, dst):
+        if Path(src).name.startswith(".aca-earlier-"):
+            raise PermissionError(13, "Permission denied")
+        real(src, dst)
+
+    monkeypatch.setattr(os, "replace", refuse_restore)
+    with pytest.raises(SceneError), all_or_nothing():
+        with whole(earlier) as fh:
+            fh.write(b"this call's figure")
+        raise SceneError("a later figure failed")
+    (kept,) = [p for p in tmp_path.iterdir() if p.name.startswith(".aca-earlier-")]
+    assert kept.read_bytes() == b"an earlier plot" and not earlier.exists()
+    err = capsys.readouterr().err
+    assert f"the earlier {earlier} could not be put back (Permission denied); it is kept as {kept}" in err

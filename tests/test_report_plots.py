@@ -560,6 +560,10 @@ def test_one_pad_of_a_sweep_shard(tmp_path, capsys):
     assert main(["plot", str(shard), "--pad", "1", "-o", str(tmp_path / "f"), "--only", "global", "spectra"]) == 0
     names = sorted(f.name for f in (tmp_path / "f").iterdir())
     assert names == [f"shard-00000_pad1_{n}.{e}" for n in ("global", "spectra") for e in ("pdf", "png")]
+    assert main(["plot", str(shard), "--pad", "2", "-o", str(tmp_path / "g")]) == 0  # pad 2: a temporary pad file
+    err = capsys.readouterr().err  # its skip notes name the pad as given, not the file no one saw
+    assert f"skipped patch_map: pad 2 of {shard} holds no per-patch velocities" in err
+    assert "shard-00000_pad2.h5" not in err, err
     again = tmp_path / "again.h5"
     assert main(["rerun", str(pad), "-o", str(again), "--no-progress"]) == 0
     with h5py.File(again, "r") as a, h5py.File(pad, "r") as p:

@@ -329,6 +329,7 @@ def compute_cwt(
     mu = f["global/mu"][()].astype(np.float64)
     time = f["global/time"][()]
     dt = sample_interval(time)
+    derived = freqs is None  # the remarks below are on the frequencies chosen here, not on ones given
     if freqs is None:
         freqs = default_cwt_freqs(mu.size, dt, freq_range=freq_range, count=count)
     freqs = np.asarray(freqs, dtype=np.float64)
@@ -342,12 +343,12 @@ def compute_cwt(
         raise SceneError(f"CWT frequencies must lie in (0, {0.5 / dt:g}) Hz (the Nyquist frequency)")
     times, out_freqs, amp, info = multirate_cwt(mu - mean, dt, freqs, stride=stride)
     record = mu.size * dt
-    if freq_range is not None and freqs[0] < float(freq_range[0]):
+    if derived and freq_range is not None and freqs[0] < float(freq_range[0]):
         info["below_band"] = (
             f"the band lies above the CWT's top, 0.45/Δt = {0.45 / dt / 1e3:.4g} kHz: the map spans the decade "
             "below that"
         )
-    elif freqs[0] < 4.0 / record:
+    if derived and freqs[0] < 4.0 / record:
         info["few_periods"] = (
             f"the record ({record:.4g} s) holds fewer than 4 periods below {4.0 / record / 1e3:.4g} kHz: the "
             "wavelets of the map's lower frequencies reach past its ends"

@@ -556,20 +556,26 @@ class _Writes:
         if path in self.written:
             return
         if path.is_file() or path.is_symlink():
-            kept = path.with_name(f".{path.stem}.earlier-{os.getpid()}-{os.urandom(4).hex()}{path.suffix}")
+            kept = path.with_name(f".aca-earlier-{os.getpid()}-{os.urandom(4).hex()}{path.suffix}")  # any name's length
             self.earlier[path] = kept
             os.replace(path, kept)  # a link is moved as a link, not followed
         self.written.append(path)
 
-    def undo(self) -> None:
-        """Remove every file this block wrote and put back every earlier file, each on its own (one that cannot be
-        put back stays under its kept name)."""
+    def undo(self) -> list[str]:
+        """Remove every file this block wrote and put back every earlier file, each on its own; returns a line for
+        each earlier file that could not be put back (it stays under its kept name)."""
         for path in self.written:
             with suppress(OSError):
                 path.unlink(missing_ok=True)
+        stranded = []
         for path, kept in self.earlier.items():
-            with suppress(OSError):  # a kept name never made (the move itself failed): nothing to put back
+            try:
                 os.replace(kept, path)
+            except FileNotFoundError:  # the move aside itself failed: the earlier file never left
+                pass
+            except OSError as e:
+                stranded.append(f"the earlier {path} could not be put back ({e.strerror}); it is kept as {kept}")
+        return stranded
 
     def commit(self) -> None:
         """Let the earlier files go."""
@@ -591,7 +597,8 @@ def all_or_nothing() -> Iterator[None]:
     try:
         yield
     except BaseException:
-        book.undo()
+        for line in book.undo():
+            print(f"aca-warp: {line}", file=sys.stderr)
         raise
     else:
         book.commit()
