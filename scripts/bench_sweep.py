@@ -25,30 +25,32 @@ Configurations:
 * ``baseline`` (with ``--baseline DIR``): the checkout at DIR (e.g. ``git archive <commit> aca_warp kernels | tar -x
   -C DIR``), overlapped, on each of ``--units``.
 
-Reported per configuration (JSON, and one Markdown line; with ``--repeat N`` every configuration runs N times, in
-turn, and its run of the shortest wall time is reported, all runs kept in the JSON's ``runs``): the sweep call's wall
-time (cluster start and warm-up not counted), wall rate = patch-steps / wall time, in-shard rate = patch-steps / Σ
-over shards of ``timings.kernel`` (per GPU: each shard runs on one), wall rate / (units × in-shard rate), the same
-against the sequential reference's in-shard rate (target: ≥ 0.9 on one GPU), the speedup over the same code on the
-first of ``--units`` (target: ≥ 1.9 for two GPUs over one), and per phase of a shard task (prepare, prepare_ahead,
-upload, build, setup, kernel, write, task) the median and the total over the shards (and, over repeated runs, the
-least of the medians: ``phase_least_s``). ``timeline``: every shard's phases on the sweep call's clock (seconds from
-its start; ``timings.spans``, or for a code without them its run's start and end) and, per worker process (one per
-GPU in this code), its device time: ``start`` (the call's start to its first shard's turn: upload or build),
-``busy`` (the turns, to each run's end), ``idle`` (between one run's end and the next turn), ``tail`` (the last run's
-end to the call's end: the last file and the manifest). Before the sweeps, per code, the host phases of one shard
-measured alone in one process (``--host-repeat`` times; :func:`host_phases`): the least wall time and the least CPU
-time of prepare, build and setup, and for a code with a preparation of models on the host, the pool's work per shard
-(``pool``: scenes, host model, initial state, checks) and what is left to the device's turn (``upload``, and
-``setup_checked``: the run's set-up with the checks given), which on a machine shared with other work say more than
-the sweeps' wall times. Every overlapped configuration also runs once as ``aca-warp sweep`` runs it, in a process of
-its own (:func:`command_sweep`): ``command_wall_s`` from the call's start to its return (pool, cluster start,
-shards), ``command_exit_s`` from the call's start to its process's end (what a user of the command waits for: the
-interpreter's exit waits for processes the call left, such as a preparation pool's), and ``command_shards_s`` from
-the first device turn to the call's return (the cluster's start left out, which does not grow with the sweep; the
-pool's head start, which prepares every worker's first shard during that start, kept in), each with its speedup
-over the fewest units. The JSON and the Markdown line are written after every run (the
-JSON's ``partial`` true until the last), so that a command stopped by a time limit leaves what it measured.
+Reported per configuration (JSON, and one Markdown line; with ``--repeat N`` every configuration runs N times, in turn,
+and its run of the shortest wall time is reported, all runs kept in the JSON's ``runs``): the sweep call's wall time
+(cluster start and warm-up not counted), wall rate = patch-steps / wall time, in-shard rate = patch-steps / Σ over
+shards of ``timings.kernel`` (per GPU: each shard runs on one), wall rate / (units × in-shard rate), the same against
+the sequential reference's in-shard rate (target: ≥ 0.9 on one GPU), the speedup over the same code on the first of
+``--units`` (target: ≥ 1.9 for two GPUs over one), and per phase of a shard task (prepare, prepare_ahead, upload, build,
+setup, kernel, write, task) the median and the total over the shards (and, over repeated runs, the least of the medians:
+``phase_least_s``). ``timeline``: every shard's phases on the sweep call's clock (seconds from its start;
+``timings.spans``, or for a code without them its run's start and end) and, per worker process (one per GPU in this
+code), its device time: ``start`` (the call's start to its first shard's turn: upload or build), ``busy`` (the turns, to
+each run's end), ``idle`` (between one run's end and the next turn), ``tail`` (the last run's end to the call's end: the
+last file and the manifest); ``preparations``: who made the shards and in what time (:func:`preparations`: the pool's
+first wave, begun before its first preparation had finished, its later ones, what their hand-over cost the tasks, and
+the shards the tasks made themselves). Before the sweeps, per code, the host phases of one shard measured alone in one
+process (``--host-repeat`` times; :func:`host_phases`): the least wall time and the least CPU time of prepare, build and
+setup, and for a code with a preparation of models on the host, the pool's work per shard (``pool``: scenes, host model,
+initial state, checks) and what is left to the device's turn (``upload``, and ``setup_checked``: the run's set-up with
+the checks given), which on a machine shared with other work say more than the sweeps' wall times. Every overlapped
+configuration also runs once as ``aca-warp sweep`` runs it, in a process of its own (:func:`command_sweep`):
+``command_wall_s`` from the call's start to its return (pool, cluster start, shards), ``command_exit_s`` from the call's
+start to its process's end (what a user of the command waits for: the interpreter's exit waits for processes the call
+left, such as a preparation pool's), and ``command_shards_s`` from the first device turn to the call's return (the
+cluster's start left out, which does not grow with the sweep; the pool's head start, which prepares every worker's first
+shard during that start, kept in), each with its speedup over the fewest units. The JSON and the Markdown line are
+written after every run (the JSON's ``partial`` true until the last), so that a command stopped by a time limit leaves
+what it measured.
 
 Two H200s (one GPU and two, the code before as baseline; a few minutes)::
 
@@ -360,7 +362,28 @@ def timeline(summaries: list[dict], called: float, wall: float) -> dict:
             "idle": idle,
             "tail": wall - max(b for _, b in spans),
         }
-    return {"shards": shards, "devices": devices}
+    return {"shards": shards, "devices": devices, "preparations": preparations(shards)}
+
+
+def preparations(shards: list[dict]) -> dict:
+    """Who made the shards of one call, and in what time [s] (lists in shard order; empty where none):
+    ``first``, the pool's preparations begun before its first one had finished (``prepare_ahead``), and ``later``,
+    the rest; ``handover_first`` and ``handover_later``, what each of those cost its task before the kernel (reading
+    it, ``prepare``; ``upload``; ``setup``); ``own``, a shard its task made itself (``prepare``, ``build``,
+    ``setup``)."""
+
+    def took(ph: dict, *names: str) -> float:
+        return sum(ph[k][1] - ph[k][0] for k in names if k in ph)
+
+    pooled = [s["phases"] for s in shards if "prepare_ahead" in s["phases"]]
+    done = min((ph["prepare_ahead"][1] for ph in pooled), default=0.0)
+    out: dict[str, list[float]] = {k: [] for k in ("first", "later", "handover_first", "handover_later", "own")}
+    for ph in pooled:
+        wave = "first" if ph["prepare_ahead"][0] < done else "later"
+        out[wave].append(took(ph, "prepare_ahead"))
+        out[f"handover_{wave}"].append(took(ph, "prepare", "upload", "setup"))
+    out["own"] = [took(s["phases"], "prepare", "build", "setup") for s in shards if "build" in s["phases"]]
+    return out
 
 
 # ---------------------------------------------------------------------------------------------------- parent
@@ -468,6 +491,7 @@ def markdown_line(doc: dict) -> str:
             + (f"upload {ph['upload']:.2f}, " if ph.get("upload") else "")
             + f"build {ph['build']:.2f}, setup {ph['setup']:.2f}, kernel {ph['kernel']:.2f} s"
             + device_time(r["timeline"]["devices"])
+            + made_by(r["timeline"].get("preparations", {}))
             + (
                 f"; the whole call as the command runs it (pool, cluster start, shards): {r['command_wall_s']:.1f} s "
                 f"({r['command_exit_s']:.1f} s to its process's end), "
@@ -511,6 +535,21 @@ def write_outputs(doc: dict, args: argparse.Namespace) -> None:
     if not doc.get("partial"):
         print(line)
         print(f"wrote {args.json} and {args.md}")
+
+
+def made_by(prep: dict) -> str:
+    """Who made the shards (:func:`preparations`) in words: per kind, how many and their range of times."""
+
+    def span(xs: list[float]) -> str:
+        return f"{len(xs)}, {min(xs):.2f}–{max(xs):.2f} s" if xs else "none"
+
+    if not prep:
+        return ""
+    return (
+        f"; shards made by the pool before its first was done {span(prep['first'])} (their hand-over "
+        f"{span(prep['handover_first'])}), later {span(prep['later'])} (hand-over {span(prep['handover_later'])}), "
+        f"by their tasks {span(prep['own'])}"
+    )
 
 
 def device_time(devices: dict) -> str:
