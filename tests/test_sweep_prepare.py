@@ -515,62 +515,57 @@ def test_bench_script_runs_every_configuration(tmp_path: Path, monkeypatch: pyte
 
 
 def test_a_free_task_waits_for_a_begun_preparation(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Once a preparation of the call has finished, a task whose device is free takes a shard whose preparation a
-    pool process has begun (held here until the task has asked for it), rather than make the shard itself; a shard
-    whose preparation has not begun (held before its mark), or began longer ago than ``BEGUN_WAIT_S``, is left to
-    the task. Before any preparation has finished (the pool's first ones, slower than a task's own), a begun one is
-    left to the task too."""
+    """A task whose device is free takes a shard whose preparation a pool process has begun (held here until the
+    task has asked for it), rather than make the shard itself; a shard whose preparation has not begun (held before
+    its mark), or began longer ago than ``BEGUN_WAIT_S``, is left to the task."""
     import functools
 
     from aca_warp.sweep import prepare as prep_mod
 
     monkeypatch.setattr(prep_mod, "BEGUN_WAIT_S", 600.0)  # however slow this machine
     spec = _spec()
-    for case in ("first", "begun", "expired", "not begun"):
-        gate = tmp_path / f"gate-{case}"  # one per case, left in place: the held processes see it and finish
-        held = 0 if case == "first" else 1  # the shard held; shard 0 of the other cases is made at once
-        p = Preparer(spec.doc, str(spec.base_dir), 1, 2, device="cpu")
-        if case == "not begun":  # held before its mark
-            p.prepare = functools.partial(gated_one, str(gate), held, p.prepare)
-        else:  # marked, then held
-            p.prepare = functools.partial(
-                prep_mod._begin, p.folder, functools.partial(gated_one, str(gate), held, p.work)
-            )
+    gate = tmp_path / "gate-expired"  # marked, then held past the (short) wait
+    p = Preparer(spec.doc, str(spec.base_dir), 1, 1, device="cpu")
+    p.prepare = functools.partial(prep_mod._begin, p.folder, functools.partial(gated, str(gate), p.work))
+    try:
+        p.plan([0])
+        _in_time(lambda: _until(lambda: p.began(0)), 120)
+        monkeypatch.setattr(prep_mod, "BEGUN_WAIT_S", 0.2)
+        t = time.monotonic()
+        assert _in_time(lambda: p.take(0, lambda: True), 120) is None and time.monotonic() - t < 60
+    finally:
+        gate.touch()
+        p.close()
+    monkeypatch.setattr(prep_mod, "BEGUN_WAIT_S", 600.0)
+    for begun in (True, False):
+        gate = tmp_path / f"gate-{begun}"  # one per case, left in place: the held processes see it and finish
+        p = Preparer(spec.doc, str(spec.base_dir), 1, 1, device="cpu")
+        if begun:  # shard 0 marked, then held
+            p.prepare = functools.partial(prep_mod._begin, p.folder, functools.partial(gated_one, str(gate), 0, p.work))
+        else:  # shard 0 held before its mark
+            p.prepare = functools.partial(gated_one, str(gate), 0, p.prepare)
         try:
             p.plan([0, 1])
-            if held == 1:
-                _in_time(lambda p=p: _until(lambda: p.made > 0), 120)
-            if case == "not begun":
-                time.sleep(0.5)  # the pool process holds shard 1 before marking it
-                assert not p.began(1) and not p.worth_waiting(1) and p.take(1, lambda: True) is None
-                continue
-            _in_time(lambda p=p, held=held: _until(lambda: p.began(held)), 120)
-            if case == "expired":
-                monkeypatch.setattr(prep_mod, "BEGUN_WAIT_S", 0.2)
-                time.sleep(0.3)
-                assert _in_time(lambda p=p: p.take(1, lambda: True), 120) is None
-                monkeypatch.setattr(prep_mod, "BEGUN_WAIT_S", 600.0)
-                continue
-            asked: list[int] = []
-            threading.Timer(0.3, gate.touch).start()  # (had the task waited, it would have its shard after this)
-            shard = _in_time(lambda p=p, asked=asked, held=held: p.take(held, lambda: asked.append(0) or True), 120)
-            if case == "first":
-                assert shard is None and asked and p.made == 0
+            if begun:
+                _in_time(lambda p=p: _until(lambda: p.began(0)), 120)
+                asked: list[int] = []
+                threading.Timer(0.3, gate.touch).start()
+                shard = _in_time(lambda p=p, asked=asked: p.take(0, lambda: asked.append(0) or True), 120)
+                assert isinstance(shard, PreparedShard) and shard.index == 0 and not asked
+                # no pool process writes into the folder while it is removed: shard 1 prepared first
+                _in_time(lambda p=p: _until(lambda: p.first_ready([1]) == 1), 120)
             else:
-                assert isinstance(shard, PreparedShard) and shard.index == 1 and not asked
+                time.sleep(0.5)  # the pool process holds shard 0 before marking it
+                assert not p.began(0) and p.take(0, lambda: True) is None
         finally:
             p.close()  # before the gate opens: a process held before its mark then finds no folder to write into
             gate.touch()
         assert not Path(p.folder).exists()
 
 
-@pytest.mark.parametrize("case", ["first", "later"])
-def test_a_free_worker_waits_for_a_begun_preparation(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, case: str
-) -> None:
-    """On Dask too: once a preparation of the call has finished, a worker with nothing to do is handed a shard
-    whose preparation a pool process has begun once that is done (its file, not the shard), instead of the shard
-    unprepared; before any has finished ("first": shard 0 begun and held), it is handed the shard unprepared."""
+def test_a_free_worker_waits_for_a_begun_preparation(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """On Dask too: a worker with nothing to do is handed the first shard once the pool process that has begun it
+    is done (its file, not the shard), instead of the shard unprepared."""
     pytest.importorskip("distributed")
     import functools
 
@@ -580,41 +575,23 @@ def test_a_free_worker_waits_for_a_begun_preparation(
     monkeypatch.setattr(prep_mod, "BEGUN_WAIT_S", 600.0)  # however slow the cluster's start on this machine
 
     gate = tmp_path / "gate"
-    held_index = 0 if case == "first" else 1
     made = Preparer.__init__
 
     def held(self: Preparer, *args, **kwargs) -> None:
         made(self, *args, **kwargs)  # marked, then held until the feed below has seen the worker free
-        work = functools.partial(gated_one, str(gate), held_index, self.work)
-        self.prepare = functools.partial(prep_mod._begin, self.folder, work)
+        self.prepare = functools.partial(prep_mod._begin, self.folder, functools.partial(gated, str(gate), self.work))
 
     fed = cluster._feed
     handed: list[str] = []
-    waited: list[int] = []
 
     def feed(book, submit, preparer, **kwargs) -> None:
-        _in_time(lambda: _until(lambda: preparer.began(held_index) and (case == "first" or preparer.made > 0)), 120)
-        if case == "first":
-            threading.Timer(0.5, gate.touch).start()  # (had the feed waited, it would have the shard after this)
-        else:
-            worth = preparer.worth_waiting
-
-            def noted(i: int) -> bool:  # a free worker waits for shard 1: let its preparation finish
-                w = worth(i)
-                if w and i == 1:
-                    waited.append(i)
-                    gate.touch()
-                return w
-
-            preparer.worth_waiting = noted
+        _in_time(lambda: _until(lambda: preparer.began(0)), 120)
+        threading.Timer(0.5, gate.touch).start()
         fed(book, _recording(submit, handed), preparer, **kwargs)
 
     res = _fed_sweep(tmp_path, monkeypatch, held, feed, gate, prepare=1)
     assert res.ran == [0, 1, 2] and not res.failed
-    if case == "first":
-        assert handed[0] == "NoneType", handed
-    else:
-        assert handed[:2] == ["SpooledShard"] * 2 and waited, (handed, waited)
+    assert handed[0] == "SpooledShard", handed
 
 
 def test_a_ready_shard_goes_before_one_still_being_prepared(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

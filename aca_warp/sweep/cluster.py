@@ -457,10 +457,9 @@ def _feed(
     ``book.todo`` already), a shard is submitted while fewer tasks than the cluster's ``threads`` are unfinished (so
     that prepared shards wait in the pool's results, not in the cluster's memory): with its preparation once that is
     ready, or, when fewer tasks than ``workers`` are unfinished (a worker would wait: at the start, or when the pool
-    falls behind) and its preparation is not worth waiting for (not begun, or begun too recently:
-    :meth:`~aca_warp.sweep.prepare.Preparer.worth_waiting`), at once and unprepared (its task prepares it). A later
-    shard whose preparation is ready goes before one still being prepared (shards of unequal pads take unequal
-    times). A shard whose preparation raised (or whose pool process died) is
+    falls behind) and no pool process has begun it (:meth:`~aca_warp.sweep.prepare.Preparer.began`), at once and
+    unprepared (its task prepares it). A later shard whose preparation is ready goes before one still being prepared
+    (shards of unequal pads take unequal times). A shard whose preparation raised (or whose pool process died) is
     recorded failed, not submitted."""
     from distributed import as_completed
 
@@ -482,7 +481,7 @@ def _feed(
                         todo.remove(i)
                         book.failed(i, _one_line(e))
                         continue
-                elif running.count() < workers and not preparer.worth_waiting(i):
+                elif running.count() < workers and not preparer.began(i):
                     preparer.forget(i)
                 else:
                     break

@@ -368,7 +368,7 @@ class Preparer:
         arguments of :func:`prepare_shard` (``device``, ``memory_fraction``, ``sharing``), with its defaults."""
         device = shard_options.get("device")
         # this call's private folder: the marks of begun preparations and the spooled shards; without spool a pool
-        # that cannot have one works unmarked (began() and worth_waiting() are then False)
+        # that cannot have one works unmarked (began() is then False)
         self.folder: str | None = None
         try:
             self.folder = _spool_folder()
@@ -387,7 +387,6 @@ class Preparer:
         self.waiting: deque[int] = deque()
         self.futures: dict[int, Future] = {}
         self.lock = threading.Lock()
-        self.made = 0  # preparations of this call that have finished with a shard
         self.planned = False
         self.released = False  # every planned shard taken or dropped (or closed): the processes let go, no more asked
 
@@ -408,7 +407,7 @@ class Preparer:
         while self.waiting and len(self.futures) < self.ahead:
             i = self.waiting.popleft()
             try:
-                self.futures[i] = self._submit(i)
+                self.futures[i] = self.pool.submit(self.prepare, i)
             except BrokenProcessPool:
                 self.waiting.appendleft(i)
                 break
@@ -435,19 +434,8 @@ class Preparer:
                     raise RuntimeError(f"shard {index} was asked of a preparation pool that has made all its shards")
                 if index in self.waiting:
                     self.waiting.remove(index)
-                self.futures[index] = self._submit(index)
+                self.futures[index] = self.pool.submit(self.prepare, index)
             return self.futures[index]
-
-    def _submit(self, index: int) -> Future:
-        """Hand shard ``index`` to the pool, counting it in :attr:`made` once it has a shard."""
-        fut = self.pool.submit(self.prepare, index)
-        fut.add_done_callback(self._finished)
-        return fut
-
-    def _finished(self, fut: Future) -> None:
-        """Count a preparation that finished with a shard (runs in the pool's thread, or in the caller's)."""
-        if not fut.cancelled() and fut.exception() is None:
-            self.made += 1  # (only this callback writes it; a reader needs no exact count)
 
     def poll(self, index: int) -> bool:
         """Whether shard ``index``'s preparation has finished (successfully or not)."""
@@ -462,7 +450,9 @@ class Preparer:
 
     def began(self, index: int) -> bool:
         """Whether a pool process began preparing shard ``index`` (:func:`_begin`) less than :data:`BEGUN_WAIT_S`
-        ago (one begun longer ago, on a loaded machine or in a stalled process, is taken as not begun)."""
+        ago: the rest of it takes less than the task would take to make the shard itself (on one H200 host a 256-pad
+        hf1 shard takes 0.5–0.7 s in the pool, 0.9 s or more in the task's turn), so a task that is free waits for
+        it; a preparation begun longer ago (a loaded machine, a stalled process) is left to the task."""
         if self.folder is None:
             return False
         try:
@@ -470,14 +460,6 @@ class Preparer:
         except (OSError, ValueError):  # no mark, or one being written
             return False
         return (time.monotonic_ns() - began_ns) / 1e9 < BEGUN_WAIT_S
-
-    def worth_waiting(self, index: int) -> bool:
-        """Whether a task that is free should wait for shard ``index``'s preparation rather than make the shard
-        itself: a pool process began it (:meth:`began`) and some preparation of this call has finished. The pool's
-        first preparations, made while its processes start Warp on the device side by side, take longer than a task
-        takes to make its shard, and their hand-over too; later ones, with theirs, take about as long as a task or
-        less (docs/sweeps.md, "Overlap"), so that waiting for one begun pays from then on."""
-        return self.made > 0 and self.began(index)
 
     def forget(self, index: int) -> None:
         """Drop shard ``index``: its task prepares it itself (a preparation under way finishes unused)."""
@@ -509,11 +491,11 @@ class Preparer:
         self, index: int, idle: Callable[[], bool], cancel: threading.Event | None = None
     ) -> PreparedShard | SpooledShard | None:
         """Shard ``index`` prepared, waiting for it while ``idle()`` is False (the device has other work) or its
-        preparation is worth waiting for (:meth:`worth_waiting`); None once it is neither ready nor worth waiting for
-        and ``idle()`` is True: the shard is then dropped (:meth:`forget`) and its task prepares it, rather than
-        leave the device waiting. Raises as :meth:`get`."""
+        preparation has begun (:meth:`began`); None once it is neither ready nor begun and ``idle()`` is True: the
+        shard is then dropped (:meth:`forget`) and its task prepares it, rather than leave the device waiting.
+        Raises as :meth:`get`."""
         while not self.poll(index):
-            if not self.worth_waiting(index) and idle():
+            if not self.began(index) and idle():
                 self.forget(index)
                 return None
             if cancel is not None and cancel.is_set():
