@@ -10,7 +10,8 @@ or 4 with exactly one ``aca-warp: error:`` line), ``bad`` (anything else: a trac
 ``--crafted`` instead feeds crafted files (well-formed HDF5 or TOML built to break a reader: nested, int and array
 ``scene`` attributes, ``/global/mu`` as strings or a compound type, ``/global/time`` a group, a 2-D ``/patches/x``, a
 checkpoint array of another shape, datasets declaring 2^28 or 2^40 rows never written, external and soft links,
-TOML scenes and specs nested 20 000 deep) to every command that reads them; each must end with one line, exit 2.
+TOML scenes and specs nested 20 000 deep or of 64 GiB) to every command that reads them; each
+must end with one line, exit 2.
 
 ``--formats N`` instead reads every dataset and attribute of the HF run after N random single-bit flips, once as
 written (HDF5 ``libver = earliest``, no filters) and once copied with ``libver = "v108"`` (checksummed object
@@ -18,7 +19,7 @@ headers and index nodes) and the Fletcher-32 filter on every dataset: how many f
 
     python scripts/corrupt_files.py --flips 20          # ~10 minutes on the 2-core CPU container
     python scripts/corrupt_files.py --formats 120       # ~2 minutes
-    python scripts/corrupt_files.py --crafted           # 45 runs
+    python scripts/corrupt_files.py --crafted           # 48 runs
 """
 
 from __future__ import annotations
@@ -230,13 +231,16 @@ CRAFTED: dict[str, tuple[Callable[[Any], None], tuple[str, ...]]] = {
     "external link": (_external, READERS),
     "soft link": (_soft, READERS),
 }
-# TOML inputs nested 20 000 levels deep: (file, argv)
+# TOML inputs nested 20 000 levels deep, and ones of 64 GiB (a valid start, then zeros: a sparse file), far larger
+# than any TOML file read: (file, argv)
 DEEP_TOML = "x = " + "[" * DEEP + "]" * DEEP + "\n"
-CRAFTED_TOML = {
-    "nested hf scene": ("scene.toml", ["hf", "scene.toml", "-o", "out.h5"]),
-    "nested lf scene": ("lf.toml", ["lf", "lf.toml", "-o", "out.h5"]),
-    "nested sweep spec": ("spec.toml", ["sweep", "spec.toml", "-o", "sweep", "--workers", "0"]),
+TOML_INPUTS = {
+    "hf scene": ("scene.toml", ["hf", "scene.toml", "-o", "out.h5"]),
+    "lf scene": ("lf.toml", ["lf", "lf.toml", "-o", "out.h5"]),
+    "sweep spec": ("spec.toml", ["sweep", "spec.toml", "-o", "sweep", "--workers", "0"]),
 }
+OVERSIZED_TOML = 2**36  # bytes
+CRAFTED_TOML = {f"{how} {what}": (how, *at) for how in ("nested", "oversized") for what, at in TOML_INPUTS.items()}
 
 
 def crafted_trials(inputs: dict[str, Path]) -> list[tuple[str, str, Callable[[Path], list[str]]]]:
@@ -256,11 +260,16 @@ def crafted_trials(inputs: dict[str, Path]) -> list[tuple[str, str, Callable[[Pa
                 return list(argv)
 
             out.append((case, command, prepare))
-    for case, (name, argv) in CRAFTED_TOML.items():
+    for case, (how, name, argv) in CRAFTED_TOML.items():
 
-        def prepare_toml(d: Path, name: str = name, argv: list[str] = argv) -> list[str]:
+        def prepare_toml(d: Path, how: str = how, name: str = name, argv: list[str] = argv) -> list[str]:
             text = HF_SCENE if name == "scene.toml" else LF_SCENE if name == "lf.toml" else ""
-            (d / name).write_text(text + ("\n[deep]\n" if name != "spec.toml" else "[sweep]\n") + DEEP_TOML)
+            if how == "nested":
+                (d / name).write_text(text + ("\n[deep]\n" if name != "spec.toml" else "[sweep]\n") + DEEP_TOML)
+            else:
+                (d / name).write_text(text + "\n")
+                with open(d / name, "r+b") as f:
+                    f.truncate(OVERSIZED_TOML)
             return list(argv)
 
         out.append((case, argv[0], prepare_toml))

@@ -121,10 +121,12 @@ def test_crafted_input_gives_one_line(index, files, tmp_path, capsys, monkeypatc
     """Every crafted file of scripts/corrupt_files.py (a `scene` attribute nested 20 000 deep, an int or an array;
     /global/mu as strings or a compound type; /global/time a group; a 2-D /patches/x; a checkpoint array of
     another shape; datasets declaring 2^28 or 2^40 rows, never written; an external or a soft link; TOML scenes
-    and specs nested 20 000 deep), fed to each command that reads it: one line, exit 2, nothing written."""
+    and specs nested 20 000 deep, or of 64 GiB, refused unread), fed to each command that reads it: one line, exit
+    2, nothing written."""
     case, command, prepare = CORRUPT.crafted_trials(files)[index]
     monkeypatch.chdir(tmp_path)
     argv = prepare(tmp_path)
-    one_error_line(capsys, argv)
+    line = one_error_line(capsys, argv)
+    assert "larger than 64 MiB" in line if case.startswith("oversized") else "larger than" not in line, line
     assert not (tmp_path / "out.h5").exists() and not (tmp_path / "sweep").exists()
     assert not list(tmp_path.glob("*.partial")) and not list(tmp_path.glob("figs/*"))

@@ -8,14 +8,18 @@ before it is read, so that a crafted one costs a line on stderr, not the host's 
 * :func:`check_nesting`: the arrays and tables of a JSON attribute (the stored scene) or a TOML file nest at most
   :data:`MAX_NESTING` deep (Python's parsers recurse once per level: 20 000 levels are a RecursionError);
   :func:`json_attribute` decodes a JSON attribute that way.
+* :func:`read_toml`: a TOML file (a scene, an LF scene, a sweep spec) is read only up to :data:`MAX_TOML_BYTES`: a
+  file named by mistake (a disc image, a log) is refused, not read into memory.
 
 Each refusal is one :class:`~aca_warp.common.errors.SceneError` line (exit 2) naming the file and what is wrong.
 """
 
 from __future__ import annotations
 
+import io
 import json
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +28,8 @@ import numpy as np
 from aca_warp.common.errors import SceneError
 
 MAX_NESTING = 64  # arrays and tables within each other in a JSON attribute or a TOML file (aca-warp writes 3)
+MAX_TOML_BYTES = 64 * 2**20  # the largest TOML file read [bytes] (the presets' scenes are about 1 KiB)
+TOML_HEAD_BYTES = 512  # the first bytes of a TOML file, shown to read_toml's ``refuse`` before the rest is read
 MAX_PADS = 10**6  # pads of one sweep (its spec refused beyond, before the combinations are expanded; a shard file's)
 # declared bytes a dataset may hold beyond what the file stores for it: rows appended to a killed run's dataset
 # after its last flush, never written (at most the writer's chunk cache per dataset, 64 MiB), plus a chunk
@@ -146,16 +152,28 @@ def _string_end(text: str, i: int, toml: bool) -> int:
     return j
 
 
-def read_toml(path: Path, what: str) -> dict[str, Any]:
-    """Parse the TOML file ``path`` (a ``what`` such as "scene file") within :data:`MAX_NESTING` levels: one
-    SceneError line when it nests too deep, is not TOML or not UTF-8; OSError when it cannot be read."""
+def read_toml(path: Path, what: str, *, refuse: Callable[[bytes], None] | None = None) -> dict[str, Any]:
+    """Parse the TOML file ``path`` (a ``what`` such as "scene file") within :data:`MAX_TOML_BYTES` and
+    :data:`MAX_NESTING` levels: one SceneError line when it is larger, nests too deep, is not TOML or not UTF-8;
+    OSError when it cannot be read. ``refuse``, if given, sees the file's first :data:`TOML_HEAD_BYTES` bytes
+    before the rest is read (one open), and raises for a file of another kind."""
     try:
         import tomllib
     except ModuleNotFoundError:  # Python 3.10
         import tomli as tomllib
 
+    with open(path, "rb") as f:
+        raw = f.read(TOML_HEAD_BYTES)
+        if refuse is not None:
+            refuse(raw)
+        raw += f.read(MAX_TOML_BYTES + 1 - len(raw))
+    if len(raw) > MAX_TOML_BYTES:
+        raise SceneError(
+            f"{what} {path} is larger than {MAX_TOML_BYTES // 2**20} MiB, more than any {what} holds: not read "
+            "(is it the file you meant?)"
+        )
     try:
-        text = path.read_text()
+        text = io.StringIO(raw.decode("utf-8"), newline=None).read()  # newlines as a text file reads them
     except UnicodeDecodeError as e:
         raise SceneError(f"cannot parse {path}: {e}") from None
     check_nesting(text, f"{what} {path}", toml=True)

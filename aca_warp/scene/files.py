@@ -185,15 +185,17 @@ def read_scene_toml(p: Path, what: str) -> dict:
     """The TOML document of the scene file ``p`` (a ``what`` such as "LF scene file") as
     :func:`~aca_warp.common.bounds.read_toml` reads it; one SceneError line when it cannot be read, or when it is an
     HDF5 file (a run file given where a scene is asked for: the line says what takes one)."""
+
+    def hdf5(head: bytes) -> None:
+        if head.startswith(HDF5_SIGNATURE):
+            raise SceneError(
+                f"{p} is an HDF5 file, not a TOML {what}: a run file is repeated with 'aca-warp rerun {p} -o "
+                f"NEW.h5' and continued with --resume; an LF run's snapshot runs as HF with 'aca-warp hf {p} "
+                "--snapshot NAME -o RUN.h5'"
+            )
+
     try:
-        with open(p, "rb") as f:
-            if f.read(len(HDF5_SIGNATURE)) == HDF5_SIGNATURE:
-                raise SceneError(
-                    f"{p} is an HDF5 file, not a TOML {what}: a run file is repeated with 'aca-warp rerun {p} -o "
-                    f"NEW.h5' and continued with --resume; an LF run's snapshot runs as HF with 'aca-warp hf {p} "
-                    "--snapshot NAME -o RUN.h5'"
-                )
-        return read_toml(p, what)
+        return read_toml(p, what, refuse=hdf5)
     except OSError as e:
         raise SceneError(f"cannot read {what} {p}: {e.strerror}") from None
 
