@@ -13,6 +13,7 @@ import numpy as np
 import psutil
 import pytest
 from procs import small_sweep_doc
+from test_fuzz import toml_text
 
 from aca_warp.cli import main
 from aca_warp.hf.loop import run_hf
@@ -419,6 +420,67 @@ def test_a_base_that_records_per_patch_histories_is_refused_where_the_sweep_star
     with pytest.raises(SweepError, match="which a sweep's shards do not hold"):
         run_sweep(spec, tmp_path / "o", workers=0)
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(
+    ("step", "said"),
+    [
+        ("1.2e-6", "pad 0 ({'load.normal_force': 300.0, 'friction.M': 0.6}): dt = 1.2e-06 s exceeds"),  # every pad
+        ("1.2e-8", "pad 3 ({'load.normal_force': 3000.0, 'friction.M': 0.7}): dt = 1.2e-08 s exceeds"),  # a corner
+    ],
+)
+def test_a_step_a_pad_cannot_take_is_refused_where_the_sweep_starts(
+    tmp_path: Path, capsys: pytest.CaptureFixture, step: str, said: str
+) -> None:
+    """A fixed step beyond a pad's stable-step estimate is one line (exit 2) naming the pad and the spec's key for
+    the step, before the sweep's folder exists, instead of every shard failing at run time: a step too large for
+    every pad, and one too large only where both swept parameters are at the top of their ranges (symplectic Euler
+    at 1.2e-8 s, whose friction bound is 1.19e-8 s at 3000 N and M = 0.7, 1.39e-8 s at M = 0.6: a corner of the
+    product, which neither parameter's own extreme reaches)."""
+    from aca_warp.cli import main
+
+    doc = small_sweep_doc(
+        "stiff",
+        count=12,
+        duration=1e-5,
+        parameters={"load.normal_force": [300.0, 3000.0, 400.0], "friction.M": [0.6, 0.7]},
+    )
+    doc["run"] |= {"integrator": "symplectic-euler", "sample_dt": 1.2e-6}
+    spec = tmp_path / "s.toml"
+    spec.write_text(toml_text(doc))
+    capsys.readouterr()
+    assert main(["sweep", str(spec), "-o", str(tmp_path / "o"), "--workers", "0", "--dt", step, "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and said in err[0] and "smaller run.dt" in err[0] and "--force" not in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_pads_whose_runs_are_checked_where_a_sweep_starts() -> None:
+    """check_pads: the first and last pad, each parameter's smallest and largest value, the corners of up to
+    four parameters' ranges (else the pads where all are smallest or all largest); the seeds and text values are
+    not ranges."""
+    from aca_warp.sweep.prepare import check_pads
+
+    def pads(parameters: dict, mode: str = "product") -> list[int]:
+        doc = small_sweep_doc("c", count=12, duration=1e-6, parameters=parameters)
+        doc["sweep"]["mode"] = mode
+        return check_pads(load_spec(doc))
+
+    # 3 x 3 product (F_N outer): corners (300, 0.6) 0, (300, 0.8) 2, (500, 0.6) 6, (500, 0.8) 8
+    two = {"load.normal_force": [300.0, 400.0, 500.0], "friction.M": [0.6, 0.7, 0.8]}
+    assert pads(two) == [0, 2, 6, 8]
+    assert pads(two | {"patches.seed": {"range": [1, 3]}}) == [0, 4, 12, 16, 17]  # two seeds innermost: the first
+    assert pads({"load.normal_force": [400.0, 300.0, 500.0, 450.0]}) == [0, 1, 2, 3]
+    assert pads({"load.normal_force": [400.0, 300.0, 500.0], "friction.M": [0.7, 0.8, 0.6]}, "zip") == [0, 1, 2]
+    five = {
+        "friction.M": [0.6, 0.8],
+        "friction.mu_pad": [0.3, 0.4],
+        "load.normal_force": [300.0, 400.0],
+        "friction.slope": [200.0, 300.0],
+        "disc.sliding_speed": [9.0, 10.0],
+    }
+    got = pads(five)  # 32 pads: each parameter's ends are pads 0 and one with only it raised, and the last
+    assert got == sorted({0, 31, 16, 8, 4, 2, 1}), got
 
 
 @pytest.mark.parametrize("parameter", [{"range": [20, 20]}, {"range": [5, 1]}, []])

@@ -184,14 +184,16 @@ def step_problem(estimate: StepEstimate, integrator: str, h: float) -> tuple[str
     Euler) or the springs' (every other scheme). Returns (the problem, what to do instead, what a forced run then
     risks), each in words."""
     limit = estimate.explicit if integrator == "symplectic-euler" else estimate.spring
-    dt, force = option("dt", "--dt"), option("force=True", "--force")
     if h > limit:
-        adaptive = option("integrator='adaptive'", "--integrator adaptive")
-        hint = (
-            f"choose a smaller {dt}, an implicit-friction integrator (strang, implicit-friction), or {force}"
-            if h <= estimate.spring
-            else f"choose a smaller {dt} (the springs bound every fixed-step scheme), {adaptive}, or {force}"
-        )
+        dt = option("dt", "--dt", "run.dt")
+        if h <= estimate.spring:
+            ways = [f"a smaller {dt}", "an implicit-friction integrator (strang, implicit-friction)"]
+        else:
+            adaptive = option("integrator='adaptive'", "--integrator adaptive", "run.integrator = 'adaptive'")
+            ways = [f"a smaller {dt} (the springs bound every fixed-step scheme)", adaptive]
+        force = option("force=True", "--force", "")  # (a sweep has no forced step)
+        ways += [force] if force else []
+        hint = f"choose {', '.join(ways[:-1])}{',' if len(ways) > 2 else ''} or {ways[-1]}"
         return (
             f"dt = {h:.3g} s exceeds the stable-step estimate {limit:.3g} s of {integrator} "
             f"(springs {estimate.spring:.3g} s, friction slope {estimate.friction:.3g} s)",

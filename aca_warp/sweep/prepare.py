@@ -33,6 +33,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import functools
+import itertools
 import multiprocessing
 import multiprocessing.forkserver
 import os
@@ -235,6 +236,53 @@ def prepare_batch(spec: SweepSpec, scenes: list[Scene], start: int, stop: int, d
     checked = preflight(view, state, run_options(spec), spec.base.record)
     u, v = (a.copy() for a in state.numpy())
     return PreparedBatch(start, stop, host, u, v, checked)
+
+
+CORNER_PARAMETERS = 4  # swept parameters up to which every corner of their ranges is checked (2^4 pads at most)
+
+
+def check_pads(spec: SweepSpec) -> list[int]:
+    """The pads whose runs :func:`check_runs` checks, sorted: the first and the last, and where the bounds bind
+    first, at the ends of the swept parameters' ranges (the seeds aside): for each parameter a pad at its smallest
+    value and one at its largest, and every pad whose values all lie at an end of their ranges (the corners of a
+    product sweep; of up to :data:`CORNER_PARAMETERS` parameters, else the two where all are smallest or all
+    largest). The stable step falls with the load, the stiffnesses and the friction law's slope, each of which a
+    corner takes at its end; a pad inside them that its layout makes stiffer is met by its shard's own check."""
+    pads = {0, spec.pad_count - 1}
+    ends: dict[str, tuple[Any, Any]] = {}
+    for key, values in spec.parameters.items():
+        if key in ("patches.seed", "initial.seed"):
+            continue
+        try:
+            ends[key] = (min(values), max(values))
+        except TypeError:  # values without an order (text): any pad
+            continue
+        pads.update(values.index(v) for v in ends[key])
+    keys = list(ends)
+    corners = itertools.product(*(ends[k] for k in keys)) if len(keys) <= CORNER_PARAMETERS else []
+    for corner in [*corners, tuple(lo for lo, _ in ends.values()), tuple(hi for _, hi in ends.values())]:
+        at = np.ones(spec.pad_count, dtype=bool)
+        for key, v in zip(keys, corner, strict=True):
+            at &= np.asarray(spec.parameters[key], dtype=object) == v
+        pads.update(np.flatnonzero(at)[:1].tolist())
+    return sorted(pads)
+
+
+def check_runs(spec: SweepSpec) -> None:
+    """Refuse, before a sweep writes anything, a run its pads cannot take: the checks of a run (the step as the
+    run takes it against the stable-step estimate, the int32 step counts, the contact solution:
+    :func:`~aca_warp.hf.loop.preflight`) on the pads of :func:`check_pads`, one host model each with its neighbours
+    searched on the CPU. A pad failing them is one line that names it (a SweepError,
+    StabilityError or PhysicsError as raised); every shard makes the same checks for each of its pads."""
+    from aca_warp.common.errors import AcaError, sweep_spec
+
+    for p in check_pads(spec):
+        scene = spec.scene(p)
+        try:
+            with sweep_spec():  # the messages name the spec's keys (run.dt)
+                prepare_batch(spec, [scene], 0, 1, "cpu")
+        except AcaError as e:
+            raise type(e)(f"pad {p} ({spec.pad_values(p)}): {e}") from None
 
 
 # what a pool process runs, imported by the fork server (Warp's module, not its runtime: nothing is started there)

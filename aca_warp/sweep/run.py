@@ -32,7 +32,7 @@ from aca_warp.sweep.cluster import (
 )
 from aca_warp.sweep.manifest import MANIFEST, SweepResult, _Book, _one_line, prepare_dir
 from aca_warp.sweep.overlap import PIPELINE_DEPTH, ShardCancelled, ShardContext
-from aca_warp.sweep.prepare import PreparedShard, Preparer
+from aca_warp.sweep.prepare import PreparedShard, Preparer, check_runs
 from aca_warp.sweep.shard import run_shard, shard_name
 from aca_warp.sweep.spec import SweepError, SweepSpec
 
@@ -74,6 +74,7 @@ def run_sweep(
     if out.exists() and not out.is_dir():
         raise SweepError(f"{out} exists and is not a directory")
     spec.check_records()
+    check_runs(spec)  # a step, a load or a step count a pad cannot take: one line, before anything is written
     early = None
     try:
         if scheduler is None and client is None and workers != 0 and _have_dask():
