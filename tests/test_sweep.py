@@ -411,6 +411,25 @@ def test_a_missing_spec_named_like_the_shipped_example_points_to_it(tmp_path: Pa
     assert "shipped" not in str(e.value)
 
 
+def test_an_empty_output_folder_is_refused_not_taken_for_the_current_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``sweep -o ''`` (an unset variable in a script) and ``run_sweep(spec, '')``: one line, exit 2, nothing
+    written into the current folder (``Path('')`` is it); ``-o .`` still names it."""
+    from aca_warp.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    spec = tmp_path / "s.toml"
+    spec.write_text(toml_text(TINY))
+    capsys.readouterr()
+    assert main(["sweep", str(spec), "-o", "", "--workers", "0", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["aca-warp: error: output folder '' names no folder; give one (. for the current folder)"], err
+    with pytest.raises(SweepError, match="names no folder"):
+        run_sweep(_spec(), "", workers=0)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
 def test_a_base_that_records_per_patch_histories_is_refused_where_the_sweep_starts(tmp_path: Path) -> None:
     """A shard holds no per-patch histories: a sweep whose base records them is refused before anything is written
     (the spec itself loads: shards written before the check still give their pads)."""

@@ -186,3 +186,23 @@ def test_prepared_shards_go_through_files_only_to_workers_started_here() -> None
     assert not started_here(made(Remote, Nanny))
     assert not started_here(SimpleNamespace(cluster=None))  # Client("tls://host:port"): no cluster object
     assert not started_here(object())
+
+
+def test_local_workers_drop_dask_s_log_of_a_failed_task() -> None:
+    """What a local worker runs as it starts drops Dask's "Compute Failed" log of a shard task that raised (the
+    sweep says the failure in one line, on stderr and in the manifest) and the heartbeat errors of a shutdown, and
+    keeps the worker's other errors."""
+    import subprocess
+    import sys
+
+    from aca_warp.sweep.cluster import _WORKER_PRELOAD
+
+    code = (
+        _WORKER_PRELOAD
+        + "logging.basicConfig()\nlog = logging.getLogger('distributed.worker')\n"
+        + "log.error('Compute Failed\\nKey: shard-0\\nTraceback: ...')\n"
+        + "log.error('Failed to communicate with scheduler during heartbeat.')\nlog.error('another error')\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "another error" in r.stderr, r.stderr
+    assert "Compute Failed" not in r.stderr and "heartbeat" not in r.stderr, r.stderr

@@ -50,14 +50,16 @@ def cuda_ordinals(device: str) -> list[int]:
 LOOPBACK = "127.0.0.1"  # the only address a local cluster binds
 
 
-# run in every local worker process as it starts: Ctrl-C in a terminal reaches the whole process group, and the
-# client alone handles it (stops the cluster, marks the manifest); a worker would die with a traceback instead
-# Worker processes: ignore SIGINT (the client stops them), start Warp quietly, and drop the heartbeat errors a
-# worker logs when the scheduler has gone first (a stopped sweep's shutdown; a lost scheduler reaches the client).
+# Run in every local worker process as it starts: ignore SIGINT (Ctrl-C in a terminal reaches the whole process
+# group, and the client alone handles it: it stops the cluster and marks the manifest; a worker would die with a
+# traceback instead), start Warp quietly, and drop two of Dask's worker logs: the heartbeat errors a worker logs when
+# the scheduler has gone first (a stopped sweep's shutdown; a lost scheduler reaches the client), and "Compute
+# Failed" with its traceback for a shard task that raised (its one line is the sweep's, on stderr and in the manifest).
 _WORKER_PRELOAD = (
     "import signal\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\n"
     "import logging\nlogging.getLogger('distributed.worker').addFilter(\n"
-    "    lambda r: not r.getMessage().startswith('Failed to communicate with scheduler during heartbeat'))\n"
+    "    lambda r: not r.getMessage().startswith(('Failed to communicate with scheduler during heartbeat', "
+    "'Compute Failed')))\n"
     "from aca_warp.common.devices import init_warp\ninit_warp()\n"
 )
 

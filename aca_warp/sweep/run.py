@@ -70,6 +70,8 @@ def run_sweep(
     """
     t0 = time.perf_counter()
     say = log or (lambda s: None)
+    if not os.fspath(out_dir).strip():  # Path("") is the current folder
+        raise SweepError(f"output folder {os.fspath(out_dir)!r} names no folder; give one (. for the current folder)")
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SweepError(f"{out} exists and is not a directory")
