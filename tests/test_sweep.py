@@ -121,6 +121,26 @@ def test_a_sweep_begun_with_other_run_settings_is_refused_with_how_to_continue_i
     assert prepare_dir(load_spec(doc, precision="fp64"), tmp_path / "sw")["shards"]
 
 
+def test_a_sweep_continued_without_its_overrides_is_told_them(tmp_path: Path) -> None:
+    """A sweep begun with --duration, --dt and --shard-size and run again without them ("run the same command
+    again", the overrides forgotten): the refusal names each option with its value, the shard size too, and so it
+    does where only the shard size differs; with them the sweep continues."""
+    from aca_warp.sweep.manifest import prepare_dir
+
+    doc = json.loads(json.dumps(TINY))
+    prepare_dir(load_spec(doc, duration=2e-5, dt=1e-8, shard_size=1), tmp_path / "sw")
+    with pytest.raises(SweepError) as e:
+        prepare_dir(load_spec(doc), tmp_path / "sw")
+    assert "(to continue it: --dt 1e-08 --duration 2e-05 --shard-size 1); its shard size (1 there, 3 here) differs" in (
+        str(e.value)
+    ), e.value
+    with pytest.raises(
+        SweepError, match=r"its shard size \(1 there, 3 here\) differs \(to continue it: --shard-size 1\)"
+    ):
+        prepare_dir(load_spec(doc, duration=2e-5, dt=1e-8), tmp_path / "sw")
+    assert prepare_dir(load_spec(doc, duration=2e-5, dt=1e-8, shard_size=1), tmp_path / "sw")["shards"]
+
+
 def test_a_refusal_offers_the_options_only_where_the_run_settings_alone_differ(tmp_path: Path) -> None:
     """Another sweep in the folder: where its parameters differ too the refusal says so and offers no options (they
     would meet a second refusal); where the spec is the same but its base scene file changed, it says that."""

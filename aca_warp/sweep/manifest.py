@@ -73,19 +73,22 @@ _FLAGS = {  # the run settings a sweep command's options set
 
 def _run_changes(old: dict | None, spec: SweepSpec) -> str:
     """What differs between the sweep of manifest ``old`` and ``spec``, as a clause of the refusal: the spec's other
-    parts (:func:`_spec_changes`) and the run settings, with the options that continue it where the run settings
-    alone differ (``--precision fp64`` for a sweep begun at another default precision, ``--dt`` for another default
-    step, ``--growth-dt scene`` for one whose growth events came at the scenes' interval), each value as stored
-    (every digit: a rounded one would be another sweep again); where nothing the manifest records differs, that a
-    file the spec names changed; "" where ``old`` records none of it."""
+    parts (:func:`_spec_changes`) and the run settings, with the options that continue it where only what options
+    set differs (the run settings and the shard size: ``--precision fp64`` for a sweep begun at another default
+    precision, ``--dt`` for another default step, ``--growth-dt scene`` for one whose growth events came at the
+    scenes' interval, ``--duration``, ``--shard-size`` for overrides left out of the second call), each value as
+    stored (every digit: a rounded one would be another sweep again); where nothing the manifest records differs,
+    that a file the spec names changed; "" where ``old`` records none of it."""
     if not isinstance(old, dict) or not isinstance(old.get("run"), dict):
         return ""
     before, now = old["run"], spec.run_settings()
     others = _spec_changes(old, spec)
+    shard_size = [f"--shard-size {old['shard_size']}"] if old.get("shard_size") != spec.shard_size else []
     keys = sorted(k for k in before.keys() | now.keys() if before.get(k) != now.get(k))
     if not keys:
         if others:
-            return f": its {', '.join(others)} differ"
+            hint = f" (to continue it: {shard_size[0]})" if shard_size and len(others) == 1 else ""
+            return f": its {', '.join(others)} {_differ(others)}{hint}"
         base = base_file(spec.doc)
         if base:
             return f": the spec is the same, so its base scene file {base} (or a file that names) has changed since"
@@ -98,9 +101,15 @@ def _run_changes(old: dict | None, spec: SweepSpec) -> str:
         was["growth_dt"] = "scene"
     changed = ", ".join(f"{k} {before.get(k, 'unset')} there, {now.get(k, 'unset')} here" for k in keys)
     again = [f"{_FLAGS[k]} {was[k]}" for k in keys if k in _FLAGS and was.get(k) is not None]
-    hint = f" (to continue it: {' '.join(again)})" if len(again) == len(keys) and not others else ""
-    also = f"; its {', '.join(others)} differ too" if others else ""
+    settable = len(again) == len(keys) and len(others) == len(shard_size)
+    hint = f" (to continue it: {' '.join(again + shard_size)})" if settable else ""
+    also = f"; its {', '.join(others)} {_differ(others)} too" if others else ""
     return f": its run settings differ ({changed}){hint}{also}"
+
+
+def _differ(parts: list[str]) -> str:
+    """The verb for ``parts`` (one or more parts of a spec, in words)."""
+    return "differs" if len(parts) == 1 else "differ"
 
 
 def _spec_changes(old: dict, spec: SweepSpec) -> list[str]:
