@@ -431,6 +431,28 @@ def test_a_missing_spec_named_like_the_shipped_example_points_to_it(tmp_path: Pa
     assert "shipped" not in str(e.value)
 
 
+def test_an_unfinished_sweep_reads_as_what_it_holds_and_says_so(tmp_path: Path) -> None:
+    """load_sweep of a sweep whose shard 1 has not run: its finished pads, row k the pad ``pad_index[k]``,
+    ``complete`` False and a warning naming the shard and the count; finished, ``complete`` and no warning; every
+    output's, the time's and every parameter's unit."""
+    import warnings
+
+    out = tmp_path / "sw"
+    run_sweep(_spec(), out, workers=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        whole = load_sweep(out)
+    assert whole["complete"] and whole["units"]["mu"] == "1" and whole["units"]["time"] == "s"
+    assert whole["units"]["load.normal_force"] == "N" and whole["units"]["torque"] == "N m"
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["shards"][1]["state"] = "pending"
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.warns(UserWarning, match=r"holds 9 of its 12 pads: shard\(s\) 1 not finished"):
+        part = load_sweep(out)
+    assert not part["complete"] and list(part["pad_index"]) == [0, 1, 2, 6, 7, 8, 9, 10, 11]
+    assert np.array_equal(part["mu"], whole["mu"][part["pad_index"]])
+
+
 def test_an_empty_output_folder_is_refused_not_taken_for_the_current_one(
     tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:

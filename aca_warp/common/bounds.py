@@ -45,7 +45,7 @@ def available_memory(device: Any = None) -> int:
         if free:
             return int(free)
     try:
-        for line in open("/proc/meminfo").read().splitlines():  # noqa: SIM115
+        for line in Path("/proc/meminfo").read_text().splitlines():
             if line.startswith("MemAvailable:"):
                 return int(line.split()[1]) * 1024
     except OSError:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -336,9 +337,12 @@ def load_sweep(out_dir: str | Path) -> dict[str, Any]:
     """Read every finished shard of a sweep directory into one dict, pads in global order (rows placed by each
     file's ``/pads/index``: shards of pads packed by size hold pads from all over the sweep).
 
-    Keys: ``time`` (samples,) [s] of the first shard, the global outputs (pads, samples), ``parameters``
-    (key -> (pads,)), ``pad_index`` (pads,), ``manifest``. Shards with different sample counts (a fault) are
-    padded with NaN.
+    Keys: ``time`` (samples,) [s] of the shard with the most samples, the global outputs (pads, samples),
+    ``parameters`` (key -> (pads,)), ``pad_index`` (pads,): the global index of each row, ``units`` (the time's,
+    every output's and every parameter's, as the shards' ``unit`` attributes give them), ``complete``: whether every
+    pad of the sweep is there, ``manifest``. Shards with different sample counts (a fault) are padded with NaN. A
+    sweep not yet finished gives the pads of its finished shards only (row k is then not pad k: read
+    ``pad_index``), and says so in a :class:`UserWarning`.
     """
     from aca_warp.common.errors import SceneError
     from aca_warp.common.files import open_h5
@@ -360,6 +364,9 @@ def load_sweep(out_dir: str | Path) -> dict[str, Any]:
                         **{k: f["global"][k][()] for k in GLOBAL_NAMES},
                         "parameters": {k: v[()] for k, v in f["parameters"].items()},
                         "pad_index": f["pads/index"][()],
+                        "units": {
+                            k: str(v.attrs.get("unit", "")) for g in ("global", "parameters") for k, v in f[g].items()
+                        },
                     }
                 )
         except SceneError as e:
@@ -381,4 +388,15 @@ def load_sweep(out_dir: str | Path) -> dict[str, Any]:
         out[k] = np.concatenate([pad_cols(p[k]) for p in parts])[order]
     out["parameters"] = {k: np.concatenate([p["parameters"][k] for p in parts])[order] for k in parts[0]["parameters"]}
     out["pad_index"] = np.concatenate([p["pad_index"] for p in parts])[order]
+    out["units"] = parts[0]["units"]
+    pads = manifest.get("pads", len(out["pad_index"]))
+    out["complete"] = len(out["pad_index"]) == pads
+    if not out["complete"]:
+        left = [str(s["index"]) for s in manifest["shards"] if s["state"] not in ("done", "fault")]
+        named = ", ".join(left[:8]) + (f", … ({len(left)} shards)" if len(left) > 8 else "")
+        warnings.warn(
+            f"{d} holds {len(out['pad_index'])} of its {pads} pads: shard(s) {named} not finished (run the sweep "
+            "again to finish them); row k is the pad pad_index[k]",
+            stacklevel=2,
+        )
     return out
