@@ -390,6 +390,7 @@ def test_an_interrupt_after_every_shard_finished_says_the_sweep_is_complete(tmp_
         ("", "is empty: it would run one pad of the default scene"),
         ('[sweep]\nbase = "nothere.toml"\n', "'nothere.toml': no such file in"),
         ('[sweep]\nbase = "hf1"\n[parameters]\n"pad.r_inner" = [100.0]\n', "did you mean mm? (100 mm = 0.1 m)"),
+        ('[sweep]\nbase = "hf1"\n[run]\ntolerance = 1e-9\n', "strang takes none: leave it out"),
     ],
 )  # fmt: skip
 def test_a_spec_that_would_do_other_than_it_says_is_refused(tmp_path: Path, text: str, said: str) -> None:
@@ -429,6 +430,26 @@ def test_a_missing_spec_named_like_the_shipped_example_points_to_it(tmp_path: Pa
     with pytest.raises(SweepError) as e:
         load_spec(tmp_path / "mine.toml")
     assert "shipped" not in str(e.value)
+
+
+def test_the_first_line_says_the_run_the_shards_take(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """The sweep's first line gives the step the shards take and the time they cover: a step fitted to the sample
+    interval and a duration that is no whole number of them are said with what was asked; one pad is "1 pad"."""
+    from aca_warp.cli import main
+
+    doc = small_sweep_doc("one", count=12, duration=1e-5, parameters={"friction.M": [0.6]})
+    doc["run"]["sample_dt"] = 3e-6
+    spec = tmp_path / "s.toml"
+    spec.write_text(toml_text(doc))
+    capsys.readouterr()
+    assert main(["sweep", str(spec), "-o", str(tmp_path / "o"), "--workers", "0", "--dt", "4e-7"]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert (
+        "1 pad (friction.M), 1 shard(s) of up to 1 pad, 9e-06 s each (1e-05 s asked: whole sample intervals of "
+        in first
+    )
+    assert "3e-06 s), strang fp32 at 3.75e-07 s (4e-07 s asked, fitted to the 3e-06 s samples)" in first, first
+    assert load_sweep(tmp_path / "o")["time"][-1] == pytest.approx(9e-6)
 
 
 def test_an_unfinished_sweep_reads_as_what_it_holds_and_says_so(tmp_path: Path) -> None:

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 from typing import Any
@@ -153,6 +154,29 @@ def _interrupted_line(out: str, e: KeyboardInterrupt) -> str:
     )
 
 
+def _run_words(spec: Any) -> str:
+    """A pad's run as the shards take it, in words: the time it covers (whole sample intervals: a duration that is
+    not one is said with it), integrator, precision and fixed step (fitted to the sample interval: a step that is
+    shortened is said with it)."""
+    from aca_warp.hf.options import STEP_CONTROLLED
+    from aca_warp.hf.solver import fitted_step
+
+    sample = spec.base.record.sample_dt
+    covered = max(1, round(spec.duration / sample)) * sample
+    words = f"{covered:g} s each"
+    if not math.isclose(covered, spec.duration, rel_tol=1e-9):
+        words += f" ({spec.duration:g} s asked: whole sample intervals of {sample:g} s)"
+    words += f", {spec.integrator} {spec.precision}"
+    if spec.dt is not None and spec.integrator not in STEP_CONTROLLED:
+        step = fitted_step(spec.dt, sample)
+        words += f" at {step:g} s"
+        if not math.isclose(step, spec.dt, rel_tol=1e-9):
+            words += f" ({spec.dt:g} s asked, fitted to the {sample:g} s samples)"
+    elif spec.dt is not None:
+        words += f" from {spec.dt:g} s"
+    return words
+
+
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from aca_warp.hf.options import crossing_words, growth_words
     from aca_warp.sweep.run import run_sweep
@@ -173,12 +197,11 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         raise SweepError("fast math applies to CUDA devices only: run the sweep with --device cuda")
     log = None if args.quiet else (lambda s: print(s, flush=True))
     if log:
+        pads = lambda n: f"{n} pad{'' if n == 1 else 's'}"  # noqa: E731
         log(
-            f"sweep {spec.name!r}: {spec.pad_count} pads ({', '.join(spec.parameters) or 'base only'}), "
-            f"{spec.shard_count} shard(s) of up to {min(spec.shard_size, spec.pad_count)} pads, "
-            f"{spec.duration:g} s each, "
-            f"{spec.integrator} {spec.precision}{'' if spec.dt is None else f' at {spec.dt:g} s'}"
-            f"{', fast math' if spec.fast_math else ''}"
+            f"sweep {spec.name!r}: {pads(spec.pad_count)} ({', '.join(spec.parameters) or 'base only'}), "
+            f"{spec.shard_count} shard(s) of up to {pads(min(spec.shard_size, spec.pad_count))}, "
+            f"{_run_words(spec)}{', fast math' if spec.fast_math else ''}"
             f"{crossing_words(spec.crossing)}"
             f"{growth_words(spec.growth_dt)}"
             f", spec hash {spec.hash[:12]}"
