@@ -319,22 +319,32 @@ def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
 @pytest.mark.parametrize(
     ("address", "message"),
     [
-        ("tcp://127.0.0.1:1", "no Dask scheduler answered at tcp://127.0.0.1:1 within 0.5 s"),
+        ("tcp://127.0.0.1:1", "nothing listens at tcp://127.0.0.1:1 (connection refused)"),
+        ("silent", "no Dask scheduler answered at tcp://127.0.0.1:{port} within 0.5 s"),
         ("notanaddress", "--scheduler 'notanaddress' is not a Dask scheduler address"),
     ],
 )
 def test_scheduler_that_does_not_answer(tmp_path: Path, capsys, monkeypatch, address: str, message: str) -> None:
-    """A scheduler address Dask cannot parse, or one where nothing answers within the connect timeout: one line,
-    exit 2, and nothing written (no sweep folder, no manifest)."""
+    """A scheduler address Dask cannot parse, a port where nothing listens (refused: said at once, not after the
+    connect timeout), or one whose listener never answers Dask's handshake within the timeout (a socket on loopback
+    that accepts nothing): one line, exit 2, and nothing written (no sweep folder, no manifest)."""
+    import socket
+
     from aca_warp.sweep import cluster
 
-    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT_S", 0.5)
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT_S", 0.5 if address != "tcp://127.0.0.1:1" else 600.0)
     spec = tmp_path / "s.toml"
     spec.write_text('[sweep]\nbase = "hf1"\n[run]\nduration = 2e-6\n[base.patches]\ncount = 12\n')
     out = tmp_path / "o"
-    assert main(["sweep", str(spec), "-o", str(out), "--scheduler", address, "--quiet"]) == 2
+    with socket.socket() as silent:
+        silent.bind(("127.0.0.1", 0))
+        silent.listen()
+        port = silent.getsockname()[1]
+        if address == "silent":
+            address = f"tcp://127.0.0.1:{port}"
+        assert main(["sweep", str(spec), "-o", str(out), "--scheduler", address, "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("aca-warp: error: ") and message in err[0]
+    assert len(err) == 1 and err[0].startswith("aca-warp: error: ") and message.format(port=port) in err[0], err
     assert not out.exists()
 
 

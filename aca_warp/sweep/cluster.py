@@ -288,26 +288,55 @@ def check_scheduler(address: str, timeout: float | None = None) -> None:
         raise SweepError("Dask is not installed: pip install 'aca-warp[sweep]' (or dask[distributed])") from None
 
     timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
+    _refused(address, timeout)
 
     async def probe() -> None:
         comm = await connect(address, timeout=timeout, **Security().get_connection_args("client"))
         await comm.close()
 
+    async def probe_within() -> None:  # Dask's connect waits for ever on a listener that answers nothing
+        await asyncio.wait_for(probe(), timeout)
+
     pool = ThreadPoolExecutor(1, thread_name_prefix="aca-warp-probe")  # its own event loop, whoever calls
     try:
-        pool.submit(asyncio.run, probe()).result()
+        pool.submit(asyncio.run, probe_within()).result()
     except ValueError as e:
         raise SweepError(
             f"--scheduler {address!r} is not a Dask scheduler address ({e}); e.g. tcp://HOST:8786"
         ) from None
     except OSError as e:
-        why = "" if "Timed out" in str(e) else f" ({e})"
+        why = "" if isinstance(e, TimeoutError) or "Timed out" in str(e) else f" ({e})"
         raise SweepError(
             f"no Dask scheduler answered at {address} within {timeout:g} s{why}; start it (dask scheduler) or check "
             "the address"
         ) from None
     finally:
         pool.shutdown(wait=False)
+
+
+def _refused(address: str, timeout: float) -> None:
+    """SweepError at once where the host of a TCP or TLS ``address`` refuses the connection (nothing listens on its
+    port; Dask's own connect would retry it until its timeout); anything else is left to Dask's connect."""
+    import socket
+
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        scheme, location = parse_address(address)
+        host, port = parse_host_port(location)
+    except (ValueError, TypeError):
+        return
+    if scheme not in ("tcp", "tls"):
+        return
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except ConnectionRefusedError:
+        raise SweepError(
+            f"nothing listens at {address} (connection refused); start the Dask scheduler there (dask scheduler) or "
+            "check the address"
+        ) from None
+    except OSError:  # no route, a timeout: Dask's connect says so
+        return
 
 
 def _not_sync_cancel_error(record: Any) -> bool:
