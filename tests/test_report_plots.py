@@ -914,3 +914,44 @@ def test_an_interrupted_or_failed_plot_says_what_it_left(tmp_path):
     for only, said in ((None, "the figures finished before it are in figs"), (["global"], "none of its figures")):
         args = argparse.Namespace(command="plot", output_dir="figs", only=only)
         assert said in _left(args) == plot_leftovers("figs", bool(only))
+
+
+def _digests(folder: Path) -> dict[str, str]:
+    """{file name: MD5} of every file in ``folder``, hidden ones included."""
+    return {p.name: hashlib.md5(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir())}
+
+
+@pytest.mark.parametrize("after", [1, 2], ids=["while-letting-go", "after-letting-go"])
+def test_a_signal_once_plot_only_has_written_its_figures_does_not_undo_them(runs, tmp_path, monkeypatch, capsys, after):
+    """SIGINT while ``plot --only`` lets go the two earlier figures its own replaced (after the first), or once it
+    has: its figures are final, so the signal does not stop the command (exit 0, no "none of its figures is left";
+    the signal recorded for the exit's line) and no earlier figure is left under a hidden name."""
+    import os
+    import signal
+    import time
+
+    from aca_warp.cli import main
+    from aca_warp.common import files, interrupts
+
+    figs = tmp_path / "figs"
+    assert main(["plot", str(runs["globals"]), "-o", str(figs), "--only", "global"]) == 0
+    capsys.readouterr()
+
+    def commit(book) -> None:  # _Writes.commit, with SIGINT after the ``after``-th earlier file is let go
+        for i, kept in enumerate(book.earlier.values(), start=1):
+            kept.unlink()
+            if i == after:
+                os.kill(os.getpid(), signal.SIGINT)
+                end = time.monotonic() + 0.05
+                while time.monotonic() < end:  # ordinary code, where the signal's handler runs
+                    time.sleep(0.001)
+
+    monkeypatch.setattr(files._Writes, "commit", commit)
+    try:
+        code = main(["plot", str(runs["globals"]), "-o", str(figs), "--only", "global"])
+        err = capsys.readouterr().err
+        assert code == 0 and "interrupted" not in err, err
+        assert interrupts._late == [signal.SIGINT]
+    finally:
+        interrupts._late.clear()
+    assert sorted(_digests(figs)) == ["globals_global.pdf", "globals_global.png"]  # no hidden copy

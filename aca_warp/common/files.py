@@ -24,6 +24,7 @@ import numpy as np
 
 from aca_warp.common.checkpoint import has_checkpoint
 from aca_warp.common.errors import AcaError, SceneError, StorageError, option
+from aca_warp.common.interrupts import deferred
 from aca_warp.common.links import NOFOLLOW, clear_name, open_lock_file, private_dir
 
 # why a folder cannot take a new file, by errno (the probe and the lock file; docs/faults.md "Output folders")
@@ -593,18 +594,23 @@ _WRITES: ContextVar[_Writes | None] = ContextVar("aca_warp_writes", default=None
 @contextmanager
 def all_or_nothing() -> Iterator[None]:
     """A block whose files written by :func:`whole` stand or fall together: when the block raises (an error, Ctrl-C),
-    every file it wrote is removed and every earlier file one of them replaced is put back; when it ends, the earlier
-    files are let go. Figures named with ``plot --only`` are written so."""
+    every file it wrote is removed and every earlier file one of them replaced is put back, neither cut short by a
+    signal; when it ends, the earlier files are let go and the command's output is final: a SIGINT or SIGTERM that
+    comes then or later is one that did not stop the command (:func:`~aca_warp.common.interrupts.deferred` with
+    ``completes``). Figures named with ``plot --only`` are written so."""
     book = _Writes()
     token = _WRITES.set(book)
     try:
         yield
     except BaseException:
-        for line in book.undo():
+        with deferred():  # a second signal cannot cut the putting back short
+            stranded = book.undo()
+        for line in stranded:
             print(f"aca-warp: {line}", file=sys.stderr)
         raise
     else:
-        book.commit()
+        with deferred(completes=True):  # the new files are final: a signal from here on does not undo them
+            book.commit()
     finally:
         _WRITES.reset(token)
 
