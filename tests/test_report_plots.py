@@ -903,22 +903,51 @@ def test_a_record_too_short_for_the_transforms_still_plots_its_series(tmp_path, 
     assert "holds 1 sample; a figure needs at least 2" in capsys.readouterr().err
 
 
-def test_an_interrupted_or_failed_plot_says_what_it_left(tmp_path):
-    """What a stopped plot says it left (the interrupt's line, and a full device's): the figures finished before
-    it, or with --only none of its own (all or nothing) and an earlier plot's figures back."""
-    import argparse
-
-    from aca_warp.analysis.commands import plot_leftovers
-    from aca_warp.cli import _left
-
-    for only, said in ((None, "the figures finished before it are in figs"), (["global"], "none of its figures")):
-        args = argparse.Namespace(command="plot", output_dir="figs", only=only)
-        assert said in _left(args) == plot_leftovers("figs", bool(only))
-
-
 def _digests(folder: Path) -> dict[str, str]:
     """{file name: MD5} of every file in ``folder``, hidden ones included."""
     return {p.name: hashlib.md5(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir())}
+
+
+def _interrupt_after_global(monkeypatch) -> None:
+    """Ctrl-C in the spectra's figure maker, the one drawn after ``global``: it raises KeyboardInterrupt."""
+
+    def stopped(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(plots, "plot_spectra", stopped)
+
+
+def test_an_interrupted_plot_keeps_the_figures_finished_before_it(runs, tmp_path, monkeypatch, capsys):
+    """Ctrl-C while the second figure is drawn, without --only: exit 130, one line saying that the figures finished
+    before it are in the folder, and there they are (global's), nothing half written."""
+    from aca_warp.cli import main
+
+    _interrupt_after_global(monkeypatch)
+    figs = tmp_path / "figs"
+    assert main(["plot", str(runs["globals"]), "-o", str(figs)]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert (
+        err[-1] == f"aca-warp: interrupted (Ctrl-C); the figures finished before it are in {figs}; none is half written"
+    )
+    assert sorted(_digests(figs)) == ["globals_global.pdf", "globals_global.png"]
+
+
+def test_an_interrupted_plot_only_puts_back_the_earlier_figures(runs, tmp_path, monkeypatch, capsys):
+    """Ctrl-C while the second figure named with --only is drawn: exit 130, one line saying that none of its figures
+    is left, and the folder as an earlier plot left it, byte for byte (its global figures put back, no hidden copy)."""
+    from aca_warp.cli import main
+
+    figs = tmp_path / "figs"
+    assert main(["plot", str(runs["globals"]), "-o", str(figs), "--only", "global"]) == 0
+    earlier = _digests(figs)
+    _interrupt_after_global(monkeypatch)
+    capsys.readouterr()
+    assert main(["plot", str(runs["globals"]), "-o", str(figs), "--only", "global", "spectra"]) == 130
+    assert capsys.readouterr().err.strip().splitlines() == [
+        f"aca-warp: interrupted (Ctrl-C); none of its figures is left in {figs} (--only: all or nothing; an earlier "
+        "plot's figures it had replaced are back)"
+    ]
+    assert _digests(figs) == earlier
 
 
 @pytest.mark.parametrize("after", [1, 2], ids=["while-letting-go", "after-letting-go"])
