@@ -861,6 +861,16 @@ def test_a_run_named_without_its_partial_says_where_it_is(runs, tmp_path, capsys
     assert f"{tmp_path} is a folder, not a run file" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("slash", ["", "/"])
+def test_analyze_run_calls_a_folder_no_run_file(tmp_path, slash):
+    """The Python API says of a folder what the command line says: it is no run file (not an output to rename)."""
+    said = f"{tmp_path} is a folder, not a run file: name the run file (RUN.h5) inside it"
+    with pytest.raises(SceneError) as e:
+        analyze_run(f"{tmp_path}{slash}")
+    assert str(e.value) == said
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_record_too_short_for_the_transforms_still_plots_its_series(tmp_path, capsys):
     """A run of 6 samples: analyze refuses it (the transforms need 8), plot draws its global series and skips the
     transforms' and the per-patch figures saying why; --only naming a transform is refused in one line with nothing

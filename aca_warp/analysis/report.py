@@ -708,6 +708,9 @@ def analyze_run(
     cwt_count, cwt_columns = int(cwt_count), int(cwt_columns)
     stft_window_s = None if stft_window_s is None else float(stft_window_s)
     index = {"rule": rule, "eta": eta, "snr": snr, "n_bins": n_bins, "null_trials": null_trials}
+    said = missing_run_message(path)  # first: the lock would name a folder as an output
+    if said is not None:
+        raise SceneError(said)
     busy = "wait for it to finish or stop it (analyze writes /analysis into the run file)"
     with locked_output(path, what=busy) as lock:
         if Path(path).is_file():  # a missing file: open_run_file's message
