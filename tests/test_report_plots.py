@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import hashlib
 import json
 import math
@@ -338,6 +339,45 @@ def _cli(argv):
         return 2
 
 
+def test_a_band_past_either_record_says_where_each_spectrum_ends(tmp_path, capsys):
+    """Per-patch velocities every 4th sample (global Nyquist frequency 5 MHz, per-patch 1.25 MHz): a --freq-max above
+    either is said with the spectra that end there, S(f)'s band clipped to the per-patch one; a --freq-min that
+    empties the peak search's band is named, as is one past the per-patch record."""
+    from aca_warp.cli import main
+
+    record = Record(sample_dt=SAMPLE_DT, patches=("velocity",), decimation=4)
+    scene = dataclasses.replace(_small_scene(patches=("velocity",)), record=record)
+    path = tmp_path / "dec.h5"
+    run_scene(scene, path, RunOptions(integrator="strang", dt=1e-7), device="cpu", overwrite=True)
+    said = "lies above the Nyquist frequency (half the sampling rate)"
+    cases = {
+        "1e6": None,
+        "2e6": f"--freq-max 2e+06 Hz {said} of the per-patch record, 1250 kHz: S(f) and the per-patch spectrum end "
+        "there (the global spectra at 5000 kHz)",
+        "6e6": f"--freq-max 6e+06 Hz {said} of the global record, 5000 kHz, and of the per-patch record, 1250 kHz: "
+        "the global spectra end at the first, S(f) and the per-patch spectrum at the second",
+    }
+    for freq_max, line in cases.items():
+        assert main(["analyze", str(path), "--freq-max", freq_max]) == 0
+        out = capsys.readouterr().out
+        assert (line in out) if line else ("Nyquist" not in out), out
+        with h5py.File(path, "r") as f:
+            assert list(f["analysis/sync"].attrs["band"]) == [10.0, min(float(freq_max), 1.25e6)]
+    assert main(["analyze", str(path), "--no-sync", "--freq-min", "6e6", "--freq-max", "7e6"]) == 0
+    out = capsys.readouterr().out
+    assert f"--freq-max 7e+06 Hz {said} of the global record, 5000 kHz: the global spectra end there\n" in out
+    assert (
+        "no velocity-spectrum peak: --freq-min 6e+06 Hz lies at or above the global spectra's last bin, 4995 kHz, so "
+        "the peak search's band is empty: lower --freq-min\n"
+    ) in out
+    assert main(["analyze", str(path), "--freq-min", "2e6", "--freq-max", "3e6"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith(
+        "empty frequency band 2e+06-1.25e+06 Hz for the per-patch velocities (the Nyquist frequency of their "
+        "record is 1.25e+06 Hz): lower the band's start, or leave them out (--no-sync)"
+    )
+
+
 def test_commands(runs, tmp_path, capsys):
     """analyze and plot exit 0 and say what they did; bad input exits 2 (argparse or AcaError)."""
     assert FIGURE_NAMES == plots.FIGURES
@@ -362,7 +402,10 @@ def test_commands(runs, tmp_path, capsys):
     assert _cli(["analyze", str(path), "--no-sync", "--freq-min", "4.6e6", "--freq-max", "4.9e6"]) == 0
     assert "CWT over 450-4500 kHz: the band lies above the CWT's top, 0.45/Δt = 4500 kHz" in capsys.readouterr().out
     assert _cli(["analyze", str(path), "--no-sync", "--freq-max", "1e9"]) == 0  # a band past the samples: said
-    assert "--freq-max 1e+09 Hz lies above the Nyquist frequency of the samples, " in capsys.readouterr().out
+    said = (
+        "--freq-max 1e+09 Hz lies above the Nyquist frequency (half the sampling rate) of the global record, 5000 kHz"
+    )
+    assert f"{said}: the global spectra end there\n" in capsys.readouterr().out
     assert _cli(["analyze", str(tmp_path / "missing.h5")]) == 2
     assert _cli(["analyze", str(path), "--freq-min", "5e4", "--freq-max", "1e4"]) == 2
     with pytest.raises(SystemExit) as e:

@@ -10,6 +10,7 @@ write files only: they set ``uses_warp=False``, and the command line starts no W
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -230,14 +231,14 @@ def _analyze(args: argparse.Namespace, run: str, band: tuple[float | None, float
     early = record_ends_early(run)
     if early:
         parts.append(early)
-    above = above_nyquist(run, args.freq_max)
+    above = above_nyquist(run, args.freq_max, patches="patch_spectrum" in groups)
     if above:
         parts.append(above)
     for key in ("below_band", "few_periods"):
         if key in groups["cwt"].attrs:
             freq = groups["cwt"]["freq"]
             parts.append(f"CWT over {freq[0] / 1e3:.4g}-{freq[-1] / 1e3:.4g} kHz: {groups['cwt'].attrs[key]}")
-    parts += peak_lines(groups)
+    parts += peak_lines(groups, freq_min=args.freq_min)
     if "sync" in groups:
         from aca_warp.analysis.report import LEAKAGE_BINS, lowest_bin_remark, sync_excess
 
@@ -394,11 +395,12 @@ def run_or_pad(args: argparse.Namespace, command: str, *, keep: bool) -> Iterato
                 raise SceneError(str(e).replace(str(temporary), f"pad {args.pad} of {args.run}")) from None
 
 
-def peak_lines(groups: dict[str, Any]) -> list[str]:
+def peak_lines(groups: dict[str, Any], freq_min: float | None = None) -> list[str]:
     """The ``analyze`` summary's lines on the first velocity-spectrum peak and the largest μ peak, from the groups
     :func:`~aca_warp.analysis.report.analyze_run` returns: each peak with the bin width and period count of the
     spectrum it comes from (the per-patch spectrum's own, which ``--patch-window``/``--patch-decimation`` may make
-    coarser than the global record's), and a peak that is only a band edge said to be one."""
+    coarser than the global record's), a peak that is only a band edge said to be one, and an empty peak search's
+    band said with the edge that empties it (``freq_min``: ``--freq-min`` [Hz], None when not given)."""
     from aca_warp.analysis.report import bin_width
 
     peaks, spectra = groups["peaks"].attrs, groups["spectra"]
@@ -412,19 +414,31 @@ def peak_lines(groups: dict[str, Any]) -> list[str]:
         edge = _edge_clause(peaks.get("first_velocity_peak_at_band_edge"))
         lines.append(f"first velocity-spectrum peak {f / 1e3:.4g} kHz{edge}{_few_periods(f, dfv)}")
     else:
-        lo, hi = (float(v) for v in peaks["band"])
-        lines.append(
-            f"no velocity-spectrum peak: the peak search's band {lo / 1e3:.4g}-{hi / 1e3:.4g} kHz is empty (it starts "
-            f"at max(1 kHz, 3 bins = {3 * df / 1e3:.4g} kHz), above the Hann leakage of the mean, and within "
-            "--freq-min/--freq-max)"
-            if lo >= hi
-            else f"no velocity-spectrum peak in the peak search's band {lo / 1e3:.4g}-{hi / 1e3:.4g} kHz"
-        )
+        lines.append(_no_peak_line(peaks["band"], df, freq_min))
     if "mu_peak_frequency" in peaks:
         f = float(peaks["mu_peak_frequency"])
         edge = _edge_clause(peaks.get("mu_peak_at_band_edge"))
         lines.append(f"largest mu peak {f / 1e3:.4g} kHz{edge}{_few_periods(f, df)}")
     return lines
+
+
+def _no_peak_line(band: Any, df: float, freq_min: float | None) -> str:
+    """The summary's line when the peak search's ``band`` [Hz] (its ``peaks`` attribute) held no velocity-spectrum
+    peak; ``df``: the global spectra's bin width [Hz]; ``freq_min``: ``--freq-min`` [Hz] or None. An empty band is
+    said with the edge that empties it: a ``--freq-min`` at or above the spectra's end, or the search's own start."""
+    lo, hi = (float(v) for v in band)
+    if lo < hi:
+        return f"no velocity-spectrum peak in the peak search's band {lo / 1e3:.4g}-{hi / 1e3:.4g} kHz"
+    if freq_min is not None and freq_min >= lo:
+        return (
+            f"no velocity-spectrum peak: --freq-min {freq_min:g} Hz lies at or above the global spectra's last bin, "
+            f"{hi / 1e3:.4g} kHz, so the peak search's band is empty: lower --freq-min"
+        )
+    return (
+        f"no velocity-spectrum peak: the peak search's band {lo / 1e3:.4g}-{hi / 1e3:.4g} kHz is empty (it starts "
+        f"at max(1 kHz, 3 bins = {3 * df / 1e3:.4g} kHz), above the Hann leakage of the mean, and within "
+        "--freq-min/--freq-max)"
+    )
 
 
 def _edge_clause(edge: object) -> str:
@@ -446,22 +460,30 @@ def _few_periods(freq: float, df: float) -> str:
     return f" (bins {df / 1e3:.3g} kHz wide: {freq / df:.3g} periods in the record)"
 
 
-def above_nyquist(path: str, freq_max: float | None) -> str | None:
-    """A line when ``--freq-max`` [Hz] lies above the Nyquist frequency of the run's samples (the band then ends at
-    the Nyquist frequency), else None."""
+def above_nyquist(path: str, freq_max: float | None, *, patches: bool) -> str | None:
+    """A line when ``--freq-max`` [Hz] lies above a Nyquist frequency (half the sampling rate) of the run's records,
+    saying where each spectrum then ends: the global spectra at the global record's, and (``patches``: the analysis
+    read the per-patch velocities) S(f) and the mean per-patch spectrum at the per-patch record's, which
+    ``--patch-decimation`` makes lower; else None."""
     if freq_max is None:
         return None
     from aca_warp.analysis.groups import sample_interval
     from aca_warp.analysis.report import open_run_file
 
     with open_run_file(path) as f:
-        nyquist = 0.5 / sample_interval(f["global/time"][()])
-    if freq_max <= nyquist:
+        top = 0.5 / sample_interval(f["global/time"][()])
+        patch_top = 0.5 / sample_interval(f["patches/time"][()], "/patches/time") if patches else None
+    said = f"--freq-max {freq_max:g} Hz lies above the Nyquist frequency (half the sampling rate)"
+    samples, per_patch = f"of the global record, {top / 1e3:.4g} kHz", "S(f) and the per-patch spectrum"
+    if patch_top is None or math.isclose(patch_top, top, rel_tol=1e-9):
+        spectra = f"the global spectra, {per_patch}" if patches else "the global spectra"
+        return f"{said} {samples}: {spectra} end there" if freq_max > top else None
+    if freq_max <= patch_top:
         return None
-    return (
-        f"--freq-max {freq_max:g} Hz lies above the Nyquist frequency of the samples, {nyquist / 1e3:.4g} kHz "
-        "(half the sampling rate): the band ends there"
-    )
+    record = f"of the per-patch record, {patch_top / 1e3:.4g} kHz"
+    if freq_max <= top:
+        return f"{said} {record}: {per_patch} end there (the global spectra at {top / 1e3:.4g} kHz)"
+    return f"{said} {samples}, and {record}: the global spectra end at the first, {per_patch} at the second"
 
 
 def record_ends_early(path: str) -> str | None:

@@ -14,7 +14,7 @@ import h5py
 import numpy as np
 import scipy.fft
 
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import SceneError, option
 
 from .groups import DEFAULT_BAND_TOP, Group, has_patch_velocity, sample_interval
 from .spectra import DEFAULT_FLOOR_HZ, complex_spectrum
@@ -102,11 +102,17 @@ def lowest_bin_remark(excess: dict[str, Any]) -> str:
 
 
 def _band(freq_range: tuple[float, float] | None, nyquist: float, top: float = DEFAULT_BAND_TOP) -> tuple[float, float]:
+    """The per-patch analysis band [Hz]: ``freq_range`` (a None edge: 10 Hz, or min(``top``, ``nyquist``)) clipped
+    to the per-patch record's Nyquist frequency ``nyquist`` [Hz]; one line when nothing of it is left."""
     lo, hi = (DEFAULT_FLOOR_HZ, min(top, nyquist)) if freq_range is None else freq_range
     lo = DEFAULT_FLOOR_HZ if lo is None else float(lo)
     hi = min(top, nyquist) if hi is None else min(float(hi), nyquist)
     if not hi > lo:
-        raise SceneError(f"empty frequency band {lo:g}-{hi:g} Hz (the Nyquist frequency is {nyquist:g} Hz)")
+        skip = option("sync=False", "--no-sync")
+        raise SceneError(
+            f"empty frequency band {lo:g}-{hi:g} Hz for the per-patch velocities (the Nyquist frequency of their "
+            f"record is {nyquist:g} Hz): lower the band's start, or leave them out ({skip})"
+        )
     return lo, hi
 
 
