@@ -723,6 +723,38 @@ def test_a_failed_analysis_of_a_pad_leaves_no_pad_file(tmp_path, capsys):
         assert f"run file not found: {tmp_path / 'nodir' / 'run.h5'}" in capsys.readouterr().err
 
 
+def test_a_shard_without_samples_gives_one_line_and_no_pad_file(tmp_path, capsys):
+    """analyze/plot SHARD --pad K on the .partial of a sweep stopped before its first samples (an empty /global/time):
+    one line saying so and how to complete it, exit 2, nothing written; a pad whose μ is finite nowhere: likewise."""
+    from aca_warp.cli import main
+
+    done = one_shard_sweep(tmp_path, [0.7, 0.8], duration=2e-5)
+    shard = done.with_name("shard-00000.h5.partial")
+    done.rename(shard)
+    with h5py.File(shard, "r+") as f:  # as a killed sweep leaves it: the datasets made, no sample appended yet
+        for data in f["global"].values():
+            data.resize(0, axis=data.ndim - 1)
+        f.attrs["complete"] = False
+    before = sorted(shard.parent.iterdir())
+    capsys.readouterr()
+    said = (
+        f"aca-warp: error: {shard} holds no sample yet (its sweep stopped before writing any): run the same sweep "
+        "command again; it continues the sweep and completes the shard"
+    )
+    for command in (["analyze"], ["plot", "-o", str(tmp_path / "figs")]):
+        assert main([command[0], str(shard), "--pad", "1", *command[1:]]) == 2
+        assert capsys.readouterr().err.strip().splitlines() == [said]
+        assert sorted(shard.parent.iterdir()) == before and not (tmp_path / "figs").exists()
+    with h5py.File(shard, "r+") as f:  # one sample, at which pad 1's μ is not finite
+        for data in f["global"].values():
+            data.resize(1, axis=data.ndim - 1)
+        f["global/mu"][1, 0] = np.nan
+    assert main(["analyze", str(shard), "--pad", "1"]) == 2
+    said = f"aca-warp: error: pad 1 of {shard} holds no finite sample (μ is not finite from the first one on)"
+    assert capsys.readouterr().err.strip() == f"{said}: nothing to take out"
+    assert sorted(shard.parent.iterdir()) == before
+
+
 def test_pad_list_compresses_runs_and_counts_the_rest():
     """One wording of a list of pads, for a shard's refusals and for the pads a fault stopped."""
     from aca_warp.sweep.spec import pad_list

@@ -67,7 +67,9 @@ def shard_refusal(path: str | Path, pads: np.ndarray, command: str) -> SceneErro
 def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
     """Write pad ``pad`` (its index in the sweep) of the sweep shard ``shard`` as the HF run file ``dest`` (written
     whole under a temporary name, then renamed; an earlier extraction of the same pad is replaced, any other file
-    refused). The samples end at the pad's last finite μ (a pad stopped on a fault, or a shard still running)."""
+    refused). The samples end at the pad's last finite μ (a pad stopped on a fault, or a shard still running); a
+    shard without a sample yet (a stopped sweep's ``.partial``), or a pad without a finite μ, is refused in one line
+    and nothing is written."""
     from aca_warp.common.files import UNWRITABLE, new_path, reading
     from aca_warp.common.storage import storage_errno, storage_error
     from aca_warp.hf.options import RunOptions
@@ -92,6 +94,8 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
         attrs = {k: _text(f.attrs[k]) for k in ("integrator", "precision", "device", "device_name", "versions")}
         attrs["source_spec_hash"] = spec_hash  # with source_shard and pad: which shard of which sweep
         run, doc, finished = json.loads(_text(f.attrs["run"])), json.loads(_text(f.attrs["spec"])), f.attrs["complete"]
+    if end == 0:
+        raise SceneError(_no_sample(shard, pad, time.size))
     try:  # the run settings as the shard ran them (a default written out since would change the hash, not the pad)
         spec = load_spec({**doc, "run": run}, base_dir=_base_dir(shard))
         scene = spec.scene(pad).replace(duration=float(run["duration"]))
@@ -140,6 +144,17 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
         raise
     os.replace(tmp, dest)
     return dest
+
+
+def _no_sample(shard: Path, pad: int, samples: int) -> str:
+    """Why pad ``pad`` of ``shard``, whose time axis holds ``samples`` samples, gives no run file: the shard holds no
+    sample yet (a sweep stopped before it wrote any), or the pad's μ is finite at none of them."""
+    if samples == 0:
+        return (
+            f"{shard} holds no sample yet (its sweep stopped before writing any): run the same sweep command again; it "
+            "continues the sweep and completes the shard"
+        )
+    return f"pad {pad} of {shard} holds no finite sample (μ is not finite from the first one on): nothing to take out"
 
 
 def _write(
