@@ -946,6 +946,19 @@ def test_analyze_run_calls_a_folder_no_run_file(tmp_path, slash):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_one_per_patch_sample_is_said_in_the_singular(tmp_path, capsys):
+    """A per-patch record of one row (decimation beyond the record): plot --only patch_map says "1 per-patch sample"."""
+    from aca_warp.cli import main
+
+    record = Record(sample_dt=SAMPLE_DT, patches=("velocity",), decimation=100)
+    scene = dataclasses.replace(_small_scene(patches=("velocity",)), record=record, duration=10 * SAMPLE_DT)
+    run = tmp_path / "one.h5"
+    run_scene(scene, run, RunOptions(integrator="strang", dt=2e-8), device="cpu", overwrite=True)
+    assert main(["plot", str(run), "-o", str(tmp_path / "f"), "--only", "patch_map"]) == 2
+    said = f"patch_map: {run} holds 1 per-patch sample; the per-patch figures need at least 8"
+    assert capsys.readouterr().err.strip().endswith(said)
+
+
 def test_a_record_too_short_for_the_transforms_still_plots_its_series(tmp_path, capsys):
     """A run of 6 samples: analyze refuses it (the transforms need 8), plot draws its global series and skips the
     transforms' and the per-patch figures saying why; --only naming a transform is refused in one line with nothing

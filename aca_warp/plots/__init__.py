@@ -94,7 +94,8 @@ def _absent_figures(path: str | Path, names: list[str], which: Sequence[str] | N
         samples = run.f["global/time"].shape[0]
     name = str(path)  # as given: a shard's pad in a temporary file is then named as the pad (analysis.commands)
     none = f"{name} holds no per-patch velocities"
-    few = f"{name} holds {rows} per-patch samples; the per-patch figures need at least {MIN_SAMPLES}"
+    held = f"{rows} per-patch sample" + ("" if rows == 1 else "s")
+    few = f"{name} holds {held}; the per-patch figures need at least {MIN_SAMPLES}"
     absent = {}
     for n in names:
         if n in TRANSFORMS and samples < MIN_SAMPLES:
