@@ -154,16 +154,12 @@ class RunWriter(RunFileWriter):
         ):
             self.out.reserve(8 * len(data))
             p.create_dataset(name, data=np.asarray(data, dtype=np.float64)).attrs["unit"] = unit
-        self._write_growth_rate(scene)
+        write_predicted_growth_rate(f, scene, self.model.contacts[pad].patch_force, self.out.reserve)
         mg = f.create_group("matrix")
         for name, unit in (("area", "m2"), ("radius", "m"), ("height", "m")):
             data = np.asarray(getattr(scene.matrix, name), np.float64)
             self.out.reserve(data.nbytes)
             mg.create_dataset(name, data=data).attrs["unit"] = unit
-
-    def _write_growth_rate(self, scene: Scene) -> None:
-        """``/patches/predicted_growth_rate`` of the pad (:func:`write_predicted_growth_rate`)."""
-        write_predicted_growth_rate(self.f, scene, self.model.contacts[self.pad].patch_force, self.out.reserve)
 
     @classmethod
     def reopen(
