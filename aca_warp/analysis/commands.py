@@ -28,6 +28,9 @@ LF_FIGURE_NAMES = ("lf_global", "lf_population", "lf_patch_map")
 LF_QUANTITIES = ("temperature", "thickness", "normal_force", "pressure", "age", "power", "height", "area")
 """Colour quantities of the LF patch map (``plot --quantity``; keys of ``aca_warp.plots.lf.QUANTITIES``)."""
 
+SYNC_OPTIONS = ("rule", "eta", "snr", "n_bins")
+"""``analyze``'s options of the Synchronization Index (argparse destinations; None: not given)."""
+
 ANALYZE_EPILOG = """\
 Writes the group /analysis into RUN.h5, replacing an earlier one (computed first, swapped in at the end: a
 failure leaves the file as it was):
@@ -192,9 +195,6 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 
     with run_or_pad(args, "analyze", keep=True) as run:
         return _analyze(args, run, band)
-
-
-SYNC_OPTIONS = ("rule", "eta", "snr", "n_bins")  # analyze's options of the Synchronization Index (None: not given)
 
 
 def _check_sync_options(args: argparse.Namespace) -> None:
