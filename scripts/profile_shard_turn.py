@@ -15,9 +15,8 @@ The bench's product sweep (hf1, M × F_N × 8 patch layouts, ``scripts/bench_swe
 Then the run (``run``: its loop, samples dropped). Every phase ends with the device synchronised; ``build`` and
 ``setup`` are profiled, and the functions with the largest cumulative time are listed per shard. With ``--warm-up``
 every shard first runs for 1 µs from the pool's batch (a warm worker: the bench's warm-up sweep runs before its timed
-sweep). With
-``--release-threshold`` the device's CUDA memory pool keeps that much freed memory instead of returning it to the
-driver (Warp leaves the threshold at CUDA's default, 0 B).
+sweep). With ``--release-threshold`` the device's CUDA memory pool keeps that much freed memory instead of returning it
+to the driver (Warp leaves the threshold at CUDA's default, 0 B).
 
     python3 scripts/profile_shard_turn.py --device cuda:0 --shards 4 --dt 1e-8 --json turn.json
     python3 scripts/profile_shard_turn.py --device cuda:0 --shards 4 --dt 1e-8 --release-threshold 0.5
@@ -51,7 +50,8 @@ class _Clock:
     """Wall time per phase [s], each call ending with the device synchronised; profiled calls in one profile."""
 
     def __init__(self, dev: Any) -> None:
-        self.dev, self.phases, self.profile = dev, {}, cProfile.Profile()
+        self.dev, self.profile = dev, cProfile.Profile()
+        self.phases: dict[str, float] = {}
 
     def __call__(self, name: str, fn: Callable[..., Any], *args: Any, profiled: bool = True, **kw: Any) -> Any:
         import warp as wp
@@ -69,10 +69,12 @@ class _Clock:
 
 
 def main() -> int:
+    from aca_warp.common.argtypes import int_at_least
+
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cuda:0", help="device of the runs (default cuda:0)")
-    ap.add_argument("--shards", type=int, default=4, help="consecutive shards to run (default 4)")
-    ap.add_argument("--shard-size", type=int, default=256, help="pads per shard (default 256)")
+    ap.add_argument("--shards", type=int_at_least(1), default=4, help="consecutive shards to run (default 4)")
+    ap.add_argument("--shard-size", type=int_at_least(1), default=256, help="pads per shard (default 256)")
     ap.add_argument("--duration", type=float, default=1e-3, help="simulated time per pad [s] (default 1e-3)")
     ap.add_argument("--dt", type=float, default=None, help="strang's step [s] (default: the sweep's default step)")
     ap.add_argument(
@@ -86,7 +88,7 @@ def main() -> int:
         "--path", choices=("prepared", "built", "host"), default="prepared", help="how a shard reaches its device"
     )
     ap.add_argument("--warm-up", action="store_true", help="run every shard for 1 µs first (a warm worker)")
-    ap.add_argument("--top", type=int, default=25, help="functions listed per shard (default 25)")
+    ap.add_argument("--top", type=int_at_least(1), default=25, help="functions listed per shard (default 25)")
     ap.add_argument("--json", help="write the results here")
     args = ap.parse_args()
 

@@ -30,3 +30,14 @@ def test_paths_time_their_phases(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
         assert list(s["phases_s"]) == PHASES[path] and all(v > 0 for v in s["phases_s"].values())
         assert s["pads"] == 2 and s["steps"] == 20 and s["engine"]
         assert any("(__init__)" in r["function"] and "loop.py" in r["function"] for r in s["profile_top"])
+
+
+@pytest.mark.parametrize("option", ["--shards", "--shard-size", "--top"])
+def test_counts_below_one_are_one_line(monkeypatch: pytest.MonkeyPatch, capsys, option: str) -> None:
+    """``--shards 0`` (or ``--shard-size``, ``--top`` of 0) is argparse's one line and exit 2, before Warp starts."""
+    script = load_script("profile_shard_turn")
+    monkeypatch.setattr("sys.argv", ["x", "--device", "cpu", option, "0"])
+    with pytest.raises(SystemExit) as e:
+        script.main()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert e.value.code == 2 and f"argument {option}: must be >= 1, got '0'" in err[-1], err

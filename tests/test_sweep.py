@@ -484,6 +484,31 @@ def test_an_unfinished_sweep_reads_as_what_it_holds_and_says_so(tmp_path: Path) 
     assert np.array_equal(part["mu"], whole["mu"][part["pad_index"]])
 
 
+def test_wrong_folders_are_named_for_what_they_are(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """A folder given as the spec, an output under /proc (a folder that takes no file), a sweep folder that does
+    not exist and a finished shard's file gone: each one line that says which (not "not found", "does not exist" or
+    "remove it")."""
+    from aca_warp.cli import main
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(toml_text(TINY))
+    for argv, said in (
+        ([str(tmp_path), "-o", str(tmp_path / "o")], f"sweep spec {tmp_path} is a folder, not a TOML spec file"),
+        ([str(spec), "-o", "/proc/aca-warp-sweep"], "output folder /proc takes no new file (a virtual file system)"),
+    ):
+        capsys.readouterr()
+        assert main(["sweep", *argv, "--workers", "0", "--quiet"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err == [f"aca-warp: error: {said}"], err
+    with pytest.raises(SweepError, match="sweep directory .*nothere does not exist"):
+        load_sweep(tmp_path / "nothere")
+    run_sweep(_spec(), tmp_path / "sw", workers=0)
+    (tmp_path / "sw" / "shard-00001.h5").unlink()
+    with pytest.raises(SweepError, match=r"shard-00001.h5 is missing \(its manifest has it finished\): run the sweep"):
+        load_sweep(tmp_path / "sw")
+    assert run_sweep(_spec(), tmp_path / "sw", workers=0).ran == [1]
+
+
 def test_an_empty_output_folder_is_refused_not_taken_for_the_current_one(
     tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -370,8 +370,9 @@ def probe_folder(folder: str | Path) -> None:
     try:
         fd, name = tempfile.mkstemp(prefix=".aca-warp-probe.", dir=d)  # a new name: never another's file
         probe = Path(name)
-    except FileNotFoundError:
-        raise SceneError(f"output folder {d} does not exist") from None
+    except FileNotFoundError:  # /proc, /sys: folders that take no file, and say so this way
+        why = "does not exist" if not d.is_dir() else "takes no new file (a virtual file system)"
+        raise SceneError(f"output folder {d} {why}") from None
     except NotADirectoryError:
         raise SceneError(f"output folder {d} is not a folder") from None
     except OSError as e:

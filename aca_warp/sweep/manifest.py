@@ -349,6 +349,8 @@ def load_sweep(out_dir: str | Path) -> dict[str, Any]:
     from aca_warp.hf.recorder import GLOBAL_NAMES
 
     d = Path(out_dir)
+    if not d.exists():
+        raise SweepError(f"sweep directory {d} does not exist")
     manifest = read_manifest(d)
     if manifest is None:
         raise SweepError(f"{d} has no {MANIFEST}: not a sweep directory")
@@ -370,6 +372,11 @@ def load_sweep(out_dir: str | Path) -> dict[str, Any]:
                     }
                 )
         except SceneError as e:
+            if not (d / s["file"]).exists():
+                raise SweepError(
+                    f"shard {d / s['file']} is missing (its manifest has it finished): run the sweep again to run it "
+                    "again"
+                ) from None
             raise SweepError(f"{e}; remove it and rerun the sweep") from None
         except (OSError, RuntimeError, KeyError, ValueError, TypeError) as e:  # missing, truncated or damaged
             raise SweepError(

@@ -336,6 +336,8 @@ def _load(source: str | Path | dict, base_dir: Path | None, overrides: dict[str,
         base_dir = base_dir or Path.cwd()
     else:
         p = Path(source)
+        if p.is_dir():
+            raise SweepError(f"sweep spec {p} is a folder, not a TOML spec file")
         if not p.is_file():
             shipped = resources.files("aca_warp.data") / p.name
             example = p.name.startswith("sweep_") and shipped.is_file()
