@@ -401,6 +401,7 @@ def test_an_interrupt_after_every_shard_finished_says_the_sweep_is_complete(tmp_
         ('[sweep]\nbase = "nothere.toml"\n', "'nothere.toml': no such file in"),
         ('[sweep]\nbase = "hf1"\n[parameters]\n"pad.r_inner" = [100.0]\n', "did you mean mm? (100 mm = 0.1 m)"),
         ('[sweep]\nbase = "hf1"\n[run]\ntolerance = 1e-9\n', "strang takes none: leave it out"),
+        ('[sweep]\nbase = "hf1"\n[parameters]\n"patches.area_min" = [20.0]\n', "did you mean mm² or µm²?"),
     ],
 )  # fmt: skip
 def test_a_spec_that_would_do_other_than_it_says_is_refused(tmp_path: Path, text: str, said: str) -> None:

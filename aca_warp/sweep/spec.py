@@ -25,6 +25,7 @@ from aca_warp.common import plausible
 from aca_warp.common.bounds import MAX_PADS, read_toml
 from aca_warp.common.errors import AcaError, SceneError, did_you_mean, sweep_spec
 from aca_warp.scene import (
+    GENERATOR_KINDS,
     PRESETS,
     Friction,
     Material,
@@ -647,6 +648,9 @@ def apply_parameters(base: Scene, base_doc: dict, values: dict[str, Any], *, nam
                 plausible.check(f"pad.{attr}", groups["pad"][attr], "length", allow=base.allow_implausible)
         pad = dataclasses.replace(base.pad, **groups["pad"])
         changes["pad"] = pad
+    for attr, kind in GENERATOR_KINDS.items():  # an area typed in mm²: said so before the areas are compared
+        if attr in groups.get("patches", {}):
+            plausible.check(f"patches.{attr}", groups["patches"][attr], kind, allow=base.allow_implausible)
     if "pad" in groups or "patches" in groups:
         gen_doc = dict(base_doc.get("patches", {}))
         gen_doc.update(groups.get("patches", {}))
