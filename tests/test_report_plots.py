@@ -934,6 +934,17 @@ def test_a_run_named_without_its_partial_says_where_it_is(runs, tmp_path, capsys
         assert said in err
     assert main(["analyze", str(tmp_path)]) == 2
     assert f"{tmp_path} is a folder, not a run file" in capsys.readouterr().err
+    sweep = tmp_path / "sw"  # a sweep's folder: how to read it
+    sweep.mkdir()
+    (sweep / "manifest.json").write_text("{}")
+    (sweep / "shard-00003.h5").touch()
+    for argv in (["analyze", str(sweep)], ["plot", str(sweep), "-o", str(tmp_path / "fig")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert (
+            f"{sweep} is a sweep's folder, not a run file: take one pad of a shard (e.g. {sweep}/shard-00003.h5 " in err
+        )
+        assert f"--pad K), or read the whole sweep in Python with aca_warp.sweep.load_sweep('{sweep}')" in err
 
 
 @pytest.mark.parametrize("slash", ["", "/"])

@@ -70,10 +70,17 @@ def has_patch_velocity(f: h5py.File) -> bool:
 
 def missing_run_message(path: str | Path) -> str | None:
     """For a run file ``path`` that does not exist, the message naming its ``.partial`` when that exists (a run still
-    being written, or one that was stopped or killed) and what to do; for a folder, that it is one; else None."""
+    being written, or one that was stopped or killed) and what to do; for a folder, that it is one (a sweep's: how
+    to read it); else None."""
     from aca_warp.common.files import partial_path, recovery
 
     p = Path(path)
+    if p.is_dir() and (p / "manifest.json").is_file():  # a sweep's folder (aca_warp.sweep.manifest.MANIFEST)
+        shard = next(iter(sorted(p.glob("shard-*.h5"))), p / "shard-00000.h5")
+        return (
+            f"{p} is a sweep's folder, not a run file: take one pad of a shard (e.g. {shard} --pad K), or read the "
+            f"whole sweep in Python with aca_warp.sweep.load_sweep({str(p)!r})"
+        )
     if p.is_dir():
         return f"{p} is a folder, not a run file: name the run file (RUN.h5) inside it"
     if p.exists():

@@ -474,7 +474,8 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     duration = num("duration", base.duration)
     scene_clock = run.get("growth_dt") == SCENE_CLOCK  # the events at the scenes' own interval: left out
     growth_dt = None if scene_clock else num("growth_dt", None)
-    if "tolerance" in run and integrator not in ("adaptive", "auto"):
+    # (stored run settings hold the default for every integrator: a shard's spec read again)
+    if run.get("tolerance", DEFAULT_TOLERANCE) != DEFAULT_TOLERANCE and integrator not in ("adaptive", "auto"):
         raise SweepError(
             f"run.tolerance is the tolerance of the explicit pair of adaptive (and of auto's sliding mode); "
             f"{integrator} takes none: leave it out"
