@@ -259,11 +259,12 @@ def check_pads(spec: SweepSpec) -> list[int]:
             continue
         pads.update(values.index(v) for v in ends[key])
     keys = list(ends)
+    columns = [np.asarray(spec.parameters[k]) for k in keys]  # (pads,) each
     corners = itertools.product(*(ends[k] for k in keys)) if len(keys) <= CORNER_PARAMETERS else []
     for corner in [*corners, tuple(lo for lo, _ in ends.values()), tuple(hi for _, hi in ends.values())]:
         at = np.ones(spec.pad_count, dtype=bool)
-        for key, v in zip(keys, corner, strict=True):
-            at &= np.asarray(spec.parameters[key], dtype=object) == v
+        for column, v in zip(columns, corner, strict=True):
+            at &= column == v
         pads.update(np.flatnonzero(at)[:1].tolist())
     return sorted(pads)
 
