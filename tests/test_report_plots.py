@@ -672,7 +672,7 @@ def test_one_pad_of_a_packed_shard_is_that_pad(tmp_path, capsys, monkeypatch):
         assert f["pads/index"][()].tolist() == [1, 3]  # the two pads of 10 patches
     capsys.readouterr()
     assert main(["analyze", str(shard), "--pad", "0"]) == 2
-    assert "holds pads 1, 3; pad 0 is not one of them" in capsys.readouterr().err
+    assert f"holds pads 1, 3; pad 0 is not one of them: it is in {out / 'shard-00001.h5'}" in capsys.readouterr().err
     assert main(["analyze", str(shard), "--pad", "3", "--no-sync"]) == 0
     capsys.readouterr()
     mu = load_sweep(out)["mu"]  # (pads, samples) in the sweep's pad order

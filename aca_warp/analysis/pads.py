@@ -48,6 +48,16 @@ def shard_pads(path: str | Path) -> np.ndarray | None:
         return None
 
 
+def _held_by(shard: Path, pad: int) -> str:
+    """The clause naming the other shard file of ``shard``'s folder that holds pad ``pad`` (its ``/pads/index``),
+    or "" (none does, or none is readable)."""
+    for other in sorted(shard.parent.glob("shard-*.h5")):
+        held = None if other.resolve() == shard.resolve() else shard_pads(other)
+        if held is not None and bool((held == pad).any()):
+            return f": it is in {other}"
+    return ""
+
+
 def pad_run_path(shard: str | Path, pad: int) -> Path:
     """Where ``analyze SHARD --pad K`` keeps pad ``K``'s run file: ``SHARD_padK.h5`` beside the shard."""
     p = Path(shard)
@@ -82,7 +92,7 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
         raise SceneError(f"{shard} is not a sweep shard ({option('pad', '--pad')} picks a pad of one)")
     rows = np.flatnonzero(pads == pad)
     if rows.size != 1:
-        raise SceneError(f"{shard} holds pads {pad_list(pads)}; pad {pad} is not one of them")
+        raise SceneError(f"{shard} holds pads {pad_list(pads)}; pad {pad} is not one of them{_held_by(shard, pad)}")
     _check_replaceable(dest, shard)
     with reading(shard, "sweep shard"), h5py.File(shard, "r") as f:
         row = int(rows[0])
