@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import sys
 from pathlib import Path
 
 import h5py
@@ -28,8 +29,9 @@ def test_lock_in_process(tmp_path: Path) -> None:
     out = tmp_path / "run.h5"
     a = OutputLock.acquire(out)
     assert lock_path(out).is_file() and str(__import__("os").getpid()) in lock_path(out).read_text()
-    with pytest.raises(SceneError, match=r"is being written by pid \d+ on"):
+    with pytest.raises(SceneError, match=r"is being written by pid \d+ on") as e:
         OutputLock.acquire(out, what="wait")
+    assert " ".join(sys.argv)[:200] in str(e.value)  # the holder's whole command line, its output named in it
     a.release()
     a.release()  # idempotent
     assert not lock_path(out).exists()

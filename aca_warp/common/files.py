@@ -236,7 +236,7 @@ def _take(lp: Path, p: Path, what: str) -> int | None:
             os.close(fd)
             continue
         os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()} {socket.gethostname()} {' '.join(sys.argv[:4])[:200]}\n".encode())
+        os.write(fd, f"{os.getpid()} {socket.gethostname()} {' '.join(sys.argv)[:200]}\n".encode())
         return fd
 
 
