@@ -19,6 +19,10 @@ from aca_warp.common.errors import SceneError
 DEFAULT_BAND_TOP = 200.0e3
 """Upper edge of the default analysis band of the Synchronization Index and the CWT [Hz]."""
 
+MIN_SAMPLES = 8
+"""Samples the analysis needs: its spectra, time-frequency maps and Synchronization Index (and the per-patch rows
+for the latter)."""
+
 GROUP = "analysis"
 """The group of a run file that holds its analysis (``aca-warp analyze``); a resumed run drops it."""
 TMP_GROUP = "_analysis_new"
@@ -63,9 +67,14 @@ def sample_interval(time: np.ndarray, what: str = "/global/time") -> float:
     return float(dt)
 
 
+def patch_rows(f: h5py.File) -> int:
+    """The rows (samples) of the run's per-patch velocities; 0 where it recorded none."""
+    return int(f["patches/velocity"].shape[0]) if "patches/velocity" in f and "patches/time" in f else 0
+
+
 def has_patch_velocity(f: h5py.File) -> bool:
-    """True when the run recorded per-patch velocities (with at least 8 rows)."""
-    return "patches/velocity" in f and "patches/time" in f and f["patches/velocity"].shape[0] >= 8
+    """True when the run recorded per-patch velocities, at least :data:`MIN_SAMPLES` rows of them."""
+    return patch_rows(f) >= MIN_SAMPLES
 
 
 def missing_run_message(path: str | Path) -> str | None:

@@ -36,6 +36,7 @@ from aca_warp.common.files import attr_value
 
 from .groups import DEFAULT_BAND_TOP as DEFAULT_BAND_TOP
 from .groups import GROUP, TMP_GROUP
+from .groups import MIN_SAMPLES as MIN_SAMPLES
 from .groups import Group as Group
 from .groups import has_patch_velocity as has_patch_velocity
 from .groups import missing_run_message as missing_run_message
@@ -88,9 +89,6 @@ def _decode(value: Any) -> Any:
 def run_attr(f: h5py.File, name: str, default: Any = None) -> Any:
     """Root attribute ``name`` of a run file, JSON-decoded where it holds JSON."""
     return attr_value(f.attrs[name]) if name in f.attrs else default
-
-
-MIN_SAMPLES = 8  # samples the analysis needs (its spectra, time-frequency maps and Synchronization Index)
 
 
 def check_run_file(

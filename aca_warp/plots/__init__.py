@@ -33,6 +33,7 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from aca_warp.analysis.groups import patch_rows
 from aca_warp.analysis.report import MIN_SAMPLES, stored
 from aca_warp.common.errors import SceneError, option
 from aca_warp.common.files import all_or_nothing
@@ -89,7 +90,7 @@ def _absent_figures(path: str | Path, names: list[str], which: Sequence[str] | N
     per-patch velocities absent or too few for the per-patch figures (``sync`` also counts as present when
     ``/analysis/sync`` is stored); :class:`SceneError` when ``which`` named one of them."""
     with _Run(path, min_samples=2, needed_by="a figure") as run:
-        rows = run.f["patches/velocity"].shape[0] if "patches/velocity" in run.f and "patches/time" in run.f else 0
+        rows = patch_rows(run.f)
         stored_sync = stored(run.f, "sync")
         samples = run.f["global/time"].shape[0]
     name = str(path)  # as given: a shard's pad in a temporary file is then named as the pad (analysis.commands)
