@@ -485,6 +485,27 @@ def test_an_unfinished_sweep_reads_as_what_it_holds_and_says_so(tmp_path: Path) 
     assert np.array_equal(part["mu"], whole["mu"][part["pad_index"]])
 
 
+def test_a_sweep_whose_manifest_was_lost_continues_from_its_shards(tmp_path: Path) -> None:
+    """A folder whose manifest is gone: the same spec continues from its finished shards (verified, not run again;
+    the manifest made anew), with a pad taken out of a shard beside them; shards of another spec, or an unfinished
+    one, are still refused."""
+    import shutil
+
+    out = tmp_path / "sw"
+    run_sweep(_spec(), out, workers=0)
+    (out / "manifest.json").unlink()
+    shutil.copy(out / "shard-00000.h5", out / "shard-00000_pad1.h5")  # as analyze --pad names what it takes out
+    again = run_sweep(_spec(), out, workers=0)
+    assert again.ran == [] and again.skipped == [0, 1, 2, 3]
+    assert [s["state"] for s in json.loads((out / "manifest.json").read_text())["shards"]] == ["done"] * 4
+    (out / "manifest.json").unlink()
+    with pytest.raises(SweepError, match="5 shard file.s. without a manifest"):  # (the pad file counted)
+        run_sweep(_spec(run__duration=8e-6), out, workers=0)
+    (out / "shard-00002.h5").rename(out / "shard-00002.h5.partial")
+    with pytest.raises(SweepError, match="without a manifest"):
+        run_sweep(_spec(), out, workers=0)
+
+
 def test_wrong_folders_are_named_for_what_they_are(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     """A folder given as the spec, an output under /proc (a folder that takes no file), a sweep folder that does
     not exist and a finished shard's file gone: each one line that says which (not "not found", "does not exist" or

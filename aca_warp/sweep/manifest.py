@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -137,6 +138,24 @@ def _spec_changes(old: dict, spec: SweepSpec) -> list[str]:
     return parts
 
 
+_SHARD_FILE = re.compile(r"shard-(\d{5})\.h5")
+_PAD_FILE = re.compile(r"shard-\d{5}_pad\d+\.h5")  # a pad that analyze/plot --pad took out of a shard
+
+
+def _lost_manifest(d: Path, spec: SweepSpec, stray: list[Path]) -> bool:
+    """Whether the shard files of ``d``, a folder without a manifest, are finished shards of ``spec`` itself (the
+    spec's hash, pad range and patch digest; besides them only pads taken out of shards): its manifest was lost, and
+    the sweep continues from them."""
+    shards = [p for p in stray if not _PAD_FILE.fullmatch(p.name)]
+    for p in shards:
+        m = _SHARD_FILE.fullmatch(p.name)
+        if m is None or int(m.group(1)) >= spec.shard_count:  # an unfinished one (.partial), or another sweep's
+            return False
+        if shard_finished(p, spec.hash, *spec.shard_range(int(m.group(1))), spec.patch_data) is None:
+            return False
+    return bool(shards)
+
+
 def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False) -> dict:
     """Create or reopen the sweep directory; returns the manifest with every shard's verified state.
 
@@ -152,6 +171,8 @@ def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False
     d.mkdir(parents=True, exist_ok=True)
     old = read_manifest(d)
     stray = sorted(d.glob("shard-*.h5*"))
+    if old is None and _lost_manifest(d, spec, stray):
+        stray = []  # this sweep's own finished shards, its manifest lost: they are verified and kept below
     recorded = (old or {}).get("patch_data")  # absent in the folders of sweeps begun before it was recorded
     other_patches = recorded is not None and recorded != spec.patch_data and old.get("spec_hash") == spec.hash
     if (old is not None and old.get("spec_hash") != spec.hash) or (old is None and stray) or other_patches:
