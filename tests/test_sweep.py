@@ -485,6 +485,37 @@ def test_an_unfinished_sweep_reads_as_what_it_holds_and_says_so(tmp_path: Path) 
     assert np.array_equal(part["mu"], whole["mu"][part["pad_index"]])
 
 
+def test_a_sweep_its_folder_has_no_room_for_is_refused_before_its_shards(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Where the folder's free space is less than the shard files to write (the estimate of shard_bytes, which a
+    written shard does not exceed), the sweep is refused, exit 4, before a shard or a manifest is written; a sweep
+    whose shards are all written needs no room."""
+    import os
+
+    from aca_warp.common import files
+    from aca_warp.common.errors import StorageError
+    from aca_warp.sweep.shard import shard_bytes
+
+    out = tmp_path / "sw"
+    spec = _spec()
+    need = sum(shard_bytes(spec, i) for i in range(spec.shard_count))
+    real = os.statvfs
+
+    class Full:  # 4 KiB free
+        f_bavail, f_frsize, f_blocks = 1, 4096, 10
+
+    monkeypatch.setattr(files.os, "statvfs", lambda p: Full())
+    with pytest.raises(StorageError, match=r"4 shard file\(s\) will take about .* MB but .* has 0.004096 MB free") as e:
+        run_sweep(spec, out, workers=0)
+    assert e.value.exit_code == 4 and need > 4096 and list(out.iterdir()) == []
+    monkeypatch.setattr(files.os, "statvfs", real)
+    run_sweep(spec, out, workers=0)
+    assert all((out / f"shard-{i:05d}.h5").stat().st_size <= shard_bytes(spec, i) for i in range(spec.shard_count))
+    monkeypatch.setattr(files.os, "statvfs", lambda p: Full())
+    assert run_sweep(spec, out, workers=0).skipped == [0, 1, 2, 3]
+
+
 def test_a_sweep_whose_manifest_was_lost_continues_from_its_shards(tmp_path: Path) -> None:
     """A folder whose manifest is gone: the same spec continues from its finished shards (verified, not run again;
     the manifest made anew), with a pad taken out of a shard beside them; shards of another spec, or an unfinished

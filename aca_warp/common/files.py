@@ -407,10 +407,10 @@ def check_output_folder(path: str | Path) -> Path:
     return p
 
 
-def check_room(folder: str | Path, need: float, what: str) -> None:
+def check_room(folder: str | Path, need: float, what: str, *, whose: str = "the run's file") -> None:
     """Refuse a run whose file (``need`` bytes on disk, as the run's plan estimates it) exceeds the space free to
     this user in ``folder``: :class:`StorageError` (exit 4) before anything is written. ``what`` names the run's
-    options that shrink it. Filesystems without ``statvfs`` figures pass."""
+    options that shrink it, ``whose`` the files (a sweep's shards). Filesystems without ``statvfs`` figures pass."""
     try:
         st = os.statvfs(folder)
     except OSError:
@@ -418,7 +418,7 @@ def check_room(folder: str | Path, need: float, what: str) -> None:
     free = st.f_bavail * st.f_frsize
     if st.f_blocks and need > free:
         err = StorageError(
-            f"the run's file will take about {need / 1e6:.4g} MB but {folder} has {free / 1e6:.4g} MB free; nothing "
+            f"{whose} will take about {need / 1e6:.4g} MB but {folder} has {free / 1e6:.4g} MB free; nothing "
             f"was written: make room, choose another output folder or record less ({what})"
         )
         err.errno = errno.ENOSPC  # type: ignore[attr-defined]

@@ -33,7 +33,7 @@ from aca_warp.sweep.cluster import (
 from aca_warp.sweep.manifest import MANIFEST, SweepResult, _Book, _one_line, prepare_dir
 from aca_warp.sweep.overlap import PIPELINE_DEPTH, ShardCancelled, ShardContext
 from aca_warp.sweep.prepare import PreparedShard, Preparer, check_runs
-from aca_warp.sweep.shard import run_shard, shard_name
+from aca_warp.sweep.shard import run_shard, shard_bytes, shard_name
 from aca_warp.sweep.spec import SweepError, SweepSpec
 
 
@@ -89,10 +89,13 @@ def run_sweep(
         if scheduler is not None and client is None:
             check_scheduler(scheduler)  # a bad address or no answer: one line, nothing written
         out.mkdir(parents=True, exist_ok=True)
-        from aca_warp.common.files import locked_output
+        from aca_warp.common.files import check_room, locked_output
 
         # one sweep per directory: held until the last shard is recorded
         with locked_output(out / MANIFEST, what="wait for that sweep to finish or stop it"):
+            missing = [i for i in range(spec.shard_count) if overwrite or not (out / shard_name(i)).is_file()]
+            room = "a larger run.sample_dt or a shorter run.duration"
+            check_room(out, sum(shard_bytes(spec, i) for i in missing), room, whose=f"{len(missing)} shard file(s)")
             manifest = prepare_dir(spec, out, overwrite=overwrite)
             book = _Book(spec, out, manifest, say)
             book.result.workers = 0

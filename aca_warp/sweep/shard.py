@@ -251,7 +251,7 @@ def run_shard(
         cap = prepared.capacity if batches else cap
     final = Path(out_dir) / shard_name(index)
     partial = final.with_name(final.name + ".partial")
-    n_samples = max(1, round(spec.duration / spec.base.record.sample_dt)) + 1
+    n_samples = max(1, round(spec.duration / spec.base.record.sample_dt)) + 1  # (shard_bytes counts them so)
     lock = OutputLock.acquire(final, what="a worker of another sweep still writes this shard")
     tmp = new_path(partial)
     out = writer = None
@@ -437,6 +437,20 @@ def _run_batch(work: _Work, scenes: list[Scene], b0: int, prepared: PreparedBatc
     clock.span("setup", began, began + res.compile_time)
     clock.span("kernel", began + res.compile_time, ended)
     return res, began
+
+
+def shard_bytes(spec: SweepSpec, index: int) -> int:
+    """About how many bytes shard ``index``'s file takes once written [bytes]: every global output of every pad in
+    whole HDF5 chunks (float64, a pad's row cut in chunks of up to 4096 samples), the time, the parameters, the spec
+    the file stores, and 128 KiB for its other attributes and headers (most of a small shard's file)."""
+    from aca_warp.hf.recorder import GLOBAL_NAMES
+
+    a, b = spec.shard_range(index)
+    samples = max(1, round(spec.duration / spec.base.record.sample_dt)) + 1  # as the shard's run counts them
+    chunk = min(samples, 4096)
+    stored = -(-samples // chunk) * chunk
+    spec_text = len(json.dumps(spec.doc, default=str))
+    return 8 * ((b - a) * (len(GLOBAL_NAMES) * stored + len(spec.parameters) + 2) + stored) + spec_text + 2**17
 
 
 def shard_finished(path: Path, spec_hash: str, start: int, stop: int, patch_data: str | None = None) -> str | None:
