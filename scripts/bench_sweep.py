@@ -370,7 +370,9 @@ def preparations(shards: list[dict]) -> dict:
     ``first``, the pool's preparations begun before its first one had finished (``prepare_ahead``), and ``later``,
     the rest; ``handover_first`` and ``handover_later``, what each of those cost its task before the kernel (reading
     it, ``prepare``; ``upload``; ``setup``); ``own``, a shard its task made itself (``prepare``, ``build``,
-    ``setup``)."""
+    ``setup``); ``pool_begun`` and ``pool_ready``, when each pool process that made a shard of the call started and
+    was ready (its kernels loaded) on the call's clock, ``pool_warp`` its start's time to Warp started (the phases
+    ``pool_start`` and ``pool_warp`` of the shard it made first; a pool kept from an earlier call has none)."""
 
     def took(ph: dict, *names: str) -> float:
         return sum(ph[k][1] - ph[k][0] for k in names if k in ph)
@@ -383,6 +385,10 @@ def preparations(shards: list[dict]) -> dict:
         out[wave].append(took(ph, "prepare_ahead"))
         out[f"handover_{wave}"].append(took(ph, "prepare", "upload", "setup"))
     out["own"] = [took(s["phases"], "prepare", "build", "setup") for s in shards if "build" in s["phases"]]
+    started = [s["phases"] for s in shards if "pool_start" in s["phases"]]
+    out["pool_begun"] = [ph["pool_start"][0] for ph in started]
+    out["pool_ready"] = [ph["pool_start"][1] for ph in started]
+    out["pool_warp"] = [took(ph, "pool_warp") for ph in started]
     return out
 
 
@@ -545,10 +551,16 @@ def made_by(prep: dict) -> str:
 
     if not prep:
         return ""
+    starts = ""
+    if prep.get("pool_ready"):
+        starts = (
+            f"; pool processes begun {span(prep['pool_begun'])} into the call, ready {span(prep['pool_ready'])} "
+            f"(Warp started after {span(prep['pool_warp'])})"
+        )
     return (
         f"; shards made by the pool before its first was done {span(prep['first'])} (their hand-over "
         f"{span(prep['handover_first'])}), later {span(prep['later'])} (hand-over {span(prep['handover_later'])}), "
-        f"by their tasks {span(prep['own'])}"
+        f"by their tasks {span(prep['own'])}{starts}"
     )
 
 

@@ -90,6 +90,11 @@ def test_prepared_shards_give_the_same_files(tmp_path: Path, overlap: bool) -> N
         for s in res.summaries:  # a shard prepared ahead is uploaded, one prepared in its task built
             assert ("upload" in s["timings"]) == ("prepare_ahead" in s["timings"]) != ("build" in s["timings"])
         assert prepare > 0 or all("prepare_ahead" not in s["timings"] for s in res.summaries)
+        started = [s["timings"]["spans"] for s in res.summaries if "pool_start" in s["timings"]["spans"]]
+        assert len(started) <= prepare and (prepare == 0 or any("prepare_ahead" in s["timings"] for s in res.summaries))
+        for spans in started:  # the first shard a pool process made carries that process's start, before its work
+            begun, warp, ready = spans["pool_warp"] + spans["pool_start"][1:]
+            assert spans["pool_start"][0] == begun <= warp <= ready <= spans["prepare_ahead"][0]
         runs[prepare] = _outputs(out)
     for k, v in runs[0].items():
         assert v.tobytes() == runs[2][k].tobytes(), k
@@ -669,8 +674,8 @@ def _until(done, seconds: float = 120.0) -> None:
 
 def test_bench_sweep_preparations() -> None:
     """scripts/bench_sweep.py's account of who made a call's shards: the pool's preparations begun before its first
-    had finished (the first wave) apart from the later ones, each with its hand-over, and the shards their tasks made
-    themselves; in words in the Markdown line."""
+    had finished (the first wave) apart from the later ones, each with its hand-over, the shards their tasks made
+    themselves, and the start of each pool process that made a shard; in words in the Markdown line."""
     from scriptload import load_script
 
     bench = load_script("bench_sweep")
@@ -680,7 +685,14 @@ def test_bench_sweep_preparations() -> None:
 
     shards = [
         shard(prepare=(0.0, 0.05), build=(0.1, 0.3), setup=(0.3, 0.4), kernel=(0.4, 0.7)),
-        shard(prepare_ahead=(0.2, 0.6), prepare=(0.7, 0.75), upload=(0.75, 0.77), setup=(0.77, 0.78)),
+        shard(
+            prepare_ahead=(0.2, 0.6),
+            prepare=(0.7, 0.75),
+            upload=(0.75, 0.77),
+            setup=(0.77, 0.78),
+            pool_warp=(0.01, 0.15),
+            pool_start=(0.01, 0.19),
+        ),
         shard(prepare_ahead=(0.55, 0.9), prepare=(1.0, 1.1), upload=(1.1, 1.12), setup=(1.12, 1.13)),
         shard(prepare_ahead=(0.6, 0.85), prepare=(1.2, 1.25), upload=(1.25, 1.26), setup=(1.26, 1.27)),
     ]
@@ -688,12 +700,14 @@ def test_bench_sweep_preparations() -> None:
     assert p["first"] == pytest.approx([0.4, 0.35]) and p["later"] == pytest.approx([0.25])
     assert p["handover_first"] == pytest.approx([0.08, 0.13]) and p["handover_later"] == pytest.approx([0.07])
     assert p["own"] == pytest.approx([0.35])
+    assert p["pool_begun"] == [0.01] and p["pool_ready"] == [0.19] and p["pool_warp"] == pytest.approx([0.14])
     text = bench.made_by(p)
+    assert "pool processes begun 1, 0.01–0.01 s into the call, ready 1, 0.19–0.19 s (Warp started after 1, " in text
     assert "before its first was done 2, 0.35–0.40 s (their hand-over 2, 0.08–0.13 s)" in text, text
     assert "later 1, 0.25–0.25 s" in text and "by their tasks 1, 0.35–0.35 s" in text
-    assert bench.preparations([shards[0]])["first"] == [] and "pool before its first was done none" in bench.made_by(
-        bench.preparations([shards[0]])
-    )
+    alone = bench.made_by(bench.preparations([shards[0]]))
+    assert bench.preparations([shards[0]])["first"] == [] and "pool before its first was done none" in alone
+    assert "pool processes" not in alone
 
 
 def test_bench_sweep_kinds_and_steps() -> None:

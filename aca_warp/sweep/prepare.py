@@ -157,6 +157,8 @@ class PreparedShard:
         span: Wall-clock times (``time.time()``) the preparation began and ended [s].
         capacity: Pads per batch the batches were cut for (0: no batches made; the task builds its models).
         batches: The shard's batches, in row order (empty: the task builds them).
+        process_start: With the first shard a pool process prepares, that process's start (``time.time()`` [s]):
+            begun, Warp started, ready (its kernels loaded); empty otherwise.
     """
 
     index: int
@@ -167,6 +169,7 @@ class PreparedShard:
     span: tuple[float, float] = (0.0, 0.0)
     capacity: int = 0
     batches: list[PreparedBatch] = field(default_factory=list)
+    process_start: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -220,7 +223,9 @@ def prepare_shard(
         batches = [
             prepare_batch(spec, scenes, b0, min(b0 + cap, len(scenes)), device) for b0 in range(0, len(scenes), cap)
         ]
-    return PreparedShard(index, spec, pads, scenes, time.perf_counter() - t, (began, time.time()), cap, batches)
+    started, _STARTED[:] = tuple(_STARTED), []  # with this process's first shard only
+    span = (began, time.time())
+    return PreparedShard(index, spec, pads, scenes, time.perf_counter() - t, span, cap, batches, started)
 
 
 def prepare_batch(spec: SweepSpec, scenes: list[Scene], start: int, stop: int, device: str) -> PreparedBatch:
@@ -298,6 +303,8 @@ _PRELOAD = [
 
 
 _UNUSABLE: set[str] = set()  # devices this pool process could not start Warp on: it makes scenes only
+# this pool process's start (time.time() [s]): begun, Warp started, ready (kernels loaded); handed with its first shard
+_STARTED: list[float] = []
 
 
 def _spooled(prepare: Callable[[int], PreparedShard], spool: str, index: int) -> PreparedShard | SpooledShard:
@@ -381,12 +388,15 @@ def _start_process(device: str | None, client: int) -> None:
     started, the neighbour search's kernels loaded there and the checks' CPU kernels, before the first shard. A
     device this process cannot use (a GPU in exclusive-process mode, held by its worker) is left to the tasks: this
     process makes scenes only."""
+    begun = time.time()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     threading.Thread(target=_end_with, args=(client,), name="aca-warp-client-watch", daemon=True).start()
+    warp = begun
     if device is not None:
         from aca_warp.common.devices import init_warp, load_kernels
 
         init_warp()  # before any import that starts Warp: quietly
+        warp = time.time()
         from aca_warp.kernels import neighbours, step_bound
 
         load_kernels([step_bound], "cpu")  # the runs' checks
@@ -394,6 +404,7 @@ def _start_process(device: str | None, client: int) -> None:
             load_kernels([neighbours], device)
         except Exception:  # noqa: BLE001  (no context there: the tasks build their models)
             _UNUSABLE.add(device)
+    _STARTED[:] = [begun, warp, time.time()]
 
 
 class Preparer:

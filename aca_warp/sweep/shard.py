@@ -97,7 +97,9 @@ the writer thread, beside the run); turn_wait: waiting for the device's turn; wr
 the writer to finish; close: final attributes, close and rename (not in the file's own copy); task: the whole task.
 run_start, run_end: wall-clock time (time.time()) when the run began and ended [s]. spans: per phase the wall-clock
 times it first began and last ended, [start, end] [s] (prepare_ahead: in the pool; write: the first and last write;
-setup and kernel: of the run calls), so that shards' phases on one device can be laid on one time line."""
+setup and kernel: of the run calls), so that shards' phases on one device can be laid on one time line; with the
+first shard a pool process prepared, also that process's start: pool_warp, from its start to Warp started, and
+pool_start, to its kernels loaded."""
 
 
 def _create_shard_file(
@@ -241,6 +243,10 @@ def run_shard(
         else:
             clock.add("prepare_ahead", prepared.seconds)
             clock.span("prepare_ahead", *prepared.span)
+            if prepared.process_start:  # the first shard its pool process made: that process's start
+                begun, warp, ready = prepared.process_start
+                clock.span("pool_warp", begun, warp)
+                clock.span("pool_start", begun, ready)
         if prepared.index != index:
             raise ValueError(f"shard {index} was handed the scenes of shard {prepared.index}")
         spec, pads, scenes = prepared.spec, prepared.pads, prepared.scenes
