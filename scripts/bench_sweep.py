@@ -370,9 +370,10 @@ def preparations(shards: list[dict]) -> dict:
     ``first``, the pool's preparations begun before its first one had finished (``prepare_ahead``), and ``later``,
     the rest; ``handover_first`` and ``handover_later``, what each of those cost its task before the kernel (reading
     it, ``prepare``; ``upload``; ``setup``); ``own``, a shard its task made itself (``prepare``, ``build``,
-    ``setup``); ``pool_begun`` and ``pool_ready``, when each pool process that made a shard of the call started and
-    was ready (its kernels loaded) on the call's clock, ``pool_warp`` its start's time to Warp started (the phases
-    ``pool_start`` and ``pool_warp`` of the shard it made first; a pool kept from an earlier call has none)."""
+    ``setup``); ``pool_begun`` and ``pool_ready``, when each pool process whose first shard the call used started
+    and was ready (its kernels loaded) on the call's clock, ``pool_warp`` its start's time to Warp started (the
+    phases ``pool_start`` and ``pool_warp`` of that shard; a process whose first shard went unused, its task having
+    made the shard, and a pool kept from an earlier call have none)."""
 
     def took(ph: dict, *names: str) -> float:
         return sum(ph[k][1] - ph[k][0] for k in names if k in ph)

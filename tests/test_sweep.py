@@ -489,8 +489,8 @@ def test_a_sweep_its_folder_has_no_room_for_is_refused_before_its_shards(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Where the folder's free space is less than the shard files to write (the estimate of shard_bytes, which a
-    written shard does not exceed), the sweep is refused, exit 4, before a shard or a manifest is written; a sweep
-    whose shards are all written needs no room."""
+    written shard does not exceed), the sweep is refused, exit 4, before any shard is written (its manifest says them
+    pending); a sweep whose shards are all written needs no room, with --overwrite too (its own shards are kept)."""
     import os
 
     from aca_warp.common import files
@@ -499,21 +499,25 @@ def test_a_sweep_its_folder_has_no_room_for_is_refused_before_its_shards(
 
     out = tmp_path / "sw"
     spec = _spec()
-    need = sum(shard_bytes(spec, i) for i in range(spec.shard_count))
+    need = shard_bytes(spec, list(range(spec.shard_count)))
     real = os.statvfs
 
     class Full:  # 4 KiB free
         f_bavail, f_frsize, f_blocks = 1, 4096, 10
 
     monkeypatch.setattr(files.os, "statvfs", lambda p: Full())
-    with pytest.raises(StorageError, match=r"4 shard file\(s\) will take about .* MB but .* has 0.004096 MB free") as e:
+    with pytest.raises(
+        StorageError, match=r"the 4 shard file\(s\) to write will take about .* has 0.004096 MB free; no "
+    ) as e:
         run_sweep(spec, out, workers=0)
-    assert e.value.exit_code == 4 and need > 4096 and list(out.iterdir()) == []
+    assert e.value.exit_code == 4 and need > 4096 and not list(out.glob("shard-*"))
+    assert {s["state"] for s in json.loads((out / "manifest.json").read_text())["shards"]} == {"pending"}
     monkeypatch.setattr(files.os, "statvfs", real)
     run_sweep(spec, out, workers=0)
-    assert all((out / f"shard-{i:05d}.h5").stat().st_size <= shard_bytes(spec, i) for i in range(spec.shard_count))
+    assert all((out / f"shard-{i:05d}.h5").stat().st_size <= shard_bytes(spec, [i]) for i in range(spec.shard_count))
     monkeypatch.setattr(files.os, "statvfs", lambda p: Full())
     assert run_sweep(spec, out, workers=0).skipped == [0, 1, 2, 3]
+    assert run_sweep(spec, out, workers=0, overwrite=True).skipped == [0, 1, 2, 3]
 
 
 def test_a_sweep_whose_manifest_was_lost_continues_from_its_shards(tmp_path: Path) -> None:
@@ -651,6 +655,8 @@ def test_the_pads_whose_runs_are_checked_where_a_sweep_starts() -> None:
     }
     got = pads(five)  # 32 pads: each parameter's ends are pads 0 and one with only it raised, and the last
     assert got == sorted({0, 31, 16, 8, 4, 2, 1}), got
+    text = {"initial.state": ["equilibrium", "rest"]} | {k: two[k][::2] for k in two}  # 2 x 2 x 2, text outermost
+    assert pads(text) == [0, 1, 2, 3, 7]  # the numeric corners with the first text value, and the last pad
 
 
 @pytest.mark.parametrize("parameter", [{"range": [20, 20]}, {"range": [5, 1]}, []])

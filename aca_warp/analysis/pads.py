@@ -48,10 +48,16 @@ def shard_pads(path: str | Path) -> np.ndarray | None:
         return None
 
 
+HELD_BY_FILES = 256  # shard files beside a shard looked into for the one that holds a pad (an error's clause)
+
+
 def _held_by(shard: Path, pad: int) -> str:
     """The clause naming the other shard file of ``shard``'s folder that holds pad ``pad`` (its ``/pads/index``),
-    or "" (none does, or none is readable)."""
-    for other in sorted(shard.parent.glob("shard-*.h5")):
+    or "" (none does, none is readable, or the folder holds more than :data:`HELD_BY_FILES` of them)."""
+    others = sorted(shard.parent.glob("shard-*.h5"))
+    if len(others) > HELD_BY_FILES:
+        return ""
+    for other in others:
         held = None if other.resolve() == shard.resolve() else shard_pads(other)
         if held is not None and bool((held == pad).any()):
             return f": it is in {other}"

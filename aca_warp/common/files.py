@@ -236,7 +236,8 @@ def _take(lp: Path, p: Path, what: str) -> int | None:
             os.close(fd)
             continue
         os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()} {socket.gethostname()} {' '.join(sys.argv)[:200]}\n".encode())
+        command = " ".join(sys.argv).replace("\n", " ")[:200]  # one line: the holder's note is read back as one
+        os.write(fd, f"{os.getpid()} {socket.gethostname()} {command}\n".encode())
         return fd
 
 
@@ -407,10 +408,13 @@ def check_output_folder(path: str | Path) -> Path:
     return p
 
 
-def check_room(folder: str | Path, need: float, what: str, *, whose: str = "the run's file") -> None:
+def check_room(
+    folder: str | Path, need: float, what: str, *, whose: str = "the run's file", written: str = "nothing was written"
+) -> None:
     """Refuse a run whose file (``need`` bytes on disk, as the run's plan estimates it) exceeds the space free to
     this user in ``folder``: :class:`StorageError` (exit 4) before anything is written. ``what`` names the run's
-    options that shrink it, ``whose`` the files (a sweep's shards). Filesystems without ``statvfs`` figures pass."""
+    options that shrink it, ``whose`` the files (a sweep's shards) and ``written`` what was written by then.
+    Filesystems without ``statvfs`` figures pass."""
     try:
         st = os.statvfs(folder)
     except OSError:
@@ -418,8 +422,8 @@ def check_room(folder: str | Path, need: float, what: str, *, whose: str = "the 
     free = st.f_bavail * st.f_frsize
     if st.f_blocks and need > free:
         err = StorageError(
-            f"{whose} will take about {need / 1e6:.4g} MB but {folder} has {free / 1e6:.4g} MB free; nothing "
-            f"was written: make room, choose another output folder or record less ({what})"
+            f"{whose} will take about {need / 1e6:.4g} MB but {folder} has {free / 1e6:.4g} MB free; {written}: "
+            f"make room, choose another output folder or record less ({what})"
         )
         err.errno = errno.ENOSPC  # type: ignore[attr-defined]
         raise err
@@ -604,10 +608,9 @@ def all_or_nothing() -> Iterator[None]:
     try:
         yield
     except BaseException:
-        with deferred():  # a second signal cannot cut the putting back short
-            stranded = book.undo()
-        for line in stranded:
-            print(f"aca-warp: {line}", file=sys.stderr)
+        with deferred():  # a signal cannot cut the putting back, nor the lines on what it could not, short
+            for line in book.undo():
+                print(f"aca-warp: {line}", file=sys.stderr)
         raise
     else:
         with deferred(completes=True):  # the new files are final: a signal from here on does not undo them

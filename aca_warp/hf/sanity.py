@@ -69,10 +69,11 @@ def check_contact(model: PadModel, *, accept: bool) -> None:
     problem = contact_problem(model)
     if problem is None:
         return
+    accept_it = option("accept_unphysical=True", "--accept-unphysical", "")  # (a sweep runs no unphysical pad)
     if accept:
-        warn(f"{problem} (accepted: {option('accept_unphysical=True', '--accept-unphysical')})")
+        warn(f"{problem} (accepted: {accept_it})")
         return
-    raise PhysicsError(f"{problem}; {option('accept_unphysical=True', '--accept-unphysical')} runs it anyway")
+    raise PhysicsError(f"{problem}; {accept_it} runs it anyway" if accept_it else problem)
 
 
 def mu_bounds(model: PadModel) -> np.ndarray:

@@ -53,13 +53,15 @@ LOOPBACK = "127.0.0.1"  # the only address a local cluster binds
 # Run in every local worker process as it starts: ignore SIGINT (Ctrl-C in a terminal reaches the whole process
 # group, and the client alone handles it: it stops the cluster and marks the manifest; a worker would die with a
 # traceback instead), start Warp quietly, and drop two of Dask's worker logs: the heartbeat errors a worker logs when
-# the scheduler has gone first (a stopped sweep's shutdown; a lost scheduler reaches the client), and "Compute
-# Failed" with its traceback for a shard task that raised (its one line is the sweep's, on stderr and in the manifest).
+# the scheduler has gone first (a stopped sweep's shutdown; a lost scheduler reaches the client), and, unless
+# ACA_WARP_VERBOSE is set (aca-warp --verbose), "Compute Failed" with its traceback for a shard task that raised (its
+# one line is the sweep's, on stderr and in the manifest).
 _WORKER_PRELOAD = (
     "import signal\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\n"
-    "import logging\nlogging.getLogger('distributed.worker').addFilter(\n"
-    "    lambda r: not r.getMessage().startswith(('Failed to communicate with scheduler during heartbeat', "
-    "'Compute Failed')))\n"
+    "import logging, os\n"
+    "_drop = ('Failed to communicate with scheduler during heartbeat',)\n"
+    "if os.environ.get('ACA_WARP_VERBOSE', '') in ('', '0'):\n    _drop += ('Compute Failed',)\n"
+    "logging.getLogger('distributed.worker').addFilter(lambda r: not r.getMessage().startswith(_drop))\n"
     "from aca_warp.common.devices import init_warp\ninit_warp()\n"
 )
 
@@ -304,8 +306,8 @@ def check_scheduler(address: str, timeout: float | None = None) -> None:
         raise SweepError(
             f"--scheduler {address!r} is not a Dask scheduler address ({e}); e.g. tcp://HOST:8786"
         ) from None
-    except OSError as e:
-        why = "" if isinstance(e, TimeoutError) or "Timed out" in str(e) else f" ({e})"
+    except (OSError, asyncio.TimeoutError) as e:  # (asyncio's is no OSError before Python 3.11)
+        why = "" if isinstance(e, (TimeoutError, asyncio.TimeoutError)) or "Timed out" in str(e) else f" ({e})"
         raise SweepError(
             f"no Dask scheduler answered at {address} within {timeout:g} s{why}; start it (dask scheduler) or check "
             "the address"
@@ -328,8 +330,8 @@ def _refused(address: str, timeout: float) -> None:
         return
     if scheme not in ("tcp", "tls"):
         return
-    try:
-        socket.create_connection((host, port), timeout=timeout).close()
+    try:  # a refusal comes at once; a host that drops the connection is left to Dask's connect and its timeout
+        socket.create_connection((host, port), timeout=min(timeout, 1.0)).close()
     except ConnectionRefusedError:
         raise SweepError(
             f"nothing listens at {address} (connection refused); start the Dask scheduler there (dask scheduler) or "

@@ -58,7 +58,7 @@ from aca_warp.common.links import create_new, private_dir
 from aca_warp.scene import Scene
 from aca_warp.scene.parts import pairs_within
 from aca_warp.sweep.overlap import ShardCancelled
-from aca_warp.sweep.spec import SweepSpec, _resolve
+from aca_warp.sweep.spec import DRAW_PARAMETERS, SweepSpec, _resolve
 
 if TYPE_CHECKING:  # the command line's parser imports this module: no Warp until a sweep runs
     from aca_warp.hf.loop import Preflight
@@ -213,16 +213,19 @@ def prepare_shard(
     """Resolve the spec ``doc`` (overrides applied) and make the scenes of shard ``index``; with ``device`` (the run's
     device, or one of its kind: the neighbour search runs there) also its batches (:func:`prepare_batch`), cut by
     the capacity of ``device`` (:func:`shard_capacity`)."""
+    from aca_warp.common.errors import sweep_spec
+
     t, began = time.perf_counter(), time.time()
-    spec = _resolve(copy.deepcopy(doc), Path(base_dir), check=False)
-    pads = spec.shard_pads(index)
-    scenes = spec.scenes(pads)
-    cap, batches = 0, []
-    if device is not None and device not in _UNUSABLE:
-        cap = shard_capacity(scenes, spec.precision, device, memory_fraction, sharing)
-        batches = [
-            prepare_batch(spec, scenes, b0, min(b0 + cap, len(scenes)), device) for b0 in range(0, len(scenes), cap)
-        ]
+    with sweep_spec():  # its refusals name the spec's keys (run.dt), not options a sweep does not have
+        spec = _resolve(copy.deepcopy(doc), Path(base_dir), check=False)
+        pads = spec.shard_pads(index)
+        scenes = spec.scenes(pads)
+        cap, batches = 0, []
+        if device is not None and device not in _UNUSABLE:
+            cap = shard_capacity(scenes, spec.precision, device, memory_fraction, sharing)
+            batches = [
+                prepare_batch(spec, scenes, b0, min(b0 + cap, len(scenes)), device) for b0 in range(0, len(scenes), cap)
+            ]
     started, _STARTED[:] = tuple(_STARTED), []  # with this process's first shard only
     span = (began, time.time())
     return PreparedShard(index, spec, pads, scenes, time.perf_counter() - t, span, cap, batches, started)
@@ -256,12 +259,9 @@ def check_pads(spec: SweepSpec) -> list[int]:
     pads = {0, spec.pad_count - 1}
     ends: dict[str, tuple[Any, Any]] = {}
     for key, values in spec.parameters.items():
-        if key in ("patches.seed", "initial.seed"):
+        if key in DRAW_PARAMETERS or isinstance(values[0], str):  # draws and text (initial.state) are no ranges
             continue
-        try:
-            ends[key] = (min(values), max(values))
-        except TypeError:  # values without an order (text): any pad
-            continue
+        ends[key] = (min(values), max(values))
         pads.update(values.index(v) for v in ends[key])
     keys = list(ends)
     columns = [np.asarray(spec.parameters[k]) for k in keys]  # (pads,) each
@@ -278,17 +278,22 @@ def check_runs(spec: SweepSpec) -> None:
     """Refuse, before a sweep writes anything, a run its pads cannot take: the checks of a run (the step as the
     run takes it against the stable-step estimate, the int32 step counts, the contact solution:
     :func:`~aca_warp.hf.loop.preflight`) on the pads of :func:`check_pads`, one host model each with its neighbours
-    searched on the CPU. A pad failing them is one line that names it (a SweepError,
-    StabilityError or PhysicsError as raised); every shard makes the same checks for each of its pads."""
-    from aca_warp.common.errors import AcaError, sweep_spec
+    searched on the CPU. A pad failing them is one line that names it (its error as raised: a StabilityError, a
+    PhysicsError); every shard makes the same checks for each of its pads. A pad whose scene cannot be made (a bad
+    combination of good values) is left to its shard, which fails with the reason."""
+    from aca_warp.common.errors import AcaError, SceneError, sweep_spec
 
-    for p in check_pads(spec):
-        scene = spec.scene(p)
-        try:
-            with sweep_spec():  # the messages name the spec's keys (run.dt)
+    with sweep_spec():  # the messages name the spec's keys (run.dt)
+        for p in check_pads(spec):
+            try:
+                scene = spec.scene(p)
+            except SceneError:
+                continue
+            try:
                 prepare_batch(spec, [scene], 0, 1, "cpu")
-        except AcaError as e:
-            raise type(e)(f"pad {p} ({spec.pad_values(p)}): {e}") from None
+            except AcaError as e:
+                e.args = (f"pad {p} ({spec.pad_values(p)}): {e}",)
+                raise e from None
 
 
 # what a pool process runs, imported by the fork server (Warp's module, not its runtime: nothing is started there)

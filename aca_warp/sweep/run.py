@@ -93,11 +93,15 @@ def run_sweep(
 
         # one sweep per directory: held until the last shard is recorded
         with locked_output(out / MANIFEST, what="wait for that sweep to finish or stop it"):
-            missing = [i for i in range(spec.shard_count) if overwrite or not (out / shard_name(i)).is_file()]
-            room = "a larger run.sample_dt or a shorter run.duration"
-            check_room(out, sum(shard_bytes(spec, i) for i in missing), room, whose=f"{len(missing)} shard file(s)")
             manifest = prepare_dir(spec, out, overwrite=overwrite)
             book = _Book(spec, out, manifest, say)
+            check_room(  # after prepare_dir: the shards it will run, the files of another sweep it removed gone
+                out,
+                shard_bytes(spec, book.todo),
+                "a larger run.sample_dt or a shorter run.duration",
+                whose=f"the {len(book.todo)} shard file(s) to write",
+                written="no shard was written (run the same command again when there is room)",
+            )
             book.result.workers = 0
             if book.todo:
                 options = {"memory_fraction": memory_fraction, "overlap": overlap, "prepare": prepare, "early": early}

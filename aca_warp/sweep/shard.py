@@ -222,8 +222,40 @@ def run_shard(
     samples behind the run (a :class:`ChunkWriter` thread) and take the device in turns (:class:`KernelTurn`,
     from the first upload or build to the end of the run), so that the tasks of a process overlap their waiting and
     writing with each other's runs (``ctx`` overrides it, with a cancel event). Same results either way. Returns a
-    summary for the manifest, with the time per phase (``timings``, :data:`TIMING_DOC`).
+    summary for the manifest, with the time per phase (``timings``, :data:`TIMING_DOC`). Its refusals name the spec's
+    keys (``run.dt``), not options a sweep does not have (:func:`~aca_warp.common.errors.sweep_spec`).
     """
+    from aca_warp.common.errors import sweep_spec
+
+    with sweep_spec():
+        return _run_shard(
+            doc,
+            base_dir,
+            out_dir,
+            index,
+            device,
+            memory_fraction=memory_fraction,
+            sharing=sharing,
+            overlap=overlap,
+            ctx=ctx,
+            prepared=prepared,
+        )
+
+
+def _run_shard(
+    doc: dict,
+    base_dir: str,
+    out_dir: str,
+    index: int,
+    device: str = "cpu",
+    *,
+    memory_fraction: float = 0.5,
+    sharing: int = 1,
+    overlap: bool = False,
+    ctx: ShardContext | None = None,
+    prepared: PreparedShard | SpooledShard | None = None,
+) -> dict:
+    """:func:`run_shard`'s work."""
     import warp as wp
 
     from aca_warp.common.devices import init_warp
@@ -257,7 +289,7 @@ def run_shard(
         cap = prepared.capacity if batches else cap
     final = Path(out_dir) / shard_name(index)
     partial = final.with_name(final.name + ".partial")
-    n_samples = max(1, round(spec.duration / spec.base.record.sample_dt)) + 1  # (shard_bytes counts them so)
+    n_samples = shard_samples(spec)
     lock = OutputLock.acquire(final, what="a worker of another sweep still writes this shard")
     tmp = new_path(partial)
     out = writer = None
@@ -445,18 +477,23 @@ def _run_batch(work: _Work, scenes: list[Scene], b0: int, prepared: PreparedBatc
     return res, began
 
 
-def shard_bytes(spec: SweepSpec, index: int) -> int:
-    """About how many bytes shard ``index``'s file takes once written [bytes]: every global output of every pad in
-    whole HDF5 chunks (float64, a pad's row cut in chunks of up to 4096 samples), the time, the parameters, the spec
-    the file stores, and 128 KiB for its other attributes and headers (most of a small shard's file)."""
+def shard_samples(spec: SweepSpec) -> int:
+    """The samples of a shard's run, t = 0 included."""
+    return max(1, round(spec.duration / spec.base.record.sample_dt)) + 1
+
+
+def shard_bytes(spec: SweepSpec, indices: list[int]) -> int:
+    """About how many bytes the files of shards ``indices`` take once written [bytes]: every global output of every
+    pad in whole HDF5 chunks (float64, a pad's row cut in chunks of up to 4096 samples), the time, the parameters, the
+    spec each file stores, and 128 KiB a file for its other attributes and headers (most of a small shard's file)."""
     from aca_warp.hf.recorder import GLOBAL_NAMES
 
-    a, b = spec.shard_range(index)
-    samples = max(1, round(spec.duration / spec.base.record.sample_dt)) + 1  # as the shard's run counts them
+    samples = shard_samples(spec)
     chunk = min(samples, 4096)
     stored = -(-samples // chunk) * chunk
-    spec_text = len(json.dumps(spec.doc, default=str))
-    return 8 * ((b - a) * (len(GLOBAL_NAMES) * stored + len(spec.parameters) + 2) + stored) + spec_text + 2**17
+    per_file = 8 * stored + len(json.dumps(spec.doc, default=str)) + 2**17
+    pads = sum(b - a for a, b in map(spec.shard_range, indices))
+    return 8 * pads * (len(GLOBAL_NAMES) * stored + len(spec.parameters) + 2) + len(indices) * per_file
 
 
 def shard_finished(path: Path, spec_hash: str, start: int, stop: int, patch_data: str | None = None) -> str | None:

@@ -579,7 +579,7 @@ def pack_order(parameters: dict[str, list], pack: str) -> np.ndarray | None:
 
 # parameters whose values select a random draw, not the geometry or the material: checked through the first and last
 # pad only (a sweep over 2048 patch seeds would otherwise make every layout here, in one process, before any run)
-_DRAW_PARAMETERS = frozenset({"patches.seed", "initial.seed"})
+DRAW_PARAMETERS = frozenset({"patches.seed", "initial.seed"})  # each value a draw, not a point of a range
 
 
 def _shares_base_physics(base: Scene, base_doc: dict, lists: dict[str, list]) -> bool:
@@ -606,11 +606,11 @@ def _shares_base_physics(base: Scene, base_doc: dict, lists: dict[str, list]) ->
 
 def _check_pads(spec: SweepSpec, lists: dict[str, list]) -> None:
     """Fail before any run: build the first and last pad and, for every value of every parameter but the seeds
-    (:data:`_DRAW_PARAMETERS`), one pad that has it (catches e.g. patches that do not fit; a bad combination of good
+    (:data:`DRAW_PARAMETERS`), one pad that has it (catches e.g. patches that do not fit; a bad combination of good
     values, or a seed whose draw fails, fails its shard at run time)."""
     check = {0, spec.pad_count - 1}
     for key, vals in lists.items():
-        if key in _DRAW_PARAMETERS:
+        if key in DRAW_PARAMETERS:
             continue
         first: dict[str, int] = {}
         distinct = len(set(map(repr, vals)))
