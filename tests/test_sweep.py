@@ -629,6 +629,27 @@ def test_a_step_a_pad_cannot_take_is_refused_where_the_sweep_starts(
     assert not (tmp_path / "o").exists()
 
 
+def test_a_pad_the_start_check_does_not_reach_fails_its_shard_in_the_spec_s_words(tmp_path: Path) -> None:
+    """A zip sweep whose middle pad (2000 N, M = 0.7: stable step 1.34e-8 s) is stiffer than its ends (the checked
+    pads): its shard fails at run time, and the reason names the spec's key for the step and no option a sweep has
+    not (--force); the other shards run."""
+    doc = small_sweep_doc(
+        "z",
+        count=12,
+        duration=1e-5,
+        parameters={"load.normal_force": [300.0, 2000.0, 3000.0], "friction.M": [0.7, 0.7, 0.6]},
+    )
+    doc["sweep"] |= {"mode": "zip", "shard_size": 1}
+    doc["run"] |= {"integrator": "symplectic-euler", "sample_dt": 1.2e-6, "dt": 1.36e-8}
+    res = run_sweep(load_spec(doc), tmp_path / "o", workers=0)
+    assert res.ran == [0, 2] and list(res.failed) == [1], res.failed
+    assert (
+        "choose a smaller run.dt or an implicit-friction integrator" in res.failed[1]
+        and "--force" not in res.failed[1]
+        and "force=True" not in res.failed[1]
+    )
+
+
 def test_the_pads_whose_runs_are_checked_where_a_sweep_starts() -> None:
     """check_pads: the first and last pad, each parameter's smallest and largest value, the corners of up to
     four parameters' ranges (else the pads where all are smallest or all largest); the seeds and text values are

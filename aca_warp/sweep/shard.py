@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from aca_warp.common.errors import sweep_spec
 from aca_warp.scene import Scene
 from aca_warp.sweep.overlap import ChunkWriter, KernelTurn, ShardCancelled, ShardContext
 from aca_warp.sweep.prepare import (
@@ -197,6 +198,7 @@ def _chunk_writer(f: Any, out: Any, n: int) -> Callable[[tuple[int, int, Any]], 
     return write
 
 
+@sweep_spec()  # its refusals name the spec's keys (run.dt), not options a sweep does not have
 def run_shard(
     doc: dict,
     base_dir: str,
@@ -225,37 +227,6 @@ def run_shard(
     summary for the manifest, with the time per phase (``timings``, :data:`TIMING_DOC`). Its refusals name the spec's
     keys (``run.dt``), not options a sweep does not have (:func:`~aca_warp.common.errors.sweep_spec`).
     """
-    from aca_warp.common.errors import sweep_spec
-
-    with sweep_spec():
-        return _run_shard(
-            doc,
-            base_dir,
-            out_dir,
-            index,
-            device,
-            memory_fraction=memory_fraction,
-            sharing=sharing,
-            overlap=overlap,
-            ctx=ctx,
-            prepared=prepared,
-        )
-
-
-def _run_shard(
-    doc: dict,
-    base_dir: str,
-    out_dir: str,
-    index: int,
-    device: str = "cpu",
-    *,
-    memory_fraction: float = 0.5,
-    sharing: int = 1,
-    overlap: bool = False,
-    ctx: ShardContext | None = None,
-    prepared: PreparedShard | SpooledShard | None = None,
-) -> dict:
-    """:func:`run_shard`'s work."""
     import warp as wp
 
     from aca_warp.common.devices import init_warp
