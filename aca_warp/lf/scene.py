@@ -21,6 +21,7 @@ from aca_warp.common import plausible
 from aca_warp.common.errors import SceneError, did_you_mean, option
 from aca_warp.scene import (
     GENERATOR_KINDS,
+    PAD_KINDS,
     PRESETS,
     Friction,
     Material,
@@ -440,7 +441,7 @@ def lf_scene_from_dict(doc: dict, *, name: str = "lf", allow_implausible: bool =
     allow = plausible.flag(t["scene"].get("allow_implausible", False)) or allow_implausible
     try:
         if not allow:  # before the pad's own checks (r_inner = 100 is a unit mistake before an ordering one)
-            check_numbers_plausible(t["pad"], "pad", {"r_inner": "length", "r_outer": "length"})
+            check_numbers_plausible(t["pad"], "pad", PAD_KINDS)
             check_numbers_plausible(t["patches"], "patches", GENERATOR_KINDS)
             check_numbers_plausible(t["lf"], "lf", LF_KINDS)
         pad = Pad(**t["pad"])

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from aca_warp.scene.files import (
     GENERATOR_KINDS,
+    PAD_KINDS,
     PRESETS,
     check_numbers_plausible,
     load_scene,
@@ -50,6 +51,7 @@ from aca_warp.scene.parts import (
 
 __all__ = [
     "GENERATOR_KINDS",
+    "PAD_KINDS",
     "HEIGHT_LAWS",
     "INITIAL_STATES",
     "PATCH_VARIABLES",

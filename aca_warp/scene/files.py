@@ -82,6 +82,7 @@ def write_patch_file(path: str | Path, patches: Patches) -> None:
 
 
 GENERATOR_KINDS = {"area_min": "area", "area_max": "area", "height": "height", "height_spread": "height"}
+PAD_KINDS = {"r_inner": "length", "r_outer": "length"}  # the [pad] keys whose plausibility is checked
 
 
 def check_numbers_plausible(table: dict, name: str, kinds: dict[str, str]) -> None:
@@ -129,7 +130,7 @@ def scene_from_dict(
     allow = plausible.flag(t["scene"].get("allow_implausible", False)) or allow_implausible
     pt = t["patches"]
     if not allow:  # before the pad's own checks: r_inner = 100 is a unit mistake before it is an ordering one
-        check_numbers_plausible(t["pad"], "pad", {"r_inner": "length", "r_outer": "length"})
+        check_numbers_plausible(t["pad"], "pad", PAD_KINDS)
         check_numbers_plausible(pt, "patches", GENERATOR_KINDS)
     pad = Pad(**t["pad"])
     if "file" in pt:

@@ -21,17 +21,18 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.common import plausible
 from aca_warp.common.bounds import MAX_PADS, read_toml
 from aca_warp.common.errors import AcaError, SceneError, did_you_mean, sweep_spec
 from aca_warp.scene import (
     GENERATOR_KINDS,
+    PAD_KINDS,
     PRESETS,
     Friction,
     Material,
     Pad,
     PatchGenerator,
     Scene,
+    check_numbers_plausible,
     preset_document,
     scene_from_dict,
     scene_to_dict,
@@ -643,15 +644,12 @@ def apply_parameters(base: Scene, base_doc: dict, values: dict[str, Any], *, nam
         groups.setdefault(PARAMETERS[key][1], {})[attr] = v
     changes: dict[str, Any] = {}
     pad = base.pad
+    if not base.allow_implausible:  # a radius in mm, an area in mm²: said so before they are compared
+        check_numbers_plausible(groups.get("pad", {}), "pad", PAD_KINDS)
+        check_numbers_plausible(groups.get("patches", {}), "patches", GENERATOR_KINDS)
     if "pad" in groups:
-        for attr in ("r_inner", "r_outer"):  # a radius typed in mm: said so before the radii are compared
-            if attr in groups["pad"]:
-                plausible.check(f"pad.{attr}", groups["pad"][attr], "length", allow=base.allow_implausible)
         pad = dataclasses.replace(base.pad, **groups["pad"])
         changes["pad"] = pad
-    for attr, kind in GENERATOR_KINDS.items():  # an area typed in mm²: said so before the areas are compared
-        if attr in groups.get("patches", {}):
-            plausible.check(f"patches.{attr}", groups["patches"][attr], kind, allow=base.allow_implausible)
     if "pad" in groups or "patches" in groups:
         gen_doc = dict(base_doc.get("patches", {}))
         gen_doc.update(groups.get("patches", {}))
