@@ -387,13 +387,19 @@ def probe_folder(folder: str | Path) -> None:
         probe.unlink(missing_ok=True)
 
 
+def folder_named(path: str | Path, error: type[AcaError] = SceneError) -> None:
+    """Refuse an output folder's empty name (``Path('')`` is the current folder: an unset variable in a script,
+    ``-o "$OUT"``) in one ``error`` line."""
+    if not os.fspath(path).strip():
+        raise error(f"output folder {os.fspath(path)!r} names no folder; give one (. for the current folder)")
+
+
 def check_output_folder(path: str | Path) -> Path:
     """An output folder (``plot -o DIR``, ``sweep -o DIR``; created later if missing): it must be named (an empty
     name would be the current folder: an unset variable in a script, ``-o "$OUT"``), must not be a file, and the
     folder that will hold it (itself, or its nearest existing parent) must take a new file (:func:`probe_folder`:
     exit 4 for a read-only or full file system, nothing written)."""
-    if not os.fspath(path).strip():
-        raise SceneError(f"output folder {os.fspath(path)!r} names no folder; give one (. for the current folder)")
+    folder_named(path)
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise SceneError(f"output {p} exists and is not a folder")

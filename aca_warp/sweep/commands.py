@@ -160,9 +160,10 @@ def _run_words(spec: Any) -> str:
     shortened is said with it)."""
     from aca_warp.hf.options import STEP_CONTROLLED
     from aca_warp.hf.solver import fitted_step
+    from aca_warp.sweep.shard import shard_samples
 
     sample = spec.base.record.sample_dt
-    covered = max(1, round(spec.duration / sample)) * sample
+    covered = (shard_samples(spec) - 1) * sample  # the samples after t = 0
     words = f"{covered:g} s each"
     if not math.isclose(covered, spec.duration, rel_tol=1e-9):
         words += f" ({spec.duration:g} s asked: whole sample intervals of {sample:g} s)"

@@ -53,7 +53,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import AcaError, SceneError, sweep_spec
 from aca_warp.common.links import create_new, private_dir
 from aca_warp.scene import Scene
 from aca_warp.scene.parts import pairs_within
@@ -201,6 +201,7 @@ class SpooledShard:
         return prepared
 
 
+@sweep_spec()  # its refusals name the spec's keys (run.dt), not options a sweep does not have
 def prepare_shard(
     doc: dict,
     base_dir: str,
@@ -213,19 +214,16 @@ def prepare_shard(
     """Resolve the spec ``doc`` (overrides applied) and make the scenes of shard ``index``; with ``device`` (the run's
     device, or one of its kind: the neighbour search runs there) also its batches (:func:`prepare_batch`), cut by
     the capacity of ``device`` (:func:`shard_capacity`)."""
-    from aca_warp.common.errors import sweep_spec
-
     t, began = time.perf_counter(), time.time()
-    with sweep_spec():  # its refusals name the spec's keys (run.dt), not options a sweep does not have
-        spec = _resolve(copy.deepcopy(doc), Path(base_dir), check=False)
-        pads = spec.shard_pads(index)
-        scenes = spec.scenes(pads)
-        cap, batches = 0, []
-        if device is not None and device not in _UNUSABLE:
-            cap = shard_capacity(scenes, spec.precision, device, memory_fraction, sharing)
-            batches = [
-                prepare_batch(spec, scenes, b0, min(b0 + cap, len(scenes)), device) for b0 in range(0, len(scenes), cap)
-            ]
+    spec = _resolve(copy.deepcopy(doc), Path(base_dir), check=False)
+    pads = spec.shard_pads(index)
+    scenes = spec.scenes(pads)
+    cap, batches = 0, []
+    if device is not None and device not in _UNUSABLE:
+        cap = shard_capacity(scenes, spec.precision, device, memory_fraction, sharing)
+        batches = [
+            prepare_batch(spec, scenes, b0, min(b0 + cap, len(scenes)), device) for b0 in range(0, len(scenes), cap)
+        ]
     started, _STARTED[:] = tuple(_STARTED), []  # with this process's first shard only
     span = (began, time.time())
     return PreparedShard(index, spec, pads, scenes, time.perf_counter() - t, span, cap, batches, started)
@@ -274,6 +272,7 @@ def check_pads(spec: SweepSpec) -> list[int]:
     return sorted(pads)
 
 
+@sweep_spec()  # the messages name the spec's keys (run.dt)
 def check_runs(spec: SweepSpec) -> None:
     """Refuse, before a sweep writes anything, a run its pads cannot take: the checks of a run (the step as the
     run takes it against the stable-step estimate, the int32 step counts, the contact solution:
@@ -281,19 +280,16 @@ def check_runs(spec: SweepSpec) -> None:
     searched on the CPU. A pad failing them is one line that names it (its error as raised: a StabilityError, a
     PhysicsError); every shard makes the same checks for each of its pads. A pad whose scene cannot be made (a bad
     combination of good values) is left to its shard, which fails with the reason."""
-    from aca_warp.common.errors import AcaError, SceneError, sweep_spec
-
-    with sweep_spec():  # the messages name the spec's keys (run.dt)
-        for p in check_pads(spec):
-            try:
-                scene = spec.scene(p)
-            except SceneError:
-                continue
-            try:
-                prepare_batch(spec, [scene], 0, 1, "cpu")
-            except AcaError as e:
-                e.args = (f"pad {p} ({spec.pad_values(p)}): {e}",)
-                raise e from None
+    for p in check_pads(spec):
+        try:
+            scene = spec.scene(p)
+        except SceneError:
+            continue
+        try:
+            prepare_batch(spec, [scene], 0, 1, "cpu")
+        except AcaError as e:
+            e.args = (f"pad {p} ({spec.pad_values(p)}): {e}",)
+            raise e from None
 
 
 # what a pool process runs, imported by the fork server (Warp's module, not its runtime: nothing is started there)

@@ -21,6 +21,7 @@ from typing import Any
 
 from aca_warp.common.devices import get_device
 from aca_warp.common.errors import StorageError
+from aca_warp.common.files import check_room, folder_named, locked_output
 from aca_warp.sweep.cluster import (
     ClusterStart,
     _have_dask,
@@ -70,8 +71,7 @@ def run_sweep(
     """
     t0 = time.perf_counter()
     say = log or (lambda s: None)
-    if not os.fspath(out_dir).strip():  # Path("") is the current folder
-        raise SweepError(f"output folder {os.fspath(out_dir)!r} names no folder; give one (. for the current folder)")
+    folder_named(out_dir, SweepError)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SweepError(f"{out} exists and is not a directory")
@@ -89,8 +89,6 @@ def run_sweep(
         if scheduler is not None and client is None:
             check_scheduler(scheduler)  # a bad address or no answer: one line, nothing written
         out.mkdir(parents=True, exist_ok=True)
-        from aca_warp.common.files import check_room, locked_output
-
         # one sweep per directory: held until the last shard is recorded
         with locked_output(out / MANIFEST, what="wait for that sweep to finish or stop it"):
             manifest = prepare_dir(spec, out, overwrite=overwrite)
