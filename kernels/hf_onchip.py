@@ -91,7 +91,21 @@ def readers(g: int, a: int, n: int, k: int, nbr_start: wp.array[wp.int32], nbr_i
     return m
 
 
-ABLATIONS = frozenset({"friction", "gather", "sync", "coupling", "contact", "gather_half", "sample"})
+ABLATIONS = frozenset(
+    {
+        "friction",
+        "gather",
+        "sync",
+        "coupling",
+        "contact",
+        "gather_half",
+        "sample",
+        "sample_solve",
+        "sample_reduce",
+        "sample_min",
+        "sample_row",
+    }
+)
 # a block's float64 sums of a sample: the six SampleSums (kernels.physics), then Σ u (for the watchdog)
 PadSums = wp.types.vector(length=7, dtype=wp.float64)
 # entries per block of a cluster's table of sample sums (float64): the seven PadSums, the runaway patch, the first
@@ -123,12 +137,15 @@ def onchip_kernel(
     keeps the stiffness of before the event, as there). The growth arrays are ignored (may be empty) otherwise.
 
     ``ablate`` (profiling only, ``scripts/profile_onchip.py``; the results are then wrong) drops parts of the
-    step to time the rest: ``friction`` (the implicit friction solve becomes an explicit kick), ``gather``
-    (the neighbour sum), ``gather_half`` (the second half of every row's links), ``sync`` (the block barrier),
-    ``sample`` (a sample's per-patch work and block reductions: the synchronous velocities, sums, watchdog and
-    per-patch histories; zero sums are written); with ``growth``, ``coupling`` (the stiffness update after an
-    event) and ``contact`` (the contact re-solve after an event). ``fast_math``: compile with CUDA fast math
-    (approximate division and transcendental functions; changes the results in the last bits).
+    step to time the rest: ``friction`` (the implicit friction solve becomes an explicit kick), ``gather`` (the
+    neighbour sum), ``gather_half`` (the second half of every row's links), ``sync`` (the block barrier), ``sample``
+    (a sample's per-patch work and block reductions: the synchronous velocities, sums, watchdog and per-patch
+    histories; zero sums are written), or parts of it: ``sample_solve`` (the synchronous velocity taken as the
+    staggered one), ``sample_reduce`` (the block reductions: each block's thread 0 reports its own terms),
+    ``sample_min`` (the reduction that finds the watchdog's first runaway patch), ``sample_row`` (the hand-over of the
+    blocks' sums to block 0, their combination and the globals row); with ``growth``, ``coupling`` (the stiffness
+    update after an event) and ``contact`` (the contact re-solve after an event). ``fast_math``: compile with CUDA
+    fast math (approximate division and transcendental functions; changes the results in the last bits).
 
     ``cluster`` = K > 1 (CUDA sm_90+): a pad is advanced by a thread-block cluster of K blocks; block ``rank`` owns
     the patches ``n·rank // K`` … ``n·(rank + 1) // K − 1`` (and their CSR rows, ``emax`` is then
@@ -178,6 +195,10 @@ def onchip_kernel(
     COUPLING = wp.constant(0 if "coupling" in ablate else 1)
     CONTACT = wp.constant(0 if "contact" in ablate else 1)
     SAMPLE = wp.constant(0 if "sample" in ablate else 1)
+    SAMPLE_SOLVE = wp.constant(0 if "sample_solve" in ablate else 1)
+    SAMPLE_REDUCE = wp.constant(0 if "sample_reduce" in ablate else 1)
+    SAMPLE_MIN = wp.constant(0 if "sample_min" in ablate else 1)
+    SAMPLE_ROW = wp.constant(0 if "sample_row" in ablate else 1)
     GROWTH = wp.constant(1 if growth else 0)
     CROSSING = wp.constant(1 if crossing else 0)
     GTILES = wp.constant(1 if growth and grown_tiles else 0)
@@ -520,7 +541,9 @@ def onchip_kernel(
                 i = hi
             while i < hi:
                 g = a + i
-                vs = sync_velocity(i, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
+                vs = get_n(w, i)
+                if wp.static(SAMPLE_SOLVE != 0):
+                    vs = sync_velocity(i, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
                 uu = get_u(u2, cur, i)
                 vf = instant_velocity(vs, get_n(w, i), omega * model.radius[g], CROSSING, k, i)
                 sums += patch_sample(
@@ -533,15 +556,18 @@ def onchip_kernel(
                 if due:
                     store_patch_sample(rec, prow, g, vs, uu)
                 i += threads
-            if wp.static(SAMPLE != 0):  # static: only the branch taken is compiled (the reductions are tile ops)
+            if wp.static(SAMPLE != 0 and SAMPLE_REDUCE != 0):  # static: only the branch taken is compiled
                 tot = block_sums(PadSums(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5], usum))
-                runaway = wp.tile_min(wp.tile(runaway))[0]
+                if wp.static(SAMPLE_MIN != 0):
+                    runaway = wp.tile_min(wp.tile(runaway))[0]
+            elif wp.static(SAMPLE != 0):  # profiling: each thread's own terms
+                tot = PadSums(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5], usum)
             else:
                 tot = PadSums()  # zero sums; runaway stays n (none)
             # the block's fault candidates: its first non-finite patch, or its runaway patch's energy speed
             bad = int(-1)
             value = wp.float64(0.0)
-            if lane == 0 and rec.fault[pad, 0] < 0:
+            if lane == 0 and SAMPLE_ROW != 0 and rec.fault[pad, 0] < 0:
                 if not (wp.isfinite(tot[3]) and wp.isfinite(tot[6])):
                     for j in range(lo, hi):
                         if bad < 0:
@@ -552,7 +578,7 @@ def onchip_kernel(
                     g = a + runaway
                     vs = sync_velocity(runaway, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
                     value = wp.sqrt(energy_speed2(vs, get_u(u2, cur, runaway), model.k_t[g], model.inv_mass[g]))
-            if CLUSTER > 1:  # block 0 combines the blocks' sums in rank order
+            if CLUSTER > 1 and SAMPLE_ROW != 0:  # block 0 combines the blocks' sums in rank order
                 if lane == 0:
                     for c in range(7):
                         put_red(red, rank, c, tot[c], 0)
@@ -574,7 +600,7 @@ def onchip_kernel(
                         bq = int(red[q, 8])
                         if bad < 0 and bq >= 0:
                             bad = bq
-            if lane == 0 and rank == 0:
+            if lane == 0 and rank == 0 and SAMPLE_ROW != 0:
                 write_globals(
                     rec, row0 + s, pad, tot, omega, model.pad_mu_pad[pad], model.pad_matrix_force[pad],
                     model.pad_matrix_radius[pad], model.pad_load[pad],
