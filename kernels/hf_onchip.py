@@ -1,5 +1,5 @@
-"""On-chip HF kernel: one thread block (or a thread-block cluster) per pad, many ``strang`` steps per launch,
-outputs reduced in-kernel.
+"""On-chip HF kernel: one thread block (or a thread-block cluster) per pad, many ``strang`` steps per launch, a
+sample's sums reduced per warp in the kernel and per pad after the launch (:func:`pad_samples_kernel`).
 
 Each block keeps its pad's state in shared memory (Warp tiles with ``storage="shared"``):
 
@@ -12,14 +12,14 @@ Each block keeps its pad's state in shared memory (Warp tiles with ``storage="sh
   32 different banks whatever their rows' lengths; otherwise the CSR is read from global memory (read-only,
   L1/L2 cached).
 
-Per-patch constants (1/m, c, F_N, r, k_diag) stay in global memory (read-only, cached). Thread ``lane`` owns
-patches lane, lane + B, lane + 2B, … of its pad (B the block size; 1 on the CPU, where Warp runs a block as
-one thread). The arithmetic per patch is that of the general path's kernels (:mod:`aca_warp.kernels.hf`): the same
-``wp.func`` s (``strang_velocity``, ``strang_close_velocity``, the gather order of ``spring_force``, the sample
-sums of :mod:`aca_warp.kernels.physics`), so on the CPU the results are bit-identical to the general per-step path;
-on the GPU the in-kernel reductions sum in a different order (a tree over threads), so the global outputs differ in the
-last bits. With a cluster of K blocks per pad (sm_90+), each block owns 1/K of the patches and keeps a full copy
-of ``u`` (:func:`onchip_kernel`).
+Per-patch constants (1/m, c, F_N, r, k_diag) stay in global memory (read-only, cached). Thread ``lane`` owns patches
+lane, lane + B, lane + 2B, … of its pad (B the block size; 1 on the CPU, where Warp runs a block as one thread). The
+arithmetic per patch is that of the general path's kernels (:mod:`aca_warp.kernels.hf`): the same ``wp.func`` s
+(``strang_velocity``, ``strang_close_velocity``, the gather order of ``spring_force``, the sample sums of
+:mod:`aca_warp.kernels.physics`), so on the CPU the results are bit-identical to the general per-step path; on the GPU
+a sample's sums are taken in another order (a tree over each warp's threads, then the warps and blocks in order), so
+the global outputs differ in the last bits. With a cluster of K blocks per pad (sm_90+), each block owns 1/K of the
+patches and keeps a full copy of ``u`` (:func:`onchip_kernel`).
 
 Kernels are made per configuration (precision, max patches per pad, max links per block, csr_shared, block
 size, ablations, fast math, growth, cluster size) by :func:`onchip_kernel`: tile shapes are compile-time
@@ -41,7 +41,6 @@ from aca_warp.kernels.hf_onchip_gather import tile_gather
 from aca_warp.kernels.hf_types import HFModel, HFRecorder
 from aca_warp.kernels.physics import (
     SampleSums,
-    block_sums,
     contact_block,
     contact_block_from,
     energy_speed2,
@@ -70,6 +69,11 @@ from aca_warp.kernels.tiles import (
     tile_store_rows,
     tile_store_rows_async,
     tile_store_rows_remote,
+    warp_index,
+    warp_leader,
+    warp_min,
+    warp_pick,
+    warp_sum,
 )
 
 wp.set_module_options({"enable_backward": False})
@@ -101,16 +105,14 @@ ABLATIONS = frozenset(
         "gather_half",
         "sample",
         "sample_solve",
-        "sample_reduce",
-        "sample_min",
-        "sample_row",
     }
 )
 # a block's float64 sums of a sample: the six SampleSums (kernels.physics), then Σ u (for the watchdog)
 PadSums = wp.types.vector(length=7, dtype=wp.float64)
-# entries per block of a cluster's table of sample sums (float64): the seven PadSums, the runaway patch, the first
-# non-finite patch, the runaway patch's energy speed
-RED_SLOTS = 10
+# entries of a warp's part of a sample (float64, the last axis of the kernel's ``parts``): the seven PadSums, its
+# first non-finite patch, its first runaway patch (n: none) and that patch's energy speed [m/s]; in the first warp
+# of a pad's first block also the pad's matrix force [N] and radius [m] at the sample (growth changes them)
+PART = 12
 
 
 @cache
@@ -139,11 +141,9 @@ def onchip_kernel(
     ``ablate`` (profiling only, ``scripts/profile_onchip.py``; the results are then wrong) drops parts of the
     step to time the rest: ``friction`` (the implicit friction solve becomes an explicit kick), ``gather`` (the
     neighbour sum), ``gather_half`` (the second half of every row's links), ``sync`` (the block barrier), ``sample``
-    (a sample's per-patch work and block reductions: the synchronous velocities, sums, watchdog and per-patch
-    histories; zero sums are written), or parts of it: ``sample_solve`` (the synchronous velocity taken as the
-    staggered one), ``sample_reduce`` (the block reductions: each block's thread 0 reports its own terms),
-    ``sample_min`` (the reduction that finds the watchdog's first runaway patch), ``sample_row`` (the hand-over of the
-    blocks' sums to block 0, their combination and the globals row); with ``growth``, ``coupling`` (the stiffness
+    (a sample's per-patch work and warp reductions: the synchronous velocities, sums, watchdog and per-patch
+    histories; zero sums are written) or ``sample_solve`` (the synchronous velocity taken as the staggered one);
+    with ``growth``, ``coupling`` (the stiffness
     update after an event) and ``contact`` (the contact re-solve after an event). ``fast_math``: compile with CUDA
     fast math (approximate division and transcendental functions; changes the results in the last bits).
 
@@ -151,14 +151,13 @@ def onchip_kernel(
     the patches ``n·rank // K`` … ``n·(rank + 1) // K − 1`` (and their CSR rows, ``emax`` is then
     :func:`aca_warp.hf.onchip.csr_slots` of one part), every block keeps a full copy of u, the drift stores each new
     u_i into its own copy and, by ``st.async``, into those of the blocks that own a neighbour of i (:func:`readers`;
-    distributed shared memory), and instead of a
-    cluster barrier each block waits for the bytes of u that the others send it (a transaction mbarrier per u
-    buffer; ``sync`` ablated: plain remote stores and no wait); the sums of a sample are combined in rank order by
-    block 0. A growth event there (with ``grown_tiles``, below): each block grows its copies of the whole pad's
-    areas, √A and k_N and stores its own patches' grown values into the model, updates its own CSR rows from its
-    copies, and re-solves the whole pad's contact from them (every block the same sums in the same order, so the
-    same gap; cheaper than a cluster barrier per Newton iteration) and keeps its own patches' normal forces: no
-    block reads what another wrote, so an event needs no cluster barrier.
+    distributed shared memory), and instead of a cluster barrier each block waits for the bytes of u that the others
+    send it (a transaction mbarrier per u buffer; ``sync`` ablated: plain remote stores and no wait). A growth event
+    there (with ``grown_tiles``, below): each block grows its copies of the whole pad's areas, √A and k_N and stores
+    its own patches' grown values into the model, updates its own CSR rows from its copies, and re-solves the whole
+    pad's contact from them (every block the same sums in the same order, so the same gap; cheaper than a cluster
+    barrier per Newton iteration) and keeps its own patches' normal forces: no block reads what another wrote, so an
+    event needs no cluster barrier.
 
     ``crossing``: steps that cross zero slip take the friction's mean along their slip segment, and samples read
     a crossing patch's friction at an instant of its closing half step (``RunOptions.crossing`` "mean":
@@ -171,6 +170,15 @@ def onchip_kernel(
     same operations as ``grow_patch``, so the same values in every block), stores its own patches' grown values into
     the model, and reads the neighbours' √A (stiffness update) and every area and k_N (contact re-solve) from its
     copies: an event then needs no cluster barrier, and its reads wait for shared memory instead of L2.
+
+    A sample is recorded without a barrier: each thread sums its patches' terms (the synchronous velocity, the sums
+    of :func:`~aca_warp.kernels.physics.patch_sample`, the watchdog's first runaway and first non-finite patch),
+    each warp combines its threads' by shuffles in the order of Warp's block reduction
+    (:func:`~aca_warp.kernels.tiles.warp_sum`) and its first lane stores the warp's part into ``parts[s, block,
+    warp]`` (:data:`PART`; on the CPU, where a block's threads are not warps, each thread its own). The globals rows
+    and the watchdog's verdicts are made from them after the launch (:func:`pad_samples_kernel`): the warps' sums in
+    warp order, then the blocks' in rank order, which is the order the block reductions and block 0 of a cluster
+    took before, so the outputs are those of before to the bit, while a sample's work overlaps the next step's.
 
     Launch with ``wp.launch_tiled(kernel, dim=[pads · K], block_dim=B, ...)`` (K = ``cluster``); ``threads``
     must be the block size the device really runs (B on CUDA or with CPU fibers, else 1 on the CPU). The kernel
@@ -196,14 +204,10 @@ def onchip_kernel(
     CONTACT = wp.constant(0 if "contact" in ablate else 1)
     SAMPLE = wp.constant(0 if "sample" in ablate else 1)
     SAMPLE_SOLVE = wp.constant(0 if "sample_solve" in ablate else 1)
-    SAMPLE_REDUCE = wp.constant(0 if "sample_reduce" in ablate else 1)
-    SAMPLE_MIN = wp.constant(0 if "sample_min" in ablate else 1)
-    SAMPLE_ROW = wp.constant(0 if "sample_row" in ablate else 1)
     GROWTH = wp.constant(1 if growth else 0)
     CROSSING = wp.constant(1 if crossing else 0)
     GTILES = wp.constant(1 if growth and grown_tiles else 0)
     CLUSTER = wp.constant(cluster)
-    RED = wp.constant(RED_SLOTS)
     # a cluster exchanges u by st.async into the blocks that read it and mbarrier waits (no cluster barrier per step)
     ASYNC = wp.constant(1 if cluster > 1 and "sync" not in ablate else 0)
     TBYTES = wp.constant(wp.types.type_size_in_bytes(dtype))
@@ -229,7 +233,7 @@ def onchip_kernel(
     get_ei = tile_load_1d(wp.int16, ne)
     # the neighbour sums (four on-chip links per pass: more shared loads in flight, H100: 8.6 -> 8.3 us)
     gather = tile_gather(T, nmax, ne, csr_shared, lanes, 4)
-    put_red = tile_store_rows_remote(wp.float64, cluster, RED_SLOTS)  # a block's sample sums into block 0's table
+    warp_pad_sums = warp_sum(PadSums)
     # the barrier of all threads that advance a pad (a plain block barrier for one block: on sm_90 cluster_sync
     # would issue a cluster barrier for a one-block cluster)
     pad_sync = block_sync if cluster == 1 else cluster_sync
@@ -337,6 +341,8 @@ def onchip_kernel(
         u_io: wp.array[T],
         v_io: wp.array[T],
         force_io: wp.array[T],
+        # Out: the blocks' parts of the samples (pad_samples_kernel)
+        parts: wp.array4d[wp.float64],
     ):
         """Advance pad ``pad`` by ``samples`` × ``steps_per_sample`` strang steps, recording after each sample.
 
@@ -356,7 +362,6 @@ def onchip_kernel(
         fs = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
         sidx = wp.tile_zeros(shape=EMAX, dtype=wp.int16, storage="shared")
         sk = wp.tile_zeros(shape=EMAX, dtype=T, storage="shared")
-        red = wp.tile_zeros(shape=(CLUSTER, RED), dtype=wp.float64, storage="shared")
         if wp.static(GTILES != 0):  # the block's copies of the pad's areas, √A and k_N (see the factory)
             garea = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
             gsqrt = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
@@ -535,7 +540,9 @@ def onchip_kernel(
             due = patch_sample_due(rec, k)
             sums = SampleSums()
             usum = wp.float64(0.0)
-            runaway = n  # first patch whose energy speed exceeds the watchdog bound (n: none)
+            runaway = n  # the thread's first patch whose energy speed exceeds the watchdog bound (n: none)
+            value = wp.float64(0.0)  # its energy speed [m/s]
+            bad = n  # the thread's first patch with a non-finite u or u̇ (n: none)
             i = lo + lane
             if wp.static(SAMPLE == 0):
                 i = hi
@@ -551,62 +558,32 @@ def onchip_kernel(
                     decay,
                 )  # fmt: skip
                 usum += wp.float64(uu)
-                if energy_speed2(vs, uu, model.k_t[g], model.inv_mass[g]) > bound2 and runaway == n:
+                e2 = energy_speed2(vs, uu, model.k_t[g], model.inv_mass[g])
+                if e2 > bound2 and runaway == n:
                     runaway = i
+                    value = wp.sqrt(e2)
+                if bad == n and not (wp.isfinite(vs) and wp.isfinite(uu)):
+                    bad = i
                 if due:
                     store_patch_sample(rec, prow, g, vs, uu)
                 i += threads
-            if wp.static(SAMPLE != 0 and SAMPLE_REDUCE != 0):  # static: only the branch taken is compiled
-                tot = block_sums(PadSums(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5], usum))
-                if wp.static(SAMPLE_MIN != 0):
-                    runaway = wp.tile_min(wp.tile(runaway))[0]
-            elif wp.static(SAMPLE != 0):  # profiling: each thread's own terms
-                tot = PadSums(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5], usum)
-            else:
-                tot = PadSums()  # zero sums; runaway stays n (none)
-            # the block's fault candidates: its first non-finite patch, or its runaway patch's energy speed
-            bad = int(-1)
-            value = wp.float64(0.0)
-            if lane == 0 and SAMPLE_ROW != 0 and rec.fault[pad, 0] < 0:
-                if not (wp.isfinite(tot[3]) and wp.isfinite(tot[6])):
-                    for j in range(lo, hi):
-                        if bad < 0:
-                            vs = sync_velocity(j, a + j, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
-                            if not (wp.isfinite(vs) and wp.isfinite(get_u(u2, cur, j))):
-                                bad = j
-                elif runaway < n:
-                    g = a + runaway
-                    vs = sync_velocity(runaway, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
-                    value = wp.sqrt(energy_speed2(vs, get_u(u2, cur, runaway), model.k_t[g], model.inv_mass[g]))
-            if CLUSTER > 1 and SAMPLE_ROW != 0:  # block 0 combines the blocks' sums in rank order
-                if lane == 0:
-                    for c in range(7):
-                        put_red(red, rank, c, tot[c], 0)
-                    put_red(red, rank, 7, wp.float64(runaway), 0)
-                    put_red(red, rank, 8, wp.float64(bad), 0)
-                    put_red(red, rank, 9, value, 0)
-                cluster_sync()
-                if lane == 0 and rank == 0:
-                    tot = PadSums()
-                    runaway = n
-                    bad = -1
-                    for q in range(CLUSTER):
-                        for c in range(7):
-                            tot[c] += red[q, c]
-                        rq = int(red[q, 7])
-                        if rq < runaway:
-                            runaway = rq
-                            value = red[q, 9]
-                        bq = int(red[q, 8])
-                        if bad < 0 and bq >= 0:
-                            bad = bq
-            if lane == 0 and rank == 0 and SAMPLE_ROW != 0:
-                write_globals(
-                    rec, row0 + s, pad, tot, omega, model.pad_mu_pad[pad], model.pad_matrix_force[pad],
-                    model.pad_matrix_radius[pad], model.pad_load[pad],
-                )  # fmt: skip
-                broken = not (wp.isfinite(tot[3]) and wp.isfinite(tot[6]))
-                flag_fault(rec, pad, k, broken, bad, runaway, n, value)
+            # the warp's sums (in the order of Warp's block reduction), its first non-finite and runaway patches and
+            # the energy speed of that runaway patch, into the block's part of the sample (pad_samples combines them
+            # after the launch): no block barrier, so a sample's work overlaps the next step's
+            tot = warp_pad_sums(PadSums(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5], usum))
+            first_bad = warp_min(bad)
+            first_runaway = warp_min(runaway)
+            value = warp_pick(int(runaway == first_runaway and runaway < n), value)
+            if warp_leader(lane) != 0:
+                slot = warp_index(lane)
+                for c in range(7):
+                    parts[s, blk, slot, c] = tot[c]
+                parts[s, blk, slot, 7] = wp.float64(first_bad)
+                parts[s, blk, slot, 8] = wp.float64(first_runaway)
+                parts[s, blk, slot, 9] = value
+                if lane == 0 and rank == 0:  # the thread that stores them at a growth event (contact_block)
+                    parts[s, blk, 0, 10] = wp.float64(model.pad_matrix_force[pad])
+                    parts[s, blk, 0, 11] = wp.float64(model.pad_matrix_radius[pad])
             if due:
                 prow += 1
         # write back the staggered state and the force cache (own patches)
@@ -622,3 +599,97 @@ def onchip_kernel(
             model.pad_gap[pad] = gap
 
     return onchip_strang
+
+
+# a pad's verdict on one sample (pad_samples_kernel → flag_fault): not finite (1) or not (0), its first non-finite
+# patch (−1: none), its first runaway patch (n: none) and that patch's energy speed [m/s]
+Verdict = wp.types.vector(length=4, dtype=wp.float64)
+
+
+@cache
+def pad_samples_kernel(dtype: Any) -> tuple[wp.Kernel, wp.Kernel]:
+    """The two kernels that make the samples of a launch of :func:`onchip_kernel` from its ``parts``: ``rows``
+    (one thread per sample and pad, ``dim=(rows, pads)``) writes globals row ``row0 + s`` (:func:`write_globals`)
+    and the pad's verdict on sample s into ``verdicts[s, pad]`` (:data:`Verdict`); ``faults`` (one thread per pad)
+    gives the watchdog the pad's first sample of a fault among them (:func:`flag_fault`, sample ``k0 + s``).
+
+    ``parts[s, b, w]`` holds warp w's part of sample s of block b (pad b // ``cluster``; :data:`PART`); a block's
+    sums are its warps' in warp order, the sums of Warp's block reduction to the bit (the warp stage was
+    :func:`~aca_warp.kernels.tiles.warp_sum`), and a pad's are its blocks' in rank order, added to zero on a
+    cluster: the sums a block reduction and block 0 of the cluster made in the kernel before, to the bit. A block's
+    first non-finite patch counts where the block's sums are not finite, as its search did there; a pad's runaway
+    patch is its first, with its energy speed; the matrix's force and radius are those the pad had at the sample
+    (kept in the first part: growth changes them); ``warps`` the parts per block."""
+    Model = HFModel(dtype)
+    Recorder = HFRecorder(dtype)
+
+    @wp.func
+    def block_part(parts: wp.array4d[wp.float64], s: int, b: int, warps: int, n: int):
+        """(sums, first non-finite patch or −1, first runaway patch or ``n``, its energy speed) of block b."""
+        tot = PadSums()
+        for c in range(7):
+            tot[c] = parts[s, b, 0, c]
+        bad = int(parts[s, b, 0, 7])
+        runaway = int(parts[s, b, 0, 8])
+        value = parts[s, b, 0, 9]
+        for q in range(1, warps):
+            for c in range(7):
+                tot[c] = tot[c] + parts[s, b, q, c]
+            bad = wp.min(bad, int(parts[s, b, q, 7]))
+            r = int(parts[s, b, q, 8])
+            if r < runaway:
+                runaway = r
+                value = parts[s, b, q, 9]
+        if bad >= n or (wp.isfinite(tot[3]) and wp.isfinite(tot[6])):
+            bad = -1
+        return tot, bad, runaway, value
+
+    @wp.kernel(enable_backward=False)
+    def sample_rows(
+        model: Model,
+        rec: Recorder,
+        parts: wp.array4d[wp.float64],
+        cluster: int,
+        warps: int,
+        row0: int,
+        verdicts: wp.array2d[Verdict],
+    ):
+        s, pad = wp.tid()
+        n = model.pad_patch_start[pad + 1] - model.pad_patch_start[pad]
+        tot = PadSums()
+        bad = int(-1)
+        runaway = n
+        value = wp.float64(0.0)
+        for q in range(cluster):
+            tq, bq, rq, vq = block_part(parts, s, pad * cluster + q, warps, n)
+            if cluster == 1:
+                tot = tq  # one block: its sums as they are
+            else:  # the blocks' sums in rank order, added to zero
+                for c in range(7):
+                    tot[c] = tot[c] + tq[c]
+            if rq < runaway:
+                runaway = rq
+                value = vq
+            if bad < 0 and bq >= 0:
+                bad = bq
+        first = pad * cluster
+        write_globals(
+            rec, row0 + s, pad, tot, model.pad_omega[pad], model.pad_mu_pad[pad], dtype(parts[s, first, 0, 10]),
+            dtype(parts[s, first, 0, 11]), model.pad_load[pad],
+        )  # fmt: skip
+        broken = wp.float64(0.0)
+        if not (wp.isfinite(tot[3]) and wp.isfinite(tot[6])):
+            broken = wp.float64(1.0)
+        verdicts[s, pad] = Verdict(broken, wp.float64(bad), wp.float64(runaway), value)
+
+    @wp.kernel(enable_backward=False)
+    def sample_faults(model: Model, rec: Recorder, verdicts: wp.array2d[Verdict], rows: int, k0: int):
+        pad = wp.tid()
+        n = model.pad_patch_start[pad + 1] - model.pad_patch_start[pad]
+        s = int(0)
+        while s < rows and rec.fault[pad, 0] < 0:
+            v = verdicts[s, pad]
+            flag_fault(rec, pad, k0 + s, v[0] != wp.float64(0.0), int(v[1]), int(v[2]), n, v[3])
+            s += 1
+
+    return sample_rows, sample_faults

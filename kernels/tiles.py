@@ -43,6 +43,85 @@ def lane_sum(dtype: Any, width: int) -> Any:
     return total
 
 
+def warp_sum(dtype: Any) -> Any:
+    """``total(x)``: the sum of ``x`` (a scalar or vector ``dtype``) over the warp, in lane 0, in the order of the
+    warp stage of Warp's block reductions (``wp::warp_reduce`` with ``add`` over the warp's existing lanes, as
+    ``tile_sum`` takes it): adding the warps' sums in warp order then gives ``tile_sum``'s result to the bit. Every
+    lane of the warp must call it. On the CPU, where a block's threads are not warps, it returns ``x``."""
+    snippet = """
+#if defined(__CUDA_ARCH__)
+    const wp_tile_lane_mask_bits_t mask = __ballot_sync(WP_TILE_LANE_MASK_ALL, true);
+    return wp::warp_reduce(x, [](auto a, auto b) { return wp::add(a, b); }, mask);
+#else
+    return x;
+#endif
+"""
+
+    @wp.func_native(snippet)
+    def total(x: dtype) -> dtype: ...
+
+    return total
+
+
+@wp.func_native(
+    """
+#if defined(__CUDA_ARCH__)
+    return __reduce_min_sync(__ballot_sync(WP_TILE_LANE_MASK_ALL, true), x);
+#else
+    return x;
+#endif
+"""
+)
+def warp_min(x: int) -> int:
+    """The least ``x`` over the warp, to every lane (every lane of the warp must call it); on the CPU ``x``."""
+    ...
+
+
+@wp.func_native(
+    """
+#if defined(__CUDA_ARCH__)
+    const wp_tile_lane_mask_bits_t mask = __ballot_sync(WP_TILE_LANE_MASK_ALL, true);
+    const wp_tile_lane_mask_bits_t from = __ballot_sync(mask, mine != 0);
+    return from == 0 ? x : __shfl_sync(mask, x, __ffs(from) - 1);
+#else
+    return x;
+#endif
+"""
+)
+def warp_pick(mine: int, x: wp.float64) -> wp.float64:
+    """``x`` of the first lane of the warp whose ``mine`` ≠ 0 (its own ``x`` where none is), to every lane (every
+    lane of the warp must call it); on the CPU ``x``."""
+    ...
+
+
+@wp.func_native(
+    """
+#if defined(__CUDA_ARCH__)
+    return lane / WP_TILE_WARP_SIZE;
+#else
+    return lane;
+#endif
+"""
+)
+def warp_index(lane: int) -> int:
+    """The warp of thread ``lane`` of a block (on the CPU each thread of a block is a warp of its own)."""
+    ...
+
+
+@wp.func_native(
+    """
+#if defined(__CUDA_ARCH__)
+    return lane % WP_TILE_WARP_SIZE == 0 ? 1 : 0;
+#else
+    return 1;
+#endif
+"""
+)
+def warp_leader(lane: int) -> int:
+    """1 for the first lane of a warp (every thread on the CPU), else 0."""
+    ...
+
+
 def lane_first(dtype: Any, width: int) -> Any:
     """``first(x)``: the ``x`` of the first lane of each group of ``width`` consecutive lanes of a warp, to every
     lane of the group (a warp shuffle; every lane of the warp must call it). On the CPU it returns ``x``."""

@@ -65,13 +65,8 @@ CASES = [
     # the default layout of 29-66 pads on 132 SMs (default_cluster): with --pads 64 --dt 1e-7 --sample-dt 1e-6 the
     # recording floor of the saturated hf1 benchmark
     ("no sample outputs, cluster 2", "fp32", None, None, ("cluster2", "sample")),
-    # a sample's parts: its synchronous velocities, its block reductions (or only the runaway patch's), the
-    # blocks' hand-over to block 0 and the globals row
+    # a sample without its synchronous velocities' solve
     ("no sample solve, cluster 2", "fp32", None, None, ("cluster2", "sample_solve")),
-    ("no sample reductions, cluster 2", "fp32", None, None, ("cluster2", "sample_reduce")),
-    ("no runaway reduction, cluster 2", "fp32", None, None, ("cluster2", "sample_min")),
-    ("no sample row, cluster 2", "fp32", None, None, ("cluster2", "sample_row")),
-    ("no sample outputs or row, cluster 2", "fp32", None, None, ("cluster2", "sample", "sample_row")),
     ("no friction solve, cluster 2", "fp32", None, None, ("cluster2", "friction")),
     ("no gather, cluster 2", "fp32", None, None, ("cluster2", "gather")),
     ("half gather, cluster 2", "fp32", None, None, ("cluster2", "gather_half")),

@@ -94,3 +94,15 @@ def test_lf_state_job_reads_the_first_lf_file():
     assert cc.EXTRA_JOBS["lf_seed7"][:4] == ["lf", "multiscale", "--seed", "7"]
     job = cc.EXTRA_JOBS["hf_lf_state"]
     assert job[:4] == ["hf", "{out}/lf_seed7_0.h5", "--snapshot", "app2_start"]
+
+
+def test_batch_checkouts_report(tmp_path, capsys):
+    """compare_batch_checkouts: one checkout against itself is identical in every array, and a difference is
+    counted and sized against the array's largest value."""
+    cb = load_script("compare_batch_checkouts")
+    out = tmp_path / "cmp.txt"
+    argv = [str(REPO), str(REPO), "--device", "cpu", "--pads", "1", "--duration", "4e-6", "--precisions", "fp64"]
+    assert cb.main([*argv, "--out", str(out)]) == 0
+    lines = out.read_text().splitlines()
+    assert [line.split()[1:] for line in lines[1:]] == [[k, "identical"] for k in ("globals", "velocity", "u", "v")]
+    assert cb.differences(np.array([1.0, -4.0]), np.array([1.0, -3.0])) == "differ: 1 of 2, ≤ 0.25 relative"

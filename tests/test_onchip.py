@@ -289,6 +289,48 @@ def test_onchip_fault_matches_general(device):
     assert faults[0] == faults[1]
 
 
+def test_parts_buffer_caps_the_launch(monkeypatch):
+    """Where a launch's samples' parts would pass their cap, the launch takes fewer samples: the same bits."""
+    import aca_warp.hf.onchip as O
+
+    model = build_model(_scenes(), device="cpu", precision="fp64")
+    launches: list[int] = []
+    launch = O.OnchipEngine._launch
+    monkeypatch.setattr(O.OnchipEngine, "_launch", lambda self, *a: (launches.append(a[1]), launch(self, *a))[1])
+    runs = []
+    for cap in (None, 3 * 2 * O.PART * 8):  # room for 3 samples of 2 one-thread blocks
+        if cap is not None:
+            monkeypatch.setattr(O, "_PARTS_BYTES", cap)
+        launches.clear()
+        state = initial_state(model)
+        res = run_hf(model, state, RunOptions(integrator="strang", duration=2e-6, dt=1e-8, engine="onchip"))
+        runs.append((res.collect().globals, *state.numpy()))
+        assert sum(launches) == 10 and max(launches) == (10 if cap is None else 3)
+    for a, b in zip(*runs, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize(("precision", "fibers"), [("fp64", False), ("fp32", False), ("fp64", True)])
+def test_onchip_non_finite_patch_matches_general(precision, fibers):
+    """A patch whose inverse mass is NaN keeps sample 0 finite (it enters the motion, not the sums), then turns
+    its velocity NaN in the first step: both engines stop at the same sample of its pad and name the patch (on
+    chip: found from the warps' first non-finite patches; with fibers, 64 threads per block, among other threads')."""
+    s = preset("hf1").replace(record=Record(sample_dt=1e-7))
+    faults = []
+    for engine in ("general", "onchip"):
+        model = build_model([s, s.replace(normal_force=700.0)], device="cpu", precision=precision)
+        im = model.arrays["inv_mass"].numpy()
+        im[1758 + 1000] = np.nan
+        model.arrays["inv_mass"].assign(im)
+        options = RunOptions(integrator="strang", engine=engine, duration=1e-6, dt=1e-8)
+        with cpu_fibers(fibers and engine == "onchip"):
+            res = run_hf(model, initial_state(model), options, tuning=EngineTuning(block_dim=64) if fibers else None)
+        assert not res.complete and res.fault is not None
+        faults.append((res.fault.time, res.fault.pad, res.fault.patch, res.fault.cause))
+    assert faults[0] == faults[1]
+    assert faults[0][1] == 1 and faults[0][0] == pytest.approx(1e-7)
+
+
 def test_cli_engine_option(tmp_path):
     """``aca-warp hf --engine onchip`` runs the on-chip engine (on the CPU too; strang and adaptive, nothing else)
     and records it in the stages."""

@@ -1,13 +1,14 @@
 """On-chip HF engine: one thread block (or a thread-block cluster) per pad advances many ``strang`` steps per launch.
 
-The pad's displacement (double-buffered), staggered velocity and spring-force cache live in shared memory
-for the whole launch, and the global outputs (μ, torque, friction radius, Σu̇, Σ|u̇|) and per-patch
-histories are recorded in-kernel after every sample interval (:mod:`aca_warp.kernels.hf_onchip`). Patch
-growth (varying-area scenes) runs in the kernel too. The launch layout (threads, cluster, tiles) and the engine
-choice are in :mod:`aca_warp.hf.onchip_layout`; the run loop around the launches is :func:`aca_warp.hf.loop.run_hf`.
+The pad's displacement (double-buffered), staggered velocity and spring-force cache live in shared memory for the
+whole launch; after every sample interval each warp stores its part of the global outputs' sums (μ, torque, friction
+radius, Σu̇, Σ|u̇|) and the owning threads the per-patch histories, and after the launch a kernel of one thread per
+pad makes the rows and the watchdog's verdicts from the parts (:mod:`aca_warp.kernels.hf_onchip`). Patch growth
+(varying-area scenes) runs in the kernel too. The launch layout (threads, cluster, tiles) and the engine choice are in
+:mod:`aca_warp.hf.onchip_layout`; the run loop around the launches is :func:`aca_warp.hf.loop.run_hf`.
 
 Same arithmetic as the general engine: on the CPU (where Warp runs a block as one thread) μ(t) and the final
-(u, u̇) are bit-identical to it; on CUDA the in-block reductions of the global outputs sum in a different order
+(u, u̇) are bit-identical to it; on CUDA the sums of the global outputs are taken in a different order
 and the CUDA compiler may contract differently, so results agree to rounding.
 """
 
@@ -36,11 +37,12 @@ from aca_warp.hf.onchip_layout import (
 from aca_warp.hf.recorder import Recorder
 from aca_warp.hf.solver import HFSolver, grown_arrays, growth_events
 from aca_warp.hf.state import HFState
-from aca_warp.kernels.hf_onchip import onchip_kernel
+from aca_warp.kernels.hf_onchip import PART, Verdict, onchip_kernel, pad_samples_kernel
 
 __all__ = ["OnchipEngine", "choose_engine"]
 
 _PATCH_BUFFER_BYTES = 256 * 2**20  # cap of the per-patch history buffers of one launch
+_PARTS_BYTES = 256 * 2**20  # cap of the warps' parts of a launch's samples (OnchipEngine.parts)
 _STEPS_PER_LAUNCH = 20_000  # default: sample intervals per launch fill about this many steps
 # on the CPU (a pad's block is one thread, ~1e7 patch-steps/s) also at most about this many patch-steps, about a
 # second: progress, Ctrl-C and checkpoints stay timely on large batches
@@ -84,9 +86,11 @@ class OnchipLaunches:
     kernel: wp.Kernel
     blocks_per_pad: int
     block_dim: int
+    extra_kernels: tuple[wp.Kernel, ...] = ()  # loaded with ``kernel`` before the run
 
     def begin(self, resume: dict[str, int] | None) -> None:
-        load_kernels([(self.kernel, self.block_dim), *self.solver.kernels(stepping=False)], self.model.device)
+        kernels = [(self.kernel, self.block_dim), *self.extra_kernels, *self.solver.kernels(stepping=False)]
+        load_kernels(kernels, self.model.device)
         if resume is None:
             self.recorder.launch(self.state.u, self.state.v, conditional=False)  # sample 0: the initial state
         else:
@@ -136,8 +140,13 @@ class OnchipEngine(OnchipLaunches):
         self.h = record.sample_dt / self.sps
         self.blocks_per_pad = cluster = cluster_size(model, tuning.cluster)
         self.block_dim, self.threads, csr_shared = block_config(model, cluster, tuning.block_dim, tuning.csr_shared)
+        # a block's parts of a sample: one per warp (on the CPU, where a block's threads are not warps, per thread)
+        self.warps = self.threads if model.device.is_cpu else math.ceil(self.threads / 32)
         self.spl = self._samples_per_launch(tuning.samples_per_launch)
         self.recorder = Recorder(model, record, self.spl + 1, n_samples)
+        blocks = model.pad_count * cluster
+        self.parts = wp.empty((self.spl, blocks, self.warps, PART), dtype=wp.float64, device=model.device)
+        self.verdicts = wp.empty((self.spl, model.pad_count), dtype=Verdict, device=model.device)
         self.kernel = onchip_kernel(
             model.dtype,
             *kernel_tiles(model, cluster, self.threads),
@@ -151,6 +160,7 @@ class OnchipEngine(OnchipLaunches):
             grown_tiles(model, cluster),
             bool(self.solver.crossing),
         )
+        self.extra_kernels = pad_samples_kernel(model.dtype)  # after each launch: the rows and faults from the parts
         dev = model.device
         if cluster > 1 and wp.get_cuda_max_cluster_dim(self.kernel, dev, block_dim=self.block_dim) < cluster:
             raise SceneError(
@@ -162,13 +172,14 @@ class OnchipEngine(OnchipLaunches):
         self.solver.prepare(state)
 
     def _samples_per_launch(self, asked: int | None) -> int:
-        """Sample intervals per launch: ``asked`` or ~20k steps (on the CPU at most ~1e7 patch-steps), at most the run
-        and the history buffer cap."""
+        """Sample intervals per launch: ``asked`` or ~20k steps (on the CPU at most ~1e7 patch-steps), at most the run,
+        the history buffer cap and the cap of the samples' parts."""
         steps = _STEPS_PER_LAUNCH
         if self.model.device.is_cpu:
             steps = min(steps, _CPU_PATCH_STEPS_PER_LAUNCH // self.model.patch_count)
         spl = max(1, steps // self.sps) if asked is None else asked
-        spl = max(1, min(spl, self.n_samples))
+        part_row = self.model.pad_count * self.blocks_per_pad * self.warps * PART * 8  # bytes of a sample's parts
+        spl = max(1, min(spl, self.n_samples, _PARTS_BYTES // part_row))
         probe = Recorder(self.model, self.record, 1, self.n_samples)
         per_row = (int(probe.want_v) + int(probe.want_u)) * self.model.patch_count * itemsize(self.model)
         return max(1, min(spl, _PATCH_BUFFER_BYTES // per_row)) if per_row else spl
@@ -223,5 +234,13 @@ class OnchipEngine(OnchipLaunches):
                 s.u,
                 s.v,
                 s.force,
+                self.parts,
             ],
         )
+        m, (sample_rows, sample_faults) = self.model, self.extra_kernels
+        parts = [self.parts, self.blocks_per_pad, self.warps, rows, self.verdicts]
+        wp.launch(
+            sample_rows, dim=(samples, m.pad_count), inputs=[self.kernel_model, rec.struct, *parts], device=m.device
+        )
+        faults = [self.kernel_model, rec.struct, self.verdicts, samples, k_next]
+        wp.launch(sample_faults, dim=m.pad_count, inputs=faults, device=m.device)
