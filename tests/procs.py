@@ -74,11 +74,29 @@ def nine_patch_scene(
     )
 
 
-# runs ``aca_warp.cli`` with RLIMIT_FSIZE = argv[1] bytes and SIGXFSZ ignored (writes past it fail with EFBIG)
-LIMITED = (
-    "import resource, signal, sys; lim = int(sys.argv[1]); signal.signal(signal.SIGXFSZ, signal.SIG_IGN); "
-    "resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim)); from aca_warp.cli import run; run(sys.argv[2:])"
-)
+# runs ``aca_warp.cli`` with RLIMIT_FSIZE = argv[1] bytes and SIGXFSZ ignored (writes past it fail with EFBIG).
+# The limit is the soft one, lifted while Warp loads a module: on a kernel cache that lacks one of the run's
+# kernels (which depends on what ran before on the machine), its compile would otherwise meet the limit first
+# (clang cannot write its precompiled header, an object file above the limit is lost) instead of the run's files.
+LIMITED = """
+import resource, signal, sys
+import warp._src.context as context
+lim = int(sys.argv[1])
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+def limit(soft):
+    resource.setrlimit(resource.RLIMIT_FSIZE, (soft, resource.RLIM_INFINITY))
+load = context.Module.load
+def load_unlimited(self, *args, **kwargs):
+    limit(resource.RLIM_INFINITY)
+    try:
+        return load(self, *args, **kwargs)
+    finally:
+        limit(lim)
+context.Module.load = load_unlimited
+limit(lim)
+from aca_warp.cli import run
+run(sys.argv[2:])
+"""
 
 
 def env(**extra: str) -> dict[str, str]:
@@ -152,8 +170,13 @@ def resume(proc: subprocess.Popen) -> None:
 
 
 def error_lines(stderr: str) -> list[str]:
-    """stderr without Warp's start-up notes."""
-    return [line for line in stderr.splitlines() if line.strip() and not line.startswith("Warp ")]
+    """stderr without Warp's start-up notes and the note that kernels are being compiled (printed on a kernel cache
+    that lacks one of the command's kernels, which depends on what ran before on the machine)."""
+    return [
+        line
+        for line in stderr.splitlines()
+        if line.strip() and not line.startswith(("Warp ", "compiling kernels (once per machine"))
+    ]
 
 
 def datasets(path: Path) -> dict[str, np.ndarray]:
