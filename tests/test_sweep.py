@@ -782,3 +782,36 @@ def test_the_patch_digest_comes_with_shards_a_preparation_pool_made(tmp_path: Pa
     for i in (0, 1):
         with h5py.File(out / f"shard-0000{i}.h5", "r") as f:
             assert f.attrs["patch_data"] == spec.patch_data
+
+
+def test_a_finished_sweep_in_a_folder_that_takes_no_file_is_complete(tmp_path: Path, monkeypatch, capsys) -> None:
+    """A finished sweep run again where its folder takes no new file (read only; its lock file cannot be made) says
+    every shard is finished and exits 0, writing nothing; an unfinished one there, or one asked to ``--overwrite``,
+    is refused in one line (exit 4)."""
+    from aca_warp.common import files
+    from aca_warp.sweep.manifest import MANIFEST
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(toml_text(TINY))
+    out = tmp_path / "o"
+    assert main(["sweep", str(spec), "-o", str(out), "--workers", "0"]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    capsys.readouterr()
+
+    def read_only(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(files, "_take", read_only)
+    assert main(["sweep", str(spec), "-o", str(out), "--workers", "0"]) == 0
+    said = capsys.readouterr()
+    assert f"4 of 4 shard(s) already finished, skipped ({out} takes no new file)" in said.out, said
+    assert "0 shard(s) run, 4 skipped" in said.out and said.err == ""
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert main(["sweep", str(spec), "-o", str(out), "--workers", "0", "--overwrite"]) == 4
+    assert "cannot write into" in capsys.readouterr().err
+    manifest = json.loads((out / MANIFEST).read_text())
+    (out / "shard-00003.h5").unlink()  # unfinished now: the folder cannot take its shard
+    assert main(["sweep", str(spec), "-o", str(out), "--workers", "0"]) == 4
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert len(err) == 1 and f"cannot write into {out} (permission denied)" in err[0], err
+    assert json.loads((out / MANIFEST).read_text()) == manifest

@@ -156,6 +156,23 @@ def _lost_manifest(d: Path, spec: SweepSpec, stray: list[Path]) -> bool:
     return bool(shards)
 
 
+def finished_shards(spec: SweepSpec, out_dir: str | Path) -> list[int] | None:
+    """Every shard index of ``spec`` when each is finished in ``out_dir`` (``done`` or ``fault``: its manifest names
+    this spec, over the same patches, and every shard file verifies, :func:`shard_finished`), else None. Reads only:
+    for a folder that takes no new file, where :func:`prepare_dir` cannot run."""
+    d = Path(out_dir)
+    old = read_manifest(d)
+    if old is None or old.get("spec_hash") != spec.hash:
+        return None
+    patch_data = old.get("patch_data")
+    if patch_data is not None and patch_data != spec.patch_data:
+        return None
+    for i in range(spec.shard_count):
+        if shard_finished(d / shard_name(i), spec.hash, *spec.shard_range(i), patch_data) is None:
+            return None
+    return list(range(spec.shard_count))
+
+
 def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False) -> dict:
     """Create or reopen the sweep directory; returns the manifest with every shard's verified state.
 

@@ -21,7 +21,7 @@ from typing import Any
 
 from aca_warp.common.devices import get_device
 from aca_warp.common.errors import StorageError
-from aca_warp.common.files import check_room, folder_named, locked_output
+from aca_warp.common.files import OutputLock, check_room, folder_named
 from aca_warp.sweep.cluster import (
     ClusterStart,
     _have_dask,
@@ -31,7 +31,7 @@ from aca_warp.sweep.cluster import (
     device_sharing,
     started_here,
 )
-from aca_warp.sweep.manifest import MANIFEST, SweepResult, _Book, _one_line, prepare_dir
+from aca_warp.sweep.manifest import MANIFEST, SweepResult, _Book, _one_line, finished_shards, prepare_dir
 from aca_warp.sweep.overlap import PIPELINE_DEPTH, ShardCancelled, ShardContext
 from aca_warp.sweep.prepare import PreparedShard, Preparer, check_runs
 from aca_warp.sweep.shard import run_shard, shard_bytes, shard_name
@@ -90,7 +90,15 @@ def run_sweep(
             check_scheduler(scheduler)  # a bad address or no answer: one line, nothing written
         out.mkdir(parents=True, exist_ok=True)
         # one sweep per directory: held until the last shard is recorded
-        with locked_output(out / MANIFEST, what="wait for that sweep to finish or stop it"):
+        try:
+            lock = OutputLock.acquire(out / MANIFEST, what="wait for that sweep to finish or stop it")
+        except StorageError:  # a folder that takes no new file (read only): fine if it holds this sweep finished
+            done = None if overwrite else finished_shards(spec, out)
+            if done is None:
+                raise
+            say(f"{len(done)} of {spec.shard_count} shard(s) already finished, skipped ({out} takes no new file)")
+            return SweepResult(out, [], done, {}, [], time.perf_counter() - t0, 0, 0)
+        try:
             manifest = prepare_dir(spec, out, overwrite=overwrite)
             book = _Book(spec, out, manifest, say)
             check_room(  # after prepare_dir: the shards it will run, the files of another sweep it removed gone
@@ -107,6 +115,8 @@ def run_sweep(
             book.result.ran.sort()
             book.result.wall_time = time.perf_counter() - t0
             return book.result
+        finally:
+            lock.release()
     finally:
         if early is not None:
             early.close(quiet=True)  # a call that stopped before its shards, or ran none (the Dask path closed it)
