@@ -874,7 +874,10 @@ def test_a_band_edge_is_no_peak_and_is_said_to_be_one(monkeypatch, tmp_path):
     assert a["first_velocity_peak_frequency"] == 120e3 and a["first_velocity_peak_at_band_edge"] == "lower"
     assert a["mu_peak_at_band_edge"] == "lower" and a["sum_abs_velocity_peak_at_band_edge"] == "no"
     lines = peak_lines({"peaks": peaks, "spectra": spectra})
-    assert lines[0] == "first velocity-spectrum peak 120 kHz (at the band's lower edge: no peak inside the band)"
+    assert lines[0] == (
+        "first velocity-spectrum peak 120 kHz (at the band's lower edge: no peak inside the band), of the Σu̇ spectrum "
+        "(the one the paper's Fig. 8 plots)"
+    )
     assert lines[1].startswith("largest mu peak 120 kHz (at the band's lower edge: no peak inside the band)")
     axes = Figure().subplots(2, 1)
     text = hf._mark_velocity_peak(axes, peaks)
@@ -899,12 +902,18 @@ def test_the_per_patch_peak_line_uses_the_per_patch_bin_width():
             "first_velocity_peak_frequency": 73.73e3,
             "first_velocity_peak_source": "mean per-patch velocity amplitude spectrum (/analysis/patch_spectrum)",
             "first_velocity_peak_at_band_edge": "no",
+            "sum_velocity_peak_frequency": 71.9e3,
+            "sum_velocity_peak_at_band_edge": "lower",
             "mu_peak_frequency": 72.22e3,
             "mu_peak_at_band_edge": "no",
         }
     )
     lines = peak_lines({"peaks": peaks, "spectra": spectra, "patch_spectrum": patch})
-    assert lines[0] == "first velocity-spectrum peak 73.73 kHz (bins 9.98 kHz wide: 7.39 periods in the record)"
+    assert lines[0] == (
+        "first velocity-spectrum peak 73.73 kHz (bins 9.98 kHz wide: 7.39 periods in the record), of the mean "
+        "per-patch velocity spectrum (the Σu̇ spectrum's, the one Fig. 8 plots: 71.9 kHz (at the band's lower edge: no "
+        "peak inside the band))"
+    )
     assert lines[1] == "largest mu peak 72.22 kHz (bins 5 kHz wide: 14.5 periods in the record)"
 
 

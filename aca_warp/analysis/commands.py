@@ -400,7 +400,9 @@ def peak_lines(groups: dict[str, Any], freq_min: float | None = None) -> list[st
     :func:`~aca_warp.analysis.report.analyze_run` returns: each peak with the bin width and period count of the
     spectrum it comes from (the per-patch spectrum's own, which ``--patch-window``/``--patch-decimation`` may make
     coarser than the global record's), a peak that is only a band edge said to be one, and an empty peak search's
-    band said with the edge that empties it (``freq_min``: ``--freq-min`` [Hz], None when not given)."""
+    band said with the edge that empties it (``freq_min``: ``--freq-min`` [Hz], None when not given). The velocity
+    peak names its spectrum; one from the mean per-patch spectrum has Σu̇'s beside it, the spectrum the paper's
+    Fig. 8 plots (the two readings the paper leaves open: docs/analysis.md)."""
     from aca_warp.analysis.report import bin_width
 
     peaks, spectra = groups["peaks"].attrs, groups["spectra"]
@@ -412,7 +414,16 @@ def peak_lines(groups: dict[str, Any], freq_min: float | None = None) -> list[st
         from_patch = patch is not None and "patch_spectrum" in str(peaks.get("first_velocity_peak_source", ""))
         dfv = bin_width(patch["freq"], patch.attrs) if from_patch and patch is not None else df
         edge = _edge_clause(peaks.get("first_velocity_peak_at_band_edge"))
-        lines.append(f"first velocity-spectrum peak {f / 1e3:.4g} kHz{edge}{_few_periods(f, dfv)}")
+        line = f"first velocity-spectrum peak {f / 1e3:.4g} kHz{edge}{_few_periods(f, dfv)}"
+        if not from_patch:
+            line += ", of the Σu̇ spectrum (the one the paper's Fig. 8 plots)"
+        elif "sum_velocity_peak_frequency" in peaks:
+            fs = float(peaks["sum_velocity_peak_frequency"])
+            other = f"{fs / 1e3:.4g} kHz{_edge_clause(peaks.get('sum_velocity_peak_at_band_edge'))}"
+            line += f", of the mean per-patch velocity spectrum (the Σu̇ spectrum's, the one Fig. 8 plots: {other})"
+        else:
+            line += ", of the mean per-patch velocity spectrum"
+        lines.append(line)
     else:
         lines.append(_no_peak_line(peaks["band"], df, freq_min))
     if "mu_peak_frequency" in peaks:
