@@ -141,11 +141,11 @@ def onchip_kernel(
     ``ablate`` (profiling only, ``scripts/profile_onchip.py``; the results are then wrong) drops parts of the
     step to time the rest: ``friction`` (the implicit friction solve becomes an explicit kick), ``gather`` (the
     neighbour sum), ``gather_half`` (the second half of every row's links), ``sync`` (the block barrier), ``sample``
-    (a sample's per-patch work and warp reductions: the synchronous velocities, sums, watchdog and per-patch
-    histories; zero sums are written) or ``sample_solve`` (the synchronous velocity taken as the staggered one);
-    with ``growth``, ``coupling`` (the stiffness
-    update after an event) and ``contact`` (the contact re-solve after an event). ``fast_math``: compile with CUDA
-    fast math (approximate division and transcendental functions; changes the results in the last bits).
+    (a sample's per-patch work: the synchronous velocities, sums, watchdog and per-patch histories; the warps still
+    combine and store their parts, of zero sums) or ``sample_solve`` (the synchronous velocity taken as the
+    staggered one); with ``growth``, ``coupling`` (the stiffness update after an event) and ``contact`` (the contact
+    re-solve after an event). ``fast_math``: compile with CUDA fast math (approximate division and transcendental
+    functions; changes the results in the last bits).
 
     ``cluster`` = K > 1 (CUDA sm_90+): a pad is advanced by a thread-block cluster of K blocks; block ``rank`` owns
     the patches ``n·rank // K`` … ``n·(rank + 1) // K − 1`` (and their CSR rows, ``emax`` is then
@@ -178,7 +178,8 @@ def onchip_kernel(
     warp]`` (:data:`PART`; on the CPU, where a block's threads are not warps, each thread its own). The globals rows
     and the watchdog's verdicts are made from them after the launch (:func:`pad_samples_kernel`): the warps' sums in
     warp order, then the blocks' in rank order, which is the order the block reductions and block 0 of a cluster
-    took before, so the outputs are those of before to the bit, while a sample's work overlaps the next step's.
+    took before, while a sample's work overlaps the next step's. (The step's arithmetic is unchanged by this, but
+    the CUDA compiler may build an fp32 step otherwise: docs/onchip.md, "Outputs".)
 
     Launch with ``wp.launch_tiled(kernel, dim=[pads · K], block_dim=B, ...)`` (K = ``cluster``); ``threads``
     must be the block size the device really runs (B on CUDA or with CPU fibers, else 1 on the CPU). The kernel
@@ -335,7 +336,6 @@ def onchip_kernel(
         opening: int,
         # Recording:
         k0: int,
-        row0: int,
         prow0: int,
         # State in/out (staggered w, cached F_s between launches):
         u_io: wp.array[T],
@@ -347,8 +347,8 @@ def onchip_kernel(
         """Advance pad ``pad`` by ``samples`` × ``steps_per_sample`` strang steps, recording after each sample.
 
         ``opening`` = 1: the state is synchronous, the first step is the opening half step (``strang_velocity``).
-        Globals row ``row0 + s`` gets sample ``k0 + s``; per-patch rows start at ``prow0``. With growth, steps are
-        counted from ``growth_step0`` (steps done before the launch, modulo ``growth_every``).
+        Sample s is the run's sample ``k0 + s`` (its parts: ``parts[s]``); per-patch rows start at ``prow0``. With
+        growth, steps are counted from ``growth_step0`` (steps done before the launch, modulo ``growth_every``).
         """
         blk, lane = wp.tid()
         pad = blk // CLUSTER
@@ -601,17 +601,18 @@ def onchip_kernel(
     return onchip_strang
 
 
-# a pad's verdict on one sample (pad_samples_kernel → flag_fault): not finite (1) or not (0), its first non-finite
-# patch (−1: none), its first runaway patch (n: none) and that patch's energy speed [m/s]
+# a pad's verdict on one sample (pad_samples_kernel → flag_fault): its sums not finite (1) or finite (0), its first
+# non-finite patch (−1: none), its first runaway patch (n: none) and that patch's energy speed [m/s]
 Verdict = wp.types.vector(length=4, dtype=wp.float64)
 
 
 @cache
 def pad_samples_kernel(dtype: Any) -> tuple[wp.Kernel, wp.Kernel]:
-    """The two kernels that make the samples of a launch of :func:`onchip_kernel` from its ``parts``: ``rows``
-    (one thread per sample and pad, ``dim=(rows, pads)``) writes globals row ``row0 + s`` (:func:`write_globals`)
-    and the pad's verdict on sample s into ``verdicts[s, pad]`` (:data:`Verdict`); ``faults`` (one thread per pad)
-    gives the watchdog the pad's first sample of a fault among them (:func:`flag_fault`, sample ``k0 + s``).
+    """The two kernels that make the samples of a launch of :func:`onchip_kernel` from its ``parts``:
+    ``sample_rows`` (one thread per sample and pad, ``dim=(samples, pads)``) writes globals row ``row0 + s``
+    (:func:`write_globals`) and the pad's verdict on sample s into ``verdicts[s, pad]`` (:data:`Verdict`);
+    ``sample_faults`` (one thread per pad) gives the watchdog the pad's first sample of a fault among the launch's
+    ``samples`` (:func:`flag_fault`, sample ``k0 + s``). Each in a module of its own (per ``dtype``).
 
     ``parts[s, b, w]`` holds warp w's part of sample s of block b (pad b // ``cluster``; :data:`PART`); a block's
     sums are its warps' in warp order, the sums of Warp's block reduction to the bit (the warp stage was
@@ -644,7 +645,7 @@ def pad_samples_kernel(dtype: Any) -> tuple[wp.Kernel, wp.Kernel]:
             bad = -1
         return tot, bad, runaway, value
 
-    @wp.kernel(enable_backward=False)
+    @wp.kernel(enable_backward=False, module="unique")
     def sample_rows(
         model: Model,
         rec: Recorder,
@@ -682,12 +683,12 @@ def pad_samples_kernel(dtype: Any) -> tuple[wp.Kernel, wp.Kernel]:
             broken = wp.float64(1.0)
         verdicts[s, pad] = Verdict(broken, wp.float64(bad), wp.float64(runaway), value)
 
-    @wp.kernel(enable_backward=False)
-    def sample_faults(model: Model, rec: Recorder, verdicts: wp.array2d[Verdict], rows: int, k0: int):
+    @wp.kernel(enable_backward=False, module="unique")
+    def sample_faults(model: Model, rec: Recorder, verdicts: wp.array2d[Verdict], samples: int, k0: int):
         pad = wp.tid()
         n = model.pad_patch_start[pad + 1] - model.pad_patch_start[pad]
         s = int(0)
-        while s < rows and rec.fault[pad, 0] < 0:
+        while s < samples and rec.fault[pad, 0] < 0:
             v = verdicts[s, pad]
             flag_fault(rec, pad, k0 + s, v[0] != wp.float64(0.0), int(v[1]), int(v[2]), n, v[3])
             s += 1

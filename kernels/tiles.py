@@ -66,14 +66,22 @@ def warp_sum(dtype: Any) -> Any:
 @wp.func_native(
     """
 #if defined(__CUDA_ARCH__)
-    return __reduce_min_sync(__ballot_sync(WP_TILE_LANE_MASK_ALL, true), x);
+    const wp_tile_lane_mask_bits_t mask = __ballot_sync(WP_TILE_LANE_MASK_ALL, true);
+#if __CUDA_ARCH__ >= 800
+    return __reduce_min_sync(mask, x);
+#else
+    const int least = wp::warp_reduce(x, [](int a, int b) { return a < b ? a : b; }, mask);
+    return __shfl_sync(mask, least, __ffs(mask) - 1);
+#endif
 #else
     return x;
 #endif
 """
 )
 def warp_min(x: int) -> int:
-    """The least ``x`` over the warp, to every lane (every lane of the warp must call it); on the CPU ``x``."""
+    """The least ``x`` over the warp, to every lane (every lane of the warp must call it); on the CPU ``x``. The
+    warp's own reduction from sm_80, shuffles below (``wp::warp_reduce``, its result broadcast from its first
+    lane)."""
     ...
 
 

@@ -3,7 +3,7 @@
 
 Times the on-chip engine (``aca_warp.hf.onchip``) on one pad (``--pads N``: a batch of N identical pads) for a
 window of steps with parts of the step left out (``ablate``: the implicit friction solve → an explicit kick, the
-neighbour gather or its second half, the block barrier, a sample's per-patch work and reductions; the results of
+neighbour gather or its second half, the block barrier, a sample's per-patch work; the results of
 an ablated run are wrong and only its time counts), for several block sizes, with the CSR in shared or global
 memory, fp32 and fp64, and the general per-step path for comparison. The difference between two rows is the cost
 of the part left out. Writes a JSON list and a Markdown table.

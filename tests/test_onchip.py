@@ -104,6 +104,22 @@ def test_onchip_multithread_block_cpu_fibers(precision, block, csr):
     np.testing.assert_allclose(co.globals, cg.globals, rtol=1e-12, atol=0)  # tree sums in float64
 
 
+def test_onchip_sample_sums_in_the_order_of_the_block_reduction():
+    """With CPU fibers on both engines and blocks of the general engine's record kernel's size (256 threads), the
+    on-chip sample sums (each warp's part, then the warps in order) are the general engine's block reduction to the
+    bit: any other order of the warps' parts differs in the last bits of some fp64 sum."""
+    out = {}
+    for engine in ("general", "onchip"):
+        model = build_model(_scenes(), device="cpu", precision="fp64")
+        state = initial_state(model)
+        options = RunOptions(integrator="strang", duration=1e-6, dt=1e-8, engine=engine)
+        tuning = EngineTuning(samples_per_launch=3, block_dim=256) if engine == "onchip" else None
+        with cpu_fibers(True):
+            res = run_hf(model, state, options, tuning=tuning)
+        out[engine] = res.collect().globals
+    np.testing.assert_array_equal(out["onchip"], out["general"])
+
+
 def _grown(device: str, precision: str, engine: str, fibers: bool = False, **onchip_kw):
     """Both hf1-size pads growing 1000× faster than Eq. 10 (an event every 20 steps, 10 in the run)."""
     scenes = [s.replace(growth=Growth(increment=1e-6, interval=2e-7)) for s in _scenes()]
@@ -261,7 +277,8 @@ def test_engine_choice_and_refusals(device):
 
 
 def test_onchip_fault_matches_general(device):
-    """Forced beyond the spring limit, both engines stop at the same sample, pad and patch."""
+    """Forced beyond the spring limit, both engines stop at the same sample, pad and patch, and say the same of it
+    (the runaway patch's energy speed, which the first part with that patch carries on chip)."""
     s = preset("hf1").replace(record=Record(sample_dt=2e-5))
     faults = []
     for engine in ("general", "onchip"):
@@ -285,8 +302,9 @@ def test_onchip_fault_matches_general(device):
         assert not res.complete
         c = res.collect()
         assert np.all(np.isfinite(c.globals)) and np.all(c.time < res.fault.time)
-        faults.append((res.fault.time, res.fault.pad, res.fault.patch, len(c.time)))
+        faults.append((res.fault.time, res.fault.pad, res.fault.patch, len(c.time), str(res.fault)))
     assert faults[0] == faults[1]
+    assert "energy speed" in faults[0][4] and "energy speed 0 m/s" not in faults[0][4], faults[0][4]
 
 
 def test_parts_buffer_caps_the_launch(monkeypatch):
@@ -353,7 +371,7 @@ def test_ablations_for_profiling(device):
     """``ablate`` (scripts/profile_onchip.py) leaves out parts of the step: the runs differ; unknown names fail."""
     s = preset("hf1").replace(record=Record(sample_dt=1e-7))
     mus = {}
-    for abl in ((), ("gather",), ("friction",), ("gather_half",)):
+    for abl in ((), ("gather",), ("friction",), ("gather_half",), ("sample_solve",)):
         model = build_model([s], device=device, precision="fp32")
         res = run_hf(
             model,
@@ -388,7 +406,7 @@ def test_ablations_for_profiling(device):
 
 
 def test_sample_ablation_leaves_the_motion_and_drops_the_outputs(device):
-    """``sample`` (scripts/profile_onchip.py: the cost of a sample's per-patch work and reductions) leaves the
+    """``sample`` (scripts/profile_onchip.py: the cost of a sample's per-patch work) leaves the
     motion as it is, bit for bit, and records zero velocity sums and no patch velocities after sample 0 (which the
     general kernels record)."""
     s = preset("hf1").replace(record=Record(sample_dt=1e-7, patches=("velocity",)))
@@ -825,3 +843,65 @@ def test_thread_links_per_block_and_thread_as_a_loop_counts_them():
     assert start is model.host("nbr_start") and not start.flags.writeable
     assert model.host("area") is not model.host("area")  # arrays a run changes: a fresh copy each time
     assert tile_sizes(model, 2, 32) is tile_sizes(model, 2, 32) and ("tile_sizes", 2, 32) in model.memo
+
+
+@pytest.mark.parametrize("cluster", [1, 2])
+def test_sample_rows_combine_parts_in_order(cluster):
+    """The rows and verdicts of a launch from hand-made parts (the cluster path runs on the CPU here, where no kernel
+    makes parts for clusters): a block's warps added in order (1, 2⁵³, −2⁵³ gives 0; any other order 1), a cluster's
+    blocks added to zero in rank order (two blocks of −0.0 give +0.0, one block keeps its −0.0), the first
+    non-finite patch of the first block whose sums are not finite, and the pad's first runaway patch with the energy
+    speed its part carries."""
+    from aca_warp.kernels.hf_onchip import PART, Verdict, pad_samples_kernel
+
+    from aca_warp.hf.recorder import Recorder
+
+    scene = preset("hf1").replace(record=Record(sample_dt=1e-7))
+    model = build_model([scene, scene], device="cpu", precision="fp64")
+    n = int(np.diff(model.pad_patch_start_host)[0])
+    rec = Recorder(model, scene.record, 4, 4)
+    samples, warps = 2, 3
+    p = np.zeros((samples, 2 * cluster, warps, PART))
+    p[..., 7] = n  # no non-finite patch
+    p[..., 8] = n  # no runaway patch
+    first = 0  # pad 0's first block
+    p[0, first, :, 2] = [1.0, 2.0**53, -(2.0**53)]  # Σu̇ of pad 0, sample 0: 0 in warp order
+    p[0, :, :, 3] = -0.0  # Σ|u̇| of every part of sample 0: −0.0
+    p[0, first, 0, 10:12] = [3.0, 0.1]  # the pad's matrix force [N] and radius [m] at the sample
+    p[1, first, 1, 8:10] = [12, 5.0]  # sample 1: runaway patch 12 (energy speed 5 m/s) in pad 0's first block
+    last = cluster - 1  # pad 0's last block: the first runaway patch (9) lies there when cluster = 2
+    p[1, last, 2, 8:10] = [9, 7.0] if cluster == 2 else [12, 5.0]
+    p[1, last, 2, 7] = 30  # its first non-finite patch, counted as its sums are not finite
+    p[1, last, 2, 6] = np.nan
+    parts = wp.array(p, dtype=wp.float64, device="cpu")
+    verdicts = wp.zeros((samples, 2), dtype=Verdict, device="cpu")
+    sample_rows, _ = pad_samples_kernel(wp.float64)
+    wp.launch(
+        sample_rows, dim=(samples, 2), inputs=[model.struct(), rec.struct, parts, cluster, warps, 1, verdicts],
+        device="cpu",
+    )  # fmt: skip
+    g, v = rec.globals.numpy(), verdicts.numpy()
+    assert g[1, 0, 3] == 0.0  # Σu̇, row0 = 1
+    assert g[1, 0, 2] == pytest.approx(0.1) and g[1, 1, 2] == 0.0  # friction radius: the matrix's, from pad 0's part
+    assert np.signbit(g[1, 0, 4]) == (cluster == 1)  # Σ|u̇|: −0.0 kept by one block, +0.0 from a cluster's sum
+    assert np.signbit(g[1, 1, 4]) == (cluster == 1)
+    np.testing.assert_array_equal(v[0, 0], [0.0, -1.0, n, 0.0])
+    np.testing.assert_array_equal(v[1, 0], [1.0, 30.0, 9.0, 7.0] if cluster == 2 else [1.0, 30.0, 12.0, 5.0])
+    np.testing.assert_array_equal(v[1, 1], [0.0, -1.0, n, 0.0])
+
+
+@pytest.mark.parametrize(("arch", "cluster"), [(75, 1), (90, 2)])
+def test_onchip_kernels_build_for_cuda_architectures(arch, cluster):
+    """The on-chip kernels and the samples' kernels compile for CUDA from sm_75 (Warp's NVRTC, no GPU needed): what
+    a newer architecture adds (the warp's own min from sm_80, clusters from sm_90) is compiled only there."""
+    from aca_warp.kernels.hf_onchip import onchip_kernel, pad_samples_kernel
+    from aca_warp.kernels.hf_onchip_adaptive import onchip_dp5_kernel
+
+    if arch not in wp.get_cuda_supported_archs():
+        pytest.skip(f"this Warp build compiles no CUDA code for sm_{arch}")
+    strang = onchip_kernel(wp.float32, 64, 512, True, 64, cluster=cluster)
+    dp5 = onchip_dp5_kernel(wp.float64, cluster, 64, 1, 64, 0, frozenset(), False)
+    for kernel in (strang, dp5):  # of their own (module "unique"): launched with blocks of 64 threads
+        kernel.module.options["block_dim"] = 64
+    for kernel in (strang, dp5, *pad_samples_kernel(wp.float32)):
+        assert wp.compile_aot_module(kernel.module, arch=arch, use_ptx=False), kernel.key

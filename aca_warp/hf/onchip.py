@@ -2,8 +2,9 @@
 
 The pad's displacement (double-buffered), staggered velocity and spring-force cache live in shared memory for the
 whole launch; after every sample interval each warp stores its part of the global outputs' sums (μ, torque, friction
-radius, Σu̇, Σ|u̇|) and the owning threads the per-patch histories, and after the launch a kernel of one thread per
-pad makes the rows and the watchdog's verdicts from the parts (:mod:`aca_warp.kernels.hf_onchip`). Patch growth
+radius, Σu̇, Σ|u̇|) and the owning threads the per-patch histories, and after the launch two kernels make the rows
+(one thread per sample and pad) and give the watchdog each pad's first fault (one thread per pad) from the parts
+(:mod:`aca_warp.kernels.hf_onchip`, ``pad_samples_kernel``). Patch growth
 (varying-area scenes) runs in the kernel too. The launch layout (threads, cluster, tiles) and the engine choice are in
 :mod:`aca_warp.hf.onchip_layout`; the run loop around the launches is :func:`aca_warp.hf.loop.run_hf`.
 
@@ -42,7 +43,7 @@ from aca_warp.kernels.hf_onchip import PART, Verdict, onchip_kernel, pad_samples
 __all__ = ["OnchipEngine", "choose_engine"]
 
 _PATCH_BUFFER_BYTES = 256 * 2**20  # cap of the per-patch history buffers of one launch
-_PARTS_BYTES = 256 * 2**20  # cap of the warps' parts of a launch's samples (OnchipEngine.parts)
+_PARTS_BYTES = 256 * 2**20  # cap of the warps' parts of a launch's samples (OnchipEngine.parts; at least one sample)
 _STEPS_PER_LAUNCH = 20_000  # default: sample intervals per launch fill about this many steps
 # on the CPU (a pad's block is one thread, ~1e7 patch-steps/s) also at most about this many patch-steps, about a
 # second: progress, Ctrl-C and checkpoints stay timely on large batches
@@ -213,8 +214,9 @@ class OnchipEngine(OnchipLaunches):
         if self.started:
             self.solver.finish(self.state, self.h)
 
-    def _launch(self, done: int, samples: int, k_next: int, rows: int, prows: int) -> None:
-        """One launch of ``samples`` sample intervals after ``done`` of them, rows counted from the recorder's."""
+    def _launch(self, done: int, samples: int, k_next: int, row0: int, prows: int) -> None:
+        """One launch of ``samples`` sample intervals after ``done`` of them; its first sample is the run's sample
+        ``k_next``, recorded into globals row ``row0`` and per-patch row ``prows`` of the recorder's buffers."""
         s, rec, T = self.state, self.recorder, self.model.dtype
         self.launch_kernel(
             [
@@ -229,7 +231,6 @@ class OnchipEngine(OnchipLaunches):
                 samples,
                 int(not self.started),
                 k_next,
-                rows,
                 prows,
                 s.u,
                 s.v,
@@ -238,7 +239,7 @@ class OnchipEngine(OnchipLaunches):
             ],
         )
         m, (sample_rows, sample_faults) = self.model, self.extra_kernels
-        parts = [self.parts, self.blocks_per_pad, self.warps, rows, self.verdicts]
+        parts = [self.parts, self.blocks_per_pad, self.warps, row0, self.verdicts]
         wp.launch(
             sample_rows, dim=(samples, m.pad_count), inputs=[self.kernel_model, rec.struct, *parts], device=m.device
         )
