@@ -10,7 +10,8 @@ Timing method (all on warm kernels):
 
 * ``wall_s``, ``steps_per_s``, ``patch_steps_per_s``: one run (:func:`aca_warp.hf.loop.run_hf` with the case's
   ``engine``: ``general`` is :func:`aca_warp.hf.loop.run_hf`, ``onchip`` the on-chip kernel (``blocks_per_pad``: its
-  thread-block cluster size, :func:`aca_warp.hf.onchip.default_cluster`), ``auto`` resolves as
+  thread-block cluster size, :func:`aca_warp.hf.onchip.default_cluster`; ``block_dim``: its threads per block, None
+  for the general engine), ``auto`` resolves as
   ``aca-warp hf`` does) over the timed window, recording every sample (what a user's run does; graph capture and
   compilation excluded, as in ``RunResult.wall_time``). ``engine`` in the row is the resolved one.
 * ``stepping_s``: the bare step, ``HFSolver.step`` captured into one graph of ``GRAPH_STEPS`` steps and replayed,
@@ -256,6 +257,7 @@ def run_case(
             "fast_math": fast_math,
             "crossing": crossing,
             "blocks_per_pad": res.blocks_per_pad,
+            "block_dim": res.block_dim,
             "pads": pads,
             "patches": n,
             "patches_per_pad": n // pads,

@@ -1,15 +1,14 @@
 #!/usr/bin/env python3
 """Time the HF engines of two checkouts of aca_warp in one run: a restructuring of the kernels must keep their speed.
-
-Per case (engine: on-chip or general; integrator: strang or adaptive; precision; pads of the hf1 preset) each
-checkout runs in its own Python process (its own package view and kernel cache, as in
-``scripts/compare_checkouts.py``): a warm-up run of two sample intervals (compile, graph capture), then ``--repeats``
-timed runs over ``--window`` [s] of simulated time. The checkouts alternate case by case (first, second, first,
-…), so drifts of the machine's clock or load hit both alike. Reported per case and checkout: the best and the
-median wall time of the stepping loop [s] (``RunResult.wall_time``, graph captures excluded), µs per accepted
-step, and the ratio second/first of the best times. JSON into ``--out``, rewritten after every row (a run stopped
-at a time limit keeps the rows it finished); ``--cache`` keeps the two checkouts' kernel caches for a later call (e.g.
-the cases split over two calls). Examples::
+ Per case (engine: on-chip or general; integrator: strang or adaptive; precision; pads of the hf1 preset) each checkout
+runs in its own Python process (its own package view and kernel cache, as in ``scripts/compare_checkouts.py``): a
+warm-up run of two sample intervals (compile, graph capture), then ``--repeats`` timed runs over ``--window`` [s] of
+simulated time. The checkouts alternate case by case (first, second, first, …), so drifts of the machine's clock or load
+hit both alike. Reported per case and checkout: the best and the median wall time of the stepping loop [s]
+(``RunResult.wall_time``, graph captures excluded), µs per accepted step, the launch layout (``blocks_per_pad``,
+``block_dim``: None for the general engine and in checkouts that do not report it) and the ratio second/first of the
+best times. JSON into ``--out``, rewritten after every row (a run stopped at a time limit keeps the rows it finished);
+``--cache`` keeps the two checkouts' kernel caches for a later call (e.g. the cases split over two calls). Examples::
 
     python scripts/bench_checkouts.py OLD NEW --out $OUT/bench --device cuda:0 --cache /tmp/bench_cache
     python scripts/bench_checkouts.py OLD NEW --out /tmp/bench --device cpu --pads 1 --window 2e-6 --repeats 1
@@ -62,7 +61,8 @@ for _ in range(a["repeats"]):
     walls.append(res.wall_time)
     steps = res.steps
 print(json.dumps({"wall_best": min(walls), "wall_median": statistics.median(walls), "walls": walls,
-                  "steps": steps, "us_per_step": 1e6 * min(walls) / max(steps, 1), "machine": machine(model.device)}))
+                  "steps": steps, "us_per_step": 1e6 * min(walls) / max(steps, 1), "machine": machine(model.device),
+                  "blocks_per_pad": res.blocks_per_pad, "block_dim": getattr(res, "block_dim", None)}))
 """
 
 

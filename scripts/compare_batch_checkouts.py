@@ -1,13 +1,14 @@
 #!/usr/bin/env python3
 """Compare two checkouts of aca_warp on a batch of saturating hf1 pads: globals, per-patch velocities, final state.
 
-``scripts/compare_checkouts.py`` compares what the commands write (a sweep's shards hold the global outputs only);
-this runs one batch of ``--pads`` hf1 pads (initial perturbation 0.01 m/s, seed = the pad's index) on the on-chip
-engine with ``strang`` at ``--dt``, samples every 1 µs and the per-patch velocities of the second half, once per
-checkout, each in its own Python process with its own package view (kernels/ as aca_warp/kernels), and reports per
-array whether the two are bit-identical, else how many entries differ and by how much (against the array's largest
-value). A kernel change that leaves the arithmetic of the steps alone keeps the final state (u, u̇) to the bit; one
-that changes how the compiler rounds a step shows there first. Example (GPU machine)::
+``scripts/compare_checkouts.py`` compares what the commands write (a sweep's shards hold the global outputs only); this
+runs one batch of ``--pads`` hf1 pads (initial perturbation 0.01 m/s, seed = the pad's index) on the on-chip engine with
+``strang`` at ``--dt``, samples every 1 µs and the per-patch velocities of the second half, once per checkout, each in
+its own Python process with its own package view (kernels/ as aca_warp/kernels), and reports the launch layout each took
+(blocks per pad, threads per block) and per array whether the two are bit-identical, else how many entries differ and by
+how much (against the array's largest value). A kernel change that leaves the arithmetic of the steps alone keeps the
+final state (u, u̇) to the bit; one that changes how the compiler rounds a step shows there first. Example (GPU
+machine)::
 
     python3 scripts/compare_batch_checkouts.py build/base . --device cuda:0 --precisions fp32 fp64 --out cmp.txt
 """
@@ -45,20 +46,25 @@ scenes = [preset("hf1").replace(initial=Initial(perturbation=0.01, seed=k), reco
 model = build_model(scenes, device=a["device"], precision=a["precision"])
 state = initial_state(model)
 options = RunOptions(integrator="strang", engine="onchip", duration=a["duration"], dt=a["dt"])
-c = run_hf(model, state, options).collect()
+res = run_hf(model, state, options)
+c = res.collect()
 u, v = state.numpy()
 np.savez(a["out"], globals=c.globals, velocity=c.velocity, u=u, v=v)
+# the launch layout (block_dim: None in checkouts that do not report it)
+print(json.dumps({"blocks_per_pad": res.blocks_per_pad, "block_dim": getattr(res, "block_dim", None)}))
 """
 
 
-def run(checkout: Path, args: argparse.Namespace, precision: str, out: Path, work: Path) -> None:
-    """Run the batch with ``checkout``'s package into ``out`` (an .npz)."""
+def run(checkout: Path, args: argparse.Namespace, precision: str, out: Path, work: Path) -> str:
+    """Run the batch with ``checkout``'s package into ``out`` (an .npz); returns its launch layout in words."""
     view = package_view(checkout, Path(tempfile.mkdtemp(dir=work)))
     a = {"pads": args.pads, "device": args.device, "precision": precision, "duration": args.duration}
     a |= {"dt": args.dt, "out": str(out)}
     done = subprocess.run([sys.executable, "-c", CHILD, str(view), json.dumps(a)], capture_output=True, text=True)
     if done.returncode != 0:
         raise SystemExit(f"{checkout}: the run failed ({done.returncode}): {done.stderr.strip()[-2000:]}")
+    layout = json.loads(done.stdout.strip().splitlines()[-1])
+    return f"{layout['blocks_per_pad']} block(s) per pad of {layout['block_dim'] or '?'} threads"
 
 
 def differences(a: np.ndarray, b: np.ndarray) -> str:
@@ -86,9 +92,12 @@ def main(argv: list[str] | None = None) -> int:
         work = Path(tmp)
         for precision in args.precisions:
             files = [work / f"{k}_{precision}.npz" for k in (0, 1)]
-            for checkout, out in zip((args.first, args.second), files, strict=True):
+            layouts = [
                 run(checkout, args, precision, out, work)
+                for checkout, out in zip((args.first, args.second), files, strict=True)
+            ]
             a, b = (np.load(f) for f in files)
+            lines.append(f"{precision} layout: {layouts[0]} against {layouts[1]}")
             lines += [f"{precision} {name} {differences(a[name], b[name])}" for name in a.files]
     text = (
         f"{args.pads} hf1 pads, strang at {args.dt:g} s, {args.duration:g} s, device {args.device}: "

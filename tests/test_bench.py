@@ -112,6 +112,7 @@ def test_bench_engines(tmp_path: Path) -> None:
     ]
     on = rows[1]
     assert on["bandwidth_Bps"] is None and on["stepping_s"] is None and on["steps"] == 300
+    assert (on["blocks_per_pad"], on["block_dim"]) == (1, 32) and rows[0]["block_dim"] is None  # the launch layout
     assert on["mu_rel_error_max"] == pytest.approx(rows[0]["mu_rel_error_max"], rel=1e-9)
 
 

@@ -104,5 +104,7 @@ def test_batch_checkouts_report(tmp_path, capsys):
     argv = [str(REPO), str(REPO), "--device", "cpu", "--pads", "1", "--duration", "4e-6", "--precisions", "fp64"]
     assert cb.main([*argv, "--out", str(out)]) == 0
     lines = out.read_text().splitlines()
-    assert [line.split()[1:] for line in lines[1:]] == [[k, "identical"] for k in ("globals", "velocity", "u", "v")]
+    layout = "1 block(s) per pad of 512 threads"  # the launch's block size (on the CPU a block runs as one thread)
+    assert lines[1] == f"fp64 layout: {layout} against {layout}"
+    assert [line.split()[1:] for line in lines[2:]] == [[k, "identical"] for k in ("globals", "velocity", "u", "v")]
     assert cb.differences(np.array([1.0, -4.0]), np.array([1.0, -3.0])) == "differ: 1 of 2, ≤ 0.25 relative"

@@ -49,6 +49,7 @@ class Engine(Protocol):
     estimate: StepEstimate
     stages: list[str]
     blocks_per_pad: int
+    block_dim: int | None  # threads per block of the on-chip launches (None: per-patch kernels)
     capture_time: float  # wall time spent capturing graphs inside advance() [s]
     cause: str  # the likely cause of a fault, in words
 

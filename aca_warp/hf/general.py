@@ -71,6 +71,7 @@ class GeneralEngine:
     """Per-step kernels for every integrator (:class:`~aca_warp.hf.loop.Engine`)."""
 
     blocks_per_pad = 1
+    block_dim = None
 
     def __init__(self, setup: EngineSetup) -> None:
         model, state, options, record = setup.model, setup.state, setup.options, setup.record

@@ -52,6 +52,7 @@ class RunResult:
         stages: Names of the stages that ran.
         chunks: Recorded chunks when no sink was given (see :meth:`collect`).
         blocks_per_pad: Thread blocks that advanced each pad (the on-chip engine's cluster size; 1 otherwise).
+        block_dim: Threads per block of the on-chip engine's launches (None for the general engine).
         checkpoints: Checkpoints written.
         checkpoint_time: Wall time spent writing them [s] (part of ``wall_time``).
     """
@@ -68,6 +69,7 @@ class RunResult:
     stages: list[str]
     chunks: list[Chunk] = field(default_factory=list)
     blocks_per_pad: int = 1
+    block_dim: int | None = None
     checkpoints: int = 0
     checkpoint_time: float = 0.0
 
@@ -353,6 +355,7 @@ class _Run:
             stages=engine.stages,
             chunks=out,
             blocks_per_pad=engine.blocks_per_pad,
+            block_dim=engine.block_dim,
             checkpoints=self.clock.count,
             checkpoint_time=self.clock.seconds,
         )
