@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Time the HF engines of two checkouts of aca_warp in one run: a restructuring of the kernels must keep their speed.
- Per case (engine: on-chip or general; integrator: strang or adaptive; precision; pads of the hf1 preset) each checkout
+
+Per case (engine: on-chip or general; integrator: strang or adaptive; precision; pads of the hf1 preset) each checkout
 runs in its own Python process (its own package view and kernel cache, as in ``scripts/compare_checkouts.py``): a
 warm-up run of two sample intervals (compile, graph capture), then ``--repeats`` timed runs over ``--window`` [s] of
 simulated time. The checkouts alternate case by case (first, second, first, …), so drifts of the machine's clock or load
