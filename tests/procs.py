@@ -75,25 +75,30 @@ def nine_patch_scene(
 
 
 # runs ``aca_warp.cli`` with RLIMIT_FSIZE = argv[1] bytes and SIGXFSZ ignored (writes past it fail with EFBIG).
-# The limit is the soft one, lifted while Warp loads a module: on a kernel cache that lacks one of the run's
-# kernels (which depends on what ran before on the machine), its compile would otherwise meet the limit first
-# (clang cannot write its precompiled header, an object file above the limit is lost) instead of the run's files.
+# The limit is the soft one, lifted while Warp compiles a module (``Module._compile``, which a load calls only for a
+# module the kernel cache lacks): on a cache that lacks one of the run's kernels (which depends on what ran before
+# on the machine), the compile would otherwise meet the limit first (clang cannot write its precompiled header, an
+# object file above the limit is lost) instead of the run's files. Nested or concurrent compiles are counted.
 LIMITED = """
-import resource, signal, sys
+import resource, signal, sys, threading
 import warp._src.context as context
 lim = int(sys.argv[1])
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-def limit(soft):
-    resource.setrlimit(resource.RLIMIT_FSIZE, (soft, resource.RLIM_INFINITY))
-load = context.Module.load
-def load_unlimited(self, *args, **kwargs):
-    limit(resource.RLIM_INFINITY)
+compiling = [0, threading.Lock()]
+def limit(step):
+    with compiling[1]:
+        compiling[0] += step
+        soft = lim if compiling[0] == 0 else resource.RLIM_INFINITY
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, resource.RLIM_INFINITY))
+compile_module = context.Module._compile
+def compile_unlimited(self, *args, **kwargs):
+    limit(1)
     try:
-        return load(self, *args, **kwargs)
+        return compile_module(self, *args, **kwargs)
     finally:
-        limit(lim)
-context.Module.load = load_unlimited
-limit(lim)
+        limit(-1)
+context.Module._compile = compile_unlimited
+limit(0)
 from aca_warp.cli import run
 run(sys.argv[2:])
 """

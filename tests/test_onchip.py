@@ -901,7 +901,14 @@ def test_onchip_kernels_build_for_cuda_architectures(arch, cluster):
         pytest.skip(f"this Warp build compiles no CUDA code for sm_{arch}")
     strang = onchip_kernel(wp.float32, 64, 512, True, 64, cluster=cluster)
     dp5 = onchip_dp5_kernel(wp.float64, cluster, 64, 1, 64, 0, frozenset(), False)
-    for kernel in (strang, dp5):  # of their own (module "unique"): launched with blocks of 64 threads
-        kernel.module.options["block_dim"] = 64
-    for kernel in (strang, dp5, *pad_samples_kernel(wp.float32)):
-        assert wp.compile_aot_module(kernel.module, arch=arch, use_ptx=False), kernel.key
+    kernels = (strang, dp5, *pad_samples_kernel(wp.float32))  # cached: other tests launch them as they were
+    options = [dict(k.module.options) for k in kernels]
+    try:
+        for kernel in (strang, dp5):  # launched with blocks of 64 threads
+            kernel.module.options["block_dim"] = 64
+        for kernel in kernels:
+            assert wp.compile_aot_module(kernel.module, arch=arch, use_ptx=False), kernel.key
+    finally:
+        for kernel, before in zip(kernels, options, strict=True):
+            kernel.module.options.clear()
+            kernel.module.options.update(before)

@@ -85,6 +85,28 @@ def test_live_hf_run_is_not_replaced_or_resumed(tmp_path, capsys, monkeypatch) -
     assert not part.exists() and not lock_path(out).exists()
 
 
+def test_a_lock_that_cannot_note_its_holder_is_not_left(tmp_path: Path, monkeypatch) -> None:
+    """A device that takes the lock file but not its holder's note (full): exit-4 error, no lock file left and no lock
+    held, so the same process takes the output once there is room."""
+    import errno
+
+    from aca_warp.common import files
+    from aca_warp.common.errors import StorageError
+
+    out = tmp_path / "run.h5"
+    real = os.write
+
+    def full(fd: int, data: bytes) -> int:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(files.os, "write", full)
+    with pytest.raises(StorageError, match="no space left"):
+        OutputLock.acquire(out)
+    monkeypatch.setattr(files.os, "write", real)
+    assert not lock_path(out).exists()
+    OutputLock.acquire(out).release()
+
+
 def test_aliases_of_a_live_run_are_refused(tmp_path, capsys, monkeypatch) -> None:
     """One writer per file, not per name: while `hf` runs (held with SIGSTOP), `hf --resume` and `analyze` through a
     symbolic link or a hard link of its live `.partial`, or of the `.partial` moved to another name, are refused with

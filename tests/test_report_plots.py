@@ -876,7 +876,7 @@ def test_a_band_edge_is_no_peak_and_is_said_to_be_one(monkeypatch, tmp_path):
     lines = peak_lines({"peaks": peaks, "spectra": spectra})
     assert lines[0] == (
         "first velocity-spectrum peak 120 kHz (at the band's lower edge: no peak inside the band), of the Σu̇ spectrum "
-        "(the one the paper's Fig. 8 plots)"
+        "(the paper's Fig. 8)"
     )
     assert lines[1].startswith("largest mu peak 120 kHz (at the band's lower edge: no peak inside the band)")
     axes = Figure().subplots(2, 1)
@@ -911,10 +911,12 @@ def test_the_per_patch_peak_line_uses_the_per_patch_bin_width():
     lines = peak_lines({"peaks": peaks, "spectra": spectra, "patch_spectrum": patch})
     assert lines[0] == (
         "first velocity-spectrum peak 73.73 kHz (bins 9.98 kHz wide: 7.39 periods in the record), of the mean "
-        "per-patch velocity spectrum (the Σu̇ spectrum's, the one Fig. 8 plots: 71.9 kHz (at the band's lower edge: no "
-        "peak inside the band))"
+        "per-patch velocity spectrum; the Σu̇ spectrum's (the paper's Fig. 8): 71.9 kHz (at the band's lower edge: no "
+        "peak inside the band) (bins 5 kHz wide: 14.4 periods in the record)"
     )
     assert lines[1] == "largest mu peak 72.22 kHz (bins 5 kHz wide: 14.5 periods in the record)"
+    alone = peak_lines({"peaks": peaks, "spectra": spectra})[0]  # without the per-patch group: named by its source
+    assert "of the mean per-patch velocity spectrum; the Σu̇ spectrum's" in alone, alone
 
 
 def test_the_sync_caption_gives_the_band_with_units(runs, monkeypatch, tmp_path):

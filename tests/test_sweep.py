@@ -785,33 +785,62 @@ def test_the_patch_digest_comes_with_shards_a_preparation_pool_made(tmp_path: Pa
 
 
 def test_a_finished_sweep_in_a_folder_that_takes_no_file_is_complete(tmp_path: Path, monkeypatch, capsys) -> None:
-    """A finished sweep run again where its folder takes no new file (read only; its lock file cannot be made) says
-    every shard is finished and exits 0, writing nothing; an unfinished one there, or one asked to ``--overwrite``,
-    is refused in one line (exit 4)."""
+    """A finished sweep run again where its folder takes no new file (read only: neither the command's probe file nor
+    the sweep's lock file can be made) says every shard is finished and exits 0, writing nothing; one asked to
+    ``--overwrite``, one whose manifest records a shard otherwise than its file does (its client died before it
+    recorded the shard: only a writable folder can record it), and an unfinished one are refused in one line
+    (exit 4)."""
     from aca_warp.common import files
     from aca_warp.sweep.manifest import MANIFEST
 
     spec = tmp_path / "s.toml"
     spec.write_text(toml_text(TINY))
     out = tmp_path / "o"
-    assert main(["sweep", str(spec), "-o", str(out), "--workers", "0"]) == 0
+    args = ["sweep", str(spec), "-o", str(out), "--workers", "0"]
+    assert main(args) == 0
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     capsys.readouterr()
 
-    def read_only(*args, **kwargs):
+    def denied(*a, **kw):
         raise PermissionError(13, "Permission denied")
 
-    monkeypatch.setattr(files, "_take", read_only)
-    assert main(["sweep", str(spec), "-o", str(out), "--workers", "0"]) == 0
-    said = capsys.readouterr()
-    assert f"4 of 4 shard(s) already finished, skipped ({out} takes no new file)" in said.out, said
-    assert "0 shard(s) run, 4 skipped" in said.out and said.err == ""
+    with monkeypatch.context() as m:
+        m.setattr(files, "_take", denied)
+        m.setattr(files.tempfile, "mkstemp", denied)
+        assert main(args) == 0
+        said = capsys.readouterr()
+        assert f"4 of 4 shard(s) already finished, skipped ({out} takes no new file)" in said.out, said
+        assert "0 shard(s) run, 4 skipped" in said.out and said.err == ""
+        assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+        assert main([*args, "--overwrite"]) == 4
+        assert "cannot write into" in capsys.readouterr().err
+        manifest = json.loads((out / MANIFEST).read_text())
+        stale = json.loads(json.dumps(manifest))
+        stale["shards"][0]["state"] = "failed"
+        (out / MANIFEST).write_text(json.dumps(stale))  # the manifest behind its shard file
+        assert main(args) == 4
+        (out / MANIFEST).write_text(json.dumps(manifest))
+        (out / "shard-00003.h5").unlink()  # a shard file missing
+        assert main(args) == 4
+        errs = capsys.readouterr().err.split("aca-warp: error: ")
+        assert errs[0] == "" and len(errs) == 3, errs
+        for err in errs[1:]:
+            assert err.startswith(f"cannot write into {out} (permission denied)") and err.count("\n") == 1, err
+
+
+def test_a_finished_sweep_on_a_read_only_mount_is_complete(tmp_path: Path) -> None:
+    """The same through a real read-only folder (a read-only bind mount, or a folder without write permission for
+    another user than root): exit 0, nothing on stderr, nothing written."""
+    from test_cli_faults import read_only
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(toml_text(TINY))
+    out = tmp_path / "o"
+    args = ["sweep", str(spec), "-o", str(out), "--workers", "0"]
+    assert main(args) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    results = read_only(out, [args])
+    if results is None:
+        pytest.skip("no way to make a folder read-only here (no user namespaces, and root ignores permissions)")
+    assert results == [(0, "")], results
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
-    assert main(["sweep", str(spec), "-o", str(out), "--workers", "0", "--overwrite"]) == 4
-    assert "cannot write into" in capsys.readouterr().err
-    manifest = json.loads((out / MANIFEST).read_text())
-    (out / "shard-00003.h5").unlink()  # unfinished now: the folder cannot take its shard
-    assert main(["sweep", str(spec), "-o", str(out), "--workers", "0"]) == 4
-    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
-    assert len(err) == 1 and f"cannot write into {out} (permission denied)" in err[0], err
-    assert json.loads((out / MANIFEST).read_text()) == manifest

@@ -411,16 +411,17 @@ def peak_lines(groups: dict[str, Any], freq_min: float | None = None) -> list[st
     if "first_velocity_peak_frequency" in peaks:
         f = float(peaks["first_velocity_peak_frequency"])
         patch = groups.get("patch_spectrum")
-        from_patch = patch is not None and "patch_spectrum" in str(peaks.get("first_velocity_peak_source", ""))
+        from_patch = "patch_spectrum" in str(peaks.get("first_velocity_peak_source", ""))  # the peak's own record
         dfv = bin_width(patch["freq"], patch.attrs) if from_patch and patch is not None else df
         edge = _edge_clause(peaks.get("first_velocity_peak_at_band_edge"))
         line = f"first velocity-spectrum peak {f / 1e3:.4g} kHz{edge}{_few_periods(f, dfv)}"
         if not from_patch:
-            line += ", of the Σu̇ spectrum (the one the paper's Fig. 8 plots)"
+            line += ", of the Σu̇ spectrum (the paper's Fig. 8)"
         elif "sum_velocity_peak_frequency" in peaks:
             fs = float(peaks["sum_velocity_peak_frequency"])
-            other = f"{fs / 1e3:.4g} kHz{_edge_clause(peaks.get('sum_velocity_peak_at_band_edge'))}"
-            line += f", of the mean per-patch velocity spectrum (the Σu̇ spectrum's, the one Fig. 8 plots: {other})"
+            sum_edge = _edge_clause(peaks.get("sum_velocity_peak_at_band_edge"))
+            other = f"{fs / 1e3:.4g} kHz{sum_edge}{_few_periods(fs, df)}"
+            line += f", of the mean per-patch velocity spectrum; the Σu̇ spectrum's (the paper's Fig. 8): {other}"
         else:
             line += ", of the mean per-patch velocity spectrum"
         lines.append(line)

@@ -235,9 +235,14 @@ def _take(lp: Path, p: Path, what: str) -> int | None:
         if not same:  # the holder released (and removed) it between our open and flock: try again
             os.close(fd)
             continue
-        os.ftruncate(fd, 0)
         command = " ".join(sys.argv).replace("\n", " ")[:200]  # one line: the holder's note is read back as one
-        os.write(fd, f"{os.getpid()} {socket.gethostname()} {command}\n".encode())
+        try:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()} {socket.gethostname()} {command}\n".encode())
+        except OSError:  # a full device: no lock held, none left behind (the file is ours while we hold it)
+            lp.unlink(missing_ok=True)
+            os.close(fd)
+            raise
         return fd
 
 

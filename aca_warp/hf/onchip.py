@@ -214,9 +214,9 @@ class OnchipEngine(OnchipLaunches):
         if self.started:
             self.solver.finish(self.state, self.h)
 
-    def _launch(self, done: int, samples: int, k_next: int, row0: int, prows: int) -> None:
+    def _launch(self, done: int, samples: int, k_next: int, row0: int, prow0: int) -> None:
         """One launch of ``samples`` sample intervals after ``done`` of them; its first sample is the run's sample
-        ``k_next``, recorded into globals row ``row0`` and per-patch row ``prows`` of the recorder's buffers."""
+        ``k_next``, recorded into globals row ``row0`` and per-patch row ``prow0`` of the recorder's buffers."""
         s, rec, T = self.state, self.recorder, self.model.dtype
         self.launch_kernel(
             [
@@ -231,7 +231,7 @@ class OnchipEngine(OnchipLaunches):
                 samples,
                 int(not self.started),
                 k_next,
-                prows,
+                prow0,
                 s.u,
                 s.v,
                 s.force,

@@ -157,18 +157,22 @@ def _lost_manifest(d: Path, spec: SweepSpec, stray: list[Path]) -> bool:
 
 
 def finished_shards(spec: SweepSpec, out_dir: str | Path) -> list[int] | None:
-    """Every shard index of ``spec`` when each is finished in ``out_dir`` (``done`` or ``fault``: its manifest names
-    this spec, over the same patches, and every shard file verifies, :func:`shard_finished`), else None. Reads only:
-    for a folder that takes no new file, where :func:`prepare_dir` cannot run."""
+    """Every shard index of ``spec`` when each is finished in ``out_dir`` as the folder stood when read, else None:
+    its manifest names this spec over the same patches, and records every shard ``done`` or ``fault`` as its file
+    verifies it (:func:`shard_finished`; a shard whose file finished after its client died is recorded otherwise,
+    and only :func:`prepare_dir` can record it, which :func:`load_sweep` needs). Reads only: for a folder that takes
+    no new file, where :func:`prepare_dir` cannot run."""
     d = Path(out_dir)
     old = read_manifest(d)
     if old is None or old.get("spec_hash") != spec.hash:
         return None
     patch_data = old.get("patch_data")
-    if patch_data is not None and patch_data != spec.patch_data:
+    shards = old.get("shards", [])
+    if (patch_data is not None and patch_data != spec.patch_data) or len(shards) != spec.shard_count:
         return None
-    for i in range(spec.shard_count):
-        if shard_finished(d / shard_name(i), spec.hash, *spec.shard_range(i), patch_data) is None:
+    for i, entry in enumerate(shards):
+        state = shard_finished(d / shard_name(i), spec.hash, *spec.shard_range(i), patch_data)
+        if state is None or entry.get("state") != state:
             return None
     return list(range(spec.shard_count))
 
