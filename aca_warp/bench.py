@@ -175,13 +175,15 @@ def load_modules(device: Any) -> float:
 def _stepping_time(
     model: Any, state: Any, integrator: str, dt: float, steps: int, crossing: str = "point"
 ) -> float | None:
-    """Wall time of ``steps`` bare steps (no recording) replayed from a captured graph [s]; None for adaptive.
-    ``crossing``: strang's treatment of steps that cross zero slip."""
+    """Wall time of ``steps`` bare steps (no recording) replayed from a captured graph [s]; None for the
+    step-controlled integrators (each pad its own step: no bare fixed step to time). ``crossing``: strang's
+    treatment of steps that cross zero slip."""
     import warp as wp
 
+    from aca_warp.hf.options import STEP_CONTROLLED
     from aca_warp.hf.solver import HFSolver
 
-    if integrator == "adaptive":
+    if integrator in STEP_CONTROLLED:
         return None
     solver = HFSolver(model, integrator, dt, force=True, crossing=crossing)
     dev = model.device

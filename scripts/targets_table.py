@@ -224,7 +224,7 @@ def cpu_patch_steps(paths: list[Path]) -> Measured:
     """Patch-steps/s of one hf1 pad, ``strang`` in fp64, on one CPU core (``scripts/bench_hf.py``)."""
     doc = load(paths[0])
     row = one(doc["results"], integrator="strang", precision="fp64", pads=1)
-    return Measured((row["patch_steps_per_s"],), processor(doc["machine"]), "fp64")
+    return Measured((row["patch_steps_per_s"],), f"{bench_machine(doc['machine'])}, one thread used", "fp64")
 
 
 def sweep_runs(doc: dict[str, Any], units: int) -> list[dict[str, Any]]:

@@ -348,6 +348,20 @@ def test_bench_header_names_a_tolerance_only_for_a_case_that_has_one(tmp_path: P
     assert "(adaptive: tolerance 1e-05)" in head and "split tolerance" not in head
 
 
+def test_every_integrator_is_benched_with_its_stages(tmp_path: Path) -> None:
+    """With the stages timed (the default), every integrator runs; the step-controlled ones have no bare fixed step
+    (no stepping time), the fixed-step ones do (``scripts/bench_hf.py`` benches every integrator)."""
+    from aca_warp.hf.options import INTEGRATORS, STEP_CONTROLLED
+
+    out = tmp_path / "all.json"
+    args = ["bench", "--patches", "10", "--duration", "2e-6", "--precision", "fp64", "--no-reference"]
+    assert main([*args, "--engine", "general", "--integrator", *INTEGRATORS, "--json", str(out)]) == 0
+    rows = json.loads(out.read_text())["results"]
+    assert [r["integrator"] for r in rows] == list(INTEGRATORS)
+    for r in rows:
+        assert (r["stepping_s"] is None) == (r["integrator"] in STEP_CONTROLLED), r
+
+
 def test_a_link_planted_at_a_benchs_temporary_file_is_refused_as_a_link(
     tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
