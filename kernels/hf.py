@@ -147,7 +147,7 @@ def _strang_kernels(crossing: int, module: str | None) -> tuple[wp.Kernel, wp.Ke
     compiled only when a run asks for it)."""
     CROSSING = wp.constant(crossing)
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, enable_backward=False)
     def strang_advance(
         model: Any,
         # Control:
@@ -176,7 +176,7 @@ def _strang_kernels(crossing: int, module: str | None) -> tuple[wp.Kernel, wp.Ke
         v_io[i] = v
         u_io[i] = u_io[i] + dt * v
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, enable_backward=False)
     def strang_close(
         model: Any,
         # Control:
@@ -193,7 +193,7 @@ def _strang_kernels(crossing: int, module: str | None) -> tuple[wp.Kernel, wp.Ke
         i = wp.tid()
         v_out[i] = patch_close_velocity(i, model.patch_pad[i], v_in[i], force_in[i], dt, model, tol, CROSSING)
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, enable_backward=False)
     def record_globals(
         model: Any,
         rec: Any,

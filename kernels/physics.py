@@ -32,6 +32,7 @@ from __future__ import annotations
 from typing import Any
 
 import warp as wp
+from aca_warp.kernels.tiles import cpu_build
 
 wp.set_module_options({"enable_backward": False})
 
@@ -121,11 +122,13 @@ def law_pair(vp: Any, seg: int, s0: Any, g0: Any, mu_scale: Any, slope: Any, dec
 @wp.func
 def solve_velocity(
     a: Any, r: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any, seg: int, s0: Any,
-    g0: Any,
+    g0: Any, known: int, f_guess: Any, df_guess: Any,
 ):  # fmt: skip
     """Solve a·v − hfn·f(vd − v) = b for v (a > 0, hfn ≥ 0), given r = b − a·guess: per-patch implicit friction.
     ``seg`` ≠ 0: with f the mean of Eq. 4 along a step's slip segment from ``s0`` [m/s] (G(s0) = ``g0``) instead
-    (:func:`segment_pair`).
+    (:func:`segment_pair`). ``known`` ≠ 0: (``f_guess``, ``df_guess``) is the law's pair at the guess itself
+    (:func:`law_pair` at slip vd − guess), which the first iteration takes instead of evaluating it again where it
+    starts at the guess (0 in the bracket): the same values, so the same result.
 
     Works on the increment δ = v − guess, so the convergence test is relative to the size of the step's
     velocity change (meaningful in fp32 too). The caller forms r from its terms (θh (F − c·guess), plus
@@ -149,8 +152,13 @@ def solve_velocity(
     d = wp.clamp(zero, lo, hi)
     last = type(a)(2.0) * (hi - lo)  # the last two step lengths; twice the bracket lets any first steps pass
     before = last
+    fresh = known
     for _it in range(60):
-        f, df = law_pair(vp0 - d, seg, s0, g0, mu_scale, slope, decay, tol)
+        f = f_guess
+        df = df_guess
+        if fresh == 0 or d != zero:
+            f, df = law_pair(vp0 - d, seg, s0, g0, mu_scale, slope, decay, tol)
+        fresh = 0
         g = a * d - hfn * f - r
         if g == zero:
             break
@@ -186,7 +194,10 @@ def theta_substep(
     backward Euler (V itself); θ = ½ the implicit midpoint. ``m`` mass [kg], ``c`` damping [N s/m], ``fn`` normal
     force [N], ``vd`` disc speed ω r [m/s]. Written as V + (V − v)(1/θ − 1), which is V itself at θ = 1."""
     th = theta * h
-    vm = solve_velocity(m + th * c, th * (force - c * v), th * fn, vd, v, mu_scale, slope, decay, tol, 0, vd - v, v - v)
+    zero = v - v
+    vm = solve_velocity(
+        m + th * c, th * (force - c * v), th * fn, vd, v, mu_scale, slope, decay, tol, 0, vd - v, zero, 0, zero, zero
+    )
     return vm + (vm - v) * (type(v)(1.0) / theta - type(v)(1.0))
 
 
@@ -223,9 +234,13 @@ def friction_substep(
     seg = int(0)
     guess = v
     out = v
+    # the first pass's solve starts at v, where f0, df0 are the law's pair: on the CPU it takes them (one friction
+    # evaluation fewer, the same bits: 8-16 % of a CPU step); CUDA code evaluates again, which measured faster on an
+    # H200, and compiles to the same machine code as without the choice (docs/friction_step.md §6.1)
     for _pass in range(2):  # one solve call site (the second pass only on a crossing step)
         r = th * (force - c * guess) + m * (v - guess)  # b − a·guess by its terms (solve_velocity); m·0 on pass 1
-        vm = solve_velocity(a, r, th * fn, vd, guess, mu_scale, slope, decay, tol, seg, s0, g0)
+        known = cpu_build() * (1 - seg)  # the first pass's
+        vm = solve_velocity(a, r, th * fn, vd, guess, mu_scale, slope, decay, tol, seg, s0, g0, known, f0, df0)
         out = vm + (vm - v) * (one / theta - one)
         if seg != 0 or crossing == 0 or theta != half or s0 * (vd - out) >= v - v:
             break

@@ -22,6 +22,21 @@ wp.set_module_options({"enable_backward": False})
 def block_sync(): ...
 
 
+@wp.func_native(
+    """
+#if defined(__CUDA_ARCH__)
+    return 0;
+#else
+    return 1;
+#endif
+"""
+)
+def cpu_build() -> int:
+    """1 in the code compiled for the CPU, 0 in CUDA code: a constant the compilers fold, so a branch on it leaves
+    the other device's code as it would be without the branch."""
+    ...
+
+
 def lane_sum(dtype: Any, width: int) -> Any:
     """``total(x)``: the sum of ``x`` over each group of ``width`` consecutive lanes of a warp (a power of two ≤ 32),
     returned to every lane of the group, by warp shuffles (a tree); every lane of the warp must call it. On the CPU

@@ -96,6 +96,23 @@ def test_lf_state_job_reads_the_first_lf_file():
     assert job[:4] == ["hf", "{out}/lf_seed7_0.h5", "--snapshot", "app2_start"]
 
 
+def test_cuda_code_of_a_checkout_against_itself(tmp_path, capsys):
+    """compare_cuda_code (Warp's NVRTC, no GPU): one checkout against itself compiles to the same machine code (one
+    group, one kernel); two kernel sets that differ name the kernel and its sizes."""
+    import warp as wp
+
+    cc = load_script("compare_cuda_code")
+    if 90 not in wp.get_cuda_supported_archs():
+        pytest.skip("this Warp build compiles no CUDA code for sm_90")
+    out = tmp_path / "code.json"
+    group = "on chip fp32, 8 blocks of 224 (one pad)"
+    assert cc.main([str(REPO), str(REPO), "--groups", group, "--out", str(out)]) == 0
+    assert f"{group}: 1 kernel(s), identical" in capsys.readouterr().out
+    assert cc.compare({"g": [["k", "aa", 4], ["m", "bb", 8]]}, {"g": [["k", "aa", 4], ["m", "cc", 12]]}) == {
+        "g": {"kernels": 2, "identical": False, "differ": {"m": ([8], [12])}}
+    }
+
+
 def test_batch_checkouts_report(tmp_path, capsys):
     """compare_batch_checkouts: one checkout against itself is identical in every array, and a difference is
     counted and sized against the array's largest value."""

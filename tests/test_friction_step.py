@@ -41,6 +41,9 @@ def _solve_kernel(p: wp.array(dtype=wp.float64), mu_scale: wp.float64, out: wp.a
         0,
         wp.float64(0.0),
         wp.float64(0.0),
+        0,  # no pair known at the guess: the solve evaluates its own
+        wp.float64(0.0),
+        wp.float64(0.0),
     )
 
 

@@ -1,0 +1,175 @@
+#!/usr/bin/env python3
+"""Compare the CUDA machine code of two checkouts of aca_warp, without a GPU: does a change leave the GPU's code alone?
+
+A change meant for the CPU build only (a branch on ``cpu_build()``, ``kernels/tiles.py``), or a clean-up of the kernels'
+source, should compile for CUDA to the code it had: then nothing on a GPU changes, neither the bits of a result nor the
+speed. This script builds, in each checkout (its own Python process, package view and kernel cache, as
+``scripts/compare_checkouts.py`` does), the HF kernels a run takes (``GROUPS``: the general engine's module, the
+error-controlled split step's module, the strang kernels with the mean crossing treatment, and the on-chip strang and
+DP5 kernels in the layouts the engine picks for one, 64 and 1024 hf1 pads on a GPU of 132 SMs, with growth and with the
+crossing treatment), compiles each to a cubin for ``--arch`` with Warp's NVRTC (no CUDA driver needed) and compares
+their machine code, the ``.text`` section of every forward kernel (what a run launches; overloads of one kernel, e.g.
+fp32 and fp64, compared as a set). Reported per group: identical, or the kernels whose code differs (with their sizes).
+Exit 0 when every kernel is identical, 1 otherwise. Example::
+
+    mkdir -p build/base && git archive HEAD aca_warp kernels pyproject.toml | tar -x -C build/base
+    python3 scripts/compare_cuda_code.py build/base . --out cuda_code.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from compare_checkouts import package_view, refuse_bad_checkouts
+
+# builds every group's kernels in one checkout, compiles them and prints {group: [[kernel, sha256, bytes], ...]}
+CHILD = r"""
+import hashlib, json, re, struct, sys
+from pathlib import Path
+sys.path.insert(0, sys.argv[1])
+import aca_warp
+assert aca_warp.__file__.startswith(sys.argv[1]), aca_warp.__file__
+import warp as wp
+from aca_warp.common.devices import init_warp
+init_warp()
+arch, groups, out = int(sys.argv[2]), json.loads(sys.argv[3]), Path(sys.argv[4])
+
+def text_sections(cubin):
+    b = cubin.read_bytes()
+    shoff = struct.unpack_from("<Q", b, 0x28)[0]
+    size, count, names_at = struct.unpack_from("<HHH", b, 0x3A)
+    heads = [struct.unpack_from("<IIQQQQ", b, shoff + i * size) for i in range(count)]
+    names = b[heads[names_at][4]:heads[names_at][4] + heads[names_at][5]]
+    for name, _t, _f, _a, off, n in heads:
+        label = names[name:names.index(b"\0", name)].decode()
+        if label.startswith(".text."):
+            kernel = label[len(".text."):]
+            if kernel.endswith("_cuda_kernel_forward"):  # a run launches these (no adjoint runs)
+                yield re.sub(r"_[0-9a-f]{8}_cuda_kernel_forward$", "", kernel), b[off:off + n]
+
+def kernels(group):
+    from aca_warp.scene import Growth, preset
+    from aca_warp.hf.model import build_model
+    kind = group["kind"]
+    if kind == "module":
+        import importlib
+        importlib.import_module(group["module"])
+        return [wp.get_module(group["module"])]
+    if kind == "strang_crossing":
+        import aca_warp.kernels.hf as H
+        return [kernel.module for kernel in H.STRANG_KERNELS[1]]
+    from aca_warp.hf.onchip_layout import default_block, grown_tiles, kernel_tiles, pad_sizes, shared_bytes, smem_limit
+    smem = 232448  # an H100's / H200's shared memory per block
+    scene = preset("hf1")
+    growth = bool(group.get("growth"))
+    model = build_model([scene.replace(growth=(scene.growth or Growth()) if growth else None)], device="cpu",
+                        precision=group["precision"])
+    k = group["cluster"]
+    if kind == "onchip_dp5":
+        from aca_warp.kernels.hf_onchip_adaptive import onchip_dp5_kernel
+        kernel = onchip_dp5_kernel(model.dtype, k, group["block"], 1, pad_sizes(model)[0], 0, frozenset(), growth)
+        kernel.module.options["block_dim"] = group["block"]
+        return [kernel.module]
+    from aca_warp.kernels.hf_onchip import onchip_kernel
+    fp64 = group["precision"] == "fp64"
+    b = group.get("block") or default_block(pad_sizes(model, k)[0], k, growth, fp64)
+    csr = shared_bytes(model, True, k, b, smem) <= smem_limit(model, smem)
+    kernel = onchip_kernel(model.dtype, *kernel_tiles(model, k, b, smem), csr, b, growth=growth, cluster=k,
+                           lanes=min(b, 32), grown_tiles=grown_tiles(model, k, smem),
+                           crossing=bool(group.get("crossing")))
+    kernel.module.options["block_dim"] = b
+    return [kernel.module]
+
+report = {}
+for name, group in groups.items():
+    rows = []
+    for i, module in enumerate(kernels(group)):
+        for cubin in wp.compile_aot_module(module, arch=arch, use_ptx=False, module_dir=out / f"{name}_{i}"):
+            for kernel, code in text_sections(Path(cubin)):
+                rows.append([kernel, hashlib.sha256(code).hexdigest(), len(code)])
+    report[name] = sorted(rows)
+print(json.dumps(report))
+"""
+
+GROUPS: dict[str, dict] = {
+    "general (aca_warp.kernels.hf)": {"kind": "module", "module": "aca_warp.kernels.hf"},
+    "split step (aca_warp.kernels.hf_controlled)": {"kind": "module", "module": "aca_warp.kernels.hf_controlled"},
+    "general, mean crossing": {"kind": "strang_crossing"},
+    "on chip fp32, 1 block of 640 (1024 pads)": {"kind": "onchip", "precision": "fp32", "cluster": 1, "block": 640},
+    "on chip fp32, 2 blocks of 896 (64 pads)": {"kind": "onchip", "precision": "fp32", "cluster": 2, "block": 896},
+    "on chip fp32, 8 blocks of 224 (one pad)": {"kind": "onchip", "precision": "fp32", "cluster": 8},
+    "on chip fp64, 2 blocks of 512 (64 pads)": {"kind": "onchip", "precision": "fp64", "cluster": 2},
+    "on chip fp32, growing, 4 blocks": {"kind": "onchip", "precision": "fp32", "cluster": 4, "growth": True},
+    "on chip fp32, mean crossing, 2 blocks": {"kind": "onchip", "precision": "fp32", "cluster": 2, "crossing": True},
+    "on chip DP5 fp64, 16 blocks of 128": {"kind": "onchip_dp5", "precision": "fp64", "cluster": 16, "block": 128},
+}
+
+
+def build(checkout: Path, arch: int, groups: dict[str, dict], work: Path) -> dict[str, list]:
+    """Every group's kernels of ``checkout``, compiled in a process of its own: {group: [[kernel, sha256, bytes]]}."""
+    view = package_view(checkout, Path(tempfile.mkdtemp(dir=work)))
+    env = {**os.environ, "WARP_CACHE_PATH": str(Path(tempfile.mkdtemp(dir=work)))}
+    cmd = [sys.executable, "-c", CHILD, str(view), str(arch), json.dumps(groups), str(Path(tempfile.mkdtemp(dir=work)))]
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=view)
+    if done.returncode != 0:
+        raise SystemExit(f"{checkout}: building the kernels failed ({done.returncode}): {done.stderr.strip()[-2000:]}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def compare(a: dict[str, list], b: dict[str, list]) -> dict[str, dict]:
+    """Per group: whether the two checkouts' kernels are the same machine code, and the kernels that differ."""
+    out = {}
+    for group in a:
+        first, second = sorted(map(tuple, a[group])), sorted(map(tuple, b[group]))
+        differ = sorted({k for k, *_ in set(first) ^ set(second)})
+        sizes = {k: ([n for kk, _, n in first if kk == k], [n for kk, _, n in second if kk == k]) for k in differ}
+        out[group] = {"kernels": len(first), "identical": first == second, "differ": sizes}
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("first", type=Path, help="first checkout (a folder with aca_warp/ and kernels/)")
+    ap.add_argument("second", type=Path, help="second checkout")
+    ap.add_argument("--arch", type=int, default=90, help="CUDA architecture to compile for (default 90: H100, H200)")
+    ap.add_argument("--groups", nargs="+", choices=sorted(GROUPS), metavar="GROUP", help="groups to compare (all)")
+    ap.add_argument("--out", type=Path, help="also write the report here (JSON)")
+    args = ap.parse_args(argv)
+    refuse_bad_checkouts(ap, [args.first, args.second])
+    import warp as wp
+
+    from aca_warp.common.devices import init_warp
+    from aca_warp.common.errors import AcaError
+    from aca_warp.common.files import check_output_path
+
+    try:  # before anything is compiled
+        if args.out is not None:
+            check_output_path(args.out, overwrite=True)
+    except AcaError as e:
+        ap.error(str(e))
+    init_warp()
+    if args.arch not in wp.get_cuda_supported_archs():
+        ap.error(f"--arch {args.arch}: this Warp build compiles CUDA code for {sorted(wp.get_cuda_supported_archs())}")
+    groups = {g: GROUPS[g] for g in (args.groups or GROUPS)}
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        a, b = (build(c, args.arch, groups, work) for c in (args.first, args.second))
+    result = compare(a, b)
+    for group, r in result.items():
+        sizes = ", ".join(f"{k} {s[0]} -> {s[1]} B" for k, s in r["differ"].items())
+        what = "identical" if r["identical"] else f"differ: {sizes}"
+        print(f"{group}: {r['kernels']} kernel(s), {what}")
+    if args.out is not None:
+        report = {"first": str(args.first), "second": str(args.second), "arch": args.arch, "groups": result}
+        args.out.write_text(json.dumps(report, indent=1))
+    return 0 if all(r["identical"] for r in result.values()) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
