@@ -128,7 +128,9 @@ def solve_velocity(
     ``seg`` ≠ 0: with f the mean of Eq. 4 along a step's slip segment from ``s0`` [m/s] (G(s0) = ``g0``) instead
     (:func:`segment_pair`). ``known`` ≠ 0: (``f_guess``, ``df_guess``) is the law's pair at the guess itself
     (:func:`law_pair` at slip vd − guess), which the first iteration takes instead of evaluating it again where it
-    starts at the guess (0 in the bracket): the same values, so the same result.
+    starts at the guess (0 in the bracket). The code compiled for the CPU, which contracts no products into fused
+    multiply-adds, gets the same values either way, so the same result (tests/test_friction_step.py); CUDA code must
+    pass 0: there the compiler may contract the two evaluations differently.
 
     Works on the increment δ = v − guess, so the convergence test is relative to the size of the step's
     velocity change (meaningful in fp32 too). The caller forms r from its terms (θh (F − c·guess), plus

@@ -10,7 +10,9 @@ A restructuring must not change results: this script runs, from each checkout's 
 * ``sweep`` of pads of unequal size     (2 friction factors × 2 layouts × 3 patch counts, shards of 4)
 
 (opt-in with ``--jobs``, ``EXTRA_JOBS``: the on-chip strang engine, the general adaptive engine, growth on every
-engine, both Euler schemes, and ``sweep_pairs`` / ``sweep_pairs_fp64``: 64 hf1 pads of patch seeds 1–64 in one shard
+engine, both Euler schemes, strang's mean crossing treatment on two hf1 pads whose disc turns at 0.5 and 1 m/s (their
+patches stick, and cross zero slip, within 0.1 ms), the error-controlled split step, and
+``sweep_pairs`` / ``sweep_pairs_fp64``: 64 hf1 pads of patch seeds 1–64 in one shard
 over 100 µs in fp32 / fp64, which a GPU of 132 SMs runs on clusters of 2 blocks; ``sweep_va_pairs``: 32 growing
 varying_area pads in fp32, growth events 5 µs apart, over 100 µs (``sweep_va_pairs_2ms``: over 2 ms); ``lf_seed7``
 then ``hf_lf_state``: an HF pad on an LF state of 4196 patches, 100 µs in fp32; every job on ``--device``, the CPU
@@ -68,14 +70,23 @@ JOBS = {
 
 
 def sweep_spec(
-    base: str, shard_size: int, duration: float, precision: str, parameters: str, growth_dt: float | None = None
+    base: str,
+    shard_size: int,
+    duration: float,
+    precision: str,
+    parameters: str,
+    growth_dt: float | None = None,
+    crossing: str | None = None,
 ) -> str:
     """The TOML spec of a sweep job: ``base`` scene, pads per shard, simulated time [s], precision, the
     ``[parameters]`` table's lines and, for growing pads, the spacing of their growth events [s] (named, as the step
-    is, :data:`PINNED_STEP`, so that two checkouts on either side of a change of their defaults run the same job)."""
+    is, :data:`PINNED_STEP`, so that two checkouts on either side of a change of their defaults run the same job);
+    ``crossing``: strang's treatment of steps that cross zero slip."""
     run = f'duration = {duration!r}\ndt = {PINNED_STEP!r}\nprecision = "{precision}"'
     if growth_dt is not None:
         run += f"\ngrowth_dt = {growth_dt!r}"
+    if crossing is not None:
+        run += f'\ncrossing = "{crossing}"'
     return f'[sweep]\nbase = "{base}"\nshard_size = {shard_size}\n[run]\n{run}\n[parameters]\n{parameters}\n'
 
 
@@ -87,6 +98,7 @@ SPECS = {
         "hf1", 4, 2.0e-5, "fp32", '"friction.M" = [0.7, 0.8]\n"patches.seed" = [1, 2]\n"patches.count" = [60, 200, 120]'
     ),
     "sweep_pairs": sweep_spec("hf1", 64, 1.0e-4, "fp32", '"patches.seed" = { range = [1, 65] }'),
+    "stickslip_crossing": sweep_spec("hf1", 2, 1.0e-4, "fp32", '"disc.sliding_speed" = [0.5, 1.0]', crossing="mean"),
     "sweep_pairs_fp64": sweep_spec("hf1", 64, 1.0e-4, "fp64", '"patches.seed" = { range = [1, 65] }'),
     "sweep_va_pairs": sweep_spec("varying_area", 32, 1.0e-4, "fp32", '"patches.seed" = { range = [1, 33] }', 5.0e-6),
     # the same over 2 ms: 400 growth events, each with its contact re-solve, whose block sums feed back into the motion
@@ -109,6 +121,8 @@ EXTRA_JOBS = {
     "hf1_euler": ["hf", "hf1", "--duration", "2e-6", "--integrator", "symplectic-euler", "--dt", "2e-10"]
     + ["--no-progress"],
     "hf1_imex": ["hf", "hf1", "--duration", "2e-5", "--integrator", "implicit-friction", "--no-progress"],
+    "stickslip_crossing": ["sweep", "{out}/stickslip_crossing.toml", "--workers", "0"],
+    "hf1_controlled": ["hf", "hf1", "--duration", "1e-4", "--integrator", "controlled", "--no-progress"],
     "sweep_pairs": ["sweep", "{out}/sweep_pairs.toml", "--workers", "0"],
     "sweep_pairs_fp64": ["sweep", "{out}/sweep_pairs_fp64.toml", "--workers", "0"],
     "sweep_va_pairs": ["sweep", "{out}/sweep_va_pairs.toml", "--workers", "0"],

@@ -24,6 +24,7 @@ import os
 import subprocess
 import sys
 import tempfile
+from collections import Counter
 from pathlib import Path
 
 from compare_checkouts import package_view, refuse_bad_checkouts
@@ -40,18 +41,74 @@ from aca_warp.common.devices import init_warp
 init_warp()
 arch, groups, out = int(sys.argv[2]), json.loads(sys.argv[3]), Path(sys.argv[4])
 
-def text_sections(cubin):
+KERNEL = re.compile(r"_[0-9a-f]{8}_cuda_kernel_forward")
+
+def sections(cubin):  # {name: bytes} of a cubin's ELF sections
     b = cubin.read_bytes()
     shoff = struct.unpack_from("<Q", b, 0x28)[0]
     size, count, names_at = struct.unpack_from("<HHH", b, 0x3A)
     heads = [struct.unpack_from("<IIQQQQ", b, shoff + i * size) for i in range(count)]
     names = b[heads[names_at][4]:heads[names_at][4] + heads[names_at][5]]
-    for name, _t, _f, _a, off, n in heads:
-        label = names[name:names.index(b"\0", name)].decode()
-        if label.startswith(".text."):
-            kernel = label[len(".text."):]
-            if kernel.endswith("_cuda_kernel_forward"):  # a run launches these (no adjoint runs)
-                yield re.sub(r"_[0-9a-f]{8}_cuda_kernel_forward$", "", kernel), b[off:off + n]
+    return {names[n:names.index(b"\0", n)].decode(): b[off:off + k] for n, _t, _f, _a, off, k in heads}
+
+def nv_info(data):  # (attribute, value bytes) of an .nv.info section's entries
+    p = 0
+    while p + 2 <= len(data):
+        fmt, attr = data[p], data[p + 1]
+        if fmt == 0x04:  # EIFMT_SVAL: u16 size, then the value
+            n = struct.unpack_from("<H", data, p + 2)[0]
+            yield attr, data[p + 4:p + 4 + n]
+            p += 4 + n
+        elif fmt in (0x02, 0x03):  # EIFMT_BVAL / EIFMT_HVAL
+            yield attr, data[p + 2:p + 4]
+            p += 4
+        else:  # EIFMT_NVAL
+            yield attr, b""
+            p += 2
+
+# per symbol of the module's .nv.info: its registers (EIATTR_REGCOUNT), stack frame (EIATTR_FRAME_SIZE) and stack sizes
+# (EIATTR_MIN_STACK_SIZE, EIATTR_MAX_STACK_SIZE), each a (symbol index, value) pair
+PER_SYMBOL = (0x2F, 0x11, 0x12, 0x23)
+PARAM_CBANK = 0x0A  # in a kernel's .nv.info: the symbol index of its parameter bank first (left out: an index)
+
+# (kernel, sha256, bytes of code) per forward kernel (what a run launches), its hash over its code, its registers,
+# frame and stack sizes, its .nv.info attributes (parameters, exits; symbol indices left out), the sizes of its
+# static shared memory and parameter bank and its dynamic shared memory (the module's .meta); then ("module", sha256,
+# 0) over the module's other code and constants (device functions not inlined, constant banks; adjoint kernels, never
+# launched, left out); names without their content hashes
+def machine_code(cubin, meta):
+    secs = sections(cubin)
+    sym = secs[".symtab"]
+    strtab = secs[".strtab"]
+    names = [strtab[n:strtab.index(b"\0", n)].decode()
+             for n in (struct.unpack_from("<I", sym, i)[0] for i in range(0, len(sym), 24))]
+    per_symbol = {}
+    for attr, value in nv_info(secs.get(".nv.info", b"")):
+        if attr in PER_SYMBOL and len(value) >= 8:
+            index, v = struct.unpack_from("<II", value)
+            per_symbol.setdefault(names[index], []).append((attr, v))
+    smem = {KERNEL.sub("", k.removesuffix("_smem_bytes")): v for k, v in meta.items()}
+    rows, rest = [], hashlib.sha256()
+    for label in sorted(secs, key=lambda s: (KERNEL.sub("", s), secs[s])):
+        code = secs[label]
+        if label.startswith(".text.") and KERNEL.search(label):
+            full = label[len(".text."):]
+            k = KERNEL.sub("", full)
+            h = hashlib.sha256(code)
+            h.update(repr(sorted(per_symbol.get(full, []))).encode())
+            for attr, value in nv_info(secs.get(".nv.info." + full, b"")):
+                h.update(bytes([attr]) + (value[4:] if attr == PARAM_CBANK else value))
+            for part in (".nv.shared.", ".nv.constant0."):
+                h.update(len(secs.get(part + full, b"")).to_bytes(8, "little"))
+            h.update(str(smem.get(k)).encode())
+            rows.append([k, h.hexdigest(), len(code)])
+        elif (label.startswith(".text.") and "_cuda_kernel_backward" not in label) or re.fullmatch(
+            r"\.nv\.constant[1-9]\d*", label
+        ):
+            rest.update(KERNEL.sub("", label).encode() + code)
+    if not rows:
+        raise SystemExit(f"{cubin}: no forward kernel found (a Warp that names its kernels otherwise?)")
+    return rows + [["module", rest.hexdigest(), 0]]
 
 def kernels(group):
     from aca_warp.scene import Growth, preset
@@ -90,9 +147,12 @@ report = {}
 for name, group in groups.items():
     rows = []
     for i, module in enumerate(kernels(group)):
-        for cubin in wp.compile_aot_module(module, arch=arch, use_ptx=False, module_dir=out / f"{name}_{i}"):
-            for kernel, code in text_sections(Path(cubin)):
-                rows.append([kernel, hashlib.sha256(code).hexdigest(), len(code)])
+        folder = out / f"{name}_{i}"
+        for cubin in wp.compile_aot_module(module, arch=arch, use_ptx=False, module_dir=folder):
+            meta = {}
+            for m in folder.glob("*.meta"):
+                meta.update(json.loads(m.read_text()))
+            rows += machine_code(Path(cubin), meta)
     report[name] = sorted(rows)
 print(json.dumps(report))
 """
@@ -126,10 +186,11 @@ def compare(a: dict[str, list], b: dict[str, list]) -> dict[str, dict]:
     """Per group: whether the two checkouts' kernels are the same machine code, and the kernels that differ."""
     out = {}
     for group in a:
-        first, second = sorted(map(tuple, a[group])), sorted(map(tuple, b[group]))
-        differ = sorted({k for k, *_ in set(first) ^ set(second)})
-        sizes = {k: ([n for kk, _, n in first if kk == k], [n for kk, _, n in second if kk == k]) for k in differ}
-        out[group] = {"kernels": len(first), "identical": first == second, "differ": sizes}
+        first, second = Counter(map(tuple, a[group])), Counter(map(tuple, b[group]))
+        differ = sorted({k for k, *_ in (first - second) + (second - first)})
+        sizes = {k: tuple(sorted(r[2] for r in c.elements() if r[0] == k) for c in (first, second)) for k in differ}
+        kernels = sum(n for r, n in first.items() if r[0] != "module")
+        out[group] = {"kernels": kernels, "identical": first == second, "differ": sizes}
     return out
 
 
@@ -162,7 +223,10 @@ def main(argv: list[str] | None = None) -> int:
         a, b = (build(c, args.arch, groups, work) for c in (args.first, args.second))
     result = compare(a, b)
     for group, r in result.items():
-        sizes = ", ".join(f"{k} {s[0]} -> {s[1]} B" for k, s in r["differ"].items())
+        sizes = ", ".join(
+            "the module's other code or constants" if k == "module" else f"{k} {s[0]} -> {s[1]} B"
+            for k, s in r["differ"].items()
+        )
         what = "identical" if r["identical"] else f"differ: {sizes}"
         print(f"{group}: {r['kernels']} kernel(s), {what}")
     if args.out is not None:

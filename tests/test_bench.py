@@ -360,6 +360,10 @@ def test_every_integrator_is_benched_with_its_stages(tmp_path: Path) -> None:
     assert [r["integrator"] for r in rows] == list(INTEGRATORS)
     for r in rows:
         assert (r["stepping_s"] is None) == (r["integrator"] in STEP_CONTROLLED), r
+    from aca_warp.bench import markdown
+
+    table = markdown(json.loads(out.read_text()))
+    assert "| controlled | general |" in table and "– (no fixed step)" in table and "(on chip)" not in table
 
 
 def test_a_link_planted_at_a_benchs_temporary_file_is_refused_as_a_link(

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 import warp as wp
-from aca_warp.kernels.physics import friction_substep, solve_velocity
+from aca_warp.kernels.physics import friction_pair, friction_substep, solve_velocity
 from scipy.optimize import brentq
 
 from aca_warp.hf.loop import EngineTuning, run_hf
@@ -156,3 +156,37 @@ def test_fp32_substep_keeps_the_damping() -> None:
         increment[T] = out.numpy().astype(np.float64) - v
     damping = np.mean(h * c * v / m)  # m/s: the damping's share of an increment
     assert abs(np.mean(increment[wp.float32] - increment[wp.float64])) < 0.05 * damping
+
+
+@pytest.mark.parametrize("dtype", [wp.float32, wp.float64])
+def test_a_known_pair_at_the_guess_gives_the_same_solve(dtype) -> None:
+    """solve_velocity with the law's pair at the guess handed in (``known``, as the CPU build's friction sub-step
+    does) returns the bits it returns evaluating the pair itself: over random patches, sliding and near sticking,
+    with and without zero in the bracket (a large force puts the first iterate at a bracket end)."""
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def solve_both(p: wp.array2d(dtype=dtype), out: wp.array2d(dtype=dtype)):
+        i = wp.tid()
+        a, r, hfn, vd, guess = p[i, 0], p[i, 1], p[i, 2], p[i, 3], p[i, 4]
+        mu_scale, slope, decay, tol = dtype(0.8 / 3.141592653589793), dtype(SLOPE), dtype(DECAY), dtype(1e-6)
+        zero = dtype(0.0)
+        f, df = friction_pair(vd - guess, mu_scale, slope, decay)
+        for known in range(2):
+            out[i, known] = solve_velocity(
+                a, r, hfn, vd, guess, mu_scale, slope, decay, tol, 0, vd - guess, zero, known, f, df
+            )
+
+    rng = np.random.default_rng(7)
+    n = 20_000
+    m = rng.uniform(1e-6, 3e-6, n)
+    h = rng.choice([1e-8, 1e-7, 5e-7], n)
+    fn = rng.uniform(0.1, 2.0, n)
+    guess = rng.choice([0.0, 9.99, 10.0], n) + rng.normal(0.0, 0.05, n)
+    force = rng.normal(0.0, 1.0, n) * rng.choice([1e-3, 1.0, 1e3], n)  # 1e3 N: 0 outside the bracket
+    p = np.stack([m, h * force, h * fn, np.full(n, 10.0), guess], axis=1)
+    host = np.float32 if dtype is wp.float32 else np.float64
+    out = wp.zeros((n, 2), dtype=dtype, device="cpu")
+    wp.launch(solve_both, n, [wp.array(p.astype(host), dtype=dtype, device="cpu"), out], device="cpu")
+    got = out.numpy()
+    assert np.all(np.isfinite(got))
+    np.testing.assert_array_equal(got[:, 1], got[:, 0])
