@@ -784,6 +784,16 @@ def test_the_patch_digest_comes_with_shards_a_preparation_pool_made(tmp_path: Pa
             assert f.attrs["patch_data"] == spec.patch_data
 
 
+def _finished_tiny_sweep(tmp_path: Path) -> tuple[Path, list[str], dict[str, bytes]]:
+    """TINY run to the end into ``tmp_path/o`` in this process: its folder, the command that ran it and its files."""
+    spec = tmp_path / "s.toml"
+    spec.write_text(toml_text(TINY))
+    out = tmp_path / "o"
+    args = ["sweep", str(spec), "-o", str(out), "--workers", "0"]
+    assert main(args) == 0
+    return out, args, {p.name: p.read_bytes() for p in out.iterdir()}
+
+
 def test_a_finished_sweep_in_a_folder_that_takes_no_file_is_complete(tmp_path: Path, monkeypatch, capsys) -> None:
     """A finished sweep run again where its folder takes no new file (read only: neither the command's probe file nor
     the sweep's lock file can be made) says every shard is finished and exits 0, writing nothing; one asked to
@@ -793,12 +803,7 @@ def test_a_finished_sweep_in_a_folder_that_takes_no_file_is_complete(tmp_path: P
     from aca_warp.common import files
     from aca_warp.sweep.manifest import MANIFEST
 
-    spec = tmp_path / "s.toml"
-    spec.write_text(toml_text(TINY))
-    out = tmp_path / "o"
-    args = ["sweep", str(spec), "-o", str(out), "--workers", "0"]
-    assert main(args) == 0
-    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    out, args, before = _finished_tiny_sweep(tmp_path)
     capsys.readouterr()
 
     def denied(*a, **kw):
@@ -833,12 +838,7 @@ def test_a_finished_sweep_on_a_read_only_mount_is_complete(tmp_path: Path) -> No
     another user than root): exit 0, nothing on stderr, nothing written."""
     from test_cli_faults import read_only
 
-    spec = tmp_path / "s.toml"
-    spec.write_text(toml_text(TINY))
-    out = tmp_path / "o"
-    args = ["sweep", str(spec), "-o", str(out), "--workers", "0"]
-    assert main(args) == 0
-    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    out, args, before = _finished_tiny_sweep(tmp_path)
     results = read_only(out, [args])
     if results is None:
         pytest.skip("no way to make a folder read-only here (no user namespaces, and root ignores permissions)")
