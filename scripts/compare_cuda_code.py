@@ -9,11 +9,13 @@ error-controlled split step's module, the strang kernels with the mean crossing 
 DP5 kernels in the layouts the engine picks for one, 64 and 1024 hf1 pads on a GPU of 132 SMs, with growth and with the
 crossing treatment), compiles each to a cubin for ``--arch`` with Warp's NVRTC (no CUDA driver needed) and compares
 their machine code, the ``.text`` section of every forward kernel (what a run launches; overloads of one kernel, e.g.
-fp32 and fp64, compared as a set). Reported per group: identical, or the kernels whose code differs (with their sizes).
-Exit 0 when every kernel is identical, 1 otherwise. Example::
+fp32 and fp64, compared as a set), with its registers, stack frame and shared memory; ``--ptx``: their PTX instead,
+what a driver at least as new as Warp's CUDA toolkit compiles itself. Reported per group: identical, or the kernels
+whose code differs (with their sizes). Exit 0 when every kernel is identical, 1 otherwise. Example::
 
     mkdir -p build/base && git archive HEAD aca_warp kernels pyproject.toml | tar -x -C build/base
     python3 scripts/compare_cuda_code.py build/base . --out cuda_code.json
+    python3 scripts/compare_cuda_code.py build/base . --ptx
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ assert aca_warp.__file__.startswith(sys.argv[1]), aca_warp.__file__
 import warp as wp
 from aca_warp.common.devices import init_warp
 init_warp()
-arch, groups, out = int(sys.argv[2]), json.loads(sys.argv[3]), Path(sys.argv[4])
+arch, groups, out, ptx = int(sys.argv[2]), json.loads(sys.argv[3]), Path(sys.argv[4]), sys.argv[5] == "ptx"
 
 KERNEL = re.compile(r"_[0-9a-f]{8}_cuda_kernel_forward")
 
@@ -110,6 +112,34 @@ def machine_code(cubin, meta):
         raise SystemExit(f"{cubin}: no forward kernel found (a Warp that names its kernels otherwise?)")
     return rows + [["module", rest.hexdigest(), 0]]
 
+# (kernel, sha256, lines) per forward kernel entry of a PTX file, then ("module", sha256, 0) over the rest: content
+# hashes taken out of every name, branch labels and virtual registers numbered per entry in their order of use
+def ptx_code(path):
+    text = path.read_text(errors="replace")
+    text = re.sub(r"_[0-9a-f]{8}_[0-9a-f]{7}", "_M", text)  # a module of its own: kernel and content hashes
+    text = re.sub(r"_[0-9a-f]{7}_cu_[0-9a-f]{8}", "_M_cu", text)  # a named module's hash, in its internal names
+    text = re.sub(r"_cu_[0-9a-f]{8}", "_cu", text)
+    text = KERNEL.sub("", text)
+    lines = [line.rstrip() for line in text.splitlines() if line.strip() and not line.lstrip().startswith("//")]
+    starts = r"(?m)^(?=\.visible \.entry|\.entry|\.visible \.func|\.func|\.weak \.func)"
+    rows, rest = [], hashlib.sha256()
+    for part in (p.strip() for p in re.split(starts, "\n".join(lines))):
+        head = re.match(r"(?:\.visible |\.weak )?\.(entry|func)\s+(?:\([^)]*\)\s*)?(\w+)", part)
+        if head and "}" in part.splitlines():  # the entry or function up to its closing brace; what follows is the rest
+            end = part.splitlines().index("}") + 1
+            rest.update("\n".join(part.splitlines()[end:]).encode())
+            part = "\n".join(part.splitlines()[:end])
+        if head and head.group(1) == "entry" and "_cuda_kernel_backward" not in head.group(2):
+            seen = {}
+            number = lambda m: m.group(1) + str(seen.setdefault(m.group(0), len(seen)))  # noqa: E731
+            body = re.sub(r"\$L__BB\d+_(\d+)", r"L\1", re.sub(r"(%[a-z]+)\d+", number, part))
+            rows.append([head.group(2), hashlib.sha256(body.encode()).hexdigest(), body.count("\n")])
+        elif not (head and "_cuda_kernel_backward" in head.group(2)):
+            rest.update(part.encode())
+    if not rows:
+        raise SystemExit(f"{path}: no forward kernel found (a Warp that names its kernels otherwise?)")
+    return rows + [["module", rest.hexdigest(), 0]]
+
 def kernels(group):
     from aca_warp.scene import Growth, preset
     from aca_warp.hf.model import build_model
@@ -148,11 +178,14 @@ for name, group in groups.items():
     rows = []
     for i, module in enumerate(kernels(group)):
         folder = out / f"{name}_{i}"
-        for cubin in wp.compile_aot_module(module, arch=arch, use_ptx=False, module_dir=folder):
+        for built in wp.compile_aot_module(module, arch=arch, use_ptx=ptx, module_dir=folder):
+            if ptx:
+                rows += ptx_code(Path(built))
+                continue
             meta = {}
             for m in folder.glob("*.meta"):
                 meta.update(json.loads(m.read_text()))
-            rows += machine_code(Path(cubin), meta)
+            rows += machine_code(Path(built), meta)
     report[name] = sorted(rows)
 print(json.dumps(report))
 """
@@ -171,11 +204,13 @@ GROUPS: dict[str, dict] = {
 }
 
 
-def build(checkout: Path, arch: int, groups: dict[str, dict], work: Path) -> dict[str, list]:
-    """Every group's kernels of ``checkout``, compiled in a process of its own: {group: [[kernel, sha256, bytes]]}."""
+def build(checkout: Path, arch: int, groups: dict[str, dict], work: Path, ptx: bool = False) -> dict[str, list]:
+    """Every group's kernels of ``checkout``, compiled in a process of its own (``ptx``: to PTX instead of a cubin):
+    {group: [[kernel, sha256, size]]}."""
     view = package_view(checkout, Path(tempfile.mkdtemp(dir=work)))
     env = {**os.environ, "WARP_CACHE_PATH": str(Path(tempfile.mkdtemp(dir=work)))}
-    cmd = [sys.executable, "-c", CHILD, str(view), str(arch), json.dumps(groups), str(Path(tempfile.mkdtemp(dir=work)))]
+    into = str(Path(tempfile.mkdtemp(dir=work)))
+    cmd = [sys.executable, "-c", CHILD, str(view), str(arch), json.dumps(groups), into, "ptx" if ptx else "cubin"]
     done = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=view)
     if done.returncode != 0:
         raise SystemExit(f"{checkout}: building the kernels failed ({done.returncode}): {done.stderr.strip()[-2000:]}")
@@ -199,6 +234,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("first", type=Path, help="first checkout (a folder with aca_warp/ and kernels/)")
     ap.add_argument("second", type=Path, help="second checkout")
     ap.add_argument("--arch", type=int, default=90, help="CUDA architecture to compile for (default 90: H100, H200)")
+    ap.add_argument(
+        "--ptx",
+        action="store_true",
+        help="compare the PTX instead of the machine code (what a driver at least as new as Warp's CUDA toolkit "
+        "compiles itself): each forward kernel's entry, its virtual registers and branch labels numbered in order "
+        "of use",
+    )
     ap.add_argument("--groups", nargs="+", choices=sorted(GROUPS), metavar="GROUP", help="groups to compare (all)")
     ap.add_argument("--out", type=Path, help="also write the report here (JSON)")
     args = ap.parse_args(argv)
@@ -220,17 +262,19 @@ def main(argv: list[str] | None = None) -> int:
     groups = {g: GROUPS[g] for g in (args.groups or GROUPS)}
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        a, b = (build(c, args.arch, groups, work) for c in (args.first, args.second))
+        a, b = (build(c, args.arch, groups, work, args.ptx) for c in (args.first, args.second))
     result = compare(a, b)
     for group, r in result.items():
+        unit = "lines" if args.ptx else "B"
         sizes = ", ".join(
-            "the module's other code or constants" if k == "module" else f"{k} {s[0]} -> {s[1]} B"
+            "the module's other code or constants" if k == "module" else f"{k} {s[0]} -> {s[1]} {unit}"
             for k, s in r["differ"].items()
         )
         what = "identical" if r["identical"] else f"differ: {sizes}"
         print(f"{group}: {r['kernels']} kernel(s), {what}")
     if args.out is not None:
-        report = {"first": str(args.first), "second": str(args.second), "arch": args.arch, "groups": result}
+        report = {"first": str(args.first), "second": str(args.second), "arch": args.arch, "ptx": args.ptx}
+        report["groups"] = result
         args.out.write_text(json.dumps(report, indent=1))
     return 0 if all(r["identical"] for r in result.values()) else 1
 

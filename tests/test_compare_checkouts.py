@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -106,8 +107,10 @@ def test_cuda_code_of_a_checkout_against_itself(tmp_path, capsys):
         pytest.skip("this Warp build compiles no CUDA code for sm_90")
     out = tmp_path / "code.json"
     group = "on chip fp32, 8 blocks of 224 (one pad)"
-    assert cc.main([str(REPO), str(REPO), "--groups", group, "--out", str(out)]) == 0
-    assert f"{group}: 1 kernel(s), identical" in capsys.readouterr().out
+    for mode in ([], ["--ptx"]):  # the machine code, then the PTX
+        assert cc.main([str(REPO), str(REPO), "--groups", group, "--out", str(out), *mode]) == 0
+        assert f"{group}: 1 kernel(s), identical" in capsys.readouterr().out
+        assert json.loads(out.read_text())["ptx"] == bool(mode)
     assert cc.compare({"g": [["k", "aa", 4], ["m", "bb", 8]]}, {"g": [["k", "aa", 4], ["m", "cc", 12]]}) == {
         "g": {"kernels": 2, "identical": False, "differ": {"m": ([8], [12])}}
     }
