@@ -19,13 +19,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-from compare_checkouts import package_view
+from compare_checkouts import package_view, run_in_view
 
 # (engine, integrator, extra RunOptions) of every case
 CASES = {
@@ -39,10 +37,7 @@ DEFAULT_CASES = ["onchip_strang", "onchip_adaptive", "general_strang", "general_
 
 # runs one case inside a checkout's package view; prints one JSON line
 CHILD = """
-import json, statistics, sys
-sys.path.insert(0, sys.argv[1])
-import aca_warp
-assert aca_warp.__file__.startswith(sys.argv[1]), aca_warp.__file__
+import json, statistics
 import warp as wp
 wp.config.quiet = True
 from aca_warp.common.files import machine
@@ -69,12 +64,11 @@ print(json.dumps({"wall_best": min(walls), "wall_median": statistics.median(wall
 
 def run_case(view: Path, cache: Path, case: dict) -> dict:
     """One case in the checkout of ``view``: the child's JSON line as a dict; raise on failure."""
-    env = {**os.environ, "WARP_CACHE_PATH": str(cache)}
-    cmd = [sys.executable, "-c", CHILD, str(view), json.dumps(case)]
-    done = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=view)
-    if done.returncode != 0:
-        raise RuntimeError(f"{case} failed ({done.returncode}): {done.stderr.strip()[-2000:]}")
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    try:
+        out = run_in_view(view, CHILD, [json.dumps(case)], cache)
+    except RuntimeError as e:
+        raise RuntimeError(f"{case} failed ({e})") from None
+    return json.loads(out.strip().splitlines()[-1])
 
 
 def growth_refusal(scene: str, growth_dt: float | None, cases: list[str]) -> str | None:

@@ -17,22 +17,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
-from compare_checkouts import largest_relative, package_view, refuse_bad_checkouts
+from compare_checkouts import largest_relative, package_view, refuse_bad_checkouts, run_in_view
 
 from aca_warp.common.argtypes import int_at_least, positive
 
 CHILD = """
-import json, sys
-sys.path.insert(0, sys.argv[1])
+import json
 import numpy as np
-import aca_warp
-assert aca_warp.__file__.startswith(sys.argv[1]), aca_warp.__file__
 import warp as wp
 wp.config.quiet = True
 from aca_warp.hf.loop import run_hf
@@ -60,10 +55,11 @@ def run(checkout: Path, args: argparse.Namespace, precision: str, out: Path, wor
     view = package_view(checkout, Path(tempfile.mkdtemp(dir=work)))
     a = {"pads": args.pads, "device": args.device, "precision": precision, "duration": args.duration}
     a |= {"dt": args.dt, "out": str(out)}
-    done = subprocess.run([sys.executable, "-c", CHILD, str(view), json.dumps(a)], capture_output=True, text=True)
-    if done.returncode != 0:
-        raise SystemExit(f"{checkout}: the run failed ({done.returncode}): {done.stderr.strip()[-2000:]}")
-    layout = json.loads(done.stdout.strip().splitlines()[-1])
+    try:
+        out = run_in_view(view, CHILD, [json.dumps(a)])
+    except RuntimeError as e:
+        raise SystemExit(f"{checkout}: the run failed ({e})") from None
+    layout = json.loads(out.strip().splitlines()[-1])
     return f"{layout['blocks_per_pad']} block(s) per pad of {layout['block_dim'] or '?'} threads"
 
 

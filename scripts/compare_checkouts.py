@@ -178,18 +178,33 @@ def package_view(checkout: Path, into: Path) -> Path:
     return into
 
 
-def run_job(view: Path, args: list[str], output: Path, cache: Path) -> None:
-    """Run ``aca-warp ARGS -o OUTPUT`` with the package of ``view``; raise on a non-zero exit."""
-    code = (
-        "import sys; sys.path.insert(0, sys.argv[1]); import aca_warp; "
-        "assert aca_warp.__file__.startswith(sys.argv[1]), aca_warp.__file__; "
-        "from aca_warp.cli import main; sys.exit(main(sys.argv[2:]))"
-    )
-    env = {**os.environ, "WARP_CACHE_PATH": str(cache)}
-    cmd = [sys.executable, "-c", code, str(view), *args, "-o", str(output)]
+# what run_in_view puts before the code it runs: the package of the view (sys.argv[1]) first on the path, and checked
+VIEW_PREAMBLE = (
+    "import sys\nsys.path.insert(0, sys.argv[1])\nimport aca_warp\n"
+    "assert aca_warp.__file__.startswith(sys.argv[1]), aca_warp.__file__\n"
+)
+
+
+def run_in_view(view: Path, code: str, args: list[str], cache: Path | None = None) -> str:
+    """Run Python ``code`` in a process of its own with the package of ``view`` (:func:`package_view`; ``sys.argv[1]``,
+    ``args`` after it), in ``view`` and with ``cache`` as its kernel cache (None: this process's); returns its
+    stdout. RuntimeError naming its exit status and the end of its stderr when it fails."""
+    env = {**os.environ, **({} if cache is None else {"WARP_CACHE_PATH": str(cache)})}
+    cmd = [sys.executable, "-c", VIEW_PREAMBLE + code, str(view), *args]
     done = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=view)
     if done.returncode != 0:
-        raise RuntimeError(f"{' '.join(args)} failed ({done.returncode}): {done.stderr.strip()[-2000:]}")
+        raise RuntimeError(f"exit {done.returncode}: {done.stderr.strip()[-2000:]}")
+    return done.stdout
+
+
+def run_job(view: Path, args: list[str], output: Path, cache: Path) -> None:
+    """Run ``aca-warp ARGS -o OUTPUT`` with the package of ``view``; raise on a non-zero exit."""
+    try:
+        run_in_view(
+            view, "from aca_warp.cli import main\nsys.exit(main(sys.argv[2:]))", [*args, "-o", str(output)], cache
+        )
+    except RuntimeError as e:
+        raise RuntimeError(f"{' '.join(args)} failed ({e})") from None
 
 
 def datasets(path: Path) -> dict[str, np.ndarray]:

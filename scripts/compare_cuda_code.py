@@ -22,22 +22,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import tempfile
 from collections import Counter
 from pathlib import Path
 
-from compare_checkouts import package_view, refuse_bad_checkouts
+from compare_checkouts import package_view, refuse_bad_checkouts, run_in_view
 
 # builds every group's kernels in one checkout, compiles them and prints {group: [[kernel, sha256, bytes], ...]}
 CHILD = r"""
-import hashlib, json, re, struct, sys
+import hashlib, json, re, struct
 from pathlib import Path
-sys.path.insert(0, sys.argv[1])
-import aca_warp
-assert aca_warp.__file__.startswith(sys.argv[1]), aca_warp.__file__
 import warp as wp
 from aca_warp.common.devices import init_warp
 init_warp()
@@ -208,13 +203,12 @@ def build(checkout: Path, arch: int, groups: dict[str, dict], work: Path, ptx: b
     """Every group's kernels of ``checkout``, compiled in a process of its own (``ptx``: to PTX instead of a cubin):
     {group: [[kernel, sha256, size]]}."""
     view = package_view(checkout, Path(tempfile.mkdtemp(dir=work)))
-    env = {**os.environ, "WARP_CACHE_PATH": str(Path(tempfile.mkdtemp(dir=work)))}
-    into = str(Path(tempfile.mkdtemp(dir=work)))
-    cmd = [sys.executable, "-c", CHILD, str(view), str(arch), json.dumps(groups), into, "ptx" if ptx else "cubin"]
-    done = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=view)
-    if done.returncode != 0:
-        raise SystemExit(f"{checkout}: building the kernels failed ({done.returncode}): {done.stderr.strip()[-2000:]}")
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    cache, into = (Path(tempfile.mkdtemp(dir=work)) for _ in range(2))
+    try:
+        out = run_in_view(view, CHILD, [str(arch), json.dumps(groups), str(into), "ptx" if ptx else "cubin"], cache)
+    except RuntimeError as e:
+        raise SystemExit(f"{checkout}: building the kernels failed ({e})") from None
+    return json.loads(out.strip().splitlines()[-1])
 
 
 def compare(a: dict[str, list], b: dict[str, list]) -> dict[str, dict]:
