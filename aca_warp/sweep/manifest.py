@@ -142,6 +142,12 @@ _SHARD_FILE = re.compile(r"shard-(\d{5})\.h5")
 _PAD_FILE = re.compile(r"shard-\d{5}_pad\d+\.h5")  # a pad that analyze/plot --pad took out of a shard
 
 
+def _state_of(d: Path, spec: SweepSpec, index: int, patch_data: str | None) -> str | None:
+    """:func:`~aca_warp.sweep.shard.shard_finished` of shard ``index`` of ``spec`` in folder ``d``, made over the
+    patches of digest ``patch_data``."""
+    return shard_finished(d / shard_name(index), spec.hash, *spec.shard_range(index), patch_data)
+
+
 def _lost_manifest(d: Path, spec: SweepSpec, stray: list[Path]) -> bool:
     """Whether the shard files of ``d``, a folder without a manifest, are finished shards of ``spec`` itself (the
     spec's hash, pad range and patch digest; besides them only pads taken out of shards): its manifest was lost, and
@@ -151,7 +157,7 @@ def _lost_manifest(d: Path, spec: SweepSpec, stray: list[Path]) -> bool:
         m = _SHARD_FILE.fullmatch(p.name)
         if m is None or int(m.group(1)) >= spec.shard_count:  # an unfinished one (.partial), or another sweep's
             return False
-        if shard_finished(p, spec.hash, *spec.shard_range(int(m.group(1))), spec.patch_data) is None:
+        if _state_of(d, spec, int(m.group(1)), spec.patch_data) is None:
             return False
     return bool(shards)
 
@@ -171,7 +177,7 @@ def finished_shards(spec: SweepSpec, out_dir: str | Path) -> list[int] | None:
     if (patch_data is not None and patch_data != spec.patch_data) or len(shards) != spec.shard_count:
         return None
     for i, entry in enumerate(shards):
-        state = shard_finished(d / shard_name(i), spec.hash, *spec.shard_range(i), patch_data)
+        state = _state_of(d, spec, i, patch_data)
         if state is None or entry.get("state") != state:
             return None
     return list(range(spec.shard_count))
@@ -227,7 +233,7 @@ def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False
         prev = (old or {}).get("shards", [])
         entry = dict(prev[i]) if i < len(prev) else {}
         entry.update(index=i, file=shard_name(i), pad_start=a, pad_stop=b)
-        verified = shard_finished(d / shard_name(i), spec.hash, a, b, patch_data)
+        verified = _state_of(d, spec, i, patch_data)
         if verified is None:
             entry["state"] = "pending"
             with locked_output(d / shard_name(i), what="a worker of an earlier sweep still runs; stop it first"):
