@@ -518,9 +518,10 @@ def markdown(out: dict) -> str:
     ]
     for r in out["results"]:
         frac = "" if r["bandwidth_fraction"] is None else f" ({100 * r['bandwidth_fraction']:.2g} %)"
-        bw = f"{r['bandwidth_Bps'] / 1e9:.3g}{frac}" if r["bandwidth_Bps"] is not None else "–"
-        if r["bandwidth_Bps"] is None:  # no bare step timed: the on-chip engine, or a step-controlled integrator
-            bw += " (on chip)" if r.get("engine") == "onchip" else " (no fixed step)"
+        if r["bandwidth_Bps"] is not None:
+            bw = f"{r['bandwidth_Bps'] / 1e9:.3g}{frac}"
+        else:  # no bare step timed: the on-chip engine, or a step-controlled integrator
+            bw = "– (on chip)" if r.get("engine") == "onchip" else "– (no fixed step)"
         err = "–" if r["mu_rel_error_max"] is None else f"{r['mu_rel_error_max']:.1e}"
         lines.append(
             f"| {r['device_name']} | {r['precision']} | {r['integrator']} | {_engine_cell(r)} | {r['pads']} "
