@@ -115,14 +115,19 @@ def stft_window(samples: int) -> Callable[[dict[str, dict]], dict[str, dict]]:
     return use
 
 
+def seed_range(lo: int, hi: int) -> Callable[[dict[str, dict]], dict[str, dict]]:
+    """Only the pads of seeds ``lo`` … ``hi`` − 1."""
+
+    def keep(results: dict[str, dict]) -> dict[str, dict]:
+        return _map_pads(results, lambda p: p if lo <= int(p.get("seed", 0)) < hi else None)
+
+    return keep
+
+
 def seed_half(first: bool, seeds: int, first_seed: int) -> Callable[[dict[str, dict]], dict[str, dict]]:
     """Only the pads of the first (or the second) half of the seeds."""
     half = first_seed + seeds // 2
-
-    def keep(results: dict[str, dict]) -> dict[str, dict]:
-        return _map_pads(results, lambda p: p if (int(p.get("seed", 0)) < half) == first else None)
-
-    return keep
+    return seed_range(first_seed, half) if first else seed_range(half, first_seed + seeds)
 
 
 def _sub(names: tuple[str, ...], suffix: str) -> tuple[tuple[str, str], ...]:

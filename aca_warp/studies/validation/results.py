@@ -8,6 +8,7 @@ check every number against it; the per-frequency arrays stay in the run folder (
 from __future__ import annotations
 
 import dataclasses
+import gzip
 import json
 from pathlib import Path
 from typing import Any
@@ -42,9 +43,9 @@ def write_results(path: Path, results: dict[str, dict], meta: dict[str, Any]) ->
 
 
 def read_results(path: Path) -> tuple[dict[str, dict], dict[str, Any], Config]:
-    """(results, meta, settings) of a ``results.json``; ValueError when it is not one."""
+    """(results, meta, settings) of a ``results.json`` (or its gzip, ``.json.gz``); ValueError when it is not one."""
     try:
-        doc = json.loads(path.read_text())
+        doc = json.loads(gzip.decompress(path.read_bytes()) if path.suffix == ".gz" else path.read_text())
     except (OSError, ValueError) as e:
         raise ValueError(f"{path}: not a readable results file ({type(e).__name__}: {e})") from None
     got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__

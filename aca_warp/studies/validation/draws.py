@@ -1,0 +1,86 @@
+"""How much the draw of seeds decides a verdict: every row read on the whole of a larger ensemble and on each of its
+disjoint draws of the validation's size (``scripts/validation_draws.py``; docs/validation.md, "How much the draw of
+eight seeds decides").
+
+A row whose verdict is the same on every draw is not carried by the draw; a row whose draws disagree sits on the
+edge of its criterion at that ensemble size, and its verdict on the whole ensemble (with its narrower intervals) is
+the one to read.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from aca_warp.studies.validation.base import ROWS, Config, evaluate_rows
+from aca_warp.studies.validation.causes import SHORT, seed_range
+from aca_warp.studies.validation.verdicts import NOT_MEASURED
+
+
+def draws(cfg: Config, size: int) -> list[tuple[int, int]]:
+    """The disjoint draws of ``size`` consecutive seeds that the ensemble of ``cfg`` holds: [(first, last + 1)];
+    ValueError when it holds fewer than two."""
+    if size < 2:
+        raise ValueError(f"a draw needs at least 2 seeds (got {size})")
+    count = cfg.seeds // size
+    if count < 2:
+        raise ValueError(f"{cfg.seeds} seeds hold fewer than two draws of {size}")
+    return [(cfg.first_seed + k * size, cfg.first_seed + (k + 1) * size) for k in range(count)]
+
+
+def draw_verdicts(
+    results: dict[str, dict], cfg: Config, size: int, against: dict[str, str] | None = None
+) -> list[dict[str, Any]]:
+    """Every row measured on the whole ensemble: its verdict and value there (``whole``, ``value``), its verdict on
+    each draw of ``size`` seeds (``draws``, in the order of :func:`draws`), how many draws read the whole's verdict
+    (``agree``), and, with ``against`` (statement -> verdict of another results file), that file's verdict."""
+    ranges = draws(cfg, size)
+    whole = evaluate_rows(results, cfg)
+    parts = [evaluate_rows(seed_range(lo, hi)(results), dataclasses.replace(cfg, seeds=size, first_seed=lo))
+             for lo, hi in ranges]  # fmt: skip
+    out = []
+    for i, (row, main) in enumerate(zip(ROWS, whole, strict=True)):
+        if main["verdict"] == NOT_MEASURED:
+            continue
+        got = [p[i]["verdict"] for p in parts]
+        out.append(
+            {
+                "section": row.section,
+                "statement": row.statement,
+                "whole": main["verdict"],
+                "value": main["value"],
+                "draws": got,
+                "agree": sum(v == main["verdict"] for v in got),
+                "against": None if against is None else against.get(row.statement, NOT_MEASURED),
+            }
+        )
+    return out
+
+
+def verdicts_by_statement(results: dict[str, dict], cfg: Config) -> dict[str, str]:
+    """Statement -> verdict of every row of ``results``."""
+    return {r["statement"]: r["verdict"] for r in evaluate_rows(results, cfg)}
+
+
+def render(table: list[dict[str, Any]], cfg: Config, size: int, against_label: str | None = None) -> list[str]:
+    """The markdown table of :func:`draw_verdicts` (✓ reproduced, ~ partly, ✗ not reproduced, ≈ significant but
+    negligible, ? undetermined, n/c not comparable, · not measured), rows whose draws disagree in bold, and a line
+    counting them."""
+    ranges = draws(cfg, size)
+    head = ["§", "statement", f"{cfg.seeds} seeds", *(f"seeds {lo}–{hi - 1}" for lo, hi in ranges), "draws agreeing"]
+    if against_label is not None:
+        head.append(against_label)
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    split = 0
+    for r in table:
+        marks = [SHORT.get(v, v) for v in (r["whole"], *r["draws"])]
+        cells = [r["section"], r["statement"], *marks, f"{r['agree']} of {len(ranges)}"]
+        if r["agree"] < len(ranges):
+            split += 1
+            cells[1] = f"**{cells[1]}**"
+        if against_label is not None:
+            cells.append(SHORT.get(r["against"], r["against"]))
+        lines.append("| " + " | ".join(cells) + " |")
+    lines += ["", f"{split} of {len(table)} rows measured have draws of {size} seeds that read otherwise than all "
+              f"{cfg.seeds} seeds."]  # fmt: skip
+    return lines

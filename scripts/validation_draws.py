@@ -1,0 +1,43 @@
+#!/usr/bin/env python3
+"""How much the draw of seeds decides each verdict: the rows of a validation results file read on all its seeds and
+on each of its disjoint draws of --size seeds (the validation's eight by default), beside another results file's
+verdicts (--against). Prints a markdown table; exit 2 for a file that is not a results file or holds fewer than two
+draws. Example (the 32-seed ensemble of the saturated §3.1 experiments against the page's eight seeds)::
+
+    python3 scripts/validation_draws.py docs/validation/seeds32/results.json.gz --size 8 \
+        --against docs/validation/results.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("results", type=Path, help="a validation results.json (or .json.gz) of many seeds")
+    ap.add_argument("--size", type=int, default=8, help="seeds per draw (8: the validation's)")
+    ap.add_argument("--against", type=Path, help="another results file, whose verdicts make the last column")
+    args = ap.parse_args(argv)
+    import aca_warp.studies.validation  # noqa: F401  (registers the experiments)
+    from aca_warp.studies.validation.draws import draw_verdicts, render, verdicts_by_statement
+    from aca_warp.studies.validation.results import read_results
+
+    try:
+        results, _, cfg = read_results(args.results)
+        against = label = None
+        if args.against is not None:
+            other, _, ocfg = read_results(args.against)
+            against, label = verdicts_by_statement(other, ocfg), f"{args.against.name} ({ocfg.seeds} seeds)"
+        table = draw_verdicts(results, cfg, args.size, against)
+    except ValueError as e:
+        print(f"validation_draws.py: error: {e}", file=sys.stderr)
+        return 2
+    print("\n".join(render(table, cfg, args.size, label)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

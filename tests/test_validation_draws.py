@@ -1,0 +1,105 @@
+"""Verdicts on disjoint draws of seeds (aca_warp.studies.validation.draws, scripts/validation_draws.py) and the table
+of docs/validation.md that the script prints from the committed 32-seed file."""
+
+from __future__ import annotations
+
+import dataclasses
+import gzip
+import json
+import re
+from pathlib import Path
+
+import pytest
+from scriptload import load_script
+
+import aca_warp.studies.validation  # noqa: F401  (registers the experiments)
+from aca_warp.studies.validation import base as VB
+from aca_warp.studies.validation import causes as VC
+from aca_warp.studies.validation import draws as VD
+from aca_warp.studies.validation.results import read_results
+
+REPO = Path(__file__).resolve().parents[1]
+SEEDS32 = REPO / "docs" / "validation" / "seeds32" / "results.json.gz"
+HF2_PEAK = "HF2: first velocity-spectrum peak"
+
+
+def _hf2(f1_of_seed: dict[int, float]) -> dict[str, dict]:
+    """hf2 pads whose first velocity peak is ``f1_of_seed[seed]`` [Hz] (the row reads ≈ 32.8 kHz ± 5 %)."""
+    pads = [{"seed": s, "status": "saturated", "measures": {"f1": f, "f1_patch": {}}} for s, f in f1_of_seed.items()]
+    return {"hf2": {"pads": pads}}
+
+
+def test_draws_are_the_disjoint_runs_of_seeds_the_ensemble_holds():
+    cfg = VB.Config(seeds=12, first_seed=3)
+    assert VD.draws(cfg, 4) == [(3, 7), (7, 11), (11, 15)]
+    assert VD.draws(cfg, 5) == [(3, 8), (8, 13)]  # the two seeds left over are in no draw
+    with pytest.raises(ValueError, match="fewer than two draws"):
+        VD.draws(cfg, 7)
+    with pytest.raises(ValueError, match="at least 2 seeds"):
+        VD.draws(cfg, 1)
+
+
+def test_each_draw_reads_its_own_seeds():
+    """Seeds 1–4 at the paper's peak, 5–8 far from it: the first draw reproduces the row, the second does not, and
+    the whole straddles (its mean off the tolerance): one of two draws agrees with nothing, the table marks it."""
+    res = _hf2({s: (32.8e3 + 50.0 * s if s <= 4 else 45e3 + 50.0 * s) for s in range(1, 9)})
+    cfg = VB.Config(seeds=8)
+    table = VD.draw_verdicts(res, cfg, 4, against={HF2_PEAK: "partly"})
+    row = next(r for r in table if r["statement"] == HF2_PEAK)
+    assert row["draws"] == ["reproduced", "not reproduced"]
+    assert row["whole"] == "not reproduced" and row["agree"] == 1 and row["against"] == "partly"
+    assert not any("HF1" in r["statement"] for r in table)  # rows of experiments not run are left out
+    lines = VD.render([row], cfg, 4, "other (8 seeds)")
+    assert lines[0] == "| § | statement | 8 seeds | seeds 1–4 | seeds 5–8 | draws agreeing | other (8 seeds) |"
+    assert lines[2].endswith(f"| **{HF2_PEAK}** | ✗ | ✓ | ✗ | 1 of 2 | ~ |")
+    assert lines[-1] == "1 of 1 rows measured have draws of 4 seeds that read otherwise than all 8 seeds."
+    same = VD.draw_verdicts(_hf2({s: 32.8e3 + 50.0 * s for s in range(1, 9)}), cfg, 4)
+    assert next(r for r in same if r["statement"] == HF2_PEAK)["draws"] == ["reproduced", "reproduced"]
+    assert "**" not in VD.render([r for r in same if r["statement"] == HF2_PEAK], cfg, 4)[2]
+
+
+def test_draws_of_half_the_seeds_are_the_seed_halves_of_the_causes():
+    """On the committed 32-seed file, draws of 16 give every open row the verdicts of the causes' seed halves (a
+    variant of its own, read with the ensemble's settings)."""
+    results, _, cfg = read_results(SEEDS32)
+    rows = VB.evaluate_rows(results, cfg)
+    halves = {(c["statement"], c["variant"]): c["verdict"]
+              for c in VC.evaluate_causes(results, cfg, rows) if c["cause"] == "seeds"}  # fmt: skip
+    table = {r["statement"]: r for r in VD.draw_verdicts(results, cfg, 16)}
+    assert halves
+    for (statement, variant), verdict in halves.items():
+        k = 0 if variant == "seeds 1–16" else 1
+        assert table[statement]["draws"][k] == verdict, (statement, variant)
+
+
+def test_results_read_from_gzip_as_from_json(tmp_path):
+    plain = tmp_path / "results.json"
+    plain.write_bytes(gzip.decompress(SEEDS32.read_bytes()))
+    a, meta, cfg = read_results(SEEDS32)
+    b, meta_b, cfg_b = read_results(plain)
+    assert a == b and meta == meta_b and cfg == cfg_b == dataclasses.replace(cfg, seeds=32)
+    broken = tmp_path / "broken.json.gz"
+    broken.write_bytes(b"not gzip")
+    with pytest.raises(ValueError, match="not a readable results file"):
+        read_results(broken)
+
+
+def test_the_pages_draws_table_is_the_scripts_output(capsys):
+    page = (REPO / "docs" / "validation.md").read_text()
+    blocks = re.findall(r"<!-- DRAWS (\S+) (\d+) (\S+) -->\n(.*?)<!-- END DRAWS -->", page, flags=re.S)
+    assert len(blocks) == 1
+    path, size, against, table = blocks[0]
+    script = load_script("validation_draws")
+    assert script.main([str(REPO / path), "--size", size, "--against", str(REPO / against)]) == 0
+    assert capsys.readouterr().out == table
+
+
+def test_the_script_refuses_what_it_cannot_read(tmp_path, capsys):
+    script = load_script("validation_draws")
+    eight = REPO / "docs" / "validation" / "results.json"
+    assert script.main([str(eight), "--size", "8"]) == 2
+    assert "8 seeds hold fewer than two draws of 8" in capsys.readouterr().err
+    other = tmp_path / "x.json"
+    other.write_text(json.dumps({"format": "something else"}))
+    assert script.main([str(other)]) == 2
+    assert "not a validation results file" in capsys.readouterr().err
