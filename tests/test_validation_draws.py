@@ -84,6 +84,19 @@ def test_results_read_from_gzip_as_from_json(tmp_path):
         read_results(broken)
 
 
+def test_the_32_seed_page_is_rendered_from_its_results():
+    """docs/validation/seeds32/validation.md's generated section is what --report writes from the gzip beside it."""
+    from aca_warp.studies.report import generated_markers
+    from aca_warp.studies.validation.cli import MARKER
+    from aca_warp.studies.validation.results import render_report
+
+    body, rows, meta = render_report(SEEDS32)
+    begin, end = generated_markers(MARKER)
+    committed = (SEEDS32.parent / "validation.md").read_text().split(begin, 1)[1].split(end, 1)[0]
+    assert committed == "\n" + "\n".join(body) + "\n"
+    assert meta["config"]["seeds"] == 32 and len(rows) == len(VB.ROWS)
+
+
 def test_the_pages_draws_table_is_the_scripts_output(capsys):
     page = (REPO / "docs" / "validation.md").read_text()
     blocks = re.findall(r"<!-- DRAWS (\S+) (\d+) (\S+) -->\n(.*?)<!-- END DRAWS -->", page, flags=re.S)
