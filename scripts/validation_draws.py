@@ -2,7 +2,7 @@
 """How much the draw of seeds decides each verdict: the rows of a validation results file read on all its seeds and
 on each of its disjoint draws of --size seeds (the validation's eight by default), beside another results file's
 verdicts (--against). Prints a markdown table; exit 2 for a file that is not a results file or holds fewer than two
-draws. Example (the 32-seed ensemble of the saturated §3.1 experiments against the page's eight seeds)::
+draws. Example (the 32-seed ensemble of every experiment against the page's eight seeds)::
 
     python3 scripts/validation_draws.py docs/validation/seeds32/results.json.gz --size 8 \
         --against docs/validation/results.json

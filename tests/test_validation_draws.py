@@ -41,7 +41,7 @@ def test_draws_are_the_disjoint_runs_of_seeds_the_ensemble_holds():
 
 def test_each_draw_reads_its_own_seeds():
     """Seeds 1–4 at the paper's peak, 5–8 far from it: the first draw reproduces the row, the second does not, and
-    the whole straddles (its mean off the tolerance): one of two draws agrees with nothing, the table marks it."""
+    so do all eight seeds (their mean off the tolerance): one of the two draws agrees, and the table marks the row."""
     res = _hf2({s: (32.8e3 + 50.0 * s if s <= 4 else 45e3 + 50.0 * s) for s in range(1, 9)})
     cfg = VB.Config(seeds=8)
     table = VD.draw_verdicts(res, cfg, 4, against={HF2_PEAK: "partly"})
@@ -77,11 +77,33 @@ def test_results_read_from_gzip_as_from_json(tmp_path):
     plain.write_bytes(gzip.decompress(SEEDS32.read_bytes()))
     a, meta, cfg = read_results(SEEDS32)
     b, meta_b, cfg_b = read_results(plain)
-    assert a == b and meta == meta_b and cfg == cfg_b == dataclasses.replace(cfg, seeds=32)
+    assert a == b and meta == meta_b and cfg == cfg_b and cfg.seeds == 32
     broken = tmp_path / "broken.json.gz"
     broken.write_bytes(b"not gzip")
-    with pytest.raises(ValueError, match="not a readable results file"):
-        read_results(broken)
+    truncated = tmp_path / "truncated.json.gz"
+    truncated.write_bytes(SEEDS32.read_bytes()[:5000])
+    for path in (broken, truncated):
+        with pytest.raises(ValueError, match="not a readable results file"):
+            read_results(path)
+
+
+def test_a_failed_row_agrees_with_no_draw(monkeypatch):
+    """A row whose measure raises reads "failed" everywhere: it counts as agreeing with no draw, so that the table
+    shows it in bold instead of as settled."""
+    i = next(k for k, r in enumerate(VB.ROWS) if r.statement == HF2_PEAK)
+
+    def boom(results, cfg):
+        raise RuntimeError("broken measure")
+
+    rows = list(VB.ROWS)
+    rows[i] = dataclasses.replace(rows[i], measure=boom)
+    monkeypatch.setattr(VB, "ROWS", rows)  # evaluate_rows reads the module's list
+    monkeypatch.setattr(VD, "ROWS", rows)
+    cfg = VB.Config(seeds=8)
+    table = VD.draw_verdicts(_hf2({s: 32.8e3 for s in range(1, 9)}), cfg, 4)
+    row = next(r for r in table if r["statement"] == HF2_PEAK)
+    assert row["whole"] == "failed" and row["draws"] == ["failed", "failed"] and row["agree"] == 0
+    assert VD.render([row], cfg, 4)[2].endswith(f"| **{HF2_PEAK}** | ! | ! | ! | 0 of 2 |")
 
 
 def test_the_32_seed_page_is_rendered_from_its_results():

@@ -1,6 +1,5 @@
 """How much the draw of seeds decides a verdict: every row read on the whole of a larger ensemble and on each of its
-disjoint draws of the validation's size (``scripts/validation_draws.py``; docs/validation.md, "How much the draw of
-eight seeds decides").
+disjoint draws of the validation's size (``scripts/validation_draws.py``; docs/validation.md, "On 32 seeds").
 
 A row whose verdict is the same on every draw is not carried by the draw; a row whose draws disagree sits on the
 edge of its criterion at that ensemble size, and its verdict on the whole ensemble (with its narrower intervals) is
@@ -14,7 +13,7 @@ from typing import Any
 
 from aca_warp.studies.validation.base import ROWS, Config, evaluate_rows
 from aca_warp.studies.validation.causes import SHORT, seed_range
-from aca_warp.studies.validation.verdicts import NOT_MEASURED
+from aca_warp.studies.validation.verdicts import FAILED, NOT_MEASURED
 
 
 def draws(cfg: Config, size: int) -> list[tuple[int, int]]:
@@ -33,7 +32,11 @@ def draw_verdicts(
 ) -> list[dict[str, Any]]:
     """Every row measured on the whole ensemble: its verdict and value there (``whole``, ``value``), its verdict on
     each draw of ``size`` seeds (``draws``, in the order of :func:`draws`), how many draws read the whole's verdict
-    (``agree``), and, with ``against`` (statement -> verdict of another results file), that file's verdict."""
+    (``agree``; a failed row agrees with nothing, so that it stands out), and, with ``against`` (statement ->
+    verdict of another results file), that file's verdict.
+
+    A draw is evaluated as an ensemble of its own, with the settings of one (``seeds``, ``first_seed``); the rows
+    read only the pads' entries today, so the same pads give the same verdict under the whole's settings."""
     ranges = draws(cfg, size)
     whole = evaluate_rows(results, cfg)
     parts = [evaluate_rows(seed_range(lo, hi)(results), dataclasses.replace(cfg, seeds=size, first_seed=lo))
@@ -50,7 +53,7 @@ def draw_verdicts(
                 "whole": main["verdict"],
                 "value": main["value"],
                 "draws": got,
-                "agree": sum(v == main["verdict"] for v in got),
+                "agree": sum(v == main["verdict"] != FAILED for v in got),
                 "against": None if against is None else against.get(row.statement, NOT_MEASURED),
             }
         )
@@ -64,8 +67,8 @@ def verdicts_by_statement(results: dict[str, dict], cfg: Config) -> dict[str, st
 
 def render(table: list[dict[str, Any]], cfg: Config, size: int, against_label: str | None = None) -> list[str]:
     """The markdown table of :func:`draw_verdicts` (✓ reproduced, ~ partly, ✗ not reproduced, ≈ significant but
-    negligible, ? undetermined, n/c not comparable, · not measured), rows whose draws disagree in bold, and a line
-    counting them."""
+    negligible, ? undetermined, n/c not comparable, · not measured, ! failed), rows whose draws disagree (or that
+    failed) in bold, and a line counting them."""
     ranges = draws(cfg, size)
     head = ["§", "statement", f"{cfg.seeds} seeds", *(f"seeds {lo}–{hi - 1}" for lo, hi in ranges), "draws agreeing"]
     if against_label is not None:

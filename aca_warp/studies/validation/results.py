@@ -46,7 +46,7 @@ def read_results(path: Path) -> tuple[dict[str, dict], dict[str, Any], Config]:
     """(results, meta, settings) of a ``results.json`` (or its gzip, ``.json.gz``); ValueError when it is not one."""
     try:
         doc = json.loads(gzip.decompress(path.read_bytes()) if path.suffix == ".gz" else path.read_text())
-    except (OSError, ValueError) as e:
+    except (OSError, ValueError, EOFError) as e:  # EOFError: a truncated gzip
         raise ValueError(f"{path}: not a readable results file ({type(e).__name__}: {e})") from None
     got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
     if got != FORMAT:
