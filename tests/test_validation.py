@@ -355,13 +355,14 @@ def test_report_refuses_a_file_that_is_not_a_results_file(tmp_path, capsys):
 
 
 def test_committed_page_is_rendered_from_the_committed_results():
-    """docs/validation.md's generated section is exactly what --report writes from docs/validation/results.json."""
+    """docs/validation.md's generated section is exactly what --report writes from the committed 32-seed results
+    (docs/validation/seeds32/results.json.gz)."""
     repo = Path(__file__).resolve().parent.parent
     page = repo / "docs" / "validation.md"
     from aca_warp.studies.report import generated_markers
     from aca_warp.studies.validation.results import render_report
 
-    body, rows, _ = render_report(repo / "docs" / "validation" / "results.json")
+    body, rows, _ = render_report(repo / "docs" / "validation" / "seeds32" / "results.json.gz")
     begin, end = generated_markers(VL.MARKER)
     committed = page.read_text().split(begin, 1)[1].split(end, 1)[0]
     assert committed == "\n" + "\n".join(body) + "\n"
