@@ -40,8 +40,8 @@ def test_draws_are_the_disjoint_runs_of_seeds_the_ensemble_holds():
 
 
 def test_each_draw_reads_its_own_seeds():
-    """Seeds 1–4 at the paper's peak, 5–8 far from it: the first draw reproduces the row, the second does not, and
-    so do all eight seeds (their mean off the tolerance): one of the two draws agrees, and the table marks the row."""
+    """Seeds 1–4 at the paper's peak, 5–8 far from it: the first draw reproduces the row; the second and all eight
+    seeds together (their mean off the tolerance) do not. One of the two draws agrees, and the table marks the row."""
     res = _hf2({s: (32.8e3 + 50.0 * s if s <= 4 else 45e3 + 50.0 * s) for s in range(1, 9)})
     cfg = VB.Config(seeds=8)
     table = VD.draw_verdicts(res, cfg, 4, against={HF2_PEAK: "partly"})
