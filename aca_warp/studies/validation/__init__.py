@@ -26,7 +26,9 @@ Modules, in the order of an experiment and of the page:
   from rest at the paper's length;
 * :mod:`~aca_warp.studies.validation.tracks`: the runs from rest over time;
 * :mod:`~aca_warp.studies.validation.cost`: the time estimates of a run;
-* :mod:`~aca_warp.studies.validation.results`: the compact ``results.json`` the page is rendered from;
+* :mod:`~aca_warp.studies.validation.results`: the compact ``results.json`` (or its gzip) a page section is rendered
+  from; :mod:`~aca_warp.studies.validation.compare` two such files side by side and
+  :mod:`~aca_warp.studies.validation.draws` every row on each disjoint draw of fewer seeds;
 * :mod:`~aca_warp.studies.validation.page`: the generated part of docs/validation.md;
 * :mod:`~aca_warp.studies.validation.cli`: the command line (``scripts/validation.py``).
 
