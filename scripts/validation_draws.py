@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
-"""How much the draw of seeds decides each verdict: the rows of a validation results file read on all its seeds and
-on each of its disjoint draws of --size seeds (the validation's eight by default), beside another results file's
-verdicts (--against). Prints a markdown table; exit 2 for a file that is not a results file or holds fewer than two
-draws. Example (the 32-seed ensemble of every experiment against the page's eight seeds)::
+"""How much the draw of seeds decides each verdict: the rows of a validation results file read on all its seeds and on
+each of its disjoint draws of --size seeds (the validation's eight by default), beside another results file's
+verdicts (--against). Prints a markdown table (--split-only: of the rows whose draws disagree); exit 2 for a file
+that is not a results file or holds fewer than two draws. Example (the 32-seed ensemble of every experiment against
+the page's eight seeds)::
 
     python3 scripts/validation_draws.py docs/validation/seeds32/results.json.gz --size 8 \
         --against docs/validation/results.json
@@ -20,6 +21,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("results", type=Path, help="a validation results.json (or .json.gz) of many seeds")
     ap.add_argument("--size", type=int, default=8, help="seeds per draw (8: the validation's)")
     ap.add_argument("--against", type=Path, help="another results file, whose verdicts make the last column")
+    ap.add_argument("--split-only", action="store_true", help="list only the rows whose draws disagree (or failed)")
     args = ap.parse_args(argv)
     import aca_warp.studies.validation  # noqa: F401  (registers the experiments)
     from aca_warp.studies.validation.draws import draw_verdicts, render, verdicts_by_statement
@@ -35,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as e:
         print(f"validation_draws.py: error: {e}", file=sys.stderr)
         return 2
-    print("\n".join(render(table, cfg, args.size, label)))
+    print("\n".join(render(table, cfg, args.size, label, args.split_only)))
     return 0
 
 

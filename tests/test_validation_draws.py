@@ -55,7 +55,11 @@ def test_each_draw_reads_its_own_seeds():
     assert lines[-1] == "1 of 1 rows measured have draws of 4 seeds that read otherwise than all 8 seeds."
     same = VD.draw_verdicts(_hf2({s: 32.8e3 + 50.0 * s for s in range(1, 9)}), cfg, 4)
     assert next(r for r in same if r["statement"] == HF2_PEAK)["draws"] == ["reproduced", "reproduced"]
-    assert "**" not in VD.render([r for r in same if r["statement"] == HF2_PEAK], cfg, 4)[2]
+    agreeing = next(r for r in same if r["statement"] == HF2_PEAK)
+    assert "**" not in VD.render([agreeing], cfg, 4)[2]
+    only = VD.render([agreeing, row], cfg, 4, split_only=True)  # the agreeing row left out, the split one kept
+    assert len(only) == 5 and f"**{HF2_PEAK}**" in only[2]
+    assert only[-1] == "1 of 2 rows measured have draws of 4 seeds that read otherwise than all 8 seeds."
 
 
 def test_draws_of_half_the_seeds_are_the_seed_halves_of_the_causes():
@@ -121,12 +125,13 @@ def test_the_32_seed_page_is_rendered_from_its_results():
 
 def test_the_pages_draws_table_is_the_scripts_output(capsys):
     page = (REPO / "docs" / "validation.md").read_text()
-    blocks = re.findall(r"<!-- DRAWS (\S+) (\d+) (\S+) -->\n(.*?)<!-- END DRAWS -->", page, flags=re.S)
-    assert len(blocks) == 1
-    path, size, against, table = blocks[0]
+    blocks = re.findall(r"<!-- DRAWS (\S+) (\d+) (\S+)( split-only)? -->\n(.*?)<!-- END DRAWS -->", page, flags=re.S)
+    assert [b[3] for b in blocks] == ["", " split-only"]  # all rows at eight seeds, the split ones at sixteen
     script = load_script("validation_draws")
-    assert script.main([str(REPO / path), "--size", size, "--against", str(REPO / against)]) == 0
-    assert capsys.readouterr().out == table
+    for path, size, against, split_only, table in blocks:
+        args = [str(REPO / path), "--size", size, "--against", str(REPO / against)]
+        assert script.main(args + (["--split-only"] if split_only else [])) == 0
+        assert capsys.readouterr().out == table
 
 
 def test_the_script_refuses_what_it_cannot_read(tmp_path, capsys):

@@ -65,10 +65,12 @@ def verdicts_by_statement(results: dict[str, dict], cfg: Config) -> dict[str, st
     return {r["statement"]: r["verdict"] for r in evaluate_rows(results, cfg)}
 
 
-def render(table: list[dict[str, Any]], cfg: Config, size: int, against_label: str | None = None) -> list[str]:
+def render(
+    table: list[dict[str, Any]], cfg: Config, size: int, against_label: str | None = None, split_only: bool = False
+) -> list[str]:
     """The markdown table of :func:`draw_verdicts` (✓ reproduced, ~ partly, ✗ not reproduced, ≈ significant but
     negligible, ? undetermined, n/c not comparable, · not measured, ! failed), rows whose draws disagree (or that
-    failed) in bold, and a line counting them."""
+    failed) in bold, and a line counting them; ``split_only``: those rows alone."""
     ranges = draws(cfg, size)
     head = ["§", "statement", f"{cfg.seeds} seeds", *(f"seeds {lo}–{hi - 1}" for lo, hi in ranges), "draws agreeing"]
     if against_label is not None:
@@ -81,6 +83,8 @@ def render(table: list[dict[str, Any]], cfg: Config, size: int, against_label: s
         if r["agree"] < len(ranges):
             split += 1
             cells[1] = f"**{cells[1]}**"
+        elif split_only:
+            continue
         if against_label is not None:
             cells.append(SHORT.get(r["against"], r["against"]))
         lines.append("| " + " | ".join(cells) + " |")
