@@ -99,6 +99,21 @@ def machines(names: list[str]) -> str:
     return "; ".join(dict.fromkeys(names))
 
 
+def per_machine(values: list[float], names: list[str], fmt: Callable[[float], str]) -> str:
+    """The values of an entry's files by machine, where it has more than one: "H100 1.72–1.78; H200 1.99–2.02" (the
+    range over each machine's runs, the GPU's name without its vendor), else nothing."""
+    if len(set(names)) < 2:
+        return ""
+    groups: dict[str, list[float]] = {}
+    for v, n in zip(values, names, strict=True):
+        groups.setdefault(n, []).append(v)
+    parts = []
+    for n, vs in groups.items():
+        lo, hi = fmt(min(vs)), fmt(max(vs))
+        parts.append(f"{n.removeprefix('NVIDIA ')} {lo if lo == hi else f'{lo}–{hi}'}")
+    return "; ".join(parts)
+
+
 def validation_stepping(paths: list[Path]) -> Measured:
     """The stepping time [s] of every batch of a validation results file, summed over the calls that made it."""
     import aca_warp.studies.validation  # noqa: F401  (registers the experiments)
@@ -154,14 +169,19 @@ def profile_us_per_step(paths: list[Path]) -> Measured:
             names.append(doc["machine"]["device_name"])
         else:
             values.append(float(one(md_rows(p), **case)["µs/step"]))
-    return Measured(tuple(values), machines(names), "fp32, cluster of 8 blocks")
+            names.append(PROFILE_MD_MACHINE)
+    split = per_machine(values, names, lambda v: f"{v:.2f}")
+    return Measured(tuple(values), machines(names), "fp32, cluster of 8 blocks" + (f"; {split}" if split else ""))
 
 
 def onchip_1024_pads(paths: list[Path]) -> Measured:
-    """Patch-steps/s of 1024 hf1 pads, on chip in fp32 (``aca-warp bench --engine general onchip``)."""
-    doc = load(paths[0])
-    row = one(doc["results"], engine="onchip", precision="fp32", pads=1024)
-    return Measured((row["patch_steps_per_s"],), bench_machine(doc["machine"]), "fp32")
+    """Patch-steps/s of 1024 hf1 pads, on chip in fp32, one value per file (``aca-warp bench --engine general
+    onchip``)."""
+    docs = [load(p) for p in paths]
+    values = [one(d["results"], engine="onchip", precision="fp32", pads=1024)["patch_steps_per_s"] for d in docs]
+    names = [bench_machine(d["machine"]) for d in docs]
+    split = per_machine(values, names, lambda v: f"{v:.2e}".replace("e+", "e"))
+    return Measured(tuple(values), machines(names), "fp32" + (f"; {split}" if split else ""))
 
 
 def tts_try(doc: dict[str, Any], scene: str, solver: str, where: str = "") -> dict[str, Any]:
@@ -193,7 +213,11 @@ def tts_ratio(
                 bound = "at least" if speedup else "at most"
                 stays = f"the other stays at {num(b['error'], 2)} at its finest setting"
                 notes[-1] += f"; {stays}: {bound} this ratio at equal error"
-        return Measured(tuple(values), machines(names), notes[0] if len(paths) == 1 else "")
+        if len(paths) > 2:  # a readable cell: the runs' times for one or two runs only
+            notes = []
+        elif len(paths) == 2:  # each run's times, named by its machine
+            notes = [f"{n.removeprefix('NVIDIA ')}: {t}" for n, t in zip(names, notes, strict=True)]
+        return Measured(tuple(values), machines(names), "; ".join(notes))
 
     return read
 
@@ -272,6 +296,9 @@ MAIN_JOB_RUNS = (TTS + "tts_cpu_xeon_default_step.json", TTS + "tts_cpu_epyc_def
 WARP_PARTS = "benchmarks/onchip_h200_64pads/warp_parts/"  # the default step's benchmarks, samples in warp parts
 REUSE_GPU = "benchmarks/onchip_h200_64pads/friction_reuse_gpu/"  # the 64 pads' benchmark again, 2026-12-01
 PROFILES = "benchmarks/onchip_h100/halo_exchange/final_profile_"
+PROFILES_H200 = "benchmarks/onchip_h200/one_pad_profile/profile_"  # the code of 2026-12-01
+GPU_TTS = (TTS + "tts_h100.json", TTS + "tts_h200.json")  # the GPU's time-to-solution runs, H100 and H200
+PROFILE_MD_MACHINE = "NVIDIA H100 80GB HBM3"  # the one profile kept as Markdown only (r0 of PROFILES) ran there
 ADAPTIVE_GPU = ("ours: adaptive (DP5)", "cuda:0, onchip engine")
 ADAPTIVE_CPU = ("ours: adaptive (DP5)", "cpu, onchip engine")
 STRANG_GPU = ("ours: strang", "cuda:0, onchip engine")
@@ -304,15 +331,17 @@ TARGETS: tuple[Target, ...] = (
            "runs on chip too)", 60.0, "≤", "s", ("results_varying_area_onchip.md",), report_run_line,
            LINK["onchip.md"]),
     Target("one pad per step", "one hf1 pad ≤ 1.5 µs per step", 1.5, "≤", "µs per step",
-           tuple(PROFILES + s for s in ("r0.md", "r1.json", "r2.json", "r3.json")), profile_us_per_step,
+           tuple(PROFILES + s for s in ("r0.md", "r1.json", "r2.json", "r3.json"))
+           + tuple(f"{PROFILES_H200}r{r}.json" for r in range(5)), profile_us_per_step,
            LINK["onchip.md"]),
     Target("1024 pads", "1024 hf1 pads ≥ 1e11 patch-steps/s", 1e11, "≥", "patch-steps/s",
-           ("benchmarks/bench_h100_engines.json",), onchip_1024_pads, LINK["onchip.md"]),
+           ("benchmarks/bench_h100_engines.json", "benchmarks/bench_h200_engines.json"), onchip_1024_pads,
+           LINK["onchip.md"]),
     Target("μ ≤ 1e-7: over strang", "one hf1 pad to μ error ≤ 1e-7: `adaptive` ≥ 10× faster than on-chip `strang`",
-           10.0, "≥", "×", (TTS + "tts_h100.json",), tts_ratio("hf1", ADAPTIVE_GPU, STRANG_GPU, speedup=True),
+           10.0, "≥", "×", GPU_TTS, tts_ratio("hf1", ADAPTIVE_GPU, STRANG_GPU, speedup=True),
            LINK["time_to_solution.md"]),
     Target("μ ≤ 1e-7: over diffrax", "one hf1 pad to μ error ≤ 1e-7: `adaptive` ≥ 5× faster than diffrax Dopri8",
-           5.0, "≥", "×", (TTS + "tts_h100.json",),
+           5.0, "≥", "×", GPU_TTS,
            tts_ratio("hf1", ADAPTIVE_GPU, ("diffrax Dopri8 + PID", ""), speedup=True), LINK["time_to_solution.md"]),
     Target("CPU against DOP853", "CPU, hf1 1 ms to μ error ≤ 1e-7: `adaptive`'s time / SciPy DOP853's ≤ 1", 1.0,
            "≤", "×",
@@ -320,7 +349,7 @@ TARGETS: tuple[Target, ...] = (
                                    "tts_cpu_xeon_default_step.json", "tts_cpu_epyc_default_step.json")),
            tts_ratio("hf1", ADAPTIVE_CPU, DOP853, speedup=False), LINK["time_to_solution.md"]),
     Target("stick-slip against strang", "stick-slip to μ error ≤ 1e-7: `adaptive`'s time / on-chip `strang`'s ≤ 1",
-           1.0, "≤", "×", (TTS + "tts_h100.json",), tts_ratio("stickslip", ADAPTIVE_GPU, STRANG_GPU, speedup=False),
+           1.0, "≤", "×", GPU_TTS, tts_ratio("stickslip", ADAPTIVE_GPU, STRANG_GPU, speedup=False),
            LINK["time_to_solution.md"]),
     Target("main job: μ error", "README main job (CPU, hf1 1 ms, defaults): μ error ≤ 1e-7", 1e-7, "≤", "",
            MAIN_JOB_RUNS, tts_default_error, LINK["time_to_solution.md"]),

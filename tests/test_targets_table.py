@@ -116,6 +116,19 @@ def test_time_to_solution_ratio_takes_the_try_that_reached_and_says_when_none_di
     assert fast.values == pytest.approx((4.0,)) and fast.note == "0.0500 s against 0.200 s"
     short = MODULE.tts_ratio("hf1", ("late", ""), ("third", ""), speedup=False)([path])
     assert "ours at 1.0e-6, short of the error" in short.note
+    gpu = tmp_path / "tts_gpu.json"
+    gpu.write_text(MODULE.json.dumps({"machine": {"device": "cuda:0", "device_name": "NVIDIA H200"}, "rows": rows}))
+    both = MODULE.tts_ratio("hf1", ("third", ""), ("ours", "gpu"), speedup=True)([path, gpu])
+    assert both.note == "CPU, 2 cores: 0.0500 s against 0.200 s; H200: 0.0500 s against 0.200 s"
+    assert MODULE.tts_ratio("hf1", ("third", ""), ("ours", "gpu"), speedup=True)([path, gpu, path]).note == ""
+
+
+def test_values_by_machine_only_where_the_files_ran_on_several() -> None:
+    fmt = "{:.2f}".format
+    names = ["NVIDIA H100 80GB HBM3", "NVIDIA H100 80GB HBM3", "NVIDIA H200", "NVIDIA H200", "NVIDIA H200"]
+    assert MODULE.per_machine([1.78, 1.72, 2.0, 1.99, 2.0], names, fmt) == "H100 80GB HBM3 1.72–1.78; H200 1.99–2.00"
+    assert MODULE.per_machine([1.78, 1.72], names[:2], fmt) == ""
+    assert MODULE.per_machine([3.5, 2.0], ["NVIDIA H100", "AMD EPYC"], fmt) == "H100 3.50; AMD EPYC 2.00"
 
 
 def test_entry_without_files_is_not_in_data() -> None:
