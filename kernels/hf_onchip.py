@@ -601,8 +601,8 @@ def onchip_kernel(
     return onchip_strang
 
 
-# a pad's verdict on one sample (pad_samples_kernel → flag_fault): its sums not finite (1) or finite (0), its first
-# non-finite patch (−1: none), its first runaway patch (n: none) and that patch's energy speed [m/s]
+# a pad's verdict on one sample (pad_samples_kernel → flag_fault): broken (1: a patch with a non-finite u or u̇) or
+# not (0), its first non-finite patch (−1: none), its first runaway patch (n: none) and that patch's energy speed [m/s]
 Verdict = wp.types.vector(length=4, dtype=wp.float64)
 
 
@@ -617,9 +617,10 @@ def pad_samples_kernel(dtype: Any) -> tuple[wp.Kernel, wp.Kernel]:
     ``parts[s, b, w]`` holds warp w's part of sample s of block b (pad b // ``cluster``; :data:`PART`); a block's
     sums are its warps' in warp order, the sums of Warp's block reduction to the bit (the warp stage was
     :func:`~aca_warp.kernels.tiles.warp_sum`), and a pad's are its blocks' in rank order, added to zero on a
-    cluster: the sums a block reduction and block 0 of the cluster made in the kernel before, to the bit. A block's
-    first non-finite patch counts where the block's sums are not finite, as its search did there; a pad's runaway
-    patch is its first, with its energy speed; the matrix's force and radius are those the pad had at the sample
+    cluster: the sums a block reduction and block 0 of the cluster made in the kernel before, to the bit. A pad is
+    broken where one of its patches has a non-finite u or u̇ (its first such patch named), whether or not its sums
+    are finite: the general engine's rule (:func:`~aca_warp.kernels.physics.record_pad`); a pad's runaway patch is
+    its first, with its energy speed; the matrix's force and radius are those the pad had at the sample
     (kept in the first part: growth changes them); ``warps`` the parts per block."""
     Model = HFModel(dtype)
     Recorder = HFRecorder(dtype)
@@ -641,7 +642,7 @@ def pad_samples_kernel(dtype: Any) -> tuple[wp.Kernel, wp.Kernel]:
             if r < runaway:
                 runaway = r
                 value = parts[s, b, q, 9]
-        if bad >= n or (wp.isfinite(tot[3]) and wp.isfinite(tot[6])):
+        if bad >= n:
             bad = -1
         return tot, bad, runaway, value
 
@@ -679,7 +680,7 @@ def pad_samples_kernel(dtype: Any) -> tuple[wp.Kernel, wp.Kernel]:
             dtype(parts[s, first, 0, 11]), model.pad_load[pad],
         )  # fmt: skip
         broken = wp.float64(0.0)
-        if not (wp.isfinite(tot[3]) and wp.isfinite(tot[6])):
+        if bad >= 0:
             broken = wp.float64(1.0)
         verdicts[s, pad] = Verdict(broken, wp.float64(bad), wp.float64(runaway), value)
 

@@ -849,9 +849,10 @@ def test_thread_links_per_block_and_thread_as_a_loop_counts_them():
 def test_sample_rows_combine_parts_in_order(cluster):
     """The rows and verdicts of a launch from hand-made parts (the cluster path runs on the CPU here, where no kernel
     makes parts for clusters): a block's warps added in order (1, 2⁵³, −2⁵³ gives 0; any other order 1), a cluster's
-    blocks added to zero in rank order (two blocks of −0.0 give +0.0, one block keeps its −0.0), the first
-    non-finite patch of the first block whose sums are not finite, and the pad's first runaway patch with the energy
-    speed its part carries."""
+    blocks added to zero in rank order (two blocks of −0.0 give +0.0, one block keeps its −0.0), the pad's first
+    non-finite patch, and the pad's first runaway patch with the energy speed its part carries. A pad is broken where
+    a patch is not finite, whether or not its sums are (the general engine's rule): sample 2 has a non-finite patch
+    under finite sums in pad 1 (broken) and sums that overflowed with every patch finite in pad 0 (not broken)."""
     from aca_warp.kernels.hf_onchip import PART, Verdict, pad_samples_kernel
 
     from aca_warp.hf.recorder import Recorder
@@ -860,7 +861,7 @@ def test_sample_rows_combine_parts_in_order(cluster):
     model = build_model([scene, scene], device="cpu", precision="fp64")
     n = int(np.diff(model.pad_patch_start_host)[0])
     rec = Recorder(model, scene.record, 4, 4)
-    samples, warps = 2, 3
+    samples, warps = 3, 3
     p = np.zeros((samples, 2 * cluster, warps, PART))
     p[..., 7] = n  # no non-finite patch
     p[..., 8] = n  # no runaway patch
@@ -873,6 +874,8 @@ def test_sample_rows_combine_parts_in_order(cluster):
     p[1, last, 2, 8:10] = [9, 7.0] if cluster == 2 else [12, 5.0]
     p[1, last, 2, 7] = 30  # its first non-finite patch, counted as its sums are not finite
     p[1, last, 2, 6] = np.nan
+    p[2, 2 * cluster - 1, 1, 7] = 44  # pad 1's last block: a non-finite patch, its sums finite
+    p[2, first, 0, 6] = np.inf  # pad 0: an overflowed sum, every patch finite
     parts = wp.array(p, dtype=wp.float64, device="cpu")
     verdicts = wp.zeros((samples, 2), dtype=Verdict, device="cpu")
     sample_rows, _ = pad_samples_kernel(wp.float64)
@@ -888,6 +891,8 @@ def test_sample_rows_combine_parts_in_order(cluster):
     np.testing.assert_array_equal(v[0, 0], [0.0, -1.0, n, 0.0])
     np.testing.assert_array_equal(v[1, 0], [1.0, 30.0, 9.0, 7.0] if cluster == 2 else [1.0, 30.0, 12.0, 5.0])
     np.testing.assert_array_equal(v[1, 1], [0.0, -1.0, n, 0.0])
+    np.testing.assert_array_equal(v[2, 0], [0.0, -1.0, n, 0.0])
+    np.testing.assert_array_equal(v[2, 1], [1.0, 44.0, n, 0.0])
 
 
 @pytest.mark.parametrize(("arch", "cluster"), [(75, 1), (90, 2)])
