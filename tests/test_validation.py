@@ -473,6 +473,7 @@ def test_script_help_and_list(capsys):
 from aca_warp.studies.validation import area as VA  # noqa: E402
 from aca_warp.studies.validation import causes as VC  # noqa: E402
 from aca_warp.studies.validation import multiscale as VM  # noqa: E402
+from aca_warp.studies.validation import multiscale_rows as VMR  # noqa: E402
 
 
 def _growing_mu(seed: int, falling: bool = True, periodic: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -606,17 +607,17 @@ def test_multiscale_rows_follow_their_criteria():
     assert len(rows) == 16
     std = dict.fromkeys(VM.STATES, 0.01)
     res = _ms_results({**std, "app3_start": 0.02, "app3_end": 0.015}, top={"app3_start": 0.5})
-    amplitude = [r for r in rows.values() if r.kind == "not comparable"]
-    assert len(amplitude) == 5
-    for r in amplitude:  # the LF rules and loads decide μ's amplitudes: not comparable, this automaton's verdict beside
+    amplitude = [r for r in rows.values() if r.criterion == VMR.AMPLITUDE_CRITERION]
+    assert len(amplitude) == 5 and all(r.kind == "direction" for r in amplitude)
+    for r in amplitude:  # μ's amplitudes read on this LF automaton, the caveat in the notes
         v = r.measure(res, cfg)
-        assert v.verdict == "not comparable" and "on this LF automaton: reproduced" in v.notes, r.statement
+        assert v.verdict == "reproduced" and v.notes.startswith(VMR.ON_THIS_LF), r.statement
     for key in ("individual high-valued S at the start of application 3",
                 "end of application 3: local clustering correlates with the number of patches in S"):  # fmt: skip
         assert rows[key].measure(res, cfg).verdict == "reproduced"
     res = _ms_results({**std, "app1_start": 0.03, "app3_start": 0.015}, after_low=0.05)
     largest = rows["the maximum amplitudes occur at the beginning of application 3"].measure(res, cfg)
-    assert "on this LF automaton: not reproduced" in largest.notes and "app1_start ×5" in largest.notes
+    assert largest.verdict == "not reproduced" and "app1_start ×5" in largest.notes
 
 
 def test_local_sync_measures():

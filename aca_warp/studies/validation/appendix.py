@@ -76,8 +76,11 @@ def register() -> None:
     register_row(
         Row("§5", "the Synchronization Index is not sensitive to the spatial distribution of the patches",
             "insensitive", "direction", PRESETS, permutation_row, f"ΔS ≤ {PERMUTED_LIMIT:g} while |ΔC| > 0 (margin "
-            f"{COHERENCE_MARGIN:g})", min_experiments=1)
+            f"{COHERENCE_MARGIN:g})", min_experiments=1,
+            construction="S is a function of the patches' phases alone, so permuting their positions cannot change it: "
+            "a check of the code")
     )  # fmt: skip
     for case in sorted(TABLE_A1):
         register_row(Row("Appendix, Table A.2", f"case {case} ({CASES[case]}): n_AB … S", "Table A.2", "value", (),
-                         table_row(case), "every entry to the table's three decimals"))  # fmt: skip
+                         table_row(case), "every entry to the table's three decimals",
+                         construction="the index of synthetic phase sets: a check of the code"))  # fmt: skip

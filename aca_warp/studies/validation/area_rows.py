@@ -225,15 +225,24 @@ def oscillation_row(results: dict[str, dict], cfg: Config) -> RowValue:
     )
 
 
+# the contact rows of §3.2 hold by the preset's choice of heights and load (docs/presets.md, tests/test_heights.py)
+HEIGHTS_CHOSEN = (
+    "varying_area keeps hf1's heights, chosen with the HF2 load so that the matrix carries most of it at the start "
+    "and every patch stays in contact with the matrix free once Eq. 10 has grown the areas (docs/presets.md)"
+)
+
 VA_ROWS = (
     Row("§3.2", "the final patch areas approximate HF2's for a run about as long as HF1", "≈ HF2 (1.25 mm²)", "value",
-        (VA,), area_row, f"mean ± {100 * AREA_TOLERANCE:g} %"),
+        (VA,), area_row, f"mean ± {100 * AREA_TOLERANCE:g} %",
+        construction="the run's 0.36 s is the time Eq. 10 (A in mm²) takes to grow HF1's areas to HF2's mean "
+        "(docs/model.md §2.10)"),
     Row("§3.2", "under the HF2 load all patches keep contact with the disc through the end", "all in contact",
-        "threshold", (VA,), contact_end_row, "every patch in contact"),
+        "threshold", (VA,), contact_end_row, "every patch in contact", construction=HEIGHTS_CHOSEN),
     Row("§3.2", "at the start the pad-matrix contacts dominate", "matrix dominates", "threshold", (VA,),
-        matrix_start_row, f"matrix share ≥ {MATRIX_START:g}"),
+        matrix_start_row, f"matrix share ≥ {MATRIX_START:g}", construction=HEIGHTS_CHOSEN),
     Row("§3.2", "the patches take over the load; at the end friction is completely dominated by patch-disc contacts",
-        "patches dominate", "threshold", (VA,), matrix_end_row, f"matrix share ≤ {MATRIX_END:g} at the end"),
+        "patches dominate", "threshold", (VA,), matrix_end_row, f"matrix share ≤ {MATRIX_END:g} at the end",
+        construction=HEIGHTS_CHOSEN),
     Row("§3.2, Figs. 10/11", "μ rises as the load moves from the matrix to the growing patches", "rising μ",
         "direction", (VA,), rise_row, f"Δμ > 0, margin {RISE_MARGIN:g}"),
     Row("§3.2, Figs. 10/11", "the frequencies of the characteristic peaks fall as the patches grow",

@@ -307,6 +307,9 @@ class Row:
         min_experiments: How many of ``experiments`` need two usable pads (None: all of them).
         uses: What the measure depends on beyond the runs, for the analysis variants of
             :mod:`~aca_warp.studies.validation.causes`: "sync" (S and Φ), "stft" (the STFT window).
+        construction: Why the statement holds by construction (the model's parameters were chosen so that it does,
+            or it is a property of the index's definition) or checks the code rather than the model; empty for a
+            finding of the model. The page marks such rows and counts them apart.
     """
 
     section: str
@@ -318,6 +321,7 @@ class Row:
     criterion: str = ""
     min_experiments: int | None = None
     uses: tuple[str, ...] = ()
+    construction: str = ""
 
 
 EXPERIMENTS: dict[str, Experiment] = {}
@@ -463,6 +467,7 @@ def evaluate_rows(results: dict[str, dict], cfg: Config, rows: list[Row] | None 
             "kind": row.kind,
             "criterion": row.criterion,
             "experiments": list(row.experiments),
+            "construction": row.construction,
         }
         need = row.min_experiments or len(row.experiments)
         have = [k for k in row.experiments if len(usable(results.get(k))) >= 2]

@@ -131,7 +131,9 @@ def patterns_row(results: dict[str, dict], cfg: Config) -> RowValue:
 COMOVING = f"C > 0 (margin {C_MARGIN:g}) and size > spacing"
 PATTERN_ROWS = (
     Row("§3.1", "the loads keep every patch in contact with the disc, the matrix contact minimised", "all in contact",
-        "threshold", PRESETS, contact_row, f"every patch in contact, matrix share ≤ {MATRIX_LIMIT:g}"),
+        "threshold", PRESETS, contact_row, f"every patch in contact, matrix share ≤ {MATRIX_LIMIT:g}",
+        construction="the presets' heights are drawn so that the paper's loads sit 10 % above the load that brings "
+        "every patch into contact, the matrix free (docs/presets.md)"),
     Row("§3.1, Fig. 4", "HF1: macroscopic groups of patches move together in the same direction as their neighbours",
         "co-moving groups", "direction", ("hf1",), comoving_row("hf1"), COMOVING),
     Row("§3.1, Fig. 6", "HF2: macroscopic groups of patches move together in the same direction as their neighbours",

@@ -58,16 +58,21 @@ RESOLVED_BINS = 3.0  # a peak narrower than 3 bins is the window's own width (a 
 # ------------------------------------------------------------------------------------------------ the first peak
 
 
+# the other readings of the first peak the paper leaves open: (label, per-pad measure key)
+F1_CANDIDATES: tuple[tuple[str, str], ...] = (
+    ("Σu̇ first peak ≥ ½ its largest", "f1_first_half"),
+    ("Σu̇ single periodogram", "f1_periodogram"),
+    *((f"per-patch mean spectrum at {x:g}", f"f1_patch.{patch_key(x)}") for x in PATCH_FRACTIONS),
+)
+PRIMARY_F1 = (
+    "primary: the largest peak of the Welch-averaged spectrum of the velocity sum Σu̇ (Fig. 8 plots Σu̇, and in the "
+    "paper's figure its first peak is its most pronounced one)"
+)
+
+
 def _candidates(res: dict[str, Any] | None) -> str:
-    """The other readings of the first peak the paper leaves open."""
-    parts = [
-        f"Σu̇ first peak ≥ ½ its largest {interval(values(res, 'f1_first_half'), '.1f', 1e-3, 'kHz')}",
-        f"Σu̇ single periodogram {interval(values(res, 'f1_periodogram'), '.1f', 1e-3, 'kHz')}",
-    ]
-    parts += [
-        f"per-patch mean spectrum at {x:g} {interval(values(res, f'f1_patch.{patch_key(x)}'), '.1f', 1e-3, 'kHz')}"
-        for x in PATCH_FRACTIONS
-    ]
+    """The other readings of the first peak the paper leaves open, and how often the largest peak is the first."""
+    parts = [f"{label} {interval(values(res, key), '.1f', 1e-3, 'kHz')}" for label, key in F1_CANDIDATES]
     pads = usable(res)
     first = sum(bool(p["measures"].get("f1_is_first")) for p in pads)
     return "; ".join(parts) + f"; the largest Σu̇ peak is its first reaching ½ of it in {first} of {len(pads)} pads"
@@ -81,8 +86,7 @@ def first_peak_row(name: str) -> Callable[[dict[str, dict], Config], RowValue]:
         return RowValue(
             interval(f, ".1f", 1e-3, "kHz"),
             value_verdict(f, paper, PEAK_TOLERANCE * paper),
-            "primary: the largest peak of the Welch-averaged spectrum of the velocity sum Σu̇ (what Fig. 8 plots; its "
-            "first peak is its most pronounced); beside it: " + _candidates(res),
+            PRIMARY_F1 + "; beside it: " + _candidates(res),
         )
 
     return measure
@@ -99,21 +103,41 @@ def _fit_per_seed(points: dict[int, list[tuple[float, float]]]) -> tuple[np.ndar
     return b, pooled
 
 
-def exponent_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    """f1 ∝ A^b per seed over the mean areas of SWEEP (at least 3 areas per seed); b against −1/4."""
+def _exponent_verdict(b: np.ndarray) -> str:
+    """An exponent's interval and the verdict it would give, for the candidates' notes."""
+    return f"{interval(b, '.3f')} ({value_verdict(b, PAPER_EXPONENT, EXPONENT_TOLERANCE)})"
+
+
+def _candidate_exponents(exponent: Callable[[str], np.ndarray]) -> str:
+    """The exponent of each other reading of the first peak (``exponent(key)``), with the verdict it would give:
+    the convention decides these rows where the readings' verdicts differ."""
+    return "with the other readings of f1: " + "; ".join(
+        f"{label} {_exponent_verdict(exponent(key))}" for label, key in F1_CANDIDATES
+    )
+
+
+def sweep_exponents(results: dict[str, dict], key: str = "f1") -> tuple[np.ndarray, dict[str, Any], list[float]]:
+    """f ∝ A^b per seed over the mean areas of SWEEP (at least 3 areas per seed) with f the per-pad measure ``key``:
+    (b per seed, the pooled fit, the mean areas [mm²])."""
     points: dict[int, list[tuple[float, float]]] = {}
     for name in SWEEP:
         for p in usable(results.get(name)):
-            f = _get(p, "f1")
+            f = _get(p, key)
             if math.isfinite(f):
                 points.setdefault(int(p["seed"]), []).append((p["mean_area_m2"], f))
     b, pooled = _fit_per_seed(points)
-    areas = sorted({round(a / MM2, 2) for pts in points.values() for a, _ in pts})
-    note = f"f1 from Σu̇; fit per seed over the mean areas {', '.join(f'{a:g}' for a in areas)} mm²"
+    return b, pooled, sorted({round(a / MM2, 2) for pts in points.values() for a, _ in pts})
+
+
+def exponent_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    """f1 ∝ A^b per seed over the mean areas of SWEEP; b against −1/4, the other readings of f1 beside it."""
+    b, pooled, areas = sweep_exponents(results)
+    note = f"f1 from Σu̇ (its largest peak); fit per seed over the mean areas {', '.join(f'{a:g}' for a in areas)} mm²"
     if pooled.get("stderr") is not None:
         note += (
             f"; pooled over all {pooled['n_points']} pads {pooled['exponent']:.3f} ± {pooled['stderr']:.3f} (1 s.e.)"
         )
+    note += "; " + _candidate_exponents(lambda key: sweep_exponents(results, key)[0])
     return RowValue(interval(b, ".3f"), value_verdict(b, PAPER_EXPONENT, EXPONENT_TOLERANCE), note)
 
 
@@ -133,9 +157,10 @@ def two_area_row(results: dict[str, dict], cfg: Config) -> RowValue:
     return RowValue(
         interval(b, ".3f"),
         value_verdict(b, PAPER_EXPONENT, EXPONENT_TOLERANCE),
-        f"first peaks (Σu̇) {each(results, ('hf1', 'hf2'), 'f1', '.1f', 1e-3, 'kHz')}; the paper's own peaks (73 and "
-        f"32.8 kHz at 0.05 and 1.25 mm²) give {math.log(32.8 / 73.0) / math.log(25.0):.3f}; HF3/HF4 "
-        f"{interval(two_area_exponent(results, 'f1', (('hf4', 'hf3'),)), '.3f')}",
+        f"first peaks (Σu̇, its largest) {each(results, ('hf1', 'hf2'), 'f1', '.1f', 1e-3, 'kHz')}; the paper's own "
+        f"peaks (73 and 32.8 kHz at 0.05 and 1.25 mm²) give {math.log(32.8 / 73.0) / math.log(25.0):.3f}; HF3/HF4 "
+        f"{interval(two_area_exponent(results, 'f1', (('hf4', 'hf3'),)), '.3f')}; "
+        + _candidate_exponents(lambda key: two_area_exponent(results, key, (("hf2", "hf1"),))),
     )
 
 

@@ -16,7 +16,7 @@ from aca_warp.studies.validation import area as validation_area
 from aca_warp.studies.validation import causes as validation_causes
 from aca_warp.studies.validation import multiscale as validation_multiscale
 from aca_warp.studies.validation.base import EXPERIMENTS, USABLE, Experiment, interval, usable, values
-from aca_warp.studies.validation.verdicts import CRITERIA
+from aca_warp.studies.validation.verdicts import CRITERIA, REPRODUCED
 
 
 def _range(v: list[float | None], scale: float = 1.0, spec: str = ".3g") -> str:
@@ -201,11 +201,19 @@ def cause_lines(causes: list[dict[str, Any]]) -> list[str]:
 
 
 def verdict_counts(rows: list[dict[str, Any]]) -> str:
-    """How many rows carry each verdict, in one sentence."""
+    """How many rows carry each verdict, in one sentence, and how many of the reproduced ones hold by construction
+    or check the code (:attr:`~aca_warp.studies.validation.base.Row.construction`)."""
     counts: dict[str, int] = {}
     for r in rows:
         counts[r["verdict"]] = counts.get(r["verdict"], 0) + 1
-    return f"{len(rows)} statements: " + ", ".join(f"{n} {v}" for v, n in counts.items()) + "."
+    text = f"{len(rows)} statements: " + ", ".join(f"{n} {v}" for v, n in counts.items()) + "."
+    built = sum(1 for r in rows if r["verdict"] == REPRODUCED and r.get("construction"))
+    if built:
+        text += (
+            f' Of the {counts[REPRODUCED]} reproduced, {built} hold by construction or check the code (marked "by '
+            f'construction" in the table), so {counts[REPRODUCED] - built} are findings of the model.'
+        )
+    return text
 
 
 def statement_rows(rows: list[dict[str, Any]], rest: list[dict[str, Any] | None]) -> list[list[str]]:
@@ -213,8 +221,9 @@ def statement_rows(rows: list[dict[str, Any]], rest: list[dict[str, Any] | None]
     out = []
     for r, b in zip(rows, rest, strict=True):
         beside = "–" if b is None else f"**{b['verdict']}**: {b['value']}"
+        built = f"; by construction: {r['construction']}" if r.get("construction") else ""
         out.append([r["section"], r["statement"], r["value"], r["paper"], f"**{r['verdict']}** ({r['kind']}: "
-                    f"{r['criterion']})", beside, ", ".join(r["experiments"]), r["notes"]])  # fmt: skip
+                    f"{r['criterion']}{built})", beside, ", ".join(r["experiments"]), r["notes"]])  # fmt: skip
     return out
 
 
