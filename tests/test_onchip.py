@@ -872,7 +872,7 @@ def test_sample_rows_combine_parts_in_order(cluster):
     p[1, first, 1, 8:10] = [12, 5.0]  # sample 1: runaway patch 12 (energy speed 5 m/s) in pad 0's first block
     last = cluster - 1  # pad 0's last block: the first runaway patch (9) lies there when cluster = 2
     p[1, last, 2, 8:10] = [9, 7.0] if cluster == 2 else [12, 5.0]
-    p[1, last, 2, 7] = 30  # its first non-finite patch, counted as its sums are not finite
+    p[1, last, 2, 7] = 30  # its first non-finite patch (its sums not finite too)
     p[1, last, 2, 6] = np.nan
     p[2, 2 * cluster - 1, 1, 7] = 44  # pad 1's last block: a non-finite patch, its sums finite
     p[2, first, 0, 6] = np.inf  # pad 0: an overflowed sum, every patch finite

@@ -119,8 +119,19 @@ def test_time_to_solution_ratio_takes_the_try_that_reached_and_says_when_none_di
     gpu = tmp_path / "tts_gpu.json"
     gpu.write_text(MODULE.json.dumps({"machine": {"device": "cuda:0", "device_name": "NVIDIA H200"}, "rows": rows}))
     both = MODULE.tts_ratio("hf1", ("third", ""), ("ours", "gpu"), speedup=True)([path, gpu])
-    assert both.note == "CPU, 2 cores: 0.0500 s against 0.200 s; H200: 0.0500 s against 0.200 s"
+    assert both.note == "CPU, 2 cores: (0.0500 s against 0.200 s); H200: (0.0500 s against 0.200 s)"
+    twice = MODULE.tts_ratio("hf1", ("third", ""), ("ours", "gpu"), speedup=True)([gpu, gpu])
+    assert twice.note == "H200 run 1: (0.0500 s against 0.200 s); H200 run 2: (0.0500 s against 0.200 s)"
     assert MODULE.tts_ratio("hf1", ("third", ""), ("ours", "gpu"), speedup=True)([path, gpu, path]).note == ""
+
+
+def test_a_markdown_profile_names_its_device(tmp_path: Path) -> None:
+    md = tmp_path / "p.md"
+    md.write_text("On-chip ablation profile: hf1, 1 pad(s), dt 1e-08 s; NVIDIA H200, Warp 1.19.0 (scripts/x.py)\n")
+    assert MODULE.profile_md_machine(md) == "NVIDIA H200"
+    md.write_text("a profile without a device\n")
+    with pytest.raises(ValueError, match="names no device"):
+        MODULE.profile_md_machine(md)
 
 
 def test_values_by_machine_only_where_the_files_ran_on_several() -> None:
