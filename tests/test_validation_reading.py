@@ -17,7 +17,7 @@ from aca_warp.studies.validation.page import verdict_counts
 from aca_warp.studies.validation.results import read_results
 
 SEEDS32 = Path(__file__).resolve().parent.parent / "docs" / "validation" / "seeds32" / "results.json.gz"
-R, P, N, U = "reproduced", "partly", "not reproduced", "undetermined"
+R, P, N, U, G = "reproduced", "partly", "not reproduced", "undetermined", "significant but negligible"
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +32,19 @@ def _row(statement: str) -> VB.Row:
 
 @pytest.mark.parametrize(
     ("a", "b", "want"),
-    [(R, R, R), (R, U, P), (U, R, P), (P, N, P), (N, U, U), (N, N, N), ("significant but negligible", N, N)],
+    [
+        (R, R, R),
+        (R, U, P),
+        (U, R, P),
+        (P, N, P),
+        (N, U, U),
+        (N, N, N),
+        (G, N, P),
+        (G, G, G),
+        (G, R, P),
+        ("not measured", R, "not measured"),
+        (R, "failed", "failed"),
+    ],
 )
 def test_both_changes_present(a: str, b: str, want: str) -> None:
     assert VS.both_verdict(a, b) == want
@@ -50,17 +62,17 @@ def test_combination_reads_both_changes_of_hf4_against_hf1(seeds32) -> None:
 
 
 def test_rows_by_construction_are_marked_and_counted_apart(seeds32) -> None:
-    """Ten rows hold by construction or check the code; the count names them apart, and a marked row that is not
+    """Twelve rows hold by construction or check the code; the count names them apart, and a marked row that is not
     reproduced is not counted among them."""
     marked = [r for r in VB.ROWS if r.construction]
-    assert len(marked) == 10
-    assert {r.section for r in marked} == {"§3.1", "§3.2", "§5", "Appendix, Table A.2"}
+    assert len(marked) == 12
+    assert {r.section.split(",")[0] for r in marked} == {"§3.1", "§3.2", "§3.3", "§5", "Appendix"}
     results, cfg = seeds32
     rows = VB.evaluate_rows(results, cfg)
     text = verdict_counts(rows)
-    assert "Of the 32 reproduced, 10 hold by construction or check the code" in text and "22 are findings" in text
-    first = next(r for r in rows if r["construction"])
-    assert "Of the 31 reproduced, 9 hold" in verdict_counts([{**first, "verdict": N}, *rows[1:]])
+    assert "Of the 32 reproduced, 12 hold by construction or check the code" in text and "20 are findings" in text
+    k = next(i for i, r in enumerate(rows) if r["construction"])
+    assert "Of the 31 reproduced, 11 hold" in verdict_counts([*rows[:k], {**rows[k], "verdict": N}, *rows[k + 1 :]])
 
 
 def test_exponent_rows_show_every_reading_of_the_first_peak(seeds32) -> None:

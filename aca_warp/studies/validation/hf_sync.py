@@ -28,7 +28,10 @@ from aca_warp.studies.validation.base import (
 )
 from aca_warp.studies.validation.hf_experiments import PRESETS
 from aca_warp.studies.validation.verdicts import (
+    FAILED,
+    NEGLIGIBLE,
     NOT_COMPARABLE,
+    NOT_MEASURED,
     NOT_REPRODUCED,
     PARTLY,
     REPRODUCED,
@@ -192,13 +195,20 @@ def combination_high_row(results: dict[str, dict], cfg: Config) -> RowValue:
 
 
 def both_verdict(a: str, b: str) -> str:
-    """The verdict of a statement that two changes are both present, from the verdicts of the two: reproduced when
-    both are, partly when one is (or is partly), undetermined when neither is and one is undetermined, else not
-    reproduced."""
+    """The verdict of a statement that two changes are both present, from the verdicts of the two, as
+    :func:`~aca_warp.studies.validation.verdicts.direction_verdict` combines parts: reproduced when both are;
+    significant but negligible when both are; partly when one is reproduced, partly or negligible; undetermined when
+    neither is and one is undetermined; else not reproduced. A part not measured (or failed, or not comparable)
+    leaves the statement so."""
     pair = (a, b)
+    for v in pair:
+        if v in (NOT_MEASURED, FAILED, NOT_COMPARABLE):
+            return v
     if all(v == REPRODUCED for v in pair):
         return REPRODUCED
-    if any(v in (REPRODUCED, PARTLY) for v in pair):
+    if all(v == NEGLIGIBLE for v in pair):
+        return NEGLIGIBLE
+    if any(v in (REPRODUCED, PARTLY, NEGLIGIBLE) for v in pair):
         return PARTLY
     return UNDETERMINED if UNDETERMINED in pair else NOT_REPRODUCED
 
@@ -267,7 +277,7 @@ SYNC_ROWS = (
         "direction", ("hf1", "hf4"), combination_high_row, f"Δ above f1 > 0 (margin {S_MARGIN:g}) and above the whole "
         "band's", uses=("sync",)),
     Row("§3.1", "HF4 can be interpreted as the combination of the changes of HF2 and HF3",
-        "both changes in HF4 vs HF1", "direction", PRESETS, combination_row,
+        "both changes in HF4 vs HF1", "direction", ("hf1", "hf4"), combination_row,
         "both: S more spread out (size) and greater above f1 (M), each as its row tests it", uses=("sync",)),
 )  # fmt: skip
 

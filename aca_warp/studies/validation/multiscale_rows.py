@@ -1,10 +1,10 @@
 """§3.3 and §4 rows (multi-timescale study, Figs. 12–13): HF pads on the LF states of every seed
 (:mod:`~aca_warp.studies.validation.multiscale`).
 
-The amplitudes of μ at the LF states follow from the states the LF automaton produces, and the paper does not give
-its rules and parameters (patch birth, growth and destruction, the debris, the thermal model) nor the loads as forces
-(the applications are given in bar): the rows comparing μ's amplitudes between states are therefore **not
-comparable**; they show what this LF automaton gives (its verdict in the notes) and the spread over the states.
+Every row reads the states of this project's LF automaton, whose rules and parameters (patch birth, growth and
+destruction, the debris, the thermal model) the paper does not give, and whose application levels are this project's
+choice within §3.3's order: the rows comparing μ's amplitudes between states say so first in their notes, beside the
+spread over the states (:data:`ON_THIS_LF`).
 """
 
 from __future__ import annotations
@@ -48,8 +48,8 @@ CAP_TOLERANCE = 0.02  # a first peak within 2 % of the LF cap frequency sits at 
 # every §3.3 row reads the states of this project's LF automaton, whose rules and parameters the paper does not state
 # (docs/lf_model.md); μ's amplitudes across the applications follow from those states most directly
 ON_THIS_LF = (
-    "on this project's LF automaton (the paper states neither its rules nor its parameters; the application levels "
-    "are read off Fig. 12 and turned into forces with §3.1's 370 N/bar)"
+    "on this project's LF automaton (the paper states neither its rules nor its parameters; the application levels, "
+    "10/30/5/15 bar, are this project's choice within §3.3's order, turned into forces with the 370 N/bar of §3.1)"
 )
 AMPLITUDE_CRITERION = f"ln ratio > 0, margin {LOG_MARGIN:g}, on this LF automaton"
 
@@ -336,7 +336,9 @@ MS_ROWS = (
     Row("§3.3", "μ's amplitudes at the start of application 3 exceed those at its end", "start > end",
         "direction", MAIN, start_end_row, AMPLITUDE_CRITERION),
     Row("§3.3", "application 3 starts on a coverage similar to the end of application 2", "similar", "threshold",
-        ("ms_app3",), coverage_row, f"≥ {MATCH_LIMIT:g} of the area at the same places"),
+        ("ms_app3",), coverage_row, f"≥ {MATCH_LIMIT:g} of the area at the same places",
+        construction="this LF automaton changes no patch in a pause (docs/lf_model.md), so app3_start carries "
+        "app2_end's coverage but for what the load's ramp into application 3 does"),
     Row("§3.3, Fig. 13", "individual high-valued S at the start of application 3", "high S at app3_start",
         "direction", MAIN, high_sync_row, f"Δ > 0, margin {S_MARGIN:g}", uses=("sync",)),
     Row("§3.3, Fig. 13", "at the end of application 3: medium to high S with increased prevalence",
