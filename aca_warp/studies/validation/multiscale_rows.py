@@ -98,19 +98,38 @@ def _amplitude(value: str, d: list[np.ndarray], per: dict[str, dict[int, float]]
     )
 
 
+# the states Fig. 13 shows (its rows: the start and end of applications 2 and 3, the start of application 4); the
+# paper ran HF analyses at the start and end of every application, the primary reading of the amplitude rows
+FIG13_STATES = ("app2_start", "app2_end", "app3_start", "app3_end", "app4_start")
+
+
+def _fig13_reading(d: list[np.ndarray]) -> str:
+    """The same ln ratios over Fig. 13's five states only, with the verdict they would give."""
+    return (
+        "over Fig. 13's five states only: "
+        + "; ".join(interval(x) for x in d)
+        + f" ({direction_verdict([effect(x, LOG_MARGIN) for x in d])})"
+    )
+
+
 def greatest_row(results: dict[str, dict], cfg: Config) -> RowValue:
     per = per_state(results, "mu_std")
     d = _ratio_to_others(per, "app3_start", tuple(s for s in STATES if s != "app3_start"))
-    return _amplitude(f"ln(std μ at app3_start / largest of the other states): {interval(d)}", [d], per)
+    fig = _ratio_to_others(per, "app3_start", tuple(s for s in FIG13_STATES if s != "app3_start"))
+    return _amplitude(
+        f"ln(std μ at app3_start / largest of the other states): {interval(d)}", [d], per, _fig13_reading([fig])
+    )
 
 
 def during_row(results: dict[str, dict], cfg: Config) -> RowValue:
     per = per_state(results, "mu_std")
     others = tuple(s for s in STATES if not s.startswith("app3"))
     d = [_ratio_to_others(per, s, others) for s in ("app3_start", "app3_end")]
+    fig_others = tuple(s for s in FIG13_STATES if not s.startswith("app3"))
+    fig = [_ratio_to_others(per, s, fig_others) for s in ("app3_start", "app3_end")]
     return _amplitude(
         f"ln(std μ / largest of the other applications' states): app3_start {interval(d[0])}; app3_end "
-        f"{interval(d[1])}", d, per,
+        f"{interval(d[1])}", d, per, _fig13_reading(fig),
     )  # fmt: skip
 
 
