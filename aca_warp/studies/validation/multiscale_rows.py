@@ -86,13 +86,18 @@ def _largest(per: dict[str, dict[int, float]]) -> str:
     return ", ".join(f"{k} ×{v}" for k, v in sorted(top.items(), key=lambda kv: -kv[1]))
 
 
+def _amplitude_verdict(d: list[np.ndarray]) -> str:
+    """The verdict of the ln ratios ``d`` (one part each) against :data:`LOG_MARGIN`."""
+    return direction_verdict([effect(x, LOG_MARGIN) for x in d])
+
+
 def _amplitude(value: str, d: list[np.ndarray], per: dict[str, dict[int, float]], extra: str = "") -> RowValue:
     """An amplitude row: every ln ratio of ``d`` against :data:`LOG_MARGIN`, read on this LF automaton; the spread of
     std μ over the states and the state with the largest per seed in the notes."""
     means = {s: float(np.mean(list(v.values()))) for s, v in per.items() if v}
     return RowValue(
         value,
-        direction_verdict([effect(x, LOG_MARGIN) for x in d]),
+        _amplitude_verdict(d),
         f"{ON_THIS_LF}: std μ over the states spans {spread_text(means)}; the largest per seed: {_largest(per)}"
         + (f"; {extra}" if extra else ""),
     )
@@ -105,11 +110,7 @@ FIG13_STATES = ("app2_start", "app2_end", "app3_start", "app3_end", "app4_start"
 
 def _fig13_reading(d: list[np.ndarray]) -> str:
     """The same ln ratios over Fig. 13's five states only, with the verdict they would give."""
-    return (
-        "over Fig. 13's five states only: "
-        + "; ".join(interval(x) for x in d)
-        + f" ({direction_verdict([effect(x, LOG_MARGIN) for x in d])})"
-    )
+    return f"over Fig. 13's five states only: {'; '.join(interval(x) for x in d)} ({_amplitude_verdict(d)})"
 
 
 def greatest_row(results: dict[str, dict], cfg: Config) -> RowValue:
