@@ -20,7 +20,8 @@ reasoning behind each default):
    counts when the rise is at least ``min_rise`` e-folds. The growth rate is the least-squares slope of L_k
    over the windows of that run whose L̄_k lies ``fit_margin[0]`` e-folds above L̄_a and ``fit_margin[1]``
    e-folds below L̄_b (away from the initial transient or noise floor and from the nonlinear approach to the
-   saturated level; the whole run if fewer than 3 windows remain), with its R².
+   saturated level; the whole run if fewer than 3 windows remain), with its R². A fit below ``min_r2`` is no
+   exponential growth (e.g. a release transient faster than a few windows, then a slow drift): no growth phase.
 4. A window is *settled* when |s_k|·T_w ≤ ``rel_change`` (the envelope changes by less than that fraction per
    window of duration T_w), when exp(L̄_k) lies within a factor 1 + ``band`` of the final level exp(L_f)
    (L_f the mean of L over the last ``min_saturated`` windows; the settling time of control engineering) and,
@@ -63,7 +64,7 @@ class SaturationResult:
         statistic: Envelope statistic ("std", "mean" or "rms").
         growth_rate: Fitted exponential growth rate σ of the growth phase [1/s], or None without one.
         growth_window: (start, end) of the fit window [s], or None.
-        growth_r2: R² of the linear fit of ln e over the fit window, or None.
+        growth_r2: R² of the linear fit of ln e over the fit window (also of a fit rejected by ``min_r2``), or None.
         growth_rise: Rise of the smoothed ln e over the growth phase [e-folds] (also when below min_rise).
         level: Mean envelope over the saturated part (units of the signal), or None.
         level_spread: Standard deviation of the envelope over the saturated part, or None.
@@ -205,6 +206,7 @@ def _linear_fit(t: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
 class _Options:
     smooth: int
     min_rise: float
+    min_r2: float
     fit_margin: tuple[float, float]
     growth_fraction: float
     rel_change: float
@@ -239,22 +241,26 @@ def _growth_fit(
 
 def _analyse_column(
     e: np.ndarray, te: np.ndarray, s: np.ndarray, Lbar: np.ndarray, t0: np.ndarray, opt: _Options
-) -> tuple[int | None, tuple[float, float, float, float, float] | None, float, str]:
-    """Decide one column: (k_s or None, growth fit (σ, t_a, t_b, R², rise) or None, rise, reason if none)."""
+) -> tuple[int | None, tuple[float, float, float, float, float] | None, float, str, float | None]:
+    """Decide one column: (k_s or None, growth fit (σ, t_a, t_b, R², rise) or None, rise, reason if none, R² of a
+    fit rejected by ``min_r2`` or None)."""
     L = np.log(e)
     tw = t0[1] - t0[0]
     fit, rise = _growth_fit(L, Lbar, te, t0, tw, opt)
+    rejected = None
+    if fit is not None and opt.fit_window is None and fit[3] < opt.min_r2:
+        fit, rejected = None, fit[3]
     final = L[-opt.min_saturated :].mean()
     settled = (np.abs(s) * tw <= opt.rel_change) & (np.abs(Lbar - final) <= np.log1p(opt.band))
     if fit is not None and fit[0] > 0:
         settled &= s <= opt.growth_fraction * fit[0]
     tail = np.flip(np.logical_and.accumulate(np.flip(settled)))
     if not tail[-1]:
-        return None, fit, rise, "unsettled_end"
+        return None, fit, rise, "unsettled_end", rejected
     k_s = int(np.argmax(tail))
     if L.size - k_s < opt.min_saturated:
-        return None, fit, rise, "short_tail"
-    return k_s, fit, rise, ""
+        return None, fit, rise, "short_tail", rejected
+    return k_s, fit, rise, "", rejected
 
 
 def _verdict(res: dict, opt: _Options, reason: str, unit: str) -> str:
@@ -266,6 +272,11 @@ def _verdict(res: dict, opt: _Options, reason: str, unit: str) -> str:
         g = (
             f"; growth phase fitted over {ga * 1e3:.4g}-{gb * 1e3:.4g} ms at σ = {res['growth_rate']:.4g} s^-1 "
             f"(R² = {res['growth_r2']:.3f}, rise {res['growth_rise']:.2f} e-folds)"
+        )
+    elif res["growth_r2"] is not None:
+        g = (
+            f"; no exponential growth phase (rise {res['growth_rise']:.2f} e-folds fitted with R² = "
+            f"{res['growth_r2']:.3f}, {opt.min_r2:g} needed)"
         )
     else:
         g = f"; no growth phase (rise {res['growth_rise']:.2f} e-folds, {opt.min_rise:g} needed)"
@@ -290,6 +301,7 @@ def saturation(
     min_windows: int = 16,
     smooth: int = 7,
     min_rise: float = 1.0,
+    min_r2: float = 0.0,
     fit_margin: tuple[float, float] = (1.0, 1.0),
     growth_fraction: float = 0.2,
     rel_change: float = 0.05,
@@ -312,6 +324,8 @@ def saturation(
         min_windows: Fewest windows the record must give (16); fewer raises ValueError.
         smooth: Windows in the span of the local slope and the moving average (7, odd; ≥ 3).
         min_rise: Rise of the smoothed ln e [e-folds] that counts as a growth phase (1.0: ×2.7).
+        min_r2: Least R² of the growth fit that counts as exponential growth (0: any); a poorer fit is no growth
+            phase, and the settled windows are then not held to ``growth_fraction`` of its rate.
         fit_margin: (lower, upper) e-folds kept clear of the growth phase's start and end in the fit.
         growth_fraction: A settled window's log-slope stays below this fraction of the fitted growth rate (0.2).
         rel_change: A settled window's envelope changes by less than this fraction per window (0.05).
@@ -342,7 +356,11 @@ def saturation(
         window = _default_window(time, signal, periods, dt)
     if not 1 <= window <= n // min_windows:
         raise ValueError(f"window of {window} samples gives fewer than {min_windows} windows in {n} samples")
-    opt = _Options(smooth, min_rise, tuple(fit_margin), growth_fraction, rel_change, band, min_saturated, fit_window)
+    if not 0.0 <= min_r2 <= 1.0:
+        raise ValueError(f"min_r2 must lie in [0, 1], got {min_r2}")
+    opt = _Options(
+        smooth, min_rise, min_r2, tuple(fit_margin), growth_fraction, rel_change, band, min_saturated, fit_window
+    )
     e = _envelope(x, window, statistic, one)
     k = e.shape[0]
     t0 = time[: k * window : window]
@@ -385,9 +403,9 @@ def _column_result(
     """:class:`SaturationResult` of one column: envelope ``e``, local slope ``s`` and level ``Lbar`` per window
     (K,), ``positive`` where e > 0, ``floor`` the stand-in for e = 0."""
     if not positive.any():
-        k_s, fit, rise, reason = None, None, 0.0, "zero"
+        k_s, fit, rise, reason, rejected = None, None, 0.0, "zero", None
     else:
-        k_s, fit, rise, reason = _analyse_column(np.where(positive, e, floor), fr.te, s, Lbar, fr.t0, fr.opt)
+        k_s, fit, rise, reason, rejected = _analyse_column(np.where(positive, e, floor), fr.te, s, Lbar, fr.t0, fr.opt)
     tail = e[k_s:] if k_s is not None else None
     res = {
         "t_s": float(fr.t0[k_s]) if k_s is not None else None,
@@ -400,7 +418,7 @@ def _column_result(
         "statistic": fr.statistic,
         "growth_rate": fit[0] if fit else None,
         "growth_window": (fit[1], fit[2]) if fit else None,
-        "growth_r2": fit[3] if fit else None,
+        "growth_r2": fit[3] if fit else rejected,
         "growth_rise": rise,
         "level": float(tail.mean()) if tail is not None else None,
         "level_spread": float(tail.std()) if tail is not None else None,
@@ -462,7 +480,9 @@ class RecordSaturation:
         }
 
 
-def record_saturation(time: np.ndarray, mu: np.ndarray, sum_abs_velocity: np.ndarray) -> RecordSaturation:
+def record_saturation(
+    time: np.ndarray, mu: np.ndarray, sum_abs_velocity: np.ndarray, min_growth_r2: float = 0.0
+) -> RecordSaturation:
     """Saturation of one pad on Σ|u̇| (window means, default windows) and μ (standard deviation over N/64 windows).
 
     μ is chaotic once saturated: the default window of 32 dominant periods leaves its standard deviation too noisy
@@ -472,12 +492,13 @@ def record_saturation(time: np.ndarray, mu: np.ndarray, sum_abs_velocity: np.nda
         time: Sample times [s], shape (N,), uniform, N ≥ 64.
         mu: μ(t), shape (N,).
         sum_abs_velocity: Σ|u̇|(t) [m/s], shape (N,).
+        min_growth_r2: ``min_r2`` of both series: the least R² of a growth fit that counts as a growth phase.
 
     Raises:
         ValueError: As :func:`saturation` (a record shorter than 64 samples, non-finite samples).
     """
-    rs = saturation(time, sum_abs_velocity, statistic="mean", unit="m/s")
-    rm = saturation(time, mu, statistic="std", window=max(4, np.size(time) // 64))
+    rs = saturation(time, sum_abs_velocity, statistic="mean", unit="m/s", min_r2=min_growth_r2)
+    rm = saturation(time, mu, statistic="std", window=max(4, np.size(time) // 64), min_r2=min_growth_r2)
     if not rs.saturated:
         return RecordSaturation(rs, rm, "not saturated", None)
     if rs.growth_rate is None:
