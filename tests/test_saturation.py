@@ -186,6 +186,27 @@ def test_bad_input_raises_one_clear_line():
         saturation(t, x, window=t.size // 4)
     zero = saturation(t, np.zeros_like(t))
     assert zero.t_s is None and "constant" in zero.verdict
+    with pytest.raises(ValueError, match="min_r2"):
+        saturation(t, x, min_r2=1.5)
+
+
+def test_a_rise_that_is_not_exponential_is_no_growth_phase_under_min_r2():
+    """A fast release (a few windows), then a slow drift: the max-rise run spans both, its fit is a poor line of a
+    few 1/s whose fraction no settled window's slope stays under; ``min_r2`` rejects that fit and the record
+    settles by its level. A Landau envelope's fit (R² > 0.999) stays a growth phase."""
+    t = np.arange(0.0, 0.12, 1e-6)
+    level = (
+        (1 - 0.95 * np.exp(-t / 2.5e-3)) * (1 + 0.06 * (1 - np.exp(-t / 30e-3))) * (1 + 0.01 * np.sin(90 * np.pi * t))
+    )
+    x = 100 * level * np.abs(np.sin(2 * np.pi * 70e3 * t))
+    drift = saturation(t, x, statistic="mean")
+    assert not drift.saturated and drift.growth_r2 < 0.5 and drift.growth_rate < 5.0
+    released = saturation(t, x, statistic="mean", min_r2=0.9)
+    assert released.saturated and released.t_s < 20e-3 and released.growth_rate is None
+    assert released.growth_r2 == pytest.approx(drift.growth_r2)
+    assert "no exponential growth phase" in released.verdict and f"R² = {drift.growth_r2:.3f}" in released.verdict
+    tl, xl = record(lambda t: landau(t, 1e-3))
+    assert saturation(tl, xl, min_r2=0.9).growth_rate == pytest.approx(saturation(tl, xl).growth_rate)
 
 
 # --------------------------------------------------------------------------------------- linear growth rate

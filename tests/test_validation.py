@@ -260,6 +260,24 @@ def test_saturation_status_of_a_growing_and_a_saturating_record():
     assert rest["status"] == "saturated" and 0 < rest["t_start"] < 20e-3
 
 
+def test_a_pad_from_rest_whose_rise_is_not_exponential_counts_as_released():
+    """HF2 from rest: Σ|u̇| rises within a few windows, then drifts slowly; the growth fit over both (R² ≈ 0.1) is
+    no growth phase for a pad from rest (``REST_GROWTH_R2``), which then saturates by its level; a pad from
+    equilibrium keeps the fit and is not saturated."""
+    t = np.arange(0.0, 0.12, 1e-6)
+    level = (
+        (1 - 0.95 * np.exp(-t / 2.5e-3)) * (1 + 0.06 * (1 - np.exp(-t / 30e-3))) * (1 + 0.01 * np.sin(90 * np.pi * t))
+    )
+    glob = np.zeros((t.size, 6))
+    glob[:, 4] = 100 * level * np.abs(np.sin(2 * np.pi * 70e3 * t))
+    glob[:, 0] = 0.5 + 0.01 * np.sin(2 * np.pi * 70e3 * t)
+    grown = VAN.pad_saturation(t, glob, 0.12, 0.02)
+    assert grown["status"] == "not saturated" and grown["growth_r2"] < VAN.REST_GROWTH_R2
+    released = VAN.pad_saturation(t, glob, 0.12, 0.02, from_rest=True)
+    assert released["status"] == "saturated" and 0 < released["t_start"] < 20e-3
+    assert released["growth_rate"] is None and "no exponential growth phase" in released["verdict_sum_abs_velocity"]
+
+
 # ------------------------------------------------------------------------------------------------ end to end
 
 
@@ -380,7 +398,7 @@ def test_the_pages_cost_table_is_the_scripts_output():
     assert table == "\n".join(lines) + "\n"
     walls = [float(row.split("|")[7].split()[0]) for row in lines[2:] if row.startswith("| ")]
     total = float(lines[-1].split("Stepping: ", 1)[1].split(" s", 1)[0])
-    assert len(walls) == 14 and abs(total - sum(walls)) <= 0.05 * len(walls)  # the rows' rounding
+    assert len(walls) == 15 and abs(total - sum(walls)) <= 0.05 * len(walls)  # 14 batches, hf2_rest run again; rounding
 
 
 def test_cost_table_of_a_results_file_without_estimates_or_blocks(tmp_path):
@@ -835,17 +853,17 @@ def test_without_leaves_named_experiments_of_the_earlier_results_out(tmp_path, c
     finished = {n for n, r in results.items() if n in VB.EXPERIMENTS and r.get("status") in ("done", "stopped")}
     stale = _restepped(committed_path)  # made with a stepping the table has changed since: they run again
     assert set(got.results) == finished - stale - {"ms_mid", "ms_app3"} and "hf1" in got.results
-    # each experiment is credited to the call that ran it: the committed file joins four calls, the earlier ones' less
-    # the left-out experiments, then the file's own (ms_short and its linear phase)
+    # each experiment is credited to the call that ran it: the committed file joins five calls, the earlier ones' less
+    # the left-out experiments, then the file's own (hf2_rest, run again with every other experiment taken as done)
     meta = json.loads(committed_path.read_text())["meta"]
-    assert len(meta["with"]) == 3
+    assert len(meta["with"]) == 4
     assert [p["command"] for p in got.parts] == [*(w["command"] for w in meta["with"]), meta["command"]]
     for part, earlier in zip(got.parts, meta["with"], strict=False):
         assert part["experiments"] == sorted(set(earlier["experiments"]) - stale - {"ms_mid", "ms_app3"})
     assert (
         got.parts[-1]["experiments"]
         == sorted(set(got.results) - {n for w in meta["with"] for n in w["experiments"]})
-        == ["ms_short", "ms_short_lin"]
+        == ["hf2_rest"]
     )
     assert sorted(n for p in got.parts for n in p["experiments"]) == sorted(got.results)
     assert any("ms_app3, ms_mid not used: run again (--without)" in n for n in notes)

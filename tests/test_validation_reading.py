@@ -1,6 +1,7 @@
 """How the validation reads the paper's statements: the combination of HF2's and HF3's changes as both present in
 HF4, the rows that hold by construction counted apart, the first peak's other readings beside the exponent rows,
-and the §3.3 amplitude rows read on this LF automaton (docs/validation.md, "Revisions of 2026-12-01")."""
+the §3.3 amplitude rows read on this LF automaton, and the column from rest counted beside the primary
+(docs/validation.md, "Revisions of 2026-12-01")."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from aca_warp.studies.validation import base as VB
 from aca_warp.studies.validation import hf_peaks as VP
 from aca_warp.studies.validation import hf_sync as VS
 from aca_warp.studies.validation import multiscale_rows as VMR
-from aca_warp.studies.validation.page import verdict_counts
+from aca_warp.studies.validation.page import rest_counts, verdict_counts
 from aca_warp.studies.validation.results import read_results
 
 SEEDS32 = Path(__file__).resolve().parent.parent / "docs" / "validation" / "seeds32" / "results.json.gz"
@@ -117,3 +118,24 @@ def test_size_row_shows_the_paper_s_order_of_the_effects(seeds32) -> None:
     notes = row.measure(results, cfg).notes
     assert "the M effect of the paper's next sentence (hf3 − hf1) 0.00506" in notes
     assert "size effect − M effect 0.0161" in notes and "(the paper orders them M > size)" in notes
+
+
+def test_the_column_from_rest_is_counted_beside_the_primary_on_the_same_rows():
+    rows = [{"statement": s, "verdict": v} for s, v in (("a", N), ("b", R), ("c", P), ("d", N))]
+    rest = [{"verdict": R}, {"verdict": R}, None, {"verdict": "not measured"}]
+    text = rest_counts(rows, rest)
+    assert text.startswith("From rest at the paper's length (the column beside the verdict), 2 of the rows")
+    assert "2 reproduced (the primary on the same rows: 1 reproduced, 1 not reproduced)." in text
+    assert text.endswith("differs from the primary's in 1: a (not reproduced → reproduced).")
+    assert rest_counts(rows, [None, None, None, {"verdict": "not measured"}]) == ""
+    assert "differs" not in rest_counts(rows[1:2], rest[1:2])
+
+
+def test_the_committed_page_counts_hf2_from_rest(seeds32):
+    """Every hf2_rest pad is saturated under the rule for pads released from rest, so the rows that need HF2 are
+    measured from rest; the page's count of that column names the first peaks it reproduces."""
+    results, _ = seeds32
+    assert {p["status"] for p in results["hf2_rest"]["pads"]} == {"saturated"}
+    page = (SEEDS32.parent / "validation.md").read_text()
+    line = next(x for x in page.splitlines() if x.startswith("From rest at the paper's length"))
+    assert "HF2: first velocity-spectrum peak (not reproduced → reproduced)" in line

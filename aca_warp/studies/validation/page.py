@@ -16,7 +16,7 @@ from aca_warp.studies.validation import area as validation_area
 from aca_warp.studies.validation import causes as validation_causes
 from aca_warp.studies.validation import multiscale as validation_multiscale
 from aca_warp.studies.validation.base import EXPERIMENTS, USABLE, Experiment, interval, usable, values
-from aca_warp.studies.validation.verdicts import CRITERIA, REPRODUCED
+from aca_warp.studies.validation.verdicts import CRITERIA, REPRODUCED, VERDICTS
 
 
 def _range(v: list[float | None], scale: float = 1.0, spec: str = ".3g") -> str:
@@ -216,6 +216,28 @@ def verdict_counts(rows: list[dict[str, Any]]) -> str:
     return text
 
 
+def rest_counts(rows: list[dict[str, Any]], rest: list[dict[str, Any] | None]) -> str:
+    """The verdicts of the column "from rest, paper length" in one sentence: how many rows it measures, how many
+    carry each verdict there and in the primary, and the rows whose verdict there differs from the primary's (""
+    when no row has one)."""
+    pairs = [(r, b) for r, b in zip(rows, rest, strict=True) if b is not None and b["verdict"] in VERDICTS]
+    if not pairs:
+        return ""
+
+    def counted(verdicts: list[str]) -> str:
+        return ", ".join(f"{verdicts.count(v)} {v}" for v in VERDICTS if v in verdicts)
+
+    moved = [f"{r['statement']} ({r['verdict']} → {b['verdict']})" for r, b in pairs if b["verdict"] != r["verdict"]]
+    text = (
+        f"From rest at the paper's length (the column beside the verdict), {len(pairs)} of the rows are measured: "
+        f"{counted([b['verdict'] for _, b in pairs])} (the primary on the same rows: "
+        f"{counted([r['verdict'] for r, _ in pairs])})."
+    )
+    if moved:
+        text += f" The verdict there differs from the primary's in {len(moved)}: " + "; ".join(moved) + "."
+    return text
+
+
 def statement_rows(rows: list[dict[str, Any]], rest: list[dict[str, Any] | None]) -> list[list[str]]:
     """The main table's lines: the row, and beside it the same measure from rest at the paper's length."""
     out = []
@@ -242,6 +264,7 @@ def render(
     from aca_warp.studies.validation import tracks as validation_tracks
 
     rest = rest if rest is not None else [None] * len(rows)
+    rested = rest_counts(rows, rest)
     header = ["§", "statement", "ours: mean [95 % interval] (n seeds)", "paper", "verdict (criterion)",
               "from rest, paper length", "experiments", "notes"]  # fmt: skip
     return [
@@ -249,7 +272,10 @@ def render(
         "",
         "### The paper's statements",
         "",
-        verdict_counts(rows) + " Criteria:",
+        verdict_counts(rows),
+        "",
+        *([rested, ""] if rested else []),
+        "Criteria:",
         "",
         *criteria_lines(),
         "",
