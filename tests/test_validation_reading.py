@@ -63,17 +63,17 @@ def test_combination_reads_both_changes_of_hf4_against_hf1(seeds32) -> None:
 
 
 def test_rows_by_construction_are_marked_and_counted_apart(seeds32) -> None:
-    """Twelve rows hold by construction or check the code; the count names them apart, and a marked row that is not
+    """Fourteen rows hold by construction or check the code; the count names them apart, and a marked row that is not
     reproduced is not counted among them."""
     marked = [r for r in VB.ROWS if r.construction]
-    assert len(marked) == 12
-    assert {r.section.split(",")[0] for r in marked} == {"§3.1", "§3.2", "§3.3", "§5", "Appendix"}
+    assert len(marked) == 14
+    assert {r.section.split(",")[0] for r in marked} == {"§2.2", "§3.1", "§3.2", "§3.3", "§5", "Appendix"}
     results, cfg = seeds32
     rows = VB.evaluate_rows(results, cfg)
     text = verdict_counts(rows)
-    assert "Of the 32 reproduced, 12 hold by construction or check the code" in text and "20 are findings" in text
+    assert "Of the 34 reproduced, 14 hold by construction or check the code" in text and "20 are findings" in text
     k = next(i for i, r in enumerate(rows) if r["construction"])
-    assert "Of the 31 reproduced, 11 hold" in verdict_counts([*rows[:k], {**rows[k], "verdict": N}, *rows[k + 1 :]])
+    assert "Of the 33 reproduced, 13 hold" in verdict_counts([*rows[:k], {**rows[k], "verdict": N}, *rows[k + 1 :]])
 
 
 def test_exponent_rows_show_every_reading_of_the_first_peak(seeds32) -> None:
@@ -139,3 +139,31 @@ def test_the_committed_page_counts_hf2_from_rest(seeds32):
     page = (SEEDS32.parent / "validation.md").read_text()
     line = next(x for x in page.splitlines() if x.startswith("From rest at the paper's length"))
     assert "HF2: first velocity-spectrum peak (not reproduced → reproduced)" in line
+
+
+def test_the_rows_of_the_first_peak_against_m_the_pressures_and_the_filtered_extremes(seeds32) -> None:
+    """The three statements added to the table: f1 read against M as an equivalence of the pairs of one seed, the
+    surface pressures from the pads' loads, and S = 1 / S = 0 with the filter; each fails when its quantity moves."""
+    results, cfg = seeds32
+    m_row = _row("the first velocity peak does not depend on M (HF3 as HF1, HF4 as HF2)")
+    v = m_row.measure(results, cfg)
+    assert v.verdict == P and v.value.startswith("hf3/hf1: f1 ×0.995") and "per-patch mean spectrum at 0.1" in v.notes
+    rest = {n: results[f"{n}_rest"] for n in ("hf1", "hf2", "hf3", "hf4")}
+    assert m_row.measure(rest, cfg).verdict == R
+    pads = [{**p, "measures": {**p["measures"], "f1": 1.2 * p["measures"]["f1"]}} for p in rest["hf3"]["pads"]]
+    shifted = {**rest, "hf3": {**rest["hf3"], "pads": pads}}
+    assert m_row.measure(shifted, cfg).verdict == P  # hf3/hf1 beyond ± 5 %, hf4/hf2 still within
+    p_row = _row("the loads give a surface pressure of about 44 kPa (HF1, HF3) and 1108 kPa (HF2, HF4)")
+    assert p_row.measure(results, cfg).verdict == R and "hf2 1115 [1115, 1115] kPa" in p_row.measure(results, cfg).value
+    heavy = {
+        **results,
+        "hf1": {**results["hf1"], "pads": [{**p, "normal_force_N": 600.0} for p in results["hf1"]["pads"]]},
+    }
+    assert p_row.measure(heavy, cfg).verdict == P
+    f_row = next(r for r in VB.ROWS if r.section == "§2.2, Eq. 6")
+    f = f_row.measure({}, cfg)
+    assert (
+        f.verdict == R
+        and f.value.startswith("one bin: S 1.000–1.000")
+        and "n_AB,min = 1.176 with the filter" in f.notes
+    )

@@ -1,7 +1,8 @@
 """§5 and the Appendix: the Synchronization Index does not see the spatial arrangement of the patches (a permutation
-test on the §3.1 pads), and Table A.2, the index of the four theoretical cases of Table A.1, computed with this
+test on the §3.1 pads), Table A.2, the index of the four theoretical cases of Table A.1, computed with this
 project's implementation (``sync_index_from_bins``: 10 phase bins, Φ = 100, τ_AB = 0.5, τ_BC = 0.55, w = 0.9, the
-filter left out as the Appendix does).
+filter left out as the Appendix does), and §2.2's best and worst case with the filter and the 180 bins of the
+simulations (n_AB,min and n_BC,min "taking into account the effects of the weighted moving average filter").
 """
 
 from __future__ import annotations
@@ -54,6 +55,32 @@ def table_row(case: int):  # noqa: ANN201
     return measure
 
 
+FILTER_BINS = 180  # §2.2: the phase bins of the simulations' analyses
+
+
+def filtered_extremes_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    """S with the filter over 180 bins: every patch in one bin (at each of the 180 positions: the filter is
+    circular) gives the best case, S = 1, because n_AB,min and n_BC,min are those of one filtered bin; patches spread
+    evenly over the bins give the worst case, S = 0."""
+    from aca_warp.analysis.sync import sync_index_from_bins
+
+    phi = 100.0
+    one = []
+    for k in range(FILTER_BINS):
+        g = np.zeros(FILTER_BINS)
+        g[k] = phi
+        one.append(sync_index_from_bins(g, smooth=True))
+    even = sync_index_from_bins(np.full(FILTER_BINS, phi / FILTER_BINS), smooth=True).S
+    best = np.array([r.S for r in one])
+    worst = max(float(np.max(np.abs(best - 1.0))), abs(float(even)))
+    return RowValue(
+        f"one bin: S {best.min():.3f}–{best.max():.3f} over the 180 positions; an even spread: S {abs(even):.3f}",
+        REPRODUCED if worst <= DECIMALS else NOT_REPRODUCED,
+        f"Φ = {phi:g}, τ_AB = 0.5, τ_BC = 0.55, w = 0.9; n_AB,min = {one[0].n_AB_min:.3f} with the filter (0.500 "
+        f"without it); largest difference from 1 and 0: {worst:.2g}",
+    )
+
+
 def permutation_row(results: dict[str, dict], cfg: Config) -> RowValue:
     """S of the patches with their arrangement permuted equals S; the neighbours' coherence changes."""
     ds = np.concatenate([values(results.get(n), "perm_max_dS") for n in PRESETS])
@@ -79,6 +106,11 @@ def register() -> None:
             f"{COHERENCE_MARGIN:g})", min_experiments=1,
             construction="S is a function of the patches' phases alone, so permuting their positions cannot change it: "
             "a check of the code")
+    )  # fmt: skip
+    register_row(
+        Row("§2.2, Eq. 6", "n_AB,min and n_BC,min take the filter into account: complete synchronisation gives S = 1, "
+            "an even spread S = 0 (180 bins, filtered)", "1, 0", "value", (), filtered_extremes_row,
+            "to three decimals", construction="the index of synthetic phase sets: a check of the code")
     )  # fmt: skip
     for case in sorted(TABLE_A1):
         register_row(Row("Appendix, Table A.2", f"case {case} ({CASES[case]}): n_AB … S", "Table A.2", "value", (),

@@ -1,4 +1,5 @@
-"""§3.1 rows on the patterns of motion of Figs. 4–7: the loads keeping every patch in contact, co-moving neighbour
+"""§3.1 rows on the patterns of motion of Figs. 4–7: the loads and the surface pressures they give, the loads keeping
+every patch in contact, co-moving neighbour
 groups in HF1 and HF2, their periodicity following μ, radially imbalanced synchronisation in the friction radius and
 torque, and the larger patches' "larger and better-defined synchronization patterns".
 
@@ -34,12 +35,31 @@ from aca_warp.studies.validation.verdicts import (
     effect,
     effect_text,
     threshold_verdict,
+    value_verdict,
 )
 
 C_MARGIN = 0.1  # a correlation of the directions of coupled neighbours of at least 0.1
 COHERENCE_LIMIT = 0.5  # Σu̇ and μ coherent at the first peak: γ² ≥ 0.5
 RHO_MARGIN = 0.1
 MATRIX_LIMIT = 0.01  # "the contact between the pad matrix and the disc minimized": below 1 % of the load
+PAPER_PRESSURE_PA = {"hf1": 44e3, "hf2": 1108e3, "hf3": 44e3, "hf4": 1108e3}  # "a surface pressure of about ..."
+PRESSURE_TOLERANCE = 0.05  # relative: "about 44 kPa", "about 1108 kPa"
+
+
+def pressure_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    """The surface pressure F_N / A_pad of every preset's pads against §3.1's (A_pad: the preset's pad sector)."""
+    from aca_warp.scene import preset
+
+    area = {n: preset(n).pad.area for n in PRESETS}
+    p = {n: np.array(list(by_seed(results.get(n), lambda q: q["normal_force_N"]).values())) / area[n] for n in PRESETS}
+    verdicts = [value_verdict(p[n], PAPER_PRESSURE_PA[n], PRESSURE_TOLERANCE * PAPER_PRESSURE_PA[n]) for n in PRESETS]
+    return RowValue(
+        "F_N / A_pad: " + "; ".join(f"{n} {interval(p[n], '.4g', 1e-3, 'kPa')}" for n in PRESETS),
+        all_of(verdicts),
+        "pad area "
+        + ", ".join(f"{a:.6f}" for a in sorted(set(area.values())))
+        + " m² (the presets' sector); the normal force as each pad recorded it",
+    )
 
 
 def contact_row(results: dict[str, dict], cfg: Config) -> RowValue:
@@ -130,6 +150,10 @@ def patterns_row(results: dict[str, dict], cfg: Config) -> RowValue:
 
 COMOVING = f"C > 0 (margin {C_MARGIN:g}) and size > spacing"
 PATTERN_ROWS = (
+    Row("§3.1", "the loads give a surface pressure of about 44 kPa (HF1, HF3) and 1108 kPa (HF2, HF4)",
+        "44 kPa, 1108 kPa", "value", PRESETS, pressure_row, f"± {PRESSURE_TOLERANCE * 100:g} % each",
+        construction="the pad's sector was sized so that its area is the one the paper's loads and pressures imply, "
+        "0.011095 m² against 0.01107 and 0.01116 m² (docs/model.md §1)"),
     Row("§3.1", "the loads keep every patch in contact with the disc, the matrix contact minimised", "all in contact",
         "threshold", PRESETS, contact_row, f"every patch in contact, matrix share ≤ {MATRIX_LIMIT:g}",
         construction="the presets' heights are drawn so that the paper's loads sit 10 % above the load that brings "

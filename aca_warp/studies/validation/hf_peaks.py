@@ -35,6 +35,7 @@ from aca_warp.studies.validation.verdicts import (
     direction_verdict,
     effect,
     effect_text,
+    equivalence_verdict,
     rules_verdict,
     threshold_verdict,
     value_verdict,
@@ -385,7 +386,41 @@ def larger_frequency_row(results: dict[str, dict], cfg: Config) -> RowValue:
     )
 
 
+M_PAIRS = (("hf3", "hf1"), ("hf4", "hf2"))  # M = 0.4 against M = 0.8, each patch size
+
+
+def _m_parts(results: dict[str, dict], key: str) -> list[np.ndarray]:
+    """ln f1(M = 0.4) − ln f1(M = 0.8) of measure ``key`` per seed, for each patch size (the pair of one seed shares
+    its patches)."""
+    return [paired(*(by_seed(results.get(n), lambda p: math.log(_get(p, key))) for n in pair)) for pair in M_PAIRS]
+
+
+def m_independent_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    """§3.1 gives one first peak per patch size for both friction levels ("around 73 kHz for HF1 and HF3, and
+    around 32.8 kHz for HF2 and HF4"): the peak does not move with M, within the ± 5 % the values are read to."""
+    d = _m_parts(results, "f1")
+    margin = math.log1p(PEAK_TOLERANCE)
+
+    def reading(key: str) -> str:
+        parts = _m_parts(results, key)
+        return (
+            ", ".join(f"{a}/{b} {ratio_interval(x)}" for (a, b), x in zip(M_PAIRS, parts, strict=True))
+            + f" ({all_of([equivalence_verdict(x, margin) for x in parts])})"
+        )
+
+    return RowValue(
+        "; ".join(f"{a}/{b}: f1 {ratio_interval(x)}" for (a, b), x in zip(M_PAIRS, d, strict=True)),
+        all_of([equivalence_verdict(x, margin) for x in d]),
+        "first peaks from Σu̇, paired by seed (one seed's HF1 and HF3 pads, and its HF2 and HF4 pads, have the same "
+        "patches); the other readings of the first peak: "
+        + "; ".join(f"{label}: {reading(key)}" for label, key in F1_CANDIDATES),
+    )
+
+
 SIZE_ROWS = (
+    Row("§3.1, Fig. 8", "the first velocity peak does not depend on M (HF3 as HF1, HF4 as HF2)",
+        "≈ 73 kHz for HF1 and HF3, ≈ 32.8 kHz for HF2 and HF4", "equivalence", PRESETS, m_independent_row,
+        "ln ratio within ± ln 1.05 in both pairs"),
     Row("§3.1, Fig. 8", "larger patches (HF2, HF4): the peaks have increased amplitudes", "higher", "direction",
         PRESETS, larger_height_row, "ln ratio > 0 in both pairs, margin ln 1.25"),
     Row("§3.1, Fig. 8", "larger patches (HF2, HF4): the peaks are narrower", "narrower", "direction", PRESETS,
