@@ -18,6 +18,7 @@ from aca_warp.analysis.saturation import (
     friction_slope,
     growth_rate_summary,
     predicted_growth_rate,
+    record_saturation,
     saturation,
 )
 from aca_warp.scene import Friction, Pad, PatchGenerator, preset
@@ -186,8 +187,9 @@ def test_bad_input_raises_one_clear_line():
         saturation(t, x, window=t.size // 4)
     zero = saturation(t, np.zeros_like(t))
     assert zero.t_s is None and "constant" in zero.verdict
-    with pytest.raises(ValueError, match="min_r2"):
-        saturation(t, x, min_r2=1.5)
+    for bad in (1.5, -0.1):
+        with pytest.raises(ValueError, match="min_r2"):
+            saturation(t, x, min_r2=bad)
 
 
 def test_a_rise_that_is_not_exponential_is_no_growth_phase_under_min_r2():
@@ -207,6 +209,11 @@ def test_a_rise_that_is_not_exponential_is_no_growth_phase_under_min_r2():
     assert "no exponential growth phase" in released.verdict and f"R² = {drift.growth_r2:.3f}" in released.verdict
     tl, xl = record(lambda t: landau(t, 1e-3))
     assert saturation(tl, xl, min_r2=0.9).growth_rate == pytest.approx(saturation(tl, xl).growth_rate)
+    chosen = saturation(t, x, statistic="mean", min_r2=0.9, fit_window=(0.0, 0.05))  # the caller's span: kept
+    assert chosen.growth_rate is not None and chosen.growth_r2 < 0.9
+    mu = 0.5 + 0.01 * (1 - 0.97 * np.exp(-t / 8e-3)) * (1 + 0.1 * (1 - np.exp(-t / 40e-3))) * np.sin(1.4e5 * np.pi * t)
+    rec = record_saturation(t, mu, x, min_growth_r2=0.9)  # Σ|u̇| only: μ keeps its poor fit
+    assert rec.sum_abs_velocity.growth_rate is None and rec.mu.growth_rate is not None and rec.mu.growth_r2 < 0.9
 
 
 # --------------------------------------------------------------------------------------- linear growth rate

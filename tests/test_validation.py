@@ -262,8 +262,9 @@ def test_saturation_status_of_a_growing_and_a_saturating_record():
 
 def test_a_pad_from_rest_whose_rise_is_not_exponential_counts_as_released():
     """HF2 from rest: Σ|u̇| rises within a few windows, then drifts slowly; the growth fit over both (R² ≈ 0.1) is
-    no growth phase for a pad from rest (``REST_GROWTH_R2``), which then saturates by its level; a pad from
-    equilibrium keeps the fit and is not saturated."""
+    no growth phase for a pad from rest of an experiment analysed once saturated (``REST_GROWTH_R2``), which then
+    saturates by its level; a pad from equilibrium, or one whose fit is kept, is not saturated. The linear phases
+    keep every fit (their growth rate is a measure)."""
     t = np.arange(0.0, 0.12, 1e-6)
     level = (
         (1 - 0.95 * np.exp(-t / 2.5e-3)) * (1 + 0.06 * (1 - np.exp(-t / 30e-3))) * (1 + 0.01 * np.sin(90 * np.pi * t))
@@ -273,8 +274,12 @@ def test_a_pad_from_rest_whose_rise_is_not_exponential_counts_as_released():
     glob[:, 0] = 0.5 + 0.01 * np.sin(2 * np.pi * 70e3 * t)
     grown = VAN.pad_saturation(t, glob, 0.12, 0.02)
     assert grown["status"] == "not saturated" and grown["growth_r2"] < VAN.REST_GROWTH_R2
-    released = VAN.pad_saturation(t, glob, 0.12, 0.02, from_rest=True)
+    assert VAN.pad_saturation(t, glob, 0.12, 0.02, from_rest=True)["status"] == "not saturated"
+    released = VAN.pad_saturation(t, glob, 0.12, 0.02, from_rest=True, min_growth_r2=VAN.REST_GROWTH_R2)
     assert released["status"] == "saturated" and 0 < released["t_start"] < 20e-3
+    floors = {n: VAN.growth_r2_floor(e) for n, e in VB.EXPERIMENTS.items()}
+    assert floors["hf2_rest"] == floors["hf1_rest"] == VAN.REST_GROWTH_R2
+    assert floors["hf2"] == floors["hf2_lin"] == floors["ms_fast_lin"] == 0.0
     assert released["growth_rate"] is None and "no exponential growth phase" in released["verdict_sum_abs_velocity"]
 
 

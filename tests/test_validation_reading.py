@@ -5,6 +5,7 @@ the §3.3 amplitude rows read on this LF automaton, and the column from rest cou
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -17,6 +18,7 @@ from aca_warp.studies.validation import multiscale_rows as VMR
 from aca_warp.studies.validation.page import rest_counts, verdict_counts
 from aca_warp.studies.validation.results import read_results
 
+PRESETS = ("hf1", "hf2", "hf3", "hf4")
 SEEDS32 = Path(__file__).resolve().parent.parent / "docs" / "validation" / "seeds32" / "results.json.gz"
 R, P, N, U, G = "reproduced", "partly", "not reproduced", "undetermined", "significant but negligible"
 
@@ -160,6 +162,9 @@ def test_the_rows_of_the_first_peak_against_m_the_pressures_and_the_filtered_ext
         "hf1": {**results["hf1"], "pads": [{**p, "normal_force_N": 600.0} for p in results["hf1"]["pads"]]},
     }
     assert p_row.measure(heavy, cfg).verdict == P
+    pads = {n: [{**p, "normal_force_N": p["normal_force_N"] * 150 / 1758} for p in results[n]["pads"]] for n in PRESETS}
+    fewer = {n: {**results[n], "pads": pads[n]} for n in PRESETS}  # a narrower sector of 150 patches, its load alike
+    assert p_row.measure(fewer, dataclasses.replace(cfg, patches=150)).value.startswith("F_N / A_pad: hf1 43.91")
     f_row = next(r for r in VB.ROWS if r.section == "§2.2, Eq. 6")
     f = f_row.measure({}, cfg)
     assert (

@@ -248,7 +248,7 @@ def _analyse_column(
     tw = t0[1] - t0[0]
     fit, rise = _growth_fit(L, Lbar, te, t0, tw, opt)
     rejected = None
-    if fit is not None and opt.fit_window is None and fit[3] < opt.min_r2:
+    if fit is not None and opt.fit_window is None and opt.min_r2 > 0 and fit[3] < opt.min_r2:
         fit, rejected = None, fit[3]
     final = L[-opt.min_saturated :].mean()
     settled = (np.abs(s) * tw <= opt.rel_change) & (np.abs(Lbar - final) <= np.log1p(opt.band))
@@ -325,7 +325,8 @@ def saturation(
         smooth: Windows in the span of the local slope and the moving average (7, odd; ≥ 3).
         min_rise: Rise of the smoothed ln e [e-folds] that counts as a growth phase (1.0: ×2.7).
         min_r2: Least R² of the growth fit that counts as exponential growth (0: any); a poorer fit is no growth
-            phase, and the settled windows are then not held to ``growth_fraction`` of its rate.
+            phase, and the settled windows are then not held to ``growth_fraction`` of its rate. Not applied to a
+            fit over ``fit_window``, which the caller chose.
         fit_margin: (lower, upper) e-folds kept clear of the growth phase's start and end in the fit.
         growth_fraction: A settled window's log-slope stays below this fraction of the fitted growth rate (0.2).
         rel_change: A settled window's envelope changes by less than this fraction per window (0.05).
@@ -449,8 +450,9 @@ class RecordSaturation:
         sum_abs_velocity: :func:`saturation` of Σ|u̇| (window means, default windows).
         mu: :func:`saturation` of μ (window standard deviations, N/64 windows).
         status: "saturated" (Σ|u̇| grows, then settles), "not saturated" (Σ|u̇| has no settled part) or
-            "no growth phase" (Σ|u̇| settles without having grown by ``min_rise``: not the instability's saturated
-            state, e.g. a run started from a saturated state, or a stable one).
+            "no growth phase" (Σ|u̇| settles without having grown by ``min_rise``, or its rise fits below
+            ``min_growth_r2``: not the instability's saturated state, e.g. a run started from a saturated state, a
+            stable one, or a release from rest).
         t_start: Start of the saturated part [s]: the later of the two saturation times (Σ|u̇|'s alone when μ does
             not saturate); None unless ``status`` is "saturated".
     """
@@ -492,13 +494,14 @@ def record_saturation(
         time: Sample times [s], shape (N,), uniform, N ≥ 64.
         mu: μ(t), shape (N,).
         sum_abs_velocity: Σ|u̇|(t) [m/s], shape (N,).
-        min_growth_r2: ``min_r2`` of both series: the least R² of a growth fit that counts as a growth phase.
+        min_growth_r2: ``min_r2`` of Σ|u̇|: the least R² of its growth fit that counts as a growth phase (μ keeps
+            every fit).
 
     Raises:
         ValueError: As :func:`saturation` (a record shorter than 64 samples, non-finite samples).
     """
     rs = saturation(time, sum_abs_velocity, statistic="mean", unit="m/s", min_r2=min_growth_r2)
-    rm = saturation(time, mu, statistic="std", window=max(4, np.size(time) // 64), min_r2=min_growth_r2)
+    rm = saturation(time, mu, statistic="std", window=max(4, np.size(time) // 64))
     if not rs.saturated:
         return RecordSaturation(rs, rm, "not saturated", None)
     if rs.growth_rate is None:

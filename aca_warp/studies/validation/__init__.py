@@ -21,7 +21,8 @@ Modules, in the order of an experiment and of the page:
   growth at the paper's rate);
 * :mod:`~aca_warp.studies.validation.multiscale` and :mod:`~aca_warp.studies.validation.multiscale_rows`: §3.3 and
   §4 (HF pads on the LF states);
-* :mod:`~aca_warp.studies.validation.appendix`: §5's permutation test and Table A.2;
+* :mod:`~aca_warp.studies.validation.appendix`: §2.2's filtered extremes of Eq. 6, §5's permutation test and Table
+  A.2;
 * :mod:`~aca_warp.studies.validation.causes`: the candidate causes of open verdicts, run as variants, and every row
   from rest at the paper's length;
 * :mod:`~aca_warp.studies.validation.tracks`: the runs from rest over time;
@@ -93,7 +94,8 @@ from aca_warp.studies.validation import (
 hf_experiments.register()  # §3.1: the equilibrium batch and the runs from rest at the paper's length
 area.register()  # §3.2: va_full and va_full_rest
 multiscale.register()  # §3.3: the LF-state groups and ms_order
-hf_patterns.register()  # the rows, in the paper's order: §3.1 Figs. 4–7, Fig. 8, Fig. 9
+appendix.register_method()  # the rows, in the paper's order: §2.2's Eq. 6
+hf_patterns.register()  # §3.1 Figs. 4–7, Fig. 8, Fig. 9
 hf_peaks.register()
 hf_sync.register()
 area_rows.register()  # §3.2

@@ -11,13 +11,26 @@ import numpy as np
 from aca_warp.studies.validation.base import USABLE, Config, map_pads
 
 REST_GROWTH_R2 = 0.9
-"""Least R² of the growth fit of a pad released from rest that counts as exponential growth: the growing ones fit
-at 0.98 and above; HF2's release transient (a few windows) followed by a slow drift fits at 0.04-0.29 over the
-paper's length, and its σ of a few 1/s would hold the settled windows to a slope no fluctuation keeps."""
+"""Least R² of the Σ|u̇| growth fit of a pad released from rest, in an experiment analysed once saturated, that
+counts as exponential growth: hf1, hf3 and hf4 from rest fit at 0.977 and above; HF2's release transient (a few
+windows) followed by a slow drift fits at 0.04-0.29 over the paper's length, and its σ of a few 1/s would hold the
+settled windows to a slope no fluctuation keeps. The linear phases (kind "window") keep every fit: their growth
+rate is a measure."""
+
+
+def growth_r2_floor(exp: Any) -> float:
+    """``min_growth_r2`` of the pads of experiment ``exp``: ``REST_GROWTH_R2`` from rest in an experiment analysed
+    once saturated, 0 (every fit) otherwise."""
+    return REST_GROWTH_R2 if exp.initial == "rest" and exp.kind != "window" else 0.0
 
 
 def pad_saturation(
-    time: np.ndarray, glob: np.ndarray, window_end: float, window: float, from_rest: bool = False
+    time: np.ndarray,
+    glob: np.ndarray,
+    window_end: float,
+    window: float,
+    from_rest: bool = False,
+    min_growth_r2: float = 0.0,
 ) -> dict[str, Any]:
     """Saturation of one pad (``record_saturation``: Σ|u̇| by window means, μ by standard deviations over N/64
     windows) as plain figures. ``status``: "saturated" (Σ|u̇| grows, then settles early enough: the analysed part
@@ -26,12 +39,13 @@ def pad_saturation(
 
     A pad released from rest (``from_rest``) starts at an amplitude near its saturated one (every patch released
     into the full friction force), so its Σ|u̇| need not rise by the e-fold of a growth phase: it counts as
-    saturated once Σ|u̇| (and μ, where it settles) have settled. A rise whose fit is not exponential (R² below
-    ``REST_GROWTH_R2``) is such a release, not a growth phase.
+    saturated once Σ|u̇| (and μ, where it settles) have settled. A rise of Σ|u̇| whose fit is not exponential (R²
+    below ``min_growth_r2``; ``REST_GROWTH_R2`` for such pads of an experiment analysed once saturated) is such a
+    release, not a growth phase.
     """
     from aca_warp.analysis.saturation import record_saturation
 
-    out = record_saturation(time, glob[:, 0], glob[:, 4], REST_GROWTH_R2 if from_rest else 0.0).figures()
+    out = record_saturation(time, glob[:, 0], glob[:, 4], min_growth_r2).figures()
     if from_rest and out["status"] == "no growth phase":
         ts = out["t_s_sum_abs_velocity"]
         out.update(status="saturated", t_start=max(ts, out["t_s_mu"]) if out["mu_saturated"] else ts)
@@ -72,7 +86,8 @@ def analyse_batch(
     scenes, plan, kind = prep.scenes, prep.plan, prep.exp.kind
     window = plan.patch_samples * cfg.sample_dt * cfg.decimation
     rest = prep.exp.initial == "rest"
-    sat = [pad_saturation(time, glob[:, p], plan.duration, window, rest) for p in range(len(scenes))]
+    r2 = growth_r2_floor(prep.exp)
+    sat = [pad_saturation(time, glob[:, p], plan.duration, window, rest, r2) for p in range(len(scenes))]
     final = ptime >= plan.window_start - 1e-12
     if kind == "window":
         for s in sat:

@@ -47,10 +47,18 @@ PRESSURE_TOLERANCE = 0.05  # relative: "about 44 kPa", "about 1108 kPa"
 
 
 def pressure_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    """The surface pressure F_N / A_pad of every preset's pads against §3.1's (A_pad: the preset's pad sector)."""
+    """The surface pressure F_N / A_pad of every preset's pads against §3.1's (A_pad: the preset's pad sector, or the
+    narrower sector of the same patch density that ``cfg.patches`` runs, whose load is reduced alike)."""
     from aca_warp.scene import preset
+    from aca_warp.studies.validation.plan import reduced_pad
 
-    area = {n: preset(n).pad.area for n in PRESETS}
+    def pad_area(name: str) -> float:
+        base = preset(name)
+        nominal = int(base.origin["patches"]["count"])
+        same = cfg.patches is None or cfg.patches == nominal
+        return float((base.pad if same else reduced_pad(base.pad, cfg.patches / nominal)).area)
+
+    area = {n: pad_area(n) for n in PRESETS}
     p = {n: np.array(list(by_seed(results.get(n), lambda q: q["normal_force_N"]).values())) / area[n] for n in PRESETS}
     verdicts = [value_verdict(p[n], PAPER_PRESSURE_PA[n], PRESSURE_TOLERANCE * PAPER_PRESSURE_PA[n]) for n in PRESETS]
     return RowValue(

@@ -420,7 +420,7 @@ def m_independent_row(results: dict[str, dict], cfg: Config) -> RowValue:
 SIZE_ROWS = (
     Row("§3.1, Fig. 8", "the first velocity peak does not depend on M (HF3 as HF1, HF4 as HF2)",
         "≈ 73 kHz for HF1 and HF3, ≈ 32.8 kHz for HF2 and HF4", "equivalence", PRESETS, m_independent_row,
-        "ln ratio within ± ln 1.05 in both pairs"),
+        "ln ratio within ± ln 1.05 in both pairs, the tolerance each paper value is read to"),
     Row("§3.1, Fig. 8", "larger patches (HF2, HF4): the peaks have increased amplitudes", "higher", "direction",
         PRESETS, larger_height_row, "ln ratio > 0 in both pairs, margin ln 1.25"),
     Row("§3.1, Fig. 8", "larger patches (HF2, HF4): the peaks are narrower", "narrower", "direction", PRESETS,
