@@ -341,11 +341,9 @@ SHAPE_ROWS = (
 PAIRS = (("hf2", "hf1"), ("hf4", "hf3"))
 
 
-def _log_pairs(results: dict[str, dict], key: str) -> list[np.ndarray]:
-    return [
-        paired(*(by_seed(results.get(n), lambda p: math.log(_get(p, key))) for n in (big, small)))
-        for big, small in PAIRS
-    ]
+def _log_pairs(results: dict[str, dict], key: str, pairs: tuple[tuple[str, str], ...] = PAIRS) -> list[np.ndarray]:
+    """ln(measure ``key`` of a / of b) per seed, for each preset pair (a, b) of ``pairs`` (the pads of one seed)."""
+    return [paired(*(by_seed(results.get(n), lambda p: math.log(_get(p, key))) for n in (a, b))) for a, b in pairs]
 
 
 def larger_height_row(results: dict[str, dict], cfg: Config) -> RowValue:
@@ -386,23 +384,17 @@ def larger_frequency_row(results: dict[str, dict], cfg: Config) -> RowValue:
     )
 
 
-M_PAIRS = (("hf3", "hf1"), ("hf4", "hf2"))  # M = 0.4 against M = 0.8, each patch size
-
-
-def _m_parts(results: dict[str, dict], key: str) -> list[np.ndarray]:
-    """ln f1(M = 0.4) − ln f1(M = 0.8) of measure ``key`` per seed, for each patch size (the pair of one seed shares
-    its patches)."""
-    return [paired(*(by_seed(results.get(n), lambda p: math.log(_get(p, key))) for n in pair)) for pair in M_PAIRS]
+M_PAIRS = (("hf3", "hf1"), ("hf4", "hf2"))  # M = 0.4 against M = 0.8, each patch size (one seed: the same patches)
 
 
 def m_independent_row(results: dict[str, dict], cfg: Config) -> RowValue:
     """§3.1 gives one first peak per patch size for both friction levels ("around 73 kHz for HF1 and HF3, and
     around 32.8 kHz for HF2 and HF4"): the peak does not move with M, within the ± 5 % the values are read to."""
-    d = _m_parts(results, "f1")
+    d = _log_pairs(results, "f1", M_PAIRS)
     margin = math.log1p(PEAK_TOLERANCE)
 
     def reading(key: str) -> str:
-        parts = _m_parts(results, key)
+        parts = _log_pairs(results, key, M_PAIRS)
         return (
             ", ".join(f"{a}/{b} {ratio_interval(x)}" for (a, b), x in zip(M_PAIRS, parts, strict=True))
             + f" ({all_of([equivalence_verdict(x, margin) for x in parts])})"
