@@ -529,8 +529,31 @@ def test_growth_measures_of_a_synthetic_record():
     assert m["line"]["window_samples"] == 4096
     tn = m["tonality"]
     assert tn["peak_to_median"][2] > tn["peak_to_median"][0] and tn["flatness"][2] < tn["flatness"][0]
+    # the largest values of the CWT follow the line, with a trend that explains nearly all of ln f, and it emerges
+    # there; the first line too once the line stands out (in the first window, at half the noise's level, a bump of
+    # the noise at lower frequencies reaches a quarter of the largest value)
+    c = m["cwt"]
+    lines = VA.cwt_lines(c)
+    for line in ("band", "largest", "largest_l1"):
+        x = lines[line]
+        assert x["dlnf"] == pytest.approx(np.log(0.5) * 35 / 36, abs=0.03) and x["dlnf_ci"][1] < 0 and x["r2"] > 0.99
+        assert len(x["hz"]) == len(c["times"]) == 8
+    # the first line too once the line stands out; before, low-frequency bumps of the noise reach a quarter
+    assert np.allclose(lines["first"]["hz"][2:], lines["largest"]["hz"][2:], rtol=1e-6)
+    assert lines["first"]["hz"][0] < 1e4
+    assert c["times"][0] == pytest.approx(1e-3 + 2048e-6, rel=0.01) and c["record_s"] == [1e-3, t[-1]]
+    assert np.shape(c["amplitude"]) == (VA.CWT_FREQUENCIES.size, 8) and np.shape(c["thirds"]) == (48, 3)
+    for norm in ("L1", "L2"):
+        ptm = VA.cwt_peak_to_median(c, norm)
+        assert ptm[2] > ptm[0] + 0.3
+    assert m["line"]["mu_first_hz"][1:] == m["line"]["dominant_hz"][1:]  # μ's STFT by the same rule: as above
+    assert m["line"]["mu_band_hz"] == m["line"]["dominant_hz"]  # the line lies within 20–80 kHz throughout
+    assert m["line"]["dominant_r2"] > 0.99 and 0 <= m["line"]["mu_first_r2"] < m["line"]["dominant_r2"]
     steady = VA.growth_measures(*_growing_mu(1, falling=False), _va_scene(), t_start=1e-3)
     assert abs(steady["line"]["dominant_dlnf"]) < 0.02
+    for line in ("largest", "largest_l1"):  # a steady 50 kHz line: within 2 % of it (÷ √f: 1.3 % low)
+        x = VA.cwt_lines(steady["cwt"])[line]
+        assert abs(x["dlnf"]) < 0.01 and np.allclose(x["hz"], 50e3, rtol=0.02)
     # STFT maximum: the line in the last full window (amplitude 1e-3 (1 + 4 t/T) at its centre) over the mean μ
     w = next(w for w in steady["stft"] if w["samples"] == 4096)
     centre = w["time"] / 36e-3
@@ -538,6 +561,40 @@ def test_growth_measures_of_a_synthetic_record():
     assert w["frequency"] == pytest.approx(50e3, rel=2e-3)
     assert w["amplitude"] == pytest.approx(1e-3 * (1 + 4 * centre) / mean, rel=0.05)
     assert [x["samples"] for x in steady["stft"]] == [4096, 8192, 16384, 32768]  # 2^12 … 2^15 fit 35 ms
+
+
+def test_cwt_lines_need_three_windows_interpolate_between_grid_frequencies_and_differ_by_rule():
+    t = np.arange(20000) * 1e-6
+    for f in (50e3, 53.7e3):  # on the grid's 8 % spacing and between two of its frequencies
+        c = VA.cwt_lines(VA.cwt_measures(np.sin(2 * np.pi * f * t), 1e-6, 4096))
+        for line in ("first_l1", "largest_l1"):
+            assert np.allclose(c[line]["hz"], f, rtol=0.003) and len(c[line]["hz"]) == 4
+        # ÷ √f moves a line's maximum down by ≈ 1.3 % (the wavelet's response is σ_f ≈ 0.18 f wide): a constant
+        # factor, which leaves Δ ln f alone
+        for line in ("first", "largest"):
+            assert np.allclose(c[line]["hz"], 0.9865 * f, rtol=0.003)
+    # two lines, 30 kHz at amplitude 1 and 120 kHz at 1.5: the largest amplitude-true value is the upper one, the
+    # energy-normalised (÷ √f: 1 against 0.75) and the first lines (1 ≥ ¼ of 1.5) the lower one
+    two = VA.cwt_lines(VA.cwt_measures(np.sin(2 * np.pi * 30e3 * t) + 1.5 * np.sin(2 * np.pi * 120e3 * t), 1e-6, 4096))
+    assert np.allclose(two["largest_l1"]["hz"], 120e3, rtol=0.003)
+    assert np.allclose(two["first_l1"]["hz"], 30e3, rtol=0.003)
+    for line in ("first", "largest"):
+        assert np.allclose(two[line]["hz"], 0.9865 * 30e3, rtol=0.003)
+    # a band edge is no line: a rising low-frequency floor (μ's drift) leaves the first line at the interior peak
+    edge = np.exp(-np.log(VA.CWT_FREQUENCIES / 5e3)) + np.exp(-(np.log(VA.CWT_FREQUENCIES / 60e3) ** 2) / 0.02)
+    assert VA._line_peak(VA.CWT_FREQUENCIES, edge, 0.25) == pytest.approx(60e3, rel=0.02)
+    with pytest.raises(ValueError, match="at least 3"):
+        VA.cwt_measures(np.sin(2 * np.pi * 50e3 * t[:8000]), 1e-6, 4096)
+
+
+def test_contact_track_falls_from_the_start_to_the_end_contact():
+    s = _va_scene()
+    track = VA.contact_track(s, s.duration)
+    share = np.array(track["matrix_share"])
+    assert len(track["times_s"]) == share.size == VA.CONTACT_INSTANTS and track["times_s"][-1] == s.duration
+    assert share[-1] == pytest.approx(VA.end_contact(s, s.duration)["end_matrix_share"])
+    assert share[0] == pytest.approx(VA.end_contact(s, 0.0)["end_matrix_share"]) and share[0] > share[-1]
+    assert np.all(np.diff(share) <= 1e-12)
 
 
 def test_predicted_line_change_follows_eq10():
@@ -558,32 +615,67 @@ def _pad(seed: int, measures: dict, member: str | None = None, **extra) -> dict:
     return p
 
 
+def _synthetic_cwt(dlnf: float, emerge: float) -> dict:
+    """A stored CWT (``cwt_measures``' form) of 10 blocks over 0.3 s: one line whose ln f falls by ``dlnf`` over the
+    record (± 0.05 about its trend, block by block), a Gaussian in ln f over a floor flat in the energy-normalised
+    CWT; its thirds a floor with a bump whose ln(1 + height) rises by ``emerge`` from the first to the last."""
+    f = VA.CWT_FREQUENCIES
+    frac = (np.arange(10) + 0.5) / 10
+    line = np.log(60e3) + dlnf * frac + 0.05 * (-1.0) ** np.arange(10)
+    l2 = 0.01 + np.exp(-((np.log(f)[:, None] - line) ** 2) / (2 * 0.1**2))
+    bump = (np.abs(f - 50e3) < 2e3).astype(float)[:, None]
+    thirds = 1.0 + bump * (np.exp([[1.0, 1.2, 1.0 + emerge]]) - 1.0)
+    weight = VA._l2_weight(f)[:, None]
+    return {"record_s": [0.0, 0.3], "times": (0.3 * frac).tolist(), "freqs_hz": f.tolist(),
+            "amplitude": (l2 / weight).tolist(), "thirds": (thirds / weight).tolist()}  # fmt: skip
+
+
 def _va_result(
-    rise: float, dlnf: float, freq: float, ptm: float, matrix_end: float, area_end: float, hf_std: float = 0.01
+    rise: float,
+    dlnf: float,
+    freq: float,
+    ptm: float,
+    matrix_end: float,
+    area_end: float,
+    hf_std: float = 0.01,
+    cwt_gain: float = 0.3,
+    share_rise: float = 0.0,
 ) -> dict:
+    """A ``va_full`` result of 5 seeds: μ rising by ``rise``, the lines' Δ ln f ``dlnf`` (the CWT ridge's R²
+    ``cwt_gain`` above its STFT counterpart's), the STFT maximum at ``freq``, the late − early ln(peak/median)
+    ``ptm`` − 1 (spectrum and CWT), the matrix share 0.8 → ``matrix_end`` (rising by ``share_rise`` once on its way),
+    the areas ending at ``area_end``."""
     pads = []
     for s in range(1, 6):
         e = 0.02 * (s - 3)
+        cwt = _synthetic_cwt(dlnf + e, ptm + e - 1.0)
+        r2 = VA.cwt_lines(cwt)["band"]["r2"] - cwt_gain - e
+        share = np.linspace(0.8, matrix_end, 37)
+        share[20] += share_rise
         pads.append(_pad(s, {
             "mu_rise": rise + e * 0.1, "mu_thirds": [0.4, 0.45, 0.4 + rise], "mu_mean": 0.45, "mu_hf_std": hf_std,
             "line": {"dominant_dlnf": dlnf + e, "first_dlnf": dlnf + e, "predicted_dlnf": -0.8,
-                     "window_samples": 4096, "first_dlnf_ci": [dlnf - 0.1, dlnf + 0.1]},
+                     "window_samples": 4096, "first_dlnf_ci": [dlnf - 0.1, dlnf + 0.1], "dominant_r2": r2,
+                     "mu_first_r2": r2, "mu_band_r2": r2},
+            "cwt": cwt,
             "stft": [{"window": "w4096", "samples": 4096, "amplitude": 0.003, "frequency": freq * (1 + e / 10),
                       "mean": 0.45},
                      {"window": "w8192", "samples": 8192, "amplitude": 0.004, "frequency": 69.0e3, "mean": 0.45}],
             "tonality": {"peak_to_median": [1.0, 1.2, ptm + e], "flatness": [0.5, 0.4, 0.5 - (ptm - 1) / 5],
                          "std": [0.01, 0.02, 0.01 * np.exp(ptm - 1)], "peak_hz": [7e4, 5e4, 3.5e4]},
         }, matrix_share=0.8, end_matrix_share=matrix_end + 0.001 * e, end_in_contact=1.0,
-            end_mean_area_m2=area_end * (1 + e / 10), end_area_range_m2=[0.5e-6, 2.0e-6]))  # fmt: skip
+            end_mean_area_m2=area_end * (1 + e / 10), end_area_range_m2=[0.5e-6, 2.0e-6],
+            contact_track={"times_s": np.linspace(0.0, 0.36, 37).tolist(),
+                           "matrix_share": share.tolist()}))  # fmt: skip
     return {"pads": pads}
 
 
 def test_varying_area_rows_follow_their_criteria():
     cfg = VB.Config()
     good = {"va_full": _va_result(0.1, -0.8, 69.5e3, 2.0, 0.0, 1.24e-6)}
-    bad = {"va_full": _va_result(-0.05, 0.5, 35.6e3, 0.5, 0.3, 0.6e-6, hf_std=0.5)}
+    bad = {"va_full": _va_result(-0.05, 0.5, 35.6e3, 0.5, 0.3, 0.6e-6, hf_std=0.5, cwt_gain=-0.2, share_rise=0.05)}
     rows = {r.statement: r for r in VB.ROWS if r.experiments == ("va_full",)}
-    assert len(rows) == 12
+    assert len(rows) == 14
     for r in rows.values():
         if r.kind == "not comparable":
             assert r.measure(good, cfg).verdict == "not comparable", r.statement
@@ -595,6 +687,29 @@ def test_varying_area_rows_follow_their_criteria():
     # the STFT-window variant reads the 2^13 window: its peak sits at the paper's 69 kHz
     peak = rows["largest STFT peak of μ"]
     assert peak.measure(VC.stft_window(8192)(bad), cfg).verdict != "not reproduced"
+    # each part of the CWT row and of the emergence row decides: a falling ridge no clearer than the STFT's line is
+    # partly, a CWT whose lines do not emerge keeps the spectrum's emergence from reproduced
+    cwt = next(r for r in rows.values() if r.statement.startswith("in the CWT of μ"))
+    assert cwt.measure({"va_full": _va_result(0.1, -0.8, 69.5e3, 2.0, 0.0, 1.24e-6, cwt_gain=0.0)}, cfg).verdict == (
+        "partly"
+    )
+    emerge = next(r for r in rows.values() if r.statement.startswith("individual dominant frequencies emerge"))
+    mixed = _va_result(0.1, -0.8, 69.5e3, 2.0, 0.0, 1.24e-6)
+    for p in mixed["pads"]:
+        p["measures"]["cwt"]["thirds"] = _synthetic_cwt(-0.8, -0.1)["thirds"]
+    assert emerge.measure({"va_full": mixed}, cfg).verdict == "partly"
+    # a rise of the matrix share within the contact solve's rounding is none; the notes give the track
+    portion = next(r for r in rows.values() if r.statement.startswith("as the patches grow"))
+    flat = portion.measure({"va_full": _va_result(0.1, -0.8, 69.5e3, 2.0, 0.0, 1.24e-6, share_rise=5e-7)}, cfg)
+    assert flat.verdict == "reproduced" and "pads whose share never rises: 5 of 5" in flat.notes
+    assert "0.800 at 0 ms" in flat.notes and "0.000 at 360 ms" in flat.notes
+    # results made before the CWT was measured read "not measured" in its two rows
+    old = _va_result(0.1, -0.8, 69.5e3, 2.0, 0.0, 1.24e-6)
+    for p in old["pads"]:
+        del p["measures"]["cwt"]
+    assert (
+        cwt.measure({"va_full": old}, cfg).verdict == emerge.measure({"va_full": old}, cfg).verdict == ("not measured")
+    )
 
 
 # ------------------------------------------------------------------------------------------------ §3.3 (synthetic)
@@ -858,17 +973,18 @@ def test_without_leaves_named_experiments_of_the_earlier_results_out(tmp_path, c
     finished = {n for n, r in results.items() if n in VB.EXPERIMENTS and r.get("status") in ("done", "stopped")}
     stale = _restepped(committed_path)  # made with a stepping the table has changed since: they run again
     assert set(got.results) == finished - stale - {"ms_mid", "ms_app3"} and "hf1" in got.results
-    # each experiment is credited to the call that ran it: the committed file joins five calls, the earlier ones' less
-    # the left-out experiments, then the file's own (hf2_rest, run again with every other experiment taken as done)
+    # each experiment is credited to the call that ran it: the committed file joins six calls, the earlier ones' less
+    # the left-out experiments, then the file's own (the five growth experiments, run again with every other
+    # experiment taken as done)
     meta = json.loads(committed_path.read_text())["meta"]
-    assert len(meta["with"]) == 4
+    assert len(meta["with"]) == 5
     assert [p["command"] for p in got.parts] == [*(w["command"] for w in meta["with"]), meta["command"]]
     for part, earlier in zip(got.parts, meta["with"], strict=False):
         assert part["experiments"] == sorted(set(earlier["experiments"]) - stale - {"ms_mid", "ms_app3"})
     assert (
         got.parts[-1]["experiments"]
         == sorted(set(got.results) - {n for w in meta["with"] for n in w["experiments"]})
-        == ["hf2_rest"]
+        == ["va", "va_equal", "va_full", "va_full_rest", "va_rest"]
     )
     assert sorted(n for p in got.parts for n in p["experiments"]) == sorted(got.results)
     assert any("ms_app3, ms_mid not used: run again (--without)" in n for n in notes)

@@ -65,17 +65,17 @@ def test_combination_reads_both_changes_of_hf4_against_hf1(seeds32) -> None:
 
 
 def test_rows_by_construction_are_marked_and_counted_apart(seeds32) -> None:
-    """Fourteen rows hold by construction or check the code; the count names them apart, and a marked row that is not
+    """Fifteen rows hold by construction or check the code; the count names them apart, and a marked row that is not
     reproduced is not counted among them."""
     marked = [r for r in VB.ROWS if r.construction]
-    assert len(marked) == 14
+    assert len(marked) == 15
     assert {r.section.split(",")[0] for r in marked} == {"§2.2", "§3.1", "§3.2", "§3.3", "§5", "Appendix"}
     results, cfg = seeds32
     rows = VB.evaluate_rows(results, cfg)
     text = verdict_counts(rows)
-    assert "Of the 34 reproduced, 14 hold by construction or check the code" in text and "20 are findings" in text
+    assert "Of the 36 reproduced, 15 hold by construction or check the code" in text and "21 are findings" in text
     k = next(i for i, r in enumerate(rows) if r["construction"])
-    assert "Of the 33 reproduced, 13 hold" in verdict_counts([*rows[:k], {**rows[k], "verdict": N}, *rows[k + 1 :]])
+    assert "Of the 35 reproduced, 14 hold" in verdict_counts([*rows[:k], {**rows[k], "verdict": N}, *rows[k + 1 :]])
 
 
 def test_exponent_rows_show_every_reading_of_the_first_peak(seeds32) -> None:
@@ -172,3 +172,27 @@ def test_the_rows_of_the_first_peak_against_m_the_pressures_and_the_filtered_ext
         and f.value.startswith("one bin: S 1.000–1.000")
         and "n_AB,min = 1.176 with the filter" in f.notes
     )
+
+
+def test_the_growth_rows_of_the_cwt_and_of_the_load_path(seeds32) -> None:
+    """§3.2's CWT (Fig. 11) and the load's path, read from the committed growth runs: the ridge of the
+    energy-normalised CWT within 20–80 kHz falls and follows a trend the STFT's largest bin there does not, every other
+    reading of the CWT is in the notes with its verdict; the matrix share never rises in any pad; the emergence of
+    lines reads the CWT beside the spectrum (not from equilibrium, in both from rest)."""
+    results, cfg = seeds32
+    cwt = _row("in the CWT of μ the decreasing frequencies of the characteristic peaks are clearer to observe")
+    v = cwt.measure(results, cfg)
+    assert v.verdict == R and v.value.startswith("−Δ ln f of the ridge of μ's CWT in 20–80 kHz: 0.298")
+    for reading in ("ridge (against", "first line (against", "ridge, amplitude-true", "first line, amplitude-true"):
+        assert reading in v.notes
+    assert "ridge, amplitude-true (against μ's STFT dominant line): −Δ ln f 0.367" in v.notes
+    assert cwt.measure({"va_full": results["va_full_rest"]}, cfg).verdict == R
+    share = _row(
+        "as the patches grow, their stiffnesses increase and they carry an increasing portion of the normal load"
+    )
+    v = share.measure(results, cfg)
+    assert v.verdict == R and "pads whose share never rises: 32 of 32" in v.notes and share.construction
+    emerge = _row("individual dominant frequencies emerge in μ's spectrum, in the STFT and in the CWT")
+    assert emerge.measure(results, cfg).verdict == N
+    rest = emerge.measure({"va_full": results["va_full_rest"]}, cfg)
+    assert rest.verdict == R and "of μ's CWT: 0.816" in rest.value

@@ -23,8 +23,17 @@ from μ(t) and Σu̇(t) of each pad (:func:`growth_measures`) over the record af
   conventions follow;
 * **stochastic → periodic**: the amplitude spectrum of μ over the first and the last third of the analysed
   record, its ``tonality`` over 5–150 kHz: ln(peak / median) and the spectral flatness, late − early;
+* **the CWT of μ** (Fig. 11): the complex Morlet transform of μ (linear trend removed) on
+  :data:`CWT_FREQUENCIES`, its amplitude averaged over the line tracks' windows; per window the frequency of each
+  line of :data:`CWT_LINES` (the primary the **ridge**, the largest value of the energy-normalised CWT, whose noise
+  floor is as flat as a spectrum's, within §4's characteristic band of 20–80 kHz: the counterpart of μ's largest STFT
+  bin there; beside it the largest value and the first line over the whole band, energy-normalised and
+  amplitude-true) with its trend of ln f over t/T and the trend's R², and
+  ln(peak / median) of the energy-normalised amplitude averaged over each third of the record
+  (:func:`cwt_measures`, read by :func:`cwt_lines` and :func:`cwt_peak_to_median`);
 * **the load on the patches**: the contact solved for the areas of Eq. 10 at the end of the run (the share of the
-  load the matrix carries, the patches in contact, the mean area) beside the start's.
+  load the matrix carries, the patches in contact, the mean area) beside the start's, and the matrix's share at
+  :data:`CONTACT_INSTANTS` instants evenly over the run (:func:`contact_track`).
 
 The first saturation is found by ``saturation`` on Σ|u̇| over the first part of the record (four times the
 predicted settling time at the starting areas, at least a fifth of the record); a pad released from rest counts
@@ -39,12 +48,32 @@ from typing import Any
 import numpy as np
 
 from aca_warp.studies.validation.base import EXPERIMENTS, Config, Experiment, register_experiment
+from aca_warp.studies.validation.measures import BAND as CHARACTERISTIC_BAND
 
 PRIMARY_WINDOW = 2**12  # samples: the STFT window of the rows (4.1 ms at 1 µs; fits every variant's record)
 HF_SMOOTH_S = 1.0e-3  # s: μ less its moving mean over this is μ's HF part (above ~1 kHz)
 LINE_BAND = (5.0e3, 200.0e3)  # Hz: the vibration lines, above μ's slow drift
 TONALITY_BAND = (5.0e3, 150.0e3)  # Hz
 FIRST_LINE_FRACTION = 0.25  # the first line: the lowest STFT peak reaching a quarter of the window's largest
+CWT_FREQUENCIES = np.geomspace(LINE_BAND[0], LINE_BAND[1], 48)  # Hz: the CWT's analysis frequencies, 8 % apart
+CWT_STRIDE_S = 8.0e-6  # s: the CWT's output spacing (its envelope at 200 kHz varies over σ_t ≈ 4 µs)
+# the lines read off μ's CWT, block by block (the convention is open: Fig. 11 names neither normalisation nor line):
+# name -> (normalisation, fraction of the block's largest the line's peak must reach, the lowest such peak; the band
+# searched [Hz]). "L2" is
+# the energy-normalised CWT, |W| / √f, flat for white noise as an amplitude spectrum is (a line's maximum sits ≈ 1.3 %
+# below its frequency there, a constant factor that leaves Δ ln f alone); "L1" the amplitude-true |W|, which white
+# noise makes rise as √f.
+CWT_LINES = {
+    # the primary: the ridge within §4's characteristic band (20–80 kHz), on a noise floor as flat as the STFT's;
+    # over the whole band the ridges sit at its edges: μ's slow fluctuations (5–10 kHz) energy-normalised, the
+    # broadband top (120–170 kHz) amplitude-true
+    "band": ("L2", 1.0, CHARACTERISTIC_BAND),
+    "largest": ("L2", 1.0, LINE_BAND),
+    "first": ("L2", 0.25, LINE_BAND),  # the rule of Σu̇'s STFT line (μ's slow fluctuations reach it early on)
+    "largest_l1": ("L1", 1.0, LINE_BAND),
+    "first_l1": ("L1", 0.25, LINE_BAND),
+}
+CONTACT_INSTANTS = 37  # the matrix share's instants over a run (every 10 ms of the paper's 0.36 s)
 
 
 # ------------------------------------------------------------------------------------------------ measures
@@ -59,14 +88,16 @@ def line_window(samples: int) -> int:
 
 
 def line_tracks(t: np.ndarray, mu: np.ndarray, velocity: np.ndarray, dt: float) -> dict[str, Any]:
-    """The dominant line of μ's STFT and the first line of Σu̇'s, in non-overlapping windows, and their trends
-    of ln f over t/T.
+    """The dominant line of μ's STFT and the first lines of Σu̇'s and of μ's, in non-overlapping windows, and their
+    trends of ln f over t/T.
 
     The dominant line: the largest bin of μ's STFT within :data:`LINE_BAND` per window. The first line: the
     lowest peak of the STFT of Σu̇ (the patches' summed velocity, whose first peak stands out, Fig. 8) reaching
-    :data:`FIRST_LINE_FRACTION` of the window's largest in the band. Returns the window (samples), the window
-    centres [s], both tracks [Hz], and per track the fitted slope of ln f against the fraction of the record
-    (Δ ln f over it) with its 95 % interval (``line_trend``).
+    :data:`FIRST_LINE_FRACTION` of the window's largest in the band; ``mu_first`` the same rule on μ's STFT (the
+    counterpart of the CWT's first line); ``mu_band`` μ's largest bin within §4's band (20–80 kHz, the CWT
+    ridge's counterpart). Returns the window (samples), the window centres [s], the four tracks [Hz], and per
+    track the fitted slope of ln f against the fraction of the record (Δ ln f over it) with its 95 % interval and
+    the fit's R² (``line_trend``).
     """
     from aca_warp.analysis.measures import first_peak, line_trend, peak_track
     from aca_warp.analysis.timefreq import stft
@@ -74,20 +105,25 @@ def line_tracks(t: np.ndarray, mu: np.ndarray, velocity: np.ndarray, dt: float) 
     w = line_window(mu.size)
     times, freqs, amp, _ = stft(mu, dt, window_s=w * dt, hop_s=w * dt, detrend="linear")
     dominant, _ = peak_track(times, freqs, amp, band=LINE_BAND)
+    in_band, _ = peak_track(times, freqs, amp, band=CHARACTERISTIC_BAND)
     _, _, vamp, _ = stft(velocity, dt, window_s=w * dt, hop_s=w * dt, detrend="linear")
     band = (freqs >= LINE_BAND[0]) & (freqs <= LINE_BAND[1])
     first = np.array(
         [first_peak(freqs[band], vamp[band, k], fraction=FIRST_LINE_FRACTION)[0] for k in range(times.size)]
     )
+    mu_first = np.array(
+        [first_peak(freqs[band], amp[band, k], fraction=FIRST_LINE_FRACTION)[0] for k in range(times.size)]
+    )
     span = float(t[-1] - t[0]) if t.size > 1 else 1.0
     frac = times / span
     out: dict[str, Any] = {"window_samples": w, "times": (t[0] + times).tolist()}
-    for name, track in (("dominant", dominant), ("first", first)):
+    for name, track in (("dominant", dominant), ("first", first), ("mu_first", mu_first), ("mu_band", in_band)):
         out[f"{name}_hz"] = track.tolist()
         if times.size >= 3:
             lt = line_trend(frac, np.log(track))
             out[f"{name}_dlnf"] = lt.slope
             out[f"{name}_dlnf_ci"] = [lt.slope_low, lt.slope_high]
+            out[f"{name}_r2"] = lt.r2
     return out
 
 
@@ -109,6 +145,95 @@ def thirds_tonality(mu: np.ndarray, dt: float) -> dict[str, list[float]]:
         out["peak_hz"].append(tn.peak_frequency)
         out["std"].append(float(np.std(x)))
     return out
+
+
+def cwt_measures(mu: np.ndarray, dt: float, window: int, t0: float = 0.0) -> dict[str, Any]:
+    """The CWT of μ (Fig. 11): complex Morlet ``cmor1.5-1.0`` (``cwt_morlet``, amplitude-true) of μ less its linear
+    trend on :data:`CWT_FREQUENCIES`, output every :data:`CWT_STRIDE_S`, averaged over consecutive blocks of
+    ``window`` samples (the line tracks' STFT windows) and over each third of the record.
+
+    Returns the record's first and last instants (``record_s``, ``t0`` [s] the first), the block centres [s], the
+    frequencies [Hz], and the amplitude-true means (``amplitude``, shape (F, blocks), and ``thirds``, (F, 3); four
+    significant digits) that :func:`cwt_lines` and :func:`cwt_peak_to_median` read. The record's ends lie within
+    the wavelets' reach (≈ 0.35 ms at 5 kHz): zero-padded there.
+    """
+    import scipy.signal
+
+    from aca_warp.analysis.timefreq import cwt_morlet
+
+    stride = max(1, int(round(CWT_STRIDE_S / dt)))
+    x = scipy.signal.detrend(np.asarray(mu, dtype=np.float64), type="linear")
+    _, freqs, amp, _ = cwt_morlet(x, dt, CWT_FREQUENCIES, stride=stride)
+    per = max(1, window // stride)
+    blocks = amp.shape[1] // per
+    if blocks < 3:
+        raise ValueError(f"cwt_measures: {amp.shape[1]} outputs give {blocks} blocks of {per}, at least 3 needed")
+    mean = amp[:, : blocks * per].reshape(freqs.size, blocks, per).mean(axis=2)
+    thirds = np.stack([part.mean(axis=1) for part in np.array_split(amp, 3, axis=1)], axis=1)
+    return {
+        "record_s": [t0, t0 + float(x.size - 1) * dt],
+        "times": (t0 + (np.arange(blocks) + 0.5) * per * stride * dt).tolist(),
+        "freqs_hz": freqs.tolist(),
+        "amplitude": _digits(mean),
+        "thirds": _digits(thirds),
+    }
+
+
+def _digits(a: np.ndarray) -> list[list[float]]:
+    return [[float(f"{v:.4g}") for v in row] for row in a]
+
+
+def _l2_weight(freqs: np.ndarray) -> np.ndarray:
+    """(f₀/f)^½: the amplitude-true CWT times this is the energy-normalised one (flat for white noise), (F,)."""
+    return (freqs[0] / freqs) ** 0.5
+
+
+def _weighted(cwt: dict[str, Any], key: str, norm: str) -> tuple[np.ndarray, np.ndarray]:
+    freqs, a = np.asarray(cwt["freqs_hz"]), np.asarray(cwt[key], dtype=np.float64)
+    return freqs, a * _l2_weight(freqs)[:, None] if norm == "L2" else a
+
+
+def cwt_lines(cwt: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """Every line of :data:`CWT_LINES` read off a pad's stored CWT (:func:`cwt_measures`): per block its frequency
+    (:func:`_line_peak`) [Hz], and its trend of ln f over the record's fraction (``line_trend``: Δ ln f over the
+    record, its 95 % interval, R²)."""
+    from aca_warp.analysis.measures import line_trend
+
+    t0, t1 = cwt["record_s"]
+    frac = (np.asarray(cwt["times"]) - t0) / (t1 - t0)
+    out = {}
+    for name, (norm, fraction, band) in CWT_LINES.items():
+        freqs, a = _weighted(cwt, "amplitude", norm)
+        keep = (freqs >= band[0]) & (freqs <= band[1])
+        track = np.array([_line_peak(freqs[keep], a[keep, k], fraction) for k in range(a.shape[1])])
+        lt = line_trend(frac, np.log(track))
+        out[name] = {"hz": track, "dlnf": lt.slope, "dlnf_ci": [lt.slope_low, lt.slope_high], "r2": lt.r2}
+    return out
+
+
+def cwt_peak_to_median(cwt: dict[str, Any], norm: str = "L2") -> list[float]:
+    """Per third of the record, ln(peak / median) of the CWT's mean amplitude within :data:`TONALITY_BAND` (as
+    ``tonality`` gives it for a spectrum), energy-normalised ("L2", flat for white noise as a spectrum is) or
+    amplitude-true ("L1")."""
+    freqs, a = _weighted(cwt, "thirds", norm)
+    band = (freqs >= TONALITY_BAND[0]) & (freqs <= TONALITY_BAND[1])
+    return [float(np.log(a[band, k].max() / np.median(a[band, k]))) for k in range(a.shape[1])]
+
+
+def _line_peak(freqs: np.ndarray, a: np.ndarray, fraction: float) -> float:
+    """The line of one block over log-spaced ``freqs`` [Hz]: the lowest interior local maximum reaching
+    ``fraction`` of the block's largest value (a band edge is where the band is cut, not a peak), or the largest
+    value when none does (``fraction`` 1: always); Gaussian-interpolated in ln f through its neighbours."""
+    lo = a >= fraction * a.max()
+    interior = np.flatnonzero((a[1:-1] >= a[:-2]) & (a[1:-1] >= a[2:]) & lo[1:-1]) + 1
+    k = int(interior[0]) if interior.size and fraction < 1.0 else int(np.argmax(a))
+    x = np.log(freqs)
+    if 0 < k < a.size - 1 and np.all(a[k - 1 : k + 2] > 0):
+        la, lb, lc = np.log(a[k - 1 : k + 2])
+        den = la - 2.0 * lb + lc
+        if den < 0:
+            return float(np.exp(x[k] + 0.5 * (la - lc) / den * (x[k + 1] - x[k])))
+    return float(freqs[k])
 
 
 def predicted_line_change(scene: Any, t0: float, t1: float) -> float:
@@ -160,6 +285,7 @@ def growth_measures(
         for p in stft_peaks(t, m, band=(floor, np.inf))
     ]  # fmt: skip
     out["tonality"] = thirds_tonality(m, dt)
+    out["cwt"] = cwt_measures(m, dt, out["line"]["window_samples"], float(t[0]))
     return out
 
 
@@ -191,14 +317,30 @@ def first_saturation(
     return out
 
 
-def end_contact(scene: Any, t: float) -> dict[str, Any]:
-    """The contact of a growing pad with the areas of Eq. 10 at ``t`` [s] (√A grows by increment/2 per event; the
-    matrix cells as they are, as the run re-solves it): the matrix's share of the load, the share of the patches in
-    contact, and the mean and extreme areas [m²]."""
+def grown_area(scene: Any, t: float) -> np.ndarray:
+    """The patch areas of Eq. 10 at ``t`` [s] of a growing scene (√A grows by increment/2 per event) [m²], (n,)."""
+    g = scene.growth
+    return (np.sqrt(scene.patches.area) + 0.5 * g.increment * np.floor(t / g.interval + 1e-9)) ** 2
+
+
+def contact_track(scene: Any, duration: float, instants: int = CONTACT_INSTANTS) -> dict[str, list[float]]:
+    """The matrix's share of the load at ``instants`` times evenly over [0, ``duration``] [s] of a growing pad, the
+    contact solved for the areas of Eq. 10 at each (:func:`grown_area`): ``times_s`` and ``matrix_share``."""
     from aca_warp.hf.contact import solve_scene_contact
 
-    g, p = scene.growth, scene.patches
-    area = (np.sqrt(p.area) + 0.5 * g.increment * np.floor(t / g.interval + 1e-9)) ** 2
+    times = np.linspace(0.0, duration, instants)
+    share = [float(solve_scene_contact(scene, area=grown_area(scene, t)).matrix_force.sum() / scene.normal_force)
+             for t in times]  # fmt: skip
+    return {"times_s": times.tolist(), "matrix_share": share}
+
+
+def end_contact(scene: Any, t: float) -> dict[str, Any]:
+    """The contact of a growing pad with the areas of Eq. 10 at ``t`` [s] (the matrix cells as they are, as the run
+    re-solves it): the matrix's share of the load, the share of the patches in contact, and the mean and extreme
+    areas [m²]."""
+    from aca_warp.hf.contact import solve_scene_contact
+
+    area = grown_area(scene, t)
     c = solve_scene_contact(scene, area=area)
     return {
         "end_matrix_share": float(c.matrix_force.sum() / scene.normal_force),
@@ -217,6 +359,7 @@ def analyse_growth(
         entry: dict[str, Any] = {"seed": s.initial.seed, "patches": s.patches.count}
         entry.update(first_saturation(time, glob[:, p, 4], plan.settle, s.initial.state == "rest"))
         entry.update(end_contact(s, plan.duration))
+        entry["contact_track"] = contact_track(s, plan.duration)
         if entry["status"] == "saturated":
             try:
                 entry["measures"] = growth_measures(time, glob[:, p, 0], glob[:, p, 3], s, entry["t_start"])
@@ -271,8 +414,9 @@ def register_variants() -> None:
 def growth_table(results: dict[str, dict]) -> tuple[list[str], list[list[str]]]:
     """One line per growth experiment: growth compression, analysed length, μ by thirds, the line trends, the STFT
     maximum (2^12 samples) and the tonality and spread of μ in the first and the last third (means over pads)."""
-    header = ["experiment", "run", "mean μ by thirds", "Δ ln f: first line / dominant / isolated patch",
-              "STFT max (2^12): μ/μ̄ at f", "ln(peak/median) first → last third",
+    header = ["experiment", "run", "mean μ by thirds",
+              "Δ ln f: first line / dominant / CWT ridge / isolated patch", "STFT max (2^12): μ/μ̄ at f",
+              "ln(peak/median) first → last third",
               "std μ first → last third", "matrix share of the load: start → end"]  # fmt: skip
     rows = []
     for name, exp in EXPERIMENTS.items():
@@ -300,10 +444,9 @@ def growth_table(results: dict[str, dict]) -> tuple[list[str], list[list[str]]]:
                 f"{res['plan']['duration_s'] * 1e3:.1f} ms, analysed {mean(lambda m: m['analysed_s']) * 1e3:.1f} ms "
                 f"({len(pads)} pads)",
                 " → ".join(f"{mean(lambda m, i=i: m['mu_thirds'][i]):.4f}" for i in range(3)),
-                " / ".join(
-                    f"{mean(lambda m, k=k: m['line'].get(k)):.3f}"
-                    for k in ("first_dlnf", "dominant_dlnf", "predicted_dlnf")
-                ),
+                " / ".join(f"{mean(lambda m, k=k: m['line'].get(k)):.3f}" for k in ("first_dlnf", "dominant_dlnf"))
+                + f" / {mean(lambda m: cwt_lines(m['cwt'])['largest']['dlnf'] if 'cwt' in m else None):.3f}"
+                + f" / {mean(lambda m: m['line'].get('predicted_dlnf')):.3f}",
                 f"{mean(lambda m: stft(m, 'amplitude')):.3g} at {mean(lambda m: stft(m, 'frequency')) / 1e3:.1f} kHz",
                 f"{tn('peak_to_median', 0):.2f} → {tn('peak_to_median', 2):.2f}",
                 f"{tn('std', 0):.3g} → {tn('std', 2):.3g}",

@@ -8,12 +8,34 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.studies.validation.area import FIRST_LINE_FRACTION, LINE_BAND, PRIMARY_WINDOW, TONALITY_BAND, VA
-from aca_warp.studies.validation.base import MM2, Config, Row, RowValue, _get, by_seed, interval, register_row, values
+from aca_warp.studies.validation.area import (
+    CWT_FREQUENCIES,
+    FIRST_LINE_FRACTION,
+    LINE_BAND,
+    PRIMARY_WINDOW,
+    TONALITY_BAND,
+    VA,
+    cwt_lines,
+    cwt_peak_to_median,
+)
+from aca_warp.studies.validation.base import (
+    MM2,
+    Config,
+    Row,
+    RowValue,
+    _get,
+    by_seed,
+    interval,
+    paired,
+    register_row,
+    values,
+)
 from aca_warp.studies.validation.verdicts import (
     NOT_COMPARABLE,
+    NOT_MEASURED,
     direction_verdict,
     effect,
+    effect_text,
     spread_text,
     threshold_verdict,
     value_verdict,
@@ -32,6 +54,8 @@ DOMINATE_MARGIN = math.log(2.0)  # "significantly greater magnitudes": at least 
 TONAL_MARGIN = math.log(1.25)
 FLATNESS_MARGIN = 0.05
 GROWTH_MARGIN = math.log(1.25)
+RISE_TOLERANCE = 1e-6  # a rise of the matrix share below this (of the load) is the contact solve's rounding
+CLARITY_MARGIN = 0.1  # "clearer to observe": the falling trend explains at least a tenth more of ln f's variance
 
 
 def _pads(results: dict[str, dict]) -> dict[str, Any] | None:
@@ -90,6 +114,31 @@ def matrix_end_row(results: dict[str, dict], cfg: Config) -> RowValue:
     )
 
 
+def _share_track(pad: dict[str, Any]) -> np.ndarray:
+    return np.asarray(pad["contact_track"]["matrix_share"], dtype=np.float64)
+
+
+def portion_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    res = _pads(results)
+    rise = np.array(list(by_seed(res, lambda p: np.max(np.diff(_share_track(p)))).values()))
+    tracks = [_share_track(p) for p in (res or {}).get("pads", []) if "contact_track" in p]
+    if tracks:
+        times = np.asarray(res["pads"][0]["contact_track"]["times_s"])  # the same instants for every pad of a run
+        mean = np.mean(tracks, axis=0)
+        picks = np.unique(np.linspace(0, times.size - 1, 7).round().astype(int))
+        track = ", ".join(f"{mean[k]:.3f} at {times[k] * 1e3:.0f} ms" for k in picks)
+        kept = sum(bool(np.all(np.diff(x) <= RISE_TOLERANCE)) for x in tracks)
+        note = f"mean over the pads: {track}; pads whose share never rises: {kept} of {len(tracks)}"
+    else:
+        note = "no contact track in the results"
+    return RowValue(
+        f"largest rise of the matrix's share between consecutive instants: {interval(rise, '.2g')}",
+        threshold_verdict(rise, RISE_TOLERANCE, True),
+        f"{len(times) if tracks else 0} instants evenly over the run, the contact solved for the areas of Eq. 10 "
+        f"at each; {note}",
+    )
+
+
 def rise_row(results: dict[str, dict], cfg: Config) -> RowValue:
     res = _pads(results)
     d = values(res, "mu_rise")
@@ -119,10 +168,71 @@ def line_row(results: dict[str, dict], cfg: Config) -> RowValue:
         f"−Δ ln f of the first line over the record: {interval(first)}",
         direction_verdict([effect(first, LINE_MARGIN)]),
         f"first line: the lowest peak of Σu̇'s STFT reaching {FIRST_LINE_FRACTION:g} of the window's largest (the "
-        f"primary: the dominant line of μ hops between harmonics); the dominant line {interval(dom)}; isolated-patch "
+        f"primary: the dominant line of μ hops between harmonics); the dominant line {interval(dom)}; the ridge "
+        f"of μ's CWT in 20–80 kHz (Fig. 11) {interval(-np.array(list(_cwt_line(res, 'band', 'dlnf').values())))}; "
+        "isolated-patch "
         f"prediction Δ ln f = −½ ln(√A(T)/√A(t_s)): {interval(pred)}; pads whose own 95 % interval of the slope lies "
         f"below 0: first {falling[0]}, dominant {falling[1]}; STFT of {', '.join(str(w) for w in sorted(win))} "
         f"samples, no overlap, ≥ {LINE_BAND[0] / 1e3:g} kHz",
+    )
+
+
+CWT_AGAINST_STFT = {
+    "band": "mu_band",
+    "largest": "dominant",
+    "first": "mu_first",
+    "largest_l1": "dominant",
+    "first_l1": "mu_first",
+}
+CWT_LINE_NAMES = {
+    "band": "ridge in 20–80 kHz",
+    "largest": "ridge",
+    "first": "first line",
+    "largest_l1": "ridge, amplitude-true",
+    "first_l1": "first line, amplitude-true",
+}
+
+
+def _cwt_line(res: dict[str, Any] | None, line: str, key: str) -> dict[int, float]:
+    """Seed -> ``key`` ("dlnf", "r2") of the CWT ``line`` of μ (:func:`cwt_lines`)."""
+    return by_seed(res, lambda p: cwt_lines(p["measures"]["cwt"])[line][key])
+
+
+def _cwt_reading(res: dict[str, Any] | None, line: str) -> tuple[np.ndarray, np.ndarray, str]:
+    """−Δ ln f of the CWT ``line`` of μ, the R² of its trend less that of its STFT counterpart (paired by seed), and
+    the verdict of the two (each against its margin)."""
+    fall = -np.array(list(_cwt_line(res, line, "dlnf").values()))
+    gain = paired(_cwt_line(res, line, "r2"), by_seed(res, lambda p: _get(p, f"line.{CWT_AGAINST_STFT[line]}_r2")))
+    return fall, gain, direction_verdict([effect(fall, LINE_MARGIN), effect(gain, CLARITY_MARGIN)])
+
+
+def cwt_row(results: dict[str, dict], cfg: Config) -> RowValue:
+    res = _pads(results)
+    fall, gain, verdict = _cwt_reading(res, "band")
+    if fall.size == 0:
+        return RowValue("no CWT of μ in the results (made before it was measured)", NOT_MEASURED, "")
+    others = []
+    for line in ("largest", "first", "largest_l1", "first_l1"):
+        f, g, v = _cwt_reading(res, line)
+        against = "first line" if CWT_AGAINST_STFT[line] == "mu_first" else "dominant line"
+        others.append(f"{CWT_LINE_NAMES[line]} (against μ's STFT {against}): −Δ ln f {interval(f)}, R² gain "
+                      f"{interval(g)} ({v})")  # fmt: skip
+    r2 = {"cwt": interval(np.array(list(_cwt_line(res, "band", "r2").values()))),
+          "stft": interval(values(res, "line.mu_band_r2"))}  # fmt: skip
+    return RowValue(
+        f"−Δ ln f of the ridge of μ's CWT in 20–80 kHz: {interval(fall)}; R² of its trend − that of μ's largest STFT "
+        "bin there: "
+        f"{interval(gain)}",
+        verdict,
+        f"R² of the trend of ln f over time: CWT {r2['cwt']}, STFT {r2['stft']} (the same signal and windows, the "
+        "largest value within §4's characteristic band in both: over the whole band the CWT's largest value sits at "
+        "its edges, μ's slow fluctuations energy-normalised, the broadband top amplitude-true); the other readings "
+        f"of the CWT, over {LINE_BAND[0] / 1e3:g}–{LINE_BAND[1] / 1e3:g} kHz (the first line: the lowest interior "
+        f"peak reaching {FIRST_LINE_FRACTION:g} of the window's largest): {'; '.join(others)}; complex Morlet "
+        "cmor1.5-1.0, energy-normalised (|W| ÷ √f, flat for white noise as a spectrum is), "
+        f"{CWT_FREQUENCIES.size} frequencies {CWT_FREQUENCIES[0] / 1e3:g}–{CWT_FREQUENCIES[-1] / 1e3:g} kHz, "
+        f'averaged over each STFT window; "clearer" read as a falling trend that explains at least {CLARITY_MARGIN:g} '
+        "more of ln f's variance",
     )
 
 
@@ -191,19 +301,33 @@ def dominate_row(results: dict[str, dict], cfg: Config) -> RowValue:
 
 
 def _late_minus_early(res: dict[str, Any] | None, key: str, log: bool = False) -> np.ndarray:
+    """Per seed, the last third's less the first third's ``key`` of the spectra's tonality (its ln ratio when
+    ``log``); "cwt L1" / "cwt L2": ln(peak/median) of the CWT's (:func:`cwt_peak_to_median`)."""
+
     def d(p: dict[str, Any]) -> float:
-        v = p["measures"]["tonality"][key]
+        if key.startswith("cwt"):
+            v = cwt_peak_to_median(p["measures"]["cwt"], key.split()[1])
+        else:
+            v = p["measures"]["tonality"][key]
         return math.log(v[2] / v[0]) if log else v[2] - v[0]
 
     return np.array(list(by_seed(res, d).values()))
 
 
 def emergence_row(results: dict[str, dict], cfg: Config) -> RowValue:
-    return RowValue.direction(
-        "Δ ln(peak/median) of μ's spectrum, last − first third",
-        _late_minus_early(_pads(results), "peak_to_median"),
-        TONAL_MARGIN,
-        f"{TONALITY_BAND[0] / 1e3:g}–{TONALITY_BAND[1] / 1e3:g} kHz, linear trend removed per third",
+    res = _pads(results)
+    stft = _late_minus_early(res, "peak_to_median")
+    cwt = _late_minus_early(res, "cwt L2")
+    l1 = _late_minus_early(res, "cwt L1")
+    if cwt.size == 0:
+        return RowValue("no CWT of μ in the results (made before it was measured)", NOT_MEASURED, "")
+    return RowValue(
+        f"Δ ln(peak/median), last − first third, of μ's spectrum: {interval(stft)}; of μ's CWT: {interval(cwt)}",
+        direction_verdict([effect(stft, TONAL_MARGIN), effect(cwt, TONAL_MARGIN)]),
+        f"{TONALITY_BAND[0] / 1e3:g}–{TONALITY_BAND[1] / 1e3:g} kHz; spectrum: linear trend removed per third, "
+        f'{effect_text(stft, TONAL_MARGIN)}; CWT ("in both the STFT and CWT results"): its energy-normalised '
+        f"amplitude (flat for white noise, as the spectrum) averaged over each third, {effect_text(cwt, TONAL_MARGIN)}"
+        f"; the amplitude-true CWT (white noise rising as √f) {interval(l1)}",
     )
 
 
@@ -242,6 +366,11 @@ VA_ROWS = (
         "threshold", (VA,), contact_end_row, "every patch in contact", construction=HEIGHTS_CHOSEN),
     Row("§3.2", "at the start the pad-matrix contacts dominate", "matrix dominates", "threshold", (VA,),
         matrix_start_row, f"matrix share ≥ {MATRIX_START:g}", construction=HEIGHTS_CHOSEN),
+    Row("§3.2", "as the patches grow, their stiffnesses increase and they carry an increasing portion of the normal "
+        "load", "an increasing portion", "threshold", (VA,), portion_row,
+        f"the matrix share never rises (by > {RISE_TOLERANCE:g} of the load)",
+        construction="the disc is flat and the load fixed: stiffer patches (k_N = K_N √A, Eq. 1, growing by Eq. 10) "
+        "lift it off the matrix cells, a static property of the contact solve"),
     Row("§3.2", "the patches take over the load; at the end friction is completely dominated by patch-disc contacts",
         "patches dominate", "threshold", (VA,), matrix_end_row, f"matrix share ≤ {MATRIX_END:g} at the end",
         construction=HEIGHTS_CHOSEN),
@@ -251,14 +380,18 @@ VA_ROWS = (
         "as the contact rows above say"),
     Row("§3.2, Figs. 10/11", "the frequencies of the characteristic peaks fall as the patches grow",
         "decreasing frequencies", "direction", (VA,), line_row, f"Δ ln f < 0, margin {LINE_MARGIN:g}"),
+    Row("§3.2, Fig. 11", "in the CWT of μ the decreasing frequencies of the characteristic peaks are clearer to "
+        "observe",
+        "falling, clearer than in the STFT", "direction", (VA,), cwt_row,
+        f"the CWT's ridge in 20–80 kHz: Δ ln f < 0, margin {LINE_MARGIN:g}; R² gain > 0, margin {CLARITY_MARGIN:g}"),
     Row("§3.2, Fig. 10", "largest STFT peak of μ", "≈ 69.1 kHz", "value", (VA,), peak_frequency_row,
         f"± {100 * PEAK_TOLERANCE:g} %", uses=("stft",)),
     Row("§3.2, Fig. 10", "its amplitude, the STFT's maximum", "≈ 0.004", "not comparable", (VA,), amplitude_row,
         "window, scaling and normalisation not stated", uses=("stft",)),
     Row("§3.2, Fig. 10", "μ's DC offset and slow rise have significantly greater magnitudes than its HF oscillations",
         "much greater", "direction", (VA,), dominate_row, "both ln ratios > 0, margin ln 2"),
-    Row("§3.2, Figs. 10/11", "individual dominant frequencies emerge in μ's spectrum", "emerging lines", "direction",
-        (VA,), emergence_row, "Δ ln(peak/median) > 0, margin ln 1.25"),
+    Row("§3.2, Figs. 10/11", "individual dominant frequencies emerge in μ's spectrum, in the STFT and in the CWT",
+        "emerging lines", "direction", (VA,), emergence_row, "both Δ ln(peak/median) > 0, margin ln 1.25"),
     Row("§3.2", "the friction spectrum goes from stochastic (broad band) to periodic (dominant lines)",
         "stochastic → periodic", "direction", (VA,), transition_row, f"Δ flatness < 0, margin {FLATNESS_MARGIN:g}"),
     Row("§3.2, §4", "friction oscillations grow as the patch-disc contacts come to dominate", "growing oscillation",
