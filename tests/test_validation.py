@@ -625,7 +625,7 @@ def _synthetic_cwt(dlnf: float, emerge: float) -> dict:
     l2 = 0.01 + np.exp(-((np.log(f)[:, None] - line) ** 2) / (2 * 0.1**2))
     bump = (np.abs(f - 50e3) < 2e3).astype(float)[:, None]
     thirds = 1.0 + bump * (np.exp([[1.0, 1.2, 1.0 + emerge]]) - 1.0)
-    weight = VA._l2_weight(f)[:, None]
+    weight = VA.l2_weight(f)[:, None]
     return {"record_s": [0.0, 0.3], "times": (0.3 * frac).tolist(), "freqs_hz": f.tolist(),
             "amplitude": (l2 / weight).tolist(), "thirds": (thirds / weight).tolist()}  # fmt: skip
 
@@ -1200,3 +1200,16 @@ def test_compare_two_results_files(tmp_path, capsys, monkeypatch):
     out = capsys.readouterr().out
     assert out == (repo / kept / "compare.md").read_text()
     assert "the verdict moved in 0 rows, 0 from rest, 0 variants" in out
+
+
+def test_cwt_figure_of_the_committed_growth_runs(tmp_path, capsys):
+    """``scripts/validation_cwt_figure.py`` draws the growth runs' CWT from the committed eight-seed file, and refuses a
+    results file made before the CWT was measured, writing nothing."""
+    script = load_script("validation_cwt_figure")
+    docs = Path(__file__).resolve().parent.parent / "docs" / "validation"
+    out = tmp_path / "fig" / "va_cwt.png"
+    assert script.main([str(docs / "results.json"), str(out)]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 10_000
+    old = tmp_path / "old.png"
+    assert script.main([str(docs / "recheck_warp_parts" / "results.json"), str(old)]) == 2
+    assert "made before it was measured" in capsys.readouterr().err and not old.exists()

@@ -18,7 +18,7 @@ Modules, in the order of an experiment and of the page:
   :mod:`~aca_warp.studies.validation.hf_patterns` (Figs. 4–7), :mod:`~aca_warp.studies.validation.hf_peaks`
   (Fig. 8) and :mod:`~aca_warp.studies.validation.hf_sync` (Fig. 9, §5);
 * :mod:`~aca_warp.studies.validation.area` and :mod:`~aca_warp.studies.validation.area_rows`: §3.2 (the varying-area
-  growth at the paper's rate);
+  growth at the paper's rate), :mod:`~aca_warp.studies.validation.area_figure` its CWT as a figure;
 * :mod:`~aca_warp.studies.validation.multiscale` and :mod:`~aca_warp.studies.validation.multiscale_rows`: §3.3 and
   §4 (HF pads on the LF states);
 * :mod:`~aca_warp.studies.validation.appendix`: §2.2's filtered extremes of Eq. 6, §5's permutation test and Table

@@ -183,14 +183,14 @@ def _digits(a: np.ndarray) -> list[list[float]]:
     return [[float(f"{v:.4g}") for v in row] for row in a]
 
 
-def _l2_weight(freqs: np.ndarray) -> np.ndarray:
+def l2_weight(freqs: np.ndarray) -> np.ndarray:
     """(f₀/f)^½: the amplitude-true CWT times this is the energy-normalised one (flat for white noise), (F,)."""
     return (freqs[0] / freqs) ** 0.5
 
 
 def _weighted(cwt: dict[str, Any], key: str, norm: str) -> tuple[np.ndarray, np.ndarray]:
     freqs, a = np.asarray(cwt["freqs_hz"]), np.asarray(cwt[key], dtype=np.float64)
-    return freqs, a * _l2_weight(freqs)[:, None] if norm == "L2" else a
+    return freqs, a * l2_weight(freqs)[:, None] if norm == "L2" else a
 
 
 def cwt_lines(cwt: dict[str, Any]) -> dict[str, dict[str, Any]]:
