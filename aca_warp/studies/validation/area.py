@@ -65,8 +65,8 @@ CWT_STRIDE_S = 8.0e-6  # s: the CWT's output spacing (its envelope at 200 kHz va
 # noise makes rise as √f.
 CWT_LINES = {
     # the primary: the ridge within §4's characteristic band (20–80 kHz), on a noise floor as flat as the STFT's;
-    # over the whole band the ridges sit at its edges: μ's slow fluctuations (5–10 kHz) energy-normalised, the
-    # broadband top (120–170 kHz) amplitude-true
+    # over the whole band the ridges leave the lines: the energy-normalised one hops down to μ's slow fluctuations
+    # (below 12 kHz) in part of the windows, the amplitude-true one lies in the broadband top (120–170 kHz)
     "band": ("L2", 1.0, CHARACTERISTIC_BAND),
     "largest": ("L2", 1.0, LINE_BAND),
     "first": ("L2", 0.25, LINE_BAND),  # the rule of Σu̇'s STFT line (μ's slow fluctuations reach it early on)
@@ -415,7 +415,7 @@ def growth_table(results: dict[str, dict]) -> tuple[list[str], list[list[str]]]:
     """One line per growth experiment: growth compression, analysed length, μ by thirds, the line trends, the STFT
     maximum (2^12 samples) and the tonality and spread of μ in the first and the last third (means over pads)."""
     header = ["experiment", "run", "mean μ by thirds",
-              "Δ ln f: first line / dominant / CWT ridge / isolated patch", "STFT max (2^12): μ/μ̄ at f",
+              "Δ ln f: first line / dominant / CWT ridge in 20–80 kHz / isolated patch", "STFT max (2^12): μ/μ̄ at f",
               "ln(peak/median) first → last third",
               "std μ first → last third", "matrix share of the load: start → end"]  # fmt: skip
     rows = []
@@ -445,7 +445,7 @@ def growth_table(results: dict[str, dict]) -> tuple[list[str], list[list[str]]]:
                 f"({len(pads)} pads)",
                 " → ".join(f"{mean(lambda m, i=i: m['mu_thirds'][i]):.4f}" for i in range(3)),
                 " / ".join(f"{mean(lambda m, k=k: m['line'].get(k)):.3f}" for k in ("first_dlnf", "dominant_dlnf"))
-                + f" / {mean(lambda m: cwt_lines(m['cwt'])['largest']['dlnf'] if 'cwt' in m else None):.3f}"
+                + f" / {mean(lambda m: cwt_lines(m['cwt'])['band']['dlnf'] if 'cwt' in m else None):.3f}"
                 + f" / {mean(lambda m: m['line'].get('predicted_dlnf')):.3f}",
                 f"{mean(lambda m: stft(m, 'amplitude')):.3g} at {mean(lambda m: stft(m, 'frequency')) / 1e3:.1f} kHz",
                 f"{tn('peak_to_median', 0):.2f} → {tn('peak_to_median', 2):.2f}",
