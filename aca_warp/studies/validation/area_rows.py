@@ -4,6 +4,7 @@ equilibrium + the seeded perturbation; the measures: :mod:`~aca_warp.studies.val
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -166,6 +167,7 @@ def line_row(results: dict[str, dict], cfg: Config) -> RowValue:
     first = -values(res, "line.first_dlnf")
     dom = -values(res, "line.dominant_dlnf")
     pred = values(res, "line.predicted_dlnf")
+    ridge = -np.array(list(_cwt_line(_cwt_lines_by_seed(res), "band", "dlnf").values()))
     falling = [
         sum(1 for p in (res or {}).get("pads", [])
             if (p.get("measures") or {}).get("line", {}).get(f"{k}_dlnf_ci", [0, 0])[1] < 0)
@@ -177,8 +179,7 @@ def line_row(results: dict[str, dict], cfg: Config) -> RowValue:
         direction_verdict([effect(first, LINE_MARGIN)]),
         f"first line: the lowest peak of Σu̇'s STFT reaching {FIRST_LINE_FRACTION:g} of the window's largest (the "
         f"primary: the dominant line of μ hops between harmonics); the dominant line {interval(dom)}; the ridge "
-        f"of μ's CWT in 20–80 kHz (Fig. 11) {interval(-np.array(list(_cwt_line(res, 'band', 'dlnf').values())))}; "
-        "isolated-patch "
+        f"of μ's CWT in 20–80 kHz (Fig. 11) {interval(ridge)}; isolated-patch "
         f"prediction Δ ln f = −½ ln(√A(T)/√A(t_s)): {interval(pred)}; pads whose own 95 % interval of the slope lies "
         f"below 0: first {falling[0]}, dominant {falling[1]}; STFT of {', '.join(str(w) for w in sorted(win))} "
         f"samples, no overlap, ≥ {LINE_BAND[0] / 1e3:g} kHz",
@@ -201,33 +202,47 @@ CWT_LINE_NAMES = {
 }
 
 
-def _cwt_line(res: dict[str, Any] | None, line: str, key: str) -> dict[int, float]:
-    """Seed -> ``key`` ("dlnf", "r2") of the CWT ``line`` of μ (:func:`cwt_lines`)."""
-    return by_seed(res, lambda p: cwt_lines(p["measures"]["cwt"])[line][key])
+def _cwt_lines_by_seed(res: dict[str, Any] | None) -> dict[int, dict[str, dict[str, Any]]]:
+    """Seed -> :func:`cwt_lines` of each usable pad whose CWT reads (read once per row: every reading comes from it)."""
+    out = {}
+    for p in usable(res):
+        try:
+            out[int(p["seed"])] = cwt_lines(p["measures"]["cwt"])
+        except (ValueError, ZeroDivisionError, KeyError, TypeError):  # a measure missing or out of its domain
+            continue
+    return out
 
 
-def _cwt_reading(res: dict[str, Any] | None, line: str) -> tuple[np.ndarray, np.ndarray, str]:
-    """−Δ ln f of the CWT ``line`` of μ, the R² of its trend less that of its STFT counterpart (paired by seed), and
-    the verdict of the two (each against its margin)."""
-    fall = -np.array(list(_cwt_line(res, line, "dlnf").values()))
-    gain = paired(_cwt_line(res, line, "r2"), by_seed(res, lambda p: _get(p, f"line.{CWT_AGAINST_STFT[line]}_r2")))
+def _cwt_line(lines: dict[int, dict[str, dict[str, Any]]], line: str, key: str) -> dict[int, float]:
+    """Seed -> ``key`` ("dlnf", "r2") of the CWT ``line`` of μ, finite values only (as ``by_seed``)."""
+    return {s: float(v[line][key]) for s, v in lines.items() if math.isfinite(v[line][key])}
+
+
+def _cwt_reading(
+    res: dict[str, Any] | None, lines: dict[int, dict[str, dict[str, Any]]], line: str
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """−Δ ln f of the CWT ``line`` of μ (``lines``: :func:`_cwt_lines_by_seed` of ``res``), the R² of its trend less
+    that of its STFT counterpart (paired by seed), and the verdict of the two (each against its margin)."""
+    fall = -np.array(list(_cwt_line(lines, line, "dlnf").values()))
+    gain = paired(_cwt_line(lines, line, "r2"), by_seed(res, lambda p: _get(p, f"line.{CWT_AGAINST_STFT[line]}_r2")))
     return fall, gain, direction_verdict([effect(fall, LINE_MARGIN), effect(gain, CLARITY_MARGIN)])
 
 
 def cwt_row(results: dict[str, dict], cfg: Config) -> RowValue:
     res = _pads(results)
-    fall, gain, verdict = _cwt_reading(res, "band")
+    lines = _cwt_lines_by_seed(res)
+    fall, gain, verdict = _cwt_reading(res, lines, "band")
     if fall.size == 0:
         return RowValue("no CWT of μ in the results (made before it was measured)", NOT_MEASURED, "")
     others, readings = [], {verdict}
     for line in ("largest", "first", "largest_l1", "first_l1"):
-        f, g, v = _cwt_reading(res, line)
+        f, g, v = _cwt_reading(res, lines, line)
         readings.add(v)
         against = "first line" if CWT_AGAINST_STFT[line] == "mu_first" else "dominant line"
         others.append(f"{CWT_LINE_NAMES[line]} (against μ's STFT {against}): −Δ ln f {interval(f)}, R² gain "
                       f"{interval(g)} ({v})")  # fmt: skip
     grid = CWT_FREQUENCIES[(CWT_FREQUENCIES >= CHARACTERISTIC_BAND[0]) & (CWT_FREQUENCIES <= CHARACTERISTIC_BAND[1])]
-    ridges = [cwt_lines(p["measures"]["cwt"])["band"]["hz"] for p in usable(res) if "cwt" in p["measures"]]
+    ridges = [v["band"]["hz"] for v in lines.values()]
     at_edge = np.mean([np.isclose(np.asarray(r)[:, None], grid[[0, -1]], rtol=1e-5).any(axis=1).mean() for r in ridges])
     band = f"{CHARACTERISTIC_BAND[0] / 1e3:g}–{CHARACTERISTIC_BAND[1] / 1e3:g} kHz"
     split = (
@@ -236,7 +251,7 @@ def cwt_row(results: dict[str, dict], cfg: Config) -> RowValue:
         else "the readings of the CWT disagree (Fig. 11 states neither its normalisation nor its line, and the band "
         f"was chosen after the whole band was seen), so the row is undetermined; the ridge in {band}: {verdict}; "
     )
-    r2 = {"cwt": interval(np.array(list(_cwt_line(res, "band", "r2").values()))),
+    r2 = {"cwt": interval(np.array(list(_cwt_line(lines, "band", "r2").values()))),
           "stft": interval(values(res, "line.mu_band_r2"))}  # fmt: skip
     return RowValue(
         f"−Δ ln f of the ridge of μ's CWT in {band}: {interval(fall)}; R² of its trend − that of μ's largest STFT bin "
@@ -320,15 +335,13 @@ def dominate_row(results: dict[str, dict], cfg: Config) -> RowValue:
     )
 
 
-def _late_minus_early(res: dict[str, Any] | None, key: str, log: bool = False) -> np.ndarray:
-    """Per seed, the last third's less the first third's ``key`` of the spectra's tonality (its ln ratio when
-    ``log``); "cwt L1" / "cwt L2": ln(peak/median) of the CWT's (:func:`cwt_peak_to_median`)."""
+def _late_minus_early(res: dict[str, Any] | None, key: str | Callable[[dict], list[float]], log: bool = False
+                      ) -> np.ndarray:  # fmt: skip
+    """Per seed, the last third's less the first third's ``key`` of the spectra's tonality, or of the three values
+    ``key`` reads off a pad's measures (its ln ratio when ``log``)."""
 
     def d(p: dict[str, Any]) -> float:
-        if key.startswith("cwt"):
-            v = cwt_peak_to_median(p["measures"]["cwt"], key.split()[1])
-        else:
-            v = p["measures"]["tonality"][key]
+        v = key(p["measures"]) if callable(key) else p["measures"]["tonality"][key]
         return math.log(v[2] / v[0]) if log else v[2] - v[0]
 
     return np.array(list(by_seed(res, d).values()))
@@ -337,8 +350,8 @@ def _late_minus_early(res: dict[str, Any] | None, key: str, log: bool = False) -
 def emergence_row(results: dict[str, dict], cfg: Config) -> RowValue:
     res = _pads(results)
     stft = _late_minus_early(res, "peak_to_median")
-    cwt = _late_minus_early(res, "cwt L2")
-    l1 = _late_minus_early(res, "cwt L1")
+    cwt = _late_minus_early(res, lambda m: cwt_peak_to_median(m["cwt"], "L2"))
+    l1 = _late_minus_early(res, lambda m: cwt_peak_to_median(m["cwt"], "L1"))
     if cwt.size == 0:
         return RowValue("no CWT of μ in the results (made before it was measured)", NOT_MEASURED, "")
     return RowValue(
