@@ -47,8 +47,13 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.studies.validation.base import EXPERIMENTS, Config, Experiment, register_experiment
-from aca_warp.studies.validation.measures import BAND as CHARACTERISTIC_BAND
+from aca_warp.studies.validation.base import (
+    CHARACTERISTIC_BAND,
+    EXPERIMENTS,
+    Config,
+    Experiment,
+    register_experiment,
+)
 
 PRIMARY_WINDOW = 2**12  # samples: the STFT window of the rows (4.1 ms at 1 µs; fits every variant's record)
 HF_SMOOTH_S = 1.0e-3  # s: μ less its moving mean over this is μ's HF part (above ~1 kHz)

@@ -9,7 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.studies.validation.area import CHARACTERISTIC_BAND, cwt_lines, l2_weight
+from aca_warp.studies.validation.area import cwt_lines, l2_weight
+from aca_warp.studies.validation.base import CHARACTERISTIC_BAND
 
 EXPERIMENTS = ("va_full", "va_full_rest")
 

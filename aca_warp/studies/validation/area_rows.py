@@ -10,7 +10,6 @@ from typing import Any
 import numpy as np
 
 from aca_warp.studies.validation.area import (
-    CHARACTERISTIC_BAND,
     CWT_FREQUENCIES,
     FIRST_LINE_FRACTION,
     LINE_BAND,
@@ -21,6 +20,7 @@ from aca_warp.studies.validation.area import (
     cwt_peak_to_median,
 )
 from aca_warp.studies.validation.base import (
+    CHARACTERISTIC_BAND,
     MM2,
     Config,
     Row,

@@ -29,6 +29,10 @@ from aca_warp.studies.validation.verdicts import (
 )
 
 MM2 = 1.0e-6  # m² per mm²
+CHARACTERISTIC_BAND = (20.0e3, 80.0e3)
+"""Hz: §4, "the characteristic friction and synchronization behavior ... 20–80 kHz"."""
+SYNC_EXCESS = 0.05
+"""S − S_null above which a frequency bin counts as synchronised."""
 
 # ------------------------------------------------------------------------------------------------ settings
 

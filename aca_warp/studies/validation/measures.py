@@ -19,12 +19,11 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.studies.validation.base import Config
+from aca_warp.studies.validation.base import CHARACTERISTIC_BAND, Config
 
 PATCH_FRACTIONS = (0.02, 0.05, 0.1, 0.25)  # the per-patch first peak: lowest peak reaching this share of the maximum
 SUM_SEGMENTS = 4  # Welch segments of a quarter of the span for Σu̇'s spectrum
 COHERENCE_SEGMENTS = 8  # segments of Σu̇–μ coherence
-BAND = (20.0e3, 80.0e3)  # Hz: §4's band
 
 
 def global_spectra(seg: np.ndarray, sample_dt: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -131,7 +130,7 @@ def coherence_measures(seg: np.ndarray, sample_dt: float, f1: float) -> dict[str
     f, c = scipy.signal.coherence(seg[:, 3], seg[:, 0], fs=1.0 / sample_dt, nperseg=n)
     i = int(np.argmin(np.abs(f - f1)))
     near = c[max(i - 2, 0) : i + 3]
-    band = (f >= BAND[0]) & (f <= BAND[1])
+    band = (f >= CHARACTERISTIC_BAND[0]) & (f <= CHARACTERISTIC_BAND[1])
     return {
         "coherence_f1": float(near.max()),
         "coherence_band": float(c[band].mean()) if band.any() else None,

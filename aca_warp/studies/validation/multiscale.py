@@ -56,8 +56,6 @@ MAIN = tuple(GROUPS)
 LIN_DURATION, LIN_START = 2.0e-3, 0.5e-3  # s: the linear phase from rest, the single run's window
 ORDER_BAR = (10.0, 5.0, 30.0, 15.0)  # the low-load application right after the 10-bar one
 QUICK_DURATIONS = (2.0, 1.0)  # s: application and pause lengths of the quick variant (multiscale_study --quick)
-BAND = (20.0e3, 80.0e3)  # Hz: §4, "the characteristic friction and synchronization behavior ... 20–80 kHz"
-SYNC_EXCESS = 0.05  # S − S_null above which a bin counts as synchronised (measures.SYNC_EXCESS)
 
 
 # ------------------------------------------------------------------------------------------------ LF runs

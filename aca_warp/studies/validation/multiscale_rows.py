@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from aca_warp.studies.validation.base import (
+    CHARACTERISTIC_BAND,
     Config,
     Row,
     RowValue,
@@ -25,7 +26,7 @@ from aca_warp.studies.validation.base import (
     register_row,
     values,
 )
-from aca_warp.studies.validation.multiscale import BAND, MAIN, STATES
+from aca_warp.studies.validation.multiscale import MAIN, STATES
 from aca_warp.studies.validation.verdicts import (
     NOT_MEASURED,
     NOT_REPRODUCED,
@@ -312,9 +313,10 @@ def early_row(results: dict[str, dict], cfg: Config) -> RowValue:
 
 
 def in_band(v: np.ndarray) -> str:
-    """Threshold verdict of a state's values ``v`` [Hz] against both edges of :data:`BAND`: reproduced when the whole
-    95 % interval of the mean lies inside, not reproduced when the mean lies outside, partly otherwise."""
-    edges = (threshold_verdict(v, BAND[0], False), threshold_verdict(v, BAND[1], True))
+    """Threshold verdict of a state's values ``v`` [Hz] against both edges of §4's band
+    (:data:`CHARACTERISTIC_BAND`): reproduced when the whole 95 % interval of the mean lies inside, not reproduced when
+    the mean lies outside, partly otherwise."""
+    edges = (threshold_verdict(v, CHARACTERISTIC_BAND[0], False), threshold_verdict(v, CHARACTERISTIC_BAND[1], True))
     if NOT_REPRODUCED in edges or NOT_MEASURED in edges:
         return NOT_REPRODUCED if NOT_REPRODUCED in edges else NOT_MEASURED
     return REPRODUCED if edges == (REPRODUCED, REPRODUCED) else PARTLY

@@ -14,12 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.studies.validation.base import Config
+from aca_warp.studies.validation.base import CHARACTERISTIC_BAND, SYNC_EXCESS, Config
 
-SYNC_EXCESS = 0.05  # S − S_null above which a bin counts as synchronised
 COUPLING_RADIUS = 5.0e-3  # m: the default coupling radius (docs/model.md §2.5)
 SNAPSHOTS = 64  # instants of the direction-of-motion pattern (Figs. 4/6) per pad
-BAND = (20.0e3, 80.0e3)  # Hz: §4's band
 PEAK_PROMINENCE = 4.0  # a μ peak stands a factor 4 above its surroundings (as shared_peaks)
 PEAK_TOLERANCE_BINS = 2
 
@@ -59,7 +57,7 @@ def band_summaries(freq: np.ndarray, S: np.ndarray, null: np.ndarray, phi: np.nd
     """Spread (share of the defined bins with S − S_null > 0.05) and prevalence (mean Φ) over the pad's band
     [f1/8, 2 f1] and over the absolute bands (the whole S band, 20–80 kHz), with the mean S − S_null there."""
     ok = np.isfinite(S) & np.isfinite(null)
-    bands = {"": (f1 / 8, 2 * f1), "_all": (freq[0], freq[-1]), "_band": BAND}
+    bands = {"": (f1 / 8, 2 * f1), "_all": (freq[0], freq[-1]), "_band": CHARACTERISTIC_BAND}
     out: dict[str, Any] = {}
     for suffix, (lo, hi) in bands.items():
         sel = ok & (freq >= lo) & (freq <= hi)
@@ -133,12 +131,12 @@ def sync_measures(
     edges = prevalence_classes(X.shape[1])
     tabs = {}
     for key, sel in (("table", np.ones(freq.size, bool)), ("table_high", freq > f1),
-                     ("table_band", (freq >= BAND[0]) & (freq <= BAND[1]))):  # fmt: skip
+                     ("table_band", (freq >= CHARACTERISTIC_BAND[0]) & (freq <= CHARACTERISTIC_BAND[1]))):  # fmt: skip
         tabs[key] = _table_dict(sync_by_prevalence(S[sel], null[sel], phi[sel], edges=edges))
     ok = np.isfinite(S) & np.isfinite(null)
     i1 = int(np.argmin(np.abs(freq - f1)))
     prevalent = ok & (phi >= 10)
-    in_band = (freq >= BAND[0]) & (freq <= BAND[1])
+    in_band = (freq >= CHARACTERISTIC_BAND[0]) & (freq <= CHARACTERISTIC_BAND[1])
     both = in_band & ok
     scalars = {
         **tabs,
@@ -148,7 +146,7 @@ def sync_measures(
         "S_at_f1": float(S[i1]),
         "Phi_at_f1": int(phi[i1]),
         **peak_features(freq, S, null, phi, mu_amp, f1),
-        "agreement": spectral_agreement(freq, S, phi, mu_amp, band=BAND) if in_band.sum() > 2 else None,
+        "agreement": spectral_agreement(freq, S, phi, mu_amp, band=CHARACTERISTIC_BAND) if in_band.sum() > 2 else None,
         "rho_excess_mu": _spearman((S - null)[both], mu_amp[both]),
         "rho_phi_mu": _spearman(phi[in_band].astype(float), mu_amp[in_band]),
         "params": res.params,
@@ -262,7 +260,7 @@ def permutation_measures(
     both = np.isfinite(S) & np.isfinite(S2)
     out: dict[str, Any] = {"perm_max_dS": float(np.max(np.abs(S[both] - S2[both]))) if both.any() else None}
     if coherence is not None:
-        band = (freq >= BAND[0]) & (freq <= BAND[1])
+        band = (freq >= CHARACTERISTIC_BAND[0]) & (freq <= CHARACTERISTIC_BAND[1])
         c2 = neighbour_coherence(x[perm], y[perm], X, COUPLING_RADIUS)
         out["perm_coherence"] = float(np.nanmean(coherence[band]))
         out["perm_coherence_permuted"] = float(np.nanmean(c2[band]))
