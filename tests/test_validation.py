@@ -587,13 +587,16 @@ def test_cwt_lines_need_three_windows_interpolate_between_grid_frequencies_and_d
         VA.cwt_measures(np.sin(2 * np.pi * 50e3 * t[:8000]), 1e-6, 4096)
 
 
-def test_contact_track_falls_from_the_start_to_the_end_contact():
+def test_growth_contact_falls_from_the_start_to_its_end():
     s = _va_scene()
-    track = VA.contact_track(s, s.duration)
+    c = VA.growth_contact(s, s.duration)
+    track = c["contact_track"]
     share = np.array(track["matrix_share"])
     assert len(track["times_s"]) == share.size == VA.CONTACT_INSTANTS and track["times_s"][-1] == s.duration
-    assert share[-1] == pytest.approx(VA.end_contact(s, s.duration)["end_matrix_share"])
-    assert share[0] == pytest.approx(VA.end_contact(s, 0.0)["end_matrix_share"]) and share[0] > share[-1]
+    end, start = VA.contact_at(s, s.duration), VA.contact_at(s, 0.0)
+    assert {k: c[f"end_{k}"] for k in end} == end and share[-1] == end["matrix_share"]
+    assert share[0] == start["matrix_share"] and share[0] > share[-1]
+    assert end["mean_area_m2"] > start["mean_area_m2"] and 0.0 < end["in_contact"] <= 1.0
     assert np.all(np.diff(share) <= 1e-12)
 
 

@@ -33,7 +33,7 @@ from μ(t) and Σu̇(t) of each pad (:func:`growth_measures`) over the record af
   (:func:`cwt_measures`, read by :func:`cwt_lines` and :func:`cwt_peak_to_median`);
 * **the load on the patches**: the contact solved for the areas of Eq. 10 at the end of the run (the share of the
   load the matrix carries, the patches in contact, the mean area) beside the start's, and the matrix's share at
-  :data:`CONTACT_INSTANTS` instants evenly over the run (:func:`contact_track`).
+  :data:`CONTACT_INSTANTS` instants evenly over the run (:func:`growth_contact`).
 
 The first saturation is found by ``saturation`` on Σ|u̇| over the first part of the record (four times the
 predicted settling time at the starting areas, at least a fifth of the record); a pad released from rest counts
@@ -328,31 +328,31 @@ def grown_area(scene: Any, t: float) -> np.ndarray:
     return (np.sqrt(scene.patches.area) + 0.5 * g.increment * np.floor(t / g.interval + 1e-9)) ** 2
 
 
-def contact_track(scene: Any, duration: float, instants: int = CONTACT_INSTANTS) -> dict[str, list[float]]:
-    """The matrix's share of the load at ``instants`` times evenly over [0, ``duration``] [s] of a growing pad, the
-    contact solved for the areas of Eq. 10 at each (:func:`grown_area`): ``times_s`` and ``matrix_share``."""
-    from aca_warp.hf.contact import solve_scene_contact
-
-    times = np.linspace(0.0, duration, instants)
-    share = [float(solve_scene_contact(scene, area=grown_area(scene, t)).matrix_force.sum() / scene.normal_force)
-             for t in times]  # fmt: skip
-    return {"times_s": times.tolist(), "matrix_share": share}
-
-
-def end_contact(scene: Any, t: float) -> dict[str, Any]:
-    """The contact of a growing pad with the areas of Eq. 10 at ``t`` [s] (the matrix cells as they are, as the run
-    re-solves it): the matrix's share of the load, the share of the patches in contact, and the mean and extreme
-    areas [m²]."""
+def contact_at(scene: Any, t: float) -> dict[str, Any]:
+    """The contact of a growing pad with the areas of Eq. 10 at ``t`` [s] (:func:`grown_area`; the matrix cells as
+    they are, as the run re-solves it): the matrix's share of the load (``matrix_share``), the share of the patches
+    in contact (``in_contact``), and the mean and extreme areas [m²] (``mean_area_m2``, ``area_range_m2``)."""
     from aca_warp.hf.contact import solve_scene_contact
 
     area = grown_area(scene, t)
     c = solve_scene_contact(scene, area=area)
     return {
-        "end_matrix_share": float(c.matrix_force.sum() / scene.normal_force),
-        "end_in_contact": float(np.mean(c.patch_force > 0)),
-        "end_mean_area_m2": float(area.mean()),
-        "end_area_range_m2": [float(area.min()), float(area.max())],
+        "matrix_share": float(c.matrix_force.sum() / scene.normal_force),
+        "in_contact": float(np.mean(c.patch_force > 0)),
+        "mean_area_m2": float(area.mean()),
+        "area_range_m2": [float(area.min()), float(area.max())],
     }
+
+
+def growth_contact(scene: Any, duration: float, instants: int = CONTACT_INSTANTS) -> dict[str, Any]:
+    """The contact of a growing pad over [0, ``duration``] [s], solved once at each of ``instants`` times evenly
+    over it (:func:`contact_at`): its end as ``end_matrix_share``, ``end_in_contact``, ``end_mean_area_m2`` and
+    ``end_area_range_m2``, and ``contact_track``, the matrix's share at every instant (``times_s``,
+    ``matrix_share``)."""
+    times = np.linspace(0.0, duration, instants)
+    at = [contact_at(scene, t) for t in times]
+    track = {"times_s": times.tolist(), "matrix_share": [a["matrix_share"] for a in at]}
+    return {**{f"end_{k}": v for k, v in at[-1].items()}, "contact_track": track}
 
 
 def analyse_growth(
@@ -363,8 +363,7 @@ def analyse_growth(
     for p, s in enumerate(scenes):
         entry: dict[str, Any] = {"seed": s.initial.seed, "patches": s.patches.count}
         entry.update(first_saturation(time, glob[:, p, 4], plan.settle, s.initial.state == "rest"))
-        entry.update(end_contact(s, plan.duration))
-        entry["contact_track"] = contact_track(s, plan.duration)
+        entry.update(growth_contact(s, plan.duration))
         if entry["status"] == "saturated":
             try:
                 entry["measures"] = growth_measures(time, glob[:, p, 0], glob[:, p, 3], s, entry["t_start"])
