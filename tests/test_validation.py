@@ -1214,14 +1214,40 @@ def test_compare_two_results_files(tmp_path, capsys, monkeypatch):
     assert "the verdict moved in 0 rows, 0 from rest, 0 variants" in out
 
 
-def test_cwt_figure_of_the_committed_growth_runs(tmp_path, capsys):
-    """``scripts/validation_cwt_figure.py`` draws the growth runs' CWT from the committed eight-seed file, and refuses a
-    results file made before the CWT was measured, writing nothing."""
-    script = load_script("validation_cwt_figure")
+def test_validation_figures_of_the_committed_files(tmp_path, capsys):
+    """``scripts/validation_figures.py`` draws the first peaks and the growth runs' CWT from the committed eight-seed
+    file; from a results file made before the CWT was measured it writes the first peaks, not the CWT, and says so
+    (exit status 2); a file in place of the folder is refused."""
+    script = load_script("validation_figures")
     docs = Path(__file__).resolve().parent.parent / "docs" / "validation"
-    out = tmp_path / "fig" / "va_cwt.png"
+    out = tmp_path / "fig"
     assert script.main([str(docs / "results.json"), str(out)]) == 0
-    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 10_000
-    old = tmp_path / "old.png"
+    for name in ("first_peaks.png", "va_cwt.png"):
+        png = out / name
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+    old = tmp_path / "old"
     assert script.main([str(docs / "recheck_warp_parts" / "results.json"), str(old)]) == 2
-    assert "made before it was measured" in capsys.readouterr().err and not old.exists()
+    assert "va_cwt.png not written" in capsys.readouterr().err
+    assert (old / "first_peaks.png").is_file() and not (old / "va_cwt.png").exists()
+    with pytest.raises(SystemExit):
+        script.main([str(docs / "results.json"), str(out / "first_peaks.png")])
+    assert "not a folder" in capsys.readouterr().err
+
+
+def test_first_peak_figure_reads_the_rows_values():
+    """The figure's values are the rows': the primary's first peaks and the two-size exponents from equilibrium and
+    from rest, per seed, as ``values`` and ``two_area_exponent`` give them; a file without §3.1 runs is refused."""
+    from aca_warp.studies.validation.hf_peaks import two_area_exponent
+    from aca_warp.studies.validation.peaks_figure import READINGS, exponents, first_peaks, peaks_figure
+    from aca_warp.studies.validation.results import read_results
+
+    docs = Path(__file__).resolve().parent.parent / "docs" / "validation"
+    results, _, _ = read_results(docs / "results.json")
+    peaks, fits = first_peaks(results), exponents(results)
+    assert len(peaks) == 4 * 2 * len(READINGS) and READINGS[0][1] == "f1"
+    np.testing.assert_array_equal(peaks[("hf2", "_rest", "f1")], VB.values(results["hf2_rest"], "f1"))
+    rest = two_area_exponent(results, "f1", (("hf2_rest", "hf1_rest"),))
+    np.testing.assert_array_equal(fits[("two sizes, from rest", "f1")], rest)
+    assert abs(rest.mean() + 0.25) < 0.025  # from rest the primary's exponent lies within the row's tolerance
+    with pytest.raises(ValueError, match="none of the §3.1 experiments"):
+        peaks_figure({"va_full": results["va_full"]}, Path("unused.png"))

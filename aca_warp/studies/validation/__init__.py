@@ -16,7 +16,8 @@ Modules, in the order of an experiment and of the page:
   one pad (the quantities the paper's figures show);
 * :mod:`~aca_warp.studies.validation.hf_experiments`: the §3.1 experiments; their rows in
   :mod:`~aca_warp.studies.validation.hf_patterns` (Figs. 4–7), :mod:`~aca_warp.studies.validation.hf_peaks`
-  (Fig. 8) and :mod:`~aca_warp.studies.validation.hf_sync` (Fig. 9, §5);
+  (Fig. 8; :mod:`~aca_warp.studies.validation.peaks_figure` its first peaks as a figure) and
+  :mod:`~aca_warp.studies.validation.hf_sync` (Fig. 9, §5);
 * :mod:`~aca_warp.studies.validation.area` and :mod:`~aca_warp.studies.validation.area_rows`: §3.2 (the varying-area
   growth at the paper's rate), :mod:`~aca_warp.studies.validation.area_figure` its CWT as a figure;
 * :mod:`~aca_warp.studies.validation.multiscale` and :mod:`~aca_warp.studies.validation.multiscale_rows`: §3.3 and
