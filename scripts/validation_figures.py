@@ -8,6 +8,9 @@
   ``va_full_rest``; window means, amplitude-true and energy-normalised, each window scaled to its largest value),
   with the median first line of Σu̇'s STFT (white) and the median CWT ridge within §4's 20–80 kHz (red).
 
+* ``verdicts.png``: how many rows carry each verdict, per section of the paper, from the primary start and from rest
+  at the paper's length (the rows measured there, beside the primary's verdicts on the same rows).
+
 A figure whose data the file does not hold is reported and not written; the others are (exit status 2 then).
 Example::
 
@@ -20,7 +23,7 @@ import argparse
 import sys
 from pathlib import Path
 
-FIGURES = {"peaks": "first_peaks.png", "cwt": "va_cwt.png"}
+FIGURES = {"verdicts": "verdicts.png", "peaks": "first_peaks.png", "cwt": "va_cwt.png"}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -34,13 +37,18 @@ def main(argv: list[str] | None = None) -> int:
     from aca_warp.studies.validation.area_figure import cwt_figure
     from aca_warp.studies.validation.peaks_figure import peaks_figure
     from aca_warp.studies.validation.results import read_results
+    from aca_warp.studies.validation.verdicts_figure import verdicts_figure
 
     if not args.results.is_file():
         p.error(f"no such results file: {args.results}")
     if args.out.exists() and not args.out.is_dir():
         p.error(f"not a folder: {args.out}")
-    results, _, _ = read_results(args.results)
-    draw = {"peaks": peaks_figure, "cwt": cwt_figure}
+    results, _, cfg = read_results(args.results)
+    draw = {
+        "verdicts": lambda r, path: verdicts_figure(r, cfg, path),
+        "peaks": peaks_figure,
+        "cwt": cwt_figure,
+    }
     status = 0
     for name in args.only:
         try:

@@ -1222,7 +1222,7 @@ def test_validation_figures_of_the_committed_files(tmp_path, capsys):
     docs = Path(__file__).resolve().parent.parent / "docs" / "validation"
     out = tmp_path / "fig"
     assert script.main([str(docs / "results.json"), str(out)]) == 0
-    for name in ("first_peaks.png", "va_cwt.png"):
+    for name in ("verdicts.png", "first_peaks.png", "va_cwt.png"):
         png = out / name
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
     old = tmp_path / "old"
@@ -1251,3 +1251,34 @@ def test_first_peak_figure_reads_the_rows_values():
     assert abs(rest.mean() + 0.25) < 0.025  # from rest the primary's exponent lies within the row's tolerance
     with pytest.raises(ValueError, match="none of the §3.1 experiments"):
         peaks_figure({"va_full": results["va_full"]}, Path("unused.png"))
+
+
+def test_verdicts_figure_counts_the_pages_verdicts(tmp_path):
+    """The verdict figure's tallies are the page's counts: every row once in the primary's bars, the rows measured
+    from rest once in each of the other two, the construction marks as the page counts them; results without any
+    experiment still give a figure: the rows that need none measured, the others not measured."""
+    from aca_warp.studies.validation.causes import beside_rest
+    from aca_warp.studies.validation.results import read_results
+    from aca_warp.studies.validation.verdicts import VERDICTS
+    from aca_warp.studies.validation.verdicts_figure import BARS, tallies, verdicts_figure
+
+    docs = Path(__file__).resolve().parent.parent / "docs" / "validation"
+    results, _, cfg = read_results(docs / "results.json")
+    order, counts = tallies(results, cfg)
+    rows, rest = VB.evaluate_rows(results, cfg), beside_rest(results, cfg)
+
+    def total(bar: str, verdict: str | None = None, built: bool = False) -> int:
+        return sum(sum(f) if built else len(f) for (_, b), c in counts.items() if b == bar
+                   for v, f in c.items() if verdict in (None, v))  # fmt: skip
+
+    assert order[0] == "§2.2" and order[-1] == "Appendix" and total(BARS[0]) == len(rows) == len(VB.ROWS)
+    for verdict in {r["verdict"] for r in rows}:
+        assert total(BARS[0], verdict) == sum(r["verdict"] == verdict for r in rows)
+    built = sum(r["verdict"] == "reproduced" and bool(r["construction"]) for r in rows)
+    assert total(BARS[0], "reproduced", built=True) == built > 0
+    measured = [(r, b) for r, b in zip(rows, rest, strict=True) if b is not None and b["verdict"] in VERDICTS]
+    assert total(BARS[1]) == total(BARS[2]) == len(measured) > 0
+    assert total(BARS[2], "reproduced") == sum(b["verdict"] == "reproduced" for _, b in measured)
+    _, empty = tallies({}, cfg)
+    assert sum(len(f) for c in empty.values() for v, f in c.items() if v != "not measured") < len(rows)
+    assert verdicts_figure({}, cfg, tmp_path / "none.png").stat().st_size > 10_000
