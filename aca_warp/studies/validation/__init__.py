@@ -32,6 +32,8 @@ Modules, in the order of an experiment and of the page:
   from; :mod:`~aca_warp.studies.validation.compare` two such files side by side and
   :mod:`~aca_warp.studies.validation.draws` every row on each disjoint draw of fewer seeds;
 * :mod:`~aca_warp.studies.validation.page`: the generated part of docs/validation.md;
+  :mod:`~aca_warp.studies.validation.verdicts_figure` its verdicts per section as a figure
+  (``scripts/validation_figures.py``, which draws the page's figures);
 * :mod:`~aca_warp.studies.validation.cli`: the command line (``scripts/validation.py``).
 
 Importing the package registers every experiment and row, in the order of the runs and of the table.
