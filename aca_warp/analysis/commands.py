@@ -402,7 +402,7 @@ def peak_lines(groups: dict[str, Any], freq_min: float | None = None) -> list[st
     coarser than the global record's), a peak that is only a band edge said to be one, and an empty peak search's
     band said with the edge that empties it (``freq_min``: ``--freq-min`` [Hz], None when not given). The velocity
     peak names its spectrum; one from the mean per-patch spectrum has Σu̇'s beside it, the spectrum the paper's
-    Fig. 8 plots (the two readings the paper leaves open: docs/analysis.md)."""
+    Fig. 8 is read to plot (the two readings the paper leaves open: docs/analysis.md)."""
     from aca_warp.analysis.report import bin_width
 
     peaks, spectra = groups["peaks"].attrs, groups["spectra"]

@@ -1,7 +1,8 @@
-"""§3.1 rows on the spectra of Fig. 8: the first velocity peak (read from the velocity sum Σu̇, the quantity Fig. 8
-plots; :mod:`~aca_warp.studies.validation.measures`), the A_p^(−1/4) law in the spectra and in S(f), the shapes of
-the spectra (pronounced first peak, plateaus, overlapping μ and torque, shared peaks), the first peak and plateau
-against S, μ's high-frequency peaks without an S counterpart, and the larger patches' higher, narrower, lower peaks.
+"""§3.1 rows on the spectra of Fig. 8: the first velocity peak (read from the velocity sum Σu̇, as which Fig. 8's
+velocity spectrum is read; :mod:`~aca_warp.studies.validation.measures`), the A_p^(−1/4) law in the spectra and in
+S(f), the shapes of the spectra (pronounced first peak, plateaus, overlapping μ and torque, shared peaks), the first
+peak and plateau against S, μ's high-frequency peaks without an S counterpart, and the larger patches' higher,
+narrower, lower peaks.
 """
 
 from __future__ import annotations
@@ -66,8 +67,9 @@ F1_CANDIDATES: tuple[tuple[str, str], ...] = (
     *((f"per-patch mean spectrum at {x:g}", f"f1_patch.{patch_key(x)}") for x in PATCH_FRACTIONS),
 )
 PRIMARY_F1 = (
-    "primary: the largest peak of the Welch-averaged spectrum of the velocity sum Σu̇ (Fig. 8 plots Σu̇; the paper "
-    "calls its first peak significantly more pronounced than the other outputs', read here as the spectrum's largest)"
+    "primary: the largest peak of the Welch-averaged spectrum of the velocity sum Σu̇ (Fig. 8's velocity spectrum read "
+    "as Σu̇'s, the sum Figs. 5/7 show; the paper calls its first peak significantly more pronounced than the other "
+    "outputs', read here as the spectrum's largest)"
 )
 
 

@@ -4,8 +4,10 @@ saturated span (the quantities of Fig. 8: the spectra of μ, torque, friction ra
 spatial patterns of Figs. 4/6, :mod:`~aca_warp.studies.validation.sync_measures`).
 
 **The first velocity peak** (§3.1: "the first peak of each velocity spectrum ... around 73 kHz for HF₁ and HF₃,
-and around 32.8 kHz for HF₂ and HF₄"). Fig. 8 plots the spectrum of the *velocity sum* Σu̇ ("an impression of the
-patches' motions is given through the sum of all patch velocities"), so the primary f1 is read there: the largest
+and around 32.8 kHz for HF₂ and HF₄"). Fig. 8's velocity spectrum is read as that of the *velocity sum* Σu̇ (the
+paper does not name its signal; for Figs. 5/7 "an impression of the patches' motions is given through the sum of all
+patch velocities", and a sum of absolute values would put a patch's line at twice its frequency), so the primary f1
+is read there: the largest
 peak of Σu̇'s Welch-averaged amplitude spectrum (:func:`~aca_warp.analysis.measures.averaged_spectrum`, segments of
 a quarter of the span) above 3 bins — the first peak of Fig. 8 is its most pronounced one, and the average lets it
 stand out of a single chaotic periodogram's scatter. Beside it (the candidates the paper leaves open): the first
