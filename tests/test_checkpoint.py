@@ -78,6 +78,11 @@ def test_sigkill_then_resume_is_bit_identical(scene_file: Path, tmp_path: Path, 
     )
     with h5py.File(part, "r") as f:
         assert f.attrs[REPLACES] and f.attrs["status"] == "running"
+    # a new run over it is refused naming the unfinished run and how to continue it, not the complete file alone
+    capsys.readouterr()
+    assert main(["hf", str(scene_file), "-o", str(out), *opts]) == 2
+    err = capsys.readouterr().err
+    assert f"{part.name} beside it" in err and f"--resume {out}" in err and "replace both" in err, err
     assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
     assert not part.exists()
     assert_same_file(out, ref)

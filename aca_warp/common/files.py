@@ -516,13 +516,16 @@ def check_output_path(path: str | Path, *, overwrite: bool, flag: str = "output"
     busy = holder(p)
     if busy is not None:
         raise SceneError(f"{p} is being written by {busy}; wait for it to finish or stop it")
+    part = partial_path(p)
     if p.exists() and not overwrite:
         again = option("overwrite=True", "--overwrite")
         if _interrupted(p):
             why = f"output file {p} exists (an interrupted run): {recovery(p)}"
             raise SceneError(f"{why}; or pass {again} to replace it")
+        if part.exists():  # an interrupted run that was to replace it
+            why = f"output file {p} exists, and {part.name} beside it (an unfinished run to replace it): {recovery(p)}"
+            raise SceneError(f"{why}; or pass {again} to replace both")
         raise SceneError(f"output file {p} exists; pass {again} to replace it")
-    part = partial_path(p)
     if part.exists() and not overwrite:
         raise SceneError(
             f"{part} exists (an unfinished run): {recovery(p)}; or pass {option('overwrite=True', '--overwrite')} "
