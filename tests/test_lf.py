@@ -541,3 +541,17 @@ def test_ring_power_adds_in_element_order(fibers):
                 s += patch_power[i]
         want[k] = s
     np.testing.assert_array_equal(sim.ring_power.numpy(), want)
+
+
+def test_run_logs_progress_off_a_terminal(monkeypatch, capsys):
+    """With stdout captured (not a terminal) a run with progress writes its lines on stderr when due (μ, patches,
+    coverage), none with progress off."""
+    from aca_warp.common import progress
+
+    monkeypatch.setattr(progress, "LOG_INTERVAL", 0.0)
+    for shown in (False, True):
+        LFSimulation(_scene(), device="cpu").run(5, progress=shown)
+        out, err = capsys.readouterr()
+        lines = [x for x in err.splitlines() if x.startswith("aca-warp: lf: ")]
+        assert not out and len(lines) == (5 if shown else 0)
+    assert " of " in lines[0] and "mu 0." in lines[0] and "patches " in lines[0] and "coverage " in lines[0]

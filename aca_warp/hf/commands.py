@@ -204,7 +204,8 @@ def _add_safety_arguments(hf: argparse.ArgumentParser) -> None:
 def _add_file_arguments(hf: argparse.ArgumentParser) -> None:
     """``aca-warp hf``: overwriting, progress, checkpoints and resuming."""
     hf.add_argument("--overwrite", action="store_true", help="replace an existing output file")
-    hf.add_argument("--no-progress", action="store_true", help="no progress bar")
+    hf.add_argument("--no-progress", action="store_true",
+                    help="no progress: no bar on a terminal, no line every 30 s where stderr is a log")  # fmt: skip
     add_checkpoint_arguments(hf, "solver")
     hf.add_argument(
         "--resume",
@@ -488,7 +489,7 @@ def _add_rerun(sub: Any) -> None:
     p.add_argument("--device", help="Warp device (default: the one the run used)")
     add_checkpoint_arguments(p, "solver")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", action="store_true", help="no progress (as for aca-warp hf)")
     p.add_argument(
         "--force",
         action="store_true",

@@ -25,6 +25,7 @@ import warp as wp
 
 from aca_warp.common.checkpoint import Checkpoint, CheckpointClock
 from aca_warp.common.errors import SceneError, SimulationFault, option
+from aca_warp.common.progress import LogProgress
 from aca_warp.hf.engine import Engine, EngineSetup, EngineTuning, Progress
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import RunOptions
@@ -275,7 +276,9 @@ class _Run:
     ) -> RunResult:
         """Advance chunk by chunk to the end or a fault: emit samples, show progress, write checkpoints."""
         engine, record, p = self.engine, self.record, self.p
-        bar = _progress_bar(self.n_samples * record.sample_dt) if progress and sys.stderr.isatty() else None
+        total, tty = self.n_samples * record.sample_dt, sys.stderr.isatty()
+        bar = _progress_bar(total) if progress and tty else None  # a terminal: a bar; a log: a line every 30 s
+        log = LogProgress("hf:", total) if progress and not tty else None
         if bar is not None and p.sim_time > 0:
             bar.update(p.sim_time)
         clock = self.clock = CheckpointClock(
@@ -292,9 +295,12 @@ class _Run:
                     most = math.ceil(clock.bound / record.sample_dt - 1e-9)
                 p = self.p = engine.advance(p, max(1, most - p.samples))
                 fault = self._chunk(emit)
+                rate = f"{p.steps / max(time.perf_counter() - t0, 1e-9):.3g} steps/s"
                 if bar is not None:
                     bar.update(p.sim_time - bar.n)
-                    bar.set_postfix_str(f"{p.steps / max(time.perf_counter() - t0, 1e-9):.3g} steps/s")
+                    bar.set_postfix_str(rate)
+                elif log is not None:
+                    log.update(p.sim_time, rate)
                 if fault is None and not p.done and clock.due(p.sim_time):
                     clock.write(lambda: on_checkpoint(self._checkpoint()), p.sim_time)  # type: ignore[misc]
         finally:

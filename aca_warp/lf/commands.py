@@ -301,7 +301,8 @@ def add_parsers(sub: Any) -> None:
         "otherwise as likely unit mistakes; sets the scene's allow_implausible (docs/scenes.md)",
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
-    p.add_argument("--no-progress", action="store_true", help="no progress lines")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress lines (every 2 s on a terminal; every 30 s on stderr off one)")  # fmt: skip
     p.add_argument("--eager", action="store_true", help="no graph capture of the step (debugging)")
     add_checkpoint_arguments(p, "full LF")
     p.add_argument(

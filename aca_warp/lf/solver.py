@@ -23,6 +23,7 @@ import warp as wp
 from aca_warp.common.checkpoint import Checkpoint, CheckpointClock
 from aca_warp.common.devices import block_threads, get_device, load_kernels
 from aca_warp.common.errors import SceneError
+from aca_warp.common.progress import LogProgress
 from aca_warp.hf.options import check_interval
 from aca_warp.kernels import lf_contact, lf_patches, lf_record, lf_sums, lf_thermal, lf_wear
 from aca_warp.kernels.lf_record import H_COUNT, H_COVER, H_MU, H_NAMES, H_SIZE
@@ -430,6 +431,8 @@ class LFSimulation:
         clock = CheckpointClock(checkpoint_every if on_checkpoint is not None else 0.0, self.step_index * dt)
         t0 = time.perf_counter()
         last = t0
+        tty = sys.stdout.isatty()  # a terminal: a line every 2 s on stdout; a log: one every 30 s on stderr
+        log = LogProgress("lf:", self.table.steps * dt) if progress and not tty else None
         while self.step_index < end:
             self.step()
             s = self.step_index - 1
@@ -439,16 +442,18 @@ class LFSimulation:
                         on_snapshot(name, self)
             if self.step_index < self.table.steps and clock.due(self.step_index * dt):
                 clock.write(lambda: on_checkpoint(self), self.step_index * dt)  # type: ignore[misc]
-            if progress and sys.stdout.isatty() and time.perf_counter() - last > 2.0:
+            if progress and tty and time.perf_counter() - last > 2.0:
                 last = time.perf_counter()
-                h = self.hist.numpy()[s]
-                print(
-                    f"  t = {(s + 1) * self.scene.lf.dt:7.2f} s  mu {h[H_MU]:.3f}  patches {int(h[H_COUNT])}  "
-                    f"coverage {h[H_COVER]:.3f}",
-                    flush=True,
-                )
+                print(f"  t = {(s + 1) * self.scene.lf.dt:7.2f} s  {self._state_text(s)}", flush=True)
+            elif log is not None:
+                log.update((s + 1) * dt, lambda s=s: self._state_text(s))
         wp.synchronize_device(self.device)
         return time.perf_counter() - t0
+
+    def _state_text(self, s: int) -> str:
+        """The automaton's state after step ``s`` for a progress line: μ, the patch count and the coverage."""
+        h = self.hist.numpy()[s]
+        return f"mu {h[H_MU]:.3f}  patches {int(h[H_COUNT])}  coverage {h[H_COVER]:.3f}"
 
     # ------------------------------------------------------------------------------------------- checkpoints
 
