@@ -434,3 +434,13 @@ def test_a_bad_record_option_is_named_as_typed(extra, said, capsys, tmp_path):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and said in err[0], err
     assert not list(tmp_path.iterdir())
+
+
+def test_analyse_is_analyze():
+    """The British spelling of the command the help text uses runs the same command."""
+    from aca_warp.analysis.commands import cmd_analyze
+    from aca_warp.cli import build_parser
+
+    for spelling in ("analyze", "analyse"):
+        args = build_parser().parse_args([spelling, "run.h5", "--no-sync"])
+        assert args.command == "analyze" and args.handler is cmd_analyze and args.run == "run.h5"

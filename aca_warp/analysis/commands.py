@@ -76,6 +76,7 @@ def _add_analyze(subparsers: Any) -> None:
     """Register ``aca-warp analyze``."""
     a = subparsers.add_parser(
         "analyze",
+        aliases=["analyse"],
         help="spectra, time-frequency maps and Synchronization Index of a run file, into its /analysis group",
         description="Analyse a run file (paper §2.2, §3): amplitude spectra of the global outputs, STFT and CWT "
         "of mu, the first velocity-spectrum peak and, when the run recorded per-patch velocities, the "
@@ -129,7 +130,7 @@ def _add_analyze(subparsers: Any) -> None:
         help="do not read the per-patch velocities: no Synchronization Index and no mean per-patch spectrum "
         "(the slow part); the velocity peak then comes from the sum-of-velocities spectrum",
     )
-    a.set_defaults(handler=cmd_analyze, uses_warp=False)
+    a.set_defaults(handler=cmd_analyze, uses_warp=False, command="analyze")  # the alias runs as analyze
 
 
 def _add_plot(subparsers: Any) -> None:

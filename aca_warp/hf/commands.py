@@ -103,13 +103,11 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "--dt",
         type=positive,
         metavar="S",
-        help=f"fixed step [s] (default: strang {PRESET_STEP:g} for a scene with a shipped preset's physics, hf1-hf4, "
-        f"varying_area and their _equal variants with any patch seed, and for the LF states app1_end, app3_*, app4_* "
-        f"of the multiscale preset, {STATISTICS_STEP:g} for any other scene: the "
-        f"steps at which the saturated statistics were shown to hold, docs/numerics.md; the other fixed-step "
-        f"integrators {DEFAULT_DT:g}; shortened so that whole steps fit the sample interval; a sample interval shorter "
-        f"than the step asked for is refused, and strang's default becomes a shorter sample interval down to "
-        f"{STATISTICS_STEP:g}); first trial step of adaptive, controlled and auto",
+        help=f"fixed step [s]; default for strang {PRESET_STEP:g} with a preset's physics (hf1-hf4, varying_area, "
+        f"the multiscale LF states app1_end, app3_*, app4_*) and {STATISTICS_STEP:g} otherwise, the steps at which the "
+        f"saturated statistics hold (docs/numerics.md); {DEFAULT_DT:g} for the other fixed-step integrators; the "
+        f"first trial step of adaptive, controlled and auto; shortened to fit whole steps in a sample interval (a "
+        f"shorter sample interval is refused, but strang's default follows one down to {STATISTICS_STEP:g})",
     )
     hf.add_argument(
         "--tolerance",
@@ -160,18 +158,30 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
 
 def _add_record_arguments(hf: argparse.ArgumentParser) -> None:
     """``aca-warp hf``: what the run file records (sample interval, per-patch histories)."""
-    hf.add_argument("--sample-dt", type=positive, metavar="S", help="interval of the recorded samples [s]")
+    hf.add_argument(
+        "--sample-dt",
+        type=positive,
+        metavar="S",
+        help="interval of the recorded samples [s] (default: the scene's, 1e-6 for the presets)",
+    )
     hf.add_argument(
         "--record-patches",
         metavar="VARS",
         help="record per-patch histories: velocity, displacement or velocity,displacement; none: no per-patch "
-        "histories (a scene's own per-patch record off)",
+        "histories (a scene's own per-patch record off); default: the scene's (none for the presets)",
     )
     hf.add_argument(
-        "--patch-window", type=nonneg, nargs=2, metavar=("T0", "T1"), help="time window of the per-patch histories [s]"
+        "--patch-window",
+        type=nonneg,
+        nargs=2,
+        metavar=("T0", "T1"),
+        help="time window of the per-patch histories [s] (default: the whole run)",
     )
     hf.add_argument(
-        "--patch-decimation", type=int_at_least(1), metavar="N", help="record per-patch histories every N-th sample"
+        "--patch-decimation",
+        type=int_at_least(1),
+        metavar="N",
+        help="record per-patch histories every N-th sample (default 1)",
     )
 
 

@@ -73,8 +73,8 @@ ONCHIP_INTEGRATORS = ("strang", "adaptive")  # the integrators the on-chip engin
 FAST_MATH_HELP = (
     "compile the on-chip strang kernel with CUDA fast math (approximate fp32 division and square root, fast "
     "sin/cos/exp/log/pow; denormals flushed): fp32 on a CUDA device only; faster, and every result changes in its last "
-    "bits: the statistics of hf1-hf4, va and the LF states ms_fast, ms_short and ms_mid keep every measure wherever "
-    "the exact kernel's do at the same step (docs/onchip.md, 'Fast math')"
+    "bits: the saturated statistics of hf1-hf4, the growing pads and the LF states measured with it keep every "
+    "measure wherever the exact kernel's do at the same step (docs/onchip.md, 'Fast math')"
 )
 WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (recorder.watchdog_bound)
 
