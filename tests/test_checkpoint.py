@@ -166,7 +166,8 @@ def test_a_default_run_resumes_after_ctrl_c(scene_file: Path, tmp_path: Path, mo
         err = capsys.readouterr().err
         assert f"{out} exists (an interrupted run): " in err and f"'aca-warp hf --resume {out}'" in err, err
         assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
-        assert resumed in capsys.readouterr().out  # the summary says where the resume started
+        said_out = capsys.readouterr().out  # the summary says where the resume started, and the whole run's μ
+        assert resumed in said_out and ", mean mu 0." in said_out, said_out
         assert_same_file(out, ref)
         monkeypatch.setattr(runner, "run_hf", interrupted)
     written.clear()

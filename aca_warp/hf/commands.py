@@ -474,6 +474,12 @@ def _resume_hf(args: argparse.Namespace) -> int:
         device=None if args.device == "cpu" else args.device,
     )
     line = f"{path}: resumed{' ' + start if start else ''}, {result.steps} steps over {result.sim_time:.4g} s"
+    import h5py
+    import numpy as np
+
+    with h5py.File(path, "r") as f:  # the whole run's, as a fresh run's summary gives it
+        mu = f["global/mu"][()]
+    line += f", {len(mu)} samples, mean mu {np.mean(mu):.4f}"
     if result.fault is not None:
         print(f"aca-warp: run stopped: {result.fault}", file=sys.stderr)
         from aca_warp.hf.rerun import read_settings
