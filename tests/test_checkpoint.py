@@ -83,6 +83,21 @@ def test_sigkill_then_resume_is_bit_identical(scene_file: Path, tmp_path: Path, 
     assert main(["hf", str(scene_file), "-o", str(out), *opts]) == 2
     err = capsys.readouterr().err
     assert f"{part.name} beside it" in err and f"--resume {out}" in err and "replace both" in err, err
+    # one that cannot be read back (empty or damaged) has nothing to continue: only --overwrite goes on
+    saved = part.read_bytes()
+    part.write_bytes(b"")
+    assert main(["hf", str(scene_file), "-o", str(out), *opts]) == 2
+    err = capsys.readouterr().err
+    assert "cannot be read back" in err and "--resume" not in err and "pass --overwrite to replace both" in err, err
+    part.write_bytes(saved)
+    # beside an output an interrupt left unfinished, the message is the unfinished run's too (--resume continues it)
+    kept = out.read_bytes()
+    with h5py.File(out, "r+") as f:
+        f.attrs["status"] = "interrupted by the user"
+    assert main(["hf", str(scene_file), "-o", str(out), *opts]) == 2
+    err = capsys.readouterr().err
+    assert f"{part.name} beside it" in err and "replace both" in err and "(an interrupted run)" not in err, err
+    out.write_bytes(kept)
     assert main(["hf", "--resume", str(out), "--no-progress"]) == 0
     assert not part.exists()
     assert_same_file(out, ref)

@@ -544,9 +544,13 @@ def test_ring_power_adds_in_element_order(fibers):
 
 
 def test_run_logs_progress_off_a_terminal(monkeypatch, capsys):
-    """With stdout captured (not a terminal) a run with progress writes its lines on stderr when due (μ, patches,
-    coverage), none with progress off."""
+    """Progress goes to stderr: where it is no terminal (captured), a log line when due (μ, patches, coverage), none
+    with progress off; where it is a terminal, the terminal's lines and no log line; stdout stays clean."""
+    import io
+    import sys
+
     from aca_warp.common import progress
+    from aca_warp.lf import solver
 
     monkeypatch.setattr(progress, "LOG_INTERVAL", 0.0)
     for shown in (False, True):
@@ -555,3 +559,14 @@ def test_run_logs_progress_off_a_terminal(monkeypatch, capsys):
         lines = [x for x in err.splitlines() if x.startswith("aca-warp: lf: ")]
         assert not out and len(lines) == (5 if shown else 0)
     assert " of " in lines[0] and "mu 0." in lines[0] and "patches " in lines[0] and "coverage " in lines[0]
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    term = Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+    monkeypatch.setattr(solver, "TERMINAL_INTERVAL", -1.0)
+    LFSimulation(_scene(), device="cpu").run(5, progress=True)
+    shown = term.getvalue().splitlines()
+    assert shown and all(x.startswith("  t = ") for x in shown) and not capsys.readouterr().out

@@ -715,13 +715,15 @@ def test_varying_area_rows_follow_their_criteria():
         for p in res["pads"]:
             p["contact_track"]["matrix_share"] = track
         assert portion.measure({"va_full": res}, cfg).verdict == want
-    # results made before the CWT was measured read "not measured" in its two rows
+    # results made before the CWT was measured read "not measured" in its two rows, before the load's track in its row
     old = _va_result(0.1, -0.8, 69.5e3, 2.0, 0.0, 1.24e-6)
     for p in old["pads"]:
         del p["measures"]["cwt"]
+        del p["contact_track"]
     assert (
         cwt.measure({"va_full": old}, cfg).verdict == emerge.measure({"va_full": old}, cfg).verdict == ("not measured")
     )
+    assert portion.measure({"va_full": old}, cfg).verdict == "not measured"
 
 
 # ------------------------------------------------------------------------------------------------ §3.3 (synthetic)

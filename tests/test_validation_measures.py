@@ -291,7 +291,7 @@ def test_table_rows_and_every_registered_row_has_a_known_kind():
     assert len(VB.ROWS) >= 45
     assert {r.kind for r in VB.ROWS} <= set(V.CRITERIA)
     assert len({(r.section, r.statement) for r in VB.ROWS}) == len(VB.ROWS)
-    assert math.isclose(VS.SYNC_EXCESS, 0.05)
+    assert math.isclose(VB.SYNC_EXCESS, 0.05) and VB.CHARACTERISTIC_BAND == (20.0e3, 80.0e3)  # §4
 
 
 # ------------------------------------------------------------------------------------------------ settings and cost

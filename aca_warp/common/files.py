@@ -470,6 +470,15 @@ def recovery(path: str | Path) -> str:
 _UNREADABLE = (AcaError, OSError, RuntimeError, KeyError, ValueError, TypeError)  # a run file that cannot be read
 
 
+def _readable(path: Path) -> bool:
+    """Whether the run file ``path`` opens as one (an unfinished run that does not has nothing to continue)."""
+    try:
+        with open_h5(path, "run file"):
+            return True
+    except _UNREADABLE:
+        return False
+
+
 def _unfinished(path: str | Path) -> tuple[Path, Path]:
     """(its final name, the file it is in now) of the unfinished run ``path`` (``NAME`` or ``NAME.partial``): the
     ``.partial`` where it exists, else ``NAME``."""
@@ -517,20 +526,19 @@ def check_output_path(path: str | Path, *, overwrite: bool, flag: str = "output"
     if busy is not None:
         raise SceneError(f"{p} is being written by {busy}; wait for it to finish or stop it")
     part = partial_path(p)
-    if p.exists() and not overwrite:
+    if not overwrite and (p.exists() or part.exists()):
         again = option("overwrite=True", "--overwrite")
+        if part.exists():  # an unfinished run: killed, or one that was to replace the output (an --overwrite)
+            beside = f"output file {p} exists, and {part.name} beside it" if p.exists() else f"{part} exists"
+            both = "both" if p.exists() else "it"
+            if not _readable(part):
+                raise SceneError(f"{beside} (an unfinished run that cannot be read back: empty or damaged); pass "
+                                 f"{again} to replace {both}")  # fmt: skip
+            raise SceneError(f"{beside} (an unfinished run): {recovery(p)}; or pass {again} to replace {both}")
         if _interrupted(p):
             why = f"output file {p} exists (an interrupted run): {recovery(p)}"
             raise SceneError(f"{why}; or pass {again} to replace it")
-        if part.exists():  # an interrupted run that was to replace it
-            why = f"output file {p} exists, and {part.name} beside it (an unfinished run to replace it): {recovery(p)}"
-            raise SceneError(f"{why}; or pass {again} to replace both")
         raise SceneError(f"output file {p} exists; pass {again} to replace it")
-    if part.exists() and not overwrite:
-        raise SceneError(
-            f"{part} exists (an unfinished run): {recovery(p)}; or pass {option('overwrite=True', '--overwrite')} "
-            "to replace it"
-        )
     if not p.parent.exists():
         raise SceneError(f"output folder {p.parent} does not exist")
     if not p.parent.is_dir():

@@ -17,7 +17,7 @@ class LogProgress:
     elapsed" once ``interval`` seconds of wall time have passed since the start or the last line.
 
     Args:
-        what: What runs, the line's start (e.g. "hf run.h5:").
+        what: What runs, the line's start (e.g. "hf:").
         total: The amount of the whole run, in ``unit``.
         unit: The amount's unit ("s simulated").
         interval: Wall time between lines [s] (None: :data:`LOG_INTERVAL`).

@@ -175,13 +175,13 @@ def _add_record_arguments(hf: argparse.ArgumentParser) -> None:
         type=nonneg,
         nargs=2,
         metavar=("T0", "T1"),
-        help="time window of the per-patch histories [s] (default: the whole run)",
+        help="time window of the per-patch histories [s] (default: the scene's, the whole run for the presets)",
     )
     hf.add_argument(
         "--patch-decimation",
         type=int_at_least(1),
         metavar="N",
-        help="record per-patch histories every N-th sample (default 1)",
+        help="record per-patch histories every N-th sample (default: the scene's, 1 for the presets)",
     )
 
 

@@ -286,7 +286,11 @@ class _Run:
         )
         out: list[Chunk] = []
         emit = sink or out.append
-        t0 = time.perf_counter()
+        t0, steps0 = time.perf_counter(), p.steps  # a resumed run's rate counts this loop's steps only
+
+        def rate() -> str:
+            return f"{(self.p.steps - steps0) / max(time.perf_counter() - t0, 1e-9):.3g} steps/s"
+
         fault: SimulationFault | None = None
         try:
             while fault is None and not p.done:
@@ -295,10 +299,9 @@ class _Run:
                     most = math.ceil(clock.bound / record.sample_dt - 1e-9)
                 p = self.p = engine.advance(p, max(1, most - p.samples))
                 fault = self._chunk(emit)
-                rate = f"{p.steps / max(time.perf_counter() - t0, 1e-9):.3g} steps/s"
                 if bar is not None:
                     bar.update(p.sim_time - bar.n)
-                    bar.set_postfix_str(rate)
+                    bar.set_postfix_str(rate())
                 elif log is not None:
                     log.update(p.sim_time, rate)
                 if fault is None and not p.done and clock.due(p.sim_time):

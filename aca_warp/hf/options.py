@@ -73,8 +73,8 @@ ONCHIP_INTEGRATORS = ("strang", "adaptive")  # the integrators the on-chip engin
 FAST_MATH_HELP = (
     "compile the on-chip strang kernel with CUDA fast math (approximate fp32 division and square root, fast "
     "sin/cos/exp/log/pow; denormals flushed): fp32 on a CUDA device only; faster, and every result changes in its last "
-    "bits: the saturated statistics of hf1-hf4, the growing pads and the LF states measured with it keep every "
-    "measure wherever the exact kernel's do at the same step (docs/onchip.md, 'Fast math')"
+    "bits: the saturated statistics of hf1-hf4, varying_area and the multiscale LF states that docs/onchip.md "
+    "('Fast math') lists keep every measure wherever the exact kernel's do at the same step"
 )
 WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (recorder.watchdog_bound)
 

@@ -302,7 +302,7 @@ def add_parsers(sub: Any) -> None:
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     p.add_argument("--no-progress", action="store_true",
-                   help="no progress lines (every 2 s on a terminal; every 30 s on stderr off one)")  # fmt: skip
+                   help="no progress lines on stderr (every 2 s on a terminal, every 30 s in a log)")  # fmt: skip
     p.add_argument("--eager", action="store_true", help="no graph capture of the step (debugging)")
     add_checkpoint_arguments(p, "full LF")
     p.add_argument(

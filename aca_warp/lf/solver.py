@@ -45,6 +45,8 @@ from aca_warp.kernels.lf_types import (
 from aca_warp.lf.scene import LFScene, StepTable, step_table
 from aca_warp.scene import Patches, overlapping_pairs
 
+TERMINAL_INTERVAL = 2.0  # s of wall time between two progress lines on a terminal (a log: common.progress)
+
 # Empty slots are parked in the hash grid at one point half the grid's y period (64 of 128 cell rows) away from
 # the pad's middle row: the grid wraps cell coordinates modulo 128, so parking them "far away" can land them in a
 # row the pad's queries visit (1000 m did, at the multiscale cell size: every query near that row then walked
@@ -431,7 +433,7 @@ class LFSimulation:
         clock = CheckpointClock(checkpoint_every if on_checkpoint is not None else 0.0, self.step_index * dt)
         t0 = time.perf_counter()
         last = t0
-        tty = sys.stdout.isatty()  # a terminal: a line every 2 s on stdout; a log: one every 30 s on stderr
+        tty = sys.stderr.isatty()  # progress on stderr: a line every 2 s on a terminal, every 30 s in a log
         log = LogProgress("lf:", self.table.steps * dt) if progress and not tty else None
         while self.step_index < end:
             self.step()
@@ -442,9 +444,9 @@ class LFSimulation:
                         on_snapshot(name, self)
             if self.step_index < self.table.steps and clock.due(self.step_index * dt):
                 clock.write(lambda: on_checkpoint(self), self.step_index * dt)  # type: ignore[misc]
-            if progress and tty and time.perf_counter() - last > 2.0:
+            if progress and tty and time.perf_counter() - last > TERMINAL_INTERVAL:
                 last = time.perf_counter()
-                print(f"  t = {(s + 1) * self.scene.lf.dt:7.2f} s  {self._state_text(s)}", flush=True)
+                print(f"  t = {(s + 1) * self.scene.lf.dt:7.2f} s  {self._state_text(s)}", file=sys.stderr, flush=True)
             elif log is not None:
                 log.update((s + 1) * dt, lambda s=s: self._state_text(s))
         wp.synchronize_device(self.device)

@@ -349,6 +349,8 @@ def growth_contact(scene: Any, duration: float, instants: int = CONTACT_INSTANTS
     over it (:func:`contact_at`): its end as ``end_matrix_share``, ``end_in_contact``, ``end_mean_area_m2`` and
     ``end_area_range_m2``, and ``contact_track``, the matrix's share at every instant (``times_s``,
     ``matrix_share``)."""
+    if instants < 2:
+        raise ValueError(f"the contact track needs at least 2 instants (its start and its end), got {instants}")
     times = np.linspace(0.0, duration, instants)
     at = [contact_at(scene, t) for t in times]
     track = {"times_s": times.tolist(), "matrix_share": [a["matrix_share"] for a in at]}

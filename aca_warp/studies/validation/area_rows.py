@@ -128,18 +128,17 @@ def portion_row(results: dict[str, dict], cfg: Config) -> RowValue:
     """The matrix's share of the load over the growth: it never rises (beyond the solve's rounding) and falls by at
     least :data:`SHARE_FALL_MARGIN` from the start to the end (the patches' portion increases)."""
     res = _pads(results)
+    tracks = [_share_track(p) for p in usable(res) if "contact_track" in p]
+    if not tracks:
+        return RowValue("–", NOT_MEASURED, "no contact track in the results (a file made before it was measured)")
     rise = np.array(list(by_seed(res, lambda p: np.max(np.diff(_share_track(p)))).values()))
     fall = np.array(list(by_seed(res, lambda p: _share_track(p)[0] - _share_track(p)[-1]).values()))
-    tracks = [_share_track(p) for p in usable(res) if "contact_track" in p]
-    times = np.asarray(tracks and usable(res)[0]["contact_track"]["times_s"])  # the same instants in every pad
-    if tracks:
-        mean = np.mean(tracks, axis=0)
-        picks = np.unique(np.linspace(0, times.size - 1, 7).round().astype(int))
-        track = ", ".join(f"{mean[k]:.3f} at {times[k] * 1e3:.0f} ms" for k in picks)
-        kept = sum(bool(np.all(np.diff(x) <= RISE_TOLERANCE)) for x in tracks)
-        note = f"mean over the pads: {track}; pads whose share never rises: {kept} of {len(tracks)}"
-    else:
-        note = "no contact track in the results"
+    times = np.asarray(usable(res)[0]["contact_track"]["times_s"])  # the same instants in every pad
+    mean = np.mean(tracks, axis=0)
+    picks = np.unique(np.linspace(0, times.size - 1, 7).round().astype(int))
+    track = ", ".join(f"{mean[k]:.3f} at {times[k] * 1e3:.0f} ms" for k in picks)
+    kept = sum(bool(np.all(np.diff(x) <= RISE_TOLERANCE)) for x in tracks)
+    note = f"mean over the pads: {track}; pads whose share never rises: {kept} of {len(tracks)}"
     return RowValue(
         f"largest rise of the matrix's share between consecutive instants: {interval(rise, '.2g')}; its fall from the "
         f"start to the end: {interval(fall)}",
