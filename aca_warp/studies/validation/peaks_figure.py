@@ -24,23 +24,12 @@ from aca_warp.studies.validation.hf_peaks import (
     sweep_exponents,
     two_area_exponent,
 )
+from aca_warp.studies.validation.verdicts import ci
 
 READINGS: tuple[tuple[str, str], ...] = (("primary: Σu̇'s largest peak", "f1"), *F1_CANDIDATES)
 """(label, per-pad measure key) of every reading of the first peak, the primary first."""
 STARTS = (("", "from equilibrium", "o"), ("_rest", "from rest", "s"))
 """(experiment suffix, label, marker) of the two initial states."""
-
-
-def mean_interval(v: np.ndarray) -> tuple[float, float, float]:
-    """Mean and the Student-t 95 % interval of the mean over seeds (NaN where fewer than two values)."""
-    from aca_warp.analysis.measures import ensemble_interval
-
-    v = np.asarray(v, dtype=np.float64)
-    v = v[np.isfinite(v)]
-    if v.size < 2:
-        return (float(v[0]) if v.size else np.nan), np.nan, np.nan
-    e = ensemble_interval(v)
-    return float(e.mean), float(e.mean_low), float(e.mean_high)
 
 
 def first_peaks(results: dict[str, dict]) -> dict[tuple[str, str, str], np.ndarray]:
@@ -76,7 +65,7 @@ def _point(ax: Any, x: float, v: np.ndarray, color: Any, marker: str, label: str
     v = v[np.isfinite(v)] * scale
     if v.size == 0:
         return
-    m, lo, hi = mean_interval(v)
+    m, lo, hi = ci(v)
     ax.plot(np.full(v.size, x), v, ".", color=color, alpha=0.25, ms=3)
     err = None if not np.isfinite(lo) else [[m - lo], [hi - m]]
     ax.errorbar([x], [m], yerr=err, fmt=marker, color=color, mfc="white" if marker == "s" else color, ms=5,
