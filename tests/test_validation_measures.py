@@ -217,6 +217,24 @@ def test_velocity_sum_peak_of_a_synthetic_record():
     out2 = VM.velocity_sum_peaks(_globals(t, 0.5 + 0.001 * v2, v2), dt, 1e3)
     assert out2["f1"] == pytest.approx(66.4e3, rel=0.005) and not out2["f1_is_first"]  # the harmonic is larger
     assert out2["f1_first_half"] == pytest.approx(33.2e3, rel=0.005)
+    # Σ|u̇| = 10 + |Σu̇| of a symmetric line: rectifying doubles it (why Σu̇, not Σ|u̇|, is the primary reading)
+    v3 = np.sin(2 * np.pi * 33.2e3 * t) + 0.05 * rng.normal(size=n)
+    out3 = VM.velocity_sum_peaks(_globals(t, 0.5 + 0.001 * v3, v3), dt, 1e3)
+    assert out3["f1"] == pytest.approx(33.2e3, rel=0.005) and out3["f1_abs"] == pytest.approx(66.4e3, rel=0.005)
+    assert out3["f1_abs_first_half"] == pytest.approx(66.4e3, rel=0.005)
+
+
+def test_shape_at_reads_the_named_velocity_spectrum_with_its_suffix():
+    """The Fig. 8 shape measures at a frequency of the chosen velocity spectrum: a line there stands out of its own
+    spectrum, and the keys carry the suffix (Σ|u̇|'s readings beside Σu̇'s)."""
+    freq = np.arange(0.0, 500e3, 100.0)
+    line = 1e-3 + np.exp(-(((freq - 66.4e3) / 200) ** 2))
+    flat = np.full(freq.size, 1e-3)
+    spectra = {"velocity": flat, "abs_velocity": line, "mu": line, "torque": flat, "friction_radius": flat}
+    out = VM.shape_at(freq, spectra, 66.4e3, velocity="abs_velocity", suffix="_abs")
+    assert set(out) == {f"{m}_{q}_abs" for m in ("contrast", "plateau") for q in ("velocity", "mu", "torque", "radius")}
+    assert out["contrast_velocity_abs"] > 100 and out["contrast_torque_abs"] == pytest.approx(1.0)
+    assert VM.shape_at(freq, spectra, 66.4e3)["contrast_velocity"] == pytest.approx(1.0)
 
 
 def test_per_patch_first_peak_depends_on_the_threshold():

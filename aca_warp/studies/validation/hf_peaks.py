@@ -65,6 +65,8 @@ F1_CANDIDATES: tuple[tuple[str, str], ...] = (
     ("Σu̇ first peak ≥ ½ its largest", "f1_first_half"),
     ("Σu̇ single periodogram", "f1_periodogram"),
     *((f"per-patch mean spectrum at {x:g}", f"f1_patch.{patch_key(x)}") for x in PATCH_FRACTIONS),
+    ("Σ|u̇| largest peak", "f1_abs"),
+    ("Σ|u̇| first peak ≥ ½ its largest", "f1_abs_first_half"),
 )
 PRIMARY_F1 = (
     "primary: the largest peak of the Welch-averaged spectrum of the velocity sum Σu̇ (Fig. 8's velocity spectrum read "
@@ -73,10 +75,18 @@ PRIMARY_F1 = (
 )
 
 
+def held(pads: list[dict[str, Any]], key: str) -> bool:
+    """Whether any of ``pads`` holds the measure ``key`` (a results file made before a reading was added holds
+    none: its notes leave that reading out rather than show it empty)."""
+    return any(math.isfinite(_get(p, key)) for p in pads)
+
+
 def _candidates(res: dict[str, Any] | None) -> str:
     """The other readings of the first peak the paper leaves open, and how often the largest peak is the first."""
-    parts = [f"{label} {interval(values(res, key), '.1f', 1e-3, 'kHz')}" for label, key in F1_CANDIDATES]
     pads = usable(res)
+    parts = [
+        f"{label} {interval(values(res, key), '.1f', 1e-3, 'kHz')}" for label, key in F1_CANDIDATES if held(pads, key)
+    ]
     first = sum(bool(p["measures"].get("f1_is_first")) for p in pads)
     return "; ".join(parts) + f"; the largest Σu̇ peak is its first reaching ½ of it in {first} of {len(pads)} pads"
 
@@ -113,9 +123,10 @@ def _exponent_verdict(b: np.ndarray) -> str:
 
 def _candidate_exponents(exponent: Callable[[str], np.ndarray]) -> str:
     """The exponent of each other reading of the first peak (``exponent(key)``), with the verdict it would give:
-    the convention decides these rows where the readings' verdicts differ."""
+    the convention decides these rows where the readings' verdicts differ (a reading no seed gives is left out)."""
+    got = ((label, exponent(key)) for label, key in F1_CANDIDATES)
     return "with the other readings of f1: " + "; ".join(
-        f"{label} {_exponent_verdict(exponent(key))}" for label, key in F1_CANDIDATES
+        f"{label} {_exponent_verdict(b)}" for label, b in got if np.isfinite(b).any()
     )
 
 
@@ -207,35 +218,61 @@ def per_preset(
     return [f"{n}: {interval(v)}" for n, v in vals.items()], vals
 
 
+def _shape_per_preset(
+    results: dict[str, dict], measure: str, combine: Callable[[float, float], float], margin: float, suffix: str
+) -> tuple[list[str], str]:
+    """Per preset "name: interval" of ``combine(velocity's, the largest of μ's, torque's and radius's)`` of the
+    shape ``measure`` ("contrast" or "plateau") with the keys' ``suffix``, and the direction verdict at ``margin``."""
+
+    def value(p: dict[str, Any]) -> float:
+        others = max(_get(p, f"{measure}_{k}{suffix}") for k in ("mu", "torque", "radius"))
+        return combine(_get(p, f"{measure}_velocity{suffix}"), others)
+
+    texts, vals = per_preset(results, value)
+    return texts, direction_verdict([effect(v, margin) for v in vals.values()])
+
+
+def _abs_reading(
+    results: dict[str, dict], measure: str, combine: Callable[[float, float], float], margin: float
+) -> str:
+    """The same row read on Σ|u̇|'s spectrum at its own largest peak (the other reading of Fig. 8's velocity
+    spectrum, :data:`F1_CANDIDATES`), for the notes; empty where the results hold no Σ|u̇| reading."""
+    if not any(held(usable(results.get(n)), f"{measure}_velocity_abs") for n in PRESETS):
+        return ""
+    texts, verdict = _shape_per_preset(results, measure, combine, margin, "_abs")
+    where = "read on Σ|u̇|'s spectrum at its own largest peak (μ's, torque's, radius's there)"
+    return f"; {where}: {'; '.join(texts)} ({verdict})"
+
+
+def _log_ratio(a: float, b: float) -> float:
+    return math.log(a / b)
+
+
+def _difference(a: float, b: float) -> float:
+    return a - b
+
+
 def pronounced_row(results: dict[str, dict], cfg: Config) -> RowValue:
     """ln of the velocity spectrum's peak contrast at f1 over the largest of μ's, torque's and radius's."""
-
-    def ratio(p: dict[str, Any]) -> float:
-        others = max(_get(p, k) for k in ("contrast_mu", "contrast_torque", "contrast_radius"))
-        return math.log(_get(p, "contrast_velocity") / others)
-
-    texts, vals = per_preset(results, ratio)
-    parts = [effect(v, PRONOUNCED_MARGIN) for v in vals.values()]
+    texts, verdict = _shape_per_preset(results, "contrast", _log_ratio, PRONOUNCED_MARGIN, "")
     return RowValue(
         "ln(contrast ratio) " + "; ".join(texts),
-        direction_verdict(parts),
+        verdict,
         "contrast = height at f1 over the median of [f1/2, 2 f1]; velocity = |Σu̇(f)| / mean Σ|u̇|; μ's contrast "
-        + each(results, PRESETS, "contrast_mu", ".2g"),
+        + each(results, PRESETS, "contrast_mu", ".2g")
+        + _abs_reading(results, "contrast", _log_ratio, PRONOUNCED_MARGIN),
     )
 
 
 def plateau_row(results: dict[str, dict], cfg: Config) -> RowValue:
     """Plateau excess of the velocity spectrum minus the largest of μ's, torque's and radius's."""
-
-    def diff(p: dict[str, Any]) -> float:
-        return _get(p, "plateau_velocity") - max(_get(p, k) for k in ("plateau_mu", "plateau_torque", "plateau_radius"))
-
-    texts, vals = per_preset(results, diff)
+    texts, verdict = _shape_per_preset(results, "plateau", _difference, PLATEAU_MARGIN, "")
     return RowValue(
         "excess difference " + "; ".join(texts),
-        direction_verdict([effect(v, PLATEAU_MARGIN) for v in vals.values()]),
+        verdict,
         "excess = ln median [1.1, 2] f1 − ln median [2.5, 4] f1; velocity's own excess "
-        + each(results, PRESETS, "plateau_velocity", ".2g"),
+        + each(results, PRESETS, "plateau_velocity", ".2g")
+        + _abs_reading(results, "plateau", _difference, PLATEAU_MARGIN),
     )
 
 
@@ -393,6 +430,7 @@ def m_independent_row(results: dict[str, dict], cfg: Config) -> RowValue:
     """§3.1 gives one first peak per patch size for both friction levels ("around 73 kHz for HF1 and HF3, and
     around 32.8 kHz for HF2 and HF4"): the peak does not move with M, within the ± 5 % the values are read to."""
     d = _log_pairs(results, "f1", M_PAIRS)
+    pads = [p for pair in M_PAIRS for name in pair for p in usable(results.get(name))]
     margin = math.log1p(PEAK_TOLERANCE)
 
     def reading(key: str) -> str:
@@ -407,7 +445,7 @@ def m_independent_row(results: dict[str, dict], cfg: Config) -> RowValue:
         all_of([equivalence_verdict(x, margin) for x in d]),
         "first peaks from Σu̇, paired by seed (one seed's HF1 and HF3 pads, and its HF2 and HF4 pads, have the same "
         "patches); the other readings of the first peak: "
-        + "; ".join(f"{label}: {reading(key)}" for label, key in F1_CANDIDATES),
+        + "; ".join(f"{label}: {reading(key)}" for label, key in F1_CANDIDATES if held(pads, key)),
     )
 
 

@@ -11,8 +11,11 @@ is read there: the largest
 peak of Σu̇'s Welch-averaged amplitude spectrum (:func:`~aca_warp.analysis.measures.averaged_spectrum`, segments of
 a quarter of the span) above 3 bins — the first peak of Fig. 8 is its most pronounced one, and the average lets it
 stand out of a single chaotic periodogram's scatter. Beside it (the candidates the paper leaves open): the first
-peak of the same spectrum reaching half its largest, the largest peak of the single Hann periodogram, and the first
-peak of the mean *per-patch* velocity spectrum at thresholds of 0.02 … 0.25 of its maximum.
+peak of the same spectrum reaching half its largest, the largest peak of the single Hann periodogram, the first
+peak of the mean *per-patch* velocity spectrum at thresholds of 0.02 … 0.25 of its maximum, and the same two
+readings of the averaged spectrum of the *sum of the absolute velocities* Σ|u̇| (the other reading of §3.1's "the
+total of all absolute velocities in reference to the stationary brake pad", whose mean, unlike Σu̇'s, is the DC
+offset Fig. 8 normalises by): its largest peak and its first peak reaching half of it.
 """
 
 from __future__ import annotations
@@ -43,39 +46,71 @@ def global_spectra(seg: np.ndarray, sample_dt: float) -> tuple[np.ndarray, dict[
     return freq, out
 
 
+def _averaged_peaks(x: np.ndarray, sample_dt: float, fmin: float) -> tuple[float, float, float, float]:
+    """(largest peak [Hz], its amplitude, first peak reaching half of it [Hz], resolution [Hz]) of the averaged
+    amplitude spectrum of ``x`` (N,) above ``fmin`` [Hz] and 3 of its bins."""
+    from aca_warp.analysis.measures import averaged_spectrum, first_peak
+    from aca_warp.analysis.spectra import peak
+
+    freq, amp = averaged_spectrum(x, sample_dt, segments=SUM_SEGMENTS)
+    df = float(freq[1] - freq[0])
+    lo = max(fmin, 3.0 * df)
+    f, a = peak(freq, amp, fmin=lo)
+    half, _ = first_peak(freq, amp, fraction=0.5, fmin=lo)
+    return f, a, half, df
+
+
 def velocity_sum_peaks(seg: np.ndarray, sample_dt: float, fmin: float) -> dict[str, Any]:
-    """The first velocity peak from Σu̇ (module docstring): ``f1`` (the primary: largest peak of the averaged
+    """The first velocity peak (module docstring) from Σu̇: ``f1`` (the primary: largest peak of the averaged
     spectrum above ``fmin`` [Hz] and 3 of its bins), ``f1_first_half`` (its first peak reaching half the largest),
     ``f1_periodogram`` (largest peak of one Hann periodogram), ``f1_is_first`` (the largest is the first peak
-    reaching half of it) and the averaged spectrum's resolution [Hz]."""
-    from aca_warp.analysis.measures import averaged_spectrum, first_peak
+    reaching half of it) and the averaged spectrum's resolution [Hz]; from Σ|u̇|: ``f1_abs`` and
+    ``f1_abs_first_half`` (the same two readings of its averaged spectrum)."""
     from aca_warp.analysis.spectra import amplitude_spectrum, peak
 
-    freq, amp = averaged_spectrum(seg[:, 3], sample_dt, segments=SUM_SEGMENTS)
-    lo = max(fmin, 3.0 * (freq[1] - freq[0]))
-    f1, a1 = peak(freq, amp, fmin=lo)
-    half, _ = first_peak(freq, amp, fraction=0.5, fmin=lo)
+    f1, a1, half, df = _averaged_peaks(seg[:, 3], sample_dt, fmin)
     fp, ap = amplitude_spectrum(seg[:, 3], sample_dt, normalise=None)
-    f_one, _ = peak(fp, ap, fmin=lo)
+    f_one, _ = peak(fp, ap, fmin=max(fmin, 3.0 * df))
+    f_abs, _, abs_half, _ = _averaged_peaks(seg[:, 4], sample_dt, fmin)
     return {
         "f1": f1,
         "f1_amplitude": a1 / abs(float(np.mean(seg[:, 4]))),
         "f1_first_half": half,
         "f1_periodogram": f_one,
-        "f1_is_first": bool(abs(half - f1) <= 1.5 * (freq[1] - freq[0])),
-        "sum_resolution_hz": float(freq[1] - freq[0]),
+        "f1_is_first": bool(abs(half - f1) <= 1.5 * df),
+        "sum_resolution_hz": df,
+        "f1_abs": f_abs,
+        "f1_abs_first_half": abs_half,
     }
 
 
 PLATEAU_FAR = (2.5, 4.0)  # the plateau's far band, multiples of f1
 
 
+def shape_at(
+    freq: np.ndarray, spectra: dict[str, np.ndarray], f: float, velocity: str = "velocity", suffix: str = ""
+) -> dict[str, float | None]:
+    """``contrast_{velocity,mu,torque,radius}{suffix}``: peak_to_floor at ``f`` [Hz] (±2 bins over the median of
+    [f/2, 2 f]) of the spectrum ``spectra[velocity]`` and of μ's, torque's and radius's; ``plateau_…{suffix}``:
+    their plateau_excess (median over [1.1, 2] f against [2.5, 4] f), None where the far band starts beyond the
+    spectrum's last bin (f above a 2.5th of it: no level to compare with)."""
+    from aca_warp.analysis.measures import peak_to_floor, plateau_excess
+
+    out: dict[str, float | None] = {}
+    names = {"velocity": velocity, "mu": "mu", "torque": "torque", "radius": "friction_radius"}
+    far_inside = PLATEAU_FAR[0] * f < float(freq[-1])
+    for short, key in names.items():
+        out[f"contrast_{short}{suffix}"] = peak_to_floor(freq, spectra[key], f).ratio
+        out[f"plateau_{short}{suffix}"] = (
+            plateau_excess(freq, spectra[key], f, far=PLATEAU_FAR).excess if far_inside else None
+        )
+    return out
+
+
 def fig8_measures(freq: np.ndarray, spectra: dict[str, np.ndarray], f1: float) -> dict[str, Any]:
     """The Fig. 8 shape measures of one pad at its first velocity peak f1 (global spectra of one segment).
 
-    * ``contrast_*``: peak_to_floor at f1 (±2 bins over the median of [f1/2, 2 f1]) of velocity, μ, torque, radius;
-    * ``plateau_*``: plateau_excess (median over [1.1, 2] f1 against [2.5, 4] f1) of the same four; None where the
-      far band starts beyond the spectrum's last bin (f1 above a 2.5th of it: no level to compare with);
+    * ``contrast_*``, ``plateau_*``: :func:`shape_at` f1 of the velocity spectrum (Σu̇'s) and μ's, torque's, radius's;
     * ``overlap_mu_torque`` / ``overlap_mu_radius``: spectral_overlap D over 1–200 kHz;
     * ``shared_*``: shared_peak_fraction of μ's peaks in μ, torque and radius (1–200 kHz), with chance, and the
       share of those shared peaks also in the velocity spectrum (``shared_in_velocity``) with its chance;
@@ -85,20 +120,13 @@ def fig8_measures(freq: np.ndarray, spectra: dict[str, np.ndarray], f1: float) -
     import warnings
 
     from aca_warp.analysis.measures import (
-        peak_to_floor,
         peak_width,
-        plateau_excess,
         shared_peak_fraction,
         shared_peaks,
         spectral_overlap,
     )
 
-    out: dict[str, Any] = {}
-    names = {"velocity": "velocity", "mu": "mu", "torque": "torque", "radius": "friction_radius"}
-    far_inside = PLATEAU_FAR[0] * f1 < float(freq[-1])
-    for short, key in names.items():
-        out[f"contrast_{short}"] = peak_to_floor(freq, spectra[key], f1).ratio
-        out[f"plateau_{short}"] = plateau_excess(freq, spectra[key], f1, far=PLATEAU_FAR).excess if far_inside else None
+    out: dict[str, Any] = {**shape_at(freq, spectra, f1)}
     band = (1.0e3, min(200.0e3, float(freq[-1])))
     out["overlap_mu_torque"] = spectral_overlap(freq, spectra["mu"], spectra["torque"], band=band).mean_abs_log
     out["overlap_mu_radius"] = spectral_overlap(freq, spectra["mu"], spectra["friction_radius"], band=band).mean_abs_log
@@ -181,6 +209,7 @@ def global_measures(gsat: np.ndarray, cfg: Config) -> dict[str, Any]:
     f1 = out["f1"]
     fg, spectra = global_spectra(gsat, cfg.sample_dt)
     out.update(fig8_measures(fg, spectra, f1))
+    out.update(shape_at(fg, spectra, out["f1_abs"], velocity="abs_velocity", suffix="_abs"))
     out.update(mu_measures(fg, spectra, gsat[:, 0]))
     out.update(coherence_measures(gsat, cfg.sample_dt, f1))
     out["global_span_s"] = gsat.shape[0] * cfg.sample_dt
