@@ -86,8 +86,9 @@ def test_exponent_rows_show_every_reading_of_the_first_peak(seeds32) -> None:
                       "f_p ∝ A_p^(−1/4) from the two patch sizes of Table 1 (HF1, HF2)"):  # fmt: skip
         v = _row(statement).measure(results, cfg)
         assert v.verdict == N
-        for label, key in VP.F1_CANDIDATES:
-            assert (label in v.notes) == VP.held([p for r in results.values() for p in VB.usable(r)], key)
+        for label, _ in VP.F1_CANDIDATES:
+            assert label in v.notes
+        assert "Σ|u̇| largest peak -0.15" in v.notes  # the rectified sum's doubled peaks give a shallower exponent
         assert "per-patch mean spectrum at 0.02 -0.232 [-0.234, -0.231] (n = 32) (reproduced)" in v.notes
 
 
