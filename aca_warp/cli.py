@@ -142,9 +142,10 @@ def main(argv: Sequence[str] | None = None, *, hold: bool = False) -> int:
 
 def _check_output_folder(args: argparse.Namespace) -> None:
     """The output folder of ``sweep -o DIR`` must be creatable and writable before the sweep expands its spec (the
-    other commands check their outputs themselves). A folder that holds a sweep's manifest is left to the sweep: a
-    finished sweep there is complete even where the folder takes no new file (:func:`~aca_warp.sweep.run_sweep`)."""
-    if args.command != "sweep" or Path(args.output).is_file():  # a file there: the sweep's own message
+    other commands check their outputs themselves): a file there, or a path under one, is refused before the spec's
+    expansion is printed. A folder that holds a sweep's manifest is left to the sweep: a finished sweep there is
+    complete even where the folder takes no new file (:func:`~aca_warp.sweep.run_sweep`)."""
+    if args.command != "sweep":
         return
     from aca_warp.common.files import check_output_folder
     from aca_warp.sweep.manifest import MANIFEST

@@ -163,15 +163,20 @@ def test_bad_plot_folders_are_refused_first(tmp_path, capsys, runs, name, messag
     assert listing(tmp_path) == before
 
 
-def test_sweep_folder_checked_before_the_spec(tmp_path, capsys) -> None:
-    """sweep shares the output-folder check: a path under a file is refused before the spec is expanded."""
+@pytest.mark.parametrize(
+    ("name", "message"),
+    [("file.txt", "file.txt exists and is not a folder"), ("file.txt/sweep", "file.txt is not a folder")],
+)
+def test_sweep_folder_checked_before_the_spec(tmp_path, capsys, name, message) -> None:
+    """sweep shares the output-folder check: a file, or a path under one, is refused before the spec is expanded
+    (no line of the expansion printed first)."""
     (tmp_path / "file.txt").write_text("x")
     spec = tmp_path / "spec.toml"
     spec.write_text('[sweep]\nbase = "hf1"\n[parameters]\n"friction.M" = [0.6, 0.7]\n')
     before = listing(tmp_path)
-    assert main(["sweep", str(spec), "-o", str(tmp_path / "file.txt" / "sweep"), "--workers", "0", "--quiet"]) == 2
-    err = one_line(capsys)
-    assert len(err) == 1 and "file.txt is not a folder" in err[0], err
+    assert main(["sweep", str(spec), "-o", str(tmp_path / name), "--workers", "0"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.splitlines()) == 1 and message in err, (out, err)
     assert listing(tmp_path) == before
 
 
