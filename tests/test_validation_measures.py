@@ -301,8 +301,28 @@ def test_peak_features_of_synthetic_sync_spectra():
     assert out["f_sync"] == pytest.approx(0.9 * f1, abs=300)
     assert out["mu_hf_peaks"] == 3 and out["mu_hf_unmatched"] == 1.0 and out["mu_hf_phi_ratio"] == 1.0
     assert out["mu_peaks_synced"] == 0.0 and 0.2 < out["mu_peaks_synced_chance"] < 0.3
+    assert 0.99 < out["mu_hf_unmatched_chance"] < 1.0  # above 2 f1 only the 2 bins next to the plateau's end are near S
     bands = VS.band_summaries(f, S, null, phi, f1)
     assert bands["spread"] > bands["spread_all"] > 0 and bands["prevalence_all"] < bands["prevalence"]
+
+
+@pytest.mark.parametrize(("unmatched", "verdict"), [(0.8, V.REPRODUCED), (0.5, V.NOT_REPRODUCED)])
+def test_unmatched_peaks_read_against_chance_in_the_notes(unmatched, verdict):
+    """ "Many μ peaks do not correspond to S": beside the fixed threshold, the share against the share of the bins
+    above 2 f1 that chance leaves unmatched (0.8 here): peaks at S no more often than at random reproduce it, peaks at
+    S far more often do not; a results file without the chance share leaves that reading out."""
+    from aca_warp.studies.validation import hf_peaks as VP
+
+    row = next(r for r in VB.ROWS if r.statement.startswith("many μ peaks at higher frequencies"))
+
+    def res(chance: bool) -> dict:
+        return {"pads": [_pad(s, {"sync_relative": {"mu_hf_unmatched": unmatched + 0.01 * s, "mu_hf_peaks": 10,
+                                                    **({"mu_hf_unmatched_chance": 0.8} if chance else {})},
+                                  "sync_snr": {"mu_hf_unmatched": unmatched}}) for s in range(1, 9)]}  # fmt: skip
+
+    v = row.measure({n: res(True) for n in VP.PRESETS}, VB.Config())
+    assert "against chance (the share − that of the bins above 2 f1" in v.notes and f"({verdict}: ≥ −0.05" in v.notes
+    assert "against chance" not in row.measure({n: res(False) for n in VP.PRESETS}, VB.Config()).notes
 
 
 def test_table_rows_and_every_registered_row_has_a_known_kind():

@@ -33,6 +33,9 @@ CHARACTERISTIC_BAND = (20.0e3, 80.0e3)
 """Hz: §4, "the characteristic friction and synchronization behavior ... 20–80 kHz"."""
 SYNC_EXCESS = 0.05
 """S − S_null above which a frequency bin counts as synchronised."""
+CHANCE_MARGIN = 0.05
+"""μ's peaks "do not correspond" to S, read against chance: the share of them without a synchronised bin nearby at
+most 0.05 below the share of all bins without one (peaks at S no more often than at random)."""
 
 # ------------------------------------------------------------------------------------------------ settings
 

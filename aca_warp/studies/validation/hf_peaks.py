@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.studies.validation.base import (
+    CHANCE_MARGIN,
     MM2,
     Config,
     Row,
@@ -339,7 +340,25 @@ def unmatched_row(results: dict[str, dict], cfg: Config) -> RowValue:
         "peaks ≥ 4× their surroundings; their number "
         + each(results, PRESETS, "sync_relative.mu_hf_peaks", ".3g")
         + "; snr rule "
-        + "; ".join(f"{n}: {interval(v)}" for n, v in snr.items()),
+        + "; ".join(f"{n}: {interval(v)}" for n, v in snr.items())
+        + _unmatched_against_chance(results),
+    )
+
+
+def _unmatched_against_chance(results: dict[str, dict]) -> str:
+    """The other reading of "do not correspond": the share against chance (less the share of the bins above 2 f1
+    with no synchronised bin within 2 bins, what a peak placed there at random would give) per preset, with the
+    verdict it would give (:data:`CHANCE_MARGIN`); empty where the results hold no chance share."""
+    if not held([p for n in PRESETS for p in usable(results.get(n))], "sync_relative.mu_hf_unmatched_chance"):
+        return ""
+    texts, vals = per_preset(
+        results, lambda p: _get(p, "sync_relative.mu_hf_unmatched") - _get(p, "sync_relative.mu_hf_unmatched_chance")
+    )
+    verdict = all_of([threshold_verdict(v, -CHANCE_MARGIN, False) for v in vals.values()])
+    return (
+        "; against chance (the share − that of the bins above 2 f1 with no synchronised bin within 2 bins) "
+        + "; ".join(texts)
+        + f" ({verdict}: ≥ −{CHANCE_MARGIN:g} in each preset, at S at most that much more often than at random)"
     )
 
 

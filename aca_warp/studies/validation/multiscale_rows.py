@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from aca_warp.studies.validation.base import (
+    CHANCE_MARGIN,
     CHARACTERISTIC_BAND,
     Config,
     Row,
@@ -283,10 +284,14 @@ def agreement_row(results: dict[str, dict], cfg: Config) -> RowValue:
 
 def unmatched_row(results: dict[str, dict], cfg: Config) -> RowValue:
     rel, snr = (1.0 - _mean_over_states(results, f"sync_{r}.mu_peaks_synced") for r in ("relative", "snr"))
+    chance = rel - (1.0 - _mean_over_states(results, "sync_relative.mu_peaks_synced_chance"))
     return RowValue(
         f"share of μ's peaks without a synchronised bin, mean over the states: {interval(rel)}",
         rules_verdict(direction_verdict([effect(rel, RHO_MARGIN)]), rel, snr),
-        f"peaks ≥ 4× their surroundings, 1–150 kHz, within 2 bins; snr rule {interval(snr)}",
+        f"peaks ≥ 4× their surroundings, 1–150 kHz, within 2 bins; snr rule {interval(snr)}; against chance (the "
+        f"share − that of the band's bins with no synchronised bin within 2 bins) {interval(chance)} "
+        f"({threshold_verdict(chance, -CHANCE_MARGIN, False)}: ≥ −{CHANCE_MARGIN:g}, at S at most that much more "
+        "often than at random)",
     )
 
 

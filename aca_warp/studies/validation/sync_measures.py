@@ -78,8 +78,9 @@ def peak_features(
     * ``f_sync``: the first peak (reaching a quarter of the largest) of max(S − S_null, 0)·Φ smoothed over 5 bins —
       where S's first feature lies, for the A^(−1/4) shift "in the Synchronization Indices";
     * μ's peaks (≥ 4× their surroundings) above 2 f1: ``mu_hf_peaks``, the share with no synchronised bin
-      (S − S_null > 0.05) within 2 bins (``mu_hf_unmatched``) and Φ at those peaks over the median Φ of the band
-      above 2 f1 (``mu_hf_phi_ratio``: few patches oscillate there when the peaks are single patches');
+      (S − S_null > 0.05) within 2 bins (``mu_hf_unmatched``), the share of the bins above 2 f1 with none, what a
+      peak placed there at random would show (``mu_hf_unmatched_chance``), and Φ at those peaks over the median Φ of
+      the band above 2 f1 (``mu_hf_phi_ratio``: few patches oscillate there when the peaks are single patches');
     * μ's peaks over the whole band: the share at a synchronised bin (``mu_peaks_synced``) and the share of the
       band's bins within 2 bins of a synchronised one (``mu_peaks_synced_chance``).
     """
@@ -104,6 +105,7 @@ def peak_features(
     above = freq > 2 * f1
     out["mu_hf_peaks"] = int(hf.size)
     out["mu_hf_unmatched"] = float(np.mean(~synced[hf])) if hf.size else None
+    out["mu_hf_unmatched_chance"] = float(np.mean(~synced[above])) if above.any() else None
     med = float(np.median(phi[above])) if above.any() else 0.0
     lone = hf[~synced[hf]]
     out["mu_hf_phi_ratio"] = float(np.median(phi[lone]) / med) if lone.size and med > 0 else None
