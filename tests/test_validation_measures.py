@@ -325,6 +325,25 @@ def test_unmatched_peaks_read_against_chance_in_the_notes(unmatched, verdict):
     assert "against chance" not in row.measure({n: res(False) for n in VP.PRESETS}, VB.Config()).notes
 
 
+def test_the_states_unmatched_peaks_against_chance_pair_each_states_own_shares():
+    """§3.3's chance reading takes each state's share less that state's chance share, then the mean over the states:
+    a state without μ peaks (no share) leaves its chance share out too."""
+    from aca_warp.studies.validation import multiscale as VMS
+
+    row = next(r for r in VB.ROWS if r.statement == "some μ-spectrum peaks do not correspond to the S results")
+    first = VMS.GROUPS[VMS.MAIN[0]][0]
+
+    def sync(s: int, m: str) -> dict:
+        if s == 1 and m == first:  # no μ peaks in this state: no share, and a chance share far from the others'
+            return {"mu_peaks_synced": None, "mu_peaks_synced_chance": 0.9}
+        return {"mu_peaks_synced": 0.4, "mu_peaks_synced_chance": 0.5}
+
+    groups = {g: {"pads": [_pad(s, {"sync_relative": sync(s, m), "sync_snr": sync(s, m)}, member=m)
+                           for m in members for s in range(1, 5)]} for g, members in VMS.GROUPS.items()}  # fmt: skip
+    v = row.measure(groups, VB.Config())
+    assert f"no synchronised bin within 2 bins) {VB.interval(np.full(4, 0.1))} (reproduced" in v.notes
+
+
 def test_table_rows_and_every_registered_row_has_a_known_kind():
     assert len(VB.ROWS) >= 45
     assert {r.kind for r in VB.ROWS} <= set(V.CRITERIA)

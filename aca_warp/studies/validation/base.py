@@ -35,7 +35,7 @@ SYNC_EXCESS = 0.05
 """S − S_null above which a frequency bin counts as synchronised."""
 CHANCE_MARGIN = 0.05
 """μ's peaks "do not correspond" to S, read against chance: the share of them without a synchronised bin nearby at
-most 0.05 below the share of all bins without one (peaks at S no more often than at random)."""
+most 0.05 below the share of all bins without one (peaks at S at most that much more often than at random)."""
 
 # ------------------------------------------------------------------------------------------------ settings
 

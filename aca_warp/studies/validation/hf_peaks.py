@@ -89,7 +89,7 @@ def _candidates(res: dict[str, Any] | None) -> str:
         f"{label} {interval(values(res, key), '.1f', 1e-3, 'kHz')}" for label, key in F1_CANDIDATES if held(pads, key)
     ]
     first = sum(bool(p["measures"].get("f1_is_first")) for p in pads)
-    return "; ".join(parts) + f"; the largest Σu̇ peak is its first reaching ½ of it in {first} of {len(pads)} pads"
+    return "; ".join([*parts, f"the largest Σu̇ peak is its first reaching ½ of it in {first} of {len(pads)} pads"])
 
 
 def first_peak_row(name: str) -> Callable[[dict[str, dict], Config], RowValue]:

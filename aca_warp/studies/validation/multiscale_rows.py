@@ -10,6 +10,8 @@ spread over the states (:data:`ON_THIS_LF`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -267,8 +269,11 @@ def peaks_synced_row(results: dict[str, dict], cfg: Config) -> RowValue:
     )
 
 
-def _mean_over_states(results: dict[str, dict], key: str) -> np.ndarray:
-    per = per_state(results, key)
+def _mean_over_states(results: dict[str, dict], key: str | Callable[[dict[str, Any]], float]) -> np.ndarray:
+    """Per seed the mean over the states of a pad measure: a dotted key, or a function of the pad (a value that
+    combines several measures of the same pad, so that each state pairs its own)."""
+    value = key if callable(key) else (lambda p, k=key: _get(p, k))
+    per = {s: by_seed(member_result(results, MAIN, s), value) for s in STATES}
     seeds = sorted({s for v in per.values() for s in v})
     return np.array([np.mean([v[s] for v in per.values() if s in v]) for s in seeds])
 
@@ -284,7 +289,9 @@ def agreement_row(results: dict[str, dict], cfg: Config) -> RowValue:
 
 def unmatched_row(results: dict[str, dict], cfg: Config) -> RowValue:
     rel, snr = (1.0 - _mean_over_states(results, f"sync_{r}.mu_peaks_synced") for r in ("relative", "snr"))
-    chance = rel - (1.0 - _mean_over_states(results, "sync_relative.mu_peaks_synced_chance"))
+    chance = _mean_over_states(
+        results, lambda p: _get(p, "sync_relative.mu_peaks_synced_chance") - _get(p, "sync_relative.mu_peaks_synced")
+    )  # the share without a synchronised bin less chance's, 1 − synced − (1 − synced by chance), per state
     return RowValue(
         f"share of μ's peaks without a synchronised bin, mean over the states: {interval(rel)}",
         rules_verdict(direction_verdict([effect(rel, RHO_MARGIN)]), rel, snr),

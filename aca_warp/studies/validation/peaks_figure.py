@@ -101,7 +101,7 @@ def peaks_figure(results: dict[str, dict], path: Path, title: str = "") -> Path:
                 _point(ax, x, v, colors[j], marker, legend, 1e-3)
     ax.set_xticks(range(len(PRESETS)), [n.upper() for n in PRESETS])
     ax.set_ylabel("first velocity peak [kHz]")
-    ax.set_title(f"first peak per reading; the paper's value ± {100 * PEAK_TOLERANCE:g} % (grey)", fontsize=10)
+    ax.set_title(f"first peak per reading; the paper's value ± {100 * PEAK_TOLERANCE:g} % (shaded)", fontsize=10)
     handles, _ = ax.get_legend_handles_labels()
     for _, start, marker in STARTS:
         face = "white" if marker == "s" else "0.3"
@@ -119,7 +119,7 @@ def peaks_figure(results: dict[str, dict], path: Path, title: str = "") -> Path:
                 _point(bx, i - 0.4 + bwidth * (j + 0.5), fits[(fit, key)], colors[j], marker, None, 1.0)
     bx.set_xticks(range(len(groups)), [g.replace(", ", "\n") for g in groups], fontsize=8)
     bx.set_ylabel("exponent b of f ∝ A^b")
-    bx.set_title(f"exponent per reading (colours as left); −1/4 ± {EXPONENT_TOLERANCE:g} (grey)", fontsize=10)
+    bx.set_title(f"exponent per reading (colours as left); −1/4 ± {EXPONENT_TOLERANCE:g} (shaded)", fontsize=10)
     fig.suptitle(title or "§3.1: the first velocity peak (Fig. 8, Table 1), every reading, mean and 95 % interval "
                  "over the seeds (dots: the seeds)", fontsize=11)  # fmt: skip
     fig.tight_layout()
