@@ -288,7 +288,7 @@ def test_sweep_output_rules(tmp_path, capsys):
     other.write_text(spec.read_text().replace("0.8]", "0.9]"))
     for argv, message in (
         (["sweep", str(other), "-o", str(out), "--workers", "0", "--quiet"], "pass --overwrite"),
-        (["sweep", str(spec), "-o", str(spec), "--workers", "0", "--quiet"], "not a directory"),
+        (["sweep", str(spec), "-o", str(spec), "--workers", "0", "--quiet"], "exists and is not a folder"),
     ):
         capsys.readouterr()
         assert main(argv) == 2

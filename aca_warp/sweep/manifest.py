@@ -194,7 +194,7 @@ def prepare_dir(spec: SweepSpec, out_dir: str | Path, *, overwrite: bool = False
 
     d = Path(out_dir)
     if d.exists() and not d.is_dir():
-        raise SweepError(f"{d} exists and is not a directory")
+        raise SweepError(f"{d} exists and is not a folder")
     d.mkdir(parents=True, exist_ok=True)
     old = read_manifest(d)
     stray = sorted(d.glob("shard-*.h5*"))

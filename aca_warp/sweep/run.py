@@ -74,7 +74,7 @@ def run_sweep(
     folder_named(out_dir, SweepError)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
-        raise SweepError(f"{out} exists and is not a directory")
+        raise SweepError(f"{out} exists and is not a folder")
     spec.check_records()
     check_runs(spec)  # a step, a load or a step count a pad cannot take: one line, before anything is written
     early = None
