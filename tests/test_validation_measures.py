@@ -46,6 +46,18 @@ def test_direction_carries_the_effect_against_the_margin():
     assert "against the margin 0.05" in V.effect_text(small, 0.05)
 
 
+def test_the_strict_reading_asks_the_whole_interval_to_reach_the_margin():
+    """A part whose mean reaches the margin while its interval reaches below it agrees, and under the stricter reading
+    is significant but small; a part whose whole interval lies beyond the margin agrees under both; the stricter
+    reading ends with its context."""
+    straddles, beyond = _around(0.06, 0.03), _around(0.2, 0.02)  # [0.03, 0.09] and [0.18, 0.22] against 0.05
+    assert V.effect(straddles, 0.05) == V.AGREES and V.effect(beyond, 0.05) == V.AGREES
+    with V.strict_direction():
+        assert V.effect(straddles, 0.05) == V.SMALL and V.effect(beyond, 0.05) == V.AGREES
+        assert V.effect(-straddles, 0.05, sign=-1.0) == V.SMALL
+    assert V.effect(straddles, 0.05) == V.AGREES
+
+
 def test_rules_in_opposite_directions_are_undetermined():
     up, down, flat = _around(0.1, 0.01), _around(-0.1, 0.01), _around(0.0, 0.3)
     assert V.rules_verdict(V.NOT_REPRODUCED, down, up) == V.UNDETERMINED

@@ -15,7 +15,7 @@ from aca_warp.studies.validation import base as VB
 from aca_warp.studies.validation import hf_peaks as VP
 from aca_warp.studies.validation import hf_sync as VS
 from aca_warp.studies.validation import multiscale_rows as VMR
-from aca_warp.studies.validation.page import rest_counts, verdict_counts
+from aca_warp.studies.validation.page import rest_counts, strict_counts, verdict_counts
 from aca_warp.studies.validation.results import read_results
 
 PRESETS = ("hf1", "hf2", "hf3", "hf4")
@@ -121,6 +121,24 @@ def test_size_row_shows_the_paper_s_order_of_the_effects(seeds32) -> None:
     notes = row.measure(results, cfg).notes
     assert "the M effect of the paper's next sentence (hf3 − hf1) 0.00506" in notes
     assert "size effect − M effect 0.0161" in notes and "(the paper orders them M > size)" in notes
+
+
+def test_the_strict_reading_of_direction_parts_moves_one_row_on_32_seeds(seeds32) -> None:
+    """The page's line on the stricter reading of a direction part: on 32 seeds it moves one row, the growth of the
+    friction oscillations (its interval 0.293 [0.186, 0.401] reaches below the margin ln 1.25); a list that moves
+    nothing says so."""
+    from aca_warp.studies.validation.verdicts import strict_direction
+
+    results, cfg = seeds32
+    rows = VB.evaluate_rows(results, cfg)
+    with strict_direction():
+        strict = VB.evaluate_rows(results, cfg)
+    text = strict_counts(rows, strict)
+    assert text.endswith(
+        "1 of the 73 verdicts moves: friction oscillations grow as the patch-disc contacts come to dominate "
+        "(reproduced → significant but negligible)."
+    )
+    assert strict_counts(rows, rows).endswith("no verdict moves.")
 
 
 def test_the_column_from_rest_is_counted_beside_the_primary_on_the_same_rows():

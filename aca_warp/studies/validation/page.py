@@ -238,6 +238,21 @@ def rest_counts(rows: list[dict[str, Any]], rest: list[dict[str, Any] | None]) -
     return text
 
 
+def strict_counts(rows: list[dict[str, Any]], strict: list[dict[str, Any]]) -> str:
+    """The rows whose verdict the stricter reading of a direction part moves (the whole interval beyond the margin,
+    :func:`~aca_warp.studies.validation.verdicts.strict_direction`), in one sentence."""
+    moved = [f"{r['statement']} ({r['verdict']} → {s['verdict']})" for r, s in zip(rows, strict, strict=True)
+             if s["verdict"] != r["verdict"]]  # fmt: skip
+    text = (
+        "Read strictly, a direction part agrees only when its whole 95 % interval, not its mean alone, reaches the "
+        "margin: "
+    )
+    if not moved:
+        return text + "no verdict moves."
+    verb = "moves" if len(moved) == 1 else "move"
+    return text + f"{len(moved)} of the {len(rows)} verdicts {verb}: " + "; ".join(moved) + "."
+
+
 def statement_rows(rows: list[dict[str, Any]], rest: list[dict[str, Any] | None]) -> list[list[str]]:
     """The main table's lines: the row, and beside it the same measure from rest at the paper's length."""
     out = []
@@ -259,8 +274,10 @@ def render(
     meta: dict[str, Any],
     causes: list[dict[str, Any]] | None = None,
     rest: list[dict[str, Any] | None] | None = None,
+    strict: list[dict[str, Any]] | None = None,
 ) -> list[str]:
-    """The generated part of docs/validation.md."""
+    """The generated part of docs/validation.md (``strict``: the rows under the stricter reading of a direction
+    part, :func:`strict_counts`)."""
     from aca_warp.studies.validation import tracks as validation_tracks
 
     rest = rest if rest is not None else [None] * len(rows)
@@ -275,6 +292,7 @@ def render(
         verdict_counts(rows),
         "",
         *([rested, ""] if rested else []),
+        *([strict_counts(rows, strict), ""] if strict is not None else []),
         "Criteria:",
         "",
         *criteria_lines(),

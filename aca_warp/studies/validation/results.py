@@ -70,8 +70,12 @@ def evaluate(results: dict[str, dict], cfg: Config) -> tuple[list[dict], list[di
 
 def render_report(path: Path) -> tuple[list[str], list[dict], dict[str, Any]]:
     """The page's generated section from ``results.json`` at ``path`` (lines), the rows, and the meta."""
+    from aca_warp.studies.validation.base import evaluate_rows
     from aca_warp.studies.validation.page import render
+    from aca_warp.studies.validation.verdicts import strict_direction
 
     results, meta, cfg = read_results(path)
     rows, rest, causes = evaluate(results, cfg)
-    return render(results, rows, {**meta, "results": path.name}, causes, rest), rows, meta
+    with strict_direction():
+        strict = evaluate_rows(results, cfg)
+    return render(results, rows, {**meta, "results": path.name}, causes, rest, strict), rows, meta

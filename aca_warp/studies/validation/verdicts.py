@@ -18,7 +18,10 @@ them is **undetermined**: the paper's own threshold would decide it.
 
 from __future__ import annotations
 
+import contextvars
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -78,15 +81,31 @@ def side(v: np.ndarray, sign: float = 1.0) -> int:
     return 1 if lo > 0 else (-1 if hi < 0 else 0)
 
 
+_STRICT = contextvars.ContextVar("strict_direction", default=False)
+
+
+@contextmanager
+def strict_direction() -> Iterator[None]:
+    """Inside it a direction part agrees only when the whole 95 % interval of ``sign``·v, not its mean alone, reaches
+    the margin (:func:`effect`): the stricter reading of the criterion, for the page's line on what it would move."""
+    token = _STRICT.set(True)
+    try:
+        yield
+    finally:
+        _STRICT.reset(token)
+
+
 def effect(v: np.ndarray, margin: float, sign: float = 1.0) -> str:
     """The outcome of one part of a direction statement: ``sign``·v significantly positive with a mean of at least
-    ``margin`` (:data:`AGREES`), significantly positive below it (:data:`SMALL`), not significant (:data:`NONE`) or
-    significantly negative (:data:`OPPOSITE`)."""
+    ``margin`` (:data:`AGREES`; inside :func:`strict_direction` the interval's lower end), significantly positive
+    below it (:data:`SMALL`), not significant (:data:`NONE`) or significantly negative (:data:`OPPOSITE`)."""
     s = side(v, sign)
     if s < 0:
         return OPPOSITE
     if s == 0:
         return NONE
+    if _STRICT.get():
+        return AGREES if ci(sign * np.asarray(v, dtype=np.float64))[1] >= margin else SMALL
     return AGREES if sign * ci(v)[0] >= margin else SMALL
 
 
