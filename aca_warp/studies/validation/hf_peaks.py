@@ -82,6 +82,11 @@ def held(pads: list[dict[str, Any]], key: str) -> bool:
     return any(math.isfinite(_get(p, key)) for p in pads)
 
 
+def held_in(results: dict[str, dict], names: tuple[str, ...], key: str) -> bool:
+    """:func:`held` over the usable pads of the experiments ``names``."""
+    return held([p for n in names for p in usable(results.get(n))], key)
+
+
 def _candidates(res: dict[str, Any] | None) -> str:
     """The other readings of the first peak the paper leaves open, and how often the largest peak is the first."""
     pads = usable(res)
@@ -238,7 +243,7 @@ def _abs_reading(
 ) -> str:
     """The same row read on Σ|u̇|'s spectrum at its own largest peak (the other reading of Fig. 8's velocity
     spectrum, :data:`F1_CANDIDATES`), for the notes; empty where the results hold no Σ|u̇| reading."""
-    if not any(held(usable(results.get(n)), f"{measure}_velocity_abs") for n in PRESETS):
+    if not held_in(results, PRESETS, f"{measure}_velocity_abs"):
         return ""
     texts, verdict = _shape_per_preset(results, measure, combine, margin, "_abs")
     where = "read on Σ|u̇|'s spectrum at its own largest peak (μ's, torque's, radius's there)"
@@ -349,7 +354,7 @@ def _unmatched_against_chance(results: dict[str, dict]) -> str:
     """The other reading of "do not correspond": the share against chance (less the share of the bins above 2 f1
     with no synchronised bin within 2 bins, what a peak placed there at random would give) per preset, with the
     verdict it would give (:data:`CHANCE_MARGIN`); empty where the results hold no chance share."""
-    if not held([p for n in PRESETS for p in usable(results.get(n))], "sync_relative.mu_hf_unmatched_chance"):
+    if not held_in(results, PRESETS, "sync_relative.mu_hf_unmatched_chance"):
         return ""
     texts, vals = per_preset(
         results, lambda p: _get(p, "sync_relative.mu_hf_unmatched") - _get(p, "sync_relative.mu_hf_unmatched_chance")
@@ -449,7 +454,6 @@ def m_independent_row(results: dict[str, dict], cfg: Config) -> RowValue:
     """§3.1 gives one first peak per patch size for both friction levels ("around 73 kHz for HF1 and HF3, and
     around 32.8 kHz for HF2 and HF4"): the peak does not move with M, within the ± 5 % the values are read to."""
     d = _log_pairs(results, "f1", M_PAIRS)
-    pads = [p for pair in M_PAIRS for name in pair for p in usable(results.get(name))]
     margin = math.log1p(PEAK_TOLERANCE)
 
     def reading(key: str) -> str:
@@ -464,7 +468,7 @@ def m_independent_row(results: dict[str, dict], cfg: Config) -> RowValue:
         all_of([equivalence_verdict(x, margin) for x in d]),
         "first peaks from Σu̇, paired by seed (one seed's HF1 and HF3 pads, and its HF2 and HF4 pads, have the same "
         "patches); the other readings of the first peak: "
-        + "; ".join(f"{label}: {reading(key)}" for label, key in F1_CANDIDATES if held(pads, key)),
+        + "; ".join(f"{label}: {reading(key)}" for label, key in F1_CANDIDATES if held_in(results, PRESETS, key)),
     )
 
 
