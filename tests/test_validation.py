@@ -1214,6 +1214,11 @@ def test_compare_two_results_files(tmp_path, capsys, monkeypatch):
     out = capsys.readouterr().out
     assert out == (repo / kept / "compare.md").read_text()
     assert "the verdict moved in 0 rows, 0 from rest, 0 variants" in out
+    twice = "docs/validation/rerun_twice"  # the eight seeds run twice from scratch on one code: every entry alike
+    assert script.main([f"{twice}/results.json", f"{twice}/results_b.json.gz"]) == 0
+    out = capsys.readouterr().out
+    assert out == (repo / twice / "compare_b.md").read_text()
+    assert out.splitlines()[-1].startswith("0 of 262137 entries differ, 0 on one side only")
 
 
 def test_validation_figures_of_the_committed_files(tmp_path, capsys):
