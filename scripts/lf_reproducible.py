@@ -37,12 +37,14 @@ from compare_checkouts import compare, file_line, same_results
 def recorded_digests(path: Path) -> dict[str, str]:
     """File name → digest of every LF run that a validation results file's experiments record (``lf_runs``);
     a file recorded with two digests is an error (the results were not cut from one set of LF runs; the check the
-    validation's join makes, :func:`~aca_warp.studies.validation.multiscale.lf_conflicts`)."""
+    validation's join makes, :func:`~aca_warp.studies.validation.multiscale.lf_conflicts`); ``.json`` or its gzip."""
+    import gzip
     import json
 
     from aca_warp.studies.validation.multiscale import lf_conflicts
 
-    results = json.loads(path.read_text()).get("results", {})
+    raw = path.read_bytes()
+    results = json.loads(gzip.decompress(raw) if path.suffix == ".gz" else raw).get("results", {})
     runs = {name: res.get("lf_runs") or {} for name, res in results.items()}
     clash = lf_conflicts(runs)
     if clash:

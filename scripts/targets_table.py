@@ -115,15 +115,22 @@ def per_machine(values: list[float], names: list[str], fmt: Callable[[float], st
 
 
 def validation_stepping(paths: list[Path]) -> Measured:
-    """The stepping time [s] of every batch of a validation results file, summed over the calls that made it."""
+    """The stepping time [s] of every batch of each validation results file (one value per file, each a run of the
+    whole validation), summed over the calls that made that file."""
     import aca_warp.studies.validation  # noqa: F401  (registers the experiments)
     from aca_warp.studies.validation.cost import measured
     from aca_warp.studies.validation.results import read_results
 
-    results, meta, _ = read_results(paths[0])
-    calls = [meta, *meta.get("with", [])]
-    stepping = sum(r["wall_s"] for r in measured(results, meta.get("with")))
-    return Measured((stepping,), machines([c["machine"] for c in calls]), f"{len(calls)} call{'s' * (len(calls) > 1)}")
+    values, names, counts = [], [], set()
+    for path in paths:
+        results, meta, _ = read_results(path)
+        calls = [meta, *meta.get("with", [])]
+        values.append(sum(r["wall_s"] for r in measured(results, meta.get("with"))))
+        names += [c["machine"] for c in calls]
+        counts.add(len(calls))
+    n = counts.pop() if len(counts) == 1 else 0  # calls per file, where every file has as many
+    each = f"{n} call{'s' * (n > 1)}" if n else "calls"
+    return Measured(tuple(values), machines(names), each if len(paths) == 1 else f"{each} each")
 
 
 def bench_wall(paths: list[Path]) -> Measured:
@@ -330,7 +337,8 @@ LINK = {
 
 TARGETS: tuple[Target, ...] = (
     Target("full validation", "full validation ≤ 2 min (120 s) of stepping", 120.0, "≤", "s",
-           ("validation/recheck_warp_parts/results.json",), validation_stepping, LINK["validation.md"]),
+           ("validation/rerun_twice/results.json", "validation/rerun_twice/results_b.json.gz"), validation_stepping,
+           LINK["validation.md"]),
     Target("64 pads × 30 ms", "64 saturated hf1 pads × 30 ms at the default settings ≤ 0.5 s", 0.5, "≤", "s",
            (REUSE_GPU + "bench_64hf1_30ms_default_h200_a.json", REUSE_GPU + "bench_64hf1_30ms_default_h200_b.json"),
            bench_wall, LINK["time_to_solution.md"]),

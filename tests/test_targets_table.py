@@ -147,3 +147,14 @@ def test_entry_without_files_is_not_in_data() -> None:
     row = MODULE.measure(target)
     assert row["value"] == MODULE.NOT_IN_DATA and row["verdict"] == "–"
     assert MODULE.measured_cell(row) == MODULE.NOT_IN_DATA
+
+
+def test_validation_stepping_is_one_value_per_results_file() -> None:
+    """Each results file is a run of the whole validation: its batches' stepping summed over the calls that made it
+    (the two eight-seed runs on one code, one call each; the 32-seed file, joined from several calls)."""
+    twice = MODULE.DOCS / "validation" / "rerun_twice"
+    got = MODULE.validation_stepping([twice / "results.json", twice / "results_b.json.gz"])
+    assert [round(v, 1) for v in got.values] == [91.9, 90.3] and got.note == "1 call each"
+    assert got.machine == "NVIDIA H200"
+    joined = MODULE.validation_stepping([MODULE.DOCS / "validation" / "seeds32" / "results.json.gz"])
+    assert len(joined.values) == 1 and joined.note.endswith(" calls") and joined.note != "1 calls"

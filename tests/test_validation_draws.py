@@ -44,15 +44,21 @@ def test_each_draw_reads_its_own_seeds():
     seeds together (their mean off the tolerance) do not. One of the two draws agrees, and the table marks the row."""
     res = _hf2({s: (32.8e3 + 50.0 * s if s <= 4 else 45e3 + 50.0 * s) for s in range(1, 9)})
     cfg = VB.Config(seeds=8)
-    table = VD.draw_verdicts(res, cfg, 4, against={HF2_PEAK: "partly"})
+    table = VD.draw_verdicts(res, cfg, 4, against=[{HF2_PEAK: "partly"}, {}])
     row = next(r for r in table if r["statement"] == HF2_PEAK)
     assert row["draws"] == ["reproduced", "not reproduced"]
-    assert row["whole"] == "not reproduced" and row["agree"] == 1 and row["against"] == "partly"
+    assert row["whole"] == "not reproduced" and row["agree"] == 1
+    assert row["against"] == ["partly", "not measured"]  # a file without the row: not measured
     assert not any("HF1" in r["statement"] for r in table)  # rows of experiments not run are left out
-    lines = VD.render([row], cfg, 4, "other (8 seeds)")
-    assert lines[0] == "| § | statement | 8 seeds | seeds 1–4 | seeds 5–8 | draws agreeing | other (8 seeds) |"
-    assert lines[2].endswith(f"| **{HF2_PEAK}** | ✗ | ✓ | ✗ | 1 of 2 | ~ |")
-    assert lines[-1] == "1 of 1 rows measured have draws of 4 seeds that read otherwise than all 8 seeds."
+    lines = VD.render([row], cfg, 4, ["other (8 seeds)", "empty (8 seeds)"])
+    head = "| § | statement | 8 seeds | seeds 1–4 | seeds 5–8 | draws agreeing | other (8 seeds) | empty (8 seeds) |"
+    assert lines[0] == head
+    assert lines[2].endswith(f"| **{HF2_PEAK}** | ✗ | ✓ | ✗ | 1 of 2 | ~ | · |")
+    assert lines[-3] == "1 of 1 rows measured have draws of 4 seeds that read otherwise than all 8 seeds."
+    assert lines[-2] == "other (8 seeds) reads 0 of the 1 rows as all 8 seeds do."
+    alike = dict(row, against=["not reproduced", "partly"])
+    assert VD.render([alike], cfg, 4, ["a", "b"])[-2:] == ["a reads 1 of the 1 rows as all 8 seeds do.",
+                                                           "b reads 0 of the 1 rows as all 8 seeds do."]  # fmt: skip
     same = VD.draw_verdicts(_hf2({s: 32.8e3 + 50.0 * s for s in range(1, 9)}), cfg, 4)
     assert next(r for r in same if r["statement"] == HF2_PEAK)["draws"] == ["reproduced", "reproduced"]
     agreeing = next(r for r in same if r["statement"] == HF2_PEAK)
@@ -125,12 +131,13 @@ def test_the_32_seed_page_is_rendered_from_its_results():
 
 def test_the_pages_draws_table_is_the_scripts_output(capsys):
     page = (REPO / "docs" / "validation.md").read_text()
-    blocks = re.findall(r"<!-- DRAWS (\S+) (\d+) (\S+)( split-only)? -->\n(.*?)<!-- END DRAWS -->", page, flags=re.S)
-    assert [b[3] for b in blocks] == ["", " split-only"]  # all rows at eight seeds, the split ones at sixteen
+    blocks = re.findall(r"<!-- DRAWS ([^>]*?) -->\n(.*?)<!-- END DRAWS -->", page, flags=re.S)
+    assert [m.endswith(" split-only") for m, _ in blocks] == [False, True]  # all rows at eight seeds, split at 16
     script = load_script("validation_draws")
-    for path, size, against, split_only, table in blocks:
-        args = [str(REPO / path), "--size", size, "--against", str(REPO / against)]
-        assert script.main(args + (["--split-only"] if split_only else [])) == 0
+    for marker, table in blocks:
+        path, size, *against = marker.removesuffix(" split-only").split()
+        args = [str(REPO / path), "--size", size, "--against", *(str(REPO / a) for a in against)]
+        assert script.main(args + (["--split-only"] if marker.endswith(" split-only") else [])) == 0
         assert capsys.readouterr().out == table
 
 

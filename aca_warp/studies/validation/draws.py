@@ -9,6 +9,7 @@ the one to read.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from typing import Any
 
 from aca_warp.studies.validation.base import ROWS, Config, evaluate_rows
@@ -28,12 +29,12 @@ def draws(cfg: Config, size: int) -> list[tuple[int, int]]:
 
 
 def draw_verdicts(
-    results: dict[str, dict], cfg: Config, size: int, against: dict[str, str] | None = None
+    results: dict[str, dict], cfg: Config, size: int, against: list[dict[str, str]] | None = None
 ) -> list[dict[str, Any]]:
     """Every row measured on the whole ensemble: its verdict and value there (``whole``, ``value``), its verdict on
     each draw of ``size`` seeds (``draws``, in the order of :func:`draws`), how many draws read the whole's verdict
-    (``agree``; a failed row agrees with nothing, so that it stands out), and, with ``against`` (statement ->
-    verdict of another results file), that file's verdict.
+    (``agree``; a failed row agrees with nothing, so that it stands out), and ``against``: the verdict of each other
+    results file given (``against``, statement -> verdict per file; not measured where a file lacks the row).
 
     A draw is evaluated as an ensemble of its own, with the settings of one (``seeds``, ``first_seed``); the rows
     read only the pads' entries today, so the same pads give the same verdict under the whole's settings."""
@@ -54,7 +55,7 @@ def draw_verdicts(
                 "value": main["value"],
                 "draws": got,
                 "agree": sum(v == main["verdict"] != FAILED for v in got),
-                "against": None if against is None else against.get(row.statement, NOT_MEASURED),
+                "against": [other.get(row.statement, NOT_MEASURED) for other in against or []],
             }
         )
     return out
@@ -66,15 +67,16 @@ def verdicts_by_statement(results: dict[str, dict], cfg: Config) -> dict[str, st
 
 
 def render(
-    table: list[dict[str, Any]], cfg: Config, size: int, against_label: str | None = None, split_only: bool = False
+    table: list[dict[str, Any]], cfg: Config, size: int, against_labels: Sequence[str] = (), split_only: bool = False
 ) -> list[str]:
     """The markdown table of :func:`draw_verdicts` (✓ reproduced, ~ partly, ✗ not reproduced, ≈ significant but
     negligible, ? undetermined, n/c not comparable, · not measured, ! failed), rows whose draws disagree (or that
-    failed) in bold, and a line counting them; ``split_only``: those rows alone."""
+    failed) in bold, a column per other results file (``against_labels``, in the order of the rows' ``against``),
+    a line counting the split rows and one per other file counting the rows it reads as the whole ensemble does;
+    ``split_only``: the split rows alone."""
     ranges = draws(cfg, size)
     head = ["§", "statement", f"{cfg.seeds} seeds", *(f"seeds {lo}–{hi - 1}" for lo, hi in ranges), "draws agreeing"]
-    if against_label is not None:
-        head.append(against_label)
+    head += list(against_labels)
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     split = 0
     for r in table:
@@ -85,9 +87,11 @@ def render(
             cells[1] = f"**{cells[1]}**"
         elif split_only:
             continue
-        if against_label is not None:
-            cells.append(SHORT.get(r["against"], r["against"]))
+        cells += [SHORT.get(v, v) for v in r["against"]]
         lines.append("| " + " | ".join(cells) + " |")
     lines += ["", f"{split} of {len(table)} rows measured have draws of {size} seeds that read otherwise than all "
               f"{cfg.seeds} seeds."]  # fmt: skip
+    for k, label in enumerate([] if split_only else against_labels):
+        alike = sum(r["against"][k] == r["whole"] for r in table)
+        lines.append(f"{label} reads {alike} of the {len(table)} rows as all {cfg.seeds} seeds do.")
     return lines
