@@ -357,10 +357,11 @@ def test_equal_prevalence_difference_uses_the_classes_every_record_populates():
     d = equal_prevalence_difference(a, b)  # class 0 empty in b[1], class 3 sparse in a: classes 1, 2 only
     assert list(d.classes) == [False, True, True, False]
     assert d.difference == pytest.approx([np.mean([0.3, 0.4]), np.mean([0.4, 0.6])])
+    assert d.reference == pytest.approx([0.25, 0.1])  # b's own mean over the same classes: a's is b's + difference
     raw = equal_prevalence_difference(a, b, value="S")
     assert raw.difference == pytest.approx([np.mean([0.7, 0.6]), np.mean([0.8, 0.7])])
     none = equal_prevalence_difference(a, b, min_bins=1000)
-    assert not none.classes.any() and np.all(np.isnan(none.difference))
+    assert not none.classes.any() and np.all(np.isnan(none.difference)) and np.all(np.isnan(none.reference))
     with pytest.raises(ValueError, match="equal size"):
         equal_prevalence_difference(a, b[:1])
 

@@ -6,6 +6,7 @@ the §3.3 amplitude rows read on this LF automaton, and the column from rest cou
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 import pytest
@@ -121,6 +122,49 @@ def test_size_row_shows_the_paper_s_order_of_the_effects(seeds32) -> None:
     notes = row.measure(results, cfg).notes
     assert "the M effect of the paper's next sentence (hf3 − hf1) 0.00506" in notes
     assert "size effect − M effect 0.0161" in notes and "(the paper orders them M > size)" in notes
+
+
+def test_s_rows_give_the_relative_reading_of_their_margin(seeds32) -> None:
+    """Beside the absolute margin 0.05 of S − S_null, each S row's notes read the ratio of the two excesses at equal
+    Φ against ln 1.25: on 32 seeds HF2's excess is 1.8× HF1's (the size row, reproduced within ± 0.05, is not within
+    ± ln 1.25), HF4's exceeds HF2's by 25 % (reproduced where the absolute margin reads negligible), HF3's HF1's by
+    20 % (negligible on both), and the rules disagree on the interaction and above f1 (undetermined)."""
+    results, cfg = seeds32
+
+    def notes(statement: str) -> tuple[str, str]:
+        value = _row(statement).measure(results, cfg)
+        return value.verdict, value.notes
+
+    verdict, text = notes("HF1 vs HF2: the size increase does not significantly affect the synchronisation quality")
+    assert verdict == R
+    assert ("relative reading ln(S − S_null at equal Φ, hf2 / hf1): 0.598 [0.578, 0.617] (n = 32), snr rule "
+            "0.49 [0.462, 0.519] (n = 32): not reproduced within ± ln 1.25") in text  # fmt: skip
+    verdict, text = notes("lower friction coefficients yield higher S for large patches too (HF4 vs HF2)")
+    assert verdict == G and "mean 0.225 against the margin 0.223 (agrees): reproduced" in text
+    verdict, text = notes("lower M raises S significantly for small patches (HF3 vs HF1)")
+    assert verdict == G and "mean 0.179 against the margin 0.223 (small): significant but negligible" in text
+    verdict, text = notes("the rise with lower M is not as substantial for the larger patches")
+    assert verdict == N and "ln(hf3 / hf1) − ln(hf4 / hf2) of S − S_null at equal Φ: -0.0455" in text
+    assert text.endswith("mean -0.0455 against the margin 0.223 (opposite): undetermined")
+    verdict, text = notes("HF4 vs HF1: S greater, especially at higher frequencies (the influence of M)")
+    assert "relative reading above f1, ln(S − S_null at equal Φ, hf4 / hf1): -0.287" in text
+
+
+def test_equal_phi_ratio_is_the_log_ratio_of_the_two_excesses() -> None:
+    """Over the classes both populate: a's excess twice b's gives ln 2; a seed whose excess is not positive on one
+    side gives NaN, not a number."""
+
+    def pad(seed: int, excess: list[float]) -> dict:
+        table = {"lower": [2, 4, 8], "upper": [4, 8, 16], "bins": [20, 20, 0], "mean_S": [0.5] * 3,
+                 "mean_S_null": [0.1] * 3, "mean_excess": excess}  # fmt: skip
+        return {"seed": seed, "status": "saturated", "measures": {"sync_relative": {"table": table}}}
+
+    results = {"a": {"pads": [pad(1, [0.2, 0.4, 9.0]), pad(2, [0.1, -0.3, 0.0])]},
+               "b": {"pads": [pad(1, [0.1, 0.2, 1.0]), pad(2, [0.1, 0.1, 0.0])]}}  # fmt: skip
+    ratio = VB.equal_phi_ratio(results, "a", "b")
+    assert ratio[1] == pytest.approx(math.log(2.0)) and math.isnan(ratio[2])
+    assert VB.equal_phi(results, "a", "b")[0] == pytest.approx([0.15, -0.2])
+    assert VB.equal_phi_ratio(results, "a", "c") == {}
 
 
 def test_the_strict_reading_of_direction_parts_moves_one_row_on_32_seeds(seeds32) -> None:

@@ -91,6 +91,8 @@ class EqualPrevalence:
         lower: Smallest Φ of each class, shape (C,).
         upper: Largest Φ (exclusive), shape (C,).
         value: Which per-class value was compared ("S", "S_null" or "excess").
+        reference: Per pair, the mean over the common classes of b's value, the level the difference is taken from
+            (b's value + difference is a's), shape (n,); NaN when no class is common.
     """
 
     difference: np.ndarray
@@ -98,6 +100,7 @@ class EqualPrevalence:
     lower: np.ndarray
     upper: np.ndarray
     value: str
+    reference: np.ndarray
 
 
 def equal_prevalence_difference(
@@ -125,7 +128,8 @@ def equal_prevalence_difference(
     mask = np.logical_and.reduce([t.bins >= min_bins for t in (*a, *b)])
     pairs = zip(a, b, strict=True)
     diff = np.array([np.mean(x.value(value)[mask] - y.value(value)[mask]) if mask.any() else np.nan for x, y in pairs])
-    return EqualPrevalence(diff, mask, edges.copy(), a[0].upper.copy(), value)
+    ref = np.array([np.mean(y.value(value)[mask]) if mask.any() else np.nan for y in b])
+    return EqualPrevalence(diff, mask, edges.copy(), a[0].upper.copy(), value, ref)
 
 
 def spectral_agreement(

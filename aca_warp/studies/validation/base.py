@@ -443,15 +443,39 @@ def equal_phi(
     results: dict[str, dict], a: str, b: str, rule: str = "relative", value: str = "excess", which: str = "table"
 ) -> tuple[np.ndarray, str]:
     """Paired differences a − b of S (``value``: "excess" = S − S_null, or "S") at equal Φ, and the classes used."""
+    seeds, d = _equal_prevalence(results, a, b, rule, which, value)
+    if d is None:
+        return np.array([]), "no common seed"
+    used = [f"{lo}–{hi - 1}" for lo, hi, u in zip(d.lower, d.upper, d.classes, strict=True) if u]
+    return d.difference, "Φ classes " + (", ".join(used) if used else "none in common")
+
+
+def equal_phi_ratio(
+    results: dict[str, dict], a: str, b: str, rule: str = "relative", which: str = "table"
+) -> dict[int, float]:
+    """Seed -> ln(a / b) of S − S_null at equal Φ: each one's mean over the classes both populate (the classes and
+    pairs of :func:`equal_phi`), NaN where either mean is not positive. The relative reading of a difference of
+    S − S_null, whose margin is a ratio where :func:`equal_phi`'s is absolute."""
+    seeds, d = _equal_prevalence(results, a, b, rule, which, "excess")
+    if d is None:
+        return {}
+    top, ref = d.reference + d.difference, d.reference
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where((top > 0) & (ref > 0), np.log(top / ref), np.nan)
+    return dict(zip(seeds, ratio.tolist(), strict=True))
+
+
+def _equal_prevalence(
+    results: dict[str, dict], a: str, b: str, rule: str, which: str, value: str
+) -> tuple[list[int], Any]:
+    """(common seeds, ``EqualPrevalence`` of a − b over them), or ([], None) without a common seed."""
     from aca_warp.analysis.measures import equal_prevalence_difference
 
     ta, tb = tables(results.get(a), rule, which), tables(results.get(b), rule, which)
     seeds = [s for s in sorted(ta) if s in tb]
     if not seeds:
-        return np.array([]), "no common seed"
-    d = equal_prevalence_difference([ta[s] for s in seeds], [tb[s] for s in seeds], value=value)
-    used = [f"{lo}–{hi - 1}" for lo, hi, u in zip(d.lower, d.upper, d.classes, strict=True) if u]
-    return d.difference, "Φ classes " + (", ".join(used) if used else "none in common")
+        return [], None
+    return seeds, equal_prevalence_difference([ta[s] for s in seeds], [tb[s] for s in seeds], value=value)
 
 
 def _need(results: dict[str, dict], names: tuple[str, ...], n: int = 2) -> str | None:

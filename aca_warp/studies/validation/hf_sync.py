@@ -6,10 +6,15 @@ classes every pad of both populates with ≥ 10 bins, paired by seed) and over *
 S band 1–150 kHz; 20–80 kHz beside), under both Φ rules: the ``relative`` rule (η = 0.1, primary) and the ``snr``
 rule (κ = 5). The paper does not state its Φ threshold, so a measure that is significant in opposite directions
 under the two rules is *undetermined*. A difference of S − S_null below 0.05 counts as negligible (the margin of the
-"not significantly different" row and of every directional S row).
+"not significantly different" row and of every directional S row). The paper does not say what "significantly"
+measures either, and 0.05 exceeds the mean excess of the small patches; each S row's notes therefore give the
+relative reading beside it (``equal_phi_ratio``: ln of the ratio of the two excesses at equal Φ, against ln 1.25,
+the margin of the other ratio rows) with the verdict it would give.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -20,6 +25,7 @@ from aca_warp.studies.validation.base import (
     _get,
     by_seed,
     equal_phi,
+    equal_phi_ratio,
     interval,
     paired,
     register_row,
@@ -48,6 +54,25 @@ S_MARGIN = 0.05  # S − S_null: a difference below 0.05 is negligible (equivale
 SPREAD_MARGIN = 0.05  # the share of synchronised bins: at least 5 % of the band more
 PREVALENCE_MARGIN = 0.02  # Φ as a share of the patches: at least 2 % of the patches more
 RHO_MARGIN = 0.1  # a rank correlation of at least 0.1
+RELATIVE_MARGIN = math.log(1.25)  # the relative reading: excesses at equal Φ differing by at least 25 %
+RATIO_TEXT = "ln(S − S_null at equal Φ, {a} / {b})"
+
+
+def _ratios(results: dict[str, dict], a: str, b: str, which: str = "table") -> tuple[dict, dict]:
+    """Seed -> ln(a / b) of S − S_null at equal Φ under the relative and the snr rule of Φ."""
+    return equal_phi_ratio(results, a, b, "relative", which), equal_phi_ratio(results, a, b, "snr", which)
+
+
+def _values(m: dict[int, float]) -> np.ndarray:
+    return np.array(list(m.values()), dtype=np.float64)
+
+
+def relative_direction(what: str, rel: np.ndarray, snr: np.ndarray, sign: float = 1.0) -> str:
+    """The relative reading of a directional S row: ``what`` (a ln ratio per seed) under both Φ rules, how its mean
+    compares with ln 1.25, and the verdict that reading gives (undetermined where the rules disagree)."""
+    verdict = rules_verdict(direction_verdict([effect(rel, RELATIVE_MARGIN, sign)]), rel, snr, sign)
+    return (f"relative reading {what}: {interval(rel)}, snr rule {interval(snr)}; "
+            f"{effect_text(rel, RELATIVE_MARGIN, sign)}: {verdict}")  # fmt: skip
 
 
 def _share(results: dict[str, dict], name: str, key: str) -> dict[int, float]:
@@ -106,8 +131,9 @@ def _equal(results: dict[str, dict], a: str, b: str) -> tuple[np.ndarray, np.nda
 def lower_m_row(a: str, b: str):  # noqa: ANN201
     def measure(results: dict[str, dict], cfg: Config) -> RowValue:
         rel, snr, classes, notes = _equal(results, a, b)
+        ratio = relative_direction(RATIO_TEXT.format(a=a, b=b), *map(_values, _ratios(results, a, b)))
         return RowValue.direction(
-            f"Δ(S − S_null) at equal Φ {a} − {b}", rel, S_MARGIN, after=f"{notes}; {classes}", snr=snr
+            f"Δ(S − S_null) at equal Φ {a} − {b}", rel, S_MARGIN, after=f"{notes}; {ratio}; {classes}", snr=snr
         )
 
     return measure
@@ -125,10 +151,15 @@ def ordering_text(results: dict[str, dict], size: np.ndarray) -> str:
 
 def hf1_hf2_row(results: dict[str, dict], cfg: Config) -> RowValue:
     rel, snr, classes, notes = _equal(results, "hf2", "hf1")
+    r_rel, r_snr = map(_values, _ratios(results, "hf2", "hf1"))
+    ratio = (f"relative reading {RATIO_TEXT.format(a='hf2', b='hf1')}: {interval(r_rel)}, snr rule "
+             f"{interval(r_snr)}: {equivalence_verdict(r_rel, RELATIVE_MARGIN)} within ± ln 1.25 "
+             f"(snr rule alone: {equivalence_verdict(r_snr, RELATIVE_MARGIN)})")  # fmt: skip
     return RowValue(
         f"Δ(S − S_null) at equal Φ hf2 − hf1: {interval(rel)}",
         equivalence_verdict(rel, S_MARGIN),
-        f"{notes}; snr rule alone: {equivalence_verdict(snr, S_MARGIN)}; {ordering_text(results, rel)}; {classes}",
+        f"{notes}; snr rule alone: {equivalence_verdict(snr, S_MARGIN)}; {ratio}; {ordering_text(results, rel)}; "
+        f"{classes}",
     )
 
 
@@ -148,12 +179,15 @@ def interaction(results: dict[str, dict], which: str = "table", rule: str = "rel
 
 def less_for_large_row(results: dict[str, dict], cfg: Config) -> RowValue:
     rel, snr = -interaction(results), -interaction(results, rule="snr")
+    small, large = _ratios(results, "hf3", "hf1"), _ratios(results, "hf4", "hf2")
+    ratio = relative_direction("ln(hf3 / hf1) − ln(hf4 / hf2) of S − S_null at equal Φ",
+                               *(paired(s, g) for s, g in zip(small, large, strict=True)))  # fmt: skip
     return RowValue.direction(
         "(hf3 − hf1) − (hf4 − hf2) at equal Φ",
         rel,
         S_MARGIN,
         after=f"snr rule {interval(snr)}; small patches {interval(equal_phi(results, 'hf3', 'hf1')[0])}, large "
-        f"{interval(equal_phi(results, 'hf4', 'hf2')[0])}",
+        f"{interval(equal_phi(results, 'hf4', 'hf2')[0])}; {ratio}",
         snr=snr,
     )
 
@@ -185,12 +219,14 @@ def combination_high_row(results: dict[str, dict], cfg: Config) -> RowValue:
     snr_high = equal_phi(results, "hf4", "hf1", rule="snr", which="table_high")[0]
     extra = high - whole if high.size == whole.size else np.array([])
     verdict = direction_verdict([effect(high, S_MARGIN), effect(extra, 0.0)])
+    ratio = relative_direction(f"above f1, {RATIO_TEXT.format(a='hf4', b='hf1')}",
+                               *map(_values, _ratios(results, "hf4", "hf1", "table_high")))  # fmt: skip
     return RowValue(
         f"Δ(S − S_null) at equal Φ above f1, hf4 − hf1: {interval(high)}; above f1 minus the whole band: "
         f"{interval(extra)}",
         rules_verdict(verdict, high, snr_high),
         f"{effect_text(high, S_MARGIN)}; the whole band {interval(whole)}; snr rule above f1 {interval(snr_high)}; "
-        f"{classes}",
+        f"{ratio}; {classes}",
     )
 
 
