@@ -16,7 +16,7 @@ from aca_warp.studies.validation import base as VB
 from aca_warp.studies.validation import hf_peaks as VP
 from aca_warp.studies.validation import hf_sync as VS
 from aca_warp.studies.validation import multiscale_rows as VMR
-from aca_warp.studies.validation.page import rest_counts, strict_counts, verdict_counts
+from aca_warp.studies.validation.page import relative_counts, rest_counts, strict_counts, verdict_counts
 from aca_warp.studies.validation.results import read_results
 
 PRESETS = ("hf1", "hf2", "hf3", "hf4")
@@ -147,7 +147,26 @@ def test_s_rows_give_the_relative_reading_of_their_margin(seeds32) -> None:
     assert verdict == N and "ln(hf3 / hf1) − ln(hf4 / hf2) of S − S_null at equal Φ: -0.0455" in text
     assert text.endswith("mean -0.0455 against the margin 0.223 (opposite): undetermined")
     verdict, text = notes("HF4 vs HF1: S greater, especially at higher frequencies (the influence of M)")
-    assert "relative reading above f1, ln(S − S_null at equal Φ, hf4 / hf1): -0.287" in text
+    assert verdict == U and "hf4 / hf1) (with the rise above the whole band's): -0.287 [-0.451, -0.123]" in text
+
+
+def test_the_relative_reading_of_the_s_rows_moves_three_rows_on_32_seeds(seeds32) -> None:
+    """The page's line on the relative reading: evaluated inside ``relative_s`` the S rows take their relative
+    verdicts (three move on 32 seeds), and outside it the absolute margin again."""
+    results, cfg = seeds32
+    rows = VB.evaluate_rows(results, cfg)
+    with VS.relative_s():
+        relative = VB.evaluate_rows(results, cfg)
+    assert VB.evaluate_rows(results, cfg) == rows  # the context is left as it was
+    assert relative_counts(rows, relative).endswith(
+        "3 of the 73 verdicts move: HF1 vs HF2: the size increase does not significantly affect the "
+        "synchronisation quality (reproduced → not reproduced); lower friction coefficients yield higher S for large "
+        "patches too (HF4 vs HF2) (significant but negligible → reproduced); the rise with lower M is not as "
+        "substantial for the larger patches (not reproduced → undetermined)."
+    )
+    changed = [(r, s) for r, s in zip(rows, relative, strict=True) if r != s]
+    assert len(changed) == 3 and all({**s, "verdict": r["verdict"]} == r for r, s in changed)  # the verdict alone
+    assert relative_counts(rows, rows).endswith("no verdict moves.")
 
 
 def test_equal_phi_ratio_is_the_log_ratio_of_the_two_excesses() -> None:

@@ -14,7 +14,11 @@ the margin of the other ratio rows) with the verdict it would give.
 
 from __future__ import annotations
 
+import contextvars
+import dataclasses
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -67,12 +71,36 @@ def _values(m: dict[int, float]) -> np.ndarray:
     return np.array(list(m.values()), dtype=np.float64)
 
 
-def relative_direction(what: str, rel: np.ndarray, snr: np.ndarray, sign: float = 1.0) -> str:
-    """The relative reading of a directional S row: ``what`` (a ln ratio per seed) under both Φ rules, how its mean
-    compares with ln 1.25, and the verdict that reading gives (undetermined where the rules disagree)."""
-    verdict = rules_verdict(direction_verdict([effect(rel, RELATIVE_MARGIN, sign)]), rel, snr, sign)
-    return (f"relative reading {what}: {interval(rel)}, snr rule {interval(snr)}; "
+_RELATIVE = contextvars.ContextVar("relative_s", default=False)
+
+
+@contextmanager
+def relative_s() -> Iterator[None]:
+    """Inside it the S rows that compare two presets take the verdict of their relative reading (the ratio of the
+    two excesses at equal Φ against ln 1.25) instead of the absolute margin 0.05: for the page's line on what that
+    reading would move."""
+    token = _RELATIVE.set(True)
+    try:
+        yield
+    finally:
+        _RELATIVE.reset(token)
+
+
+def _read(value: RowValue, relative_verdict: str) -> RowValue:
+    """``value``, with the verdict of its relative reading inside :func:`relative_s`."""
+    return dataclasses.replace(value, verdict=relative_verdict) if _RELATIVE.get() else value
+
+
+def relative_direction(
+    what: str, rel: np.ndarray, snr: np.ndarray, sign: float = 1.0, extra: tuple[str, ...] = ()
+) -> tuple[str, str]:
+    """The relative reading of a directional S row: its verdict (``what``, a ln ratio per seed, against ln 1.25 with
+    the further parts ``extra`` (:func:`effect` outcomes) of the row; undetermined where the Φ rules disagree) and
+    its text (the ratio under both rules, how its mean compares with ln 1.25, the verdict)."""
+    verdict = rules_verdict(direction_verdict([effect(rel, RELATIVE_MARGIN, sign), *extra]), rel, snr, sign)
+    text = (f"relative reading {what}: {interval(rel)}, snr rule {interval(snr)}; "
             f"{effect_text(rel, RELATIVE_MARGIN, sign)}: {verdict}")  # fmt: skip
+    return verdict, text
 
 
 def _share(results: dict[str, dict], name: str, key: str) -> dict[int, float]:
@@ -131,10 +159,11 @@ def _equal(results: dict[str, dict], a: str, b: str) -> tuple[np.ndarray, np.nda
 def lower_m_row(a: str, b: str):  # noqa: ANN201
     def measure(results: dict[str, dict], cfg: Config) -> RowValue:
         rel, snr, classes, notes = _equal(results, a, b)
-        ratio = relative_direction(RATIO_TEXT.format(a=a, b=b), *map(_values, _ratios(results, a, b)))
-        return RowValue.direction(
+        verdict, ratio = relative_direction(RATIO_TEXT.format(a=a, b=b), *map(_values, _ratios(results, a, b)))
+        value = RowValue.direction(
             f"Δ(S − S_null) at equal Φ {a} − {b}", rel, S_MARGIN, after=f"{notes}; {ratio}; {classes}", snr=snr
         )
+        return _read(value, verdict)
 
     return measure
 
@@ -152,15 +181,17 @@ def ordering_text(results: dict[str, dict], size: np.ndarray) -> str:
 def hf1_hf2_row(results: dict[str, dict], cfg: Config) -> RowValue:
     rel, snr, classes, notes = _equal(results, "hf2", "hf1")
     r_rel, r_snr = map(_values, _ratios(results, "hf2", "hf1"))
+    relative = equivalence_verdict(r_rel, RELATIVE_MARGIN)
     ratio = (f"relative reading {RATIO_TEXT.format(a='hf2', b='hf1')}: {interval(r_rel)}, snr rule "
-             f"{interval(r_snr)}: {equivalence_verdict(r_rel, RELATIVE_MARGIN)} within ± ln 1.25 "
+             f"{interval(r_snr)}: {relative} within ± ln 1.25 "
              f"(snr rule alone: {equivalence_verdict(r_snr, RELATIVE_MARGIN)})")  # fmt: skip
-    return RowValue(
+    value = RowValue(
         f"Δ(S − S_null) at equal Φ hf2 − hf1: {interval(rel)}",
         equivalence_verdict(rel, S_MARGIN),
         f"{notes}; snr rule alone: {equivalence_verdict(snr, S_MARGIN)}; {ratio}; {ordering_text(results, rel)}; "
         f"{classes}",
     )
+    return _read(value, relative)
 
 
 def interaction(results: dict[str, dict], which: str = "table", rule: str = "relative") -> np.ndarray:
@@ -180,9 +211,9 @@ def interaction(results: dict[str, dict], which: str = "table", rule: str = "rel
 def less_for_large_row(results: dict[str, dict], cfg: Config) -> RowValue:
     rel, snr = -interaction(results), -interaction(results, rule="snr")
     small, large = _ratios(results, "hf3", "hf1"), _ratios(results, "hf4", "hf2")
-    ratio = relative_direction("ln(hf3 / hf1) − ln(hf4 / hf2) of S − S_null at equal Φ",
-                               *(paired(s, g) for s, g in zip(small, large, strict=True)))  # fmt: skip
-    return RowValue.direction(
+    verdict, ratio = relative_direction("ln(hf3 / hf1) − ln(hf4 / hf2) of S − S_null at equal Φ",
+                                        *(paired(s, g) for s, g in zip(small, large, strict=True)))  # fmt: skip
+    value = RowValue.direction(
         "(hf3 − hf1) − (hf4 − hf2) at equal Φ",
         rel,
         S_MARGIN,
@@ -190,6 +221,7 @@ def less_for_large_row(results: dict[str, dict], cfg: Config) -> RowValue:
         f"{interval(equal_phi(results, 'hf4', 'hf2')[0])}; {ratio}",
         snr=snr,
     )
+    return _read(value, verdict)
 
 
 def agreement_row(results: dict[str, dict], cfg: Config) -> RowValue:
@@ -219,15 +251,17 @@ def combination_high_row(results: dict[str, dict], cfg: Config) -> RowValue:
     snr_high = equal_phi(results, "hf4", "hf1", rule="snr", which="table_high")[0]
     extra = high - whole if high.size == whole.size else np.array([])
     verdict = direction_verdict([effect(high, S_MARGIN), effect(extra, 0.0)])
-    ratio = relative_direction(f"above f1, {RATIO_TEXT.format(a='hf4', b='hf1')}",
-                               *map(_values, _ratios(results, "hf4", "hf1", "table_high")))  # fmt: skip
-    return RowValue(
+    what = f"above f1, {RATIO_TEXT.format(a='hf4', b='hf1')} (with the rise above the whole band's)"
+    r_rel, r_snr = map(_values, _ratios(results, "hf4", "hf1", "table_high"))
+    relative, ratio = relative_direction(what, r_rel, r_snr, extra=(effect(extra, 0.0),))
+    value = RowValue(
         f"Δ(S − S_null) at equal Φ above f1, hf4 − hf1: {interval(high)}; above f1 minus the whole band: "
         f"{interval(extra)}",
         rules_verdict(verdict, high, snr_high),
         f"{effect_text(high, S_MARGIN)}; the whole band {interval(whole)}; snr rule above f1 {interval(snr_high)}; "
         f"{ratio}; {classes}",
     )
+    return _read(value, relative)
 
 
 def both_verdict(a: str, b: str) -> str:

@@ -238,19 +238,29 @@ def rest_counts(rows: list[dict[str, Any]], rest: list[dict[str, Any] | None]) -
     return text
 
 
-def strict_counts(rows: list[dict[str, Any]], strict: list[dict[str, Any]]) -> str:
-    """The rows whose verdict the stricter reading of a direction part moves (the whole interval beyond the margin,
-    :func:`~aca_warp.studies.validation.verdicts.strict_direction`), in one sentence."""
-    moved = [f"{r['statement']} ({r['verdict']} → {s['verdict']})" for r, s in zip(rows, strict, strict=True)
+def moved_counts(rows: list[dict[str, Any]], other: list[dict[str, Any]], text: str) -> str:
+    """``text`` followed by the rows whose verdict differs in ``other`` (the rows evaluated under another reading),
+    in one sentence."""
+    moved = [f"{r['statement']} ({r['verdict']} → {s['verdict']})" for r, s in zip(rows, other, strict=True)
              if s["verdict"] != r["verdict"]]  # fmt: skip
-    text = (
-        "Read strictly, a direction part agrees only when its whole 95 % interval, not its mean alone, reaches the "
-        "margin: "
-    )
     if not moved:
         return text + "no verdict moves."
     verb = "moves" if len(moved) == 1 else "move"
     return text + f"{len(moved)} of the {len(rows)} verdicts {verb}: " + "; ".join(moved) + "."
+
+
+def strict_counts(rows: list[dict[str, Any]], strict: list[dict[str, Any]]) -> str:
+    """The rows whose verdict the stricter reading of a direction part moves (the whole interval beyond the margin,
+    :func:`~aca_warp.studies.validation.verdicts.strict_direction`), in one sentence."""
+    return moved_counts(rows, strict, "Read strictly, a direction part agrees only when its whole 95 % interval, not "
+                        "its mean alone, reaches the margin: ")  # fmt: skip
+
+
+def relative_counts(rows: list[dict[str, Any]], relative: list[dict[str, Any]]) -> str:
+    """The rows whose verdict the relative reading of the S rows moves (the ratio of two presets' excesses at equal
+    Φ against ln 1.25, :func:`~aca_warp.studies.validation.hf_sync.relative_s`), in one sentence."""
+    return moved_counts(rows, relative, "Read relatively, each difference of S − S_null at equal Φ between two "
+                        "presets as the ratio of the two excesses against ln 1.25, not against 0.05: ")  # fmt: skip
 
 
 def statement_rows(rows: list[dict[str, Any]], rest: list[dict[str, Any] | None]) -> list[list[str]]:
@@ -275,9 +285,10 @@ def render(
     causes: list[dict[str, Any]] | None = None,
     rest: list[dict[str, Any] | None] | None = None,
     strict: list[dict[str, Any]] | None = None,
+    relative: list[dict[str, Any]] | None = None,
 ) -> list[str]:
     """The generated part of docs/validation.md (``strict``: the rows under the stricter reading of a direction
-    part, :func:`strict_counts`)."""
+    part, :func:`strict_counts`; ``relative``: under the relative reading of the S rows, :func:`relative_counts`)."""
     from aca_warp.studies.validation import tracks as validation_tracks
 
     rest = rest if rest is not None else [None] * len(rows)
@@ -293,6 +304,7 @@ def render(
         "",
         *([rested, ""] if rested else []),
         *([strict_counts(rows, strict), ""] if strict is not None else []),
+        *([relative_counts(rows, relative), ""] if relative is not None else []),
         "Criteria:",
         "",
         *criteria_lines(),

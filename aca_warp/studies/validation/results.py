@@ -71,6 +71,7 @@ def evaluate(results: dict[str, dict], cfg: Config) -> tuple[list[dict], list[di
 def render_report(path: Path) -> tuple[list[str], list[dict], dict[str, Any]]:
     """The page's generated section from ``results.json`` at ``path`` (lines), the rows, and the meta."""
     from aca_warp.studies.validation.base import evaluate_rows
+    from aca_warp.studies.validation.hf_sync import relative_s
     from aca_warp.studies.validation.page import render
     from aca_warp.studies.validation.verdicts import strict_direction
 
@@ -78,4 +79,7 @@ def render_report(path: Path) -> tuple[list[str], list[dict], dict[str, Any]]:
     rows, rest, causes = evaluate(results, cfg)
     with strict_direction():
         strict = evaluate_rows(results, cfg)
-    return render(results, rows, {**meta, "results": path.name}, causes, rest, strict), rows, meta
+    with relative_s():
+        relative = evaluate_rows(results, cfg)
+    page = render(results, rows, {**meta, "results": path.name}, causes, rest, strict, relative)
+    return page, rows, meta
