@@ -152,7 +152,7 @@ def test_lf_resume_of_bad_files(tmp_path, capsys):
         f.attrs["kind"] = "lf"
         f.attrs["scene"] = "{"
     for argv, message in (
-        (["lf", "--resume", str(junk)], "is not an HDF5 file (expected a "),
+        (["lf", "--resume", str(junk)], "is not an HDF5 file (expected an LF run file written by aca-warp)"),
         (["lf", "--resume", str(hf_like)], "attribute 'scene' is not valid JSON"),
         (["rerun", str(hf_like), "-o", str(tmp_path / "r.h5")], "attribute 'scene' is not valid JSON"),
     ):
@@ -161,6 +161,30 @@ def test_lf_resume_of_bad_files(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and message in err[0], (argv, err)
     assert junk.read_bytes() == b"not hdf5" and not (tmp_path / "r.h5").exists()
+
+
+def test_inputs_that_are_not_regular_files(tmp_path, capsys):
+    """A named pipe given as a run file (or an LF run file for --snapshot): exit 2 and one line saying it is not a
+    regular file, with the article its kind takes; nothing written, and the pipe is never opened (which would block)."""
+    import os
+
+    pipe = tmp_path / "pipe.h5"
+    os.mkfifo(pipe)
+    out = tmp_path / "out.h5"
+    run = "is not a regular file (expected a run file)"
+    for argv, message in (
+        (["analyze", str(pipe)], run),
+        (["plot", str(pipe), "-o", str(tmp_path / "fig")], run),
+        (["rerun", str(pipe), "-o", str(out)], run),
+        (["hf", "--resume", str(pipe)], run),
+        (["lf", "--resume", str(pipe)], run),
+        (["hf", str(pipe), "--snapshot", "app1_end", "-o", str(out)], run.replace("a run", "an LF run")),
+    ):
+        capsys.readouterr()
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], (argv, err)
+    assert not out.exists() and not (tmp_path / "fig").exists()
 
 
 # ------------------------------------------------------------------------------------------------ sweeps

@@ -93,7 +93,7 @@ def missing_run_message(path: str | Path) -> str | None:
     if p.is_dir():
         return f"{p} is a folder, not a run file: name the run file (RUN.h5) inside it"
     if p.exists():
-        return None
+        return None if p.is_file() else f"{p} is not a regular file (expected a run file)"
     partial = partial_path(p)
     if partial.is_file():
         return (

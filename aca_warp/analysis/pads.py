@@ -31,6 +31,8 @@ def shard_pads(path: str | Path) -> np.ndarray | None:
     (``pad_stop - pad_start``, at most a sweep's pads) of rows: a crafted file is no shard."""
     from aca_warp.common.bounds import MAX_PADS
 
+    if not Path(path).is_file():  # a pipe or device would block h5py's open
+        return None
     try:
         with h5py.File(path, "r") as f:
             fmt = f.attrs.get("format", "")

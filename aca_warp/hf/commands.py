@@ -529,11 +529,15 @@ def _is_lf(path: str | Path) -> bool:
 def _cmd_rerun(args: argparse.Namespace) -> int:
     import dataclasses
 
+    from aca_warp.analysis.groups import missing_run_message
     from aca_warp.analysis.pads import shard_pads
     from aca_warp.common.files import check_not_input, check_output_path, version_changes
     from aca_warp.hf.rerun import read_settings, relaxed_checks
     from aca_warp.hf.runner import run_scene
 
+    said = missing_run_message(args.run)  # a folder, a pipe, a killed run's .partial: before anything opens it
+    if said is not None:
+        raise SceneError(said)
     pads = shard_pads(args.run)
     if pads is not None:
         from aca_warp.sweep.spec import pad_list
