@@ -114,6 +114,8 @@ def test_a_failed_row_agrees_with_no_draw(monkeypatch):
     row = next(r for r in table if r["statement"] == HF2_PEAK)
     assert row["whole"] == "failed" and row["draws"] == ["failed", "failed"] and row["agree"] == 0
     assert VD.render([row], cfg, 4)[2].endswith(f"| **{HF2_PEAK}** | ! | ! | ! | 0 of 2 |")
+    failed_there_too = VD.render([dict(row, against=["failed"])], cfg, 4, ["x"])  # a failure agrees with nothing
+    assert failed_there_too[-1] == "x reads 0 of the 1 rows as all 8 seeds do."
 
 
 def test_the_32_seed_page_is_rendered_from_its_results():

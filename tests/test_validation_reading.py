@@ -147,7 +147,8 @@ def test_s_rows_give_the_relative_reading_of_their_margin(seeds32) -> None:
     assert verdict == N and "ln(hf3 / hf1) − ln(hf4 / hf2) of S − S_null at equal Φ: -0.0455" in text
     assert text.endswith("mean -0.0455 against the margin 0.223 (opposite): undetermined")
     verdict, text = notes("HF4 vs HF1: S greater, especially at higher frequencies (the influence of M)")
-    assert verdict == U and "hf4 / hf1) (with the rise above the whole band's): -0.287 [-0.451, -0.123]" in text
+    assert verdict == U and "above f1, ln(S − S_null at equal Φ, hf4 / hf1): -0.287 [-0.451, -0.123]" in text
+    assert "(with the ratio above f1 less the whole band's -1.13 [-1.3, -0.961] (n = 32))" in text
 
 
 def test_the_relative_reading_of_the_s_rows_moves_three_rows_on_32_seeds(seeds32) -> None:

@@ -80,7 +80,8 @@ def has_patch_velocity(f: h5py.File) -> bool:
 def missing_run_message(path: str | Path) -> str | None:
     """For a run file ``path`` that does not exist, the message naming its ``.partial`` when that exists (a run still
     being written, or one that was stopped or killed) and what to do; for a folder, that it is one (a sweep's: how
-    to read it); else None."""
+    to read it); for anything else that is not a regular file (a pipe, a device), that it is not one, so that
+    nothing opens it (a pipe would block the first read); else None."""
     from aca_warp.common.files import partial_path, recovery
 
     p = Path(path)

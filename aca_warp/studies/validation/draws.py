@@ -92,6 +92,6 @@ def render(
     lines += ["", f"{split} of {len(table)} rows measured have draws of {size} seeds that read otherwise than all "
               f"{cfg.seeds} seeds."]  # fmt: skip
     for k, label in enumerate([] if split_only else against_labels):
-        alike = sum(r["against"][k] == r["whole"] for r in table)
+        alike = sum(r["against"][k] == r["whole"] != FAILED for r in table)
         lines.append(f"{label} reads {alike} of the {len(table)} rows as all {cfg.seeds} seeds do.")
     return lines

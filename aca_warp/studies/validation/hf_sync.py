@@ -77,8 +77,8 @@ _RELATIVE = contextvars.ContextVar("relative_s", default=False)
 @contextmanager
 def relative_s() -> Iterator[None]:
     """Inside it the S rows that compare two presets take the verdict of their relative reading (the ratio of the
-    two excesses at equal Φ against ln 1.25) instead of the absolute margin 0.05: for the page's line on what that
-    reading would move."""
+    two excesses at equal Φ against ln 1.25) instead of the absolute margin 0.05, and so does the combination row
+    through its M part: for the page's line on what that reading would move."""
     token = _RELATIVE.set(True)
     try:
         yield
@@ -251,9 +251,11 @@ def combination_high_row(results: dict[str, dict], cfg: Config) -> RowValue:
     snr_high = equal_phi(results, "hf4", "hf1", rule="snr", which="table_high")[0]
     extra = high - whole if high.size == whole.size else np.array([])
     verdict = direction_verdict([effect(high, S_MARGIN), effect(extra, 0.0)])
-    what = f"above f1, {RATIO_TEXT.format(a='hf4', b='hf1')} (with the rise above the whole band's)"
-    r_rel, r_snr = map(_values, _ratios(results, "hf4", "hf1", "table_high"))
-    relative, ratio = relative_direction(what, r_rel, r_snr, extra=(effect(extra, 0.0),))
+    what = f"above f1, {RATIO_TEXT.format(a='hf4', b='hf1')}"
+    h_rel, h_snr = _ratios(results, "hf4", "hf1", "table_high")
+    rise = paired(h_rel, _ratios(results, "hf4", "hf1")[0])  # the ratio above f1 over the whole band's: "especially"
+    relative, ratio = relative_direction(what, _values(h_rel), _values(h_snr), extra=(effect(rise, 0.0),))
+    ratio += f" (with the ratio above f1 less the whole band's {interval(rise)})"
     value = RowValue(
         f"Δ(S − S_null) at equal Φ above f1, hf4 − hf1: {interval(high)}; above f1 minus the whole band: "
         f"{interval(extra)}",
