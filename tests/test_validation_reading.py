@@ -185,6 +185,7 @@ def test_equal_phi_ratio_is_the_log_ratio_of_the_two_excesses() -> None:
     assert ratio[1] == pytest.approx(math.log(2.0)) and math.isnan(ratio[2])
     assert VB.equal_phi(results, "a", "b")[0] == pytest.approx([0.15, -0.2])
     assert VB.equal_phi_ratio(results, "a", "c") == {}
+    assert VB.equal_phi_ratio(results, "a", "b", only={1}) == pytest.approx({1: math.log(2.0)})  # seed 2 left out
 
 
 def test_the_strict_reading_of_direction_parts_moves_one_row_on_32_seeds(seeds32) -> None:

@@ -451,12 +451,18 @@ def equal_phi(
 
 
 def equal_phi_ratio(
-    results: dict[str, dict], a: str, b: str, rule: str = "relative", which: str = "table"
+    results: dict[str, dict],
+    a: str,
+    b: str,
+    rule: str = "relative",
+    which: str = "table",
+    only: set[int] | None = None,
 ) -> dict[int, float]:
     """Seed -> ln(a / b) of S − S_null at equal Φ: each one's mean over the classes both populate (the classes and
-    pairs of :func:`equal_phi`), NaN where either mean is not positive. The relative reading of a difference of
-    S − S_null, whose margin is a ratio where :func:`equal_phi`'s is absolute."""
-    seeds, d = _equal_prevalence(results, a, b, rule, which, "excess")
+    pairs of :func:`equal_phi`; ``only``: over these seeds alone, so that two ratios share their pads), NaN where
+    either mean is not positive. The relative reading of a difference of S − S_null, whose margin is a ratio where
+    :func:`equal_phi`'s is absolute."""
+    seeds, d = _equal_prevalence(results, a, b, rule, which, "excess", only)
     if d is None:
         return {}
     top, ref = d.reference + d.difference, d.reference
@@ -466,13 +472,13 @@ def equal_phi_ratio(
 
 
 def _equal_prevalence(
-    results: dict[str, dict], a: str, b: str, rule: str, which: str, value: str
+    results: dict[str, dict], a: str, b: str, rule: str, which: str, value: str, only: set[int] | None = None
 ) -> tuple[list[int], Any]:
-    """(common seeds, ``EqualPrevalence`` of a − b over them), or ([], None) without a common seed."""
+    """(common seeds (within ``only``), ``EqualPrevalence`` of a − b over them), or ([], None) without one."""
     from aca_warp.analysis.measures import equal_prevalence_difference
 
     ta, tb = tables(results.get(a), rule, which), tables(results.get(b), rule, which)
-    seeds = [s for s in sorted(ta) if s in tb]
+    seeds = [s for s in sorted(ta) if s in tb and (only is None or s in only)]
     if not seeds:
         return [], None
     return seeds, equal_prevalence_difference([ta[s] for s in seeds], [tb[s] for s in seeds], value=value)

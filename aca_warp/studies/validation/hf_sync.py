@@ -62,9 +62,11 @@ RELATIVE_MARGIN = math.log(1.25)  # the relative reading: excesses at equal Φ d
 RATIO_TEXT = "ln(S − S_null at equal Φ, {a} / {b})"
 
 
-def _ratios(results: dict[str, dict], a: str, b: str, which: str = "table") -> tuple[dict, dict]:
-    """Seed -> ln(a / b) of S − S_null at equal Φ under the relative and the snr rule of Φ."""
-    return equal_phi_ratio(results, a, b, "relative", which), equal_phi_ratio(results, a, b, "snr", which)
+def _ratios(
+    results: dict[str, dict], a: str, b: str, which: str = "table", only: set[int] | None = None
+) -> tuple[dict, dict]:
+    """Seed -> ln(a / b) of S − S_null at equal Φ under the relative and the snr rule of Φ (``only``: these seeds)."""
+    return equal_phi_ratio(results, a, b, "relative", which, only), equal_phi_ratio(results, a, b, "snr", which, only)
 
 
 def _values(m: dict[int, float]) -> np.ndarray:
@@ -210,7 +212,8 @@ def interaction(results: dict[str, dict], which: str = "table", rule: str = "rel
 
 def less_for_large_row(results: dict[str, dict], cfg: Config) -> RowValue:
     rel, snr = -interaction(results), -interaction(results, rule="snr")
-    small, large = _ratios(results, "hf3", "hf1"), _ratios(results, "hf4", "hf2")
+    every = set.intersection(*(set(tables(results.get(n), "relative")) for n in PRESETS))  # as interaction pairs
+    small, large = _ratios(results, "hf3", "hf1", only=every), _ratios(results, "hf4", "hf2", only=every)
     verdict, ratio = relative_direction("ln(hf3 / hf1) − ln(hf4 / hf2) of S − S_null at equal Φ",
                                         *(paired(s, g) for s, g in zip(small, large, strict=True)))  # fmt: skip
     value = RowValue.direction(
