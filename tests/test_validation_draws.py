@@ -118,17 +118,21 @@ def test_a_failed_row_agrees_with_no_draw(monkeypatch):
     assert failed_there_too[-1] == "x reads 0 of the 1 rows as all 8 seeds do."
 
 
-def test_the_32_seed_page_is_rendered_from_its_results():
-    """docs/validation/seeds32/validation.md's generated section is what --report writes from the gzip beside it."""
+@pytest.mark.parametrize(
+    ("results", "seeds"), [(SEEDS32, 32), (SEEDS32.parent.parent / "rerun_twice" / "results.json", 8)]
+)
+def test_the_folders_pages_are_rendered_from_their_results(results: Path, seeds: int):
+    """docs/validation/seeds32/validation.md's and rerun_twice/validation.md's generated sections are what --report
+    writes from the results file beside each."""
     from aca_warp.studies.report import generated_markers
     from aca_warp.studies.validation.cli import MARKER
     from aca_warp.studies.validation.results import render_report
 
-    body, rows, meta = render_report(SEEDS32)
+    body, rows, meta = render_report(results)
     begin, end = generated_markers(MARKER)
-    committed = (SEEDS32.parent / "validation.md").read_text().split(begin, 1)[1].split(end, 1)[0]
+    committed = (results.parent / "validation.md").read_text().split(begin, 1)[1].split(end, 1)[0]
     assert committed == "\n" + "\n".join(body) + "\n"
-    assert meta["config"]["seeds"] == 32 and len(rows) == len(VB.ROWS)
+    assert meta["config"]["seeds"] == seeds and len(rows) == len(VB.ROWS)
 
 
 def test_the_pages_draws_table_is_the_scripts_output(capsys):
