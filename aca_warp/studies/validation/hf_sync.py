@@ -14,11 +14,11 @@ the margin of the other ratio rows) with the verdict it would give.
 
 from __future__ import annotations
 
+import contextlib
 import contextvars
 import dataclasses
 import math
-from collections.abc import Iterator
-from contextlib import contextmanager
+from typing import Any
 
 import numpy as np
 
@@ -50,6 +50,7 @@ from aca_warp.studies.validation.verdicts import (
     effect,
     effect_text,
     equivalence_verdict,
+    raised,
     rules_verdict,
     spread_text,
 )
@@ -76,16 +77,11 @@ def _values(m: dict[int, float]) -> np.ndarray:
 _RELATIVE = contextvars.ContextVar("relative_s", default=False)
 
 
-@contextmanager
-def relative_s() -> Iterator[None]:
+def relative_s() -> contextlib.AbstractContextManager[None]:
     """Inside it the S rows that compare two presets take the verdict of their relative reading (the ratio of the
     two excesses at equal Φ against ln 1.25) instead of the absolute margin 0.05, and so does the combination row
     through its M part: for the page's line on what that reading would move."""
-    token = _RELATIVE.set(True)
-    try:
-        yield
-    finally:
-        _RELATIVE.reset(token)
+    return raised(_RELATIVE)
 
 
 def _read(value: RowValue, relative_verdict: str) -> RowValue:
@@ -196,13 +192,18 @@ def hf1_hf2_row(results: dict[str, dict], cfg: Config) -> RowValue:
     return _read(value, relative)
 
 
+def _every_preset(ts: dict[str, dict[int, Any]]) -> list[int]:
+    """The seeds every preset's tables have (seed -> table per preset), in order."""
+    return [s for s in sorted(ts["hf1"]) if all(s in ts[n] for n in PRESETS)]
+
+
 def interaction(results: dict[str, dict], which: str = "table", rule: str = "relative") -> np.ndarray:
     """Per seed (hf4 − hf2) − (hf3 − hf1) of S − S_null at equal Φ: what lower M adds for large patches beyond what
     it adds for small ones (0 when the effects of size and M add)."""
     from aca_warp.analysis.measures import equal_prevalence_difference
 
     ts = {n: tables(results.get(n), rule, which) for n in PRESETS}
-    seeds = [s for s in sorted(ts["hf1"]) if all(s in ts[n] for n in PRESETS)]
+    seeds = _every_preset(ts)
     if not seeds:
         return np.array([])
     large = equal_prevalence_difference([ts["hf4"][s] for s in seeds], [ts["hf2"][s] for s in seeds]).difference
@@ -212,7 +213,7 @@ def interaction(results: dict[str, dict], which: str = "table", rule: str = "rel
 
 def less_for_large_row(results: dict[str, dict], cfg: Config) -> RowValue:
     rel, snr = -interaction(results), -interaction(results, rule="snr")
-    every = set.intersection(*(set(tables(results.get(n), "relative")) for n in PRESETS))  # as interaction pairs
+    every = set(_every_preset({n: tables(results.get(n), "relative") for n in PRESETS}))  # as interaction pairs
     small, large = _ratios(results, "hf3", "hf1", only=every), _ratios(results, "hf4", "hf2", only=every)
     verdict, ratio = relative_direction("ln(hf3 / hf1) − ln(hf4 / hf2) of S − S_null at equal Φ",
                                         *(paired(s, g) for s, g in zip(small, large, strict=True)))  # fmt: skip
@@ -256,7 +257,7 @@ def combination_high_row(results: dict[str, dict], cfg: Config) -> RowValue:
     verdict = direction_verdict([effect(high, S_MARGIN), effect(extra, 0.0)])
     what = f"above f1, {RATIO_TEXT.format(a='hf4', b='hf1')}"
     h_rel, h_snr = _ratios(results, "hf4", "hf1", "table_high")
-    rise = paired(h_rel, _ratios(results, "hf4", "hf1")[0])  # the ratio above f1 over the whole band's: "especially"
+    rise = paired(h_rel, equal_phi_ratio(results, "hf4", "hf1"))  # the ratio above f1 over the whole band's
     relative, ratio = relative_direction(what, _values(h_rel), _values(h_snr), extra=(effect(rise, 0.0),))
     ratio += f" (with the ratio above f1 less the whole band's {interval(rise)})"
     value = RowValue(

@@ -7,6 +7,7 @@ rendered from the results alone (``results.json``), so the section can be rebuil
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -284,11 +285,10 @@ def render(
     meta: dict[str, Any],
     causes: list[dict[str, Any]] | None = None,
     rest: list[dict[str, Any] | None] | None = None,
-    strict: list[dict[str, Any]] | None = None,
-    relative: list[dict[str, Any]] | None = None,
+    readings: Sequence[str] = (),
 ) -> list[str]:
-    """The generated part of docs/validation.md (``strict``: the rows under the stricter reading of a direction
-    part, :func:`strict_counts`; ``relative``: under the relative reading of the S rows, :func:`relative_counts`)."""
+    """The generated part of docs/validation.md (``readings``: a line per other reading of the rows on what it would
+    move, :func:`strict_counts`, :func:`relative_counts`)."""
     from aca_warp.studies.validation import tracks as validation_tracks
 
     rest = rest if rest is not None else [None] * len(rows)
@@ -303,8 +303,7 @@ def render(
         verdict_counts(rows),
         "",
         *([rested, ""] if rested else []),
-        *([strict_counts(rows, strict), ""] if strict is not None else []),
-        *([relative_counts(rows, relative), ""] if relative is not None else []),
+        *(part for line in readings for part in (line, "")),
         "Criteria:",
         "",
         *criteria_lines(),

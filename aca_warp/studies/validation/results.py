@@ -72,14 +72,13 @@ def render_report(path: Path) -> tuple[list[str], list[dict], dict[str, Any]]:
     """The page's generated section from ``results.json`` at ``path`` (lines), the rows, and the meta."""
     from aca_warp.studies.validation.base import evaluate_rows
     from aca_warp.studies.validation.hf_sync import relative_s
-    from aca_warp.studies.validation.page import render
+    from aca_warp.studies.validation.page import relative_counts, render, strict_counts
     from aca_warp.studies.validation.verdicts import strict_direction
 
     results, meta, cfg = read_results(path)
     rows, rest, causes = evaluate(results, cfg)
-    with strict_direction():
-        strict = evaluate_rows(results, cfg)
-    with relative_s():
-        relative = evaluate_rows(results, cfg)
-    page = render(results, rows, {**meta, "results": path.name}, causes, rest, strict, relative)
-    return page, rows, meta
+    readings = []
+    for reading, counts in ((strict_direction, strict_counts), (relative_s, relative_counts)):
+        with reading():
+            readings.append(counts(rows, evaluate_rows(results, cfg)))
+    return render(results, rows, {**meta, "results": path.name}, causes, rest, readings), rows, meta

@@ -18,6 +18,7 @@ them is **undetermined**: the paper's own threshold would decide it.
 
 from __future__ import annotations
 
+import contextlib
 import contextvars
 import math
 from collections.abc import Iterator
@@ -81,18 +82,24 @@ def side(v: np.ndarray, sign: float = 1.0) -> int:
     return 1 if lo > 0 else (-1 if hi < 0 else 0)
 
 
-_STRICT = contextvars.ContextVar("strict_direction", default=False)
-
-
 @contextmanager
-def strict_direction() -> Iterator[None]:
-    """Inside it a direction part agrees only when the whole 95 % interval of ``sign``·v, not its mean alone, reaches
-    the margin (:func:`effect`): the stricter reading of the criterion, for the page's line on what it would move."""
-    token = _STRICT.set(True)
+def raised(flag: contextvars.ContextVar[bool]) -> Iterator[None]:
+    """``flag`` set inside the block, as it was after it: the switch of another reading of the rows, evaluated a
+    second time under it for the page's line on what that reading would move."""
+    token = flag.set(True)
     try:
         yield
     finally:
-        _STRICT.reset(token)
+        flag.reset(token)
+
+
+_STRICT = contextvars.ContextVar("strict_direction", default=False)
+
+
+def strict_direction() -> contextlib.AbstractContextManager[None]:
+    """Inside it a direction part agrees only when the whole 95 % interval of ``sign``·v, not its mean alone, reaches
+    the margin (:func:`effect`): the stricter reading of the criterion, for the page's line on what it would move."""
+    return raised(_STRICT)
 
 
 def effect(v: np.ndarray, margin: float, sign: float = 1.0) -> str:
