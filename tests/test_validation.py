@@ -584,7 +584,10 @@ def test_cwt_lines_need_three_windows_interpolate_between_grid_frequencies_and_d
         assert np.allclose(two[line]["hz"], 0.9865 * 30e3, rtol=0.003)
     # a band edge is no line: a rising low-frequency floor (μ's drift) leaves the first line at the interior peak
     edge = np.exp(-np.log(VA.CWT_FREQUENCIES / 5e3)) + np.exp(-(np.log(VA.CWT_FREQUENCIES / 60e3) ** 2) / 0.02)
-    assert VA._line_peak(VA.CWT_FREQUENCIES, edge, 0.25) == pytest.approx(60e3, rel=0.02)
+    # (a column per block: the same block twice, and a block of the floor alone, whose line is its largest value)
+    blocks = np.stack([edge, edge, np.exp(-np.log(VA.CWT_FREQUENCIES / 5e3))], axis=1)
+    lines = VA._line_peaks(VA.CWT_FREQUENCIES, blocks, 0.25)
+    assert lines == pytest.approx([60e3, 60e3, VA.CWT_FREQUENCIES[0]], rel=0.02)
     with pytest.raises(ValueError, match="at least 3"):
         VA.cwt_measures(np.sin(2 * np.pi * 50e3 * t[:8000]), 1e-6, 4096)
 

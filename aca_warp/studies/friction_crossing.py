@@ -273,9 +273,9 @@ def joined(docs: list[dict[str, Any]]) -> dict[str, Any]:
 
 def t95(n: int) -> float:
     """Student's t quantile of a 95 % two-sided interval for the mean of n paired differences (NaN for n < 2)."""
-    import scipy.stats
+    from aca_warp.analysis.measures.ensemble import t_quantile
 
-    return float(scipy.stats.t.ppf(0.975, n - 1)) if n > 1 else math.nan
+    return t_quantile(0.975, n - 1) if n > 1 else math.nan
 
 
 def paired_cell(values: np.ndarray, ref: np.ndarray, t: float, relative: bool = True) -> str:

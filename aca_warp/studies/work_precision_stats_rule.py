@@ -278,9 +278,9 @@ def floor_factor(n: int) -> float:
 def _t(n: int, level: float = 0.95) -> float:
     """The two-sided ``level`` quantile of Student's t with n − 1 degrees of freedom (the half-width of a mean's
     interval over n seeds in units of sd/√n)."""
-    import scipy.stats
+    from aca_warp.analysis.measures.ensemble import t_quantile
 
-    return float(scipy.stats.t.ppf(0.5 + level / 2.0, n - 1))
+    return t_quantile(0.5 + level / 2.0, n - 1)
 
 
 def resolution_floor(n: int) -> float:

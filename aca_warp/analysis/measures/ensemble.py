@@ -3,9 +3,17 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import scipy.stats
+
+
+@lru_cache(maxsize=1024)
+def t_quantile(p: float, df: int) -> float:
+    """Student t's quantile p at ``df`` degrees of freedom (``scipy.stats.t.ppf``, its value; remembered, since
+    reports ask for the same few thousands of times)."""
+    return float(scipy.stats.t.ppf(p, df))
 
 
 @dataclass(frozen=True)
@@ -61,7 +69,7 @@ def ensemble_interval(values: np.ndarray, level: float = 0.95) -> EnsembleInterv
     mean = v.mean(axis=0)
     if n > 1:
         std = v.std(axis=0, ddof=1)
-        half = scipy.stats.t.ppf(0.5 + level / 2.0, n - 1) * std / np.sqrt(n)
+        half = t_quantile(0.5 + level / 2.0, n - 1) * std / np.sqrt(n)
     else:
         std = half = np.full(v.shape[1:], np.nan)
     low, high = np.percentile(v, [50.0 * (1.0 - level), 50.0 * (1.0 + level)], axis=0)

@@ -12,6 +12,7 @@ import scipy.stats
 
 from ..spectra import DEFAULT_FLOOR_HZ
 from ..timefreq import stft
+from .ensemble import t_quantile
 from .peaks import _refine
 
 
@@ -197,7 +198,7 @@ def line_trend(time: np.ndarray, freq_of_peak: np.ndarray, *, level: float = 0.9
     if t.size < 3 or np.ptp(t) == 0:
         raise ValueError(f"line_trend needs at least 3 finite points at distinct times, got {t.size}")
     fit = scipy.stats.linregress(t, f)
-    q = scipy.stats.t.ppf(0.5 + level / 2.0, t.size - 2)
+    q = t_quantile(0.5 + level / 2.0, t.size - 2)
     half = q * fit.stderr
     return LineTrend(
         slope=float(fit.slope),

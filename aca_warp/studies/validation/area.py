@@ -210,7 +210,7 @@ def cwt_lines(cwt: dict[str, Any]) -> dict[str, dict[str, Any]]:
     for name, (norm, fraction, band) in CWT_LINES.items():
         freqs, a = _weighted(cwt, "amplitude", norm)
         keep = (freqs >= band[0]) & (freqs <= band[1])
-        track = np.array([_line_peak(freqs[keep], a[keep, k], fraction) for k in range(a.shape[1])])
+        track = _line_peaks(freqs[keep], a[keep], fraction)
         lt = line_trend(frac, np.log(track))
         out[name] = {"hz": track, "dlnf": lt.slope, "dlnf_ci": [lt.slope_low, lt.slope_high], "r2": lt.r2}
     return out
@@ -225,20 +225,28 @@ def cwt_peak_to_median(cwt: dict[str, Any], norm: str = "L2") -> list[float]:
     return [float(np.log(a[band, k].max() / np.median(a[band, k]))) for k in range(a.shape[1])]
 
 
-def _line_peak(freqs: np.ndarray, a: np.ndarray, fraction: float) -> float:
-    """The line of one block over log-spaced ``freqs`` [Hz]: the lowest interior local maximum reaching
-    ``fraction`` of the block's largest value (a band edge is where the band is cut, not a peak), or the largest
-    value when none does (``fraction`` 1: always); Gaussian-interpolated in ln f through its neighbours."""
-    lo = a >= fraction * a.max()
-    interior = np.flatnonzero((a[1:-1] >= a[:-2]) & (a[1:-1] >= a[2:]) & lo[1:-1]) + 1
-    k = int(interior[0]) if interior.size and fraction < 1.0 else int(np.argmax(a))
+def _line_peaks(freqs: np.ndarray, a: np.ndarray, fraction: float) -> np.ndarray:
+    """The line of every block (column of ``a``, shape (F, K)) over log-spaced ``freqs`` [Hz], shape (K,): the
+    lowest interior local maximum reaching ``fraction`` of the block's largest value (a band edge is where the band
+    is cut, not a peak), or the largest value when none does (``fraction`` 1: always); Gaussian-interpolated in
+    ln f through its neighbours where the three values are positive and the parabola opens downwards."""
+    cols = np.arange(a.shape[1])
+    lo = a >= fraction * a.max(axis=0)
+    interior = (a[1:-1] >= a[:-2]) & (a[1:-1] >= a[2:]) & lo[1:-1]
+    k = np.argmax(a, axis=0)
+    if fraction < 1.0:
+        k = np.where(interior.any(axis=0), np.argmax(interior, axis=0) + 1, k)
     x = np.log(freqs)
-    if 0 < k < a.size - 1 and np.all(a[k - 1 : k + 2] > 0):
-        la, lb, lc = np.log(a[k - 1 : k + 2])
+    inside = (k > 0) & (k < a.shape[0] - 1)
+    km, kp = np.clip(k - 1, 0, None), np.clip(k + 1, None, a.shape[0] - 1)
+    am, ak, ap = a[km, cols], a[k, cols], a[kp, cols]
+    fit = inside & (am > 0) & (ak > 0) & (ap > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        la, lb, lc = np.log(am), np.log(ak), np.log(ap)
         den = la - 2.0 * lb + lc
-        if den < 0:
-            return float(np.exp(x[k] + 0.5 * (la - lc) / den * (x[k + 1] - x[k])))
-    return float(freqs[k])
+        fit &= den < 0
+        peak = np.exp(x[k] + 0.5 * (la - lc) / den * (x[kp] - x[k]))
+    return np.where(fit, peak, freqs[k])
 
 
 def predicted_line_change(scene: Any, t0: float, t1: float) -> float:
