@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import h5py
 import pytest
 import test_device_errors
 
@@ -106,3 +107,26 @@ def test_sweep_on_a_gpu_the_machine_lacks_is_refused_before_its_folder(tmp_path:
     assert aca_warp(["sweep", str(SPEC), "-o", str(out), "--device", "cuda:99", "--quiet"]) == 2
     assert "'cuda:99' is not available here" in capsys.readouterr().err
     assert not out.exists()
+    # without --quiet too: the one line on stderr, no sweep header on stdout before it
+    assert aca_warp(["sweep", str(SPEC), "-o", str(out), "--device", "cuda:99"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and "'cuda:99' is not available here" in captured.err
+    assert not out.exists()
+
+
+def test_a_run_file_given_as_a_sweep_spec_is_named(tmp_path: Path, capsys):
+    """An HDF5 file (a run file) given where a sweep spec is asked for: one line saying so, not a decoding error;
+    a spec that is not UTF-8 says that in words."""
+    run = tmp_path / "run.h5"
+    with h5py.File(run, "w") as f:
+        f.attrs["complete"] = True
+    bad = tmp_path / "bad.toml"
+    bad.write_bytes(b"\xff\xfe[sweep]\n")
+    for spec, words in (
+        (run, f"{run} is an HDF5 file, not a TOML sweep spec"),
+        (bad, "a sweep spec is TOML text, and byte 0 is not UTF-8"),
+    ):
+        assert aca_warp(["sweep", str(spec), "-o", str(tmp_path / "sw"), "--quiet"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and words in err[0], err
+        assert not (tmp_path / "sw").exists()

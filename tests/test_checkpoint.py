@@ -202,7 +202,7 @@ def test_resume_refusals(scene_file: Path, tmp_path: Path, capsys) -> None:
     before = done.read_bytes()
     cases = [
         (["hf", "--resume", str(tmp_path / "none.h5")], "nothing to resume"),
-        (["hf", "--resume", str(done)], "complete run"),
+        (["hf", "--resume", str(done)], "is a complete HF run; nothing to resume"),
         (["hf", "--resume", str(done), "--dt", "1e-9"], "drop --dt"),
         (["hf", "--resume", str(done), "-o", str(tmp_path / "x.h5")], "drop -o"),
         (["hf", str(scene_file)], "needs SCENE and -o"),

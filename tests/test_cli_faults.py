@@ -542,6 +542,23 @@ def test_implausible_values_in_python(tmp_path) -> None:
     assert load_scene(s, allow_implausible=True).normal_force == 5e7
 
 
+def test_friction_factor_in_percent_is_named(tmp_path, capsys) -> None:
+    """Eq. 4's M (it bounds a patch's μ) and the matrix's μ beyond 5: refused as a likely percentage, a bare number
+    (μ has no unit), nothing written; 5 itself runs."""
+    s = tmp_path / "s.toml"
+    for key, value, ok in (("M", 50, False), ("mu_pad", 30, False), ("M", 5.0, True)):
+        s.write_text(small_scene_toml(tables={"friction": {key: value}}))
+        if ok:
+            assert load_scene(s).friction.M == value
+            continue
+        assert main(["hf", str(s), "-o", str(tmp_path / "r.h5"), "--no-progress"]) == 2
+        err = one_line(capsys)
+        assert len(err) == 1 and f"friction.{key} = {value} — beyond 5 (" in err[0], err
+        assert f"did you mean %? ({value} % = {value / 100:.3g})" in err[0]
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+        assert load_scene(s, allow_implausible=True).friction.__dict__[key] == value
+
+
 def test_lf_unit_mistakes_are_named(tmp_path, capsys) -> None:
     """LF scenes too: a schedule load in mN, the LF step of an HF run."""
     s = tmp_path / "lf.toml"
@@ -569,6 +586,28 @@ def test_empty_scene_file(tmp_path, capsys, kind, text) -> None:
     err = one_line(capsys)
     assert len(err) == 1 and "is empty" in err[0], err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+def test_hf_notes_what_it_runs_otherwise_than_asked(runs, tmp_path, capsys) -> None:
+    """A duration that whole sample intervals round, and a checkpoint interval shorter than a sample interval: one
+    note each on stderr (as ``lf`` gives them), the run as before; none for a duration of whole intervals."""
+    small = str(runs["hf"])
+    for extra, notes, end in (  # the scene samples every 1e-7 s
+        (["--duration", "2.43e-6"], ["2.43e-06 s is run as 24 whole sample intervals of 1e-07 s: 2.4e-06 s"], 2.4e-6),
+        (
+            ["--duration", "2e-6", "--checkpoint-interval", "1e-9"],
+            ["a checkpoint interval of 1e-09 s is shorter"],
+            2e-6,
+        ),
+        (["--duration", "2e-6"], [], 2e-6),
+    ):
+        out = tmp_path / "r.h5"
+        assert main(["hf", small, "-o", str(out), "--no-progress", "--overwrite", *extra]) == 0
+        err = one_line(capsys)
+        assert len(err) == len(notes), err
+        assert all(n in e and e.startswith("aca-warp: note: ") for n, e in zip(notes, err, strict=True)), err
+        with h5py.File(out) as f:
+            assert f["global/time"][-1] == pytest.approx(end)
 
 
 @pytest.mark.parametrize(

@@ -169,6 +169,15 @@ def test_the_summary_line_says_why_the_step(tmp_path, capsys):
     assert main(["hf", "hf2", "--duration", "2e-6", "--dt", "1e-7", "-o", str(tmp_path / "r.h5"), "--overwrite",
                  "--no-progress"]) == 0  # fmt: skip
     assert "(1e-07 s, strang, fp32)" in capsys.readouterr().out
+    # the step a sample interval forces below the statistics' least, and the default shortened to whole steps
+    physics = "the default step for hf2's physics (1e-07 s)"
+    for sample_dt, forced, words in (
+        ("3e-8", ["--force"], f"(3e-08 s, the sample interval, shorter than {physics}, strang"),
+        ("2.5e-7", [], f"(8.33e-08 s, {physics} shortened to fill the sample interval in whole steps, strang"),
+    ):
+        assert main(["hf", "hf2", "--duration", "1e-6", "--sample-dt", sample_dt, "-o", str(tmp_path / "r.h5"),
+                     "--overwrite", "--no-progress", *forced]) == 0  # fmt: skip
+        assert words in capsys.readouterr().out
 
 
 def test_the_validation_runs_the_presets_at_their_default_step():

@@ -139,6 +139,24 @@ def test_strang_spaces_growth_events_5_us_apart_by_default(tmp_path, capsys):
         assert json.loads(f.attrs["run_options"])["growth_dt"] == 1e-5
 
 
+def test_the_summary_gives_the_spacing_taken_in_whole_steps(tmp_path, capsys):
+    """A spacing that whole steps do not fill: the summary line gives the spacing the events took beside the one
+    asked; one below half the step warns that an event follows every step."""
+    from aca_warp.cli import main
+
+    for asked, taken, warned in (
+        ("1e-9", "every 1e-07 s (1e-09 s asked", True),
+        ("scene", "every 2e-07 s (2.02e-07 s asked", False),
+        ("1e-6", "every 1e-06 s)", False),
+    ):
+        out = tmp_path / f"r{asked}.h5"
+        argv = ["hf", "varying_area", "--duration", "4e-6", "--growth-dt", asked, "-o", str(out), "--no-progress"]
+        assert main(argv) == 0
+        captured = capsys.readouterr()
+        assert f"growth events {taken}" in captured.out, captured.out
+        assert ("one event per step, every 1e-07 s" in captured.err) == warned, captured.err
+
+
 def test_a_file_without_a_stored_spacing_is_repeated_at_the_scene_s_interval(tmp_path):
     """A run file that stores no spacing (written while the events came at the scene's interval by default) is
     rerun at that interval, not at today's default: the same samples, bit for bit."""

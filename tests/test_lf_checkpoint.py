@@ -117,10 +117,14 @@ def test_lf_output_and_resume_refusals(tmp_path: Path, capsys) -> None:
     capsys.readouterr()
     before = done.read_bytes()
     (tmp_path / "half.h5.partial").write_bytes(b"")
+    hf_done = tmp_path / "hf_done.h5"  # a complete HF run file, as find_resumable reads one
+    with h5py.File(hf_done, "w") as f:
+        f.attrs["complete"] = True
     cases = [
         (["lf", str(scene), "-o", str(done)], "pass --overwrite"),
         (["lf", str(scene), "-o", str(tmp_path / "half.h5")], "empty or damaged); pass --overwrite"),
-        (["lf", "--resume", str(done)], "complete run"),
+        (["lf", "--resume", str(done)], "is a complete LF run; nothing to resume"),
+        (["lf", "--resume", str(hf_done)], "is a complete HF run; nothing to resume"),
         (["lf", "--resume", str(done), "--seed", "3"], "drop --seed"),
         (["lf", "--resume", str(tmp_path / "none.h5")], "nothing to resume"),
         (["lf", str(scene)], "needs SCENE and -o"),

@@ -200,3 +200,19 @@ def test_hf_and_lf_footers_name_the_processor_alike(lf_run, hf_run):
         assert want in run.footer, run.footer
     with plots_lf._LFRun(lf_run) as run:
         assert want in run.footer, run.footer
+
+
+def test_a_run_without_snapshots_names_both_reasons(tmp_path, capsys):
+    """An LF run that ends before its first snapshot (the tiny scene's first is due at 0.1 s): the patch map is
+    skipped with a line naming both reasons a file can hold none, not only a scene that asked for none."""
+    from aca_warp.lf.commands import run_lf
+    from aca_warp.lf.scene import lf_scene_from_dict
+
+    short = tmp_path / "short.h5"
+    run_lf(lf_scene_from_dict(DOC), short, duration=0.05)
+    with h5py.File(short) as f:
+        assert len(f["snapshots"]) == 0
+    capsys.readouterr()
+    assert _cli(["plot", str(short), "-o", str(tmp_path / "fig")]) == 0
+    err = capsys.readouterr().err
+    assert "skipped lf_patch_map: short.h5 holds no snapshots (the run ended before its first snapshot was due" in err

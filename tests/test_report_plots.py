@@ -246,7 +246,7 @@ def test_a_failed_write_keeps_the_previous_analysis(runs, tmp_path, monkeypatch)
         ({"eta": 0.0}, "eta"),
         ({"snr": -1.0}, "snr"),
         ({"n_bins": 1}, "n_bins"),
-        ({"freq_range": (5e4, 1e4)}, "frequency range"),
+        ({"freq_range": (5e4, 1e4)}, r"0 <= freq_range\[0\] < freq_range\[1\], got 50000 and 10000 Hz$"),
         ({"cwt_count": 0}, "cwt_count must be an integer >= 1, got 0"),
         ({"cwt_columns": 1}, "cwt_columns must be an integer >= 2, got 1"),
         ({"null_trials": -5}, "null_trials must be an integer >= 0, got -5"),

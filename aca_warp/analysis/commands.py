@@ -47,7 +47,7 @@ Example:  aca-warp analyze run.h5 --freq-max 150e3 --rule snr --snr 8
 """
 
 PLOT_EPILOG = """\
-Figures (PNG and PDF side by side; the animation as GIF), named <RUN stem>_<figure>.<ext>.
+Figures (PNG and PDF side by side), named <RUN stem>_<figure>.<ext>; the animation as <RUN stem>_patch_map.gif.
 HF run files (aca-warp hf):
   patch_map  patch coverage state coloured by direction of motion (paper Figs. 4/6)  needs per-patch velocities
   global     mu, torque, friction radius, sum |u'| against time (Figs. 5/7)

@@ -783,11 +783,14 @@ def _checked_band(path: str | Path, freq_range: tuple[float | None, float | None
         if freq_range is None:
             return None
         lo, hi = freq_range
+        low = option("freq_range[0]", "--freq-min")
         lo = DEFAULT_FLOOR_HZ if lo is None else float(lo)
         nyq = 0.5 / sample_interval(f["global/time"][()])
+        top = "" if hi is not None else f" (by default min({DEFAULT_BAND_TOP:g} Hz, Nyquist {nyq:g} Hz))"
         hi = min(DEFAULT_BAND_TOP, nyq) if hi is None else float(hi)
         if not (0.0 <= lo < hi and math.isfinite(hi)):
-            raise SceneError(f"frequency range must satisfy 0 <= fmin < fmax, got {lo:g}, {hi:g} Hz")
+            high = option("freq_range[1]", "--freq-max")
+            raise SceneError(f"the band's edges must satisfy 0 <= {low} < {high}, got {lo:g} and {hi:g} Hz{top}")
         return lo, hi
 
 

@@ -34,7 +34,12 @@ def step_or_default(text: str) -> float | None:
 
 def spacing(text: str) -> float | str:
     """A growth events' spacing: a finite float > 0 [s], or ``scene`` (the scenes' own growth interval)."""
-    return "scene" if text == "scene" else positive(text)
+    if text == "scene":
+        return text
+    try:
+        return positive(text)
+    except argparse.ArgumentTypeError as e:
+        raise argparse.ArgumentTypeError(f"{e}, or 'scene' (the scene's own growth interval)") from None
 
 
 def nonneg(text: str) -> float:

@@ -729,12 +729,13 @@ def find_resumable(path: str | Path) -> tuple[Path, Path]:
     try:
         with open_h5(final, "run file") as f:
             complete = bool(f.attrs.get("complete", False))
+            kind = "LF" if f.attrs.get("kind") == "lf" else "HF"
     except AcaError:
         raise
     except (OSError, RuntimeError, KeyError, ValueError) as e:
         raise SceneError(f"cannot read run file {final}: {e}") from None
     if complete:
-        raise SceneError(f"{final} is a complete run; nothing to resume")
+        raise SceneError(f"{final} is a complete {kind} run; nothing to resume")
     return final, part
 
 

@@ -27,7 +27,7 @@ class Range:
     """The plausible range of one kind of quantity, and the unit mistakes that lead out of it.
 
     Attributes:
-        unit: SI unit of the values.
+        unit: SI unit of the values (empty for a dimensionless quantity).
         low: Smallest plausible magnitude (0: none; 0 itself is left to the validation).
         high: Largest plausible magnitude.
         why: What the range is, in words (for the message).
@@ -52,7 +52,11 @@ class Range:
         if not fits:
             return "check the unit and the exponent"
         names = " or ".join(name for name, _ in fits)
-        return f"did you mean {names}? (" + ", ".join(f"{v:g} {name} = {si:.3g} {self.unit}" for name, si in fits) + ")"
+        return f"did you mean {names}? (" + ", ".join(f"{v:g} {name} = {self.of(si, '.3g')}" for name, si in fits) + ")"
+
+    def of(self, v: float, spec: str = "g") -> str:
+        """``v`` with its unit, as a message writes it (a dimensionless quantity bare)."""
+        return f"{v:{spec}} {self.unit}" if self.unit else f"{v:{spec}}"
 
 
 RANGES: dict[str, Range] = {
@@ -79,6 +83,10 @@ RANGES: dict[str, Range] = {
     "stiffness": Range(
         "N/m²", 1.0e5, 1.0e13, "the stiffness constants of Eqs. 1-3 are about 1e9 N/m², K_N = 2.39e9 in the presets",
         (1e7, 1e12), (), (("GPa", 1e9), ("MPa", 1e6)),
+    ),
+    "friction": Range(
+        "", 0.0, 5.0, "dry friction coefficients are 0.1 to 1.5, a brake pad's about 0.4; Eq. 4's M, which bounds a "
+        "patch's μ, is 0.8 and 0.4 in the presets, the matrix's μ 0.3", (1e-3, 2.0), (("%", 1e-2),),
     ),
     "hf_duration": Range(
         "s", 0.0, 1.0, "HF runs last milliseconds, the longest study 0.36 s", (1e-6, 0.5), (("ms", 1e-3), ("µs", 1e-6)),
@@ -170,9 +178,9 @@ def check(name: str, value: float, kind: str, *, allow: bool = False) -> None:
     if not math.isfinite(v) or v == 0.0:
         return
     if v > r.high:
-        where, hint = f"beyond {r.high:g}", r.guess(v, r.above)
+        where, hint = f"beyond {r.of(r.high)}", r.guess(v, r.above)
     elif v < r.low:
-        where, hint = f"below {r.low:g}", r.guess(v, r.below)
+        where, hint = f"below {r.of(r.low)}", r.guess(v, r.below)
     else:
         return
     run_anyway = option(
@@ -180,9 +188,7 @@ def check(name: str, value: float, kind: str, *, allow: bool = False) -> None:
         "set [scene] allow_implausible = true or pass --allow-implausible",
         "set allow_implausible = true in the spec's [base.scene] table",
     )
-    raise ImplausibleError(
-        f"{name} = {value:g} {r.unit} — {where} {r.unit} ({r.why}); {hint}; to run it anyway {run_anyway}"
-    )
+    raise ImplausibleError(f"{name} = {r.of(value)} — {where} ({r.why}); {hint}; to run it anyway {run_anyway}")
 
 
 def flag(value: object, name: str = "scene.allow_implausible") -> bool:

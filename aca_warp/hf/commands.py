@@ -6,6 +6,7 @@ Only argument parsing happens at import; the handlers import the simulation code
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 from typing import Any
@@ -151,8 +152,9 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "pads that turn tonal leave undecided (docs/work_precision_statistics.md), or the scene's growth interval "
         "if longer or the run shorter; with the other integrators, or 'scene', the scene's interval, the paper's "
         "clock of 2.02e-7 s for varying_area); each event adds the increment scaled to the spacing, so growth per "
-        "simulated time stays the scene's (docs/model.md 2.10); events cost several steps each; refused for a "
-        "scene that does not grow",
+        "simulated time stays the scene's (docs/model.md 2.10); events come every whole number of steps, at least "
+        "one (the summary line gives the spacing taken); events cost several steps each; refused for a scene that "
+        "does not grow",
     )
 
 
@@ -276,7 +278,7 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         precision=args.precision,
         overwrite=args.overwrite,
         progress=not args.no_progress,
-        announce=_announce(args.output, not args.no_progress),
+        announce=_announce(args.output, not args.no_progress, _run_notes(scene, duration, args.checkpoint_interval)),
     )
     return _summarise_hf(args, scene, result, duration)
 
@@ -377,11 +379,11 @@ def _summarise_hf(args: argparse.Namespace, scene: Any, result: Any, duration: f
     rate = n * result.steps / max(result.wall_time, 1e-12)
     line = (
         f"{args.output}: {len(mu)} samples over {result.sim_time:.4g} s, {result.steps} steps "
-        f"({result.dt:.3g} s{_default_step_words(args, scene)}, {args.integrator}, {precision}"
+        f"({result.dt:.3g} s{_default_step_words(args, scene, result.dt)}, {args.integrator}, {precision}"
         f"{', fast math' if args.fast_math else ''}"
         f"{crossing_words(args.crossing)}"
         f"{solve_tol_words(args.solve_tol)}"
-        f"{growth_words(growth_dt)}), "
+        f"{growth_words(growth_dt, None if args.integrator in STEP_CONTROLLED else result.dt)}), "
         f"mean mu {np.mean(mu):.4f}, "
         f"{rate:.3g} patch-steps/s"
     )
@@ -393,19 +395,23 @@ def _summarise_hf(args: argparse.Namespace, scene: Any, result: Any, duration: f
     return 0
 
 
-def _default_step_words(args: argparse.Namespace, scene: Any) -> str:
-    """Why a ``strang`` run without ``--dt`` took its step, for the summary line (nothing when --dt was given)."""
+def _default_step_words(args: argparse.Namespace, scene: Any, dt: float) -> str:
+    """Why a ``strang`` run without ``--dt`` took its step ``dt`` [s], for the summary line (nothing when --dt was
+    given): the default step, the sample interval where that is shorter, or the default shortened so that whole
+    steps fill a sample interval."""
     if args.dt is not None or args.integrator != "strang":
         return ""
-    from aca_warp.hf.options import default_step, step_asked
+    from aca_warp.hf.options import default_step
     from aca_warp.scene.regimes import preset_regime
 
     regime = preset_regime(scene)
     whose = f"{regime}'s physics" if regime else "a scene outside the regimes the statistics measured"
     default = default_step("strang", [scene])
-    if step_asked("strang", None, [scene], scene.record.sample_dt) != default:  # shortened to the sample interval
+    if math.isclose(dt, default, rel_tol=1e-9):
+        return f", the default step for {whose}"
+    if math.isclose(dt, scene.record.sample_dt, rel_tol=1e-9):
         return f", the sample interval, shorter than the default step for {whose} ({default:g} s)"
-    return f", the default step for {whose}"
+    return f", the default step for {whose} ({default:g} s) shortened to fill the sample interval in whole steps"
 
 
 def stopped_at(sim_time: float, duration: float | None) -> str:
@@ -417,13 +423,35 @@ def stopped_at(sim_time: float, duration: float | None) -> str:
 LARGE_OUTPUT_BYTES = 1e9  # a run that records this much says so before it starts, on a terminal or not [B]
 
 
-def _announce(output: str, progress: bool) -> Any:
-    """What to do with the plan of a validated run: a line on stderr before it starts, on a terminal with progress
-    shown (before the bar), and wherever stderr goes for a run that records :data:`LARGE_OUTPUT_BYTES` or more (a
-    log then says what is coming; otherwise the summary line at the end says the same)."""
+def _run_notes(scene: Any, duration: float, checkpoint_interval: float | None) -> list[str]:
+    """What a run of ``duration`` [s] on ``scene`` does that its user may not expect, in words: a duration that
+    whole sample intervals round (the run records whole intervals), a checkpoint interval [s] shorter than a
+    sample interval (a checkpoint then follows every sample)."""
+    sample_dt = scene.record.sample_dt
+    n = max(1, round(duration / sample_dt))  # as check_run counts the samples
+    notes = []
+    if abs(n * sample_dt - duration) > 1e-9 * duration:
+        whole = f"{n} whole sample interval{'s' if n != 1 else ''}"
+        notes.append(f"{duration:g} s is run as {whole} of {sample_dt:g} s: {n * sample_dt:.6g} s")
+    if checkpoint_interval is not None and 0 < checkpoint_interval < sample_dt:
+        notes.append(
+            f"a checkpoint interval of {checkpoint_interval:g} s is shorter than a sample interval ({sample_dt:g} s): "
+            "a checkpoint follows every sample, which makes the run many times slower (the automatic interval, the "
+            "default, costs at most 2 %)"
+        )
+    return notes
+
+
+def _announce(output: str, progress: bool, notes: list[str]) -> Any:
+    """What to do with the plan of a validated run: its ``notes`` on stderr (:func:`_run_notes`), then a line on
+    stderr before it starts, on a terminal with progress shown (before the bar), and wherever stderr goes for a run
+    that records :data:`LARGE_OUTPUT_BYTES` or more (a log then says what is coming; otherwise the summary line at
+    the end says the same)."""
     shown = progress and sys.stderr.isatty()
 
     def say(plan: Any) -> None:
+        for note in notes:
+            print(f"aca-warp: note: {note}", file=sys.stderr, flush=True)
         if shown or plan.output_bytes >= LARGE_OUTPUT_BYTES:
             print(f"aca-warp: {output}: {plan.describe()}", file=sys.stderr, flush=True)
 

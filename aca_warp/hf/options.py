@@ -170,10 +170,21 @@ def fast_math_unfit(integrator: str, precision: str) -> str | None:
 SCENE_CLOCK = "scene"  # --growth-dt / run.growth_dt: the events at the scenes' own growth interval
 
 
-def growth_words(growth_dt: float | None) -> str:
+def steps_per_event(spacing: float, h: float) -> int:
+    """Steps of ``h`` [s] between growth events ``spacing`` [s] apart: the nearest whole number, at least one."""
+    return max(1, round(spacing / h))
+
+
+def growth_words(growth_dt: float | None, h: float | None = None) -> str:
     """The growth events' spacing for a summary line: ``, growth events every S s``, or nothing at the scenes' own
-    interval (None)."""
-    return "" if growth_dt is None else f", growth events every {growth_dt:g} s"
+    interval (None). With the fixed step ``h`` [s] of the run, the spacing it took in whole steps
+    (:func:`steps_per_event`), and the one asked beside it where the two differ."""
+    if growth_dt is None:
+        return ""
+    every = growth_dt if h is None else steps_per_event(growth_dt, h) * h
+    if math.isclose(every, growth_dt, rel_tol=1e-6):
+        return f", growth events every {growth_dt:g} s"
+    return f", growth events every {every:.3g} s ({growth_dt:.3g} s asked, in whole steps of {h:.3g} s)"
 
 
 def crossing_words(crossing: str) -> str:

@@ -45,6 +45,7 @@ from aca_warp.hf.options import (
     check_crossing,
     check_solve_tol,
     default_step,
+    steps_per_event,
 )
 from aca_warp.hf.recorder import RECORD_BLOCK
 from aca_warp.hf.state import HFState
@@ -69,11 +70,6 @@ def event_spacing(model: PadModel, growth_dt: float | None) -> float:
     """The simulated time between growth events [s]: ``growth_dt`` (``RunOptions.growth_dt``), or the model's
     :func:`growth_interval` when None."""
     return growth_interval(model) if growth_dt is None else growth_dt
-
-
-def steps_per_event(spacing: float, h: float) -> int:
-    """Steps of ``h`` [s] between growth events ``spacing`` [s] apart: the nearest whole number, at least one."""
-    return max(1, round(spacing / h))
 
 
 def growth_events(model: PadModel, h: float, growth_dt: float | None = None) -> tuple[int, wp.array]:
@@ -252,6 +248,11 @@ def check_step(model: PadModel, options: Any, sample_dt: float) -> StepEstimate:
     )
     if spacing is not None:
         check_int32("steps per growth event", steps_per_event(spacing, h), f"choose a larger {option('dt', '--dt')}")
+        if spacing < 0.5 * h:
+            warn(
+                f"growth events asked every {spacing:.3g} s, less than half the step ({h:.3g} s): one event per step, "
+                f"every {h:.3g} s, each with the growth of that time"
+            )
     if not options.force:
         step_refusal(est, options.integrator, h)
     else:

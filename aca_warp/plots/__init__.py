@@ -140,7 +140,8 @@ def plot_run(
 
     Args:
         path: Run file.
-        outdir: Output folder (created if missing); files are named ``<run stem>_<figure>.png/.pdf/.gif``.
+        outdir: Output folder (created if missing); files are named ``<run stem>_<figure>.png/.pdf``, the animation
+            ``<run stem>_patch_map.gif``.
         which: Figure names from :data:`FIGURES` (default: all); one name may be given as a string.
         times: Instants of the patch map [s] (see :func:`plot_patch_map`).
         frames: Frames of the animation (see :func:`animate_patch_map`).

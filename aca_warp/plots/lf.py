@@ -281,7 +281,10 @@ def _draw_population(run: _LFRun) -> Figure:
 def _choose_snapshots(run: _LFRun, snapshots: Sequence[str] | None) -> list[str]:
     names = run.snapshots()
     if not names:
-        raise SceneError(f"{run.path.name} holds no snapshots (the LF scene's [snapshots] table asked for none)")
+        raise SceneError(
+            f"{run.path.name} holds no snapshots (the run ended before its first snapshot was due, or the LF scene's "
+            "[snapshots] table asked for none)"
+        )
     if snapshots is None:
         return names
     unknown = [s for s in snapshots if s not in names]

@@ -455,6 +455,8 @@ class Scene:
         i = int(np.argmax(p.height))
         plausible.check(f"patch height (patch {i})", p.height[i], "height")
         plausible.check("load.normal_force", self.normal_force, "force")
+        plausible.check("friction.M", self.friction.M, "friction")
+        plausible.check("friction.mu_pad", self.friction.mu_pad, "friction")
         plausible.check("the sliding speed at the mean radius", self.sliding_speed, "speed")
         plausible.check("run.duration", self.duration, "hf_duration")
         plausible.check("record.sample_dt", self.record.sample_dt, "sample_dt")

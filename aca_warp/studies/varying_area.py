@@ -41,9 +41,9 @@ import numpy as np
 from aca_warp.common.argtypes import nonneg, positive
 from aca_warp.common.errors import AcaError, SceneError
 from aca_warp.hf.model import PadModel
-from aca_warp.hf.options import INTEGRATORS
+from aca_warp.hf.options import INTEGRATORS, steps_per_event
 from aca_warp.hf.recorder import GLOBAL_NAMES
-from aca_warp.hf.solver import GROWTH_MUTABLE, stable_step, steps_per_event
+from aca_warp.hf.solver import GROWTH_MUTABLE, stable_step
 from aca_warp.hf.state import HFState
 from aca_warp.scene import Growth, Record, Scene, preset
 from aca_warp.studies.hf_study.base import isolated_frequency

@@ -180,7 +180,7 @@ def _run_words(spec: Any) -> str:
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from aca_warp.hf.options import crossing_words, growth_words
-    from aca_warp.sweep.run import run_sweep
+    from aca_warp.sweep.run import check_local_gpus, run_sweep
     from aca_warp.sweep.spec import SweepError, load_spec
 
     spec = load_spec(
@@ -196,6 +196,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     )
     if spec.fast_math and args.scheduler is None and "cpu" in args.device.split(","):
         raise SweepError("fast math applies to CUDA devices only: run the sweep with --device cuda")
+    if args.scheduler is None:
+        check_local_gpus(args.device)  # before the header: a missing GPU is one line on stderr
     log = None if args.quiet else (lambda s: print(s, flush=True))
     if log:
         pads = lambda n: f"{n} pad{'' if n == 1 else 's'}"  # noqa: E731

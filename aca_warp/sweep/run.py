@@ -83,9 +83,8 @@ def run_sweep(
             # a local cluster: Dask imported in a thread of its own while this call checks its devices and prepares
             # the manifest; its processes start once the call knows it runs shards (ClusterStart.go in _run_todo)
             early = ClusterStart(device, workers, overlap=overlap)
-        if device != "cpu" and scheduler is None and client is None:  # validate before anything is written
-            for k in cuda_ordinals(device):  # the GPUs of a local sweep: this machine's (SceneError names those it has)
-                get_device(f"cuda:{k}")
+        if scheduler is None and client is None:  # validate before anything is written
+            check_local_gpus(device)
         if scheduler is not None and client is None:
             check_scheduler(scheduler)  # a bad address or no answer: one line, nothing written
         out.mkdir(parents=True, exist_ok=True)
@@ -120,6 +119,14 @@ def run_sweep(
     finally:
         if early is not None:
             early.close(quiet=True)  # a call that stopped before its shards, or ran none (the Dask path closed it)
+
+
+def check_local_gpus(device: str) -> None:
+    """The GPUs ``device`` names for a local sweep (``cuda``, ``cuda:0,1``): this machine's, or one SceneError line
+    naming those it has; nothing for ``cpu``."""
+    if device != "cpu":
+        for k in cuda_ordinals(device):
+            get_device(f"cuda:{k}")
 
 
 def _run_todo(

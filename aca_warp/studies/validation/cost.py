@@ -129,7 +129,7 @@ class Costs:
 
 def events_every(scenes: list[Any], step: Any) -> int:
     """Steps between the growth events of growing ``scenes`` at ``step`` (a validation ``Stepping``)."""
-    from aca_warp.hf.solver import steps_per_event
+    from aca_warp.hf.options import steps_per_event
 
     interval = next(s.growth.interval for s in scenes if s.growth is not None)
     return steps_per_event(interval if step.growth_dt is None else step.growth_dt, step.dt)
