@@ -1046,10 +1046,37 @@ def test_an_interrupted_plot_keeps_the_figures_finished_before_it(runs, tmp_path
     figs = tmp_path / "figs"
     assert main(["plot", str(runs["globals"]), "-o", str(figs)]) == 130
     err = capsys.readouterr().err.strip().splitlines()
-    assert (
-        err[-1] == f"aca-warp: interrupted (Ctrl-C); the figures finished before it are in {figs}; none is half written"
-    )
+    finished = f"the figures finished before it are in {figs}, each whole, its PNG and PDF together"
+    assert err[-1] == f"aca-warp: interrupted (Ctrl-C); {finished}"
     assert sorted(_digests(figs)) == ["globals_global.pdf", "globals_global.png"]
+
+
+def test_an_interrupt_while_the_pdf_is_drawn_leaves_neither_file(tmp_path, monkeypatch):
+    """A figure's PNG and PDF come together: Ctrl-C while the PDF is drawn leaves neither (before, the PNG was
+    already in place), nor a temporary file."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from aca_warp.plots import figure
+
+    fig = plt.figure()
+    real = fig.savefig
+
+    def stopped(fh, format, **kw):  # noqa: A002
+        if format == "pdf":
+            raise KeyboardInterrupt
+        real(fh, format=format, **kw)
+
+    monkeypatch.setattr(fig, "savefig", stopped)
+    with pytest.raises(KeyboardInterrupt):
+        figure.save(fig, tmp_path / "figs", "x")
+    assert list((tmp_path / "figs").iterdir()) == []
+    monkeypatch.setattr(fig, "savefig", real)
+    assert [p.name for p in figure.save(fig, tmp_path / "figs", "x")] == ["x.png", "x.pdf"]
+    assert sorted(p.name for p in (tmp_path / "figs").iterdir()) == ["x.pdf", "x.png"]
+    plt.close(fig)
 
 
 def test_an_interrupted_plot_only_puts_back_the_earlier_figures(runs, tmp_path, monkeypatch, capsys):

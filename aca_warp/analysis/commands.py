@@ -324,7 +324,7 @@ def plot_leftovers(output_dir: str, only: bool) -> str:
             f"none of its figures is left in {output_dir} (--only: all or nothing; an earlier plot's figures it had "
             "replaced are back)"
         )
-    return f"the figures finished before it are in {output_dir}; none is half written"
+    return f"the figures finished before it are in {output_dir}, each whole, its PNG and PDF together"
 
 
 def check_times_in_record(run: str, times: list[float] | None, name: str) -> None:
