@@ -345,9 +345,9 @@ def test_a_large_run_says_what_it_will_record_in_a_log_too(capsys):
         return RunPlan(steps=10, step=5e-8, samples=11, patch_rows=11, output_bytes=int(size), file_bytes=int(size))
 
     for progress in (True, False):
-        _announce("big.h5", progress)(plan(LARGE_OUTPUT_BYTES))
+        _announce("big.h5", progress, lambda plan: [])(plan(LARGE_OUTPUT_BYTES))
         assert capsys.readouterr().err == "aca-warp: big.h5: 10 steps of 5e-08 s, 11 samples, about 1 GB to record\n"
-        _announce("small.h5", progress)(plan(LARGE_OUTPUT_BYTES / 10))
+        _announce("small.h5", progress, lambda plan: [])(plan(LARGE_OUTPUT_BYTES / 10))
         assert capsys.readouterr().err == ""
 
 

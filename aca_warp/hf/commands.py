@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -278,7 +279,7 @@ def _cmd_hf(args: argparse.Namespace) -> int:
         precision=args.precision,
         overwrite=args.overwrite,
         progress=not args.no_progress,
-        announce=_announce(args.output, not args.no_progress, _run_notes(scene, duration, args.checkpoint_interval)),
+        announce=_announce(args.output, not args.no_progress, lambda plan: _run_notes(plan, scene, duration, args)),
     )
     return _summarise_hf(args, scene, result, duration)
 
@@ -423,12 +424,12 @@ def stopped_at(sim_time: float, duration: float | None) -> str:
 LARGE_OUTPUT_BYTES = 1e9  # a run that records this much says so before it starts, on a terminal or not [B]
 
 
-def _run_notes(scene: Any, duration: float, checkpoint_interval: float | None) -> list[str]:
-    """What a run of ``duration`` [s] on ``scene`` does that its user may not expect, in words: a duration that
-    whole sample intervals round (the run records whole intervals), a checkpoint interval [s] shorter than a
+def _run_notes(plan: Any, scene: Any, duration: float, args: argparse.Namespace) -> list[str]:
+    """What the run of ``plan`` (:class:`~aca_warp.hf.runner.RunPlan`) on ``scene`` does otherwise than asked, in
+    words: a ``duration`` [s] that its whole sample intervals round, a ``--checkpoint-interval`` shorter than a
     sample interval (a checkpoint then follows every sample)."""
-    sample_dt = scene.record.sample_dt
-    n = max(1, round(duration / sample_dt))  # as check_run counts the samples
+    sample_dt, checkpoint_interval = scene.record.sample_dt, args.checkpoint_interval
+    n = plan.samples - 1  # whole sample intervals
     notes = []
     if abs(n * sample_dt - duration) > 1e-9 * duration:
         whole = f"{n} whole sample interval{'s' if n != 1 else ''}"
@@ -442,7 +443,7 @@ def _run_notes(scene: Any, duration: float, checkpoint_interval: float | None) -
     return notes
 
 
-def _announce(output: str, progress: bool, notes: list[str]) -> Any:
+def _announce(output: str, progress: bool, notes: Callable[[Any], list[str]]) -> Any:
     """What to do with the plan of a validated run: its ``notes`` on stderr (:func:`_run_notes`), then a line on
     stderr before it starts, on a terminal with progress shown (before the bar), and wherever stderr goes for a run
     that records :data:`LARGE_OUTPUT_BYTES` or more (a log then says what is coming; otherwise the summary line at
@@ -450,7 +451,7 @@ def _announce(output: str, progress: bool, notes: list[str]) -> Any:
     shown = progress and sys.stderr.isatty()
 
     def say(plan: Any) -> None:
-        for note in notes:
+        for note in notes(plan):
             print(f"aca-warp: note: {note}", file=sys.stderr, flush=True)
         if shown or plan.output_bytes >= LARGE_OUTPUT_BYTES:
             print(f"aca-warp: {output}: {plan.describe()}", file=sys.stderr, flush=True)

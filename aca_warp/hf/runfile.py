@@ -59,20 +59,28 @@ def file_bytes(
     ``histories`` per-patch histories (velocity, displacement) of ``patches`` patches in ``item``-byte values,
     ``cells`` matrix cells, with or without checkpoint slots. HDF5 allocates chunks whole, so the series round up to
     :data:`SERIES_CHUNK` samples and the histories to :data:`HISTORY_CHUNK` (a 40-patch history takes 64 columns),
-    and a deleted checkpoint leaves its space in the file."""
+    each no longer than the run's rows (:func:`chunk_rows`), and a deleted checkpoint leaves its space in the
+    file."""
 
     def up(n: int, k: int) -> int:
         return -(-n // k) * k
 
     width = min(patches, HISTORY_CHUNK[1])
-    series = (1 + len(GLOBAL_NAMES)) * up(samples, SERIES_CHUNK) * 8
-    history = up(rows, SERIES_CHUNK) * 8 if rows else 0
-    history += histories * up(rows, HISTORY_CHUNK[0]) * up(patches, width) * item if rows else 0
-    chunks = (1 + len(GLOBAL_NAMES)) * up(samples, SERIES_CHUNK) // SERIES_CHUNK
+    s_chunk, r_series, r_chunk = chunk_rows(samples, SERIES_CHUNK), chunk_rows(rows, SERIES_CHUNK), chunk_rows(rows)
+    series = (1 + len(GLOBAL_NAMES)) * up(samples, s_chunk) * 8
+    history = up(rows, r_series) * 8 if rows else 0
+    history += histories * up(rows, r_chunk) * up(patches, width) * item if rows else 0
+    chunks = (1 + len(GLOBAL_NAMES)) * up(samples, s_chunk) // s_chunk
     if rows:
-        chunks += histories * (up(rows, HISTORY_CHUNK[0]) // HISTORY_CHUNK[0]) * (up(patches, width) // width)
+        chunks += histories * (up(rows, r_chunk) // r_chunk) * (up(patches, width) // width)
     fixed = 7 * patches * 8 + 3 * cells * 8 + (CHECKPOINT_BYTES_PER_PATCH * patches if checkpoints else 0)
     return series + history + fixed + chunks * BYTES_PER_CHUNK + HEADER_BYTES
+
+
+def chunk_rows(planned: int | None, most: int = HISTORY_CHUNK[0]) -> int:
+    """Rows per chunk of a series or history of ``planned`` rows: ``most``, or the planned rows where a run records
+    fewer (a short run's file holds no chunk larger than its data); ``most`` where none were planned."""
+    return most if planned is None else max(1, min(most, planned))
 
 
 def write_predicted_growth_rate(
@@ -110,8 +118,13 @@ class RunWriter(RunFileWriter):
         overwrite: bool = False,
         attrs: dict[str, Any] | None = None,
         lock: OutputLock | None = None,
+        planned: tuple[int, int] | None = None,
     ) -> None:
+        """``planned``: the run's (global samples, per-patch rows), which bound the datasets' chunks
+        (:func:`chunk_rows`); None: full chunks."""
         self._select(model, pad)
+        if planned is not None:
+            self.planned = planned
         self._create(
             path,
             check_output_path,
@@ -128,6 +141,7 @@ class RunWriter(RunFileWriter):
         self.slice = slice(a, b)
         self.flush_each_chunk = True
         self._patch_ds: dict[str, h5py.Dataset] = {}
+        self.planned: tuple[int | None, int | None] = (None, None)  # rows bounding new datasets' chunks
 
     def _write_header(self, scene: Scene, attrs: dict[str, Any]) -> None:
         """Attributes, empty sample datasets, the patch set and the matrix cells."""
@@ -140,7 +154,8 @@ class RunWriter(RunFileWriter):
         write_attrs(f, attrs)
         g = f.create_group("global")
         for name, unit in (("time", "s"), *zip(GLOBAL_NAMES, GLOBAL_UNITS, strict=True)):
-            d = g.create_dataset(name, shape=(0,), maxshape=(None,), dtype="f8", chunks=(SERIES_CHUNK,))
+            chunks = (chunk_rows(self.planned[0], SERIES_CHUNK),)
+            d = g.create_dataset(name, shape=(0,), maxshape=(None,), dtype="f8", chunks=chunks)
             d.attrs["unit"] = unit
         p = f.create_group("patches")
         mass = scene.material.mass_per_area * scene.patches.area
@@ -227,7 +242,10 @@ class RunWriter(RunFileWriter):
         if name not in self._patch_ds:
             shape = (0,) if width == 0 else (0, width)
             # narrow in patches, long in time: an analysis reads column blocks of patches in one pass
-            chunks = (SERIES_CHUNK,) if width == 0 else (HISTORY_CHUNK[0], min(width, HISTORY_CHUNK[1]))
+            rows = self.planned[1]
+            chunks = (
+                (chunk_rows(rows, SERIES_CHUNK),) if width == 0 else (chunk_rows(rows), min(width, HISTORY_CHUNK[1]))
+            )
             d = self.f["patches"].create_dataset(
                 name, shape=shape, maxshape=(None, *shape[1:]), dtype=dtype, chunks=chunks
             )

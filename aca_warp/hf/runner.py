@@ -190,6 +190,7 @@ def run_scene(
         model,
         overwrite=overwrite,
         lock=lock,
+        planned=(plan.samples, plan.patch_rows),
         attrs={
             "integrator": options.integrator,
             "precision": precision,
