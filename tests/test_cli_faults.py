@@ -589,8 +589,9 @@ def test_empty_scene_file(tmp_path, capsys, kind, text) -> None:
 
 
 def test_hf_notes_what_it_runs_otherwise_than_asked(runs, tmp_path, capsys) -> None:
-    """A duration that whole sample intervals round, and a checkpoint interval shorter than a sample interval: one
-    note each on stderr (as ``lf`` gives them), the run as before; none for a duration of whole intervals."""
+    """A duration that whole sample intervals round, a step that whole steps per sample interval shorten, and a
+    checkpoint interval shorter than a sample interval: one note each on stderr (as ``lf`` gives them), the run as
+    before; none for a duration of whole intervals at the default step."""
     small = str(runs["hf"])
     for extra, notes, end in (  # the scene samples every 1e-7 s
         (["--duration", "2.43e-6"], ["2.43e-06 s is run as 24 whole sample intervals of 1e-07 s: 2.4e-06 s"], 2.4e-6),
@@ -599,6 +600,7 @@ def test_hf_notes_what_it_runs_otherwise_than_asked(runs, tmp_path, capsys) -> N
             ["a checkpoint interval of 1e-09 s is shorter"],
             2e-6,
         ),
+        (["--duration", "2e-6", "--dt", "3e-8"], ["--dt 3e-08 s is run as 2.5e-08 s, so that whole steps fill"], 2e-6),
         (["--duration", "2e-6"], [], 2e-6),
     ):
         out = tmp_path / "r.h5"

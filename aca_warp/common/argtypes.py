@@ -39,7 +39,7 @@ def spacing(text: str) -> float | str:
     try:
         return positive(text)
     except argparse.ArgumentTypeError as e:
-        raise argparse.ArgumentTypeError(f"{e}, or 'scene' (the scene's own growth interval)") from None
+        raise argparse.ArgumentTypeError(f"a spacing in seconds or 'scene' (its growth interval): {e}") from None
 
 
 def nonneg(text: str) -> float:

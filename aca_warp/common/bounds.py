@@ -175,7 +175,8 @@ def read_toml(path: Path, what: str, *, refuse: Callable[[bytes], None] | None =
     try:
         text = io.StringIO(raw.decode("utf-8"), newline=None).read()  # newlines as a text file reads them
     except UnicodeDecodeError as e:
-        raise SceneError(f"cannot parse {path}: a {what} is TOML text, and byte {e.start} is not UTF-8") from None
+        an = "an" if what[:1] in "aeiouAEIOU" or what[:2] in ("LF", "HF") else "a"
+        raise SceneError(f"cannot parse {path}: {an} {what} is TOML text, and byte {e.start} is not UTF-8") from None
     check_nesting(text, f"{what} {path}", toml=True)
     try:
         return tomllib.loads(text)

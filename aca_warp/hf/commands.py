@@ -426,21 +426,22 @@ LARGE_OUTPUT_BYTES = 1e9  # a run that records this much says so before it start
 
 def _run_notes(plan: Any, scene: Any, duration: float, args: argparse.Namespace) -> list[str]:
     """What the run of ``plan`` (:class:`~aca_warp.hf.runner.RunPlan`) on ``scene`` does otherwise than asked, in
-    words: a ``duration`` [s] that its whole sample intervals round, a ``--checkpoint-interval`` shorter than a
-    sample interval (a checkpoint then follows every sample)."""
+    words: a ``duration`` [s] that its whole sample intervals round, a ``--dt`` shortened so that whole steps fill a
+    sample interval, a ``--checkpoint-interval`` shorter than a sample interval (a checkpoint then follows every
+    sample). A default step shortened so is named by the summary line."""
+    from aca_warp.common.checkpoint import frequent_note
+
     sample_dt, checkpoint_interval = scene.record.sample_dt, args.checkpoint_interval
     n = plan.samples - 1  # whole sample intervals
     notes = []
+    if args.dt is not None and plan.step is not None and not math.isclose(plan.step, args.dt, rel_tol=1e-9):
+        notes.append(f"--dt {args.dt:g} s is run as {plan.step:.3g} s, so that whole steps fill a sample interval "
+                     f"of {sample_dt:g} s")  # fmt: skip
     if abs(n * sample_dt - duration) > 1e-9 * duration:
         whole = f"{n} whole sample interval{'s' if n != 1 else ''}"
         notes.append(f"{duration:g} s is run as {whole} of {sample_dt:g} s: {n * sample_dt:.6g} s")
-    if checkpoint_interval is not None and 0 < checkpoint_interval < sample_dt:
-        notes.append(
-            f"a checkpoint interval of {checkpoint_interval:g} s is shorter than a sample interval ({sample_dt:g} s): "
-            "a checkpoint follows every sample, which makes the run many times slower (the automatic interval, the "
-            "default, costs at most 2 %)"
-        )
-    return notes
+    frequent = frequent_note(checkpoint_interval, sample_dt, "a sample interval", "sample")
+    return notes if frequent is None else [*notes, frequent]
 
 
 def _announce(output: str, progress: bool, notes: Callable[[Any], list[str]]) -> Any:

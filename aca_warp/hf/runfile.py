@@ -178,15 +178,24 @@ class RunWriter(RunFileWriter):
 
     @classmethod
     def reopen(
-        cls, partial: str | Path, model: PadModel, *, pad: int = 0, lock: OutputLock
+        cls,
+        partial: str | Path,
+        model: PadModel,
+        *,
+        pad: int = 0,
+        lock: OutputLock,
+        planned: tuple[int, int] | None = None,
     ) -> tuple[RunWriter, Checkpoint | None]:
         """Open a killed or stopped run's ``NAME.partial`` to continue it (``lock``: the lock of ``NAME``, held; the
         caller releases it when this fails): read its checkpoint, truncate the sample datasets to the checkpoint's
         rows (to none without a checkpoint: the run starts again; the checkpoint is then None) and mark the file
-        running again."""
+        running again. ``planned``: as for a new file, the rows that bound the chunks of datasets made from here
+        on (per-patch histories whose window begins after the checkpoint)."""
         self = cls.__new__(cls)
         self._open_partial(partial, lock)
         self._select(model, pad)
+        if planned is not None:
+            self.planned = planned
         try:
             ckpt = self._truncate_to_checkpoint()
         except BaseException as e:

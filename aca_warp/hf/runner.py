@@ -258,17 +258,22 @@ def resume_run(
     uninterrupted run's."""
     from aca_warp.hf.rerun import read_settings
 
-    def prepare(src: Path) -> tuple[PadModel, HFState, RunOptions]:
+    Prepared = tuple[PadModel, HFState, RunOptions, RunPlan]
+
+    def prepare(src: Path) -> Prepared:
         s = read_settings(src)
         model = build_model([s.scene], device=s.device_for(device, src), precision=s.precision)
         options = s.options
         if checkpoint_interval is not None:
             options = dataclasses.replace(options, checkpoint_interval=checkpoint_interval)
-        return model, initial_state(model), options
+        plan = plan_run(s.scene, options, s.precision, force_limits=True)  # the rows, as the run planned them
+        return model, initial_state(model), options, plan
 
-    (model, state, options), (writer, ckpt), final = reopen_resumable(
-        path, prepare, lambda prepared, part, lock: RunWriter.reopen(part, prepared[0], lock=lock)
-    )
+    def reopen(prepared: Prepared, part: Path, lock: OutputLock) -> tuple[RunWriter, Checkpoint | None]:
+        planned = (prepared[3].samples, prepared[3].patch_rows)
+        return RunWriter.reopen(part, prepared[0], lock=lock, planned=planned)
+
+    (model, state, options, _), (writer, ckpt), final = reopen_resumable(path, prepare, reopen)
     if checkpoint_interval is not None:
         writer.f.attrs["run_options"] = options.to_json()
     return _execute(writer, model, state, options, progress=progress, resume=ckpt), final

@@ -35,6 +35,7 @@ def run_lf(
     The file keeps the full state of the last checkpoint (``checkpoint_interval`` [s of simulated time]; None:
     automatic, :class:`~aca_warp.common.checkpoint.CheckpointClock`; 0: none), so that a killed or stopped run
     continues with :func:`resume_lf` (docs/faults.md)."""
+    from aca_warp.common.checkpoint import frequent_note
     from aca_warp.common.files import OutputLock, check_output_path
     from aca_warp.common.runfile import busy
     from aca_warp.hf.options import check_interval
@@ -52,12 +53,8 @@ def run_lf(
         raise
     notes = _duration_notes(scene, duration, sim.table.steps)  # once the duration is known to be runnable
     notes += _snapshots_not_taken(scene, sim.table)
-    if checkpoint_interval is not None and 0 < checkpoint_interval < scene.lf.dt:
-        notes.append(
-            f"a checkpoint interval of {checkpoint_interval:g} s is shorter than an LF step ({scene.lf.dt:g} s): a "
-            "checkpoint follows every step, which makes the run many times slower (the automatic interval, the "
-            "default, costs at most 2 %)"
-        )
+    frequent = frequent_note(checkpoint_interval, scene.lf.dt, "an LF step", "step")
+    notes += [] if frequent is None else [frequent]
     for note in notes:
         print(f"aca-warp: note: {note}", file=sys.stderr, flush=True)
     run = {"duration": duration, "checkpoint_interval": checkpoint_interval, "graph": graph}

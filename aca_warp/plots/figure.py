@@ -64,10 +64,11 @@ def run_stem(path: str | Path) -> str:
 
 def save(fig: Figure, outdir: Path, stem: str) -> list[Path]:
     """Write ``outdir/stem.png`` (150 dpi) and ``outdir/stem.pdf`` (folder created if missing), each whole
-    (:func:`whole`) and the two together: both are drawn under temporary names before either takes its own, so an
-    interrupt leaves both or neither. Returns both paths. The PDF takes the layout the PNG's drawing settled (the
-    constrained layout runs once per figure, not again at the PDF's 72 dpi, where text metrics move the axes by up
-    to ~0.4 % of the figure): the two files show the same layout, and the PDF costs ~15 % less time."""
+    (:func:`whole`) and the two together: both are drawn under temporary names before either takes its own (one
+    rename after the other), so an interrupt while either is drawn leaves neither. Returns both paths. The PDF
+    takes the layout the PNG's drawing settled (the constrained layout runs once per figure, not again at the PDF's
+    72 dpi, where text metrics move the axes by up to ~0.4 % of the figure): the two files show the same layout,
+    and the PDF costs ~15 % less time."""
     outdir.mkdir(parents=True, exist_ok=True)
     files = [outdir / f"{stem}.png", outdir / f"{stem}.pdf"]
     with whole(files[0], "temporary figure") as png, whole(files[1], "temporary figure") as pdf:

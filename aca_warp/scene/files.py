@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import sys
+from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 
@@ -182,21 +183,28 @@ def scene_from_dict(
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"  # the first bytes of an HDF5 file (a run file, a patch file)
 
 
+def refuse_hdf5(p: Path, what: str, hint: str) -> Callable[[bytes], None]:
+    """A ``refuse`` for :func:`~aca_warp.common.bounds.read_toml`: one SceneError line when the file's first bytes
+    are an HDF5 file's (a run file given where the TOML ``what`` is asked for), ``hint`` after it."""
+
+    def refuse(head: bytes) -> None:
+        if head.startswith(HDF5_SIGNATURE):
+            raise SceneError(f"{p} is an HDF5 file, not a TOML {what}{hint}")
+
+    return refuse
+
+
 def read_scene_toml(p: Path, what: str) -> dict:
     """The TOML document of the scene file ``p`` (a ``what`` such as "LF scene file") as
     :func:`~aca_warp.common.bounds.read_toml` reads it; one SceneError line when it cannot be read, or when it is an
     HDF5 file (a run file given where a scene is asked for: the line says what takes one)."""
 
-    def hdf5(head: bytes) -> None:
-        if head.startswith(HDF5_SIGNATURE):
-            raise SceneError(
-                f"{p} is an HDF5 file, not a TOML {what}: a run file is repeated with 'aca-warp rerun {p} -o "
-                f"NEW.h5' and continued with --resume; an LF run's snapshot runs as HF with 'aca-warp hf {p} "
-                "--snapshot NAME -o RUN.h5'"
-            )
-
+    hint = (
+        f": a run file is repeated with 'aca-warp rerun {p} -o NEW.h5' and continued with --resume; an LF run's "
+        f"snapshot runs as HF with 'aca-warp hf {p} --snapshot NAME -o RUN.h5'"
+    )
     try:
-        return read_toml(p, what, refuse=hdf5)
+        return read_toml(p, what, refuse=refuse_hdf5(p, what, hint))
     except OSError as e:
         raise SceneError(f"cannot read {what} {p}: {e.strerror}") from None
 

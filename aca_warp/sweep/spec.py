@@ -37,7 +37,7 @@ from aca_warp.scene import (
     scene_from_dict,
     scene_to_dict,
 )
-from aca_warp.scene.files import HDF5_SIGNATURE
+from aca_warp.scene.files import refuse_hdf5
 
 FORMAT = "aca_warp.sweep/1"
 MODES = ("product", "zip")
@@ -347,15 +347,9 @@ def _load(source: str | Path | dict, base_dir: Path | None, overrides: dict[str,
             where = f"; the example of that name shipped with aca_warp is {shipped}" if example else ""
             raise SweepError(f"sweep spec {p} not found{where}")
 
-        def hdf5(head: bytes) -> None:
-            if head.startswith(HDF5_SIGNATURE):
-                raise SweepError(
-                    f"{p} is an HDF5 file, not a TOML sweep spec (a run file is repeated with 'aca-warp rerun {p} -o "
-                    "NEW.h5')"
-                )
-
+        hint = f" (a run file is repeated with 'aca-warp rerun {p} -o NEW.h5')"
         try:
-            doc = read_toml(p, "sweep spec", refuse=hdf5)
+            doc = read_toml(p, "sweep spec", refuse=refuse_hdf5(p, "sweep spec", hint))
         except SceneError as e:
             raise SweepError(str(e)) from None
         if not doc:

@@ -234,7 +234,7 @@ def _line_peaks(freqs: np.ndarray, a: np.ndarray, fraction: float) -> np.ndarray
     lo = a >= fraction * a.max(axis=0)
     interior = (a[1:-1] >= a[:-2]) & (a[1:-1] >= a[2:]) & lo[1:-1]
     k = np.argmax(a, axis=0)
-    if fraction < 1.0:
+    if fraction < 1.0 and interior.size:  # (fewer than three frequencies: no interior, the largest value)
         k = np.where(interior.any(axis=0), np.argmax(interior, axis=0) + 1, k)
     x = np.log(freqs)
     inside = (k > 0) & (k < a.shape[0] - 1)
