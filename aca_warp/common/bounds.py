@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import SceneError, with_article
 
 MAX_NESTING = 64  # arrays and tables within each other in a JSON attribute or a TOML file (aca-warp writes 3)
 MAX_TOML_BYTES = 64 * 2**20  # the largest TOML file read [bytes] (the presets' scenes are about 1 KiB)
@@ -175,8 +175,8 @@ def read_toml(path: Path, what: str, *, refuse: Callable[[bytes], None] | None =
     try:
         text = io.StringIO(raw.decode("utf-8"), newline=None).read()  # newlines as a text file reads them
     except UnicodeDecodeError as e:
-        an = "an" if what[:1] in "aeiouAEIOU" or what[:2] in ("LF", "HF") else "a"
-        raise SceneError(f"cannot parse {path}: {an} {what} is TOML text, and byte {e.start} is not UTF-8") from None
+        noun = with_article(what)
+        raise SceneError(f"cannot parse {path}: {noun} is TOML text, and byte {e.start} is not UTF-8") from None
     check_nesting(text, f"{what} {path}", toml=True)
     try:
         return tomllib.loads(text)

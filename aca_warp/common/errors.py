@@ -27,6 +27,11 @@ def option(python: str, flag: str, spec: str | None = None) -> str:
     return flag if "command line" in _readers else python
 
 
+def with_article(noun: str) -> str:
+    """``noun`` after its indefinite article, for a message: "a run file", "an LF run file"."""
+    return f"{'an' if noun[:1] in 'aeiouAEIOU' or noun[:2] in ('LF', 'HF') else 'a'} {noun}"
+
+
 def nearest(name: str, names: Iterable[str]) -> str | None:
     """The one of ``names`` nearest to a mistyped ``name`` (case aside; ``difflib``'s ratio ≥ 0.6), or None."""
     import difflib

@@ -23,7 +23,7 @@ import h5py
 import numpy as np
 
 from aca_warp.common.checkpoint import has_checkpoint
-from aca_warp.common.errors import AcaError, SceneError, StorageError, option
+from aca_warp.common.errors import AcaError, SceneError, StorageError, option, with_article
 from aca_warp.common.interrupts import deferred
 from aca_warp.common.links import NOFOLLOW, clear_name, open_lock_file, private_dir
 
@@ -655,11 +655,6 @@ def check_not_input(output: str | Path, inputs: dict[str, str | Path | None], co
                 raise SceneError(f"{command} writes a new file; {name} is its {what}: give another output")
 
 
-def _a(noun: str) -> str:
-    """``noun`` after its indefinite article: "a run file", "an LF run file"."""
-    return f"{'an' if noun[:1] in 'aeiouAEIOU' or noun[:2] in ('LF', 'HF') else 'a'} {noun}"
-
-
 HDF5_LOCKED = "unable to lock file"
 """What HDF5 says (with errno 11) when another process holds the file open in a way that excludes this opening."""
 
@@ -674,9 +669,10 @@ def open_h5(path: str | Path, what: str, *, mode: str = "r", text: tuple[str, ..
 
     p = Path(path)
     if not p.is_file():
-        raise SceneError(f"{p} is not a regular file (expected {_a(what)})" if p.exists() else f"{what} not found: {p}")
+        expected = with_article(what)
+        raise SceneError(f"{p} is not a regular file (expected {expected})" if p.exists() else f"{what} not found: {p}")
     if not h5py.is_hdf5(p):
-        raise SceneError(f"{p} is not an HDF5 file (expected {_a(what)} written by aca-warp)")
+        raise SceneError(f"{p} is not an HDF5 file (expected {with_article(what)} written by aca-warp)")
     try:
         f = h5py.File(p, mode)
     except (OSError, RuntimeError) as e:
