@@ -173,3 +173,15 @@ def test_a_duration_rounded_to_whole_steps_is_noted_and_a_refused_one_is_not(tmp
     assert main(["lf", str(scene), "-o", str(tmp_path / "b.h5"), "--no-progress", "--duration", "1e6"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "more than" in err[0] and not (tmp_path / "b.h5").exists(), err
+
+
+def test_a_checkpoint_interval_below_a_step_is_noted(tmp_path: Path, capsys) -> None:
+    """A checkpoint interval shorter than an LF step: one note on stderr (a checkpoint follows every step), the run
+    as asked; none at the automatic interval."""
+    scene = scene_file(tmp_path, 0.1)
+    for extra, noted in ((["--checkpoint-interval", "1e-3"], True), ([], False)):
+        out = tmp_path / f"run{len(extra)}.h5"
+        assert main(["lf", str(scene), "-o", str(out), "--no-progress", "--duration", "0.05", *extra]) == 0
+        err = capsys.readouterr().err
+        note = "note: a checkpoint interval of 0.001 s is shorter than an LF step (0.01 s): a checkpoint follows every"
+        assert (note in err) == noted, err

@@ -180,16 +180,16 @@ AUTO_WALL_S = 5.0  # automatic checkpoints: at least this much wall time between
 AUTO_SHARE = 0.02  # ... and at least 1 / AUTO_SHARE times the wall time the last one took
 
 
-def frequent_note(interval: float | None, period: float, period_words: str, each: str) -> str | None:
+def frequent_note(interval: float | None, period: float, period_words: str, each: str) -> list[str]:
     """The note for a checkpoint ``interval`` [s] shorter than the run's ``period`` [s] (an LF step, a sample
-    interval: ``period_words`` names it, ``each`` what a checkpoint then follows), or None."""
+    interval: ``period_words`` names it, ``each`` what a checkpoint then follows), as a list of one; [] otherwise."""
     if interval is None or not 0 < interval < period:
-        return None
-    return (
+        return []
+    return [
         f"a checkpoint interval of {interval:g} s is shorter than {period_words} ({period:g} s): a checkpoint follows "
         f"every {each}, which makes the run many times slower (the automatic interval, the default, costs at most "
         f"{AUTO_SHARE * 100:g} %)"
-    )
+    ]
 
 
 def next_multiple(t: float, interval: float) -> float:

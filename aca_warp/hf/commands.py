@@ -440,8 +440,7 @@ def _run_notes(plan: Any, scene: Any, duration: float, args: argparse.Namespace)
     if abs(n * sample_dt - duration) > 1e-9 * duration:
         whole = f"{n} whole sample interval{'s' if n != 1 else ''}"
         notes.append(f"{duration:g} s is run as {whole} of {sample_dt:g} s: {n * sample_dt:.6g} s")
-    frequent = frequent_note(checkpoint_interval, sample_dt, "a sample interval", "sample")
-    return notes if frequent is None else [*notes, frequent]
+    return notes + frequent_note(checkpoint_interval, sample_dt, "a sample interval", "sample")
 
 
 def _announce(output: str, progress: bool, notes: Callable[[Any], list[str]]) -> Any:

@@ -53,8 +53,7 @@ def run_lf(
         raise
     notes = _duration_notes(scene, duration, sim.table.steps)  # once the duration is known to be runnable
     notes += _snapshots_not_taken(scene, sim.table)
-    frequent = frequent_note(checkpoint_interval, scene.lf.dt, "an LF step", "step")
-    notes += [] if frequent is None else [frequent]
+    notes += frequent_note(checkpoint_interval, scene.lf.dt, "an LF step", "step")
     for note in notes:
         print(f"aca-warp: note: {note}", file=sys.stderr, flush=True)
     run = {"duration": duration, "checkpoint_interval": checkpoint_interval, "graph": graph}
