@@ -68,28 +68,34 @@ INSTANT_SEED = wp.constant(20261130)  # seeds the instant reading, with the samp
 @wp.func
 def friction_integral(s: Any, mu_scale: Any, slope: Any, decay: Any):
     """G(s) = ∫₀ˢ f(x) dx of Eq. 4 [m/s], even in s, in closed form up to O(decay²/slope³) (≈ 4e-9 m/s for the
-    presets' law), in the precision of ``s``.
+    presets' law), in the precision of ``s`` (:func:`friction_integral_at` at |s|)."""
+    x = wp.abs(s)
+    return friction_integral_at(x, wp.atan(slope * x), mu_scale, slope, decay)
+
+
+@wp.func
+def friction_integral_at(x: Any, at: Any, mu_scale: Any, slope: Any, decay: Any):
+    """G at slip magnitude ``x`` = |s| [m/s] given ``at`` = atan(slope x), which Eq. 4 at ±x shares
+    (:func:`segment_pair`).
 
     With x = |s|, a = slope, b = decay and H(x) = ∫₀ˣ (1/(b x' + 1) + 1) dx' = x + ln(1 + b x)/b, by parts
     G = (M/π)[atan(a x) H(x) − ∫₀ˣ a H/(1 + a² x'²) dx']; the last integral is ln(1 + a² x²)/a for H's linear part
     2x, plus ∫ a (H − 2x')/(1 + a² x'²) dx', taken with a/(1 + a² x'²) → 1/(a x'²) (exactly
     (1 − ln(1 + b x)/(b x) − ln(1 + b x))/a) and the leading correction b atan(a x)/(2a²) from H − 2x' ≈ −b x'²/2
     where the two kernels differ (docs/friction_step.md §8)."""
-    one = type(s)(1.0)
-    half = type(s)(0.5)
-    x = wp.abs(s)
+    one = type(x)(1.0)
+    half = type(x)(0.5)
     bx = decay * x
-    r = one - bx * (half - bx * (one / type(s)(3.0) - bx / type(s)(4.0)))  # ln(1 + b x)/(b x), b x < 1e-3: series
+    r = one - bx * (half - bx * (one / type(x)(3.0) - bx / type(x)(4.0)))  # ln(1 + b x)/(b x), b x < 1e-3: series
     ln = bx * r
     q = one - r  # 1 − ln(1 + b x)/(b x)
     hx = x * (one + r)  # H(x)
-    if bx >= type(s)(1.0e-3):
+    if bx >= type(x)(1.0e-3):
         ln = wp.log(one + bx)
         q = one - ln / bx
         hx = x + ln / decay
     ax = slope * x
-    at = wp.atan(ax)
-    g = at * hx - wp.log(one + ax * ax) / slope - (q - ln) / slope - decay * at / (type(s)(2.0) * slope * slope)
+    g = at * hx - wp.log(one + ax * ax) / slope - (q - ln) / slope - decay * at / (type(x)(2.0) * slope * slope)
     return mu_scale * g
 
 
@@ -100,13 +106,17 @@ def segment_pair(vp: Any, s0: Any, g0: Any, mu_scale: Any, slope: Any, decay: An
     derivative in vp [1, s/m] (the averaged-vector-field form of the midpoint); :func:`friction_pair` at vp where
     the segment is shorter than :data:`SEGMENT_TOL` × ``tol`` m/s (1e-3 m/s in fp32, 1e-6 m/s in fp64), which
     misses the mean there by at most f″ Δs²/24 (5e-4, 5e-10); the rounding of G's difference, 2ε|G|/Δs, would
-    overtake that only below a few 1e-4 m/s in fp32 (docs/friction_step.md §8.1)."""
+    overtake that only below a few 1e-4 m/s in fp32 (docs/friction_step.md §8.1). G(s1) and f(s1) share one
+    arctangent: atan is odd, so f(s1) takes ±atan(slope |s1|), the same bits as :func:`friction_coefficient`."""
+    one = type(vp)(1.0)
     ds = type(vp)(2.0) * (vp - s0)
     if wp.abs(ds) <= type(vp)(SEGMENT_TOL) * tol:
         return friction_pair(vp, mu_scale, slope, decay)
     s1 = s0 + ds
-    mean = (friction_integral(s1, mu_scale, slope, decay) - g0) / ds
-    f1 = friction_coefficient(s1, mu_scale, slope, decay)
+    x1 = wp.abs(s1)
+    at = wp.atan(slope * x1)
+    mean = (friction_integral_at(x1, at, mu_scale, slope, decay) - g0) / ds
+    f1 = mu_scale * wp.where(s1 < vp - vp, -at, at) * (one / (decay * x1 + one) + one)
     return mean, type(vp)(2.0) * (f1 - mean) / ds
 
 
@@ -220,7 +230,9 @@ def friction_substep(
 
     ``crossing`` ≠ 0 (``RunOptions.crossing`` "mean"): a midpoint step (θ = ½) whose slip changes sign is solved
     again, from its first solution, with the friction averaged along its slip segment (:func:`segment_pair`)
-    instead of taken at the midpoint velocity (docs/friction_step.md §8).
+    instead of taken at the midpoint velocity (docs/friction_step.md §8). The two solves are two call sites, each
+    with its law fixed: folded into one loop over the passes, the law became a variable of every Newton iteration,
+    which made every patch's sub-step 40–50 % dearer on the CPU where no patch crossed (the same bits either way).
     """
     one = type(v)(1.0)
     half = type(v)(0.5)
@@ -232,23 +244,20 @@ def friction_substep(
     th = theta * h
     a = m + th * c
     s0 = vd - v
-    g0 = v - v  # G(s0), once a crossing step is solved again with the mean law
-    seg = int(0)
-    guess = v
-    out = v
-    # the first pass's solve starts at v, where f0, df0 are the law's pair: on the CPU it takes them (one friction
-    # evaluation fewer, the same bits: 8-16 % of a CPU step); CUDA code evaluates again, which measured faster on an
-    # H200, and compiles to the same machine code as without the choice (docs/friction_step.md §6.1)
-    for _pass in range(2):  # one solve call site (the second pass only on a crossing step)
-        r = th * (force - c * guess) + m * (v - guess)  # b − a·guess by its terms (solve_velocity); m·0 on pass 1
-        known = cpu_build() * (1 - seg)  # the first pass's
-        vm = solve_velocity(a, r, th * fn, vd, guess, mu_scale, slope, decay, tol, seg, s0, g0, known, f0, df0)
-        out = vm + (vm - v) * (one / theta - one)
-        if seg != 0 or crossing == 0 or theta != half or s0 * (vd - out) >= v - v:
-            break
-        seg = 1
+    zero = v - v
+    # the solve starts at v, where f0, df0 are the law's pair: on the CPU it takes them (one friction evaluation
+    # fewer, the same bits: 8-16 % of a CPU step); CUDA code evaluates again, which measured faster on an H200, and
+    # compiles to the same machine code as without the choice (docs/friction_step.md §6.1)
+    vm = solve_velocity(
+        a, th * (force - c * v), th * fn, vd, v, mu_scale, slope, decay, tol, 0, s0, zero, cpu_build(), f0, df0
+    )
+    out = vm + (vm - v) * (one / theta - one)
+    if crossing != 0 and theta == half and s0 * (vd - out) < zero:
+        # from the first solution, r = b − a·vm by its terms (solve_velocity)
+        r = th * (force - c * vm) + m * (v - vm)
         g0 = friction_integral(s0, mu_scale, slope, decay)
-        guess = vm
+        vm = solve_velocity(a, r, th * fn, vd, vm, mu_scale, slope, decay, tol, 1, s0, g0, 0, f0, df0)
+        out = vm + (vm - v) * (one / theta - one)
     return out
 
 
