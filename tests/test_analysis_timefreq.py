@@ -154,3 +154,25 @@ def test_default_stft_window_rounds_up_to_25_khz(n, dt, samples):
         assert 1 / w <= 25e3 * (1 + 1e-9)
     times, *_ = stft(np.ones(n), dt, window_s=w)
     assert times.size >= 2
+
+
+def test_measures_and_the_stft_need_no_pywavelets():
+    """PyWavelets is imported by the CWT alone: the measures, the STFT and the validation's measures load and run
+    without it (a process where importing ``pywt`` fails)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; sys.modules['pywt'] = None\n"  # any import of pywt now raises ImportError
+        "import numpy as np\n"
+        "import aca_warp.analysis.measures, aca_warp.studies.validation.measures\n"
+        "from aca_warp.analysis import stft, cwt_morlet\n"
+        "stft(np.sin(np.arange(4096) * 0.3), 1e-6, window_s=2.56e-4, hop_s=6.4e-5)\n"
+        "try:\n"
+        "    cwt_morlet(np.zeros(64), 1e-6, [1e5])\n"
+        "except ImportError:\n"
+        "    print('cwt needs pywt')\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "cwt needs pywt"

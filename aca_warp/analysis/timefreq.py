@@ -12,14 +12,10 @@ import math
 from typing import Literal
 
 import numpy as np
-import pywt
 from scipy.signal import ShortTimeFFT
 from scipy.signal.windows import hann
 
 from .spectra import DEFAULT_FLOOR_HZ
-
-_CWT_HAS_PRECISION = "precision" in inspect.signature(pywt.cwt).parameters
-
 
 MIN_STFT_SAMPLES = 4
 """Fewest samples of an STFT window: fewer resolve no frequency between 0 Hz and the Nyquist frequency."""
@@ -196,12 +192,15 @@ def cwt_morlet(
         ``(times, freqs, W, info)``: output times of shape (T,) [s] with T = ceil(N/stride),
         the frequencies [Hz], |W| (or W) of shape (F, T) in units of ``x``, and a caption dict.
     """
+    import pywt  # here, not above: the STFT and the spectra, which most measures use, do without it
+
     x = np.asarray(x)
     if x.dtype != np.float32:
         x = x.astype(np.float64, copy=False)
     freqs = np.asarray(freqs, dtype=np.float64)
     if np.any(freqs <= 0) or np.any(freqs >= 0.5 / dt):
         raise ValueError("cwt_morlet: frequencies must lie in (0, 1/(2 dt))")
+    has_precision = "precision" in inspect.signature(pywt.cwt).parameters
     wavelet = pywt.ContinuousWavelet(f"cmor{bandwidth}-{center}")
     support = wavelet.upper_bound - wavelet.lower_bound
     scales = center / (freqs * dt)
@@ -211,7 +210,7 @@ def cwt_morlet(
     for start in range(0, freqs.size, chunk):
         idx = order[start : start + chunk]
         precision = int(np.clip(np.ceil(np.log2(support * scales[idx].max())), 12, 24))
-        kw = {"precision": precision} if _CWT_HAS_PRECISION else {}  # PyWavelets < 1.8 samples at 2^12 points
+        kw = {"precision": precision} if has_precision else {}  # PyWavelets < 1.8 samples at 2^12 points
         coef, _ = pywt.cwt(x, scales[idx], wavelet, method="fft", **kw)
         coef = coef[:, ::stride] * (2.0 / np.sqrt(scales[idx]))[:, None].astype(x.dtype)
         out[idx] = coef if complex_output else np.abs(coef)
