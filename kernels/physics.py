@@ -95,7 +95,7 @@ def friction_integral_at(x: Any, at: Any, mu_scale: Any, slope: Any, decay: Any)
         q = one - ln / bx
         hx = x + ln / decay
     ax = slope * x
-    g = at * hx - wp.log(one + ax * ax) / slope - (q - ln) / slope - decay * at / (type(x)(2.0) * slope * slope)
+    g = at * hx - (wp.log(one + ax * ax) + (q - ln) + decay * at / (type(x)(2.0) * slope)) / slope
     return mu_scale * g
 
 
@@ -115,9 +115,10 @@ def segment_pair(vp: Any, s0: Any, g0: Any, mu_scale: Any, slope: Any, decay: An
     s1 = s0 + ds
     x1 = wp.abs(s1)
     at = wp.atan(slope * x1)
-    mean = (friction_integral_at(x1, at, mu_scale, slope, decay) - g0) / ds
+    inv = one / ds
+    mean = (friction_integral_at(x1, at, mu_scale, slope, decay) - g0) * inv
     f1 = mu_scale * wp.where(s1 < vp - vp, -at, at) * (one / (decay * x1 + one) + one)
-    return mean, type(vp)(2.0) * (f1 - mean) / ds
+    return mean, type(vp)(2.0) * (f1 - mean) * inv
 
 
 @wp.func
