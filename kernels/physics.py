@@ -233,7 +233,7 @@ def friction_substep(
     again, from its first solution, with the friction averaged along its slip segment (:func:`segment_pair`)
     instead of taken at the midpoint velocity (docs/friction_step.md §8). The two solves are two call sites, each
     with its law fixed: folded into one loop over the passes, the law became a variable of every Newton iteration,
-    which made every patch's sub-step 40–50 % dearer on the CPU where no patch crossed (the same bits either way).
+    which made every patch's sub-step about 40 % dearer on the CPU where no patch crossed (the same bits either way).
     """
     one = type(v)(1.0)
     half = type(v)(0.5)
@@ -248,10 +248,11 @@ def friction_substep(
     zero = v - v
     # the solve starts at v, where f0, df0 are the law's pair: on the CPU it takes them (one friction evaluation
     # fewer, the same bits: 8-16 % of a CPU step); CUDA code evaluates again, which measured faster on an H200, and
-    # compiles to the same machine code as without the choice (docs/friction_step.md §6.1)
-    vm = solve_velocity(
-        a, th * (force - c * v), th * fn, vd, v, mu_scale, slope, decay, tol, 0, s0, zero, cpu_build(), f0, df0
-    )
+    # compiles to the same machine code as without the choice (docs/friction_step.md §6.1). Its r, b − a·v, is written
+    # by the terms of the second solve's (m (v − v) = 0): so written, the point treatment compiles for CUDA to the
+    # machine code it had when both solves were one call site (scripts/compare_cuda_code.py)
+    r = th * (force - c * v) + m * (v - v)
+    vm = solve_velocity(a, r, th * fn, vd, v, mu_scale, slope, decay, tol, 0, s0, zero, cpu_build(), f0, df0)
     out = vm + (vm - v) * (one / theta - one)
     if crossing != 0 and theta == half and s0 * (vd - out) < zero:
         # from the first solution, r = b − a·vm by its terms (solve_velocity)
