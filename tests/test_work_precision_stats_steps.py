@@ -186,6 +186,34 @@ def test_crossing_page_is_what_merge_and_report_write(monkeypatch):
     assert page.read_text().split(begin, 1)[1].split(end, 1)[0] == "\n" + "\n".join(body) + "\n"
 
 
+@pytest.mark.parametrize(("regime", "parts", "pads"), [("hf2", ("s1", "s33"), 96), ("hf3", ("s1", "s33", "s97"), 128)])
+def test_crossing_pages_of_hf2_and_hf3_are_what_merge_and_report_write(monkeypatch, regime, parts, pads):
+    """The crossing treatment on hf2 and hf3 (``<regime>_crossing/``): the merged file is the ``--merge`` of the parts,
+    each the study's own part continued with ``mean`` at 1e-7 and 2.5e-7 s on every seed, and the page's generated
+    section is what ``--report`` writes from it; the rule picks ``mean`` at 2.5e-7 s, where the point treatment at that
+    step keeps not every measure."""
+    from aca_warp.studies import work_precision_stats_report as wps_report
+    from aca_warp.studies.report import clean
+    from aca_warp.studies.work_precision_stats_merge import merge
+
+    monkeypatch.chdir(REPO)
+    folder = REPO / "docs" / "figures" / "work_precision_statistics" / f"{regime}_crossing"
+    name = f"wps_cuda0_{regime}.json"
+    merged = rule.load_results(folder / name)
+    assert json.loads(json.dumps(clean(merge([(folder / p / name).relative_to(REPO) for p in parts])))) == merged
+    reg = merged["regimes"][regime]
+    assert len(reg["pads"]) == pads
+    done = {s["label"] for s in reg["settings"] if rule.usable(s)}
+    assert {"strang@fp32:dt=1e-07:mean", "strang@fp32:dt=2.5e-07:mean", "strang@fp32:dt=2.5e-07"} <= done
+    page = folder / "README.md"
+    body = wps_report.render([merged], [f"{regime}_crossing/{name}"], [folder / "wps_cuda0.png"], page, 0.25, None,
+                             "resolution")  # fmt: skip
+    begin, end = wps_report.generated_markers(wps_report.MARKER)
+    generated = page.read_text().split(begin, 1)[1].split(end, 1)[0]
+    assert generated == "\n" + "\n".join(body) + "\n"
+    assert "The rule picks `strang@fp32:dt=2.5e-07:mean`" in generated
+
+
 def test_precision_pairs_measure_fp32_against_fp64_of_its_step_and_variant(tmp_path, capsys):
     """``--precision-pairs``: each fp32 setting against the fp64 setting of its step and variant (the reference where
     that is it): an fp64 twin at 5e-7 s biased by +0.2 σ in μ std puts the 5e-7 s fp32 setting's −0.5 σ (against the
