@@ -10,8 +10,9 @@ Equation of motion of patch i (paper §2.1.2, docs/model.md §2.2), u along the 
   implicit solve (:func:`solve_velocity`), the θ-method step of a patch's forced friction equation
   (:func:`theta_substep`; backward Euler for ``implicit-friction``) and the damped-midpoint friction sub-step
   (:func:`friction_substep`), which every Strang path, general and on-chip, takes through :func:`strang_velocity`
-  and :func:`strang_close_velocity`; for strang's crossing treatment the law's integral (:func:`friction_integral`)
-  and its mean along a step's slip segment (:func:`segment_pair`);
+  and :func:`strang_close_velocity`; for strang's crossing treatment the law's integral (:func:`friction_integral`,
+  :func:`friction_integral_at` where the arctangent is known) and its mean along a step's slip segment
+  (:func:`segment_pair`);
 * per-patch terms: the coupling gather F_s,i = Σ_j k_ij u_j − k_diag,i u_i (:func:`spring_force`; the on-chip
   shared-memory gather sums the links in the same order, :mod:`aca_warp.kernels.hf_onchip_gather`), the net force
   of the explicit schemes (:func:`patch_force`), growth (Eq. 10, :func:`grow_patch`) and the coupling stiffness it
@@ -107,7 +108,8 @@ def segment_pair(vp: Any, s0: Any, g0: Any, mu_scale: Any, slope: Any, decay: An
     the segment is shorter than :data:`SEGMENT_TOL` × ``tol`` m/s (1e-3 m/s in fp32, 1e-6 m/s in fp64), which
     misses the mean there by at most f″ Δs²/24 (5e-4, 5e-10); the rounding of G's difference, 2ε|G|/Δs, would
     overtake that only below a few 1e-4 m/s in fp32 (docs/friction_step.md §8.1). G(s1) and f(s1) share one
-    arctangent: atan is odd, so f(s1) takes ±atan(slope |s1|), the same bits as :func:`friction_coefficient`."""
+    arctangent: atan is odd, so f(s1) takes ±atan(slope |s1|), the same bits as :func:`friction_coefficient` (up to
+    the sign of a zero)."""
     one = type(vp)(1.0)
     ds = type(vp)(2.0) * (vp - s0)
     if wp.abs(ds) <= type(vp)(SEGMENT_TOL) * tol:
