@@ -235,7 +235,7 @@ def friction_substep(
     again, from its first solution, with the friction averaged along its slip segment (:func:`segment_pair`)
     instead of taken at the midpoint velocity (docs/friction_step.md §8). The two solves are two call sites, each
     with its law fixed: folded into one loop over the passes, the law became a variable of every Newton iteration,
-    which made every patch's sub-step about 40 % dearer on the CPU where no patch crossed (the same bits either way).
+    which made every patch's sub-step 30–40 % dearer on the CPU where no patch crossed (the same bits either way).
     """
     one = type(v)(1.0)
     half = type(v)(0.5)

@@ -162,49 +162,34 @@ def test_the_pages_by_step_tables_are_the_scripts_output():
         assert printed.split("\n\n", 1)[1] == table, path
 
 
-def test_crossing_page_is_what_merge_and_report_write(monkeypatch):
-    """The crossing treatment's page (docs/figures/work_precision_statistics/hf1_crossing/): its merged file is the
-    ``--merge`` of its three parts, each setting of the steps' study on all 160 seeds, and its generated section is
-    what ``--report`` writes from it."""
+@pytest.mark.parametrize(
+    ("regime", "parts", "pads", "settings"),
+    [
+        ("hf1", ("s1", "s33", "s97"), 160,
+         {"strang@fp32:dt=1e-08:mean", "strang@fp32:dt=2.5e-08:mean", "strang@fp64:dt=5e-09"}),
+        ("hf2", ("s1", "s33"), 96,
+         {"strang@fp32:dt=1e-07:mean", "strang@fp32:dt=2.5e-07:mean", "strang@fp32:dt=2.5e-07"}),
+        ("hf3", ("s1", "s33", "s97"), 128,
+         {"strang@fp32:dt=1e-07:mean", "strang@fp32:dt=2.5e-07:mean", "strang@fp32:dt=2.5e-07"}),
+    ],
+)  # fmt: skip
+def test_crossing_pages_are_what_merge_and_report_write(monkeypatch, regime, parts, pads, settings):
+    """The crossing treatment's pages (docs/figures/work_precision_statistics/<regime>_crossing/): the merged file is
+    the ``--merge`` of its parts, on every seed (hf1: each setting of the steps' study; hf2, hf3: the study's own
+    parts continued with ``mean`` at 1e-7 and 2.5e-7 s), and the page's generated section is what ``--report``
+    writes from it; the rule picks ``mean`` at 2.5e-7 s."""
     from aca_warp.studies import work_precision_stats_report as wps_report
     from aca_warp.studies.report import clean
     from aca_warp.studies.work_precision_stats_merge import merge
 
     monkeypatch.chdir(REPO)  # the parts named as the page's command names them
-    folder = REPO / "docs" / "figures" / "work_precision_statistics" / "hf1_crossing"
-    merged = rule.load_results(folder / "wps_cuda0_hf1.json")
-    parts = [(folder / p / "wps_cuda0_hf1.json").relative_to(REPO) for p in ("s1", "s33", "s97")]
-    assert json.loads(json.dumps(clean(merge(parts)))) == merged
-    reg = merged["regimes"]["hf1"]
-    done = {s["label"] for s in reg["settings"] if rule.usable(s)}
-    assert {"strang@fp32:dt=1e-08:mean", "strang@fp32:dt=2.5e-08:mean", "strang@fp64:dt=5e-09"} <= done
-    assert len(reg["pads"]) == 160
-    page = folder / "README.md"
-    body = wps_report.render([merged], ["hf1_crossing/wps_cuda0_hf1.json"], [folder / "wps_cuda0.png"], page, 0.25,
-                             None, "resolution")  # fmt: skip
-    begin, end = wps_report.generated_markers(wps_report.MARKER)
-    assert page.read_text().split(begin, 1)[1].split(end, 1)[0] == "\n" + "\n".join(body) + "\n"
-
-
-@pytest.mark.parametrize(("regime", "parts", "pads"), [("hf2", ("s1", "s33"), 96), ("hf3", ("s1", "s33", "s97"), 128)])
-def test_crossing_pages_of_hf2_and_hf3_are_what_merge_and_report_write(monkeypatch, regime, parts, pads):
-    """The crossing treatment on hf2 and hf3 (``<regime>_crossing/``): the merged file is the ``--merge`` of the parts,
-    each the study's own part continued with ``mean`` at 1e-7 and 2.5e-7 s on every seed, and the page's generated
-    section is what ``--report`` writes from it; the rule picks ``mean`` at 2.5e-7 s, where the point treatment at that
-    step keeps not every measure."""
-    from aca_warp.studies import work_precision_stats_report as wps_report
-    from aca_warp.studies.report import clean
-    from aca_warp.studies.work_precision_stats_merge import merge
-
-    monkeypatch.chdir(REPO)
     folder = REPO / "docs" / "figures" / "work_precision_statistics" / f"{regime}_crossing"
     name = f"wps_cuda0_{regime}.json"
     merged = rule.load_results(folder / name)
     assert json.loads(json.dumps(clean(merge([(folder / p / name).relative_to(REPO) for p in parts])))) == merged
     reg = merged["regimes"][regime]
     assert len(reg["pads"]) == pads
-    done = {s["label"] for s in reg["settings"] if rule.usable(s)}
-    assert {"strang@fp32:dt=1e-07:mean", "strang@fp32:dt=2.5e-07:mean", "strang@fp32:dt=2.5e-07"} <= done
+    assert settings <= {s["label"] for s in reg["settings"] if rule.usable(s)}
     page = folder / "README.md"
     body = wps_report.render([merged], [f"{regime}_crossing/{name}"], [folder / "wps_cuda0.png"], page, 0.25, None,
                              "resolution")  # fmt: skip

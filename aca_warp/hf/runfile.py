@@ -122,9 +122,7 @@ class RunWriter(RunFileWriter):
     ) -> None:
         """``planned``: the run's (global samples, per-patch rows), which bound the datasets' chunks
         (:func:`chunk_rows`); None: full chunks."""
-        self._select(model, pad)
-        if planned is not None:
-            self.planned = planned
+        self._select(model, pad, planned)
         self._create(
             path,
             check_output_path,
@@ -133,15 +131,16 @@ class RunWriter(RunFileWriter):
             header=lambda: self._write_header(model.scenes[pad], attrs or {}),
         )
 
-    def _select(self, model: PadModel, pad: int) -> None:
-        """Write the pad ``pad`` of ``model``."""
+    def _select(self, model: PadModel, pad: int, planned: tuple[int, int] | None) -> None:
+        """Write the pad ``pad`` of ``model``, its new datasets' chunks bounded by the ``planned`` rows (None: full
+        chunks)."""
         self.pad = pad
         self.model = model
         a, b = (int(x) for x in model.pad_patch_start_host[pad : pad + 2])
         self.slice = slice(a, b)
         self.flush_each_chunk = True
         self._patch_ds: dict[str, h5py.Dataset] = {}
-        self.planned: tuple[int | None, int | None] = (None, None)  # rows bounding new datasets' chunks
+        self.planned: tuple[int | None, int | None] = (None, None) if planned is None else planned
 
     def _write_header(self, scene: Scene, attrs: dict[str, Any]) -> None:
         """Attributes, empty sample datasets, the patch set and the matrix cells."""
@@ -193,9 +192,7 @@ class RunWriter(RunFileWriter):
         on (per-patch histories whose window begins after the checkpoint)."""
         self = cls.__new__(cls)
         self._open_partial(partial, lock)
-        self._select(model, pad)
-        if planned is not None:
-            self.planned = planned
+        self._select(model, pad, planned)
         try:
             ckpt = self._truncate_to_checkpoint()
         except BaseException as e:
