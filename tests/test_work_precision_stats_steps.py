@@ -162,41 +162,57 @@ def test_the_pages_by_step_tables_are_the_scripts_output():
         assert printed.split("\n\n", 1)[1] == table, path
 
 
+_MEAN = "strang@fp32:dt=2.5e-07:mean"
+
+
 @pytest.mark.parametrize(
-    ("regime", "parts", "pads", "settings"),
+    ("page", "merged", "pads", "settings", "pick"),
     [
-        ("hf1", ("s1", "s33", "s97"), 160,
-         {"strang@fp32:dt=1e-08:mean", "strang@fp32:dt=2.5e-08:mean", "strang@fp64:dt=5e-09"}),
-        ("hf2", ("s1", "s33"), 96,
-         {"strang@fp32:dt=1e-07:mean", "strang@fp32:dt=2.5e-07:mean", "strang@fp32:dt=2.5e-07"}),
-        ("hf3", ("s1", "s33", "s97"), 128,
-         {"strang@fp32:dt=1e-07:mean", "strang@fp32:dt=2.5e-07:mean", "strang@fp32:dt=2.5e-07"}),
+        ("hf1_crossing", ["wps_cuda0_hf1.json"], [160],
+         {"strang@fp32:dt=1e-08:mean", "strang@fp32:dt=2.5e-08:mean", "strang@fp64:dt=5e-09"}, _MEAN),
+        ("hf2_crossing", ["wps_cuda0_hf2.json"], [96], {"strang@fp32:dt=1e-07:mean", _MEAN}, _MEAN),
+        ("hf3_crossing", ["wps_cuda0_hf3.json"], [128], {"strang@fp32:dt=1e-07:mean", _MEAN}, _MEAN),
+        ("hf4_crossing", ["wps_cuda0_hf4.json"], [32], {"strang@fp32:dt=5e-07:mean", _MEAN}, "strang@fp32:dt=5e-07"),
+        ("va_crossing", ["wps_cuda0_va.json"], [128], {"strang@fp32:dt=2.5e-07:growth_dt=5e-06:mean", _MEAN},
+         "strang@fp32:dt=2.5e-07"),
+        ("ms_mid_crossing", ["wps_cuda01_ms_mid.json"], [96], {"strang@fp32:dt=1e-07:mean", _MEAN}, _MEAN),
+        ("ms_app3_crossing", ["wps_cuda0123_ms_app3.json"], [64], {"strang@fp32:dt=1e-07:mean", _MEAN}, _MEAN),
+        ("equal_heights/crossing", [f"{r}/wps_cuda{t}_{r}.json" for r, t in (("hf1_equal", "01"), ("hf2_equal", "1"),
+          ("hf3_equal", "0"), ("hf4_equal", "1"), ("va_equal", "0"))], [128, 128, 64, 64, 128], {_MEAN}, None),
     ],
 )  # fmt: skip
-def test_crossing_pages_are_what_merge_and_report_write(monkeypatch, regime, parts, pads, settings):
-    """The crossing treatment's pages (docs/figures/work_precision_statistics/<regime>_crossing/): the merged file is
-    the ``--merge`` of its parts, on every seed (hf1: each setting of the steps' study; hf2, hf3: the study's own
-    parts continued with ``mean`` at 1e-7 and 2.5e-7 s), and the page's generated section is what ``--report``
-    writes from it; the rule picks ``mean`` at 2.5e-7 s."""
+def test_crossing_pages_are_what_merge_and_report_write(monkeypatch, page, merged, pads, settings, pick):
+    """The crossing treatment's pages (docs/figures/work_precision_statistics/<regime>_crossing/ and
+    equal_heights/crossing/): each merged file is the ``--merge`` of its parts (``s*/``, where it has parts: the
+    study's own parts continued with ``mean``; hf1's, each setting of the steps' study), on every seed, and the page's
+    generated section is what ``--report`` writes from them; the rule picks ``pick`` (the first regime's)."""
     from aca_warp.studies import work_precision_stats_report as wps_report
     from aca_warp.studies.report import clean
     from aca_warp.studies.work_precision_stats_merge import merge
 
     monkeypatch.chdir(REPO)  # the parts named as the page's command names them
-    folder = REPO / "docs" / "figures" / "work_precision_statistics" / f"{regime}_crossing"
-    name = f"wps_cuda0_{regime}.json"
-    merged = rule.load_results(folder / name)
-    assert json.loads(json.dumps(clean(merge([(folder / p / name).relative_to(REPO) for p in parts])))) == merged
-    reg = merged["regimes"][regime]
-    assert len(reg["pads"]) == pads
-    assert settings <= {s["label"] for s in reg["settings"] if rule.usable(s)}
-    page = folder / "README.md"
-    body = wps_report.render([merged], [f"{regime}_crossing/{name}"], [folder / "wps_cuda0.png"], page, 0.25, None,
-                             "resolution")  # fmt: skip
+    folder = REPO / "docs" / "figures" / "work_precision_statistics" / page
+    docs = []
+    for name, n in zip(merged, pads, strict=True):
+        path = folder / name
+        doc = rule.load_results(path)
+        parts = sorted(path.parent.glob(f"s*/wps_*_{next(iter(doc['regimes']))}.json"))
+        if parts:
+            assert json.loads(json.dumps(clean(merge([p.relative_to(REPO) for p in parts])))) == doc
+        reg = next(iter(doc["regimes"].values()))
+        assert len(reg["pads"]) == n
+        docs.append(doc)
+    assert settings <= {s["label"] for d in docs for s in next(iter(d["regimes"].values()))["settings"]
+                        if rule.usable(s)}  # fmt: skip
+    readme = folder / "README.md"
+    names = [(folder / m).relative_to(readme.parent.parent).as_posix() for m in merged]
+    figures = [folder / f"wps_{t}.png" for t in dict.fromkeys(d["tag"] for d in docs)]
+    body = wps_report.render(docs, names, figures, readme, 0.25, None, "resolution")
     begin, end = wps_report.generated_markers(wps_report.MARKER)
-    generated = page.read_text().split(begin, 1)[1].split(end, 1)[0]
+    generated = readme.read_text().split(begin, 1)[1].split(end, 1)[0]
     assert generated == "\n" + "\n".join(body) + "\n"
-    assert "The rule picks `strang@fp32:dt=2.5e-07:mean`" in generated
+    if pick is not None:
+        assert f"The rule picks `{pick}`" in generated
 
 
 def test_precision_pairs_measure_fp32_against_fp64_of_its_step_and_variant(tmp_path, capsys):
