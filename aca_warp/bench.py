@@ -392,14 +392,15 @@ def run_bench(
     reference: bool = True,
     stages: bool = True,
     log: Any = None,
-    crossing: str = "point",
+    crossing: str | None = None,
     allow_implausible: bool = False,
 ) -> dict:
     """Run every case; returns ``{"machine", "scene", ..., "results": [rows]}`` (JSON-able). ``maths``: ``exact``
     and/or ``fast`` (CUDA fast math, on-chip strang in fp32 only: other cases are not run with it). ``dt`` None:
     strang's default step for the scene and sample interval (:func:`~aca_warp.hf.options.step_asked`), for every
-    case. ``crossing``: strang's treatment of steps that cross zero slip, for every case
-    (:data:`~aca_warp.hf.options.CROSSINGS`; ``mean`` with strang only).
+    case. ``crossing``: strang's treatment of steps that cross zero slip, for every strang case
+    (:data:`~aca_warp.hf.options.CROSSINGS`; ``mean`` with strang only); None: its default for the scene, as
+    ``aca-warp hf`` takes it (:func:`~aca_warp.hf.options.crossing_asked`).
 
     Everything is checked before the first case runs, as ``aca-warp hf`` checks a run (SceneError): a step or
     duration outside the plausible range of an HF run unless ``allow_implausible``
@@ -413,7 +414,7 @@ def run_bench(
     from aca_warp.common import plausible
     from aca_warp.common.devices import get_device
     from aca_warp.common.files import machine
-    from aca_warp.hf.options import check_crossing, default_follows, step_asked
+    from aca_warp.hf.options import check_crossing, crossing_asked, default_follows, step_asked
     from aca_warp.hf.recorder import check_sample_step
     from aca_warp.hf.solver import fitted_step
     from aca_warp.scene import Record
@@ -450,7 +451,7 @@ def run_bench(
         try:
             r = run_case(
                 sc, device, prec, integ, npads, step, duration, stages=stages, engine=eng, fast_math=fast,
-                crossing=crossing,
+                crossing=crossing_asked(integ, crossing, [sc]),
             )  # fmt: skip
         except SceneError as e:
             if not fast:
@@ -582,11 +583,11 @@ def add_parsers(sub: Any) -> None:
         default=1.0e-8,
         metavar="S",
         help="fixed step [s] (default 1e-8, the step of the published tables), or 'default': strang's default step "
-        "for the scene, as `aca-warp hf` takes it (1e-7 for the shipped presets' physics, 5e-8 for any other scene; "
+        "for the scene, as `aca-warp hf` takes it (2.5e-7 for the shipped presets' physics, 5e-8 for any other scene; "
         "docs/numerics.md); refused, as by aca-warp hf, when longer than the sample interval or beyond 1e-5 s; "
         "shortened so that whole steps fill a sample interval (JSON dt_s: the step taken, dt_asked_s: this one)",
     )
-    p.add_argument("--crossing", choices=CROSSINGS, default="point", help=CROSSING_HELP)
+    p.add_argument("--crossing", choices=CROSSINGS, help=CROSSING_HELP)
     p.add_argument("--duration", type=positive, default=2.0e-5, metavar="S", help="timed window [s] (default 2e-5)")
     p.add_argument("--sample-dt", type=positive, default=1.0e-6, metavar="S", help="sample interval [s] (default 1e-6)")
     p.add_argument("--no-reference", action="store_true", help="skip the fp64 dt/4 reference run (no μ error)")

@@ -3,7 +3,8 @@
 
 Runs ``aca-warp hf varying_area --duration D --dt STEP --precision fp32 --device DEV -o OUT/va_STEP.h5`` once per
 step (each in its own process, as a user runs it, after a 10 µs run of every case has compiled the kernels into
-Warp's cache), with ``--math exact fast`` also with ``--fast-math`` (``OUT/va_STEP_fast.h5``; docs/onchip.md,
+Warp's cache; without ``--crossing``: at every step the preset's default treatment of zero-slip crossings,
+``mean``), with ``--math exact fast`` also with ``--fast-math`` (``OUT/va_STEP_fast.h5``; docs/onchip.md,
 "Fast math"), with ``--growth-dt`` once per spacing of the growth events (``default``: no option, the command's
 default spacing, 5e-6 s for ``strang``, which the row records as read back from the run file; a number S:
 ``--growth-dt S``, ``OUT/va_STEP_gS.h5``; the paper's clock is 2.02e-7), and writes the wall time of each command

@@ -1,7 +1,7 @@
-"""The step a fixed-step run takes when none is asked for: strang's is the step at which the saturated statistics
-were shown to hold, 1e-7 s for a scene with a shipped preset's physics (any patch seed, initial state, recording) and
-5e-8 s for any other scene; a batch of both is refused, so that a pad's run never depends on its batch. The other
-fixed-step integrators keep 1e-8 s."""
+"""The step and crossing treatment a fixed-step run takes when none is asked for: strang's are those at which the
+saturated statistics were shown to hold, 2.5e-7 s with the crossings averaged for a scene with a shipped preset's
+physics (any patch seed, initial state, recording) and 5e-8 s with the point treatment for any other scene; a batch of
+both is refused, so that a pad's run never depends on its batch. The other fixed-step integrators keep 1e-8 s."""
 
 from __future__ import annotations
 
@@ -13,7 +13,15 @@ import pytest
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.loop import run_hf
 from aca_warp.hf.model import build_model
-from aca_warp.hf.options import DEFAULT_DT, PRESET_STEP, STATISTICS_STEP, RunOptions, default_step
+from aca_warp.hf.options import (
+    DEFAULT_DT,
+    PRESET_CROSSING,
+    PRESET_STEP,
+    STATISTICS_STEP,
+    RunOptions,
+    default_crossing,
+    default_step,
+)
 from aca_warp.hf.runner import plan_run
 from aca_warp.hf.state import initial_state
 from aca_warp.scene import PRESETS, Initial, Matrix, PatchGenerator, Record, load_scene, preset, preset_document
@@ -24,7 +32,7 @@ from tests.test_small_defects import tiny_scene
 def test_default_steps_by_integrator():
     hf1 = preset("hf1")
     assert default_step("strang") == default_step("strang", [tiny_scene(1e-6)]) == STATISTICS_STEP == 5e-8
-    assert default_step("strang", [hf1, preset("varying_area_equal")]) == PRESET_STEP == 1e-7
+    assert default_step("strang", [hf1, preset("varying_area_equal")]) == PRESET_STEP == 2.5e-7
     for integrator in ("implicit-friction", "symplectic-euler"):
         assert default_step(integrator) == default_step(integrator, [hf1]) == DEFAULT_DT == 1e-8
     with pytest.raises(
@@ -32,6 +40,17 @@ def test_default_steps_by_integrator():
         match=r"mixes 1 pad\(s\) of a measured regime \(hf1: .* and 1 other pad\(s\) .*first is pad 1\); give the step",
     ):
         default_step("strang", [hf1, tiny_scene(1e-6)])
+
+
+def test_default_crossing_by_regime_and_integrator():
+    """strang averages the crossings of a measured regime's pads whatever the step, and takes the point treatment
+    for any other scene and for the other integrators; a batch of both is refused, naming the crossing treatment."""
+    hf1 = preset("hf1")
+    assert default_crossing("strang", [hf1, preset("varying_area")]) == PRESET_CROSSING == "mean"
+    assert default_crossing("strang") == default_crossing("strang", [tiny_scene(1e-6)]) == "point"
+    assert default_crossing("adaptive", [hf1]) == default_crossing("implicit-friction", [hf1]) == "point"
+    with pytest.raises(SceneError, match=r"\(hf1: strang's default crossing treatment mean\) .* give the crossing"):
+        default_crossing("strang", [hf1, tiny_scene(1e-6)])
 
 
 def test_a_scene_shares_a_presets_physics_whatever_its_seed_state_and_recording():
@@ -76,15 +95,17 @@ def test_a_run_without_dt_takes_the_default_step():
     assert plan.step == STATISTICS_STEP and plan.steps == 20_000 and "steps of 5e-08 s" in plan.describe()
     va = preset("varying_area")
     plan = plan_run(va, RunOptions(duration=1e-3))
-    assert plan.step == PRESET_STEP and plan.steps == 10_000 and "steps of 1e-07 s" in plan.describe()
+    assert plan.step == PRESET_STEP and plan.steps == 4_000 and "steps of 2.5e-07 s" in plan.describe()
     assert load_scene("hf1").record.sample_dt >= PRESET_STEP  # the presets' sample intervals hold whole steps
     hf1 = preset("hf1")
     model = build_model([hf1, hf1.replace(patches=PatchGenerator(count=1758, seed=3, height_spread=2.42e-7)
                                           .generate(hf1.pad))])  # fmt: skip
     res = run_hf(model, initial_state(model), RunOptions(duration=1e-6), record=Record(1e-6))
-    assert res.complete and res.dt == PRESET_STEP and res.steps == 10
+    assert res.complete and res.dt == PRESET_STEP and res.steps == 4
     with pytest.raises(SceneError, match="give the step"):
         run_hf(build_model([hf1, s]), None, RunOptions(duration=1e-6))
+    with pytest.raises(SceneError, match="give the crossing treatment"):  # the step given, the treatment not
+        run_hf(build_model([hf1, s]), None, RunOptions(duration=1e-6, dt=1e-7))
 
 
 def test_run_files_keep_the_step_they_ran_at(tmp_path, capsys):
@@ -147,6 +168,26 @@ def test_a_sweep_spec_writes_its_default_step_out():
         assert load_spec({**doc, "parameters": changed}).dt == STATISTICS_STEP, key
 
 
+def test_a_sweep_spec_writes_its_default_crossing_out(tmp_path):
+    """A sweep of a preset whose pads share its physics averages the crossings by default, written into its run
+    settings (a sweep of any other physics, and one asked for the point treatment, store none, as every sweep did
+    before); a sweep directory begun with the point treatment is continued with ``--crossing point``, which the
+    refusal names."""
+    from aca_warp.sweep import SweepError, load_spec
+    from aca_warp.sweep.manifest import prepare_dir
+
+    seeds = {"sweep": {"base": "hf1"}, "run": {"duration": 1e-5}, "parameters": {"patches.seed": [1, 2]}}
+    spec = load_spec(seeds)
+    assert spec.crossing == "mean" and spec.run_settings()["crossing"] == "mean"
+    point = load_spec(seeds, crossing="point")
+    assert point.crossing == "point" and "crossing" not in point.run_settings()
+    other = load_spec({**seeds, "parameters": {"friction.M": [0.6, 0.7]}})
+    assert other.crossing == "point" and "crossing" not in other.run_settings()
+    prepare_dir(point, tmp_path / "sw")  # as a sweep of hf1 began before the default averaged the crossings
+    with pytest.raises(SweepError, match=r"crossing unset there, mean here\) \(to continue it: --crossing point\)"):
+        prepare_dir(spec, tmp_path / "sw")
+
+
 def test_the_summary_line_says_why_the_step(tmp_path, capsys):
     """``aca-warp hf`` without --dt names the default it took: the preset's physics, or a scene outside the measured
     regimes."""
@@ -156,7 +197,7 @@ def test_the_summary_line_says_why_the_step(tmp_path, capsys):
 
     (tmp_path / "s.toml").write_text(small_scene_toml("small", count=10, duration=2.0e-6))
     for scene, words in (
-        ("hf2", "(1e-07 s, the default step for hf2's physics, strang, fp32)"),
+        ("hf2", "(2.5e-07 s, the default step for hf2's physics, strang, fp32, crossings averaged)"),
         (str(tmp_path / "s.toml"), "(5e-08 s, the default step for a scene outside the regimes the statistics"),
     ):
         assert main(["hf", scene, "--duration", "2e-6", "-o", str(tmp_path / "r.h5"), "--overwrite",
@@ -164,30 +205,37 @@ def test_the_summary_line_says_why_the_step(tmp_path, capsys):
         assert words in capsys.readouterr().out
     assert main(["hf", "hf2", "--duration", "2e-6", "--sample-dt", "5e-8", "-o", str(tmp_path / "r.h5"), "--overwrite",
                  "--no-progress"]) == 0  # fmt: skip
-    words = "(5e-08 s, the sample interval, shorter than the default step for hf2's physics (1e-07 s), strang, fp32)"
+    words = "(5e-08 s, the sample interval, shorter than the default step for hf2's physics (2.5e-07 s), strang, fp32"
     assert words in capsys.readouterr().out
     assert main(["hf", "hf2", "--duration", "2e-6", "--dt", "1e-7", "-o", str(tmp_path / "r.h5"), "--overwrite",
                  "--no-progress"]) == 0  # fmt: skip
-    assert "(1e-07 s, strang, fp32)" in capsys.readouterr().out
+    assert "(1e-07 s, strang, fp32, crossings averaged)" in capsys.readouterr().out  # the regime's treatment
+    assert main(["hf", "hf2", "--duration", "2e-6", "--crossing", "point", "-o", str(tmp_path / "r.h5"),
+                 "--overwrite", "--no-progress"]) == 0  # fmt: skip
+    assert "(2.5e-07 s, the default step for hf2's physics, strang, fp32), mean mu" in capsys.readouterr().out
     # the step a sample interval forces below the statistics' least, and the default shortened to whole steps
-    physics = "the default step for hf2's physics (1e-07 s)"
+    physics = "the default step for hf2's physics (2.5e-07 s)"
     for sample_dt, forced, words in (
         ("3e-8", ["--force"], f"(3e-08 s, the sample interval, shorter than {physics}, strang"),
-        ("2.5e-7", [], f"(8.33e-08 s, {physics} shortened to fill the sample interval in whole steps, strang"),
+        ("3e-7", [], f"(1.5e-07 s, {physics} shortened to fill the sample interval in whole steps, strang"),
     ):
         assert main(["hf", "hf2", "--duration", "1e-6", "--sample-dt", sample_dt, "-o", str(tmp_path / "r.h5"),
                      "--overwrite", "--no-progress", *forced]) == 0  # fmt: skip
         assert words in capsys.readouterr().out
 
 
-def test_the_validation_runs_the_presets_at_their_default_step():
-    """The validation's stepping table holds the defaults' values written out: the presets' regimes (hf, growth) at
-    strang's default for their physics with its growth spacing, ms_order (no measured regime) at the step for any
-    scene. A change of a default must change the table on purpose."""
+def test_the_validation_runs_the_presets_at_the_setting_of_its_ensembles():
+    """The validation's stepping table holds the setting its committed ensembles ran at for the presets' regimes (hf,
+    growth): 1e-7 s with the point treatment (the validation's runs pass it) and strang's growth spacing; ms_order
+    (no measured regime) at strang's step for any scene. A change of the table must be made on purpose."""
+    import inspect
+
     from aca_warp.hf.options import STATISTICS_GROWTH_DT
+    from aca_warp.studies.runs import run_engine
     from aca_warp.studies.validation.settings import STEPPING
 
-    assert STEPPING["hf"].dt == STEPPING["growth"].dt == PRESET_STEP
+    assert STEPPING["hf"].dt == STEPPING["growth"].dt == 1e-7 != PRESET_STEP
+    assert inspect.signature(run_engine).parameters["crossing"].default == "point"
     assert STEPPING["growth"].growth_dt == STATISTICS_GROWTH_DT and STEPPING["ms_order"].dt == STATISTICS_STEP
 
 
@@ -211,7 +259,7 @@ def test_a_sweep_names_its_step(tmp_path, capsys):
         '[sweep]\nbase = "hf1"\nshard_size = 2\n[run]\nduration = 2e-6\n[parameters]\n"patches.seed" = [1, 2]\n'
     )
     assert main(["sweep", str(spec), "-o", str(tmp_path / "sw"), "--workers", "0"]) == 0
-    assert "2e-06 s each, strang fp32 at 1e-07 s, spec hash" in capsys.readouterr().out
+    assert "2e-06 s each, strang fp32 at 2.5e-07 s, crossings averaged, spec hash" in capsys.readouterr().out
 
 
 def test_a_sample_interval_between_the_defaults_sets_the_step():
@@ -219,10 +267,10 @@ def test_a_sample_interval_between_the_defaults_sets_the_step():
     one default of 5e-8 s still runs); below 5e-8 s the sample interval is refused as for any step, and the message
     names 5e-8 s as the shortest interval (for a step asked for, the step itself), in a run and in a sweep."""
     hf1 = preset("hf1")
-    for sample, step in ((5e-8, 5e-8), (8e-8, 8e-8), (1e-7, 1e-7), (2e-7, 1e-7)):
+    for sample, step in ((5e-8, 5e-8), (8e-8, 8e-8), (2e-7, 2e-7), (5e-7, 2.5e-7), (1e-6, 2.5e-7)):
         plan = plan_run(hf1.replace(record=Record(sample)), RunOptions(duration=1e-6))
         assert plan.step == pytest.approx(step) and plan.steps == round(1e-6 / step)
-    shortest = r"shorter than the default step 1e-07 s \(which a sample interval down to 5e-08 s would shorten\).*"
+    shortest = r"shorter than the default step 2.5e-07 s \(which a sample interval down to 5e-08 s would shorten\).*"
     with pytest.raises(SceneError, match=shortest + "at least 5e-08 s"):
         plan_run(hf1.replace(record=Record(2e-8)), RunOptions(duration=1e-6))
     with pytest.raises(SceneError, match=r"shorter than the step 1e-07 s: .* at least 1e-07 s"):
@@ -237,8 +285,9 @@ def test_a_sample_interval_between_the_defaults_sets_the_step():
 
 
 def test_an_lf_state_of_a_measured_group_takes_the_preset_step(tmp_path):
-    """An HF scene of an LF state takes 1e-7 s where the LF run was the multiscale preset (any seed) and the state is
-    of a group measured there (app3_start), 5e-8 s otherwise; a state changed afterwards is no longer measured."""
+    """An HF scene of an LF state takes 2.5e-7 s with the crossings averaged where the LF run was the multiscale
+    preset (any seed) and the state is of a group measured there (app3_start), 5e-8 s with the point treatment
+    otherwise; a state changed afterwards is no longer measured."""
     import json
 
     import h5py
@@ -252,7 +301,7 @@ def test_an_lf_state_of_a_measured_group_takes_the_preset_step(tmp_path):
 
     # the list is the groups that the statistics keep at the preset step, as the validation runs them
     assert set(STATES_AT_PRESET_STEP) == set(VM.GROUPS["ms_mid"] + VM.GROUPS["ms_app3"])
-    assert [STEPPING[g].dt == PRESET_STEP for g in VM.GROUPS] == [g in ("ms_mid", "ms_app3") for g in VM.GROUPS]
+    assert [STEPPING[g].dt == 1e-7 for g in VM.GROUPS] == [g in ("ms_mid", "ms_app3") for g in VM.GROUPS]
     out = tmp_path / "lf.h5"
     run_lf(_scene(), out, duration=0.35)  # a small LF scene: no preset's
     plain = scene_from_snapshot(out, "app1_start")
@@ -264,6 +313,7 @@ def test_an_lf_state_of_a_measured_group_takes_the_preset_step(tmp_path):
         f.move("snapshots/app1_start", "snapshots/app3_start")
     state = scene_from_snapshot(out, "app3_start")
     assert preset_regime(state) == "multiscale app3_start" and default_step("strang", [state]) == PRESET_STEP
+    assert default_crossing("strang", [state]) == "mean" and default_crossing("strang", [plain]) == "point"
     same = state.replace(record=Record(2e-7), initial=Initial(state="equilibrium"), duration=1e-3, name="mine")
     assert preset_regime(same) == "multiscale app3_start"
     assert preset_regime(state.replace(normal_force=np.float64(state.normal_force))) == "multiscale app3_start"

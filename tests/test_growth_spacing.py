@@ -150,7 +150,8 @@ def test_the_summary_gives_the_spacing_taken_in_whole_steps(tmp_path, capsys):
         ("1e-6", "every 1e-06 s)", False),
     ):
         out = tmp_path / f"r{asked}.h5"
-        argv = ["hf", "varying_area", "--duration", "4e-6", "--growth-dt", asked, "-o", str(out), "--no-progress"]
+        argv = ["hf", "varying_area", "--duration", "4e-6", "--dt", "1e-7", "--growth-dt", asked, "-o", str(out)]
+        argv += ["--no-progress"]
         assert main(argv) == 0
         captured = capsys.readouterr()
         assert f"growth events {taken}" in captured.out, captured.out

@@ -48,14 +48,18 @@ def _both(device: str, precision: str, fibers: bool = False, **onchip_kw):
         model = build_model(_scenes(), device=device, precision=precision)
         state = initial_state(model)
         if engine == "general":
-            res = run_hf(model, state, RunOptions(integrator="strang", duration=2e-6, dt=1e-8, engine="general"))
+            res = run_hf(
+                model,
+                state,
+                RunOptions(integrator="strang", crossing="point", duration=2e-6, dt=1e-8, engine="general"),
+            )
         else:
             with cpu_fibers(fibers):
                 tuning = EngineTuning(samples_per_launch=3, **onchip_kw)
                 res = run_hf(
                     model,
                     state,
-                    RunOptions(integrator="strang", duration=2e-6, dt=1e-8, engine="onchip"),
+                    RunOptions(integrator="strang", crossing="point", duration=2e-6, dt=1e-8, engine="onchip"),
                     tuning=tuning,
                 )
         assert res.complete and res.steps == 200
@@ -112,7 +116,7 @@ def test_onchip_sample_sums_in_the_order_of_the_block_reduction():
     for engine in ("general", "onchip"):
         model = build_model(_scenes(), device="cpu", precision="fp64")
         state = initial_state(model)
-        options = RunOptions(integrator="strang", duration=1e-6, dt=1e-8, engine=engine)
+        options = RunOptions(integrator="strang", crossing="point", duration=1e-6, dt=1e-8, engine=engine)
         tuning = EngineTuning(samples_per_launch=3, block_dim=256) if engine == "onchip" else None
         with cpu_fibers(True):
             res = run_hf(model, state, options, tuning=tuning)
@@ -128,11 +132,18 @@ def _grown(device: str, precision: str, engine: str, fibers: bool = False, **onc
     area0 = model.host("area")
     with cpu_fibers(fibers):
         if engine == "general":
-            res = run_hf(model, state, RunOptions(integrator="strang", duration=2e-6, dt=1e-8, engine="general"))
+            res = run_hf(
+                model,
+                state,
+                RunOptions(integrator="strang", crossing="point", duration=2e-6, dt=1e-8, engine="general"),
+            )
         else:
             tuning = EngineTuning(samples_per_launch=3, **onchip_kw)
             res = run_hf(
-                model, state, RunOptions(integrator="strang", duration=2e-6, dt=1e-8, engine="onchip"), tuning=tuning
+                model,
+                state,
+                RunOptions(integrator="strang", crossing="point", duration=2e-6, dt=1e-8, engine="onchip"),
+                tuning=tuning,
             )
     assert res.complete and res.steps == 200 and "growth" in res.stages
     keys = ("area", "sqrt_area", "inv_mass", "k_t", "k_n", "damping", "nbr_stiffness", "k_diag", "normal_force")
@@ -204,7 +215,7 @@ def test_grown_tiles_equal_model_arrays_on_clusters(device, monkeypatch, precisi
         monkeypatch.setattr(onchip, "grown_tiles", rule if copies else (lambda model, cluster, per_block=None: False))
         model = build_model([preset("varying_area")] * 2, device=device, precision=precision)
         state = initial_state(model)
-        options = RunOptions(integrator="strang", duration=1e-4, dt=5e-8, engine="onchip")
+        options = RunOptions(integrator="strang", crossing="point", duration=1e-4, dt=5e-8, engine="onchip")
         res = run_hf(model, state, options, tuning=EngineTuning(cluster=cluster))
         out.append(
             (res.collect().globals, *state.numpy(), *(model.host(k) for k in ("area", "normal_force", "k_diag")))
@@ -272,7 +283,11 @@ def test_engine_choice_and_refusals(device):
     grow = build_model([s.replace(growth=Growth(increment=1e-9, interval=1e-6))], device=device, precision="fp32")
     assert choose_engine(grow, "auto", "strang") == "onchip"
     assert choose_engine(grow, "onchip", "strang") == "onchip"
-    res = run_hf(model, initial_state(model), RunOptions(integrator="strang", engine="onchip", duration=2e-7, dt=1e-8))
+    res = run_hf(
+        model,
+        initial_state(model),
+        RunOptions(integrator="strang", crossing="point", engine="onchip", duration=2e-7, dt=1e-8),
+    )
     assert "step:strang:onchip" in res.stages and res.steps == 20
 
 
@@ -289,14 +304,16 @@ def test_onchip_fault_matches_general(device):
             res = run_hf(
                 model,
                 initial_state(model),
-                RunOptions(integrator="strang", engine=engine, duration=4e-3, dt=dt, force=True),
+                RunOptions(integrator="strang", crossing="point", engine=engine, duration=4e-3, dt=dt, force=True),
             )
         else:  # on the CPU with 64 fiber threads per block: the in-block min/sums find the same first patch
             with cpu_fibers(device == "cpu"):
                 res = run_hf(
                     model,
                     initial_state(model),
-                    RunOptions(integrator="strang", engine="onchip", duration=4e-3, dt=dt, force=True),
+                    RunOptions(
+                        integrator="strang", crossing="point", engine="onchip", duration=4e-3, dt=dt, force=True
+                    ),
                     tuning=EngineTuning(block_dim=64),
                 )
         assert not res.complete
@@ -321,7 +338,9 @@ def test_parts_buffer_caps_the_launch(monkeypatch):
             monkeypatch.setattr(O, "_PARTS_BYTES", cap)
         launches.clear()
         state = initial_state(model)
-        res = run_hf(model, state, RunOptions(integrator="strang", duration=2e-6, dt=1e-8, engine="onchip"))
+        res = run_hf(
+            model, state, RunOptions(integrator="strang", crossing="point", duration=2e-6, dt=1e-8, engine="onchip")
+        )
         runs.append((res.collect().globals, *state.numpy()))
         assert sum(launches) == 10 and max(launches) == (10 if cap is None else 3)
     for a, b in zip(*runs, strict=True):
@@ -340,7 +359,7 @@ def test_onchip_non_finite_patch_matches_general(precision, fibers):
         im = model.arrays["inv_mass"].numpy()
         im[1758 + 1000] = np.nan
         model.arrays["inv_mass"].assign(im)
-        options = RunOptions(integrator="strang", engine=engine, duration=1e-6, dt=1e-8)
+        options = RunOptions(integrator="strang", crossing="point", engine=engine, duration=1e-6, dt=1e-8)
         with cpu_fibers(fibers and engine == "onchip"):
             res = run_hf(model, initial_state(model), options, tuning=EngineTuning(block_dim=64) if fibers else None)
         assert not res.complete and res.fault is not None
@@ -376,7 +395,7 @@ def test_ablations_for_profiling(device):
         res = run_hf(
             model,
             initial_state(model),
-            RunOptions(integrator="strang", engine="onchip", duration=2e-7, dt=1e-8),
+            RunOptions(integrator="strang", crossing="point", engine="onchip", duration=2e-7, dt=1e-8),
             tuning=EngineTuning(ablate=frozenset(abl)),
         )
         mus[abl] = res.collect().globals[-1, 0, 0]
@@ -388,7 +407,7 @@ def test_ablations_for_profiling(device):
         res = run_hf(
             model,
             initial_state(model),
-            RunOptions(integrator="strang", engine="onchip", duration=2e-7, dt=1e-8),
+            RunOptions(integrator="strang", crossing="point", engine="onchip", duration=2e-7, dt=1e-8),
             tuning=EngineTuning(ablate=frozenset({"gather_half"}), csr_shared=csr),
         )
         half[csr] = res.collect().globals[-1, 0]
@@ -400,7 +419,7 @@ def test_ablations_for_profiling(device):
         run_hf(
             model,
             initial_state(model),
-            RunOptions(integrator="strang", engine="onchip", duration=2e-7, dt=1e-8),
+            RunOptions(integrator="strang", crossing="point", engine="onchip", duration=2e-7, dt=1e-8),
             tuning=EngineTuning(ablate=frozenset({"springs"})),
         )
 
@@ -415,7 +434,7 @@ def test_sample_ablation_leaves_the_motion_and_drops_the_outputs(device):
         model = build_model([s], device=device, precision="fp32")
         st = initial_state(model)
         res = run_hf(
-            model, st, RunOptions(integrator="strang", engine="onchip", duration=5e-7, dt=1e-8),
+            model, st, RunOptions(integrator="strang", crossing="point", engine="onchip", duration=5e-7, dt=1e-8),
             tuning=EngineTuning(ablate=frozenset(abl)),
         )  # fmt: skip
         got[abl] = (st.u.numpy().copy(), st.v.numpy().copy(), res.collect())
@@ -440,7 +459,7 @@ def test_growth_ablations_for_profiling(device):
         run_hf(
             model,
             initial_state(model),
-            RunOptions(integrator="strang", engine="onchip", duration=4e-7, dt=1e-8),
+            RunOptions(integrator="strang", crossing="point", engine="onchip", duration=4e-7, dt=1e-8),
             tuning=EngineTuning(ablate=frozenset(abl)),
         )
         assert np.all(model.host("area") > before["area"])
@@ -480,7 +499,9 @@ def test_onchip_growth_fuzzed_small_pads(n, seed, load, increment, M, speed, pre
     for engine in ("general", "onchip"):
         model = build_model([scene], device="cpu", precision=precision)
         state = initial_state(model)
-        res = run_hf(model, state, RunOptions(integrator="strang", duration=4e-7, dt=1e-8, engine=engine))
+        res = run_hf(
+            model, state, RunOptions(integrator="strang", crossing="point", duration=4e-7, dt=1e-8, engine=engine)
+        )
         assert res.complete and res.steps == 40
         keys = ("area", "nbr_stiffness", "normal_force", "pad_matrix_force", "pad_gap")
         out.append((res.collect().globals, *state.numpy(), *(model.host(k) for k in keys)))
@@ -565,7 +586,7 @@ def test_results_do_not_depend_on_the_tiles(monkeypatch):
     def run():
         model = build_model(_scenes(), device="cpu", precision="fp32")
         state = initial_state(model)
-        res = run_hf(model, state, RunOptions(engine="onchip", duration=4e-7, dt=1e-8))
+        res = run_hf(model, state, RunOptions(engine="onchip", crossing="point", duration=4e-7, dt=1e-8))
         return res.collect().globals, state.u.numpy(), state.v.numpy(), L.kernel_tiles(model, 1, 1)
 
     g1, u1, v1, tiles = run()
@@ -672,11 +693,13 @@ def test_cluster_refused_where_it_cannot_run():
             run_hf(
                 model,
                 initial_state(model),
-                RunOptions(integrator="strang", engine="onchip", duration=1e-7, dt=1e-8),
+                RunOptions(integrator="strang", crossing="point", engine="onchip", duration=1e-7, dt=1e-8),
                 tuning=EngineTuning(cluster=k),
             )
     res = run_hf(
-        model, initial_state(model), RunOptions(integrator="strang", engine="onchip", duration=1e-7, dt=1e-8)
+        model,
+        initial_state(model),
+        RunOptions(integrator="strang", crossing="point", engine="onchip", duration=1e-7, dt=1e-8),
     )  # cluster=None: 1 on the CPU
     assert res.complete and res.steps == 10
 
@@ -756,7 +779,7 @@ def test_a_checkpoint_continues_on_the_engine_that_wrote_it(growth):
     uninterrupted run's bit for bit. A checkpoint without the name (written before it was stored) takes ``auto``'s
     choice: on the CPU the on-chip engine, which continues a non-growing general run bit for bit."""
     s = _small_pad(growth)
-    opts = RunOptions(integrator="strang", duration=1e-5, checkpoint_interval=3e-6)
+    opts = RunOptions(integrator="strang", crossing="point", duration=1e-5, checkpoint_interval=3e-6)
 
     def resumed(engine: str, forget: bool = False):
         """The checkpoints of a run on ``engine``, and the run resumed from the second (its engine name dropped
@@ -801,7 +824,11 @@ def test_a_cpu_launch_covers_at_most_the_patch_step_cap(cap, launches, monkeypat
     monkeypatch.setattr(onchip.OnchipEngine, "_launch", counted)
     s = _small_pad(False)
     model = build_model([s], device="cpu", precision="fp64")
-    res = run_hf(model, initial_state(model), RunOptions(integrator="strang", dt=1e-8, duration=1e-5, engine="onchip"))
+    res = run_hf(
+        model,
+        initial_state(model),
+        RunOptions(integrator="strang", crossing="point", dt=1e-8, duration=1e-5, engine="onchip"),
+    )
     assert res.complete and len(calls) == launches and sum(calls) == 10
     ref = _small_pad_reference()
     np.testing.assert_array_equal(res.collect().globals, ref)
@@ -811,7 +838,7 @@ def _small_pad_reference() -> np.ndarray:
     """The global outputs of the 60-patch pad over 10 µs at 1e-8 s on the general engine."""
     s = _small_pad(False)
     model = build_model([s], device="cpu", precision="fp64")
-    opts = RunOptions(integrator="strang", dt=1e-8, duration=1e-5, engine="general")
+    opts = RunOptions(integrator="strang", crossing="point", dt=1e-8, duration=1e-5, engine="general")
     return run_hf(model, initial_state(model), opts).collect().globals
 
 

@@ -109,7 +109,9 @@ def test_rerun_names_what_it_applies_and_keeps_the_size_limits(tmp_path, capsys)
 
 
 def test_rerun_repeats_the_crossing_treatment(tmp_path, capsys):
-    """A run with strang's crossing treatment (``--crossing mean``) is repeated with it, bit for bit."""
+    """A run with strang's crossing treatment (``--crossing mean``) is repeated with it, bit for bit; a file that
+    stores no treatment (written before there was a choice) is repeated with the point treatment, the only one then,
+    not with today's default."""
     src = load_scene("hf1").patches
     keep = np.flatnonzero((np.abs(src.x) < 4e-3) & (np.abs(src.y - 0.13) < 4e-3))
     write_patch_file(tmp_path / "patches.h5", type(src)(src.x[keep], src.y[keep], src.area[keep], src.height[keep]))
@@ -120,3 +122,7 @@ def test_rerun_repeats_the_crossing_treatment(tmp_path, capsys):
     assert main(["rerun", str(run), "-o", str(new), "--no-progress"]) == 0
     a, b = datasets(run), datasets(new)
     assert all(a[k].tobytes() == b[k].tobytes() for k in a)
+    with h5py.File(run, "r+") as f:
+        doc = json.loads(f.attrs["run_options"])
+        f.attrs["run_options"] = json.dumps({k: v for k, v in doc.items() if k != "crossing"})
+    assert read_settings(run).options.crossing == "point"

@@ -107,7 +107,8 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         metavar="S",
         help=f"fixed step [s]; default for strang {PRESET_STEP:g} with a preset's physics (hf1-hf4, varying_area, "
         f"the multiscale LF states app1_end, app3_*, app4_*) and {STATISTICS_STEP:g} otherwise, the steps at which the "
-        f"saturated statistics hold (docs/numerics.md); {DEFAULT_DT:g} for the other fixed-step integrators; the "
+        f"saturated statistics hold (the first with --crossing mean, its default there; docs/numerics.md); "
+        f"{DEFAULT_DT:g} for the other fixed-step integrators; the "
         f"first trial step of adaptive, controlled and auto; shortened to fit whole steps in a sample interval (a "
         f"shorter sample interval is refused, but strang's default follows one down to {STATISTICS_STEP:g})",
     )
@@ -142,7 +143,7 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "a block's shared memory), on CUDA and on the CPU (the same bits as general there, faster; docs/onchip.md)",
     )
     hf.add_argument("--fast-math", action="store_true", help=FAST_MATH_HELP)
-    hf.add_argument("--crossing", choices=CROSSINGS, default="point", help=CROSSING_HELP)
+    hf.add_argument("--crossing", choices=CROSSINGS, help=CROSSING_HELP)
     hf.add_argument("--solve-tol", type=positive, metavar="X", help=SOLVE_TOL_HELP)
     hf.add_argument(
         "--growth-dt",
@@ -375,14 +376,15 @@ def _summarise_hf(args: argparse.Namespace, scene: Any, result: Any, duration: f
     with h5py.File(args.output, "r") as f:
         mu = f["global/mu"][()]
         precision = attr_value(f.attrs["precision"])
-        growth_dt = attr_value(f.attrs["run_options"]).get("growth_dt")
+        stored = attr_value(f.attrs["run_options"])
+        growth_dt, crossing = stored.get("growth_dt"), stored.get("crossing")
     n = scene.patches.count
     rate = n * result.steps / max(result.wall_time, 1e-12)
     line = (
         f"{args.output}: {len(mu)} samples over {result.sim_time:.4g} s, {result.steps} steps "
         f"({result.dt:.3g} s{_default_step_words(args, scene, result.dt)}, {args.integrator}, {precision}"
         f"{', fast math' if args.fast_math else ''}"
-        f"{crossing_words(args.crossing)}"
+        f"{crossing_words(crossing)}"
         f"{solve_tol_words(args.solve_tol)}"
         f"{growth_words(growth_dt, None if args.integrator in STEP_CONTROLLED else result.dt)}), "
         f"mean mu {np.mean(mu):.4f}, "
@@ -484,7 +486,7 @@ def _resume_hf(args: argparse.Namespace) -> int:
             ("--overwrite", args.overwrite, False),
             ("--engine", getattr(args, "engine", "auto"), "auto"),
             ("--fast-math", args.fast_math, False),
-            ("--crossing", args.crossing, "point"),
+            ("--crossing", args.crossing, None),
             ("--solve-tol", args.solve_tol, None),
             ("--growth-dt", args.growth_dt, None),
         ),

@@ -23,13 +23,17 @@ INTEGRATORS = ("symplectic-euler", "implicit-friction", "strang", "adaptive", "c
 STEP_CONTROLLED = ("adaptive", "controlled", "auto")
 DEFAULT_INTEGRATOR = "strang"
 DEFAULT_DT = 1.0e-8  # s: the default step of the fixed-step integrators other than strang
-# strang's default step [s] for a batch whose every pad shares a shipped preset's physics (hf1–hf4, varying_area and
-# their equal-height variants, any patch seed; aca_warp.scene.regimes): the statistical work-precision
-# (docs/work_precision_statistics.md) keeps every validation measure of saturated ensembles of hf1–hf4 (and hf4 up to
-# 5e-7 s) and of the growing varying-area pads (with growth events every 5 µs) at 1e-7 s, the step the validation
-# runs every preset at; so are the equal-height variants' (128 or 64 seeds each); also the default for the LF states of
-# the multiscale preset whose groups keep their measures at 1e-7 s (aca_warp.lf.io.STATES_AT_PRESET_STEP)
-PRESET_STEP = 1.0e-7
+# strang's default step [s] and crossing treatment for a batch whose every pad is of a measured regime: a shipped
+# preset's physics (hf1–hf4, varying_area and their equal-height variants, any patch seed; aca_warp.scene.regimes) or
+# a marked LF state of the multiscale preset (aca_warp.lf.io.STATES_AT_PRESET_STEP). With the zero-slip crossings
+# averaged, the statistical work-precision (docs/work_precision_statistics.md) keeps every validation measure at
+# 2.5e-7 s in fp32 in the saturated ensembles of hf1–hf4, of their equal-height variants and of the two LF groups
+# (64–160 seeds each); the growing pads (va, va_equal, growth events every 5 µs) keep every measure but the STFT
+# maximum there, as at 1e-7 s with the point treatment. With the point treatment 2.5e-7 s moves Φ in hf1, hf3,
+# hf1_equal and hf3_equal, μ mean in hf2. The validation's committed ensembles ran at 1e-7 s with the point treatment,
+# which keeps every measure too (aca_warp.studies.validation.settings).
+PRESET_STEP = 2.5e-7
+PRESET_CROSSING = "mean"
 # strang's default step [s] for any other scene: every measured regime kept its measures at 5e-8 s in fp32 before
 # the fp32 damping fix, the LF states too (one of their groups, ms_short, not at 1e-7 s; another, ms_fast, was
 # measured at 5e-8 s only); on the fixed kernels fp32 at 5e-8 s misses one measure each in ms_fast and ms_short
@@ -64,10 +68,11 @@ ENGINES = ("auto", "onchip", "general")
 # and a crossing patch's μ read at an instant of its closing half step
 CROSSINGS = ("point", "mean")
 CROSSING_HELP = (
-    "strang's treatment of the steps on which a patch's slip changes sign: point (default), Eq. 4 at the midpoint "
-    "velocity and mu read at the synchronous velocities; mean, the friction averaged along the step's slip segment "
-    "and a crossing patch's friction read at a random instant of its closing half step, which removes the step "
-    "error of Phi at large steps and costs more per step (docs/friction_step.md, section 8)"
+    "strang's treatment of the steps on which a patch's slip changes sign: mean, the friction averaged along the "
+    "step's slip segment and a crossing patch's friction read at a random instant of its closing half step, which "
+    "removes the step error of Phi at large steps and costs more per step; point, Eq. 4 at the midpoint velocity "
+    "and mu read at the synchronous velocities (docs/friction_step.md, section 8). Default: mean for a shipped "
+    "preset's physics and the marked LF states, point for any other scene"
 )
 ONCHIP_INTEGRATORS = ("strang", "adaptive")  # the integrators the on-chip engine implements
 FAST_MATH_HELP = (
@@ -79,33 +84,53 @@ FAST_MATH_HELP = (
 WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (recorder.watchdog_bound)
 
 
-def default_step(integrator: str, scenes: Iterable[Scene] = ()) -> float:
-    """The step [s] a fixed-step run of the pads of ``scenes`` takes when none is asked for.
-
-    ``strang``: :data:`PRESET_STEP` when every scene is of a measured regime that keeps its statistics there (a
-    shipped preset's physics, or a marked LF state: :func:`~aca_warp.scene.regimes.preset_regime`),
-    :data:`STATISTICS_STEP` when none is (or none is given);
-    a batch of both is refused (SceneError), so that a pad's step never depends on the batch it shares. The other
-    fixed-step integrators: :data:`DEFAULT_DT` (explicit friction, or a friction step not measured for the
-    statistics).
-    """
-    if integrator != "strang":
-        return DEFAULT_DT
+def _measured_batch(scenes: Iterable[Scene], default: str, measured_value: str, other_value: str) -> bool:
+    """Whether every scene is of a measured regime (a shipped preset's physics, or a marked LF state:
+    :func:`~aca_warp.scene.regimes.preset_regime`); False when none is or none is given. A batch of both is refused
+    (SceneError, naming the ``default`` it would need and its two values), so that a pad's default never depends on
+    the batch it shares."""
     from aca_warp.scene.regimes import preset_regime
 
     regimes = [preset_regime(s) for s in scenes]
     measured = [r is not None for r in regimes]
-    if all(measured) and regimes:
-        return PRESET_STEP
-    if any(measured):
+    if any(measured) and not all(measured):
         names = sorted({r for r in regimes if r is not None})
-        other = measured.index(False)
         raise SceneError(
-            f"this batch mixes {sum(measured)} pad(s) of a measured regime ({', '.join(names)}: strang's "
-            f"default step {PRESET_STEP:g} s) and {measured.count(False)} other pad(s) ({STATISTICS_STEP:g} s; the "
-            f"first is pad {other}); give the step (dt) for all of them"
+            f"this batch mixes {sum(measured)} pad(s) of a measured regime ({', '.join(names)}: strang's default "
+            f"{default} {measured_value}) and {measured.count(False)} other pad(s) ({other_value}; the first is pad "
+            f"{measured.index(False)}); give the {default} for all of them"
         )
-    return STATISTICS_STEP
+    return bool(regimes) and all(measured)
+
+
+def default_step(integrator: str, scenes: Iterable[Scene] = ()) -> float:
+    """The step [s] a fixed-step run of the pads of ``scenes`` takes when none is asked for.
+
+    ``strang``: :data:`PRESET_STEP` when every scene is of a measured regime that keeps its statistics there,
+    :data:`STATISTICS_STEP` when none is (or none is given); a batch of both is refused (:func:`_measured_batch`).
+    The other fixed-step integrators: :data:`DEFAULT_DT` (explicit friction, or a friction step not measured for
+    the statistics).
+    """
+    if integrator != "strang":
+        return DEFAULT_DT
+    measured = _measured_batch(scenes, "step (dt)", f"{PRESET_STEP:g} s", f"{STATISTICS_STEP:g} s")
+    return PRESET_STEP if measured else STATISTICS_STEP
+
+
+def default_crossing(integrator: str, scenes: Iterable[Scene] = ()) -> str:
+    """strang's treatment of zero-slip crossings for the pads of ``scenes`` when none is asked for, whatever the
+    step: :data:`PRESET_CROSSING` when every scene is of a measured regime, ``point`` when none is (or none is given,
+    or for another integrator); a batch of both is refused (:func:`_measured_batch`)."""
+    if integrator != "strang":
+        return "point"
+    measured = _measured_batch(scenes, "crossing treatment", PRESET_CROSSING, "point")
+    return PRESET_CROSSING if measured else "point"
+
+
+def crossing_asked(integrator: str, crossing: str | None, scenes: Iterable[Scene]) -> str:
+    """The crossing treatment a run of ``integrator`` on ``scenes`` asks for, as its file or sweep records it:
+    ``crossing``, or :func:`default_crossing` written out."""
+    return default_crossing(integrator, scenes) if crossing is None else crossing
 
 
 def default_precision(integrator: str) -> str:
@@ -187,10 +212,10 @@ def growth_words(growth_dt: float | None, h: float | None = None) -> str:
     return f", growth events every {every:.3g} s ({growth_dt:.3g} s asked, in whole steps of {h:.3g} s)"
 
 
-def crossing_words(crossing: str) -> str:
-    """strang's crossing treatment for a summary line: ``, crossings averaged`` for ``mean``, nothing for the
-    default ``point``."""
-    return "" if crossing == "point" else ", crossings averaged"
+def crossing_words(crossing: str | None) -> str:
+    """strang's crossing treatment for a summary line: ``, crossings averaged`` for ``mean``, nothing for ``point``
+    (or None, not resolved)."""
+    return ", crossings averaged" if crossing == "mean" else ""
 
 
 def tolerance_keyword(integrator: str) -> str:
@@ -214,27 +239,31 @@ def check_interval(interval: float | None) -> None:
         )
 
 
-def check_crossing(crossing: str, integrator: str) -> None:
-    """SceneError unless ``crossing`` is one of :data:`CROSSINGS`, and ``point`` for an integrator other than
-    ``strang``."""
+def check_crossing(crossing: str | None, integrator: str) -> None:
+    """SceneError unless ``crossing`` is None (:func:`default_crossing`) or one of :data:`CROSSINGS`, and not
+    ``mean`` for an integrator other than ``strang``."""
+    if crossing is None:
+        return
     if crossing not in CROSSINGS:
         raise SceneError(f"unknown crossing treatment {crossing!r}; choose from {', '.join(CROSSINGS)}")
-    if crossing != "point" and integrator != "strang":
+    if crossing == "mean" and integrator != "strang":
         raise SceneError(f"crossing {crossing!r} is a treatment of strang's steps, not of {integrator}")
 
 
-def check_solve_tol(solve_tol: float | None, crossing: str = "point") -> None:
+def check_solve_tol(solve_tol: float | None, crossing: str | None = "point") -> None:
     """Refuse a friction solve tolerance outside (0, 1), or one given with the ``mean`` crossing treatment, whose
     short-segment threshold (``SEGMENT_TOL`` in ``kernels/physics.py``) is the same tolerance times 1e3 and would
-    move with it (SceneError); None is the precision's default."""
+    move with it (SceneError); None is the precision's default. ``crossing`` None (not resolved yet) is checked
+    where the solver resolves it."""
     if solve_tol is None:
         return
     if not (isinstance(solve_tol, int | float) and not isinstance(solve_tol, bool) and 0 < solve_tol < 1):
         raise SceneError(f"solve_tol must be a number between 0 and 1 (exclusive), got {solve_tol!r}")
-    if crossing != "point":
+    if crossing == "mean":
         raise SceneError(
-            f"solve_tol with crossing {crossing!r}: that treatment's short-segment threshold follows the solve's "
-            "tolerance; keep the default tolerance with it"
+            "solve_tol with crossing 'mean' (strang's default for a measured regime): that treatment's "
+            "short-segment threshold follows the solve's tolerance; keep the default tolerance with it, or choose "
+            "crossing 'point'"
         )
 
 
@@ -277,9 +306,11 @@ class RunOptions:
             and a sweep first write out ``strang``'s default, :func:`growth_asked`. Refused for a scene that does
             not grow (:func:`~aca_warp.hf.solver.check_step`).
         crossing: ``strang``'s treatment of the steps on which a patch's slip changes sign (:data:`CROSSINGS`):
-            ``point`` (the default: Eq. 4 at the midpoint velocity; μ read at the synchronous velocities) or ``mean``
-            (the friction averaged along the step's slip segment, and a crossing patch's friction read at a random
-            instant of its closing half step; docs/friction_step.md §8). ``strang`` only.
+            ``point`` (Eq. 4 at the midpoint velocity; μ read at the synchronous velocities) or ``mean`` (the
+            friction averaged along the step's slip segment, and a crossing patch's friction read at a random
+            instant of its closing half step; docs/friction_step.md §8; ``strang`` only); None:
+            :func:`default_crossing` (``mean`` for a measured regime, else ``point``), which a run file stores
+            written out.
         solve_tol: Tolerance of the per-patch implicit friction solve (``solve_velocity`` in ``kernels/physics.py``),
             relative to the scale of the step's velocity change [1], in (0, 1); None: :data:`NEWTON_TOL` of the
             model's precision. ``symplectic-euler`` (explicit friction) ignores it; refused with ``crossing``
@@ -298,7 +329,7 @@ class RunOptions:
     accept_unphysical: bool = False
     fast_math: bool = False
     growth_dt: float | None = None
-    crossing: str = "point"
+    crossing: str | None = None
     solve_tol: float | None = None
 
     def __post_init__(self) -> None:

@@ -114,7 +114,9 @@ def _options(f: h5py.File, path: Path, scene: Scene) -> RunOptions:
     :data:`DEFAULT_DT`; since, the step is stored) is repeated at the step it took (the ``dt`` its file recorded when
     it closed), or, for a file stopped before, at :data:`DEFAULT_DT`: not at today's default. Likewise a growing
     ``scene``'s run without a stored spacing of growth events (files written while the events came at the scene's
-    interval by default; since, the spacing is stored) is repeated at that interval, written out."""
+    interval by default; since, the spacing is stored) is repeated at that interval, written out; and a run without
+    a stored crossing treatment (files written before there was a choice) with the point treatment, the only one
+    then."""
     if "run_options" in f.attrs:
         options = RunOptions.from_dict(_json(f.attrs, "run_options", path))
     else:
@@ -126,6 +128,8 @@ def _options(f: h5py.File, path: Path, scene: Scene) -> RunOptions:
         options = dataclasses.replace(options, dt=float(taken) if taken is not None else DEFAULT_DT)
     if options.growth_dt is None and scene.growth is not None:
         options = dataclasses.replace(options, growth_dt=scene.growth.interval)
+    if options.crossing is None:
+        options = dataclasses.replace(options, crossing="point")
     return options
 
 

@@ -26,6 +26,7 @@ from aca_warp.hf.onchip_layout import choose_engine
 from aca_warp.hf.options import (
     STEP_CONTROLLED,
     RunOptions,
+    crossing_asked,
     default_follows,
     default_precision,
     default_step,
@@ -152,7 +153,8 @@ def run_scene(
     solver state of the last checkpoint (``options.checkpoint_interval``: automatic by default, 0 for none), so that
     a stopped or killed run continues with :func:`resume_run`. The file stores the options with the duration, the
     step (a fixed-step integrator's default written out), the spacing of a growing scene's growth events (``strang``'s
-    default written out, :func:`~aca_warp.hf.options.growth_asked`) and the engine resolved. ``announce`` receives the
+    default written out, :func:`~aca_warp.hf.options.growth_asked`), the crossing treatment (its default written out,
+    :func:`~aca_warp.hf.options.crossing_asked`) and the engine resolved. ``announce`` receives the
     :class:`RunPlan` once everything is validated, just before the run starts. ``force_limits`` lifts the size
     limits and the free-space check (:func:`plan_run`; None: ``options.force``).
     """
@@ -169,6 +171,7 @@ def run_scene(
             options,
             dt=step_asked(options.integrator, options.dt, [scene], scene.record.sample_dt),
             growth_dt=growth_asked(options.integrator, options.growth_dt, interval, options.duration),
+            crossing=crossing_asked(options.integrator, options.crossing, [scene]),
         )
         if not (options.force if force_limits is None else force_limits):
             hint = "a larger sample interval, a shorter patch window or decimation; "

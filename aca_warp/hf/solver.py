@@ -44,6 +44,7 @@ from aca_warp.hf.options import (
     RunOptions,
     check_crossing,
     check_solve_tol,
+    default_crossing,
     default_step,
     steps_per_event,
 )
@@ -268,7 +269,8 @@ class HFSolver:
     ``estimate``: the model's :func:`stable_step`, when the caller has it already (it reads every link of the batch).
     ``tolerance``: the explicit pair's (``adaptive``, ``auto``), ``split_tolerance`` the split step's (``controlled``,
     ``auto``). ``growth_dt``: the spacing of a growing model's events [s] (:func:`event_spacing`), which the engines
-    read. ``crossing``: ``strang``'s treatment of steps that cross zero slip (:data:`~aca_warp.hf.options.CROSSINGS`).
+    read. ``crossing``: ``strang``'s treatment of steps that cross zero slip (:data:`~aca_warp.hf.options.CROSSINGS`;
+    None: :func:`~aca_warp.hf.options.default_crossing` for the model's scenes).
     ``solve_tol``: the implicit friction solve's tolerance (None: :data:`~aca_warp.hf.options.NEWTON_TOL` of the
     model's precision).
     """
@@ -284,12 +286,16 @@ class HFSolver:
         split_tolerance: float = DEFAULT_SPLIT_TOLERANCE,
         estimate: StepEstimate | None = None,
         growth_dt: float | None = None,
-        crossing: str = "point",
+        crossing: str | None = None,
         solve_tol: float | None = None,
     ) -> None:
         if integrator not in INTEGRATORS:
             raise SceneError(f"unknown integrator {integrator!r}; choose from {', '.join(INTEGRATORS)}")
         check_crossing(crossing, integrator)
+        if dt is None:  # before the crossing treatment: a batch that mixes regimes is asked for its step first
+            dt = ADAPTIVE_FIRST_STEP if integrator in STEP_CONTROLLED else default_step(integrator, model.scenes)
+        if crossing is None:
+            crossing = default_crossing(integrator, model.scenes)
         self.crossing = int(crossing == "mean")  # the kernels' flag
         self._advance, self._close, _ = K.STRANG_KERNELS[self.crossing]
         self.model = model
@@ -310,8 +316,6 @@ class HFSolver:
                     f"tolerance {tolerance:g} is below what fp32 state can resolve (>= {FP32_MIN_TOLERANCE:g}); "
                     f"use {fp64} or a looser tolerance"
                 )
-        if dt is None:
-            dt = ADAPTIVE_FIRST_STEP if integrator in STEP_CONTROLLED else default_step(integrator, model.scenes)
         self.dt = dt
         if not (self.dt > 0 and math.isfinite(self.dt)):
             raise SceneError(f"dt must be a positive number of seconds, got {self.dt}")

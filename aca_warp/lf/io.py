@@ -234,7 +234,8 @@ def read_snapshot(path: str | Path, name: str) -> dict[str, Any]:
     return out
 
 
-# the LF states of the multiscale preset whose HF statistics keep every measure at 1e-7 s: the statistical
+# the LF states of the multiscale preset whose HF statistics keep every measure at 1e-7 s with the point treatment of
+# zero-slip crossings and at 2.5e-7 s with the crossings averaged (strang's default for them): the statistical
 # work-precision's groups ms_mid (app1_end, app4_start, app4_end) and ms_app3 (app3_start, app3_end), one pad per state
 # and LF seed (docs/work_precision_statistics.md); ms_fast (app2_start) and ms_short (app1_start, app2_end) need 5e-8 s
 STATES_AT_PRESET_STEP = ("app1_end", "app4_start", "app4_end", "app3_start", "app3_end")
@@ -277,7 +278,7 @@ def scene_from_snapshot(
     scene accepts implausible values when ``allow_implausible`` or the LF scene did. A state of
     :data:`STATES_AT_PRESET_STEP` of an LF run of the multiscale preset is marked as its measured regime in the
     scene's ``origin`` (:func:`lf_state_regime`, :func:`~aca_warp.scene.regimes.measured_origin`): ``strang`` then
-    takes :data:`~aca_warp.hf.options.PRESET_STEP` by default.
+    takes :data:`~aca_warp.hf.options.PRESET_STEP` and :data:`~aca_warp.hf.options.PRESET_CROSSING` by default.
     """
     s = read_snapshot(path, name)
     doc = s["scene"]

@@ -8,9 +8,9 @@ computed in the same run. Solvers, each timed after a warm-up that compiles its 
 * ``adaptive`` (ours, fp64), on the on-chip engine (one block or cluster per pad) and on the general engine (a
   trial of every pad per 14 launches): the loosest tolerance of 1e-3 … 1e-7 that reaches the target;
 * ``strang`` (ours) at its defaults (:func:`~aca_warp.hf.options.default_step`, fp32:
-  :func:`~aca_warp.hf.options.default_precision`), in fp64 at 1e-8 s — on the
-  on-chip engine, ``auto``'s choice on either device — and the largest of 1e-8, 5e-9, 2.5e-9 s that reaches the
-  target;
+  :func:`~aca_warp.hf.options.default_precision`, the crossing treatment :func:`~aca_warp.hf.options.default_crossing`),
+  in fp64 at 1e-8 s — on the on-chip engine, ``auto``'s choice on either device — and the largest of 1e-8, 5e-9,
+  2.5e-9 s that reaches the target;
 * SciPy DOP853 (host CPU): the loosest rtol of 1e-5 … 1e-10 that reaches it;
 * diffrax Dopri8 with a PI(D) controller (``PIDController(pcoeff=0.4, icoeff=0.3)``, JAX in float64) on the same
   equations (the arrays of ``ReferenceODE``: masses, damping, normal forces, disc speeds, the coupling matrix as a

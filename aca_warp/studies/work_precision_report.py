@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from aca_warp.hf.options import DEFAULT_TOLERANCE, PRESET_STEP, default_step
+from aca_warp.hf.options import DEFAULT_TOLERANCE, PRESET_CROSSING, PRESET_STEP, default_step
 from aca_warp.studies.report import figure, fmt, generated_markers, md_table, replace_generated, save_figure
 
 BEGIN, END = generated_markers("scripts/work_precision.py --report")
@@ -259,7 +259,8 @@ def defaults_table(pairs: list[tuple[dict, dict]]) -> list[str]:
     then = " (the default when these runs were made; now {})"
     now = "" if _close(tol, DEFAULT_TOLERANCE) else then.format(f"{DEFAULT_TOLERANCE:g}")
     # strang's default depends on the scene: the note names both when the runs' step is either one's no longer
-    steps = f"{PRESET_STEP:g} s for the presets' physics, {default_step('strang'):g} s for other scenes"
+    averaged = " with the crossings averaged" if PRESET_CROSSING == "mean" else ""
+    steps = f"{PRESET_STEP:g} s{averaged} for the presets' physics, {default_step('strang'):g} s for other scenes"
     now_dt = "" if any(_close(dt, s) for s in (PRESET_STEP, default_step("strang"))) else then.format(steps)
     return [
         f"**μ error over the pointwise window (wall time) at strang's step {dt:g} s{now_dt} and at adaptive's "

@@ -72,7 +72,7 @@ def add_parsers(sub: Any) -> None:
         "--dt",
         type=positive,
         metavar="S",
-        help="fixed step [s] (default: the spec's, else strang 1e-7 for a sweep of a shipped preset whose pads all "
+        help="fixed step [s] (default: the spec's, else strang 2.5e-7 for a sweep of a shipped preset whose pads all "
         "keep its physics (seeds and initial states varied, other parameters at the preset's values only), 5e-8 for "
         "any other; the other fixed-step integrators 1e-8)",
     )
@@ -86,8 +86,9 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--crossing",
         choices=CROSSINGS,
-        help="strang's treatment of steps that cross zero slip (the spec's run.crossing; default point; "
-        "aca-warp hf --crossing, docs/friction_step.md section 8.1)",
+        help="strang's treatment of steps that cross zero slip (the spec's run.crossing; default mean for a sweep "
+        "of a shipped preset whose pads all share its physics, else point; aca-warp hf --crossing, "
+        "docs/friction_step.md section 8.1)",
     )
     p.add_argument(
         "--growth-dt",

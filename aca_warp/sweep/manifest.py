@@ -70,6 +70,7 @@ _FLAGS = {  # the run settings a sweep command's options set
     "duration": "--duration",
     "integrator": "--integrator",
     "growth_dt": "--growth-dt",
+    "crossing": "--crossing",
 }
 
 
@@ -78,9 +79,10 @@ def _run_changes(old: dict | None, spec: SweepSpec) -> str:
     parts (:func:`_spec_changes`) and the run settings, with the options that continue it where only what options
     set differs (the run settings and the shard size: ``--precision fp64`` for a sweep begun at another default
     precision, ``--dt`` for another default step, ``--growth-dt scene`` for one whose growth events came at the
-    scenes' interval, ``--duration``, ``--shard-size`` for overrides left out of the second call), each value as
-    stored (every digit: a rounded one would be another sweep again); where nothing the manifest records differs,
-    that a file the spec names changed; "" where ``old`` records none of it."""
+    scenes' interval, ``--crossing point`` for one begun when that was every sweep's treatment, ``--duration``,
+    ``--shard-size`` for overrides left out of the second call), each value as stored (every digit: a rounded one
+    would be another sweep again); where nothing the manifest records differs, that a file the spec names changed; ""
+    where ``old`` records none of it."""
     if not isinstance(old, dict) or not isinstance(old.get("run"), dict):
         return ""
     before, now = old["run"], spec.run_settings()
@@ -101,6 +103,7 @@ def _run_changes(old: dict | None, spec: SweepSpec) -> str:
     was = dict(before)  # each setting as an option gives it: a spacing left out is the scenes' own clock
     if "growth_dt" not in was and spec.base.growth is not None:
         was["growth_dt"] = "scene"
+    was.setdefault("crossing", "point")  # run settings store the treatment where it is not the point one
     changed = ", ".join(f"{k} {before.get(k, 'unset')} there, {now.get(k, 'unset')} here" for k in keys)
     again = [f"{_FLAGS[k]} {was[k]}" for k in keys if k in _FLAGS and was.get(k) is not None]
     settable = len(again) == len(keys) and len(others) == len(shard_size)

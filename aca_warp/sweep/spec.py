@@ -182,7 +182,8 @@ class SweepSpec:
         growth_dt: Simulated time between growth events of growing pads [s] (``RunOptions.growth_dt``), written
             out (:func:`~aca_warp.hf.options.growth_asked`); None: the scenes' growth interval (``run.growth_dt =
             "scene"``, or an integrator other than strang).
-        crossing: strang's treatment of steps that cross zero slip (``RunOptions.crossing``: ``point`` or ``mean``).
+        crossing: strang's treatment of steps that cross zero slip (``RunOptions.crossing``: ``point`` or ``mean``;
+            the default, :func:`~aca_warp.hf.options.default_crossing`, written out).
     """
 
     doc: dict
@@ -279,7 +280,7 @@ class SweepSpec:
 
     def run_settings(self) -> dict:
         """Duration, integrator, precision, dt, tolerance and sample interval, and fast math where it is on, the
-        growth events' spacing where it is set and the crossing treatment where it is not the default (absent
+        growth events' spacing where it is set and the crossing treatment where it is not the point one (absent
         otherwise: hashes of earlier sweeps hold), as a JSON-able dict."""
         return {
             "duration": self.duration,
@@ -422,6 +423,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         INTEGRATORS,
         SCENE_CLOCK,
         check_crossing,
+        crossing_asked,
         default_follows,
         default_precision,
         default_step,
@@ -470,7 +472,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     unfit = fast_math_unfit(integrator, precision) if fast_math else None
     if unfit is not None:
         raise SweepError(f"run.fast_math (--fast-math): {unfit}")
-    crossing = run.get("crossing", "point")
+    crossing = run.get("crossing")
     try:
         check_crossing(crossing, integrator)
     except SceneError as e:
@@ -487,11 +489,13 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
     tolerance = num("tolerance", DEFAULT_TOLERANCE)
     sample_dt = num("sample_dt", base.record.sample_dt)
     lists, params = _expand(doc.get("parameters", {}), mode, base, base_doc)
-    # the default step written out (the hash and the shards name the step): the base scene's, where every pad
-    # shares its physics, else the step for any scene
+    # the default step and crossing treatment written out (the hash and the shards name them): the base scene's,
+    # where every pad shares its physics, else those for any scene
     asked = num("dt", None)
-    shared = asked is None and integrator == "strang" and _shares_base_physics(base, base_doc, lists)
+    shared = (asked is None or crossing is None) and integrator == "strang"
+    shared = shared and _shares_base_physics(base, base_doc, lists)
     dt = step_asked(integrator, asked, [base] if shared else [], sample_dt)
+    crossing = crossing_asked(integrator, crossing, [base] if shared else [])
     try:
         from aca_warp.hf.recorder import check_run, check_sample_step
 
@@ -511,7 +515,7 @@ def _resolve(doc: dict, base_dir: Path, *, check: bool = True) -> SweepSpec:
         growth_dt = growth_asked(integrator, growth_dt, base.growth.interval, duration)
     # the defaults resolved here written into the doc the workers resolve again, so that a worker whose code has
     # other defaults runs this spec's settings (its hash is the same either way)
-    run.update({"precision": precision, **({"dt": dt} if dt is not None else {})})
+    run.update({"precision": precision, "crossing": crossing, **({"dt": dt} if dt is not None else {})})
     run.update({"growth_dt": growth_dt} if growth_dt is not None else {})
     spec = SweepSpec(
         doc=doc,

@@ -5,11 +5,15 @@ the entry's integrator, fixed step and precision. Each entry is the setting that
 (docs/work_precision_statistics.md: every validation measure within a quarter of the spread between seeds from a tight
 reference) picks for the regime the experiments belong to; a group of LF states and its variants (from rest, the
 linear phase) take the group's. The run then shortens the step to a whole number of steps per sample interval
-(``fitted_step``). The entries ``hf`` and ``growth`` hold the values of ``strang``'s defaults for a scene with a
-shipped preset's physics (:data:`~aca_warp.hf.options.PRESET_STEP`,
-:data:`~aca_warp.hf.options.STATISTICS_GROWTH_DT`), ``ms_order`` its default for any other scene
-(:data:`~aca_warp.hf.options.STATISTICS_STEP`), written out so that a change of a default does not move the validation
-(a test holds them equal). ``--dt`` and ``--precision`` replace the table's values for every experiment,
+(``fitted_step``). Every entry runs ``strang`` with the point treatment of zero-slip crossings (the validation's runs
+pass it, :func:`~aca_warp.studies.runs.run_engine`). The entries ``hf`` and ``growth`` hold the setting the
+validation's committed ensembles ran at, 1e-7 s with the point treatment and growth events every
+:data:`~aca_warp.hf.options.STATISTICS_GROWTH_DT`: ``strang``'s default for a shipped preset's physics until the
+crossings were averaged (since, :data:`~aca_warp.hf.options.PRESET_STEP` with
+:data:`~aca_warp.hf.options.PRESET_CROSSING`, which keeps every measure of these regimes too, the growing ones as
+this setting does); ``ms_order`` holds ``strang``'s default for any other scene
+(:data:`~aca_warp.hf.options.STATISTICS_STEP`), written out so that a change of a default does not move the
+validation (a test holds it equal). ``--dt`` and ``--precision`` replace the table's values for every experiment,
 ``--growth-dt`` the growth events' spacing of the growing ones.
 
 The friction step of each batch (:func:`~aca_warp.hf.solver.friction_step`, the step at which h γ_max = 4) is still
