@@ -73,6 +73,22 @@ def test_solve_tol_is_refused_with_the_mean_crossing_treatment(scenes):
         parse_setting("strang@fp32:dt=1e-8:solve_tol=1e-7:mean")
 
 
+def test_solve_tol_on_a_preset_asks_for_the_point_treatment(tmp_path, capsys):
+    """A preset's physics averages the crossings by default, so a tolerance of its own is refused there until the
+    point treatment is asked for; the message names that option as the interface spells it."""
+    from aca_warp.cli import main
+    from aca_warp.hf.model import build_model
+    from aca_warp.scene import preset
+
+    model = build_model([preset("hf1")], device="cpu", precision="fp32")
+    with pytest.raises(SceneError, match=r"or add crossing='point'"):
+        HFSolver(model, "strang", DT, solve_tol=1e-7)
+    assert float(HFSolver(model, "strang", DT, solve_tol=1e-7, crossing="point").newton_tol) == pytest.approx(1e-7)
+    out = tmp_path / "r.h5"
+    assert main(["hf", "hf1", "--duration", "1e-6", "--solve-tol", "1e-7", "-o", str(out), "--no-progress"]) == 2
+    assert "or add --crossing point" in capsys.readouterr().err and not out.exists()
+
+
 def test_the_study_runs_a_setting_at_its_solve_tolerance(scenes, monkeypatch):
     """A study setting's ``:solve_tol=V`` reaches the run's options (``run_setting`` → ``run_engine`` →
     ``run_hf``), not only its label."""

@@ -13,7 +13,7 @@ from collections.abc import Iterable
 from dataclasses import asdict, dataclass, fields, replace
 from typing import TYPE_CHECKING, Any
 
-from aca_warp.common.errors import SceneError
+from aca_warp.common.errors import SceneError, option
 
 if TYPE_CHECKING:
     from aca_warp.scene import Scene
@@ -262,8 +262,8 @@ def check_solve_tol(solve_tol: float | None, crossing: str | None = "point") -> 
     if crossing == "mean":
         raise SceneError(
             "solve_tol with crossing 'mean' (strang's default for a measured regime): that treatment's "
-            "short-segment threshold follows the solve's tolerance; keep the default tolerance with it, or choose "
-            "crossing 'point'"
+            "short-segment threshold follows the solve's tolerance; keep the default tolerance with it, or add "
+            + option("crossing='point'", "--crossing point")
         )
 
 
