@@ -582,7 +582,8 @@ def add_parsers(sub: Any) -> None:
         type=step_or_default,
         default=1.0e-8,
         metavar="S",
-        help="fixed step [s] (default 1e-8, the step of the published tables), or 'default': strang's default step "
+        help="fixed step [s] (default 1e-8, the step of the published tables, which ran the point treatment: "
+        "--crossing point), or 'default': strang's default step "
         "for the scene, as `aca-warp hf` takes it (2.5e-7 for the shipped presets' physics, 5e-8 for any other scene; "
         "docs/numerics.md); refused, as by aca-warp hf, when longer than the sample interval or beyond 1e-5 s; "
         "shortened so that whole steps fill a sample interval (JSON dt_s: the step taken, dt_asked_s: this one)",

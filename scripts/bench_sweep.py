@@ -156,7 +156,6 @@ def host_phases(cfg: dict) -> dict:
     from aca_warp.hf.engine import EngineTuning
     from aca_warp.hf.loop import _Run
     from aca_warp.hf.model import build_model
-    from aca_warp.hf.options import RunOptions
     from aca_warp.hf.state import initial_state
     from aca_warp.sweep import hf1_product_doc, load_spec
     from aca_warp.sweep import spec as spec_module
@@ -194,9 +193,9 @@ def host_phases(cfg: dict) -> dict:
         got[:] = [min(got[0], w), min(got[1], c)]
         return out
 
-    options = RunOptions(duration=spec.duration, integrator=spec.integrator, dt=spec.dt, tolerance=spec.tolerance)
-    record, tuning = spec.base.record, EngineTuning()
     pool = importlib.import_module("aca_warp.sweep.prepare")
+    options = pool.run_options(spec)  # the sweep's own run options
+    record, tuning = spec.base.record, EngineTuning()
     for _ in range(cfg["repeat"]):
         scenes = clock("prepare", prepare)
         model, state = clock("build", functools.partial(build, scenes))

@@ -101,8 +101,8 @@ def test_mean_is_the_prototype_thmean_read_at_the_drawn_instants(scenes):
 
 
 def test_point_stays_the_package_strang_on_crossing_steps(scenes):
-    """``point`` (the default) on the same crossing-rich start is the prototype's ``forced-thmid``: the option
-    leaves the default path as it was, and ``mean`` does change the run."""
+    """``point`` (the default outside the measured regimes) on the same crossing-rich start is the prototype's
+    ``forced-thmid``: the option leaves that path as it was, and ``mean`` does change the run."""
     pads, v0 = _start(scenes)
     g, _ = _package(scenes, v0, "point")
     r = fs.run_fixed(pads, fs.Scheme.parse("forced-thmid"), DT, DURATION, SAMPLE_DT)

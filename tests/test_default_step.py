@@ -188,6 +188,25 @@ def test_a_sweep_spec_writes_its_default_crossing_out(tmp_path):
         prepare_dir(spec, tmp_path / "sw")
 
 
+@pytest.mark.parametrize("crossing", ["point", "mean"])
+def test_a_pad_of_a_preset_sweep_keeps_its_crossing_treatment(tmp_path, crossing):
+    """A pad taken out of a shard of an hf1 seed sweep (``aca-warp analyze SHARD --pad K``) is rebuilt with the
+    treatment the shard ran (point: not stored in the run settings; mean: the default there) and stores it, so that
+    ``rerun`` repeats the pad's run."""
+    from aca_warp.analysis.pads import write_pad_run
+    from aca_warp.cli import main
+    from aca_warp.hf.rerun import read_settings
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(
+        '[sweep]\nbase = "hf1"\nshard_size = 2\n[run]\nduration = 2e-6\n[parameters]\n"patches.seed" = [1, 2]\n'
+    )
+    argv = ["sweep", str(spec), "-o", str(tmp_path / "sw"), "--workers", "0", "--quiet"]
+    assert main(argv + (["--crossing", "point"] if crossing == "point" else [])) == 0
+    pad = write_pad_run(tmp_path / "sw" / "shard-00000.h5", 1, tmp_path / "pad1.h5")
+    assert read_settings(pad).options.crossing == crossing
+
+
 def test_the_summary_line_says_why_the_step(tmp_path, capsys):
     """``aca-warp hf`` without --dt names the default it took: the preset's physics, or a scene outside the measured
     regimes."""

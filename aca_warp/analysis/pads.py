@@ -114,7 +114,10 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
         run, doc, finished = json.loads(_text(f.attrs["run"])), json.loads(_text(f.attrs["spec"])), f.attrs["complete"]
     if end == 0:
         raise SceneError(_no_sample(shard, pad, time.size))
-    try:  # the run settings as the shard ran them (a default written out since would change the hash, not the pad)
+    # the run settings as the shard ran them (a default written out since would change the hash, not the pad); the
+    # crossing treatment is stored where it is not the point one (run_settings)
+    run = {"crossing": "point", **run}
+    try:
         spec = load_spec({**doc, "run": run}, base_dir=_base_dir(shard))
         scene = spec.scene(pad).replace(duration=float(run["duration"]))
     except SweepError as e:
@@ -141,6 +144,7 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
         tolerance=run["tolerance"],
         fast_math=bool(run.get("fast_math", False)),  # absent in the shards of an exact sweep
         growth_dt=run.get("growth_dt"),  # absent in the shards of a sweep at the scenes' growth interval
+        crossing=run["crossing"],
     )
     complete = bool(finished) and end == time.size
     tmp = new_path(dest)

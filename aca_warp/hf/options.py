@@ -28,7 +28,7 @@ DEFAULT_DT = 1.0e-8  # s: the default step of the fixed-step integrators other t
 # a marked LF state of the multiscale preset (aca_warp.lf.io.STATES_AT_PRESET_STEP). With the zero-slip crossings
 # averaged, the statistical work-precision (docs/work_precision_statistics.md) keeps every validation measure at
 # 2.5e-7 s in fp32 in the saturated ensembles of hf1–hf4, of their equal-height variants and of the two LF groups
-# (64–160 seeds each); the growing pads (va, va_equal, growth events every 5 µs) keep every measure but the STFT
+# (32–160 seeds each); the growing pads (va, va_equal, growth events every 5 µs) keep every measure but the STFT
 # maximum there, as at 1e-7 s with the point treatment. With the point treatment 2.5e-7 s moves Φ in hf1, hf3,
 # hf1_equal and hf3_equal, μ mean in hf2. The validation's committed ensembles ran at 1e-7 s with the point treatment,
 # which keeps every measure too (aca_warp.studies.validation.settings).
@@ -60,7 +60,8 @@ NEWTON_TOL = {"fp32": 1.0e-6, "fp64": 1.0e-9}
 SOLVE_TOL_HELP = (
     "tolerance of the per-patch implicit friction solve, relative to the scale of the step's velocity change "
     f"(default {NEWTON_TOL['fp32']:g} in fp32, {NEWTON_TOL['fp64']:g} in fp64; between 0 and 1; not with "
-    "--crossing mean): a numerical setting for studies of the solve's own error (docs/numerics.md)"
+    "--crossing mean, so with --crossing point on a preset's physics, where mean is the default): a numerical "
+    "setting for studies of the solve's own error (docs/numerics.md)"
 )
 ENGINES = ("auto", "onchip", "general")
 # strang's treatment of a step whose slip changes sign (docs/friction_step.md §8): "point", Eq. 4 at the midpoint
@@ -261,7 +262,7 @@ def check_solve_tol(solve_tol: float | None, crossing: str | None = "point") -> 
         raise SceneError(f"solve_tol must be a number between 0 and 1 (exclusive), got {solve_tol!r}")
     if crossing == "mean":
         raise SceneError(
-            "solve_tol with crossing 'mean' (strang's default for a measured regime): that treatment's "
+            "solve_tol with crossing 'mean' (strang's default for the presets' physics): that treatment's "
             "short-segment threshold follows the solve's tolerance; keep the default tolerance with it, or add "
             + option("crossing='point'", "--crossing point")
         )

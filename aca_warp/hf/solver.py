@@ -296,13 +296,13 @@ class HFSolver:
             dt = ADAPTIVE_FIRST_STEP if integrator in STEP_CONTROLLED else default_step(integrator, model.scenes)
         if crossing is None:
             crossing = default_crossing(integrator, model.scenes)
+        check_solve_tol(solve_tol, crossing)  # before the stable-step estimate, which reads every link
         self.crossing = int(crossing == "mean")  # the kernels' flag
         self._advance, self._close, _ = K.STRANG_KERNELS[self.crossing]
         self.model = model
         self.integrator = integrator
         self.estimate = stable_step(model) if estimate is None else estimate
         self.T = model.dtype
-        check_solve_tol(solve_tol, crossing)
         self.newton_tol = self.T(NEWTON_TOL[model.precision] if solve_tol is None else solve_tol)
         for name, value in (("tolerance", tolerance), ("split_tolerance", split_tolerance)):
             if not (value > 0 and math.isfinite(value)):

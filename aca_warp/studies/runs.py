@@ -73,15 +73,17 @@ def run_general(
     dt: float | None = None,
     tolerance: float | None = None,
     engine: str = "general",
+    crossing: str | None = "point",
 ) -> RunResult:
     """``run_hf`` for ``duration`` [s] on ``engine`` (general, onchip, auto): a step-controlled integrator
     (``adaptive``, ``controlled``, ``auto``) with ``tolerance`` (the explicit pair's), a fixed-step integrator with
     ``dt`` [s] (forced: the work-precision study measures the error of every step, those beyond the stable-step
-    estimate too)."""
+    estimate too) and ``strang``'s ``crossing`` treatment (the point treatment, as the studies' committed runs; None:
+    the batch's default, :func:`~aca_warp.hf.options.default_crossing`)."""
     if integrator in STEP_CONTROLLED:
         kw: dict = {"tolerance": tolerance}
     else:
-        kw = {"dt": dt, "force": integrator != "symplectic-euler"}
+        kw = {"dt": dt, "force": integrator != "symplectic-euler", "crossing": crossing}
     options = RunOptions(duration=duration, integrator=integrator, engine=engine, **kw)
     return run_hf(model, state, options, record=record)
 
@@ -131,6 +133,7 @@ def run_to_file(
     precision: str = "fp64",
     progress: bool = False,
 ) -> RunResult:
-    """``run_scene``: simulate ``scene`` for ``duration`` [s] (None: the scene's) into the run file ``path``."""
-    options = RunOptions(duration=duration, integrator=integrator, dt=dt)
+    """``run_scene``: simulate ``scene`` for ``duration`` [s] (None: the scene's) into the run file ``path``, with
+    ``strang``'s point treatment of zero-slip crossings (the studies' committed runs)."""
+    options = RunOptions(duration=duration, integrator=integrator, dt=dt, crossing="point")
     return run_scene(scene, path, options, device=device, precision=precision, overwrite=overwrite, progress=progress)

@@ -8,9 +8,9 @@ computed in the same run. Solvers, each timed after a warm-up that compiles its 
 * ``adaptive`` (ours, fp64), on the on-chip engine (one block or cluster per pad) and on the general engine (a
   trial of every pad per 14 launches): the loosest tolerance of 1e-3 … 1e-7 that reaches the target;
 * ``strang`` (ours) at its defaults (:func:`~aca_warp.hf.options.default_step`, fp32:
-  :func:`~aca_warp.hf.options.default_precision`, the crossing treatment :func:`~aca_warp.hf.options.default_crossing`),
-  in fp64 at 1e-8 s — on the on-chip engine, ``auto``'s choice on either device — and the largest of 1e-8, 5e-9,
-  2.5e-9 s that reaches the target;
+  :func:`~aca_warp.hf.options.default_precision`, the crossing treatment
+  :func:`~aca_warp.hf.options.default_crossing`), and with the point treatment in fp64 at 1e-8 s — on the on-chip
+  engine, ``auto``'s choice on either device — and the largest of 1e-8, 5e-9, 2.5e-9 s that reaches the target;
 * SciPy DOP853 (host CPU): the loosest rtol of 1e-5 … 1e-10 that reaches it;
 * diffrax Dopri8 with a PI(D) controller (``PIDController(pcoeff=0.4, icoeff=0.3)``, JAX in float64) on the same
   equations (the arrays of ``ReferenceODE``: masses, damping, normal forces, disc speeds, the coupling matrix as a
@@ -144,7 +144,7 @@ class Problem:
 
 
 def run_ours(
-    prob: Problem, device: str, integrator: str, engine: str, precision: str = "fp64", **kw: float
+    prob: Problem, device: str, integrator: str, engine: str, precision: str = "fp64", **kw: Any
 ) -> dict[str, Any]:
     """A warm-up run (20 µs) and the timed run of every pad of ``prob`` with ours in ``precision``; μ error and
     times."""
@@ -354,8 +354,10 @@ def measure_scene(name: str, args: argparse.Namespace, log: Callable[[str], None
         if pads > 1 and not (cuda or args.batch_on_cpu):
             continue
 
-        def ours(integ: str, eng: str, key: str, p: Problem = p, precision: str = "fp64") -> Callable[[float], dict]:
-            return lambda s: run_ours(p, args.device, integ, eng, precision, **{key: s})
+        def ours(
+            integ: str, eng: str, key: str, p: Problem = p, precision: str = "fp64", **kw: Any
+        ) -> Callable[[float], dict]:
+            return lambda s: run_ours(p, args.device, integ, eng, precision, **{key: s}, **kw)
 
         for eng in ("onchip", "general"):
             what = f"adaptive {eng} {pads} pad(s) tol"
@@ -365,7 +367,7 @@ def measure_scene(name: str, args: argparse.Namespace, log: Callable[[str], None
         tries = ladder((DEFAULT_TOLERANCE,), ours("auto", "general", "tolerance"), args.target, log, what)
         rows.append(entry(name, "ours: auto (its defaults)", pads, f"{dev}, general engine", "tol", tries))
         what = f"strang at its defaults {pads} pad(s) dt"  # step and precision: default_step, default_precision
-        at = ours("strang", fixed, "dt", precision=default_precision("strang"))
+        at = ours("strang", fixed, "dt", precision=default_precision("strang"), crossing=None)  # its defaults
         tries = ladder((default_step("strang", p.scenes),), at, args.target, log, what)
         where = f"{dev}, {fixed} engine, {default_precision('strang')}"
         rows.append(entry(name, "ours: strang (its defaults)", pads, where, "dt", tries))

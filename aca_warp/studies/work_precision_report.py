@@ -259,8 +259,10 @@ def defaults_table(pairs: list[tuple[dict, dict]]) -> list[str]:
     then = " (the default when these runs were made; now {})"
     now = "" if _close(tol, DEFAULT_TOLERANCE) else then.format(f"{DEFAULT_TOLERANCE:g}")
     # strang's default depends on the scene: the note names both when the runs' step is either one's no longer
-    averaged = " with the crossings averaged" if PRESET_CROSSING == "mean" else ""
-    steps = f"{PRESET_STEP:g} s{averaged} for the presets' physics, {default_step('strang'):g} s for other scenes"
+    treatment = "the crossings averaged" if PRESET_CROSSING == "mean" else "the point treatment"
+    steps = (
+        f"{PRESET_STEP:g} s with {treatment} for the presets' physics, {default_step('strang'):g} s for other scenes"
+    )
     now_dt = "" if any(_close(dt, s) for s in (PRESET_STEP, default_step("strang"))) else then.format(steps)
     return [
         f"**μ error over the pointwise window (wall time) at strang's step {dt:g} s{now_dt} and at adaptive's "
