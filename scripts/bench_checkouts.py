@@ -4,12 +4,14 @@
 Per case (engine: on-chip or general; integrator: strang or adaptive; precision; pads of the hf1 preset) each checkout
 runs in its own Python process (its own package view and kernel cache, as in ``scripts/compare_checkouts.py``): a
 warm-up run of two sample intervals (compile, graph capture), then ``--repeats`` timed runs over ``--window`` [s] of
-simulated time. The checkouts alternate case by case (first, second, first, …), so drifts of the machine's clock or load
-hit both alike. Reported per case and checkout: the best and the median wall time of the stepping loop [s]
-(``RunResult.wall_time``, graph captures excluded), µs per accepted step, the launch layout (``blocks_per_pad``,
-``block_dim``: None for the general engine and in checkouts that do not report it) and the ratio second/first of the
-best times. JSON into ``--out``, rewritten after every row (a run stopped at a time limit keeps the rows it finished);
-``--cache`` keeps the two checkouts' kernel caches for a later call (e.g. the cases split over two calls). Examples::
+simulated time, strang with the point treatment of zero-slip crossings where the checkout has the choice (the one
+treatment before it; the presets' default since averages them). The checkouts alternate case by case (first, second,
+first, …), so drifts of the machine's clock or load hit both alike. Reported per case and checkout: the best and the
+median wall time of the stepping loop [s] (``RunResult.wall_time``, graph captures excluded), µs per accepted step, the
+launch layout (``blocks_per_pad``, ``block_dim``: None for the general engine and in checkouts that do not report it)
+and the ratio second/first of the best times. JSON into ``--out``, rewritten after every row (a run stopped at a time
+limit keeps the rows it finished); ``--cache`` keeps the two checkouts' kernel caches for a later call (e.g. the cases
+split over two calls). Examples::
 
     python scripts/bench_checkouts.py OLD NEW --out $OUT/bench --device cuda:0 --cache /tmp/bench_cache
     python scripts/bench_checkouts.py OLD NEW --out /tmp/bench --device cpu --pads 1 --window 2e-6 --repeats 1
@@ -49,7 +51,8 @@ from aca_warp.scene import preset
 a = json.loads(sys.argv[2])
 scene = preset(a["scene"])
 model = build_model([scene] * a["pads"], device=a["device"], precision=a["precision"])
-options = RunOptions(engine=a["engine"], integrator=a["integrator"], **a["options"])
+point = {"crossing": "point"} if "crossing" in RunOptions.__dataclass_fields__ else {}  # the one treatment before
+options = RunOptions(engine=a["engine"], integrator=a["integrator"], **{**point, **a["options"]})
 run_hf(model, initial_state(model), options.with_duration(2 * scene.record.sample_dt))
 walls, steps = [], 0
 for _ in range(a["repeats"]):

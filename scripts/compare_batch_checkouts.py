@@ -3,10 +3,11 @@
 
 ``scripts/compare_checkouts.py`` compares what the commands write (a sweep's shards hold the global outputs only); this
 runs one batch of ``--pads`` hf1 pads (initial perturbation 0.01 m/s, seed = the pad's index) on the on-chip engine with
-``strang`` at ``--dt``, samples every 1 µs and the per-patch velocities of the second half, once per checkout, each in
-its own Python process with its own package view (kernels/ as aca_warp/kernels), and reports the launch layout each took
-(blocks per pad, threads per block) and per array whether the two are bit-identical, else how many entries differ and by
-how much (against the array's largest value). A kernel change that leaves the arithmetic of the steps alone keeps the
+``strang`` at ``--dt`` with the point treatment of zero-slip crossings (where the checkout has the choice), samples
+every 1 µs and the per-patch velocities of the second half, once per checkout, each in its own Python process with its
+own package view (kernels/ as aca_warp/kernels), and reports the launch layout each took (blocks per pad, threads per
+block) and per array whether the two are bit-identical, else how many entries differ and by how much (against the
+array's largest value). A kernel change that leaves the arithmetic of the steps alone keeps the
 final state (u, u̇) to the bit; one that changes how the compiler rounds a step shows there first. Example (GPU
 machine)::
 
@@ -40,7 +41,8 @@ record = Record(sample_dt=1e-6, patches=("velocity",), window=(a["duration"] / 2
 scenes = [preset("hf1").replace(initial=Initial(perturbation=0.01, seed=k), record=record) for k in range(a["pads"])]
 model = build_model(scenes, device=a["device"], precision=a["precision"])
 state = initial_state(model)
-options = RunOptions(integrator="strang", engine="onchip", duration=a["duration"], dt=a["dt"])
+point = {"crossing": "point"} if "crossing" in RunOptions.__dataclass_fields__ else {}  # the one treatment before
+options = RunOptions(integrator="strang", engine="onchip", duration=a["duration"], dt=a["dt"], **point)
 res = run_hf(model, state, options)
 c = res.collect()
 u, v = state.numpy()
