@@ -92,7 +92,7 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
     from aca_warp.common.storage import storage_errno, storage_error
     from aca_warp.hf.options import RunOptions
     from aca_warp.hf.recorder import GLOBAL_NAMES
-    from aca_warp.sweep.spec import SweepError, base_file, load_spec, pad_list
+    from aca_warp.sweep.spec import SweepError, base_file, load_spec, pad_list, stored_crossing
 
     shard, dest = Path(shard), Path(dest)
     pads = shard_pads(shard)
@@ -114,9 +114,8 @@ def write_pad_run(shard: str | Path, pad: int, dest: str | Path) -> Path:
         run, doc, finished = json.loads(_text(f.attrs["run"])), json.loads(_text(f.attrs["spec"])), f.attrs["complete"]
     if end == 0:
         raise SceneError(_no_sample(shard, pad, time.size))
-    # the run settings as the shard ran them (a default written out since would change the hash, not the pad); the
-    # crossing treatment is stored where it is not the point one (run_settings)
-    run = {"crossing": "point", **run}
+    # the run settings as the shard ran them (a default written out since would change the hash, not the pad)
+    run = {**run, "crossing": stored_crossing(run)}
     try:
         spec = load_spec({**doc, "run": run}, base_dir=_base_dir(shard))
         scene = spec.scene(pad).replace(duration=float(run["duration"]))

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from aca_warp.sweep.shard import shard_finished, shard_name
-from aca_warp.sweep.spec import FORMAT, SweepError, SweepSpec, base_file
+from aca_warp.sweep.spec import FORMAT, SweepError, SweepSpec, base_file, stored_crossing
 
 MANIFEST = "manifest.json"
 # the states of a shard in the manifest (docs/sweeps.md, "Manifest states")
@@ -103,7 +103,7 @@ def _run_changes(old: dict | None, spec: SweepSpec) -> str:
     was = dict(before)  # each setting as an option gives it: a spacing left out is the scenes' own clock
     if "growth_dt" not in was and spec.base.growth is not None:
         was["growth_dt"] = "scene"
-    was.setdefault("crossing", "point")  # run settings store the treatment where it is not the point one
+    was["crossing"] = stored_crossing(was)
     changed = ", ".join(f"{k} {before.get(k, 'unset')} there, {now.get(k, 'unset')} here" for k in keys)
     again = [f"{_FLAGS[k]} {was[k]}" for k in keys if k in _FLAGS and was.get(k) is not None]
     settable = len(again) == len(keys) and len(others) == len(shard_size)

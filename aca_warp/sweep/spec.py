@@ -325,6 +325,12 @@ def pad_list(pads: Any, most: int = 12) -> str:
     return ", ".join(items[:most]) + f", … ({p.size} pads; the shard's /pads/index lists them)"
 
 
+def stored_crossing(run: dict) -> str:
+    """The crossing treatment of stored run settings (:meth:`SweepSpec.run_settings`, a shard's or a manifest's
+    ``run``): the point treatment where none is stored."""
+    return run.get("crossing", "point")
+
+
 def load_spec(source: str | Path | dict, *, base_dir: Path | None = None, **overrides: Any) -> SweepSpec:
     """Read and validate a sweep spec (TOML path or dict); ``overrides`` (shard_size, duration, integrator,
     precision, dt, tolerance, fast_math, growth_dt, crossing; None = keep) replace the spec's values and so enter its
