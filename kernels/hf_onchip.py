@@ -55,8 +55,6 @@ from aca_warp.kernels.physics import (
     store_grown_patch,
     store_patch_sample,
     strang_close_velocity,
-    strang_point_velocity,
-    strang_segment_velocity,
     strang_velocity,
     write_globals,
 )
@@ -71,7 +69,6 @@ from aca_warp.kernels.tiles import (
     tile_store_rows,
     tile_store_rows_async,
     tile_store_rows_remote,
-    tile_take,
     warp_index,
     warp_leader,
     warp_min,
@@ -116,10 +113,6 @@ PadSums = wp.types.vector(length=7, dtype=wp.float64)
 # first non-finite patch, its first runaway patch (n: none) and that patch's energy speed [m/s]; in the first warp
 # of a pad's first block also the pad's matrix force [N] and radius [m] at the sample (growth changes them)
 PART = 12
-# places in a block's queue of its steps that cross zero slip (``crossing``; a step beyond them takes its segment
-# solve where it was found, with the same result); the queue and its two counters take QUEUE_BYTES of shared memory
-QUEUE = 256
-QUEUE_BYTES = 4 * QUEUE + 8
 
 
 @cache
@@ -235,13 +228,6 @@ def onchip_kernel(
     put_u_at = tile_store_rows_remote(T, 2, nmax)  # into the u copy of another block of the cluster
     put_u_async = tile_store_rows_async(T, 2, nmax, 2)  # the same by st.async, counted by that block's mbarrier
     mb_init, mb_expect, mb_wait = mbarrier_ops(2)  # one mbarrier per u buffer
-    qcap = min(QUEUE, pmax)  # the block's queue of crossing steps (``crossing``)
-    QCAP = wp.constant(qcap)
-    put_q = tile_store_1d(wp.int32, qcap)
-    get_q = tile_load_1d(wp.int32, qcap)
-    take = tile_take(2)  # its two counters, one per step parity
-    get_c = tile_load_1d(wp.int32, 2)
-    put_c = tile_store_1d(wp.int32, 2)
     # reads without Warp's negative-index wrap (a compare, add and select per index; docs/onchip.md)
     get_n = tile_load_1d(T, nmax)
     get_u = tile_load_rows(T, 2, nmax)
@@ -376,9 +362,6 @@ def onchip_kernel(
         fs = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
         sidx = wp.tile_zeros(shape=EMAX, dtype=wp.int16, storage="shared")
         sk = wp.tile_zeros(shape=EMAX, dtype=T, storage="shared")
-        if wp.static(CROSSING != 0):  # the block's steps that cross zero slip (local patch indices), their counters
-            queue = wp.tile_zeros(shape=QCAP, dtype=wp.int32, storage="shared")
-            taken = wp.tile_zeros(shape=2, dtype=wp.int32, storage="shared")
         if wp.static(GTILES != 0):  # the block's copies of the pad's areas, √A and k_N (see the factory)
             garea = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
             gsqrt = wp.tile_zeros(shape=NMAX, dtype=T, storage="shared")
@@ -453,7 +436,6 @@ def onchip_kernel(
         prow = prow0
         first_step = opening
         steps_done = growth_step0
-        par = int(0)  # the step's parity: its counter of the crossing queue
         for s in range(samples):
             for _q in range(steps_per_sample):
                 nxt = 1 - cur
@@ -465,22 +447,6 @@ def onchip_kernel(
                     vd = omega * model.radius[g]
                     if FRICTION == 0:
                         v = get_n(w, i) + dt * im * get_n(fs, i)
-                    elif wp.static(CROSSING != 0):
-                        v, vm, again = strang_point_velocity(
-                            first_step, get_n(w, i), get_n(fs, i), dt, im, model.damping[g], model.normal_force[g], vd,
-                            mu_scale, slope, decay, tol, CROSSING,
-                        )  # fmt: skip
-                        if again != 0:
-                            q = take(taken, par)
-                            if q < QCAP:  # solved again below with the block's other crossings; until then the
-                                put_q(queue, q, i)  # root waits in the u slot that the patch's drift writes
-                                put_u(u2, nxt, i, vm)
-                                i += threads
-                                continue
-                            v = strang_segment_velocity(
-                                first_step, get_n(w, i), vm, get_n(fs, i), dt, im, model.damping[g],
-                                model.normal_force[g], vd, mu_scale, slope, decay, tol,
-                            )  # fmt: skip
                     else:
                         v = strang_velocity(
                             first_step, get_n(w, i), get_n(fs, i), dt, im, model.damping[g], model.normal_force[g], vd,
@@ -500,39 +466,6 @@ def onchip_kernel(
                         for q in range(CLUSTER):
                             put_u_at(u2, nxt, i, un, q)
                     i += threads
-                if wp.static(CROSSING != 0):
-                    # The queued crossing steps' segment solves, a place per thread: a few warps take them all
-                    # instead of every warp with one crossing lane waiting for it (docs/onchip.md, "The crossing
-                    # queue"). The barrier makes the queue whole; the counter of the next step, which every thread
-                    # read a step ago, is cleared for it.
-                    block_sync()
-                    count = wp.min(get_c(taken, par), QCAP)
-                    if lane == 0:
-                        put_c(taken, 1 - par, 0)
-                    q = lane
-                    while q < count:
-                        i = get_q(queue, q)
-                        g = a + i
-                        v = strang_segment_velocity(
-                            first_step, get_n(w, i), get_u(u2, nxt, i), get_n(fs, i), dt, model.inv_mass[g],
-                            model.damping[g], model.normal_force[g], omega * model.radius[g], mu_scale, slope, decay,
-                            tol,
-                        )  # fmt: skip
-                        put_n(w, i, v)
-                        un = get_u(u2, cur, i) + dt * v
-                        put_u(u2, nxt, i, un)
-                        if wp.static(ASYNC != 0):
-                            m = get_d(dest, i - lo)
-                            while m != 0:
-                                put_u_async(u2, nxt, i, un, lowest_bit(m), bars, nxt)
-                                m = m & (m - 1)
-                        elif wp.static(CLUSTER > 1):
-                            for r in range(CLUSTER):
-                                put_u_at(u2, nxt, i, un, r)
-                        q += threads
-                    if wp.static(SYNC == 0):
-                        block_sync()  # the counter cleared before the next step takes from it
-                    par = 1 - par
                 first_step = 0
                 if wp.static(ASYNC != 0):
                     # Wait for the other blocks' u of this step (each block sends u before it can wait for the

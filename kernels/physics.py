@@ -221,19 +221,6 @@ def friction_substep(
     v: Any, h: Any, m: Any, c: Any, fn: Any, force: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any,
     crossing: int,
 ):  # fmt: skip
-    """The friction sub-step of every Strang path: :func:`friction_point_substep`, and where that asks for it
-    :func:`friction_segment_substep` (arguments and result as there)."""
-    out, vm, again = friction_point_substep(v, h, m, c, fn, force, vd, mu_scale, slope, decay, tol, crossing)
-    if again != 0:
-        out = friction_segment_substep(v, vm, h, m, c, fn, force, vd, mu_scale, slope, decay, tol)
-    return out
-
-
-@wp.func
-def friction_point_substep(
-    v: Any, h: Any, m: Any, c: Any, fn: Any, force: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any,
-    crossing: int,
-):  # fmt: skip
     """The friction sub-step of every Strang path: a damped implicit midpoint over h [s] of m v̇ = F + F_N f(vd − v)
     − c v from velocity v [m/s], with the spring force F = ``force`` [N] frozen inside the solve (docs/numerics.md,
     docs/friction_step.md §6.1).
@@ -244,15 +231,11 @@ def friction_point_substep(
     decay (R → −1 of the plain midpoint). With F inside, a patch held at h γ ≫ 1 lands on its sticking manifold
     F + F_N f(vd − v) − c v = 0, so its recorded friction force is its static friction.
 
-    ``crossing`` ≠ 0 (``RunOptions.crossing`` "mean"): a midpoint step (θ = ½) whose slip changes sign is to be
-    solved again, from its first solution, with the friction averaged along its slip segment
-    (:func:`friction_segment_substep`) instead of taken at the midpoint velocity (docs/friction_step.md §8).
-
-    Returns (the new velocity v⁺ [m/s], the solve's midpoint root V [m/s], 1 where the step is to be solved again
-    with the segment law, else 0). The two solves are two call sites, each with its law fixed: folded into one loop
-    over the passes, the law became a variable of every Newton iteration, which made every patch's sub-step 30–40 %
-    dearer on the CPU where no patch crossed (the same bits either way). Kept apart, the on-chip kernel solves a
-    block's crossing steps together after the point solves (:func:`friction_substep` chains the two).
+    ``crossing`` ≠ 0 (``RunOptions.crossing`` "mean"): a midpoint step (θ = ½) whose slip changes sign is solved
+    again, from its first solution, with the friction averaged along its slip segment (:func:`segment_pair`)
+    instead of taken at the midpoint velocity (docs/friction_step.md §8). The two solves are two call sites, each
+    with its law fixed: folded into one loop over the passes, the law became a variable of every Newton iteration,
+    which made every patch's sub-step 30–40 % dearer on the CPU where no patch crossed (the same bits either way).
     """
     one = type(v)(1.0)
     half = type(v)(0.5)
@@ -273,32 +256,13 @@ def friction_point_substep(
     r = th * (force - c * v) + m * (v - v)
     vm = solve_velocity(a, r, th * fn, vd, v, mu_scale, slope, decay, tol, 0, s0, zero, cpu_build(), f0, df0)
     out = vm + (vm - v) * (one / theta - one)
-    again = int(0)
     if crossing != 0 and theta == half and s0 * (vd - out) < zero:
-        again = 1
-    return out, vm, again
-
-
-@wp.func
-def friction_segment_substep(
-    v: Any, vm: Any, h: Any, m: Any, c: Any, fn: Any, force: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any,
-    tol: Any,
-):  # fmt: skip
-    """The second solve of a midpoint step whose slip changed sign (:func:`friction_point_substep` with its third
-    result 1): the implicit midpoint over h [s] from v [m/s] with the friction averaged along the step's slip segment
-    (:func:`segment_pair`), started from the point solve's root ``vm`` [m/s]; the other arguments as
-    :func:`friction_point_substep`'s. Returns the new velocity [m/s]."""
-    one = type(v)(1.0)
-    half = type(v)(0.5)
-    th = half * h
-    a = m + th * c
-    s0 = vd - v
-    zero = v - v
-    # from the first solution, r = b − a·vm by its terms (solve_velocity)
-    r = th * (force - c * vm) + m * (v - vm)
-    g0 = friction_integral(s0, mu_scale, slope, decay)
-    root = solve_velocity(a, r, th * fn, vd, vm, mu_scale, slope, decay, tol, 1, s0, g0, 0, zero, zero)
-    return root + (root - v) * (one / half - one)
+        # from the first solution, r = b − a·vm by its terms (solve_velocity)
+        r = th * (force - c * vm) + m * (v - vm)
+        g0 = friction_integral(s0, mu_scale, slope, decay)
+        vm = solve_velocity(a, r, th * fn, vd, vm, mu_scale, slope, decay, tol, 1, s0, g0, 0, f0, df0)
+        out = vm + (vm - v) * (one / theta - one)
+    return out
 
 
 # ---------------------------------------------------------------------------------------------- per-patch terms
@@ -349,34 +313,6 @@ def strang_velocity(
     if first != 0:
         h = dt * type(dt)(0.5)
     return friction_substep(w, h, type(dt)(1.0) / im, c, fn, fs, vd, mu_scale, slope, decay, tol, crossing)
-
-
-@wp.func
-def strang_point_velocity(
-    first: int, w: Any, fs: Any, dt: Any, im: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any,
-    tol: Any, crossing: int,
-):  # fmt: skip
-    """:func:`strang_velocity` up to its segment solve: (the staggered velocity [m/s], the point solve's root
-    [m/s], 1 where the step crossed zero slip and :func:`strang_segment_velocity` gives its velocity instead, else
-    0) (:func:`friction_point_substep`)."""
-    h = dt
-    if first != 0:
-        h = dt * type(dt)(0.5)
-    return friction_point_substep(w, h, type(dt)(1.0) / im, c, fn, fs, vd, mu_scale, slope, decay, tol, crossing)
-
-
-@wp.func
-def strang_segment_velocity(
-    first: int, w: Any, vm: Any, fs: Any, dt: Any, im: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope: Any,
-    decay: Any, tol: Any,
-):  # fmt: skip
-    """The staggered velocity [m/s] of a step that :func:`strang_point_velocity` found crossing zero slip, from its
-    point solve's root ``vm`` [m/s] (:func:`friction_segment_substep`); the arguments as :func:`strang_velocity`'s.
-    With the first, the same value as :func:`strang_velocity` with ``crossing`` ≠ 0."""
-    h = dt
-    if first != 0:
-        h = dt * type(dt)(0.5)
-    return friction_segment_substep(w, vm, h, type(dt)(1.0) / im, c, fn, fs, vd, mu_scale, slope, decay, tol)
 
 
 @wp.func

@@ -181,24 +181,6 @@ def tile_store_rows(dtype: Any, rows: int, size: int) -> Any:
     return put
 
 
-def tile_take(size: int) -> Any:
-    """``take(t, k)``: ``t[k]`` before adding 1 to it, atomically among the block's threads, no block barrier (t an
-    int32 tile of shape (size,) in shared memory; a block's places in a queue). On the CPU, whose block is one thread
-    or cooperative fibers that switch only at barriers, a plain increment."""
-    snippet = """
-#if defined(__CUDA_ARCH__)
-    return atomicAdd(&t.data(wp::tile_coord(k)), 1);
-#else
-    return t.data(wp::tile_coord(k))++;
-#endif
-"""
-
-    @wp.func_native(snippet)
-    def take(t: wp.tile[wp.int32, size], k: int) -> int: ...
-
-    return take
-
-
 def tile_load_1d(dtype: Any, size: int) -> Any:
     """``get(t, i)``: ``t[i]`` for 0 ≤ i < size, without the negative-index wrap (t a tile of shape (size,))."""
 

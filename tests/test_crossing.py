@@ -11,7 +11,6 @@ import dataclasses
 import numpy as np
 import pytest
 import warp as wp
-from aca_warp.kernels import hf_onchip
 from aca_warp.kernels.physics import INSTANT_SEED, friction_integral, friction_pair, segment_pair
 from procs import cpu_fibers
 from scipy.integrate import quad
@@ -126,21 +125,6 @@ def test_onchip_matches_general_with_mean(scenes):
     np.testing.assert_array_equal(uf, u)
     np.testing.assert_array_equal(vf, v)
     np.testing.assert_allclose(gf, g, rtol=1e-12, atol=0)  # the block's tree sums in float64
-
-
-def test_crossings_beyond_the_queue_are_solved_where_found(scenes, monkeypatch):
-    """The on-chip kernel queues a block's crossing steps for their segment solves; with a queue of one place every
-    other crossing step of a block takes its segment solve where it was found, and the states are the same bits."""
-    _, v0 = _start(scenes)
-    _, (u, v) = _package(scenes, v0, "mean")
-    monkeypatch.setattr(hf_onchip, "QUEUE", 1)
-    hf_onchip.onchip_kernel.cache_clear()
-    try:
-        _, (uf, vf) = _package(scenes, v0, "mean", engine="onchip", block=32)
-    finally:
-        hf_onchip.onchip_kernel.cache_clear()
-    np.testing.assert_array_equal(uf, u)
-    np.testing.assert_array_equal(vf, v)
 
 
 def test_a_pads_reading_does_not_depend_on_its_batch(scenes):

@@ -17,7 +17,6 @@ from aca_warp.common.devices import block_threads
 from aca_warp.common.errors import SceneError, option
 from aca_warp.hf.model import PadModel
 from aca_warp.hf.options import ENGINES, ONCHIP_INTEGRATORS, fast_math_unfit
-from aca_warp.kernels.hf_onchip import QUEUE_BYTES
 
 MAX_BLOCK = 1024  # threads per block
 MAX_CLUSTER = 16  # blocks per pad (8 is the portable cluster size; H100/H200 launch 16 as "non-portable")
@@ -169,10 +168,9 @@ def grown_tiles(model: PadModel, cluster: int, per_block: int | None = None) -> 
 
 
 def _state_bytes(model: PadModel, nmax: int, cluster: int) -> int:
-    """Shared memory [bytes] of a block's state tiles of ``nmax`` patches: u (×2), w, F_s per patch of the pad, the
-    queue of its steps that cross zero slip (counted for every kernel, though only the crossing treatment's has it)
-    and, on a cluster, the u exchange's two mbarriers and its per-patch mask of receiving blocks."""
-    b = 4 * nmax * itemsize(model) + QUEUE_BYTES
+    """Shared memory [bytes] of a block's state tiles of ``nmax`` patches: u (×2), w, F_s per patch of the pad and,
+    on a cluster, the u exchange's two mbarriers and its per-patch mask of receiving blocks."""
+    b = 4 * nmax * itemsize(model)
     if cluster > 1:
         b += 16 + 4 * (nmax // cluster + 1)
     return b
