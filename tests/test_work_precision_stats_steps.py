@@ -163,6 +163,10 @@ def test_the_pages_by_step_tables_are_the_scripts_output():
 
 
 _MEAN = "strang@fp32:dt=2.5e-07:mean"
+_FAST_MEAN = "strang@fp32:dt=2.5e-07:fast:mean"
+_FAST_MEAN_FILES = (("hf1", "0"), ("hf2", "0"), ("hf3", "0"), ("hf4", "0"), ("va", "0"), ("ms_mid", "01"),
+                    ("ms_app3", "0123"), ("hf1_equal", "01"), ("hf2_equal", "1"), ("hf3_equal", "0"),
+                    ("hf4_equal", "1"), ("va_equal", "0"))  # fmt: skip
 
 
 @pytest.mark.parametrize(
@@ -179,11 +183,14 @@ _MEAN = "strang@fp32:dt=2.5e-07:mean"
         ("ms_app3_crossing", ["wps_cuda0123_ms_app3.json"], [64], {"strang@fp32:dt=1e-07:mean", _MEAN}, _MEAN),
         ("equal_heights/crossing", [f"{r}/wps_cuda{t}_{r}.json" for r, t in (("hf1_equal", "01"), ("hf2_equal", "1"),
           ("hf3_equal", "0"), ("hf4_equal", "1"), ("va_equal", "0"))], [128, 128, 64, 64, 128], {_MEAN}, None),
+        ("fast_mean", [f"{r}/wps_cuda{t}_{r}.json" for r, t in _FAST_MEAN_FILES],
+         [160, 96, 128, 32, 128, 96, 64, 128, 128, 64, 64, 128],
+         {_FAST_MEAN, "strang@fp32:dt=2.5e-07:growth_dt=5e-06:fast:mean"}, _FAST_MEAN),
     ],
 )  # fmt: skip
 def test_crossing_pages_are_what_merge_and_report_write(monkeypatch, page, merged, pads, settings, pick):
     """The crossing treatment's pages (docs/figures/work_precision_statistics/<regime>_crossing/ and
-    equal_heights/crossing/): each merged file is the ``--merge`` of its parts (``s*/``, where it has parts: the
+    equal_heights/crossing/, and fast_mean/, which continues their parts with fast math): each merged file is the ``--merge`` of its parts (``s*/``, where it has parts: the
     study's own parts continued with ``mean``; hf1's, each setting of the steps' study), on every seed, and the page's
     generated section is what ``--report`` writes from them; the rule picks ``pick`` (the first regime's)."""
     from aca_warp.studies import work_precision_stats_report as wps_report
