@@ -16,12 +16,19 @@ event's stiffness update (``coupling``) and/or contact re-solve (``contact``) le
 grown areas, stiffnesses, forces and the patch motion). ``--growth-dt S`` spaces the events S apart as
 ``aca-warp hf --growth-dt`` does (5e-6 s is ``strang``'s default there), × 100 in the rarer-event cases.
 
+``--saturate S`` first runs the batch S seconds with the on-chip engine's defaults and profiles every case from the
+state it reached (e.g. 0.02 s: hf1's saturated stick-slip, where the friction solves and the crossing treatment are
+busiest); ``--crossing point|mean`` sets the treatment of zero-slip crossings of every case (default: the batch's
+default, ``mean`` for the presets' physics).
+
 Example (GPU machine)::
 
     python3 scripts/profile_onchip.py --device cuda:0 --json $OUT/profile_onchip.json --markdown $OUT/profile.md
     python3 scripts/profile_onchip.py --device cuda:0 --growth --json $OUT/profile_growth.json --markdown $OUT/g.md
     python3 scripts/profile_onchip.py --device cuda:0 --pads 1024 --window 2e-5 --only "full, default block" \
         "no friction solve, default block" "no gather, default block" --markdown $OUT/batch.md
+    python3 scripts/profile_onchip.py --device cuda:0 --pads 64 --dt 2.5e-7 --sample-dt 1e-6 --saturate 0.02 \
+        --window 5e-3 --only "full, cluster 2" "no sample outputs, cluster 2" --markdown $OUT/saturated.md
 """
 
 from __future__ import annotations
@@ -164,6 +171,10 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
         help="with --growth: simulated time between growth events [s] (default: the scene's interval, 2.02e-7; "
         "strang's default spacing in the hf command is 5e-6), × the case's factor for the rarer-event cases",
     )
+    ap.add_argument("--crossing", choices=("point", "mean"), default=None,
+                    help="treatment of zero-slip crossings (default: the batch's default)")  # fmt: skip
+    ap.add_argument("--saturate", type=positive, default=None,
+                    help="run the batch this long first [s] and profile from the state it reached")  # fmt: skip
     ap.add_argument("--only", nargs="*", default=None, help="labels of the cases to run (default: all)")
     ap.add_argument(
         "--pads", type=int, default=1, help="identical pads in the batch (default 1; e.g. 1024: the batched target)"
@@ -179,6 +190,8 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
         ap.error("--pads must be ≥ 1")
     if args.state and args.pads != 1:
         ap.error("--state holds one pad: use it with --pads 1")
+    if args.saturate is not None and args.growth:
+        ap.error("--saturate profiles a batch that does not grow: leave out --growth (or start from --state)")
     try:
         get_device(args.device)
     except SceneError as e:
@@ -214,14 +227,14 @@ def _start(model, saved: dict | None):
 
 def _case_model(args: argparse.Namespace, scene, model, prec: str, k: int, saved: dict | None):
     """The model of one case: ``model``, or with --growth and an event interval factor ``k`` other than 1 one built
-    with the events ``k`` times rarer (0: no growth); the saved state file's grown arrays put in where given."""
+    with the events ``k`` times rarer (0: no growth); the grown arrays of the state file (``--state``) put in."""
     from aca_warp.hf.model import build_model
     from aca_warp.hf.solver import GROWTH_MUTABLE
 
     if args.growth and k != 1:
         g = None if k == 0 else dataclasses.replace(scene.growth, interval=scene.growth.interval * k)
         model = build_model([scene.replace(growth=g)] * args.pads, device=args.device, precision=prec)
-    if saved is not None:
+    if args.state is not None:
         for k2 in (k3 for k3 in GROWTH_MUTABLE if k3 in model.arrays):  # a model without growth lacks some
             _put(model.arrays[k2], saved[f"model_{k2}"])
     return model
@@ -238,7 +251,10 @@ def _case_runner(args: argparse.Namespace, model, block, csr, abl, k: int):
     if abl is None:
 
         def fn(st, duration, model=model):
-            return run_hf(model, st, RunOptions(duration=duration, dt=args.dt, engine="general", growth_dt=growth_dt))
+            options = RunOptions(
+                duration=duration, dt=args.dt, engine="general", growth_dt=growth_dt, crossing=args.crossing
+            )
+            return run_hf(model, st, options)
     else:
 
         def fn(st, duration, model=model, block=block, csr=csr, abl=abl):
@@ -246,11 +262,30 @@ def _case_runner(args: argparse.Namespace, model, block, csr, abl, k: int):
             cluster = max([int(a[7:]) for a in tags if a.startswith("cluster")], default=1)
             tuning = EngineTuning(block_dim=block, csr_shared=csr, ablate=frozenset(abl) - tags, cluster=cluster)
             options = RunOptions(
-                engine="onchip", duration=duration, dt=args.dt, fast_math="fast_math" in abl, growth_dt=growth_dt
+                engine="onchip",
+                duration=duration,
+                dt=args.dt,
+                fast_math="fast_math" in abl,
+                growth_dt=growth_dt,
+                crossing=args.crossing,
             )
             return run_hf(model, st, options, tuning=tuning)
 
     return fn
+
+
+def _saturated(args: argparse.Namespace, model) -> dict:
+    """The synchronous state (u [m], v [m/s]) the batch reaches after ``--saturate`` seconds with the on-chip
+    engine's defaults from its start (``--dt``, ``--crossing``)."""
+    from aca_warp.hf.loop import run_hf
+    from aca_warp.hf.options import RunOptions
+    from aca_warp.hf.state import initial_state
+
+    st = initial_state(model)
+    res = run_hf(model, st, RunOptions(engine="onchip", duration=args.saturate, dt=args.dt, crossing=args.crossing))
+    if not res.complete:
+        raise SceneError(f"the saturating run stopped at {res.steps} steps")
+    return {"u": st.u.numpy(), "v": st.v.numpy()}
 
 
 def _time_case(row: dict, fn, model, args: argparse.Namespace, saved: dict | None) -> None:
@@ -278,7 +313,9 @@ def _markdown_lines(args: argparse.Namespace, name: str, patches: int, rows: lis
         f"dt {args.dt:g} s, "
         f"{f'growth events every {args.growth_dt:g} s (× the case factor), ' if args.growth_dt else ''}"
         f"{rows[0].get('steps', '?')} steps"
-        f"{f' from {args.state.name}' if args.state else ''}, "
+        f"{f' from {args.state.name}' if args.state else ''}"
+        f"{f' from the state after {args.saturate:g} s' if args.saturate else ''}"
+        f"{f', crossings {args.crossing}' if args.crossing else ''}, "
         f"sample interval {args.sample_dt:g} s; {info.get('device_name', args.device)}, Warp "
         f"{wp.__version__} (scripts/profile_onchip.py)",
         "",
@@ -306,6 +343,8 @@ def main(argv: list[str] | None = None) -> int:
     cases = _cases(args.growth)
 
     saved = dict(np.load(args.state)) if args.state else None  # read once, put into every case's model and state
+    if args.saturate is not None:
+        saved = _saturated(args, models["fp32"])
     rows = []
     for label, prec, block, csr, abl, k in cases:
         key = f"{label} [{prec}]"
@@ -321,6 +360,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{key:52s} " + (f"{row['us_per_step']:8.2f} us/step" if "us_per_step" in row else row["error"]),
               flush=True)  # fmt: skip
     info = {**machine(models["fp32"].device), "warp_version": wp.__version__, "dt": args.dt, "window_s": args.window,
+            "saturate_s": args.saturate, "crossing": args.crossing, "sample_dt": args.sample_dt,
             "growth_dt": args.growth_dt}  # fmt: skip
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)

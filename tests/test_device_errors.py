@@ -87,6 +87,7 @@ BENCH_ONCHIP = ["--json", "{tmp}/b.json"]  # its output, which a refused call mu
         ("profile_onchip", ["--device", ABSENT], "not available here"),
         ("profile_onchip", ["--device", "cpu", "--window", "0"], "--window: must be positive"),
         ("profile_onchip", ["--device", "cpu", "--growth-dt", "1e-6"], "--growth-dt needs --growth"),
+        ("profile_onchip", ["--device", "cpu", "--growth", "--saturate", "1e-5"], "--saturate profiles a batch"),
         ("profile_onchip_adaptive", ["--device", ABSENT], "not available here"),
         ("profile_onchip_adaptive", ["--device", "cpu", "--pads", "0"], "--pads: must be >= 1"),
         ("profile_onchip_adaptive", ["--device", "cpu", "--tolerance", "0"], "--tolerance: must be positive"),

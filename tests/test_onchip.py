@@ -13,6 +13,7 @@ compiler may contract multiply-adds differently in the two kernels, so there the
 from __future__ import annotations
 
 import dataclasses
+import json
 from contextlib import contextmanager
 
 import numpy as np
@@ -22,6 +23,7 @@ from aca_warp.kernels.hf_onchip import readers
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from procs import cpu_fibers
+from scriptload import load_script
 
 from aca_warp.common.errors import SceneError
 from aca_warp.hf.loop import EngineTuning, run_hf
@@ -444,6 +446,27 @@ def test_sample_ablation_leaves_the_motion_and_drops_the_outputs(device):
     k = GLOBAL_NAMES.index("sum_abs_velocity")
     assert np.all(full[2].globals[1:, 0, k] > 0) and np.all(cut[2].globals[1:, 0, k] == 0)
     assert np.all(np.abs(full[2].velocity[1:]).sum(axis=1) > 0) and np.all(cut[2].velocity[1:] == 0)
+
+
+def test_a_profile_from_the_state_a_run_reached(tmp_path, monkeypatch):
+    """``scripts/profile_onchip.py --saturate S``: every case starts from the state the batch reached after S
+    seconds with the treatment asked for, not from the preset's start, and the file says so."""
+    prof = load_script("profile_onchip")
+    args = prof._parse(["--device", "cpu", "--dt", "2.5e-7", "--sample-dt", "1e-6", "--saturate", "2e-6",
+                        "--crossing", "mean", "--window", "1e-6"])  # fmt: skip
+    model = build_model([preset("hf1")], device="cpu", precision="fp32")
+    start = initial_state(model)
+    saved = prof._saturated(args, model)
+    assert not np.array_equal(saved["u"], start.u.numpy())
+    started = prof._start(model, saved)
+    np.testing.assert_array_equal(started.u.numpy(), saved["u"])
+    np.testing.assert_array_equal(started.v.numpy(), saved["v"])
+    out = tmp_path / "p.json"
+    assert prof.main([*["--device", "cpu", "--dt", "2.5e-7", "--sample-dt", "1e-6", "--saturate", "2e-6"],
+                      *["--crossing", "mean", "--window", "1e-6", "--only", "full [fp32]", "--json", str(out)]]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["machine"]["saturate_s"] == 2e-6 and doc["machine"]["crossing"] == "mean"
+    assert [r["case"] for r in doc["rows"]] == ["full"] and doc["rows"][0]["steps"] == 4
 
 
 def test_growth_ablations_for_profiling(device):
