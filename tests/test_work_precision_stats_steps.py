@@ -192,7 +192,8 @@ def test_crossing_pages_are_what_merge_and_report_write(monkeypatch, page, merge
     """The crossing treatment's pages (docs/figures/work_precision_statistics/<regime>_crossing/ and
     equal_heights/crossing/, and fast_mean/, which continues their parts with fast math): each merged file is the
     ``--merge`` of its parts (``s*/``, where it has parts: the study's own parts continued with ``mean``; hf1's, each
-    setting of the steps' study), on every seed, and the page's generated section is what ``--report`` writes from them; the rule picks ``pick`` (the first regime's)."""
+    setting of the steps' study), on every seed, and the page's generated section is what ``--report`` writes from
+    them; the rule picks ``pick`` (the first regime's)."""
     from aca_warp.studies import work_precision_stats_report as wps_report
     from aca_warp.studies.report import clean
     from aca_warp.studies.work_precision_stats_merge import merge
