@@ -462,8 +462,8 @@ def test_a_profile_from_the_state_a_run_reached(tmp_path, monkeypatch):
     np.testing.assert_array_equal(started.u.numpy(), saved["u"])
     np.testing.assert_array_equal(started.v.numpy(), saved["v"])
     out = tmp_path / "p.json"
-    assert prof.main([*["--device", "cpu", "--dt", "2.5e-7", "--sample-dt", "1e-6", "--saturate", "2e-6"],
-                      *["--crossing", "mean", "--window", "1e-6", "--only", "full [fp32]", "--json", str(out)]]) == 0
+    argv = ["--device", "cpu", "--dt", "2.5e-7", "--sample-dt", "1e-6", "--saturate", "2e-6", "--crossing", "mean"]
+    assert prof.main([*argv, "--window", "1e-6", "--only", "full [fp32]", "--json", str(out)]) == 0
     doc = json.loads(out.read_text())
     assert doc["machine"]["saturate_s"] == 2e-6 and doc["machine"]["crossing"] == "mean"
     assert [r["case"] for r in doc["rows"]] == ["full"] and doc["rows"][0]["steps"] == 4
