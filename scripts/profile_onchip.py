@@ -16,10 +16,10 @@ event's stiffness update (``coupling``) and/or contact re-solve (``contact``) le
 grown areas, stiffnesses, forces and the patch motion). ``--growth-dt S`` spaces the events S apart as
 ``aca-warp hf --growth-dt`` does (5e-6 s is ``strang``'s default there), × 100 in the rarer-event cases.
 
-``--saturate S`` first runs the batch S seconds with the on-chip engine's defaults and profiles every case from the
-state it reached (e.g. 0.02 s: hf1's saturated stick-slip, where the friction solves and the crossing treatment are
-busiest); ``--crossing point|mean`` sets the treatment of zero-slip crossings of every case (default: the batch's
-default, ``mean`` for the presets' physics).
+``--saturate S`` first runs the fp32 batch S seconds with the on-chip engine's defaults and profiles every case,
+the fp64 ones too, from the state it reached (e.g. 0.02 s: hf1's saturated stick-slip, where the friction solves and
+the crossing treatment are busiest); ``--crossing point|mean`` sets the treatment of zero-slip crossings of every
+case (default: the batch's default, ``mean`` for the presets' physics).
 
 Example (GPU machine)::
 
@@ -28,7 +28,7 @@ Example (GPU machine)::
     python3 scripts/profile_onchip.py --device cuda:0 --pads 1024 --window 2e-5 --only "full, default block" \
         "no friction solve, default block" "no gather, default block" --markdown $OUT/batch.md
     python3 scripts/profile_onchip.py --device cuda:0 --pads 64 --dt 2.5e-7 --sample-dt 1e-6 --saturate 0.02 \
-        --window 5e-3 --only "full, cluster 2" "no sample outputs, cluster 2" --markdown $OUT/saturated.md
+        --window 5e-3 --only "full, cluster 2 [fp32]" "no sample outputs, cluster 2 [fp32]" --markdown $OUT/saturated.md
 """
 
 from __future__ import annotations
@@ -344,7 +344,11 @@ def main(argv: list[str] | None = None) -> int:
 
     saved = dict(np.load(args.state)) if args.state else None  # read once, put into every case's model and state
     if args.saturate is not None:
-        saved = _saturated(args, models["fp32"])
+        try:
+            saved = _saturated(args, models["fp32"])
+        except SceneError as e:
+            print(f"profile_onchip: the run to --saturate {args.saturate:g} s failed: {e}", file=sys.stderr)
+            return 1
     rows = []
     for label, prec, block, csr, abl, k in cases:
         key = f"{label} [{prec}]"
@@ -360,8 +364,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{key:52s} " + (f"{row['us_per_step']:8.2f} us/step" if "us_per_step" in row else row["error"]),
               flush=True)  # fmt: skip
     info = {**machine(models["fp32"].device), "warp_version": wp.__version__, "dt": args.dt, "window_s": args.window,
-            "saturate_s": args.saturate, "crossing": args.crossing, "sample_dt": args.sample_dt,
-            "growth_dt": args.growth_dt}  # fmt: skip
+            "saturate_s": args.saturate, "crossing": args.crossing or "the batch's default",
+            "sample_dt": args.sample_dt, "growth_dt": args.growth_dt}  # fmt: skip
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps({"machine": info, "rows": rows}, indent=1))

@@ -5,19 +5,12 @@
 #   OUT=FOLDER bash docs/benchmarks/default_mean_h200/run.sh
 # (DEVICE, PADS, DUR, MOON override cuda:0, 64, 0.03 and 0.36 for a dry run on the CPU)
 set -uo pipefail
-D=${DEVICE:-cuda:0}; N=${PADS:-64}; T=${DUR:-0.03}; L=${MOON:-0.36}
-mkdir -p $OUT
+source "$(dirname "$0")/../bench_case.sh"
 B="--device $D --scene hf1 --pads $N --integrator strang --precision fp32 --no-reference --no-stages"
-bench() {  # NAME DURATION OPTIONS...
-  local name=$1 dur=$2; shift 2
-  aca-warp bench $B --duration $dur "$@" --json $OUT/$name.json > $OUT/$name.log 2>&1
-  python3 -c "import json; r=json.load(open('$OUT/$name.json'))['results'][0]; print('$name', r['wall_s'], r['steps'], r['dt'], r['crossing'])"
-}
 for r in a b; do
   bench default_30ms_$r $T --dt default
   bench before_30ms_$r $T --dt 1e-7 --crossing point
 done
 bench default_360ms $L --dt default
 bench before_360ms $L --dt 1e-7 --crossing point
-nvidia-smi --query-gpu=name,driver_version,clocks.max.sm --format=csv > $OUT/gpu.txt 2>/dev/null || true
-git log -1 --format=%H > $OUT/commit.txt 2>/dev/null || true
+machine_and_commit

@@ -2,28 +2,8 @@
 # A/B of the on-chip crossing queue on one GPU: 64 saturated hf1 pads x 30 ms, the code before (build/base) and this
 # checkout in turn, three cases per round; with ROUND "moon", the paper's record length (0.36 s) at the default once
 # each. usage: OUT=FOLDER bash run.sh ROUND, from the repository root with the code before in build/base (README.md)
-# (writes $OUT/ab/<case>_<base|new>_<ROUND>.json and .log; /tmp/site: where the device's Warp was installed)
+# (writes $OUT/ab/<case>_<base|new>_<ROUND>.json and .log; the harness is ../restructured/run.sh)
 set -uo pipefail
-R=$1
-mkdir -p /tmp/views $OUT/ab
-if [ ! -d /tmp/views/base ]; then
-  python3 - <<'PY'
-import sys; sys.path.insert(0, "scripts")
-from pathlib import Path
-from compare_checkouts import package_view
-package_view(Path("build/base").resolve(), Path("/tmp/views/base"))
-package_view(Path(".").resolve(), Path("/tmp/views/new"))
-PY
-fi
-B="--device cuda:0 --scene hf1 --pads 64 --integrator strang --precision fp32 --no-reference --no-stages"
-CASES=("mean_2.5e-7:--duration 0.03 --dt 2.5e-7 --crossing mean" "point_2.5e-7:--duration 0.03 --dt 2.5e-7 --crossing point"
-       "mean_1e-7:--duration 0.03 --dt 1e-7 --crossing mean")
-[ "$R" = moon ] && CASES=("default_360ms:--duration 0.36 --dt default")
-for c in "${CASES[@]}"; do
-  name=${c%%:*}; opts=${c#*:}
-  for v in base new; do
-    (cd /tmp/views/$v && PYTHONPATH=/tmp/views/$v:/tmp/site python3 -c "import sys, aca_warp; assert aca_warp.__file__.startswith('/tmp/views/$v'); from aca_warp.cli import run; sys.argv[0]='aca-warp'; run()" bench $B $opts --json $OUT/ab/${name}_${v}_${R}.json > $OUT/ab/${name}_${v}_${R}.log 2>&1)
-    python3 -c "import json,sys; d=json.load(open('$OUT/ab/${name}_${v}_${R}.json')); r=d['results'][0]; print('$name $v $R', r.get('wall_s'), r.get('steps'), r.get('dt'), r.get('crossing'))" 2>&1 | tail -1
-  done
-done
-nvidia-smi --query-gpu=name,driver_version,clocks.max.sm --format=csv > $OUT/ab/gpu.txt
+C="mean_2.5e-7:--dt 2.5e-7 --crossing mean|point_2.5e-7:--dt 2.5e-7 --crossing point|mean_1e-7:--dt 1e-7 --crossing mean"
+[ "$1" = moon ] && C="default_360ms:--duration 0.36 --dt default"
+CASES="$C" bash "$(dirname "$0")/../restructured/run.sh" "$1"
