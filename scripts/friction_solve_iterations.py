@@ -10,7 +10,9 @@ next step's solve from the synchronous state: the damped-midpoint sub-step of ``
 frozen. The counting copy of the solve below returns the same velocity as the kernels' to the last bit
 (``tests/test_friction_solve_iterations.py``). ``--zero-slip`` counts beside it a variant tried and not kept: the
 bracket split at the zero-slip point and, where the first Newton step leaves the bracket, the Newton step from
-there.
+there. ``--crossing mean`` runs the scene with the zero-slip crossings averaged and counts the second solves of the
+steps whose slip changes sign too (row ``segment``), with each warp's chain of its longest point solve and its
+longest second solve.
 
 Writes a JSON file and a Markdown table (mean, 99th percentile and largest count per time; the mean over warps of
 32 consecutive patches of their largest count, about what a GPU warp waits for; the histogram; and the long
@@ -20,6 +22,8 @@ Example (CPU, ~1 min)::
 
     python3 scripts/friction_solve_iterations.py --scene varying_area --dt 5e-8 --times 2e-4 1e-3 3e-3 1e-2 \\
         --zero-slip --out out/solve_iterations
+    python3 scripts/friction_solve_iterations.py --scene hf1 --dt 2.5e-7 --times 15e-3 20e-3 25e-3 30e-3 \\
+        --crossing mean --out out/solve_iterations_crossing    # saturated hf1 at the default stepping
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ from typing import Any
 
 import numpy as np
 import warp as wp
-from aca_warp.kernels.physics import friction_pair
+from aca_warp.kernels.physics import friction_integral, friction_pair, law_pair
 
 from aca_warp.common.argtypes import positive
 from aca_warp.hf.options import NEWTON_TOL
@@ -42,11 +46,13 @@ wp.set_module_options({"enable_backward": False})
 
 @wp.func
 def counted_solve(
-    a: Any, r: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any, zero_slip: int
-):
+    a: Any, r: Any, hfn: Any, vd: Any, guess: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any, zero_slip: int,
+    seg: int, s0: Any, g0: Any,
+):  # fmt: skip
     """:func:`~aca_warp.kernels.physics.solve_velocity` (``r`` = b − a·guess, formed by its terms) with its
-    iterations and bisections counted; ``zero_slip`` = 1 the variant of the module docstring. Returns (iterations,
-    bisections, v [m/s])."""
+    iterations and bisections counted; ``zero_slip`` = 1 the variant of the module docstring; ``seg`` ≠ 0 the
+    crossing treatment's second solve, with Eq. 4 averaged along the slip segment from ``s0`` (G(s0) = ``g0``).
+    Returns (iterations, bisections, v [m/s])."""
     fmax = mu_scale * type(a)(3.141592653589793)
     lo = (r - hfn * fmax) / a
     hi = (r + hfn * fmax) / a
@@ -68,7 +74,7 @@ def counted_solve(
     nb = int(0)  # noqa: UP018
     for it in range(60):
         n += 1
-        f, df = friction_pair(vp0 - d, mu_scale, slope, decay)
+        f, df = law_pair(vp0 - d, seg, s0, g0, mu_scale, slope, decay, tol)
         g = a * d - hfn * f - r
         if g == zero:
             break
@@ -107,12 +113,16 @@ def count_substeps(
     decay: Any,
     tol: Any,
     zero_slip: int,
+    crossing: int,
     iterations: wp.array[wp.int32],
     bisections: wp.array[wp.int32],
+    segment_iterations: wp.array[wp.int32],
     v_out: wp.array[Any],
 ):
     """Per patch (n,): :func:`~aca_warp.kernels.physics.friction_substep` over ``h`` [s] from ``v`` [m/s] with
-    ``force`` [N] frozen, counting its solve's iterations and bisections; ``v_out`` its velocity [m/s]."""
+    ``force`` [N] frozen, counting its solve's iterations and bisections; with ``crossing`` ≠ 0 (the ``mean``
+    treatment) a midpoint step whose slip changes sign is solved again with the segment law from the first root, and
+    ``segment_iterations`` counts that solve's iterations (0 where there is none); ``v_out`` the velocity [m/s]."""
     i = wp.tid()
     one = type(h)(1.0)
     m = mass[i]
@@ -125,23 +135,38 @@ def count_substeps(
     if x > type(h)(6.0):
         theta = wp.min((one - type(h)(1.5) / x) / type(h)(1.5), one)
     th = theta * h
+    zero = vi - vi
+    s0 = disc_speed[i] - vi
+    a = m + th * c
     n, nb, vm = counted_solve(
-        m + th * c, th * (force[i] - c * vi), th * fn, disc_speed[i], vi, mu_scale, slope, decay, tol, zero_slip
+        a, th * (force[i] - c * vi), th * fn, disc_speed[i], vi, mu_scale, slope, decay, tol, zero_slip, 0, s0, zero
     )
     iterations[i] = n
     bisections[i] = nb
-    v_out[i] = vm + (vm - vi) * (one / theta - one)
+    out = vm + (vm - vi) * (one / theta - one)
+    segment_iterations[i] = 0
+    if crossing != 0 and theta == type(h)(0.5) and s0 * (disc_speed[i] - out) < zero:
+        g0 = friction_integral(s0, mu_scale, slope, decay)
+        r = th * (force[i] - c * vm) + m * (vi - vm)
+        n2, nb2, v2 = counted_solve(a, r, th * fn, disc_speed[i], vm, mu_scale, slope, decay, tol, 0, 1, s0, g0)
+        segment_iterations[i] = n2
+        out = v2 + (v2 - vi) * (one / theta - one)
+    v_out[i] = out
 
 
-def count(patch: dict[str, np.ndarray], pad: dict[str, float], h: float, precision: str, zero_slip: bool) -> dict:
+def count(
+    patch: dict[str, np.ndarray], pad: dict[str, float], h: float, precision: str, zero_slip: bool,
+    crossing: bool = False,
+) -> dict:  # fmt: skip
     """Run :func:`count_substeps` on the CPU for the per-patch arrays ``patch`` (v [m/s], force [N], mass [kg],
     damping [N s/m], normal_force [N], disc_speed [m/s]; (n,) each) and the friction law ``pad`` (mu_scale, slope,
-    decay); returns iterations, bisections (int32 (n,)) and v (n,) as NumPy arrays."""
+    decay), ``crossing``: with the ``mean`` treatment's second solves; returns iterations, bisections,
+    segment_iterations (int32 (n,)) and v (n,) as NumPy arrays."""
     dtype = wp.float32 if precision == "fp32" else wp.float64
     n = len(patch["v"])
     arrays = {k: wp.array(np.asarray(patch[k]), dtype=dtype, device="cpu") for k in
               ("v", "force", "mass", "damping", "normal_force", "disc_speed")}  # fmt: skip
-    out = {k: wp.zeros(n, dtype=wp.int32, device="cpu") for k in ("iterations", "bisections")}
+    out = {k: wp.zeros(n, dtype=wp.int32, device="cpu") for k in ("iterations", "bisections", "segment_iterations")}
     v_out = wp.zeros(n, dtype=dtype, device="cpu")
     wp.launch(
         count_substeps,
@@ -152,11 +177,12 @@ def count(patch: dict[str, np.ndarray], pad: dict[str, float], h: float, precisi
             *(dtype(pad[k]) for k in ("mu_scale", "slope", "decay")),
             dtype(NEWTON_TOL[precision]),
             int(zero_slip),
+            int(crossing),
         ],
-        outputs=[out["iterations"], out["bisections"], v_out],
+        outputs=[out["iterations"], out["bisections"], out["segment_iterations"], v_out],
         device="cpu",
     )
-    return {"iterations": out["iterations"].numpy(), "bisections": out["bisections"].numpy(), "v": v_out.numpy()}
+    return {**{k: a.numpy() for k, a in out.items()}, "v": v_out.numpy()}
 
 
 def state_arrays(model, state) -> tuple[dict[str, np.ndarray], dict[str, float]]:
@@ -203,6 +229,31 @@ def summary(iterations: np.ndarray, bisections: np.ndarray, through_zero: np.nda
     }
 
 
+SEGMENT_NOTE = (
+    "Row 'segment': the second solves of the steps whose slip changed sign, counted over those patches (their number "
+    "in brackets); its warp column is the mean over warps of their longest second solve (0 where none), and 'chain' "
+    "the mean over warps of their longest point solve plus their longest second one."
+)
+
+
+def segment_rows(t: float, got: dict) -> list[dict]:
+    """The row of the crossing steps' second solves at time ``t`` [s] (counts over the patches that took one; none
+    when no patch did), with the warps' chain: the mean over warps of their longest point solve plus their longest
+    second solve (a warp runs the second solves after all its lanes' first ones)."""
+    seg = got["segment_iterations"]
+    took = seg > 0
+    if not took.any():
+        return []
+    starts = np.arange(0, len(seg), WARP)
+    row = summary(seg[took], np.zeros(int(took.sum()), dtype=np.int32), np.ones(int(took.sum()), dtype=bool))
+    row["warp_max_mean"] = float(np.maximum.reduceat(seg, starts).mean())
+    row["solves"] = int(took.sum())
+    row["warp_chain_mean"] = float(
+        (np.maximum.reduceat(got["iterations"], starts) + np.maximum.reduceat(seg, starts)).mean()
+    )
+    return [{"time_s": t, "variant": "segment", **row}]
+
+
 def whole(gap: float, unit: float) -> bool:
     """Whether ``gap`` [s] is a whole number (≥ 1) of ``unit`` [s], to rounding."""
     k = round(gap / unit)
@@ -222,6 +273,9 @@ def _parse(argv: list[str] | None) -> tuple[argparse.ArgumentParser, argparse.Na
                     help="simulated times at which to count [s], increasing (default 2e-4 1e-3 3e-3 1e-2)")  # fmt: skip
     ap.add_argument("--precision", choices=("fp32", "fp64"), default="fp32", help="state precision (default fp32)")
     ap.add_argument("--zero-slip", action="store_true", help="count the zero-slip variant beside the kernels' solve")
+    ap.add_argument("--crossing", choices=("point", "mean"), default="point",
+                    help="the run's treatment of zero-slip crossings (default point); with mean the crossing steps' "
+                    "second solves are counted too (row 'segment')")  # fmt: skip
     ap.add_argument("--out", type=Path, required=True, help="folder for solve_iterations.json and .md")
     args = ap.parse_args(argv)
     if any(b <= a for a, b in zip(args.times, args.times[1:], strict=False)):
@@ -262,27 +316,34 @@ def main(argv: list[str] | None = None) -> int:
     variants = ["kernel", "zero-slip"] if args.zero_slip else ["kernel"]
     rows, now = [], 0.0
     for t in args.times:
-        res = run_hf(model, state, RunOptions(duration=t - now, dt=args.dt, engine="general", growth_dt=growth_dt))
+        options = RunOptions(
+            duration=t - now, dt=args.dt, engine="general", growth_dt=growth_dt, crossing=args.crossing
+        )
+        res = run_hf(model, state, options)
         if not res.complete:
             ap.error(f"the run stopped at {now + res.sim_time:g} s: {res.fault}")
         now = t
         patch, pad = state_arrays(model, state)
         slip = patch["disc_speed"] - patch["v"]
         for variant in variants:
-            got = count(patch, pad, args.dt, args.precision, variant == "zero-slip")
+            got = count(patch, pad, args.dt, args.precision, variant == "zero-slip", args.crossing == "mean")
             through_zero = np.sign(slip) != np.sign(patch["disc_speed"] - got["v"])
             rows.append({"time_s": t, "variant": variant,
                          **summary(got["iterations"], got["bisections"], through_zero)})  # fmt: skip
-            r = rows[-1]
-            print(f"t = {t:g} s, {variant:9s}: iterations mean {r['mean']:.2f}, p99 {r['p99']:.0f}, max {r['max']}, "
-                  f"warp max mean {r['warp_max_mean']:.2f}", flush=True)  # fmt: skip
+            if args.crossing == "mean" and variant == "kernel":
+                rows += segment_rows(t, got)
+            for r in rows[-2 if rows[-1]["variant"] == "segment" else -1 :]:
+                print(f"t = {t:g} s, {r['variant']:9s}: iterations mean {r['mean']:.2f}, p99 {r['p99']:.0f}, "
+                      f"max {r['max']}, warp max mean {r['warp_max_mean']:.2f}", flush=True)  # fmt: skip
     info = {"scene": args.scene, "patches": model.patch_count, "dt_s": args.dt, "precision": args.precision,
+            "crossing": args.crossing,
             "growth_dt_s": growth_dt, "machine": machine(model.device), "warp_version": wp.__version__}  # fmt: skip
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "solve_iterations.json").write_text(json.dumps({**info, "rows": rows}, indent=1))
     lines = [
         f"Newton iterations of the friction sub-step's solve per patch: {args.scene} ({model.patch_count} patches), "
-        f"{args.precision}, dt {args.dt:g} s (scripts/friction_solve_iterations.py)",
+        f"{args.precision}, dt {args.dt:g} s, crossings {args.crossing} (scripts/friction_solve_iterations.py)",
+        *([] if args.crossing == "point" else ["", SEGMENT_NOTE]),
         "",
         "| t [s] | solve | mean | p99 | max | warp max, mean | histogram (iterations: patches) "
         f"| solves ≥ {LONG} iterations (of them, slip through zero) |",
@@ -290,7 +351,8 @@ def main(argv: list[str] | None = None) -> int:
     ]
     for r in rows:
         hist = ", ".join(f"{k}: {v}" for k, v in r["histogram"].items())
-        lines.append(f"| {r['time_s']:g} | {r['variant']} | {r['mean']:.2f} | {r['p99']:.0f} | {r['max']} "
+        solve = r["variant"] if "solves" not in r else f"segment [{r['solves']}]; chain {r['warp_chain_mean']:.2f}"
+        lines.append(f"| {r['time_s']:g} | {solve} | {r['mean']:.2f} | {r['p99']:.0f} | {r['max']} "
                      f"| {r['warp_max_mean']:.2f} | {hist} "
                      f"| {r['long']} ({r['long_through_zero']}) |")  # fmt: skip
     (args.out / "solve_iterations.md").write_text("\n".join(lines) + "\n")

@@ -22,13 +22,24 @@ PAD = {"mu_scale": 0.8 / np.pi, "slope": 200.0, "decay": 0.25}
 
 
 @wp.kernel(enable_backward=False, module="unique")
-def _substep(p: wp.array2d[Any], h: Any, law: wp.array[Any], out: wp.array[Any]):
+def _substep(p: wp.array2d[Any], h: Any, law: wp.array[Any], crossing: int, out: wp.array[Any]):
     """friction_substep per patch i of the rows of ``p``: v, force, mass, damping, normal force, disc speed;
-    ``law`` the friction law and tolerance (mu_scale, slope, decay, tol)."""
+    ``law`` the friction law and tolerance (mu_scale, slope, decay, tol); ``crossing`` its treatment of crossings."""
     i = wp.tid()
     out[i] = friction_substep(
-        p[0, i], h, p[2, i], p[3, i], p[4, i], p[1, i], p[5, i], law[0], law[1], law[2], law[3], 0
+        p[0, i], h, p[2, i], p[3, i], p[4, i], p[1, i], p[5, i], law[0], law[1], law[2], law[3], crossing
     )
+
+
+def _kernels_substep(patch: dict, h: float, precision: str, crossing: int) -> np.ndarray:
+    """The kernels' friction sub-step of every patch of ``patch`` over ``h`` [s], on the CPU."""
+    dtype = wp.float32 if precision == "fp32" else wp.float64
+    rows = np.stack([patch[k] for k in ("v", "force", "mass", "damping", "normal_force", "disc_speed")])
+    law = [PAD["mu_scale"], PAD["slope"], PAD["decay"], NEWTON_TOL[precision]]
+    out = wp.zeros(len(patch["v"]), dtype=dtype, device="cpu")
+    inputs = [wp.array(rows, dtype=dtype, device="cpu"), dtype(h), wp.array(law, dtype=dtype, device="cpu"), crossing]
+    wp.launch(_substep, dim=len(out), inputs=inputs, outputs=[out], device="cpu")
+    return out.numpy()
 
 
 def _patches(n: int = 4000, seed: int = 3) -> dict[str, np.ndarray]:
@@ -56,14 +67,9 @@ def test_counting_copy_is_the_kernels_solve(precision: str, h: float) -> None:
     and at 1e-6 s, where θ leaves ½ and the solves bisect), and a zero-slip variant that counts differently lands on
     the same root within the solve's tolerance."""
     patch = _patches()
-    dtype = wp.float32 if precision == "fp32" else wp.float64
-    rows = np.stack([patch[k] for k in ("v", "force", "mass", "damping", "normal_force", "disc_speed")])
-    law = [PAD["mu_scale"], PAD["slope"], PAD["decay"], NEWTON_TOL[precision]]
-    out = wp.zeros(len(patch["v"]), dtype=dtype, device="cpu")
-    inputs = [wp.array(rows, dtype=dtype, device="cpu"), dtype(h), wp.array(law, dtype=dtype, device="cpu")]
-    wp.launch(_substep, dim=len(out), inputs=inputs, outputs=[out], device="cpu")
     kernel = fsi.count(patch, PAD, h, precision, zero_slip=False)
-    np.testing.assert_array_equal(kernel["v"], out.numpy())
+    np.testing.assert_array_equal(kernel["v"], _kernels_substep(patch, h, precision, 0))
+    assert not kernel["segment_iterations"].any()
     assert kernel["iterations"].min() >= 1 and kernel["iterations"].max() < 60
     assert kernel["bisections"].max() > 0 or h < 1e-6  # the large step exercises the safeguard
     variant = fsi.count(patch, PAD, h, precision, zero_slip=True)
@@ -71,6 +77,24 @@ def test_counting_copy_is_the_kernels_solve(precision: str, h: float) -> None:
     eps = 1e-5 if precision == "fp32" else 1e-8
     assert np.all(np.abs(variant["v"] - kernel["v"]) <= eps * (scale + np.abs(kernel["v"]) * 1e-2))
     assert not np.array_equal(variant["iterations"], kernel["iterations"])
+
+
+@pytest.mark.parametrize("precision", ["fp32", "fp64"])
+def test_counting_copy_with_the_crossing_treatment_is_the_kernels_solve(precision: str) -> None:
+    """With the ``mean`` treatment the script counts the second solves the kernels take on the steps whose slip
+    changes sign: the velocity equals friction_substep's with crossing 1 bit for bit, the patches with a second solve
+    are those whose point solve crossed, and those without one keep the point treatment's velocity."""
+    patch = _patches()
+    h = 2.5e-7
+    point = fsi.count(patch, PAD, h, precision, zero_slip=False)
+    mean = fsi.count(patch, PAD, h, precision, zero_slip=False, crossing=True)
+    np.testing.assert_array_equal(mean["v"], _kernels_substep(patch, h, precision, 1))
+    np.testing.assert_array_equal(mean["iterations"], point["iterations"])
+    slip = patch["disc_speed"] - patch["v"]
+    took = mean["segment_iterations"] > 0
+    assert took.sum() >= 20 and np.all(np.sign(slip[took]) != np.sign(patch["disc_speed"][took] - point["v"][took]))
+    np.testing.assert_array_equal(mean["v"][~took], point["v"][~took])
+    assert not np.array_equal(mean["v"][took], point["v"][took])
 
 
 def test_command_writes_its_table(tmp_path: Path) -> None:
