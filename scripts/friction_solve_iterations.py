@@ -117,12 +117,14 @@ def count_substeps(
     iterations: wp.array[wp.int32],
     bisections: wp.array[wp.int32],
     segment_iterations: wp.array[wp.int32],
+    segment_bisections: wp.array[wp.int32],
     v_out: wp.array[Any],
 ):
     """Per patch (n,): :func:`~aca_warp.kernels.physics.friction_substep` over ``h`` [s] from ``v`` [m/s] with
     ``force`` [N] frozen, counting its solve's iterations and bisections; with ``crossing`` ≠ 0 (the ``mean``
     treatment) a midpoint step whose slip changes sign is solved again with the segment law from the first root, and
-    ``segment_iterations`` counts that solve's iterations (0 where there is none); ``v_out`` the velocity [m/s]."""
+    ``segment_iterations``, ``segment_bisections`` count that solve's (0 where there is none); ``v_out`` the velocity
+    [m/s]."""
     i = wp.tid()
     one = type(h)(1.0)
     m = mass[i]
@@ -145,11 +147,13 @@ def count_substeps(
     bisections[i] = nb
     out = vm + (vm - vi) * (one / theta - one)
     segment_iterations[i] = 0
+    segment_bisections[i] = 0
     if crossing != 0 and theta == type(h)(0.5) and s0 * (disc_speed[i] - out) < zero:
         g0 = friction_integral(s0, mu_scale, slope, decay)
         r = th * (force[i] - c * vm) + m * (vi - vm)
         n2, nb2, v2 = counted_solve(a, r, th * fn, disc_speed[i], vm, mu_scale, slope, decay, tol, 0, 1, s0, g0)
         segment_iterations[i] = n2
+        segment_bisections[i] = nb2
         out = v2 + (v2 - vi) * (one / theta - one)
     v_out[i] = out
 
@@ -161,12 +165,13 @@ def count(
     """Run :func:`count_substeps` on the CPU for the per-patch arrays ``patch`` (v [m/s], force [N], mass [kg],
     damping [N s/m], normal_force [N], disc_speed [m/s]; (n,) each) and the friction law ``pad`` (mu_scale, slope,
     decay), ``crossing``: with the ``mean`` treatment's second solves; returns iterations, bisections,
-    segment_iterations (int32 (n,)) and v (n,) as NumPy arrays."""
+    segment_iterations, segment_bisections (int32 (n,)) and v (n,) as NumPy arrays."""
     dtype = wp.float32 if precision == "fp32" else wp.float64
     n = len(patch["v"])
     arrays = {k: wp.array(np.asarray(patch[k]), dtype=dtype, device="cpu") for k in
               ("v", "force", "mass", "damping", "normal_force", "disc_speed")}  # fmt: skip
-    out = {k: wp.zeros(n, dtype=wp.int32, device="cpu") for k in ("iterations", "bisections", "segment_iterations")}
+    counts = ("iterations", "bisections", "segment_iterations", "segment_bisections")
+    out = {k: wp.zeros(n, dtype=wp.int32, device="cpu") for k in counts}
     v_out = wp.zeros(n, dtype=dtype, device="cpu")
     wp.launch(
         count_substeps,
@@ -179,7 +184,7 @@ def count(
             int(zero_slip),
             int(crossing),
         ],
-        outputs=[out["iterations"], out["bisections"], out["segment_iterations"], v_out],
+        outputs=[*out.values(), v_out],
         device="cpu",
     )
     return {**{k: a.numpy() for k, a in out.items()}, "v": v_out.numpy()}
@@ -245,7 +250,7 @@ def segment_rows(t: float, got: dict) -> list[dict]:
     if not took.any():
         return []
     starts = np.arange(0, len(seg), WARP)
-    row = summary(seg[took], np.zeros(int(took.sum()), dtype=np.int32), np.ones(int(took.sum()), dtype=bool))
+    row = summary(seg[took], got["segment_bisections"][took], np.ones(int(took.sum()), dtype=bool))
     row["warp_max_mean"] = float(np.maximum.reduceat(seg, starts).mean())
     row["solves"] = int(took.sum())
     row["warp_chain_mean"] = float(
@@ -328,11 +333,11 @@ def main(argv: list[str] | None = None) -> int:
         for variant in variants:
             got = count(patch, pad, args.dt, args.precision, variant == "zero-slip", args.crossing == "mean")
             through_zero = np.sign(slip) != np.sign(patch["disc_speed"] - got["v"])
-            rows.append({"time_s": t, "variant": variant,
-                         **summary(got["iterations"], got["bisections"], through_zero)})  # fmt: skip
+            new = [{"time_s": t, "variant": variant, **summary(got["iterations"], got["bisections"], through_zero)}]
             if args.crossing == "mean" and variant == "kernel":
-                rows += segment_rows(t, got)
-            for r in rows[-2 if rows[-1]["variant"] == "segment" else -1 :]:
+                new += segment_rows(t, got)
+            rows += new
+            for r in new:
                 print(f"t = {t:g} s, {r['variant']:9s}: iterations mean {r['mean']:.2f}, p99 {r['p99']:.0f}, "
                       f"max {r['max']}, warp max mean {r['warp_max_mean']:.2f}", flush=True)  # fmt: skip
     info = {"scene": args.scene, "patches": model.patch_count, "dt_s": args.dt, "precision": args.precision,

@@ -94,6 +94,7 @@ def test_counting_copy_with_the_crossing_treatment_is_the_kernels_solve(precisio
     took = mean["segment_iterations"] > 0
     assert took.sum() >= 20 and np.all(np.sign(slip[took]) != np.sign(patch["disc_speed"][took] - point["v"][took]))
     np.testing.assert_array_equal(mean["v"][~took], point["v"][~took])
+    assert not mean["segment_bisections"][~took].any()
     assert not np.array_equal(mean["v"][took], point["v"][took])
 
 
