@@ -27,6 +27,7 @@ from aca_warp.kernels.physics import (
     spring_force,
     store_patch_sample,
     strang_close_velocity,
+    strang_sample_velocity,
     strang_velocity,
     theta_substep,
 )
@@ -119,7 +120,8 @@ def spring_forces(
 @wp.func
 def patch_close_velocity(i: int, p: int, w: Any, force: Any, dt: Any, model: Any, tol: Any, crossing: int):
     """Patch i's (pad p) synchronous velocity [m/s] from its staggered w and F_s(uₙ) ``force`` [N] after a step
-    ``dt`` [s]: :func:`~aca_warp.kernels.physics.strang_close_velocity` with the patch's parameters from ``model``."""
+    ``dt`` [s]: :func:`~aca_warp.kernels.physics.strang_close_velocity` with the patch's parameters from ``model``
+    (a run's end, and the error-controlled split step's samples)."""
     return strang_close_velocity(
         w, force, dt, model.inv_mass[i], model.damping[i], model.normal_force[i],
         model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
@@ -139,12 +141,12 @@ def sample_flagged(rec: Any, conditional: int) -> bool:
 # ------------------------------------------------------------------------- strang's steps and the sample they close
 
 
-def _strang_kernels(crossing: int, module: str | None) -> tuple[wp.Kernel, wp.Kernel, wp.Kernel]:
-    """``strang_advance``, ``strang_close`` and ``record_globals`` with strang's treatment of steps that cross zero
-    slip compiled in (``crossing`` 1: ``RunOptions.crossing`` "mean", :func:`~aca_warp.kernels.physics.friction_substep`
-    and :func:`~aca_warp.kernels.physics.instant_velocity`; 0: "point"), so that the default kernels carry none of
-    the other treatment's code; ``module``: the Warp module (None: this one; "unique": a module of their own,
-    compiled only when a run asks for it)."""
+def _strang_kernels(crossing: int, module: str | None) -> tuple[wp.Kernel, wp.Kernel, wp.Kernel, wp.Kernel]:
+    """``strang_advance``, ``strang_sample``, ``record_globals`` and ``strang_close`` with strang's treatment of
+    steps that cross zero slip compiled in (``crossing`` 1: ``RunOptions.crossing`` "mean",
+    :func:`~aca_warp.kernels.physics.friction_substep` and :func:`~aca_warp.kernels.physics.instant_velocity`;
+    0: "point"), so that the default kernels carry none of the other treatment's code; ``module``: the Warp module
+    (None: this one; "unique": a module of their own, compiled only when a run asks for it)."""
     CROSSING = wp.constant(crossing)
 
     @wp.kernel(module=module, enable_backward=False)
@@ -177,6 +179,31 @@ def _strang_kernels(crossing: int, module: str | None) -> tuple[wp.Kernel, wp.Ke
         u_io[i] = u_io[i] + dt * v
 
     @wp.kernel(module=module, enable_backward=False)
+    def strang_sample(
+        model: Any,
+        # Control:
+        dt: Any,
+        tol: Any,
+        # State in:
+        force_in: wp.array[Any],
+        v_in: wp.array[Any],
+        # Out:
+        v_out: wp.array[Any],
+        w1_out: wp.array[Any],
+    ):
+        """A sample's velocity V and the next step's drift velocity w⁺ [m/s] from the staggered w and F_s(uₙ) after
+        a step ``dt`` [s] (:func:`~aca_warp.kernels.physics.strang_sample_velocity`; ``v_out`` may be ``v_in``)."""
+        i = wp.tid()
+        p = model.patch_pad[i]
+        v, w1 = strang_sample_velocity(
+            v_in[i], force_in[i], dt, model.inv_mass[i], model.damping[i], model.normal_force[i],
+            model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
+            CROSSING,
+        )  # fmt: skip
+        v_out[i] = v
+        w1_out[i] = w1
+
+    @wp.kernel(module=module, enable_backward=False)
     def strang_close(
         model: Any,
         # Control:
@@ -188,7 +215,7 @@ def _strang_kernels(crossing: int, module: str | None) -> tuple[wp.Kernel, wp.Ke
         # Out:
         v_out: wp.array[Any],
     ):
-        """Synchronous velocity from the staggered w and F_s(uₙ)
+        """Synchronous velocity from the staggered w and F_s(uₙ): the closing half sub-step, which ends a run
         (:func:`~aca_warp.kernels.physics.strang_close_velocity`; may be in place)."""
         i = wp.tid()
         v_out[i] = patch_close_velocity(i, model.patch_pad[i], v_in[i], force_in[i], dt, model, tol, CROSSING)
@@ -204,17 +231,18 @@ def _strang_kernels(crossing: int, module: str | None) -> tuple[wp.Kernel, wp.Ke
         u_in: wp.array[Any],
         v_in: wp.array[Any],
         w_in: wp.array[Any],
+        w1_in: wp.array[Any],
     ):
         """Per pad (one block, ``launch_tiled``): the sample of the recorder's sample index into its next globals row
-        (:func:`record_pad`; ``w_in`` the staggered velocities ``v_in`` was closed from, read by the crossing
-        treatment), when one is taken (:func:`sample_flagged`)."""
+        (:func:`record_pad`; ``w_in``, ``w1_in`` the staggered velocities before and after the sub-step whose solve
+        gave ``v_in``, read by the crossing treatment), when one is taken (:func:`sample_flagged`)."""
         pad, lane = wp.tid()
         if not sample_flagged(rec, conditional):
             return
         k = rec.counters[SAMPLE_INDEX]
-        record_pad(pad, lane, threads, rec.counters[GLOBAL_ROWS], k, model, u_in, v_in, w_in, CROSSING, rec)
+        record_pad(pad, lane, threads, rec.counters[GLOBAL_ROWS], k, model, u_in, v_in, w_in, w1_in, CROSSING, rec)
 
-    return strang_advance, strang_close, record_globals
+    return strang_advance, strang_sample, record_globals, strang_close
 
 
 @wp.kernel
@@ -298,9 +326,10 @@ def contact_flat(
 
 # ---------------------------------------------------------------------------------------------- overloads
 
-strang_advance, strang_close, record_globals = _strang_kernels(0, None)
-# per crossing treatment (RunOptions.crossing: 0 point, 1 mean): strang_advance, strang_close, record_globals
-STRANG_KERNELS = {0: (strang_advance, strang_close, record_globals), 1: _strang_kernels(1, "unique")}
+strang_advance, strang_sample, record_globals, strang_close = _strang_kernels(0, None)
+# per crossing treatment (RunOptions.crossing: 0 point, 1 mean): strang_advance, strang_sample, record_globals,
+# strang_close
+STRANG_KERNELS = {0: (strang_advance, strang_sample, record_globals, strang_close), 1: _strang_kernels(1, "unique")}
 
 precision_overloads(
     euler_velocity, drift, spring_forces, *STRANG_KERNELS[0], *STRANG_KERNELS[1], record_patches, advance_counters,

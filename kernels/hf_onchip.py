@@ -15,7 +15,7 @@ Each block keeps its pad's state in shared memory (Warp tiles with ``storage="sh
 Per-patch constants (1/m, c, F_N, r, k_diag) stay in global memory (read-only, cached). Thread ``lane`` owns patches
 lane, lane + B, lane + 2B, … of its pad (B the block size; 1 on the CPU, where Warp runs a block as one thread). The
 arithmetic per patch is that of the general path's kernels (:mod:`aca_warp.kernels.hf`): the same ``wp.func`` s
-(``strang_velocity``, ``strang_close_velocity``, the gather order of ``spring_force``, the sample sums of
+(``strang_velocity``, ``strang_sample_velocity``, the gather order of ``spring_force``, the sample sums of
 :mod:`aca_warp.kernels.physics`), so on the CPU the results are bit-identical to the general per-step path; on the GPU
 a sample's sums are taken in another order (a tree over each warp's threads, then the warps and blocks in order), so
 the global outputs differ in the last bits. With a cluster of K blocks per pad (sm_90+), each block owns 1/K of the
@@ -54,7 +54,7 @@ from aca_warp.kernels.physics import (
     patch_sample_due,
     store_grown_patch,
     store_patch_sample,
-    strang_close_velocity,
+    strang_sample_velocity,
     strang_velocity,
     write_globals,
 )
@@ -104,7 +104,6 @@ ABLATIONS = frozenset(
         "contact",
         "gather_half",
         "sample",
-        "sample_solve",
     }
 )
 # a block's float64 sums of a sample: the six SampleSums (kernels.physics), then Σ u (for the watchdog)
@@ -140,12 +139,12 @@ def onchip_kernel(
 
     ``ablate`` (profiling only, ``scripts/profile_onchip.py``; the results are then wrong) drops parts of the
     step to time the rest: ``friction`` (the implicit friction solve becomes an explicit kick), ``gather`` (the
-    neighbour sum), ``gather_half`` (the second half of every row's links), ``sync`` (the block barrier), ``sample``
-    (a sample's per-patch work: the synchronous velocities, sums, watchdog and per-patch histories; the warps still
-    combine and store their parts, of zero sums) or ``sample_solve`` (the synchronous velocity taken as the
-    staggered one); with ``growth``, ``coupling`` (the stiffness update after an event) and ``contact`` (the contact
-    re-solve after an event). ``fast_math``: compile with CUDA fast math (approximate division and transcendental
-    functions; changes the results in the last bits).
+    neighbour sum), ``gather_half`` (the second half of every row's links), ``sync`` (the block barrier) or
+    ``sample`` (a sample's per-patch work but its solve, which the next step's friction shares: the sums, watchdog
+    and per-patch histories; the warps still combine and store their parts, of zero sums); with ``growth``,
+    ``coupling`` (the stiffness update after an event) and ``contact`` (the contact re-solve after an event).
+    ``fast_math``: compile with CUDA fast math (approximate division and transcendental functions; changes the
+    results in the last bits).
 
     ``cluster`` = K > 1 (CUDA sm_90+): a pad is advanced by a thread-block cluster of K blocks; block ``rank`` owns
     the patches ``n·rank // K`` … ``n·(rank + 1) // K − 1`` (and their CSR rows, ``emax`` is then
@@ -160,7 +159,7 @@ def onchip_kernel(
     event needs no cluster barrier.
 
     ``crossing``: steps that cross zero slip take the friction's mean along their slip segment, and samples read
-    a crossing patch's friction at an instant of its closing half step (``RunOptions.crossing`` "mean":
+    a crossing patch's friction at an instant of that sub-step (``RunOptions.crossing`` "mean":
     :func:`~aca_warp.kernels.physics.friction_substep`, :func:`~aca_warp.kernels.physics.instant_velocity`).
 
     ``lanes``: min(threads, 32), the banks of the on-chip CSR layout (:func:`aca_warp.hf.onchip.csr_slots`).
@@ -171,7 +170,11 @@ def onchip_kernel(
     the model, and reads the neighbours' √A (stiffness update) and every area and k_N (contact re-solve) from its
     copies: an event then needs no cluster barrier, and its reads wait for shared memory instead of L2.
 
-    A sample is recorded without a barrier: each thread sums its patches' terms (the synchronous velocity, the sums
+    A sample is the merged friction sub-step of the step that follows it, solved once for both
+    (:func:`~aca_warp.kernels.physics.strang_sample_velocity`; docs/numerics.md, "Samples"), in the one sample
+    block of the kernel, which also opens a started launch (solving, not recording), so that every step's friction
+    comes from the same code whatever the launches' lengths. It is recorded without a barrier: each thread sums its
+    patches' terms (the sample's velocity V, the sums
     of :func:`~aca_warp.kernels.physics.patch_sample`, the watchdog's first runaway and first non-finite patch),
     each warp combines its threads' by shuffles in the order of Warp's block reduction
     (:func:`~aca_warp.kernels.tiles.warp_sum`) and its first lane stores the warp's part into ``parts[s, block,
@@ -204,7 +207,6 @@ def onchip_kernel(
     COUPLING = wp.constant(0 if "coupling" in ablate else 1)
     CONTACT = wp.constant(0 if "contact" in ablate else 1)
     SAMPLE = wp.constant(0 if "sample" in ablate else 1)
-    SAMPLE_SOLVE = wp.constant(0 if "sample_solve" in ablate else 1)
     GROWTH = wp.constant(1 if growth else 0)
     CROSSING = wp.constant(1 if crossing else 0)
     GTILES = wp.constant(1 if growth and grown_tiles else 0)
@@ -253,8 +255,9 @@ def onchip_kernel(
         decay: Any,
         tol: Any,
     ):
-        """Synchronous velocity of local patch i (global g) from the staggered w and F_s (``strang_close_velocity``)."""
-        return strang_close_velocity(
+        """A sample's velocity V of local patch i (global g) and the next step's drift velocity w⁺ from the staggered w
+        and F_s (``strang_sample_velocity``)."""
+        return strang_sample_velocity(
             get_n(w, i), get_n(fs, i), dt, model.inv_mass[g], model.damping[g], model.normal_force[g],
             omega * model.radius[g], mu_scale, slope, decay, tol, CROSSING,
         )  # fmt: skip
@@ -346,9 +349,11 @@ def onchip_kernel(
     ):
         """Advance pad ``pad`` by ``samples`` × ``steps_per_sample`` strang steps, recording after each sample.
 
-        ``opening`` = 1: the state is synchronous, the first step is the opening half step (``strang_velocity``).
-        Sample s is the run's sample ``k0 + s`` (its parts: ``parts[s]``); per-patch rows start at ``prow0``. With
-        growth, steps are counted from ``growth_step0`` (steps done before the launch, modulo ``growth_every``).
+        ``opening`` = 1: the state is synchronous, the first step is the opening half step (``strang_velocity``);
+        0: the state is staggered (w, before the merged friction sub-step of its first step, which the sample block
+        solves). Sample s is the run's sample ``k0 + s`` (its parts: ``parts[s]``); per-patch rows start at
+        ``prow0``. With growth, steps are counted from ``growth_step0`` (steps done before the launch, modulo
+        ``growth_every``).
         """
         blk, lane = wp.tid()
         pad = blk // CLUSTER
@@ -435,8 +440,72 @@ def onchip_kernel(
         nstep = int(0)  # steps of this launch (the phase parity of the mbarrier of u buffer nxt: nstep // 2 % 2)
         prow = prow0
         first_step = opening
+        presolved = int(0)  # 1: w holds the next step's drift velocity, the sample block having solved its friction
         steps_done = growth_step0
-        for s in range(samples):
+        for s in range(samples + 1):
+            # the sample block (the kernel's one site of it): the merged friction sub-step of the step after a sample,
+            # solved once for sample s - 1 (its velocity V, strang_sample_velocity) and for that step (its drift
+            # velocity w+ into w); at the start of a started launch (s = 0) it only solves (the launch before
+            # recorded that sample), and after the launch's last sample it keeps w, the state written back
+            if s > 0 or opening == 0:
+                record = s > 0
+                k = k0 + s - 1
+                due = False
+                if record:
+                    due = patch_sample_due(rec, k)
+                sums = SampleSums()
+                usum = wp.float64(0.0)
+                runaway = n  # the thread's first patch whose energy speed exceeds the watchdog bound (n: none)
+                value = wp.float64(0.0)  # its energy speed [m/s]
+                bad = n  # the thread's first patch with a non-finite u or u̇ (n: none)
+                i = lo + lane
+                while i < hi:
+                    g = a + i
+                    ws = get_n(w, i)
+                    vs, w1 = sync_velocity(i, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
+                    if s < samples:
+                        put_n(w, i, w1)
+                    if record and SAMPLE != 0:
+                        uu = get_u(u2, cur, i)
+                        vf = instant_velocity(vs, ws, w1, omega * model.radius[g], CROSSING, k, i)
+                        sums += patch_sample(
+                            vs, vf, model.normal_force[g], model.radius[g], model.x[g], model.y[g], omega, mu_scale,
+                            slope, decay,
+                        )  # fmt: skip
+                        usum += wp.float64(uu)
+                        e2 = energy_speed2(vs, uu, model.k_t[g], model.inv_mass[g])
+                        if e2 > bound2 and runaway == n:
+                            runaway = i
+                            value = wp.sqrt(e2)
+                        if bad == n and not (wp.isfinite(vs) and wp.isfinite(uu)):
+                            bad = i
+                        if due:
+                            store_patch_sample(rec, prow, g, vs, uu)
+                    i += threads
+                presolved = int(s < samples)
+                if record:
+                    # the warp's sums (in the order of Warp's block reduction), its first non-finite and runaway
+                    # patches and the energy speed of that runaway patch, into the block's part of the sample
+                    # (pad_samples combines them after the launch): no block barrier, so a sample's work overlaps
+                    # the next step's
+                    tot = warp_pad_sums(PadSums(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5], usum))
+                    first_bad = warp_min(bad)
+                    first_runaway = warp_min(runaway)
+                    value = warp_pick(int(runaway == first_runaway and runaway < n), value)
+                    if warp_leader(lane) != 0:
+                        slot = warp_index(lane)
+                        for c in range(7):
+                            parts[s - 1, blk, slot, c] = tot[c]
+                        parts[s - 1, blk, slot, 7] = wp.float64(first_bad)
+                        parts[s - 1, blk, slot, 8] = wp.float64(first_runaway)
+                        parts[s - 1, blk, slot, 9] = value
+                        if lane == 0 and rank == 0:  # the thread that stores them at a growth event (contact_block)
+                            parts[s - 1, blk, 0, 10] = wp.float64(model.pad_matrix_force[pad])
+                            parts[s - 1, blk, 0, 11] = wp.float64(model.pad_matrix_radius[pad])
+                    if due:
+                        prow += 1
+            if s == samples:
+                break
             for _q in range(steps_per_sample):
                 nxt = 1 - cur
                 # friction + kicks + drift (strang_velocity), own patches only
@@ -445,7 +514,9 @@ def onchip_kernel(
                     g = a + i
                     im = model.inv_mass[g]
                     vd = omega * model.radius[g]
-                    if FRICTION == 0:
+                    if presolved != 0:  # the sample block solved this step's friction
+                        v = get_n(w, i)
+                    elif FRICTION == 0:
                         v = get_n(w, i) + dt * im * get_n(fs, i)
                     else:
                         v = strang_velocity(
@@ -467,6 +538,7 @@ def onchip_kernel(
                             put_u_at(u2, nxt, i, un, q)
                     i += threads
                 first_step = 0
+                presolved = 0
                 if wp.static(ASYNC != 0):
                     # Wait for the other blocks' u of this step (each block sends u before it can wait for the
                     # next step's, so a block can neither overwrite a buffer that another still gathers from nor
@@ -535,57 +607,6 @@ def onchip_kernel(
                                 )
                             else:
                                 gap = contact_block(pad, lane, threads, model, gap, a + lo, a + hi, rank == 0)
-            # sample: synchronous velocity (strang_close_velocity), the sums of kernels.physics, patch histories
-            k = k0 + s
-            due = patch_sample_due(rec, k)
-            sums = SampleSums()
-            usum = wp.float64(0.0)
-            runaway = n  # the thread's first patch whose energy speed exceeds the watchdog bound (n: none)
-            value = wp.float64(0.0)  # its energy speed [m/s]
-            bad = n  # the thread's first patch with a non-finite u or u̇ (n: none)
-            i = lo + lane
-            if wp.static(SAMPLE == 0):
-                i = hi
-            while i < hi:
-                g = a + i
-                vs = get_n(w, i)
-                if wp.static(SAMPLE_SOLVE != 0):
-                    vs = sync_velocity(i, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
-                uu = get_u(u2, cur, i)
-                vf = instant_velocity(vs, get_n(w, i), omega * model.radius[g], CROSSING, k, i)
-                sums += patch_sample(
-                    vs, vf, model.normal_force[g], model.radius[g], model.x[g], model.y[g], omega, mu_scale, slope,
-                    decay,
-                )  # fmt: skip
-                usum += wp.float64(uu)
-                e2 = energy_speed2(vs, uu, model.k_t[g], model.inv_mass[g])
-                if e2 > bound2 and runaway == n:
-                    runaway = i
-                    value = wp.sqrt(e2)
-                if bad == n and not (wp.isfinite(vs) and wp.isfinite(uu)):
-                    bad = i
-                if due:
-                    store_patch_sample(rec, prow, g, vs, uu)
-                i += threads
-            # the warp's sums (in the order of Warp's block reduction), its first non-finite and runaway patches and
-            # the energy speed of that runaway patch, into the block's part of the sample (pad_samples combines them
-            # after the launch): no block barrier, so a sample's work overlaps the next step's
-            tot = warp_pad_sums(PadSums(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5], usum))
-            first_bad = warp_min(bad)
-            first_runaway = warp_min(runaway)
-            value = warp_pick(int(runaway == first_runaway and runaway < n), value)
-            if warp_leader(lane) != 0:
-                slot = warp_index(lane)
-                for c in range(7):
-                    parts[s, blk, slot, c] = tot[c]
-                parts[s, blk, slot, 7] = wp.float64(first_bad)
-                parts[s, blk, slot, 8] = wp.float64(first_runaway)
-                parts[s, blk, slot, 9] = value
-                if lane == 0 and rank == 0:  # the thread that stores them at a growth event (contact_block)
-                    parts[s, blk, 0, 10] = wp.float64(model.pad_matrix_force[pad])
-                    parts[s, blk, 0, 11] = wp.float64(model.pad_matrix_radius[pad])
-            if due:
-                prow += 1
         # write back the staggered state and the force cache (own patches)
         i = lo + lane
         while i < hi:

@@ -420,7 +420,7 @@ def onchip_dp5_kernel(
                 if sample != 0:
                     k = k0 + s
                     if rank == 0 and RECORD != 0:
-                        record_pad(pad, lane, threads, row0 + s, k, model, u_io, v_io, v_io, 0, rec)
+                        record_pad(pad, lane, threads, row0 + s, k, model, u_io, v_io, v_io, v_io, 0, rec)
                     if patch_sample_due(rec, k):
                         g = lo + lane
                         while g < hi:

@@ -9,10 +9,11 @@ Equation of motion of patch i (paper §2.1.2, docs/model.md §2.2), u along the 
 * friction: the law f (:func:`friction_coefficient`, also the LF automaton's patch friction), the per-patch
   implicit solve (:func:`solve_velocity`), the θ-method step of a patch's forced friction equation
   (:func:`theta_substep`; backward Euler for ``implicit-friction``) and the damped-midpoint friction sub-step
-  (:func:`friction_substep`), which every Strang path, general and on-chip, takes through :func:`strang_velocity`
-  and :func:`strang_close_velocity`; for strang's crossing treatment the law's integral (:func:`friction_integral`,
-  :func:`friction_integral_at` where the arctangent is known) and its mean along a step's slip segment
-  (:func:`segment_pair`);
+  (:func:`friction_substep`, :func:`friction_substep_pair`), which every Strang path, general and on-chip, takes
+  through :func:`strang_velocity`, :func:`strang_sample_velocity` (``strang``'s samples) and
+  :func:`strang_close_velocity` (a run's end, and the error-controlled split step's samples); for strang's crossing
+  treatment the law's integral (:func:`friction_integral`, :func:`friction_integral_at` where the arctangent is
+  known) and its mean along a step's slip segment (:func:`segment_pair`);
 * per-patch terms: the coupling gather F_s,i = Σ_j k_ij u_j − k_diag,i u_i (:func:`spring_force`; the on-chip
   shared-memory gather sums the links in the same order, :mod:`aca_warp.kernels.hf_onchip_gather`), the net force
   of the explicit schemes (:func:`patch_force`), growth (Eq. 10, :func:`grow_patch`) and the coupling stiffness it
@@ -221,6 +222,17 @@ def friction_substep(
     v: Any, h: Any, m: Any, c: Any, fn: Any, force: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any,
     crossing: int,
 ):  # fmt: skip
+    """The velocity [m/s] after the friction sub-step over h [s] from v (:func:`friction_substep_pair`, whose
+    arguments it takes)."""
+    _vm, out = friction_substep_pair(v, h, m, c, fn, force, vd, mu_scale, slope, decay, tol, crossing)
+    return out
+
+
+@wp.func
+def friction_substep_pair(
+    v: Any, h: Any, m: Any, c: Any, fn: Any, force: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any,
+    crossing: int,
+):  # fmt: skip
     """The friction sub-step of every Strang path: a damped implicit midpoint over h [s] of m v̇ = F + F_N f(vd − v)
     − c v from velocity v [m/s], with the spring force F = ``force`` [N] frozen inside the solve (docs/numerics.md,
     docs/friction_step.md §6.1).
@@ -236,6 +248,10 @@ def friction_substep(
     instead of taken at the midpoint velocity (docs/friction_step.md §8). The two solves are two call sites, each
     with its law fixed: folded into one loop over the passes, the law became a variable of every Newton iteration,
     which made every patch's sub-step 30–40 % dearer on the CPU where no patch crossed (the same bits either way).
+
+    Returns (V, v⁺) [m/s]: V the velocity the solve found, at which the sub-step takes its friction (the θ-point
+    V = v + θh φ(V), so that v⁺ = v + h φ(V) whatever θ; with the crossing treatment the law is the segment's mean),
+    and v⁺ the velocity after the sub-step.
     """
     one = type(v)(1.0)
     half = type(v)(0.5)
@@ -262,7 +278,7 @@ def friction_substep(
         g0 = friction_integral(s0, mu_scale, slope, decay)
         vm = solve_velocity(a, r, th * fn, vd, vm, mu_scale, slope, decay, tol, 1, s0, g0, 0, f0, df0)
         out = vm + (vm - v) * (one / theta - one)
-    return out
+    return vm, out
 
 
 # ---------------------------------------------------------------------------------------------- per-patch terms
@@ -316,12 +332,27 @@ def strang_velocity(
 
 
 @wp.func
+def strang_sample_velocity(
+    w: Any, fs: Any, dt: Any, im: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any,
+    crossing: int,
+):  # fmt: skip
+    """``strang``'s sample of a patch at the end of a step: the merged friction sub-step over ``dt`` [s] that the
+    next step opens with, from the staggered ``w`` [m/s] and F_s(uₙ) ``fs`` [N] (:func:`friction_substep_pair`).
+    Returns (V, w⁺) [m/s]: V, the velocity at which that sub-step takes its friction, is the sample's velocity (the
+    sub-step spans the sample's instant, and w⁺ − w = dt φ(V): the sample reads the friction that the step applies),
+    and w⁺ is the next step's drift velocity, so that the solve serves the sample and the step alike
+    (docs/numerics.md, "Samples")."""
+    return friction_substep_pair(w, dt, type(dt)(1.0) / im, c, fn, fs, vd, mu_scale, slope, decay, tol, crossing)
+
+
+@wp.func
 def strang_close_velocity(
     w: Any, fs: Any, dt: Any, im: Any, c: Any, fn: Any, vd: Any, mu_scale: Any, slope: Any, decay: Any, tol: Any,
     crossing: int,
 ):  # fmt: skip
     """The synchronous velocity of a patch from its staggered ``w`` and F_s(uₙ) ``fs``: the friction sub-step over
-    dt/2 with F_s(uₙ) frozen inside (``crossing``: :func:`friction_substep`)."""
+    dt/2 with F_s(uₙ) frozen inside (``crossing``: :func:`friction_substep`). The error-controlled split step's
+    samples (its next step is not known when it samples); ``strang``'s: :func:`strang_sample_velocity`."""
     h = dt * type(dt)(0.5)
     return friction_substep(w, h, type(dt)(1.0) / im, c, fn, fs, vd, mu_scale, slope, decay, tol, crossing)
 
@@ -629,15 +660,17 @@ def sign_or_zero(x: Any):
 
 
 @wp.func
-def instant_velocity(v: Any, w: Any, vd: Any, crossing: int, k: int, i: int):
-    """The velocity [m/s] at which sample k reads the friction of patch i (its index within its pad): its
-    synchronous ``v``; with ``crossing`` ≠ 0 (``RunOptions.crossing`` "mean"), for a patch whose slip changes sign
-    between its staggered ``w`` and v (the closing half step), an instant of that step's straight path,
-    w + τ (v − w), τ uniform in [0, 1) from ``wp.rand_init(INSTANT_SEED + k, i)``: reproducible, and the same for a
-    pad in any batch (docs/friction_step.md §8, the instant reading). ``vd`` the disc speed ω r [m/s]."""
-    if crossing != 0 and (vd - w) * (vd - v) < v - v:
+def instant_velocity(v: Any, w: Any, w1: Any, vd: Any, crossing: int, k: int, i: int):
+    """The velocity [m/s] at which sample k reads the friction of patch i (its index within its pad): the sample's
+    velocity ``v`` (:func:`strang_sample_velocity`); with ``crossing`` ≠ 0 (``RunOptions.crossing`` "mean"), for a
+    patch whose slip changes sign along the merged sub-step that the sample reads, from the staggered ``w`` to
+    ``w1`` (w⁺), an instant of that sub-step's straight path, w + τ (w⁺ − w), τ uniform in [0, 1) from
+    ``wp.rand_init(INSTANT_SEED + k, i)``: its mean over τ is the segment's mean of the law, which the step applies;
+    reproducible, and the same for a pad in any batch (docs/friction_step.md §8, the instant reading). ``vd`` the disc
+    speed ω r [m/s]."""
+    if crossing != 0 and (vd - w) * (vd - w1) < v - v:
         state = wp.rand_init(INSTANT_SEED + k, i)
-        return w + type(v)(wp.randf(state)) * (v - w)
+        return w + type(v)(wp.randf(state)) * (w1 - w)
     return v
 
 
@@ -758,13 +791,15 @@ def record_pad(
     u_in: wp.array[Any],
     v_in: wp.array[Any],
     w_in: wp.array[Any],
+    w1_in: wp.array[Any],
     crossing: int,
     rec: Any,
 ):
     """Sample k of pad ``pad`` (lane ``lane`` of its block of ``threads``) of the state (``u_in``, ``v_in``) of
     ``model`` (an :data:`~aca_warp.kernels.hf_types.HFModel`) into globals row ``row`` of ``rec`` (an
     :data:`~aca_warp.kernels.hf_types.HFRecorder`, :func:`write_globals`); flags the first faulty patch
-    (:func:`flag_fault`). ``w_in``: the staggered velocities v was closed from (``v_in`` where the state is
+    (:func:`flag_fault`). ``w_in``, ``w1_in``: the staggered velocities before and after the merged sub-step whose
+    solve gave v (:func:`strang_sample_velocity`; ``v_in`` both where the state is
     synchronous), read with ``crossing`` ≠ 0 (:func:`instant_velocity`).
 
     Each of the block's ``threads`` lanes sums the patches lane, lane + threads, … in float64 (:func:`patch_sample`),
@@ -783,7 +818,7 @@ def record_pad(
     while i < n:
         g = a + i
         v = v_in[g]
-        vf = instant_velocity(v, w_in[g], omega * model.radius[g], crossing, k, i)
+        vf = instant_velocity(v, w_in[g], w1_in[g], omega * model.radius[g], crossing, k, i)
         sums += patch_sample(
             v, vf, model.normal_force[g], model.radius[g], model.x[g], model.y[g], omega, model.pad_mu_scale[pad],
             model.pad_slope[pad], model.pad_decay[pad],

@@ -72,8 +72,6 @@ CASES = [
     # the default layout of 29-66 pads on 132 SMs (default_cluster): with --pads 64 --dt 1e-7 --sample-dt 1e-6 the
     # recording floor of the saturated hf1 benchmark
     ("no sample outputs, cluster 2", "fp32", None, None, ("cluster2", "sample")),
-    # a sample without its synchronous velocities' solve
-    ("no sample solve, cluster 2", "fp32", None, None, ("cluster2", "sample_solve")),
     ("no friction solve, cluster 2", "fp32", None, None, ("cluster2", "friction")),
     ("no gather, cluster 2", "fp32", None, None, ("cluster2", "gather")),
     ("half gather, cluster 2", "fp32", None, None, ("cluster2", "gather_half")),

@@ -99,17 +99,18 @@ def test_lf_state_job_reads_the_first_lf_file():
 
 def test_cuda_code_of_a_checkout_against_itself(tmp_path, capsys):
     """compare_cuda_code (Warp's NVRTC, no GPU): one checkout against itself compiles to the same machine code (one
-    group of six kernels, its machine code and its PTX); two kernel sets that differ name the kernel and its sizes."""
+    group of eight kernels, its machine code and its PTX); two kernel sets that differ name the kernel and its
+    sizes."""
     import warp as wp
 
     cc = load_script("compare_cuda_code")
     if 90 not in wp.get_cuda_supported_archs():
         pytest.skip("this Warp build compiles no CUDA code for sm_90")
     out = tmp_path / "code.json"
-    group = "general, mean crossing"  # the quickest to compile: three small kernels in two precisions
+    group = "general, mean crossing"  # the quickest to compile: four small kernels in two precisions
     for mode in ([], ["--ptx"]):  # the machine code, then the PTX
         assert cc.main([str(REPO), str(REPO), "--groups", group, "--out", str(out), *mode]) == 0
-        assert f"{group}: 6 kernel(s), identical" in capsys.readouterr().out
+        assert f"{group}: 8 kernel(s), identical" in capsys.readouterr().out
         assert json.loads(out.read_text())["ptx"] == bool(mode)
     assert cc.compare({"g": [["k", "aa", 4], ["m", "bb", 8]]}, {"g": [["k", "aa", 4], ["m", "cc", 12]]}) == {
         "g": {"kernels": 2, "identical": False, "differ": {"m": ([8], [12])}}

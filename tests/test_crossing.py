@@ -73,8 +73,9 @@ def _instants(samples: int, patches: int) -> np.ndarray:
 
 def test_mean_is_the_prototype_thmean_read_at_the_drawn_instants(scenes):
     """The dynamics are the prototype's ``forced-thmean`` (Σ|u̇| and Σu̇ to rounding), and μ of each sample is
-    Eq. 4 at the synchronous velocities except at the patches whose slip changed sign in the closing half step,
-    which read it at w + τ (v − w) with τ from ``wp.rand_init(INSTANT_SEED + k, i)``."""
+    Eq. 4 at the sample's velocities (the θ-point V of the merged sub-step from w to w⁺ that the next step opens
+    with) except at the patches whose slip changes sign along that sub-step, which read it at w + τ (w⁺ − w) with τ
+    from ``wp.rand_init(INSTANT_SEED + k, i)``."""
     pads, v0 = _start(scenes)
     g, _ = _package(scenes, v0, "mean")
     st = fs.SplitStepper(pads, fs.Scheme.parse("forced-thmean"))
@@ -87,13 +88,13 @@ def test_mean_is_the_prototype_thmean_read_at_the_drawn_instants(scenes):
     for k in range(1, samples + 1):
         for _ in range(per):
             st.step(np.full(pads.n, h))
-        v, w = st.velocity(), st.w
+        (v, w1), w = st.sample_velocity(), st.w
         glob = fs.pad_globals(pads, v)
         np.testing.assert_allclose(g[k, :, 4], glob["sum_abs_velocity"], rtol=1e-12, atol=1e-10)
         np.testing.assert_allclose(g[k, :, 3], glob["sum_velocity"], rtol=0, atol=1e-10)
-        cross = (pads.vd - w) * (pads.vd - v) < 0.0
+        cross = (pads.vd - w) * (pads.vd - w1) < 0.0
         crossings += int(cross.sum())
-        vf = np.where(cross, w + tau[k, local] * (v - w), v)
+        vf = np.where(cross, w + tau[k, local] * (w1 - w), v)
         f = pads.fn * fs.friction(pads, pads.vd - vf)
         mu = (np.add.reduceat(f, pads.start[:-1]) + pads.coulomb) / pads.load
         np.testing.assert_allclose(g[k, :, 0], mu, rtol=0, atol=1e-12)
@@ -105,7 +106,7 @@ def test_point_stays_the_package_strang_on_crossing_steps(scenes):
     ``forced-thmid``: the option leaves that path as it was, and ``mean`` does change the run."""
     pads, v0 = _start(scenes)
     g, _ = _package(scenes, v0, "point")
-    r = fs.run_fixed(pads, fs.Scheme.parse("forced-thmid"), DT, DURATION, SAMPLE_DT)
+    r = fs.run_fixed(pads, fs.Scheme.parse("forced-thmid"), DT, DURATION, SAMPLE_DT, sample="step")
     np.testing.assert_allclose(g[:, :, 0], r["record"].mu, rtol=0, atol=1e-12)
     np.testing.assert_allclose(g[:, :, 4], r["record"].sum_abs_velocity, rtol=1e-12, atol=1e-10)
     gm, _ = _package(scenes, v0, "mean")

@@ -78,7 +78,7 @@ def test_prototype_forced_thmid_is_the_package_strang(dt: float) -> None:
 
     scenes = sector_scenes(2, 40)
     pads = fs.load_pads(scenes)
-    r = fs.run_fixed(pads, fs.Scheme.parse("forced-thmid"), dt, 2e-5, 1e-6)
+    r = fs.run_fixed(pads, fs.Scheme.parse("forced-thmid"), dt, 2e-5, 1e-6, sample="step")
     model, state = batch_at_start(scenes, "cpu", "fp64")
     res = run_general(model, state, duration=2e-5, integrator="strang", dt=dt, record=Record(sample_dt=1e-6))
     g = res.collect().globals

@@ -10,7 +10,13 @@ import math
 import numpy as np
 import pytest
 import warp as wp
-from aca_warp.kernels.physics import friction_pair, friction_substep, solve_velocity
+from aca_warp.kernels.physics import (
+    friction_coefficient,
+    friction_pair,
+    friction_substep,
+    solve_velocity,
+    strang_sample_velocity,
+)
 from scipy.optimize import brentq
 
 from aca_warp.hf.loop import EngineTuning, run_hf
@@ -156,6 +162,52 @@ def test_fp32_substep_keeps_the_damping() -> None:
         increment[T] = out.numpy().astype(np.float64) - v
     damping = np.mean(h * c * v / m)  # m/s: the damping's share of an increment
     assert abs(np.mean(increment[wp.float32] - increment[wp.float64])) < 0.05 * damping
+
+
+@pytest.mark.parametrize("crossing", [0, 1])
+def test_a_sample_reads_the_friction_its_step_applies(crossing: int) -> None:
+    """strang's sample (V, w⁺) from a staggered w: w⁺ is the merged sub-step's velocity (what the step drifts
+    with), and its increment is the step's force at V, m (w⁺ − w) = h (F + F_N f(v_d − V) − c V), whatever θ:
+    at small h γ (θ = 1/2) and on held patches far beyond it (θ → 1); with the crossing treatment the same where
+    the slip keeps its sign."""
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def sample(p: wp.array2d(dtype=wp.float64), h: wp.float64, out: wp.array2d(dtype=wp.float64)):
+        i = wp.tid()
+        w, m, c, fn, force, vd = p[i, 0], p[i, 1], p[i, 2], p[i, 3], p[i, 4], p[i, 5]
+        mu_scale, slope, decay, tol = wp.float64(M / math.pi), wp.float64(SLOPE), wp.float64(DECAY), wp.float64(1e-13)
+        im = wp.float64(1.0) / m
+        v, w1 = strang_sample_velocity(w, force, h, im, c, fn, vd, mu_scale, slope, decay, tol, crossing)
+        out[i, 0] = v
+        out[i, 1] = w1
+        # the merged step's sub-step (strang_velocity: the mass as 1/(1/m))
+        out[i, 2] = friction_substep(
+            w, h, wp.float64(1.0) / im, c, fn, force, vd, mu_scale, slope, decay, tol, crossing
+        )
+        out[i, 3] = friction_coefficient(vd - v, mu_scale, slope, decay)
+        out[i, 4] = friction_substep(w, h, wp.float64(1.0) / im, c, fn, force, vd, mu_scale, slope, decay, tol, 0)
+
+    rng = np.random.default_rng(7)
+    n = 4000
+    m = 37.5 * rng.uniform(2e-8, 8e-8, n)  # kg
+    c = 0.95 * m
+    fn = rng.uniform(0.1, 0.5, n)  # N
+    vd = np.full(n, 10.0)
+    w = vd - rng.choice([1e-4, 1e-2, 0.5], n) * rng.uniform(0.5, 1.0, n)  # slips of one sign: no crossing
+    force = rng.uniform(-0.3, 0.3, n)  # N
+    out = wp.zeros((n, 5), dtype=wp.float64, device="cpu")
+    p = wp.array(np.stack([w, m, c, fn, force, vd], axis=1), dtype=wp.float64, device="cpu")
+    thetas = []
+    for h in (1e-9, 2.5e-7):
+        wp.launch(sample, dim=n, inputs=[p, h], outputs=[out], device="cpu")
+        v, w1, step, f, w1_point = out.numpy().T
+        np.testing.assert_array_equal(w1, step)  # the very velocity the step drifts with
+        keep = ((vd - w) * (vd - w1) > 0.0) & ((vd - w) * (vd - w1_point) > 0.0)  # no segment mean taken
+        impulse = m * (w1 - w) - h * (force + fn * f - c * v)
+        assert np.all(np.abs(impulse[keep]) <= 1e-9 * h * fn[keep] * M), np.abs(impulse[keep]).max()
+        moved = keep & (np.abs(w1 - w) > 1e-9)
+        thetas.append(((v - w)[moved] / (w1 - w)[moved]).max())  # V = w + θ (w⁺ − w)
+    assert abs(thetas[0] - 0.5) < 1e-6 and thetas[1] > 0.55  # the midpoint, and the held patches' larger θ
 
 
 @pytest.mark.parametrize("dtype", [wp.float32, wp.float64])

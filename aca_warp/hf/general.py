@@ -156,7 +156,9 @@ class GeneralEngine:
             if self.growth is not None:
                 self.growth.launch()
         v = self.solver.velocity(s, self.h)
-        self.recorder.launch(s.u, v, conditional=False, staggered=s.v, crossing=self.solver.crossing)
+        w1 = self.solver.next_drift  # None but for strang, whose sample comes from a solve
+        staggered = None if w1 is None else (s.v, w1)
+        self.recorder.launch(s.u, v, conditional=False, staggered=staggered, crossing=self.solver.crossing)
 
     def _capture_pays(self, reps: int, uses_left: int | None) -> bool:
         """Whether to capture the graph of ``reps`` bodies now: always on a GPU; on the CPU only once it will be

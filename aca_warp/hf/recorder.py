@@ -190,18 +190,24 @@ class Recorder:
         return self.want_v or self.want_u
 
     def launch(
-        self, u: wp.array, v: wp.array, conditional: bool, *, staggered: wp.array | None = None, crossing: int = 0
+        self,
+        u: wp.array,
+        v: wp.array,
+        conditional: bool,
+        *,
+        staggered: tuple[wp.array, wp.array] | None = None,
+        crossing: int = 0,
     ) -> None:
         """Record one sample of (u, u̇) (conditional: only when the adaptive controller landed on a sample). With
-        ``crossing`` ≠ 0, ``staggered`` holds the staggered velocities [m/s] that v was closed from, and a patch whose
-        slip changed sign between them has its friction read at an instant of that closing half step
-        (:func:`~aca_warp.kernels.physics.instant_velocity`)."""
+        ``crossing`` ≠ 0, ``staggered`` holds the staggered velocities (w, w⁺) [m/s] before and after the merged
+        sub-step whose solve gave v (``strang``'s samples), and a patch whose slip changes sign between them has its
+        friction read at an instant of that sub-step (:func:`~aca_warp.kernels.physics.instant_velocity`)."""
         m, c, rec = self.model, int(conditional), self.struct
         threads = block_threads(m.device, RECORD_BLOCK)
         launch = self.launcher
-        w = v if staggered is None else staggered
+        w, w1 = (v, v) if staggered is None else staggered
         record = K.STRANG_KERNELS[crossing][2]
-        launch(record, [m.pad_count], [m.struct(), rec, c, threads, u, v, w], block_dim=RECORD_BLOCK)
+        launch(record, [m.pad_count], [m.struct(), rec, c, threads, u, v, w, w1], block_dim=RECORD_BLOCK)
         if self.patch_stage:
             launch(K.record_patches, m.patch_count, [rec, c, u, v])
         launch(K.advance_counters, 1, [rec, c])

@@ -298,7 +298,7 @@ class HFSolver:
             crossing = default_crossing(integrator, model.scenes)
         check_solve_tol(solve_tol, crossing)  # before the stable-step estimate, which reads every link
         self.crossing = int(crossing == "mean")  # the kernels' flag
-        self._advance, self._close, _ = K.STRANG_KERNELS[self.crossing]
+        self._advance, self._sample, _, self._close = K.STRANG_KERNELS[self.crossing]
         self.model = model
         self.integrator = integrator
         self.estimate = stable_step(model) if estimate is None else estimate
@@ -322,7 +322,8 @@ class HFSolver:
         if integrator not in STEP_CONTROLLED and not force:  # there dt is only the first trial
             step_refusal(self.estimate, integrator, self.dt)
         self.kernel_model = model.struct()  # the model's arrays as one kernel argument
-        self._v_sync: wp.array | None = None
+        self._v_sync: wp.array | None = None  # a sample's velocities V (strang; :meth:`velocity`)
+        self._w_next: wp.array | None = None  # and the next step's drift velocities w⁺
         self.launcher = Launcher(model.device)  # its launches packed once, replayed (on the CPU)
 
     @classmethod
@@ -348,13 +349,13 @@ class HFSolver:
         """The kernels this solver and a recorder of its samples launch, to load before a run's first step
         (:func:`~aca_warp.common.devices.load_kernels`; a module loaded at its first launch would put its compile into
         the run's stepping time): the HF kernels and, with strang's crossing treatment, its kernels (each in a module
-        of its own). ``stepping`` False: for the on-chip engines, whose own kernel steps; of the treatment's kernels
-        they launch only the closing one."""
+        of its own). ``stepping`` False: for the on-chip engines, whose own kernel steps and samples; of the
+        treatment's kernels they launch only the closing one (:meth:`finish`)."""
         hf = [K, (K, RECORD_BLOCK)]  # the recorder's sums run in blocks of RECORD_BLOCK
         if not self.crossing:
             return hf
-        advance, close, record = K.STRANG_KERNELS[self.crossing]
-        return [*hf, advance, close, (record, RECORD_BLOCK)] if stepping else [*hf, close]
+        advance, sample, record, close = K.STRANG_KERNELS[self.crossing]
+        return [*hf, advance, sample, (record, RECORD_BLOCK), close] if stepping else [*hf, close]
 
     def _launch(self, kernel: Any, inputs: list, dim: int | None = None) -> None:
         self.launcher(kernel, self.model.patch_count if dim is None else dim, inputs)
@@ -368,7 +369,7 @@ class HFSolver:
 
         ``strang`` keeps a staggered velocity between steps: ``first`` opens from the synchronous state
         (forced friction sub-step over dt/2, drift), later steps are merged (sub-step over dt, drift), and
-        :meth:`finish` closes back to the synchronous velocity; :meth:`velocity` gives it at any step.
+        :meth:`finish` closes back to the synchronous velocity; :meth:`velocity` gives a sample's at any step.
         """
         h = self.T(dt)
         if self.integrator in ("symplectic-euler", "implicit-friction"):
@@ -383,16 +384,27 @@ class HFSolver:
             raise SceneError(f"the {self.integrator} integrator steps each pad on its own; use run_hf")
 
     def velocity(self, state: HFState, dt: float) -> wp.array:
-        """The synchronous patch velocities [m/s] (for strang computed from the staggered state)."""
+        """The patch velocities [m/s] of a sample: for strang from the staggered state, the velocity V of the merged
+        friction sub-step that the next step of ``dt`` opens with (:func:`~aca_warp.kernels.physics.
+        strang_sample_velocity`; that sub-step's w⁺ in :attr:`next_drift`), without changing the state."""
         if self.integrator != "strang":
             return state.v
         if self._v_sync is None:
-            self._v_sync = wp.zeros_like(state.v)
-        self._launch(self._close, [self.kernel_model, self.T(dt), self.newton_tol, state.force, state.v, self._v_sync])
+            self._v_sync, self._w_next = wp.zeros_like(state.v), wp.zeros_like(state.v)
+        args = [self.kernel_model, self.T(dt), self.newton_tol, state.force, state.v, self._v_sync, self._w_next]
+        self._launch(self._sample, args)
         return self._v_sync
 
+    @property
+    def next_drift(self) -> wp.array | None:
+        """The drift velocities w⁺ [m/s] of the merged sub-step of the last :meth:`velocity` (None before one)."""
+        return self._w_next
+
     def finish(self, state: HFState, dt: float) -> None:
-        """Bring a staggered strang state back to synchronous velocities (no-op for other schemes)."""
+        """Bring a staggered strang state back to synchronous velocities by the closing half sub-step
+        (:func:`~aca_warp.kernels.physics.strang_close_velocity`; no-op for other schemes): a later run that continues
+        from it parts from one long run by O(dt³) per restart, where from a sample's velocity (:meth:`velocity`, a
+        backward-Euler half step) it would by O(dt²)."""
         if self.integrator == "strang":
             args = [self.kernel_model, self.T(dt), self.newton_tol, state.force, state.v, state.v]
             self._launch(self._close, args)

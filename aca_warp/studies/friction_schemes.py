@@ -534,6 +534,20 @@ class SplitStepper:
         kick = 0.5 * h * self.force / self.pads.m
         return substep(self.pads, self.scheme.method, self.w + kick, 0.5 * h, np.zeros_like(self.w), self.evals)
 
+    def sample_velocity(self) -> tuple[np.ndarray, np.ndarray]:
+        """The package's ``strang`` sample (:func:`~aca_warp.kernels.physics.strang_sample_velocity`): (V, w⁺)
+        [m/s] of the merged sub-step over the last step that the next step of the same length opens with, V = w +
+        θ (w⁺ − w) the velocity at which it takes its friction; the state is left as it is. The θ-method sub-steps
+        with the spring force inside (``forced-thmid``, ``forced-thmean``) only; from a synchronous state (w, w)."""
+        if self.scheme.kicks != "inside" or self.scheme.method not in ("thmid", "thmean"):
+            raise ValueError(f"a step's sample is the θ-point of forced-thmid/-thmean, not of {self.scheme.name}")
+        if self.open_h is None:
+            return self.w.copy(), self.w.copy()
+        h = np.broadcast_to(np.asarray(self.open_h, dtype=np.float64), self.w.shape)
+        w1 = substep(self.pads, self.scheme.method, self.w, h, self.force, self.evals)
+        theta = theta_of(self.pads, self.w, h, self.evals)
+        return self.w + theta * (w1 - self.w), w1
+
     def synchronise(self) -> None:
         """Close the staggered state (w becomes the synchronous velocity); the next step opens afresh."""
         self.w = self.velocity()
@@ -541,13 +555,15 @@ class SplitStepper:
 
 
 def pad_globals(
-    pads: Pads, v: np.ndarray, w: np.ndarray | None = None, tau: np.ndarray | None = None
+    pads: Pads, v: np.ndarray, w: np.ndarray | None = None, tau: np.ndarray | None = None, w1: np.ndarray | None = None
 ) -> dict[str, np.ndarray]:
     """μ, Σu̇ [m/s] and Σ|u̇| [m/s] of every pad at patch velocities v (n,) (docs/model.md §2.8), each (P,). Given
     the staggered velocities w (n,) [m/s] that v was closed from, also two readings that differ from μ only at the
     patches whose slip changes sign between w and v: ``mu_segment``, each such patch taking the mean of f along its
     slip segment instead of f at v, and ``mu_instant``, each taking f at the fraction ``tau`` (n,) in [0, 1) of its
-    segment (random fractions: an instant of the straight path, whose mean over τ is the segment's mean)."""
+    segment (random fractions: an instant of the straight path, whose mean over τ is the segment's mean). With
+    ``w1`` (n,) [m/s] the segment runs from w to w1 instead of from w to v (the package's ``strang`` sample, whose v
+    is the θ-point of the merged sub-step from w to w1)."""
     s = pads.vd - v
     f = pads.fn * friction(pads, s)
     seg = pads.start[:-1]
@@ -559,14 +575,15 @@ def pad_globals(
     }
     if w is not None:
         s0 = pads.vd - w
-        cross = np.flatnonzero((s0 * s < 0.0) & (np.abs(s - s0) > SEGMENT_MIN))
+        s1 = s if w1 is None else pads.vd - w1
+        cross = np.flatnonzero((s0 * s1 < 0.0) & (np.abs(s1 - s0) > SEGMENT_MIN))
         seg_f = f.copy()
-        g = friction_integral(pads, s[cross]) - friction_integral(pads, s0[cross])
-        seg_f[cross] = pads.fn[cross] * g / (s[cross] - s0[cross])
+        g = friction_integral(pads, s1[cross]) - friction_integral(pads, s0[cross])
+        seg_f[cross] = pads.fn[cross] * g / (s1[cross] - s0[cross])
         out["mu_segment"] = mu(seg_f)
         if tau is not None:
             inst_f = f.copy()
-            inst_f[cross] = pads.fn[cross] * friction(pads, s0[cross] + tau[cross] * (s - s0)[cross])
+            inst_f[cross] = pads.fn[cross] * friction(pads, s0[cross] + tau[cross] * (s1 - s0)[cross])
             out["mu_instant"] = mu(inst_f)
     return out
 
@@ -605,15 +622,16 @@ class Record:
         more = (z(), z(), z()) if readings else (None, None, None)
         return cls(np.arange(samples) * sample_dt, z(), z(), z(), vel, samples - rows, *more)
 
-    def put(self, k: int, pads: Pads, v: np.ndarray, w: np.ndarray | None = None) -> None:
+    def put(self, k: int, pads: Pads, v: np.ndarray, w: np.ndarray | None = None, w1: np.ndarray | None = None) -> None:
         """Sample k from the synchronous patch velocities v (n,) [m/s]; ``mu_segment`` and ``mu_instant`` too where
         the record has room for them and the staggered velocities w (n,) [m/s] that v was closed from are given (the
-        instants drawn from a generator seeded by k: reproducible)."""
+        instants drawn from a generator seeded by k: reproducible); with ``w1`` (n,) [m/s] the readings are along the
+        sub-step from w to w1 instead (the package's ``strang`` sample, :meth:`SplitStepper.sample_velocity`)."""
         if w is None or self.mu_segment is None or self.mu_instant is None:
             g = pad_globals(pads, v)
         else:
             # τ depends on k only: a batch's patches draw their own, records of other pads at the same place repeat them
-            g = pad_globals(pads, v, w, np.random.default_rng((INSTANT_SEED, k)).random(pads.n))
+            g = pad_globals(pads, v, w, np.random.default_rng((INSTANT_SEED, k)).random(pads.n), w1)
             self.mu_segment[k], self.mu_instant[k] = g["mu_segment"], g["mu_instant"]
         self.mu[k], self.sum_velocity[k], self.sum_abs_velocity[k] = g["mu"], g["sum_velocity"], g["sum_abs_velocity"]
         if self.velocity is not None and k >= self.patch_first:
@@ -637,9 +655,12 @@ def run_fixed(
     patch_window: float = 0.0,
     progress: Any = None,
     readings: bool = False,
+    sample: str = "close",
 ) -> dict[str, Any]:
     """Run ``scheme`` at the fixed step dt [s] (shortened to fit the sample interval) for ``duration`` [s];
-    samples every ``sample_dt`` [s] (synchronous velocities), per-patch velocities over the last ``patch_window``
+    samples every ``sample_dt`` [s] (``sample`` "close": the synchronous velocities of the closing sub-step;
+    "step": the package's ``strang`` sample, :meth:`SplitStepper.sample_velocity`, its readings along the merged
+    sub-step), per-patch velocities over the last ``patch_window``
     [s]; with ``readings`` also the record's other readings of μ (segment, instant, applied). Returns the
     :class:`Record`, the step, the steps, and
     friction evaluations per patch per step (recording closes excluded) and per simulated ms."""
@@ -665,9 +686,13 @@ def run_fixed(
                 span += sub
             applied[k] = (np.add.reduceat(impulse, seg) / span + pads.coulomb) / pads.load
         before = st.evals.sum()
-        v = st.velocity()
+        if sample == "step":
+            v, w1 = st.sample_velocity()
+            rec.put(k, pads, v, st.w, w1)
+        else:
+            v = st.velocity()
+            rec.put(k, pads, v, st.w)
         close_evals += st.evals.sum() - before
-        rec.put(k, pads, v, st.w)
         if not np.all(np.isfinite(v)):
             break
         if progress is not None and k % 2000 == 0:
