@@ -186,14 +186,18 @@ _FAST_MEAN_FILES = (("hf1", "0"), ("hf2", "0"), ("hf3", "0"), ("hf4", "0"), ("va
         ("fast_mean", [f"{r}/wps_cuda{t}_{r}.json" for r, t in _FAST_MEAN_FILES],
          [160, 96, 128, 32, 128, 96, 64, 128, 128, 64, 64, 128],
          {_FAST_MEAN, "strang@fp32:dt=2.5e-07:growth_dt=5e-06:fast:mean"}, _FAST_MEAN),
+        ("step_sample", [f"{r}/wps_cuda{t}_{r}.json" for r, t in _FAST_MEAN_FILES],
+         [160, 96, 128, 32, 128, 96, 64, 128, 128, 64, 64, 128],
+         {_MEAN, "strang@fp32:dt=2.5e-07:growth_dt=5e-06:mean"}, _FAST_MEAN),
     ],
 )  # fmt: skip
 def test_crossing_pages_are_what_merge_and_report_write(monkeypatch, page, merged, pads, settings, pick):
     """The crossing treatment's pages (docs/figures/work_precision_statistics/<regime>_crossing/ and
-    equal_heights/crossing/, and fast_mean/, which continues their parts with fast math): each merged file is the
-    ``--merge`` of its parts (``s*/``, where it has parts: the study's own parts continued with ``mean``; hf1's, each
-    setting of the steps' study), on every seed, and the page's generated section is what ``--report`` writes from
-    them; the rule picks ``pick`` (the first regime's)."""
+    equal_heights/crossing/, fast_mean/, which continues their parts with fast math, and step_sample/, which continues
+    those with the default row made again on the kernels whose samples read the next step's solve): each merged file
+    is the ``--merge`` of its parts (``s*/``, where it has parts: the study's own parts continued with ``mean``; hf1's,
+    each setting of the steps' study), on every seed, and the page's generated section is what ``--report`` writes
+    from them; the rule picks ``pick`` (the first regime's)."""
     from aca_warp.studies import work_precision_stats_report as wps_report
     from aca_warp.studies.report import clean
     from aca_warp.studies.work_precision_stats_merge import merge
