@@ -1240,7 +1240,7 @@ def test_compare_two_results_files(tmp_path, capsys, monkeypatch):
     sample = "docs/validation/step_sample"  # after samples came to read the next step's solve: no row's verdict moved
     assert script.main(["docs/validation/rerun_twice/results.json", f"{sample}/results.json.gz"]) == 1
     out = capsys.readouterr().out
-    assert out == (repo / sample / "compare.md").read_text()
+    assert out == (repo / sample / "compare.txt").read_text()
     assert "the verdict moved in 0 rows, 0 from rest, 14 variants" in out
 
 
