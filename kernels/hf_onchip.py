@@ -462,7 +462,11 @@ def onchip_kernel(
                 while i < hi:
                     g = a + i
                     ws = get_n(w, i)
-                    vs, w1 = sync_velocity(i, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
+                    if FRICTION == 0:  # profiling: the explicit kick of the steps' ablation
+                        vs = ws
+                        w1 = ws + dt * model.inv_mass[g] * get_n(fs, i)
+                    else:
+                        vs, w1 = sync_velocity(i, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
                     if s < samples:
                         put_n(w, i, w1)
                     if record and SAMPLE != 0:

@@ -339,7 +339,8 @@ def strang_sample_velocity(
     """``strang``'s sample of a patch at the end of a step: the merged friction sub-step over ``dt`` [s] that the
     next step opens with, from the staggered ``w`` [m/s] and F_s(uₙ) ``fs`` [N] (:func:`friction_substep_pair`).
     Returns (V, w⁺) [m/s]: V, the velocity at which that sub-step takes its friction, is the sample's velocity (the
-    sub-step spans the sample's instant, and w⁺ − w = dt φ(V): the sample reads the friction that the step applies),
+    sub-step spans the sample's instant, and w⁺ − w = dt φ(V) with the point law, whatever θ: the sample reads the
+    friction that the step applies; a crossing step's segment mean: :func:`instant_velocity`),
     and w⁺ is the next step's drift velocity, so that the solve serves the sample and the step alike
     (docs/numerics.md, "Samples")."""
     return friction_substep_pair(w, dt, type(dt)(1.0) / im, c, fn, fs, vd, mu_scale, slope, decay, tol, crossing)
@@ -662,12 +663,12 @@ def sign_or_zero(x: Any):
 @wp.func
 def instant_velocity(v: Any, w: Any, w1: Any, vd: Any, crossing: int, k: int, i: int):
     """The velocity [m/s] at which sample k reads the friction of patch i (its index within its pad): the sample's
-    velocity ``v`` (:func:`strang_sample_velocity`); with ``crossing`` ≠ 0 (``RunOptions.crossing`` "mean"), for a
-    patch whose slip changes sign along the merged sub-step that the sample reads, from the staggered ``w`` to
-    ``w1`` (w⁺), an instant of that sub-step's straight path, w + τ (w⁺ − w), τ uniform in [0, 1) from
-    ``wp.rand_init(INSTANT_SEED + k, i)``: its mean over τ is the segment's mean of the law, which the step applies;
-    reproducible, and the same for a pad in any batch (docs/friction_step.md §8, the instant reading). ``vd`` the disc
-    speed ω r [m/s]."""
+    velocity ``v`` (:func:`strang_sample_velocity`); with ``crossing`` ≠ 0 (``RunOptions.crossing`` "mean"), for a patch
+    whose slip changes sign along the merged sub-step that the sample reads, from the staggered ``w`` to ``w1`` (w⁺), an
+    instant of that sub-step's straight path, w + τ (w⁺ − w), τ uniform in [0, 1) from ``wp.rand_init(INSTANT_SEED + k,
+    i)``: its mean over τ is the segment's mean of the law, which the step applies where it is a midpoint step (θ = ½; a
+    held patch's damped step beyond h γ = 6 takes f at V); reproducible, and the same for a pad in any batch
+    (docs/friction_step.md §8, the instant reading). ``vd`` the disc speed ω r [m/s]."""
     if crossing != 0 and (vd - w) * (vd - w1) < v - v:
         state = wp.rand_init(INSTANT_SEED + k, i)
         return w + type(v)(wp.randf(state)) * (w1 - w)
@@ -678,8 +679,8 @@ def instant_velocity(v: Any, w: Any, w1: Any, vd: Any, crossing: int, k: int, i:
 def patch_sample(
     v: Any, vf: Any, fn: Any, r: Any, x: Any, y: Any, omega: Any, mu_scale: Any, slope: Any, decay: Any
 ):  # fmt: skip
-    """One patch's terms of the sample sums at velocity ``v`` [m/s], its friction read at ``vf`` [m/s] (v, or an
-    instant of its closing half step: :func:`instant_velocity`), normal force ``fn`` [N], radius ``r`` and position
+    """One patch's terms of the sample sums at velocity ``v`` [m/s], its friction read at ``vf`` [m/s] (v, or an instant
+    of the sub-step the sample reads: :func:`instant_velocity`), normal force ``fn`` [N], radius ``r`` and position
     (``x``, ``y``) [m]: its friction force F = F_N f(ω r − vf) [N], F r [N m], v, |v| [m/s], F x, F y [N m]."""
     f = fn * friction_coefficient(omega * r - vf, mu_scale, slope, decay)
     return SampleSums(

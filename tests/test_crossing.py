@@ -1,8 +1,8 @@
-"""strang's treatment of the steps that cross zero slip (``RunOptions.crossing``): "mean" is the prototype's
-``thmean`` in the kernels (the friction averaged along a crossing step's slip segment), its samples read a crossing
-patch's friction at a reproducible random instant of the closing half step, the on-chip engine gives the same bits
-as the general one, a pad's reading does not depend on its batch, "point" stays the package's strang, and the
-option is refused where it does not apply."""
+"""strang's treatment of the steps that cross zero slip (``RunOptions.crossing``): "mean" is the prototype's ``thmean``
+in the kernels (the friction averaged along a crossing step's slip segment), its samples read a crossing patch's
+friction at a reproducible random instant of the sub-step the sample reads, the on-chip engine gives the same bits as
+the general one, a pad's reading does not depend on its batch, "point" stays the package's strang, and the option is
+refused where it does not apply."""
 
 from __future__ import annotations
 

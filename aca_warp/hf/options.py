@@ -65,14 +65,14 @@ SOLVE_TOL_HELP = (
 )
 ENGINES = ("auto", "onchip", "general")
 # strang's treatment of a step whose slip changes sign (docs/friction_step.md §8): "point", Eq. 4 at the midpoint
-# velocity and μ read at the synchronous velocities; "mean", the friction averaged along the step's slip segment
-# and a crossing patch's μ read at an instant of its closing half step
+# velocity and μ read at the samples' velocities; "mean", the friction averaged along the step's slip segment
+# and a crossing patch's μ read at an instant of the sub-step its sample reads
 CROSSINGS = ("point", "mean")
 CROSSING_HELP = (
     "strang's treatment of the steps on which a patch's slip changes sign: mean, the friction averaged along the "
-    "step's slip segment and a crossing patch's friction read at a random instant of its closing half step, which "
-    "removes the step error of Phi at large steps and costs more per step; point, Eq. 4 at the midpoint velocity "
-    "and mu read at the synchronous velocities (docs/friction_step.md, section 8). Default: mean for a shipped "
+    "step's slip segment and a crossing patch's friction read at a random instant of the sub-step its sample reads, "
+    "which removes the step error of Phi at large steps and costs more per step; point, Eq. 4 at the midpoint "
+    "velocity and mu read at the samples' velocities (docs/friction_step.md, section 8). Default: mean for a shipped "
     "preset's physics and the marked LF states, point for any other scene"
 )
 ONCHIP_INTEGRATORS = ("strang", "adaptive")  # the integrators the on-chip engine implements
@@ -309,9 +309,9 @@ class RunOptions:
             and a sweep first write out ``strang``'s default, :func:`growth_asked`. Refused for a scene that does
             not grow (:func:`~aca_warp.hf.solver.check_step`).
         crossing: ``strang``'s treatment of the steps on which a patch's slip changes sign (:data:`CROSSINGS`):
-            ``point`` (Eq. 4 at the midpoint velocity; μ read at the synchronous velocities) or ``mean`` (the
+            ``point`` (Eq. 4 at the midpoint velocity; μ read at the samples' velocities) or ``mean`` (the
             friction averaged along the step's slip segment, and a crossing patch's friction read at a random
-            instant of its closing half step; docs/friction_step.md §8; ``strang`` only); None:
+            instant of the sub-step its sample reads; docs/friction_step.md §8; ``strang`` only); None:
             :func:`default_crossing` (``mean`` for a measured regime, else ``point``), which a run file stores
             written out.
         solve_tol: Tolerance of the per-patch implicit friction solve (``solve_velocity`` in ``kernels/physics.py``),

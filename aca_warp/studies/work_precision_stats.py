@@ -18,8 +18,8 @@ so that every setting is measured on the same samples.
 A **setting** is ``INTEGRATOR@PRECISIONS[:dt=STEPS][:tol=TOLERANCES][:growth_dt=SPACINGS][:solve_tol=TOLS][:fast]
 [:mean]`` (a product), e.g. ``strang@fp32:dt=1e-8,5e-7``, ``adaptive@fp64:tol=1e-4``,
 ``implicit-friction@fp32,fp64:dt=1e-7``, ``strang@fp32:dt=1e-7:fast`` (the on-chip kernel compiled with CUDA
-fast math: ``aca-warp hf --fast-math``), ``strang@fp32:dt=2.5e-7:mean`` (strang's steps that cross zero slip
-averaged along their slip segment, and μ read at an instant of a crossing patch's closing half step: ``aca-warp hf
+fast math: ``aca-warp hf --fast-math``), ``strang@fp32:dt=2.5e-7:mean`` (strang's steps that cross zero slip averaged
+along their slip segment, and μ read at an instant of the sub-step a crossing patch's sample reads: ``aca-warp hf
 --crossing mean``), ``strang@fp32:dt=1e-7:growth_dt=1e-6`` (a growing pad's growth events every 1 µs, the
 increment scaled to keep the growth rate: ``aca-warp hf --growth-dt``; refused in regimes that do not grow),
 ``strang@fp32:dt=1e-8:solve_tol=1e-7`` (the per-patch friction solve stopped at 1e-7 of the scale of its velocity
