@@ -129,6 +129,18 @@ def patch_close_velocity(i: int, p: int, w: Any, force: Any, dt: Any, model: Any
     )  # fmt: skip
 
 
+@wp.func
+def patch_sample_velocity(i: int, p: int, w: Any, force: Any, dt: Any, model: Any, tol: Any, crossing: int):
+    """Patch i's (pad p) sample velocity V and the next step's drift velocity w⁺ [m/s] from its staggered w and
+    F_s(uₙ) ``force`` [N] after a step ``dt`` [s]: :func:`~aca_warp.kernels.physics.strang_sample_velocity` with the
+    patch's parameters from ``model``."""
+    return strang_sample_velocity(
+        w, force, dt, model.inv_mass[i], model.damping[i], model.normal_force[i],
+        model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
+        crossing,
+    )  # fmt: skip
+
+
 # ---------------------------------------------------------------------------------------------- recording
 
 
@@ -194,12 +206,7 @@ def _strang_kernels(crossing: int, module: str | None) -> tuple[wp.Kernel, wp.Ke
         """A sample's velocity V and the next step's drift velocity w⁺ [m/s] from the staggered w and F_s(uₙ) after
         a step ``dt`` [s] (:func:`~aca_warp.kernels.physics.strang_sample_velocity`; ``v_out`` may be ``v_in``)."""
         i = wp.tid()
-        p = model.patch_pad[i]
-        v, w1 = strang_sample_velocity(
-            v_in[i], force_in[i], dt, model.inv_mass[i], model.damping[i], model.normal_force[i],
-            model.pad_omega[p] * model.radius[i], model.pad_mu_scale[p], model.pad_slope[p], model.pad_decay[p], tol,
-            CROSSING,
-        )  # fmt: skip
+        v, w1 = patch_sample_velocity(i, model.patch_pad[i], v_in[i], force_in[i], dt, model, tol, CROSSING)
         v_out[i] = v
         w1_out[i] = w1
 

@@ -242,11 +242,10 @@ def onchip_kernel(
     pad_sync = block_sync if cluster == 1 else cluster_sync
 
     @wp.func
-    def sync_velocity(
-        i: int,
+    def sample_velocity(
+        ws: Any,
+        fsi: Any,
         g: int,
-        w: Any,
-        fs: Any,
         model: Any,
         omega: Any,
         dt: Any,
@@ -255,11 +254,11 @@ def onchip_kernel(
         decay: Any,
         tol: Any,
     ):
-        """A sample's velocity V of local patch i (global g) and the next step's drift velocity w⁺ from the staggered w
-        and F_s (``strang_sample_velocity``)."""
+        """A sample's velocity V of patch g and the next step's drift velocity w⁺ from its staggered ``ws`` and F_s
+        ``fsi`` (``strang_sample_velocity``)."""
         return strang_sample_velocity(
-            get_n(w, i), get_n(fs, i), dt, model.inv_mass[g], model.damping[g], model.normal_force[g],
-            omega * model.radius[g], mu_scale, slope, decay, tol, CROSSING,
+            ws, fsi, dt, model.inv_mass[g], model.damping[g], model.normal_force[g], omega * model.radius[g], mu_scale,
+            slope, decay, tol, CROSSING,
         )  # fmt: skip
 
     @wp.func
@@ -440,13 +439,13 @@ def onchip_kernel(
         nstep = int(0)  # steps of this launch (the phase parity of the mbarrier of u buffer nxt: nstep // 2 % 2)
         prow = prow0
         first_step = opening
-        presolved = int(0)  # 1: w holds the next step's drift velocity, the sample block having solved its friction
         steps_done = growth_step0
         for s in range(samples + 1):
             # the sample block (the kernel's one site of it): the merged friction sub-step of the step after a sample,
             # solved once for sample s - 1 (its velocity V, strang_sample_velocity) and for that step (its drift
-            # velocity w+ into w); at the start of a started launch (s = 0) it only solves (the launch before
-            # recorded that sample), and after the launch's last sample it keeps w, the state written back
+            # velocity w+ into w, which every interval's first step but the run's opening one takes as solved); at
+            # the start of a started launch (s = 0) it only solves (the launch before recorded that sample), and
+            # after the launch's last sample it keeps w, the state written back
             if s > 0 or opening == 0:
                 record = s > 0
                 k = k0 + s - 1
@@ -466,7 +465,7 @@ def onchip_kernel(
                         vs = ws
                         w1 = ws + dt * model.inv_mass[g] * get_n(fs, i)
                     else:
-                        vs, w1 = sync_velocity(i, g, w, fs, model, omega, dt, mu_scale, slope, decay, tol)
+                        vs, w1 = sample_velocity(ws, get_n(fs, i), g, model, omega, dt, mu_scale, slope, decay, tol)
                     if s < samples:
                         put_n(w, i, w1)
                     if record and SAMPLE != 0:
@@ -486,7 +485,6 @@ def onchip_kernel(
                         if due:
                             store_patch_sample(rec, prow, g, vs, uu)
                     i += threads
-                presolved = int(s < samples)
                 if record:
                     # the warp's sums (in the order of Warp's block reduction), its first non-finite and runaway
                     # patches and the energy speed of that runaway patch, into the block's part of the sample
@@ -510,7 +508,7 @@ def onchip_kernel(
                         prow += 1
             if s == samples:
                 break
-            for _q in range(steps_per_sample):
+            for j in range(steps_per_sample):
                 nxt = 1 - cur
                 # friction + kicks + drift (strang_velocity), own patches only
                 i = lo + lane
@@ -518,7 +516,7 @@ def onchip_kernel(
                     g = a + i
                     im = model.inv_mass[g]
                     vd = omega * model.radius[g]
-                    if presolved != 0:  # the sample block solved this step's friction
+                    if j == 0 and first_step == 0:  # the sample block solved this step's friction
                         v = get_n(w, i)
                     elif FRICTION == 0:
                         v = get_n(w, i) + dt * im * get_n(fs, i)
@@ -542,7 +540,6 @@ def onchip_kernel(
                             put_u_at(u2, nxt, i, un, q)
                     i += threads
                 first_step = 0
-                presolved = 0
                 if wp.static(ASYNC != 0):
                     # Wait for the other blocks' u of this step (each block sends u before it can wait for the
                     # next step's, so a block can neither overwrite a buffer that another still gathers from nor

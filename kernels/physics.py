@@ -340,9 +340,8 @@ def strang_sample_velocity(
     next step opens with, from the staggered ``w`` [m/s] and F_s(uₙ) ``fs`` [N] (:func:`friction_substep_pair`).
     Returns (V, w⁺) [m/s]: V, the velocity at which that sub-step takes its friction, is the sample's velocity (the
     sub-step spans the sample's instant, and w⁺ − w = dt φ(V) with the point law, whatever θ: the sample reads the
-    friction that the step applies; a crossing step's segment mean: :func:`instant_velocity`),
-    and w⁺ is the next step's drift velocity, so that the solve serves the sample and the step alike
-    (docs/numerics.md, "Samples")."""
+    friction that the step applies; a crossing step's segment mean: :func:`instant_velocity`), and w⁺ is the next
+    step's drift velocity, so that the solve serves the sample and the step alike (docs/numerics.md, "Samples")."""
     return friction_substep_pair(w, dt, type(dt)(1.0) / im, c, fn, fs, vd, mu_scale, slope, decay, tol, crossing)
 
 

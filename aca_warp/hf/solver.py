@@ -322,7 +322,7 @@ class HFSolver:
         if integrator not in STEP_CONTROLLED and not force:  # there dt is only the first trial
             step_refusal(self.estimate, integrator, self.dt)
         self.kernel_model = model.struct()  # the model's arrays as one kernel argument
-        self._v_sync: wp.array | None = None  # a sample's velocities V (strang; :meth:`velocity`)
+        self._v_sample: wp.array | None = None  # a sample's velocities V (strang; :meth:`velocity`)
         self._w_next: wp.array | None = None  # and the next step's drift velocities w⁺
         self.launcher = Launcher(model.device)  # its launches packed once, replayed (on the CPU)
 
@@ -385,15 +385,16 @@ class HFSolver:
 
     def velocity(self, state: HFState, dt: float) -> wp.array:
         """The patch velocities [m/s] of a sample: for strang from the staggered state, the velocity V of the merged
-        friction sub-step that the next step of ``dt`` opens with (:func:`~aca_warp.kernels.physics.
-        strang_sample_velocity`; that sub-step's w⁺ in :attr:`next_drift`), without changing the state."""
+        friction sub-step that the next step of ``dt`` opens with
+        (:func:`~aca_warp.kernels.physics.strang_sample_velocity`; that sub-step's w⁺ in :attr:`next_drift`), without
+        changing the state."""
         if self.integrator != "strang":
             return state.v
-        if self._v_sync is None:
-            self._v_sync, self._w_next = wp.zeros_like(state.v), wp.zeros_like(state.v)
-        args = [self.kernel_model, self.T(dt), self.newton_tol, state.force, state.v, self._v_sync, self._w_next]
+        if self._v_sample is None:
+            self._v_sample, self._w_next = wp.zeros_like(state.v), wp.zeros_like(state.v)
+        args = [self.kernel_model, self.T(dt), self.newton_tol, state.force, state.v, self._v_sample, self._w_next]
         self._launch(self._sample, args)
-        return self._v_sync
+        return self._v_sample
 
     @property
     def next_drift(self) -> wp.array | None:
