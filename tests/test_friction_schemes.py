@@ -145,3 +145,9 @@ def test_even_steps_land_on_the_sample() -> None:
     h = even_step(3e-7, 0.0, 1e-6)
     assert h == pytest.approx(2.5e-7) and even_step(1e-6, 2e-7, 1e-6) == pytest.approx(8e-7)
     assert even_step(5e-7, 0.0, 1e-6) == pytest.approx(5e-7)
+
+
+def test_run_fixed_refuses_an_unknown_sample(sector: fs.Pads) -> None:
+    """``run_fixed``'s ``sample`` is "close" or "step"; anything else is refused, not read as "close"."""
+    with pytest.raises(ValueError, match="sample must be"):
+        fs.run_fixed(sector, fs.Scheme.parse("forced-thmid"), 1e-7, 1e-6, 1e-6, sample="steps")

@@ -664,6 +664,8 @@ def run_fixed(
     [s]; with ``readings`` also the record's other readings of μ (segment, instant, applied). Returns the
     :class:`Record`, the step, the steps, and
     friction evaluations per patch per step (recording closes excluded) and per simulated ms."""
+    if sample not in ("close", "step"):
+        raise ValueError(f"sample must be 'close' or 'step', got {sample!r}")
     per, h = fixed_step(dt, sample_dt)
     samples = round(duration / sample_dt)
     rec = Record.empty(samples + 1, pads, sample_dt, patch_window, readings=readings)
