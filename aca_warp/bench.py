@@ -583,8 +583,8 @@ def add_parsers(sub: Any) -> None:
         default=1.0e-8,
         metavar="S",
         help="fixed step [s] (default 1e-8, the step of the published tables, which ran the point treatment: "
-        "--crossing point), or 'default': strang's default step "
-        "for the scene, as `aca-warp hf` takes it (2.5e-7 for the shipped presets' physics, 5e-8 for any other scene; "
+        "--crossing point), or 'default': strang's default step for the scene, as `aca-warp hf` takes it (3.33e-7 "
+        "or 2.5e-7 by regime for the shipped presets' physics, 5e-8 for any other scene; "
         "docs/numerics.md); refused, as by aca-warp hf, when longer than the sample interval or beyond 1e-5 s; "
         "shortened so that whole steps fill a sample interval (JSON dt_s: the step taken, dt_asked_s: this one)",
     )

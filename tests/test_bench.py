@@ -67,9 +67,9 @@ def test_bench_sample_interval_longer_than_the_warm_up(tmp_path: Path) -> None:
 
 
 def test_bench_takes_strangs_default_step_when_asked(tmp_path: Path) -> None:
-    """``--dt default``: the scene's own default step (2.5e-7 s for a preset's physics, 5e-8 s once the patch count
+    """``--dt default``: the scene's own default step (hf1's 1e-6/3 s for its physics, 5e-8 s once the patch count
     differs from the preset's, the sample interval where that is shorter down to 5e-8 s), recorded as such."""
-    cases = ((None, 1e-6, 2.5e-7, 8), (10, 1e-6, 5e-8, 40), (None, 5e-8, 5e-8, 40))
+    cases = ((None, 1e-6, 1e-6 / 3, 6), (10, 1e-6, 5e-8, 40), (None, 5e-8, 5e-8, 40))
     for i, (patches, sample, dt, steps) in enumerate(cases):
         out, md = tmp_path / f"d{i}.json", tmp_path / f"d{i}.md"
         args = ["bench", "--dt", "default", "--duration", "2e-6", "--precision", "fp32", "--no-reference"]

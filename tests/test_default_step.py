@@ -1,7 +1,8 @@
 """The step and crossing treatment a fixed-step run takes when none is asked for: strang's are those at which the
-saturated statistics were shown to hold, 2.5e-7 s with the crossings averaged for a scene with a shipped preset's
-physics (any patch seed, initial state, recording) and 5e-8 s with the point treatment for any other scene; a batch of
-both is refused, so that a pad's run never depends on its batch. The other fixed-step integrators keep 1e-8 s."""
+saturated statistics were shown to hold, with the crossings averaged for a scene with a shipped preset's physics (any
+patch seed, initial state, recording) 1e-6/3 s (three steps a 1 µs sample) for the regimes that keep every measure
+there and 2.5e-7 s for the others, and 5e-8 s with the point treatment for any other scene; a batch of both is
+refused, so that a pad's run never depends on its batch. The other fixed-step integrators keep 1e-8 s."""
 
 from __future__ import annotations
 
@@ -17,10 +18,13 @@ from aca_warp.hf.options import (
     DEFAULT_DT,
     PRESET_CROSSING,
     PRESET_STEP,
+    REGIME_STEPS,
     STATISTICS_STEP,
+    THREE_STEP,
     RunOptions,
     default_crossing,
     default_step,
+    regime_step,
 )
 from aca_warp.hf.runner import plan_run
 from aca_warp.hf.state import initial_state
@@ -32,7 +36,12 @@ from tests.test_small_defects import tiny_scene
 def test_default_steps_by_integrator():
     hf1 = preset("hf1")
     assert default_step("strang") == default_step("strang", [tiny_scene(1e-6)]) == STATISTICS_STEP == 5e-8
-    assert default_step("strang", [hf1, preset("varying_area_equal")]) == PRESET_STEP == 2.5e-7
+    assert default_step("strang", [hf1, preset("varying_area_equal")]) == PRESET_STEP == 2.5e-7  # the shorter
+    assert default_step("strang", [hf1, preset("hf3_equal")]) == THREE_STEP == 1e-6 / 3
+    steps = {name: default_step("strang", [preset(name)]) for name in PRESETS}
+    assert steps == {name: regime_step(name) for name in PRESETS}
+    assert {name for name, step in steps.items() if step == THREE_STEP} == set(REGIME_STEPS)
+    assert {"hf2", "hf4_equal", "varying_area", "varying_area_equal"} == {n for n in PRESETS if steps[n] == PRESET_STEP}
     for integrator in ("implicit-friction", "symplectic-euler"):
         assert default_step(integrator) == default_step(integrator, [hf1]) == DEFAULT_DT == 1e-8
     with pytest.raises(
@@ -101,7 +110,7 @@ def test_a_run_without_dt_takes_the_default_step():
     model = build_model([hf1, hf1.replace(patches=PatchGenerator(count=1758, seed=3, height_spread=2.42e-7)
                                           .generate(hf1.pad))])  # fmt: skip
     res = run_hf(model, initial_state(model), RunOptions(duration=1e-6), record=Record(1e-6))
-    assert res.complete and res.dt == PRESET_STEP and res.steps == 4
+    assert res.complete and res.dt == THREE_STEP and res.steps == 3  # whole steps: 1e-6 / 3 taken as it is
     with pytest.raises(SceneError, match="give the step"):
         run_hf(build_model([hf1, s]), None, RunOptions(duration=1e-6))
     with pytest.raises(SceneError, match="give the crossing treatment"):  # the step given, the treatment not
@@ -158,11 +167,11 @@ def test_a_sweep_spec_writes_its_default_step_out():
     with pytest.raises(SweepError, match="shorter than the step 1e-08 s"):  # checked against the first trial's bound
         load_spec({**doc, "run": {"duration": 1e-5, "integrator": "adaptive", "sample_dt": 5e-9}})
     seeds = {**doc, "parameters": {"patches.seed": [1, 2], "initial.state": ["rest", "equilibrium"]}}
-    assert load_spec(seeds).dt == PRESET_STEP and load_spec(seeds).run_settings()["dt"] == PRESET_STEP
+    assert load_spec(seeds).dt == THREE_STEP and load_spec(seeds).run_settings()["dt"] == THREE_STEP
     custom = {**seeds, "sweep": {"base": "hf1"}, "base": {"load": {"normal_force": 400.0}}}
     assert load_spec(custom).dt == STATISTICS_STEP
     own = {"friction.M": [0.8, 0.8], "load.normal_force": [487.2], "patches.count": [1758], "patches.seed": [1, 2]}
-    assert load_spec({**doc, "parameters": own}).dt == PRESET_STEP  # hf1's own M, load and count
+    assert load_spec({**doc, "parameters": own}).dt == THREE_STEP  # hf1's own M, load and count
     for key, other in (("friction.M", 0.7), ("load.normal_force", 400.0), ("patches.count", 1000)):
         changed = {**own, key: [*own[key], other]}
         assert load_spec({**doc, "parameters": changed}).dt == STATISTICS_STEP, key
@@ -278,7 +287,7 @@ def test_a_sweep_names_its_step(tmp_path, capsys):
         '[sweep]\nbase = "hf1"\nshard_size = 2\n[run]\nduration = 2e-6\n[parameters]\n"patches.seed" = [1, 2]\n'
     )
     assert main(["sweep", str(spec), "-o", str(tmp_path / "sw"), "--workers", "0"]) == 0
-    assert "2e-06 s each, strang fp32 at 2.5e-07 s, crossings averaged, spec hash" in capsys.readouterr().out
+    assert "2e-06 s each, strang fp32 at 3.33e-07 s, crossings averaged, spec hash" in capsys.readouterr().out
 
 
 def test_a_sample_interval_between_the_defaults_sets_the_step():
@@ -286,10 +295,10 @@ def test_a_sample_interval_between_the_defaults_sets_the_step():
     one default of 5e-8 s still runs); below 5e-8 s the sample interval is refused as for any step, and the message
     names 5e-8 s as the shortest interval (for a step asked for, the step itself), in a run and in a sweep."""
     hf1 = preset("hf1")
-    for sample, step in ((5e-8, 5e-8), (8e-8, 8e-8), (2e-7, 2e-7), (5e-7, 2.5e-7), (1e-6, 2.5e-7)):
+    for sample, step in ((5e-8, 5e-8), (8e-8, 8e-8), (2e-7, 2e-7), (5e-7, 2.5e-7), (1e-6, 1e-6 / 3)):
         plan = plan_run(hf1.replace(record=Record(sample)), RunOptions(duration=1e-6))
         assert plan.step == pytest.approx(step) and plan.steps == round(1e-6 / step)
-    shortest = r"shorter than the default step 2.5e-07 s \(which a sample interval down to 5e-08 s would shorten\).*"
+    shortest = r"shorter than the default step 3.33e-07 s \(which a sample interval down to 5e-08 s would shorten\).*"
     with pytest.raises(SceneError, match=shortest + "at least 5e-08 s"):
         plan_run(hf1.replace(record=Record(2e-8)), RunOptions(duration=1e-6))
     with pytest.raises(SceneError, match=r"shorter than the step 1e-07 s: .* at least 1e-07 s"):
@@ -357,3 +366,32 @@ def test_an_lf_state_of_a_measured_group_takes_the_preset_step(tmp_path):
     constant["lf"]["dt"] = 0.02
     assert lf_state_regime(louder, "app3_start") is None and lf_state_regime(constant, "app3_start") is None
     assert lf_state_regime(doc, "app2_start") is None and lf_state_regime({"lf": 1}, "app3_start") is None
+
+
+def test_the_regimes_at_three_steps_a_sample_are_those_whose_statistics_keep_every_measure_there():
+    """:data:`REGIME_STEPS` is the rule's reading of the committed result files of the study at three steps a 1 µs
+    sample (docs/figures/work_precision_statistics/three_steps/): the regimes whose row at 1e-6/3 s (asked as
+    3.33334e-7 s) with the crossings averaged, fp32, growth every 5 µs where pads grow, keeps every measure (rule
+    ¼ σ, criterion ``resolution``), the same seeds and references as their row at 2.5e-7 s beside it; the LF groups
+    do not (their states keep :data:`PRESET_STEP`)."""
+    from pathlib import Path
+
+    from aca_warp.studies import work_precision_stats_rule as rule
+
+    folder = Path(__file__).resolve().parent.parent / "docs" / "figures" / "work_precision_statistics" / "three_steps"
+    preset_of = {"va": "varying_area", "va_equal": "varying_area_equal"}
+    keep_all: dict[str, bool] = {}
+    for sub in sorted(p for p in folder.iterdir() if p.is_dir() and p.name != "logs"):
+        (path,) = sub.glob(f"wps_*_{sub.name}.json")
+        regime = rule.load_results(path)["regimes"][sub.name]
+        rows = {s["dt"]: s for s in regime["settings"]
+                if s["role"] == "grid" and rule.usable(s) and s["precision"] == "fp32" and s["crossing"] == "mean"
+                and not s["fast_math"] and s["growth_dt"] in (None, 5e-6)}  # fmt: skip
+        three, four = rows[3.33334e-7], rows[2.5e-7]
+        assert three["steps"] * 4 == four["steps"] * 3  # three steps where the default took four
+        keep_all[preset_of.get(sub.name, sub.name)] = all(
+            rule.kept(rule.verdict(regime, three, m, rule.DEFAULT_RULE)) for m in regime["measures"]
+        )
+    assert set(keep_all) == set(PRESETS) | {"ms_mid", "ms_app3"}
+    assert {name for name, kept in keep_all.items() if kept} == set(REGIME_STEPS)
+    assert all(step == THREE_STEP for step in REGIME_STEPS.values())

@@ -727,7 +727,7 @@ def test_bench_sweep_preparations() -> None:
 
 def test_bench_sweep_kinds_and_steps() -> None:
     """scripts/bench_sweep.py's sweeps: ``seeds`` gives every pad a patch seed of its own (1…pads), ``product`` the
-    M × F_N × 8 seeds of ``hf1_product_doc``; ``--dt default`` leaves the step to the sweep's default (2.5e-7 s for the
+    M × F_N × 8 seeds of ``hf1_product_doc``; ``--dt default`` leaves the step to the sweep's default (1e-6/3 s for the
     seeds of hf1's physics, 5e-8 s for the product, whose M and load vary), a number names it; the seeds sweep warms
     up on two shards per unit (a power of two, at most the sweep)."""
     from scriptload import load_script
@@ -737,7 +737,7 @@ def test_bench_sweep_kinds_and_steps() -> None:
     bench = load_script("bench_sweep")
     cfg = {"pads": 2048, "shard_size": 256, "patches": None, "precision": "fp32", "units": 2}
     seeds = load_spec(bench.sweep_doc(hf1_product_doc, {**cfg, "sweep": "seeds", "dt": None}, 1e-3))
-    assert seeds.doc["parameters"] == {"patches.seed": {"range": [1, 2049]}} and seeds.dt == 2.5e-7
+    assert seeds.doc["parameters"] == {"patches.seed": {"range": [1, 2049]}} and seeds.dt == 1e-6 / 3
     product = load_spec(bench.sweep_doc(hf1_product_doc, {**cfg, "sweep": "product", "dt": None}, 1e-3))
     assert set(product.doc["parameters"]) == {"friction.M", "load.normal_force", "patches.seed"}
     assert product.dt == 5e-8

@@ -96,7 +96,7 @@ RANGES: dict[str, Range] = {
         (1e-9, 1e-4), (("µs", 1e-6), ("ms", 1e-3), ("ns", 1e-9)), "check the exponent",
     ),
     "hf_step": Range(
-        "s", 1.0e-13, 1.0e-5, "HF steps are nanoseconds, 5e-8 or 2.5e-7 s for strang by default", (1e-11, 1e-6),
+        "s", 1.0e-13, 1.0e-5, "HF steps are nanoseconds, 5e-8 to 3.3e-7 s for strang by default", (1e-11, 1e-6),
         (("ns", 1e-9), ("µs", 1e-6)), "check the exponent",
     ),
     "lf_step": Range(

@@ -35,6 +35,7 @@ from aca_warp.hf.options import (
     SOLVE_TOL_HELP,
     STATISTICS_STEP,
     STEP_CONTROLLED,
+    THREE_STEP,
     crossing_words,
     growth_words,
     solve_tol_words,
@@ -105,9 +106,10 @@ def _add_run_arguments(hf: argparse.ArgumentParser) -> None:
         "--dt",
         type=positive,
         metavar="S",
-        help=f"fixed step [s]; default for strang {PRESET_STEP:g} with a preset's physics (hf1-hf4, varying_area, "
-        f"the multiscale LF states app1_end, app3_*, app4_*) and {STATISTICS_STEP:g} otherwise, the steps at which the "
-        f"saturated statistics hold (the first with --crossing mean, its default there; docs/numerics.md); "
+        help=f"fixed step [s]; default for strang with a preset's physics {THREE_STEP:.3g} (three steps a 1 us sample) "
+        f"for hf1, hf3, hf4 and hf1-hf3 at equal heights, {PRESET_STEP:g} for hf2, hf4_equal, varying_area and the "
+        f"multiscale LF states app1_end, app3_*, app4_*, and {STATISTICS_STEP:g} otherwise, the steps at which the "
+        f"saturated statistics hold (the first two with --crossing mean, its default there; docs/numerics.md); "
         f"{DEFAULT_DT:g} for the other fixed-step integrators; the "
         f"first trial step of adaptive, controlled and auto; shortened to fit whole steps in a sample interval (a "
         f"shorter sample interval is refused, but strang's default follows one down to {STATISTICS_STEP:g})",

@@ -23,7 +23,8 @@ INTEGRATORS = ("symplectic-euler", "implicit-friction", "strang", "adaptive", "c
 STEP_CONTROLLED = ("adaptive", "controlled", "auto")
 DEFAULT_INTEGRATOR = "strang"
 DEFAULT_DT = 1.0e-8  # s: the default step of the fixed-step integrators other than strang
-# strang's default step [s] and crossing treatment for a batch whose every pad is of a measured regime: a shipped
+# strang's default step [s] (but for the regimes of REGIME_STEPS, below) and crossing treatment for a batch whose every
+# pad is of a measured regime: a shipped
 # preset's physics (hf1–hf4, varying_area and their equal-height variants, any patch seed; aca_warp.scene.regimes) or
 # a marked LF state of the multiscale preset (aca_warp.lf.io.STATES_AT_PRESET_STEP). With the zero-slip crossings
 # averaged, the statistical work-precision (docs/work_precision_statistics.md) keeps every validation measure at
@@ -34,6 +35,14 @@ DEFAULT_DT = 1.0e-8  # s: the default step of the fixed-step integrators other t
 # hf1_equal and hf3_equal, μ mean in hf2. The validation's committed ensembles ran at 1e-7 s with the point treatment,
 # which keeps every measure too (aca_warp.studies.validation.settings).
 PRESET_STEP = 2.5e-7
+# the measured regimes whose statistics keep every measure at three steps a 1 µs sample as well (1e-6/3 s, the
+# crossings averaged, the same seeds and references; docs/figures/work_precision_statistics/three_steps/): hf1, hf3,
+# hf4 and the equal-height hf1-hf3 take that step by default (:func:`regime_step`). There hf2 and hf4_equal leave
+# S − S_null undecided (0.28 and 0.31 σ), the growing pads their μ mean and rise (0.27-0.36 σ), the LF groups their
+# velocity-sum peak (ms_app3, undecided) and f1 (ms_mid, moved 0.41 σ): they keep PRESET_STEP. hf1's μ mean, a bias
+# that grows with the step (0.11 σ at 2.5e-7 s), reaches 0.21 σ there, its 95 % bound 0.24 σ.
+THREE_STEP = 1.0e-6 / 3.0
+REGIME_STEPS = dict.fromkeys(("hf1", "hf3", "hf4", "hf1_equal", "hf2_equal", "hf3_equal"), THREE_STEP)
 PRESET_CROSSING = "mean"
 # strang's default step [s] for any other scene: every measured regime kept its measures at 5e-8 s in fp32 before
 # the fp32 damping fix, the LF states too (one of their groups, ms_short, not at 1e-7 s; another, ms_fast, was
@@ -88,14 +97,24 @@ FAST_MATH_HELP = (
 WATCHDOG_FACTOR = 100.0  # watchdog bound = this × the scene's velocity scale (recorder.watchdog_bound)
 
 
-def _measured_batch(scenes: Iterable[Scene], default: str, measured_value: str, other_value: str) -> bool:
-    """Whether every scene is of a measured regime (a shipped preset's physics, or a marked LF state:
-    :func:`~aca_warp.scene.regimes.preset_regime`); False when none is or none is given. A batch of both is refused
-    (SceneError, naming the ``default`` it would need and its two values), so that a pad's default never depends on
-    the batch it shares."""
+def regime_step(regime: str) -> float:
+    """strang's default step [s] for the pads of a measured regime (a name
+    :func:`~aca_warp.scene.regimes.preset_regime` gives): :data:`THREE_STEP` for those of :data:`REGIME_STEPS`, else
+    :data:`PRESET_STEP`."""
+    return REGIME_STEPS.get(regime, PRESET_STEP)
+
+
+def _regimes(scenes: Iterable[Scene]) -> list[str | None]:
+    """The measured regime of each scene (:func:`~aca_warp.scene.regimes.preset_regime`), None where it has none."""
     from aca_warp.scene.regimes import preset_regime
 
-    regimes = [preset_regime(s) for s in scenes]
+    return [preset_regime(s) for s in scenes]
+
+
+def _measured_batch(regimes: list[str | None], default: str, measured_value: str, other_value: str) -> bool:
+    """Whether every pad is of a measured regime (``regimes``: :func:`_regimes` of the batch's scenes); False when
+    none is or none is given. A batch of both is refused (SceneError, naming the ``default`` it would need and its
+    two values), so that a pad's default never depends on the batch it shares."""
     measured = [r is not None for r in regimes]
     if any(measured) and not all(measured):
         names = sorted({r for r in regimes if r is not None})
@@ -110,15 +129,18 @@ def _measured_batch(scenes: Iterable[Scene], default: str, measured_value: str, 
 def default_step(integrator: str, scenes: Iterable[Scene] = ()) -> float:
     """The step [s] a fixed-step run of the pads of ``scenes`` takes when none is asked for.
 
-    ``strang``: :data:`PRESET_STEP` when every scene is of a measured regime that keeps its statistics there,
+    ``strang``: when every scene is of a measured regime, the shortest of their regimes' steps (:func:`regime_step`:
+    every regime's statistics were measured at :data:`PRESET_STEP`, so a batch of several keeps each one's);
     :data:`STATISTICS_STEP` when none is (or none is given); a batch of both is refused (:func:`_measured_batch`).
     The other fixed-step integrators: :data:`DEFAULT_DT` (explicit friction, or a friction step not measured for
     the statistics).
     """
     if integrator != "strang":
         return DEFAULT_DT
-    measured = _measured_batch(scenes, "step (dt)", f"{PRESET_STEP:g} s", f"{STATISTICS_STEP:g} s")
-    return PRESET_STEP if measured else STATISTICS_STEP
+    regimes = _regimes(scenes)
+    step = min((regime_step(r) for r in regimes if r is not None), default=PRESET_STEP)
+    measured = _measured_batch(regimes, "step (dt)", f"{step:.3g} s", f"{STATISTICS_STEP:g} s")
+    return step if measured else STATISTICS_STEP
 
 
 def default_crossing(integrator: str, scenes: Iterable[Scene] = ()) -> str:
@@ -127,7 +149,7 @@ def default_crossing(integrator: str, scenes: Iterable[Scene] = ()) -> str:
     or for another integrator); a batch of both is refused (:func:`_measured_batch`)."""
     if integrator != "strang":
         return "point"
-    measured = _measured_batch(scenes, "crossing treatment", PRESET_CROSSING, "point")
+    measured = _measured_batch(_regimes(scenes), "crossing treatment", PRESET_CROSSING, "point")
     return PRESET_CROSSING if measured else "point"
 
 
@@ -285,7 +307,7 @@ class RunOptions:
         duration: Simulated time [s]; None: the scene's own duration.
         integrator: One of :data:`INTEGRATORS` (docs/numerics.md).
         dt: Fixed step [s] (shortened so that whole steps fit a sample interval); None: :func:`default_step`
-            (``strang`` :data:`PRESET_STEP` for the shipped presets' physics and the measured LF states of the
+            (``strang`` :func:`regime_step` for the shipped presets' physics and the measured LF states of the
             multiscale preset, else :data:`STATISTICS_STEP`; the other fixed-step integrators :data:`DEFAULT_DT`).
             For the step-controlled integrators (:data:`STEP_CONTROLLED`) the first trial step.
         tolerance: Relative tolerance of the explicit pair: ``adaptive`` and the sliding mode of ``auto`` [1].

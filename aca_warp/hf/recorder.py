@@ -60,7 +60,7 @@ def check_sample_step(sample_dt: float, dt: float, anyway: str = "", follows: fl
         least = dt if follows is None else follows
         which = f"the step {dt:g} s"
         if follows is not None:
-            which = f"the default step {dt:g} s (which a sample interval down to {follows:g} s would shorten)"
+            which = f"the default step {dt:.3g} s (which a sample interval down to {follows:g} s would shorten)"
         named = option(
             "record.sample_dt",
             "the sample interval (--sample-dt, or record.sample_dt in the scene)",

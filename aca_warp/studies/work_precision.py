@@ -487,7 +487,7 @@ def measure(args: argparse.Namespace, argv: list[str]) -> Path:
     args.long_ref_dt = args.long_ref_dt or 2.5e-9
     args.scipy_cap = args.scipy_cap or (5.0 if args.quick else 30.0)
     args.scipy_cap_long = args.scipy_cap_long or (10.0 if args.quick else 60.0)
-    dt = default_step(DEFAULT_INTEGRATOR)  # the default for a scene of no preset (the full presets': PRESET_STEP)
+    dt = default_step(DEFAULT_INTEGRATOR)  # the default for a scene of no preset (the full presets': regime_step)
     print(f"default integrator {DEFAULT_INTEGRATOR}, dt {dt:g} s, tolerance {DEFAULT_TOLERANCE:g}", flush=True)
     dev = wp.get_device(args.device)
     t0 = time.perf_counter()
