@@ -7,7 +7,7 @@ The sweep: ``--pads`` hf1 pads, ``strang``, fp32, 1 µs samples, 1 ms simulated,
 load.normal_force × patches.seed, 8 layouts; ``--sweep seeds``: patch seeds 1…pads, every pad a layout of its own
 (the ensembles of the statistics), whose layouts the preparation makes. ``--dt``: 1e-8 s by default, the step of
 the earlier runs, so that they compare; ``--dt default`` runs the sweep's own default step, as a user's sweep does
-(5e-8 s for the product sweep, whose M and load vary; 2.5e-7 s for the seeds sweep, hf1's physics, whose default
+(5e-8 s for the product sweep, whose M and load vary; 1e-6/3 s for the seeds sweep, hf1's physics, whose default
 crossing treatment, ``mean``, it takes at any step; 1e-7 s with the point treatment before).
 Each configuration runs in a child process that imports the code under test (its Dask workers and preparation
 processes inherit it), starts a local Dask cluster as that code's ``aca-warp sweep --device cuda:0[,cuda:1]`` does
@@ -626,7 +626,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         type=step_or_default,
         default=1e-8,
         help="strang's step [s], or 'default': the sweep's default step (5e-8 s for the product sweep, whose M and "
-        "load vary; 2.5e-7 s for the seeds sweep, hf1's physics) (default 1e-8, the step of the earlier runs)",
+        "load vary; 1e-6/3 s for the seeds sweep, hf1's physics) (default 1e-8, the step of the earlier runs)",
     )
     ap.add_argument(
         "--prepare", type=int_at_least(0), help="preparation processes of the new code (default: as aca-warp sweep)"

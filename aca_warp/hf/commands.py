@@ -415,8 +415,8 @@ def _default_step_words(args: argparse.Namespace, scene: Any, dt: float) -> str:
     if math.isclose(dt, default, rel_tol=1e-9):
         return f", the default step for {whose}"
     if math.isclose(dt, scene.record.sample_dt, rel_tol=1e-9):
-        return f", the sample interval, shorter than the default step for {whose} ({default:g} s)"
-    return f", the default step for {whose} ({default:g} s) shortened to fill the sample interval in whole steps"
+        return f", the sample interval, shorter than the default step for {whose} ({default:.3g} s)"
+    return f", the default step for {whose} ({default:.3g} s) shortened to fill the sample interval in whole steps"
 
 
 def stopped_at(sim_time: float, duration: float | None) -> str:

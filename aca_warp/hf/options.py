@@ -39,8 +39,8 @@ PRESET_STEP = 2.5e-7
 # crossings averaged, the same seeds and references; docs/figures/work_precision_statistics/three_steps/): hf1, hf3,
 # hf4 and the equal-height hf1-hf3 take that step by default (:func:`regime_step`). There hf2 and hf4_equal leave
 # S − S_null undecided (0.28 and 0.31 σ), the growing pads their μ mean and rise (0.27-0.36 σ), the LF groups their
-# velocity-sum peak (ms_app3, undecided) and f1 (ms_mid, moved 0.41 σ): they keep PRESET_STEP. hf1's μ mean, a bias
-# that grows with the step (0.11 σ at 2.5e-7 s), reaches 0.21 σ there, its 95 % bound 0.24 σ.
+# velocity-sum peak (ms_app3, undecided) and f1 (ms_mid, moved 0.41 σ): they keep PRESET_STEP. hf1's μ mean error
+# (0.11 σ at 2.5e-7 s) reaches 0.21 σ there, its 95 % bound 0.24 σ.
 THREE_STEP = 1.0e-6 / 3.0
 REGIME_STEPS = dict.fromkeys(("hf1", "hf3", "hf4", "hf1_equal", "hf2_equal", "hf3_equal"), THREE_STEP)
 PRESET_CROSSING = "mean"

@@ -15,7 +15,7 @@ Every shipped preset was measured so, the equal-height variants too (docs/work_p
 
 An HF scene of a saved LF state (:func:`~aca_warp.lf.io.scene_from_snapshot`) is a measured regime when the LF run was
 the shipped multiscale preset (any seed) and the state one of the groups that keep their statistics at strang's
-default for a measured regime (2.5e-7 s with the crossings averaged; 1e-7 s with the point treatment too): the
+default for them (2.5e-7 s with the crossings averaged; 1e-7 s with the point treatment too): the
 snapshot marks it in its ``origin`` with :func:`measured_origin`, which also records the scene's physics
 (:func:`physics_digest`), so that a scene changed afterwards (another load, other patches) is no longer one.
 """
