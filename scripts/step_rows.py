@@ -19,6 +19,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from default_row_changes import merged
+
 from aca_warp.studies import work_precision_stats_rule as rule
 
 SHORT = {"keeps": "keeps", "within resolution": "within resolution", "undecided": "undecided", "moves": "moves"}
@@ -36,16 +38,6 @@ def stepping_rows(regime: dict[str, Any], steps: list[float]) -> list[dict[str, 
             raise KeyError(f"{regime.get('name', '?')} has no fp32 row at {dt:g} s with the crossings averaged")
         grown = [s for s in rows if s.get("growth_dt") == 5e-6]
         out.append((grown or rows)[0])
-    return out
-
-
-def merged(folder: Path) -> dict[str, Path]:
-    """The merged result file of each regime folder of ``folder`` (the one directly in it, not a part's)."""
-    out = {}
-    for sub in sorted(p for p in folder.iterdir() if p.is_dir()):
-        files = sorted(sub.glob(f"wps_*_{sub.name}.json"))
-        if files:
-            out[sub.name] = files[0]
     return out
 
 
