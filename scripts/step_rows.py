@@ -23,8 +23,6 @@ from default_row_changes import merged
 
 from aca_warp.studies import work_precision_stats_rule as rule
 
-SHORT = {"keeps": "keeps", "within resolution": "within resolution", "undecided": "undecided", "moves": "moves"}
-
 
 def stepping_rows(regime: dict[str, Any], steps: list[float]) -> list[dict[str, Any]]:
     """The regime's usable fp32 rows with the crossings averaged at each of ``steps`` [s] (growth every 5 µs where a
@@ -68,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
         for m, v in verdicts[-1].items():
             if v != "keeps":
                 c = rule.compare_setting(regime, rows[-1], m)
-                last.append(f"{rule.MEASURES[m].label} {c.ratio:.2f} ({c.bound_ratio:.2f}), {SHORT[v]}")
+                last.append(f"{rule.MEASURES[m].label} {c.ratio:.2f} ({c.bound_ratio:.2f}), {v}")
         n = rule.compare_setting(regime, rows[0], regime["measures"][0]).n
         walls = " / ".join(f"{r['wall_s']:.2f}" for r in rows)
         if args.markdown:

@@ -24,16 +24,16 @@ STEP_CONTROLLED = ("adaptive", "controlled", "auto")
 DEFAULT_INTEGRATOR = "strang"
 DEFAULT_DT = 1.0e-8  # s: the default step of the fixed-step integrators other than strang
 # strang's default step [s] (but for the regimes of REGIME_STEPS, below) and crossing treatment for a batch whose every
-# pad is of a measured regime: a shipped
-# preset's physics (hf1–hf4, varying_area and their equal-height variants, any patch seed; aca_warp.scene.regimes) or
-# a marked LF state of the multiscale preset (aca_warp.lf.io.STATES_AT_PRESET_STEP). With the zero-slip crossings
-# averaged, the statistical work-precision (docs/work_precision_statistics.md) keeps every validation measure at
-# 2.5e-7 s in fp32 in the saturated ensembles of hf1–hf4, of their equal-height variants and of the two LF groups
-# (32–160 seeds each; since samples read the next step's solve, ms_app3's Φ is undecided at 0.256 σ, 0.006 σ beyond
-# the rule); the growing pads (va, va_equal, growth events every 5 µs) keep every measure but the STFT maximum there,
-# as at 1e-7 s with the point treatment. With the point treatment 2.5e-7 s moves Φ in hf1, hf3,
-# hf1_equal and hf3_equal, μ mean in hf2. The validation's committed ensembles ran at 1e-7 s with the point treatment,
-# which keeps every measure too (aca_warp.studies.validation.settings).
+# pad is of a measured regime: a shipped preset's physics (hf1–hf4, varying_area and their equal-height variants, any
+# patch seed; aca_warp.scene.regimes) or a marked LF state of the multiscale preset
+# (aca_warp.lf.io.STATES_AT_PRESET_STEP). With the zero-slip crossings averaged, the statistical work-precision
+# (docs/work_precision_statistics.md) keeps every validation measure at 2.5e-7 s in fp32 in the saturated ensembles of
+# hf1–hf4, of their equal-height variants and of the two LF groups (32–160 seeds each; since samples read the next
+# step's solve, ms_app3's Φ is undecided at 0.256 σ, 0.006 σ beyond the rule); the growing pads (va, va_equal, growth
+# events every 5 µs) keep every measure but the STFT maximum there, as at 1e-7 s with the point treatment. With the
+# point treatment 2.5e-7 s moves Φ in hf1, hf3, hf1_equal and hf3_equal, μ mean in hf2. The validation's committed
+# ensembles ran at 1e-7 s with the point treatment, which keeps every measure too
+# (aca_warp.studies.validation.settings).
 PRESET_STEP = 2.5e-7
 # the measured regimes whose statistics keep every measure at three steps a 1 µs sample as well (1e-6/3 s, the
 # crossings averaged, the same seeds and references; docs/figures/work_precision_statistics/three_steps/): hf1, hf3,

@@ -2,16 +2,19 @@
 # strang's default stepping (2.5e-7 s, crossings averaged; growth every 5 us) on the current kernels, whose samples
 # read the solve of the step that follows them: every regime's parts of ../fast_mean/ continued on their seeds and
 # references with that one setting, its row made on other kernels run again and replaced (--again).
+# FROM, STEP and AGAIN (default: ../fast_mean/, 2.5e-7 s, --again) continue other parts with another step as a new
+# row (../three_steps/run.sh).
 # usage, from the repository root on a GPU: OUT=FOLDER LF=FOLDER bash run.sh GROUP...
 #   GROUP: hf (hf1-hf4), va, equal (hf1_equal-hf4_equal, va_equal), ms_mid, ms_app3; LF: where the LF states' runs
 #   are made (ms_mid, ms_app3); WORKERS: analysis processes (default 15)
 # Writes OUT/<regime>/[s<first seed>/]<the part's own file name> and log.txt beside it.
 set -uo pipefail
-F=docs/figures/work_precision_statistics/fast_mean
-W="python3 scripts/work_precision_stats.py --device cuda:0 --workers ${WORKERS:-15} --again"
+F=${FROM:-docs/figures/work_precision_statistics/fast_mean}
+S=${STEP:-2.5e-7}
+W="python3 scripts/work_precision_stats.py --device cuda:0 --workers ${WORKERS:-15} ${AGAIN---again}"
 D="--duration 30e-3 --window 10e-3"
-G="--grid strang@fp32:dt=2.5e-7:mean"
-GV="--reference strang@fp32:dt=1e-8 --grid strang@fp32:dt=2.5e-7:growth_dt=5e-6:mean"
+G="--grid strang@fp32:dt=$S:mean"
+GV="--reference strang@fp32:dt=1e-8 --grid strang@fp32:dt=$S:growth_dt=5e-6:mean"
 
 # part REGIME PART OPTIONS...: continue F/REGIME/PART (copied as the device's file, renamed back after)
 part() {
